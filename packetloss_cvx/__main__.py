@@ -1,0 +1,7 @@
+"""``python -m packetloss_cvx``."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,130 @@
+"""Command line: ``packetloss-cvx SUBCOMMAND ...`` (DESIGN.md §4).
+
+Exit codes: 0 success; 2 bad input (one stderr line naming the field); 3 a
+well-posed problem with no solution; 1 anything else (one stderr line).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from .costs import closed_form
+from .errors import InfeasibleError, InputError, NumericalError, SolverError
+from .model import System, load_system
+from .qp import solve_qp
+from .results import eigenvalue_pairs
+
+__all__ = ["main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage error as one line and exit code 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise InputError("arguments", message)
+
+
+def _floats(text: str, field: str) -> list[float]:
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        raise InputError(field, f"expected comma-separated numbers, found {text!r}") from None
+    return values
+
+
+def _with_overrides(system: System, args: argparse.Namespace) -> System:
+    if args.mu is not None:
+        try:
+            system = system.with_mu(_floats(args.mu, "--mu"))
+        except InputError as err:
+            raise err.renamed("--mu") from None
+    if args.x0 is not None:
+        try:
+            system = system.with_x0(_floats(args.x0, "--x0"))
+        except InputError as err:
+            raise err.renamed("--x0") from None
+    return system
+
+
+def _solve(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    system = _with_overrides(load_system(args.file), args)
+    protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
+    out: dict[str, Any] = {
+        "name": system.name, "n": system.n, "m": system.m, "horizon": system.horizon,
+        "mu": system.mu_schedule[0].tolist() if system.is_stationary else system.mu_schedule.tolist(),
+    }
+    lines = [f"{system.name or args.file}: n={system.n}, m={system.m}, N={system.horizon}"]
+    for protocol in protocols:
+        sol = closed_form(system, protocol, method=args.method)
+        entry: dict[str, Any] = {
+            "cost": sol.cost, "inputs": sol.inputs.tolist(), "gain": sol.gain.tolist(),
+            "closed_loop_eigenvalues": eigenvalue_pairs(sol.closed_loop_eigenvalues),
+            "method": sol.method,
+        }
+        line = f"  {protocol.upper()}-like: J* = {sol.cost:.10g} ({sol.method})"
+        if not args.no_qp:
+            qp = solve_qp(system, protocol, args.formulation, with_gain=False)
+            check = qp.cross_check
+            entry["qp"] = {
+                "status": qp.status, "cost": qp.cost, "solve_time": qp.solve_time,
+                "formulation": qp.method.removeprefix("qp-"),
+                "max_input_diff": check.max_input_diff, "cost_rel_diff": check.cost_rel_diff,
+            }
+            line += (f"; QP {qp.status}, J = {qp.cost:.10g}, max|dU| = {check.max_input_diff:.2e}, "
+                     f"rel dJ = {check.cost_rel_diff:.2e}")
+        out[protocol] = entry
+        eig = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in sol.closed_loop_eigenvalues)
+        lines += [line, f"    K = {np.array2string(sol.gain, precision=4)}", f"    eig(A - B K) = {eig}"]
+    return out, "\n".join(lines)
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="packetloss-cvx", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    solve = sub.add_parser("solve", help="optimal plans, costs and gains, cross-checked by a QP")
+    solve.add_argument("file")
+    solve.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both")
+    solve.add_argument("--mu", help="override the channel: comma-separated, one per actuator")
+    solve.add_argument("--x0", help="override the initial state: comma-separated")
+    solve.add_argument("--method", choices=("dense", "recursion", "auto"), default="auto")
+    solve.add_argument("--formulation", choices=("condensed", "sparse", "auto"), default="auto")
+    solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check")
+    solve.add_argument("--json", action="store_true", help="print one JSON object")
+    solve.set_defaults(run=_solve)
+    return parser
+
+
+def _emit(result: tuple[dict[str, Any], str], as_json: bool) -> None:
+    data, text = result
+    if as_json:
+        print(json.dumps(data, allow_nan=False))
+    else:
+        print(text)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    parser = _build_parser()
+    try:
+        args = parser.parse_args(argv)
+        run: Callable[[argparse.Namespace], tuple[dict[str, Any], str]] = args.run
+        _emit(run(args), getattr(args, "json", False))
+        return 0
+    except InputError as err:
+        print(f"packetloss-cvx: error: {err}", file=sys.stderr)
+        return 2
+    except InfeasibleError as err:
+        print(f"packetloss-cvx: infeasible: {err}", file=sys.stderr)
+        return 3
+    except (SolverError, NumericalError) as err:
+        print(f"packetloss-cvx: {type(err).__name__}: {err}", file=sys.stderr)
+        return 1
+    except Exception as err:  # noqa: BLE001 - last line of defence: one line, no traceback
+        print(f"packetloss-cvx: unexpected {type(err).__name__}: {err}", file=sys.stderr)
+        return 1

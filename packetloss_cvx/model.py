@@ -1,0 +1,436 @@
+"""The validated, immutable model: plant, weights, horizon, channel, initial state.
+
+Conventions (paper eq:plant, eq:big):
+
+* ``state_weights[t]`` is Omega_{t+1}, the weight on X_{k+t+1}, t = 0..N-1;
+* ``input_weights[t]`` is the diagonal of Psi_t, the weight on U_{k+t};
+* ``mu_schedule[t, i]`` is the delivery probability of actuator i at step t;
+* ``initial_weight`` is Q, the weight on X_k; ``noise_cov`` is Sigma_W.
+"""
+
+from __future__ import annotations
+
+import numbers
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import DimensionError, InputError, ProbabilityError
+
+__all__ = ["System", "load_system", "psd_factor", "system_from_dict"]
+
+_REL_TOL = 1e-10
+
+
+def _numeric_array(value: Any, field: str) -> np.ndarray:
+    """Convert ``value`` to a float array, refusing strings, booleans, NaN and inf."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "iuf":
+            raise InputError(field, f"expected numbers, found an array of {value.dtype}")
+        arr = value.astype(float)
+    else:
+        _check_numbers(value, field)
+        try:
+            arr = np.asarray(value, dtype=float)
+        except ValueError:
+            raise InputError(field, "expected a rectangular array of numbers") from None
+    if not np.all(np.isfinite(arr)):
+        raise InputError(field, "expected finite numbers, found NaN or inf")
+    return arr
+
+
+def _check_numbers(value: Any, field: str) -> None:
+    if isinstance(value, bool):
+        raise InputError(field, "expected a number, found a boolean")
+    if isinstance(value, numbers.Real):
+        return
+    if isinstance(value, str):
+        raise InputError(field, f"expected a number, found the string {value!r}")
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            _check_numbers(item, field)
+        return
+    raise InputError(field, f"expected a number or a list of numbers, found {type(value).__name__}")
+
+
+def _shape_error(field: str, expected: str, found: tuple[int, ...]) -> DimensionError:
+    return DimensionError(field, f"expected shape {expected} but found {found}")
+
+
+def _matrix(value: Any, field: str, rows: int | None, cols: int | None, expected: str) -> np.ndarray:
+    arr = _numeric_array(value, field)
+    if arr.ndim != 2 or (rows is not None and arr.shape[0] != rows) or (
+        cols is not None and arr.shape[1] != cols
+    ):
+        raise _shape_error(field, expected, arr.shape)
+    return arr
+
+
+def _vector(value: Any, field: str, length: int, expected: str) -> np.ndarray:
+    arr = _numeric_array(value, field)
+    if arr.shape != (length,):
+        raise _shape_error(field, expected, arr.shape)
+    return arr
+
+
+def _psd_weight(value: Any, field: str, n: int) -> np.ndarray:
+    """A diagonal (length-n vector) or full n×n symmetric PSD weight, as a matrix."""
+    arr = _numeric_array(value, field)
+    if arr.ndim == 1:
+        if arr.shape != (n,):
+            raise _shape_error(field, f"({n},) or ({n}, {n})", arr.shape)
+        if np.any(arr < 0):
+            raise InputError(field, "expected a non-negative diagonal (positive semidefinite weight)")
+        return np.diag(arr)
+    if arr.shape != (n, n):
+        raise _shape_error(field, f"({n},) or ({n}, {n})", arr.shape)
+    return _symmetric_psd(arr, field)
+
+
+def _symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
+    scale = max(1.0, float(np.linalg.norm(arr, ord=2)))
+    if np.linalg.norm(arr - arr.T, ord=2) > _REL_TOL * scale:
+        raise InputError(field, "expected a symmetric matrix")
+    sym = 0.5 * (arr + arr.T)
+    if np.linalg.eigvalsh(sym).min() < -_REL_TOL * scale:
+        raise InputError(field, "expected a positive semidefinite matrix")
+    return sym
+
+
+def _horizon(value: Any, field: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(field, f"expected an integer >= 1, found {value!r}")
+    if int(value) < 1:
+        raise InputError(field, f"expected an integer >= 1, found {value}")
+    return int(value)
+
+
+def _probabilities(arr: np.ndarray, field: str) -> np.ndarray:
+    if np.any(arr < 0.0) or np.any(arr > 1.0):
+        bad = arr[(arr < 0.0) | (arr > 1.0)].flat[0]
+        raise ProbabilityError(field, f"expected probabilities in [0, 1], found {bad}")
+    return arr
+
+
+def _one_of(first: Any, second: Any, names: tuple[str, str]) -> None:
+    if (first is None) == (second is None):
+        both = "both" if first is not None else "neither"
+        raise InputError(f"{names[0]}/{names[1]}", f"expected exactly one of the two, found {both}")
+
+
+def psd_factor(W: np.ndarray) -> np.ndarray:
+    """L with L'L = W for a symmetric PSD W (eigen-decomposition; zero rows dropped)."""
+    vals, vecs = np.linalg.eigh(W)
+    keep = vals > 1e-14 * max(1.0, float(vals.max(initial=0.0)))
+    return np.sqrt(vals[keep])[:, None] * vecs[:, keep].T
+
+
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    arr = np.array(arr, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+class System:
+    """A plant behind m Bernoulli packet-loss channels, with an N-step MPC cost.
+
+    Parameters
+    ----------
+    A, B : array_like
+        Plant matrices, n×n and n×m (eq:plant).
+    horizon : int
+        Prediction horizon N >= 1.
+    state_weight, state_weights : array_like
+        Omega_t for every t (a length-n diagonal or an n×n symmetric PSD matrix),
+        or N such weights for t = 1..N. Exactly one is given.
+    input_weight, input_weights : array_like
+        Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
+    mu, mu_schedule : array_like
+        Delivery probabilities in [0, 1]: one per actuator, or N×m (non-stationary).
+    x0 : array_like
+        The state X_k (length n).
+    initial_weight : array_like, optional
+        Q on X_k (vector or matrix, PSD); default zeros.
+    noise_cov : array_like, optional
+        Sigma_W (n×n, symmetric PSD); default zeros.
+    name : str, optional
+
+    Raises
+    ------
+    InputError, DimensionError, ProbabilityError
+        With the offending field named. All subclass ValueError.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0],
+    ...            input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> s.n, s.m, s.horizon
+    (1, 1, 3)
+    """
+
+    __slots__ = (
+        "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
+        "x0", "initial_weight", "noise_cov", "name",
+    )
+
+    A: np.ndarray
+    B: np.ndarray
+    horizon: int
+    state_weights: np.ndarray
+    input_weights: np.ndarray
+    mu_schedule: np.ndarray
+    x0: np.ndarray
+    initial_weight: np.ndarray
+    noise_cov: np.ndarray
+    name: str | None
+
+    def __init__(
+        self,
+        *,
+        A: npt.ArrayLike,
+        B: npt.ArrayLike,
+        horizon: int,
+        x0: npt.ArrayLike,
+        state_weight: npt.ArrayLike | None = None,
+        state_weights: npt.ArrayLike | None = None,
+        input_weight: npt.ArrayLike | None = None,
+        input_weights: npt.ArrayLike | None = None,
+        mu: npt.ArrayLike | None = None,
+        mu_schedule: npt.ArrayLike | None = None,
+        initial_weight: npt.ArrayLike | None = None,
+        noise_cov: npt.ArrayLike | None = None,
+        name: str | None = None,
+    ) -> None:
+        A_ = _matrix(A, "A", None, None, "(n, n)")
+        n = A_.shape[0]
+        if A_.shape != (n, n):
+            raise _shape_error("A", "(n, n) (square)", A_.shape)
+        B_ = _matrix(B, "B", n, None, f"({n}, m)")
+        m = B_.shape[1]
+        if m < 1:
+            raise _shape_error("B", f"({n}, m) with m >= 1", B_.shape)
+        N = _horizon(horizon, "horizon")
+
+        _one_of(state_weight, state_weights, ("state_weight", "state_weights"))
+        if state_weight is not None:
+            W = np.repeat(_psd_weight(state_weight, "state_weight", n)[None], N, axis=0)
+        else:
+            items = _sequence(state_weights, "state_weights", N)
+            W = np.stack([_psd_weight(w, f"state_weights[{t}]", n) for t, w in enumerate(items)])
+
+        _one_of(input_weight, input_weights, ("input_weight", "input_weights"))
+        if input_weight is not None:
+            psi = np.repeat(_vector(input_weight, "input_weight", m, f"({m},)")[None], N, axis=0)
+            psi_field = "input_weight"
+        else:
+            psi = _matrix(input_weights, "input_weights", N, m, f"({N}, {m})")
+            psi_field = "input_weights"
+        if np.any(psi <= 0):
+            raise InputError(psi_field, "expected positive entries (Psi is positive definite)")
+
+        _one_of(mu, mu_schedule, ("mu", "mu_schedule"))
+        if mu is not None:
+            sched = np.repeat(_probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")[None], N, axis=0)
+        else:
+            sched = _probabilities(
+                _matrix(mu_schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule"
+            )
+
+        x0_ = _vector(x0, "x0", n, f"({n},)")
+        Q = np.zeros((n, n)) if initial_weight is None else _psd_weight(initial_weight, "initial_weight", n)
+        if noise_cov is None:
+            Sigma = np.zeros((n, n))
+        else:
+            Sigma = _symmetric_psd(_matrix(noise_cov, "noise_cov", n, n, f"({n}, {n})"), "noise_cov")
+        if name is not None and not isinstance(name, str):
+            raise InputError("name", f"expected a string, found {type(name).__name__}")
+
+        for key, value in (
+            ("A", _frozen(A_)), ("B", _frozen(B_)), ("horizon", N),
+            ("state_weights", _frozen(W)), ("input_weights", _frozen(psi)),
+            ("mu_schedule", _frozen(sched)), ("x0", _frozen(x0_)),
+            ("initial_weight", _frozen(Q)), ("noise_cov", _frozen(Sigma)), ("name", name),
+        ):
+            object.__setattr__(self, key, value)
+
+    def __setattr__(self, key: str, value: Any) -> None:
+        raise AttributeError("System is immutable: use with_mu / with_x0 for a modified copy")
+
+    def __repr__(self) -> str:
+        label = f"{self.name!r}, " if self.name else ""
+        return f"System({label}n={self.n}, m={self.m}, horizon={self.horizon})"
+
+    @property
+    def n(self) -> int:
+        """State dimension."""
+        return self.A.shape[0]
+
+    @property
+    def m(self) -> int:
+        """Number of actuators (channels)."""
+        return self.B.shape[1]
+
+    @property
+    def is_stationary(self) -> bool:
+        """True when every step has the same delivery probabilities."""
+        return bool(np.all(self.mu_schedule == self.mu_schedule[0]))
+
+    @property
+    def mu(self) -> np.ndarray:
+        """The stationary delivery probabilities (raises for a non-stationary channel)."""
+        if not self.is_stationary:
+            raise ValueError("mu: the channel is non-stationary; use mu_schedule")
+        return self.mu_schedule[0]
+
+    def _kwargs(self) -> dict[str, Any]:
+        return {
+            "A": self.A, "B": self.B, "horizon": self.horizon, "state_weights": self.state_weights,
+            "input_weights": self.input_weights, "mu_schedule": self.mu_schedule, "x0": self.x0,
+            "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name,
+        }
+
+    def with_mu(self, mu: npt.ArrayLike) -> System:
+        """A copy with new delivery probabilities: an m-vector or an N×m schedule."""
+        kwargs = self._kwargs()
+        del kwargs["mu_schedule"]
+        arr = np.asarray(mu) if isinstance(mu, np.ndarray) else mu
+        if np.ndim(arr) == 2:
+            return System(**kwargs, mu_schedule=mu)
+        return System(**kwargs, mu=mu)
+
+    def with_x0(self, x0: npt.ArrayLike) -> System:
+        """A copy with a new initial state."""
+        kwargs = self._kwargs()
+        kwargs["x0"] = x0
+        return System(**kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The system in the TOML schema's structure (plain lists), e.g. for JSON."""
+        def weight(mat: np.ndarray) -> list:
+            return np.diag(mat).tolist() if np.allclose(mat, np.diag(np.diag(mat)), rtol=0, atol=0) else mat.tolist()
+
+        cost: dict[str, Any] = {"horizon": self.horizon}
+        if np.all(self.state_weights == self.state_weights[0]):
+            cost["state_weight"] = weight(self.state_weights[0])
+        else:
+            cost["state_weights"] = [weight(w) for w in self.state_weights]
+        if np.all(self.input_weights == self.input_weights[0]):
+            cost["input_weight"] = self.input_weights[0].tolist()
+        else:
+            cost["input_weights"] = self.input_weights.tolist()
+        cost["initial_weight"] = weight(self.initial_weight)
+        channel = (
+            {"mu": self.mu_schedule[0].tolist()} if self.is_stationary
+            else {"mu_schedule": self.mu_schedule.tolist()}
+        )
+        out: dict[str, Any] = {
+            "plant": {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist()},
+            "cost": cost,
+            "channel": channel,
+            "state": {"x0": self.x0.tolist()},
+        }
+        if self.name:
+            out = {"name": self.name, **out}
+        return out
+
+
+def _sequence(value: Any, field: str, N: int) -> list:
+    if isinstance(value, np.ndarray):
+        value = list(value)
+    if not isinstance(value, (list, tuple)):
+        raise InputError(field, f"expected a list of {N} weights, found {type(value).__name__}")
+    if len(value) != N:
+        raise DimensionError(field, f"expected {N} entries (one per step t = 1..N), found {len(value)}")
+    return list(value)
+
+
+# TOML section -> {key: System keyword}
+_SCHEMA: dict[str, dict[str, str]] = {
+    "plant": {"A": "A", "B": "B", "noise_cov": "noise_cov"},
+    "cost": {
+        "horizon": "horizon", "state_weight": "state_weight", "state_weights": "state_weights",
+        "input_weight": "input_weight", "input_weights": "input_weights",
+        "initial_weight": "initial_weight",
+    },
+    "channel": {"mu": "mu", "mu_schedule": "mu_schedule"},
+    "state": {"x0": "x0"},
+}
+_REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",)}
+
+
+def system_from_dict(data: Mapping[str, Any]) -> System:
+    """Build a :class:`System` from the TOML schema's structure (see DESIGN.md §4).
+
+    Errors name the TOML path of the offending field (``cost.state_weight``).
+    """
+    if not isinstance(data, Mapping):
+        raise InputError("<file>", "expected a table")
+    for key in data:
+        if key != "name" and key not in _SCHEMA:
+            raise InputError(str(key), f"unknown section; expected one of name, {', '.join(_SCHEMA)}")
+    kwargs: dict[str, Any] = {"name": data.get("name")}
+    where: dict[str, str] = {"name": "name"}
+    for section, keys in _SCHEMA.items():
+        if section not in data:
+            raise InputError(section, "missing section")
+        table = data[section]
+        if not isinstance(table, Mapping):
+            raise InputError(section, "expected a table")
+        for key in table:
+            if key not in keys:
+                raise InputError(f"{section}.{key}", f"unknown key; expected one of {', '.join(keys)}")
+        for key in _REQUIRED[section]:
+            if key not in table:
+                raise InputError(f"{section}.{key}", "missing field")
+        for key, kw in keys.items():
+            if key in table:
+                kwargs[kw] = table[key]
+                where[kw] = f"{section}.{key}"
+    try:
+        return System(**kwargs)
+    except InputError as err:
+        raise err.renamed(_toml_field(err.field, where)) from None
+
+
+def _toml_field(field: str, where: Mapping[str, str]) -> str:
+    if "/" in field:  # a paired key
+        first, second = field.split("/")
+        section = where.get(first, where.get(second, "")).split(".")[0] or _section_of(first)
+        return f"{section}.{first}/{second}"
+    base, bracket, rest = field.partition("[")
+    return where.get(base, f"{_section_of(base)}.{base}") + bracket + rest
+
+
+def _section_of(kw: str) -> str:
+    for section, keys in _SCHEMA.items():
+        if kw in keys.values():
+            return section
+    return kw
+
+
+def load_system(path: str | Path) -> System:
+    """Read a system file in the TOML schema of DESIGN.md §4.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file (field ``file``), invalid TOML, or any field
+        that fails validation (named by its TOML path).
+    """
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InputError("file", f"no such file: {path}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError("file", f"cannot read {path}: {err}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise InputError("file", f"{path} is not valid TOML: {err}") from None
+    return system_from_dict(data)
+

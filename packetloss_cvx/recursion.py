@@ -1,0 +1,128 @@
+"""The exact O(N) backward recursion for both protocols (DESIGN.md §2).
+
+Both expected costs are deterministic LQ problems in the mean state
+
+.. math:: \\hat x_{t+1} = A \\hat x_t + B M_t u_t,
+
+with stage input weight ``M_t Psi_t`` and, for the UDP-like protocol, the extra
+diagonal weight ``diag(Omega_g)_t M_t (I - M_t)``, where ``diag(Omega_g)_t =
+diag(B' S_t B)`` and ``S_t = sum_{s>t} (A^{s-t-1})' Omega_s A^{s-t-1}`` is a
+backward Lyapunov sum. The Hessian of stage t factors as ``M_t G_t`` with
+
+.. math:: G_t = \\Psi_t + D_t + B' P_{t+1} B M_t, \\qquad D_t = \\mathrm{diag}(B'S_tB)(I - M_t)
+   \\ (\\text{UDP}),\\ 0\\ (\\text{TCP}),
+
+which is invertible even when some mu = 0; ``u_t = -G_t^{-1} B' P_{t+1} A \\hat x_t`` is then
+the same minimiser as the paper's dense law ``-G^{-1} Omega_gp x`` (Theorem 1).
+
+Time O(N (n^3 + m^3)), memory O(N n m) for the gains; no (N n)×(N m) matrix is formed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import NumericalError
+from .model import System
+from .protocols import check_protocol
+
+__all__ = ["backward_pass", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
+
+
+def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
+    if not np.all(np.isfinite(value)):
+        raise NumericalError(
+            f"{name} exceeds the double-precision range for the {protocol}-like protocol: the "
+            "open-loop prediction of an unstable plant over this horizon makes the exact "
+            "expected cost larger than 1e308 (shorten the horizon or stabilise the plant)"
+        )
+
+
+def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
+    """The diagonal of Omega_g per step and the noise term tr(Omega_l Sigma_W).
+
+    Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
+    ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m).
+    """
+    A, B, W, N = system.A, system.B, system.state_weights, system.horizon
+    d = np.empty((N, system.m))
+    noise = 0.0
+    has_noise = bool(np.any(system.noise_cov != 0))
+    S = W[N - 1].copy()
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(N - 1, -1, -1):
+            d[t] = np.einsum("ij,ik,kj->j", B, S, B)
+            if has_noise:
+                noise += float(np.sum(S * system.noise_cov))
+            if t > 0:
+                S = W[t - 1] + A.T @ S @ A
+    return d, noise
+
+
+def backward_pass(system: System, protocol: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """Riccati recursion of the mean-state LQ problem.
+
+    Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
+    the cost-to-go matrix at step 0 (without Q) and the noise term.
+    Time O(N (n^3 + m^3)).
+    """
+    protocol = check_protocol(protocol)
+    A, B, W, N = system.A, system.B, system.state_weights, system.horizon
+    n, m = system.n, system.m
+    d, noise = udp_variance_weights(system)
+    _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
+    mu, psi = system.mu_schedule, system.input_weights
+    K = np.empty((N, m, n))
+    P = W[N - 1].copy()
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(N - 1, -1, -1):
+            BtP = B.T @ P
+            extra = 0.0
+            if protocol == "udp":
+                lossy = mu[t] < 1.0
+                _finite("diag(Omega_g)", d[t][lossy], protocol)
+                extra = np.where(lossy, d[t] * (1.0 - mu[t]), 0.0)
+            G = np.diag(psi[t] + extra) + (BtP @ B) * mu[t][None, :]
+            K[t] = np.linalg.solve(G, BtP @ A)
+            AtPA = A.T @ P @ A
+            P = AtPA - (A.T @ BtP.T * mu[t][None, :]) @ K[t]
+            if t > 0:
+                P = P + W[t - 1]
+            P = 0.5 * (P + P.T)
+            _finite("the cost-to-go matrix", P, protocol)
+    return K, P, noise
+
+
+def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Roll out ``u_t = -K[t] xhat_t``: returns inputs (N×m) and mean states (N+1×n)."""
+    A, B, mu = system.A, system.B, system.mu_schedule
+    N = system.horizon
+    x = np.empty((N + 1, system.n))
+    u = np.empty((N, system.m))
+    x[0] = system.x0
+    for t in range(N):
+        u[t] = -K[t] @ x[t]
+        x[t + 1] = A @ x[t] + B @ (mu[t] * u[t])
+    return u, x
+
+
+def recursion_cost(system: System, inputs: np.ndarray, protocol: str) -> float:
+    """J(U) of eq:opt-lqg-simplest with Lemma 1, by a forward pass of the mean state.
+
+    Time O(N n^3) (the Lyapunov sums), memory O(N m).
+    """
+    protocol = check_protocol(protocol)
+    A, B, W, mu, psi = system.A, system.B, system.state_weights, system.mu_schedule, system.input_weights
+    d, noise = udp_variance_weights(system)
+    x = system.x0.copy()
+    total = float(x @ system.initial_weight @ x) + noise
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(system.horizon):
+            u = inputs[t]
+            total += float(np.sum(mu[t] * psi[t] * u * u))
+            if protocol == "udp":
+                lossy = mu[t] < 1.0
+                total += float(np.sum((d[t] * mu[t] * (1.0 - mu[t]) * u * u)[lossy]))
+            x = A @ x + B @ (mu[t] * u)
+            total += float(x @ W[t] @ x)
+    return total

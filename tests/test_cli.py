@@ -1,0 +1,85 @@
+"""The command line: JSON keys of DESIGN.md §4, exit codes, one-line errors."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from packetloss_cvx.cli import main
+
+from .conftest import EXAMPLES
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_solve_json_two_actuator(capsys):
+    code, out, err = run(capsys, "solve", str(EXAMPLES / "two_actuator.toml"), "--json")
+    assert code == 0 and err == ""
+    data = json.loads(out)
+    assert set(data) == {"name", "n", "m", "horizon", "mu", "tcp", "udp"}
+    assert data["mu"] == [0.9, 0.5]
+    for protocol in ("tcp", "udp"):
+        entry = data[protocol]
+        assert {"cost", "inputs", "gain", "closed_loop_eigenvalues", "qp"} <= set(entry)
+        assert len(entry["inputs"]) == 10 and len(entry["gain"]) == 2
+        assert all(len(pair) == 2 for pair in entry["closed_loop_eigenvalues"])
+        qp = entry["qp"]
+        assert {"status", "cost", "solve_time", "max_input_diff", "cost_rel_diff"} <= set(qp)
+        assert qp["status"] == "optimal"
+        assert qp["max_input_diff"] < 1e-6
+        assert abs(qp["cost"] - entry["cost"]) <= 1e-7 * entry["cost"]
+    assert data["udp"]["cost"] > data["tcp"]["cost"]
+
+
+def test_solve_overrides_and_text(capsys):
+    code, out, _ = run(capsys, "solve", str(EXAMPLES / "two_actuator.toml"), "--protocol", "udp",
+                       "--mu", "0.2,0.3", "--x0", "0,1", "--method", "recursion")
+    assert code == 0
+    assert "UDP-like" in out and "TCP-like" not in out and "(recursion)" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "match"),
+    [
+        (["solve", "absent.toml"], "file: no such file"),
+        (["solve", str(EXAMPLES / "two_actuator.toml"), "--mu", "0.5"], "--mu: expected shape (2,)"),
+        (["solve", str(EXAMPLES / "two_actuator.toml"), "--mu", "0.5,x"], "--mu: expected comma-separated"),
+        (["solve", str(EXAMPLES / "two_actuator.toml"), "--mu", "0.5,1.5"], "--mu: expected probabilities"),
+        (["solve", str(EXAMPLES / "two_actuator.toml"), "--x0", "1"], "--x0: expected shape"),
+        (["solve", str(EXAMPLES / "two_actuator.toml"), "--protocol", "ftp"], "invalid choice"),
+        (["frobnicate"], "invalid choice"),
+        ([], "required"),
+    ],
+)
+def test_bad_input_exit_2_one_line(capsys, argv, match):
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and match in err
+
+
+def test_bad_file_content_exit_2(capsys, tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text((EXAMPLES / "two_actuator.toml").read_text().replace("horizon = 10", "horizon = -1"))
+    code, _, err = run(capsys, "solve", str(path))
+    assert code == 2 and "cost.horizon: expected an integer >= 1" in err
+
+
+def test_unstable_long_dense_exit_1(capsys, tmp_path):
+    path = tmp_path / "unstable.toml"
+    text = (EXAMPLES / "two_actuator.toml").read_text().replace("horizon = 10", "horizon = 2000")
+    text = text.replace("A = [[1.03, 0.005], [0.35, 1.01]]", "A = [[1.2, 0.0], [0.0, 0.5]]")
+    path.write_text(text)
+    code, _, err = run(capsys, "solve", str(path), "--method", "dense", "--no-qp")
+    assert code == 1 and "NumericalError" in err and err.count("\n") == 1
+
+
+def test_module_entry_point_runs():
+    proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", "solve", str(EXAMPLES / "two_actuator.toml"),
+                           "--json", "--no-qp"], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0
+    assert json.loads(proc.stdout)["tcp"]["cost"] > 0

@@ -1,0 +1,151 @@
+"""Validation: every bad input names its field and says what was expected."""
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.model import system_from_dict
+
+GOOD = {
+    "A": [[1.0, 0.1], [0.0, 1.0]], "B": [[0.0], [1.0]], "horizon": 3,
+    "state_weight": [1.0, 1.0], "input_weight": [1.0], "mu": [0.5], "x0": [1.0, 0.0],
+}
+
+
+def make(**changes):
+    kwargs = {**GOOD, **changes}
+    return pl.System(**{k: v for k, v in kwargs.items() if v is not None})
+
+
+@pytest.mark.parametrize(
+    ("changes", "error", "match"),
+    [
+        ({"A": [[1.0, 0.0]]}, pl.DimensionError, r"A: expected shape \(n, n\) \(square\) but found \(1, 2\)"),
+        ({"B": [[1.0], [0.0], [0.0]]}, pl.DimensionError, r"B: expected shape \(2, m\) but found \(3, 1\)"),
+        ({"x0": [1.0]}, pl.DimensionError, r"x0: expected shape \(2,\)"),
+        ({"state_weight": [1.0, 1.0, 1.0]}, pl.DimensionError, r"state_weight: expected shape"),
+        ({"input_weight": [1.0, 2.0]}, pl.DimensionError, r"input_weight: expected shape \(1,\)"),
+        ({"mu": None, "mu_schedule": [[0.5], [0.5]]}, pl.DimensionError, r"mu_schedule: expected shape \(3, 1\)"),
+        ({"mu": [1.2]}, pl.ProbabilityError, r"mu: expected probabilities in \[0, 1\], found 1.2"),
+        ({"mu": [-0.1]}, pl.ProbabilityError, r"mu: expected probabilities in \[0, 1\]"),
+        ({"A": [[np.nan, 0.0], [0.0, 1.0]]}, pl.InputError, r"A: expected finite numbers"),
+        ({"x0": [np.inf, 0.0]}, pl.InputError, r"x0: expected finite numbers"),
+        ({"state_weight": [[1.0, 0.5], [0.0, 1.0]]}, pl.InputError, r"state_weight: expected a symmetric"),
+        ({"state_weight": [[1.0, 2.0], [2.0, 1.0]]}, pl.InputError, r"state_weight: expected a positive semidefinite"),
+        ({"state_weight": [1.0, -1.0]}, pl.InputError, r"state_weight: expected a non-negative diagonal"),
+        ({"input_weight": [0.0]}, pl.InputError, r"input_weight: expected positive entries"),
+        ({"input_weight": None, "input_weights": [[1.0], [-1.0], [1.0]]}, pl.InputError, r"input_weights: expected positive"),
+        ({"horizon": 0}, pl.InputError, r"horizon: expected an integer >= 1, found 0"),
+        ({"horizon": 2.5}, pl.InputError, r"horizon: expected an integer >= 1, found 2.5"),
+        ({"horizon": "3"}, pl.InputError, r"horizon: expected an integer"),
+        ({"horizon": True}, pl.InputError, r"horizon: expected an integer"),
+        ({"mu_schedule": [[0.5]] * 3}, pl.InputError, r"mu/mu_schedule: expected exactly one of the two, found both"),
+        ({"mu": None}, pl.InputError, r"mu/mu_schedule: expected exactly one of the two, found neither"),
+        ({"state_weights": [[1, 1]] * 3}, pl.InputError, r"state_weight/state_weights: .*found both"),
+        ({"input_weight": None}, pl.InputError, r"input_weight/input_weights: .*found neither"),
+        ({"A": [[1.0, "a"], [0.0, 1.0]]}, pl.InputError, r"A: expected a number, found the string 'a'"),
+        ({"x0": [True, 0.0]}, pl.InputError, r"x0: expected a number, found a boolean"),
+        ({"A": [[1.0, 0.0], [1.0]]}, pl.InputError, r"A: expected a rectangular array"),
+        ({"state_weight": None, "state_weights": [[1.0, 1.0]] * 2}, pl.DimensionError, r"state_weights: expected 3 entries"),
+        ({"noise_cov": [[1.0, 0.0], [0.0, -1.0]]}, pl.InputError, r"noise_cov: expected a positive semidefinite"),
+        ({"initial_weight": [[1.0]]}, pl.DimensionError, r"initial_weight: expected shape"),
+        ({"name": 3}, pl.InputError, r"name: expected a string"),
+    ],
+)
+def test_bad_input_names_field(changes, error, match):
+    with pytest.raises(error, match=match):
+        make(**changes)
+
+
+def test_bad_input_is_value_error():
+    with pytest.raises(ValueError, match="mu"):
+        make(mu=[2.0])
+
+
+def test_system_is_immutable_and_copies():
+    s = make()
+    with pytest.raises(AttributeError, match="immutable"):
+        s.horizon = 4
+    with pytest.raises(ValueError, match="read-only"):
+        s.A[0, 0] = 5.0
+    t = s.with_mu([0.9])
+    assert s.mu[0] == 0.5 and t.mu[0] == 0.9
+    u = s.with_mu([[0.1], [0.2], [0.3]])
+    assert not u.is_stationary
+    with pytest.raises(ValueError, match="non-stationary"):
+        _ = u.mu
+    assert np.array_equal(s.with_x0([0.0, 2.0]).x0, [0.0, 2.0])
+
+
+def test_full_and_time_varying_weights_are_stored_per_step():
+    s = make(state_weight=None, state_weights=[[1.0, 2.0], [[2.0, 0.5], [0.5, 1.0]], [0.0, 0.0]],
+             input_weight=None, input_weights=[[1.0], [2.0], [3.0]])
+    assert s.state_weights.shape == (3, 2, 2)
+    assert np.array_equal(s.state_weights[0], np.diag([1.0, 2.0]))
+    assert np.array_equal(s.input_weights[:, 0], [1.0, 2.0, 3.0])
+
+
+def test_round_trip_through_dict(two_actuator):
+    again = system_from_dict(two_actuator.to_dict())
+    for key in ("A", "B", "state_weights", "input_weights", "mu_schedule", "x0", "initial_weight", "noise_cov"):
+        assert np.array_equal(getattr(again, key), getattr(two_actuator, key))
+
+
+TOML = """
+name = "t"
+[plant]
+A = [[1.0, 0.1], [0.0, 1.0]]
+B = [[0.0], [1.0]]
+[cost]
+horizon = 3
+state_weight = [1.0, 1.0]
+input_weight = [1.0]
+[channel]
+mu = [0.5]
+[state]
+x0 = [1.0, 0.0]
+"""
+
+
+def write(tmp_path, text):
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return path
+
+
+def test_load_good_file(tmp_path):
+    s = pl.load_system(write(tmp_path, TOML))
+    assert (s.name, s.n, s.m, s.horizon) == ("t", 2, 1, 3)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "match"),
+    [
+        ("[state]\nx0 = [1.0, 0.0]", "", r"state: missing section"),
+        ("x0 = [1.0, 0.0]", "", r"state.x0: missing field"),
+        ("horizon = 3", "horizon = 0", r"cost.horizon: expected an integer >= 1"),
+        ("horizon = 3", 'horizon = "three"', r"cost.horizon: expected an integer"),
+        ("mu = [0.5]", "mu = [1.5]", r"channel.mu: expected probabilities"),
+        ("mu = [0.5]", "mu = [0.5]\nmu_schedule = [[0.5], [0.5], [0.5]]", r"channel.mu/mu_schedule: .*found both"),
+        ("mu = [0.5]", "", r"channel.mu/mu_schedule: .*found neither"),
+        ("B = [[0.0], [1.0]]", "B = [[0.0], [1.0], [2.0]]", r"plant.B: expected shape \(2, m\)"),
+        ("A = [[1.0, 0.1], [0.0, 1.0]]", "A = [[1.0, 0.1]]", r"plant.A: expected shape"),
+        ("state_weight = [1.0, 1.0]", "state_weight = [1.0, 1.0]\nstate_weigth = [1.0]", r"cost.state_weigth: unknown key"),
+        ("state_weight = [1.0, 1.0]", "state_weights = [[1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]",
+         r"cost.state_weights\[1\]: expected a non-negative"),
+        ("x0 = [1.0, 0.0]", 'x0 = [1.0, "a"]', r"state.x0: expected a number, found the string"),
+        ("x0 = [1.0, 0.0]", "x0 = [nan, 0.0]", r"state.x0: expected finite numbers"),
+        ("[plant]", "[plantt]\n[plant]", r"plantt: unknown section"),
+    ],
+)
+def test_load_bad_file_names_toml_path(tmp_path, old, new, match):
+    assert old in TOML
+    with pytest.raises(pl.InputError, match=match):
+        pl.load_system(write(tmp_path, TOML.replace(old, new)))
+
+
+def test_missing_and_non_toml_files(tmp_path):
+    with pytest.raises(pl.InputError, match=r"file: no such file"):
+        pl.load_system(tmp_path / "absent.toml")
+    with pytest.raises(pl.InputError, match=r"file: .* is not valid TOML"):
+        pl.load_system(write(tmp_path, "this is = = not toml"))
