@@ -286,27 +286,26 @@ class System:
             raise ValueError("mu: the channel is non-stationary; use mu_schedule")
         return self.mu_schedule[0]
 
-    def _kwargs(self) -> dict[str, Any]:
-        return {
-            "A": self.A, "B": self.B, "horizon": self.horizon, "state_weights": self.state_weights,
-            "input_weights": self.input_weights, "mu_schedule": self.mu_schedule, "x0": self.x0,
-            "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name,
-        }
+    def _copy_with(self, **fields: Any) -> System:
+        """A copy with already-validated fields replaced (no re-validation of the rest)."""
+        new = object.__new__(System)
+        for key in self.__slots__:
+            object.__setattr__(new, key, fields.get(key, getattr(self, key)))
+        return new
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
         """A copy with new delivery probabilities: an m-vector or an N×m schedule."""
-        kwargs = self._kwargs()
-        del kwargs["mu_schedule"]
-        arr = np.asarray(mu) if isinstance(mu, np.ndarray) else mu
-        if np.ndim(arr) == 2:
-            return System(**kwargs, mu_schedule=mu)
-        return System(**kwargs, mu=mu)
+        N, m = self.horizon, self.m
+        if np.ndim(mu) == 2:
+            sched = _probabilities(_matrix(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
+        else:
+            vec = _probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")
+            sched = np.repeat(vec[None], N, axis=0)
+        return self._copy_with(mu_schedule=_frozen(sched))
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
         """A copy with a new initial state."""
-        kwargs = self._kwargs()
-        kwargs["x0"] = x0
-        return System(**kwargs)
+        return self._copy_with(x0=_frozen(_vector(x0, "x0", self.n, f"({self.n},)")))
 
     def to_dict(self) -> dict[str, Any]:
         """The system in the TOML schema's structure (plain lists), e.g. for JSON."""

@@ -7,6 +7,7 @@ For long horizons use :mod:`packetloss_cvx.recursion`, which forms none of these
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg as sla
@@ -22,31 +23,53 @@ class Prediction:
     """The paper's stacked matrices for one system (names follow §III).
 
     ``Vbar`` and ``Psi`` are the diagonals of the paper's diagonal matrices, ordered
-    step-major: entry ``t * m + i`` is actuator i at step t.
+    step-major: entry ``t * m + i`` is actuator i at step t. ``Lambda`` and
+    ``Omega_l`` are built on first use (only the noise term needs them).
     """
 
+    system: System
     Phi: np.ndarray        # (N n, n)
     Gamma: np.ndarray      # (N n, N m)
-    Lambda: np.ndarray     # (N n, N n)
-    Omega: np.ndarray      # (N n, N n)  blkdiag(Omega_1..Omega_N)
     Psi: np.ndarray        # (N m,)      diagonal of blkdiag(Psi_0..Psi_{N-1})
     Vbar: np.ndarray       # (N m,)      diagonal of E[Upsilon]
     Omega_p: np.ndarray    # Phi' Omega Phi
     Omega_g: np.ndarray    # Gamma' Omega Gamma
     Omega_gp: np.ndarray   # Gamma' Omega Phi
-    Omega_l: np.ndarray    # Lambda' Omega Lambda
     Omega_d: np.ndarray    # diagonal of Omega_g (the paper's I ∘ Omega_g), (N m,)
-    Sigma_W: np.ndarray    # (N n, N n)  blkdiag(Sigma_W, ..)
 
     @property
     def Omega_h(self) -> np.ndarray:
         """Omega_g - Omega_d: the off-diagonal part of Omega_g."""
         return self.Omega_g - np.diag(self.Omega_d)
 
+    @cached_property
+    def Omega(self) -> np.ndarray:
+        """blkdiag(Omega_1..Omega_N), (N n)×(N n)."""
+        return sla.block_diag(*self.system.state_weights)
+
+    @cached_property
+    def Lambda(self) -> np.ndarray:
+        """Noise propagation, (N n)×(N n), block (i, j) = A^{i-j} for i >= j."""
+        s = self.system
+        return _block_toeplitz(_powers(s.A, s.horizon), s.horizon, s.n, s.n, "Lambda")
+
+    @cached_property
+    def Omega_l(self) -> np.ndarray:
+        """Lambda' Omega Lambda (the paper prints Lambda Omega Lambda; see docs/claims.md)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            return _check_finite("Omega_l", self.Lambda.T @ self.Omega @ self.Lambda)
+
     @property
+    def Sigma_W(self) -> np.ndarray:
+        """blkdiag(Sigma_W, ..., Sigma_W), (N n)×(N n)."""
+        return np.kron(np.eye(self.system.horizon), self.system.noise_cov)
+
+    @cached_property
     def noise_term(self) -> float:
-        """tr(Omega_l Sigma_W), the noise part of both optimal costs."""
-        return float(np.trace(self.Omega_l @ self.Sigma_W))
+        """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise)."""
+        if not np.any(self.system.noise_cov):
+            return 0.0
+        return float(np.sum(self.Omega_l * self.Sigma_W))
 
 
 def _check_finite(name: str, arr: np.ndarray) -> np.ndarray:
@@ -58,8 +81,28 @@ def _check_finite(name: str, arr: np.ndarray) -> np.ndarray:
     return arr
 
 
+def _powers(A: np.ndarray, N: int) -> list[np.ndarray]:
+    """[I, A, A^2, ..., A^N]."""
+    powers = [np.eye(A.shape[0])]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(N):
+            powers.append(powers[-1] @ A)
+    return powers
+
+
+def _block_toeplitz(blocks: list[np.ndarray], N: int, r: int, c: int, name: str) -> np.ndarray:
+    """Lower block-triangular Toeplitz matrix with block (i, j) = blocks[i - j]."""
+    out = np.zeros((N, r, N, c))
+    for k in range(N):
+        rows = np.arange(k, N)
+        out[rows, :, rows - k, :] = blocks[k]
+    return _check_finite(name, out.reshape(N * r, N * c))
+
+
 def prediction(system: System) -> Prediction:
     """Build the dense prediction matrices of eq:big and their Omega products.
+
+    Time O((N n)^2 N m + (N m)^2 N n), memory O(N^2 n (n + m)).
 
     Raises
     ------
@@ -67,31 +110,22 @@ def prediction(system: System) -> Prediction:
         If any entry overflows (unstable A over a long horizon).
     """
     A, B, N = system.A, system.B, system.horizon
-    n, m = system.n, system.m
-    powers = [np.eye(n)]
+    powers = _powers(A, N)
     with np.errstate(over="ignore", invalid="ignore"):
-        for _ in range(N):
-            powers.append(powers[-1] @ A)
         Phi = _check_finite("Phi", np.vstack(powers[1:]))
-        AB = [P @ B for P in powers[:N]]
-        Gamma = np.zeros((N * n, N * m))
-        Lambda = np.zeros((N * n, N * n))
-        for i in range(N):
-            for j in range(i + 1):
-                Gamma[i * n:(i + 1) * n, j * m:(j + 1) * m] = AB[i - j]
-                Lambda[i * n:(i + 1) * n, j * n:(j + 1) * n] = powers[i - j]
-        _check_finite("Gamma", Gamma)
-        Omega = sla.block_diag(*system.state_weights)
-        OG = Omega @ Gamma
+        Gamma = _block_toeplitz([P @ B for P in powers[:N]], N, system.n, system.m, "Gamma")
+        W = system.state_weights
+        n = system.n
+        # blkdiag(Omega_t) times a stacked matrix, block by block: O(N n^2) per column
+        OG = np.einsum("tij,tjk->tik", W, Gamma.reshape(N, n, -1)).reshape(N * n, -1)
+        OP = np.einsum("tij,tjk->tik", W, Phi.reshape(N, n, n)).reshape(N * n, n)
         Omega_g = _check_finite("Omega_g", Gamma.T @ OG)
         Omega_gp = _check_finite("Omega_gp", OG.T @ Phi)
-        Omega_p = _check_finite("Omega_p", Phi.T @ Omega @ Phi)
-        Omega_l = _check_finite("Omega_l", Lambda.T @ Omega @ Lambda)
+        Omega_p = _check_finite("Omega_p", Phi.T @ OP)
     Omega_g = 0.5 * (Omega_g + Omega_g.T)
     return Prediction(
-        Phi=Phi, Gamma=Gamma, Lambda=Lambda, Omega=Omega,
+        system=system, Phi=Phi, Gamma=Gamma,
         Psi=system.input_weights.ravel().copy(), Vbar=system.mu_schedule.ravel().copy(),
         Omega_p=0.5 * (Omega_p + Omega_p.T), Omega_g=Omega_g, Omega_gp=Omega_gp,
-        Omega_l=Omega_l, Omega_d=np.diag(Omega_g).copy(),
-        Sigma_W=np.kron(np.eye(N), system.noise_cov),
+        Omega_d=np.diag(Omega_g).copy(),
     )

@@ -35,8 +35,9 @@ __all__ = ["ExpectedCostQP", "solve_qp", "CLARABEL_SETTINGS"]
 #: Tightened Clarabel tolerances: the cross-check promises inputs to 1e-6.
 CLARABEL_SETTINGS = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 400}
 
-#: Above this many decision variables N*m, ``formulation="auto"`` uses the sparse form.
-AUTO_CONDENSED_MAX = 200
+#: Above this many decision variables N*m, ``formulation="auto"`` uses the sparse form
+#: (measured crossover between N*m = 40 and 80 for n = 4: docs/performance.md).
+AUTO_CONDENSED_MAX = 60
 
 
 def _pick(system: System, formulation: str) -> str:

@@ -21,6 +21,7 @@ Time O(N (n^3 + m^3)), memory O(N n m) for the gains; no (N n)×(N m) matrix is 
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg.lapack import dgesv as _gesv
 
 from .errors import NumericalError
 from .model import System
@@ -63,33 +64,51 @@ def backward_pass(system: System, protocol: str) -> tuple[np.ndarray, np.ndarray
     """Riccati recursion of the mean-state LQ problem.
 
     Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
-    the cost-to-go matrix at step 0 (without Q) and the noise term.
-    Time O(N (n^3 + m^3)).
+    the cost-to-go matrix at step 0 (without Q) and the noise term. The Lyapunov sum
+    S_t (UDP-like weights, noise) runs in the same backward loop.
+    Time O(N (n^3 + m^3)), memory O(N m n).
     """
     protocol = check_protocol(protocol)
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
-    n, m = system.n, system.m
-    d, noise = udp_variance_weights(system)
-    _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
+    m = system.m
     mu, psi = system.mu_schedule, system.input_weights
-    K = np.empty((N, m, n))
+    udp = protocol == "udp"
+    has_noise = bool(np.any(system.noise_cov != 0))
+    track_S = udp or has_noise
+    keep = np.where(mu < 1.0, 1.0 - mu, 0.0)  # (1 - mu) on lossy channels, 0 on perfect ones
+    D = np.zeros((N, m))                      # diag(Omega_g) per step (UDP-like)
+    K = np.empty((N, m, system.n))
     P = W[N - 1].copy()
+    S = W[N - 1].copy()
+    noise = 0.0
+    diag = np.arange(m) * (m + 1)
+    AT = A.T
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(N - 1, -1, -1):
-            BtP = B.T @ P
-            extra = 0.0
-            if protocol == "udp":
-                lossy = mu[t] < 1.0
-                _finite("diag(Omega_g)", d[t][lossy], protocol)
-                extra = np.where(lossy, d[t] * (1.0 - mu[t]), 0.0)
-            G = np.diag(psi[t] + extra) + (BtP @ B) * mu[t][None, :]
-            K[t] = np.linalg.solve(G, BtP @ A)
-            AtPA = A.T @ P @ A
-            P = AtPA - (A.T @ BtP.T * mu[t][None, :]) @ K[t]
+            PB = P @ B
+            G = (B.T @ PB) * mu[t]
+            G.flat[diag] += psi[t]
+            if track_S:
+                if udp:
+                    D[t] = ((S @ B) * B).sum(axis=0)
+                    G.flat[diag] += D[t] * keep[t]
+                if has_noise:
+                    noise += float(np.sum(S * system.noise_cov))
+                if t > 0:
+                    S = W[t - 1] + AT @ S @ A
+            rhs = PB.T @ A                    # B' P A (P is symmetric)
+            _, _, K[t], info = _gesv(G, rhs)
+            if info != 0:
+                _finite("the cost-to-go matrix", np.array(np.nan), protocol)
+            P = AT @ (P @ A) - (rhs.T * mu[t]) @ K[t]
             if t > 0:
-                P = P + W[t - 1]
+                P += W[t - 1]
             P = 0.5 * (P + P.T)
-            _finite("the cost-to-go matrix", P, protocol)
+    if udp:
+        _finite("diag(Omega_g)", D[mu < 1.0], protocol)
+    _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
+    _finite("the cost-to-go matrix", P, protocol)
+    _finite("the gains", K, protocol)
     return K, P, noise
 
 

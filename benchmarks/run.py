@@ -1,0 +1,176 @@
+"""Side-by-side benchmarks: every ratio is measured in one run on one machine.
+
+    python benchmarks/run.py [--quick] [--json]
+
+Medians over repeats (wall clock, ``time.perf_counter``); peak memory with
+``tracemalloc`` (NumPy reports its buffers to it). Absolute times drift between
+runs on a shared machine; the ratios are what to read.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import packetloss_cvx as pl  # noqa: E402
+from packetloss_cvx.random_systems import random_system  # noqa: E402
+
+PROTOCOL = "udp"  # the protocol with more work (the variance weights)
+
+
+def bench_system(N: int, n: int = 4, m: int = 2) -> pl.System:
+    """A fixed stable random plant (rho(A) = 0.95), diagonal weights, stationary channel, no noise
+    (with noise the dense path also forms Lambda' Omega Lambda, (N n)^3 more work)."""
+    return random_system(
+        np.random.default_rng(2026), n=n, m=m, horizon=N, spectral_radius=0.95, full_weights=False,
+        time_varying=False, non_stationary=False, noise=False, edge_mu=False,
+    )
+
+
+def median_time(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def peak_memory(fn) -> int:
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    fn()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak
+
+
+def closed_forms(horizons, rows):
+    print("\n1. closed form: recursion vs dense (n = 4, m = 2, UDP-like)")
+    print(f"{'N':>6} {'dense s':>10} {'recursion s':>12} {'ratio':>8} {'rel cost diff':>14}")
+    for N in horizons:
+        s = bench_system(N)
+        reps = 1 if N >= 2000 else 3
+        dense = median_time(lambda s=s: pl.closed_form(s, PROTOCOL, "dense"), reps)
+        rec = median_time(lambda s=s: pl.closed_form(s, PROTOCOL, "recursion"), max(reps, 5))
+        a, b = pl.closed_form(s, PROTOCOL, "recursion").cost, pl.closed_form(s, PROTOCOL, "dense").cost
+        diff = abs(a - b) / abs(b)
+        print(f"{N:>6} {dense:>10.4f} {rec:>12.4f} {dense / rec:>7.1f}x {diff:>14.1e}")
+        rows.append({"bench": "closed_form", "N": N, "dense_s": dense, "recursion_s": rec,
+                     "ratio": dense / rec, "rel_cost_diff": diff})
+
+
+def crossover(rows):
+    print("\n2. crossover of method='auto' (n = 4, m = 2): dense / recursion time")
+    print(f"{'N':>6} {'N*m':>6} {'dense s':>10} {'recursion s':>12} {'ratio':>8}")
+    for N in (2, 5, 10, 15, 20, 30, 40, 80):
+        s = bench_system(N)
+        dense = median_time(lambda s=s: pl.closed_form(s, PROTOCOL, "dense"), 21)
+        rec = median_time(lambda s=s: pl.closed_form(s, PROTOCOL, "recursion"), 21)
+        print(f"{N:>6} {2 * N:>6} {dense:>10.5f} {rec:>12.5f} {dense / rec:>7.2f}x")
+        rows.append({"bench": "crossover", "N": N, "dense_s": dense, "recursion_s": rec, "ratio": dense / rec})
+
+
+def qps(horizons, big, rows):
+    print("\n3. QP compile + solve: sparse vs condensed (cvxpy + Clarabel, n = 4, m = 2)")
+    print(f"{'N':>6} {'condensed s':>12} {'sparse s':>10} {'ratio':>8}")
+
+    def run(s, form):
+        return pl.solve_qp(s, PROTOCOL, form, with_gain=False, cross_check=False)
+
+    for N in horizons:
+        s = bench_system(N)
+        reps = 1 if N >= 1000 else 3
+        cond = median_time(lambda s=s: run(s, "condensed"), reps)
+        sparse = median_time(lambda s=s: run(s, "sparse"), 3)
+        print(f"{N:>6} {cond:>12.3f} {sparse:>10.3f} {cond / sparse:>7.1f}x")
+        rows.append({"bench": "qp", "N": N, "condensed_s": cond, "sparse_s": sparse, "ratio": cond / sparse})
+    s = bench_system(big)
+    t = median_time(lambda: run(s, "sparse"), 1)
+    print(f"   sparse QP at N = {big}: {t:.1f} s")
+    rows.append({"bench": "qp_big", "N": big, "sparse_s": t})
+    print("   crossover of formulation='auto' (condensed / sparse time):")
+    for N in (5, 10, 20, 40, 80):
+        small = bench_system(N)
+        cond = median_time(lambda s=small: run(s, "condensed"), 7)
+        sparse = median_time(lambda s=small: run(s, "sparse"), 7)
+        print(f"{N:>6} {cond:>12.4f} {sparse:>10.4f} {cond / sparse:>7.2f}x")
+        rows.append({"bench": "qp_crossover", "N": N, "condensed_s": cond, "sparse_s": sparse,
+                     "ratio": cond / sparse})
+
+
+def sweep(points, rows):
+    N = 100
+    print(f"\n4. {points}-point mu sweep, sparse QP at N = {N}: re-solve via Parameters vs rebuild")
+    s = bench_system(N)
+    grid = [np.array([g, 1.0 - 0.5 * g]) for g in np.linspace(0.05, 0.95, points)]
+
+    def reuse():
+        qp = pl.ExpectedCostQP(s, PROTOCOL, "sparse")
+        return [qp.solve(mu=mu, with_gain=False, cross_check=False).cost for mu in grid]
+
+    def rebuild():
+        return [pl.solve_qp(s.with_mu(mu), PROTOCOL, "sparse", with_gain=False, cross_check=False).cost
+                for mu in grid]
+
+    t_reuse = median_time(reuse, 3)
+    t_rebuild = median_time(rebuild, 3)
+    same = np.allclose(reuse(), rebuild(), rtol=1e-9)
+    print(f"   rebuild {t_rebuild:.2f} s, re-solve {t_reuse:.2f} s, ratio {t_rebuild / t_reuse:.1f}x "
+          f"(same costs: {same})")
+    rows.append({"bench": "mu_sweep", "points": points, "rebuild_s": t_rebuild, "reuse_s": t_reuse,
+                 "ratio": t_rebuild / t_reuse, "same_costs": bool(same)})
+
+
+def verification_cost(N, rows):
+    print(f"\n5. what solver-backed verification costs: sparse QP vs recursion at N = {N}")
+    s = bench_system(N)
+    qp = median_time(lambda: pl.solve_qp(s, PROTOCOL, "sparse", with_gain=False, cross_check=False), 3)
+    rec = median_time(lambda: pl.closed_form(s, PROTOCOL, "recursion"), 5)
+    print(f"   sparse QP {qp:.3f} s, recursion {rec:.4f} s, ratio {qp / rec:.0f}x")
+    rows.append({"bench": "qp_vs_recursion", "N": N, "qp_s": qp, "recursion_s": rec, "ratio": qp / rec})
+
+
+def memory(N, rows):
+    print(f"\n6. peak memory at N = {N} (tracemalloc)")
+    s = bench_system(N)
+    rec = peak_memory(lambda: pl.closed_form(s, PROTOCOL, "recursion"))
+    dense = peak_memory(lambda: pl.closed_form(s, PROTOCOL, "dense"))
+    print(f"   dense {dense / 2**20:.1f} MiB, recursion {rec / 2**20:.2f} MiB, ratio {dense / rec:.0f}x")
+    rows.append({"bench": "memory", "N": N, "dense_bytes": dense, "recursion_bytes": rec, "ratio": dense / rec})
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
+    parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
+    args = parser.parse_args()
+    import clarabel
+    import cvxpy
+
+    print(f"python {platform.python_version()}, numpy {np.__version__}, cvxpy {cvxpy.__version__}, "
+          f"clarabel {clarabel.__version__}, {platform.machine()}, {time.strftime('%Y-%m-%d')}")
+    rows: list[dict] = []
+    quick = args.quick
+    closed_forms((100, 400, 1000) if quick else (100, 1000, 4000), rows)
+    crossover(rows)
+    qps((100, 400) if quick else (100, 400, 1000), 1000 if quick else 5000, rows)
+    sweep(20 if quick else 50, rows)
+    verification_cost(400 if quick else 1000, rows)
+    memory(1000 if quick else 4000, rows)
+    if args.json:
+        print(json.dumps(rows))
+
+
+if __name__ == "__main__":
+    main()
