@@ -26,15 +26,22 @@ from .results import Solution
 
 __all__ = ["closed_form", "expected_cost", "paper_optimal_cost", "pick_method"]
 
-def pick_method(system: System, method: str) -> str:
-    """Resolve ``"auto"``: always ``"recursion"``.
+#: ``method="auto"`` uses the dense form up to this many decision variables N*m
+#: (measured crossover for n = 4, m = 2 between N*m = 160 and 200: docs/performance.md) ...
+AUTO_DENSE_MAX = 160
+#: ... and only while the open-loop growth rho(A)^(2N) stays below this, beyond which the
+#: dense products lose digits (at rho = 1.2, N = 60 the dense gain is off by 1e-7).
+AUTO_DENSE_GROWTH = 1e4
 
-    Measured (docs/performance.md): for n = 4, m = 2 the recursion is faster than the
-    dense form at every horizon from N = 2 (1.1x to 2x at N <= 80, 50x+ at N = 1000),
-    and it stays accurate on unstable plants where the dense form loses digits.
-    """
+
+def pick_method(system: System, method: str) -> str:
+    """Resolve ``"auto"`` to the faster exact path: ``"dense"`` for small, well-conditioned
+    problems, ``"recursion"`` otherwise."""
     if method == "auto":
-        return "recursion"
+        rho = float(max(abs(np.linalg.eigvals(system.A))))
+        small = system.horizon * system.m <= AUTO_DENSE_MAX
+        tame = 2 * system.horizon * np.log10(max(rho, 1e-300)) <= np.log10(AUTO_DENSE_GROWTH)
+        return "dense" if small and tame else "recursion"
     if method not in ("dense", "recursion"):
         raise InputError("method", f"expected 'dense', 'recursion' or 'auto', found {method!r}")
     return method

@@ -82,7 +82,9 @@ def test_long_unstable_out_of_range_costs_raise(protocol, noise):
 
 
 def test_auto_method_and_formulation(two_actuator, pendulum):
-    assert pl.closed_form(two_actuator, "tcp", method="auto").method == "recursion"
+    assert pl.closed_form(two_actuator, "tcp", method="auto").method == "dense"
+    assert pl.closed_form(_unstable(60), "tcp", method="auto").method == "recursion"  # 1.2^120
+    assert pl.closed_form(_unstable(200).with_mu([0.5, 0.5]), "tcp", method="auto").method == "recursion"
     assert pl.solve_qp(two_actuator, "tcp", with_gain=False).method == "qp-condensed"
     assert pl.solve_qp(pendulum, "tcp", with_gain=False).method == "qp-sparse"
     with pytest.raises(pl.InputError, match="formulation: expected"):
