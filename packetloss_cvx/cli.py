@@ -84,6 +84,18 @@ def _solve(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     return out, "\n".join(lines)
 
 
+def _audit(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .claims import audit, markdown_report, markdown_table
+
+    if args.random < 0:
+        raise InputError("--random", f"expected a count >= 0, found {args.random}")
+    systems = [load_system(path) for path in args.files]
+    results = audit(systems, random=args.random, seed=args.seed, only=args.claim or None)
+    data = {"claims": [r.to_dict() for r in results]}
+    text = markdown_report(results) if args.report else markdown_table(results)
+    return data, text
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="packetloss-cvx", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -97,6 +109,15 @@ def _build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check")
     solve.add_argument("--json", action="store_true", help="print one JSON object")
     solve.set_defaults(run=_solve)
+
+    aud = sub.add_parser("audit", help="check every claim of the paper on its systems and random ones")
+    aud.add_argument("files", nargs="*", metavar="FILE", help="more systems to check the claims on")
+    aud.add_argument("--random", type=int, default=50, help="seeded random systems (default 50)")
+    aud.add_argument("--seed", type=int, default=0)
+    aud.add_argument("--claim", action="append", help="check only this claim id (repeatable)")
+    aud.add_argument("--report", action="store_true", help="Markdown report with notes and counterexamples")
+    aud.add_argument("--json", action="store_true", help="print one JSON object")
+    aud.set_defaults(run=_audit)
     return parser
 
 

@@ -13,7 +13,7 @@ import numpy.typing as npt
 from .costs import _inputs
 from .model import System, psd_factor
 
-__all__ = ["sample_plan_costs"]
+__all__ = ["closed_loop_costs", "sample_plan_costs"]
 
 
 def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: np.random.Generator) -> np.ndarray:
@@ -24,7 +24,7 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
     Time O(samples · N · (n^2 + n m)), memory O(samples · n).
     """
     U = _inputs(system, inputs)
-    n, N = system.n, system.horizon
+    N = system.horizon
     x0 = system.x0
     X = np.repeat(x0[None, :], samples, axis=0)
     total = np.full(samples, float(x0 @ system.initial_weight @ x0))
@@ -38,3 +38,33 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
             X = X + rng.standard_normal((samples, L.shape[0])) @ L
         total += np.einsum("si,ij,sj->s", X, system.state_weights[t], X)
     return total
+
+
+def closed_loop_costs(system: System, gains: list[np.ndarray], steps: int, samples: int,
+                      rng: np.random.Generator) -> np.ndarray:
+    """Realised costs of receding-horizon laws ``u_t = -K x_t`` run in closed loop.
+
+    Every law in ``gains`` sees the same sampled losses and noise (common random
+    numbers), so differences between laws have small variance. Stage cost
+    ``x_t' Omega_1 x_t + (V_t u_t)' Psi_0 (V_t u_t)`` for t = 0..steps-1 plus
+    ``x_T' Omega_1 x_T``; the channel uses ``mu_schedule[0]``.
+    Returns an array (len(gains), samples). Time O(len(gains) · samples · steps · n (n + m)).
+    """
+    W, psi, mu = system.state_weights[0], system.input_weights[0], system.mu_schedule[0]
+    L = psd_factor(system.noise_cov)
+    losses = rng.random((steps, samples, system.m)) < mu
+    noise = rng.standard_normal((steps, samples, L.shape[0])) @ L if L.shape[0] else None
+    out = np.empty((len(gains), samples))
+    for k, K in enumerate(gains):
+        X = np.repeat(system.x0[None, :], samples, axis=0)
+        total = np.zeros(samples)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for t in range(steps):
+                applied = losses[t] * (-X @ K.T)
+                total += np.einsum("si,ij,sj->s", X, W, X) + np.sum(psi * applied * applied, axis=1)
+                X = X @ system.A.T + applied @ system.B.T
+                if noise is not None:
+                    X = X + noise[t]
+            total += np.einsum("si,ij,sj->s", X, W, X)
+        out[k] = total
+    return out

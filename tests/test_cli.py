@@ -19,14 +19,16 @@ def run(capsys, *argv):
 
 def test_solve_json_two_actuator(capsys):
     code, out, err = run(capsys, "solve", str(EXAMPLES / "two_actuator.toml"), "--json")
-    assert code == 0 and err == ""
+    assert code == 0
+    assert err == ""
     data = json.loads(out)
     assert set(data) == {"name", "n", "m", "horizon", "mu", "tcp", "udp"}
     assert data["mu"] == [0.9, 0.5]
     for protocol in ("tcp", "udp"):
         entry = data[protocol]
         assert {"cost", "inputs", "gain", "closed_loop_eigenvalues", "qp"} <= set(entry)
-        assert len(entry["inputs"]) == 10 and len(entry["gain"]) == 2
+        assert len(entry["inputs"]) == 10
+        assert len(entry["gain"]) == 2
         assert all(len(pair) == 2 for pair in entry["closed_loop_eigenvalues"])
         qp = entry["qp"]
         assert {"status", "cost", "solve_time", "max_input_diff", "cost_rel_diff"} <= set(qp)
@@ -40,7 +42,9 @@ def test_solve_overrides_and_text(capsys):
     code, out, _ = run(capsys, "solve", str(EXAMPLES / "two_actuator.toml"), "--protocol", "udp",
                        "--mu", "0.2,0.3", "--x0", "0,1", "--method", "recursion")
     assert code == 0
-    assert "UDP-like" in out and "TCP-like" not in out and "(recursion)" in out
+    assert "UDP-like" in out
+    assert "TCP-like" not in out
+    assert "(recursion)" in out
 
 
 @pytest.mark.parametrize(
@@ -58,15 +62,18 @@ def test_solve_overrides_and_text(capsys):
 )
 def test_bad_input_exit_2_one_line(capsys, argv, match):
     code, out, err = run(capsys, *argv)
-    assert code == 2 and out == ""
-    assert err.count("\n") == 1 and match in err
+    assert code == 2
+    assert out == ""
+    assert err.count("\n") == 1
+    assert match in err
 
 
 def test_bad_file_content_exit_2(capsys, tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text((EXAMPLES / "two_actuator.toml").read_text().replace("horizon = 10", "horizon = -1"))
     code, _, err = run(capsys, "solve", str(path))
-    assert code == 2 and "cost.horizon: expected an integer >= 1" in err
+    assert code == 2
+    assert "cost.horizon: expected an integer >= 1" in err
 
 
 def test_unstable_long_dense_exit_1(capsys, tmp_path):
@@ -75,7 +82,9 @@ def test_unstable_long_dense_exit_1(capsys, tmp_path):
     text = text.replace("A = [[1.03, 0.005], [0.35, 1.01]]", "A = [[1.2, 0.0], [0.0, 0.5]]")
     path.write_text(text)
     code, _, err = run(capsys, "solve", str(path), "--method", "dense", "--no-qp")
-    assert code == 1 and "NumericalError" in err and err.count("\n") == 1
+    assert code == 1
+    assert "NumericalError" in err
+    assert err.count("\n") == 1
 
 
 def test_module_entry_point_runs():

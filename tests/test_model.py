@@ -31,10 +31,12 @@ def make(**changes):
         ({"A": [[np.nan, 0.0], [0.0, 1.0]]}, pl.InputError, r"A: expected finite numbers"),
         ({"x0": [np.inf, 0.0]}, pl.InputError, r"x0: expected finite numbers"),
         ({"state_weight": [[1.0, 0.5], [0.0, 1.0]]}, pl.InputError, r"state_weight: expected a symmetric"),
-        ({"state_weight": [[1.0, 2.0], [2.0, 1.0]]}, pl.InputError, r"state_weight: expected a positive semidefinite"),
+        ({"state_weight": [[1.0, 2.0], [2.0, 1.0]]}, pl.InputError,
+         r"state_weight: expected a positive semidefinite"),
         ({"state_weight": [1.0, -1.0]}, pl.InputError, r"state_weight: expected a non-negative diagonal"),
         ({"input_weight": [0.0]}, pl.InputError, r"input_weight: expected positive entries"),
-        ({"input_weight": None, "input_weights": [[1.0], [-1.0], [1.0]]}, pl.InputError, r"input_weights: expected positive"),
+        ({"input_weight": None, "input_weights": [[1.0], [-1.0], [1.0]]}, pl.InputError,
+         r"input_weights: expected positive"),
         ({"horizon": 0}, pl.InputError, r"horizon: expected an integer >= 1, found 0"),
         ({"horizon": 2.5}, pl.InputError, r"horizon: expected an integer >= 1, found 2.5"),
         ({"horizon": "3"}, pl.InputError, r"horizon: expected an integer"),
@@ -46,7 +48,8 @@ def make(**changes):
         ({"A": [[1.0, "a"], [0.0, 1.0]]}, pl.InputError, r"A: expected a number, found the string 'a'"),
         ({"x0": [True, 0.0]}, pl.InputError, r"x0: expected a number, found a boolean"),
         ({"A": [[1.0, 0.0], [1.0]]}, pl.InputError, r"A: expected a rectangular array"),
-        ({"state_weight": None, "state_weights": [[1.0, 1.0]] * 2}, pl.DimensionError, r"state_weights: expected 3 entries"),
+        ({"state_weight": None, "state_weights": [[1.0, 1.0]] * 2}, pl.DimensionError,
+         r"state_weights: expected 3 entries"),
         ({"noise_cov": [[1.0, 0.0], [0.0, -1.0]]}, pl.InputError, r"noise_cov: expected a positive semidefinite"),
         ({"initial_weight": [[1.0]]}, pl.DimensionError, r"initial_weight: expected shape"),
         ({"name": 3}, pl.InputError, r"name: expected a string"),
@@ -69,7 +72,8 @@ def test_system_is_immutable_and_copies():
     with pytest.raises(ValueError, match="read-only"):
         s.A[0, 0] = 5.0
     t = s.with_mu([0.9])
-    assert s.mu[0] == 0.5 and t.mu[0] == 0.9
+    assert s.mu[0] == 0.5
+    assert t.mu[0] == 0.9
     u = s.with_mu([[0.1], [0.2], [0.3]])
     assert not u.is_stationary
     with pytest.raises(ValueError, match="non-stationary"):
@@ -130,7 +134,8 @@ def test_load_good_file(tmp_path):
         ("mu = [0.5]", "", r"channel.mu/mu_schedule: .*found neither"),
         ("B = [[0.0], [1.0]]", "B = [[0.0], [1.0], [2.0]]", r"plant.B: expected shape \(2, m\)"),
         ("A = [[1.0, 0.1], [0.0, 1.0]]", "A = [[1.0, 0.1]]", r"plant.A: expected shape"),
-        ("state_weight = [1.0, 1.0]", "state_weight = [1.0, 1.0]\nstate_weigth = [1.0]", r"cost.state_weigth: unknown key"),
+        ("state_weight = [1.0, 1.0]", "state_weight = [1.0, 1.0]\nstate_weigth = [1.0]",
+         r"cost.state_weigth: unknown key"),
         ("state_weight = [1.0, 1.0]", "state_weights = [[1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]",
          r"cost.state_weights\[1\]: expected a non-negative"),
         ("x0 = [1.0, 0.0]", 'x0 = [1.0, "a"]', r"state.x0: expected a number, found the string"),

@@ -36,5 +36,6 @@ def test_cli_example(command, monkeypatch, capsys):
 
 
 def test_readme_has_examples():
-    assert len(PYTHON_BLOCKS) >= 2 and len(COMMANDS) >= 3
+    assert len(PYTHON_BLOCKS) >= 2
+    assert len(COMMANDS) >= 3
     assert os.path.exists(ROOT / "examples" / "two_actuator.toml")

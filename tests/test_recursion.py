@@ -19,7 +19,8 @@ def _agree(system, protocol, rtol=1e-9):
     assert abs(rec.cost - dense.cost) <= rtol * abs(dense.cost)
     assert np.abs(rec.inputs - dense.inputs).max() <= rtol * scale_u
     assert np.abs(rec.gain - dense.gain).max() <= rtol * scale_k
-    assert rec.method == "recursion" and dense.method == "dense"
+    assert rec.method == "recursion"
+    assert dense.method == "dense"
 
 
 @given(seed=st.integers(0, 2**32 - 1), protocol=st.sampled_from(PROTOCOLS))
@@ -56,7 +57,8 @@ def _unstable(horizon, noise=False):
 def test_long_unstable_tcp_recursion_is_finite_and_stabilising():
     system = _unstable(2000)
     sol = pl.closed_form(system, "tcp", method="recursion")
-    assert np.isfinite(sol.cost) and np.all(np.isfinite(sol.inputs))
+    assert np.isfinite(sol.cost)
+    assert np.all(np.isfinite(sol.inputs))
     # the mean closed loop A - B M K of the receding-horizon law is stable
     mean_loop = system.A - system.B @ np.diag(system.mu) @ sol.gain
     assert max(abs(np.linalg.eigvals(mean_loop))) < 1

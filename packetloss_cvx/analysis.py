@@ -1,0 +1,239 @@
+"""The cost difference between protocols, its derivative and maximiser (§IV), monotonicity
+(Theorem 3) and closed-loop eigenvalues (Tables I–II).
+
+For a shared ("scalar") channel every actuator has delivery probability nu, Vbar = nu I, and
+
+.. math:: J_\\Delta(\\nu) = J^*_{udp} - J^*_{tcp} = \\nu(1-\\nu)\\, g' G_G \\Omega_d G_F g,\\quad
+   G_F = (\\nu\\Omega_g + \\Psi)^{-1},\\ G_G = (\\nu\\Omega_h + \\Omega_d + \\Psi)^{-1},\\ g = \\Omega_{gp}x
+
+(eq:cost-diff-eq). For per-channel mu the same difference is
+``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g``: computed without cancellation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.optimize import minimize, minimize_scalar
+
+from .costs import closed_form
+from .errors import InputError
+from .model import System
+from .prediction import Prediction, prediction
+
+__all__ = [
+    "cost_difference",
+    "cost_difference_derivative",
+    "cost_difference_fd",
+    "det_roots",
+    "lemma3_candidates",
+    "maximise_cost_difference",
+    "maximise_cost_difference_2d",
+    "scalar_channel",
+    "theorem4_maximiser",
+    "Maximiser",
+]
+
+
+def scalar_channel(system: System, nu: float) -> System:
+    """The same system with every actuator behind one channel of delivery probability nu."""
+    return system.with_mu(np.full(system.m, float(nu)))
+
+
+def _mu_vector(system: System, mu) -> np.ndarray:
+    if mu is None:
+        return system.mu_schedule.ravel()
+    if np.ndim(mu) == 0:
+        return scalar_channel(system, float(mu)).mu_schedule.ravel()
+    return system.with_mu(mu).mu_schedule.ravel()
+
+
+def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> float:
+    """J*_udp - J*_tcp at ``mu`` (scalar nu, m-vector, N×m schedule, or the system's own).
+
+    Dense and cancellation-free: O((N m)^3). Pass ``pred`` to reuse the prediction.
+    """
+    pred = prediction(system) if pred is None else pred
+    v = _mu_vector(system, mu)
+    g = pred.Omega_gp @ system.x0
+    base = pred.Omega_g * v[None, :] + np.diag(pred.Psi)
+    a = np.linalg.solve(base + np.diag(pred.Omega_d * (1.0 - v)), g)   # G_udp^{-1} g
+    b = np.linalg.solve(base.T, v * g)                                 # G_tcp^{-T} Vbar g
+    return float(b @ (pred.Omega_d * (1.0 - v) * a))
+
+
+def _G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
+    Od = np.diag(pred.Omega_d)
+    GF = np.linalg.inv(nu * pred.Omega_g + np.diag(pred.Psi))
+    GG = np.linalg.inv(nu * pred.Omega_h + Od + np.diag(pred.Psi))
+    return GF, GG
+
+
+def lemma2_matrix(pred: Prediction, nu: float) -> np.ndarray:
+    """f(nu) of Lemma 2 / Theorem 4: the matrix inside the quadratic form of eq:cost-diff-deriv."""
+    GF, GG = _G_maps(pred, nu)
+    Od = np.diag(pred.Omega_d)
+    inner = (1 - 2 * nu) * Od - nu * (1 - nu) * (pred.Omega_h @ GG @ Od + Od @ GF @ pred.Omega_g)
+    return GG @ inner @ GF
+
+
+def cost_difference_derivative(system: System, nu: float, pred: Prediction | None = None) -> float:
+    """dJ_Delta/dnu for a shared channel by Lemma 2 (eq:cost-diff-deriv): g' f(nu) g."""
+    pred = prediction(system) if pred is None else pred
+    g = pred.Omega_gp @ system.x0
+    return float(g @ lemma2_matrix(pred, nu) @ g)
+
+
+def cost_difference_fd(system: System, nu: float, h: float | None = None,
+                       pred: Prediction | None = None) -> float:
+    """Central finite difference of J_Delta(nu) for a shared channel."""
+    pred = prediction(system) if pred is None else pred
+    h = 1e-6 * min(nu, 1 - nu) if h is None else h
+    return (cost_difference(system, nu + h, pred) - cost_difference(system, nu - h, pred)) / (2 * h)
+
+
+def _lemma3_T(pred: Prediction) -> tuple[np.ndarray, np.ndarray]:
+    Od_inv = np.diag(1.0 / pred.Omega_d)
+    Psi = np.diag(pred.Psi)
+    T = pred.Omega_g @ Od_inv @ (pred.Omega_g + Psi) + Psi @ Od_inv @ pred.Omega_h
+    return T, Psi
+
+
+def lemma3_candidates(system: System, variant: str = "lemma", pred: Prediction | None = None) -> np.ndarray:
+    """Lemma 3's 2Nm points nu = 1 / (1 ± sqrt(1 + lambda_i)) (complex where 1 + lambda < 0).
+
+    ``variant="lemma"``: lambda are the eigenvalues of
+    ``T (Omega_g + Psi)^{-1} Omega_d Psi^{-1}`` as printed in the lemma;
+    ``variant="proof"``: of ``T H^{-1}`` with ``H = Psi Omega_d^{-1} (Omega_d + Psi)`` as derived
+    in its proof; ``T = Omega_g Omega_d^{-1} (Omega_g + Psi) + Psi Omega_d^{-1} Omega_h``.
+    """
+    pred = prediction(system) if pred is None else pred
+    if np.any(pred.Omega_d <= 0):
+        raise InputError("system", "Lemma 3 needs Omega_d > 0 (every input must reach a weighted state)")
+    T, Psi = _lemma3_T(pred)
+    Od = np.diag(pred.Omega_d)
+    if variant == "lemma":
+        M = T @ np.linalg.solve(pred.Omega_g + Psi, Od) @ np.diag(1.0 / pred.Psi)
+    elif variant == "proof":
+        M = T @ np.diag(pred.Omega_d / (pred.Psi * (pred.Omega_d + pred.Psi)))
+    else:
+        raise InputError("variant", f"expected 'lemma' or 'proof', found {variant!r}")
+    lam = np.linalg.eigvals(M).astype(complex)
+    root = np.sqrt(1 + lam)
+    return np.concatenate([1 / (1 + root), 1 / (1 - root)])
+
+
+def det_roots(system: System, pred: Prediction | None = None) -> np.ndarray:
+    """The exact roots nu of det f(nu) = 0 (eq:det-0), independently of Lemma 3.
+
+    det f = 0 iff det Q(nu) = 0 with the matrix polynomial
+    ``Q(nu) = G_F^{-1} Omega_d^{-1} M(nu) Omega_d^{-1} G_G^{-1}`` (M the bracket of f), which is
+    quadratic in nu (its cubic terms cancel); its roots are the eigenvalues of the companion
+    linearisation. Returns all 2Nm roots (complex, inf where the leading term is singular).
+    """
+    pred = prediction(system) if pred is None else pred
+    Od_inv = np.diag(1.0 / pred.Omega_d)
+    Psi = np.diag(pred.Psi)
+    Od = np.diag(pred.Omega_d)
+
+    def Q(nu: float) -> np.ndarray:
+        F = nu * pred.Omega_g + Psi
+        G = nu * pred.Omega_h + Od + Psi
+        return (1 - 2 * nu) * F @ Od_inv @ G - nu * (1 - nu) * (F @ Od_inv @ pred.Omega_h
+                                                                 + pred.Omega_g @ Od_inv @ G)
+
+    Q0 = Q(0.0)
+    Q1 = (Q(1.0) - Q(-1.0)) / 2
+    Q2 = (Q(1.0) + Q(-1.0)) / 2 - Q0
+    k = Q0.shape[0]
+    # companion form: [0 I; -Q0 -Q1] z = nu [I 0; 0 Q2] z
+    Aa = np.block([[np.zeros((k, k)), np.eye(k)], [-Q0, -Q1]])
+    Bb = np.block([[np.eye(k), np.zeros((k, k))], [np.zeros((k, k)), Q2]])
+    return sla.eigvals(Aa, Bb)
+
+
+@dataclass(frozen=True)
+class Maximiser:
+    """Where J_Delta peaks: ``nu`` (or ``mu`` for per-channel), the value, and how found."""
+
+    point: np.ndarray
+    value: float
+    method: str
+
+
+def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6,
+                       pred: Prediction | None = None) -> Maximiser | None:
+    """Theorem 4: the best real Lemma 3 candidate in [0, 1] at which the largest eigenvalue of
+    (the symmetric part of) f(nu) vanishes (|lambda_max| <= tol * ||G_G|| ||Omega_d|| ||G_F||, the
+    scale of f's terms). None if no candidate qualifies: the theorem then names no maximiser."""
+    pred = prediction(system) if pred is None else pred
+    best = None
+    for c in lemma3_candidates(system, variant, pred):
+        if abs(c.imag) > 1e-12 or not 0.0 < c.real < 1.0:
+            continue
+        nu = float(c.real)
+        f = lemma2_matrix(pred, nu)
+        GF, GG = _G_maps(pred, nu)
+        scale = np.linalg.norm(GG, 2) * float(pred.Omega_d.max()) * np.linalg.norm(GF, 2)
+        lam_max = float(np.linalg.eigvalsh(0.5 * (f + f.T)).max())
+        if abs(lam_max) > tol * scale:
+            continue
+        value = cost_difference(system, nu, pred)
+        if best is None or value > best.value:
+            best = Maximiser(np.array([nu]), value, f"theorem-4 ({variant})")
+    return best
+
+
+def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction | None = None) -> Maximiser:
+    """Robust maximiser of J_Delta(nu) over nu in (0, 1) for a shared channel.
+
+    A grid uniform in logit(nu) from 1e-9 to 1 - 1e-9 (so peaks near 1e-4 are bracketed),
+    then a bounded Brent refinement in logit space between the best point's neighbours.
+    Time O(grid · (N m)^3).
+    """
+    pred = prediction(system) if pred is None else pred
+    z = np.linspace(-np.log(1e9), np.log(1e9), grid)
+    nus = 1 / (1 + np.exp(-z))
+    vals = np.array([cost_difference(system, nu, pred) for nu in nus])
+    i = int(np.argmax(vals))
+    lo, hi = z[max(i - 1, 0)], z[min(i + 1, grid - 1)]
+    res = minimize_scalar(lambda s: -cost_difference(system, 1 / (1 + np.exp(-s)), pred),
+                          bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
+    nu, value = (1 / (1 + np.exp(-res.x)), -res.fun) if -res.fun >= vals[i] else (nus[i], vals[i])
+    return Maximiser(np.array([float(nu)]), float(value), "logit-grid + bounded Brent")
+
+
+def maximise_cost_difference_2d(system: System, grid: int = 41, pred: Prediction | None = None) -> Maximiser:
+    """Maximiser of J_Delta(mu) over [0, 1]^2 for two stationary channels (the cross of Fig. 3):
+    a grid, then L-BFGS-B from the best grid point. Time O(grid^2 (N m)^3)."""
+    if system.m != 2:
+        raise InputError("system", f"expected m = 2 channels, found m = {system.m}")
+    pred = prediction(system) if pred is None else pred
+    axis = np.linspace(0.0, 1.0, grid)
+    best = max((cost_difference(system, [a, b], pred), a, b) for a in axis for b in axis)
+    res = minimize(lambda p: -cost_difference(system, np.clip(p, 0, 1), pred), x0=[best[1], best[2]],
+                   bounds=[(0, 1), (0, 1)], method="L-BFGS-B")
+    if -res.fun >= best[0]:
+        return Maximiser(np.clip(res.x, 0, 1), float(-res.fun), "grid + L-BFGS-B")
+    return Maximiser(np.array([best[1], best[2]]), float(best[0]), "grid")
+
+
+def monotonicity_violations(system: System, protocol: str, steps: int = 11) -> list[tuple[int, float, float]]:
+    """Theorem 3 along each channel: raise mu_i on a grid with the others fixed and report
+    ``(i, mu_i, increase)`` wherever J* does not strictly decrease."""
+    out = []
+    base = system.mu_schedule[0].copy() if system.is_stationary else None
+    if base is None:
+        raise InputError("system", "expected a stationary channel")
+    for i in range(system.m):
+        prev = None
+        for value in np.linspace(0.05, 1.0, steps):
+            mu = base.copy()
+            mu[i] = value
+            cost = closed_form(system.with_mu(mu), protocol, method="auto").cost
+            if prev is not None and cost >= prev[1]:
+                out.append((i, float(value), float(cost - prev[1])))
+            prev = (value, cost)
+    return out
