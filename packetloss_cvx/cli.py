@@ -96,6 +96,38 @@ def _audit(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     return data, text
 
 
+def _allocate(args: argparse.Namespace) -> tuple[dict[str, Any], str] | tuple[dict[str, Any], str, int]:
+    from .allocation import allocate, parse_constraint
+
+    system = load_system(args.file)
+    try:
+        alpha = float(args.alpha)
+    except ValueError:
+        raise InputError("--alpha", f"expected a number, found {args.alpha!r}") from None
+    beta = _floats(args.beta, "--beta")
+    if len(beta) != system.m:
+        raise InputError("--beta", f"expected {system.m} comma-separated numbers, found {len(beta)}")
+    bounds = _floats(args.bounds, "--bounds")
+    if len(bounds) != 2:
+        raise InputError("--bounds", f"expected lo,hi, found {args.bounds!r}")
+    constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
+    try:
+        result = allocate(system, args.protocol, alpha, beta, bounds=tuple(bounds), constraints=constraints,
+                          gap=args.gap)
+    except InputError as err:
+        raise err.renamed(f"--{err.field}") if err.field in ("alpha", "beta", "bounds", "gap") else err from None
+    except InfeasibleError as err:
+        data = {"protocol": args.protocol, "alpha": alpha, "beta": beta, "mu": None, "communication_cost": None,
+                "cost": None, "lower_bound": None, "gap": None, "status": "infeasible", "method": None,
+                "min_cost": err.min_cost}
+        return data, f"infeasible: {err}", 3
+    data = {**result.to_dict(), "min_cost": None}
+    text = (f"{args.protocol.upper()}-like: mu* = {np.round(result.mu, 6).tolist()}, beta'mu = "
+            f"{result.communication_cost:.6g}, J*(mu*) = {result.cost:.6g} <= {alpha:g}, lower bound "
+            f"{result.lower_bound:.6g} (gap {result.gap:.1e}; {result.method})")
+    return data, text
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="packetloss-cvx", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -118,6 +150,18 @@ def _build_parser() -> argparse.ArgumentParser:
     aud.add_argument("--report", action="store_true", help="Markdown report with notes and counterexamples")
     aud.add_argument("--json", action="store_true", help="print one JSON object")
     aud.set_defaults(run=_audit)
+
+    alloc = sub.add_parser("allocate", help="cheapest channel qualities with J*(mu) <= alpha")
+    alloc.add_argument("file")
+    alloc.add_argument("--protocol", choices=("tcp", "udp"), required=True)
+    alloc.add_argument("--alpha", required=True, help="bound on the optimal expected cost")
+    alloc.add_argument("--beta", required=True, help="price of each channel, comma-separated")
+    alloc.add_argument("--bounds", default="0,1", help="lo,hi for every mu_i (default 0,1)")
+    alloc.add_argument("--constraint", action="append",
+                       help='linear constraint, e.g. "mu1 + 2*mu2 <= 1.5" or "mu1 >= mu2" (repeatable)')
+    alloc.add_argument("--gap", type=float, default=1e-4, help="relative optimality gap (UDP-like)")
+    alloc.add_argument("--json", action="store_true", help="print one JSON object")
+    alloc.set_defaults(run=_allocate)
     return parser
 
 
@@ -134,9 +178,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
-        run: Callable[[argparse.Namespace], tuple[dict[str, Any], str]] = args.run
-        _emit(run(args), getattr(args, "json", False))
-        return 0
+        run: Callable[[argparse.Namespace], tuple] = args.run
+        result = run(args)
+        code = result[2] if len(result) == 3 else 0
+        if code == 3 and not getattr(args, "json", False):
+            print(f"packetloss-cvx: {result[1]}", file=sys.stderr)
+        else:
+            _emit(result[:2], getattr(args, "json", False))
+        return code
     except InputError as err:
         print(f"packetloss-cvx: error: {err}", file=sys.stderr)
         return 2

@@ -1,0 +1,543 @@
+"""Channel allocation M* (§VI): the cheapest delivery probabilities that keep J* <= alpha.
+
+.. math:: \\min_{\\mu} \\beta'\\mu \\quad\\text{s.t.}\\quad J^*(\\mu) \\le \\alpha,\\
+   \\mu \\in [lo, hi]^m,\\ \\text{extra linear constraints}
+
+(eq:alpha_channels, eq:channel-opt, eq:opt_M), stationary channels.
+
+* TCP-like: with ``Z = Vbar U`` the expected cost ``C + 2Z'g + Z'Omega_g Z + sum psi z^2 / mu``
+  is jointly convex in (Z, mu) (quad-over-lin terms), so the sublevel set is convex and the
+  program is an SOCP, solved by Clarabel (sparse: mean states as variables) to its default 1e-8
+  duality gap; the reported lower bound allows 1e-6 relative for that tolerance.
+* UDP-like: the sublevel set is not convex in general. It is an *upper set*: J*_udp falls in
+  each mu_i (Theorem 3), so whatever dominates a feasible point is feasible. We run a
+  monotonic branch and bound over boxes [l, u]: a box is infeasible when its upper corner is;
+  its lower bound is the LP ``min beta'mu`` over the box and the linear constraints (after
+  the lower corner is raised coordinate-wise to the feasible boundary, a valid reduction by
+  monotonicity); incumbents come from bisection between the LP point and the box's maximal
+  point. The TCP-like program over the whole set is a second, global lower bound (Theorem 2).
+  The returned mu is verified feasible by the closed form and ``(cost - lower_bound) / cost
+  <= gap``. Worst case the number of boxes grows like (1/gap)^(m-1); each box costs two LPs
+  and O(m log(1/tol)) closed forms of O(N (n^3 + m^3)).
+"""
+
+from __future__ import annotations
+
+import heapq
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import linprog
+
+from .costs import closed_form
+from .errors import InfeasibleError, InputError, SolverError
+from .model import System, psd_factor
+from .protocols import check_protocol
+from .recursion import udp_variance_weights
+
+__all__ = [
+    "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "min_cost", "parse_constraint",
+    "pareto_curve",
+]
+
+Constraint = Callable[[cp.Variable], Any] | tuple[Any, Any]
+
+
+@dataclass(frozen=True)
+class Allocation:
+    """The cheapest channel qualities found, with a certificate.
+
+    ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: J*(mu) by the
+    closed form (<= alpha); ``lower_bound``: a proven lower bound on the optimal beta'mu;
+    ``gap``: (communication_cost - lower_bound) / max(communication_cost, 1e-12);
+    ``status``: "optimal"; ``method``: how it was solved; ``boxes``: B&B boxes explored.
+    """
+
+    mu: np.ndarray
+    communication_cost: float
+    cost: float
+    lower_bound: float
+    gap: float
+    status: str
+    method: str
+    protocol: str
+    alpha: float
+    beta: np.ndarray
+    boxes: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"protocol": self.protocol, "alpha": self.alpha, "beta": self.beta.tolist(),
+                "mu": self.mu.tolist(), "communication_cost": self.communication_cost, "cost": self.cost,
+                "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method}
+
+
+# ------------------------------------------------------------------ inputs
+
+_TERM = re.compile(r"\s*([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\d+)\s*\*?\s*)?(mu(\d+))?\s*")
+
+
+def _side(text: str, m: int, field: str) -> tuple[np.ndarray, float]:
+    """Parse a sum of terms ``[+-] [c [*]] mu<k>`` or ``[+-] c``: returns (coefficients, constant)."""
+    coef, const, pos = np.zeros(m), 0.0, 0
+    text = text.strip()
+    if not text:
+        raise InputError(field, "expected an expression on both sides")
+    while pos < len(text):
+        match = _TERM.match(text, pos)
+        if match is None or match.end() == pos or (match.group(2) is None and match.group(3) is None):
+            raise InputError(field, f"cannot parse {text[pos:]!r}; expected terms like '2*mu1', 'mu2' or '0.5'")
+        sign = -1.0 if match.group(1) == "-" else 1.0
+        if pos > 0 and not match.group(1):
+            raise InputError(field, f"expected '+' or '-' before {text[pos:].strip()!r}")
+        value = sign * (float(match.group(2)) if match.group(2) else 1.0)
+        if match.group(3):
+            k = int(match.group(4))
+            if not 1 <= k <= m:
+                raise InputError(field, f"unknown channel {match.group(3)!r}; expected mu1..mu{m}")
+            coef[k - 1] += value
+        else:
+            const += value
+        pos = match.end()
+    return coef, const
+
+
+def parse_constraint(text: str, m: int, field: str = "--constraint") -> tuple[np.ndarray, np.ndarray]:
+    """Parse ``"mu1 + 2*mu2 <= 1.5"``, ``"mu1 >= mu2"``, ``"mu2 == 0.8"`` into (G, h), G mu <= h.
+
+    A small grammar, no ``eval``: linear terms in mu1..mu<m>, numbers, one of <=, >=, ==
+    (< and > are read as <= and >=).
+    """
+    parts = re.split(r"(<=|>=|==|<|>|=)", text)
+    if len(parts) != 3:
+        raise InputError(field, f"expected one comparison (<=, >= or ==) in {text!r}")
+    left, op, right = parts
+    a, c1 = _side(left, m, field)
+    b, c2 = _side(right, m, field)
+    row, rhs = a - b, c2 - c1          # row mu  op  rhs
+    if not np.any(row):
+        raise InputError(field, f"{text!r} does not involve any channel")
+    if op in ("<=", "<"):
+        return row[None, :], np.array([rhs])
+    if op in (">=", ">"):
+        return -row[None, :], np.array([-rhs])
+    return np.vstack([row, -row]), np.array([rhs, -rhs])
+
+
+def _check_inputs(system: System, alpha: float, beta, bounds) -> tuple[float, np.ndarray, float, float]:
+    if not system.is_stationary:
+        raise InputError("system", "allocation needs a stationary channel (mu, not mu_schedule)")
+    try:
+        alpha = float(alpha)
+    except (TypeError, ValueError):
+        raise InputError("alpha", f"expected a number, found {alpha!r}") from None
+    if not np.isfinite(alpha) or alpha <= 0:
+        raise InputError("alpha", f"expected a positive finite number, found {alpha}")
+    beta_ = np.asarray(beta, dtype=float) if not isinstance(beta, str) else None
+    if beta_ is None or beta_.shape != (system.m,):
+        raise InputError("beta", f"expected {system.m} non-negative numbers, one per channel")
+    if not np.all(np.isfinite(beta_)) or np.any(beta_ < 0):
+        raise InputError("beta", "expected finite non-negative numbers")
+    try:
+        lo, hi = (float(b) for b in bounds)
+    except (TypeError, ValueError):
+        raise InputError("bounds", f"expected (lo, hi), found {bounds!r}") from None
+    if not 0.0 <= lo <= hi <= 1.0:
+        raise InputError("bounds", f"expected 0 <= lo <= hi <= 1, found ({lo}, {hi})")
+    return alpha, beta_, lo, hi
+
+
+def _polytope(constraints: Sequence[Constraint], m: int) -> tuple[np.ndarray, np.ndarray, list[Callable]]:
+    G, h, calls = np.zeros((0, m)), np.zeros(0), []
+    for k, item in enumerate(constraints):
+        if callable(item):
+            calls.append(item)
+            continue
+        try:
+            Gk, hk = item
+            Gk = np.atleast_2d(np.asarray(Gk, dtype=float))
+            hk = np.atleast_1d(np.asarray(hk, dtype=float))
+        except (TypeError, ValueError):
+            raise InputError(f"constraints[{k}]", "expected a callable or a pair (G, h) meaning G mu <= h") from None
+        if Gk.shape[1] != m or Gk.shape[0] != hk.shape[0]:
+            raise InputError(f"constraints[{k}]", f"expected G of shape (r, {m}) and h of shape (r,)")
+        G, h = np.vstack([G, Gk]), np.concatenate([h, hk])
+    return G, h, calls
+
+
+def _solve(problem: cp.Problem, what: str) -> None:
+    """Clarabel at its default tolerances (1e-8 gap): the tightened ones of the QP twin stall on
+    quad-over-lin terms near mu = 0 or 1 and end 'optimal_inaccurate'."""
+    try:
+        problem.solve(solver=cp.CLARABEL)
+    except cp.error.SolverError as err:
+        raise SolverError("solver_error", f"{what}: {err}") from None
+
+
+# ------------------------------------------------------------------ TCP-like: the exact SOCP
+
+class _TCPProgram:
+    """J_tcp(Z, mu) in cvxpy, sparse in the horizon; mu is a variable."""
+
+    def __init__(self, system: System) -> None:
+        N, n, m = system.horizon, system.n, system.m
+        self.system = system
+        self.mu = cp.Variable(m, name="mu")
+        Zv = cp.Variable((N, m), name="Z")
+        X = cp.Variable(N * n, name="xhat")
+        E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
+        Bbig = sp.kron(sp.eye(N), system.B, format="csr")
+        first = np.vstack([system.A @ system.x0, np.zeros(((N - 1) * n, 1))[:, 0].reshape(-1, n)]).ravel()
+        L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
+        psi = system.input_weights
+        terms = [cp.sum_squares(L @ X)]
+        for i in range(m):
+            terms.append(cp.quad_over_lin(cp.multiply(np.sqrt(psi[:, i]), Zv[:, i]), self.mu[i]))
+        x0 = system.x0
+        self.constant = float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]  # + noise
+        self.cost = cp.sum(terms) + self.constant
+        self.dynamics = [E @ X - Bbig @ cp.vec(Zv.T, order="F") == first]
+
+
+def _base_constraints(mu: cp.Variable, lo: float, hi: float, G: np.ndarray, h: np.ndarray,
+                      calls: list[Callable]) -> list:
+    cons = [mu >= lo, mu <= hi]
+    if G.shape[0]:
+        cons.append(G @ mu <= h)
+    for k, fn in enumerate(calls):
+        out = fn(mu)
+        out = list(out) if isinstance(out, (list, tuple)) else [out]
+        if not all(isinstance(c, cp.constraints.constraint.Constraint) for c in out):
+            raise InputError(f"constraints[{k}]", "a callable must return cvxpy constraints on mu")
+        cons += out
+    return cons
+
+
+def _tcp_min_cost(system: System, lo, hi, G, h, calls) -> float:
+    prog = _TCPProgram(system)
+    problem = cp.Problem(cp.Minimize(prog.cost), prog.dynamics + _base_constraints(prog.mu, lo, hi, G, h, calls))
+    _solve(problem, "TCP-like minimum cost")
+    if problem.status == cp.INFEASIBLE:
+        raise InfeasibleError("the linear constraints and bounds admit no mu", None)
+    if problem.status != cp.OPTIMAL:
+        raise SolverError(problem.status, "TCP-like minimum cost")
+    return closed_form(system.with_mu(np.clip(prog.mu.value, 0, 1)), "tcp", "auto").cost
+
+
+def _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls) -> tuple[np.ndarray, str]:
+    prog = _TCPProgram(system)
+    cons = prog.dynamics + [prog.cost <= alpha] + _base_constraints(prog.mu, lo, hi, G, h, calls)
+    problem = cp.Problem(cp.Minimize(beta @ prog.mu), cons)
+    _solve(problem, "TCP-like allocation")
+    if problem.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
+        return None, problem.status
+    if problem.status != cp.OPTIMAL:
+        raise SolverError(problem.status, "TCP-like allocation")
+    return np.clip(prog.mu.value, lo, hi), problem.status
+
+
+# ------------------------------------------------------------------ shared helpers
+
+class _BoxLP:
+    """min c'mu over [l, u] and the linear/callable constraints: HiGHS (scipy) for G mu <= h,
+    a cvxpy problem re-solved through Parameters when callables are present."""
+
+    def __init__(self, m: int, G, h, calls) -> None:
+        self.G, self.h, self.fast = G, h, not calls
+        if self.fast:
+            return
+        self.mu = cp.Variable(m)
+        self.l, self.u, self.c = cp.Parameter(m), cp.Parameter(m), cp.Parameter(m)
+        cons = [self.mu >= self.l, self.mu <= self.u] + _base_constraints(self.mu, 0.0, 1.0, G, h, calls)
+        self.problem = cp.Problem(cp.Minimize(self.c @ self.mu), cons)
+
+    def solve(self, c, l, u) -> np.ndarray | None:
+        if self.fast:
+            if not self.G.shape[0]:   # a box alone: the minimiser is a corner
+                return np.where(np.asarray(c) > 0, l, np.where(np.asarray(c) < 0, u, l)).astype(float)
+            res = linprog(c, A_ub=self.G, b_ub=self.h, bounds=list(zip(l, u, strict=True)), method="highs")
+            if res.status == 2:
+                return None
+            if res.status != 0:
+                raise SolverError(f"linprog status {res.status}", res.message)
+            return np.clip(res.x, l, u)
+        self.c.value, self.l.value, self.u.value = c, l, u
+        _solve(self.problem, "box LP")
+        if self.problem.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
+            return None
+        if self.problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+            raise SolverError(self.problem.status, "box LP")
+        return np.clip(self.mu.value, l, u)
+
+
+def _J(system: System, protocol: str, mu: np.ndarray) -> float:
+    return closed_form(system.with_mu(np.clip(mu, 0.0, 1.0)), protocol, "auto").cost
+
+
+def _bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> tuple[float, float]:
+    """For f decreasing with f(b) <= alpha: bisect to (s_in, s_out), s_in - s_out <= tol, where
+    f(s_in) <= alpha and s_out is the last point known to have f > alpha (both a if f(a) <= alpha)."""
+    if f(a) <= alpha:
+        return a, a
+    while b - a > tol:
+        mid = 0.5 * (a + b)
+        if f(mid) <= alpha:
+            b = mid
+        else:
+            a = mid
+    return b, a
+
+
+def _boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> float:
+    """Smallest feasible t (to within tol, on the feasible side) for f decreasing, f(b) <= alpha."""
+    return _bracket(f, alpha, a, b, tol)[0]
+
+
+# ------------------------------------------------------------------ UDP-like: monotonic B&B
+
+def _udp_allocate(system, alpha, beta, lo, hi, G, h, calls, gap, max_boxes, tcp_bound):
+    m = system.m
+    lp = _BoxLP(m, G, h, calls)
+    J = lambda mu: _J(system, "udp", mu)  # noqa: E731
+    slack = alpha * (1 + 1e-9)   # prune only when clearly infeasible: the certificate stays valid
+    best_mu, best = None, np.inf
+    explored = 0
+
+    def incumbent(l, u, p) -> None:
+        nonlocal best_mu, best
+        q = lp.solve(-np.ones(m), l, u)          # a maximal point of the box and constraints
+        if q is None or J(q) > alpha:
+            return
+        t = _boundary(lambda s: J(p + s * (q - p)), alpha, 0.0, 1.0, 1e-3 * gap)
+        point = p + t * (q - p)
+        if J(point) <= alpha and beta @ point < best:
+            best_mu, best = point, float(beta @ point)
+
+    def bound(l, u):
+        """Reduce the box and return (lower bound, l, u, LP point) or None if empty/infeasible."""
+        if J(u) > slack:
+            return None
+        l = l.copy()
+        for i in range(m):                       # raise l_i to the feasible boundary along edge i
+            if l[i] < u[i]:
+                edge = u.copy()
+                # every point of the box with mu_i below a point known infeasible on this edge is
+                # infeasible (it is dominated by that point): raise l_i to the infeasible side
+                l[i] = _bracket(lambda s, i=i, e=edge: J(np.where(np.arange(m) == i, s, e)), slack,
+                                l[i], u[i], 1e-9 + 1e-6 * (u[i] - l[i]))[1]
+        if np.isfinite(best):                    # lower u where beta'mu would exceed the incumbent
+            for i in range(m):
+                if beta[i] > 0:
+                    u[i] = min(u[i], (best - (beta @ l - beta[i] * l[i])) / beta[i] + 1e-12)
+            if np.any(u < l):
+                return None
+        p = lp.solve(beta, l, u)
+        if p is None:
+            return None
+        return float(beta @ p), l, u, p
+
+    root = bound(np.full(m, lo), np.full(m, hi))
+    if root is None:
+        return None, None, 0
+    heap = [(root[0], 0, root[1], root[2], root[3])]
+    counter = 1
+    pruned = np.inf   # least lower bound among boxes set aside as within the gap of the incumbent
+
+    def close_enough(lb: float) -> bool:
+        return np.isfinite(best) and lb >= best * (1 - gap)
+
+    while heap:
+        lb, _, l, u, p = heapq.heappop(heap)
+        if np.isfinite(best) and best - max(min(lb, pruned), tcp_bound) <= gap * max(best, 1e-12):
+            heapq.heappush(heap, (lb, -1, l, u, p))
+            break
+        if close_enough(lb):
+            pruned = min(pruned, lb)
+            continue
+        explored += 1
+        if explored > max_boxes:
+            raise SolverError("max_boxes", f"UDP-like branch and bound stopped after {max_boxes} boxes "
+                              f"(incumbent {best:.6g}, bound {lb:.6g}); raise gap or max_boxes")
+        if J(p) <= alpha and beta @ p < best:
+            best_mu, best = p, float(beta @ p)
+        else:
+            incumbent(l, u, p)
+        widths = (u - l) * np.maximum(beta, 1e-3)
+        i = int(np.argmax(widths))
+        if u[i] - l[i] < 1e-12:
+            pruned = min(pruned, lb)
+            continue
+        mid = 0.5 * (l[i] + u[i])
+        for nl, nu in ((l, np.where(np.arange(m) == i, mid, u)), (np.where(np.arange(m) == i, mid, l), u)):
+            child = bound(nl, nu.copy())
+            if child is None:
+                continue
+            if close_enough(child[0]):
+                pruned = min(pruned, child[0])
+            else:
+                heapq.heappush(heap, (child[0], counter, child[1], child[2], child[3]))
+                counter += 1
+    if best_mu is None:
+        return None, None, explored
+    lower = min([best, pruned] + [item[0] for item in heap])
+    if tcp_bound <= best:
+        lower = max(lower, tcp_bound)
+    return best_mu, lower, explored
+
+
+def _udp_min_cost(system, lo, hi, G, h, calls, tol: float = 1e-6) -> float:
+    """min J*_udp over the bounds and constraints: J falls in mu, so the minimum sits at a maximal
+    point; a B&B on boxes with bound J(u) (monotone) and incumbents at maximal LP points."""
+    m = system.m
+    lp = _BoxLP(m, G, h, calls)
+    J = lambda mu: _J(system, "udp", mu)  # noqa: E731
+    l0, u0 = np.full(m, lo), np.full(m, hi)
+    q = lp.solve(-np.ones(m), l0, u0)
+    if q is None:
+        raise InfeasibleError("the linear constraints and bounds admit no mu", None)
+    if G.shape[0] == 0 and not calls:
+        return J(u0)
+    best = J(q)
+    heap, counter = [(J(u0), 0, l0, u0)], 1
+    for _ in range(2000):
+        if not heap:
+            break
+        lb, _, l, u = heapq.heappop(heap)
+        if best - lb <= tol * max(best, 1e-12):
+            break
+        i = int(np.argmax(u - l))
+        mid = 0.5 * (l[i] + u[i])
+        for nl, nu in ((l, np.where(np.arange(m) == i, mid, u)), (np.where(np.arange(m) == i, mid, l), u)):
+            point = lp.solve(-np.ones(m), nl, nu)
+            if point is None:
+                continue
+            best = min(best, J(point))
+            bound_ = J(nu)
+            if bound_ < best:
+                heapq.heappush(heap, (bound_, counter, nl, nu))
+                counter += 1
+    return best
+
+
+# ------------------------------------------------------------------ public API
+
+def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequence[Constraint] = ()) -> float:
+    """The least optimal cost J*(mu) reachable within the bounds and constraints."""
+    protocol = check_protocol(protocol)
+    _, _, lo, hi = _check_inputs(system, 1.0, np.zeros(system.m), bounds)
+    G, h, calls = _polytope(constraints, system.m)
+    if protocol == "tcp":
+        return _tcp_min_cost(system, lo, hi, G, h, calls)
+    return _udp_min_cost(system, lo, hi, G, h, calls)
+
+
+def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
+             constraints: Sequence[Constraint] = (), gap: float = 1e-4, max_boxes: int = 20000) -> Allocation:
+    """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha.
+
+    Parameters
+    ----------
+    system : System (stationary channel; its mu is ignored)
+    protocol : {"tcp", "udp"}
+    alpha : float
+        Bound on the optimal expected cost.
+    beta : array_like, shape (m,)
+        Non-negative price of each channel's delivery probability.
+    bounds : (lo, hi)
+        Box for every mu_i, 0 <= lo <= hi <= 1.
+    constraints : sequence
+        Callables ``f(mu) -> cvxpy constraints`` or pairs ``(G, h)`` meaning ``G mu <= h``.
+    gap : float
+        Relative optimality gap certified for the UDP-like branch and bound.
+
+    Raises
+    ------
+    InfeasibleError
+        alpha is below the least reachable cost; ``min_cost`` carries that cost.
+    SolverError
+        A solver status other than optimal, or the B&B box budget exhausted.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0],
+    ...            mu=[0.5], x0=[1.0])
+    >>> a = allocate(s, "tcp", alpha=1.5, beta=[1.0])
+    >>> bool(a.cost <= 1.5 * (1 + 1e-7))
+    True
+    """
+    protocol = check_protocol(protocol)
+    alpha, beta, lo, hi = _check_inputs(system, alpha, beta, bounds)
+    if not 0 < gap < 1:
+        raise InputError("gap", f"expected a number in (0, 1), found {gap}")
+    G, h, calls = _polytope(constraints, system.m)
+
+    def infeasible() -> InfeasibleError:
+        least = min_cost(system, protocol, (lo, hi), constraints)
+        return InfeasibleError(f"alpha = {alpha:g} is below the least reachable {protocol}-like cost "
+                               f"{least:.6g} within the bounds and constraints", least)
+
+    if protocol == "tcp":
+        mu, status = _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls)
+        if mu is None:
+            raise infeasible()
+        cost = _J(system, "tcp", mu)
+        method = "convex SOCP (Clarabel)"
+        if cost > alpha * (1 + 1e-7):   # solver tolerance: move towards a maximal point, say so
+            q = _BoxLP(system.m, G, h, calls).solve(-np.ones(system.m), np.full(system.m, lo), np.full(system.m, hi))
+            t = _boundary(lambda s: _J(system, "tcp", mu + s * (q - mu)), alpha, 0.0, 1.0, 1e-12)
+            mu = mu + t * (q - mu)
+            cost = _J(system, "tcp", mu)
+            method += ", then pushed onto the feasible set by bisection"
+        value = float(beta @ mu)
+        # exact up to the solver's tolerances (1e-8 gap): the bound allows 1e-6 relative
+        lower = value * (1 - 1e-6) - 1e-10
+        return Allocation(mu=mu, communication_cost=value, cost=cost, lower_bound=lower,
+                          gap=(value - lower) / max(value, 1e-12),
+                          status="optimal", method=method, protocol=protocol, alpha=alpha, beta=beta)
+    try:
+        tcp_mu, _ = _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls)
+    except SolverError:
+        tcp_mu = None
+    tcp_bound = float(beta @ tcp_mu) * (1 - 1e-7) if tcp_mu is not None else np.inf
+    if tcp_mu is None:   # the relaxation is infeasible, so is the UDP-like problem (Theorem 2)
+        raise infeasible()
+    mu, lower, boxes = _udp_allocate(system, alpha, beta, lo, hi, G, h, calls, gap, max_boxes, tcp_bound)
+    if mu is None:
+        raise infeasible()
+    value = float(beta @ mu)
+    lower = min(lower, value)
+    return Allocation(mu=mu, communication_cost=value, cost=_J(system, "udp", mu), lower_bound=lower,
+                      gap=(value - lower) / max(value, 1e-12), status="optimal",
+                      method="monotonic branch and bound (LP bounds, TCP-like relaxation)", protocol=protocol,
+                      alpha=alpha, beta=beta, boxes=boxes)
+
+
+def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], **kwargs) -> list[dict]:
+    """alpha -> (communication cost, mu) along the trade-off; infeasible alphas get None."""
+    out = []
+    for alpha in alphas:
+        try:
+            a = allocate(system, protocol, alpha, beta, **kwargs)
+            out.append({"alpha": float(alpha), "communication_cost": a.communication_cost, "mu": a.mu.tolist()})
+        except InfeasibleError:
+            out.append({"alpha": float(alpha), "communication_cost": None, "mu": None})
+    return out
+
+
+def contour_allocations(system: System, protocol: str, alphas: Sequence[float],
+                        betas: Sequence[Sequence[float]] = ((1, 1), (0.05, 1), (1, 0.05))) -> dict:
+    """Figs. 6–7: the optimal allocation point on each cost contour alpha, for each beta."""
+    return {tuple(beta): pareto_curve(system, protocol, beta, alphas) for beta in betas}
+
+
+def best_cost_within_budget(system: System, protocol: str, beta, budget: float, bounds=(0.0, 1.0),
+                            constraints: Sequence[Constraint] = ()) -> float:
+    """The other side of the trade-off: min J*(mu) s.t. beta'mu <= budget (convex for TCP-like)."""
+    beta = np.asarray(beta, dtype=float)
+    if beta.shape != (system.m,) or np.any(beta < 0):
+        raise InputError("beta", f"expected {system.m} non-negative numbers")
+    return min_cost(system, protocol, bounds, [*constraints, (beta[None, :], np.array([float(budget)]))])
