@@ -12,9 +12,11 @@ def _J(system, protocol, mu):
     return pl.closed_form(system.with_mu(mu), protocol).cost
 
 
-def brute_force(system, protocol, alpha, beta, G=np.zeros((0, 2)), h=np.zeros(0), coarse=61, fine=61):
+def brute_force(system, protocol, alpha, beta, G=None, h=None, coarse=61, fine=61):
     """min beta'mu over feasible points only: for each mu1 the least feasible mu2 (bisection keeps
     the feasible end), then a finer grid around the best mu1."""
+    G = np.zeros((0, 2)) if G is None else G
+    h = np.zeros(0) if h is None else h
     def best_mu2(mu1):
         lo, hi = 0.0, 1.0
         for g, c in zip(G, h, strict=True):    # g1 mu1 + g2 mu2 <= c
@@ -50,7 +52,9 @@ def brute_force(system, protocol, alpha, beta, G=np.zeros((0, 2)), h=np.zeros(0)
     return min(best, refined)
 
 
-def _check(system, protocol, alpha, beta, constraints=(), G=np.zeros((0, 2)), h=np.zeros(0)):
+def _check(system, protocol, alpha, beta, constraints=(), G=None, h=None):
+    G = np.zeros((0, 2)) if G is None else G
+    h = np.zeros(0) if h is None else h
     ref = brute_force(system, protocol, alpha, np.asarray(beta, float), G, h)
     got = allocate(system, protocol, alpha, beta, constraints=constraints)
     assert got.cost <= alpha * (1 + 1e-7)                       # never infeasible
