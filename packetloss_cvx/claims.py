@@ -326,18 +326,28 @@ def _match(candidates: np.ndarray, roots: np.ndarray) -> float:
     return float(max(np.min(np.abs(c - x)) / (1 + abs(x)) for x in r))
 
 
+def _scalar_base(s: System, max_vars: int):
+    """The system behind one shared channel (nu = 0.5) and its prediction, where Lemmas 2–3 apply:
+    Omega_d > 0 and at most ``max_vars`` decision variables. None otherwise."""
+    base = an.scalar_channel(s, 0.5)
+    pred = prediction(base)
+    if np.any(pred.Omega_d <= 0) or base.horizon * base.m > max_vars:
+        return None
+    return base, pred
+
+
 def _lemma_3(ctx: Context) -> ClaimResult:
-    proof_ok = []
+    proof_ok = {}
 
     def margin(s: System) -> float | None:
-        base = an.scalar_channel(s, 0.5)
-        pred = prediction(base)
-        if np.any(pred.Omega_d <= 0) or base.horizon * base.m > 60:
+        if (setup := _scalar_base(s, 60)) is None:
             return None
+        base, pred = setup
         roots = an.det_roots(base, pred)
-        proof_ok.append(_match(an.lemma3_candidates(base, "proof", pred), roots) < 1e-6)
+        proof_ok[id(s)] = _match(an.lemma3_candidates(base, "proof", pred), roots) < 1e-6
         return 1e-6 - _match(an.lemma3_candidates(base, "lemma", pred), roots)
     result = _evaluate("lemma-3", ctx, ctx.cases, margin, "")
+    proof_ok = [ok for key, ok in proof_ok.items() if key in {id(c) for c in ctx.cases}]
     note = (f"Candidates compared with the exact roots of det f(nu) = 0 (companion linearisation of the "
             f"quadratic matrix polynomial; margin = 1e-6 - worst relative distance). As printed, with "
             f"T (Omega_g + Psi)^-1 Omega_d Psi^-1, the candidates are not the roots. With the proof's "
@@ -350,10 +360,9 @@ def _theorem_4(ctx: Context) -> ClaimResult:
     none_found = []
 
     def margin(s: System) -> float | None:
-        base = an.scalar_channel(s, 0.5)
-        pred = prediction(base)
-        if np.any(pred.Omega_d <= 0) or base.horizon * base.m > 100:
+        if (setup := _scalar_base(s, 100)) is None:
             return None
+        base, pred = setup
         best = an.maximise_cost_difference(base, grid=200, pred=pred)
         if best.value <= 0:
             return None  # Omega_gp x0 = 0: J_Delta is identically zero
