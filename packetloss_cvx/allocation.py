@@ -194,7 +194,7 @@ class _TCPProgram:
         first = np.vstack([system.A @ system.x0, np.zeros(((N - 1) * n, 1))[:, 0].reshape(-1, n)]).ravel()
         L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
         psi = system.input_weights
-        terms = [cp.sum_squares(L @ X)]
+        terms = [cp.sum_squares(L @ X)] if L.shape[0] else []
         for i in range(m):
             terms.append(cp.quad_over_lin(cp.multiply(np.sqrt(psi[:, i]), Zv[:, i]), self.mu[i]))
         x0 = system.x0

@@ -91,7 +91,8 @@ class ExpectedCostQP:
 
             pred = prediction(system)
             L = sla.block_diag(*[psd_factor(W) for W in system.state_weights])
-            terms.append(cp.sum_squares(L @ pred.Phi @ self.x + (L @ pred.Gamma) @ vu))
+            if L.shape[0]:  # all state weights zero: no state term at all
+                terms.append(cp.sum_squares(L @ pred.Phi @ self.x + (L @ pred.Gamma) @ vu))
         else:
             X = cp.Variable(N * n, name="xhat")
             E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
@@ -99,7 +100,8 @@ class ExpectedCostQP:
             first = sp.csr_matrix(np.vstack([system.A, np.zeros(((N - 1) * n, n))]))
             L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
             constraints.append(E @ X - Bbig @ vu == first @ self.x)
-            terms.append(cp.sum_squares(L @ X))
+            if L.shape[0]:
+                terms.append(cp.sum_squares(L @ X))
         self.problem = cp.Problem(cp.Minimize(cp.sum(terms)), constraints)
         if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("expected-cost QP is not DPP")

@@ -153,3 +153,29 @@ def test_receding_horizon_gain_is_first_block(two_actuator):
     assert np.allclose(sol.gain @ np.array([0.3, -2.0]), -other.inputs[0], atol=1e-12)
     assert np.allclose(np.sort_complex(sol.closed_loop_eigenvalues),
                        np.sort_complex(np.linalg.eigvals(two_actuator.A - two_actuator.B @ sol.gain)))
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"state_weight": [0.0, 0.0]},                                  # no state weight at all
+        {"state_weight": None, "state_weights": [[0, 0], [1, 1], [0, 0]]},
+        {"mu": None, "mu_schedule": [[0, 1], [1, 0], [0.5, 0.5]]},   # channels dead at some steps
+        {"mu": [0.0, 0.0]},
+        {"x0": [0.0, 0.0]},
+    ],
+)
+@pytest.mark.parametrize("protocol", PROTOCOLS)
+def test_edge_cases_agree_everywhere(changes, protocol):
+    kwargs = {"A": [[1.1, 0.2], [0, 0.9]], "B": [[1, 0], [0.5, 1]], "horizon": 3, "x0": [1, -1],
+              "state_weight": [1, 1], "input_weight": [1, 1], "mu": [0.5, 0.5], "noise_cov": [[0.1, 0], [0, 0.1]]}
+    kwargs.update(changes)
+    system = pl.System(**{k: v for k, v in kwargs.items() if v is not None})
+    dense = pl.closed_form(system, protocol, "dense")
+    rec = pl.closed_form(system, protocol, "recursion")
+    assert np.isclose(dense.cost, rec.cost, rtol=1e-12, atol=1e-12)
+    for formulation in ("condensed", "sparse"):
+        qp = pl.solve_qp(system, protocol, formulation)
+        assert qp.status == "optimal"
+        assert qp.cross_check.max_input_diff < 1e-6
+        assert abs(qp.cost - dense.cost) <= 1e-7 * max(1.0, dense.cost)
