@@ -28,6 +28,7 @@ __all__ = [
     "cost_difference_derivative",
     "cost_difference_fd",
     "det_roots",
+    "eigenvalue_table",
     "lemma3_candidates",
     "maximise_cost_difference",
     "maximise_cost_difference_2d",
@@ -236,4 +237,21 @@ def monotonicity_violations(system: System, protocol: str, steps: int = 11) -> l
             if prev is not None and cost >= prev[1]:
                 out.append((i, float(value), float(cost - prev[1])))
             prev = (value, cost)
+    return out
+
+
+def eigenvalue_table(system: System, mu=None) -> dict[str, dict[str, list[complex]]]:
+    """Tables I–II: closed-loop eigenvalues of the receding-horizon laws at ``mu``.
+
+    For each protocol: ``"A-BK"`` (the paper's convention, K the first block of G^-1 Omega_gp)
+    and ``"A-BMK"`` (the mean closed loop, which accounts for the delivery probability).
+    """
+    s = system if mu is None else system.with_mu(mu)
+    M = np.diag(s.mu_schedule[0])
+    out = {}
+    for protocol in ("tcp", "udp"):
+        K = closed_form(s, protocol, method="auto").gain
+        out[protocol] = {"A-BK": sorted(np.linalg.eigvals(s.A - s.B @ K).tolist(), key=lambda z: (-abs(z), z.imag)),
+                         "A-BMK": sorted(np.linalg.eigvals(s.A - s.B @ M @ K).tolist(),
+                                         key=lambda z: (-abs(z), z.imag))}
     return out

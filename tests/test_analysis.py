@@ -129,3 +129,13 @@ def test_two_channel_maximiser(two_actuator):
 def test_monotonicity_scan(two_actuator):
     for protocol in ("tcp", "udp"):
         assert an.monotonicity_violations(two_actuator, protocol) == []
+
+
+def test_eigenvalue_table(two_actuator):
+    table = an.eigenvalue_table(two_actuator, [0.9, 0.5])
+    for protocol in ("tcp", "udp"):
+        K = pl.closed_form(two_actuator, protocol).gain
+        expected = np.linalg.eigvals(two_actuator.A - two_actuator.B @ K)
+        assert np.allclose(np.sort_complex(np.array(table[protocol]["A-BK"])), np.sort_complex(expected))
+        mean = np.linalg.eigvals(two_actuator.A - two_actuator.B @ np.diag([0.9, 0.5]) @ K)
+        assert np.allclose(np.sort_complex(np.array(table[protocol]["A-BMK"])), np.sort_complex(mean))
