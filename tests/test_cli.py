@@ -92,3 +92,35 @@ def test_module_entry_point_runs():
                            "--json", "--no-qp"], capture_output=True, text=True, check=False)
     assert proc.returncode == 0
     assert json.loads(proc.stdout)["tcp"]["cost"] > 0
+
+
+def _toml(data):
+    """The TOML schema's structure as TOML text (arrays and strings are JSON-compatible)."""
+    lines = [f"name = {json.dumps(data['name'])}"] if "name" in data else []
+    for section in ("plant", "cost", "channel", "state"):
+        lines.append(f"[{section}]")
+        lines += [f"{key} = {json.dumps(value)}" for key, value in data[section].items()]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("seed", range(25))
+def test_solve_json_on_unseen_systems(seed, tmp_path, capsys):
+    """Any valid combination of the schema's keys, written to a file and solved from the CLI."""
+    import numpy as np
+
+    from packetloss_cvx.random_systems import random_system
+
+    system = random_system(np.random.default_rng(5000 + seed))
+    path = tmp_path / "system.toml"
+    path.write_text(_toml(system.to_dict()))
+    code = main(["solve", str(path), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert data["n"] == system.n
+    assert data["m"] == system.m
+    assert data["horizon"] == system.horizon
+    for protocol in ("tcp", "udp"):
+        qp = data[protocol]["qp"]
+        assert qp["status"] == "optimal"
+        assert qp["max_input_diff"] < 1e-6
+        assert qp["cost_rel_diff"] < 1e-7
