@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -195,6 +196,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (SolverError, NumericalError) as err:
         print(f"packetloss-cvx: {type(err).__name__}: {err}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the reader went away (e.g. `| head`): stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
     except Exception as err:  # noqa: BLE001 - last line of defence: one line, no traceback
         print(f"packetloss-cvx: unexpected {type(err).__name__}: {err}", file=sys.stderr)
         return 1
