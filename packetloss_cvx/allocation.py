@@ -31,13 +31,13 @@ from typing import Any
 
 import cvxpy as cp
 import numpy as np
-import scipy.sparse as sp
 from scipy.optimize import linprog
 
 from .costs import closed_form
 from .errors import InfeasibleError, InputError, SolverError
-from .model import System, psd_factor
+from .model import System
 from .protocols import check_protocol
+from .qp import sparse_dynamics
 from .recursion import udp_variance_weights
 
 __all__ = [
@@ -189,10 +189,7 @@ class _TCPProgram:
         self.mu = cp.Variable(m, name="mu")
         Zv = cp.Variable((N, m), name="Z")
         X = cp.Variable(N * n, name="xhat")
-        E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
-        Bbig = sp.kron(sp.eye(N), system.B, format="csr")
-        first = np.vstack([system.A @ system.x0, np.zeros(((N - 1) * n, 1))[:, 0].reshape(-1, n)]).ravel()
-        L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
+        E, Bbig, first, L = sparse_dynamics(system)
         psi = system.input_weights
         terms = [cp.sum_squares(L @ X)] if L.shape[0] else []
         for i in range(m):
@@ -200,7 +197,7 @@ class _TCPProgram:
         x0 = system.x0
         self.constant = float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]  # + noise
         self.cost = cp.sum(terms) + self.constant
-        self.dynamics = [E @ X - Bbig @ cp.vec(Zv.T, order="F") == first]
+        self.dynamics = [E @ X - Bbig @ cp.vec(Zv.T, order="F") == first @ system.x0]
 
 
 def _base_constraints(mu: cp.Variable, lo: float, hi: float, G: np.ndarray, h: np.ndarray,

@@ -21,9 +21,9 @@ import numpy as np
 from scipy.optimize import brentq
 
 from . import analysis as an
-from .costs import closed_form, expected_cost, paper_optimal_cost
+from .costs import _hessian_factor, closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from .errors import InputError, SolverError
-from .model import System, load_system, system_from_dict
+from .model import System, load_system, psd_factor, system_from_dict
 from .montecarlo import closed_loop_costs, sample_plan_costs
 from .prediction import prediction
 from .qp import solve_qp
@@ -185,12 +185,12 @@ def _lemma_1(ctx: Context) -> ClaimResult:
         noise = pred.noise_term
         # UDP-like: E = X - (Phi x + Gamma Vbar U) = Gamma (Upsilon - Vbar) U + Lambda W
         Y = rng.random((samples, v.size)) < v
-        Wn = rng.standard_normal((samples, s.horizon * s.n)) @ np.kron(np.eye(s.horizon),
-                                                                         _sqrt_psd(s.noise_cov))
+        root = psd_factor(s.noise_cov)   # W_t = root' z_t
+        Wn = rng.standard_normal((samples, s.horizon * root.shape[0])) @ np.kron(np.eye(s.horizon), root)
         E_udp = ((Y - v) * u) @ pred.Gamma.T + Wn @ pred.Lambda.T
         E_tcp = Wn @ pred.Lambda.T
         worst = Z
-        for E, expect in ((E_udp, float(np.sum(u * v * pred.Omega_d * (1 - v) * u)) + noise), (E_tcp, noise)):
+        for E, expect in ((E_udp, loss_variance_term(pred, u) + noise), (E_tcp, noise)):
             worst = min(worst, _z_margin(np.einsum("si,ij,sj->s", E, pred.Omega, E), expect))
         return worst
     return _evaluate("lemma-1", ctx, _mc_cases(ctx), margin,
@@ -209,11 +209,6 @@ def _z_margin(samples: np.ndarray, expect: float) -> float:
     return Z - err / se
 
 
-def _sqrt_psd(S: np.ndarray) -> np.ndarray:
-    vals, vecs = np.linalg.eigh(S)
-    return (vecs * np.sqrt(np.clip(vals, 0, None))).T
-
-
 def _lemma_quad(ctx: Context) -> ClaimResult:
     samples = 20000
 
@@ -223,7 +218,7 @@ def _lemma_quad(ctx: Context) -> ClaimResult:
         u, v = rng.normal(size=s.horizon * s.m), pred.Vbar
         Y = (rng.random((samples, v.size)) < v) * u
         q = np.einsum("si,ij,sj->s", Y, pred.Omega_g, Y)
-        expect = (v * u) @ pred.Omega_g @ (v * u) + np.sum(u * v * pred.Omega_d * (1 - v) * u)
+        expect = (v * u) @ pred.Omega_g @ (v * u) + loss_variance_term(pred, u)
         return _z_margin(q, expect)
     return _evaluate("lemma-quad-expectation", ctx, _mc_cases(ctx), margin,
                      f"Monte Carlo, {samples} samples a case, margin = 4 - |z|.")
@@ -397,10 +392,7 @@ TABLE_2 = {"tcp": [-0.1082, -0.8938], "udp": [0.4904 + 0.0312j, 0.4904 - 0.0312j
 def _conventions(system: System, protocol: str) -> dict[str, np.ndarray]:
     """Closed-loop eigenvalues under each convention tried for Tables I–II."""
     pred = prediction(system)
-    v = pred.Vbar
-    G = pred.Omega_g * v[None, :] + np.diag(pred.Psi)
-    if protocol == "udp":
-        G = G + np.diag(pred.Omega_d * (1 - v))
+    G = _hessian_factor(pred, protocol)
     m, A, B = system.m, system.A, system.B
     M = np.diag(system.mu_schedule[0])
     out = {}

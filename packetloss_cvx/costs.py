@@ -63,6 +63,12 @@ def _hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
     return G
 
 
+def loss_variance_term(pred: Prediction, u: np.ndarray) -> float:
+    """U' Vbar Omega_d (I - Vbar) U: what the UDP-like cost adds to the TCP-like one (Lemma 1)."""
+    v = pred.Vbar
+    return float(np.sum(v * pred.Omega_d * (1.0 - v) * u * u))
+
+
 def _constant(system: System, pred: Prediction) -> float:
     x = system.x0
     return float(x @ (system.initial_weight + pred.Omega_p) @ x) + pred.noise_term
@@ -77,7 +83,7 @@ def dense_cost(system: System, U: np.ndarray, protocol: str, pred: Prediction | 
     value = _constant(system, pred) + 2.0 * vu @ (pred.Omega_gp @ system.x0)
     value += vu @ pred.Omega_g @ vu + np.sum(v * pred.Psi * u * u)
     if protocol == "udp":
-        value += np.sum(v * pred.Omega_d * (1.0 - v) * u * u)
+        value += loss_variance_term(pred, u)
     return float(value)
 
 

@@ -30,7 +30,7 @@ from .protocols import check_protocol
 from .recursion import udp_variance_weights
 from .results import CrossCheck, Solution
 
-__all__ = ["ExpectedCostQP", "solve_qp", "CLARABEL_SETTINGS"]
+__all__ = ["CLARABEL_SETTINGS", "ExpectedCostQP", "solve_qp", "sparse_dynamics"]
 
 #: Tightened Clarabel tolerances: the cross-check promises inputs to 1e-6.
 CLARABEL_SETTINGS = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 400}
@@ -38,6 +38,18 @@ CLARABEL_SETTINGS = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-
 #: Above this many decision variables N*m, ``formulation="auto"`` uses the sparse form
 #: (measured crossover between N*m = 40 and 80 for n = 4: docs/performance.md).
 AUTO_CONDENSED_MAX = 60
+
+
+def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
+    """Block-sparse mean-state dynamics and state-weight factor for X = (xhat_1..xhat_N):
+    ``E X - Bbig z = first x0`` encodes ``xhat_{t+1} = A xhat_t + B z_t``, and
+    ``||L X||^2 = sum_t xhat_t' Omega_t xhat_t``. O(N (n^2 + n m)) nonzeros."""
+    N, n = system.horizon, system.n
+    E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
+    Bbig = sp.kron(sp.eye(N), system.B, format="csr")
+    first = sp.csr_matrix(np.vstack([system.A, np.zeros(((N - 1) * n, n))]))
+    L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
+    return E, Bbig, first, L
 
 
 def _pick(system: System, formulation: str) -> str:
@@ -95,10 +107,7 @@ class ExpectedCostQP:
                 terms.append(cp.sum_squares(L @ pred.Phi @ self.x + (L @ pred.Gamma) @ vu))
         else:
             X = cp.Variable(N * n, name="xhat")
-            E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
-            Bbig = sp.kron(sp.eye(N), system.B, format="csr")
-            first = sp.csr_matrix(np.vstack([system.A, np.zeros(((N - 1) * n, n))]))
-            L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
+            E, Bbig, first, L = sparse_dynamics(system)
             constraints.append(E @ X - Bbig @ vu == first @ self.x)
             if L.shape[0]:
                 terms.append(cp.sum_squares(L @ X))
