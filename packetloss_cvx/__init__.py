@@ -13,7 +13,8 @@ from .errors import (
     ProbabilityError,
     SolverError,
 )
-from .model import System, load_system
+from .io import load_system
+from .model import System
 from .qp import ExpectedCostQP, solve_qp
 from .results import CrossCheck, Solution
 

@@ -23,7 +23,9 @@ from scipy.optimize import brentq
 from . import analysis as an
 from .costs import _hessian_factor, closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from .errors import InputError, SolverError
-from .model import System, load_system, psd_factor, system_from_dict
+from .io import load_system, system_from_dict
+from .linalg import psd_factor
+from .model import System
 from .montecarlo import closed_loop_costs, sample_plan_costs
 from .prediction import prediction
 from .qp import solve_qp

@@ -17,7 +17,8 @@ import numpy as np
 
 from .costs import closed_form
 from .errors import InfeasibleError, InputError, NumericalError, SolverError
-from .model import System, load_system
+from .io import load_system
+from .model import System
 from .qp import solve_qp
 from .results import eigenvalue_pairs
 

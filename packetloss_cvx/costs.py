@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import DimensionError, InputError, NumericalError
-from .model import System, _numeric_array
+from .model import System, numeric_array
 from .prediction import Prediction, prediction
 from .protocols import check_protocol
 from .recursion import backward_pass, mean_trajectory, recursion_cost
@@ -48,7 +48,7 @@ def pick_method(system: System, method: str) -> str:
 
 
 def _inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
-    U = _numeric_array(inputs, "inputs")
+    U = numeric_array(inputs, "inputs")
     shape = (system.horizon, system.m)
     if U.shape != shape:
         raise DimensionError("inputs", f"expected shape {shape} but found {U.shape}")

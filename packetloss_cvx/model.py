@@ -1,5 +1,7 @@
 """The validated, immutable model: plant, weights, horizon, channel, initial state.
 
+TOML files are read and written by :mod:`packetloss_cvx.io`.
+
 Conventions (paper eq:plant, eq:big):
 
 * ``state_weights[t]`` is Omega_{t+1}, the weight on X_{k+t+1}, t = 0..N-1;
@@ -11,9 +13,6 @@ Conventions (paper eq:plant, eq:big):
 from __future__ import annotations
 
 import numbers
-import tomllib
-from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -21,13 +20,17 @@ import numpy.typing as npt
 
 from .errors import DimensionError, InputError, ProbabilityError
 
-__all__ = ["System", "load_system", "psd_factor", "system_from_dict"]
+__all__ = ["System", "numeric_array"]
 
 _REL_TOL = 1e-10
 
 
-def _numeric_array(value: Any, field: str) -> np.ndarray:
-    """Convert ``value`` to a float array, refusing strings, booleans, NaN and inf."""
+def numeric_array(value: Any, field: str) -> np.ndarray:
+    """Convert ``value`` to a float array, refusing strings, booleans, NaN and inf.
+
+    The one validator of numeric input: every array the package accepts goes through it,
+    so every error names ``field``.
+    """
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iuf":
             raise InputError(field, f"expected numbers, found an array of {value.dtype}")
@@ -62,7 +65,7 @@ def _shape_error(field: str, expected: str, found: tuple[int, ...]) -> Dimension
 
 
 def _matrix(value: Any, field: str, rows: int | None, cols: int | None, expected: str) -> np.ndarray:
-    arr = _numeric_array(value, field)
+    arr = numeric_array(value, field)
     if arr.ndim != 2 or (rows is not None and arr.shape[0] != rows) or (
         cols is not None and arr.shape[1] != cols
     ):
@@ -71,7 +74,7 @@ def _matrix(value: Any, field: str, rows: int | None, cols: int | None, expected
 
 
 def _vector(value: Any, field: str, length: int, expected: str) -> np.ndarray:
-    arr = _numeric_array(value, field)
+    arr = numeric_array(value, field)
     if arr.shape != (length,):
         raise _shape_error(field, expected, arr.shape)
     return arr
@@ -79,7 +82,7 @@ def _vector(value: Any, field: str, length: int, expected: str) -> np.ndarray:
 
 def _psd_weight(value: Any, field: str, n: int) -> np.ndarray:
     """A diagonal (length-n vector) or full n×n symmetric PSD weight, as a matrix."""
-    arr = _numeric_array(value, field)
+    arr = numeric_array(value, field)
     if arr.ndim == 1:
         if arr.shape != (n,):
             raise _shape_error(field, f"({n},) or ({n}, {n})", arr.shape)
@@ -120,13 +123,6 @@ def _one_of(first: Any, second: Any, names: tuple[str, str]) -> None:
     if (first is None) == (second is None):
         both = "both" if first is not None else "neither"
         raise InputError(f"{names[0]}/{names[1]}", f"expected exactly one of the two, found {both}")
-
-
-def psd_factor(W: np.ndarray) -> np.ndarray:
-    """L with L'L = W for a symmetric PSD W (eigen-decomposition; zero rows dropped)."""
-    vals, vecs = np.linalg.eigh(W)
-    keep = vals > 1e-14 * max(1.0, float(vals.max(initial=0.0)))
-    return np.sqrt(vals[keep])[:, None] * vecs[:, keep].T
 
 
 def _frozen(arr: np.ndarray) -> np.ndarray:
@@ -345,91 +341,3 @@ def _sequence(value: Any, field: str, N: int) -> list:
     if len(value) != N:
         raise DimensionError(field, f"expected {N} entries (one per step t = 1..N), found {len(value)}")
     return list(value)
-
-
-# TOML section -> {key: System keyword}
-_SCHEMA: dict[str, dict[str, str]] = {
-    "plant": {"A": "A", "B": "B", "noise_cov": "noise_cov"},
-    "cost": {
-        "horizon": "horizon", "state_weight": "state_weight", "state_weights": "state_weights",
-        "input_weight": "input_weight", "input_weights": "input_weights",
-        "initial_weight": "initial_weight",
-    },
-    "channel": {"mu": "mu", "mu_schedule": "mu_schedule"},
-    "state": {"x0": "x0"},
-}
-_REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",)}
-
-
-def system_from_dict(data: Mapping[str, Any]) -> System:
-    """Build a :class:`System` from the TOML schema's structure (see DESIGN.md §4).
-
-    Errors name the TOML path of the offending field (``cost.state_weight``).
-    """
-    if not isinstance(data, Mapping):
-        raise InputError("<file>", "expected a table")
-    for key in data:
-        if key != "name" and key not in _SCHEMA:
-            raise InputError(str(key), f"unknown section; expected one of name, {', '.join(_SCHEMA)}")
-    kwargs: dict[str, Any] = {"name": data.get("name")}
-    where: dict[str, str] = {"name": "name"}
-    for section, keys in _SCHEMA.items():
-        if section not in data:
-            raise InputError(section, "missing section")
-        table = data[section]
-        if not isinstance(table, Mapping):
-            raise InputError(section, "expected a table")
-        for key in table:
-            if key not in keys:
-                raise InputError(f"{section}.{key}", f"unknown key; expected one of {', '.join(keys)}")
-        for key in _REQUIRED[section]:
-            if key not in table:
-                raise InputError(f"{section}.{key}", "missing field")
-        for key, kw in keys.items():
-            if key in table:
-                kwargs[kw] = table[key]
-                where[kw] = f"{section}.{key}"
-    try:
-        return System(**kwargs)
-    except InputError as err:
-        raise err.renamed(_toml_field(err.field, where)) from None
-
-
-def _toml_field(field: str, where: Mapping[str, str]) -> str:
-    if "/" in field:  # a paired key
-        first, second = field.split("/")
-        section = where.get(first, where.get(second, "")).split(".")[0] or _section_of(first)
-        return f"{section}.{first}/{second}"
-    base, bracket, rest = field.partition("[")
-    return where.get(base, f"{_section_of(base)}.{base}") + bracket + rest
-
-
-def _section_of(kw: str) -> str:
-    for section, keys in _SCHEMA.items():
-        if kw in keys.values():
-            return section
-    return kw
-
-
-def load_system(path: str | Path) -> System:
-    """Read a system file in the TOML schema of DESIGN.md §4.
-
-    Raises
-    ------
-    InputError
-        Missing or unreadable file (field ``file``), invalid TOML, or any field
-        that fails validation (named by its TOML path).
-    """
-    path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise InputError("file", f"no such file: {path}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError("file", f"cannot read {path}: {err}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise InputError("file", f"{path} is not valid TOML: {err}") from None
-    return system_from_dict(data)
-

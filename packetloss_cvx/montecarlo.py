@@ -11,7 +11,8 @@ import numpy as np
 import numpy.typing as npt
 
 from .costs import _inputs
-from .model import System, psd_factor
+from .linalg import psd_factor
+from .model import System
 
 __all__ = ["closed_loop_costs", "sample_plan_costs"]
 

@@ -25,7 +25,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .errors import InputError, SolverError
-from .model import System, psd_factor
+from .linalg import psd_factor
+from .model import System
 from .protocols import check_protocol
 from .recursion import udp_variance_weights
 from .results import CrossCheck, Solution

@@ -7,7 +7,7 @@ import numpy as np
 import packetloss_cvx as pl
 from packetloss_cvx.claims import CLAIMS, audit, markdown_report
 from packetloss_cvx.cli import main
-from packetloss_cvx.model import system_from_dict
+from packetloss_cvx.io import system_from_dict
 from packetloss_cvx.montecarlo import closed_loop_costs, sample_plan_costs
 
 

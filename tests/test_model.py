@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.model import system_from_dict
+from packetloss_cvx.io import system_from_dict
 
 GOOD = {
     "A": [[1.0, 0.1], [0.0, 1.0]], "B": [[0.0], [1.0]], "horizon": 3,
