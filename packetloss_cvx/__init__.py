@@ -13,7 +13,7 @@ from .errors import (
     ProbabilityError,
     SolverError,
 )
-from .io import load_system
+from .io import load_example, load_system, save_system
 from .model import System
 from .qp import ExpectedCostQP, solve_qp
 from .results import CrossCheck, Solution
@@ -33,7 +33,9 @@ __all__ = [
     "System",
     "closed_form",
     "expected_cost",
+    "load_example",
     "load_system",
+    "save_system",
     "paper_optimal_cost",
     "solve_qp",
 ]

@@ -14,7 +14,6 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,7 +22,7 @@ from scipy.optimize import brentq
 from . import analysis as an
 from .costs import _hessian_factor, closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from .errors import InputError, SolverError
-from .io import load_system, system_from_dict
+from .io import load_example, system_from_dict
 from .linalg import psd_factor
 from .model import System
 from .montecarlo import closed_loop_costs, sample_plan_costs
@@ -33,7 +32,6 @@ from .random_systems import random_system
 
 __all__ = ["CLAIMS", "ClaimResult", "audit", "markdown_report", "markdown_table"]
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 Z = 4.0  # Monte Carlo: standard errors allowed
 
 
@@ -563,8 +561,7 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
 
 
 def paper_systems() -> dict[str, System]:
-    return {"pendulum": load_system(EXAMPLES / "pendulum.toml"),
-            "two_actuator": load_system(EXAMPLES / "two_actuator.toml")}
+    return {"pendulum": load_example("pendulum"), "two_actuator": load_example("two_actuator")}
 
 
 def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int = 0,

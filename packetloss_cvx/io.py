@@ -4,15 +4,17 @@ shipped with the package (``packetloss_cvx/examples/*.toml``, read with importli
 
 from __future__ import annotations
 
+import json
 import tomllib
 from collections.abc import Mapping
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from .errors import InputError
 from .model import System
 
-__all__ = ["load_system", "system_from_dict"]
+__all__ = ["dumps_system", "example_names", "load_example", "load_system", "save_system", "system_from_dict"]
 
 
 # TOML section -> {key: System keyword}
@@ -79,8 +81,37 @@ def _section_of(kw: str) -> str:
     return kw
 
 
+#: A system file is a few kilobytes; anything larger is refused before parsing.
+MAX_FILE_BYTES = 16 * 2**20
+
+
+def example_names() -> list[str]:
+    """Names of the example systems shipped with the package (``load_example`` takes them)."""
+    folder = resources.files(__package__) / "examples"
+    return sorted(item.name.removesuffix(".toml") for item in folder.iterdir() if item.name.endswith(".toml"))
+
+
+def load_example(name: str) -> System:
+    """The example system ``name`` shipped with the package: ``"pendulum"`` (paper §V-A) or
+    ``"two_actuator"`` (§V-B). A hyphen may stand for the underscore.
+
+    Examples
+    --------
+    >>> load_example("pendulum").n
+    4
+    """
+    key = str(name).replace("-", "_")
+    if key not in example_names():
+        raise InputError("example", f"unknown example {name!r}; expected one of {', '.join(example_names())}")
+    resource = resources.files(__package__) / "examples" / f"{key}.toml"
+    return _parse(resource.read_bytes(), f"example {key}")
+
+
 def load_system(path: str | Path) -> System:
-    """Read a system file in the TOML schema of docs/design.md §4.
+    """Read a system file in the TOML schema of docs/design.md §4, or a packaged example.
+
+    ``path`` is a file path; a bare example name (``"pendulum"``, ``"two_actuator"``) that is
+    not an existing file loads the example shipped with the package (:func:`load_example`).
 
     Raises
     ------
@@ -88,16 +119,64 @@ def load_system(path: str | Path) -> System:
         Missing or unreadable file (field ``file``), invalid TOML, or any field
         that fails validation (named by its TOML path).
     """
-    path = Path(path)
+    text = str(path)
+    if "\x00" in text:
+        raise InputError("file", "expected a file path, found a path with a NUL character")
+    file = Path(text)
+    if not file.exists() and file.suffix == "" and file.name == text and text.replace("-", "_") in example_names():
+        return load_example(text)
     try:
-        text = path.read_bytes().decode("utf-8")
+        size = file.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise InputError("file", f"{file} is {size} bytes; a system file is at most {MAX_FILE_BYTES} bytes")
+        data = file.read_bytes()
     except FileNotFoundError:
-        raise InputError("file", f"no such file: {path}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError("file", f"cannot read {path}: {err}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise InputError("file", f"{path} is not valid TOML: {err}") from None
-    return system_from_dict(data)
+        hint = f" (or an example name: {', '.join(example_names())})" if file.suffix == "" else ""
+        raise InputError("file", f"no such file: {file}{hint}") from None
+    except OSError as err:
+        raise InputError("file", f"cannot read {file}: {err.strerror or err}") from None
+    return _parse(data, str(file))
 
+
+def _parse(data: bytes, where: str) -> System:
+    try:
+        text = data.decode("utf-8-sig")   # a byte-order mark is tolerated
+    except UnicodeDecodeError as err:
+        raise InputError("file", f"{where} is not UTF-8 text: {err}") from None
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise InputError("file", f"{where} is not valid TOML: {err}") from None
+    except RecursionError:
+        raise InputError("file", f"{where} nests arrays too deeply (a system file needs at most 3 levels)") from None
+    return system_from_dict(table)
+
+
+def dumps_system(system: System) -> str:
+    """The system as TOML text in the schema of docs/design.md §4 (``load_system`` reads it back)."""
+    data = system.to_dict()
+    lines = [f"name = {_toml_value(data.pop('name'))}", ""] if "name" in data else []
+    for section, table in data.items():
+        lines.append(f"[{section}]")
+        lines += [f"{key} = {_toml_value(value)}" for key, value in table.items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def save_system(system: System, path: str | Path) -> Path:
+    """Write ``system`` to ``path`` as TOML; returns the path."""
+    path = Path(path)
+    path.write_text(dumps_system(system), encoding="utf-8")
+    return path
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, str):
+        return json.dumps(value)          # a JSON string is a valid TOML basic string
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)                # shortest round-trip repr; always finite in a System
+    return "[" + ", ".join(_toml_value(item) for item in value) + "]"

@@ -4,7 +4,7 @@ import pytest
 
 import packetloss_cvx as pl
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+EXAMPLES = Path(__file__).resolve().parent.parent / "packetloss_cvx" / "examples"
 
 
 @pytest.fixture(scope="session")

@@ -123,7 +123,7 @@ def test_two_channel_maximiser(two_actuator):
     assert np.all((best.point >= 0) & (best.point <= 1))
     assert best.value >= an.cost_difference(two_actuator, [0.9, 0.5])
     with pytest.raises(pl.InputError, match="m = 2"):
-        an.maximise_cost_difference_2d(pl.load_system("examples/pendulum.toml"))
+        an.maximise_cost_difference_2d(pl.load_example("pendulum"))
 
 
 def test_monotonicity_scan(two_actuator):
