@@ -4,6 +4,8 @@ Implements "Optimal Control of Systems with Multichannel Packet Loss" (Casbolt,
 Jones, Esnaola): each formula in closed form and as a Clarabel QP.
 """
 
+from .allocation import allocate
+from .claims import audit
 from .costs import closed_form, expected_cost, paper_optimal_cost
 from .errors import (
     DimensionError,
@@ -16,20 +18,25 @@ from .errors import (
 from .io import load_example, load_system, save_system
 from .model import System
 from .qp import ExpectedCostQP, solve_qp
-from .results import CrossCheck, Solution
+from .results import Allocation, ClaimResult, CrossCheck, Maximiser, Solution
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "Allocation",
+    "ClaimResult",
     "CrossCheck",
     "DimensionError",
     "ExpectedCostQP",
     "InfeasibleError",
     "InputError",
+    "Maximiser",
     "NumericalError",
     "ProbabilityError",
     "Solution",
     "SolverError",
+    "allocate",
+    "audit",
     "System",
     "closed_form",
     "expected_cost",

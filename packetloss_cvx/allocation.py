@@ -26,7 +26,6 @@ from __future__ import annotations
 import heapq
 import re
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import cvxpy as cp
@@ -39,6 +38,7 @@ from .model import System
 from .protocols import check_protocol
 from .qp import sparse_dynamics
 from .recursion import udp_variance_weights
+from .results import Allocation
 
 __all__ = [
     "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "min_cost", "parse_constraint",
@@ -46,34 +46,6 @@ __all__ = [
 ]
 
 Constraint = Callable[[cp.Variable], Any] | tuple[Any, Any]
-
-
-@dataclass(frozen=True)
-class Allocation:
-    """The cheapest channel qualities found, with a certificate.
-
-    ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: J*(mu) by the
-    closed form (<= alpha); ``lower_bound``: a proven lower bound on the optimal beta'mu;
-    ``gap``: (communication_cost - lower_bound) / max(communication_cost, 1e-12);
-    ``status``: "optimal"; ``method``: how it was solved; ``boxes``: B&B boxes explored.
-    """
-
-    mu: np.ndarray
-    communication_cost: float
-    cost: float
-    lower_bound: float
-    gap: float
-    status: str
-    method: str
-    protocol: str
-    alpha: float
-    beta: np.ndarray
-    boxes: int = 0
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"protocol": self.protocol, "alpha": self.alpha, "beta": self.beta.tolist(),
-                "mu": self.mu.tolist(), "communication_cost": self.communication_cost, "cost": self.cost,
-                "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method}
 
 
 # ------------------------------------------------------------------ inputs

@@ -12,8 +12,6 @@ For a shared ("scalar") channel every actuator has delivery probability nu, Vbar
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize, minimize_scalar
@@ -22,6 +20,7 @@ from .costs import closed_form
 from .errors import InputError
 from .model import System
 from .prediction import Prediction, prediction
+from .results import Maximiser
 
 __all__ = [
     "cost_difference",
@@ -153,15 +152,6 @@ def det_roots(system: System, pred: Prediction | None = None) -> np.ndarray:
     Aa = np.block([[np.zeros((k, k)), np.eye(k)], [-Q0, -Q1]])
     Bb = np.block([[np.eye(k), np.zeros((k, k))], [np.zeros((k, k)), Q2]])
     return sla.eigvals(Aa, Bb)
-
-
-@dataclass(frozen=True)
-class Maximiser:
-    """Where J_Delta peaks: ``nu`` (or ``mu`` for per-channel), the value, and how found."""
-
-    point: np.ndarray
-    value: float
-    method: str
 
 
 def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6,

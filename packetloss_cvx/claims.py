@@ -14,7 +14,6 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq
@@ -29,31 +28,11 @@ from .montecarlo import closed_loop_costs, sample_plan_costs
 from .prediction import prediction
 from .qp import solve_qp
 from .random_systems import random_system
+from .results import ClaimResult
 
 __all__ = ["CLAIMS", "ClaimResult", "audit", "markdown_report", "markdown_table"]
 
 Z = 4.0  # Monte Carlo: standard errors allowed
-
-
-@dataclass(frozen=True)
-class ClaimResult:
-    """The verdict on one claim, with the numbers behind it."""
-
-    id: str
-    statement: str
-    verdict: str
-    checked: int
-    violations: int
-    worst: float | None
-    counterexample: dict | None
-    note: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "id": self.id, "statement": self.statement, "verdict": self.verdict, "checked": self.checked,
-            "violations": self.violations, "worst": self.worst, "counterexample": self.counterexample,
-            "note": self.note,
-        }
 
 
 @dataclass

@@ -1,4 +1,5 @@
-"""Frozen result objects with ``to_dict()`` for JSON."""
+"""Every result type the package returns: frozen dataclasses with read-only arrays and
+``to_dict()`` for JSON (plain lists and floats)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,16 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CrossCheck", "Solution", "eigenvalue_pairs"]
+__all__ = ["Allocation", "ClaimResult", "CrossCheck", "Maximiser", "Solution", "eigenvalue_pairs"]
+
+
+def _freeze(obj: Any) -> None:
+    """Make every ndarray field of a frozen dataclass a read-only copy."""
+    for name, value in vars(obj).items():
+        if isinstance(value, np.ndarray):
+            arr = np.array(value)
+            arr.setflags(write=False)
+            object.__setattr__(obj, name, arr)
 
 
 def eigenvalue_pairs(eigs: np.ndarray) -> list[list[float]]:
@@ -65,6 +75,9 @@ class Solution:
     solve_time: float | None = None
     cross_check: CrossCheck | None = None
 
+    def __post_init__(self) -> None:
+        _freeze(self)
+
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "cost": self.cost,
@@ -82,3 +95,73 @@ class Solution:
         if self.cross_check is not None:
             out.update(self.cross_check.to_dict())
         return out
+
+
+@dataclass(frozen=True)
+class Allocation:
+    """The cheapest channel qualities found, with a certificate.
+
+    ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: J*(mu) by the
+    closed form (<= alpha); ``lower_bound``: a proven lower bound on the optimal beta'mu;
+    ``gap``: (communication_cost - lower_bound) / max(communication_cost, 1e-12);
+    ``status``: "optimal"; ``method``: how it was solved; ``boxes``: B&B boxes explored.
+    """
+
+    mu: np.ndarray
+    communication_cost: float
+    cost: float
+    lower_bound: float
+    gap: float
+    status: str
+    method: str
+    protocol: str
+    alpha: float
+    beta: np.ndarray
+    boxes: int = 0
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"protocol": self.protocol, "alpha": self.alpha, "beta": self.beta.tolist(),
+                "mu": self.mu.tolist(), "communication_cost": self.communication_cost, "cost": self.cost,
+                "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method}
+
+
+@dataclass(frozen=True)
+class ClaimResult:
+    """The verdict on one claim, with the numbers behind it."""
+
+    id: str
+    statement: str
+    verdict: str
+    checked: int
+    violations: int
+    worst: float | None
+    counterexample: dict | None
+    note: str
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "id": self.id, "statement": self.statement, "verdict": self.verdict, "checked": self.checked,
+            "violations": self.violations, "worst": self.worst, "counterexample": self.counterexample,
+            "note": self.note,
+        }
+
+
+@dataclass(frozen=True)
+class Maximiser:
+    """Where J_Delta peaks: ``nu`` (or ``mu`` for per-channel), the value, and how found."""
+
+    point: np.ndarray
+    value: float
+    method: str
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"point": self.point.tolist(), "value": self.value, "method": self.method}
