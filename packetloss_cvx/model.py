@@ -19,11 +19,9 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import DimensionError, InputError, ProbabilityError
+from .tolerances import SYMMETRY_RTOL
 
 __all__ = ["System", "numeric_array"]
-
-_REL_TOL = 1e-10
-
 
 def numeric_array(value: Any, field: str) -> np.ndarray:
     """Convert ``value`` to a float array, refusing strings, booleans, NaN and inf.
@@ -96,10 +94,10 @@ def _psd_weight(value: Any, field: str, n: int) -> np.ndarray:
 
 def _symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
     scale = max(1.0, float(np.linalg.norm(arr, ord=2)))
-    if np.linalg.norm(arr - arr.T, ord=2) > _REL_TOL * scale:
+    if np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
         raise InputError(field, "expected a symmetric matrix")
     sym = 0.5 * (arr + arr.T)
-    if np.linalg.eigvalsh(sym).min() < -_REL_TOL * scale:
+    if np.linalg.eigvalsh(sym).min() < -SYMMETRY_RTOL * scale:
         raise InputError(field, "expected a positive semidefinite matrix")
     return sym
 

@@ -24,17 +24,19 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .errors import InputError, SolverError
+from .convex import require_optimal, solve_problem
+from .errors import InputError
 from .linalg import psd_factor
 from .model import System
 from .protocols import check_protocol
 from .recursion import udp_variance_weights
 from .results import CrossCheck, Solution
+from .tolerances import CLARABEL_TIGHT
 
 __all__ = ["CLARABEL_SETTINGS", "ExpectedCostQP", "solve_qp", "sparse_dynamics"]
 
-#: Tightened Clarabel tolerances: the cross-check promises inputs to 1e-6.
-CLARABEL_SETTINGS = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 400}
+#: Tightened Clarabel tolerances (tolerances.CLARABEL_TIGHT): the cross-check promises inputs to 1e-6.
+CLARABEL_SETTINGS = CLARABEL_TIGHT
 
 #: Above this many decision variables N*m, ``formulation="auto"`` uses the sparse form
 #: (measured crossover between N*m = 40 and 80 for n = 4: docs/performance.md).
@@ -126,13 +128,9 @@ class ExpectedCostQP:
             self.w.value = np.sqrt(weight)
 
     def _solve_raw(self) -> tuple[np.ndarray, float, str]:
-        try:
-            self.problem.solve(solver=cp.CLARABEL, **CLARABEL_SETTINGS)
-        except cp.error.SolverError as err:
-            raise SolverError("solver_error", str(err)) from None
-        status = self.problem.status
-        if status != cp.OPTIMAL:
-            raise SolverError(status, f"{self.protocol}-like {self.formulation} QP")
+        what = f"{self.protocol}-like {self.formulation} QP"
+        status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
+        require_optimal(status, what)
         return np.asarray(self.U.value), float(self.problem.value), status
 
     def solve(self, mu=None, x0=None, *, with_gain: bool = True, cross_check: bool = True) -> Solution:
