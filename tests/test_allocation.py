@@ -5,6 +5,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, min_cost, parse_constraint
+from packetloss_cvx.allocation.brute_force import brute_force_allocation
 from packetloss_cvx.random_systems import random_system
 
 
@@ -12,50 +13,10 @@ def _J(system, protocol, mu):
     return pl.closed_form(system.with_mu(mu), protocol).cost
 
 
-def brute_force(system, protocol, alpha, beta, G=None, h=None, coarse=61, fine=61):
-    """min beta'mu over feasible points only: for each mu1 the least feasible mu2 (bisection keeps
-    the feasible end), then a finer grid around the best mu1."""
-    G = np.zeros((0, 2)) if G is None else G
-    h = np.zeros(0) if h is None else h
-    def best_mu2(mu1):
-        lo, hi = 0.0, 1.0
-        for g, c in zip(G, h, strict=True):    # g1 mu1 + g2 mu2 <= c
-            if g[1] > 0:
-                hi = min(hi, (c - g[0] * mu1) / g[1])
-            elif g[1] < 0:
-                lo = max(lo, (c - g[0] * mu1) / g[1])
-            elif g[0] * mu1 > c + 1e-12:
-                return None
-        if lo > hi or _J(system, protocol, [mu1, hi]) > alpha:
-            return None
-        if _J(system, protocol, [mu1, lo]) <= alpha:
-            return lo
-        a, b = lo, hi
-        while b - a > 1e-10:
-            mid = 0.5 * (a + b)
-            a, b = (a, mid) if _J(system, protocol, [mu1, mid]) <= alpha else (mid, b)
-        return b
-
-    def scan(points):
-        best = None
-        for mu1 in points:
-            mu2 = best_mu2(mu1)
-            if mu2 is not None and (best is None or beta[0] * mu1 + beta[1] * mu2 < best[0]):
-                best = (beta[0] * mu1 + beta[1] * mu2, mu1, mu2)
-        return best
-
-    best = scan(np.linspace(0, 1, coarse))
-    if best is None:
-        return None
-    step = 1 / (coarse - 1)
-    refined = scan(np.clip(np.linspace(best[1] - step, best[1] + step, fine), 0, 1))
-    return min(best, refined)
-
-
 def _check(system, protocol, alpha, beta, constraints=(), G=None, h=None):
     G = np.zeros((0, 2)) if G is None else G
     h = np.zeros(0) if h is None else h
-    ref = brute_force(system, protocol, alpha, np.asarray(beta, float), G, h)
+    ref = brute_force_allocation(system, protocol, alpha, beta, G, h)
     got = allocate(system, protocol, alpha, beta, constraints=constraints)
     assert got.cost <= alpha * (1 + 1e-7)                       # never infeasible
     assert np.isclose(_J(system, protocol, got.mu), got.cost, rtol=1e-12)

@@ -32,13 +32,13 @@ import cvxpy as cp
 import numpy as np
 from scipy.optimize import linprog
 
-from .costs import closed_form
-from .errors import InfeasibleError, InputError, SolverError
-from .model import System
-from .protocols import check_protocol
-from .qp import sparse_dynamics
-from .recursion import udp_variance_weights
-from .results import Allocation
+from ..costs import closed_form
+from ..errors import InfeasibleError, InputError, SolverError
+from ..model import System
+from ..protocols import check_protocol
+from ..qp import sparse_dynamics
+from ..recursion import udp_variance_weights
+from ..results import Allocation
 
 __all__ = [
     "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "min_cost", "parse_constraint",
