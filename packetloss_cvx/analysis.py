@@ -26,6 +26,7 @@ __all__ = [
     "cost_difference",
     "cost_difference_derivative",
     "cost_difference_fd",
+    "G_maps",
     "det_roots",
     "eigenvalue_table",
     "lemma3_candidates",
@@ -64,7 +65,8 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
     return float(b @ (pred.Omega_d * (1.0 - v) * a))
 
 
-def _G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
+def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
+    """G_F = (nu Omega_g + Psi)^-1 and G_G = (nu Omega_h + Omega_d + Psi)^-1 of eq:cost-diff-eq."""
     Od = np.diag(pred.Omega_d)
     GF = np.linalg.inv(nu * pred.Omega_g + np.diag(pred.Psi))
     GG = np.linalg.inv(nu * pred.Omega_h + Od + np.diag(pred.Psi))
@@ -73,7 +75,7 @@ def _G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
 
 def lemma2_matrix(pred: Prediction, nu: float) -> np.ndarray:
     """f(nu) of Lemma 2 / Theorem 4: the matrix inside the quadratic form of eq:cost-diff-deriv."""
-    GF, GG = _G_maps(pred, nu)
+    GF, GG = G_maps(pred, nu)
     Od = np.diag(pred.Omega_d)
     inner = (1 - 2 * nu) * Od - nu * (1 - nu) * (pred.Omega_h @ GG @ Od + Od @ GF @ pred.Omega_g)
     return GG @ inner @ GF
@@ -166,7 +168,7 @@ def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6
             continue
         nu = float(c.real)
         f = lemma2_matrix(pred, nu)
-        GF, GG = _G_maps(pred, nu)
+        GF, GG = G_maps(pred, nu)
         scale = np.linalg.norm(GG, 2) * float(pred.Omega_d.max()) * np.linalg.norm(GF, 2)
         lam_max = float(np.linalg.eigvalsh(0.5 * (f + f.T)).max())
         if abs(lam_max) > tol * scale:

@@ -20,7 +20,7 @@ from scipy.optimize import brentq
 
 from . import analysis as an
 from .allocation.brute_force import brute_force_allocation
-from .costs import _hessian_factor, closed_form, expected_cost, loss_variance_term, paper_optimal_cost
+from .costs import closed_form, expected_cost, hessian_factor, loss_variance_term, paper_optimal_cost
 from .errors import InputError, SolverError
 from .io import load_example, system_from_dict
 from .linalg import psd_factor
@@ -372,7 +372,7 @@ TABLE_2 = {"tcp": [-0.1082, -0.8938], "udp": [0.4904 + 0.0312j, 0.4904 - 0.0312j
 def _conventions(system: System, protocol: str) -> dict[str, np.ndarray]:
     """Closed-loop eigenvalues under each convention tried for Tables I–II."""
     pred = prediction(system)
-    G = _hessian_factor(pred, protocol)
+    G = hessian_factor(pred, protocol)
     m, A, B = system.m, system.A, system.B
     M = np.diag(system.mu_schedule[0])
     out = {}

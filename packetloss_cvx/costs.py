@@ -24,7 +24,10 @@ from .protocols import check_protocol
 from .recursion import backward_pass, mean_trajectory, recursion_cost
 from .results import Solution
 
-__all__ = ["closed_form", "expected_cost", "paper_optimal_cost", "pick_method"]
+__all__ = [
+    "check_inputs", "closed_form", "expected_cost", "hessian_factor", "loss_variance_term", "paper_optimal_cost",
+    "pick_method",
+]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m
 #: (measured crossover for n = 4, m = 2 between N*m = 160 and 200: docs/performance.md) ...
@@ -47,7 +50,8 @@ def pick_method(system: System, method: str) -> str:
     return method
 
 
-def _inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
+def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
+    """The N×m input sequence as a float array, or :class:`InputError` naming ``inputs``."""
     U = numeric_array(inputs, "inputs")
     shape = (system.horizon, system.m)
     if U.shape != shape:
@@ -55,7 +59,7 @@ def _inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
     return U
 
 
-def _hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
+def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
     """G of Theorem 1 (the Hessian of J is Vbar G)."""
     G = pred.Omega_g * pred.Vbar[None, :] + np.diag(pred.Psi)
     if protocol == "udp":
@@ -107,7 +111,7 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     True
     """
     protocol = check_protocol(protocol)
-    U = _inputs(system, inputs)
+    U = check_inputs(system, inputs)
     if pick_method(system, method) == "dense":
         return dense_cost(system, U, protocol)
     value = recursion_cost(system, U, protocol)
@@ -165,7 +169,7 @@ def closed_form(system: System, protocol: str, method: str = "dense") -> Solutio
         gain = K[0]
     else:
         pred = prediction(system)
-        G = _hessian_factor(pred, protocol)
+        G = hessian_factor(pred, protocol)
         F = np.linalg.solve(G, pred.Omega_gp)       # G^{-1} Omega_gp, (N m)×n
         if not np.all(np.isfinite(F)):
             raise NumericalError("G^{-1} Omega_gp is not finite; use method='recursion'")
@@ -192,6 +196,6 @@ def paper_optimal_cost(system: System, protocol: str) -> float:
     """
     protocol = check_protocol(protocol)
     pred = prediction(system)
-    G = _hessian_factor(pred, protocol)
+    G = hessian_factor(pred, protocol)
     g = pred.Omega_gp @ system.x0
     return _constant(system, pred) - float(g @ np.linalg.solve(G, pred.Vbar * g))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .costs import _inputs
+from .costs import check_inputs
 from .linalg import psd_factor
 from .model import System
 
@@ -24,7 +24,7 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
     ``samples`` realised costs; their mean estimates E[cost | X_k] of the plan.
     Time O(samples · N · (n^2 + n m)), memory O(samples · n).
     """
-    U = _inputs(system, inputs)
+    U = check_inputs(system, inputs)
     N = system.horizon
     x0 = system.x0
     X = np.repeat(x0[None, :], samples, axis=0)

@@ -65,7 +65,7 @@ def test_lemma_3_proof_matrix_gives_the_exact_roots(seed):
     # and at a real root in (0, 1) the matrix f(nu) is singular
     real = finite[(np.abs(finite.imag) < 1e-10) & (finite.real > 0.01) & (finite.real < 0.99)].real
     for r in real[:3]:
-        GF, GG = an._G_maps(pred, r)
+        GF, GG = an.G_maps(pred, r)
         scale = np.linalg.norm(GG, 2) * pred.Omega_d.max() * np.linalg.norm(GF, 2)
         sv = np.linalg.svd(an.lemma2_matrix(pred, r), compute_uv=False)
         assert sv[-1] <= 1e-6 * scale
