@@ -8,11 +8,13 @@ from .allocation import allocate
 from .claims import audit
 from .costs import closed_form, expected_cost, paper_optimal_cost
 from .errors import (
+    CrossCheckError,
     DimensionError,
     InfeasibleError,
     InputError,
     NumericalError,
     ProbabilityError,
+    ResourceError,
     SolverError,
 )
 from .io import load_example, load_system, save_system
@@ -26,6 +28,7 @@ __all__ = [
     "Allocation",
     "ClaimResult",
     "CrossCheck",
+    "CrossCheckError",
     "DimensionError",
     "ExpectedCostQP",
     "InfeasibleError",
@@ -33,6 +36,7 @@ __all__ = [
     "Maximiser",
     "NumericalError",
     "ProbabilityError",
+    "ResourceError",
     "Solution",
     "SolverError",
     "allocate",

@@ -17,12 +17,14 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .errors import DimensionError, InputError, NumericalError
+from .errors import DimensionError, InputError, NumericalError, ResourceError
+from .linalg import solve_checked
 from .model import System, numeric_array
 from .prediction import Prediction, prediction
 from .protocols import check_protocol
-from .recursion import backward_pass, mean_trajectory, recursion_cost
+from .recursion import backward_pass, condition_estimate, mean_trajectory, recursion_cost, udp_variance_weights
 from .results import Solution
+from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = [
     "check_inputs", "closed_form", "expected_cost", "hessian_factor", "loss_variance_term", "paper_optimal_cost",
@@ -30,24 +32,67 @@ __all__ = [
 ]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m
-#: (measured crossover for n = 4, m = 2 between N*m = 160 and 200: docs/performance.md) ...
+#: (measured crossover for n = 4, m = 2 between N*m = 160 and 200: docs/performance.md),
+#: and only while the condition estimate stays below ``tolerances.DENSE_MAX_CONDITION``.
 AUTO_DENSE_MAX = 160
-#: ... and only while the open-loop growth rho(A)^(2N) stays below this, beyond which the
-#: dense products lose digits (at rho = 1.2, N = 60 the dense gain is off by 1e-7).
-AUTO_DENSE_GROWTH = 1e4
 
 
-def pick_method(system: System, method: str) -> str:
+def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] | None = None) -> str:
     """Resolve ``"auto"`` to the faster exact path: ``"dense"`` for small, well-conditioned
-    problems, ``"recursion"`` otherwise."""
+    problems, ``"recursion"`` otherwise. Time O(N n^3) (the condition estimate)."""
     if method == "auto":
-        rho = float(max(abs(np.linalg.eigvals(system.A))))
-        small = system.horizon * system.m <= AUTO_DENSE_MAX
-        tame = 2 * system.horizon * np.log10(max(rho, 1e-300)) <= np.log10(AUTO_DENSE_GROWTH)
-        return "dense" if small and tame else "recursion"
+        if system.horizon * system.m > AUTO_DENSE_MAX:
+            return "recursion"
+        return "dense" if condition_estimate(system, weights) <= DENSE_MAX_CONDITION else "recursion"
     if method not in ("dense", "recursion"):
-        raise InputError("method", f"expected 'dense', 'recursion' or 'auto', found {method!r}")
+        raise InputError("method", f"expected 'auto', 'dense' or 'recursion', found {method!r}")
     return method
+
+
+def _refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
+    """Raise before building anything dense that would not fit or would lose the answer."""
+    N, n, m = system.horizon, system.n, system.m
+    needed = 8.0 * (3 * (N * n) * (N * m) + 2 * (N * m) ** 2)   # Gamma, Omega Gamma, Omega_g, G, LU
+    if needed > MEMORY_BUDGET_BYTES:
+        raise ResourceError(
+            f"method 'dense' needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} (budget "
+            f"{MEMORY_BUDGET_BYTES / 2**30:.1f} GiB); use method='recursion' (exact, O(N) memory)",
+            needed, MEMORY_BUDGET_BYTES)
+    kappa = condition_estimate(system, weights)
+    if kappa > DENSE_MAX_CONDITION:
+        raise NumericalError(
+            f"method 'dense': the condition estimate (trace Omega_g + max Psi)/min Psi = {kappa:.2g} exceeds "
+            f"{DENSE_MAX_CONDITION:.0e}, so the dense formulas would lose their digits (unstable plant over a "
+            f"long horizon, or weights of very different sizes); use method='recursion'")
+
+
+def _verified(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
+              weights: tuple[np.ndarray, float], atol: float = 0.0) -> float:
+    """``closed`` if it agrees with the forward cost of the plan ``U`` (a sum of nonnegative terms,
+    free of cancellation) to ``SELF_CHECK_RTOL`` (plus ``atol``); NumericalError otherwise."""
+    forward = recursion_cost(system, U, protocol, weights)
+    if not (np.isfinite(forward) and np.isfinite(closed)):
+        raise NumericalError(
+            f"the {protocol}-like expected cost exceeds the double-precision range (about 1e308): the "
+            "open-loop prediction of an unstable plant over this horizon, or inputs/states that large")
+    if abs(closed - forward) > SELF_CHECK_RTOL * forward + atol or closed < 0:
+        raise NumericalError(
+            f"method '{method}': the closed-form cost {closed:.10g} and the forward cost of its own plan "
+            f"{forward:.10g} differ by {abs(closed - forward) / max(forward, 1e-300):.1e} (relative): double "
+            f"precision cannot resolve this problem ({_spread(system)}); rescale the weights")
+    return closed
+
+
+def _spread(system: System) -> str:
+    """Which weights span how much: the usual cause of a failed self-check."""
+    w = np.linalg.eigvalsh(system.state_weights)
+    positive = w[w > 0]
+    psi = system.input_weights
+    if not positive.size:
+        return f"input weights span {psi.max() / psi.min():.1e}"
+    hi, lo = max(positive.max(), psi.max()), min(positive.min(), psi.min())
+    return (f"state weights up to {positive.max():.3g} and input weights down to {psi.min():.3g}: the weights "
+            f"span {hi / lo:.1e}; condition estimate {condition_estimate(system):.1e}")
 
 
 def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
@@ -96,8 +141,10 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
 
     .. math:: J_{udp}(U) = J_{tcp}(U) + U'\\bar V\\Omega_d(I-\\bar V)U
 
-    ``method="dense"`` evaluates the quadratic form of eq:opt-lqg-simplest
-    (O((N n)^2 N m)); ``"recursion"`` rolls out the mean state (O(N n^3)).
+    ``method="auto"`` (the default) and ``"recursion"`` roll out the mean state and add its
+    nonnegative stage costs (O(N n^3), no cancellation); ``"dense"`` evaluates the quadratic
+    form of eq:opt-lqg-simplest (O((N n)^2 N m)), refused where its condition estimate says
+    it would lose digits, and checked against the forward pass.
     Note: for a fixed plan U, the sampled expectation of the realised cost is
     J_udp(U) under both protocols; J_tcp(U) drops the loss-variance term
     (docs/claims.md, expected-cost-tcp).
@@ -112,11 +159,15 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     """
     protocol = check_protocol(protocol)
     U = check_inputs(system, inputs)
-    if pick_method(system, method) == "dense":
-        return dense_cost(system, U, protocol)
-    value = recursion_cost(system, U, protocol)
+    choice = pick_method(system, method) if method != "auto" else "recursion"
+    weights = udp_variance_weights(system)
+    if choice == "dense":
+        _refuse_dense(system, weights)
+        return _verified(system, protocol, dense_cost(system, U, protocol), U, "dense", weights)
+    value = recursion_cost(system, U, protocol, weights)
     if not np.isfinite(value):
-        raise NumericalError("the expected cost exceeds the double-precision range")
+        raise NumericalError(f"the {protocol}-like expected cost of these inputs exceeds the double-precision "
+                             "range (about 1e308)")
     return value
 
 
@@ -124,7 +175,7 @@ def _eigs(system: System, K: np.ndarray) -> np.ndarray:
     return np.linalg.eigvals(system.A - system.B @ K)
 
 
-def closed_form(system: System, protocol: str, method: str = "dense") -> Solution:
+def closed_form(system: System, protocol: str, method: str = "auto") -> Solution:
     """Theorem 1: the optimal plan, its expected cost, gain and closed-loop eigenvalues.
 
     .. math:: U^* = -G^{-1}\\Omega_{gp}x,\\qquad J^* = C - x'\\Omega_{gp}'\\bar V G^{-1}\\Omega_{gp}x
@@ -133,9 +184,12 @@ def closed_form(system: System, protocol: str, method: str = "dense") -> Solutio
     ----------
     system : System
     protocol : {"tcp", "udp"}
-    method : {"dense", "recursion", "auto"}
+    method : {"auto", "dense", "recursion"}
         ``"dense"`` solves the (N m)×(N m) system of eq:opt-law-1/2: O((N m)^3 + (N n)^3);
-        ``"recursion"`` is the exact backward recursion: O(N (n^3 + m^3)).
+        ``"recursion"`` is the exact backward recursion: O(N (n^3 + m^3)); ``"auto"`` (default)
+        takes the dense form for small well-conditioned problems and the recursion otherwise.
+        Every method checks its cost against the forward cost of its own plan (a sum of
+        nonnegative terms) and raises rather than return a number that fails the check.
 
     Returns
     -------
@@ -144,8 +198,11 @@ def closed_form(system: System, protocol: str, method: str = "dense") -> Solutio
     Raises
     ------
     NumericalError
-        When the dense matrices overflow (unstable A, long N) or the exact cost exceeds
-        the double range.
+        ``"dense"`` where its condition estimate exceeds ``DENSE_MAX_CONDITION`` (before anything
+        is built), a dense solve whose residual is not small, a cost that disagrees with the
+        forward cost of its plan (badly scaled weights), or an exact cost beyond the double range.
+    ResourceError
+        ``"dense"`` where its matrices would not fit the memory budget.
 
     References
     ----------
@@ -160,30 +217,42 @@ def closed_form(system: System, protocol: str, method: str = "dense") -> Solutio
     True
     """
     protocol = check_protocol(protocol)
-    method = pick_method(system, method)
-    if method == "recursion":
-        K, P0, noise = backward_pass(system, protocol)
-        U, _ = mean_trajectory(system, K)
-        x = system.x0
-        cost = float(x @ (system.initial_weight + P0) @ x) + noise
-        gain = K[0]
-    else:
-        pred = prediction(system)
-        G = hessian_factor(pred, protocol)
-        F = np.linalg.solve(G, pred.Omega_gp)       # G^{-1} Omega_gp, (N m)×n
-        if not np.all(np.isfinite(F)):
-            raise NumericalError("G^{-1} Omega_gp is not finite; use method='recursion'")
-        u = -F @ system.x0
-        g = pred.Omega_gp @ system.x0
-        cost = _constant(system, pred) + float(g @ (pred.Vbar * u))  # C - g' Vbar G^{-1} g
-        U = u.reshape(system.horizon, system.m)
-        gain = F[: system.m]
-    if not np.isfinite(cost):
-        raise NumericalError("the optimal expected cost exceeds the double-precision range")
-    return Solution(
-        protocol=protocol, cost=cost, inputs=U, gain=gain,
-        closed_loop_eigenvalues=_eigs(system, gain), method=method,
-    )
+    weights = udp_variance_weights(system)
+    choice = pick_method(system, method, weights)
+    if choice == "dense":
+        try:
+            return _dense_solution(system, protocol, weights)
+        except NumericalError:
+            if method != "auto":
+                raise
+            # "auto" promised the right number: the recursion does not depend on the conditioning
+    return _recursion_solution(system, protocol, weights)
+
+
+def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
+    K, P0, noise = backward_pass(system, protocol)
+    U, _ = mean_trajectory(system, K)
+    x = system.x0
+    cost = float(x @ (system.initial_weight + P0) @ x) + noise
+    scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
+    cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale)
+    return Solution(protocol=protocol, cost=cost, inputs=U, gain=K[0],
+                    closed_loop_eigenvalues=_eigs(system, K[0]), method="recursion")
+
+
+def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
+    _refuse_dense(system, weights)
+    pred = prediction(system)
+    G = hessian_factor(pred, protocol)
+    F = solve_checked(G, pred.Omega_gp, "G^-1 Omega_gp (Theorem 1)")     # (N m)×n
+    u = -F @ system.x0
+    g = pred.Omega_gp @ system.x0
+    cost = _constant(system, pred) + float(g @ (pred.Vbar * u))             # C - g' Vbar G^{-1} g
+    U = u.reshape(system.horizon, system.m)
+    cost = _verified(system, protocol, cost, U, "dense", weights)
+    gain = F[: system.m]
+    return Solution(protocol=protocol, cost=cost, inputs=U, gain=gain,
+                    closed_loop_eigenvalues=_eigs(system, gain), method="dense")
 
 
 def paper_optimal_cost(system: System, protocol: str) -> float:

@@ -8,11 +8,13 @@ works; failures of a well-posed computation subclass :class:`RuntimeError` or
 from __future__ import annotations
 
 __all__ = [
+    "CrossCheckError",
     "DimensionError",
     "InfeasibleError",
     "InputError",
     "NumericalError",
     "ProbabilityError",
+    "ResourceError",
     "SolverError",
 ]
 
@@ -56,4 +58,24 @@ class InfeasibleError(RuntimeError):
 
 
 class NumericalError(ArithmeticError):
-    """A dense computation overflowed or lost all precision."""
+    """A computation overflowed, or would lose (or did lose) the digits of its answer."""
+
+
+class CrossCheckError(ArithmeticError):
+    """Two independent computations of the same number disagree beyond the stated tolerance.
+
+    ``values`` maps each method to its number, so the message and the caller can name both.
+    """
+
+    def __init__(self, detail: str, values: dict[str, float]) -> None:
+        self.values = dict(values)
+        super().__init__(detail)
+
+
+class ResourceError(RuntimeError):
+    """A computation whose size is known in advance would not fit the memory budget."""
+
+    def __init__(self, detail: str, needed_bytes: float, budget_bytes: float) -> None:
+        self.needed_bytes = needed_bytes
+        self.budget_bytes = budget_bytes
+        super().__init__(detail)

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .tolerances import PSD_FACTOR_RTOL
+from .errors import NumericalError
+from .tolerances import DENSE_RESIDUAL_RTOL, PSD_FACTOR_RTOL
 
-__all__ = ["psd_factor"]
+__all__ = ["check_finite", "psd_factor", "solve_checked"]
 
 
 def psd_factor(W: np.ndarray) -> np.ndarray:
@@ -14,3 +15,31 @@ def psd_factor(W: np.ndarray) -> np.ndarray:
     vals, vecs = np.linalg.eigh(W)
     keep = vals > PSD_FACTOR_RTOL * max(1.0, float(vals.max(initial=0.0)))
     return np.sqrt(vals[keep])[:, None] * vecs[:, keep].T
+
+
+def check_finite(name: str, arr: np.ndarray | float, instead: str = "method='recursion'") -> np.ndarray | float:
+    """Return ``arr``, or raise :class:`NumericalError` naming ``name`` and what to use instead."""
+    if not np.all(np.isfinite(arr)):
+        raise NumericalError(
+            f"{name} overflowed (the dense prediction of an unstable plant over a long horizon); use {instead}"
+        )
+    return arr
+
+
+def solve_checked(G: np.ndarray, rhs: np.ndarray, name: str, instead: str = "method='recursion'") -> np.ndarray:
+    """``G^{-1} rhs`` by LU, kept only if finite and its relative residual
+    ``||G X - rhs|| / (||G|| ||X|| + ||rhs||)`` is at most ``DENSE_RESIDUAL_RTOL``.
+
+    Time O(k^3) for a k×k ``G``. Raises :class:`NumericalError` naming ``name`` and ``instead``.
+    """
+    with np.errstate(all="ignore"):
+        try:
+            X = np.linalg.solve(G, rhs)
+        except np.linalg.LinAlgError:
+            raise NumericalError(f"{name}: the matrix is singular to working precision; use {instead}") from None
+        residual = np.linalg.norm(G @ X - rhs)
+        scale = np.linalg.norm(G) * np.linalg.norm(X) + np.linalg.norm(rhs)
+    if not np.all(np.isfinite(X)) or not np.isfinite(residual) or residual > DENSE_RESIDUAL_RTOL * scale:
+        raise NumericalError(f"{name}: the dense solve lost its accuracy (relative residual "
+                             f"{residual / scale if scale else np.inf:.1e}); use {instead}")
+    return X

@@ -12,7 +12,7 @@ from functools import cached_property
 import numpy as np
 import scipy.linalg as sla
 
-from .errors import NumericalError
+from .linalg import check_finite
 from .model import System
 
 __all__ = ["Prediction", "prediction"]
@@ -57,7 +57,7 @@ class Prediction:
     def Omega_l(self) -> np.ndarray:
         """Lambda' Omega Lambda (the paper prints Lambda Omega Lambda; see docs/claims.md)."""
         with np.errstate(over="ignore", invalid="ignore"):
-            return _check_finite("Omega_l", self.Lambda.T @ self.Omega @ self.Lambda)
+            return check_finite("Omega_l", self.Lambda.T @ self.Omega @ self.Lambda)
 
     @property
     def Sigma_W(self) -> np.ndarray:
@@ -70,15 +70,6 @@ class Prediction:
         if not np.any(self.system.noise_cov):
             return 0.0
         return float(np.sum(self.Omega_l * self.Sigma_W))
-
-
-def _check_finite(name: str, arr: np.ndarray) -> np.ndarray:
-    if not np.all(np.isfinite(arr)):
-        raise NumericalError(
-            f"{name} overflowed (the dense prediction of an unstable plant over a long horizon); "
-            "use method='recursion'"
-        )
-    return arr
 
 
 def _powers(A: np.ndarray, N: int) -> list[np.ndarray]:
@@ -96,7 +87,7 @@ def _block_toeplitz(blocks: list[np.ndarray], N: int, r: int, c: int, name: str)
     for k in range(N):
         rows = np.arange(k, N)
         out[rows, :, rows - k, :] = blocks[k]
-    return _check_finite(name, out.reshape(N * r, N * c))
+    return check_finite(name, out.reshape(N * r, N * c))
 
 
 def prediction(system: System) -> Prediction:
@@ -112,16 +103,16 @@ def prediction(system: System) -> Prediction:
     A, B, N = system.A, system.B, system.horizon
     powers = _powers(A, N)
     with np.errstate(over="ignore", invalid="ignore"):
-        Phi = _check_finite("Phi", np.vstack(powers[1:]))
+        Phi = check_finite("Phi", np.vstack(powers[1:]))
         Gamma = _block_toeplitz([P @ B for P in powers[:N]], N, system.n, system.m, "Gamma")
         W = system.state_weights
         n = system.n
         # blkdiag(Omega_t) times a stacked matrix, block by block: O(N n^2) per column
         OG = np.einsum("tij,tjk->tik", W, Gamma.reshape(N, n, -1)).reshape(N * n, -1)
         OP = np.einsum("tij,tjk->tik", W, Phi.reshape(N, n, n)).reshape(N * n, n)
-        Omega_g = _check_finite("Omega_g", Gamma.T @ OG)
-        Omega_gp = _check_finite("Omega_gp", OG.T @ Phi)
-        Omega_p = _check_finite("Omega_p", Phi.T @ OP)
+        Omega_g = check_finite("Omega_g", Gamma.T @ OG)
+        Omega_gp = check_finite("Omega_gp", OG.T @ Phi)
+        Omega_p = check_finite("Omega_p", Phi.T @ OP)
     Omega_g = 0.5 * (Omega_g + Omega_g.T)
     return Prediction(
         system=system, Phi=Phi, Gamma=Gamma,

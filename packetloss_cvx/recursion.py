@@ -27,7 +27,7 @@ from .errors import NumericalError
 from .model import System
 from .protocols import check_protocol
 
-__all__ = ["backward_pass", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
+__all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
 
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
@@ -58,6 +58,22 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
             if t > 0:
                 S = W[t - 1] + A.T @ S @ A
     return d, noise
+
+
+def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None = None) -> float:
+    """``(trace Omega_g + max Psi) / min Psi``: an upper estimate of the spread of curvatures of
+    both expected costs (trace Omega_g bounds its largest eigenvalue, min Psi bounds the smallest
+    curvature per delivered input). The dense formulas lose about ``log10(estimate * eps)``
+    digits; the recursion does not depend on it. ``inf`` when Omega_g overflows.
+    Time O(N n^3) (the Lyapunov sums of :func:`udp_variance_weights`), no dense matrix.
+    """
+    d, _ = udp_variance_weights(system) if weights is None else weights
+    psi = system.input_weights
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = float(np.sum(d))
+    if not np.isfinite(total):
+        return float("inf")
+    return (total + float(psi.max())) / float(psi.min())
 
 
 def backward_pass(system: System, protocol: str) -> tuple[np.ndarray, np.ndarray, float]:
@@ -125,14 +141,18 @@ def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return u, x
 
 
-def recursion_cost(system: System, inputs: np.ndarray, protocol: str) -> float:
+def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
+                   weights: tuple[np.ndarray, float] | None = None) -> float:
     """J(U) of eq:opt-lqg-simplest with Lemma 1, by a forward pass of the mean state.
 
+    Every term added is nonnegative (stage costs of the mean state, the input and loss-variance
+    weights, the noise term), so the sum has no cancellation: this is the referee the closed
+    forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``.
     Time O(N n^3) (the Lyapunov sums), memory O(N m).
     """
     protocol = check_protocol(protocol)
     A, B, W, mu, psi = system.A, system.B, system.state_weights, system.mu_schedule, system.input_weights
-    d, noise = udp_variance_weights(system)
+    d, noise = udp_variance_weights(system) if weights is None else weights
     x = system.x0.copy()
     total = float(x @ system.initial_weight @ x) + noise
     with np.errstate(over="ignore", invalid="ignore"):

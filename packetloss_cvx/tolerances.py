@@ -6,13 +6,19 @@ a tolerance and the check that relies on it move together.
 
 from __future__ import annotations
 
+import os
+
 __all__ = [
     "ACCEPTED_STATUSES",
     "CLARABEL_DEFAULT",
     "CLARABEL_TIGHT",
     "CROSS_CHECK_COST_RTOL",
     "CROSS_CHECK_INPUT_ATOL",
+    "DENSE_MAX_CONDITION",
     "DENSE_RESIDUAL_RTOL",
+    "MEMORY_BUDGET_BYTES",
+    "SELF_CHECK_ATOL",
+    "SELF_CHECK_RTOL",
     "PSD_FACTOR_RTOL",
     "SYMMETRY_RTOL",
 ]
@@ -43,3 +49,21 @@ CROSS_CHECK_COST_RTOL = 1e-7
 #: A dense solve G U = b is kept only if ||G U - b|| <= DENSE_RESIDUAL_RTOL * ||G|| ||U|| + ||b|| scaled
 #: likewise; past it the dense path has lost the answer and raises NumericalError.
 DENSE_RESIDUAL_RTOL = 1e-9
+
+#: The dense path of Theorem 1 is refused when the condition estimate
+#: (trace Omega_g + max Psi) / min Psi exceeds this. Measured: its relative error is about
+#: estimate * 2.2e-16 / 25 (pendulum at mu = 1: N = 200 gives 3.4e11 and a gain off by 3e-6;
+#: a rho = 1.2, N = 60 plant gives 9.5e10 and 8e-7), so 1e8 keeps it near 1e-9.
+DENSE_MAX_CONDITION = 1e8
+
+#: A closed-form cost is kept only if it agrees with the forward pass of its own plan (a sum of
+#: nonnegative terms, free of cancellation): |J_closed - J_forward| <= SELF_CHECK_RTOL * J_forward
+#: + SELF_CHECK_ATOL * ||P_0|| ||x||^2 (the last term only for the recursion, whose x'P_0 x has
+#: that rounding scale). Well-posed systems agree to 1e-14 (300 random ones: worst 4.7e-15);
+#: badly scaled weights (1e10 against 1) disagree by 5e-7 and more.
+SELF_CHECK_RTOL = 1e-9
+SELF_CHECK_ATOL = 1e-13
+
+#: What one dense computation or one QP may allocate: a quarter of the machine's memory.
+MEMORY_BUDGET_BYTES = 0.25 * (os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+                              if hasattr(os, "sysconf") else 8 * 2**30)
