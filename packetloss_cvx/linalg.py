@@ -7,7 +7,7 @@ import numpy as np
 from .errors import NumericalError
 from .tolerances import DENSE_RESIDUAL_RTOL, PSD_FACTOR_RTOL
 
-__all__ = ["check_finite", "psd_factor", "solve_checked"]
+__all__ = ["check_finite", "power_growth", "psd_factor", "solve_checked"]
 
 
 def psd_factor(W: np.ndarray) -> np.ndarray:
@@ -43,3 +43,16 @@ def solve_checked(G: np.ndarray, rhs: np.ndarray, name: str, instead: str = "met
         raise NumericalError(f"{name}: the dense solve lost its accuracy (relative residual "
                              f"{residual / scale if scale else np.inf:.1e}); use {instead}")
     return X
+
+
+def power_growth(A: np.ndarray, N: int, cap: float = np.inf) -> float:
+    """max over t = 0..N of ||A^t||_2 (stops early once it exceeds ``cap``). Time O(N n^3)."""
+    P = np.eye(A.shape[0])
+    worst = 1.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(N):
+            P = P @ A
+            worst = max(worst, float(np.linalg.norm(P, 2)))
+            if not worst <= cap:
+                return worst if np.isfinite(worst) else float("inf")
+    return worst

@@ -24,16 +24,27 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .convex import require_optimal, solve_problem
-from .errors import InputError
-from .linalg import psd_factor
+from .convex import solve_problem
+from .costs import closed_form
+from .errors import CrossCheckError, InputError, NumericalError, ResourceError, SolverError
+from .linalg import power_growth, psd_factor
 from .model import System
+from .prediction import prediction
 from .protocols import check_protocol
-from .recursion import udp_variance_weights
+from .recursion import recursion_cost, udp_variance_weights
 from .results import CrossCheck, Solution
-from .tolerances import CLARABEL_TIGHT
+from .tolerances import (
+    ACCEPTED_STATUSES,
+    CLARABEL_TIGHT,
+    CROSS_CHECK_COST_RTOL,
+    CROSS_CHECK_INPUT_ATOL,
+    MEMORY_BUDGET_BYTES,
+    PLAN_CHECK_MAX_GROWTH,
+)
 
-__all__ = ["CLARABEL_SETTINGS", "ExpectedCostQP", "solve_qp", "sparse_dynamics"]
+__all__ = [
+    "CLARABEL_SETTINGS", "ExpectedCostQP", "compare", "qp_memory_estimate", "solve_qp", "sparse_dynamics",
+]
 
 #: Tightened Clarabel tolerances (tolerances.CLARABEL_TIGHT): the cross-check promises inputs to 1e-6.
 CLARABEL_SETTINGS = CLARABEL_TIGHT
@@ -53,6 +64,20 @@ def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.cs
     first = sp.csr_matrix(np.vstack([system.A, np.zeros(((N - 1) * n, n))]))
     L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
     return E, Bbig, first, L
+
+
+def qp_memory_estimate(system: System, formulation: str) -> float:
+    """Bytes the QP needs at its peak, known before building it.
+
+    Measured (n = 1..4, m = 1..2, N up to 8000): cvxpy's DPP canonicalisation keeps a dense
+    (N m)×(N m) parameter map, 8 (N m)^2 bytes; the condensed form adds its dense constants,
+    8 · 2 (N n)(N m).
+    """
+    Nm = system.horizon * system.m
+    needed = 8.0 * Nm**2 + 1e7
+    if formulation == "condensed":
+        needed += 16.0 * (system.horizon * system.n) * Nm
+    return needed
 
 
 def _pick(system: System, formulation: str) -> str:
@@ -90,7 +115,18 @@ class ExpectedCostQP:
         self.formulation = _pick(system, formulation)
         self.system = system
         N, n, m = system.horizon, system.n, system.m
+        needed = qp_memory_estimate(system, self.formulation)
+        if needed > MEMORY_BUDGET_BYTES:
+            raise ResourceError(
+                f"the {self.formulation} QP needs about {needed / 2**30:.1f} GiB for N*m = {N * m} (cvxpy keeps a "
+                f"dense (N m)^2 parameter map); budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
+                MEMORY_BUDGET_BYTES)
         self._d, self._noise = udp_variance_weights(system)
+        self._plan_checkable = power_growth(system.A, N, PLAN_CHECK_MAX_GROWTH) <= PLAN_CHECK_MAX_GROWTH
+        if not (np.all(np.isfinite(self._d)) and np.isfinite(self._noise)):
+            raise NumericalError(
+                "the QP's loss-variance weights diag(Omega_g) (or its noise term) exceed the double-precision "
+                "range: the open-loop prediction of an unstable plant over this horizon")
         self.v = cp.Parameter(N * m, nonneg=True, name="v")
         self.x = cp.Parameter(n, name="x")
         self.r = cp.Parameter(N * m, nonneg=True, name="sqrt_v_psi")
@@ -102,8 +138,6 @@ class ExpectedCostQP:
         vu = cp.multiply(self.v, self.U)
         constraints = []
         if self.formulation == "condensed":
-            from .prediction import prediction
-
             pred = prediction(system)
             L = sla.block_diag(*[psd_factor(W) for W in system.state_weights])
             if L.shape[0]:  # all state weights zero: no state term at all
@@ -129,22 +163,44 @@ class ExpectedCostQP:
 
     def _solve_raw(self) -> tuple[np.ndarray, float, str]:
         what = f"{self.protocol}-like {self.formulation} QP"
-        status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
-        require_optimal(status, what)
+        try:
+            status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
+        except SolverError as err:
+            raise self._out_of_range(err.status) from None
+        if status not in ACCEPTED_STATUSES:
+            raise self._out_of_range(status)
         return np.asarray(self.U.value), float(self.problem.value), status
 
-    def solve(self, mu=None, x0=None, *, with_gain: bool = True, cross_check: bool = True) -> Solution:
+    def _out_of_range(self, status: str) -> NumericalError:
+        """The QP is unconstrained and strictly convex: it always has one minimiser, so any status
+        but optimal ('infeasible' included) means the solver lost the problem's scale."""
+        rho = float(max(abs(np.linalg.eigvals(self.system.A))))
+        return NumericalError(
+            f"Clarabel ended {status!r} on the {self.protocol}-like {self.formulation} QP, which is unconstrained "
+            f"and always has a unique minimiser: the problem's scale is beyond the solver's range (open-loop "
+            f"growth rho(A)^N = {rho:.3g}^{self.system.horizon}); the closed form (method='recursion') is exact here")
+
+    def solve(self, mu=None, x0=None, *, with_gain: bool = True, cross_check: bool = True,
+              reference: Solution | None = None) -> Solution:
         """Solve for the current (or the given) channel and state.
 
         ``mu`` is an m-vector or an N×m schedule; ``x0`` an n-vector. Both are validated
         through :class:`System`. With ``with_gain`` the gain K is recovered by n more
-        solves at the unit states (U* is linear in x). With ``cross_check`` the answer is
-        compared with :func:`closed_form` (method "auto").
+        solves at the unit states (U* is linear in x). The solver's objective is checked
+        against the forward cost of its own plan (while the open-loop growth max_t ||A^t||
+        is at most ``PLAN_CHECK_MAX_GROWTH``; beyond it a fixed plan's cost amplifies rounding).
+        With ``cross_check`` the answer is compared with ``reference`` (default:
+        :func:`closed_form`, method "auto"), and a disagreement beyond
+        ``CROSS_CHECK_INPUT_ATOL`` / ``CROSS_CHECK_COST_RTOL`` raises.
 
         Raises
         ------
-        SolverError
-            Any status other than "optimal" (``optimal_inaccurate`` included), with the status.
+        NumericalError
+            Any solver status other than "optimal" (this QP always has a unique minimiser, so
+            'infeasible' or 'optimal_inaccurate' mean lost scale), or an objective that disagrees
+            with the forward cost of the plan.
+        CrossCheckError
+            The QP and the reference disagree beyond the tolerances; both numbers are named.
         """
         system = self.system
         if mu is not None:
@@ -158,6 +214,12 @@ class ExpectedCostQP:
         solve_time = time.perf_counter() - start
         x = system.x0
         cost = value + float(x @ system.initial_weight @ x) + self._noise
+        forward = recursion_cost(system, u.reshape(N, m), self.protocol, (self._d, self._noise))
+        if self._plan_checkable and not abs(cost - forward) <= CROSS_CHECK_COST_RTOL * max(1.0, forward):
+            raise NumericalError(
+                f"the {self.protocol}-like {self.formulation} QP reports J = {cost:.10g} but the forward cost of its "
+                f"own plan is {forward:.10g}: the solver lost the problem's scale (weights spanning many orders "
+                "of magnitude, or an unstable plant over a long horizon)")
         gain = None
         eigs = None
         if with_gain:
@@ -170,21 +232,30 @@ class ExpectedCostQP:
             eigs = np.linalg.eigvals(system.A - system.B @ gain)
         check = None
         if cross_check:
-            from .costs import closed_form
-
-            ref = closed_form(system, self.protocol, method="auto")
-            mask = system.mu_schedule.ravel() > 0
-            diff = np.abs(u - ref.inputs.ravel())[mask]
-            check = CrossCheck(
-                reference_method=ref.method,
-                max_input_diff=float(diff.max(initial=0.0)),
-                cost_rel_diff=abs(cost - ref.cost) / max(1.0, abs(ref.cost)),
-            )
+            ref = reference if reference is not None else closed_form(system, self.protocol, method="auto")
+            check = compare(u.reshape(N, m), cost, ref, system)
         return Solution(
             protocol=self.protocol, cost=cost, inputs=u.reshape(N, m), gain=gain,
             closed_loop_eigenvalues=eigs, method=f"qp-{self.formulation}", status=status,
             solve_time=solve_time, cross_check=check,
         )
+
+
+def compare(inputs: np.ndarray, cost: float, reference: Solution, system: System) -> CrossCheck:
+    """Compare a plan and its cost with ``reference``; raise :class:`CrossCheckError` naming both
+    numbers when ``max|dU| > CROSS_CHECK_INPUT_ATOL * max(1, max|U*|)`` (channels with mu > 0) or
+    ``|dJ| > CROSS_CHECK_COST_RTOL * max(1, |J*|)``."""
+    mask = system.mu_schedule > 0
+    diff = float(np.abs(inputs - reference.inputs)[mask].max(initial=0.0))
+    rel = abs(cost - reference.cost) / max(1.0, abs(reference.cost))
+    input_scale = max(1.0, float(np.abs(reference.inputs).max(initial=0.0)))
+    if not (diff <= CROSS_CHECK_INPUT_ATOL * input_scale and rel <= CROSS_CHECK_COST_RTOL):
+        raise CrossCheckError(
+            f"the QP twin and the closed form disagree: J_qp = {cost:.10g}, J* = {reference.cost:.10g} "
+            f"({reference.method}), rel dJ = {rel:.1e} (tolerance {CROSS_CHECK_COST_RTOL:.0e}), max|dU| = "
+            f"{diff:.1e} (tolerance {CROSS_CHECK_INPUT_ATOL * input_scale:.1e})",
+            {"qp": cost, reference.method: reference.cost})
+    return CrossCheck(reference_method=reference.method, max_input_diff=diff, cost_rel_diff=rel)
 
 
 def solve_qp(system: System, protocol: str, formulation: str = "auto", **kwargs) -> Solution:

@@ -17,6 +17,7 @@ __all__ = [
     "DENSE_MAX_CONDITION",
     "DENSE_RESIDUAL_RTOL",
     "MEMORY_BUDGET_BYTES",
+    "PLAN_CHECK_MAX_GROWTH",
     "SELF_CHECK_ATOL",
     "SELF_CHECK_RTOL",
     "PSD_FACTOR_RTOL",
@@ -67,3 +68,9 @@ SELF_CHECK_ATOL = 1e-13
 #: What one dense computation or one QP may allocate: a quarter of the machine's memory.
 MEMORY_BUDGET_BYTES = 0.25 * (os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
                               if hasattr(os, "sysconf") else 8 * 2**30)
+
+#: The QP's objective is checked against the forward cost of its plan only while the open-loop
+#: growth max_t ||A^t|| stays below this: beyond it the cost of a fixed plan amplifies the plan's
+#: rounding (rho = 1.5, N = 200: a plan right to 1e-12 has a forward cost of 2e40 against the
+#: minimum 3.93), and the cross-check against the closed form is the check that binds.
+PLAN_CHECK_MAX_GROWTH = 1e4

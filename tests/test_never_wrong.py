@@ -120,3 +120,113 @@ def test_dense_memory_is_refused_up_front():
     big = system_from_dict(data)
     with pytest.raises(pl.ResourceError, match="GiB"):
         pl.closed_form(big, "tcp", method="dense")
+
+
+# ---------------------------------------------------------------- the QP twin and the command line
+
+def _run(capsys, *argv):
+    from packetloss_cvx.cli import main
+
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize(("rho", "N"), [(1.5, 60), (3.0, 20), (1.01, 2000), (10.0, 200)])
+def test_udp_qp_on_unstable_plants_raises_numerical_error_never_infeasible(rho, N):
+    """Statuses 'infeasible' / 'optimal_inaccurate' / a cvxpy ValueError on an unconstrained QP."""
+    s = _unstable(rho, N)
+    with pytest.raises(pl.NumericalError, match="unconstrained|double-precision"):
+        pl.solve_qp(s, "udp", "sparse" if rho == 10.0 else "auto", with_gain=False, cross_check=False)
+
+
+def test_qp_whose_objective_disagrees_with_its_own_plan_raises():
+    """At state_weight 1e14 the QP reported 1.19 while the cost cannot be below 3.0522."""
+    with pytest.raises(pl.NumericalError, match="forward cost of its\\s+own plan"):
+        pl.solve_qp(_weighted(1e14), "tcp", with_gain=False, cross_check=False)
+
+
+def test_cross_check_compares_the_printed_number_and_binds(capsys, monkeypatch):
+    """solve --method dense compared the QP with the auto answer; now with the printed one, and a
+    disagreement is exit 1 with one line naming both numbers."""
+    import packetloss_cvx.cli as cli
+
+    real = cli.closed_form
+
+    def off_by_1e3(system, protocol, method="auto"):
+        sol = real(system, protocol, method)
+        if method == "dense":
+            import dataclasses
+
+            return dataclasses.replace(sol, cost=sol.cost * (1 + 1e-3))
+        return sol
+
+    monkeypatch.setattr(cli, "closed_form", off_by_1e3)
+    code, out, err = _run(capsys, "solve", "two_actuator", "--method", "dense", "--protocol", "tcp")
+    assert code == 1
+    assert "J_qp = 2.79847" in err
+    assert "J* = 2.80126" in err
+    assert "(dense)" in err
+    assert err.count("\n") == 1
+    assert not out
+    code, out, _ = _run(capsys, "solve", "two_actuator", "--method", "recursion", "--protocol", "tcp")
+    assert code == 0
+    assert "(recursion)" in out
+
+
+def test_api_cross_check_binds():
+    import dataclasses
+
+    s = pl.load_example("two_actuator")
+    wrong = dataclasses.replace(pl.closed_form(s, "tcp"), cost=3.0)
+    with pytest.raises(pl.CrossCheckError, match="J\\* = 3") as info:
+        pl.solve_qp(s, "tcp", with_gain=False, reference=wrong)
+    assert info.value.values["qp"] == pytest.approx(2.79847, rel=1e-5)
+
+
+def test_cli_skips_a_qp_that_cannot_fit_and_says_why(capsys, tmp_path):
+    """N = 50000 with m = 1: the QP needs 18.6 GiB; the closed form needs a few MB."""
+    path = tmp_path / "long.toml"
+    pl.save_system(_readme(1), path)
+    path.write_text(path.read_text().replace("horizon = 1", "horizon = 50000"))
+    code, out, err = _run(capsys, "solve", str(path), "--protocol", "tcp", "--json")
+    assert code == 0, err
+    import json
+
+    data = json.loads(out)
+    assert data["tcp"]["qp"]["status"] == "skipped"
+    assert "GiB" in data["tcp"]["qp"]["reason"]
+    assert data["tcp"]["cost"] == pytest.approx(1.3044129215697624, rel=1e-9)   # the N = 200 value: converged
+
+
+def test_cli_unstable_udp_reports_the_skipped_cross_check(capsys, tmp_path):
+    path = pl.save_system(_unstable(1.5, 60), tmp_path / "unstable.toml")
+    code, out, err = _run(capsys, "solve", str(path))
+    assert code == 0, err
+    assert "UDP-like" in out
+    assert "QP cross-check skipped" in out
+    assert "unconstrained" in out
+    assert "TCP-like" in out
+    assert "QP optimal" in out
+
+
+def test_cli_badly_scaled_weights_exit_1_naming_the_weights(capsys, tmp_path):
+    path = pl.save_system(_weighted(1e12), tmp_path / "w.toml")
+    code, out, err = _run(capsys, "solve", str(path))
+    assert code == 1
+    assert not out
+    assert "weights span 1.0e+12" in err
+    assert err.count("\n") == 1
+    path = pl.save_system(_weighted(1e100), tmp_path / "w100.toml")
+    code, out, err = _run(capsys, "solve", str(path), "--no-qp")
+    assert code == 1
+    assert not out
+    assert err.count("\n") == 1
+
+
+def test_cli_huge_x0_prints_one_line(capsys):
+    code, out, err = _run(capsys, "solve", "two_actuator", "--x0=1e200,1")
+    assert code == 1
+    assert not out
+    assert err.count("\n") == 1
+    assert "double-precision range" in err
