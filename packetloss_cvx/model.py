@@ -23,8 +23,16 @@ from .tolerances import SYMMETRY_RTOL
 
 __all__ = ["System", "numeric_array"]
 
+#: Arrays in the schema nest at most three levels deep (state_weights: N × n × n).
+MAX_NESTING = 3
+#: The largest number of entries one stored array may have (8 bytes each: 400 MB), so that a
+#: System is refused before an allocation that cannot succeed (horizon = 10**9).
+MAX_ENTRIES = 5 * 10**7
+
+
 def numeric_array(value: Any, field: str) -> np.ndarray:
-    """Convert ``value`` to a float array, refusing strings, booleans, NaN and inf.
+    """Convert ``value`` to a float array, refusing strings, booleans, NaN, inf, numbers beyond
+    the double range, nesting deeper than ``MAX_NESTING`` and more than ``MAX_ENTRIES`` entries.
 
     The one validator of numeric input: every array the package accepts goes through it,
     so every error names ``field``.
@@ -32,6 +40,9 @@ def numeric_array(value: Any, field: str) -> np.ndarray:
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iuf":
             raise InputError(field, f"expected numbers, found an array of {value.dtype}")
+        if value.ndim > MAX_NESTING or value.size > MAX_ENTRIES:
+            raise InputError(field, f"expected at most {MAX_NESTING} dimensions and {MAX_ENTRIES} entries, found "
+                                    f"shape {value.shape}")
         arr = value.astype(float)
     else:
         _check_numbers(value, field)
@@ -45,17 +56,34 @@ def numeric_array(value: Any, field: str) -> np.ndarray:
 
 
 def _check_numbers(value: Any, field: str) -> None:
-    if isinstance(value, bool):
-        raise InputError(field, "expected a number, found a boolean")
-    if isinstance(value, numbers.Real):
-        return
-    if isinstance(value, str):
-        raise InputError(field, f"expected a number, found the string {value!r}")
-    if isinstance(value, (list, tuple)):
-        for item in value:
-            _check_numbers(item, field)
-        return
-    raise InputError(field, f"expected a number or a list of numbers, found {type(value).__name__}")
+    """Walk ``value`` without recursion: numbers only, at most MAX_NESTING levels of lists,
+    at most MAX_ENTRIES numbers, each within the double range."""
+    stack: list[tuple[Any, int]] = [(value, 0)]
+    count = 0
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, bool):
+            raise InputError(field, "expected a number, found a boolean")
+        if isinstance(item, numbers.Real):
+            count += 1
+            if count > MAX_ENTRIES:
+                raise InputError(field, f"expected at most {MAX_ENTRIES} numbers")
+            if isinstance(item, numbers.Integral):
+                try:
+                    float(item)
+                except OverflowError:
+                    digits = int(int(item).bit_length() * 0.30103) + 1
+                    raise InputError(field, f"expected numbers within the double range (|x| < 1.8e308), found an "
+                                            f"integer of about {digits} digits") from None
+            continue
+        if isinstance(item, str):
+            raise InputError(field, f"expected a number, found the string {item[:40]!r}")
+        if isinstance(item, (list, tuple)):
+            if depth >= MAX_NESTING:
+                raise InputError(field, f"expected at most {MAX_NESTING} levels of nested lists, found more")
+            stack.extend((sub, depth + 1) for sub in item)
+            continue
+        raise InputError(field, f"expected a number or a list of numbers, found {type(item).__name__}")
 
 
 def _shape_error(field: str, expected: str, found: tuple[int, ...]) -> DimensionError:
@@ -102,12 +130,26 @@ def _symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
     return sym
 
 
-def _horizon(value: Any, field: str) -> int:
+def _short(value: Any) -> str:
+    """A bounded repr (Python refuses str() of integers over 4300 digits)."""
+    if isinstance(value, numbers.Integral) and abs(int(value)) >= 10**30:
+        return f"(an integer of about {int(int(value).bit_length() * 0.30103) + 1} digits)"
+    return repr(value)[:40]
+
+
+def _horizon(value: Any, field: str, n: int, m: int) -> int:
+    """N >= 1, and small enough that the per-step weights (N n^2 and N m entries) fit MAX_ENTRIES."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise InputError(field, f"expected an integer >= 1, found {value!r}")
-    if int(value) < 1:
-        raise InputError(field, f"expected an integer >= 1, found {value}")
-    return int(value)
+        raise InputError(field, f"expected an integer >= 1, found {type(value).__name__} {_short(value)}")
+    N = int(value)
+    if N < 1:
+        raise InputError(field, f"expected an integer >= 1, found {_short(N)}")
+    limit = MAX_ENTRIES // max(n * n, m)
+    if N > limit:
+        shown = N if N < 10**30 else f"an integer of about {int(N.bit_length() * 0.30103) + 1} digits"
+        raise InputError(field, f"expected at most {limit} for n = {n}, m = {m} (horizon * max(n^2, m) <= "
+                                f"{MAX_ENTRIES}, what fits in memory), found {shown}")
+    return N
 
 
 def _probabilities(arr: np.ndarray, field: str) -> np.ndarray:
@@ -201,13 +243,13 @@ class System:
     ) -> None:
         A_ = _matrix(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
-        if A_.shape != (n, n):
-            raise _shape_error("A", "(n, n) (square)", A_.shape)
+        if A_.shape != (n, n) or n < 1:
+            raise _shape_error("A", "(n, n) with n >= 1 (square)", A_.shape)
         B_ = _matrix(B, "B", n, None, f"({n}, m)")
         m = B_.shape[1]
         if m < 1:
             raise _shape_error("B", f"({n}, m) with m >= 1", B_.shape)
-        N = _horizon(horizon, "horizon")
+        N = _horizon(horizon, "horizon", n, m)
 
         _one_of(state_weight, state_weights, ("state_weight", "state_weights"))
         if state_weight is not None:

@@ -1,0 +1,81 @@
+"""Hostile input: a typed InputError naming the field in the API, exit 2 and one stderr line on
+the command line; never a traceback, a MemoryError, a RecursionError or a warning dump."""
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+
+BASE = {"A": [[1.0, 0.0], [0.0, 1.0]], "B": [[1.0], [0.5]], "horizon": 5, "state_weight": [1, 1],
+        "input_weight": [1], "mu": [0.5], "x0": [1, 0]}
+
+
+def _deep(levels: int):
+    value = 1.0
+    for _ in range(levels):
+        value = [value]
+    return value
+
+
+@pytest.mark.parametrize(("change", "field", "match"), [
+    ({"horizon": 1_000_000_000}, "horizon", "what fits in memory"),
+    ({"horizon": 9223372036854775807}, "horizon", "what fits in memory"),
+    ({"horizon": 10**23}, "horizon", "what fits in memory"),
+    ({"horizon": -(10**5000)}, "horizon", "about 5001 digits"),
+    ({"A": [[10**400, 0], [0, 1]]}, "A", "double range"),
+    ({"x0": [10**400, 0]}, "x0", "double range"),
+    ({"mu": [10**400]}, "mu", "double range"),
+    ({"A": _deep(5000)}, "A", "levels of nested lists"),
+    ({"A": np.zeros((0, 0)), "B": np.zeros((0, 1)), "x0": [], "state_weight": []}, "A", "n >= 1"),
+    ({"B": [[], []], "input_weight": [], "mu": []}, "B", "m >= 1"),
+])
+def test_system_refuses_with_the_field_named(change, field, match):
+    with pytest.raises(pl.InputError, match=match) as info:
+        pl.System(**{**BASE, **change})
+    assert info.value.field == field
+    assert isinstance(info.value, ValueError)
+
+
+def test_load_system_refuses_a_nul_in_the_path():
+    with pytest.raises(pl.InputError, match="NUL") as info:
+        pl.load_system("a\x00b")
+    assert info.value.field == "file"
+
+
+def _toml(tmp_path, name, old, new, prefix=b""):
+    text = pl.io.dumps_system(pl.load_example("two_actuator"))
+    assert old in text
+    path = tmp_path / name
+    path.write_bytes(prefix + text.replace(old, new).encode())
+    return str(path)
+
+
+@pytest.mark.parametrize(("old", "new", "match"), [
+    ("horizon = 10", "horizon = 1000000000", "cost.horizon: expected at most"),
+    ("horizon = 10", "horizon = 9223372036854775807", "cost.horizon: expected at most"),
+    ("horizon = 10", "horizon = 10^23", "not valid TOML"),
+    ("x0 = [1.0, 1.0]", "x0 = [1" + "0" * 400 + ", 1.0]", "state.x0: expected numbers within the double range"),
+    ("mu = [0.9, 0.5]", "mu = " + "[" * 5000 + "0.5" + "]" * 5000, "nests arrays too deeply"),
+])
+def test_cli_hostile_files_exit_2_with_one_line(tmp_path, capsys, old, new, match):
+    path = _toml(tmp_path, "bad.toml", old, new)
+    assert main(["solve", path, "--no-qp"]) == 2
+    out, err = capsys.readouterr()
+    assert not out
+    assert err.count("\n") == 1
+    assert match in err
+
+
+def test_a_byte_order_mark_is_read(tmp_path, capsys):
+    path = _toml(tmp_path, "bom.toml", "horizon = 10", "horizon = 10", prefix=b"\xef\xbb\xbf")
+    assert main(["solve", path, "--no-qp", "--protocol", "tcp"]) == 0
+    assert "J* = 2.798470088" in capsys.readouterr().out
+
+
+def test_a_mu_of_5000_digits_is_a_number(capsys):
+    assert main(["solve", "two_actuator", "--mu", "0." + "5" * 5000 + ",0.5", "--no-qp", "--protocol", "tcp"]) == 0
+    assert main(["solve", "two_actuator", "--mu", "1" + "0" * 5000 + ",0.5", "--no-qp"]) == 2
+    _, err = capsys.readouterr()
+    assert err.startswith("packetloss-cvx: error: --mu:")
+    assert err.count("\n") == 1
