@@ -140,7 +140,7 @@ def _short(value: Any) -> str:
 def _horizon(value: Any, field: str, n: int, m: int) -> int:
     """N >= 1, and small enough that the per-step weights (N n^2 and N m entries) fit MAX_ENTRIES."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise InputError(field, f"expected an integer >= 1, found {type(value).__name__} {_short(value)}")
+        raise InputError(field, f"expected an integer >= 1, found {_short(value)}")
     N = int(value)
     if N < 1:
         raise InputError(field, f"expected an integer >= 1, found {_short(N)}")
@@ -243,8 +243,10 @@ class System:
     ) -> None:
         A_ = _matrix(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
-        if A_.shape != (n, n) or n < 1:
-            raise _shape_error("A", "(n, n) with n >= 1 (square)", A_.shape)
+        if A_.shape != (n, n):
+            raise _shape_error("A", "(n, n) (square)", A_.shape)
+        if n < 1:
+            raise _shape_error("A", "(n, n) with n >= 1", A_.shape)
         B_ = _matrix(B, "B", n, None, f"({n}, m)")
         m = B_.shape[1]
         if m < 1:
