@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dgesv as _gesv
 
-from .errors import NumericalError
+from .linalg import check_finite
 from .model import System
 from .protocols import check_protocol
 
@@ -31,12 +31,9 @@ __all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_
 
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
-    if not np.all(np.isfinite(value)):
-        raise NumericalError(
-            f"{name} exceeds the double-precision range for the {protocol}-like protocol: the "
-            "open-loop prediction of an unstable plant over this horizon makes the exact "
-            "expected cost larger than 1e308 (shorten the horizon or stabilise the plant)"
-        )
+    check_finite(name, value, why=f"the exact {protocol}-like expected cost exceeds the double-precision range, "
+                 "1e308: the open-loop prediction of an unstable plant over this horizon",
+                 instead="shorten the horizon or stabilise the plant")
 
 
 def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
