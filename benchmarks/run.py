@@ -141,6 +141,23 @@ def verification_cost(N, rows):
     rows.append({"bench": "qp_vs_recursion", "N": N, "qp_s": qp, "recursion_s": rec, "ratio": qp / rec})
 
 
+def self_check(horizons, rows):
+    print("\n7. what the self-check costs: closed_form (Riccati + forward pass of its plan) vs the bare Riccati")
+    print(f"{'N':>6} {'bare s':>10} {'checked s':>10} {'ratio':>8}")
+    from packetloss_cvx.recursion import backward_pass, mean_trajectory
+
+    def bare(s):
+        K, P0, noise = backward_pass(s, PROTOCOL)
+        return mean_trajectory(s, K)
+
+    for N in horizons:
+        s = bench_system(N)
+        a = median_time(lambda s=s: bare(s), 7)
+        b = median_time(lambda s=s: pl.closed_form(s, PROTOCOL, "recursion"), 7)
+        print(f"{N:>6} {a:>10.4f} {b:>10.4f} {b / a:>7.2f}x")
+        rows.append({"bench": "self_check", "N": N, "bare_s": a, "checked_s": b, "ratio": b / a})
+
+
 def memory(N, rows):
     print(f"\n6. peak memory at N = {N} (tracemalloc)")
     s = bench_system(N)
@@ -168,6 +185,7 @@ def main() -> None:
     sweep(20 if quick else 50, rows)
     verification_cost(400 if quick else 1000, rows)
     memory(1000 if quick else 4000, rows)
+    self_check((100, 1000) if quick else (100, 1000, 10000), rows)
     if args.json:
         print(json.dumps(rows))
 
