@@ -1,0 +1,60 @@
+"""The cases an audit checks: the paper's systems and seeded random ones, with a cache of
+the solver runs that several claims share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..io import load_example
+from ..model import System
+from ..qp import solve_qp
+from ..results import Solution
+
+__all__ = ["Context", "interior", "paper_systems"]
+
+
+@dataclass
+class Context:
+    """The cases: the paper's systems (by name) and seeded random systems.
+
+    Attributes
+    ----------
+    paper : dict of str to System
+        The paper's systems, by example name.
+    random : list of System
+        The caller's systems, then the seeded random ones.
+    seed : int
+        The audit's seed; each check derives its own generator from it.
+    cache : dict
+        Solver answers shared between checks (see :meth:`qp`).
+    """
+
+    paper: dict[str, System]
+    random: list[System]
+    seed: int
+    cache: dict = field(default_factory=dict)
+
+    @property
+    def cases(self) -> list[System]:
+        """The paper's systems, then ``random``."""
+        return list(self.paper.values()) + self.random
+
+    def qp(self, system: System, protocol: str) -> Solution:
+        """The QP twin's answer for ``system`` (solved once per audit)."""
+        key = (id(system), protocol)
+        if key not in self.cache:
+            self.cache[key] = solve_qp(system, protocol, with_gain=False, cross_check=False)
+        return self.cache[key]
+
+
+def paper_systems() -> dict[str, System]:
+    """The paper's two systems, from the packaged examples (§V-A, §V-B)."""
+    return {"pendulum": load_example("pendulum"), "two_actuator": load_example("two_actuator")}
+
+
+def interior(system: System) -> bool:
+    """Whether every delivery probability lies strictly between 0 and 1."""
+    mu = system.mu_schedule
+    return bool(np.all((mu > 0) & (mu < 1)))
