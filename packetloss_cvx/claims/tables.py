@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .. import analysis as an
-from ..costs import closed_form, hessian_factor
+from ..costs import closed_form
 from ..io import system_from_dict
 from ..model import System
 from ..prediction import prediction
@@ -27,24 +27,19 @@ def _eig_distance(a: np.ndarray, b: np.ndarray) -> float:
     return best
 
 
+#: The (gain convention, closed loop) pairs tried for Tables I–II, in order (analysis.gain_conventions,
+#: analysis.closed_loop_eigenvalues); the shifted prediction's last block is tried with A - B K only.
+_TRIED = [(gain, loop) for gain in ("first block of G^-1 Omega_gp", "first block of G Omega_gp (literal)",
+                                     "nominal (Omega_g + Psi)^-1 Omega_gp") for loop in an.LOOPS]
+_TRIED.append(("last block of G^-1 Omega_gp", "A-BK"))
+_LOOP_LABELS = {"A-BK": "eig(A - B K)", "A-BMK": "eig(A - B M K)"}
+
+
 def _conventions(system: System, protocol: str) -> dict[str, np.ndarray]:
     """Closed-loop eigenvalues under each convention tried for Tables I–II."""
-    pred = prediction(system)
-    G = hessian_factor(pred, protocol)
-    m, A, B = system.m, system.A, system.B
-    M = np.diag(system.mu_schedule[0])
-    out = {}
-    K_inv = np.linalg.solve(G, pred.Omega_gp)[:m]
-    K_lit = (G @ pred.Omega_gp)[:m]
-    K_nom = np.linalg.solve(pred.Omega_g + np.diag(pred.Psi), pred.Omega_gp)[:m]
-    for name, K in (("K = first block of G^-1 Omega_gp", K_inv), ("K = first block of G Omega_gp (literal)", K_lit),
-                    ("K = nominal (Omega_g + Psi)^-1 Omega_gp", K_nom)):
-        out[f"{name}; eig(A - B K)"] = np.linalg.eigvals(A - B @ K)
-        out[f"{name}; eig(A - B M K)"] = np.linalg.eigvals(A - B @ M @ K)
-    # shifted prediction: Omega on X_k..X_{k+N-1} (the last block of G^-1 Omega_gp as the first move)
-    K_last = np.linalg.solve(G, pred.Omega_gp)[-m:]
-    out["K = last block of G^-1 Omega_gp; eig(A - B K)"] = np.linalg.eigvals(A - B @ K_last)
-    return out
+    gains = an.gain_conventions(system, protocol)
+    return {f"K = {gain}; {_LOOP_LABELS[loop]}": an.closed_loop_eigenvalues(system, gains[gain], (loop,))[loop]
+            for gain, loop in _TRIED}
 
 
 def _table(ctx: Context, claim_id: str, name: str, mu: Sequence[float], printed: dict) -> ClaimResult:
