@@ -6,9 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..costs import closed_form, expected_cost, loss_variance_term, paper_optimal_cost
-from ..linalg import psd_factor
 from ..model import System
-from ..montecarlo import sample_plan_costs
+from ..montecarlo import sample_deliveries, sample_noise, sample_plan_costs
 from ..prediction import prediction
 from ..qp import solve_qp
 from ..results import ClaimResult
@@ -63,9 +62,8 @@ def lemma_1(ctx: Context) -> ClaimResult:
         u, v = U.ravel(), pred.Vbar
         noise = pred.noise_term
         # UDP-like: E = X - (Phi x + Gamma Vbar U) = Gamma (Upsilon - Vbar) U + Lambda W
-        Y = rng.random((samples, v.size)) < v
-        root = psd_factor(s.noise_cov)   # W_t = root' z_t
-        Wn = rng.standard_normal((samples, s.horizon * root.shape[0])) @ np.kron(np.eye(s.horizon), root)
+        Y = sample_deliveries(s, samples, rng)
+        Wn = sample_noise(s, samples, rng)
         E_udp = ((Y - v) * u) @ pred.Gamma.T + Wn @ pred.Lambda.T
         E_tcp = Wn @ pred.Lambda.T
         worst = Z
@@ -87,7 +85,7 @@ def lemma_quad(ctx: Context) -> ClaimResult:
         rng = np.random.default_rng(ctx.seed + 1)
         pred = prediction(s)
         u, v = rng.normal(size=s.horizon * s.m), pred.Vbar
-        Y = (rng.random((samples, v.size)) < v) * u
+        Y = sample_deliveries(s, samples, rng) * u
         q = np.einsum("si,ij,sj->s", Y, pred.Omega_g, Y)
         expect = (v * u) @ pred.Omega_g @ (v * u) + loss_variance_term(pred, u)
         return z_margin(q, expect)
