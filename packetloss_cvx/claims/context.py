@@ -27,6 +27,8 @@ class Context:
         The caller's systems, then the seeded random ones.
     seed : int
         The audit's seed; each check derives its own generator from it.
+    extra : int
+        How many of ``random`` (at its start) are the caller's systems.
     cache : dict
         Solver answers shared between checks (see :meth:`qp`).
     """
@@ -34,12 +36,24 @@ class Context:
     paper: dict[str, System]
     random: list[System]
     seed: int
+    extra: int = 0
     cache: dict = field(default_factory=dict)
 
     @property
     def cases(self) -> list[System]:
         """The paper's systems, then ``random``."""
         return list(self.paper.values()) + self.random
+
+    def label(self, system: System) -> str:
+        """How a report names a case: the paper's example name, ``system k`` for the caller's
+        k-th system (1-based, the order given), ``random k`` for the k-th random one."""
+        for name, paper_system in self.paper.items():
+            if paper_system is system:
+                return name
+        for k, other in enumerate(self.random):
+            if other is system:
+                return f"system {k + 1}" if k < self.extra else f"random {k + 1 - self.extra}"
+        return system.name or "a system outside the audit's cases"
 
     def qp(self, system: System, protocol: str) -> Solution:
         """The QP twin's answer for ``system`` (solved once per audit)."""

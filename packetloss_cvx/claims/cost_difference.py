@@ -70,7 +70,7 @@ def lemma_3(ctx: Context) -> ClaimResult:
             f"T (Omega_g + Psi)^-1 Omega_d Psi^-1, the candidates are not the roots. With the proof's "
             f"T H^-1, H = Psi Omega_d^-1 (Omega_d + Psi), they are: {sum(proof_ok)} of {len(proof_ok)} cases "
             f"match to 1e-6. The lemma statement has a typo (Omega_g for Omega_d).")
-    return dataclasses.replace(result, note=note)
+    return dataclasses.replace(result, note=note + result.note)  # result.note: the errored cases
 
 
 def theorem_4(ctx: Context) -> ClaimResult:
@@ -97,4 +97,4 @@ def theorem_4(ctx: Context) -> ClaimResult:
             f"fails: a stationary point needs g' f(nu) g = 0 for the given x0, which is neither implied by nor "
             f"implies det f(nu) = 0; the true maximiser depends on x0 (pendulum: 0.00027 for x0 = e1, 0.353 "
             f"for x0 = (1,1,1,1)) while the candidates do not.")
-    return dataclasses.replace(result, note=note)
+    return dataclasses.replace(result, note=note + result.note)  # result.note: the errored cases
