@@ -66,24 +66,6 @@ def test_protocol_ranking_counterexample_exact():
     assert np.allclose(sampled.mean(axis=1), [tcp, udp], rtol=0.02)
 
 
-def test_audit_recomputes_verdicts():
-    results = {r.id: r for r in audit(random=12, seed=3)}
-    assert set(results) == set(CLAIMS)
-    for r in results.values():
-        assert r.verdict in ("holds", "fails", "not-reproduced", "inconclusive")
-        assert r.checked > 0
-        assert r.errors == 0
-        assert (r.violations == 0) == (r.verdict == "holds")
-    for claim_id in ("theorem-1-costs", "lemma-3", "theorem-4", "expected-cost-tcp"):
-        r = results[claim_id]
-        assert r.verdict == "fails"
-        assert r.counterexample is not None
-        system_from_dict(r.counterexample)  # a valid System
-    for claim_id in ("theorem-1-laws", "theorem-3", "lemma-2", "lemma-quad-expectation"):
-        assert results[claim_id].verdict == "holds"
-    assert "### theorem-4: fails" in markdown_report(list(results.values()))
-
-
 def test_theorem_1_costs_counterexample_is_shrunk():
     r = audit(random=0, seed=1, only=["theorem-1-costs"])[0]
     s = system_from_dict(r.counterexample)
