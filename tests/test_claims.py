@@ -61,9 +61,20 @@ def test_protocol_ranking_counterexample_exact():
     assert np.isclose(k_udp, -0.5 / 2.0)
     tcp = _exact_scalar_closed_loop(-0.5, 1.0, k_tcp, 0.4, 40)
     udp = _exact_scalar_closed_loop(-0.5, 1.0, k_udp, 0.4, 40)
-    assert udp < tcp
-    sampled = closed_loop_costs(s, [np.array([[k_tcp]]), np.array([[k_udp]])], 40, 20000, np.random.default_rng(0))
-    assert np.allclose(sampled.mean(axis=1), [tcp, udp], rtol=0.02)
+    # the geometric series by hand: stage cost (1 + mu k^2) over 1 - (mu (a - b k)^2 + (1 - mu) a^2)
+    assert np.isclose(tcp, (1 + 0.4 * k_tcp**2) / (1 - 0.4 / 49 - 0.15), rtol=1e-12)   # 1.2485
+    assert np.isclose(udp, (1 + 0.4 * k_udp**2) / (1 - 0.4 / 16 - 0.15), rtol=1e-12)   # 1.2424
+    assert udp < tcp  # by 0.5 %
+    samples = 20000
+    sampled = closed_loop_costs(s, [np.array([[k_tcp]]), np.array([[k_udp]])], 40, samples,
+                                np.random.default_rng(0))
+    se = sampled.std(axis=1, ddof=1) / np.sqrt(samples)
+    assert np.all(np.abs(sampled.mean(axis=1) - [tcp, udp]) < 4 * se)
+    # both laws see the same losses, so the difference is sampled far more finely than either cost
+    d = sampled[1] - sampled[0]
+    se_d = d.std(ddof=1) / np.sqrt(samples)
+    assert abs(d.mean() - (udp - tcp)) < 4 * se_d
+    assert d.mean() + 4 * se_d < 0  # the sampled ranking is resolved, not noise
 
 
 def test_theorem_1_costs_counterexample_is_shrunk():
