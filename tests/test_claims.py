@@ -229,3 +229,11 @@ def test_allocation_claim_counts_each_pair(monkeypatch):
     monkeypatch.setattr(channel_allocation, "brute_force_allocation", failing)
     (r,) = audit(random=0, only=["allocation-udp-perfect-channel"])
     assert (r.verdict, r.checked, r.errors, r.counterexample) == ("inconclusive", 0, 18, None)
+
+
+def test_errored_cases_are_named_by_file_order_and_name():
+    named = pl.System(A=[[10.0]], B=[[1.0]], horizon=400, state_weight=[1.0], input_weight=[1.0], mu=[0.5],
+                      x0=[1.0], noise_cov=[[1.0]], name="overflow")
+    (r,) = audit([pl.load_example("two_actuator"), named], random=1, only=["theorem-3"])
+    assert r.outcomes == "++" + "+E" + "+"      # paper systems, the caller's two, one random
+    assert "system 2 (overflow): NumericalError" in r.note

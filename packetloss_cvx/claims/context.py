@@ -45,14 +45,17 @@ class Context:
         return list(self.paper.values()) + self.random
 
     def label(self, system: System) -> str:
-        """How a report names a case: the paper's example name, ``system k`` for the caller's
-        k-th system (1-based, the order given), ``random k`` for the k-th random one."""
+        """How a report names a case: the paper's example name, ``system k (name)`` for the caller's
+        k-th system (1-based, the order given; its name if it has one), ``random k`` for the k-th
+        random one."""
         for name, paper_system in self.paper.items():
             if paper_system is system:
                 return name
         for k, other in enumerate(self.random):
+            if other is system and k < self.extra:
+                return f"system {k + 1}" + (f" ({system.name})" if system.name else "")
             if other is system:
-                return f"system {k + 1}" if k < self.extra else f"random {k + 1 - self.extra}"
+                return f"random {k + 1 - self.extra}"
         return system.name or "a system outside the audit's cases"
 
     def qp(self, system: System, protocol: str) -> Solution:
