@@ -12,11 +12,13 @@ For a shared ("scalar") channel every actuator has delivery probability nu, Vbar
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize, minimize_scalar
 
-from .costs import closed_form
+from .costs import closed_form, hessian_factor
 from .errors import InputError
 from .model import System
 from .prediction import Prediction, prediction
@@ -26,9 +28,12 @@ __all__ = [
     "cost_difference",
     "cost_difference_derivative",
     "cost_difference_fd",
+    "closed_loop_eigenvalues",
     "G_maps",
     "det_roots",
     "eigenvalue_table",
+    "gain_conventions",
+    "LOOPS",
     "lemma3_candidates",
     "maximise_cost_difference",
     "maximise_cost_difference_2d",
@@ -232,18 +237,73 @@ def monotonicity_violations(system: System, protocol: str, steps: int = 11) -> l
     return out
 
 
+#: The closed loops whose eigenvalues Tables I–II may report: every packet delivered
+#: (``"A-BK"``, the paper's convention) and the mean loop (``"A-BMK"``, M = diag(mu_0)).
+LOOPS = ("A-BK", "A-BMK")
+
+
+def closed_loop_eigenvalues(system: System, gain: np.ndarray, loops: Sequence[str] = LOOPS) -> dict[str, np.ndarray]:
+    """Eigenvalues of the closed loops of ``u = -K x`` named in ``loops``.
+
+    .. math:: \\operatorname{eig}(A - BK), \\qquad \\operatorname{eig}(A - BMK),\\ M = \\operatorname{diag}(\\mu_0)
+
+    Parameters
+    ----------
+    system : System
+        The plant; ``M`` uses the channel of the first step.
+    gain : ndarray, shape (m, n)
+        The gain ``K``.
+    loops : sequence of {"A-BK", "A-BMK"}
+        Which closed loops, in the order wanted.
+
+    Returns
+    -------
+    dict of str to ndarray
+        Complex eigenvalues (unsorted) per loop name.
+
+    Raises
+    ------
+    InputError
+        An unknown loop name.
+    """
+    unknown = [loop for loop in loops if loop not in LOOPS]
+    if unknown:
+        raise InputError("loops", f"expected names from {LOOPS}, found {unknown}")
+    A, B, M = system.A, system.B, np.diag(system.mu_schedule[0])
+    return {loop: np.linalg.eigvals(A - B @ gain if loop == "A-BK" else A - B @ M @ gain) for loop in loops}
+
+
+def gain_conventions(system: System, protocol: str) -> dict[str, np.ndarray]:
+    """The receding-horizon gain ``K`` (m×n) under each reading of the paper tried for Tables I–II.
+
+    ``"first block of G^-1 Omega_gp"`` (eq:opt-law-1, eq:opt-law-2: the law the paper derives);
+    ``"first block of G Omega_gp (literal)"`` (G without the inverse, as a misprint would have it);
+    ``"nominal (Omega_g + Psi)^-1 Omega_gp"`` (the mu = 1 law); ``"last block of G^-1 Omega_gp"``
+    (a shifted prediction, Omega on X_k..X_{k+N-1}). Dense: O((N m)^3).
+    """
+    pred = prediction(system)
+    G = hessian_factor(pred, protocol)
+    m = system.m
+    law = np.linalg.solve(G, pred.Omega_gp)
+    return {
+        "first block of G^-1 Omega_gp": law[:m],
+        "first block of G Omega_gp (literal)": (G @ pred.Omega_gp)[:m],
+        "nominal (Omega_g + Psi)^-1 Omega_gp": np.linalg.solve(pred.Omega_g + np.diag(pred.Psi), pred.Omega_gp)[:m],
+        "last block of G^-1 Omega_gp": law[-m:],
+    }
+
+
 def eigenvalue_table(system: System, mu=None) -> dict[str, dict[str, list[complex]]]:
     """Tables I–II: closed-loop eigenvalues of the receding-horizon laws at ``mu``.
 
     For each protocol: ``"A-BK"`` (the paper's convention, K the first block of G^-1 Omega_gp)
-    and ``"A-BMK"`` (the mean closed loop, which accounts for the delivery probability).
+    and ``"A-BMK"`` (the mean closed loop, which accounts for the delivery probability), each
+    sorted by descending modulus (see :func:`closed_loop_eigenvalues`).
     """
     s = system if mu is None else system.with_mu(mu)
-    M = np.diag(s.mu_schedule[0])
     out = {}
     for protocol in ("tcp", "udp"):
         K = closed_form(s, protocol, method="auto").gain
-        out[protocol] = {"A-BK": sorted(np.linalg.eigvals(s.A - s.B @ K).tolist(), key=lambda z: (-abs(z), z.imag)),
-                         "A-BMK": sorted(np.linalg.eigvals(s.A - s.B @ M @ K).tolist(),
-                                         key=lambda z: (-abs(z), z.imag))}
+        out[protocol] = {loop: sorted(eigs.tolist(), key=lambda z: (-abs(z), z.imag))
+                         for loop, eigs in closed_loop_eigenvalues(s, K).items()}
     return out

@@ -97,6 +97,8 @@ def _audit(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
     if args.random < 0:
         raise InputError("--random", f"expected a count >= 0, found {args.random}")
+    if args.seed < 0:
+        raise InputError("--seed", f"expected an integer >= 0, found {args.seed}")
     systems = [load_system(path) for path in args.files]
     results = audit(systems, random=args.random, seed=args.seed, only=args.claim or None)
     data = {"claims": [r.to_dict() for r in results]}
@@ -153,7 +155,8 @@ def _build_parser() -> argparse.ArgumentParser:
     aud = sub.add_parser("audit", help="check every claim of the paper on its systems and random ones")
     aud.add_argument("files", nargs="*", metavar="FILE", help="more systems to check the claims on")
     aud.add_argument("--random", type=int, default=50, help="seeded random systems (default 50)")
-    aud.add_argument("--seed", type=int, default=0)
+    aud.add_argument("--seed", type=int, default=0,
+                     help="seeds the random systems, the samples and the shrinking (integer >= 0, default 0)")
     aud.add_argument("--claim", action="append", help="check only this claim id (repeatable)")
     aud.add_argument("--report", action="store_true", help="Markdown report with notes and counterexamples")
     aud.add_argument("--json", action="store_true", help="print one JSON object")

@@ -130,7 +130,33 @@ class Allocation:
 
 @dataclass(frozen=True)
 class ClaimResult:
-    """The verdict on one claim, with the numbers behind it."""
+    """The verdict on one claim, with the numbers behind it.
+
+    Attributes
+    ----------
+    id, statement : str
+        The claim's id and what the paper states.
+    verdict : {"holds", "fails", "not-reproduced", "inconclusive"}
+        "holds": ``checked > 0`` cases, none violated, none errored. "fails": some case violated the
+        claim (a proven violation fails the claim whatever else errored). "not-reproduced": the
+        paper's printed numbers could not be recovered. "inconclusive": no violation, but a case
+        errored or none was checked: nothing proved the claim.
+    checked : int
+        Cases whose check ran to a margin (errored and not-applicable cases excluded).
+    violations : int
+        Checked cases that violate the claim.
+    worst : float or None
+        The least margin over the checked cases (< 0 where a case violates).
+    counterexample : dict or None
+        A (shrunk) violating System in the TOML schema's structure.
+    note : str
+        How the margin is defined, what was found, and which cases errored.
+    errors : int
+        Cases whose check raised (a numerical or solver failure, or bad input).
+    outcomes : str
+        One character per case, in the audit's case order: ``+`` holds, ``-`` violated,
+        ``.`` not applicable, ``E`` errored; empty for claims not checked case by case.
+    """
 
     id: str
     statement: str
@@ -140,15 +166,22 @@ class ClaimResult:
     worst: float | None
     counterexample: dict | None
     note: str
+    errors: int = 0
+    outcomes: str = ""
 
     def __post_init__(self) -> None:
+        if self.verdict not in ("holds", "fails", "not-reproduced", "inconclusive"):
+            raise ValueError(f"verdict: expected holds, fails, not-reproduced or inconclusive, found {self.verdict!r}")
+        if self.verdict == "holds" and (self.checked <= 0 or self.errors or self.violations):
+            raise ValueError(f"verdict: 'holds' needs checked > 0 with no violation and no error, found "
+                             f"checked={self.checked}, violations={self.violations}, errors={self.errors}")
         _freeze(self)
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "id": self.id, "statement": self.statement, "verdict": self.verdict, "checked": self.checked,
-            "violations": self.violations, "worst": self.worst, "counterexample": self.counterexample,
-            "note": self.note,
+            "violations": self.violations, "errors": self.errors, "worst": self.worst,
+            "counterexample": self.counterexample, "note": self.note, "outcomes": self.outcomes,
         }
 
 

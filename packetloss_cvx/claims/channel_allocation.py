@@ -1,0 +1,67 @@
+"""§VI: the cheapest UDP-like channel allocation of the two-actuator system, by the
+independent brute-force allocator: one case per price vector beta and cost bound alpha."""
+
+from __future__ import annotations
+
+from ..allocation.brute_force import brute_force_allocation
+from ..costs import closed_form
+from ..model import System
+from ..results import ClaimResult
+from .context import Context
+from .evaluate import Tally
+from .paper import ALLOCATION_ALPHA, ALLOCATION_BETAS, STATEMENTS
+
+__all__ = ["GRID", "allocation_udp_perfect", "alpha_levels", "perfect_channel_case"]
+
+#: The brute-force grid: 101 points on mu1, refined by 21 around the best; bisection on mu2.
+GRID = {"coarse": 101, "fine": 21}
+
+
+def alpha_levels(system: System) -> tuple[list[float], float, float]:
+    """The cost bounds tried, with J*_udp at mu = (1, 1) and at mu = (0, 0).
+
+    The paper's 4.78 and 6, 8, 12, 20 where they lie strictly between the two, and 1.01 J*_udp(0)
+    (rounded to 0.01), where doing nothing is affordable.
+    """
+    full = closed_form(system.with_mu([1.0, 1.0]), "udp").cost
+    none = closed_form(system.with_mu([0.0, 0.0]), "udp").cost
+    alphas = [a for a in (ALLOCATION_ALPHA, 6.0, 8.0, 12.0, 20.0) if full < a < none] + [round(none * 1.01, 2)]
+    return alphas, full, none
+
+
+def perfect_channel_case(system: System, beta: tuple[float, float], alpha: float) -> tuple[float | None, str]:
+    """One case: the margin (< 0 when neither channel of the cheapest allocation is perfect, None when
+    the brute force finds no feasible allocation) and the note's entry for it."""
+    best = brute_force_allocation(system, "udp", alpha, beta, **GRID)
+    if best is None:
+        return None, f"beta={beta}, alpha={alpha}: no feasible grid point"
+    return max(best[1], best[2]) - 1.0 + 1e-6, f"beta={beta}, alpha={alpha}: mu*=({best[1]:.3f}, {best[2]:.3f})"
+
+
+def allocation_udp_perfect(ctx: Context) -> ClaimResult:
+    """For alpha >= 4.78 the cheapest allocation has a perfect channel (mu_i = 1 for some i); one case
+    per (beta, alpha) pair, betas outer."""
+    s = ctx.paper["two_actuator"]
+    alphas, full, none = alpha_levels(s)
+    rows = []
+
+    def margin(pair: tuple[tuple[float, float], float]) -> float | None:
+        value, row = perfect_channel_case(s, *pair)
+        if value is not None:
+            rows.append(row)
+        return value
+
+    tally = Tally()
+    for beta in ALLOCATION_BETAS:
+        for alpha in alphas:
+            tally.run(margin, (beta, alpha), f"beta={beta}, alpha={alpha}")
+    note = (f"Two-actuator system with our x0 = (1, 1), Q = 0, no noise (the paper gives none); "
+            f"J*_udp ranges from {full:.3f} (mu = 1) to {none:.3f} (mu = 0). Brute force: grid on mu1 "
+            f"(101 points, refined by 21 around the best), bisection on mu2. "
+            f"As stated (every alpha >= {ALLOCATION_ALPHA}) the claim cannot hold for any "
+            f"x0: once alpha >= J*_udp(mu = 0) = C the cheapest allocation is mu = (0, 0). "
+            + "; ".join(rows) + tally.error_note())
+    return ClaimResult("allocation-udp-perfect-channel", STATEMENTS["allocation-udp-perfect-channel"],
+                       tally.verdict(), tally.checked, int(tally.violations), tally.worst,
+                       s.to_dict() if tally.violations else None, note, errors=tally.errors,
+                       outcomes="".join(tally.outcomes))

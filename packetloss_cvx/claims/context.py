@@ -1,0 +1,77 @@
+"""The cases an audit checks: the paper's systems and seeded random ones, with a cache of
+the solver runs that several claims share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..io import load_example
+from ..model import System
+from ..qp import solve_qp
+from ..results import Solution
+
+__all__ = ["Context", "interior", "paper_systems"]
+
+
+@dataclass
+class Context:
+    """The cases: the paper's systems (by name) and seeded random systems.
+
+    Attributes
+    ----------
+    paper : dict of str to System
+        The paper's systems, by example name.
+    random : list of System
+        The caller's systems, then the seeded random ones.
+    seed : int
+        The audit's seed; each check derives its own generator from it.
+    extra : int
+        How many of ``random`` (at its start) are the caller's systems.
+    cache : dict
+        Solver answers shared between checks (see :meth:`qp`).
+    """
+
+    paper: dict[str, System]
+    random: list[System]
+    seed: int
+    extra: int = 0
+    cache: dict = field(default_factory=dict)
+
+    @property
+    def cases(self) -> list[System]:
+        """The paper's systems, then ``random``."""
+        return list(self.paper.values()) + self.random
+
+    def label(self, system: System) -> str:
+        """How a report names a case: the paper's example name, ``system k (name)`` for the caller's
+        k-th system (1-based, the order given; its name if it has one), ``random k`` for the k-th
+        random one."""
+        for name, paper_system in self.paper.items():
+            if paper_system is system:
+                return name
+        for k, other in enumerate(self.random):
+            if other is system and k < self.extra:
+                return f"system {k + 1}" + (f" ({system.name})" if system.name else "")
+            if other is system:
+                return f"random {k + 1 - self.extra}"
+        return system.name or "a system outside the audit's cases"
+
+    def qp(self, system: System, protocol: str) -> Solution:
+        """The QP twin's answer for ``system`` (solved once per audit)."""
+        key = (id(system), protocol)
+        if key not in self.cache:
+            self.cache[key] = solve_qp(system, protocol, with_gain=False, cross_check=False)
+        return self.cache[key]
+
+
+def paper_systems() -> dict[str, System]:
+    """The paper's two systems, from the packaged examples (§V-A, §V-B)."""
+    return {"pendulum": load_example("pendulum"), "two_actuator": load_example("two_actuator")}
+
+
+def interior(system: System) -> bool:
+    """Whether every delivery probability lies strictly between 0 and 1."""
+    mu = system.mu_schedule
+    return bool(np.all((mu > 0) & (mu < 1)))

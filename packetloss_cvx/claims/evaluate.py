@@ -1,0 +1,224 @@
+"""Margins, verdicts and shrinking: how a check on many cases becomes one ClaimResult.
+
+A check computes a *margin* per case: >= 0 where the claim holds for that case,
+< 0 where it fails (for equalities, tolerance minus error), None where the claim
+does not apply (an explicit skip, which the check's note explains). A case whose
+check raises one of :data:`CASE_ERRORS` (a numerical or solver failure, or input
+the check cannot take) has *errored*: it is counted, named in the note, and never
+read as agreement. A NaN margin counts as an error too.
+
+Verdict (:func:`verdict`): "fails" when some case violates (a proven violation,
+whatever else errored); otherwise "inconclusive" when a case errored or none was
+checked; otherwise "holds". A violation is shrunk to the smallest simple system
+that still violates: small n, m, N and integers or halves, checkable by hand.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError, SolverError
+from ..model import System
+from ..results import ClaimResult
+from .context import Context
+from .paper import STATEMENTS
+
+__all__ = ["CASE_ERRORS", "Tally", "Z", "evaluate", "shrink", "simple_system", "verdict", "z_margin"]
+
+#: Monte Carlo checks allow Z standard errors (two-sided 99.994 % per case).
+Z = 4.0
+
+#: The exceptions that make a case *errored* (counted and reported) rather than crash the audit.
+#: Anything else (TypeError, KeyError, ...) is a bug in the audit and propagates.
+CASE_ERRORS = (InputError, ArithmeticError, SolverError, np.linalg.LinAlgError)
+
+Margin = Callable[[Any], float | None]
+
+
+def verdict(checked: int, violations: int, errors: int) -> str:
+    """"fails" if any violation; else "inconclusive" if any error or nothing checked; else "holds"."""
+    if violations:
+        return "fails"
+    if errors or not checked:
+        return "inconclusive"
+    return "holds"
+
+
+@dataclass
+class Tally:
+    """What happened to each case of one check, in case order.
+
+    Attributes
+    ----------
+    outcomes : list of str
+        ``"+"`` holds, ``"-"`` violated, ``"."`` not applicable, ``"E"`` errored.
+    margins : list of float
+        The margins of the checked cases.
+    failures : list of str
+        ``"label: ErrorType: message"`` for each errored case.
+    """
+
+    outcomes: list[str] = field(default_factory=list)
+    margins: list[float] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    def run(self, margin: Margin, case: Any, label: str) -> float | None:
+        """Run ``margin`` on ``case`` and record the outcome; returns the margin (None if skipped
+        or errored)."""
+        try:
+            value = margin(case)
+            if value is not None and np.isnan(value):
+                raise ArithmeticError("the margin is NaN")
+        except CASE_ERRORS as err:
+            self.outcomes.append("E")
+            self.failures.append(f"{label}: {type(err).__name__}: {_brief(str(err))}")
+            return None
+        if value is None:
+            self.outcomes.append(".")
+            return None
+        value = float(value)
+        self.outcomes.append("-" if value < 0 else "+")
+        self.margins.append(value)
+        return value
+
+    @property
+    def checked(self) -> int:
+        return len(self.margins)
+
+    @property
+    def violations(self) -> int:
+        return sum(v < 0 for v in self.margins)
+
+    @property
+    def errors(self) -> int:
+        return len(self.failures)
+
+    @property
+    def worst(self) -> float | None:
+        return min(self.margins) if self.margins else None
+
+    def verdict(self) -> str:
+        """:func:`verdict` of the counts."""
+        return verdict(self.checked, self.violations, self.errors)
+
+    def error_note(self) -> str:
+        """One sentence naming the errored cases (at most three), or "" if none errored."""
+        if not self.failures:
+            return ""
+        shown = "; ".join(self.failures[:3])
+        more = f"; and {len(self.failures) - 3} more" if len(self.failures) > 3 else ""
+        return f" Errored ({self.errors}, not counted as checked): {shown}{more}."
+
+
+def _brief(text: str, limit: int = 100) -> str:
+    line = text.splitlines()[0] if text else ""
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
+def simple_system(rng: np.random.Generator, n: int, m: int, N: int) -> System:
+    """Small integers and halves: the kind of example a reader can check by hand."""
+    A = rng.integers(-2, 3, (n, n)) / 2
+    B = rng.integers(-2, 3, (n, m)) / 2
+    B[:, ~B.any(axis=0)] = 1.0
+    x0 = rng.integers(-2, 3, n).astype(float)
+    if not x0.any():
+        x0[0] = 1.0
+    return System(A=A, B=B, horizon=N, state_weight=np.ones(n), input_weight=np.ones(m),
+                  mu=rng.integers(1, 10, m) / 10, x0=x0)
+
+
+def _sizes(max_total: int = 9) -> Iterator[tuple[int, int, int]]:
+    for total in range(3, max_total + 1):
+        for n in range(1, 4):
+            for m in range(1, 4):
+                N = total - n - m
+                if 1 <= N <= 6:
+                    yield n, m, N
+
+
+def _violates(margin: Margin, system: System) -> bool:
+    """Whether ``system`` is a proven violation; a candidate whose check errors is not one."""
+    try:
+        value = margin(system)
+    except CASE_ERRORS:
+        return False
+    return value is not None and value < 0
+
+
+def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System] = ()) -> System | None:
+    """The first violating simple system in order of size n + m + N, else the smallest
+    violating one among ``fallback``.
+
+    Parameters
+    ----------
+    margin : callable
+        The check's margin; < 0 is a violation.
+    seed : int
+        Seeds the simple systems tried, so the counterexample is reproducible.
+    tries : int
+        Simple systems tried per size (n, m, N).
+    fallback : sequence of System
+        Where to look when no simple system violates.
+
+    Returns
+    -------
+    System or None
+    """
+    rng = np.random.default_rng(seed)
+    for n, m, N in _sizes():
+        for _ in range(tries):
+            system = simple_system(rng, n, m, N)
+            if _violates(margin, system):
+                return system
+    bad = [s for s in fallback if _violates(margin, s)]
+    return min(bad, key=lambda s: (s.n + s.m + s.horizon, s.n, s.m)) if bad else None
+
+
+def evaluate(claim_id: str, ctx: Context, cases: Sequence[System], margin: Margin, note: str,
+             shrinkable: bool = True) -> ClaimResult:
+    """Run ``margin`` on every case and turn the outcomes into a verdict (:func:`verdict`).
+
+    Parameters
+    ----------
+    claim_id : str
+        A key of :data:`STATEMENTS`.
+    ctx : Context
+        Names the cases in the note (:meth:`Context.label`) and seeds the shrinking.
+    cases : sequence of System
+    margin : callable
+        System -> margin (>= 0 holds, < 0 violated, None not applicable); may raise one of
+        :data:`CASE_ERRORS`, which counts the case as errored.
+    note : str
+        How the margin is defined, and what the check found.
+    shrinkable : bool
+        Whether to look for a small counterexample when a case violates.
+
+    Returns
+    -------
+    ClaimResult
+    """
+    tally = Tally()
+    for s in cases:
+        tally.run(margin, s, ctx.label(s))
+    counterexample = None
+    if tally.violations and shrinkable:
+        found = shrink(margin, ctx.seed, fallback=cases)
+        counterexample = found.to_dict() if found is not None else None
+    return ClaimResult(
+        id=claim_id, statement=STATEMENTS[claim_id], verdict=tally.verdict(), checked=tally.checked,
+        violations=int(tally.violations), worst=tally.worst, counterexample=counterexample,
+        note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes),
+    )
+
+
+def z_margin(samples: np.ndarray, expect: float) -> float:
+    """Z - |z| of the sample mean against ``expect``; a degenerate sample must match to 1e-9."""
+    se = samples.std(ddof=1) / np.sqrt(samples.size)
+    err = abs(samples.mean() - expect)
+    if se <= 1e-12 * max(1.0, abs(expect)):
+        return Z if err <= 1e-9 * max(1.0, abs(expect)) else -np.inf
+    return Z - err / se

@@ -1,0 +1,111 @@
+"""Every claim by id, and the audit that runs them."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from ..model import System
+from ..random_systems import random_system
+from ..results import ClaimResult
+from .channel_allocation import allocation_udp_perfect
+from .closed_loop import protocol_ranking
+from .context import Context, paper_systems
+from .cost_difference import lemma_2, lemma_3, theorem_4
+from .evaluate import CASE_ERRORS
+from .ordering import corollary_1, corollary_2, theorem_2, theorem_3
+from .paper import STATEMENTS
+from .tables import pendulum_maximiser, table_1, table_2
+from .theorem1 import expected_cost_tcp, lemma_1, lemma_quad, theorem_1_costs, theorem_1_laws
+
+__all__ = ["CLAIMS", "audit", "run_claim"]
+
+_CHECKS: dict[str, Callable[[Context], ClaimResult]] = {
+    "theorem-1-laws": theorem_1_laws,
+    "theorem-1-costs": theorem_1_costs,
+    "lemma-1": lemma_1,
+    "lemma-quad-expectation": lemma_quad,
+    "expected-cost-tcp": expected_cost_tcp,
+    "theorem-2": theorem_2,
+    "corollary-1": corollary_1,
+    "theorem-3": theorem_3,
+    "corollary-2": corollary_2,
+    "lemma-2": lemma_2,
+    "lemma-3": lemma_3,
+    "theorem-4": theorem_4,
+    "table-1": table_1,
+    "table-2": table_2,
+    "pendulum-maximiser": pendulum_maximiser,
+    "allocation-udp-perfect-channel": allocation_udp_perfect,
+    "protocol-ranking-closed-loop": protocol_ranking,
+}
+
+#: Claim id -> (statement, check). The order is the audit's and the report's.
+CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
+    claim_id: (statement, _CHECKS[claim_id]) for claim_id, statement in STATEMENTS.items()
+}
+
+
+def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int = 0,
+          only: Sequence[str] | None = None) -> list[ClaimResult]:
+    """Check every claim (or those in ``only``) on the paper's systems, on ``systems`` and on
+    ``random`` seeded random systems (n, m <= 4, N <= 8, stable and unstable).
+
+    Parameters
+    ----------
+    systems : sequence of System, optional
+        More systems to check the claims on (after the paper's, before the random ones).
+    random : int
+        How many seeded random systems to add.
+    seed : int
+        Seeds the random systems, the Monte Carlo samples and the shrinking.
+    only : sequence of str, optional
+        Claim ids to check (default: all of :data:`CLAIMS`, in order).
+
+    Returns
+    -------
+    list of ClaimResult
+
+    Raises
+    ------
+    InputError
+        An unknown claim id, a negative seed or count.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise InputError("seed", f"expected an integer >= 0, found {seed!r}")
+    if isinstance(random, bool) or not isinstance(random, int | np.integer) or random < 0:
+        raise InputError("random", f"expected a count >= 0, found {random!r}")
+    rng = np.random.default_rng(seed)
+    paper = paper_systems()
+    extra = list(systems or [])
+    ctx = Context(paper=paper, random=extra + [random_system(rng) for _ in range(random)], seed=seed,
+                  extra=len(extra))
+    ids = list(CLAIMS) if only is None else list(only)
+    for claim_id in ids:
+        if claim_id not in CLAIMS:
+            raise InputError("claim", f"unknown claim id {claim_id!r}; expected one of {', '.join(CLAIMS)}")
+    return [run_claim(claim_id, ctx) for claim_id in ids]
+
+
+def run_claim(claim_id: str, ctx: Context) -> ClaimResult:
+    """Run one claim's check; if the check itself raises one of :data:`CASE_ERRORS` (outside its
+    per-case loop), the claim is "inconclusive" with one error, and the note names it.
+
+    Parameters
+    ----------
+    claim_id : str
+        A key of :data:`CLAIMS`.
+    ctx : Context
+
+    Returns
+    -------
+    ClaimResult
+    """
+    try:
+        return CLAIMS[claim_id][1](ctx)
+    except CASE_ERRORS as err:
+        detail = str(err).splitlines()[0] if str(err) else ""
+        return ClaimResult(claim_id, STATEMENTS[claim_id], "inconclusive", 0, 0, None, None,
+                           f"The check raised {type(err).__name__}: {detail}. Nothing was checked.", errors=1)

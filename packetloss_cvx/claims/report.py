@@ -1,0 +1,36 @@
+"""Audit results as Markdown: a table, and a report with each claim's note, outcome per case
+and counterexample (the body of docs/claims.md)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+
+from ..results import ClaimResult
+
+__all__ = ["markdown_report", "markdown_table"]
+
+
+def markdown_report(results: Sequence[ClaimResult], header: str = "") -> str:
+    """The table, then one section per claim: its counts and note, its outcome per case
+    (``+`` holds, ``-`` violated, ``.`` not applicable, ``E`` errored) and its counterexample (JSON)."""
+    parts = [header, markdown_table(results), ""]
+    for r in results:
+        parts += [f"### {r.id}: {r.verdict}", "", f"*Claim.* {r.statement}", "",
+                  f"Checked {r.checked}, violations {r.violations}, errors {r.errors}, worst margin "
+                  f"{'n/a' if r.worst is None else f'{r.worst:.4g}'}. {r.note}", ""]
+        if r.outcomes:
+            parts += [f"Cases: `{r.outcomes}`", ""]
+        if r.counterexample is not None:
+            parts += ["Counterexample (System in the TOML schema's structure):", "",
+                      "```json", json.dumps(r.counterexample), "```", ""]
+    return "\n".join(parts)
+
+
+def markdown_table(results: Sequence[ClaimResult]) -> str:
+    """One row per claim: id, verdict, checked, violations, errors, worst margin."""
+    lines = ["| claim | verdict | checked | violations | errors | worst margin |", "|---|---|---|---|---|---|"]
+    for r in results:
+        worst = "" if r.worst is None else f"{r.worst:.3g}"
+        lines.append(f"| {r.id} | {r.verdict} | {r.checked} | {r.violations} | {r.errors} | {worst} |")
+    return "\n".join(lines)
