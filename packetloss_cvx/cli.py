@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .claims import audit, markdown_report, markdown_table
 from .costs import closed_form
 from .errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
 from .io import load_system
@@ -93,8 +94,6 @@ def _solve(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _audit(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from .claims import audit, markdown_report, markdown_table
-
     if args.random < 0:
         raise InputError("--random", f"expected a count >= 0, found {args.random}")
     if args.seed < 0:
