@@ -7,8 +7,8 @@ import numpy as np
 
 from ..costs import closed_form
 from ..model import System
-from ..montecarlo import closed_loop_costs
 from ..results import ClaimResult
+from ..simulation import closed_loop_costs
 from .context import Context, interior
 from .evaluate import Z, evaluate
 

@@ -7,10 +7,10 @@ import numpy as np
 
 from ..costs import closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from ..model import System
-from ..montecarlo import sample_deliveries, sample_noise, sample_plan_costs
 from ..prediction import prediction
 from ..qp import solve_qp
 from ..results import ClaimResult
+from ..simulation import sample_deliveries, sample_noise, sample_plan_costs
 from .context import Context, interior
 from .evaluate import Z, evaluate, z_margin
 
