@@ -8,16 +8,20 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Allocation", "ClaimResult", "CrossCheck", "Maximiser", "Solution", "eigenvalue_pairs"]
+__all__ = ["Allocation", "ClaimResult", "CrossCheck", "Maximiser", "Solution", "Sweep", "eigenvalue_pairs"]
+
+
+def _read_only(value: Any) -> np.ndarray:
+    arr = np.array(value)
+    arr.setflags(write=False)
+    return arr
 
 
 def _freeze(obj: Any) -> None:
     """Make every ndarray field of a frozen dataclass a read-only copy."""
     for name, value in vars(obj).items():
         if isinstance(value, np.ndarray):
-            arr = np.array(value)
-            arr.setflags(write=False)
-            object.__setattr__(obj, name, arr)
+            object.__setattr__(obj, name, _read_only(value))
 
 
 def eigenvalue_pairs(eigs: np.ndarray) -> list[list[float]]:
@@ -198,3 +202,28 @@ class Maximiser:
 
     def to_dict(self) -> dict[str, Any]:
         return {"point": self.point.tolist(), "value": self.value, "method": self.method}
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Optimal costs over a grid of delivery probabilities (:mod:`packetloss_cvx.studies.sweeps`).
+
+    ``axes``: one array per swept dimension; ``costs``: protocol -> array over the grid;
+    ``difference``: J*_udp - J*_tcp over the grid (None unless both protocols were swept);
+    ``difference_method``: how the difference was computed.
+    """
+
+    axes: tuple[np.ndarray, ...]
+    costs: dict[str, np.ndarray]
+    difference: np.ndarray | None
+    difference_method: str | None
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+        object.__setattr__(self, "axes", tuple(_read_only(a) for a in self.axes))
+        object.__setattr__(self, "costs", {k: _read_only(v) for k, v in self.costs.items()})
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"axes": [a.tolist() for a in self.axes], "costs": {k: v.tolist() for k, v in self.costs.items()},
+                "difference": None if self.difference is None else self.difference.tolist(),
+                "difference_method": self.difference_method}

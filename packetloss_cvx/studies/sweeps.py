@@ -1,0 +1,102 @@
+"""Optimal costs over grids of delivery probabilities: the data behind the paper's cost figures.
+
+* :func:`shared_channel_sweep`: every actuator behind one channel of probability nu
+  (Fig. log-cost-pendulum: log J*_tcp(nu), log J*_udp(nu); and J_Delta(nu));
+* :func:`two_channel_sweep`: two channels over a grid of [0, 1]^2 (Figs. TCP-log-cost-mixed,
+  UDP-log-cost-mixed and cost-diff-mixed).
+
+Each cost is a closed form that passed its own checks (:func:`packetloss_cvx.closed_form`).
+The difference J_Delta = J*_udp - J*_tcp is computed without cancellation
+(:func:`packetloss_cvx.analysis.cost_difference`) where the dense form is well conditioned, and
+as the difference of the two checked costs otherwise (``difference_method`` says which).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..analysis import cost_difference
+from ..costs import closed_form
+from ..errors import InputError
+from ..model import System, numeric_array
+from ..prediction import prediction
+from ..protocols import PROTOCOLS, check_protocol
+from ..recursion import condition_estimate
+from ..results import Sweep
+from ..tolerances import DENSE_MAX_CONDITION
+
+__all__ = ["MAX_POINTS", "shared_channel_sweep", "two_channel_sweep"]
+
+#: The most grid points a sweep evaluates (each is one closed form per protocol).
+MAX_POINTS = 250_000
+
+
+def _axis(values: Sequence[float] | np.ndarray, field: str) -> np.ndarray:
+    axis = numeric_array(values, field)
+    if axis.ndim != 1 or axis.size < 1:
+        raise InputError(field, f"expected a non-empty list of probabilities, found shape {axis.shape}")
+    if np.any(axis < 0) or np.any(axis > 1):
+        raise InputError(field, "expected probabilities in [0, 1]")
+    return axis
+
+
+def _protocols(protocols: Sequence[str]) -> tuple[str, ...]:
+    out = tuple(check_protocol(p, "protocols") for p in protocols)
+    if not out:
+        raise InputError("protocols", "expected at least one of 'tcp', 'udp'")
+    return out
+
+
+def _sweep(system: System, points: list[np.ndarray], shape: tuple[int, ...], protocols: tuple[str, ...],
+           axes: tuple[np.ndarray, ...]) -> Sweep:
+    if len(points) > MAX_POINTS:
+        raise InputError("grid", f"expected at most {MAX_POINTS} points, found {len(points)}")
+    costs = {p: np.array([closed_form(system.with_mu(mu), p).cost for mu in points]).reshape(shape)
+             for p in protocols}
+    difference, how = None, None
+    if set(protocols) == set(PROTOCOLS):
+        if condition_estimate(system) <= DENSE_MAX_CONDITION:
+            pred = prediction(system)   # Phi, Gamma and the Omega products do not depend on mu
+            difference = np.array([cost_difference(system, mu, pred) for mu in points]).reshape(shape)
+            how = "cancellation-free (analysis.cost_difference)"
+        else:
+            difference = costs["udp"] - costs["tcp"]
+            how = "difference of the two closed forms (the dense form is ill-conditioned here)"
+    return Sweep(axes=axes, costs=costs, difference=difference, difference_method=how)
+
+
+def shared_channel_sweep(system: System, nus: Sequence[float] | np.ndarray,
+                         protocols: Sequence[str] = PROTOCOLS) -> Sweep:
+    """J*(nu) with every actuator behind one channel of delivery probability nu.
+
+    Returns a :class:`~packetloss_cvx.results.Sweep` with ``axes = (nus,)``, ``costs[p]`` of
+    shape (len(nus),), and, when both protocols are swept, ``difference`` = J*_udp - J*_tcp.
+    Time O(len(nus) · N (n^3 + m^3)), plus O(len(nus) (N m)^3) for the difference.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.io import load_example
+    >>> sweep = shared_channel_sweep(load_example("two_actuator"), [0.5, 0.9])
+    >>> bool(np.all(np.diff(sweep.costs["tcp"]) < 0))   # Theorem 3: more delivery, less cost
+    True
+    """
+    axis = _axis(nus, "nus")
+    points = [np.full(system.m, nu) for nu in axis]
+    return _sweep(system, points, (axis.size,), _protocols(protocols), (axis,))
+
+
+def two_channel_sweep(system: System, axis: Sequence[float] | np.ndarray,
+                      protocols: Sequence[str] = PROTOCOLS) -> Sweep:
+    """J*(mu1, mu2) for a two-channel system over ``axis`` × ``axis``.
+
+    ``costs[p][j, i]`` is the cost at ``mu1 = axis[i]``, ``mu2 = axis[j]`` (rows follow mu2, as
+    matplotlib's ``contour`` expects). Time O(len(axis)^2 · N (n^3 + m^3)), plus
+    O(len(axis)^2 (N m)^3) for the difference.
+    """
+    if system.m != 2:
+        raise InputError("system", f"expected m = 2 channels, found m = {system.m}")
+    axis = _axis(axis, "axis")
+    points = [np.array([a, b]) for b in axis for a in axis]
+    return _sweep(system, points, (axis.size, axis.size), _protocols(protocols), (axis, axis))

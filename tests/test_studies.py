@@ -1,0 +1,59 @@
+"""Sweeps: the costs over a grid against the QP twin at sample points, the grid's orientation,
+and the difference against the two QP minima."""
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.studies import shared_channel_sweep, two_channel_sweep
+
+
+def _qp(system, mu, protocol):
+    return pl.solve_qp(system.with_mu(mu), protocol, with_gain=False, cross_check=False).cost
+
+
+def test_shared_channel_sweep_against_the_qp_twin(pendulum):
+    nus = np.array([0.05, 0.4, 0.9])
+    sweep = shared_channel_sweep(pendulum, nus)
+    for k, nu in enumerate(nus):
+        tcp, udp = _qp(pendulum, [nu], "tcp"), _qp(pendulum, [nu], "udp")
+        assert abs(sweep.costs["tcp"][k] - tcp) <= 1e-7 * tcp
+        assert abs(sweep.costs["udp"][k] - udp) <= 1e-7 * udp
+        assert abs(sweep.difference[k] - (udp - tcp)) <= 1e-7 * udp
+    assert np.all(np.diff(sweep.costs["udp"]) < 0)      # Theorem 3
+    assert sweep.difference_method.startswith("cancellation-free")
+
+
+def test_two_channel_sweep_orientation_and_values(two_actuator):
+    axis = [0.1, 0.6, 1.0]
+    sweep = two_channel_sweep(two_actuator, axis, protocols=("udp",))
+    assert sweep.costs["udp"].shape == (3, 3)
+    assert sweep.difference is None
+    # rows follow mu2, columns mu1: the asymmetric point (mu1, mu2) = (1.0, 0.1) is [0, 2]
+    assert abs(sweep.costs["udp"][0, 2] - _qp(two_actuator, [1.0, 0.1], "udp")) <= 1e-7 * sweep.costs["udp"][0, 2]
+    assert abs(sweep.costs["udp"][2, 0] - _qp(two_actuator, [0.1, 1.0], "udp")) <= 1e-7 * sweep.costs["udp"][2, 0]
+    with pytest.raises(ValueError, match="read-only"):
+        sweep.costs["udp"][0, 0] = 0.0
+
+
+def test_ill_conditioned_systems_take_the_difference_of_checked_costs():
+    s = random_system(np.random.default_rng(0), n=2, m=2, horizon=40, spectral_radius=1.5, noise=False)
+    sweep = shared_channel_sweep(s, [0.5])
+    assert sweep.difference_method.startswith("difference of the two closed forms")
+    assert sweep.difference[0] == sweep.costs["udp"][0] - sweep.costs["tcp"][0]
+
+
+@pytest.mark.parametrize(("kwargs", "field"), [
+    ({"nus": [1.5]}, "nus"), ({"nus": []}, "nus"), ({"nus": [[0.5]]}, "nus"), ({"nus": ["a"]}, "nus"),
+    ({"nus": [0.5], "protocols": ()}, "protocols"), ({"nus": [0.5], "protocols": ("ftp",)}, "protocols"),
+])
+def test_bad_sweep_input_names_the_field(two_actuator, kwargs, field):
+    with pytest.raises(pl.InputError) as info:
+        shared_channel_sweep(two_actuator, **kwargs)
+    assert info.value.field == field
+
+
+def test_two_channel_sweep_needs_two_channels(pendulum):
+    with pytest.raises(pl.InputError, match="m = 2"):
+        two_channel_sweep(pendulum, [0.5])
