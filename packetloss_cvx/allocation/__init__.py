@@ -24,9 +24,7 @@
 from __future__ import annotations
 
 import heapq
-import re
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import cvxpy as cp
 import numpy as np
@@ -39,107 +37,12 @@ from ..protocols import check_protocol
 from ..qp import sparse_dynamics
 from ..recursion import udp_variance_weights
 from ..results import Allocation
+from .grammar import Constraint, base_constraints, check_inputs, parse_constraint, polytope
 
 __all__ = [
     "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "min_cost", "parse_constraint",
     "pareto_curve",
 ]
-
-Constraint = Callable[[cp.Variable], Any] | tuple[Any, Any]
-
-
-# ------------------------------------------------------------------ inputs
-
-_TERM = re.compile(r"\s*([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\d+)\s*\*?\s*)?(mu(\d+))?\s*")
-
-
-def _side(text: str, m: int, field: str) -> tuple[np.ndarray, float]:
-    """Parse a sum of terms ``[+-] [c [*]] mu<k>`` or ``[+-] c``: returns (coefficients, constant)."""
-    coef, const, pos = np.zeros(m), 0.0, 0
-    text = text.strip()
-    if not text:
-        raise InputError(field, "expected an expression on both sides")
-    while pos < len(text):
-        match = _TERM.match(text, pos)
-        if match is None or match.end() == pos or (match.group(2) is None and match.group(3) is None):
-            raise InputError(field, f"cannot parse {text[pos:]!r}; expected terms like '2*mu1', 'mu2' or '0.5'")
-        sign = -1.0 if match.group(1) == "-" else 1.0
-        if pos > 0 and not match.group(1):
-            raise InputError(field, f"expected '+' or '-' before {text[pos:].strip()!r}")
-        value = sign * (float(match.group(2)) if match.group(2) else 1.0)
-        if match.group(3):
-            k = int(match.group(4))
-            if not 1 <= k <= m:
-                raise InputError(field, f"unknown channel {match.group(3)!r}; expected mu1..mu{m}")
-            coef[k - 1] += value
-        else:
-            const += value
-        pos = match.end()
-    return coef, const
-
-
-def parse_constraint(text: str, m: int, field: str = "--constraint") -> tuple[np.ndarray, np.ndarray]:
-    """Parse ``"mu1 + 2*mu2 <= 1.5"``, ``"mu1 >= mu2"``, ``"mu2 == 0.8"`` into (G, h), G mu <= h.
-
-    A small grammar, no ``eval``: linear terms in mu1..mu<m>, numbers, one of <=, >=, ==
-    (< and > are read as <= and >=).
-    """
-    parts = re.split(r"(<=|>=|==|<|>|=)", text)
-    if len(parts) != 3:
-        raise InputError(field, f"expected one comparison (<=, >= or ==) in {text!r}")
-    left, op, right = parts
-    a, c1 = _side(left, m, field)
-    b, c2 = _side(right, m, field)
-    row, rhs = a - b, c2 - c1          # row mu  op  rhs
-    if not np.any(row):
-        raise InputError(field, f"{text!r} does not involve any channel")
-    if op in ("<=", "<"):
-        return row[None, :], np.array([rhs])
-    if op in (">=", ">"):
-        return -row[None, :], np.array([-rhs])
-    return np.vstack([row, -row]), np.array([rhs, -rhs])
-
-
-def _check_inputs(system: System, alpha: float, beta, bounds) -> tuple[float, np.ndarray, float, float]:
-    if not system.is_stationary:
-        raise InputError("system", "allocation needs a stationary channel (mu, not mu_schedule)")
-    try:
-        alpha = float(alpha)
-    except (TypeError, ValueError):
-        raise InputError("alpha", f"expected a number, found {alpha!r}") from None
-    if not np.isfinite(alpha) or alpha <= 0:
-        raise InputError("alpha", f"expected a positive finite number, found {alpha}")
-    beta_ = np.asarray(beta, dtype=float) if not isinstance(beta, str) else None
-    if beta_ is None or beta_.shape != (system.m,):
-        raise InputError("beta", f"expected {system.m} non-negative numbers, one per channel")
-    if not np.all(np.isfinite(beta_)) or np.any(beta_ < 0):
-        raise InputError("beta", "expected finite non-negative numbers")
-    try:
-        lo, hi = (float(b) for b in bounds)
-    except (TypeError, ValueError):
-        raise InputError("bounds", f"expected (lo, hi), found {bounds!r}") from None
-    if not 0.0 <= lo <= hi <= 1.0:
-        raise InputError("bounds", f"expected 0 <= lo <= hi <= 1, found ({lo}, {hi})")
-    return alpha, beta_, lo, hi
-
-
-def _polytope(constraints: Sequence[Constraint], m: int) -> tuple[np.ndarray, np.ndarray, list[Callable]]:
-    G, h, calls = np.zeros((0, m)), np.zeros(0), []
-    for k, item in enumerate(constraints):
-        if callable(item):
-            calls.append(item)
-            continue
-        try:
-            Gk, hk = item
-            Gk = np.atleast_2d(np.asarray(Gk, dtype=float))
-            hk = np.atleast_1d(np.asarray(hk, dtype=float))
-        except (TypeError, ValueError):
-            raise InputError(f"constraints[{k}]", "expected a callable or a pair (G, h) meaning G mu <= h") from None
-        if Gk.shape[1] != m or Gk.shape[0] != hk.shape[0]:
-            raise InputError(f"constraints[{k}]", f"expected G of shape (r, {m}) and h of shape (r,)")
-        G, h = np.vstack([G, Gk]), np.concatenate([h, hk])
-    return G, h, calls
-
 
 def _solve(problem: cp.Problem, what: str) -> None:
     """Clarabel at its default tolerances (1e-8 gap): the tightened ones of the QP twin stall on
@@ -172,23 +75,9 @@ class _TCPProgram:
         self.dynamics = [E @ X - Bbig @ cp.vec(Zv.T, order="F") == first @ system.x0]
 
 
-def _base_constraints(mu: cp.Variable, lo: float, hi: float, G: np.ndarray, h: np.ndarray,
-                      calls: list[Callable]) -> list:
-    cons = [mu >= lo, mu <= hi]
-    if G.shape[0]:
-        cons.append(G @ mu <= h)
-    for k, fn in enumerate(calls):
-        out = fn(mu)
-        out = list(out) if isinstance(out, (list, tuple)) else [out]
-        if not all(isinstance(c, cp.constraints.constraint.Constraint) for c in out):
-            raise InputError(f"constraints[{k}]", "a callable must return cvxpy constraints on mu")
-        cons += out
-    return cons
-
-
 def _tcp_min_cost(system: System, lo, hi, G, h, calls) -> float:
     prog = _TCPProgram(system)
-    problem = cp.Problem(cp.Minimize(prog.cost), prog.dynamics + _base_constraints(prog.mu, lo, hi, G, h, calls))
+    problem = cp.Problem(cp.Minimize(prog.cost), prog.dynamics + base_constraints(prog.mu, lo, hi, G, h, calls))
     _solve(problem, "TCP-like minimum cost")
     if problem.status == cp.INFEASIBLE:
         raise InfeasibleError("the linear constraints and bounds admit no mu", None)
@@ -199,7 +88,7 @@ def _tcp_min_cost(system: System, lo, hi, G, h, calls) -> float:
 
 def _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls) -> tuple[np.ndarray, str]:
     prog = _TCPProgram(system)
-    cons = prog.dynamics + [prog.cost <= alpha] + _base_constraints(prog.mu, lo, hi, G, h, calls)
+    cons = prog.dynamics + [prog.cost <= alpha] + base_constraints(prog.mu, lo, hi, G, h, calls)
     problem = cp.Problem(cp.Minimize(beta @ prog.mu), cons)
     _solve(problem, "TCP-like allocation")
     if problem.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
@@ -221,7 +110,7 @@ class _BoxLP:
             return
         self.mu = cp.Variable(m)
         self.l, self.u, self.c = cp.Parameter(m), cp.Parameter(m), cp.Parameter(m)
-        cons = [self.mu >= self.l, self.mu <= self.u] + _base_constraints(self.mu, 0.0, 1.0, G, h, calls)
+        cons = [self.mu >= self.l, self.mu <= self.u] + base_constraints(self.mu, 0.0, 1.0, G, h, calls)
         self.problem = cp.Problem(cp.Minimize(self.c @ self.mu), cons)
 
     def solve(self, c, l, u) -> np.ndarray | None:
@@ -397,8 +286,8 @@ def _udp_min_cost(system, lo, hi, G, h, calls, tol: float = 1e-6) -> float:
 def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequence[Constraint] = ()) -> float:
     """The least optimal cost J*(mu) reachable within the bounds and constraints."""
     protocol = check_protocol(protocol)
-    _, _, lo, hi = _check_inputs(system, 1.0, np.zeros(system.m), bounds)
-    G, h, calls = _polytope(constraints, system.m)
+    _, _, lo, hi = check_inputs(system, 1.0, np.zeros(system.m), bounds)
+    G, h, calls = polytope(constraints, system.m)
     if protocol == "tcp":
         return _tcp_min_cost(system, lo, hi, G, h, calls)
     return _udp_min_cost(system, lo, hi, G, h, calls)
@@ -439,10 +328,10 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     True
     """
     protocol = check_protocol(protocol)
-    alpha, beta, lo, hi = _check_inputs(system, alpha, beta, bounds)
+    alpha, beta, lo, hi = check_inputs(system, alpha, beta, bounds)
     if not 0 < gap < 1:
         raise InputError("gap", f"expected a number in (0, 1), found {gap}")
-    G, h, calls = _polytope(constraints, system.m)
+    G, h, calls = polytope(constraints, system.m)
 
     def infeasible() -> InfeasibleError:
         least = min_cost(system, protocol, (lo, hi), constraints)
