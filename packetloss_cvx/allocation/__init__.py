@@ -24,11 +24,10 @@
 from __future__ import annotations
 
 import heapq
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import cvxpy as cp
 import numpy as np
-from scipy.optimize import linprog
 
 from ..costs import closed_form
 from ..errors import InfeasibleError, InputError, SolverError
@@ -37,21 +36,13 @@ from ..protocols import check_protocol
 from ..qp import sparse_dynamics
 from ..recursion import udp_variance_weights
 from ..results import Allocation
+from .boxes import BoxLP, boundary, bracket, cost_at, solve_clarabel
 from .grammar import Constraint, base_constraints, check_inputs, parse_constraint, polytope
 
 __all__ = [
     "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "min_cost", "parse_constraint",
     "pareto_curve",
 ]
-
-def _solve(problem: cp.Problem, what: str) -> None:
-    """Clarabel at its default tolerances (1e-8 gap): the tightened ones of the QP twin stall on
-    quad-over-lin terms near mu = 0 or 1 and end 'optimal_inaccurate'."""
-    try:
-        problem.solve(solver=cp.CLARABEL)
-    except cp.error.SolverError as err:
-        raise SolverError("solver_error", f"{what}: {err}") from None
-
 
 # ------------------------------------------------------------------ TCP-like: the exact SOCP
 
@@ -78,7 +69,7 @@ class _TCPProgram:
 def _tcp_min_cost(system: System, lo, hi, G, h, calls) -> float:
     prog = _TCPProgram(system)
     problem = cp.Problem(cp.Minimize(prog.cost), prog.dynamics + base_constraints(prog.mu, lo, hi, G, h, calls))
-    _solve(problem, "TCP-like minimum cost")
+    solve_clarabel(problem, "TCP-like minimum cost")
     if problem.status == cp.INFEASIBLE:
         raise InfeasibleError("the linear constraints and bounds admit no mu", None)
     if problem.status != cp.OPTIMAL:
@@ -90,7 +81,7 @@ def _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls) -> tuple[np.ndarray,
     prog = _TCPProgram(system)
     cons = prog.dynamics + [prog.cost <= alpha] + base_constraints(prog.mu, lo, hi, G, h, calls)
     problem = cp.Problem(cp.Minimize(beta @ prog.mu), cons)
-    _solve(problem, "TCP-like allocation")
+    solve_clarabel(problem, "TCP-like allocation")
     if problem.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
         return None, problem.status
     if problem.status != cp.OPTIMAL:
@@ -98,69 +89,12 @@ def _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls) -> tuple[np.ndarray,
     return np.clip(prog.mu.value, lo, hi), problem.status
 
 
-# ------------------------------------------------------------------ shared helpers
-
-class _BoxLP:
-    """min c'mu over [l, u] and the linear/callable constraints: HiGHS (scipy) for G mu <= h,
-    a cvxpy problem re-solved through Parameters when callables are present."""
-
-    def __init__(self, m: int, G, h, calls) -> None:
-        self.G, self.h, self.fast = G, h, not calls
-        if self.fast:
-            return
-        self.mu = cp.Variable(m)
-        self.l, self.u, self.c = cp.Parameter(m), cp.Parameter(m), cp.Parameter(m)
-        cons = [self.mu >= self.l, self.mu <= self.u] + base_constraints(self.mu, 0.0, 1.0, G, h, calls)
-        self.problem = cp.Problem(cp.Minimize(self.c @ self.mu), cons)
-
-    def solve(self, c, l, u) -> np.ndarray | None:
-        if self.fast:
-            if not self.G.shape[0]:   # a box alone: the minimiser is a corner
-                return np.where(np.asarray(c) > 0, l, np.where(np.asarray(c) < 0, u, l)).astype(float)
-            res = linprog(c, A_ub=self.G, b_ub=self.h, bounds=list(zip(l, u, strict=True)), method="highs")
-            if res.status == 2:
-                return None
-            if res.status != 0:
-                raise SolverError(f"linprog status {res.status}", res.message)
-            return np.clip(res.x, l, u)
-        self.c.value, self.l.value, self.u.value = c, l, u
-        _solve(self.problem, "box LP")
-        if self.problem.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
-            return None
-        if self.problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-            raise SolverError(self.problem.status, "box LP")
-        return np.clip(self.mu.value, l, u)
-
-
-def _J(system: System, protocol: str, mu: np.ndarray) -> float:
-    return closed_form(system.with_mu(np.clip(mu, 0.0, 1.0)), protocol, "auto").cost
-
-
-def _bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> tuple[float, float]:
-    """For f decreasing with f(b) <= alpha: bisect to (s_in, s_out), s_in - s_out <= tol, where
-    f(s_in) <= alpha and s_out is the last point known to have f > alpha (both a if f(a) <= alpha)."""
-    if f(a) <= alpha:
-        return a, a
-    while b - a > tol:
-        mid = 0.5 * (a + b)
-        if f(mid) <= alpha:
-            b = mid
-        else:
-            a = mid
-    return b, a
-
-
-def _boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> float:
-    """Smallest feasible t (to within tol, on the feasible side) for f decreasing, f(b) <= alpha."""
-    return _bracket(f, alpha, a, b, tol)[0]
-
-
 # ------------------------------------------------------------------ UDP-like: monotonic B&B
 
 def _udp_allocate(system, alpha, beta, lo, hi, G, h, calls, gap, max_boxes, tcp_bound):
     m = system.m
-    lp = _BoxLP(m, G, h, calls)
-    J = lambda mu: _J(system, "udp", mu)  # noqa: E731
+    lp = BoxLP(m, G, h, calls)
+    J = lambda mu: cost_at(system, "udp", mu)  # noqa: E731
     slack = alpha * (1 + 1e-9)   # prune only when clearly infeasible: the certificate stays valid
     best_mu, best = None, np.inf
     explored = 0
@@ -170,7 +104,7 @@ def _udp_allocate(system, alpha, beta, lo, hi, G, h, calls, gap, max_boxes, tcp_
         q = lp.solve(-np.ones(m), l, u)          # a maximal point of the box and constraints
         if q is None or J(q) > alpha:
             return
-        t = _boundary(lambda s: J(p + s * (q - p)), alpha, 0.0, 1.0, 1e-3 * gap)
+        t = boundary(lambda s: J(p + s * (q - p)), alpha, 0.0, 1.0, 1e-3 * gap)
         point = p + t * (q - p)
         if J(point) <= alpha and beta @ point < best:
             best_mu, best = point, float(beta @ point)
@@ -185,7 +119,7 @@ def _udp_allocate(system, alpha, beta, lo, hi, G, h, calls, gap, max_boxes, tcp_
                 edge = u.copy()
                 # every point of the box with mu_i below a point known infeasible on this edge is
                 # infeasible (it is dominated by that point): raise l_i to the infeasible side
-                l[i] = _bracket(lambda s, i=i, e=edge: J(np.where(np.arange(m) == i, s, e)), slack,
+                l[i] = bracket(lambda s, i=i, e=edge: J(np.where(np.arange(m) == i, s, e)), slack,
                                 l[i], u[i], 1e-9 + 1e-6 * (u[i] - l[i]))[1]
         if np.isfinite(best):                    # lower u where beta'mu would exceed the incumbent
             for i in range(m):
@@ -251,8 +185,8 @@ def _udp_min_cost(system, lo, hi, G, h, calls, tol: float = 1e-6) -> float:
     """min J*_udp over the bounds and constraints: J falls in mu, so the minimum sits at a maximal
     point; a B&B on boxes with bound J(u) (monotone) and incumbents at maximal LP points."""
     m = system.m
-    lp = _BoxLP(m, G, h, calls)
-    J = lambda mu: _J(system, "udp", mu)  # noqa: E731
+    lp = BoxLP(m, G, h, calls)
+    J = lambda mu: cost_at(system, "udp", mu)  # noqa: E731
     l0, u0 = np.full(m, lo), np.full(m, hi)
     q = lp.solve(-np.ones(m), l0, u0)
     if q is None:
@@ -342,13 +276,13 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         mu, status = _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls)
         if mu is None:
             raise infeasible()
-        cost = _J(system, "tcp", mu)
+        cost = cost_at(system, "tcp", mu)
         method = "convex SOCP (Clarabel)"
         if cost > alpha * (1 + 1e-7):   # solver tolerance: move towards a maximal point, say so
-            q = _BoxLP(system.m, G, h, calls).solve(-np.ones(system.m), np.full(system.m, lo), np.full(system.m, hi))
-            t = _boundary(lambda s: _J(system, "tcp", mu + s * (q - mu)), alpha, 0.0, 1.0, 1e-12)
+            q = BoxLP(system.m, G, h, calls).solve(-np.ones(system.m), np.full(system.m, lo), np.full(system.m, hi))
+            t = boundary(lambda s: cost_at(system, "tcp", mu + s * (q - mu)), alpha, 0.0, 1.0, 1e-12)
             mu = mu + t * (q - mu)
-            cost = _J(system, "tcp", mu)
+            cost = cost_at(system, "tcp", mu)
             method += ", then pushed onto the feasible set by bisection"
         value = float(beta @ mu)
         # exact up to the solver's tolerances (1e-8 gap): the bound allows 1e-6 relative
@@ -368,7 +302,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         raise infeasible()
     value = float(beta @ mu)
     lower = min(lower, value)
-    return Allocation(mu=mu, communication_cost=value, cost=_J(system, "udp", mu), lower_bound=lower,
+    return Allocation(mu=mu, communication_cost=value, cost=cost_at(system, "udp", mu), lower_bound=lower,
                       gap=(value - lower) / max(value, 1e-12), status="optimal",
                       method="monotonic branch and bound (LP bounds, TCP-like relaxation)", protocol=protocol,
                       alpha=alpha, beta=beta, boxes=boxes)
