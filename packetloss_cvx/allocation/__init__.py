@@ -26,68 +26,20 @@ from __future__ import annotations
 import heapq
 from collections.abc import Sequence
 
-import cvxpy as cp
 import numpy as np
 
-from ..costs import closed_form
 from ..errors import InfeasibleError, InputError, SolverError
 from ..model import System
 from ..protocols import check_protocol
-from ..qp import sparse_dynamics
-from ..recursion import udp_variance_weights
 from ..results import Allocation
-from .boxes import BoxLP, boundary, bracket, cost_at, solve_clarabel
-from .grammar import Constraint, base_constraints, check_inputs, parse_constraint, polytope
+from .boxes import BoxLP, boundary, bracket, cost_at
+from .grammar import Constraint, check_inputs, parse_constraint, polytope
+from .tcp import tcp_allocate, tcp_min_cost
 
 __all__ = [
     "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "min_cost", "parse_constraint",
     "pareto_curve",
 ]
-
-# ------------------------------------------------------------------ TCP-like: the exact SOCP
-
-class _TCPProgram:
-    """J_tcp(Z, mu) in cvxpy, sparse in the horizon; mu is a variable."""
-
-    def __init__(self, system: System) -> None:
-        N, n, m = system.horizon, system.n, system.m
-        self.system = system
-        self.mu = cp.Variable(m, name="mu")
-        Zv = cp.Variable((N, m), name="Z")
-        X = cp.Variable(N * n, name="xhat")
-        E, Bbig, first, L = sparse_dynamics(system)
-        psi = system.input_weights
-        terms = [cp.sum_squares(L @ X)] if L.shape[0] else []
-        for i in range(m):
-            terms.append(cp.quad_over_lin(cp.multiply(np.sqrt(psi[:, i]), Zv[:, i]), self.mu[i]))
-        x0 = system.x0
-        self.constant = float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]  # + noise
-        self.cost = cp.sum(terms) + self.constant
-        self.dynamics = [E @ X - Bbig @ cp.vec(Zv.T, order="F") == first @ system.x0]
-
-
-def _tcp_min_cost(system: System, lo, hi, G, h, calls) -> float:
-    prog = _TCPProgram(system)
-    problem = cp.Problem(cp.Minimize(prog.cost), prog.dynamics + base_constraints(prog.mu, lo, hi, G, h, calls))
-    solve_clarabel(problem, "TCP-like minimum cost")
-    if problem.status == cp.INFEASIBLE:
-        raise InfeasibleError("the linear constraints and bounds admit no mu", None)
-    if problem.status != cp.OPTIMAL:
-        raise SolverError(problem.status, "TCP-like minimum cost")
-    return closed_form(system.with_mu(np.clip(prog.mu.value, 0, 1)), "tcp", "auto").cost
-
-
-def _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls) -> tuple[np.ndarray, str]:
-    prog = _TCPProgram(system)
-    cons = prog.dynamics + [prog.cost <= alpha] + base_constraints(prog.mu, lo, hi, G, h, calls)
-    problem = cp.Problem(cp.Minimize(beta @ prog.mu), cons)
-    solve_clarabel(problem, "TCP-like allocation")
-    if problem.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
-        return None, problem.status
-    if problem.status != cp.OPTIMAL:
-        raise SolverError(problem.status, "TCP-like allocation")
-    return np.clip(prog.mu.value, lo, hi), problem.status
-
 
 # ------------------------------------------------------------------ UDP-like: monotonic B&B
 
@@ -223,7 +175,7 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     _, _, lo, hi = check_inputs(system, 1.0, np.zeros(system.m), bounds)
     G, h, calls = polytope(constraints, system.m)
     if protocol == "tcp":
-        return _tcp_min_cost(system, lo, hi, G, h, calls)
+        return tcp_min_cost(system, lo, hi, G, h, calls)
     return _udp_min_cost(system, lo, hi, G, h, calls)
 
 
@@ -273,7 +225,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
                                f"{least:.6g} within the bounds and constraints", least)
 
     if protocol == "tcp":
-        mu, status = _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls)
+        mu, status = tcp_allocate(system, alpha, beta, lo, hi, G, h, calls)
         if mu is None:
             raise infeasible()
         cost = cost_at(system, "tcp", mu)
@@ -291,7 +243,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
                           gap=(value - lower) / max(value, 1e-12),
                           status="optimal", method=method, protocol=protocol, alpha=alpha, beta=beta)
     try:
-        tcp_mu, _ = _tcp_allocate(system, alpha, beta, lo, hi, G, h, calls)
+        tcp_mu, _ = tcp_allocate(system, alpha, beta, lo, hi, G, h, calls)
     except SolverError:
         tcp_mu = None
     tcp_bound = float(beta @ tcp_mu) * (1 - 1e-7) if tcp_mu is not None else np.inf
