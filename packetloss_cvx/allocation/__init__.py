@@ -3,15 +3,15 @@
 Modules: ``grammar`` (constraint grammar, argument checks), ``boxes`` (LPs over sub-boxes,
 bisection), ``tcp`` (the exact TCP-like SOCP), ``udp`` (monotonic branch and bound),
 ``api`` (allocate, min_cost, best_cost_within_budget), ``studies`` (Pareto curve, contour
-allocations), ``brute_force`` (an independent two-channel reference for tests and the audit).
+allocations, the J*(mu) grid), ``brute_force`` (an independent two-channel reference for tests and the audit).
 """
 
 from ..results import Allocation
 from .api import allocate, best_cost_within_budget, min_cost
 from .grammar import parse_constraint
-from .studies import contour_allocations, pareto_curve
+from .studies import contour_allocations, cost_grid, pareto_curve
 
 __all__ = [
-    "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "min_cost", "parse_constraint",
-    "pareto_curve",
+    "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "cost_grid", "min_cost",
+    "parse_constraint", "pareto_curve",
 ]
