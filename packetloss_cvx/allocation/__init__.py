@@ -1,17 +1,18 @@
 """Channel allocation M* (§VI): the cheapest delivery probabilities that keep J* <= alpha.
 
-Modules: ``grammar`` (constraint grammar, argument checks), ``boxes`` (LPs over sub-boxes,
-bisection), ``tcp`` (the exact TCP-like SOCP), ``udp`` (monotonic branch and bound),
-``api`` (allocate, min_cost, best_cost_within_budget), ``studies`` (Pareto curve, contour
-allocations, the J*(mu) grid), ``brute_force`` (an independent two-channel reference for tests and the audit).
+Modules: ``grammar`` (constraint grammar, argument checks, the polytope of constraints),
+``boxes`` (LPs over sub-boxes with certified bounds, bisection), ``tcp`` (the exact
+TCP-like SOCP), ``udp`` (monotonic branch and bound), ``api`` (allocate, min_cost,
+best_cost_within_budget), ``studies`` (Pareto curve, contour allocations, the J*(mu) grid),
+``brute_force`` (an independent two-channel reference for tests and the audit).
 """
 
 from ..results import Allocation
-from .api import allocate, best_cost_within_budget, min_cost
+from .api import MinCost, allocate, best_cost_within_budget, min_cost
 from .grammar import parse_constraint
 from .studies import contour_allocations, cost_grid, pareto_curve
 
 __all__ = [
-    "Allocation", "allocate", "best_cost_within_budget", "contour_allocations", "cost_grid", "min_cost",
+    "Allocation", "MinCost", "allocate", "best_cost_within_budget", "contour_allocations", "cost_grid", "min_cost",
     "parse_constraint", "pareto_curve",
 ]

@@ -1,74 +1,125 @@
 """Building blocks shared by the TCP-like and UDP-like solvers: the cost at a point, LPs over
-sub-boxes of the constraint set, and bisection along a segment on which J* is monotone."""
+sub-boxes of the constraint set with a lower bound proved by an exactly evaluated dual, and
+bisection along a segment.
+
+The LP bound: for ``min c'mu`` over ``{l <= mu <= u, G mu <= h}`` and any ``y >= 0``,
+
+.. math:: g(y) = -h'y + \\sum_i \\min\\big((c + G'y)_i l_i,\\ (c + G'y)_i u_i\\big)
+
+is a lower bound (weak duality: the minimum over the box alone of the Lagrangian
+``c'mu + y'(G mu - h)``). It is evaluated here in O(m r) floating-point operations from the
+multipliers HiGHS returns, so the bound does not rest on the LP solver's tolerances.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
-import cvxpy as cp
 import numpy as np
 from scipy.optimize import linprog
 
 from ..costs import closed_form
 from ..errors import SolverError
 from ..model import System
-from .grammar import base_constraints
+from ..tolerances import ALLOCATION_LP_FEASIBILITY
+from .grammar import Polytope
 
-__all__ = ["BoxLP", "boundary", "bracket", "cost_at", "solve_clarabel"]
+__all__ = ["Outcome", "boundary", "box_lp", "bracket", "check_in_polytope", "cost_at", "dual_bound", "lp"]
 
-
-def solve_clarabel(problem: cp.Problem, what: str) -> None:
-    """Clarabel at its default tolerances (1e-8 gap): the tightened ones of the QP twin stall on
-    quad-over-lin terms near mu = 0 or 1 and end 'optimal_inaccurate'."""
-    try:
-        problem.solve(solver=cp.CLARABEL)
-    except cp.error.SolverError as err:
-        raise SolverError("solver_error", f"{what}: {err}") from None
+_HIGHS = {"primal_feasibility_tolerance": ALLOCATION_LP_FEASIBILITY,
+          "dual_feasibility_tolerance": ALLOCATION_LP_FEASIBILITY}
 
 
-class BoxLP:
-    """min c'mu over [l, u] and the linear/callable constraints: HiGHS (scipy) for G mu <= h,
-    a cvxpy problem re-solved through Parameters when callables are present."""
+class Outcome(NamedTuple):
+    """What a solver found.
 
-    def __init__(self, m: int, G, h, calls) -> None:
-        self.G, self.h, self.fast = G, h, not calls
-        if self.fast:
-            return
-        self.mu = cp.Variable(m)
-        self.l, self.u, self.c = cp.Parameter(m), cp.Parameter(m), cp.Parameter(m)
-        cons = [self.mu >= self.l, self.mu <= self.u] + base_constraints(self.mu, 0.0, 1.0, G, h, calls)
-        self.problem = cp.Problem(cp.Minimize(self.c @ self.mu), cons)
+    ``mu`` the point (None if none), ``value`` its objective, ``lower_bound`` a proven lower
+    bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
+    ``boxes`` boxes explored, ``note`` how it ended.
+    """
 
-    def solve(self, c, l, u) -> np.ndarray | None:
-        if self.fast:
-            if not self.G.shape[0]:   # a box alone: the minimiser is a corner
-                return np.where(np.asarray(c) > 0, l, np.where(np.asarray(c) < 0, u, l)).astype(float)
-            res = linprog(c, A_ub=self.G, b_ub=self.h, bounds=list(zip(l, u, strict=True)), method="highs")
-            if res.status == 2:
-                return None
-            if res.status != 0:
-                raise SolverError(f"linprog status {res.status}", res.message)
-            return np.clip(res.x, l, u)
-        self.c.value, self.l.value, self.u.value = c, l, u
-        solve_clarabel(self.problem, "box LP")
-        if self.problem.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
-            return None
-        if self.problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-            raise SolverError(self.problem.status, "box LP")
-        return np.clip(self.mu.value, l, u)
+    mu: np.ndarray | None
+    value: float
+    lower_bound: float
+    status: str
+    boxes: int
+    note: str
 
 
 def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
+    """J*(mu) by the closed form (method "auto"), mu clipped to [0, 1]. O(N (n^3 + m^3))."""
     return closed_form(system.with_mu(np.clip(mu, 0.0, 1.0)), protocol, "auto").cost
 
 
+def dual_bound(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray, y: np.ndarray) -> float:
+    """The weak-duality bound g(y) above for multipliers ``y`` (clipped to >= 0). O(m r)."""
+    y = np.maximum(np.asarray(y, dtype=float), 0.0)
+    r = c + G.T @ y
+    return float(-h @ y + np.sum(np.minimum(r * l, r * u)))
+
+
+def lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray) -> tuple[np.ndarray | None, float]:
+    """``min c'x`` over ``l <= x <= u`` (finite) and ``G x <= h``.
+
+    Returns
+    -------
+    point : ndarray or None
+        A minimiser from HiGHS (rows met to ``ALLOCATION_LP_FEASIBILITY``), None when HiGHS
+        reports the LP infeasible.
+    bound : float
+        A lower bound on the minimum, proved by :func:`dual_bound`; +inf when infeasible.
+
+    Raises
+    ------
+    SolverError
+        Any other HiGHS outcome.
+
+    Notes
+    -----
+    Without rows the box is solved exactly at a corner. Otherwise one HiGHS solve,
+    polynomial in the number of variables and rows.
+    """
+    c = np.asarray(c, dtype=float)
+    if not G.shape[0]:
+        point = np.where(c < 0, u, l).astype(float)
+        return point, dual_bound(c, G, h, l, u, np.zeros(0))
+    res = linprog(c, A_ub=G, b_ub=h, bounds=list(zip(l, u, strict=True)), method="highs", options=_HIGHS)
+    if res.status == 2:
+        return None, np.inf
+    if res.status != 0:
+        raise SolverError(f"linprog status {res.status}", f"LP over a box of the constraint set: {res.message}")
+    return np.clip(res.x, l, u), dual_bound(c, G, h, l, u, -res.ineqlin.marginals)
+
+
+def box_lp(c: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
+           extra: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray | None, float]:
+    """:func:`lp` over the box ``[l, u]``, the polytope's rows and ``extra`` rows (if given)."""
+    G, h = poly.G, poly.h
+    if extra is not None:
+        G, h = np.vstack([G, extra[0]]), np.concatenate([h, extra[1]])
+    return lp(c, G, h, l, u)
+
+
+def check_in_polytope(mu: np.ndarray, poly: Polytope, what: str) -> np.ndarray:
+    """Raise SolverError unless ``mu`` meets the bounds and rows to ``ALLOCATION_LP_FEASIBILITY``."""
+    excess = max(float(np.max(poly.G @ mu - poly.h, initial=0.0)),
+                 float(np.max(poly.lo - mu, initial=0.0)), float(np.max(mu - poly.hi, initial=0.0)))
+    if excess > ALLOCATION_LP_FEASIBILITY:
+        raise SolverError("constraint_violation", f"{what}: mu violates the constraints by {excess:.2e}")
+    return mu
+
+
 def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> tuple[float, float]:
-    """For f decreasing with f(b) <= alpha: bisect to (s_in, s_out), s_in - s_out <= tol, where
-    f(s_in) <= alpha and s_out is the last point known to have f > alpha (both a if f(a) <= alpha)."""
+    """For ``f(b) <= alpha``: bisect to ``(s_in, s_out)`` with ``s_in - s_out <= tol`` (or
+    adjacent floats), ``f(s_in) <= alpha`` and ``f(s_out) > alpha`` the last point found
+    above alpha (both ``a`` if ``f(a) <= alpha``). O(log2((b - a) / tol)) evaluations of f."""
     if f(a) <= alpha:
         return a, a
     while b - a > tol:
         mid = 0.5 * (a + b)
+        if not a < mid < b:
+            break
         if f(mid) <= alpha:
             b = mid
         else:
@@ -77,5 +128,6 @@ def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: 
 
 
 def boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> float:
-    """Smallest feasible t (to within tol, on the feasible side) for f decreasing, f(b) <= alpha."""
+    """Smallest t found with ``f(t) <= alpha`` (within tol of the crossing, on the feasible
+    side), given ``f(b) <= alpha``. O(log2((b - a) / tol)) evaluations of f."""
     return bracket(f, alpha, a, b, tol)[0]
