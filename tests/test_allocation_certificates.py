@@ -189,3 +189,14 @@ def test_min_cost_cap_is_reported(two_actuator):
     assert capped.lower_bound <= full.cost
     assert full.lower_bound <= full.cost <= capped.cost
     assert full.cost == pytest.approx(qp_cost(two_actuator, "udp", full.mu), rel=CROSS_CHECK_COST_RTOL)
+
+
+def test_cli_gap_not_certified_exit_4(capsys):
+    code = main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "4.78", "--beta", "1,1",
+                 "--max-boxes", "2", "--json"])
+    out = capsys.readouterr()
+    assert code == 4
+    assert '"status": "gap_not_certified"' in out.out
+    assert out.err == ""
+    main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "4.78", "--beta", "1,1", "--max-boxes", "2"])
+    assert capsys.readouterr().out.startswith("UDP-like: GAP NOT CERTIFIED")

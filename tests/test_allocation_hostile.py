@@ -1,11 +1,13 @@
 """Hostile input to the allocation (issue 8, item 6): a typed InputError naming the field in the
-API; never a traceback, a warning dump, a hang or a silent answer."""
+API, exit code 2 with one stderr line naming the flag on the command line; never a traceback,
+a warning dump, a hang or a silent answer."""
 
 import numpy as np
 import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, min_cost, parse_constraint
+from packetloss_cvx.cli import main
 
 LONG_INDEX = "mu" + "1" * 5000 + " <= 1"
 
@@ -85,3 +87,33 @@ def test_extreme_but_finite_rows_are_scaled(two_actuator):
 def test_row_no_mu_can_meet_is_a_proof(two_actuator):
     with pytest.raises(pl.InfeasibleError, match=r"constraints\[0\]: no mu in the bounds"):
         allocate(two_actuator, "udp", 6.0, (1.0, 1.0), constraints=[parse_constraint("mu1 + mu2 >= 2.5", 2)])
+
+
+@pytest.mark.parametrize(
+    ("extra", "flag"),
+    [
+        (["--constraint", "1e999*mu1 <= 1"], "--constraint"),
+        (["--constraint", "mu1 <= -1e999"], "--constraint"),
+        (["--constraint", "mu1 <= 1e999"], "--constraint"),
+        (["--constraint", LONG_INDEX], "--constraint"),
+        (["--gap", "1e-300"], "--gap"),
+        (["--gap", "x"], "--gap"),
+        (["--gap", "1"], "--gap"),
+        (["--alpha", "1e999"], "--alpha"),
+        (["--alpha", "nan"], "--alpha"),
+        (["--beta", "1," + "9" * 400], "--beta"),
+        (["--bounds", "0,nan"], "--bounds"),
+        (["--max-boxes", "0"], "--max-boxes"),
+        (["--max-boxes", "1" * 5000], "--max-boxes"),
+        (["--time-limit", "-1"], "--time-limit"),
+    ],
+)
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_cli_hostile_input_exit_2_one_line(capsys, protocol, extra, flag):
+    argv = ["allocate", "two_actuator", "--protocol", protocol, "--alpha", "6", "--beta", "1,1", *extra]  # last wins
+    assert main(argv) == 2
+    out = capsys.readouterr()
+    assert out.out == ""
+    assert out.err.count("\n") == 1
+    assert flag in out.err
+    assert "Traceback" not in out.err
