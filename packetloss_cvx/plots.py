@@ -70,7 +70,7 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     Returns
     -------
     matplotlib.figure.Figure
-        One line per label, in the order given.
+        One line per label, in the order given. O(number of rows) to draw.
 
     Raises
     ------
@@ -120,6 +120,7 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
     Returns
     -------
     matplotlib.figure.Figure
+        O(g^2) to contour the grid, plus the points.
 
     Raises
     ------

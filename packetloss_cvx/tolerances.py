@@ -112,5 +112,13 @@ __all__ += ["ALLOCATION_CUT_STEPS"]
 #: +- each of these steps along every axis: the cuts' maximum brackets the optimum on whichever
 #: side the solver's point errs (by up to ~3e-5 at the default tolerances), leaving an error of
 #: about curvature * step^2 instead of gradient * error. Measured on two_actuator, min J*_tcp
-#: with mu1 + mu2 <= 1.2: one cut at the point certifies a relative gap of 1.2e-6, these 8e-10.
+#: with mu1 + mu2 <= 1.2: one cut at the point certifies a relative gap of 1.2e-6, these 2.4e-9.
 ALLOCATION_CUT_STEPS = (1e-3, 1e-4, 1e-5)
+
+__all__ += ["BRUTE_FORCE_BISECTION_TOL", "BRUTE_FORCE_ROW_ATOL"]
+
+#: The brute-force reference (allocation/brute_force.py) bisects mu2 to this width, keeping the
+#: feasible end, so its answer is beta'mu at a feasible point within ~1e-10 of the boundary ...
+BRUTE_FORCE_BISECTION_TOL = 1e-10
+#: ... and treats a row without mu2 as violated only beyond this absolute slack.
+BRUTE_FORCE_ROW_ATOL = 1e-12

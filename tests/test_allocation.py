@@ -2,6 +2,7 @@
 closed form the allocation uses), optimality against the brute-force allocator (grid on mu1,
 bisection on mu2), hand values where the optimum is a vertex of the constraints."""
 
+import cvxpy as cp
 import numpy as np
 import pytest
 
@@ -67,8 +68,6 @@ def test_callable_constraint_is_read_into_rows(two_actuator, protocol, alpha):
 
 
 def test_non_affine_callable_refused(two_actuator):
-    import cvxpy as cp
-
     with pytest.raises(pl.InputError, match=r"constraints\[0\]: a callable's constraints must be affine"):
         allocate(two_actuator, "tcp", 6.0, (1.0, 1.0), constraints=[lambda mu: [cp.norm(mu) <= 1]])
 

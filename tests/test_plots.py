@@ -3,11 +3,14 @@ matplotlib backend alone and reports bad data with the project's typed errors.""
 
 import importlib
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
 import packetloss_cvx as pl
+import packetloss_cvx.plots as plots
 from packetloss_cvx.plots import plot_allocation_contours, plot_pareto
 
 CURVES = {
@@ -51,11 +54,6 @@ def test_contours_draw_the_given_allocations(tmp_path):
 
 def test_figures_leave_the_backend_and_pyplot_alone(monkeypatch):
     """Importing plots and drawing neither calls matplotlib.use nor opens a pyplot figure."""
-    import matplotlib
-    import matplotlib.pyplot as plt
-
-    import packetloss_cvx.plots as plots
-
     def refuse(*args, **kwargs):
         raise AssertionError("matplotlib.use was called")
 

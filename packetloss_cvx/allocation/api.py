@@ -63,6 +63,7 @@ class MinCost:
     ``cost``: J*(mu) at ``mu`` (reachable, by the closed form); ``lower_bound``: proven, no
     admissible mu does better; ``gap``: (cost - lower_bound) / cost; ``status``: "optimal"
     (gap <= ``tolerances.MIN_COST_RTOL``) or "gap_not_certified"; ``method``: how found.
+    Construction O(m).
     """
 
     protocol: str
@@ -79,6 +80,7 @@ class MinCost:
         object.__setattr__(self, "mu", arr)
 
     def to_dict(self) -> dict[str, Any]:
+        """Plain floats and lists for JSON. O(m)."""
         return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
                 "status": self.status, "mu": self.mu.tolist(), "method": self.method}
 
@@ -272,6 +274,10 @@ def best_cost_within_budget(system: System, protocol: str, beta, budget: float, 
         beta or budget malformed (budget must be a finite number).
     InfeasibleError
         No mu within the bounds and constraints fits the budget.
+
+    Notes
+    -----
+    As :func:`min_cost` with one more row.
     """
     system = check_system(system)
     beta = check_beta(beta, system.m)

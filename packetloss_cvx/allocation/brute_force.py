@@ -19,15 +19,20 @@ import numpy as np
 from ..costs import closed_form
 from ..errors import InputError
 from ..model import System
+from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
 
 __all__ = ["brute_force_allocation"]
 
 
 def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Sequence[float],
                            G: np.ndarray | None = None, h: np.ndarray | None = None, coarse: int = 61,
-                           fine: int = 61, tol: float = 1e-10) -> tuple[float, float, float] | None:
+                           fine: int = 61, tol: float = BRUTE_FORCE_BISECTION_TOL) -> tuple[float, float, float] | None:
     """min beta'mu over feasible points of [0, 1]^2 with G mu <= h: returns (beta'mu, mu1, mu2),
-    or None when no grid point of mu1 admits a feasible mu2."""
+    or None when no grid point of mu1 admits a feasible mu2.
+
+    At most (coarse + fine) (log2(1/tol) + 2) recursions of O(N (n^3 + m^3)); most grid points
+    cost one.
+    """
     if system.m != 2:
         raise InputError("system", f"the brute-force allocator needs m = 2 channels, found m = {system.m}")
     beta = np.asarray(beta, dtype=float)
@@ -39,14 +44,15 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 
     def best_mu2(mu1: float, cap: float) -> float | None:
         """The least feasible mu2 (to tol, feasible end) below ``cap``, or None: above cap a
-        point cannot beat the best so far, so one evaluation at cap settles most grid points."""
+        point cannot beat the best so far, so one evaluation at cap settles most grid points.
+        O(log2(1/tol)) recursions at most."""
         lo, hi = 0.0, 1.0
         for g, c in zip(G, h, strict=True):    # g1 mu1 + g2 mu2 <= c
             if g[1] > 0:
                 hi = min(hi, (c - g[0] * mu1) / g[1])
             elif g[1] < 0:
                 lo = max(lo, (c - g[0] * mu1) / g[1])
-            elif g[0] * mu1 > c + 1e-12:
+            elif g[0] * mu1 > c + BRUTE_FORCE_ROW_ATOL:
                 return None
         top = min(hi, cap)
         if lo > top or J(mu1, top) > alpha:

@@ -118,7 +118,7 @@ def parse_constraint(text: str, m: int, field: str = "--constraint") -> tuple[np
 # ------------------------------------------------------------------ scalar arguments
 
 def check_system(system: Any) -> System:
-    """A :class:`System` with a stationary channel."""
+    """A :class:`System` with a stationary channel. O(1)."""
     if not isinstance(system, System):
         raise InputError("system", f"expected a System, found {type(system).__name__}")
     if not system.is_stationary:
@@ -127,7 +127,7 @@ def check_system(system: Any) -> System:
 
 
 def check_number(value: Any, field: str) -> float:
-    """One finite real number (no strings, booleans, NaN, inf)."""
+    """One finite real number (no strings, booleans, NaN, inf). O(1)."""
     arr = _numbers(value, field)
     if arr.shape != ():
         raise InputError(field, f"expected one number, found an array of shape {arr.shape}")
@@ -135,7 +135,7 @@ def check_number(value: Any, field: str) -> float:
 
 
 def check_alpha(alpha: Any) -> float:
-    """The cost bound: a positive finite number."""
+    """The cost bound: a positive finite number. O(1)."""
     alpha = check_number(alpha, "alpha")
     if alpha <= 0:
         raise InputError("alpha", f"expected a positive finite number, found {alpha}")
@@ -143,7 +143,7 @@ def check_alpha(alpha: Any) -> float:
 
 
 def check_beta(beta: Any, m: int, field: str = "beta") -> np.ndarray:
-    """The channel prices: m finite non-negative numbers."""
+    """The channel prices: m finite non-negative numbers. O(m)."""
     arr = _numbers(beta, field)
     if arr.shape != (m,):
         raise InputError(field, f"expected {m} non-negative numbers, one per channel, found shape {arr.shape}")
@@ -153,7 +153,7 @@ def check_beta(beta: Any, m: int, field: str = "beta") -> np.ndarray:
 
 
 def check_bounds(bounds: Any) -> tuple[float, float]:
-    """The box for every mu_i: (lo, hi) with 0 <= lo <= hi <= 1."""
+    """The box for every mu_i: (lo, hi) with 0 <= lo <= hi <= 1. O(1)."""
     arr = _numbers(bounds, "bounds")
     if arr.shape != (2,):
         raise InputError("bounds", f"expected (lo, hi), found shape {arr.shape}")
@@ -164,7 +164,7 @@ def check_bounds(bounds: Any) -> tuple[float, float]:
 
 
 def check_gap(gap: Any) -> float:
-    """The relative optimality gap to certify: ALLOCATION_GAP_MIN <= gap < 1."""
+    """The relative optimality gap to certify: ALLOCATION_GAP_MIN <= gap < 1. O(1)."""
     gap = check_number(gap, "gap")
     if not ALLOCATION_GAP_MIN <= gap < 1:
         raise InputError("gap", f"expected a number in [{ALLOCATION_GAP_MIN:g}, 1), found {gap:g}")
@@ -172,7 +172,7 @@ def check_gap(gap: Any) -> float:
 
 
 def check_count(value: Any, field: str) -> int:
-    """A positive integer (a cap on boxes or iterations)."""
+    """A positive integer (a cap on boxes or iterations). O(1)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise InputError(field, f"expected a positive integer, found {value!r}")
     return int(value)
@@ -185,7 +185,7 @@ class Polytope:
     """The feasible set of mu: ``lo <= mu_i <= hi`` and ``G mu <= h``.
 
     Rows are scaled so that max |G_k| = 1, and rows that no point of the box can violate are
-    dropped, so no extreme number reaches a solver.
+    dropped, so no extreme number reaches a solver. Built by :func:`read_polytope`.
     """
 
     lo: float
@@ -195,12 +195,15 @@ class Polytope:
 
     @property
     def m(self) -> int:
+        """The number of channels."""
         return self.G.shape[1]
 
     def lower(self) -> np.ndarray:
+        """The box's lower corner (lo, ..., lo). O(m)."""
         return np.full(self.m, self.lo)
 
     def upper(self) -> np.ndarray:
+        """The box's upper corner (hi, ..., hi). O(m)."""
         return np.full(self.m, self.hi)
 
 

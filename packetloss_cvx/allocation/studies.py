@@ -43,7 +43,7 @@ def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], *
 
     Notes
     -----
-    One allocation per alpha: ``len(alphas)`` times the cost of
+    One allocation per alpha: O(len(alphas)) times the cost of
     :func:`~packetloss_cvx.allocation.allocate`.
     """
     out = []
@@ -71,7 +71,7 @@ def contour_allocations(system: System, protocol: str, alphas: Sequence[float],
 
     Notes
     -----
-    ``len(betas) * len(alphas)`` allocations.
+    O(len(betas) len(alphas)) allocations.
     """
     return {tuple(float(b) for b in beta): pareto_curve(system, protocol, beta, alphas, **kwargs)
             for beta in betas}

@@ -213,7 +213,8 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
 
     Notes
     -----
-    One SOCP, two LPs and 6 m + 2 closed forms.
+    One SOCP with O(N (n + m)) variables, two LPs and 6 m + 2 closed forms of
+    O(N (n^3 + m^3)).
     """
     q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
     if q is None:

@@ -68,7 +68,8 @@ class Search:
     """Best-first search over boxes for a minimum: the incumbent, the open boxes and the caps.
 
     ``floor`` is a lower bound known from elsewhere (the TCP-like relaxation, C). The
-    certificate is ``incumbent - max(least open bound, floor) <= gap * incumbent``.
+    certificate is ``incumbent - max(least open bound, floor) <= gap * incumbent``. Heap
+    operations O(log boxes); the work is in ``visit``.
     """
 
     def __init__(self, gap: float, floor: float, max_boxes: int, time_limit: float | None) -> None:
@@ -80,18 +81,23 @@ class Search:
         self.unsplit = np.inf    # least bound among boxes too small to split
 
     def offer(self, mu: np.ndarray, value: float) -> None:
+        """Keep ``mu`` if it beats the incumbent (the caller has checked it is feasible)."""
         if value < self.best:
             self.best, self.best_mu = float(value), mu
 
     def push(self, bound: float, l: np.ndarray, u: np.ndarray, data) -> None:
+        """Open the box [l, u] with its proven lower ``bound``. O(log boxes)."""
         heapq.heappush(self.heap, (bound, self.counter, l, u, data))
         self.counter += 1
 
     def lower_bound(self) -> float:
+        """The proven bound: no admissible point beats the least open or unsplit box's bound,
+        the incumbent, or the floor. O(1)."""
         open_ = self.heap[0][0] if self.heap else np.inf
         return max(min(open_, self.unsplit, self.best), self.floor)
 
     def certified(self) -> bool:
+        """Whether the incumbent is within ``gap`` of the proven bound. O(1)."""
         return bool(np.isfinite(self.best)
                     and self.best - self.lower_bound() <= self.gap * max(abs(self.best), ALLOCATION_GAP_FLOOR))
 
@@ -135,6 +141,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     """min beta'mu over the polytope with J*_udp(mu) <= alpha, to a relative ``gap``.
 
     ``floor`` is a proven lower bound from elsewhere (the TCP-like relaxation, Theorem 2).
+    Cost per box and worst-case box count: see the module docstring.
 
     Raises
     ------
@@ -212,6 +219,11 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
     ------
     InfeasibleError
         The constraints admit no mu.
+
+    Notes
+    -----
+    One closed form without rows; otherwise up to ``max_boxes`` boxes, each two LPs and two
+    closed forms of O(N (n^3 + m^3)).
     """
     m = system.m
     J = lambda mu: cost_at(system, "udp", mu)  # noqa: E731
