@@ -107,6 +107,8 @@ def test_budget_side_of_the_tradeoff(two_actuator):
         assert best.mu.sum() <= 1.2 + ALLOCATION_LP_FEASIBILITY
         assert best.cost == pytest.approx(qp_cost(two_actuator, protocol, best.mu), rel=CROSS_CHECK_COST_RTOL)
         back = allocate(two_actuator, protocol, best.cost * (1 + 1e-6), (1.0, 1.0))
+        ref = brute_force_allocation(two_actuator, protocol, best.cost * (1 + 1e-6), (1.0, 1.0))
+        assert back.lower_bound <= ref[0] + ROUNDING
         assert back.communication_cost <= 1.2 + 1e-3
         assert back.communication_cost >= 1.2 * 0.98
     corner = min_cost(two_actuator, "udp")

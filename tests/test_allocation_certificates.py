@@ -1,6 +1,7 @@
 """Honest allocation (issue 8): solver failures are errors, infeasibility needs a proof, lower
 bounds are proved, caps give "gap_not_certified", and warnings stay captured."""
 
+import json
 import warnings
 
 import numpy as np
@@ -66,6 +67,17 @@ def test_issue8_active_cost(issue8):
         assert got.mu[0] + got.mu[1] >= 1.2 - 1e-9
     assert u.communication_cost >= t.lower_bound
     assert t.gap <= 1e-6                          # the tangent cuts are tight at the SOCP's optimum
+    # A reference for the bounds: with mu3 = 0 the third actuator never acts, so the system
+    # without it has the same cost; the brute force over (mu1, mu2) with mu3 = 0 is beta'mu at
+    # a feasible point, never below the optimum, so never below a valid lower bound.
+    reduced = pl.System(**{**ISSUE_8, "B": np.array(ISSUE_8["B"])[:, :2], "input_weight": ISSUE_8["input_weight"][:2],
+                           "mu": [0.5, 0.5]})
+    assert qp_cost(reduced, "udp", [0.6, 0.9]) == pytest.approx(qp_cost(system, "udp", [0.6, 0.9, 0.0]), rel=1e-9)
+    G = np.vstack([parse_constraint(text, 2)[0] for text in ISSUE_8_TEXT])
+    h = np.concatenate([parse_constraint(text, 2)[1] for text in ISSUE_8_TEXT])
+    for got in (t, u):
+        ref = brute_force_allocation(reduced, got.protocol, 2.5, ISSUE_8_BETA[:2], G, h)
+        assert got.lower_bound <= ref[0] + 1e-9
 
 
 def test_issue8_cli_one_answer_no_noise(issue8, tmp_path, capsys):
@@ -168,6 +180,7 @@ def test_time_limit_gives_gap_not_certified(two_actuator):
     assert got.status == "gap_not_certified"
     assert got.boxes == 1
     assert "time limit" in got.method
+    assert got.lower_bound <= brute_force_allocation(two_actuator, "udp", 4.78, (1.0, 1.0))[0] + 1e-9
 
 
 def test_cap_before_any_feasible_point_is_an_error(two_actuator):
@@ -196,7 +209,11 @@ def test_cli_gap_not_certified_exit_4(capsys):
                  "--max-boxes", "2", "--json"])
     out = capsys.readouterr()
     assert code == 4
-    assert '"status": "gap_not_certified"' in out.out
+    data = json.loads(out.out)
+    assert data["status"] == "gap_not_certified"
+    assert data["boxes"] == 2
+    assert data["gap"] > 1e-4
+    assert data["lower_bound"] <= brute_force_allocation(pl.load_example("two_actuator"), "udp", 4.78, (1, 1))[0] + 1e-9
     assert out.err == ""
     main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "4.78", "--beta", "1,1", "--max-boxes", "2"])
     assert capsys.readouterr().out.startswith("UDP-like: GAP NOT CERTIFIED")

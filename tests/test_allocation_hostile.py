@@ -7,6 +7,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, min_cost, parse_constraint
+from packetloss_cvx.allocation.brute_force import brute_force_allocation
 from packetloss_cvx.cli import main
 
 LONG_INDEX = "mu" + "1" * 5000 + " <= 1"
@@ -82,6 +83,8 @@ def test_extreme_but_finite_rows_are_scaled(two_actuator):
     big = allocate(two_actuator, "tcp", 6.0, (1.0, 1.0),
                    constraints=[parse_constraint("1e300*mu1 <= 3e299", 2), parse_constraint("mu1 <= 1e300", 2)])
     assert np.allclose(big.mu, plain.mu, atol=1e-9)
+    ref = brute_force_allocation(two_actuator, "tcp", 6.0, (1.0, 1.0), *parse_constraint("mu1 <= 0.3", 2))
+    assert big.lower_bound <= ref[0] + 1e-9
 
 
 def test_row_no_mu_can_meet_is_a_proof(two_actuator):

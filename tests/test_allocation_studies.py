@@ -5,6 +5,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, contour_allocations, cost_grid, pareto_curve
+from packetloss_cvx.allocation.brute_force import brute_force_allocation
 
 
 def test_pareto_curve_rows(two_actuator):
@@ -13,6 +14,9 @@ def test_pareto_curve_rows(two_actuator):
                               "status": "infeasible"}             # below J*_udp(1, 1) = 1.8
     tcp, udp = rows["tcp"][1], rows["udp"][1]
     assert tcp["communication_cost"] < udp["communication_cost"]   # TCP-like needs less channel (Theorem 2)
+    for protocol in ("tcp", "udp"):
+        ref = brute_force_allocation(two_actuator, protocol, 4.78, (1.0, 1.0))
+        assert rows[protocol][1]["lower_bound"] <= ref[0] + 1e-9
     direct = allocate(two_actuator, "udp", 4.78, (1.0, 1.0))
     assert udp["mu"] == direct.mu.tolist()
     assert udp["status"] == direct.status == "optimal"
@@ -21,6 +25,8 @@ def test_pareto_curve_rows(two_actuator):
 def test_contour_allocations_keys(two_actuator):
     out = contour_allocations(two_actuator, "tcp", [10.0], betas=[(1, 1), (0.05, 1)])
     assert list(out) == [(1.0, 1.0), (0.05, 1.0)]
+    for beta, rows in out.items():
+        assert rows[0]["lower_bound"] <= brute_force_allocation(two_actuator, "tcp", 10.0, beta)[0] + 1e-9
     assert out[(0.05, 1.0)][0]["mu"][0] > out[(0.05, 1.0)][0]["mu"][1]   # the cheap channel is bought first
 
 
