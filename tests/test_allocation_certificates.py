@@ -110,8 +110,10 @@ def test_udp_without_the_tcp_bound_still_certifies(two_actuator, monkeypatch):
     assert "TCP-like bound unavailable" in got.method
     assert got.lower_bound <= ref[0] + 1e-9
     assert got.communication_cost <= ref[0] / (1 - 1e-4) + 1e-9
-    with pytest.raises(pl.InfeasibleError, match=r"every box .* proven infeasible"):
-        allocate(two_actuator, "udp", 1.5, (1.0, 1.0))           # J*_udp(1, 1) = 1.8
+    # with mu1 <= 0.5 the least J*_udp is 7.85 at (0.5, 1) (J*_tcp there 2.40): infeasible at 5
+    assert qp_cost(two_actuator, "udp", [0.5, 1.0]) > 7.8
+    with pytest.raises(pl.InfeasibleError, match=r"every box was proven infeasible"):
+        allocate(two_actuator, "udp", 5.0, (1.0, 1.0), constraints=[parse_constraint("mu1 <= 0.5", 2)])
 
 
 def test_lp_failure_propagates(two_actuator, monkeypatch):

@@ -120,3 +120,17 @@ def test_cli_hostile_input_exit_2_one_line(capsys, protocol, extra, flag):
     assert out.err.count("\n") == 1
     assert flag in out.err
     assert "Traceback" not in out.err
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_extreme_alphas(two_actuator, protocol):
+    """alpha = 1e300 is met by mu = 0 (beta'mu = 0, gap 0); alpha = 1e-300 is below J* at the
+    upper corner, an infeasibility proved by monotonicity before any solver runs."""
+    got = allocate(two_actuator, protocol, 1e300, (1.0, 1.0))
+    assert got.status == "optimal"
+    assert got.communication_cost == 0.0
+    assert got.lower_bound == 0.0
+    corner = pl.solve_qp(two_actuator.with_mu([1.0, 1.0]), protocol, cross_check=False, with_gain=False).cost
+    with pytest.raises(pl.InfeasibleError) as info:
+        allocate(two_actuator, protocol, 1e-300, (1.0, 1.0))
+    assert info.value.min_cost == pytest.approx(corner, rel=1e-7)

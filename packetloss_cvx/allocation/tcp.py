@@ -147,7 +147,8 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     Raises
     ------
     InfeasibleError
-        alpha < C (no mu can help), or Clarabel's infeasibility certificate for the SOCP
+        alpha < C (no mu can help), J*_tcp at the upper corner of the bounds above alpha
+        (J* falls in every mu_i), or Clarabel's infeasibility certificate for the SOCP
         (status ``infeasible``; ``infeasible_inaccurate`` is not a proof and raises SolverError).
     SolverError
         Any status but optimal after Clarabel's tight then default settings
@@ -162,6 +163,10 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     C = constant_cost(system)
     if alpha < C:
         raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
+    corner = cost_at(system, "tcp", poly.upper())
+    if corner > alpha * (1 + ALLOCATION_COST_RTOL):
+        raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
+                              "and J* falls in every mu_i", None)
     prog = TCPProgram(system, poly, 1.0 / max(alpha - C, np.finfo(float).tiny))
     problem = cp.Problem(cp.Minimize(beta @ prog.mu), [*prog.constraints, prog.cost <= 1.0])
     _solve(problem, "TCP-like allocation SOCP",
@@ -182,7 +187,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     lower = max(lower, float(beta @ poly.lower()))
 
     mu, note = mubar, "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
-    if cost_at(system, "tcp", mu) > alpha:             # solver tolerance: move onto the feasible set
+    if beta @ point < beta @ mubar and cost_at(system, "tcp", point) <= alpha:
+        mu, note = point, note + "; the LP's point is feasible and attains the bound"
+    elif cost_at(system, "tcp", mu) > alpha:           # solver tolerance: move onto the feasible set
         q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
         if q is None or cost_at(system, "tcp", q) > alpha:
             raise SolverError("inconsistent", "TCP-like allocation: the SOCP's point is infeasible and so is "
