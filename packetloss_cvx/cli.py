@@ -118,14 +118,19 @@ def _allocate(args: argparse.Namespace) -> tuple[dict[str, Any], str] | tuple[di
     bounds = _floats(args.bounds, "--bounds")
     if len(bounds) != 2:
         raise InputError("--bounds", f"expected lo,hi, found {args.bounds[:40]!r}")
-    gap = number(args.gap, "--gap")
-    time_limit = None if args.time_limit is None else number(args.time_limit, "--time-limit")
+    options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
+    if args.gap is not None:
+        options["gap"] = number(args.gap, "--gap")
+    if args.max_boxes is not None:
+        options["max_boxes"] = args.max_boxes
+    if args.time_limit is not None:
+        options["time_limit"] = number(args.time_limit, "--time-limit")
     constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
     flags = {"alpha": "--alpha", "beta": "--beta", "bounds": "--bounds", "gap": "--gap", "max_boxes": "--max-boxes",
              "time_limit": "--time-limit"}
     try:
         result = allocate(system, args.protocol, alpha, beta, bounds=tuple(bounds), constraints=constraints,
-                          gap=gap, max_boxes=args.max_boxes, time_limit=time_limit)
+                          **options)
     except InputError as err:
         raise err.renamed(flags[err.field]) if err.field in flags else err from None
     except InfeasibleError as err:
@@ -139,8 +144,8 @@ def _allocate(args: argparse.Namespace) -> tuple[dict[str, Any], str] | tuple[di
     if result.status == "optimal":
         text = f"{args.protocol.upper()}-like: {line} (gap {result.gap:.1e}; {result.method})"
         return data, text
-    text = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED: {line}; gap reached {result.gap:.1e} > "
-            f"requested {gap:g} ({result.method}); raise --max-boxes or --time-limit, or --gap")
+    text = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED: {line}; gap reached {result.gap:.1e} > the "
+            f"requested gap ({result.method}); raise --max-boxes or --time-limit, or --gap")
     return data, text, 4
 
 
@@ -175,8 +180,8 @@ def _build_parser() -> argparse.ArgumentParser:
     alloc.add_argument("--bounds", default="0,1", help="lo,hi for every mu_i (default 0,1)")
     alloc.add_argument("--constraint", action="append",
                        help='linear constraint, e.g. "mu1 + 2*mu2 <= 1.5" or "mu1 >= mu2" (repeatable)')
-    alloc.add_argument("--gap", default="1e-4", help="relative optimality gap to certify, 1e-9 <= G < 1 (default 1e-4)")
-    alloc.add_argument("--max-boxes", type=int, default=20000,
+    alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default 1e-4)")
+    alloc.add_argument("--max-boxes", type=int,
                        help="cap on the UDP-like branch and bound's boxes (default 20000); at the cap: exit 4")
     alloc.add_argument("--time-limit", help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4")
     alloc.add_argument("--json", action="store_true", help="print one JSON object")
