@@ -106,35 +106,54 @@ def _audit(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _allocate(args: argparse.Namespace) -> tuple[dict[str, Any], str] | tuple[dict[str, Any], str, int]:
+    """Exit 0 with status "optimal"; 4 with status "gap_not_certified" (a cap was hit: the
+    allocation is feasible and its lower bound proven, but the gap is larger than asked; the
+    result is printed on stdout as usual); 3 when proven infeasible."""
     from .allocation import allocate, parse_constraint
 
+    def number(text: str, field: str) -> float:
+        values = _floats(text, field)
+        if len(values) != 1:
+            raise InputError(field, f"expected one number, found {text[:40]!r}")
+        return values[0]
+
     system = load_system(args.file)
-    try:
-        alpha = float(args.alpha)
-    except ValueError:
-        raise InputError("--alpha", f"expected a number, found {args.alpha!r}") from None
+    alpha = number(args.alpha, "--alpha")
     beta = _floats(args.beta, "--beta")
     if len(beta) != system.m:
         raise InputError("--beta", f"expected {system.m} comma-separated numbers, found {len(beta)}")
     bounds = _floats(args.bounds, "--bounds")
     if len(bounds) != 2:
-        raise InputError("--bounds", f"expected lo,hi, found {args.bounds!r}")
+        raise InputError("--bounds", f"expected lo,hi, found {args.bounds[:40]!r}")
+    options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
+    if args.gap is not None:
+        options["gap"] = number(args.gap, "--gap")
+    if args.max_boxes is not None:
+        options["max_boxes"] = args.max_boxes
+    if args.time_limit is not None:
+        options["time_limit"] = number(args.time_limit, "--time-limit")
     constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
+    flags = {"alpha": "--alpha", "beta": "--beta", "bounds": "--bounds", "gap": "--gap", "max_boxes": "--max-boxes",
+             "time_limit": "--time-limit"}
     try:
         result = allocate(system, args.protocol, alpha, beta, bounds=tuple(bounds), constraints=constraints,
-                          gap=args.gap)
+                          **options)
     except InputError as err:
-        raise err.renamed(f"--{err.field}") if err.field in ("alpha", "beta", "bounds", "gap") else err from None
+        raise err.renamed(flags[err.field]) if err.field in flags else err from None
     except InfeasibleError as err:
         data = {"protocol": args.protocol, "alpha": alpha, "beta": beta, "mu": None, "communication_cost": None,
                 "cost": None, "lower_bound": None, "gap": None, "status": "infeasible", "method": None,
-                "min_cost": err.min_cost}
+                "boxes": None, "min_cost": err.min_cost}
         return data, f"infeasible: {err}", 3
-    data = {**result.to_dict(), "min_cost": None}
-    text = (f"{args.protocol.upper()}-like: mu* = {np.round(result.mu, 6).tolist()}, beta'mu = "
-            f"{result.communication_cost:.6g}, J*(mu*) = {result.cost:.6g} <= {alpha:g}, lower bound "
-            f"{result.lower_bound:.6g} (gap {result.gap:.1e}; {result.method})")
-    return data, text
+    data = {**result.to_dict(), "boxes": result.boxes, "min_cost": None}
+    line = (f"mu* = {np.round(result.mu, 6).tolist()}, beta'mu = {result.communication_cost:.6g}, J*(mu*) = "
+            f"{result.cost:.6g} <= {alpha:g}, lower bound {result.lower_bound:.6g}")
+    if result.status == "optimal":
+        text = f"{args.protocol.upper()}-like: {line} (gap {result.gap:.1e}; {result.method})"
+        return data, text
+    text = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED: {line}; gap reached {result.gap:.1e} > the "
+            f"requested gap ({result.method}); raise --max-boxes or --time-limit, or --gap")
+    return data, text, 4
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -169,7 +188,10 @@ def _build_parser() -> argparse.ArgumentParser:
     alloc.add_argument("--bounds", default="0,1", help="lo,hi for every mu_i (default 0,1)")
     alloc.add_argument("--constraint", action="append",
                        help='linear constraint, e.g. "mu1 + 2*mu2 <= 1.5" or "mu1 >= mu2" (repeatable)')
-    alloc.add_argument("--gap", type=float, default=1e-4, help="relative optimality gap (UDP-like)")
+    alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default 1e-4)")
+    alloc.add_argument("--max-boxes", type=int,
+                       help="cap on the UDP-like branch and bound's boxes (default 20000); at the cap: exit 4")
+    alloc.add_argument("--time-limit", help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4")
     alloc.add_argument("--json", action="store_true", help="print one JSON object")
     alloc.set_defaults(run=_allocate)
     return parser

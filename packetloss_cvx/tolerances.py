@@ -34,8 +34,10 @@ PSD_FACTOR_RTOL = 1e-14
 #: Clarabel for the expected-cost QP twin: tight enough that the cross-check below is meaningful.
 CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 400}
 
-#: Clarabel's own defaults (1e-8 gap and feasibility), tried where the tight settings stall.
-CLARABEL_DEFAULT: dict[str, float] = {}
+#: Clarabel's own defaults (1e-8 gap and feasibility), tried where the tight settings stall. Spelled
+#: out: cvxpy re-solves a problem by updating the cached solver's previous settings with the ones
+#: passed, so an empty dict after CLARABEL_TIGHT would run the tight settings again.
+CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, "max_iter": 200}
 
 #: The only solver status taken as an answer. ``optimal_inaccurate`` is never accepted: a caller
 #: may retry with other settings, and otherwise raises SolverError with the status.
@@ -74,3 +76,80 @@ MEMORY_BUDGET_BYTES = 0.25 * (os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_P
 #: rounding (rho = 1.5, N = 200: a plan right to 1e-12 has a forward cost of 2e40 against the
 #: minimum 3.93), and the cross-check against the closed form is the check that binds.
 PLAN_CHECK_MAX_GROWTH = 1e4
+
+# ------------------------------------------------------------------ channel allocation (allocation/)
+
+__all__ += [
+    "ALLOCATION_COST_RTOL",
+    "ALLOCATION_EDGE_ATOL",
+    "ALLOCATION_EDGE_RTOL",
+    "ALLOCATION_GAP_DEFAULT",
+    "ALLOCATION_GAP_FLOOR",
+    "ALLOCATION_GAP_MIN",
+    "ALLOCATION_INCUMBENT_SHARE",
+    "ALLOCATION_LP_FEASIBILITY",
+    "ALLOCATION_MIN_BOX_WIDTH",
+    "MIN_COST_RTOL",
+]
+
+#: Every proof of the allocation that rests on a closed-form cost J*(mu) trusts it to this
+#: relative accuracy (the recursion and the dense form agree to ~1e-12): a box is pruned as
+#: infeasible only when J*(upper corner) > alpha (1 + ALLOCATION_COST_RTOL), and a tangent cut
+#: of J*_tcp is loosened by ALLOCATION_COST_RTOL (|J*| + ||grad J*||_1).
+ALLOCATION_COST_RTOL = 1e-9
+
+#: The smallest relative optimality gap an allocation may be asked to certify (`gap`): below
+#: it the gap would be finer than the closed form's trusted accuracy. The largest is < 1.
+ALLOCATION_GAP_MIN = 1e-9
+#: The gap certified unless asked otherwise.
+ALLOCATION_GAP_DEFAULT = 1e-4
+#: gap = (beta'mu - lower_bound) / max(beta'mu, ALLOCATION_GAP_FLOOR) (results.Allocation).
+ALLOCATION_GAP_FLOOR = 1e-12
+
+#: A lower corner of a box is raised by bisection along an edge to within
+#: ALLOCATION_EDGE_ATOL + ALLOCATION_EDGE_RTOL * (edge length), on the infeasible side.
+ALLOCATION_EDGE_ATOL = 1e-9
+ALLOCATION_EDGE_RTOL = 1e-6
+
+#: The bisection that moves an incumbent onto the cost boundary stops within this share of
+#: the requested gap, so its slack costs at most that share of the certificate.
+ALLOCATION_INCUMBENT_SHARE = 1e-3
+
+#: Boxes narrower than this on their widest (weighted) side are not split further; their
+#: bound stays in the reported lower bound.
+ALLOCATION_MIN_BOX_WIDTH = 1e-12
+
+#: HiGHS's primal and dual feasibility tolerance for the LPs over sub-boxes; a returned mu
+#: satisfies every (unit-scaled) row of G mu <= h to this absolute tolerance.
+ALLOCATION_LP_FEASIBILITY = 1e-9
+
+#: min_cost certifies the least reachable J* to this relative gap (status "optimal").
+MIN_COST_RTOL = 1e-6
+
+__all__ += ["ALLOCATION_CLARABEL_ATTEMPTS", "CLARABEL_DEFAULT_EXPLICIT"]
+
+#: The same as CLARABEL_DEFAULT (kept as a name: the allocation code uses it).
+CLARABEL_DEFAULT_EXPLICIT = CLARABEL_DEFAULT
+
+#: The allocation SOCPs (epigraph form, cost scaled by 1 / (alpha - C)) try the tight settings,
+#: then Clarabel's defaults. On 200 test problems (the 3-channel case of issue 8 over 40 random
+#: systems, the 2-channel test systems, random m = 2..4) the tight settings end "optimal" on
+#: 175 and the defaults on all 200; the former single summed constraint on 164.
+ALLOCATION_CLARABEL_ATTEMPTS = (CLARABEL_TIGHT, CLARABEL_DEFAULT_EXPLICIT)
+
+__all__ += ["ALLOCATION_CUT_STEPS"]
+
+#: The TCP-like lower bounds take tangent cuts of the convex J*_tcp at the solver's point and at
+#: +- each of these steps along every axis: the cuts' maximum brackets the optimum on whichever
+#: side the solver's point errs (by up to ~3e-5 at the default tolerances), leaving an error of
+#: about curvature * step^2 instead of gradient * error. Measured on two_actuator, min J*_tcp
+#: with mu1 + mu2 <= 1.2: one cut at the point certifies a relative gap of 1.2e-6, these 2.4e-9.
+ALLOCATION_CUT_STEPS = (1e-3, 1e-4, 1e-5)
+
+__all__ += ["BRUTE_FORCE_BISECTION_TOL", "BRUTE_FORCE_ROW_ATOL"]
+
+#: The brute-force reference (allocation/brute_force.py) bisects mu2 to this width, keeping the
+#: feasible end, so its answer is beta'mu at a feasible point within ~1e-10 of the boundary ...
+BRUTE_FORCE_BISECTION_TOL = 1e-10
+#: ... and treats a row without mu2 as violated only beyond this absolute slack.
+BRUTE_FORCE_ROW_ATOL = 1e-12

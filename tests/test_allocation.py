@@ -1,5 +1,8 @@
-"""Allocation against a brute-force reference: grid on mu1, bisection on mu2 (monotonicity)."""
+"""Allocation against independent references: feasibility by the Clarabel QP twin (not the
+closed form the allocation uses), optimality against the brute-force allocator (grid on mu1,
+bisection on mu2), hand values where the optimum is a vertex of the constraints."""
 
+import cvxpy as cp
 import numpy as np
 import pytest
 
@@ -7,24 +10,34 @@ import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, min_cost, parse_constraint
 from packetloss_cvx.allocation.brute_force import brute_force_allocation
 from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.tolerances import ALLOCATION_LP_FEASIBILITY, CROSS_CHECK_COST_RTOL
+
+#: The brute force and the allocation evaluate J* by separate calls; their feasible sets may
+#: differ by the closed form's rounding (about 1e-12 relative), far inside this slack.
+ROUNDING = 1e-9
 
 
-def _J(system, protocol, mu):
-    return pl.closed_form(system.with_mu(mu), protocol).cost
+def qp_cost(system, protocol, mu):
+    """J*(mu) by the QP twin: cvxpy + Clarabel on the expected cost, not the closed form."""
+    return pl.solve_qp(system.with_mu(mu), protocol, cross_check=False, with_gain=False).cost
 
 
-def _check(system, protocol, alpha, beta, constraints=(), G=None, h=None):
+def _check(system, protocol, alpha, beta, constraints=(), G=None, h=None, gap=1e-4):
     G = np.zeros((0, 2)) if G is None else G
     h = np.zeros(0) if h is None else h
     ref = brute_force_allocation(system, protocol, alpha, beta, G, h)
-    got = allocate(system, protocol, alpha, beta, constraints=constraints)
-    assert got.cost <= alpha * (1 + 1e-7)                       # never infeasible
-    assert np.isclose(_J(system, protocol, got.mu), got.cost, rtol=1e-12)
-    if G.shape[0]:
-        assert np.all(G @ got.mu <= h + 1e-7)
-    assert got.communication_cost <= ref[0] * (1 + 1e-3) + 1e-9  # within 1e-3 of the reference
-    assert got.lower_bound <= ref[0] + 1e-9                      # the certificate is a real bound
-    assert got.gap <= 1e-4 + 1e-12
+    got = allocate(system, protocol, alpha, beta, constraints=constraints, gap=gap)
+    assert got.status == "optimal"
+    assert got.cost <= alpha                                      # feasible by the closed form ...
+    twin = qp_cost(system, protocol, got.mu)
+    assert twin <= alpha * (1 + CROSS_CHECK_COST_RTOL)            # ... and by the independent QP
+    assert got.cost == pytest.approx(twin, rel=CROSS_CHECK_COST_RTOL)
+    assert np.all(G @ got.mu <= h + ALLOCATION_LP_FEASIBILITY)
+    assert np.all((got.mu >= 0) & (got.mu <= 1))
+    assert got.lower_bound <= ref[0] + ROUNDING                   # the certificate is a real bound
+    assert got.communication_cost <= ref[0] / (1 - gap) + ROUNDING  # lower_bound <= optimum <= ref
+    assert got.gap <= gap
+    assert got.gap == pytest.approx((got.communication_cost - got.lower_bound) / got.communication_cost)
     return got, ref
 
 
@@ -45,10 +58,18 @@ def test_with_linear_constraints(two_actuator, protocol):
     assert got.mu[0] >= got.mu[1] - 1e-7
 
 
-def test_callable_constraint_tcp(two_actuator):
-    got = allocate(two_actuator, "tcp", 6.0, (1.0, 1.0), constraints=[lambda mu: [mu[0] <= 0.3]])
-    assert got.mu[0] <= 0.3 + 1e-7
-    assert got.cost <= 6.0 * (1 + 1e-7)
+@pytest.mark.parametrize(("protocol", "alpha"), [("tcp", 6.0), ("udp", 12.0)])   # J*_udp(0.3, 1) = 10.2
+def test_callable_constraint_is_read_into_rows(two_actuator, protocol, alpha):
+    """An affine callable is the same constraint as its (G, h) pair, checked against the brute force."""
+    G, h = parse_constraint("mu1 <= 0.3", 2)
+    got, _ = _check(two_actuator, protocol, alpha, (1.0, 1.0), constraints=[lambda mu: [mu[0] <= 0.3]], G=G, h=h)
+    pair = allocate(two_actuator, protocol, alpha, (1.0, 1.0), constraints=[(G, h)])
+    assert np.allclose(got.mu, pair.mu, atol=1e-9)
+
+
+def test_non_affine_callable_refused(two_actuator):
+    with pytest.raises(pl.InputError, match=r"constraints\[0\]: a callable's constraints must be affine"):
+        allocate(two_actuator, "tcp", 6.0, (1.0, 1.0), constraints=[lambda mu: [cp.norm(mu) <= 1]])
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -56,35 +77,43 @@ def test_callable_constraint_tcp(two_actuator):
 def test_random_systems_against_brute_force(seed, protocol):
     rng = np.random.default_rng(100 + seed)
     s = random_system(rng, n=2, m=2, horizon=4, non_stationary=False, edge_mu=False)
-    full = _J(s, protocol, [1.0, 1.0])
-    none = _J(s, protocol, [0.0, 0.0])
+    full = qp_cost(s, protocol, [1.0, 1.0])
+    none = qp_cost(s, protocol, [0.0, 0.0])
     alpha = full + 0.25 * (none - full)
     beta = rng.uniform(0.1, 1.0, 2)
     G, h = parse_constraint("mu1 + mu2 <= 1.8", 2)
     _check(s, protocol, alpha, beta)
-    if _J(s, protocol, [0.9, 0.9]) <= alpha:
+    if qp_cost(s, protocol, [0.9, 0.9]) <= alpha:
         _check(s, protocol, alpha, beta, constraints=[(G, h)], G=G, h=h)
 
 
 def test_infeasible_alpha_reports_min_cost(two_actuator):
-    least = _J(two_actuator, "udp", [1.0, 1.0])
-    with pytest.raises(pl.InfeasibleError) as info:
+    least = qp_cost(two_actuator, "udp", [1.0, 1.0])              # J* falls in mu: the corner (1, 1)
+    with pytest.raises(pl.InfeasibleError, match="below the least reachable udp-like cost") as info:
         allocate(two_actuator, "udp", least * 0.99, (1.0, 1.0))
-    assert np.isclose(info.value.min_cost, least, rtol=1e-9)
-    capped = _J(two_actuator, "tcp", [0.5, 1.0])
-    with pytest.raises(pl.InfeasibleError) as info:
+    assert info.value.min_cost == pytest.approx(least, rel=CROSS_CHECK_COST_RTOL)
+    capped = qp_cost(two_actuator, "tcp", [0.5, 1.0])             # the best point with mu1 <= 0.5
+    with pytest.raises(pl.InfeasibleError, match="Clarabel certificate") as info:
         allocate(two_actuator, "tcp", capped * 0.99, (1.0, 1.0), constraints=[parse_constraint("mu1 <= 0.5", 2)])
-    assert np.isclose(info.value.min_cost, capped, rtol=1e-6)
+    assert info.value.min_cost == pytest.approx(capped, rel=1e-6)
 
 
 def test_budget_side_of_the_tradeoff(two_actuator):
     """min J* s.t. beta'mu <= b, then allocating at that cost spends about b."""
     for protocol in ("tcp", "udp"):
         best = best_cost_within_budget(two_actuator, protocol, (1.0, 1.0), 1.2)
-        back = allocate(two_actuator, protocol, best * (1 + 1e-6), (1.0, 1.0))
+        assert best.status == "optimal"
+        assert best.lower_bound <= best.cost <= best.lower_bound * (1 + 1e-6)
+        assert best.mu.sum() <= 1.2 + ALLOCATION_LP_FEASIBILITY
+        assert best.cost == pytest.approx(qp_cost(two_actuator, protocol, best.mu), rel=CROSS_CHECK_COST_RTOL)
+        back = allocate(two_actuator, protocol, best.cost * (1 + 1e-6), (1.0, 1.0))
+        ref = brute_force_allocation(two_actuator, protocol, best.cost * (1 + 1e-6), (1.0, 1.0))
+        assert back.lower_bound <= ref[0] + ROUNDING
         assert back.communication_cost <= 1.2 + 1e-3
         assert back.communication_cost >= 1.2 * 0.98
-    assert min_cost(two_actuator, "udp") == pytest.approx(_J(two_actuator, "udp", [1.0, 1.0]))
+    corner = min_cost(two_actuator, "udp")
+    assert corner.cost == pytest.approx(qp_cost(two_actuator, "udp", [1.0, 1.0]), rel=CROSS_CHECK_COST_RTOL)
+    assert corner.mu.tolist() == [1.0, 1.0]
 
 
 @pytest.mark.parametrize(
@@ -95,7 +124,7 @@ def test_budget_side_of_the_tradeoff(two_actuator):
         ({"beta": (1.0, -1.0)}, "beta: expected finite non-negative"),
         ({"bounds": (0.5, 0.2)}, "bounds: expected 0 <= lo <= hi <= 1"),
         ({"constraints": [(np.ones((1, 3)), [1.0])]}, r"constraints\[0\]: expected G of shape"),
-        ({"gap": 0.0}, "gap: expected a number in"),
+        ({"gap": 0.0}, r"gap: expected a number in \[1e-09, 1\)"),
     ],
 )
 def test_bad_allocation_input(two_actuator, kwargs, match):

@@ -2,8 +2,12 @@
 
 For each mu1 on a grid, the least feasible mu2 by bisection (J* falls in mu2, Theorem 3;
 bisection keeps the feasible end), then a finer grid around the best mu1. Shares nothing
-with the SOCP or the branch and bound but the closed form, so the audit and the tests
-use it to check them. Time O((coarse + fine) · log(1/tol)) closed forms.
+with the SOCP or the branch and bound, and evaluates J* by the backward recursion (the
+allocation's "auto" takes the dense form on small systems), so the audit and the tests use it
+to check them. Every value it returns is beta'mu at a point the recursion finds feasible, so
+it is never below the optimum. Grid points that cannot beat the best so far are settled by
+one evaluation (monotonicity). Time O((coarse + fine) · log(1/tol)) recursions of
+O(N (n^3 + m^3)) at worst.
 """
 
 from __future__ import annotations
@@ -15,15 +19,20 @@ import numpy as np
 from ..costs import closed_form
 from ..errors import InputError
 from ..model import System
+from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
 
 __all__ = ["brute_force_allocation"]
 
 
 def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Sequence[float],
                            G: np.ndarray | None = None, h: np.ndarray | None = None, coarse: int = 61,
-                           fine: int = 61, tol: float = 1e-10) -> tuple[float, float, float] | None:
+                           fine: int = 61, tol: float = BRUTE_FORCE_BISECTION_TOL) -> tuple[float, float, float] | None:
     """min beta'mu over feasible points of [0, 1]^2 with G mu <= h: returns (beta'mu, mu1, mu2),
-    or None when no grid point of mu1 admits a feasible mu2."""
+    or None when no grid point of mu1 admits a feasible mu2.
+
+    At most (coarse + fine) (log2(1/tol) + 2) recursions of O(N (n^3 + m^3)); most grid points
+    cost one.
+    """
     if system.m != 2:
         raise InputError("system", f"the brute-force allocator needs m = 2 channels, found m = {system.m}")
     beta = np.asarray(beta, dtype=float)
@@ -31,38 +40,41 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
     h = np.zeros(0) if h is None else np.atleast_1d(h)
 
     def J(mu1: float, mu2: float) -> float:
-        return closed_form(system.with_mu([mu1, mu2]), protocol).cost
+        return closed_form(system.with_mu([mu1, mu2]), protocol, "recursion").cost
 
-    def best_mu2(mu1: float) -> float | None:
+    def best_mu2(mu1: float, cap: float) -> float | None:
+        """The least feasible mu2 (to tol, feasible end) below ``cap``, or None: above cap a
+        point cannot beat the best so far, so one evaluation at cap settles most grid points.
+        O(log2(1/tol)) recursions at most."""
         lo, hi = 0.0, 1.0
         for g, c in zip(G, h, strict=True):    # g1 mu1 + g2 mu2 <= c
             if g[1] > 0:
                 hi = min(hi, (c - g[0] * mu1) / g[1])
             elif g[1] < 0:
                 lo = max(lo, (c - g[0] * mu1) / g[1])
-            elif g[0] * mu1 > c + 1e-12:
+            elif g[0] * mu1 > c + BRUTE_FORCE_ROW_ATOL:
                 return None
-        if lo > hi or J(mu1, hi) > alpha:
+        top = min(hi, cap)
+        if lo > top or J(mu1, top) > alpha:
             return None
         if J(mu1, lo) <= alpha:
             return lo
-        a, b = lo, hi
+        a, b = lo, top
         while b - a > tol:
             mid = 0.5 * (a + b)
             a, b = (a, mid) if J(mu1, mid) <= alpha else (mid, b)
         return b
 
-    def scan(points: np.ndarray) -> tuple[float, float, float] | None:
-        best = None
+    def scan(points: np.ndarray, best: tuple[float, float, float] | None) -> tuple[float, float, float] | None:
         for mu1 in points:
-            mu2 = best_mu2(float(mu1))
+            cap = np.inf if best is None or beta[1] <= 0 else (best[0] - beta[0] * mu1) / beta[1]
+            mu2 = best_mu2(float(mu1), cap)
             if mu2 is not None and (best is None or beta[0] * mu1 + beta[1] * mu2 < best[0]):
                 best = (float(beta[0] * mu1 + beta[1] * mu2), float(mu1), float(mu2))
         return best
 
-    best = scan(np.linspace(0, 1, coarse))
+    best = scan(np.linspace(0, 1, coarse), None)
     if best is None:
         return None
     step = 1 / (coarse - 1)
-    refined = scan(np.clip(np.linspace(best[1] - step, best[1] + step, fine), 0, 1))
-    return best if refined is None else min(best, refined)
+    return scan(np.clip(np.linspace(best[1] - step, best[1] + step, fine), 0, 1), best)

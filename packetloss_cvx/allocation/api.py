@@ -1,0 +1,286 @@
+"""Channel allocation M* (§VI): the cheapest delivery probabilities that keep J* <= alpha.
+
+.. math:: \\min_{\\mu} \\beta'\\mu \\quad\\text{s.t.}\\quad J^*(\\mu) \\le \\alpha,\\
+   \\mu \\in [lo, hi]^m,\\ G\\mu \\le h
+
+(eq:alpha_channels, eq:channel-opt, eq:opt_M), stationary channels. The TCP-like problem is
+an SOCP (:mod:`.tcp`), the UDP-like one a monotonic branch and bound (:mod:`.udp`) that also
+uses the TCP-like optimum as a lower bound (Theorem 2: J*_udp >= J*_tcp).
+
+What the results promise:
+
+* ``mu`` is feasible: the closed form gives ``J*(mu) <= alpha``, and mu meets the bounds and
+  rows (to ``ALLOCATION_LP_FEASIBILITY``);
+* ``lower_bound`` is proved: no feasible mu has ``beta'mu < lower_bound`` (LP duals evaluated
+  exactly, tangent cuts of the convex J*_tcp, monotonicity of J*_udp; the closed form trusted
+  to ``ALLOCATION_COST_RTOL``);
+* status "optimal" means ``gap <= `` the requested gap; "gap_not_certified" means a cap was
+  hit (or the bound could not be tightened) and ``gap`` is the gap actually reached;
+* :class:`~packetloss_cvx.errors.InfeasibleError` only on a proof: Clarabel's infeasibility
+  certificate, or every box discarded because its upper corner is infeasible (Theorem 3) or
+  it holds no point of the constraints; never while a feasible point is known.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import InfeasibleError, InputError, SolverError
+from ..model import System
+from ..protocols import check_protocol
+from ..results import Allocation
+from ..tolerances import ALLOCATION_GAP_DEFAULT, ALLOCATION_GAP_FLOOR
+from .boxes import Outcome, cost_at
+from .grammar import (
+    Constraint,
+    Polytope,
+    check_alpha,
+    check_beta,
+    check_bounds,
+    check_count,
+    check_gap,
+    check_number,
+    check_system,
+    read_polytope,
+)
+from .tcp import tcp_allocate, tcp_min_cost
+from .udp import udp_allocate, udp_min_cost
+
+__all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
+
+#: Default cap on the boxes a branch and bound explores before it reports "gap_not_certified".
+MAX_BOXES = 20000
+
+
+@dataclass(frozen=True)
+class MinCost:
+    """The least optimal cost J*(mu) reachable within bounds and constraints.
+
+    ``cost``: J*(mu) at ``mu`` (reachable, by the closed form); ``lower_bound``: proven, no
+    admissible mu does better; ``gap``: (cost - lower_bound) / cost; ``status``: "optimal"
+    (gap <= ``tolerances.MIN_COST_RTOL``) or "gap_not_certified"; ``method``: how found.
+    Construction O(m).
+    """
+
+    protocol: str
+    cost: float
+    lower_bound: float
+    gap: float
+    status: str
+    mu: np.ndarray
+    method: str
+
+    def __post_init__(self) -> None:
+        arr = np.array(self.mu, dtype=float)
+        arr.setflags(write=False)
+        object.__setattr__(self, "mu", arr)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats and lists for JSON. O(m)."""
+        return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
+                "status": self.status, "mu": self.mu.tolist(), "method": self.method}
+
+
+def _time_limit(value: Any) -> float | None:
+    if value is None:
+        return None
+    seconds = check_number(value, "time_limit")
+    if seconds <= 0:
+        raise InputError("time_limit", f"expected a positive number of seconds or None, found {seconds:g}")
+    return seconds
+
+
+def _polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float) -> Polytope:
+    try:
+        return read_polytope(constraints, m, lo, hi)
+    except InfeasibleError as err:
+        raise InfeasibleError(f"the constraints admit no mu: {err}", None) from None
+
+
+def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, time_limit: float | None) -> MinCost:
+    out: Outcome = (tcp_min_cost(system, poly) if protocol == "tcp"
+                    else udp_min_cost(system, poly, max_boxes, time_limit))
+    return MinCost(protocol=protocol, cost=out.value, lower_bound=out.lower_bound,
+                   gap=(out.value - out.lower_bound) / max(out.value, ALLOCATION_GAP_FLOOR), status=out.status,
+                   mu=out.mu, method=out.note)
+
+
+def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequence[Constraint] = (),
+             max_boxes: int = MAX_BOXES, time_limit: float | None = None) -> MinCost:
+    """The least optimal cost J*(mu) reachable within the bounds and constraints.
+
+    Parameters
+    ----------
+    system, protocol, bounds, constraints
+        As for :func:`allocate`.
+    max_boxes, time_limit
+        Caps of the UDP-like branch and bound (the TCP-like one is a single SOCP).
+
+    Returns
+    -------
+    MinCost
+        A reachable cost with a proven lower bound; status "gap_not_certified" if a cap stopped
+        the search before ``tolerances.MIN_COST_RTOL``.
+
+    Raises
+    ------
+    InfeasibleError
+        The constraints admit no mu (``min_cost`` attribute None).
+    SolverError
+        A solver failure.
+
+    Notes
+    -----
+    TCP-like: one SOCP with O(N (n + m)) variables, two LPs. UDP-like: the upper corner when
+    there are no rows; otherwise a branch and bound over maximal points, two LPs and two
+    closed forms per box.
+    """
+    protocol = check_protocol(protocol)
+    system = check_system(system)
+    lo, hi = check_bounds(bounds)
+    poly = _polytope(constraints, system.m, lo, hi)
+    return _min_cost(system, protocol, poly, check_count(max_boxes, "max_boxes"), _time_limit(time_limit))
+
+
+def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, proof: str, max_boxes: int,
+                time_limit: float | None) -> InfeasibleError:
+    """The InfeasibleError for a proven infeasibility, with the least reachable cost; a known
+    feasible point contradicts the proof and is a SolverError instead."""
+    try:
+        least = _min_cost(system, protocol, poly, max_boxes, time_limit)
+    except InfeasibleError as err:
+        return InfeasibleError(f"{proof}; {err}", None)
+    if least.cost <= alpha:
+        raise SolverError("inconsistent", f"{protocol}-like allocation: {proof}, yet mu = "
+                          f"{np.round(least.mu, 6).tolist()} reaches J* = {least.cost:.6g} <= alpha = {alpha:g}")
+    where = (f"{least.cost:.6g}" if least.status == "optimal"
+             else f"in [{least.lower_bound:.6g}, {least.cost:.6g}] (not certified: {least.method})")
+    return InfeasibleError(f"alpha = {alpha:g} is below the least reachable {protocol}-like cost {where} within the "
+                           f"bounds and constraints ({proof})", least.cost)
+
+
+def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
+             constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
+             max_boxes: int = MAX_BOXES, time_limit: float | None = None) -> Allocation:
+    """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
+
+    Parameters
+    ----------
+    system : System
+        Stationary channel; its own mu is ignored.
+    protocol : {"tcp", "udp"}
+    alpha : float
+        Bound on the optimal expected cost, > 0.
+    beta : array_like, shape (m,)
+        Non-negative price of each channel's delivery probability.
+    bounds : (lo, hi)
+        Box for every mu_i, 0 <= lo <= hi <= 1.
+    constraints : sequence
+        Pairs ``(G, h)`` meaning ``G mu <= h``, or callables ``f(mu)`` returning affine cvxpy
+        constraints on the variable mu (read into rows once).
+    gap : float
+        Relative optimality gap to certify, ``tolerances.ALLOCATION_GAP_MIN <= gap < 1``.
+    max_boxes : int
+        Cap on the UDP-like branch and bound's boxes.
+    time_limit : float or None
+        Cap on the UDP-like branch and bound's seconds (None: no limit).
+
+    Returns
+    -------
+    Allocation
+        ``mu`` feasible by the closed form; ``lower_bound`` proven; ``status`` "optimal" (gap
+        certified) or "gap_not_certified" (a cap was hit; ``gap`` is the gap reached);
+        ``boxes`` explored.
+
+    Raises
+    ------
+    InputError
+        A bad argument, named by its field.
+    InfeasibleError
+        Proven infeasible; ``min_cost`` carries the least reachable cost (None when the
+        constraints admit no mu at all).
+    SolverError
+        A solver status other than optimal (never turned into "infeasible"), or a cap hit
+        before any feasible mu was found.
+
+    Notes
+    -----
+    TCP-like: one SOCP with O(N (n + m)) variables, one LP, O(log(1/gap)) closed forms.
+    UDP-like: the TCP-like SOCP, then up to ``max_boxes`` boxes, each an LP and
+    O(m log(1/tol)) closed forms of O(N (n^3 + m^3)); worst case (1/gap)^(m-1) boxes.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0],
+    ...            mu=[0.5], x0=[1.0])
+    >>> a = allocate(s, "tcp", alpha=1.5, beta=[1.0])
+    >>> bool(a.cost <= 1.5), a.status, bool(a.lower_bound <= a.communication_cost)
+    (True, 'optimal', True)
+    """
+    protocol = check_protocol(protocol)
+    system = check_system(system)
+    alpha = check_alpha(alpha)
+    beta = check_beta(beta, system.m)
+    lo, hi = check_bounds(bounds)
+    gap = check_gap(gap)
+    max_boxes = check_count(max_boxes, "max_boxes")
+    time_limit = _time_limit(time_limit)
+    poly = _polytope(constraints, system.m, lo, hi)
+
+    def infeasible(proof: str) -> InfeasibleError:
+        return _infeasible(system, protocol, alpha, poly, proof, max_boxes, time_limit)
+
+    try:
+        relaxation = tcp_allocate(system, poly, alpha, beta, gap)
+    except InfeasibleError as err:
+        proof = str(err) if protocol == "tcp" else f"the TCP-like relaxation is infeasible (Theorem 2): {err}"
+        raise infeasible(proof) from None
+    except SolverError as err:
+        if protocol == "tcp":
+            raise
+        relaxation, floor_note = None, f"; TCP-like bound unavailable ({err})"
+    if protocol == "tcp":
+        out = relaxation
+    else:
+        floor = relaxation.lower_bound if relaxation is not None else -np.inf
+        try:
+            out = udp_allocate(system, poly, alpha, beta, gap, floor, max_boxes, time_limit)
+        except InfeasibleError as err:
+            raise infeasible(str(err)) from None
+        if relaxation is not None:
+            floor_note = f"; TCP-like lower bound {relaxation.lower_bound:.6g} (Theorem 2)"
+        out = out._replace(note=out.note + floor_note)
+    value = float(beta @ out.mu)
+    return Allocation(mu=out.mu, communication_cost=value, cost=cost_at(system, protocol, out.mu),
+                      lower_bound=out.lower_bound, gap=(value - out.lower_bound) / max(value, ALLOCATION_GAP_FLOOR),
+                      status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)
+
+
+def best_cost_within_budget(system: System, protocol: str, beta, budget: float, bounds=(0.0, 1.0),
+                            constraints: Sequence[Constraint] = (), max_boxes: int = MAX_BOXES,
+                            time_limit: float | None = None) -> MinCost:
+    """The other side of the trade-off: min J*(mu) subject to beta'mu <= budget.
+
+    The budget is one more row of the constraint set; see :func:`min_cost` (convex for the
+    TCP-like protocol, a branch and bound for the UDP-like one).
+
+    Raises
+    ------
+    InputError
+        beta or budget malformed (budget must be a finite number).
+    InfeasibleError
+        No mu within the bounds and constraints fits the budget.
+
+    Notes
+    -----
+    As :func:`min_cost` with one more row.
+    """
+    system = check_system(system)
+    beta = check_beta(beta, system.m)
+    budget = check_number(budget, "budget")
+    return min_cost(system, protocol, bounds, [*constraints, (beta[None, :], np.array([budget]))], max_boxes,
+                    time_limit)

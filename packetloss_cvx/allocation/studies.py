@@ -1,0 +1,109 @@
+"""Studies built on the allocation: the Pareto trade-off alpha <-> beta'mu* and the optimal
+allocations on cost contours (§VI, Figs. 6–7), with the J*(mu) grid those figures show.
+
+They compute data; :mod:`packetloss_cvx.plots` draws it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..costs import closed_form
+from ..errors import InfeasibleError, InputError
+from ..model import System
+from ..protocols import check_protocol
+from .api import allocate
+
+__all__ = ["contour_allocations", "cost_grid", "pareto_curve"]
+
+#: The grid of the contour figure may not exceed this many points per axis (grid^2 closed forms).
+MAX_GRID = 401
+
+
+def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], **kwargs) -> list[dict]:
+    """The trade-off alpha -> beta'mu*: one allocation per cost bound.
+
+    Parameters
+    ----------
+    system, protocol, beta
+        As for :func:`~packetloss_cvx.allocation.allocate`.
+    alphas : sequence of float
+        Cost bounds.
+    **kwargs
+        Passed to :func:`~packetloss_cvx.allocation.allocate` (bounds, constraints, gap, ...).
+
+    Returns
+    -------
+    list of dict
+        One row per alpha: ``{"alpha", "communication_cost", "mu", "lower_bound", "status"}``;
+        an alpha proven infeasible has ``communication_cost``, ``mu`` and ``lower_bound``
+        None and ``status`` "infeasible".
+
+    Notes
+    -----
+    One allocation per alpha: O(len(alphas)) times the cost of
+    :func:`~packetloss_cvx.allocation.allocate`.
+    """
+    out = []
+    for alpha in alphas:
+        try:
+            a = allocate(system, protocol, alpha, beta, **kwargs)
+        except InfeasibleError:
+            out.append({"alpha": float(alpha), "communication_cost": None, "mu": None, "lower_bound": None,
+                        "status": "infeasible"})
+            continue
+        out.append({"alpha": a.alpha, "communication_cost": a.communication_cost, "mu": a.mu.tolist(),
+                    "lower_bound": a.lower_bound, "status": a.status})
+    return out
+
+
+def contour_allocations(system: System, protocol: str, alphas: Sequence[float],
+                        betas: Sequence[Sequence[float]] = ((1, 1), (0.05, 1), (1, 0.05)),
+                        **kwargs) -> dict[tuple[float, ...], list[dict]]:
+    """Figs. 6–7: the optimal allocation on each cost contour alpha, for each price vector beta.
+
+    Returns
+    -------
+    dict
+        ``tuple(beta) -> pareto_curve(system, protocol, beta, alphas)``.
+
+    Notes
+    -----
+    O(len(betas) len(alphas)) allocations.
+    """
+    return {tuple(float(b) for b in beta): pareto_curve(system, protocol, beta, alphas, **kwargs)
+            for beta in betas}
+
+
+def cost_grid(system: System, protocol: str, grid: int = 41) -> tuple[np.ndarray, np.ndarray]:
+    """J*(mu) on a uniform grid of [0, 1]^2, the background of the contour figure (two channels).
+
+    Parameters
+    ----------
+    system : System
+        Two channels (m = 2); its own mu is ignored.
+    protocol : {"tcp", "udp"}
+    grid : int
+        Points per axis, 2 <= grid <= :data:`MAX_GRID`.
+
+    Returns
+    -------
+    axis : ndarray, shape (grid,)
+        ``linspace(0, 1, grid)``.
+    costs : ndarray, shape (grid, grid)
+        ``costs[j, i] = J*(mu1 = axis[i], mu2 = axis[j])`` (rows follow mu2, as ``contour`` expects).
+
+    Notes
+    -----
+    ``grid**2`` closed forms, each O(N (n^3 + m^3)) by the recursion or O((N m)^3) dense.
+    """
+    protocol = check_protocol(protocol)
+    if system.m != 2:
+        raise InputError("system", f"the contour grid needs m = 2 channels, found m = {system.m}")
+    if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or not 2 <= grid <= MAX_GRID:
+        raise InputError("grid", f"expected an integer from 2 to {MAX_GRID}, found {grid!r}")
+    axis = np.linspace(0.0, 1.0, int(grid))
+    costs = np.array([[closed_form(system.with_mu([a, b]), protocol, "auto").cost for a in axis] for b in axis])
+    return axis, costs

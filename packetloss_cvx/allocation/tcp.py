@@ -1,0 +1,248 @@
+"""TCP-like allocation: an exact convex program, with a lower bound proved after the solve.
+
+With ``Z = Vbar U`` the TCP-like expected cost
+
+.. math:: J(Z, \\mu) = C + \\|L \\hat x\\|^2 + \\sum_i \\sum_t \\psi_{t,i} z_{t,i}^2 / \\mu_i
+
+(mean states ``xhat`` tied to ``Z`` by the dynamics) is jointly convex in (Z, mu), so the
+optimal cost ``J*_tcp(mu) = min_Z J`` is convex in mu and the allocation (eq:channel-opt)
+is an SOCP. Each quad-over-lin term gets its own epigraph variable ``t_i`` and the cost is
+divided by ``alpha - C``: with the terms summed in one constraint, Clarabel ended
+``optimal_inaccurate`` on 36 of 200 test problems (typically when an optimal mu_i is 0, the
+cone's apex, as in the 3-channel case of issue 8); in this form on none
+(``tolerances.ALLOCATION_CLARABEL_ATTEMPTS``).
+
+The solver's point is not taken on trust:
+
+* its cost is re-evaluated by the closed form, and if above alpha the point is moved towards
+  a maximal point of the constraint set until the closed form says ``J* <= alpha``;
+* the lower bound comes from tangents of the convex function J*_tcp at and around the
+  solver's point, ``J*(mu) >= J*(p) + s'(mu - p)`` with ``s_i = -sum_t psi_{t,i} u_{t,i}^2``
+  (the envelope theorem; ``u`` the optimal commanded inputs at ``p``): every feasible mu meets
+  the cuts, so the LP over the constraint set and the cuts is a relaxation, and its dual
+  bound (:func:`~packetloss_cvx.allocation.boxes.dual_bound`) is a lower bound on the optimum
+  that does not depend on the solver's tolerances.
+"""
+
+from __future__ import annotations
+
+import cvxpy as cp
+import numpy as np
+
+from ..convex import PROVEN_INFEASIBLE, require_optimal, solve_problem
+from ..costs import closed_form
+from ..errors import InfeasibleError, SolverError
+from ..model import System
+from ..qp import sparse_dynamics
+from ..recursion import udp_variance_weights
+from ..tolerances import (
+    ALLOCATION_CLARABEL_ATTEMPTS,
+    ALLOCATION_COST_RTOL,
+    ALLOCATION_CUT_STEPS,
+    ALLOCATION_GAP_FLOOR,
+    ALLOCATION_INCUMBENT_SHARE,
+    MIN_COST_RTOL,
+)
+from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_at, lp
+from .grammar import Polytope
+
+__all__ = ["TCPProgram", "constant_cost", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost"]
+
+
+def constant_cost(system: System) -> float:
+    """C = x0' Q x0 + tr(Omega_l Sigma_W): the part of J no choice of mu or U changes, a lower
+    bound on J*(mu) for every mu (the other terms are nonnegative). O(N n^3)."""
+    x0 = system.x0
+    return float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]
+
+
+class TCPProgram:
+    """The TCP-like expected cost over (Z, mu) in cvxpy, sparse in the horizon.
+
+    ``cost`` is ``(J - C) * scale`` as the epigraph sum ``r + sum_i t_i``; ``constraints``
+    holds the dynamics, the cones, the bounds and the rows of the polytope. Size
+    O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros.
+    """
+
+    def __init__(self, system: System, poly: Polytope, scale: float) -> None:
+        N, n, m = system.horizon, system.n, system.m
+        self.mu = cp.Variable(m, name="mu")
+        Z = cp.Variable((N, m), name="Z")
+        X = cp.Variable(N * n, name="xhat")
+        t = cp.Variable(m, name="t")
+        r = cp.Variable(name="r")
+        E, Bbig, first, L = sparse_dynamics(system)
+        w = np.sqrt(system.input_weights * scale)
+        cons = [E @ X - Bbig @ cp.vec(Z.T, order="F") == first @ system.x0,
+                cp.sum_squares(np.sqrt(scale) * (L @ X)) <= r if L.shape[0] else r >= 0,
+                self.mu >= poly.lo, self.mu <= poly.hi]
+        cons += [cp.quad_over_lin(cp.multiply(w[:, i], Z[:, i]), self.mu[i]) <= t[i] for i in range(m)]
+        if poly.G.shape[0]:
+            cons.append(poly.G @ self.mu <= poly.h)
+        self.cost = r + cp.sum(t)
+        self.constraints = cons
+
+
+def tangent(system: System, mu: np.ndarray) -> tuple[float, np.ndarray]:
+    """J*_tcp(mu) and its gradient ``s_i = -sum_t psi_{t,i} u_{t,i}^2`` (one closed form).
+
+    By the envelope theorem on ``J(Z, mu)``, at the optimal ``Z = Vbar U*`` the gradient of
+    J*_tcp is the partial derivative of J in mu; it stays finite at mu_i = 0, where the closed
+    form's inputs are the limit of the optimal law. O(N (n^3 + m^3)).
+    """
+    sol = closed_form(system.with_mu(np.clip(mu, 0.0, 1.0)), "tcp", "auto")
+    return sol.cost, -np.sum(system.input_weights * sol.inputs ** 2, axis=0)
+
+
+def tangent_cuts(system: System, mubar: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Affine minorants of J*_tcp: rows with ``J*(mu) >= r_k + S_k mu`` for every mu in [0, 1]^m.
+
+    Tangents at ``mubar`` and at ``mubar +- step e_i`` for each step of
+    ``ALLOCATION_CUT_STEPS`` (clipped into [0, 1]), so that their maximum brackets the
+    optimum on whichever side the solver's point errs; each loosened by
+    ``ALLOCATION_COST_RTOL (|J*| + ||grad||_1)`` for the closed form's rounding.
+    O(m len(steps)) closed forms.
+    """
+    m = system.m
+    points = [mubar]
+    for step in ALLOCATION_CUT_STEPS:
+        for i in range(m):
+            for sign in (-1.0, 1.0):
+                p = mubar.copy()
+                p[i] = np.clip(p[i] + sign * step, 0.0, 1.0)
+                if p[i] != mubar[i]:
+                    points.append(p)
+    S, r = np.empty((len(points), m)), np.empty(len(points))
+    for k, p in enumerate(points):
+        f, grad = tangent(system, p)
+        S[k] = grad
+        r[k] = f - grad @ p - ALLOCATION_COST_RTOL * (abs(f) + np.abs(grad).sum())
+    return S, r
+
+
+def _solve(problem: cp.Problem, what: str, no_mu: str | None) -> None:
+    """Clarabel under the package's one status policy (convex.solve_problem): "optimal", or
+    InfeasibleError(no_mu) on Clarabel's infeasibility certificate (SolverError when
+    ``no_mu`` is None: infeasibility is then known to be impossible), or SolverError."""
+    status = solve_problem(problem, what, ALLOCATION_CLARABEL_ATTEMPTS)
+    if status == PROVEN_INFEASIBLE:
+        if no_mu is None:
+            raise SolverError("inconsistent", f"{what}: Clarabel reports infeasible, but the LP found a point")
+        raise InfeasibleError(no_mu, None)
+    require_optimal(status, what)
+
+
+def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float) -> Outcome:
+    """min beta'mu over the polytope with J*_tcp(mu) <= alpha.
+
+    Returns
+    -------
+    Outcome
+        ``mu`` with J*_tcp(mu) <= alpha by the closed form; ``lower_bound`` proved by the
+        tangent cuts at and around the solver's point (:func:`tangent_cuts`, computed before
+        mu is moved): every mu of the polytope with J*_tcp(mu) <= alpha meets every cut, so
+        no such mu has ``beta'mu < lower_bound``. Status "optimal" when
+        ``(value - lower_bound) / value <= gap``, else "gap_not_certified".
+
+    Raises
+    ------
+    InfeasibleError
+        alpha < C (no mu can help), J*_tcp at the upper corner of the bounds above alpha
+        (J* falls in every mu_i), or Clarabel's infeasibility certificate for the SOCP
+        (status ``infeasible``; ``infeasible_inaccurate`` is not a proof and raises SolverError).
+    SolverError
+        Any status but optimal after Clarabel's tight then default settings
+        (``convex.solve_problem``), or a solver point that cannot be made feasible.
+
+    Notes
+    -----
+    One SOCP with O(N (n + m)) variables (interior point, about 10-30 iterations of a sparse
+    factorisation), 6 m + 1 closed forms and one LP for the bound, and O(log(1/gap)) closed
+    forms for the move onto the feasible set, each O(N (n^3 + m^3)).
+    """
+    C = constant_cost(system)
+    if alpha < C:
+        raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
+    corner = cost_at(system, "tcp", poly.upper())
+    if corner > alpha * (1 + ALLOCATION_COST_RTOL):
+        raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
+                              "and J* falls in every mu_i", None)
+    prog = TCPProgram(system, poly, 1.0 / max(alpha - C, np.finfo(float).tiny))
+    problem = cp.Problem(cp.Minimize(beta @ prog.mu), [*prog.constraints, prog.cost <= 1.0])
+    _solve(problem, "TCP-like allocation SOCP",
+           f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g} (Clarabel certificate)")
+    mubar = np.clip(prog.mu.value, poly.lo, poly.hi)
+
+    S, r = tangent_cuts(system, mubar)                 # the lower bound, before any move
+    scale = np.max(np.abs(S), axis=1)
+    if np.any((scale == 0) & (r > alpha)):
+        raise SolverError("inconsistent", "TCP-like allocation: J*_tcp does not depend on mu and exceeds alpha, "
+                          "yet the SOCP reported a solution")
+    keep = scale > 0
+    cuts = (S[keep] / scale[keep, None], (alpha - r[keep]) / scale[keep])
+    point, lower = box_lp(beta, poly, poly.lower(), poly.upper(), extra=cuts)
+    if point is None:
+        raise SolverError("inconsistent", "TCP-like allocation: the tangent cuts near the SOCP's point exclude "
+                          "every mu, yet the SOCP reported a solution")
+    lower = max(lower, float(beta @ poly.lower()))
+
+    mu, note = mubar, "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
+    if beta @ point < beta @ mubar and cost_at(system, "tcp", point) <= alpha:
+        mu, note = point, note + "; the LP's point is feasible and attains the bound"
+    elif cost_at(system, "tcp", mu) > alpha:           # solver tolerance: move onto the feasible set
+        q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
+        if q is None or cost_at(system, "tcp", q) > alpha:
+            raise SolverError("inconsistent", "TCP-like allocation: the SOCP's point is infeasible and so is "
+                              "the maximal point of the constraint set")
+        tol = ALLOCATION_INCUMBENT_SHARE * gap
+        t = boundary(lambda a: cost_at(system, "tcp", mubar + a * (q - mubar)), alpha, 0.0, 1.0, tol)
+        mu = mubar + t * (q - mubar)
+        note += f"; moved {t:.1e} of the way to a maximal point to meet J* <= alpha"
+    mu = check_in_polytope(np.clip(mu, poly.lo, poly.hi), poly, "TCP-like allocation")
+    value = float(beta @ mu)
+    lower = min(lower, value)
+    reached = (value - lower) / max(value, ALLOCATION_GAP_FLOOR)
+    status = "optimal" if reached <= gap else "gap_not_certified"
+    return Outcome(mu, value, lower, status, 0, note)
+
+
+def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
+    """min J*_tcp(mu) over the polytope: the SOCP, then the closed form at its point (a
+    reachable cost) and the LP ``min t`` over the polytope with ``t >= r_k + S_k mu`` for the
+    tangent cuts around it (a proven lower bound: the cuts are minorants of J*_tcp).
+
+    Raises
+    ------
+    InfeasibleError
+        The constraints admit no mu (HiGHS on the LP, or Clarabel's certificate).
+    SolverError
+        Any status but optimal.
+
+    Notes
+    -----
+    One SOCP with O(N (n + m)) variables, two LPs and 6 m + 2 closed forms of
+    O(N (n^3 + m^3)).
+    """
+    q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
+    if q is None:
+        raise InfeasibleError("the linear constraints and bounds admit no mu", None)
+    C = constant_cost(system)
+    reference = cost_at(system, "tcp", poly.upper()) - C       # the least J* - C over the box
+    prog = TCPProgram(system, poly, 1.0 / max(reference, np.finfo(float).tiny))
+    problem = cp.Problem(cp.Minimize(prog.cost), prog.constraints)
+    _solve(problem, "TCP-like minimum-cost SOCP", None)
+    mu = check_in_polytope(np.clip(prog.mu.value, poly.lo, poly.hi), poly, "TCP-like minimum cost")
+    f = cost_at(system, "tcp", mu)
+    S, r = tangent_cuts(system, mu)                    # min t  s.t.  t >= r_k + S_k mu, mu in the polytope
+    m = system.m
+    scale = np.maximum(np.max(np.abs(S), axis=1), 1.0)
+    G = np.vstack([np.hstack([poly.G, np.zeros((poly.G.shape[0], 1))]),
+                   np.hstack([S, -np.ones((len(r), 1))]) / scale[:, None]])
+    h = np.concatenate([poly.h, -r / scale])
+    c = np.zeros(m + 1)
+    c[-1] = 1.0
+    _, lower = lp(c, G, h, np.append(poly.lower(), C), np.append(poly.upper(), max(f, C)))
+    lower = min(max(lower, C), f)
+    reached = (f - lower) / max(f, ALLOCATION_GAP_FLOOR)
+    status = "optimal" if reached <= MIN_COST_RTOL else "gap_not_certified"
+    return Outcome(mu, f, lower, status, 0, "convex SOCP (Clarabel), lower bound from tangent cuts at its point")

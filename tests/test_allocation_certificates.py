@@ -1,0 +1,221 @@
+"""Honest allocation (issue 8): solver failures are errors, infeasibility needs a proof, lower
+bounds are proved, caps give "gap_not_certified", and warnings stay captured."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+import packetloss_cvx.allocation.api as api
+import packetloss_cvx.allocation.boxes as boxes
+import packetloss_cvx.allocation.tcp as tcp
+from packetloss_cvx.allocation import allocate, min_cost, parse_constraint
+from packetloss_cvx.allocation.brute_force import brute_force_allocation
+from packetloss_cvx.allocation.tcp import tangent
+from packetloss_cvx.cli import main
+from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL
+
+# The 3-channel case of issue 8: beta = (2, 1, 1), mu1 <= mu2, mu1 + mu2 >= 1.2. Before the
+# fix, at alpha = 9.4 the UDP-like path said "alpha = 9.4 is below the least reachable udp-like
+# cost 1.62578" (a swallowed SolverError read as infeasible) and the TCP-like SOCP ended
+# "optimal_inaccurate" (quad-over-lin terms summed in one constraint, optimal mu3 = 0).
+ISSUE_8 = {"A": [[0.53, 0.52, 0.92], [-0.2, 0.28, -0.19], [-0.72, -0.36, 0.07]],
+           "B": [[-0.92, -0.19, 1.12], [0.57, 0.57, 0.35], [-0.18, -1.87, 0.99]], "horizon": 5,
+           "state_weight": [[0.91, -1.1, -0.48], [-1.1, 1.68, 0.25], [-0.48, 0.25, 0.94]],
+           "input_weight": [1.76, 1.83, 1.93], "mu": [0.5, 0.5, 0.5], "x0": [-1.51, 0.22, -0.11]}
+ISSUE_8_TEXT = ["mu1 <= mu2", "mu1 + mu2 >= 1.2"]
+ISSUE_8_BETA = (2.0, 1.0, 1.0)
+
+
+@pytest.fixture(scope="module")
+def issue8():
+    return pl.System(**ISSUE_8), [parse_constraint(t, 3) for t in ISSUE_8_TEXT]
+
+
+def qp_cost(system, protocol, mu):
+    return pl.solve_qp(system.with_mu(mu), protocol, cross_check=False, with_gain=False).cost
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_issue8_vertex_case(issue8, protocol):
+    """alpha = 9.4 is met with room to spare at mu = (0.2, 1, 0), which is also the vertex
+    minimising beta'mu over the constraints (by hand: mu3 = 0, mu2 = 1, mu1 = 1.2 - mu2), so
+    the optimum is exactly 1.4."""
+    system, cons = issue8
+    assert qp_cost(system, protocol, [0.2, 1.0, 0.0]) < 9.4 / 2
+    got = allocate(system, protocol, 9.4, ISSUE_8_BETA, constraints=cons)
+    assert got.status == "optimal"
+    assert np.allclose(got.mu, [0.2, 1.0, 0.0], atol=1e-8)
+    assert got.lower_bound <= 1.4 + 1e-12
+    assert got.communication_cost == pytest.approx(1.4, abs=1e-8)
+
+
+def test_issue8_active_cost(issue8):
+    """At alpha = 2.5 the cost bound is active: both protocols answer, feasibly by the QP twin,
+    and the UDP-like cost respects the TCP-like lower bound (Theorem 2)."""
+    system, cons = issue8
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")        # the tight SOCP attempt ends inaccurate here: captured
+        t = allocate(system, "tcp", 2.5, ISSUE_8_BETA, constraints=cons)
+        u = allocate(system, "udp", 2.5, ISSUE_8_BETA, constraints=cons)
+    for got in (t, u):
+        assert got.status == "optimal"
+        assert qp_cost(system, got.protocol, got.mu) <= 2.5 * (1 + CROSS_CHECK_COST_RTOL)
+        assert got.mu[0] <= got.mu[1] + 1e-9
+        assert got.mu[0] + got.mu[1] >= 1.2 - 1e-9
+    assert u.communication_cost >= t.lower_bound
+    assert t.gap <= 1e-6                          # the tangent cuts are tight at the SOCP's optimum
+    # A reference for the bounds: with mu3 = 0 the third actuator never acts, so the system
+    # without it has the same cost; the brute force over (mu1, mu2) with mu3 = 0 is beta'mu at
+    # a feasible point, never below the optimum, so never below a valid lower bound.
+    reduced = pl.System(**{**ISSUE_8, "B": np.array(ISSUE_8["B"])[:, :2], "input_weight": ISSUE_8["input_weight"][:2],
+                           "mu": [0.5, 0.5]})
+    assert qp_cost(reduced, "udp", [0.6, 0.9]) == pytest.approx(qp_cost(system, "udp", [0.6, 0.9, 0.0]), rel=1e-9)
+    G = np.vstack([parse_constraint(text, 2)[0] for text in ISSUE_8_TEXT])
+    h = np.concatenate([parse_constraint(text, 2)[1] for text in ISSUE_8_TEXT])
+    for got in (t, u):
+        ref = brute_force_allocation(reduced, got.protocol, 2.5, ISSUE_8_BETA[:2], G, h)
+        assert got.lower_bound <= ref[0] + 1e-9
+
+
+def test_issue8_cli_one_answer_no_noise(issue8, tmp_path, capsys):
+    system, _ = issue8
+    path = pl.save_system(system, tmp_path / "issue8.toml")
+    argv = ["allocate", str(path), "--protocol", "tcp", "--alpha", "2.5", "--beta", "2,1,1", "--json"]
+    for text in ISSUE_8_TEXT:
+        argv += ["--constraint", text]
+    assert main(argv) == 0
+    out = capsys.readouterr()
+    assert out.err == ""
+    assert '"status": "optimal"' in out.out
+
+
+@pytest.mark.parametrize("status", ["optimal_inaccurate", "infeasible_inaccurate", "solver_error"])
+def test_solver_failure_is_an_error_not_infeasibility(two_actuator, monkeypatch, status):
+    monkeypatch.setattr(tcp, "solve_problem", lambda problem, what, attempts: status)
+    with pytest.raises(pl.SolverError) as info:
+        allocate(two_actuator, "tcp", 4.78, (1.0, 1.0))
+    assert info.value.status == status
+
+
+def test_udp_without_the_tcp_bound_still_certifies(two_actuator, monkeypatch):
+    """A failed TCP-like relaxation only removes a shortcut: the branch and bound certifies alone
+    and says so, and proves infeasibility alone (never from the failure)."""
+    monkeypatch.setattr(tcp, "solve_problem", lambda problem, what, attempts: "optimal_inaccurate")
+    got = allocate(two_actuator, "udp", 8.0, (1.0, 0.05))
+    ref = brute_force_allocation(two_actuator, "udp", 8.0, (1.0, 0.05))
+    assert got.status == "optimal"
+    assert "TCP-like bound unavailable" in got.method
+    assert got.lower_bound <= ref[0] + 1e-9
+    assert got.communication_cost <= ref[0] / (1 - 1e-4) + 1e-9
+    # with mu1 <= 0.5 the least J*_udp is 7.85 at (0.5, 1) (J*_tcp there 2.40): infeasible at 5
+    assert qp_cost(two_actuator, "udp", [0.5, 1.0]) > 7.8
+    with pytest.raises(pl.InfeasibleError, match=r"every box was proven infeasible"):
+        allocate(two_actuator, "udp", 5.0, (1.0, 1.0), constraints=[parse_constraint("mu1 <= 0.5", 2)])
+
+
+def test_lp_failure_propagates(two_actuator, monkeypatch):
+    class Failed:
+        status, message = 4, "numerical difficulties"
+
+    monkeypatch.setattr(boxes, "linprog", lambda *args, **kwargs: Failed())
+    with pytest.raises(pl.SolverError, match="linprog status 4"):
+        allocate(two_actuator, "udp", 6.0, (1.0, 1.0), constraints=[parse_constraint("mu1 >= mu2", 2)])
+
+
+def test_no_infeasibility_while_a_feasible_point_is_known(two_actuator, monkeypatch):
+    """Were a search to claim infeasibility wrongly, the least reachable cost (computed for the
+    message) contradicts it, and the answer is a SolverError, not 'infeasible'."""
+    def wrong(*args, **kwargs):
+        raise pl.InfeasibleError("a search that lost its way", None)
+
+    monkeypatch.setattr(api, "udp_allocate", wrong)
+    with pytest.raises(pl.SolverError, match="inconsistent"):
+        allocate(two_actuator, "udp", 6.0, (1.0, 1.0))
+
+
+def test_tcp_lower_bound_does_not_rest_on_the_solver_tolerance(two_actuator, monkeypatch):
+    """With Clarabel stopped at a 1e-3 gap the SOCP's point is off; the point is still moved to
+    feasibility and the bound (tangent cuts at that point, before the move) is still below the
+    brute-force optimum; the status tells whether the requested gap was reached."""
+    loose = ({"tol_gap_abs": 1e-3, "tol_gap_rel": 1e-3, "tol_feas": 1e-3, "max_iter": 200},)
+    monkeypatch.setattr(tcp, "ALLOCATION_CLARABEL_ATTEMPTS", loose)
+    ref = brute_force_allocation(two_actuator, "tcp", 4.78, (1.0, 1.0))
+    for gap in (1e-2, 1e-9):
+        got = allocate(two_actuator, "tcp", 4.78, (1.0, 1.0), gap=gap)
+        assert got.cost <= 4.78
+        assert got.lower_bound <= ref[0] + 1e-9
+        assert got.status == ("optimal" if got.gap <= gap else "gap_not_certified")
+    assert got.status == "gap_not_certified"                  # 1e-9 is out of reach from a 1e-3 solve
+
+
+@pytest.mark.parametrize("mu", [[0.3, 0.6], [1.0, 0.2], [0.0, 0.5]])
+def test_tangent_is_the_gradient(two_actuator, mu):
+    """The envelope-theorem gradient against central (one-sided at 0 and 1) finite differences
+    of the cost alone (the recursion)."""
+    _, grad = tangent(two_actuator, np.array(mu))
+    h = 1e-6
+    for i in range(2):
+        lo, hi = np.array(mu, dtype=float), np.array(mu, dtype=float)
+        lo[i], hi[i] = max(mu[i] - h, 0.0), min(mu[i] + h, 1.0)
+        diff = (pl.closed_form(two_actuator.with_mu(hi), "tcp", "recursion").cost
+                - pl.closed_form(two_actuator.with_mu(lo), "tcp", "recursion").cost) / (hi[i] - lo[i])
+        assert grad[i] == pytest.approx(diff, rel=1e-3 if 0 < mu[i] < 1 else 1e-2)
+
+
+def test_box_cap_gives_gap_not_certified(two_actuator):
+    ref = brute_force_allocation(two_actuator, "udp", 4.78, (1.0, 1.0))
+    got = allocate(two_actuator, "udp", 4.78, (1.0, 1.0), max_boxes=2)
+    assert got.status == "gap_not_certified"
+    assert got.boxes == 2
+    assert "cap of 2 boxes" in got.method
+    assert got.gap > 1e-4
+    assert got.gap == pytest.approx((got.communication_cost - got.lower_bound) / got.communication_cost)
+    assert got.lower_bound <= ref[0] + 1e-9                       # still a proven bound
+    assert qp_cost(two_actuator, "udp", got.mu) <= 4.78 * (1 + CROSS_CHECK_COST_RTOL)
+
+
+def test_time_limit_gives_gap_not_certified(two_actuator):
+    got = allocate(two_actuator, "udp", 4.78, (1.0, 1.0), time_limit=1e-9)     # the root box is still visited
+    assert got.status == "gap_not_certified"
+    assert got.boxes == 1
+    assert "time limit" in got.method
+    assert got.lower_bound <= brute_force_allocation(two_actuator, "udp", 4.78, (1.0, 1.0))[0] + 1e-9
+
+
+def test_cap_before_any_feasible_point_is_an_error(two_actuator):
+    """On mu1 <= mu2, mu1 + mu2 <= 1 the maximal points (0, 1) and (0.5, 0.5) cost 17.1 and 18.5
+    while (0.1, 0.9) costs 16.3: one box finds nothing feasible and proves nothing either."""
+    cons = [parse_constraint("mu1 <= mu2", 2), parse_constraint("mu1 + mu2 <= 1", 2)]
+    assert qp_cost(two_actuator, "udp", [0.1, 0.9]) < 16.5
+    with pytest.raises(pl.SolverError, match="no feasible mu found and infeasibility not proven") as info:
+        allocate(two_actuator, "udp", 16.5, (1.0, 1.0), constraints=cons, max_boxes=1)
+    assert info.value.status == "gap_not_certified"
+
+
+def test_min_cost_cap_is_reported(two_actuator):
+    cons = [parse_constraint("mu1 + mu2 <= 1.2", 2)]
+    capped = min_cost(two_actuator, "udp", constraints=cons, max_boxes=1)
+    full = min_cost(two_actuator, "udp", constraints=cons)
+    assert capped.status == "gap_not_certified"
+    assert full.status == "optimal"
+    assert capped.lower_bound <= full.cost
+    assert full.lower_bound <= full.cost <= capped.cost
+    assert full.cost == pytest.approx(qp_cost(two_actuator, "udp", full.mu), rel=CROSS_CHECK_COST_RTOL)
+
+
+def test_cli_gap_not_certified_exit_4(capsys):
+    code = main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "4.78", "--beta", "1,1",
+                 "--max-boxes", "2", "--json"])
+    out = capsys.readouterr()
+    assert code == 4
+    data = json.loads(out.out)
+    assert data["status"] == "gap_not_certified"
+    assert data["boxes"] == 2
+    assert data["gap"] > 1e-4
+    assert data["lower_bound"] <= brute_force_allocation(pl.load_example("two_actuator"), "udp", 4.78, (1, 1))[0] + 1e-9
+    assert out.err == ""
+    main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "4.78", "--beta", "1,1", "--max-boxes", "2"])
+    assert capsys.readouterr().out.startswith("UDP-like: GAP NOT CERTIFIED")
