@@ -1,7 +1,8 @@
-"""Command line: ``packetloss-cvx SUBCOMMAND ...`` (DESIGN.md §4).
+"""Command line: ``packetloss-cvx SUBCOMMAND ...`` (docs/design.md §4).
 
 Exit codes: 0 success; 2 bad input (one stderr line naming the field); 3 a
-well-posed problem with no solution; 1 anything else (one stderr line).
+well-posed problem with no solution (proved); 4 an allocation whose gap was not
+certified within its caps (printed as usual); 1 anything else (one stderr line).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .allocation import allocate, parse_constraint
 from .claims import audit, markdown_report, markdown_table
 from .costs import closed_form
 from .errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
@@ -109,8 +111,6 @@ def _allocate(args: argparse.Namespace) -> tuple[dict[str, Any], str] | tuple[di
     """Exit 0 with status "optimal"; 4 with status "gap_not_certified" (a cap was hit: the
     allocation is feasible and its lower bound proven, but the gap is larger than asked; the
     result is printed on stdout as usual); 3 when proven infeasible."""
-    from .allocation import allocate, parse_constraint
-
     def number(text: str, field: str) -> float:
         values = _floats(text, field)
         if len(values) != 1:
@@ -145,7 +145,7 @@ def _allocate(args: argparse.Namespace) -> tuple[dict[str, Any], str] | tuple[di
                 "cost": None, "lower_bound": None, "gap": None, "status": "infeasible", "method": None,
                 "boxes": None, "min_cost": err.min_cost}
         return data, f"infeasible: {err}", 3
-    data = {**result.to_dict(), "boxes": result.boxes, "min_cost": None}
+    data = {**result.to_dict(), "min_cost": None}
     line = (f"mu* = {np.round(result.mu, 6).tolist()}, beta'mu = {result.communication_cost:.6g}, J*(mu*) = "
             f"{result.cost:.6g} <= {alpha:g}, lower bound {result.lower_bound:.6g}")
     if result.status == "optimal":

@@ -8,7 +8,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Allocation", "ClaimResult", "CrossCheck", "Maximiser", "Solution", "Sweep", "eigenvalue_pairs"]
+__all__ = [
+    "Allocation", "ClaimResult", "CrossCheck", "Maximiser", "MinCost", "Solution", "Sweep", "eigenvalue_pairs",
+]
 
 
 def _read_only(value: Any) -> np.ndarray:
@@ -108,7 +110,11 @@ class Allocation:
     ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: J*(mu) by the
     closed form (<= alpha); ``lower_bound``: a proven lower bound on the optimal beta'mu;
     ``gap``: (communication_cost - lower_bound) / max(communication_cost, 1e-12);
-    ``status``: "optimal"; ``method``: how it was solved; ``boxes``: B&B boxes explored.
+    ``status``: "optimal" (the gap is certified) or "gap_not_certified" (a cap on boxes or time
+    was hit; ``gap`` is the gap reached); ``method``: how it was solved; ``boxes``: boxes the
+    UDP-like branch and bound explored (0 for the TCP-like SOCP). ``lower_bound`` is proved:
+    tangent cuts of the convex J*_tcp with an exactly evaluated LP dual (TCP-like), the branch
+    and bound's remaining boxes (UDP-like).
     """
 
     mu: np.ndarray
@@ -129,7 +135,8 @@ class Allocation:
     def to_dict(self) -> dict[str, Any]:
         return {"protocol": self.protocol, "alpha": self.alpha, "beta": self.beta.tolist(),
                 "mu": self.mu.tolist(), "communication_cost": self.communication_cost, "cost": self.cost,
-                "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method}
+                "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method,
+                "boxes": self.boxes}
 
 
 @dataclass(frozen=True)
@@ -227,3 +234,30 @@ class Sweep:
         return {"axes": [a.tolist() for a in self.axes], "costs": {k: v.tolist() for k, v in self.costs.items()},
                 "difference": None if self.difference is None else self.difference.tolist(),
                 "difference_method": self.difference_method}
+
+
+@dataclass(frozen=True)
+class MinCost:
+    """The least optimal cost J*(mu) reachable within bounds and constraints.
+
+    ``cost``: J*(mu) at ``mu`` (reachable, by the closed form); ``lower_bound``: proven, no
+    admissible mu does better; ``gap``: (cost - lower_bound) / cost; ``status``: "optimal"
+    (gap <= ``tolerances.MIN_COST_RTOL``) or "gap_not_certified"; ``method``: how found.
+    Construction O(m).
+    """
+
+    protocol: str
+    cost: float
+    lower_bound: float
+    gap: float
+    status: str
+    mu: np.ndarray
+    method: str
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats and lists for JSON. O(m)."""
+        return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
+                "status": self.status, "mu": self.mu.tolist(), "method": self.method}

@@ -24,7 +24,6 @@ What the results promise:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,7 +31,7 @@ import numpy as np
 from ..errors import InfeasibleError, InputError, SolverError
 from ..model import System
 from ..protocols import check_protocol
-from ..results import Allocation
+from ..results import Allocation, MinCost
 from ..tolerances import ALLOCATION_GAP_DEFAULT, ALLOCATION_GAP_FLOOR
 from .boxes import Outcome, cost_at
 from .grammar import (
@@ -54,35 +53,6 @@ __all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_c
 
 #: Default cap on the boxes a branch and bound explores before it reports "gap_not_certified".
 MAX_BOXES = 20000
-
-
-@dataclass(frozen=True)
-class MinCost:
-    """The least optimal cost J*(mu) reachable within bounds and constraints.
-
-    ``cost``: J*(mu) at ``mu`` (reachable, by the closed form); ``lower_bound``: proven, no
-    admissible mu does better; ``gap``: (cost - lower_bound) / cost; ``status``: "optimal"
-    (gap <= ``tolerances.MIN_COST_RTOL``) or "gap_not_certified"; ``method``: how found.
-    Construction O(m).
-    """
-
-    protocol: str
-    cost: float
-    lower_bound: float
-    gap: float
-    status: str
-    mu: np.ndarray
-    method: str
-
-    def __post_init__(self) -> None:
-        arr = np.array(self.mu, dtype=float)
-        arr.setflags(write=False)
-        object.__setattr__(self, "mu", arr)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain floats and lists for JSON. O(m)."""
-        return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
-                "status": self.status, "mu": self.mu.tolist(), "method": self.method}
 
 
 def _time_limit(value: Any) -> float | None:

@@ -10,10 +10,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..costs import closed_form
 from ..errors import InfeasibleError, InputError
 from ..model import System
 from ..protocols import check_protocol
+from ..studies.sweeps import two_channel_sweep
 from .api import allocate
 
 __all__ = ["contour_allocations", "cost_grid", "pareto_curve"]
@@ -105,5 +105,4 @@ def cost_grid(system: System, protocol: str, grid: int = 41) -> tuple[np.ndarray
     if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or not 2 <= grid <= MAX_GRID:
         raise InputError("grid", f"expected an integer from 2 to {MAX_GRID}, found {grid!r}")
     axis = np.linspace(0.0, 1.0, int(grid))
-    costs = np.array([[closed_form(system.with_mu([a, b]), protocol, "auto").cost for a in axis] for b in axis])
-    return axis, costs
+    return axis, np.array(two_channel_sweep(system, axis, protocols=(protocol,)).costs[protocol])

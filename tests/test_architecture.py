@@ -1,0 +1,139 @@
+"""The house rules, checked by reading the modules' imports (as cvxpylayers and cvxrisk keep one):
+
+* data flows one way through the layers below: a module imports only from its own layer or
+  lower ones, and the module graph has no cycle;
+* no private name (``_x``) is imported from another module of the package;
+* no import inside a function, except lazy imports of heavy optional libraries;
+* no module over about 400 lines.
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
+
+#: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
+LAYERS = [
+    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg"},
+    {"prediction", "recursion", "costs", "convex", "qp", "random_systems"},
+    {"analysis", "allocation", "simulation", "studies"},
+    {"claims"},
+    {"plots", "cli", "__main__", "__init__"},
+]
+#: lazy imports allowed inside functions: heavy optional libraries (their import is slow or optional)
+LAZY_OK = {"matplotlib", "dask", "distributed", "xarray", "control", "tqdm"}
+MAX_LINES = 420
+
+
+def _modules() -> dict[str, Path]:
+    return {".".join(p.relative_to(PACKAGE).with_suffix("").parts): p for p in PACKAGE.rglob("*.py")}
+
+
+def _unit(dotted: str) -> str:
+    """The layer unit of a module: its top-level module or subpackage (``allocation.udp`` -> ``allocation``)."""
+    return dotted.split(".")[0]
+
+
+def _layer(unit: str) -> int:
+    for k, names in enumerate(LAYERS):
+        if unit in names:
+            return k
+    raise AssertionError(f"module {unit!r} is in no layer: add it to LAYERS and to docs/design.md")
+
+
+def _resolve(module: str, node: ast.ImportFrom) -> str | None:
+    """The dotted name (inside the package) that ``from ... import`` refers to, or None if external."""
+    if node.level == 0:
+        if node.module and node.module.split(".")[0] == "packetloss_cvx":
+            return node.module.partition(".")[2] or "__init__"
+        return None
+    parts = module.split(".")
+    is_package = (PACKAGE / Path(*parts) / "__init__.py").exists() or parts[-1] == "__init__"
+    base = parts if is_package and parts[-1] != "__init__" else parts[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    target = ".".join(base + ([node.module] if node.module else []))
+    return target or "__init__"
+
+
+def _imports(module: str, path: Path):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            target = _resolve(module, node)
+            if target is not None and node.module is None:   # from . import analysis: the module itself
+                prefix = "" if target == "__init__" else target + "."
+                for alias in node.names:
+                    yield node, prefix + alias.name if prefix + alias.name in MODULES else target
+                continue
+            yield node, target
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] == "packetloss_cvx":
+                    yield node, alias.name.partition(".")[2] or "__init__"
+                else:
+                    yield node, None
+
+
+MODULES = _modules()
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_flow_one_way(module):
+    mine = _layer(_unit(module))
+    for _node, target in _imports(module, MODULES[module]):
+        if target is None or _unit(target) == _unit(module):
+            continue
+        theirs = _layer(_unit(target))
+        assert theirs <= mine, f"{module} (layer {mine}) imports {target} (layer {theirs})"
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_no_private_name_crosses_a_module(module):
+    for node, target in _imports(module, MODULES[module]):
+        if target is None or not isinstance(node, ast.ImportFrom) or target == module:
+            continue
+        private = [a.name for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
+        assert not private, f"{module} imports private {private} from {target}"
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_no_function_level_imports(module):
+    tree = ast.parse(MODULES[module].read_text())
+    for fn in ast.walk(tree):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Import):
+                names = [a.name.split(".")[0] for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [(node.module or "").split(".")[0]] if node.level == 0 else ["packetloss_cvx"]
+            else:
+                continue
+            assert set(names) <= LAZY_OK, f"{module}.{fn.name} imports {names} inside the function"
+
+
+def test_module_graph_has_no_cycle():
+    graph = {m: {t for _, t in _imports(m, p) if t is not None and t in MODULES and t != m} for m, p in MODULES.items()}
+    graph = {m: {t for t in ts if not (m.endswith("__init__") and t.startswith(m.rsplit(".", 1)[0]))}
+             for m, ts in graph.items()}
+    state: dict[str, int] = {}
+
+    def visit(m, path):
+        state[m] = 1
+        for t in graph[m]:
+            assert state.get(t) != 1, f"import cycle: {' -> '.join([*path, m, t])}"
+            if t not in state:
+                visit(t, [*path, m])
+        state[m] = 2
+
+    for m in graph:
+        if m not in state:
+            visit(m, [])
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_modules_stay_small(module):
+    lines = len(MODULES[module].read_text().splitlines())
+    assert lines <= MAX_LINES, f"{module} has {lines} lines (about 400 at most: split it along its seams)"
