@@ -13,7 +13,7 @@ __all__ = ["check_finite", "power_growth", "psd_factor", "solve_checked"]
 def psd_factor(W: np.ndarray) -> np.ndarray:
     """L with L'L = W for a symmetric PSD W (eigen-decomposition; zero rows dropped)."""
     vals, vecs = np.linalg.eigh(W)
-    keep = vals > PSD_FACTOR_RTOL * max(1.0, float(vals.max(initial=0.0)))
+    keep = vals > PSD_FACTOR_RTOL * max(0.0, float(vals.max(initial=0.0)))   # relative: tiny weights are kept
     return np.sqrt(vals[keep])[:, None] * vecs[:, keep].T
 
 

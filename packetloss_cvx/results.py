@@ -36,9 +36,11 @@ def eigenvalue_pairs(eigs: np.ndarray) -> list[list[float]]:
 class CrossCheck:
     """Agreement of a solver answer with the closed form.
 
-    ``max_input_diff`` is max |U_qp - U*| over the entries whose channel has mu > 0
-    (an input sent over a channel that never delivers does not enter the cost, so
-    any value is optimal); ``cost_rel_diff`` is |J_qp - J*| / max(1, |J*|).
+    ``max_input_diff`` is max |Vbar (U_qp - U*)|, the largest difference of the mean applied
+    inputs (an input sent over a channel that never delivers does not enter the cost, so any
+    value is optimal; one that rarely delivers is weakly determined); ``cost_rel_diff`` is
+    |J_qp - J*| / |J*|. Both are relative to the problem's own scale: the QP binds at
+    ``max_input_diff <= 1e-6 max|Vbar U*|`` and ``cost_rel_diff <= 1e-7`` (tolerances.py).
     """
 
     reference_method: str

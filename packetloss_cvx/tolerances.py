@@ -13,6 +13,7 @@ __all__ = [
     "CLARABEL_DEFAULT",
     "CLARABEL_TIGHT",
     "CROSS_CHECK_COST_RTOL",
+    "CROSS_CHECK_FLOOR",
     "CROSS_CHECK_INPUT_ATOL",
     "DENSE_MAX_CONDITION",
     "DENSE_RESIDUAL_RTOL",
@@ -28,7 +29,8 @@ __all__ = [
 #: and positive semidefinite when its least eigenvalue is >= -SYMMETRY_RTOL * max(1, ||W||).
 SYMMETRY_RTOL = 1e-10
 
-#: psd_factor drops eigen-directions below PSD_FACTOR_RTOL * max(1, largest eigenvalue).
+#: psd_factor drops eigen-directions below PSD_FACTOR_RTOL * (largest eigenvalue): purely relative,
+#: so a weight of 1e-15 is kept (with max(1, .) the QP once dropped every state weight below 1e-14).
 PSD_FACTOR_RTOL = 1e-14
 
 #: Clarabel for the expected-cost QP twin: tight enough that the cross-check below is meaningful.
@@ -43,11 +45,16 @@ CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, 
 #: may retry with other settings, and otherwise raises SolverError with the status.
 ACCEPTED_STATUSES = frozenset({"optimal"})
 
-#: The QP twin agrees with the closed form when max |U_qp - U*| <= CROSS_CHECK_INPUT_ATOL * max(1, max|U*|)
-#: (over channels with mu > 0) ...
+#: The QP twin agrees with the closed form when the mean applied inputs agree,
+#: max |Vbar (U_qp - U*)| <= CROSS_CHECK_INPUT_ATOL * max |Vbar U*| ...
 CROSS_CHECK_INPUT_ATOL = 1e-6
-#: ... and |J_qp - J*| <= CROSS_CHECK_COST_RTOL * max(1, |J*|).
+#: ... and |J_qp - J*| <= CROSS_CHECK_COST_RTOL * |J*| (relative at every scale: the QP is solved
+#: with its weights and x0 scaled to one, so its accuracy is relative too).
 CROSS_CHECK_COST_RTOL = 1e-7
+#: Below CROSS_CHECK_FLOOR times the problem's own scale (largest weight times max|x0|^2 for costs,
+#: max|x0| for inputs) a difference is rounding: against an exact zero (no state weight) the QP
+#: returns 7e-33 with weights and x0 of one.
+CROSS_CHECK_FLOOR = 1e-9
 
 #: A dense solve G U = b is kept only if ||G U - b|| <= DENSE_RESIDUAL_RTOL * ||G|| ||U|| + ||b|| scaled
 #: likewise; past it the dense path has lost the answer and raises NumericalError.
