@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import DimensionError, InputError, ProbabilityError
-from .tolerances import SYMMETRY_RTOL
+from .tolerances import PSD_RTOL, SYMMETRY_RTOL
 
 __all__ = ["System", "numeric_array"]
 
@@ -121,12 +121,19 @@ def _psd_weight(value: Any, field: str, n: int) -> np.ndarray:
 
 
 def _symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
-    scale = max(1.0, float(np.linalg.norm(arr, ord=2)))
+    """Symmetric to SYMMETRY_RTOL and PSD to PSD_RTOL, both relative to ||arr||; eigenvalues that are
+    negative only by rounding are set to zero, so the returned weight is exactly PSD."""
+    scale = float(np.linalg.norm(arr, ord=2))
     if np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
         raise InputError(field, "expected a symmetric matrix")
     sym = 0.5 * (arr + arr.T)
-    if np.linalg.eigvalsh(sym).min() < -SYMMETRY_RTOL * scale:
-        raise InputError(field, "expected a positive semidefinite matrix")
+    vals, vecs = np.linalg.eigh(sym)
+    if vals.min() < -PSD_RTOL * scale:
+        raise InputError(field, f"expected a positive semidefinite matrix, found the eigenvalue {vals.min():.3g} "
+                                f"beside {vals.max():.3g}")
+    if vals.min() < 0:
+        sym = (vecs * np.maximum(vals, 0.0)) @ vecs.T
+        sym = 0.5 * (sym + sym.T)
     return sym
 
 

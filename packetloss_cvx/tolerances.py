@@ -22,12 +22,16 @@ __all__ = [
     "SELF_CHECK_ATOL",
     "SELF_CHECK_RTOL",
     "PSD_FACTOR_RTOL",
+    "PSD_RTOL",
     "SYMMETRY_RTOL",
 ]
 
-#: A weight is symmetric when ||W - W'|| <= SYMMETRY_RTOL * max(1, ||W||) (spectral norms),
-#: and positive semidefinite when its least eigenvalue is >= -SYMMETRY_RTOL * max(1, ||W||).
+#: A weight is symmetric when ||W - W'|| <= SYMMETRY_RTOL * ||W|| (spectral norms) ...
 SYMMETRY_RTOL = 1e-10
+#: ... and positive semidefinite when its least eigenvalue is >= -PSD_RTOL * ||W|| (rounding of a
+#: computed F F' is about n eps ||W||); such rounding-level negatives are set to zero. With the
+#: former max(1, ||W||) * 1e-10, the eigenvalue -99 beside 1e12 passed and costs went negative.
+PSD_RTOL = 1e-12
 
 #: psd_factor drops eigen-directions below PSD_FACTOR_RTOL * (largest eigenvalue): purely relative,
 #: so a weight of 1e-15 is kept (with max(1, .) the QP once dropped every state weight below 1e-14).

@@ -79,3 +79,32 @@ def test_a_mu_of_5000_digits_is_a_number(capsys):
     _, err = capsys.readouterr()
     assert err.startswith("packetloss-cvx: error: --mu:")
     assert err.count("\n") == 1
+
+
+@pytest.mark.parametrize("field", ["state_weight", "noise_cov", "initial_weight"])
+def test_indefinite_matrices_are_refused_relative_to_their_size(field):
+    """-99 beside 1e12 passed the former absolute-floor test: the minimum was unbounded below and
+    expected_cost(U = 1e6) returned -5.4e15; with noise_cov a cost of -594 came back."""
+    bad = [[1e12, 0.0], [0.0, -99.0]]
+    with pytest.raises(pl.InputError, match="positive semidefinite") as info:
+        pl.System(**{**BASE, field: bad})
+    assert info.value.field == field
+
+
+def test_tiny_weights_are_judged_relative_to_themselves():
+    with pytest.raises(pl.InputError, match="positive semidefinite"):
+        pl.System(**{**BASE, "state_weight": [[1e-15, 0.0], [0.0, -1e-16]]})
+    # rounding-level negatives are accepted and set to zero: the weight is exactly PSD
+    s = pl.System(**{**BASE, "state_weight": [[1.0, 1.0], [1.0, 1.0 - 1e-15]]})
+    assert np.linalg.eigvalsh(s.state_weights[0]).min() >= 0.0
+    assert np.allclose(s.state_weights[0], [[1.0, 1.0], [1.0, 1.0]], atol=1e-14)
+
+
+def test_indefinite_weight_file_exits_2(tmp_path, capsys):
+    path = tmp_path / "indef.toml"
+    path.write_text('[plant]\nA = [[0.5, 0.0], [0.0, 1.0]]\nB = [[0.0], [1.0]]\n[cost]\nhorizon = 5\n'
+                    'state_weight = [[1e12, 0.0], [0.0, -99.0]]\ninput_weight = [1.0]\n[channel]\nmu = [1.0]\n'
+                    '[state]\nx0 = [1.0, 0.0]\n')
+    assert main(["solve", str(path)]) == 2
+    _, err = capsys.readouterr()
+    assert "cost.state_weight: expected a positive semidefinite matrix" in err
