@@ -205,34 +205,61 @@ def _emit(result: tuple[dict[str, Any], str], as_json: bool) -> None:
         print(text)
 
 
+#: Options whose value is a comma-separated list of numbers that may start with a minus sign.
+_NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha")
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--x0 -1,1`` -> ``--x0=-1,1``: argparse would read ``-1,1`` as an unknown option."""
+    out: list[str] = []
+    k = 0
+    while k < len(argv):
+        if argv[k] in _NUMBER_LISTS and k + 1 < len(argv) and argv[k + 1][:2].lstrip("-")[:1] in "0123456789.":
+            if argv[k + 1].startswith("-"):
+                out.append(f"{argv[k]}={argv[k + 1]}")
+                k += 2
+                continue
+        out.append(argv[k])
+        k += 1
+    return out
+
+
+def _say(message: str) -> None:
+    """One stderr line, whatever the message holds (a key or a path with a newline in it)."""
+    print(message.replace("\r", "\\r").replace("\n", "\\n"), file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
+    for stream in (sys.stdout, sys.stderr):   # a terminal that cannot show a name gets an escape, not a crash
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
     parser = _build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(_join_negative_values(list(sys.argv[1:] if argv is None else argv)))
         run: Callable[[argparse.Namespace], tuple] = args.run
         with warnings.catch_warnings():   # one stderr line, always: numerical warnings are checked, not printed
             warnings.simplefilter("ignore")
             result = run(args)
         code = result[2] if len(result) == 3 else 0
         if code == 3 and not getattr(args, "json", False):
-            print(f"packetloss-cvx: {result[1]}", file=sys.stderr)
+            _say(f"packetloss-cvx: {result[1]}")
         else:
             _emit(result[:2], getattr(args, "json", False))
         return code
     except InputError as err:
-        print(f"packetloss-cvx: error: {err}", file=sys.stderr)
+        _say(f"packetloss-cvx: error: {err}")
         return 2
     except InfeasibleError as err:
-        print(f"packetloss-cvx: infeasible: {err}", file=sys.stderr)
+        _say(f"packetloss-cvx: infeasible: {err}")
         return 3
     except (SolverError, NumericalError, CrossCheckError, ResourceError) as err:
-        print(f"packetloss-cvx: {type(err).__name__}: {err}", file=sys.stderr)
+        _say(f"packetloss-cvx: {type(err).__name__}: {err}")
         return 1
     except BrokenPipeError:  # the reader went away (e.g. `| head`): stop quietly
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
     except Exception as err:  # noqa: BLE001 - last line of defence: one line, no traceback
-        print(f"packetloss-cvx: unexpected {type(err).__name__}: {err}", file=sys.stderr)
+        _say(f"packetloss-cvx: unexpected {type(err).__name__}: {err}")
         return 1

@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from .errors import DimensionError, InputError, NumericalError, ResourceError
 from .linalg import solve_checked
-from .model import System, numeric_array
+from .model import System, check_system, numeric_array
 from .prediction import Prediction, prediction
 from .protocols import check_protocol
 from .recursion import backward_pass, condition_estimate, mean_trajectory, recursion_cost, udp_variance_weights
@@ -52,7 +52,8 @@ def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] |
 def _refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
     """Raise before building anything dense that would not fit or would lose the answer."""
     N, n, m = system.horizon, system.n, system.m
-    needed = 8.0 * (3 * (N * n) * (N * m) + 2 * (N * m) ** 2)   # Gamma, Omega Gamma, Omega_g, G, LU
+    # Gamma, Omega Gamma, Omega_g, G and its LU; the powers of A, Phi and Omega Phi
+    needed = 8.0 * (3 * (N * n) * (N * m) + 2 * (N * m) ** 2 + 4 * N * n * n)
     if needed > MEMORY_BUDGET_BYTES:
         raise ResourceError(
             f"method 'dense' needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} (budget "
@@ -157,6 +158,7 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     >>> bool(np.isclose(expected_cost(s, [[-1.0]], "udp"), 1.0))
     True
     """
+    system = check_system(system)
     protocol = check_protocol(protocol)
     U = check_inputs(system, inputs)
     choice = pick_method(system, method) if method != "auto" else "recursion"
@@ -216,6 +218,7 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
     >>> bool(np.allclose([sol.inputs[0, 0], sol.cost], [-0.5, 0.5]))
     True
     """
+    system = check_system(system)
     protocol = check_protocol(protocol)
     weights = udp_variance_weights(system)
     choice = pick_method(system, method, weights)

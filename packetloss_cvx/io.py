@@ -126,10 +126,12 @@ def load_system(path: str | Path) -> System:
     if not file.exists() and file.suffix == "" and file.name == text and text.replace("-", "_") in example_names():
         return load_example(text)
     try:
-        size = file.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise InputError("file", f"{file} is {size} bytes; a system file is at most {MAX_FILE_BYTES} bytes")
-        data = file.read_bytes()
+        if file.exists() and not file.is_dir() and not file.is_file():
+            raise InputError("file", f"{file} is not a regular file (a device, a pipe or a socket)")
+        with open(file, "rb") as handle:           # bounded read: st_size is 0 for devices
+            data = handle.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
+            raise InputError("file", f"{file} is larger than {MAX_FILE_BYTES} bytes; a system file is a few kilobytes")
     except FileNotFoundError:
         hint = f" (or an example name: {', '.join(example_names())})" if file.suffix == "" else ""
         raise InputError("file", f"no such file: {file}{hint}") from None
@@ -166,13 +168,18 @@ def dumps_system(system: System) -> str:
 def save_system(system: System, path: str | Path) -> Path:
     """Write ``system`` to ``path`` as TOML; returns the path."""
     path = Path(path)
-    path.write_text(dumps_system(system), encoding="utf-8")
+    if not isinstance(system, System):
+        raise InputError("system", f"expected a System, found {type(system).__name__}")
+    try:
+        path.write_text(dumps_system(system), encoding="utf-8")
+    except OSError as err:
+        raise InputError("path", f"cannot write {path}: {err.strerror or err}") from None
     return path
 
 
 def _toml_value(value: Any) -> str:
-    if isinstance(value, str):
-        return json.dumps(value)          # a JSON string is a valid TOML basic string
+    if isinstance(value, str):   # a JSON string is a TOML basic string once DEL is escaped and characters
+        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")   # beyond U+FFFF stay raw
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):

@@ -21,7 +21,7 @@ import numpy.typing as npt
 from .errors import DimensionError, InputError, ProbabilityError
 from .tolerances import PSD_RTOL, SYMMETRY_RTOL
 
-__all__ = ["System", "numeric_array"]
+__all__ = ["System", "check_system", "numeric_array"]
 
 #: Arrays in the schema nest at most three levels deep (state_weights: N × n × n).
 MAX_NESTING = 3
@@ -37,6 +37,8 @@ def numeric_array(value: Any, field: str) -> np.ndarray:
     The one validator of numeric input: every array the package accepts goes through it,
     so every error names ``field``.
     """
+    if isinstance(value, np.ma.MaskedArray) and np.ma.is_masked(value):
+        raise InputError(field, "expected plain numbers, found a masked array with masked entries")
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iuf":
             raise InputError(field, f"expected numbers, found an array of {value.dtype}")
@@ -75,6 +77,11 @@ def _check_numbers(value: Any, field: str) -> None:
                     digits = int(int(item).bit_length() * 0.30103) + 1
                     raise InputError(field, f"expected numbers within the double range (|x| < 1.8e308), found an "
                                             f"integer of about {digits} digits") from None
+            continue
+        if isinstance(item, np.ndarray):            # a row given as an array inside a list
+            if item.dtype.kind not in "iuf" or depth + item.ndim > MAX_NESTING:
+                raise InputError(field, f"expected numbers, found an array of {item.dtype} and shape {item.shape}")
+            count += item.size
             continue
         if isinstance(item, str):
             raise InputError(field, f"expected a number, found the string {item[:40]!r}")
@@ -390,3 +397,11 @@ def _sequence(value: Any, field: str, N: int) -> list:
     if len(value) != N:
         raise DimensionError(field, f"expected {N} entries (one per step t = 1..N), found {len(value)}")
     return list(value)
+
+
+def check_system(system: Any, field: str = "system") -> System:
+    """``system`` if it is a :class:`System`; otherwise an InputError saying how to make one."""
+    if not isinstance(system, System):
+        raise InputError(field, f"expected a System (packetloss_cvx.System(...), load_system(path) or "
+                                f"load_example(name)), found {type(system).__name__}")
+    return system

@@ -28,7 +28,7 @@ from .convex import solve_problem
 from .costs import closed_form
 from .errors import CrossCheckError, InputError, NumericalError, ResourceError, SolverError
 from .linalg import power_growth, psd_factor
-from .model import System
+from .model import System, check_system
 from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import recursion_cost, udp_variance_weights
@@ -70,14 +70,14 @@ def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.cs
 def qp_memory_estimate(system: System, formulation: str) -> float:
     """Bytes the QP needs at its peak, known before building it.
 
-    Measured (n = 1..4, m = 1..2, N up to 8000): cvxpy's DPP canonicalisation keeps a dense
-    (N m)×(N m) parameter map, 8 (N m)^2 bytes; the condensed form adds its dense constants,
-    8 · 2 (N n)(N m).
+    Measured (tracemalloc; n = 1..400, m = 1..2, N up to 8000): cvxpy's DPP canonicalisation keeps
+    a dense (N m)×(N m) parameter map, 8 (N m)^2 bytes, and the state terms cost about 190 N n^2
+    bytes (sparse) or 120 N n^2 (condensed, plus its dense (N n)×(N m) constants).
     """
-    Nm = system.horizon * system.m
-    needed = 8.0 * Nm**2 + 1e7
+    N, n, m = system.horizon, system.n, system.m
+    needed = 8.0 * (N * m) ** 2 + 200.0 * N * n * n + 1e7
     if formulation == "condensed":
-        needed += 16.0 * (system.horizon * system.n) * Nm
+        needed += 16.0 * (N * n) * (N * m)
     return needed
 
 
@@ -112,6 +112,7 @@ class ExpectedCostQP:
     """
 
     def __init__(self, system: System, protocol: str, formulation: str = "auto") -> None:
+        system = check_system(system)
         self.protocol = check_protocol(protocol)
         self.formulation = _pick(system, formulation)
         self.system = system
@@ -119,8 +120,9 @@ class ExpectedCostQP:
         needed = qp_memory_estimate(system, self.formulation)
         if needed > MEMORY_BUDGET_BYTES:
             raise ResourceError(
-                f"the {self.formulation} QP needs about {needed / 2**30:.1f} GiB for N*m = {N * m} (cvxpy keeps a "
-                f"dense (N m)^2 parameter map); budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
+                f"the {self.formulation} QP needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} (cvxpy "
+                f"keeps a dense (N m)^2 parameter map and ~200 N n^2 bytes of state terms); budget "
+                f"{MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
                 MEMORY_BUDGET_BYTES)
         self._d, self._noise = udp_variance_weights(system)
         self._plan_checkable = power_growth(system.A, N, PLAN_CHECK_MAX_GROWTH) <= PLAN_CHECK_MAX_GROWTH
@@ -263,6 +265,8 @@ def compare(inputs: np.ndarray, cost: float, reference: Solution, system: System
     The mean applied input ``Vbar U`` is what the cost sees: an input over a channel that
     (almost) never delivers is (almost) free, so it is compared through its delivery probability.
     """
+    if not isinstance(reference, Solution):
+        raise InputError("reference", f"expected a Solution (e.g. from closed_form), found {type(reference).__name__}")
     expected = np.asarray(reference.inputs)
     if expected.shape != inputs.shape:
         raise InputError("reference", f"expected a Solution of this system (inputs of shape {inputs.shape}), "

@@ -132,9 +132,10 @@ def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarr
     x = np.empty((N + 1, system.n))
     u = np.empty((N, system.m))
     x[0] = system.x0
-    for t in range(N):
-        u[t] = -K[t] @ x[t]
-        x[t + 1] = A @ x[t] + B @ (mu[t] * u[t])
+    with np.errstate(over="ignore", invalid="ignore"):   # callers check finiteness
+        for t in range(N):
+            u[t] = -K[t] @ x[t]
+            x[t + 1] = A @ x[t] + B @ (mu[t] * u[t])
     return u, x
 
 
@@ -155,10 +156,11 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(system.horizon):
             u = inputs[t]
-            total += float(np.sum(mu[t] * psi[t] * u * u))
+            mean_u = mu[t] * u                  # the mean applied input: products in this order stay
+            total += float(np.sum(mean_u * (psi[t] * u)))      # in range when mu is tiny and u huge
             if protocol == "udp":
                 lossy = mu[t] < 1.0
-                total += float(np.sum((d[t] * mu[t] * (1.0 - mu[t]) * u * u)[lossy]))
+                total += float(np.sum((mean_u * ((1.0 - mu[t]) * d[t] * u))[lossy]))
             x = A @ x + B @ (mu[t] * u)
             total += float(x @ W[t] @ x)
     return total

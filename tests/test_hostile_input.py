@@ -108,3 +108,64 @@ def test_indefinite_weight_file_exits_2(tmp_path, capsys):
     assert main(["solve", str(path)]) == 2
     _, err = capsys.readouterr()
     assert "cost.state_weight: expected a positive semidefinite matrix" in err
+
+
+def test_devices_and_pipes_are_not_read(tmp_path):
+    """/dev/zero read without limit (st_size is 0); a FIFO hung until killed."""
+    import os
+
+    with pytest.raises(pl.InputError, match="not a regular file"):
+        pl.load_system("/dev/zero")
+    fifo = tmp_path / "f.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(pl.InputError, match="not a regular file"):
+        pl.load_system(fifo)
+
+
+def test_newlines_in_names_keep_one_stderr_line(tmp_path, capsys):
+    assert main(["solve", "no\nsuch\nfile"]) == 2
+    path = tmp_path / "nl.toml"
+    path.write_text(pl.io.dumps_system(pl.load_example("two_actuator")) + '"a\\nb" = 1\n')
+    assert main(["solve", str(path)]) == 2
+    _, err = capsys.readouterr()
+    assert err.count("\n") == 2            # one line per command
+    assert "no\\nsuch\\nfile" in err
+
+
+def test_a_negative_first_value_is_a_value(capsys):
+    """--x0 -1,1 was read as an unknown option."""
+    assert main(["solve", "two_actuator", "--x0", "-1,1", "--no-qp", "--protocol", "tcp"]) == 0
+    assert main(["solve", "two_actuator", "--x0=-1,1", "--no-qp", "--protocol", "tcp"]) == 0
+    first, second = capsys.readouterr().out.split("two-actuator")[1:]
+    assert first == second
+
+
+def test_save_system_round_trips_any_name(tmp_path):
+    """json.dumps wrote surrogate pairs for characters beyond U+FFFF, which TOML forbids."""
+    data = pl.load_example("two_actuator").to_dict()
+    data["name"] = 'pump \U0001f600 \x7f tab\t "q" \\ \u00e9'
+    system = pl.io.system_from_dict(data)
+    assert pl.load_system(pl.save_system(system, tmp_path / "s.toml")).name == data["name"]
+    with pytest.raises(pl.InputError) as info:
+        pl.save_system(system, tmp_path)
+    assert info.value.field == "path"
+
+
+@pytest.mark.parametrize("call", [
+    lambda s: pl.closed_form({}, "tcp"),
+    lambda s: pl.expected_cost(None, [[0.0]], "tcp"),
+    lambda s: pl.solve_qp("two_actuator", "tcp"),
+    lambda s: pl.solve_qp(s, "tcp", reference="x"),
+    lambda s: pl.solve_qp(s, "tcp", reference=pl.closed_form(pl.load_example("pendulum"), "tcp")),
+    lambda s: pl.save_system({}, "x.toml"),
+])
+def test_api_misuse_is_a_typed_error(call):
+    with pytest.raises(pl.InputError, match="system|reference"):
+        call(pl.load_example("two_actuator"))
+
+
+def test_rows_as_arrays_and_masked_arrays():
+    rows = [np.array([1.0, 0.0]), np.array([0.0, 1.0])]
+    assert pl.System(**{**BASE, "A": rows}).A.tolist() == [[1.0, 0.0], [0.0, 1.0]]
+    with pytest.raises(pl.InputError, match="masked"):
+        pl.System(**{**BASE, "x0": np.ma.array([1.0, 0.0], mask=[True, False])})

@@ -272,3 +272,15 @@ def test_cross_check_against_an_exact_zero(two_actuator):
     qp = pl.solve_qp(s, "udp", with_gain=False)
     assert qp.cost < 1e-20
     assert pl.closed_form(s, "udp").cost == 0.0
+
+
+def test_qp_memory_grows_with_n_and_is_refused_in_advance(monkeypatch):
+    """n = 3000 states over 5 steps: the QP would need about 8 GiB (measured ~190 N n^2 bytes)."""
+    from packetloss_cvx.qp import qp_memory_estimate
+
+    s = pl.System(A=np.eye(3000) * 0.5, B=np.ones((3000, 1)), horizon=5, state_weight=np.ones(3000),
+                  input_weight=[1.0], mu=[0.5], x0=np.ones(3000))
+    assert qp_memory_estimate(s, "sparse") > 7 * 2**30
+    monkeypatch.setattr("packetloss_cvx.qp.MEMORY_BUDGET_BYTES", 6 * 2**30)   # this machine's; not a bigger one's
+    with pytest.raises(pl.ResourceError, match="GiB"):
+        pl.ExpectedCostQP(s, "tcp", "sparse")
