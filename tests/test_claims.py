@@ -208,8 +208,8 @@ def test_audit_refuses_a_negative_seed(capsys):
 def test_allocation_claim_counts_each_pair(monkeypatch):
     """The allocation claim's 18 (beta, alpha) cases through a stand-in allocator (the real one takes 7 s):
     a perfect channel holds, none violates, no feasible point is not applicable, a solver failure errors."""
-    def stand_in(system, protocol, alpha, beta, coarse, fine):
-        assert (protocol, coarse, fine) == ("udp", 101, 21)
+    def stand_in(system, protocol, alpha, beta, coarse, fine, tol):
+        assert (protocol, coarse, fine, tol) == ("udp", 101, 21, 1e-8)
         if alpha == 6.0:
             raise pl.SolverError("numerical trouble")
         if alpha == 8.0:
