@@ -87,7 +87,7 @@ def _solve(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
                     "formulation": qp.method.removeprefix("qp-"),
                     "max_input_diff": check.max_input_diff, "cost_rel_diff": check.cost_rel_diff,
                 }
-                line += (f"; QP {qp.status}, J = {qp.cost:.10g}, max|dU| = {check.max_input_diff:.2e}, "
+                line += (f"; QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = {check.max_input_diff:.2e}, "
                          f"rel dJ = {check.cost_rel_diff:.2e}")
         out[protocol] = entry
         eig = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in sol.closed_loop_eigenvalues)
