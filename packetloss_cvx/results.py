@@ -193,7 +193,8 @@ class ClaimResult:
     def to_dict(self) -> dict[str, Any]:
         return {
             "id": self.id, "statement": self.statement, "verdict": self.verdict, "checked": self.checked,
-            "violations": self.violations, "errors": self.errors, "worst": self.worst,
+            "violations": self.violations, "errors": self.errors,
+            "worst": self.worst if self.worst is None or np.isfinite(self.worst) else None,   # JSON has no inf
             "counterexample": self.counterexample, "note": self.note, "outcomes": self.outcomes,
         }
 

@@ -200,12 +200,16 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     max_boxes = check_count(max_boxes, "max_boxes")
     time_limit = _time_limit(time_limit)
     poly = _polytope(constraints, system.m, lo, hi)
+    # the problem is invariant to the scale of the prices: solve with max(beta) = 1 and scale back,
+    # so that no absolute floor (ALLOCATION_GAP_FLOOR) can certify a gap at tiny prices
+    unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
+    prices = beta / unit
 
     def infeasible(proof: str) -> InfeasibleError:
         return _infeasible(system, protocol, alpha, poly, proof, max_boxes, time_limit)
 
     try:
-        relaxation = tcp_allocate(system, poly, alpha, beta, gap)
+        relaxation = tcp_allocate(system, poly, alpha, prices, gap)
     except InfeasibleError as err:
         proof = str(err) if protocol == "tcp" else f"the TCP-like relaxation is infeasible (Theorem 2): {err}"
         raise infeasible(proof) from None
@@ -218,15 +222,16 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     else:
         floor = relaxation.lower_bound if relaxation is not None else -np.inf
         try:
-            out = udp_allocate(system, poly, alpha, beta, gap, floor, max_boxes, time_limit)
+            out = udp_allocate(system, poly, alpha, prices, gap, floor, max_boxes, time_limit)
         except InfeasibleError as err:
             raise infeasible(str(err)) from None
         if relaxation is not None:
             floor_note = f"; TCP-like lower bound {relaxation.lower_bound:.6g} (Theorem 2)"
         out = out._replace(note=out.note + floor_note)
-    value = float(beta @ out.mu)
-    return Allocation(mu=out.mu, communication_cost=value, cost=cost_at(system, protocol, out.mu),
-                      lower_bound=out.lower_bound, gap=(value - out.lower_bound) / max(value, ALLOCATION_GAP_FLOOR),
+    scaled = float(prices @ out.mu)
+    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost_at(system, protocol, out.mu),
+                      lower_bound=out.lower_bound * unit,
+                      gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR),
                       status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)
 
 
