@@ -101,7 +101,11 @@ def _audit(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     if args.seed < 0:
         raise InputError("--seed", f"expected an integer >= 0, found {args.seed}")
     systems = [load_system(path) for path in args.files]
-    results = audit(systems, random=args.random, seed=args.seed, only=args.claim or None)
+    only = list(dict.fromkeys(args.claim)) if args.claim else None   # a repeated --claim is checked once
+    try:
+        results = audit(systems, random=args.random, seed=args.seed, only=only)
+    except InputError as err:
+        raise err.renamed("--claim") if err.field == "claim" else err from None
     data = {"claims": [r.to_dict() for r in results]}
     text = markdown_report(results) if args.report else markdown_table(results)
     return data, text
@@ -151,8 +155,10 @@ def _allocate(args: argparse.Namespace) -> tuple[dict[str, Any], str] | tuple[di
     if result.status == "optimal":
         text = f"{args.protocol.upper()}-like: {line} (gap {result.gap:.1e}; {result.method})"
         return data, text
+    advice = ("raise --max-boxes or --time-limit, or --gap" if args.protocol == "udp" else
+              "the TCP-like SOCP's certificate is limited by the solver's accuracy: ask for a larger --gap")
     text = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED: {line}; gap reached {result.gap:.1e} > the "
-            f"requested gap ({result.method}); raise --max-boxes or --time-limit, or --gap")
+            f"requested gap ({result.method}); {advice}")
     return data, text, 4
 
 

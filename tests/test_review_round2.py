@@ -42,3 +42,24 @@ def test_allocation_is_invariant_to_the_scale_of_the_prices(protocol):
     assert tiny.gap == pytest.approx(unit.gap, rel=1e-6, abs=1e-12)
     assert tiny.lower_bound == pytest.approx(unit.lower_bound * 1e-16, rel=1e-9)
     assert tiny.status == unit.status == "optimal"
+
+
+def test_cli_claim_flag_is_named_and_deduplicated(capsys):
+    from packetloss_cvx.cli import main
+
+    assert main(["audit", "--random", "0", "--claim", "nope"]) == 2
+    assert capsys.readouterr().err.startswith("packetloss-cvx: error: --claim: unknown claim id 'nope'")
+    assert main(["audit", "--random", "0", "--claim", "table-2", "--claim", "table-2", "--json"]) == 0
+    import json
+
+    assert [c["id"] for c in json.loads(capsys.readouterr().out)["claims"]] == ["table-2"]
+
+
+def test_tcp_gap_not_certified_gives_advice_that_applies(capsys):
+    from packetloss_cvx.cli import main
+
+    code = main(["allocate", "two_actuator", "--protocol", "tcp", "--alpha", "8", "--beta", "1,1", "--gap", "1e-9"])
+    out = capsys.readouterr().out
+    assert code == 4
+    assert "ask for a larger --gap" in out
+    assert "--max-boxes" not in out    # the caps do not apply to the TCP-like SOCP
