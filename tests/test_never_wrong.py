@@ -275,12 +275,17 @@ def test_cross_check_against_an_exact_zero(two_actuator):
 
 
 def test_qp_memory_grows_with_n_and_is_refused_in_advance(monkeypatch):
-    """n = 3000 states over 5 steps: the QP would need about 8 GiB (measured ~190 N n^2 bytes)."""
+    """The estimate counts the state terms (~190 N n^2 bytes measured): n = 3000 over 5 steps needs ~8 GiB,
+    and a 300-state system is refused against a budget it would exceed."""
     from packetloss_cvx.qp import qp_memory_estimate
 
-    s = pl.System(A=np.eye(3000) * 0.5, B=np.ones((3000, 1)), horizon=5, state_weight=np.ones(3000),
-                  input_weight=[1.0], mu=[0.5], x0=np.ones(3000))
-    assert qp_memory_estimate(s, "sparse") > 7 * 2**30
-    monkeypatch.setattr("packetloss_cvx.qp.MEMORY_BUDGET_BYTES", 6 * 2**30)   # this machine's; not a bigger one's
+    def system(n: int) -> pl.System:
+        return pl.System(A=np.eye(n) * 0.5, B=np.ones((n, 1)), horizon=5, state_weight=np.ones(n),
+                         input_weight=[1.0], mu=[0.5], x0=np.ones(n))
+
+    small = system(300)
+    assert qp_memory_estimate(small, "sparse") > 8e7
+    assert qp_memory_estimate(system(600), "sparse") - 1e7 > 3.9 * (qp_memory_estimate(small, "sparse") - 1e7)
+    monkeypatch.setattr("packetloss_cvx.qp.MEMORY_BUDGET_BYTES", 5e7)
     with pytest.raises(pl.ResourceError, match="GiB"):
-        pl.ExpectedCostQP(s, "tcp", "sparse")
+        pl.ExpectedCostQP(small, "tcp", "sparse")
