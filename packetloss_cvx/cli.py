@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -220,13 +221,12 @@ def _join_negative_values(argv: list[str]) -> list[str]:
     out: list[str] = []
     k = 0
     while k < len(argv):
-        if argv[k] in _NUMBER_LISTS and k + 1 < len(argv) and argv[k + 1][:2].lstrip("-")[:1] in "0123456789.":
-            if argv[k + 1].startswith("-"):
-                out.append(f"{argv[k]}={argv[k + 1]}")
-                k += 2
-                continue
-        out.append(argv[k])
-        k += 1
+        if argv[k] in _NUMBER_LISTS and k + 1 < len(argv) and re.match(r"-[\d.]", argv[k + 1]):
+            out.append(f"{argv[k]}={argv[k + 1]}")
+            k += 2
+        else:
+            out.append(argv[k])
+            k += 1
     return out
 
 

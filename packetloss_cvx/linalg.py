@@ -17,13 +17,13 @@ def psd_factor(W: np.ndarray) -> np.ndarray:
     return np.sqrt(vals[keep])[:, None] * vecs[:, keep].T
 
 
-def check_finite(name: str, arr: np.ndarray | float, why: str = "the dense prediction of an unstable plant "
-                 "over a long horizon", instead: str = "method='recursion'") -> np.ndarray | float:
+def check_finite(name: str, arr: np.ndarray | float,
+                 why: str = "the dense prediction of an unstable plant over a long horizon",
+                 advice: str = "use method='recursion'") -> np.ndarray | float:
     """Return ``arr``, or raise :class:`NumericalError` saying that ``name`` overflowed, ``why``,
-    and what to use ``instead``."""
+    and the ``advice``."""
     if not np.all(np.isfinite(arr)):
-        raise NumericalError(f"{name} overflowed ({why}); {instead}" if instead.startswith(("shorten", "use"))
-                             else f"{name} overflowed ({why}); use {instead}")
+        raise NumericalError(f"{name} overflowed ({why}); {advice}")
     return arr
 
 

@@ -74,7 +74,7 @@ def _check_numbers(value: Any, field: str) -> None:
                 try:
                     float(item)
                 except OverflowError:
-                    digits = int(int(item).bit_length() * 0.30103) + 1
+                    digits = _digits(int(item))
                     raise InputError(field, f"expected numbers within the double range (|x| < 1.8e308), found an "
                                             f"integer of about {digits} digits") from None
             continue
@@ -144,10 +144,15 @@ def _symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
     return sym
 
 
+def _digits(value: int) -> int:
+    """Decimal digits of a huge integer, without str() (Python refuses it past 4300 digits)."""
+    return int(abs(value).bit_length() * 0.30103) + 1
+
+
 def _short(value: Any) -> str:
     """A bounded repr (Python refuses str() of integers over 4300 digits)."""
     if isinstance(value, numbers.Integral) and abs(int(value)) >= 10**30:
-        return f"(an integer of about {int(int(value).bit_length() * 0.30103) + 1} digits)"
+        return f"(an integer of about {_digits(int(value))} digits)"
     return repr(value)[:40]
 
 
@@ -160,7 +165,7 @@ def _horizon(value: Any, field: str, n: int, m: int) -> int:
         raise InputError(field, f"expected an integer >= 1, found {_short(N)}")
     limit = MAX_ENTRIES // max(n * n, m)
     if N > limit:
-        shown = N if N < 10**30 else f"an integer of about {int(N.bit_length() * 0.30103) + 1} digits"
+        shown = N if N < 10**30 else f"an integer of about {_digits(N)} digits"
         raise InputError(field, f"expected at most {limit} for n = {n}, m = {m} (horizon * max(n^2, m) <= "
                                 f"{MAX_ENTRIES}, what fits in memory), found {shown}")
     return N

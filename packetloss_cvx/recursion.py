@@ -33,7 +33,7 @@ __all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
     check_finite(name, value, why=f"the exact {protocol}-like expected cost exceeds the double-precision range, "
                  "1e308: the open-loop prediction of an unstable plant over this horizon",
-                 instead="shorten the horizon or stabilise the plant")
+                 advice="shorten the horizon or stabilise the plant")
 
 
 def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:

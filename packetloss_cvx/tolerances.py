@@ -137,16 +137,13 @@ ALLOCATION_LP_FEASIBILITY = 1e-9
 #: min_cost certifies the least reachable J* to this relative gap (status "optimal").
 MIN_COST_RTOL = 1e-6
 
-__all__ += ["ALLOCATION_CLARABEL_ATTEMPTS", "CLARABEL_DEFAULT_EXPLICIT"]
-
-#: The same as CLARABEL_DEFAULT (kept as a name: the allocation code uses it).
-CLARABEL_DEFAULT_EXPLICIT = CLARABEL_DEFAULT
+__all__ += ["ALLOCATION_CLARABEL_ATTEMPTS"]
 
 #: The allocation SOCPs (epigraph form, cost scaled by 1 / (alpha - C)) try the tight settings,
 #: then Clarabel's defaults. On 200 test problems (the 3-channel case of issue 8 over 40 random
 #: systems, the 2-channel test systems, random m = 2..4) the tight settings end "optimal" on
 #: 175 and the defaults on all 200; the former single summed constraint on 164.
-ALLOCATION_CLARABEL_ATTEMPTS = (CLARABEL_TIGHT, CLARABEL_DEFAULT_EXPLICIT)
+ALLOCATION_CLARABEL_ATTEMPTS = (CLARABEL_TIGHT, CLARABEL_DEFAULT)
 
 __all__ += ["ALLOCATION_CUT_STEPS"]
 
