@@ -233,7 +233,7 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
 
 
 def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
-    K, P0, noise = backward_pass(system, protocol)
+    K, P0, noise = backward_pass(system, protocol, weights)
     U, _ = mean_trajectory(system, K)
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise

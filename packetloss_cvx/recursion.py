@@ -73,12 +73,14 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     return (total + float(psi.max())) / float(psi.min())
 
 
-def backward_pass(system: System, protocol: str) -> tuple[np.ndarray, np.ndarray, float]:
+def backward_pass(system: System, protocol: str,
+                  weights: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Riccati recursion of the mean-state LQ problem.
 
     Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
     the cost-to-go matrix at step 0 (without Q) and the noise term. The Lyapunov sum
-    S_t (UDP-like weights, noise) runs in the same backward loop.
+    S_t (UDP-like weights, noise) runs in the same backward loop, unless ``weights`` (the
+    result of :func:`udp_variance_weights`, already computed by the caller) supplies it.
     Time O(N (n^3 + m^3)), memory O(N m n).
     """
     protocol = check_protocol(protocol)
@@ -87,13 +89,15 @@ def backward_pass(system: System, protocol: str) -> tuple[np.ndarray, np.ndarray
     mu, psi = system.mu_schedule, system.input_weights
     udp = protocol == "udp"
     has_noise = bool(np.any(system.noise_cov != 0))
-    track_S = udp or has_noise
+    track_S = (udp or has_noise) and weights is None   # given the Lyapunov sums, do not redo them
     keep = np.where(mu < 1.0, 1.0 - mu, 0.0)  # (1 - mu) on lossy channels, 0 on perfect ones
     D = np.zeros((N, m))                      # diag(Omega_g) per step (UDP-like)
     K = np.empty((N, m, system.n))
     P = W[N - 1].copy()
     S = W[N - 1].copy()
     noise = 0.0
+    if weights is not None:
+        D, noise = weights[0], weights[1]
     diag = np.arange(m) * (m + 1)
     AT = A.T
     with np.errstate(over="ignore", invalid="ignore"):
@@ -101,6 +105,8 @@ def backward_pass(system: System, protocol: str) -> tuple[np.ndarray, np.ndarray
             PB = P @ B
             G = (B.T @ PB) * mu[t]
             G.flat[diag] += psi[t]
+            if weights is not None and udp:
+                G.flat[diag] += D[t] * keep[t]
             if track_S:
                 if udp:
                     D[t] = ((S @ B) * B).sum(axis=0)
