@@ -2,11 +2,16 @@
 
 Implements "Optimal Control of Systems with Multichannel Packet Loss" (Casbolt,
 Jones, Esnaola): each formula in closed form and as a Clarabel QP.
+
+The public names below are imported on first use (PEP 562), so that importing the
+package, or running ``packetloss-cvx --help``, does not import cvxpy or scipy.
 """
 
-from .allocation import allocate
-from .claims import audit
-from .costs import closed_form, expected_cost, paper_optimal_cost
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from .errors import (
     CrossCheckError,
     DimensionError,
@@ -17,36 +22,64 @@ from .errors import (
     ResourceError,
     SolverError,
 )
-from .io import load_example, load_system, save_system
-from .model import System
-from .qp import ExpectedCostQP, solve_qp
-from .results import Allocation, ClaimResult, CrossCheck, Maximiser, Solution
+
+if TYPE_CHECKING:   # the names a type checker and an IDE see; at run time they load on first use
+    from .allocation import allocate
+    from .claims import audit
+    from .costs import closed_form, expected_cost, paper_optimal_cost
+    from .io import load_example, load_system, save_system
+    from .model import System
+    from .qp import ExpectedCostQP, solve_qp
+    from .results import Allocation, ClaimResult, CrossCheck, Maximiser, Solution
 
 __version__ = "0.1.0"
 
+#: public name -> the module (of this package) that defines it
+LAZY = {
+    "allocate": "allocation", "audit": "claims",
+    "closed_form": "costs", "expected_cost": "costs", "paper_optimal_cost": "costs",
+    "load_example": "io", "load_system": "io", "save_system": "io",
+    "System": "model", "ExpectedCostQP": "qp", "solve_qp": "qp",
+    "Allocation": "results", "ClaimResult": "results", "CrossCheck": "results", "Maximiser": "results",
+    "Solution": "results",
+}
+
 __all__ = [
-    "Allocation",
-    "ClaimResult",
-    "CrossCheck",
     "CrossCheckError",
     "DimensionError",
-    "ExpectedCostQP",
     "InfeasibleError",
     "InputError",
-    "Maximiser",
     "NumericalError",
     "ProbabilityError",
     "ResourceError",
-    "Solution",
     "SolverError",
+    "Allocation",
+    "ClaimResult",
+    "CrossCheck",
+    "ExpectedCostQP",
+    "Maximiser",
+    "Solution",
+    "System",
     "allocate",
     "audit",
-    "System",
     "closed_form",
     "expected_cost",
     "load_example",
     "load_system",
-    "save_system",
     "paper_optimal_cost",
+    "save_system",
     "solve_qp",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name's module on first use (PEP 562)."""
+    if name not in LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{LAZY[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(LAZY))

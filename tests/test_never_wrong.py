@@ -149,7 +149,7 @@ def test_qp_whose_objective_disagrees_with_its_own_plan_raises():
 def test_cross_check_compares_the_printed_number_and_binds(capsys, monkeypatch):
     """solve --method dense compared the QP with the auto answer; now with the printed one, and a
     disagreement is exit 1 with one line naming both numbers."""
-    import packetloss_cvx.cli as cli
+    import packetloss_cvx.cli.solve as cli
 
     real = cli.closed_form
 

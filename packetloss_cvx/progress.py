@@ -1,0 +1,63 @@
+"""Progress bars for long work: tqdm on stderr, off when stderr is not a terminal or when asked.
+
+Every long API call takes ``progress: bool | None = None``: ``True`` shows a bar, ``False``
+hides it, ``None`` (the default) shows it only when stderr is a terminal. The command line
+passes ``False`` with ``--quiet``.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable, Iterator
+from typing import Any, TypeVar
+
+__all__ = ["Bar", "progress_bar", "wants_progress"]
+
+T = TypeVar("T")
+
+
+def wants_progress(progress: bool | None) -> bool:
+    """``progress`` resolved: ``None`` means "when stderr is a terminal"."""
+    if progress is None:
+        isatty = getattr(sys.stderr, "isatty", None)
+        return bool(isatty and isatty())
+    return bool(progress)
+
+
+class Bar:
+    """A no-op stand-in for a tqdm bar (the same ``update``/``close``/iteration interface)."""
+
+    def __init__(self, iterable: Iterable[Any] | None = None) -> None:
+        self.iterable = iterable
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter(self.iterable if self.iterable is not None else ())
+
+    def update(self, n: int = 1) -> None:
+        """Nothing to show."""
+
+    def set_postfix_str(self, text: str) -> None:
+        """Nothing to show."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+    def __enter__(self) -> Bar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def progress_bar(iterable: Iterable[T] | None = None, *, total: int | None = None, desc: str = "",
+                 progress: bool | None = None) -> Any:
+    """A tqdm bar on stderr when :func:`wants_progress` says so, else a silent :class:`Bar`.
+
+    >>> list(progress_bar(range(3), progress=False))
+    [0, 1, 2]
+    """
+    if not wants_progress(progress):
+        return Bar(iterable)
+    from tqdm.auto import tqdm  # lazy: tqdm is only needed when a bar is shown
+
+    return tqdm(iterable, total=total, desc=desc, file=sys.stderr, leave=False, dynamic_ncols=True)
