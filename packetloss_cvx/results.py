@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "Allocation", "ClaimResult", "CrossCheck", "Maximiser", "MinCost", "Solution", "Sweep", "eigenvalue_pairs",
+    "Allocation", "ClaimResult", "CrossCheck", "DesignSweep", "Maximiser", "MinCost", "Solution", "Sweep",
+    "eigenvalue_pairs",
 ]
 
 
@@ -264,3 +265,87 @@ class MinCost:
         """Plain floats and lists for JSON. O(m)."""
         return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
                 "status": self.status, "mu": self.mu.tolist(), "method": self.method}
+
+
+@dataclass(frozen=True)
+class DesignSweep:
+    """Optimal costs of both protocols over a design study (:func:`packetloss_cvx.studies.sweep`).
+
+    Attributes
+    ----------
+    kind : str
+        ``"mu-grid"`` (a grid of channel values), ``"mu-list"`` (given m-channel points),
+        ``"x0-scale"`` (x0 times each scale) or ``"horizon"`` (each horizon N).
+    dims : tuple of str
+        The swept dimensions, slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2).
+    axes : tuple of ndarray
+        One array per dimension; the points are their Cartesian product in C order.
+    mu : ndarray, shape (P, m)
+        The channel at each point (P = product of the axes' lengths).
+    x0 : ndarray, shape (P, n)
+    horizon : ndarray of int, shape (P,)
+    costs : dict
+        Protocol -> J* at each point, shape (P,).
+    difference : ndarray, shape (P,), or None
+        J*_udp - J*_tcp (the difference of the two checked costs: exact to about 1e-15 J*_udp
+        absolute, so its relative error grows where the two costs nearly agree, at mu near 0 or 1).
+    name : str or None
+        The system's name.
+    chunk_size : int
+        Points per batch (each chunk is one batched evaluation, in process or on a Dask worker).
+    """
+
+    kind: str
+    dims: tuple[str, ...]
+    axes: tuple[np.ndarray, ...]
+    mu: np.ndarray
+    x0: np.ndarray
+    horizon: np.ndarray
+    costs: dict[str, np.ndarray]
+    difference: np.ndarray | None
+    name: str | None
+    chunk_size: int
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+        object.__setattr__(self, "axes", tuple(_read_only(a) for a in self.axes))
+        object.__setattr__(self, "costs", {k: _read_only(v) for k, v in self.costs.items()})
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The grid's shape: one length per dimension."""
+        return tuple(a.size for a in self.axes)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Flat arrays by name, as ``sweep.npz`` stores them: ``mu`` (P × m), ``x0``, ``horizon``,
+        ``cost_tcp``, ``cost_udp``, ``cost_diff`` (those computed) and ``axis_<dim>`` per dimension. O(P)."""
+        out = {"mu": self.mu, "x0": self.x0, "horizon": self.horizon}
+        out.update({f"cost_{p}": v for p, v in self.costs.items()})
+        if self.difference is not None:
+            out["cost_diff"] = self.difference
+        out.update({f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)})
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists for JSON. O(P (m + n))."""
+        return {"kind": self.kind, "name": self.name, "dims": list(self.dims), "shape": list(self.shape),
+                "chunk_size": self.chunk_size, **{k: v.tolist() for k, v in self.arrays().items()}}
+
+    def to_xarray(self) -> Any:
+        """An :class:`xarray.Dataset` over the sweep's dimensions (needs the ``xarray`` extra).
+
+        Data variables ``cost_tcp``, ``cost_udp``, ``cost_diff`` (those computed), ``mu`` (with a
+        ``channel`` dimension), ``x0`` (``state``) and ``horizon``; coordinates are the axes. O(P (m + n)).
+        """
+        import xarray as xr  # lazy: an optional extra
+
+        dims, shape = self.dims, self.shape
+        data = {f"cost_{p}": (dims, v.reshape(shape)) for p, v in self.costs.items()}
+        if self.difference is not None:
+            data["cost_diff"] = (dims, self.difference.reshape(shape))
+        data["mu"] = ((*dims, "channel"), self.mu.reshape(*shape, -1))
+        data["x0"] = ((*dims, "state"), self.x0.reshape(*shape, -1))
+        data["horizon"] = (dims, self.horizon.reshape(shape))
+        attrs = {"kind": self.kind, "name": self.name or "", "chunk_size": self.chunk_size,
+                 "cost_diff": "J*_udp - J*_tcp, the difference of the two checked costs"}
+        return xr.Dataset(data, coords={d: a for d, a in zip(dims, self.axes, strict=True)}, attrs=attrs)

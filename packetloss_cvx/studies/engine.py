@@ -1,0 +1,147 @@
+"""Where a sweep's points are evaluated: in this process, or chunk by chunk on a Dask cluster.
+
+The points are split into chunks of ``chunk_size`` consecutive points; each chunk is one call of
+:func:`evaluate_chunk` (one batched evaluation per protocol and per distinct (horizon, x0)). Both
+paths call the same function on the same chunks, with the system rebuilt from the same plain
+dictionary (``System.to_dict()``, exact for every float), so their results are identical bit for
+bit. Dask is optional (the ``distributed`` extra) and imported only when asked for.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..io import system_from_dict
+from ..progress import progress_bar
+from .batch import Evaluator
+
+__all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "chunks", "evaluate_chunk", "run_in_process", "run_on_dask"]
+
+#: Points per chunk unless asked otherwise (docs/dask.md: a chunk should take well over the
+#: ~1-10 ms a Dask task costs, and there should be several chunks per worker).
+DEFAULT_CHUNK = 2048
+
+#: Workers of ``dask="local"`` (one thread each: the evaluator is NumPy on small matrices).
+LOCAL_WORKERS = 2
+
+Chunk = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def chunks(mu: np.ndarray, x0: np.ndarray, horizon: np.ndarray, size: int) -> list[Chunk]:
+    """Consecutive slices of ``size`` points (the last may be shorter). O(P)."""
+    return [(mu[k:k + size], x0[k:k + size], horizon[k:k + size]) for k in range(0, len(mu), size)]
+
+
+def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np.ndarray, x0: np.ndarray,
+                   horizon: np.ndarray) -> dict[str, np.ndarray]:
+    """J* of each protocol at each point of one chunk.
+
+    Parameters
+    ----------
+    system_data : dict
+        The system in the TOML schema's structure (``System.to_dict()``): plain data, so it
+        travels to a Dask worker (a :class:`~packetloss_cvx.System` is immutable and not pickled).
+    protocols : sequence of {"tcp", "udp"}
+    mu : ndarray, shape (P, m)
+    x0 : ndarray, shape (P, n)
+    horizon : ndarray of int, shape (P,)
+
+    Returns
+    -------
+    dict
+        Protocol -> costs, shape (P,).
+
+    Notes
+    -----
+    The points are grouped by (horizon, x0); each group is one batched evaluation per protocol.
+    O(P N (n^3 + m^3)) work.
+    """
+    base = system_from_dict(system_data)
+    out = {p: np.empty(len(mu)) for p in protocols}
+    keys = np.column_stack([horizon.astype(float), x0])
+    groups, inverse = np.unique(keys, axis=0, return_inverse=True)
+    for g, key in enumerate(groups):
+        idx = np.flatnonzero(inverse.ravel() == g)
+        system = _variant(base, system_data, int(key[0]), key[1:])
+        for p in protocols:
+            out[p][idx] = Evaluator(system, p).costs(mu[idx])
+    return out
+
+
+def _variant(base, system_data: dict[str, Any], horizon: int, x0: np.ndarray):
+    if horizon != base.horizon:
+        data = {**system_data, "cost": {**system_data["cost"], "horizon": horizon}}
+        data["channel"] = {"mu": base.mu_schedule[0].tolist()}
+        base = system_from_dict(data)
+    return base if np.array_equal(x0, base.x0) else base.with_x0(x0)
+
+
+def _assemble(parts: list[dict[str, np.ndarray]], protocols: Sequence[str]) -> dict[str, np.ndarray]:
+    return {p: np.concatenate([part[p] for part in parts]) for p in protocols}
+
+
+def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk],
+                   progress: bool | None = None) -> dict[str, np.ndarray]:
+    """Every chunk here, in order. O(P N (n^3 + m^3))."""
+    parts = []
+    with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep", progress=progress) as bar:
+        for chunk in work:
+            parts.append(evaluate_chunk(system_data, protocols, *chunk))
+            bar.update(len(chunk[0]))
+    return _assemble(parts, protocols)
+
+
+def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk], dask: Any,
+                workers: int | None = None, progress: bool | None = None) -> dict[str, np.ndarray]:
+    """Every chunk as one Dask task; results put back in chunk order.
+
+    Parameters
+    ----------
+    dask : "local", an address such as ``"tcp://host:8786"``, or a ``distributed.Client``
+        ``"local"`` starts a :class:`distributed.LocalCluster` of ``workers`` processes
+        (default :data:`LOCAL_WORKERS`, one thread each) and closes it afterwards; an address
+        connects to a running scheduler; a client (e.g. on a dask-jobqueue or Kubernetes
+        cluster) is used as it is.
+    """
+    try:
+        from distributed import Client, LocalCluster, as_completed  # lazy: the `distributed` extra
+    except ImportError:
+        raise InputError("dask", "needs the distributed extra: pip install 'packetloss-cvx[distributed]'") from None
+    owned: list[Any] = []
+    try:
+        if isinstance(dask, str) and dask == "local":
+            count = LOCAL_WORKERS if workers is None else workers
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+                raise InputError("workers", f"expected an integer >= 1, found {count!r}")
+            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            owned.append(cluster)
+            client = Client(cluster)
+            owned.insert(0, client)
+        elif isinstance(dask, str):
+            try:
+                client = Client(dask, timeout="10s")
+            except (OSError, TimeoutError, ValueError) as err:
+                raise InputError("dask", f"cannot reach a scheduler at {dask!r}: {err}") from None
+            owned.append(client)
+        elif hasattr(dask, "submit") and hasattr(dask, "gather"):
+            client = dask
+        else:
+            raise InputError("dask", f"expected 'local', a scheduler address or a Client, found {dask!r}")
+        futures = [client.submit(evaluate_chunk, system_data, tuple(protocols), *chunk, pure=False) for chunk in work]
+        order = {f.key: k for k, f in enumerate(futures)}
+        parts: list[dict[str, np.ndarray] | None] = [None] * len(work)
+        with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress) as bar:
+            for future in as_completed(futures):
+                k = order[future.key]
+                parts[k] = future.result()      # a worker's error is raised here with its own type
+                bar.update(len(work[k][0]))
+        return _assemble(parts, protocols)      # type: ignore[arg-type]
+    finally:
+        for thing in owned:
+            thing.close()
