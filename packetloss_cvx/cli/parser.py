@@ -15,7 +15,7 @@ from ..errors import InputError
 __all__ = ["NUMBER_LISTS", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
-NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha")
+NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales")
 
 
 class Parser(argparse.ArgumentParser):
@@ -62,6 +62,31 @@ def build_parser() -> argparse.ArgumentParser:
                        help="cap on the UDP-like branch and bound's boxes (default 20000); at the cap: exit 4")
     alloc.add_argument("--time-limit", help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4")
     alloc.add_argument("--json", action="store_true", help="print one JSON object")
+
+    swp = sub.add_parser("sweep", help="J* of both protocols over a grid of channels, x0 scales or horizons")
+    swp.add_argument("file")
+    swp.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both")
+    what = swp.add_mutually_exclusive_group(required=True)
+    what.add_argument("--mu-grid", type=int, metavar="K",
+                      help="K points per channel on [0, 1]: 1-D for one channel, 2-D for two")
+    what.add_argument("--mu-list", metavar="FILE.csv", help="m-channel points, one row each (a header is skipped)")
+    what.add_argument("--x0-scales", metavar="S1,S2,..|LO:HI:K", help="x0 times each scale (or K scales LO..HI)")
+    what.add_argument("--horizons", metavar="N1,N2,..", help="each horizon N")
+    swp.add_argument("--channel", type=int, metavar="I", help="with --mu-grid: sweep channel I only (1-based)")
+    swp.add_argument("--shared", action="store_true", help="with --mu-grid: every actuator behind one channel")
+    swp.add_argument("--chunk-size", type=int, default=2048, help="points per batched evaluation / Dask task")
+    swp.add_argument("--dask", metavar="local|ADDRESS", help="evaluate on Dask: a LocalCluster or a scheduler")
+    swp.add_argument("--workers", type=int, help="workers of --dask local (default 2)")
+    swp.add_argument("--out", metavar="DIR", help="write sweep.npz, sweep.csv and a figure into DIR")
+    swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs xarray)")
+    swp.add_argument("--quiet", action="store_true", help="no progress bar")
+    swp.add_argument("--json", action="store_true", help="print one JSON object")
+
+    rep = sub.add_parser("reproduce", help="every figure and table of the paper, with a report against it")
+    rep.add_argument("--out", metavar="DIR", default="results", help="output folder (default results/)")
+    rep.add_argument("--quick", action="store_true", help="coarser grids and fewer alphas (a smoke test)")
+    rep.add_argument("--quiet", action="store_true", help="no progress bar")
+    rep.add_argument("--json", action="store_true", help="print one JSON object")
     return parser
 
 
