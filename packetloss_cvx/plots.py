@@ -308,6 +308,6 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     if title:
         ax.set_title(title, fontsize=9)
     if ax.lines:
-        ax.legend(fontsize=6, loc="upper right")
+        ax.legend(fontsize=6, loc="lower left")
     fig.tight_layout()
     return _save(fig, path)

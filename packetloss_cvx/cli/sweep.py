@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import load_system
+from ..plots import plot_cost_lines, plot_log_contour
 from ..results import DesignSweep
 from ..studies import read_mu_list, save_sweep, sweep
 from .common import CommandResult, floats
@@ -59,8 +60,6 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
 
 
 def _figures(result: DesignSweep, out: Path) -> list[Path]:
-    from ..plots import plot_cost_lines, plot_log_contour  # matplotlib only when a figure is drawn
-
     curves = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
     title = f"{result.name or 'system'}: {result.kind} sweep"
     if len(result.dims) == 1:
