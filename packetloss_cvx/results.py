@@ -267,6 +267,42 @@ class MinCost:
                 "status": self.status, "mu": self.mu.tolist(), "method": self.method}
 
 
+__all__ += ["BatchSolution"]
+
+
+@dataclass(frozen=True)
+class BatchSolution:
+    """Optimal plans for P channels of one system (:class:`~packetloss_cvx.evaluator.CostEvaluator`).
+
+    Attributes
+    ----------
+    protocol : {"tcp", "udp"}
+    costs : ndarray, shape (P,)
+        Optimal expected costs J*, each checked against the forward cost of its own plan.
+    inputs : ndarray, shape (P, N, m)
+        Commanded inputs U* per point.
+    gains : ndarray, shape (P, m, n)
+        Receding-horizon gains K of the first step per point.
+    method : str
+        "dense", "recursion", or "mixed" (dense, with the recursion for points whose dense
+        solve failed its checks).
+
+    Construction O(P N m n) (read-only copies).
+    """
+
+    protocol: str
+    costs: np.ndarray
+    inputs: np.ndarray
+    gains: np.ndarray
+    method: str
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists for JSON. O(P N m n)."""
+        return {"protocol": self.protocol, "costs": self.costs.tolist(), "inputs": self.inputs.tolist(),
+                "gains": self.gains.tolist(), "method": self.method}
 @dataclass(frozen=True)
 class DesignSweep:
     """Optimal costs of both protocols over a design study (:func:`packetloss_cvx.studies.sweep`).
@@ -287,8 +323,9 @@ class DesignSweep:
     costs : dict
         Protocol -> J* at each point, shape (P,).
     difference : ndarray, shape (P,), or None
-        J*_udp - J*_tcp (the difference of the two checked costs: exact to about 1e-15 J*_udp
-        absolute, so its relative error grows where the two costs nearly agree, at mu near 0 or 1).
+        J*_udp - J*_tcp, the difference of the two checked costs (exactly 0 where every mu_i is 0
+        or 1): accurate to about 1e-15 J*_udp absolute, so its relative error grows where the two
+        costs nearly agree (mu near 0 or 1).
     name : str or None
         The system's name.
     chunk_size : int

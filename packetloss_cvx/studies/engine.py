@@ -1,7 +1,8 @@
 """Where a sweep's points are evaluated: in this process, or chunk by chunk on a Dask cluster.
 
 The points are split into chunks of ``chunk_size`` consecutive points; each chunk is one call of
-:func:`evaluate_chunk` (one batched evaluation per protocol and per distinct (horizon, x0)). Both
+:func:`evaluate_chunk` (one batched :class:`~packetloss_cvx.evaluator.CostEvaluator` evaluation per
+protocol and per distinct horizon, channels and initial states batched together). Both
 paths call the same function on the same chunks, with the system rebuilt from the same plain
 dictionary (``System.to_dict()``, exact for every float), so their results are identical bit for
 bit. Dask is optional (the ``distributed`` extra) and imported only when asked for.
@@ -16,9 +17,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..evaluator import CostEvaluator
 from ..io import system_from_dict
 from ..progress import progress_bar
-from .batch import Evaluator
 
 __all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "chunks", "evaluate_chunk", "run_in_process", "run_on_dask"]
 
@@ -58,27 +59,24 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
 
     Notes
     -----
-    The points are grouped by (horizon, x0); each group is one batched evaluation per protocol.
-    O(P N (n^3 + m^3)) work.
+    The points are grouped by horizon; each group is one batched evaluation per protocol (channels
+    and initial states per point). O(P N (n^3 + m^3)) work, or O(P (N m)^3) where the evaluator
+    takes the dense path (it picks the faster exact path, by N, m and the batch's size).
     """
     base = system_from_dict(system_data)
     out = {p: np.empty(len(mu)) for p in protocols}
-    keys = np.column_stack([horizon.astype(float), x0])
-    groups, inverse = np.unique(keys, axis=0, return_inverse=True)
-    for g, key in enumerate(groups):
-        idx = np.flatnonzero(inverse.ravel() == g)
-        system = _variant(base, system_data, int(key[0]), key[1:])
+    for N in np.unique(horizon):
+        idx = np.flatnonzero(horizon == N)
+        system = base if N == base.horizon else _with_horizon(base, system_data, int(N))
         for p in protocols:
-            out[p][idx] = Evaluator(system, p).costs(mu[idx])
+            out[p][idx] = CostEvaluator(system, p).costs(mu[idx], x0[idx])
     return out
 
 
-def _variant(base, system_data: dict[str, Any], horizon: int, x0: np.ndarray):
-    if horizon != base.horizon:
-        data = {**system_data, "cost": {**system_data["cost"], "horizon": horizon}}
-        data["channel"] = {"mu": base.mu_schedule[0].tolist()}
-        base = system_from_dict(data)
-    return base if np.array_equal(x0, base.x0) else base.with_x0(x0)
+def _with_horizon(base, system_data: dict[str, Any], horizon: int):
+    data = {**system_data, "cost": {**system_data["cost"], "horizon": horizon}}
+    data["channel"] = {"mu": base.mu_schedule[0].tolist()}
+    return system_from_dict(data)
 
 
 def _assemble(parts: list[dict[str, np.ndarray]], protocols: Sequence[str]) -> dict[str, np.ndarray]:
