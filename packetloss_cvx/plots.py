@@ -279,7 +279,7 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     logs = _positive_log(raw, "values")
     if not np.any(np.isfinite(logs)):
         raise InputError("values", "expected some positive values (their logarithm is drawn)")
-    fig = Figure(figsize=(5.2, 4.4))
+    fig = Figure(figsize=(5.2, 4.9))
     ax = fig.subplots()
     filled = ax.contourf(gx, gy, logs, levels=30, cmap="viridis")
     fig.colorbar(filled, ax=ax, label=colorbar_label)
@@ -307,7 +307,7 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     ax.set_ylim(gy[0], gy[-1])
     if title:
         ax.set_title(title, fontsize=9)
-    if ax.lines:
-        ax.legend(fontsize=6, loc="lower left")
+    if ax.lines:    # below the axes: the allocations run along every edge
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
     fig.tight_layout()
     return _save(fig, path)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -58,13 +59,14 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _compute(settings: dict[str, Any], progress: bool | None) -> dict[str, Any]:
+def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float]) -> dict[str, Any]:
     pendulum, mixed = load_example("pendulum"), load_example("two_actuator")
     steps = ["pendulum", "grids", "allocations tcp", "allocations udp", "tables", "audit"]
     data: dict[str, Any] = {"settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()}}
-    with progress_bar(total=len(steps) + 2, desc="reproduce", progress=progress) as bar:
+    with progress_bar(total=len(steps), desc="reproduce", progress=progress) as bar:
         for step in steps:
             bar.set_postfix_str(step)
+            start = time.perf_counter()
             if step == "pendulum":
                 data["pendulum"] = pf.log_cost_pendulum(pendulum, settings["nu_points"])
             elif step == "grids":
@@ -79,11 +81,12 @@ def _compute(settings: dict[str, Any], progress: bool | None) -> dict[str, Any]:
             else:
                 only = [c for c in CLAIMS if c not in settings["audit_skips"]]
                 data["audit"] = audit(random=settings["audit_random"], seed=0, only=only)
+            seconds[step] = time.perf_counter() - start
             bar.update()
     return data
 
 
-def _figures(data: dict[str, Any], out: Path, progress: bool | None) -> dict[str, Path]:
+def _figures(data: dict[str, Any], out: Path) -> dict[str, Path]:
     paths = {label: out / f"{label.removeprefix('fig:')}.png" for label in FIGURES}
     pend, mixed = data["pendulum"], data["mixed"]
     caption = {label: f"{label}\n{text}" for label, text in FIGURES.items()}
@@ -117,11 +120,14 @@ def run(args: argparse.Namespace) -> CommandResult:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError("--out", f"cannot create {str(out)!r}: {err.strerror or err}") from None
-    data = _compute(settings, progress)
+    seconds: dict[str, float] = {}      # printed, never written: the files stay deterministic
+    data = _compute(settings, progress, seconds)
+    start = time.perf_counter()
     try:
-        figures = _figures(data, out, progress)
+        figures = _figures(data, out)
     except InputError as err:
         raise err.renamed("--out") if err.field == "path" else err from None
+    seconds["figures"] = time.perf_counter() - start
     text, verdicts = report(data, figures, out)
     results = {key: value for key, value in data.items() if key != "audit"}
     results["audit"] = [r.to_dict() for r in data["audit"]]
@@ -135,5 +141,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     files = [*(p.name for p in figures.values()), "results.json", "report.md"]
     lines = [f"reproduce: wrote {len(files)} files in {out}"]
     lines += [f"  {label}: {verdict}" for label, verdict in verdicts.items()]
+    lines.append("  seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in seconds.items()))
     lines.append(f"  read {out / 'report.md'}")
-    return CommandResult({"out": str(out), "files": files, "verdicts": verdicts}, "\n".join(lines))
+    return CommandResult({"out": str(out), "files": files, "verdicts": verdicts, "seconds": seconds},
+                         "\n".join(lines))

@@ -109,31 +109,50 @@ def _cost_mixed(data: dict[str, Any], protocol: str) -> tuple[str, str]:
     return text, "shape matches (values depend on the unstated x0)"
 
 
+def _jumps(rows: dict) -> str:
+    """Where an allocation line jumps (both coordinates move by more than 0.25 between consecutive alphas)."""
+    found = []
+    for beta, r in rows.items():
+        kept = [row for row in r if row["mu"] is not None]
+        for a, b in zip(kept, kept[1:], strict=False):
+            if np.all(np.abs(np.subtract(a["mu"], b["mu"])) > 0.25):
+                found.append(f"for beta = {beta} between alpha = {a['alpha']:g} and {b['alpha']:g}")
+    if not found:
+        return ""
+    return (f"The line jumps {'; '.join(found)}: J*_udp is not convex in mu (docs/design.md §2), so the "
+            f"cheapest point on a contour can move from one edge to the interior. ")
+
+
 def _mult(data: dict[str, Any], protocol: str, out: Path) -> tuple[str, str]:
     rows = data["allocations"][protocol]
     alphas = data["settings"]["alphas"]
     statuses = {row["status"] for r in rows.values() for row in r}
-    parts, misses = [], []
+    parts, misses, upto = [], [], {}
     for beta, r in rows.items():
         pts = [f"{row['alpha']:g}: " + ("infeasible" if row["mu"] is None else
                                         f"({row['mu'][0]:.3f}, {row['mu'][1]:.3f})") for row in r]
         parts.append(f"beta = {beta}: " + "; ".join(pts))
-        misses += [(beta, row["alpha"]) for row in r if row["mu"] is not None and row["alpha"] >= ALLOCATION_ALPHA
-                   and max(row["mu"]) < PERFECT]
-    head = (f"Allocations (eq:opt_M) for alpha in {list(alphas)}, all with status {sorted(statuses)}; drawn as "
-            f"black dashed lines through crosses, one line per beta, over the contours J* = alpha. ")
+        bad = [row["alpha"] for row in r if row["mu"] is not None and row["alpha"] >= ALLOCATION_ALPHA
+               and max(row["mu"]) < PERFECT]
+        misses += [(beta, a) for a in bad]
+        upto[beta] = max([row["alpha"] for row in r if row["mu"] is not None and max(row["mu"]) >= PERFECT
+                          and (not bad or row["alpha"] < min(bad))], default=None)
+    head = (f"Allocations (eq:opt_M) for alpha in {list(alphas)} (our levels: the paper prints none), all with "
+            f"status {sorted(statuses)}; drawn as black dashed lines through crosses, one line per beta, over the "
+            f"contours J* = alpha. ")
     if protocol == "udp":
-        claim = (f"The paper says that for every alpha >= {ALLOCATION_ALPHA} and all three betas at least one "
-                 f"channel is perfect. Here that holds except at {len(misses)} (beta, alpha) pairs: "
-                 f"{', '.join(f'{b} at {a:g}' for b, a in misses) or 'none'} "
-                 f"([allocation-udp-perfect-channel]({claims_link(out, 'allocation-udp-perfect-channel')}): "
-                 f"once alpha >= J*_udp(0, 0) the cheapest allocation is mu = (0, 0), whatever x0). ")
+        holds = ", ".join(f"{b}: up to alpha = {u:g}" if u is not None else f"{b}: never" for b, u in upto.items())
+        claim = (f"The paper says that for every alpha >= {ALLOCATION_ALPHA} and all three betas at least one channel "
+                 f"is perfect (mu_i >= {PERFECT}). With our x0 a perfect channel is cheapest for {holds}; it is not at "
+                 f"{len(misses)} (beta, alpha) pairs with alpha >= {ALLOCATION_ALPHA}. The paper gives no x0, but "
+                 f"as stated the claim cannot hold for any x0: once alpha >= J*_udp(0, 0) the cheapest allocation is "
+                 f"mu = (0, 0) ([allocation-udp-perfect-channel]"
+                 f"({claims_link(out, 'allocation-udp-perfect-channel')})). {_jumps(rows)}")
         verdict = "partly: perfect channels for small alpha only" if misses else "matches"
     else:
-        claim = ("The paper draws these lines but states nothing checkable about them; as expected from the "
-                 "convex J*_tcp, the allocation moves continuously along each line. ")
+        claim = "The paper states nothing checkable about the TCP-like lines; the allocations are listed here. "
         verdict = "drawn (no checkable statement in the paper)"
-    return head + claim + " ".join(parts) + ".", verdict
+    return head + claim + " | ".join(parts) + ".", verdict
 
 
 def _tables(data: dict[str, Any], out: Path) -> list[str]:
