@@ -248,7 +248,9 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     axis_x, axis_y : sequence of float, shapes (gx,), (gy,)
         Increasing grid values.
     values : array_like, shape (gy, gx)
-        ``values[j, i]`` at ``(axis_x[i], axis_y[j])``; non-positive entries are left blank.
+        ``values[j, i]`` at ``(axis_x[i], axis_y[j])``; non-positive entries are left blank. The colour
+        scale spans the 2nd percentile of the logarithms to their maximum; lower values take the lowest
+        colour (the colourbar's arrow), so a few near-zero values (J_Delta at the corners) do not flatten it.
     marker : pair, optional
         A point marked with a black cross (e.g. the maximiser of J_Delta).
     levels : sequence of float, optional
@@ -279,9 +281,11 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     logs = _positive_log(raw, "values")
     if not np.any(np.isfinite(logs)):
         raise InputError("values", "expected some positive values (their logarithm is drawn)")
-    fig = Figure(figsize=(5.2, 4.9))
+    fig = Figure(figsize=(5.6, 4.9))
     ax = fig.subplots()
-    filled = ax.contourf(gx, gy, logs, levels=30, cmap="viridis")
+    lo, hi = np.nanpercentile(logs, 2), np.nanmax(logs)   # a few near-zero values must not flatten the rest
+    shades = np.linspace(lo, hi, 31) if hi > lo else 30
+    filled = ax.contourf(gx, gy, logs, levels=shades, cmap="viridis", extend="min" if hi > lo else "neither")
     fig.colorbar(filled, ax=ax, label=colorbar_label)
     if levels is not None:
         lv = np.sort(numeric_array(levels, "levels").ravel())
