@@ -54,6 +54,11 @@ def test_a_worker_error_keeps_its_type(cluster):
         pytest.skip("this system is not refused here")
 
 
+def test_workers_only_with_a_local_cluster(cluster, two_actuator):
+    with pytest.raises(pl.InputError, match="^workers: applies to dask='local' only"):
+        sweep(two_actuator, mu_grid=2, dask=cluster.scheduler_address, workers=3, progress=False)
+
+
 @pytest.mark.parametrize("dask", [3, "local-ish"])
 def test_bad_dask_argument(two_actuator, dask):
     with pytest.raises(pl.InputError) as info:

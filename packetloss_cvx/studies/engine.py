@@ -110,6 +110,8 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
         from distributed import Client, LocalCluster, as_completed  # lazy: the `distributed` extra
     except ImportError:
         raise InputError("dask", "needs the distributed extra: pip install 'packetloss-cvx[distributed]'") from None
+    if workers is not None and not (isinstance(dask, str) and dask == "local"):
+        raise InputError("workers", "applies to dask='local' only (a running cluster has its own workers)")
     owned: list[Any] = []
     try:
         if isinstance(dask, str) and dask == "local":
