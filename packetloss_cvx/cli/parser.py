@@ -55,7 +55,7 @@ class Formatter(argparse.RawDescriptionHelpFormatter):
     def _get_help_string(self, action: argparse.Action) -> str | None:
         text = action.help or ""
         default = action.default
-        if (default not in (None, False, argparse.SUPPRESS) and "default" not in text
+        if (default is not None and default is not False and default != argparse.SUPPRESS and "default" not in text
                 and action.option_strings and action.nargs != 0):
             text += " (default: %(default)s)"
         return text
@@ -75,7 +75,7 @@ def shared_options(results: bool) -> argparse.ArgumentParser:
     if results:
         group.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
         group.add_argument("--out", dest="json_out", metavar="FILE",
-                           help="also write the JSON object to FILE, e.g. --out result.json")
+                           help="also write the JSON object to FILE (default: none), e.g. --out result.json")
     loud = group.add_mutually_exclusive_group()
     loud.add_argument("-q", "--quiet", action="store_true", help="no progress bars on stderr")
     loud.add_argument("-v", "--verbose", action="count", default=0,
