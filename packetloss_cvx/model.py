@@ -2,7 +2,7 @@
 
 TOML files are read and written by :mod:`packetloss_cvx.io`.
 
-Conventions (paper eq:plant, eq:big):
+Conventions (paper eq:plant, big):
 
 * ``state_weights[t]`` is Omega_{t+1}, the weight on X_{k+t+1}, t = 0..N-1;
 * ``input_weights[t]`` is the diagonal of Psi_t, the weight on U_{k+t};
