@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "MAX_SHOWN", "allocation_html", "allocation_repr", "claim_html", "claim_repr", "html_table", "short",
+    "MAX_SHOWN", "allocation_html", "allocation_repr", "claim_html", "claim_repr", "html_table", "maximiser_repr",
+    "short",
     "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
 ]
 
@@ -69,7 +70,12 @@ def channel_text(system: Any) -> str:
 
 
 def system_repr(system: Any) -> str:
-    """``System('two-actuator', n=2, m=2, horizon=10, mu=[0.9, 0.5])``."""
+    """``System('two-actuator', n=2, m=2, horizon=10, mu=[0.9, 0.5])``.
+
+    >>> from packetloss_cvx import load_example
+    >>> system_repr(load_example("pendulum"))
+    "System('pendulum', n=4, m=1, horizon=80, mu=[0.9])"
+    """
     label = f"{system.name!r}, " if system.name else ""
     return f"System({label}n={system.n}, m={system.m}, horizon={system.horizon}, mu={channel_text(system)})"
 
@@ -124,6 +130,11 @@ def allocation_html(a: Any) -> str:
         ("beta", short(a.beta)), ("beta'mu", f"{a.communication_cost:.6g}"),
         ("J*(mu*)", f"{a.cost:.10g} <= alpha = {a.alpha:.6g}"), ("lower bound (proved)", f"{a.lower_bound:.6g}"),
         ("gap", f"{a.gap:.1e}"), ("method", a.method), ("boxes", a.boxes)])
+
+
+def maximiser_repr(x: Any) -> str:
+    """``Maximiser(point=[0.02183], value=83.4246, method='logit-grid + bounded Brent')``."""
+    return f"Maximiser(point={short(x.point, 4)}, value={x.value:.6g}, method={x.method!r})"
 
 
 def claim_repr(r: Any) -> str:

@@ -13,6 +13,7 @@ from .display import (
     allocation_repr,
     claim_html,
     claim_repr,
+    maximiser_repr,
     solution_html,
     solution_repr,
     to_json,
@@ -233,6 +234,8 @@ class Maximiser:
     point: np.ndarray
     value: float
     method: str
+
+    __repr__ = maximiser_repr
 
     def __post_init__(self) -> None:
         _freeze(self)
