@@ -3,6 +3,7 @@ help on every option, scalar --mu, --mu-schedule, --out, -q/-v everywhere, one t
 
 import argparse
 import json
+import shutil
 import subprocess
 import sys
 
@@ -34,8 +35,8 @@ def imported(*argv):
     return set(eval(line.removeprefix("MODULES ")))   # a list literal printed by the probe  # noqa: S307
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["solve", "--help"], ["audit", "--help"],
-                                  ["allocate", "--help"], ["solve"], ["frobnicate"]])
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["--completion", "bash"], ["solve", "--help"],
+                                  ["audit", "--help"], ["allocate", "--help"], ["solve"], ["frobnicate"]])
 def test_help_version_and_usage_errors_import_nothing_numerical(argv):
     modules = imported(*argv)
     assert not modules, f"{argv} imported {sorted(modules)[:5]}"
@@ -233,3 +234,23 @@ def test_progress_bars_on_request_and_never_by_default_in_a_pipe(capsys):
     assert "Pareto" in capsys.readouterr().err
     assert rows == pareto_curve(system, "tcp", (1.0, 1.0), [8.0, 10.0], progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_bash_completion_completes_commands_options_and_choices(capsys, tmp_path):
+    with pytest.raises(SystemExit):
+        main(["--completion", "bash"])
+    script = capsys.readouterr().out
+    for name, command in subcommands(build_parser()).items():
+        assert f"    {name}) opts=" in script
+        assert all(flag in script for action in command._actions for flag in action.option_strings)
+    if shutil.which("bash") is None:
+        pytest.skip("no bash to run the script")
+    path = tmp_path / "complete.sh"
+    path.write_text(script)
+    probe = ('source "$1"; COMP_WORDS=(packetloss-cvx solve --protocol u); COMP_CWORD=3; _packetloss_cvx; '
+             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx al); COMP_CWORD=1; _packetloss_cvx; '
+             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx audit --cl); COMP_CWORD=2; _packetloss_cvx; '
+             'echo "${COMPREPLY[@]}"')
+    proc = subprocess.run(["bash", "-c", probe, "probe", str(path)], capture_output=True, text=True, check=True,
+                          cwd=tmp_path)
+    assert proc.stdout.splitlines() == ["udp", "allocate", "--claim"]

@@ -25,6 +25,7 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import InputError
+from .completion import CompletionAction
 
 __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
 
@@ -109,6 +110,8 @@ def build_parser() -> argparse.ArgumentParser:
     """The whole grammar; ``args.command`` names the module that runs the subcommand."""
     parser = Parser(prog="packetloss-cvx", description=DESCRIPTION, epilog=EPILOG, formatter_class=Formatter)
     parser.add_argument("-V", "--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("--completion", choices=("bash",), action=CompletionAction,
+                        help='print a shell completion script, e.g. eval "$(packetloss-cvx --completion bash)"')
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser, metavar="COMMAND")
 
     solve = add_command(sub, "solve", "optimal plans, costs and gains of both protocols, cross-checked by a QP",
