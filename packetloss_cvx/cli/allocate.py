@@ -50,10 +50,10 @@ def run(args: argparse.Namespace) -> CommandResult:
             ("method", result.method + (f", {result.boxes} boxes" if result.boxes else ""))]
     name = system.name or args.file
     if result.status == "optimal":
-        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like allocation for {name}: optimal"]
+        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]
                                              + fmt.fields(rows)))
     advice = ("raise --max-boxes or --time-limit, or --gap" if args.protocol == "udp" else
               "the TCP-like SOCP's certificate is limited by the solver's accuracy: ask for a larger --gap")
-    heading = (f"{args.protocol.upper()}-like allocation for {name}: GAP NOT CERTIFIED (gap reached "
+    heading = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED, allocation for {name} (gap reached "
                f"{result.gap:.1e} > the requested gap)")
     return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)])), 4)
