@@ -28,7 +28,7 @@ from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATO
 
 __all__ = [
     "check_inputs", "closed_form", "expected_cost", "hessian_factor", "loss_variance_term", "paper_optimal_cost",
-    "pick_method",
+    "pick_method", "refuse_dense", "weight_spread",
 ]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m
@@ -49,7 +49,7 @@ def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] |
     return method
 
 
-def _refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
+def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
     """Raise before building anything dense that would not fit or would lose the answer."""
     N, n, m = system.horizon, system.n, system.m
     # Gamma, Omega Gamma, Omega_g, G and its LU; the powers of A, Phi and Omega Phi
@@ -80,11 +80,11 @@ def _verified(system: System, protocol: str, closed: float, U: np.ndarray, metho
         raise NumericalError(
             f"method '{method}': the closed-form cost {closed:.10g} and the forward cost of its own plan "
             f"{forward:.10g} differ by {abs(closed - forward) / max(forward, 1e-300):.1e} (relative): double "
-            f"precision cannot resolve this problem ({_spread(system)}); rescale the weights")
+            f"precision cannot resolve this problem ({weight_spread(system)}); rescale the weights")
     return closed
 
 
-def _spread(system: System) -> str:
+def weight_spread(system: System) -> str:
     """Which weights span how much: the usual cause of a failed self-check."""
     w = np.linalg.eigvalsh(system.state_weights)
     positive = w[w > 0]
@@ -164,7 +164,7 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     choice = pick_method(system, method) if method != "auto" else "recursion"
     weights = udp_variance_weights(system)
     if choice == "dense":
-        _refuse_dense(system, weights)
+        refuse_dense(system, weights)
         return _verified(system, protocol, dense_cost(system, U, protocol), U, "dense", weights)
     value = recursion_cost(system, U, protocol, weights)
     if not np.isfinite(value):
@@ -244,7 +244,7 @@ def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray
 
 
 def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
-    _refuse_dense(system, weights)
+    refuse_dense(system, weights)
     pred = prediction(system)
     G = hessian_factor(pred, protocol)
     F = solve_checked(G, pred.Omega_gp, "G^-1 Omega_gp (Theorem 1)")     # (N m)×n

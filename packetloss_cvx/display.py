@@ -16,9 +16,8 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "MAX_SHOWN", "allocation_html", "allocation_repr", "claim_html", "claim_repr", "html_table", "maximiser_repr",
-    "short",
-    "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
+    "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "html_table",
+    "maximiser_repr", "short", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
 ]
 
 #: matrices with more rows or columns than this are shown by their shape
@@ -130,6 +129,12 @@ def allocation_html(a: Any) -> str:
         ("beta", short(a.beta)), ("beta'mu", f"{a.communication_cost:.6g}"),
         ("J*(mu*)", f"{a.cost:.10g} <= alpha = {a.alpha:.6g}"), ("lower bound (proved)", f"{a.lower_bound:.6g}"),
         ("gap", f"{a.gap:.1e}"), ("method", a.method), ("boxes", a.boxes)])
+
+
+def batch_repr(b: Any) -> str:
+    """``BatchSolution(protocol='tcp', points=1000, method='dense', costs in [2.7985, 41.07])``."""
+    span = f"[{np.min(b.costs):.6g}, {np.max(b.costs):.6g}]" if len(b.costs) else "[]"
+    return f"BatchSolution(protocol={b.protocol!r}, points={len(b.costs)}, method={b.method!r}, costs in {span})"
 
 
 def maximiser_repr(x: Any) -> str:

@@ -11,6 +11,7 @@ import numpy as np
 from .display import (
     allocation_html,
     allocation_repr,
+    batch_repr,
     claim_html,
     claim_repr,
     maximiser_repr,
@@ -300,3 +301,45 @@ class MinCost:
         """Plain floats and lists for JSON. O(m)."""
         return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
                 "status": self.status, "mu": self.mu.tolist(), "method": self.method}
+
+
+__all__ += ["BatchSolution"]
+
+
+@dataclass(frozen=True)
+class BatchSolution:
+    """Optimal plans for P channels of one system (:class:`~packetloss_cvx.evaluator.CostEvaluator`).
+
+    Attributes
+    ----------
+    protocol : {"tcp", "udp"}
+    costs : ndarray, shape (P,)
+        Optimal expected costs J*, each checked against the forward cost of its own plan.
+    inputs : ndarray, shape (P, N, m)
+        Commanded inputs U* per point.
+    gains : ndarray, shape (P, m, n)
+        Receding-horizon gains K of the first step per point.
+    method : str
+        "dense", "recursion", or "mixed" (dense, with the recursion for points whose dense
+        solve failed its checks).
+
+    Construction O(P N m n) (read-only copies).
+    """
+
+    protocol: str
+    costs: np.ndarray
+    inputs: np.ndarray
+    gains: np.ndarray
+    method: str
+
+    __repr__ = batch_repr
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists for JSON. O(P N m n)."""
+        return {"protocol": self.protocol, "costs": self.costs.tolist(), "inputs": self.inputs.tolist(),
+                "gains": self.gains.tolist(), "method": self.method}

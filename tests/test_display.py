@@ -82,6 +82,14 @@ def test_to_json_is_to_dict_as_json(make):
     assert json.loads(obj.to_json(indent=2)) == obj.to_dict()
 
 
+def test_batch_solution_repr_is_a_summary():
+    from packetloss_cvx.results import BatchSolution
+
+    batch = BatchSolution("tcp", np.array([3.0, 2.5, 7.25]), np.zeros((3, 10, 2)), np.zeros((3, 2, 2)), "dense")
+    assert repr(batch) == "BatchSolution(protocol='tcp', points=3, method='dense', costs in [2.5, 7.25])"
+    assert json.loads(batch.to_json()) == batch.to_dict()
+
+
 def test_to_json_refuses_non_finite_numbers():
     sol = Solution("tcp", float("inf"), np.zeros((1, 1)), None, None, "dense")
     with pytest.raises(ValueError, match="not JSON compliant"):

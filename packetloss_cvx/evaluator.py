@@ -1,0 +1,308 @@
+"""J*(mu) for many channels at once: everything that does not depend on mu is built once.
+
+For a fixed system (A, B, weights, horizon, x0, noise) and protocol, :class:`CostEvaluator`
+evaluates the optimal expected cost of Theorem 1 (eq:TCP-opt-cost, eq:UDP-opt-cost, corrected:
+``C - x'Omega_gp' Vbar G^{-1} Omega_gp x``) for a batch of P channels, stationary ``(P, m)`` or
+scheduled ``(P, N, m)``, with no Python loop over the points: stacked small matrices go through
+``np.matmul`` and ``np.linalg.solve``.
+
+It allows the paths :func:`~packetloss_cvx.costs.closed_form` allows with ``method="auto"``, a
+choice that does not depend on mu (N m and the condition estimate, built from the Lyapunov sums
+of :func:`~packetloss_cvx.recursion.udp_variance_weights`, are fixed); where the dense path is
+allowed, a large batch still takes the recursion when that is faster (both are exact):
+
+* ``"dense"`` (N m <= ``costs.AUTO_DENSE_MAX``, well conditioned): Omega_g, Omega_gp, Phi, Gamma
+  built once (O((N n)^2 N m)); per point one (N m)×(N m) LU solve, O((N m)^3);
+* ``"recursion"``: the backward Riccati recursion of :mod:`~packetloss_cvx.recursion` over a
+  batch, O(N (n^3 + m^3)) per point in N steps of stacked operations.
+
+Never silently wrong, as ``closed_form``: every point's cost is checked against the forward cost
+of its own plan (a sum of nonnegative stage costs, ``SELF_CHECK_RTOL``), vectorised; a dense
+point whose solve residual or self-check fails is recomputed by the recursion (as ``"auto"``
+falls back); a recursion point that fails raises :class:`NumericalError` naming the weights'
+spread, and so does any cost beyond the double range. Memory: the dense path works in chunks
+of at most ``CHUNK_BYTES`` of stacked matrices; the recursion keeps its gains, O(P N m n).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from .costs import AUTO_DENSE_MAX, refuse_dense, weight_spread
+from .errors import DimensionError, InputError, NumericalError, ProbabilityError
+from .model import System, check_system, numeric_array
+from .prediction import prediction
+from .protocols import check_protocol
+from .recursion import condition_estimate, udp_variance_weights
+from .results import BatchSolution
+from .tolerances import DENSE_MAX_CONDITION, DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+
+__all__ = ["CHUNK_BYTES", "CostEvaluator"]
+
+#: The dense path stacks at most this many bytes of (N m)×(N m) matrices at a time.
+CHUNK_BYTES = 2**25
+
+
+class CostEvaluator:
+    """Optimal expected costs J*(mu) of one system and protocol for many channels.
+
+    Parameters
+    ----------
+    system : System
+        Fixes A, B, the weights, the horizon, x0 and the noise; its own mu is ignored.
+    protocol : {"tcp", "udp"}
+    method : {"auto", "dense", "recursion"}
+        As for :func:`~packetloss_cvx.costs.closed_form`; ``"auto"`` (default) picks once.
+
+    Notes
+    -----
+    Construction: O(N n^3) (Lyapunov sums), plus O((N n)^2 N m) for the dense path.
+    Per point: O((N m)^3) dense or O(N (n^3 + m^3)) recursion, the self-check O(N n (n + m))
+    or O(N N m n) included. Costs equal ``closed_form(system.with_mu(mu), protocol).cost`` to
+    rounding (about 1e-15 relative; tests: 1e-12).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0],
+    ...            input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> ev = CostEvaluator(s, "tcp")
+    >>> # min (1 + mu u)^2 + mu u^2: 0.5 at mu = 1, 1 at mu = 0
+    >>> bool(np.allclose(ev.costs([[1.0], [0.0]]), [0.5, 1.0]))
+    True
+    """
+
+    def __init__(self, system: System, protocol: str, method: str = "auto") -> None:
+        self.system = check_system(system)
+        self.protocol = check_protocol(protocol)
+        s = self.system
+        self.weights = udp_variance_weights(s)
+        self._d, self._noise = self.weights
+        if method not in ("auto", "dense", "recursion"):
+            raise InputError("method", f"expected 'auto', 'dense' or 'recursion', found {method!r}")
+        self.requested = method
+        if method == "auto":
+            dense = s.horizon * s.m <= AUTO_DENSE_MAX and condition_estimate(s, self.weights) <= DENSE_MAX_CONDITION
+        else:
+            dense = method == "dense"
+        self.method = "dense" if dense else "recursion"
+        self._pred = None
+        if dense:
+            refuse_dense(s, self.weights)      # ResourceError / NumericalError, as closed_form
+            try:
+                self._pred = prediction(s)
+            except NumericalError:
+                if method != "auto":
+                    raise
+                self.method = "recursion"      # "auto" falls back, as closed_form does
+
+    # ------------------------------------------------------------------ inputs
+    def _schedules(self, mus: npt.ArrayLike) -> np.ndarray:
+        """(P, N, m) schedules from (P, m) or (P, N, m); ProbabilityError / DimensionError."""
+        s = self.system
+        arr = numeric_array(mus, "mu")
+        if arr.ndim == 2 and arr.shape[1] == s.m:
+            arr = np.broadcast_to(arr[:, None, :], (arr.shape[0], s.horizon, s.m))
+        elif arr.ndim != 3 or arr.shape[1:] != (s.horizon, s.m):
+            raise DimensionError("mu", f"expected shape (P, {s.m}) or (P, {s.horizon}, {s.m}), found {arr.shape}")
+        if np.any(arr < 0.0) or np.any(arr > 1.0):
+            bad = arr[(arr < 0.0) | (arr > 1.0)].flat[0]
+            raise ProbabilityError("mu", f"expected probabilities in [0, 1], found {bad}")
+        return arr
+
+    def _states(self, x0: npt.ArrayLike | None, P: int) -> np.ndarray:
+        """(P, n) initial states: the system's, one shared (n,), or one per point (P, n)."""
+        n = self.system.n
+        if x0 is None:
+            return np.broadcast_to(self.system.x0, (P, n))
+        arr = numeric_array(x0, "x0")
+        if arr.shape == (n,):
+            return np.broadcast_to(arr, (P, n))
+        if arr.shape != (P, n):
+            raise DimensionError("x0", f"expected shape ({n},) or ({P}, {n}), found {arr.shape}")
+        return arr
+
+    # ------------------------------------------------------------------ public
+    def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> float:
+        """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
+        A batch of one: the same arithmetic as :meth:`costs`."""
+        one = numeric_array(mu, "mu")[None]
+        return float(self.costs(one, None if x0 is None else numeric_array(x0, "x0")[None])[0])
+
+    def costs(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> np.ndarray:
+        """J*(mu) for each of P channels, shape (P,). ``x0``: (n,) or (P, n) to override the
+        system's initial state (the costs are quadratic in it). See the class notes for time."""
+        return self._run(mus, x0, gains=False)[0]
+
+    def solve(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> BatchSolution:
+        """Costs (P,), optimal inputs U* (P, N, m) and the first step's gains K (P, m, n).
+
+        The gains cost n more right-hand sides per dense solve; the recursion has them anyway.
+        """
+        costs, inputs, gains, method = self._run(mus, x0, gains=True)
+        return BatchSolution(protocol=self.protocol, costs=costs, inputs=inputs, gains=gains, method=method)
+
+    # ------------------------------------------------------------------ paths
+    def _run(self, mus, x0, gains: bool):
+        mu = self._schedules(mus)
+        P = mu.shape[0]
+        x = self._states(x0, P)
+        s = self.system
+        costs = np.empty(P)
+        inputs = np.empty((P, s.horizon, s.m))
+        K0 = np.empty((P, s.m, s.n)) if gains else None
+        method = self.method
+        todo = np.arange(P)
+        if self.method == "dense" and self.requested == "auto" and not self._dense_is_faster(P):
+            method = "recursion"
+        if self.method == "dense" and P and (self.requested == "dense" or self._dense_is_faster(P)):
+            k = s.horizon * s.m
+            chunk = max(1, CHUNK_BYTES // (8 * k * k))
+            failed = []
+            for start in range(0, P, chunk):
+                idx = np.arange(start, min(P, start + chunk))
+                ok = self._dense(mu[idx], x[idx], idx, costs, inputs, K0)
+                failed.append(idx[~ok])
+            todo = np.concatenate(failed)
+            if todo.size:
+                if self.requested == "dense":
+                    raise NumericalError(
+                        f"method 'dense': {todo.size} of {P} points failed the dense solve's residual or the "
+                        f"self-check against the forward cost of their plans ({weight_spread(s)}); "
+                        "use method='recursion'")
+                method = "mixed"
+        if todo.size:
+            self._recursion(mu[todo], x[todo], todo, costs, inputs, K0)
+        return costs, inputs, K0, method
+
+    def _dense_is_faster(self, P: int) -> bool:
+        """Whether P dense solves beat one batched recursion, by a cost model fitted on this machine
+        (docs/performance.md, "Batched evaluation"): dense 1.2e-4 + P (5e-6 + 9e-11 (N m)^3) s,
+        recursion N (3e-5 + 1e-6 P) s. Both paths are exact; this only picks the faster. O(1)."""
+        N, k = self.system.horizon, self.system.horizon * self.system.m
+        return 1.2e-4 + P * (5e-6 + 9e-11 * k**3) <= N * (3e-5 + 1e-6 * P)
+
+    def _forward(self, mu: np.ndarray, x: np.ndarray, U: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """The forward cost of plans U (P, N, m) whose mean states X (P, N, n) are x_1..x_N:
+        x0'Q x0 + noise + sum_t of the nonnegative stage costs (recursion.recursion_cost)."""
+        s = self.system
+        psi = s.input_weights
+        mean_u = mu * U
+        with np.errstate(over="ignore", invalid="ignore"):
+            total = np.einsum("pi,ij,pj->p", x, s.initial_weight, x) + self._noise
+            stage = np.sum(mean_u * (psi * U), axis=2)
+            if self.protocol == "udp":
+                lossy = mu < 1.0
+                stage = stage + np.sum(np.where(lossy, mean_u * ((1.0 - mu) * self._d * U), 0.0), axis=2)
+            stage = stage + np.einsum("pti,tij,ptj->pt", X, s.state_weights, X)
+            total = total + np.sum(stage, axis=1)
+        return total
+
+    def _dense(self, mu, x, idx, costs, inputs, K0) -> np.ndarray:
+        """Theorem 1's dense law for a chunk; returns which points passed their checks."""
+        s, pred = self.system, self._pred
+        N, n, m = s.horizon, s.n, s.m
+        P = mu.shape[0]
+        v = mu.reshape(P, N * m)
+        G = pred.Omega_g[None, :, :] * v[:, None, :]
+        diag = pred.Psi + (pred.Omega_d * (1.0 - v) if self.protocol == "udp" else 0.0)
+        G[:, np.arange(N * m), np.arange(N * m)] += diag
+        g = x @ pred.Omega_gp.T                                          # (P, N m)
+        rhs = np.broadcast_to(pred.Omega_gp, (P, N * m, n)) if K0 is not None else g[:, :, None]
+        ok = np.ones(P, dtype=bool)
+        with np.errstate(all="ignore"):
+            try:
+                F = np.linalg.solve(G, rhs)
+            except np.linalg.LinAlgError:
+                return np.zeros(P, dtype=bool)
+            res = np.linalg.norm((G @ F - rhs).reshape(P, -1), axis=1)
+            scale = (np.linalg.norm(G.reshape(P, -1), axis=1) * np.linalg.norm(F.reshape(P, -1), axis=1)
+                     + np.linalg.norm(rhs.reshape(P, -1), axis=1))
+            ok &= np.all(np.isfinite(F.reshape(P, -1)), axis=1) & np.isfinite(res)
+            ok &= res <= DENSE_RESIDUAL_RTOL * scale
+            u = -np.einsum("pkj,pj->pk", F, x) if K0 is not None else -F[:, :, 0]
+            const = np.einsum("pi,ij,pj->p", x, s.initial_weight + pred.Omega_p, x) + pred.noise_term
+            closed = const + np.einsum("pk,pk->p", g, v * u)
+            X = (x @ pred.Phi.T + (v * u) @ pred.Gamma.T).reshape(P, N, n)
+            U = u.reshape(P, N, m)
+            forward = self._forward(mu, x, U, X)
+        ok &= self._checked(closed, forward, np.zeros(P), raise_=False)
+        costs[idx[ok]] = closed[ok]
+        inputs[idx[ok]] = U[ok]
+        if K0 is not None:
+            K0[idx[ok]] = F[ok, :m, :]
+        return ok
+
+    def _recursion(self, mu, x, idx, costs, inputs, K0) -> None:
+        """The backward Riccati recursion (recursion.backward_pass) over a batch, then the rollout."""
+        s = self.system
+        A, B, W, N, n, m = s.A, s.B, s.state_weights, s.horizon, s.n, s.m
+        P = mu.shape[0]
+        psi = s.input_weights
+        udp = self.protocol == "udp"
+        if udp and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
+            raise _overflow("diag(Omega_g)", self.protocol)
+        keep = np.where(mu < 1.0, 1.0 - mu, 0.0)
+        K = np.empty((P, N, m, n))
+        Pm = np.broadcast_to(W[N - 1], (P, n, n)).copy()
+        diag = np.arange(m)
+        AT = A.T
+        with np.errstate(over="ignore", invalid="ignore"):
+            for t in range(N - 1, -1, -1):
+                PB = Pm @ B
+                G = (B.T @ PB) * mu[:, t, None, :]
+                G[:, diag, diag] += psi[t] + (self._d[t] * keep[:, t] if udp else 0.0)
+                rhs = np.swapaxes(PB, 1, 2) @ A
+                try:
+                    K[:, t] = np.linalg.solve(G, rhs)
+                except np.linalg.LinAlgError:
+                    raise _overflow("the cost-to-go matrix", self.protocol) from None
+                Pm = AT @ (Pm @ A) - (np.swapaxes(rhs, 1, 2) * mu[:, t, None, :]) @ K[:, t]
+                if t > 0:
+                    Pm += W[t - 1]
+                Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
+            if not (np.isfinite(self._noise) and np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
+                raise _overflow("the cost-to-go matrix", self.protocol)
+            closed = np.einsum("pi,pij,pj->p", x, s.initial_weight + Pm, x) + self._noise
+            U = np.empty((P, N, m))
+            X = np.empty((P, N, n))
+            xt = np.array(x, dtype=float)
+            for t in range(N):
+                U[:, t] = -np.einsum("pij,pj->pi", K[:, t], xt)
+                xt = xt @ AT + (mu[:, t] * U[:, t]) @ B.T
+                X[:, t] = xt
+            forward = self._forward(mu, x, U, X)
+        atol = np.zeros(P)
+        rough = np.abs(closed - forward) > SELF_CHECK_RTOL * forward
+        if np.any(rough):      # the rounding scale of x'P_0 x, only where the relative test alone fails
+            atol[rough] = SELF_CHECK_ATOL * np.linalg.norm(Pm[rough], 2, axis=(1, 2)) * np.sum(x[rough] ** 2, axis=1)
+        self._checked(closed, forward, atol, raise_=True)
+        costs[idx] = closed
+        inputs[idx] = U
+        if K0 is not None:
+            K0[idx] = K[:, 0]
+
+    def _checked(self, closed: np.ndarray, forward: np.ndarray, atol: np.ndarray, raise_: bool) -> np.ndarray:
+        """Which points pass costs.closed_form's self-check; with ``raise_`` a failure raises
+        NumericalError as closed_form's does."""
+        finite = np.isfinite(closed) & np.isfinite(forward)
+        with np.errstate(invalid="ignore"):
+            agree = finite & (np.abs(closed - forward) <= SELF_CHECK_RTOL * forward + atol) & (closed >= 0)
+        if raise_ and not np.all(finite):
+            raise NumericalError(
+                f"the {self.protocol}-like expected cost exceeds the double-precision range (about 1e308): the "
+                "open-loop prediction of an unstable plant over this horizon, or inputs/states that large")
+        if raise_ and not np.all(agree):
+            k = int(np.flatnonzero(~agree)[0])
+            rel = abs(closed[k] - forward[k]) / max(forward[k], 1e-300)
+            raise NumericalError(
+                f"method 'recursion': the closed-form cost {closed[k]:.10g} and the forward cost of its own plan "
+                f"{forward[k]:.10g} differ by {rel:.1e} (relative): double precision cannot resolve this problem "
+                f"({weight_spread(self.system)}); rescale the weights")
+        return agree
+
+
+def _overflow(name: str, protocol: str) -> NumericalError:
+    return NumericalError(f"{name} overflowed (the exact {protocol}-like expected cost exceeds the double-precision "
+                          "range, 1e308: the open-loop prediction of an unstable plant over this horizon); shorten "
+                          "the horizon or stabilise the plant")

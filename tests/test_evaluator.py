@@ -1,0 +1,160 @@
+"""The structure-cached batched evaluator against independent references: the per-point
+closed form (both methods), the QP twin on a sample, hand values, and the same refusals."""
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+import packetloss_cvx.evaluator as evaluator_module
+from packetloss_cvx.evaluator import CostEvaluator
+from packetloss_cvx.io import system_from_dict
+from packetloss_cvx.random_systems import random_system
+
+RTOL = 1e-12
+
+
+def _rel(a, b):
+    return abs(a - b) / max(abs(b), 1e-300)
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_every_batch_point_equals_the_per_point_closed_form(seed, protocol):
+    rng = np.random.default_rng(seed)
+    s = random_system(rng)
+    mus = rng.uniform(0.0, 1.0, (6, s.m))
+    mus[0], mus[1] = 0.0, 1.0                                     # the edges: no delivery, perfect
+    schedules = rng.uniform(0.0, 1.0, (3, s.horizon, s.m))
+    for method in ("auto", "recursion"):
+        ev = CostEvaluator(s, protocol, method)
+        sol = ev.solve(mus)
+        assert sol.costs.shape == (6,)
+        assert sol.inputs.shape == (6, s.horizon, s.m)
+        assert sol.gains.shape == (6, s.m, s.n)
+        for i, mu in enumerate(mus):
+            ref = pl.closed_form(s.with_mu(mu), protocol, method)
+            assert _rel(sol.costs[i], ref.cost) <= RTOL
+            assert np.allclose(sol.inputs[i], ref.inputs, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(ref.inputs).max()))
+            assert np.allclose(sol.gains[i], ref.gain, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(ref.gain).max()))
+            assert _rel(ev.cost(mu), ref.cost) <= RTOL
+        for mu, value in zip(schedules, ev.costs(schedules), strict=True):
+            assert _rel(value, pl.closed_form(s.with_mu(mu), protocol, method).cost) <= RTOL
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_dense_and_recursion_batches_agree_on_the_paper_system(two_actuator, protocol):
+    grid = np.linspace(0.0, 1.0, 9)
+    mus = np.array([(a, b) for a in grid for b in grid])
+    dense = CostEvaluator(two_actuator, protocol, "dense").costs(mus)
+    rec = CostEvaluator(two_actuator, protocol, "recursion").costs(mus)
+    assert np.all(np.abs(dense - rec) <= 1e-12 * rec)
+    assert CostEvaluator(two_actuator, protocol).method == "dense"     # N m = 20: auto allows dense
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_auto_takes_the_batched_recursion_for_many_points(protocol):
+    s = random_system(np.random.default_rng(4), n=4, m=3, horizon=40, spectral_radius=0.95, noise=False)
+    mus = np.random.default_rng(5).uniform(0.0, 1.0, (64, 3))
+    auto = CostEvaluator(s, protocol)
+    assert auto.method == "dense"                                       # allowed (N m = 120) ...
+    assert auto.solve(mus[:2]).method == "dense"                        # ... and taken for few points,
+    big = auto.solve(mus)                                               # the batched recursion for many
+    assert big.method == "recursion"
+    dense = CostEvaluator(s, protocol, "dense").costs(mus)
+    assert np.all(np.abs(big.costs - dense) <= 1e-12 * dense)
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_a_sample_against_the_qp_twin(two_actuator, protocol):
+    rng = np.random.default_rng(7)
+    mus = rng.uniform(0.05, 1.0, (3, 2))
+    got = CostEvaluator(two_actuator, protocol).costs(mus)
+    for mu, value in zip(mus, got, strict=True):
+        qp = pl.solve_qp(two_actuator.with_mu(mu), protocol, with_gain=False, cross_check=False)
+        assert abs(qp.cost - value) <= 1e-7 * value
+
+
+def test_hand_values_of_a_scalar_plant():
+    """x1 = x0 + v u, J(u) = E-form of eq:opt-lqg-simplest with N = 1 and Omega_g = Omega_d = 1:
+    TCP-like 1 + 2 mu u + (mu^2 + mu) u^2, minimum 1 - mu / (1 + mu); UDP-like adds
+    mu (1 - mu) u^2, so the quadratic coefficient is 2 mu and the minimum 1 - mu / 2."""
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    mu = np.array([[0.0], [0.25], [0.5], [1.0]])
+    assert np.allclose(CostEvaluator(s, "tcp").costs(mu), 1.0 - mu[:, 0] / (1.0 + mu[:, 0]), rtol=1e-15)
+    assert np.allclose(CostEvaluator(s, "udp").costs(mu), 1.0 - mu[:, 0] / 2.0, rtol=1e-15)
+    # quadratic in x0: J*(c x0) = c^2 J* without noise or Q
+    assert np.allclose(CostEvaluator(s, "udp").costs(mu, x0=[3.0]), 9.0 * (1.0 - mu[:, 0] / 2.0))
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_a_batch_of_initial_states(protocol):
+    rng = np.random.default_rng(3)
+    s = random_system(rng, n=3, m=2, horizon=6, noise=True)
+    mus = rng.uniform(0.0, 1.0, (4, 2))
+    xs = rng.normal(size=(4, 3))
+    got = CostEvaluator(s, protocol).solve(mus, x0=xs)
+    for i in range(4):
+        ref = pl.closed_form(s.with_mu(mus[i]).with_x0(xs[i]), protocol)
+        assert _rel(got.costs[i], ref.cost) <= RTOL
+        assert np.allclose(got.inputs[i], ref.inputs, rtol=1e-9, atol=1e-12)
+
+
+def test_chunks_do_not_change_the_answers(two_actuator, monkeypatch):
+    mus = np.random.default_rng(5).uniform(0.0, 1.0, (11, 2))
+    whole = CostEvaluator(two_actuator, "udp").costs(mus)
+    monkeypatch.setattr(evaluator_module, "CHUNK_BYTES", 8 * 20 * 20 * 3)          # 3 points a chunk
+    chunked = CostEvaluator(two_actuator, "udp").costs(mus)
+    assert np.array_equal(whole, chunked)
+    assert CostEvaluator(two_actuator, "udp").costs(np.zeros((0, 2))).shape == (0,)
+
+
+def _weighted(w: float) -> pl.System:
+    data = pl.load_example("two_actuator").to_dict()
+    data["cost"]["state_weight"] = [w, 1.0]
+    return system_from_dict(data)
+
+
+@pytest.mark.parametrize("w", [1e12, 1e16, 1e100])
+def test_weight_spreads_the_recursion_refuses_are_refused_alike(w):
+    s = _weighted(w)
+    with pytest.raises(pl.NumericalError, match="weights"):
+        pl.closed_form(s, "tcp", "recursion")
+    for method in ("auto", "recursion"):
+        with pytest.raises(pl.NumericalError, match="weights"):
+            CostEvaluator(s, "tcp", method).costs([[0.9, 0.5], [0.3, 0.2]])
+
+
+def test_beyond_the_double_range_raises():
+    s = random_system(np.random.default_rng(1), n=2, m=1, horizon=400, spectral_radius=10.0)
+    with pytest.raises(pl.NumericalError):
+        pl.closed_form(s, "udp")
+    with pytest.raises(pl.NumericalError, match="double-precision|overflowed"):
+        CostEvaluator(s, "udp").costs([[0.5]])
+
+
+@pytest.mark.parametrize(("mus", "error", "match"), [
+    ([[0.5, 1.2]], pl.ProbabilityError, "mu: expected probabilities"),
+    ([[0.5, -0.1]], pl.ProbabilityError, "mu: expected probabilities"),
+    ([[0.5, 0.5, 0.5]], pl.DimensionError, r"mu: expected shape \(P, 2\)"),
+    ([0.5, 0.5], pl.DimensionError, "mu: expected shape"),
+    ([[0.5, np.nan]], pl.InputError, "mu"),
+])
+def test_bad_channels_are_refused_naming_mu(two_actuator, mus, error, match):
+    with pytest.raises(error, match=match):
+        CostEvaluator(two_actuator, "udp").costs(mus)
+
+
+def test_bad_arguments(two_actuator):
+    with pytest.raises(pl.InputError, match="protocol"):
+        CostEvaluator(two_actuator, "ftp")
+    with pytest.raises(pl.InputError, match="method"):
+        CostEvaluator(two_actuator, "tcp", "fast")
+    with pytest.raises(pl.DimensionError, match="x0"):
+        CostEvaluator(two_actuator, "tcp").costs([[0.5, 0.5]], x0=[[1.0, 2.0]] * 2)
+
+
+def test_batch_solution_is_frozen(two_actuator):
+    sol = CostEvaluator(two_actuator, "tcp").solve([[0.5, 0.5]])
+    with pytest.raises(ValueError, match="read-only"):
+        sol.costs[0] = 0.0
+    assert set(sol.to_dict()) == {"protocol", "costs", "inputs", "gains", "method"}
