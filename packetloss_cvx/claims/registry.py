@@ -89,8 +89,13 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
     for claim_id in ids:
         if claim_id not in CLAIMS:
             raise InputError("claim", f"unknown claim id {claim_id!r}; expected one of {', '.join(CLAIMS)}")
-    return [run_claim(claim_id, ctx) for claim_id in progress_bar(ids, total=len(ids), desc="audit",
-                                                                  progress=progress)]
+    results = []
+    with progress_bar(total=len(ids), desc="audit", progress=progress) as bar:
+        for claim_id in ids:
+            bar.set_postfix_str(claim_id)        # the claim being checked (one can take most of the time)
+            results.append(run_claim(claim_id, ctx))
+            bar.update()
+    return results
 
 
 def run_claim(claim_id: str, ctx: Context) -> ClaimResult:
