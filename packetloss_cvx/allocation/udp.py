@@ -109,7 +109,7 @@ class Search:
         visited); returns how it ended. ``visit(bound, l, u, data)`` offers incumbents and
         pushes children."""
         start = time.monotonic()
-        with progress_bar(total=self.max_boxes, desc="branch and bound", progress=self.progress) as bar:
+        with progress_bar(desc=f"branch and bound (boxes, cap {self.max_boxes})", progress=self.progress) as bar:
             while self.heap and not self.certified():
                 if self.boxes >= self.max_boxes:
                     return f"stopped at the cap of {self.max_boxes} boxes"
