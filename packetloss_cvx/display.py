@@ -44,6 +44,10 @@ def to_json(obj: Any, **kwargs: Any) -> str:
     """``obj.to_dict()`` as JSON text (``kwargs`` go to :func:`json.dumps`, e.g. ``indent=2``).
 
     Raises ValueError on a non-finite number (strict JSON has none). O(size of the dict).
+
+    >>> from packetloss_cvx.results import CrossCheck
+    >>> CrossCheck("dense", 1e-9, 0.0).to_json()
+    '{"max_input_diff": 1e-09, "cost_rel_diff": 0.0}'
     """
     return json.dumps(obj.to_dict(), allow_nan=False, **kwargs)
 
@@ -104,7 +108,12 @@ def _solution_rows(sol: Any) -> list[tuple[str, Any]]:
 
 
 def solution_repr(sol: Any) -> str:
-    """``Solution(protocol='tcp', cost=2.798470088, method='dense', N=10, m=2)``."""
+    """``Solution(protocol='tcp', cost=2.798470088, method='dense', N=10, m=2)``.
+
+    >>> from packetloss_cvx.results import Solution
+    >>> Solution("udp", 10.25, np.zeros((10, 2)), None, None, "recursion")
+    Solution(protocol='udp', cost=10.25, method='recursion', N=10, m=2)
+    """
     status = f", status={sol.status!r}" if sol.status is not None else ""
     N, m = sol.inputs.shape
     return f"Solution(protocol={sol.protocol!r}, cost={sol.cost:.10g}, method={sol.method!r}{status}, N={N}, m={m})"
@@ -143,7 +152,12 @@ def maximiser_repr(x: Any) -> str:
 
 
 def claim_repr(r: Any) -> str:
-    """``ClaimResult('theorem-2', 'holds', checked=52, violations=0, errors=0)``."""
+    """``ClaimResult('theorem-2', 'holds', checked=52, violations=0, errors=0)``.
+
+    >>> from packetloss_cvx.results import ClaimResult
+    >>> ClaimResult("lemma-2", "...", "fails", 4, 1, -0.5, None, "")
+    ClaimResult('lemma-2', 'fails', checked=4, violations=1, errors=0)
+    """
     return (f"ClaimResult({r.id!r}, {r.verdict!r}, checked={r.checked}, violations={r.violations}, "
             f"errors={r.errors})")
 

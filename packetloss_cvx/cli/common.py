@@ -112,7 +112,11 @@ def systems_of(args: argparse.Namespace) -> list[System]:
 
 
 def allocation_numbers(args: argparse.Namespace, m: int) -> tuple[float, list[float], list[float]]:
-    """``--alpha``, ``--beta`` (m prices) and ``--bounds`` (lo,hi) parsed and counted."""
+    """``--alpha``, ``--beta`` (m prices) and ``--bounds`` (lo,hi) parsed and counted.
+
+    >>> allocation_numbers(argparse.Namespace(alpha="8", beta="1,0.05", bounds="0,1"), 2)
+    (8.0, [1.0, 0.05], [0.0, 1.0])
+    """
     alpha = number(args.alpha, "--alpha")
     beta = floats(args.beta, "--beta")
     if len(beta) != m:
@@ -128,6 +132,11 @@ def preflight(args: argparse.Namespace) -> None:
 
     ``main`` runs it before importing the command's module, so bad input costs a NumPy import,
     not a cvxpy one. The command's own checks still run (they are the same functions).
+
+    >>> preflight(argparse.Namespace(file="two_actuator", mu="1.5"))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.ProbabilityError: --mu: expected probabilities in [0, 1], found 1.5
     """
     for name, what in NONNEGATIVE.items():
         value = getattr(args, name, None)

@@ -86,7 +86,14 @@ def shared_options(results: bool) -> argparse.ArgumentParser:
 
 def add_command(sub: argparse._SubParsersAction, name: str, summary: str, *, examples: Sequence[str] = (),
                 results: bool = True) -> argparse.ArgumentParser:
-    """A subcommand with the shared options and an examples epilog; ``name`` is the module that runs it."""
+    """A subcommand with the shared options and an examples epilog; ``name`` is the module that runs it.
+
+    >>> parser = argparse.ArgumentParser()
+    >>> new = add_command(parser.add_subparsers(dest="command"), "simulate", "sample", examples=["simulate pendulum"])
+    >>> args = parser.parse_args(["simulate", "-q", "--json"])
+    >>> args.command, args.quiet, args.json, args.verbose
+    ('simulate', True, True, 0)
+    """
     epilog = "examples:\n" + "\n".join(f"  packetloss-cvx {line}" for line in examples) if examples else None
     return sub.add_parser(name, help=summary, description=summary, epilog=epilog, formatter_class=Formatter,
                           parents=[shared_options(results)])
@@ -107,7 +114,11 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The whole grammar; ``args.command`` names the module that runs the subcommand."""
+    """The whole grammar; ``args.command`` names the module that runs the subcommand.
+
+    >>> build_parser().parse_args(["solve", "pendulum", "--mu", "0.5"]).mu
+    '0.5'
+    """
     parser = Parser(prog="packetloss-cvx", description=DESCRIPTION, epilog=EPILOG, formatter_class=Formatter)
     parser.add_argument("-V", "--version", action="version", version=f"%(prog)s {__version__}")
     parser.add_argument("--completion", choices=("bash",), action=CompletionAction,
