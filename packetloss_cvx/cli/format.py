@@ -15,11 +15,15 @@ import numpy as np
 
 from ..results import eigenvalue_pairs
 
-__all__ = ["INDENT", "LABEL_WIDTH", "eigenvalues", "fields", "labels", "matrix", "num", "numbers", "table"]
+__all__ = ["INDENT", "LABEL_WIDTH", "MAX_COLUMNS", "MAX_ROWS", "eigenvalues", "fields", "labels", "matrix", "num",
+           "numbers", "table"]
 
 INDENT = "  "
 #: the width of the label column of :func:`fields`
 LABEL_WIDTH = 16
+#: the most rows and columns :func:`matrix` prints (the JSON has all of them)
+MAX_ROWS = 20
+MAX_COLUMNS = 8
 
 
 def num(value: Any, digits: int = 6) -> str:
@@ -86,17 +90,27 @@ def table(header: Sequence[str], rows: Sequence[Sequence[Any]], right: Sequence[
             for row in cells]
 
 
-def matrix(values: np.ndarray, rows: Sequence[str], cols: Sequence[str], digits: int = 6) -> list[str]:
-    """A matrix with labelled rows and columns, numbers aligned on the right.
+def matrix(values: np.ndarray, rows: Sequence[str], cols: Sequence[str], digits: int = 6,
+           max_rows: int = MAX_ROWS, max_cols: int = MAX_COLUMNS) -> list[str]:
+    """A matrix with labelled rows and columns, numbers aligned on the right; beyond ``max_rows``
+    rows or ``max_cols`` columns, the first ones and a line saying what was left out.
 
     >>> print("\\n".join(matrix(np.array([[1.0, -0.25], [10.5, 2.0]]), ["u1", "u2"], ["x1", "x2"])))
           x1     x2
     u1     1  -0.25
     u2  10.5      2
+    >>> matrix(np.eye(30), labels("t", 30), labels("x", 30))[-1]
+    '(the first 20 of 30 rows and 8 of 30 columns; --json for all)'
     """
     values = np.atleast_2d(values)
-    body = [[str(r)] + [num(v, digits) for v in row] for r, row in zip(rows, values, strict=True)]
-    return table([""] + list(cols), body, right=[False] + [True] * values.shape[1])
+    shown = values[:max_rows, :max_cols]
+    body = [[str(r)] + [num(v, digits) for v in row] for r, row in zip(rows, shown, strict=False)]
+    lines = table([""] + list(cols)[:max_cols], body, right=[False] + [True] * shown.shape[1])
+    left_out = [f"{k} of {total} {what}" for k, total, what in zip(shown.shape, values.shape, ("rows", "columns"),
+                                                                    strict=True) if k < total]
+    if left_out:
+        lines.append(f"(the first {' and '.join(left_out)}; --json for all)")
+    return lines
 
 
 def labels(prefix: str, count: int) -> list[str]:
