@@ -167,11 +167,47 @@ def memory(N, rows):
     rows.append({"bench": "memory", "N": N, "dense_bytes": dense, "recursion_bytes": rec, "ratio": dense / rec})
 
 
+def startup(rows, repeats: int = 7):
+    """Start-up of the command line against `python -c "import numpy"` (subprocesses, medians of
+    interleaved rounds)."""
+    import subprocess
+
+    print(f"\n8. command-line start-up (median of {repeats} runs, wall clock, s)")
+    cases = [("python -c 'import numpy'", ["-c", "import numpy"]),
+             ("python -c 'import cvxpy'", ["-c", "import cvxpy"])]
+    cases += [(f"packetloss-cvx {' '.join(a)}", ["-m", "packetloss_cvx", *a]) for a in (
+        ["--help"], ["--version"], ["solve", "--help"], ["audit", "--help"], ["allocate", "--help"],
+        ["solve"], ["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
+        ["allocate", "two_actuator", "--protocol", "udp", "--alpha", "8", "--beta", "1"],
+        ["solve", "two_actuator", "--no-qp"])]
+    root = str(Path(__file__).resolve().parent.parent)
+    env = {**__import__("os").environ, "PYTHONPATH": root, "OPENBLAS_NUM_THREADS": "1"}
+
+    times: dict[str, list[float]] = {label: [] for label, _ in cases}
+    for _ in range(repeats):        # interleaved rounds: a busy spell on the shared machine hits every case
+        for label, argv in cases:
+            start = time.perf_counter()
+            subprocess.run([sys.executable, *argv], env=env, capture_output=True, check=False)
+            times[label].append(time.perf_counter() - start)
+    base = statistics.median(times[cases[0][0]])
+    print(f"{'command':<78} {'s':>7} {'/ numpy':>8}")
+    for label, _ in cases:
+        t = statistics.median(times[label])
+        print(f"{label:<78} {t:7.3f} {t / base:7.2f}x")
+        rows.append({"bench": "startup", "command": label, "seconds": t, "ratio_to_numpy": t / base})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
+    parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     args = parser.parse_args()
+    if args.startup:
+        rows: list[dict] = []
+        startup(rows)
+        print(json.dumps(rows) if args.json else "")
+        return
     import clarabel
     import cvxpy
 
@@ -186,6 +222,7 @@ def main() -> None:
     verification_cost(400 if quick else 1000, rows)
     memory(1000 if quick else 4000, rows)
     self_check((100, 1000) if quick else (100, 1000, 10000), rows)
+    startup(rows)
     if args.json:
         print(json.dumps(rows))
 

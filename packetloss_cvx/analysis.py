@@ -57,9 +57,16 @@ def _mu_vector(system: System, mu) -> np.ndarray:
 
 
 def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> float:
-    """J*_udp - J*_tcp at ``mu`` (scalar nu, m-vector, N×m schedule, or the system's own).
+    """J*_udp - J*_tcp at ``mu`` (scalar nu, m-vector, N×m schedule, or the system's own):
+    eq:cost-diff-def, and eq:cost-diff-eq for a shared channel.
 
     Dense and cancellation-free: O((N m)^3). Pass ``pred`` to reuse the prediction.
+
+    >>> from packetloss_cvx import closed_form, load_example
+    >>> s = load_example("two_actuator")
+    >>> d = cost_difference(s)
+    >>> bool(np.isclose(d, closed_form(s, "udp").cost - closed_form(s, "tcp").cost, rtol=1e-9))
+    True
     """
     pred = prediction(system) if pred is None else pred
     v = _mu_vector(system, mu)
@@ -87,7 +94,13 @@ def lemma2_matrix(pred: Prediction, nu: float) -> np.ndarray:
 
 
 def cost_difference_derivative(system: System, nu: float, pred: Prediction | None = None) -> float:
-    """dJ_Delta/dnu for a shared channel by Lemma 2 (eq:cost-diff-deriv): g' f(nu) g."""
+    """dJ_Delta/dnu for a shared channel by Lemma 2 (eq:cost-diff-deriv): g' f(nu) g. O((N m)^3).
+
+    >>> from packetloss_cvx import load_example
+    >>> s = load_example("two_actuator")
+    >>> bool(np.isclose(cost_difference_derivative(s, 0.3), cost_difference_fd(s, 0.3), rtol=1e-5))
+    True
+    """
     pred = prediction(system) if pred is None else pred
     g = pred.Omega_gp @ system.x0
     return float(g @ lemma2_matrix(pred, nu) @ g)
@@ -109,12 +122,18 @@ def _lemma3_T(pred: Prediction) -> tuple[np.ndarray, np.ndarray]:
 
 
 def lemma3_candidates(system: System, variant: str = "lemma", pred: Prediction | None = None) -> np.ndarray:
-    """Lemma 3's 2Nm points nu = 1 / (1 ± sqrt(1 + lambda_i)) (complex where 1 + lambda < 0).
+    """Lemma 3's 2Nm points nu = 1 / (1 ± sqrt(1 + lambda_i)) (eq:det-sol; complex where 1 + lambda < 0).
 
     ``variant="lemma"``: lambda are the eigenvalues of
     ``T (Omega_g + Psi)^{-1} Omega_d Psi^{-1}`` as printed in the lemma;
     ``variant="proof"``: of ``T H^{-1}`` with ``H = Psi Omega_d^{-1} (Omega_d + Psi)`` as derived
     in its proof; ``T = Omega_g Omega_d^{-1} (Omega_g + Psi) + Psi Omega_d^{-1} Omega_h``.
+    O((N m)^3).
+
+    >>> from packetloss_cvx import load_example
+    >>> s = load_example("two_actuator")
+    >>> len(lemma3_candidates(s)) == 2 * s.horizon * s.m
+    True
     """
     pred = prediction(system) if pred is None else pred
     if np.any(pred.Omega_d <= 0):
@@ -163,9 +182,15 @@ def det_roots(system: System, pred: Prediction | None = None) -> np.ndarray:
 
 def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6,
                        pred: Prediction | None = None) -> Maximiser | None:
-    """Theorem 4: the best real Lemma 3 candidate in [0, 1] at which the largest eigenvalue of
+    """Theorem 4 (eq:maximising-nu): the best real Lemma 3 candidate in [0, 1] at which the largest eigenvalue of
     (the symmetric part of) f(nu) vanishes (|lambda_max| <= tol * ||G_G|| ||Omega_d|| ||G_F||, the
-    scale of f's terms). None if no candidate qualifies: the theorem then names no maximiser."""
+    scale of f's terms). None if no candidate qualifies: the theorem then names no maximiser.
+    O(N m) candidates, each O((N m)^3).
+
+    >>> from packetloss_cvx import load_example
+    >>> print(theorem4_maximiser(load_example("two_actuator")))   # no candidate qualifies (docs/claims.md)
+    None
+    """
     pred = prediction(system) if pred is None else pred
     best = None
     for c in lemma3_candidates(system, variant, pred):
@@ -185,11 +210,20 @@ def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6
 
 
 def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction | None = None) -> Maximiser:
-    """Robust maximiser of J_Delta(nu) over nu in (0, 1) for a shared channel.
+    """Robust maximiser of J_Delta(nu) over nu in (0, 1) for a shared channel (what eq:maximising-nu claims to give).
 
     A grid uniform in logit(nu) from 1e-9 to 1 - 1e-9 (so peaks near 1e-4 are bracketed),
     then a bounded Brent refinement in logit space between the best point's neighbours.
     Time O(grid · (N m)^3).
+
+    >>> from packetloss_cvx import load_example
+    >>> s = load_example("two_actuator")
+    >>> peak = maximise_cost_difference(s, grid=100)
+    >>> nu = float(peak.point[0])
+    >>> bool(np.isclose(peak.value, cost_difference(s, nu), rtol=1e-12))
+    True
+    >>> all(cost_difference(s, x) <= peak.value for x in (nu / 2, 0.5, (1 + nu) / 2))
+    True
     """
     pred = prediction(system) if pred is None else pred
     z = np.linspace(-np.log(1e9), np.log(1e9), grid)
@@ -219,8 +253,13 @@ def maximise_cost_difference_2d(system: System, grid: int = 41, pred: Prediction
 
 
 def monotonicity_violations(system: System, protocol: str, steps: int = 11) -> list[tuple[int, float, float]]:
-    """Theorem 3 along each channel: raise mu_i on a grid with the others fixed and report
-    ``(i, mu_i, increase)`` wherever J* does not strictly decrease."""
+    """Theorem 3 (eq:monotonic-cost-pos-def) along each channel: raise mu_i on a grid with the others fixed and report
+    ``(i, mu_i, increase)`` wherever J* does not strictly decrease. O(m steps) closed forms.
+
+    >>> from packetloss_cvx import load_example
+    >>> monotonicity_violations(load_example("two_actuator"), "udp", steps=5)
+    []
+    """
     out = []
     base = system.mu_schedule[0].copy() if system.is_stationary else None
     if base is None:

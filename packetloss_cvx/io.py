@@ -92,8 +92,8 @@ def example_names() -> list[str]:
 
 
 def load_example(name: str) -> System:
-    """The example system ``name`` shipped with the package: ``"pendulum"`` (paper §V-A) or
-    ``"two_actuator"`` (§V-B). A hyphen may stand for the underscore.
+    """The example system ``name`` shipped with the package: ``"pendulum"`` (paper §V-A,
+    eq:pendulum-ss) or ``"two_actuator"`` (§V-B, eq:mixed-ss). A hyphen may stand for the underscore.
 
     Examples
     --------

@@ -2,7 +2,7 @@
 
 TOML files are read and written by :mod:`packetloss_cvx.io`.
 
-Conventions (paper eq:plant, eq:big):
+Conventions (paper eq:plant, big):
 
 * ``state_weights[t]`` is Omega_{t+1}, the weight on X_{k+t+1}, t = 0..N-1;
 * ``input_weights[t]`` is the diagonal of Psi_t, the weight on U_{k+t};
@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .display import system_html, system_repr, to_json
 from .errors import DimensionError, InputError, ProbabilityError
 from .tolerances import PSD_RTOL, SYMMETRY_RTOL
 
@@ -317,9 +318,9 @@ class System:
     def __setattr__(self, key: str, value: Any) -> None:
         raise AttributeError("System is immutable: use with_mu / with_x0 for a modified copy")
 
-    def __repr__(self) -> str:
-        label = f"{self.name!r}, " if self.name else ""
-        return f"System({label}n={self.n}, m={self.m}, horizon={self.horizon})"
+    __repr__ = system_repr      # the headline numbers, not the arrays (display.py)
+    _repr_html_ = system_html
+    to_json = to_json
 
     @property
     def n(self) -> int:

@@ -8,6 +8,18 @@ from typing import Any
 
 import numpy as np
 
+from .display import (
+    allocation_html,
+    allocation_repr,
+    batch_repr,
+    claim_html,
+    claim_repr,
+    maximiser_repr,
+    solution_html,
+    solution_repr,
+    to_json,
+)
+
 __all__ = [
     "Allocation", "ClaimResult", "CrossCheck", "DesignSweep", "Maximiser", "MinCost", "Solution", "Sweep",
     "eigenvalue_pairs",
@@ -48,6 +60,8 @@ class CrossCheck:
     max_input_diff: float
     cost_rel_diff: float
 
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
     def to_dict(self) -> dict[str, Any]:
         return {"max_input_diff": self.max_input_diff, "cost_rel_diff": self.cost_rel_diff}
 
@@ -84,8 +98,13 @@ class Solution:
     solve_time: float | None = None
     cross_check: CrossCheck | None = None
 
+    __repr__ = solution_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = solution_html
+
     def __post_init__(self) -> None:
         _freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -132,8 +151,13 @@ class Allocation:
     beta: np.ndarray
     boxes: int = 0
 
+    __repr__ = allocation_repr
+    _repr_html_ = allocation_html
+
     def __post_init__(self) -> None:
         _freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         return {"protocol": self.protocol, "alpha": self.alpha, "beta": self.beta.tolist(),
@@ -183,6 +207,9 @@ class ClaimResult:
     errors: int = 0
     outcomes: str = ""
 
+    __repr__ = claim_repr
+    _repr_html_ = claim_html
+
     def __post_init__(self) -> None:
         if self.verdict not in ("holds", "fails", "not-reproduced", "inconclusive"):
             raise ValueError(f"verdict: expected holds, fails, not-reproduced or inconclusive, found {self.verdict!r}")
@@ -190,6 +217,8 @@ class ClaimResult:
             raise ValueError(f"verdict: 'holds' needs checked > 0 with no violation and no error, found "
                              f"checked={self.checked}, violations={self.violations}, errors={self.errors}")
         _freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -208,8 +237,12 @@ class Maximiser:
     value: float
     method: str
 
+    __repr__ = maximiser_repr
+
     def __post_init__(self) -> None:
         _freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         return {"point": self.point.tolist(), "value": self.value, "method": self.method}
@@ -233,6 +266,8 @@ class Sweep:
         _freeze(self)
         object.__setattr__(self, "axes", tuple(_read_only(a) for a in self.axes))
         object.__setattr__(self, "costs", {k: _read_only(v) for k, v in self.costs.items()})
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         return {"axes": [a.tolist() for a in self.axes], "costs": {k: v.tolist() for k, v in self.costs.items()},
@@ -260,6 +295,8 @@ class MinCost:
 
     def __post_init__(self) -> None:
         _freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain floats and lists for JSON. O(m)."""
@@ -296,8 +333,12 @@ class BatchSolution:
     gains: np.ndarray
     method: str
 
+    __repr__ = batch_repr
+
     def __post_init__(self) -> None:
         _freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain lists for JSON. O(P N m n)."""

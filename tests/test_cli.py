@@ -51,7 +51,7 @@ def test_solve_overrides_and_text(capsys):
     ("argv", "match"),
     [
         (["solve", "absent.toml"], "file: no such file"),
-        (["solve", str(EXAMPLES / "two_actuator.toml"), "--mu", "0.5"], "--mu: expected shape (2,)"),
+        (["solve", str(EXAMPLES / "two_actuator.toml"), "--mu", "0.5,0.5,0.5"], "--mu: expected shape (2,)"),
         (["solve", str(EXAMPLES / "two_actuator.toml"), "--mu", "0.5,x"], "--mu: expected comma-separated"),
         (["solve", str(EXAMPLES / "two_actuator.toml"), "--mu", "0.5,1.5"], "--mu: expected probabilities"),
         (["solve", str(EXAMPLES / "two_actuator.toml"), "--x0", "1"], "--x0: expected shape"),

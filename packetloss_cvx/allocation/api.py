@@ -135,7 +135,7 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
 
 def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
-             max_boxes: int = MAX_BOXES, time_limit: float | None = None) -> Allocation:
+             max_boxes: int = MAX_BOXES, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
     """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
 
     Parameters
@@ -158,6 +158,8 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         Cap on the UDP-like branch and bound's boxes.
     time_limit : float or None
         Cap on the UDP-like branch and bound's seconds (None: no limit).
+    progress : bool or None
+        A bar on stderr for the UDP-like branch and bound (None: when stderr is a terminal).
 
     Returns
     -------
@@ -222,7 +224,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     else:
         floor = relaxation.lower_bound if relaxation is not None else -np.inf
         try:
-            out = udp_allocate(system, poly, alpha, prices, gap, floor, max_boxes, time_limit)
+            out = udp_allocate(system, poly, alpha, prices, gap, floor, max_boxes, time_limit, progress=progress)
         except InfeasibleError as err:
             raise infeasible(str(err)) from None
         if relaxation is not None:

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError
 from ..model import System
+from ..progress import progress_bar
 from ..protocols import check_protocol
 from ..studies.sweeps import two_channel_sweep
 from .api import allocate
@@ -22,7 +23,8 @@ __all__ = ["contour_allocations", "cost_grid", "pareto_curve"]
 MAX_GRID = 401
 
 
-def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], **kwargs) -> list[dict]:
+def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], progress: bool | None = None,
+                 **kwargs) -> list[dict]:
     """The trade-off alpha -> beta'mu*: one allocation per cost bound.
 
     Parameters
@@ -31,6 +33,8 @@ def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], *
         As for :func:`~packetloss_cvx.allocation.allocate`.
     alphas : sequence of float
         Cost bounds.
+    progress : bool or None
+        A bar on stderr, one step per alpha (None: when stderr is a terminal).
     **kwargs
         Passed to :func:`~packetloss_cvx.allocation.allocate` (bounds, constraints, gap, ...).
 
@@ -47,9 +51,9 @@ def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], *
     :func:`~packetloss_cvx.allocation.allocate`.
     """
     out = []
-    for alpha in alphas:
+    for alpha in progress_bar(alphas, total=len(alphas), desc=f"{protocol} Pareto curve", progress=progress):
         try:
-            a = allocate(system, protocol, alpha, beta, **kwargs)
+            a = allocate(system, protocol, alpha, beta, progress=False, **kwargs)
         except InfeasibleError:
             out.append({"alpha": float(alpha), "communication_cost": None, "mu": None, "lower_bound": None,
                         "status": "infeasible"})
@@ -61,7 +65,7 @@ def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], *
 
 def contour_allocations(system: System, protocol: str, alphas: Sequence[float],
                         betas: Sequence[Sequence[float]] = ((1, 1), (0.05, 1), (1, 0.05)),
-                        **kwargs) -> dict[tuple[float, ...], list[dict]]:
+                        progress: bool | None = None, **kwargs) -> dict[tuple[float, ...], list[dict]]:
     """Figs. 6–7: the optimal allocation on each cost contour alpha, for each price vector beta.
 
     Returns
@@ -73,7 +77,7 @@ def contour_allocations(system: System, protocol: str, alphas: Sequence[float],
     -----
     O(len(betas) len(alphas)) allocations.
     """
-    return {tuple(float(b) for b in beta): pareto_curve(system, protocol, beta, alphas, **kwargs)
+    return {tuple(float(b) for b in beta): pareto_curve(system, protocol, beta, alphas, progress=progress, **kwargs)
             for beta in betas}
 
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..errors import InfeasibleError, SolverError
 from ..model import System
+from ..progress import progress_bar
 from ..tolerances import (
     ALLOCATION_COST_RTOL,
     ALLOCATION_EDGE_ATOL,
@@ -72,8 +73,10 @@ class Search:
     operations O(log boxes); the work is in ``visit``.
     """
 
-    def __init__(self, gap: float, floor: float, max_boxes: int, time_limit: float | None) -> None:
+    def __init__(self, gap: float, floor: float, max_boxes: int, time_limit: float | None,
+                 progress: bool | None = False) -> None:
         self.gap, self.floor, self.max_boxes, self.time_limit = gap, floor, max_boxes, time_limit
+        self.progress = progress
         self.best, self.best_mu = np.inf, None
         self.heap: list = []
         self.counter = 0
@@ -106,14 +109,16 @@ class Search:
         visited); returns how it ended. ``visit(bound, l, u, data)`` offers incumbents and
         pushes children."""
         start = time.monotonic()
-        while self.heap and not self.certified():
-            if self.boxes >= self.max_boxes:
-                return f"stopped at the cap of {self.max_boxes} boxes"
-            if self.boxes and self.time_limit is not None and time.monotonic() - start > self.time_limit:
-                return f"stopped at the time limit of {self.time_limit:g} s"
-            bound, _, l, u, data = heapq.heappop(self.heap)
-            self.boxes += 1
-            visit(bound, l, u, data)
+        with progress_bar(desc=f"branch and bound (boxes, cap {self.max_boxes})", progress=self.progress) as bar:
+            while self.heap and not self.certified():
+                if self.boxes >= self.max_boxes:
+                    return f"stopped at the cap of {self.max_boxes} boxes"
+                if self.boxes and self.time_limit is not None and time.monotonic() - start > self.time_limit:
+                    return f"stopped at the time limit of {self.time_limit:g} s"
+                bound, _, l, u, data = heapq.heappop(self.heap)
+                self.boxes += 1
+                visit(bound, l, u, data)
+                bar.update()
         if self.certified():
             return "certified"
         if not np.isfinite(self.unsplit):
@@ -137,7 +142,7 @@ class Search:
 
 
 def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float, floor: float,
-                 max_boxes: int, time_limit: float | None) -> Outcome:
+                 max_boxes: int, time_limit: float | None, progress: bool | None = False) -> Outcome:
     """min beta'mu over the polytope with J*_udp(mu) <= alpha, to a relative ``gap``.
 
     ``floor`` is a proven lower bound from elsewhere (the TCP-like relaxation, Theorem 2).
@@ -154,7 +159,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     J = lambda mu: cost_at(system, "udp", mu)  # noqa: E731
     prune_above = alpha * (1 + ALLOCATION_COST_RTOL)
     weights = np.maximum(beta, SPLIT_WEIGHT_FLOOR)
-    search = Search(gap, max(floor, float(beta @ poly.lower())), max_boxes, time_limit)
+    search = Search(gap, max(floor, float(beta @ poly.lower())), max_boxes, time_limit, progress)
 
     def bound(l: np.ndarray, u: np.ndarray):
         """Reduce the box; (lower bound, l, u, LP point), or None when proven infeasible or empty

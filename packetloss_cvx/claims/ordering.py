@@ -18,7 +18,8 @@ __all__ = ["corollary_1", "corollary_2", "theorem_2", "theorem_3"]
 
 
 def theorem_2(ctx: Context) -> ClaimResult:
-    """J*_udp - J*_tcp > 0 for interior channels, by the cancellation-free difference."""
+    """J*_udp - J*_tcp > 0 for interior channels (Theorem 2, from eq:G-inequality), by the
+    cancellation-free difference."""
     def margin(s: System) -> float | None:
         if not interior(s) or not np.any(prediction(s).Omega_gp @ s.x0):
             return None  # Omega_gp x0 = 0: both optima are C, the trivial equality
@@ -47,7 +48,7 @@ def corollary_1(ctx: Context) -> ClaimResult:
 
 
 def theorem_3(ctx: Context) -> ClaimResult:
-    """J*(mu1) > J*(mu2) for mu2 > mu1 entrywise, both protocols."""
+    """J*(mu1) > J*(mu2) for mu2 > mu1 entrywise, both protocols (Theorem 3, eq:monotonic-cost-pos-def)."""
     def margin(s: System) -> float | None:
         rng = np.random.default_rng(ctx.seed + 3)
         mu1 = np.clip(s.mu_schedule, 0.01, 0.99)

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import System
+from ..progress import progress_bar
 from ..random_systems import random_system
 from ..results import ClaimResult
 from .channel_allocation import allocation_udp_perfect
@@ -49,7 +50,7 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
 
 
 def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int = 0,
-          only: Sequence[str] | None = None) -> list[ClaimResult]:
+          only: Sequence[str] | None = None, progress: bool | None = None) -> list[ClaimResult]:
     """Check every claim (or those in ``only``) on the paper's systems, on ``systems`` and on
     ``random`` seeded random systems (n, m <= 4, N <= 8, stable and unstable).
 
@@ -63,6 +64,8 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
         Seeds the random systems, the Monte Carlo samples and the shrinking.
     only : sequence of str, optional
         Claim ids to check (default: all of :data:`CLAIMS`, in order).
+    progress : bool or None
+        A bar on stderr, one step per claim (None: when stderr is a terminal).
 
     Returns
     -------
@@ -86,7 +89,13 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
     for claim_id in ids:
         if claim_id not in CLAIMS:
             raise InputError("claim", f"unknown claim id {claim_id!r}; expected one of {', '.join(CLAIMS)}")
-    return [run_claim(claim_id, ctx) for claim_id in ids]
+    results = []
+    with progress_bar(total=len(ids), desc="audit", progress=progress) as bar:
+        for claim_id in ids:
+            bar.set_postfix_str(claim_id)        # the claim being checked (one can take most of the time)
+            results.append(run_claim(claim_id, ctx))
+            bar.update()
+    return results
 
 
 def run_claim(claim_id: str, ctx: Context) -> ClaimResult:

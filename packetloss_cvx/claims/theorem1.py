@@ -55,7 +55,7 @@ def monte_carlo_cases(ctx: Context) -> list[System]:
 
 
 def lemma_1(ctx: Context) -> ClaimResult:
-    """Lemma 1's prediction-error expectations, by sampling losses and noise."""
+    """Lemma 1's prediction-error expectations (eq:TCP-err, eq:UDP-err), by sampling losses and noise."""
     samples = 20000
 
     def margin(s: System) -> float | None:
@@ -85,7 +85,7 @@ def lemma_1(ctx: Context) -> ClaimResult:
 
 
 def lemma_quad(ctx: Context) -> ClaimResult:
-    """E[U'Upsilon Omega_g Upsilon U], by sampling the losses."""
+    """E[U'Upsilon Omega_g Upsilon U] (eq:appendix; with Psi for Omega_g, eq:plant4), by sampling the losses."""
     samples = 20000
 
     def margin(s: System) -> float | None:
@@ -104,7 +104,8 @@ def lemma_quad(ctx: Context) -> ClaimResult:
 
 
 def expected_cost_tcp(ctx: Context) -> ClaimResult:
-    """J_tcp(U) against the sampled realised cost of the TCP-like optimal plan."""
+    """J_tcp(U) (eq:lqg-sub-err with eq:TCP-prediction-error) against the sampled realised cost of the
+    TCP-like optimal plan."""
     samples = 40000
 
     def margin(s: System) -> float | None:

@@ -4,8 +4,11 @@ Exit codes: 0 success; 2 bad input (one stderr line naming the field); 3 a
 well-posed problem with no solution (proved); 4 an allocation whose gap was not
 certified within its caps (printed as usual); 1 anything else (one stderr line).
 
-The grammar (:mod:`.parser`) imports nothing numerical; the module that runs a
-subcommand (``solve``, ``audit``, ...) is imported only when that subcommand runs.
+The grammar (:mod:`.parser`) imports nothing numerical; the checks that need no solver
+(:func:`.common.preflight`: files, overrides, number lists) run next, importing NumPy only;
+the module that runs a subcommand (``solve``, ``audit``, ...) is imported only after them,
+so ``--help``, ``--version`` and bad input answer without importing cvxpy or SciPy.
+``--out FILE`` writes the JSON object to FILE as well; ``-v`` reports the time taken on stderr.
 """
 
 from __future__ import annotations
@@ -14,8 +17,11 @@ import importlib
 import json
 import os
 import sys
+import time
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 from ..errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
 from .parser import build_parser, join_negative_values
@@ -28,18 +34,36 @@ def _say(message: str) -> None:
     print(message.replace("\r", "\\r").replace("\n", "\\n"), file=sys.stderr)
 
 
+def write_json(path: str, data: dict[str, Any]) -> None:
+    """``--out FILE``: the JSON object written to FILE (an unwritable path is bad input)."""
+    try:
+        Path(path).write_text(json.dumps(data, allow_nan=False, indent=2) + "\n", encoding="utf-8")
+    except OSError as err:
+        raise InputError("--out", f"cannot write {path!r}: {err.strerror or err}") from None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code."""
+    """Run the command line; returns the exit code.
+
+    >>> main(["solve", "no-such-file.toml"])
+    2
+    """
     for stream in (sys.stdout, sys.stderr):   # a terminal that cannot show a name gets an escape, not a crash
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
     parser = build_parser()
     try:
         args = parser.parse_args(join_negative_values(list(sys.argv[1:] if argv is None else argv)))
+        start = time.perf_counter()
         with warnings.catch_warnings():   # one stderr line, always: numerical warnings are checked, not printed
             warnings.simplefilter("ignore")
+            importlib.import_module(f"{__name__}.common").preflight(args)   # NumPy: not needed for --help
             command = importlib.import_module(f"{__name__}.{args.command}")
             data, text, code = command.run(args)
+        if getattr(args, "json_out", None):
+            write_json(args.json_out, data)
+        if getattr(args, "verbose", 0):
+            _say(f"packetloss-cvx: {args.command} took {time.perf_counter() - start:.3g} s")
         as_json = getattr(args, "json", False)
         if code == 3 and not as_json:
             _say(f"packetloss-cvx: {text}")

@@ -5,12 +5,10 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-import numpy as np
-
 from ..allocation import allocate, parse_constraint
 from ..errors import InfeasibleError, InputError
-from ..io import load_system
-from .common import CommandResult, floats, number
+from . import format as fmt
+from .common import CommandResult, allocation_numbers, number, progress_of, system_of
 
 __all__ = ["run"]
 
@@ -23,14 +21,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     """Exit 0 with status "optimal"; 4 with status "gap_not_certified" (a cap was hit: the
     allocation is feasible and its lower bound proven, but the gap is larger than asked; the
     result is printed on stdout as usual); 3 when proven infeasible."""
-    system = load_system(args.file)
-    alpha = number(args.alpha, "--alpha")
-    beta = floats(args.beta, "--beta")
-    if len(beta) != system.m:
-        raise InputError("--beta", f"expected {system.m} comma-separated numbers, found {len(beta)}")
-    bounds = floats(args.bounds, "--bounds")
-    if len(bounds) != 2:
-        raise InputError("--bounds", f"expected lo,hi, found {args.bounds[:40]!r}")
+    system = system_of(args)
+    alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     if args.gap is not None:
         options["gap"] = number(args.gap, "--gap")
@@ -39,6 +31,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     if args.time_limit is not None:
         options["time_limit"] = number(args.time_limit, "--time-limit")
     constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
+    options["progress"] = progress_of(args)
     try:
         result = allocate(system, args.protocol, alpha, beta, bounds=tuple(bounds), constraints=constraints,
                           **options)
@@ -50,12 +43,17 @@ def run(args: argparse.Namespace) -> CommandResult:
                 "boxes": None, "min_cost": err.min_cost}
         return CommandResult(data, f"infeasible: {err}", 3)
     data = {**result.to_dict(), "min_cost": None}
-    line = (f"mu* = {np.round(result.mu, 6).tolist()}, beta'mu = {result.communication_cost:.6g}, J*(mu*) = "
-            f"{result.cost:.6g} <= {alpha:g}, lower bound {result.lower_bound:.6g}")
+    rows = [("mu*", fmt.numbers(result.mu)), ("beta'mu", fmt.num(result.communication_cost)),
+            ("J*(mu*)", f"{fmt.num(result.cost, 10)} <= alpha = {fmt.num(alpha)}"),
+            ("lower bound", f"{fmt.num(result.lower_bound)} on beta'mu (proved)"),
+            ("gap", f"{result.gap:.1e}"),
+            ("method", result.method + (f", {result.boxes} boxes" if result.boxes else ""))]
+    name = system.name or args.file
     if result.status == "optimal":
-        return CommandResult(data, f"{args.protocol.upper()}-like: {line} (gap {result.gap:.1e}; {result.method})")
+        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]
+                                             + fmt.fields(rows)))
     advice = ("raise --max-boxes or --time-limit, or --gap" if args.protocol == "udp" else
               "the TCP-like SOCP's certificate is limited by the solver's accuracy: ask for a larger --gap")
-    text = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED: {line}; gap reached {result.gap:.1e} > the "
-            f"requested gap ({result.method}); {advice}")
-    return CommandResult(data, text, 4)
+    heading = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED, allocation for {name} (gap reached "
+               f"{result.gap:.1e} > the requested gap)")
+    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)])), 4)

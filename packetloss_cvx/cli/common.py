@@ -1,17 +1,28 @@
-"""Helpers the subcommands share: number lists, the file's overrides, the result a command returns.
+"""Helpers the subcommands share: number lists, the file's overrides, the checks run before a
+command's (numerical) module is imported, the result a command returns.
 
-Imported only when a subcommand runs (the parser itself stays light, docs/design.md §4).
+Imports only the model and io layers (NumPy): :func:`preflight` runs before ``main`` imports
+the subcommand's module, so that bad input is refused without importing cvxpy or SciPy
+(docs/design.md §4).
 """
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from ..errors import InputError
+from ..io import load_system
 from ..model import System
 
-__all__ = ["CommandResult", "floats", "number", "with_overrides"]
+__all__ = ["CommandResult", "allocation_numbers", "floats", "number", "preflight", "progress_of", "system_of",
+           "systems_of", "with_overrides"]
+
+#: counts that must be >= 0, with the words of their error message
+NONNEGATIVE = {"random": "a count", "seed": "an integer"}
 
 
 class CommandResult(NamedTuple):
@@ -23,7 +34,11 @@ class CommandResult(NamedTuple):
 
 
 def floats(text: str, field: str) -> list[float]:
-    """``"1,-2.5"`` -> ``[1.0, -2.5]``; anything else is an :class:`InputError` naming ``field``."""
+    """``"1,-2.5"`` -> ``[1.0, -2.5]``; anything else is an :class:`InputError` naming ``field``.
+
+    >>> floats("1,-2.5", "--x0")
+    [1.0, -2.5]
+    """
     try:
         values = [float(part) for part in text.split(",")]
     except ValueError:
@@ -32,23 +47,113 @@ def floats(text: str, field: str) -> list[float]:
 
 
 def number(text: str, field: str) -> float:
-    """Exactly one number."""
+    """Exactly one number.
+
+    >>> number("8", "--alpha")
+    8.0
+    """
     values = floats(text, field)
     if len(values) != 1:
         raise InputError(field, f"expected one number, found {text[:40]!r}")
     return values[0]
 
 
+def read_schedule(path: str) -> np.ndarray:
+    """A CSV file of N rows of m delivery probabilities (``#`` starts a comment). O(N m)."""
+    try:
+        with Path(path).open(encoding="utf-8") as handle:
+            table = np.loadtxt(handle, delimiter=",", ndmin=2, dtype=float)
+    except OSError as err:
+        raise InputError("--mu-schedule", f"cannot read {path!r}: {err.strerror or err}") from None
+    except (ValueError, UnicodeDecodeError):
+        raise InputError("--mu-schedule", f"expected rows of comma-separated numbers in {path!r}") from None
+    return table
+
+
 def with_overrides(system: System, args: argparse.Namespace) -> System:
-    """The file's system with ``--mu`` and ``--x0`` applied, errors renamed to the flag."""
+    """The file's system with ``--mu`` (one number means every channel), ``--mu-schedule`` and
+    ``--x0`` applied, errors renamed to the flag. O(N m + n).
+
+    >>> from packetloss_cvx.io import load_example
+    >>> with_overrides(load_example("two_actuator"), argparse.Namespace(mu="0.5")).mu.tolist()
+    [0.5, 0.5]
+    """
     if getattr(args, "mu", None) is not None:
+        values = floats(args.mu, "--mu")
         try:
-            system = system.with_mu(floats(args.mu, "--mu"))
+            system = system.with_mu(values * system.m if len(values) == 1 else values)
         except InputError as err:
             raise err.renamed("--mu") from None
+    if getattr(args, "mu_schedule", None) is not None:
+        try:
+            system = system.with_mu(read_schedule(args.mu_schedule))
+        except InputError as err:
+            raise err.renamed("--mu-schedule") from None
     if getattr(args, "x0", None) is not None:
         try:
             system = system.with_x0(floats(args.x0, "--x0"))
         except InputError as err:
             raise err.renamed("--x0") from None
     return system
+
+
+def system_of(args: argparse.Namespace) -> System:
+    """``args.file`` loaded with its overrides, once per command (kept on ``args``)."""
+    if getattr(args, "loaded_system", None) is None:
+        args.loaded_system = with_overrides(load_system(args.file), args)
+    return args.loaded_system
+
+
+def systems_of(args: argparse.Namespace) -> list[System]:
+    """Every ``args.files`` loaded, once per command (kept on ``args``)."""
+    if getattr(args, "loaded_systems", None) is None:
+        args.loaded_systems = [load_system(path) for path in args.files]
+    return args.loaded_systems
+
+
+def allocation_numbers(args: argparse.Namespace, m: int) -> tuple[float, list[float], list[float]]:
+    """``--alpha``, ``--beta`` (m prices) and ``--bounds`` (lo,hi) parsed and counted.
+
+    >>> allocation_numbers(argparse.Namespace(alpha="8", beta="1,0.05", bounds="0,1"), 2)
+    (8.0, [1.0, 0.05], [0.0, 1.0])
+    """
+    alpha = number(args.alpha, "--alpha")
+    beta = floats(args.beta, "--beta")
+    if len(beta) != m:
+        raise InputError("--beta", f"expected {m} comma-separated numbers, found {len(beta)}")
+    bounds = floats(args.bounds, "--bounds")
+    if len(bounds) != 2:
+        raise InputError("--bounds", f"expected lo,hi, found {args.bounds[:40]!r}")
+    return alpha, beta, bounds
+
+
+def preflight(args: argparse.Namespace) -> None:
+    """Every check that needs no numerical module: counts, files, overrides, number lists.
+
+    ``main`` runs it before importing the command's module, so bad input costs a NumPy import,
+    not a cvxpy one. The command's own checks still run (they are the same functions).
+
+    >>> preflight(argparse.Namespace(file="two_actuator", mu="1.5"))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.ProbabilityError: --mu: expected probabilities in [0, 1], found 1.5
+    """
+    for name, what in NONNEGATIVE.items():
+        value = getattr(args, name, None)
+        if isinstance(value, int) and value < 0:
+            raise InputError(f"--{name}", f"expected {what} >= 0, found {value}")
+    if getattr(args, "file", None) is not None:
+        system = system_of(args)
+        if getattr(args, "alpha", None) is not None and getattr(args, "beta", None) is not None:
+            allocation_numbers(args, system.m)
+    if getattr(args, "files", None):
+        systems_of(args)
+
+
+def progress_of(args: argparse.Namespace) -> bool | None:
+    """The ``progress=`` to pass to the API: off with ``--quiet``, else automatic (a terminal shows bars).
+
+    >>> progress_of(argparse.Namespace(quiet=True)), progress_of(argparse.Namespace(quiet=False))
+    (False, None)
+    """
+    return False if getattr(args, "quiet", False) else None

@@ -2,20 +2,64 @@
 
 Each subcommand names the module of this package that runs it (``command="solve"`` ->
 ``packetloss_cvx.cli.solve.run``); :func:`packetloss_cvx.cli.main` imports that module only
-when the command runs. A new subcommand adds its ``add_parser`` block here and its module.
+when the command runs. A new subcommand is one block in :func:`build_parser` and its module::
+
+    sim = add_command(sub, "simulate", "sample the closed loop",
+                      examples=["simulate two_actuator --samples 1000 --seed 1"])
+    sim.add_argument("file", metavar="FILE", help=FILE_HELP)
+    add_system_options(sim)                     # --mu, --mu-schedule, --x0, if it takes them
+    sim.add_argument("--samples", type=int, default=1000, help="number of sample paths, e.g. 5000")
+
+:func:`add_command` gives every subcommand the same shared options (``-q/--quiet``,
+``-v/--verbose``, and unless ``results=False``: ``--json`` and ``--out FILE``), the same help
+layout (each option's default appended to its help) and an "examples" epilog. A command whose
+``--out`` names a directory (sweep, reproduce) passes ``results=False`` and adds its own
+``--json`` and ``--out DIR``.
 """
 
 from __future__ import annotations
 
 import argparse
 import re
+from collections.abc import Sequence
 
+from .. import __version__
 from ..errors import InputError
+from .completion import CompletionAction
 
-__all__ = ["NUMBER_LISTS", "build_parser", "join_negative_values"]
+__all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales")
+
+FILE_HELP = "a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator"
+
+DESCRIPTION = f"""\
+packetloss-cvx {__version__}: optimal control over multichannel packet-loss links
+(Casbolt, Jones, Esnaola), every answer computed in closed form and cross-checked by a solver.
+
+exit codes: 0 success; 1 a refused or failed computation; 2 bad input (one line naming
+the field); 3 proved infeasible; 4 allocation gap not certified within its caps.
+Contracts (files, JSON keys): docs/design.md §4. Help on a command: packetloss-cvx COMMAND -h"""
+
+EPILOG = """\
+examples:
+  packetloss-cvx solve two_actuator
+  packetloss-cvx solve pendulum --protocol udp --mu 0.5 --json
+  packetloss-cvx allocate two_actuator --protocol udp --alpha 8 --beta 1,0.05
+  packetloss-cvx audit --random 20 --seed 1"""
+
+
+class Formatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps the epilog's line breaks and appends ``(default: X)`` to an option whose default is set."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if (default is not None and default is not False and default != argparse.SUPPRESS and "default" not in text
+                and action.option_strings and action.nargs != 0):
+            text += " (default: %(default)s)"
+        return text
 
 
 class Parser(argparse.ArgumentParser):
@@ -25,73 +69,161 @@ class Parser(argparse.ArgumentParser):
         raise InputError("arguments", message)
 
 
+def shared_options(results: bool) -> argparse.ArgumentParser:
+    """The options every subcommand has: verbosity and, for commands that return one result, its JSON."""
+    parent = argparse.ArgumentParser(add_help=False)
+    group = parent.add_argument_group("output")
+    if results:
+        group.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
+        group.add_argument("--out", dest="json_out", metavar="FILE",
+                           help="also write the JSON object to FILE (default: none), e.g. --out result.json")
+    loud = group.add_mutually_exclusive_group()
+    loud.add_argument("-q", "--quiet", action="store_true", help="no progress bars on stderr")
+    loud.add_argument("-v", "--verbose", action="count", default=0,
+                      help="more detail: plans, notes, and the time taken on stderr")
+    return parent
+
+
+def add_command(sub: argparse._SubParsersAction, name: str, summary: str, *, examples: Sequence[str] = (),
+                results: bool = True) -> argparse.ArgumentParser:
+    """A subcommand with the shared options and an examples epilog; ``name`` is the module that runs it.
+
+    >>> parser = argparse.ArgumentParser()
+    >>> new = add_command(parser.add_subparsers(dest="command"), "simulate", "sample", examples=["simulate pendulum"])
+    >>> args = parser.parse_args(["simulate", "-q", "--json"])
+    >>> args.command, args.quiet, args.json, args.verbose
+    ('simulate', True, True, 0)
+    """
+    epilog = "examples:\n" + "\n".join(f"  packetloss-cvx {line}" for line in examples) if examples else None
+    return sub.add_parser(name, help=summary, description=summary, epilog=epilog, formatter_class=Formatter,
+                          parents=[shared_options(results)])
+
+
+def add_system_options(command: argparse.ArgumentParser) -> None:
+    """``--mu``, ``--mu-schedule`` and ``--x0``: the file's channel and initial state overridden."""
+    group = command.add_argument_group("overrides of the file")
+    channel = group.add_mutually_exclusive_group()
+    channel.add_argument("--mu", metavar="MU",
+                         help="delivery probabilities, one per actuator or one for all, e.g. --mu 0.9,0.5 or "
+                              "--mu 0.5 (default: the file's)")
+    channel.add_argument("--mu-schedule", metavar="CSV",
+                         help="a non-stationary channel: a CSV file of N rows of m probabilities, e.g. "
+                              "--mu-schedule mu.csv (default: the file's)")
+    group.add_argument("--x0", metavar="X0",
+                       help="the initial state, comma-separated, e.g. --x0 1,-1 (default: the file's)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The whole grammar; ``args.command`` names the module that runs the subcommand."""
-    parser = Parser(prog="packetloss-cvx",
-                    description="Optimal control over multichannel packet-loss links, cross-checked (docs/design.md).")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    solve = sub.add_parser("solve", help="optimal plans, costs and gains, cross-checked by a QP")
-    solve.add_argument("file")
-    solve.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both")
-    solve.add_argument("--mu", help="override the channel: comma-separated, one per actuator")
-    solve.add_argument("--x0", help="override the initial state: comma-separated")
-    solve.add_argument("--method", choices=("dense", "recursion", "auto"), default="auto")
-    solve.add_argument("--formulation", choices=("condensed", "sparse", "auto"), default="auto")
-    solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check")
-    solve.add_argument("--json", action="store_true", help="print one JSON object")
+    """The whole grammar; ``args.command`` names the module that runs the subcommand.
 
-    aud = sub.add_parser("audit", help="check every claim of the paper on its systems and random ones")
-    aud.add_argument("files", nargs="*", metavar="FILE", help="more systems to check the claims on")
-    aud.add_argument("--random", type=int, default=50, help="seeded random systems (default 50)")
+    >>> build_parser().parse_args(["solve", "pendulum", "--mu", "0.5"]).mu
+    '0.5'
+    """
+    parser = Parser(prog="packetloss-cvx", description=DESCRIPTION, epilog=EPILOG, formatter_class=Formatter)
+    parser.add_argument("-V", "--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("--completion", choices=("bash",), action=CompletionAction,
+                        help='print a shell completion script, e.g. eval "$(packetloss-cvx --completion bash)"')
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser, metavar="COMMAND")
+
+    solve = add_command(sub, "solve", "optimal plans, costs and gains of both protocols, cross-checked by a QP",
+                        examples=["solve two_actuator", "solve pendulum --protocol udp --mu 0.5 --json",
+                                  "solve two_actuator --method recursion --x0 1,-1 --out result.json"])
+    solve.add_argument("file", metavar="FILE", help=FILE_HELP)
+    solve.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both",
+                       help="TCP-like (acknowledged), UDP-like (not) or both, e.g. --protocol udp")
+    add_system_options(solve)
+    solve.add_argument("--method", choices=("dense", "recursion", "auto"), default="auto",
+                       help="closed form: Theorem 1's dense formulas or the O(N) recursion; auto picks by size "
+                            "and conditioning, e.g. --method recursion")
+    solve.add_argument("--formulation", choices=("condensed", "sparse", "auto"), default="auto",
+                       help="the cross-checking QP's form, e.g. --formulation sparse")
+    solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check (closed form only)")
+
+    aud = add_command(sub, "audit", "check every claim of the paper on its systems and random ones",
+                      examples=["audit --random 20 --seed 1", "audit two_actuator --claim theorem-2 --random 0",
+                                "audit --report > claims.md"])
+    aud.add_argument("files", nargs="*", metavar="FILE", help="more systems to check the claims on, e.g. pendulum")
+    aud.add_argument("--random", type=int, default=50, help="seeded random systems (>= 0), e.g. --random 200")
     aud.add_argument("--seed", type=int, default=0,
-                     help="seeds the random systems, the samples and the shrinking (integer >= 0, default 0)")
-    aud.add_argument("--claim", action="append", help="check only this claim id (repeatable)")
-    aud.add_argument("--report", action="store_true", help="Markdown report with notes and counterexamples")
-    aud.add_argument("--json", action="store_true", help="print one JSON object")
+                     help="seeds the random systems, the samples and the shrinking (>= 0), e.g. --seed 1")
+    aud.add_argument("--claim", action="append", metavar="ID",
+                     help="check only this claim (repeatable; default: all), e.g. --claim theorem-2")
+    aud.add_argument("--report", action="store_true", help="the Markdown report with notes and counterexamples")
 
-    alloc = sub.add_parser("allocate", help="cheapest channel qualities with J*(mu) <= alpha")
-    alloc.add_argument("file")
-    alloc.add_argument("--protocol", choices=("tcp", "udp"), required=True)
-    alloc.add_argument("--alpha", required=True, help="bound on the optimal expected cost")
-    alloc.add_argument("--beta", required=True, help="price of each channel, comma-separated")
-    alloc.add_argument("--bounds", default="0,1", help="lo,hi for every mu_i (default 0,1)")
-    alloc.add_argument("--constraint", action="append",
-                       help='linear constraint, e.g. "mu1 + 2*mu2 <= 1.5" or "mu1 >= mu2" (repeatable)')
-    alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default 1e-4)")
+    alloc = add_command(sub, "allocate", "the cheapest channel qualities mu with J*(mu) <= alpha (paper §VI)",
+                        examples=["allocate two_actuator --protocol udp --alpha 8 --beta 1,0.05",
+                                  "allocate two_actuator --protocol tcp --alpha 8 --beta 1,1 "
+                                  '--constraint "mu1 >= mu2"'])
+    alloc.add_argument("file", metavar="FILE", help=FILE_HELP)
+    alloc.add_argument("--protocol", choices=("tcp", "udp"), required=True,
+                       help="TCP-like (an exact SOCP) or UDP-like (branch and bound), required, e.g. --protocol tcp")
+    alloc.add_argument("--alpha", required=True, help="bound on the optimal expected cost, required, e.g. --alpha 8")
+    alloc.add_argument("--beta", required=True,
+                       help="price of each channel, comma-separated, required, e.g. --beta 1,0.05")
+    alloc.add_argument("--bounds", default="0,1", help="lo,hi for every mu_i, e.g. --bounds 0.1,0.99")
+    alloc.add_argument("--constraint", action="append", metavar="TEXT",
+                       help='a linear constraint (repeatable; default: none), e.g. "mu1 + 2*mu2 <= 1.5" or '
+                            '"mu1 >= mu2"')
+    alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default: 1e-4), e.g. 1e-6")
     alloc.add_argument("--max-boxes", type=int,
-                       help="cap on the UDP-like branch and bound's boxes (default 20000); at the cap: exit 4")
-    alloc.add_argument("--time-limit", help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4")
-    alloc.add_argument("--json", action="store_true", help="print one JSON object")
+                       help="cap on the UDP-like branch and bound's boxes; at the cap: exit 4 (default: 20000), "
+                            "e.g. 100000")
+    alloc.add_argument("--time-limit", metavar="SECONDS",
+                       help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4 "
+                            "(default: none), e.g. 60")
 
-    swp = sub.add_parser("sweep", help="J* of both protocols over a grid of channels, x0 scales or horizons")
-    swp.add_argument("file")
-    swp.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both")
-    what = swp.add_mutually_exclusive_group(required=True)
+    swp = add_command(sub, "sweep", "J*_tcp, J*_udp and J_Delta over a grid of channels, x0 scales or horizons",
+                      examples=["sweep two_actuator --mu-grid 201 --out sweep-out",
+                                "sweep pendulum --x0-scales 0:2:5 --json",
+                                "sweep two_actuator --mu-grid 201 --dask local --out sweep-out --netcdf"],
+                      results=False)
+    swp.add_argument("file", metavar="FILE", help=FILE_HELP)
+    swp.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both",
+                     help="TCP-like, UDP-like or both (then also J_Delta), e.g. --protocol udp")
+    what = swp.add_argument_group("what to sweep (exactly one)").add_mutually_exclusive_group(required=True)
     what.add_argument("--mu-grid", type=int, metavar="K",
-                      help="K points per channel on [0, 1]: 1-D for one channel, 2-D for two")
-    what.add_argument("--mu-list", metavar="FILE.csv", help="m-channel points, one row each (a header is skipped)")
-    what.add_argument("--x0-scales", metavar="S1,S2,..|LO:HI:K", help="x0 times each scale (or K scales LO..HI)")
-    what.add_argument("--horizons", metavar="N1,N2,..", help="each horizon N")
-    swp.add_argument("--channel", type=int, metavar="I", help="with --mu-grid: sweep channel I only (1-based)")
-    swp.add_argument("--shared", action="store_true", help="with --mu-grid: every actuator behind one channel")
-    swp.add_argument("--chunk-size", type=int, default=2048, help="points per batched evaluation / Dask task")
-    swp.add_argument("--dask", metavar="local|ADDRESS", help="evaluate on Dask: a LocalCluster or a scheduler")
-    swp.add_argument("--workers", type=int, help="workers of --dask local (default 2)")
-    swp.add_argument("--out", metavar="DIR", help="write sweep.npz, sweep.csv and a figure into DIR")
-    swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs xarray)")
-    swp.add_argument("--quiet", action="store_true", help="no progress bar")
-    swp.add_argument("--json", action="store_true", help="print one JSON object")
+                      help="K points per channel on [0, 1]: 1-D for one channel, 2-D for two (required: this or "
+                           "one of the three below), e.g. --mu-grid 201")
+    what.add_argument("--mu-list", metavar="FILE.csv",
+                      help="m-channel points, one row each, a header row skipped (required: one of four), "
+                           "e.g. --mu-list points.csv")
+    what.add_argument("--x0-scales", metavar="S1,S2,..|LO:HI:K",
+                      help="x0 times each scale, or K scales from LO to HI (required: one of four), "
+                           "e.g. --x0-scales 0:2:21")
+    what.add_argument("--horizons", metavar="N1,N2,..",
+                      help="each horizon N (required: one of four), e.g. --horizons 5,10,20,40")
+    swp.add_argument("--channel", type=int, metavar="I",
+                     help="with --mu-grid: sweep channel I only, the others as in the file (default: all channels "
+                          "for m <= 2), e.g. --channel 2")
+    swp.add_argument("--shared", action="store_true", help="with --mu-grid: every actuator behind one channel nu")
+    swp.add_argument("--chunk-size", type=int, default=2048, metavar="C",
+                     help="points per batched evaluation and per Dask task, e.g. --chunk-size 10000")
+    swp.add_argument("--dask", metavar="local|ADDRESS",
+                     help="evaluate on Dask: a new LocalCluster or a running scheduler (default: in process), "
+                          "e.g. --dask tcp://127.0.0.1:8786")
+    swp.add_argument("--workers", type=int, metavar="W",
+                     help="workers of --dask local (default: 2), e.g. --workers 4")
+    swp.add_argument("--out", metavar="DIR",
+                     help="write sweep.npz, sweep.csv and a figure into DIR (default: none), e.g. --out sweep-out")
+    swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs the xarray extra)")
+    swp.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
 
-    rep = sub.add_parser("reproduce", help="every figure and table of the paper, with a report against it")
-    rep.add_argument("--out", metavar="DIR", default="results", help="output folder (default results/)")
-    rep.add_argument("--quick", action="store_true", help="coarser grids and fewer alphas (a smoke test)")
-    rep.add_argument("--quiet", action="store_true", help="no progress bar")
-    rep.add_argument("--json", action="store_true", help="print one JSON object")
+    rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
+                      examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],
+                      results=False)
+    rep.add_argument("--out", metavar="DIR", default="results",
+                     help="folder for the PNGs, results.json and report.md, e.g. --out paper-results")
+    rep.add_argument("--quick", action="store_true", help="coarse grids, one alpha, a shorter audit (a smoke test)")
+    rep.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
     return parser
 
 
 def join_negative_values(argv: list[str]) -> list[str]:
-    """``--x0 -1,1`` -> ``--x0=-1,1``: argparse would read ``-1,1`` as an unknown option."""
+    """``--x0 -1,1`` -> ``--x0=-1,1``: argparse would read ``-1,1`` as an unknown option.
+
+    >>> join_negative_values(["solve", "pendulum", "--x0", "-1,1"])
+    ['solve', 'pendulum', '--x0=-1,1']
+    """
     out: list[str] = []
     k = 0
     while k < len(argv):

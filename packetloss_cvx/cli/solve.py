@@ -5,27 +5,26 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-import numpy as np
-
 from ..costs import closed_form
 from ..errors import NumericalError, ResourceError
-from ..io import load_system
 from ..qp import solve_qp
-from ..results import eigenvalue_pairs
-from .common import CommandResult, with_overrides
+from ..results import Solution, eigenvalue_pairs
+from . import format as fmt
+from .common import CommandResult, system_of
 
 __all__ = ["run"]
 
 
 def run(args: argparse.Namespace) -> CommandResult:
     """Both protocols' closed forms, each compared with its QP twin (a disagreement raises)."""
-    system = with_overrides(load_system(args.file), args)
+    system = system_of(args)
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     out: dict[str, Any] = {
         "name": system.name, "n": system.n, "m": system.m, "horizon": system.horizon,
         "mu": system.mu_schedule[0].tolist() if system.is_stationary else system.mu_schedule.tolist(),
     }
-    lines = [f"{system.name or args.file}: n={system.n}, m={system.m}, N={system.horizon}"]
+    mu = fmt.numbers(system.mu_schedule[0]) if system.is_stationary else "non-stationary (per step)"
+    lines = [f"{system.name or args.file}: n={system.n}, m={system.m}, N={system.horizon}, mu = {mu}"]
     for protocol in protocols:
         sol = closed_form(system, protocol, method=args.method)
         entry: dict[str, Any] = {
@@ -33,13 +32,13 @@ def run(args: argparse.Namespace) -> CommandResult:
             "closed_loop_eigenvalues": eigenvalue_pairs(sol.closed_loop_eigenvalues),
             "method": sol.method,
         }
-        line = f"  {protocol.upper()}-like: J* = {sol.cost:.10g} ({sol.method})"
+        rows: list[tuple[str, object]] = [("cost", f"J* = {sol.cost:.10g} ({sol.method})")]
         if not args.no_qp:
             try:
                 qp = solve_qp(system, protocol, args.formulation, with_gain=False, reference=sol)
             except (NumericalError, ResourceError) as err:   # a disagreement (CrossCheckError) is not caught
                 entry["qp"] = {"status": "skipped", "reason": str(err)}
-                line += f"; QP cross-check skipped: {err}"
+                rows.append(("cross-check", f"QP cross-check skipped: {err}"))
             else:
                 check = qp.cross_check
                 entry["qp"] = {
@@ -47,9 +46,22 @@ def run(args: argparse.Namespace) -> CommandResult:
                     "formulation": qp.method.removeprefix("qp-"),
                     "max_input_diff": check.max_input_diff, "cost_rel_diff": check.cost_rel_diff,
                 }
-                line += (f"; QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = {check.max_input_diff:.2e}, "
-                         f"rel dJ = {check.cost_rel_diff:.2e}")
+                timing = f", {qp.solve_time:.3g} s" if args.verbose else ""
+                rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
+                                            f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
         out[protocol] = entry
-        eig = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in sol.closed_loop_eigenvalues)
-        lines += [line, f"    K = {np.array2string(sol.gain, precision=4)}", f"    eig(A - B K) = {eig}"]
+        lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows + text_details(sol, system.n, args.verbose))
     return CommandResult(out, "\n".join(lines))
+
+
+def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]]:
+    """The gain, the closed-loop eigenvalues (the JSON's order) and, with ``-v``, the plan U*."""
+    m = sol.inputs.shape[1]
+    rows: list[tuple[str, object]] = [
+        ("K (u = -K x)", fmt.matrix(sol.gain, fmt.labels("u", m), fmt.labels("x", n))),
+        ("eig(A - B K)", fmt.eigenvalues(sol.closed_loop_eigenvalues)),
+    ]
+    if verbose:
+        plan = fmt.matrix(sol.inputs, [f"t={t}" for t in range(len(sol.inputs))], fmt.labels("u", m))
+        rows.append(("U* (row t)", plan))
+    return rows

@@ -1,0 +1,256 @@
+"""The command line feels native: fast help and errors (structurally: what they import), --version,
+help on every option, scalar --mu, --mu-schedule, --out, -q/-v everywhere, one text style."""
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+from packetloss_cvx.cli.common import progress_of
+from packetloss_cvx.cli.parser import add_command, build_parser
+
+HEAVY = ("cvxpy", "matplotlib", "scipy.stats", "scipy", "dask", "xarray", "control")
+
+PROBE = """
+import sys
+from packetloss_cvx.cli import main
+try:
+    code = main(sys.argv[1:])
+except SystemExit as exit_:
+    code = exit_.code
+print("MODULES", sorted({m for m in sys.modules if m.split(".")[0] in {"cvxpy", "matplotlib", "scipy", "dask",
+                                                                       "xarray", "control", "numpy"}}))
+"""
+
+
+def imported(*argv):
+    proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=False)
+    line = [ln for ln in proc.stdout.splitlines() if ln.startswith("MODULES")][-1]
+    return set(eval(line.removeprefix("MODULES ")))   # a list literal printed by the probe  # noqa: S307
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["--completion", "bash"], ["solve", "--help"],
+                                  ["audit", "--help"], ["allocate", "--help"], ["solve"], ["frobnicate"]])
+def test_help_version_and_usage_errors_import_nothing_numerical(argv):
+    modules = imported(*argv)
+    assert not modules, f"{argv} imported {sorted(modules)[:5]}"
+
+
+@pytest.mark.parametrize("argv", [["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
+                                  ["solve", "two_actuator", "--mu", "x"], ["audit", "--random", "-1"],
+                                  ["allocate", "two_actuator", "--protocol", "udp", "--alpha", "8", "--beta", "1"]])
+def test_bad_input_imports_numpy_only(argv):
+    modules = imported(*argv)
+    assert not {m for m in modules if m.split(".")[0] in {"cvxpy", "matplotlib", "scipy", "dask", "xarray",
+                                                          "control"}}, sorted(modules)[:5]
+    assert "numpy" in modules       # the probe sees what it should: loading a file needs NumPy
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"packetloss-cvx {pl.__version__}"
+
+
+def subcommands(parser):
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
+
+
+def test_every_option_has_help_with_default_and_example():
+    for name, command in subcommands(build_parser()).items():
+        for action in command._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            assert action.help, f"{name} {action.dest}: no help"
+            if action.option_strings and action.nargs != 0 and not action.choices and action.dest != "verbose":
+                shown = command.formatter_class(prog="x")._get_help_string(action) % {"default": action.default}
+                assert "e.g." in shown, f"{name} {action.option_strings}: no example"
+                assert "default" in shown or "required" in shown, f"{name} {action.option_strings}: no default"
+
+
+def test_top_level_help_names_the_design_file(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "docs/design.md" in out
+    assert "DESIGN.md" not in out
+    assert "exit codes" in out
+
+
+@pytest.mark.parametrize("flag", ["-q", "--quiet", "-v", "--verbose"])
+def test_quiet_and_verbose_on_every_subcommand(flag):
+    parser = build_parser()
+    for name, command in subcommands(parser).items():
+        actions = {s for a in command._actions for s in a.option_strings}
+        assert flag in actions, f"{name} has no {flag}"
+
+
+def test_quiet_turns_progress_off_and_is_exclusive_with_verbose(capsys):
+    parser = build_parser()
+    assert progress_of(parser.parse_args(["audit", "-q"])) is False
+    assert progress_of(parser.parse_args(["audit"])) is None
+    assert main(["audit", "-q", "-v"]) == 2
+    assert "not allowed with" in capsys.readouterr().err
+
+
+def test_add_command_gives_a_new_subcommand_the_shared_options():
+    parser = argparse.ArgumentParser()
+    sub = parser.add_subparsers(dest="command")
+    new = add_command(sub, "simulate", "sample", examples=["simulate two_actuator"])
+    new.add_argument("file")
+    args = parser.parse_args(["simulate", "f", "-q", "--json", "--out", "x.json"])
+    assert (args.quiet, args.json, args.json_out, args.verbose) == (True, True, "x.json", 0)
+    dirs = add_command(sub, "sweep", "sweep", results=False)
+    dirs.add_argument("--out", help="a directory")       # a command whose --out is a directory
+    assert parser.parse_args(["sweep", "--out", "d"]).out == "d"
+    assert "packetloss-cvx simulate two_actuator" in new.format_help()
+
+
+def test_scalar_mu_means_every_channel(capsys):
+    code, out, _ = run(capsys, "solve", "two_actuator", "--mu", "0.5", "--no-qp", "--json")
+    assert code == 0
+    data = json.loads(out)
+    assert data["mu"] == [0.5, 0.5]
+    reference = pl.closed_form(pl.load_example("two_actuator").with_mu([0.5, 0.5]), "udp").cost
+    assert data["udp"]["cost"] == pytest.approx(reference, rel=1e-12)
+
+
+def test_mu_schedule_csv(capsys, tmp_path):
+    rng = np.random.default_rng(13)
+    schedule = rng.uniform(0.1, 1.0, size=(10, 2))
+    path = tmp_path / "mu.csv"
+    path.write_text("# t = 0..9, two channels\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in schedule))
+    code, out, _ = run(capsys, "solve", "two_actuator", "--mu-schedule", str(path), "--no-qp", "--json")
+    assert code == 0
+    data = json.loads(out)
+    assert np.array_equal(np.array(data["mu"]), schedule)
+    system = pl.System(**{**_keywords(pl.load_example("two_actuator")), "mu_schedule": schedule})
+    assert data["tcp"]["cost"] == pytest.approx(pl.closed_form(system, "tcp", method="recursion").cost, rel=1e-10)
+
+
+def _keywords(system):
+    return dict(A=system.A, B=system.B, horizon=system.horizon, state_weights=system.state_weights,
+                input_weights=system.input_weights, x0=system.x0, initial_weight=system.initial_weight,
+                noise_cov=system.noise_cov)
+
+
+@pytest.mark.parametrize(("content", "argv", "match"), [
+    ("0.5,0.5\n" * 9, [], "--mu-schedule: expected shape (10, 2)"),
+    ("0.5,0.5\n" * 9 + "0.5,x\n", [], "--mu-schedule: expected rows of comma-separated numbers"),
+    ("0.5,0.5\n" * 9 + "0.5,1.5\n", [], "--mu-schedule: expected probabilities"),
+    (None, [], "--mu-schedule: cannot read"),
+    ("0.5,0.5\n" * 10, ["--mu", "0.5"], "not allowed with"),
+])
+def test_bad_mu_schedule_exit_2_one_line(capsys, tmp_path, content, argv, match):
+    path = tmp_path / "mu.csv"
+    if content is not None:
+        path.write_text(content)
+    code, out, err = run(capsys, "solve", "two_actuator", "--mu-schedule", str(path), *argv)
+    assert code == 2
+    assert out == ""
+    assert err.count("\n") == 1
+    assert match in err
+
+
+def test_out_writes_the_json_object(capsys, tmp_path):
+    path = tmp_path / "result.json"
+    code, text, _ = run(capsys, "solve", "two_actuator", "--no-qp", "--out", str(path))
+    assert code == 0
+    assert "TCP-like" in text                              # the text still goes to stdout
+    code, out, _ = run(capsys, "solve", "two_actuator", "--no-qp", "--json")
+    assert json.loads(path.read_text()) == json.loads(out)
+    code, _, err = run(capsys, "solve", "two_actuator", "--no-qp", "--out", str(tmp_path / "no" / "dir.json"))
+    assert code == 2
+    assert err.startswith("packetloss-cvx: error: --out: cannot write")
+
+
+def test_verbose_reports_time_and_the_plan(capsys):
+    code, out, err = run(capsys, "solve", "two_actuator", "--no-qp", "-v", "--protocol", "tcp")
+    assert code == 0
+    assert "U* (row t)" in out
+    assert "t=9" in out
+    assert "solve took" in err
+
+
+def test_text_output_matrices_and_eigenvalues(capsys):
+    """Rows of K labelled and aligned; real eigenvalues printed as reals, in the JSON's order."""
+    code, out, _ = run(capsys, "solve", "two_actuator", "--no-qp", "--protocol", "tcp")
+    assert code == 0
+    lines = out.splitlines()
+    k = lines.index("  K (u = -K x)")
+    header, row1, row2 = lines[k + 1: k + 4]
+    assert header.split() == ["x1", "x2"]
+    assert row1.split()[0] == "u1"
+    assert row2.split()[0] == "u2"
+    assert len(row1) == len(row2) == len(header)        # right-aligned columns end together
+    gain = pl.closed_form(pl.load_example("two_actuator"), "tcp").gain
+    assert [float(v) for v in row1.split()[1:]] == pytest.approx(gain[0], rel=1e-5)
+    eig_line = next(ln for ln in lines if ln.strip().startswith("eig(A - B K)"))
+    shown = [float(v) for v in eig_line.split("eig(A - B K)")[1].split(",")]   # reals: no "j"
+    code, out, _ = run(capsys, "solve", "two_actuator", "--no-qp", "--protocol", "tcp", "--json")
+    pairs = json.loads(out)["tcp"]["closed_loop_eigenvalues"]
+    assert all(im == 0 for _, im in pairs)
+    assert shown == pytest.approx([re for re, _ in pairs], rel=1e-3)
+    expected = np.linalg.eigvals(np.array([[1.03, 0.005], [0.35, 1.01]]) - gain)   # B = I in the example
+    assert sorted(np.abs(shown), reverse=True) == pytest.approx(np.abs(shown))
+    assert sorted(np.abs(expected), reverse=True) == pytest.approx(np.abs(shown), rel=1e-3)
+
+
+def test_audit_text_is_an_aligned_table(capsys):
+    code, out, _ = run(capsys, "audit", "--random", "0", "--claim", "theorem-2", "--claim", "table-2", "-q")
+    assert code == 0
+    lines = out.splitlines()
+    assert lines[0].startswith("2 claims:")
+    header = lines[2]
+    assert header.split()[:2] == ["claim", "verdict"]
+    assert [ln.split()[0] for ln in lines[3:5]] == ["theorem-2", "table-2"]
+    assert len({ln.index(ln.split()[1]) for ln in lines[2:5]}) == 1     # the verdict column is aligned
+
+
+def test_progress_bars_on_request_and_never_by_default_in_a_pipe(capsys):
+    from packetloss_cvx.allocation import pareto_curve
+    from packetloss_cvx.claims import audit
+
+    system = pl.load_example("two_actuator")
+    audit(random=0, only=["theorem-2"], progress=True)
+    assert "audit" in capsys.readouterr().err
+    audit(random=0, only=["theorem-2"])                 # stderr is captured here: not a terminal
+    assert capsys.readouterr().err == ""
+    rows = pareto_curve(system, "tcp", (1.0, 1.0), [8.0, 10.0], progress=True)
+    assert "Pareto" in capsys.readouterr().err
+    assert rows == pareto_curve(system, "tcp", (1.0, 1.0), [8.0, 10.0], progress=False)
+    assert capsys.readouterr().err == ""
+
+
+def test_bash_completion_completes_commands_options_and_choices(capsys, tmp_path):
+    with pytest.raises(SystemExit):
+        main(["--completion", "bash"])
+    script = capsys.readouterr().out
+    for name, command in subcommands(build_parser()).items():
+        assert f"    {name}) opts=" in script
+        assert all(flag in script for action in command._actions for flag in action.option_strings)
+    if shutil.which("bash") is None:
+        pytest.skip("no bash to run the script")
+    path = tmp_path / "complete.sh"
+    path.write_text(script)
+    probe = ('source "$1"; COMP_WORDS=(packetloss-cvx solve --protocol u); COMP_CWORD=3; _packetloss_cvx; '
+             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx al); COMP_CWORD=1; _packetloss_cvx; '
+             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx audit --cl); COMP_CWORD=2; _packetloss_cvx; '
+             'echo "${COMPREPLY[@]}"')
+    proc = subprocess.run(["bash", "-c", probe, "probe", str(path)], capture_output=True, text=True, check=True,
+                          cwd=tmp_path)
+    assert proc.stdout.splitlines() == ["udp", "allocate", "--claim"]
