@@ -344,33 +344,19 @@ class BatchSolution:
         """Plain lists for JSON. O(P N m n)."""
         return {"protocol": self.protocol, "costs": self.costs.tolist(), "inputs": self.inputs.tolist(),
                 "gains": self.gains.tolist(), "method": self.method}
+
+
 @dataclass(frozen=True)
 class DesignSweep:
-    """Optimal costs of both protocols over a design study (:func:`packetloss_cvx.studies.sweep`).
+    """Optimal costs over a design study (:func:`packetloss_cvx.studies.sweep`), P points.
 
-    Attributes
-    ----------
-    kind : str
-        ``"mu-grid"`` (a grid of channel values), ``"mu-list"`` (given m-channel points),
-        ``"x0-scale"`` (x0 times each scale) or ``"horizon"`` (each horizon N).
-    dims : tuple of str
-        The swept dimensions, slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2).
-    axes : tuple of ndarray
-        One array per dimension; the points are their Cartesian product in C order.
-    mu : ndarray, shape (P, m)
-        The channel at each point (P = product of the axes' lengths).
-    x0 : ndarray, shape (P, n)
-    horizon : ndarray of int, shape (P,)
-    costs : dict
-        Protocol -> J* at each point, shape (P,).
-    difference : ndarray, shape (P,), or None
-        J*_udp - J*_tcp, the difference of the two checked costs (exactly 0 where every mu_i is 0
-        or 1): accurate to about 1e-15 J*_udp absolute, so its relative error grows where the two
-        costs nearly agree (mu near 0 or 1).
-    name : str or None
-        The system's name.
-    chunk_size : int
-        Points per batch (each chunk is one batched evaluation, in process or on a Dask worker).
+    ``kind``: "mu-grid", "mu-list", "x0-scale" or "horizon"; ``dims``/``axes``: the swept dimensions,
+    slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2), the points being the axes'
+    Cartesian product in C order; ``mu`` (P, m), ``x0`` (P, n), ``horizon`` (P,): each point;
+    ``costs``: protocol -> J* (P,); ``difference``: J*_udp - J*_tcp (P,) or None, the difference of
+    the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 J*_udp
+    absolute (so not relatively where the costs nearly agree); ``name``: the system's;
+    ``chunk_size``: points per batched evaluation (in process or per Dask task).
     """
 
     kind: str
@@ -395,14 +381,11 @@ class DesignSweep:
         return tuple(a.size for a in self.axes)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Flat arrays by name, as ``sweep.npz`` stores them: ``mu`` (P × m), ``x0``, ``horizon``,
-        ``cost_tcp``, ``cost_udp``, ``cost_diff`` (those computed) and ``axis_<dim>`` per dimension. O(P)."""
-        out = {"mu": self.mu, "x0": self.x0, "horizon": self.horizon}
-        out.update({f"cost_{p}": v for p, v in self.costs.items()})
+        """Flat arrays as ``sweep.npz`` stores them: mu, x0, horizon, cost_<protocol>, cost_diff, axis_<dim>. O(P)."""
+        out = {"mu": self.mu, "x0": self.x0, "horizon": self.horizon, **{f"cost_{p}": v for p, v in self.costs.items()}}
         if self.difference is not None:
             out["cost_diff"] = self.difference
-        out.update({f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)})
-        return out
+        return {**out, **{f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)}}
 
     def to_dict(self) -> dict[str, Any]:
         """Plain lists for JSON. O(P (m + n))."""
@@ -410,20 +393,14 @@ class DesignSweep:
                 "chunk_size": self.chunk_size, **{k: v.tolist() for k, v in self.arrays().items()}}
 
     def to_xarray(self) -> Any:
-        """An :class:`xarray.Dataset` over the sweep's dimensions (needs the ``xarray`` extra).
-
-        Data variables ``cost_tcp``, ``cost_udp``, ``cost_diff`` (those computed), ``mu`` (with a
-        ``channel`` dimension), ``x0`` (``state``) and ``horizon``; coordinates are the axes. O(P (m + n)).
-        """
+        """An :class:`xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
+        mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(P (m + n))."""
         import xarray as xr  # lazy: an optional extra
 
         dims, shape = self.dims, self.shape
-        data = {f"cost_{p}": (dims, v.reshape(shape)) for p, v in self.costs.items()}
-        if self.difference is not None:
-            data["cost_diff"] = (dims, self.difference.reshape(shape))
-        data["mu"] = ((*dims, "channel"), self.mu.reshape(*shape, -1))
-        data["x0"] = ((*dims, "state"), self.x0.reshape(*shape, -1))
-        data["horizon"] = (dims, self.horizon.reshape(shape))
+        flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_")}
+        data = {k: ((*dims, "channel" if k == "mu" else "state") if v.ndim == 2 else dims, v.reshape(*shape, -1)
+                    if v.ndim == 2 else v.reshape(shape)) for k, v in flat.items()}
         attrs = {"kind": self.kind, "name": self.name or "", "chunk_size": self.chunk_size,
                  "cost_diff": "J*_udp - J*_tcp, the difference of the two checked costs"}
-        return xr.Dataset(data, coords={d: a for d, a in zip(dims, self.axes, strict=True)}, attrs=attrs)
+        return xr.Dataset(data, coords=dict(zip(dims, self.axes, strict=True)), attrs=attrs)
