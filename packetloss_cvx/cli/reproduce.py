@@ -74,13 +74,13 @@ def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str,
             elif step.startswith("allocations"):
                 protocol = step.split()[1]
                 data.setdefault("allocations", {})[protocol] = pf.mixed_allocations(
-                    mixed, protocol, settings["alphas"], ALLOCATION_BETAS)
+                    mixed, protocol, settings["alphas"], ALLOCATION_BETAS, progress=progress)
             elif step == "tables":
                 data["tables"] = pf.eigenvalue_tables(pendulum, mixed, TABLE_1_MU, TABLE_2_MU)
                 data["tables_paper"] = {"table-1": TABLE_1, "table-2": TABLE_2}
             else:
                 only = [c for c in CLAIMS if c not in settings["audit_skips"]]
-                data["audit"] = audit(random=settings["audit_random"], seed=0, only=only)
+                data["audit"] = audit(random=settings["audit_random"], seed=0, only=only, progress=progress)
             seconds[step] = time.perf_counter() - start
             bar.update()
     return data

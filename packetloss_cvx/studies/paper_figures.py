@@ -68,13 +68,14 @@ def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
 
 
 def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
-                      betas: Sequence[Sequence[float]] = PAPER_BETAS) -> dict[tuple[float, ...], list[dict]]:
+                      betas: Sequence[Sequence[float]] = PAPER_BETAS,
+                      progress: bool | None = None) -> dict[tuple[float, ...], list[dict]]:
     """fig:TCP-/UDP-log-cost-mixed-mult: the cheapest allocation (eq:opt_M) on each contour
     J* = alpha for each beta (:func:`~packetloss_cvx.allocation.contour_allocations`).
 
     O(len(betas) len(alphas)) allocations.
     """
-    return contour_allocations(system, protocol, list(alphas), betas=betas)
+    return contour_allocations(system, protocol, list(alphas), betas=betas, progress=progress)
 
 
 def eigenvalue_tables(pendulum: System, mixed: System, mu_pendulum: Sequence[float],
