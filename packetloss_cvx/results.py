@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "Allocation", "ClaimResult", "CrossCheck", "Maximiser", "MinCost", "Solution", "Sweep", "eigenvalue_pairs",
+    "Allocation", "ClaimResult", "ClosedLoop", "CrossCheck", "Maximiser", "MinCost", "Riccati", "Solution", "Sweep",
+    "eigenvalue_pairs",
 ]
 
 
@@ -264,3 +265,77 @@ class MinCost:
         """Plain floats and lists for JSON. O(m)."""
         return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
                 "status": self.status, "mu": self.mu.tolist(), "method": self.method}
+
+
+@dataclass(frozen=True)
+class ClosedLoop:
+    """A stationary law ``u = -K x`` run for ever over a Bernoulli channel (simulation.moments).
+
+    Attributes
+    ----------
+    law : str
+        What the gain is ("tcp", "udp", "dp" or the caller's label).
+    gain : ndarray, shape (m, n)
+    mu : ndarray, shape (m,)
+        The channel the loop runs over.
+    spectral_radius : float
+        Of the second-moment operator; the loop is mean-square stable iff < 1.
+    stable : bool
+        True only when the radius is below 1 by ``tolerances.MEAN_SQUARE_MARGIN`` (proved).
+    average_stage_cost : float
+        lim E[x'Omega x + (V u)' Psi (V u)] = tr(P_K Sigma_W); ``inf`` when not stable.
+    cost_to_go : ndarray (n, n) or None
+        P_K: x0' P_K x0 is the total expected cost from x0 without noise (None when not stable).
+    second_moment : ndarray (n, n) or None
+        The stationary E[x x'] (None when not stable).
+    reason : str
+        Why the costs are infinite ("" when stable).
+    """
+
+    law: str
+    gain: np.ndarray
+    mu: np.ndarray
+    spectral_radius: float
+    stable: bool
+    average_stage_cost: float
+    cost_to_go: np.ndarray | None
+    second_moment: np.ndarray | None
+    reason: str = ""
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats; an infinite cost is None (JSON has no inf). O(n^2)."""
+        finite = bool(np.isfinite(self.average_stage_cost))
+        return {"law": self.law, "gain": self.gain.tolist(), "mu": self.mu.tolist(),
+                "mean_square_spectral_radius": self.spectral_radius, "stable": self.stable,
+                "average_stage_cost": self.average_stage_cost if finite else None,
+                "cost_to_go": None if self.cost_to_go is None else self.cost_to_go.tolist(), "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class Riccati:
+    """The dynamic-programming optimum for Bernoulli losses with full state (simulation.riccati).
+
+    ``cost_to_go`` P solves the modified Riccati equation, ``gain`` K its stationary law u = -K x,
+    ``average_stage_cost`` = tr(P Sigma_W), ``iterations`` how many value and policy iterations ran,
+    ``residual`` the relative residual ||R(P) - P|| / ||P||, ``spectral_radius`` of the law's
+    second-moment operator.
+    """
+
+    gain: np.ndarray
+    cost_to_go: np.ndarray
+    average_stage_cost: float
+    spectral_radius: float
+    iterations: int
+    residual: float
+
+    def __post_init__(self) -> None:
+        _freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats. O(n^2)."""
+        return {"gain": self.gain.tolist(), "cost_to_go": self.cost_to_go.tolist(),
+                "average_stage_cost": self.average_stage_cost, "mean_square_spectral_radius": self.spectral_radius,
+                "iterations": self.iterations, "residual": self.residual}
