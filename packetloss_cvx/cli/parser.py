@@ -62,6 +62,22 @@ def build_parser() -> argparse.ArgumentParser:
                        help="cap on the UDP-like branch and bound's boxes (default 20000); at the cap: exit 4")
     alloc.add_argument("--time-limit", help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4")
     alloc.add_argument("--json", action="store_true", help="print one JSON object")
+
+    sim = sub.add_parser("simulate", help="Monte Carlo against the exact expectations, open and closed loop")
+    sim.add_argument("file")
+    sim.add_argument("--samples", type=int, default=10000, help="sampled runs (>= 2, default 10000)")
+    sim.add_argument("--steps", type=int, default=50, help="closed-loop steps T (default 50)")
+    sim.add_argument("--seed", type=int, default=0, help="seeds every random stream (integer >= 0, default 0)")
+    sim.add_argument("--closed-loop", action="store_true",
+                     help="also run the laws u = -K x in closed loop (stationary channel)")
+    sim.add_argument("--law", choices=("tcp", "udp", "dp", "all"), default="all",
+                     help="receding-horizon law of a protocol, the DP optimum (closed loop only), or all")
+    sim.add_argument("--mu", help="override the channel: comma-separated, one per actuator")
+    sim.add_argument("--x0", help="override the initial state: comma-separated")
+    sim.add_argument("--save", metavar="FILE.npz", help="save closed-loop trajectories (first 1000 runs) and curves")
+    sim.add_argument("--plot", metavar="FILE", help="figure of the closed loop: mean +- band of ||x_t||, cost")
+    sim.add_argument("--quiet", action="store_true", help="no progress bar")
+    sim.add_argument("--json", action="store_true", help="print one JSON object")
     return parser
 
 

@@ -68,7 +68,7 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
     Examples
     --------
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> round(critical_mu(s, "dp", tol=1e-4), 3)     # scalar: 1 - 1/a^2
+    >>> round(critical_mu(s, [[2.0]], tol=1e-4), 3)   # fixed k = a: a^2 (1 - mu) < 1 iff mu > 1 - 1/a^2
     0.75
     """
     d = np.asarray(stationary_channel(system) if direction is None else direction, dtype=float).reshape(-1)
