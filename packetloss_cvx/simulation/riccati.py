@@ -29,7 +29,11 @@ from ..tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE, RICCATI_MAX_I
 from .moments import law_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
-__all__ = ["dp_finite_horizon", "dp_riccati", "riccati_step"]
+__all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_riccati", "riccati_step"]
+
+#: Every NumericalError of :func:`dp_riccati` that means "no law holds the second moment" starts its
+#: reason with this (callers that treat the absence of a stabilising law as a case, not an error, test it).
+NO_SOLUTION = "modified Riccati equation: no stabilising solution"
 
 _CHECK_EVERY = 25   # value-iteration steps between tries of the faster policy iteration
 _POLICY_MAX_ITER = 100
@@ -111,9 +115,8 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None) -> Riccati:
             iterations += 1
             size = float(np.linalg.norm(P_next))
             if not np.isfinite(size) or size > RICCATI_DIVERGENCE * scale:
-                raise NumericalError(f"modified Riccati equation: no stabilising solution at mu = {mu_.tolist()} "
-                                     f"(the value iteration diverges, ||P|| > {size:.3g}: no law holds the second "
-                                     "moment bounded under these losses)")
+                raise NumericalError(f"{NO_SOLUTION} at mu = {mu_.tolist()} (the value iteration diverges, "
+                                     f"||P|| > {size:.3g}: no law holds the second moment bounded under these losses)")
             converged = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL * size
             P = P_next
             if converged:
@@ -132,8 +135,9 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None) -> Riccati:
     residual = float(np.linalg.norm(P_next - P)) / max(float(np.linalg.norm(P)), np.finfo(float).tiny)
     radius = mean_square_radius(A, B, K, mu_)
     if not is_mean_square_stable(radius):
-        raise NumericalError(f"modified Riccati equation: no stabilising solution at mu = {mu_.tolist()} (the "
-                             f"solution found gives a law with mean-square radius {radius:.6g} >= 1)")
+        raise NumericalError(f"modified Riccati equation: the solution found at mu = {mu_.tolist()} is not "
+                             f"stabilising (its law has mean-square radius {radius:.6g} >= 1): a mode that Omega "
+                             "does not weigh")
     if residual > MOMENT_RESIDUAL_RTOL:
         raise NumericalError(f"modified Riccati equation: relative residual {residual:.1e} after {iterations} "
                              "iterations")
