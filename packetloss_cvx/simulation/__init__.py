@@ -9,14 +9,15 @@ linear laws; ``riccati`` the DP optimum.
 
 from .channels import sample_deliveries, sample_noise
 from .critical import critical_mu, stable_at
+from .interop import closed_loop_statespace
 from .moments import closed_loop, finite_horizon_costs, law_cost_to_go, stationary_second_moment
 from .riccati import dp_finite_horizon, dp_riccati, riccati_step
 from .sampling import closed_loop_costs, sample_plan_costs
 from .stability import is_mean_square_stable, mean_square_radius, second_moment_map, second_moment_matrix
 
 __all__ = [
-    "closed_loop", "closed_loop_costs", "critical_mu", "dp_finite_horizon", "dp_riccati", "finite_horizon_costs",
-    "is_mean_square_stable", "law_cost_to_go", "mean_square_radius", "riccati_step", "sample_deliveries",
-    "sample_noise", "sample_plan_costs", "second_moment_map", "second_moment_matrix", "stable_at",
-    "stationary_second_moment",
+    "closed_loop", "closed_loop_costs", "closed_loop_statespace", "critical_mu", "dp_finite_horizon", "dp_riccati",
+    "finite_horizon_costs", "is_mean_square_stable", "law_cost_to_go", "mean_square_radius", "riccati_step",
+    "sample_deliveries", "sample_noise", "sample_plan_costs", "second_moment_map", "second_moment_matrix",
+    "stable_at", "stationary_second_moment",
 ]
