@@ -187,7 +187,7 @@ def closed_loop(samples: int, steps: int, n_big: int, rows: list) -> None:
     (ARPACK) vs the n^2 x n^2 Kronecker matrix."""
     from packetloss_cvx.simulation import closed_loop as exact_loop
     from packetloss_cvx.simulation import mean_square_radius
-    from packetloss_cvx.simulation.simulate import closed_loop_block
+    from packetloss_cvx.simulation.montecarlo import closed_loop_block
 
     s = bench_system(10)
     K = pl.closed_form(s, "tcp").gain

@@ -322,7 +322,7 @@ class Riccati:
 
 @dataclass(frozen=True)
 class OpenLoopCheck:
-    """A protocol's plan U* applied open loop and sampled (simulation.simulate): ``formula`` J* (Theorem 1),
+    """A protocol's plan U* applied open loop and sampled (simulation.montecarlo): ``formula`` J* (Theorem 1),
     ``exact`` E[realised cost] under the stated model (J_udp(U*)), ``mean`` and ``stderr`` of the samples,
     ``z = (mean - exact) / stderr``."""
 
@@ -339,7 +339,7 @@ class OpenLoopCheck:
 
 @dataclass(frozen=True)
 class ClosedLoopRun:
-    """A law run in closed loop for ``steps`` steps over sampled losses (simulation.simulate): ``mean_stage_cost``
+    """A law run in closed loop for ``steps`` steps over sampled losses (simulation.montecarlo): ``mean_stage_cost``
     and ``stderr`` of each run's mean stage cost over t < steps, ``exact_stage_cost`` its expectation,
     ``spectral_radius`` and ``stable`` as in ClosedLoop, ``reason`` why there is no law ("" if there is); per
     step: ``state_norm_mean``, ``state_norm_std`` of ||x_t|| (t <= steps) and ``stage_cost_mean``."""
@@ -370,7 +370,7 @@ class ClosedLoopRun:
 
 @dataclass(frozen=True)
 class Simulation:
-    """Monte Carlo checks (simulation.simulate): ``open_loop`` protocol -> OpenLoopCheck, ``closed_loop`` law ->
+    """Monte Carlo checks (simulation.montecarlo): ``open_loop`` protocol -> OpenLoopCheck, ``closed_loop`` law ->
     ClosedLoopRun, ``trajectories`` (laws, runs, steps + 1, n) of the first runs or None."""
 
     samples: int

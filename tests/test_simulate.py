@@ -10,7 +10,7 @@ import pytest
 from packetloss_cvx import InputError, System, closed_form, expected_cost
 from packetloss_cvx.cli import main
 from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.simulation.simulate import simulate
+from packetloss_cvx.simulation.montecarlo import simulate
 
 OPEN = {"formula", "exact", "mean", "stderr", "z"}
 CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable"}

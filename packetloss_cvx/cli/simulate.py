@@ -11,7 +11,7 @@ from ..errors import InputError
 from ..io import load_system
 from ..plots import plot_closed_loop
 from ..results import Simulation
-from ..simulation.simulate import LAWS, simulate
+from ..simulation.montecarlo import LAWS, simulate
 from .common import CommandResult, with_overrides
 
 __all__ = ["run"]
