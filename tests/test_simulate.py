@@ -136,3 +136,14 @@ def test_solve_says_whether_the_pendulum_loops_are_stable(capsys):
     for p in ("tcp", "udp"):
         assert data[p]["stable"] is True
         assert 0 < data[p]["mean_square_spectral_radius"] < 1
+
+
+def test_deterministic_channel_has_zero_z():
+    s = System(A=[[0.9, 0.1], [0.0, 0.8]], B=[[1.0], [0.5]], horizon=6, state_weight=[1.0, 1.0], input_weight=[1.0],
+               mu=[1.0], x0=[1.0, -1.0])
+    sim = simulate(s, 5000, steps=10, seed=0, closed_loop=True, progress=False)
+    for check in sim.open_loop.values():
+        assert check.z == 0.0
+        assert check.mean == pytest.approx(check.exact, rel=1e-12)
+    for run in sim.closed_loop.values():
+        assert run.mean_stage_cost == pytest.approx(run.exact_stage_cost, rel=1e-12)

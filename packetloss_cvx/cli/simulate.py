@@ -78,4 +78,7 @@ def _text(name: str, sim: Simulation) -> str:
         lines.append(f"  {label}, closed loop over {sim.steps} steps: mean stage cost {_num(r.mean_stage_cost)} +- "
                      f"{_num(r.stderr, 3)}, exact {_num(r.exact_stage_cost)}; {verdict} (second-moment spectral "
                      f"radius {_num(r.spectral_radius)})")
+        if not r.stable:
+            lines.append("    (a mean-square unstable loop's expected cost is carried by rare runs: its sampled mean "
+                         "and standard error can fall far below the exact value)")
     return "\n".join(lines)
