@@ -184,3 +184,16 @@ def test_critical_mu_scalar_fixed_gain_and_redesigned():
     for p in ("tcp", "udp"):
         assert critical_mu(s, p) >= 1 - 1 / a ** 2 - 1e-6
     assert critical_mu(s, [[0.0]]) == np.inf
+
+
+def test_critical_mu_and_finite_costs_reject_bad_input():
+    from packetloss_cvx.simulation import critical_mu
+    s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    with pytest.raises(InputError, match="direction"):
+        critical_mu(s, "dp", direction=[0.0])
+    with pytest.raises(InputError, match="law"):
+        critical_mu(s, "mpc")
+    with pytest.raises(InputError, match="steps"):
+        finite_horizon_costs(s, [[1.0]], 0)
+    with pytest.raises(InputError, match="gains"):
+        finite_horizon_costs(s, np.ones((3, 1, 1)), 4)

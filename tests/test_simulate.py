@@ -147,3 +147,28 @@ def test_deterministic_channel_has_zero_z():
         assert check.mean == pytest.approx(check.exact, rel=1e-12)
     for run in sim.closed_loop.values():
         assert run.mean_stage_cost == pytest.approx(run.exact_stage_cost, rel=1e-12)
+
+
+def test_no_stabilising_law_is_a_result(tmp_path, capsys):
+    """a = 3, mu = 0.5 < 1 - 1/9: no law holds the second moment; the DP entry says why, exit 0."""
+    f = tmp_path / "s.toml"
+    f.write_text('[plant]\nA = [[3.0]]\nB = [[1.0]]\n[cost]\nhorizon = 3\nstate_weight = [1.0]\n'
+                 'input_weight = [1.0]\n[channel]\nmu = [0.5]\n[state]\nx0 = [1.0]\n')
+    assert main(["simulate", str(f), "--samples", "200", "--steps", "5", "--closed-loop", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    dp = data["dp"]["closed_loop"]
+    assert dp["stable"] is False
+    assert "no stabilising solution" in dp["reason"]
+    assert dp["mean_stage_cost"] is None
+    assert data["tcp"]["closed_loop"]["stable"] is False
+
+
+def test_solve_non_stationary_channel_uses_the_first_step(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text('[plant]\nA = [[1.2]]\nB = [[1.0]]\n[cost]\nhorizon = 2\nstate_weight = [1.0]\n'
+                 'input_weight = [1.0]\n[channel]\nmu_schedule = [[0.9], [0.2]]\n[state]\nx0 = [1.0]\n')
+    assert main(["solve", str(f), "--no-qp", "--json"]) == 0
+    entry = json.loads(capsys.readouterr().out)["tcp"]
+    k = entry["gain"][0][0]
+    assert entry["mean_square_spectral_radius"] == pytest.approx((1.2 - 0.9 * k) ** 2 + 0.09 * k ** 2)
+    assert "first step" in entry["stability_note"]
