@@ -172,3 +172,9 @@ def test_solve_non_stationary_channel_uses_the_first_step(tmp_path, capsys):
     k = entry["gain"][0][0]
     assert entry["mean_square_spectral_radius"] == pytest.approx((1.2 - 0.9 * k) ** 2 + 0.09 * k ** 2)
     assert "first step" in entry["stability_note"]
+
+
+def test_huge_closed_loop_is_refused_before_drawing(two_actuator):
+    from packetloss_cvx import ResourceError
+    with pytest.raises(ResourceError, match="fewer steps"):
+        simulate(two_actuator, 10000, steps=10 ** 9, closed_loop=True, progress=False)

@@ -182,12 +182,15 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     if K_all.shape != (steps, system.m, system.n) or mu_all.shape != (steps, system.m):
         raise InputError("gains", f"expected ({system.m}, {system.n}) or ({steps}, {system.m}, {system.n}) gains "
                                   f"and mu of shape ({system.m},) or ({steps}, {system.m})")
+    A, B, _, _ = check_law(system.A, system.B, K_all[0], mu_all[0])
+    if not (np.all(np.isfinite(K_all)) and np.all((mu_all >= 0) & (mu_all <= 1))):
+        raise InputError("gains", "expected finite gains and probabilities in [0, 1]")
     Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
     S = np.outer(system.x0, system.x0)
     stage = np.empty(steps)
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps):
-            A, B, K, m_ = check_law(system.A, system.B, K_all[t], mu_all[t])
+            K, m_ = K_all[t], mu_all[t]
             stage[t] = float(np.sum((Omega + (K.T * (m_ * psi)) @ K) * S))
             S = second_moment_map(S, A, B, K, m_) + Sigma
         terminal = float(np.sum(Omega * S))

@@ -20,10 +20,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..costs import closed_form, expected_cost
-from ..errors import InputError, NumericalError
+from ..errors import InputError, NumericalError, ResourceError
 from ..model import System
 from ..progress import progress_bar
 from ..results import ClosedLoopRun, OpenLoopCheck, Simulation
+from ..tolerances import MEMORY_BUDGET_BYTES
 from .channels import sample_deliveries, sample_delivery_paths, sample_noise, sample_noise_paths
 from .moments import finite_horizon_costs, stationary_channel
 from .riccati import dp_riccati
@@ -159,6 +160,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     InputError
         A count below its minimum, an unknown law, "dp" alone without closed loop, or a closed loop over a
         non-stationary channel.
+    ResourceError
+        A block's arrays (O(BLOCK T (n + m + laws))) would exceed the memory budget (refused before drawing).
 
     Notes
     -----
@@ -184,6 +187,7 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
                                 "--closed-loop) or add tcp or udp")
     if closed_loop:
         stationary_channel(system)
+        _check_memory(system, min(BLOCK, samples), steps, len(laws), keep)
     open_part, closed_part = np.random.SeedSequence(seed).spawn(2)
     blocks = _blocks(samples)
     plans = {p: closed_form(system, p) for p in laws if p != "dp"}
@@ -206,6 +210,16 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
             runs, trajectories = _closed_loop(system, law_gains(system, laws), steps, blocks,
                                               closed_part.spawn(len(blocks)), keep, bar)
     return Simulation(samples, steps, seed, open_loop, runs, trajectories)
+
+
+def _check_memory(system: System, block: int, steps: int, laws: int, keep: int) -> None:
+    """Refuse, before drawing, a closed loop whose block arrays exceed the memory budget: deliveries and
+    noise (block steps (m + 8 n)), norms and stage costs (16 laws block steps), kept states."""
+    needed = block * (steps + 1) * (system.m + 8 * system.n + 16 * laws) + 8 * laws * keep * (steps + 1) * system.n
+    if needed > MEMORY_BUDGET_BYTES:
+        raise ResourceError(f"the closed-loop simulation needs about {needed / 2**30:.1f} GiB per block of {block} "
+                            f"runs over {steps} steps (budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB): fewer steps",
+                            needed, MEMORY_BUDGET_BYTES)
 
 
 def _closed_loop(system: System, gains: dict[str, np.ndarray | str], steps: int, blocks: list[int],
