@@ -197,3 +197,13 @@ def test_critical_mu_and_finite_costs_reject_bad_input():
         finite_horizon_costs(s, [[1.0]], 0)
     with pytest.raises(InputError, match="gains"):
         finite_horizon_costs(s, np.ones((3, 1, 1)), 4)
+
+
+@pytest.mark.parametrize(("shift", "expected"), [(0.0, 0.0), (1.01, 1.01 ** 2)])
+def test_krylov_on_defective_and_vanishing_operators(shift, expected):
+    """A Jordan block (a chain of integrators) makes the Perron root defective, which Arnoldi resolves only
+    to eps^(1/size): the proven bounds catch it and the exact answer is returned (K = 0: radius rho(A)^2)."""
+    n = 22
+    A = np.diag(np.ones(n - 1), 1) + shift * np.eye(n)
+    B, K, mu = np.ones((n, 2)), np.zeros((2, n)), np.array([0.5, 0.5])
+    assert mean_square_radius(A, B, K, mu, "krylov") == pytest.approx(expected, abs=1e-12)
