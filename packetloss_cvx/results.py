@@ -319,6 +319,10 @@ class Riccati:
     def __post_init__(self) -> None:
         _freeze(self)
 
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats. O(n^2)."""
+        return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in vars(self).items()}
+
 
 @dataclass(frozen=True)
 class OpenLoopCheck:
