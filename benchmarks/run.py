@@ -195,6 +195,52 @@ def startup(rows, repeats: int = 7):
         t = statistics.median(times[label])
         print(f"{label:<78} {t:7.3f} {t / base:7.2f}x")
         rows.append({"bench": "startup", "command": label, "seconds": t, "ratio_to_numpy": t / base})
+def per_run_loop(system: pl.System, K: np.ndarray, steps: int, samples: int, seed: int) -> np.ndarray:
+    """The reference a vectorised simulation replaces: one Python loop per run, one per step."""
+    rng = np.random.default_rng(seed)
+    Omega, psi, mu = system.state_weights[0], system.input_weights[0], system.mu
+    out = np.empty(samples)
+    for s in range(samples):
+        x, total = system.x0.copy(), 0.0
+        for _ in range(steps):
+            applied = (rng.random(system.m) < mu) * -(K @ x)
+            total += x @ Omega @ x + applied ** 2 @ psi
+            x = system.A @ x + system.B @ applied
+        out[s] = total / steps
+    return out
+
+
+def closed_loop(samples: int, steps: int, n_big: int, rows: list) -> None:
+    """Closed loop: vectorised simulation vs a per-run loop; the mean-square radius at n_big, operator
+    (ARPACK) vs the n^2 x n^2 Kronecker matrix."""
+    from packetloss_cvx.simulation import closed_loop as exact_loop
+    from packetloss_cvx.simulation import mean_square_radius
+    from packetloss_cvx.simulation.montecarlo import closed_loop_block
+
+    s = bench_system(10)
+    K = pl.closed_form(s, "tcp").gain
+    vec = median_time(lambda: closed_loop_block(s, K[None], steps, samples, np.random.default_rng(0)), 3)
+    loop = median_time(lambda: per_run_loop(s, K, steps, samples, 0), 1)
+    print(f"closed-loop simulation, {samples} runs x {steps} steps, n = {s.n}, m = {s.m}: vectorised {vec:.3f} s, "
+          f"per-run loop {loop:.2f} s, {loop / vec:.0f}x (target >= 30x)")
+    rows.append({"bench": "closed_loop_simulation", "samples": samples, "steps": steps, "vectorised_s": vec,
+                 "per_run_s": loop, "ratio": loop / vec})
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(n_big, n_big)) / np.sqrt(n_big)
+    B = rng.normal(size=(n_big, 3))
+    Kb = rng.normal(size=(3, n_big)) * 0.2
+    mu = np.array([0.9, 0.6, 0.3])
+    values = {}
+    krylov = median_time(lambda: values.setdefault("krylov", mean_square_radius(A, B, Kb, mu, "krylov")), 3)
+    kron = median_time(lambda: values.setdefault("kronecker", mean_square_radius(A, B, Kb, mu, "kronecker")), 1)
+    agree = abs(values["krylov"] - values["kronecker"]) / values["kronecker"]
+    print(f"mean-square radius at n = {n_big}: operator (ARPACK) {krylov:.3f} s, Kronecker {kron:.2f} s, "
+          f"{kron / krylov:.0f}x; relative difference {agree:.1e}")
+    rows.append({"bench": "mean_square_radius", "n": n_big, "operator_s": krylov, "kronecker_s": kron,
+                 "ratio": kron / krylov, "relative_difference": agree})
+    exact = median_time(lambda: exact_loop(s, K), 3)
+    print(f"exact closed-loop cost (radius, two moment solves), n = {s.n}: {exact * 1e3:.2f} ms")
+    rows.append({"bench": "exact_closed_loop", "n": s.n, "seconds": exact})
 
 
 def main() -> None:
@@ -223,6 +269,7 @@ def main() -> None:
     memory(1000 if quick else 4000, rows)
     self_check((100, 1000) if quick else (100, 1000, 10000), rows)
     startup(rows)
+    closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows)
     if args.json:
         print(json.dumps(rows))
 

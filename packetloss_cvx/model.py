@@ -20,6 +20,7 @@ import numpy.typing as npt
 
 from .display import system_html, system_repr, to_json
 from .errors import DimensionError, InputError, ProbabilityError
+from .statespace import plant_matrices
 from .tolerances import PSD_RTOL, SYMMETRY_RTOL
 
 __all__ = ["System", "check_system", "numeric_array"]
@@ -360,6 +361,11 @@ class System:
             vec = _probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")
             sched = np.repeat(vec[None], N, axis=0)
         return self._copy_with(mu_schedule=_frozen(sched))
+
+    @classmethod
+    def from_statespace(cls, sys: Any, **fields: Any) -> System:
+        """A System with the A, B of a discrete-time control.StateSpace (statespace.plant_matrices) and ``fields``."""
+        return cls(**plant_matrices(sys), **fields)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
         """A copy with a new initial state."""

@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 from .errors import InputError
 from .model import numeric_array
 
-__all__ = ["plot_allocation_contours", "plot_cost_lines", "plot_log_contour", "plot_pareto"]
+__all__ = ["plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto"]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
 _MARKERS = ("x", "^", "s", "o", "v", "D")
@@ -163,6 +163,59 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
         ax.set_title(title)
     if ax.lines:
         ax.legend(fontsize=7)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | None = None,
+                     path: str | Path | None = None) -> Figure:
+    """Closed-loop runs: the mean of ||x_t|| with a band of one standard deviation, and the mean
+    cumulative stage cost, one line per law.
+
+    Parameters
+    ----------
+    curves : mapping
+        Law (``"tcp"``, ``"udp"``, ``"dp"`` or any text) to a mapping with ``"state_norm_mean"`` and
+        ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"`` (length T), as
+        :class:`~packetloss_cvx.results.ClosedLoopRun` holds them. Non-finite values are not drawn.
+    title : str, optional
+    path : str or Path, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels; O(laws T) to draw.
+
+    Raises
+    ------
+    InputError
+        Missing keys or mismatched lengths (field ``curves[law]``), or a path that cannot be written.
+    """
+    if not isinstance(curves, Mapping) or not curves:
+        raise InputError("curves", "expected a non-empty mapping law -> curves")
+    fig = Figure(figsize=(9, 3.5))
+    left, right = fig.subplots(1, 2)
+    labels = {**_LABELS, "dp": "DP optimum"}
+    for law, data in curves.items():
+        field = f"curves[{law!r}]"
+        if not isinstance(data, Mapping) or any(k not in data for k in ("state_norm_mean", "state_norm_std",
+                                                                         "stage_cost_mean")):
+            raise InputError(field, "expected keys state_norm_mean, state_norm_std, stage_cost_mean")
+        mean, std = np.asarray(data["state_norm_mean"], float), np.asarray(data["state_norm_std"], float)
+        stage = np.asarray(data["stage_cost_mean"], float)
+        if mean.shape != std.shape or mean.ndim != 1 or stage.shape != (mean.size - 1,):
+            raise InputError(field, "expected T + 1 norms (mean and std) and T stage costs")
+        t = np.arange(mean.size)
+        line, = left.plot(t, mean, label=labels.get(law, str(law)))
+        left.fill_between(t, np.maximum(mean - std, 0.0), mean + std, color=line.get_color(), alpha=0.2)
+        right.plot(t[1:], np.cumsum(stage), color=line.get_color(), label=labels.get(law, str(law)))
+    left.set_xlabel("step t")
+    left.set_ylabel(r"$\|x_t\|$: mean $\pm$ one std")
+    right.set_xlabel("step t")
+    right.set_ylabel("mean cumulative stage cost")
+    right.legend()
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
 

@@ -161,3 +161,28 @@ __all__ += ["BRUTE_FORCE_BISECTION_TOL", "BRUTE_FORCE_ROW_ATOL"]
 BRUTE_FORCE_BISECTION_TOL = 1e-10
 #: ... and treats a row without mu2 as violated only beyond this absolute slack.
 BRUTE_FORCE_ROW_ATOL = 1e-12
+
+# ------------------------------------------------------------------ closed loop (simulation/)
+
+#: A loop is reported mean-square stable only when the spectral radius of its second-moment
+#: operator is below 1 - MEAN_SQUARE_MARGIN: ARPACK and the Kronecker eigenvalues agree to about
+#: 1e-12 (random n = 3..20 laws), so a radius within 1e-9 of one is not proved either way.
+MEAN_SQUARE_MARGIN = 1e-9
+#: ARPACK's relative accuracy for the radius of the second-moment operator (method="krylov").
+ARPACK_TOL = 1e-12
+#: method="auto" forms the n^2 x n^2 Kronecker matrix up to this n (O(n^6): 20 -> 400 x 400,
+#: about 50 ms) and works on the operator beyond it.
+KRONECKER_MAX_N = 20
+#: The stationary second moment and the cost-to-go of a law are solved densely (n^2 x n^2 LU)
+#: up to this n, by GMRES on the operator beyond it; either answer is kept only if its relative
+#: residual ||X - L(X) - C|| / ||X|| is at most MOMENT_RESIDUAL_RTOL.
+MOMENT_DENSE_MAX_N = 30
+MOMENT_RESIDUAL_RTOL = 1e-9
+#: The modified Riccati equation (simulation/riccati.py) has converged when
+#: ||P_next - P|| <= RICCATI_RTOL ||P||; its value iteration gives up after RICCATI_MAX_ITER steps
+#: or when ||P|| exceeds RICCATI_DIVERGENCE times its start (no stabilising solution).
+RICCATI_RTOL = 1e-12
+RICCATI_MAX_ITER = 20000
+RICCATI_DIVERGENCE = 1e14
+#: Critical delivery probabilities along a ray are bisected to this width in t.
+CRITICAL_MU_TOL = 1e-6

@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
-    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display"},
+    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace"},
     {"prediction", "recursion", "costs", "convex", "qp", "random_systems", "evaluator"},
     {"analysis", "allocation", "simulation", "studies"},
     {"claims"},

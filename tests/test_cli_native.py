@@ -2,6 +2,7 @@
 help on every option, scalar --mu, --mu-schedule, --out, -q/-v everywhere, one text style."""
 
 import argparse
+import ast
 import json
 import shutil
 import subprocess
@@ -32,7 +33,7 @@ print("MODULES", sorted({m for m in sys.modules if m.split(".")[0] in {"cvxpy", 
 def imported(*argv):
     proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=False)
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("MODULES")][-1]
-    return set(eval(line.removeprefix("MODULES ")))   # a list literal printed by the probe  # noqa: S307
+    return set(ast.literal_eval(line.removeprefix("MODULES ")))
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["--version"], ["--completion", "bash"], ["solve", "--help"],

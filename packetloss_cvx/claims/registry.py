@@ -16,6 +16,7 @@ from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
 from .cost_difference import lemma_2, lemma_3, theorem_4
 from .evaluate import CASE_ERRORS
+from .mpc_vs_dp import mpc_vs_dp
 from .ordering import corollary_1, corollary_2, theorem_2, theorem_3
 from .paper import STATEMENTS
 from .tables import pendulum_maximiser, table_1, table_2
@@ -41,6 +42,7 @@ _CHECKS: dict[str, Callable[[Context], ClaimResult]] = {
     "pendulum-maximiser": pendulum_maximiser,
     "allocation-udp-perfect-channel": allocation_udp_perfect,
     "protocol-ranking-closed-loop": protocol_ranking,
+    "mpc-vs-dp": mpc_vs_dp,
 }
 
 #: Claim id -> (statement, check). The order is the audit's and the report's.

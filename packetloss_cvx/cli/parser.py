@@ -172,6 +172,27 @@ def build_parser() -> argparse.ArgumentParser:
                        help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4 "
                             "(default: none), e.g. 60")
 
+    sim = add_command(sub, "simulate", "Monte Carlo of the plans and laws against their exact expectations",
+                      examples=["simulate two_actuator --samples 100000 --seed 0",
+                                "simulate pendulum --closed-loop --law all --steps 100 --json",
+                                "simulate two_actuator --closed-loop --plot loop.png --save runs.npz"])
+    sim.add_argument("file", metavar="FILE", help=FILE_HELP)
+    add_system_options(sim)
+    sim.add_argument("--samples", type=int, default=10000, help="sampled runs (>= 2), e.g. --samples 100000")
+    sim.add_argument("--steps", type=int, default=50, help="closed-loop steps T, e.g. --steps 200")
+    sim.add_argument("--seed", type=int, default=0, help="seeds every random stream (>= 0), e.g. --seed 1")
+    sim.add_argument("--closed-loop", action="store_true",
+                     help="also run the laws u = -K x in closed loop over a stationary channel "
+                          "(default: open loop only)")
+    sim.add_argument("--law", choices=("tcp", "udp", "dp", "all"), default="all",
+                     help="a protocol's receding-horizon law, the DP optimum (closed loop only) or all, e.g. --law dp")
+    sim.add_argument("--save", metavar="FILE.npz",
+                     help="save closed-loop trajectories (first 1000 runs) and curves (default: none), "
+                          "e.g. --save runs.npz")
+    sim.add_argument("--plot", metavar="FILE",
+                     help="figure of the closed loop: mean +- band of ||x_t||, cost (default: none), "
+                          "e.g. --plot loop.png")
+
     swp = add_command(sub, "sweep", "J*_tcp, J*_udp and J_Delta over a grid of channels, x0 scales or horizons",
                       examples=["sweep two_actuator --mu-grid 201 --out sweep-out",
                                 "sweep pendulum --x0-scales 0:2:5 --json",

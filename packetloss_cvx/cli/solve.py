@@ -1,18 +1,23 @@
-"""``packetloss-cvx solve FILE``: optimal plans, costs and gains, cross-checked by a QP."""
+"""``packetloss-cvx solve FILE``: optimal plans, costs and gains, cross-checked by a QP, and whether
+each receding-horizon law is mean-square stable when run in a loop over the file's channel."""
 
 from __future__ import annotations
 
 import argparse
 from typing import Any
 
+import numpy as np
+
 from ..costs import closed_form
 from ..errors import NumericalError, ResourceError
+from ..model import System
 from ..qp import solve_qp
 from ..results import Solution, eigenvalue_pairs
+from ..simulation import is_mean_square_stable, mean_square_radius
 from . import format as fmt
 from .common import CommandResult, system_of
 
-__all__ = ["run"]
+__all__ = ["run", "stability", "text_details"]
 
 
 def run(args: argparse.Namespace) -> CommandResult:
@@ -49,8 +54,10 @@ def run(args: argparse.Namespace) -> CommandResult:
                 timing = f", {qp.solve_time:.3g} s" if args.verbose else ""
                 rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
+        rows += text_details(sol, system.n, args.verbose)
+        rows.append(("closed loop", stability(system, sol.gain, entry)))
         out[protocol] = entry
-        lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows + text_details(sol, system.n, args.verbose))
+        lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows)
     return CommandResult(out, "\n".join(lines))
 
 
@@ -65,3 +72,23 @@ def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]
         plan = fmt.matrix(sol.inputs, [f"t={t}" for t in range(len(sol.inputs))], fmt.labels("u", m))
         rows.append(("U* (row t)", plan))
     return rows
+
+
+def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
+    """Mean-square stability of the receding-horizon law u = -K x run for ever over the file's channel
+    (the first step's mu when the channel is non-stationary); adds its keys to ``entry``, returns text."""
+    mu = system.mu_schedule[0]
+    note = "" if system.is_stationary else " (first step's mu: the channel is non-stationary)"
+    try:
+        radius = mean_square_radius(system.A, system.B, gain, mu)
+    except NumericalError as err:
+        entry.update({"mean_square_spectral_radius": None, "stable": False, "stability_note": str(err)})
+        return f"stability not computed: {err}"
+    stable = is_mean_square_stable(radius)
+    entry.update({"mean_square_spectral_radius": radius, "stable": stable})
+    if note:
+        entry["stability_note"] = note.strip(" ()")
+    verdict = ("mean-square stable" if stable else
+               "NOT mean-square stable: E[x x'] grows without bound when u = -K x runs in a loop over these losses"
+               if radius >= 1 else "not proved mean-square stable (the radius is within 1e-9 of 1)")
+    return f"u = -K x over mu = {fmt.numbers(mu)}{note}: {verdict} (second-moment spectral radius {radius:.6g})"

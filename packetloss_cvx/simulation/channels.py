@@ -12,7 +12,7 @@ import numpy as np
 from ..linalg import psd_factor
 from ..model import System
 
-__all__ = ["sample_deliveries", "sample_noise"]
+__all__ = ["sample_deliveries", "sample_delivery_paths", "sample_noise", "sample_noise_paths"]
 
 
 def sample_deliveries(system: System, samples: int, rng: np.random.Generator) -> np.ndarray:
@@ -52,5 +52,25 @@ def sample_noise(system: System, samples: int, rng: np.random.Generator) -> np.n
         Independent ``N(0, Sigma_W)`` blocks, one per step.
     """
     root = psd_factor(system.noise_cov)
-    z = rng.standard_normal((samples, system.horizon * root.shape[0]))
-    return z @ np.kron(np.eye(system.horizon), root)
+    z = rng.standard_normal((samples, system.horizon, root.shape[0]))
+    return (z @ root).reshape(samples, system.horizon * system.n)   # = z @ kron(I_N, root), without the N n square
+
+
+def sample_delivery_paths(system: System, steps: int, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Deliveries of a loop run over ``steps`` steps of the system's (stationary) channel.
+
+    Returns a bool array ``(steps, samples, m)``: ``[t, s, i]`` is ``v_{i,t}`` of run s, True with
+    probability ``mu_i`` (the first row of ``mu_schedule``), independent across steps, runs and
+    channels. The draws go run by run (one uniform per entry, runs outermost), so the first runs of
+    a larger draw from the same stream are the same. Time and memory O(steps samples m).
+    """
+    return (rng.random((samples, steps, system.m)) < system.mu_schedule[0]).transpose(1, 0, 2)
+
+
+def sample_noise_paths(system: System, steps: int, samples: int, rng: np.random.Generator) -> np.ndarray | None:
+    """Process noise of a loop run: ``(steps, samples, n)`` draws of ``N(0, Sigma_W)`` (``L' z`` as in
+    :func:`sample_noise`), or None when Sigma_W = 0 (no draws). Time O(steps samples n r)."""
+    root = psd_factor(system.noise_cov)
+    if not root.shape[0]:
+        return None
+    return (rng.standard_normal((samples, steps, root.shape[0])) @ root).transpose(1, 0, 2)   # run by run

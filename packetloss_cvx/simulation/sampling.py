@@ -14,6 +14,7 @@ import numpy.typing as npt
 from ..costs import check_inputs
 from ..linalg import psd_factor
 from ..model import System
+from .channels import sample_delivery_paths, sample_noise_paths
 
 __all__ = ["closed_loop_costs", "sample_plan_costs"]
 
@@ -49,13 +50,12 @@ def closed_loop_costs(system: System, gains: list[np.ndarray], steps: int, sampl
     Every law in ``gains`` sees the same sampled losses and noise (common random
     numbers), so differences between laws have small variance. Stage cost
     ``x_t' Omega_1 x_t + (V_t u_t)' Psi_0 (V_t u_t)`` for t = 0..steps-1 plus
-    ``x_T' Omega_1 x_T``; the channel uses ``mu_schedule[0]``.
+    ``x_T' Omega_1 x_T``; the channel uses ``mu_schedule[0]`` (deliveries and noise from :mod:`.channels`).
     Returns an array (len(gains), samples). Time O(len(gains) · samples · steps · n (n + m)).
     """
-    W, psi, mu = system.state_weights[0], system.input_weights[0], system.mu_schedule[0]
-    L = psd_factor(system.noise_cov)
-    losses = rng.random((steps, samples, system.m)) < mu
-    noise = rng.standard_normal((steps, samples, L.shape[0])) @ L if L.shape[0] else None
+    W, psi = system.state_weights[0], system.input_weights[0]
+    losses = sample_delivery_paths(system, steps, samples, rng)
+    noise = sample_noise_paths(system, steps, samples, rng)
     out = np.empty((len(gains), samples))
     for k, K in enumerate(gains):
         X = np.repeat(system.x0[None, :], samples, axis=0)

@@ -1,0 +1,16 @@
+"""Every result type the package returns: frozen dataclasses with read-only arrays and
+``to_dict()`` for JSON (plain lists and floats).
+
+plans.py: one system's solutions; studies.py: design questions; closed_loop.py: the loop run for
+ever and sampled; base.py: what they share.
+"""
+
+from .base import eigenvalue_pairs
+from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
+from .plans import BatchSolution, CrossCheck, Solution
+from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
+
+__all__ = [
+    "Allocation", "BatchSolution", "ClaimResult", "ClosedLoop", "ClosedLoopRun", "CrossCheck", "DesignSweep",
+    "Maximiser", "MinCost", "OpenLoopCheck", "Riccati", "Simulation", "Solution", "Sweep", "eigenvalue_pairs",
+]

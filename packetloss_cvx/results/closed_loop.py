@@ -1,0 +1,140 @@
+"""Closed-loop results: a law's mean-square stability and exact costs, the DP optimum, simulations."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..display import to_json
+from .base import finite_or_none, freeze
+
+__all__ = ["ClosedLoop", "ClosedLoopRun", "OpenLoopCheck", "Riccati", "Simulation"]
+
+
+@dataclass(frozen=True)
+class ClosedLoop:
+    """A stationary law ``u = -K x`` (``law``: its label) run for ever over the channel ``mu`` (simulation.moments).
+
+    ``spectral_radius`` of the second-moment operator (mean-square stable iff < 1); ``stable`` only when
+    it is below 1 by ``tolerances.MEAN_SQUARE_MARGIN``; ``average_stage_cost`` = lim E[x'Omega x + (Vu)'Psi(Vu)]
+    = tr(P_K Sigma_W), ``inf`` when not stable; ``cost_to_go`` P_K (x0'P_K x0: total cost from x0 without
+    noise) and ``second_moment`` (stationary E[xx']), None when not stable; ``reason`` why the cost is inf.
+    """
+
+    law: str
+    gain: np.ndarray
+    mu: np.ndarray
+    spectral_radius: float
+    stable: bool
+    average_stage_cost: float
+    cost_to_go: np.ndarray | None
+    second_moment: np.ndarray | None
+    reason: str = ""
+
+    def __post_init__(self) -> None:
+        freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats; an infinite cost is None (JSON has no inf). O(n^2)."""
+        return {"law": self.law, "gain": self.gain.tolist(), "mu": self.mu.tolist(),
+                "mean_square_spectral_radius": self.spectral_radius, "stable": self.stable,
+                "average_stage_cost": finite_or_none(self.average_stage_cost),
+                "cost_to_go": None if self.cost_to_go is None else self.cost_to_go.tolist(), "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class Riccati:
+    """The DP optimum (simulation.riccati): ``cost_to_go`` P solves the modified Riccati equation, ``gain``
+    K its law u = -K x, ``average_stage_cost`` = tr(P Sigma_W), ``spectral_radius`` of the law's
+    second-moment operator, ``iterations`` (value and policy), ``residual`` ||R(P) - P|| / ||P||."""
+
+    gain: np.ndarray
+    cost_to_go: np.ndarray
+    average_stage_cost: float
+    spectral_radius: float
+    iterations: int
+    residual: float
+
+    def __post_init__(self) -> None:
+        freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats. O(n^2)."""
+        return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in vars(self).items()}
+
+
+@dataclass(frozen=True)
+class OpenLoopCheck:
+    """A protocol's plan U* applied open loop and sampled (simulation.montecarlo): ``formula`` J* (Theorem 1),
+    ``exact`` E[realised cost] under the stated model (J_udp(U*)), ``mean`` and ``stderr`` of the samples,
+    ``z = (mean - exact) / stderr``."""
+
+    formula: float
+    exact: float
+    mean: float
+    stderr: float
+    z: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """The issue's schema; a non-finite number is None (JSON). O(1)."""
+        return {k: finite_or_none(getattr(self, k)) for k in ("formula", "exact", "mean", "stderr", "z")}
+
+
+@dataclass(frozen=True)
+class ClosedLoopRun:
+    """A law run in closed loop for ``steps`` steps over sampled losses (simulation.montecarlo): ``mean_stage_cost``
+    and ``stderr`` of each run's mean stage cost over t < steps, ``exact_stage_cost`` its expectation,
+    ``spectral_radius`` and ``stable`` as in ClosedLoop, ``reason`` why there is no law ("" if there is); per
+    step: ``state_norm_mean``, ``state_norm_std`` of ||x_t|| (t <= steps) and ``stage_cost_mean``."""
+
+    law: str
+    mean_stage_cost: float
+    stderr: float
+    exact_stage_cost: float
+    spectral_radius: float
+    stable: bool
+    state_norm_mean: np.ndarray
+    state_norm_std: np.ndarray
+    stage_cost_mean: np.ndarray
+    reason: str = ""
+
+    def __post_init__(self) -> None:
+        freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The issue's schema (plus ``reason`` when there is no law); non-finite numbers are None. O(1)."""
+        out: dict[str, Any] = {"mean_stage_cost": finite_or_none(self.mean_stage_cost),
+                               "stderr": finite_or_none(self.stderr),
+                               "exact_stage_cost": finite_or_none(self.exact_stage_cost),
+                               "mean_square_spectral_radius": finite_or_none(self.spectral_radius),
+                               "stable": self.stable}
+        return {**out, "reason": self.reason} if self.reason else out
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Monte Carlo checks (simulation.montecarlo): ``open_loop`` protocol -> OpenLoopCheck, ``closed_loop`` law ->
+    ClosedLoopRun, ``trajectories`` (laws, runs, steps + 1, n) of the first runs or None."""
+
+    samples: int
+    steps: int
+    seed: int
+    open_loop: dict[str, OpenLoopCheck]
+    closed_loop: dict[str, ClosedLoopRun]
+    trajectories: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        freeze(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{law: {"open_loop": {...}, "closed_loop": {...}}}``, each part where it was run. O(laws)."""
+        out: dict[str, Any] = {}
+        for law, check in self.open_loop.items():
+            out.setdefault(law, {})["open_loop"] = check.to_dict()
+        for law, run in self.closed_loop.items():
+            out.setdefault(law, {})["closed_loop"] = run.to_dict()
+        return out

@@ -1,0 +1,133 @@
+"""Solutions of one system: the closed forms' and QPs' plans, their cross-check, and batches of channels."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..display import batch_repr, solution_html, solution_repr, to_json
+from .base import eigenvalue_pairs, freeze
+
+__all__ = ["BatchSolution", "CrossCheck", "Solution"]
+
+
+@dataclass(frozen=True)
+class CrossCheck:
+    """Agreement of a solver answer with the closed form.
+
+    ``max_input_diff`` is max |Vbar (U_qp - U*)|, the largest difference of the mean applied
+    inputs (an input sent over a channel that never delivers does not enter the cost, so any
+    value is optimal; one that rarely delivers is weakly determined); ``cost_rel_diff`` is
+    |J_qp - J*| / |J*|. Both are relative to the problem's own scale: the QP binds at
+    ``max_input_diff <= 1e-6 max|Vbar U*|`` and ``cost_rel_diff <= 1e-7`` (tolerances.py).
+    """
+
+    reference_method: str
+    max_input_diff: float
+    cost_rel_diff: float
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"max_input_diff": self.max_input_diff, "cost_rel_diff": self.cost_rel_diff}
+
+
+@dataclass(frozen=True)
+class Solution:
+    """The optimal open-loop plan for one protocol.
+
+    Attributes
+    ----------
+    protocol : {"tcp", "udp"}
+    cost : float
+        Optimal expected cost J*, constant and noise terms included.
+    inputs : ndarray, shape (N, m)
+        Commanded inputs U* (row t is U_{k+t}).
+    gain : ndarray, shape (m, n), or None
+        Receding-horizon gain K: U_k = -K X_k (None when a QP was solved without it).
+    closed_loop_eigenvalues : ndarray, complex, shape (n,)
+        Eigenvalues of A - B K (the paper's Tables I–II convention).
+    method : str
+        "dense", "recursion", "qp-condensed" or "qp-sparse".
+    status, solve_time : solver status and seconds (QPs only).
+    cross_check : CrossCheck or None
+        For QPs, the comparison with the closed form.
+    """
+
+    protocol: str
+    cost: float
+    inputs: np.ndarray
+    gain: np.ndarray | None
+    closed_loop_eigenvalues: np.ndarray | None
+    method: str
+    status: str | None = None
+    solve_time: float | None = None
+    cross_check: CrossCheck | None = None
+
+    __repr__ = solution_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = solution_html
+
+    def __post_init__(self) -> None:
+        freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "cost": self.cost,
+            "inputs": self.inputs.tolist(),
+            "gain": None if self.gain is None else self.gain.tolist(),
+            "closed_loop_eigenvalues": (
+                None if self.closed_loop_eigenvalues is None
+                else eigenvalue_pairs(self.closed_loop_eigenvalues)
+            ),
+            "method": self.method,
+        }
+        if self.status is not None:
+            out["status"] = self.status
+            out["solve_time"] = self.solve_time
+        if self.cross_check is not None:
+            out.update(self.cross_check.to_dict())
+        return out
+
+
+
+@dataclass(frozen=True)
+class BatchSolution:
+    """Optimal plans for P channels of one system (:class:`~packetloss_cvx.evaluator.CostEvaluator`).
+
+    Attributes
+    ----------
+    protocol : {"tcp", "udp"}
+    costs : ndarray, shape (P,)
+        Optimal expected costs J*, each checked against the forward cost of its own plan.
+    inputs : ndarray, shape (P, N, m)
+        Commanded inputs U* per point.
+    gains : ndarray, shape (P, m, n)
+        Receding-horizon gains K of the first step per point.
+    method : str
+        "dense", "recursion", or "mixed" (dense, with the recursion for points whose dense
+        solve failed its checks).
+
+    Construction O(P N m n) (read-only copies).
+    """
+
+    protocol: str
+    costs: np.ndarray
+    inputs: np.ndarray
+    gains: np.ndarray
+    method: str
+
+    __repr__ = batch_repr
+
+    def __post_init__(self) -> None:
+        freeze(self)
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists for JSON. O(P N m n)."""
+        return {"protocol": self.protocol, "costs": self.costs.tolist(), "inputs": self.inputs.tolist(),
+                "gains": self.gains.tolist(), "method": self.method}

@@ -1,0 +1,198 @@
+"""Exact closed-loop costs of linear laws ``u_t = -K_t x_t`` over Bernoulli channels, from second moments.
+
+Stage cost ``x'Omega x + (V u)' Psi (V u)`` with diagonal ``Psi``: since ``v_i^2 = v_i``,
+``E[(V u)' Psi (V u)] = u' M Psi u`` (= ``u'(M Psi M + diag(mu (1 - mu)) Psi) u``), so the expected
+stage cost of ``u = -K x`` is ``tr((Omega + K' M Psi K) S)`` with ``S = E[x x']``. The second moment
+follows ``S+ = L(S) + Sigma_W`` (:mod:`.stability`); the stationary one solves ``S = L(S) + Sigma_W``
+and the law's cost-to-go ``P_K = Omega + K' M Psi K + L*(P_K)``. The average stage cost is
+``tr((Omega + K' M Psi K) S) = tr(P_K Sigma_W)``; both are computed and must agree.
+
+Monte Carlo is then a check of these numbers, not the answer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import numpy.typing as npt
+from scipy.sparse.linalg import LinearOperator, gmres
+
+from ..errors import CrossCheckError, InputError, NumericalError
+from ..model import System
+from ..results import ClosedLoop
+from ..tolerances import MOMENT_DENSE_MAX_N, MOMENT_RESIDUAL_RTOL
+from .stability import (
+    check_law,
+    is_mean_square_stable,
+    mean_square_radius,
+    second_moment_adjoint,
+    second_moment_map,
+    second_moment_matrix,
+)
+
+__all__ = ["closed_loop", "finite_horizon_costs", "law_cost_to_go", "stationary_channel", "stationary_second_moment"]
+
+
+def stationary_channel(system: System) -> np.ndarray:
+    """The system's delivery probabilities for a loop run for ever: refused for a non-stationary channel.
+
+    Raises
+    ------
+    InputError
+        Field ``mu_schedule``: a closed loop run for ever needs one mu per actuator.
+    """
+    if not system.is_stationary:
+        raise InputError("mu_schedule", "the closed loop runs for ever over one channel: expected a stationary "
+                                        "channel (mu), found a schedule that changes over the horizon")
+    return system.mu_schedule[0]
+
+
+def _solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callable[[], np.ndarray],
+                       C: np.ndarray, what: str) -> np.ndarray:
+    """X = apply(X) + C for a stable positive map: dense LU on the n^2 x n^2 matrix up to
+    MOMENT_DENSE_MAX_N (O(n^6)), GMRES on the operator beyond (O(n^3 m) per product). Residual checked."""
+    n = C.shape[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        if n <= MOMENT_DENSE_MAX_N:
+            X = np.linalg.solve(np.eye(n * n) - matrix(), C.ravel()).reshape(n, n)
+        else:
+            op = LinearOperator((n * n, n * n), dtype=float,
+                                matvec=lambda v: v - apply(v.reshape(n, n)).ravel())
+            vec, info = gmres(op, C.ravel(), rtol=1e-13, atol=0.0, restart=min(n * n, 200), maxiter=50)
+            if info != 0:
+                raise NumericalError(f"{what}: GMRES did not converge (info {info})")
+            X = vec.reshape(n, n)
+        X = 0.5 * (X + X.T)
+        scale = max(float(np.linalg.norm(X)), float(np.linalg.norm(C)), np.finfo(float).tiny)
+        residual = float(np.linalg.norm(X - apply(X) - C)) / scale
+    if not (np.all(np.isfinite(X)) and residual <= MOMENT_RESIDUAL_RTOL):
+        raise NumericalError(f"{what}: the linear solve lost its digits (relative residual {residual:.1e})")
+    return X
+
+
+def stationary_second_moment(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt.ArrayLike,
+                             noise_cov: npt.ArrayLike) -> np.ndarray:
+    """The stationary ``S = lim E[x x']`` of ``u = -K x``: the solution of ``S = L(S) + Sigma_W``.
+
+    The caller checks mean-square stability first (otherwise the solution is not the limit).
+    Time O(n^6) for n <= MOMENT_DENSE_MAX_N, else GMRES; residual checked (NumericalError).
+
+    >>> S = stationary_second_moment([[0.5]], [[1.0]], [[0.0]], [1.0], [[0.75]])
+    >>> float(S[0, 0])   # S = 0.25 S + 0.75
+    1.0
+    """
+    A_, B_, K_, mu_ = check_law(A, B, K, mu)
+    Sigma = np.asarray(noise_cov, dtype=float)
+    return _solve_fixed_point(lambda S: second_moment_map(S, A_, B_, K_, mu_),
+                              lambda: second_moment_matrix(A_, B_, K_, mu_), Sigma, "the stationary second moment")
+
+
+def law_cost_to_go(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt.ArrayLike,
+                   Omega: npt.ArrayLike, psi: npt.ArrayLike) -> np.ndarray:
+    """``P_K = Omega + K' M Psi K + L*(P_K)``: ``x0' P_K x0`` is the law's total expected cost from x0
+    without noise. Needs a mean-square stable law. Time as :func:`stationary_second_moment`.
+    """
+    A_, B_, K_, mu_ = check_law(A, B, K, mu)
+    Q = np.asarray(Omega, dtype=float) + (K_.T * (mu_ * np.asarray(psi, dtype=float))) @ K_
+    return _solve_fixed_point(lambda P: second_moment_adjoint(P, A_, B_, K_, mu_),
+                              lambda: second_moment_matrix(A_, B_, K_, mu_).T, Q, "the cost-to-go of the law")
+
+
+def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.ArrayLike | None = None,
+                method: str = "auto") -> ClosedLoop:
+    """Mean-square stability and exact costs of ``u = -K x`` run for ever on ``system``'s plant.
+
+    Stage weights ``Omega = state_weights[0]`` (Omega_1) and ``Psi = input_weights[0]`` (Psi_0), noise
+    ``Sigma_W``; channel ``mu`` (default: the system's stationary channel).
+
+    Parameters
+    ----------
+    system : System
+    gain : array_like, shape (m, n)
+    law : str
+        A label for the result.
+    mu : array_like, optional
+        Another channel to run the loop over.
+    method : {"auto", "kronecker", "krylov"}
+        For the spectral radius (:func:`~.stability.mean_square_radius`).
+
+    Returns
+    -------
+    ClosedLoop
+        ``average_stage_cost`` is ``inf`` with a ``reason`` when the loop is not proved mean-square stable.
+
+    Raises
+    ------
+    CrossCheckError
+        ``tr((Omega + K'M Psi K) S)`` and ``tr(P_K Sigma_W)`` disagree beyond ``MOMENT_RESIDUAL_RTOL``.
+
+    Examples
+    --------
+    >>> from packetloss_cvx import load_example
+    >>> s = load_example("pendulum")
+    >>> loop = closed_loop(s, [[0.0, 0.0, 0.0, 0.0]])   # no input: the unstable pendulum
+    >>> loop.stable, loop.average_stage_cost
+    (False, inf)
+    """
+    mu_ = stationary_channel(system) if mu is None else mu
+    A, B, K, mu_ = check_law(system.A, system.B, gain, mu_)
+    radius = mean_square_radius(A, B, K, mu_, method=method)
+    if not is_mean_square_stable(radius):
+        reason = (f"not mean-square stable: the second-moment operator has spectral radius {radius:.6g} >= 1, "
+                  "so E[x x'] and the average cost grow without bound")
+        return ClosedLoop(law, K, mu_, radius, False, float("inf"), None, None, reason)
+    Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
+    P = law_cost_to_go(A, B, K, mu_, Omega, psi)
+    S = stationary_second_moment(A, B, K, mu_, Sigma)
+    by_cost_to_go = float(np.sum(P * Sigma))
+    by_moment = float(np.sum((Omega + (K.T * (mu_ * psi)) @ K) * S))
+    if abs(by_cost_to_go - by_moment) > MOMENT_RESIDUAL_RTOL * max(abs(by_moment), abs(by_cost_to_go)):
+        raise CrossCheckError("average stage cost: tr(P_K Sigma_W) and tr((Omega + K'M Psi K) S) disagree",
+                              {"cost_to_go": by_cost_to_go, "second_moment": by_moment})
+    return ClosedLoop(law, K, mu_, radius, True, by_moment, P, S)
+
+
+def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
+                         mu: npt.ArrayLike | None = None) -> tuple[np.ndarray, float]:
+    """Exact expected stage costs of ``u_t = -K_t x_t`` for t = 0..steps-1 from the system's x0.
+
+    Parameters
+    ----------
+    system : System
+        Plant, x0, noise; stage weights Omega_1 and Psi_0 as in :func:`closed_loop`.
+    gains : array_like, shape (m, n) or (steps, m, n)
+        One gain for every step, or a time-varying law.
+    steps : int
+    mu : array_like, shape (m,) or (steps, m), optional
+        Default: the system's stationary channel.
+
+    Returns
+    -------
+    (stage, terminal)
+        ``stage[t] = E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]`` and ``terminal = E[x_T' Omega x_T]``.
+        Time O(steps (n^3 + n^2 m)). Non-finite entries (an unstable loop over a long horizon) stay inf.
+    """
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise InputError("steps", f"expected an integer >= 1, found {steps!r}")
+    K_all = np.asarray(gains, dtype=float)
+    K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 2 else K_all
+    mu_all = np.asarray(stationary_channel(system) if mu is None else mu, dtype=float)
+    mu_all = np.broadcast_to(mu_all, (steps, system.m)) if mu_all.ndim == 1 else mu_all
+    if K_all.shape != (steps, system.m, system.n) or mu_all.shape != (steps, system.m):
+        raise InputError("gains", f"expected ({system.m}, {system.n}) or ({steps}, {system.m}, {system.n}) gains "
+                                  f"and mu of shape ({system.m},) or ({steps}, {system.m})")
+    A, B, _, _ = check_law(system.A, system.B, K_all[0], mu_all[0])
+    if not (np.all(np.isfinite(K_all)) and np.all((mu_all >= 0) & (mu_all <= 1))):
+        raise InputError("gains", "expected finite gains and probabilities in [0, 1]")
+    Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
+    S = np.outer(system.x0, system.x0)
+    stage = np.empty(steps)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps):
+            K, m_ = K_all[t], mu_all[t]
+            stage[t] = float(np.sum((Omega + (K.T * (m_ * psi)) @ K) * S))
+            S = second_moment_map(S, A, B, K, m_) + Sigma
+        terminal = float(np.sum(Omega * S))
+    stage[~np.isfinite(stage)] = np.inf
+    return stage, terminal if np.isfinite(terminal) else float("inf")

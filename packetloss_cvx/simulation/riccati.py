@@ -1,0 +1,203 @@
+"""The dynamic-programming optimum for Bernoulli packet losses with full state: a modified Riccati equation.
+
+With ``x+ = A x + B V u + w``, ``V = diag(v)``, ``v_i ~ Bernoulli(mu_i)`` independent, the input sent
+before its delivery is known, and stage cost ``x'Omega x + (V u)' Psi (V u)`` (Psi diagonal), a quadratic
+cost-to-go ``x'P x`` gives (``E[V X V] = M X M + diag(mu (1 - mu)) ∘ X`` for any X, and ``v_i^2 = v_i``)
+
+.. math:: x'Px = \\min_u\\ x'(\\Omega + A'PA)x + 2 x'A'PBM u + u'(M\\Psi + MB'PBM + D(P)) u,
+   \\qquad D(P) = \\mathrm{diag}(\\mu_i (1 - \\mu_i) (B'PB)_{ii}),
+
+so ``P = Omega + A'PA - A'PBM (M Psi + M B'PB M + D(P))^{-1} M B'PA`` (Schenato et al. 2007, Proc. IEEE
+95(1), eq. for the TCP-like LQG controller; Garone et al. 2009 for independent multiple channels).
+The Hessian factors as ``M G`` with ``G = Psi + B'PB M + diag((1 - mu) diag(B'PB))``, which stays
+invertible when some ``mu_i = 0``; the law is ``u = -G^{-1} B'PA x``, the same minimiser, and
+``P = Omega + A'PA - A'PBM K``. At ``mu = 1`` this is the DARE with ``R = Psi``. Noise adds
+``tr(P Sigma_W)`` per step (the average stage cost of the optimal law).
+
+No causal law over these losses does better: the optimum over all laws is linear and stationary.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InputError, NumericalError
+from ..model import System
+from ..results import Riccati
+from ..tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE, RICCATI_MAX_ITER, RICCATI_RTOL
+from .moments import law_cost_to_go, stationary_channel
+from .stability import check_law, is_mean_square_stable, mean_square_radius
+
+__all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_riccati", "riccati_step"]
+
+#: Every NumericalError of :func:`dp_riccati` that means "no law holds the second moment" starts its
+#: reason with this (callers that treat the absence of a stabilising law as a case, not an error, test it).
+NO_SOLUTION = "modified Riccati equation: no stabilising solution"
+
+_CHECK_EVERY = 25   # value-iteration steps between tries of the faster policy iteration
+_POLICY_MAX_ITER = 100
+
+
+def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
+                 psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One step of the modified Riccati map: the optimal gain for cost-to-go P and the new cost-to-go.
+
+    Returns ``(K, P_prev)`` with ``K = G^{-1} B'PA`` and ``P_prev = Omega + A'PA - A'PBM K``
+    (module docstring). Time O(n^3 + m^3).
+
+    >>> K, P = riccati_step(np.eye(1), np.eye(1), np.eye(1), np.array([1.0]), np.eye(1), np.array([1.0]))
+    >>> float(K[0, 0]), float(P[0, 0])    # scalar DARE step: K = 1/2, P = 1 + 1 - 1/2
+    (0.5, 1.5)
+    """
+    PB = P @ B
+    BPB = B.T @ PB
+    G = BPB * mu[None, :]
+    G[np.diag_indices_from(G)] += psi + (1.0 - mu) * np.diag(BPB)
+    rhs = PB.T @ A
+    try:
+        K = np.linalg.solve(G, rhs)
+    except np.linalg.LinAlgError:
+        raise NumericalError("modified Riccati step: the input Hessian G is singular") from None
+    P_prev = Omega + A.T @ P @ A - (rhs.T * mu) @ K
+    return K, 0.5 * (P_prev + P_prev.T)
+
+
+def _weights(system: System, mu: npt.ArrayLike | None) -> tuple[np.ndarray, ...]:
+    A, B, _, mu_ = check_law(system.A, system.B, np.zeros((system.m, system.n)),
+                             stationary_channel(system) if mu is None else mu)
+    return A, B, mu_, system.state_weights[0], system.input_weights[0]
+
+
+def dp_riccati(system: System, mu: npt.ArrayLike | None = None) -> Riccati:
+    """The stationary DP optimum: the stabilising solution of the modified Riccati equation.
+
+    Value iteration from ``P = Omega`` until the gain is mean-square stabilising, then policy
+    iteration (Hewer's, each step a linear solve for the law's cost-to-go, quadratic convergence)
+    until ``||P_next - P|| <= RICCATI_RTOL ||P||``. Stage weights as in
+    :func:`~.moments.closed_loop`. Time O(iterations (n^3 + m^3)) plus O(n^6) per policy step
+    (n <= 30; GMRES beyond).
+
+    Parameters
+    ----------
+    system : System
+    mu : array_like, optional
+        Another channel (default: the system's stationary channel).
+
+    Returns
+    -------
+    Riccati
+
+    Raises
+    ------
+    NumericalError
+        No stabilising solution: the value iteration diverges (the losses are too frequent for
+        any law to hold the second moment), does not converge, or ends at a law that is not
+        mean-square stabilising (e.g. an unstable mode that Omega does not see).
+
+    Examples
+    --------
+    >>> from scipy.linalg import solve_discrete_are
+    >>> from packetloss_cvx import load_example
+    >>> s = load_example("two_actuator").with_mu([1.0, 1.0])
+    >>> dp = dp_riccati(s)
+    >>> bool(np.allclose(dp.cost_to_go, solve_discrete_are(s.A, s.B, s.state_weights[0],
+    ...                                                     np.diag(s.input_weights[0])), rtol=1e-9))
+    True
+    """
+    A, B, mu_, Omega, psi = _weights(system, mu)
+    scale = max(float(np.linalg.norm(Omega)), float(np.max(psi)))
+    P = Omega.copy()
+    iterations = 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        while True:
+            K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
+            iterations += 1
+            size = float(np.linalg.norm(P_next))
+            if not np.isfinite(size) or size > RICCATI_DIVERGENCE * scale:
+                raise NumericalError(f"{NO_SOLUTION} at mu = {mu_.tolist()} (the value iteration diverges, "
+                                     f"||P|| > {size:.3g}: no law holds the second moment bounded under these losses)")
+            converged = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL * size
+            P = P_next
+            if converged:
+                break
+            if iterations % _CHECK_EVERY == 0:
+                K, _ = riccati_step(P, A, B, mu_, Omega, psi)
+                if is_mean_square_stable(mean_square_radius(A, B, K, mu_)):
+                    P, steps = _policy_iteration(K, A, B, mu_, Omega, psi)
+                    iterations += steps
+                    break
+            if iterations >= RICCATI_MAX_ITER:
+                raise NumericalError(f"modified Riccati equation: no convergence in {iterations} iterations at "
+                                     f"mu = {mu_.tolist()} (no stabilising solution, or too close to the critical "
+                                     "probability)")
+    K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
+    residual = float(np.linalg.norm(P_next - P)) / max(float(np.linalg.norm(P)), np.finfo(float).tiny)
+    radius = mean_square_radius(A, B, K, mu_)
+    if not is_mean_square_stable(radius):
+        raise NumericalError(f"modified Riccati equation: the solution found at mu = {mu_.tolist()} is not "
+                             f"stabilising (its law has mean-square radius {radius:.6g} >= 1): a mode that Omega "
+                             "does not weigh")
+    if residual > MOMENT_RESIDUAL_RTOL:
+        raise NumericalError(f"modified Riccati equation: relative residual {residual:.1e} after {iterations} "
+                             "iterations")
+    return Riccati(K, P, float(np.sum(P * system.noise_cov)), radius, iterations, residual)
+
+
+def _policy_iteration(K: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
+                      psi: np.ndarray) -> tuple[np.ndarray, int]:
+    """Hewer's iteration from a stabilising K: P_j = cost-to-go of K_j, K_{j+1} = the greedy gain of P_j.
+    The P_j decrease to the stabilising solution (each K_j stays stabilising)."""
+    P = law_cost_to_go(A, B, K, mu, Omega, psi)
+    for step in range(1, _POLICY_MAX_ITER + 1):
+        K, _ = riccati_step(P, A, B, mu, Omega, psi)
+        P_next = law_cost_to_go(A, B, K, mu, Omega, psi)
+        if float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL * float(np.linalg.norm(P_next)):
+            return P_next, step
+        P = P_next
+    raise NumericalError(f"modified Riccati equation: policy iteration did not converge in {_POLICY_MAX_ITER} steps")
+
+
+def dp_finite_horizon(system: System, steps: int,
+                      mu: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """The finite-horizon DP optimum over t = 0..steps-1 with terminal cost ``x_T' Omega x_T``.
+
+    Parameters
+    ----------
+    system : System
+        Plant, x0, noise; stage weights Omega_1 and Psi_0.
+    steps : int
+    mu : array_like, shape (m,) or (steps, m), optional
+        The channel per step (default: the system's stationary channel).
+
+    Returns
+    -------
+    (gains, P0, cost)
+        Time-varying gains ``gains[t]`` (u_t = -K_t x_t), the cost-to-go at t = 0 and the optimal
+        expected cost ``x0' P0 x0 + sum_t tr(P_{t+1} Sigma_W)``. Time O(steps (n^3 + m^3)).
+
+    Raises
+    ------
+    NumericalError
+        The cost-to-go overflows.
+    """
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise InputError("steps", f"expected an integer >= 1, found {steps!r}")
+    mu_all = np.asarray(stationary_channel(system) if mu is None else mu, dtype=float)
+    mu_all = np.broadcast_to(mu_all, (steps, system.m)) if mu_all.ndim == 1 else mu_all
+    if mu_all.shape != (steps, system.m):
+        raise InputError("mu", f"expected ({system.m},) or ({steps}, {system.m}), found {mu_all.shape}")
+    if not np.all((mu_all >= 0) & (mu_all <= 1)):
+        raise InputError("mu", "expected probabilities in [0, 1]")
+    A, B, _, Omega, psi = _weights(system, mu_all[0])
+    P = Omega.copy()
+    gains = np.empty((steps, system.m, system.n))
+    noise = 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps - 1, -1, -1):
+            noise += float(np.sum(P * system.noise_cov))
+            gains[t], P = riccati_step(P, A, B, mu_all[t], Omega, psi)
+    cost = float(system.x0 @ P @ system.x0) + noise
+    if not (np.isfinite(cost) and np.all(np.isfinite(gains))):
+        raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")
+    return gains, P, cost

@@ -1,0 +1,209 @@
+"""Mean-square stability and exact closed-loop costs (simulation/stability.py, simulation/moments.py).
+
+References: the second-moment operator built by enumerating every delivery pattern (2^m of them),
+scalar hand formulas, fixed-point sums, and plain sampled loops (within 4 standard errors).
+"""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from packetloss_cvx import InputError, System, closed_form, load_example
+from packetloss_cvx.simulation import (
+    closed_loop,
+    finite_horizon_costs,
+    is_mean_square_stable,
+    law_cost_to_go,
+    mean_square_radius,
+    stationary_second_moment,
+)
+
+
+def enumerated_operator(A, B, K, mu):
+    """E[(A - B V K) ⊗ (A - B V K)] over all 2^m delivery patterns: independent of the closed form."""
+    out = np.zeros((A.shape[0] ** 2,) * 2)
+    for v in itertools.product((0, 1), repeat=len(mu)):
+        p = np.prod([m if bit else 1 - m for bit, m in zip(v, mu, strict=True)])
+        F = A - B @ np.diag(v) @ K
+        out += p * np.kron(F, F)
+    return out
+
+
+def random_law(rng, n, m, scale=0.3):
+    A = rng.normal(size=(n, n)) / np.sqrt(n)
+    B = rng.normal(size=(n, m))
+    K = rng.normal(size=(m, n)) * scale
+    return A, B, K, rng.uniform(0.05, 1.0, m)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_radius_matches_enumerated_kronecker(seed):
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(1, 6)), int(rng.integers(1, 4))
+    A, B, K, mu = random_law(rng, n, m)
+    reference = float(np.max(np.abs(np.linalg.eigvals(enumerated_operator(A, B, K, mu)))))
+    assert mean_square_radius(A, B, K, mu, method="kronecker") == pytest.approx(reference, rel=1e-10)
+    if n >= 3:
+        assert mean_square_radius(A, B, K, mu, method="krylov") == pytest.approx(reference, rel=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_krylov_matches_kronecker_at_n_25(seed):
+    A, B, K, mu = random_law(np.random.default_rng(10 + seed), 25, 3, scale=0.2)
+    assert mean_square_radius(A, B, K, mu, "krylov") == pytest.approx(mean_square_radius(A, B, K, mu, "kronecker"),
+                                                                       rel=1e-10)
+
+
+def test_scalar_radius_hand_formula():
+    a, k, mu = 1.5, 1.0, 0.3
+    assert mean_square_radius([[a]], [[1.0]], [[k]], [mu]) == pytest.approx((a - mu * k) ** 2 + mu * (1 - mu) * k ** 2)
+
+
+def test_bad_shapes_are_named():
+    with pytest.raises(InputError, match="gain"):
+        mean_square_radius(np.eye(2), np.ones((2, 1)), np.ones((2, 2)), [0.5])
+    with pytest.raises(InputError, match="mu"):
+        mean_square_radius(np.eye(2), np.ones((2, 1)), np.ones((1, 2)), [1.5])
+
+
+def test_stationary_moment_and_cost_to_go_against_fixed_point_sums():
+    rng = np.random.default_rng(3)
+    for n in (3, 32):   # dense LU and GMRES
+        A, B, K, mu = random_law(rng, n, 2, scale=0.1)
+        A *= 0.8 / max(1e-9, mean_square_radius(A, B, K, mu)) ** 0.5
+        F = rng.normal(size=(n, n))
+        Sigma = F @ F.T / n
+        S = stationary_second_moment(A, B, K, mu, Sigma)
+        term, total = Sigma.copy(), Sigma.copy()
+        Lmat = enumerated_operator(A, B, K, mu) if n <= 4 else None
+        for _ in range(400):   # sum_k L^k(Sigma), radius <= 0.8
+            Abar = A - B @ np.diag(mu) @ K
+            c = mu * (1 - mu) * np.einsum("ij,jk,ik->i", K, term, K)
+            term = Abar @ term @ Abar.T + B @ np.diag(c) @ B.T
+            total += term
+        assert np.allclose(S, total, rtol=1e-9, atol=1e-12 * np.abs(total).max())
+        if Lmat is not None:
+            assert np.allclose(S.ravel(), np.linalg.solve(np.eye(n * n) - Lmat, Sigma.ravel()), rtol=1e-10)
+        Omega, psi = np.eye(n), np.ones(2)
+        P = law_cost_to_go(A, B, K, mu, Omega, psi)
+        # duality: tr(P Sigma) = tr((Omega + K'M Psi K) S)
+        assert np.sum(P * Sigma) == pytest.approx(np.sum((Omega + K.T @ np.diag(mu * psi) @ K) * S), rel=1e-9)
+
+
+def test_pendulum_loops_are_not_mean_square_stable(pendulum):
+    for p in ("tcp", "udp"):
+        loop = closed_loop(pendulum, closed_form(pendulum, p).gain, p)
+        assert not loop.stable
+        assert loop.spectral_radius > 1
+        assert loop.average_stage_cost == np.inf
+        assert "not mean-square stable" in loop.reason
+
+
+def test_non_stationary_channel_is_refused():
+    s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0],
+               mu_schedule=[[0.5], [0.9]], x0=[1.0])
+    with pytest.raises(InputError, match="mu_schedule"):
+        closed_loop(s, [[0.5]])
+
+
+def sampled_stage_costs(system, K, steps, samples, seed):
+    """A plain sampled loop (one array op per step): per-run mean stage cost over t < steps."""
+    rng = np.random.default_rng(seed)
+    Omega, psi, mu = system.state_weights[0], system.input_weights[0], system.mu
+    L = np.linalg.cholesky(system.noise_cov + 1e-300 * np.eye(system.n)) if system.noise_cov.any() else None
+    X = np.repeat(system.x0[None], samples, axis=0)
+    total = np.zeros(samples)
+    for _ in range(steps):
+        V = rng.random((samples, system.m)) < mu
+        applied = V * (-X @ K.T)
+        total += np.einsum("si,ij,sj->s", X, Omega, X) + np.sum(psi * applied ** 2, axis=1)
+        X = X @ system.A.T + applied @ system.B.T
+        if L is not None:
+            X = X + rng.standard_normal((samples, system.n)) @ L.T
+    return total / steps
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_exact_finite_cost_against_sampling(two_actuator, protocol):
+    s = System(A=two_actuator.A, B=two_actuator.B, horizon=two_actuator.horizon, state_weight=[1.0, 1.0],
+               input_weight=[1.0, 1.0], mu=[0.9, 0.5], x0=[1.0, -1.0], noise_cov=[[0.2, 0.05], [0.05, 0.1]])
+    K = closed_form(s, protocol).gain
+    steps, samples = 30, 40000
+    stage, _ = finite_horizon_costs(s, K, steps)
+    sampled = sampled_stage_costs(s, K, steps, samples, seed=7)
+    se = sampled.std(ddof=1) / np.sqrt(samples)
+    assert abs(sampled.mean() - stage.mean()) < 4 * se
+    # long horizons approach the stationary cost, computed by a linear solve
+    long, _ = finite_horizon_costs(s, K, 400)
+    assert long[-1] == pytest.approx(closed_loop(s, K).average_stage_cost, rel=1e-9)
+
+
+def test_verdict_against_sampling_stable_and_unstable():
+    a = 1.5
+    base = System(A=[[a]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.3], x0=[1.0])
+    K = np.array([[1.0]])
+    unstable = closed_loop(base, K)                  # (1.5 - 0.3)^2 + 0.21 = 1.65
+    stable = closed_loop(base.with_mu([0.9]), K)     # (0.6)^2 + 0.09 = 0.45
+    assert unstable.spectral_radius == pytest.approx(1.65)
+    assert not unstable.stable
+    assert stable.spectral_radius == pytest.approx(0.45)
+    assert stable.stable
+    rng = np.random.default_rng(0)
+    for loop, system in ((unstable, base), (stable, base.with_mu([0.9]))):
+        x = np.ones(20000)
+        for _ in range(12):
+            x = (a - (rng.random(x.size) < system.mu[0]) * K[0, 0]) * x
+        second = np.mean(x ** 2)
+        se = np.std(x ** 2, ddof=1) / np.sqrt(x.size)
+        assert abs(second - loop.spectral_radius ** 12) < 4 * se   # scalar: E x_t^2 = radius^t
+        assert (second > 1) == (not loop.stable)
+
+
+def test_margin_near_one_is_not_called_stable():
+    assert not is_mean_square_stable(1.0 - 1e-12)
+    assert is_mean_square_stable(0.999)
+    assert not is_mean_square_stable(float("nan"))
+
+
+def test_to_dict_has_no_inf():
+    s = load_example("pendulum")
+    d = closed_loop(s, np.zeros((1, 4))).to_dict()
+    assert d["average_stage_cost"] is None
+    assert d["stable"] is False
+
+
+def test_critical_mu_scalar_fixed_gain_and_redesigned():
+    from packetloss_cvx.simulation import critical_mu
+    a = 2.0
+    s = System(A=[[a]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    # fixed k = a: radius a^2 (1 - mu) < 1 iff mu > 1 - 1/a^2
+    assert critical_mu(s, [[a]]) == pytest.approx(1 - 1 / a ** 2, abs=2e-6)
+    assert critical_mu(s, "dp") == pytest.approx(1 - 1 / a ** 2, abs=2e-6)
+    # a receding-horizon law is one law: it cannot need less than the DP law
+    for p in ("tcp", "udp"):
+        assert critical_mu(s, p) >= 1 - 1 / a ** 2 - 1e-6
+    assert critical_mu(s, [[0.0]]) == np.inf
+
+
+def test_critical_mu_and_finite_costs_reject_bad_input():
+    from packetloss_cvx.simulation import critical_mu
+    s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    with pytest.raises(InputError, match="direction"):
+        critical_mu(s, "dp", direction=[0.0])
+    with pytest.raises(InputError, match="law"):
+        critical_mu(s, "mpc")
+    with pytest.raises(InputError, match="steps"):
+        finite_horizon_costs(s, [[1.0]], 0)
+    with pytest.raises(InputError, match="gains"):
+        finite_horizon_costs(s, np.ones((3, 1, 1)), 4)
+
+
+@pytest.mark.parametrize(("shift", "expected"), [(0.0, 0.0), (1.01, 1.01 ** 2)])
+def test_krylov_on_defective_and_vanishing_operators(shift, expected):
+    """A Jordan block (a chain of integrators) makes the Perron root defective, which Arnoldi resolves only
+    to eps^(1/size): the proven bounds catch it and the exact answer is returned (K = 0: radius rho(A)^2)."""
+    n = 22
+    A = np.diag(np.ones(n - 1), 1) + shift * np.eye(n)
+    B, K, mu = np.ones((n, 2)), np.zeros((2, n)), np.array([0.5, 0.5])
+    assert mean_square_radius(A, B, K, mu, "krylov") == pytest.approx(expected, abs=1e-12)

@@ -1,0 +1,109 @@
+"""The dynamic-programming optimum (simulation/riccati.py) against scipy's DARE, the scalar critical
+probability, the equation as the issue writes it, forward second moments and the receding-horizon laws."""
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_discrete_are
+
+from packetloss_cvx import NumericalError, System, closed_form
+from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.simulation import (
+    closed_loop,
+    dp_finite_horizon,
+    dp_riccati,
+    finite_horizon_costs,
+    law_cost_to_go,
+    mean_square_radius,
+)
+
+
+def issue_residual(P, A, B, mu, Omega, psi):
+    """P - (Omega + A'PA - A'PBM (M Psi + M B'PB M + D(P))^-1 M B'PA), written as the issue does (mu > 0)."""
+    M = np.diag(mu)
+    BPB = B.T @ P @ B
+    D = np.diag(mu * (1 - mu) * np.diag(BPB))
+    H = M @ np.diag(psi) + M @ BPB @ M + D
+    return P - (Omega + A.T @ P @ A - A.T @ P @ B @ M @ np.linalg.solve(H, M @ B.T @ P @ A))
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_equals_scipy_dare_at_mu_one(seed):
+    s = random_system(np.random.default_rng(seed), non_stationary=False, edge_mu=False)
+    s = s.with_mu(np.ones(s.m))
+    dp = dp_riccati(s)
+    P = solve_discrete_are(s.A, s.B, s.state_weights[0], np.diag(s.input_weights[0]))
+    assert np.allclose(dp.cost_to_go, P, rtol=1e-8, atol=1e-10 * np.abs(P).max())
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_solves_the_issue_equation_and_stabilises(seed):
+    s = random_system(np.random.default_rng(100 + seed), non_stationary=False, edge_mu=False)
+    dp = dp_riccati(s)
+    r = issue_residual(dp.cost_to_go, s.A, s.B, s.mu, s.state_weights[0], s.input_weights[0])
+    assert np.abs(r).max() <= 1e-9 * np.abs(dp.cost_to_go).max()
+    assert dp.spectral_radius < 1
+    assert dp.spectral_radius == pytest.approx(mean_square_radius(s.A, s.B, dp.gain, s.mu))
+
+
+@pytest.mark.parametrize("a", [1.2, 2.0, 3.0])
+def test_scalar_critical_probability(a):
+    critical = 1 - 1 / a ** 2
+
+    def system(mu):
+        return System(A=[[a]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[0.5], mu=[mu], x0=[1.0])
+    dp = dp_riccati(system(critical + 0.01))
+    assert dp.spectral_radius < 1
+    with pytest.raises(NumericalError, match="no stabilising solution"):
+        dp_riccati(system(critical - 0.01))
+    # no gain at all stabilises below it: min_k (a - mu k)^2 + mu (1 - mu) k^2 = a^2 (1 - mu) at k = a
+    mu = critical - 0.01
+    assert min(mean_square_radius([[a]], [[1.0]], [[k]], [mu]) for k in np.linspace(0, 2 * a, 401)) > 1
+
+
+def test_unobserved_unstable_mode_has_no_stabilising_solution():
+    s = System(A=[[1.5, 0], [0, 0.5]], B=[[0.0], [1.0]], horizon=2, state_weight=[0.0, 1.0],
+               input_weight=[1.0], mu=[0.9], x0=[1.0, 1.0])
+    with pytest.raises(NumericalError, match="stabilising"):
+        dp_riccati(s)
+
+
+def test_dp_no_worse_than_receding_horizon_laws_on_random_systems():
+    rng = np.random.default_rng(2026)
+    compared = 0
+    for _ in range(300):
+        s = random_system(rng, non_stationary=False)
+        try:
+            dp = dp_riccati(s)
+        except NumericalError:
+            continue   # no stabilising law exists: every law has infinite cost
+        for p in ("tcp", "udp"):
+            loop = closed_loop(s, closed_form(s, p, method="recursion").gain)
+            if not loop.stable:
+                continue
+            gap = np.linalg.eigvalsh(loop.cost_to_go - dp.cost_to_go).min()   # P_K - P >= 0
+            assert gap >= -1e-9 * np.abs(dp.cost_to_go).max()
+            assert loop.average_stage_cost >= dp.average_stage_cost * (1 - 1e-9)
+            compared += 1
+    assert compared > 300
+
+
+def test_finite_horizon_cost_equals_forward_moments_and_beats_other_gains():
+    s = random_system(np.random.default_rng(5), n=3, m=2, non_stationary=False, noise=True, spectral_radius=1.1)
+    T = 25
+    gains, P0, cost = dp_finite_horizon(s, T)
+    stage, terminal = finite_horizon_costs(s, gains, T)
+    assert stage.sum() + terminal == pytest.approx(cost, rel=1e-10)
+    stationary = dp_riccati(s).gain
+    for K in (stationary, stationary * 1.05, closed_form(s, "udp").gain):
+        other, term = finite_horizon_costs(s, K, T)
+        assert other.sum() + term >= cost * (1 - 1e-12)
+    # the time-varying gains approach the stationary one far from the end
+    long, _, _ = dp_finite_horizon(s, 300)
+    assert np.allclose(long[0], stationary, rtol=1e-8, atol=1e-10)
+
+
+def test_policy_cost_to_go_of_dp_gain_is_its_solution(two_actuator):
+    dp = dp_riccati(two_actuator)
+    P = law_cost_to_go(two_actuator.A, two_actuator.B, dp.gain, two_actuator.mu, two_actuator.state_weights[0],
+                       two_actuator.input_weights[0])
+    assert np.allclose(P, dp.cost_to_go, rtol=1e-10)
