@@ -64,3 +64,11 @@ def test_bad_dask_argument(two_actuator, dask):
     with pytest.raises(pl.InputError) as info:
         sweep(two_actuator, mu_grid=2, dask=dask, progress=False)
     assert info.value.field == "dask"
+
+
+def test_stability_on_dask_is_bit_identical(cluster, two_actuator):
+    here = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, progress=False)
+    there = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, dask=cluster.scheduler_address,
+                  progress=False)
+    _same(here, there)
+    assert "radius_tcp" in there.arrays()

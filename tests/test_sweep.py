@@ -163,3 +163,47 @@ def test_cli_bad_input_exit_2_naming_the_flag(capsys, tmp_path, monkeypatch, arg
     err = capsys.readouterr().err
     assert err.count("\n") == 1
     assert f"error: {flag}:" in err
+
+
+def _kronecker_radius(A, B, K, mu):
+    """Independent reference: vec E[x x'] evolves by kron(Abar, Abar) + sum_i mu_i (1 - mu_i) kron(b_i k_i, b_i k_i)."""
+    Abar = A - B @ np.diag(mu) @ K
+    L = np.kron(Abar, Abar)
+    for i in range(len(mu)):
+        bk = np.outer(B[:, i], K[i])
+        L = L + mu[i] * (1 - mu[i]) * np.kron(bk, bk)
+    return float(np.max(np.abs(np.linalg.eigvals(L))))
+
+
+def test_stability_column_against_the_kronecker_matrix_and_sampling(two_actuator):
+    result = sweep(two_actuator, mu_list=[[0.25, 0.0], [0.9, 0.5], [1.0, 1.0]], stability=True, progress=False)
+    assert sorted(result.radii) == ["tcp", "udp"]
+    for k, mu in enumerate(result.mu):
+        for p in ("tcp", "udp"):
+            K = pl.closed_form(two_actuator.with_mu(mu), p).gain
+            assert result.radii[p][k] == pytest.approx(_kronecker_radius(two_actuator.A, two_actuator.B, K, mu),
+                                                       rel=1e-10)
+    # at mu = (1, 1) both laws are the nominal one and the radius is rho(A - B K)^2
+    K = pl.closed_form(two_actuator.with_mu([1.0, 1.0]), "tcp").gain
+    rho = max(abs(np.linalg.eigvals(two_actuator.A - two_actuator.B @ K)))
+    assert result.radii["tcp"][2] == pytest.approx(rho**2, rel=1e-10)
+    # at (0.25, 0) the TCP-like law is mean-square unstable: E||x_t||^2 grows like radius^t when sampled
+    rng = np.random.default_rng(0)
+    K = pl.closed_form(two_actuator.with_mu([0.25, 0.0]), "tcp").gain
+    x = np.tile([1.0, 1.0], (20000, 1))
+    second = []
+    for _ in range(12):
+        v = rng.random((20000, 2)) < [0.25, 0.0]
+        x = x @ two_actuator.A.T - ((x @ K.T) * v) @ two_actuator.B.T
+        second.append(np.mean(np.sum(x**2, axis=1)))
+    assert second[-1] / second[-2] == pytest.approx(result.radii["tcp"][0], rel=0.1)
+    assert result.radii["tcp"][0] > 1
+
+
+def test_stability_in_the_files_and_on_the_command_line(two_actuator, tmp_path, capsys):
+    result = sweep(two_actuator, mu_grid=3, stability=True, progress=False)
+    with np.load(save_sweep(result, tmp_path / "s")["npz"]) as npz:
+        assert np.array_equal(npz["radius_udp"], result.radii["udp"])
+    assert main(["sweep", "two_actuator", "--mu-grid", "3", "--stability", "--json", "--quiet"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["radius_tcp"]["max"] == pytest.approx(float(np.max(result.radii["tcp"])), rel=1e-12)

@@ -227,6 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--out", metavar="DIR",
                      help="write sweep.npz, sweep.csv and a figure into DIR (default: none), e.g. --out sweep-out")
     swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs the xarray extra)")
+    swp.add_argument("--stability", action="store_true",
+                     help="also each law's mean-square spectral radius in closed loop (radius_tcp, radius_udp)")
     swp.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
 
     rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",

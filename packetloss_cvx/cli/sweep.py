@@ -12,6 +12,7 @@ from ..errors import InputError
 from ..io import load_system
 from ..plots import plot_cost_lines, plot_log_contour
 from ..results import DesignSweep
+from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, save_sweep, sweep
 from .common import CommandResult, floats
 
@@ -93,6 +94,11 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
         name = "J_Delta" if key == "diff" else f"J*_{key}"
         at = ", ".join(f"{d} = {v:.6g}" for d, v in where.items())
         lines.append(f"  {name}: min {np.min(values):.6g}, max {np.max(values):.6g} at {at}")
+    for p, radii in result.radii.items():
+        stable = int(sum(is_mean_square_stable(r) for r in radii))
+        data[f"radius_{p}"] = {"min": float(np.min(radii)), "max": float(np.max(radii)), "stable_points": stable}
+        lines.append(f"  {p.upper()}-like law in closed loop: mean-square radius {np.min(radii):.4g} to "
+                     f"{np.max(radii):.4g}; proved stable at {stable} of {radii.size} points")
     return data, lines
 
 
@@ -103,7 +109,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     try:
         options = _options(args, system.m)
         result = sweep(system, protocols=protocols, shared=args.shared, chunk_size=args.chunk_size,
-                       dask=args.dask, workers=args.workers, progress=False if args.quiet else None, **options)
+                       dask=args.dask, workers=args.workers, stability=args.stability,
+                       progress=False if args.quiet else None, **options)
         data, lines = _summary(result)
         if args.out is not None:
             out = Path(args.out)

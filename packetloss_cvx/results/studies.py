@@ -3,7 +3,7 @@ and minimum costs."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -203,7 +203,9 @@ class DesignSweep:
     ``costs``: protocol -> J* (P,); ``difference``: J*_udp - J*_tcp (P,) or None, the difference of
     the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 J*_udp
     absolute (so not relatively where the costs nearly agree); ``name``: the system's;
-    ``chunk_size``: points per batched evaluation (in process or per Dask task).
+    ``chunk_size``: points per batched evaluation (in process or per Dask task); ``radii``: protocol ->
+    the mean-square spectral radius of its receding-horizon law's closed loop at each point (P,), when
+    asked for (stable iff < 1), else empty.
     """
 
     kind: str
@@ -216,11 +218,13 @@ class DesignSweep:
     difference: np.ndarray | None
     name: str | None
     chunk_size: int
+    radii: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         freeze(self)
         object.__setattr__(self, "axes", tuple(read_only(a) for a in self.axes))
         object.__setattr__(self, "costs", {k: read_only(v) for k, v in self.costs.items()})
+        object.__setattr__(self, "radii", {k: read_only(v) for k, v in self.radii.items()})
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -228,10 +232,12 @@ class DesignSweep:
         return tuple(a.size for a in self.axes)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Flat arrays as ``sweep.npz`` stores them: mu, x0, horizon, cost_<protocol>, cost_diff, axis_<dim>. O(P)."""
+        """Flat arrays as ``sweep.npz`` stores them: mu, x0, horizon, cost_<protocol>, cost_diff,
+        radius_<protocol>, axis_<dim>. O(P)."""
         out = {"mu": self.mu, "x0": self.x0, "horizon": self.horizon, **{f"cost_{p}": v for p, v in self.costs.items()}}
         if self.difference is not None:
             out["cost_diff"] = self.difference
+        out.update({f"radius_{p}": v for p, v in self.radii.items()})
         return {**out, **{f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)}}
 
     def to_dict(self) -> dict[str, Any]:

@@ -165,7 +165,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
           shared: bool = False, mu_list: Any = None, x0_scales: Sequence[float] | None = None,
           horizons: Sequence[int] | None = None, protocols: Sequence[str] = PROTOCOLS,
           chunk_size: int = DEFAULT_CHUNK, dask: Any = None, workers: int | None = None,
-          progress: bool | None = None) -> DesignSweep:
+          stability: bool = False, progress: bool | None = None) -> DesignSweep:
     """J*_tcp, J*_udp and J_Delta = J*_udp - J*_tcp over one design study.
 
     Parameters
@@ -191,6 +191,9 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
         Where to evaluate the chunks; None: in this process. Same numbers either way.
     workers : int, optional
         Workers of ``dask="local"`` (default 2).
+    stability : bool
+        Also each protocol's receding-horizon law's mean-square spectral radius at each point (its
+        closed loop over the point's channel is mean-square stable iff the radius < 1).
     progress : bool or None
         A progress bar on stderr (None: when stderr is a terminal).
 
@@ -200,7 +203,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
 
     Notes
     -----
-    O(P N (n^3 + m^3)) for P points; memory O(P (m + n)).
+    O(P N (n^3 + m^3)) for P points, plus O(P n^6) with ``stability``; memory O(P (m + n)).
 
     Examples
     --------
@@ -239,9 +242,11 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
     work = chunks(mu, x0, horizon, size)
     data = system.to_dict()
     if dask is None:
-        costs = run_in_process(data, protocols, work, progress)
+        columns = run_in_process(data, protocols, work, progress, stability)
     else:
-        costs = run_on_dask(data, protocols, work, dask, workers, progress)
+        columns = run_on_dask(data, protocols, work, dask, workers, progress, stability)
+    costs = {p: columns[f"cost_{p}"] for p in protocols}
+    radii = {p: columns[f"radius_{p}"] for p in protocols} if stability else {}
     difference = _difference(costs, mu) if set(protocols) == set(PROTOCOLS) else None
     return DesignSweep(kind=kind, dims=dims, axes=axes, mu=mu, x0=x0, horizon=horizon, costs=costs,
-                       difference=difference, name=system.name, chunk_size=size)
+                       difference=difference, name=system.name, chunk_size=size, radii=radii)

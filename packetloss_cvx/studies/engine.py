@@ -20,6 +20,7 @@ from ..errors import InputError
 from ..evaluator import CostEvaluator
 from ..io import system_from_dict
 from ..progress import progress_bar
+from ..simulation.stability import mean_square_radius
 
 __all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "chunks", "evaluate_chunk", "run_in_process", "run_on_dask"]
 
@@ -39,8 +40,8 @@ def chunks(mu: np.ndarray, x0: np.ndarray, horizon: np.ndarray, size: int) -> li
 
 
 def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np.ndarray, x0: np.ndarray,
-                   horizon: np.ndarray) -> dict[str, np.ndarray]:
-    """J* of each protocol at each point of one chunk.
+                   horizon: np.ndarray, stability: bool = False) -> dict[str, np.ndarray]:
+    """J* of each protocol at each point of one chunk (and the mean-square radius of its law).
 
     Parameters
     ----------
@@ -51,11 +52,15 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     mu : ndarray, shape (P, m)
     x0 : ndarray, shape (P, n)
     horizon : ndarray of int, shape (P,)
+    stability : bool
+        Also the spectral radius of the second-moment operator of each protocol's receding-horizon
+        law ``u = -K x`` run in closed loop over the point's channel
+        (:func:`~packetloss_cvx.simulation.stability.mean_square_radius`; mean-square stable iff < 1).
 
     Returns
     -------
     dict
-        Protocol -> costs, shape (P,).
+        ``"cost_<protocol>"`` -> costs, shape (P,); with ``stability``, ``"radius_<protocol>"`` too.
 
     Notes
     -----
@@ -64,12 +69,20 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     takes the dense path (it picks the faster exact path, by N, m and the batch's size).
     """
     base = system_from_dict(system_data)
-    out = {p: np.empty(len(mu)) for p in protocols}
+    names = [f"{what}_{p}" for p in protocols for what in (("cost", "radius") if stability else ("cost",))]
+    out = {name: np.empty(len(mu)) for name in names}
     for N in np.unique(horizon):
         idx = np.flatnonzero(horizon == N)
         system = base if N == base.horizon else _with_horizon(base, system_data, int(N))
         for p in protocols:
-            out[p][idx] = CostEvaluator(system, p).costs(mu[idx], x0[idx])
+            evaluator = CostEvaluator(system, p)
+            if not stability:
+                out[f"cost_{p}"][idx] = evaluator.costs(mu[idx], x0[idx])
+                continue
+            batch = evaluator.solve(mu[idx], x0[idx])
+            out[f"cost_{p}"][idx] = batch.costs
+            out[f"radius_{p}"][idx] = [mean_square_radius(system.A, system.B, K, point)
+                                       for K, point in zip(batch.gains, mu[idx], strict=True)]
     return out
 
 
@@ -79,23 +92,24 @@ def _with_horizon(base, system_data: dict[str, Any], horizon: int):
     return system_from_dict(data)
 
 
-def _assemble(parts: list[dict[str, np.ndarray]], protocols: Sequence[str]) -> dict[str, np.ndarray]:
-    return {p: np.concatenate([part[p] for part in parts]) for p in protocols}
+def _assemble(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
 
 
 def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk],
-                   progress: bool | None = None) -> dict[str, np.ndarray]:
+                   progress: bool | None = None, stability: bool = False) -> dict[str, np.ndarray]:
     """Every chunk here, in order. O(P N (n^3 + m^3))."""
     parts = []
     with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep", progress=progress) as bar:
         for chunk in work:
-            parts.append(evaluate_chunk(system_data, protocols, *chunk))
+            parts.append(evaluate_chunk(system_data, protocols, *chunk, stability))
             bar.update(len(chunk[0]))
-    return _assemble(parts, protocols)
+    return _assemble(parts)
 
 
 def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk], dask: Any,
-                workers: int | None = None, progress: bool | None = None) -> dict[str, np.ndarray]:
+                workers: int | None = None, progress: bool | None = None,
+                stability: bool = False) -> dict[str, np.ndarray]:
     """Every chunk as one Dask task; results put back in chunk order.
 
     Parameters
@@ -133,7 +147,8 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
             client = dask
         else:
             raise InputError("dask", f"expected 'local', a scheduler address or a Client, found {dask!r}")
-        futures = [client.submit(evaluate_chunk, system_data, tuple(protocols), *chunk, pure=False) for chunk in work]
+        futures = [client.submit(evaluate_chunk, system_data, tuple(protocols), *chunk, stability, pure=False)
+                   for chunk in work]
         order = {f.key: k for k, f in enumerate(futures)}
         parts: list[dict[str, np.ndarray] | None] = [None] * len(work)
         with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress) as bar:
@@ -141,7 +156,7 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
                 k = order[future.key]
                 parts[k] = future.result()      # a worker's error is raised here with its own type
                 bar.update(len(work[k][0]))
-        return _assemble(parts, protocols)      # type: ignore[arg-type]
+        return _assemble(parts)      # type: ignore[arg-type]
     finally:
         for thing in owned:
             thing.close()

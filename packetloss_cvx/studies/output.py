@@ -15,10 +15,12 @@ __all__ = ["csv_header", "save_sweep"]
 
 
 def csv_header(result: DesignSweep) -> list[str]:
-    """The CSV's columns: mu1..mum, x0_1..x0_n, horizon, then cost_tcp, cost_udp, cost_diff (those computed)."""
+    """The CSV's columns: mu1..mum, x0_1..x0_n, horizon, then cost_tcp, cost_udp, cost_diff, radius_tcp,
+    radius_udp (those computed)."""
     m, n = result.mu.shape[1], result.x0.shape[1]
     costs = [f"cost_{p}" for p in result.costs] + (["cost_diff"] if result.difference is not None else [])
-    return [f"mu{i + 1}" for i in range(m)] + [f"x0_{i + 1}" for i in range(n)] + ["horizon"] + costs
+    radii = [f"radius_{p}" for p in result.radii]
+    return [f"mu{i + 1}" for i in range(m)] + [f"x0_{i + 1}" for i in range(n)] + ["horizon"] + costs + radii
 
 
 def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> dict[str, Path]:
@@ -46,6 +48,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
         columns = [result.mu, result.x0, result.horizon[:, None]] + [v[:, None] for v in result.costs.values()]
         if result.difference is not None:
             columns.append(result.difference[:, None])
+        columns += [v[:, None] for v in result.radii.values()]
         table = np.hstack([np.asarray(c, dtype=float) for c in columns])
         with open(paths["csv"], "w", newline="") as handle:
             writer = csv.writer(handle)
