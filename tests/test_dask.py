@@ -42,6 +42,14 @@ def test_dask_client_and_other_sweeps(cluster, pendulum):
                   sweep(pendulum, chunk_size=2, dask=client, progress=False, **kwargs))
 
 
+def test_stability_on_dask_is_bit_identical(cluster, two_actuator):
+    here = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, progress=False)
+    there = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, dask=cluster.scheduler_address,
+                  progress=False)
+    _same(here, there)
+    assert "radius_tcp" in there.arrays()
+
+
 def test_a_worker_error_keeps_its_type(cluster):
     # badly scaled weights: every closed form refuses them (NumericalError), on the worker as here
     s = pl.System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1e12], input_weight=[1e-6], mu=[0.5], x0=[1.0])
@@ -59,16 +67,9 @@ def test_workers_only_with_a_local_cluster(cluster, two_actuator):
         sweep(two_actuator, mu_grid=2, dask=cluster.scheduler_address, workers=3, progress=False)
 
 
-@pytest.mark.parametrize("dask", [3, "local-ish"])
+@pytest.mark.parametrize("dask", [3, "local-ish", "no address"])
 def test_bad_dask_argument(two_actuator, dask):
     with pytest.raises(pl.InputError) as info:
         sweep(two_actuator, mu_grid=2, dask=dask, progress=False)
     assert info.value.field == "dask"
 
-
-def test_stability_on_dask_is_bit_identical(cluster, two_actuator):
-    here = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, progress=False)
-    there = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, dask=cluster.scheduler_address,
-                  progress=False)
-    _same(here, there)
-    assert "radius_tcp" in there.arrays()

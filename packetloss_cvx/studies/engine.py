@@ -11,6 +11,7 @@ bit. Dask is optional (the ``distributed`` extra) and imported only when asked f
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -138,6 +139,9 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
             client = Client(cluster)
             owned.insert(0, client)
         elif isinstance(dask, str):
+            if not re.fullmatch(r"[a-z]+://\S+|[\w.-]+:\d+", dask):
+                raise InputError("dask", f"expected 'local' or a scheduler address such as tcp://host:8786, "
+                                         f"found {dask!r}")
             try:
                 client = Client(dask, timeout="10s")
             except (OSError, TimeoutError, ValueError) as err:
