@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .channel import GilbertElliott, channel_schedule
 from .errors import DimensionError, InputError, ProbabilityError
 from .tolerances import PSD_RTOL, SYMMETRY_RTOL
 
@@ -204,8 +205,8 @@ class System:
         or N such weights for t = 1..N. Exactly one is given.
     input_weight, input_weights : array_like
         Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
-    mu, mu_schedule : array_like
-        Delivery probabilities in [0, 1]: one per actuator, or N×m (non-stationary).
+    mu, mu_schedule, channel : array_like, or a channel.GilbertElliott (or its TOML table)
+        Delivery probabilities in [0, 1]: one per actuator, N×m (non-stationary), or a Markov channel's mu_t.
     x0 : array_like
         The state X_k (length n).
     initial_weight : array_like, optional
@@ -229,7 +230,7 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name",
+        "x0", "initial_weight", "noise_cov", "name", "channel",
     )
 
     A: np.ndarray
@@ -242,6 +243,7 @@ class System:
     initial_weight: np.ndarray
     noise_cov: np.ndarray
     name: str | None
+    channel: GilbertElliott | None
 
     def __init__(
         self,
@@ -259,6 +261,7 @@ class System:
         initial_weight: npt.ArrayLike | None = None,
         noise_cov: npt.ArrayLike | None = None,
         name: str | None = None,
+        channel: Any = None,
     ) -> None:
         A_ = _matrix(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
@@ -289,6 +292,7 @@ class System:
         if np.any(psi <= 0):
             raise InputError(psi_field, "expected positive entries (Psi is positive definite)")
 
+        chan, mu_schedule = channel_schedule(channel, m, N, mu, mu_schedule)
         _one_of(mu, mu_schedule, ("mu", "mu_schedule"))
         if mu is not None:
             sched = np.repeat(_probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")[None], N, axis=0)
@@ -310,7 +314,7 @@ class System:
             ("A", _frozen(A_)), ("B", _frozen(B_)), ("horizon", N),
             ("state_weights", _frozen(W)), ("input_weights", _frozen(psi)),
             ("mu_schedule", _frozen(sched)), ("x0", _frozen(x0_)),
-            ("initial_weight", _frozen(Q)), ("noise_cov", _frozen(Sigma)), ("name", name),
+            ("initial_weight", _frozen(Q)), ("noise_cov", _frozen(Sigma)), ("name", name), ("channel", chan),
         ):
             object.__setattr__(self, key, value)
 
@@ -351,14 +355,14 @@ class System:
         return new
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
-        """A copy with new delivery probabilities: an m-vector or an N×m schedule."""
+        """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel)."""
         N, m = self.horizon, self.m
         if np.ndim(mu) == 2:
             sched = _probabilities(_matrix(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         else:
             vec = _probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")
             sched = np.repeat(vec[None], N, axis=0)
-        return self._copy_with(mu_schedule=_frozen(sched))
+        return self._copy_with(mu_schedule=_frozen(sched), channel=None)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
         """A copy with a new initial state."""
@@ -379,7 +383,7 @@ class System:
         else:
             cost["input_weights"] = self.input_weights.tolist()
         cost["initial_weight"] = weight(self.initial_weight)
-        channel = (
+        channel = self.channel.to_dict() if self.channel is not None else (
             {"mu": self.mu_schedule[0].tolist()} if self.is_stationary
             else {"mu_schedule": self.mu_schedule.tolist()}
         )

@@ -16,9 +16,9 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
-    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress"},
+    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "channel"},
     {"prediction", "recursion", "costs", "convex", "qp", "random_systems"},
-    {"analysis", "allocation", "simulation", "studies"},
+    {"analysis", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},
 ]
