@@ -1,0 +1,25 @@
+"""Gilbert–Elliott (Markov) channels end to end: prediction from the chain, the exact expected cost
+under correlated losses and its minimisers (closed form and QP), Markov jump linear systems, and
+burstiness sweeps. One job per module; the channel description itself is :mod:`packetloss_cvx.channel`.
+
+    chain.py       beliefs, the HMM filter, plug-in schedules, R = E[v v'] in O(N^2 m)
+    exact_cost.py  E[cost] of a plan under correlated losses, its closed-form minimiser
+    qp.py          the same minimisation as a cvxpy + Clarabel QP, cross-checked
+"""
+
+from .chain import (
+    attach_channel,
+    channel_covariance,
+    filter_belief,
+    plugin_schedule,
+    plugin_system,
+    second_moments,
+    stacked_moments,
+)
+from .exact_cost import correlation_term, exact_closed_form, exact_cost, exact_hessian
+from .qp import exact_qp
+
+__all__ = [
+    "attach_channel", "channel_covariance", "correlation_term", "exact_closed_form", "exact_cost", "exact_hessian",
+    "exact_qp", "filter_belief", "plugin_schedule", "plugin_system", "second_moments", "stacked_moments",
+]
