@@ -193,7 +193,9 @@ class GilbertElliott:
 
     def beliefs(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """P(S_{i,t} = good) for t = 0..horizon-1 from ``belief`` (default the initial one), (N, m).
-        b_{t+1} = r + lambda b_t. Time O(N m)."""
+        b_{t+1} = r + lambda b_t (constant from the stationary distribution). Time O(N m)."""
+        if belief is None and self.belief is None:      # stationary: exactly constant (no drift by rounding)
+            return np.repeat(self.stationary[None], horizon, axis=0)
         b = np.array(self.initial_belief if belief is None else belief, dtype=float)
         out = np.empty((horizon, self.m))
         for t in range(horizon):

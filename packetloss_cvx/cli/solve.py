@@ -13,6 +13,7 @@ from ..io import load_system
 from ..qp import solve_qp
 from ..results import eigenvalue_pairs
 from .common import CommandResult, with_overrides
+from .markov_section import markov_section
 
 __all__ = ["run"]
 
@@ -52,4 +53,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         out[protocol] = entry
         eig = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in sol.closed_loop_eigenvalues)
         lines += [line, f"    K = {np.array2string(sol.gain, precision=4)}", f"    eig(A - B K) = {eig}"]
+    if system.channel is not None:   # Gilbert-Elliott: the exact minimiser under the chain beside the plug-in laws
+        out["markov"], more = markov_section(system, protocols, qp=not args.no_qp)
+        lines += more
     return CommandResult(out, "\n".join(lines))

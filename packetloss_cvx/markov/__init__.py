@@ -5,6 +5,7 @@ burstiness sweeps. One job per module; the channel description itself is :mod:`p
     chain.py       beliefs, the HMM filter, plug-in schedules, R = E[v v'] in O(N^2 m)
     exact_cost.py  E[cost] of a plan under correlated losses, its closed-form minimiser
     qp.py          the same minimisation as a cvxpy + Clarabel QP, cross-checked
+    compare.py     plug-in laws against the exact minimiser, per protocol; bursty twins of a system
 """
 
 from .chain import (
@@ -16,10 +17,12 @@ from .chain import (
     second_moments,
     stacked_moments,
 )
+from .compare import bursty_twin, markov_solution
 from .exact_cost import correlation_term, exact_closed_form, exact_cost, exact_hessian
 from .qp import exact_qp
 
 __all__ = [
-    "attach_channel", "channel_covariance", "correlation_term", "exact_closed_form", "exact_cost", "exact_hessian",
-    "exact_qp", "filter_belief", "plugin_schedule", "plugin_system", "second_moments", "stacked_moments",
+    "attach_channel", "bursty_twin", "channel_covariance", "correlation_term", "exact_closed_form", "exact_cost",
+    "exact_hessian", "exact_qp", "filter_belief", "markov_solution", "plugin_schedule", "plugin_system",
+    "second_moments", "stacked_moments",
 ]
