@@ -6,6 +6,7 @@ burstiness sweeps. One job per module; the channel description itself is :mod:`p
     exact_cost.py  E[cost] of a plan under correlated losses, its closed-form minimiser
     qp.py          the same minimisation as a cvxpy + Clarabel QP, cross-checked
     compare.py     plug-in laws against the exact minimiser, per protocol; bursty twins of a system
+    mjls.py        the loop as a Markov jump linear system: mean-square radius, coupled Riccati gains
 """
 
 from .chain import (
@@ -19,10 +20,11 @@ from .chain import (
 )
 from .compare import bursty_twin, markov_solution
 from .exact_cost import correlation_term, exact_closed_form, exact_cost, exact_hessian
+from .mjls import coupled_riccati, mean_square_radius, mode_chain, second_moment_operator
 from .qp import exact_qp
 
 __all__ = [
-    "attach_channel", "bursty_twin", "channel_covariance", "correlation_term", "exact_closed_form", "exact_cost",
-    "exact_hessian", "exact_qp", "filter_belief", "markov_solution", "plugin_schedule", "plugin_system",
-    "second_moments", "stacked_moments",
+    "attach_channel", "bursty_twin", "channel_covariance", "correlation_term", "coupled_riccati", "exact_closed_form",
+    "exact_cost", "exact_hessian", "exact_qp", "filter_belief", "markov_solution", "mean_square_radius", "mode_chain",
+    "plugin_schedule", "plugin_system", "second_moment_operator", "second_moments", "stacked_moments",
 ]
