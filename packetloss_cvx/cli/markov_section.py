@@ -7,8 +7,9 @@ from typing import Any
 
 import numpy as np
 
+from ..costs import closed_form
 from ..errors import NumericalError, ResourceError
-from ..markov import markov_solution
+from ..markov import markov_solution, mean_square_radius
 from ..model import System
 
 __all__ = ["markov_section"]
@@ -16,6 +17,10 @@ __all__ = ["markov_section"]
 
 def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tuple[dict[str, Any], list[str]]:
     """``(data, lines)`` for a system with a Markov channel: JSON under "markov" and the text lines.
+
+    Per protocol: :func:`~packetloss_cvx.markov.markov_solution`, and the mean-square radius of the loop
+    u = -K x behind the chain (a Markov jump linear system) for the plug-in and the exact receding-horizon
+    gains, both computed at the file's belief.
 
     A disagreement of the QP with the closed form (CrossCheckError) propagates; a QP beyond the
     memory budget or the solver's range is reported as skipped.
@@ -35,8 +40,11 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
                 raise
             res, skipped = markov_solution(system, protocol, qp=False), str(err)
         entry = res.to_dict()
+        radii = {"plug_in": mean_square_radius(system.A, system.B, ch, closed_form(system, protocol).gain),
+                 "exact": mean_square_radius(system.A, system.B, ch, res.exact.gain)}
+        entry["mean_square_radius"] = radii
         line = (f"  {protocol.upper()}-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}); plug-in law "
-                f"{res.plugin_cost:.10g} ({100 * res.relative_loss:+.4g}%); E[cost] of the plug-in plan "
+                f"{res.plugin_cost:.10g} ({100 * res.relative_loss:+.4f}%); E[cost] of the plug-in plan "
                 f"{res.plan_expected_cost:.10g}")
         if skipped is not None:
             entry["qp"] = {"status": "skipped", "reason": skipped}
@@ -47,4 +55,7 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
                      f"rel dJ = {check.cost_rel_diff:.2e}")
         data[protocol] = entry
         lines.append(line)
+        lines.append(f"    u = -K x behind the chain (mean-square radius of the switched loop): plug-in "
+                     f"{radii['plug_in']:.6g}{'' if radii['plug_in'] < 1 else ' (not stable)'}, exact "
+                     f"{radii['exact']:.6g}{'' if radii['exact'] < 1 else ' (not stable)'}")
     return data, lines

@@ -41,7 +41,8 @@ def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt
     .. math:: b^+ = \\frac{b\\,h_g^v (1-h_g)^{1-v}}{b\\,h_g^v (1-h_g)^{1-v} + (1-b)\\,h_b^v (1-h_b)^{1-v}},
               \\qquad b_{t+1} = r + (1 - p - r)\\,b^+
 
-    Time O(m). For the Gilbert channel a delivery gives ``1 - p`` and a loss ``r`` (the state is known).
+    Time O(m) per belief; ``belief`` and ``delivered`` may carry leading dimensions (one row per run).
+    For the Gilbert channel a delivery gives ``1 - p`` and a loss ``r`` (the state is known).
 
     Raises
     ------
@@ -56,17 +57,17 @@ def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt
     """
     b = np.asarray(belief, dtype=float)
     v = np.asarray(delivered)
-    if v.shape != (channel.m,) or b.shape != (channel.m,):
-        raise InputError("delivered", f"expected one outcome and one belief per channel ({channel.m}), found "
-                                      f"{v.shape} and {b.shape}")
+    if v.shape != b.shape or b.ndim < 1 or b.shape[-1] != channel.m:
+        raise InputError("delivered", f"expected one outcome and one belief per channel ({channel.m}; leading "
+                                      f"dimensions alike), found {v.shape} and {b.shape}")
     v = v.astype(bool)
     like_good = np.where(v, channel.h_good, 1.0 - channel.h_good)
     like_bad = np.where(v, channel.h_bad, 1.0 - channel.h_bad)
     total = b * like_good + (1.0 - b) * like_bad
     if np.any(total <= 0.0):
-        i = int(np.argmax(total <= 0.0))
-        raise InputError("delivered", f"channel {i}: outcome {'delivered' if v[i] else 'lost'} has probability 0 "
-                                      "under the belief and the channel")
+        i = int(np.argwhere(total <= 0.0)[0][-1])
+        raise InputError("delivered", f"channel {i}: outcome {'delivered' if v[total <= 0.0][0] else 'lost'} has "
+                                      "probability 0 under the belief and the channel")
     posterior = b * like_good / total
     return channel.r + channel.correlation * posterior
 
