@@ -12,7 +12,7 @@ information at the first planned step; without one, the stationary distribution
 ``mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}``, ``b_{t+1} = r + (1 - p - r) b_t``, are the
 schedule a :class:`~packetloss_cvx.model.System` with this channel carries (the "plug-in" mu_t).
 
-TOML (docs/design.md §4, §11): ``[channel] model = "gilbert-elliott"`` with per-channel arrays
+TOML (docs/design.md §4 and "Bursty links"): ``[channel] model = "gilbert-elliott"`` with per-channel arrays
 ``p``, ``r``, optional ``h_good`` (default 1), ``h_bad`` (default 0), and at most one of
 ``state = ["good", "bad"]`` or ``belief = [0.9, 0.2]``.
 

@@ -1,7 +1,7 @@
 """Prediction from Gilbert–Elliott chains: beliefs, the HMM filter, plug-in schedules, and the
 second moments ``R = E[v v']`` of the stacked deliveries.
 
-Notation (docs/design.md §11): channel i has ``lambda_i = 1 - p_i - r_i``, belief
+Notation (docs/design.md, "Bursty links"): channel i has ``lambda_i = 1 - p_i - r_i``, belief
 ``b_{i,t} = P(S_{i,t} = good | information)``, predicted delivery probability
 ``mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}``.
 
