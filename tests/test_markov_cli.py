@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
+from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.claims import CLAIMS
 from packetloss_cvx.claims.context import Context
 from packetloss_cvx.claims.markov import plug_in_markov, plugin_loss
 from packetloss_cvx.cli import main
 from packetloss_cvx.io import dumps_system, system_from_dict
-from packetloss_cvx.markov import exact_closed_form, exact_cost
+from packetloss_cvx.markov import exact_closed_form, exact_cost, markov_solution
 from packetloss_cvx.simulation.markov_channels import sample_markov_plan_costs
 
 
@@ -79,3 +80,20 @@ def test_plug_in_markov_claim_on_a_small_context():
     ce = system_from_dict(result.counterexample)
     np.testing.assert_allclose(ce.channel.correlation, 0.9, rtol=1e-12)
     assert exact_cost(ce, pl.closed_form(ce, "udp").inputs) > exact_closed_form(ce).cost * (1 + 1e-7)
+
+
+def test_audit_checks_a_gilbert_elliott_file_behind_its_own_channel(capsys):
+    code, out, _ = run(capsys, "audit", "pendulum_bursty", "--claim", "plug-in-markov", "--random", "0", "--json")
+    assert code == 0
+    (claim,) = json.loads(out)["claims"]
+    assert claim["outcomes"] == "---"
+    own = markov_solution(pl.load_example("pendulum_bursty"), "udp", qp=False).relative_loss
+    assert own == pytest.approx(0.079, abs=5e-4)
+    assert claim["worst"] == pytest.approx(1e-7 - plugin_loss(pl.load_example("two_actuator"), 0.9), rel=1e-12)
+
+
+def test_overflow_of_the_dense_route_says_what_to_do():
+    s = pl.System(A=[[3.0]], B=[[1.0]], horizon=800, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                  channel=GilbertElliott(p=[0.1], r=[0.2]))
+    with pytest.raises(pl.NumericalError, match=r"rho\(A\)\^N = 3\^800; shorten the horizon"):
+        exact_closed_form(s)

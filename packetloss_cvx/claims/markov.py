@@ -24,10 +24,11 @@ STATEMENT = ("Under bursty Gilbert-Elliott losses (lambda = 1 - p - r in {0.5, 0
              "expected cost.")
 
 
-def plugin_loss(system: System, correlation: float) -> float | None:
+def plugin_loss(system: System, correlation: float | None) -> float | None:
     """E[cost] of the UDP-like plug-in plan over the exact minimum, minus 1, on the bursty twin of
-    ``system`` (None when the minimum is 0: nothing to lose). Time O((N m)^3 + (N n)^2 N m)."""
-    twin = bursty_twin(system, correlation)
+    ``system`` (on ``system`` itself with ``correlation=None``; None when the minimum is 0: nothing to
+    lose). Time O((N m)^3 + (N n)^2 N m)."""
+    twin = system if correlation is None else bursty_twin(system, correlation)
     exact = exact_closed_form(twin, "udp")
     if exact.cost <= 0:
         return None
@@ -35,7 +36,8 @@ def plugin_loss(system: System, correlation: float) -> float | None:
 
 
 def _margin(system: System) -> float | None:
-    losses = [plugin_loss(system, lam) for lam in CORRELATIONS]
+    """A system with its own Gilbert-Elliott channel is checked behind it; any other behind its twins."""
+    losses = [plugin_loss(system, lam) for lam in ((None,) if system.channel is not None else CORRELATIONS)]
     if any(loss is None for loss in losses):
         return None
     return CROSS_CHECK_COST_RTOL - max(losses)
@@ -59,7 +61,8 @@ def plug_in_markov(ctx: Context) -> ClaimResult:
         counterexample = None if found is None else bursty_twin(found, max(CORRELATIONS)).to_dict()
     note = ("Each case behind stationary Gilbert channels (h_good = 1, h_bad = 0) with its own time-averaged "
             "delivery rates mu and p = (1 - mu)(1 - lambda), r = mu (1 - lambda); margin = 1e-7 - (E[cost] of the "
-            "UDP-like plug-in plan / exact minimum - 1), the worse of the two lambdas. The exact minimum uses "
+            "UDP-like plug-in plan / exact minimum - 1), the worse of the two lambdas (a caller's system with its own "
+            "Gilbert-Elliott channel: behind that channel). The exact minimum uses "
             "R = E[v v'] (closed form, cross-checked against a QP in the tests). Loss of the plug-in law on the "
             f"paper's systems: {'; '.join(paper)}. The TCP-like cost holds only mu_t, so its plug-in law is its "
             "exact minimiser.")

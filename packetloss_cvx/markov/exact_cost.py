@@ -29,7 +29,7 @@ from ..results import Solution
 from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 from .chain import stacked_moments
 
-__all__ = ["correlation_term", "exact_closed_form", "exact_cost", "exact_hessian"]
+__all__ = ["correlation_term", "dense_prediction", "exact_closed_form", "exact_cost", "exact_hessian"]
 
 
 def _check_memory(system: System) -> None:
@@ -42,6 +42,20 @@ def _check_memory(system: System) -> None:
                             MEMORY_BUDGET_BYTES)
 
 
+def dense_prediction(system: System) -> Prediction:
+    """The paper's stacked matrices (:func:`~packetloss_cvx.prediction.prediction`) after the memory check;
+    an overflow says what to do here (there is no O(N) recursion for correlated losses yet).
+    Time O((N n)^2 N m)."""
+    _check_memory(system)
+    try:
+        return prediction(system)
+    except NumericalError:
+        rho = float(max(abs(np.linalg.eigvals(system.A))))
+        raise NumericalError(f"the exact Markov cost needs the dense prediction (Gamma, Omega_g), which overflows for "
+                             f"rho(A)^N = {rho:.3g}^{system.horizon}; shorten the horizon (correlated losses have no "
+                             "O(N) recursion here)") from None
+
+
 def correlation_term(system: System, inputs: npt.ArrayLike, pred: Prediction | None = None) -> float:
     """U'(Omega_g ∘ C_off)U: what correlated losses add to J_udp(U) (0 for Bernoulli channels).
 
@@ -50,8 +64,7 @@ def correlation_term(system: System, inputs: npt.ArrayLike, pred: Prediction | N
     U = check_inputs(system, inputs).ravel()
     if system.channel is None or not np.any(system.channel.correlation):
         return 0.0
-    _check_memory(system)
-    pred = prediction(system) if pred is None else pred
+    pred = dense_prediction(system) if pred is None else pred
     _, C = stacked_moments(system)
     C[np.diag_indices_from(C)] = 0.0
     with np.errstate(over="ignore", invalid="ignore"):
@@ -85,7 +98,7 @@ def exact_hessian(system: System, pred: Prediction | None = None) -> tuple[np.nd
     """``(M, s)`` with ``s = sqrt(Vbar)`` and ``M = Omega_g ∘ (R / s s') + Psi`` on the active entries
     (Vbar > 0), so that the UDP-like Hessian is ``diag(s) M diag(s)`` (M is well conditioned even for
     rarely delivering channels: |R_jk| <= s_j s_k). Time O((N n)^2 N m)."""
-    pred = prediction(system) if pred is None else pred
+    pred = dense_prediction(system) if pred is None else pred
     v, C = stacked_moments(system)
     active = v > 0
     s = np.sqrt(v[active])
@@ -118,9 +131,8 @@ def exact_closed_form(system: System, protocol: str = "udp") -> Solution:
         sol = closed_form(system, "tcp")
         return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=sol.gain,
                         closed_loop_eigenvalues=sol.closed_loop_eigenvalues, method=f"markov-{sol.method}")
-    _check_memory(system)
     N, m, x = system.horizon, system.m, system.x0
-    pred = prediction(system)
+    pred = dense_prediction(system)
     M, s = exact_hessian(system, pred)
     active = pred.Vbar > 0
     rhs = s[:, None] * pred.Omega_gp[active]                                   # diag(s)^-1 Vbar Omega_gp

@@ -23,13 +23,12 @@ from ..convex import solve_problem
 from ..errors import NumericalError, SolverError
 from ..linalg import psd_factor
 from ..model import System, check_system
-from ..prediction import prediction
 from ..protocols import check_protocol
 from ..qp import compare, solve_qp
 from ..results import Solution
 from ..tolerances import ACCEPTED_STATUSES, CLARABEL_TIGHT
 from .chain import stacked_moments
-from .exact_cost import exact_closed_form
+from .exact_cost import dense_prediction, exact_closed_form
 
 __all__ = ["exact_qp"]
 
@@ -70,7 +69,7 @@ def exact_qp(system: System, protocol: str = "udp", cross_check: bool = True,
         return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=None, closed_loop_eigenvalues=None,
                         method="markov-qp", status=sol.status, solve_time=sol.solve_time, cross_check=sol.cross_check)
     N, n, m = system.horizon, system.n, system.m
-    pred = prediction(system)
+    pred = dense_prediction(system)
     v, C = stacked_moments(system)
     scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
     L = sla.block_diag(*[psd_factor(W) for W in system.state_weights]) / np.sqrt(scale)
