@@ -7,10 +7,26 @@ ever and sampled; base.py: what they share.
 
 from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
+from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, Solution
 from .studies import Allocation, ClaimResult, Maximiser, MinCost, Sweep
 
 __all__ = [
-    "Allocation", "BatchSolution", "ClaimResult", "ClosedLoop", "ClosedLoopRun", "CrossCheck", "Maximiser", "MinCost",
-    "OpenLoopCheck", "Riccati", "Simulation", "Solution", "Sweep", "eigenvalue_pairs",
+    "Allocation",
+    "BatchSolution",
+    "BurstinessSweep",
+    "ClaimResult",
+    "ClosedLoop",
+    "ClosedLoopRun",
+    "CrossCheck",
+    "MarkovSolution",
+    "Maximiser",
+    "MinCost",
+    "MjlsResult",
+    "OpenLoopCheck",
+    "Riccati",
+    "Simulation",
+    "Solution",
+    "Sweep",
+    "eigenvalue_pairs",
 ]
