@@ -25,7 +25,8 @@ _SCHEMA: dict[str, dict[str, str]] = {
         "input_weight": "input_weight", "input_weights": "input_weights",
         "initial_weight": "initial_weight",
     },
-    "channel": {"mu": "mu", "mu_schedule": "mu_schedule"},
+    "channel": {"mu": "mu", "mu_schedule": "mu_schedule",   # or a Gilbert-Elliott chain (channel.py):
+                **{key: f"channel.{key}" for key in ("model", "p", "r", "h_good", "h_bad", "state", "belief")}},
     "state": {"x0": "x0"},
 }
 _REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",)}
@@ -59,6 +60,10 @@ def system_from_dict(data: Mapping[str, Any]) -> System:
             if key in table:
                 kwargs[kw] = table[key]
                 where[kw] = f"{section}.{key}"
+    markov = {kw.removeprefix("channel."): kwargs.pop(kw) for kw in list(kwargs) if kw.startswith("channel.")}
+    if markov:
+        kwargs["channel"] = markov
+        where.update({"channel": "channel", **{kw: kw for kw in _SCHEMA["channel"].values() if "." in kw}})
     try:
         return System(**kwargs)
     except InputError as err:

@@ -18,82 +18,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .channel import GilbertElliott, channel_schedule
 from .display import system_html, system_repr, to_json
 from .errors import DimensionError, InputError, ProbabilityError
 from .statespace import plant_matrices
 from .tolerances import PSD_RTOL, SYMMETRY_RTOL
+from .validation import MAX_ENTRIES, digits, numeric_array
 
 __all__ = ["System", "check_system", "numeric_array"]
-
-#: Arrays in the schema nest at most three levels deep (state_weights: N × n × n).
-MAX_NESTING = 3
-#: The largest number of entries one stored array may have (8 bytes each: 400 MB), so that a
-#: System is refused before an allocation that cannot succeed (horizon = 10**9).
-MAX_ENTRIES = 5 * 10**7
-
-
-def numeric_array(value: Any, field: str) -> np.ndarray:
-    """Convert ``value`` to a float array, refusing strings, booleans, NaN, inf, numbers beyond
-    the double range, nesting deeper than ``MAX_NESTING`` and more than ``MAX_ENTRIES`` entries.
-
-    The one validator of numeric input: every array the package accepts goes through it,
-    so every error names ``field``.
-    """
-    if isinstance(value, np.ma.MaskedArray) and np.ma.is_masked(value):
-        raise InputError(field, "expected plain numbers, found a masked array with masked entries")
-    if isinstance(value, np.ndarray):
-        if value.dtype.kind not in "iuf":
-            raise InputError(field, f"expected numbers, found an array of {value.dtype}")
-        if value.ndim > MAX_NESTING or value.size > MAX_ENTRIES:
-            raise InputError(field, f"expected at most {MAX_NESTING} dimensions and {MAX_ENTRIES} entries, found "
-                                    f"shape {value.shape}")
-        arr = value.astype(float)
-    else:
-        _check_numbers(value, field)
-        try:
-            arr = np.asarray(value, dtype=float)
-        except ValueError:
-            raise InputError(field, "expected a rectangular array of numbers") from None
-    if not np.all(np.isfinite(arr)):
-        raise InputError(field, "expected finite numbers, found NaN or inf")
-    return arr
-
-
-def _check_numbers(value: Any, field: str) -> None:
-    """Walk ``value`` without recursion: numbers only, at most MAX_NESTING levels of lists,
-    at most MAX_ENTRIES numbers, each within the double range."""
-    stack: list[tuple[Any, int]] = [(value, 0)]
-    count = 0
-    while stack:
-        item, depth = stack.pop()
-        if isinstance(item, bool):
-            raise InputError(field, "expected a number, found a boolean")
-        if isinstance(item, numbers.Real):
-            count += 1
-            if count > MAX_ENTRIES:
-                raise InputError(field, f"expected at most {MAX_ENTRIES} numbers")
-            if isinstance(item, numbers.Integral):
-                try:
-                    float(item)
-                except OverflowError:
-                    digits = _digits(int(item))
-                    raise InputError(field, f"expected numbers within the double range (|x| < 1.8e308), found an "
-                                            f"integer of about {digits} digits") from None
-            continue
-        if isinstance(item, np.ndarray):            # a row given as an array inside a list
-            if item.dtype.kind not in "iuf" or depth + item.ndim > MAX_NESTING:
-                raise InputError(field, f"expected numbers, found an array of {item.dtype} and shape {item.shape}")
-            count += item.size
-            continue
-        if isinstance(item, str):
-            raise InputError(field, f"expected a number, found the string {item[:40]!r}")
-        if isinstance(item, (list, tuple)):
-            if depth >= MAX_NESTING:
-                raise InputError(field, f"expected at most {MAX_NESTING} levels of nested lists, found more")
-            stack.extend((sub, depth + 1) for sub in item)
-            continue
-        raise InputError(field, f"expected a number or a list of numbers, found {type(item).__name__}")
-
 
 def _shape_error(field: str, expected: str, found: tuple[int, ...]) -> DimensionError:
     return DimensionError(field, f"expected shape {expected} but found {found}")
@@ -146,15 +78,10 @@ def _symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
     return sym
 
 
-def _digits(value: int) -> int:
-    """Decimal digits of a huge integer, without str() (Python refuses it past 4300 digits)."""
-    return int(abs(value).bit_length() * 0.30103) + 1
-
-
 def _short(value: Any) -> str:
     """A bounded repr (Python refuses str() of integers over 4300 digits)."""
     if isinstance(value, numbers.Integral) and abs(int(value)) >= 10**30:
-        return f"(an integer of about {_digits(int(value))} digits)"
+        return f"(an integer of about {digits(int(value))} digits)"
     return repr(value)[:40]
 
 
@@ -167,7 +94,7 @@ def _horizon(value: Any, field: str, n: int, m: int) -> int:
         raise InputError(field, f"expected an integer >= 1, found {_short(N)}")
     limit = MAX_ENTRIES // max(n * n, m)
     if N > limit:
-        shown = N if N < 10**30 else f"an integer of about {_digits(N)} digits"
+        shown = N if N < 10**30 else f"an integer of about {digits(N)} digits"
         raise InputError(field, f"expected at most {limit} for n = {n}, m = {m} (horizon * max(n^2, m) <= "
                                 f"{MAX_ENTRIES}, what fits in memory), found {shown}")
     return N
@@ -206,8 +133,8 @@ class System:
         or N such weights for t = 1..N. Exactly one is given.
     input_weight, input_weights : array_like
         Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
-    mu, mu_schedule : array_like
-        Delivery probabilities in [0, 1]: one per actuator, or N×m (non-stationary).
+    mu, mu_schedule, channel : array_like, or a channel.GilbertElliott (or its TOML table)
+        Delivery probabilities in [0, 1]: one per actuator, N×m (non-stationary), or a Markov channel's mu_t.
     x0 : array_like
         The state X_k (length n).
     initial_weight : array_like, optional
@@ -231,7 +158,7 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name",
+        "x0", "initial_weight", "noise_cov", "name", "channel",
     )
 
     A: np.ndarray
@@ -244,6 +171,7 @@ class System:
     initial_weight: np.ndarray
     noise_cov: np.ndarray
     name: str | None
+    channel: GilbertElliott | None
 
     def __init__(
         self,
@@ -261,6 +189,7 @@ class System:
         initial_weight: npt.ArrayLike | None = None,
         noise_cov: npt.ArrayLike | None = None,
         name: str | None = None,
+        channel: Any = None,
     ) -> None:
         A_ = _matrix(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
@@ -291,6 +220,7 @@ class System:
         if np.any(psi <= 0):
             raise InputError(psi_field, "expected positive entries (Psi is positive definite)")
 
+        chan, mu_schedule = channel_schedule(channel, m, N, mu, mu_schedule)
         _one_of(mu, mu_schedule, ("mu", "mu_schedule"))
         if mu is not None:
             sched = np.repeat(_probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")[None], N, axis=0)
@@ -312,7 +242,7 @@ class System:
             ("A", _frozen(A_)), ("B", _frozen(B_)), ("horizon", N),
             ("state_weights", _frozen(W)), ("input_weights", _frozen(psi)),
             ("mu_schedule", _frozen(sched)), ("x0", _frozen(x0_)),
-            ("initial_weight", _frozen(Q)), ("noise_cov", _frozen(Sigma)), ("name", name),
+            ("initial_weight", _frozen(Q)), ("noise_cov", _frozen(Sigma)), ("name", name), ("channel", chan),
         ):
             object.__setattr__(self, key, value)
 
@@ -353,14 +283,14 @@ class System:
         return new
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
-        """A copy with new delivery probabilities: an m-vector or an N×m schedule."""
+        """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel)."""
         N, m = self.horizon, self.m
         if np.ndim(mu) == 2:
             sched = _probabilities(_matrix(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         else:
             vec = _probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")
             sched = np.repeat(vec[None], N, axis=0)
-        return self._copy_with(mu_schedule=_frozen(sched))
+        return self._copy_with(mu_schedule=_frozen(sched), channel=None)
 
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
@@ -386,7 +316,7 @@ class System:
         else:
             cost["input_weights"] = self.input_weights.tolist()
         cost["initial_weight"] = weight(self.initial_weight)
-        channel = (
+        channel = self.channel.to_dict() if self.channel is not None else (
             {"mu": self.mu_schedule[0].tolist()} if self.is_stationary
             else {"mu_schedule": self.mu_schedule.tolist()}
         )

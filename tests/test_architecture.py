@@ -16,9 +16,10 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
-    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace"},
+    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
+     "channel", "validation"},
     {"prediction", "recursion", "costs", "convex", "qp", "random_systems", "evaluator"},
-    {"analysis", "allocation", "simulation", "studies"},
+    {"analysis", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},
 ]

@@ -16,6 +16,8 @@ from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
 from .cost_difference import lemma_2, lemma_3, theorem_4
 from .evaluate import CASE_ERRORS
+from .markov import STATEMENT as PLUG_IN_MARKOV
+from .markov import plug_in_markov
 from .mpc_vs_dp import mpc_vs_dp
 from .ordering import corollary_1, corollary_2, theorem_2, theorem_3
 from .paper import STATEMENTS
@@ -49,6 +51,7 @@ _CHECKS: dict[str, Callable[[Context], ClaimResult]] = {
 CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
     claim_id: (statement, _CHECKS[claim_id]) for claim_id, statement in STATEMENTS.items()
 }
+CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's: its laws under bursty losses
 
 
 def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int = 0,
@@ -118,5 +121,5 @@ def run_claim(claim_id: str, ctx: Context) -> ClaimResult:
         return CLAIMS[claim_id][1](ctx)
     except CASE_ERRORS as err:
         detail = str(err).splitlines()[0] if str(err) else ""
-        return ClaimResult(claim_id, STATEMENTS[claim_id], "inconclusive", 0, 0, None, None,
+        return ClaimResult(claim_id, CLAIMS[claim_id][0], "inconclusive", 0, 0, None, None,
                            f"The check raised {type(err).__name__}: {detail}. Nothing was checked.", errors=1)

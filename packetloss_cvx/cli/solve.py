@@ -10,12 +10,14 @@ import numpy as np
 
 from ..costs import closed_form
 from ..errors import NumericalError, ResourceError
+from ..markov import mean_square_radius as markov_radius
 from ..model import System
 from ..qp import solve_qp
 from ..results import Solution, eigenvalue_pairs
 from ..simulation import is_mean_square_stable, mean_square_radius
 from . import format as fmt
 from .common import CommandResult, system_of
+from .markov_section import markov_section
 
 __all__ = ["run", "stability", "text_details"]
 
@@ -58,6 +60,9 @@ def run(args: argparse.Namespace) -> CommandResult:
         rows.append(("closed loop", stability(system, sol.gain, entry)))
         out[protocol] = entry
         lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows)
+    if system.channel is not None:   # Gilbert-Elliott: the exact minimiser under the chain beside the plug-in laws
+        out["markov"], more = markov_section(system, protocols, qp=not args.no_qp)
+        lines += ["", "Gilbert-Elliott channel"] + [line.strip() for line in more]
     return CommandResult(out, "\n".join(lines))
 
 
@@ -79,8 +84,13 @@ def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     (the first step's mu when the channel is non-stationary); adds its keys to ``entry``, returns text."""
     mu = system.mu_schedule[0]
     note = "" if system.is_stationary else " (first step's mu: the channel is non-stationary)"
+    where = f"mu = {fmt.numbers(mu)}{note}"
     try:
-        radius = mean_square_radius(system.A, system.B, gain, mu)
+        if system.channel is not None:   # the losses are correlated: the loop is a Markov jump linear system
+            radius = markov_radius(system.A, system.B, system.channel, gain)
+            note, where = "", "the Gilbert-Elliott chain (a Markov jump linear system)"
+        else:
+            radius = mean_square_radius(system.A, system.B, gain, mu)
     except NumericalError as err:
         entry.update({"mean_square_spectral_radius": None, "stable": False, "stability_note": str(err)})
         return f"stability not computed: {err}"
@@ -91,4 +101,4 @@ def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     verdict = ("mean-square stable" if stable else
                "NOT mean-square stable: E[x x'] grows without bound when u = -K x runs in a loop over these losses"
                if radius >= 1 else "not proved mean-square stable (the radius is within 1e-9 of 1)")
-    return f"u = -K x over mu = {fmt.numbers(mu)}{note}: {verdict} (second-moment spectral radius {radius:.6g})"
+    return f"u = -K x over {where}: {verdict} (second-moment spectral radius {radius:.6g})"

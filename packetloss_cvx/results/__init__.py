@@ -7,10 +7,27 @@ ever and sampled; base.py: what they share.
 
 from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
+from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, Solution
 from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
 
 __all__ = [
-    "Allocation", "BatchSolution", "ClaimResult", "ClosedLoop", "ClosedLoopRun", "CrossCheck", "DesignSweep",
-    "Maximiser", "MinCost", "OpenLoopCheck", "Riccati", "Simulation", "Solution", "Sweep", "eigenvalue_pairs",
+    "Allocation",
+    "BatchSolution",
+    "BurstinessSweep",
+    "ClaimResult",
+    "ClosedLoop",
+    "ClosedLoopRun",
+    "CrossCheck",
+    "DesignSweep",
+    "MarkovSolution",
+    "Maximiser",
+    "MinCost",
+    "MjlsResult",
+    "OpenLoopCheck",
+    "Riccati",
+    "Simulation",
+    "Solution",
+    "Sweep",
+    "eigenvalue_pairs",
 ]

@@ -1,0 +1,180 @@
+"""Prediction from Gilbert–Elliott chains: beliefs, the HMM filter, plug-in schedules, and the
+second moments ``R = E[v v']`` of the stacked deliveries.
+
+Notation (docs/design.md, "Bursty links"): channel i has ``lambda_i = 1 - p_i - r_i``, belief
+``b_{i,t} = P(S_{i,t} = good | information)``, predicted delivery probability
+``mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}``.
+
+* UDP-like (no acknowledgements): the belief is the prior propagated, ``b_{t+1} = r + lambda b_t``.
+* TCP-like: each acknowledged outcome ``v_t`` updates the belief first (Bayes), then it is
+  propagated; for the Gilbert channel (h_good = 1, h_bad = 0) an outcome reveals the state.
+
+Within one channel, for t != s and d = |t - s| (P^d = 1 pi' + lambda^d (I - 1 pi') for two states):
+
+    Cov(v_t, v_s) = lambda^d b_u (1 - b_u) (h_good - h_bad)^2,   u = min(t, s),
+
+and deliveries of different channels are independent, so R is block-structured.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from ..channel import GilbertElliott
+from ..errors import InputError
+from ..io import system_from_dict
+from ..model import System
+from ..protocols import check_protocol
+
+__all__ = [
+    "attach_channel", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system", "second_moments",
+    "stacked_moments",
+]
+
+
+def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:
+    """One step of the HMM filter: P(good at t+1 | outcome at t), from P(good at t) = ``belief``.
+
+    .. math:: b^+ = \\frac{b\\,h_g^v (1-h_g)^{1-v}}{b\\,h_g^v (1-h_g)^{1-v} + (1-b)\\,h_b^v (1-h_b)^{1-v}},
+              \\qquad b_{t+1} = r + (1 - p - r)\\,b^+
+
+    Time O(m) per belief; ``belief`` and ``delivered`` may carry leading dimensions (one row per run).
+    For the Gilbert channel a delivery gives ``1 - p`` and a loss ``r`` (the state is known).
+
+    Raises
+    ------
+    InputError
+        ``delivered`` of the wrong length, or an outcome the belief gives probability zero.
+
+    Examples
+    --------
+    >>> ch = GilbertElliott(p=[0.1], r=[0.3])
+    >>> bool(np.allclose([filter_belief(ch, [0.5], [True]), filter_belief(ch, [0.5], [False])], [[0.9], [0.3]]))
+    True
+    """
+    b = np.asarray(belief, dtype=float)
+    v = np.asarray(delivered)
+    if v.shape != b.shape or b.ndim < 1 or b.shape[-1] != channel.m:
+        raise InputError("delivered", f"expected one outcome and one belief per channel ({channel.m}; leading "
+                                      f"dimensions alike), found {v.shape} and {b.shape}")
+    v = v.astype(bool)
+    like_good = np.where(v, channel.h_good, 1.0 - channel.h_good)
+    like_bad = np.where(v, channel.h_bad, 1.0 - channel.h_bad)
+    total = b * like_good + (1.0 - b) * like_bad
+    if np.any(total <= 0.0):
+        i = int(np.argwhere(total <= 0.0)[0][-1])
+        raise InputError("delivered", f"channel {i}: outcome {'delivered' if v[total <= 0.0][0] else 'lost'} has "
+                                      "probability 0 under the belief and the channel")
+    posterior = b * like_good / total
+    return channel.r + channel.correlation * posterior
+
+
+def plugin_schedule(channel: GilbertElliott, horizon: int, protocol: str,
+                    acknowledged: Sequence[Sequence[bool]] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """The predicted delivery probabilities of a plan made after ``len(acknowledged)`` steps.
+
+    ``acknowledged[k][i]`` is the outcome of channel i at step k, counted from the channel's
+    initial belief. TCP-like: the belief is filtered by each outcome (:func:`filter_belief`);
+    UDP-like: the controller sees none, so the prior is propagated. Returns
+    ``(mu, belief)``: the (N, m) schedule ``mu_{i,t}`` and the belief at the plan's first step.
+    Time O((k + N) m).
+
+    Examples
+    --------
+    >>> ch = GilbertElliott(p=[0.1], r=[0.3], belief=[0.5])      # lambda = 0.6
+    >>> bool(np.allclose(plugin_schedule(ch, 2, "tcp", [[False]])[0][:, 0], [0.3, 0.3 + 0.6 * 0.3]))
+    True
+    >>> bool(np.allclose(plugin_schedule(ch, 1, "udp", [[False]])[0][:, 0], [0.3 + 0.6 * 0.5]))
+    True
+    """
+    protocol = check_protocol(protocol)
+    if isinstance(horizon, bool) or not isinstance(horizon, int | np.integer) or horizon < 1:
+        raise InputError("horizon", f"expected an integer >= 1, found {horizon!r}")
+    b = np.array(channel.initial_belief, dtype=float)
+    for outcome in acknowledged:
+        b = filter_belief(channel, b, outcome) if protocol == "tcp" else channel.r + channel.correlation * b
+    return channel.delivery_schedule(int(horizon), b), b
+
+
+def attach_channel(system: System, channel: GilbertElliott) -> System:
+    """A copy of ``system`` behind the Markov ``channel`` (its mu or mu_schedule replaced by the
+    channel's predicted schedule). Time O(size of the system).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> attach_channel(s, GilbertElliott(p=[0.1], r=[0.3], state=["bad"])).mu_schedule[:, 0].tolist()
+    [0.0, 0.3]
+    """
+    if not isinstance(channel, GilbertElliott):
+        raise InputError("channel", f"expected a GilbertElliott, found {type(channel).__name__}")
+    return system_from_dict({**system.to_dict(), "channel": channel.to_dict()})
+
+
+def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence[bool]] = ()) -> System:
+    """``system`` with its channel's belief moved to the plan's first step (:func:`plugin_schedule`):
+    its ``mu_schedule`` is the plug-in schedule, so the paper's laws on it are the plug-in laws.
+    Time O(size of the system)."""
+    if system.channel is None:
+        raise InputError("system", "expected a system with a Gilbert-Elliott channel ([channel] model = ...)")
+    _, b = plugin_schedule(system.channel, system.horizon, protocol, acknowledged)
+    ch = system.channel
+    return attach_channel(system, GilbertElliott(p=ch.p, r=ch.r, h_good=ch.h_good, h_bad=ch.h_bad,
+                                                 belief=np.clip(b, 0.0, 1.0)))
+
+
+def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
+    """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array. Diagonal mu (1 - mu); off the
+    diagonal lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 with u = min(t, s). Time O(N^2 m).
+
+    Examples
+    --------
+    >>> C = channel_covariance(GilbertElliott(p=[0.2], r=[0.2]), 3)     # b = 1/2, lambda = 0.6
+    >>> np.round(C[0], 4).tolist()
+    [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
+    """
+    N = horizon
+    b = channel.beliefs(N)                                      # (N, m)
+    mu = channel.delivery_schedule(N)
+    spread = b * (1.0 - b) * (channel.h_good - channel.h_bad) ** 2
+    lag = np.abs(np.arange(N)[:, None] - np.arange(N)[None, :])
+    first = np.minimum(np.arange(N)[:, None], np.arange(N)[None, :])
+    lam = channel.correlation
+    out = np.empty((channel.m, N, N))
+    for i in range(channel.m):
+        with np.errstate(under="ignore"):
+            powers = lam[i] ** np.arange(N, dtype=float)       # 0^0 = 1: the diagonal is replaced below
+        out[i] = powers[lag] * spread[first, i]
+        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
+    return out
+
+
+def second_moments(channel: GilbertElliott, horizon: int) -> np.ndarray:
+    """E[v_{i,t} v_{i,s}] for each channel, (m, N, N): mu_t mu_s + Cov, with mu_t on the diagonal
+    (v is 0 or 1). Time O(N^2 m)."""
+    mu = channel.delivery_schedule(horizon)
+    R = mu.T[:, :, None] * mu.T[:, None, :] + channel_covariance(channel, horizon)
+    for i in range(channel.m):
+        R[i][np.diag_indices(horizon)] = mu[:, i]
+    return R
+
+
+def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
+    """``(Vbar, C)``: the mean and the covariance of the stacked deliveries, step-major (entry
+    ``t m + i`` is channel i at step t), C of shape (N m, N m). Without a Markov channel the
+    deliveries are independent Bernoulli(mu_schedule): C = diag(Vbar (1 - Vbar)).
+    ``R = Vbar Vbar' + C``. Time O((N m)^2) (the N^2 m non-zero entries, placed in the dense C)."""
+    N, m = system.horizon, system.m
+    v = system.mu_schedule.ravel()
+    if system.channel is None:
+        return v, np.diag(v * (1.0 - v))
+    blocks = channel_covariance(system.channel, N)
+    C = np.zeros((N, m, N, m))
+    for i in range(m):
+        C[:, i, :, i] = blocks[i]
+    C = C.reshape(N * m, N * m)
+    C[np.diag_indices(N * m)] = v * (1.0 - v)       # the System's own (validated) schedule on the diagonal
+    return v, C

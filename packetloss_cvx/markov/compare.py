@@ -1,0 +1,79 @@
+"""Plug-in laws against the exact minimiser under a Gilbert–Elliott channel, per protocol.
+
+The plug-in law is the paper's law (Theorem 1, eq:opt-law-1 / eq:opt-law-2) with the chain's
+predicted mu_t, which is the ``mu_schedule`` a System with a channel carries. Its loss is measured
+in the protocol's exact expected cost (:func:`~packetloss_cvx.markov.exact_cost`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..channel import GilbertElliott
+from ..costs import closed_form
+from ..errors import InputError
+from ..model import System, check_system
+from ..protocols import check_protocol
+from ..results import MarkovSolution
+from .chain import attach_channel
+from .exact_cost import exact_closed_form, exact_cost
+from .qp import exact_qp
+
+__all__ = ["bursty_twin", "markov_solution"]
+
+
+def markov_solution(system: System, protocol: str, qp: bool = True) -> MarkovSolution:
+    """The exact minimiser of ``protocol``'s expected cost (with its QP twin when ``qp``), and how
+    much the plug-in law loses against it.
+
+    Time O((N m)^3 + (N n)^2 N m) (dense), plus one Clarabel solve with ``qp``.
+
+    Raises
+    ------
+    CrossCheckError
+        The QP and the closed form disagree.
+    NumericalError, ResourceError
+        As :func:`~packetloss_cvx.markov.exact_closed_form` and :func:`~packetloss_cvx.markov.exact_qp`.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.1]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.1], r=[0.1]))
+    >>> res = markov_solution(s, "udp", qp=False)
+    >>> bool(res.relative_loss > 0 and res.exact.cost <= res.plugin_cost)
+    True
+    """
+    system = check_system(system)
+    protocol = check_protocol(protocol)
+    exact = exact_closed_form(system, protocol)
+    twin = exact_qp(system, protocol, reference=exact) if qp else None
+    plugin = closed_form(system, protocol)
+    plugin_cost = exact_cost(system, plugin.inputs, protocol)
+    loss = plugin_cost / exact.cost - 1.0 if exact.cost > 0 else 0.0
+    return MarkovSolution(protocol=protocol, exact=exact, qp=twin, plugin_cost=plugin_cost, relative_loss=loss,
+                          plan_expected_cost=exact_cost(system, plugin.inputs, "udp"))
+
+
+def bursty_twin(system: System, correlation: float) -> System:
+    """``system`` behind Gilbert channels (h_good = 1, h_bad = 0) started in their stationary
+    distribution, with the same average delivery rates (the time average of ``mu_schedule`` per
+    channel) and ``lambda = 1 - p - r = correlation``: ``p = (1 - mu)(1 - lambda)``, ``r = mu (1 - lambda)``.
+
+    ``correlation`` must lie in [0, 1) (bursty, memoryless at 0), or be negative down to the value that
+    keeps p, r <= 1. Time O(size of the system).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.8], x0=[1.0])
+    >>> ch = bursty_twin(s, 0.5).channel
+    >>> bool(np.allclose([ch.p[0], ch.r[0], ch.mean_rate[0]], [0.1, 0.4, 0.8]))
+    True
+    """
+    lam = float(correlation)
+    if not (np.isfinite(lam) and lam < 1.0):
+        raise InputError("correlation", f"expected lambda = 1 - p - r < 1, found {correlation!r}")
+    mu = np.clip(system.mu_schedule.mean(axis=0), 0.0, 1.0)
+    p, r = (1.0 - mu) * (1.0 - lam), mu * (1.0 - lam)
+    if np.any(p > 1.0) or np.any(r > 1.0):
+        raise InputError("correlation", f"lambda = {lam} needs p or r above 1 for the average rates {mu.tolist()}")
+    return attach_channel(system, GilbertElliott(p=p, r=r))

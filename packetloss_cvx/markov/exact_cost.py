@@ -1,0 +1,155 @@
+"""The exact expected cost of a plan under correlated (Markov) losses, and its minimiser in closed form.
+
+With ``X = Phi x + Gamma Upsilon U + Lambda W`` and ``v = diag(Upsilon)`` (step-major), ``v`` has
+mean ``Vbar`` and second moment ``R = E[v v'] = Vbar Vbar' + C``; ``v_j^2 = v_j`` and W is independent
+of v, so (docs/design.md, "Bursty links")
+
+    E[cost] = x'(Q + Omega_p)x + tr(Omega_l Sigma_W) + 2 U' Vbar Omega_gp x + U'(Omega_g ∘ R + Vbar Psi) U
+            = J_udp(U) + U'(Omega_g ∘ C_off) U,
+
+``C_off`` the covariance off its diagonal (non-zero only within a channel, across steps). This is the
+UDP-like cost (the expected cost of the plan, which sampling measures). The paper's TCP-like cost
+(eq:opt-lqg-simplest with eq:TCP-err) holds only first moments, so the chain enters it through mu_t
+alone: its plug-in law is already its exact minimiser. Both are convex quadratics in U; the UDP-like
+minimiser is ``U* = -(Omega_g ∘ R + Vbar Psi)^{-1} Vbar Omega_gp x`` on the channels that can deliver.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ..costs import check_inputs, closed_form, expected_cost
+from ..errors import NumericalError, ResourceError
+from ..linalg import check_finite, solve_checked
+from ..model import System, check_system
+from ..prediction import Prediction, prediction
+from ..protocols import check_protocol
+from ..results import Solution
+from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from .chain import stacked_moments
+
+__all__ = ["correlation_term", "dense_prediction", "exact_closed_form", "exact_cost", "exact_hessian"]
+
+
+def _check_memory(system: System) -> None:
+    """The dense route holds a few (N m)×(N m) and (N n)×(N m) matrices: refuse before building them."""
+    N, n, m = system.horizon, system.n, system.m
+    needed = 8.0 * (6 * (N * m) ** 2 + 3 * (N * n) * (N * m) + 4 * N * n * n)
+    if needed > MEMORY_BUDGET_BYTES:
+        raise ResourceError(f"the exact Markov cost needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} "
+                            f"(dense Omega_g and R); budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
+                            MEMORY_BUDGET_BYTES)
+
+
+def dense_prediction(system: System) -> Prediction:
+    """The paper's stacked matrices (:func:`~packetloss_cvx.prediction.prediction`) after the memory check;
+    an overflow says what to do here (there is no O(N) recursion for correlated losses yet).
+    Time O((N n)^2 N m)."""
+    _check_memory(system)
+    try:
+        return prediction(system)
+    except NumericalError:
+        rho = float(max(abs(np.linalg.eigvals(system.A))))
+        raise NumericalError(f"the exact Markov cost needs the dense prediction (Gamma, Omega_g), which overflows for "
+                             f"rho(A)^N = {rho:.3g}^{system.horizon}; shorten the horizon (correlated losses have no "
+                             "O(N) recursion here)") from None
+
+
+def correlation_term(system: System, inputs: npt.ArrayLike, pred: Prediction | None = None) -> float:
+    """U'(Omega_g ∘ C_off)U: what correlated losses add to J_udp(U) (0 for Bernoulli channels).
+
+    Time O((N n)^2 N m) for Omega_g (or given ``pred``), O((N m)^2) for the form."""
+    system = check_system(system)
+    U = check_inputs(system, inputs).ravel()
+    if system.channel is None or not np.any(system.channel.correlation):
+        return 0.0
+    pred = dense_prediction(system) if pred is None else pred
+    _, C = stacked_moments(system)
+    C[np.diag_indices_from(C)] = 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        value = float(U @ ((pred.Omega_g * C) @ U))
+    return float(check_finite("U'(Omega_g o C)U", value))
+
+
+def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp") -> float:
+    """The expected cost of the plan ``inputs`` (N×m) under the system's channel.
+
+    ``"udp"``: E[cost | belief] = J_udp(U) + U'(Omega_g ∘ C_off)U, exact under Gilbert–Elliott losses
+    (the forward pass of :func:`~packetloss_cvx.costs.expected_cost` plus :func:`correlation_term`).
+    ``"tcp"``: the paper's TCP-like cost, which holds only the marginals mu_t (= J_tcp(U)).
+    Time O(N n^3) plus O((N n)^2 N m) with a correlated channel.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> # x = 0, U = (1, 1): E[(v1)^2] + E[(v1 + v2)^2] + E[v1] + E[v2] = 0.5 + (1 + 2 * 0.4) + 1 = 3.3
+    >>> round(exact_cost(s, [[1.0], [1.0]]), 12)
+    3.3
+    """
+    protocol = check_protocol(protocol)
+    base = expected_cost(system, inputs, protocol)
+    return base if protocol == "tcp" else base + correlation_term(system, inputs)
+
+
+def exact_hessian(system: System, pred: Prediction | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(M, s)`` with ``s = sqrt(Vbar)`` and ``M = Omega_g ∘ (R / s s') + Psi`` on the active entries
+    (Vbar > 0), so that the UDP-like Hessian is ``diag(s) M diag(s)`` (M is well conditioned even for
+    rarely delivering channels: |R_jk| <= s_j s_k). Time O((N n)^2 N m)."""
+    pred = dense_prediction(system) if pred is None else pred
+    v, C = stacked_moments(system)
+    active = v > 0
+    s = np.sqrt(v[active])
+    R = (np.outer(v, v) + C)[np.ix_(active, active)] / np.outer(s, s)
+    M = pred.Omega_g[np.ix_(active, active)] * R + np.diag(pred.Psi[active])
+    return M, s
+
+
+def exact_closed_form(system: System, protocol: str = "udp") -> Solution:
+    """The minimiser of :func:`exact_cost` in closed form, with its cost, gain and eigenvalues.
+
+    .. math:: U^* = -(\\Omega_g \\circ R + \\bar V\\Psi)^{-1}\\bar V\\Omega_{gp}x,\\qquad
+              J^* = C_0 + U^{*\\prime}\\bar V\\Omega_{gp}x
+
+    on the entries with mu_t > 0 (an input over a channel that cannot deliver does not enter the
+    cost; it is 0 here). ``"tcp"``: the paper's law with mu_t (:func:`~packetloss_cvx.costs.closed_form`),
+    exact because the TCP-like cost holds only first moments. The cost is checked against
+    :func:`exact_cost` of the plan (forward pass plus correlation term) to ``SELF_CHECK_RTOL``.
+    Time O((N m)^3 + (N n)^2 N m), memory O((N m)^2 + N n N m).
+
+    Raises
+    ------
+    ResourceError
+        The dense matrices would not fit the memory budget.
+    NumericalError
+        A dense solve without a small residual, an overflow, or a self-check that fails.
+    """
+    system = check_system(system)
+    if check_protocol(protocol) == "tcp":
+        sol = closed_form(system, "tcp")
+        return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=sol.gain,
+                        closed_loop_eigenvalues=sol.closed_loop_eigenvalues, method=f"markov-{sol.method}")
+    N, m, x = system.horizon, system.m, system.x0
+    pred = dense_prediction(system)
+    M, s = exact_hessian(system, pred)
+    active = pred.Vbar > 0
+    rhs = s[:, None] * pred.Omega_gp[active]                                   # diag(s)^-1 Vbar Omega_gp
+    F = np.zeros((N * m, system.n))
+    F[active] = solve_checked(M, check_finite("Omega_gp", rhs), "the exact Markov Hessian", "a shorter horizon") \
+        / s[:, None]
+    u = -F @ x
+    g = pred.Omega_gp @ x
+    constant = float(x @ (system.initial_weight + pred.Omega_p) @ x) + pred.noise_term
+    cost = constant + float(g @ (pred.Vbar * u))
+    U = u.reshape(N, m)
+    forward = exact_cost(system, U, "udp")
+    if not (np.isfinite(cost) and np.isfinite(forward)) or abs(cost - forward) > SELF_CHECK_RTOL * abs(forward) \
+            or cost < 0:
+        raise NumericalError(f"the exact Markov closed form gives J* = {cost:.10g} but the expected cost of its own "
+                             f"plan is {forward:.10g}: double precision cannot resolve this problem (weights of very "
+                             "different sizes, or an unstable plant over a long horizon)")
+    gain = F[:m]
+    return Solution(protocol="udp", cost=cost, inputs=U, gain=gain,
+                    closed_loop_eigenvalues=np.linalg.eigvals(system.A - system.B @ gain), method="markov-dense")

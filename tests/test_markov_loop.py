@@ -1,0 +1,61 @@
+"""Receding-horizon laws in closed loop behind sampled Gilbert–Elliott chains: the simulator against
+the exact second moments of the switched loop (constant gain), and the information patterns."""
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.markov import attach_channel, bursty_twin
+from packetloss_cvx.markov.mjls import mode_chain, second_moment_operator
+from packetloss_cvx.simulation.markov_loop import markov_closed_loop_costs
+
+
+def exact_loop_cost(system, K, steps):
+    """E[sum_t x'Wx + (Vu)'Psi(Vu) + x_T'Wx_T] for u = -K x in every mode, from the second moments."""
+    ch = system.channel
+    modes, _, h = mode_chain(ch)
+    b0 = ch.initial_belief
+    pi0 = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
+    op = second_moment_operator(system.A, system.B, ch, K)
+    n, W, psi = system.n, system.state_weights[0], np.diag(system.input_weights[0])
+    Q = np.concatenate([w * np.outer(system.x0, system.x0).ravel() for w in pi0])
+    total = 0.0
+    for t in range(steps + 1):
+        for a in range(len(modes)):
+            Qa = Q[a * n * n:(a + 1) * n * n].reshape(n, n)
+            total += np.trace(W @ Qa)
+            if t < steps:
+                Hd = np.diag(h[a])            # Gilbert: v = h in mode a
+                total += np.trace(K.T @ Hd @ psi @ Hd @ K @ Qa)
+        Q = op @ Q
+    return total
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_simulated_loop_matches_exact_second_moments(seed):
+    rng = np.random.default_rng(seed)
+    base = pl.System(A=[[1.05, 0.2], [0.0, 0.9]], B=[[1.0, 0.0], [0.3, 1.0]], horizon=5, state_weight=[1.0, 0.5],
+                     input_weight=[0.5, 1.0], mu=[0.8, 0.6], x0=[1.0, -1.0])
+    s = bursty_twin(base, rng.uniform(0.3, 0.9))                 # stationary start: the UDP-like gain is constant
+    K = pl.closed_form(s, "udp").gain
+    steps = 30
+    costs = markov_closed_loop_costs(s, ["plug-in-udp"], steps=steps, samples=20_000, rng=rng, progress=False)[0]
+    se = costs.std(ddof=1) / np.sqrt(costs.size)
+    assert abs(costs.mean() - exact_loop_cost(s, K, steps)) <= 4 * se
+
+
+def test_information_patterns():
+    s = pl.load_example("two_actuator")
+    memoryless = attach_channel(s, GilbertElliott(p=[0.1, 0.5], r=[0.9, 0.5]))
+    c = markov_closed_loop_costs(memoryless, ["exact-tcp", "exact-udp"], steps=10, samples=500,
+                                 rng=np.random.default_rng(0), progress=False)
+    np.testing.assert_array_equal(c[0], c[1])                  # acknowledgements say nothing about the future
+    bursty = bursty_twin(s, 0.9)
+    c = markov_closed_loop_costs(bursty, ["exact-tcp", "exact-udp"], steps=10, samples=500,
+                                 rng=np.random.default_rng(0), progress=False)
+    assert not np.array_equal(c[0], c[1])
+    with pytest.raises(pl.InputError, match="laws"):
+        markov_closed_loop_costs(bursty, ["dp"], steps=3, samples=3)
+    with pytest.raises(pl.InputError, match="Gilbert-Elliott"):
+        markov_closed_loop_costs(s, steps=3, samples=3)

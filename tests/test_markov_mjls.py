@@ -1,0 +1,153 @@
+"""The switched loop as a Markov jump linear system: coupled Riccati equations against a hand-derived
+two-mode scalar case, policy evaluation and Monte Carlo; the mean-square radius against a hand 2×2
+operator and against simulated second moments (a stable and an unstable loop); the memoryless
+reduction to the Bernoulli TCP-like Riccati equation."""
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.markov import bursty_twin
+from packetloss_cvx.markov.mjls import coupled_riccati, mean_square_radius, mode_chain, second_moment_operator
+from packetloss_cvx.simulation.markov_channels import sample_markov_deliveries, sample_states
+
+PHI = (1 + 5**0.5) / 2
+
+
+def scalar(p, r, a=1.0, h_good=1.0, h_bad=0.0):
+    return pl.System(A=[[a]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                     channel=GilbertElliott(p=[p], r=[r], h_good=[h_good], h_bad=[h_bad]))
+
+
+def test_hand_derived_two_mode_scalar():
+    # a = b = q = psi = 1, p = 0 (good is absorbing): P_g = 1 + P_g - P_g^2 / (P_g + 1), so P_g^2 = P_g + 1,
+    # P_g = phi; P_b = 1 + r P_g + (1 - r) P_b, so P_b = (1 + r phi) / r; K_g = P_g / (P_g + 1) = 1 / phi, K_b = 0.
+    res = coupled_riccati(scalar(0.0, 0.5))
+    np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-10)
+    np.testing.assert_allclose(res.gains.ravel(), [1 / PHI, 0.0], rtol=1e-10, atol=1e-15)
+    # closed loop: good mode x+ = (1 - 1/phi) x forever after the first good step; bad mode x+ = x.
+    # Operator [[g (1-p), b r], [g p, b (1-r)]] with g = (1 - 1/phi)^2, b = 1: radius max(g, 1 - r) = 0.5
+    assert res.spectral_radius == pytest.approx(0.5, rel=1e-12)
+
+
+@pytest.mark.parametrize(("p", "r", "a", "k"), [(0.2, 0.3, 1.5, 1.2), (0.05, 0.1, 1.2, 1.0), (0.6, 0.7, 0.9, -0.4)])
+def test_radius_matches_the_hand_two_by_two_operator(p, r, a, k):
+    g, b = (a - k) ** 2, a**2
+    tr, det = (1 - p) * g + (1 - r) * b, (1 - p - r) * g * b
+    hand = (tr + np.sqrt(tr * tr - 4 * det)) / 2
+    ch = GilbertElliott(p=[p], r=[r])
+    assert mean_square_radius(np.array([[a]]), np.array([[1.0]]), ch, np.array([[k]])) == pytest.approx(hand, rel=1e-12)
+
+
+def simulated_second_moments(system, gains, steps, samples, seed):
+    """E||x_k||^2 by sampling the chain and its deliveries; returns (means, standard errors) per step."""
+    ch = system.channel
+    rng = np.random.default_rng(seed)
+    good = sample_states(ch, steps, samples, rng)                        # (S, T, m)
+    # mode index: product([1, 0], repeat=m) order, channel 0 the most significant bit (1 = bad)
+    index = np.sum((~good).astype(int) * 2 ** np.arange(ch.m - 1, -1, -1), axis=2)
+    # the deliveries given the states (h_good = 1, h_bad = 0 here: v = good)
+    X = np.repeat(system.x0[None], samples, axis=0)
+    out = []
+    for t in range(steps):
+        K = gains[index[:, t]]                                           # (S, m, n)
+        v = good[:, t].astype(float)
+        u = -np.einsum("smn,sn->sm", K, X) * v
+        X = X @ system.A.T + u @ system.B.T
+        sq = np.sum(X * X, axis=1)
+        out.append((sq.mean(), sq.std(ddof=1) / np.sqrt(samples)))
+    return np.array(out)
+
+
+def exact_second_moments(system, gains, steps):
+    """E||x_k||^2 by iterating the second-moment operator from Q_a(0) = pi0_a x0 x0'."""
+    ch = system.channel
+    modes, _, _ = mode_chain(ch)
+    b0 = ch.initial_belief
+    pi0 = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
+    op = second_moment_operator(system.A, system.B, ch, gains)
+    n = system.n
+    Q = np.concatenate([w * np.outer(system.x0, system.x0).ravel() for w in pi0])
+    out = []
+    for _ in range(steps):
+        Q = op @ Q
+        out.append(sum(np.trace(Q[a * n * n:(a + 1) * n * n].reshape(n, n)) for a in range(len(modes))))
+    return np.array(out)
+
+
+@pytest.mark.parametrize(("a", "k", "stable"), [(1.2, 0.6, True), (1.2, 0.2, False)])
+def test_radius_against_simulation(a, k, stable):
+    s = pl.System(A=[[a, 0.1], [0.0, 0.8]], B=[[1.0], [0.5]], horizon=1, state_weight=[1, 1], input_weight=[1.0],
+                  x0=[1.0, 1.0], channel=GilbertElliott(p=[0.1], r=[0.4]))
+    modes, _, _ = mode_chain(s.channel)
+    gains = np.array([[[k, 0.0]] for _ in modes])
+    radius = mean_square_radius(s.A, s.B, s.channel, gains)
+    assert (radius < 1) == stable
+    steps = 25
+    exact = exact_second_moments(s, gains, steps)
+    sim = simulated_second_moments(s, gains, steps, 40_000, seed=3)
+    for t in (4, 12, 24):
+        assert abs(sim[t, 0] - exact[t]) <= 4 * sim[t, 1]
+    assert (exact[-1] < exact[9]) == stable
+    growth = (exact[-1] / exact[-6]) ** (1 / 5)                          # the asymptotic rate is the radius
+    assert growth == pytest.approx(radius, rel=0.05)
+
+
+def policy_cost(system, gains, iterations=20000):
+    """The cost matrices of a fixed mode-dependent law by coupled Lyapunov iteration (policy evaluation)."""
+    modes, T, h = mode_chain(system.channel)
+    A, B, W, psi = system.A, system.B, system.state_weights[0], np.diag(system.input_weights[0])
+    Z = np.zeros((len(modes), system.n, system.n))
+    for _ in range(iterations):
+        E = np.einsum("ab,bij->aij", T, Z)
+        new = np.empty_like(Z)
+        for a in range(len(modes)):
+            v = h[a]                                                     # 0/1 for the Gilbert channel
+            G = A - B @ (v[:, None] * gains[a])
+            Ka = v[:, None] * gains[a]
+            new[a] = W + Ka.T @ psi @ Ka + G.T @ E[a] @ G
+        if np.max(np.abs(new - Z)) <= 1e-13 * np.max(np.abs(new)):
+            return new
+        Z = new
+    raise AssertionError("policy evaluation did not converge")
+
+
+def test_gains_are_optimal_by_policy_evaluation():
+    s = bursty_twin(pl.load_example("two_actuator"), 0.8)
+    res = coupled_riccati(s)
+    Z = policy_cost(s, res.gains)
+    np.testing.assert_allclose(Z, res.cost_matrices, rtol=1e-8)
+    rng = np.random.default_rng(0)
+    x = np.array([1.0, -0.5])
+    for _ in range(5):                                                   # any other stabilising law costs more
+        other = res.gains + 0.05 * rng.normal(size=res.gains.shape)
+        if mean_square_radius(s.A, s.B, s.channel, other) < 1:
+            assert np.all(np.einsum("i,aij,j->a", x, policy_cost(s, other), x)
+                          > np.einsum("i,aij,j->a", x, res.cost_matrices, x))
+
+
+def test_memoryless_chain_gives_the_bernoulli_riccati():
+    s = bursty_twin(pl.load_example("pendulum"), 0.0)                    # p = 0.1, r = 0.9: Bernoulli(0.9)
+    res = coupled_riccati(s)
+    pi = s.channel.stationary[0]
+    P = pi * res.cost_matrices[0] + (1 - pi) * res.cost_matrices[1]
+    A, B, W, psi = s.A, s.B, s.state_weights[0], s.input_weights[0]
+    G = B.T @ P @ B + psi
+    rhs = W + A.T @ P @ A - 0.9 * A.T @ P @ B @ np.linalg.solve(G, B.T @ P @ A)
+    assert np.max(np.abs(rhs - P)) <= 1e-8 * np.max(np.abs(P))
+    np.testing.assert_allclose(res.gains[0], np.linalg.solve(G, B.T @ P @ A), rtol=1e-8)
+    np.testing.assert_array_equal(res.gains[1], 0.0)
+
+
+def test_general_delivery_probabilities_and_errors():
+    # h_bad > 0: the bad mode still gets a gain; h_good = h_bad makes the modes identical
+    same = coupled_riccati(scalar(0.2, 0.3, a=1.1, h_good=0.6, h_bad=0.6))
+    np.testing.assert_allclose(same.cost_matrices[0], same.cost_matrices[1], rtol=1e-12)
+    with pytest.raises(pl.InputError, match="Gilbert-Elliott"):
+        coupled_riccati(pl.load_example("pendulum"))
+    with pytest.raises(pl.NumericalError, match="not mean-square stabilisable"):
+        coupled_riccati(scalar(0.5, 0.05, a=3.0), max_iter=2000)
+    delivered = sample_markov_deliveries(GilbertElliott(p=[0.5], r=[0.5], h_good=[0.6], h_bad=[0.6]), 4, 20_000,
+                                         np.random.default_rng(1))
+    assert abs(delivered.mean() - 0.6) <= 4 * np.sqrt(0.24 / delivered.size)
