@@ -207,3 +207,11 @@ def test_stability_in_the_files_and_on_the_command_line(two_actuator, tmp_path, 
     assert main(["sweep", "two_actuator", "--mu-grid", "3", "--stability", "--json", "--quiet"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["radius_tcp"]["max"] == pytest.approx(float(np.max(result.radii["tcp"])), rel=1e-12)
+
+
+def test_a_markov_channel_is_refused():
+    bursty = pl.load_example("pendulum_bursty")
+    assert bursty.channel is not None
+    with pytest.raises(pl.InputError, match="Gilbert-Elliott") as info:
+        sweep(bursty, x0_scales=[1.0])
+    assert info.value.field == "system"

@@ -201,6 +201,13 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
     -------
     DesignSweep
 
+    Raises
+    ------
+    InputError
+        Bad arguments (the field named), a non-stationary channel for a sweep that keeps the channel,
+        per-step weights for a horizon sweep, or a Markov (Gilbert-Elliott) channel, which this
+        Bernoulli evaluator does not model.
+
     Notes
     -----
     O(P N (n^3 + m^3)) for P points, plus O(P n^6) with ``stability``; memory O(P (m + n)).
@@ -214,6 +221,9 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
     >>> bool(np.all(result.difference >= 0))            # Theorem 2
     True
     """
+    if getattr(system, "channel", None) is not None:
+        raise InputError("system", "it has a Gilbert-Elliott (Markov) channel; sweep evaluates independent "
+                                   "Bernoulli channels (packetloss_cvx.markov.burstiness_sweep sweeps burstiness)")
     protocols = tuple(dict.fromkeys(check_protocol(p, "protocols") for p in protocols))
     if not protocols:
         raise InputError("protocols", "expected at least one of 'tcp', 'udp'")
