@@ -204,15 +204,19 @@ def build_parser() -> argparse.ArgumentParser:
     what = swp.add_argument_group("what to sweep (exactly one)").add_mutually_exclusive_group(required=True)
     what.add_argument("--mu-grid", type=int, metavar="K",
                       help="K points per channel on [0, 1]: 1-D for one channel, 2-D for two (required: this or "
-                           "one of the three below), e.g. --mu-grid 201")
+                           "one of the four below), e.g. --mu-grid 201")
     what.add_argument("--mu-list", metavar="FILE.csv",
-                      help="m-channel points, one row each, a header row skipped (required: one of four), "
+                      help="m-channel points, one row each, a header row skipped (required: one of five), "
                            "e.g. --mu-list points.csv")
     what.add_argument("--x0-scales", metavar="S1,S2,..|LO:HI:K",
-                      help="x0 times each scale, or K scales from LO to HI (required: one of four), "
+                      help="x0 times each scale, or K scales from LO to HI (required: one of five), "
                            "e.g. --x0-scales 0:2:21")
     what.add_argument("--horizons", metavar="N1,N2,..",
-                      help="each horizon N (required: one of four), e.g. --horizons 5,10,20,40")
+                      help="each horizon N (required: one of five), e.g. --horizons 5,10,20,40")
+    what.add_argument("--burstiness", metavar="L1,L2,..|LO:HI:K",
+                      help="Gilbert channels with the file's average rates and burstiness lambda = 1 - p - r: "
+                           "plug-in laws against the exact minimum under correlated losses (required: one of five), "
+                           "e.g. --burstiness 0:0.9:10")
     swp.add_argument("--channel", type=int, metavar="I",
                      help="with --mu-grid: sweep channel I only, the others as in the file (default: all channels "
                           "for m <= 2), e.g. --channel 2")

@@ -10,13 +10,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import load_system
+from ..markov import burstiness_sweep
 from ..plots import plot_cost_lines, plot_log_contour
-from ..results import DesignSweep
+from ..results import BurstinessSweep, DesignSweep
 from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, save_sweep, sweep
+from ..tolerances import SELF_CHECK_RTOL
 from .common import CommandResult, floats
 
-__all__ = ["run"]
+__all__ = ["bursty", "run"]
 
 #: the API's argument names -> the flags that set them (errors are renamed to the flag)
 FLAGS = {"mu_grid": "--mu-grid", "mu_list": "--mu-list", "x0_scales": "--x0-scales", "horizons": "--horizons",
@@ -27,17 +29,17 @@ _AXIS_LABELS = {"nu": r"shared channel $\nu$", "x0_scale": r"scale $s$ of $x_0$ 
                 "horizon": "horizon $N$", "point": "point (row of --mu-list)"}
 
 
-def _scales(text: str) -> np.ndarray:
+def _scales(text: str, field: str = "--x0-scales") -> np.ndarray:
     if ":" in text:
         parts = text.split(":")
         if len(parts) != 3:
-            raise InputError("--x0-scales", f"expected LO:HI:K, found {text[:40]!r}")
-        lo, hi = floats(parts[0], "--x0-scales")[0], floats(parts[1], "--x0-scales")[0]
-        count = floats(parts[2], "--x0-scales")[0]
+            raise InputError(field, f"expected LO:HI:K, found {text[:40]!r}")
+        lo, hi = floats(parts[0], field)[0], floats(parts[1], field)[0]
+        count = floats(parts[2], field)[0]
         if count != int(count) or not 1 <= count <= 1_000_000:
-            raise InputError("--x0-scales", f"expected an integer count K >= 1, found {parts[2]!r}")
+            raise InputError(field, f"expected an integer count K >= 1, found {parts[2]!r}")
         return np.linspace(lo, hi, int(count))
-    return np.array(floats(text, "--x0-scales"))
+    return np.array(floats(text, field))
 
 
 def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
@@ -102,8 +104,56 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
     return data, lines
 
 
+def bursty(args: argparse.Namespace) -> CommandResult:
+    """``--burstiness``: each protocol's plug-in law against the exact minimum under Gilbert channels of
+    the file's average rates (:func:`~packetloss_cvx.markov.burstiness_sweep`); ``--out`` writes
+    burstiness.csv and a figure."""
+    if args.netcdf or args.dask or args.stability:
+        raise InputError("--burstiness", "takes none of --netcdf, --dask, --stability")
+    system = load_system(args.file)
+    try:
+        result: BurstinessSweep = burstiness_sweep(system, _scales(args.burstiness, "--burstiness"),
+                                                   progress=False if args.quiet else None)
+    except InputError as err:
+        raise err.renamed("--burstiness") if err.field == "correlations" else err from None
+    protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
+    data: dict[str, Any] = {"name": system.name, "kind": "burstiness", "rate": result.rate.tolist(),
+                            "correlation": result.correlation.tolist()}
+    lines = [f"{system.name or args.file}: burstiness sweep at average rates {np.round(result.rate, 6).tolist()}"]
+    for p in protocols:
+        plugin, exact = result.plugin[p], result.exact[p]
+        loss = plugin / exact - 1
+        data[p] = {"plugin": plugin.tolist(), "exact": exact.tolist(), "relative_loss": loss.tolist()}
+        worst = int(np.argmax(loss))
+        if loss[worst] <= SELF_CHECK_RTOL:   # equal to rounding: the plug-in law is the exact minimiser
+            lines.append(f"  {p.upper()}-like: the plug-in law is the exact minimiser at every lambda")
+        else:
+            lines.append(f"  {p.upper()}-like: the plug-in law loses up to {100 * loss[worst]:.3g}% against the "
+                         f"exact minimum (at lambda = {result.correlation[worst]:.4g})")
+    if args.out is not None:
+        out = Path(args.out)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            header = ",".join(["lambda"] + [f"{kind}_{p}" for p in protocols for kind in ("plugin", "exact")])
+            rows = np.column_stack([result.correlation] + [col for p in protocols
+                                                            for col in (result.plugin[p], result.exact[p])])
+            np.savetxt(out / "burstiness.csv", rows, delimiter=",", header=header, comments="", fmt="%.17g")
+        except OSError as err:
+            raise InputError("--out", f"cannot write into {str(out)!r}: {err.strerror or err}") from None
+        curves = {f"{kind} {p.upper()}-like": (result.plugin if kind == "plug-in" else result.exact)[p]
+                  for p in protocols for kind in ("plug-in", "exact")}
+        plot_cost_lines(result.correlation, curves, xlabel=r"burstiness $\lambda = 1 - p - r$",
+                        title=f"{system.name or 'system'}: burstiness at fixed average rates",
+                        path=out / "burstiness.png")
+        data["files"] = [str(out / "burstiness.csv"), str(out / "burstiness.png")]
+        lines.append(f"  wrote burstiness.csv, burstiness.png in {out}")
+    return CommandResult(data, "\n".join(lines))
+
+
 def run(args: argparse.Namespace) -> CommandResult:
     """Sweep, summarise, and with ``--out`` save the arrays and the figure."""
+    if getattr(args, "burstiness", None) is not None:
+        return bursty(args)
     system = load_system(args.file)
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     try:

@@ -1,0 +1,60 @@
+"""``sweep --burstiness``: the plug-in laws against the exact minimum under Gilbert channels of the
+file's average rates (issue 11, item 5), on the command line."""
+
+import json
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_memoryless_point_is_the_bernoulli_optimum_and_bursts_cost_more(capsys, tmp_path):
+    code, out, err = _run(capsys, "sweep", "two_actuator", "--burstiness", "0,0.5,0.9", "--json", "-q",
+                          "--out", str(tmp_path))
+    assert code == 0, err
+    data = json.loads(out)
+    system = pl.load_example("two_actuator")
+    for protocol in ("tcp", "udp"):
+        bernoulli = pl.closed_form(system, protocol, method="recursion").cost   # another algorithm
+        assert data[protocol]["plugin"][0] == pytest.approx(bernoulli, rel=1e-10)
+        assert data[protocol]["exact"][0] == pytest.approx(bernoulli, rel=1e-10)
+        plugin, exact = np.array(data[protocol]["plugin"]), np.array(data[protocol]["exact"])
+        assert np.all(plugin >= exact * (1 - 1e-12))                  # the exact minimiser is a minimum
+    # the TCP-like cost holds first moments only: its plug-in law is exact at every lambda
+    assert np.allclose(data["tcp"]["plugin"], data["tcp"]["exact"], rtol=1e-10)
+    # the UDP-like one is not: bursts cost its plug-in law more, increasingly
+    loss = np.array(data["udp"]["relative_loss"])
+    assert loss[0] < 1e-10 < loss[1] < loss[2]
+    rows = np.loadtxt(tmp_path / "burstiness.csv", delimiter=",", skiprows=1)
+    assert rows.shape == (3, 5)
+    assert np.array_equal(rows[:, 0], [0.0, 0.5, 0.9])
+    assert np.array_equal(rows[:, 3], data["udp"]["plugin"])           # 17 digits read back exactly
+    assert (tmp_path / "burstiness.png").stat().st_size > 1000
+
+
+def test_text_says_the_tcp_like_law_is_exact(capsys):
+    code, out, _ = _run(capsys, "sweep", "pendulum", "--burstiness", "0:0.9:3", "-q")
+    assert code == 0
+    assert "TCP-like: the plug-in law is the exact minimiser at every lambda" in out
+    assert "UDP-like: the plug-in law loses up to" in out
+
+
+@pytest.mark.parametrize(("argv", "field"), [
+    (["--burstiness", "0,1.5"], "--burstiness"),
+    (["--burstiness", "0,abc"], "--burstiness"),
+    (["--burstiness", "0:1:0"], "--burstiness"),
+    (["--burstiness", "0,0.5", "--dask", "local"], "--burstiness"),
+])
+def test_bad_burstiness_is_one_line_and_exit_2(capsys, argv, field):
+    code, out, err = _run(capsys, "sweep", "two_actuator", *argv)
+    assert code == 2
+    assert not out
+    assert err.count("\n") == 1 and field in err
