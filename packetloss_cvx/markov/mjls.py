@@ -25,16 +25,18 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs
 
 from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError, ResourceError
 from ..model import System, check_system
 from ..results import MjlsResult
-from ..tolerances import SELF_CHECK_RTOL
+from ..tolerances import ARPACK_TOL, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 
 __all__ = [
-    "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati", "jump_law_stage_costs",
-    "mean_square_radius", "mode_chain", "second_moment_operator",
+    "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
+    "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "moment_step", "mode_chain",
+    "second_moment_operator",
 ]
 
 #: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the operator is refused.
@@ -42,6 +44,8 @@ MAX_CHANNELS = 6
 #: Rows M n^2 of the dense coupled operator beyond which it is refused (ResourceError): its eigenvalues take
 #: O((M n^2)^3) time and 16 (M n^2)^2 bytes (2048 rows: 64 MiB, a few seconds).
 MAX_OPERATOR_DIM = 2048
+#: Rows up to which :func:`mean_square_radius` takes the dense eigenvalues by default (above: matrix-free Krylov).
+DENSE_MAX_DIM = 400
 
 
 def mode_chain(channel: GilbertElliott) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -128,10 +132,15 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott
 
 
 def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, gains: np.ndarray,
-                       delivery: str = "current") -> float:
-    """Spectral radius of :func:`second_moment_operator`: < 1 iff the switched loop is mean-square stable.
+                       delivery: str = "current", method: str = "auto") -> float:
+    """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
+    loop is mean-square stable.
 
-    Dense eigenvalues, time O((M n^2)^3); refused (ResourceError) beyond :data:`MAX_OPERATOR_DIM` rows.
+    ``method``: "dense", the eigenvalues of the (M n^2)^2 matrix, time O((M n^2)^3), refused (ResourceError)
+    beyond :data:`MAX_OPERATOR_DIM` rows; "krylov", ARPACK on the map applied matrix-free
+    (O(M^2 n^2 + M n^2 (n + m)) per product, O(M n^2) memory per vector), its value checked against
+    Collatz–Wielandt bounds proven from its eigenvector (NumericalError outside them); "auto", dense up to
+    :data:`DENSE_MAX_DIM` rows, else Krylov (falling back to dense within :data:`MAX_OPERATOR_DIM` rows).
 
     Examples
     --------
@@ -140,12 +149,96 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, ga
     >>> round(mean_square_radius(np.array([[2.0]]), np.array([[1.0]]), ch, np.array([[1.0]])), 12)
     2.5
     """
-    op = second_moment_operator(A, B, channel, gains, delivery)
+    if method not in ("auto", "dense", "krylov"):
+        raise InputError("method", f"expected auto, dense or krylov, found {method!r}")
+    if delivery not in ("current", "next"):
+        raise InputError("delivery", f"expected current or next, found {delivery!r}")
+    modes, T, h = mode_chain(channel)
+    M, n, m = len(modes), A.shape[0], B.shape[1]
+    K = _mode_gains(gains, M, m, n)
+    if not (np.all(np.isfinite(K)) and np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+        raise NumericalError("MJLS mean-square radius: the gains or the plant are not finite")
+    dim = M * n * n
+    if method == "krylov" or (method == "auto" and dim > DENSE_MAX_DIM and dim >= 8):
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                return _krylov_radius(A, B, T, h, K, delivery)
+        except NumericalError:
+            if method == "krylov" or dim > MAX_OPERATOR_DIM:
+                raise
+    op = second_moment_operator(A, B, channel, K, delivery)
     with np.errstate(over="ignore", invalid="ignore"):
         vals = np.linalg.eigvals(op) if np.all(np.isfinite(op)) else np.array([np.inf])
     if not np.all(np.isfinite(vals)):
         raise NumericalError("MJLS mean-square radius: the second-moment operator is not finite")
     return float(max(abs(vals)))
+
+
+def moment_step(Q: np.ndarray, K: np.ndarray, R: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray,
+                H2: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray]:
+    """One noise-free step of the coupled second moments: ``(Q', KQK)``.
+
+    ``Q`` (a, n, n) and ``K`` (a, m, n) per information mode a, ``R`` (a, M) its transition rows, ``h`` (M, m)
+    and ``H2`` (M, m, m) the first and second delivery moments per mode. ``"current"``:
+    ``Q'_b = sum_a R_ab E_{v|a}[G_a Q_a G_a']``, ``KQK[a] = K_a Q_a K_a'``; ``"next"``:
+    ``Q'_b = sum_a R_ab E_{v|b}[G_a Q_a G_a']``, ``KQK[b] = sum_a R_ab K_a Q_a K_a'``. With
+    ``E_{v|c}[G Q G'] = AQA' - AQK'H_c B' - B H_c KQA' + B((KQK') ∘ H2_c)B'``; the expected input cost is
+    ``sum_c sum_i psi_i h_ci KQK[c]_ii``. Time O(a M n^2 + a n^2 (n + m)).
+    """
+    AQA = np.einsum("ij,ajk,lk->ail", A, Q, A)
+    C = np.einsum("ij,ajk,alk->ail", A, Q, K)                                                  # A Q_a K_a'
+    KQK = np.einsum("aij,ajk,alk->ail", K, Q, K)
+    if delivery == "next":
+        AQA, C, KQK = (np.einsum("ab,aij->bij", R, X) for X in (AQA, C, KQK))               # sum_a R_ab X_a
+    Y = AQA - np.einsum("cij,cj,kj->cik", C, h, B) - np.einsum("ij,cj,ckj->cik", B, h, C) \
+        + np.einsum("ij,cjk,lk->cil", B, KQK * H2, B)
+    return (np.einsum("ab,aij->bij", R, Y) if delivery == "current" else Y), KQK
+
+
+def delivery_moments(h: np.ndarray) -> np.ndarray:
+    """``E[v v' | mode] = h h' + diag(h (1 - h))`` per mode (independent channels), (M, m, m). O(M m^2)."""
+    return h[:, :, None] * h[:, None, :] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(h.shape[1]))
+
+
+def _krylov_radius(A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, K: np.ndarray, delivery: str) -> float:
+    """ARPACK on the coupled map (never forming it), checked against Collatz–Wielandt bounds from a positive
+    definite tuple X near the Perron vector: ``L(X) >= c X`` proves rho >= c, ``L(X) <= c X`` proves rho <= c
+    (blockwise Loewner order; L maps PSD tuples to PSD tuples). Time O(iterations (M^2 n^2 + M n^2 (n + m)))."""
+    M, n = T.shape[0], A.shape[0]
+    D, H2 = M * n * n, delivery_moments(h)
+    k = min(6, D - 2)
+    ncv = min(D, max(2 * k + 1, 20))
+    if 8.0 * D * (ncv + 4) > MEMORY_BUDGET_BYTES:
+        raise ResourceError(f"the MJLS radius needs {ncv + 4} Krylov vectors of 2^m n^2 = {D} entries "
+                            f"({8.0 * D * (ncv + 4) / 2**30:.1f} GiB)", 8.0 * D * (ncv + 4), MEMORY_BUDGET_BYTES)
+
+    def apply(v: np.ndarray) -> np.ndarray:
+        Q = v.reshape(M, n, n)
+        return moment_step(0.5 * (Q + Q.transpose(0, 2, 1)), K, T, A, B, h, H2, delivery)[0].ravel()
+
+    op = LinearOperator((D, D), matvec=apply, dtype=float)
+    try:
+        vals, vecs = eigs(op, k=k, which="LM", tol=ARPACK_TOL, v0=np.tile(np.eye(n).ravel(), M),
+                          ncv=ncv, maxiter=max(300, 10 * n))
+    except (ArpackNoConvergence, ArpackError) as err:
+        raise NumericalError(f"MJLS mean-square radius: ARPACK did not converge ({err})") from None
+    top = int(np.argmax(np.abs(vals)))
+    radius = float(abs(vals[top]))
+    v = vecs[:, top] * np.exp(-1j * np.angle(vecs[np.argmax(np.abs(vecs[:, top])), top]))
+    X = v.real.reshape(M, n, n)
+    X = 0.5 * (X + X.transpose(0, 2, 1))
+    X = X if np.einsum("aii->", X) >= 0 else -X
+    w, U = np.linalg.eigh(X)
+    w = np.maximum(w, 1e-10 * max(float(w.max()), np.finfo(float).tiny))
+    root_inv = np.einsum("aij,aj,akj->aik", U, 1 / np.sqrt(w), U)
+    Y = moment_step(np.einsum("aij,aj,akj->aik", U, w, U), K, T, A, B, h, H2, delivery)[0]
+    Z = np.einsum("aij,ajk,akl->ail", root_inv, Y, root_inv)
+    ratios = np.linalg.eigvalsh(0.5 * (Z + Z.transpose(0, 2, 1)))
+    lower, upper = max(float(ratios[:, 0].min()), 0.0), float(ratios[:, -1].max())
+    if not (np.isfinite(radius) and lower * (1.0 - 1e-9) <= radius <= upper * (1.0 + 1e-9)):
+        raise NumericalError(f"MJLS mean-square radius: ARPACK's {radius:.6g} lies outside the proven bounds "
+                             f"[{lower:.6g}, {upper:.6g}]")
+    return radius
 
 
 def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery: str = "current",
@@ -176,7 +269,7 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
                                   f"{K_all.shape}")
     b0 = system.channel.initial_belief
     pi = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)                                   # P(mode at 0)
-    H2 = h[:, :, None] * h[:, None, :] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(m))     # E[v v' | mode]
+    H2 = delivery_moments(h)
     x0 = system.x0
     if delivery == "next":
         if first_gain is None:
@@ -187,20 +280,12 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     out = np.empty(steps)
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps):
-            AQA = np.einsum("ij,ajk,lk->ail", A, Q, A)
-            C = np.einsum("ij,ajk,alk->ail", A, Q, K)                                          # A Q_a K_a'
-            KQK = np.einsum("aij,ajk,alk->ail", K, Q, K)
             state = float(np.einsum("ij,aji->", Omega, Q))
+            Q_next, KQK = moment_step(Q, K, R, A, B, h, H2, delivery)
+            inputs = float(np.einsum("i,ci,cii->", psi, h, KQK))
             if delivery == "current":
-                inputs = float(np.einsum("i,ai,aii->", psi, h, KQK))
-                Y = AQA - np.einsum("aij,aj,kj->aik", C, h, B) - np.einsum("ij,aj,akj->aik", B, h, C) \
-                    + np.einsum("ij,ajk,lk->ail", B, KQK * H2, B)
-                Q_next, pi = np.einsum("ab,aij->bij", T, Y), pi @ T                         # P(mode at t + 1)
+                pi = pi @ T                                                                  # P(mode at t + 1)
             else:
-                AQA, C, KQK = (np.einsum("ab,aij->bij", R, X) for X in (AQA, C, KQK))       # sum_a R_ab X_a
-                inputs = float(np.einsum("i,bi,bii->", psi, h, KQK))
-                Q_next = AQA - np.einsum("bij,bj,kj->bik", C, h, B) - np.einsum("ij,bj,bkj->bik", B, h, C) \
-                    + np.einsum("ij,bjk,lk->bil", B, KQK * H2, B)
                 pi, R = (pi if t == 0 else pi @ T), T                                        # P(mode at t)
             out[t] = state + inputs
             Q = Q_next + pi[:, None, None] * Sigma
