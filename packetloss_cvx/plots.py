@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 from .errors import InputError
 from .model import numeric_array
 
-__all__ = ["plot_allocation_contours", "plot_closed_loop", "plot_pareto"]
+__all__ = ["plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto"]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
 _MARKERS = ("x", "^", "s", "o", "v", "D")
@@ -216,5 +216,155 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     right.legend()
     if title:
         fig.suptitle(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+#: Dash patterns telling the allocation lines apart (all black and dashed, as in the paper).
+_DASHES = ((0, (5, 2)), (0, (8, 3, 2, 3)), (0, (2, 2)))
+
+
+def _positive_log(values: Any, field: str) -> np.ndarray:
+    """log of the positive entries, NaN (drawn blank) elsewhere."""
+    arr = numeric_array(values, field)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(arr > 0, np.log(np.where(arr > 0, arr, 1.0)), np.nan)
+
+
+def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: str, log: bool = True,
+                    xscale: str = "linear", marker: float | None = None, marker_label: str | None = None,
+                    title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Costs against one swept quantity (Fig. log-cost-pendulum and 1-D sweeps).
+
+    Parameters
+    ----------
+    x : sequence of float, shape (P,)
+        The swept values (nu, mu_i, an x0 scale, horizons).
+    curves : mapping
+        Label (``"tcp"``, ``"udp"``, ``"diff"`` or any text) to values of shape (P,).
+    xlabel : str
+    log : bool
+        Draw the natural logarithm of the values (non-positive values are left blank).
+    xscale : {"linear", "log"}
+    marker : float, optional
+        An x to mark with a vertical dashed line (e.g. the maximiser of J_Delta), labelled
+        ``marker_label``.
+    title : str, optional
+    path : str or Path, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        O(P) per curve.
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match or non-finite numbers (the field named), an unwritable path.
+    """
+    xs = numeric_array(x, "x")
+    if xs.ndim != 1 or xs.size < 1:
+        raise InputError("x", "expected a non-empty 1-D sequence")
+    if not isinstance(curves, Mapping) or not curves:
+        raise InputError("curves", "expected a non-empty mapping label -> values")
+    fig = Figure(figsize=(5.5, 3.8))
+    ax = fig.subplots()
+    names = {"tcp": "TCP-like $J^*$", "udp": "UDP-like $J^*$", "diff": r"$J_\Delta = J^*_{udp} - J^*_{tcp}$"}
+    for label, values in curves.items():
+        ys = _positive_log(values, f"curves[{label!r}]") if log else numeric_array(values, f"curves[{label!r}]")
+        if ys.shape != xs.shape:
+            raise InputError(f"curves[{label!r}]", f"expected shape {xs.shape} but found {ys.shape}")
+        ax.plot(xs, ys, ls="--" if label == "diff" else "-", label=names.get(label, str(label)))
+    if marker is not None:
+        ax.axvline(marker, color="k", ls=":", lw=1, label=marker_label)
+    ax.set_xscale(xscale)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("log expected cost" if log else "expected cost")
+    if title:
+        ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: Any, *, xlabel: str = r"$\mu_1$",
+                     ylabel: str = r"$\mu_2$", colorbar_label: str = "log expected cost",
+                     marker: Sequence[float] | None = None, levels: Sequence[float] | None = None,
+                     allocations: Mapping[Any, Sequence[Sequence[float] | None]] | None = None,
+                     title: str | None = None, path: str | Path | None = None) -> Figure:
+    """The logarithm of a positive quantity over a 2-D grid, with a colourbar (Figs. cost-diff-mixed,
+    TCP-/UDP-log-cost-mixed and, with ``levels`` and ``allocations``, their ``-mult`` variants).
+
+    Parameters
+    ----------
+    axis_x, axis_y : sequence of float, shapes (gx,), (gy,)
+        Increasing grid values.
+    values : array_like, shape (gy, gx)
+        ``values[j, i]`` at ``(axis_x[i], axis_y[j])``; non-positive entries are left blank. The colour
+        scale spans the 2nd percentile of the logarithms to their maximum; lower values take the lowest
+        colour (the colourbar's arrow), so a few near-zero values (J_Delta at the corners) do not flatten it.
+    marker : pair, optional
+        A point marked with a black cross (e.g. the maximiser of J_Delta).
+    levels : sequence of float, optional
+        Values (not logarithms) drawn as labelled contour lines (the cost bounds alpha).
+    allocations : mapping, optional
+        Label (e.g. beta) to points (pairs, or None where there is none): each drawn as a black
+        dashed line through its points, each point a black cross (the paper's eq:opt_M lines).
+    title : str, optional
+    path : str or Path, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        O(gx gy) to contour the grid.
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match, non-finite numbers, malformed points, an unwritable path.
+    """
+    gx, gy = numeric_array(axis_x, "axis_x"), numeric_array(axis_y, "axis_y")
+    for name, g in (("axis_x", gx), ("axis_y", gy)):
+        if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
+            raise InputError(name, "expected an increasing 1-D sequence of at least 2 numbers")
+    raw = numeric_array(values, "values")
+    if raw.shape != (gy.size, gx.size):
+        raise InputError("values", f"expected shape ({gy.size}, {gx.size}) but found {raw.shape}")
+    logs = _positive_log(raw, "values")
+    if not np.any(np.isfinite(logs)):
+        raise InputError("values", "expected some positive values (their logarithm is drawn)")
+    fig = Figure(figsize=(5.6, 4.9))
+    ax = fig.subplots()
+    lo, hi = np.nanpercentile(logs, 2), np.nanmax(logs)   # a few near-zero values must not flatten the rest
+    shades = np.linspace(lo, hi, 31) if hi > lo else 30
+    filled = ax.contourf(gx, gy, logs, levels=shades, cmap="viridis", extend="min" if hi > lo else "neither")
+    fig.colorbar(filled, ax=ax, label=colorbar_label)
+    if levels is not None:
+        lv = np.sort(numeric_array(levels, "levels").ravel())
+        inside = lv[(lv > np.nanmin(raw)) & (lv < np.nanmax(raw))]
+        if inside.size:
+            cs = ax.contour(gx, gy, raw, levels=inside, colors="w", linewidths=0.7)
+            ax.clabel(cs, fmt="%.3g", fontsize=6)
+    for k, (label, points) in enumerate((allocations or {}).items()):
+        kept = [p for p in points if p is not None]
+        if not kept:
+            continue
+        pts = numeric_array(kept, f"allocations[{label!r}]")
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise InputError(f"allocations[{label!r}]", "expected points as pairs (mu1, mu2)")
+        ax.plot(pts[:, 0], pts[:, 1], ls=_DASHES[k % len(_DASHES)], color="k", lw=0.9, marker="x", ms=5,
+                label=str(label))
+    if marker is not None:
+        point = numeric_array(marker, "marker").ravel()
+        ax.plot([point[0]], [point[1]], marker="x", color="k", ms=10, mew=2, ls="none", label="maximiser")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_xlim(gx[0], gx[-1])
+    ax.set_ylim(gy[0], gy[-1])
+    if title:
+        ax.set_title(title, fontsize=9)
+    if ax.lines:    # below the axes: the allocations run along every edge
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
     fig.tight_layout()
     return _save(fig, path)

@@ -30,7 +30,7 @@ from .completion import CompletionAction
 __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
-NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha")
+NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales")
 
 FILE_HELP = "a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator"
 
@@ -192,6 +192,52 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--plot", metavar="FILE",
                      help="figure of the closed loop: mean +- band of ||x_t||, cost (default: none), "
                           "e.g. --plot loop.png")
+
+    swp = add_command(sub, "sweep", "J*_tcp, J*_udp and J_Delta over a grid of channels, x0 scales or horizons",
+                      examples=["sweep two_actuator --mu-grid 201 --out sweep-out",
+                                "sweep pendulum --x0-scales 0:2:5 --json",
+                                "sweep two_actuator --mu-grid 201 --dask local --out sweep-out --netcdf"],
+                      results=False)
+    swp.add_argument("file", metavar="FILE", help=FILE_HELP)
+    swp.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both",
+                     help="TCP-like, UDP-like or both (then also J_Delta), e.g. --protocol udp")
+    what = swp.add_argument_group("what to sweep (exactly one)").add_mutually_exclusive_group(required=True)
+    what.add_argument("--mu-grid", type=int, metavar="K",
+                      help="K points per channel on [0, 1]: 1-D for one channel, 2-D for two (required: this or "
+                           "one of the three below), e.g. --mu-grid 201")
+    what.add_argument("--mu-list", metavar="FILE.csv",
+                      help="m-channel points, one row each, a header row skipped (required: one of four), "
+                           "e.g. --mu-list points.csv")
+    what.add_argument("--x0-scales", metavar="S1,S2,..|LO:HI:K",
+                      help="x0 times each scale, or K scales from LO to HI (required: one of four), "
+                           "e.g. --x0-scales 0:2:21")
+    what.add_argument("--horizons", metavar="N1,N2,..",
+                      help="each horizon N (required: one of four), e.g. --horizons 5,10,20,40")
+    swp.add_argument("--channel", type=int, metavar="I",
+                     help="with --mu-grid: sweep channel I only, the others as in the file (default: all channels "
+                          "for m <= 2), e.g. --channel 2")
+    swp.add_argument("--shared", action="store_true", help="with --mu-grid: every actuator behind one channel nu")
+    swp.add_argument("--chunk-size", type=int, default=2048, metavar="C",
+                     help="points per batched evaluation and per Dask task, e.g. --chunk-size 10000")
+    swp.add_argument("--dask", metavar="local|ADDRESS",
+                     help="evaluate on Dask: a new LocalCluster or a running scheduler (default: in process), "
+                          "e.g. --dask tcp://127.0.0.1:8786")
+    swp.add_argument("--workers", type=int, metavar="W",
+                     help="workers of --dask local (default: 2), e.g. --workers 4")
+    swp.add_argument("--out", metavar="DIR",
+                     help="write sweep.npz, sweep.csv and a figure into DIR (default: none), e.g. --out sweep-out")
+    swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs the xarray extra)")
+    swp.add_argument("--stability", action="store_true",
+                     help="also each law's mean-square spectral radius in closed loop (radius_tcp, radius_udp)")
+    swp.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
+
+    rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
+                      examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],
+                      results=False)
+    rep.add_argument("--out", metavar="DIR", default="results",
+                     help="folder for the PNGs, results.json and report.md, e.g. --out paper-results")
+    rep.add_argument("--quick", action="store_true", help="coarse grids, one alpha, a shorter audit (a smoke test)")
+    rep.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
     return parser
 
 

@@ -9,7 +9,7 @@ from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
 from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, Solution
-from .studies import Allocation, ClaimResult, Maximiser, MinCost, Sweep
+from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
 
 __all__ = [
     "Allocation",
@@ -19,6 +19,7 @@ __all__ = [
     "ClosedLoop",
     "ClosedLoopRun",
     "CrossCheck",
+    "DesignSweep",
     "MarkovSolution",
     "Maximiser",
     "MinCost",

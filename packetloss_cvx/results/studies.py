@@ -1,8 +1,9 @@
-"""Results of design questions: allocations, claim verdicts, maximisers, sweeps and minimum costs."""
+"""Results of design questions: allocations, claim verdicts, maximisers, sweeps (and design-study sweeps)
+and minimum costs."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -10,7 +11,7 @@ import numpy as np
 from ..display import allocation_html, allocation_repr, claim_html, claim_repr, maximiser_repr, to_json
 from .base import freeze, read_only
 
-__all__ = ["Allocation", "ClaimResult", "Maximiser", "MinCost", "Sweep"]
+__all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "Sweep"]
 
 
 @dataclass(frozen=True)
@@ -190,3 +191,69 @@ class MinCost:
         """Plain floats and lists for JSON. O(m)."""
         return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
                 "status": self.status, "mu": self.mu.tolist(), "method": self.method}
+
+
+@dataclass(frozen=True)
+class DesignSweep:
+    """Optimal costs over a design study (:func:`packetloss_cvx.studies.sweep`), P points.
+
+    ``kind``: "mu-grid", "mu-list", "x0-scale" or "horizon"; ``dims``/``axes``: the swept dimensions,
+    slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2), the points being the axes'
+    Cartesian product in C order; ``mu`` (P, m), ``x0`` (P, n), ``horizon`` (P,): each point;
+    ``costs``: protocol -> J* (P,); ``difference``: J*_udp - J*_tcp (P,) or None, the difference of
+    the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 J*_udp
+    absolute (so not relatively where the costs nearly agree); ``name``: the system's;
+    ``chunk_size``: points per batched evaluation (in process or per Dask task); ``radii``: protocol ->
+    the mean-square spectral radius of its receding-horizon law's closed loop at each point (P,), when
+    asked for (stable iff < 1), else empty.
+    """
+
+    kind: str
+    dims: tuple[str, ...]
+    axes: tuple[np.ndarray, ...]
+    mu: np.ndarray
+    x0: np.ndarray
+    horizon: np.ndarray
+    costs: dict[str, np.ndarray]
+    difference: np.ndarray | None
+    name: str | None
+    chunk_size: int
+    radii: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        freeze(self)
+        object.__setattr__(self, "axes", tuple(read_only(a) for a in self.axes))
+        object.__setattr__(self, "costs", {k: read_only(v) for k, v in self.costs.items()})
+        object.__setattr__(self, "radii", {k: read_only(v) for k, v in self.radii.items()})
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The grid's shape: one length per dimension."""
+        return tuple(a.size for a in self.axes)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Flat arrays as ``sweep.npz`` stores them: mu, x0, horizon, cost_<protocol>, cost_diff,
+        radius_<protocol>, axis_<dim>. O(P)."""
+        out = {"mu": self.mu, "x0": self.x0, "horizon": self.horizon, **{f"cost_{p}": v for p, v in self.costs.items()}}
+        if self.difference is not None:
+            out["cost_diff"] = self.difference
+        out.update({f"radius_{p}": v for p, v in self.radii.items()})
+        return {**out, **{f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)}}
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists for JSON. O(P (m + n))."""
+        return {"kind": self.kind, "name": self.name, "dims": list(self.dims), "shape": list(self.shape),
+                "chunk_size": self.chunk_size, **{k: v.tolist() for k, v in self.arrays().items()}}
+
+    def to_xarray(self) -> Any:
+        """An :class:`xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
+        mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(P (m + n))."""
+        import xarray as xr  # lazy: an optional extra
+
+        dims, shape = self.dims, self.shape
+        flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_")}
+        data = {k: ((*dims, "channel" if k == "mu" else "state") if v.ndim == 2 else dims, v.reshape(*shape, -1)
+                    if v.ndim == 2 else v.reshape(shape)) for k, v in flat.items()}
+        attrs = {"kind": self.kind, "name": self.name or "", "chunk_size": self.chunk_size,
+                 "cost_diff": "J*_udp - J*_tcp, the difference of the two checked costs"}
+        return xr.Dataset(data, coords=dict(zip(dims, self.axes, strict=True)), attrs=attrs)

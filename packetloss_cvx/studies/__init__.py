@@ -1,10 +1,13 @@
 """Studies: the paper's figures and tables as data, and design-study sweeps.
 
 ``sweeps`` evaluates the optimal costs of both protocols and their difference over grids of
-delivery probabilities (the data behind the paper's cost figures). Plots draw these results;
-they compute nothing themselves.
+delivery probabilities (the data behind the paper's cost figures); ``design`` runs design-study
+sweeps over channels, initial states or horizons, batched and optionally on Dask (``engine``),
+saved by ``output``. Plots draw these results; they compute nothing themselves.
 """
 
+from .design import read_mu_list, sweep
+from .output import save_sweep
 from .sweeps import shared_channel_sweep, two_channel_sweep
 
-__all__ = ["shared_channel_sweep", "two_channel_sweep"]
+__all__ = ["read_mu_list", "save_sweep", "shared_channel_sweep", "sweep", "two_channel_sweep"]

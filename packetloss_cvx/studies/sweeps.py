@@ -5,7 +5,8 @@
 * :func:`two_channel_sweep`: two channels over a grid of [0, 1]^2 (Figs. TCP-log-cost-mixed,
   UDP-log-cost-mixed and cost-diff-mixed).
 
-Each cost is a closed form that passed its own checks (:func:`packetloss_cvx.closed_form`).
+Each cost is a closed form that passed its own checks, evaluated for all points at once by
+:class:`packetloss_cvx.evaluator.CostEvaluator` (equal to :func:`packetloss_cvx.closed_form` to rounding).
 The difference J_Delta = J*_udp - J*_tcp is computed without cancellation
 (:func:`packetloss_cvx.analysis.cost_difference`) where the dense form is well conditioned, and
 as the difference of the two checked costs otherwise (``difference_method`` says which).
@@ -18,8 +19,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..analysis import cost_difference
-from ..costs import closed_form
 from ..errors import InputError
+from ..evaluator import CostEvaluator
 from ..model import System, numeric_array
 from ..prediction import prediction
 from ..protocols import PROTOCOLS, check_protocol
@@ -53,8 +54,7 @@ def _sweep(system: System, points: list[np.ndarray], shape: tuple[int, ...], pro
            axes: tuple[np.ndarray, ...]) -> Sweep:
     if len(points) > MAX_POINTS:
         raise InputError("grid", f"expected at most {MAX_POINTS} points, found {len(points)}")
-    costs = {p: np.array([closed_form(system.with_mu(mu), p).cost for mu in points]).reshape(shape)
-             for p in protocols}
+    costs = {p: CostEvaluator(system, p).costs(np.reshape(points, (-1, system.m))).reshape(shape) for p in protocols}
     difference, how = None, None
     if set(protocols) == set(PROTOCOLS):
         if condition_estimate(system) <= DENSE_MAX_CONDITION:

@@ -1,0 +1,166 @@
+"""Where a sweep's points are evaluated: in this process, or chunk by chunk on a Dask cluster.
+
+The points are split into chunks of ``chunk_size`` consecutive points; each chunk is one call of
+:func:`evaluate_chunk` (one batched :class:`~packetloss_cvx.evaluator.CostEvaluator` evaluation per
+protocol and per distinct horizon, channels and initial states batched together). Both
+paths call the same function on the same chunks, with the system rebuilt from the same plain
+dictionary (``System.to_dict()``, exact for every float), so their results are identical bit for
+bit. Dask is optional (the ``distributed`` extra) and imported only when asked for.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..evaluator import CostEvaluator
+from ..io import system_from_dict
+from ..progress import progress_bar
+from ..simulation.stability import mean_square_radius
+
+__all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "chunks", "evaluate_chunk", "run_in_process", "run_on_dask"]
+
+#: Points per chunk unless asked otherwise (docs/dask.md: a chunk should take well over the
+#: ~1-10 ms a Dask task costs, and there should be several chunks per worker).
+DEFAULT_CHUNK = 2048
+
+#: Workers of ``dask="local"`` (one thread each: the evaluator is NumPy on small matrices).
+LOCAL_WORKERS = 2
+
+Chunk = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def chunks(mu: np.ndarray, x0: np.ndarray, horizon: np.ndarray, size: int) -> list[Chunk]:
+    """Consecutive slices of ``size`` points (the last may be shorter). O(P)."""
+    return [(mu[k:k + size], x0[k:k + size], horizon[k:k + size]) for k in range(0, len(mu), size)]
+
+
+def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np.ndarray, x0: np.ndarray,
+                   horizon: np.ndarray, stability: bool = False) -> dict[str, np.ndarray]:
+    """J* of each protocol at each point of one chunk (and the mean-square radius of its law).
+
+    Parameters
+    ----------
+    system_data : dict
+        The system in the TOML schema's structure (``System.to_dict()``): plain data, so it
+        travels to a Dask worker (a :class:`~packetloss_cvx.System` is immutable and not pickled).
+    protocols : sequence of {"tcp", "udp"}
+    mu : ndarray, shape (P, m)
+    x0 : ndarray, shape (P, n)
+    horizon : ndarray of int, shape (P,)
+    stability : bool
+        Also the spectral radius of the second-moment operator of each protocol's receding-horizon
+        law ``u = -K x`` run in closed loop over the point's channel
+        (:func:`~packetloss_cvx.simulation.stability.mean_square_radius`; mean-square stable iff < 1).
+
+    Returns
+    -------
+    dict
+        ``"cost_<protocol>"`` -> costs, shape (P,); with ``stability``, ``"radius_<protocol>"`` too.
+
+    Notes
+    -----
+    The points are grouped by horizon; each group is one batched evaluation per protocol (channels
+    and initial states per point). O(P N (n^3 + m^3)) work, or O(P (N m)^3) where the evaluator
+    takes the dense path (it picks the faster exact path, by N, m and the batch's size).
+    """
+    base = system_from_dict(system_data)
+    names = [f"{what}_{p}" for p in protocols for what in (("cost", "radius") if stability else ("cost",))]
+    out = {name: np.empty(len(mu)) for name in names}
+    for N in np.unique(horizon):
+        idx = np.flatnonzero(horizon == N)
+        system = base if N == base.horizon else _with_horizon(base, system_data, int(N))
+        for p in protocols:
+            evaluator = CostEvaluator(system, p)
+            if not stability:
+                out[f"cost_{p}"][idx] = evaluator.costs(mu[idx], x0[idx])
+                continue
+            batch = evaluator.solve(mu[idx], x0[idx])
+            out[f"cost_{p}"][idx] = batch.costs
+            out[f"radius_{p}"][idx] = [mean_square_radius(system.A, system.B, K, point)
+                                       for K, point in zip(batch.gains, mu[idx], strict=True)]
+    return out
+
+
+def _with_horizon(base, system_data: dict[str, Any], horizon: int):
+    data = {**system_data, "cost": {**system_data["cost"], "horizon": horizon}}
+    data["channel"] = {"mu": base.mu_schedule[0].tolist()}
+    return system_from_dict(data)
+
+
+def _assemble(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+
+def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk],
+                   progress: bool | None = None, stability: bool = False) -> dict[str, np.ndarray]:
+    """Every chunk here, in order. O(P N (n^3 + m^3))."""
+    parts = []
+    with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep", progress=progress) as bar:
+        for chunk in work:
+            parts.append(evaluate_chunk(system_data, protocols, *chunk, stability))
+            bar.update(len(chunk[0]))
+    return _assemble(parts)
+
+
+def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk], dask: Any,
+                workers: int | None = None, progress: bool | None = None,
+                stability: bool = False) -> dict[str, np.ndarray]:
+    """Every chunk as one Dask task; results put back in chunk order.
+
+    Parameters
+    ----------
+    dask : "local", an address such as ``"tcp://host:8786"``, or a ``distributed.Client``
+        ``"local"`` starts a :class:`distributed.LocalCluster` of ``workers`` processes
+        (default :data:`LOCAL_WORKERS`, one thread each) and closes it afterwards; an address
+        connects to a running scheduler; a client (e.g. on a dask-jobqueue or Kubernetes
+        cluster) is used as it is.
+    """
+    try:
+        from distributed import Client, LocalCluster, as_completed  # lazy: the `distributed` extra
+    except ImportError:
+        raise InputError("dask", "needs the distributed extra: pip install 'packetloss-cvx[distributed]'") from None
+    if workers is not None and not (isinstance(dask, str) and dask == "local"):
+        raise InputError("workers", "applies to dask='local' only (a running cluster has its own workers)")
+    owned: list[Any] = []
+    try:
+        if isinstance(dask, str) and dask == "local":
+            count = LOCAL_WORKERS if workers is None else workers
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+                raise InputError("workers", f"expected an integer >= 1, found {count!r}")
+            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            owned.append(cluster)
+            client = Client(cluster)
+            owned.insert(0, client)
+        elif isinstance(dask, str):
+            if not re.fullmatch(r"[a-z]+://\S+|[\w.-]+:\d+", dask):
+                raise InputError("dask", f"expected 'local' or a scheduler address such as tcp://host:8786, "
+                                         f"found {dask!r}")
+            try:
+                client = Client(dask, timeout="10s")
+            except (OSError, TimeoutError, ValueError) as err:
+                raise InputError("dask", f"cannot reach a scheduler at {dask!r}: {err}") from None
+            owned.append(client)
+        elif hasattr(dask, "submit") and hasattr(dask, "gather"):
+            client = dask
+        else:
+            raise InputError("dask", f"expected 'local', a scheduler address or a Client, found {dask!r}")
+        futures = [client.submit(evaluate_chunk, system_data, tuple(protocols), *chunk, stability, pure=False)
+                   for chunk in work]
+        order = {f.key: k for k, f in enumerate(futures)}
+        parts: list[dict[str, np.ndarray] | None] = [None] * len(work)
+        with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress) as bar:
+            for future in as_completed(futures):
+                k = order[future.key]
+                parts[k] = future.result()      # a worker's error is raised here with its own type
+                bar.update(len(work[k][0]))
+        return _assemble(parts)      # type: ignore[arg-type]
+    finally:
+        for thing in owned:
+            thing.close()

@@ -1,0 +1,62 @@
+"""A design sweep on disk: ``sweep.npz`` (NumPy arrays), ``sweep.csv`` (one row per point) and,
+on request, ``sweep.nc`` (NetCDF3 through xarray's scipy engine: no extra dependency)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..results import DesignSweep
+
+__all__ = ["csv_header", "save_sweep"]
+
+
+def csv_header(result: DesignSweep) -> list[str]:
+    """The CSV's columns: mu1..mum, x0_1..x0_n, horizon, then cost_tcp, cost_udp, cost_diff, radius_tcp,
+    radius_udp (those computed)."""
+    m, n = result.mu.shape[1], result.x0.shape[1]
+    costs = [f"cost_{p}" for p in result.costs] + (["cost_diff"] if result.difference is not None else [])
+    radii = [f"radius_{p}" for p in result.radii]
+    return [f"mu{i + 1}" for i in range(m)] + [f"x0_{i + 1}" for i in range(n)] + ["horizon"] + costs + radii
+
+
+def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> dict[str, Path]:
+    """Write ``sweep.npz``, ``sweep.csv`` (and ``sweep.nc`` with ``netcdf=True``) into ``out``.
+
+    ``sweep.npz`` holds :meth:`DesignSweep.arrays` (``mu`` (P × m), ``cost_tcp``, ``cost_udp``,
+    ``cost_diff``, ``x0``, ``horizon``, ``axis_<dim>``) and ``dims``; floats in the CSV are
+    written with 17 significant digits (they read back exactly). O(P (m + n)).
+
+    Returns
+    -------
+    dict
+        ``{"npz": path, "csv": path[, "netcdf": path]}``.
+
+    Raises
+    ------
+    InputError
+        ``out`` cannot be created or written (field ``out``).
+    """
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        paths = {"npz": folder / "sweep.npz", "csv": folder / "sweep.csv"}
+        np.savez(paths["npz"], dims=np.array(result.dims, dtype=str), **result.arrays())
+        columns = [result.mu, result.x0, result.horizon[:, None]] + [v[:, None] for v in result.costs.values()]
+        if result.difference is not None:
+            columns.append(result.difference[:, None])
+        columns += [v[:, None] for v in result.radii.values()]
+        table = np.hstack([np.asarray(c, dtype=float) for c in columns])
+        with open(paths["csv"], "w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(csv_header(result))
+            writer.writerows([[f"{v:.17g}" for v in row] for row in table])
+        if netcdf:
+            paths["netcdf"] = folder / "sweep.nc"
+            result.to_xarray().to_netcdf(paths["netcdf"], engine="scipy")
+    except OSError as err:
+        raise InputError("out", f"cannot write to {str(folder)!r}: {err.strerror or err}") from None
+    return paths

@@ -1,0 +1,89 @@
+"""The data behind each of the paper's figures and tables, computed from its two case studies.
+
+Each function returns plain data (arrays, lists, floats) that :mod:`packetloss_cvx.plots` draws and
+``packetloss-cvx reproduce`` reports: nothing here draws, and nothing here knows what the paper
+printed (that is :mod:`packetloss_cvx.claims.paper`).
+
+* :func:`log_cost_pendulum`: fig:log-cost-pendulum (log J* of both protocols against nu, the
+  maximiser of J_Delta);
+* :func:`mixed_grids`: fig:cost-diff-mixed, fig:TCP-log-cost-mixed, fig:UDP-log-cost-mixed (J* and
+  J_Delta over [0, 1]^2, the maximiser of J_Delta);
+* :func:`mixed_allocations`: fig:TCP-log-cost-mixed-mult and fig:UDP-log-cost-mixed-mult (the
+  allocations of eq:opt_M on each cost contour alpha, for each price vector beta);
+* :func:`eigenvalue_tables`: tab:closed-loop-eig and tab:closed-loop-eig-mixed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .. import analysis as an
+from ..allocation import contour_allocations
+from ..model import System
+from .sweeps import shared_channel_sweep, two_channel_sweep
+
+__all__ = ["PAPER_BETAS", "eigenvalue_tables", "log_cost_pendulum", "mixed_allocations", "mixed_grids",
+           "pendulum_nus"]
+
+#: The three price vectors of §VI (beta = I, (0.05, 1), (1, 0.05)).
+PAPER_BETAS = ((1.0, 1.0), (0.05, 1.0), (1.0, 0.05))
+
+
+def pendulum_nus(points: int) -> np.ndarray:
+    """nu on (0, 1]: ``points`` log-spaced from 1e-6 (where J_Delta peaks) and ``points`` uniform. O(points)."""
+    return np.unique(np.concatenate([np.logspace(-6, 0, points), np.linspace(0.0, 1.0, points)[1:]]))
+
+
+def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
+    """fig:log-cost-pendulum: J*_tcp(nu), J*_udp(nu) and J_Delta(nu) with every actuator behind one
+    channel nu, and the maximiser of J_Delta (:func:`~packetloss_cvx.analysis.maximise_cost_difference`).
+
+    Returns ``{"nu", "tcp", "udp", "diff", "difference_method", "maximiser": {"nu", "value", "method"}}``
+    (arrays for the curves). O(points (N m)^3).
+    """
+    nus = pendulum_nus(points)
+    result = shared_channel_sweep(system, nus)
+    best = an.maximise_cost_difference(an.scalar_channel(system, 0.5), grid=200)
+    return {"nu": nus, "tcp": np.array(result.costs["tcp"]), "udp": np.array(result.costs["udp"]),
+            "diff": np.array(result.difference), "difference_method": result.difference_method,
+            "maximiser": {"nu": float(best.point[0]), "value": best.value, "method": best.method}}
+
+
+def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
+    """fig:cost-diff-mixed, fig:TCP-log-cost-mixed, fig:UDP-log-cost-mixed: J* and J_Delta over a
+    ``grid`` × ``grid`` grid of [0, 1]^2 (``values[j, i]`` at ``mu1 = axis[i], mu2 = axis[j]``) and the
+    maximiser of J_Delta (:func:`~packetloss_cvx.analysis.maximise_cost_difference_2d`).
+
+    O(grid^2 (N m)^3).
+    """
+    axis = np.linspace(0.0, 1.0, grid)
+    result = two_channel_sweep(system, axis)
+    best = an.maximise_cost_difference_2d(system, grid=41)
+    return {"axis": axis, "tcp": np.array(result.costs["tcp"]), "udp": np.array(result.costs["udp"]),
+            "diff": np.array(result.difference), "difference_method": result.difference_method,
+            "maximiser": {"mu": best.point.tolist(), "value": best.value, "method": best.method}}
+
+
+def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
+                      betas: Sequence[Sequence[float]] = PAPER_BETAS,
+                      progress: bool | None = None) -> dict[tuple[float, ...], list[dict]]:
+    """fig:TCP-/UDP-log-cost-mixed-mult: the cheapest allocation (eq:opt_M) on each contour
+    J* = alpha for each beta (:func:`~packetloss_cvx.allocation.contour_allocations`).
+
+    O(len(betas) len(alphas)) allocations.
+    """
+    return contour_allocations(system, protocol, list(alphas), betas=betas, progress=progress)
+
+
+def eigenvalue_tables(pendulum: System, mixed: System, mu_pendulum: Sequence[float],
+                      mu_mixed: Sequence[float]) -> dict[str, dict[str, dict[str, list[complex]]]]:
+    """tab:closed-loop-eig and tab:closed-loop-eig-mixed: closed-loop eigenvalues of both laws
+    (:func:`~packetloss_cvx.analysis.eigenvalue_table`: ``"A-BK"``, the paper's convention, and ``"A-BMK"``).
+
+    O((N m)^3) per system.
+    """
+    return {"table-1": an.eigenvalue_table(pendulum, list(mu_pendulum)),
+            "table-2": an.eigenvalue_table(mixed, list(mu_mixed))}

@@ -1,0 +1,75 @@
+"""Sweeps on Dask: a LocalCluster over loopback TCP (in this process) gives the in-process arrays bit for
+bit, through a scheduler address or a Client; a worker's error comes back with its own type."""
+
+import logging
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.studies import sweep
+
+distributed = pytest.importorskip("distributed")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
+                                  host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR) as c:
+        yield c
+
+
+def _same(a, b):
+    assert a.arrays().keys() == b.arrays().keys()
+    for key, value in a.arrays().items():
+        assert np.array_equal(value, b.arrays()[key]), key
+
+
+def test_dask_over_loopback_is_bit_identical(cluster, two_actuator):
+    assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+    here = sweep(two_actuator, mu_grid=13, chunk_size=20, progress=False)
+    there = sweep(two_actuator, mu_grid=13, chunk_size=20, dask=cluster.scheduler_address, progress=False)
+    _same(here, there)
+    # the reference is independent of both: the QP twin at a corner of the grid
+    qp = pl.solve_qp(two_actuator.with_mu([1.0, 0.0]), "udp", with_gain=False, cross_check=False).cost
+    assert there.costs["udp"].reshape(13, 13)[0, 12] == pytest.approx(qp, rel=1e-6)
+
+
+def test_dask_client_and_other_sweeps(cluster, pendulum):
+    with distributed.Client(cluster) as client:
+        for kwargs in ({"x0_scales": [0.5, 1.0, 2.0]}, {"horizons": [5, 20, 40]}, {"mu_grid": 7}):
+            _same(sweep(pendulum, chunk_size=2, progress=False, **kwargs),
+                  sweep(pendulum, chunk_size=2, dask=client, progress=False, **kwargs))
+
+
+def test_stability_on_dask_is_bit_identical(cluster, two_actuator):
+    here = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, progress=False)
+    there = sweep(two_actuator, mu_grid=4, chunk_size=5, stability=True, dask=cluster.scheduler_address,
+                  progress=False)
+    _same(here, there)
+    assert "radius_tcp" in there.arrays()
+
+
+def test_a_worker_error_keeps_its_type(cluster):
+    # badly scaled weights: every closed form refuses them (NumericalError), on the worker as here
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1e12], input_weight=[1e-6], mu=[0.5], x0=[1.0])
+    try:
+        pl.closed_form(s, "tcp")
+    except pl.NumericalError:
+        with pytest.raises(pl.NumericalError):
+            sweep(s, mu_grid=3, dask=cluster.scheduler_address, progress=False)
+    else:
+        pytest.skip("this system is not refused here")
+
+
+def test_workers_only_with_a_local_cluster(cluster, two_actuator):
+    with pytest.raises(pl.InputError, match="^workers: applies to dask='local' only"):
+        sweep(two_actuator, mu_grid=2, dask=cluster.scheduler_address, workers=3, progress=False)
+
+
+@pytest.mark.parametrize("dask", [3, "local-ish", "no address"])
+def test_bad_dask_argument(two_actuator, dask):
+    with pytest.raises(pl.InputError) as info:
+        sweep(two_actuator, mu_grid=2, dask=dask, progress=False)
+    assert info.value.field == "dask"
+

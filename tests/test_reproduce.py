@@ -1,0 +1,72 @@
+"""``reproduce``: every figure of the paper with its paragraph, results.json whose numbers agree with
+independent references, and the same bytes on a second run (the README runs the full one; this
+runs ``--quick``)."""
+
+import json
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+from packetloss_cvx.cli.reproduce_report import FIGURES
+
+LABELS = list(FIGURES)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    outs = [tmp_path_factory.mktemp(f"run{k}") for k in range(2)]
+    codes = [main(["reproduce", "--out", str(out), "--quick", "--quiet"]) for out in outs]
+    return codes, outs
+
+
+def test_every_figure_with_its_paragraph(runs):
+    codes, (out, _) = runs
+    assert codes == [0, 0]
+    report = (out / "report.md").read_text()
+    for label in LABELS:
+        png = out / f"{label.removeprefix('fig:')}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert f"## {label}" in report
+        assert f"]({png.name})" in report                 # the figure is shown in the report
+    assert "Table I (pendulum" in report
+    assert "| theorem-2 | holds |" in report
+    assert "claims.md" in report
+
+
+def test_deterministic(runs):
+    _, (first, second) = runs
+    for name in ["results.json", *(f"{label.removeprefix('fig:')}.png" for label in LABELS)]:
+        assert (first / name).read_bytes() == (second / name).read_bytes(), name
+
+
+def test_results_against_independent_references(runs, two_actuator, pendulum):
+    _, (out, _) = runs
+    data = json.loads((out / "results.json").read_text())
+    grid = np.array(data["mixed"]["axis"])
+    tcp = np.array(data["mixed"]["tcp"])
+    j, i = 3, len(grid) - 1                           # tcp[j, i] = J*(mu1 = grid[i], mu2 = grid[j])
+    qp = pl.solve_qp(two_actuator.with_mu([grid[i], grid[j]]), "tcp", with_gain=False, cross_check=False).cost
+    assert tcp[j, i] == pytest.approx(qp, rel=1e-6)
+    # the pendulum's maximiser beats its neighbours on a fine grid, evaluated by the QP twin
+    nu = data["pendulum"]["maximiser"]["nu"]
+
+    def diff(v):
+        s = pendulum.with_mu([v])
+        return (pl.solve_qp(s, "udp", with_gain=False, cross_check=False).cost
+                - pl.solve_qp(s, "tcp", with_gain=False, cross_check=False).cost)
+
+    assert diff(nu) >= max(diff(nu * 0.7), diff(nu * 1.4))
+    # an allocation is feasible: J*(mu) <= alpha by the QP twin
+    row = data["allocations"]["udp"]["1.0, 1.0"][0]
+    s = two_actuator.with_mu(row["mu"])
+    assert pl.solve_qp(s, "udp", with_gain=False, cross_check=False).cost <= row["alpha"] * (1 + 1e-6)
+    assert set(data["verdicts"]) == set(LABELS)
+
+
+def test_unwritable_out_exit_2(capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["reproduce", "--out", str(blocker / "sub"), "--quiet"]) == 2
+    assert capsys.readouterr().err.startswith("packetloss-cvx: error: --out:")
