@@ -135,6 +135,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
         non-stationary channel.
     ResourceError
         A block's arrays (O(BLOCK T (n + m + laws))) would exceed the memory budget (refused before drawing).
+        Behind a Gilbert–Elliott channel also: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
+        distinct beliefs (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
 
     Notes
     -----
