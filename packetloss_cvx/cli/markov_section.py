@@ -8,11 +8,28 @@ from typing import Any
 import numpy as np
 
 from ..costs import closed_form
-from ..errors import NumericalError, ResourceError
+from ..errors import InputError, NumericalError, ResourceError
 from ..markov import markov_solution, mean_square_radius
 from ..model import System
+from ..simulation import is_mean_square_stable
 
 __all__ = ["markov_section"]
+
+
+def _percent(loss: float) -> str:
+    return f"{100 * (0.0 if abs(loss) < 5e-9 else loss):+.4f}%"      # no "-0.0000%" from a rounding-level loss
+
+
+def _radius(system: System, gain: np.ndarray) -> tuple[float | None, bool, str]:
+    """``(radius, stable, words)`` of u = -K x behind the chain; ``stable`` by the proven rule."""
+    try:
+        radius = mean_square_radius(system.A, system.B, system.channel, gain)
+    except (InputError, NumericalError, ResourceError) as err:      # InputError: more channels than modes allow
+        return None, False, f"not computed ({err})"
+    stable = is_mean_square_stable(radius)
+    verdict = "mean-square stable" if stable else (
+        "NOT mean-square stable" if radius >= 1 else "not proved mean-square stable (within 1e-9 of 1)")
+    return radius, stable, f"{radius:.6g}, {verdict}"
 
 
 def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tuple[dict[str, Any], list[str]]:
@@ -20,7 +37,9 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
 
     Per protocol: :func:`~packetloss_cvx.markov.markov_solution`, and the mean-square radius of the loop
     u = -K x behind the chain (a Markov jump linear system) for the plug-in and the exact receding-horizon
-    gains, both computed at the file's belief.
+    gains, both computed at the file's belief; "stable" only where
+    :func:`~packetloss_cvx.simulation.is_mean_square_stable` proves it (a radius not computed is reported
+    with its reason, never as stable).
 
     A disagreement of the QP with the closed form (CrossCheckError) propagates; a QP beyond the
     memory budget or the solver's range is reported as skipped.
@@ -28,9 +47,11 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
     ch = system.channel
     data: dict[str, Any] = {"channel": ch.to_dict(), "belief": ch.initial_belief.tolist(),
                             "correlation": ch.correlation.tolist(), "mean_rate": ch.mean_rate.tolist()}
-    lines = [f"  Gilbert-Elliott channel: p = {np.round(ch.p, 6).tolist()}, r = {np.round(ch.r, 6).tolist()}, "
-             f"P(good) now = {np.round(ch.initial_belief, 6).tolist()}, lambda = 1 - p - r = "
-             f"{np.round(ch.correlation, 6).tolist()}; the laws above are the plug-in laws (mu_t from the chain)"]
+    lines = [f"p = {np.round(ch.p, 6).tolist()} (P(good -> bad)), r = {np.round(ch.r, 6).tolist()} (P(bad -> good)), "
+             f"h_good = {np.round(ch.h_good, 6).tolist()}, h_bad = {np.round(ch.h_bad, 6).tolist()}; P(good) now "
+             f"{np.round(ch.initial_belief, 6).tolist()}; burstiness lambda = 1 - p - r = "
+             f"{np.round(ch.correlation, 6).tolist()}",
+             "the laws above are the plug-in laws: the paper's laws with the mu_t the chain predicts"]
     for protocol in protocols:
         skipped = None
         try:
@@ -40,12 +61,15 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
                 raise
             res, skipped = markov_solution(system, protocol, qp=False), str(err)
         entry = res.to_dict()
-        radii = {"plug_in": mean_square_radius(system.A, system.B, ch, closed_form(system, protocol).gain),
-                 "exact": mean_square_radius(system.A, system.B, ch, res.exact.gain)}
-        entry["mean_square_radius"] = radii
-        line = (f"  {protocol.upper()}-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}); plug-in law "
-                f"{res.plugin_cost:.10g} ({100 * res.relative_loss:+.4f}%); E[cost] of the plug-in plan "
-                f"{res.plan_expected_cost:.10g}")
+        plug_in = _radius(system, closed_form(system, protocol).gain)
+        exact = _radius(system, res.exact.gain)
+        entry["mean_square_radius"] = {"plug_in": plug_in[0], "exact": exact[0]}
+        entry["stable"] = {"plug_in": plug_in[1], "exact": exact[1]}
+        line = (f"{protocol.upper()}-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}), the exact minimum; "
+                f"the plug-in law's cost {res.plugin_cost:.10g} ({_percent(res.relative_loss)})")
+        if protocol == "tcp":
+            line += (" (the TCP-like cost holds only the marginals mu_t, so the plug-in law is its exact minimiser); "
+                     f"E[realised cost] of its plan under the chain {res.plan_expected_cost:.10g}")
         if skipped is not None:
             entry["qp"] = {"status": "skipped", "reason": skipped}
             line += f"; QP skipped: {skipped}"
@@ -55,7 +79,6 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
                      f"rel dJ = {check.cost_rel_diff:.2e}")
         data[protocol] = entry
         lines.append(line)
-        lines.append(f"    u = -K x behind the chain (mean-square radius of the switched loop): plug-in "
-                     f"{radii['plug_in']:.6g}{'' if radii['plug_in'] < 1 else ' (not stable)'}, exact "
-                     f"{radii['exact']:.6g}{'' if radii['exact'] < 1 else ' (not stable)'}")
+        lines.append(f"  u = -K x in a loop over the chain (a Markov jump linear system; mean-square radius): plug-in "
+                     f"gain {plug_in[2]}; exact minimiser's gain {exact[2]}")
     return data, lines

@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import InputError
 from ..plots import plot_closed_loop
 from ..results import Simulation
+from ..simulation.markov_montecarlo import EXACT_PLAN
 from ..simulation.montecarlo import LAWS, simulate
 from .common import CommandResult, progress_of, system_of
 
@@ -64,20 +65,33 @@ def _num(value: float, digits: int = 6) -> str:
 
 
 def _text(name: str, sim: Simulation) -> str:
-    lines = [f"{name}: {sim.samples} sampled runs, seed {sim.seed}"]
+    bursty = sim.channel != "bernoulli"
+    lines = [f"{name}: {sim.samples} sampled runs, seed {sim.seed}"
+             + (" (the Gilbert-Elliott chain sampled per run; exact values under the chain)" if bursty else "")]
     for p, c in sim.open_loop.items():
-        lines.append(f"  {p.upper()}-like plan, open loop: sampled {_num(c.mean)} +- {_num(c.stderr, 3)}, exact "
-                     f"{_num(c.exact)} (z = {_num(c.z, 3)}); the protocol's J* = {_num(c.formula)}")
+        label = "exact minimiser's plan" if p == EXACT_PLAN else f"{p.upper()}-like {'plug-in ' if bursty else ''}plan"
+        if c.reason:
+            lines.append(f"  {label}, open loop: not run: {c.reason}")
+            continue
+        formula = "its J* (exact under the chain)" if p == EXACT_PLAN else "the protocol's J*" + (
+            " with the plug-in mu_t" if bursty else "")
+        lines.append(f"  {label}, open loop: sampled {_num(c.mean)} +- {_num(c.stderr, 3)}, exact "
+                     f"{_num(c.exact)} (z = {_num(c.z, 3)}); {formula} = {_num(c.formula)}")
     for law, r in sim.closed_loop.items():
-        label = "DP optimum" if law == "dp" else f"{law.upper()}-like law"
+        label = ("mode-dependent law" if bursty else "DP optimum") if law == "dp" else f"{law.upper()}-like law"
         if r.reason:
             lines.append(f"  {label}, closed loop: no law: {r.reason}")
             continue
-        verdict = "mean-square stable" if r.stable else "NOT mean-square stable"
+        radius = "MJLS second-moment" if bursty else "second-moment"
+        verdict = (f"mean-square stable ({radius} spectral radius {_num(r.spectral_radius)})" if r.stable else
+                   f"NOT mean-square stable ({radius} spectral radius {_num(r.spectral_radius)})"
+                   if np.isfinite(r.spectral_radius) else "mean-square stability not decided")
         lines.append(f"  {label}, closed loop over {sim.steps} steps: mean stage cost {_num(r.mean_stage_cost)} +- "
-                     f"{_num(r.stderr, 3)}, exact {_num(r.exact_stage_cost)}; {verdict} (second-moment spectral "
-                     f"radius {_num(r.spectral_radius)})")
-        if not r.stable:
+                     f"{_num(r.stderr, 3)}, exact {_num(r.exact_stage_cost)}; {verdict}")
+        for extra in (r.exact_reason, r.note):
+            if extra:
+                lines.append(f"    ({extra})")
+        if not r.stable and np.isfinite(r.spectral_radius):
             lines.append("    (a mean-square unstable loop's expected cost is carried by rare runs: its sampled mean "
                          "and standard error can fall far below the exact value)")
     return "\n".join(lines)

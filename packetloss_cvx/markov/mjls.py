@@ -25,17 +25,27 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs
 
 from ..channel import GilbertElliott
-from ..errors import InputError, NumericalError
+from ..errors import InputError, NumericalError, ResourceError
 from ..model import System, check_system
 from ..results import MjlsResult
-from ..tolerances import SELF_CHECK_RTOL
+from ..tolerances import ARPACK_TOL, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 
-__all__ = ["MAX_CHANNELS", "coupled_riccati", "mean_square_radius", "mode_chain", "second_moment_operator"]
+__all__ = [
+    "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
+    "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "moment_step", "mode_chain",
+    "second_moment_operator",
+]
 
 #: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the operator is refused.
 MAX_CHANNELS = 6
+#: Rows M n^2 of the dense coupled operator beyond which it is refused (ResourceError): its eigenvalues take
+#: O((M n^2)^3) time and 16 (M n^2)^2 bytes (2048 rows: 64 MiB, a few seconds).
+MAX_OPERATOR_DIM = 2048
+#: Rows up to which :func:`mean_square_radius` takes the dense eigenvalues by default (above: matrix-free Krylov).
+DENSE_MAX_DIM = 400
 
 
 def mode_chain(channel: GilbertElliott) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -65,34 +75,72 @@ def _patterns(h: np.ndarray) -> list[tuple[float, np.ndarray]]:
     return out
 
 
-def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, gains: np.ndarray) -> np.ndarray:
-    """The matrix of Q -> (sum_a T_ab E_v[Gamma Q_a Gamma'])_b on stacked vec(Q_a), (M n^2)×(M n^2).
+def check_operator_size(modes: int, n: int) -> None:
+    """Refuse, before building it, a dense coupled operator beyond :data:`MAX_OPERATOR_DIM` rows.
 
-    ``gains``: one m×n K for every mode, or an (M, m, n) array of mode gains. Time O(M^2 n^4 + 2^m M n^4).
+    Raises
+    ------
+    ResourceError
+        ``modes n^2 > MAX_OPERATOR_DIM``: the message names the size, its memory and the way out.
     """
-    modes, T, h = mode_chain(channel)
-    M, n = len(modes), A.shape[0]
+    dim = modes * n * n
+    if dim > MAX_OPERATOR_DIM:
+        needed = 8.0 * dim * dim * 2
+        raise ResourceError(f"the MJLS second-moment operator is dense with 2^m n^2 = {modes} * {n}^2 = {dim} rows "
+                            f"(about {needed / 2**30:.2f} GiB and O({dim}^3) time for its eigenvalues); this "
+                            f"computation is limited to {MAX_OPERATOR_DIM} rows: fewer states or channels",
+                            needed, 8.0 * MAX_OPERATOR_DIM ** 2 * 2)
+
+
+def _mode_gains(gains: np.ndarray, M: int, m: int, n: int) -> np.ndarray:
     K = np.asarray(gains, dtype=float)
     K = np.repeat(K[None], M, axis=0) if K.ndim == 2 else K
-    if K.shape != (M, B.shape[1], n):
-        raise InputError("gains", f"expected an ({B.shape[1]}, {n}) gain or ({M}, {B.shape[1]}, {n}) mode gains, "
-                                  f"found {K.shape}")
-    blocks = []
+    if K.shape != (M, m, n):
+        raise InputError("gains", f"expected an ({m}, {n}) gain or ({M}, {m}, {n}) mode gains, found {K.shape}")
+    return K
+
+
+def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, gains: np.ndarray,
+                           delivery: str = "current") -> np.ndarray:
+    """The matrix of the coupled second-moment map on stacked vec(Q_a), (M n^2)×(M n^2).
+
+    ``gains``: one m×n K for every mode, or an (M, m, n) array of mode gains K_a. ``delivery="current"``:
+    the gain and the deliveries both follow the mode a (``Q_b <- sum_a T_ab E_{v|a}[G Q_a G']``, the mode known
+    to the controller); ``"next"``: the gain follows the previous mode a, the deliveries the mode b the chain
+    moves to (``Q_b <- sum_a T_ab E_{v|b}[G_a Q_a G_a']``, the TCP-like law of a Gilbert channel, whose
+    acknowledgement reveals the last state). Time O(M 2^m n^4 + M^2 n^4), memory O(M^2 n^4); refused
+    beyond :data:`MAX_OPERATOR_DIM` rows (:func:`check_operator_size`).
+    """
+    if delivery not in ("current", "next"):
+        raise InputError("delivery", f"expected current or next, found {delivery!r}")
+    modes, T, h = mode_chain(channel)
+    M, n, m = len(modes), A.shape[0], B.shape[1]
+    check_operator_size(M, n)
+    K = _mode_gains(gains, M, m, n)
+    patterns = np.array(list(itertools.product([1, 0], repeat=m)), dtype=float)              # (2^m, m)
+    prob = np.prod(np.where(patterns[None] == 1, h[:, None], 1 - h[:, None]), axis=2)        # (M, 2^m): P(v | mode)
+    kron = np.empty((M, len(patterns), n * n, n * n))
     for a in range(M):
-        acc = np.zeros((n * n, n * n))
-        for prob, v in _patterns(h[a]):
+        for k, v in enumerate(patterns):
             G = A - B @ (v[:, None] * K[a])
-            acc += prob * np.kron(G, G)
-        blocks.append(acc)
-    op = np.zeros((M * n * n, M * n * n))
-    for a in range(M):
-        for b in range(M):
-            op[b * n * n:(b + 1) * n * n, a * n * n:(a + 1) * n * n] = T[a, b] * blocks[a]
-    return op
+            kron[a, k] = np.kron(G, G)
+    if delivery == "current":
+        blocks = np.einsum("av,avij->aij", prob, kron)[:, None] * T[:, :, None, None]          # [a, b]
+    else:
+        blocks = np.einsum("ab,bv,avij->abij", T, prob, kron)
+    return blocks.transpose(1, 2, 0, 3).reshape(M * n * n, M * n * n)                        # rows b, columns a
 
 
-def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, gains: np.ndarray) -> float:
-    """Spectral radius of :func:`second_moment_operator`: < 1 iff the switched loop is mean-square stable.
+def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, gains: np.ndarray,
+                       delivery: str = "current", method: str = "auto") -> float:
+    """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
+    loop is mean-square stable.
+
+    ``method``: "dense", the eigenvalues of the (M n^2)^2 matrix, time O((M n^2)^3), refused (ResourceError)
+    beyond :data:`MAX_OPERATOR_DIM` rows; "krylov", ARPACK on the map applied matrix-free
+    (O(M^2 n^2 + M n^2 (n + m)) per product, O(M n^2) memory per vector), its value checked against
+    Collatz–Wielandt bounds proven from its eigenvector (NumericalError outside them); "auto", dense up to
+    :data:`DENSE_MAX_DIM` rows, else Krylov (falling back to dense within :data:`MAX_OPERATOR_DIM` rows).
 
     Examples
     --------
@@ -101,7 +149,149 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, ga
     >>> round(mean_square_radius(np.array([[2.0]]), np.array([[1.0]]), ch, np.array([[1.0]])), 12)
     2.5
     """
-    return float(max(abs(np.linalg.eigvals(second_moment_operator(A, B, channel, gains)))))
+    if method not in ("auto", "dense", "krylov"):
+        raise InputError("method", f"expected auto, dense or krylov, found {method!r}")
+    if delivery not in ("current", "next"):
+        raise InputError("delivery", f"expected current or next, found {delivery!r}")
+    modes, T, h = mode_chain(channel)
+    M, n, m = len(modes), A.shape[0], B.shape[1]
+    K = _mode_gains(gains, M, m, n)
+    if not (np.all(np.isfinite(K)) and np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+        raise NumericalError("MJLS mean-square radius: the gains or the plant are not finite")
+    dim = M * n * n
+    if method == "krylov" or (method == "auto" and dim > DENSE_MAX_DIM and dim >= 8):
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                return _krylov_radius(A, B, T, h, K, delivery)
+        except NumericalError:
+            if method == "krylov" or dim > MAX_OPERATOR_DIM:
+                raise
+    op = second_moment_operator(A, B, channel, K, delivery)
+    with np.errstate(over="ignore", invalid="ignore"):
+        vals = np.linalg.eigvals(op) if np.all(np.isfinite(op)) else np.array([np.inf])
+    if not np.all(np.isfinite(vals)):
+        raise NumericalError("MJLS mean-square radius: the second-moment operator is not finite")
+    return float(max(abs(vals)))
+
+
+def moment_step(Q: np.ndarray, K: np.ndarray, R: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray,
+                H2: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray]:
+    """One noise-free step of the coupled second moments: ``(Q', KQK)``.
+
+    ``Q`` (a, n, n) and ``K`` (a, m, n) per information mode a, ``R`` (a, M) its transition rows, ``h`` (M, m)
+    and ``H2`` (M, m, m) the first and second delivery moments per mode. ``"current"``:
+    ``Q'_b = sum_a R_ab E_{v|a}[G_a Q_a G_a']``, ``KQK[a] = K_a Q_a K_a'``; ``"next"``:
+    ``Q'_b = sum_a R_ab E_{v|b}[G_a Q_a G_a']``, ``KQK[b] = sum_a R_ab K_a Q_a K_a'``. With
+    ``E_{v|c}[G Q G'] = AQA' - AQK'H_c B' - B H_c KQA' + B((KQK') ∘ H2_c)B'``; the expected input cost is
+    ``sum_c sum_i psi_i h_ci KQK[c]_ii``. Time O(a M n^2 + a n^2 (n + m)).
+    """
+    AQA = np.einsum("ij,ajk,lk->ail", A, Q, A)
+    C = np.einsum("ij,ajk,alk->ail", A, Q, K)                                                  # A Q_a K_a'
+    KQK = np.einsum("aij,ajk,alk->ail", K, Q, K)
+    if delivery == "next":
+        AQA, C, KQK = (np.einsum("ab,aij->bij", R, X) for X in (AQA, C, KQK))               # sum_a R_ab X_a
+    Y = AQA - np.einsum("cij,cj,kj->cik", C, h, B) - np.einsum("ij,cj,ckj->cik", B, h, C) \
+        + np.einsum("ij,cjk,lk->cil", B, KQK * H2, B)
+    return (np.einsum("ab,aij->bij", R, Y) if delivery == "current" else Y), KQK
+
+
+def delivery_moments(h: np.ndarray) -> np.ndarray:
+    """``E[v v' | mode] = h h' + diag(h (1 - h))`` per mode (independent channels), (M, m, m). O(M m^2)."""
+    return h[:, :, None] * h[:, None, :] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(h.shape[1]))
+
+
+def _krylov_radius(A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, K: np.ndarray, delivery: str) -> float:
+    """ARPACK on the coupled map (never forming it), checked against Collatz–Wielandt bounds from a positive
+    definite tuple X near the Perron vector: ``L(X) >= c X`` proves rho >= c, ``L(X) <= c X`` proves rho <= c
+    (blockwise Loewner order; L maps PSD tuples to PSD tuples). Time O(iterations (M^2 n^2 + M n^2 (n + m)))."""
+    M, n = T.shape[0], A.shape[0]
+    D, H2 = M * n * n, delivery_moments(h)
+    k = min(6, D - 2)
+    ncv = min(D, max(2 * k + 1, 20))
+    if 8.0 * D * (ncv + 4) > MEMORY_BUDGET_BYTES:
+        raise ResourceError(f"the MJLS radius needs {ncv + 4} Krylov vectors of 2^m n^2 = {D} entries "
+                            f"({8.0 * D * (ncv + 4) / 2**30:.1f} GiB)", 8.0 * D * (ncv + 4), MEMORY_BUDGET_BYTES)
+
+    def apply(v: np.ndarray) -> np.ndarray:
+        Q = v.reshape(M, n, n)
+        return moment_step(0.5 * (Q + Q.transpose(0, 2, 1)), K, T, A, B, h, H2, delivery)[0].ravel()
+
+    op = LinearOperator((D, D), matvec=apply, dtype=float)
+    try:
+        vals, vecs = eigs(op, k=k, which="LM", tol=ARPACK_TOL, v0=np.tile(np.eye(n).ravel(), M),
+                          ncv=ncv, maxiter=max(300, 10 * n))
+    except (ArpackNoConvergence, ArpackError) as err:
+        raise NumericalError(f"MJLS mean-square radius: ARPACK did not converge ({err})") from None
+    top = int(np.argmax(np.abs(vals)))
+    radius = float(abs(vals[top]))
+    v = vecs[:, top] * np.exp(-1j * np.angle(vecs[np.argmax(np.abs(vecs[:, top])), top]))
+    X = v.real.reshape(M, n, n)
+    X = 0.5 * (X + X.transpose(0, 2, 1))
+    X = X if np.einsum("aii->", X) >= 0 else -X
+    w, U = np.linalg.eigh(X)
+    w = np.maximum(w, 1e-10 * max(float(w.max()), np.finfo(float).tiny))
+    root_inv = np.einsum("aij,aj,akj->aik", U, 1 / np.sqrt(w), U)
+    Y = moment_step(np.einsum("aij,aj,akj->aik", U, w, U), K, T, A, B, h, H2, delivery)[0]
+    Z = np.einsum("aij,ajk,akl->ail", root_inv, Y, root_inv)
+    ratios = np.linalg.eigvalsh(0.5 * (Z + Z.transpose(0, 2, 1)))
+    lower, upper = max(float(ratios[:, 0].min()), 0.0), float(ratios[:, -1].max())
+    if not (np.isfinite(radius) and lower * (1.0 - 1e-9) <= radius <= upper * (1.0 + 1e-9)):
+        raise NumericalError(f"MJLS mean-square radius: ARPACK's {radius:.6g} lies outside the proven bounds "
+                             f"[{lower:.6g}, {upper:.6g}]")
+    return radius
+
+
+def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery: str = "current",
+                         first_gain: np.ndarray | None = None) -> np.ndarray:
+    """Exact E[x_t' Omega_1 x_t + (V_t u_t)' Psi_0 (V_t u_t)], t = 0..steps-1, of the mode-dependent law
+    ``u_t = -K_{t,a} x_t`` behind the system's chain, from x0 and the channel's initial belief.
+
+    ``gains``: (M, m, n) or (steps, M, m, n). ``delivery="current"``: a = the chain's mode at t (known to the
+    controller); ``"next"``: a = its mode at t - 1 (revealed by the acknowledgements), the law at t = 0 being
+    ``first_gain`` (m×n, the information of the initial belief). Exact recursion on
+    ``Q_{a,t} = E[x_t x_t' 1{mode = a}]`` (CFM05, ch. 3), using ``E[v | b] = h_b`` and
+    ``E[v v' | b] = h_b h_b' + diag(h_b (1 - h_b))``; noise enters with P(mode). Entries stay inf past an overflow.
+    Time O(steps (M^2 n^2 + M (n^3 + n^2 m))), memory O(M n^2 + steps M m n).
+    """
+    system = check_system(system)
+    if system.channel is None:
+        raise InputError("system", "expected a system with a Gilbert-Elliott channel ([channel] model = ...)")
+    if delivery not in ("current", "next"):
+        raise InputError("delivery", f"expected current or next, found {delivery!r}")
+    modes, T, h = mode_chain(system.channel)
+    A, B, Sigma = system.A, system.B, system.noise_cov
+    Omega, psi = system.state_weights[0], system.input_weights[0]
+    M, n, m = len(modes), system.n, system.m
+    K_all = np.asarray(gains, dtype=float)
+    K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 3 else K_all
+    if K_all.shape != (steps, M, m, n):
+        raise InputError("gains", f"expected ({M}, {m}, {n}) or ({steps}, {M}, {m}, {n}) mode gains, found "
+                                  f"{K_all.shape}")
+    b0 = system.channel.initial_belief
+    pi = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)                                   # P(mode at 0)
+    H2 = delivery_moments(h)
+    x0 = system.x0
+    if delivery == "next":
+        if first_gain is None:
+            raise InputError("first_gain", "the law at t = 0 is needed with delivery='next'")
+        Q, K, R = np.outer(x0, x0)[None], np.asarray(first_gain, dtype=float)[None], pi[None]
+    else:
+        Q, K, R = pi[:, None, None] * np.outer(x0, x0), K_all[0], T
+    out = np.empty(steps)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps):
+            state = float(np.einsum("ij,aji->", Omega, Q))
+            Q_next, KQK = moment_step(Q, K, R, A, B, h, H2, delivery)
+            inputs = float(np.einsum("i,ci,cii->", psi, h, KQK))
+            if delivery == "current":
+                pi = pi @ T                                                                  # P(mode at t + 1)
+            else:
+                pi, R = (pi if t == 0 else pi @ T), T                                        # P(mode at t)
+            out[t] = state + inputs
+            Q = Q_next + pi[:, None, None] * Sigma
+            if t + 1 < steps:
+                K = K_all[t + 1]
+    return np.where(np.isfinite(out), out, np.inf)
 
 
 def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:

@@ -71,17 +71,19 @@ class Riccati:
 class OpenLoopCheck:
     """A protocol's plan U* applied open loop and sampled (simulation.montecarlo): ``formula`` J* (Theorem 1),
     ``exact`` E[realised cost] under the stated model (J_udp(U*)), ``mean`` and ``stderr`` of the samples,
-    ``z = (mean - exact) / stderr``."""
+    ``z = (mean - exact) / stderr``; ``reason`` why the plan is missing (its numbers nan), "" when it is not."""
 
     formula: float
     exact: float
     mean: float
     stderr: float
     z: float
+    reason: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        """The issue's schema; a non-finite number is None (JSON). O(1)."""
-        return {k: finite_or_none(getattr(self, k)) for k in ("formula", "exact", "mean", "stderr", "z")}
+        """The issue's schema (plus ``reason`` when set); a non-finite number is None (JSON). O(1)."""
+        out = {k: finite_or_none(getattr(self, k)) for k in ("formula", "exact", "mean", "stderr", "z")}
+        return {**out, "reason": self.reason} if self.reason else out
 
 
 @dataclass(frozen=True)
@@ -89,7 +91,9 @@ class ClosedLoopRun:
     """A law run in closed loop for ``steps`` steps over sampled losses (simulation.montecarlo): ``mean_stage_cost``
     and ``stderr`` of each run's mean stage cost over t < steps, ``exact_stage_cost`` its expectation,
     ``spectral_radius`` and ``stable`` as in ClosedLoop, ``reason`` why there is no law ("" if there is); per
-    step: ``state_norm_mean``, ``state_norm_std`` of ||x_t|| (t <= steps) and ``stage_cost_mean``."""
+    step: ``state_norm_mean``, ``state_norm_std`` of ||x_t|| (t <= steps) and ``stage_cost_mean``;
+    ``exact_reason`` why a law that ran has no exact value or radius (nan, e.g. a belief-dependent law behind a
+    Markov channel); ``note`` what the law is, where the label does not say it all."""
 
     law: str
     mean_stage_cost: float
@@ -101,24 +105,29 @@ class ClosedLoopRun:
     state_norm_std: np.ndarray
     stage_cost_mean: np.ndarray
     reason: str = ""
+    exact_reason: str = ""
+    note: str = ""
 
     def __post_init__(self) -> None:
         freeze(self)
 
     def to_dict(self) -> dict[str, Any]:
-        """The issue's schema (plus ``reason`` when there is no law); non-finite numbers are None. O(1)."""
+        """The issue's schema (plus ``reason`` when there is no law or no exact value, ``note`` when set);
+        non-finite numbers are None. O(1)."""
         out: dict[str, Any] = {"mean_stage_cost": finite_or_none(self.mean_stage_cost),
                                "stderr": finite_or_none(self.stderr),
                                "exact_stage_cost": finite_or_none(self.exact_stage_cost),
                                "mean_square_spectral_radius": finite_or_none(self.spectral_radius),
                                "stable": self.stable}
-        return {**out, "reason": self.reason} if self.reason else out
+        reason = self.reason or self.exact_reason
+        return {**out, **({"reason": reason} if reason else {}), **({"note": self.note} if self.note else {})}
 
 
 @dataclass(frozen=True)
 class Simulation:
     """Monte Carlo checks (simulation.montecarlo): ``open_loop`` protocol -> OpenLoopCheck, ``closed_loop`` law ->
-    ClosedLoopRun, ``trajectories`` (laws, runs, steps + 1, n) of the first runs or None."""
+    ClosedLoopRun, ``trajectories`` (laws, runs, steps + 1, n) of the first runs or None; ``channel`` the model
+    sampled ("bernoulli" or "gilbert-elliott")."""
 
     samples: int
     steps: int
@@ -126,6 +135,7 @@ class Simulation:
     open_loop: dict[str, OpenLoopCheck]
     closed_loop: dict[str, ClosedLoopRun]
     trajectories: np.ndarray | None = None
+    channel: str = "bernoulli"
 
     def __post_init__(self) -> None:
         freeze(self)

@@ -12,7 +12,10 @@ import numpy as np
 from ..linalg import psd_factor
 from ..model import System
 
-__all__ = ["sample_deliveries", "sample_delivery_paths", "sample_noise", "sample_noise_paths"]
+__all__ = [
+    "sample_deliveries", "sample_delivery_paths", "sample_noise", "sample_noise_paths", "sample_step_deliveries",
+    "sample_step_noise",
+]
 
 
 def sample_deliveries(system: System, samples: int, rng: np.random.Generator) -> np.ndarray:
@@ -74,3 +77,16 @@ def sample_noise_paths(system: System, steps: int, samples: int, rng: np.random.
     if not root.shape[0]:
         return None
     return (rng.standard_normal((samples, steps, root.shape[0])) @ root).transpose(1, 0, 2)   # run by run
+
+
+def sample_step_deliveries(system: System, t: int, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Deliveries of step t only: bool (samples, m), True with probability ``mu_{t,i}`` (one uniform per entry,
+    row by row). For samplers that draw step by step. Time O(samples m)."""
+    return rng.random((samples, system.m)) < system.mu_schedule[t]
+
+
+def sample_step_noise(root: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray | None:
+    """One step's process noise ``z @ root`` (samples, n) with ``root' root = Sigma_W``
+    (:func:`~packetloss_cvx.linalg.psd_factor`, computed once by the caller), or None when ``root`` has no rows
+    (Sigma_W = 0: no draws). Time O(samples n r)."""
+    return rng.standard_normal((samples, root.shape[0])) @ root if root.shape[0] else None

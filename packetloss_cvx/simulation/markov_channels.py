@@ -16,7 +16,9 @@ from ..errors import InputError
 from ..linalg import psd_factor
 from ..model import System
 
-__all__ = ["sample_markov_deliveries", "sample_markov_plan_costs", "sample_states"]
+__all__ = [
+    "reveals_state", "sample_markov_deliveries", "sample_markov_paths", "sample_markov_plan_costs", "sample_states",
+]
 
 
 def _count(value: int, field: str) -> int:
@@ -44,6 +46,45 @@ def sample_states(channel: GilbertElliott, horizon: int, samples: int, rng: np.r
         u = rng.random((S, channel.m))
         good = np.where(good, u >= channel.p, u < channel.r)
     return out
+
+
+def reveals_state(channel: GilbertElliott) -> bool:
+    """True when every channel's outcome reveals its state ({h_good, h_bad} = {0, 1}, e.g. the Gilbert
+    channel): then the TCP-like filtered belief is a function of the last outcome. O(m)."""
+    return bool(np.all(((channel.h_good == 1) & (channel.h_bad == 0)) | ((channel.h_good == 0) & (channel.h_bad == 1))))
+
+
+def sample_markov_paths(channel: GilbertElliott, steps: int, samples: int,
+                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Good-state indicators and deliveries of ``samples`` runs over ``steps`` steps: two bool arrays
+    (samples, steps, m), drawn in the Bernoulli samplers' order.
+
+    One uniform array ``u`` (samples, steps, m) is drawn first (the same call, hence the same numbers, as
+    :func:`~packetloss_cvx.simulation.channels.sample_delivery_paths` and, flattened,
+    :func:`~packetloss_cvx.simulation.channels.sample_deliveries`): ``S_0 = u_0 < b_0``,
+    ``S_t = u_t < (1 - p if S_{t-1} else r)``. When every outcome reveals the state (:func:`reveals_state`)
+    the delivery is the state's h (no more draws); otherwise a second uniform array gives
+    ``v_t = u'_t < h(S_t)``. So a memoryless Gilbert chain (p + r = 1, h_good = 1, h_bad = 0) draws exactly
+    the Bernoulli(r) deliveries of the same stream, run by run (the first runs do not depend on ``samples``).
+    Time and memory O(samples steps m).
+
+    Examples
+    --------
+    >>> ch = GilbertElliott(p=[0.3], r=[0.7])
+    >>> good, v = sample_markov_paths(ch, 5, 2, np.random.default_rng(1))
+    >>> bern = np.random.default_rng(1).random((2, 5, 1)) < 0.7
+    >>> bool(np.array_equal(v, bern) and np.array_equal(good, v))
+    True
+    """
+    T, S = _count(steps, "steps"), _count(samples, "samples")
+    u = rng.random((S, T, channel.m))
+    good = np.empty((S, T, channel.m), dtype=bool)
+    good[:, 0] = u[:, 0] < channel.initial_belief
+    for t in range(1, T):
+        good[:, t] = u[:, t] < np.where(good[:, t - 1], 1.0 - channel.p, channel.r)
+    if reveals_state(channel):
+        return good, np.where(good, channel.h_good, channel.h_bad) == 1
+    return good, rng.random(good.shape) < np.where(good, channel.h_good, channel.h_bad)
 
 
 def sample_markov_deliveries(channel: GilbertElliott, horizon: int, samples: int,

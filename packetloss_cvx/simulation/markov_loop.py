@@ -21,14 +21,18 @@ import numpy as np
 
 from ..channel import GilbertElliott
 from ..costs import closed_form
-from ..errors import InputError
+from ..errors import InputError, ResourceError
 from ..linalg import psd_factor
 from ..markov import attach_channel, exact_closed_form, filter_belief
 from ..model import System, check_system
 from ..progress import progress_bar
-from .markov_channels import sample_states
+from .channels import sample_noise_paths
+from .markov_channels import sample_markov_paths, sample_states
 
-__all__ = ["MARKOV_LAWS", "markov_closed_loop_costs"]
+__all__ = ["MARKOV_LAWS", "PLAN_BUDGET", "BeliefGains", "markov_closed_loop_costs", "markov_loop_block", "mode_index"]
+
+#: Distinct beliefs (one receding-horizon plan each) a law may meet in one simulation before it is refused.
+PLAN_BUDGET = 2000
 
 #: The laws :func:`markov_closed_loop_costs` runs: (how the plan is made, whose information).
 MARKOV_LAWS = ("plug-in-tcp", "plug-in-udp", "exact-tcp", "exact-udp")
@@ -94,3 +98,84 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
             total += np.einsum("si,ij,sj->s", X, W, X)
         out[k] = total
     return out
+
+
+class BeliefGains:
+    """The first block K(b) of a protocol's plug-in receding-horizon law planned at the belief b, cached by
+    b rounded to 12 digits (one plan per distinct belief, each O(plan); more than ``budget`` is a ResourceError)."""
+
+    def __init__(self, system: System, protocol: str, budget: int = PLAN_BUDGET) -> None:
+        self.system, self.law, self.budget = system, f"plug-in-{protocol}", budget
+        self.cache: dict[bytes, np.ndarray] = {}
+
+    def __call__(self, belief: np.ndarray) -> np.ndarray:
+        """K (m×n) at one belief (m,)."""
+        row = np.round(np.asarray(belief, dtype=float), 12)
+        key = row.tobytes()
+        if key not in self.cache:
+            if len(self.cache) >= self.budget:
+                raise ResourceError(f"the {self.law[-3:].upper()}-like law re-plans at every distinct belief, and this "
+                                    f"run met more than {self.budget} (the HMM-filtered belief of a channel whose "
+                                    "outcome does not reveal its state takes a new value in almost every run): "
+                                    "fewer samples or steps, or the UDP-like law", len(self.cache) + 1, self.budget)
+            self.cache[key] = _gain(self.system, self.law, row)
+        return self.cache[key]
+
+    def many(self, beliefs: np.ndarray) -> np.ndarray:
+        """K (S, m, n) at the beliefs (S, m): one plan per distinct row. Time O(S m log S) plus new plans."""
+        rows, inverse = np.unique(np.round(beliefs, 12), axis=0, return_inverse=True)
+        return np.stack([self(row) for row in rows])[inverse.ravel()]
+
+
+def mode_index(good: np.ndarray) -> np.ndarray:
+    """The joint mode of :func:`packetloss_cvx.markov.mode_chain` (0 = all good, channel 0 the most significant
+    bit, 1 = bad) of good-state indicators (..., m). O(size)."""
+    m = good.shape[-1]
+    return ((~good).astype(np.int64) << np.arange(m - 1, -1, -1)).sum(axis=-1)
+
+
+def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | None, udp: BeliefGains | None,
+                      mode_gains: np.ndarray | None, steps: int, samples: int, losses: np.random.Generator,
+                      noise: np.random.Generator, keep: int = 0) -> tuple[np.ndarray, ...]:
+    """``laws`` (of "tcp", "udp", "dp") run together behind the system's chain on one block of runs.
+
+    "tcp": the plug-in TCP-like law re-planned at the belief filtered by every acknowledged outcome (``tcp``);
+    "udp": the plug-in UDP-like law at the prior propagated (``udp``, the same for every run); "dp": the
+    mode-dependent law ``u = -mode_gains[mode] x`` with the current channel state known. Chain states and
+    deliveries from ``losses`` (:func:`~packetloss_cvx.simulation.markov_channels.sample_markov_paths`), noise
+    from ``noise`` (:func:`~packetloss_cvx.simulation.channels.sample_noise_paths`): the Bernoulli loop's draws.
+    Returns ``(run_cost, norms, stage, states)`` as :func:`~packetloss_cvx.simulation.montecarlo.closed_loop_block`.
+    Time O(laws samples steps n (n + m)) plus one plan per new belief.
+    """
+    ch = system.channel
+    good, V = sample_markov_paths(ch, steps, samples, losses)
+    W = sample_noise_paths(system, steps, samples, noise)
+    modes = mode_index(good)
+    Omega, psi = system.state_weights[0], system.input_weights[0]
+    L = len(laws)
+    X = np.broadcast_to(system.x0, (L, samples, system.n)).copy()
+    norms, stage = np.empty((L, samples, steps + 1)), np.empty((L, samples, steps))
+    states = np.empty((L, keep, steps + 1, system.n))
+    filtered = np.repeat(ch.initial_belief[None], samples, axis=0)
+    prior = np.array(ch.initial_belief, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps):
+            norms[:, :, t] = np.linalg.norm(X, axis=2)
+            states[:, :, t] = X[:, :keep]
+            for k, law in enumerate(laws):
+                if law == "udp":
+                    u = -X[k] @ udp(prior).T
+                else:
+                    K = tcp.many(filtered) if law == "tcp" else mode_gains[modes[:, t]]
+                    u = -np.einsum("smn,sn->sm", K, X[k])
+                applied = V[:, t] * u
+                stage[k, :, t] = np.einsum("si,ij,sj->s", X[k], Omega, X[k]) + applied ** 2 @ psi
+                X[k] = X[k] @ system.A.T + applied @ system.B.T
+            if W is not None:
+                X += W[t]
+            if "tcp" in laws:
+                filtered = filter_belief(ch, filtered, V[:, t])
+            prior = ch.r + ch.correlation * prior
+        norms[:, :, steps] = np.linalg.norm(X, axis=2)
+        states[:, :, steps] = X[:, :keep]
+    return stage.mean(axis=2), norms, stage, states

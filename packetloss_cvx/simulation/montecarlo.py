@@ -20,47 +20,30 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..costs import closed_form, expected_cost
-from ..errors import InputError, NumericalError, ResourceError
+from ..errors import InputError, NumericalError
 from ..model import System
 from ..progress import progress_bar
 from ..results import ClosedLoopRun, OpenLoopCheck, Simulation
-from ..tolerances import MEMORY_BUDGET_BYTES
 from .channels import sample_deliveries, sample_delivery_paths, sample_noise, sample_noise_paths
+from .markov_montecarlo import simulate_markov
 from .moments import finite_horizon_costs, stationary_channel
 from .riccati import dp_riccati
+from .runs import (
+    BLOCK,
+    check_count,
+    check_loop_memory,
+    loop_statistics,
+    plan_costs,
+    run_blocks,
+    sample_stats,
+    z_score,
+)
 from .stability import is_mean_square_stable, mean_square_radius
 
 __all__ = ["BLOCK", "LAWS", "law_gains", "simulate", "z_score"]
 
-#: Runs per block: one random stream, one progress step, O(BLOCK (N m + N n)) memory per block.
-BLOCK = 4096
 #: The laws a closed loop can run: the receding-horizon laws of both protocols and the DP optimum.
 LAWS = ("tcp", "udp", "dp")
-
-
-def _count(value: object, field: str, least: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
-        raise InputError(field, f"expected an integer >= {least}, found {value!r}")
-    return int(value)
-
-
-def _blocks(samples: int) -> list[int]:
-    return [min(BLOCK, samples - start) for start in range(0, samples, BLOCK)]
-
-
-def _stats(values: np.ndarray) -> tuple[float, float]:
-    with np.errstate(over="ignore", invalid="ignore"):
-        return float(values.mean()), float(values.std(ddof=1) / np.sqrt(values.size))
-
-
-def z_score(mean: float, stderr: float, exact: float) -> float:
-    """``(mean - exact) / stderr``; for a sample without spread (``stderr`` at rounding level, 1e-12 of the
-    scale: deterministic deliveries, no noise) 0 when ``mean`` matches ``exact`` to 1e-9 relative, else
-    +-inf: rounding differences between runs are not read as a 316-sigma disagreement."""
-    scale = max(abs(exact), abs(mean), np.finfo(float).tiny)
-    if stderr <= 1e-12 * scale:
-        return 0.0 if abs(mean - exact) <= 1e-9 * scale else float(np.copysign(np.inf, mean - exact))
-    return (mean - exact) / stderr
 
 
 def open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
@@ -69,17 +52,7 @@ def open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.ra
     N, m, n = system.horizon, system.m, system.n
     V = sample_deliveries(system, samples, rng).reshape(samples, N, m)
     W = sample_noise(system, samples, rng).reshape(samples, N, n) if system.noise_cov.any() else None
-    X = np.repeat(system.x0[None], samples, axis=0)
-    total = np.full(samples, float(system.x0 @ system.initial_weight @ system.x0))
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(N):
-            applied = V[:, t] * inputs[t]
-            total += applied ** 2 @ system.input_weights[t]
-            X = X @ system.A.T + applied @ system.B.T
-            if W is not None:
-                X += W[:, t]
-            total += np.einsum("si,ij,sj->s", X, system.state_weights[t], X)
-    return total
+    return plan_costs(system, inputs, V, W)
 
 
 def law_gains(system: System, laws: Sequence[str]) -> dict[str, np.ndarray | str]:
@@ -143,7 +116,7 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     seed : int
         Seeds every stream (>= 0).
     closed_loop : bool
-        Also run the laws in closed loop (needs a stationary channel).
+        Also run the laws in closed loop (needs a stationary Bernoulli channel, or a Gilbert–Elliott one).
     laws : sequence of {"tcp", "udp", "dp"}
         Open loop for the protocols among them; closed loop for all of them. "dp" has no open-loop plan.
     keep : int
@@ -162,11 +135,18 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
         non-stationary channel.
     ResourceError
         A block's arrays (O(BLOCK T (n + m + laws))) would exceed the memory budget (refused before drawing).
+        Behind a Gilbert–Elliott channel also: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
+        distinct beliefs (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
 
     Notes
     -----
     Time O(samples N n (n + m)) open loop, O(laws samples T n (n + m)) closed loop, plus the exact values
     (O(T n^3) each); memory O(BLOCK (N + T) (n + m) laws).
+
+    Behind a Gilbert–Elliott channel (``system.channel``) the chain is sampled per run and every number is
+    compared with the exact expectation under the chain (:mod:`.markov_montecarlo`): the open loop adds the
+    exact minimiser's plan (``"exact_minimiser"``); in closed loop "tcp"/"udp" re-plan at the filtered /
+    propagated belief and "dp" is the mode-dependent coupled-Riccati law (channel state known).
 
     Examples
     --------
@@ -176,8 +156,9 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     >>> bool(abs(check.mean - check.exact) < 4 * check.stderr)
     True
     """
-    samples, steps, seed = _count(samples, "samples", 2), _count(steps, "steps", 1), _count(seed, "seed", 0)
-    keep = min(_count(keep, "keep", 0), samples)
+    samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
+    seed = check_count(seed, "seed", 0)
+    keep = min(check_count(keep, "keep", 0), samples)
     laws = list(dict.fromkeys(laws))
     for law in laws:
         if law not in LAWS:
@@ -185,11 +166,13 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     if not laws or (not closed_loop and laws == ["dp"]):
         raise InputError("law", "the DP optimum is a closed-loop law: run the closed loop (closed_loop=True, "
                                 "--closed-loop) or add tcp or udp")
+    if system.channel is not None:
+        return simulate_markov(system, samples, steps, seed, closed_loop, laws, keep, progress)
     if closed_loop:
         stationary_channel(system)
-        _check_memory(system, min(BLOCK, samples), steps, len(laws), keep)
+        check_loop_memory(system, min(BLOCK, samples), steps, len(laws), keep)
     open_part, closed_part = np.random.SeedSequence(seed).spawn(2)
-    blocks = _blocks(samples)
+    blocks = run_blocks(samples)
     plans = {p: closed_form(system, p) for p in laws if p != "dp"}
     costs: dict[str, list[np.ndarray]] = {p: [] for p in plans}
     work = len(blocks) * (len(plans) > 0) + len(blocks) * closed_loop
@@ -202,7 +185,7 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
             bar.update(1)
         open_loop = {}
         for p, sol in plans.items():
-            mean, stderr = _stats(np.concatenate(costs[p]))
+            mean, stderr = sample_stats(np.concatenate(costs[p]))
             exact = expected_cost(system, sol.inputs, "udp")
             open_loop[p] = OpenLoopCheck(sol.cost, exact, mean, stderr, z_score(mean, stderr, exact))
         runs, trajectories = {}, None
@@ -212,52 +195,25 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     return Simulation(samples, steps, seed, open_loop, runs, trajectories)
 
 
-def _check_memory(system: System, block: int, steps: int, laws: int, keep: int) -> None:
-    """Refuse, before drawing, a closed loop whose block arrays exceed the memory budget: deliveries and
-    noise (block steps (m + 8 n)), norms and stage costs (16 laws block steps), kept states."""
-    needed = block * (steps + 1) * (system.m + 8 * system.n + 16 * laws) + 8 * laws * keep * (steps + 1) * system.n
-    if needed > MEMORY_BUDGET_BYTES:
-        raise ResourceError(f"the closed-loop simulation needs about {needed / 2**30:.1f} GiB per block of {block} "
-                            f"runs over {steps} steps (budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB): fewer steps",
-                            needed, MEMORY_BUDGET_BYTES)
-
-
 def _closed_loop(system: System, gains: dict[str, np.ndarray | str], steps: int, blocks: list[int],
                  streams: list[np.random.SeedSequence], keep: int, bar) -> tuple[dict[str, ClosedLoopRun], np.ndarray]:
     """Every law with a gain on the same blocks; the statistics and exact values of each."""
     names = [law for law, g in gains.items() if not isinstance(g, str)]
     K = np.array([gains[law] for law in names]).reshape(len(names), system.m, system.n)
-    run_costs, stages, norm_sum, norm_sq, kept = [], [], 0.0, 0.0, []
-    left = keep
-    for size, stream in zip(blocks, streams, strict=True):
-        if names:
-            losses, noise = (np.random.default_rng(child) for child in stream.spawn(2))
-            cost, norms, stage, states = closed_loop_block(system, K, steps, size, losses, keep=min(left, size),
-                                                           noise_rng=noise)
-            left -= states.shape[1]
-            run_costs.append(cost)
-            stages.append(stage.sum(axis=1))
-            with np.errstate(over="ignore", invalid="ignore"):
-                norm_sum = norm_sum + norms.sum(axis=1)
-                norm_sq = norm_sq + (norms ** 2).sum(axis=1)
-            kept.append(states)
-        bar.update(1)
-    samples = sum(blocks)
+
+    def block(size: int, losses: np.random.Generator, noise: np.random.Generator, kept: int) -> tuple[np.ndarray, ...]:
+        return closed_loop_block(system, K, steps, size, losses, keep=kept, noise_rng=noise)
+
+    stats, trajectories = loop_statistics(len(names), block, steps, system.n, blocks, streams, keep, bar)
     out: dict[str, ClosedLoopRun] = {}
     nan = np.full(steps + 1, np.nan)
     for law, gain in gains.items():
         if isinstance(gain, str):
             out[law] = ClosedLoopRun(law, np.nan, np.nan, np.nan, np.nan, False, nan, nan, nan[:-1], reason=gain)
             continue
-        k = names.index(law)
-        mean, stderr = _stats(np.concatenate([c[k] for c in run_costs]))
+        st = stats[names.index(law)]
         radius = mean_square_radius(system.A, system.B, gain, system.mu_schedule[0])
         exact = float(finite_horizon_costs(system, gain, steps)[0].mean())
-        with np.errstate(over="ignore", invalid="ignore"):
-            norm_mean = norm_sum[k] / samples
-            norm_std = np.sqrt(np.maximum(norm_sq[k] / samples - norm_mean ** 2, 0.0))
-            stage_mean = sum(s[k] for s in stages) / samples
-        out[law] = ClosedLoopRun(law, mean, stderr, exact, radius, is_mean_square_stable(radius), norm_mean, norm_std,
-                                 stage_mean)
-    trajectories = np.concatenate(kept, axis=1) if kept else np.empty((0, 0, steps + 1, system.n))
+        out[law] = ClosedLoopRun(law, st.mean, st.stderr, exact, radius, is_mean_square_stable(radius), st.norm_mean,
+                                 st.norm_std, st.stage_mean)
     return out, trajectories

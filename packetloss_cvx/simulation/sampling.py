@@ -14,7 +14,7 @@ import numpy.typing as npt
 from ..costs import check_inputs
 from ..linalg import psd_factor
 from ..model import System
-from .channels import sample_delivery_paths, sample_noise_paths
+from .channels import sample_delivery_paths, sample_noise_paths, sample_step_deliveries, sample_step_noise
 
 __all__ = ["closed_loop_costs", "sample_plan_costs"]
 
@@ -23,7 +23,9 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
     """Realised costs ``x'Qx + sum_t X_t' Omega_t X_t + sum_t (V_t u_t)' Psi_t (V_t u_t)``.
 
     The open-loop plan ``inputs`` (N×m) is applied whatever the losses. Returns
-    ``samples`` realised costs; their mean estimates E[cost | X_k] of the plan.
+    ``samples`` realised costs; their mean estimates E[cost | X_k] of the plan. Deliveries and noise are
+    drawn step by step through :mod:`.channels` (:func:`~.channels.sample_step_deliveries`,
+    :func:`~.channels.sample_step_noise`), in the order this function has always used.
     Time O(samples · N · (n^2 + n m)), memory O(samples · n).
     """
     U = check_inputs(system, inputs)
@@ -33,12 +35,12 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
     total = np.full(samples, float(x0 @ system.initial_weight @ x0))
     L = psd_factor(system.noise_cov)  # W_t = L' z, z ~ N(0, I)
     for t in range(N):
-        V = rng.random((samples, system.m)) < system.mu_schedule[t]
-        applied = V * U[t]
+        applied = sample_step_deliveries(system, t, samples, rng) * U[t]
         total += np.sum(system.input_weights[t] * applied * applied, axis=1)
         X = X @ system.A.T + applied @ system.B.T
-        if L.shape[0]:
-            X = X + rng.standard_normal((samples, L.shape[0])) @ L
+        noise = sample_step_noise(L, samples, rng)
+        if noise is not None:
+            X = X + noise
         total += np.einsum("si,ij,sj->s", X, system.state_weights[t], X)
     return total
 

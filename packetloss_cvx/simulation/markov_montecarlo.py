@@ -1,0 +1,168 @@
+"""``simulate`` behind Gilbert–Elliott channels: the chain sampled per run, compared with the exact
+expectations under the chain (never with the Bernoulli model of its plug-in mu_t).
+
+Open loop: each protocol's plug-in plan (the paper's law with the chain's predicted mu_t, ``formula`` its
+J*) and the exact minimiser of the plan's expected cost under correlated losses
+(:func:`~packetloss_cvx.markov.exact_closed_form`, key ``"exact_minimiser"``), each sampled and compared
+with :func:`~packetloss_cvx.markov.exact_cost` (the expected realised cost under the chain).
+
+Closed loop (:func:`~packetloss_cvx.simulation.markov_loop.markov_loop_block`): "tcp" re-plans at the
+HMM-filtered belief, "udp" at the propagated prior, "dp" is the mode-dependent coupled-Riccati law with the
+channel state known (:func:`~packetloss_cvx.markov.coupled_riccati`). Exact values where a finite mode
+description exists (:func:`~packetloss_cvx.markov.mjls.jump_law_stage_costs`): the UDP-like law always (one
+time-varying gain), the TCP-like law when every outcome reveals its channel's state (the gain is a function of
+the last state), the DP law always; otherwise None with the reason. Draws as the Bernoulli path's (same
+streams, same layout), so a memoryless Gilbert chain (p + r = 1) reproduces the Bernoulli numbers with mu = r.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..costs import closed_form
+from ..errors import InputError, NumericalError, ResourceError
+from ..markov import coupled_riccati, exact_closed_form, exact_cost, filter_belief, mode_chain
+from ..markov.mjls import jump_law_stage_costs, mean_square_radius
+from ..model import System
+from ..progress import progress_bar
+from ..results import ClosedLoopRun, OpenLoopCheck, Simulation
+from .channels import sample_noise
+from .markov_channels import reveals_state, sample_markov_paths
+from .markov_loop import BeliefGains, markov_loop_block
+from .runs import BLOCK, check_loop_memory, loop_statistics, plan_costs, run_blocks, sample_stats, z_score
+from .stability import is_mean_square_stable
+
+__all__ = ["DP_NOTE", "EXACT_PLAN", "markov_open_loop_costs", "simulate_markov"]
+
+#: The open-loop entry of the exact minimiser's plan.
+EXACT_PLAN = "exact_minimiser"
+#: What the "dp" law is behind a chain (reported with it).
+DP_NOTE = ("mode-dependent coupled-Riccati law (Costa, Fragoso, Marques 2005, ch. 4): the controller knows every "
+           "channel's current state (good/bad) before it sends, more than TCP-like acknowledgements give")
+
+
+def markov_open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Realised costs of the plan ``inputs`` (N×m) with the chain sampled per run
+    (:func:`~packetloss_cvx.simulation.markov_channels.sample_markov_paths`, then the noise as
+    :func:`~packetloss_cvx.simulation.channels.sample_noise`). Time O(samples N n (n + m))."""
+    N, n = system.horizon, system.n
+    _, V = sample_markov_paths(system.channel, N, samples, rng)
+    W = sample_noise(system, samples, rng).reshape(samples, N, n) if system.noise_cov.any() else None
+    return plan_costs(system, inputs, V, W)
+
+
+def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_loop: bool, laws: Sequence[str],
+                    keep: int, progress: bool | None) -> Simulation:
+    """:func:`~packetloss_cvx.simulation.simulate` for a system with a Gilbert–Elliott channel (arguments
+    validated there). Same seeding as the Bernoulli path. Time O(samples N n (n + m) + (N m)^3 + (N n)^2 N m)
+    open loop; closed loop O(laws samples T n (n + m)) plus one plan per distinct belief and the exact values
+    (O(T 4^m n^3) each, the radii O((2^m n^2)^3))."""
+    if closed_loop:
+        check_loop_memory(system, min(BLOCK, samples), steps, len(laws), keep)
+    open_part, closed_part = np.random.SeedSequence(seed).spawn(2)
+    blocks = run_blocks(samples)
+    plans = {p: closed_form(system, p) for p in laws if p != "dp"}
+    extra = ""
+    if plans:
+        try:
+            plans[EXACT_PLAN] = exact_closed_form(system, "udp")
+        except (NumericalError, ResourceError) as err:
+            extra = str(err)
+    costs: dict[str, list[np.ndarray]] = {p: [] for p in plans}
+    work = len(blocks) * (len(plans) > 0) + len(blocks) * closed_loop
+    with progress_bar(total=work, desc="simulate (Gilbert-Elliott)", progress=progress) as bar:
+        for size, stream in zip(blocks, open_part.spawn(len(blocks)), strict=True):
+            if not plans:
+                break
+            for p, sol in plans.items():   # every plan on the same draws
+                costs[p].append(markov_open_loop_costs(system, sol.inputs, size, np.random.default_rng(stream)))
+            bar.update(1)
+        open_loop = {}
+        for p, sol in plans.items():
+            mean, stderr = sample_stats(np.concatenate(costs[p]))
+            exact = exact_cost(system, sol.inputs, "udp")
+            open_loop[p] = OpenLoopCheck(sol.cost, exact, mean, stderr, z_score(mean, stderr, exact))
+        if extra:
+            open_loop[EXACT_PLAN] = OpenLoopCheck(np.nan, np.nan, np.nan, np.nan, np.nan, reason=extra)
+        runs, trajectories = {}, None
+        if closed_loop:
+            runs, trajectories = _closed_loop(system, list(laws), steps, blocks, closed_part.spawn(len(blocks)),
+                                              keep, bar)
+    return Simulation(samples, steps, seed, open_loop, runs, trajectories, channel="gilbert-elliott")
+
+
+def _closed_loop(system: System, laws: list[str], steps: int, blocks: list[int], streams: list[np.random.SeedSequence],
+                 keep: int, bar) -> tuple[dict[str, ClosedLoopRun], np.ndarray]:
+    tcp = BeliefGains(system, "tcp") if "tcp" in laws else None
+    udp = BeliefGains(system, "udp") if "udp" in laws else None
+    dp, dp_reason = None, ""
+    if "dp" in laws:
+        try:
+            dp = coupled_riccati(system)
+        except (NumericalError, ResourceError, InputError) as err:
+            dp_reason = str(err)
+    names = [law for law in laws if law != "dp" or dp is not None]
+
+    def block(size: int, losses: np.random.Generator, noise: np.random.Generator, kept: int) -> tuple[np.ndarray, ...]:
+        return markov_loop_block(system, names, tcp, udp, None if dp is None else dp.gains, steps, size, losses,
+                                 noise, kept)
+
+    stats, trajectories = loop_statistics(len(names), block, steps, system.n, blocks, streams, keep, bar)
+    out: dict[str, ClosedLoopRun] = {}
+    for law in laws:
+        if law == "dp" and dp is None:
+            nan = np.full(steps + 1, np.nan)
+            out[law] = ClosedLoopRun(law, np.nan, np.nan, np.nan, np.nan, False, nan, nan, nan[:-1], reason=dp_reason,
+                                     note=DP_NOTE)
+            continue
+        exact, radius, reason = _exact(system, law, steps, tcp if law == "tcp" else udp, dp)
+        st = stats[names.index(law)]
+        out[law] = ClosedLoopRun(law, st.mean, st.stderr, exact, radius, is_mean_square_stable(radius), st.norm_mean,
+                                 st.norm_std, st.stage_mean, exact_reason=reason,
+                                 note=_note(system, law))
+    return out, trajectories
+
+
+def _note(system: System, law: str) -> str:
+    if law == "dp":
+        return DP_NOTE
+    if law == "udp" and system.channel.belief is not None:
+        return ("the UDP-like law changes with the propagated belief; its radius is the limiting law's (at the "
+                "stationary belief, which the belief approaches at rate |1 - p - r|)")
+    return ""
+
+
+def _exact(system: System, law: str, steps: int, gains: BeliefGains | None, dp) -> tuple[float, float, str]:
+    """``(exact mean stage cost, MJLS radius, reason)`` of a law behind the chain; nan with the reason where
+    no finite mode description exists, or the mode chain or the dense operator is refused."""
+    ch = system.channel
+    if law == "tcp" and not reveals_state(ch):
+        return np.nan, np.nan, ("the TCP-like law re-plans at the HMM-filtered belief, which takes a continuum of "
+                                "values when an outcome does not reveal its channel's state (h_good, h_bad not "
+                                "1 and 0): no finite Markov jump description, so no exact value or MJLS radius")
+    try:
+        modes, _, h = mode_chain(ch)
+        if law == "dp":
+            return float(jump_law_stage_costs(system, dp.gains, steps, "current").mean()), dp.spectral_radius, ""
+        if law == "udp":
+            prior, K = np.array(ch.initial_belief, dtype=float), []
+            for _ in range(steps):                       # the simulation's own propagation, hence its plans
+                K.append(gains(prior))
+                prior = ch.r + ch.correlation * prior
+            table, delivery, first, limit = np.repeat(np.array(K)[:, None], len(modes), axis=1), "current", None, \
+                gains(ch.stationary)
+        else:                                            # the last outcome reveals the state: a gain per state
+            table = np.array([gains(filter_belief(ch, np.full(ch.m, 0.5), h[a] == 1)) for a in range(len(modes))])
+            delivery, first, limit = "next", gains(np.array(ch.initial_belief, dtype=float)), table
+        exact = float(jump_law_stage_costs(system, table, steps, delivery, first_gain=first).mean())
+    except (InputError, ResourceError) as err:
+        return np.nan, np.nan, str(err)
+    if law == "udp" and np.any((ch.correlation <= -1) & (ch.initial_belief != ch.stationary)):
+        return exact, np.nan, ("the propagated belief of a periodic or frozen chain (|1 - p - r| = 1) need not settle: "
+                               "no limiting law whose radius decides stability")
+    try:
+        return exact, mean_square_radius(system.A, system.B, ch, limit, delivery), ""
+    except ResourceError as err:
+        return exact, np.nan, str(err)

@@ -1,0 +1,130 @@
+"""What every Monte Carlo of :func:`~packetloss_cvx.simulation.simulate` shares, whatever the channel:
+run counts and blocks, sample statistics and z-scores, the memory check of a closed-loop block, and the
+realised cost of an open-loop plan on given deliveries and noise."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..errors import InputError, ResourceError
+from ..model import System
+from ..tolerances import MEMORY_BUDGET_BYTES
+
+__all__ = [
+    "BLOCK", "LoopStats", "check_count", "check_loop_memory", "loop_statistics", "plan_costs", "run_blocks",
+    "sample_stats", "z_score",
+]
+
+#: Runs per block: one random stream, one progress step, O(BLOCK (N m + N n)) memory per block.
+BLOCK = 4096
+
+
+class LoopStats(NamedTuple):
+    """One law's closed-loop sample: mean and standard error of the runs' mean stage cost; per step the mean
+    and standard deviation of ||x_t|| (t <= steps) and the mean stage cost (t < steps)."""
+
+    mean: float
+    stderr: float
+    norm_mean: np.ndarray
+    norm_std: np.ndarray
+    stage_mean: np.ndarray
+
+
+def check_count(value: object, field: str, least: int) -> int:
+    """``value`` as an int >= ``least``, else InputError naming ``field``. O(1)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+        raise InputError(field, f"expected an integer >= {least}, found {value!r}")
+    return int(value)
+
+
+def run_blocks(samples: int) -> list[int]:
+    """Block sizes: ``samples`` split in blocks of :data:`BLOCK` (the last one shorter). O(samples / BLOCK)."""
+    return [min(BLOCK, samples - start) for start in range(0, samples, BLOCK)]
+
+
+def sample_stats(values: np.ndarray) -> tuple[float, float]:
+    """``(mean, standard error)`` of a sample (inf/nan propagate). O(size)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(values.mean()), float(values.std(ddof=1) / np.sqrt(values.size))
+
+
+def z_score(mean: float, stderr: float, exact: float) -> float:
+    """``(mean - exact) / stderr``; for a sample without spread (``stderr`` at rounding level, 1e-12 of the
+    scale: deterministic deliveries, no noise) 0 when ``mean`` matches ``exact`` to 1e-9 relative, else
+    +-inf: rounding differences between runs are not read as a 316-sigma disagreement.
+
+    >>> z_score(1.0, 0.5, 0.0), z_score(2.0, 0.0, 2.0)
+    (2.0, 0.0)
+    """
+    scale = max(abs(exact), abs(mean), np.finfo(float).tiny)
+    if stderr <= 1e-12 * scale:
+        return 0.0 if abs(mean - exact) <= 1e-9 * scale else float(np.copysign(np.inf, mean - exact))
+    return (mean - exact) / stderr
+
+
+def check_loop_memory(system: System, block: int, steps: int, laws: int, keep: int) -> None:
+    """Refuse, before drawing, a closed loop whose block arrays exceed the memory budget: deliveries and
+    noise (block steps (m + 8 n)), norms and stage costs (16 laws block steps), kept states."""
+    needed = block * (steps + 1) * (system.m + 8 * system.n + 16 * laws) + 8 * laws * keep * (steps + 1) * system.n
+    if needed > MEMORY_BUDGET_BYTES:
+        raise ResourceError(f"the closed-loop simulation needs about {needed / 2**30:.1f} GiB per block of {block} "
+                            f"runs over {steps} steps (budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB): fewer steps",
+                            needed, MEMORY_BUDGET_BYTES)
+
+
+def plan_costs(system: System, inputs: np.ndarray, delivered: np.ndarray, noise: np.ndarray | None) -> np.ndarray:
+    """Realised costs ``x'Qx + sum_t X_{t+1}'Omega_t X_{t+1} + (V_t u_t)'Psi_t (V_t u_t)`` of the plan
+    ``inputs`` (N×m) on the deliveries ``delivered`` (samples, N, m) and the noise (samples, N, n) or None.
+    Time O(samples N n (n + m))."""
+    samples = delivered.shape[0]
+    X = np.repeat(system.x0[None], samples, axis=0)
+    total = np.full(samples, float(system.x0 @ system.initial_weight @ system.x0))
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(system.horizon):
+            applied = delivered[:, t] * inputs[t]
+            total += applied ** 2 @ system.input_weights[t]
+            X = X @ system.A.T + applied @ system.B.T
+            if noise is not None:
+                X += noise[:, t]
+            total += np.einsum("si,ij,sj->s", X, system.state_weights[t], X)
+    return total
+
+
+def loop_statistics(count: int, block: Callable[..., tuple[np.ndarray, ...]], steps: int, n: int,
+                    blocks: list[int], streams: list[np.random.SeedSequence], keep: int,
+                    bar: Any) -> tuple[list[LoopStats], np.ndarray]:
+    """Run ``count`` laws together block by block and gather each law's statistics.
+
+    ``block(size, losses, noise, keep)`` returns ``(run_cost (L, size), norms (L, size, steps + 1), stage (L, size,
+    steps), states (L, keep, steps + 1, n))`` (as :func:`~packetloss_cvx.simulation.montecarlo.closed_loop_block`);
+    block b draws its losses and its noise from the two children of ``streams[b]``. Returns one
+    :class:`LoopStats` per law and the kept states (L, keep, steps + 1, n). Time: the blocks', plus O(L samples steps).
+    """
+    run_costs, stages, norm_sum, norm_sq, kept = [], [], 0.0, 0.0, []
+    left = keep
+    for size, stream in zip(blocks, streams, strict=True):
+        if count:
+            losses, noise = (np.random.default_rng(child) for child in stream.spawn(2))
+            cost, norms, stage, states = block(size, losses, noise, min(left, size))
+            left -= states.shape[1]
+            run_costs.append(cost)
+            stages.append(stage.sum(axis=1))
+            with np.errstate(over="ignore", invalid="ignore"):
+                norm_sum = norm_sum + norms.sum(axis=1)
+                norm_sq = norm_sq + (norms ** 2).sum(axis=1)
+            kept.append(states)
+        bar.update(1)
+    samples = sum(blocks)
+    out = []
+    for k in range(count):
+        mean, stderr = sample_stats(np.concatenate([c[k] for c in run_costs]))
+        with np.errstate(over="ignore", invalid="ignore"):
+            norm_mean = norm_sum[k] / samples
+            norm_std = np.sqrt(np.maximum(norm_sq[k] / samples - norm_mean ** 2, 0.0))
+            stage_mean = sum(s[k] for s in stages) / samples
+        out.append(LoopStats(mean, stderr, norm_mean, norm_std, stage_mean))
+    trajectories = np.concatenate(kept, axis=1) if kept else np.empty((0, 0, steps + 1, n))
+    return out, trajectories
