@@ -57,4 +57,5 @@ def test_bad_burstiness_is_one_line_and_exit_2(capsys, argv, field):
     code, out, err = _run(capsys, "sweep", "two_actuator", *argv)
     assert code == 2
     assert not out
-    assert err.count("\n") == 1 and field in err
+    assert err.count("\n") == 1
+    assert field in err
