@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = [
     "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "html_table",
-    "maximiser_repr", "short", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
+    "fields_repr", "maximiser_repr", "short", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
 ]
 
 #: matrices with more rows or columns than this are shown by their shape
@@ -38,6 +38,38 @@ def short(value: Any, digits: int = 6) -> str:
     if arr.ndim > 2 or max(arr.shape) > MAX_SHOWN:
         return f"array of shape {arr.shape}"
     return "[" + ", ".join(short(v, digits) for v in arr) + "]"
+
+
+def fields_repr(obj: Any) -> str:
+    """A dataclass's fields in one line: numbers to 6 digits, small arrays as lists, large ones by shape,
+    mappings by key (the headline numbers, not an array dump).
+
+    >>> from dataclasses import dataclass
+    >>> @dataclass
+    ... class Run:
+    ...     law: str
+    ...     cost: float
+    ...     path: np.ndarray
+    ...     curves: dict
+    >>> fields_repr(Run("tcp", 2.7984700883, np.zeros(500), {"udp": np.array([1.0, 2.0])}))
+    "Run(law='tcp', cost=2.79847, path=array of shape (500,), curves={'udp': [1, 2]})"
+    """
+    def one(value: Any) -> str:
+        if isinstance(value, str):
+            return repr(value)
+        if isinstance(value, bool) or value is None:
+            return str(value)
+        if isinstance(value, dict):
+            return "{" + ", ".join(f"{k!r}: {one(v)}" for k, v in value.items()) + "}"
+        if isinstance(value, (int, float, complex, np.number, np.ndarray, list, tuple)):
+            try:
+                return short(value)
+            except (TypeError, ValueError):
+                return f"<{type(value).__name__}>"
+        return f"<{type(value).__name__}>"
+
+    names = getattr(obj, "__dataclass_fields__", vars(obj))
+    return f"{type(obj).__name__}(" + ", ".join(f"{name}={one(getattr(obj, name))}" for name in names) + ")"
 
 
 def to_json(obj: Any, **kwargs: Any) -> str:

@@ -94,3 +94,25 @@ def test_to_json_refuses_non_finite_numbers():
     sol = Solution("tcp", float("inf"), np.zeros((1, 1)), None, None, "dense")
     with pytest.raises(ValueError, match="not JSON compliant"):
         sol.to_json()
+
+
+def test_every_result_type_has_a_one_line_repr_and_json():
+    """Issue 13: every result type prints its headline numbers in one line (arrays by shape when
+    large) and has to_json; checked on each type's own fields, built from a real computation."""
+    import json
+
+    import packetloss_cvx as pl
+    import packetloss_cvx.results as results
+    from packetloss_cvx.simulation import closed_loop, dp_riccati
+
+    for name in results.__all__:
+        cls = getattr(results, name)
+        if isinstance(cls, type):
+            assert hasattr(cls, "to_json"), name
+            assert cls.__repr__ is not object.__repr__, name
+    s = pl.load_example("pendulum")
+    for obj in (closed_loop(s, pl.closed_form(s, "tcp").gain), dp_riccati(s)):
+        text = repr(obj)
+        assert "\n" not in text
+        assert len(text) < 400
+        assert json.loads(obj.to_json())

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..display import to_json
+from ..display import fields_repr, to_json
 from .base import finite_or_none, freeze
 
 __all__ = ["ClosedLoop", "ClosedLoopRun", "OpenLoopCheck", "Riccati", "Simulation"]
@@ -32,6 +32,8 @@ class ClosedLoop:
     cost_to_go: np.ndarray | None
     second_moment: np.ndarray | None
     reason: str = ""
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
 
     def __post_init__(self) -> None:
         freeze(self)
@@ -59,6 +61,9 @@ class Riccati:
     iterations: int
     residual: float
 
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
+
     def __post_init__(self) -> None:
         freeze(self)
 
@@ -79,6 +84,9 @@ class OpenLoopCheck:
     stderr: float
     z: float
     reason: str = ""
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         """The issue's schema (plus ``reason`` when set); a non-finite number is None (JSON). O(1)."""
@@ -108,6 +116,9 @@ class ClosedLoopRun:
     exact_reason: str = ""
     note: str = ""
 
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
+
     def __post_init__(self) -> None:
         freeze(self)
 
@@ -136,6 +147,9 @@ class Simulation:
     closed_loop: dict[str, ClosedLoopRun]
     trajectories: np.ndarray | None = None
     channel: str = "bernoulli"
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
 
     def __post_init__(self) -> None:
         freeze(self)

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ..display import fields_repr, to_json
 from .base import freeze, read_only
 from .plans import Solution
 
@@ -32,6 +33,9 @@ class MarkovSolution:
     relative_loss: float
     plan_expected_cost: float
 
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
+
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"exact": self.exact.to_dict(), "plugin_cost": self.plugin_cost,
                                "relative_loss": self.relative_loss, "plan_expected_cost": self.plan_expected_cost}
@@ -51,6 +55,9 @@ class BurstinessSweep:
     rate: np.ndarray
     plugin: dict[str, np.ndarray]
     exact: dict[str, np.ndarray]
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
 
     def __post_init__(self) -> None:
         freeze(self)
@@ -80,6 +87,9 @@ class MjlsResult:
     spectral_radius: float
     iterations: int
     residual: float
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
 
     def __post_init__(self) -> None:
         freeze(self)

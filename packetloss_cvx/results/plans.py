@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..display import batch_repr, solution_html, solution_repr, to_json
+from ..display import batch_repr, fields_repr, solution_html, solution_repr, to_json
 from .base import eigenvalue_pairs, freeze
 
 __all__ = ["BatchSolution", "CrossCheck", "Solution"]
@@ -29,6 +29,9 @@ class CrossCheck:
     cost_rel_diff: float
 
     to_json = to_json   # to_dict() as JSON text (display.py)
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
         return {"max_input_diff": self.max_input_diff, "cost_rel_diff": self.cost_rel_diff}

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..display import allocation_html, allocation_repr, claim_html, claim_repr, maximiser_repr, to_json
+from ..display import allocation_html, allocation_repr, claim_html, claim_repr, fields_repr, maximiser_repr, to_json
 from .base import freeze, read_only
 
 __all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "Sweep"]
@@ -151,6 +151,8 @@ class Sweep:
     difference: np.ndarray | None
     difference_method: str | None
 
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+
     def __post_init__(self) -> None:
         freeze(self)
         object.__setattr__(self, "axes", tuple(read_only(a) for a in self.axes))
@@ -181,6 +183,8 @@ class MinCost:
     status: str
     mu: np.ndarray
     method: str
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
 
     def __post_init__(self) -> None:
         freeze(self)
@@ -219,6 +223,9 @@ class DesignSweep:
     name: str | None
     chunk_size: int
     radii: dict[str, np.ndarray] = field(default_factory=dict)
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    to_json = to_json       # to_dict() as JSON text (display.py)
 
     def __post_init__(self) -> None:
         freeze(self)
