@@ -26,12 +26,15 @@ of at most ``CHUNK_BYTES`` of stacked matrices; the recursion keeps its gains, O
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 
 from .costs import AUTO_DENSE_MAX, refuse_dense, weight_spread
 from .errors import DimensionError, InputError, NumericalError, ProbabilityError
 from .model import System, check_system, numeric_array
+from .pointwise import PointEvaluator
 from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import condition_estimate, udp_variance_weights
@@ -95,6 +98,7 @@ class CostEvaluator:
                 if method != "auto":
                     raise
                 self.method = "recursion"      # "auto" falls back, as closed_form does
+        self._point = None if self._pred is None else PointEvaluator(s, self.protocol, self._pred, self.weights)
 
     # ------------------------------------------------------------------ inputs
     def _schedules(self, mus: npt.ArrayLike) -> np.ndarray:
@@ -126,8 +130,41 @@ class CostEvaluator:
     def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> float:
         """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
         A batch of one: the same arithmetic as :meth:`costs`."""
-        one = numeric_array(mu, "mu")[None]
-        return float(self.costs(one, None if x0 is None else numeric_array(x0, "x0")[None])[0])
+        s = self.system
+        if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
+                and mu.shape == (s.m,) and 0.0 <= mu.min() and mu.max() <= 1.0):   # NaN fails: validated below
+            value = self._point.cost(np.tile(mu, (s.horizon, 1)))       # vectors, not stacks
+            if value is not None:
+                return value
+        one = numeric_array(mu, "mu")
+        if x0 is None and self._point is not None and one.shape in ((s.m,), (s.horizon, s.m)):
+            value = self._point.cost(self._schedules(one[None])[0])
+            if value is not None:
+                return value
+        return float(self.costs(one[None], None if x0 is None else numeric_array(x0, "x0")[None])[0])
+
+    def line(self, mu: npt.ArrayLike, i: int) -> Callable[[float], float]:
+        """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,) and s in [0, 1], at the system's x0.
+
+        On the dense path the other channels are factored once (a Schur complement,
+        :meth:`PointEvaluator.line`): per point O(N^3 + (N m)^2) instead of O((N m)^3); every
+        point is checked as :meth:`cost` checks it and falls back to :meth:`cost` on a failed check.
+        """
+        base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
+        if not (isinstance(i, (int, np.integer)) and 0 <= i < self.system.m):
+            raise InputError("i", f"expected a channel index from 0 to {self.system.m - 1}, found {i!r}")
+        fast = None if self._point is None else self._point.line(base, int(i))
+
+        def at(value: float) -> float:
+            if fast is not None and 0.0 <= value <= 1.0:
+                got = fast(float(value))
+                if got is not None:
+                    return got
+            point = base.copy()
+            point[i] = value
+            return self.cost(point)
+
+        return at
 
     def costs(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> np.ndarray:
         """J*(mu) for each of P channels, shape (P,). ``x0``: (n,) or (P, n) to override the

@@ -17,7 +17,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress"},
-    {"prediction", "recursion", "costs", "convex", "qp", "random_systems", "evaluator"},
+    {"prediction", "recursion", "costs", "convex", "qp", "random_systems", "evaluator", "pointwise"},
     {"analysis", "allocation", "simulation", "studies"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},
