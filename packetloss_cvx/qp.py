@@ -41,6 +41,7 @@ from .tolerances import (
     CROSS_CHECK_INPUT_ATOL,
     MEMORY_BUDGET_BYTES,
     PLAN_CHECK_MAX_GROWTH,
+    QP_PIN_MU,
 )
 
 __all__ = [
@@ -68,16 +69,18 @@ def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.cs
 
 
 def qp_memory_estimate(system: System, formulation: str) -> float:
-    """Bytes the QP needs at its peak, known before building it.
+    """Bytes the QP needs at its peak, known before building it: linear in N.
 
-    Measured (tracemalloc; n = 1..400, m = 1..2, N up to 8000): cvxpy's DPP canonicalisation keeps
-    a dense (N m)×(N m) parameter map, 8 (N m)^2 bytes, and the state terms cost about 190 N n^2
-    bytes (sparse) or 120 N n^2 (condensed, plus its dense (N n)×(N m) constants).
+    Measured (tracemalloc, compile and first solve; n = 1..100, m = 1..8, N up to 8000, full
+    weights): about 250 N n^2 bytes for the state terms, 350 N n m for the dynamics' input
+    columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB; the
+    condensed form adds its dense (N n)×(N m) constants (48 bytes per entry measured). No
+    Parameter multiplies a Variable (:class:`ExpectedCostQP`), so cvxpy keeps no (N m)^2 map.
     """
     N, n, m = system.horizon, system.n, system.m
-    needed = 8.0 * (N * m) ** 2 + 200.0 * N * n * n + 1e7
+    needed = 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
     if formulation == "condensed":
-        needed += 16.0 * (N * n) * (N * m)
+        needed += 48.0 * (N * n) * (N * m)
     return needed
 
 
@@ -121,7 +124,7 @@ class ExpectedCostQP:
         if needed > MEMORY_BUDGET_BYTES:
             raise ResourceError(
                 f"the {self.formulation} QP needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} (cvxpy "
-                f"keeps a dense (N m)^2 parameter map and ~200 N n^2 bytes of state terms); budget "
+                f"keeps ~260 N n^2 bytes of state terms); budget "
                 f"{MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
                 MEMORY_BUDGET_BYTES)
         self._d, self._noise = udp_variance_weights(system)
@@ -133,51 +136,103 @@ class ExpectedCostQP:
         # one common scale for every weight (the minimiser does not change; the value scales back),
         # so that Clarabel's absolute tolerances mean the same for weights of 1e-15 and of 1e6
         self._scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
-        root = 1.0 / np.sqrt(self._scale)
-        self.v = cp.Parameter(N * m, nonneg=True, name="v")
         self.x = cp.Parameter(n, name="x")
-        self.r = cp.Parameter(N * m, nonneg=True, name="sqrt_v_psi")
-        self.U = cp.Variable(N * m, name="U")
-        terms = [cp.sum_squares(cp.multiply(self.r, self.U))]
-        if self.protocol == "udp":
-            self.w = cp.Parameter(N * m, nonneg=True, name="sqrt_udp_weight")
-            terms.append(cp.sum_squares(cp.multiply(self.w, self.U)))
-        vu = cp.multiply(self.v, self.U)
-        constraints = []
         if self.formulation == "condensed":
             pred = prediction(system)
-            L = sla.block_diag(*[psd_factor(W) for W in system.state_weights]) * root
-            if L.shape[0]:  # all state weights zero: no state term at all
-                terms.append(cp.sum_squares(L @ pred.Phi @ self.x + (L @ pred.Gamma) @ vu))
+            L = sla.block_diag(*[psd_factor(W) for W in system.state_weights]) / np.sqrt(self._scale)
+            self._state = (L @ pred.Phi, L @ pred.Gamma) if L.shape[0] else None   # no state weight: no term
         else:
-            X = cp.Variable(N * n, name="xhat")
             E, Bbig, first, L = sparse_dynamics(system)
-            L = L * root
-            constraints.append(E @ X - Bbig @ vu == first @ self.x)
+            self._state = (E, Bbig, first, L / np.sqrt(self._scale))
+        self._problems: dict[tuple, tuple] = {}
+        self._assign(system.mu_schedule, system.x0)
+
+    def _build(self, key: tuple, free: np.ndarray, weight: np.ndarray | None) -> None:
+        """The problem for the entries ``free`` (N×m, mu > QP_PIN_MU): built on first use, kept per key.
+
+        Variables: the mean delivered inputs ``Z = Vbar U`` on the free entries (the others are
+        pinned to zero: an input that is (almost) never delivered changes (almost) nothing,
+        ``tolerances.QP_PIN_MU``) and, sparse, the mean states. The input terms are
+        ``sum (psi + [UDP] d (1 - mu)) z^2 / mu`` (eq:opt-lqg-simplest with Lemma 1: ``v psi u^2 +
+        v (1 - v) d u^2 = (psi + (1 - v) d) z^2 / v``, d = diag(Omega_g)). For a stationary channel
+        (``weight`` None) mu enters through two Parameters per channel, ``1/mu`` and ``1/mu - 1``,
+        each multiplying a fixed weighted sum of squares: no Parameter multiplies a Variable and
+        cvxpy's canonicalisation stays linear in N (a Parameter per entry costs it 8 (N m)^2 bytes,
+        docs/performance.md). A schedule's weights are constants (rebuilt per schedule). O(N (n^2 + n m)) nonzeros.
+        """
+        if key in self._problems:
+            self.problem, self.Z, self._params, self._free = self._problems[key]
+            return
+        N, n, m = self.system.horizon, self.system.n, self.system.m
+        flat = free.ravel()
+        k = int(flat.sum())
+        select = sp.csr_matrix((np.ones(k), (np.flatnonzero(flat), np.arange(k))), shape=(N * m, k))
+        Z = cp.Variable(k, name="Z")
+        params = None
+        terms = []
+        if k and weight is None:
+            channels = np.flatnonzero(free[0])
+            params = (cp.Parameter(len(channels), nonneg=True, name="inv_mu"),
+                      cp.Parameter(len(channels), nonneg=True, name="inv_mu_minus_one"))
+            psi, d = self.system.input_weights / self._scale, self._d / self._scale
+            for j, i in enumerate(channels):
+                z = Z[j::len(channels)]                              # step-major: entry t * k_free + j
+                terms.append(params[0][j] * cp.sum_squares(cp.multiply(np.sqrt(psi[:, i]), z)))
+                if self.protocol == "udp":
+                    terms.append(params[1][j] * cp.sum_squares(cp.multiply(np.sqrt(d[:, i]), z)))
+        elif k:
+            terms.append(cp.sum_squares(cp.multiply(np.sqrt(weight.ravel()[flat]), Z)))
+        constraints = []
+        if self.formulation == "condensed":
+            if self._state is not None:
+                LPhi, LGamma = self._state
+                terms.append(cp.sum_squares(LPhi @ self.x + (LGamma @ select) @ Z) if k else
+                             cp.sum_squares(LPhi @ self.x))
+        else:
+            E, Bbig, first, L = self._state
+            X = cp.Variable(N * n, name="xhat")
+            delivered = (Bbig @ select) @ Z if k else 0.0
+            constraints.append(E @ X - delivered == first @ self.x)
             if L.shape[0]:
                 terms.append(cp.sum_squares(L @ X))
-        self.problem = cp.Problem(cp.Minimize(cp.sum(terms)), constraints)
-        if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
+        problem = cp.Problem(cp.Minimize(cp.sum(terms) if terms else 0), constraints)
+        if not problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("expected-cost QP is not DPP")
+        if weight is not None:
+            self._problems = {k_: v_ for k_, v_ in self._problems.items() if k_[0] != "schedule"}
+        self._problems[key] = (problem, Z, params, free)
+        self.problem, self.Z, self._params, self._free = problem, Z, params, free
 
     def _assign(self, mu: np.ndarray, x: np.ndarray) -> None:
-        v = mu.ravel()
-        self.v.value = v
+        free = mu > QP_PIN_MU
+        self._v = mu.ravel()
+        if np.all(mu == mu[0]):
+            self._build(("stationary", free[0].tobytes()), free, None)
+            if self._params is not None:
+                v = mu[0][free[0]]
+                self._params[0].value = 1.0 / v
+                self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0)
+        else:
+            d = np.where(mu < 1.0, self._d * (1.0 - mu), 0.0) if self.protocol == "udp" else 0.0
+            weight = (self.system.input_weights + d) / (np.where(free, mu, 1.0) * self._scale)
+            self._build(("schedule", mu.tobytes()), free, weight)
         self.x.value = x
-        self.r.value = np.sqrt(v * self.system.input_weights.ravel() / self._scale)
-        if self.protocol == "udp":
-            weight = np.where(v < 1.0, self._d.ravel() * v * (1.0 - v), 0.0)
-            self.w.value = np.sqrt(weight / self._scale)
 
     def _solve_raw(self) -> tuple[np.ndarray, float, str]:
         what = f"{self.protocol}-like {self.formulation} QP"
+        u = np.zeros(self._v.size)         # an input never delivered changes nothing: reported as 0
+        if not self.problem.variables():   # condensed, nothing delivered: the open-loop state cost
+            return u, float(np.sum((self._state[0] @ self.x.value) ** 2)) if self._state else 0.0, "optimal"
         try:
             status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
         except SolverError as err:
             raise self._out_of_range(err.status) from None
         if status not in ACCEPTED_STATUSES:
             raise self._out_of_range(status)
-        return np.asarray(self.U.value), float(self.problem.value), status
+        flat = self._free.ravel()
+        if flat.any():
+            u[flat] = np.asarray(self.Z.value) / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
+        return u, float(self.problem.value), status
 
     def _out_of_range(self, status: str) -> NumericalError:
         """The QP is unconstrained and strictly convex: it always has one minimiser, so any status

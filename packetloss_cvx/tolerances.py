@@ -161,3 +161,12 @@ __all__ += ["BRUTE_FORCE_BISECTION_TOL", "BRUTE_FORCE_ROW_ATOL"]
 BRUTE_FORCE_BISECTION_TOL = 1e-10
 #: ... and treats a row without mu2 as violated only beyond this absolute slack.
 BRUTE_FORCE_ROW_ATOL = 1e-12
+
+__all__ += ["QP_PIN_MU"]
+
+#: The QP twin carries the mean delivered input z = mu u with the weight (psi + ...) / mu, and pins z = 0
+#: (the input is never delivered) where mu <= QP_PIN_MU. Measured on two_actuator, both protocols and
+#: formulations: Clarabel agrees with the closed form to 4e-12 for mu_1 from 1e-3 down to 1e-30 and fails
+#: at 1e-60. Pinning a channel of delivery probability mu changes J* by at most mu sum_t psi u_t^2 (the
+#: envelope gradient), about 1e-30 times the weights' spread: far below CROSS_CHECK_COST_RTOL, which binds.
+QP_PIN_MU = 1e-30
