@@ -39,6 +39,7 @@ from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import condition_estimate, udp_variance_weights
 from .results import BatchSolution
+from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = ["CHUNK_BYTES", "CostEvaluator"]
@@ -127,6 +128,7 @@ class CostEvaluator:
         return arr
 
     # ------------------------------------------------------------------ public
+    @blas_limited
     def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> float:
         """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
         A batch of one: the same arithmetic as :meth:`costs`."""
@@ -166,11 +168,13 @@ class CostEvaluator:
 
         return at
 
+    @blas_limited
     def costs(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> np.ndarray:
         """J*(mu) for each of P channels, shape (P,). ``x0``: (n,) or (P, n) to override the
         system's initial state (the costs are quadratic in it). See the class notes for time."""
         return self._run(mus, x0, gains=False)[0]
 
+    @blas_limited
     def solve(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> BatchSolution:
         """Costs (P,), optimal inputs U* (P, N, m) and the first step's gains K (P, m, n).
 

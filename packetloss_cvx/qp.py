@@ -33,6 +33,7 @@ from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import recursion_cost, udp_variance_weights
 from .results import CrossCheck, Solution
+from .threads import blas_limited
 from .tolerances import (
     ACCEPTED_STATUSES,
     CLARABEL_TIGHT,
@@ -145,7 +146,7 @@ class ExpectedCostQP:
             E, Bbig, first, L = sparse_dynamics(system)
             self._state = (E, Bbig, first, L / np.sqrt(self._scale))
         self._problems: dict[tuple, tuple] = {}
-        self._assign(system.mu_schedule, system.x0)
+        self._assign(system.mu_schedule, system.x0, self.protocol)
 
     def _build(self, key: tuple, free: np.ndarray, weight: np.ndarray | None) -> None:
         """The problem for the entries ``free`` (N×m, mu > QP_PIN_MU): built on first use, kept per key.
@@ -178,8 +179,7 @@ class ExpectedCostQP:
             for j, i in enumerate(channels):
                 z = Z[j::len(channels)]                              # step-major: entry t * k_free + j
                 terms.append(params[0][j] * cp.sum_squares(cp.multiply(np.sqrt(psi[:, i]), z)))
-                if self.protocol == "udp":
-                    terms.append(params[1][j] * cp.sum_squares(cp.multiply(np.sqrt(d[:, i]), z)))
+                terms.append(params[1][j] * cp.sum_squares(cp.multiply(np.sqrt(d[:, i]), z)))   # 0: TCP-like
         elif k:
             terms.append(cp.sum_squares(cp.multiply(np.sqrt(weight.ravel()[flat]), Z)))
         constraints = []
@@ -203,49 +203,54 @@ class ExpectedCostQP:
         self._problems[key] = (problem, Z, params, free)
         self.problem, self.Z, self._params, self._free = problem, Z, params, free
 
-    def _assign(self, mu: np.ndarray, x: np.ndarray) -> None:
+    def _assign(self, mu: np.ndarray, x: np.ndarray, protocol: str) -> None:
         free = mu > QP_PIN_MU
         self._v = mu.ravel()
-        if np.all(mu == mu[0]):
+        if np.all(mu == mu[0]):                  # both protocols share the problem (TCP-like: 1/mu - 1 -> 0)
             self._build(("stationary", free[0].tobytes()), free, None)
             if self._params is not None:
                 v = mu[0][free[0]]
                 self._params[0].value = 1.0 / v
-                self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0)
+                self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0) if protocol == "udp" else 0.0 * v
         else:
-            d = np.where(mu < 1.0, self._d * (1.0 - mu), 0.0) if self.protocol == "udp" else 0.0
+            d = np.where(mu < 1.0, self._d * (1.0 - mu), 0.0) if protocol == "udp" else 0.0
             weight = (self.system.input_weights + d) / (np.where(free, mu, 1.0) * self._scale)
-            self._build(("schedule", mu.tobytes()), free, weight)
+            self._build(("schedule", protocol, mu.tobytes()), free, weight)
         self.x.value = x
 
-    def _solve_raw(self) -> tuple[np.ndarray, float, str]:
-        what = f"{self.protocol}-like {self.formulation} QP"
+    def _solve_raw(self, protocol: str) -> tuple[np.ndarray, float, str]:
+        what = f"{protocol}-like {self.formulation} QP"
         u = np.zeros(self._v.size)         # an input never delivered changes nothing: reported as 0
         if not self.problem.variables():   # condensed, nothing delivered: the open-loop state cost
             return u, float(np.sum((self._state[0] @ self.x.value) ** 2)) if self._state else 0.0, "optimal"
         try:
             status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
         except SolverError as err:
-            raise self._out_of_range(err.status) from None
+            raise self._out_of_range(err.status, protocol) from None
         if status not in ACCEPTED_STATUSES:
-            raise self._out_of_range(status)
+            raise self._out_of_range(status, protocol)
         flat = self._free.ravel()
         if flat.any():
             u[flat] = np.asarray(self.Z.value) / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
         return u, float(self.problem.value), status
 
-    def _out_of_range(self, status: str) -> NumericalError:
+    def _out_of_range(self, status: str, protocol: str) -> NumericalError:
         """The QP is unconstrained and strictly convex: it always has one minimiser, so any status
         but optimal ('infeasible' included) means the solver lost the problem's scale."""
         rho = float(max(abs(np.linalg.eigvals(self.system.A))))
         return NumericalError(
-            f"Clarabel ended {status!r} on the {self.protocol}-like {self.formulation} QP, which is unconstrained "
+            f"Clarabel ended {status!r} on the {protocol}-like {self.formulation} QP, which is unconstrained "
             f"and always has a unique minimiser: the problem's scale is beyond the solver's range (open-loop "
             f"growth rho(A)^N = {rho:.3g}^{self.system.horizon}); the closed form (method='recursion') is exact here")
 
+    @blas_limited
     def solve(self, mu=None, x0=None, *, with_gain: bool = True, cross_check: bool = True,
-              reference: Solution | None = None) -> Solution:
+              reference: Solution | None = None, protocol: str | None = None) -> Solution:
         """Solve for the current (or the given) channel and state.
+
+        ``protocol`` (default: the one given at construction) may name the other protocol: both
+        share the compiled problem of a stationary channel (the TCP-like one sets the loss-variance
+        weight to zero), so one ExpectedCostQP serves a system's two QPs.
 
         ``mu`` is an m-vector or an N×m schedule; ``x0`` an n-vector. Both are validated
         through :class:`System`. With ``with_gain`` the gain K is recovered by n more
@@ -265,6 +270,7 @@ class ExpectedCostQP:
         CrossCheckError
             The QP and the reference disagree beyond the tolerances; both numbers are named.
         """
+        protocol = self.protocol if protocol is None else check_protocol(protocol)
         system = self.system
         if mu is not None:
             system = system.with_mu(mu)
@@ -274,18 +280,18 @@ class ExpectedCostQP:
         start = time.perf_counter()
         x = system.x0
         size = float(np.abs(x).max())
-        self._assign(system.mu_schedule, x / size if size > 0 else x)
+        self._assign(system.mu_schedule, x / size if size > 0 else x, protocol)
         if size > 0:   # the variable part is homogeneous of degree 2 in x: solve at unit size, scale back
-            u, value, status = self._solve_raw()
+            u, value, status = self._solve_raw(protocol)
             u, value = u * size, value * self._scale * size**2
         else:          # x = 0: the plan is zero and so is the variable part, exactly
             u, value, status = np.zeros(N * m), 0.0, "optimal"
         solve_time = time.perf_counter() - start
         cost = value + float(x @ system.initial_weight @ x) + self._noise
-        forward = recursion_cost(system, u.reshape(N, m), self.protocol, (self._d, self._noise))
+        forward = recursion_cost(system, u.reshape(N, m), protocol, (self._d, self._noise))
         if self._plan_checkable and not abs(cost - forward) <= CROSS_CHECK_COST_RTOL * forward:
             raise NumericalError(
-                f"the {self.protocol}-like {self.formulation} QP reports J = {cost:.10g} but the forward cost of its "
+                f"the {protocol}-like {self.formulation} QP reports J = {cost:.10g} but the forward cost of its "
                 f"own plan is {forward:.10g}: the solver lost the problem's scale (weights spanning many orders "
                 "of magnitude, or an unstable plant over a long horizon)")
         gain = None
@@ -294,15 +300,15 @@ class ExpectedCostQP:
             columns = []
             for j in range(n):
                 self.x.value = np.eye(n)[j]
-                columns.append(-self._solve_raw()[0][:m])
+                columns.append(-self._solve_raw(protocol)[0][:m])
             gain = np.column_stack(columns)
             eigs = np.linalg.eigvals(system.A - system.B @ gain)
         check = None
         if cross_check:
-            ref = reference if reference is not None else closed_form(system, self.protocol, method="auto")
+            ref = reference if reference is not None else closed_form(system, protocol, method="auto")
             check = compare(u.reshape(N, m), cost, ref, system, scale=(self._scale * size**2, size))
         return Solution(
-            protocol=self.protocol, cost=cost, inputs=u.reshape(N, m), gain=gain,
+            protocol=protocol, cost=cost, inputs=u.reshape(N, m), gain=gain,
             closed_loop_eigenvalues=eigs, method=f"qp-{self.formulation}", status=status,
             solve_time=solve_time, cross_check=check,
         )

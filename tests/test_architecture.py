@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
-    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress"},
+    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "threads"},
     {"prediction", "recursion", "costs", "convex", "qp", "random_systems", "evaluator", "pointwise"},
     {"analysis", "allocation", "simulation", "studies"},
     {"claims"},

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..costs import closed_form
 from ..errors import InputError
+from ..evaluator import CostEvaluator
 from ..model import System
 from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
 
@@ -39,8 +39,10 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
     G = np.zeros((0, 2)) if G is None else np.atleast_2d(G)
     h = np.zeros(0) if h is None else np.atleast_1d(h)
 
+    evaluator = CostEvaluator(system, protocol, "recursion")     # the recursion, its structure built once
+
     def J(mu1: float, mu2: float) -> float:
-        return closed_form(system.with_mu([mu1, mu2]), protocol, "recursion").cost
+        return evaluator.cost(np.array([mu1, mu2]))
 
     def best_mu2(mu1: float, cap: float) -> float | None:
         """The least feasible mu2 (to tol, feasible end) below ``cap``, or None: above cap a

@@ -10,6 +10,7 @@ from ..errors import InputError
 from ..model import System
 from ..random_systems import random_system
 from ..results import ClaimResult
+from ..threads import blas_limited
 from .channel_allocation import allocation_udp_perfect
 from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
@@ -48,6 +49,7 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
 }
 
 
+@blas_limited
 def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int = 0,
           only: Sequence[str] | None = None) -> list[ClaimResult]:
     """Check every claim (or those in ``only``) on the paper's systems, on ``systems`` and on
