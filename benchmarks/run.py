@@ -254,28 +254,61 @@ def evaluator(points, rows):
                      "max_rel_diff": diff})
 
 
-def qp_memory(horizons, rows):
-    print("\n10. sparse QP (Z = Vbar U form): peak memory (tracemalloc) and times, n = 4, m = 2, UDP-like")
-    print(f"{'N':>6} {'compile+solve s':>16} {'peak MiB':>9} {'re-solve s':>11} {'re-solve MiB':>13}")
-    pl.solve_qp(bench_system(10), PROTOCOL, "sparse", with_gain=False, cross_check=False)   # imports, caches
+QP_MEMORY = """
+import time, tracemalloc
+import numpy as np
+import packetloss_cvx as pl
+from packetloss_cvx.random_systems import random_system
+def bench_system(N):
+    return random_system(np.random.default_rng(2026), n=4, m=2, horizon=N, spectral_radius=0.95, full_weights=False,
+                         time_varying=False, non_stationary=False, noise=False, edge_mu=False)
+assert pl.__file__.startswith({checkout!r}), pl.__file__
+pl.solve_qp(bench_system(10), "udp", "sparse", with_gain=False, cross_check=False)
+s = bench_system({N})
+tracemalloc.start()
+start = time.perf_counter()
+qp = pl.ExpectedCostQP(s, "udp", "sparse")
+a = qp.solve(with_gain=False, cross_check=False)
+first = time.perf_counter() - start
+peak = tracemalloc.get_traced_memory()[1]
+tracemalloc.reset_peak()
+start = time.perf_counter()
+b = qp.solve(mu=[0.7, 0.3], with_gain=False, cross_check=False)
+again = time.perf_counter() - start
+print(first, peak, again, tracemalloc.get_traced_memory()[1], repr(a.cost), repr(b.cost))
+"""
+
+
+def _qp_memory_run(N: int, checkout: Path) -> list[float]:
+    """Peak memory and times of one sparse QP, in a fresh process with ``checkout`` on the path."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(checkout.resolve()), "OPENBLAS_NUM_THREADS": "1"}
+    code = QP_MEMORY.format(checkout=str(checkout.resolve()), N=N)
+    out = subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True, text=True,
+                         cwd=checkout)            # -c puts the working directory first on the path
+    return [float(v) for v in out.stdout.split()]
+
+
+def qp_memory(horizons, baseline, rows):
+    print("\n10. sparse QP: peak memory (tracemalloc, a fresh process per N) and times, n = 4, m = 2, UDP-like;")
+    print("    Z = Vbar U form (this checkout) beside the multiply(v, U) form (--baseline)")
+    print(f"{'N':>6} {'compile+solve s':>16} {'peak MiB':>9} {'re-solve s':>11} {'re-solve MiB':>13} "
+          f"{'| before: s':>12} {'MiB':>7} {'re-solve s':>11} {'same cost':>10}")
+    here = Path(__file__).resolve().parent.parent
     for N in horizons:
-        s = bench_system(N)
-        tracemalloc.start()
-        tracemalloc.reset_peak()
-        start = time.perf_counter()
-        qp = pl.ExpectedCostQP(s, PROTOCOL, "sparse")
-        qp.solve(with_gain=False, cross_check=False)
-        first = time.perf_counter() - start
-        peak = tracemalloc.get_traced_memory()[1]
-        tracemalloc.reset_peak()
-        start = time.perf_counter()
-        qp.solve(mu=[0.7, 0.3], with_gain=False, cross_check=False)
-        again = time.perf_counter() - start
-        peak2 = tracemalloc.get_traced_memory()[1]
-        tracemalloc.stop()
-        print(f"{N:>6} {first:>16.2f} {peak / 2**20:>9.1f} {again:>11.2f} {peak2 / 2**20:>13.1f}")
-        rows.append({"bench": "qp_memory", "N": N, "first_s": first, "peak_bytes": peak, "resolve_s": again,
-                     "resolve_peak_bytes": peak2})
+        first, peak, again, peak2, cost, cost2 = _qp_memory_run(N, here)
+        row = {"bench": "qp_memory", "N": N, "first_s": first, "peak_bytes": peak, "resolve_s": again,
+               "resolve_peak_bytes": peak2}
+        line = f"{N:>6} {first:>16.2f} {peak / 2**20:>9.1f} {again:>11.2f} {peak2 / 2**20:>13.1f}"
+        if baseline:
+            b_first, b_peak, b_again, _, b_cost, b_cost2 = _qp_memory_run(N, Path(baseline))
+            same = abs(cost - b_cost) <= 1e-9 * b_cost and abs(cost2 - b_cost2) <= 1e-9 * b_cost2
+            line += f" {b_first:>12.2f} {b_peak / 2**20:>7.0f} {b_again:>11.2f} {same!s:>10}"
+            row.update(before_first_s=b_first, before_peak_bytes=b_peak, before_resolve_s=b_again, same=same)
+        print(line)
+        rows.append(row)
 
 
 def blas_threads(rows):
@@ -320,7 +353,7 @@ def audit_time(baseline, rows):
                 "audit(random=200, seed=1); print(time.perf_counter() - t)")
         env = {**__import__("os").environ, "PYTHONPATH": str(Path(baseline).resolve())}
         before = float(subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True,
-                                      text=True).stdout.split()[-1])
+                                      text=True, cwd=baseline).stdout.split()[-1])
         line += f", baseline {before:.1f} s, ratio {before / ours:.2f}x"
         row.update(before_s=before, ratio=before / ours)
     print(line)
@@ -332,7 +365,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
-    parser.add_argument("--baseline", help="a checkout of the previous version, for the audit's before/after")
+    parser.add_argument("--baseline", help="a checkout of the previous version (sections 10 and 12: before/after)")
     args = parser.parse_args()
     import clarabel
     import cvxpy
@@ -351,7 +384,7 @@ def main() -> None:
         7: lambda: self_check((100, 1000) if quick else (100, 1000, 10000), rows),
         8: lambda: allocation((1,) if quick else (1, 2, 3), rows),
         9: lambda: evaluator(200 if quick else 1000, rows),
-        10: lambda: qp_memory((500, 1000, 2000) if quick else (500, 1000, 2000, 4000, 8000), rows),
+        10: lambda: qp_memory((500, 1000, 2000) if quick else (500, 1000, 2000, 4000, 8000), args.baseline, rows),
         11: lambda: blas_threads(rows),
         12: lambda: audit_time(args.baseline, rows),
     }
