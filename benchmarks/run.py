@@ -189,6 +189,12 @@ class _ClosedFormEverywhere:
     def cost(self, mu):
         return pl.closed_form(self.system.with_mu(np.clip(mu, 0.0, 1.0)), self.protocol, "auto").cost
 
+    def solve(self, mus):
+        from types import SimpleNamespace
+
+        sols = [pl.closed_form(self.system.with_mu(mu), self.protocol, "auto") for mu in mus]
+        return SimpleNamespace(costs=np.array([s.cost for s in sols]), inputs=np.array([s.inputs for s in sols]))
+
     def line(self, mu, i):
         base = np.array(mu, dtype=float)
 

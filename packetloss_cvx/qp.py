@@ -157,9 +157,10 @@ class ExpectedCostQP:
         ``sum (psi + [UDP] d (1 - mu)) z^2 / mu`` (eq:opt-lqg-simplest with Lemma 1: ``v psi u^2 +
         v (1 - v) d u^2 = (psi + (1 - v) d) z^2 / v``, d = diag(Omega_g)). For a stationary channel
         (``weight`` None) mu enters through two Parameters per channel, ``1/mu`` and ``1/mu - 1``,
-        each multiplying a fixed weighted sum of squares: no Parameter multiplies a Variable and
-        cvxpy's canonicalisation stays linear in N (a Parameter per entry costs it 8 (N m)^2 bytes,
-        docs/performance.md). A schedule's weights are constants (rebuilt per schedule). O(N (n^2 + n m)) nonzeros.
+        each multiplying a fixed weighted sum of squares over the steps, ``a @ sum(W * square(Z), 0)``:
+        no Parameter multiplies a Variable and cvxpy's canonicalisation stays linear in N (a
+        Parameter per entry costs it 8 (N m)^2 bytes, docs/performance.md). A schedule's weights are
+        constants (rebuilt per schedule). O(N (n^2 + n m)) nonzeros.
         """
         if key in self._problems:
             self.problem, self.Z, self._params, self._free = self._problems[key]
@@ -168,30 +169,32 @@ class ExpectedCostQP:
         flat = free.ravel()
         k = int(flat.sum())
         select = sp.csr_matrix((np.ones(k), (np.flatnonzero(flat), np.arange(k))), shape=(N * m, k))
-        Z = cp.Variable(k, name="Z")
         params = None
         terms = []
-        if k and weight is None:
+        if k and weight is None:                 # Z as N × (free channels); flat Z is step-major
             channels = np.flatnonzero(free[0])
+            Z = cp.Variable((N, len(channels)), name="Z")
+            flat_Z = cp.vec(Z.T, order="F")
             params = (cp.Parameter(len(channels), nonneg=True, name="inv_mu"),
                       cp.Parameter(len(channels), nonneg=True, name="inv_mu_minus_one"))
             psi, d = self.system.input_weights / self._scale, self._d / self._scale
-            for j, i in enumerate(channels):
-                z = Z[j::len(channels)]                              # step-major: entry t * k_free + j
-                terms.append(params[0][j] * cp.sum_squares(cp.multiply(np.sqrt(psi[:, i]), z)))
-                terms.append(params[1][j] * cp.sum_squares(cp.multiply(np.sqrt(d[:, i]), z)))   # 0: TCP-like
-        elif k:
-            terms.append(cp.sum_squares(cp.multiply(np.sqrt(weight.ravel()[flat]), Z)))
+            terms.append(params[0] @ cp.sum(cp.multiply(psi[:, channels], cp.square(Z)), axis=0))
+            if key[1] == "udp":
+                terms.append(params[1] @ cp.sum(cp.multiply(d[:, channels], cp.square(Z)), axis=0))
+        else:
+            Z = flat_Z = cp.Variable(k, name="Z")
+            if k:
+                terms.append(cp.sum_squares(cp.multiply(np.sqrt(weight.ravel()[flat]), Z)))
         constraints = []
         if self.formulation == "condensed":
             if self._state is not None:
                 LPhi, LGamma = self._state
-                terms.append(cp.sum_squares(LPhi @ self.x + (LGamma @ select) @ Z) if k else
+                terms.append(cp.sum_squares(LPhi @ self.x + (LGamma @ select) @ flat_Z) if k else
                              cp.sum_squares(LPhi @ self.x))
         else:
             E, Bbig, first, L = self._state
             X = cp.Variable(N * n, name="xhat")
-            delivered = (Bbig @ select) @ Z if k else 0.0
+            delivered = (Bbig @ select) @ flat_Z if k else 0.0
             constraints.append(E @ X - delivered == first @ self.x)
             if L.shape[0]:
                 terms.append(cp.sum_squares(L @ X))
@@ -206,12 +209,13 @@ class ExpectedCostQP:
     def _assign(self, mu: np.ndarray, x: np.ndarray, protocol: str) -> None:
         free = mu > QP_PIN_MU
         self._v = mu.ravel()
-        if np.all(mu == mu[0]):                  # both protocols share the problem (TCP-like: 1/mu - 1 -> 0)
-            self._build(("stationary", free[0].tobytes()), free, None)
+        if np.all(mu == mu[0]):     # one problem per protocol: a zero-weighted diag(Omega_g) term of an
+            # unstable plant (1e70) made Clarabel fail the TCP-like QP it solved without the term
+            self._build(("stationary", protocol, free[0].tobytes()), free, None)
             if self._params is not None:
                 v = mu[0][free[0]]
                 self._params[0].value = 1.0 / v
-                self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0) if protocol == "udp" else 0.0 * v
+                self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0)
         else:
             d = np.where(mu < 1.0, self._d * (1.0 - mu), 0.0) if protocol == "udp" else 0.0
             weight = (self.system.input_weights + d) / (np.where(free, mu, 1.0) * self._scale)
@@ -231,7 +235,7 @@ class ExpectedCostQP:
             raise self._out_of_range(status, protocol)
         flat = self._free.ravel()
         if flat.any():
-            u[flat] = np.asarray(self.Z.value) / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
+            u[flat] = np.asarray(self.Z.value).ravel() / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
         return u, float(self.problem.value), status
 
     def _out_of_range(self, status: str, protocol: str) -> NumericalError:
@@ -248,9 +252,8 @@ class ExpectedCostQP:
               reference: Solution | None = None, protocol: str | None = None) -> Solution:
         """Solve for the current (or the given) channel and state.
 
-        ``protocol`` (default: the one given at construction) may name the other protocol: both
-        share the compiled problem of a stationary channel (the TCP-like one sets the loss-variance
-        weight to zero), so one ExpectedCostQP serves a system's two QPs.
+        ``protocol`` (default: the one given at construction) may name the other protocol: one
+        ExpectedCostQP then keeps a system's two compiled problems.
 
         ``mu`` is an m-vector or an N×m schedule; ``x0`` an n-vector. Both are validated
         through :class:`System`. With ``with_gain`` the gain K is recovered by n more

@@ -66,7 +66,7 @@ class Context:
 
     def qp(self, system: System, protocol: str) -> Solution:
         """The QP twin's answer for ``system`` (solved once per audit). One compiled
-        :class:`ExpectedCostQP` per system serves both protocols (re-solved through its Parameters)."""
+        :class:`ExpectedCostQP` per system keeps both protocols' compiled problems."""
         key = (id(system), protocol)
         if key not in self.cache:
             problem = self.problems.get(id(system))

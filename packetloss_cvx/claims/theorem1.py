@@ -21,7 +21,7 @@ def theorem_1_laws(ctx: Context) -> ClaimResult:
     """eq:opt-law-1, eq:opt-law-2 against the QP twin's minimiser, on every case."""
     def margin(s: System) -> float:
         worst = 1e-6
-        twin = None if s in ctx.cases else ExpectedCostQP(s, "tcp")     # one compiled QP, both protocols
+        twin = None if s in ctx.cases else ExpectedCostQP(s, "tcp")     # one object, both protocols
         for p in ("tcp", "udp"):
             qp = ctx.qp(s, p) if twin is None else twin.solve(with_gain=False, cross_check=False, protocol=p)
             mask = s.mu_schedule.ravel() > 0
