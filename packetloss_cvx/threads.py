@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import os
+import sys
 import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -31,9 +32,9 @@ BLAS_THREADS_ENV = "PACKETLOSS_CVX_BLAS_THREADS"
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-_lock = threading.Lock()
+_lock = threading.RLock()
 _local = threading.local()
-_state: dict[str, Any] = {"controller": None, "threads": 1}
+_state: dict[str, Any] = {"controller": None, "modules": 0, "threads": 1}
 
 
 def _check(value: Any, field: str) -> int | None:
@@ -70,24 +71,28 @@ def blas_threads() -> int | None:
 
 
 def _controller() -> ThreadpoolController:
-    """One controller for the process, made on first use (it scans the loaded libraries, ~0.1 s)."""
+    """A controller of the BLAS libraries loaded now: it scans them (0.4-7 ms), so it is made again
+    only when modules were imported since (an import may load another BLAS, e.g. cvxpy's)."""
     with _lock:
-        if _state["controller"] is None:
+        if _state["controller"] is None or _state["modules"] != len(sys.modules):
             _state["controller"] = ThreadpoolController()
+            _state["modules"] = len(sys.modules)
         return _state["controller"]
 
 
 def blas_limited(fn: F) -> F:
     """Run ``fn`` with the BLAS pools limited to :func:`blas_threads` threads, restored on return.
 
-    Nested calls (a limited function calling another) limit once, at the outermost call: the
-    inner ones cost a thread-local counter. About 25 us per outermost call.
+    Nested calls (a limited function calling another) limit once, at the outermost call of each
+    thread: the inner ones cost a thread-local counter; about 25 us for the outermost call. Across
+    Python threads, threadpoolctl lets only one thread at a time own a shared (pthreads) OpenBLAS
+    pool: calls from other threads then run with whatever that thread set, and nobody's restore
+    overwrites another's.
     """
     @functools.wraps(fn)
     def limited(*args: Any, **kwargs: Any) -> Any:
         threads = _state["threads"]
-        depth = getattr(_local, "depth", 0)
-        if depth or threads is None:
+        if threads is None or getattr(_local, "depth", 0):
             return fn(*args, **kwargs)
         _local.depth = 1
         try:

@@ -76,3 +76,34 @@ def test_bad_thread_counts_are_refused(bad):
     with pytest.raises(pl.InputError, match="threads"):
         threads.set_blas_threads(bad)
     assert threads.blas_threads() == 1
+
+
+def test_overlapping_threads_leave_the_process_setting_as_it_was(two_actuator):
+    """Two threads inside the library at once: when both are out, BLAS is as the caller had it."""
+    import threading
+
+    if not _blas_threads():
+        pytest.skip("no BLAS thread pool found by threadpoolctl")
+    before = _blas_threads()
+    inside, release = threading.Event(), threading.Event()
+    real = costs_module.udp_variance_weights
+
+    def slow(system):
+        inside.set()
+        release.wait(5)
+        return real(system)
+
+    costs_module.udp_variance_weights = slow
+    try:
+        first = threading.Thread(target=pl.closed_form, args=(two_actuator, "tcp"))
+        first.start()
+        inside.wait(5)
+        costs_module.udp_variance_weights = real
+        second = threading.Thread(target=pl.closed_form, args=(two_actuator, "udp"))
+        second.start()
+        second.join(5)                                # in and out while the first is inside
+        release.set()
+        first.join(5)
+    finally:
+        costs_module.udp_variance_weights = real
+    assert _blas_threads() == before
