@@ -131,7 +131,11 @@ class CostEvaluator:
     @blas_limited
     def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> float:
         """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
-        A batch of one: the same arithmetic as :meth:`costs`."""
+
+        On the dense path at the system's x0, vectors instead of stacks
+        (:class:`~packetloss_cvx.pointwise.PointEvaluator`: one LU, checked the same way, equal to
+        :meth:`costs` to rounding); otherwise, or where its check fails, a batch of one.
+        """
         s = self.system
         if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
                 and mu.shape == (s.m,) and 0.0 <= mu.min() and mu.max() <= 1.0):   # NaN fails: validated below
