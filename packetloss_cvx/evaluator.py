@@ -288,24 +288,26 @@ class CostEvaluator:
         if udp and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
             raise _overflow("diag(Omega_g)", self.protocol)
         keep = np.where(mu < 1.0, 1.0 - mu, 0.0)
+        # per step: the diagonal added to G, and mu as a row to scale G's and rhs' columns
+        added = psi[None] + (self._d[None] * keep if udp else 0.0)             # (P, N, m)
+        rows = mu[:, :, None, :]                                               # (P, N, 1, m)
         K = np.empty((P, N, m, n))
         Pm = np.broadcast_to(W[N - 1], (P, n, n)).copy()
-        diag = np.arange(m)
-        AT = A.T
+        AT, BT = A.T, B.T
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(N - 1, -1, -1):
                 PB = Pm @ B
-                G = (B.T @ PB) * mu[:, t, None, :]
-                G[:, diag, diag] += psi[t] + (self._d[t] * keep[:, t] if udp else 0.0)
-                rhs = np.swapaxes(PB, 1, 2) @ A
+                G = (BT @ PB) * rows[:, t]
+                G.reshape(P, m * m)[:, :: m + 1] += added[:, t]
+                rhs = PB.transpose(0, 2, 1) @ A
                 try:
                     K[:, t] = np.linalg.solve(G, rhs)
                 except np.linalg.LinAlgError:
                     raise _overflow("the cost-to-go matrix", self.protocol) from None
-                Pm = AT @ (Pm @ A) - (np.swapaxes(rhs, 1, 2) * mu[:, t, None, :]) @ K[:, t]
+                Pm = AT @ (Pm @ A) - (rhs.transpose(0, 2, 1) * rows[:, t]) @ K[:, t]
                 if t > 0:
                     Pm += W[t - 1]
-                Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
+                Pm = 0.5 * (Pm + Pm.transpose(0, 2, 1))
             if not (np.isfinite(self._noise) and np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
                 raise _overflow("the cost-to-go matrix", self.protocol)
             closed = np.einsum("pi,pij,pj->p", x, s.initial_weight + Pm, x) + self._noise
