@@ -20,8 +20,8 @@ Never silently wrong, as ``closed_form``: every point's cost is checked against 
 of its own plan (a sum of nonnegative stage costs, ``SELF_CHECK_RTOL``), vectorised; a dense
 point whose solve residual or self-check fails is recomputed by the recursion (as ``"auto"``
 falls back); a recursion point that fails raises :class:`NumericalError` naming the weights'
-spread, and so does any cost beyond the double range. Memory: the dense path works in chunks
-of at most ``CHUNK_BYTES`` of stacked matrices; the recursion keeps its gains, O(P N m n).
+spread, and so does any cost beyond the double range. Memory: both paths work in chunks of
+about ``CHUNK_BYTES`` (the dense path's stacked matrices; the recursion's gains, O(N m n) a point).
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ from .tolerances import DENSE_MAX_CONDITION, DENSE_RESIDUAL_RTOL, SELF_CHECK_ATO
 
 __all__ = ["CHUNK_BYTES", "CostEvaluator"]
 
-#: The dense path stacks at most this many bytes of (N m)×(N m) matrices at a time.
+#: The dense path stacks at most this many bytes of (N m)×(N m) matrices at a time, and the
+#: recursion about this many bytes of gains, inputs and states.
 CHUNK_BYTES = 2**25
 
 
@@ -216,8 +217,11 @@ class CostEvaluator:
                         f"self-check against the forward cost of their plans ({weight_spread(s)}); "
                         "use method='recursion'")
                 method = "mixed"
-        if todo.size:
-            self._recursion(mu[todo], x[todo], todo, costs, inputs, K0)
+        # the recursion keeps gains, inputs and states per point: O(N (m n + m + n)) doubles each
+        chunk = max(1, CHUNK_BYTES // (8 * s.horizon * (s.m * s.n + s.m + s.n + s.m)))
+        for start in range(0, todo.size, chunk):
+            part = todo[start:start + chunk]
+            self._recursion(mu[part], x[part], part, costs, inputs, K0)
         return costs, inputs, K0, method
 
     def _dense_is_faster(self, P: int) -> bool:

@@ -102,9 +102,12 @@ def test_a_batch_of_initial_states(protocol):
 def test_chunks_do_not_change_the_answers(two_actuator, monkeypatch):
     mus = np.random.default_rng(5).uniform(0.0, 1.0, (11, 2))
     whole = CostEvaluator(two_actuator, "udp").costs(mus)
+    rec = CostEvaluator(two_actuator, "udp", "recursion").costs(mus)
     monkeypatch.setattr(evaluator_module, "CHUNK_BYTES", 8 * 20 * 20 * 3)          # 3 points a chunk
     chunked = CostEvaluator(two_actuator, "udp").costs(mus)
     assert np.array_equal(whole, chunked)
+    monkeypatch.setattr(evaluator_module, "CHUNK_BYTES", 1600)                       # recursion: 2 a chunk
+    assert np.array_equal(rec, CostEvaluator(two_actuator, "udp", "recursion").costs(mus))
     assert CostEvaluator(two_actuator, "udp").costs(np.zeros((0, 2))).shape == (0,)
 
 
