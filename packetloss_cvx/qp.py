@@ -1,18 +1,21 @@
 """The expected-cost minimisation as cvxpy QPs solved with Clarabel (the solver twin).
 
-Two formulations of the same problem, both DPP: they are built once from
-``cp.Parameter``s (the channel ``v``, the state ``x`` and two derived weight
-vectors) and re-solved by assigning new values, without recompiling.
+Two formulations of the same problem, both in the mean delivered input ``Z = Vbar U`` and
+both DPP: built once from ``cp.Parameter``s (the state ``x``; for a stationary channel
+``1/mu`` and ``1/mu - 1`` per channel) and re-solved by assigning new values, without
+recompiling. No Parameter multiplies a Variable, so cvxpy's canonicalisation is linear in N
+(until 2026-11-22 ``multiply(v, U)`` kept an (N m)×(N m) map: docs/performance.md).
 
-* ``"condensed"``: variables U only; ``sum_squares(L Phi x + L Gamma (v∘U))``.
+* ``"condensed"``: variables Z only; ``sum_squares(L Phi x + L Gamma Z)``.
   Dense constants of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
-* ``"sparse"``: mean states and inputs as variables, the dynamics
-  ``xhat_{t+1} = A xhat_t + B (v_t∘u_t)`` as equality constraints; every
-  constant is block-sparse, so build and solve are O(N (n + m)^3).
+* ``"sparse"``: mean states and Z as variables, the dynamics
+  ``xhat_{t+1} = A xhat_t + B z_t`` as equality constraints; every constant is
+  block-sparse, so build and solve are O(N (n + m)^3), memory O(N (n + m)^2).
 
-The UDP-like term ``U' Vbar Omega_d (I - Vbar) U`` enters as
-``sum_squares(w∘U)`` with ``w = sqrt(v (1 - v) diag(Omega_g))``; the diagonal of
-Omega_g comes from the backward Lyapunov sum (:func:`udp_variance_weights`).
+The input terms of eq:opt-lqg-simplest with Lemma 1, ``U' Vbar Psi U + [UDP] U' Vbar Omega_d
+(I - Vbar) U``, are ``sum (psi + [UDP] diag(Omega_g)(1 - mu)) z^2 / mu``; the diagonal of Omega_g
+comes from the backward Lyapunov sum (:func:`udp_variance_weights`). Channels with mu <=
+``QP_PIN_MU`` have z pinned to zero; their input U is reported as 0.
 """
 
 from __future__ import annotations
