@@ -1,6 +1,6 @@
 """Side-by-side benchmarks: every ratio is measured in one run on one machine.
 
-    python benchmarks/run.py [--quick] [--json]
+    python benchmarks/run.py [--quick] [--json] [--only 8,9] [--baseline ../previous-checkout]
 
 Medians over repeats (wall clock, ``time.perf_counter``); peak memory with
 ``tracemalloc`` (NumPy reports its buffers to it). Absolute times drift between
@@ -172,7 +172,7 @@ def startup(rows, repeats: int = 7):
     interleaved rounds)."""
     import subprocess
 
-    print(f"\n8. command-line start-up (median of {repeats} runs, wall clock, s)")
+    print(f"\n13. command-line start-up (median of {repeats} runs, wall clock, s)")
     cases = [("python -c 'import numpy'", ["-c", "import numpy"]),
              ("python -c 'import cvxpy'", ["-c", "import cvxpy"])]
     cases += [(f"packetloss-cvx {' '.join(a)}", ["-m", "packetloss_cvx", *a]) for a in (
@@ -216,6 +216,7 @@ def closed_loop(samples: int, steps: int, n_big: int, rows: list) -> None:
     from packetloss_cvx.simulation import closed_loop as exact_loop
     from packetloss_cvx.simulation import mean_square_radius
     from packetloss_cvx.simulation.montecarlo import closed_loop_block
+    print("\n14. closed loop: vectorised simulation vs a per-run loop; mean-square radius, operator vs Kronecker")
 
     s = bench_system(10)
     K = pl.closed_form(s, "tcp").gain
@@ -241,6 +242,203 @@ def closed_loop(samples: int, steps: int, n_big: int, rows: list) -> None:
     exact = median_time(lambda: exact_loop(s, K), 3)
     print(f"exact closed-loop cost (radius, two moment solves), n = {s.n}: {exact * 1e3:.2f} ms")
     rows.append({"bench": "exact_closed_loop", "n": s.n, "seconds": exact})
+# ---------------------------------------------------------------- issue 14: speed where users wait
+
+def allocation_system(seed: int) -> pl.System:
+    """Three channels behind a near-identity B (comparable channels: hundreds of boxes), N = 40."""
+    rng = np.random.default_rng(seed)
+    n = m = 3
+    A = rng.normal(size=(n, n))
+    A *= 1.02 / max(abs(np.linalg.eigvals(A)))
+    B = np.eye(n) + 0.3 * rng.normal(size=(n, m))
+    return pl.System(A=A, B=B, horizon=40, state_weight=np.ones(n), input_weight=rng.uniform(0.5, 1.5, m),
+                     mu=[0.5] * m, x0=rng.normal(size=n))
+
+
+class _ClosedFormEverywhere:
+    """The allocation as it was: every J*(mu) through closed_form(system.with_mu(mu), "auto")."""
+
+    def __init__(self, system, protocol):
+        self.system, self.protocol = system, protocol
+
+    def cost(self, mu):
+        return pl.closed_form(self.system.with_mu(np.clip(mu, 0.0, 1.0)), self.protocol, "auto").cost
+
+    def solve(self, mus):
+        from types import SimpleNamespace
+
+        sols = [pl.closed_form(self.system.with_mu(mu), self.protocol, "auto") for mu in mus]
+        return SimpleNamespace(costs=np.array([s.cost for s in sols]), inputs=np.array([s.inputs for s in sols]))
+
+    def line(self, mu, i):
+        base = np.array(mu, dtype=float)
+
+        def at(value):
+            point = base.copy()
+            point[i] = value
+            return self.cost(point)
+        return at
+
+
+def allocation(seeds, rows):
+    import packetloss_cvx.allocation.tcp as tcp_module
+    import packetloss_cvx.allocation.udp as udp_module
+
+    print("\n8. UDP-like allocation, m = 3, N = 40: J*(mu) by closed_form per call (before) vs the cached evaluator")
+    print(f"{'seed':>5} {'boxes':>6} {'before s':>9} {'after s':>8} {'ratio':>7}  same mu, bound, boxes")
+    cached = udp_module.cost_function
+
+    def old(system, protocol):
+        ev = _ClosedFormEverywhere(system, protocol)
+        return ev.cost, ev
+
+    for seed in seeds:
+        s = allocation_system(seed)
+        full = pl.closed_form(s.with_mu([1.0] * 3), "udp").cost
+        none = pl.closed_form(s.with_mu([0.0] * 3), "udp").cost
+        alpha = full + 0.3 * (none - full)
+        runs = {}
+        for name, fn in (("after", cached), ("before", old)):
+            udp_module.cost_function = tcp_module.cost_function = fn
+            try:
+                start = time.perf_counter()
+                runs[name] = (pl.allocate(s, "udp", alpha, [1.0, 1.0, 1.0]), time.perf_counter() - start)
+            finally:
+                udp_module.cost_function = tcp_module.cost_function = cached
+        (a, ta), (b, tb) = runs["after"], runs["before"]
+        same = bool(np.allclose(a.mu, b.mu, rtol=0, atol=1e-9) and abs(a.lower_bound - b.lower_bound) <= 1e-12
+                    and a.boxes == b.boxes and a.status == b.status)
+        print(f"{seed:>5} {a.boxes:>6} {tb:>9.2f} {ta:>8.2f} {tb / ta:>6.1f}x  {same}")
+        rows.append({"bench": "allocation_udp_m3_N40", "seed": seed, "boxes": a.boxes, "before_s": tb,
+                     "after_s": ta, "ratio": tb / ta, "same": same})
+
+
+def evaluator(points, rows):
+    from packetloss_cvx.evaluator import CostEvaluator
+
+    print(f"\n9. batched evaluator: {points} channels, loop of closed_form vs CostEvaluator (UDP-like)")
+    print(f"{'system':>14} {'loop s':>8} {'batch s':>8} {'ratio':>7} {'one point: cf ms':>17} {'ev ms':>6} "
+          f"{'ratio':>6} {'max rel diff':>13}")
+    for label, s in (("two_actuator", pl.load_example("two_actuator")), ("m3 N40", allocation_system(1))):
+        mus = np.random.default_rng(0).uniform(0.0, 1.0, (points, s.m))
+        ev = CostEvaluator(s, PROTOCOL)
+        loop = median_time(lambda s=s, mus=mus: [pl.closed_form(s.with_mu(mu), PROTOCOL).cost for mu in mus], 1)
+        batch = median_time(lambda ev=ev, mus=mus: ev.costs(mus), 3)
+        ref = np.array([pl.closed_form(s.with_mu(mu), PROTOCOL).cost for mu in mus])
+        diff = float(np.max(np.abs(ev.costs(mus) - ref) / ref))
+        one_cf = median_time(lambda s=s, mu=mus[0]: pl.closed_form(s.with_mu(mu), PROTOCOL), 51)
+        one_ev = median_time(lambda ev=ev, mu=mus[0]: ev.cost(mu), 51)
+        print(f"{label:>14} {loop:>8.3f} {batch:>8.4f} {loop / batch:>6.0f}x {one_cf * 1e3:>17.3f} "
+              f"{one_ev * 1e3:>6.3f} {one_cf / one_ev:>5.1f}x {diff:>13.1e}")
+        rows.append({"bench": "evaluator", "system": label, "points": points, "loop_s": loop, "batch_s": batch,
+                     "ratio": loop / batch, "one_closed_form_s": one_cf, "one_evaluator_s": one_ev,
+                     "max_rel_diff": diff})
+
+
+QP_MEMORY = """
+import time, tracemalloc
+import numpy as np
+import packetloss_cvx as pl
+from packetloss_cvx.random_systems import random_system
+def bench_system(N):
+    return random_system(np.random.default_rng(2026), n=4, m=2, horizon=N, spectral_radius=0.95, full_weights=False,
+                         time_varying=False, non_stationary=False, noise=False, edge_mu=False)
+assert pl.__file__.startswith({checkout!r}), pl.__file__
+pl.solve_qp(bench_system(10), "udp", "sparse", with_gain=False, cross_check=False)
+s = bench_system({N})
+tracemalloc.start()
+start = time.perf_counter()
+qp = pl.ExpectedCostQP(s, "udp", "sparse")
+a = qp.solve(with_gain=False, cross_check=False)
+first = time.perf_counter() - start
+peak = tracemalloc.get_traced_memory()[1]
+tracemalloc.reset_peak()
+start = time.perf_counter()
+b = qp.solve(mu=[0.7, 0.3], with_gain=False, cross_check=False)
+again = time.perf_counter() - start
+print(first, peak, again, tracemalloc.get_traced_memory()[1], repr(a.cost), repr(b.cost))
+"""
+
+
+def _qp_memory_run(N: int, checkout: Path) -> list[float]:
+    """Peak memory and times of one sparse QP, in a fresh process with ``checkout`` on the path."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(checkout.resolve()), "OPENBLAS_NUM_THREADS": "1"}
+    code = QP_MEMORY.format(checkout=str(checkout.resolve()), N=N)
+    out = subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True, text=True,
+                         cwd=checkout)            # -c puts the working directory first on the path
+    return [float(v) for v in out.stdout.split()]
+
+
+def qp_memory(horizons, baseline, rows):
+    print("\n10. sparse QP: peak memory (tracemalloc, a fresh process per N) and times, n = 4, m = 2, UDP-like;")
+    print("    Z = Vbar U form (this checkout) beside the multiply(v, U) form (--baseline)")
+    print(f"{'N':>6} {'compile+solve s':>16} {'peak MiB':>9} {'re-solve s':>11} {'re-solve MiB':>13} "
+          f"{'| before: s':>12} {'MiB':>7} {'re-solve s':>11} {'same cost':>10}")
+    here = Path(__file__).resolve().parent.parent
+    for N in horizons:
+        first, peak, again, peak2, cost, cost2 = _qp_memory_run(N, here)
+        row = {"bench": "qp_memory", "N": N, "first_s": first, "peak_bytes": peak, "resolve_s": again,
+               "resolve_peak_bytes": peak2}
+        line = f"{N:>6} {first:>16.2f} {peak / 2**20:>9.1f} {again:>11.2f} {peak2 / 2**20:>13.1f}"
+        if baseline:
+            b_first, b_peak, b_again, _, b_cost, b_cost2 = _qp_memory_run(N, Path(baseline))
+            same = abs(cost - b_cost) <= 1e-9 * b_cost and abs(cost2 - b_cost2) <= 1e-9 * b_cost2
+            line += f" {b_first:>12.2f} {b_peak / 2**20:>7.0f} {b_again:>11.2f} {same!s:>10}"
+            row.update(before_first_s=b_first, before_peak_bytes=b_peak, before_resolve_s=b_again, same=same)
+        print(line)
+        rows.append(row)
+
+
+def blas_threads(rows):
+    import os
+
+    from threadpoolctl import threadpool_limits
+
+    from packetloss_cvx import threads
+
+    cores = os.cpu_count() or 1
+    print(f"\n11. BLAS threads: the library's policy (1 thread) vs {cores} threads (BLAS default on this machine)")
+    print(f"{'call':>28} {'threaded ms':>12} {'policy ms':>10} {'ratio':>7}")
+    cases = (("closed_form dense N=40", lambda: pl.closed_form(bench_system(40), PROTOCOL, "dense")),
+             ("closed_form dense N=80", lambda: pl.closed_form(bench_system(80), PROTOCOL, "dense")),
+             ("closed_form recursion N=400", lambda: pl.closed_form(bench_system(400), PROTOCOL, "recursion")))
+    for label, fn in cases:
+        try:
+            threads.set_blas_threads(None)
+            with threadpool_limits(limits=cores, user_api="blas"):
+                threaded = median_time(fn, 21)
+        finally:
+            threads.set_blas_threads(1)
+        policy = median_time(fn, 21)
+        print(f"{label:>28} {threaded * 1e3:>12.2f} {policy * 1e3:>10.2f} {threaded / policy:>6.1f}x")
+        rows.append({"bench": "blas_threads", "call": label, "threaded_s": threaded, "policy_s": policy,
+                     "ratio": threaded / policy})
+
+
+def audit_time(baseline, rows):
+    import subprocess
+
+    from packetloss_cvx.claims import audit
+
+    print("\n12. audit --random 200 --seed 1 (in process; with --baseline, the same command from that checkout)")
+    start = time.perf_counter()
+    audit(random=200, seed=1)
+    ours = time.perf_counter() - start
+    line = f"   this checkout {ours:.1f} s"
+    row = {"bench": "audit", "after_s": ours}
+    if baseline:
+        code = ("import time; from packetloss_cvx.claims import audit; t = time.perf_counter(); "
+                "audit(random=200, seed=1); print(time.perf_counter() - t)")
+        env = {**__import__("os").environ, "PYTHONPATH": str(Path(baseline).resolve())}
+        before = float(subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True,
+                                      text=True, cwd=baseline).stdout.split()[-1])
+        line += f", baseline {before:.1f} s, ratio {before / ours:.2f}x"
+        row.update(before_s=before, ratio=before / ours)
+    print(line)
+    rows.append(row)
 
 
 def main() -> None:
@@ -248,6 +446,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
+    parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
+    parser.add_argument("--baseline", help="a checkout of the previous version (sections 10 and 12: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
@@ -261,15 +461,25 @@ def main() -> None:
           f"clarabel {clarabel.__version__}, {platform.machine()}, {time.strftime('%Y-%m-%d')}")
     rows: list[dict] = []
     quick = args.quick
-    closed_forms((100, 400, 1000) if quick else (100, 1000, 4000), rows)
-    crossover(rows)
-    qps((100, 400) if quick else (100, 400, 1000), 1000 if quick else 5000, rows)
-    sweep(20 if quick else 50, rows)
-    verification_cost(400 if quick else 1000, rows)
-    memory(1000 if quick else 4000, rows)
-    self_check((100, 1000) if quick else (100, 1000, 10000), rows)
-    startup(rows)
-    closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows)
+    sections = {
+        1: lambda: closed_forms((100, 400, 1000) if quick else (100, 1000, 4000), rows),
+        2: lambda: crossover(rows),
+        3: lambda: qps((100, 400) if quick else (100, 400, 1000), 1000 if quick else 5000, rows),
+        4: lambda: sweep(20 if quick else 50, rows),
+        5: lambda: verification_cost(400 if quick else 1000, rows),
+        6: lambda: memory(1000 if quick else 4000, rows),
+        7: lambda: self_check((100, 1000) if quick else (100, 1000, 10000), rows),
+        8: lambda: allocation((1,) if quick else (1, 2, 3), rows),
+        9: lambda: evaluator(200 if quick else 1000, rows),
+        10: lambda: qp_memory((500, 1000, 2000) if quick else (500, 1000, 2000, 4000, 8000), args.baseline, rows),
+        11: lambda: blas_threads(rows),
+        12: lambda: audit_time(args.baseline, rows),
+        13: lambda: startup(rows),
+        14: lambda: closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows),
+    }
+    chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
+    for key in chosen:
+        sections[key]()
     if args.json:
         print(json.dumps(rows))
 

@@ -24,6 +24,7 @@ from .prediction import Prediction, prediction
 from .protocols import check_protocol
 from .recursion import backward_pass, condition_estimate, mean_trajectory, recursion_cost, udp_variance_weights
 from .results import Solution
+from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = [
@@ -137,6 +138,7 @@ def dense_cost(system: System, U: np.ndarray, protocol: str, pred: Prediction | 
     return float(value)
 
 
+@blas_limited
 def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: str = "auto") -> float:
     """Expected cost J(U) of the N×m input sequence ``inputs`` as the paper defines it.
 
@@ -177,6 +179,7 @@ def _eigs(system: System, K: np.ndarray) -> np.ndarray:
     return np.linalg.eigvals(system.A - system.B @ K)
 
 
+@blas_limited
 def closed_form(system: System, protocol: str, method: str = "auto") -> Solution:
     """Theorem 1: the optimal plan, its expected cost, gain and closed-loop eigenvalues.
 

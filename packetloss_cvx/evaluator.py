@@ -20,11 +20,13 @@ Never silently wrong, as ``closed_form``: every point's cost is checked against 
 of its own plan (a sum of nonnegative stage costs, ``SELF_CHECK_RTOL``), vectorised; a dense
 point whose solve residual or self-check fails is recomputed by the recursion (as ``"auto"``
 falls back); a recursion point that fails raises :class:`NumericalError` naming the weights'
-spread, and so does any cost beyond the double range. Memory: the dense path works in chunks
-of at most ``CHUNK_BYTES`` of stacked matrices; the recursion keeps its gains, O(P N m n).
+spread, and so does any cost beyond the double range. Memory: both paths work in chunks of
+about ``CHUNK_BYTES`` (the dense path's stacked matrices; the recursion's gains, O(N m n) a point).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -32,15 +34,18 @@ import numpy.typing as npt
 from .costs import AUTO_DENSE_MAX, refuse_dense, weight_spread
 from .errors import DimensionError, InputError, NumericalError, ProbabilityError
 from .model import System, check_system, numeric_array
+from .pointwise import PointEvaluator
 from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import condition_estimate, udp_variance_weights
 from .results import BatchSolution
+from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = ["CHUNK_BYTES", "CostEvaluator"]
 
-#: The dense path stacks at most this many bytes of (N m)×(N m) matrices at a time.
+#: The dense path stacks at most this many bytes of (N m)×(N m) matrices at a time, and the
+#: recursion about this many bytes of gains, inputs and states.
 CHUNK_BYTES = 2**25
 
 
@@ -95,6 +100,7 @@ class CostEvaluator:
                 if method != "auto":
                     raise
                 self.method = "recursion"      # "auto" falls back, as closed_form does
+        self._point = None if self._pred is None else PointEvaluator(s, self.protocol, self._pred, self.weights)
 
     # ------------------------------------------------------------------ inputs
     def _schedules(self, mus: npt.ArrayLike) -> np.ndarray:
@@ -123,17 +129,57 @@ class CostEvaluator:
         return arr
 
     # ------------------------------------------------------------------ public
+    @blas_limited
     def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> float:
         """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
-        A batch of one: the same arithmetic as :meth:`costs`."""
-        one = numeric_array(mu, "mu")[None]
-        return float(self.costs(one, None if x0 is None else numeric_array(x0, "x0")[None])[0])
 
+        On the dense path at the system's x0, vectors instead of stacks
+        (:class:`~packetloss_cvx.pointwise.PointEvaluator`: one LU, checked the same way, equal to
+        :meth:`costs` to rounding); otherwise, or where its check fails, a batch of one.
+        """
+        s = self.system
+        if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
+                and mu.shape == (s.m,) and 0.0 <= mu.min() and mu.max() <= 1.0):   # NaN fails: validated below
+            value = self._point.cost(np.tile(mu, (s.horizon, 1)))       # vectors, not stacks
+            if value is not None:
+                return value
+        one = numeric_array(mu, "mu")
+        if x0 is None and self._point is not None and one.shape in ((s.m,), (s.horizon, s.m)):
+            value = self._point.cost(self._schedules(one[None])[0])
+            if value is not None:
+                return value
+        return float(self.costs(one[None], None if x0 is None else numeric_array(x0, "x0")[None])[0])
+
+    def line(self, mu: npt.ArrayLike, i: int) -> Callable[[float], float]:
+        """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,) and s in [0, 1], at the system's x0.
+
+        On the dense path the other channels are factored once (a Schur complement,
+        :meth:`PointEvaluator.line`): per point O(N^3 + (N m)^2) instead of O((N m)^3); every
+        point is checked as :meth:`cost` checks it and falls back to :meth:`cost` on a failed check.
+        """
+        base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
+        if not (isinstance(i, (int, np.integer)) and 0 <= i < self.system.m):
+            raise InputError("i", f"expected a channel index from 0 to {self.system.m - 1}, found {i!r}")
+        fast = None if self._point is None else self._point.line(base, int(i))
+
+        def at(value: float) -> float:
+            if fast is not None and 0.0 <= value <= 1.0:
+                got = fast(float(value))
+                if got is not None:
+                    return got
+            point = base.copy()
+            point[i] = value
+            return self.cost(point)
+
+        return at
+
+    @blas_limited
     def costs(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> np.ndarray:
         """J*(mu) for each of P channels, shape (P,). ``x0``: (n,) or (P, n) to override the
         system's initial state (the costs are quadratic in it). See the class notes for time."""
         return self._run(mus, x0, gains=False)[0]
 
+    @blas_limited
     def solve(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> BatchSolution:
         """Costs (P,), optimal inputs U* (P, N, m) and the first step's gains K (P, m, n).
 
@@ -171,8 +217,11 @@ class CostEvaluator:
                         f"self-check against the forward cost of their plans ({weight_spread(s)}); "
                         "use method='recursion'")
                 method = "mixed"
-        if todo.size:
-            self._recursion(mu[todo], x[todo], todo, costs, inputs, K0)
+        # the recursion keeps gains, inputs and states per point: O(N (m n + m + n)) doubles each
+        chunk = max(1, CHUNK_BYTES // (8 * s.horizon * (s.m * s.n + s.m + s.n + s.m)))
+        for start in range(0, todo.size, chunk):
+            part = todo[start:start + chunk]
+            self._recursion(mu[part], x[part], part, costs, inputs, K0)
         return costs, inputs, K0, method
 
     def _dense_is_faster(self, P: int) -> bool:
@@ -243,24 +292,26 @@ class CostEvaluator:
         if udp and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
             raise _overflow("diag(Omega_g)", self.protocol)
         keep = np.where(mu < 1.0, 1.0 - mu, 0.0)
+        # per step: the diagonal added to G, and mu as a row to scale G's and rhs' columns
+        added = psi[None] + (self._d[None] * keep if udp else 0.0)             # (P, N, m)
+        rows = mu[:, :, None, :]                                               # (P, N, 1, m)
         K = np.empty((P, N, m, n))
         Pm = np.broadcast_to(W[N - 1], (P, n, n)).copy()
-        diag = np.arange(m)
-        AT = A.T
+        AT, BT = A.T, B.T
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(N - 1, -1, -1):
                 PB = Pm @ B
-                G = (B.T @ PB) * mu[:, t, None, :]
-                G[:, diag, diag] += psi[t] + (self._d[t] * keep[:, t] if udp else 0.0)
-                rhs = np.swapaxes(PB, 1, 2) @ A
+                G = (BT @ PB) * rows[:, t]
+                G.reshape(P, m * m)[:, :: m + 1] += added[:, t]
+                rhs = PB.transpose(0, 2, 1) @ A
                 try:
                     K[:, t] = np.linalg.solve(G, rhs)
                 except np.linalg.LinAlgError:
                     raise _overflow("the cost-to-go matrix", self.protocol) from None
-                Pm = AT @ (Pm @ A) - (np.swapaxes(rhs, 1, 2) * mu[:, t, None, :]) @ K[:, t]
+                Pm = AT @ (Pm @ A) - (rhs.transpose(0, 2, 1) * rows[:, t]) @ K[:, t]
                 if t > 0:
                     Pm += W[t - 1]
-                Pm = 0.5 * (Pm + np.swapaxes(Pm, 1, 2))
+                Pm = 0.5 * (Pm + Pm.transpose(0, 2, 1))
             if not (np.isfinite(self._noise) and np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
                 raise _overflow("the cost-to-go matrix", self.protocol)
             closed = np.einsum("pi,pij,pj->p", x, s.initial_weight + Pm, x) + self._noise

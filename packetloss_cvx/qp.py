@@ -1,18 +1,21 @@
 """The expected-cost minimisation as cvxpy QPs solved with Clarabel (the solver twin).
 
-Two formulations of the same problem, both DPP: they are built once from
-``cp.Parameter``s (the channel ``v``, the state ``x`` and two derived weight
-vectors) and re-solved by assigning new values, without recompiling.
+Two formulations of the same problem, both in the mean delivered input ``Z = Vbar U`` and
+both DPP: built once from ``cp.Parameter``s (the state ``x``; for a stationary channel
+``1/mu`` and ``1/mu - 1`` per channel) and re-solved by assigning new values, without
+recompiling. No Parameter multiplies a Variable, so cvxpy's canonicalisation is linear in N
+(until 2026-11-22 ``multiply(v, U)`` kept an (N m)×(N m) map: docs/performance.md).
 
-* ``"condensed"``: variables U only; ``sum_squares(L Phi x + L Gamma (v∘U))``.
+* ``"condensed"``: variables Z only; ``sum_squares(L Phi x + L Gamma Z)``.
   Dense constants of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
-* ``"sparse"``: mean states and inputs as variables, the dynamics
-  ``xhat_{t+1} = A xhat_t + B (v_t∘u_t)`` as equality constraints; every
-  constant is block-sparse, so build and solve are O(N (n + m)^3).
+* ``"sparse"``: mean states and Z as variables, the dynamics
+  ``xhat_{t+1} = A xhat_t + B z_t`` as equality constraints; every constant is
+  block-sparse, so build and solve are O(N (n + m)^3), memory O(N (n + m)^2).
 
-The UDP-like term ``U' Vbar Omega_d (I - Vbar) U`` enters as
-``sum_squares(w∘U)`` with ``w = sqrt(v (1 - v) diag(Omega_g))``; the diagonal of
-Omega_g comes from the backward Lyapunov sum (:func:`udp_variance_weights`).
+The input terms of eq:opt-lqg-simplest with Lemma 1, ``U' Vbar Psi U + [UDP] U' Vbar Omega_d
+(I - Vbar) U``, are ``sum (psi + [UDP] diag(Omega_g)(1 - mu)) z^2 / mu``; the diagonal of Omega_g
+comes from the backward Lyapunov sum (:func:`udp_variance_weights`). Channels with mu <=
+``QP_PIN_MU`` have z pinned to zero; their input U is reported as 0.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import recursion_cost, udp_variance_weights
 from .results import CrossCheck, Solution
+from .threads import blas_limited
 from .tolerances import (
     ACCEPTED_STATUSES,
     CLARABEL_TIGHT,
@@ -41,6 +45,7 @@ from .tolerances import (
     CROSS_CHECK_INPUT_ATOL,
     MEMORY_BUDGET_BYTES,
     PLAN_CHECK_MAX_GROWTH,
+    QP_PIN_MU,
 )
 
 __all__ = [
@@ -68,16 +73,18 @@ def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.cs
 
 
 def qp_memory_estimate(system: System, formulation: str) -> float:
-    """Bytes the QP needs at its peak, known before building it.
+    """Bytes the QP needs at its peak, known before building it: linear in N.
 
-    Measured (tracemalloc; n = 1..400, m = 1..2, N up to 8000): cvxpy's DPP canonicalisation keeps
-    a dense (N m)×(N m) parameter map, 8 (N m)^2 bytes, and the state terms cost about 190 N n^2
-    bytes (sparse) or 120 N n^2 (condensed, plus its dense (N n)×(N m) constants).
+    Measured (tracemalloc, compile and first solve; n = 1..100, m = 1..8, N up to 8000, full
+    weights): about 250 N n^2 bytes for the state terms, 350 N n m for the dynamics' input
+    columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB; the
+    condensed form adds its dense (N n)×(N m) constants (48 bytes per entry measured). No
+    Parameter multiplies a Variable (:class:`ExpectedCostQP`), so cvxpy keeps no (N m)^2 map.
     """
     N, n, m = system.horizon, system.n, system.m
-    needed = 8.0 * (N * m) ** 2 + 200.0 * N * n * n + 1e7
+    needed = 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
     if formulation == "condensed":
-        needed += 16.0 * (N * n) * (N * m)
+        needed += 48.0 * (N * n) * (N * m)
     return needed
 
 
@@ -121,7 +128,7 @@ class ExpectedCostQP:
         if needed > MEMORY_BUDGET_BYTES:
             raise ResourceError(
                 f"the {self.formulation} QP needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} (cvxpy "
-                f"keeps a dense (N m)^2 parameter map and ~200 N n^2 bytes of state terms); budget "
+                f"keeps ~260 N n^2 bytes of state terms); budget "
                 f"{MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
                 MEMORY_BUDGET_BYTES)
         self._d, self._noise = udp_variance_weights(system)
@@ -133,64 +140,123 @@ class ExpectedCostQP:
         # one common scale for every weight (the minimiser does not change; the value scales back),
         # so that Clarabel's absolute tolerances mean the same for weights of 1e-15 and of 1e6
         self._scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
-        root = 1.0 / np.sqrt(self._scale)
-        self.v = cp.Parameter(N * m, nonneg=True, name="v")
         self.x = cp.Parameter(n, name="x")
-        self.r = cp.Parameter(N * m, nonneg=True, name="sqrt_v_psi")
-        self.U = cp.Variable(N * m, name="U")
-        terms = [cp.sum_squares(cp.multiply(self.r, self.U))]
-        if self.protocol == "udp":
-            self.w = cp.Parameter(N * m, nonneg=True, name="sqrt_udp_weight")
-            terms.append(cp.sum_squares(cp.multiply(self.w, self.U)))
-        vu = cp.multiply(self.v, self.U)
-        constraints = []
         if self.formulation == "condensed":
             pred = prediction(system)
-            L = sla.block_diag(*[psd_factor(W) for W in system.state_weights]) * root
-            if L.shape[0]:  # all state weights zero: no state term at all
-                terms.append(cp.sum_squares(L @ pred.Phi @ self.x + (L @ pred.Gamma) @ vu))
+            L = sla.block_diag(*[psd_factor(W) for W in system.state_weights]) / np.sqrt(self._scale)
+            self._state = (L @ pred.Phi, L @ pred.Gamma) if L.shape[0] else None   # no state weight: no term
         else:
-            X = cp.Variable(N * n, name="xhat")
             E, Bbig, first, L = sparse_dynamics(system)
-            L = L * root
-            constraints.append(E @ X - Bbig @ vu == first @ self.x)
+            self._state = (E, Bbig, first, L / np.sqrt(self._scale))
+        self._problems: dict[tuple, tuple] = {}
+        self._assign(system.mu_schedule, system.x0, self.protocol)
+
+    def _build(self, key: tuple, free: np.ndarray, weight: np.ndarray | None) -> None:
+        """The problem for the entries ``free`` (N×m, mu > QP_PIN_MU): built on first use, kept per key.
+
+        Variables: the mean delivered inputs ``Z = Vbar U`` on the free entries (the others are
+        pinned to zero: an input that is (almost) never delivered changes (almost) nothing,
+        ``tolerances.QP_PIN_MU``) and, sparse, the mean states. The input terms are
+        ``sum (psi + [UDP] d (1 - mu)) z^2 / mu`` (eq:opt-lqg-simplest with Lemma 1: ``v psi u^2 +
+        v (1 - v) d u^2 = (psi + (1 - v) d) z^2 / v``, d = diag(Omega_g)). For a stationary channel
+        (``weight`` None) mu enters through two Parameters per channel, ``1/mu`` and ``1/mu - 1``,
+        each multiplying a fixed weighted sum of squares over the steps, ``a @ sum(W * square(Z), 0)``:
+        no Parameter multiplies a Variable and cvxpy's canonicalisation stays linear in N (a
+        Parameter per entry costs it 8 (N m)^2 bytes, docs/performance.md). A schedule's weights are
+        constants (rebuilt per schedule). O(N (n^2 + n m)) nonzeros.
+        """
+        if key in self._problems:
+            self.problem, self.Z, self._params, self._free = self._problems[key]
+            return
+        N, n, m = self.system.horizon, self.system.n, self.system.m
+        flat = free.ravel()
+        k = int(flat.sum())
+        select = sp.csr_matrix((np.ones(k), (np.flatnonzero(flat), np.arange(k))), shape=(N * m, k))
+        params = None
+        terms = []
+        if k and weight is None:                 # Z as N × (free channels); flat Z is step-major
+            channels = np.flatnonzero(free[0])
+            Z = cp.Variable((N, len(channels)), name="Z")
+            flat_Z = cp.vec(Z.T, order="F")
+            params = (cp.Parameter(len(channels), nonneg=True, name="inv_mu"),
+                      cp.Parameter(len(channels), nonneg=True, name="inv_mu_minus_one"))
+            psi, d = self.system.input_weights / self._scale, self._d / self._scale
+            terms.append(params[0] @ cp.sum(cp.multiply(psi[:, channels], cp.square(Z)), axis=0))
+            if key[1] == "udp":
+                terms.append(params[1] @ cp.sum(cp.multiply(d[:, channels], cp.square(Z)), axis=0))
+        else:
+            Z = flat_Z = cp.Variable(k, name="Z")
+            if k:
+                terms.append(cp.sum_squares(cp.multiply(np.sqrt(weight.ravel()[flat]), Z)))
+        constraints = []
+        if self.formulation == "condensed":
+            if self._state is not None:
+                LPhi, LGamma = self._state
+                terms.append(cp.sum_squares(LPhi @ self.x + (LGamma @ select) @ flat_Z) if k else
+                             cp.sum_squares(LPhi @ self.x))
+        else:
+            E, Bbig, first, L = self._state
+            X = cp.Variable(N * n, name="xhat")
+            delivered = (Bbig @ select) @ flat_Z if k else 0.0
+            constraints.append(E @ X - delivered == first @ self.x)
             if L.shape[0]:
                 terms.append(cp.sum_squares(L @ X))
-        self.problem = cp.Problem(cp.Minimize(cp.sum(terms)), constraints)
-        if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
+        problem = cp.Problem(cp.Minimize(cp.sum(terms) if terms else 0), constraints)
+        if not problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("expected-cost QP is not DPP")
+        if weight is not None:
+            self._problems = {k_: v_ for k_, v_ in self._problems.items() if k_[0] != "schedule"}
+        self._problems[key] = (problem, Z, params, free)
+        self.problem, self.Z, self._params, self._free = problem, Z, params, free
 
-    def _assign(self, mu: np.ndarray, x: np.ndarray) -> None:
-        v = mu.ravel()
-        self.v.value = v
+    def _assign(self, mu: np.ndarray, x: np.ndarray, protocol: str) -> None:
+        free = mu > QP_PIN_MU
+        self._v = mu.ravel()
+        if np.all(mu == mu[0]):     # one problem per protocol: a zero-weighted diag(Omega_g) term of an
+            # unstable plant (1e70) made Clarabel fail the TCP-like QP it solved without the term
+            self._build(("stationary", protocol, free[0].tobytes()), free, None)
+            if self._params is not None:
+                v = mu[0][free[0]]
+                self._params[0].value = 1.0 / v
+                self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0)
+        else:
+            d = np.where(mu < 1.0, self._d * (1.0 - mu), 0.0) if protocol == "udp" else 0.0
+            weight = (self.system.input_weights + d) / (np.where(free, mu, 1.0) * self._scale)
+            self._build(("schedule", protocol, mu.tobytes()), free, weight)
         self.x.value = x
-        self.r.value = np.sqrt(v * self.system.input_weights.ravel() / self._scale)
-        if self.protocol == "udp":
-            weight = np.where(v < 1.0, self._d.ravel() * v * (1.0 - v), 0.0)
-            self.w.value = np.sqrt(weight / self._scale)
 
-    def _solve_raw(self) -> tuple[np.ndarray, float, str]:
-        what = f"{self.protocol}-like {self.formulation} QP"
+    def _solve_raw(self, protocol: str) -> tuple[np.ndarray, float, str]:
+        what = f"{protocol}-like {self.formulation} QP"
+        u = np.zeros(self._v.size)         # an input never delivered changes nothing: reported as 0
+        if not self.problem.variables():   # condensed, nothing delivered: the open-loop state cost
+            return u, float(np.sum((self._state[0] @ self.x.value) ** 2)) if self._state else 0.0, "optimal"
         try:
             status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
         except SolverError as err:
-            raise self._out_of_range(err.status) from None
+            raise self._out_of_range(err.status, protocol) from None
         if status not in ACCEPTED_STATUSES:
-            raise self._out_of_range(status)
-        return np.asarray(self.U.value), float(self.problem.value), status
+            raise self._out_of_range(status, protocol)
+        flat = self._free.ravel()
+        if flat.any():
+            u[flat] = np.asarray(self.Z.value).ravel() / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
+        return u, float(self.problem.value), status
 
-    def _out_of_range(self, status: str) -> NumericalError:
+    def _out_of_range(self, status: str, protocol: str) -> NumericalError:
         """The QP is unconstrained and strictly convex: it always has one minimiser, so any status
         but optimal ('infeasible' included) means the solver lost the problem's scale."""
         rho = float(max(abs(np.linalg.eigvals(self.system.A))))
         return NumericalError(
-            f"Clarabel ended {status!r} on the {self.protocol}-like {self.formulation} QP, which is unconstrained "
+            f"Clarabel ended {status!r} on the {protocol}-like {self.formulation} QP, which is unconstrained "
             f"and always has a unique minimiser: the problem's scale is beyond the solver's range (open-loop "
             f"growth rho(A)^N = {rho:.3g}^{self.system.horizon}); the closed form (method='recursion') is exact here")
 
+    @blas_limited
     def solve(self, mu=None, x0=None, *, with_gain: bool = True, cross_check: bool = True,
-              reference: Solution | None = None) -> Solution:
+              reference: Solution | None = None, protocol: str | None = None) -> Solution:
         """Solve for the current (or the given) channel and state.
+
+        ``protocol`` (default: the one given at construction) may name the other protocol: one
+        ExpectedCostQP then keeps a system's two compiled problems.
 
         ``mu`` is an m-vector or an N×m schedule; ``x0`` an n-vector. Both are validated
         through :class:`System`. With ``with_gain`` the gain K is recovered by n more
@@ -210,6 +276,7 @@ class ExpectedCostQP:
         CrossCheckError
             The QP and the reference disagree beyond the tolerances; both numbers are named.
         """
+        protocol = self.protocol if protocol is None else check_protocol(protocol)
         system = self.system
         if mu is not None:
             system = system.with_mu(mu)
@@ -219,18 +286,18 @@ class ExpectedCostQP:
         start = time.perf_counter()
         x = system.x0
         size = float(np.abs(x).max())
-        self._assign(system.mu_schedule, x / size if size > 0 else x)
+        self._assign(system.mu_schedule, x / size if size > 0 else x, protocol)
         if size > 0:   # the variable part is homogeneous of degree 2 in x: solve at unit size, scale back
-            u, value, status = self._solve_raw()
+            u, value, status = self._solve_raw(protocol)
             u, value = u * size, value * self._scale * size**2
         else:          # x = 0: the plan is zero and so is the variable part, exactly
             u, value, status = np.zeros(N * m), 0.0, "optimal"
         solve_time = time.perf_counter() - start
         cost = value + float(x @ system.initial_weight @ x) + self._noise
-        forward = recursion_cost(system, u.reshape(N, m), self.protocol, (self._d, self._noise))
+        forward = recursion_cost(system, u.reshape(N, m), protocol, (self._d, self._noise))
         if self._plan_checkable and not abs(cost - forward) <= CROSS_CHECK_COST_RTOL * forward:
             raise NumericalError(
-                f"the {self.protocol}-like {self.formulation} QP reports J = {cost:.10g} but the forward cost of its "
+                f"the {protocol}-like {self.formulation} QP reports J = {cost:.10g} but the forward cost of its "
                 f"own plan is {forward:.10g}: the solver lost the problem's scale (weights spanning many orders "
                 "of magnitude, or an unstable plant over a long horizon)")
         gain = None
@@ -239,15 +306,15 @@ class ExpectedCostQP:
             columns = []
             for j in range(n):
                 self.x.value = np.eye(n)[j]
-                columns.append(-self._solve_raw()[0][:m])
+                columns.append(-self._solve_raw(protocol)[0][:m])
             gain = np.column_stack(columns)
             eigs = np.linalg.eigvals(system.A - system.B @ gain)
         check = None
         if cross_check:
-            ref = reference if reference is not None else closed_form(system, self.protocol, method="auto")
+            ref = reference if reference is not None else closed_form(system, protocol, method="auto")
             check = compare(u.reshape(N, m), cost, ref, system, scale=(self._scale * size**2, size))
         return Solution(
-            protocol=self.protocol, cost=cost, inputs=u.reshape(N, m), gain=gain,
+            protocol=protocol, cost=cost, inputs=u.reshape(N, m), gain=gain,
             closed_loop_eigenvalues=eigs, method=f"qp-{self.formulation}", status=status,
             solve_time=solve_time, cross_check=check,
         )

@@ -186,3 +186,11 @@ RICCATI_MAX_ITER = 20000
 RICCATI_DIVERGENCE = 1e14
 #: Critical delivery probabilities along a ray are bisected to this width in t.
 CRITICAL_MU_TOL = 1e-6
+__all__ += ["QP_PIN_MU"]
+
+#: The QP twin carries the mean delivered input z = mu u with the weight (psi + ...) / mu, and pins z = 0
+#: (the input is never delivered) where mu <= QP_PIN_MU. Measured on two_actuator, both protocols and
+#: formulations: Clarabel agrees with the closed form to 4e-12 for mu_1 from 1e-3 down to 1e-30 and fails
+#: at 1e-60. Pinning a channel of delivery probability mu changes J* by at most mu sum_t psi u_t^2 (the
+#: envelope gradient), about 1e-30 times the weights' spread: far below CROSS_CHECK_COST_RTOL, which binds.
+QP_PIN_MU = 1e-30

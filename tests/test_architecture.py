@@ -17,8 +17,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
-     "channel", "validation"},
-    {"prediction", "recursion", "costs", "convex", "qp", "random_systems", "evaluator"},
+     "channel", "validation", "threads"},
+    {"prediction", "recursion", "costs", "convex", "qp", "random_systems", "evaluator", "pointwise"},
     {"analysis", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},

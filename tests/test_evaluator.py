@@ -102,9 +102,12 @@ def test_a_batch_of_initial_states(protocol):
 def test_chunks_do_not_change_the_answers(two_actuator, monkeypatch):
     mus = np.random.default_rng(5).uniform(0.0, 1.0, (11, 2))
     whole = CostEvaluator(two_actuator, "udp").costs(mus)
+    rec = CostEvaluator(two_actuator, "udp", "recursion").costs(mus)
     monkeypatch.setattr(evaluator_module, "CHUNK_BYTES", 8 * 20 * 20 * 3)          # 3 points a chunk
     chunked = CostEvaluator(two_actuator, "udp").costs(mus)
     assert np.array_equal(whole, chunked)
+    monkeypatch.setattr(evaluator_module, "CHUNK_BYTES", 1600)                       # recursion: 2 a chunk
+    assert np.array_equal(rec, CostEvaluator(two_actuator, "udp", "recursion").costs(mus))
     assert CostEvaluator(two_actuator, "udp").costs(np.zeros((0, 2))).shape == (0,)
 
 
@@ -158,3 +161,24 @@ def test_batch_solution_is_frozen(two_actuator):
     with pytest.raises(ValueError, match="read-only"):
         sol.costs[0] = 0.0
     assert set(sol.to_dict()) == {"protocol", "costs", "inputs", "gains", "method"}
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_cost_along_a_coordinate_line_equals_the_closed_form(seed, protocol):
+    """The Schur complement along an edge (the other channels factored once) against closed_form."""
+    rng = np.random.default_rng(seed)
+    s = random_system(rng, m=int(rng.integers(1, 4)), non_stationary=False)
+    ev = CostEvaluator(s, protocol)
+    mu = rng.uniform(0.0, 1.0, s.m)
+    for i in range(s.m):
+        line = ev.line(mu, i)
+        for value in (0.0, 0.37, 1.0):
+            point = mu.copy()
+            point[i] = value
+            assert _rel(line(value), pl.closed_form(s.with_mu(point), protocol).cost) <= RTOL
+
+
+def test_line_refuses_a_bad_channel_index(two_actuator):
+    with pytest.raises(pl.InputError, match="i: expected a channel index"):
+        CostEvaluator(two_actuator, "udp").line([0.5, 0.5], 2)

@@ -32,6 +32,7 @@ from ..errors import InfeasibleError, InputError, SolverError
 from ..model import System
 from ..protocols import check_protocol
 from ..results import Allocation, MinCost
+from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT, ALLOCATION_GAP_FLOOR
 from .boxes import Outcome, cost_at
 from .grammar import (
@@ -79,6 +80,7 @@ def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, tim
                    mu=out.mu, method=out.note)
 
 
+@blas_limited
 def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequence[Constraint] = (),
              max_boxes: int = MAX_BOXES, time_limit: float | None = None) -> MinCost:
     """The least optimal cost J*(mu) reachable within the bounds and constraints.
@@ -133,6 +135,7 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
                            f"bounds and constraints ({proof})", least.cost)
 
 
+@blas_limited
 def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
              max_boxes: int = MAX_BOXES, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
@@ -237,6 +240,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
                       status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)
 
 
+@blas_limited
 def best_cost_within_budget(system: System, protocol: str, beta, budget: float, bounds=(0.0, 1.0),
                             constraints: Sequence[Constraint] = (), max_boxes: int = MAX_BOXES,
                             time_limit: float | None = None) -> MinCost:

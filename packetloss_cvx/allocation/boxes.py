@@ -21,11 +21,14 @@ from scipy.optimize import linprog
 
 from ..costs import closed_form
 from ..errors import SolverError
+from ..evaluator import CostEvaluator
 from ..model import System
 from ..tolerances import ALLOCATION_LP_FEASIBILITY
 from .grammar import Polytope
 
-__all__ = ["Outcome", "boundary", "box_lp", "bracket", "check_in_polytope", "cost_at", "dual_bound", "lp"]
+__all__ = [
+    "Outcome", "boundary", "box_lp", "bracket", "check_in_polytope", "cost_at", "cost_function", "dual_bound", "lp",
+]
 
 _HIGHS = {"primal_feasibility_tolerance": ALLOCATION_LP_FEASIBILITY,
           "dual_feasibility_tolerance": ALLOCATION_LP_FEASIBILITY}
@@ -50,6 +53,15 @@ class Outcome(NamedTuple):
 def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
     """J*(mu) by the closed form (method "auto"), mu clipped to [0, 1]. O(N (n^3 + m^3))."""
     return closed_form(system.with_mu(np.clip(mu, 0.0, 1.0)), protocol, "auto").cost
+
+
+def cost_function(system: System, protocol: str) -> tuple[Callable[[np.ndarray], float], CostEvaluator]:
+    """``mu -> J*(mu)`` (mu clipped to [0, 1]) through one :class:`CostEvaluator` built for the
+    system, and the evaluator: what does not depend on mu is built once (O(N n^3), plus
+    O((N n)^2 N m) where the dense path is allowed); each call O((N m)^3) dense or
+    O(N (n^3 + m^3)), equal to :func:`cost_at` to rounding and self-checked the same way."""
+    evaluator = CostEvaluator(system, protocol)
+    return (lambda mu: evaluator.cost(np.clip(mu, 0.0, 1.0))), evaluator
 
 
 def dual_bound(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray, y: np.ndarray) -> float:

@@ -16,12 +16,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..costs import closed_form
 from ..errors import InputError
+from ..evaluator import CostEvaluator
 from ..model import System
 from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
 
-__all__ = ["brute_force_allocation"]
+__all__ = ["bisect", "brute_force_allocation"]
 
 
 def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Sequence[float],
@@ -39,8 +39,15 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
     G = np.zeros((0, 2)) if G is None else np.atleast_2d(G)
     h = np.zeros(0) if h is None else np.atleast_1d(h)
 
+    evaluator = CostEvaluator(system, protocol, "recursion")     # the recursion, its structure built once
+
     def J(mu1: float, mu2: float) -> float:
-        return closed_form(system.with_mu([mu1, mu2]), protocol, "recursion").cost
+        return evaluator.cost(np.array([mu1, mu2]))
+
+    def feasible(mu1: float, mu2s: list[float]) -> list[bool]:
+        """J*(mu1, mu2) <= alpha for several mu2 at once: one batched recursion."""
+        points = np.column_stack([np.full(len(mu2s), mu1), mu2s])
+        return list(evaluator.costs(points) <= alpha)
 
     def best_mu2(mu1: float, cap: float) -> float | None:
         """The least feasible mu2 (to tol, feasible end) below ``cap``, or None: above cap a
@@ -59,11 +66,7 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
             return None
         if J(mu1, lo) <= alpha:
             return lo
-        a, b = lo, top
-        while b - a > tol:
-            mid = 0.5 * (a + b)
-            a, b = (a, mid) if J(mu1, mid) <= alpha else (mid, b)
-        return b
+        return bisect(lambda mu2s: feasible(mu1, mu2s), lo, top, tol)
 
     def scan(points: np.ndarray, best: tuple[float, float, float] | None) -> tuple[float, float, float] | None:
         for mu1 in points:
@@ -78,3 +81,25 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
         return None
     step = 1 / (coarse - 1)
     return scan(np.clip(np.linspace(best[1] - step, best[1] + step, fine), 0, 1), best)
+
+
+def bisect(feasible, a: float, b: float, tol: float, depth: int = 4) -> float:
+    """The feasible end of ``while b - a > tol: mid = (a + b) / 2; a, b = (a, mid) if feasible else
+    (mid, b)``, with the same midpoints and decisions, ``depth`` levels per call of
+    ``feasible(points) -> list of bool``: the 2^depth - 1 midpoints the next ``depth`` steps could
+    visit are evaluated in one batch, then walked. O(log2((b - a) / tol) / depth) calls of
+    2^depth - 1 points."""
+    while b - a > tol:
+        tree: list[float] = []                   # heap order: node k has children 2k + 1, 2k + 2
+        bounds = [(a, b)]
+        for _ in range(2**depth - 1):
+            lo, hi = bounds.pop(0)
+            mid = 0.5 * (lo + hi)
+            tree.append(mid)
+            bounds += [(lo, mid), (mid, hi)]
+        ok = feasible(tree)
+        k = 0
+        while k < len(tree) and b - a > tol:
+            a, b = (a, tree[k]) if ok[k] else (tree[k], b)
+            k = 2 * k + 1 if ok[k] else 2 * k + 2
+    return b

@@ -30,8 +30,8 @@ import cvxpy as cp
 import numpy as np
 
 from ..convex import PROVEN_INFEASIBLE, require_optimal, solve_problem
-from ..costs import closed_form
 from ..errors import InfeasibleError, SolverError
+from ..evaluator import CostEvaluator
 from ..model import System
 from ..qp import sparse_dynamics
 from ..recursion import udp_variance_weights
@@ -43,7 +43,7 @@ from ..tolerances import (
     ALLOCATION_INCUMBENT_SHARE,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_at, lp
+from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, lp
 from .grammar import Polytope
 
 __all__ = ["TCPProgram", "constant_cost", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost"]
@@ -83,25 +83,33 @@ class TCPProgram:
         self.constraints = cons
 
 
-def tangent(system: System, mu: np.ndarray) -> tuple[float, np.ndarray]:
+def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = None) -> tuple[float, np.ndarray]:
     """J*_tcp(mu) and its gradient ``s_i = -sum_t psi_{t,i} u_{t,i}^2`` (one closed form).
 
     By the envelope theorem on ``J(Z, mu)``, at the optimal ``Z = Vbar U*`` the gradient of
     J*_tcp is the partial derivative of J in mu; it stays finite at mu_i = 0, where the closed
-    form's inputs are the limit of the optimal law. O(N (n^3 + m^3)).
+    form's inputs are the limit of the optimal law. O(N (n^3 + m^3)). Points may also be a
+    batch (P, m): then costs (P,) and gradients (P, m) from one batched evaluation (``evaluator``,
+    a TCP-like :class:`CostEvaluator` of ``system``, reused when given).
     """
-    sol = closed_form(system.with_mu(np.clip(mu, 0.0, 1.0)), "tcp", "auto")
-    return sol.cost, -np.sum(system.input_weights * sol.inputs ** 2, axis=0)
+    evaluator = CostEvaluator(system, "tcp") if evaluator is None else evaluator
+    points = np.clip(np.asarray(mu, dtype=float), 0.0, 1.0)
+    sol = evaluator.solve(points.reshape(-1, system.m))
+    grads = -np.sum(system.input_weights * sol.inputs ** 2, axis=1)
+    if points.ndim == 1:
+        return float(sol.costs[0]), grads[0]
+    return sol.costs, grads
 
 
-def tangent_cuts(system: System, mubar: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Affine minorants of J*_tcp: rows with ``J*(mu) >= r_k + S_k mu`` for every mu in [0, 1]^m.
 
     Tangents at ``mubar`` and at ``mubar +- step e_i`` for each step of
     ``ALLOCATION_CUT_STEPS`` (clipped into [0, 1]), so that their maximum brackets the
     optimum on whichever side the solver's point errs; each loosened by
     ``ALLOCATION_COST_RTOL (|J*| + ||grad||_1)`` for the closed form's rounding.
-    O(m len(steps)) closed forms.
+    O(m len(steps)) closed forms, evaluated as one batch.
     """
     m = system.m
     points = [mubar]
@@ -112,11 +120,9 @@ def tangent_cuts(system: System, mubar: np.ndarray) -> tuple[np.ndarray, np.ndar
                 p[i] = np.clip(p[i] + sign * step, 0.0, 1.0)
                 if p[i] != mubar[i]:
                     points.append(p)
-    S, r = np.empty((len(points), m)), np.empty(len(points))
-    for k, p in enumerate(points):
-        f, grad = tangent(system, p)
-        S[k] = grad
-        r[k] = f - grad @ p - ALLOCATION_COST_RTOL * (abs(f) + np.abs(grad).sum())
+    P = np.array(points)
+    f, S = tangent(system, P, evaluator)
+    r = f - np.sum(S * P, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
     return S, r
 
 
@@ -163,7 +169,8 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     C = constant_cost(system)
     if alpha < C:
         raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
-    corner = cost_at(system, "tcp", poly.upper())
+    J, evaluator = cost_function(system, "tcp")
+    corner = J(poly.upper())
     if corner > alpha * (1 + ALLOCATION_COST_RTOL):
         raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
                               "and J* falls in every mu_i", None)
@@ -173,7 +180,7 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
            f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g} (Clarabel certificate)")
     mubar = np.clip(prog.mu.value, poly.lo, poly.hi)
 
-    S, r = tangent_cuts(system, mubar)                 # the lower bound, before any move
+    S, r = tangent_cuts(system, mubar, evaluator)      # the lower bound, before any move
     scale = np.max(np.abs(S), axis=1)
     if np.any((scale == 0) & (r > alpha)):
         raise SolverError("inconsistent", "TCP-like allocation: J*_tcp does not depend on mu and exceeds alpha, "
@@ -187,15 +194,15 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     lower = max(lower, float(beta @ poly.lower()))
 
     mu, note = mubar, "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
-    if beta @ point < beta @ mubar and cost_at(system, "tcp", point) <= alpha:
+    if beta @ point < beta @ mubar and J(point) <= alpha:
         mu, note = point, note + "; the LP's point is feasible and attains the bound"
-    elif cost_at(system, "tcp", mu) > alpha:           # solver tolerance: move onto the feasible set
+    elif J(mu) > alpha:           # solver tolerance: move onto the feasible set
         q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
-        if q is None or cost_at(system, "tcp", q) > alpha:
+        if q is None or J(q) > alpha:
             raise SolverError("inconsistent", "TCP-like allocation: the SOCP's point is infeasible and so is "
                               "the maximal point of the constraint set")
         tol = ALLOCATION_INCUMBENT_SHARE * gap
-        t = boundary(lambda a: cost_at(system, "tcp", mubar + a * (q - mubar)), alpha, 0.0, 1.0, tol)
+        t = boundary(lambda a: J(mubar + a * (q - mubar)), alpha, 0.0, 1.0, tol)
         mu = mubar + t * (q - mubar)
         note += f"; moved {t:.1e} of the way to a maximal point to meet J* <= alpha"
     mu = check_in_polytope(np.clip(mu, poly.lo, poly.hi), poly, "TCP-like allocation")
@@ -227,13 +234,14 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     if q is None:
         raise InfeasibleError("the linear constraints and bounds admit no mu", None)
     C = constant_cost(system)
-    reference = cost_at(system, "tcp", poly.upper()) - C       # the least J* - C over the box
+    J, evaluator = cost_function(system, "tcp")
+    reference = J(poly.upper()) - C       # the least J* - C over the box
     prog = TCPProgram(system, poly, 1.0 / max(reference, np.finfo(float).tiny))
     problem = cp.Problem(cp.Minimize(prog.cost), prog.constraints)
     _solve(problem, "TCP-like minimum-cost SOCP", None)
     mu = check_in_polytope(np.clip(prog.mu.value, poly.lo, poly.hi), poly, "TCP-like minimum cost")
-    f = cost_at(system, "tcp", mu)
-    S, r = tangent_cuts(system, mu)                    # min t  s.t.  t >= r_k + S_k mu, mu in the polytope
+    f = J(mu)
+    S, r = tangent_cuts(system, mu, evaluator)                   # min t  s.t.  t >= r_k + S_k mu, mu in the polytope
     m = system.m
     scale = np.maximum(np.max(np.abs(S), axis=1), 1.0)
     G = np.vstack([np.hstack([poly.G, np.zeros((poly.G.shape[0], 1))]),

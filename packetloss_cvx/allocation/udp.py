@@ -41,7 +41,7 @@ from ..tolerances import (
     ALLOCATION_MIN_BOX_WIDTH,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, bracket, check_in_polytope, cost_at
+from .boxes import Outcome, boundary, box_lp, bracket, check_in_polytope, cost_function
 from .grammar import Polytope
 from .tcp import constant_cost
 
@@ -156,7 +156,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         An LP failure, or a cap reached before any feasible point was found.
     """
     m = system.m
-    J = lambda mu: cost_at(system, "udp", mu)  # noqa: E731
+    J, evaluator = cost_function(system, "udp")
     prune_above = alpha * (1 + ALLOCATION_COST_RTOL)
     weights = np.maximum(beta, SPLIT_WEIGHT_FLOOR)
     search = Search(gap, max(floor, float(beta @ poly.lower())), max_boxes, time_limit, progress)
@@ -167,13 +167,13 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         if J(u) > prune_above:
             return None
         l, u = l.copy(), u.copy()
+        corner = np.clip(u, 0.0, 1.0)
         for i in range(m):                       # raise l_i to the last point proven infeasible on edge i
             if l[i] < u[i]:
-                edge = u.copy()
+                line = evaluator.line(corner, i)     # the other channels factored once along the edge
 
-                def along(s: float, i: int = i, e: np.ndarray = edge) -> float:
-                    e[i] = s
-                    return J(e)
+                def along(s: float, line=line) -> float:
+                    return line(min(max(s, 0.0), 1.0))
 
                 l[i] = bracket(along, prune_above, l[i], u[i],
                                ALLOCATION_EDGE_ATOL + ALLOCATION_EDGE_RTOL * (u[i] - l[i]))[1]
@@ -231,7 +231,7 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
     closed forms of O(N (n^3 + m^3)).
     """
     m = system.m
-    J = lambda mu: cost_at(system, "udp", mu)  # noqa: E731
+    J, _ = cost_function(system, "udp")
     lower, upper = poly.lower(), poly.upper()
     q, _ = box_lp(-np.ones(m), poly, lower, upper)
     if q is None:

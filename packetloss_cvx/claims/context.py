@@ -7,9 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..evaluator import CostEvaluator
 from ..io import load_example
 from ..model import System
-from ..qp import solve_qp
+from ..qp import ExpectedCostQP
 from ..results import Solution
 
 __all__ = ["Context", "interior", "paper_systems"]
@@ -31,6 +32,9 @@ class Context:
         How many of ``random`` (at its start) are the caller's systems.
     cache : dict
         Solver answers shared between checks (see :meth:`qp`).
+    problems, evaluators : dict
+        Compiled QPs per system and cost evaluators per (system, protocol), keyed by ``id``
+        (the cases live as long as the context).
     """
 
     paper: dict[str, System]
@@ -38,6 +42,8 @@ class Context:
     seed: int
     extra: int = 0
     cache: dict = field(default_factory=dict)
+    problems: dict = field(default_factory=dict)
+    evaluators: dict = field(default_factory=dict)
 
     @property
     def cases(self) -> list[System]:
@@ -59,11 +65,22 @@ class Context:
         return system.name or "a system outside the audit's cases"
 
     def qp(self, system: System, protocol: str) -> Solution:
-        """The QP twin's answer for ``system`` (solved once per audit)."""
+        """The QP twin's answer for ``system`` (solved once per audit). One compiled
+        :class:`ExpectedCostQP` per system keeps both protocols' compiled problems."""
         key = (id(system), protocol)
         if key not in self.cache:
-            self.cache[key] = solve_qp(system, protocol, with_gain=False, cross_check=False)
+            problem = self.problems.get(id(system))
+            if problem is None:
+                problem = self.problems[id(system)] = ExpectedCostQP(system, protocol)
+            self.cache[key] = problem.solve(with_gain=False, cross_check=False, protocol=protocol)
         return self.cache[key]
+
+    def evaluator(self, system: System, protocol: str) -> CostEvaluator:
+        """The cached :class:`CostEvaluator` of ``system`` (its structure built once per audit)."""
+        key = (id(system), protocol)
+        if key not in self.evaluators:
+            self.evaluators[key] = CostEvaluator(system, protocol)
+        return self.evaluators[key]
 
 
 def paper_systems() -> dict[str, System]:

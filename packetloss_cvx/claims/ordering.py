@@ -8,6 +8,7 @@ from scipy.optimize import brentq
 
 from .. import analysis as an
 from ..costs import closed_form, expected_cost
+from ..evaluator import CostEvaluator
 from ..model import System
 from ..prediction import prediction
 from ..results import ClaimResult
@@ -77,10 +78,12 @@ def corollary_2(ctx: Context) -> ClaimResult:
     def margin(s: System) -> float | None:
         rng = np.random.default_rng(ctx.seed + 4)
         nu1 = float(rng.uniform(0.05, 0.95))
-        target = closed_form(an.scalar_channel(s, nu1), "udp").cost
+        tcp = ctx.evaluator(s, "tcp") if s in ctx.cases else CostEvaluator(s, "tcp")
+        udp = ctx.evaluator(s, "udp") if s in ctx.cases else CostEvaluator(s, "udp")
+        target = udp.cost(np.full(s.m, nu1))          # J* on a shared channel, structure cached
 
         def gap(nu: float) -> float:
-            return closed_form(an.scalar_channel(s, nu), "tcp").cost - target
+            return tcp.cost(np.full(s.m, float(nu))) - target
 
         if gap(0.0) <= 0 or gap(nu1) >= 0:
             return None

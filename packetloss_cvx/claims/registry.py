@@ -11,6 +11,7 @@ from ..model import System
 from ..progress import progress_bar
 from ..random_systems import random_system
 from ..results import ClaimResult
+from ..threads import blas_limited
 from .channel_allocation import allocation_udp_perfect
 from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
@@ -54,6 +55,7 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
 CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's: its laws under bursty losses
 
 
+@blas_limited
 def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int = 0,
           only: Sequence[str] | None = None, progress: bool | None = None) -> list[ClaimResult]:
     """Check every claim (or those in ``only``) on the paper's systems, on ``systems`` and on

@@ -8,7 +8,7 @@ import numpy as np
 from ..costs import closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from ..model import System
 from ..prediction import prediction
-from ..qp import solve_qp
+from ..qp import ExpectedCostQP
 from ..results import ClaimResult
 from ..simulation import sample_deliveries, sample_noise, sample_plan_costs
 from .context import Context, interior
@@ -21,8 +21,9 @@ def theorem_1_laws(ctx: Context) -> ClaimResult:
     """eq:opt-law-1, eq:opt-law-2 against the QP twin's minimiser, on every case."""
     def margin(s: System) -> float:
         worst = 1e-6
+        twin = None if s in ctx.cases else ExpectedCostQP(s, "tcp")     # one object, both protocols
         for p in ("tcp", "udp"):
-            qp = ctx.qp(s, p) if s in ctx.cases else solve_qp(s, p, with_gain=False, cross_check=False)
+            qp = ctx.qp(s, p) if twin is None else twin.solve(with_gain=False, cross_check=False, protocol=p)
             mask = s.mu_schedule.ravel() > 0
             law = closed_form(s, p, "dense").inputs
             diff = np.abs(qp.inputs - law).ravel()[mask]
@@ -38,8 +39,9 @@ def theorem_1_costs(ctx: Context) -> ClaimResult:
     """eq:TCP-opt-cost, eq:UDP-opt-cost as printed against the QP twin's minimum."""
     def margin(s: System) -> float:
         worst = 1e-7
+        twin = None if s in ctx.cases else ExpectedCostQP(s, "tcp")
         for p in ("tcp", "udp"):
-            qp = ctx.qp(s, p) if s in ctx.cases else solve_qp(s, p, with_gain=False, cross_check=False)
+            qp = ctx.qp(s, p) if twin is None else twin.solve(with_gain=False, cross_check=False, protocol=p)
             worst = min(worst, 1e-7 - abs(paper_optimal_cost(s, p) - qp.cost) / max(abs(qp.cost), 1e-9))
         return worst
     return evaluate("theorem-1-costs", ctx, ctx.cases, margin,

@@ -1,0 +1,133 @@
+"""One channel at a time on the dense path, for searches that call J*(mu) thousands of times
+in sequence (the allocation's bisections): vectors instead of stacks, and along a coordinate
+line a Schur complement that factors the fixed channels once.
+
+Both answer exactly what :meth:`~packetloss_cvx.evaluator.CostEvaluator.costs` answers (to
+rounding) or ``None`` when a check fails, and the caller then takes the checked batch path:
+
+* the solve of ``G u = -Omega_gp x`` keeps a relative residual below ``DENSE_RESIDUAL_RTOL``,
+  measured on the full (N m)×(N m) system;
+* the cost ``C - x'Omega_gp' Vbar G^{-1} Omega_gp x`` agrees with the forward cost of its own
+  plan (the mean state from Phi x and Gamma Vbar U, nonnegative stage costs summed) to
+  ``SELF_CHECK_RTOL``, as :func:`~packetloss_cvx.costs.closed_form` requires.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.linalg import lu_factor, lu_solve
+from scipy.linalg.lapack import dgesv as _gesv
+
+from .model import System
+from .prediction import Prediction
+from .tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_RTOL
+
+__all__ = ["OMEGA_DENSE_MAX", "PointEvaluator"]
+
+#: The forward cost uses blkdiag(Omega_1..Omega_N) as one dense matrix up to this many entries.
+OMEGA_DENSE_MAX = 2**20
+
+
+class PointEvaluator:
+    """J*(mu) of one protocol at the system's x0, one point at a time, on the dense path.
+
+    Construction O((N m)^2) (cached vectors of ``pred``). :meth:`cost` O((N m)^3) (one LU);
+    :meth:`line` O((N (m - 1))^3) once, then O(N^3 + (N m)^2) per point.
+    """
+
+    def __init__(self, system: System, protocol: str, pred: Prediction, weights: tuple[np.ndarray, float]) -> None:
+        s, x = system, system.x0
+        self.system, self.pred, self.udp = s, pred, protocol == "udp"
+        self.d = weights[0].ravel()
+        self.g = pred.Omega_gp @ x
+        self.const = float(x @ (s.initial_weight + pred.Omega_p) @ x) + pred.noise_term
+        self.base = float(x @ s.initial_weight @ x) + weights[1]
+        self.Phi_x = pred.Phi @ x
+        self.col2 = np.sum(pred.Omega_g ** 2, axis=0)
+        self.Og_diag = np.diag(pred.Omega_g).copy()
+        self.g_norm = float(np.linalg.norm(self.g))
+        #: blkdiag(Omega_t) as one matrix while small (one matvec per forward cost), else per block
+        self.Omega = pred.Omega if (s.horizon * s.n) ** 2 <= OMEGA_DENSE_MAX else None
+
+    def _diag(self, v: np.ndarray) -> np.ndarray:
+        return self.pred.Psi + (self.pred.Omega_d * (1.0 - v) if self.udp else 0.0)
+
+    def cost(self, mu: np.ndarray) -> float | None:
+        """J*(mu) for a schedule mu (N, m), or None where a check fails. O((N m)^3)."""
+        v = mu.ravel()
+        dg = self._diag(v)
+        G = self.pred.Omega_g * v
+        G.flat[:: v.size + 1] += dg
+        with np.errstate(all="ignore"):
+            _, _, w, info = _gesv(G, self.g, overwrite_a=True)
+        return None if info != 0 else self._checked(v, dg, w)
+
+    def _checked(self, v: np.ndarray, dg: np.ndarray, w: np.ndarray) -> float | None:
+        """The cost of the plan u = -w if the solve's residual and the self-check pass. O((N m)^2)."""
+        s, pred = self.system, self.pred
+        with np.errstate(all="ignore"):
+            r = pred.Omega_g @ (v * w) + dg * w - self.g
+            res = np.sqrt(r @ r)
+            norm_G = np.sqrt(v @ (v * self.col2 + 2.0 * self.Og_diag * dg) + dg @ dg)
+            scale = norm_G * np.sqrt(w @ w) + self.g_norm
+            if not res <= DENSE_RESIDUAL_RTOL * scale:       # also False for NaN (w not finite)
+                return None
+            u = -w
+            z = v * u
+            closed = self.const + float(self.g @ z)
+            X = self.Phi_x + pred.Gamma @ z
+            forward = self.base + float(z @ (pred.Psi * u))
+            if self.udp:
+                forward += float(z @ np.where(v < 1.0, (1.0 - v) * self.d * u, 0.0))
+            forward += float(X @ (self.Omega @ X) if self.Omega is not None else
+                             np.einsum("ti,tij,tj->", X.reshape(s.horizon, s.n), s.state_weights,
+                                       X.reshape(s.horizon, s.n)))
+            ok = np.isfinite(closed) and np.isfinite(forward) and closed >= 0
+            ok = ok and abs(closed - forward) <= SELF_CHECK_RTOL * forward
+        return closed if ok else None
+
+    def line(self, mu: np.ndarray, i: int) -> Callable[[float], float | None] | None:
+        """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,): the other channels' block
+        G_RR of G does not change along the line, so it is factored once and each point solves
+        the N×N Schur complement ``s M + diag(psi_i + [UDP] Omega_d,i (1 - s))`` with
+        ``M = Omega_g,ii - Omega_g,iR V_R G_RR^{-1} Omega_g,Ri``. None when m = 1 or G_RR is
+        singular (use :meth:`cost`). Setup O((N (m - 1))^3 + N^2 N m), each point O(N^3 + (N m)^2)."""
+        s, pred = self.system, self.pred
+        N, m = s.horizon, s.m
+        if m == 1:
+            return None
+        on = np.zeros(N * m, dtype=bool)
+        on[np.arange(N) * m + i] = True
+        v = np.tile(mu, N)
+        vR = v[~on]
+        Og = pred.Omega_g
+        G_RR = Og[np.ix_(~on, ~on)] * vR
+        G_RR.flat[:: vR.size + 1] += self._diag(v)[~on]
+        with np.errstate(all="ignore"):
+            factor = lu_factor(G_RR, check_finite=False)
+            Y = lu_solve(factor, Og[np.ix_(~on, on)], check_finite=False)        # G_RR^{-1} Omega_g,Ri
+            y = lu_solve(factor, self.g[~on], check_finite=False)
+            C = Og[np.ix_(on, ~on)] * vR                                          # G_iR
+            M = Og[np.ix_(on, on)] - C @ Y
+            b = self.g[on] - C @ y
+        if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(y)) and np.all(np.isfinite(M))):
+            return None
+        psi_i, od_i = pred.Psi[on], pred.Omega_d[on]
+
+        def at(value: float) -> float | None:
+            vs = v.copy()
+            vs[on] = value
+            S = M * value
+            S.flat[:: N + 1] += psi_i + (od_i * (1.0 - value) if self.udp else 0.0)
+            with np.errstate(all="ignore"):
+                _, _, w_i, info = _gesv(S, b, overwrite_a=True)
+                if info != 0:
+                    return None
+                w = np.empty(N * m)
+                w[on] = w_i
+                w[~on] = y - value * (Y @ w_i)
+            return self._checked(vs, self._diag(vs), w)
+
+        return at

@@ -1,0 +1,109 @@
+"""The BLAS thread policy: the library's calls run with the limit, the caller's setting is restored,
+nested calls limit once, and the limit can be raised or lifted."""
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
+
+import packetloss_cvx as pl
+import packetloss_cvx.costs as costs_module
+from packetloss_cvx import threads
+from packetloss_cvx.evaluator import CostEvaluator
+
+
+def _blas_threads() -> set[int]:
+    return {lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"}
+
+
+@pytest.fixture
+def spy(monkeypatch):
+    """Record the BLAS thread counts seen inside closed_form (through a function it calls)."""
+    seen = []
+    real = costs_module.udp_variance_weights
+
+    def recording(system):
+        seen.append(_blas_threads())
+        return real(system)
+
+    monkeypatch.setattr(costs_module, "udp_variance_weights", recording)
+    return seen
+
+
+def test_library_calls_run_single_threaded_and_restore_the_callers_setting(two_actuator, spy):
+    if not _blas_threads():
+        pytest.skip("no BLAS thread pool found by threadpoolctl")
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        pl.closed_form(two_actuator, "udp")
+        after = _blas_threads()
+    assert spy == [{1}]
+    assert before == after                     # the caller's setting is back
+
+
+def test_the_limit_can_be_raised_and_lifted(two_actuator, spy):
+    if not _blas_threads():
+        pytest.skip("no BLAS thread pool found by threadpoolctl")
+    try:
+        with threadpool_limits(limits=2, user_api="blas"):
+            callers = _blas_threads()              # 2, or 1 for a library loaded single-threaded
+            threads.set_blas_threads(2)
+            pl.closed_form(two_actuator, "tcp")
+            threads.set_blas_threads(None)
+            pl.closed_form(two_actuator, "tcp")
+    finally:
+        threads.set_blas_threads(1)
+    assert spy == [callers, callers]
+
+
+def test_nested_calls_limit_once(two_actuator, monkeypatch):
+    calls = []
+    real = threads.ThreadpoolController.limit
+
+    def counting(self, *args, **kwargs):
+        calls.append(1)
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(threads.ThreadpoolController, "limit", counting)
+    ev = CostEvaluator(two_actuator, "udp")
+    ev.cost(np.array([0.5, 0.5]))
+    assert len(calls) == 1
+    pl.allocate(two_actuator, "udp", 8.0, [1.0, 1.0])          # hundreds of inner closed forms
+    assert len(calls) == 2
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "two"])
+def test_bad_thread_counts_are_refused(bad):
+    with pytest.raises(pl.InputError, match="threads"):
+        threads.set_blas_threads(bad)
+    assert threads.blas_threads() == 1
+
+
+def test_overlapping_threads_leave_the_process_setting_as_it_was(two_actuator):
+    """Two threads inside the library at once: when both are out, BLAS is as the caller had it."""
+    import threading
+
+    if not _blas_threads():
+        pytest.skip("no BLAS thread pool found by threadpoolctl")
+    before = _blas_threads()
+    inside, release = threading.Event(), threading.Event()
+    real = costs_module.udp_variance_weights
+
+    def slow(system):
+        inside.set()
+        release.wait(5)
+        return real(system)
+
+    costs_module.udp_variance_weights = slow
+    try:
+        first = threading.Thread(target=pl.closed_form, args=(two_actuator, "tcp"))
+        first.start()
+        inside.wait(5)
+        costs_module.udp_variance_weights = real
+        second = threading.Thread(target=pl.closed_form, args=(two_actuator, "udp"))
+        second.start()
+        second.join(5)                                # in and out while the first is inside
+        release.set()
+        first.join(5)
+    finally:
+        costs_module.udp_variance_weights = real
+    assert _blas_threads() == before
