@@ -107,7 +107,7 @@ def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
 
 
 def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
-    """G of Theorem 1 (the Hessian of J is Vbar G)."""
+    """G of Theorem 1 (the Hessian of J is Vbar G): eq:opt-law-1, and eq:opt-law-2 for the UDP-like protocol."""
     G = pred.Omega_g * pred.Vbar[None, :] + np.diag(pred.Psi)
     if protocol == "udp":
         G = G + np.diag(pred.Omega_d * (1.0 - pred.Vbar))
@@ -115,7 +115,7 @@ def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
 
 
 def loss_variance_term(pred: Prediction, u: np.ndarray) -> float:
-    """U' Vbar Omega_d (I - Vbar) U: what the UDP-like cost adds to the TCP-like one (Lemma 1)."""
+    """U' Vbar Omega_d (I - Vbar) U: what the UDP-like cost adds to the TCP-like one (Lemma 1, eq:UDP-err)."""
     v = pred.Vbar
     return float(np.sum(v * pred.Omega_d * (1.0 - v) * u * u))
 
@@ -126,7 +126,10 @@ def _constant(system: System, pred: Prediction) -> float:
 
 
 def dense_cost(system: System, U: np.ndarray, protocol: str, pred: Prediction | None = None) -> float:
-    """J(U) by the paper's dense quadratic form. Time O((N n)^2 N m) to build, O((N m)^2) to evaluate."""
+    """J(U) by the paper's dense quadratic form (eq:opt-lqg-simplest, with eq:plant4 for E[U' Y' Psi Y U]).
+
+    Time O((N n)^2 N m) to build, O((N m)^2) to evaluate.
+    """
     pred = prediction(system) if pred is None else pred
     u = U.ravel()
     v = pred.Vbar
@@ -148,6 +151,8 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     nonnegative stage costs (O(N n^3), no cancellation); ``"dense"`` evaluates the quadratic
     form of eq:opt-lqg-simplest (O((N n)^2 N m)), refused where its condition estimate says
     it would lose digits, and checked against the forward pass.
+    The paper's labels: eq:TCP-prediction-error and eq:lqg-sub-err (the cost with the prediction error),
+    eq:opt-lqg-simplest (its value for a plan U).
     Note: for a fixed plan U, the sampled expectation of the realised cost is
     J_udp(U) under both protocols; J_tcp(U) drops the loss-variance term
     (docs/claims.md, expected-cost-tcp).
@@ -211,7 +216,8 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
 
     References
     ----------
-    eq:opt-law-1, eq:opt-law-2, eq:TCP-opt-cost, eq:UDP-opt-cost (corrected).
+    eq:opt-lqg (the minimisation), eq:control-laws, eq:opt-law-1, eq:opt-law-2, eq:TCP-opt-cost,
+    eq:UDP-opt-cost (corrected).
 
     Examples
     --------

@@ -1,4 +1,4 @@
-"""Stacked prediction matrices Phi, Gamma, Lambda and the Omega_* products (eq:big, §III).
+"""Stacked prediction matrices Phi, Gamma, Lambda and the Omega_* products (big, §III).
 
 Everything here is dense: memory O((N n)^2 + (N n)(N m)), time O(N^2 n^2 (n + m) + (N m)^2 N n).
 For long horizons use :mod:`packetloss_cvx.recursion`, which forms none of these.
@@ -66,7 +66,7 @@ class Prediction:
 
     @cached_property
     def noise_term(self) -> float:
-        """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise)."""
+        """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise; eq:TCP-err)."""
         if not np.any(self.system.noise_cov):
             return 0.0
         return float(np.sum(self.Omega_l * self.Sigma_W))
@@ -91,7 +91,9 @@ def _block_toeplitz(blocks: list[np.ndarray], N: int, r: int, c: int, name: str)
 
 
 def prediction(system: System) -> Prediction:
-    """Build the dense prediction matrices of eq:big and their Omega products.
+    """Build the dense prediction matrices (the paper's big) and their Omega products.
+
+    The paper's labels: big (Phi, Gamma, Lambda), eq:matrix-plant (X = Phi x + Gamma Y U + Lambda W).
 
     Time O((N n)^2 N m + (N m)^2 N n), memory O(N^2 n (n + m)).
 

@@ -39,6 +39,8 @@ def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
 def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     """The diagonal of Omega_g per step and the noise term tr(Omega_l Sigma_W).
 
+    Omega_d (I - Vbar) is the loss-variance term of the UDP-like law, eq:opt-law-2.
+
     Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
     ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m).
     """
@@ -75,7 +77,7 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
 
 def backward_pass(system: System, protocol: str,
                   weights: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """Riccati recursion of the mean-state LQ problem.
+    """Riccati recursion of the mean-state LQ problem: the laws of Theorem 1 (eq:control-laws), step by step.
 
     Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
     the cost-to-go matrix at step 0 (without Q) and the noise term. The Lyapunov sum
@@ -132,7 +134,11 @@ def backward_pass(system: System, protocol: str,
 
 
 def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Roll out ``u_t = -K[t] xhat_t``: returns inputs (N×m) and mean states (N+1×n)."""
+    """Roll out ``u_t = -K[t] xhat_t``: returns inputs (N×m) and mean states (N+1×n).
+
+    The mean states are the expected trajectory of eq:pred-err, Xhat = Phi x + Gamma Vbar U, step by step.
+    Time O(N n (n + m)).
+    """
     A, B, mu = system.A, system.B, system.mu_schedule
     N = system.horizon
     x = np.empty((N + 1, system.n))
