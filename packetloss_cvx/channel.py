@@ -225,6 +225,14 @@ def channel_schedule(channel: Any, m: int, horizon: int, mu: Any,
     (a :class:`GilbertElliott` or its TOML table), the validated channel and its predicted schedule
     ``delivery_schedule(horizon)`` in place of mu. Giving mu or mu_schedule as well is an InputError.
     Time O(N m).
+
+    Examples
+    --------
+    >>> channel_schedule(None, m=1, horizon=2, mu=None, mu_schedule=[[0.5], [0.7]])
+    (None, [[0.5], [0.7]])
+    >>> chan, schedule = channel_schedule({"model": "gilbert-elliott", "p": [0.1], "r": [0.4]}, 1, 2, None, None)
+    >>> schedule[:, 0].tolist()                  # from the stationary belief r / (p + r) = 0.8
+    [0.8, 0.8]
     """
     if channel is None:
         return None, mu_schedule

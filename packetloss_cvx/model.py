@@ -342,7 +342,18 @@ def _sequence(value: Any, field: str, N: int) -> list:
 
 
 def check_system(system: Any, field: str = "system") -> System:
-    """``system`` if it is a :class:`System`; otherwise an InputError saying how to make one."""
+    """``system`` if it is a :class:`System`; otherwise an InputError saying how to make one.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> check_system(s) is s
+    True
+    >>> check_system({"A": [[1.0]]})
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: system: expected a System (...), found dict
+    """
     if not isinstance(system, System):
         raise InputError(field, f"expected a System (packetloss_cvx.System(...), load_system(path) or "
                                 f"load_example(name)), found {type(system).__name__}")

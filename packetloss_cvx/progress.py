@@ -17,7 +17,13 @@ T = TypeVar("T")
 
 
 def wants_progress(progress: bool | None) -> bool:
-    """``progress`` resolved: ``None`` means "when stderr is a terminal"."""
+    """``progress`` resolved: ``None`` means "when stderr is a terminal".
+
+    Examples
+    --------
+    >>> wants_progress(True), wants_progress(False)
+    (True, False)
+    """
     if progress is None:
         isatty = getattr(sys.stderr, "isatty", None)
         return bool(isatty and isatty())
