@@ -101,6 +101,15 @@ def prediction(system: System) -> Prediction:
     ------
     NumericalError
         If any entry overflows (unstable A over a long horizon).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> p = prediction(s)                          # A = 2, B = 1, N = 2, Omega_t = 1
+    >>> p.Phi.ravel().tolist(), p.Gamma.tolist()   # (A, A^2) and [[B, 0], [A B, B]]
+    ([2.0, 4.0], [[1.0, 0.0], [2.0, 1.0]])
+    >>> p.Omega_g.tolist(), p.Omega_d.tolist()     # Gamma' Gamma and its diagonal
+    ([[5.0, 2.0], [2.0, 1.0]], [5.0, 1.0])
     """
     A, B, N = system.A, system.B, system.horizon
     powers = _powers(A, N)
