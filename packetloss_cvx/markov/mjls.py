@@ -51,7 +51,16 @@ DENSE_MAX_DIM = 400
 def mode_chain(channel: GilbertElliott) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(modes, T, h)``: the 2^m joint states (1 = good, channel 0 the most significant), their
     transition matrix (Kronecker product of the channels' chains) and per-mode delivery probabilities.
-    Time O(4^m m)."""
+    Time O(4^m m).
+
+    Examples
+    --------
+    >>> modes, T, h = mode_chain(GilbertElliott(p=[0.1], r=[0.3]))
+    >>> modes.ravel().tolist(), T.tolist(), h.ravel().tolist()    # good then bad; the Gilbert channel
+    ([1, 0], [[0.9, 0.1], [0.3, 0.7]], [1.0, 0.0])
+    >>> mode_chain(GilbertElliott(p=[0.1, 0.2], r=[0.3, 0.4]))[0].tolist()
+    [[1, 1], [1, 0], [0, 1], [0, 0]]
+    """
     m = channel.m
     if m > MAX_CHANNELS:
         raise InputError("channel", f"the MJLS has 2^m modes; expected at most {MAX_CHANNELS} channels, found {m}")
@@ -82,6 +91,15 @@ def check_operator_size(modes: int, n: int) -> None:
     ------
     ResourceError
         ``modes n^2 > MAX_OPERATOR_DIM``: the message names the size, its memory and the way out.
+
+    Examples
+    --------
+    >>> check_operator_size(4, 3) is None         # 4 * 3^2 = 36 rows
+    True
+    >>> check_operator_size(2**10, 10)
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.ResourceError: the MJLS second-moment operator is dense with ...
     """
     dim = modes * n * n
     if dim > MAX_OPERATOR_DIM:
@@ -110,6 +128,14 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott
     moves to (``Q_b <- sum_a T_ab E_{v|b}[G_a Q_a G_a']``, the TCP-like law of a Gilbert channel, whose
     acknowledgement reveals the last state). Time O(M 2^m n^4 + M^2 n^4), memory O(M^2 n^4); refused
     beyond :data:`MAX_OPERATOR_DIM` rows (:func:`check_operator_size`).
+
+    Examples
+    --------
+    >>> # memoryless channel (p = r = 1/2), x+ = (2 - v) x: E[x^2] grows by (4 + 1) / 2
+    >>> op = second_moment_operator(np.array([[2.0]]), np.array([[1.0]]), GilbertElliott(p=[0.5], r=[0.5]),
+    ...                             np.array([[1.0]]))
+    >>> op.shape, round(float(max(abs(np.linalg.eigvals(op)))), 12)
+    ((2, 2), 2.5)
     """
     if delivery not in ("current", "next"):
         raise InputError("delivery", f"expected current or next, found {delivery!r}")
@@ -184,6 +210,14 @@ def moment_step(Q: np.ndarray, K: np.ndarray, R: np.ndarray, A: np.ndarray, B: n
     ``Q'_b = sum_a R_ab E_{v|b}[G_a Q_a G_a']``, ``KQK[b] = sum_a R_ab K_a Q_a K_a'``. With
     ``E_{v|c}[G Q G'] = AQA' - AQK'H_c B' - B H_c KQA' + B((KQK') ∘ H2_c)B'``; the expected input cost is
     ``sum_c sum_i psi_i h_ci KQK[c]_ii``. Time O(a M n^2 + a n^2 (n + m)).
+
+    Examples
+    --------
+    >>> # one mode delivering half the time, x+ = (2 - v) x from E[x^2] = 1: E[(2 - v)^2] = (4 + 1) / 2
+    >>> Qn, KQK = moment_step(np.ones((1, 1, 1)), np.ones((1, 1, 1)), np.ones((1, 1)), np.array([[2.0]]),
+    ...                       np.array([[1.0]]), np.array([[0.5]]), np.array([[[0.5]]]), "current")
+    >>> Qn.ravel().tolist(), KQK.ravel().tolist()
+    ([2.5], [1.0])
     """
     AQA = np.einsum("ij,ajk,lk->ail", A, Q, A)
     C = np.einsum("ij,ajk,alk->ail", A, Q, K)                                                  # A Q_a K_a'
@@ -196,7 +230,13 @@ def moment_step(Q: np.ndarray, K: np.ndarray, R: np.ndarray, A: np.ndarray, B: n
 
 
 def delivery_moments(h: np.ndarray) -> np.ndarray:
-    """``E[v v' | mode] = h h' + diag(h (1 - h))`` per mode (independent channels), (M, m, m). O(M m^2)."""
+    """``E[v v' | mode] = h h' + diag(h (1 - h))`` per mode (independent channels), (M, m, m). O(M m^2).
+
+    Examples
+    --------
+    >>> delivery_moments(np.array([[0.5, 1.0]])).tolist()     # h h' + diag(h (1 - h))
+    [[[0.5, 0.5], [0.5, 1.0]]]
+    """
     return h[:, :, None] * h[:, None, :] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(h.shape[1]))
 
 
@@ -252,6 +292,14 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     ``Q_{a,t} = E[x_t x_t' 1{mode = a}]`` (CFM05, ch. 3), using ``E[v | b] = h_b`` and
     ``E[v v' | b] = h_b h_b' + diag(h_b (1 - h_b))``; noise enters with P(mode). Entries stay inf past an overflow.
     Time O(steps (M^2 n^2 + M (n^3 + n^2 m))), memory O(M n^2 + steps M m n).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.5], r=[0.5]))
+    >>> # u = -x: t = 0, 1 + E[v] = 1.5; t = 1, E[x_1^2] = 2.5 and 2.5 E[v] = 1.25
+    >>> jump_law_stage_costs(s, np.ones((2, 1, 1)), 2).tolist()
+    [1.5, 3.75]
     """
     system = check_system(system)
     if system.channel is None:
@@ -309,6 +357,19 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
     NumericalError
         No convergence within ``max_iter`` (the loop is not mean-square stabilisable, or barely),
         or a residual of the coupled equations above ``SELF_CHECK_RTOL`` relative to max ||P_a||.
+
+    Examples
+    --------
+    >>> import scipy.linalg as sla
+    >>> # p = 0, r = 1: the channel is always good after the first step, so the good mode's gain is the LQR gain
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.0], r=[1.0]))
+    >>> res = coupled_riccati(s)
+    >>> P = sla.solve_discrete_are(s.A, s.B, np.eye(1), np.eye(1))
+    >>> bool(np.isclose(res.gains[0, 0, 0], 2 * P[0, 0] / (1 + P[0, 0])))
+    True
+    >>> bool(np.isclose(res.spectral_radius, (2 - res.gains[0, 0, 0]) ** 2))      # |A - B K|^2 in the good mode
+    True
     """
     system = check_system(system)
     if system.channel is None:
