@@ -25,6 +25,16 @@ class Prediction:
     ``Vbar`` and ``Psi`` are the diagonals of the paper's diagonal matrices, ordered
     step-major: entry ``t * m + i`` is actuator i at step t. ``Lambda`` and
     ``Omega_l`` are built on first use (only the noise term needs them).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0],
+    ...            noise_cov=[[0.1]])
+    >>> p = prediction(s)
+    >>> p.Lambda.tolist(), p.Omega_h.tolist()      # A^{i-j} below the diagonal; Omega_g off its diagonal
+    ([[1.0, 0.0], [1.0, 1.0]], [[0.0, 1.0], [1.0, 0.0]])
+    >>> round(p.noise_term, 12)                    # tr(Lambda' Lambda Sigma_W) = (2 + 1) * 0.1
+    0.3
     """
 
     system: System

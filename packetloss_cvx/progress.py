@@ -31,7 +31,16 @@ def wants_progress(progress: bool | None) -> bool:
 
 
 class Bar:
-    """A no-op stand-in for a tqdm bar (the same ``update``/``close``/iteration interface)."""
+    """A no-op stand-in for a tqdm bar (the same ``update``/``close``/iteration interface).
+
+    Examples
+    --------
+    >>> with Bar(range(3)) as bar:
+    ...     total = sum(bar)
+    ...     bar.update(3)
+    >>> total
+    3
+    """
 
     def __init__(self, iterable: Iterable[Any] | None = None) -> None:
         self.iterable = iterable
