@@ -38,8 +38,9 @@ class Bar:
     >>> with Bar(range(3)) as bar:
     ...     total = sum(bar)
     ...     bar.update(3)
-    >>> total
-    3
+    ...     bar.set_postfix_str("done")
+    >>> total, bar.close()                 # every call is accepted and shows nothing
+    (3, None)
     """
 
     def __init__(self, iterable: Iterable[Any] | None = None) -> None:
