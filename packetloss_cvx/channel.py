@@ -200,14 +200,7 @@ class GilbertElliott:
 
     def beliefs(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """P(S_{i,t} = good) for t = 0..horizon-1 from ``belief`` (default the initial one), (N, m).
-        b_{t+1} = r + lambda b_t (constant from the stationary distribution). Time O(N m).
-
-        Examples
-        --------
-        >>> ch = GilbertElliott(p=[0.1], r=[0.3], belief=[1.0])     # lambda = 1 - p - r = 0.6
-        >>> bool(np.allclose(ch.beliefs(3)[:, 0], [1.0, 0.3 + 0.6, 0.3 + 0.6 * 0.9]))
-        True
-        """
+        b_{t+1} = r + lambda b_t (constant from the stationary distribution). Time O(N m)."""
         if belief is None and self.belief is None:      # stationary: exactly constant (no drift by rounding)
             return np.repeat(self.stationary[None], horizon, axis=0)
         b = np.array(self.initial_belief if belief is None else belief, dtype=float)

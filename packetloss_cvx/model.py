@@ -303,17 +303,7 @@ class System:
 
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
-        """A System with the A, B of a discrete-time control.StateSpace (statespace.plant_matrices) and ``fields``.
-
-        Examples
-        --------
-        >>> import control
-        >>> plant = control.ss([[1.0, 0.1], [0.0, 1.0]], [[0.0], [0.1]], [[1.0, 0.0]], [[0.0]], dt=0.1)
-        >>> s = System.from_statespace(plant, horizon=3, state_weight=[1.0, 1.0], input_weight=[1.0], mu=[0.9],
-        ...                            x0=[1.0, 0.0])
-        >>> s.A.tolist(), s.B.tolist()
-        ([[1.0, 0.1], [0.0, 1.0]], [[0.0], [0.1]])
-        """
+        """A System with the A, B of a discrete-time control.StateSpace (statespace.plant_matrices) and ``fields``."""
         return cls(**plant_matrices(sys), **fields)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
