@@ -133,7 +133,14 @@ class GilbertElliott:
 
     @classmethod
     def from_table(cls, table: Mapping[str, Any], prefix: str = "channel.") -> GilbertElliott:
-        """Build from the TOML ``[channel]`` table (keys model, p, r, h_good, h_bad, state, belief)."""
+        """Build from the TOML ``[channel]`` table (keys model, p, r, h_good, h_bad, state, belief).
+
+        Examples
+        --------
+        >>> ch = GilbertElliott.from_table({"model": "gilbert-elliott", "p": [0.1], "r": [0.4], "state": ["bad"]})
+        >>> ch.initial_belief.tolist(), GilbertElliott.from_table(ch.to_dict()).to_dict() == ch.to_dict()
+        ([0.0], True)
+        """
         if not isinstance(table, Mapping):
             raise InputError(prefix.rstrip("."), f"expected a table, found {type(table).__name__}")
         unknown = [k for k in table if k not in _KEYS]
@@ -204,12 +211,25 @@ class GilbertElliott:
         return out
 
     def delivery_schedule(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
-        """Predicted mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}, (N, m), clipped to [0, 1]. Time O(N m)."""
+        """Predicted mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}, (N, m), clipped to [0, 1]. Time O(N m).
+
+        Examples
+        --------
+        >>> ch = GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.1], belief=[1.0])
+        >>> bool(np.allclose(ch.delivery_schedule(2)[:, 0], [0.9, 0.1 + 0.8 * 0.9]))     # h_bad + (h_good - h_bad) b_t
+        True
+        """
         mu = self.h_bad + (self.h_good - self.h_bad) * self.beliefs(horizon, belief)
         return np.clip(mu, 0.0, 1.0)
 
     def to_dict(self) -> dict[str, Any]:
-        """The TOML ``[channel]`` table (``from_table`` reads it back)."""
+        """The TOML ``[channel]`` table (``from_table`` reads it back).
+
+        Examples
+        --------
+        >>> GilbertElliott(p=[0.1], r=[0.3], state=["good"]).to_dict()
+        {'model': 'gilbert-elliott', 'p': [0.1], 'r': [0.3], 'h_good': [1.0], 'h_bad': [0.0], 'state': ['good']}
+        """
         out: dict[str, Any] = {"model": MODEL, "p": self.p.tolist(), "r": self.r.tolist(),
                                "h_good": self.h_good.tolist(), "h_bad": self.h_bad.tolist()}
         if self.belief is not None and self.state_given:
@@ -225,6 +245,14 @@ def channel_schedule(channel: Any, m: int, horizon: int, mu: Any,
     (a :class:`GilbertElliott` or its TOML table), the validated channel and its predicted schedule
     ``delivery_schedule(horizon)`` in place of mu. Giving mu or mu_schedule as well is an InputError.
     Time O(N m).
+
+    Examples
+    --------
+    >>> channel_schedule(None, m=1, horizon=2, mu=None, mu_schedule=[[0.5], [0.7]])
+    (None, [[0.5], [0.7]])
+    >>> chan, schedule = channel_schedule({"model": "gilbert-elliott", "p": [0.1], "r": [0.4]}, 1, 2, None, None)
+    >>> schedule[:, 0].tolist()                  # from the stationary belief r / (p + r) = 0.8
+    [0.8, 0.8]
     """
     if channel is None:
         return None, mu_schedule

@@ -32,6 +32,15 @@ def solve_problem(problem: cp.Problem, what: str,
     ------
     SolverError
         When cvxpy or Clarabel fails outright (status ``"solver_error"``).
+
+    Examples
+    --------
+    >>> x = cp.Variable()
+    >>> problem = cp.Problem(cp.Minimize(cp.square(x - 1)))
+    >>> solve_problem(problem, "a scalar QP")
+    'optimal'
+    >>> bool(abs(x.value - 1.0) < 1e-6)
+    True
     """
     status = "not_solved"
     for settings in attempts:
@@ -50,6 +59,16 @@ def solve_problem(problem: cp.Problem, what: str,
 
 
 def require_optimal(status: str, what: str) -> None:
-    """Raise :class:`SolverError` unless ``status`` is an accepted answer."""
+    """Raise :class:`SolverError` unless ``status`` is an accepted answer.
+
+    Examples
+    --------
+    >>> require_optimal("optimal", "the QP") is None
+    True
+    >>> require_optimal("infeasible", "the QP")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.SolverError: solver status 'infeasible': the QP
+    """
     if status not in ACCEPTED_STATUSES:
         raise SolverError(status, what)

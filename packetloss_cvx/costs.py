@@ -40,7 +40,18 @@ AUTO_DENSE_MAX = 160
 
 def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] | None = None) -> str:
     """Resolve ``"auto"`` to the faster exact path: ``"dense"`` for small, well-conditioned
-    problems, ``"recursion"`` otherwise. Time O(N n^3) (the condition estimate)."""
+    problems, ``"recursion"`` otherwise. Time O(N n^3) (the condition estimate).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> pick_method(s, "auto")                     # N m = 2 variables, well conditioned
+    'dense'
+    >>> pick_method(s, "qr")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: method: expected 'auto', 'dense' or 'recursion', found 'qr'
+    """
     if method == "auto":
         if system.horizon * system.m > AUTO_DENSE_MAX:
             return "recursion"
@@ -51,7 +62,14 @@ def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] |
 
 
 def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
-    """Raise before building anything dense that would not fit or would lose the answer."""
+    """Raise before building anything dense that would not fit or would lose the answer.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> refuse_dense(s, udp_variance_weights(s)) is None       # small and well conditioned: no objection
+    True
+    """
     N, n, m = system.horizon, system.n, system.m
     # Gamma, Omega Gamma, Omega_g, G and its LU; the powers of A, Phi and Omega Phi
     needed = 8.0 * (3 * (N * n) * (N * m) + 2 * (N * m) ** 2 + 4 * N * n * n)
@@ -86,7 +104,14 @@ def _verified(system: System, protocol: str, closed: float, U: np.ndarray, metho
 
 
 def weight_spread(system: System) -> str:
-    """Which weights span how much: the usual cause of a failed self-check."""
+    """Which weights span how much: the usual cause of a failed self-check.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> weight_spread(s).split(": ")[1].split(";")[0]          # all weights are 1
+    'the weights span 1.0e+00'
+    """
     w = np.linalg.eigvalsh(system.state_weights)
     positive = w[w > 0]
     psi = system.input_weights
@@ -98,7 +123,18 @@ def weight_spread(system: System) -> str:
 
 
 def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
-    """The N×m input sequence as a float array, or :class:`InputError` naming ``inputs``."""
+    """The N×m input sequence as a float array, or :class:`InputError` naming ``inputs``.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> check_inputs(s, [[1], [2]]).tolist()
+    [[1.0], [2.0]]
+    >>> check_inputs(s, [[1.0, 2.0]])
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.DimensionError: inputs: expected shape (2, 1) but found (1, 2)
+    """
     U = numeric_array(inputs, "inputs")
     shape = (system.horizon, system.m)
     if U.shape != shape:
@@ -107,7 +143,17 @@ def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
 
 
 def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
-    """G of Theorem 1 (the Hessian of J is Vbar G)."""
+    """G of Theorem 1 (the Hessian of J is Vbar G): eq:opt-law-1, and eq:opt-law-2 for the UDP-like protocol.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> p = prediction(s)                          # Omega_g = [[5, 2], [2, 1]], Vbar = 0.5 I, Psi = I
+    >>> hessian_factor(p, "tcp").tolist()          # Omega_g Vbar + Psi
+    [[3.5, 1.0], [1.0, 1.5]]
+    >>> hessian_factor(p, "udp").tolist()          # + Omega_d (I - Vbar) = diag(2.5, 0.5)
+    [[6.0, 1.0], [1.0, 2.0]]
+    """
     G = pred.Omega_g * pred.Vbar[None, :] + np.diag(pred.Psi)
     if protocol == "udp":
         G = G + np.diag(pred.Omega_d * (1.0 - pred.Vbar))
@@ -115,7 +161,14 @@ def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
 
 
 def loss_variance_term(pred: Prediction, u: np.ndarray) -> float:
-    """U' Vbar Omega_d (I - Vbar) U: what the UDP-like cost adds to the TCP-like one (Lemma 1)."""
+    """U' Vbar Omega_d (I - Vbar) U: what the UDP-like cost adds to the TCP-like one (Lemma 1, eq:UDP-err).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> loss_variance_term(prediction(s), np.array([1.0, 1.0]))     # 0.5 * 0.5 * (5 + 1)
+    1.5
+    """
     v = pred.Vbar
     return float(np.sum(v * pred.Omega_d * (1.0 - v) * u * u))
 
@@ -126,7 +179,10 @@ def _constant(system: System, pred: Prediction) -> float:
 
 
 def dense_cost(system: System, U: np.ndarray, protocol: str, pred: Prediction | None = None) -> float:
-    """J(U) by the paper's dense quadratic form. Time O((N n)^2 N m) to build, O((N m)^2) to evaluate."""
+    """J(U) by the paper's dense quadratic form (eq:opt-lqg-simplest, with eq:plant4 for E[U' Y' Psi Y U]).
+
+    Time O((N n)^2 N m) to build, O((N m)^2) to evaluate.
+    """
     pred = prediction(system) if pred is None else pred
     u = U.ravel()
     v = pred.Vbar
@@ -148,6 +204,8 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     nonnegative stage costs (O(N n^3), no cancellation); ``"dense"`` evaluates the quadratic
     form of eq:opt-lqg-simplest (O((N n)^2 N m)), refused where its condition estimate says
     it would lose digits, and checked against the forward pass.
+    The paper's labels: eq:TCP-prediction-error and eq:lqg-sub-err (the cost with the prediction error),
+    eq:opt-lqg-simplest (its value for a plan U).
     Note: for a fixed plan U, the sampled expectation of the realised cost is
     J_udp(U) under both protocols; J_tcp(U) drops the loss-variance term
     (docs/claims.md, expected-cost-tcp).
@@ -211,7 +269,8 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
 
     References
     ----------
-    eq:opt-law-1, eq:opt-law-2, eq:TCP-opt-cost, eq:UDP-opt-cost (corrected).
+    eq:opt-lqg (the minimisation), eq:control-laws, eq:opt-law-1, eq:opt-law-2, eq:TCP-opt-cost,
+    eq:UDP-opt-cost (corrected).
 
     Examples
     --------
@@ -268,6 +327,14 @@ def paper_optimal_cost(system: System, protocol: str) -> float:
 
     Kept for the audit: it equals the true minimum only when Vbar commutes with
     G (e.g. one shared channel, Vbar = nu I). Use :func:`closed_form` for the cost.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> paper_optimal_cost(s, "udp")               # one channel, Vbar = mu I: the printed form is exact
+    0.75
+    >>> bool(np.isclose(paper_optimal_cost(s, "udp"), closed_form(s, "udp").cost))
+    True
     """
     protocol = check_protocol(protocol)
     pred = prediction(system)

@@ -36,6 +36,18 @@ def system_from_dict(data: Mapping[str, Any]) -> System:
     """Build a :class:`System` from the TOML schema's structure (see docs/design.md §4).
 
     Errors name the TOML path of the offending field (``cost.state_weight``).
+
+    Examples
+    --------
+    >>> data = {"plant": {"A": [[1.0]], "B": [[1.0]]}, "channel": {"mu": [0.5]}, "state": {"x0": [1.0]},
+    ...         "cost": {"horizon": 3, "state_weight": [1.0], "input_weight": [2.0]}}
+    >>> s = system_from_dict(data)
+    >>> (s.n, s.m, s.horizon, s.mu_schedule[:, 0].tolist())
+    (1, 1, 3, [0.5, 0.5, 0.5])
+    >>> system_from_dict({**data, "cost": {**data["cost"], "state_weight": [-1.0]}})
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: cost.state_weight: expected a non-negative diagonal (positive semidefinite weight)
     """
     if not isinstance(data, Mapping):
         raise InputError("<file>", "expected a table")
@@ -91,7 +103,13 @@ MAX_FILE_BYTES = 16 * 2**20
 
 
 def example_names() -> list[str]:
-    """Names of the example systems shipped with the package (``load_example`` takes them)."""
+    """Names of the example systems shipped with the package (``load_example`` takes them).
+
+    Examples
+    --------
+    >>> {"pendulum", "two_actuator"} <= set(example_names())
+    True
+    """
     folder = resources.files(__package__) / "examples"
     return sorted(item.name.removesuffix(".toml") for item in folder.iterdir() if item.name.endswith(".toml"))
 
@@ -123,6 +141,12 @@ def load_system(path: str | Path) -> System:
     InputError
         Missing or unreadable file (field ``file``), invalid TOML, or any field
         that fails validation (named by its TOML path).
+
+    Examples
+    --------
+    >>> s = load_system("two_actuator")          # not a file here: the packaged example (paper §V-B)
+    >>> s.B.tolist(), s.mu_schedule[0].tolist()
+    ([[1.0, 0.0], [0.0, 1.0]], [0.9, 0.5])
     """
     text = str(path)
     if "\x00" in text:
@@ -160,7 +184,16 @@ def _parse(data: bytes, where: str) -> System:
 
 
 def dumps_system(system: System) -> str:
-    """The system as TOML text in the schema of docs/design.md §4 (``load_system`` reads it back)."""
+    """The system as TOML text in the schema of docs/design.md §4 (``load_system`` reads it back).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = load_example("pendulum")
+    >>> again = system_from_dict(tomllib.loads(dumps_system(s)))      # the text reads back to the same system
+    >>> all(np.array_equal(getattr(again, k), getattr(s, k)) for k in ("A", "B", "x0", "mu_schedule"))
+    True
+    """
     data = system.to_dict()
     lines = [f"name = {_toml_value(data.pop('name'))}", ""] if "name" in data else []
     for section, table in data.items():
@@ -171,7 +204,18 @@ def dumps_system(system: System) -> str:
 
 
 def save_system(system: System, path: str | Path) -> Path:
-    """Write ``system`` to ``path`` as TOML; returns the path."""
+    """Write ``system`` to ``path`` as TOML; returns the path.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> s = load_example("two_actuator")
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = save_system(s, Path(tmp) / "plant.toml")
+    ...     again = load_system(path)
+    >>> path.name, dumps_system(again) == dumps_system(s)
+    ('plant.toml', True)
+    """
     path = Path(path)
     if not isinstance(system, System):
         raise InputError("system", f"expected a System, found {type(system).__name__}")

@@ -11,7 +11,17 @@ __all__ = ["check_finite", "power_growth", "psd_factor", "solve_checked"]
 
 
 def psd_factor(W: np.ndarray) -> np.ndarray:
-    """L with L'L = W for a symmetric PSD W (eigen-decomposition; zero rows dropped)."""
+    """L with L'L = W for a symmetric PSD W (eigen-decomposition; zero rows dropped).
+
+    Examples
+    --------
+    >>> W = np.array([[2.0, 1.0], [1.0, 2.0]])
+    >>> L = psd_factor(W)
+    >>> bool(np.allclose(L.T @ L, W))
+    True
+    >>> psd_factor(np.diag([4.0, 0.0])).round(12).tolist()      # the zero direction is dropped
+    [[2.0, 0.0]]
+    """
     vals, vecs = np.linalg.eigh(W)
     keep = vals > PSD_FACTOR_RTOL * max(0.0, float(vals.max(initial=0.0)))   # relative: tiny weights are kept
     return np.sqrt(vals[keep])[:, None] * vecs[:, keep].T
@@ -21,7 +31,17 @@ def check_finite(name: str, arr: np.ndarray | float,
                  why: str = "the dense prediction of an unstable plant over a long horizon",
                  advice: str = "use method='recursion'") -> np.ndarray | float:
     """Return ``arr``, or raise :class:`NumericalError` saying that ``name`` overflowed, ``why``,
-    and the ``advice``."""
+    and the ``advice``.
+
+    Examples
+    --------
+    >>> check_finite("Phi", np.ones(2)).tolist()
+    [1.0, 1.0]
+    >>> check_finite("Phi", np.array([1.0, np.inf]), why="A is unstable", advice="shorten the horizon")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.NumericalError: Phi overflowed (A is unstable); shorten the horizon
+    """
     if not np.all(np.isfinite(arr)):
         raise NumericalError(f"{name} overflowed ({why}); {advice}")
     return arr
@@ -32,6 +52,15 @@ def solve_checked(G: np.ndarray, rhs: np.ndarray, name: str, instead: str = "met
     ``||G X - rhs|| / (||G|| ||X|| + ||rhs||)`` is at most ``DENSE_RESIDUAL_RTOL``.
 
     Time O(k^3) for a k×k ``G``. Raises :class:`NumericalError` naming ``name`` and ``instead``.
+
+    Examples
+    --------
+    >>> solve_checked(np.array([[2.0, 0.0], [0.0, 4.0]]), np.array([1.0, 1.0]), "G").tolist()
+    [0.5, 0.25]
+    >>> solve_checked(np.zeros((2, 2)), np.ones(2), "G")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.NumericalError: G: the matrix is singular to working precision; use method='recursion'
     """
     with np.errstate(all="ignore"):
         try:
@@ -47,7 +76,17 @@ def solve_checked(G: np.ndarray, rhs: np.ndarray, name: str, instead: str = "met
 
 
 def power_growth(A: np.ndarray, N: int, cap: float = np.inf) -> float:
-    """max over t = 0..N of ||A^t||_2 (stops early once it exceeds ``cap``). Time O(N n^3)."""
+    """max over t = 0..N of ||A^t||_2 (stops early once it exceeds ``cap``). Time O(N n^3).
+
+    Examples
+    --------
+    >>> power_growth(np.array([[0.5]]), 10)          # ||A^0|| = 1 is the largest
+    1.0
+    >>> power_growth(np.array([[2.0]]), 3)           # ||A^3|| = 8
+    8.0
+    >>> power_growth(np.array([[2.0]]), 100, cap=10.0)   # stops at 2^4 = 16 > cap
+    16.0
+    """
     P = np.eye(A.shape[0])
     worst = 1.0
     with np.errstate(over="ignore", invalid="ignore"):

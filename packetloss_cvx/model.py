@@ -283,7 +283,16 @@ class System:
         return new
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
-        """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel)."""
+        """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
+
+        Examples
+        --------
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> s.with_mu([0.9]).mu_schedule.ravel().tolist(), s.with_mu([[0.2], [0.4]]).mu_schedule.ravel().tolist()
+        ([0.9, 0.9], [0.2, 0.4])
+        >>> s.mu_schedule.ravel().tolist()          # the original is unchanged (immutable)
+        [0.5, 0.5]
+        """
         N, m = self.horizon, self.m
         if np.ndim(mu) == 2:
             sched = _probabilities(_matrix(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
@@ -298,11 +307,26 @@ class System:
         return cls(**plant_matrices(sys), **fields)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
-        """A copy with a new initial state."""
+        """A copy with a new initial state.
+
+        Examples
+        --------
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> s.with_x0([2.0]).x0.tolist(), s.x0.tolist()
+        ([2.0], [1.0])
+        """
         return self._copy_with(x0=_frozen(_vector(x0, "x0", self.n, f"({self.n},)")))
 
     def to_dict(self) -> dict[str, Any]:
-        """The system in the TOML schema's structure (plain lists), e.g. for JSON."""
+        """The system in the TOML schema's structure (plain lists), e.g. for JSON.
+
+        Examples
+        --------
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> d = s.to_dict()
+        >>> d["cost"]["horizon"], d["cost"]["state_weight"], d["plant"]["A"]
+        (2, [1.0], [[1.0]])
+        """
         def weight(mat: np.ndarray) -> list:
             return np.diag(mat).tolist() if np.allclose(mat, np.diag(np.diag(mat)), rtol=0, atol=0) else mat.tolist()
 
@@ -342,7 +366,18 @@ def _sequence(value: Any, field: str, N: int) -> list:
 
 
 def check_system(system: Any, field: str = "system") -> System:
-    """``system`` if it is a :class:`System`; otherwise an InputError saying how to make one."""
+    """``system`` if it is a :class:`System`; otherwise an InputError saying how to make one.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> check_system(s) is s
+    True
+    >>> check_system({"A": [[1.0]]})
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: system: expected a System (...), found dict
+    """
     if not isinstance(system, System):
         raise InputError(field, f"expected a System (packetloss_cvx.System(...), load_system(path) or "
                                 f"load_example(name)), found {type(system).__name__}")

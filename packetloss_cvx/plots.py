@@ -77,6 +77,14 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     InputError
         Malformed rows or non-finite numbers (field ``curves[label][k]``), or a path that
         cannot be written (field ``path``).
+
+    Examples
+    --------
+    >>> rows = [{"alpha": 1.0, "communication_cost": 2.0}, {"alpha": 2.0, "communication_cost": None},
+    ...         {"alpha": 3.0, "communication_cost": 0.5}]
+    >>> line, = plot_pareto({"tcp": rows}).axes[0].lines       # the infeasible row is left out
+    >>> line.get_xdata().tolist(), line.get_ydata().tolist()
+    ([1.0, 3.0], [2.0, 0.5])
     """
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a non-empty mapping label -> rows")
@@ -127,6 +135,14 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
     InputError
         Shapes that do not match, non-finite or non-positive costs, malformed rows, or a
         path that cannot be written; the field is named.
+
+    Examples
+    --------
+    >>> axis = [0.1, 0.5, 1.0]
+    >>> costs = [[9.0, 6.0, 5.0], [6.0, 3.0, 2.0], [5.0, 2.0, 1.0]]     # falls as either mu rises
+    >>> fig = plot_allocation_contours(axis, costs, {(1, 1): [{"mu": (0.5, 1.0)}, {"mu": None}]}, [2.0, 5.0])
+    >>> [(line.get_xdata().tolist(), line.get_ydata().tolist()) for line in fig.axes[0].lines]
+    [([0.5], [1.0])]
     """
     grid = numeric_array(axis, "axis")
     if grid.ndim != 1 or grid.size < 2 or np.any(np.diff(grid) <= 0):
@@ -190,6 +206,13 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     ------
     InputError
         Missing keys or mismatched lengths (field ``curves[law]``), or a path that cannot be written.
+
+    Examples
+    --------
+    >>> run = {"state_norm_mean": [1.0, 0.5, 0.25], "state_norm_std": [0.0, 0.1, 0.1], "stage_cost_mean": [2.0, 1.0]}
+    >>> left, right = plot_closed_loop({"tcp": run}).axes
+    >>> left.lines[0].get_ydata().tolist(), right.lines[0].get_ydata().tolist()    # right: the running sum
+    ([1.0, 0.5, 0.25], [2.0, 3.0])
     """
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a non-empty mapping law -> curves")
@@ -261,6 +284,13 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
     ------
     InputError
         Shapes that do not match or non-finite numbers (the field named), an unwritable path.
+
+    Examples
+    --------
+    >>> fig = plot_cost_lines([0.1, 0.5, 0.9], {"tcp": [1.0, np.e, 0.0]}, xlabel="nu", marker=0.5)
+    >>> ys = fig.axes[0].lines[0].get_ydata()             # natural logarithms; 0 is left blank
+    >>> ys[:2].tolist(), bool(np.isnan(ys[2]))
+    ([0.0, 1.0], True)
     """
     xs = numeric_array(x, "x")
     if xs.ndim != 1 or xs.size < 1:
@@ -323,6 +353,14 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     ------
     InputError
         Shapes that do not match, non-finite numbers, malformed points, an unwritable path.
+
+    Examples
+    --------
+    >>> fig = plot_log_contour([0.0, 1.0], [0.0, 0.5, 1.0], np.exp([[0.0, 1.0], [1.0, 2.0], [2.0, 3.0]]),
+    ...                        marker=(0.5, 0.5))
+    >>> ax, bar = fig.axes           # the colours span the 2nd percentile of the logs (0.1) to their maximum (3)
+    >>> bool(np.allclose(bar.get_ylim(), [0.1, 3.0])), ax.lines[0].get_xydata().tolist()
+    (True, [[0.5, 0.5]])
     """
     gx, gy = numeric_array(axis_x, "axis_x"), numeric_array(axis_y, "axis_y")
     for name, g in (("axis_x", gx), ("axis_y", gy)):

@@ -1,4 +1,4 @@
-"""Stacked prediction matrices Phi, Gamma, Lambda and the Omega_* products (eq:big, §III).
+"""Stacked prediction matrices Phi, Gamma, Lambda and the Omega_* products (big, §III).
 
 Everything here is dense: memory O((N n)^2 + (N n)(N m)), time O(N^2 n^2 (n + m) + (N m)^2 N n).
 For long horizons use :mod:`packetloss_cvx.recursion`, which forms none of these.
@@ -25,6 +25,16 @@ class Prediction:
     ``Vbar`` and ``Psi`` are the diagonals of the paper's diagonal matrices, ordered
     step-major: entry ``t * m + i`` is actuator i at step t. ``Lambda`` and
     ``Omega_l`` are built on first use (only the noise term needs them).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0],
+    ...            noise_cov=[[0.1]])
+    >>> p = prediction(s)
+    >>> p.Lambda.tolist(), p.Omega_h.tolist()      # A^{i-j} below the diagonal; Omega_g off its diagonal
+    ([[1.0, 0.0], [1.0, 1.0]], [[0.0, 1.0], [1.0, 0.0]])
+    >>> round(p.noise_term, 12)                    # tr(Lambda' Lambda Sigma_W) = (2 + 1) * 0.1
+    0.3
     """
 
     system: System
@@ -66,7 +76,7 @@ class Prediction:
 
     @cached_property
     def noise_term(self) -> float:
-        """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise)."""
+        """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise; eq:TCP-err)."""
         if not np.any(self.system.noise_cov):
             return 0.0
         return float(np.sum(self.Omega_l * self.Sigma_W))
@@ -91,7 +101,9 @@ def _block_toeplitz(blocks: list[np.ndarray], N: int, r: int, c: int, name: str)
 
 
 def prediction(system: System) -> Prediction:
-    """Build the dense prediction matrices of eq:big and their Omega products.
+    """Build the dense prediction matrices (the paper's big) and their Omega products.
+
+    The paper's labels: big (Phi, Gamma, Lambda), eq:matrix-plant (X = Phi x + Gamma Y U + Lambda W).
 
     Time O((N n)^2 N m + (N m)^2 N n), memory O(N^2 n (n + m)).
 
@@ -99,6 +111,15 @@ def prediction(system: System) -> Prediction:
     ------
     NumericalError
         If any entry overflows (unstable A over a long horizon).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> p = prediction(s)                          # A = 2, B = 1, N = 2, Omega_t = 1
+    >>> p.Phi.ravel().tolist(), p.Gamma.tolist()   # (A, A^2) and [[B, 0], [A B, B]]
+    ([2.0, 4.0], [[1.0, 0.0], [2.0, 1.0]])
+    >>> p.Omega_g.tolist(), p.Omega_d.tolist()     # Gamma' Gamma and its diagonal
+    ([[5.0, 2.0], [2.0, 1.0]], [5.0, 1.0])
     """
     A, B, N = system.A, system.B, system.horizon
     powers = _powers(A, N)

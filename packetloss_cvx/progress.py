@@ -17,7 +17,13 @@ T = TypeVar("T")
 
 
 def wants_progress(progress: bool | None) -> bool:
-    """``progress`` resolved: ``None`` means "when stderr is a terminal"."""
+    """``progress`` resolved: ``None`` means "when stderr is a terminal".
+
+    Examples
+    --------
+    >>> wants_progress(True), wants_progress(False)
+    (True, False)
+    """
     if progress is None:
         isatty = getattr(sys.stderr, "isatty", None)
         return bool(isatty and isatty())
@@ -25,7 +31,17 @@ def wants_progress(progress: bool | None) -> bool:
 
 
 class Bar:
-    """A no-op stand-in for a tqdm bar (the same ``update``/``close``/iteration interface)."""
+    """A no-op stand-in for a tqdm bar (the same ``update``/``close``/iteration interface).
+
+    Examples
+    --------
+    >>> with Bar(range(3)) as bar:
+    ...     total = sum(bar)
+    ...     bar.update(3)
+    ...     bar.set_postfix_str("done")
+    >>> total, bar.close()                 # every call is accepted and shows nothing
+    (3, None)
+    """
 
     def __init__(self, iterable: Iterable[Any] | None = None) -> None:
         self.iterable = iterable

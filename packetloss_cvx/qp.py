@@ -354,7 +354,7 @@ def compare(inputs: np.ndarray, cost: float, reference: Solution, system: System
 
 
 def solve_qp(system: System, protocol: str, formulation: str = "auto", **kwargs) -> Solution:
-    """Minimise the protocol's expected cost with cvxpy + Clarabel.
+    """Minimise the protocol's expected cost with cvxpy + Clarabel (the minimisation of eq:opt-lqg).
 
     Builds an :class:`ExpectedCostQP` and solves it once; keep the object to re-solve
     for other mu or x0 without recompiling. Keyword arguments go to

@@ -37,6 +37,14 @@ def random_system(
 
     ``spectral_radius`` scales A (values above 1 give unstable plants);
     ``edge_mu`` puts some channels at 1.0 and some at 0.01.
+
+    Examples
+    --------
+    >>> s = random_system(np.random.default_rng(0), n=3, m=2, horizon=4, spectral_radius=0.5)
+    >>> (s.n, s.m, s.horizon)
+    (3, 2, 4)
+    >>> bool(np.isclose(max(abs(np.linalg.eigvals(s.A))), 0.5))     # A is scaled to the radius asked for
+    True
     """
     def coin(value: bool | None) -> bool:
         return bool(rng.random() < 0.5) if value is None else value

@@ -39,8 +39,20 @@ def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
 def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     """The diagonal of Omega_g per step and the noise term tr(Omega_l Sigma_W).
 
+    Omega_d (I - Vbar) is the loss-variance term of the UDP-like law, eq:opt-law-2.
+
     Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
     ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> d, noise = udp_variance_weights(s)         # S_1 = 1, S_0 = 1 + A' S_1 A = 5
+    >>> d.ravel().tolist(), noise
+    ([5.0, 1.0], 0.0)
+    >>> from packetloss_cvx.prediction import prediction
+    >>> bool(np.allclose(d.ravel(), prediction(s).Omega_d))    # the dense diagonal of Omega_g
+    True
     """
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
     d = np.empty((N, system.m))
@@ -63,6 +75,12 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     curvature per delivered input). The dense formulas lose about ``log10(estimate * eps)``
     digits; the recursion does not depend on it. ``inf`` when Omega_g overflows.
     Time O(N n^3) (the Lyapunov sums of :func:`udp_variance_weights`), no dense matrix.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> condition_estimate(s)                      # (trace Omega_g + max Psi) / min Psi = (5 + 1 + 1) / 1
+    7.0
     """
     d, _ = udp_variance_weights(system) if weights is None else weights
     psi = system.input_weights
@@ -75,13 +93,21 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
 
 def backward_pass(system: System, protocol: str,
                   weights: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """Riccati recursion of the mean-state LQ problem.
+    """Riccati recursion of the mean-state LQ problem: the laws of Theorem 1 (eq:control-laws), step by step.
 
     Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
     the cost-to-go matrix at step 0 (without Q) and the noise term. The Lyapunov sum
     S_t (UDP-like weights, noise) runs in the same backward loop, unless ``weights`` (the
     result of :func:`udp_variance_weights`, already computed by the caller) supplies it.
     Time O(N (n^3 + m^3)), memory O(N m n).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> K, P0, noise = backward_pass(s, "udp")
+    >>> # J_udp(u) = 0.5 (1 + u)^2 + 0.5 + 0.5 u^2 is least at u = -1/2, where it is 0.75
+    >>> float(K[0, 0, 0]), float(P0[0, 0]), noise
+    (0.5, 0.75, 0.0)
     """
     protocol = check_protocol(protocol)
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
@@ -132,7 +158,18 @@ def backward_pass(system: System, protocol: str,
 
 
 def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Roll out ``u_t = -K[t] xhat_t``: returns inputs (N×m) and mean states (N+1×n)."""
+    """Roll out ``u_t = -K[t] xhat_t``: returns inputs (N×m) and mean states (N+1×n).
+
+    The mean states are the expected trajectory of eq:pred-err, Xhat = Phi x + Gamma Vbar U, step by step.
+    Time O(N n (n + m)).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> u, x = mean_trajectory(s, np.array([[[0.5]]]))     # u_0 = -0.5, xhat_1 = 1 + 0.5 (-0.5)
+    >>> u.tolist(), x.ravel().tolist()
+    ([[-0.5]], [1.0, 0.75])
+    """
     A, B, mu = system.A, system.B, system.mu_schedule
     N = system.horizon
     x = np.empty((N + 1, system.n))
@@ -153,6 +190,13 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     weights, the noise term), so the sum has no cancellation: this is the referee the closed
     forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``.
     Time O(N n^3) (the Lyapunov sums), memory O(N m).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> # J_tcp = xhat_1^2 + mu psi u^2 = 0.5625 + 0.125; J_udp adds mu (1 - mu) (B'S B) u^2 = 0.0625
+    >>> recursion_cost(s, np.array([[-0.5]]), "tcp"), recursion_cost(s, np.array([[-0.5]]), "udp")
+    (0.6875, 0.75)
     """
     protocol = check_protocol(protocol)
     A, B, W, mu, psi = system.A, system.B, system.state_weights, system.mu_schedule, system.input_weights

@@ -25,6 +25,15 @@ def numeric_array(value: Any, field: str) -> np.ndarray:
 
     The one validator of numeric input: every array the package accepts goes through it,
     so every error names ``field``.
+
+    Examples
+    --------
+    >>> numeric_array([[1, 2], [3, 4.5]], "A").tolist()
+    [[1.0, 2.0], [3.0, 4.5]]
+    >>> numeric_array([1.0, float("nan")], "mu")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: mu: expected finite numbers, found NaN or inf
     """
     if isinstance(value, np.ma.MaskedArray) and np.ma.is_masked(value):
         raise InputError(field, "expected plain numbers, found a masked array with masked entries")
@@ -48,7 +57,17 @@ def numeric_array(value: Any, field: str) -> np.ndarray:
 
 def check_numbers(value: Any, field: str) -> None:
     """Walk ``value`` without recursion: numbers only, at most MAX_NESTING levels of lists,
-    at most MAX_ENTRIES numbers, each within the double range."""
+    at most MAX_ENTRIES numbers, each within the double range.
+
+    Examples
+    --------
+    >>> check_numbers([[1, 2.5], [3, 4]], "B") is None       # numbers only: passes silently
+    True
+    >>> check_numbers([1, "2"], "B")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: B: expected a number, found the string '2'
+    """
     stack: list[tuple[Any, int]] = [(value, 0)]
     count = 0
     while stack:

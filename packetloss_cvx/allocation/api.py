@@ -140,6 +140,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
              max_boxes: int = MAX_BOXES, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
     """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
+    The paper's eq:alpha_channels (J* <= alpha), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
 
     Parameters
     ----------

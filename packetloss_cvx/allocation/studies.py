@@ -26,6 +26,7 @@ MAX_GRID = 401
 def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], progress: bool | None = None,
                  **kwargs) -> list[dict]:
     """The trade-off alpha -> beta'mu*: one allocation per cost bound.
+    Each point solves eq:channel-opt for its alpha.
 
     Parameters
     ----------
@@ -67,6 +68,7 @@ def contour_allocations(system: System, protocol: str, alphas: Sequence[float],
                         betas: Sequence[Sequence[float]] = ((1, 1), (0.05, 1), (1, 0.05)),
                         progress: bool | None = None, **kwargs) -> dict[tuple[float, ...], list[dict]]:
     """Figs. 6–7: the optimal allocation on each cost contour alpha, for each price vector beta.
+    Each allocation is the paper's eq:opt_M for its alpha and beta.
 
     Returns
     -------

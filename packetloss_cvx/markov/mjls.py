@@ -51,7 +51,13 @@ DENSE_MAX_DIM = 400
 def mode_chain(channel: GilbertElliott) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(modes, T, h)``: the 2^m joint states (1 = good, channel 0 the most significant), their
     transition matrix (Kronecker product of the channels' chains) and per-mode delivery probabilities.
-    Time O(4^m m)."""
+    Time O(4^m m).
+
+    Examples
+    --------
+    >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.1], r=[0.3]))]      # good, bad: the Gilbert channel
+    [[[1], [0]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
+    """
     m = channel.m
     if m > MAX_CHANNELS:
         raise InputError("channel", f"the MJLS has 2^m modes; expected at most {MAX_CHANNELS} channels, found {m}")
@@ -82,6 +88,12 @@ def check_operator_size(modes: int, n: int) -> None:
     ------
     ResourceError
         ``modes n^2 > MAX_OPERATOR_DIM``: the message names the size, its memory and the way out.
+
+    Examples
+    --------
+    >>> check_operator_size(4, 3), check_operator_size(2**10, 10)    # 4 * 3^2 = 36 rows pass; 102400 do not
+    Traceback (most recent call last):
+    packetloss_cvx.errors.ResourceError: the MJLS second-moment operator is dense with 2^m n^2 = 1024 * 10^2 ...
     """
     dim = modes * n * n
     if dim > MAX_OPERATOR_DIM:
@@ -110,6 +122,13 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott
     moves to (``Q_b <- sum_a T_ab E_{v|b}[G_a Q_a G_a']``, the TCP-like law of a Gilbert channel, whose
     acknowledgement reveals the last state). Time O(M 2^m n^4 + M^2 n^4), memory O(M^2 n^4); refused
     beyond :data:`MAX_OPERATOR_DIM` rows (:func:`check_operator_size`).
+
+    Examples
+    --------
+    >>> one = np.ones((1, 1))
+    >>> op = second_moment_operator(2 * one, one, GilbertElliott(p=[0.5], r=[0.5]), one)
+    >>> op.shape, round(float(max(abs(np.linalg.eigvals(op)))), 12)     # x+ = (2 - v) x: E[(2 - v)^2] = 5 / 2
+    ((2, 2), 2.5)
     """
     if delivery not in ("current", "next"):
         raise InputError("delivery", f"expected current or next, found {delivery!r}")
@@ -184,6 +203,12 @@ def moment_step(Q: np.ndarray, K: np.ndarray, R: np.ndarray, A: np.ndarray, B: n
     ``Q'_b = sum_a R_ab E_{v|b}[G_a Q_a G_a']``, ``KQK[b] = sum_a R_ab K_a Q_a K_a'``. With
     ``E_{v|c}[G Q G'] = AQA' - AQK'H_c B' - B H_c KQA' + B((KQK') ∘ H2_c)B'``; the expected input cost is
     ``sum_c sum_i psi_i h_ci KQK[c]_ii``. Time O(a M n^2 + a n^2 (n + m)).
+
+    Examples
+    --------
+    >>> one, half = np.ones((1, 1)), np.full((1, 1), 0.5)     # x+ = (2 - v) x, v ~ Bernoulli(1/2), E[x^2] = 1
+    >>> [a.tolist() for a in moment_step(one[None], one[None], one, 2 * one, one, half, half[None], "current")]
+    [[[[2.5]]], [[[1.0]]]]
     """
     AQA = np.einsum("ij,ajk,lk->ail", A, Q, A)
     C = np.einsum("ij,ajk,alk->ail", A, Q, K)                                                  # A Q_a K_a'
@@ -196,7 +221,13 @@ def moment_step(Q: np.ndarray, K: np.ndarray, R: np.ndarray, A: np.ndarray, B: n
 
 
 def delivery_moments(h: np.ndarray) -> np.ndarray:
-    """``E[v v' | mode] = h h' + diag(h (1 - h))`` per mode (independent channels), (M, m, m). O(M m^2)."""
+    """``E[v v' | mode] = h h' + diag(h (1 - h))`` per mode (independent channels), (M, m, m). O(M m^2).
+
+    Examples
+    --------
+    >>> delivery_moments(np.array([[0.5, 1.0]])).tolist()     # h h' + diag(h (1 - h))
+    [[[0.5, 0.5], [0.5, 1.0]]]
+    """
     return h[:, :, None] * h[:, None, :] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(h.shape[1]))
 
 
@@ -252,6 +283,13 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     ``Q_{a,t} = E[x_t x_t' 1{mode = a}]`` (CFM05, ch. 3), using ``E[v | b] = h_b`` and
     ``E[v v' | b] = h_b h_b' + diag(h_b (1 - h_b))``; noise enters with P(mode). Entries stay inf past an overflow.
     Time O(steps (M^2 n^2 + M (n^3 + n^2 m))), memory O(M n^2 + steps M m n).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.5], r=[0.5]))          # u = -x: 1 + 1/2, then 5/2 (1 + 1/2)
+    >>> jump_law_stage_costs(s, np.ones((2, 1, 1)), 2).tolist()
+    [1.5, 3.75]
     """
     system = check_system(system)
     if system.channel is None:
@@ -309,6 +347,14 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
     NumericalError
         No convergence within ``max_iter`` (the loop is not mean-square stabilisable, or barely),
         or a residual of the coupled equations above ``SELF_CHECK_RTOL`` relative to max ||P_a||.
+
+    Examples
+    --------
+    >>> res = coupled_riccati(System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0],
+    ...                              x0=[1.0], channel=GilbertElliott(p=[0.0], r=[1.0])))   # always good next
+    >>> P = 2 + 5 ** 0.5                  # the scalar DARE P = 1 + 4 P - 4 P^2 / (P + 1); K = 2 P / (P + 1)
+    >>> bool(np.allclose([res.gains[0, 0, 0], res.spectral_radius], [2 * P / (P + 1), (2 - 2 * P / (P + 1)) ** 2]))
+    True
     """
     system = check_system(system)
     if system.channel is None:

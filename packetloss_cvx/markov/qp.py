@@ -61,6 +61,13 @@ def exact_qp(system: System, protocol: str = "udp", cross_check: bool = True,
     Notes
     -----
     Time O((N n)^2 N m + (N m)^3) to build (the factor F), one Clarabel solve; memory O((N m)^2).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> sol = exact_qp(s)            # min 0.5 (1 + u)^2 + 0.5 + 0.5 u^2 = 0.75 at u = -1/2
+    >>> bool(np.allclose([sol.inputs[0, 0], sol.cost], [-0.5, 0.75], atol=1e-6))
+    True
     """
     system = check_system(system)
     if check_protocol(protocol) == "tcp":

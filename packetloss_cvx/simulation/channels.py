@@ -19,7 +19,7 @@ __all__ = [
 
 
 def sample_deliveries(system: System, samples: int, rng: np.random.Generator) -> np.ndarray:
-    """Sampled packet deliveries over the horizon: the diagonal of Upsilon (eq:big).
+    """Sampled packet deliveries over the horizon: the diagonal of Upsilon (big; the losses of eq:plant).
 
     Parameters
     ----------
@@ -39,7 +39,7 @@ def sample_deliveries(system: System, samples: int, rng: np.random.Generator) ->
 
 
 def sample_noise(system: System, samples: int, rng: np.random.Generator) -> np.ndarray:
-    """Sampled process noise over the horizon, stacked as W in eq:big: ``(W_k', ..., W_{k+N-1}')``.
+    """Sampled process noise over the horizon, stacked as W in big: ``(W_k', ..., W_{k+N-1}')``.
 
     Parameters
     ----------

@@ -105,6 +105,7 @@ def closed_loop_block(system: System, gains: np.ndarray, steps: int, samples: in
 def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, closed_loop: bool = False,
              laws: Sequence[str] = LAWS, keep: int = 0, progress: bool | None = None) -> Simulation:
     """Sample the stated model and compare with the exact expectations.
+    The plant is sampled as the paper states it (eq:plant).
 
     Parameters
     ----------

@@ -78,6 +78,7 @@ def check_loop_memory(system: System, block: int, steps: int, laws: int, keep: i
 def plan_costs(system: System, inputs: np.ndarray, delivered: np.ndarray, noise: np.ndarray | None) -> np.ndarray:
     """Realised costs ``x'Qx + sum_t X_{t+1}'Omega_t X_{t+1} + (V_t u_t)'Psi_t (V_t u_t)`` of the plan
     ``inputs`` (N×m) on the deliveries ``delivered`` (samples, N, m) and the noise (samples, N, n) or None.
+    The cost inside the expectation of eq:plant0.
     Time O(samples N n (n + m))."""
     samples = delivered.shape[0]
     X = np.repeat(system.x0[None], samples, axis=0)

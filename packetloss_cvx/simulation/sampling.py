@@ -21,6 +21,7 @@ __all__ = ["closed_loop_costs", "sample_plan_costs"]
 
 def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: np.random.Generator) -> np.ndarray:
     """Realised costs ``x'Qx + sum_t X_t' Omega_t X_t + sum_t (V_t u_t)' Psi_t (V_t u_t)``.
+    The cost inside the expectation of eq:plant0, on the plant of eq:plant as stated.
 
     The open-loop plan ``inputs`` (N×m) is applied whatever the losses. Returns
     ``samples`` realised costs; their mean estimates E[cost | X_k] of the plan. Deliveries and noise are
