@@ -52,7 +52,10 @@ def _mu_vector(system: System, mu) -> np.ndarray:
     if mu is None:
         return system.mu_schedule.ravel()
     if np.ndim(mu) == 0:
-        return scalar_channel(system, float(mu)).mu_schedule.ravel()
+        nu = float(mu)
+        if 0.0 <= nu <= 1.0:     # what scalar_channel(...).mu_schedule.ravel() holds, without a System
+            return np.full(system.horizon * system.m, nu)
+        return scalar_channel(system, nu).mu_schedule.ravel()       # raises ProbabilityError
     return system.with_mu(mu).mu_schedule.ravel()
 
 
@@ -75,6 +78,22 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
     a = np.linalg.solve(base + np.diag(pred.Omega_d * (1.0 - v)), g)   # G_udp^{-1} g
     b = np.linalg.solve(base.T, v * g)                                 # G_tcp^{-T} Vbar g
     return float(b @ (pred.Omega_d * (1.0 - v) * a))
+
+
+def _scalar_differences(system: System, nus: np.ndarray, pred: Prediction) -> np.ndarray:
+    """cost_difference(system, nu, pred) for each nu in [0, 1], the solves stacked: the same
+    arithmetic point by point (the same LAPACK solve per matrix), so equal bit for bit.
+    O(len(nus) (N m)^3) time, O(len(nus) (N m)^2) memory."""
+    k = system.horizon * system.m
+    v = np.repeat(np.asarray(nus, dtype=float)[:, None], k, axis=1)          # (P, N m)
+    g = pred.Omega_gp @ system.x0
+    base = pred.Omega_g[None] * v[:, None, :] + np.diag(pred.Psi)
+    lossy = pred.Omega_d * (1.0 - v)                                           # (P, N m)
+    udp = base.copy()
+    udp[:, np.arange(k), np.arange(k)] += lossy
+    a = np.linalg.solve(udp, g[None, :, None])[:, :, 0]
+    b = np.linalg.solve(base.transpose(0, 2, 1), (v * g)[:, :, None])[:, :, 0]
+    return np.array([float(b[i] @ (lossy[i] * a[i])) for i in range(len(v))])
 
 
 def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
@@ -228,7 +247,7 @@ def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction |
     pred = prediction(system) if pred is None else pred
     z = np.linspace(-np.log(1e9), np.log(1e9), grid)
     nus = 1 / (1 + np.exp(-z))
-    vals = np.array([cost_difference(system, nu, pred) for nu in nus])
+    vals = _scalar_differences(system, nus, pred)     # = [cost_difference(system, nu, pred) for nu in nus]
     i = int(np.argmax(vals))
     lo, hi = z[max(i - 1, 0)], z[min(i + 1, grid - 1)]
     res = minimize_scalar(lambda s: -cost_difference(system, 1 / (1 + np.exp(-s)), pred),

@@ -264,9 +264,16 @@ class CostEvaluator:
                 F = np.linalg.solve(G, rhs)
             except np.linalg.LinAlgError:
                 return np.zeros(P, dtype=bool)
-            res = np.linalg.norm((G @ F - rhs).reshape(P, -1), axis=1)
-            scale = (np.linalg.norm(G.reshape(P, -1), axis=1) * np.linalg.norm(F.reshape(P, -1), axis=1)
-                     + np.linalg.norm(rhs.reshape(P, -1), axis=1))
+            # G F = Omega_g (v F) + diag F: one (P r)×k by k×k product, not P stacked ones; and
+            # ||G||_F^2 = sum_j v_j^2 |Omega_g e_j|^2 + 2 v_j Omega_g,jj diag_j + diag_j^2 (no cancellation:
+            # every term >= 0), O(N m) a point instead of O((N m)^2)
+            r = F.shape[2]
+            OgVF = ((v[:, :, None] * F).transpose(0, 2, 1).reshape(P * r, N * m) @ pred.Omega_g.T)
+            GF = OgVF.reshape(P, r, N * m).transpose(0, 2, 1) + np.reshape(diag, (-1, N * m))[:, :, None] * F
+            res = np.linalg.norm((GF - rhs).reshape(P, -1), axis=1)
+            Og = pred.Omega_g
+            G_norm = np.sqrt(np.sum(v * v * np.sum(Og * Og, axis=0) + (2.0 * v * np.diag(Og) + diag) * diag, axis=1))
+            scale = G_norm * np.linalg.norm(F.reshape(P, -1), axis=1) + np.linalg.norm(rhs.reshape(P, -1), axis=1)
             ok &= np.all(np.isfinite(F.reshape(P, -1)), axis=1) & np.isfinite(res)
             ok &= res <= DENSE_RESIDUAL_RTOL * scale
             u = -np.einsum("pkj,pj->pk", F, x) if K0 is not None else -F[:, :, 0]
@@ -298,17 +305,26 @@ class CostEvaluator:
         K = np.empty((P, N, m, n))
         Pm = np.broadcast_to(W[N - 1], (P, n, n)).copy()
         AT, BT = A.T, B.T
+        flat = P >= 64      # a large batch: one (P k)×k by k×l product instead of P small ones
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(N - 1, -1, -1):
-                PB = Pm @ B
-                G = (BT @ PB) * rows[:, t]
+                if flat:
+                    PBT = (Pm.reshape(P * n, n) @ B).reshape(P, n, m).transpose(0, 2, 1).reshape(P * m, n)
+                    G = np.multiply((PBT @ B).reshape(P, m, m).transpose(0, 2, 1), rows[:, t], order="C")  # B'PB
+                    rhs = (PBT @ A).reshape(P, m, n)
+                    APA = (Pm.reshape(P * n, n) @ A).reshape(P, n, n).transpose(0, 2, 1).reshape(P * n, n) @ A
+                    APA = APA.reshape(P, n, n).transpose(0, 2, 1)                       # A'(P A)
+                else:
+                    PB = Pm @ B
+                    G = (BT @ PB) * rows[:, t]
+                    rhs = PB.transpose(0, 2, 1) @ A
+                    APA = AT @ (Pm @ A)
                 G.reshape(P, m * m)[:, :: m + 1] += added[:, t]
-                rhs = PB.transpose(0, 2, 1) @ A
                 try:
                     K[:, t] = np.linalg.solve(G, rhs)
                 except np.linalg.LinAlgError:
                     raise _overflow("the cost-to-go matrix", self.protocol) from None
-                Pm = AT @ (Pm @ A) - (rhs.transpose(0, 2, 1) * rows[:, t]) @ K[:, t]
+                Pm = APA - (rhs.transpose(0, 2, 1) * rows[:, t]) @ K[:, t]
                 if t > 0:
                     Pm += W[t - 1]
                 Pm = 0.5 * (Pm + Pm.transpose(0, 2, 1))
