@@ -106,7 +106,11 @@ def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
 
 def lemma2_matrix(pred: Prediction, nu: float) -> np.ndarray:
     """f(nu) of Lemma 2 / Theorem 4: the matrix inside the quadratic form of eq:cost-diff-deriv."""
-    GF, GG = G_maps(pred, nu)
+    return _lemma2_from_maps(pred, nu, *G_maps(pred, nu))
+
+
+def _lemma2_from_maps(pred: Prediction, nu: float, GF: np.ndarray, GG: np.ndarray) -> np.ndarray:
+    """lemma2_matrix with G_F, G_G given (G_maps(pred, nu))."""
     Od = np.diag(pred.Omega_d)
     inner = (1 - 2 * nu) * Od - nu * (1 - nu) * (pred.Omega_h @ GG @ Od + Od @ GF @ pred.Omega_g)
     return GG @ inner @ GF
@@ -216,8 +220,8 @@ def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6
         if abs(c.imag) > 1e-12 or not 0.0 < c.real < 1.0:
             continue
         nu = float(c.real)
-        f = lemma2_matrix(pred, nu)
         GF, GG = G_maps(pred, nu)
+        f = _lemma2_from_maps(pred, nu, GF, GG)      # = lemma2_matrix(pred, nu), the maps built once
         scale = np.linalg.norm(GG, 2) * float(pred.Omega_d.max()) * np.linalg.norm(GF, 2)
         lam_max = float(np.linalg.eigvalsh(0.5 * (f + f.T)).max())
         if abs(lam_max) > tol * scale:

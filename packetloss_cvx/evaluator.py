@@ -304,7 +304,9 @@ class CostEvaluator:
         rows = mu[:, :, None, :]                                               # (P, N, 1, m)
         K = np.empty((P, N, m, n))
         Pm = np.broadcast_to(W[N - 1], (P, n, n)).copy()
-        AT, BT = A.T, B.T
+        AT = A.T
+        BA = np.hstack([B, A])
+        BAT = BA.T
         flat = P >= 64      # a large batch: one (P k)×k by k×l product instead of P small ones
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(N - 1, -1, -1):
@@ -314,11 +316,11 @@ class CostEvaluator:
                     rhs = (PBT @ A).reshape(P, m, n)
                     APA = (Pm.reshape(P * n, n) @ A).reshape(P, n, n).transpose(0, 2, 1).reshape(P * n, n) @ A
                     APA = APA.reshape(P, n, n).transpose(0, 2, 1)                       # A'(P A)
-                else:
-                    PB = Pm @ B
-                    G = (BT @ PB) * rows[:, t]
-                    rhs = PB.transpose(0, 2, 1) @ A
-                    APA = AT @ (Pm @ A)
+                else:              # a small batch: few calls, [B A]' P [B A] in two products
+                    H = BAT @ (Pm @ BA)
+                    G = np.multiply(H[:, :m, :m], rows[:, t], order="C")
+                    rhs = H[:, :m, m:]
+                    APA = H[:, m:, m:]
                 G.reshape(P, m * m)[:, :: m + 1] += added[:, t]
                 try:
                     K[:, t] = np.linalg.solve(G, rhs)
