@@ -255,7 +255,7 @@ class CostEvaluator:
         v = mu.reshape(P, N * m)
         G = pred.Omega_g[None, :, :] * v[:, None, :]
         diag = pred.Psi + (pred.Omega_d * (1.0 - v) if self.protocol == "udp" else 0.0)
-        G[:, np.arange(N * m), np.arange(N * m)] += diag
+        G.reshape(P, N * m * N * m)[:, :: N * m + 1] += diag                   # the diagonal, as a strided view
         g = x @ pred.Omega_gp.T                                          # (P, N m)
         rhs = np.broadcast_to(pred.Omega_gp, (P, N * m, n)) if K0 is not None else g[:, :, None]
         ok = np.ones(P, dtype=bool)
