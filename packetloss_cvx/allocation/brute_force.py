@@ -6,8 +6,8 @@ with the SOCP or the branch and bound, and evaluates J* by the backward recursio
 allocation's "auto" takes the dense form on small systems), so the audit and the tests use it
 to check them. Every value it returns is beta'mu at a point the recursion finds feasible, so
 it is never below the optimum. Grid points that cannot beat the best so far are settled by
-one evaluation (monotonicity), made for up to SPECULATE grid points in one batch. Time O((coarse + fine) · log(1/tol)) recursions of
-O(N (n^3 + m^3)) at worst.
+one evaluation (monotonicity), made for up to SPECULATE grid points in one batch. Time
+O((coarse + fine) · log(1/tol)) recursions of O(N (n^3 + m^3)) at worst.
 """
 
 from __future__ import annotations
