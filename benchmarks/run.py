@@ -439,6 +439,51 @@ def audit_time(baseline, rows):
         row.update(before_s=before, ratio=before / ours)
     print(line)
     rows.append(row)
+    # CPU seconds per claim, each checkout in a fresh process (the seeded cases built outside the timing)
+    ours_cpu = _claim_cpu(Path(__file__).resolve().parent.parent)
+    before_cpu = _claim_cpu(Path(baseline)) if baseline else {}
+    print(f"   CPU s per claim{'':>20} {'this':>7}" + (f" {'baseline':>9} {'ratio':>6}" if baseline else ""))
+    for claim in list(dict.fromkeys([*before_cpu, *ours_cpu])):
+        a, b = ours_cpu.get(claim), before_cpu.get(claim)
+        print(f"   {claim:>32} {a if a is not None else float('nan'):7.2f}"
+              + (f" {b if b is not None else float('nan'):9.2f} {b / a if a and b else float('nan'):5.2f}x"
+                 if baseline else ""))
+    shared = [c for c in ours_cpu if c in before_cpu]
+    total = sum(ours_cpu.values())
+    line = f"   {'total':>32} {total:7.2f}"
+    if baseline:
+        line += (f" {sum(before_cpu.values()):9.2f} {sum(before_cpu.values()) / total:5.2f}x; on the baseline's "
+                 f"claims only: {sum(ours_cpu[c] for c in shared):.2f} s, "
+                 f"{sum(before_cpu[c] for c in shared) / sum(ours_cpu[c] for c in shared):.2f}x")
+    print(line)
+    rows.append({"bench": "audit_cpu", "after": ours_cpu, "before": before_cpu})
+
+
+CLAIM_CPU = """
+import json, time
+import numpy as np
+from packetloss_cvx.claims import registry
+from packetloss_cvx.claims.context import Context, paper_systems
+from packetloss_cvx.random_systems import random_system
+rng = np.random.default_rng(1)
+ctx = Context(paper=paper_systems(), random=[random_system(rng) for _ in range(200)], seed=1)
+out = {}
+for claim in registry.CLAIMS:
+    start = time.process_time()
+    registry.run_claim(claim, ctx)
+    out[claim] = time.process_time() - start
+print(json.dumps(out))
+"""
+
+
+def _claim_cpu(checkout: Path) -> dict:
+    """CPU seconds per claim of ``audit(random=200, seed=1)``'s cases, run from ``checkout``."""
+    import subprocess
+
+    env = {**__import__("os").environ, "PYTHONPATH": str(Path(checkout).resolve())}
+    out = subprocess.run([sys.executable, "-c", CLAIM_CPU], env=env, check=True, capture_output=True, text=True,
+                         cwd=checkout).stdout
+    return json.loads(out.splitlines()[-1])
 
 
 def main() -> None:

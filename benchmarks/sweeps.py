@@ -1,6 +1,6 @@
 """Sweeps and reproduce, side by side in one run (docs/performance.md, "Sweeps, Dask and reproduce").
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/sweeps.py [--quick] [--json]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/sweeps.py [--quick] [--json] [--only 1,2,3] [--baseline DIR]
 
 1. the batched evaluator (CostEvaluator.costs) against a per-point loop of closed_form on a K x K grid
    of the two-actuator system's channels (K = 201; 51 with --quick), both protocols;
@@ -38,21 +38,57 @@ def timed(fn):
     return time.perf_counter() - start, value
 
 
-def batched_vs_loop(K: int, rows: list) -> None:
+BASELINE_BATCH = """
+import sys, time
+import numpy as np
+import packetloss_cvx as pl
+from packetloss_cvx.evaluator import CostEvaluator
+K, protocol, repeats = int(sys.argv[1]), sys.argv[2], int(sys.argv[3])
+axis = np.linspace(0.0, 1.0, K)
+mu1, mu2 = np.meshgrid(axis, axis)
+points = np.column_stack([mu1.ravel(), mu2.ravel()])
+system = pl.load_example("two_actuator")
+times = []
+for _ in range(repeats):
+    start = time.perf_counter()
+    CostEvaluator(system, protocol).costs(points)
+    times.append(time.perf_counter() - start)
+print(float(np.median(times)))
+"""
+
+
+def baseline_batch(baseline: str, K: int, protocol: str, repeats: int) -> float:
+    """The median batched time of another checkout (a fresh process with that checkout first on the path)."""
+    env = {**os.environ, "PYTHONPATH": str(Path(baseline).resolve())}
+    out = subprocess.run([sys.executable, "-c", BASELINE_BATCH, str(K), protocol, str(repeats)], env=env,
+                         check=True, capture_output=True, text=True, cwd=baseline).stdout
+    return float(out.split()[-1])
+
+
+def batched_vs_loop(K: int, rows: list, baseline: str | None = None, repeats: int = 5) -> None:
     system = pl.load_example("two_actuator")
     axis = np.linspace(0.0, 1.0, K)
     mu1, mu2 = np.meshgrid(axis, axis)
     points = np.column_stack([mu1.ravel(), mu2.ravel()])
-    print(f"\n1. batched evaluator vs per-point closed_form, two-actuator, {K} x {K} = {len(points)} points")
-    print(f"{'protocol':>8} {'loop s':>9} {'batched s':>10} {'ratio':>7} {'max rel diff':>13}")
+    print(f"\n1. batched evaluator vs per-point closed_form, two-actuator, {K} x {K} = {len(points)} points "
+          f"(batched: median of {repeats}{'; baseline: ' + baseline if baseline else ''})")
+    print(f"{'protocol':>8} {'loop s':>9} {'batched s':>10} {'ratio':>7} {'max rel diff':>13}"
+          + (f" {'baseline s':>11} {'ratio':>7}" if baseline else ""))
     for protocol in ("tcp", "udp"):
         loop_s, loop = timed(lambda p=protocol: np.array([pl.closed_form(system.with_mu(mu), p).cost
                                                           for mu in points]))
-        batch_s, batch = timed(lambda p=protocol: CostEvaluator(system, p).costs(points))
+        times = [timed(lambda p=protocol: CostEvaluator(system, p).costs(points)) for _ in range(repeats)]
+        batch_s, batch = float(np.median([s for s, _ in times])), times[0][1]
         rel = float(np.max(np.abs(batch - loop) / np.abs(loop)))
-        print(f"{protocol:>8} {loop_s:9.2f} {batch_s:10.3f} {loop_s / batch_s:6.0f}x {rel:13.1e}")
-        rows.append({"bench": "batched", "K": K, "protocol": protocol, "loop_s": loop_s, "batched_s": batch_s,
-                     "ratio": loop_s / batch_s, "max_rel_diff": rel})
+        line = f"{protocol:>8} {loop_s:9.2f} {batch_s:10.3f} {loop_s / batch_s:6.0f}x {rel:13.1e}"
+        row = {"bench": "batched", "K": K, "protocol": protocol, "loop_s": loop_s, "batched_s": batch_s,
+               "ratio": loop_s / batch_s, "max_rel_diff": rel}
+        if baseline:
+            before = baseline_batch(baseline, K, protocol, repeats)
+            line += f" {before:11.3f} {loop_s / before:6.0f}x"
+            row.update(baseline_batched_s=before, baseline_ratio=loop_s / before)
+        print(line)
+        rows.append(row)
 
 
 def dask_vs_in_process(K: int, chunk: int, rows: list) -> None:
@@ -88,14 +124,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a 51 x 51 grid and reproduce --quick")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
+    parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
+    parser.add_argument("--baseline", help="a checkout of the previous version (section 1: its batched time too)")
     args = parser.parse_args()
+    chosen = {1, 2, 3} if not args.only else {int(k) for k in args.only.split(",")}
     print(f"python {platform.python_version()}, numpy {np.__version__}, {os.cpu_count()} cores, "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}, {time.strftime('%Y-%m-%d')}")
     rows: list[dict] = []
     K = 51 if args.quick else 201
-    batched_vs_loop(K, rows)
-    dask_vs_in_process(K, 2048, rows)
-    reproduce(args.quick, rows)
+    if 1 in chosen:
+        batched_vs_loop(K, rows, args.baseline)
+    if 2 in chosen:
+        dask_vs_in_process(K, 2048, rows)
+    if 3 in chosen:
+        reproduce(args.quick, rows)
     if args.json:
         print(json.dumps(rows))
 

@@ -52,7 +52,10 @@ def _mu_vector(system: System, mu) -> np.ndarray:
     if mu is None:
         return system.mu_schedule.ravel()
     if np.ndim(mu) == 0:
-        return scalar_channel(system, float(mu)).mu_schedule.ravel()
+        nu = float(mu)
+        if 0.0 <= nu <= 1.0:     # what scalar_channel(...).mu_schedule.ravel() holds, without a System
+            return np.full(system.horizon * system.m, nu)
+        return scalar_channel(system, nu).mu_schedule.ravel()       # raises ProbabilityError
     return system.with_mu(mu).mu_schedule.ravel()
 
 
@@ -77,6 +80,22 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
     return float(b @ (pred.Omega_d * (1.0 - v) * a))
 
 
+def _scalar_differences(system: System, nus: np.ndarray, pred: Prediction) -> np.ndarray:
+    """cost_difference(system, nu, pred) for each nu in [0, 1], the solves stacked: the same
+    arithmetic point by point (the same LAPACK solve per matrix), so equal bit for bit.
+    O(len(nus) (N m)^3) time, O(len(nus) (N m)^2) memory."""
+    k = system.horizon * system.m
+    v = np.repeat(np.asarray(nus, dtype=float)[:, None], k, axis=1)          # (P, N m)
+    g = pred.Omega_gp @ system.x0
+    base = pred.Omega_g[None] * v[:, None, :] + np.diag(pred.Psi)
+    lossy = pred.Omega_d * (1.0 - v)                                           # (P, N m)
+    udp = base.copy()
+    udp[:, np.arange(k), np.arange(k)] += lossy
+    a = np.linalg.solve(udp, g[None, :, None])[:, :, 0]
+    b = np.linalg.solve(base.transpose(0, 2, 1), (v * g)[:, :, None])[:, :, 0]
+    return np.array([float(b[i] @ (lossy[i] * a[i])) for i in range(len(v))])
+
+
 def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
     """G_F = (nu Omega_g + Psi)^-1 and G_G = (nu Omega_h + Omega_d + Psi)^-1 of eq:cost-diff-eq."""
     Od = np.diag(pred.Omega_d)
@@ -87,7 +106,11 @@ def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
 
 def lemma2_matrix(pred: Prediction, nu: float) -> np.ndarray:
     """f(nu) of Lemma 2 / Theorem 4: the matrix inside the quadratic form of eq:cost-diff-deriv."""
-    GF, GG = G_maps(pred, nu)
+    return _lemma2_from_maps(pred, nu, *G_maps(pred, nu))
+
+
+def _lemma2_from_maps(pred: Prediction, nu: float, GF: np.ndarray, GG: np.ndarray) -> np.ndarray:
+    """lemma2_matrix with G_F, G_G given (G_maps(pred, nu))."""
     Od = np.diag(pred.Omega_d)
     inner = (1 - 2 * nu) * Od - nu * (1 - nu) * (pred.Omega_h @ GG @ Od + Od @ GF @ pred.Omega_g)
     return GG @ inner @ GF
@@ -192,20 +215,27 @@ def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6
     None
     """
     pred = prediction(system) if pred is None else pred
+    nus = [float(c.real) for c in lemma3_candidates(system, variant, pred)
+           if abs(c.imag) <= 1e-12 and 0.0 < c.real < 1.0]
     best = None
-    for c in lemma3_candidates(system, variant, pred):
-        if abs(c.imag) > 1e-12 or not 0.0 < c.real < 1.0:
+    if not nus:
+        return best
+    # the candidates' G_F, G_G, f(nu), norms and eigenvalues stacked: per matrix the same operations
+    # (the same LAPACK and BLAS calls) as lemma2_matrix and G_maps one nu at a time
+    nu = np.array(nus)[:, None, None]
+    Od, Psi = np.diag(pred.Omega_d), np.diag(pred.Psi)
+    GF = np.linalg.inv(nu * pred.Omega_g + Psi)
+    GG = np.linalg.inv(nu * pred.Omega_h + Od + Psi)
+    inner = (1 - 2 * nu) * Od - nu * (1 - nu) * (pred.Omega_h @ GG @ Od + Od @ GF @ pred.Omega_g)
+    f = GG @ inner @ GF
+    scales = np.linalg.norm(GG, 2, axis=(1, 2)) * float(pred.Omega_d.max()) * np.linalg.norm(GF, 2, axis=(1, 2))
+    lam_maxes = np.linalg.eigvalsh(0.5 * (f + f.transpose(0, 2, 1))).max(axis=1)
+    for value_nu, scale, lam_max in zip(nus, scales, lam_maxes, strict=True):
+        if abs(float(lam_max)) > tol * float(scale):
             continue
-        nu = float(c.real)
-        f = lemma2_matrix(pred, nu)
-        GF, GG = G_maps(pred, nu)
-        scale = np.linalg.norm(GG, 2) * float(pred.Omega_d.max()) * np.linalg.norm(GF, 2)
-        lam_max = float(np.linalg.eigvalsh(0.5 * (f + f.T)).max())
-        if abs(lam_max) > tol * scale:
-            continue
-        value = cost_difference(system, nu, pred)
+        value = cost_difference(system, value_nu, pred)
         if best is None or value > best.value:
-            best = Maximiser(np.array([nu]), value, f"theorem-4 ({variant})")
+            best = Maximiser(np.array([value_nu]), value, f"theorem-4 ({variant})")
     return best
 
 
@@ -228,7 +258,7 @@ def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction |
     pred = prediction(system) if pred is None else pred
     z = np.linspace(-np.log(1e9), np.log(1e9), grid)
     nus = 1 / (1 + np.exp(-z))
-    vals = np.array([cost_difference(system, nu, pred) for nu in nus])
+    vals = _scalar_differences(system, nus, pred)     # = [cost_difference(system, nu, pred) for nu in nus]
     i = int(np.argmax(vals))
     lo, hi = z[max(i - 1, 0)], z[min(i + 1, grid - 1)]
     res = minimize_scalar(lambda s: -cost_difference(system, 1 / (1 + np.exp(-s)), pred),

@@ -255,7 +255,7 @@ class CostEvaluator:
         v = mu.reshape(P, N * m)
         G = pred.Omega_g[None, :, :] * v[:, None, :]
         diag = pred.Psi + (pred.Omega_d * (1.0 - v) if self.protocol == "udp" else 0.0)
-        G[:, np.arange(N * m), np.arange(N * m)] += diag
+        G.reshape(P, N * m * N * m)[:, :: N * m + 1] += diag                   # the diagonal, as a strided view
         g = x @ pred.Omega_gp.T                                          # (P, N m)
         rhs = np.broadcast_to(pred.Omega_gp, (P, N * m, n)) if K0 is not None else g[:, :, None]
         ok = np.ones(P, dtype=bool)
@@ -264,9 +264,16 @@ class CostEvaluator:
                 F = np.linalg.solve(G, rhs)
             except np.linalg.LinAlgError:
                 return np.zeros(P, dtype=bool)
-            res = np.linalg.norm((G @ F - rhs).reshape(P, -1), axis=1)
-            scale = (np.linalg.norm(G.reshape(P, -1), axis=1) * np.linalg.norm(F.reshape(P, -1), axis=1)
-                     + np.linalg.norm(rhs.reshape(P, -1), axis=1))
+            # G F = Omega_g (v F) + diag F: one (P r)×k by k×k product, not P stacked ones; and
+            # ||G||_F^2 = sum_j v_j^2 |Omega_g e_j|^2 + 2 v_j Omega_g,jj diag_j + diag_j^2 (no cancellation:
+            # every term >= 0), O(N m) a point instead of O((N m)^2)
+            r = F.shape[2]
+            OgVF = ((v[:, :, None] * F).transpose(0, 2, 1).reshape(P * r, N * m) @ pred.Omega_g.T)
+            GF = OgVF.reshape(P, r, N * m).transpose(0, 2, 1) + np.reshape(diag, (-1, N * m))[:, :, None] * F
+            res = np.linalg.norm((GF - rhs).reshape(P, -1), axis=1)
+            Og = pred.Omega_g
+            G_norm = np.sqrt(np.sum(v * v * np.sum(Og * Og, axis=0) + (2.0 * v * np.diag(Og) + diag) * diag, axis=1))
+            scale = G_norm * np.linalg.norm(F.reshape(P, -1), axis=1) + np.linalg.norm(rhs.reshape(P, -1), axis=1)
             ok &= np.all(np.isfinite(F.reshape(P, -1)), axis=1) & np.isfinite(res)
             ok &= res <= DENSE_RESIDUAL_RTOL * scale
             u = -np.einsum("pkj,pj->pk", F, x) if K0 is not None else -F[:, :, 0]
@@ -297,18 +304,29 @@ class CostEvaluator:
         rows = mu[:, :, None, :]                                               # (P, N, 1, m)
         K = np.empty((P, N, m, n))
         Pm = np.broadcast_to(W[N - 1], (P, n, n)).copy()
-        AT, BT = A.T, B.T
+        AT = A.T
+        BA = np.hstack([B, A])
+        BAT = BA.T
+        flat = P >= 64      # a large batch: one (P k)×k by k×l product instead of P small ones
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(N - 1, -1, -1):
-                PB = Pm @ B
-                G = (BT @ PB) * rows[:, t]
+                if flat:
+                    PBT = (Pm.reshape(P * n, n) @ B).reshape(P, n, m).transpose(0, 2, 1).reshape(P * m, n)
+                    G = np.multiply((PBT @ B).reshape(P, m, m).transpose(0, 2, 1), rows[:, t], order="C")  # B'PB
+                    rhs = (PBT @ A).reshape(P, m, n)
+                    APA = (Pm.reshape(P * n, n) @ A).reshape(P, n, n).transpose(0, 2, 1).reshape(P * n, n) @ A
+                    APA = APA.reshape(P, n, n).transpose(0, 2, 1)                       # A'(P A)
+                else:              # a small batch: few calls, [B A]' P [B A] in two products
+                    H = BAT @ (Pm @ BA)
+                    G = np.multiply(H[:, :m, :m], rows[:, t], order="C")
+                    rhs = H[:, :m, m:]
+                    APA = H[:, m:, m:]
                 G.reshape(P, m * m)[:, :: m + 1] += added[:, t]
-                rhs = PB.transpose(0, 2, 1) @ A
                 try:
                     K[:, t] = np.linalg.solve(G, rhs)
                 except np.linalg.LinAlgError:
                     raise _overflow("the cost-to-go matrix", self.protocol) from None
-                Pm = AT @ (Pm @ A) - (rhs.transpose(0, 2, 1) * rows[:, t]) @ K[:, t]
+                Pm = APA - (rhs.transpose(0, 2, 1) * rows[:, t]) @ K[:, t]
                 if t > 0:
                     Pm += W[t - 1]
                 Pm = 0.5 * (Pm + Pm.transpose(0, 2, 1))

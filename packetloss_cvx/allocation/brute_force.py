@@ -6,8 +6,8 @@ with the SOCP or the branch and bound, and evaluates J* by the backward recursio
 allocation's "auto" takes the dense form on small systems), so the audit and the tests use it
 to check them. Every value it returns is beta'mu at a point the recursion finds feasible, so
 it is never below the optimum. Grid points that cannot beat the best so far are settled by
-one evaluation (monotonicity). Time O((coarse + fine) · log(1/tol)) recursions of
-O(N (n^3 + m^3)) at worst.
+one evaluation (monotonicity), made for up to SPECULATE grid points in one batch. Time
+O((coarse + fine) · log(1/tol)) recursions of O(N (n^3 + m^3)) at worst.
 """
 
 from __future__ import annotations
@@ -21,7 +21,10 @@ from ..evaluator import CostEvaluator
 from ..model import System
 from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
 
-__all__ = ["bisect", "brute_force_allocation"]
+__all__ = ["SPECULATE", "bisect", "brute_force_allocation", "midpoints"]
+
+#: How many grid points ahead J*(mu1, top) is evaluated in one batch (decisions as point by point).
+SPECULATE = 16
 
 
 def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Sequence[float],
@@ -41,18 +44,14 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 
     evaluator = CostEvaluator(system, protocol, "recursion")     # the recursion, its structure built once
 
-    def J(mu1: float, mu2: float) -> float:
-        return evaluator.cost(np.array([mu1, mu2]))
-
     def feasible(mu1: float, mu2s: list[float]) -> list[bool]:
         """J*(mu1, mu2) <= alpha for several mu2 at once: one batched recursion."""
         points = np.column_stack([np.full(len(mu2s), mu1), mu2s])
         return list(evaluator.costs(points) <= alpha)
 
-    def best_mu2(mu1: float, cap: float) -> float | None:
-        """The least feasible mu2 (to tol, feasible end) below ``cap``, or None: above cap a
-        point cannot beat the best so far, so one evaluation at cap settles most grid points.
-        O(log2(1/tol)) recursions at most."""
+    def bounds(mu1: float, cap: float) -> tuple[float, float] | None:
+        """The mu2 interval [lo, top] the constraints and ``cap`` leave, or None: above cap a point
+        cannot beat the best so far, so one evaluation at top settles most grid points. O(rows)."""
         lo, hi = 0.0, 1.0
         for g, c in zip(G, h, strict=True):    # g1 mu1 + g2 mu2 <= c
             if g[1] > 0:
@@ -62,19 +61,42 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
             elif g[0] * mu1 > c + BRUTE_FORCE_ROW_ATOL:
                 return None
         top = min(hi, cap)
-        if lo > top or J(mu1, top) > alpha:
+        return None if lo > top else (lo, top)
+
+    def best_mu2(mu1: float, lo: float, top: float, top_ok: bool) -> float | None:
+        """The least feasible mu2 in [lo, top] (to tol, feasible end), or None; ``top_ok``: whether
+        J*(mu1, top) <= alpha. J*(mu1, lo) and the bisection's first 2^4 - 1 midpoints are evaluated
+        in one batch. O(log2(1/tol)) recursions at most."""
+        if not top_ok:
             return None
-        if J(mu1, lo) <= alpha:
+        tree = midpoints(lo, top) if top - lo > tol else []
+        ok = feasible(mu1, [lo, *tree])
+        if ok[0]:
             return lo
-        return bisect(lambda mu2s: feasible(mu1, mu2s), lo, top, tol)
+        return bisect(lambda mu2s: feasible(mu1, mu2s), lo, top, tol, first=ok[1:])
 
     def scan(points: np.ndarray, best: tuple[float, float, float] | None) -> tuple[float, float, float] | None:
-        for mu1 in points:
-            cap = np.inf if best is None or beta[1] <= 0 else (best[0] - beta[0] * mu1) / beta[1]
-            mu2 = best_mu2(float(mu1), cap)
-            if mu2 is not None and (best is None or beta[0] * mu1 + beta[1] * mu2 < best[0]):
-                best = (float(beta[0] * mu1 + beta[1] * mu2), float(mu1), float(mu2))
+        """Walk ``points`` in order, as one would point by point; J*(mu1, top) of up to SPECULATE
+        points ahead is evaluated in one batch with the current best, again after the best changes."""
+        k = 0
+        while k < len(points):
+            ahead = []                           # (mu1, lo, top) or (mu1, None) up to the batch's end
+            for mu1 in points[k:k + SPECULATE]:
+                cap = np.inf if best is None or beta[1] <= 0 else (best[0] - beta[0] * mu1) / beta[1]
+                ahead.append((float(mu1), bounds(float(mu1), cap)))
+            tops = [(mu1, span[1]) for mu1, span in ahead if span is not None]
+            top_ok = iter(feasible_at(tops)) if tops else iter(())
+            for mu1, span in ahead:
+                k += 1
+                mu2 = None if span is None else best_mu2(mu1, span[0], span[1], next(top_ok))
+                if mu2 is not None and (best is None or beta[0] * mu1 + beta[1] * mu2 < best[0]):
+                    best = (float(beta[0] * mu1 + beta[1] * mu2), float(mu1), float(mu2))
+                    break                        # the caps ahead change: speculate again
         return best
+
+    def feasible_at(points: list[tuple[float, float]]) -> list[bool]:
+        """J*(mu1, mu2) <= alpha at several points at once: one batched recursion."""
+        return list(evaluator.costs(np.array(points, dtype=float)) <= alpha)
 
     best = scan(np.linspace(0, 1, coarse), None)
     if best is None:
@@ -83,21 +105,29 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
     return scan(np.clip(np.linspace(best[1] - step, best[1] + step, fine), 0, 1), best)
 
 
-def bisect(feasible, a: float, b: float, tol: float, depth: int = 4) -> float:
+def midpoints(a: float, b: float, depth: int = 4) -> list[float]:
+    """The 2^depth - 1 midpoints the next ``depth`` bisection steps on [a, b] could visit, in heap
+    order (node k has children 2k + 1, 2k + 2). O(2^depth)."""
+    tree: list[float] = []
+    spans = [(a, b)]
+    for _ in range(2**depth - 1):
+        lo, hi = spans.pop(0)
+        mid = 0.5 * (lo + hi)
+        tree.append(mid)
+        spans += [(lo, mid), (mid, hi)]
+    return tree
+
+
+def bisect(feasible, a: float, b: float, tol: float, depth: int = 4, first: list[bool] | None = None) -> float:
     """The feasible end of ``while b - a > tol: mid = (a + b) / 2; a, b = (a, mid) if feasible else
     (mid, b)``, with the same midpoints and decisions, ``depth`` levels per call of
     ``feasible(points) -> list of bool``: the 2^depth - 1 midpoints the next ``depth`` steps could
-    visit are evaluated in one batch, then walked. O(log2((b - a) / tol) / depth) calls of
-    2^depth - 1 points."""
+    visit are evaluated in one batch, then walked; ``first``: the decisions at ``midpoints(a, b,
+    depth)`` when already known. O(log2((b - a) / tol) / depth) calls of 2^depth - 1 points."""
     while b - a > tol:
-        tree: list[float] = []                   # heap order: node k has children 2k + 1, 2k + 2
-        bounds = [(a, b)]
-        for _ in range(2**depth - 1):
-            lo, hi = bounds.pop(0)
-            mid = 0.5 * (lo + hi)
-            tree.append(mid)
-            bounds += [(lo, mid), (mid, hi)]
-        ok = feasible(tree)
+        tree = midpoints(a, b, depth)
+        ok = feasible(tree) if first is None else first
+        first = None
         k = 0
         while k < len(tree) and b - a > tol:
             a, b = (a, tree[k]) if ok[k] else (tree[k], b)
