@@ -40,8 +40,15 @@ def stationary_channel(system: System) -> np.ndarray:
     Raises
     ------
     InputError
-        Field ``mu_schedule``: a closed loop run for ever needs one mu per actuator.
+        Field ``mu_schedule``: a closed loop run for ever needs one mu per actuator. Field ``channel``: a
+        Gilbert-Elliott chain's losses are correlated, so the Bernoulli second moments would not describe its
+        loop (a Bernoulli radius of 0.47 where the chain's is 1.06): ``packetloss_cvx.markov`` has its
+        mean-square radius and optimal gains; pass ``mu=`` to the caller for the Bernoulli twin on purpose.
     """
+    if system.channel is not None:
+        raise InputError("channel", "a Gilbert-Elliott channel's losses are correlated, so the closed loop over "
+                                    "independent (Bernoulli) losses does not describe it: use packetloss_cvx.markov "
+                                    "(mean_square_radius, coupled_riccati), or pass mu= for the Bernoulli twin")
     if not system.is_stationary:
         raise InputError("mu_schedule", "the closed loop runs for ever over one channel: expected a stationary "
                                         "channel (mu), found a schedule that changes over the horizon")

@@ -1,0 +1,60 @@
+"""Found by the third hostile review (2026-11-22), tried as a new user from a fresh install.
+
+References are independent of the code under test: a hand-built Markov-jump second-moment operator
+(Costa, Fragoso, Marques 2005, Thm 3.9) for Gilbert channels, hand shapes and messages for bad input.
+"""
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+from packetloss_cvx.errors import InputError
+from packetloss_cvx.markov import bursty_twin
+from packetloss_cvx.simulation import closed_loop, critical_mu, dp_riccati, finite_horizon_costs
+
+
+def _gilbert_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, p: np.ndarray, r: np.ndarray) -> float:
+    """Mean-square radius of x+ = (A - B V K) x behind independent Gilbert channels (h_good 1, h_bad 0):
+    the mode is the joint state, v_i = [channel i good]; block (b, a) of the operator is T_ab kron(A_a, A_a)."""
+    modes = list(itertools.product((1, 0), repeat=B.shape[1]))     # 1 = good
+    n = A.shape[0]
+    op = np.zeros((len(modes) * n * n, len(modes) * n * n))
+    for ia, a in enumerate(modes):
+        Aa = A - B @ np.diag(a) @ K
+        for ib, b in enumerate(modes):
+            T = np.prod([(1 - p[i] if b[i] else p[i]) if a[i] else (r[i] if b[i] else 1 - r[i])
+                         for i in range(len(a))])
+            op[ib * n * n:(ib + 1) * n * n, ia * n * n:(ia + 1) * n * n] = T * np.kron(Aa, Aa)
+    return float(max(abs(np.linalg.eigvals(op))))
+
+
+def test_bernoulli_closed_loop_is_refused_behind_a_gilbert_elliott_chain():
+    """closed_loop() on a bursty system used to answer with the Bernoulli radius 0.47 ("stable") where the
+    loop behind the chain has radius 1.06 (not mean-square stable)."""
+    system = bursty_twin(pl.load_example("two_actuator"), 0.95)
+    gain = pl.closed_form(system, "tcp").gain
+    ch = system.channel
+    assert _gilbert_radius(system.A, system.B, gain, np.asarray(ch.p), np.asarray(ch.r)) > 1.02
+    twin = closed_loop(system, gain, "tcp", mu=system.mu_schedule[0])      # the Bernoulli twin, asked for
+    assert twin.stable and twin.spectral_radius < 0.5                        # ... is a different loop
+    for call in (lambda: closed_loop(system, gain, "tcp"), lambda: dp_riccati(system),
+                 lambda: critical_mu(system, "tcp"), lambda: finite_horizon_costs(system, gain, 5)):
+        with pytest.raises(InputError) as err:
+            call()
+        assert err.value.field == "channel"
+
+
+def test_simulate_never_calls_a_bursty_loop_stable_that_is_not(tmp_path, capsys):
+    system = bursty_twin(pl.load_example("two_actuator"), 0.95)
+    path = pl.save_system(system, tmp_path / "bursty.toml")
+    code = main(["simulate", str(path), "--closed-loop", "--samples", "50", "--steps", "5", "--json", "-q"])
+    out, err = capsys.readouterr()
+    if code == 0:   # a Markov-aware simulate may answer; it must not call the loop stable
+        data = json.loads(out)
+        assert all(not entry["closed_loop"]["stable"] for entry in data.values() if "closed_loop" in entry)
+    else:
+        assert code == 2 and len(err.strip().splitlines()) == 1 and "channel" in err
