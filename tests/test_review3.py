@@ -58,3 +58,15 @@ def test_simulate_never_calls_a_bursty_loop_stable_that_is_not(tmp_path, capsys)
         assert all(not entry["closed_loop"]["stable"] for entry in data.values() if "closed_loop" in entry)
     else:
         assert code == 2 and len(err.strip().splitlines()) == 1 and "channel" in err
+
+
+def test_state_and_belief_together_name_the_field_once(tmp_path, capsys):
+    path = tmp_path / "both.toml"
+    source = (pl.save_system(pl.load_example("pendulum_bursty"), tmp_path / "ge.toml")).read_text()
+    path.write_text(source.replace('model = "gilbert-elliott"', 'model = "gilbert-elliott"\nstate = ["good"]\n'
+                                                                 'belief = [0.3]'))
+    with pytest.raises(InputError) as err:
+        pl.load_system(path)
+    assert err.value.field == "channel.state/belief"
+    assert main(["solve", str(path)]) == 2
+    assert capsys.readouterr().err.startswith("packetloss-cvx: error: channel.state/belief: ")
