@@ -73,3 +73,15 @@ def test_state_and_belief_together_name_the_field_once(tmp_path, capsys):
     assert err.value.field == "channel.state/belief"
     assert main(["solve", str(path)]) == 2
     assert capsys.readouterr().err.startswith("packetloss-cvx: error: channel.state/belief: ")
+
+
+@pytest.mark.parametrize("call", [
+    lambda s: pl.simulation.dp_finite_horizon(s, 10**9),
+    lambda s: finite_horizon_costs(s, np.zeros((1, 1)), 10**9),
+])
+def test_a_billion_steps_is_refused_before_it_is_allocated(call):
+    """dp_finite_horizon(system, 10**9) used to allocate 8 GB and loop for ever (killed after minutes)."""
+    scalar = pl.System(A=[[2.0]], B=[[1.0]], horizon=5, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    with pytest.raises(InputError) as err:
+        call(scalar)
+    assert err.value.field == "steps"
