@@ -85,3 +85,17 @@ def test_a_billion_steps_is_refused_before_it_is_allocated(call):
     with pytest.raises(InputError) as err:
         call(scalar)
     assert err.value.field == "steps"
+
+
+def test_an_overflowing_gain_is_not_stable_and_not_a_linalg_crash():
+    """A finite gain of 1e200 squared to inf in the second-moment operator: np.linalg raised LinAlgError
+    (Kronecker path, n = 2) or 'SVD did not converge' with LAPACK noise on stderr (ARPACK path, n = 25).
+    The operator is quadratic in (A, K), so the radius of the scaled loop times c^2 is exact: about 1e400."""
+    from packetloss_cvx.simulation import is_mean_square_stable, mean_square_radius
+    for n in (2, 25):
+        A, B = np.diag([2.0] + [1.0] * (n - 1)), np.ones((n, 1))
+        radius = mean_square_radius(A, B, np.full((1, n), 1e200), [0.5])
+        assert radius > 1e300
+        assert not is_mean_square_stable(radius)
+    # the scalar reference: (a - mu k)^2 + mu (1 - mu) k^2
+    assert mean_square_radius([[2.0]], [[1.0]], [[1e120]], [0.5]) == pytest.approx((2 - 0.5e120) ** 2 + 0.25e240, rel=1e-12)
