@@ -98,4 +98,5 @@ def test_an_overflowing_gain_is_not_stable_and_not_a_linalg_crash():
         assert radius > 1e300
         assert not is_mean_square_stable(radius)
     # the scalar reference: (a - mu k)^2 + mu (1 - mu) k^2
-    assert mean_square_radius([[2.0]], [[1.0]], [[1e120]], [0.5]) == pytest.approx((2 - 0.5e120) ** 2 + 0.25e240, rel=1e-12)
+    expected = (2 - 0.5e120) ** 2 + 0.25e240
+    assert mean_square_radius([[2.0]], [[1.0]], [[1e120]], [0.5]) == pytest.approx(expected, rel=1e-12)
