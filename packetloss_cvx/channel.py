@@ -152,7 +152,14 @@ class GilbertElliott:
         raise AttributeError("GilbertElliott is immutable: build a new one")
 
     def __repr__(self) -> str:
-        return f"GilbertElliott(m={self.m}, p={self.p.tolist()}, r={self.r.tolist()})"
+        """The parameters that differ from the defaults: h_good, h_bad only when not the Gilbert (1, 0), the state
+        or belief only when given (``GilbertElliott(m=1, p=[0.1], r=[0.4], state=['bad'])``)."""
+        extra = "" if np.all(self.h_good == 1) and np.all(self.h_bad == 0) else (
+            f", h_good={self.h_good.tolist()}, h_bad={self.h_bad.tolist()}")
+        if self.belief is not None:
+            extra += (f", state={['good' if b == 1 else 'bad' for b in self.belief]}" if self.state_given
+                      else f", belief={self.belief.tolist()}")
+        return f"GilbertElliott(m={self.m}, p={self.p.tolist()}, r={self.r.tolist()}{extra})"
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, GilbertElliott):
