@@ -117,3 +117,26 @@ def test_a_gilbert_elliott_repr_shows_what_was_given():
     assert text == "GilbertElliott(m=1, p=[0.1], r=[0.4], state=['bad'])"
     text = repr(GilbertElliott(p=[0.1], r=[0.4], h_good=0.9, h_bad=0.2, belief=[0.3]))
     assert text == "GilbertElliott(m=1, p=[0.1], r=[0.4], h_good=[0.9], h_bad=[0.2], belief=[0.3])"
+
+
+@pytest.mark.parametrize(("argv", "field"), [
+    (["solve", "two_actuator", "--out", "{tmp}/no-such-dir/out.json"], "--out"),
+    (["solve", "two_actuator", "--out", "{tmp}"], "--out"),
+    (["simulate", "two_actuator", "--closed-loop", "--save", "{tmp}/no-such-dir/runs.npz"], "--save"),
+    (["simulate", "two_actuator", "--closed-loop", "--save", "{tmp}/runs.txt"], "--save"),
+    (["simulate", "two_actuator", "--closed-loop", "--plot", "{tmp}/no-such-dir/loop.png"], "--plot"),
+    (["simulate", "two_actuator", "--plot", "{tmp}/loop.png"], "--plot"),
+])
+def test_a_bad_output_path_is_refused_before_the_work(argv, field, tmp_path, capsys, monkeypatch):
+    """These were refused only after the whole computation (a long audit or simulation lost to a typo)."""
+    import importlib
+    import sys
+    for name in ("solve", "simulate"):
+        monkeypatch.setitem(sys.modules, f"packetloss_cvx.cli.{name}", None)   # importing the command would fail
+    importlib.invalidate_caches()
+    code = main([a.replace("{tmp}", str(tmp_path)) for a in argv] + ["-q"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith(f"packetloss-cvx: error: {field}: ")
+    assert len(err.strip().splitlines()) == 1
+    assert not list(tmp_path.iterdir())
