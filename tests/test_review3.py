@@ -140,3 +140,11 @@ def test_a_bad_output_path_is_refused_before_the_work(argv, field, tmp_path, cap
     assert err.startswith(f"packetloss-cvx: error: {field}: ")
     assert len(err.strip().splitlines()) == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_allocate_refuses_to_replace_a_gilbert_elliott_chain_silently(capsys):
+    """allocate pendulum_bursty printed a Bernoulli mu* = 0.0049 for a file whose channel is a chain."""
+    assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1"]) == 2
+    assert capsys.readouterr().err.startswith("packetloss-cvx: error: channel: ")
+    assert main(["allocate", "pendulum", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["status"] == "optimal"   # the same plant behind Bernoulli losses
