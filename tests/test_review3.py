@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
+import packetloss_cvx.markov
 from packetloss_cvx.cli import main
 from packetloss_cvx.errors import InputError
 from packetloss_cvx.markov import bursty_twin
@@ -165,3 +166,20 @@ def test_the_closed_loop_statespace_stays_discrete_time():
         pl.System.from_statespace(control.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]], 1), A=[[2.0]], horizon=3,
                                   state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     assert err.value.field == "A"
+
+
+@pytest.mark.parametrize(("call", "field"), [
+    (lambda ch: pl.markov.plugin_schedule(ch, 10**9, "udp"), "horizon"),     # allocated 8 GB, then looped
+    (lambda ch: pl.markov.channel_covariance(ch, 10**5), "horizon"),         # 80 GB
+    (lambda ch: pl.markov.second_moments(ch, 0), "horizon"),                 # an empty array
+    (lambda ch: pl.markov.channel_covariance(ch, -3), "horizon"),
+    (lambda ch: pl.markov.filter_belief(ch, [1.5], [True]), "belief"),       # answered 0.98
+    (lambda ch: pl.markov.filter_belief(ch, [0.5], [0.5]), "delivered"),     # half a packet, read as delivered
+    (lambda ch: pl.markov.plugin_schedule(ch, 5, "tcp", acknowledged=[[2]]), "delivered"),
+    (lambda ch: ch.beliefs(3, belief=[2.0]), "belief"),
+])
+def test_chain_functions_refuse_what_they_cannot_mean(call, field):
+    channel = pl.load_example("pendulum_bursty").channel
+    with pytest.raises(InputError) as err:
+        call(channel)
+    assert err.value.field == field
