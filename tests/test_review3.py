@@ -183,3 +183,10 @@ def test_chain_functions_refuse_what_they_cannot_mean(call, field):
     with pytest.raises(InputError) as err:
         call(channel)
     assert err.value.field == field
+
+
+def test_the_gilbert_elliott_section_is_headed_once(capsys):
+    """The text printed 'Gilbert-Elliott channel' as a heading and again as the next line's label."""
+    assert main(["solve", "pendulum_bursty", "--no-qp"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert sum(line.startswith("Gilbert-Elliott channel") for line in lines) == 1
