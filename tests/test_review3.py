@@ -190,3 +190,11 @@ def test_the_gilbert_elliott_section_is_headed_once(capsys):
     assert main(["solve", "pendulum_bursty", "--no-qp"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert sum(line.startswith("Gilbert-Elliott channel") for line in lines) == 1
+
+
+def test_critical_mu_with_a_tolerance_below_double_spacing_ends():
+    """tol=1e-20 bisected for ever: the bracket cannot shrink below the spacing of doubles near 0.75."""
+    s = pl.System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+    t = critical_mu(s, [[2.0]], tol=1e-20)   # fixed k = a = 2: proved stable iff 4 (1 - mu) < 1 - margin
+    assert t == pytest.approx(0.75 + MEAN_SQUARE_MARGIN / 4, abs=1e-15)
