@@ -198,3 +198,10 @@ def test_critical_mu_with_a_tolerance_below_double_spacing_ends():
     from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
     t = critical_mu(s, [[2.0]], tol=1e-20)   # fixed k = a = 2: proved stable iff 4 (1 - mu) < 1 - margin
     assert t == pytest.approx(0.75 + MEAN_SQUARE_MARGIN / 4, abs=1e-15)
+
+
+def test_every_packaged_example_is_named_in_the_help():
+    """FILE's help listed pendulum and two_actuator, not pendulum_bursty (the one Gilbert-Elliott example)."""
+    from packetloss_cvx.cli.parser import FILE_HELP
+    from packetloss_cvx.io import example_names
+    assert all(name in FILE_HELP for name in example_names())
