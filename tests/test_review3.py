@@ -205,3 +205,17 @@ def test_every_packaged_example_is_named_in_the_help():
     from packetloss_cvx.cli.parser import FILE_HELP
     from packetloss_cvx.io import example_names
     assert all(name in FILE_HELP for name in example_names())
+
+
+def test_a_chain_beyond_the_mjls_size_is_not_stable_and_not_bad_input():
+    """solve on a valid 7-channel Gilbert-Elliott file exited 2 ('expected at most 6 channels') from its
+    stability line: the MJLS operator's 2^m modes are out of reach, the file is not bad input."""
+    from packetloss_cvx.channel import GilbertElliott
+    from packetloss_cvx.cli.solve import stability
+    system = pl.System(A=[[0.9, 0.1], [0.0, 0.8]], B=np.ones((2, 7)), horizon=3, state_weight=[1.0, 1.0],
+                       input_weight=[1.0] * 7, channel=GilbertElliott(p=[0.1] * 7, r=[0.3] * 7), x0=[1.0, 1.0])
+    entry: dict = {}
+    text = stability(system, np.zeros((7, 2)), entry)
+    assert entry["stable"] is False
+    assert entry["mean_square_spectral_radius"] is None
+    assert "not computed" in text
