@@ -68,7 +68,7 @@ def stationary_channel(system: System) -> np.ndarray:
     if system.channel is not None:
         raise InputError("channel", "a Gilbert-Elliott channel's losses are correlated, so the closed loop over "
                                     "independent (Bernoulli) losses does not describe it: use packetloss_cvx.markov "
-                                    "(mean_square_radius, coupled_riccati), or pass mu= for the Bernoulli twin")
+                                    "(mean_square_radius, coupled_riccati), or give mu= (--mu) for the Bernoulli twin")
     if not system.is_stationary:
         raise InputError("mu_schedule", "the closed loop runs for ever over one channel: expected a stationary "
                                         "channel (mu), found a schedule that changes over the horizon")
