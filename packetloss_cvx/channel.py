@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .errors import DimensionError, InputError, ProbabilityError
+from .validation import MAX_ENTRIES
 
 __all__ = ["MODEL", "GilbertElliott", "channel_schedule"]
 
@@ -159,7 +160,14 @@ class GilbertElliott:
         raise AttributeError("GilbertElliott is immutable: build a new one")
 
     def __repr__(self) -> str:
-        return f"GilbertElliott(m={self.m}, p={self.p.tolist()}, r={self.r.tolist()})"
+        """The parameters that differ from the defaults: h_good, h_bad only when not the Gilbert (1, 0), the state
+        or belief only when given (``GilbertElliott(m=1, p=[0.1], r=[0.4], state=['bad'])``)."""
+        extra = "" if np.all(self.h_good == 1) and np.all(self.h_bad == 0) else (
+            f", h_good={self.h_good.tolist()}, h_bad={self.h_bad.tolist()}")
+        if self.belief is not None:
+            extra += (f", state={['good' if b == 1 else 'bad' for b in self.belief]}" if self.state_given
+                      else f", belief={self.belief.tolist()}")
+        return f"GilbertElliott(m={self.m}, p={self.p.tolist()}, r={self.r.tolist()}{extra})"
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, GilbertElliott):
@@ -200,7 +208,16 @@ class GilbertElliott:
 
     def beliefs(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """P(S_{i,t} = good) for t = 0..horizon-1 from ``belief`` (default the initial one), (N, m).
-        b_{t+1} = r + lambda b_t (constant from the stationary distribution). Time O(N m)."""
+        b_{t+1} = r + lambda b_t (constant from the stationary distribution). Time O(N m).
+
+        Raises
+        ------
+        InputError
+            ``horizon`` not an integer >= 1 or beyond MAX_ENTRIES numbers; ``belief`` not m probabilities.
+        """
+        self.check_horizon(horizon, self.m)
+        if belief is not None:
+            belief = _rates(belief, "belief", self.m)
         if belief is None and self.belief is None:      # stationary: exactly constant (no drift by rounding)
             return np.repeat(self.stationary[None], horizon, axis=0)
         b = np.array(self.initial_belief if belief is None else belief, dtype=float)
@@ -209,6 +226,15 @@ class GilbertElliott:
             out[t] = b
             b = self.r + self.correlation * b
         return out
+
+    @staticmethod
+    def check_horizon(horizon: Any, per_step: int) -> None:
+        """``horizon`` an integer >= 1 whose arrays (``per_step`` numbers a step) fit in MAX_ENTRIES."""
+        if isinstance(horizon, bool) or not isinstance(horizon, int | np.integer) or horizon < 1:
+            raise InputError("horizon", f"expected an integer >= 1, found {horizon!r}")
+        if horizon * max(per_step, 1) > MAX_ENTRIES:
+            raise InputError("horizon", f"expected at most {MAX_ENTRIES} numbers ({MAX_ENTRIES // max(per_step, 1)} "
+                                        f"steps), found {horizon} steps")
 
     def delivery_schedule(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """Predicted mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}, (N, m), clipped to [0, 1]. Time O(N m).

@@ -97,11 +97,12 @@ def html_table(title: str, rows: Sequence[tuple[str, Any]]) -> str:
 
 
 def channel_text(system: Any) -> str:
-    """The delivery probabilities, or how many steps a non-stationary schedule has."""
+    """The delivery probabilities, or how many steps a non-stationary schedule has; a Gilbert-Elliott
+    chain is named (its mu_t are only the plug-in prediction, the losses are correlated)."""
     sched = system.mu_schedule
-    if np.all(sched == sched[0]):
-        return short(sched[0])
-    return f"non-stationary, {sched.shape[0]} steps (mu_schedule)"
+    text = short(sched[0]) if np.all(sched == sched[0]) else f"non-stationary, {sched.shape[0]} steps (mu_schedule)"
+    chain = getattr(system, "channel", None)
+    return text if chain is None else f"{text}, channel={chain!r}"
 
 
 def system_repr(system: Any) -> str:

@@ -84,7 +84,9 @@ def system_from_dict(data: Mapping[str, Any]) -> System:
 
 def _toml_field(field: str, where: Mapping[str, str]) -> str:
     if "/" in field:  # a paired key
-        first, second = field.split("/")
+        first, second = field.split("/", 1)
+        if "." in first:   # already named by its table (channel.state/belief)
+            return field
         section = where.get(first, where.get(second, "")).split(".")[0] or _section_of(first)
         return f"{section}.{first}/{second}"
     base, bracket, rest = field.partition("[")

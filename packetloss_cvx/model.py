@@ -304,6 +304,9 @@ class System:
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
         """A System with the A, B of a discrete-time control.StateSpace (statespace.plant_matrices) and ``fields``."""
+        taken = sorted(set(fields) & {"A", "B"})
+        if taken:
+            raise InputError(taken[0], "given by sys: from_statespace takes A and B from the StateSpace")
         return cls(**plant_matrices(sys), **fields)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:

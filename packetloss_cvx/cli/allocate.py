@@ -22,6 +22,10 @@ def run(args: argparse.Namespace) -> CommandResult:
     allocation is feasible and its lower bound proven, but the gap is larger than asked; the
     result is printed on stdout as usual); 3 when proven infeasible."""
     system = system_of(args)
+    if system.channel is not None:   # the search replaces the channel by Bernoulli mu: not the file's chain
+        raise InputError("channel", "allocate chooses independent (Bernoulli) delivery probabilities mu, which would "
+                                    "replace this file's Gilbert-Elliott chain: give a file with [channel] mu (or "
+                                    "--mu), or vary the chain with packetloss_cvx.markov.burstiness_sweep")
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     if args.gap is not None:

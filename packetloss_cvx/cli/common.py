@@ -9,6 +9,7 @@ the subcommand's module, so that bad input is refused without importing cvxpy or
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -18,11 +19,13 @@ from ..errors import InputError
 from ..io import load_system
 from ..model import System
 
-__all__ = ["CommandResult", "allocation_numbers", "floats", "number", "preflight", "progress_of", "system_of",
-           "systems_of", "with_overrides"]
+__all__ = ["CommandResult", "allocation_numbers", "check_writable", "floats", "number", "preflight", "progress_of",
+           "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
+#: options that name a file the command writes after its work: checked before the work starts
+OUTPUT_FILES = {"json_out": "--out", "save": "--save", "plot": "--plot"}
 
 
 class CommandResult(NamedTuple):
@@ -142,12 +145,41 @@ def preflight(args: argparse.Namespace) -> None:
         value = getattr(args, name, None)
         if isinstance(value, int) and value < 0:
             raise InputError(f"--{name}", f"expected {what} >= 0, found {value}")
+    for name, flag in OUTPUT_FILES.items():   # a typo in an output path costs nothing, not the whole run
+        if isinstance(getattr(args, name, None), str):
+            check_writable(getattr(args, name), flag)
+    if isinstance(getattr(args, "save", None), str) and not args.save.endswith(".npz"):
+        raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
+    if getattr(args, "plot", None) and getattr(args, "closed_loop", None) is False:
+        raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
     if getattr(args, "file", None) is not None:
         system = system_of(args)
         if getattr(args, "alpha", None) is not None and getattr(args, "beta", None) is not None:
             allocation_numbers(args, system.m)
     if getattr(args, "files", None):
         systems_of(args)
+
+
+def check_writable(path: str, field: str) -> None:
+    """A FILE the command will write: not a directory, in a directory that exists and may be written, and
+    writable if it exists. Nothing is created. O(1).
+
+    >>> check_writable("/no-such-directory/out.json", "--out")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --out: cannot write '/no-such-directory/out.json': no such directory
+    """
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if target.is_dir():
+        reason = "it is a directory"
+    elif not folder.is_dir():
+        reason = "no such directory"
+    elif not os.access(folder, os.W_OK | os.X_OK) or (target.exists() and not os.access(target, os.W_OK)):
+        reason = "permission denied"
+    else:
+        return
+    raise InputError(field, f"cannot write {path!r}: {reason}")
 
 
 def progress_of(args: argparse.Namespace) -> bool | None:

@@ -32,7 +32,8 @@ __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "bu
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales")
 
-FILE_HELP = "a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator"
+FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
+             "pendulum_bursty (a Gilbert-Elliott channel)")
 
 DESCRIPTION = f"""\
 packetloss-cvx {__version__}: optimal control over multichannel packet-loss links

@@ -91,7 +91,8 @@ def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
             note, where = "", "the Gilbert-Elliott chain (a Markov jump linear system)"
         else:
             radius = mean_square_radius(system.A, system.B, gain, mu)
-    except (NumericalError, ResourceError, InputError) as err:   # e.g. too many channels for the chain's modes
+    except (NumericalError, ResourceError, InputError) as err:   # InputError: a chain of more channels than
+        # the MJLS operator takes (2^m modes): the file is valid, only this verdict is out of reach
         entry.update({"mean_square_spectral_radius": None, "stable": False, "stability_note": str(err)})
         return f"stability not computed: {err}"
     stable = is_mean_square_stable(radius)

@@ -60,6 +60,10 @@ def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt
     if v.shape != b.shape or b.ndim < 1 or b.shape[-1] != channel.m:
         raise InputError("delivered", f"expected one outcome and one belief per channel ({channel.m}; leading "
                                       f"dimensions alike), found {v.shape} and {b.shape}")
+    if not np.all((b >= 0.0) & (b <= 1.0)):
+        raise InputError("belief", "expected probabilities P(good) in [0, 1]")
+    if v.dtype != bool and not (np.issubdtype(v.dtype, np.number) and np.all((v == 0) | (v == 1))):
+        raise InputError("delivered", "expected outcomes True/False or 1/0 (delivered/lost)")
     v = v.astype(bool)
     like_good = np.where(v, channel.h_good, 1.0 - channel.h_good)
     like_bad = np.where(v, channel.h_bad, 1.0 - channel.h_bad)
@@ -69,7 +73,7 @@ def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt
         raise InputError("delivered", f"channel {i}: outcome {'delivered' if v[total <= 0.0][0] else 'lost'} has "
                                       "probability 0 under the belief and the channel")
     posterior = b * like_good / total
-    return channel.r + channel.correlation * posterior
+    return np.clip(channel.r + channel.correlation * posterior, 0.0, 1.0)   # a probability, rounding aside
 
 
 def plugin_schedule(channel: GilbertElliott, horizon: int, protocol: str,
@@ -95,7 +99,8 @@ def plugin_schedule(channel: GilbertElliott, horizon: int, protocol: str,
         raise InputError("horizon", f"expected an integer >= 1, found {horizon!r}")
     b = np.array(channel.initial_belief, dtype=float)
     for outcome in acknowledged:
-        b = filter_belief(channel, b, outcome) if protocol == "tcp" else channel.r + channel.correlation * b
+        b = filter_belief(channel, b, outcome) if protocol == "tcp" else np.clip(channel.r + channel.correlation * b,
+                                                                                 0.0, 1.0)
     return channel.delivery_schedule(int(horizon), b), b
 
 
@@ -145,6 +150,7 @@ def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
     >>> np.round(C[0], 4).tolist()
     [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
     """
+    channel.check_horizon(horizon, channel.m * horizon if isinstance(horizon, int | np.integer) else 1)
     N = horizon
     b = channel.beliefs(N)                                      # (N, m)
     mu = channel.delivery_schedule(N)

@@ -400,7 +400,10 @@ def _riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray
             active = h[a] > 0
             Pa = Omega + A.T @ Ea @ A
             if np.any(active):
-                Ka = np.linalg.solve(S[np.ix_(active, active)], L[active])
+                try:   # a diverging iteration (no stabilising gains) overflows S: the caller sees non-finite P
+                    Ka = np.linalg.solve(S[np.ix_(active, active)], L[active])
+                except np.linalg.LinAlgError:
+                    Ka = np.full((int(active.sum()), n), np.nan)
                 gains[a][active] = Ka
                 Pa = Pa - L[active].T @ Ka
             out[a] = 0.5 * (Pa + Pa.T)

@@ -53,7 +53,7 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
     direction : array_like, optional
         Nonnegative, not all zero (default: the system's channel); t runs over [0, 1 / max(direction)].
     tol : float
-        Width of the final bracket in t.
+        Width of the final bracket in t (at best the spacing of doubles near the answer).
     stable : callable, optional
         Replaces :func:`stable_at` (mu -> bool), e.g. for another law.
 
@@ -84,6 +84,8 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
         return 0.0
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:   # adjacent doubles: a tol below the spacing of floats cannot be met
+            break
         if test(mid * d):
             hi = mid
         else:

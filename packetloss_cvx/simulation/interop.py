@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..errors import InputError
 from ..model import System
 from .moments import stationary_channel
 from .stability import check_law
@@ -33,7 +34,8 @@ def closed_loop_statespace(system: System, gain: npt.ArrayLike, mu: npt.ArrayLik
     mu : array_like, optional
         Default: the system's stationary channel.
     dt : float or True
-        The sampling time (True: discrete, unspecified).
+        The sampling time (True: discrete, unspecified); 0, None or a negative time is an InputError (the
+        loop's matrix is a discrete-time one).
 
     Examples
     --------
@@ -45,6 +47,10 @@ def closed_loop_statespace(system: System, gain: npt.ArrayLike, mu: npt.ArrayLik
     """
     import control  # lazy: an optional dependency
 
+    if dt is not True and (isinstance(dt, bool) or not isinstance(dt, int | float | np.integer | np.floating)
+                           or not (np.isfinite(dt) and dt > 0)):
+        # dt = 0 would declare A - B M K a continuous-time matrix, None an unspecified timebase
+        raise InputError("dt", f"expected a sampling time > 0 or True (discrete time), found {dt!r}")
     A, B, K, mu_ = check_law(system.A, system.B, gain, stationary_channel(system) if mu is None else mu)
     n = A.shape[0]
     return control.StateSpace(A - (B * mu_) @ K, np.eye(n), np.eye(n), np.zeros((n, n)), dt)

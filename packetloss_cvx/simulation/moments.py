@@ -22,6 +22,7 @@ from ..errors import CrossCheckError, InputError, NumericalError
 from ..model import System
 from ..results import ClosedLoop
 from ..tolerances import MOMENT_DENSE_MAX_N, MOMENT_RESIDUAL_RTOL
+from ..validation import MAX_ENTRIES
 from .stability import (
     check_law,
     is_mean_square_stable,
@@ -31,7 +32,26 @@ from .stability import (
     second_moment_matrix,
 )
 
-__all__ = ["closed_loop", "finite_horizon_costs", "law_cost_to_go", "stationary_channel", "stationary_second_moment"]
+__all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "stationary_channel",
+           "stationary_second_moment"]
+
+
+def check_steps(steps: object, per_step: int) -> None:
+    """A horizon of ``steps`` >= 1 whose per-step arrays (``per_step`` numbers each) fit in MAX_ENTRIES.
+
+    Refused before anything is allocated or looped over (``steps = 10**9`` is not a long wait but an error).
+
+    >>> try:
+    ...     check_steps(10**9, 4)
+    ... except InputError as err:
+    ...     print(err.field)
+    steps
+    """
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise InputError("steps", f"expected an integer >= 1, found {steps!r}")
+    if steps * max(per_step, 1) > MAX_ENTRIES:
+        raise InputError("steps", f"expected an integer >= 1 with at most {MAX_ENTRIES} numbers over the horizon "
+                                  f"({MAX_ENTRIES // max(per_step, 1)} steps of {per_step}), found {steps}")
 
 
 def stationary_channel(system: System) -> np.ndarray:
@@ -40,8 +60,15 @@ def stationary_channel(system: System) -> np.ndarray:
     Raises
     ------
     InputError
-        Field ``mu_schedule``: a closed loop run for ever needs one mu per actuator.
+        Field ``mu_schedule``: a closed loop run for ever needs one mu per actuator. Field ``channel``: a
+        Gilbert-Elliott chain's losses are correlated, so the Bernoulli second moments would not describe its
+        loop (a Bernoulli radius of 0.47 where the chain's is 1.06): ``packetloss_cvx.markov`` has its
+        mean-square radius and optimal gains; pass ``mu=`` to the caller for the Bernoulli twin on purpose.
     """
+    if system.channel is not None:
+        raise InputError("channel", "a Gilbert-Elliott channel's losses are correlated, so the closed loop over "
+                                    "independent (Bernoulli) losses does not describe it: use packetloss_cvx.markov "
+                                    "(mean_square_radius, coupled_riccati), or give mu= (--mu) for the Bernoulli twin")
     if not system.is_stationary:
         raise InputError("mu_schedule", "the closed loop runs for ever over one channel: expected a stationary "
                                         "channel (mu), found a schedule that changes over the horizon")
@@ -173,8 +200,7 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
         ``stage[t] = E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]`` and ``terminal = E[x_T' Omega x_T]``.
         Time O(steps (n^3 + n^2 m)). Non-finite entries (an unstable loop over a long horizon) stay inf.
     """
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise InputError("steps", f"expected an integer >= 1, found {steps!r}")
+    check_steps(steps, system.m * system.n)
     K_all = np.asarray(gains, dtype=float)
     K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 2 else K_all
     mu_all = np.asarray(stationary_channel(system) if mu is None else mu, dtype=float)

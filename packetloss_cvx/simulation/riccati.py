@@ -26,7 +26,7 @@ from ..errors import InputError, NumericalError
 from ..model import System
 from ..results import Riccati
 from ..tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE, RICCATI_MAX_ITER, RICCATI_RTOL
-from .moments import law_cost_to_go, stationary_channel
+from .moments import check_steps, law_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
 __all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_riccati", "riccati_step"]
@@ -181,8 +181,7 @@ def dp_finite_horizon(system: System, steps: int,
     NumericalError
         The cost-to-go overflows.
     """
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise InputError("steps", f"expected an integer >= 1, found {steps!r}")
+    check_steps(steps, system.m * system.n)
     mu_all = np.asarray(stationary_channel(system) if mu is None else mu, dtype=float)
     mu_all = np.broadcast_to(mu_all, (steps, system.m)) if mu_all.ndim == 1 else mu_all
     if mu_all.shape != (steps, system.m):

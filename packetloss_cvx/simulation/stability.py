@@ -25,6 +25,9 @@ from ..errors import DimensionError, InputError, NumericalError
 from ..model import numeric_array
 from ..tolerances import ARPACK_TOL, KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 
+#: above this entry size, A and K are scaled down before the radius is computed (exactly: L is quadratic)
+RADIUS_RESCALE = 1e100
+
 __all__ = [
     "check_law", "is_mean_square_stable", "mean_square_radius", "second_moment_adjoint", "second_moment_map",
     "second_moment_matrix",
@@ -128,9 +131,14 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
         raise InputError("method", f"expected auto, kronecker or krylov, found {method!r}")
     if not (np.all(np.isfinite(K_)) and np.all(np.isfinite(A_ - (B_ * mu_) @ K_))):
         raise NumericalError("mean-square radius: the closed-loop matrix A - B M K is not finite")
+    scale = max(float(np.abs(A_).max()), float(np.abs(B_).max() * np.abs(K_).max()))
+    if scale > RADIUS_RESCALE:   # L is quadratic in (A, K): radius(A, K) = c^2 radius(A / c, K / c), no overflow
+        with np.errstate(over="ignore"):
+            return scale * scale * mean_square_radius(A_ / scale, B_, K_ / scale, mu_, method=method)
     if method == "kronecker" or (method == "auto" and n <= KRONECKER_MAX_N) or n * n < 8:
         with np.errstate(over="ignore", invalid="ignore"):
-            vals = np.linalg.eigvals(second_moment_matrix(A_, B_, K_, mu_))
+            matrix = second_moment_matrix(A_, B_, K_, mu_)
+            vals = np.linalg.eigvals(matrix) if np.all(np.isfinite(matrix)) else np.array([np.inf])
         if not np.all(np.isfinite(vals)):
             raise NumericalError("mean-square radius: the second-moment operator overflows")
         return float(np.max(np.abs(vals)))
