@@ -14,7 +14,7 @@ from ..markov import burstiness_sweep
 from ..plots import plot_cost_lines, plot_log_contour
 from ..results import BurstinessSweep, DesignSweep
 from ..simulation import is_mean_square_stable
-from ..studies import read_mu_list, save_sweep, sweep
+from ..studies import read_mu_list, require_xarray, save_sweep, sweep
 from ..tolerances import SELF_CHECK_RTOL
 from .common import CommandResult, floats
 
@@ -23,7 +23,7 @@ __all__ = ["bursty", "run"]
 #: the API's argument names -> the flags that set them (errors are renamed to the flag)
 FLAGS = {"mu_grid": "--mu-grid", "mu_list": "--mu-list", "x0_scales": "--x0-scales", "horizons": "--horizons",
          "channel": "--channel", "chunk_size": "--chunk-size", "dask": "--dask", "workers": "--workers",
-         "out": "--out"}
+         "out": "--out", "shared": "--shared", "netcdf": "--netcdf"}
 
 _AXIS_LABELS = {"nu": r"shared channel $\nu$", "x0_scale": r"scale $s$ of $x_0$ ($s\,x_0$)",
                 "horizon": "horizon $N$", "point": "point (row of --mu-list)"}
@@ -156,7 +156,11 @@ def run(args: argparse.Namespace) -> CommandResult:
         return bursty(args)
     system = load_system(args.file)
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
+    if args.netcdf and args.out is None:     # before the sweep, not after it
+        raise InputError("--netcdf", "needs --out DIR")
     try:
+        if args.netcdf:
+            require_xarray()
         options = _options(args, system.m)
         result = sweep(system, protocols=protocols, shared=args.shared, chunk_size=args.chunk_size,
                        dask=args.dask, workers=args.workers, stability=args.stability,
@@ -168,8 +172,6 @@ def run(args: argparse.Namespace) -> CommandResult:
             paths_list = [*paths.values(), *_figures(result, out)]
             data["files"] = [str(p) for p in paths_list]
             lines.append(f"  wrote {', '.join(p.name for p in paths_list)} in {out}")
-        elif args.netcdf:
-            raise InputError("--netcdf", "needs --out DIR")
     except InputError as err:
         raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
     return CommandResult(data, "\n".join(lines))

@@ -1,0 +1,89 @@
+"""Review of sweep / reproduce / the thread policy as a hostile user: each test is one defect found,
+failing before its fix (bad input a typed error naming the field, one stderr line, exit 2)."""
+
+import sys
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+from packetloss_cvx.errors import InputError
+from packetloss_cvx.studies import read_mu_list, sweep, two_channel_sweep
+from packetloss_cvx.threads import blas_threads, set_blas_threads
+
+
+def _one_line_exit_2(capsys, argv, field):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert field in err[0], err
+    assert "Traceback" not in err[0]
+    return err[0]
+
+
+def test_a_huge_mu_grid_is_refused_before_it_is_allocated(capsys, two_actuator):
+    # was: MemoryError (71 PiB for the K x K meshgrid), exit 1 "unexpected"
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "100000000", "--quiet"], "--mu-grid")
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "1001", "--quiet"], "--mu-grid")
+    with pytest.raises(InputError, match="mu_grid"):
+        sweep(two_actuator, mu_grid=10**12, shared=True)
+
+
+def test_a_huge_horizon_is_refused_by_its_own_flag(capsys):
+    # was: "cost.horizon: expected an integer >= 1, found -9223372036854775808" (1e20 wrapped by astype(int))
+    line = _one_line_exit_2(capsys, ["sweep", "two_actuator", "--horizons", "5,1e20", "--quiet"], "--horizons")
+    assert "-9223372036854775808" not in line
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--horizons", "1000000000", "--quiet"], "--horizons")
+
+
+def test_shared_outside_a_mu_grid_names_shared(capsys):
+    # was: "--channel: channel and shared apply to mu_grid only" when only --shared was given
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--horizons", "3", "--shared", "--quiet"], "--shared")
+
+
+def test_workers_without_dask_is_refused(capsys, two_actuator):
+    # was: silently ignored (exit 0): the user believed the sweep ran on W workers
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "3", "--workers", "2", "--quiet"], "--workers")
+    with pytest.raises(InputError, match="workers"):
+        sweep(two_actuator, mu_grid=3, workers=2)
+
+
+def test_mu_list_first_row_with_a_typo_is_not_skipped_as_a_header(tmp_path):
+    # was: a first row "0.5,O.5" (letter O) silently dropped as if it were a header: one point fewer
+    path = tmp_path / "typo.csv"
+    path.write_text("0.5,O.5\n0.9,0.9\n")
+    with pytest.raises(InputError, match="row 1"):
+        read_mu_list(path, 2)
+    header = tmp_path / "header.csv"
+    header.write_text("mu1,mu2\n0.5,0.25\n")
+    assert read_mu_list(header, 2).tolist() == [[0.5, 0.25]]
+
+
+def test_mu_list_with_a_byte_order_mark_keeps_its_first_point(tmp_path):
+    # was: "\ufeff0.5,0.5" failed float() and the first point was skipped as a header
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbf0.5,0.5\n0.9,0.1\n")
+    assert read_mu_list(path, 2).tolist() == [[0.5, 0.5], [0.9, 0.1]]
+
+
+def test_mu_list_nan_names_its_row(tmp_path):
+    path = tmp_path / "nan.csv"
+    path.write_text("mu1,mu2\n0.5,0.5\n0.9,nan\n")
+    with pytest.raises(InputError, match="row 3"):
+        read_mu_list(path, 2)
+
+
+def test_netcdf_without_out_or_xarray_fails_before_the_sweep(capsys, monkeypatch, tmp_path):
+    import packetloss_cvx.studies.design as design
+
+    def boom(*args, **kwargs):
+        raise AssertionError("the sweep ran before the flags were checked")
+
+    monkeypatch.setattr(design, "run_in_process", boom)
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "3", "--netcdf", "--quiet"], "--netcdf")
+    monkeypatch.setitem(sys.modules, "xarray", None)      # import xarray -> ImportError
+    # was: the whole sweep, then "unexpected ModuleNotFoundError", exit 1
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "3", "--netcdf", "--out",
+                              str(tmp_path / "o"), "--quiet"], "--netcdf")
+    assert not (tmp_path / "o").exists()
