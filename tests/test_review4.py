@@ -87,3 +87,31 @@ def test_netcdf_without_out_or_xarray_fails_before_the_sweep(capsys, monkeypatch
     _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "3", "--netcdf", "--out",
                               str(tmp_path / "o"), "--quiet"], "--netcdf")
     assert not (tmp_path / "o").exists()
+
+
+def test_grid_difference_is_not_negative_at_the_deterministic_corners(two_actuator):
+    # was: J_Delta = -2.9e-16 at mu = (0, 1) in reproduce's results.json (Theorem 2 visibly violated)
+    result = two_channel_sweep(two_actuator, np.linspace(0, 1, 11))
+    assert np.all(result.difference >= 0)
+    assert result.difference[0, 0] == result.difference[-1, 0] == result.difference[0, -1] == 0
+    assert result.difference[-1, -1] == 0
+    # off the corners it is still J*_udp - J*_tcp (against the QP at one interior point)
+    point = two_actuator.with_mu([0.3, 0.6])
+    qp = pl.solve_qp(point, "udp").cost - pl.solve_qp(point, "tcp").cost
+    assert result.difference[6, 3] == pytest.approx(qp, rel=1e-6)
+
+
+def test_report_does_not_say_theorem_2_fails_because_of_rounding():
+    from packetloss_cvx.cli.reproduce_report import _cost_mixed  # noqa: PLC2701 (test of a paragraph)
+
+    axis = np.linspace(0, 1, 3)
+    tcp = np.array([[3.0, 2.0, 1.0], [2.5, 1.5, 0.9], [2.0, 1.0, 0.5]])
+    udp = tcp + 0.1
+    udp[2, 0] = np.nextafter(tcp[2, 0], 0)                 # rounding at a deterministic corner
+    diff = udp - tcp
+    diff[2, 0] = 0.0                                      # the cancellation-free J_Delta there
+    text, _ = _cost_mixed({"mixed": {"axis": axis, "tcp": tcp, "udp": udp, "diff": diff}}, "tcp")
+    assert "NOT every grid point" not in text
+    diff[1, 1] = -1.0                                    # a real violation is still reported
+    text, _ = _cost_mixed({"mixed": {"axis": axis, "tcp": tcp, "udp": udp, "diff": diff}}, "tcp")
+    assert "NOT every grid point" in text
