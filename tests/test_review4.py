@@ -115,3 +115,16 @@ def test_report_does_not_say_theorem_2_fails_because_of_rounding():
     diff[1, 1] = -1.0                                    # a real violation is still reported
     text, _ = _cost_mixed({"mixed": {"axis": axis, "tcp": tcp, "udp": udp, "diff": diff}}, "tcp")
     assert "NOT every grid point" in text
+
+
+def test_set_blas_threads_takes_numpy_integers():
+    # was: set_blas_threads(np.int64(2)) -> InputError "expected an integer >= 1 or None, found np.int64(2)"
+    try:
+        set_blas_threads(np.int64(2))
+        assert blas_threads() == 2
+        assert type(blas_threads()) is int
+        for bad in (0, -1, 1.5, True, "abc", np.float64(2.0)):
+            with pytest.raises(InputError, match="threads"):
+                set_blas_threads(bad)
+    finally:
+        set_blas_threads(1)
