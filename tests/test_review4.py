@@ -128,3 +128,13 @@ def test_set_blas_threads_takes_numpy_integers():
                 set_blas_threads(bad)
     finally:
         set_blas_threads(1)
+
+
+@pytest.mark.parametrize("argv", [["sweep", "two_actuator", "--mu-grid", "3"],
+                                  ["sweep", "pendulum_bursty", "--burstiness", "0,0.5"],
+                                  ["reproduce", "--quick"]])
+def test_an_empty_out_is_refused_not_the_current_folder(capsys, monkeypatch, tmp_path, argv):
+    # was: --out "" (an unset $DIR) wrote every file into the current folder
+    monkeypatch.chdir(tmp_path)
+    _one_line_exit_2(capsys, [*argv, "--out", "", "--quiet"], "--out")
+    assert not list(tmp_path.iterdir())

@@ -115,6 +115,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     """Compute, draw, and write ``results.json`` and ``report.md`` into ``--out``."""
     settings = SETTINGS["quick" if args.quick else "full"]
     progress = False if args.quiet else None
+    if not args.out.strip():      # an unset $DIR: not the current folder
+        raise InputError("--out", "expected a folder, found an empty path")
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)

@@ -152,6 +152,8 @@ def bursty(args: argparse.Namespace) -> CommandResult:
 
 def run(args: argparse.Namespace) -> CommandResult:
     """Sweep, summarise, and with ``--out`` save the arrays and the figure."""
+    if args.out is not None and not args.out.strip():   # an unset $DIR: not the current folder
+        raise InputError("--out", "expected a folder, found an empty path")
     if getattr(args, "burstiness", None) is not None:
         return bursty(args)
     system = load_system(args.file)
