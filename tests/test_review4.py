@@ -138,3 +138,9 @@ def test_an_empty_out_is_refused_not_the_current_folder(capsys, monkeypatch, tmp
     monkeypatch.chdir(tmp_path)
     _one_line_exit_2(capsys, [*argv, "--out", "", "--quiet"], "--out")
     assert not list(tmp_path.iterdir())
+
+
+def test_a_dask_address_of_an_unusable_scheme_is_a_one_line_error(capsys):
+    pytest.importorskip("distributed")
+    # was: "unexpected TypeError: Can't instantiate abstract class UCXConnector", exit 1
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "3", "--dask", "ucx://x:1", "--quiet"], "--dask")

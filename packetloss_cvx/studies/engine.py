@@ -144,8 +144,8 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
                                          f"found {dask!r}")
             try:
                 client = Client(dask, timeout="10s")
-            except (OSError, TimeoutError, ValueError) as err:
-                raise InputError("dask", f"cannot reach a scheduler at {dask!r}: {err}") from None
+            except Exception as err:    # noqa: BLE001  any failure to connect (ucx:// without ucx-py: TypeError)
+                raise InputError("dask", f"cannot reach a scheduler at {dask!r}: {type(err).__name__}: {err}") from None
             owned.append(client)
         elif hasattr(dask, "submit") and hasattr(dask, "gather"):
             client = dask
