@@ -144,3 +144,16 @@ def test_a_dask_address_of_an_unusable_scheme_is_a_one_line_error(capsys):
     pytest.importorskip("distributed")
     # was: "unexpected TypeError: Can't instantiate abstract class UCXConnector", exit 1
     _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "3", "--dask", "ucx://x:1", "--quiet"], "--dask")
+
+
+def test_the_dask_docs_example_grid_is_within_the_sweep_cap():
+    # was: docs/dask.md ran sweep(system, mu_grid=1001, ...): 1001^2 > MAX_SWEEP_POINTS, an InputError
+    import re
+    from pathlib import Path
+
+    from packetloss_cvx.studies.design import MAX_SWEEP_POINTS
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "dask.md").read_text()
+    sizes = [int(k) for k in re.findall(r"mu_grid=(\d+)", text) + re.findall(r"--mu-grid (\d+)", text)]
+    assert sizes
+    assert all(k * k <= MAX_SWEEP_POINTS for k in sizes), sizes
