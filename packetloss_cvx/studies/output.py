@@ -64,7 +64,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
         with open(paths["csv"], "w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(csv_header(result))
-            writer.writerows([[f"{v:.17g}" for v in row] for row in table])
+            writer.writerows([f"{v:.17g}" for v in row] for row in table.tolist())   # streamed: no P-row list
         if netcdf:
             paths["netcdf"] = folder / "sweep.nc"
             result.to_xarray().to_netcdf(paths["netcdf"], engine="scipy")
