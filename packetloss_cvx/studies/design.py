@@ -137,7 +137,8 @@ def _plan(system: System, mu_grid, channel, shared, mu_list, x0_scales, horizons
         return "mu-grid", (f"mu{i + 1}",), (axis,), mu
     if system.m != 2:
         raise InputError("mu_grid", f"a grid over every channel needs m <= 2 (found m = {system.m}): "
-                                    "give channel= (one channel) or shared=True")
+                                    "give channel= or --channel I (one channel), or shared=True or --shared "
+                                    "(every actuator behind one channel)")
     if axis.size ** 2 > MAX_SWEEP_POINTS:       # before meshgrid allocates K^2 points
         raise InputError("mu_grid", f"a 2-D grid of K x K points needs K <= {int(MAX_SWEEP_POINTS ** 0.5)}, "
                                     f"found K = {axis.size}")
