@@ -22,6 +22,7 @@ from ..evaluator import CostEvaluator
 from ..io import system_from_dict
 from ..progress import progress_bar
 from ..simulation.stability import mean_square_radius
+from ..threads import blas_limited
 
 __all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "chunks", "evaluate_chunk", "run_in_process", "run_on_dask"]
 
@@ -40,6 +41,7 @@ def chunks(mu: np.ndarray, x0: np.ndarray, horizon: np.ndarray, size: int) -> li
     return [(mu[k:k + size], x0[k:k + size], horizon[k:k + size]) for k in range(0, len(mu), size)]
 
 
+@blas_limited
 def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np.ndarray, x0: np.ndarray,
                    horizon: np.ndarray, stability: bool = False) -> dict[str, np.ndarray]:
     """J* of each protocol at each point of one chunk (and the mean-square radius of its law).
