@@ -180,3 +180,23 @@ def test_the_grid_sweeps_run_under_the_blas_policy(monkeypatch, two_actuator):
         after = max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
     assert seen == [1] * 6
     assert after == 2          # the caller's setting is restored
+
+
+def test_reproduce_computes_under_the_blas_policy(monkeypatch):
+    # was: its steps outside the sweeps (the maximisers, tables) ran with the process's BLAS threads
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import packetloss_cvx.cli.reproduce as rep
+
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"))
+        return {}
+
+    for name in ("log_cost_pendulum", "mixed_grids", "mixed_allocations", "eigenvalue_tables"):
+        monkeypatch.setattr(rep.pf, name, spy)
+    monkeypatch.setattr(rep, "audit", spy)
+    with threadpool_limits(2, user_api="blas"):
+        rep._compute(rep.SETTINGS["quick"], False, {})      # noqa: SLF001
+    assert seen == [1] * 6
