@@ -200,3 +200,9 @@ def test_reproduce_computes_under_the_blas_policy(monkeypatch):
     with threadpool_limits(2, user_api="blas"):
         rep._compute(rep.SETTINGS["quick"], False, {})      # noqa: SLF001
     assert seen == [1] * 6
+
+
+@pytest.mark.parametrize("extra", [["--shared"], ["--channel", "1"], ["--workers", "2"], ["--chunk-size", "5"]])
+def test_burstiness_refuses_the_grid_flags_it_would_ignore(capsys, extra):
+    # was: exit 0 with each of these flags silently ignored
+    _one_line_exit_2(capsys, ["sweep", "pendulum_bursty", "--burstiness", "0,0.5", *extra, "--quiet"], extra[0])

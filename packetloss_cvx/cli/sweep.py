@@ -15,6 +15,7 @@ from ..plots import plot_cost_lines, plot_log_contour
 from ..results import BurstinessSweep, DesignSweep
 from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, require_xarray, save_sweep, sweep
+from ..studies.engine import DEFAULT_CHUNK
 from ..tolerances import SELF_CHECK_RTOL
 from .common import CommandResult, floats
 
@@ -110,6 +111,12 @@ def bursty(args: argparse.Namespace) -> CommandResult:
     burstiness.csv and a figure."""
     if args.netcdf or args.dask or args.stability:
         raise InputError("--burstiness", "takes none of --netcdf, --dask, --stability")
+    ignored = [flag for flag, given in (("--shared", args.shared), ("--channel", args.channel is not None),
+                                        ("--workers", args.workers is not None),
+                                        ("--chunk-size", args.chunk_size != DEFAULT_CHUNK)) if given]
+    if ignored:     # each Gilbert channel keeps its own average rate: there is nothing to share or chunk
+        raise InputError("--burstiness", f"takes none of --shared, --channel, --workers, --chunk-size; "
+                                         f"found {', '.join(ignored)}")
     system = load_system(args.file)
     try:
         result: BurstinessSweep = burstiness_sweep(system, _scales(args.burstiness, "--burstiness"),
