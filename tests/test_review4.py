@@ -206,3 +206,15 @@ def test_reproduce_computes_under_the_blas_policy(monkeypatch):
 def test_burstiness_refuses_the_grid_flags_it_would_ignore(capsys, extra):
     # was: exit 0 with each of these flags silently ignored
     _one_line_exit_2(capsys, ["sweep", "pendulum_bursty", "--burstiness", "0,0.5", *extra, "--quiet"], extra[0])
+
+
+def test_a_horizon_sweep_converts_to_xarray_and_netcdf(capsys, tmp_path, two_actuator):
+    xr = pytest.importorskip("xarray")
+    # was: ValueError "variables {'horizon'} are found in both data_vars and coords"; CLI exit 1 "unexpected"
+    result = sweep(two_actuator, horizons=[3, 5], progress=False)
+    dataset = result.to_xarray()
+    assert dataset["horizon"].values.tolist() == [3, 5]
+    assert dataset["cost_tcp"].sel(horizon=5).item() == result.costs["tcp"][1]
+    assert main(["sweep", "two_actuator", "--horizons", "3,5", "--out", str(tmp_path), "--netcdf", "--quiet"]) == 0
+    back = xr.open_dataset(tmp_path / "sweep.nc", engine="scipy")
+    assert back["cost_udp"].values.tolist() == result.costs["udp"].tolist()
