@@ -218,3 +218,12 @@ def test_a_horizon_sweep_converts_to_xarray_and_netcdf(capsys, tmp_path, two_act
     assert main(["sweep", "two_actuator", "--horizons", "3,5", "--out", str(tmp_path), "--netcdf", "--quiet"]) == 0
     back = xr.open_dataset(tmp_path / "sweep.nc", engine="scipy")
     assert back["cost_udp"].values.tolist() == result.costs["udp"].tolist()
+
+
+def test_a_failed_dask_address_leaves_no_default_client_behind(capsys):
+    distributed = pytest.importorskip("distributed")
+    # was: the half-built Client('ucx://x:1') stayed the process's default client, so the next
+    # xarray / dask call in the same process (e.g. sweep --netcdf) failed with its TypeError
+    _one_line_exit_2(capsys, ["sweep", "two_actuator", "--mu-grid", "3", "--dask", "ucx://x:1", "--quiet"], "--dask")
+    with pytest.raises(ValueError, match="No clients found"):
+        distributed.default_client()
