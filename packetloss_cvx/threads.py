@@ -15,12 +15,14 @@ Allow more with ``set_blas_threads(k)`` (``None``: leave BLAS alone), or the env
 from __future__ import annotations
 
 import functools
+import numbers
 import os
 import sys
 import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
+import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from .errors import InputError
@@ -47,9 +49,9 @@ def _check(value: Any, field: str) -> int | None:
             value = int(value)
         except ValueError:
             raise InputError(field, f"expected an integer >= 1 or 'none', found {value!r}") from None
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < 1:
         raise InputError(field, f"expected an integer >= 1 or None, found {value!r}")
-    return value
+    return int(value)     # a NumPy integer too (e.g. from a grid of thread counts)
 
 
 def set_blas_threads(threads: int | None) -> None:

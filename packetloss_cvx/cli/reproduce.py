@@ -23,6 +23,7 @@ from ..io import load_example
 from ..plots import plot_cost_lines, plot_log_contour
 from ..progress import progress_bar
 from ..studies import paper_figures as pf
+from ..threads import blas_limited
 from .common import CommandResult
 from .reproduce_report import FIGURES, report
 
@@ -59,6 +60,7 @@ def _plain(value: Any) -> Any:
     return value
 
 
+@blas_limited      # the maximisers, tables and audit loops of small dense algebra (threads.py)
 def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float]) -> dict[str, Any]:
     pendulum, mixed = load_example("pendulum"), load_example("two_actuator")
     steps = ["pendulum", "grids", "allocations tcp", "allocations udp", "tables", "audit"]
@@ -115,6 +117,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     """Compute, draw, and write ``results.json`` and ``report.md`` into ``--out``."""
     settings = SETTINGS["quick" if args.quick else "full"]
     progress = False if args.quiet else None
+    if not args.out.strip():      # an unset $DIR: not the current folder
+        raise InputError("--out", "expected a folder, found an empty path")
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)

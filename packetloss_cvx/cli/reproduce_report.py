@@ -102,9 +102,10 @@ def _cost_mixed(data: dict[str, Any], protocol: str) -> tuple[str, str]:
     J = m[protocol]
     steps = int(np.sum(np.diff(J, axis=0) >= 0) + np.sum(np.diff(J, axis=1) >= 0))
     total = J.shape[0] * (J.shape[1] - 1) * 2
-    order = bool(np.all(m["udp"] >= m["tcp"]))
+    order = bool(np.all(m["diff"] >= 0))    # J_Delta as fig:cost-diff-mixed has it, not J*_udp - J*_tcp rounded
     text = (f"Matches: J*_{protocol} decreases in each mu_i (Theorem 3; {total - steps} of {total} grid steps "
-            f"strictly decrease) and J*_udp >= J*_tcp at {'every' if order else 'NOT every'} grid point; "
+            f"strictly decrease) and J*_udp >= J*_tcp (Theorem 2, J_Delta >= 0) at "
+            f"{'every' if order else 'NOT every'} grid point; "
             f"its level sets are the curves of constant cost the paper describes. Cannot be compared: the "
             f"colour scale, since the paper gives no x0 (we take x0 = (1, 1), no noise, so J* runs from "
             f"{J.min():.4g} at mu = (1, 1) to {J.max():.4g} at mu = (0, 0)).")

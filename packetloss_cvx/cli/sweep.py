@@ -14,7 +14,8 @@ from ..markov import burstiness_sweep
 from ..plots import plot_cost_lines, plot_log_contour
 from ..results import BurstinessSweep, DesignSweep
 from ..simulation import is_mean_square_stable
-from ..studies import read_mu_list, save_sweep, sweep
+from ..studies import read_mu_list, require_xarray, save_sweep, sweep
+from ..studies.engine import DEFAULT_CHUNK
 from ..tolerances import SELF_CHECK_RTOL
 from .common import CommandResult, floats
 
@@ -23,7 +24,7 @@ __all__ = ["bursty", "run"]
 #: the API's argument names -> the flags that set them (errors are renamed to the flag)
 FLAGS = {"mu_grid": "--mu-grid", "mu_list": "--mu-list", "x0_scales": "--x0-scales", "horizons": "--horizons",
          "channel": "--channel", "chunk_size": "--chunk-size", "dask": "--dask", "workers": "--workers",
-         "out": "--out"}
+         "out": "--out", "shared": "--shared", "netcdf": "--netcdf"}
 
 _AXIS_LABELS = {"nu": r"shared channel $\nu$", "x0_scale": r"scale $s$ of $x_0$ ($s\,x_0$)",
                 "horizon": "horizon $N$", "point": "point (row of --mu-list)"}
@@ -110,6 +111,12 @@ def bursty(args: argparse.Namespace) -> CommandResult:
     burstiness.csv and a figure."""
     if args.netcdf or args.dask or args.stability:
         raise InputError("--burstiness", "takes none of --netcdf, --dask, --stability")
+    ignored = [flag for flag, given in (("--shared", args.shared), ("--channel", args.channel is not None),
+                                        ("--workers", args.workers is not None),
+                                        ("--chunk-size", args.chunk_size != DEFAULT_CHUNK)) if given]
+    if ignored:     # each Gilbert channel keeps its own average rate: there is nothing to share or chunk
+        raise InputError("--burstiness", f"takes none of --shared, --channel, --workers, --chunk-size; "
+                                         f"found {', '.join(ignored)}")
     system = load_system(args.file)
     try:
         result: BurstinessSweep = burstiness_sweep(system, _scales(args.burstiness, "--burstiness"),
@@ -152,11 +159,17 @@ def bursty(args: argparse.Namespace) -> CommandResult:
 
 def run(args: argparse.Namespace) -> CommandResult:
     """Sweep, summarise, and with ``--out`` save the arrays and the figure."""
+    if args.out is not None and not args.out.strip():   # an unset $DIR: not the current folder
+        raise InputError("--out", "expected a folder, found an empty path")
     if getattr(args, "burstiness", None) is not None:
         return bursty(args)
     system = load_system(args.file)
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
+    if args.netcdf and args.out is None:     # before the sweep, not after it
+        raise InputError("--netcdf", "needs --out DIR")
     try:
+        if args.netcdf:
+            require_xarray()
         options = _options(args, system.m)
         result = sweep(system, protocols=protocols, shared=args.shared, chunk_size=args.chunk_size,
                        dask=args.dask, workers=args.workers, stability=args.stability,
@@ -168,8 +181,6 @@ def run(args: argparse.Namespace) -> CommandResult:
             paths_list = [*paths.values(), *_figures(result, out)]
             data["files"] = [str(p) for p in paths_list]
             lines.append(f"  wrote {', '.join(p.name for p in paths_list)} in {out}")
-        elif args.netcdf:
-            raise InputError("--netcdf", "needs --out DIR")
     except InputError as err:
         raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
     return CommandResult(data, "\n".join(lines))

@@ -258,7 +258,8 @@ class DesignSweep:
         import xarray as xr  # lazy: an optional extra
 
         dims, shape = self.dims, self.shape
-        flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_")}
+        # a swept variable that is also a dimension (horizon) is its coordinate, not a second variable
+        flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_") and k not in dims}
         data = {k: ((*dims, "channel" if k == "mu" else "state") if v.ndim == 2 else dims, v.reshape(*shape, -1)
                     if v.ndim == 2 else v.reshape(shape)) for k, v in flat.items()}
         attrs = {"kind": self.kind, "name": self.name or "", "chunk_size": self.chunk_size,

@@ -7,7 +7,7 @@ saved by ``output``. Plots draw these results; they compute nothing themselves.
 """
 
 from .design import read_mu_list, sweep
-from .output import save_sweep
+from .output import require_xarray, save_sweep
 from .sweeps import shared_channel_sweep, two_channel_sweep
 
-__all__ = ["read_mu_list", "save_sweep", "shared_channel_sweep", "sweep", "two_channel_sweep"]
+__all__ = ["read_mu_list", "require_xarray", "save_sweep", "shared_channel_sweep", "sweep", "two_channel_sweep"]

@@ -26,6 +26,7 @@ from ..errors import InputError
 from ..model import System, numeric_array
 from ..protocols import PROTOCOLS, check_protocol
 from ..results import DesignSweep
+from ..validation import MAX_ENTRIES
 from .engine import DEFAULT_CHUNK, chunks, run_in_process, run_on_dask
 
 __all__ = ["MAX_SWEEP_POINTS", "read_mu_list", "sweep"]
@@ -42,7 +43,10 @@ def _count(value: Any, field: str, least: int) -> int:
 
 def _grid_axis(mu_grid: Any) -> np.ndarray:
     if isinstance(mu_grid, (int, np.integer)) and not isinstance(mu_grid, bool):
-        return np.linspace(0.0, 1.0, _count(mu_grid, "mu_grid", 2))
+        count = _count(mu_grid, "mu_grid", 2)
+        if count > MAX_SWEEP_POINTS:     # before linspace: K = 1e8 would allocate first and fail late
+            raise InputError("mu_grid", f"expected at most {MAX_SWEEP_POINTS} points per channel, found {count}")
+        return np.linspace(0.0, 1.0, count)
     axis = numeric_array(mu_grid, "mu_grid")
     if axis.ndim != 1 or axis.size < 1 or np.any(axis < 0) or np.any(axis > 1):
         raise InputError("mu_grid", "expected a point count K >= 2 or a list of probabilities in [0, 1]")
@@ -51,7 +55,8 @@ def _grid_axis(mu_grid: Any) -> np.ndarray:
 
 def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     """Channel points from a CSV file: one row per point, m probabilities per row; a first row
-    that is not numbers (a header) is skipped. O(rows).
+    whose cells are all non-numeric (a header such as ``mu1,mu2``) is skipped; a byte-order mark is
+    ignored. O(rows).
 
     Raises
     ------
@@ -60,7 +65,7 @@ def read_mu_list(path: str | Path, m: int) -> np.ndarray:
         (field ``mu_list``, with the row number).
     """
     try:
-        with open(path, newline="") as handle:
+        with open(path, newline="", encoding="utf-8-sig") as handle:    # -sig: Excel's byte-order mark
             rows = [row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)]
     except OSError as err:
         raise InputError("mu_list", f"cannot read {str(path)!r}: {err.strerror or err}") from None
@@ -71,15 +76,25 @@ def read_mu_list(path: str | Path, m: int) -> np.ndarray:
         try:
             values = [float(cell) for cell in row]
         except ValueError:
-            if k == 1:
-                continue          # a header
+            if k == 1 and not any(_is_number(cell) for cell in row):
+                continue          # a header; a first row with a typo among numbers is an error, not a header
             raise InputError("mu_list", f"row {k}: expected numbers, found {','.join(row)[:60]!r}") from None
+        if not all(np.isfinite(values)):
+            raise InputError("mu_list", f"row {k}: expected finite probabilities, found {','.join(row)[:60]!r}")
         if len(values) != m:
             raise InputError("mu_list", f"row {k}: expected {m} probabilities, found {len(values)}")
         points.append(values)
     if not points:
-        raise InputError("mu_list", f"{str(path)!r} has no rows of probabilities")
+        raise InputError("mu_list", f"{str(path)!r} has no rows of probabilities (comma-separated, one point per row)")
     return _mu_points(points)
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def _mu_points(points: Any) -> np.ndarray:
@@ -100,7 +115,7 @@ def _plan(system: System, mu_grid, channel, shared, mu_list, x0_scales, horizons
         raise InputError("sweep", f"expected exactly one of mu_grid, mu_list, x0_scales, horizons; found {given}")
     kind = given[0]
     if kind != "mu_grid" and (channel is not None or shared):
-        raise InputError("channel", "channel and shared apply to mu_grid only")
+        raise InputError("channel" if channel is not None else "shared", "channel and shared apply to mu_grid only")
     if kind == "mu_list":
         mu = _mu_points(mu_list)
         if mu.shape[1] != system.m:
@@ -122,7 +137,11 @@ def _plan(system: System, mu_grid, channel, shared, mu_list, x0_scales, horizons
         return "mu-grid", (f"mu{i + 1}",), (axis,), mu
     if system.m != 2:
         raise InputError("mu_grid", f"a grid over every channel needs m <= 2 (found m = {system.m}): "
-                                    "give channel= (one channel) or shared=True")
+                                    "give channel= or --channel I (one channel), or shared=True or --shared "
+                                    "(every actuator behind one channel)")
+    if axis.size ** 2 > MAX_SWEEP_POINTS:       # before meshgrid allocates K^2 points
+        raise InputError("mu_grid", f"a 2-D grid of K x K points needs K <= {int(MAX_SWEEP_POINTS ** 0.5)}, "
+                                    f"found K = {axis.size}")
     mu1, mu2 = np.meshgrid(axis, axis)          # rows follow mu2, columns mu1
     return "mu-grid", ("mu2", "mu1"), (axis, axis), np.column_stack([mu1.ravel(), mu2.ravel()])
 
@@ -144,6 +163,10 @@ def _horizons(system: System, values: Any) -> np.ndarray:
     arr = numeric_array(values, "horizons")
     if arr.ndim != 1 or arr.size < 1 or np.any(arr < 1) or np.any(arr != np.round(arr)):
         raise InputError("horizons", "expected a non-empty list of integers >= 1")
+    limit = MAX_ENTRIES // max(system.n ** 2, system.m)    # the System's own bound (model), checked up front
+    if np.any(arr > limit):   # before astype(int), which wraps 1e20 to a negative number
+        raise InputError("horizons", f"expected horizons of at most {limit} for n = {system.n}, m = {system.m} "
+                                     f"(what fits in memory), found {arr.max():.6g}")
     same = all(np.array_equal(w, system.state_weights[0]) for w in system.state_weights) and all(
         np.array_equal(w, system.input_weights[0]) for w in system.input_weights)
     if not same:
@@ -228,6 +251,8 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
     if not protocols:
         raise InputError("protocols", "expected at least one of 'tcp', 'udp'")
     size = _count(chunk_size, "chunk_size", 1)
+    if workers is not None and dask is None:
+        raise InputError("workers", "applies to dask='local' only (without dask the sweep runs in this process)")
     kind, dims, axes, mu = _plan(system, mu_grid, channel, shared, mu_list, x0_scales, horizons)
     base_mu = _base_mu(system) if mu is None else None
     if kind == "x0_scales":

@@ -22,6 +22,7 @@ from ..evaluator import CostEvaluator
 from ..io import system_from_dict
 from ..progress import progress_bar
 from ..simulation.stability import mean_square_radius
+from ..threads import blas_limited
 
 __all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "chunks", "evaluate_chunk", "run_in_process", "run_on_dask"]
 
@@ -40,6 +41,7 @@ def chunks(mu: np.ndarray, x0: np.ndarray, horizon: np.ndarray, size: int) -> li
     return [(mu[k:k + size], x0[k:k + size], horizon[k:k + size]) for k in range(0, len(mu), size)]
 
 
+@blas_limited
 def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np.ndarray, x0: np.ndarray,
                    horizon: np.ndarray, stability: bool = False) -> dict[str, np.ndarray]:
     """J* of each protocol at each point of one chunk (and the mean-square radius of its law).
@@ -136,16 +138,18 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
             cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
             owned.append(cluster)
-            client = Client(cluster)
+            client = Client(cluster, set_as_default=False)
             owned.insert(0, client)
         elif isinstance(dask, str):
             if not re.fullmatch(r"[a-z]+://\S+|[\w.-]+:\d+", dask):
                 raise InputError("dask", f"expected 'local' or a scheduler address such as tcp://host:8786, "
                                          f"found {dask!r}")
             try:
-                client = Client(dask, timeout="10s")
-            except (OSError, TimeoutError, ValueError) as err:
-                raise InputError("dask", f"cannot reach a scheduler at {dask!r}: {err}") from None
+                # not the process's default client: a failed one would stay registered as the default
+                # and break the caller's later dask / xarray work (distributed registers it before connecting)
+                client = Client(dask, timeout="10s", set_as_default=False)
+            except Exception as err:    # noqa: BLE001  any failure to connect (ucx:// without ucx-py: TypeError)
+                raise InputError("dask", f"cannot reach a scheduler at {dask!r}: {type(err).__name__}: {err}") from None
             owned.append(client)
         elif hasattr(dask, "submit") and hasattr(dask, "gather"):
             client = dask
@@ -156,7 +160,7 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
         order = {f.key: k for k, f in enumerate(futures)}
         parts: list[dict[str, np.ndarray] | None] = [None] * len(work)
         with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress) as bar:
-            for future in as_completed(futures):
+            for future in as_completed(futures, loop=client.loop):   # not the default client's loop
                 k = order[future.key]
                 parts[k] = future.result()      # a worker's error is raised here with its own type
                 bar.update(len(work[k][0]))

@@ -11,7 +11,16 @@ import numpy as np
 from ..errors import InputError
 from ..results import DesignSweep
 
-__all__ = ["csv_header", "save_sweep"]
+__all__ = ["csv_header", "require_xarray", "save_sweep"]
+
+
+def require_xarray() -> None:
+    """Raise InputError (field ``netcdf``) unless xarray, the optional extra behind ``to_xarray`` and
+    NetCDF output, can be imported; call it before a long sweep, not after. O(1) once imported."""
+    try:
+        import xarray  # noqa: F401  lazy: the xarray extra
+    except ImportError:
+        raise InputError("netcdf", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
 
 
 def csv_header(result: DesignSweep) -> list[str]:
@@ -38,8 +47,10 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
     Raises
     ------
     InputError
-        ``out`` cannot be created or written (field ``out``).
+        ``out`` cannot be created or written (field ``out``); ``netcdf`` without xarray (field ``netcdf``).
     """
+    if netcdf:
+        require_xarray()        # before writing anything
     folder = Path(out)
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -53,7 +64,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
         with open(paths["csv"], "w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(csv_header(result))
-            writer.writerows([[f"{v:.17g}" for v in row] for row in table])
+            writer.writerows([f"{v:.17g}" for v in row] for row in table.tolist())   # streamed: no P-row list
         if netcdf:
             paths["netcdf"] = folder / "sweep.nc"
             result.to_xarray().to_netcdf(paths["netcdf"], engine="scipy")

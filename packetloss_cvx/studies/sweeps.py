@@ -26,6 +26,7 @@ from ..prediction import prediction
 from ..protocols import PROTOCOLS, check_protocol
 from ..recursion import condition_estimate
 from ..results import Sweep
+from ..threads import blas_limited
 from ..tolerances import DENSE_MAX_CONDITION
 
 __all__ = ["MAX_POINTS", "shared_channel_sweep", "two_channel_sweep"]
@@ -64,9 +65,15 @@ def _sweep(system: System, points: list[np.ndarray], shape: tuple[int, ...], pro
         else:
             difference = costs["udp"] - costs["tcp"]
             how = "difference of the two closed forms (the dense form is ill-conditioned here)"
+    if difference is not None:
+        # exactly 0 where every channel is deterministic (both problems are the same there; the two
+        # evaluations differ by rounding, ~1e-17 J*, which made J_Delta negative at (0, 1) or (1, 0))
+        flat = np.reshape(points, (-1, system.m))
+        difference = np.where(np.all((flat == 0) | (flat == 1), axis=1).reshape(shape), 0.0, difference)
     return Sweep(axes=axes, costs=costs, difference=difference, difference_method=how)
 
 
+@blas_limited
 def shared_channel_sweep(system: System, nus: Sequence[float] | np.ndarray,
                          protocols: Sequence[str] = PROTOCOLS) -> Sweep:
     """J*(nu) with every actuator behind one channel of delivery probability nu.
@@ -87,6 +94,7 @@ def shared_channel_sweep(system: System, nus: Sequence[float] | np.ndarray,
     return _sweep(system, points, (axis.size,), _protocols(protocols), (axis,))
 
 
+@blas_limited
 def two_channel_sweep(system: System, axis: Sequence[float] | np.ndarray,
                       protocols: Sequence[str] = PROTOCOLS) -> Sweep:
     """J*(mu1, mu2) for a two-channel system over ``axis`` × ``axis``.
