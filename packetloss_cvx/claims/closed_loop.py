@@ -31,7 +31,7 @@ def exact_cost(system: System, protocol: str, steps: int = STEPS) -> float:
 def protocol_ranking(ctx: Context) -> ClaimResult:
     """The TCP-like law costs less than the UDP-like one in closed loop (stationary cases, exact costs)."""
     def margin(s: System) -> float | None:
-        if not s.is_stationary:
+        if not s.is_stationary or s.channel is not None:   # a chain's loop is a jump system: not this claim
             return None
         tcp, udp = exact_cost(s, "tcp"), exact_cost(s, "udp")
         if not (np.isfinite(tcp) and np.isfinite(udp)):

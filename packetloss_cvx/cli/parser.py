@@ -30,7 +30,7 @@ from .completion import CompletionAction
 __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
-NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales")
+NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
              "pendulum_bursty (a Gilbert-Elliott channel)")

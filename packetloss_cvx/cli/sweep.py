@@ -122,7 +122,7 @@ def bursty(args: argparse.Namespace) -> CommandResult:
         result: BurstinessSweep = burstiness_sweep(system, _scales(args.burstiness, "--burstiness"),
                                                    progress=False if args.quiet else None)
     except InputError as err:
-        raise err.renamed("--burstiness") if err.field == "correlations" else err from None
+        raise err.renamed("--burstiness") if err.field in ("correlations", "correlation") else err from None
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     data: dict[str, Any] = {"name": system.name, "kind": "burstiness", "rate": result.rate.tolist(),
                             "correlation": result.correlation.tolist()}

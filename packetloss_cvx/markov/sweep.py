@@ -64,7 +64,8 @@ def burstiness_sweep(system: System, correlations: Sequence[float] = DEFAULT_COR
     except (TypeError, ValueError):
         values = None
     if values is None or values.ndim != 1 or values.size < 1 or not np.all(np.isfinite(values)) or np.any(values >= 1):
-        raise InputError("correlations", f"expected a list of finite lambda = 1 - p - r < 1, found {correlations!r}")
+        shown = repr(correlations)[:60] if values is None else np.array2string(values, separator=", ", threshold=8)
+        raise InputError("correlations", f"expected a list of finite lambda = 1 - p - r < 1, found {shown}")
     plugin = {p: np.empty(values.size) for p in PROTOCOLS}
     exact = {p: np.empty(values.size) for p in PROTOCOLS}
     for k, lam in enumerate(progress_bar(values, total=values.size, desc="burstiness", progress=progress)):
