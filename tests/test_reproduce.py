@@ -35,9 +35,27 @@ def test_every_figure_with_its_paragraph(runs):
     assert "claims.md" in report
 
 
+def test_every_link_of_the_report_resolves_in_its_folder(runs):
+    """The report's links went to docs/claims.md, which an installed package does not have: they now
+    go to claims.md beside it (this run's audit), and every anchor names one of its sections."""
+    import re
+
+    _, (out, _) = runs
+    report = (out / "report.md").read_text()
+    sections = {re.sub(r"[^a-z0-9 -]", "", title.lower()).replace(" ", "-")
+                for title in re.findall(r"^### (.+)$", (out / "claims.md").read_text(), flags=re.M)}
+    links = re.findall(r"\]\(([^)]+)\)", report)
+    assert any(link.startswith("claims.md#") for link in links)
+    for link in links:
+        name, _, anchor = link.partition("#")
+        assert (out / name).exists(), link
+        assert not anchor or anchor in sections, link
+
+
 def test_deterministic(runs):
     _, (first, second) = runs
-    for name in ["results.json", *(f"{label.removeprefix('fig:')}.png" for label in LABELS)]:
+    for name in ["results.json", "report.md", "claims.md",
+                 *(f"{label.removeprefix('fig:')}.png" for label in LABELS)]:
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
 
 

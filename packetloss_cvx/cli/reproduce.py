@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..claims import CLAIMS, audit
+from ..claims import CLAIMS, audit, markdown_report
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
 from ..errors import InputError
 from ..io import load_example
@@ -25,7 +25,7 @@ from ..progress import progress_bar
 from ..studies import paper_figures as pf
 from ..threads import blas_limited
 from .common import CommandResult
-from .reproduce_report import FIGURES, report
+from .reproduce_report import CLAIMS_FILE, FIGURES, report
 
 __all__ = ["ALPHAS", "SETTINGS", "SLOW_CLAIM", "run"]
 
@@ -132,6 +132,10 @@ def run(args: argparse.Namespace) -> CommandResult:
     except InputError as err:
         raise err.renamed("--out") if err.field == "path" else err from None
     seconds["figures"] = time.perf_counter() - start
+    try:
+        (out / CLAIMS_FILE).write_text(markdown_report(data["audit"]))
+    except OSError as err:
+        raise InputError("--out", f"cannot write to {str(out)!r}: {err.strerror or err}") from None
     text, verdicts = report(data, figures, out)
     results = {key: value for key, value in data.items() if key != "audit"}
     results["audit"] = [r.to_dict() for r in data["audit"]]
@@ -142,7 +146,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         (out / "report.md").write_text(text)
     except OSError as err:
         raise InputError("--out", f"cannot write to {str(out)!r}: {err.strerror or err}") from None
-    files = [*(p.name for p in figures.values()), "results.json", "report.md"]
+    files = [*(p.name for p in figures.values()), "results.json", "report.md", CLAIMS_FILE]
     lines = [f"reproduce: wrote {len(files)} files in {out}"]
     lines += [f"  {label}: {verdict}" for label, verdict in verdicts.items()]
     lines.append("  seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in seconds.items()))

@@ -5,7 +5,6 @@ beside the printed values, and the audit's summary. Deterministic text: no clock
 from __future__ import annotations
 
 import itertools
-import os
 import re
 from pathlib import Path
 from typing import Any
@@ -15,7 +14,7 @@ import numpy as np
 from ..claims import markdown_table
 from ..claims.paper import ALLOCATION_ALPHA, PENDULUM_NU_D
 
-__all__ = ["FIGURES", "claims_link", "report"]
+__all__ = ["CLAIMS_FILE", "FIGURES", "claims_link", "report"]
 
 #: The paper's figure labels with their captions (shortened), in the paper's order.
 FIGURES = {
@@ -30,21 +29,19 @@ FIGURES = {
 #: A channel counts as perfect at mu_i >= this (allocations are certified to a relative gap of 1e-4).
 PERFECT = 0.999
 
-CLAIMS_DOC = Path(__file__).resolve().parents[2] / "docs" / "claims.md"
+#: The audit's Markdown report written beside report.md (the same notes and counterexamples as the
+#: project's docs/claims.md, for the audit this run did), so that every link works wherever the package is.
+CLAIMS_FILE = "claims.md"
 
 
 def claims_link(out: Path, claim: str | None = None) -> str:
-    """A link from ``out`` to docs/claims.md (to a claim's section when it is found there): relative when
-    ``out`` is inside the source tree, absolute otherwise, the bare name where the package is installed."""
-    if not CLAIMS_DOC.exists():
-        return "docs/claims.md"
-    root = CLAIMS_DOC.parents[1]
-    inside = out.resolve() == root or root in out.resolve().parents
-    link = Path(os.path.relpath(CLAIMS_DOC, out.resolve())).as_posix() if inside else CLAIMS_DOC.as_posix()
-    if claim is None:
-        return link
-    found = re.search(rf"^### ({re.escape(claim)}): (\S+)$", CLAIMS_DOC.read_text(), flags=re.M)
-    return f"{link}#{found.group(1)}-{found.group(2)}" if found else link
+    """A link from report.md to ``claims.md`` beside it (written first by ``reproduce``), to a claim's
+    section when that file has one."""
+    doc = out / CLAIMS_FILE
+    if claim is None or not doc.exists():
+        return CLAIMS_FILE
+    found = re.search(rf"^### ({re.escape(claim)}): (\S+)$", doc.read_text(), flags=re.M)
+    return f"{CLAIMS_FILE}#{found.group(1)}-{found.group(2)}" if found else CLAIMS_FILE
 
 
 def _eig_text(values: list) -> str:
@@ -194,7 +191,8 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
              "packaged examples (`pendulum`, `two_actuator`; the paper gives no x0, Q or noise: the example "
              "files say what we take). Costs are the exact closed forms, each checked against the forward cost "
              f"of its own plan. Grids: {s['grid']} x {s['grid']} on [0, 1]^2, {len(data['pendulum']['nu'])} "
-             f"values of nu. Where a statement disagrees, the reason is in [docs/claims.md]({claims_link(out)}).",
+             f"values of nu. Where a statement disagrees, the reason is in [claims.md]({claims_link(out)}) "
+             "(this run's audit, with the notes of the project's docs/claims.md).",
              ""]
     for label, (text, verdict) in paragraphs.items():
         lines += [f"## {label}", "", f"![{label}: {FIGURES[label]}]({figures[label].name})", "",
@@ -206,6 +204,6 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
               f"Every claim checked on the paper's two systems and {s['audit_random']} seeded random systems "
               f"(`packetloss-cvx audit --random {s['audit_random']} --seed 0`"
               + (f"; left out by --quick: {', '.join(s['audit_skips'])}" if s["audit_skips"] else "") + "): "
-              + ", ".join(f"{n} {v}" for v, n in counts.items()) + f". Details: [docs/claims.md]({claims_link(out)}).",
+              + ", ".join(f"{n} {v}" for v, n in counts.items()) + f". Details: [claims.md]({claims_link(out)}).",
               "", markdown_table(results), ""]
     return "\n".join(lines), {label: verdict for label, (_, verdict) in paragraphs.items()}

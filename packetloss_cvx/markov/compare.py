@@ -75,5 +75,6 @@ def bursty_twin(system: System, correlation: float) -> System:
     mu = np.clip(system.mu_schedule.mean(axis=0), 0.0, 1.0)
     p, r = (1.0 - mu) * (1.0 - lam), mu * (1.0 - lam)
     if np.any(p > 1.0) or np.any(r > 1.0):
-        raise InputError("correlation", f"lambda = {lam:g} needs p or r above 1 for the average rates {np.round(mu, 6).tolist()}")
+        raise InputError("correlation", f"lambda = {lam:g} needs p or r above 1 for the average rates "
+                                        f"{np.round(mu, 6).tolist()}")
     return attach_channel(system, GilbertElliott(p=p, r=r))
