@@ -29,7 +29,7 @@ from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATO
 
 __all__ = [
     "check_inputs", "closed_form", "expected_cost", "hessian_factor", "loss_variance_term", "paper_optimal_cost",
-    "pick_method", "refuse_dense", "weight_spread",
+    "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
 ]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m
@@ -195,6 +195,30 @@ def dense_cost(system: System, U: np.ndarray, protocol: str, pred: Prediction | 
 
 
 @blas_limited
+
+def refuse_correlated(system: System, protocol: str) -> None:
+    """Refuse the UDP-like expected cost of a system behind a Gilbert–Elliott chain: its losses are
+    correlated over time, so J_udp on the chain's predicted mu_t is not the expected cost of anything
+    (pendulum_bursty: 15706 against 51735 for the same plan). The TCP-like cost holds first moments
+    only and stays exact. O(1).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.1], r=[0.3]))
+    >>> refuse_correlated(s, "tcp")        # nothing to refuse
+    >>> refuse_correlated(s, "udp")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: channel: a Gilbert-Elliott channel's losses are correlated, ...
+    """
+    if system.channel is not None and protocol == "udp":
+        raise InputError("channel", "a Gilbert-Elliott channel's losses are correlated, so the UDP-like cost on its "
+                                    "predicted mu_t is not the expected cost: use packetloss_cvx.markov."
+                                    "exact_closed_form / exact_cost for the exact values, or "
+                                    "system.with_mu(system.mu_schedule) for the paper's plug-in law")
+
 def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: str = "auto") -> float:
     """Expected cost J(U) of the N×m input sequence ``inputs`` as the paper defines it.
 
@@ -220,6 +244,7 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     """
     system = check_system(system)
     protocol = check_protocol(protocol)
+    refuse_correlated(system, protocol)
     U = check_inputs(system, inputs)
     choice = pick_method(system, method) if method != "auto" else "recursion"
     weights = udp_variance_weights(system)
@@ -282,6 +307,7 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
     """
     system = check_system(system)
     protocol = check_protocol(protocol)
+    refuse_correlated(system, protocol)
     weights = udp_variance_weights(system)
     choice = pick_method(system, method, weights)
     if choice == "dense":

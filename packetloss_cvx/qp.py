@@ -28,7 +28,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .convex import solve_problem
-from .costs import closed_form
+from .costs import closed_form, refuse_correlated
 from .errors import CrossCheckError, InputError, NumericalError, ResourceError, SolverError
 from .linalg import power_growth, psd_factor
 from .model import System, check_system
@@ -121,6 +121,7 @@ class ExpectedCostQP:
     def __init__(self, system: System, protocol: str, formulation: str = "auto") -> None:
         system = check_system(system)
         self.protocol = check_protocol(protocol)
+        refuse_correlated(system, self.protocol)
         self.formulation = _pick(system, formulation)
         self.system = system
         N, n, m = system.horizon, system.n, system.m

@@ -38,7 +38,7 @@ def test_simulated_loop_matches_exact_second_moments(seed):
     base = pl.System(A=[[1.05, 0.2], [0.0, 0.9]], B=[[1.0, 0.0], [0.3, 1.0]], horizon=5, state_weight=[1.0, 0.5],
                      input_weight=[0.5, 1.0], mu=[0.8, 0.6], x0=[1.0, -1.0])
     s = bursty_twin(base, rng.uniform(0.3, 0.9))                 # stationary start: the UDP-like gain is constant
-    K = pl.closed_form(s, "udp").gain
+    K = pl.closed_form(s.with_mu(s.mu_schedule), "udp").gain
     steps = 30
     costs = markov_closed_loop_costs(s, ["plug-in-udp"], steps=steps, samples=20_000, rng=rng, progress=False)[0]
     se = costs.std(ddof=1) / np.sqrt(costs.size)

@@ -22,7 +22,7 @@ def test_exact_minimum_is_a_minimum_or_refused(system, seed):
     s = attach_channel(system, random_channel(rng, system.m, given=bool(seed % 2)))
     try:
         exact = exact_closed_form(s)
-        plugin = exact_cost(s, pl.closed_form(s, "udp").inputs)
+        plugin = exact_cost(s, pl.closed_form(s.with_mu(s.mu_schedule), "udp").inputs)
         other = exact_cost(s, exact.inputs + 1e-3 * rng.normal(size=exact.inputs.shape) * (1 + np.abs(exact.inputs)))
     except REFUSALS:
         return

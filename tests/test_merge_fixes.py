@@ -26,13 +26,32 @@ def test_burstiness_errors_name_the_flag_and_accept_a_leading_minus(capsys):
     capsys.readouterr()
 
 
-def test_closed_loop_claims_do_not_apply_to_a_chain(capsys):
-    """The loop behind a Gilbert–Elliott chain is a jump system: mpc-vs-dp and the closed-loop ranking
-    mark it not applicable ('.') instead of an error or an inconclusive verdict."""
+def test_a_chain_file_is_audited_at_its_plug_in_rates_without_errors(capsys):
+    """The paper's claims are stated for independent losses: a caller's Gilbert–Elliott system is audited
+    at its plug-in mu_t (the closed-loop claims errored or were inconclusive on it)."""
     from packetloss_cvx.claims import audit
 
     results = audit([pl.load_example("pendulum_bursty")], random=0,
-                    only=["mpc-vs-dp", "protocol-ranking-closed-loop"])
+                    only=["mpc-vs-dp", "protocol-ranking-closed-loop", "theorem-2"])
     for result in results:
-        assert result.outcomes[-1] == ".", (result.claim_id, result.outcomes)
-        assert result.errors == 0
+        assert result.errors == 0, (result.id, result.outcomes)
+        assert result.outcomes[-1] in "+-.", (result.id, result.outcomes)
+
+
+def test_the_udp_like_cost_of_a_chain_is_refused_not_the_plug_in_number():
+    """closed_form(pendulum_bursty, "udp") returned 15706, the paper's formula on the chain's mu_t, while
+    the expected cost of that plan under the chain is 51735: a number without a word. It is refused now,
+    with the two ways out; the TCP-like cost (first moments only) stays exact."""
+    from packetloss_cvx.errors import InputError
+    from packetloss_cvx.markov import exact_closed_form, exact_cost
+
+    s = pl.load_example("pendulum_bursty")
+    for call in (lambda: pl.closed_form(s, "udp"), lambda: pl.solve_qp(s, "udp"),
+                 lambda: pl.expected_cost(s, [[0.0]] * s.horizon, "udp")):
+        with pytest.raises(InputError, match="exact_closed_form") as err:
+            call()
+        assert err.value.field == "channel"
+    plug_in = pl.closed_form(s.with_mu(s.mu_schedule), "udp")
+    assert exact_cost(s, plug_in.inputs, "udp") > 3 * plug_in.cost       # 51735 against 15706
+    assert exact_closed_form(s, "udp").cost < exact_cost(s, plug_in.inputs, "udp")
+    assert pl.closed_form(s, "tcp").cost == pytest.approx(exact_closed_form(s, "tcp").cost, rel=1e-10)

@@ -32,7 +32,7 @@ def plugin_loss(system: System, correlation: float | None) -> float | None:
     exact = exact_closed_form(twin, "udp")
     if exact.cost <= 0:
         return None
-    return exact_cost(twin, closed_form(twin, "udp").inputs, "udp") / exact.cost - 1.0
+    return exact_cost(twin, closed_form(twin.with_mu(twin.mu_schedule), "udp").inputs, "udp") / exact.cost - 1.0
 
 
 def _margin(system: System) -> float | None:

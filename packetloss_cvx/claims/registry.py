@@ -89,7 +89,9 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
         raise InputError("random", f"expected a count >= 0, found {random!r}")
     rng = np.random.default_rng(seed)
     paper = paper_systems()
-    extra = list(systems or [])
+    # the paper's claims are stated for independent losses: a caller's system behind a Gilbert-Elliott chain
+    # is audited at its plug-in mu_t (plug-in-markov puts every case behind chains of its own)
+    extra = [s.with_mu(s.mu_schedule) if s.channel is not None else s for s in systems or []]
     ctx = Context(paper=paper, random=extra + [random_system(rng) for _ in range(random)], seed=seed,
                   extra=len(extra))
     ids = list(CLAIMS) if only is None else list(only)

@@ -61,7 +61,7 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
                 raise
             res, skipped = markov_solution(system, protocol, qp=False), str(err)
         entry = res.to_dict()
-        plug_in = _radius(system, closed_form(system, protocol).gain)
+        plug_in = _radius(system, closed_form(system.with_mu(system.mu_schedule), protocol).gain)
         exact = _radius(system, res.exact.gain)
         entry["mean_square_radius"] = {"plug_in": plug_in[0], "exact": exact[0]}
         entry["stable"] = {"plug_in": plug_in[1], "exact": exact[1]}

@@ -47,7 +47,7 @@ def markov_solution(system: System, protocol: str, qp: bool = True) -> MarkovSol
     protocol = check_protocol(protocol)
     exact = exact_closed_form(system, protocol)
     twin = exact_qp(system, protocol, reference=exact) if qp else None
-    plugin = closed_form(system, protocol)
+    plugin = closed_form(system.with_mu(system.mu_schedule), protocol)
     plugin_cost = exact_cost(system, plugin.inputs, protocol)
     loss = plugin_cost / exact.cost - 1.0 if exact.cost > 0 else 0.0
     return MarkovSolution(protocol=protocol, exact=exact, qp=twin, plugin_cost=plugin_cost, relative_loss=loss,

@@ -108,7 +108,7 @@ def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp") -> 
     3.3
     """
     protocol = check_protocol(protocol)
-    base = expected_cost(system, inputs, protocol)
+    base = expected_cost(system.with_mu(system.mu_schedule), inputs, protocol)
     return base if protocol == "tcp" else base + correlation_term(system, inputs)
 
 

@@ -72,6 +72,7 @@ def burstiness_sweep(system: System, correlations: Sequence[float] = DEFAULT_COR
         twin = bursty_twin(system, float(lam))
         for protocol in PROTOCOLS:
             exact[protocol][k] = exact_closed_form(twin, protocol).cost
-            plugin[protocol][k] = exact_cost(twin, closed_form(twin, protocol).inputs, protocol)
+            plugin[protocol][k] = exact_cost(twin, closed_form(twin.with_mu(twin.mu_schedule), protocol).inputs,
+                                              protocol)
     return BurstinessSweep(correlation=values, rate=np.clip(system.mu_schedule.mean(axis=0), 0.0, 1.0),
                            plugin=plugin, exact=exact)

@@ -43,7 +43,8 @@ def _gain(system: System, law: str, belief: np.ndarray) -> np.ndarray:
     moved = attach_channel(system, GilbertElliott(p=ch.p, r=ch.r, h_good=ch.h_good, h_bad=ch.h_bad,
                                                   belief=np.clip(belief, 0.0, 1.0)))
     kind, protocol = law.rsplit("-", 1)
-    sol = closed_form(moved, protocol) if kind == "plug-in" else exact_closed_form(moved, "udp")
+    plug_in = moved.with_mu(moved.mu_schedule)   # the paper's law on the predicted mu_t
+    sol = closed_form(plug_in, protocol) if kind == "plug-in" else exact_closed_form(moved, "udp")
     return sol.gain
 
 

@@ -63,7 +63,7 @@ def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_
         check_loop_memory(system, min(BLOCK, samples), steps, len(laws), keep)
     open_part, closed_part = np.random.SeedSequence(seed).spawn(2)
     blocks = run_blocks(samples)
-    plans = {p: closed_form(system, p) for p in laws if p != "dp"}
+    plans = {p: closed_form(system.with_mu(system.mu_schedule), p) for p in laws if p != "dp"}
     extra = ""
     if plans:
         try:
