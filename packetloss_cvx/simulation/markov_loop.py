@@ -113,7 +113,24 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
 
 class BeliefGains:
     """The first block K(b) of a protocol's plug-in receding-horizon law planned at the belief b, cached by
-    b rounded to 12 digits (one plan per distinct belief, each O(plan); more than ``budget`` is a ResourceError)."""
+    b rounded to 12 digits (one plan per distinct belief, each O(plan); more than ``budget`` is a ResourceError).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.4], r=[0.6]))          # p + r = 1: mu_t = 0.6 from any belief
+    >>> gains = BeliefGains(s, "tcp", budget=2)
+    >>> bool(np.allclose(gains(np.array([0.6])), closed_form(s.with_mu([0.6]), "tcp").gain))
+    True
+    >>> K = gains.many(np.array([[0.6], [0.6 + 1e-14], [0.2]]))       # two distinct beliefs after rounding
+    >>> K.shape, len(gains.cache)
+    ((3, 1, 1), 2)
+    >>> try:
+    ...     gains(np.array([0.9]))                                    # a third plan is over the budget
+    ... except ResourceError:
+    ...     print("refused")
+    refused
+    """
 
     def __init__(self, system: System, protocol: str, budget: int = PLAN_BUDGET) -> None:
         self.system, self.law, self.budget = system, f"plug-in-{protocol}", budget

@@ -24,7 +24,15 @@ BLOCK = 4096
 
 class LoopStats(NamedTuple):
     """One law's closed-loop sample: mean and standard error of the runs' mean stage cost; per step the mean
-    and standard deviation of ||x_t|| (t <= steps) and the mean stage cost (t < steps)."""
+    and standard deviation of ||x_t|| (t <= steps) and the mean stage cost (t < steps).
+
+    Examples
+    --------
+    >>> st = LoopStats(2.5, 0.1, np.ones(3), np.zeros(3), np.full(2, 2.5))   # steps = 2
+    >>> mean, stderr, *per_step = st                                          # a tuple: it unpacks
+    >>> st.mean == mean, [a.shape for a in per_step]
+    (True, [(3,), (3,), (2,)])
+    """
 
     mean: float
     stderr: float
