@@ -117,7 +117,15 @@ def system_repr(system: Any) -> str:
 
 
 def system_html(system: Any) -> str:
-    """The dimensions, channel, initial state and (when small) A and B, as an HTML table."""
+    """The dimensions, channel, initial state and (when small) A and B, as an HTML table.
+
+    >>> from packetloss_cvx.model import System
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0],
+    ...            noise_cov=[[2.0]], name="a<b")
+    >>> text = system_html(s)
+    >>> "a&lt;b" in text, "a<b" in text, "Sigma_W, trace 2" in text, "1, 1, 2" in text   # escaped; n, m, N
+    (True, False, True, True)
+    """
     rows = [("name", system.name or "(unnamed)"), ("n, m, horizon N", f"{system.n}, {system.m}, {system.horizon}"),
             ("mu", channel_text(system)), ("x0", short(system.x0)), ("A", short(system.A)), ("B", short(system.B)),
             ("noise", "none" if not np.any(system.noise_cov) else f"Sigma_W, trace {np.trace(system.noise_cov):.4g}")]
@@ -153,19 +161,40 @@ def solution_repr(sol: Any) -> str:
 
 
 def solution_html(sol: Any) -> str:
-    """The cost, method, closed-loop spectral radius and (QPs) solver status, as an HTML table."""
+    """The cost, method, closed-loop spectral radius and (QPs) solver status, as an HTML table.
+
+    >>> from packetloss_cvx.results import Solution
+    >>> text = solution_html(Solution("udp", 10.25, np.zeros((10, 2)), None, None, "recursion"))
+    >>> "UDP-like" in text, "10.25" in text, "shape (10, 2)" in text, "status" in text   # no solver: no status
+    (True, True, True, False)
+    """
     return html_table("Solution", _solution_rows(sol))
 
 
 def allocation_repr(a: Any) -> str:
     """``Allocation(protocol='udp', status='optimal', mu=[0.4856, 1], communication_cost=0.535637, cost=8,
-    alpha=8, gap=5.9e-05)``."""
+    alpha=8, gap=5.9e-05)``.
+
+    >>> from types import SimpleNamespace
+    >>> print(allocation_repr(SimpleNamespace(protocol="udp", status="optimal", mu=np.array([0.485612, 1.0]),
+    ...                                       communication_cost=0.5, cost=8.0, alpha=8.0, gap=1e-3)))
+    Allocation(protocol='udp', status='optimal', mu=[0.4856, 1], communication_cost=0.5, cost=8, alpha=8, gap=1.0e-03)
+    """
     return (f"Allocation(protocol={a.protocol!r}, status={a.status!r}, mu={short(a.mu, 4)}, "
             f"communication_cost={a.communication_cost:.6g}, cost={a.cost:.6g}, alpha={a.alpha:.6g}, gap={a.gap:.1e})")
 
 
 def allocation_html(a: Any) -> str:
-    """The allocation, its costs and its certificate, as an HTML table."""
+    """The allocation, its costs and its certificate, as an HTML table.
+
+    >>> from types import SimpleNamespace
+    >>> a = SimpleNamespace(protocol="tcp", status="optimal", mu=np.array([0.5]), beta=np.array([2.0]),
+    ...                     communication_cost=1.0, cost=7.5, alpha=8.0, lower_bound=7.4, gap=1e-3, method="bnb",
+    ...                     boxes=3)
+    >>> text = allocation_html(a)
+    >>> "TCP-like" in text, "7.5 &lt;= alpha = 8" in text, "<= alpha" in text   # the certificate, escaped
+    (True, True, False)
+    """
     return html_table("Allocation", [
         ("protocol", f"{a.protocol.upper()}-like"), ("status", a.status), ("mu*", short(a.mu)),
         ("beta", short(a.beta)), ("beta'mu", f"{a.communication_cost:.6g}"),
@@ -174,13 +203,25 @@ def allocation_html(a: Any) -> str:
 
 
 def batch_repr(b: Any) -> str:
-    """``BatchSolution(protocol='tcp', points=1000, method='dense', costs in [2.7985, 41.07])``."""
+    """``BatchSolution(protocol='tcp', points=1000, method='dense', costs in [2.7985, 41.07])``.
+
+    >>> from types import SimpleNamespace
+    >>> batch_repr(SimpleNamespace(protocol="tcp", costs=np.array([41.07, 2.79847, 9.0]), method="dense"))
+    "BatchSolution(protocol='tcp', points=3, method='dense', costs in [2.79847, 41.07])"
+    >>> batch_repr(SimpleNamespace(protocol="udp", costs=np.array([]), method="dense"))
+    "BatchSolution(protocol='udp', points=0, method='dense', costs in [])"
+    """
     span = f"[{np.min(b.costs):.6g}, {np.max(b.costs):.6g}]" if len(b.costs) else "[]"
     return f"BatchSolution(protocol={b.protocol!r}, points={len(b.costs)}, method={b.method!r}, costs in {span})"
 
 
 def maximiser_repr(x: Any) -> str:
-    """``Maximiser(point=[0.02183], value=83.4246, method='logit-grid + bounded Brent')``."""
+    """``Maximiser(point=[0.02183], value=83.4246, method='logit-grid + bounded Brent')``.
+
+    >>> from types import SimpleNamespace
+    >>> maximiser_repr(SimpleNamespace(point=np.array([0.0218345]), value=83.424612, method="grid"))
+    "Maximiser(point=[0.02183], value=83.4246, method='grid')"
+    """
     return f"Maximiser(point={short(x.point, 4)}, value={x.value:.6g}, method={x.method!r})"
 
 
@@ -196,7 +237,13 @@ def claim_repr(r: Any) -> str:
 
 
 def claim_html(r: Any) -> str:
-    """The verdict, its counts, the worst margin, the cases and the note, as an HTML table."""
+    """The verdict, its counts, the worst margin, the cases and the note, as an HTML table.
+
+    >>> from packetloss_cvx.results import ClaimResult
+    >>> text = claim_html(ClaimResult("lemma-2", "J_tcp < J_udp", "fails", 4, 1, -0.5, None, ""))
+    >>> "J_tcp &lt; J_udp" in text, "4, 1, 0" in text, "-0.5" in text, "none" in text   # no counterexample
+    (True, True, True, True)
+    """
     rows = [("verdict", r.verdict), ("claim", r.statement),
             ("checked, violations, errors", f"{r.checked}, {r.violations}, {r.errors}"),
             ("worst margin", short(r.worst))]

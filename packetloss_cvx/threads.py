@@ -68,7 +68,15 @@ def set_blas_threads(threads: int | None) -> None:
 
 
 def blas_threads() -> int | None:
-    """The current limit (None: no limit). O(1)."""
+    """The current limit (None: no limit). O(1).
+
+    Examples
+    --------
+    >>> set_blas_threads(None); print(blas_threads())
+    None
+    >>> set_blas_threads(1); blas_threads()
+    1
+    """
     return _state["threads"]
 
 
@@ -90,6 +98,17 @@ def blas_limited(fn: F) -> F:
     Python threads, threadpoolctl lets only one thread at a time own a shared (pthreads) OpenBLAS
     pool: calls from other threads then run with whatever that thread set, and nobody's restore
     overwrites another's.
+
+    Examples
+    --------
+    >>> from threadpoolctl import threadpool_info
+    >>> @blas_limited
+    ... def pools():
+    ...     return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+    >>> all(k == blas_threads() for k in pools())   # inside: every BLAS pool at the limit (1)
+    True
+    >>> pools.__name__                               # functools.wraps keeps the name
+    'pools'
     """
     @functools.wraps(fn)
     def limited(*args: Any, **kwargs: Any) -> Any:

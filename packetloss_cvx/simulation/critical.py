@@ -24,6 +24,14 @@ def stable_at(system: System, law: str | npt.ArrayLike, mu: np.ndarray) -> bool:
     ``law``: a fixed gain (m×n), or "tcp"/"udp" (the receding-horizon law re-designed for ``mu``:
     the first gain of Theorem 1's closed form) or "dp" (the DP optimum for ``mu``: stable iff the
     modified Riccati equation has a stabilising solution). Time: one design plus one radius.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> [stable_at(s, [[2.0]], np.array([mu])) for mu in (0.7, 0.8)]   # k = a: radius a^2 (1 - mu) = 1.2, 0.8
+    [False, True]
+    >>> [stable_at(s, "dp", np.array([mu])) for mu in (0.7, 0.8)]      # scalar critical mu: 1 - 1/a^2 = 0.75
+    [False, True]
     """
     if isinstance(law, str):
         if law == "dp":

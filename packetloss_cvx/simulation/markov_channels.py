@@ -50,7 +50,15 @@ def sample_states(channel: GilbertElliott, horizon: int, samples: int, rng: np.r
 
 def reveals_state(channel: GilbertElliott) -> bool:
     """True when every channel's outcome reveals its state ({h_good, h_bad} = {0, 1}, e.g. the Gilbert
-    channel): then the TCP-like filtered belief is a function of the last outcome. O(m)."""
+    channel): then the TCP-like filtered belief is a function of the last outcome. O(m).
+
+    Examples
+    --------
+    >>> reveals_state(GilbertElliott(p=[0.1], r=[0.5]))   # the Gilbert channel: h_good = 1, h_bad = 0
+    True
+    >>> reveals_state(GilbertElliott(p=[0.1, 0.1], r=[0.5, 0.5], h_bad=[0.0, 0.2]))   # channel 1 may deliver when bad
+    False
+    """
     return bool(np.all(((channel.h_good == 1) & (channel.h_bad == 0)) | ((channel.h_good == 0) & (channel.h_bad == 1))))
 
 
@@ -90,7 +98,17 @@ def sample_markov_paths(channel: GilbertElliott, steps: int, samples: int,
 def sample_markov_deliveries(channel: GilbertElliott, horizon: int, samples: int,
                              rng: np.random.Generator) -> np.ndarray:
     """Deliveries v_{i,t} (True = the packet arrived): bool (samples, N, m), with P(v = 1 | state)
-    = h_good or h_bad. Time O(samples N m)."""
+    = h_good or h_bad. Time O(samples N m).
+
+    Examples
+    --------
+    >>> ch = GilbertElliott(p=[0.0], r=[1.0], state=["bad"])          # bad, then good for ever
+    >>> sample_markov_deliveries(ch, 3, 2, np.random.default_rng(0))[:, :, 0].tolist()
+    [[False, True, True], [False, True, True]]
+    >>> v = sample_markov_deliveries(GilbertElliott(p=[0.2], r=[0.6]), 2, 4000, np.random.default_rng(0))[:, :, 0]
+    >>> bool(abs(v.mean() - 0.6 / 0.8) < 0.03), bool(abs(v[v[:, 0], 1].mean() - 0.8) < 0.03)   # r/(p+r); 1 - p
+    (True, True)
+    """
     good = sample_states(channel, horizon, samples, rng)
     return rng.random(good.shape) < np.where(good, channel.h_good, channel.h_bad)
 
@@ -102,6 +120,20 @@ def sample_markov_plan_costs(system: System, inputs: npt.ArrayLike, samples: int
 
     Their mean estimates E[cost | belief], which :func:`packetloss_cvx.markov.exact_cost` computes.
     Time O(samples N (n^2 + n m)), memory O(samples N m).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.0], r=[1.0], belief=[0.5]))
+    >>> c = sample_markov_plan_costs(s, [[-1.0], [-1.0]], 50, np.random.default_rng(0))
+    >>> sorted(set(c.tolist()))   # start bad: 0 + 1 then 1 + 0 (x: 1, 1, 0); start good: 1 + 0 then 1 + 1 (x: 1, 0, -1)
+    [2.0, 3.0]
+    >>> from packetloss_cvx.markov import exact_cost
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.3]))
+    >>> c = sample_markov_plan_costs(s, [[-1.0], [-0.5]], 4000, np.random.default_rng(0))
+    >>> bool(abs(c.mean() - exact_cost(s, [[-1.0], [-0.5]])) < 4 * c.std() / 4000 ** 0.5)
+    True
     """
     if system.channel is None:
         raise InputError("system", "expected a system with a Gilbert-Elliott channel ([channel] model = ...)")

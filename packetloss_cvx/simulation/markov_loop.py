@@ -62,6 +62,17 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     ------
     InputError
         No Markov channel, an unknown law, or counts below 1.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.simulation.moments import finite_horizon_costs
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.4], r=[0.6]))          # p + r = 1: Bernoulli(0.6) losses
+    >>> c = markov_closed_loop_costs(s, ["plug-in-udp"], steps=4, samples=4000, rng=np.random.default_rng(0))
+    >>> twin = s.with_mu([0.6])
+    >>> stage, terminal = finite_horizon_costs(twin, closed_form(twin, "udp").gain, 4)
+    >>> bool(abs(c[0].mean() - stage.sum() - terminal) < 4 * c[0].std() / 4000 ** 0.5)
+    True
     """
     system = check_system(system)
     ch = system.channel
@@ -103,7 +114,24 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
 
 class BeliefGains:
     """The first block K(b) of a protocol's plug-in receding-horizon law planned at the belief b, cached by
-    b rounded to 12 digits (one plan per distinct belief, each O(plan); more than ``budget`` is a ResourceError)."""
+    b rounded to 12 digits (one plan per distinct belief, each O(plan); more than ``budget`` is a ResourceError).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.4], r=[0.6]))          # p + r = 1: mu_t = 0.6 from any belief
+    >>> gains = BeliefGains(s, "tcp", budget=2)
+    >>> bool(np.allclose(gains(np.array([0.6])), closed_form(s.with_mu([0.6]), "tcp").gain))
+    True
+    >>> K = gains.many(np.array([[0.6], [0.6 + 1e-14], [0.2]]))       # two distinct beliefs after rounding
+    >>> K.shape, len(gains.cache)
+    ((3, 1, 1), 2)
+    >>> try:
+    ...     gains(np.array([0.9]))                                    # a third plan is over the budget
+    ... except ResourceError:
+    ...     print("refused")
+    refused
+    """
 
     def __init__(self, system: System, protocol: str, budget: int = PLAN_BUDGET) -> None:
         self.system, self.law, self.budget = system, f"plug-in-{protocol}", budget
@@ -130,7 +158,13 @@ class BeliefGains:
 
 def mode_index(good: np.ndarray) -> np.ndarray:
     """The joint mode of :func:`packetloss_cvx.markov.mode_chain` (0 = all good, channel 0 the most significant
-    bit, 1 = bad) of good-state indicators (..., m). O(size)."""
+    bit, 1 = bad) of good-state indicators (..., m). O(size).
+
+    Examples
+    --------
+    >>> mode_index(np.array([[True, True], [True, False], [False, True], [False, False]])).tolist()
+    [0, 1, 2, 3]
+    """
     m = good.shape[-1]
     return ((~good).astype(np.int64) << np.arange(m - 1, -1, -1)).sum(axis=-1)
 
@@ -147,6 +181,18 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
     from ``noise`` (:func:`~packetloss_cvx.simulation.channels.sample_noise_paths`): the Bernoulli loop's draws.
     Returns ``(run_cost, norms, stage, states)`` as :func:`~packetloss_cvx.simulation.montecarlo.closed_loop_block`.
     Time O(laws samples steps n (n + m)) plus one plan per new belief.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.0], r=[1.0], belief=[0.5]))   # good for ever, or bad once
+    >>> rng = np.random.default_rng
+    >>> cost, norms, stage, states = markov_loop_block(s, ["dp"], None, None, np.array([[[1.0]], [[0.0]]]), 3, 40,
+    ...                                                rng(0), rng(1), keep=1)
+    >>> sorted({tuple(row) for row in stage[0].tolist()})   # u = -x: x -> 0 at the first delivery
+    [(1.0, 2.0, 0.0), (2.0, 0.0, 0.0)]
+    >>> bool(np.allclose(cost, stage.mean(axis=2))), states.shape
+    (True, (1, 1, 4, 1))
     """
     ch = system.channel
     good, V = sample_markov_paths(ch, steps, samples, losses)

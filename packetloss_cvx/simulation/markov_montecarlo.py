@@ -46,7 +46,21 @@ DP_NOTE = ("mode-dependent coupled-Riccati law (Costa, Fragoso, Marques 2005, ch
 def markov_open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
     """Realised costs of the plan ``inputs`` (N×m) with the chain sampled per run
     (:func:`~packetloss_cvx.simulation.markov_channels.sample_markov_paths`, then the noise as
-    :func:`~packetloss_cvx.simulation.channels.sample_noise`). Time O(samples N n (n + m))."""
+    :func:`~packetloss_cvx.simulation.channels.sample_noise`). Time O(samples N n (n + m)).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> from packetloss_cvx.simulation.montecarlo import open_loop_costs
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            noise_cov=[[0.5]], channel=GilbertElliott(p=[0.4], r=[0.6]))    # p + r = 1: memoryless
+    >>> U = np.array([[-1.0], [-0.5]])
+    >>> c = markov_open_loop_costs(s, U, 4000, np.random.default_rng(0))
+    >>> bool(np.array_equal(c, open_loop_costs(s.with_mu([0.6]), U, 4000, np.random.default_rng(0))))   # same draws
+    True
+    >>> bool(abs(c.mean() - exact_cost(s, U)) < 4 * c.std() / 4000 ** 0.5)
+    True
+    """
     N, n = system.horizon, system.n
     _, V = sample_markov_paths(system.channel, N, samples, rng)
     W = sample_noise(system, samples, rng).reshape(samples, N, n) if system.noise_cov.any() else None
@@ -58,7 +72,20 @@ def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_
     """:func:`~packetloss_cvx.simulation.simulate` for a system with a Gilbert–Elliott channel (arguments
     validated there). Same seeding as the Bernoulli path. Time O(samples N n (n + m) + (N m)^3 + (N n)^2 N m)
     open loop; closed loop O(laws samples T n (n + m)) plus one plan per distinct belief and the exact values
-    (O(T 4^m n^3) each, the radii O((2^m n^2)^3))."""
+    (O(T 4^m n^3) each, the radii O((2^m n^2)^3)).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.3]))
+    >>> sim = simulate_markov(s, 2000, 5, 0, True, ["udp"], 0, False)
+    >>> check, run = sim.open_loop["udp"], sim.closed_loop["udp"]
+    >>> bool(abs(check.mean - check.exact) < 4 * check.stderr)
+    True
+    >>> bool(abs(run.mean_stage_cost - run.exact_stage_cost) < 4 * run.stderr), run.stable
+    (True, True)
+    """
     if closed_loop:
         check_loop_memory(system, min(BLOCK, samples), steps, len(laws), keep)
     open_part, closed_part = np.random.SeedSequence(seed).spawn(2)

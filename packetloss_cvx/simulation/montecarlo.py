@@ -57,7 +57,18 @@ def open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.ra
 
 def law_gains(system: System, laws: Sequence[str]) -> dict[str, np.ndarray | str]:
     """Each law's stationary gain, or the reason there is none (the DP optimum without a stabilising
-    solution). "tcp"/"udp": the receding-horizon gain (Theorem 1's first block); "dp": the modified Riccati law."""
+    solution). "tcp"/"udp": the receding-horizon gain (Theorem 1's first block); "dp": the modified Riccati law.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> g = law_gains(s, ["tcp", "dp"])   # no losses: 2-step LQR gain 2*3/4; the DARE's P = 2 + sqrt 5, K = 2P/(1+P)
+    >>> float(g["tcp"][0, 0]), bool(np.isclose(g["dp"][0, 0], (1 + 5 ** 0.5) / 2))
+    (1.5, True)
+    >>> from packetloss_cvx.simulation.riccati import NO_SOLUTION
+    >>> law_gains(s.with_mu([0.5]), ["dp"])["dp"].startswith(NO_SOLUTION)   # below the critical 1 - 1/a^2
+    True
+    """
     out: dict[str, np.ndarray | str] = {}
     for law in laws:
         if law == "dp":

@@ -24,7 +24,15 @@ BLOCK = 4096
 
 class LoopStats(NamedTuple):
     """One law's closed-loop sample: mean and standard error of the runs' mean stage cost; per step the mean
-    and standard deviation of ||x_t|| (t <= steps) and the mean stage cost (t < steps)."""
+    and standard deviation of ||x_t|| (t <= steps) and the mean stage cost (t < steps).
+
+    Examples
+    --------
+    >>> st = LoopStats(2.5, 0.1, np.ones(3), np.zeros(3), np.full(2, 2.5))   # steps = 2
+    >>> mean, stderr, *per_step = st                                          # a tuple: it unpacks
+    >>> st.mean == mean, [a.shape for a in per_step]
+    (True, [(3,), (3,), (2,)])
+    """
 
     mean: float
     stderr: float
@@ -34,19 +42,46 @@ class LoopStats(NamedTuple):
 
 
 def check_count(value: object, field: str, least: int) -> int:
-    """``value`` as an int >= ``least``, else InputError naming ``field``. O(1)."""
+    """``value`` as an int >= ``least``, else InputError naming ``field``. O(1).
+
+    Examples
+    --------
+    >>> check_count(np.int64(3), "samples", 2)
+    3
+    >>> for bad in (1, True, 2.0):                 # below least, a bool, a float
+    ...     try:
+    ...         check_count(bad, "samples", 2)
+    ...     except InputError as err:
+    ...         print(err.field)
+    samples
+    samples
+    samples
+    """
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
         raise InputError(field, f"expected an integer >= {least}, found {value!r}")
     return int(value)
 
 
 def run_blocks(samples: int) -> list[int]:
-    """Block sizes: ``samples`` split in blocks of :data:`BLOCK` (the last one shorter). O(samples / BLOCK)."""
+    """Block sizes: ``samples`` split in blocks of :data:`BLOCK` (the last one shorter). O(samples / BLOCK).
+
+    Examples
+    --------
+    >>> run_blocks(2 * BLOCK + 5) == [BLOCK, BLOCK, 5], run_blocks(BLOCK) == [BLOCK]
+    (True, True)
+    """
     return [min(BLOCK, samples - start) for start in range(0, samples, BLOCK)]
 
 
 def sample_stats(values: np.ndarray) -> tuple[float, float]:
-    """``(mean, standard error)`` of a sample (inf/nan propagate). O(size)."""
+    """``(mean, standard error)`` of a sample (inf/nan propagate). O(size).
+
+    Examples
+    --------
+    >>> mean, stderr = sample_stats(np.array([1.0, 2.0, 3.0, 4.0]))   # variance (ddof 1) 5/3, over sqrt(4)
+    >>> mean, bool(np.isclose(stderr, (5 / 3) ** 0.5 / 2))
+    (2.5, True)
+    """
     with np.errstate(over="ignore", invalid="ignore"):
         return float(values.mean()), float(values.std(ddof=1) / np.sqrt(values.size))
 
@@ -67,7 +102,18 @@ def z_score(mean: float, stderr: float, exact: float) -> float:
 
 def check_loop_memory(system: System, block: int, steps: int, laws: int, keep: int) -> None:
     """Refuse, before drawing, a closed loop whose block arrays exceed the memory budget: deliveries and
-    noise (block steps (m + 8 n)), norms and stage costs (16 laws block steps), kept states."""
+    noise (block steps (m + 8 n)), norms and stage costs (16 laws block steps), kept states.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> check_loop_memory(s, BLOCK, 50, 3, 0)            # 4096 * 51 * 57 bytes: fine
+    >>> try:
+    ...     check_loop_memory(s, BLOCK, 10**7, 3, 0)      # about 2e12 bytes
+    ... except ResourceError:
+    ...     print("refused")
+    refused
+    """
     needed = block * (steps + 1) * (system.m + 8 * system.n + 16 * laws) + 8 * laws * keep * (steps + 1) * system.n
     if needed > MEMORY_BUDGET_BYTES:
         raise ResourceError(f"the closed-loop simulation needs about {needed / 2**30:.1f} GiB per block of {block} "
@@ -79,7 +125,17 @@ def plan_costs(system: System, inputs: np.ndarray, delivered: np.ndarray, noise:
     """Realised costs ``x'Qx + sum_t X_{t+1}'Omega_t X_{t+1} + (V_t u_t)'Psi_t (V_t u_t)`` of the plan
     ``inputs`` (N×m) on the deliveries ``delivered`` (samples, N, m) and the noise (samples, N, n) or None.
     The cost inside the expectation of eq:plant0.
-    Time O(samples N n (n + m))."""
+    Time O(samples N n (n + m)).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> v = np.array([True, False]).reshape(2, 1, 1)      # run 0 delivers u = -2, run 1 loses it
+    >>> plan_costs(s, np.array([[-2.0]]), v, None).tolist()   # Q = 0; (V u)^2 + (1 + V u)^2
+    [5.0, 1.0]
+    >>> plan_costs(s, np.array([[-2.0]]), v, np.full((2, 1, 1), 1.0)).tolist()   # w = 1: x1 = 0 or 2
+    [4.0, 4.0]
+    """
     samples = delivered.shape[0]
     X = np.repeat(system.x0[None], samples, axis=0)
     total = np.full(samples, float(system.x0 @ system.initial_weight @ system.x0))
@@ -103,6 +159,22 @@ def loop_statistics(count: int, block: Callable[..., tuple[np.ndarray, ...]], st
     steps), states (L, keep, steps + 1, n))`` (as :func:`~packetloss_cvx.simulation.montecarlo.closed_loop_block`);
     block b draws its losses and its noise from the two children of ``streams[b]``. Returns one
     :class:`LoopStats` per law and the kept states (L, keep, steps + 1, n). Time: the blocks', plus O(L samples steps).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.simulation.montecarlo import closed_loop_block
+    >>> from packetloss_cvx.simulation.moments import finite_horizon_costs
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> gains = np.array([[[0.5]], [[0.0]]])                # u = -x/2, and no input
+    >>> def block(size, losses, noise, keep):
+    ...     return closed_loop_block(s, gains, 3, size, losses, keep, noise)
+    >>> bar = type("Bar", (), {"update": lambda self, k: None})()
+    >>> stats, kept = loop_statistics(2, block, 3, 1, [3000], np.random.SeedSequence(0).spawn(1), 2, bar)
+    >>> exact = finite_horizon_costs(s, [[0.5]], 3)[0].mean()   # the mean stage cost's expectation
+    >>> bool(abs(stats[0].mean - exact) < 4 * stats[0].stderr), kept.shape
+    (True, (2, 2, 4, 1))
+    >>> stats[1].mean, stats[1].stderr, stats[1].norm_std.tolist()   # no input: x = 1 in every run
+    (1.0, 0.0, [0.0, 0.0, 0.0, 0.0])
     """
     run_costs, stages, norm_sum, norm_sq, kept = [], [], 0.0, 0.0, []
     left = keep

@@ -28,6 +28,13 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
     drawn step by step through :mod:`.channels` (:func:`~.channels.sample_step_deliveries`,
     :func:`~.channels.sample_step_noise`), in the order this function has always used.
     Time O(samples · N · (n^2 + n m)), memory O(samples · n).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.3], x0=[1.0])
+    >>> c = sample_plan_costs(s, [[-2.0]], 4000, np.random.default_rng(0))   # delivered: 4 + 1; lost: 0 + 1
+    >>> sorted(set(c.tolist())), bool(abs(c.mean() - (1 + 4 * 0.3)) < 4 * c.std() / 4000 ** 0.5)
+    ([1.0, 5.0], True)
     """
     U = check_inputs(system, inputs)
     N = system.horizon
@@ -55,6 +62,17 @@ def closed_loop_costs(system: System, gains: list[np.ndarray], steps: int, sampl
     ``x_t' Omega_1 x_t + (V_t u_t)' Psi_0 (V_t u_t)`` for t = 0..steps-1 plus
     ``x_T' Omega_1 x_T``; the channel uses ``mu_schedule[0]`` (deliveries and noise from :mod:`.channels`).
     Returns an array (len(gains), samples). Time O(len(gains) · samples · steps · n (n + m)).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.simulation.moments import finite_horizon_costs
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> c = closed_loop_costs(s, [np.array([[0.5]]), np.zeros((1, 1))], 3, 4000, np.random.default_rng(0))
+    >>> stage, terminal = finite_horizon_costs(s, [[0.5]], 3)      # the exact expectation
+    >>> bool(abs(c[0].mean() - stage.sum() - terminal) < 4 * c[0].std() / 4000 ** 0.5)
+    True
+    >>> bool(np.all(c[1] == 4.0))                                   # K = 0: x stays 1, three stages + terminal
+    True
     """
     W, psi = system.state_weights[0], system.input_weights[0]
     losses = sample_delivery_paths(system, steps, samples, rng)

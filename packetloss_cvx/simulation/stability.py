@@ -42,6 +42,16 @@ def check_law(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike,
     ------
     DimensionError, InputError
         Naming the array and the expected shape.
+
+    Examples
+    --------
+    >>> A, B, K, mu = check_law([[1]], [[1, 2]], [[1], [0]], 0.5)   # ints to floats, scalar mu not of length 2
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.DimensionError: mu: expected (2,), found (1,)
+    >>> A, B, K, mu = check_law([[1]], [[1, 2]], [[1], [0]], [0.5, 1])
+    >>> A.dtype, B.shape, K.shape, mu.tolist()
+    (dtype('float64'), (1, 2), (2, 1), [0.5, 1.0])
     """
     A_, B_ = numeric_array(A, "A"), numeric_array(B, "B")
     K_, mu_ = numeric_array(K, "gain"), numeric_array(mu, "mu").reshape(-1)
@@ -78,6 +88,15 @@ def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.nda
     """The adjoint ``L*(P) = Abar' P Abar + K' diag(mu (1 - mu) diag(B' P B)) K`` (tr(P L(S)) = tr(L*(P) S)).
 
     It propagates cost-to-go matrices backwards. Time O(n^3 + n^2 m).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> A, B, K, mu = rng.normal(size=(2, 2)), rng.normal(size=(2, 1)), rng.normal(size=(1, 2)), np.array([0.3])
+    >>> P, S = np.diag([1.0, 2.0]), np.array([[2.0, 0.5], [0.5, 1.0]])
+    >>> lhs = np.trace(P @ second_moment_map(S, A, B, K, mu))
+    >>> bool(np.isclose(lhs, np.trace(second_moment_adjoint(P, A, B, K, mu) @ S)))
+    True
     """
     Abar = A - (B * mu) @ K
     c = mu * (1.0 - mu) * np.einsum("ji,jk,ki->i", B, P, B)
@@ -87,6 +106,14 @@ def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.nda
 def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """The n^2 x n^2 matrix of ``L`` on row-major ``vec(S)``: ``Abar ⊗ Abar + sum_i c_i F_i ⊗ F_i``,
     ``F_i = b_i k_i``, ``c_i = mu_i (1 - mu_i)``. Time O(n^4 m), memory 8 n^4 bytes: small n only.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> A, B, K, mu = rng.normal(size=(2, 2)), rng.normal(size=(2, 2)), rng.normal(size=(2, 2)), np.array([0.3, 0.8])
+    >>> S = np.array([[2.0, 0.5], [0.5, 1.0]])
+    >>> bool(np.allclose(second_moment_matrix(A, B, K, mu) @ S.ravel(), second_moment_map(S, A, B, K, mu).ravel()))
+    True
     """
     Abar = A - (B * mu) @ K
     out = np.kron(Abar, Abar)
@@ -209,5 +236,11 @@ def _power_bound(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, st
 
 def is_mean_square_stable(radius: float) -> bool:
     """True only when ``radius < 1 - MEAN_SQUARE_MARGIN``: a radius within the margin of one is not
-    proved stable (the eigenvalue solvers agree to about 1e-12 relative)."""
+    proved stable (the eigenvalue solvers agree to about 1e-12 relative).
+
+    Examples
+    --------
+    >>> is_mean_square_stable(0.5), is_mean_square_stable(1.0 - 1e-15), is_mean_square_stable(np.nan)
+    (True, False, False)
+    """
     return bool(np.isfinite(radius) and radius < 1.0 - MEAN_SQUARE_MARGIN)
