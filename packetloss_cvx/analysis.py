@@ -6,8 +6,8 @@ For a shared ("scalar") channel every actuator has delivery probability nu, Vbar
 .. math:: J_\\Delta(\\nu) = J^*_{udp} - J^*_{tcp} = \\nu(1-\\nu)\\, g' G_G \\Omega_d G_F g,\\quad
    G_F = (\\nu\\Omega_g + \\Psi)^{-1},\\ G_G = (\\nu\\Omega_h + \\Omega_d + \\Psi)^{-1},\\ g = \\Omega_{gp}x
 
-(eq:cost-diff-eq). For per-channel mu the same difference is
-``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g``: computed without cancellation.
+(eq:cost-diff-eq). For per-channel mu the same difference is ``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g``:
+computed without cancellation.
 """
 
 from __future__ import annotations
@@ -44,7 +44,14 @@ __all__ = [
 
 
 def scalar_channel(system: System, nu: float) -> System:
-    """The same system with every actuator behind one channel of delivery probability nu."""
+    """The same system with every actuator behind one channel of delivery probability nu.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1, 1]], horizon=1, state_weight=[1], input_weight=[1, 1], mu=[.9, .1], x0=[1])
+    >>> scalar_channel(s, 0.3).mu_schedule.tolist()
+    [[0.3, 0.3]]
+    """
     return system.with_mu(np.full(system.m, float(nu)))
 
 
@@ -81,9 +88,8 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
 
 
 def _scalar_differences(system: System, nus: np.ndarray, pred: Prediction) -> np.ndarray:
-    """cost_difference(system, nu, pred) for each nu in [0, 1], the solves stacked: the same
-    arithmetic point by point (the same LAPACK solve per matrix), so equal bit for bit.
-    O(len(nus) (N m)^3) time, O(len(nus) (N m)^2) memory."""
+    """cost_difference(system, nu, pred) for each nu in [0, 1], the solves stacked: the same arithmetic point by
+    point (the same LAPACK solve per matrix), so bit-equal. O(len(nus) (N m)^3) time, O(len(nus) (N m)^2) memory."""
     k = system.horizon * system.m
     v = np.repeat(np.asarray(nus, dtype=float)[:, None], k, axis=1)          # (P, N m)
     g = pred.Omega_gp @ system.x0
@@ -97,7 +103,14 @@ def _scalar_differences(system: System, nus: np.ndarray, pred: Prediction) -> np
 
 
 def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
-    """G_F = (nu Omega_g + Psi)^-1 and G_G = (nu Omega_h + Omega_d + Psi)^-1 of eq:cost-diff-eq."""
+    """G_F = (nu Omega_g + Psi)^-1 and G_G = (nu Omega_h + Omega_d + Psi)^-1 of eq:cost-diff-eq.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> [float(G[0, 0]) for G in G_maps(prediction(s), 1.0)]   # Omega_g = Psi = Omega_d = 1, Omega_h = 0
+    [0.5, 0.5]
+    """
     Od = np.diag(pred.Omega_d)
     GF = np.linalg.inv(nu * pred.Omega_g + np.diag(pred.Psi))
     GG = np.linalg.inv(nu * pred.Omega_h + Od + np.diag(pred.Psi))
@@ -119,9 +132,8 @@ def _lemma2_from_maps(pred: Prediction, nu: float, GF: np.ndarray, GG: np.ndarra
 def cost_difference_derivative(system: System, nu: float, pred: Prediction | None = None) -> float:
     """dJ_Delta/dnu for a shared channel by Lemma 2 (eq:cost-diff-deriv): g' f(nu) g. O((N m)^3).
 
-    >>> from packetloss_cvx import load_example
-    >>> s = load_example("two_actuator")
-    >>> bool(np.isclose(cost_difference_derivative(s, 0.3), cost_difference_fd(s, 0.3), rtol=1e-5))
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> bool(np.isclose(cost_difference_derivative(s, 0.5), -1 / 18))   # d/dnu (1 - nu/2 - 1/(1 + nu))
     True
     """
     pred = prediction(system) if pred is None else pred
@@ -131,7 +143,14 @@ def cost_difference_derivative(system: System, nu: float, pred: Prediction | Non
 
 def cost_difference_fd(system: System, nu: float, h: float | None = None,
                        pred: Prediction | None = None) -> float:
-    """Central finite difference of J_Delta(nu) for a shared channel."""
+    """Central finite difference of J_Delta(nu) for a shared channel.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> bool(np.isclose(cost_difference_fd(s, 0.5), -1 / 18))   # J_Delta = 1 - nu/2 - 1/(1 + nu)
+    True
+    """
     pred = prediction(system) if pred is None else pred
     h = 1e-6 * min(nu, 1 - nu) if h is None else h
     return (cost_difference(system, nu + h, pred) - cost_difference(system, nu - h, pred)) / (2 * h)
@@ -147,14 +166,11 @@ def _lemma3_T(pred: Prediction) -> tuple[np.ndarray, np.ndarray]:
 def lemma3_candidates(system: System, variant: str = "lemma", pred: Prediction | None = None) -> np.ndarray:
     """Lemma 3's 2Nm points nu = 1 / (1 ± sqrt(1 + lambda_i)) (eq:det-sol; complex where 1 + lambda < 0).
 
-    ``variant="lemma"``: lambda are the eigenvalues of
-    ``T (Omega_g + Psi)^{-1} Omega_d Psi^{-1}`` as printed in the lemma;
-    ``variant="proof"``: of ``T H^{-1}`` with ``H = Psi Omega_d^{-1} (Omega_d + Psi)`` as derived
-    in its proof; ``T = Omega_g Omega_d^{-1} (Omega_g + Psi) + Psi Omega_d^{-1} Omega_h``.
-    O((N m)^3).
+    ``variant="lemma"``: lambda are the eigenvalues of ``T (Omega_g + Psi)^{-1} Omega_d Psi^{-1}`` as printed
+    in the lemma; ``variant="proof"``: of ``T H^{-1}`` with ``H = Psi Omega_d^{-1} (Omega_d + Psi)`` as derived
+    in its proof; ``T = Omega_g Omega_d^{-1} (Omega_g + Psi) + Psi Omega_d^{-1} Omega_h``. O((N m)^3).
 
-    >>> from packetloss_cvx import load_example
-    >>> s = load_example("two_actuator")
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> len(lemma3_candidates(s)) == 2 * s.horizon * s.m
     True
     """
@@ -181,6 +197,12 @@ def det_roots(system: System, pred: Prediction | None = None) -> np.ndarray:
     ``Q(nu) = G_F^{-1} Omega_d^{-1} M(nu) Omega_d^{-1} G_G^{-1}`` (M the bracket of f), which is
     quadratic in nu (its cubic terms cancel); its roots are the eigenvalues of the companion
     linearisation. Returns all 2Nm roots (complex, inf where the leading term is singular).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> bool(np.allclose(sorted(det_roots(s).real), [-1 - 2**0.5, 2**0.5 - 1]))  # J_Delta' = 1/(1+nu)^2 - 1/2
+    True
     """
     pred = prediction(system) if pred is None else pred
     Od_inv = np.diag(1.0 / pred.Omega_d)
@@ -206,9 +228,8 @@ def det_roots(system: System, pred: Prediction | None = None) -> np.ndarray:
 def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6,
                        pred: Prediction | None = None) -> Maximiser | None:
     """Theorem 4 (eq:maximising-nu): the best real Lemma 3 candidate in [0, 1] at which the largest eigenvalue of
-    (the symmetric part of) f(nu) vanishes (|lambda_max| <= tol * ||G_G|| ||Omega_d|| ||G_F||, the
-    scale of f's terms). None if no candidate qualifies: the theorem then names no maximiser.
-    O(N m) candidates, each O((N m)^3).
+    (the symmetric part of) f(nu) vanishes (|lambda_max| <= tol * ||G_G|| ||Omega_d|| ||G_F||, the scale of
+    f's terms). None if no candidate qualifies: the theorem then names no maximiser. O(N m) candidates, each O((N m)^3).
 
     >>> from packetloss_cvx import load_example
     >>> print(theorem4_maximiser(load_example("two_actuator")))   # no candidate qualifies (docs/claims.md)
@@ -242,17 +263,12 @@ def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6
 def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction | None = None) -> Maximiser:
     """Robust maximiser of J_Delta(nu) over nu in (0, 1) for a shared channel (what eq:maximising-nu claims to give).
 
-    A grid uniform in logit(nu) from 1e-9 to 1 - 1e-9 (so peaks near 1e-4 are bracketed),
-    then a bounded Brent refinement in logit space between the best point's neighbours.
-    Time O(grid · (N m)^3).
+    A grid uniform in logit(nu) from 1e-9 to 1 - 1e-9 (so peaks near 1e-4 are bracketed), then a bounded
+    Brent refinement in logit space between the best point's neighbours. Time O(grid · (N m)^3).
 
-    >>> from packetloss_cvx import load_example
-    >>> s = load_example("two_actuator")
-    >>> peak = maximise_cost_difference(s, grid=100)
-    >>> nu = float(peak.point[0])
-    >>> bool(np.isclose(peak.value, cost_difference(s, nu), rtol=1e-12))
-    True
-    >>> all(cost_difference(s, x) <= peak.value for x in (nu / 2, 0.5, (1 + nu) / 2))
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> peak = maximise_cost_difference(s, grid=100)     # J_Delta = 1 - nu/2 - 1/(1 + nu)
+    >>> bool(np.isclose(peak.value, 1.5 - 2**0.5) and np.isclose(peak.point[0], 2**0.5 - 1))
     True
     """
     pred = prediction(system) if pred is None else pred
@@ -269,7 +285,15 @@ def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction |
 
 def maximise_cost_difference_2d(system: System, grid: int = 41, pred: Prediction | None = None) -> Maximiser:
     """Maximiser of J_Delta(mu) over [0, 1]^2 for two stationary channels (the cross of Fig. 3):
-    a grid, then L-BFGS-B from the best grid point. Time O(grid^2 (N m)^3)."""
+    a grid, then L-BFGS-B from the best grid point. Time O(grid^2 (N m)^3).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1, 0]], horizon=1, state_weight=[1], input_weight=[1, 1], mu=[.5, .5], x0=[1])
+    >>> b = maximise_cost_difference_2d(s, grid=11)   # u2 moves nothing: J_Delta's 1-D peak at nu = sqrt 2 - 1
+    >>> bool(np.isclose(b.value, 1.5 - 2**0.5) and np.isclose(b.point[0], 2**0.5 - 1, atol=1e-4))
+    True
+    """
     if system.m != 2:
         raise InputError("system", f"expected m = 2 channels, found m = {system.m}")
     pred = prediction(system) if pred is None else pred
@@ -334,6 +358,12 @@ def closed_loop_eigenvalues(system: System, gain: np.ndarray, loops: Sequence[st
     ------
     InputError
         An unknown loop name.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> {k: v.real.tolist() for k, v in closed_loop_eigenvalues(s, np.array([[0.5]])).items()}  # 1 - K, 1 - K/2
+    {'A-BK': [0.5], 'A-BMK': [0.75]}
     """
     unknown = [loop for loop in loops if loop not in LOOPS]
     if unknown:
@@ -349,6 +379,12 @@ def gain_conventions(system: System, protocol: str) -> dict[str, np.ndarray]:
     ``"first block of G Omega_gp (literal)"`` (G without the inverse, as a misprint would have it);
     ``"nominal (Omega_g + Psi)^-1 Omega_gp"`` (the mu = 1 law); ``"last block of G^-1 Omega_gp"``
     (a shifted prediction, Omega on X_k..X_{k+N-1}). Dense: O((N m)^3).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> [round(float(K[0, 0]), 4) for K in gain_conventions(s, "tcp").values()]  # min (1 + u/2)^2 + u^2/2
+    [0.6667, 1.5, 0.5, 0.6667]
     """
     pred = prediction(system)
     G = hessian_factor(pred, protocol)
@@ -368,6 +404,12 @@ def eigenvalue_table(system: System, mu=None) -> dict[str, dict[str, list[comple
     For each protocol: ``"A-BK"`` (the paper's convention, K the first block of G^-1 Omega_gp)
     and ``"A-BMK"`` (the mean closed loop, which accounts for the delivery probability), each
     sorted by descending modulus (see :func:`closed_loop_eigenvalues`).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> {p: [round(v[0].real, 4) for v in d.values()] for p, d in eigenvalue_table(s).items()}  # 1 - K, 1 - K/2
+    {'tcp': [0.3333, 0.6667], 'udp': [0.5, 0.75]}
     """
     s = system if mu is None else system.with_mu(mu)
     out = {}

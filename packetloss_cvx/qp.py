@@ -63,7 +63,15 @@ AUTO_CONDENSED_MAX = 60
 def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
     """Block-sparse mean-state dynamics and state-weight factor for X = (xhat_1..xhat_N):
     ``E X - Bbig z = first x0`` encodes ``xhat_{t+1} = A xhat_t + B z_t``, and
-    ``||L X||^2 = sum_t xhat_t' Omega_t xhat_t``. O(N (n^2 + n m)) nonzeros."""
+    ``||L X||^2 = sum_t xhat_t' Omega_t xhat_t``. O(N (n^2 + n m)) nonzeros.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> E, Bbig, first, L = sparse_dynamics(s)          # z = (1, 2): xhat_1 = 1 + 1, xhat_2 = 2 + 2
+    >>> np.linalg.solve(E.toarray(), Bbig @ [1.0, 2.0] + first @ s.x0).tolist()
+    [2.0, 4.0]
+    """
     N, n = system.horizon, system.n
     E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
     Bbig = sp.kron(sp.eye(N), system.B, format="csr")
@@ -80,6 +88,14 @@ def qp_memory_estimate(system: System, formulation: str) -> float:
     columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB; the
     condensed form adds its dense (N n)×(N m) constants (48 bytes per entry measured). No
     Parameter multiplies a Variable (:class:`ExpectedCostQP`), so cvxpy keeps no (N m)^2 map.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> qp_memory_estimate(s, "sparse")                 # 260 + 400 + 650 + 1e7
+    10001310.0
+    >>> qp_memory_estimate(s, "condensed") - qp_memory_estimate(s, "sparse")   # one 1x1 dense constant
+    48.0
     """
     N, n, m = system.horizon, system.n, system.m
     needed = 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
@@ -332,6 +348,17 @@ def compare(inputs: np.ndarray, cost: float, reference: Solution, system: System
 
     The mean applied input ``Vbar U`` is what the cost sees: an input over a channel that
     (almost) never delivers is (almost) free, so it is compared through its delivery probability.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> ref = closed_form(s, "tcp")                     # min (1 + u/2)^2 + u^2/2: u = -2/3, J = 2/3
+    >>> compare(np.array([[-2 / 3]]), 2 / 3, ref, s).cost_rel_diff < 1e-12
+    True
+    >>> compare(np.array([[-0.5]]), 0.75, ref, s)      # the UDP-like optimum is not the TCP-like one
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.CrossCheckError: the QP twin and the closed form disagree: J_qp = 0.75, ...
     """
     if not isinstance(reference, Solution):
         raise InputError("reference", f"expected a Solution (e.g. from closed_form), found {type(reference).__name__}")
@@ -360,5 +387,12 @@ def solve_qp(system: System, protocol: str, formulation: str = "auto", **kwargs)
     Builds an :class:`ExpectedCostQP` and solves it once; keep the object to re-solve
     for other mu or x0 without recompiling. Keyword arguments go to
     :meth:`ExpectedCostQP.solve`.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> sol = solve_qp(s, "tcp")                        # min (1 + u/2)^2 + u^2/2: u = -2/3, J = 2/3
+    >>> bool(np.allclose([sol.inputs[0, 0], sol.cost], [-2 / 3, 2 / 3], atol=1e-7))
+    True
     """
     return ExpectedCostQP(system, protocol, formulation).solve(**kwargs)

@@ -24,6 +24,13 @@ def alpha_levels(system: System) -> tuple[list[float], float, float]:
 
     The paper's 4.78 and 6, 8, 12, 20 where they lie strictly between the two, and 1.01 J*_udp(0)
     (rounded to 0.01), where doing nothing is affordable.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1, 1]], horizon=1, state_weight=[1], input_weight=[1, 1], mu=[.5, .5], x0=[1])
+    >>> alphas, full, none = alpha_levels(s)         # J*_udp: min (1 + u1 + u2)^2 + u1^2 + u2^2 = 1/3; mu = 0: 1
+    >>> alphas, round(full, 12), none
+    ([1.01], 0.333333333333, 1.0)
     """
     full = closed_form(system.with_mu([1.0, 1.0]), "udp").cost
     none = closed_form(system.with_mu([0.0, 0.0]), "udp").cost
@@ -33,7 +40,16 @@ def alpha_levels(system: System) -> tuple[list[float], float, float]:
 
 def perfect_channel_case(system: System, beta: tuple[float, float], alpha: float) -> tuple[float | None, str]:
     """One case: the margin (< 0 when neither channel of the cheapest allocation is perfect, None when
-    the brute force finds no feasible allocation) and the note's entry for it."""
+    the brute force finds no feasible allocation) and the note's entry for it.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1, 1]], horizon=1, state_weight=[1], input_weight=[1, 1], mu=[.5, .5], x0=[1])
+    >>> perfect_channel_case(s, (1.0, 1.0), 1.01)    # alpha >= J*_udp(0, 0) = 1: buy nothing
+    (-0.999999, 'beta=(1.0, 1.0), alpha=1.01: mu*=(0.000, 0.000)')
+    >>> perfect_channel_case(s, (1.0, 1.0), 0.5)[0] >= 0     # J*_udp(0, 1) = 1/2: one perfect channel
+    True
+    """
     best = brute_force_allocation(system, "udp", alpha, beta, **GRID)
     if best is None:
         return None, f"beta={beta}, alpha={alpha}: no feasible grid point"
@@ -42,7 +58,15 @@ def perfect_channel_case(system: System, beta: tuple[float, float], alpha: float
 
 def allocation_udp_perfect(ctx: Context) -> ClaimResult:
     """For alpha >= 4.78 the cheapest allocation has a perfect channel (mu_i = 1 for some i); one case
-    per (beta, alpha) pair, betas outer."""
+    per (beta, alpha) pair, betas outer.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1, 1]], horizon=1, state_weight=[1], input_weight=[1, 1], mu=[.5, .5], x0=[1])
+    >>> r = allocation_udp_perfect(Context(paper={"two_actuator": s}, random=[], seed=0))
+    >>> r.verdict, r.outcomes                        # only alpha = 1.01 >= J*_udp(0, 0) = 1: mu* = (0, 0) for each beta
+    ('fails', '---')
+    """
     s = ctx.paper["two_actuator"]
     alphas, full, none = alpha_levels(s)
     rows = []

@@ -84,11 +84,25 @@ class Context:
 
 
 def paper_systems() -> dict[str, System]:
-    """The paper's two systems, from the packaged examples (§V-A, §V-B)."""
+    """The paper's two systems, from the packaged examples (§V-A, §V-B).
+
+    Examples
+    --------
+    >>> systems = paper_systems()
+    >>> sorted(systems), systems["pendulum"].n, systems["two_actuator"].m     # §V-A: 4 states; §V-B: 2 actuators
+    (['pendulum', 'two_actuator'], 4, 2)
+    """
     return {"pendulum": load_example("pendulum"), "two_actuator": load_example("two_actuator")}
 
 
 def interior(system: System) -> bool:
-    """Whether every delivery probability lies strictly between 0 and 1."""
+    """Whether every delivery probability lies strictly between 0 and 1.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> interior(s), interior(s.with_mu([1.0])), interior(s.with_mu([0.0]))
+    (True, False, False)
+    """
     mu = system.mu_schedule
     return bool(np.all((mu > 0) & (mu < 1)))

@@ -40,7 +40,13 @@ Margin = Callable[[Any], float | None]
 
 
 def verdict(checked: int, violations: int, errors: int) -> str:
-    """"fails" if any violation; else "inconclusive" if any error or nothing checked; else "holds"."""
+    """"fails" if any violation; else "inconclusive" if any error or nothing checked; else "holds".
+
+    Examples
+    --------
+    >>> verdict(3, 0, 0), verdict(3, 1, 2), verdict(3, 0, 1), verdict(0, 0, 0)
+    ('holds', 'fails', 'inconclusive', 'inconclusive')
+    """
     if violations:
         return "fails"
     if errors or not checked:
@@ -120,7 +126,14 @@ def _brief(text: str, limit: int = 100) -> str:
 
 
 def simple_system(rng: np.random.Generator, n: int, m: int, N: int) -> System:
-    """Small integers and halves: the kind of example a reader can check by hand."""
+    """Small integers and halves: the kind of example a reader can check by hand.
+
+    Examples
+    --------
+    >>> s = simple_system(np.random.default_rng(0), 2, 1, 3)
+    >>> (s.n, s.m, s.horizon), bool(np.all(4 * s.A == np.round(4 * s.A)) and np.all(s.B == np.round(2 * s.B) / 2))
+    ((2, 1, 3), True)
+    """
     A = rng.integers(-2, 3, (n, n)) / 2
     B = rng.integers(-2, 3, (n, m)) / 2
     B[:, ~B.any(axis=0)] = 1.0
@@ -167,6 +180,12 @@ def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System
     Returns
     -------
     System or None
+
+    Examples
+    --------
+    >>> found = shrink(lambda s: -1.0 if s.horizon >= 2 else 1.0, seed=0)   # violated once N >= 2
+    >>> (found.n, found.m, found.horizon)            # sizes n + m + N = 3 hold; the first of size 4 is (1, 1, 2)
+    (1, 1, 2)
     """
     rng = np.random.default_rng(seed)
     for n, m, N in _sizes():
@@ -200,6 +219,16 @@ def evaluate(claim_id: str, ctx: Context, cases: Sequence[System], margin: Margi
     Returns
     -------
     ClaimResult
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> ctx = Context(paper={}, random=[s], seed=0)
+    >>> r = evaluate("theorem-2", ctx, [s, s], lambda c: 0.5 if c is s else None, "")
+    >>> r.verdict, r.checked, r.outcomes
+    ('holds', 2, '++')
+    >>> evaluate("theorem-2", ctx, [s], lambda c: -1.0, "", shrinkable=False).verdict
+    'fails'
     """
     tally = Tally()
     for s in cases:
@@ -230,7 +259,15 @@ def enough_deliveries(system: System, samples: int) -> bool:
 
 
 def z_margin(samples: np.ndarray, expect: float) -> float:
-    """Z - |z| of the sample mean against ``expect``; a degenerate sample must match to 1e-9."""
+    """Z - |z| of the sample mean against ``expect``; a degenerate sample must match to 1e-9.
+
+    Examples
+    --------
+    >>> [float(z_margin(np.array([0.0, 2.0]), e)) for e in (1.0, 3.0)]   # mean 1, standard error 1
+    [4.0, 2.0]
+    >>> [float(z_margin(np.array([1.0, 1.0]), e)) for e in (1.0, 1.1)]   # degenerate: exact or -inf
+    [4.0, -inf]
+    """
     se = samples.std(ddof=1) / np.sqrt(samples.size)
     err = abs(samples.mean() - expect)
     if se <= 1e-12 * max(1.0, abs(expect)):

@@ -82,6 +82,13 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
     ------
     InputError
         An unknown claim id, a negative seed or count.
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> [r] = audit([s], random=0, only=["theorem-2"], progress=False)   # the paper's 2 systems, then s
+    >>> r.verdict, r.checked, bool(np.isclose(r.worst, 0.125))   # s: J*_udp - J*_tcp = 3/4 - 2/3 = J*_tcp / 8
+    ('holds', 3, True)
     """
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise InputError("seed", f"expected an integer >= 0, found {seed!r}")
@@ -120,6 +127,13 @@ def run_claim(claim_id: str, ctx: Context) -> ClaimResult:
     Returns
     -------
     ClaimResult
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> r = run_claim("corollary-1", Context(paper={}, random=[s], seed=0))
+    >>> r.verdict, bool(np.isclose(r.worst, 0.25))   # ||U*|| = 2/3 (TCP-like), 1/2 (UDP-like): margin 1/4
+    ('holds', True)
     """
     try:
         return CLAIMS[claim_id][1](ctx)

@@ -13,7 +13,15 @@ __all__ = ["markdown_report", "markdown_table"]
 
 def markdown_report(results: Sequence[ClaimResult], header: str = "") -> str:
     """The table, then one section per claim: its counts and note, its outcome per case
-    (``+`` holds, ``-`` violated, ``.`` not applicable, ``E`` errored) and its counterexample (JSON)."""
+    (``+`` holds, ``-`` violated, ``.`` not applicable, ``E`` errored) and its counterexample (JSON).
+
+    Examples
+    --------
+    >>> r = ClaimResult("theorem-2", "J*_udp > J*_tcp", "holds", 1, 0, 0.125, None, "One case.", outcomes="+")
+    >>> text = markdown_report([r], header="# Audit")
+    >>> text.startswith("# Audit"), "### theorem-2: holds" in text, "Cases: `+`" in text
+    (True, True, True)
+    """
     parts = [header, markdown_table(results), ""]
     for r in results:
         parts += [f"### {r.id}: {r.verdict}", "", f"*Claim.* {r.statement}", "",
@@ -28,7 +36,14 @@ def markdown_report(results: Sequence[ClaimResult], header: str = "") -> str:
 
 
 def markdown_table(results: Sequence[ClaimResult]) -> str:
-    """One row per claim: id, verdict, checked, violations, errors, worst margin."""
+    """One row per claim: id, verdict, checked, violations, errors, worst margin.
+
+    Examples
+    --------
+    >>> r = ClaimResult("theorem-2", "J*_udp > J*_tcp", "holds", 1, 0, 0.125, None, "")
+    >>> print(markdown_table([r]).splitlines()[-1])
+    | theorem-2 | holds | 1 | 0 | 0 | 0.125 |
+    """
     lines = ["| claim | verdict | checked | violations | errors | worst margin |", "|---|---|---|---|---|---|"]
     for r in results:
         worst = "" if r.worst is None else f"{r.worst:.3g}"
