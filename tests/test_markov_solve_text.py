@@ -27,7 +27,8 @@ def test_solve_section_reads_and_uses_the_proven_rule(capsys):
     data = json.loads(capsys.readouterr().out)["markov"]
     s = load_example("pendulum_bursty")
     for protocol in ("tcp", "udp"):
-        gains = {"plug_in": closed_form(s.with_mu(s.mu_schedule), protocol).gain, "exact": exact_closed_form(s, protocol).gain}
+        gains = {"plug_in": closed_form(s.with_mu(s.mu_schedule), protocol).gain,
+                 "exact": exact_closed_form(s, protocol).gain}
         for kind, gain in gains.items():
             radius = data[protocol]["mean_square_radius"][kind]
             assert abs(radius - enumerated_radius(s, gain)) <= 1e-10 * radius
