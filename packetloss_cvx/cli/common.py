@@ -101,14 +101,28 @@ def with_overrides(system: System, args: argparse.Namespace) -> System:
 
 
 def system_of(args: argparse.Namespace) -> System:
-    """``args.file`` loaded with its overrides, once per command (kept on ``args``)."""
+    """``args.file`` loaded with its overrides, once per command (kept on ``args``).
+
+    Examples
+    --------
+    >>> args = argparse.Namespace(file="two_actuator", mu="0.5")
+    >>> system_of(args).mu.tolist(), system_of(args) is system_of(args) is args.loaded_system
+    ([0.5, 0.5], True)
+    """
     if getattr(args, "loaded_system", None) is None:
         args.loaded_system = with_overrides(load_system(args.file), args)
     return args.loaded_system
 
 
 def systems_of(args: argparse.Namespace) -> list[System]:
-    """Every ``args.files`` loaded, once per command (kept on ``args``)."""
+    """Every ``args.files`` loaded, once per command (kept on ``args``).
+
+    Examples
+    --------
+    >>> args = argparse.Namespace(files=["pendulum", "two_actuator"])
+    >>> [s.name for s in systems_of(args)], systems_of(args) is args.loaded_systems
+    (['pendulum', 'two-actuator'], True)
+    """
     if getattr(args, "loaded_systems", None) is None:
         args.loaded_systems = [load_system(path) for path in args.files]
     return args.loaded_systems

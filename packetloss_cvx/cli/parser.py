@@ -101,7 +101,20 @@ def add_command(sub: argparse._SubParsersAction, name: str, summary: str, *, exa
 
 
 def add_system_options(command: argparse.ArgumentParser) -> None:
-    """``--mu``, ``--mu-schedule`` and ``--x0``: the file's channel and initial state overridden."""
+    """``--mu``, ``--mu-schedule`` and ``--x0``: the file's channel and initial state overridden.
+
+    Examples
+    --------
+    >>> parser = Parser()
+    >>> add_system_options(parser)
+    >>> args = parser.parse_args(["--mu", "0.5", "--x0", "1,2"])
+    >>> args.mu, args.mu_schedule, args.x0
+    ('0.5', None, '1,2')
+    >>> parser.parse_args(["--mu", "0.5", "--mu-schedule", "mu.csv"])     # one channel or the other
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: arguments: argument --mu-schedule: not allowed with argument --mu
+    """
     group = command.add_argument_group("overrides of the file")
     channel = group.add_mutually_exclusive_group()
     channel.add_argument("--mu", metavar="MU",
