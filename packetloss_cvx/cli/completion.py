@@ -24,6 +24,8 @@ def subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPa
 def bash_script(parser: argparse.ArgumentParser) -> str:
     """A bash completion function for ``parser`` (zsh: after ``autoload bashcompinit; bashcompinit``).
 
+    Examples
+    --------
     >>> from packetloss_cvx.cli.parser import build_parser
     >>> bash_script(build_parser()).endswith("complete -o filenames -F _packetloss_cvx packetloss-cvx")
     True

@@ -89,6 +89,8 @@ def add_command(sub: argparse._SubParsersAction, name: str, summary: str, *, exa
                 results: bool = True) -> argparse.ArgumentParser:
     """A subcommand with the shared options and an examples epilog; ``name`` is the module that runs it.
 
+    Examples
+    --------
     >>> parser = argparse.ArgumentParser()
     >>> new = add_command(parser.add_subparsers(dest="command"), "simulate", "sample", examples=["simulate pendulum"])
     >>> args = parser.parse_args(["simulate", "-q", "--json"])
@@ -130,6 +132,8 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The whole grammar; ``args.command`` names the module that runs the subcommand.
 
+    Examples
+    --------
     >>> build_parser().parse_args(["solve", "pendulum", "--mu", "0.5"]).mu
     '0.5'
     """
@@ -262,6 +266,8 @@ def build_parser() -> argparse.ArgumentParser:
 def join_negative_values(argv: list[str]) -> list[str]:
     """``--x0 -1,1`` -> ``--x0=-1,1``: argparse would read ``-1,1`` as an unknown option.
 
+    Examples
+    --------
     >>> join_negative_values(["solve", "pendulum", "--x0", "-1,1"])
     ['solve', 'pendulum', '--x0=-1,1']
     """
