@@ -40,6 +40,12 @@ class Outcome(NamedTuple):
     ``mu`` the point (None if none), ``value`` its objective, ``lower_bound`` a proven lower
     bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
     ``boxes`` boxes explored, ``note`` how it ended. Construction O(1).
+
+    Examples
+    --------
+    >>> out = Outcome(np.array([0.25]), 0.25, 0.2499, "optimal", 0, "by hand")
+    >>> out.value - out.lower_bound <= 1e-3 * out.value, out._fields[:3]
+    (True, ('mu', 'value', 'lower_bound'))
     """
 
     mu: np.ndarray | None

@@ -258,6 +258,12 @@ class Polytope:
 
     Rows are scaled so that max |G_k| = 1, and rows that no point of the box can violate are
     dropped, so no extreme number reaches a solver. Built by :func:`read_polytope`.
+
+    Examples
+    --------
+    >>> box = read_polytope([], 2, 0.1, 0.9)              # the bounds alone: no rows
+    >>> box.m, box.G.shape, box.lower().tolist(), box.upper().tolist()
+    (2, (0, 2), [0.1, 0.1], [0.9, 0.9])
     """
 
     lo: float

@@ -70,6 +70,17 @@ class TCPProgram:
     ``cost`` is ``(J - C) * scale`` as the epigraph sum ``r + sum_i t_i``; ``constraints``
     holds the dynamics, the cones, the bounds and the rows of the polytope. Size
     O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros.
+
+    Examples
+    --------
+    With mu fixed at 0.5 the program's minimum is J*_tcp(0.5) = 1/(1 + 0.5) (one step of x' = x + v u, x0 = 1, C = 0):
+
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> prog = TCPProgram(s, read_polytope([], 1, 0.0, 1.0), scale=1.0)
+    >>> value = cp.Problem(cp.Minimize(prog.cost), [*prog.constraints, prog.mu == 0.5]).solve(solver=cp.CLARABEL)
+    >>> bool(np.isclose(value, 2 / 3, rtol=1e-6))
+    True
     """
 
     def __init__(self, system: System, poly: Polytope, scale: float) -> None:

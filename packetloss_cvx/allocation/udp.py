@@ -80,6 +80,22 @@ class Search:
     ``floor`` is a lower bound known from elsewhere (the TCP-like relaxation, C). The
     certificate is ``incumbent - max(least open bound, floor) <= gap * incumbent``. Heap
     operations O(log boxes); the work is in ``visit``.
+
+    Examples
+    --------
+    min mu over [0, 1] with mu >= 1/4 feasible: a box is bounded by max(l, 1/4), its upper corner is
+    offered when feasible, and the search halves the boxes until the incumbent meets the bound.
+
+    >>> search = Search(gap=1e-3, floor=0.0, max_boxes=100, time_limit=None)
+    >>> def visit(bound, l, u, data):
+    ...     if u[0] >= 0.25:
+    ...         search.offer(u, float(u[0]))
+    ...         for cl, cu in split(l, u, np.ones(1)):
+    ...             search.push(max(float(cl[0]), 0.25), cl, cu, None)
+    >>> search.push(0.25, np.zeros(1), np.ones(1), None)
+    >>> out = search.outcome(search.run(visit), "bisection", "example")
+    >>> out.mu.tolist(), out.value, out.lower_bound, out.status
+    ([0.25], 0.25, 0.25, 'optimal')
     """
 
     def __init__(self, gap: float, floor: float, max_boxes: int, time_limit: float | None,

@@ -29,7 +29,13 @@ OUTPUT_FILES = {"json_out": "--out", "save": "--save", "plot": "--plot"}
 
 
 class CommandResult(NamedTuple):
-    """What a subcommand returns: the JSON object, the text, and the exit code (0 unless said)."""
+    """What a subcommand returns: the JSON object, the text, and the exit code (0 unless said).
+
+    Examples
+    --------
+    >>> CommandResult({"status": "optimal"}, "optimal").code, CommandResult({}, "infeasible", 3).code
+    (0, 3)
+    """
 
     data: dict[str, Any]
     text: str
