@@ -110,6 +110,21 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     TCP-like: one SOCP with O(N (n + m)) variables, two LPs. UDP-like: the upper corner when
     there are no rows; otherwise a branch and bound over maximal points, two LPs and two
     closed forms per box.
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1: J*_udp = 1 - mu/2, least at the top of the box; two such
+    channels with mu1 + mu2 <= 1: J*_tcp = 1/(1 + mu1) + 1/(1 + mu2), least (4/3) at (1/2, 1/2).
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> least = min_cost(s, "udp", bounds=(0.0, 0.5))
+    >>> least.cost, least.lower_bound, least.status
+    (0.75, 0.75, 'optimal')
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> least = min_cost(t, "tcp", constraints=[([[1.0, 1.0]], [1.0])])
+    >>> bool(np.isclose(least.cost, 4 / 3) and np.allclose(least.mu, 0.5, atol=1e-4)), least.lower_bound <= 4 / 3
+    (True, True)
     """
     protocol = check_protocol(protocol)
     system = check_system(system)
@@ -260,6 +275,22 @@ def best_cost_within_budget(system: System, protocol: str, beta, budget: float, 
     Notes
     -----
     As :func:`min_cost` with one more row.
+
+    Examples
+    --------
+    Two decoupled channels of x' = x + v u (N = 1), J*_tcp = 1/(1 + mu1) + 1/(1 + mu2): a budget
+    mu1 + mu2 <= 1 is best spent evenly (4/3); a budget below what the bounds force is infeasible.
+
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> best = best_cost_within_budget(t, "tcp", [1.0, 1.0], 1.0)
+    >>> bool(np.isclose(best.cost, 4 / 3)), bool(np.isclose(best.mu, 0.5, atol=1e-4).all())
+    (True, True)
+    >>> try:
+    ...     best_cost_within_budget(t, "tcp", [1.0, 1.0], 1.0, bounds=(0.6, 1.0))     # mu1 + mu2 >= 1.2
+    ... except InfeasibleError as err:
+    ...     "least value 1.2 > 1" in str(err)
+    True
     """
     system = check_system(system)
     beta = check_beta(beta, system.m)

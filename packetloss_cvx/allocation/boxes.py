@@ -40,6 +40,12 @@ class Outcome(NamedTuple):
     ``mu`` the point (None if none), ``value`` its objective, ``lower_bound`` a proven lower
     bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
     ``boxes`` boxes explored, ``note`` how it ended. Construction O(1).
+
+    Examples
+    --------
+    >>> out = Outcome(np.array([0.25]), 0.25, 0.2499, "optimal", 0, "by hand")
+    >>> out.value - out.lower_bound <= 1e-3 * out.value, out._fields[:3]
+    (True, ('mu', 'value', 'lower_bound'))
     """
 
     mu: np.ndarray | None
@@ -51,7 +57,16 @@ class Outcome(NamedTuple):
 
 
 def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
-    """J*(mu) by the closed form (method "auto"), mu clipped to [0, 1]. O(N (n^3 + m^3))."""
+    """J*(mu) by the closed form (method "auto"), mu clipped to [0, 1]. O(N (n^3 + m^3)).
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1 (Q = R = 1): J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> bool(np.isclose(cost_at(s, "tcp", np.array([0.5])), 2 / 3)), cost_at(s, "udp", np.array([1.5]))  # clipped to 1
+    (True, 0.5)
+    """
     return closed_form(system.with_mu(np.clip(mu, 0.0, 1.0)), protocol, "auto").cost
 
 
@@ -59,13 +74,30 @@ def cost_function(system: System, protocol: str) -> tuple[Callable[[np.ndarray],
     """``mu -> J*(mu)`` (mu clipped to [0, 1]) through one :class:`CostEvaluator` built for the
     system, and the evaluator: what does not depend on mu is built once (O(N n^3), plus
     O((N n)^2 N m) where the dense path is allowed); each call O((N m)^3) dense or
-    O(N (n^3 + m^3)), equal to :func:`cost_at` to rounding and self-checked the same way."""
+    O(N (n^3 + m^3)), equal to :func:`cost_at` to rounding and self-checked the same way.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> J, _ = cost_function(s, "udp")
+    >>> bool(np.isclose(J(np.array([0.5])), 0.75)), bool(np.isclose(J(np.array([-1.0])), 1.0))   # 1 - mu/2
+    (True, True)
+    """
     evaluator = CostEvaluator(system, protocol)
     return (lambda mu: evaluator.cost(np.clip(mu, 0.0, 1.0))), evaluator
 
 
 def dual_bound(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray, y: np.ndarray) -> float:
-    """The weak-duality bound g(y) above for multipliers ``y`` (clipped to >= 0). O(m r)."""
+    """The weak-duality bound g(y) above for multipliers ``y`` (clipped to >= 0). O(m r).
+
+    Examples
+    --------
+    min mu1 + mu2 over [0, 1]^2 with mu1 + mu2 >= 1 is 1; y = 1 proves it, y = 0 (or y < 0, clipped) proves 0.
+
+    >>> c, G, h, l, u = np.ones(2), np.array([[-1.0, -1.0]]), np.array([-1.0]), np.zeros(2), np.ones(2)
+    >>> dual_bound(c, G, h, l, u, np.array([1.0])), dual_bound(c, G, h, l, u, np.array([-3.0]))
+    (1.0, 0.0)
+    """
     y = np.maximum(np.asarray(y, dtype=float), 0.0)
     r = c + G.T @ y
     return float(-h @ y + np.sum(np.minimum(r * l, r * u)))
@@ -92,6 +124,15 @@ def lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
     Without rows the box is solved exactly at a corner, O(m). Otherwise one HiGHS solve
     (dual simplex: polynomial in practice in the n variables and r rows, exponential in the
     worst case) and the O(n r) bound.
+
+    Examples
+    --------
+    >>> c, G, h, l, u = np.ones(2), np.array([[-1.0, -1.0]]), np.array([-1.0]), np.zeros(2), np.ones(2)
+    >>> point, bound = lp(c, G, h, l, u)                   # min mu1 + mu2 s.t. mu1 + mu2 >= 1
+    >>> bool(np.isclose(point.sum(), 1.0)), bound
+    (True, 1.0)
+    >>> lp(c, G, np.array([-3.0]), l, u)                   # mu1 + mu2 >= 3: infeasible in the box
+    (None, inf)
     """
     c = np.asarray(c, dtype=float)
     if not G.shape[0]:
@@ -108,7 +149,16 @@ def lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
 def box_lp(c: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
            extra: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray | None, float]:
     """:func:`lp` over the box ``[l, u]``, the polytope's rows and ``extra`` rows (if given);
-    O(m r) to stack the rows plus the LP."""
+    O(m r) to stack the rows plus the LP.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> poly = read_polytope([([[-1.0, -1.0]], [-1.0])], 2, 0.0, 1.0)     # mu1 + mu2 >= 1
+    >>> c, l, u = np.array([1.0, 2.0]), np.zeros(2), np.ones(2)          # min mu1 + 2 mu2
+    >>> box_lp(c, poly, l, u)[1], box_lp(c, poly, l, u, extra=(np.array([[1.0, 0.0]]), np.array([0.25])))[1]
+    (1.0, 1.75)
+    """
     G, h = poly.G, poly.h
     if extra is not None:
         G, h = np.vstack([G, extra[0]]), np.concatenate([h, extra[1]])
@@ -117,7 +167,19 @@ def box_lp(c: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
 
 def check_in_polytope(mu: np.ndarray, poly: Polytope, what: str) -> np.ndarray:
     """Raise SolverError unless ``mu`` meets the bounds and rows to ``ALLOCATION_LP_FEASIBILITY``.
-    O(m r)."""
+    O(m r).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> poly = read_polytope([([[1.0, 1.0]], [1.0])], 2, 0.0, 1.0)        # mu1 + mu2 <= 1
+    >>> check_in_polytope(np.array([0.5, 0.5]), poly, "x").tolist()
+    [0.5, 0.5]
+    >>> check_in_polytope(np.array([0.5, 0.6]), poly, "x")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.SolverError: solver status 'constraint_violation': x: mu violates the constraints by 1.00e-01
+    """
     excess = max(float(np.max(poly.G @ mu - poly.h, initial=0.0)),
                  float(np.max(poly.lo - mu, initial=0.0)), float(np.max(mu - poly.hi, initial=0.0)))
     if excess > ALLOCATION_LP_FEASIBILITY:
@@ -128,7 +190,14 @@ def check_in_polytope(mu: np.ndarray, poly: Polytope, what: str) -> np.ndarray:
 def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> tuple[float, float]:
     """For ``f(b) <= alpha``: bisect to ``(s_in, s_out)`` with ``s_in - s_out <= tol`` (or
     adjacent floats), ``f(s_in) <= alpha`` and ``f(s_out) > alpha`` the last point found
-    above alpha (both ``a`` if ``f(a) <= alpha``). O(log2((b - a) / tol)) evaluations of f."""
+    above alpha (both ``a`` if ``f(a) <= alpha``). O(log2((b - a) / tol)) evaluations of f.
+
+    Examples
+    --------
+    >>> s_in, s_out = bracket(lambda t: 1 - t, 0.5, 0.0, 1.0, 1e-3)      # 1 - t <= 0.5 from t = 0.5 on
+    >>> s_out < 0.5 <= s_in, s_in - s_out <= 1e-3, bracket(lambda t: 1 - t, 2.0, 0.0, 1.0, 1e-3)
+    (True, True, (0.0, 0.0))
+    """
     if f(a) <= alpha:
         return a, a
     while b - a > tol:
@@ -144,5 +213,12 @@ def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: 
 
 def boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> float:
     """Smallest t found with ``f(t) <= alpha`` (within tol of the crossing, on the feasible
-    side), given ``f(b) <= alpha``. O(log2((b - a) / tol)) evaluations of f."""
+    side), given ``f(b) <= alpha``. O(log2((b - a) / tol)) evaluations of f.
+
+    Examples
+    --------
+    >>> t = boundary(lambda t: 1 - t, 0.5, 0.0, 1.0, 1e-3)
+    >>> 0.5 <= t <= 0.5 + 1e-3
+    True
+    """
     return bracket(f, alpha, a, b, tol)[0]

@@ -118,7 +118,18 @@ def parse_constraint(text: str, m: int, field: str = "--constraint") -> tuple[np
 # ------------------------------------------------------------------ scalar arguments
 
 def check_system(system: Any) -> System:
-    """A :class:`System` with a stationary channel. O(1)."""
+    """A :class:`System` with a stationary channel. O(1).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> check_system(s) is s
+    True
+    >>> check_system(s.with_mu([[0.2], [0.4]]))
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: system: allocation needs a stationary channel (mu, not mu_schedule)
+    """
     if not isinstance(system, System):
         raise InputError("system", f"expected a System, found {type(system).__name__}")
     if not system.is_stationary:
@@ -127,7 +138,17 @@ def check_system(system: Any) -> System:
 
 
 def check_number(value: Any, field: str) -> float:
-    """One finite real number (no strings, booleans, NaN, inf). O(1)."""
+    """One finite real number (no strings, booleans, NaN, inf). O(1).
+
+    Examples
+    --------
+    >>> check_number(np.float32(0.5), "alpha"), check_number(3, "budget")
+    (0.5, 3.0)
+    >>> check_number([1.0, 2.0], "budget")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: budget: expected one number, found an array of shape (2,)
+    """
     arr = _numbers(value, field)
     if arr.shape != ():
         raise InputError(field, f"expected one number, found an array of shape {arr.shape}")
@@ -135,7 +156,17 @@ def check_number(value: Any, field: str) -> float:
 
 
 def check_alpha(alpha: Any) -> float:
-    """The cost bound: a positive finite number. O(1)."""
+    """The cost bound: a positive finite number. O(1).
+
+    Examples
+    --------
+    >>> check_alpha(1.5)
+    1.5
+    >>> check_alpha(0)
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: alpha: expected a positive finite number, found 0.0
+    """
     alpha = check_number(alpha, "alpha")
     if alpha <= 0:
         raise InputError("alpha", f"expected a positive finite number, found {alpha}")
@@ -143,7 +174,17 @@ def check_alpha(alpha: Any) -> float:
 
 
 def check_beta(beta: Any, m: int, field: str = "beta") -> np.ndarray:
-    """The channel prices: m finite non-negative numbers. O(m)."""
+    """The channel prices: m finite non-negative numbers. O(m).
+
+    Examples
+    --------
+    >>> check_beta([1, 0.05], 2).tolist()
+    [1.0, 0.05]
+    >>> check_beta([1.0], 2)
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: beta: expected 2 non-negative numbers, one per channel, found shape (1,)
+    """
     arr = _numbers(beta, field)
     if arr.shape != (m,):
         raise InputError(field, f"expected {m} non-negative numbers, one per channel, found shape {arr.shape}")
@@ -153,7 +194,17 @@ def check_beta(beta: Any, m: int, field: str = "beta") -> np.ndarray:
 
 
 def check_bounds(bounds: Any) -> tuple[float, float]:
-    """The box for every mu_i: (lo, hi) with 0 <= lo <= hi <= 1. O(1)."""
+    """The box for every mu_i: (lo, hi) with 0 <= lo <= hi <= 1. O(1).
+
+    Examples
+    --------
+    >>> check_bounds([0, 1])
+    (0.0, 1.0)
+    >>> check_bounds((0.6, 0.4))
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: bounds: expected 0 <= lo <= hi <= 1, found (0.6, 0.4)
+    """
     arr = _numbers(bounds, "bounds")
     if arr.shape != (2,):
         raise InputError("bounds", f"expected (lo, hi), found shape {arr.shape}")
@@ -164,7 +215,18 @@ def check_bounds(bounds: Any) -> tuple[float, float]:
 
 
 def check_gap(gap: Any) -> float:
-    """The relative optimality gap to certify: ALLOCATION_GAP_MIN <= gap < 1. O(1)."""
+    """The relative optimality gap to certify: ALLOCATION_GAP_MIN <= gap < 1. O(1).
+
+    Examples
+    --------
+    >>> check_gap(0.01)
+    0.01
+    >>> try:
+    ...     check_gap(1)                               # a gap of 100 % certifies nothing
+    ... except InputError as err:
+    ...     err.field
+    'gap'
+    """
     gap = check_number(gap, "gap")
     if not ALLOCATION_GAP_MIN <= gap < 1:
         raise InputError("gap", f"expected a number in [{ALLOCATION_GAP_MIN:g}, 1), found {gap:g}")
@@ -172,7 +234,17 @@ def check_gap(gap: Any) -> float:
 
 
 def check_count(value: Any, field: str) -> int:
-    """A positive integer (a cap on boxes or iterations). O(1)."""
+    """A positive integer (a cap on boxes or iterations). O(1).
+
+    Examples
+    --------
+    >>> check_count(np.int64(20), "max_boxes")
+    20
+    >>> check_count(True, "max_boxes")                  # a bool is not a count
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: max_boxes: expected a positive integer, found True
+    """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise InputError(field, f"expected a positive integer, found {value!r}")
     return int(value)
@@ -186,6 +258,12 @@ class Polytope:
 
     Rows are scaled so that max |G_k| = 1, and rows that no point of the box can violate are
     dropped, so no extreme number reaches a solver. Built by :func:`read_polytope`.
+
+    Examples
+    --------
+    >>> box = read_polytope([], 2, 0.1, 0.9)              # the bounds alone: no rows
+    >>> box.m, box.G.shape, box.lower().tolist(), box.upper().tolist()
+    (2, (0, 2), [0.1, 0.1], [0.9, 0.9])
     """
 
     lo: float
@@ -261,6 +339,16 @@ def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: floa
     Notes
     -----
     O(r m) for r rows.
+
+    Examples
+    --------
+    Rows are scaled to unit largest coefficient; a row no point of the box violates is dropped.
+
+    >>> poly = read_polytope([([[2.0, 4.0]], [3.0]), ([[1.0, 1.0]], [5.0])], 2, 0.0, 1.0)
+    >>> poly.G.tolist(), poly.h.tolist(), poly.upper().tolist()
+    ([[0.5, 1.0]], [0.75], [1.0, 1.0])
+    >>> read_polytope([lambda mu: mu[0] >= mu[1]], 2, 0.0, 1.0).G.tolist()     # mu2 - mu1 <= 0
+    [[-1.0, 1.0]]
     """
     if isinstance(constraints, (str, bytes)) or not isinstance(constraints, Sequence):
         raise InputError("constraints", "expected a list of (G, h) pairs or callables")

@@ -51,7 +51,15 @@ __all__ = ["TCPProgram", "constant_cost", "tangent", "tangent_cuts", "tcp_alloca
 
 def constant_cost(system: System) -> float:
     """C = x0' Q x0 + tr(Omega_l Sigma_W): the part of J no choice of mu or U changes, a lower
-    bound on J*(mu) for every mu (the other terms are nonnegative). O(N n^3)."""
+    bound on J*(mu) for every mu (the other terms are nonnegative). O(N n^3).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0],
+    ...            initial_weight=[2.0])
+    >>> constant_cost(s), constant_cost(s) <= float(CostEvaluator(s, "tcp").cost(np.array([1.0])))   # 2 + 1/2
+    (2.0, True)
+    """
     x0 = system.x0
     return float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]
 
@@ -62,6 +70,17 @@ class TCPProgram:
     ``cost`` is ``(J - C) * scale`` as the epigraph sum ``r + sum_i t_i``; ``constraints``
     holds the dynamics, the cones, the bounds and the rows of the polytope. Size
     O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros.
+
+    Examples
+    --------
+    With mu fixed at 0.5 the program's minimum is J*_tcp(0.5) = 1/(1 + 0.5) (one step of x' = x + v u, x0 = 1, C = 0):
+
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> prog = TCPProgram(s, read_polytope([], 1, 0.0, 1.0), scale=1.0)
+    >>> value = cp.Problem(cp.Minimize(prog.cost), [*prog.constraints, prog.mu == 0.5]).solve(solver=cp.CLARABEL)
+    >>> bool(np.isclose(value, 2 / 3, rtol=1e-6))
+    True
     """
 
     def __init__(self, system: System, poly: Polytope, scale: float) -> None:
@@ -91,6 +110,15 @@ def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = No
     form's inputs are the limit of the optimal law. O(N (n^3 + m^3)). Points may also be a
     batch (P, m): then costs (P,) and gradients (P, m) from one batched evaluation (``evaluator``,
     a TCP-like :class:`CostEvaluator` of ``system``, reused when given).
+
+    Examples
+    --------
+    J*_tcp(mu) = 1/(1 + mu) for one step of x' = x + v u from x0 = 1, so dJ*/dmu = -1/(1 + mu)^2.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> cost, grad = tangent(s, np.array([0.5]))
+    >>> bool(np.isclose(cost, 2 / 3) and np.isclose(grad[0], -4 / 9))
+    True
     """
     evaluator = CostEvaluator(system, "tcp") if evaluator is None else evaluator
     points = np.clip(np.asarray(mu, dtype=float), 0.0, 1.0)
@@ -110,6 +138,16 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     optimum on whichever side the solver's point errs; each loosened by
     ``ALLOCATION_COST_RTOL (|J*| + ||grad||_1)`` for the closed form's rounding.
     O(m len(steps)) closed forms, evaluated as one batch.
+
+    Examples
+    --------
+    Minorants of the convex J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1):
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> S, r = tangent_cuts(s, np.array([0.5]))
+    >>> grid = np.linspace(0, 1, 11)
+    >>> bool(np.all(r[:, None] + S @ grid[None] <= 1 / (1 + grid))), bool(np.isclose(S[0, 0], -4 / 9))
+    (True, True)
     """
     m = system.m
     points = [mubar]
@@ -165,6 +203,16 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     One SOCP with O(N (n + m)) variables (interior point, about 10-30 iterations of a sparse
     factorisation), 6 m + 1 closed forms and one LP for the bound, and O(log(1/gap)) closed
     forms for the move onto the feasible set, each O(N (n^3 + m^3)).
+
+    Examples
+    --------
+    J*_tcp(mu) = 1/(1 + mu) <= 0.8 from mu = 0.25 on (one step of x' = x + v u from x0 = 1):
+
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> out = tcp_allocate(s, read_polytope([], 1, 0.0, 1.0), 0.8, np.array([1.0]), 1e-3)
+    >>> out.status, bool(out.lower_bound <= 0.25 <= out.value <= 0.25 * (1 + 1e-3))
+    ('optimal', True)
     """
     C = constant_cost(system)
     if alpha < C:
@@ -229,6 +277,18 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     -----
     One SOCP with O(N (n + m)) variables, two LPs and 6 m + 2 closed forms of
     O(N (n^3 + m^3)).
+
+    Examples
+    --------
+    Two decoupled copies of x' = x + v u (N = 1): J*_tcp = sum 1/(1 + mu_i); with mu1 + mu2 <= 1
+    the least is 4/3, at (1/2, 1/2).
+
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> out = tcp_min_cost(t, read_polytope([([[1.0, 1.0]], [1.0])], 2, 0.0, 1.0))
+    >>> bool(np.allclose(out.mu, 0.5, atol=1e-4)), bool(out.lower_bound <= 4 / 3 <= out.value + 1e-9)
+    (True, True)
     """
     q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
     if q is None:

@@ -55,7 +55,16 @@ SPLIT_WEIGHT_FLOOR = 1e-3
 def split(l: np.ndarray, u: np.ndarray, weights: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     """The two halves of the box [l, u] cut across its widest side, widths scaled by ``weights``;
     no halves when that side is narrower than ``ALLOCATION_MIN_BOX_WIDTH``. The one
-    child-building routine of both searches. O(m)."""
+    child-building routine of both searches. O(m).
+
+    Examples
+    --------
+    >>> low, high = split(np.zeros(2), np.array([1.0, 0.5]), np.ones(2))      # cut across mu1 at 0.5
+    >>> [v.tolist() for v in low + high]
+    [[0.0, 0.0], [0.5, 0.5], [0.5, 0.0], [1.0, 0.5]]
+    >>> split(np.zeros(2), np.array([1.0, 0.5]), np.array([0.1, 1.0]))[0][1].tolist()   # mu1 is cheap: cut mu2
+    [1.0, 0.25]
+    """
     i = int(np.argmax((u - l) * weights))
     if u[i] - l[i] < ALLOCATION_MIN_BOX_WIDTH:
         return ()
@@ -71,6 +80,22 @@ class Search:
     ``floor`` is a lower bound known from elsewhere (the TCP-like relaxation, C). The
     certificate is ``incumbent - max(least open bound, floor) <= gap * incumbent``. Heap
     operations O(log boxes); the work is in ``visit``.
+
+    Examples
+    --------
+    min mu over [0, 1] with mu >= 1/4 feasible: a box is bounded by max(l, 1/4), its upper corner is
+    offered when feasible, and the search halves the boxes until the incumbent meets the bound.
+
+    >>> search = Search(gap=1e-3, floor=0.0, max_boxes=100, time_limit=None)
+    >>> def visit(bound, l, u, data):
+    ...     if u[0] >= 0.25:
+    ...         search.offer(u, float(u[0]))
+    ...         for cl, cu in split(l, u, np.ones(1)):
+    ...             search.push(max(float(cl[0]), 0.25), cl, cu, None)
+    >>> search.push(0.25, np.zeros(1), np.ones(1), None)
+    >>> out = search.outcome(search.run(visit), "bisection", "example")
+    >>> out.mu.tolist(), out.value, out.lower_bound, out.status
+    ([0.25], 0.25, 0.25, 'optimal')
     """
 
     def __init__(self, gap: float, floor: float, max_boxes: int, time_limit: float | None,
@@ -154,6 +179,18 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         Every box discarded by proof (upper corner infeasible, or LP empty).
     SolverError
         An LP failure, or a cap reached before any feasible point was found.
+
+    Examples
+    --------
+    Two decoupled copies of x' = x + v u (N = 1): J*_udp = sum (1 - mu_i/2), so J*_udp <= 1.5 is
+    mu1 + mu2 >= 1; with mu2 twice as dear the cheapest point is (1, 0).
+
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> out = udp_allocate(t, read_polytope([], 2, 0.0, 1.0), 1.5, np.array([1.0, 2.0]), 1e-3, -np.inf, 1000, None)
+    >>> out.status, bool(out.lower_bound <= 1 <= out.value <= 1 + 1e-3), bool(np.allclose(out.mu, [1, 0], atol=1e-3))
+    ('optimal', True, True)
     """
     m = system.m
     J, evaluator = cost_function(system, "udp")
@@ -229,6 +266,16 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
     -----
     One closed form without rows; otherwise up to ``max_boxes`` boxes, each two LPs and two
     closed forms of O(N (n^3 + m^3)).
+
+    Examples
+    --------
+    J*_udp = 1 - mu/2 (one step of x' = x + v u from x0 = 1) is least at the box's upper end:
+
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> out = udp_min_cost(s, read_polytope([], 1, 0.0, 0.5), 10, None)
+    >>> out.mu.tolist(), out.value, out.lower_bound, out.status
+    ([0.5], 0.75, 0.75, 'optimal')
     """
     m = system.m
     J, _ = cost_function(system, "udp")

@@ -20,7 +20,29 @@ FLAGS = {"alpha": "--alpha", "beta": "--beta", "bounds": "--bounds", "gap": "--g
 def run(args: argparse.Namespace) -> CommandResult:
     """Exit 0 with status "optimal"; 4 with status "gap_not_certified" (a cap was hit: the
     allocation is feasible and its lower bound proven, but the gap is larger than asked; the
-    result is printed on stdout as usual); 3 when proven infeasible."""
+    result is printed on stdout as usual); 3 when proven infeasible.
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1: J*_tcp(mu) = 1/(1 + mu) is <= 0.8 from mu = 1/4 on, and never below 1/2.
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.cli.parser import build_parser
+    >>> from packetloss_cvx.model import System
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = str(save_system(s, Path(folder.name) / "scalar.toml"))
+    >>> parse = build_parser().parse_args
+    >>> result = run(parse(["allocate", path, "--protocol", "tcp", "--alpha", "0.8", "--beta", "1"]))
+    >>> result.code, result.data["status"], bool(abs(result.data["mu"][0] - 0.25) < 1e-4)
+    (0, 'optimal', True)
+    >>> result = run(parse(["allocate", path, "--protocol", "tcp", "--alpha", "0.4", "--beta", "1"]))
+    >>> result.code, result.data["status"], round(result.data["min_cost"], 6)
+    (3, 'infeasible', 0.5)
+    >>> folder.cleanup()
+    """
     system = system_of(args)
     if system.channel is not None:   # the search replaces the channel by Bernoulli mu: not the file's chain
         raise InputError("channel", "allocate chooses independent (Bernoulli) delivery probabilities mu, which would "

@@ -15,7 +15,25 @@ __all__ = ["run"]
 
 
 def run(args: argparse.Namespace) -> CommandResult:
-    """The claims' verdicts as a table (or the Markdown report with ``--report``)."""
+    """The claims' verdicts as a table (or the Markdown report with ``--report``).
+
+    Examples
+    --------
+    Theorem 2 (J*_udp >= J*_tcp) on the paper's two systems and a one-step scalar one (2/3 <= 0.75):
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.cli.parser import build_parser
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = str(save_system(s, Path(folder.name) / "scalar.toml"))
+    >>> result = run(build_parser().parse_args(["audit", path, "--random", "0", "--claim", "theorem-2"]))
+    >>> result.code, [(c["id"], c["verdict"], c["checked"]) for c in result.data["claims"]]
+    (0, [('theorem-2', 'holds', 3)])
+    >>> folder.cleanup()
+    """
     if args.random < 0:
         raise InputError("--random", f"expected a count >= 0, found {args.random}")
     if args.seed < 0:

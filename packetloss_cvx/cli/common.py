@@ -29,7 +29,13 @@ OUTPUT_FILES = {"json_out": "--out", "save": "--save", "plot": "--plot"}
 
 
 class CommandResult(NamedTuple):
-    """What a subcommand returns: the JSON object, the text, and the exit code (0 unless said)."""
+    """What a subcommand returns: the JSON object, the text, and the exit code (0 unless said).
+
+    Examples
+    --------
+    >>> CommandResult({"status": "optimal"}, "optimal").code, CommandResult({}, "infeasible", 3).code
+    (0, 3)
+    """
 
     data: dict[str, Any]
     text: str
@@ -39,6 +45,8 @@ class CommandResult(NamedTuple):
 def floats(text: str, field: str) -> list[float]:
     """``"1,-2.5"`` -> ``[1.0, -2.5]``; anything else is an :class:`InputError` naming ``field``.
 
+    Examples
+    --------
     >>> floats("1,-2.5", "--x0")
     [1.0, -2.5]
     """
@@ -52,6 +60,8 @@ def floats(text: str, field: str) -> list[float]:
 def number(text: str, field: str) -> float:
     """Exactly one number.
 
+    Examples
+    --------
     >>> number("8", "--alpha")
     8.0
     """
@@ -77,6 +87,8 @@ def with_overrides(system: System, args: argparse.Namespace) -> System:
     """The file's system with ``--mu`` (one number means every channel), ``--mu-schedule`` and
     ``--x0`` applied, errors renamed to the flag. O(N m + n).
 
+    Examples
+    --------
     >>> from packetloss_cvx.io import load_example
     >>> with_overrides(load_example("two_actuator"), argparse.Namespace(mu="0.5")).mu.tolist()
     [0.5, 0.5]
@@ -101,14 +113,28 @@ def with_overrides(system: System, args: argparse.Namespace) -> System:
 
 
 def system_of(args: argparse.Namespace) -> System:
-    """``args.file`` loaded with its overrides, once per command (kept on ``args``)."""
+    """``args.file`` loaded with its overrides, once per command (kept on ``args``).
+
+    Examples
+    --------
+    >>> args = argparse.Namespace(file="two_actuator", mu="0.5")
+    >>> system_of(args).mu.tolist(), system_of(args) is system_of(args) is args.loaded_system
+    ([0.5, 0.5], True)
+    """
     if getattr(args, "loaded_system", None) is None:
         args.loaded_system = with_overrides(load_system(args.file), args)
     return args.loaded_system
 
 
 def systems_of(args: argparse.Namespace) -> list[System]:
-    """Every ``args.files`` loaded, once per command (kept on ``args``)."""
+    """Every ``args.files`` loaded, once per command (kept on ``args``).
+
+    Examples
+    --------
+    >>> args = argparse.Namespace(files=["pendulum", "two_actuator"])
+    >>> [s.name for s in systems_of(args)], systems_of(args) is args.loaded_systems
+    (['pendulum', 'two-actuator'], True)
+    """
     if getattr(args, "loaded_systems", None) is None:
         args.loaded_systems = [load_system(path) for path in args.files]
     return args.loaded_systems
@@ -117,6 +143,8 @@ def systems_of(args: argparse.Namespace) -> list[System]:
 def allocation_numbers(args: argparse.Namespace, m: int) -> tuple[float, list[float], list[float]]:
     """``--alpha``, ``--beta`` (m prices) and ``--bounds`` (lo,hi) parsed and counted.
 
+    Examples
+    --------
     >>> allocation_numbers(argparse.Namespace(alpha="8", beta="1,0.05", bounds="0,1"), 2)
     (8.0, [1.0, 0.05], [0.0, 1.0])
     """
@@ -136,6 +164,8 @@ def preflight(args: argparse.Namespace) -> None:
     ``main`` runs it before importing the command's module, so bad input costs a NumPy import,
     not a cvxpy one. The command's own checks still run (they are the same functions).
 
+    Examples
+    --------
     >>> preflight(argparse.Namespace(file="two_actuator", mu="1.5"))
     Traceback (most recent call last):
     ...
@@ -164,6 +194,8 @@ def check_writable(path: str, field: str) -> None:
     """A FILE the command will write: not a directory, in a directory that exists and may be written, and
     writable if it exists. Nothing is created. O(1).
 
+    Examples
+    --------
     >>> check_writable("/no-such-directory/out.json", "--out")
     Traceback (most recent call last):
     ...
@@ -185,6 +217,8 @@ def check_writable(path: str, field: str) -> None:
 def progress_of(args: argparse.Namespace) -> bool | None:
     """The ``progress=`` to pass to the API: off with ``--quiet``, else automatic (a terminal shows bars).
 
+    Examples
+    --------
     >>> progress_of(argparse.Namespace(quiet=True)), progress_of(argparse.Namespace(quiet=False))
     (False, None)
     """

@@ -24,6 +24,8 @@ def subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPa
 def bash_script(parser: argparse.ArgumentParser) -> str:
     """A bash completion function for ``parser`` (zsh: after ``autoload bashcompinit; bashcompinit``).
 
+    Examples
+    --------
     >>> from packetloss_cvx.cli.parser import build_parser
     >>> bash_script(build_parser()).endswith("complete -o filenames -F _packetloss_cvx packetloss-cvx")
     True
@@ -58,7 +60,23 @@ def bash_script(parser: argparse.ArgumentParser) -> str:
 
 
 class CompletionAction(argparse.Action):
-    """``--completion bash``: print the script and exit 0."""
+    """``--completion bash``: print the script and exit 0.
+
+    Examples
+    --------
+    >>> import contextlib
+    >>> import io
+    >>> parser = argparse.ArgumentParser(prog="demo")
+    >>> _ = parser.add_argument("--completion", choices=("bash",), action=CompletionAction)
+    >>> out = io.StringIO()
+    >>> with contextlib.redirect_stdout(out):
+    ...     try:
+    ...         parser.parse_args(["--completion", "bash"])
+    ...     except SystemExit as stop:
+    ...         code = stop.code
+    >>> code, out.getvalue().startswith("_packetloss_cvx() {")
+    (0, True)
+    """
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
                  option_string: str | None = None) -> None:

@@ -29,6 +29,8 @@ MAX_COLUMNS = 8
 def num(value: Any, digits: int = 6) -> str:
     """One number, ``%.{digits}g``; None as ``-``.
 
+    Examples
+    --------
     >>> num(12.3456789), num(1e-12), num(None), num(3.0)
     ('12.3457', '1e-12', '-', '3')
     """
@@ -40,6 +42,8 @@ def num(value: Any, digits: int = 6) -> str:
 def numbers(values: Sequence[float] | np.ndarray, digits: int = 6) -> str:
     """A comma-separated list, as ``--mu`` takes it.
 
+    Examples
+    --------
     >>> numbers([0.9, 0.5])
     '0.9, 0.5'
     """
@@ -49,6 +53,8 @@ def numbers(values: Sequence[float] | np.ndarray, digits: int = 6) -> str:
 def eigenvalues(eigs: np.ndarray, digits: int = 4) -> str:
     """Eigenvalues by descending modulus (the JSON's order), reals without an imaginary part.
 
+    Examples
+    --------
     >>> eigenvalues(np.array([0.5, 0.9 + 0.1j, 0.9 - 0.1j, -1.0]))
     '-1, 0.9+0.1j, 0.9-0.1j, 0.5'
     """
@@ -61,6 +67,8 @@ def eigenvalues(eigs: np.ndarray, digits: int = 4) -> str:
 def fields(pairs: Sequence[tuple[str, Any]], indent: str = INDENT) -> list[str]:
     """Aligned ``label  value`` lines; a value that is a list of lines goes below its label, indented.
 
+    Examples
+    --------
     >>> print("\\n".join(fields([("J*", "2.8"), ("method", "dense")])))
       J*              2.8
       method          dense
@@ -78,6 +86,8 @@ def fields(pairs: Sequence[tuple[str, Any]], indent: str = INDENT) -> list[str]:
 def table(header: Sequence[str], rows: Sequence[Sequence[Any]], right: Sequence[bool] | None = None) -> list[str]:
     """Columns aligned under a header (numbers right-aligned when ``right`` says so).
 
+    Examples
+    --------
     >>> print("\\n".join(table(["id", "n"], [["a", 1], ["bb", 22]], right=[False, True])))
     id   n
     a    1
@@ -95,6 +105,8 @@ def matrix(values: np.ndarray, rows: Sequence[str], cols: Sequence[str], digits:
     """A matrix with labelled rows and columns, numbers aligned on the right; beyond ``max_rows``
     rows or ``max_cols`` columns, the first ones and a line saying what was left out.
 
+    Examples
+    --------
     >>> print("\\n".join(matrix(np.array([[1.0, -0.25], [10.5, 2.0]]), ["u1", "u2"], ["x1", "x2"])))
           x1     x2
     u1     1  -0.25
@@ -116,6 +128,8 @@ def matrix(values: np.ndarray, rows: Sequence[str], cols: Sequence[str], digits:
 def labels(prefix: str, count: int) -> list[str]:
     """``prefix1 .. prefixN``.
 
+    Examples
+    --------
     >>> labels("x", 3)
     ['x1', 'x2', 'x3']
     """

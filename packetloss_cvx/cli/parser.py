@@ -89,6 +89,8 @@ def add_command(sub: argparse._SubParsersAction, name: str, summary: str, *, exa
                 results: bool = True) -> argparse.ArgumentParser:
     """A subcommand with the shared options and an examples epilog; ``name`` is the module that runs it.
 
+    Examples
+    --------
     >>> parser = argparse.ArgumentParser()
     >>> new = add_command(parser.add_subparsers(dest="command"), "simulate", "sample", examples=["simulate pendulum"])
     >>> args = parser.parse_args(["simulate", "-q", "--json"])
@@ -101,7 +103,20 @@ def add_command(sub: argparse._SubParsersAction, name: str, summary: str, *, exa
 
 
 def add_system_options(command: argparse.ArgumentParser) -> None:
-    """``--mu``, ``--mu-schedule`` and ``--x0``: the file's channel and initial state overridden."""
+    """``--mu``, ``--mu-schedule`` and ``--x0``: the file's channel and initial state overridden.
+
+    Examples
+    --------
+    >>> parser = Parser()
+    >>> add_system_options(parser)
+    >>> args = parser.parse_args(["--mu", "0.5", "--x0", "1,2"])
+    >>> args.mu, args.mu_schedule, args.x0
+    ('0.5', None, '1,2')
+    >>> parser.parse_args(["--mu", "0.5", "--mu-schedule", "mu.csv"])     # one channel or the other
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: arguments: argument --mu-schedule: not allowed with argument --mu
+    """
     group = command.add_argument_group("overrides of the file")
     channel = group.add_mutually_exclusive_group()
     channel.add_argument("--mu", metavar="MU",
@@ -117,6 +132,8 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The whole grammar; ``args.command`` names the module that runs the subcommand.
 
+    Examples
+    --------
     >>> build_parser().parse_args(["solve", "pendulum", "--mu", "0.5"]).mu
     '0.5'
     """
@@ -249,6 +266,8 @@ def build_parser() -> argparse.ArgumentParser:
 def join_negative_values(argv: list[str]) -> list[str]:
     """``--x0 -1,1`` -> ``--x0=-1,1``: argparse would read ``-1,1`` as an unknown option.
 
+    Examples
+    --------
     >>> join_negative_values(["solve", "pendulum", "--x0", "-1,1"])
     ['solve', 'pendulum', '--x0=-1,1']
     """

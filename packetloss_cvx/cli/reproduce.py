@@ -114,7 +114,25 @@ def _figures(data: dict[str, Any], out: Path) -> dict[str, Path]:
 
 
 def run(args: argparse.Namespace) -> CommandResult:
-    """Compute, draw, and write ``results.json`` and ``report.md`` into ``--out``."""
+    """Compute, draw, and write ``results.json`` and ``report.md`` into ``--out``.
+
+    Examples
+    --------
+    The run takes seconds even with ``--quick``; a folder it cannot use is refused before any work:
+
+    >>> import tempfile
+    >>> from packetloss_cvx.cli.parser import build_parser
+    >>> run(build_parser().parse_args(["reproduce", "--out", " "]))        # an unset $DIR
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: --out: expected a folder, found an empty path
+    >>> with tempfile.NamedTemporaryFile() as file:                          # a file, not a folder
+    ...     try:
+    ...         run(build_parser().parse_args(["reproduce", "--quick", "--out", file.name]))
+    ...     except InputError as err:
+    ...         print(err.field, "cannot create" in err.detail)
+    --out True
+    """
     settings = SETTINGS["quick" if args.quick else "full"]
     progress = False if args.quiet else None
     if not args.out.strip():      # an unset $DIR: not the current folder

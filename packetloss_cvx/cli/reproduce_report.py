@@ -36,7 +36,18 @@ CLAIMS_FILE = "claims.md"
 
 def claims_link(out: Path, claim: str | None = None) -> str:
     """A link from report.md to ``claims.md`` beside it (written first by ``reproduce``), to a claim's
-    section when that file has one."""
+    section when that file has one.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     before = claims_link(Path(tmp), "theorem-2")          # no claims.md yet: the file itself
+    ...     _ = (Path(tmp) / CLAIMS_FILE).write_text("# Claims\\n\\n### theorem-2: holds\\n")
+    ...     after = claims_link(Path(tmp), "theorem-2"), claims_link(Path(tmp), "lemma-9")
+    >>> before, after
+    ('claims.md', ('claims.md#theorem-2-holds', 'claims.md'))
+    """
     doc = out / CLAIMS_FILE
     if claim is None or not doc.exists():
         return CLAIMS_FILE

@@ -23,7 +23,27 @@ __all__ = ["run", "stability", "text_details"]
 
 
 def run(args: argparse.Namespace) -> CommandResult:
-    """Both protocols' closed forms, each compared with its QP twin (a disagreement raises)."""
+    """Both protocols' closed forms, each compared with its QP twin (a disagreement raises).
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1 (Q = R = 1, mu = 0.5): J*_tcp = 1/(1 + mu) = 2/3 with u = -2/3 x,
+    J*_udp = 1 - mu/2 = 0.75 with u = -x/2.
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.cli.parser import build_parser
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = str(save_system(s, Path(folder.name) / "scalar.toml"))
+    >>> result = run(build_parser().parse_args(["solve", path, "--no-qp"]))
+    >>> result.code, bool(np.isclose(result.data["tcp"]["cost"], 2 / 3)), result.data["udp"]["cost"]
+    (0, True, 0.75)
+    >>> bool(np.isclose(result.data["tcp"]["gain"][0][0], 2 / 3)), "qp" in result.data["tcp"]
+    (True, False)
+    >>> folder.cleanup()
+    """
     system = system_of(args)
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     out: dict[str, Any] = {
@@ -74,7 +94,17 @@ def run(args: argparse.Namespace) -> CommandResult:
 
 
 def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]]:
-    """The gain, the closed-loop eigenvalues (the JSON's order) and, with ``-v``, the plan U*."""
+    """The gain, the closed-loop eigenvalues (the JSON's order) and, with ``-v``, the plan U*.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> sol = closed_form(s, "udp")                 # u = -x/2: A - B K = 1/2
+    >>> [label for label, _ in text_details(sol, 1, 0)], [label for label, _ in text_details(sol, 1, 1)][-1]
+    (['K (u = -K x)', 'eig(A - B K)'], 'U* (row t)')
+    >>> text_details(sol, 1, 0)[1][1]
+    '0.5'
+    """
     m = sol.inputs.shape[1]
     rows: list[tuple[str, object]] = [
         ("K (u = -K x)", fmt.matrix(sol.gain, fmt.labels("u", m), fmt.labels("x", n))),
@@ -88,7 +118,23 @@ def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]
 
 def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     """Mean-square stability of the receding-horizon law u = -K x run for ever over the file's channel
-    (the first step's mu when the channel is non-stationary); adds its keys to ``entry``, returns text."""
+    (the first step's mu when the channel is non-stationary); adds its keys to ``entry``, returns text.
+
+    Examples
+    --------
+    x' = x - v K x with P(v = 1) = mu: E[x'^2] = (mu (1 - K)^2 + 1 - mu) x^2, so K = 2/3 at mu = 0.5 gives 5/9,
+    and K = 0 (no control of x' = x) gives 1, not stable.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> entry = {}
+    >>> "mean-square stable" in stability(s, np.array([[2 / 3]]), entry), entry["stable"]
+    (True, True)
+    >>> bool(np.isclose(entry["mean_square_spectral_radius"], 5 / 9))
+    True
+    >>> _ = stability(s, np.array([[0.0]]), entry)
+    >>> entry["stable"]
+    False
+    """
     mu = system.mu_schedule[0]
     note = "" if system.is_stationary else " (first step's mu: the channel is non-stationary)"
     where = f"mu = {fmt.numbers(mu)}{note}"

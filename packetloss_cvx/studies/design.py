@@ -63,6 +63,19 @@ def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     InputError
         A file that cannot be read, a row of the wrong length, or a value outside [0, 1]
         (field ``mu_list``, with the row number).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     _ = (Path(tmp) / "mu.csv").write_text("mu1,mu2\\n0.5,1\\n0,0.25\\n")
+    ...     points = read_mu_list(Path(tmp) / "mu.csv", 2)
+    ...     read_mu_list(Path(tmp) / "mu.csv", 3)
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: mu_list: row 2: expected 3 probabilities, found 2
+    >>> points.tolist()                             # the header row is skipped
+    [[0.5, 1.0], [0.0, 0.25]]
     """
     try:
         with open(path, newline="", encoding="utf-8-sig") as handle:    # -sig: Excel's byte-order mark

@@ -16,7 +16,18 @@ __all__ = ["csv_header", "require_xarray", "save_sweep"]
 
 def require_xarray() -> None:
     """Raise InputError (field ``netcdf``) unless xarray, the optional extra behind ``to_xarray`` and
-    NetCDF output, can be imported; call it before a long sweep, not after. O(1) once imported."""
+    NetCDF output, can be imported; call it before a long sweep, not after. O(1) once imported.
+
+    Examples
+    --------
+    >>> import sys
+    >>> from unittest import mock
+    >>> with mock.patch.dict(sys.modules, {"xarray": None}):       # as if the extra were not installed
+    ...     require_xarray()
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: netcdf: needs the xarray extra: pip install 'packetloss-cvx[xarray]'
+    """
     try:
         import xarray  # noqa: F401  lazy: the xarray extra
     except ImportError:
@@ -25,7 +36,16 @@ def require_xarray() -> None:
 
 def csv_header(result: DesignSweep) -> list[str]:
     """The CSV's columns: mu1..mum, x0_1..x0_n, horizon, then cost_tcp, cost_udp, cost_diff, radius_tcp,
-    radius_udp (those computed)."""
+    radius_udp (those computed).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.studies import sweep
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> csv_header(sweep(s, mu_grid=2)), csv_header(sweep(s, mu_grid=2, protocols=["udp"]))[-1]
+    (['mu1', 'x0_1', 'horizon', 'cost_tcp', 'cost_udp', 'cost_diff'], 'cost_udp')
+    """
     m, n = result.mu.shape[1], result.x0.shape[1]
     costs = [f"cost_{p}" for p in result.costs] + (["cost_diff"] if result.difference is not None else [])
     radii = [f"radius_{p}" for p in result.radii]
@@ -48,6 +68,22 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
     ------
     InputError
         ``out`` cannot be created or written (field ``out``); ``netcdf`` without xarray (field ``netcdf``).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.studies import sweep
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     paths = save_sweep(sweep(s, mu_grid=[0.0, 0.5]), tmp)
+    ...     rows = paths["csv"].read_text().splitlines()
+    ...     npz = dict(np.load(paths["npz"]))
+    >>> last = [float(v) for v in rows[2].split(",")[-3:]]    # mu = 0.5: J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2
+    >>> sorted(paths), rows[0], bool(np.allclose(last, [2 / 3, 0.75, 0.75 - 2 / 3]))
+    (['csv', 'npz'], 'mu1,x0_1,horizon,cost_tcp,cost_udp,cost_diff', True)
+    >>> last[0] == float(npz["cost_tcp"][1])            # 17 digits read back exactly
+    True
     """
     if netcdf:
         require_xarray()        # before writing anything

@@ -33,7 +33,13 @@ PAPER_BETAS = ((1.0, 1.0), (0.05, 1.0), (1.0, 0.05))
 
 
 def pendulum_nus(points: int) -> np.ndarray:
-    """nu on (0, 1]: ``points`` log-spaced from 1e-6 (where J_Delta peaks) and ``points`` uniform. O(points)."""
+    """nu on (0, 1]: ``points`` log-spaced from 1e-6 (where J_Delta peaks) and ``points`` uniform. O(points).
+
+    Examples
+    --------
+    >>> pendulum_nus(3).tolist()        # 1e-6, 1e-3, 1 and 0.5, 1 (0 dropped, 1 once)
+    [1e-06, 0.001, 0.5, 1.0]
+    """
     return np.unique(np.concatenate([np.logspace(-6, 0, points), np.linspace(0.0, 1.0, points)[1:]]))
 
 
@@ -43,6 +49,16 @@ def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
 
     Returns ``{"nu", "tcp", "udp", "diff", "difference_method", "maximiser": {"nu", "value", "method"}}``
     (arrays for the curves). O(points (N m)^3).
+
+    Examples
+    --------
+    One step of x' = x + v u: J_Delta(nu) = 1 - nu/2 - 1/(1 + nu), largest at nu = sqrt(2) - 1, 1.5 - sqrt(2).
+
+    >>> from packetloss_cvx.model import System
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> best = log_cost_pendulum(s, points=2)["maximiser"]
+    >>> bool(np.isclose(best["nu"], 2 ** 0.5 - 1, atol=1e-6) and np.isclose(best["value"], 1.5 - 2 ** 0.5))
+    True
     """
     nus = pendulum_nus(points)
     result = shared_channel_sweep(system, nus)
@@ -58,6 +74,19 @@ def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
     maximiser of J_Delta (:func:`~packetloss_cvx.analysis.maximise_cost_difference_2d`).
 
     O(grid^2 (N m)^3).
+
+    Examples
+    --------
+    Two decoupled copies of x' = x + v u, N = 1: J_Delta is the sum of two, each largest at sqrt(2) - 1.
+
+    >>> from packetloss_cvx.model import System
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> out = mixed_grids(t, grid=3)
+    >>> out["axis"].tolist(), bool(np.allclose(out["maximiser"]["mu"], 2 ** 0.5 - 1, atol=1e-5))
+    ([0.0, 0.5, 1.0], True)
+    >>> bool(np.isclose(out["maximiser"]["value"], 3 - 2 * 2 ** 0.5) and np.isclose(out["diff"][1, 1], 1 / 6))
+    True
     """
     axis = np.linspace(0.0, 1.0, grid)
     result = two_channel_sweep(system, axis)
@@ -74,6 +103,21 @@ def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
     J* = alpha for each beta (:func:`~packetloss_cvx.allocation.contour_allocations`).
 
     O(len(betas) len(alphas)) allocations.
+
+    Examples
+    --------
+    Two decoupled copies of x' = x + v u, N = 1: J*_tcp = 1/(1 + mu1) + 1/(1 + mu2) = 1.5 costs
+    mu1 + mu2 at least 2/3 (mu1 = mu2 = 1/3); a cheap channel is bought in full (0.05 * 1).
+
+    >>> from packetloss_cvx.model import System
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> out = mixed_allocations(t, "tcp", [1.5])
+    >>> bool(np.allclose(out[(1.0, 1.0)][0]["mu"], 1 / 3, atol=1e-5))
+    True
+    >>> cheap = out[(0.05, 1.0)][0]
+    >>> bool(np.allclose(cheap["mu"], [1, 0], atol=1e-5)), round(cheap["communication_cost"], 5)
+    (True, 0.05)
     """
     return contour_allocations(system, protocol, list(alphas), betas=betas, progress=progress)
 
@@ -84,6 +128,19 @@ def eigenvalue_tables(pendulum: System, mixed: System, mu_pendulum: Sequence[flo
     (:func:`~packetloss_cvx.analysis.eigenvalue_table`: ``"A-BK"``, the paper's convention, and ``"A-BMK"``).
 
     O((N m)^3) per system.
+
+    Examples
+    --------
+    x' = x + v u, N = 1, mu = 0.5: the TCP-like gain is K = 1/(1 + mu) = 2/3, so A - BK = 1/3 and
+    A - B mu K = 2/3; the UDP-like gain is 1/2 (0.5 and 0.75).
+
+    >>> from packetloss_cvx.model import System
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> one = eigenvalue_tables(s, s, [0.5], [0.5])["table-1"]
+    >>> bool(np.allclose([one["tcp"]["A-BK"][0], one["tcp"]["A-BMK"][0]], [1 / 3, 2 / 3]))
+    True
+    >>> bool(np.allclose([one["udp"]["A-BK"][0], one["udp"]["A-BMK"][0]], [0.5, 0.75]))
+    True
     """
     return {"table-1": an.eigenvalue_table(pendulum, list(mu_pendulum)),
             "table-2": an.eigenvalue_table(mixed, list(mu_mixed))}

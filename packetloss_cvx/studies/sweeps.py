@@ -102,6 +102,18 @@ def two_channel_sweep(system: System, axis: Sequence[float] | np.ndarray,
     ``costs[p][j, i]`` is the cost at ``mu1 = axis[i]``, ``mu2 = axis[j]`` (rows follow mu2, as
     matplotlib's ``contour`` expects). Time O(len(axis)^2 · N (n^3 + m^3)), plus
     O(len(axis)^2 (N m)^3) for the difference.
+
+    Examples
+    --------
+    Two decoupled copies of x' = x + v u, N = 1: J*_tcp = sum 1/(1 + mu_i), J*_udp = sum (1 - mu_i/2).
+
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> sweep = two_channel_sweep(t, [0.0, 0.5])
+    >>> bool(np.allclose(sweep.costs["tcp"], [[2, 5 / 3], [5 / 3, 4 / 3]]))
+    True
+    >>> bool(np.allclose(sweep.difference, sweep.costs["udp"] - sweep.costs["tcp"])), float(sweep.difference[0, 0])
+    (True, 0.0)
     """
     if system.m != 2:
         raise InputError("system", f"expected m = 2 channels, found m = {system.m}")
