@@ -25,6 +25,17 @@ COVERED = (
     "channel", "convex", "costs", "io", "linalg", "markov.chain", "markov.compare", "markov.exact_cost",
     "markov.mjls", "markov.qp", "markov.sweep", "model", "plots", "prediction", "progress", "protocols",
     "random_systems", "recursion", "validation",
+    "simulation.channels", "simulation.critical", "simulation.interop", "simulation.markov_channels",
+    "simulation.markov_loop", "simulation.markov_montecarlo", "simulation.moments", "simulation.montecarlo",
+    "simulation.riccati", "simulation.runs", "simulation.sampling", "simulation.stability", "threads", "display",
+    "results.base", "analysis", "qp", "claims.channel_allocation", "claims.closed_loop", "claims.context",
+    "claims.cost_difference", "claims.evaluate", "claims.markov", "claims.mpc_vs_dp", "claims.ordering",
+    "claims.registry", "claims.report", "claims.tables", "claims.theorem1",
+    "studies.design", "studies.output", "studies.paper_figures", "studies.sweeps",
+    "cli.allocate", "cli.audit", "cli.common", "cli.completion", "cli.format", "cli.markov_section",
+    "cli.parser", "cli.reproduce", "cli.simulate", "cli.solve", "cli.sweep",
+    "allocation.api", "allocation.boxes", "allocation.brute_force", "allocation.grammar",
+    "allocation.studies", "allocation.tcp", "allocation.udp",
 )
 
 

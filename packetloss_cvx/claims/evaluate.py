@@ -66,6 +66,14 @@ class Tally:
         The margins of the checked cases.
     failures : list of str
         ``"label: ErrorType: message"`` for each errored case.
+
+    Examples
+    --------
+    >>> t = Tally()
+    >>> [t.run(lambda x: x, v, f"case {v}") for v in (0.5, -1.0, None)]
+    [0.5, -1.0, None]
+    >>> "".join(t.outcomes), t.checked, t.violations
+    ('+-.', 2, 1)
     """
 
     outcomes: list[str] = field(default_factory=list)
