@@ -55,3 +55,17 @@ def test_the_udp_like_cost_of_a_chain_is_refused_not_the_plug_in_number():
     assert exact_cost(s, plug_in.inputs, "udp") > 3 * plug_in.cost       # 51735 against 15706
     assert exact_closed_form(s, "udp").cost < exact_cost(s, plug_in.inputs, "udp")
     assert pl.closed_form(s, "tcp").cost == pytest.approx(exact_closed_form(s, "tcp").cost, rel=1e-10)
+
+
+def test_to_xarray_without_the_extra_says_how_to_install_it():
+    """After the README's `pip install .` (no xarray), the README's design-study block ended in a bare
+    ModuleNotFoundError traceback."""
+    import sys
+    from unittest import mock
+
+    from packetloss_cvx.errors import InputError
+    from packetloss_cvx.studies import sweep
+
+    result = sweep(pl.load_example("two_actuator"), mu_grid=3, progress=False)
+    with mock.patch.dict(sys.modules, {"xarray": None}), pytest.raises(InputError, match=r"packetloss-cvx\[xarray\]"):
+        result.to_xarray()

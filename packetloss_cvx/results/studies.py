@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..display import allocation_html, allocation_repr, claim_html, claim_repr, fields_repr, maximiser_repr, to_json
 from .base import freeze, read_only
 
@@ -255,8 +256,10 @@ class DesignSweep:
     def to_xarray(self) -> Any:
         """An :class:`xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
         mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(P (m + n))."""
-        import xarray as xr  # lazy: an optional extra
-
+        try:
+            import xarray as xr  # lazy: an optional extra
+        except ImportError:
+            raise InputError("to_xarray", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
         dims, shape = self.dims, self.shape
         # a swept variable that is also a dimension (horizon) is its coordinate, not a second variable
         flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_") and k not in dims}
