@@ -115,4 +115,7 @@ def _text(name: str, sim: Simulation) -> str:
         if not r.stable and np.isfinite(r.spectral_radius):
             lines.append("    (a mean-square unstable loop's expected cost is carried by rare runs: its sampled mean "
                          "and standard error can fall far below the exact value)")
+    if "dp" in sim.closed_loop and not bursty and not sim.closed_loop["dp"].reason:
+        lines.append("  (the DP law is optimal for the cost over an unbounded horizon; over a window of "
+                     f"{sim.steps} steps from x0 a law that is not stable can still cost less)")
     return "\n".join(lines)
