@@ -31,7 +31,14 @@ from ..results import ClosedLoopRun, OpenLoopCheck, Simulation
 from .channels import sample_noise
 from .markov_channels import reveals_state, sample_markov_paths
 from .markov_loop import BeliefGains, markov_loop_block
-from .runs import BLOCK, check_loop_memory, loop_statistics, plan_costs, run_blocks, sample_stats, z_score
+from .runs import (
+    BLOCK,
+    check_loop_memory,
+    loop_statistics,
+    open_loop_checks,
+    plan_costs,
+    run_blocks,
+)
 from .stability import is_mean_square_stable
 
 __all__ = ["DP_NOTE", "EXACT_PLAN", "markov_open_loop_costs", "simulate_markov"]
@@ -97,20 +104,11 @@ def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_
             plans[EXACT_PLAN] = exact_closed_form(system, "udp")
         except (NumericalError, ResourceError) as err:
             extra = str(err)
-    costs: dict[str, list[np.ndarray]] = {p: [] for p in plans}
     work = len(blocks) * (len(plans) > 0) + len(blocks) * closed_loop
     with progress_bar(total=work, desc="simulate (Gilbert-Elliott)", progress=progress) as bar:
-        for size, stream in zip(blocks, open_part.spawn(len(blocks)), strict=True):
-            if not plans:
-                break
-            for p, sol in plans.items():   # every plan on the same draws
-                costs[p].append(markov_open_loop_costs(system, sol.inputs, size, np.random.default_rng(stream)))
-            bar.update(1)
-        open_loop = {}
-        for p, sol in plans.items():
-            mean, stderr = sample_stats(np.concatenate(costs[p]))
-            exact = exact_cost(system, sol.inputs, "udp")
-            open_loop[p] = OpenLoopCheck(sol.cost, exact, mean, stderr, z_score(mean, stderr, exact))
+        open_loop = open_loop_checks(plans, blocks, open_part.spawn(len(blocks)),
+                                     lambda inputs, size, rng: markov_open_loop_costs(system, inputs, size, rng),
+                                     lambda inputs: exact_cost(system, inputs, "udp"), bar)
         if extra:
             open_loop[EXACT_PLAN] = OpenLoopCheck(np.nan, np.nan, np.nan, np.nan, np.nan, reason=extra)
         runs, trajectories = {}, None

@@ -23,7 +23,7 @@ from ..costs import closed_form, expected_cost
 from ..errors import InputError, NumericalError
 from ..model import System
 from ..progress import progress_bar
-from ..results import ClosedLoopRun, OpenLoopCheck, Simulation
+from ..results import ClosedLoopRun, Simulation
 from .channels import sample_deliveries, sample_delivery_paths, sample_noise, sample_noise_paths
 from .markov_montecarlo import simulate_markov
 from .moments import finite_horizon_costs, stationary_channel
@@ -33,9 +33,9 @@ from .runs import (
     check_count,
     check_loop_memory,
     loop_statistics,
+    open_loop_checks,
     plan_costs,
     run_blocks,
-    sample_stats,
     z_score,
 )
 from .stability import is_mean_square_stable, mean_square_radius
@@ -186,20 +186,11 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     open_part, closed_part = np.random.SeedSequence(seed).spawn(2)
     blocks = run_blocks(samples)
     plans = {p: closed_form(system, p) for p in laws if p != "dp"}
-    costs: dict[str, list[np.ndarray]] = {p: [] for p in plans}
     work = len(blocks) * (len(plans) > 0) + len(blocks) * closed_loop
     with progress_bar(total=work, desc="simulate", progress=progress) as bar:
-        for size, stream in zip(blocks, open_part.spawn(len(blocks)), strict=True):
-            if not plans:
-                break
-            for p, sol in plans.items():   # every plan on the same draws: one generator per plan from the same stream
-                costs[p].append(open_loop_costs(system, sol.inputs, size, np.random.default_rng(stream)))
-            bar.update(1)
-        open_loop = {}
-        for p, sol in plans.items():
-            mean, stderr = sample_stats(np.concatenate(costs[p]))
-            exact = expected_cost(system, sol.inputs, "udp")
-            open_loop[p] = OpenLoopCheck(sol.cost, exact, mean, stderr, z_score(mean, stderr, exact))
+        open_loop = open_loop_checks(plans, blocks, open_part.spawn(len(blocks)),
+                                     lambda inputs, size, rng: open_loop_costs(system, inputs, size, rng),
+                                     lambda inputs: expected_cost(system, inputs, "udp"), bar)
         runs, trajectories = {}, None
         if closed_loop:
             runs, trajectories = _closed_loop(system, law_gains(system, laws), steps, blocks,
