@@ -69,3 +69,18 @@ def test_to_xarray_without_the_extra_says_how_to_install_it():
     result = sweep(pl.load_example("two_actuator"), mu_grid=3, progress=False)
     with mock.patch.dict(sys.modules, {"xarray": None}), pytest.raises(InputError, match=r"packetloss-cvx\[xarray\]"):
         result.to_xarray()
+
+
+def test_plug_in_markov_checks_a_chain_file_behind_its_own_chain():
+    """The audit gives the paper's claims a chain file's plug-in mu_t, but plug-in-markov must still see
+    the file's own chain (not Gilbert twins of the plug-in rates)."""
+    from packetloss_cvx.claims import audit
+    from packetloss_cvx.claims.markov import plugin_loss
+    from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL
+
+    system = pl.load_example("pendulum_bursty")
+    (result,) = audit([system], random=0, only=["plug-in-markov"])
+    assert result.outcomes[-1] == "-"
+    own = CROSS_CHECK_COST_RTOL - plugin_loss(system, None)          # the file's chain: lambda = 0.8
+    assert result.worst == pytest.approx(min(own, result.worst), rel=1e-12)
+    assert own < -0.05                                                # the plug-in law loses ~7.9 % there

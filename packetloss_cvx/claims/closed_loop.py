@@ -40,7 +40,7 @@ def protocol_ranking(ctx: Context) -> ClaimResult:
     ('holds', True)
     """
     def margin(s: System) -> float | None:
-        if not s.is_stationary or s.channel is not None:   # a chain's loop is a jump system: not this claim
+        if not s.is_stationary:
             return None
         tcp, udp = exact_cost(s, "tcp"), exact_cost(s, "udp")
         if not (np.isfinite(tcp) and np.isfinite(udp)):

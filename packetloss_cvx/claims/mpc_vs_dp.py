@@ -29,8 +29,7 @@ def relative_excess(system: System) -> dict[str, float] | None:
     """Each law's exact closed-loop cost over the DP optimum's, minus one, at the system's own x0 and
     Sigma_W (cost ``tr(P (x0 x0' + Sigma_W))``: the total cost from x0 plus the average stage cost);
     ``inf`` for a law that is not mean-square stable; the key ``"psd"``: min eig(P_K - P) / ||P|| over
-    the stable laws. None when the channel is non-stationary or a Gilbert–Elliott chain, or no law
-    stabilises (no DP solution).
+    the stable laws. None when the channel is non-stationary or no law stabilises (no DP solution).
     Time O(n^6) (two moment solves per law) plus the Riccati iteration.
 
     Examples
@@ -40,7 +39,7 @@ def relative_excess(system: System) -> dict[str, float] | None:
     >>> bool(np.allclose([r["tcp"], r["udp"]], [2.75 / (1 + 3**0.5) - 1, 3 / (1 + 3**0.5) - 1]))
     True
     """
-    if not system.is_stationary or system.channel is not None:   # a chain's loop is a jump system: not this claim
+    if not system.is_stationary:
         return None
     try:
         dp = dp_riccati(system)

@@ -25,7 +25,7 @@ from .paper import STATEMENTS
 from .tables import pendulum_maximiser, table_1, table_2
 from .theorem1 import expected_cost_tcp, lemma_1, lemma_quad, theorem_1_costs, theorem_1_laws
 
-__all__ = ["CLAIMS", "audit", "run_claim"]
+__all__ = ["CHAIN_CLAIMS", "CLAIMS", "audit", "run_claim"]
 
 _CHECKS: dict[str, Callable[[Context], ClaimResult]] = {
     "theorem-1-laws": theorem_1_laws,
@@ -53,6 +53,10 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
     claim_id: (statement, _CHECKS[claim_id]) for claim_id, statement in STATEMENTS.items()
 }
 CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's: its laws under bursty losses
+
+
+#: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain
+CHAIN_CLAIMS = frozenset({"plug-in-markov"})
 
 
 @blas_limited
@@ -96,11 +100,14 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
         raise InputError("random", f"expected a count >= 0, found {random!r}")
     rng = np.random.default_rng(seed)
     paper = paper_systems()
+    given = list(systems or [])
+    cases = [random_system(rng) for _ in range(random)]
     # the paper's claims are stated for independent losses: a caller's system behind a Gilbert-Elliott chain
-    # is audited at its plug-in mu_t (plug-in-markov puts every case behind chains of its own)
-    extra = [s.with_mu(s.mu_schedule) if s.channel is not None else s for s in systems or []]
-    ctx = Context(paper=paper, random=extra + [random_system(rng) for _ in range(random)], seed=seed,
-                  extra=len(extra))
+    # is audited at its plug-in mu_t, except by the claims about chains, which see the chain itself
+    plug_in = [s.with_mu(s.mu_schedule) if s.channel is not None else s for s in given]
+    ctx = Context(paper=paper, random=plug_in + cases, seed=seed, extra=len(given))
+    chain_ctx = (Context(paper=paper, random=given + cases, seed=seed, extra=len(given))
+                 if any(s.channel is not None for s in given) else ctx)
     ids = list(CLAIMS) if only is None else list(only)
     for claim_id in ids:
         if claim_id not in CLAIMS:
@@ -109,7 +116,7 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
     with progress_bar(total=len(ids), desc="audit", progress=progress) as bar:
         for claim_id in ids:
             bar.set_postfix_str(claim_id)        # the claim being checked (one can take most of the time)
-            results.append(run_claim(claim_id, ctx))
+            results.append(run_claim(claim_id, chain_ctx if claim_id in CHAIN_CLAIMS else ctx))
             bar.update()
     return results
 
