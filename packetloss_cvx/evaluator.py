@@ -41,12 +41,16 @@ from .recursion import condition_estimate, udp_variance_weights
 from .results import BatchSolution
 from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from .validation import MAX_ENTRIES
 
 __all__ = ["CHUNK_BYTES", "CostEvaluator"]
 
 #: The dense path stacks at most this many bytes of (N m)×(N m) matrices at a time, and the
 #: recursion about this many bytes of gains, inputs and states.
 CHUNK_BYTES = 2**25
+#: The forward cost multiplies the mean states by blkdiag(Omega_1..Omega_N) as one matrix up to
+#: N n = this (a (P, N n) by (N n)×(N n) product is faster than N small ones), else block by block.
+OMEGA_BLOCKS_MAX = 64
 
 
 class CostEvaluator:
@@ -83,6 +87,17 @@ class CostEvaluator:
         s = self.system
         self.weights = udp_variance_weights(s)
         self._d, self._noise = self.weights
+        self._d_finite = bool(np.all(np.isfinite(self._d)))
+        self._BA = np.hstack([s.B, s.A])
+        with np.errstate(over="ignore", invalid="ignore"):
+            self._base = float(s.x0 @ s.initial_weight @ s.x0) + self._noise      # x0'Q x0 + noise
+        #: blkdiag(Omega_1..Omega_N) while small: the forward cost's state terms in one product
+        Nn = s.horizon * s.n
+        self._Omega = None
+        if Nn <= OMEGA_BLOCKS_MAX:
+            self._Omega = np.zeros((Nn, Nn))
+            for t in range(s.horizon):
+                self._Omega[t * s.n:(t + 1) * s.n, t * s.n:(t + 1) * s.n] = s.state_weights[t]
         if method not in ("auto", "dense", "recursion"):
             raise InputError("method", f"expected 'auto', 'dense' or 'recursion', found {method!r}")
         self.requested = method
@@ -106,6 +121,10 @@ class CostEvaluator:
     def _schedules(self, mus: npt.ArrayLike) -> np.ndarray:
         """(P, N, m) schedules from (P, m) or (P, N, m); ProbabilityError / DimensionError."""
         s = self.system
+        if (isinstance(mus, np.ndarray) and mus.dtype == np.float64 and 0 < mus.size <= MAX_ENTRIES
+                and mus.shape[1:] in ((s.m,), (s.horizon, s.m)) and 0.0 <= mus.min() and mus.max() <= 1.0):
+            # already a float array of probabilities (NaN fails the comparisons): no copy, no walk
+            return np.broadcast_to(mus[:, None, :], (mus.shape[0], s.horizon, s.m)) if mus.ndim == 2 else mus
         arr = numeric_array(mus, "mu")
         if arr.ndim == 2 and arr.shape[1] == s.m:
             arr = np.broadcast_to(arr[:, None, :], (arr.shape[0], s.horizon, s.m))
@@ -193,6 +212,7 @@ class CostEvaluator:
         mu = self._schedules(mus)
         P = mu.shape[0]
         x = self._states(x0, P)
+        base = self._base if x0 is None else None       # x0'Q x0 + noise of the forward costs
         s = self.system
         costs = np.empty(P)
         inputs = np.empty((P, s.horizon, s.m))
@@ -207,7 +227,7 @@ class CostEvaluator:
             failed = []
             for start in range(0, P, chunk):
                 idx = np.arange(start, min(P, start + chunk))
-                ok = self._dense(mu[idx], x[idx], idx, costs, inputs, K0)
+                ok = self._dense(mu[idx], x[idx], idx, costs, inputs, K0, base)
                 failed.append(idx[~ok])
             todo = np.concatenate(failed)
             if todo.size:
@@ -221,7 +241,7 @@ class CostEvaluator:
         chunk = max(1, CHUNK_BYTES // (8 * s.horizon * (s.m * s.n + s.m + s.n + s.m)))
         for start in range(0, todo.size, chunk):
             part = todo[start:start + chunk]
-            self._recursion(mu[part], x[part], part, costs, inputs, K0)
+            self._recursion(mu[part], x[part], part, costs, inputs, K0, base)
         return costs, inputs, K0, method
 
     def _dense_is_faster(self, P: int) -> bool:
@@ -231,23 +251,39 @@ class CostEvaluator:
         N, k = self.system.horizon, self.system.horizon * self.system.m
         return 1.2e-4 + P * (5e-6 + 9e-11 * k**3) <= N * (3e-5 + 1e-6 * P)
 
-    def _forward(self, mu: np.ndarray, x: np.ndarray, U: np.ndarray, X: np.ndarray) -> np.ndarray:
+    def _forward(self, mu: np.ndarray, x: np.ndarray, U: np.ndarray, X: np.ndarray,
+                 weight: np.ndarray | None = None, base: np.ndarray | float | None = None) -> np.ndarray:
         """The forward cost of plans U (P, N, m) whose mean states X (P, N, n) are x_1..x_N:
-        x0'Q x0 + noise + sum_t of the nonnegative stage costs (recursion.recursion_cost)."""
+        x0'Q x0 + noise + sum_t of the nonnegative stage costs (recursion.recursion_cost).
+        ``weight``: the input weights psi + [UDP] (1 - mu) d where mu < 1, if the caller has them;
+        ``base``: x0'Q x0 + noise, if known. O(P N (n^2 + m)), O(P (N n)^2) up to OMEGA_BLOCKS_MAX."""
         s = self.system
-        psi = s.input_weights
-        mean_u = mu * U
+        if weight is None:
+            weight = self._added(mu)
+        P = X.shape[0]
         with np.errstate(over="ignore", invalid="ignore"):
-            total = np.einsum("pi,ij,pj->p", x, s.initial_weight, x) + self._noise
-            stage = np.sum(mean_u * (psi * U), axis=2)
-            if self.protocol == "udp":
-                lossy = mu < 1.0
-                stage = stage + np.sum(np.where(lossy, mean_u * ((1.0 - mu) * self._d * U), 0.0), axis=2)
-            stage = stage + np.einsum("pti,tij,ptj->pt", X, s.state_weights, X)
-            total = total + np.sum(stage, axis=1)
-        return total
+            if base is None:
+                base = np.einsum("pi,ij,pj->p", x, s.initial_weight, x) + self._noise
+            # mu u (weight u): the products in this order stay in range when mu is tiny and u huge
+            inputs = np.einsum("ptk,ptk->p", mu * U, weight * U)
+            if self._Omega is not None:
+                flat = X.reshape(P, -1)
+                states = np.einsum("pk,pk->p", flat @ self._Omega, flat)
+            else:
+                states = np.einsum("pti,tij,ptj->p", X, s.state_weights, X)
+            return base + (inputs + states)
 
-    def _dense(self, mu, x, idx, costs, inputs, K0) -> np.ndarray:
+    def _added(self, mu: np.ndarray) -> np.ndarray:
+        """psi + [UDP] (1 - mu) d where mu < 1 (what G adds on its diagonal), (P, N, m). O(P N m)."""
+        psi = self.system.input_weights
+        if self.protocol == "tcp":
+            return np.broadcast_to(psi, mu.shape)
+        with np.errstate(over="ignore", invalid="ignore"):
+            if self._d_finite:          # mu <= 1: where mu = 1, d (1 - mu) = 0 exactly
+                return psi + self._d * (1.0 - mu)
+            return psi + np.where(mu < 1.0, self._d * (1.0 - mu), 0.0)
+
+    def _dense(self, mu, x, idx, costs, inputs, K0, base=None) -> np.ndarray:
         """Theorem 1's dense law for a chunk; returns which points passed their checks."""
         s, pred = self.system, self._pred
         N, n, m = s.horizon, s.n, s.m
@@ -281,7 +317,7 @@ class CostEvaluator:
             closed = const + np.einsum("pk,pk->p", g, v * u)
             X = (x @ pred.Phi.T + (v * u) @ pred.Gamma.T).reshape(P, N, n)
             U = u.reshape(P, N, m)
-            forward = self._forward(mu, x, U, X)
+            forward = self._forward(mu, x, U, X, base=base)
         ok &= self._checked(closed, forward, np.zeros(P), raise_=False)
         costs[idx[ok]] = closed[ok]
         inputs[idx[ok]] = U[ok]
@@ -289,58 +325,66 @@ class CostEvaluator:
             K0[idx[ok]] = F[ok, :m, :]
         return ok
 
-    def _recursion(self, mu, x, idx, costs, inputs, K0) -> None:
+    def _recursion(self, mu, x, idx, costs, inputs, K0, base=None) -> None:
         """The backward Riccati recursion (recursion.backward_pass) over a batch, then the rollout."""
         s = self.system
         A, B, W, N, n, m = s.A, s.B, s.state_weights, s.horizon, s.n, s.m
         P = mu.shape[0]
-        psi = s.input_weights
         udp = self.protocol == "udp"
-        if udp and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
+        if udp and not self._d_finite and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
             raise _overflow("diag(Omega_g)", self.protocol)
-        keep = np.where(mu < 1.0, 1.0 - mu, 0.0)
-        # per step: the diagonal added to G, and mu as a row to scale G's and rhs' columns
-        added = psi[None] + (self._d[None] * keep if udp else 0.0)             # (P, N, m)
-        rows = mu[:, :, None, :]                                               # (P, N, 1, m)
-        K = np.empty((P, N, m, n))
-        Pm = np.broadcast_to(W[N - 1], (P, n, n)).copy()
-        AT = A.T
-        BA = np.hstack([B, A])
+        # per step: the diagonal added to G (as diagonal matrices: one addition), and mu as a row to
+        # scale G's and rhs' columns
+        added = self._added(mu)                                                # (P, N, m)
+        diagonal = np.zeros((N, P, m, m))                                      # step-major: one view a step
+        diagonal.reshape(N, P, m * m)[:, :, :: m + 1] = added.transpose(1, 0, 2)
+        rows = list(mu.transpose(1, 0, 2)[:, :, None, :])                      # N of (P, 1, m)
+        K = np.empty((N, P, m, n))
+        Pm = np.empty((P, n, n))
+        Pm[:] = W[N - 1]
+        BA = self._BA
         BAT = BA.T
+        solve, matmul = np.linalg.solve, np.matmul
         flat = P >= 64      # a large batch: one (P k)×k by k×l product instead of P small ones
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(N - 1, -1, -1):
+                row = rows[t]
                 if flat:
                     PBT = (Pm.reshape(P * n, n) @ B).reshape(P, n, m).transpose(0, 2, 1).reshape(P * m, n)
-                    G = np.multiply((PBT @ B).reshape(P, m, m).transpose(0, 2, 1), rows[:, t], order="C")  # B'PB
+                    G = np.multiply((PBT @ B).reshape(P, m, m).transpose(0, 2, 1), row, order="C")  # B'PB
                     rhs = (PBT @ A).reshape(P, m, n)
                     APA = (Pm.reshape(P * n, n) @ A).reshape(P, n, n).transpose(0, 2, 1).reshape(P * n, n) @ A
                     APA = APA.reshape(P, n, n).transpose(0, 2, 1)                       # A'(P A)
                 else:              # a small batch: few calls, [B A]' P [B A] in two products
-                    H = BAT @ (Pm @ BA)
-                    G = np.multiply(H[:, :m, :m], rows[:, t], order="C")
+                    H = matmul(BAT, matmul(Pm, BA))
+                    G = H[:, :m, :m] * row
                     rhs = H[:, :m, m:]
                     APA = H[:, m:, m:]
-                G.reshape(P, m * m)[:, :: m + 1] += added[:, t]
+                G += diagonal[t]                                       # off the diagonal, + 0.0 changes nothing
                 try:
-                    K[:, t] = np.linalg.solve(G, rhs)
+                    Kt = K[t] = solve(G, rhs)
                 except np.linalg.LinAlgError:
                     raise _overflow("the cost-to-go matrix", self.protocol) from None
-                Pm = APA - (rhs.transpose(0, 2, 1) * rows[:, t]) @ K[:, t]
+                Pm = APA - matmul(rhs.transpose(0, 2, 1) * row, Kt)
                 if t > 0:
                     Pm += W[t - 1]
-                Pm = 0.5 * (Pm + Pm.transpose(0, 2, 1))
+                Pm += Pm.transpose(0, 2, 1)                            # numpy buffers the overlap
+                Pm *= 0.5
+            K = K.transpose(1, 0, 2, 3)                                           # (P, N, m, n)
             if not (np.isfinite(self._noise) and np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
                 raise _overflow("the cost-to-go matrix", self.protocol)
-            closed = np.einsum("pi,pij,pj->p", x, s.initial_weight + Pm, x) + self._noise
-            U = np.empty((P, N, m))
-            X = np.empty((P, N, n))
-            xt = np.array(x, dtype=float)
+            # x'(Q + P_0)x in an order that does not depend on the batch (einsum's three-operand form
+            # reduces a batch of one n = 2 point in another order): a point's cost is a function of the point
+            closed = np.einsum("pj,pj->p", np.matmul(x[:, None, :], s.initial_weight + Pm)[:, 0, :], x) + self._noise
+            # the plan's mean states x_{t+1} = (A - B diag(mu_t) K_t) x_t: one product a step
+            loop = A - np.matmul(B * mu[:, :, None, :], K)                     # (P, N, n, n)
+            xs = np.empty((P, N + 1, n, 1))
+            xs[:, 0, :, 0] = x
             for t in range(N):
-                U[:, t] = -np.einsum("pij,pj->pi", K[:, t], xt)
-                xt = xt @ AT + (mu[:, t] * U[:, t]) @ B.T
-                X[:, t] = xt
-            forward = self._forward(mu, x, U, X)
+                np.matmul(loop[:, t], xs[:, t], out=xs[:, t + 1])
+            U = -np.matmul(K, xs[:, :N])[..., 0]                               # u_t = -K_t x_t
+            X = xs[:, 1:, :, 0]
+            forward = self._forward(mu, x, U, X, added, base)
         atol = np.zeros(P)
         rough = np.abs(closed - forward) > SELF_CHECK_RTOL * forward
         if np.any(rough):      # the rounding scale of x'P_0 x, only where the relative test alone fails

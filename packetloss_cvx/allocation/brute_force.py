@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import InputError
 from ..evaluator import CostEvaluator
 from ..model import System
+from ..threads import blas_limited
 from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
 
 __all__ = ["SPECULATE", "bisect", "brute_force_allocation", "midpoints"]
@@ -27,6 +28,7 @@ __all__ = ["SPECULATE", "bisect", "brute_force_allocation", "midpoints"]
 SPECULATE = 16
 
 
+@blas_limited
 def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Sequence[float],
                            G: np.ndarray | None = None, h: np.ndarray | None = None, coarse: int = 61,
                            fine: int = 61, tol: float = BRUTE_FORCE_BISECTION_TOL) -> tuple[float, float, float] | None:
@@ -58,11 +60,20 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
     h = np.zeros(0) if h is None else np.atleast_1d(h)
 
     evaluator = CostEvaluator(system, protocol, "recursion")     # the recursion, its structure built once
+    known: dict[tuple[float, float], float] = {}
+
+    def costs(points: list[tuple[float, float]]) -> list[float]:
+        """J*(mu1, mu2) at each point: the points not evaluated before in one batched recursion, the others
+        read back (the scan evaluates J*(mu1, 1) again after each new best, when the cap is above 1). A
+        point's cost does not depend on the batch it is evaluated in (batches of fewer than 64 points)."""
+        new = list(dict.fromkeys(p for p in points if p not in known))
+        if new:
+            known.update(zip(new, evaluator.costs(np.array(new, dtype=float)).tolist(), strict=True))
+        return [known[p] for p in points]
 
     def feasible(mu1: float, mu2s: list[float]) -> list[bool]:
         """J*(mu1, mu2) <= alpha for several mu2 at once: one batched recursion."""
-        points = np.column_stack([np.full(len(mu2s), mu1), mu2s])
-        return list(evaluator.costs(points) <= alpha)
+        return [c <= alpha for c in costs([(mu1, mu2) for mu2 in mu2s])]
 
     def bounds(mu1: float, cap: float) -> tuple[float, float] | None:
         """The mu2 interval [lo, top] the constraints and ``cap`` leave, or None: above cap a point
@@ -111,7 +122,7 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 
     def feasible_at(points: list[tuple[float, float]]) -> list[bool]:
         """J*(mu1, mu2) <= alpha at several points at once: one batched recursion."""
-        return list(evaluator.costs(np.array(points, dtype=float)) <= alpha)
+        return [c <= alpha for c in costs(points)]
 
     best = scan(np.linspace(0, 1, coarse), None)
     if best is None:
