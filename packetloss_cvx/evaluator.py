@@ -26,19 +26,21 @@ about ``CHUNK_BYTES`` (the dense path's stacked matrices; the recursion's gains,
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
 
-from .costs import AUTO_DENSE_MAX, refuse_dense, weight_spread
+from .batch_recursion import backward_batch, overflow_error, rollout_batch
+from .costs import AUTO_DENSE_MAX, refuse_correlated, refuse_dense, weight_spread
 from .errors import DimensionError, InputError, NumericalError, ProbabilityError
 from .model import System, check_system, numeric_array
-from .pointwise import PointEvaluator
+from .pointwise import PointEvaluator, block_diagonal
 from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import condition_estimate, udp_variance_weights
-from .results import BatchSolution
+from .results import BatchSolution, Solution
 from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .validation import MAX_ENTRIES
@@ -88,16 +90,13 @@ class CostEvaluator:
         self.weights = udp_variance_weights(s)
         self._d, self._noise = self.weights
         self._d_finite = bool(np.all(np.isfinite(self._d)))
-        self._BA = np.hstack([s.B, s.A])
         with np.errstate(over="ignore", invalid="ignore"):
             self._base = float(s.x0 @ s.initial_weight @ s.x0) + self._noise      # x0'Q x0 + noise
         #: blkdiag(Omega_1..Omega_N) while small: the forward cost's state terms in one product
         Nn = s.horizon * s.n
         self._Omega = None
         if Nn <= OMEGA_BLOCKS_MAX:
-            self._Omega = np.zeros((Nn, Nn))
-            for t in range(s.horizon):
-                self._Omega[t * s.n:(t + 1) * s.n, t * s.n:(t + 1) * s.n] = s.state_weights[t]
+            self._Omega = block_diagonal(s.state_weights)
         if method not in ("auto", "dense", "recursion"):
             raise InputError("method", f"expected 'auto', 'dense' or 'recursion', found {method!r}")
         self.requested = method
@@ -116,6 +115,26 @@ class CostEvaluator:
                     raise
                 self.method = "recursion"      # "auto" falls back, as closed_form does
         self._point = None if self._pred is None else PointEvaluator(s, self.protocol, self._pred, self.weights)
+        self._optimum: Solution | None = None
+
+    def with_protocol(self, protocol: str) -> CostEvaluator:
+        """The same system's evaluator for ``protocol``, sharing everything built (the Lyapunov sums,
+        the prediction matrices, the method's choice: none depends on the protocol); answers equal to a
+        fresh ``CostEvaluator(system, protocol, method)``'s bit for bit. O(1).
+
+        Examples
+        --------
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0],
+        ...            input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> udp = CostEvaluator(s, "tcp").with_protocol("udp")   # J*_udp = 1 - mu/2
+        >>> udp.protocol, udp.cost(np.array([0.5]))
+        ('udp', 0.75)
+        """
+        other = copy.copy(self)
+        other.protocol = check_protocol(protocol)
+        other._optimum = None
+        other._point = None if self._point is None else self._point.with_protocol(other.protocol)
+        return other
 
     # ------------------------------------------------------------------ inputs
     def _schedules(self, mus: npt.ArrayLike) -> np.ndarray:
@@ -206,6 +225,28 @@ class CostEvaluator:
         """
         costs, inputs, gains, method = self._run(mus, x0, gains=True)
         return BatchSolution(protocol=self.protocol, costs=costs, inputs=inputs, gains=gains, method=method)
+
+    def optimum(self) -> Solution:
+        """The optimal plan at the system's own channel (its mu schedule): cost, inputs U* and the first
+        step's gain K, equal to ``closed_form(system, protocol)``'s to rounding, without the closed-loop
+        eigenvalues (None: nobody asked); computed on the first call, the same frozen object after. A
+        Gilbert–Elliott channel's UDP-like cost is refused as closed_form refuses it.
+        O((N m)^3) or O(N (n^3 + m^3)) the first time, O(1) after.
+
+        Examples
+        --------
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0],
+        ...            input_weight=[1.0], mu=[1.0], x0=[1.0])
+        >>> sol = CostEvaluator(s, "tcp").optimum()      # min (1 + u)^2 + u^2 at u = -1/2, K = 1/2
+        >>> bool(np.allclose([sol.cost, sol.inputs[0, 0], sol.gain[0, 0]], [0.5, -0.5, 0.5]))
+        True
+        """
+        if self._optimum is None:
+            refuse_correlated(self.system, self.protocol)
+            sol = self.solve(self.system.mu_schedule[None])
+            self._optimum = Solution(protocol=self.protocol, cost=float(sol.costs[0]), inputs=sol.inputs[0],
+                                     gain=sol.gains[0], closed_loop_eigenvalues=None, method=sol.method)
+        return self._optimum
 
     # ------------------------------------------------------------------ paths
     def _run(self, mus, x0, gains: bool):
@@ -328,63 +369,19 @@ class CostEvaluator:
     def _recursion(self, mu, x, idx, costs, inputs, K0, base=None) -> None:
         """The backward Riccati recursion (recursion.backward_pass) over a batch, then the rollout."""
         s = self.system
-        A, B, W, N, n, m = s.A, s.B, s.state_weights, s.horizon, s.n, s.m
         P = mu.shape[0]
-        udp = self.protocol == "udp"
-        if udp and not self._d_finite and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
-            raise _overflow("diag(Omega_g)", self.protocol)
-        # per step: the diagonal added to G (as diagonal matrices: one addition), and mu as a row to
-        # scale G's and rhs' columns
+        if self.protocol == "udp" and not self._d_finite and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
+            raise overflow_error("diag(Omega_g)", self.protocol)
         added = self._added(mu)                                                # (P, N, m)
-        diagonal = np.zeros((N, P, m, m))                                      # step-major: one view a step
-        diagonal.reshape(N, P, m * m)[:, :, :: m + 1] = added.transpose(1, 0, 2)
-        rows = list(mu.transpose(1, 0, 2)[:, :, None, :])                      # N of (P, 1, m)
-        K = np.empty((N, P, m, n))
-        Pm = np.empty((P, n, n))
-        Pm[:] = W[N - 1]
-        BA = self._BA
-        BAT = BA.T
-        solve, matmul = np.linalg.solve, np.matmul
-        flat = P >= 64      # a large batch: one (P k)×k by k×l product instead of P small ones
+        K, Pm = backward_batch(s, self.protocol, mu, added)
+        if not np.isfinite(self._noise):
+            raise overflow_error("the cost-to-go matrix", self.protocol)
         with np.errstate(over="ignore", invalid="ignore"):
-            for t in range(N - 1, -1, -1):
-                row = rows[t]
-                if flat:
-                    PBT = (Pm.reshape(P * n, n) @ B).reshape(P, n, m).transpose(0, 2, 1).reshape(P * m, n)
-                    G = np.multiply((PBT @ B).reshape(P, m, m).transpose(0, 2, 1), row, order="C")  # B'PB
-                    rhs = (PBT @ A).reshape(P, m, n)
-                    APA = (Pm.reshape(P * n, n) @ A).reshape(P, n, n).transpose(0, 2, 1).reshape(P * n, n) @ A
-                    APA = APA.reshape(P, n, n).transpose(0, 2, 1)                       # A'(P A)
-                else:              # a small batch: few calls, [B A]' P [B A] in two products
-                    H = matmul(BAT, matmul(Pm, BA))
-                    G = H[:, :m, :m] * row
-                    rhs = H[:, :m, m:]
-                    APA = H[:, m:, m:]
-                G += diagonal[t]                                       # off the diagonal, + 0.0 changes nothing
-                try:
-                    Kt = K[t] = solve(G, rhs)
-                except np.linalg.LinAlgError:
-                    raise _overflow("the cost-to-go matrix", self.protocol) from None
-                Pm = APA - matmul(rhs.transpose(0, 2, 1) * row, Kt)
-                if t > 0:
-                    Pm += W[t - 1]
-                Pm += Pm.transpose(0, 2, 1)                            # numpy buffers the overlap
-                Pm *= 0.5
-            K = K.transpose(1, 0, 2, 3)                                           # (P, N, m, n)
-            if not (np.isfinite(self._noise) and np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
-                raise _overflow("the cost-to-go matrix", self.protocol)
             # x'(Q + P_0)x in an order that does not depend on the batch (einsum's three-operand form
             # reduces a batch of one n = 2 point in another order): a point's cost is a function of the point
             closed = np.einsum("pj,pj->p", np.matmul(x[:, None, :], s.initial_weight + Pm)[:, 0, :], x) + self._noise
-            # the plan's mean states x_{t+1} = (A - B diag(mu_t) K_t) x_t: one product a step
-            loop = A - np.matmul(B * mu[:, :, None, :], K)                     # (P, N, n, n)
-            xs = np.empty((P, N + 1, n, 1))
-            xs[:, 0, :, 0] = x
-            for t in range(N):
-                np.matmul(loop[:, t], xs[:, t], out=xs[:, t + 1])
-            U = -np.matmul(K, xs[:, :N])[..., 0]                               # u_t = -K_t x_t
-            X = xs[:, 1:, :, 0]
-            forward = self._forward(mu, x, U, X, added, base)
+        U, X = rollout_batch(s, mu, K, x)
+        forward = self._forward(mu, x, U, X, added, base)
         atol = np.zeros(P)
         rough = np.abs(closed - forward) > SELF_CHECK_RTOL * forward
         if np.any(rough):      # the rounding scale of x'P_0 x, only where the relative test alone fails
@@ -414,8 +411,3 @@ class CostEvaluator:
                 f"({weight_spread(self.system)}); rescale the weights")
         return agree
 
-
-def _overflow(name: str, protocol: str) -> NumericalError:
-    return NumericalError(f"{name} overflowed (the exact {protocol}-like expected cost exceeds the double-precision "
-                          "range, 1e308: the open-loop prediction of an unstable plant over this horizon); shorten "
-                          "the horizon or stabilise the plant")

@@ -14,6 +14,7 @@ rounding) or ``None`` when a check fails, and the caller then takes the checked 
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 
 import numpy as np
@@ -24,10 +25,26 @@ from .model import System
 from .prediction import Prediction
 from .tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_RTOL
 
-__all__ = ["OMEGA_DENSE_MAX", "PointEvaluator"]
+__all__ = ["OMEGA_DENSE_MAX", "PointEvaluator", "block_diagonal"]
 
 #: The forward cost uses blkdiag(Omega_1..Omega_N) as one dense matrix up to this many entries.
 OMEGA_DENSE_MAX = 2**20
+
+
+def block_diagonal(blocks: np.ndarray) -> np.ndarray:
+    """blkdiag(blocks[0], ..., blocks[N-1]) of N square n×n blocks, as one (N n)×(N n) array (the
+    entries of scipy.linalg.block_diag, in one strided assignment). O((N n)^2).
+
+    Examples
+    --------
+    >>> block_diagonal(np.array([[[1.0]], [[2.0]]])).tolist()
+    [[1.0, 0.0], [0.0, 2.0]]
+    """
+    N, n, _ = blocks.shape
+    out = np.zeros((N, n, N, n))
+    steps = np.arange(N)
+    out[steps, :, steps, :] = blocks
+    return out.reshape(N * n, N * n)
 
 
 class PointEvaluator:
@@ -49,7 +66,14 @@ class PointEvaluator:
         self.Og_diag = np.diag(pred.Omega_g).copy()
         self.g_norm = float(np.linalg.norm(self.g))
         #: blkdiag(Omega_t) as one matrix while small (one matvec per forward cost), else per block
-        self.Omega = pred.Omega if (s.horizon * s.n) ** 2 <= OMEGA_DENSE_MAX else None
+        self.Omega = block_diagonal(s.state_weights) if (s.horizon * s.n) ** 2 <= OMEGA_DENSE_MAX else None
+
+    def with_protocol(self, protocol: str) -> PointEvaluator:
+        """The same system's evaluator for ``protocol`` ("tcp" or "udp", checked by the caller), sharing
+        every vector (none depends on the protocol). O(1)."""
+        other = copy.copy(self)
+        other.udp = protocol == "udp"
+        return other
 
     def _diag(self, v: np.ndarray) -> np.ndarray:
         return self.pred.Psi + (self.pred.Omega_d * (1.0 - v) if self.udp else 0.0)

@@ -9,8 +9,10 @@ from ..costs import closed_form
 from ..model import System
 from ..results import ClaimResult
 from ..simulation import finite_horizon_costs
+from ..threads import blas_limited
 from .context import Context
 from .evaluate import evaluate
+from .ordering import optimal_plan
 
 __all__ = ["STEPS", "protocol_ranking"]
 
@@ -20,14 +22,17 @@ STEPS = 40
 TIE_RTOL = 1e-9
 
 
-def exact_cost(system: System, protocol: str, steps: int = STEPS) -> float:
+def exact_cost(system: System, protocol: str, steps: int = STEPS, gain: np.ndarray | None = None) -> float:
     """E[sum_{t<steps} x_t'Omega_1 x_t + (V u_t)'Psi_0 (V u_t) + x_T'Omega_1 x_T] from x0, with noise, for the
-    protocol's receding-horizon law u = -K x; ``inf`` when it overflows. Time O(steps n^3)."""
-    stage, terminal = finite_horizon_costs(system, closed_form(system, protocol).gain, steps)
+    protocol's receding-horizon law u = -K x (``gain``: K when the caller has it, else closed_form's);
+    ``inf`` when it overflows. Time O(steps n^3)."""
+    K = closed_form(system, protocol).gain if gain is None else gain
+    stage, terminal = finite_horizon_costs(system, K, steps)
     with np.errstate(over="ignore", invalid="ignore"):
         return float(stage.sum() + terminal)
 
 
+@blas_limited
 def protocol_ranking(ctx: Context) -> ClaimResult:
     """The TCP-like law costs less than the UDP-like one in closed loop (stationary cases, exact costs).
 
@@ -42,7 +47,7 @@ def protocol_ranking(ctx: Context) -> ClaimResult:
     def margin(s: System) -> float | None:
         if not s.is_stationary:
             return None
-        tcp, udp = exact_cost(s, "tcp"), exact_cost(s, "udp")
+        tcp, udp = (exact_cost(s, p, gain=optimal_plan(ctx, s, p).gain) for p in ("tcp", "udp"))
         if not (np.isfinite(tcp) and np.isfinite(udp)):
             return None if tcp == udp else (1.0 if udp > tcp else -1.0)
         return (udp - tcp) / max(tcp, udp, np.finfo(float).tiny) + TIE_RTOL   # < 0: the UDP-like law is cheaper

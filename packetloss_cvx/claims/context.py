@@ -10,6 +10,7 @@ import numpy as np
 from ..evaluator import CostEvaluator
 from ..io import load_example
 from ..model import System
+from ..protocols import check_protocol
 from ..qp import ExpectedCostQP
 from ..results import Solution
 
@@ -76,10 +77,14 @@ class Context:
         return self.cache[key]
 
     def evaluator(self, system: System, protocol: str) -> CostEvaluator:
-        """The cached :class:`CostEvaluator` of ``system`` (its structure built once per audit)."""
+        """The cached :class:`CostEvaluator` of ``system`` (its structure built once per audit, shared by
+        both protocols: :meth:`CostEvaluator.with_protocol`). The evaluator holds the system, so its
+        ``id`` stays unique while cached."""
+        protocol = check_protocol(protocol)
         key = (id(system), protocol)
         if key not in self.evaluators:
-            self.evaluators[key] = CostEvaluator(system, protocol)
+            other = self.evaluators.get((id(system), "udp" if protocol == "tcp" else "tcp"))
+            self.evaluators[key] = CostEvaluator(system, protocol) if other is None else other.with_protocol(protocol)
         return self.evaluators[key]
 
 

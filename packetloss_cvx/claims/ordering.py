@@ -11,13 +11,34 @@ from ..costs import closed_form, expected_cost
 from ..evaluator import CostEvaluator
 from ..model import System
 from ..prediction import prediction
-from ..results import ClaimResult
+from ..results import ClaimResult, Solution
+from ..threads import blas_limited
 from .context import Context, interior
 from .evaluate import evaluate
 
-__all__ = ["corollary_1", "corollary_2", "theorem_2", "theorem_3"]
+__all__ = ["corollary_1", "corollary_2", "optimal_plan", "theorem_2", "theorem_3"]
 
 
+def optimal_plan(ctx: Context, system: System, protocol: str) -> Solution:
+    """Theorem 1's plan at the system's own channel: from the audit's cached evaluator for one of its
+    cases (built once, shared by the claims, :meth:`CostEvaluator.optimum`), from
+    :func:`~packetloss_cvx.costs.closed_form` for any other system (a shrunk counterexample's candidates,
+    computed as before). Equal to rounding either way (tests: 1e-12).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[1.0], x0=[1])
+    >>> ctx = Context(paper={}, random=[s], seed=0)
+    >>> plan = optimal_plan(ctx, s, "tcp")             # min (1 + u)^2 + u^2 at u = -1/2
+    >>> plan is optimal_plan(ctx, s, "tcp"), bool(np.isclose(plan.cost, 0.5))
+    (True, True)
+    """
+    if any(system is case for case in ctx.cases):
+        return ctx.evaluator(system, protocol).optimum()
+    return closed_form(system, protocol)
+
+
+@blas_limited
 def theorem_2(ctx: Context) -> ClaimResult:
     """J*_udp - J*_tcp > 0 for interior channels (Theorem 2, from eq:G-inequality), by the
     cancellation-free difference.
@@ -34,7 +55,7 @@ def theorem_2(ctx: Context) -> ClaimResult:
         if not interior(s) or not np.any(prediction(s).Omega_gp @ s.x0):
             return None  # Omega_gp x0 = 0: both optima are C, the trivial equality
         # the cancellation-free difference: a strict inequality needs value > 0, not >= 0
-        value = an.cost_difference(s) / max(abs(closed_form(s, "tcp").cost), 1e-9)
+        value = an.cost_difference(s) / max(abs(optimal_plan(ctx, s, "tcp").cost), 1e-9)
         return value if value > 0 else min(value, -1e-300)
     return evaluate("theorem-2", ctx, ctx.cases, margin,
                     "margin = (J*_udp - J*_tcp)/J*_tcp, the difference computed without cancellation "
@@ -44,6 +65,7 @@ def theorem_2(ctx: Context) -> ClaimResult:
                     "both optima equal C, are skipped: there the strict inequality fails trivially.")
 
 
+@blas_limited
 def corollary_1(ctx: Context) -> ClaimResult:
     """||U*_udp|| < ||U*_tcp|| for interior channels.
 
@@ -58,14 +80,15 @@ def corollary_1(ctx: Context) -> ClaimResult:
     def margin(s: System) -> float | None:
         if not interior(s):
             return None
-        a = np.linalg.norm(closed_form(s, "tcp").inputs)
-        b = np.linalg.norm(closed_form(s, "udp").inputs)
+        a = np.linalg.norm(optimal_plan(ctx, s, "tcp").inputs)
+        b = np.linalg.norm(optimal_plan(ctx, s, "udp").inputs)
         return (a - b) / max(a, 1e-300)
     return evaluate("corollary-1", ctx, ctx.cases, margin,
                     "margin = (||U*_tcp|| - ||U*_udp||)/||U*_tcp||. The proof's step 'G_G^-1 < G_F^-1 implies "
                     "G_G^-1 g < G_F^-1 g' applies a matrix order to vectors; it is not a valid inference.")
 
 
+@blas_limited
 def theorem_3(ctx: Context) -> ClaimResult:
     """J*(mu1) > J*(mu2) for mu2 > mu1 entrywise, both protocols (Theorem 3, eq:monotonic-cost-pos-def).
 
@@ -83,9 +106,12 @@ def theorem_3(ctx: Context) -> ClaimResult:
         # J* = C - D(mu) with C = J(U = 0) independent of mu: compare the part that depends on mu
         C = expected_cost(s, np.zeros((s.horizon, s.m)), "tcp")
         worst = np.inf
+        case = any(s is c for c in ctx.cases)
         for p in ("tcp", "udp"):
-            j1 = closed_form(s.with_mu(mu1), p).cost
-            j2 = closed_form(s.with_mu(mu2), p).cost
+            if case:      # the case's cached evaluator: J* at two channels without rebuilding anything
+                j1, j2 = ctx.evaluator(s, p).cost(mu1), ctx.evaluator(s, p).cost(mu2)
+            else:
+                j1, j2 = closed_form(s.with_mu(mu1), p).cost, closed_form(s.with_mu(mu2), p).cost
             D2 = C - j2
             if D2 <= 0 or abs(j1 - j2) <= 1e-12 * C:
                 return None   # the cost does not depend on mu here, or not beyond double precision
@@ -99,6 +125,7 @@ def theorem_3(ctx: Context) -> ClaimResult:
                     "Vbar^-1 Z, whose weights fall as mu rises.")
 
 
+@blas_limited
 def corollary_2(ctx: Context) -> ClaimResult:
     """At equal optimal cost the TCP-like protocol needs a smaller shared delivery probability.
 
