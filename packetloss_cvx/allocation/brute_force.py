@@ -103,7 +103,8 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 
     def scan(points: np.ndarray, best: tuple[float, float, float] | None) -> tuple[float, float, float] | None:
         """Walk ``points`` in order, as one would point by point; J*(mu1, top) of up to SPECULATE
-        points ahead is evaluated in one batch with the current best, again after the best changes."""
+        points ahead is evaluated in one batch with the current best, again after the best changes, and
+        with it the first bisection batch of the first of them (read back if its top is feasible)."""
         k = 0
         while k < len(points):
             ahead = []                           # (mu1, lo, top) or (mu1, None) up to the batch's end
@@ -111,7 +112,12 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
                 cap = np.inf if best is None or beta[1] <= 0 else (best[0] - beta[0] * mu1) / beta[1]
                 ahead.append((float(mu1), bounds(float(mu1), cap)))
             tops = [(mu1, span[1]) for mu1, span in ahead if span is not None]
-            top_ok = iter(feasible_at(tops)) if tops else iter(())
+            spans = [(mu1, span) for mu1, span in ahead if span is not None]
+            first: list[tuple[float, float]] = []
+            if spans:            # the first bisection batch of the first point, in case its top is feasible
+                mu1, (lo, top) = spans[0]
+                first = [(mu1, v) for v in [lo, *(midpoints(lo, top) if top - lo > tol else [])]]
+            top_ok = iter([c <= alpha for c in costs(tops + first)[:len(tops)]])
             for mu1, span in ahead:
                 k += 1
                 mu2 = None if span is None else best_mu2(mu1, span[0], span[1], next(top_ok))
@@ -119,10 +125,6 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
                     best = (float(beta[0] * mu1 + beta[1] * mu2), float(mu1), float(mu2))
                     break                        # the caps ahead change: speculate again
         return best
-
-    def feasible_at(points: list[tuple[float, float]]) -> list[bool]:
-        """J*(mu1, mu2) <= alpha at several points at once: one batched recursion."""
-        return [c <= alpha for c in costs(points)]
 
     best = scan(np.linspace(0, 1, coarse), None)
     if best is None:
