@@ -486,13 +486,75 @@ def _claim_cpu(checkout: Path) -> dict:
     return json.loads(out.splitlines()[-1])
 
 
+EVALUATIONS = """
+import json, time
+import numpy as np
+from packetloss_cvx.allocation import brute_force
+from packetloss_cvx.claims.channel_allocation import GRID, alpha_levels
+from packetloss_cvx.claims.context import paper_systems
+from packetloss_cvx.claims.paper import ALLOCATION_BETAS
+from packetloss_cvx.evaluator import CostEvaluator
+from packetloss_cvx.threads import blas_limited
+s = paper_systems()["two_actuator"]
+ev = CostEvaluator(s, "udp", "recursion")
+out = {}
+for P in (1, 15):
+    mus = np.random.default_rng(0).uniform(0.0, 1.0, (P, 2))
+    run = blas_limited(lambda: [ev.costs(mus) for _ in range(200)])
+    best = np.inf
+    for _ in range(7):
+        t = time.perf_counter(); run(); best = min(best, (time.perf_counter() - t) / 200)
+    out[f"costs_P{P}_s"] = best
+calls = [0]
+real = CostEvaluator.costs
+def counted(self, *args, **kwargs):
+    calls[0] += 1
+    return real(self, *args, **kwargs)
+CostEvaluator.costs = counted
+alphas = alpha_levels(s)[0]
+t = time.process_time()
+answers = [brute_force.brute_force_allocation(s, "udp", a, b, **GRID) for b in ALLOCATION_BETAS for a in alphas]
+out["allocations_cpu_s"] = time.process_time() - t
+out["allocation_calls"] = calls[0]
+out["answers"] = [list(a) if a else None for a in answers]
+print(json.dumps(out))
+"""
+
+
+def evaluations(baseline, rows):
+    """Section 15: the audit's J* evaluations: one batched-recursion call (two_actuator, UDP-like, 1 and 15
+    points, BLAS limited once outside) and the 18 brute-force allocations of allocation-udp-perfect-channel
+    (evaluator calls, CPU seconds, answers), each checkout in a fresh process."""
+    import subprocess
+
+    def measure(checkout: Path) -> dict:
+        env = {**__import__("os").environ, "PYTHONPATH": str(Path(checkout).resolve())}
+        out = subprocess.run([sys.executable, "-c", EVALUATIONS], env=env, check=True, capture_output=True,
+                             text=True, cwd=checkout).stdout
+        return json.loads(out.splitlines()[-1])
+
+    print("\n15. J* evaluations of the audit (two_actuator, UDP-like, recursion)")
+    ours = measure(Path(__file__).resolve().parent.parent)
+    before = measure(Path(baseline)) if baseline else {}
+    print(f"{'':>36} {'this':>9}" + (f" {'baseline':>9} {'ratio':>6}" if baseline else ""))
+    for key, label, scale in (("costs_P1_s", "costs(), 1 point (us)", 1e6),
+                              ("costs_P15_s", "costs(), 15 points (us)", 1e6),
+                              ("allocation_calls", "brute force: evaluator calls", 1),
+                              ("allocations_cpu_s", "brute force: 18 allocations (CPU s)", 1)):
+        a, b = ours[key] * scale, before.get(key, float("nan")) * scale
+        print(f"{label:>36} {a:9.4g}" + (f" {b:9.4g} {b / a:5.2f}x" if baseline else ""))
+    if baseline:
+        print(f"{'same 18 answers':>36} {ours['answers'] == before['answers']}")
+    rows.append({"bench": "evaluations", "after": ours, "before": before})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
-    parser.add_argument("--baseline", help="a checkout of the previous version (sections 10 and 12: before/after)")
+    parser.add_argument("--baseline", help="a checkout of the previous version (sections 10, 12, 15: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
@@ -521,6 +583,7 @@ def main() -> None:
         12: lambda: audit_time(args.baseline, rows),
         13: lambda: startup(rows),
         14: lambda: closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows),
+        15: lambda: evaluations(args.baseline, rows),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:
