@@ -194,8 +194,6 @@ def dense_cost(system: System, U: np.ndarray, protocol: str, pred: Prediction | 
     return float(value)
 
 
-@blas_limited
-
 def refuse_correlated(system: System, protocol: str) -> None:
     """Refuse the UDP-like expected cost of a system behind a Gilbert–Elliott chain: its losses are
     correlated over time, so J_udp on the chain's predicted mu_t is not the expected cost of anything
@@ -219,6 +217,8 @@ def refuse_correlated(system: System, protocol: str) -> None:
                                     "exact_closed_form / exact_cost for the exact values, or "
                                     "system.with_mu(system.mu_schedule) for the paper's plug-in law")
 
+
+@blas_limited
 def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: str = "auto") -> float:
     """Expected cost J(U) of the N×m input sequence ``inputs`` as the paper defines it.
 

@@ -107,3 +107,15 @@ def test_overlapping_threads_leave_the_process_setting_as_it_was(two_actuator):
     finally:
         costs_module.udp_variance_weights = real
     assert _blas_threads() == before
+
+
+def test_expected_cost_runs_single_threaded_too(two_actuator, spy):
+    """expected_cost carries the limit (a stray decorator had moved to refuse_correlated)."""
+    if not _blas_threads():
+        pytest.skip("no BLAS thread pool found by threadpoolctl")
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        pl.expected_cost(two_actuator, np.zeros((two_actuator.horizon, two_actuator.m)), "udp")
+        after = _blas_threads()
+    assert spy == [{1}]
+    assert before == after
