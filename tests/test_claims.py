@@ -208,15 +208,18 @@ def test_audit_refuses_a_negative_seed(capsys):
 def test_allocation_claim_counts_each_pair(monkeypatch):
     """The allocation claim's 18 (beta, alpha) cases through a stand-in allocator (the real one takes 7 s):
     a perfect channel holds, none violates, no feasible point is not applicable, a solver failure errors."""
-    def stand_in(system, protocol, alpha, beta, coarse, fine, tol):
-        assert (protocol, coarse, fine, tol) == ("udp", 101, 21, 1e-8)
+    def stand_in_one(alpha, beta):
         if alpha == 6.0:
-            raise pl.SolverError("numerical trouble")
+            return pl.SolverError("numerical trouble")       # the searches side by side hand errors back
         if alpha == 8.0:
             return None
         return (1.68, 1.0, 0.68) if (alpha, tuple(beta)) == (4.78, (1.0, 1.0)) else (0.5, 0.5, 0.0)
 
-    monkeypatch.setattr(channel_allocation, "brute_force_allocation", stand_in)
+    def stand_in(system, protocol, cases, coarse, fine, tol):
+        assert (protocol, coarse, fine, tol) == ("udp", 101, 21, 1e-8)
+        return [stand_in_one(*case) for case in cases]
+
+    monkeypatch.setattr(channel_allocation, "brute_force_allocations", stand_in)
     (r,) = audit(random=0, only=["allocation-udp-perfect-channel"])
     assert r.outcomes == "+E.---" + "-E.---" * 2
     assert (r.verdict, r.checked, r.violations, r.errors) == ("fails", 12, 11, 3)
@@ -226,7 +229,7 @@ def test_allocation_claim_counts_each_pair(monkeypatch):
     def failing(*args, **kwargs):
         raise pl.SolverError("always")
 
-    monkeypatch.setattr(channel_allocation, "brute_force_allocation", failing)
+    monkeypatch.setattr(channel_allocation, "brute_force_allocations", failing)
     (r,) = audit(random=0, only=["allocation-udp-perfect-channel"])
     assert (r.verdict, r.checked, r.errors, r.counterexample) == ("inconclusive", 0, 18, None)
 

@@ -5,7 +5,8 @@
   against the point evaluated alone.
 * The brute-force allocator (batched speculation, read-back points) takes the decisions of the
   plain search its docstring describes, written here point by point: the same (beta'mu, mu1, mu2)
-  to the last bit.
+  to the last bit; run side by side (requests pooled), each case answers what it answers alone, and
+  a case whose evaluation fails fails alone.
 """
 
 import numpy as np
@@ -13,7 +14,7 @@ import pytest
 from scipy.linalg import block_diag
 
 import packetloss_cvx as pl
-from packetloss_cvx.allocation.brute_force import brute_force_allocation
+from packetloss_cvx.allocation.brute_force import brute_force_allocation, brute_force_allocations
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.claims.context import Context
 from packetloss_cvx.claims.ordering import optimal_plan
@@ -129,3 +130,27 @@ def test_the_audits_plans_come_from_its_cached_evaluators(two_actuator):
     other = two_actuator.with_mu([0.3, 0.6])                                 # not a case: closed_form's answer
     assert optimal_plan(ctx, other, "udp").closed_loop_eigenvalues is not None
     assert abs(plan.cost - pl.closed_form(two_actuator, "udp").cost) <= 1e-12 * plan.cost
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_searches_side_by_side_answer_what_each_answers_alone(two_actuator, protocol):
+    cases = [(4.78, (1.0, 1.0)), (6.0, (0.05, 1.0)), (8.0, (1.0, 0.05)), (20.0, (1.0, 2.0)),
+             (5.0, (1.0, 1.0), np.array([[1.0, -1.0]]), np.array([0.1])), (1.0, (1.0, 1.0))]   # the last: none
+    grid = {"coarse": 21, "fine": 11, "tol": 1e-8}
+    alone = [brute_force_allocation(two_actuator, protocol, *case, **grid) for case in cases]
+    assert alone[-1] is None
+    assert brute_force_allocations(two_actuator, protocol, cases, **grid) == alone
+
+
+def test_a_failing_search_fails_alone():
+    """x' = 3x over 330 steps: J* overflows at mu = (0, 0), which only the unconstrained search asks."""
+    s = pl.System(A=3 * np.eye(2), B=np.eye(2), horizon=330, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+                  mu=[0.5, 0.5], x0=[1.0, 1.0])
+    high = (50.0, (1.0, 1.0), -np.eye(2), np.array([-0.9, -0.9]))          # mu1, mu2 >= 0.9 only
+    grid = {"coarse": 5, "fine": 3}
+    with pytest.raises(pl.NumericalError, match="overflowed") as alone:
+        brute_force_allocation(s, "tcp", 50.0, (1.0, 1.0), **grid)
+    ok, failed = brute_force_allocations(s, "tcp", [high, (50.0, (1.0, 1.0))], **grid)
+    assert ok == brute_force_allocation(s, "tcp", *high, **grid) == (1.9, 1.0, 0.9)
+    assert isinstance(failed, pl.NumericalError)
+    assert str(failed) == str(alone.value)
