@@ -32,6 +32,9 @@ __all__ = ["SPECULATE", "bisect", "bisect_steps", "brute_force_allocation", "bru
 
 #: How many grid points ahead J*(mu1, top) is evaluated in one batch (decisions as point by point).
 SPECULATE = 16
+#: Bisection levels per batch: alone, 2^4 - 1 midpoints a batched recursion (its fixed cost dominates);
+#: side by side, where the cases share each recursion's fixed cost, fewer wasted midpoints pay more.
+DEPTH, POOLED_DEPTH = 4, 3
 
 Point = tuple[float, float]
 Answer = tuple[float, float, float] | None
@@ -112,7 +115,7 @@ def brute_force_allocations(system: System, protocol: str, cases: Sequence[tuple
 
     for k, case in enumerate(cases):
         alpha, beta, G, h = (*case, None, None)[:4]
-        advance(k, _search(alpha, beta, G, h, coarse, fine, tol), None)
+        advance(k, _search(alpha, beta, G, h, coarse, fine, tol, DEPTH if len(cases) == 1 else POOLED_DEPTH), None)
     while requests:
         try:
             evaluate([p for _, points in requests.values() for p in points])
@@ -131,7 +134,7 @@ def brute_force_allocations(system: System, protocol: str, cases: Sequence[tuple
 
 
 def _search(alpha: float, beta: Sequence[float], G: np.ndarray | None, h: np.ndarray | None, coarse: int,
-            fine: int, tol: float) -> Search:
+            fine: int, tol: float, depth: int = 4) -> Search:
     """One case's search: yields lists of points, is sent their costs J*(mu1, mu2), returns the answer."""
     beta = np.asarray(beta, dtype=float)
     G = np.zeros((0, 2)) if G is None else np.atleast_2d(G)
@@ -157,11 +160,11 @@ def _search(alpha: float, beta: Sequence[float], G: np.ndarray | None, h: np.nda
         one batch. O(log2(1/tol)) batches at most."""
         if not top_ok:
             return None
-        tree = midpoints(lo, top) if top - lo > tol else []
+        tree = midpoints(lo, top, depth) if top - lo > tol else []
         ok = [c <= alpha for c in (yield [(mu1, v) for v in [lo, *tree]])]
         if ok[0]:
             return lo
-        steps = bisect_steps(lo, top, tol, first=ok[1:])
+        steps = bisect_steps(lo, top, tol, depth, first=ok[1:])
         try:
             tree = next(steps)
             while True:
@@ -184,7 +187,7 @@ def _search(alpha: float, beta: Sequence[float], G: np.ndarray | None, h: np.nda
             first: list[Point] = []
             if spans:            # the first bisection batch of the first point, in case its top is feasible
                 mu1, (lo, top) = spans[0]
-                first = [(mu1, v) for v in [lo, *(midpoints(lo, top) if top - lo > tol else [])]]
+                first = [(mu1, v) for v in [lo, *(midpoints(lo, top, depth) if top - lo > tol else [])]]
             values = (yield tops + first) if tops else []
             top_ok = iter([c <= alpha for c in values[:len(tops)]])
             for mu1, span in ahead:
