@@ -36,7 +36,9 @@ def test_memoryless_point_is_the_bernoulli_optimum_and_bursts_cost_more(capsys, 
     rows = np.loadtxt(tmp_path / "burstiness.csv", delimiter=",", skiprows=1)
     assert rows.shape == (3, 5)
     assert np.array_equal(rows[:, 0], [0.0, 0.5, 0.9])
-    assert np.array_equal(rows[:, 3], data["udp"]["plugin"])           # 17 digits read back exactly
+    assert np.array_equal(rows[:, 3], data["udp"]["plugin"])           # the shortest repr reads back exactly
+    lambdas = [line.split(",")[0] for line in (tmp_path / "burstiness.csv").read_text().splitlines()[1:]]
+    assert lambdas == ["0", "0.5", "0.9"]                              # not 0.90000000000000002 (%.17g)
     assert (tmp_path / "burstiness.png").stat().st_size > 1000
 
 
