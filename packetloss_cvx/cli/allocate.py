@@ -73,7 +73,8 @@ def run(args: argparse.Namespace) -> CommandResult:
             ("J*(mu*)", f"{fmt.num(result.cost, 10)} <= alpha = {fmt.num(alpha)}"),
             ("lower bound", f"{fmt.num(result.lower_bound)} on beta'mu (proved)"),
             ("gap", f"{result.gap:.1e}"),
-            ("method", result.method + (f", {result.boxes} boxes" if result.boxes else ""))]
+            ("method", result.method + (f", {result.boxes} box" + ("es" if result.boxes > 1 else "")
+                                        if result.boxes else ""))]
     name = system.name or args.file
     if result.status == "optimal":
         return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]
