@@ -61,3 +61,16 @@ def test_bad_burstiness_is_one_line_and_exit_2(capsys, argv, field):
     assert not out
     assert err.count("\n") == 1
     assert field in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "pendulum_bursty", "--mu-grid", "3"],
+    ["allocate", "pendulum_bursty", "--protocol", "udp", "--alpha", "1e5", "--beta", "1"],
+])
+def test_a_chain_file_outside_burstiness_points_to_the_option(capsys, argv):
+    # on the command line the way out is an option, not a Python function
+    code, _, err = _run(capsys, *argv)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1
+    assert "packetloss-cvx sweep pendulum_bursty --burstiness" in err
+    assert "packetloss_cvx.markov" not in err

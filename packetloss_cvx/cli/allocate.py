@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     if system.channel is not None:   # the search replaces the channel by Bernoulli mu: not the file's chain
         raise InputError("channel", "allocate chooses independent (Bernoulli) delivery probabilities mu, which would "
                                     "replace this file's Gilbert-Elliott chain: give a file with [channel] mu (or "
-                                    "--mu), or vary the chain with packetloss_cvx.markov.burstiness_sweep")
+                                    "--mu), or vary the chain's burstiness with `packetloss-cvx sweep "
+                                    f"{args.file} --burstiness 0:0.9:10`")
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     if args.gap is not None:

@@ -197,6 +197,10 @@ def run(args: argparse.Namespace) -> CommandResult:
     if getattr(args, "burstiness", None) is not None:
         return bursty(args)
     system = load_system(args.file)
+    if system.channel is not None:     # the API's message names a Python function; here, the option
+        raise InputError("FILE", f"{args.file} has a Gilbert-Elliott (Markov) channel; --mu-grid, --mu-list, "
+                                 "--x0-scales and --horizons evaluate independent Bernoulli channels: sweep its "
+                                 f"burstiness with `packetloss-cvx sweep {args.file} --burstiness 0:0.9:10`")
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     if args.netcdf and args.out is None:     # before the sweep, not after it
         raise InputError("--netcdf", "needs --out DIR")
