@@ -1,17 +1,16 @@
 """The expected-cost minimisation as cvxpy QPs solved with Clarabel (the solver twin).
 
-Two formulations of the same problem, both in the mean delivered input ``Z = Vbar U`` and
-both DPP: built once from ``cp.Parameter``s (the state ``x``; for a stationary channel
-``1/mu`` and ``1/mu - 1`` per channel) and re-solved by assigning new values, without
-recompiling. No Parameter multiplies a Variable, so cvxpy's canonicalisation is linear in N
-(until 2026-11-22 ``multiply(v, U)`` kept an (N m)×(N m) map: docs/performance.md).
+Two formulations of the same problem, both in the mean delivered input ``Z = Vbar U``, both DPP
+and re-solved by assigning new values to their ``cp.Parameter``s, without recompiling.
 
-* ``"condensed"``: variables Z only; ``sum_squares(L Phi x + L Gamma Z)``, with every datum a
+* ``"condensed"``: variables Z only; ``sum_squares(L Phi x + L Gamma Z)`` with every datum a
   Parameter: one compiled problem per padded shape serves every system (:mod:`.qp_shared`).
   Dense data of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
-* ``"sparse"``: mean states and Z as variables, the dynamics
-  ``xhat_{t+1} = A xhat_t + B z_t`` as equality constraints; every constant is
-  block-sparse, so build and solve are O(N (n + m)^3), memory O(N (n + m)^2).
+* ``"sparse"``: mean states and Z as variables, the dynamics ``xhat_{t+1} = A xhat_t + B z_t`` as
+  equality constraints; Parameters: the state x and, for a stationary channel, ``1/mu`` and
+  ``1/mu - 1`` per channel. No Parameter multiplies a Variable, so the canonicalisation is linear in N
+  (``multiply(v, U)`` kept an (N m)×(N m) map: docs/performance.md); every constant is block-sparse,
+  so build and solve are O(N (n + m)^3), memory O(N (n + m)^2).
 
 The input terms of eq:opt-lqg-simplest with Lemma 1, ``U' Vbar Psi U + [UDP] U' Vbar Omega_d
 (I - Vbar) U``, are ``sum (psi + [UDP] diag(Omega_g)(1 - mu)) z^2 / mu``; the diagonal of Omega_g
@@ -86,21 +85,22 @@ def qp_memory_estimate(system: System, formulation: str) -> float:
     Measured (tracemalloc, compile and first solve; n = 1..100, m = 1..8, N up to 8000, full
     weights): about 250 N n^2 bytes for the state terms, 350 N n m for the dynamics' input
     columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB; the
-    condensed form adds its dense (N n)×(N m) constants (48 bytes per entry measured). No
-    Parameter multiplies a Variable (:class:`ExpectedCostQP`), so cvxpy keeps no (N m)^2 map.
+    condensed form adds its dense (N n)×(N m) data, a Parameter since the problems are shared by shape
+    (150 bytes per entry measured at the peak, 66-88 when they were constants: :mod:`.qp_shared`). In
+    the sparse form no Parameter multiplies a Variable, so cvxpy keeps no (N m)^2 map.
 
     Examples
     --------
     >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> qp_memory_estimate(s, "sparse")                 # 260 + 400 + 650 + 1e7
     10001310.0
-    >>> qp_memory_estimate(s, "condensed") - qp_memory_estimate(s, "sparse")   # one 1x1 dense constant
-    48.0
+    >>> qp_memory_estimate(s, "condensed") - qp_memory_estimate(s, "sparse")   # one 1x1 dense block
+    150.0
     """
     N, n, m = system.horizon, system.n, system.m
     needed = 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
     if formulation == "condensed":
-        needed += 48.0 * (N * n) * (N * m)
+        needed += 150.0 * (N * n) * (N * m)
     return needed
 
 

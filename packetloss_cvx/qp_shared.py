@@ -9,11 +9,11 @@ The condensed QP of :class:`~packetloss_cvx.qp.ExpectedCostQP` is, with all of a
 ``w = (psi + [UDP] d (1 - mu)) / (mu s)`` (eq:opt-lqg-simplest with Lemma 1 in the mean delivered input
 ``z = mu u``; ``s`` the common weight scale). Nothing about a system is compiled in: one problem of
 shape (R, K) serves every system, both protocols, stationary channels and schedules whose data fit.
-Shapes are padded to a bucket (:func:`padded`: 1, 2, 3, 4, 6, 8, 12, 16, 24, ...): zero rows of
+Shapes are padded to a bucket (:func:`padded`: 8, 16, ..., 64, then 96, 128, 192, ...): zero rows of
 ``c`` and ``G``, and padded variables with ``r = 1`` and a zero column of ``G``, so that a padded z is 0
 at the optimum and adds nothing to the objective. The 200 random systems of the audit have 102
-distinct (n, m, N) and fall into a few dozen buckets: the audit compiles a few dozen problems
-instead of 404 (docs/performance.md, "Audit: compiled QPs shared across systems").
+distinct (n, m, N) and fall into 15 buckets: the audit compiles 15 condensed problems instead of
+404 (docs/performance.md, "Audit: compiled QPs shared across systems").
 
 Every solve assigns all three Parameters and runs Clarabel **cold** (``warm_start=False``): cvxpy's
 default re-solve updates the cached Clarabel solver in place, which keeps the Ruiz equilibration of
@@ -68,18 +68,20 @@ _cache: OrderedDict[tuple[int, int], CondensedQP] = OrderedDict()
 
 
 def padded(size: int) -> int:
-    """The bucket of a dimension: the least of 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, ... (2^k and 3 2^k)
-    that is >= ``size``; at most 1.5 times ``size``. O(log size).
+    """The bucket of a dimension: the least of 8, 16, 24, ..., 64 (multiples of 8), then 96, 128, 192,
+    256, ... (2^k and 3 2^(k-1)) that is >= ``size``. Beyond 64 a bucket is at most 1.5 times ``size``.
+    The audit's 200 random systems (R, K <= 32) fall into 15 buckets (58 with 1, 2, 3, 4, 6, 8, 12, ...:
+    more compiles than the smaller solves save; docs/performance.md). O(log size).
 
     Examples
     --------
-    >>> [padded(k) for k in (0, 1, 2, 3, 5, 7, 9, 13, 17, 25, 33, 60)]
-    [1, 1, 2, 3, 6, 8, 12, 16, 24, 32, 48, 64]
+    >>> [padded(k) for k in (0, 1, 8, 9, 60, 65, 97, 129, 200)]
+    [8, 8, 8, 16, 64, 96, 128, 192, 256]
     """
-    if size <= 1:
-        return 1
+    if size <= 64:
+        return 8 * max(1, -(-int(size) // 8))
     power = 1 << (int(size) - 1).bit_length()           # least power of two >= size
-    return 3 * power // 4 if power >= 4 and 3 * power // 4 >= size else power
+    return 3 * power // 4 if 3 * power // 4 >= size else power
 
 
 class CondensedQP:
@@ -95,7 +97,7 @@ class CondensedQP:
 
     Examples
     --------
-    >>> qp = CondensedQP(2, 2)                          # min (1 + z)^2 + z^2: z = -1/2, value 1/2
+    >>> qp = CondensedQP(2, 2)       # data of 1 x 1 in a 2 x 2 problem: min (1 + z)^2 + z^2, z = -1/2, value 1/2
     >>> z, value, status = qp.solve(np.array([1.0]), np.array([[1.0]]), np.array([1.0]), "a 1x1 QP")
     >>> status, bool(abs(z[0] + 0.5) < 1e-8), bool(abs(value - 0.5) < 1e-8)
     ('optimal', True, True)
@@ -152,9 +154,9 @@ def condensed_problem(rows: int, cols: int) -> CondensedQP:
     Examples
     --------
     >>> clear_cache()
-    >>> a, b = condensed_problem(5, 7), condensed_problem(6, 8)       # both fit the bucket (6, 8)
+    >>> a, b = condensed_problem(5, 7), condensed_problem(8, 1)       # both fit the bucket (8, 8)
     >>> a is b, a.shape, a.shared, cached_shapes()
-    (True, (6, 8), True, [(6, 8)])
+    (True, (8, 8), True, [(8, 8)])
     >>> condensed_problem(200, 100).shared                             # 256 x 128 > SHARED_MAX_ENTRIES
     False
     """
@@ -178,7 +180,7 @@ def cached_shapes() -> list[tuple[int, int]]:
     Examples
     --------
     >>> clear_cache(); _ = condensed_problem(1, 3); cached_shapes()
-    [(1, 3)]
+    [(8, 8)]
     """
     with _lock:
         return list(_cache)
