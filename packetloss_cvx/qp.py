@@ -117,16 +117,16 @@ def _pick(system: System, formulation: str) -> str:
 class ExpectedCostQP:
     """One protocol's expected-cost QP for one system, re-solvable for new mu or x0.
 
+    The condensed form solves a problem compiled once per padded shape and shared with every other
+    system of that shape in the process (:func:`.qp_shared.condensed_problem`, thread-safe); the
+    sparse form compiles its own. An instance itself is not thread-safe (it keeps the current x, mu).
+
     Parameters
     ----------
     system : System
         Supplies A, B, weights and horizon (fixed) and the initial mu, x0 (parameters).
     protocol : {"tcp", "udp"}
     formulation : {"condensed", "sparse", "auto"}
-
-    The condensed form solves a problem compiled once per padded shape and shared with every other
-    system of that shape in the process (:func:`.qp_shared.condensed_problem`, thread-safe); the
-    sparse form compiles its own. An instance itself is not thread-safe (it keeps the current x, mu).
 
     Examples
     --------
