@@ -25,12 +25,13 @@ Thread-safety and processes: the cache is per process (a module-level dict behin
 worker process builds its own on first use. Each compiled problem carries a lock held from the
 assignment of its Parameters to the read of its solution, so threads sharing a bucket take turns.
 
-Complexity and memory: a compile costs about 6 ms for the audit's sizes and is paid once per
-bucket; a re-solve costs O(R K) to assign and map the Parameters into Clarabel's data plus
-Clarabel's O(K^3 + R K^2) solve. cvxpy keeps, per bucket, a parameter map with about R K entries
-(plus Clarabel's data of the same order; measured in tests/test_qp_shared.py): at most
-``SHARED_CACHE_SIZE`` buckets of at most ``SHARED_MAX_ENTRIES`` entries each are kept
-(least recently used first out); a larger shape gets a private, uncached problem of its exact shape.
+Complexity and memory: a compile costs 6-10 ms for the audit's sizes and is paid once per bucket;
+a re-solve costs O(R K) to assign and map the Parameters into Clarabel's data plus Clarabel's
+O(K^3 + R K^2) solve (about 1.4 ms through ExpectedCostQP.solve at R, K <= 32). cvxpy keeps, per
+bucket, a parameter map with about R K entries: about 72 bytes per entry of G with its data
+(tracemalloc, docs/performance.md; 1.2 MB at 128 × 128). At most ``SHARED_CACHE_SIZE`` buckets of at
+most ``SHARED_MAX_ENTRIES`` entries each are kept (least recently used first out; about 60 MB at
+worst); a larger shape gets a private, uncached problem of its exact shape.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .convex import solve_problem
+from .errors import InputError
 from .linalg import psd_factor
 from .model import System
 from .prediction import prediction
@@ -56,8 +58,8 @@ __all__ = [
 #: At most this many compiled buckets are kept per process (least recently used dropped first).
 SHARED_CACHE_SIZE = 48
 
-#: A padded shape with more than R K = SHARED_MAX_ENTRIES entries of G is not cached (its parameter map
-#: alone would be tens of MB): it gets a private problem of its exact shape (R, K).
+#: A padded shape with more than R K = SHARED_MAX_ENTRIES entries of G is not cached (so that the cache
+#: holds at most 48 x 1.2 MB): it gets a private problem of its exact shape (R, K), compiled per object.
 SHARED_MAX_ENTRIES = 2**14
 
 #: Clarabel settings of every solve here: the QP twin's tight tolerances, a cold solver (module docstring).
@@ -126,14 +128,16 @@ class CondensedQP:
 
         Raises
         ------
+        InputError
+            The data do not fit the problem's shape.
         SolverError
             cvxpy or Clarabel failed outright (:func:`~packetloss_cvx.convex.solve_problem`).
         """
         R, K = self.shape
         rows, k = G.shape
         if rows > R or k > K or c.shape != (rows,) or r.shape != (k,):
-            raise ValueError(f"data of shape c {c.shape}, G {G.shape}, r {r.shape} do not fit a problem of shape "
-                             f"{self.shape}")
+            raise InputError("G", f"data of shape c {c.shape}, G {G.shape}, r {r.shape} do not fit a problem of "
+                                  f"shape {self.shape}")
         c_full, G_full, r_full = np.zeros(R), np.zeros((R, K)), np.ones(K)
         c_full[:rows], G_full[:rows, :k], r_full[:k] = c, G, r
         with self.lock:

@@ -154,3 +154,8 @@ def test_threads_sharing_a_bucket_get_their_own_answers():
     for k, answers in got.items():
         assert all(np.array_equal(a.inputs, expected[k].inputs) and a.cost == expected[k].cost for a in answers)
     assert len(got) == 6
+
+
+def test_data_larger_than_the_problem_are_refused():
+    with pytest.raises(pl.InputError, match="do not fit"):
+        CondensedQP(8, 8).solve(np.zeros(9), np.zeros((9, 2)), np.ones(2), "too many rows")
