@@ -12,7 +12,7 @@ from ..simulation import finite_horizon_costs
 from ..threads import blas_limited
 from .context import Context
 from .evaluate import evaluate
-from .ordering import optimal_plan
+from .ordering import case_ids, optimal_plan
 
 __all__ = ["STEPS", "protocol_ranking"]
 
@@ -44,10 +44,12 @@ def protocol_ranking(ctx: Context) -> ClaimResult:
     >>> r.verdict, bool(np.isclose(r.worst, (3 - 2.75) / 3, atol=1e-7))
     ('holds', True)
     """
+    cases = case_ids(ctx)
+
     def margin(s: System) -> float | None:
         if not s.is_stationary:
             return None
-        tcp, udp = (exact_cost(s, p, gain=optimal_plan(ctx, s, p).gain) for p in ("tcp", "udp"))
+        tcp, udp = (exact_cost(s, p, gain=optimal_plan(ctx, s, p, id(s) in cases).gain) for p in ("tcp", "udp"))
         if not (np.isfinite(tcp) and np.isfinite(udp)):
             return None if tcp == udp else (1.0 if udp > tcp else -1.0)
         return (udp - tcp) / max(tcp, udp, np.finfo(float).tiny) + TIE_RTOL   # < 0: the UDP-like law is cheaper

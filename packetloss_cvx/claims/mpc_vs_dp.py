@@ -90,7 +90,7 @@ def mpc_vs_dp(ctx: Context) -> ClaimResult:
     found: dict[int, dict[str, float] | None | Exception] = {}
     for s in ctx.cases:
         try:
-            found[id(s)] = relative_excess(s, lambda p, s=s: optimal_plan(ctx, s, p).gain)
+            found[id(s)] = relative_excess(s, lambda p, s=s: optimal_plan(ctx, s, p, case=True).gain)
         except (ArithmeticError, ValueError) as err:
             found[id(s)] = err
 

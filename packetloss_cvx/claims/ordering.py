@@ -16,14 +16,15 @@ from ..threads import blas_limited
 from .context import Context, interior
 from .evaluate import evaluate
 
-__all__ = ["corollary_1", "corollary_2", "optimal_plan", "theorem_2", "theorem_3"]
+__all__ = ["case_ids", "corollary_1", "corollary_2", "optimal_plan", "theorem_2", "theorem_3"]
 
 
-def optimal_plan(ctx: Context, system: System, protocol: str) -> Solution:
+def optimal_plan(ctx: Context, system: System, protocol: str, case: bool | None = None) -> Solution:
     """Theorem 1's plan at the system's own channel: from the audit's cached evaluator for one of its
     cases (built once, shared by the claims, :meth:`CostEvaluator.optimum`), from
     :func:`~packetloss_cvx.costs.closed_form` for any other system (a shrunk counterexample's candidates,
-    computed as before). Equal to rounding either way (tests: 1e-12).
+    computed as before). Equal to rounding either way (tests: 1e-12). ``case``: whether ``system`` is one
+    of the cases, when the caller knows (:func:`case_ids`), else looked up.
 
     Examples
     --------
@@ -33,9 +34,23 @@ def optimal_plan(ctx: Context, system: System, protocol: str) -> Solution:
     >>> plan is optimal_plan(ctx, s, "tcp"), bool(np.isclose(plan.cost, 0.5))
     (True, True)
     """
-    if _is_case(ctx, system):
+    if _is_case(ctx, system) if case is None else case:
         return ctx.evaluator(system, protocol).optimum()
     return closed_form(system, protocol)
+
+
+def case_ids(ctx: Context) -> set[int]:
+    """The ``id`` of each of the audit's cases: they live as long as ``ctx``, so no other object shares
+    one while it does (``id(system) in case_ids(ctx)`` says whether ``system`` is a case). O(cases).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[1.0], x0=[1])
+    >>> ids = case_ids(Context(paper={}, random=[s], seed=0))
+    >>> id(s) in ids, id(s.with_mu([0.5])) in ids
+    (True, False)
+    """
+    return {id(case) for case in ctx.cases}
 
 
 def _is_case(ctx: Context, system: System) -> bool:
@@ -58,11 +73,13 @@ def theorem_2(ctx: Context) -> ClaimResult:
     >>> r.verdict, bool(np.isclose(r.worst, 1 / 8))
     ('holds', True)
     """
+    cases = case_ids(ctx)
+
     def margin(s: System) -> float | None:
         if not interior(s) or not np.any(prediction(s).Omega_gp @ s.x0):
             return None  # Omega_gp x0 = 0: both optima are C, the trivial equality
         # the cancellation-free difference: a strict inequality needs value > 0, not >= 0
-        value = an.cost_difference(s) / max(abs(optimal_plan(ctx, s, "tcp").cost), 1e-9)
+        value = an.cost_difference(s) / max(abs(optimal_plan(ctx, s, "tcp", id(s) in cases).cost), 1e-9)
         return value if value > 0 else min(value, -1e-300)
     return evaluate("theorem-2", ctx, ctx.cases, margin,
                     "margin = (J*_udp - J*_tcp)/J*_tcp, the difference computed without cancellation "
@@ -84,11 +101,13 @@ def corollary_1(ctx: Context) -> ClaimResult:
     >>> r.verdict, bool(np.isclose(r.worst, 1 / 4))
     ('holds', True)
     """
+    cases = case_ids(ctx)
+
     def margin(s: System) -> float | None:
         if not interior(s):
             return None
-        a = np.linalg.norm(optimal_plan(ctx, s, "tcp").inputs)
-        b = np.linalg.norm(optimal_plan(ctx, s, "udp").inputs)
+        a = np.linalg.norm(optimal_plan(ctx, s, "tcp", id(s) in cases).inputs)
+        b = np.linalg.norm(optimal_plan(ctx, s, "udp", id(s) in cases).inputs)
         return (a - b) / max(a, 1e-300)
     return evaluate("corollary-1", ctx, ctx.cases, margin,
                     "margin = (||U*_tcp|| - ||U*_udp||)/||U*_tcp||. The proof's step 'G_G^-1 < G_F^-1 implies "
@@ -106,6 +125,8 @@ def theorem_3(ctx: Context) -> ClaimResult:
     >>> theorem_3(ctx).verdict                       # J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2 both fall as mu rises
     'holds'
     """
+    cases = case_ids(ctx)
+
     def margin(s: System) -> float | None:
         rng = np.random.default_rng(ctx.seed + 3)
         mu1 = np.clip(s.mu_schedule, 0.01, 0.99)
@@ -113,7 +134,7 @@ def theorem_3(ctx: Context) -> ClaimResult:
         # J* = C - D(mu) with C = J(U = 0) independent of mu: compare the part that depends on mu
         C = expected_cost(s, np.zeros((s.horizon, s.m)), "tcp")
         worst = np.inf
-        case = _is_case(ctx, s)
+        case = id(s) in cases
         for p in ("tcp", "udp"):
             if case:      # the case's cached evaluator: J* at two channels without rebuilding anything
                 j1, j2 = ctx.evaluator(s, p).cost(mu1), ctx.evaluator(s, p).cost(mu2)
