@@ -42,7 +42,9 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     Omega_d (I - Vbar) is the loss-variance term of the UDP-like law, eq:opt-law-2.
 
     Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
-    ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m).
+    ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m), the first time for a system
+    structure: ``d`` (read-only) is kept on the system and its with_mu / with_x0 copies
+    (:meth:`~packetloss_cvx.model.System.structure_cached`; it depends on neither mu nor x0).
 
     Examples
     --------
@@ -54,6 +56,12 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     >>> bool(np.allclose(d.ravel(), prediction(s).Omega_d))    # the dense diagonal of Omega_g
     True
     """
+    return system.structure_cached("recursion.udp_variance_weights", lambda: _lyapunov_weights(system),
+                                   nbytes=8 * system.horizon * system.m)
+
+
+def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
+    """udp_variance_weights, computed: the backward Lyapunov sum S_t, O(N n^3)."""
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
     d = np.empty((N, system.m))
     noise = 0.0
@@ -66,6 +74,7 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
                 noise += float(np.sum(S * system.noise_cov))
             if t > 0:
                 S = W[t - 1] + A.T @ S @ A
+    d.setflags(write=False)
     return d, noise
 
 

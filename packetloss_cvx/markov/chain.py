@@ -25,8 +25,7 @@ import numpy.typing as npt
 
 from ..channel import GilbertElliott
 from ..errors import InputError
-from ..io import system_from_dict
-from ..model import System
+from ..model import System, check_system
 from ..protocols import check_protocol
 
 __all__ = [
@@ -106,7 +105,8 @@ def plugin_schedule(channel: GilbertElliott, horizon: int, protocol: str,
 
 def attach_channel(system: System, channel: GilbertElliott) -> System:
     """A copy of ``system`` behind the Markov ``channel`` (its mu or mu_schedule replaced by the
-    channel's predicted schedule). Time O(size of the system).
+    channel's predicted schedule): :meth:`~packetloss_cvx.model.System.with_channel`, which validates the
+    channel and the schedule and keeps the system's other, already validated, fields. Time O(N m).
 
     Examples
     --------
@@ -116,7 +116,7 @@ def attach_channel(system: System, channel: GilbertElliott) -> System:
     """
     if not isinstance(channel, GilbertElliott):
         raise InputError("channel", f"expected a GilbertElliott, found {type(channel).__name__}")
-    return system_from_dict({**system.to_dict(), "channel": channel.to_dict()})
+    return check_system(system).with_channel(channel)
 
 
 def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence[bool]] = ()) -> System:
