@@ -53,7 +53,8 @@ def test_with_channel_equals_the_validated_round_trip(seed):
         assert np.array_equal(getattr(fast, key), getattr(slow, key)), key
     assert fast.channel == slow.channel
     assert fast.to_dict() == slow.to_dict()
-    assert s.channel is None and s.mu_schedule is not fast.mu_schedule      # the original is unchanged
+    assert s.channel is None                                                # the original is unchanged
+    assert s.mu_schedule is not fast.mu_schedule
 
 
 def test_with_channel_from_a_toml_table_validates_it_and_names_the_field():
@@ -90,7 +91,9 @@ def test_cached_prediction_equals_a_fresh_one(seed):
         assert cached.noise_term == reference.noise_term
         d, noise = udp_variance_weights(copy)
         d_ref, noise_ref = udp_variance_weights(fresh(copy))
-        assert np.array_equal(d, d_ref) and noise == noise_ref and not d.flags.writeable
+        assert np.array_equal(d, d_ref)
+        assert noise == noise_ref
+        assert not d.flags.writeable
 
 
 def test_noise_term_is_shared_and_equals_the_trace():

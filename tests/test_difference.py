@@ -1,0 +1,55 @@
+"""The shared-channel J_Delta on a whole grid (two symmetric eigendecompositions) against the pointwise
+LU path (difference.cost_difference) and against J*_udp - J*_tcp from two closed forms."""
+
+import numpy as np
+import pytest
+
+from packetloss_cvx.costs import closed_form
+from packetloss_cvx.difference import (
+    cost_difference,
+    maximise_cost_difference,
+    scalar_channel,
+    shared_channel_differences,
+)
+from packetloss_cvx.errors import InputError
+from packetloss_cvx.io import load_example
+from packetloss_cvx.prediction import prediction
+from packetloss_cvx.random_systems import random_system
+
+NUS = np.concatenate([[0.0, 1e-9, 1e-4], np.linspace(0.01, 0.99, 23), [1 - 1e-6, 1.0]])
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_grid_equals_pointwise_solves(seed):
+    s = random_system(np.random.default_rng(seed))
+    pred = prediction(s)
+    grid = shared_channel_differences(s, NUS, pred)
+    pointwise = np.array([cost_difference(s, nu, pred) for nu in NUS])
+    scale = max(np.max(np.abs(pointwise)), 1e-300)
+    np.testing.assert_allclose(grid, pointwise, rtol=1e-9, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("name", ["pendulum", "two_actuator"])
+def test_grid_equals_the_difference_of_two_closed_forms(name):
+    s = load_example(name)
+    nus = np.array([0.05, 0.3, 0.7, 0.95])
+    grid = shared_channel_differences(s, nus)
+    forms = [closed_form(scalar_channel(s, nu), "udp").cost - closed_form(scalar_channel(s, nu), "tcp").cost
+             for nu in nus]
+    np.testing.assert_allclose(grid, forms, rtol=1e-7)
+
+
+def test_grid_refuses_probabilities_outside_the_unit_interval():
+    s = load_example("two_actuator")
+    for bad in ([0.5, 1.5], [-0.1], [np.nan]):
+        with pytest.raises(InputError, match="^nus: expected"):
+            shared_channel_differences(s, np.array(bad))
+
+
+def test_maximiser_matches_a_fine_pointwise_grid():
+    s = scalar_channel(load_example("two_actuator"), 0.5)
+    best = maximise_cost_difference(s, grid=200)
+    fine = np.linspace(1e-4, 1 - 1e-4, 4001)
+    values = [cost_difference(s, nu) for nu in fine]
+    assert best.value >= max(values) * (1 - 1e-9)
+    assert np.isclose(best.value, cost_difference(s, float(best.point[0])), rtol=0, atol=0)
