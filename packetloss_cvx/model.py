@@ -87,7 +87,7 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name", "channel", "_structure",
+        "x0", "initial_weight", "noise_cov", "name", "channel", "_structure", "_own",
     )
 
     A: np.ndarray
@@ -172,7 +172,7 @@ class System:
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("_structure", {}),
+            ("_structure", {}), ("_own", {}),
         ):
             object.__setattr__(self, key, value)
 
@@ -213,6 +213,7 @@ class System:
             object.__setattr__(new, key, fields.get(key, getattr(self, key)))
         if "_structure" in fields or any(key in fields for key in STRUCTURE_FIELDS):
             object.__setattr__(new, "_structure", {})
+        object.__setattr__(new, "_own", {})
         return new
 
     def structure_cached(self, key: str, build: Callable[[], T], nbytes: int = 0) -> T:
@@ -237,14 +238,19 @@ class System:
         >>> len(calls)                                    # built once: with_mu keeps A
         1
         """
-        if nbytes > STRUCTURE_CACHE_MAX_BYTES:
-            return build()
-        store = self._structure
-        try:
-            return store[key]
-        except KeyError:
-            value = store[key] = build()
-            return value
+        return _kept(self._structure, key, build, nbytes)
+
+    def cached(self, key: str, build: Callable[[], T], nbytes: int = 0) -> T:
+        """``build()``, computed once and kept for this system only (any field may enter it: the system is
+        immutable, and its copies start with an empty store). Otherwise as :meth:`structure_cached`.
+
+        Examples
+        --------
+        >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> s.cached("demo.mu", lambda: float(s.mu[0])), s.with_mu([0.9]).cached("demo.mu", lambda: 0.9)
+        (0.5, 0.9)
+        """
+        return _kept(self._own, key, build, nbytes)
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
         """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
@@ -343,6 +349,16 @@ class System:
         if self.name:
             out = {"name": self.name, **out}
         return out
+
+
+def _kept(store: dict, key: str, build: Callable[[], T], nbytes: int) -> T:
+    if nbytes > STRUCTURE_CACHE_MAX_BYTES:
+        return build()
+    try:
+        return store[key]
+    except KeyError:
+        value = store[key] = build()
+        return value
 
 
 def check_system(system: Any, field: str = "system") -> System:

@@ -213,13 +213,19 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     x = system.x0.copy()
     total = float(x @ system.initial_weight @ x) + noise
     with np.errstate(over="ignore", invalid="ignore"):
+        # the per-step input terms for all steps at once (the same products and per-step sums as step by step)
+        mean = mu * inputs                      # the mean applied input: products in this order stay
+        stage = np.sum(mean * (psi * inputs), axis=1)          # in range when mu is tiny and u huge
+        extra = np.zeros(system.horizon)
+        if protocol == "udp":
+            lossy = mu < 1.0
+            variance = mean * ((1.0 - mu) * d * inputs)
+            extra = np.sum(variance, axis=1) if lossy.all() else [
+                np.sum(v[k]) for v, k in zip(variance, lossy, strict=True)]
         for t in range(system.horizon):
-            u = inputs[t]
-            mean_u = mu[t] * u                  # the mean applied input: products in this order stay
-            total += float(np.sum(mean_u * (psi[t] * u)))      # in range when mu is tiny and u huge
+            total += float(stage[t])
             if protocol == "udp":
-                lossy = mu[t] < 1.0
-                total += float(np.sum((mean_u * ((1.0 - mu[t]) * d[t] * u))[lossy]))
-            x = A @ x + B @ (mu[t] * u)
+                total += float(extra[t])
+            x = A @ x + B @ mean[t]
             total += float(x @ W[t] @ x)
     return total

@@ -15,7 +15,7 @@ import pytest
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import DimensionError, InputError, ProbabilityError
 from packetloss_cvx.io import load_example, system_from_dict
-from packetloss_cvx.markov import attach_channel, bursty_twin
+from packetloss_cvx.markov import attach_channel, bursty_twin, stacked_moments
 from packetloss_cvx.model import STRUCTURE_FIELDS, System
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
@@ -136,3 +136,18 @@ def test_the_cache_dies_with_its_systems():
     del copy
     gc.collect()
     assert held() is None
+
+
+def test_own_cache_is_not_shared_with_copies():
+    s = random_system(np.random.default_rng(11))
+    twin = bursty_twin(s, 0.6)
+    v, C = stacked_moments(twin)
+    assert stacked_moments(twin)[1] is C                     # kept on the twin
+    assert not C.flags.writeable
+    v_ref, C_ref = stacked_moments(fresh(twin))
+    assert np.array_equal(v, v_ref)
+    assert np.array_equal(C, C_ref)
+    plain = twin.with_mu(twin.mu_schedule)                   # the same mu_t without the chain: independent losses
+    assert np.array_equal(stacked_moments(plain)[1], np.diag(v * (1 - v)))
+    assert twin.cached("test.value", lambda: 1) == 1
+    assert twin.with_x0(np.zeros(twin.n)).cached("test.value", lambda: 2) == 2
