@@ -267,9 +267,15 @@ def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6
     GF, GG = np.linalg.inv(HF), np.linalg.inv(HG)
     inner = (1 - 2 * nu) * Od - nu * (1 - nu) * (pred.Omega_h @ GG @ Od + Od @ GF @ pred.Omega_g)
     f = GG @ inner @ GF
-    # ||G||_2 = 1 / lambda_min(H) for the symmetric positive definite H = G^-1 (symmetric eigenvalues, not an SVD)
-    scales = float(pred.Omega_d.max()) / (np.linalg.eigvalsh(HG)[:, 0] * np.linalg.eigvalsh(HF)[:, 0])
     lam_maxes = np.linalg.eigvalsh(0.5 * (f + f.transpose(0, 2, 1))).max(axis=1)
+    # the scale ||G_G|| ||Omega_d|| ||G_F|| = max Omega_d / (lambda_min(H_G) lambda_min(H_F)) (H = G^-1 symmetric
+    # positive definite) is at most max Omega_d / min(Psi)^2, as H - Psi is PSD: a candidate whose lambda_max
+    # exceeds twice tol times that bound fails without the eigenvalues of H (scale 0 below)
+    top = float(pred.Omega_d.max())
+    near = np.abs(lam_maxes) <= 2.0 * tol * top / float(pred.Psi.min()) ** 2
+    scales = np.zeros(len(nus))
+    if np.any(near):
+        scales[near] = top / (np.linalg.eigvalsh(HG[near])[:, 0] * np.linalg.eigvalsh(HF[near])[:, 0])
     for value_nu, scale, lam_max in zip(nus, scales, lam_maxes, strict=True):
         if abs(float(lam_max)) > tol * float(scale):
             continue

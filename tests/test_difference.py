@@ -6,10 +6,14 @@ import pytest
 
 from packetloss_cvx.costs import closed_form
 from packetloss_cvx.difference import (
+    G_maps,
     cost_difference,
+    lemma2_matrix,
+    lemma3_candidates,
     maximise_cost_difference,
     scalar_channel,
     shared_channel_differences,
+    theorem4_maximiser,
 )
 from packetloss_cvx.errors import InputError
 from packetloss_cvx.io import load_example
@@ -53,3 +57,35 @@ def test_maximiser_matches_a_fine_pointwise_grid():
     values = [cost_difference(s, nu) for nu in fine]
     assert best.value >= max(values) * (1 - 1e-9)
     assert np.isclose(best.value, cost_difference(s, float(best.point[0])), rtol=0, atol=0)
+
+
+def theorem4_by_definition(system, variant, tol=1e-6):
+    """Theorem 4's selection one candidate at a time with the scale as defined: 2-norms (SVDs) of G_G and G_F."""
+    pred = prediction(system)
+    best = None
+    for c in lemma3_candidates(system, variant, pred):
+        if abs(c.imag) > 1e-12 or not 0.0 < c.real < 1.0:
+            continue
+        nu = float(c.real)
+        GF, GG = G_maps(pred, nu)
+        f = lemma2_matrix(pred, nu)
+        lam_max = np.linalg.eigvalsh(0.5 * (f + f.T)).max()
+        scale = np.linalg.norm(GG, 2) * pred.Omega_d.max() * np.linalg.norm(GF, 2)
+        if abs(lam_max) <= tol * scale:
+            value = cost_difference(system, nu, pred)
+            if best is None or value > best[1]:
+                best = (nu, value)
+    return best
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_theorem4_selection_equals_the_definition(seed):
+    s = scalar_channel(random_system(np.random.default_rng(200 + seed)), 0.5)
+    if np.any(prediction(s).Omega_d <= 0):
+        pytest.skip("Lemma 3 needs Omega_d > 0")
+    for variant in ("lemma", "proof"):
+        found, reference = theorem4_maximiser(s, variant), theorem4_by_definition(s, variant)
+        assert (found is None) == (reference is None)
+        if found is not None:
+            assert found.point[0] == reference[0]
+            assert found.value == reference[1]
