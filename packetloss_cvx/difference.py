@@ -12,6 +12,8 @@ computed without cancellation.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize, minimize_scalar
@@ -100,17 +102,28 @@ def shared_channel_differences(system: System, nus: np.ndarray, pred: Prediction
     >>> bool(np.allclose(shared_channel_differences(s, nus), 1 - nus / 2 - 1 / (1 + nus), rtol=1e-14, atol=1e-15))
     True
     """
-    pred = prediction(system) if pred is None else pred
     nus = np.asarray(nus, dtype=float)
     if nus.ndim != 1 or np.any(~(nus >= 0.0) | (nus > 1.0)):
         raise InputError("nus", "expected a vector of shared delivery probabilities in [0, 1]")
+    return _shared_channel_curve(system, prediction(system) if pred is None else pred)(nus)
+
+
+def _shared_channel_curve(system: System, pred: Prediction) -> Callable[[np.ndarray], np.ndarray]:
+    """The two eigendecompositions of :func:`shared_channel_differences`, and J_Delta on a vector of nu in
+    [0, 1] from them (unchecked)."""
     g = pred.Omega_gp @ system.x0
-    columns = []
+    parts = []
     for diag, off in ((pred.Psi, pred.Omega_g), (pred.Omega_d + pred.Psi, pred.Omega_h)):
         scale = 1.0 / np.sqrt(diag)
         L, Q = np.linalg.eigh(scale[:, None] * off * scale[None, :])
-        columns.append(scale[:, None] * (Q @ ((Q.T @ (scale * g))[:, None] / (nus[None, :] * L[:, None] + 1.0))))
-    return nus * (1.0 - nus) * np.sum(columns[0] * pred.Omega_d[:, None] * columns[1], axis=0)
+        parts.append((scale, Q, L[:, None], (Q.T @ (scale * g))[:, None]))
+    weight = pred.Omega_d[:, None]
+
+    def curve(nus: np.ndarray) -> np.ndarray:
+        F, G = (scale[:, None] * (Q @ (h / (nus[None, :] * L + 1.0))) for scale, Q, L, h in parts)
+        return nus * (1.0 - nus) * np.sum(F * weight * G, axis=0)
+
+    return curve
 
 
 def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
@@ -288,9 +301,10 @@ def theorem4_maximiser(system: System, variant: str = "lemma", tol: float = 1e-6
 def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction | None = None) -> Maximiser:
     """Robust maximiser of J_Delta(nu) over nu in (0, 1) for a shared channel (what eq:maximising-nu claims to give).
 
-    A grid uniform in logit(nu) from 1e-9 to 1 - 1e-9 (so peaks near 1e-4 are bracketed; evaluated by
-    :func:`shared_channel_differences`), then a bounded Brent refinement in logit space between the best
-    point's neighbours (:func:`cost_difference`). Time O((N m)^3 + grid (N m)^2 + Brent steps (N m)^3).
+    A grid uniform in logit(nu) from 1e-9 to 1 - 1e-9 (so peaks near 1e-4 are bracketed), then a bounded
+    Brent refinement in logit space between the best point's neighbours, both on the curve of
+    :func:`shared_channel_differences`; the better of the grid's and Brent's points, valued by
+    :func:`cost_difference`. Time O((N m)^3 + (grid + Brent steps) (N m)^2).
 
     >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> peak = maximise_cost_difference(s, grid=100)     # J_Delta = 1 - nu/2 - 1/(1 + nu)
@@ -300,13 +314,15 @@ def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction |
     pred = prediction(system) if pred is None else pred
     z = np.linspace(-np.log(1e9), np.log(1e9), grid)
     nus = 1 / (1 + np.exp(-z))
-    vals = shared_channel_differences(system, nus, pred)      # locates the peak's bracket
-    i = int(np.argmax(vals))
+    curve = _shared_channel_curve(system, pred)
+    i = int(np.argmax(curve(nus)))                      # the grid locates the peak's bracket
     lo, hi = z[max(i - 1, 0)], z[min(i + 1, grid - 1)]
-    res = minimize_scalar(lambda s: -cost_difference(system, 1 / (1 + np.exp(-s)), pred),
+    res = minimize_scalar(lambda s: -float(curve(np.array([1 / (1 + np.exp(-s))]))[0]),
                           bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
-    at_grid = cost_difference(system, float(nus[i]), pred)     # the grid point by the same solves as Brent's
-    nu, value = (1 / (1 + np.exp(-res.x)), -res.fun) if -res.fun >= at_grid else (nus[i], at_grid)
+    # the two points' values by cost_difference (the LU solves every other J_Delta of this module uses)
+    nu_brent = float(1 / (1 + np.exp(-res.x)))
+    at_brent, at_grid = cost_difference(system, nu_brent, pred), cost_difference(system, float(nus[i]), pred)
+    nu, value = (nu_brent, at_brent) if at_brent >= at_grid else (nus[i], at_grid)
     return Maximiser(np.array([float(nu)]), float(value), "logit-grid + bounded Brent")
 
 

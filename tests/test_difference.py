@@ -4,6 +4,7 @@ LU path (difference.cost_difference) and against J*_udp - J*_tcp from two closed
 import numpy as np
 import pytest
 
+from packetloss_cvx.claims.cost_difference import candidate_distance
 from packetloss_cvx.costs import closed_form
 from packetloss_cvx.difference import (
     G_maps,
@@ -89,3 +90,18 @@ def test_theorem4_selection_equals_the_definition(seed):
         if found is not None:
             assert found.point[0] == reference[0]
             assert found.value == reference[1]
+
+
+def test_candidate_distance_equals_a_loop_over_the_roots():
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        c = rng.normal(size=rng.integers(1, 12)) + 1j * rng.normal(size=1) * rng.integers(0, 2)
+        r = rng.normal(size=rng.integers(0, 12)) * 10 ** rng.uniform(-2, 9)
+        c[rng.random(c.size) < 0.1] = np.inf
+        r = np.where(rng.random(r.size) < 0.1, np.nan, r)
+        finite = r[np.isfinite(r) & (np.abs(r) < 1e8)]
+        cf = c[np.isfinite(c)]
+        loop = max((np.min(np.abs(cf - x)) / (1 + abs(x)) for x in finite), default=0.0) if cf.size else None
+        if loop is None:
+            continue
+        assert candidate_distance(c, r) == loop
