@@ -22,6 +22,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 15)
+
 import packetloss_cvx as pl  # noqa: E402
 from packetloss_cvx.random_systems import random_system  # noqa: E402
 
@@ -521,6 +523,7 @@ def main() -> None:
         12: lambda: audit_time(args.baseline, rows),
         13: lambda: startup(rows),
         14: lambda: closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows),
+        15: lambda: systems_and_structure(rows),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

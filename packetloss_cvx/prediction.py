@@ -83,10 +83,8 @@ class Prediction:
     def noise_term(self) -> float:
         """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise; eq:TCP-err).
         Kept on the system structure (it depends on neither mu nor x0)."""
-        if not np.any(self.system.noise_cov):
-            return 0.0
-        return self.system.structure_cached("prediction.noise_term",
-                                            lambda: float(np.sum(self.Omega_l * self.Sigma_W)))
+        return self.system.structure_cached("prediction.noise_term", lambda: float(
+            np.sum(self.Omega_l * self.Sigma_W)) if np.any(self.system.noise_cov) else 0.0)
 
 
 def _powers(A: np.ndarray, N: int) -> list[np.ndarray]:

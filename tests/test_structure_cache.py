@@ -19,7 +19,7 @@ from packetloss_cvx.markov import attach_channel, bursty_twin, stacked_moments
 from packetloss_cvx.model import STRUCTURE_FIELDS, System
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import udp_variance_weights
+from packetloss_cvx.recursion import condition_estimate, udp_variance_weights
 
 FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "mu_schedule", "x0", "initial_weight", "noise_cov",
           "name")
@@ -94,6 +94,8 @@ def test_cached_prediction_equals_a_fresh_one(seed):
         assert np.array_equal(d, d_ref)
         assert noise == noise_ref
         assert not d.flags.writeable
+        reference = (float(np.sum(d_ref)) + copy.input_weights.max()) / copy.input_weights.min()
+        assert condition_estimate(copy) == condition_estimate(copy, (d, noise)) == reference
 
 
 def test_noise_term_is_shared_and_equals_the_trace():
