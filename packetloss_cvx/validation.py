@@ -103,6 +103,11 @@ def check_numbers(value: Any, field: str) -> None:
         if isinstance(item, (list, tuple)):
             if depth >= MAX_NESTING:
                 raise InputError(field, f"expected at most {MAX_NESTING} levels of nested lists, found more")
+            if all(type(sub) is float for sub in item):     # a row of Python floats (TOML's, tolist()'s): numbers
+                count += len(item)                           # in range, as the item-by-item walk below finds
+                if count > MAX_ENTRIES:
+                    raise InputError(field, f"expected at most {MAX_ENTRIES} numbers")
+                continue
             stack.extend((sub, depth + 1) for sub in item)
             continue
         raise InputError(field, f"expected a number or a list of numbers, found {type(item).__name__}")
@@ -183,7 +188,8 @@ def symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
     packetloss_cvx.errors.InputError: noise_cov: expected a positive semidefinite matrix, found the eigenvalue -1 ...
     """
     scale = float(np.linalg.norm(arr, ord=2))
-    if np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
+    # an exactly symmetric matrix (the usual input) has no asymmetry to measure: skip its 2-norm (an SVD)
+    if not np.array_equal(arr, arr.T) and np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
         raise InputError(field, "expected a symmetric matrix")
     sym = 0.5 * (arr + arr.T)
     vals, vecs = np.linalg.eigh(sym)
