@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 15)
+from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 16)
 
 import packetloss_cvx as pl  # noqa: E402
 from packetloss_cvx.random_systems import random_system  # noqa: E402
@@ -461,6 +461,48 @@ def audit_time(baseline, rows):
     rows.append({"bench": "audit_cpu", "after": ours_cpu, "before": before_cpu})
 
 
+def shared_qps(repeats, rows):
+    """Section 15: the audit's 200 random systems x 2 protocols through ExpectedCostQP (condensed, one
+    solve each, no gain, no cross-check), with every problem compiled per object (exact shape,
+    ``SHARED_MAX_ENTRIES = 0``) against the problems shared by padded shape (from an empty cache:
+    the shared side pays its compiles); interleaved, medians of ``repeats``."""
+    from packetloss_cvx import qp_shared
+
+    rng = np.random.default_rng(1)
+    systems = [random_system(rng) for _ in range(200)]
+    limit = qp_shared.SHARED_MAX_ENTRIES
+
+    def run(shared: bool):
+        qp_shared.clear_cache()
+        qp_shared.SHARED_MAX_ENTRIES = limit if shared else 0
+        try:
+            return [pl.ExpectedCostQP(s, p, "condensed").solve(with_gain=False, cross_check=False)
+                    for s in systems for p in ("tcp", "udp")]
+        finally:
+            qp_shared.SHARED_MAX_ENTRIES = limit
+
+    print("\n15. compiled QPs shared by shape: the audit's 200 random systems x 2 protocols, condensed, one solve "
+          "each")
+    times = {True: [], False: []}
+    answers = {}
+    for _ in range(repeats):
+        for shared in (False, True):
+            start = time.perf_counter()
+            answers[shared] = run(shared)
+            times[shared].append(time.perf_counter() - start)
+    own, shared = statistics.median(times[False]), statistics.median(times[True])
+    buckets = len(qp_shared.cached_shapes())
+    du = max(float(np.abs(s.mu_schedule * (a.inputs - b.inputs)).max(initial=0.0))
+             / max(float(np.abs(s.mu_schedule * b.inputs).max(initial=0.0)), 1e-300)
+             for s, a, b in zip([s for s in systems for _ in "tp"], answers[True], answers[False], strict=True))
+    dj = max(abs(a.cost - b.cost) / abs(b.cost) for a, b in zip(answers[True], answers[False], strict=True))
+    print(f"   compiled per system: {own:.2f} s ({own / 400 * 1e3:.2f} ms a solve, 400 compiles)")
+    print(f"   shared by shape:     {shared:.2f} s ({shared / 400 * 1e3:.2f} ms a solve, {buckets} compiles)")
+    print(f"   ratio {own / shared:.2f}x; max rel |Vbar dU| {du:.1e}, max rel dJ {dj:.1e} (shared vs per system)")
+    rows.append({"bench": "shared_qps", "per_system_s": own, "shared_s": shared, "ratio": own / shared,
+                 "compiles": buckets, "max_rel_input_diff": du, "max_rel_cost_diff": dj})
+
+
 CLAIM_CPU = """
 import json, time
 import numpy as np
@@ -523,7 +565,8 @@ def main() -> None:
         12: lambda: audit_time(args.baseline, rows),
         13: lambda: startup(rows),
         14: lambda: closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows),
-        15: lambda: systems_and_structure(rows),
+        15: lambda: shared_qps(1 if quick else 3, rows),
+        16: lambda: systems_and_structure(rows),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

@@ -1,4 +1,4 @@
-"""Section 15 of benchmarks/run.py: systems and their structure (docs/performance.md, "Audit: systems and
+"""Section 16 of benchmarks/run.py: systems and their structure (docs/performance.md, "Audit: systems and
 structure"). Each fast path against the path it replaced, reproduced here, on the audit's 200 random systems
 (seed 1), side by side in one run; CPU seconds (``time.process_time``), medians of 3."""
 
@@ -69,7 +69,7 @@ def _lu_maximiser(system, grid, pred):
 
 
 def systems_and_structure(rows: list) -> None:
-    print("\n15. Systems and structure (the audit's 200 random systems, seed 1; CPU s, medians of 3)")
+    print("\n16. Systems and structure (the audit's 200 random systems, seed 1; CPU s, medians of 3)")
     rng = np.random.default_rng(1)
     cases = [random_system(rng) for _ in range(200)]
     chains = [GilbertElliott(p=rng.uniform(0.05, 0.5, s.m), r=rng.uniform(0.05, 0.5, s.m)) for s in cases]

@@ -1,16 +1,16 @@
 """The expected-cost minimisation as cvxpy QPs solved with Clarabel (the solver twin).
 
-Two formulations of the same problem, both in the mean delivered input ``Z = Vbar U`` and
-both DPP: built once from ``cp.Parameter``s (the state ``x``; for a stationary channel
-``1/mu`` and ``1/mu - 1`` per channel) and re-solved by assigning new values, without
-recompiling. No Parameter multiplies a Variable, so cvxpy's canonicalisation is linear in N
-(until 2026-11-22 ``multiply(v, U)`` kept an (N m)×(N m) map: docs/performance.md).
+Two formulations of the same problem, both in the mean delivered input ``Z = Vbar U``, both DPP
+and re-solved by assigning new values to their ``cp.Parameter``s, without recompiling.
 
-* ``"condensed"``: variables Z only; ``sum_squares(L Phi x + L Gamma Z)``.
-  Dense constants of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
-* ``"sparse"``: mean states and Z as variables, the dynamics
-  ``xhat_{t+1} = A xhat_t + B z_t`` as equality constraints; every constant is
-  block-sparse, so build and solve are O(N (n + m)^3), memory O(N (n + m)^2).
+* ``"condensed"``: variables Z only; ``sum_squares(L Phi x + L Gamma Z)`` with every datum a
+  Parameter: one compiled problem per padded shape serves every system (:mod:`.qp_shared`).
+  Dense data of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
+* ``"sparse"``: mean states and Z as variables, the dynamics ``xhat_{t+1} = A xhat_t + B z_t`` as
+  equality constraints; Parameters: the state x and, for a stationary channel, ``1/mu`` and
+  ``1/mu - 1`` per channel. No Parameter multiplies a Variable, so the canonicalisation is linear in N
+  (``multiply(v, U)`` kept an (N m)×(N m) map: docs/performance.md); every constant is block-sparse,
+  so build and solve are O(N (n + m)^3), memory O(N (n + m)^2).
 
 The input terms of eq:opt-lqg-simplest with Lemma 1, ``U' Vbar Psi U + [UDP] U' Vbar Omega_d
 (I - Vbar) U``, are ``sum (psi + [UDP] diag(Omega_g)(1 - mu)) z^2 / mu``; the diagonal of Omega_g
@@ -24,7 +24,6 @@ import time
 
 import cvxpy as cp
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .convex import solve_problem
@@ -32,8 +31,8 @@ from .costs import closed_form, refuse_correlated
 from .errors import CrossCheckError, InputError, NumericalError, ResourceError, SolverError
 from .linalg import power_growth, psd_factor
 from .model import System, check_system
-from .prediction import prediction
 from .protocols import check_protocol
+from .qp_shared import condensed_data, solve_condensed
 from .recursion import recursion_cost, udp_variance_weights
 from .results import CrossCheck, Solution
 from .threads import blas_limited
@@ -86,21 +85,22 @@ def qp_memory_estimate(system: System, formulation: str) -> float:
     Measured (tracemalloc, compile and first solve; n = 1..100, m = 1..8, N up to 8000, full
     weights): about 250 N n^2 bytes for the state terms, 350 N n m for the dynamics' input
     columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB; the
-    condensed form adds its dense (N n)×(N m) constants (48 bytes per entry measured). No
-    Parameter multiplies a Variable (:class:`ExpectedCostQP`), so cvxpy keeps no (N m)^2 map.
+    condensed form adds its dense (N n)×(N m) data, a Parameter since the problems are shared by shape
+    (150 bytes per entry measured at the peak, 66-88 when they were constants: :mod:`.qp_shared`). In
+    the sparse form no Parameter multiplies a Variable, so cvxpy keeps no (N m)^2 map.
 
     Examples
     --------
     >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> qp_memory_estimate(s, "sparse")                 # 260 + 400 + 650 + 1e7
     10001310.0
-    >>> qp_memory_estimate(s, "condensed") - qp_memory_estimate(s, "sparse")   # one 1x1 dense constant
-    48.0
+    >>> qp_memory_estimate(s, "condensed") - qp_memory_estimate(s, "sparse")   # one 1x1 dense block
+    150.0
     """
     N, n, m = system.horizon, system.n, system.m
     needed = 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
     if formulation == "condensed":
-        needed += 48.0 * (N * n) * (N * m)
+        needed += 150.0 * (N * n) * (N * m)
     return needed
 
 
@@ -116,6 +116,10 @@ def _pick(system: System, formulation: str) -> str:
 
 class ExpectedCostQP:
     """One protocol's expected-cost QP for one system, re-solvable for new mu or x0.
+
+    The condensed form solves a problem compiled once per padded shape and shared with every other
+    system of that shape in the process (:func:`.qp_shared.condensed_problem`, thread-safe); the
+    sparse form compiles its own. An instance itself is not thread-safe (it keeps the current x, mu).
 
     Parameters
     ----------
@@ -158,29 +162,25 @@ class ExpectedCostQP:
         # so that Clarabel's absolute tolerances mean the same for weights of 1e-15 and of 1e6
         self._scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
         self.x = cp.Parameter(n, name="x")
-        if self.formulation == "condensed":
-            pred = prediction(system)
-            L = sla.block_diag(*[psd_factor(W) for W in system.state_weights]) / np.sqrt(self._scale)
-            self._state = (L @ pred.Phi, L @ pred.Gamma) if L.shape[0] else None   # no state weight: no term
+        if self.formulation == "condensed":     # (L Phi, L Gamma) / sqrt(scale); None without state weight
+            self._state = condensed_data(system, self._scale)
         else:
             E, Bbig, first, L = sparse_dynamics(system)
             self._state = (E, Bbig, first, L / np.sqrt(self._scale))
-        self._problems: dict[tuple, tuple] = {}
+        self._problems: dict[tuple, tuple] = {}      # sparse: compiled per pinned set / schedule
+        self._own: dict[tuple, object] = {}          # condensed beyond SHARED_MAX_ENTRIES: per shape
         self._assign(system.mu_schedule, system.x0, self.protocol)
 
     def _build(self, key: tuple, free: np.ndarray, weight: np.ndarray | None) -> None:
-        """The problem for the entries ``free`` (N×m, mu > QP_PIN_MU): built on first use, kept per key.
+        """The sparse problem for the entries ``free`` (N×m, mu > QP_PIN_MU): built on first use, kept per key.
 
-        Variables: the mean delivered inputs ``Z = Vbar U`` on the free entries (the others are
-        pinned to zero: an input that is (almost) never delivered changes (almost) nothing,
-        ``tolerances.QP_PIN_MU``) and, sparse, the mean states. The input terms are
-        ``sum (psi + [UDP] d (1 - mu)) z^2 / mu`` (eq:opt-lqg-simplest with Lemma 1: ``v psi u^2 +
-        v (1 - v) d u^2 = (psi + (1 - v) d) z^2 / v``, d = diag(Omega_g)). For a stationary channel
-        (``weight`` None) mu enters through two Parameters per channel, ``1/mu`` and ``1/mu - 1``,
-        each multiplying a fixed weighted sum of squares over the steps, ``a @ sum(W * square(Z), 0)``:
-        no Parameter multiplies a Variable and cvxpy's canonicalisation stays linear in N (a
-        Parameter per entry costs it 8 (N m)^2 bytes, docs/performance.md). A schedule's weights are
-        constants (rebuilt per schedule). O(N (n^2 + n m)) nonzeros.
+        Variables: the mean states and the mean delivered inputs ``Z = Vbar U`` on the free entries
+        (the others pinned to zero, ``tolerances.QP_PIN_MU``); input terms ``sum (psi + [UDP] d (1 - mu))
+        z^2 / mu`` (eq:opt-lqg-simplest with Lemma 1, d = diag(Omega_g)). A stationary channel
+        (``weight`` None) enters through two Parameters per channel, ``1/mu`` and ``1/mu - 1``, each
+        multiplying ``sum(W * square(Z), 0)``: no Parameter multiplies a Variable and the canonicalisation
+        stays linear in N (docs/performance.md). A schedule's weights are constants (rebuilt per
+        schedule). O(N (n^2 + n m)) nonzeros.
         """
         if key in self._problems:
             self.problem, self.Z, self._params, self._free = self._problems[key]
@@ -205,19 +205,12 @@ class ExpectedCostQP:
             Z = flat_Z = cp.Variable(k, name="Z")
             if k:
                 terms.append(cp.sum_squares(cp.multiply(np.sqrt(weight.ravel()[flat]), Z)))
-        constraints = []
-        if self.formulation == "condensed":
-            if self._state is not None:
-                LPhi, LGamma = self._state
-                terms.append(cp.sum_squares(LPhi @ self.x + (LGamma @ select) @ flat_Z) if k else
-                             cp.sum_squares(LPhi @ self.x))
-        else:
-            E, Bbig, first, L = self._state
-            X = cp.Variable(N * n, name="xhat")
-            delivered = (Bbig @ select) @ flat_Z if k else 0.0
-            constraints.append(E @ X - delivered == first @ self.x)
-            if L.shape[0]:
-                terms.append(cp.sum_squares(L @ X))
+        E, Bbig, first, L = self._state
+        X = cp.Variable(N * n, name="xhat")
+        delivered = (Bbig @ select) @ flat_Z if k else 0.0
+        constraints = [E @ X - delivered == first @ self.x]
+        if L.shape[0]:
+            terms.append(cp.sum_squares(L @ X))
         problem = cp.Problem(cp.Minimize(cp.sum(terms) if terms else 0), constraints)
         if not problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("expected-cost QP is not DPP")
@@ -226,10 +219,20 @@ class ExpectedCostQP:
         self._problems[key] = (problem, Z, params, free)
         self.problem, self.Z, self._params, self._free = problem, Z, params, free
 
+    def _weights(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> np.ndarray:
+        """The input terms' weights ``(psi + [UDP] d (1 - mu)) / (mu s)`` per entry (N×m; 1/s where pinned)."""
+        d = np.where(mu < 1.0, self._d * (1.0 - mu), 0.0) if protocol == "udp" else 0.0
+        return (self.system.input_weights + d) / (np.where(free, mu, 1.0) * self._scale)
+
     def _assign(self, mu: np.ndarray, x: np.ndarray, protocol: str) -> None:
         free = mu > QP_PIN_MU
         self._v = mu.ravel()
-        if np.all(mu == mu[0]):     # one problem per protocol: a zero-weighted diag(Omega_g) term of an
+        if self.formulation == "condensed":    # the shared problem's data: its Parameters are set per solve
+            flat = free.ravel()
+            self._free = free
+            self._G = self._state[1][:, flat] if self._state is not None else np.zeros((0, int(flat.sum())))
+            self._r = np.sqrt(self._weights(mu, free, protocol).ravel()[flat])
+        elif np.all(mu == mu[0]):     # one problem per protocol: a zero-weighted diag(Omega_g) term of an
             # unstable plant (1e70) made Clarabel fail the TCP-like QP it solved without the term
             self._build(("stationary", protocol, free[0].tobytes()), free, None)
             if self._params is not None:
@@ -237,26 +240,28 @@ class ExpectedCostQP:
                 self._params[0].value = 1.0 / v
                 self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0)
         else:
-            d = np.where(mu < 1.0, self._d * (1.0 - mu), 0.0) if protocol == "udp" else 0.0
-            weight = (self.system.input_weights + d) / (np.where(free, mu, 1.0) * self._scale)
-            self._build(("schedule", protocol, mu.tobytes()), free, weight)
+            self._build(("schedule", protocol, mu.tobytes()), free, self._weights(mu, free, protocol))
         self.x.value = x
 
     def _solve_raw(self, protocol: str) -> tuple[np.ndarray, float, str]:
         what = f"{protocol}-like {self.formulation} QP"
         u = np.zeros(self._v.size)         # an input never delivered changes nothing: reported as 0
-        if not self.problem.variables():   # condensed, nothing delivered: the open-loop state cost
-            return u, float(np.sum((self._state[0] @ self.x.value) ** 2)) if self._state else 0.0, "optimal"
+        flat = self._free.ravel()
         try:
-            status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
+            if self.formulation == "sparse":
+                status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
+                z, value = (self.Z.value, self.problem.value)
+            elif not flat.any():           # nothing delivered: the open-loop state cost
+                return u, float(np.sum((self._state[0] @ self.x.value) ** 2)) if self._state else 0.0, "optimal"
+            else:                          # the problem shared by shape (this object's own beyond its sizes)
+                z, value, status = solve_condensed(self._state, self._G, self._r, self.x.value, what, self._own)
         except SolverError as err:
             raise self._out_of_range(err.status, protocol) from None
         if status not in ACCEPTED_STATUSES:
             raise self._out_of_range(status, protocol)
-        flat = self._free.ravel()
         if flat.any():
-            u[flat] = np.asarray(self.Z.value).ravel() / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
-        return u, float(self.problem.value), status
+            u[flat] = np.asarray(z).ravel() / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
+        return u, float(value), status
 
     def _out_of_range(self, status: str, protocol: str) -> NumericalError:
         """The QP is unconstrained and strictly convex: it always has one minimiser, so any status

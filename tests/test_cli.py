@@ -124,3 +124,15 @@ def test_solve_json_on_unseen_systems(seed, tmp_path, capsys):
         assert qp["status"] == "optimal"
         assert qp["max_input_diff"] < 1e-6
         assert qp["cost_rel_diff"] < 1e-7
+
+
+@pytest.mark.parametrize(("argv", "first"), [
+    (["simulate", "two_actuator", "--samples", "1e12"], "--samples: invalid int value: '1e12'"),
+    (["sweep", "two_actuator", "--protocol", "xx", "--mu-grid", "3"], "--protocol: invalid choice: 'xx'"),
+    (["allocate", "two_actuator", "--alpha", "3"], "arguments: the following arguments are required"),
+])
+def test_a_usage_error_is_reported_under_the_option_it_is_about(capsys, argv, first):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"packetloss-cvx: error: {first}")
+    assert len(err.strip().splitlines()) == 1

@@ -37,6 +37,7 @@ def test_solve_section_reads_and_uses_the_proven_rule(capsys):
     text = capsys.readouterr().out
     section = text.split("Gilbert-Elliott channel\n", 1)[1]
     assert section.startswith("p = [0.02] (P(good -> bad)), r = [0.18]")
-    assert "-0.0000%" not in section
+    assert "0.0000%" not in section
+    assert "(the same to rounding) (the TCP-like cost holds only the marginals" in section   # its exact minimiser
     assert "NOT mean-square stable" in section                        # the pendulum's plug-in loops (1.0124, 1.068)
     assert "(not stable)" not in section

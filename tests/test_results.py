@@ -35,3 +35,10 @@ def test_result_does_not_alias_the_callers_array():
     best = Maximiser(mu, 1.0, "grid")
     mu[0] = 0.9
     assert best.point[0] == 0.5
+
+
+def test_a_solution_says_which_protocol_it_solved(two_actuator):
+    # a saved sol.to_json() on its own must not leave the protocol to be guessed from the cost
+    for protocol in ("tcp", "udp"):
+        data = json.loads(pl.closed_form(two_actuator, protocol).to_json())
+        assert data["protocol"] == protocol

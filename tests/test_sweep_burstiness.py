@@ -36,7 +36,9 @@ def test_memoryless_point_is_the_bernoulli_optimum_and_bursts_cost_more(capsys, 
     rows = np.loadtxt(tmp_path / "burstiness.csv", delimiter=",", skiprows=1)
     assert rows.shape == (3, 5)
     assert np.array_equal(rows[:, 0], [0.0, 0.5, 0.9])
-    assert np.array_equal(rows[:, 3], data["udp"]["plugin"])           # 17 digits read back exactly
+    assert np.array_equal(rows[:, 3], data["udp"]["plugin"])           # the shortest repr reads back exactly
+    lambdas = [line.split(",")[0] for line in (tmp_path / "burstiness.csv").read_text().splitlines()[1:]]
+    assert lambdas == ["0", "0.5", "0.9"]                              # not 0.90000000000000002 (%.17g)
     assert (tmp_path / "burstiness.png").stat().st_size > 1000
 
 
@@ -59,3 +61,16 @@ def test_bad_burstiness_is_one_line_and_exit_2(capsys, argv, field):
     assert not out
     assert err.count("\n") == 1
     assert field in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "pendulum_bursty", "--mu-grid", "3"],
+    ["allocate", "pendulum_bursty", "--protocol", "udp", "--alpha", "1e5", "--beta", "1"],
+])
+def test_a_chain_file_outside_burstiness_points_to_the_option(capsys, argv):
+    # on the command line the way out is an option, not a Python function
+    code, _, err = _run(capsys, *argv)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1
+    assert "packetloss-cvx sweep pendulum_bursty --burstiness" in err
+    assert "packetloss_cvx.markov" not in err

@@ -157,7 +157,7 @@ class Search:
             if ended == "exhausted":
                 raise InfeasibleError(f"{what}: every box was proven infeasible, its upper corner costing more "
                                       f"than alpha (Theorem 3) or the LP finding no point of the constraints in it "
-                                      f"({self.boxes} boxes explored)", None)
+                                      f"({self.boxes} box{'es' if self.boxes != 1 else ''} explored)", None)
             raise SolverError("gap_not_certified", f"{what}: no feasible mu found and infeasibility not proven; "
                               f"{ended}")
         lower = min(self.lower_bound(), self.best)

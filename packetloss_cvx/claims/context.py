@@ -33,8 +33,9 @@ class Context:
     cache : dict
         Solver answers shared between checks (see :meth:`qp`).
     problems, evaluators : dict
-        Compiled QPs per system and cost evaluators per (system, protocol), keyed by ``id``
-        (the cases live as long as the context).
+        QP twins per system (:class:`ExpectedCostQP`: its data built once; the condensed problems
+        it solves are compiled once per padded shape and shared by every case, :mod:`..qp_shared`)
+        and cost evaluators per (system, protocol), keyed by ``id`` (the cases live as long as the context).
     """
 
     paper: dict[str, System]
@@ -65,8 +66,9 @@ class Context:
         return system.name or "a system outside the audit's cases"
 
     def qp(self, system: System, protocol: str) -> Solution:
-        """The QP twin's answer for ``system`` (solved once per audit). One compiled
-        :class:`ExpectedCostQP` per system keeps both protocols' compiled problems."""
+        """The QP twin's answer for ``system`` (solved once per audit). One :class:`ExpectedCostQP`
+        per system serves both protocols; the audit's 200 random systems share 15 compiled condensed
+        problems (one per padded shape, docs/performance.md, "Audit: compiled QPs shared across systems")."""
         key = (id(system), protocol)
         if key not in self.cache:
             problem = self.problems.get(id(system))

@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     if system.channel is not None:   # the search replaces the channel by Bernoulli mu: not the file's chain
         raise InputError("channel", "allocate chooses independent (Bernoulli) delivery probabilities mu, which would "
                                     "replace this file's Gilbert-Elliott chain: give a file with [channel] mu (or "
-                                    "--mu), or vary the chain with packetloss_cvx.markov.burstiness_sweep")
+                                    "--mu), or vary the chain's burstiness with `packetloss-cvx sweep "
+                                    f"{args.file} --burstiness 0:0.9:10`")
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     if args.gap is not None:
@@ -73,7 +74,8 @@ def run(args: argparse.Namespace) -> CommandResult:
             ("J*(mu*)", f"{fmt.num(result.cost, 10)} <= alpha = {fmt.num(alpha)}"),
             ("lower bound", f"{fmt.num(result.lower_bound)} on beta'mu (proved)"),
             ("gap", f"{result.gap:.1e}"),
-            ("method", result.method + (f", {result.boxes} boxes" if result.boxes else ""))]
+            ("method", result.method + (f", {result.boxes} box" + ("es" if result.boxes > 1 else "")
+                                        if result.boxes else ""))]
     name = system.name or args.file
     if result.status == "optimal":
         return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]

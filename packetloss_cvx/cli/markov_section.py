@@ -17,7 +17,9 @@ __all__ = ["markov_section"]
 
 
 def _percent(loss: float) -> str:
-    return f"{100 * (0.0 if abs(loss) < 5e-9 else loss):+.4f}%"      # no "-0.0000%" from a rounding-level loss
+    """The plug-in law's relative loss in words: a rounding-level loss (below 5e-9) reads "the same
+    to rounding", not "+0.0000%" or "-0.0000%"."""
+    return "the same to rounding" if abs(loss) < 5e-9 else f"{100 * loss:+.4f}%"
 
 
 def _radius(system: System, gain: np.ndarray) -> tuple[float | None, bool, str]:

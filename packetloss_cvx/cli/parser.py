@@ -64,9 +64,14 @@ class Formatter(argparse.RawDescriptionHelpFormatter):
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse that reports a usage error as one line and exit code 2."""
+    """argparse that reports a usage error as one line and exit code 2, under the option it is
+    about when argparse names one ("argument --samples: invalid int value: '1e12'" is reported as
+    ``--samples: invalid int value: '1e12'``), else under "arguments"."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
+        head, sep, rest = message.partition(": ")
+        if sep and head.startswith("argument ") and " " not in head[len("argument "):]:
+            raise InputError(head[len("argument "):], rest)
         raise InputError("arguments", message)
 
 
@@ -115,7 +120,7 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
     >>> parser.parse_args(["--mu", "0.5", "--mu-schedule", "mu.csv"])     # one channel or the other
     Traceback (most recent call last):
         ...
-    packetloss_cvx.errors.InputError: arguments: argument --mu-schedule: not allowed with argument --mu
+    packetloss_cvx.errors.InputError: --mu-schedule: not allowed with argument --mu
     """
     group = command.add_argument_group("overrides of the file")
     channel = group.add_mutually_exclusive_group()

@@ -16,6 +16,7 @@ from ..results import BurstinessSweep, DesignSweep
 from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, require_xarray, save_sweep, sweep
 from ..studies.engine import DEFAULT_CHUNK
+from ..studies.output import csv_number
 from ..tolerances import SELF_CHECK_RTOL
 from .common import CommandResult, floats
 
@@ -156,7 +157,8 @@ def bursty(args: argparse.Namespace) -> CommandResult:
             header = ",".join(["lambda"] + [f"{kind}_{p}" for p in protocols for kind in ("plugin", "exact")])
             rows = np.column_stack([result.correlation] + [col for p in protocols
                                                             for col in (result.plugin[p], result.exact[p])])
-            np.savetxt(out / "burstiness.csv", rows, delimiter=",", header=header, comments="", fmt="%.17g")
+            lines_csv = [header] + [",".join(map(csv_number, row)) for row in rows.tolist()]
+            (out / "burstiness.csv").write_text("\n".join(lines_csv) + "\n")
         except OSError as err:
             raise InputError("--out", f"cannot write into {str(out)!r}: {err.strerror or err}") from None
         curves = {f"{kind} {p.upper()}-like": (result.plugin if kind == "plug-in" else result.exact)[p]
@@ -195,6 +197,10 @@ def run(args: argparse.Namespace) -> CommandResult:
     if getattr(args, "burstiness", None) is not None:
         return bursty(args)
     system = load_system(args.file)
+    if system.channel is not None:     # the API's message names a Python function; here, the option
+        raise InputError("FILE", f"{args.file} has a Gilbert-Elliott (Markov) channel; --mu-grid, --mu-list, "
+                                 "--x0-scales and --horizons evaluate independent Bernoulli channels: sweep its "
+                                 f"burstiness with `packetloss-cvx sweep {args.file} --burstiness 0:0.9:10`")
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     if args.netcdf and args.out is None:     # before the sweep, not after it
         raise InputError("--netcdf", "needs --out DIR")

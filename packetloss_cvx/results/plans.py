@@ -79,6 +79,7 @@ class Solution:
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
+            "protocol": self.protocol,
             "cost": self.cost,
             "inputs": self.inputs.tolist(),
             "gain": None if self.gain is None else self.gain.tolist(),

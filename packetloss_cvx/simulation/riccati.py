@@ -8,7 +8,7 @@ cost-to-go ``x'P x`` gives (``E[V X V] = M X M + diag(mu (1 - mu)) ∘ X`` for a
    \\qquad D(P) = \\mathrm{diag}(\\mu_i (1 - \\mu_i) (B'PB)_{ii}),
 
 so ``P = Omega + A'PA - A'PBM (M Psi + M B'PB M + D(P))^{-1} M B'PA`` (Schenato et al. 2007, Proc. IEEE
-95(1), eq. for the TCP-like LQG controller; Garone et al. 2009 for independent multiple channels).
+95(1), eq. for the TCP-like LQG controller; Garone et al., IEEE TAC 57(2), 2012, for independent multiple channels).
 The Hessian factors as ``M G`` with ``G = Psi + B'PB M + diag((1 - mu) diag(B'PB))``, which stays
 invertible when some ``mu_i = 0``; the law is ``u = -G^{-1} B'PA x``, the same minimiser, and
 ``P = Omega + A'PA - A'PBM K``. At ``mu = 1`` this is the DARE with ``R = Psi``. Noise adds

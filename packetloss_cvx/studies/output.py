@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import InputError
 from ..results import DesignSweep
 
-__all__ = ["csv_header", "require_xarray", "save_sweep"]
+__all__ = ["csv_header", "csv_number", "require_xarray", "save_sweep"]
 
 
 def require_xarray() -> None:
@@ -32,6 +32,19 @@ def require_xarray() -> None:
         import xarray  # noqa: F401  lazy: the xarray extra
     except ImportError:
         raise InputError("netcdf", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
+
+
+def csv_number(value: float) -> str:
+    """The shortest text that reads back as the same double (Python's repr), integers without
+    ".0": a CSV of 0.3 says 0.3, not %.17g's 0.29999999999999999. O(1).
+
+    Examples
+    --------
+    >>> [csv_number(v) for v in (0.3, 10.0, 1e-300, float("inf"), 0.1 + 0.2)]
+    ['0.3', '10', '1e-300', 'inf', '0.30000000000000004']
+    """
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
 
 
 def csv_header(result: DesignSweep) -> list[str]:
@@ -100,7 +113,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
         with open(paths["csv"], "w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(csv_header(result))
-            writer.writerows([f"{v:.17g}" for v in row] for row in table.tolist())   # streamed: no P-row list
+            writer.writerows([csv_number(v) for v in row] for row in table.tolist())   # streamed: no P-row list
         if netcdf:
             paths["netcdf"] = folder / "sweep.nc"
             result.to_xarray().to_netcdf(paths["netcdf"], engine="scipy")
