@@ -24,7 +24,7 @@ import numpy as np
 from scipy.linalg.lapack import dgesv as _gesv
 
 from .linalg import check_finite
-from .model import System
+from .model import STRUCTURE_CACHE_MAX_BYTES, System
 from .protocols import check_protocol
 
 __all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
@@ -92,7 +92,8 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     >>> condition_estimate(s)                      # (trace Omega_g + max Psi) / min Psi = (5 + 1 + 1) / 1
     7.0
     """
-    if weights is None or weights is udp_variance_weights(system):     # the system's own: kept with them
+    kept = 8 * system.horizon * system.m <= STRUCTURE_CACHE_MAX_BYTES    # udp_variance_weights keeps d
+    if weights is None or (kept and weights is udp_variance_weights(system)):   # the system's own weights
         return system.structure_cached("recursion.condition_estimate",
                                        lambda: _spread(system, udp_variance_weights(system)[0]))
     return _spread(system, weights[0])
