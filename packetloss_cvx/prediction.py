@@ -59,8 +59,10 @@ class Prediction:
 
     @cached_property
     def Omega(self) -> np.ndarray:
-        """blkdiag(Omega_1..Omega_N), (N n)×(N n)."""
-        return sla.block_diag(*self.system.state_weights)
+        """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept on the system structure (read-only)."""
+        s = self.system
+        return s.structure_cached("prediction.Omega", lambda: _read_only(sla.block_diag(*s.state_weights)),
+                                  nbytes=8 * (s.horizon * s.n) ** 2)
 
     @cached_property
     def Lambda(self) -> np.ndarray:
@@ -85,6 +87,11 @@ class Prediction:
         Kept on the system structure (it depends on neither mu nor x0)."""
         return self.system.structure_cached("prediction.noise_term", lambda: float(
             np.sum(self.Omega_l * self.Sigma_W)) if np.any(self.system.noise_cov) else 0.0)
+
+
+def _read_only(arr: np.ndarray) -> np.ndarray:
+    arr.setflags(write=False)
+    return arr
 
 
 def _powers(A: np.ndarray, N: int) -> list[np.ndarray]:

@@ -11,6 +11,7 @@ import weakref
 
 import numpy as np
 import pytest
+import scipy.linalg
 
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import DimensionError, InputError, ProbabilityError
@@ -88,6 +89,8 @@ def test_cached_prediction_equals_a_fresh_one(seed):
             assert np.array_equal(getattr(cached, key), getattr(reference, key)), key
             assert not getattr(cached, key).flags.writeable, key
         assert np.array_equal(cached.Vbar, copy.mu_schedule.ravel())
+        assert cached.Omega is first.Omega
+        assert np.array_equal(cached.Omega, scipy.linalg.block_diag(*copy.state_weights))
         assert cached.noise_term == reference.noise_term
         d, noise = udp_variance_weights(copy)
         d_ref, noise_ref = udp_variance_weights(fresh(copy))
