@@ -22,6 +22,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 17)
+
 import packetloss_cvx as pl  # noqa: E402
 from packetloss_cvx.random_systems import random_system  # noqa: E402
 
@@ -632,6 +634,7 @@ def main() -> None:
         14: lambda: closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows),
         15: lambda: shared_qps(1 if quick else 3, rows),
         16: lambda: evaluations(args.baseline, rows),
+        17: lambda: systems_and_structure(rows),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

@@ -12,111 +12,40 @@ Conventions (paper eq:plant, big):
 
 from __future__ import annotations
 
-import numbers
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
 from .channel import GilbertElliott, channel_schedule
 from .display import system_html, system_repr, to_json
-from .errors import DimensionError, InputError, ProbabilityError
+from .errors import InputError
 from .statespace import plant_matrices
-from .tolerances import PSD_RTOL, SYMMETRY_RTOL
-from .validation import MAX_ENTRIES, digits, numeric_array
+from .validation import (
+    exactly_one,
+    frozen,
+    horizon_field,
+    matrix_field,
+    numeric_array,
+    probabilities,
+    psd_weight,
+    shape_error,
+    symmetric_psd,
+    vector_field,
+    weight_sequence,
+)
 
-__all__ = ["System", "check_system", "numeric_array"]
+__all__ = ["STRUCTURE_CACHE_MAX_BYTES", "STRUCTURE_FIELDS", "System", "check_system", "numeric_array"]
 
-def _shape_error(field: str, expected: str, found: tuple[int, ...]) -> DimensionError:
-    return DimensionError(field, f"expected shape {expected} but found {found}")
+T = TypeVar("T")
 
-
-def _matrix(value: Any, field: str, rows: int | None, cols: int | None, expected: str) -> np.ndarray:
-    arr = numeric_array(value, field)
-    if arr.ndim != 2 or (rows is not None and arr.shape[0] != rows) or (
-        cols is not None and arr.shape[1] != cols
-    ):
-        raise _shape_error(field, expected, arr.shape)
-    return arr
-
-
-def _vector(value: Any, field: str, length: int, expected: str) -> np.ndarray:
-    arr = numeric_array(value, field)
-    if arr.shape != (length,):
-        raise _shape_error(field, expected, arr.shape)
-    return arr
-
-
-def _psd_weight(value: Any, field: str, n: int) -> np.ndarray:
-    """A diagonal (length-n vector) or full n×n symmetric PSD weight, as a matrix."""
-    arr = numeric_array(value, field)
-    if arr.ndim == 1:
-        if arr.shape != (n,):
-            raise _shape_error(field, f"({n},) or ({n}, {n})", arr.shape)
-        if np.any(arr < 0):
-            raise InputError(field, "expected a non-negative diagonal (positive semidefinite weight)")
-        return np.diag(arr)
-    if arr.shape != (n, n):
-        raise _shape_error(field, f"({n},) or ({n}, {n})", arr.shape)
-    return _symmetric_psd(arr, field)
-
-
-def _symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
-    """Symmetric to SYMMETRY_RTOL and PSD to PSD_RTOL, both relative to ||arr||; eigenvalues that are
-    negative only by rounding are set to zero, so the returned weight is exactly PSD."""
-    scale = float(np.linalg.norm(arr, ord=2))
-    if np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
-        raise InputError(field, "expected a symmetric matrix")
-    sym = 0.5 * (arr + arr.T)
-    vals, vecs = np.linalg.eigh(sym)
-    if vals.min() < -PSD_RTOL * scale:
-        raise InputError(field, f"expected a positive semidefinite matrix, found the eigenvalue {vals.min():.3g} "
-                                f"beside {vals.max():.3g}")
-    if vals.min() < 0:
-        sym = (vecs * np.maximum(vals, 0.0)) @ vecs.T
-        sym = 0.5 * (sym + sym.T)
-    return sym
-
-
-def _short(value: Any) -> str:
-    """A bounded repr (Python refuses str() of integers over 4300 digits)."""
-    if isinstance(value, numbers.Integral) and abs(int(value)) >= 10**30:
-        return f"(an integer of about {digits(int(value))} digits)"
-    return repr(value)[:40]
-
-
-def _horizon(value: Any, field: str, n: int, m: int) -> int:
-    """N >= 1, and small enough that the per-step weights (N n^2 and N m entries) fit MAX_ENTRIES."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise InputError(field, f"expected an integer >= 1, found {_short(value)}")
-    N = int(value)
-    if N < 1:
-        raise InputError(field, f"expected an integer >= 1, found {_short(N)}")
-    limit = MAX_ENTRIES // max(n * n, m)
-    if N > limit:
-        shown = N if N < 10**30 else f"an integer of about {digits(N)} digits"
-        raise InputError(field, f"expected at most {limit} for n = {n}, m = {m} (horizon * max(n^2, m) <= "
-                                f"{MAX_ENTRIES}, what fits in memory), found {shown}")
-    return N
-
-
-def _probabilities(arr: np.ndarray, field: str) -> np.ndarray:
-    if np.any(arr < 0.0) or np.any(arr > 1.0):
-        bad = arr[(arr < 0.0) | (arr > 1.0)].flat[0]
-        raise ProbabilityError(field, f"expected probabilities in [0, 1], found {bad}")
-    return arr
-
-
-def _one_of(first: Any, second: Any, names: tuple[str, str]) -> None:
-    if (first is None) == (second is None):
-        both = "both" if first is not None else "neither"
-        raise InputError(f"{names[0]}/{names[1]}", f"expected exactly one of the two, found {both}")
-
-
-def _frozen(arr: np.ndarray) -> np.ndarray:
-    arr = np.array(arr, dtype=float)
-    arr.setflags(write=False)
-    return arr
+#: The fields a derived quantity cached with :meth:`System.structure_cached` may depend on: what
+#: ``with_mu``, ``with_x0`` and ``with_channel`` keep (they replace only mu_schedule, channel and x0).
+STRUCTURE_FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "initial_weight", "noise_cov")
+#: A value larger than this is rebuilt on each call rather than kept for the system's life (a long horizon's
+#: dense (N n)×(N m) prediction matrices): :meth:`System.structure_cached`.
+STRUCTURE_CACHE_MAX_BYTES = 8 * 2**20
 
 
 class System:
@@ -158,7 +87,7 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name", "channel",
+        "x0", "initial_weight", "noise_cov", "name", "channel", "_structure", "_own",
     )
 
     A: np.ndarray
@@ -191,58 +120,59 @@ class System:
         name: str | None = None,
         channel: Any = None,
     ) -> None:
-        A_ = _matrix(A, "A", None, None, "(n, n)")
+        A_ = matrix_field(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
         if A_.shape != (n, n):
-            raise _shape_error("A", "(n, n) (square)", A_.shape)
+            raise shape_error("A", "(n, n) (square)", A_.shape)
         if n < 1:
-            raise _shape_error("A", "(n, n) with n >= 1", A_.shape)
-        B_ = _matrix(B, "B", n, None, f"({n}, m)")
+            raise shape_error("A", "(n, n) with n >= 1", A_.shape)
+        B_ = matrix_field(B, "B", n, None, f"({n}, m)")
         m = B_.shape[1]
         if m < 1:
-            raise _shape_error("B", f"({n}, m) with m >= 1", B_.shape)
-        N = _horizon(horizon, "horizon", n, m)
+            raise shape_error("B", f"({n}, m) with m >= 1", B_.shape)
+        N = horizon_field(horizon, "horizon", n, m)
 
-        _one_of(state_weight, state_weights, ("state_weight", "state_weights"))
+        exactly_one(state_weight, state_weights, ("state_weight", "state_weights"))
         if state_weight is not None:
-            W = np.repeat(_psd_weight(state_weight, "state_weight", n)[None], N, axis=0)
+            W = np.repeat(psd_weight(state_weight, "state_weight", n)[None], N, axis=0)
         else:
-            items = _sequence(state_weights, "state_weights", N)
-            W = np.stack([_psd_weight(w, f"state_weights[{t}]", n) for t, w in enumerate(items)])
+            items = weight_sequence(state_weights, "state_weights", N)
+            W = np.stack([psd_weight(w, f"state_weights[{t}]", n) for t, w in enumerate(items)])
 
-        _one_of(input_weight, input_weights, ("input_weight", "input_weights"))
+        exactly_one(input_weight, input_weights, ("input_weight", "input_weights"))
         if input_weight is not None:
-            psi = np.repeat(_vector(input_weight, "input_weight", m, f"({m},)")[None], N, axis=0)
+            psi = np.repeat(vector_field(input_weight, "input_weight", m, f"({m},)")[None], N, axis=0)
             psi_field = "input_weight"
         else:
-            psi = _matrix(input_weights, "input_weights", N, m, f"({N}, {m})")
+            psi = matrix_field(input_weights, "input_weights", N, m, f"({N}, {m})")
             psi_field = "input_weights"
         if np.any(psi <= 0):
             raise InputError(psi_field, "expected positive entries (Psi is positive definite)")
 
         chan, mu_schedule = channel_schedule(channel, m, N, mu, mu_schedule)
-        _one_of(mu, mu_schedule, ("mu", "mu_schedule"))
+        exactly_one(mu, mu_schedule, ("mu", "mu_schedule"))
         if mu is not None:
-            sched = np.repeat(_probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")[None], N, axis=0)
+            sched = np.repeat(probabilities(vector_field(mu, "mu", m, f"({m},)"), "mu")[None], N, axis=0)
         else:
-            sched = _probabilities(
-                _matrix(mu_schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule"
+            sched = probabilities(
+                matrix_field(mu_schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule"
             )
 
-        x0_ = _vector(x0, "x0", n, f"({n},)")
-        Q = np.zeros((n, n)) if initial_weight is None else _psd_weight(initial_weight, "initial_weight", n)
+        x0_ = vector_field(x0, "x0", n, f"({n},)")
+        Q = np.zeros((n, n)) if initial_weight is None else psd_weight(initial_weight, "initial_weight", n)
         if noise_cov is None:
             Sigma = np.zeros((n, n))
         else:
-            Sigma = _symmetric_psd(_matrix(noise_cov, "noise_cov", n, n, f"({n}, {n})"), "noise_cov")
+            Sigma = symmetric_psd(matrix_field(noise_cov, "noise_cov", n, n, f"({n}, {n})"), "noise_cov")
         if name is not None and not isinstance(name, str):
             raise InputError("name", f"expected a string, found {type(name).__name__}")
 
         for key, value in (
-            ("A", _frozen(A_)), ("B", _frozen(B_)), ("horizon", N),
-            ("state_weights", _frozen(W)), ("input_weights", _frozen(psi)),
-            ("mu_schedule", _frozen(sched)), ("x0", _frozen(x0_)),
-            ("initial_weight", _frozen(Q)), ("noise_cov", _frozen(Sigma)), ("name", name), ("channel", chan),
+            ("A", frozen(A_)), ("B", frozen(B_)), ("horizon", N),
+            ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
+            ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
+            ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
+            ("_structure", {}), ("_own", {}),
         ):
             object.__setattr__(self, key, value)
 
@@ -276,11 +206,51 @@ class System:
         return self.mu_schedule[0]
 
     def _copy_with(self, **fields: Any) -> System:
-        """A copy with already-validated fields replaced (no re-validation of the rest)."""
+        """A copy with already-validated fields replaced (no re-validation of the rest). The copy shares
+        the :meth:`structure_cached` values unless a field of STRUCTURE_FIELDS is replaced."""
         new = object.__new__(System)
         for key in self.__slots__:
             object.__setattr__(new, key, fields.get(key, getattr(self, key)))
+        if "_structure" in fields or any(key in fields for key in STRUCTURE_FIELDS):
+            object.__setattr__(new, "_structure", {})
+        object.__setattr__(new, "_own", {})
         return new
+
+    def structure_cached(self, key: str, build: Callable[[], T], nbytes: int = 0) -> T:
+        """``build()``, computed once and kept for this system and the copies that share its structure.
+
+        For quantities that depend only on :data:`STRUCTURE_FIELDS` (A, B, horizon, the weights,
+        noise_cov) — never on mu_schedule, channel, x0 or name, which ``with_mu``, ``with_x0`` and
+        ``with_channel`` replace while sharing this store. The store lives on the (immutable) system, so
+        it cannot outlive it or be found by another one. Callers return read-only arrays (a value is
+        shared). ``key`` names the quantity (by convention ``"module.name"``); ``nbytes``, its size: above
+        :data:`STRUCTURE_CACHE_MAX_BYTES` it is built on every call and not kept. Time O(1) after the first call.
+
+        Examples
+        --------
+        >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> calls = []
+        >>> def square():
+        ...     calls.append(1)
+        ...     return float(s.A[0, 0]) ** 2
+        >>> s.structure_cached("demo.square", square), s.with_mu([0.9]).structure_cached("demo.square", square)
+        (4.0, 4.0)
+        >>> len(calls)                                    # built once: with_mu keeps A
+        1
+        """
+        return _kept(self._structure, key, build, nbytes)
+
+    def cached(self, key: str, build: Callable[[], T], nbytes: int = 0) -> T:
+        """``build()``, computed once and kept for this system only (any field may enter it: the system is
+        immutable, and its copies start with an empty store). Otherwise as :meth:`structure_cached`.
+
+        Examples
+        --------
+        >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> s.cached("demo.mu", lambda: float(s.mu[0])), s.with_mu([0.9]).cached("demo.mu", lambda: 0.9)
+        (0.5, 0.9)
+        """
+        return _kept(self._own, key, build, nbytes)
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
         """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
@@ -295,11 +265,11 @@ class System:
         """
         N, m = self.horizon, self.m
         if np.ndim(mu) == 2:
-            sched = _probabilities(_matrix(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
+            sched = probabilities(matrix_field(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         else:
-            vec = _probabilities(_vector(mu, "mu", m, f"({m},)"), "mu")
+            vec = probabilities(vector_field(mu, "mu", m, f"({m},)"), "mu")
             sched = np.repeat(vec[None], N, axis=0)
-        return self._copy_with(mu_schedule=_frozen(sched), channel=None)
+        return self._copy_with(mu_schedule=frozen(sched), channel=None)
 
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
@@ -318,7 +288,30 @@ class System:
         >>> s.with_x0([2.0]).x0.tolist(), s.x0.tolist()
         ([2.0], [1.0])
         """
-        return self._copy_with(x0=_frozen(_vector(x0, "x0", self.n, f"({self.n},)")))
+        return self._copy_with(x0=frozen(vector_field(x0, "x0", self.n, f"({self.n},)")))
+
+    def with_channel(self, channel: Any) -> System:
+        """A copy behind the Markov ``channel`` (a channel.GilbertElliott or its TOML table): its mu_schedule
+        is the channel's predicted schedule. The channel and that schedule are validated as
+        ``System(..., channel=channel)`` validates them; the other fields, already validated, are kept.
+        Time O(N m).
+
+        Examples
+        --------
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> s.with_channel(GilbertElliott(p=[0.1], r=[0.3], state=["bad"])).mu_schedule[:, 0].tolist()
+        [0.0, 0.3]
+        >>> s.with_channel(GilbertElliott(p=[0.1, 0.2], r=[0.3, 0.3]))  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+            ...
+        packetloss_cvx.errors.DimensionError: channel.p: expected 1 channels (one per actuator, ...) but found 2
+        """
+        if channel is None:
+            raise InputError("channel", "expected a Gilbert-Elliott channel, found None (with_mu sets mu without one)")
+        N, m = self.horizon, self.m
+        chan, schedule = channel_schedule(channel, m, N, None, None)
+        sched = probabilities(matrix_field(schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
+        return self._copy_with(mu_schedule=frozen(sched), channel=chan)
 
     def to_dict(self) -> dict[str, Any]:
         """The system in the TOML schema's structure (plain lists), e.g. for JSON.
@@ -358,14 +351,14 @@ class System:
         return out
 
 
-def _sequence(value: Any, field: str, N: int) -> list:
-    if isinstance(value, np.ndarray):
-        value = list(value)
-    if not isinstance(value, (list, tuple)):
-        raise InputError(field, f"expected a list of {N} weights, found {type(value).__name__}")
-    if len(value) != N:
-        raise DimensionError(field, f"expected {N} entries (one per step t = 1..N), found {len(value)}")
-    return list(value)
+def _kept(store: dict, key: str, build: Callable[[], T], nbytes: int) -> T:
+    if nbytes > STRUCTURE_CACHE_MAX_BYTES:
+        return build()
+    try:
+        return store[key]
+    except KeyError:
+        value = store[key] = build()
+        return value
 
 
 def check_system(system: Any, field: str = "system") -> System:

@@ -2,6 +2,10 @@
 
 Everything here is dense: memory O((N n)^2 + (N n)(N m)), time O(N^2 n^2 (n + m) + (N m)^2 N n).
 For long horizons use :mod:`packetloss_cvx.recursion`, which forms none of these.
+
+None of the matrices depends on mu or x0, so they are built once per system structure and kept on the
+system (:meth:`~packetloss_cvx.model.System.structure_cached`, shared with its ``with_mu`` / ``with_x0``
+copies) while they fit ``model.STRUCTURE_CACHE_MAX_BYTES``; every array of a :class:`Prediction` is read-only.
 """
 
 from __future__ import annotations
@@ -24,7 +28,8 @@ class Prediction:
 
     ``Vbar`` and ``Psi`` are the diagonals of the paper's diagonal matrices, ordered
     step-major: entry ``t * m + i`` is actuator i at step t. ``Lambda`` and
-    ``Omega_l`` are built on first use (only the noise term needs them).
+    ``Omega_l`` are built on first use (only the noise term needs them). The arrays are
+    read-only: they may be shared with other predictions of the same system structure.
 
     Examples
     --------
@@ -54,8 +59,10 @@ class Prediction:
 
     @cached_property
     def Omega(self) -> np.ndarray:
-        """blkdiag(Omega_1..Omega_N), (N n)×(N n)."""
-        return sla.block_diag(*self.system.state_weights)
+        """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept on the system structure (read-only)."""
+        s = self.system
+        return s.structure_cached("prediction.Omega", lambda: _read_only(sla.block_diag(*s.state_weights)),
+                                  nbytes=8 * (s.horizon * s.n) ** 2)
 
     @cached_property
     def Lambda(self) -> np.ndarray:
@@ -76,10 +83,15 @@ class Prediction:
 
     @cached_property
     def noise_term(self) -> float:
-        """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise; eq:TCP-err)."""
-        if not np.any(self.system.noise_cov):
-            return 0.0
-        return float(np.sum(self.Omega_l * self.Sigma_W))
+        """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise; eq:TCP-err).
+        Kept on the system structure (it depends on neither mu nor x0)."""
+        return self.system.structure_cached("prediction.noise_term", lambda: float(
+            np.sum(self.Omega_l * self.Sigma_W)) if np.any(self.system.noise_cov) else 0.0)
+
+
+def _read_only(arr: np.ndarray) -> np.ndarray:
+    arr.setflags(write=False)
+    return arr
 
 
 def _powers(A: np.ndarray, N: int) -> list[np.ndarray]:
@@ -105,7 +117,9 @@ def prediction(system: System) -> Prediction:
 
     The paper's labels: big (Phi, Gamma, Lambda), eq:matrix-plant (X = Phi x + Gamma Y U + Lambda W).
 
-    Time O((N n)^2 N m + (N m)^2 N n), memory O(N^2 n (n + m)).
+    Time O((N n)^2 N m + (N m)^2 N n), memory O(N^2 n (n + m)), the first time for a system structure;
+    O(1) after that while the matrices fit ``STRUCTURE_CACHE_MAX_BYTES`` (kept on the system, shared by its
+    ``with_mu`` / ``with_x0`` copies: they depend on neither mu nor x0).
 
     Raises
     ------
@@ -121,6 +135,14 @@ def prediction(system: System) -> Prediction:
     >>> p.Omega_g.tolist(), p.Omega_d.tolist()     # Gamma' Gamma and its diagonal
     ([[5.0, 2.0], [2.0, 1.0]], [5.0, 1.0])
     """
+    N, n, m = system.horizon, system.n, system.m
+    size = 8 * (N * n * (n + N * m) + (N * m) * (2 * N * m + n + 2) + n * n)
+    core = system.structure_cached("prediction.core", lambda: _structure(system), nbytes=size)
+    return Prediction(system=system, Vbar=system.mu_schedule.reshape(-1), **core)
+
+
+def _structure(system: System) -> dict[str, np.ndarray]:
+    """Phi, Gamma, the Omega products and Psi of :func:`prediction` (none depends on mu or x0), read-only."""
     A, B, N = system.A, system.B, system.horizon
     powers = _powers(A, N)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -135,9 +157,9 @@ def prediction(system: System) -> Prediction:
         Omega_gp = check_finite("Omega_gp", OG.T @ Phi)
         Omega_p = check_finite("Omega_p", Phi.T @ OP)
     Omega_g = 0.5 * (Omega_g + Omega_g.T)
-    return Prediction(
-        system=system, Phi=Phi, Gamma=Gamma,
-        Psi=system.input_weights.ravel().copy(), Vbar=system.mu_schedule.ravel().copy(),
-        Omega_p=0.5 * (Omega_p + Omega_p.T), Omega_g=Omega_g, Omega_gp=Omega_gp,
-        Omega_d=np.diag(Omega_g).copy(),
-    )
+    core = {"Phi": Phi, "Gamma": Gamma, "Psi": system.input_weights.ravel().copy(),
+            "Omega_p": 0.5 * (Omega_p + Omega_p.T), "Omega_g": Omega_g, "Omega_gp": Omega_gp,
+            "Omega_d": np.diag(Omega_g).copy()}
+    for value in core.values():
+        value.setflags(write=False)
+    return core

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.linalg.lapack import dgesv as _gesv
 
 from .linalg import check_finite
-from .model import System
+from .model import STRUCTURE_CACHE_MAX_BYTES, System
 from .protocols import check_protocol
 
 __all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
@@ -42,7 +42,9 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     Omega_d (I - Vbar) is the loss-variance term of the UDP-like law, eq:opt-law-2.
 
     Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
-    ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m).
+    ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m), the first time for a system
+    structure: ``d`` (read-only) is kept on the system and its with_mu / with_x0 copies
+    (:meth:`~packetloss_cvx.model.System.structure_cached`; it depends on neither mu nor x0).
 
     Examples
     --------
@@ -54,6 +56,12 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     >>> bool(np.allclose(d.ravel(), prediction(s).Omega_d))    # the dense diagonal of Omega_g
     True
     """
+    return system.structure_cached("recursion.udp_variance_weights", lambda: _lyapunov_weights(system),
+                                   nbytes=8 * system.horizon * system.m)
+
+
+def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
+    """udp_variance_weights, computed: the backward Lyapunov sum S_t, O(N n^3)."""
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
     d = np.empty((N, system.m))
     noise = 0.0
@@ -66,6 +74,7 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
                 noise += float(np.sum(S * system.noise_cov))
             if t > 0:
                 S = W[t - 1] + A.T @ S @ A
+    d.setflags(write=False)
     return d, noise
 
 
@@ -74,7 +83,8 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     both expected costs (trace Omega_g bounds its largest eigenvalue, min Psi bounds the smallest
     curvature per delivered input). The dense formulas lose about ``log10(estimate * eps)``
     digits; the recursion does not depend on it. ``inf`` when Omega_g overflows.
-    Time O(N n^3) (the Lyapunov sums of :func:`udp_variance_weights`), no dense matrix.
+    Time O(N n^3) (the Lyapunov sums of :func:`udp_variance_weights`), no dense matrix; O(1) once kept
+    on the system structure (with ``weights`` None or the system's own).
 
     Examples
     --------
@@ -82,7 +92,14 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     >>> condition_estimate(s)                      # (trace Omega_g + max Psi) / min Psi = (5 + 1 + 1) / 1
     7.0
     """
-    d, _ = udp_variance_weights(system) if weights is None else weights
+    kept = 8 * system.horizon * system.m <= STRUCTURE_CACHE_MAX_BYTES    # udp_variance_weights keeps d
+    if weights is None or (kept and weights is udp_variance_weights(system)):   # the system's own weights
+        return system.structure_cached("recursion.condition_estimate",
+                                       lambda: _spread(system, udp_variance_weights(system)[0]))
+    return _spread(system, weights[0])
+
+
+def _spread(system: System, d: np.ndarray) -> float:
     psi = system.input_weights
     with np.errstate(over="ignore", invalid="ignore"):
         total = float(np.sum(d))
@@ -204,13 +221,19 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     x = system.x0.copy()
     total = float(x @ system.initial_weight @ x) + noise
     with np.errstate(over="ignore", invalid="ignore"):
+        # the per-step input terms for all steps at once (the same products and per-step sums as step by step)
+        mean = mu * inputs                      # the mean applied input: products in this order stay
+        stage = np.sum(mean * (psi * inputs), axis=1)          # in range when mu is tiny and u huge
+        extra = np.zeros(system.horizon)
+        if protocol == "udp":
+            lossy = mu < 1.0
+            variance = mean * ((1.0 - mu) * d * inputs)
+            extra = np.sum(variance, axis=1) if lossy.all() else [
+                np.sum(v[k]) for v, k in zip(variance, lossy, strict=True)]
         for t in range(system.horizon):
-            u = inputs[t]
-            mean_u = mu[t] * u                  # the mean applied input: products in this order stay
-            total += float(np.sum(mean_u * (psi[t] * u)))      # in range when mu is tiny and u huge
+            total += float(stage[t])
             if protocol == "udp":
-                lossy = mu[t] < 1.0
-                total += float(np.sum((mean_u * ((1.0 - mu[t]) * d[t] * u))[lossy]))
-            x = A @ x + B @ (mu[t] * u)
+                total += float(extra[t])
+            x = A @ x + B @ mean[t]
             total += float(x @ W[t] @ x)
     return total

@@ -1,5 +1,8 @@
 """The one validator of numeric input (:func:`numeric_array`): every array the package accepts goes
-through it, so that every error names its field. Iterative, O(number of entries)."""
+through it, so that every error names its field. Iterative, O(number of entries).
+
+Below it, the checks of a :class:`~packetloss_cvx.model.System`'s fields built on it (shapes, PSD weights,
+probabilities, the horizon), each raising an error that names the field."""
 
 from __future__ import annotations
 
@@ -8,9 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from .errors import DimensionError, InputError, ProbabilityError
+from .tolerances import PSD_RTOL, SYMMETRY_RTOL
 
-__all__ = ["MAX_ENTRIES", "MAX_NESTING", "check_numbers", "digits", "numeric_array"]
+__all__ = [
+    "MAX_ENTRIES", "MAX_NESTING", "check_numbers", "digits", "exactly_one", "frozen", "horizon_field", "matrix_field",
+    "numeric_array", "probabilities", "psd_weight", "shape_error", "symmetric_psd", "vector_field", "weight_sequence",
+]
 
 #: Arrays in the schema nest at most three levels deep (state_weights: N × n × n).
 MAX_NESTING = 3
@@ -96,6 +103,11 @@ def check_numbers(value: Any, field: str) -> None:
         if isinstance(item, (list, tuple)):
             if depth >= MAX_NESTING:
                 raise InputError(field, f"expected at most {MAX_NESTING} levels of nested lists, found more")
+            if all(type(sub) is float for sub in item):     # a row of Python floats (TOML's, tolist()'s): numbers
+                count += len(item)                           # in range, as the item-by-item walk below finds
+                if count > MAX_ENTRIES:
+                    raise InputError(field, f"expected at most {MAX_ENTRIES} numbers")
+                continue
             stack.extend((sub, depth + 1) for sub in item)
             continue
         raise InputError(field, f"expected a number or a list of numbers, found {type(item).__name__}")
@@ -108,3 +120,166 @@ def digits(value: int) -> int:
     5001
     """
     return int(abs(value).bit_length() * 0.30103) + 1
+
+
+def shape_error(field: str, expected: str, found: tuple[int, ...]) -> DimensionError:
+    """The DimensionError of a field with the wrong shape.
+
+    >>> str(shape_error("B", "(2, m)", (3, 1)))
+    'B: expected shape (2, m) but found (3, 1)'
+    """
+    return DimensionError(field, f"expected shape {expected} but found {found}")
+
+
+def matrix_field(value: Any, field: str, rows: int | None, cols: int | None, expected: str) -> np.ndarray:
+    """A 2-D float array (:func:`numeric_array`) with ``rows`` and ``cols`` (None: any), else a DimensionError.
+
+    >>> matrix_field([[1, 2]], "B", 1, None, "(1, m)").tolist()
+    [[1.0, 2.0]]
+    """
+    arr = numeric_array(value, field)
+    if arr.ndim != 2 or (rows is not None and arr.shape[0] != rows) or (
+        cols is not None and arr.shape[1] != cols
+    ):
+        raise shape_error(field, expected, arr.shape)
+    return arr
+
+
+def vector_field(value: Any, field: str, length: int, expected: str) -> np.ndarray:
+    """A float vector of ``length`` entries, else a DimensionError.
+
+    >>> vector_field([1, 2], "x0", 3, "(3,)")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.DimensionError: x0: expected shape (3,) but found (2,)
+    """
+    arr = numeric_array(value, field)
+    if arr.shape != (length,):
+        raise shape_error(field, expected, arr.shape)
+    return arr
+
+
+def psd_weight(value: Any, field: str, n: int) -> np.ndarray:
+    """A diagonal (length-n vector, non-negative) or full n×n symmetric PSD weight (:func:`symmetric_psd`),
+    as a matrix. Time O(n^3).
+
+    >>> psd_weight([1, 2], "state_weight", 2).tolist()
+    [[1.0, 0.0], [0.0, 2.0]]
+    """
+    arr = numeric_array(value, field)
+    if arr.ndim == 1:
+        if arr.shape != (n,):
+            raise shape_error(field, f"({n},) or ({n}, {n})", arr.shape)
+        if np.any(arr < 0):
+            raise InputError(field, "expected a non-negative diagonal (positive semidefinite weight)")
+        return np.diag(arr)
+    if arr.shape != (n, n):
+        raise shape_error(field, f"({n},) or ({n}, {n})", arr.shape)
+    return symmetric_psd(arr, field)
+
+
+def symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
+    """Symmetric to SYMMETRY_RTOL and PSD to PSD_RTOL, both relative to ||arr||; eigenvalues that are
+    negative only by rounding are set to zero, so the returned weight is exactly PSD. Time O(n^3).
+
+    >>> symmetric_psd(np.array([[1.0, 2.0], [2.0, 1.0]]), "noise_cov")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: noise_cov: expected a positive semidefinite matrix, found the eigenvalue -1 ...
+    """
+    scale = float(np.linalg.norm(arr, ord=2))
+    # an exactly symmetric matrix (the usual input) has no asymmetry to measure: skip its 2-norm (an SVD)
+    if not np.array_equal(arr, arr.T) and np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
+        raise InputError(field, "expected a symmetric matrix")
+    sym = 0.5 * (arr + arr.T)
+    vals, vecs = np.linalg.eigh(sym)
+    if vals.min() < -PSD_RTOL * scale:
+        raise InputError(field, f"expected a positive semidefinite matrix, found the eigenvalue {vals.min():.3g} "
+                                f"beside {vals.max():.3g}")
+    if vals.min() < 0:
+        sym = (vecs * np.maximum(vals, 0.0)) @ vecs.T
+        sym = 0.5 * (sym + sym.T)
+    return sym
+
+
+def _short(value: Any) -> str:
+    """A bounded repr (Python refuses str() of integers over 4300 digits)."""
+    if isinstance(value, numbers.Integral) and abs(int(value)) >= 10**30:
+        return f"(an integer of about {digits(int(value))} digits)"
+    return repr(value)[:40]
+
+
+def horizon_field(value: Any, field: str, n: int, m: int) -> int:
+    """N >= 1, and small enough that the per-step weights (N n^2 and N m entries) fit MAX_ENTRIES.
+
+    >>> horizon_field(10, "horizon", 4, 2)
+    10
+    >>> horizon_field(0, "horizon", 4, 2)
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: horizon: expected an integer >= 1, found 0
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(field, f"expected an integer >= 1, found {_short(value)}")
+    N = int(value)
+    if N < 1:
+        raise InputError(field, f"expected an integer >= 1, found {_short(N)}")
+    limit = MAX_ENTRIES // max(n * n, m)
+    if N > limit:
+        shown = N if N < 10**30 else f"an integer of about {digits(N)} digits"
+        raise InputError(field, f"expected at most {limit} for n = {n}, m = {m} (horizon * max(n^2, m) <= "
+                                f"{MAX_ENTRIES}, what fits in memory), found {shown}")
+    return N
+
+
+def probabilities(arr: np.ndarray, field: str) -> np.ndarray:
+    """``arr`` if every entry lies in [0, 1], else a ProbabilityError naming the first one outside.
+
+    >>> probabilities(np.array([0.5, 1.2]), "mu")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.ProbabilityError: mu: expected probabilities in [0, 1], found 1.2
+    """
+    if np.any(arr < 0.0) or np.any(arr > 1.0):
+        bad = arr[(arr < 0.0) | (arr > 1.0)].flat[0]
+        raise ProbabilityError(field, f"expected probabilities in [0, 1], found {bad}")
+    return arr
+
+
+def exactly_one(first: Any, second: Any, names: tuple[str, str]) -> None:
+    """An InputError naming the pair unless exactly one of ``first`` and ``second`` is given (not None).
+
+    >>> exactly_one(None, None, ("mu", "mu_schedule"))
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: mu/mu_schedule: expected exactly one of the two, found neither
+    """
+    if (first is None) == (second is None):
+        both = "both" if first is not None else "neither"
+        raise InputError(f"{names[0]}/{names[1]}", f"expected exactly one of the two, found {both}")
+
+
+def frozen(arr: np.ndarray) -> np.ndarray:
+    """A read-only float copy of ``arr``.
+
+    >>> frozen(np.ones(2)).flags.writeable
+    False
+    """
+    arr = np.array(arr, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+def weight_sequence(value: Any, field: str, N: int) -> list:
+    """``value`` as a list of N per-step weights (a list, tuple or array), else an error naming ``field``.
+
+    >>> len(weight_sequence(np.ones((3, 2)), "state_weights", 3))
+    3
+    """
+    if isinstance(value, np.ndarray):
+        value = list(value)
+    if not isinstance(value, (list, tuple)):
+        raise InputError(field, f"expected a list of {N} weights, found {type(value).__name__}")
+    if len(value) != N:
+        raise DimensionError(field, f"expected {N} entries (one per step t = 1..N), found {len(value)}")
+    return list(value)

@@ -20,7 +20,7 @@ LAYERS = [
      "channel", "validation", "threads"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems", "evaluator", "pointwise",
      "batch_recursion"},
-    {"analysis", "allocation", "simulation", "studies", "markov"},
+    {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},
 ]

@@ -25,8 +25,7 @@ import numpy.typing as npt
 
 from ..channel import GilbertElliott
 from ..errors import InputError
-from ..io import system_from_dict
-from ..model import System
+from ..model import System, check_system
 from ..protocols import check_protocol
 
 __all__ = [
@@ -106,7 +105,8 @@ def plugin_schedule(channel: GilbertElliott, horizon: int, protocol: str,
 
 def attach_channel(system: System, channel: GilbertElliott) -> System:
     """A copy of ``system`` behind the Markov ``channel`` (its mu or mu_schedule replaced by the
-    channel's predicted schedule). Time O(size of the system).
+    channel's predicted schedule): :meth:`~packetloss_cvx.model.System.with_channel`, which validates the
+    channel and the schedule and keeps the system's other, already validated, fields. Time O(N m).
 
     Examples
     --------
@@ -116,7 +116,7 @@ def attach_channel(system: System, channel: GilbertElliott) -> System:
     """
     if not isinstance(channel, GilbertElliott):
         raise InputError("channel", f"expected a GilbertElliott, found {type(channel).__name__}")
-    return system_from_dict({**system.to_dict(), "channel": channel.to_dict()})
+    return check_system(system).with_channel(channel)
 
 
 def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence[bool]] = ()) -> System:
@@ -188,7 +188,8 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     """``(Vbar, C)``: the mean and the covariance of the stacked deliveries, step-major (entry
     ``t m + i`` is channel i at step t), C of shape (N m, N m). Without a Markov channel the
     deliveries are independent Bernoulli(mu_schedule): C = diag(Vbar (1 - Vbar)).
-    ``R = Vbar Vbar' + C``. Time O((N m)^2) (the N^2 m non-zero entries, placed in the dense C).
+    ``R = Vbar Vbar' + C``. Time O((N m)^2) (the N^2 m non-zero entries, placed in the dense C), the first
+    time: the read-only pair is kept on the system (:meth:`~packetloss_cvx.model.System.cached`).
 
     Examples
     --------
@@ -198,13 +199,20 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     ([0.5, 0.5], [[0.25, 0.0], [0.0, 0.25]])
     """
     N, m = system.horizon, system.m
-    v = system.mu_schedule.ravel()
+    return system.cached("chain.stacked_moments", lambda: _moments(system), nbytes=8 * (N * m) ** 2)
+
+
+def _moments(system: System) -> tuple[np.ndarray, np.ndarray]:
+    N, m = system.horizon, system.m
+    v = system.mu_schedule.reshape(-1)
     if system.channel is None:
-        return v, np.diag(v * (1.0 - v))
-    blocks = channel_covariance(system.channel, N)
-    C = np.zeros((N, m, N, m))
-    for i in range(m):
-        C[:, i, :, i] = blocks[i]
-    C = C.reshape(N * m, N * m)
-    C[np.diag_indices(N * m)] = v * (1.0 - v)       # the System's own (validated) schedule on the diagonal
+        C = np.diag(v * (1.0 - v))
+    else:
+        blocks = channel_covariance(system.channel, N)
+        C = np.zeros((N, m, N, m))
+        for i in range(m):
+            C[:, i, :, i] = blocks[i]
+        C = C.reshape(N * m, N * m)
+        C[np.diag_indices(N * m)] = v * (1.0 - v)       # the System's own (validated) schedule on the diagonal
+    C.setflags(write=False)
     return v, C

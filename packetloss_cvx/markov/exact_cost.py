@@ -83,7 +83,7 @@ def correlation_term(system: System, inputs: npt.ArrayLike, pred: Prediction | N
     if system.channel is None or not np.any(system.channel.correlation):
         return 0.0
     pred = dense_prediction(system) if pred is None else pred
-    _, C = stacked_moments(system)
+    C = stacked_moments(system)[1].copy()
     C[np.diag_indices_from(C)] = 0.0
     with np.errstate(over="ignore", invalid="ignore"):
         value = float(U @ ((pred.Omega_g * C) @ U))
