@@ -74,3 +74,10 @@ def test_a_chain_file_outside_burstiness_points_to_the_option(capsys, argv):
     assert len(err.strip().splitlines()) == 1
     assert "packetloss-cvx sweep pendulum_bursty --burstiness" in err
     assert "packetloss_cvx.markov" not in err
+
+
+def test_the_rate_is_the_files_not_a_rounded_mean(capsys):
+    # a mean of N equal rows of 0.9 is 0.9000000000000001; the sweep holds the file's 0.9 fixed
+    code, out, _ = _run(capsys, "sweep", "two_actuator", "--burstiness", "0,0.5", "--json", "-q")
+    assert code == 0
+    assert json.loads(out)["rate"] == pl.load_example("two_actuator").mu_schedule[0].tolist()

@@ -74,5 +74,7 @@ def burstiness_sweep(system: System, correlations: Sequence[float] = DEFAULT_COR
             exact[protocol][k] = exact_closed_form(twin, protocol).cost
             plugin[protocol][k] = exact_cost(twin, closed_form(twin.with_mu(twin.mu_schedule), protocol).inputs,
                                               protocol)
-    return BurstinessSweep(correlation=values, rate=np.clip(system.mu_schedule.mean(axis=0), 0.0, 1.0),
+    mu = system.mu_schedule      # a stationary channel's rate as given (a mean of N equal rows rounds)
+    rate = mu[0] if np.all(mu == mu[0]) else np.clip(mu.mean(axis=0), 0.0, 1.0)
+    return BurstinessSweep(correlation=values, rate=rate,
                            plugin=plugin, exact=exact)
