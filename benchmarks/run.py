@@ -282,12 +282,48 @@ class _ClosedFormEverywhere:
         return at
 
 
-def allocation(seeds, rows):
+BASELINE_ALLOCATION = """
+import json, sys, time
+import numpy as np
+import packetloss_cvx as pl
+seed = int(sys.argv[1])
+rng = np.random.default_rng(seed)
+n = m = 3
+A = rng.normal(size=(n, n))
+A *= 1.02 / max(abs(np.linalg.eigvals(A)))
+B = np.eye(n) + 0.3 * rng.normal(size=(n, m))
+s = pl.System(A=A, B=B, horizon=40, state_weight=np.ones(n), input_weight=rng.uniform(0.5, 1.5, m),
+              mu=[0.5] * m, x0=rng.normal(size=n))
+full = pl.closed_form(s.with_mu([1.0] * 3), "udp").cost
+none = pl.closed_form(s.with_mu([0.0] * 3), "udp").cost
+start = time.perf_counter()
+a = pl.allocate(s, "udp", full + 0.3 * (none - full), [1.0, 1.0, 1.0])
+print(json.dumps({"time": time.perf_counter() - start, "mu": a.mu.tolist(), "lower_bound": a.lower_bound,
+                  "boxes": a.boxes, "status": a.status}))
+"""
+
+
+def _baseline_allocation(baseline: str, seed: int) -> dict:
+    """The same allocation (allocation_system(seed), the same alpha and beta) run by the baseline
+    checkout in a fresh process, one BLAS thread."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(Path(baseline).resolve()), "OPENBLAS_NUM_THREADS": "1"}
+    out = subprocess.run([sys.executable, "-c", BASELINE_ALLOCATION, str(seed)], env=env, check=True,
+                         capture_output=True, text=True, cwd=baseline).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def allocation(seeds, rows, baseline=None):
     import packetloss_cvx.allocation.tcp as tcp_module
     import packetloss_cvx.allocation.udp as udp_module
 
-    print("\n8. UDP-like allocation, m = 3, N = 40: J*(mu) by closed_form per call (before) vs the cached evaluator")
-    print(f"{'seed':>5} {'boxes':>6} {'before s':>9} {'after s':>8} {'ratio':>7}  same mu, bound, boxes")
+    print("\n8. UDP-like allocation, m = 3, N = 40: J*(mu) by closed_form per call (before; today's closed_form, "
+          "whose structure is now shared by with_mu copies) vs the cached evaluator" +
+          ("; with --baseline, the same allocation run by that checkout" if baseline else ""))
+    print(f"{'seed':>5} {'boxes':>6} {'before s':>9} {'after s':>8} {'ratio':>7}  same mu, bound, boxes"
+          + (f" {'| baseline s':>12} {'ratio':>7}  same" if baseline else ""))
     cached = udp_module.cost_function
 
     def old(system, protocol):
@@ -310,9 +346,18 @@ def allocation(seeds, rows):
         (a, ta), (b, tb) = runs["after"], runs["before"]
         same = bool(np.allclose(a.mu, b.mu, rtol=0, atol=1e-9) and abs(a.lower_bound - b.lower_bound) <= 1e-12
                     and a.boxes == b.boxes and a.status == b.status)
-        print(f"{seed:>5} {a.boxes:>6} {tb:>9.2f} {ta:>8.2f} {tb / ta:>6.1f}x  {same}")
-        rows.append({"bench": "allocation_udp_m3_N40", "seed": seed, "boxes": a.boxes, "before_s": tb,
-                     "after_s": ta, "ratio": tb / ta, "same": same})
+        line = f"{seed:>5} {a.boxes:>6} {tb:>9.2f} {ta:>8.2f} {tb / ta:>6.1f}x  {same!s:>21}"
+        row = {"bench": "allocation_udp_m3_N40", "seed": seed, "boxes": a.boxes, "before_s": tb,
+               "after_s": ta, "ratio": tb / ta, "same": same}
+        if baseline:
+            base = _baseline_allocation(baseline, seed)
+            same_base = bool(np.allclose(a.mu, base["mu"], rtol=0, atol=1e-9) and base["boxes"] == a.boxes
+                             and abs(a.lower_bound - base["lower_bound"]) <= 1e-9 * max(1.0, abs(a.lower_bound))
+                             and base["status"] == a.status)
+            line += f" {base['time']:>12.2f} {base['time'] / ta:>6.1f}x  {same_base}"
+            row.update(baseline_s=base["time"], baseline_ratio=base["time"] / ta, same_as_baseline=same_base)
+        print(line)
+        rows.append(row)
 
 
 def evaluator(points, rows):
@@ -576,7 +621,10 @@ def evaluations(baseline, rows):
     each checkout in a fresh process."""
     import subprocess
 
-    def measure(checkout: Path) -> dict:
+    def measure(checkout: Path) -> dict | None:
+        """The checkout's numbers, or None when it has no CostEvaluator (before 2026-11-21, e.g. d88a42b)."""
+        if not (Path(checkout) / "packetloss_cvx" / "evaluator.py").exists():
+            return None     # (not an import error: an editable install would fill the gap from this checkout)
         env = {**__import__("os").environ, "PYTHONPATH": str(Path(checkout).resolve())}
         out = subprocess.run([sys.executable, "-c", EVALUATIONS], env=env, check=True, capture_output=True,
                              text=True, cwd=checkout).stdout
@@ -585,6 +633,9 @@ def evaluations(baseline, rows):
     print("\n16. J* evaluations of the audit (two_actuator, UDP-like, recursion)")
     ours = measure(Path(__file__).resolve().parent.parent)
     before = measure(Path(baseline)) if baseline else {}
+    if before is None:
+        print(f"   the baseline {baseline} has no CostEvaluator: compare with a checkout of 1002bdf or later")
+        baseline, before = None, {}
     print(f"{'':>36} {'this':>9}" + (f" {'baseline':>9} {'ratio':>6}" if baseline else ""))
     for key, label, scale in (("costs_P1_s", "costs(), 1 point (us)", 1e6),
                               ("costs_P15_s", "costs(), 15 points (us)", 1e6),
@@ -603,7 +654,7 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
-    parser.add_argument("--baseline", help="a checkout of the previous version (sections 10, 12, 16: before/after)")
+    parser.add_argument("--baseline", help="a checkout of the previous version (sections 8, 10, 12, 16: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
@@ -625,7 +676,7 @@ def main() -> None:
         5: lambda: verification_cost(400 if quick else 1000, rows),
         6: lambda: memory(1000 if quick else 4000, rows),
         7: lambda: self_check((100, 1000) if quick else (100, 1000, 10000), rows),
-        8: lambda: allocation((1,) if quick else (1, 2, 3), rows),
+        8: lambda: allocation((1,) if quick else (1, 2, 3), rows, args.baseline),
         9: lambda: evaluator(200 if quick else 1000, rows),
         10: lambda: qp_memory((500, 1000, 2000) if quick else (500, 1000, 2000, 4000, 8000), args.baseline, rows),
         11: lambda: blas_threads(rows),
