@@ -105,11 +105,12 @@ def _powers(A: np.ndarray, N: int) -> list[np.ndarray]:
 
 def _block_toeplitz(blocks: list[np.ndarray], N: int, r: int, c: int, name: str) -> np.ndarray:
     """Lower block-triangular Toeplitz matrix with block (i, j) = blocks[i - j]."""
-    out = np.zeros((N, r, N, c))
+    flat = np.zeros((N * r, N * c))          # owns its data: a read-only result has no writable base
+    out = flat.reshape(N, r, N, c)
     for k in range(N):
         rows = np.arange(k, N)
         out[rows, :, rows - k, :] = blocks[k]
-    return check_finite(name, out.reshape(N * r, N * c))
+    return check_finite(name, flat)
 
 
 def prediction(system: System) -> Prediction:

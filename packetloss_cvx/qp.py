@@ -263,6 +263,20 @@ class ExpectedCostQP:
             u[flat] = np.asarray(z).ravel() / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
         return u, float(value), status
 
+    def _check_resolvable(self, value: float, protocol: str) -> None:
+        """Raise when the condensed minimum v = ||c + G z||^2 + ||r z||^2 (c = L Phi x), a squared residual of
+        terms of size ||c||, is below double precision's resolution at CROSS_CHECK_COST_RTOL (2 eps ||c|| /
+        sqrt(v) relative): there Clarabel may say 'optimal' with v wrong in the third digit. O(N n)."""
+        c = float(np.linalg.norm(self._state[0] @ self.x.value)) if self.formulation == "condensed" and \
+            self._state is not None and self._free.any() else 0.0
+        if not 2.0 * np.finfo(float).eps * c <= CROSS_CHECK_COST_RTOL * np.sqrt(max(value, 0.0)):
+            raise NumericalError(
+                f"the {protocol}-like condensed QP's minimum {value:.3g} is the square of a residual of terms of "
+                f"size {c:.3g}, which double precision cannot resolve to {CROSS_CHECK_COST_RTOL:.0e}: the problem's "
+                f"scale is beyond the solver's range (open-loop growth rho(A)^N = "
+                f"{float(max(abs(np.linalg.eigvals(self.system.A)))):.3g}^{self.system.horizon}); the closed form "
+                "(method='recursion') is exact here")
+
     def _out_of_range(self, status: str, protocol: str) -> NumericalError:
         """The QP is unconstrained and strictly convex: it always has one minimiser, so any status
         but optimal ('infeasible' included) means the solver lost the problem's scale."""
@@ -311,6 +325,7 @@ class ExpectedCostQP:
         self._assign(system.mu_schedule, x / size if size > 0 else x, protocol)
         if size > 0:   # the variable part is homogeneous of degree 2 in x: solve at unit size, scale back
             u, value, status = self._solve_raw(protocol)
+            self._check_resolvable(value, protocol)
             u, value = u * size, value * self._scale * size**2
         else:          # x = 0: the plan is zero and so is the variable part, exactly
             u, value, status = np.zeros(N * m), 0.0, "optimal"

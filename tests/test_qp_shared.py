@@ -159,3 +159,24 @@ def test_threads_sharing_a_bucket_get_their_own_answers():
 def test_data_larger_than_the_problem_are_refused():
     with pytest.raises(pl.InputError, match="do not fit"):
         CondensedQP(8, 8).solve(np.zeros(9), np.zeros((9, 2)), np.ones(2), "too many rows")
+
+
+@pytest.mark.parametrize(("a", "N", "mu"), [(4.0, 25, 0.5), (4.0, 25, 0.9), (8.0, 16, 0.5)])
+def test_an_unresolvable_minimum_is_refused_not_reported(a, N, mu):
+    """x' = [[a, 1], [0, 0.5]] x + [1, 1]' u over N steps: L Phi x ~ 1e15 against a minimum ~ 50. The shared
+    (Parameter) problem ended 'optimal' with J off the recursion's by 2e-5 to 8e-3 relative (reported as such
+    with cross_check=False; a CrossCheckError blaming a disagreement otherwise, where the per-system problem
+    had raised NumericalError and `solve` printed 'QP cross-check skipped'). Now NumericalError, as before."""
+    s = pl.System(A=[[a, 1.0], [0.0, 0.5]], B=[[1.0], [1.0]], horizon=N, state_weight=[1.0, 1.0],
+                  input_weight=[1.0], mu=[mu], x0=[1.0, 1.0])
+    with pytest.raises(pl.NumericalError, match="cannot resolve|Clarabel ended"):
+        pl.ExpectedCostQP(s, "tcp", "condensed").solve(with_gain=False, cross_check=False)
+
+
+def test_the_resolution_guard_keeps_badly_scaled_but_resolvable_minima():
+    """Input weights down to 1e-18 of the state weights (a minimum ~1e-9 of ||L Phi x||^2) are still solved."""
+    s = pl.System(A=[[0.9, 0.2], [0.0, 0.7]], B=[[1.0], [0.3]], horizon=20, state_weight=[1.0, 1.0],
+                  input_weight=[1e-18], mu=[0.6], x0=[1.0, -2.0])
+    for protocol in ("tcp", "udp"):
+        sol = pl.ExpectedCostQP(s, protocol, "condensed").solve(with_gain=False)     # cross-checked
+        assert sol.cross_check.cost_rel_diff <= CROSS_CHECK_COST_RTOL

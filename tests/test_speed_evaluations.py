@@ -154,3 +154,27 @@ def test_a_failing_search_fails_alone():
     assert ok == brute_force_allocation(s, "tcp", *high, **grid) == (1.9, 1.0, 0.9)
     assert isinstance(failed, pl.NumericalError)
     assert str(failed) == str(alone.value)
+
+
+def test_a_search_failing_after_the_others_ended_fails_alone(monkeypatch):
+    """The last search left running fails: the others' answers are kept and it gets its error (the whole
+    call raised it when only one request was left, losing the answers of the cases already settled)."""
+    t = pl.System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+                  mu=[0.5, 0.5], x0=[1.0, 1.0])
+    costs = CostEvaluator.costs
+
+    def failing(self, mus, x0=None):       # J* undefined where mu1 > 0.5 and mu2 < 0.3 (as an overflow)
+        mus = np.asarray(mus)
+        if np.any((mus[:, 1] < 0.3) & (mus[:, 0] > 0.5)):
+            raise pl.NumericalError("no J* here")
+        return costs(self, mus, x0)
+
+    monkeypatch.setattr(CostEvaluator, "costs", failing)
+    settled, late = (0.1, (1.0, 1.0)), (1.5, (1.0, 1.0))     # J* >= 1 > 0.1: settled in the first round
+    grid = {"coarse": 11, "fine": 11}
+    assert brute_force_allocation(t, "tcp", *settled, **grid) is None
+    with pytest.raises(pl.NumericalError, match="no J"):
+        brute_force_allocation(t, "tcp", *late, **grid)
+    first, second = brute_force_allocations(t, "tcp", [settled, late], **grid)
+    assert first is None
+    assert isinstance(second, pl.NumericalError)

@@ -156,3 +156,25 @@ def test_own_cache_is_not_shared_with_copies():
     assert np.array_equal(stacked_moments(plain)[1], np.diag(v * (1 - v)))
     assert twin.cached("test.value", lambda: 1) == 1
     assert twin.with_x0(np.zeros(twin.n)).cached("test.value", lambda: 2) == 2
+
+
+def test_no_kept_array_has_a_writable_base():
+    """A kept array is read-only and so is whatever it views: ``p.Gamma.base`` was the writable 4-d array it
+    was filled through, so ``p.Gamma.base[...] = 0`` changed every later prediction of the system (and the
+    Markov covariance C likewise)."""
+    s = System(A=[[1.1, 0.2], [0.0, 0.8]], B=[[1.0], [0.5]], horizon=5, state_weight=[1.0, 2.0],
+               input_weight=[1.0], mu=[0.6], x0=[1.0, -1.0])
+    bursty = s.with_channel(GilbertElliott(p=[0.1], r=[0.3]))
+    p = prediction(s)
+    kept = [getattr(p, name) for name in ("Phi", "Gamma", "Psi", "Vbar", "Omega_p", "Omega_g", "Omega_gp", "Omega_d",
+                                          "Omega")]
+    kept += [udp_variance_weights(s)[0], *stacked_moments(bursty)]
+    for arr in kept:
+        base = arr
+        while base is not None:
+            assert not base.flags.writeable
+            base = base.base if isinstance(base.base, np.ndarray) else None
+    expected = np.array([[1.0, 0.0], [0.5, 0.0], [1.2, 1.0], [0.4, 0.5]])   # [[B, 0], [A B, B]] at N = 2
+    short = System(A=[[1.1, 0.2], [0.0, 0.8]], B=[[1.0], [0.5]], horizon=2, state_weight=[1.0, 2.0],
+                   input_weight=[1.0], mu=[0.6], x0=[1.0, -1.0])
+    assert np.allclose(prediction(short).Gamma, expected, rtol=0, atol=1e-15)

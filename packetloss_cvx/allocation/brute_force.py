@@ -120,7 +120,7 @@ def brute_force_allocations(system: System, protocol: str, cases: Sequence[tuple
         try:
             evaluate([p for _, points in requests.values() for p in points])
         except Exception:
-            if len(requests) == 1:
+            if len(cases) == 1:           # alone: its error as it is (brute_force_allocation raises it)
                 raise
             for k, (_, points) in list(requests.items()):      # each request alone: only its own case fails
                 try:

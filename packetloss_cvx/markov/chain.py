@@ -209,10 +209,10 @@ def _moments(system: System) -> tuple[np.ndarray, np.ndarray]:
         C = np.diag(v * (1.0 - v))
     else:
         blocks = channel_covariance(system.channel, N)
-        C = np.zeros((N, m, N, m))
+        C = np.zeros((N * m, N * m))          # owns its data: the read-only C has no writable base
+        blocked = C.reshape(N, m, N, m)
         for i in range(m):
-            C[:, i, :, i] = blocks[i]
-        C = C.reshape(N * m, N * m)
+            blocked[:, i, :, i] = blocks[i]
         C[np.diag_indices(N * m)] = v * (1.0 - v)       # the System's own (validated) schedule on the diagonal
     C.setflags(write=False)
     return v, C
