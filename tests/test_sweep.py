@@ -215,3 +215,13 @@ def test_a_markov_channel_is_refused():
     with pytest.raises(pl.InputError, match="Gilbert-Elliott") as info:
         sweep(bursty, x0_scales=[1.0])
     assert info.value.field == "system"
+
+
+def test_a_sweep_of_zero_costs_saves_its_data_and_skips_only_the_log_figures(capsys, tmp_path):
+    # x0 = 0 without noise: every cost is 0, valid input; the log contours have nothing to draw
+    path = pl.save_system(pl.load_example("two_actuator").with_x0([0.0, 0.0]), tmp_path / "zero.toml")
+    assert main(["sweep", str(path), "--mu-grid", "3", "--out", str(tmp_path / "z"), "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["figures_not_drawn"] == ["sweep_tcp.png", "sweep_udp.png", "sweep_diff.png"]
+    assert sorted(p.name for p in (tmp_path / "z").iterdir()) == ["sweep.csv", "sweep.npz"]
+    assert data["cost_tcp"]["max"] == 0.0

@@ -64,7 +64,9 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
     return options
 
 
-def _figures(result: DesignSweep, out: Path) -> list[Path]:
+def _figures(result: DesignSweep, out: Path, skipped: list[str]) -> list[Path]:
+    """The sweep's figures in ``out``; a log contour with no positive value to draw (e.g. every cost 0
+    at x0 = 0 without noise) is not drawn, and its name goes to ``skipped``."""
     curves = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
     title = f"{result.name or 'system'}: {result.kind} sweep"
     if len(result.dims) == 1:
@@ -76,6 +78,9 @@ def _figures(result: DesignSweep, out: Path) -> list[Path]:
     paths = []
     names = {"tcp": "log J*_tcp", "udp": "log J*_udp", "diff": "log J_Delta"}
     for key, values in curves.items():
+        if not np.any(np.asarray(values) > 0):
+            skipped.append(f"sweep_{key}.png")
+            continue
         path = out / f"sweep_{key}.png"
         plot_log_contour(result.axes[1], result.axes[0], np.asarray(values).reshape(result.shape),
                          colorbar_label=names[key], title=f"{title}: {names[key]}", path=path)
@@ -215,9 +220,13 @@ def run(args: argparse.Namespace) -> CommandResult:
         if args.out is not None:
             out = Path(args.out)
             paths = save_sweep(result, out, netcdf=args.netcdf)
-            paths_list = [*paths.values(), *_figures(result, out)]
+            skipped: list[str] = []
+            paths_list = [*paths.values(), *_figures(result, out, skipped)]
             data["files"] = [str(p) for p in paths_list]
             lines.append(f"  wrote {', '.join(p.name for p in paths_list)} in {out}")
+            if skipped:
+                data["figures_not_drawn"] = skipped
+                lines.append(f"  not drawn: {', '.join(skipped)} (no positive value: the figure shows logarithms)")
     except InputError as err:
         raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
     return CommandResult(data, "\n".join(lines))
