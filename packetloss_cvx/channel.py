@@ -159,6 +159,16 @@ class GilbertElliott:
     def __setattr__(self, key: str, value: Any) -> None:
         raise AttributeError("GilbertElliott is immutable: build a new one")
 
+    def __copy__(self) -> GilbertElliott:
+        return self          # immutable, its arrays read-only
+
+    def __deepcopy__(self, memo: dict) -> GilbertElliott:
+        return self
+
+    def __reduce__(self) -> tuple:
+        """Pickling rebuilds the channel from its TOML table through the validating constructor. O(m)."""
+        return GilbertElliott.from_table, (self.to_dict(),)
+
     def __repr__(self) -> str:
         """The parameters that differ from the defaults: h_good, h_bad only when not the Gilbert (1, 0), the state
         or belief only when given (``GilbertElliott(m=1, p=[0.1], r=[0.4], state=['bad'])``)."""

@@ -179,6 +179,24 @@ class System:
     def __setattr__(self, key: str, value: Any) -> None:
         raise AttributeError("System is immutable: use with_mu / with_x0 for a modified copy")
 
+    def __copy__(self) -> System:
+        return self          # immutable, its arrays read-only: a copy is the system itself
+
+    def __deepcopy__(self, memo: dict) -> System:
+        return self
+
+    def __reduce__(self) -> tuple:
+        """Pickling (multiprocessing, joblib, Dask) rebuilds the system through the validating
+        constructor from its fields; the cached structure is not sent. O(N (n^2 + m))."""
+        fields = {"A": self.A, "B": self.B, "horizon": self.horizon, "x0": self.x0,
+                  "state_weights": self.state_weights, "input_weights": self.input_weights,
+                  "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name}
+        if self.channel is not None:
+            fields["channel"] = self.channel
+        else:
+            fields["mu_schedule"] = self.mu_schedule
+        return _from_fields, (fields,)
+
     __repr__ = system_repr      # the headline numbers, not the arrays (display.py)
     _repr_html_ = system_html
     to_json = to_json
@@ -378,3 +396,8 @@ def check_system(system: Any, field: str = "system") -> System:
         raise InputError(field, f"expected a System (packetloss_cvx.System(...), load_system(path) or "
                                 f"load_example(name)), found {type(system).__name__}")
     return system
+
+
+def _from_fields(fields: dict[str, Any]) -> System:
+    """:meth:`System.__reduce__`'s rebuild: the constructor, which validates every field again."""
+    return System(**fields)
