@@ -130,6 +130,8 @@ def test_solve_json_on_unseen_systems(seed, tmp_path, capsys):
     (["simulate", "two_actuator", "--samples", "1e12"], "--samples: invalid int value: '1e12'"),
     (["sweep", "two_actuator", "--protocol", "xx", "--mu-grid", "3"], "--protocol: invalid choice: 'xx'"),
     (["allocate", "two_actuator", "--alpha", "3"], "arguments: the following arguments are required"),
+    (["audit", "--only", "theorem-2"], "--only: not an option of this command (see its --help)"),
+    (["solve", "two_actuator", "extra"], "extra: unexpected argument"),
 ])
 def test_a_usage_error_is_reported_under_the_option_it_is_about(capsys, argv, first):
     assert main(argv) == 2

@@ -72,6 +72,10 @@ class Parser(argparse.ArgumentParser):
         head, sep, rest = message.partition(": ")
         if sep and head.startswith("argument ") and " " not in head[len("argument "):]:
             raise InputError(head[len("argument "):], rest)
+        if sep and head == "unrecognized arguments" and rest.split():
+            first = rest.split()[0]
+            raise InputError(first, "not an option of this command (see its --help)" if first.startswith("-") else
+                             f"unexpected argument (all given: {rest[:80]}); see the command's --help")
         raise InputError("arguments", message)
 
 
