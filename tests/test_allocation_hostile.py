@@ -134,3 +134,16 @@ def test_extreme_alphas(two_actuator, protocol):
     with pytest.raises(pl.InfeasibleError) as info:
         allocate(two_actuator, protocol, 1e-300, (1.0, 1.0))
     assert info.value.min_cost == pytest.approx(corner, rel=1e-7)
+
+
+@pytest.mark.parametrize(("alpha", "beta", "G", "h", "field"), [
+    (float("nan"), [1.0, 1.0], None, None, "alpha"),        # returned None ("no feasible point") before
+    (3.0, [1.0, 1.0, 1.0], None, None, "beta"),
+    (3.0, [1.0, -1.0], None, None, "beta"),
+    (3.0, [1.0, 1.0], [[1.0, 1.0, 1.0]], [1.0], "G, h"),
+    (3.0, [1.0, 1.0], [[1.0, 1.0]], [np.inf], "G, h"),
+])
+def test_the_brute_force_reference_refuses_what_allocate_refuses(alpha, beta, G, h, field):
+    with pytest.raises(pl.InputError) as info:
+        brute_force_allocation(pl.load_example("two_actuator"), "udp", alpha, beta, G, h, coarse=11, fine=11)
+    assert info.value.field == field

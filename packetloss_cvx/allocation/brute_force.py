@@ -27,6 +27,7 @@ from ..evaluator import CostEvaluator
 from ..model import System
 from ..threads import blas_limited
 from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
+from .grammar import check_alpha, check_beta
 
 __all__ = ["SPECULATE", "bisect", "bisect_steps", "brute_force_allocation", "brute_force_allocations", "midpoints"]
 
@@ -136,9 +137,13 @@ def brute_force_allocations(system: System, protocol: str, cases: Sequence[tuple
 def _search(alpha: float, beta: Sequence[float], G: np.ndarray | None, h: np.ndarray | None, coarse: int,
             fine: int, tol: float, depth: int = 4) -> Search:
     """One case's search: yields lists of points, is sent their costs J*(mu1, mu2), returns the answer."""
-    beta = np.asarray(beta, dtype=float)
-    G = np.zeros((0, 2)) if G is None else np.atleast_2d(G)
-    h = np.zeros(0) if h is None else np.atleast_1d(h)
+    alpha, beta = check_alpha(alpha), check_beta(beta, 2)      # NaN alpha or a 3-vector beta: an error, not None
+    G = np.zeros((0, 2)) if G is None else np.atleast_2d(np.asarray(G, dtype=float))
+    h = np.zeros(0) if h is None else np.atleast_1d(np.asarray(h, dtype=float))
+    if G.ndim != 2 or G.shape[1] != 2 or h.shape != (G.shape[0],) or not (np.all(np.isfinite(G))
+                                                                         and np.all(np.isfinite(h))):
+        raise InputError("G, h", f"expected finite rows G (k, 2) and h (k,) of G mu <= h, found shapes {G.shape} "
+                                 f"and {h.shape}")
 
     def bounds(mu1: float, cap: float) -> tuple[float, float] | None:
         """The mu2 interval [lo, top] the constraints and ``cap`` leave, or None: above cap a point
