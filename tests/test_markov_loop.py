@@ -6,9 +6,10 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.errors import ResourceError
 from packetloss_cvx.markov import attach_channel, bursty_twin
 from packetloss_cvx.markov.mjls import mode_chain, second_moment_operator
-from packetloss_cvx.simulation.markov_loop import markov_closed_loop_costs
+from packetloss_cvx.simulation.markov_loop import PLAN_BUDGET, markov_closed_loop_costs
 
 
 def exact_loop_cost(system, K, steps):
@@ -59,3 +60,13 @@ def test_information_patterns():
         markov_closed_loop_costs(bursty, ["dp"], steps=3, samples=3)
     with pytest.raises(pl.InputError, match="Gilbert-Elliott"):
         markov_closed_loop_costs(s, steps=3, samples=3)
+
+
+def test_the_older_closed_loop_api_keeps_the_plan_budget():
+    # h strictly between 0 and 1: the filtered belief takes a new value in almost every run, one plan each;
+    # markov_closed_loop_costs planned on without a limit (minutes), simulate refused: now both refuse
+    s = pl.load_example("pendulum_bursty")
+    hidden = s.with_channel(GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.2]))
+    with pytest.raises(ResourceError, match=f"more than {PLAN_BUDGET}"):
+        markov_closed_loop_costs(hidden, ["plug-in-tcp"], steps=20, samples=3000, rng=np.random.default_rng(0),
+                                 progress=False)

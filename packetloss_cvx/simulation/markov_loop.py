@@ -62,6 +62,9 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     ------
     InputError
         No Markov channel, an unknown law, or counts below 1.
+    ResourceError
+        A law met more than PLAN_BUDGET distinct beliefs (one plan each; before 2026-11-22 it planned
+        on without a limit), as :func:`~packetloss_cvx.simulation.simulate` refuses them.
 
     Examples
     --------
@@ -89,17 +92,13 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     W, psi = system.state_weights[0], system.input_weights[0]
     out = np.empty((len(laws), samples))
     for k, law in enumerate(progress_bar(laws, total=len(laws), desc="closed loop (Markov)", progress=progress)):
-        cache: dict[bytes, np.ndarray] = {}
+        gains = BeliefGains(system, law[-3:], law=law)       # at most PLAN_BUDGET plans, then ResourceError
         belief = np.repeat(ch.initial_belief[None], samples, axis=0)
         X = np.repeat(system.x0[None], samples, axis=0)
         total = np.zeros(samples)
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(steps):
-                rows, inverse = np.unique(np.round(belief, 12), axis=0, return_inverse=True)
-                for row in rows:
-                    if row.tobytes() not in cache:
-                        cache[row.tobytes()] = _gain(system, law, row)
-                K = np.stack([cache[row.tobytes()] for row in rows])[inverse.ravel()]      # (S, m, n)
+                K = gains.many(belief)                                                     # (S, m, n)
                 applied = delivered[:, t] * -np.einsum("smn,sn->sm", K, X)
                 total += np.einsum("si,ij,sj->s", X, W, X) + np.sum(psi * applied * applied, axis=1)
                 X = X @ system.A.T + applied @ system.B.T
@@ -133,8 +132,8 @@ class BeliefGains:
     refused
     """
 
-    def __init__(self, system: System, protocol: str, budget: int = PLAN_BUDGET) -> None:
-        self.system, self.law, self.budget = system, f"plug-in-{protocol}", budget
+    def __init__(self, system: System, protocol: str, budget: int = PLAN_BUDGET, law: str | None = None) -> None:
+        self.system, self.law, self.budget = system, law or f"plug-in-{protocol}", budget   # law: MARKOV_LAWS
         self.cache: dict[bytes, np.ndarray] = {}
 
     def __call__(self, belief: np.ndarray) -> np.ndarray:
