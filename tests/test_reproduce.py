@@ -88,3 +88,16 @@ def test_unwritable_out_exit_2(capsys, tmp_path):
     blocker.write_text("")
     assert main(["reproduce", "--out", str(blocker / "sub"), "--quiet"]) == 2
     assert capsys.readouterr().err.startswith("packetloss-cvx: error: --out:")
+
+
+def test_the_full_runs_audit_is_the_projects():
+    # reproduce's claims.md is docs/claims.md's block (test_claims_doc checks that command's output
+    # byte for byte): the same number of random systems and the same seed
+    from pathlib import Path
+
+    from packetloss_cvx.cli.reproduce import SETTINGS
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "claims.md").read_text()
+    full = SETTINGS["full"]
+    assert f"audit --random {full['audit_random']} --seed {full['audit_seed']} --report" in doc
+    assert full["audit_skips"] == ()

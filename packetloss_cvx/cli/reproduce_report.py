@@ -213,7 +213,7 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
     counts = {v: sum(r.verdict == v for r in results) for v in ("holds", "fails", "not-reproduced", "inconclusive")}
     lines += ["## The audit", "",
               f"Every claim checked on the paper's two systems and {s['audit_random']} seeded random systems "
-              f"(`packetloss-cvx audit --random {s['audit_random']} --seed 0`"
+              f"(`packetloss-cvx audit --random {s['audit_random']} --seed {s['audit_seed']}`"
               + (f"; left out by --quick: {', '.join(s['audit_skips'])}" if s["audit_skips"] else "") + "): "
               + ", ".join(f"{n} {v}" for v, n in counts.items()) + f". Details: [claims.md]({claims_link(out)}).",
               "", markdown_table(results), ""]
