@@ -25,15 +25,17 @@ import time
 import cvxpy as cp
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .convex import solve_problem
 from .costs import closed_form, refuse_correlated
 from .crosscheck import compare
 from .errors import InputError, NumericalError, ResourceError, SolverError
-from .linalg import power_growth, psd_factor
+from .linalg import power_growth
 from .model import System, check_system
 from .protocols import check_protocol
 from .qp_shared import condensed_data, solve_condensed
+from .qp_sparse import qp_memory_estimate, sparse_dynamics
 from .recursion import recursion_cost, udp_variance_weights
 from .results import Solution
 from .threads import blas_limited
@@ -44,6 +46,7 @@ from .tolerances import (
     MEMORY_BUDGET_BYTES,
     PLAN_CHECK_MAX_GROWTH,
     QP_PIN_MU,
+    QP_RESCALE_BELOW,
 )
 
 __all__ = [
@@ -57,50 +60,9 @@ CLARABEL_SETTINGS = CLARABEL_TIGHT
 #: (measured crossover between N*m = 40 and 80 for n = 4: docs/performance.md).
 AUTO_CONDENSED_MAX = 60
 
-
-def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
-    """Block-sparse mean-state dynamics and state-weight factor for X = (xhat_1..xhat_N):
-    ``E X - Bbig z = first x0`` encodes ``xhat_{t+1} = A xhat_t + B z_t``, and
-    ``||L X||^2 = sum_t xhat_t' Omega_t xhat_t``. O(N (n^2 + n m)) nonzeros.
-
-    Examples
-    --------
-    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
-    >>> E, Bbig, first, L = sparse_dynamics(s)          # z = (1, 2): xhat_1 = 1 + 1, xhat_2 = 2 + 2
-    >>> np.linalg.solve(E.toarray(), Bbig @ [1.0, 2.0] + first @ s.x0).tolist()
-    [2.0, 4.0]
-    """
-    N, n = system.horizon, system.n
-    E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
-    Bbig = sp.kron(sp.eye(N), system.B, format="csr")
-    first = sp.csr_matrix(np.vstack([system.A, np.zeros(((N - 1) * n, n))]))
-    L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr")
-    return E, Bbig, first, L
-
-
-def qp_memory_estimate(system: System, formulation: str) -> float:
-    """Bytes the QP needs at its peak, known before building it: linear in N.
-
-    Measured (tracemalloc, compile and first solve; n = 1..100, m = 1..8, N up to 8000, full
-    weights): about 250 N n^2 bytes for the state terms, 350 N n m for the dynamics' input
-    columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB; the
-    condensed form adds its dense (N n)×(N m) data, a Parameter since the problems are shared by shape
-    (150 bytes per entry measured at the peak, 66-88 when they were constants: :mod:`.qp_shared`). In
-    the sparse form no Parameter multiplies a Variable, so cvxpy keeps no (N m)^2 map.
-
-    Examples
-    --------
-    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
-    >>> qp_memory_estimate(s, "sparse")                 # 260 + 400 + 650 + 1e7
-    10001310.0
-    >>> qp_memory_estimate(s, "condensed") - qp_memory_estimate(s, "sparse")   # one 1x1 dense block
-    150.0
-    """
-    N, n, m = system.horizon, system.n, system.m
-    needed = 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
-    if formulation == "condensed":
-        needed += 150.0 * (N * n) * (N * m)
-    return needed
+#: At most this many re-solves rescaled by the previous value (``tolerances.QP_RESCALE_BELOW``): one brings a
+#: resolved minimum to O(1); a first value that was mostly gap (1e-10 for a minimum of 1e-20) takes two.
+QP_RESCALE_PASSES = 2
 
 
 def _pick(system: System, formulation: str) -> str:
@@ -159,7 +121,11 @@ class ExpectedCostQP:
                 "range: the open-loop prediction of an unstable plant over this horizon")
         # one common scale for every weight (the minimiser does not change; the value scales back),
         # so that Clarabel's absolute tolerances mean the same for weights of 1e-15 and of 1e6
-        self._scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
+        self._weight_scale = max(float(system.input_weights.max()),
+                                 float(np.linalg.eigvalsh(system.state_weights).max()))
+        self._scale = self._weight_scale      # times the rescaling of tiny minima (:meth:`_rescale`)
+        #: how many solves of this object were re-solved rescaled (``tolerances.QP_RESCALE_BELOW``)
+        self.rescaled = 0
         self.x = cp.Parameter(n, name="x")
         if self.formulation == "condensed":     # (L Phi, L Gamma) / sqrt(scale); None without state weight
             self._state = condensed_data(system, self._scale)
@@ -262,6 +228,49 @@ class ExpectedCostQP:
             u[flat] = np.asarray(z).ravel() / self._v[flat]     # U = Vbar^{-1} Z where mu > QP_PIN_MU
         return u, float(value), status
 
+    def _open_loop(self) -> float:
+        """The scaled objective at z = 0 (no input delivered), an upper bound of the minimum that is zero exactly
+        when the minimum is (no weighted state moves). O(N n^2) (a block-bidiagonal solve in the sparse form)."""
+        if self.formulation == "condensed":
+            return float(np.sum((self._state[0] @ self.x.value) ** 2)) if self._state is not None else 0.0
+        E, _, first, L = self._state
+        return float(np.sum((L @ spla.spsolve_triangular(E, first @ self.x.value)) ** 2)) if L.shape[0] else 0.0
+
+    def _rescale(self, value: float) -> None:
+        """Multiply the common scale by ``value`` (the last scaled minimum, positive): the condensed data
+        (L Phi, L Gamma) / sqrt(scale) are rescaled in place (the shared problems take them as Parameters);
+        the sparse problems, whose weights are constants, are dropped and rebuilt on their next use. O(N n (n + m))."""
+        root = 1.0 / np.sqrt(value)
+        if self.formulation == "condensed":
+            self._state = None if self._state is None else (self._state[0] * root, self._state[1] * root)
+        else:
+            E, Bbig, first, L = self._state
+            self._state = (E, Bbig, first, L * root)
+            self._problems = {}
+        self._scale *= value
+
+    def _solve_scaled(self, mu: np.ndarray, x: np.ndarray, protocol: str) -> tuple[np.ndarray, float, str]:
+        """Solve at the unit state ``x``; where the scaled minimum v is below ``QP_RESCALE_BELOW`` (Clarabel's
+        absolute gap could then exceed CROSS_CHECK_COST_RTOL v), rescale by v and solve again, at most
+        ``QP_RESCALE_PASSES`` times, keeping the new scale. Raises NumericalError if v stays below it while
+        the minimum is not exactly zero (some weighted state moves). The minimiser does not depend on the scale."""
+        u, value, status = self._solve_raw(protocol)
+        for _ in range(QP_RESCALE_PASSES):
+            if not (0.0 < value < QP_RESCALE_BELOW) or not self._free.any() or self._open_loop() == 0.0:
+                break
+            self._rescale(value)
+            self._assign(mu, x, protocol)
+            u, value, status = self._solve_raw(protocol)
+            self.rescaled += 1
+        if value < QP_RESCALE_BELOW and self._free.any() and self._open_loop() > 0.0:
+            self._check_resolvable(value, protocol)
+            raise NumericalError(
+                f"the {protocol}-like {self.formulation} QP's minimum is {value:.3g} times its scale after "
+                f"{QP_RESCALE_PASSES} rescaled re-solves, below {QP_RESCALE_BELOW:.0e}, where Clarabel's absolute "
+                f"tolerance {CLARABEL_SETTINGS['tol_gap_abs']:.0e} exceeds {CROSS_CHECK_COST_RTOL:.0e} of it: the "
+                "weights span more than the solver resolves; the closed form (method='recursion') is exact here")
+        return u, value, status
+
     def _check_resolvable(self, value: float, protocol: str) -> None:
         """Raise when the condensed minimum v = ||c + G z||^2 + ||r z||^2 (c = L Phi x), a squared residual of
         terms of size ||c||, is below double precision's resolution at CROSS_CHECK_COST_RTOL (2 eps ||c|| /
@@ -323,7 +332,7 @@ class ExpectedCostQP:
         size = float(np.abs(x).max())
         self._assign(system.mu_schedule, x / size if size > 0 else x, protocol)
         if size > 0:   # the variable part is homogeneous of degree 2 in x: solve at unit size, scale back
-            u, value, status = self._solve_raw(protocol)
+            u, value, status = self._solve_scaled(system.mu_schedule, x / size, protocol)
             self._check_resolvable(value, protocol)
             u, value = u * size, value * self._scale * size**2
         else:          # x = 0: the plan is zero and so is the variable part, exactly
@@ -348,7 +357,7 @@ class ExpectedCostQP:
         check = None
         if cross_check:
             ref = reference if reference is not None else closed_form(system, protocol, method="auto")
-            check = compare(u.reshape(N, m), cost, ref, system, scale=(self._scale * size**2, size))
+            check = compare(u.reshape(N, m), cost, ref, system, scale=(self._weight_scale * size**2, size))
         return Solution(
             protocol=protocol, cost=cost, inputs=u.reshape(N, m), gain=gain,
             closed_loop_eigenvalues=eigs, method=f"qp-{self.formulation}", status=status,

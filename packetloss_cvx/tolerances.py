@@ -194,3 +194,13 @@ __all__ += ["QP_PIN_MU"]
 #: at 1e-60. Pinning a channel of delivery probability mu changes J* by at most mu sum_t psi u_t^2 (the
 #: envelope gradient), about 1e-30 times the weights' spread: far below CROSS_CHECK_COST_RTOL, which binds.
 QP_PIN_MU = 1e-30
+__all__ += ["QP_RESCALE_BELOW"]
+
+#: The QP twin solves its problem scaled to a largest weight of one and max|x0| = 1. Clarabel stops at an
+#: absolute duality gap of tol_gap_abs, or a relative one of tol_gap_rel max(1, |objective|): below an
+#: objective of one both are absolute, 1e-10 (CLARABEL_TIGHT). Where the scaled minimum v is below
+#: QP_RESCALE_BELOW = 1e-10 / CROSS_CHECK_COST_RTOL = 1e-3 that gap may exceed CROSS_CHECK_COST_RTOL v
+#: (measured: v ~ 1e-11 with weights spanning 1e12 came back 0.5-6.5 % high, status 'optimal'); there the
+#: QP is scaled again by its first value and re-solved (the minimiser does not change), so that v is O(1)
+#: and the relative criterion governs. A value still below it after the passes raises NumericalError.
+QP_RESCALE_BELOW = max(CLARABEL_TIGHT["tol_gap_abs"], CLARABEL_TIGHT["tol_gap_rel"]) / CROSS_CHECK_COST_RTOL

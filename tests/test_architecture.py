@@ -18,8 +18,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
      "channel", "validation", "threads"},
-    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "crosscheck", "random_systems", "evaluator", "pointwise",
-     "batch_recursion"},
+    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "qp_sparse", "crosscheck", "random_systems",
+     "evaluator", "pointwise", "batch_recursion"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},
