@@ -316,7 +316,8 @@ class ExpectedCostQP:
         NumericalError
             Any solver status other than "optimal" (this QP always has a unique minimiser, so
             'infeasible' or 'optimal_inaccurate' mean lost scale), or an objective that disagrees
-            with the forward cost of the plan.
+            with the forward cost of the plan, or a scaled minimum still below ``QP_RESCALE_BELOW`` after
+            ``QP_RESCALE_PASSES`` re-solves rescaled by it (Clarabel's absolute tolerance would then bind).
         CrossCheckError
             The QP and the reference disagree beyond the tolerances; both numbers are named.
         """
