@@ -1,14 +1,37 @@
 """Review 6, a hostile new user on the day's fixes: each test is one defect found, failing before its fix."""
 
+import copy
 import json
+import pickle
 
+import packetloss_cvx as pl
 from packetloss_cvx.cli import main
+from packetloss_cvx.studies import sweep
 
 
 def test_solve_json_names_each_protocol_as_the_readme_says(capsys):
     # README and design.md: "each protocol has `protocol`, `cost`, ..."; solve --json left it out
     assert main(["solve", "two_actuator", "--json", "--no-qp"]) == 0
     data = json.loads(capsys.readouterr().out)
-    assert data["tcp"]["protocol"] == "tcp" and data["udp"]["protocol"] == "udp"
+    assert data["tcp"]["protocol"] == "tcp"
+    assert data["udp"]["protocol"] == "udp"
     assert main(["solve", "pendulum_bursty", "--json", "--no-qp", "--protocol", "udp"]) == 0
     assert json.loads(capsys.readouterr().out)["udp"]["protocol"] == "udp"
+
+
+def test_results_keep_read_only_arrays_through_pickle_and_deepcopy(two_actuator):
+    # results are frozen with read-only arrays (results/__init__.py); a result sent back from a
+    # multiprocessing worker (pickle) or deep-copied skipped __post_init__ and came back writable
+    sol = pl.closed_form(two_actuator, "udp")
+    result = sweep(two_actuator, mu_grid=3)
+    for obj in (sol, result):
+        for twin in (pickle.loads(pickle.dumps(obj)), copy.deepcopy(obj)):
+            assert type(twin) is type(obj)
+            for name, value in vars(obj).items():
+                back = vars(twin)[name]
+                if hasattr(value, "flags"):
+                    assert not back.flags.writeable, name
+                    assert back.tobytes() == value.tobytes(), name
+    twin = pickle.loads(pickle.dumps(result))
+    assert not any(v.flags.writeable for v in twin.costs.values())
+    assert not twin.mu.flags.writeable
