@@ -10,6 +10,8 @@ import packetloss_cvx as pl
 from packetloss_cvx.cli import main
 from packetloss_cvx.studies import sweep
 
+from .conftest import EXAMPLES
+
 
 def test_solve_json_names_each_protocol_as_the_readme_says(capsys):
     # README and design.md: "each protocol has `protocol`, `cost`, ..."; solve --json left it out
@@ -59,3 +61,20 @@ def test_an_option_is_not_guessed_from_a_prefix(capsys, argv, field):
 def test_counted_and_grouped_short_flags_still_parse(capsys):
     assert main(["solve", "two_actuator", "-vv", "--no-qp"]) == 0
     assert "TCP-like" in capsys.readouterr().out
+
+
+def test_a_small_real_plug_in_loss_is_not_printed_as_zero(capsys, tmp_path):
+    # lambda = 1e-3 at the pendulum's rate 0.9: the UDP-like plug-in law loses 4.4e-8 relative (it scales as
+    # lambda^2: 4.4e-10 at 1e-4), and solve printed it as "(+0.0000%)" beside two visibly different costs
+    text = (EXAMPLES / "pendulum_bursty.toml").read_text()
+    lam, mu = 1e-3, 0.9
+    path = tmp_path / "nearly_bernoulli.toml"
+    path.write_text(text.replace("p = [0.02]", f"p = [{(1 - mu) * (1 - lam)!r}]")
+                    .replace("r = [0.18]", f"r = [{mu * (1 - lam)!r}]"))
+    assert main(["solve", str(path), "--protocol", "udp", "--no-qp", "--json"]) == 0
+    loss = json.loads(capsys.readouterr().out)["markov"]["udp"]["relative_loss"]
+    assert 1e-8 < loss < 1e-7
+    assert main(["solve", str(path), "--protocol", "udp", "--no-qp"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("UDP-like exact"))
+    assert "0.0000%" not in line
+    assert f"({100 * loss:+.3g}%)" in line
