@@ -8,6 +8,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
+from packetloss_cvx.cli import simulate as simulate_command
 from packetloss_cvx.studies import sweep
 
 from .conftest import EXAMPLES
@@ -78,3 +79,15 @@ def test_a_small_real_plug_in_loss_is_not_printed_as_zero(capsys, tmp_path):
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("UDP-like exact"))
     assert "0.0000%" not in line
     assert f"({100 * loss:+.3g}%)" in line
+
+
+def test_a_figure_format_matplotlib_cannot_write_is_refused_before_the_sampling(capsys, monkeypatch):
+    # was: the whole Monte Carlo ran (19 s at --samples 200000), then exit 2 under "path", nothing printed
+    def never(*args, **kwargs):
+        raise AssertionError("sampled before the --plot check")
+
+    monkeypatch.setattr(simulate_command, "simulate", never)
+    assert main(["simulate", "two_actuator", "--closed-loop", "--plot", "loop.pgn", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("packetloss-cvx: error: --plot: cannot write a 'pgn' figure"), err
