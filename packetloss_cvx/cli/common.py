@@ -182,8 +182,6 @@ def preflight(args: argparse.Namespace) -> None:
         raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
     if getattr(args, "plot", None) and getattr(args, "closed_loop", None) is False:
         raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
-    if isinstance(getattr(args, "plot", None), str):
-        check_figure_format(args.plot, "--plot")
     if getattr(args, "file", None) is not None:
         system = system_of(args)
         if getattr(args, "alpha", None) is not None and getattr(args, "beta", None) is not None:
@@ -193,9 +191,9 @@ def preflight(args: argparse.Namespace) -> None:
 
 
 def check_figure_format(path: str, field: str) -> None:
-    """A figure FILE whose extension matplotlib can write (no extension: PNG), checked before the work:
-    ``simulate --plot loop.pgn`` sampled for minutes, then exited 2 under "path" with nothing printed.
-    O(1) (imports matplotlib's backend base only when a figure is asked for).
+    """A figure FILE whose extension matplotlib can write (no extension: PNG), checked by a command before
+    its work (not by :func:`preflight`, which imports no matplotlib): ``simulate --plot loop.pgn`` sampled
+    for minutes, then exited 2 under "path" with nothing printed. O(1).
 
     Examples
     --------
