@@ -91,3 +91,20 @@ def test_a_figure_format_matplotlib_cannot_write_is_refused_before_the_sampling(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
     assert err[0].startswith("packetloss-cvx: error: --plot: cannot write a 'pgn' figure"), err
+
+
+def test_a_burstiness_sweep_of_zero_costs_is_not_nan(capsys, tmp_path):
+    # x0 = 0 without noise (valid input): every cost is 0 and plugin / exact - 1 was 0/0: the text read
+    # "loses up to nan%" and --json exited 1 ("unexpected ValueError: Out of range float values are not JSON
+    # compliant"); solve's chain section already takes a zero minimum's loss as 0 (markov.compare)
+    path = tmp_path / "zero.toml"
+    path.write_text((EXAMPLES / "two_actuator.toml").read_text().replace("x0 = [1.0, 1.0]", "x0 = [0.0, 0.0]"))
+    assert main(["sweep", str(path), "--burstiness", "0,0.5", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "nan" not in text
+    assert "TCP-like: the plug-in law is the exact minimiser at every lambda" in text
+    assert "UDP-like: the plug-in law is the exact minimiser at every lambda" in text
+    assert main(["sweep", str(path), "--burstiness", "0,0.5", "--quiet", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["udp"]["relative_loss"] == [0.0, 0.0]
+    assert data["udp"]["exact"] == [0.0, 0.0]

@@ -147,7 +147,8 @@ def bursty(args: argparse.Namespace) -> CommandResult:
     lines = [f"{system.name or args.file}: burstiness sweep at average rates {np.round(result.rate, 6).tolist()}"]
     for p in protocols:
         plugin, exact = result.plugin[p], result.exact[p]
-        loss = plugin / exact - 1
+        # a zero minimum (x0 = 0 without noise) has a zero plug-in cost too: its loss is 0, as solve's (markov.compare)
+        loss = np.divide(plugin, exact, out=np.ones_like(plugin), where=exact > 0) - 1
         data[p] = {"plugin": plugin.tolist(), "exact": exact.tolist(), "relative_loss": loss.tolist()}
         worst = int(np.argmax(loss))
         if loss[worst] <= SELF_CHECK_RTOL:   # equal to rounding: the plug-in law is the exact minimiser
