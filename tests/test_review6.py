@@ -108,3 +108,12 @@ def test_a_burstiness_sweep_of_zero_costs_is_not_nan(capsys, tmp_path):
     data = json.loads(capsys.readouterr().out)
     assert data["udp"]["relative_loss"] == [0.0, 0.0]
     assert data["udp"]["exact"] == [0.0, 0.0]
+
+
+def test_a_cap_of_one_box_is_singular(capsys):
+    # 0ed6b71 made the method line say '1 box'; the same line still said 'stopped at the cap of 1 boxes'
+    assert main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "3", "--beta", "1,1",
+                 "--max-boxes", "1", "--quiet"]) == 4
+    text = capsys.readouterr().out
+    assert "stopped at the cap of 1 box;" in text
+    assert "1 boxes" not in text
