@@ -117,3 +117,8 @@ def test_a_cap_of_one_box_is_singular(capsys):
     text = capsys.readouterr().out
     assert "stopped at the cap of 1 box;" in text
     assert "1 boxes" not in text
+
+
+def test_a_sweep_of_one_point_says_point(capsys):
+    assert main(["sweep", "two_actuator", "--horizons", "3", "--quiet"]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == "two-actuator: horizon sweep, 1 point (1 over horizon)"

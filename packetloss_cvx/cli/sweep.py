@@ -91,7 +91,8 @@ def _figures(result: DesignSweep, out: Path, skipped: list[str]) -> list[Path]:
 def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
     data: dict[str, Any] = {"name": result.name, "kind": result.kind, "dims": list(result.dims),
                             "shape": list(result.shape), "points": int(result.mu.shape[0])}
-    lines = [f"{result.name or 'system'}: {result.kind} sweep, {data['points']} points "
+    points = f"{data['points']} point{'s' if data['points'] != 1 else ''}"
+    lines = [f"{result.name or 'system'}: {result.kind} sweep, {points} "
              f"({' x '.join(map(str, result.shape))} over {', '.join(result.dims)})"]
     columns = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
     for key, values in columns.items():
