@@ -2,7 +2,10 @@
 
 Bad input subclasses :class:`ValueError` so that ``except ValueError`` still
 works; failures of a well-posed computation subclass :class:`RuntimeError` or
-:class:`ArithmeticError`.
+:class:`ArithmeticError`. Each pickles with its own fields (``__reduce__``), so an error raised in a
+multiprocessing or joblib worker reaches the caller as itself: an exception whose constructor takes
+more than its message cannot be rebuilt from ``args`` alone, and a worker's InputError broke the
+whole ProcessPoolExecutor (BrokenProcessPool for every task, the message lost).
 """
 
 from __future__ import annotations
@@ -27,6 +30,9 @@ class InputError(ValueError):
         self.detail = detail
         super().__init__(f"{field}: {detail}")
 
+    def __reduce__(self) -> tuple:
+        return type(self), (self.field, self.detail), self.__dict__
+
     def renamed(self, field: str) -> InputError:
         """The same error, reported under another field name (e.g. a TOML path)."""
         return type(self)(field, self.detail)
@@ -45,8 +51,12 @@ class SolverError(RuntimeError):
 
     def __init__(self, status: str, detail: str = "") -> None:
         self.status = status
+        self.detail = detail
         message = f"solver status {status!r}"
         super().__init__(f"{message}: {detail}" if detail else message)
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.status, self.detail), self.__dict__
 
 
 class InfeasibleError(RuntimeError):
@@ -55,6 +65,9 @@ class InfeasibleError(RuntimeError):
     def __init__(self, detail: str, min_cost: float | None = None) -> None:
         self.min_cost = min_cost
         super().__init__(detail)
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.args[0], self.min_cost), self.__dict__
 
 
 class NumericalError(ArithmeticError):
@@ -71,6 +84,9 @@ class CrossCheckError(ArithmeticError):
         self.values = dict(values)
         super().__init__(detail)
 
+    def __reduce__(self) -> tuple:
+        return type(self), (self.args[0], self.values), self.__dict__
+
 
 class ResourceError(RuntimeError):
     """A computation whose size is known in advance would not fit the memory budget."""
@@ -79,3 +95,6 @@ class ResourceError(RuntimeError):
         self.needed_bytes = needed_bytes
         self.budget_bytes = budget_bytes
         super().__init__(detail)
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.args[0], self.needed_bytes, self.budget_bytes), self.__dict__

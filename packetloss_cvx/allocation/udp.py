@@ -137,7 +137,7 @@ class Search:
         with progress_bar(desc=f"branch and bound (boxes, cap {self.max_boxes})", progress=self.progress) as bar:
             while self.heap and not self.certified():
                 if self.boxes >= self.max_boxes:
-                    return f"stopped at the cap of {self.max_boxes} boxes"
+                    return f"stopped at the cap of {self.max_boxes} box{'es' if self.max_boxes != 1 else ''}"
                 if self.boxes and self.time_limit is not None and time.monotonic() - start > self.time_limit:
                     return f"stopped at the time limit of {self.time_limit:g} s"
                 bound, _, l, u, data = heapq.heappop(self.heap)

@@ -18,8 +18,15 @@ __all__ = ["markov_section"]
 
 def _percent(loss: float) -> str:
     """The plug-in law's relative loss in words: a rounding-level loss (below 5e-9) reads "the same
-    to rounding", not "+0.0000%" or "-0.0000%"."""
-    return "the same to rounding" if abs(loss) < 5e-9 else f"{100 * loss:+.4f}%"
+    to rounding", not "+0.0000%" or "-0.0000%"; a loss under 0.01 % keeps 3 significant digits (a loss of
+    4.4e-8 read "+0.0000%").
+
+    >>> _percent(1e-12), _percent(4.36e-8), _percent(-2e-6), _percent(0.078959)
+    ('the same to rounding', '+4.36e-06%', '-0.0002%', '+7.8959%')
+    """
+    if abs(loss) < 5e-9:
+        return "the same to rounding"
+    return f"{100 * loss:+.3g}%" if abs(loss) < 1e-6 else f"{100 * loss:+.4f}%"
 
 
 def _radius(system: System, gain: np.ndarray) -> tuple[float | None, bool, str]:

@@ -66,14 +66,20 @@ class Formatter(argparse.RawDescriptionHelpFormatter):
 class Parser(argparse.ArgumentParser):
     """argparse that reports a usage error as one line and exit code 2, under the option it is
     about when argparse names one ("argument --samples: invalid int value: '1e12'" is reported as
-    ``--samples: invalid int value: '1e12'``), else under "arguments"."""
+    ``--samples: invalid int value: '1e12'``), else under "arguments". An option is never guessed
+    from a prefix (``allow_abbrev=False``): ``sweep FILE --x0 2,-1`` was read as ``--x0-scales 2,-1``
+    (a sweep over x0 times 2 and -1) where ``solve --x0 2,-1`` sets x0; now it is an unknown option."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault("allow_abbrev", False)     # subparsers are built by this class too
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> None:  # type: ignore[override]
         head, sep, rest = message.partition(": ")
         if sep and head.startswith("argument ") and " " not in head[len("argument "):]:
             raise InputError(head[len("argument "):], rest)
         if sep and head == "unrecognized arguments" and rest.split():
-            first = rest.split()[0]
+            first = rest.split()[0].split("=")[0] if rest.startswith("-") else rest.split()[0]
             raise InputError(first, "not an option of this command (see its --help)" if first.startswith("-") else
                              f"unexpected argument (all given: {rest[:80]}); see the command's --help")
         raise InputError("arguments", message)

@@ -12,7 +12,7 @@ from ..plots import plot_closed_loop
 from ..results import Simulation
 from ..simulation.markov_montecarlo import EXACT_PLAN
 from ..simulation.montecarlo import LAWS, simulate
-from .common import CommandResult, progress_of, system_of
+from .common import CommandResult, check_figure_format, progress_of, system_of
 
 __all__ = ["run"]
 
@@ -49,6 +49,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     if not args.closed_loop:
         laws = tuple(law for law in laws if law != "dp")
     keep = SAVED_RUNS if args.save and args.closed_loop else 0
+    if args.plot:
+        check_figure_format(args.plot, "--plot")      # before the sampling, not after it
     try:
         sim = simulate(system, args.samples, steps=args.steps, seed=args.seed, closed_loop=args.closed_loop,
                        laws=laws, keep=keep, progress=progress_of(args))

@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     for protocol in protocols:
         sol = closed_form(plugin, protocol, method=args.method)
         entry: dict[str, Any] = {
-            "cost": sol.cost, "inputs": sol.inputs.tolist(), "gain": sol.gain.tolist(),
+            "protocol": protocol, "cost": sol.cost, "inputs": sol.inputs.tolist(), "gain": sol.gain.tolist(),
             "closed_loop_eigenvalues": eigenvalue_pairs(sol.closed_loop_eigenvalues),
             "method": sol.method,
         }

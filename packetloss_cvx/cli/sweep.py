@@ -91,7 +91,8 @@ def _figures(result: DesignSweep, out: Path, skipped: list[str]) -> list[Path]:
 def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
     data: dict[str, Any] = {"name": result.name, "kind": result.kind, "dims": list(result.dims),
                             "shape": list(result.shape), "points": int(result.mu.shape[0])}
-    lines = [f"{result.name or 'system'}: {result.kind} sweep, {data['points']} points "
+    points = f"{data['points']} point{'s' if data['points'] != 1 else ''}"
+    lines = [f"{result.name or 'system'}: {result.kind} sweep, {points} "
              f"({' x '.join(map(str, result.shape))} over {', '.join(result.dims)})"]
     columns = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
     for key, values in columns.items():
@@ -147,7 +148,8 @@ def bursty(args: argparse.Namespace) -> CommandResult:
     lines = [f"{system.name or args.file}: burstiness sweep at average rates {np.round(result.rate, 6).tolist()}"]
     for p in protocols:
         plugin, exact = result.plugin[p], result.exact[p]
-        loss = plugin / exact - 1
+        # a zero minimum (x0 = 0 without noise) has a zero plug-in cost too: its loss is 0, as solve's (markov.compare)
+        loss = np.divide(plugin, exact, out=np.ones_like(plugin), where=exact > 0) - 1
         data[p] = {"plugin": plugin.tolist(), "exact": exact.tolist(), "relative_loss": loss.tolist()}
         worst = int(np.argmax(loss))
         if loss[worst] <= SELF_CHECK_RTOL:   # equal to rounding: the plug-in law is the exact minimiser

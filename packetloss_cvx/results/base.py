@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["eigenvalue_pairs", "finite_or_none", "freeze", "read_only"]
+__all__ = ["Frozen", "eigenvalue_pairs", "finite_or_none", "freeze", "read_only"]
 
 
 def read_only(value: Any) -> np.ndarray:
@@ -44,6 +44,37 @@ def freeze(obj: Any) -> None:
     for name, value in vars(obj).items():
         if isinstance(value, np.ndarray):
             object.__setattr__(obj, name, read_only(value))
+
+
+class Frozen:
+    """Base of the result types whose ``__post_init__`` makes their arrays read-only: a copy made by
+    pickle (a multiprocessing or joblib worker's answer) or ``copy.deepcopy`` skips ``__init__``, so it
+    runs ``__post_init__`` again when its state is set, and its arrays are read-only as the original's.
+    O(size of the arrays), as building the result.
+
+    Examples
+    --------
+    >>> import copy, pickle
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class R(Frozen):
+    ...     x: np.ndarray
+    ...     def __post_init__(self):
+    ...         freeze(self)
+    >>> copy.deepcopy(R(np.ones(2))).x.flags.writeable
+    False
+    """
+
+    __slots__ = ()
+
+    def __setstate__(self, state: Any) -> None:
+        if isinstance(state, tuple):         # (dict, slots) when a subclass has __slots__
+            state = {**(state[0] or {}), **(state[1] or {})}
+        for key, value in state.items():
+            object.__setattr__(self, key, value)
+        post_init = getattr(self, "__post_init__", None)
+        if post_init is not None:
+            post_init()
 
 
 def finite_or_none(value: float | None) -> float | None:

@@ -8,13 +8,13 @@ from typing import Any
 import numpy as np
 
 from ..display import fields_repr, to_json
-from .base import finite_or_none, freeze
+from .base import Frozen, finite_or_none, freeze
 
 __all__ = ["ClosedLoop", "ClosedLoopRun", "OpenLoopCheck", "Riccati", "Simulation"]
 
 
 @dataclass(frozen=True)
-class ClosedLoop:
+class ClosedLoop(Frozen):
     """A stationary law ``u = -K x`` (``law``: its label) run for ever over the channel ``mu`` (simulation.moments).
 
     ``spectral_radius`` of the second-moment operator (mean-square stable iff < 1); ``stable`` only when
@@ -49,7 +49,7 @@ class ClosedLoop:
 
 
 @dataclass(frozen=True)
-class Riccati:
+class Riccati(Frozen):
     """The DP optimum (simulation.riccati): ``cost_to_go`` P solves the modified Riccati equation, ``gain``
     K its law u = -K x, ``average_stage_cost`` = tr(P Sigma_W), ``spectral_radius`` of the law's
     second-moment operator, ``iterations`` (value and policy), ``residual`` ||R(P) - P|| / ||P||."""
@@ -95,7 +95,7 @@ class OpenLoopCheck:
 
 
 @dataclass(frozen=True)
-class ClosedLoopRun:
+class ClosedLoopRun(Frozen):
     """A law run in closed loop for ``steps`` steps over sampled losses (simulation.montecarlo): ``mean_stage_cost``
     and ``stderr`` of each run's mean stage cost over t < steps, ``exact_stage_cost`` its expectation,
     ``spectral_radius`` and ``stable`` as in ClosedLoop, ``reason`` why there is no law ("" if there is); per
@@ -135,7 +135,7 @@ class ClosedLoopRun:
 
 
 @dataclass(frozen=True)
-class Simulation:
+class Simulation(Frozen):
     """Monte Carlo checks (simulation.montecarlo): ``open_loop`` protocol -> OpenLoopCheck, ``closed_loop`` law ->
     ClosedLoopRun, ``trajectories`` (laws, runs, steps + 1, n) of the first runs or None; ``channel`` the model
     sampled ("bernoulli" or "gilbert-elliott")."""

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..display import fields_repr, to_json
-from .base import freeze, read_only
+from .base import Frozen, freeze, read_only
 from .plans import Solution
 
 __all__ = ["BurstinessSweep", "MarkovSolution", "MjlsResult"]
@@ -46,7 +46,7 @@ class MarkovSolution:
 
 
 @dataclass(frozen=True)
-class BurstinessSweep:
+class BurstinessSweep(Frozen):
     """Costs over the burstiness lambda = 1 - p - r at fixed average delivery rates ``rate``
     (:func:`packetloss_cvx.markov.burstiness_sweep`). ``plugin``: protocol -> the protocol's exact cost
     of its plug-in plan; ``exact``: protocol -> the exact minimum; each an array over ``correlation``."""
@@ -71,7 +71,7 @@ class BurstinessSweep:
 
 
 @dataclass(frozen=True)
-class MjlsResult:
+class MjlsResult(Frozen):
     """Mode-dependent optimal control of a Markov jump linear system (:mod:`packetloss_cvx.markov.mjls`).
 
     ``gains[k]``: u = -gains[k] x in mode k; ``cost_matrices[k]``: the coupled Riccati solutions P_k;

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..display import batch_repr, fields_repr, solution_html, solution_repr, to_json
-from .base import eigenvalue_pairs, freeze
+from .base import Frozen, eigenvalue_pairs, freeze
 
 __all__ = ["BatchSolution", "CrossCheck", "Solution"]
 
@@ -38,7 +38,7 @@ class CrossCheck:
 
 
 @dataclass(frozen=True)
-class Solution:
+class Solution(Frozen):
     """The optimal open-loop plan for one protocol.
 
     Attributes
@@ -99,7 +99,7 @@ class Solution:
 
 
 @dataclass(frozen=True)
-class BatchSolution:
+class BatchSolution(Frozen):
     """Optimal plans for P channels of one system (:class:`~packetloss_cvx.evaluator.CostEvaluator`).
 
     Attributes

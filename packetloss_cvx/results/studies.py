@@ -10,13 +10,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..display import allocation_html, allocation_repr, claim_html, claim_repr, fields_repr, maximiser_repr, to_json
-from .base import freeze, read_only
+from .base import Frozen, freeze, read_only
 
 __all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "Sweep"]
 
 
 @dataclass(frozen=True)
-class Allocation:
+class Allocation(Frozen):
     """The cheapest channel qualities found, with a certificate.
 
     ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: J*(mu) by the
@@ -57,7 +57,7 @@ class Allocation:
 
 
 @dataclass(frozen=True)
-class ClaimResult:
+class ClaimResult(Frozen):
     """The verdict on one claim, with the numbers behind it.
 
     Attributes
@@ -120,7 +120,7 @@ class ClaimResult:
 
 
 @dataclass(frozen=True)
-class Maximiser:
+class Maximiser(Frozen):
     """Where J_Delta peaks: ``nu`` (or ``mu`` for per-channel), the value, and how found."""
 
     point: np.ndarray
@@ -139,7 +139,7 @@ class Maximiser:
 
 
 @dataclass(frozen=True)
-class Sweep:
+class Sweep(Frozen):
     """Optimal costs over a grid of delivery probabilities (:mod:`packetloss_cvx.studies.sweeps`).
 
     ``axes``: one array per swept dimension; ``costs``: protocol -> array over the grid;
@@ -168,7 +168,7 @@ class Sweep:
 
 
 @dataclass(frozen=True)
-class MinCost:
+class MinCost(Frozen):
     """The least optimal cost J*(mu) reachable within bounds and constraints.
 
     ``cost``: J*(mu) at ``mu`` (reachable, by the closed form); ``lower_bound``: proven, no
@@ -199,7 +199,7 @@ class MinCost:
 
 
 @dataclass(frozen=True)
-class DesignSweep:
+class DesignSweep(Frozen):
     """Optimal costs over a design study (:func:`packetloss_cvx.studies.sweep`), P points.
 
     ``kind``: "mu-grid", "mu-list", "x0-scale" or "horizon"; ``dims``/``axes``: the swept dimensions,
