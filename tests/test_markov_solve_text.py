@@ -38,6 +38,6 @@ def test_solve_section_reads_and_uses_the_proven_rule(capsys):
     section = text.split("Gilbert-Elliott channel\n", 1)[1]
     assert section.startswith("p = [0.02] (P(good -> bad)), r = [0.18]")
     assert "0.0000%" not in section
-    assert "(the same to rounding) (the TCP-like cost holds only the marginals" in section   # its exact minimiser
+    assert "(equal within 5e-9 relative) (the TCP-like cost holds only the marginals" in section   # exact minimiser
     assert "NOT mean-square stable" in section                        # the pendulum's plug-in loops (1.0124, 1.068)
     assert "(not stable)" not in section

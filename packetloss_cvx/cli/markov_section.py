@@ -17,15 +17,16 @@ __all__ = ["markov_section"]
 
 
 def _percent(loss: float) -> str:
-    """The plug-in law's relative loss in words: a rounding-level loss (below 5e-9) reads "the same
-    to rounding", not "+0.0000%" or "-0.0000%"; a loss under 0.01 % keeps 3 significant digits (a loss of
-    4.4e-8 read "+0.0000%").
+    """The plug-in law's relative loss in words. Below 5e-9 (five times SELF_CHECK_RTOL, the precision
+    each cost is checked to) the two costs are not told apart: "equal within 5e-9 relative", not
+    "+0.0000%" or "-0.0000%" (a real loss of 4.4e-10 at lambda = 1e-4 is below it); a loss under 0.01 %
+    keeps 3 significant digits (a loss of 4.4e-8 read "+0.0000%").
 
     >>> _percent(1e-12), _percent(4.36e-8), _percent(-2e-6), _percent(0.078959)
-    ('the same to rounding', '+4.36e-06%', '-0.0002%', '+7.8959%')
+    ('equal within 5e-9 relative', '+4.36e-06%', '-0.0002%', '+7.8959%')
     """
     if abs(loss) < 5e-9:
-        return "the same to rounding"
+        return "equal within 5e-9 relative"
     return f"{100 * loss:+.3g}%" if abs(loss) < 1e-6 else f"{100 * loss:+.4f}%"
 
 
