@@ -145,7 +145,8 @@ class BeliefGains:
                 raise ResourceError(f"the {self.law[-3:].upper()}-like law re-plans at every distinct belief, and this "
                                     f"run met more than {self.budget} (the HMM-filtered belief of a channel whose "
                                     "outcome does not reveal its state takes a new value in almost every run): "
-                                    "fewer samples or steps, or the UDP-like law", len(self.cache) + 1, self.budget)
+                                    "fewer samples or steps, or the UDP-like law (simulate --law udp)",
+                                    len(self.cache) + 1, self.budget)
             self.cache[key] = _gain(self.system, self.law, row)
         return self.cache[key]
 
