@@ -47,10 +47,11 @@ def freeze(obj: Any) -> None:
 
 
 class Frozen:
-    """Base of the result types whose ``__post_init__`` makes their arrays read-only: a copy made by
-    pickle (a multiprocessing or joblib worker's answer) or ``copy.deepcopy`` skips ``__init__``, so it
-    runs ``__post_init__`` again when its state is set, and its arrays are read-only as the original's.
-    O(size of the arrays), as building the result.
+    """Base of the frozen result dataclasses: ``__post_init__`` makes their arrays read-only
+    (:func:`freeze`; a subclass that checks or derives more calls ``super().__post_init__()`` or
+    ``freeze`` itself), and a copy made by pickle (a multiprocessing or joblib worker's answer) or
+    ``copy.deepcopy``, which skips ``__init__``, runs ``__post_init__`` again when its state is set, so
+    its arrays are read-only as the original's. O(size of the arrays), as building the result.
 
     Examples
     --------
@@ -59,22 +60,21 @@ class Frozen:
     >>> @dataclass(frozen=True)
     ... class R(Frozen):
     ...     x: np.ndarray
-    ...     def __post_init__(self):
-    ...         freeze(self)
-    >>> copy.deepcopy(R(np.ones(2))).x.flags.writeable
-    False
+    >>> R(np.ones(2)).x.flags.writeable, copy.deepcopy(R(np.ones(2))).x.flags.writeable
+    (False, False)
     """
 
     __slots__ = ()
+
+    def __post_init__(self) -> None:
+        freeze(self)
 
     def __setstate__(self, state: Any) -> None:
         if isinstance(state, tuple):         # (dict, slots) when a subclass has __slots__
             state = {**(state[0] or {}), **(state[1] or {})}
         for key, value in state.items():
             object.__setattr__(self, key, value)
-        post_init = getattr(self, "__post_init__", None)
-        if post_init is not None:
-            post_init()
+        self.__post_init__()
 
 
 def finite_or_none(value: float | None) -> float | None:

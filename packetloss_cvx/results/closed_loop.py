@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..display import fields_repr, to_json
-from .base import Frozen, finite_or_none, freeze
+from .base import Frozen, finite_or_none
 
 __all__ = ["ClosedLoop", "ClosedLoopRun", "OpenLoopCheck", "Riccati", "Simulation"]
 
@@ -35,9 +35,6 @@ class ClosedLoop(Frozen):
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
 
-    def __post_init__(self) -> None:
-        freeze(self)
-
     to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -63,9 +60,6 @@ class Riccati(Frozen):
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     to_json = to_json       # to_dict() as JSON text (display.py)
-
-    def __post_init__(self) -> None:
-        freeze(self)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain lists and floats. O(n^2)."""
@@ -119,9 +113,6 @@ class ClosedLoopRun(Frozen):
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     to_json = to_json       # to_dict() as JSON text (display.py)
 
-    def __post_init__(self) -> None:
-        freeze(self)
-
     def to_dict(self) -> dict[str, Any]:
         """The issue's schema (plus ``reason`` when there is no law or no exact value, ``note`` when set);
         non-finite numbers are None. O(1)."""
@@ -150,9 +141,6 @@ class Simulation(Frozen):
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     to_json = to_json       # to_dict() as JSON text (display.py)
-
-    def __post_init__(self) -> None:
-        freeze(self)
 
     def to_dict(self) -> dict[str, Any]:
         """``{law: {"open_loop": {...}, "closed_loop": {...}}}``, each part where it was run. O(laws)."""

@@ -91,9 +91,6 @@ class MjlsResult(Frozen):
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     to_json = to_json       # to_dict() as JSON text (display.py)
 
-    def __post_init__(self) -> None:
-        freeze(self)
-
     def to_dict(self) -> dict[str, Any]:
         return {"gains": self.gains.tolist(), "cost_matrices": self.cost_matrices.tolist(),
                 "modes": self.modes.tolist(), "transition": self.transition.tolist(),

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..display import batch_repr, fields_repr, solution_html, solution_repr, to_json
-from .base import Frozen, eigenvalue_pairs, freeze
+from .base import Frozen, eigenvalue_pairs
 
 __all__ = ["BatchSolution", "CrossCheck", "Solution"]
 
@@ -72,9 +72,6 @@ class Solution(Frozen):
     __repr__ = solution_repr   # the headline numbers, not the arrays (display.py)
     _repr_html_ = solution_html
 
-    def __post_init__(self) -> None:
-        freeze(self)
-
     to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -125,9 +122,6 @@ class BatchSolution(Frozen):
     method: str
 
     __repr__ = batch_repr
-
-    def __post_init__(self) -> None:
-        freeze(self)
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 

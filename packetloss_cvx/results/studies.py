@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
 from ..display import allocation_html, allocation_repr, claim_html, claim_repr, fields_repr, maximiser_repr, to_json
+from ..errors import InputError
 from .base import Frozen, freeze, read_only
 
 __all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "Sweep"]
@@ -43,9 +43,6 @@ class Allocation(Frozen):
 
     __repr__ = allocation_repr
     _repr_html_ = allocation_html
-
-    def __post_init__(self) -> None:
-        freeze(self)
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 
@@ -129,9 +126,6 @@ class Maximiser(Frozen):
 
     __repr__ = maximiser_repr
 
-    def __post_init__(self) -> None:
-        freeze(self)
-
     to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -186,9 +180,6 @@ class MinCost(Frozen):
     method: str
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
-
-    def __post_init__(self) -> None:
-        freeze(self)
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 
