@@ -10,6 +10,7 @@ runs on a shared machine; the ratios are what to read.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import platform
 import statistics
@@ -257,6 +258,13 @@ def allocation_system(seed: int) -> pl.System:
                      mu=[0.5] * m, x0=rng.normal(size=n))
 
 
+def allocation_alpha(system: pl.System) -> float:
+    """The cost bound 0.3 of the way from J*_udp(mu = 1) to J*_udp(mu = 0)."""
+    full = pl.closed_form(system.with_mu([1.0] * system.m), "udp").cost
+    none = pl.closed_form(system.with_mu([0.0] * system.m), "udp").cost
+    return full + 0.3 * (none - full)
+
+
 class _ClosedFormEverywhere:
     """The allocation as it was: every J*(mu) through closed_form(system.with_mu(mu), "auto")."""
 
@@ -282,24 +290,19 @@ class _ClosedFormEverywhere:
         return at
 
 
+#: The baseline's run of one allocation case: this file's allocation_system and allocation_alpha (their
+#: source, so both checkouts solve the same case), then the timed allocate.
 BASELINE_ALLOCATION = """
 import json, sys, time
 import numpy as np
 import packetloss_cvx as pl
-seed = int(sys.argv[1])
-rng = np.random.default_rng(seed)
-n = m = 3
-A = rng.normal(size=(n, n))
-A *= 1.02 / max(abs(np.linalg.eigvals(A)))
-B = np.eye(n) + 0.3 * rng.normal(size=(n, m))
-s = pl.System(A=A, B=B, horizon=40, state_weight=np.ones(n), input_weight=rng.uniform(0.5, 1.5, m),
-              mu=[0.5] * m, x0=rng.normal(size=n))
-full = pl.closed_form(s.with_mu([1.0] * 3), "udp").cost
-none = pl.closed_form(s.with_mu([0.0] * 3), "udp").cost
+{functions}
+s = allocation_system(int(sys.argv[1]))
+alpha = allocation_alpha(s)
 start = time.perf_counter()
-a = pl.allocate(s, "udp", full + 0.3 * (none - full), [1.0, 1.0, 1.0])
-print(json.dumps({"time": time.perf_counter() - start, "mu": a.mu.tolist(), "lower_bound": a.lower_bound,
-                  "boxes": a.boxes, "status": a.status}))
+a = pl.allocate(s, "udp", alpha, [1.0, 1.0, 1.0])
+print(json.dumps({{"time": time.perf_counter() - start, "mu": a.mu.tolist(), "lower_bound": a.lower_bound,
+                  "boxes": a.boxes, "status": a.status}}))
 """
 
 
@@ -310,7 +313,9 @@ def _baseline_allocation(baseline: str, seed: int) -> dict:
     import subprocess
 
     env = {**os.environ, "PYTHONPATH": str(Path(baseline).resolve()), "OPENBLAS_NUM_THREADS": "1"}
-    out = subprocess.run([sys.executable, "-c", BASELINE_ALLOCATION, str(seed)], env=env, check=True,
+    code = BASELINE_ALLOCATION.format(functions="\n".join(inspect.getsource(f) for f in (allocation_system,
+                                                                                       allocation_alpha)))
+    out = subprocess.run([sys.executable, "-c", code, str(seed)], env=env, check=True,
                          capture_output=True, text=True, cwd=baseline).stdout
     return json.loads(out.strip().splitlines()[-1])
 
@@ -332,9 +337,7 @@ def allocation(seeds, rows, baseline=None):
 
     for seed in seeds:
         s = allocation_system(seed)
-        full = pl.closed_form(s.with_mu([1.0] * 3), "udp").cost
-        none = pl.closed_form(s.with_mu([0.0] * 3), "udp").cost
-        alpha = full + 0.3 * (none - full)
+        alpha = allocation_alpha(s)
         runs = {}
         for name, fn in (("after", cached), ("before", old)):
             udp_module.cost_function = tcp_module.cost_function = fn
