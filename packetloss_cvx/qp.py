@@ -217,7 +217,7 @@ class ExpectedCostQP:
                 status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
                 z, value = (self.Z.value, self.problem.value)
             elif not flat.any():           # nothing delivered: the open-loop state cost
-                return u, float(np.sum((self._state[0] @ self.x.value) ** 2)) if self._state else 0.0, "optimal"
+                return u, self._open_loop(), "optimal"
             else:                          # the problem shared by shape (this object's own beyond its sizes)
                 z, value, status = solve_condensed(self._state, self._G, self._r, self.x.value, what, self._own)
         except SolverError as err:
@@ -254,15 +254,18 @@ class ExpectedCostQP:
         absolute gap could then exceed CROSS_CHECK_COST_RTOL v), rescale by v and solve again, at most
         ``QP_RESCALE_PASSES`` times, keeping the new scale. Raises NumericalError if v stays below it while
         the minimum is not exactly zero (some weighted state moves). The minimiser does not depend on the scale."""
+        def too_small(v: float) -> bool:      # below the threshold, with a minimum that is not exactly zero
+            return v < QP_RESCALE_BELOW and self._free.any() and self._open_loop() > 0.0
+
         u, value, status = self._solve_raw(protocol)
         for _ in range(QP_RESCALE_PASSES):
-            if not (0.0 < value < QP_RESCALE_BELOW) or not self._free.any() or self._open_loop() == 0.0:
+            if value <= 0.0 or not too_small(value):
                 break
             self._rescale(value)
             self._assign(mu, x, protocol)
             u, value, status = self._solve_raw(protocol)
             self.rescaled += 1
-        if value < QP_RESCALE_BELOW and self._free.any() and self._open_loop() > 0.0:
+        if too_small(value):
             self._check_resolvable(value, protocol)
             raise NumericalError(
                 f"the {protocol}-like {self.formulation} QP's minimum is {value:.3g} times its scale after "
