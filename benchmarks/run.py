@@ -170,9 +170,10 @@ def memory(N, rows):
     rows.append({"bench": "memory", "N": N, "dense_bytes": dense, "recursion_bytes": rec, "ratio": dense / rec})
 
 
-def startup(rows, repeats: int = 7):
+def startup(rows, repeats: int = 7, baseline: str | None = None):
     """Start-up of the command line against `python -c "import numpy"` (subprocesses, medians of
-    interleaved rounds)."""
+    interleaved rounds); with ``baseline``, the closed-form commands run by that checkout too."""
+    import os
     import subprocess
 
     print(f"\n13. command-line start-up (median of {repeats} runs, wall clock, s)")
@@ -182,15 +183,23 @@ def startup(rows, repeats: int = 7):
         ["--help"], ["--version"], ["solve", "--help"], ["audit", "--help"], ["allocate", "--help"],
         ["solve"], ["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
         ["allocate", "two_actuator", "--protocol", "udp", "--alpha", "8", "--beta", "1"],
-        ["solve", "two_actuator", "--no-qp"])]
+        ["solve", "two_actuator", "--no-qp"], ["simulate", "two_actuator", "--samples", "200"],
+        ["sweep", "two_actuator", "--mu-grid", "3", "--json"])]
     root = str(Path(__file__).resolve().parent.parent)
-    env = {**__import__("os").environ, "PYTHONPATH": root, "OPENBLAS_NUM_THREADS": "1"}
+    env = {**os.environ, "PYTHONPATH": root, "OPENBLAS_NUM_THREADS": "1"}
+    where = {label: (env, root) for label, _ in cases}     # `-m` puts the working folder first on sys.path
+    if baseline:    # the closed-form commands as the baseline checkout runs them (cvxpy imported eagerly there)
+        old = str(Path(baseline).resolve())
+        for label, argv in list(cases[-3:]):
+            cases.append((f"baseline {label.removeprefix('packetloss-cvx ')}", argv))
+            where[cases[-1][0]] = ({**env, "PYTHONPATH": old}, old)
 
     times: dict[str, list[float]] = {label: [] for label, _ in cases}
     for _ in range(repeats):        # interleaved rounds: a busy spell on the shared machine hits every case
         for label, argv in cases:
             start = time.perf_counter()
-            subprocess.run([sys.executable, *argv], env=env, capture_output=True, check=False)
+            subprocess.run([sys.executable, *argv], env=where[label][0], cwd=where[label][1], capture_output=True,
+                           check=False)
             times[label].append(time.perf_counter() - start)
     base = statistics.median(times[cases[0][0]])
     print(f"{'command':<78} {'s':>7} {'/ numpy':>8}")
@@ -657,11 +666,11 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
-    parser.add_argument("--baseline", help="a checkout of the previous version (sections 8, 10, 12, 16: before/after)")
+    parser.add_argument("--baseline", help="a checkout of the previous version (sections 8, 10, 12, 13, 16: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
-        startup(rows)
+        startup(rows, baseline=args.baseline)
         print(json.dumps(rows) if args.json else "")
         return
     import clarabel
@@ -684,7 +693,7 @@ def main() -> None:
         10: lambda: qp_memory((500, 1000, 2000) if quick else (500, 1000, 2000, 4000, 8000), args.baseline, rows),
         11: lambda: blas_threads(rows),
         12: lambda: audit_time(args.baseline, rows),
-        13: lambda: startup(rows),
+        13: lambda: startup(rows, baseline=args.baseline),
         14: lambda: closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows),
         15: lambda: shared_qps(1 if quick else 3, rows),
         16: lambda: evaluations(args.baseline, rows),

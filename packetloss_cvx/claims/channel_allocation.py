@@ -3,7 +3,6 @@ independent brute-force allocator: one case per price vector beta and cost bound
 
 from __future__ import annotations
 
-from ..allocation.brute_force import brute_force_allocation, brute_force_allocations
 from ..costs import closed_form
 from ..model import System
 from ..results import ClaimResult
@@ -52,6 +51,8 @@ def perfect_channel_case(system: System, beta: tuple[float, float], alpha: float
     >>> perfect_channel_case(s, (1.0, 1.0), 0.5)[0] >= 0     # J*_udp(0, 1) = 1/2: one perfect channel
     True
     """
+    from ..allocation.brute_force import brute_force_allocation  # its package imports cvxpy; this needs none
+
     best = brute_force_allocation(system, "udp", alpha, beta, **GRID) if found is ... else found
     if isinstance(best, Exception):
         raise best
@@ -71,6 +72,8 @@ def allocation_udp_perfect(ctx: Context) -> ClaimResult:
     >>> r.verdict, r.outcomes                        # only alpha = 1.01 >= J*_udp(0, 0) = 1: mu* = (0, 0) for each beta
     ('fails', '---')
     """
+    from ..allocation.brute_force import brute_force_allocations  # its package imports cvxpy; this needs none
+
     s = ctx.paper["two_actuator"]
     alphas, full, none = alpha_levels(s)
     pairs = [(beta, alpha) for beta in ALLOCATION_BETAS for alpha in alphas]
