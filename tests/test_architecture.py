@@ -18,7 +18,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
      "channel", "validation", "threads"},
-    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "qp_sparse", "crosscheck", "random_systems",
+    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
      "evaluator", "pointwise", "batch_recursion"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
@@ -31,6 +31,8 @@ LAZY_OK = {"matplotlib", "dask", "distributed", "xarray", "control", "tqdm", "cv
 #: commands that draw no figure)
 LAZY_MODULES = {"qp", "markov.qp", "allocation.brute_force", "plots"}
 MAX_LINES = 420
+#: the QP twin with its two backends and its cross-check, merged back from three files cut for the limit (issue 19)
+LONGER = {"qp": 640}
 
 
 def _modules() -> dict[str, Path]:
@@ -144,4 +146,4 @@ def test_module_graph_has_no_cycle():
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_modules_stay_small(module):
     lines = len(MODULES[module].read_text().splitlines())
-    assert lines <= MAX_LINES, f"{module} has {lines} lines (about 400 at most: split it along its seams)"
+    assert lines <= LONGER.get(module, MAX_LINES), f"{module} has {lines} lines (about 400 at most: split it along its seams)"
