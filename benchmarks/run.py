@@ -728,7 +728,8 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
-    parser.add_argument("--baseline", help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18: before/after)")
+    parser.add_argument("--baseline",
+                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
