@@ -170,9 +170,10 @@ def memory(N, rows):
     rows.append({"bench": "memory", "N": N, "dense_bytes": dense, "recursion_bytes": rec, "ratio": dense / rec})
 
 
-def startup(rows, repeats: int = 7):
+def startup(rows, repeats: int = 7, baseline: str | None = None):
     """Start-up of the command line against `python -c "import numpy"` (subprocesses, medians of
-    interleaved rounds)."""
+    interleaved rounds); with ``baseline``, the closed-form commands run by that checkout too."""
+    import os
     import subprocess
 
     print(f"\n13. command-line start-up (median of {repeats} runs, wall clock, s)")
@@ -182,15 +183,23 @@ def startup(rows, repeats: int = 7):
         ["--help"], ["--version"], ["solve", "--help"], ["audit", "--help"], ["allocate", "--help"],
         ["solve"], ["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
         ["allocate", "two_actuator", "--protocol", "udp", "--alpha", "8", "--beta", "1"],
-        ["solve", "two_actuator", "--no-qp"])]
+        ["solve", "two_actuator", "--no-qp"], ["simulate", "two_actuator", "--samples", "200"],
+        ["sweep", "two_actuator", "--mu-grid", "3", "--json"])]
     root = str(Path(__file__).resolve().parent.parent)
-    env = {**__import__("os").environ, "PYTHONPATH": root, "OPENBLAS_NUM_THREADS": "1"}
+    env = {**os.environ, "PYTHONPATH": root, "OPENBLAS_NUM_THREADS": "1"}
+    where = {label: (env, root) for label, _ in cases}     # `-m` puts the working folder first on sys.path
+    if baseline:    # the closed-form commands as the baseline checkout runs them (cvxpy imported eagerly there)
+        old = str(Path(baseline).resolve())
+        for label, argv in list(cases[-3:]):
+            cases.append((f"baseline {label.removeprefix('packetloss-cvx ')}", argv))
+            where[cases[-1][0]] = ({**env, "PYTHONPATH": old}, old)
 
     times: dict[str, list[float]] = {label: [] for label, _ in cases}
     for _ in range(repeats):        # interleaved rounds: a busy spell on the shared machine hits every case
         for label, argv in cases:
             start = time.perf_counter()
-            subprocess.run([sys.executable, *argv], env=env, capture_output=True, check=False)
+            subprocess.run([sys.executable, *argv], env=where[label][0], cwd=where[label][1], capture_output=True,
+                           check=False)
             times[label].append(time.perf_counter() - start)
     base = statistics.median(times[cases[0][0]])
     print(f"{'command':<78} {'s':>7} {'/ numpy':>8}")
@@ -361,6 +370,68 @@ def allocation(seeds, rows, baseline=None):
             row.update(baseline_s=base["time"], baseline_ratio=base["time"] / ta, same_as_baseline=same_base)
         print(line)
         rows.append(row)
+
+
+#: One process's TCP-like allocations (section 18): per case, six calls on one system (alpha 5-50 % of the
+#: way from J*_tcp(1) to J*_tcp(0), seeded prices), CPU time of each call, and the answers.
+TCP_ALLOCATION_RUN = """
+import json, sys, time
+import numpy as np
+import packetloss_cvx as pl
+{functions}
+cases = [("seed 1", allocation_system(1)), ("seed 2", allocation_system(2)), ("seed 3", allocation_system(3)),
+         ("two_actuator", pl.load_example("two_actuator")), ("pendulum", pl.load_example("pendulum"))]
+pl.allocate(pl.load_example("two_actuator").with_x0([1.0, 0.0]), "tcp", 6.0, [1.0, 1.0])    # imports, first compile
+out = {{}}
+for name, s in cases:
+    full, none = (pl.closed_form(s.with_mu([v] * s.m), "tcp").cost for v in (1.0, 0.0))
+    rng = np.random.default_rng(0)
+    calls = [(full + f * (none - full), rng.uniform(0.5, 1.5, s.m)) for f in (0.3, 0.1, 0.5, 0.2, 0.4, 0.05)]
+    times, answers = [], []
+    for alpha, beta in calls:
+        start = time.process_time()
+        a = pl.allocate(s, "tcp", alpha, beta)
+        times.append(time.process_time() - start)
+        answers.append([a.mu.tolist(), a.lower_bound, a.status])
+    out[name] = {{"times": times, "answers": answers}}
+print(json.dumps(out))
+"""
+
+
+def tcp_allocation(baseline, rows, rounds: int = 3):
+    """TCP-like allocation, m = 3, N = 40 (seeds 1-3) and the paper's examples: this checkout against
+    ``baseline``, each in fresh processes with one BLAS thread, rounds interleaved; CPU time per call
+    (``time.process_time``), the first call of a system (its SOCP compiled) and the median of the five
+    calls after it (re-solved). Same answers: status, lower bound to 1e-9 relative, mu to 1e-7."""
+    import os
+    import subprocess
+
+    if not baseline:
+        print("\n18. TCP-like allocation: needs --baseline (a checkout to compare with)")
+        return
+    print(f"\n18. TCP-like allocation, CPU ms per call (first call of a system | median of the next five), "
+          f"{rounds} interleaved rounds, baseline {baseline}")
+    code = TCP_ALLOCATION_RUN.format(functions="\n".join(inspect.getsource(f) for f in (allocation_system,)))
+    runs: dict[str, list[dict]] = {"after": [], "before": []}
+    for _ in range(rounds):
+        for name, checkout in (("before", Path(baseline).resolve()), ("after", Path(__file__).resolve().parent.parent)):
+            env = {**os.environ, "PYTHONPATH": str(checkout), "OPENBLAS_NUM_THREADS": "1"}
+            out = subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True, text=True,
+                                 cwd=checkout).stdout
+            runs[name].append(json.loads(out.strip().splitlines()[-1]))
+    print(f"{'case':<14} {'before first':>12} {'after first':>12} {'before next':>12} {'after next':>11} "
+          f"{'ratio next':>10}  same")
+    for case in runs["after"][0]:
+        first = {k: statistics.median(r[case]["times"][0] for r in v) * 1e3 for k, v in runs.items()}
+        rest = {k: statistics.median(t for r in v for t in r[case]["times"][1:]) * 1e3 for k, v in runs.items()}
+        same = all(x[2] == y[2] and abs(x[1] - y[1]) <= 1e-9 * max(abs(x[1]), 1e-12)
+                   and np.allclose(x[0], y[0], rtol=0, atol=1e-7)
+                   for x, y in zip(runs["after"][0][case]["answers"], runs["before"][0][case]["answers"], strict=True))
+        print(f"{case:<14} {first['before']:>12.1f} {first['after']:>12.1f} {rest['before']:>12.1f} "
+              f"{rest['after']:>11.1f} {rest['before'] / rest['after']:>9.2f}x  {same}")
+        rows.append({"bench": "tcp_allocation", "case": case, "before_first_ms": first["before"],
+                     "after_first_ms": first["after"], "before_next_ms": rest["before"],
+                     "after_next_ms": rest["after"], "ratio_next": rest["before"] / rest["after"], "same": same})
 
 
 def evaluator(points, rows):
@@ -657,11 +728,12 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print the rows as JSON at the end")
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
-    parser.add_argument("--baseline", help="a checkout of the previous version (sections 8, 10, 12, 16: before/after)")
+    parser.add_argument("--baseline",
+                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
-        startup(rows)
+        startup(rows, baseline=args.baseline)
         print(json.dumps(rows) if args.json else "")
         return
     import clarabel
@@ -684,11 +756,12 @@ def main() -> None:
         10: lambda: qp_memory((500, 1000, 2000) if quick else (500, 1000, 2000, 4000, 8000), args.baseline, rows),
         11: lambda: blas_threads(rows),
         12: lambda: audit_time(args.baseline, rows),
-        13: lambda: startup(rows),
+        13: lambda: startup(rows, baseline=args.baseline),
         14: lambda: closed_loop(500 if quick else 2000, 100, 30 if quick else 50, rows),
         15: lambda: shared_qps(1 if quick else 3, rows),
         16: lambda: evaluations(args.baseline, rows),
         17: lambda: systems_and_structure(rows),
+        18: lambda: tcp_allocation(args.baseline, rows, 2 if quick else 3),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

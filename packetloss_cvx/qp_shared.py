@@ -1,6 +1,7 @@
 """The condensed expected-cost QP compiled once per padded shape and shared by every system of that shape.
 
-The condensed QP of :class:`~packetloss_cvx.qp.ExpectedCostQP` is, with all of a system's data as
+The problem of the condensed backend (:class:`~packetloss_cvx.qp.CondensedExpectedCostQP`, which owns
+its data) is, with all of a system's data as
 ``cp.Parameter``s (DPP),
 
     minimise  ||c + G z||^2 + ||r ∘ z||^2      over z in R^K,
@@ -41,18 +42,14 @@ from collections import OrderedDict
 
 import cvxpy as cp
 import numpy as np
-import scipy.linalg as sla
 
 from .convex import solve_problem
 from .errors import InputError
-from .linalg import psd_factor
-from .model import System
-from .prediction import prediction
 from .tolerances import CLARABEL_TIGHT
 
 __all__ = [
-    "SHARED_CACHE_SIZE", "SHARED_MAX_ENTRIES", "CondensedQP", "cached_shapes", "clear_cache", "condensed_data",
-    "condensed_problem", "padded", "solve_condensed",
+    "SHARED_CACHE_SIZE", "SHARED_MAX_ENTRIES", "CondensedQP", "cached_shapes", "clear_cache", "condensed_problem",
+    "padded",
 ]
 
 #: At most this many compiled buckets are kept per process (least recently used dropped first).
@@ -200,41 +197,3 @@ def clear_cache() -> None:
     """
     with _lock:
         _cache.clear()
-
-
-def condensed_data(system: System, scale: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(L Phi, L Gamma) / sqrt(scale)`` with ``L'L = blockdiag(Omega_1..Omega_N)`` (zero directions
-    dropped), or None without any state weight: the state term ``||L (Phi x + Gamma z)||^2 / scale``.
-    O((N n)^2 N m) time, O((N n) N (n + m)) memory.
-
-    Examples
-    --------
-    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[4], input_weight=[1], mu=[0.5], x0=[1])
-    >>> LPhi, LGamma = condensed_data(s, 4.0)           # L = I / 1: xhat_1 = x + z_1, xhat_2 = x + z_1 + z_2
-    >>> LPhi.ravel().tolist(), LGamma.tolist()
-    ([1.0, 1.0], [[1.0, 0.0], [1.0, 1.0]])
-    """
-    pred = prediction(system)
-    L = sla.block_diag(*[psd_factor(W) for W in system.state_weights]) / np.sqrt(scale)
-    return (L @ pred.Phi, L @ pred.Gamma) if L.shape[0] else None
-
-
-def solve_condensed(state: tuple[np.ndarray, np.ndarray] | None, G: np.ndarray, r: np.ndarray, x: np.ndarray,
-                    what: str, own: dict) -> tuple[np.ndarray | None, float, str]:
-    """Solve ``min ||L Phi x + G z||^2 + ||r ∘ z||^2`` (``state`` from :func:`condensed_data`, ``G`` its
-    ``L Gamma`` on the free entries) with the shared problem of its padded shape, or with the private
-    problem kept in ``own`` (by shape) beyond ``SHARED_MAX_ENTRIES``. Returns ``(z, value, status)``
-    as :meth:`CondensedQP.solve`.
-
-    Examples
-    --------
-    >>> state = (np.array([[1.0]]), np.array([[1.0]]))      # min (x + z)^2 + z^2 at x = 1: z = -1/2
-    >>> z, value, status = solve_condensed(state, state[1], np.ones(1), np.ones(1), "a 1x1 QP", {})
-    >>> status, round(float(z[0]), 8), round(value, 8)
-    ('optimal', -0.5, 0.5)
-    """
-    c = state[0] @ x if state is not None else np.zeros(0)
-    problem = own.get(G.shape) or condensed_problem(*G.shape)
-    if not problem.shared:
-        own[G.shape] = problem
-    return problem.solve(c, G, r, what)

@@ -158,3 +158,56 @@ def test_parse_constraint(text, G, h):
 def test_parse_constraint_errors(text, match):
     with pytest.raises(pl.InputError, match=match):
         parse_constraint(text, 2)
+
+
+# ------------------------------------------------------------------ the TCP-like SOCP, compiled once
+
+def _tcp_case(seed, N=12):
+    """Three channels behind a near-identity B (benchmarks/run.py's allocation case, shorter)."""
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(3, 3))
+    A *= 1.02 / max(abs(np.linalg.eigvals(A)))
+    s = pl.System(A=A, B=np.eye(3) + 0.3 * rng.normal(size=(3, 3)), horizon=N, state_weight=np.ones(3),
+                  input_weight=rng.uniform(0.5, 1.5, 3), mu=[0.5] * 3, x0=rng.normal(size=3))
+    full, none = (pl.closed_form(s.with_mu([v] * 3), "tcp").cost for v in (1.0, 0.0))
+    return s, [(full + f * (none - full), rng.uniform(0.5, 1.5, 3)) for f in (0.3, 0.1)]
+
+
+def _alone(system, alpha, beta):
+    """The call in a system of its own: a pickled copy is rebuilt by the constructor, with an empty
+    store, so its SOCP is compiled anew and has seen no other data."""
+    import pickle
+
+    a = allocate(pickle.loads(pickle.dumps(system)), "tcp", alpha, beta)
+    return a.mu, a.lower_bound, a.status
+
+
+def test_tcp_program_is_dpp_and_kept_with_the_system_structure():
+    from packetloss_cvx.allocation.tcp import TCPProgram
+
+    s, _ = _tcp_case(1)
+    program = TCPProgram.of(s, "allocate", 0)
+    assert program.problem.is_dpp()
+    assert TCPProgram.of(s.with_mu([0.9] * 3).with_x0([1.0, 0.0, 0.0]), "allocate", 0) is program
+    assert TCPProgram.of(s, "allocate", 1) is not program and TCPProgram.of(s, "min_cost", 0) is not program
+
+
+def test_tcp_calls_alternating_on_one_system_answer_as_each_alone():
+    """Re-solves assign every Parameter and run Clarabel cold: a warm re-solve keeps the equilibration of
+    the data it saw first (answers up to 42 % off across systems), so each answer must be exactly the
+    one the call gets in a program of its own, whatever ran before it."""
+    s, calls = _tcp_case(1)
+    expected = [_alone(s, *call) for call in calls]
+    for _ in range(2):
+        for call, (mu, lower, status) in zip(calls, expected, strict=True):
+            got = allocate(s, "tcp", *call)
+            assert np.array_equal(got.mu, mu) and got.lower_bound == lower and got.status == status
+
+
+def test_tcp_calls_alternating_between_two_systems_answer_as_each_alone():
+    (s, calls_s), (t, calls_t) = _tcp_case(2), _tcp_case(3)
+    expected = {id(s): _alone(s, *calls_s[0]), id(t): _alone(t, *calls_t[0])}
+    for system, call in [(s, calls_s[0]), (t, calls_t[0])] * 2:
+        got = allocate(system, "tcp", *call)
+        mu, lower, status = expected[id(system)]
+        assert np.array_equal(got.mu, mu) and got.lower_bound == lower and got.status == status

@@ -18,15 +18,21 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
      "channel", "validation", "threads"},
-    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "qp_sparse", "crosscheck", "random_systems",
+    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
      "evaluator", "pointwise", "batch_recursion"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},
 ]
 #: lazy imports allowed inside functions: heavy optional libraries (their import is slow or optional)
-LAZY_OK = {"matplotlib", "dask", "distributed", "xarray", "control", "tqdm"}
+LAZY_OK = {"matplotlib", "dask", "distributed", "xarray", "control", "tqdm", "cvxpy"}
+#: modules of the package that import one of them at load time, imported inside the function that needs
+#: them where a caller's other paths must not load it (cvxpy off the closed-form paths, matplotlib off
+#: commands that draw no figure)
+LAZY_MODULES = {"qp", "markov.qp", "allocation.brute_force", "plots"}
 MAX_LINES = 420
+#: the QP twin with its two backends and its cross-check, merged back from three files cut for the limit (issue 19)
+LONGER = {"qp": 640}
 
 
 def _modules() -> dict[str, Path]:
@@ -109,6 +115,8 @@ def test_no_function_level_imports(module):
         for node in ast.walk(fn):
             if isinstance(node, ast.Import):
                 names = [a.name.split(".")[0] for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level and _resolve(module, node) in LAZY_MODULES:
+                continue
             elif isinstance(node, ast.ImportFrom):
                 names = [(node.module or "").split(".")[0]] if node.level == 0 else ["packetloss_cvx"]
             else:
@@ -138,4 +146,4 @@ def test_module_graph_has_no_cycle():
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_modules_stay_small(module):
     lines = len(MODULES[module].read_text().splitlines())
-    assert lines <= MAX_LINES, f"{module} has {lines} lines (about 400 at most: split it along its seams)"
+    assert lines <= LONGER.get(module, MAX_LINES), f"{module} has {lines} lines (about 400 at most: split it along its seams)"

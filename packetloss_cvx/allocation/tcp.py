@@ -26,6 +26,8 @@ The solver's point is not taken on trust:
 
 from __future__ import annotations
 
+import threading
+
 import cvxpy as cp
 import numpy as np
 
@@ -46,7 +48,7 @@ from ..tolerances import (
 from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, lp
 from .grammar import Polytope
 
-__all__ = ["TCPProgram", "constant_cost", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost"]
+__all__ = ["TCPProgram", "constant_cost", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost", "tcp_solve"]
 
 
 def constant_cost(system: System) -> float:
@@ -64,42 +66,100 @@ def constant_cost(system: System) -> float:
     return float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]
 
 
-class TCPProgram:
-    """The TCP-like expected cost over (Z, mu) in cvxpy, sparse in the horizon.
+#: The allocation SOCPs' Clarabel settings: ALLOCATION_CLARABEL_ATTEMPTS, each run cold. A program is
+#: compiled once and re-solved for new Parameter values; cvxpy's warm re-solve would update the cached
+#: Clarabel solver in place, keeping the Ruiz equilibration of the first data it saw (Clarabel's
+#: ``update_data``), so an answer would depend on the calls before it. Cold, a solve is a function of
+#: its own data: compilation (64 % of a call) is saved, the factorisation is not.
+COLD_ATTEMPTS = tuple({**settings, "warm_start": False} for settings in ALLOCATION_CLARABEL_ATTEMPTS)
 
-    ``cost`` is ``(J - C) * scale`` as the epigraph sum ``r + sum_i t_i``; ``constraints``
-    holds the dynamics, the cones, the bounds and the rows of the polytope. Size
-    O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros.
+#: Estimated bytes of one compiled program (cvxpy's parameter map and Clarabel's data), per N (n + m)^2:
+#: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.qp_memory_estimate`), which it mirrors.
+PROGRAM_BYTES_PER_ENTRY = 300
+
+
+class TCPProgram:
+    """The TCP-like allocation SOCP of one system, compiled once (DPP) and re-solved for each call.
+
+    Variables: mu, the mean states ``xhat`` and ``Z = Vbar U`` (the dynamics ``xhat_{t+1} = A xhat_t +
+    B z_t`` as equality constraints, sparse in the horizon), the epigraph ``r >= s ||L xhat||^2`` and
+    ``t_i >= s sum_t psi_{t,i} z_{t,i}^2 / mu_i``, s the cost scale. Everything about the system but x0
+    is a constant; ``cp.Parameter``s hold what changes between calls: x0, sqrt(s), the bounds lo and hi,
+    the k rows ``G mu <= h``, and the prices beta. ``kind`` "allocate" minimises ``beta'mu`` subject
+    to ``r + sum t <= 1`` (s = 1 / (alpha - C)); "min_cost" minimises ``r + sum t``.
+
+    One program per (system structure, kind, k), kept with the system (:meth:`System.structure_cached`,
+    shared with its ``with_mu`` / ``with_x0`` copies); solved cold under a lock (:data:`COLD_ATTEMPTS`).
+    Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in O(N (n + m)^2) (about 17 ms at
+    N = 40, n = m = 3), then each solve maps the Parameters and runs Clarabel (about 3 ms there).
 
     Examples
     --------
-    With mu fixed at 0.5 the program's minimum is J*_tcp(0.5) = 1/(1 + 0.5) (one step of x' = x + v u, x0 = 1, C = 0):
+    J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1, C = 0): the least mu with J* <= 0.8 is 0.25;
+    the least J* over mu in [0, 0.5] is 1/(1 + 0.5):
 
     >>> from packetloss_cvx.allocation.grammar import read_polytope
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-    >>> prog = TCPProgram(s, read_polytope([], 1, 0.0, 1.0), scale=1.0)
-    >>> value = cp.Problem(cp.Minimize(prog.cost), [*prog.constraints, prog.mu == 0.5]).solve(solver=cp.CLARABEL)
-    >>> bool(np.isclose(value, 2 / 3, rtol=1e-6))
+    >>> mu = TCPProgram.of(s, "allocate", 0).solve(s.x0, read_polytope([], 1, 0.0, 1.0), 1 / 0.8, np.ones(1))
+    >>> bool(np.isclose(mu[0], 0.25, atol=1e-6))
+    True
+    >>> mu = TCPProgram.of(s, "min_cost", 0).solve(s.x0, read_polytope([], 1, 0.0, 0.5), 1.0)
+    >>> bool(np.isclose(mu[0], 0.5, atol=1e-6))
     True
     """
 
-    def __init__(self, system: System, poly: Polytope, scale: float) -> None:
+    def __init__(self, system: System, kind: str, rows: int) -> None:
         N, n, m = system.horizon, system.n, system.m
+        self.kind = kind
         self.mu = cp.Variable(m, name="mu")
         Z = cp.Variable((N, m), name="Z")
         X = cp.Variable(N * n, name="xhat")
         t = cp.Variable(m, name="t")
         r = cp.Variable(name="r")
+        self.x0 = cp.Parameter(n, name="x0")
+        self.root = cp.Parameter(nonneg=True, name="sqrt_scale")
+        self.lo, self.hi = cp.Parameter(m, name="lo"), cp.Parameter(m, name="hi")
+        self.rows = (cp.Parameter((rows, m), name="G"), cp.Parameter(rows, name="h")) if rows else None
+        self.beta = cp.Parameter(m, name="beta")
         E, Bbig, first, L = sparse_dynamics(system)
-        w = np.sqrt(system.input_weights * scale)
-        cons = [E @ X - Bbig @ cp.vec(Z.T, order="F") == first @ system.x0,
-                cp.sum_squares(np.sqrt(scale) * (L @ X)) <= r if L.shape[0] else r >= 0,
-                self.mu >= poly.lo, self.mu <= poly.hi]
-        cons += [cp.quad_over_lin(cp.multiply(w[:, i], Z[:, i]), self.mu[i]) <= t[i] for i in range(m)]
-        if poly.G.shape[0]:
-            cons.append(poly.G @ self.mu <= poly.h)
-        self.cost = r + cp.sum(t)
-        self.constraints = cons
+        w = np.sqrt(system.input_weights)
+        cons = [E @ X - Bbig @ cp.vec(Z.T, order="F") == first @ self.x0,
+                cp.sum_squares(self.root * (L @ X)) <= r if L.shape[0] else r >= 0,
+                self.mu >= self.lo, self.mu <= self.hi]
+        cons += [cp.quad_over_lin(self.root * cp.multiply(w[:, i], Z[:, i]), self.mu[i]) <= t[i] for i in range(m)]
+        if self.rows is not None:
+            cons.append(self.rows[0] @ self.mu <= self.rows[1])
+        if kind == "allocate":
+            self.problem = cp.Problem(cp.Minimize(self.beta @ self.mu), [*cons, r + cp.sum(t) <= 1.0])
+        else:
+            self.problem = cp.Problem(cp.Minimize(r + cp.sum(t)), cons)
+        if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
+            raise RuntimeError("the TCP-like allocation SOCP is not DPP")
+        self.lock = threading.Lock()
+
+    @classmethod
+    def of(cls, system: System, kind: str, rows: int) -> TCPProgram:
+        """The system's program of this kind and number of rows: built on first use and kept with the
+        system's structure (beyond ``STRUCTURE_CACHE_MAX_BYTES`` estimated, built per call). O(1) when kept."""
+        N, n, m = system.horizon, system.n, system.m
+        return system.structure_cached(f"allocation.tcp.program.{kind}.{rows}", lambda: cls(system, kind, rows),
+                                       nbytes=PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2)
+
+    def solve(self, x0: np.ndarray, poly: Polytope, scale: float, beta: np.ndarray | None = None,
+              no_mu: str | None = None) -> np.ndarray:
+        """The solver's mu for the state ``x0``, the polytope (of this program's number of rows), the
+        cost scale and (kind "allocate") the prices: every Parameter is assigned, then Clarabel runs
+        cold (:func:`tcp_solve`'s status policy). Raises as :func:`tcp_solve`."""
+        what = "TCP-like allocation SOCP" if self.kind == "allocate" else "TCP-like minimum-cost SOCP"
+        with self.lock:
+            self.x0.value, self.root.value = x0, np.sqrt(scale)
+            self.lo.value, self.hi.value = poly.lower(), poly.upper()
+            if self.rows is not None:
+                self.rows[0].value, self.rows[1].value = poly.G, poly.h
+            if beta is not None:
+                self.beta.value = beta
+            tcp_solve(self.problem, what, no_mu)
+            return np.array(self.mu.value, dtype=float)
 
 
 def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = None) -> tuple[float, np.ndarray]:
@@ -164,11 +224,23 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     return S, r
 
 
-def _solve(problem: cp.Problem, what: str, no_mu: str | None) -> None:
-    """Clarabel under the package's one status policy (convex.solve_problem): "optimal", or
-    InfeasibleError(no_mu) on Clarabel's infeasibility certificate (SolverError when
-    ``no_mu`` is None: infeasibility is then known to be impossible), or SolverError."""
-    status = solve_problem(problem, what, ALLOCATION_CLARABEL_ATTEMPTS)
+def tcp_solve(problem: cp.Problem, what: str, no_mu: str | None) -> None:
+    """Clarabel under the package's one status policy (convex.solve_problem), cold
+    (:data:`COLD_ATTEMPTS`): "optimal", or InfeasibleError(no_mu) on Clarabel's infeasibility
+    certificate (SolverError when ``no_mu`` is None: infeasibility is then known to be impossible),
+    or SolverError.
+
+    Examples
+    --------
+    >>> mu = cp.Variable()
+    >>> tcp_solve(cp.Problem(cp.Minimize(mu), [mu >= 0.25]), "an LP", None); round(float(mu.value), 6)
+    0.25
+    >>> tcp_solve(cp.Problem(cp.Minimize(mu), [mu >= 1, mu <= 0]), "an LP", "no mu fits")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InfeasibleError: no mu fits
+    """
+    status = solve_problem(problem, what, COLD_ATTEMPTS)
     if status == PROVEN_INFEASIBLE:
         if no_mu is None:
             raise SolverError("inconsistent", f"{what}: Clarabel reports infeasible, but the LP found a point")
@@ -222,11 +294,10 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     if corner > alpha * (1 + ALLOCATION_COST_RTOL):
         raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
                               "and J* falls in every mu_i", None)
-    prog = TCPProgram(system, poly, 1.0 / max(alpha - C, np.finfo(float).tiny))
-    problem = cp.Problem(cp.Minimize(beta @ prog.mu), [*prog.constraints, prog.cost <= 1.0])
-    _solve(problem, "TCP-like allocation SOCP",
-           f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g} (Clarabel certificate)")
-    mubar = np.clip(prog.mu.value, poly.lo, poly.hi)
+    program = TCPProgram.of(system, "allocate", poly.G.shape[0])
+    mubar = np.clip(program.solve(system.x0, poly, 1.0 / max(alpha - C, np.finfo(float).tiny), beta,
+                                  f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g} "
+                                  "(Clarabel certificate)"), poly.lo, poly.hi)
 
     S, r = tangent_cuts(system, mubar, evaluator)      # the lower bound, before any move
     scale = np.max(np.abs(S), axis=1)
@@ -296,10 +367,9 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     C = constant_cost(system)
     J, evaluator = cost_function(system, "tcp")
     reference = J(poly.upper()) - C       # the least J* - C over the box
-    prog = TCPProgram(system, poly, 1.0 / max(reference, np.finfo(float).tiny))
-    problem = cp.Problem(cp.Minimize(prog.cost), prog.constraints)
-    _solve(problem, "TCP-like minimum-cost SOCP", None)
-    mu = check_in_polytope(np.clip(prog.mu.value, poly.lo, poly.hi), poly, "TCP-like minimum cost")
+    program = TCPProgram.of(system, "min_cost", poly.G.shape[0])
+    mu = program.solve(system.x0, poly, 1.0 / max(reference, np.finfo(float).tiny))
+    mu = check_in_polytope(np.clip(mu, poly.lo, poly.hi), poly, "TCP-like minimum cost")
     f = J(mu)
     S, r = tangent_cuts(system, mu, evaluator)                   # min t  s.t.  t >= r_k + S_k mu, mu in the polytope
     m = system.m

@@ -3,7 +3,6 @@ independent brute-force allocator: one case per price vector beta and cost bound
 
 from __future__ import annotations
 
-from ..allocation.brute_force import brute_force_allocation, brute_force_allocations
 from ..costs import closed_form
 from ..model import System
 from ..results import ClaimResult
@@ -11,12 +10,44 @@ from .context import Context
 from .evaluate import CASE_ERRORS, Tally
 from .paper import ALLOCATION_ALPHA, ALLOCATION_BETAS, STATEMENTS
 
-__all__ = ["GRID", "allocation_udp_perfect", "alpha_levels", "perfect_channel_case"]
+__all__ = ["GRID", "allocation_udp_perfect", "alpha_levels", "brute_force_allocation", "brute_force_allocations",
+           "perfect_channel_case"]
 
 #: The brute-force grid: 101 points on mu1, refined by 21 around the best; bisection on mu2.
 #: mu1 on 101 points refined by 21; mu2 by bisection to 1e-8 (the margin resolves 1e-6: a perfect channel
 #: is mu_i = 1 to within 1e-6, so a finer bisection would not change a verdict)
 GRID = {"coarse": 101, "fine": 21, "tol": 1e-8}
+
+
+def brute_force_allocation(*args, **kwargs):
+    """:func:`~packetloss_cvx.allocation.brute_force.brute_force_allocation`, imported on first use: the
+    allocation package imports cvxpy (its SOCP and constraint grammar), which the audit's other claims never
+    need (``tests/test_closed_form_imports.py``).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1, 1]], horizon=1, state_weight=[1], input_weight=[1, 1], mu=[.5, .5], x0=[1])
+    >>> [round(v, 6) for v in brute_force_allocation(s, "udp", 1.01, (1.0, 1.0), **GRID)]   # J*_udp(0, 0) = 1
+    [0.0, 0.0, 0.0]
+    """
+    from ..allocation.brute_force import brute_force_allocation as run
+
+    return run(*args, **kwargs)
+
+
+def brute_force_allocations(*args, **kwargs):
+    """:func:`~packetloss_cvx.allocation.brute_force.brute_force_allocations`, imported on first use (as
+    :func:`brute_force_allocation`).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1, 1]], horizon=1, state_weight=[1], input_weight=[1, 1], mu=[.5, .5], x0=[1])
+    >>> [[round(v, 6) for v in found] for found in brute_force_allocations(s, "udp", [(1.01, (1.0, 1.0))], **GRID)]
+    [[0.0, 0.0, 0.0]]
+    """
+    from ..allocation.brute_force import brute_force_allocations as run
+
+    return run(*args, **kwargs)
 
 
 def alpha_levels(system: System) -> tuple[list[float], float, float]:
@@ -52,6 +83,7 @@ def perfect_channel_case(system: System, beta: tuple[float, float], alpha: float
     >>> perfect_channel_case(s, (1.0, 1.0), 0.5)[0] >= 0     # J*_udp(0, 1) = 1/2: one perfect channel
     True
     """
+
     best = brute_force_allocation(system, "udp", alpha, beta, **GRID) if found is ... else found
     if isinstance(best, Exception):
         raise best
@@ -71,6 +103,7 @@ def allocation_udp_perfect(ctx: Context) -> ClaimResult:
     >>> r.verdict, r.outcomes                        # only alpha = 1.01 >= J*_udp(0, 0) = 1: mu* = (0, 0) for each beta
     ('fails', '---')
     """
+
     s = ctx.paper["two_actuator"]
     alphas, full, none = alpha_levels(s)
     pairs = [(beta, alpha) for beta in ALLOCATION_BETAS for alpha in alphas]

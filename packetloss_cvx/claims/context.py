@@ -11,7 +11,6 @@ from ..evaluator import CostEvaluator
 from ..io import load_example
 from ..model import System
 from ..protocols import check_protocol
-from ..qp import ExpectedCostQP
 from ..results import Solution
 
 __all__ = ["Context", "interior", "paper_systems"]
@@ -70,6 +69,8 @@ class Context:
         """The QP twin's answer for ``system`` (solved once per audit). One :class:`ExpectedCostQP`
         per system serves both protocols; the audit's 200 random systems share 15 compiled condensed
         problems (one per padded shape, docs/performance.md, "Audit: compiled QPs shared across systems")."""
+        from ..qp import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
+
         key = (id(system), protocol)
         if key not in self.cache:
             problem = self.problems.get(id(system))

@@ -8,7 +8,6 @@ import numpy as np
 from ..costs import closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from ..model import System
 from ..prediction import prediction
-from ..qp import ExpectedCostQP
 from ..results import ClaimResult
 from ..simulation import sample_deliveries, sample_noise, sample_plan_costs
 from .context import Context, interior
@@ -27,6 +26,8 @@ def theorem_1_laws(ctx: Context) -> ClaimResult:
     >>> theorem_1_laws(ctx).verdict                  # the QP's minimiser is u = -2/3 (TCP-like), -1/2 (UDP-like)
     'holds'
     """
+    from ..qp import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
+
     def margin(s: System) -> float:
         worst = 1e-6
         twin = None if s in ctx.cases else ExpectedCostQP(s, "tcp")     # one object, both protocols
@@ -53,6 +54,8 @@ def theorem_1_costs(ctx: Context) -> ClaimResult:
     >>> theorem_1_costs(ctx).verdict     # one channel: Vbar = I/2 commutes with G, the printed form is exact
     'holds'
     """
+    from ..qp import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
+
     def margin(s: System) -> float:
         worst = 1e-7
         twin = None if s in ctx.cases else ExpectedCostQP(s, "tcp")

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..plots import plot_closed_loop
 from ..results import Simulation
 from ..simulation.markov_montecarlo import EXACT_PLAN
 from ..simulation.montecarlo import LAWS, simulate
@@ -61,6 +60,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     if args.plot:
         if not sim.closed_loop:
             raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
+        from ..plots import plot_closed_loop  # matplotlib (0.2-0.7 s) only where a figure is asked for
         plot_closed_loop({law: {"state_norm_mean": r.state_norm_mean, "state_norm_std": r.state_norm_std,
                                 "stage_cost_mean": r.stage_cost_mean} for law, r in sim.closed_loop.items()},
                          title=system.name, path=args.plot)

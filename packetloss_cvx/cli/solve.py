@@ -12,7 +12,6 @@ from ..costs import closed_form
 from ..errors import InputError, NumericalError, ResourceError
 from ..markov import mean_square_radius as markov_radius
 from ..model import System
-from ..qp import solve_qp
 from ..results import Solution, eigenvalue_pairs
 from ..simulation import is_mean_square_stable, mean_square_radius
 from . import format as fmt
@@ -68,6 +67,8 @@ def run(args: argparse.Namespace) -> CommandResult:
             label += ": the paper's formula on the chain's mu_t, not the expected cost under the chain (below)"
         rows: list[tuple[str, object]] = [("cost", label)]
         if not args.no_qp:
+            from ..qp import solve_qp     # cvxpy (1.5 s to import) only where a QP is asked for
+
             try:
                 qp = solve_qp(plugin, protocol, args.formulation, with_gain=False, reference=sol)
             except (NumericalError, ResourceError) as err:   # a disagreement (CrossCheckError) is not caught

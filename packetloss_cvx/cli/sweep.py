@@ -11,7 +11,6 @@ import numpy as np
 from ..errors import InputError
 from ..io import load_system
 from ..markov import burstiness_sweep
-from ..plots import plot_cost_lines, plot_log_contour
 from ..results import BurstinessSweep, DesignSweep
 from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, require_xarray, save_sweep, sweep
@@ -67,6 +66,7 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
 def _figures(result: DesignSweep, out: Path, skipped: list[str]) -> list[Path]:
     """The sweep's figures in ``out``; a log contour with no positive value to draw (e.g. every cost 0
     at x0 = 0 without noise) is not drawn, and its name goes to ``skipped``."""
+    from ..plots import plot_cost_lines, plot_log_contour  # matplotlib (0.2-0.7 s) only where a figure is asked for
     curves = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
     title = f"{result.name or 'system'}: {result.kind} sweep"
     if len(result.dims) == 1:
@@ -168,6 +168,7 @@ def bursty(args: argparse.Namespace) -> CommandResult:
             (out / "burstiness.csv").write_text("\n".join(lines_csv) + "\n")
         except OSError as err:
             raise InputError("--out", f"cannot write into {str(out)!r}: {err.strerror or err}") from None
+        from ..plots import plot_cost_lines  # matplotlib (0.2-0.7 s) only where a figure is asked for
         curves = {f"{kind} {p.upper()}-like": (result.plugin if kind == "plug-in" else result.exact)[p]
                   for p in protocols for kind in ("plug-in", "exact")}
         plot_cost_lines(result.correlation, curves, xlabel=r"burstiness $\lambda = 1 - p - r$",

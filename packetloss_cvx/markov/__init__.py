@@ -8,7 +8,13 @@ burstiness sweeps. One job per module; the channel description itself is :mod:`p
     compare.py     plug-in laws against the exact minimiser, per protocol; bursty twins of a system
     mjls.py        the loop as a Markov jump linear system: mean-square radius, coupled Riccati gains
     sweep.py       burstiness sweeps at fixed average delivery rates
+
+``exact_qp`` is imported on first use (PEP 562): the QP module imports cvxpy (1.5 s), which the closed-form
+paths that use this package (``solve --no-qp``, ``simulate``, the audit's closed-form claims) never need.
 """
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 from .chain import (
     attach_channel,
@@ -22,8 +28,10 @@ from .chain import (
 from .compare import bursty_twin, markov_solution
 from .exact_cost import correlation_term, exact_closed_form, exact_cost, exact_hessian
 from .mjls import coupled_riccati, mean_square_radius, mode_chain, second_moment_operator
-from .qp import exact_qp
 from .sweep import burstiness_sweep
+
+if TYPE_CHECKING:
+    from .qp import exact_qp
 
 __all__ = [
     "attach_channel", "burstiness_sweep", "bursty_twin", "channel_covariance", "correlation_term", "coupled_riccati",
@@ -31,3 +39,11 @@ __all__ = [
     "mean_square_radius", "mode_chain", "plugin_schedule", "plugin_system", "second_moment_operator",
     "second_moments", "stacked_moments",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``exact_qp`` from :mod:`.qp` on first use (PEP 562)."""
+    if name != "exact_qp":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = globals()[name] = importlib.import_module(f"{__name__}.qp").exact_qp
+    return value

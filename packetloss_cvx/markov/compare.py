@@ -17,7 +17,6 @@ from ..protocols import check_protocol
 from ..results import MarkovSolution
 from .chain import attach_channel
 from .exact_cost import exact_closed_form, exact_cost
-from .qp import exact_qp
 
 __all__ = ["bursty_twin", "markov_solution"]
 
@@ -46,7 +45,11 @@ def markov_solution(system: System, protocol: str, qp: bool = True) -> MarkovSol
     system = check_system(system)
     protocol = check_protocol(protocol)
     exact = exact_closed_form(system, protocol)
-    twin = exact_qp(system, protocol, reference=exact) if qp else None
+    twin = None
+    if qp:
+        from .qp import exact_qp       # cvxpy (1.5 s to import) only where a QP is asked for
+
+        twin = exact_qp(system, protocol, reference=exact)
     plugin = closed_form(system.with_mu(system.mu_schedule), protocol)
     plugin_cost = exact_cost(system, plugin.inputs, protocol)
     loss = plugin_cost / exact.cost - 1.0 if exact.cost > 0 else 0.0

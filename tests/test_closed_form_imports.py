@@ -1,0 +1,46 @@
+"""The closed-form paths load no solver: ``solve --no-qp``, ``simulate``, ``sweep`` and the audit's
+claims that need no QP import no cvxpy (1.5 s of a 1.9 s ``solve --no-qp`` before it was lazy), and no
+command that draws no figure imports matplotlib. Each command runs in a fresh interpreter; the probe
+reports the heavy top-level packages found in ``sys.modules`` at exit. The commands that do solve a QP
+are run too: the probe must see cvxpy there, or it could not fail.
+"""
+
+import ast
+import subprocess
+import sys
+
+import pytest
+
+PROBE = """
+import sys
+from packetloss_cvx.cli import main
+code = main(sys.argv[1:])
+heavy = {m.split(".")[0] for m in sys.modules} & {"cvxpy", "matplotlib", "dask", "xarray", "control"}
+print("PROBE", code, sorted(heavy))
+"""
+
+
+def heavy_modules(*argv: str) -> set[str]:
+    proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=False)
+    line = [ln for ln in proc.stdout.splitlines() if ln.startswith("PROBE")]
+    assert line, proc.stderr[-2000:]
+    code, _, modules = line[-1].removeprefix("PROBE ").partition(" ")
+    assert code == "0", proc.stderr[-2000:]
+    return set(ast.literal_eval(modules))
+
+
+@pytest.mark.parametrize("argv", [
+    ["solve", "two_actuator", "--no-qp", "-q"],
+    ["solve", "pendulum_bursty", "--no-qp", "-q"],                 # the Gilbert-Elliott (markov) section too
+    ["simulate", "two_actuator", "--samples", "50", "--closed-loop", "-q"],
+    ["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"],
+    ["audit", "--random", "1", "--claim", "theorem-2", "--claim", "lemma-1", "--claim", "table-1", "-q"],
+])
+def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(argv):
+    assert heavy_modules(*argv) == set()
+
+
+@pytest.mark.parametrize("argv", [["solve", "two_actuator", "--protocol", "tcp", "-q"],
+                                  ["audit", "--random", "0", "--claim", "theorem-1-costs", "-q"]])
+def test_commands_that_solve_a_qp_do_import_cvxpy(argv):
+    assert "cvxpy" in heavy_modules(*argv)
