@@ -8,7 +8,8 @@ The grammar (:mod:`.parser`) imports nothing numerical; the checks that need no 
 (:func:`.common.preflight`: files, overrides, number lists) run next, importing NumPy only;
 the module that runs a subcommand (``solve``, ``audit``, ...) is imported only after them,
 so ``--help``, ``--version`` and bad input answer without importing cvxpy or SciPy.
-``--out FILE`` writes the JSON object to FILE as well; ``-v`` reports the time taken on stderr.
+``--out FILE`` writes the JSON object to FILE as well (atomically; an existing FILE needs ``--force``);
+``-v`` reports the time taken on stderr.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import shlex
 import sys
 import time
 import warnings
@@ -24,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
+from ..safeio import atomic_write
 from .parser import build_parser, join_negative_values
 
 __all__ = ["main"]
@@ -34,12 +37,11 @@ def _say(message: str) -> None:
     print(message.replace("\r", "\\r").replace("\n", "\\n"), file=sys.stderr)
 
 
-def write_json(path: str, data: dict[str, Any]) -> None:
-    """``--out FILE``: the JSON object written to FILE (an unwritable path is bad input)."""
-    try:
-        Path(path).write_text(json.dumps(data, allow_nan=False, indent=2) + "\n", encoding="utf-8")
-    except OSError as err:
-        raise InputError("--out", f"cannot write {path!r}: {err.strerror or err}") from None
+def write_json(path: str, data: dict[str, Any], force: bool = False) -> None:
+    """``--out FILE``: the JSON object written to FILE atomically (an unwritable path is bad input; an existing
+    FILE is refused without ``--force``)."""
+    with atomic_write(Path(path), overwrite=force, text=True, field="--out") as handle:
+        handle.write(json.dumps(data, allow_nan=False, indent=2) + "\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -53,7 +55,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             stream.reconfigure(errors="backslashreplace")
     parser = build_parser()
     try:
-        args = parser.parse_args(join_negative_values(list(sys.argv[1:] if argv is None else argv)))
+        words = list(sys.argv[1:] if argv is None else argv)
+        args = parser.parse_args(join_negative_values(words))
+        args.command_line = shlex.join(["packetloss-cvx", *words])     # for a run folder's manifest
         start = time.perf_counter()
         with warnings.catch_warnings():   # one stderr line, always: numerical warnings are checked, not printed
             warnings.simplefilter("ignore")
@@ -61,7 +65,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             command = importlib.import_module(f"{__name__}.{args.command}")
             data, text, code = command.run(args)
         if getattr(args, "json_out", None):
-            write_json(args.json_out, data)
+            write_json(args.json_out, data, getattr(args, "force", False))
         if getattr(args, "verbose", 0):
             _say(f"packetloss-cvx: {args.command} took {time.perf_counter() - start:.3g} s")
         as_json = getattr(args, "json", False)
