@@ -10,6 +10,11 @@ the module that runs a subcommand (``solve``, ``audit``, ...) is imported only a
 so ``--help``, ``--version`` and bad input answer without importing cvxpy or SciPy.
 ``--out FILE`` writes the JSON object to FILE as well (atomically; an existing FILE needs ``--force``);
 ``-v`` reports the time taken on stderr.
+
+SIGINT and SIGTERM end a run with one line on stderr and exit 130 / 143 (128 + the signal): the handler
+raises :class:`Interrupted` (a KeyboardInterrupt) wherever the run is, so every ``with`` block on the way
+out removes its temporary files and releases its folder's lock (safeio.py); a second signal during that
+clean-up is ignored.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import importlib
 import json
 import os
 import shlex
+import signal
 import sys
 import time
 import warnings
@@ -29,7 +35,32 @@ from ..errors import CrossCheckError, InfeasibleError, InputError, NumericalErro
 from ..safeio import atomic_write
 from .parser import build_parser, join_negative_values
 
-__all__ = ["main"]
+__all__ = ["Interrupted", "main"]
+
+#: the signals that end a run cleanly, with their exit codes (128 + the signal's number)
+STOP_SIGNALS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived: raised in the main thread so that clean-up runs on the way out."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)
+
+
+def _stop(signum: int, frame: object) -> None:
+    for other in STOP_SIGNALS:       # once: a second signal must not interrupt the clean-up
+        signal.signal(other, signal.SIG_IGN)
+    raise Interrupted(signum)
+
+
+def _install_handlers() -> dict[int, Any] | None:
+    """Our handlers for SIGINT and SIGTERM, and the previous ones (None outside the main thread)."""
+    try:
+        return {signum: signal.signal(signum, _stop) for signum in STOP_SIGNALS}
+    except ValueError:       # not the main thread: signals are not ours to handle
+        return None
 
 
 def _say(message: str) -> None:
@@ -53,6 +84,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     for stream in (sys.stdout, sys.stderr):   # a terminal that cannot show a name gets an escape, not a crash
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
+    previous = _install_handlers()
+    try:
+        return _run(argv)
+    except KeyboardInterrupt as err:      # Ctrl-C before our handler (or a library's own KeyboardInterrupt)
+        signum = err.signum if isinstance(err, Interrupted) else signal.SIGINT
+        _say(f"packetloss-cvx: interrupted by {signal.Signals(signum).name}")
+        if argv is None:        # the program is ending: a library's exit hook (distributed's close_clusters on a
+            sys.stderr.flush()  # cluster still starting) must not add a traceback after the one line
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
+        return STOP_SIGNALS.get(signum, 128 + signum)
+    finally:
+        if previous is not None:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+
+
+def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
         words = list(sys.argv[1:] if argv is None else argv)
