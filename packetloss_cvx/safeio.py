@@ -29,8 +29,8 @@ from typing import IO, Any
 
 from .errors import InputError, OutputExistsError
 
-__all__ = ["TEMP_PREFIX", "atomic_write", "check_output_file", "clean_temporaries", "file_digest", "pid_alive",
-           "refuse_special", "save_figure"]
+__all__ = ["TEMP_PREFIX", "atomic_write", "check_output_file", "clean_temporaries", "figure_path", "file_digest",
+           "pid_alive", "refuse_special", "save_figure"]
 
 #: the recognisable start of every temporary file (``<prefix><pid>-<random>-<name>``)
 TEMP_PREFIX = ".packetloss-cvx-tmp-"
@@ -229,6 +229,17 @@ def atomic_write(path: str | Path, *, overwrite: bool = False, text: bool = Fals
         raise
 
 
+def figure_path(path: str | Path) -> Path:
+    """The file a figure saved to ``path`` lands in: ``path``, or with ``.png`` appended when it has no
+    extension (as Matplotlib's savefig does). O(1).
+
+    >>> figure_path("loop").name, figure_path("loop.svg").name
+    ('loop.png', 'loop.svg')
+    """
+    path = Path(path)
+    return path if path.suffix[1:] else path.with_name(path.name + ".png")
+
+
 def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False, field: str = "path",
                 folder: Any = None) -> Path:
     """Save a Matplotlib figure atomically: the format follows the extension (none: PNG, and ``.png`` is
@@ -244,10 +255,8 @@ def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False, field: s
     ...     path.name, path.read_bytes()[:4]
     ('empty.png', b'\x89PNG')
     """
-    path = Path(path)
+    path = figure_path(path)
     fmt = path.suffix[1:].lower()
-    if not fmt:
-        fmt, path = "png", path.with_name(path.name + ".png")
     target = folder.write(path.name) if folder is not None else atomic_write(path, overwrite=overwrite, field=field)
     with target as handle:
         try:

@@ -121,6 +121,8 @@ def test_save_figure_writes_the_format_of_the_extension(tmp_path):
         save_figure(figure, tmp_path / "f.svg")
     with pytest.raises(InputError, match="--plot"):
         save_figure(figure, tmp_path / "f.pgn", field="--plot")
+    with pytest.raises(OutputExistsError, match="f.png"):          # `f` lands in f.png, which exists
+        save_figure(figure, tmp_path / "f")
     assert _names(tmp_path) == ["f.png", "f.svg"]
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import InputError
 from ..plots import plot_closed_loop
 from ..results import Simulation
-from ..safeio import atomic_write, save_figure
+from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from ..simulation.markov_montecarlo import EXACT_PLAN
 from ..simulation.montecarlo import LAWS, simulate
 from .common import CommandResult, check_figure_format, progress_of, system_of
@@ -50,14 +50,15 @@ def run(args: argparse.Namespace) -> CommandResult:
     if not args.closed_loop:
         laws = tuple(law for law in laws if law != "dp")
     keep = SAVED_RUNS if args.save and args.closed_loop else 0
+    force = getattr(args, "force", False)
     if args.plot:
         check_figure_format(args.plot, "--plot")      # before the sampling, not after it
+        check_output_file(figure_path(args.plot), "--plot", force)     # `--plot loop` writes loop.png
     try:
         sim = simulate(system, args.samples, steps=args.steps, seed=args.seed, closed_loop=args.closed_loop,
                        laws=laws, keep=keep, progress=progress_of(args))
     except InputError as err:
         raise err.renamed(FLAGS.get(err.field, err.field)) from None
-    force = getattr(args, "force", False)
     if args.save:
         _save(sim, args.save, force)
     if args.plot:
