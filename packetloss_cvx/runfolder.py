@@ -23,6 +23,7 @@ import contextlib
 import datetime
 import json
 import os
+import secrets
 import stat
 import sys
 import time
@@ -126,17 +127,14 @@ class RunFolder:
 
     def _lock(self) -> None:
         lock = self.path / LOCK_NAME
-        for _ in range(3):
+        for _ in range(5):
             try:
                 fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
             except FileExistsError:
                 pid = self._lock_owner(lock)
                 if pid is None or pid_alive(pid):
-                    who = f"pid {pid}" if pid is not None else "a process that is starting"
-                    raise FolderBusyError(self.field, f"{str(self.path)!r} is being written by another run "
-                                                      f"({who}); wait for it or choose another folder") from None
-                with contextlib.suppress(FileNotFoundError):    # stale: its process is dead
-                    os.unlink(lock)
+                    raise self._busy(pid) from None
+                self._take_over(lock, pid)
                 continue
             except OSError as err:
                 raise self._fail(err) from None
@@ -147,6 +145,34 @@ class RunFolder:
             self.locked = True
             return
         raise FolderBusyError(self.field, f"{str(self.path)!r}: its lock changes hands too often; try again")
+
+    def _busy(self, pid: int | None) -> FolderBusyError:
+        who = f"pid {pid}" if pid is not None else "a process that is starting"
+        return FolderBusyError(self.field, f"{str(self.path)!r} is being written by another run ({who}); wait "
+                                           "for it or choose another folder")
+
+    def _take_over(self, lock: Path, dead: int) -> None:
+        """Remove a stale lock of the dead pid ``dead``. It is first renamed aside (one rename wins), then
+        read again: if another run replaced the stale lock meanwhile, its fresh lock is put back and this
+        run refuses, so two runs that found the same stale lock cannot both take the folder."""
+        aside = self.path / f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}-lock"
+        try:
+            os.rename(lock, aside)
+        except FileNotFoundError:        # another run moved it first: try to create ours again
+            return
+        except OSError as err:
+            raise self._fail(err) from None
+        owner = self._lock_owner(aside)
+        if owner == dead or (owner is not None and not pid_alive(owner)):
+            os.unlink(aside)
+            return
+        try:
+            os.link(aside, lock)            # a live run's lock: back under its name (unless a third run's is there)
+        except OSError:
+            pass
+        finally:
+            os.unlink(aside)
+        raise self._busy(owner)
 
     @staticmethod
     def _lock_owner(lock: Path) -> int | None:

@@ -137,3 +137,24 @@ def test_names_outside_the_folder_are_refused(tmp_path):
         for name in ("../escape", MANIFEST_NAME, LOCK_NAME):
             with pytest.raises(InputError, match="not a file name"):
                 run.write(name)
+
+
+def test_two_runs_taking_over_one_stale_lock_cannot_both_win(tmp_path, monkeypatch):
+    """Run B read the stale pid; before B removes the lock, run A (live) has replaced it with its own. B
+    must put A's lock back and refuse, naming A."""
+    out = tmp_path / "run"
+    out.mkdir()
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        (out / LOCK_NAME).write_text(f"{other.pid}\n")                     # A's fresh lock, on disk
+        dead = _dead_pid()
+        reads = iter([dead])                                               # B's first read saw the stale one
+        real = RunFolder._lock_owner
+        monkeypatch.setattr(RunFolder, "_lock_owner", staticmethod(lambda lock: next(reads, None) or real(lock)))
+        with pytest.raises(FolderBusyError, match=f"pid {other.pid}"):
+            _run(out, {"a": b"1"})
+        assert (out / LOCK_NAME).read_text() == f"{other.pid}\n"           # A still holds the folder
+        assert sorted(os.listdir(out)) == [LOCK_NAME]                      # nothing else written or left aside
+    finally:
+        other.kill()
+        other.wait()
