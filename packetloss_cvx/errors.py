@@ -13,9 +13,11 @@ from __future__ import annotations
 __all__ = [
     "CrossCheckError",
     "DimensionError",
+    "FolderBusyError",
     "InfeasibleError",
     "InputError",
     "NumericalError",
+    "OutputExistsError",
     "ProbabilityError",
     "ResourceError",
     "SolverError",
@@ -44,6 +46,15 @@ class DimensionError(InputError):
 
 class ProbabilityError(InputError):
     """A delivery probability outside [0, 1]."""
+
+
+class OutputExistsError(InputError):
+    """An output would replace a user's file, or write into a folder holding files this package did not
+    write (docs/design.md §4, "Files and runs"); ``--force`` (API: ``overwrite=True``) allows it."""
+
+
+class FolderBusyError(InputError):
+    """An output folder is being written by another live run (its lock names the pid)."""
 
 
 class SolverError(RuntimeError):

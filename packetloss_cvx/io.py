@@ -13,6 +13,7 @@ from typing import Any
 
 from .errors import InputError
 from .model import System
+from .safeio import atomic_write
 
 __all__ = ["dumps_system", "example_names", "load_example", "load_system", "save_system", "system_from_dict"]
 
@@ -205,8 +206,10 @@ def dumps_system(system: System) -> str:
     return "\n".join(lines)
 
 
-def save_system(system: System, path: str | Path) -> Path:
-    """Write ``system`` to ``path`` as TOML; returns the path.
+def save_system(system: System, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write ``system`` to ``path`` as TOML, atomically (:func:`~packetloss_cvx.safeio.atomic_write`);
+    returns the path. An existing file is refused (:class:`~packetloss_cvx.errors.OutputExistsError`, a
+    ValueError) unless ``overwrite=True`` (migration 2026-11-24: it was replaced silently).
 
     Examples
     --------
@@ -221,10 +224,8 @@ def save_system(system: System, path: str | Path) -> Path:
     path = Path(path)
     if not isinstance(system, System):
         raise InputError("system", f"expected a System, found {type(system).__name__}")
-    try:
-        path.write_text(dumps_system(system), encoding="utf-8")
-    except OSError as err:
-        raise InputError("path", f"cannot write {path}: {err.strerror or err}") from None
+    with atomic_write(path, overwrite=overwrite, text=True, field="path") as handle:
+        handle.write(dumps_system(system))
     return path
 
 

@@ -25,6 +25,7 @@ from matplotlib.figure import Figure
 
 from .errors import InputError
 from .model import numeric_array
+from .safeio import save_figure
 
 __all__ = ["plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto"]
 
@@ -42,14 +43,10 @@ def _rows(rows: Any, field: str, keys: tuple[str, ...]) -> list[Mapping]:
 
 
 def _save(fig: Figure, path: str | Path | None) -> Figure:
-    if path is None:
-        return fig
-    try:
-        fig.savefig(path, dpi=120)
-    except OSError as err:
-        raise InputError("path", f"cannot write {str(path)!r}: {err.strerror or err}") from None
-    except ValueError as err:            # e.g. an extension matplotlib cannot write
-        raise InputError("path", str(err)) from None
+    """Saved atomically (safeio.save_figure); an existing file is replaced, as Matplotlib's savefig does: a
+    figure is redrawn from its data (the command line refuses without --force, docs/design.md §4)."""
+    if path is not None:
+        save_figure(fig, path, overwrite=True)
     return fig
 
 

@@ -17,7 +17,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
-     "channel", "validation", "threads"},
+     "channel", "validation", "threads", "safeio", "runfolder"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
      "evaluator", "pointwise", "batch_recursion"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},

@@ -25,7 +25,7 @@ COVERED = (
     "batch_recursion", "channel", "convex", "costs", "difference", "io", "linalg", "markov.chain", "markov.compare",
     "markov.exact_cost",
     "markov.mjls", "markov.qp", "markov.sweep", "model", "plots", "prediction", "progress", "protocols",
-    "random_systems", "recursion", "validation",
+    "random_systems", "recursion", "validation", "safeio", "runfolder",
     "simulation.channels", "simulation.critical", "simulation.interop", "simulation.markov_channels",
     "simulation.markov_loop", "simulation.markov_montecarlo", "simulation.moments", "simulation.montecarlo",
     "simulation.riccati", "simulation.runs", "simulation.sampling", "simulation.stability", "threads", "display",

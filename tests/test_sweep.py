@@ -146,7 +146,7 @@ def test_cli_sweep_writes_files_and_no_bar_when_not_a_terminal(capsys, tmp_path)
     assert data["shape"] == [3, 3]
     assert data["cost_diff"]["min"] == 0.0
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["sweep.csv", "sweep.npz", "sweep_diff.png", "sweep_tcp.png", "sweep_udp.png"]
+    assert names == ["manifest.json", "sweep.csv", "sweep.npz", "sweep_diff.png", "sweep_tcp.png", "sweep_udp.png"]
     assert main(["sweep", "pendulum", "--x0-scales", "-1:1:3", "--out", str(tmp_path / "x0"), "--quiet"]) == 0
     assert (tmp_path / "x0" / "sweep.png").exists()
 
@@ -223,5 +223,5 @@ def test_a_sweep_of_zero_costs_saves_its_data_and_skips_only_the_log_figures(cap
     assert main(["sweep", str(path), "--mu-grid", "3", "--out", str(tmp_path / "z"), "--json", "-q"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["figures_not_drawn"] == ["sweep_tcp.png", "sweep_udp.png", "sweep_diff.png"]
-    assert sorted(p.name for p in (tmp_path / "z").iterdir()) == ["sweep.csv", "sweep.npz"]
+    assert sorted(p.name for p in (tmp_path / "z").iterdir()) == ["manifest.json", "sweep.csv", "sweep.npz"]
     assert data["cost_tcp"]["max"] == 0.0

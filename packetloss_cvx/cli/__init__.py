@@ -8,7 +8,13 @@ The grammar (:mod:`.parser`) imports nothing numerical; the checks that need no 
 (:func:`.common.preflight`: files, overrides, number lists) run next, importing NumPy only;
 the module that runs a subcommand (``solve``, ``audit``, ...) is imported only after them,
 so ``--help``, ``--version`` and bad input answer without importing cvxpy or SciPy.
-``--out FILE`` writes the JSON object to FILE as well; ``-v`` reports the time taken on stderr.
+``--out FILE`` writes the JSON object to FILE as well (atomically; an existing FILE needs ``--force``);
+``-v`` reports the time taken on stderr.
+
+SIGINT and SIGTERM end a run with one line on stderr and exit 130 / 143 (128 + the signal): the handler
+raises :class:`Interrupted` (a KeyboardInterrupt) wherever the run is, so every ``with`` block on the way
+out removes its temporary files and releases its folder's lock (safeio.py); a second signal during that
+clean-up is ignored.
 """
 
 from __future__ import annotations
@@ -16,6 +22,8 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import shlex
+import signal
 import sys
 import time
 import warnings
@@ -24,9 +32,35 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
+from ..safeio import atomic_write
 from .parser import build_parser, join_negative_values
 
-__all__ = ["main"]
+__all__ = ["Interrupted", "main"]
+
+#: the signals that end a run cleanly, with their exit codes (128 + the signal's number)
+STOP_SIGNALS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived: raised in the main thread so that clean-up runs on the way out."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)
+
+
+def _stop(signum: int, frame: object) -> None:
+    for other in STOP_SIGNALS:       # once: a second signal must not interrupt the clean-up
+        signal.signal(other, signal.SIG_IGN)
+    raise Interrupted(signum)
+
+
+def _install_handlers() -> dict[int, Any] | None:
+    """Our handlers for SIGINT and SIGTERM, and the previous ones (None outside the main thread)."""
+    try:
+        return {signum: signal.signal(signum, _stop) for signum in STOP_SIGNALS}
+    except ValueError:       # not the main thread: signals are not ours to handle
+        return None
 
 
 def _say(message: str) -> None:
@@ -34,12 +68,11 @@ def _say(message: str) -> None:
     print(message.replace("\r", "\\r").replace("\n", "\\n"), file=sys.stderr)
 
 
-def write_json(path: str, data: dict[str, Any]) -> None:
-    """``--out FILE``: the JSON object written to FILE (an unwritable path is bad input)."""
-    try:
-        Path(path).write_text(json.dumps(data, allow_nan=False, indent=2) + "\n", encoding="utf-8")
-    except OSError as err:
-        raise InputError("--out", f"cannot write {path!r}: {err.strerror or err}") from None
+def write_json(path: str, data: dict[str, Any], force: bool = False) -> None:
+    """``--out FILE``: the JSON object written to FILE atomically (an unwritable path is bad input; an existing
+    FILE is refused without ``--force``)."""
+    with atomic_write(Path(path), overwrite=force, text=True, field="--out") as handle:
+        handle.write(json.dumps(data, allow_nan=False, indent=2) + "\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -51,9 +84,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     for stream in (sys.stdout, sys.stderr):   # a terminal that cannot show a name gets an escape, not a crash
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
+    previous = _install_handlers()
+    try:
+        return _run(argv)
+    except KeyboardInterrupt as err:      # Ctrl-C before our handler (or a library's own KeyboardInterrupt)
+        signum = err.signum if isinstance(err, Interrupted) else signal.SIGINT
+        _say(f"packetloss-cvx: interrupted by {signal.Signals(signum).name}")
+        if argv is None:        # the program is ending: a library's exit hook (distributed's close_clusters on a
+            sys.stderr.flush()  # cluster still starting) must not add a traceback after the one line
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
+        return STOP_SIGNALS.get(signum, 128 + signum)
+    finally:
+        if previous is not None:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+
+
+def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
-        args = parser.parse_args(join_negative_values(list(sys.argv[1:] if argv is None else argv)))
+        words = list(sys.argv[1:] if argv is None else argv)
+        args = parser.parse_args(join_negative_values(words))
+        args.command_line = shlex.join(["packetloss-cvx", *words])     # for a run folder's manifest
         start = time.perf_counter()
         with warnings.catch_warnings():   # one stderr line, always: numerical warnings are checked, not printed
             warnings.simplefilter("ignore")
@@ -61,7 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             command = importlib.import_module(f"{__name__}.{args.command}")
             data, text, code = command.run(args)
         if getattr(args, "json_out", None):
-            write_json(args.json_out, data)
+            write_json(args.json_out, data, getattr(args, "force", False))
         if getattr(args, "verbose", 0):
             _say(f"packetloss-cvx: {args.command} took {time.perf_counter() - start:.3g} s")
         as_json = getattr(args, "json", False)

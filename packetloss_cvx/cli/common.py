@@ -9,7 +9,6 @@ the subcommand's module, so that bad input is refused without importing cvxpy or
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -18,6 +17,7 @@ import numpy as np
 from ..errors import InputError
 from ..io import load_system
 from ..model import System
+from ..safeio import check_output_file
 
 __all__ = ["CommandResult", "allocation_numbers", "check_figure_format", "check_writable", "floats", "number",
            "preflight", "progress_of", "system_of", "systems_of", "with_overrides"]
@@ -177,7 +177,7 @@ def preflight(args: argparse.Namespace) -> None:
             raise InputError(f"--{name}", f"expected {what} >= 0, found {value}")
     for name, flag in OUTPUT_FILES.items():   # a typo in an output path costs nothing, not the whole run
         if isinstance(getattr(args, name, None), str):
-            check_writable(getattr(args, name), flag)
+            check_writable(getattr(args, name), flag, getattr(args, "force", False))
     if isinstance(getattr(args, "save", None), str) and not args.save.endswith(".npz"):
         raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
     if getattr(args, "plot", None) and getattr(args, "closed_loop", None) is False:
@@ -212,9 +212,9 @@ def check_figure_format(path: str, field: str) -> None:
         raise InputError(field, f"cannot write a {suffix!r} figure (formats: {shown})")
 
 
-def check_writable(path: str, field: str) -> None:
-    """A FILE the command will write: not a directory, in a directory that exists and may be written, and
-    writable if it exists. Nothing is created. O(1).
+def check_writable(path: str, field: str, force: bool = False) -> None:
+    """A FILE the command will write: not a directory, FIFO or device, in a directory that exists and may be
+    written, and not an existing file unless ``--force`` (safeio.check_output_file). Nothing is created. O(1).
 
     Examples
     --------
@@ -223,17 +223,7 @@ def check_writable(path: str, field: str) -> None:
     ...
     packetloss_cvx.errors.InputError: --out: cannot write '/no-such-directory/out.json': no such directory
     """
-    target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    if target.is_dir():
-        reason = "it is a directory"
-    elif not folder.is_dir():
-        reason = "no such directory"
-    elif not os.access(folder, os.W_OK | os.X_OK) or (target.exists() and not os.access(target, os.W_OK)):
-        reason = "permission denied"
-    else:
-        return
-    raise InputError(field, f"cannot write {path!r}: {reason}")
+    check_output_file(path, field, force)
 
 
 def progress_of(args: argparse.Namespace) -> bool | None:

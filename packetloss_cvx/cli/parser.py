@@ -93,6 +93,9 @@ def shared_options(results: bool) -> argparse.ArgumentParser:
         group.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
         group.add_argument("--out", dest="json_out", metavar="FILE",
                            help="also write the JSON object to FILE (default: none), e.g. --out result.json")
+    group.add_argument("--force", action="store_true",
+                       help="replace an existing output FILE, or write into a folder holding files no "
+                            "packetloss-cvx manifest lists (default: refuse, exit 2; docs/design.md §4)")
     loud = group.add_mutually_exclusive_group()
     loud.add_argument("-q", "--quiet", action="store_true", help="no progress bars on stderr")
     loud.add_argument("-v", "--verbose", action="count", default=0,

@@ -1,7 +1,7 @@
 """``packetloss-cvx reproduce [--out DIR]``: every figure and table of the paper from the packaged
 examples, with ``results.json`` and ``report.md`` saying, figure by figure, what matches the paper.
 
-Deterministic (no clock, no unseeded randomness in any file written). Steps: the pendulum's costs
+Deterministic (no clock, no unseeded randomness in any file written, but for the time in manifest.json). Steps: the pendulum's costs
 over nu, the two-actuator grids, the allocations of §VI for both protocols, Tables I–II, the
 audit, the figures, the report.
 """
@@ -18,10 +18,11 @@ import numpy as np
 
 from ..claims import CLAIMS, audit, markdown_report
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
-from ..errors import InputError
 from ..io import load_example
 from ..plots import plot_cost_lines, plot_log_contour
 from ..progress import progress_bar
+from ..runfolder import RunFolder
+from ..safeio import save_figure
 from ..studies import paper_figures as pf
 from ..threads import blas_limited
 from .common import CommandResult
@@ -92,28 +93,32 @@ def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str,
     return data
 
 
-def _figures(data: dict[str, Any], out: Path) -> dict[str, Path]:
+def _figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
+    out = folder.path
     paths = {label: out / f"{label.removeprefix('fig:')}.png" for label in FIGURES}
     pend, mixed = data["pendulum"], data["mixed"]
     caption = {label: f"{label}\n{text}" for label, text in FIGURES.items()}
-    plot_cost_lines(pend["nu"], {"tcp": pend["tcp"], "udp": pend["udp"], "diff": pend["diff"]},
+    draw = {}
+    draw["fig:log-cost-pendulum"] = plot_cost_lines(pend["nu"], {"tcp": pend["tcp"], "udp": pend["udp"], "diff": pend["diff"]},
                     xlabel=r"delivery probability $\nu$ (shared channel; log scale)", xscale="log",
                     marker=pend["maximiser"]["nu"],
                     marker_label=rf"max $J_\Delta$ at $\nu$ = {pend['maximiser']['nu']:.3g}",
-                    title=caption["fig:log-cost-pendulum"], path=paths["fig:log-cost-pendulum"])
+                    title=caption["fig:log-cost-pendulum"])
     axis = mixed["axis"]
-    plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"log $J_\Delta$", marker=mixed["maximiser"]["mu"],
-                     title=caption["fig:cost-diff-mixed"], path=paths["fig:cost-diff-mixed"])
+    draw["fig:cost-diff-mixed"] = plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"log $J_\Delta$", marker=mixed["maximiser"]["mu"],
+                     title=caption["fig:cost-diff-mixed"])
     for protocol in ("tcp", "udp"):
         name = protocol.upper()
-        plot_log_contour(axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
-                         title=caption[f"fig:{name}-log-cost-mixed"], path=paths[f"fig:{name}-log-cost-mixed"])
+        draw[f"fig:{name}-log-cost-mixed"] = plot_log_contour(
+            axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
+            title=caption[f"fig:{name}-log-cost-mixed"])
         lines = {f"beta = {beta}": [row["mu"] for row in rows]
                  for beta, rows in data["allocations"][protocol].items()}
-        plot_log_contour(axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
-                         levels=data["settings"]["alphas"], allocations=lines,
-                         title=caption[f"fig:{name}-log-cost-mixed-mult"],
-                         path=paths[f"fig:{name}-log-cost-mixed-mult"])
+        draw[f"fig:{name}-log-cost-mixed-mult"] = plot_log_contour(
+            axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
+            levels=data["settings"]["alphas"], allocations=lines, title=caption[f"fig:{name}-log-cost-mixed-mult"])
+    for label, figure in draw.items():
+        save_figure(figure, paths[label].name, folder=folder)
     return paths
 
 
@@ -126,6 +131,7 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     >>> import tempfile
     >>> from packetloss_cvx.cli.parser import build_parser
+    >>> from packetloss_cvx.errors import InputError
     >>> run(build_parser().parse_args(["reproduce", "--out", " "]))        # an unset $DIR
     Traceback (most recent call last):
         ...
@@ -134,40 +140,30 @@ def run(args: argparse.Namespace) -> CommandResult:
     ...     try:
     ...         run(build_parser().parse_args(["reproduce", "--quick", "--out", file.name]))
     ...     except InputError as err:
-    ...         print(err.field, "cannot create" in err.detail)
+    ...         print(err.field, "not a folder" in err.detail)
     --out True
     """
     settings = SETTINGS["quick" if args.quick else "full"]
     progress = False if args.quiet else None
-    if not args.out.strip():      # an unset $DIR: not the current folder
-        raise InputError("--out", "expected a folder, found an empty path")
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError("--out", f"cannot create {str(out)!r}: {err.strerror or err}") from None
-    seconds: dict[str, float] = {}      # printed, never written: the files stay deterministic
-    data = _compute(settings, progress, seconds)
-    start = time.perf_counter()
-    try:
-        figures = _figures(data, out)
-    except InputError as err:
-        raise err.renamed("--out") if err.field == "path" else err from None
-    seconds["figures"] = time.perf_counter() - start
-    try:
-        (out / CLAIMS_FILE).write_text(markdown_report(data["audit"]))
-    except OSError as err:
-        raise InputError("--out", f"cannot write to {str(out)!r}: {err.strerror or err}") from None
-    text, verdicts = report(data, figures, out)
-    results = {key: value for key, value in data.items() if key != "audit"}
-    results["audit"] = [r.to_dict() for r in data["audit"]]
-    results["figures"] = {label: path.name for label, path in figures.items()}
-    results["verdicts"] = verdicts
-    try:
-        (out / "results.json").write_text(json.dumps(_plain(results), indent=1, allow_nan=False) + "\n")
-        (out / "report.md").write_text(text)
-    except OSError as err:
-        raise InputError("--out", f"cannot write to {str(out)!r}: {err.strerror or err}") from None
+    with RunFolder(args.out, command=getattr(args, "command_line", "packetloss-cvx reproduce"),
+                   force=getattr(args, "force", False), field="--out") as folder:    # before any work
+        seconds: dict[str, float] = {}      # printed, never written: the files stay deterministic
+        data = _compute(settings, progress, seconds)
+        start = time.perf_counter()
+        figures = _figures(data, folder)
+        seconds["figures"] = time.perf_counter() - start
+        with folder.write(CLAIMS_FILE, text=True) as handle:
+            handle.write(markdown_report(data["audit"]))
+        out = folder.path
+        text, verdicts = report(data, figures, out)
+        results = {key: value for key, value in data.items() if key != "audit"}
+        results["audit"] = [r.to_dict() for r in data["audit"]]
+        results["figures"] = {label: path.name for label, path in figures.items()}
+        results["verdicts"] = verdicts
+        with folder.write("results.json", text=True) as handle:
+            handle.write(json.dumps(_plain(results), indent=1, allow_nan=False) + "\n")
+        with folder.write("report.md", text=True) as handle:
+            handle.write(text)
     files = [*(p.name for p in figures.values()), "results.json", "report.md", CLAIMS_FILE]
     lines = [f"reproduce: wrote {len(files)} files in {out}"]
     lines += [f"  {label}: {verdict}" for label, verdict in verdicts.items()]

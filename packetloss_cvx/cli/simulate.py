@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..results import Simulation
+from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from ..simulation.markov_montecarlo import EXACT_PLAN
 from ..simulation.montecarlo import LAWS, simulate
 from .common import CommandResult, check_figure_format, progress_of, system_of
@@ -48,26 +49,29 @@ def run(args: argparse.Namespace) -> CommandResult:
     if not args.closed_loop:
         laws = tuple(law for law in laws if law != "dp")
     keep = SAVED_RUNS if args.save and args.closed_loop else 0
+    force = getattr(args, "force", False)
     if args.plot:
         check_figure_format(args.plot, "--plot")      # before the sampling, not after it
+        check_output_file(figure_path(args.plot), "--plot", force)     # `--plot loop` writes loop.png
     try:
         sim = simulate(system, args.samples, steps=args.steps, seed=args.seed, closed_loop=args.closed_loop,
                        laws=laws, keep=keep, progress=progress_of(args))
     except InputError as err:
         raise err.renamed(FLAGS.get(err.field, err.field)) from None
     if args.save:
-        _save(sim, args.save)
+        _save(sim, args.save, force)
     if args.plot:
         if not sim.closed_loop:
             raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
         from ..plots import plot_closed_loop  # matplotlib (0.2-0.7 s) only where a figure is asked for
-        plot_closed_loop({law: {"state_norm_mean": r.state_norm_mean, "state_norm_std": r.state_norm_std,
-                                "stage_cost_mean": r.stage_cost_mean} for law, r in sim.closed_loop.items()},
-                         title=system.name, path=args.plot)
+        figure = plot_closed_loop({law: {"state_norm_mean": r.state_norm_mean, "state_norm_std": r.state_norm_std,
+                                         "stage_cost_mean": r.stage_cost_mean} for law, r in sim.closed_loop.items()},
+                                  title=system.name)
+        save_figure(figure, args.plot, overwrite=force, field="--plot")
     return CommandResult(sim.to_dict(), _text(system.name or args.file, sim))
 
 
-def _save(sim: Simulation, path: str) -> None:
+def _save(sim: Simulation, path: str, force: bool) -> None:
     if not path.endswith(".npz"):
         raise InputError("--save", f"expected a FILE.npz, found {path!r}")
     arrays: dict[str, np.ndarray] = {"samples": np.array(sim.samples), "steps": np.array(sim.steps),
@@ -77,10 +81,8 @@ def _save(sim: Simulation, path: str) -> None:
     for law, r in sim.closed_loop.items():
         arrays.update({f"{law}_state_norm_mean": r.state_norm_mean, f"{law}_state_norm_std": r.state_norm_std,
                        f"{law}_stage_cost_mean": r.stage_cost_mean})
-    try:
-        np.savez_compressed(Path(path), **arrays)
-    except OSError as err:
-        raise InputError("--save", f"cannot write {path!r}: {err.strerror or err}") from None
+    with atomic_write(Path(path), overwrite=force, field="--save") as handle:
+        np.savez_compressed(handle, **arrays)
 
 
 def _num(value: float, digits: int = 6) -> str:

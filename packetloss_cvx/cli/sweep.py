@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -11,11 +12,14 @@ import numpy as np
 from ..errors import InputError
 from ..io import load_system
 from ..markov import burstiness_sweep
+from ..model import System
 from ..results import BurstinessSweep, DesignSweep
 from ..simulation import is_mean_square_stable
-from ..studies import read_mu_list, require_xarray, save_sweep, sweep
+from ..runfolder import RunFolder
+from ..safeio import save_figure
+from ..studies import read_mu_list, require_xarray, sweep
 from ..studies.engine import DEFAULT_CHUNK
-from ..studies.output import csv_number
+from ..studies.output import csv_number, write_sweep
 from ..tolerances import SELF_CHECK_RTOL
 from .common import CommandResult, floats
 
@@ -63,8 +67,8 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
     return options
 
 
-def _figures(result: DesignSweep, out: Path, skipped: list[str]) -> list[Path]:
-    """The sweep's figures in ``out``; a log contour with no positive value to draw (e.g. every cost 0
+def _figures(result: DesignSweep, out: RunFolder, skipped: list[str]) -> list[Path]:
+    """The sweep's figures in the folder ``out``; a log contour with no positive value to draw (e.g. every cost 0
     at x0 = 0 without noise) is not drawn, and its name goes to ``skipped``."""
     from ..plots import plot_cost_lines, plot_log_contour  # matplotlib (0.2-0.7 s) only where a figure is asked for
     curves = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
@@ -72,19 +76,17 @@ def _figures(result: DesignSweep, out: Path, skipped: list[str]) -> list[Path]:
     if len(result.dims) == 1:
         dim = result.dims[0]
         label = _AXIS_LABELS.get(dim, rf"$\mu_{dim[2:]}$" if dim.startswith("mu") else dim)
-        path = out / "sweep.png"
-        plot_cost_lines(result.axes[0], curves, xlabel=label, title=title, path=path)
-        return [path]
+        figure = plot_cost_lines(result.axes[0], curves, xlabel=label, title=title)
+        return [save_figure(figure, "sweep.png", folder=out)]
     paths = []
     names = {"tcp": "log J*_tcp", "udp": "log J*_udp", "diff": "log J_Delta"}
     for key, values in curves.items():
         if not np.any(np.asarray(values) > 0):
             skipped.append(f"sweep_{key}.png")
             continue
-        path = out / f"sweep_{key}.png"
-        plot_log_contour(result.axes[1], result.axes[0], np.asarray(values).reshape(result.shape),
-                         colorbar_label=names[key], title=f"{title}: {names[key]}", path=path)
-        paths.append(path)
+        figure = plot_log_contour(result.axes[1], result.axes[0], np.asarray(values).reshape(result.shape),
+                                  colorbar_label=names[key], title=f"{title}: {names[key]}")
+        paths.append(save_figure(figure, f"sweep_{key}.png", folder=out))
     return paths
 
 
@@ -137,9 +139,15 @@ def bursty(args: argparse.Namespace) -> CommandResult:
         raise InputError("--burstiness", f"takes none of --shared, --channel, --workers, --chunk-size; "
                                          f"found {', '.join(ignored)}")
     system = load_system(args.file)
+    correlations = _scales(args.burstiness, "--burstiness")
+    with _folder(args) as out:       # claimed (checked, locked) before the work, released on any exit
+        return _bursty(args, system, correlations, out)
+
+
+def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, out: RunFolder | None
+            ) -> CommandResult:
     try:
-        result: BurstinessSweep = burstiness_sweep(system, _scales(args.burstiness, "--burstiness"),
-                                                   progress=False if args.quiet else None)
+        result: BurstinessSweep = burstiness_sweep(system, correlations, progress=False if args.quiet else None)
     except InputError as err:
         raise err.renamed("--burstiness") if err.field in ("correlations", "correlation") else err from None
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
@@ -157,25 +165,20 @@ def bursty(args: argparse.Namespace) -> CommandResult:
         else:
             lines.append(f"  {p.upper()}-like: the plug-in law loses up to {100 * loss[worst]:.3g}% against the "
                          f"exact minimum (at lambda = {result.correlation[worst]:.4g})")
-    if args.out is not None:
-        out = Path(args.out)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-            header = ",".join(["lambda"] + [f"{kind}_{p}" for p in protocols for kind in ("plugin", "exact")])
-            rows = np.column_stack([result.correlation] + [col for p in protocols
-                                                            for col in (result.plugin[p], result.exact[p])])
-            lines_csv = [header] + [",".join(map(csv_number, row)) for row in rows.tolist()]
-            (out / "burstiness.csv").write_text("\n".join(lines_csv) + "\n")
-        except OSError as err:
-            raise InputError("--out", f"cannot write into {str(out)!r}: {err.strerror or err}") from None
+    if out is not None:
+        header = ",".join(["lambda"] + [f"{kind}_{p}" for p in protocols for kind in ("plugin", "exact")])
+        rows = np.column_stack([result.correlation] + [col for p in protocols
+                                                        for col in (result.plugin[p], result.exact[p])])
+        with out.write("burstiness.csv", text=True) as handle:
+            handle.write("\n".join([header] + [",".join(map(csv_number, row)) for row in rows.tolist()]) + "\n")
         from ..plots import plot_cost_lines  # matplotlib (0.2-0.7 s) only where a figure is asked for
         curves = {f"{kind} {p.upper()}-like": (result.plugin if kind == "plug-in" else result.exact)[p]
                   for p in protocols for kind in ("plug-in", "exact")}
-        plot_cost_lines(result.correlation, curves, xlabel=r"burstiness $\lambda = 1 - p - r$",
-                        title=f"{system.name or 'system'}: burstiness at fixed average rates",
-                        path=out / "burstiness.png")
-        data["files"] = [str(out / "burstiness.csv"), str(out / "burstiness.png")]
-        lines.append(f"  wrote burstiness.csv, burstiness.png in {out}")
+        figure = plot_cost_lines(result.correlation, curves, xlabel=r"burstiness $\lambda = 1 - p - r$",
+                                 title=f"{system.name or 'system'}: burstiness at fixed average rates")
+        save_figure(figure, "burstiness.png", folder=out)
+        data["files"] = [str(out.path / "burstiness.csv"), str(out.path / "burstiness.png")]
+        lines.append(f"  wrote burstiness.csv, burstiness.png in {out.path}")
     return CommandResult(data, "\n".join(lines))
 
 
@@ -216,17 +219,33 @@ def run(args: argparse.Namespace) -> CommandResult:
         if args.netcdf:
             require_xarray()
         options = _options(args, system.m)
+        with _folder(args) as out:      # claimed (checked, locked) before the sweep, released on any exit
+            return _design(args, system, protocols, options, out)
+    except InputError as err:
+        raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
+
+
+def _folder(args: argparse.Namespace) -> contextlib.AbstractContextManager[RunFolder | None]:
+    """``--out DIR`` as a claimed :class:`~packetloss_cvx.safeio.RunFolder`, or nothing."""
+    if args.out is None:
+        return contextlib.nullcontext()
+    return RunFolder(args.out, command=getattr(args, "command_line", "packetloss-cvx sweep"),
+                     force=getattr(args, "force", False), field="--out")
+
+
+def _design(args: argparse.Namespace, system: System, protocols: tuple[str, ...], options: dict[str, Any],
+            out: RunFolder | None) -> CommandResult:
+    try:
         result = sweep(system, protocols=protocols, shared=args.shared, chunk_size=args.chunk_size,
                        dask=args.dask, workers=args.workers, stability=args.stability,
                        progress=False if args.quiet else None, **options)
         data, lines = _summary(result)
-        if args.out is not None:
-            out = Path(args.out)
-            paths = save_sweep(result, out, netcdf=args.netcdf)
+        if out is not None:
+            paths = write_sweep(result, out, netcdf=args.netcdf)
             skipped: list[str] = []
             paths_list = [*paths.values(), *_figures(result, out, skipped)]
             data["files"] = [str(p) for p in paths_list]
-            lines.append(f"  wrote {', '.join(p.name for p in paths_list)} in {out}")
+            lines.append(f"  wrote {', '.join(p.name for p in paths_list)} in {out.path}")
             if skipped:
                 data["figures_not_drawn"] = skipped
                 lines.append(f"  not drawn: {', '.join(skipped)} (no positive value: the figure shows logarithms)")

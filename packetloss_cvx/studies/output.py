@@ -10,8 +10,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..results import DesignSweep
+from ..runfolder import RunFolder
 
-__all__ = ["csv_header", "csv_number", "require_xarray", "save_sweep"]
+__all__ = ["csv_header", "csv_number", "require_xarray", "save_sweep", "write_sweep"]
 
 
 def require_xarray() -> None:
@@ -65,12 +66,12 @@ def csv_header(result: DesignSweep) -> list[str]:
     return [f"mu{i + 1}" for i in range(m)] + [f"x0_{i + 1}" for i in range(n)] + ["horizon"] + costs + radii
 
 
-def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> dict[str, Path]:
-    """Write ``sweep.npz``, ``sweep.csv`` (and ``sweep.nc`` with ``netcdf=True``) into ``out``.
-
-    ``sweep.npz`` holds :meth:`DesignSweep.arrays` (``mu`` (P × m), ``cost_tcp``, ``cost_udp``,
-    ``cost_diff``, ``x0``, ``horizon``, ``axis_<dim>``) and ``dims``; floats in the CSV are
-    written with 17 significant digits (they read back exactly). O(P (m + n)).
+def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, overwrite: bool = False,
+               command: str = "save_sweep") -> dict[str, Path]:
+    """Write ``sweep.npz``, ``sweep.csv`` (and ``sweep.nc`` with ``netcdf=True``) into the folder ``out``,
+    atomically, with its ``manifest.json`` (:class:`~packetloss_cvx.safeio.RunFolder`: a folder holding
+    files no manifest of this package lists is refused unless ``overwrite=True``; the package's own folder
+    is replaced run for run, stale files removed). O(P (m + n)).
 
     Returns
     -------
@@ -80,7 +81,8 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
     Raises
     ------
     InputError
-        ``out`` cannot be created or written (field ``out``); ``netcdf`` without xarray (field ``netcdf``).
+        ``out`` cannot be created or written (field ``out``); ``netcdf`` without xarray (field ``netcdf``);
+        OutputExistsError: a folder with other files; FolderBusyError: another run is writing it.
 
     Examples
     --------
@@ -100,23 +102,43 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False) -> di
     """
     if netcdf:
         require_xarray()        # before writing anything
-    folder = Path(out)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        paths = {"npz": folder / "sweep.npz", "csv": folder / "sweep.csv"}
-        np.savez(paths["npz"], dims=np.array(result.dims, dtype=str), **result.arrays())
-        columns = [result.mu, result.x0, result.horizon[:, None]] + [v[:, None] for v in result.costs.values()]
-        if result.difference is not None:
-            columns.append(result.difference[:, None])
-        columns += [v[:, None] for v in result.radii.values()]
-        table = np.hstack([np.asarray(c, dtype=float) for c in columns])
-        with open(paths["csv"], "w", newline="") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(csv_header(result))
-            writer.writerows([csv_number(v) for v in row] for row in table.tolist())   # streamed: no P-row list
-        if netcdf:
-            paths["netcdf"] = folder / "sweep.nc"
-            result.to_xarray().to_netcdf(paths["netcdf"], engine="scipy")
-    except OSError as err:
-        raise InputError("out", f"cannot write to {str(folder)!r}: {err.strerror or err}") from None
+    with RunFolder(out, command=command, force=overwrite) as folder:
+        return write_sweep(result, folder, netcdf)
+
+
+def write_sweep(result: DesignSweep, folder: RunFolder, netcdf: bool = False) -> dict[str, Path]:
+    """:func:`save_sweep`'s files written into an entered :class:`~packetloss_cvx.safeio.RunFolder` (the
+    command line's, which holds the figures too). Floats in the CSV are written with the shortest text
+    that reads back exactly (:func:`csv_number`); the CSV is streamed row by row. O(P (m + n)).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.studies import sweep
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> with tempfile.TemporaryDirectory() as tmp, RunFolder(Path(tmp) / "run", command="example") as folder:
+    ...     paths = write_sweep(sweep(s, mu_grid=[0.0, 1.0]), folder)
+    ...     with folder.write("note.txt", text=True) as handle:      # a file of the caller's, in the same run
+    ...         _ = handle.write("two channels")
+    >>> sorted(paths), folder.written
+    (['csv', 'npz'], ['sweep.npz', 'sweep.csv', 'note.txt'])
+    """
+    paths = {"npz": folder.path / "sweep.npz", "csv": folder.path / "sweep.csv"}
+    with folder.write("sweep.npz") as handle:
+        np.savez(handle, dims=np.array(result.dims, dtype=str), **result.arrays())
+    columns = [result.mu, result.x0, result.horizon[:, None]] + [v[:, None] for v in result.costs.values()]
+    if result.difference is not None:
+        columns.append(result.difference[:, None])
+    columns += [v[:, None] for v in result.radii.values()]
+    table = np.hstack([np.asarray(c, dtype=float) for c in columns])
+    with folder.write("sweep.csv", text=True) as handle:
+        writer = csv.writer(handle)
+        writer.writerow(csv_header(result))
+        writer.writerows([csv_number(v) for v in row] for row in table.tolist())   # streamed: no P-row list
+    if netcdf:
+        paths["netcdf"] = folder.path / "sweep.nc"
+        data = result.to_xarray().to_netcdf(engine="scipy")     # bytes: NetCDF3 has no streaming writer
+        with folder.write("sweep.nc") as handle:
+            handle.write(bytes(data))
     return paths

@@ -1,0 +1,160 @@
+"""runfolder: the output-folder rule (a user's files refused, the package's folder replaced as a whole), the
+manifest (checked against hashlib on the files themselves), and the lock (live, stale, empty)."""
+
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from packetloss_cvx.errors import FolderBusyError, InputError, OutputExistsError
+from packetloss_cvx.runfolder import LOCK_NAME, MANIFEST_NAME, RunFolder
+from packetloss_cvx.safeio import TEMP_PREFIX
+
+
+def _run(folder, files, **kwargs):
+    with RunFolder(folder, command="test", **kwargs) as run:
+        for name, payload in files.items():
+            with run.write(name) as handle:
+                handle.write(payload)
+
+
+def _manifest(folder):
+    return json.loads((folder / MANIFEST_NAME).read_text())
+
+
+def _dead_pid():
+    done = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True,
+                          check=True)
+    return int(done.stdout)
+
+
+def test_the_manifest_lists_each_file_with_its_size_and_sha256(tmp_path):
+    out = tmp_path / "run"
+    files = {"a.bin": os.urandom(3000), "b.csv": b"x,y\n1,2\n"}
+    _run(out, files)
+    manifest = _manifest(out)
+    assert manifest["complete"] is True and manifest["command"] == "test" and manifest["packetloss_cvx"]
+    assert {f["name"]: (f["bytes"], f["sha256"]) for f in manifest["files"]} == {
+        name: (len(data), hashlib.sha256(data).hexdigest()) for name, data in files.items()}
+    assert sorted(os.listdir(out)) == ["a.bin", "b.csv", MANIFEST_NAME]      # the lock is gone
+
+
+def test_a_rerun_replaces_the_run_as_a_whole(tmp_path):
+    out = tmp_path / "run"
+    _run(out, {"sweep.png": b"1-D figure", "sweep.npz": b"old"})
+    _run(out, {"sweep.npz": b"new", "sweep_tcp.png": b"2-D figure"})
+    assert sorted(os.listdir(out)) == [MANIFEST_NAME, "sweep.npz", "sweep_tcp.png"]    # no stale sweep.png
+    assert (out / "sweep.npz").read_bytes() == b"new"
+
+
+def test_a_folder_with_a_users_file_is_refused_unless_force(tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("the user's")
+    with pytest.raises(OutputExistsError, match=r"notes.txt; pass --force") as err:
+        _run(out, {"sweep.npz": b"x"})
+    assert isinstance(err.value, ValueError) and err.value.field == "out"
+    assert sorted(os.listdir(out)) == ["notes.txt"]                        # refused before anything, lock gone
+    _run(out, {"sweep.npz": b"x"}, force=True)
+    _run(out, {"sweep.csv": b"y"}, force=True)                             # forced again: the user's file stays
+    assert sorted(os.listdir(out)) == [MANIFEST_NAME, "notes.txt", "sweep.csv"]
+    assert [f["name"] for f in _manifest(out)["files"]] == ["sweep.csv"]
+    # the package's folder with an extra file someone added: refused too
+    (tmp_path / "ours").mkdir()
+    _run(tmp_path / "ours", {"a": b"1"})
+    (tmp_path / "ours" / "added.txt").write_text("later")
+    with pytest.raises(OutputExistsError, match="no manifest of packetloss-cvx lists added.txt"):
+        _run(tmp_path / "ours", {"a": b"2"})
+
+
+def test_an_empty_folder_is_accepted_and_special_paths_refused(tmp_path):
+    (tmp_path / "empty").mkdir()
+    _run(tmp_path / "empty", {"a": b"1"})
+    (tmp_path / "file").write_text("x")
+    os.mkfifo(tmp_path / "fifo")
+    for path, pattern in ((tmp_path / "file", "not a folder"), (tmp_path / "fifo", "FIFO"), (" ", "empty path")):
+        with pytest.raises(InputError, match=pattern):
+            _run(path, {"a": b"1"})
+
+
+def test_a_failed_run_leaves_an_incomplete_manifest_and_no_folder_it_made_empty(tmp_path):
+    out = tmp_path / "run"
+    _run(out, {"a": b"1", "b": b"2"})
+    with pytest.raises(RuntimeError), RunFolder(out, command="test") as run:
+        with run.write("c") as handle:
+            handle.write(b"3")
+        raise RuntimeError("the sweep failed")
+    manifest = _manifest(out)
+    assert manifest["complete"] is False
+    assert sorted(f["name"] for f in manifest["files"]) == ["a", "b", "c"]       # every file there is listed
+    _run(out, {"a": b"4"})                                                       # and the next run accepts it
+    assert sorted(os.listdir(out)) == ["a", MANIFEST_NAME]
+    with pytest.raises(RuntimeError), RunFolder(tmp_path / "new", command="test"):
+        raise RuntimeError("failed before writing")
+    assert not (tmp_path / "new").exists()
+
+
+def test_a_live_lock_refuses_a_second_run_naming_its_pid(tmp_path):
+    out = tmp_path / "run"
+    with RunFolder(out, command="first"):
+        with pytest.raises(FolderBusyError, match=rf"being written by another run \(pid {os.getpid()}\)"):
+            _run(out, {"a": b"1"})
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        (out / LOCK_NAME).write_text(f"{other.pid}\n")
+        with pytest.raises(FolderBusyError, match=f"pid {other.pid}"):
+            _run(out, {"a": b"1"})
+        assert (out / LOCK_NAME).read_text() == f"{other.pid}\n"                 # the live lock is untouched
+    finally:
+        other.kill()
+        other.wait()
+
+
+def test_a_stale_lock_and_dead_runs_temporaries_are_taken_over(tmp_path):
+    out = tmp_path / "run"
+    _run(out, {"a": b"1"})
+    pid = _dead_pid()
+    (out / LOCK_NAME).write_text(f"{pid}\n")
+    (out / f"{TEMP_PREFIX}{pid}-abcd-a").write_bytes(b"half")
+    _run(out, {"a": b"2"})
+    assert sorted(os.listdir(out)) == ["a", MANIFEST_NAME]
+    # an empty lock: its writer is starting (refused) or died before writing its pid (stale after 5 s)
+    (out / LOCK_NAME).write_text("")
+    with pytest.raises(FolderBusyError, match="starting"):
+        _run(out, {"a": b"3"})
+    old = time.time() - 60
+    os.utime(out / LOCK_NAME, (old, old))
+    _run(out, {"a": b"3"})
+    assert (out / "a").read_bytes() == b"3"
+
+
+def test_names_outside_the_folder_are_refused(tmp_path):
+    with RunFolder(tmp_path / "run", command="test") as run:
+        for name in ("../escape", MANIFEST_NAME, LOCK_NAME):
+            with pytest.raises(InputError, match="not a file name"):
+                run.write(name)
+
+
+def test_two_runs_taking_over_one_stale_lock_cannot_both_win(tmp_path, monkeypatch):
+    """Run B read the stale pid; before B removes the lock, run A (live) has replaced it with its own. B
+    must put A's lock back and refuse, naming A."""
+    out = tmp_path / "run"
+    out.mkdir()
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        (out / LOCK_NAME).write_text(f"{other.pid}\n")                     # A's fresh lock, on disk
+        dead = _dead_pid()
+        reads = iter([dead])                                               # B's first read saw the stale one
+        real = RunFolder._lock_owner
+        monkeypatch.setattr(RunFolder, "_lock_owner", staticmethod(lambda lock: next(reads, None) or real(lock)))
+        with pytest.raises(FolderBusyError, match=f"pid {other.pid}"):
+            _run(out, {"a": b"1"})
+        assert (out / LOCK_NAME).read_text() == f"{other.pid}\n"           # A still holds the folder
+        assert sorted(os.listdir(out)) == [LOCK_NAME]                      # nothing else written or left aside
+    finally:
+        other.kill()
+        other.wait()

@@ -1,0 +1,137 @@
+"""safeio: atomic writes, the refusal of existing files and special files, temporary files of dead runs.
+
+References are the file system itself: what is on disk after each step (bytes, names, modes), read
+back with plain ``open``/``os`` calls, never through the module under test."""
+
+import errno
+import os
+import stat
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.errors import InputError, OutputExistsError
+from packetloss_cvx.safeio import TEMP_PREFIX, atomic_write, check_output_file, clean_temporaries, save_figure
+
+
+def _names(folder):
+    return sorted(os.listdir(folder))
+
+
+def test_atomic_write_publishes_the_whole_file_and_nothing_else(tmp_path):
+    target = tmp_path / "a.bin"
+    payload = bytes(range(256)) * 4096
+    with atomic_write(target) as handle:
+        handle.write(payload)
+        assert not target.exists()                        # nothing under the final name while writing
+        assert len([n for n in _names(tmp_path) if n.startswith(TEMP_PREFIX)]) == 1
+    assert target.read_bytes() == payload
+    assert _names(tmp_path) == ["a.bin"]
+
+
+def test_an_error_mid_write_leaves_the_previous_file_and_no_temporary(tmp_path):
+    target = tmp_path / "a.txt"
+    target.write_text("previous")
+    for error in (RuntimeError("boom"), KeyboardInterrupt()):
+        with pytest.raises(type(error)), atomic_write(target, overwrite=True, text=True) as handle:
+            handle.write("new but partial")
+            raise error
+        assert target.read_text() == "previous"
+        assert _names(tmp_path) == ["a.txt"]
+
+
+def test_an_existing_file_is_refused_before_and_at_the_rename(tmp_path):
+    target = tmp_path / "user.json"
+    target.write_text("the user's")
+    with pytest.raises(OutputExistsError, match="exists; pass --force"):    # before the work
+        check_output_file(target, "--out")
+    check_output_file(target, "--out", overwrite=True)
+    with pytest.raises(OutputExistsError, match="exists; pass --force"):
+        with atomic_write(target, text=True) as handle:
+            handle.write("x")
+    # a file that appears while we write (another writer) is not replaced either: os.link refuses
+    other = tmp_path / "race.json"
+    with pytest.raises(OutputExistsError, match="race.json"):
+        with atomic_write(other, text=True) as handle:
+            handle.write("ours")
+            other.write_text("theirs")
+    assert other.read_text() == "theirs" and target.read_text() == "the user's"
+    assert not [n for n in _names(tmp_path) if n.startswith(TEMP_PREFIX)]
+    assert isinstance(OutputExistsError("f", "d"), ValueError)
+
+
+def test_overwrite_replaces_and_keeps_the_umask_mode(tmp_path):
+    target = tmp_path / "a.txt"
+    target.write_text("old")
+    with atomic_write(target, overwrite=True, text=True) as handle:
+        handle.write("new")
+    assert target.read_text() == "new"
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask        # as open() would, not mkstemp's 0600
+
+
+def test_special_files_and_bad_folders_are_refused(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for path, pattern in ((fifo, "not a regular file"), ("/dev/null", "not a regular file"),
+                          (tmp_path, "it is a directory"), (tmp_path / "no" / "x.json", "no such directory"),
+                          ("", "empty path")):
+        with pytest.raises(InputError, match=pattern):
+            check_output_file(path, "--out", overwrite=True)
+    with pytest.raises(InputError, match="--out"):      # a name longer than the file system allows
+        with atomic_write(tmp_path / ("x" * 5000), field="--out") as handle:
+            handle.write(b"x")
+
+
+def test_a_write_error_becomes_one_input_error_and_leaves_nothing(tmp_path, monkeypatch):
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(InputError, match="No space left on device") as err:
+        with atomic_write(tmp_path / "a.bin", field="--save") as handle:
+            handle.write(b"data")
+    assert err.value.field == "--save"
+    assert _names(tmp_path) == []
+
+
+def test_clean_temporaries_removes_only_dead_processes_files(tmp_path):
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True, check=True)
+    pid = int(dead.stdout)        # a process that has exited (pids are not reused this fast)
+    (tmp_path / f"{TEMP_PREFIX}{pid}-0000-sweep.npz").write_bytes(b"partial")
+    (tmp_path / f"{TEMP_PREFIX}{os.getpid()}-0000-live.npz").write_bytes(b"in progress")
+    (tmp_path / "sweep.npz").write_bytes(b"a user's")
+    assert clean_temporaries(tmp_path) == [f"{TEMP_PREFIX}{pid}-0000-sweep.npz"]
+    assert _names(tmp_path) == sorted([f"{TEMP_PREFIX}{os.getpid()}-0000-live.npz", "sweep.npz"])
+
+
+def test_save_figure_writes_the_format_of_the_extension(tmp_path):
+    from matplotlib.figure import Figure
+    figure = Figure()
+    figure.add_subplot().plot([0, 1], [1, 0])
+    png = save_figure(figure, tmp_path / "f")                   # no extension: PNG, .png appended
+    svg = save_figure(figure, tmp_path / "f.svg")
+    assert png.name == "f.png" and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert b"<svg" in svg.read_bytes()[:400]
+    with pytest.raises(OutputExistsError):
+        save_figure(figure, tmp_path / "f.svg")
+    with pytest.raises(InputError, match="--plot"):
+        save_figure(figure, tmp_path / "f.pgn", field="--plot")
+    with pytest.raises(OutputExistsError, match="f.png"):          # `f` lands in f.png, which exists
+        save_figure(figure, tmp_path / "f")
+    assert _names(tmp_path) == ["f.png", "f.svg"]
+
+
+def test_save_system_refuses_an_existing_file_unless_overwrite(tmp_path):
+    path = tmp_path / "plant.toml"
+    path.write_text("# the user's notes")
+    system = pl.load_example("two_actuator")
+    with pytest.raises(OutputExistsError, match="plant.toml"):
+        pl.save_system(system, path)
+    assert path.read_text() == "# the user's notes"
+    pl.save_system(system, path, overwrite=True)
+    assert np.array_equal(pl.load_system(path).A, system.A)
