@@ -158,3 +158,15 @@ def test_parse_constraint(text, G, h):
 def test_parse_constraint_errors(text, match):
     with pytest.raises(pl.InputError, match=match):
         parse_constraint(text, 2)
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_allocation_is_invariant_to_the_scale_of_the_prices(protocol):
+    """beta = (1e-16, 5e-18) was certified 'optimal' at 7.6x (TCP) and 1.63x (UDP) the true optimum."""
+    system = pl.load_example("two_actuator")
+    unit = allocate(system, protocol, 8.0, [1.0, 0.05])
+    tiny = allocate(system, protocol, 8.0, [1e-16, 5e-18])
+    assert np.allclose(tiny.mu, unit.mu, atol=1e-9)
+    assert tiny.gap == pytest.approx(unit.gap, rel=1e-6, abs=1e-12)
+    assert tiny.lower_bound == pytest.approx(unit.lower_bound * 1e-16, rel=1e-9)
+    assert tiny.status == unit.status == "optimal"
