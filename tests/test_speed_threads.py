@@ -138,7 +138,7 @@ def test_set_blas_threads_takes_numpy_integers():
 
 
 def test_the_grid_sweeps_run_under_the_blas_policy(monkeypatch, two_actuator):
-    # was: shared_channel_sweep / two_channel_sweep looped analysis.cost_difference (dense (N m)^3 per point)
+    # was: shared_channel_sweep / two_channel_sweep looped difference.cost_difference (dense (N m)^3 per point)
     # with the process's BLAS threads: the pendulum's 298-point sweep took 0.45 s threaded, 0.19 s on one
     from threadpoolctl import threadpool_info, threadpool_limits
 
