@@ -60,3 +60,19 @@ def test_the_closed_loop_statespace_stays_discrete_time():
         pl.System.from_statespace(control.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]], 1), A=[[2.0]], horizon=3,
                                   state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     assert err.value.field == "A"
+
+
+def test_without_python_control_the_interop_names_the_extra(monkeypatch):
+    """python-control is the optional extra `control`: without it both directions are a typed error that says
+    how to install it (optional.load), not a bare ModuleNotFoundError traceback."""
+    import sys
+
+    from packetloss_cvx.statespace import plant_matrices
+
+    monkeypatch.setitem(sys.modules, "control", None)          # import control -> ImportError
+    with pytest.raises(InputError, match=r"pip install 'packetloss-cvx\[control\]'") as err:
+        closed_loop_statespace(load_example("two_actuator"), np.eye(2), dt=0.1)
+    assert err.value.field == "closed_loop_statespace"
+    with pytest.raises(InputError, match=r"pip install 'packetloss-cvx\[control\]'") as err:
+        plant_matrices(object())
+    assert err.value.field == "sys"
