@@ -181,7 +181,7 @@ def plan_costs(system: System, inputs: np.ndarray, delivered: np.ndarray, noise:
             X = X @ system.A.T + applied @ system.B.T
             if noise is not None:
                 X += noise[:, t]
-            total += np.einsum("si,ij,sj->s", X, system.state_weights[t], X)
+            total += np.einsum("si,si->s", X @ system.state_weights[t], X)   # a 3-operand einsum: ~10x slower
     return total
 
 
