@@ -222,16 +222,90 @@ def per_run_loop(system: pl.System, K: np.ndarray, steps: int, samples: int, see
     return out
 
 
+def minimal_loop(system: pl.System, gains: np.ndarray, steps: int, samples: int, rng, runs_last: bool = False):
+    """The same laws as a minimal vectorised numpy loop: the simulator's draws (sample_delivery_paths, then
+    sample_noise_paths from the same generator), one array operation per step over runs and laws, and only
+    each run's mean stage cost (no norms, no kept states). Runs first with the issue's stage cost
+    ``((X @ Omega) * X).sum(-1)``, or runs last (``X`` (L, n, runs)) as the simulator holds them."""
+    from packetloss_cvx.simulation.channels import sample_delivery_paths, sample_noise_paths
+
+    V = sample_delivery_paths(system, steps, samples, rng)
+    W = sample_noise_paths(system, steps, samples, rng)
+    Omega, psi, A, B = system.state_weights[0], system.input_weights[0], system.A, system.B
+    total = 0.0
+    if runs_last:
+        V, W = V.transpose(0, 2, 1), None if W is None else W.transpose(0, 2, 1)
+        X = np.broadcast_to(system.x0[:, None], (len(gains), system.n, samples)).copy()
+        for t in range(steps):
+            applied = V[t] * -(gains @ X)
+            total = total + ((Omega @ X) * X).sum(1) + psi @ (applied * applied)
+            X = A @ X + B @ applied
+            if W is not None:
+                X += W[t]
+        return total / steps
+    X = np.broadcast_to(system.x0, (len(gains), samples, system.n)).copy()
+    KT = np.transpose(gains, (0, 2, 1))
+    for t in range(steps):
+        applied = V[t] * -(X @ KT)
+        total = total + ((X @ Omega) * X).sum(-1) + applied ** 2 @ psi
+        X = X @ A.T + applied @ B.T
+        if W is not None:
+            X += W[t]
+    return total / steps
+
+
+def cpu_medians(fns: dict, repeats: int) -> dict:
+    """Median CPU seconds (time.process_time) of each callable, the runs interleaved (one of each per round)."""
+    times: dict = {k: [] for k in fns}
+    for _ in range(repeats):
+        for k, fn in fns.items():
+            start = time.process_time()
+            fn()
+            times[k].append(time.process_time() - start)
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
 def closed_loop(samples: int, steps: int, n_big: int, rows: list) -> None:
     """Closed loop: vectorised simulation vs a per-run loop; the mean-square radius at n_big, operator
     (ARPACK) vs the n^2 x n^2 Kronecker matrix."""
     from packetloss_cvx.simulation import closed_loop as exact_loop
     from packetloss_cvx.simulation import mean_square_radius
     from packetloss_cvx.simulation.montecarlo import closed_loop_block
-    print("\n14. closed loop: vectorised simulation vs a per-run loop; mean-square radius, operator vs Kronecker")
+    print("\n14. closed loop: the simulator vs a minimal vectorised loop and a per-run loop; mean-square radius, "
+          "operator vs Kronecker")
+
+    from threadpoolctl import threadpool_limits
+
+    from packetloss_cvx.simulation.montecarlo import BLOCK, law_gains
 
     s = bench_system(10)
     K = pl.closed_form(s, "tcp").gain
+    # the simulator's block against a minimal vectorised loop of the same laws: CPU time, one BLAS thread
+    noisy = pl.System(A=s.A, B=s.B, horizon=s.horizon, state_weights=s.state_weights, input_weights=s.input_weights,
+                      mu_schedule=s.mu_schedule, x0=s.x0, noise_cov=0.1 * np.eye(s.n))
+    print(f"closed-loop block of {BLOCK} runs x {steps} steps, laws tcp, udp, dp, n = {s.n}, m = {s.m}; "
+          "CPU ms, one BLAS thread, medians of interleaved runs (target: simulator within 1.2x the minimal loop)")
+    for label, system in (("no noise", s), ("noise 0.1 I", noisy)):
+        gains = np.stack(list(law_gains(system, ("tcp", "udp", "dp")).values()))
+        same = max(float(np.max(np.abs(closed_loop_block(system, gains, steps, BLOCK, np.random.default_rng(k))[0]
+                                       - minimal_loop(system, gains, steps, BLOCK, np.random.default_rng(k), last))
+                                / minimal_loop(system, gains, steps, BLOCK, np.random.default_rng(k), last)))
+                   for k in range(2) for last in (False, True))
+        with threadpool_limits(1, user_api="blas"):
+            cpu = cpu_medians({
+                "simulator": lambda: closed_loop_block(system, gains, steps, BLOCK, np.random.default_rng(1)),
+                "minimal, runs first": lambda: minimal_loop(system, gains, steps, BLOCK, np.random.default_rng(1)),
+                "minimal, runs last": lambda: minimal_loop(system, gains, steps, BLOCK, np.random.default_rng(1), True),
+            }, 3 if samples < 2000 else 7)
+        ratios = {k: cpu["simulator"] / v for k, v in cpu.items() if k != "simulator"}
+        print(f"  {label:<12} simulator {cpu['simulator'] * 1e3:6.1f}  minimal runs first "
+              f"{cpu['minimal, runs first'] * 1e3:6.1f} ({ratios['minimal, runs first']:.2f}x)  minimal runs last "
+              f"{cpu['minimal, runs last'] * 1e3:6.1f} ({ratios['minimal, runs last']:.2f}x)  "
+              f"run means agree to {same:.1e}")
+        rows.append({"bench": "closed_loop_vs_minimal", "case": label, "runs": BLOCK, "steps": steps, "laws": 3,
+                     "simulator_cpu_s": cpu["simulator"], "minimal_runs_first_cpu_s": cpu["minimal, runs first"],
+                     "minimal_runs_last_cpu_s": cpu["minimal, runs last"], "ratio_runs_first": ratios[
+                         "minimal, runs first"], "ratio_runs_last": ratios["minimal, runs last"], "agree": same})
     vec = median_time(lambda: closed_loop_block(s, K[None], steps, samples, np.random.default_rng(0)), 3)
     loop = median_time(lambda: per_run_loop(s, K, steps, samples, 0), 1)
     print(f"closed-loop simulation, {samples} runs x {steps} steps, n = {s.n}, m = {s.m}: vectorised {vec:.3f} s, "

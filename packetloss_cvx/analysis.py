@@ -1,7 +1,7 @@
 """Monotonicity of the optimal cost (Theorem 3) and the closed-loop eigenvalues of Tables I–II.
 
 The cost difference between the protocols and its maximisers (§IV) live in
-:mod:`packetloss_cvx.difference`; they are re-exported here under their historical names.
+:mod:`packetloss_cvx.difference`, under their own names there.
 """
 
 from __future__ import annotations
@@ -11,42 +11,16 @@ from collections.abc import Sequence
 import numpy as np
 
 from .costs import closed_form, hessian_factor
-from .difference import (
-    G_maps,
-    Maximiser,
-    cost_difference,
-    cost_difference_derivative,
-    cost_difference_fd,
-    det_roots,
-    lemma2_matrix,
-    lemma3_candidates,
-    maximise_cost_difference,
-    maximise_cost_difference_2d,
-    scalar_channel,
-    theorem4_maximiser,
-)
 from .errors import InputError
 from .model import System
 from .prediction import prediction
 
 __all__ = [
-    "cost_difference",
-    "cost_difference_derivative",
-    "cost_difference_fd",
     "closed_loop_eigenvalues",
-    "G_maps",
-    "det_roots",
     "eigenvalue_table",
     "gain_conventions",
-    "lemma2_matrix",
     "LOOPS",
-    "lemma3_candidates",
-    "maximise_cost_difference",
-    "maximise_cost_difference_2d",
     "monotonicity_violations",
-    "scalar_channel",
-    "theorem4_maximiser",
-    "Maximiser",
 ]
 
 

@@ -12,7 +12,8 @@ Conventions (paper eq:plant, big):
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
@@ -36,7 +37,8 @@ from .validation import (
     weight_sequence,
 )
 
-__all__ = ["STRUCTURE_CACHE_MAX_BYTES", "STRUCTURE_FIELDS", "System", "check_system", "numeric_array"]
+__all__ = ["STRUCTURE_CACHE_MAX_BYTES", "STRUCTURE_FIELDS", "SYSTEM_FIELDS", "CacheKey", "System", "check_system",
+           "numeric_array"]
 
 T = TypeVar("T")
 
@@ -46,6 +48,49 @@ STRUCTURE_FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "init
 #: A value larger than this is rebuilt on each call rather than kept for the system's life (a long horizon's
 #: dense (N n)×(N m) prediction matrices): :meth:`System.structure_cached`.
 STRUCTURE_CACHE_MAX_BYTES = 8 * 2**20
+#: Every field of a System (what a :class:`CacheKey` may say its value depends on).
+SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name")
+
+
+@dataclass(frozen=True, eq=False)
+class CacheKey:
+    """One quantity kept on a :class:`System`: the key of :meth:`System.structure_cached` and :meth:`System.cached`.
+
+    A key is a typed object, declared once by the module that builds the quantity, and compared by
+    identity: two modules cannot collide on a name, and a key says which fields of the system its value
+    depends on (``depends_on``, names from :data:`SYSTEM_FIELDS`). A key whose fields are all in
+    :data:`STRUCTURE_FIELDS` may be kept in the structure store that ``with_mu``, ``with_x0`` and
+    ``with_channel`` copies share; any other only on its own system. ``tests/test_cache_keys.py`` holds
+    every key of the package to what it says. ``name`` is for reading (repr, errors) only.
+
+    Examples
+    --------
+    >>> square = CacheKey("demo.square", ("A",))
+    >>> square.structural, CacheKey("demo.mu", ("mu_schedule",)).structural
+    (True, False)
+    >>> CacheKey("demo.square", ("A",)) == square      # identity: another declaration is another key
+    False
+    """
+
+    name: str
+    depends_on: frozenset[str]
+
+    def __init__(self, name: str, depends_on: Iterable[str]) -> None:
+        fields = frozenset(depends_on)
+        unknown = sorted(fields - set(SYSTEM_FIELDS))
+        if not isinstance(name, str) or not name or unknown or not fields:
+            raise InputError("depends_on", f"a cache key needs a name and fields of System {SYSTEM_FIELDS}, "
+                                           f"found {name!r} depending on {sorted(fields)}")
+        object.__setattr__(self, "name", name)
+        object.__setattr__(self, "depends_on", fields)
+
+    @property
+    def structural(self) -> bool:
+        """True when the value depends only on :data:`STRUCTURE_FIELDS` (shared with with_mu/x0/channel copies)."""
+        return self.depends_on <= set(STRUCTURE_FIELDS)
+
+    def __repr__(self) -> str:
+        return f"CacheKey({self.name!r}, depends_on={sorted(self.depends_on)})"
 
 
 class System:
@@ -234,15 +279,17 @@ class System:
         object.__setattr__(new, "_own", {})
         return new
 
-    def structure_cached(self, key: str, build: Callable[[], T], nbytes: int = 0) -> T:
+    def structure_cached(self, key: CacheKey, build: Callable[[], T], nbytes: int = 0) -> T:
         """``build()``, computed once and kept for this system and the copies that share its structure.
 
         For quantities that depend only on :data:`STRUCTURE_FIELDS` (A, B, horizon, the weights,
         noise_cov) — never on mu_schedule, channel, x0 or name, which ``with_mu``, ``with_x0`` and
         ``with_channel`` replace while sharing this store. The store lives on the (immutable) system, so
         it cannot outlive it or be found by another one. Callers return read-only arrays (a value is
-        shared). ``key`` names the quantity (by convention ``"module.name"``); ``nbytes``, its size: above
-        :data:`STRUCTURE_CACHE_MAX_BYTES` it is built on every call and not kept. Time O(1) after the first call.
+        shared). ``key`` is the quantity's :class:`CacheKey`, which must be structural (a key that says it
+        depends on mu_schedule, x0, channel or name is a TypeError: it would be shared with copies that
+        changed them); ``nbytes``, its size: above :data:`STRUCTURE_CACHE_MAX_BYTES` it is built on every
+        call and not kept. Time O(1) after the first call.
 
         Examples
         --------
@@ -251,24 +298,28 @@ class System:
         >>> def square():
         ...     calls.append(1)
         ...     return float(s.A[0, 0]) ** 2
-        >>> s.structure_cached("demo.square", square), s.with_mu([0.9]).structure_cached("demo.square", square)
+        >>> SQUARE = CacheKey("demo.square", ("A",))
+        >>> s.structure_cached(SQUARE, square), s.with_mu([0.9]).structure_cached(SQUARE, square)
         (4.0, 4.0)
         >>> len(calls)                                    # built once: with_mu keeps A
         1
         """
+        if not _key(key).structural:
+            raise TypeError(f"{key!r} depends on more than the structure: keep it with System.cached")
         return _kept(self._structure, key, build, nbytes)
 
-    def cached(self, key: str, build: Callable[[], T], nbytes: int = 0) -> T:
+    def cached(self, key: CacheKey, build: Callable[[], T], nbytes: int = 0) -> T:
         """``build()``, computed once and kept for this system only (any field may enter it: the system is
         immutable, and its copies start with an empty store). Otherwise as :meth:`structure_cached`.
 
         Examples
         --------
         >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-        >>> s.cached("demo.mu", lambda: float(s.mu[0])), s.with_mu([0.9]).cached("demo.mu", lambda: 0.9)
+        >>> MU = CacheKey("demo.mu", ("mu_schedule",))
+        >>> s.cached(MU, lambda: float(s.mu[0])), s.with_mu([0.9]).cached(MU, lambda: 0.9)
         (0.5, 0.9)
         """
-        return _kept(self._own, key, build, nbytes)
+        return _kept(self._own, _key(key), build, nbytes)
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
         """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
@@ -369,7 +420,15 @@ class System:
         return out
 
 
-def _kept(store: dict, key: str, build: Callable[[], T], nbytes: int) -> T:
+def _key(key: Any) -> CacheKey:
+    """``key`` if it is a :class:`CacheKey`; a TypeError otherwise (a string key would couple modules by name)."""
+    if not isinstance(key, CacheKey):
+        raise TypeError(f"a cache key is a model.CacheKey declared by the module that builds the value, "
+                        f"found {type(key).__name__} {key!r}")
+    return key
+
+
+def _kept(store: dict, key: CacheKey, build: Callable[[], T], nbytes: int) -> T:
     if nbytes > STRUCTURE_CACHE_MAX_BYTES:
         return build()
     try:

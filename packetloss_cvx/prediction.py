@@ -17,7 +17,12 @@ import numpy as np
 import scipy.linalg as sla
 
 from .linalg import check_finite
-from .model import System
+from .model import CacheKey, System
+
+#: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
+CORE_KEY = CacheKey("prediction.core", ("A", "B", "horizon", "state_weights", "input_weights"))
+OMEGA_KEY = CacheKey("prediction.Omega", ("horizon", "state_weights"))
+NOISE_TERM_KEY = CacheKey("prediction.noise_term", ("A", "horizon", "state_weights", "noise_cov"))
 
 __all__ = ["Prediction", "prediction"]
 
@@ -61,7 +66,7 @@ class Prediction:
     def Omega(self) -> np.ndarray:
         """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept on the system structure (read-only)."""
         s = self.system
-        return s.structure_cached("prediction.Omega", lambda: _read_only(sla.block_diag(*s.state_weights)),
+        return s.structure_cached(OMEGA_KEY, lambda: _read_only(sla.block_diag(*s.state_weights)),
                                   nbytes=8 * (s.horizon * s.n) ** 2)
 
     @cached_property
@@ -85,7 +90,7 @@ class Prediction:
     def noise_term(self) -> float:
         """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise; eq:TCP-err).
         Kept on the system structure (it depends on neither mu nor x0)."""
-        return self.system.structure_cached("prediction.noise_term", lambda: float(
+        return self.system.structure_cached(NOISE_TERM_KEY, lambda: float(
             np.sum(self.Omega_l * self.Sigma_W)) if np.any(self.system.noise_cov) else 0.0)
 
 
@@ -138,7 +143,7 @@ def prediction(system: System) -> Prediction:
     """
     N, n, m = system.horizon, system.n, system.m
     size = 8 * (N * n * (n + N * m) + (N * m) * (2 * N * m + n + 2) + n * n)
-    core = system.structure_cached("prediction.core", lambda: _structure(system), nbytes=size)
+    core = system.structure_cached(CORE_KEY, lambda: _structure(system), nbytes=size)
     return Prediction(system=system, Vbar=system.mu_schedule.reshape(-1), **core)
 
 

@@ -24,8 +24,12 @@ import numpy as np
 from scipy.linalg.lapack import dgesv as _gesv
 
 from .linalg import check_finite
-from .model import STRUCTURE_CACHE_MAX_BYTES, System
+from .model import STRUCTURE_CACHE_MAX_BYTES, CacheKey, System
 from .protocols import check_protocol
+
+#: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
+VARIANCE_WEIGHTS_KEY = CacheKey("recursion.udp_variance_weights", ("A", "B", "horizon", "state_weights", "noise_cov"))
+CONDITION_KEY = CacheKey("recursion.condition_estimate", ("A", "B", "horizon", "state_weights", "input_weights"))
 
 __all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
 
@@ -56,7 +60,7 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     >>> bool(np.allclose(d.ravel(), prediction(s).Omega_d))    # the dense diagonal of Omega_g
     True
     """
-    return system.structure_cached("recursion.udp_variance_weights", lambda: _lyapunov_weights(system),
+    return system.structure_cached(VARIANCE_WEIGHTS_KEY, lambda: _lyapunov_weights(system),
                                    nbytes=8 * system.horizon * system.m)
 
 
@@ -94,7 +98,7 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     """
     kept = 8 * system.horizon * system.m <= STRUCTURE_CACHE_MAX_BYTES    # udp_variance_weights keeps d
     if weights is None or (kept and weights is udp_variance_weights(system)):   # the system's own weights
-        return system.structure_cached("recursion.condition_estimate",
+        return system.structure_cached(CONDITION_KEY,
                                        lambda: _spread(system, udp_variance_weights(system)[0]))
     return _spread(system, weights[0])
 

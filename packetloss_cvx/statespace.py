@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .optional import load
 
 __all__ = ["plant_matrices"]
 
@@ -30,7 +31,7 @@ def plant_matrices(sys: Any) -> dict[str, np.ndarray]:
     >>> plant_matrices(control.ss([[1.0]], [[0.5]], [[1.0]], [[0.0]], dt=0.1))["B"].tolist()
     [[0.5]]
     """
-    import control  # lazy: an optional dependency
+    control = load("control", "sys")
 
     if not isinstance(sys, control.StateSpace):
         raise InputError("sys", f"expected a control.StateSpace, found {type(sys).__name__}")

@@ -211,3 +211,15 @@ def test_tcp_calls_alternating_between_two_systems_answer_as_each_alone():
         got = allocate(system, "tcp", *call)
         mu, lower, status = expected[id(system)]
         assert np.array_equal(got.mu, mu) and got.lower_bound == lower and got.status == status
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_allocation_is_invariant_to_the_scale_of_the_prices(protocol):
+    """beta = (1e-16, 5e-18) was certified 'optimal' at 7.6x (TCP) and 1.63x (UDP) the true optimum."""
+    system = pl.load_example("two_actuator")
+    unit = allocate(system, protocol, 8.0, [1.0, 0.05])
+    tiny = allocate(system, protocol, 8.0, [1e-16, 5e-18])
+    assert np.allclose(tiny.mu, unit.mu, atol=1e-9)
+    assert tiny.gap == pytest.approx(unit.gap, rel=1e-6, abs=1e-12)
+    assert tiny.lower_bound == pytest.approx(unit.lower_bound * 1e-16, rel=1e-9)
+    assert tiny.status == unit.status == "optimal"

@@ -219,3 +219,23 @@ def test_cli_gap_not_certified_exit_4(capsys):
     assert out.err == ""
     main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "4.78", "--beta", "1,1", "--max-boxes", "2"])
     assert capsys.readouterr().out.startswith("UDP-like: GAP NOT CERTIFIED")
+
+
+def test_a_cap_of_one_box_is_singular(capsys):
+    # 0ed6b71 made the method line say '1 box'; the same line still said 'stopped at the cap of 1 boxes'
+    assert main(["allocate", "two_actuator", "--protocol", "udp", "--alpha", "3", "--beta", "1,1",
+                 "--max-boxes", "1", "--quiet"]) == 4
+    text = capsys.readouterr().out
+    assert "stopped at the cap of 1 box;" in text
+    assert "1 boxes" not in text
+
+
+
+def test_tcp_gap_not_certified_gives_advice_that_applies(capsys):
+    from packetloss_cvx.cli import main
+
+    code = main(["allocate", "two_actuator", "--protocol", "tcp", "--alpha", "8", "--beta", "1,1", "--gap", "1e-9"])
+    out = capsys.readouterr().out
+    assert code == 4
+    assert "ask for a larger --gap" in out
+    assert "--max-boxes" not in out    # the caps do not apply to the TCP-like SOCP

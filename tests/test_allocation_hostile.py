@@ -2,6 +2,8 @@
 API, exit code 2 with one stderr line naming the flag on the command line; never a traceback,
 a warning dump, a hang or a silent answer."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -147,3 +149,11 @@ def test_the_brute_force_reference_refuses_what_allocate_refuses(alpha, beta, G,
     with pytest.raises(pl.InputError) as info:
         brute_force_allocation(pl.load_example("two_actuator"), "udp", alpha, beta, G, h, coarse=11, fine=11)
     assert info.value.field == field
+
+
+def test_allocate_refuses_to_replace_a_gilbert_elliott_chain_silently(capsys):
+    """allocate pendulum_bursty printed a Bernoulli mu* = 0.0049 for a file whose channel is a chain."""
+    assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1"]) == 2
+    assert capsys.readouterr().err.startswith("packetloss-cvx: error: channel: ")
+    assert main(["allocate", "pendulum", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["status"] == "optimal"   # the same plant behind Bernoulli losses

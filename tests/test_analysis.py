@@ -7,6 +7,7 @@ from hypothesis import strategies as st
 
 import packetloss_cvx as pl
 from packetloss_cvx import analysis as an
+from packetloss_cvx import difference
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
 
@@ -19,7 +20,7 @@ seeds = st.integers(0, 2**32 - 1)
 def test_cost_difference_equals_difference_of_optima(seed):
     s = random_system(np.random.default_rng(seed))
     direct = pl.closed_form(s, "udp").cost - pl.closed_form(s, "tcp").cost
-    assert np.isclose(an.cost_difference(s), direct, rtol=1e-8, atol=1e-10 * pl.closed_form(s, "tcp").cost)
+    assert np.isclose(difference.cost_difference(s), direct, rtol=1e-8, atol=1e-10 * pl.closed_form(s, "tcp").cost)
 
 
 @given(seed=seeds)
@@ -27,7 +28,7 @@ def test_cost_difference_equals_difference_of_optima(seed):
 def test_theorem_2_weak_inequality_holds(seed):
     """J*_udp >= J*_tcp for every system (J_udp(U) - J_tcp(U) is a PSD form)."""
     s = random_system(np.random.default_rng(seed))
-    assert an.cost_difference(s) >= 0.0
+    assert difference.cost_difference(s) >= 0.0
 
 
 @given(seed=seeds, step=st.floats(0.05, 0.95))
@@ -44,39 +45,39 @@ def test_theorem_3_monotone_in_mu(seed, step):
 @given(seed=seeds, nu=st.floats(0.05, 0.95))
 @SETTINGS
 def test_lemma_2_matches_finite_differences(seed, nu):
-    s = an.scalar_channel(random_system(np.random.default_rng(seed)), 0.5)
+    s = difference.scalar_channel(random_system(np.random.default_rng(seed)), 0.5)
     pred = prediction(s)
-    exact = an.cost_difference_derivative(s, nu, pred)
-    fd = an.cost_difference_fd(s, nu, pred=pred)
-    scale = max(abs(fd), 1e-7 * max(1.0, an.cost_difference(s, nu, pred)))
+    exact = difference.cost_difference_derivative(s, nu, pred)
+    fd = difference.cost_difference_fd(s, nu, pred=pred)
+    scale = max(abs(fd), 1e-7 * max(1.0, difference.cost_difference(s, nu, pred)))
     assert abs(exact - fd) <= 1e-5 * scale
 
 
 @given(seed=seeds)
 @SETTINGS
 def test_lemma_3_proof_matrix_gives_the_exact_roots(seed):
-    s = an.scalar_channel(random_system(np.random.default_rng(seed)), 0.5)
+    s = difference.scalar_channel(random_system(np.random.default_rng(seed)), 0.5)
     pred = prediction(s)
-    roots = an.det_roots(s, pred)
-    cands = an.lemma3_candidates(s, "proof", pred)
+    roots = difference.det_roots(s, pred)
+    cands = difference.lemma3_candidates(s, "proof", pred)
     finite = roots[np.isfinite(roots) & (np.abs(roots) < 1e6)]
     for r in finite:
         assert np.min(np.abs(cands - r)) <= 1e-6 * (1 + abs(r))
     # and at a real root in (0, 1) the matrix f(nu) is singular
     real = finite[(np.abs(finite.imag) < 1e-10) & (finite.real > 0.01) & (finite.real < 0.99)].real
     for r in real[:3]:
-        GF, GG = an.G_maps(pred, r)
+        GF, GG = difference.G_maps(pred, r)
         scale = np.linalg.norm(GG, 2) * pred.Omega_d.max() * np.linalg.norm(GF, 2)
-        sv = np.linalg.svd(an.lemma2_matrix(pred, r), compute_uv=False)
+        sv = np.linalg.svd(difference.lemma2_matrix(pred, r), compute_uv=False)
         assert sv[-1] <= 1e-6 * scale
 
 
 def test_lemma_3_as_printed_misses_the_roots():
     """Pinned: n = m = 1, N = 2 (the audit's shrunk case): the lemma's matrix gives other points."""
     s = pl.System(A=[[0.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.7], x0=[-2.0])
-    roots = an.det_roots(s)
-    printed = an.lemma3_candidates(s, "lemma")
-    proof = an.lemma3_candidates(s, "proof")
+    roots = difference.det_roots(s)
+    printed = difference.lemma3_candidates(s, "lemma")
+    proof = difference.lemma3_candidates(s, "proof")
     finite = roots[np.isfinite(roots)]
     assert max(np.min(np.abs(proof - r)) for r in finite) < 1e-9
     assert max(np.min(np.abs(printed - r)) for r in finite) > 1e-2
@@ -86,44 +87,44 @@ def test_theorem_4_is_exact_for_one_decision_variable():
     """N = m = 1: J_Delta = nu (1 - nu) / (2 (nu + 1)) for A = B = x0 = 1, peak at sqrt(2) - 1 by hand;
     with a 1×1 f, det f = 0 is the stationarity condition, so the candidate is right."""
     s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
-    assert np.isclose(an.maximise_cost_difference(s).point[0], np.sqrt(2) - 1, atol=1e-8)
-    assert np.isclose(an.theorem4_maximiser(s, "proof").point[0], np.sqrt(2) - 1, atol=1e-12)
+    assert np.isclose(difference.maximise_cost_difference(s).point[0], np.sqrt(2) - 1, atol=1e-8)
+    assert np.isclose(difference.theorem4_maximiser(s, "proof").point[0], np.sqrt(2) - 1, atol=1e-12)
 
 
 def test_theorem_4_misses_the_maximiser_at_n1_N2():
     """Pinned, the audit's shrunk case: A = 0.5, B = 1, N = 2, x0 = -2."""
     s = pl.System(A=[[0.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.7], x0=[-2.0])
-    best = an.maximise_cost_difference(s)
-    claimed = an.theorem4_maximiser(s, "proof")
+    best = difference.maximise_cost_difference(s)
+    claimed = difference.theorem4_maximiser(s, "proof")
     assert best.value > 0
     assert claimed is None or claimed.value < 0.99 * best.value
 
 
 def test_maximiser_depends_on_x0_but_candidates_do_not(pendulum):
-    a = an.scalar_channel(pendulum.with_x0([1, 0, 0, 0]), 0.5)
-    b = an.scalar_channel(pendulum.with_x0([1, 1, 1, 1]), 0.5)
-    assert abs(an.maximise_cost_difference(a).point[0] - an.maximise_cost_difference(b).point[0]) > 0.1
-    assert np.allclose(np.sort_complex(an.lemma3_candidates(a, "proof")),
-                       np.sort_complex(an.lemma3_candidates(b, "proof")))
+    a = difference.scalar_channel(pendulum.with_x0([1, 0, 0, 0]), 0.5)
+    b = difference.scalar_channel(pendulum.with_x0([1, 1, 1, 1]), 0.5)
+    assert abs(difference.maximise_cost_difference(a).point[0] - difference.maximise_cost_difference(b).point[0]) > 0.1
+    assert np.allclose(np.sort_complex(difference.lemma3_candidates(a, "proof")),
+                       np.sort_complex(difference.lemma3_candidates(b, "proof")))
 
 
 def test_maximiser_is_a_stationary_point(two_actuator):
-    s = an.scalar_channel(two_actuator, 0.5)
-    best = an.maximise_cost_difference(s)
+    s = difference.scalar_channel(two_actuator, 0.5)
+    best = difference.maximise_cost_difference(s)
     nu = float(best.point[0])
     assert 0 < nu < 1
-    scale = abs(an.cost_difference_derivative(s, 0.5))
-    assert abs(an.cost_difference_derivative(s, nu)) < 1e-5 * scale
+    scale = abs(difference.cost_difference_derivative(s, 0.5))
+    assert abs(difference.cost_difference_derivative(s, nu)) < 1e-5 * scale
     for other in np.linspace(0.001, 0.999, 50):
-        assert an.cost_difference(s, other) <= best.value * (1 + 1e-12)
+        assert difference.cost_difference(s, other) <= best.value * (1 + 1e-12)
 
 
 def test_two_channel_maximiser(two_actuator):
-    best = an.maximise_cost_difference_2d(two_actuator, grid=21)
+    best = difference.maximise_cost_difference_2d(two_actuator, grid=21)
     assert np.all((best.point >= 0) & (best.point <= 1))
-    assert best.value >= an.cost_difference(two_actuator, [0.9, 0.5])
+    assert best.value >= difference.cost_difference(two_actuator, [0.9, 0.5])
     with pytest.raises(pl.InputError, match="m = 2"):
-        an.maximise_cost_difference_2d(pl.load_example("pendulum"))
+        difference.maximise_cost_difference_2d(pl.load_example("pendulum"))
 
 
 def test_monotonicity_scan(two_actuator):

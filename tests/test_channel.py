@@ -8,6 +8,8 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.cli import main
+from packetloss_cvx.errors import InputError
 from packetloss_cvx.io import dumps_system, system_from_dict
 
 BASE = {
@@ -122,3 +124,15 @@ def test_python_api_takes_a_channel_object():
     np.testing.assert_allclose(s.mu_schedule[1], [0.9, 0.2])
     with pytest.raises(pl.InputError, match=r"p: expected numbers in \[0, 1\], found list"):
         GilbertElliott(p=[[0.1]], r=[0.4])
+
+
+def test_state_and_belief_together_name_the_field_once(tmp_path, capsys):
+    path = tmp_path / "both.toml"
+    source = (pl.save_system(pl.load_example("pendulum_bursty"), tmp_path / "ge.toml")).read_text()
+    path.write_text(source.replace('model = "gilbert-elliott"', 'model = "gilbert-elliott"\nstate = ["good"]\n'
+                                                                 'belief = [0.3]'))
+    with pytest.raises(InputError) as err:
+        pl.load_system(path)
+    assert err.value.field == "channel.state/belief"
+    assert main(["solve", str(path)]) == 2
+    assert capsys.readouterr().err.startswith("packetloss-cvx: error: channel.state/belief: ")

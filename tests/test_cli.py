@@ -138,3 +138,13 @@ def test_a_usage_error_is_reported_under_the_option_it_is_about(capsys, argv, fi
     err = capsys.readouterr().err
     assert err.startswith(f"packetloss-cvx: error: {first}")
     assert len(err.strip().splitlines()) == 1
+
+
+def test_solve_json_names_each_protocol_as_the_readme_says(capsys):
+    # README and design.md: "each protocol has `protocol`, `cost`, ..."; solve --json left it out
+    assert main(["solve", "two_actuator", "--json", "--no-qp"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["tcp"]["protocol"] == "tcp"
+    assert data["udp"]["protocol"] == "udp"
+    assert main(["solve", "pendulum_bursty", "--json", "--no-qp", "--protocol", "udp"]) == 0
+    assert json.loads(capsys.readouterr().out)["udp"]["protocol"] == "udp"

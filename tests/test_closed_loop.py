@@ -9,9 +9,13 @@ import itertools
 import numpy as np
 import pytest
 
+import packetloss_cvx as pl
 from packetloss_cvx import InputError, System, closed_form, load_example
+from packetloss_cvx.markov import bursty_twin
 from packetloss_cvx.simulation import (
     closed_loop,
+    critical_mu,
+    dp_riccati,
     finite_horizon_costs,
     is_mean_square_stable,
     law_cost_to_go,
@@ -207,3 +211,74 @@ def test_krylov_on_defective_and_vanishing_operators(shift, expected):
     A = np.diag(np.ones(n - 1), 1) + shift * np.eye(n)
     B, K, mu = np.ones((n, 2)), np.zeros((2, n)), np.array([0.5, 0.5])
     assert mean_square_radius(A, B, K, mu, "krylov") == pytest.approx(expected, abs=1e-12)
+
+
+def _gilbert_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, p: np.ndarray, r: np.ndarray) -> float:
+    """Mean-square radius of x+ = (A - B V K) x behind independent Gilbert channels (h_good 1, h_bad 0):
+    the mode is the joint state, v_i = [channel i good]; block (b, a) of the operator is T_ab kron(A_a, A_a)."""
+    modes = list(itertools.product((1, 0), repeat=B.shape[1]))     # 1 = good
+    n = A.shape[0]
+    op = np.zeros((len(modes) * n * n, len(modes) * n * n))
+    for ia, a in enumerate(modes):
+        Aa = A - B @ np.diag(a) @ K
+        for ib, b in enumerate(modes):
+            T = np.prod([(1 - p[i] if b[i] else p[i]) if a[i] else (r[i] if b[i] else 1 - r[i])
+                         for i in range(len(a))])
+            op[ib * n * n:(ib + 1) * n * n, ia * n * n:(ia + 1) * n * n] = T * np.kron(Aa, Aa)
+    return float(max(abs(np.linalg.eigvals(op))))
+
+
+
+def test_bernoulli_closed_loop_is_refused_behind_a_gilbert_elliott_chain():
+    """closed_loop() on a bursty system used to answer with the Bernoulli radius 0.47 ("stable") where the
+    loop behind the chain has radius 1.06 (not mean-square stable)."""
+    system = bursty_twin(pl.load_example("two_actuator"), 0.95)
+    gain = pl.closed_form(system, "tcp").gain
+    ch = system.channel
+    assert _gilbert_radius(system.A, system.B, gain, np.asarray(ch.p), np.asarray(ch.r)) > 1.02
+    twin = closed_loop(system, gain, "tcp", mu=system.mu_schedule[0])      # the Bernoulli twin, asked for
+    assert twin.stable
+    assert twin.spectral_radius < 0.5
+    for call in (lambda: closed_loop(system, gain, "tcp"), lambda: dp_riccati(system),
+                 lambda: critical_mu(system, "tcp"), lambda: finite_horizon_costs(system, gain, 5)):
+        with pytest.raises(InputError) as err:
+            call()
+        assert err.value.field == "channel"
+
+
+
+@pytest.mark.parametrize("call", [
+    lambda s: pl.simulation.dp_finite_horizon(s, 10**9),
+    lambda s: finite_horizon_costs(s, np.zeros((1, 1)), 10**9),
+])
+def test_a_billion_steps_is_refused_before_it_is_allocated(call):
+    """dp_finite_horizon(system, 10**9) used to allocate 8 GB and loop for ever (killed after minutes)."""
+    scalar = pl.System(A=[[2.0]], B=[[1.0]], horizon=5, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    with pytest.raises(InputError) as err:
+        call(scalar)
+    assert err.value.field == "steps"
+
+
+
+def test_an_overflowing_gain_is_not_stable_and_not_a_linalg_crash():
+    """A finite gain of 1e200 squared to inf in the second-moment operator: np.linalg raised LinAlgError
+    (Kronecker path, n = 2) or 'SVD did not converge' with LAPACK noise on stderr (ARPACK path, n = 25).
+    The operator is quadratic in (A, K), so the radius of the scaled loop times c^2 is exact: about 1e400."""
+    from packetloss_cvx.simulation import is_mean_square_stable, mean_square_radius
+    for n in (2, 25):
+        A, B = np.diag([2.0] + [1.0] * (n - 1)), np.ones((n, 1))
+        radius = mean_square_radius(A, B, np.full((1, n), 1e200), [0.5])
+        assert radius > 1e300
+        assert not is_mean_square_stable(radius)
+    # the scalar reference: (a - mu k)^2 + mu (1 - mu) k^2
+    expected = (2 - 0.5e120) ** 2 + 0.25e240
+    assert mean_square_radius([[2.0]], [[1.0]], [[1e120]], [0.5]) == pytest.approx(expected, rel=1e-12)
+
+
+
+def test_critical_mu_with_a_tolerance_below_double_spacing_ends():
+    """tol=1e-20 bisected for ever: the bracket cannot shrink below the spacing of doubles near 0.75."""
+    s = pl.System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+    t = critical_mu(s, [[2.0]], tol=1e-20)   # fixed k = a = 2: proved stable iff 4 (1 - mu) < 1 - margin
+    assert t == pytest.approx(0.75 + MEAN_SQUARE_MARGIN / 4, abs=1e-15)

@@ -73,3 +73,15 @@ def test_bad_dask_argument(two_actuator, dask):
         sweep(two_actuator, mu_grid=2, dask=dask, progress=False)
     assert info.value.field == "dask"
 
+
+def test_the_dask_docs_example_grid_is_within_the_sweep_cap():
+    # was: docs/dask.md ran sweep(system, mu_grid=1001, ...): 1001^2 > MAX_SWEEP_POINTS, an InputError
+    import re
+    from pathlib import Path
+
+    from packetloss_cvx.studies.design import MAX_SWEEP_POINTS
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "dask.md").read_text()
+    sizes = [int(k) for k in re.findall(r"mu_grid=(\d+)", text) + re.findall(r"--mu-grid (\d+)", text)]
+    assert sizes
+    assert all(k * k <= MAX_SWEEP_POINTS for k in sizes), sizes

@@ -116,3 +116,21 @@ def test_every_result_type_has_a_one_line_repr_and_json():
         assert "\n" not in text
         assert len(text) < 400
         assert json.loads(obj.to_json())
+
+
+def test_a_bursty_system_says_so_in_its_repr():
+    """repr(load_example('pendulum_bursty')) was System('pendulum-bursty', ..., mu=[0.9]): a Bernoulli look-alike."""
+    system = pl.load_example("pendulum_bursty")
+    assert "GilbertElliott" in repr(system)
+    assert "GilbertElliott" in system._repr_html_()
+    assert "GilbertElliott" not in repr(system.with_mu([0.9]))   # with_mu drops the chain
+
+
+
+def test_a_gilbert_elliott_repr_shows_what_was_given():
+    from packetloss_cvx.channel import GilbertElliott
+    assert repr(GilbertElliott(p=[0.1], r=[0.4])) == "GilbertElliott(m=1, p=[0.1], r=[0.4])"
+    text = repr(GilbertElliott(p=[0.1], r=[0.4], state=["bad"]))
+    assert text == "GilbertElliott(m=1, p=[0.1], r=[0.4], state=['bad'])"
+    text = repr(GilbertElliott(p=[0.1], r=[0.4], h_good=0.9, h_bad=0.2, belief=[0.3]))
+    assert text == "GilbertElliott(m=1, p=[0.1], r=[0.4], h_good=[0.9], h_bad=[0.2], belief=[0.3])"

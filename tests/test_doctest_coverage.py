@@ -29,7 +29,7 @@ COVERED = (
     "simulation.channels", "simulation.critical", "simulation.interop", "simulation.markov_channels",
     "simulation.markov_loop", "simulation.markov_montecarlo", "simulation.moments", "simulation.montecarlo",
     "simulation.riccati", "simulation.runs", "simulation.sampling", "simulation.stability", "threads", "display",
-    "results.base", "analysis", "qp", "qp_shared",
+    "results.base", "analysis", "optional", "qp", "qp_shared",
     "claims.channel_allocation", "claims.closed_loop", "claims.context",
     "claims.cost_difference", "claims.evaluate", "claims.markov", "claims.mpc_vs_dp", "claims.ordering",
     "claims.registry", "claims.report", "claims.tables", "claims.theorem1",

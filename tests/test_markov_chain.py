@@ -7,6 +7,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.errors import InputError
 from packetloss_cvx.markov import (
     attach_channel,
     filter_belief,
@@ -117,3 +118,20 @@ def test_memoryless_moments_are_bernoulli():
     v_ref, C_ref = stacked_moments(s)
     np.testing.assert_array_equal(v, v_ref)
     np.testing.assert_allclose(C, C_ref, rtol=0, atol=1e-16)
+
+
+@pytest.mark.parametrize(("call", "field"), [
+    (lambda ch: pl.markov.plugin_schedule(ch, 10**9, "udp"), "horizon"),     # allocated 8 GB, then looped
+    (lambda ch: pl.markov.channel_covariance(ch, 10**5), "horizon"),         # 80 GB
+    (lambda ch: pl.markov.second_moments(ch, 0), "horizon"),                 # an empty array
+    (lambda ch: pl.markov.channel_covariance(ch, -3), "horizon"),
+    (lambda ch: pl.markov.filter_belief(ch, [1.5], [True]), "belief"),       # answered 0.98
+    (lambda ch: pl.markov.filter_belief(ch, [0.5], [0.5]), "delivered"),     # half a packet, read as delivered
+    (lambda ch: pl.markov.plugin_schedule(ch, 5, "tcp", acknowledged=[[2]]), "delivered"),
+    (lambda ch: ch.beliefs(3, belief=[2.0]), "belief"),
+])
+def test_chain_functions_refuse_what_they_cannot_mean(call, field):
+    channel = pl.load_example("pendulum_bursty").channel
+    with pytest.raises(InputError) as err:
+        call(channel)
+    assert err.value.field == field

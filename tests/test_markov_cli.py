@@ -98,3 +98,18 @@ def test_overflow_of_the_dense_route_says_what_to_do():
                   channel=GilbertElliott(p=[0.1], r=[0.2]))
     with pytest.raises(pl.NumericalError, match=r"rho\(A\)\^N = 3\^800; shorten the horizon"):
         exact_closed_form(s)
+
+
+def test_plug_in_markov_checks_a_chain_file_behind_its_own_chain():
+    """The audit gives the paper's claims a chain file's plug-in mu_t, but plug-in-markov must still see
+    the file's own chain (not Gilbert twins of the plug-in rates)."""
+    from packetloss_cvx.claims import audit
+    from packetloss_cvx.claims.markov import plugin_loss
+    from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL
+
+    system = pl.load_example("pendulum_bursty")
+    (result,) = audit([system], random=0, only=["plug-in-markov"])
+    assert result.outcomes[-1] == "-"
+    own = CROSS_CHECK_COST_RTOL - plugin_loss(system, None)          # the file's chain: lambda = 0.8
+    assert result.worst == pytest.approx(min(own, result.worst), rel=1e-12)
+    assert own < -0.05                                                # the plug-in law loses ~7.9 % there

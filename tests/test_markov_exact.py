@@ -116,3 +116,22 @@ def test_tcp_exact_is_the_plugin_law():
     np.testing.assert_array_equal(got.inputs, ref.inputs)
     assert exact_cost(s, ref.inputs, "tcp") == pytest.approx(pl.expected_cost(s, ref.inputs, "tcp"), rel=1e-15)
     assert exact_qp(s, "tcp").cost == pytest.approx(ref.cost, rel=1e-7)
+
+
+def test_the_udp_like_cost_of_a_chain_is_refused_not_the_plug_in_number():
+    """closed_form(pendulum_bursty, "udp") returned 15706, the paper's formula on the chain's mu_t, while
+    the expected cost of that plan under the chain is 51735: a number without a word. It is refused now,
+    with the two ways out; the TCP-like cost (first moments only) stays exact."""
+    from packetloss_cvx.errors import InputError
+    from packetloss_cvx.markov import exact_closed_form, exact_cost
+
+    s = pl.load_example("pendulum_bursty")
+    for call in (lambda: pl.closed_form(s, "udp"), lambda: pl.solve_qp(s, "udp"),
+                 lambda: pl.expected_cost(s, [[0.0]] * s.horizon, "udp")):
+        with pytest.raises(InputError, match="exact_closed_form") as err:
+            call()
+        assert err.value.field == "channel"
+    plug_in = pl.closed_form(s.with_mu(s.mu_schedule), "udp")
+    assert exact_cost(s, plug_in.inputs, "udp") > 3 * plug_in.cost       # 51735 against 15706
+    assert exact_closed_form(s, "udp").cost < exact_cost(s, plug_in.inputs, "udp")
+    assert pl.closed_form(s, "tcp").cost == pytest.approx(exact_closed_form(s, "tcp").cost, rel=1e-10)

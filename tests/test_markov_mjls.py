@@ -8,6 +8,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.errors import NumericalError
 from packetloss_cvx.markov import bursty_twin
 from packetloss_cvx.markov.mjls import coupled_riccati, mean_square_radius, mode_chain, second_moment_operator
 from packetloss_cvx.simulation.markov_channels import sample_markov_deliveries, sample_states
@@ -151,3 +152,11 @@ def test_general_delivery_probabilities_and_errors():
     delivered = sample_markov_deliveries(GilbertElliott(p=[0.5], r=[0.5], h_good=[0.6], h_bad=[0.6]), 4, 20_000,
                                          np.random.default_rng(1))
     assert abs(delivered.mean() - 0.6) <= 4 * np.sqrt(0.24 / delivered.size)
+
+
+def test_coupled_riccati_without_stabilising_gains_is_a_numerical_error():
+    """two_actuator behind Gilbert channels with lambda = 0.95: the coupled iteration diverged, and
+    its overflowing S made np.linalg.solve raise LinAlgError ('unexpected LinAlgError' in simulate)."""
+    system = bursty_twin(pl.load_example("two_actuator"), 0.95)
+    with pytest.raises(NumericalError, match="not mean-square stabilisable"):
+        coupled_riccati(system)

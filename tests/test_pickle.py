@@ -3,11 +3,13 @@ pickling rebuilds them through the validating constructors, bit for bit."""
 
 import copy
 import pickle
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
 
 import packetloss_cvx as pl
+from packetloss_cvx import errors
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.random_systems import random_system
 
@@ -50,3 +52,35 @@ def test_a_pickled_channel_keeps_its_known_state():
     assert back == chan
     assert back.state_given
     assert np.array_equal(back.delivery_schedule(5), chan.delivery_schedule(5))
+
+
+def _closed_form_cost(mu):
+    return pl.closed_form(pl.load_example("two_actuator").with_mu(mu), "udp", method="recursion").cost
+
+
+
+@pytest.mark.parametrize("error", [
+    errors.InputError("channel.mu", "expected probabilities in [0, 1], found 1.5"),
+    errors.DimensionError("B", "expected (2, m)"), errors.ProbabilityError("mu", "found 1.5"),
+    errors.SolverError("infeasible", "Clarabel says so"), errors.SolverError("max_iter"),
+    errors.InfeasibleError("alpha below the least cost", 1.92), errors.NumericalError("overflow"),
+    errors.CrossCheckError("J differs", {"dense": 1.0, "qp": 2.0}), errors.ResourceError("too big", 1e12, 4e9),
+])
+def test_every_error_pickles_as_itself(error):
+    # a multiprocessing / joblib worker's exception is pickled to the caller: InputError(field, detail)
+    # could not be rebuilt from its args (TypeError), SolverError's message doubled, min_cost was lost
+    back = pickle.loads(pickle.dumps(error))
+    assert type(back) is type(error)
+    assert str(back) == str(error)
+    assert vars(back) == vars(error)
+
+
+
+def test_a_workers_input_error_reaches_the_caller_and_spares_the_other_tasks():
+    # was: BrokenProcessPool for all three tasks, the InputError's message lost
+    with ProcessPoolExecutor(2) as pool:
+        futures = [pool.submit(_closed_form_cost, mu) for mu in ([0.5, 0.5], [1.5, 0.5], [0.9, 0.9])]
+        with pytest.raises(errors.ProbabilityError, match=r"mu: expected probabilities in \[0, 1\]"):
+            futures[1].result(timeout=120)
+        assert futures[0].result(timeout=120) == _closed_form_cost([0.5, 0.5])
+        assert futures[2].result(timeout=120) == _closed_form_cost([0.9, 0.9])

@@ -101,3 +101,19 @@ def test_the_full_runs_audit_is_the_projects():
     full = SETTINGS["full"]
     assert f"audit --random {full['audit_random']} --seed {full['audit_seed']} --report" in doc
     assert full["audit_skips"] == ()
+
+
+def test_report_does_not_say_theorem_2_fails_because_of_rounding():
+    from packetloss_cvx.cli.reproduce_report import _cost_mixed  # noqa: PLC2701 (test of a paragraph)
+
+    axis = np.linspace(0, 1, 3)
+    tcp = np.array([[3.0, 2.0, 1.0], [2.5, 1.5, 0.9], [2.0, 1.0, 0.5]])
+    udp = tcp + 0.1
+    udp[2, 0] = np.nextafter(tcp[2, 0], 0)                 # rounding at a deterministic corner
+    diff = udp - tcp
+    diff[2, 0] = 0.0                                      # the cancellation-free J_Delta there
+    text, _ = _cost_mixed({"mixed": {"axis": axis, "tcp": tcp, "udp": udp, "diff": diff}}, "tcp")
+    assert "NOT every grid point" not in text
+    diff[1, 1] = -1.0                                    # a real violation is still reported
+    text, _ = _cost_mixed({"mixed": {"axis": axis, "tcp": tcp, "udp": udp, "diff": diff}}, "tcp")
+    assert "NOT every grid point" in text

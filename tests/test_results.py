@@ -1,13 +1,16 @@
 """Every result type is frozen, its arrays are read-only copies, and to_dict() is plain JSON."""
 
+import copy
 import dataclasses
 import json
+import pickle
 
 import numpy as np
 import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.results import Allocation, ClaimResult, Maximiser
+from packetloss_cvx.studies import sweep
 
 
 def _results(two_actuator):
@@ -42,3 +45,21 @@ def test_a_solution_says_which_protocol_it_solved(two_actuator):
     for protocol in ("tcp", "udp"):
         data = json.loads(pl.closed_form(two_actuator, protocol).to_json())
         assert data["protocol"] == protocol
+
+
+def test_results_keep_read_only_arrays_through_pickle_and_deepcopy(two_actuator):
+    # results are frozen with read-only arrays (results/__init__.py); a result sent back from a
+    # multiprocessing worker (pickle) or deep-copied skipped __post_init__ and came back writable
+    sol = pl.closed_form(two_actuator, "udp")
+    result = sweep(two_actuator, mu_grid=3)
+    for obj in (sol, result):
+        for twin in (pickle.loads(pickle.dumps(obj)), copy.deepcopy(obj)):
+            assert type(twin) is type(obj)
+            for name, value in vars(obj).items():
+                back = vars(twin)[name]
+                if hasattr(value, "flags"):
+                    assert not back.flags.writeable, name
+                    assert back.tobytes() == value.tobytes(), name
+    twin = pickle.loads(pickle.dumps(result))
+    assert not any(v.flags.writeable for v in twin.costs.values())
+    assert not twin.mu.flags.writeable

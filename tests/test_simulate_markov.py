@@ -9,13 +9,14 @@ import json
 import numpy as np
 import pytest
 
+import packetloss_cvx as pl
 from packetloss_cvx import System
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
 from packetloss_cvx.costs import closed_form, expected_cost
 from packetloss_cvx.errors import ResourceError
 from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.markov import attach_channel, mode_chain
+from packetloss_cvx.markov import attach_channel, bursty_twin, mode_chain
 from packetloss_cvx.markov.mjls import jump_law_stage_costs, mean_square_radius, second_moment_operator
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.simulation import finite_horizon_costs
@@ -158,3 +159,17 @@ def test_cli_on_pendulum_bursty(capsys):
     text = capsys.readouterr().out
     assert "Gilbert-Elliott chain sampled" in text
     assert "exact minimiser's plan" in text
+
+
+def test_simulate_never_calls_a_bursty_loop_stable_that_is_not(tmp_path, capsys):
+    system = bursty_twin(pl.load_example("two_actuator"), 0.95)
+    path = pl.save_system(system, tmp_path / "bursty.toml")
+    code = main(["simulate", str(path), "--closed-loop", "--samples", "50", "--steps", "5", "--json", "-q"])
+    out, err = capsys.readouterr()
+    if code == 0:   # a Markov-aware simulate may answer; it must not call the loop stable
+        data = json.loads(out)
+        assert all(not entry["closed_loop"]["stable"] for entry in data.values() if "closed_loop" in entry)
+    else:
+        assert code == 2
+        assert len(err.strip().splitlines()) == 1
+        assert "channel" in err

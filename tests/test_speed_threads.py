@@ -8,7 +8,9 @@ from threadpoolctl import threadpool_info, threadpool_limits
 import packetloss_cvx as pl
 import packetloss_cvx.costs as costs_module
 from packetloss_cvx import threads
+from packetloss_cvx.errors import InputError
 from packetloss_cvx.evaluator import CostEvaluator
+from packetloss_cvx.threads import blas_threads, set_blas_threads
 
 
 def _blas_threads() -> set[int]:
@@ -119,3 +121,61 @@ def test_expected_cost_runs_single_threaded_too(two_actuator, spy):
         after = _blas_threads()
     assert spy == [{1}]
     assert before == after
+
+
+def test_set_blas_threads_takes_numpy_integers():
+    # was: set_blas_threads(np.int64(2)) -> InputError "expected an integer >= 1 or None, found np.int64(2)"
+    try:
+        set_blas_threads(np.int64(2))
+        assert blas_threads() == 2
+        assert type(blas_threads()) is int
+        for bad in (0, -1, 1.5, True, "abc", np.float64(2.0)):
+            with pytest.raises(InputError, match="threads"):
+                set_blas_threads(bad)
+    finally:
+        set_blas_threads(1)
+
+
+
+def test_the_grid_sweeps_run_under_the_blas_policy(monkeypatch, two_actuator):
+    # was: shared_channel_sweep / two_channel_sweep looped difference.cost_difference (dense (N m)^3 per point)
+    # with the process's BLAS threads: the pendulum's 298-point sweep took 0.45 s threaded, 0.19 s on one
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import packetloss_cvx.studies.sweeps as sweeps
+
+    seen = []
+    original = sweeps.cost_difference
+
+    def spy(*args, **kwargs):
+        seen.append(max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(sweeps, "cost_difference", spy)
+    with threadpool_limits(2, user_api="blas"):
+        sweeps.shared_channel_sweep(two_actuator, [0.2, 0.7])
+        sweeps.two_channel_sweep(two_actuator, [0.2, 0.7])
+        after = max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+    assert seen == [1] * 6
+    assert after == 2          # the caller's setting is restored
+
+
+
+def test_reproduce_computes_under_the_blas_policy(monkeypatch):
+    # was: its steps outside the sweeps (the maximisers, tables) ran with the process's BLAS threads
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import packetloss_cvx.cli.reproduce as rep
+
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"))
+        return {}
+
+    for name in ("log_cost_pendulum", "mixed_grids", "mixed_allocations", "eigenvalue_tables"):
+        monkeypatch.setattr(rep.pf, name, spy)
+    monkeypatch.setattr(rep, "audit", spy)
+    with threadpool_limits(2, user_api="blas"):
+        rep._compute(rep.SETTINGS["quick"], False, {})      # noqa: SLF001
+    assert seen == [1] * 6

@@ -17,7 +17,7 @@ from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import DimensionError, InputError, ProbabilityError
 from packetloss_cvx.io import load_example, system_from_dict
 from packetloss_cvx.markov import attach_channel, bursty_twin, stacked_moments
-from packetloss_cvx.model import STRUCTURE_FIELDS, System
+from packetloss_cvx.model import STRUCTURE_FIELDS, CacheKey, System
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.recursion import condition_estimate, udp_variance_weights
@@ -116,9 +116,10 @@ def test_a_copy_with_another_structure_does_not_share_the_cache():
                     input_weight=s.input_weights[0], mu=s.mu_schedule[0], x0=s.x0)
     assert prediction(longer).Omega_g.shape != p.Omega_g.shape
     calls = []
-    s.structure_cached("test.marker", lambda: calls.append(1) or 1)
+    marker = CacheKey("test.marker", ("A",))
+    s.structure_cached(marker, lambda: calls.append(1) or 1)
     for copy in (s.with_mu(np.full(s.m, 0.5)), s.with_x0(np.ones(s.n))):
-        copy.structure_cached("test.marker", lambda: calls.append(1) or 1)
+        copy.structure_cached(marker, lambda: calls.append(1) or 1)
     assert calls == [1]
     assert set(STRUCTURE_FIELDS) <= set(System.__slots__)
 
@@ -126,8 +127,9 @@ def test_a_copy_with_another_structure_does_not_share_the_cache():
 def test_large_values_are_not_kept():
     s = load_example("two_actuator")
     calls = []
+    large = CacheKey("test.large", ("A", "B"))
     for _ in range(2):
-        s.structure_cached("test.large", lambda: calls.append(1) or 1, nbytes=10**12)
+        s.structure_cached(large, lambda: calls.append(1) or 1, nbytes=10**12)
     assert calls == [1, 1]
 
 
@@ -154,8 +156,9 @@ def test_own_cache_is_not_shared_with_copies():
     assert np.array_equal(C, C_ref)
     plain = twin.with_mu(twin.mu_schedule)                   # the same mu_t without the chain: independent losses
     assert np.array_equal(stacked_moments(plain)[1], np.diag(v * (1 - v)))
-    assert twin.cached("test.value", lambda: 1) == 1
-    assert twin.with_x0(np.zeros(twin.n)).cached("test.value", lambda: 2) == 2
+    value = CacheKey("test.value", ("x0",))
+    assert twin.cached(value, lambda: 1) == 1
+    assert twin.with_x0(np.zeros(twin.n)).cached(value, lambda: 2) == 2
 
 
 def test_no_kept_array_has_a_writable_base():

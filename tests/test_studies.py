@@ -57,3 +57,15 @@ def test_bad_sweep_input_names_the_field(two_actuator, kwargs, field):
 def test_two_channel_sweep_needs_two_channels(pendulum):
     with pytest.raises(pl.InputError, match="m = 2"):
         two_channel_sweep(pendulum, [0.5])
+
+
+def test_grid_difference_is_not_negative_at_the_deterministic_corners(two_actuator):
+    # was: J_Delta = -2.9e-16 at mu = (0, 1) in reproduce's results.json (Theorem 2 visibly violated)
+    result = two_channel_sweep(two_actuator, np.linspace(0, 1, 11))
+    assert np.all(result.difference >= 0)
+    assert result.difference[0, 0] == result.difference[-1, 0] == result.difference[0, -1] == 0
+    assert result.difference[-1, -1] == 0
+    # off the corners it is still J*_udp - J*_tcp (against the QP at one interior point)
+    point = two_actuator.with_mu([0.3, 0.6])
+    qp = pl.solve_qp(point, "udp").cost - pl.solve_qp(point, "tcp").cost
+    assert result.difference[6, 3] == pytest.approx(qp, rel=1e-6)

@@ -225,3 +225,36 @@ def test_a_sweep_of_zero_costs_saves_its_data_and_skips_only_the_log_figures(cap
     assert data["figures_not_drawn"] == ["sweep_tcp.png", "sweep_udp.png", "sweep_diff.png"]
     assert sorted(p.name for p in (tmp_path / "z").iterdir()) == ["manifest.json", "sweep.csv", "sweep.npz"]
     assert data["cost_tcp"]["max"] == 0.0
+
+
+def test_a_horizon_sweep_converts_to_xarray_and_netcdf(capsys, tmp_path, two_actuator):
+    xr = pytest.importorskip("xarray")
+    # was: ValueError "variables {'horizon'} are found in both data_vars and coords"; CLI exit 1 "unexpected"
+    result = sweep(two_actuator, horizons=[3, 5], progress=False)
+    dataset = result.to_xarray()
+    assert dataset["horizon"].values.tolist() == [3, 5]
+    assert dataset["cost_tcp"].sel(horizon=5).item() == result.costs["tcp"][1]
+    assert main(["sweep", "two_actuator", "--horizons", "3,5", "--out", str(tmp_path), "--netcdf", "--quiet"]) == 0
+    back = xr.open_dataset(tmp_path / "sweep.nc", engine="scipy")
+    assert back["cost_udp"].values.tolist() == result.costs["udp"].tolist()
+
+
+
+def test_a_sweep_of_one_point_says_point(capsys):
+    assert main(["sweep", "two_actuator", "--horizons", "3", "--quiet"]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == "two-actuator: horizon sweep, 1 point (1 over horizon)"
+
+
+
+def test_to_xarray_without_the_extra_says_how_to_install_it():
+    """After the README's `pip install .` (no xarray), the README's design-study block ended in a bare
+    ModuleNotFoundError traceback."""
+    import sys
+    from unittest import mock
+
+    from packetloss_cvx.errors import InputError
+    from packetloss_cvx.studies import sweep
+
+    result = sweep(pl.load_example("two_actuator"), mu_grid=3, progress=False)
+    with mock.patch.dict(sys.modules, {"xarray": None}), pytest.raises(InputError, match=r"packetloss-cvx\[xarray\]"):
+        result.to_xarray()

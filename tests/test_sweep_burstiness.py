@@ -9,6 +9,8 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
 
+from .conftest import EXAMPLES
+
 
 def _run(capsys, *argv):
     code = main(list(argv))
@@ -81,3 +83,32 @@ def test_the_rate_is_the_files_not_a_rounded_mean(capsys):
     code, out, _ = _run(capsys, "sweep", "two_actuator", "--burstiness", "0,0.5", "--json", "-q")
     assert code == 0
     assert json.loads(out)["rate"] == pl.load_example("two_actuator").mu_schedule[0].tolist()
+
+
+def test_a_burstiness_sweep_of_zero_costs_is_not_nan(capsys, tmp_path):
+    # x0 = 0 without noise (valid input): every cost is 0 and plugin / exact - 1 was 0/0: the text read
+    # "loses up to nan%" and --json exited 1 ("unexpected ValueError: Out of range float values are not JSON
+    # compliant"); solve's chain section already takes a zero minimum's loss as 0 (markov.compare)
+    path = tmp_path / "zero.toml"
+    path.write_text((EXAMPLES / "two_actuator.toml").read_text().replace("x0 = [1.0, 1.0]", "x0 = [0.0, 0.0]"))
+    assert main(["sweep", str(path), "--burstiness", "0,0.5", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "nan" not in text
+    assert "TCP-like: the plug-in law is the exact minimiser at every lambda" in text
+    assert "UDP-like: the plug-in law is the exact minimiser at every lambda" in text
+    assert main(["sweep", str(path), "--burstiness", "0,0.5", "--quiet", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["udp"]["relative_loss"] == [0.0, 0.0]
+    assert data["udp"]["exact"] == [0.0, 0.0]
+
+
+
+def test_burstiness_errors_name_the_flag_and_accept_a_leading_minus(capsys):
+    from packetloss_cvx.cli import main
+
+    assert main(["sweep", "two_actuator", "--burstiness", "-0.2,0.5", "-q"]) == 2   # parsed, then refused
+    err = capsys.readouterr().err
+    assert err.startswith("packetloss-cvx: error: --burstiness: lambda = -0.2 needs p or r above 1")
+    assert "0.9000000000000001" not in err
+    assert main(["sweep", "two_actuator", "--burstiness", "-0.05,0.5", "-q", "--json"]) == 0   # p, r stay in [0, 1]
+    capsys.readouterr()

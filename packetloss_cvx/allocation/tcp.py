@@ -34,7 +34,7 @@ import numpy as np
 from ..convex import PROVEN_INFEASIBLE, require_optimal, solve_problem
 from ..errors import InfeasibleError, SolverError
 from ..evaluator import CostEvaluator
-from ..model import System
+from ..model import CacheKey, System
 from ..qp import sparse_dynamics
 from ..recursion import udp_variance_weights
 from ..tolerances import (
@@ -76,6 +76,11 @@ COLD_ATTEMPTS = tuple({**settings, "warm_start": False} for settings in ALLOCATI
 #: Estimated bytes of one compiled program (cvxpy's parameter map and Clarabel's data), per N (n + m)^2:
 #: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.qp_memory_estimate`), which it mirrors.
 PROGRAM_BYTES_PER_ENTRY = 300
+
+
+#: the system's compiled TCP-like programs, one per (kind, number of constraint rows): everything in them but the
+#: Parameters (x0, bounds, rows, prices, scale) depends on these fields only
+PROGRAMS_KEY = CacheKey("allocation.tcp.programs", ("A", "B", "horizon", "state_weights", "input_weights"))
 
 
 class TCPProgram:
@@ -123,6 +128,10 @@ class TCPProgram:
         self.beta = cp.Parameter(m, name="beta")
         E, Bbig, first, L = sparse_dynamics(system)
         w = np.sqrt(system.input_weights)
+        #: the program's constant data, one read-only vector (what tests/test_cache_keys.py compares)
+        self.constants = np.concatenate([M.toarray().ravel() if M is first else M.data for M in (E, Bbig, first, L)]
+                                        + [w.ravel()])
+        self.constants.flags.writeable = False
         cons = [E @ X - Bbig @ cp.vec(Z.T, order="F") == first @ self.x0,
                 cp.sum_squares(self.root * (L @ X)) <= r if L.shape[0] else r >= 0,
                 self.mu >= self.lo, self.mu <= self.hi]
@@ -142,8 +151,11 @@ class TCPProgram:
         """The system's program of this kind and number of rows: built on first use and kept with the
         system's structure (beyond ``STRUCTURE_CACHE_MAX_BYTES`` estimated, built per call). O(1) when kept."""
         N, n, m = system.horizon, system.n, system.m
-        return system.structure_cached(f"allocation.tcp.program.{kind}.{rows}", lambda: cls(system, kind, rows),
-                                       nbytes=PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2)
+        programs = system.structure_cached(PROGRAMS_KEY, dict, nbytes=PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2)
+        program = programs.get((kind, rows))
+        if program is None:          # two threads may both build one; setdefault keeps the first
+            program = programs.setdefault((kind, rows), cls(system, kind, rows))
+        return program
 
     def solve(self, x0: np.ndarray, poly: Polytope, scale: float, beta: np.ndarray | None = None,
               no_mu: str | None = None) -> np.ndarray:

@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from .. import analysis as an
+from .. import difference
 from ..model import System
 from ..prediction import Prediction, prediction
 from ..recursion import condition_estimate
@@ -30,15 +30,15 @@ def lemma_2(ctx: Context) -> ClaimResult:
     'holds'
     """
     def margin(s: System) -> float | None:
-        base = an.scalar_channel(s, 0.5)
+        base = difference.scalar_channel(s, 0.5)
         if condition_estimate(base) > DENSE_MAX_CONDITION:
             return None   # the dense formulas of §IV lose their digits here (1.5^60: off by 3e-5)
         pred = prediction(base)
         worst = 1e-5
         for nu in (0.1, 0.5, 0.9):
-            a = an.cost_difference_derivative(base, nu, pred)
-            b = an.cost_difference_fd(base, nu, pred=pred)
-            scale = max(abs(b), 1e-8 * max(1.0, an.cost_difference(base, nu, pred)))
+            a = difference.cost_difference_derivative(base, nu, pred)
+            b = difference.cost_difference_fd(base, nu, pred=pred)
+            scale = max(abs(b), 1e-8 * max(1.0, difference.cost_difference(base, nu, pred)))
             worst = min(worst, 1e-5 - abs(a - b) / scale)
         return worst
     return evaluate("lemma-2", ctx, ctx.cases, margin,
@@ -66,7 +66,7 @@ def candidate_distance(candidates: np.ndarray, roots: np.ndarray) -> float:
 def _scalar_base(s: System, max_vars: int) -> tuple[System, Prediction] | None:
     """The system behind one shared channel (nu = 0.5) and its prediction, where Lemmas 2–3 apply:
     Omega_d > 0 and at most ``max_vars`` decision variables. None otherwise."""
-    base = an.scalar_channel(s, 0.5)
+    base = difference.scalar_channel(s, 0.5)
     pred = prediction(base)
     if np.any(pred.Omega_d <= 0) or base.horizon * base.m > max_vars:
         return None
@@ -89,9 +89,9 @@ def lemma_3(ctx: Context) -> ClaimResult:
         if (setup := _scalar_base(s, 60)) is None:
             return None
         base, pred = setup
-        roots = an.det_roots(base, pred)
-        proof_ok[id(s)] = candidate_distance(an.lemma3_candidates(base, "proof", pred), roots) < 1e-6
-        return 1e-6 - candidate_distance(an.lemma3_candidates(base, "lemma", pred), roots)
+        roots = difference.det_roots(base, pred)
+        proof_ok[id(s)] = candidate_distance(difference.lemma3_candidates(base, "proof", pred), roots) < 1e-6
+        return 1e-6 - candidate_distance(difference.lemma3_candidates(base, "lemma", pred), roots)
     result = evaluate("lemma-3", ctx, ctx.cases, margin, "")
     proof_ok = [ok for key, ok in proof_ok.items() if key in {id(c) for c in ctx.cases}]
     note = (f"Candidates compared with the exact roots of det f(nu) = 0 (companion linearisation of the "
@@ -119,10 +119,10 @@ def theorem_4(ctx: Context) -> ClaimResult:
         if (setup := _scalar_base(s, 100)) is None:
             return None
         base, pred = setup
-        best = an.maximise_cost_difference(base, grid=200, pred=pred)
+        best = difference.maximise_cost_difference(base, grid=200, pred=pred)
         if best.value <= 0:
             return None  # Omega_gp x0 = 0: J_Delta is identically zero
-        claimed = an.theorem4_maximiser(base, "proof", pred=pred)
+        claimed = difference.theorem4_maximiser(base, "proof", pred=pred)
         if claimed is None:
             none_found.append(id(s))
             return -1.0

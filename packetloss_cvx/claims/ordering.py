@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from .. import analysis as an
+from .. import difference
 from ..costs import closed_form, expected_cost
 from ..evaluator import CostEvaluator
 from ..model import System
@@ -79,11 +79,11 @@ def theorem_2(ctx: Context) -> ClaimResult:
         if not interior(s) or not np.any(prediction(s).Omega_gp @ s.x0):
             return None  # Omega_gp x0 = 0: both optima are C, the trivial equality
         # the cancellation-free difference: a strict inequality needs value > 0, not >= 0
-        value = an.cost_difference(s) / max(abs(optimal_plan(ctx, s, "tcp", id(s) in cases).cost), 1e-9)
+        value = difference.cost_difference(s) / max(abs(optimal_plan(ctx, s, "tcp", id(s) in cases).cost), 1e-9)
         return value if value > 0 else min(value, -1e-300)
     return evaluate("theorem-2", ctx, ctx.cases, margin,
                     "margin = (J*_udp - J*_tcp)/J*_tcp, the difference computed without cancellation "
-                    "(analysis.cost_difference). Holds: J_udp(U) >= J_tcp(U) for every U (the extra "
+                    "(difference.cost_difference). Holds: J_udp(U) >= J_tcp(U) for every U (the extra "
                     "term is PSD), so the minima are ordered. The paper's proof orders non-symmetric matrices "
                     "(G^-1 Vbar) and uses the wrong cost formula. Cases with Omega_gp x0 = 0 (e.g. x0 = 0), where "
                     "both optima equal C, are skipped: there the strict inequality fails trivially.")

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .. import analysis as an
+from .. import difference
 from ..costs import closed_form
 from ..io import system_from_dict
 from ..model import System
@@ -106,17 +107,17 @@ def pendulum_maximiser(ctx: Context) -> ClaimResult:
     x0s = [np.eye(4)[i] for i in range(4)] + [np.ones(4), s.x0]
     found = []
     for x0 in x0s:
-        base = an.scalar_channel(s.with_x0(x0), 0.5)
-        found.append(float(an.maximise_cost_difference(base, grid=200).point[0]))
-    base = an.scalar_channel(s, 0.5)
+        base = difference.scalar_channel(s.with_x0(x0), 0.5)
+        found.append(float(difference.maximise_cost_difference(base, grid=200).point[0]))
+    base = difference.scalar_channel(s, 0.5)
     pred = prediction(base)
     cands = {}
     for variant in ("lemma", "proof"):
-        c = an.lemma3_candidates(base, variant, pred)
+        c = difference.lemma3_candidates(base, variant, pred)
         real = np.sort(c[(np.abs(c.imag) < 1e-12) & (c.real > 0) & (c.real < 1)].real)
         cands[variant] = real
     nearest = {v: float(c[np.argmin(np.abs(c - PENDULUM_NU_D))]) if c.size else None for v, c in cands.items()}
-    thm4 = {v: (None if (r := an.theorem4_maximiser(base, v, pred=pred)) is None else float(r.point[0]))
+    thm4 = {v: (None if (r := difference.theorem4_maximiser(base, v, pred=pred)) is None else float(r.point[0]))
             for v in ("lemma", "proof")}
     distance = min(abs(f - PENDULUM_NU_D) for f in found)
     verdict = "holds" if distance < 5e-5 else "not-reproduced"

@@ -25,8 +25,11 @@ import numpy.typing as npt
 
 from ..channel import GilbertElliott
 from ..errors import InputError
-from ..model import System, check_system
+from ..model import CacheKey, System, check_system
 from ..protocols import check_protocol
+
+#: (Vbar, C) of stacked_moments, kept on its own system (System.cached): it depends on the channel and schedule
+MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "channel"))
 
 __all__ = [
     "attach_channel", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system", "second_moments",
@@ -199,7 +202,7 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     ([0.5, 0.5], [[0.25, 0.0], [0.0, 0.25]])
     """
     N, m = system.horizon, system.m
-    return system.cached("chain.stacked_moments", lambda: _moments(system), nbytes=8 * (N * m) ** 2)
+    return system.cached(MOMENTS_KEY, lambda: _moments(system), nbytes=8 * (N * m) ** 2)
 
 
 def _moments(system: System) -> tuple[np.ndarray, np.ndarray]:

@@ -12,6 +12,7 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from ..model import System
+from ..optional import load
 from .moments import stationary_channel
 from .stability import check_law
 
@@ -45,7 +46,7 @@ def closed_loop_statespace(system: System, gain: npt.ArrayLike, mu: npt.ArrayLik
     >>> bool(np.allclose(cl.A, s.A - s.B @ np.diag(s.mu) @ np.eye(2))), cl.dt
     (True, 0.1)
     """
-    import control  # lazy: an optional dependency
+    control = load("control", "closed_loop_statespace")
 
     if dt is not True and (isinstance(dt, bool) or not isinstance(dt, int | float | np.integer | np.floating)
                            or not (np.isfinite(dt) and dt > 0)):

@@ -49,7 +49,7 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
         noise = sample_step_noise(L, samples, rng)
         if noise is not None:
             X = X + noise
-        total += np.einsum("si,ij,sj->s", X, system.state_weights[t], X)
+        total += np.einsum("si,si->s", X @ system.state_weights[t], X)
     return total
 
 
@@ -84,10 +84,10 @@ def closed_loop_costs(system: System, gains: list[np.ndarray], steps: int, sampl
         with np.errstate(over="ignore", invalid="ignore"):
             for t in range(steps):
                 applied = losses[t] * (-X @ K.T)
-                total += np.einsum("si,ij,sj->s", X, W, X) + np.sum(psi * applied * applied, axis=1)
+                total += np.einsum("si,si->s", X @ W, X) + np.sum(psi * applied * applied, axis=1)
                 X = X @ system.A.T + applied @ system.B.T
                 if noise is not None:
                     X = X + noise[t]
-            total += np.einsum("si,ij,sj->s", X, W, X)
+            total += np.einsum("si,si->s", X @ W, X)
         out[k] = total
     return out

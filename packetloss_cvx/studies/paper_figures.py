@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from .. import analysis as an
+from .. import difference
 from ..allocation import contour_allocations
 from ..model import System
 from .sweeps import shared_channel_sweep, two_channel_sweep
@@ -45,7 +46,7 @@ def pendulum_nus(points: int) -> np.ndarray:
 
 def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
     """fig:log-cost-pendulum: J*_tcp(nu), J*_udp(nu) and J_Delta(nu) with every actuator behind one
-    channel nu, and the maximiser of J_Delta (:func:`~packetloss_cvx.analysis.maximise_cost_difference`).
+    channel nu, and the maximiser of J_Delta (:func:`~packetloss_cvx.difference.maximise_cost_difference`).
 
     Returns ``{"nu", "tcp", "udp", "diff", "difference_method", "maximiser": {"nu", "value", "method"}}``
     (arrays for the curves). O(points (N m)^3).
@@ -62,7 +63,7 @@ def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
     """
     nus = pendulum_nus(points)
     result = shared_channel_sweep(system, nus)
-    best = an.maximise_cost_difference(an.scalar_channel(system, 0.5), grid=200)
+    best = difference.maximise_cost_difference(difference.scalar_channel(system, 0.5), grid=200)
     return {"nu": nus, "tcp": np.array(result.costs["tcp"]), "udp": np.array(result.costs["udp"]),
             "diff": np.array(result.difference), "difference_method": result.difference_method,
             "maximiser": {"nu": float(best.point[0]), "value": best.value, "method": best.method}}
@@ -71,7 +72,7 @@ def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
 def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
     """fig:cost-diff-mixed, fig:TCP-log-cost-mixed, fig:UDP-log-cost-mixed: J* and J_Delta over a
     ``grid`` × ``grid`` grid of [0, 1]^2 (``values[j, i]`` at ``mu1 = axis[i], mu2 = axis[j]``) and the
-    maximiser of J_Delta (:func:`~packetloss_cvx.analysis.maximise_cost_difference_2d`).
+    maximiser of J_Delta (:func:`~packetloss_cvx.difference.maximise_cost_difference_2d`).
 
     O(grid^2 (N m)^3).
 
@@ -90,7 +91,7 @@ def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
     """
     axis = np.linspace(0.0, 1.0, grid)
     result = two_channel_sweep(system, axis)
-    best = an.maximise_cost_difference_2d(system, grid=41)
+    best = difference.maximise_cost_difference_2d(system, grid=41)
     return {"axis": axis, "tcp": np.array(result.costs["tcp"]), "udp": np.array(result.costs["udp"]),
             "diff": np.array(result.difference), "difference_method": result.difference_method,
             "maximiser": {"mu": best.point.tolist(), "value": best.value, "method": best.method}}

@@ -8,7 +8,7 @@
 Each cost is a closed form that passed its own checks, evaluated for all points at once by
 :class:`packetloss_cvx.evaluator.CostEvaluator` (equal to :func:`packetloss_cvx.closed_form` to rounding).
 The difference J_Delta = J*_udp - J*_tcp is computed without cancellation
-(:func:`packetloss_cvx.analysis.cost_difference`) where the dense form is well conditioned, and
+(:func:`packetloss_cvx.difference.cost_difference`) where the dense form is well conditioned, and
 as the difference of the two checked costs otherwise (``difference_method`` says which).
 """
 
@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..analysis import cost_difference
+from ..difference import cost_difference
 from ..errors import InputError
 from ..evaluator import CostEvaluator
 from ..model import System, numeric_array
@@ -61,7 +61,7 @@ def _sweep(system: System, points: list[np.ndarray], shape: tuple[int, ...], pro
         if condition_estimate(system) <= DENSE_MAX_CONDITION:
             pred = prediction(system)   # Phi, Gamma and the Omega products do not depend on mu
             difference = np.array([cost_difference(system, mu, pred) for mu in points]).reshape(shape)
-            how = "cancellation-free (analysis.cost_difference)"
+            how = "cancellation-free (difference.cost_difference)"
         else:
             difference = costs["udp"] - costs["tcp"]
             how = "difference of the two closed forms (the dense form is ill-conditioned here)"

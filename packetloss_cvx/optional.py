@@ -1,0 +1,79 @@
+"""The heavy optional libraries: the one list of what a function may import lazily, and :func:`load`.
+
+Every module imports its dependencies at the top, except these: libraries that are an optional extra
+(absent after a plain ``pip install packetloss-cvx``) or slow to import and needed on few paths. A
+function that needs one imports it when called, so that importing the package, ``--help``, usage errors
+and refusing bad input stay fast, and the closed-form paths never pay for a solver they do not use.
+
+Three readers share this list, which is why it lives in the package (the bottom layer, beside
+``errors``) and not in a test: ``tests/test_architecture.py`` allows exactly these names inside
+functions, ``tests/test_cli_native.py`` checks that ``--help``, usage errors and bad input import none
+of them, and :func:`load` imports one for the package, turning a missing extra into an
+:class:`~packetloss_cvx.errors.InputError` that says how to install it (never a bare traceback).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+from types import MappingProxyType, ModuleType
+
+from .errors import InputError
+
+__all__ = ["EXTRAS", "LAZY_IMPORTS", "LAZY_MODULES", "load"]
+
+#: library (top-level import name) -> why it is imported inside the functions that need it
+LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
+    "cvxpy": "the QP twins and the TCP-like allocation only: closed-form paths never import it (1.5 s)",
+    "matplotlib": "figures only (plots.py, --plot): slow to import",
+    "tqdm": "progress bars only, when stderr is a terminal",
+    "dask": "the 'distributed' extra: sweeps as Dask tasks",
+    "distributed": "the 'distributed' extra: sweeps on a Dask cluster",
+    "xarray": "the 'xarray' extra: sweep results as Datasets and NetCDF files",
+    "control": "the 'control' extra: python-control interop (StateSpace in and out)",
+})
+
+#: the package's own modules that load one of those libraries at import time (dotted under the package) ->
+#: why a caller imports it inside the function that needs it: so that its caller's other paths never load
+#: cvxpy or matplotlib (tests/test_closed_form_imports.py runs those paths and checks sys.modules)
+LAZY_MODULES: Mapping[str, str] = MappingProxyType({
+    "qp": "the QP twin (cvxpy): solve without --no-qp, the audit's QP claims",
+    "markov.qp": "the Gilbert-Elliott QP twin (cvxpy)",
+    "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",
+    "plots": "figures (matplotlib): only commands asked to draw",
+})
+
+#: library -> the pyproject extra that installs it (the others are required dependencies)
+EXTRAS: Mapping[str, str] = MappingProxyType({
+    "dask": "distributed", "distributed": "distributed", "xarray": "xarray", "control": "control",
+})
+
+
+def load(name: str, field: str) -> ModuleType:
+    """Import the heavy optional library ``name`` for the caller's ``field``. O(1) once imported.
+
+    Raises
+    ------
+    InputError
+        Field ``field`` when the library is not installed, naming the extra that installs it; field
+        ``name`` when ``name`` is not in :data:`LAZY_IMPORTS` (import it at the top of the module).
+
+    Examples
+    --------
+    >>> load("tqdm", "progress").__name__
+    'tqdm'
+    >>> try:
+    ...     load("numpy", "x")
+    ... except InputError as err:
+    ...     print(err.field)
+    name
+    """
+    if name not in LAZY_IMPORTS:
+        raise InputError("name", f"{name!r} is not a lazily imported library (optional.LAZY_IMPORTS): "
+                                 "import it at the top of the module")
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        extra = EXTRAS.get(name)
+        how = f"pip install 'packetloss-cvx[{extra}]'" if extra else f"pip install {name}"
+        raise InputError(field, f"needs {name}, not installed: {how}") from None
