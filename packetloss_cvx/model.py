@@ -21,7 +21,7 @@ import numpy.typing as npt
 from .channel import GilbertElliott, channel_schedule
 from .display import system_html, system_repr, to_json
 from .errors import InputError
-from .statespace import plant_matrices
+from .statespace import plant_matrices, plant_statespace, sampling_time
 from .validation import (
     exactly_one,
     frozen,
@@ -71,6 +71,9 @@ class System:
     noise_cov : array_like, optional
         Sigma_W (n×n, symmetric PSD); default zeros.
     name : str, optional
+    dt : float, optional
+        The sampling time in seconds (python-control interop: :meth:`from_statespace`, :meth:`to_statespace`);
+        metadata, nothing computed depends on it. Default None: unspecified.
 
     Raises
     ------
@@ -87,7 +90,7 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name", "channel", "_structure", "_own",
+        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "_structure", "_own",
     )
 
     A: np.ndarray
@@ -101,6 +104,7 @@ class System:
     noise_cov: np.ndarray
     name: str | None
     channel: GilbertElliott | None
+    dt: float | None
 
     def __init__(
         self,
@@ -119,6 +123,7 @@ class System:
         noise_cov: npt.ArrayLike | None = None,
         name: str | None = None,
         channel: Any = None,
+        dt: float | None = None,
     ) -> None:
         A_ = matrix_field(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
@@ -172,7 +177,7 @@ class System:
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("_structure", {}), ("_own", {}),
+            ("dt", sampling_time(dt)), ("_structure", {}), ("_own", {}),
         ):
             object.__setattr__(self, key, value)
 
@@ -195,6 +200,8 @@ class System:
             fields["channel"] = self.channel
         else:
             fields["mu_schedule"] = self.mu_schedule
+        if self.dt is not None:
+            fields["dt"] = self.dt
         return _from_fields, (fields,)
 
     __repr__ = system_repr      # the headline numbers, not the arrays (display.py)
@@ -291,11 +298,17 @@ class System:
 
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
-        """A System with the A, B of a discrete-time control.StateSpace (statespace.plant_matrices) and ``fields``."""
-        taken = sorted(set(fields) & {"A", "B"})
+        """A System with the A, B and sampling time dt of a discrete-time control.StateSpace
+        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``. O(n (n + m)) + validation."""
+        taken = sorted(set(fields) & {"A", "B", "dt"})
         if taken:
-            raise InputError(taken[0], "given by sys: from_statespace takes A and B from the StateSpace")
+            raise InputError(taken[0], "given by sys: from_statespace takes A, B and dt from the StateSpace")
         return cls(**plant_matrices(sys), **fields)
+
+    def to_statespace(self) -> Any:
+        """The plant as a discrete-time control.StateSpace (statespace.plant_statespace): A, B, C = I, D = 0 and
+        the system's ``dt`` (True when None); every packet delivered. O(n (n + m))."""
+        return plant_statespace(self.A, self.B, self.dt)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
         """A copy with a new initial state.
@@ -358,8 +371,11 @@ class System:
             {"mu": self.mu_schedule[0].tolist()} if self.is_stationary
             else {"mu_schedule": self.mu_schedule.tolist()}
         )
+        plant: dict[str, Any] = {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist()}
+        if self.dt is not None:
+            plant["dt"] = self.dt
         out: dict[str, Any] = {
-            "plant": {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist()},
+            "plant": plant,
             "cost": cost,
             "channel": channel,
             "state": {"x0": self.x0.tolist()},
