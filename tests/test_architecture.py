@@ -22,7 +22,7 @@ LAYERS = [
      "evaluator", "pointwise", "batch_recursion"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
-    {"plots", "cli", "__main__", "__init__"},
+    {"plots", "plot_style", "cli", "__main__", "__init__"},
 ]
 #: lazy imports allowed inside functions: heavy optional libraries (their import is slow or optional)
 LAZY_OK = {"matplotlib", "dask", "distributed", "xarray", "control", "tqdm"}

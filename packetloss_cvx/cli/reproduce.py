@@ -102,15 +102,15 @@ def _figures(data: dict[str, Any], out: Path) -> dict[str, Path]:
                     marker_label=rf"max $J_\Delta$ at $\nu$ = {pend['maximiser']['nu']:.3g}",
                     title=caption["fig:log-cost-pendulum"], path=paths["fig:log-cost-pendulum"])
     axis = mixed["axis"]
-    plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"log $J_\Delta$", marker=mixed["maximiser"]["mu"],
+    plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"$J_\Delta$ (log scale)", marker=mixed["maximiser"]["mu"],
                      title=caption["fig:cost-diff-mixed"], path=paths["fig:cost-diff-mixed"])
     for protocol in ("tcp", "udp"):
         name = protocol.upper()
-        plot_log_contour(axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
+        plot_log_contour(axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{{protocol}}}$ (log scale)",
                          title=caption[f"fig:{name}-log-cost-mixed"], path=paths[f"fig:{name}-log-cost-mixed"])
         lines = {f"beta = {beta}": [row["mu"] for row in rows]
                  for beta, rows in data["allocations"][protocol].items()}
-        plot_log_contour(axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
+        plot_log_contour(axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{{protocol}}}$ (log scale)",
                          levels=data["settings"]["alphas"], allocations=lines,
                          title=caption[f"fig:{name}-log-cost-mixed-mult"],
                          path=paths[f"fig:{name}-log-cost-mixed-mult"])

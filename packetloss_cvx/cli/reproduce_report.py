@@ -18,10 +18,10 @@ __all__ = ["CLAIMS_FILE", "FIGURES", "claims_link", "report"]
 
 #: The paper's figure labels with their captions (shortened), in the paper's order.
 FIGURES = {
-    "fig:log-cost-pendulum": "log expected cost of both protocols, pendulum, shared channel nu",
-    "fig:cost-diff-mixed": "log of J_Delta = J*_udp - J*_tcp, two-actuator system, maximiser marked",
-    "fig:TCP-log-cost-mixed": "log expected cost, TCP-like, two-actuator system",
-    "fig:UDP-log-cost-mixed": "log expected cost, UDP-like, two-actuator system",
+    "fig:log-cost-pendulum": "expected cost of both protocols (log scale), pendulum, shared channel nu",
+    "fig:cost-diff-mixed": "J_Delta = J*_udp - J*_tcp (log colour scale), two-actuator system, maximiser marked",
+    "fig:TCP-log-cost-mixed": "expected cost (log colour scale), TCP-like, two-actuator system",
+    "fig:UDP-log-cost-mixed": "expected cost (log colour scale), UDP-like, two-actuator system",
     "fig:TCP-log-cost-mixed-mult": "TCP-like, with the allocations of eq:opt_M on each contour alpha",
     "fig:UDP-log-cost-mixed-mult": "UDP-like, with the allocations of eq:opt_M on each contour alpha",
 }

@@ -76,14 +76,14 @@ def _figures(result: DesignSweep, out: Path, skipped: list[str]) -> list[Path]:
         plot_cost_lines(result.axes[0], curves, xlabel=label, title=title, path=path)
         return [path]
     paths = []
-    names = {"tcp": "log J*_tcp", "udp": "log J*_udp", "diff": "log J_Delta"}
+    names = {"tcp": "J*_tcp", "udp": "J*_udp", "diff": "J_Delta = J*_udp - J*_tcp"}
     for key, values in curves.items():
         if not np.any(np.asarray(values) > 0):
             skipped.append(f"sweep_{key}.png")
             continue
         path = out / f"sweep_{key}.png"
         plot_log_contour(result.axes[1], result.axes[0], np.asarray(values).reshape(result.shape),
-                         colorbar_label=names[key], title=f"{title}: {names[key]}", path=path)
+                         colorbar_label=f"{names[key]} (log scale)", title=f"{title}: {names[key]}", path=path)
         paths.append(path)
     return paths
 
