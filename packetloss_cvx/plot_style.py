@@ -12,14 +12,15 @@ from typing import Any
 import numpy as np
 from matplotlib import patheffects
 
-__all__ = ["LEGEND", "OUTLINE", "PATH_STYLES", "contour_label_points", "log_ticks", "tick_text"]
+__all__ = ["LEGEND", "OUTLINE", "PATH_STYLES", "contour_label_points", "log_ticks", "set_log_ticks", "tick_labels",
+           "tick_text"]
 
 #: Allocation paths on a colour map: bright colours with a black outline (visible on viridis' dark purple and
 #: its yellow alike), told apart by their dashes and markers too.
 PATH_STYLES = (("#ff3b30", (0, (5, 2)), "X"), ("#ff7cf5", (0, (8, 3, 2, 3)), "o"), ("#22e0ff", (0, (2, 1.5)), "s"))
 OUTLINE = (patheffects.withStroke(linewidth=3.4, foreground="k"),)
 #: Legends beside the plot, at a size a printed page can read.
-LEGEND = {"loc": "outside right upper", "fontsize": 8, "frameon": False}
+LEGEND = {"loc": "outside right center", "fontsize": 8, "frameon": False}
 
 
 def log_ticks(lo: float, hi: float) -> np.ndarray:
@@ -56,6 +57,36 @@ def tick_text(value: float, _pos: Any = None) -> str:
         return f"{value:g}"
     mantissa, exponent = f"{value:.0e}".split("e")
     return f"$10^{{{int(exponent)}}}$" if mantissa == "1" else f"${mantissa}\\times10^{{{int(exponent)}}}$"
+
+
+def tick_labels(ticks: Sequence[float]) -> list[str]:
+    r"""Labels of a log axis's ticks in one style: ``10^k`` for all when they are powers of ten and some would
+    be written so (:func:`tick_text`: beyond 1e-3 to 1e5) or they span three decades, :func:`tick_text` otherwise.
+    O(ticks).
+
+    >>> tick_labels([1e4, 1e5, 1e6]), tick_labels([1.0, 10.0, 100.0, 1000.0]), tick_labels([2.0, 5.0, 10.0])
+    (['$10^{4}$', '$10^{5}$', '$10^{6}$'], ['$10^{0}$', '$10^{1}$', '$10^{2}$', '$10^{3}$'], ['2', '5', '10'])
+    """
+    arr = np.asarray(ticks, dtype=float)
+    powers = np.log10(arr)
+    wide = powers[-1] - powers[0] >= 3 or any("$" in tick_text(v) for v in arr)
+    if arr.size >= 2 and np.allclose(powers, np.round(powers), atol=1e-9) and wide:
+        return [f"$10^{{{int(round(k))}}}$" for k in powers]
+    return [tick_text(v) for v in arr]
+
+
+def set_log_ticks(target: Any, lo: float, hi: float) -> None:
+    """Round ticks on [lo, hi] (:func:`log_ticks`) in one label style (:func:`tick_labels`) on a log axis or a
+    colour bar (``target.set_ticks``), without matplotlib's minor labels (``3x10^1``). O(decades).
+
+    >>> from matplotlib.figure import Figure
+    >>> ax = Figure().subplots(); ax.set_yscale("log"); set_log_ticks(ax.yaxis, 3.0, 40.0)
+    >>> ax.get_yticks().tolist(), [t.get_text() for t in ax.get_yticklabels()]
+    ([5.0, 10.0, 20.0], ['5', '10', '20'])
+    """
+    ticks = log_ticks(lo, hi) if hi > lo else np.array([lo])
+    target.set_ticks(ticks, labels=tick_labels(ticks))
+    target.minorticks_off()
 
 
 def contour_label_points(ax: Any, contours: Any, avoid: Sequence[Any] = ()) -> tuple[list[float], list[tuple]]:

@@ -28,7 +28,7 @@ from matplotlib.patches import Patch
 
 from .errors import InputError
 from .model import numeric_array
-from .plot_style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, log_ticks, tick_text
+from .plot_style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_log_ticks, tick_text
 
 __all__ = ["plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto"]
 
@@ -91,7 +91,7 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     """
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a non-empty mapping label -> rows")
-    fig = Figure(figsize=(5, 3.5))
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
     ax = fig.subplots()
     for label, rows in curves.items():
         field = f"curves[{label!r}]"
@@ -102,8 +102,7 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     ax.set_ylabel(r"communication cost $\beta^\top\mu^*$")
     if title:
         ax.set_title(title)
-    ax.legend()
-    fig.tight_layout()
+    fig.legend(**LEGEND)
     return _save(fig, path)
 
 
@@ -198,7 +197,7 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     """
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a non-empty mapping law -> curves")
-    fig = Figure(figsize=(9, 3.5))
+    fig = Figure(figsize=(10, 3.6), layout="constrained")
     left, right = fig.subplots(1, 2)
     labels = {**_LABELS, "dp": "DP optimum"}
     for law, data in curves.items():
@@ -218,10 +217,9 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     left.set_ylabel(r"$\|x_t\|$: mean $\pm$ one std")
     right.set_xlabel("step t")
     right.set_ylabel("mean cumulative stage cost")
-    right.legend()
+    fig.legend(handles=right.get_legend_handles_labels()[0], **LEGEND)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -263,7 +261,7 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
     >>> line.get_ydata()[:2].tolist(), bool(np.isnan(line.get_ydata()[2])), fig.axes[0].get_yscale()
     ([1.0, 20.0], True, 'log')
     >>> line.get_label()
-    'TCP-like $J^*$ (1 point at or below 0: not on the log axis)'
+    'TCP-like $J^*$ (1 point <= 0: off the log axis)'
     """
     xs = numeric_array(x, "x")
     if xs.ndim != 1 or xs.size < 1:
@@ -280,7 +278,7 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
         text = names.get(label, str(label))
         dropped = int(np.sum(ys <= 0)) if log else 0
         if dropped:
-            text += f" ({dropped} point{'s' if dropped > 1 else ''} at or below 0: not on the log axis)"
+            text += f" ({dropped} point{'s' if dropped > 1 else ''} <= 0: off the log axis)"
             ys = np.where(ys > 0, ys, np.nan)
         ax.plot(xs, ys, ls="--" if label == "diff" else "-", lw=1.6, label=text)
     if marker is not None:
@@ -288,14 +286,16 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
     ax.set_xscale(xscale)
     if log:
         ax.set_yscale("log")
+        shown = np.concatenate([line.get_ydata() for line in ax.lines if line.get_label() != marker_label])
+        shown = shown[np.isfinite(shown) & (shown > 0)]
+        if shown.size:
+            set_log_ticks(ax.yaxis, shown.min(), shown.max())
     ax.set_xlabel(xlabel)
     ax.set_ylabel("expected cost (log scale)" if log else "expected cost")
-    if title:
-        ax.set_title(title, fontsize=9)
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
     fig.legend(**LEGEND)
     ax.grid(alpha=0.3)
-    if log:
-        ax.grid(alpha=0.1, which="minor")
     return _save(fig, path)
 
 
@@ -371,8 +371,7 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     below = raw < lo
     filled = ax.contourf(gx, gy, np.where(raw > 0, raw, lo / 10), levels=np.geomspace(lo, hi, 31),
                          norm=LogNorm(lo, hi), cmap="viridis", extend="min" if below.any() else "neither")
-    bar = fig.colorbar(filled, ax=ax, label=colorbar_label, ticks=log_ticks(lo, hi), format=tick_text)
-    bar.minorticks_off()
+    set_log_ticks(fig.colorbar(filled, ax=ax, label=colorbar_label), lo, hi)
     extra: list[Any] = []
     if below.any():
         zero = ", 0 included" if np.any(raw <= 0) else ""
@@ -405,8 +404,8 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
             extra.append(Line2D([], [], color="0.55", lw=0.9, label="contours $\\alpha$:\n" + ",\n".join(rows)))
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title, fontsize=9)
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
     handles = ax.get_legend_handles_labels()[0] + extra
     if handles:
         fig.legend(handles=handles, **LEGEND)

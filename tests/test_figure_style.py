@@ -9,7 +9,7 @@ from matplotlib.colors import LogNorm, to_rgb
 from matplotlib.patheffects import withStroke
 
 from packetloss_cvx.plot_style import log_ticks, tick_text
-from packetloss_cvx.plots import plot_cost_lines, plot_log_contour
+from packetloss_cvx.plots import plot_closed_loop, plot_cost_lines, plot_log_contour, plot_pareto
 
 AXIS = np.linspace(0.0, 1.0, 61)
 MU1, MU2 = np.meshgrid(AXIS, AXIS)                       # [j, i] = (AXIS[i], AXIS[j]): rows follow mu2
@@ -145,15 +145,19 @@ def test_markers_on_the_edge_are_not_clipped():
     mult_figure,
     lambda: plot_cost_lines(AXIS[1:], {"tcp": COST[5, 1:], "diff": DIFF[5, 1:]}, xlabel="nu", marker=0.5,
                             marker_label="max"),
+    lambda: plot_pareto({"tcp": [{"alpha": 2.0, "communication_cost": 1.0}, {"alpha": 4.0, "communication_cost": 0.5}]}),
+    lambda: plot_closed_loop({"tcp": {"state_norm_mean": [1.0, 0.5], "state_norm_std": [0.0, 0.1],
+                                      "stage_cost_mean": [1.0]}}),
 ])
 def test_legends_sit_beside_the_plot_at_a_readable_size(make):
     fig = make()
     renderer = rendered(fig)
     (legend,) = fig.legends
     ax = fig.axes[0]
-    assert legend.get_window_extent(renderer).x0 >= ax.get_window_extent(renderer).x1   # right of the axes
+    right = max(a.get_window_extent(renderer).x1 for a in fig.axes)
+    assert legend.get_window_extent(renderer).x0 >= right        # right of every panel (and colour bar)
     assert all(t.get_fontsize() >= 8 for t in legend.get_texts())
-    assert ax.get_legend() is None                                # not inside the axes
+    assert all(a.get_legend() is None for a in fig.axes)         # none inside the axes
 
 
 def test_cost_lines_on_a_log_axis_say_what_they_leave_out():
@@ -163,5 +167,9 @@ def test_cost_lines_on_a_log_axis_say_what_they_leave_out():
     assert ax.lines[0].get_ydata().tolist() == [3.0, 20.0, 7.0]   # the values themselves, not their logs
     diff = ax.lines[1]
     assert np.isnan(diff.get_ydata()[2])
-    assert "1 point at or below 0" in diff.get_label()
+    assert "1 point <= 0: off the log axis" in diff.get_label()
     assert ax.get_ylabel() == "expected cost (log scale)"
+    # round ticks in the values, one label style, no minor labels such as 3x10^1
+    assert ax.get_yticks().tolist() == [1.0, 2.0, 5.0, 10.0, 20.0]
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["1", "2", "5", "10", "20"]
+    assert not [t for t in ax.yaxis.get_minorticklabels() if t.get_text()]

@@ -100,8 +100,8 @@ def _diff_mixed(data: dict[str, Any], out: Path) -> tuple[str, str]:
             f"where each channel is deterministic (|J_Delta| / J*_udp at the corners: "
             f"{', '.join(f'{k}: {v:.0e}' for k, v in corners.items())}); on the open edges it is positive "
             f"({'all' if np.all(edges > 0) else 'NOT all'} {edges.size} edge points). Near the corners J_Delta "
-            f"falls to 0; the logarithmic colour scale starts at the grid's 2nd percentile and everything below it, "
-            f"J_Delta = 0 included, takes the darkest colour (the colour bar's arrow). "
+            f"falls to 0, which a logarithmic colour scale cannot show: the {int(np.sum(diff <= 0))} grid points "
+            f"where it is 0 are drawn in the darkest colour, below the scale (the colour bar's arrow). "
             f"Difference computed {m['difference_method']}.")
     return text, "matches, except J_Delta = 0 also at M = diag(1, 0) and diag(0, 1)"
 
