@@ -95,6 +95,7 @@ def test_dt_survives_toml_pickle_and_copies(tmp_path):
     loaded = load_system(save_system(s, tmp_path / "plant.toml"))
     assert loaded.dt == 0.2 and loaded.to_dict() == s.to_dict()
     assert "dt = 0.2" in (tmp_path / "plant.toml").read_text()
+    assert "sampling time dt</th><td style=\"text-align:left\">0.2 s" in s._repr_html_()   # the notebook view
     assert pickle.loads(pickle.dumps(s)).dt == 0.2
     assert s.with_mu([0.5, 0.5]).dt == 0.2 and s.with_x0([0.0, 0.0, 0.0]).dt == 0.2
     # the closed loop's StateSpace takes the system's sampling time unless told otherwise
