@@ -17,7 +17,8 @@ import numpy as np
 
 __all__ = [
     "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "closed_loop_html",
-    "design_sweep_html", "design_sweep_repr", "field_text", "fields_html", "fields_repr", "html_grid", "html_table", "maximiser_repr",
+    "design_sweep_html", "design_sweep_repr", "field_text", "fields_html", "fields_repr", "html_grid", "html_table",
+    "maximiser_repr",
     "short", "simulation_html", "span", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
 ]
 
@@ -311,7 +312,8 @@ def design_sweep_repr(d: Any) -> str:
     """One line: ``DesignSweep('two-actuator', kind='mu-grid', shape={'mu2': 11, 'mu1': 11}, J*_tcp in [..], ...)``.
 
     >>> from types import SimpleNamespace
-    >>> d = SimpleNamespace(name="x", kind="horizon", dims=("horizon",), shape=(3,), costs={"tcp": np.array([3.0, 2.0, 1.0])},
+    >>> d = SimpleNamespace(name="x", kind="horizon", dims=("horizon",), shape=(3,),
+    ...                     costs={"tcp": np.array([3.0, 2.0, 1.0])},
     ...                     difference=None, radii={})
     >>> design_sweep_repr(d)
     "DesignSweep('x', kind='horizon', shape={'horizon': 3}, J*_tcp in [1, 3])"
@@ -379,7 +381,8 @@ def simulation_html(sim: Any) -> str:
 
     >>> from types import SimpleNamespace
     >>> check = SimpleNamespace(formula=2.8, exact=3.0, mean=3.01, stderr=0.02, z=0.5, reason="")
-    >>> sim = SimpleNamespace(samples=100, steps=5, seed=0, channel="bernoulli", open_loop={"tcp": check}, closed_loop={})
+    >>> sim = SimpleNamespace(samples=100, steps=5, seed=0, channel="bernoulli", open_loop={"tcp": check},
+    ...                       closed_loop={})
     >>> text = simulation_html(sim)
     >>> "3.01 ± 0.02" in text, "0.5" in text, "100 runs" in text
     (True, True, True)

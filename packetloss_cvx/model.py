@@ -72,8 +72,7 @@ class System:
         Sigma_W (n×n, symmetric PSD); default zeros.
     name : str, optional
     dt : float, optional
-        The sampling time in seconds (python-control interop: :meth:`from_statespace`, :meth:`to_statespace`);
-        metadata, nothing computed depends on it. Default None: unspecified.
+        Sampling time in seconds (python-control interop), metadata: nothing depends on it. None: unspecified.
 
     Raises
     ------
@@ -195,13 +194,11 @@ class System:
         constructor from its fields; the cached structure is not sent. O(N (n^2 + m))."""
         fields = {"A": self.A, "B": self.B, "horizon": self.horizon, "x0": self.x0,
                   "state_weights": self.state_weights, "input_weights": self.input_weights,
-                  "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name}
+                  "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name, "dt": self.dt}
         if self.channel is not None:
             fields["channel"] = self.channel
         else:
             fields["mu_schedule"] = self.mu_schedule
-        if self.dt is not None:
-            fields["dt"] = self.dt
         return _from_fields, (fields,)
 
     __repr__ = system_repr      # the headline numbers, not the arrays (display.py)
@@ -299,7 +296,7 @@ class System:
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
         """A System with the A, B and sampling time dt of a discrete-time control.StateSpace
-        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``. O(n (n + m)) + validation."""
+        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``. O(n (n + m))."""
         taken = sorted(set(fields) & {"A", "B", "dt"})
         if taken:
             raise InputError(taken[0], "given by sys: from_statespace takes A, B and dt from the StateSpace")
@@ -371,11 +368,9 @@ class System:
             {"mu": self.mu_schedule[0].tolist()} if self.is_stationary
             else {"mu_schedule": self.mu_schedule.tolist()}
         )
-        plant: dict[str, Any] = {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist()}
-        if self.dt is not None:
-            plant["dt"] = self.dt
         out: dict[str, Any] = {
-            "plant": plant,
+            "plant": {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist(),
+                      **({"dt": self.dt} if self.dt is not None else {})},
             "cost": cost,
             "channel": channel,
             "state": {"x0": self.x0.tolist()},

@@ -131,7 +131,7 @@ def test_allocation_paths_stand_out_on_the_colour_map():
 
 
 def test_markers_on_the_edge_are_not_clipped():
-    fig = plot_log_contour(AXIS, AXIS, DIFF, marker=(0.04, 0.0))   # the maximiser of fig:cost-diff-mixed sits on mu2 = 0
+    fig = plot_log_contour(AXIS, AXIS, DIFF, marker=(0.04, 0.0))   # fig:cost-diff-mixed's maximiser: on mu2 = 0
     renderer = rendered(fig)
     ax = fig.axes[0]
     (cross,) = [line for line in ax.lines if line.get_label() == "maximiser"]
@@ -145,7 +145,8 @@ def test_markers_on_the_edge_are_not_clipped():
     mult_figure,
     lambda: plot_cost_lines(AXIS[1:], {"tcp": COST[5, 1:], "diff": DIFF[5, 1:]}, xlabel="nu", marker=0.5,
                             marker_label="max"),
-    lambda: plot_pareto({"tcp": [{"alpha": 2.0, "communication_cost": 1.0}, {"alpha": 4.0, "communication_cost": 0.5}]}),
+    lambda: plot_pareto({"tcp": [{"alpha": 2.0, "communication_cost": 1.0},
+                                 {"alpha": 4.0, "communication_cost": 0.5}]}),
     lambda: plot_closed_loop({"tcp": {"state_norm_mean": [1.0, 0.5], "state_norm_std": [0.0, 0.1],
                                       "stage_cost_mean": [1.0]}}),
 ])

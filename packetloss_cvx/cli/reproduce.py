@@ -102,7 +102,8 @@ def _figures(data: dict[str, Any], out: Path) -> dict[str, Path]:
                     marker_label=rf"max $J_\Delta$ at $\nu$ = {pend['maximiser']['nu']:.3g}",
                     title=caption["fig:log-cost-pendulum"], path=paths["fig:log-cost-pendulum"])
     axis = mixed["axis"]
-    plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"$J_\Delta$ (log scale)", marker=mixed["maximiser"]["mu"],
+    plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"$J_\Delta$ (log scale)",
+                     marker=mixed["maximiser"]["mu"],
                      title=caption["fig:cost-diff-mixed"], path=paths["fig:cost-diff-mixed"])
     for protocol in ("tcp", "udp"):
         name = protocol.upper()
