@@ -18,6 +18,7 @@ import os
 import platform
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -50,13 +51,13 @@ def main() -> None:
     rows = []
     for K in (int(k) for k in args.grids.split(",")):
         for _ in range(args.repeats):
-            here_s, here_cpu, here = timed(lambda: sweep(system, mu_grid=K, progress=False))
-            local_s, local_cpu, local = timed(lambda: sweep(system, mu_grid=K, dask="local", workers=args.workers,
-                                                            progress=False))
+            here_s, here_cpu, here = timed(partial(sweep, system, mu_grid=K, progress=False))
+            local_s, _, local = timed(partial(sweep, system, mu_grid=K, dask="local", workers=args.workers,
+                                              progress=False))
             with LocalCluster(n_workers=args.workers, threads_per_worker=1, dashboard_address=None,
                               silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
                 sweep(system, mu_grid=5, dask=client, progress=False)          # warm the workers' imports
-                warm_s, warm_cpu, warm = timed(lambda: sweep(system, mu_grid=K, dask=client, progress=False))
+                warm_s, _, warm = timed(partial(sweep, system, mu_grid=K, dask=client, progress=False))
             same = all(np.array_equal(v, local.arrays()[k]) and np.array_equal(v, warm.arrays()[k])
                        for k, v in here.arrays().items())
             print(f"{K} x {K} ({K * K} points): in process {here_s:.2f} s (cpu {here_cpu:.2f}); dask='local' "
