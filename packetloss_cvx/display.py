@@ -62,7 +62,7 @@ def fields_repr(obj: Any) -> str:
 
 def field_text(value: Any) -> str:
     """One field's value as :func:`fields_repr` shows it: strings quoted, numbers and small arrays by
-    :func:`short`, mappings by key, other objects by their type.
+    :func:`short`, mappings by key, other objects by their type. O(size of what it shows).
 
     >>> field_text("tcp"), field_text(np.ones(9)), field_text({"a": 1.5}), field_text(object())
     ("'tcp'", 'array of shape (9,)', "{'a': 1.5}", '<object>')
@@ -119,7 +119,7 @@ def html_table(title: str, rows: Sequence[tuple[str, Any]]) -> str:
 
 
 def html_grid(title: str, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    """An HTML table with a header row under a bold title; every cell escaped.
+    """An HTML table with a header row under a bold title; every cell escaped. O(cells).
 
     >>> text = html_grid("Runs", ["law", "cost"], [("tcp", "<1>")])
     >>> text.count("<th"), "&lt;1&gt;" in text, "<1>" in text
@@ -295,7 +295,7 @@ def claim_html(r: Any) -> str:
 
 
 def span(values: Any) -> str:
-    """``[min, max]`` of the finite values to 6 digits, with how many are not finite.
+    """``[min, max]`` of the finite values to 6 digits, with how many are not finite. O(len(values)).
 
     >>> span(np.array([3.0, 1.0, np.inf])), span(np.array([]))
     ('[1, 3] (1 not finite)', 'none')
@@ -309,7 +309,8 @@ def span(values: Any) -> str:
 
 
 def design_sweep_repr(d: Any) -> str:
-    """One line: ``DesignSweep('two-actuator', kind='mu-grid', shape={'mu2': 11, 'mu1': 11}, J*_tcp in [..], ...)``.
+    """One line: ``DesignSweep('two-actuator', kind='mu-grid', shape={'mu2': 11, 'mu1': 11}, J*_tcp in [..], ...)``:
+    each quantity's range, never its values. O(P).
 
     >>> from types import SimpleNamespace
     >>> d = SimpleNamespace(name="x", kind="horizon", dims=("horizon",), shape=(3,),
@@ -328,7 +329,8 @@ def design_sweep_repr(d: Any) -> str:
 
 
 def design_sweep_html(d: Any) -> str:
-    """The grid's dimensions and, per quantity, its range and where its maximum is (as :meth:`grid` indexes it).
+    """The grid's dimensions and, per quantity, its range and where its maximum is (as ``DesignSweep.grid`` indexes
+    it), and how many points are mean-square stable. O(P).
 
     >>> from types import SimpleNamespace
     >>> d = SimpleNamespace(name=None, kind="mu-grid", dims=("mu1",), shape=(3,), axes=(np.array([0.0, 0.5, 1.0]),),
@@ -359,7 +361,7 @@ def design_sweep_html(d: Any) -> str:
 
 
 def closed_loop_html(c: Any) -> str:
-    """A law over the lossy channel: its mean-square radius, stability and average stage cost.
+    """A law over the lossy channel: its mean-square radius, stability and average stage cost. O(m n).
 
     >>> from types import SimpleNamespace
     >>> c = SimpleNamespace(law="tcp", mu=np.array([0.9]), spectral_radius=1.2, stable=False, average_stage_cost=np.inf,
@@ -377,7 +379,7 @@ def closed_loop_html(c: Any) -> str:
 
 
 def simulation_html(sim: Any) -> str:
-    """Monte Carlo against the exact values: one row per law, open loop (mean, exact, z) and closed loop.
+    """Monte Carlo against the exact values: one row per law, open loop (mean, exact, z) and closed loop. O(laws).
 
     >>> from types import SimpleNamespace
     >>> check = SimpleNamespace(formula=2.8, exact=3.0, mean=3.01, stderr=0.02, z=0.5, reason="")
