@@ -337,7 +337,7 @@ def design_sweep_html(d: Any) -> str:
     ...                     costs={"udp": np.array([9.0, 4.0, 1.0])}, difference=None, radii={}, chunk_size=2048,
     ...                     mu=np.array([[0.0], [0.5], [1.0]]))
     >>> text = design_sweep_html(d)
-    >>> "mu1: 3 points in [0, 1]" in text, "[1, 9]" in text, "mu = [0]" in text
+    >>> "mu1: 3 points in [0, 1]" in text, "[1, 9]" in text, "max at (0,): mu1 = 0" in text
     (True, True, True)
     """
     rows: list[tuple[str, Any]] = [("name", d.name or "(unnamed)"), ("kind", d.kind)]
@@ -352,7 +352,8 @@ def design_sweep_html(d: Any) -> str:
         if np.any(np.isfinite(arr)):
             k = int(np.nanargmax(np.where(np.isfinite(arr), arr, np.nan)))
             index = np.unravel_index(k, d.shape)
-            text += f"; max at {tuple(int(i) for i in index)}, mu = {short(d.mu[k], 4)}"
+            where = ", ".join(f"{dim} = {axis[i]:.4g}" for dim, axis, i in zip(d.dims, d.axes, index, strict=True))
+            text += f"; max at {tuple(int(i) for i in index)}: {where}"
         if label.startswith("mean-square"):
             text += f"; stable (< 1) at {int(np.sum(arr < 1))} of {arr.size}"
         rows.append((label, text))

@@ -80,7 +80,7 @@ def test_design_sweep_view_shows_ranges_maxima_and_stable_points(grid_sweep):
     j, i = np.unravel_index(np.argmax(diff), diff.shape)
     mu2, mu1 = grid_sweep.axes
     row = page[page.index("J_Delta = J*_udp - J*_tcp") + 1]
-    assert f"max at ({j}, {i}), mu = [{mu1[i]:.4g}, {mu2[j]:.4g}]" in row
+    assert f"max at ({j}, {i}): mu2 = {mu2[j]:.4g}, mu1 = {mu1[i]:.4g}" in row
     stable = sum(second_moment_radius(*(lambda s, K: (s.A, s.B, K, p))(pl.load_example("two_actuator"),
                  pl.closed_form(pl.load_example("two_actuator").with_mu(p), "udp").gain)) < 1 for p in grid_sweep.mu)
     assert f"stable (< 1) at {stable} of 25" in page[page.index("mean-square radius, udp") + 1]
