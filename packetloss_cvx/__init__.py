@@ -7,10 +7,10 @@ The public names below are imported on first use (PEP 562), so that importing th
 package, or running ``packetloss-cvx --help``, does not import cvxpy or scipy.
 """
 
-from __future__ import annotations
-
-import importlib
-from typing import TYPE_CHECKING, Any
+# No ``from __future__ import annotations`` and every helper module bound under a private name: the
+# module's globals are what ``dir(packetloss_cvx)`` would otherwise show (tests/test_namespace.py).
+import importlib as _importlib
+import typing as _typing
 
 from .errors import (
     CrossCheckError,
@@ -23,7 +23,7 @@ from .errors import (
     SolverError,
 )
 
-if TYPE_CHECKING:   # the names a type checker and an IDE see; at run time they load on first use
+if _typing.TYPE_CHECKING:   # the names a type checker and an IDE see; at run time they load on first use
     from .allocation import allocate
     from .claims import audit
     from .costs import closed_form, expected_cost, paper_optimal_cost
@@ -35,7 +35,7 @@ if TYPE_CHECKING:   # the names a type checker and an IDE see; at run time they 
 __version__ = "0.1.0"
 
 #: public name -> the module (of this package) that defines it
-LAZY = {
+_LAZY = {
     "allocate": "allocation", "audit": "claims",
     "closed_form": "costs", "expected_cost": "costs", "paper_optimal_cost": "costs",
     "load_example": "io", "load_system": "io", "save_system": "io",
@@ -72,14 +72,16 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """Import a public name's module on first use (PEP 562)."""
-    if name not in LAZY:
+    if name not in _LAZY:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{LAZY[name]}"), name)
+    value = getattr(_importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
     globals()[name] = value
     return value
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(LAZY))
+    """The public names (``__all__``, loaded or not) and ``__version__``: no helper imports, and no
+    submodule that happens to be loaded (``errors``, ``model``, ...). O(len(__all__))."""
+    return sorted([*__all__, "__version__"])

@@ -16,8 +16,10 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "html_table",
-    "fields_repr", "maximiser_repr", "short", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
+    "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "closed_loop_html",
+    "design_sweep_html", "design_sweep_repr", "field_text", "fields_html", "fields_repr", "html_grid", "html_table",
+    "maximiser_repr",
+    "short", "simulation_html", "span", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
 ]
 
 #: matrices with more rows or columns than this are shown by their shape
@@ -54,22 +56,42 @@ def fields_repr(obj: Any) -> str:
     >>> fields_repr(Run("tcp", 2.7984700883, np.zeros(500), {"udp": np.array([1.0, 2.0])}))
     "Run(law='tcp', cost=2.79847, path=array of shape (500,), curves={'udp': [1, 2]})"
     """
-    def one(value: Any) -> str:
-        if isinstance(value, str):
-            return repr(value)
-        if isinstance(value, bool) or value is None:
-            return str(value)
-        if isinstance(value, dict):
-            return "{" + ", ".join(f"{k!r}: {one(v)}" for k, v in value.items()) + "}"
-        if isinstance(value, (int, float, complex, np.number, np.ndarray, list, tuple)):
-            try:
-                return short(value)
-            except (TypeError, ValueError):
-                return f"<{type(value).__name__}>"
-        return f"<{type(value).__name__}>"
-
     names = getattr(obj, "__dataclass_fields__", vars(obj))
-    return f"{type(obj).__name__}(" + ", ".join(f"{name}={one(getattr(obj, name))}" for name in names) + ")"
+    return f"{type(obj).__name__}(" + ", ".join(f"{name}={field_text(getattr(obj, name))}" for name in names) + ")"
+
+
+def field_text(value: Any) -> str:
+    """One field's value as :func:`fields_repr` shows it: strings quoted, numbers and small arrays by
+    :func:`short`, mappings by key, other objects by their type. O(size of what it shows).
+
+    >>> field_text("tcp"), field_text(np.ones(9)), field_text({"a": 1.5}), field_text(object())
+    ("'tcp'", 'array of shape (9,)', "{'a': 1.5}", '<object>')
+    """
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, bool) or value is None:
+        return str(value)
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k!r}: {field_text(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (int, float, complex, np.number, np.ndarray, list, tuple)):
+        try:
+            return short(value)
+        except (TypeError, ValueError):
+            return f"<{type(value).__name__}>"
+    return f"<{type(value).__name__}>"
+
+
+def fields_html(obj: Any) -> str:
+    """A dataclass's fields as an HTML table, each value as :func:`fields_repr` shows it (the notebook view of
+    the result types without one of their own). O(size of what it shows).
+
+    >>> from packetloss_cvx.results import Maximiser
+    >>> text = fields_html(Maximiser(np.array([0.0218345]), 83.424612, "a<b"))
+    >>> "Maximiser" in text, "[0.0218345]" in text, "83.4246" in text, "a&lt;b" in text
+    (True, True, True, True)
+    """
+    names = getattr(obj, "__dataclass_fields__", vars(obj))
+    return html_table(type(obj).__name__, [(name, field_text(getattr(obj, name))) for name in names])
 
 
 def to_json(obj: Any, **kwargs: Any) -> str:
@@ -94,6 +116,19 @@ def html_table(title: str, rows: Sequence[tuple[str, Any]]) -> str:
     cells = "".join(f'<tr><th style="text-align:left">{html.escape(str(label))}</th>'
                     f'<td style="text-align:left">{html.escape(str(value))}</td></tr>' for label, value in rows)
     return f'<table><caption style="text-align:left"><b>{html.escape(title)}</b></caption>{cells}</table>'
+
+
+def html_grid(title: str, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """An HTML table with a header row under a bold title; every cell escaped. O(cells).
+
+    >>> text = html_grid("Runs", ["law", "cost"], [("tcp", "<1>")])
+    >>> text.count("<th"), "&lt;1&gt;" in text, "<1>" in text
+    (2, True, False)
+    """
+    head = "".join(f'<th style="text-align:left">{html.escape(str(h))}</th>' for h in header)
+    body = "".join("<tr>" + "".join(f'<td style="text-align:left">{html.escape(str(v))}</td>' for v in row) + "</tr>"
+                   for row in rows)
+    return f'<table><caption style="text-align:left"><b>{html.escape(title)}</b></caption><tr>{head}</tr>{body}</table>'
 
 
 def channel_text(system: Any) -> str:
@@ -129,6 +164,8 @@ def system_html(system: Any) -> str:
     rows = [("name", system.name or "(unnamed)"), ("n, m, horizon N", f"{system.n}, {system.m}, {system.horizon}"),
             ("mu", channel_text(system)), ("x0", short(system.x0)), ("A", short(system.A)), ("B", short(system.B)),
             ("noise", "none" if not np.any(system.noise_cov) else f"Sigma_W, trace {np.trace(system.noise_cov):.4g}")]
+    if getattr(system, "dt", None) is not None:
+        rows.append(("sampling time dt", f"{system.dt:g} s"))
     return html_table("System", rows)
 
 
@@ -136,7 +173,9 @@ def _solution_rows(sol: Any) -> list[tuple[str, Any]]:
     rows: list[tuple[str, Any]] = [("protocol", f"{sol.protocol.upper()}-like"), ("J*", f"{sol.cost:.10g}"),
                                    ("method", sol.method)]
     if sol.closed_loop_eigenvalues is not None and len(sol.closed_loop_eigenvalues):
-        rows.append(("spectral radius of A - B K", f"{np.max(np.abs(sol.closed_loop_eigenvalues)):.6g}"))
+        # the paper's Tables I-II convention, every packet delivered: not the loop over the lossy channel
+        rows.append(("radius of A - B K (all delivered)", f"{np.max(np.abs(sol.closed_loop_eigenvalues)):.6g}"))
+        rows.append(("mean-square stability", "needs the channel: simulation.closed_loop(system, solution.gain)"))
     if sol.status is not None:
         rows.append(("status", f"{sol.status} in {sol.solve_time:.3g} s"))
     if sol.cross_check is not None:
@@ -161,7 +200,9 @@ def solution_repr(sol: Any) -> str:
 
 
 def solution_html(sol: Any) -> str:
-    """The cost, method, closed-loop spectral radius and (QPs) solver status, as an HTML table.
+    """The cost, method, the radius of A - B K with every packet delivered (the paper's Tables I-II; the loop
+    over the lossy channel, mean-square, is :func:`packetloss_cvx.simulation.closed_loop`'s: a Solution does
+    not carry the channel) and (QPs) solver status, as an HTML table.
 
     >>> from packetloss_cvx.results import Solution
     >>> text = solution_html(Solution("udp", 10.25, np.zeros((10, 2)), None, None, "recursion"))
@@ -251,3 +292,116 @@ def claim_html(r: Any) -> str:
         rows.append(("cases (+ - . E)", r.outcomes))
     rows += [("counterexample", "yes (see .counterexample)" if r.counterexample else "none"), ("note", r.note)]
     return html_table(f"ClaimResult {r.id}", rows)
+
+
+def span(values: Any) -> str:
+    """``[min, max]`` of the finite values to 6 digits, with how many are not finite. O(len(values)).
+
+    >>> span(np.array([3.0, 1.0, np.inf])), span(np.array([]))
+    ('[1, 3] (1 not finite)', 'none')
+    """
+    arr = np.asarray(values, dtype=float)
+    finite = arr[np.isfinite(arr)]
+    if not finite.size:
+        return "none" if not arr.size else f"none finite ({arr.size})"
+    bad = arr.size - finite.size
+    return f"[{finite.min():.6g}, {finite.max():.6g}]" + (f" ({bad} not finite)" if bad else "")
+
+
+def design_sweep_repr(d: Any) -> str:
+    """One line: ``DesignSweep('two-actuator', kind='mu-grid', shape={'mu2': 11, 'mu1': 11}, J*_tcp in [..], ...)``:
+    each quantity's range, never its values. O(P).
+
+    >>> from types import SimpleNamespace
+    >>> d = SimpleNamespace(name="x", kind="horizon", dims=("horizon",), shape=(3,),
+    ...                     costs={"tcp": np.array([3.0, 2.0, 1.0])},
+    ...                     difference=None, radii={})
+    >>> design_sweep_repr(d)
+    "DesignSweep('x', kind='horizon', shape={'horizon': 3}, J*_tcp in [1, 3])"
+    """
+    label = f"{d.name!r}, " if d.name else ""
+    parts = [f"J*_{p} in {span(v)}" for p, v in d.costs.items()]
+    if d.difference is not None:
+        parts.append(f"J_Delta in {span(d.difference)}")
+    parts += [f"radius_{p} in {span(v)}" for p, v in d.radii.items()]
+    shape = "{" + ", ".join(f"{k!r}: {v}" for k, v in zip(d.dims, d.shape, strict=True)) + "}"
+    return f"DesignSweep({label}kind={d.kind!r}, shape={shape}, " + ", ".join(parts) + ")"
+
+
+def design_sweep_html(d: Any) -> str:
+    """The grid's dimensions and, per quantity, its range and where its maximum is (as ``DesignSweep.grid`` indexes
+    it), and how many points are mean-square stable. O(P).
+
+    >>> from types import SimpleNamespace
+    >>> d = SimpleNamespace(name=None, kind="mu-grid", dims=("mu1",), shape=(3,), axes=(np.array([0.0, 0.5, 1.0]),),
+    ...                     costs={"udp": np.array([9.0, 4.0, 1.0])}, difference=None, radii={}, chunk_size=2048,
+    ...                     mu=np.array([[0.0], [0.5], [1.0]]))
+    >>> text = design_sweep_html(d)
+    >>> "mu1: 3 points in [0, 1]" in text, "[1, 9]" in text, "max at (0,): mu1 = 0" in text
+    (True, True, True)
+    """
+    rows: list[tuple[str, Any]] = [("name", d.name or "(unnamed)"), ("kind", d.kind)]
+    rows += [(f"axis {k}" if len(d.dims) > 1 else "axis", f"{k}: {a.size} points in [{a.min():.4g}, {a.max():.4g}]")
+             for k, a in zip(d.dims, d.axes, strict=True)]
+    quantities = {**{f"J*_{p}": v for p, v in d.costs.items()},
+                  **({"J_Delta = J*_udp - J*_tcp": d.difference} if d.difference is not None else {}),
+                  **{f"mean-square radius, {p}": v for p, v in d.radii.items()}}
+    for label, values in quantities.items():
+        arr = np.asarray(values, dtype=float)
+        text = span(arr)
+        if np.any(np.isfinite(arr)):
+            k = int(np.nanargmax(np.where(np.isfinite(arr), arr, np.nan)))
+            index = np.unravel_index(k, d.shape)
+            where = ", ".join(f"{dim} = {axis[i]:.4g}" for dim, axis, i in zip(d.dims, d.axes, index, strict=True))
+            text += f"; max at {tuple(int(i) for i in index)}: {where}"
+        if label.startswith("mean-square"):
+            text += f"; stable (< 1) at {int(np.sum(arr < 1))} of {arr.size}"
+        rows.append((label, text))
+    rows.append(("arrays", f"flat (P,) fields; shaped {tuple(d.shape)}: .grid(name); to_xarray()"))
+    return html_table("DesignSweep", rows)
+
+
+def closed_loop_html(c: Any) -> str:
+    """A law over the lossy channel: its mean-square radius, stability and average stage cost. O(m n).
+
+    >>> from types import SimpleNamespace
+    >>> c = SimpleNamespace(law="tcp", mu=np.array([0.9]), spectral_radius=1.2, stable=False, average_stage_cost=np.inf,
+    ...                     gain=np.array([[1.0]]), reason="not mean-square stable")
+    >>> text = closed_loop_html(c)
+    >>> "1.2" in text, "no" in text, "inf (not mean-square stable)" in text
+    (True, True, True)
+    """
+    cost = f"{c.average_stage_cost:.10g}" if np.isfinite(c.average_stage_cost) else f"inf ({c.reason or 'unstable'})"
+    return html_table(f"ClosedLoop {c.law}".strip(), [
+        ("law u = -K x", c.law or "(unnamed)"), ("mu", short(c.mu)),
+        ("mean-square spectral radius", f"{c.spectral_radius:.6g}"),
+        ("mean-square stable", "yes" if c.stable else "no"),
+        ("average stage cost", cost), ("gain K", short(c.gain, 4))])
+
+
+def simulation_html(sim: Any) -> str:
+    """Monte Carlo against the exact values: one row per law, open loop (mean, exact, z) and closed loop. O(laws).
+
+    >>> from types import SimpleNamespace
+    >>> check = SimpleNamespace(formula=2.8, exact=3.0, mean=3.01, stderr=0.02, z=0.5, reason="")
+    >>> sim = SimpleNamespace(samples=100, steps=5, seed=0, channel="bernoulli", open_loop={"tcp": check},
+    ...                       closed_loop={})
+    >>> text = simulation_html(sim)
+    >>> "3.01 ± 0.02" in text, "0.5" in text, "100 runs" in text
+    (True, True, True)
+    """
+    def pm(mean: float, err: float) -> str:
+        return f"{mean:.6g} ± {err:.2g}" if np.isfinite(mean) else "-"
+
+    rows = []
+    for law in dict.fromkeys([*sim.open_loop, *sim.closed_loop]):
+        o, c = sim.open_loop.get(law), sim.closed_loop.get(law)
+        rows.append((law,
+                     "-" if o is None else f"{o.formula:.6g}", "-" if o is None else pm(o.mean, o.stderr),
+                     "-" if o is None else f"{o.exact:.6g}", "-" if o is None else f"{o.z:.2f}",
+                     "-" if c is None else pm(c.mean_stage_cost, c.stderr),
+                     "-" if c is None else f"{c.exact_stage_cost:.6g}",
+                     "-" if c is None else f"{c.spectral_radius:.4g} ({'stable' if c.stable else 'not stable'})"))
+    title = f"Simulation: {sim.samples} runs, {sim.steps} steps, seed {sim.seed}, {sim.channel} channel"
+    return html_grid(title, ["law", "J* (Theorem 1)", "open loop: sampled cost", "exact E[cost] of the plan", "z",
+                             "closed loop: mean stage cost", "exact", "mean-square radius"], rows)

@@ -20,7 +20,7 @@ __all__ = ["dumps_system", "example_names", "load_example", "load_system", "save
 
 # TOML section -> {key: System keyword}
 _SCHEMA: dict[str, dict[str, str]] = {
-    "plant": {"A": "A", "B": "B", "noise_cov": "noise_cov"},
+    "plant": {"A": "A", "B": "B", "noise_cov": "noise_cov", "dt": "dt"},
     "cost": {
         "horizon": "horizon", "state_weight": "state_weight", "state_weights": "state_weights",
         "input_weight": "input_weight", "input_weights": "input_weights",

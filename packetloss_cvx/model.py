@@ -22,7 +22,7 @@ import numpy.typing as npt
 from .channel import GilbertElliott, channel_schedule
 from .display import system_html, system_repr, to_json
 from .errors import InputError
-from .statespace import plant_matrices
+from .statespace import plant_matrices, plant_statespace, sampling_time
 from .validation import (
     exactly_one,
     frozen,
@@ -116,6 +116,8 @@ class System:
     noise_cov : array_like, optional
         Sigma_W (n×n, symmetric PSD); default zeros.
     name : str, optional
+    dt : float, optional
+        Sampling time in seconds (python-control interop), metadata: nothing depends on it. None: unspecified.
 
     Raises
     ------
@@ -132,7 +134,7 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name", "channel", "_structure", "_own",
+        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "_structure", "_own",
     )
 
     A: np.ndarray
@@ -146,6 +148,7 @@ class System:
     noise_cov: np.ndarray
     name: str | None
     channel: GilbertElliott | None
+    dt: float | None
 
     def __init__(
         self,
@@ -164,6 +167,7 @@ class System:
         noise_cov: npt.ArrayLike | None = None,
         name: str | None = None,
         channel: Any = None,
+        dt: float | None = None,
     ) -> None:
         A_ = matrix_field(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
@@ -217,7 +221,7 @@ class System:
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("_structure", {}), ("_own", {}),
+            ("dt", sampling_time(dt)), ("_structure", {}), ("_own", {}),
         ):
             object.__setattr__(self, key, value)
 
@@ -235,7 +239,7 @@ class System:
         constructor from its fields; the cached structure is not sent. O(N (n^2 + m))."""
         fields = {"A": self.A, "B": self.B, "horizon": self.horizon, "x0": self.x0,
                   "state_weights": self.state_weights, "input_weights": self.input_weights,
-                  "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name}
+                  "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name, "dt": self.dt}
         if self.channel is not None:
             fields["channel"] = self.channel
         else:
@@ -342,11 +346,17 @@ class System:
 
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
-        """A System with the A, B of a discrete-time control.StateSpace (statespace.plant_matrices) and ``fields``."""
-        taken = sorted(set(fields) & {"A", "B"})
+        """A System with the A, B and sampling time dt of a discrete-time control.StateSpace
+        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``. O(n (n + m))."""
+        taken = sorted(set(fields) & {"A", "B", "dt"})
         if taken:
-            raise InputError(taken[0], "given by sys: from_statespace takes A and B from the StateSpace")
+            raise InputError(taken[0], "given by sys: from_statespace takes A, B and dt from the StateSpace")
         return cls(**plant_matrices(sys), **fields)
+
+    def to_statespace(self) -> Any:
+        """The plant as a discrete-time control.StateSpace (statespace.plant_statespace): A, B, C = I, D = 0 and
+        the system's ``dt`` (True when None); every packet delivered. O(n (n + m))."""
+        return plant_statespace(self.A, self.B, self.dt)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
         """A copy with a new initial state.
@@ -410,7 +420,8 @@ class System:
             else {"mu_schedule": self.mu_schedule.tolist()}
         )
         out: dict[str, Any] = {
-            "plant": {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist()},
+            "plant": {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist(),
+                      **({"dt": self.dt} if self.dt is not None else {})},
             "cost": cost,
             "channel": channel,
             "state": {"x0": self.x0.tolist()},

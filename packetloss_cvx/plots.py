@@ -21,16 +21,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from .errors import InputError
 from .model import numeric_array
+from .plot_style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_log_ticks, tick_text
 from .safeio import save_figure
 
 __all__ = ["plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto"]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
-_MARKERS = ("x", "^", "s", "o", "v", "D")
 
 
 def _rows(rows: Any, field: str, keys: tuple[str, ...]) -> list[Mapping]:
@@ -85,7 +88,7 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     """
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a non-empty mapping label -> rows")
-    fig = Figure(figsize=(5, 3.5))
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
     ax = fig.subplots()
     for label, rows in curves.items():
         field = f"curves[{label!r}]"
@@ -96,16 +99,15 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     ax.set_ylabel(r"communication cost $\beta^\top\mu^*$")
     if title:
         ax.set_title(title)
-    ax.legend()
-    fig.tight_layout()
+    fig.legend(**LEGEND)
     return _save(fig, path)
 
 
 def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Mapping[Any, Sequence[Mapping]],
                              levels: Sequence[float], *, title: str | None = None,
                              path: str | Path | None = None) -> Figure:
-    """Figs. 6–7: log J*(mu) over [0, 1]^2, the contours J* = alpha and the optimal allocation
-    on each contour for each price vector beta.
+    """Figs. 6–7: J*(mu) over [0, 1]^2 on a logarithmic colour scale, the contours J* = alpha and the optimal
+    allocation on each contour for each price vector beta (:func:`plot_log_contour` draws it).
 
     Parameters
     ----------
@@ -148,36 +150,15 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
     if J.shape != (grid.size, grid.size):
         raise InputError("costs", f"expected shape ({grid.size}, {grid.size}) but found {J.shape}")
     if np.any(J <= 0):
-        raise InputError("costs", "expected positive costs (their logarithm is drawn)")
-    lv = np.sort(numeric_array(levels, "levels").ravel())
-    if lv.size == 0:
+        raise InputError("costs", "expected positive costs (drawn on a logarithmic scale)")
+    if numeric_array(levels, "levels").size == 0:
         raise InputError("levels", "expected at least one cost bound")
     if not isinstance(allocations, Mapping):
         raise InputError("allocations", "expected a mapping beta -> rows")
-    fig = Figure(figsize=(5, 4.5))
-    ax = fig.subplots()
-    ax.contourf(grid, grid, np.log(J), levels=30, cmap="viridis", alpha=0.6)
-    if J.min() < lv.max() and lv.min() < J.max():     # contour() warns when no level is in range
-        cs = ax.contour(grid, grid, J, levels=lv, colors="0.4", linewidths=0.8)
-        ax.clabel(cs, fmt="%.3g", fontsize=7)
-    for k, (beta, rows) in enumerate(allocations.items()):
-        field = f"allocations[{beta!r}]"
-        points = [r["mu"] for r in _rows(rows, field, ("mu",)) if r["mu"] is not None]
-        if not points:
-            continue
-        pts = numeric_array(points, field)
-        if pts.ndim != 2 or pts.shape[1] != 2:
-            raise InputError(field, "expected each mu to be a pair (mu1, mu2)")
-        ax.plot(pts[:, 0], pts[:, 1], marker=_MARKERS[k % len(_MARKERS)], ls="--", color="k", ms=5, lw=0.8,
-                label=f"beta={beta}")
-    ax.set_xlabel(r"$\mu_1$")
-    ax.set_ylabel(r"$\mu_2$")
-    if title:
-        ax.set_title(title)
-    if ax.lines:
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    return _save(fig, path)
+    lines = {f"beta={beta}": [r["mu"] for r in _rows(rows, f"allocations[{beta!r}]", ("mu",))]
+             for beta, rows in allocations.items()}
+    return plot_log_contour(grid, grid, J, colorbar_label=r"$J^*$ (log scale)", levels=levels, allocations=lines,
+                            title=title, path=path)
 
 
 def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | None = None,
@@ -213,7 +194,7 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     """
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a non-empty mapping law -> curves")
-    fig = Figure(figsize=(9, 3.5))
+    fig = Figure(figsize=(10, 3.6), layout="constrained")
     left, right = fig.subplots(1, 2)
     labels = {**_LABELS, "dp": "DP optimum"}
     for law, data in curves.items():
@@ -233,22 +214,10 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     left.set_ylabel(r"$\|x_t\|$: mean $\pm$ one std")
     right.set_xlabel("step t")
     right.set_ylabel("mean cumulative stage cost")
-    right.legend()
+    fig.legend(handles=right.get_legend_handles_labels()[0], **LEGEND)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
     return _save(fig, path)
-
-
-#: Dash patterns telling the allocation lines apart (all black and dashed, as in the paper).
-_DASHES = ((0, (5, 2)), (0, (8, 3, 2, 3)), (0, (2, 2)))
-
-
-def _positive_log(values: Any, field: str) -> np.ndarray:
-    """log of the positive entries, NaN (drawn blank) elsewhere."""
-    arr = numeric_array(values, field)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(arr > 0, np.log(np.where(arr > 0, arr, 1.0)), np.nan)
 
 
 def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: str, log: bool = True,
@@ -264,18 +233,18 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
         Label (``"tcp"``, ``"udp"``, ``"diff"`` or any text) to values of shape (P,).
     xlabel : str
     log : bool
-        Draw the natural logarithm of the values (non-positive values are left blank).
+        Draw the values on a logarithmic y axis; values <= 0 (J_Delta where every mu_i is 0 or 1) are not on
+        it: left out, and the curve's legend entry says how many.
     xscale : {"linear", "log"}
     marker : float, optional
-        An x to mark with a vertical dashed line (e.g. the maximiser of J_Delta), labelled
-        ``marker_label``.
+        An x to mark with a vertical dotted line (e.g. the maximiser of J_Delta), labelled ``marker_label``.
     title : str, optional
     path : str or Path, optional
 
     Returns
     -------
     matplotlib.figure.Figure
-        O(P) per curve.
+        The legend beside the axes. O(P) per curve.
 
     Raises
     ------
@@ -284,80 +253,97 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
 
     Examples
     --------
-    >>> fig = plot_cost_lines([0.1, 0.5, 0.9], {"tcp": [1.0, np.e, 0.0]}, xlabel="nu", marker=0.5)
-    >>> ys = fig.axes[0].lines[0].get_ydata()             # natural logarithms; 0 is left blank
-    >>> ys[:2].tolist(), bool(np.isnan(ys[2]))
-    ([0.0, 1.0], True)
+    >>> fig = plot_cost_lines([0.1, 0.5, 0.9], {"tcp": [1.0, 20.0, 0.0]}, xlabel="nu", marker=0.5)
+    >>> line = fig.axes[0].lines[0]                       # the values on a log axis; 0 is not on it
+    >>> line.get_ydata()[:2].tolist(), bool(np.isnan(line.get_ydata()[2])), fig.axes[0].get_yscale()
+    ([1.0, 20.0], True, 'log')
+    >>> line.get_label()
+    'TCP-like $J^*$ (1 point <= 0: off the log axis)'
     """
     xs = numeric_array(x, "x")
     if xs.ndim != 1 or xs.size < 1:
         raise InputError("x", "expected a non-empty 1-D sequence")
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a non-empty mapping label -> values")
-    fig = Figure(figsize=(5.5, 3.8))
+    fig = Figure(figsize=(7.4, 3.8), layout="constrained")
     ax = fig.subplots()
     names = {"tcp": "TCP-like $J^*$", "udp": "UDP-like $J^*$", "diff": r"$J_\Delta = J^*_{udp} - J^*_{tcp}$"}
     for label, values in curves.items():
-        ys = _positive_log(values, f"curves[{label!r}]") if log else numeric_array(values, f"curves[{label!r}]")
+        ys = numeric_array(values, f"curves[{label!r}]")
         if ys.shape != xs.shape:
             raise InputError(f"curves[{label!r}]", f"expected shape {xs.shape} but found {ys.shape}")
-        ax.plot(xs, ys, ls="--" if label == "diff" else "-", label=names.get(label, str(label)))
+        text = names.get(label, str(label))
+        dropped = int(np.sum(ys <= 0)) if log else 0
+        if dropped:
+            text += f" ({dropped} point{'s' if dropped > 1 else ''} <= 0: off the log axis)"
+            ys = np.where(ys > 0, ys, np.nan)
+        ax.plot(xs, ys, ls="--" if label == "diff" else "-", lw=1.6, label=text)
     if marker is not None:
-        ax.axvline(marker, color="k", ls=":", lw=1, label=marker_label)
+        ax.axvline(marker, color="k", ls=":", lw=1.2, label=marker_label)
     ax.set_xscale(xscale)
+    if log:
+        ax.set_yscale("log")
+        shown = np.concatenate([line.get_ydata() for line in ax.lines if line.get_label() != marker_label])
+        shown = shown[np.isfinite(shown) & (shown > 0)]
+        if shown.size:
+            set_log_ticks(ax.yaxis, shown.min(), shown.max())
     ax.set_xlabel(xlabel)
-    ax.set_ylabel("log expected cost" if log else "expected cost")
-    if title:
-        ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=7)
+    ax.set_ylabel("expected cost (log scale)" if log else "expected cost")
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
+    fig.legend(**LEGEND)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
     return _save(fig, path)
 
 
 def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: Any, *, xlabel: str = r"$\mu_1$",
-                     ylabel: str = r"$\mu_2$", colorbar_label: str = "log expected cost",
+                     ylabel: str = r"$\mu_2$", colorbar_label: str = "expected cost (log scale)",
                      marker: Sequence[float] | None = None, levels: Sequence[float] | None = None,
                      allocations: Mapping[Any, Sequence[Sequence[float] | None]] | None = None,
                      title: str | None = None, path: str | Path | None = None) -> Figure:
-    """The logarithm of a positive quantity over a 2-D grid, with a colourbar (Figs. cost-diff-mixed,
-    TCP-/UDP-log-cost-mixed and, with ``levels`` and ``allocations``, their ``-mult`` variants).
+    """A positive quantity over a 2-D grid on a logarithmic colour scale (``LogNorm``; the colour bar is
+    ticked in the values themselves), for Figs. cost-diff-mixed, TCP-/UDP-log-cost-mixed and, with
+    ``levels`` and ``allocations``, their ``-mult`` variants.
 
     Parameters
     ----------
     axis_x, axis_y : sequence of float, shapes (gx,), (gy,)
         Increasing grid values.
     values : array_like, shape (gy, gx)
-        ``values[j, i]`` at ``(axis_x[i], axis_y[j])``; non-positive entries are left blank. The colour
-        scale spans the 2nd percentile of the logarithms to their maximum; lower values take the lowest
-        colour (the colourbar's arrow), so a few near-zero values (J_Delta at the corners) do not flatten it.
+        ``values[j, i]`` at ``(axis_x[i], axis_y[j])``. The colour scale spans the positive values (from
+        their 2nd percentile when they span more than four decades, so that a few near-zero values, J_Delta
+        at the corners, do not flatten it); values below it, 0 included (J_Delta = 0 where every mu_i is 0
+        or 1), are drawn in its lowest colour (the colour bar's arrow; a legend entry says so).
     marker : pair, optional
-        A point marked with a black cross (e.g. the maximiser of J_Delta).
+        A point marked with a white cross edged in black, never clipped by the axes (the maximiser of J_Delta).
     levels : sequence of float, optional
-        Values (not logarithms) drawn as labelled contour lines (the cost bounds alpha).
+        Values drawn as contour lines (the cost bounds alpha), each labelled once where the label has room
+        (no label collides with another or sits on another line); the legend lists them all.
     allocations : mapping, optional
-        Label (e.g. beta) to points (pairs, or None where there is none): each drawn as a black
-        dashed line through its points, each point a black cross (the paper's eq:opt_M lines).
+        Label (e.g. beta) to points (pairs, or None where there is none): each a bright line outlined in
+        black through its points (the paper's eq:opt_M lines), markers unclipped on the axes' edges.
     title : str, optional
     path : str or Path, optional
 
     Returns
     -------
     matplotlib.figure.Figure
-        O(gx gy) to contour the grid.
+        The map, its colour bar and the legend beside them. O(gx gy) to contour the grid, O(L V^2) to place
+        the labels of L levels of V vertices.
 
     Raises
     ------
     InputError
-        Shapes that do not match, non-finite numbers, malformed points, an unwritable path.
+        Shapes that do not match, non-finite numbers, no positive value, malformed points, an unwritable path.
 
     Examples
     --------
-    >>> fig = plot_log_contour([0.0, 1.0], [0.0, 0.5, 1.0], np.exp([[0.0, 1.0], [1.0, 2.0], [2.0, 3.0]]),
+    >>> fig = plot_log_contour([0.0, 1.0], [0.0, 0.5, 1.0], [[1.0, 10.0], [10.0, 100.0], [100.0, 1000.0]],
     ...                        marker=(0.5, 0.5))
-    >>> ax, bar = fig.axes           # the colours span the 2nd percentile of the logs (0.1) to their maximum (3)
-    >>> bool(np.allclose(bar.get_ylim(), [0.1, 3.0])), ax.lines[0].get_xydata().tolist()
-    (True, [[0.5, 0.5]])
+    >>> ax, bar = fig.axes           # a log colour scale over the values: 1 to 1000
+    >>> norm = ax.collections[0].norm
+    >>> type(norm).__name__, norm.vmin, norm.vmax, ax.lines[0].get_xydata().tolist()
+    ('LogNorm', 1.0, 1000.0, [[0.5, 0.5]])
     """
     gx, gy = numeric_array(axis_x, "axis_x"), numeric_array(axis_y, "axis_y")
     for name, g in (("axis_x", gx), ("axis_y", gy)):
@@ -366,21 +352,27 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     raw = numeric_array(values, "values")
     if raw.shape != (gy.size, gx.size):
         raise InputError("values", f"expected shape ({gy.size}, {gx.size}) but found {raw.shape}")
-    logs = _positive_log(raw, "values")
-    if not np.any(np.isfinite(logs)):
-        raise InputError("values", "expected some positive values (their logarithm is drawn)")
-    fig = Figure(figsize=(5.6, 4.9))
+    positive = raw[raw > 0]
+    if not positive.size:
+        raise InputError("values", "expected some positive values (drawn on a logarithmic scale)")
+    lo, hi = float(positive.min()), float(positive.max())
+    if hi > 1e4 * lo:                    # a few near-zero values (J_Delta at the corners) must not flatten the rest
+        lo = float(np.percentile(positive, 2))
+    if hi <= lo * (1 + 1e-9):
+        lo, hi = lo / 2, hi * 2                                          # one value: one colour
+    fig = Figure(figsize=(7.9, 5.0), layout="constrained")
     ax = fig.subplots()
-    lo, hi = np.nanpercentile(logs, 2), np.nanmax(logs)   # a few near-zero values must not flatten the rest
-    shades = np.linspace(lo, hi, 31) if hi > lo else 30
-    filled = ax.contourf(gx, gy, logs, levels=shades, cmap="viridis", extend="min" if hi > lo else "neither")
-    fig.colorbar(filled, ax=ax, label=colorbar_label)
-    if levels is not None:
-        lv = np.sort(numeric_array(levels, "levels").ravel())
-        inside = lv[(lv > np.nanmin(raw)) & (lv < np.nanmax(raw))]
-        if inside.size:
-            cs = ax.contour(gx, gy, raw, levels=inside, colors="w", linewidths=0.7)
-            ax.clabel(cs, fmt="%.3g", fontsize=6)
+    ax.set_box_aspect(1)
+    ax.set_xlim(gx[0], gx[-1])
+    ax.set_ylim(gy[0], gy[-1])
+    below = raw < lo
+    filled = ax.contourf(gx, gy, np.where(raw > 0, raw, lo / 10), levels=np.geomspace(lo, hi, 31),
+                         norm=LogNorm(lo, hi), cmap="viridis", extend="min" if below.any() else "neither")
+    set_log_ticks(fig.colorbar(filled, ax=ax, label=colorbar_label), lo, hi)
+    extra: list[Any] = []
+    if below.any():
+        zero = ", 0 included" if np.any(raw <= 0) else ""
+        extra.append(Patch(color=filled.cmap(0.0), label=f"< {lo:.3g}{zero}"))
     for k, (label, points) in enumerate((allocations or {}).items()):
         kept = [p for p in points if p is not None]
         if not kept:
@@ -388,18 +380,30 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         pts = numeric_array(kept, f"allocations[{label!r}]")
         if pts.ndim != 2 or pts.shape[1] != 2:
             raise InputError(f"allocations[{label!r}]", "expected points as pairs (mu1, mu2)")
-        ax.plot(pts[:, 0], pts[:, 1], ls=_DASHES[k % len(_DASHES)], color="k", lw=0.9, marker="x", ms=5,
-                label=str(label))
+        colour, dashes, mark = PATH_STYLES[k % len(PATH_STYLES)]
+        ax.plot(pts[:, 0], pts[:, 1], color=colour, ls=dashes, lw=1.5, marker=mark, ms=4.5, mec="k", mew=0.6,
+                path_effects=OUTLINE, clip_on=False, zorder=4, label=str(label))
     if marker is not None:
         point = numeric_array(marker, "marker").ravel()
-        ax.plot([point[0]], [point[1]], marker="x", color="k", ms=10, mew=2, ls="none", label="maximiser")
+        ax.plot([point[0]], [point[1]], marker="X", color="w", mec="k", mew=1.3, ms=12, ls="none",
+                clip_on=False, zorder=5, label="maximiser")
+    drawn = [line.get_xydata() for line in ax.lines]      # contour labels keep clear of the paths and the marker
+    if levels is not None:
+        lv = np.sort(numeric_array(levels, "levels").ravel())
+        inside = lv[(lv > np.min(raw)) & (lv < np.max(raw))]
+        if inside.size:
+            cs = ax.contour(gx, gy, raw, levels=inside, colors="0.93", linewidths=0.7)
+            chosen, points = contour_label_points(ax, cs, drawn)
+            if chosen:
+                ax.clabel(cs, levels=chosen, manual=points, inline=True, fmt=tick_text, fontsize=7.5)
+            names = [tick_text(a) for a in inside]
+            rows = [", ".join(names[k:k + 5]) for k in range(0, len(names), 5)]
+            extra.append(Line2D([], [], color="0.55", lw=0.9, label="contours $\\alpha$:\n" + ",\n".join(rows)))
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_xlim(gx[0], gx[-1])
-    ax.set_ylim(gy[0], gy[-1])
-    if title:
-        ax.set_title(title, fontsize=9)
-    if ax.lines:    # below the axes: the allocations run along every edge
-        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
-    fig.tight_layout()
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
+    handles = ax.get_legend_handles_labels()[0] + extra
+    if handles:
+        fig.legend(handles=handles, **LEGEND)
     return _save(fig, path)

@@ -33,7 +33,7 @@ LAYERS = [
      "evaluator", "pointwise", "batch_recursion"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
-    {"plots", "cli", "__main__", "__init__"},
+    {"plots", "plot_style", "cli", "__main__", "__init__"},
 ]
 #: lazy imports allowed inside functions: the heavy optional libraries, listed once in the package
 LAZY_OK = frozenset(LAZY_IMPORTS)

@@ -76,3 +76,86 @@ def test_without_python_control_the_interop_names_the_extra(monkeypatch):
     with pytest.raises(InputError, match=r"pip install 'packetloss-cvx\[control\]'") as err:
         plant_matrices(object())
     assert err.value.field == "sys"
+
+
+def continuous_plant():
+    """A damped oscillator and an integrator, continuous time: python-control discretises it (zero-order hold)."""
+    return control.ss([[0.0, 1.0, 0.0], [-2.0, -0.3, 0.0], [1.0, 0.0, 0.0]], [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+                      np.eye(3), np.zeros((3, 2)))
+
+
+def fields(**over):
+    return {"horizon": 5, "state_weight": [1.0, 1.0, 1.0], "input_weight": [1.0, 2.0], "mu": [0.9, 0.6],
+            "x0": [1.0, 0.0, -1.0], **over}
+
+
+def test_from_statespace_keeps_dt_and_to_statespace_gives_the_same_plant_back():
+    plant = control.c2d(continuous_plant(), 0.05)
+    s = System.from_statespace(plant, **fields())
+    assert s.dt == 0.05
+    back = s.to_statespace()
+    assert isinstance(back, control.StateSpace)
+    assert back.dt == 0.05 and control.isdtime(back, strict=True)
+    assert np.array_equal(back.A, plant.A) and np.array_equal(back.B, plant.B)
+    assert np.array_equal(back.C, np.eye(3)) and np.array_equal(back.D, np.zeros((3, 2)))
+    # python-control simulates both to the same states (its own forced response, 40 steps of random inputs)
+    T = np.arange(40) * 0.05
+    U = np.random.default_rng(3).normal(size=(2, 40))
+    x0 = [0.5, -0.2, 1.0]
+    original = control.forced_response(plant, T, U, X0=x0).states
+    assert np.allclose(control.forced_response(back, T, U, X0=x0).states, original, rtol=1e-13, atol=1e-13)
+    # and the hold-equivalent matrices are python-control's c2d, not a copy of ours: the first state
+    # of the continuous oscillator after one step from x0 = e1, by the matrix exponential
+    from scipy.linalg import expm
+    assert np.allclose(back.A, expm(continuous_plant().A * 0.05), rtol=1e-12)
+    # a second trip is the identity on the System
+    again = System.from_statespace(back, **fields())
+    assert again.to_dict() == s.to_dict()
+
+
+def test_unspecified_discrete_time_is_none_and_back_to_true():
+    plant = control.ss([[1.1]], [[1.0]], [[1.0]], [[0.0]], True)
+    s = System.from_statespace(plant, horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    assert s.dt is None
+    assert s.to_statespace().dt is True
+    assert "dt" not in s.to_dict()["plant"]         # a file without dt is written as before
+
+
+def test_dt_survives_toml_pickle_and_copies(tmp_path):
+    import pickle
+
+    from packetloss_cvx import load_system, save_system
+    s = System.from_statespace(control.c2d(continuous_plant(), 0.2), **fields())
+    loaded = load_system(save_system(s, tmp_path / "plant.toml"))
+    assert loaded.dt == 0.2 and loaded.to_dict() == s.to_dict()
+    assert "dt = 0.2" in (tmp_path / "plant.toml").read_text()
+    assert "sampling time dt</th><td style=\"text-align:left\">0.2 s" in s._repr_html_()   # the notebook view
+    assert pickle.loads(pickle.dumps(s)).dt == 0.2
+    assert s.with_mu([0.5, 0.5]).dt == 0.2 and s.with_x0([0.0, 0.0, 0.0]).dt == 0.2
+    # the closed loop's StateSpace takes the system's sampling time unless told otherwise
+    K = closed_form(s, "tcp").gain
+    assert closed_loop_statespace(s, K).dt == 0.2
+    assert closed_loop_statespace(s, K, dt=0.5).dt == 0.5
+    assert closed_loop_statespace(s.with_mu([0.5, 0.5]), K).dt == 0.2
+
+
+@pytest.mark.parametrize("bad", [0, -0.1, float("nan"), float("inf"), True, "0.1"])
+def test_bad_sampling_times_are_refused_with_their_field(bad, tmp_path):
+    with pytest.raises(InputError) as err:
+        System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0], dt=bad)
+    assert err.value.field == "dt"
+    if not isinstance(bad, str | bool) and np.isfinite(bad):
+        from packetloss_cvx import load_system
+        path = tmp_path / "bad.toml"
+        path.write_text(f'[plant]\nA = [[1.0]]\nB = [[1.0]]\ndt = {bad}\n[cost]\nhorizon = 2\nstate_weight = [1.0]\n'
+                        'input_weight = [1.0]\n[channel]\nmu = [0.5]\n[state]\nx0 = [1.0]\n')
+        with pytest.raises(InputError) as err:
+            load_system(path)
+        assert err.value.field == "plant.dt"
+
+
+def test_from_statespace_takes_dt_from_the_statespace_only():
+    with pytest.raises(InputError) as err:
+        System.from_statespace(control.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]], 0.1), dt=0.2, horizon=2,
+                               state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    assert err.value.field == "dt"

@@ -46,7 +46,7 @@ def test_pareto_saved_only_when_a_path_is_given(tmp_path):
 def test_contours_draw_the_given_allocations(tmp_path):
     path = tmp_path / "contours.svg"
     fig = plot_allocation_contours(AXIS, COSTS, ALLOCATIONS, levels=[4.0, 6.0], path=path)
-    (ax,) = fig.axes
+    ax, bar = fig.axes                                   # the map and its colour bar
     drawn = {line.get_label(): line.get_xydata().tolist() for line in ax.lines}
     assert drawn == {"beta=(1.0, 1.0)": [[0.2, 0.9]], "beta=(0.05, 1.0)": [[1.0, 0.1]]}
     assert path.read_text().lstrip().startswith("<?xml")

@@ -117,3 +117,40 @@ def test_report_does_not_say_theorem_2_fails_because_of_rounding():
     diff[1, 1] = -1.0                                    # a real violation is still reported
     text, _ = _cost_mixed({"mixed": {"axis": axis, "tcp": tcp, "udp": udp, "diff": diff}}, "tcp")
     assert "NOT every grid point" in text
+
+
+def parse_tables(report):
+    """Every Markdown table of the report headed '| alpha |', as {alpha: {beta column: cell}} (read back
+    from the text, independently of how it was written)."""
+    tables, lines = [], report.splitlines()
+    for k, line in enumerate(lines):
+        if line.startswith("| alpha |"):
+            head = [c.strip() for c in line.strip("|").split("|")]
+            rows = {}
+            for body in lines[k + 2:]:
+                if not body.startswith("|"):
+                    break
+                cells = [c.strip() for c in body.strip("|").split("|")]
+                rows[float(cells[0])] = dict(zip(head[1:], cells[1:], strict=True))
+            tables.append(rows)
+    return tables
+
+
+def test_allocations_are_a_table_per_protocol(runs):
+    """report.md listed the allocations as one long paragraph; now a table per -mult figure: a row per alpha,
+    a column per beta, each cell the mu* of results.json."""
+    _, (out, _) = runs
+    data = json.loads((out / "results.json").read_text())
+    tables = parse_tables((out / "report.md").read_text())
+    assert len(tables) == 2                                          # TCP-like, then UDP-like
+    for table, protocol in zip(tables, ("tcp", "udp"), strict=True):
+        cells = 0
+        for beta, rows in data["allocations"][protocol].items():
+            for row in rows:
+                mu = row["mu"]
+                expected = "infeasible" if mu is None else f"({mu[0]:.3f}, {mu[1]:.3f})"
+                assert table[row["alpha"]][f"beta = ({beta})"] == expected
+                cells += 1
+        assert cells == sum(len(r) for r in table.values())          # nothing else in the table
+    paragraph = [line for line in (out / "report.md").read_text().splitlines() if "listed in the table" in line]
+    assert len(paragraph) == 2 and all(len(p) < 1200 for p in paragraph)   # the numbers left the paragraph

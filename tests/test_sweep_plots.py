@@ -8,14 +8,15 @@ import packetloss_cvx as pl
 from packetloss_cvx.plots import plot_cost_lines, plot_log_contour
 
 
-def test_cost_lines_draw_the_logarithm_and_the_marker(tmp_path):
+def test_cost_lines_draw_the_values_on_a_log_axis_and_the_marker(tmp_path):
     x = [0.1, 0.5, 1.0]
     fig = plot_cost_lines(x, {"tcp": [np.e, np.e**2, 0.0], "diff": [1.0, 1.0, 1.0]}, xlabel="nu", marker=0.5,
                           marker_label="max", path=tmp_path / "f.png")
     ax = fig.axes[0]
     tcp = ax.lines[0].get_ydata()
-    assert tcp[:2].tolist() == [1.0, 2.0]
-    assert np.isnan(tcp[2])                       # log 0 is left blank
+    assert tcp[:2].tolist() == [np.e, np.e**2]
+    assert ax.get_yscale() == "log"
+    assert np.isnan(tcp[2])                       # 0 is not on a log axis: left out (the legend says so)
     assert ax.lines[1].get_linestyle() == "--"
     assert ax.lines[2].get_xdata()[0] == 0.5
     assert ax.get_xlabel() == "nu"

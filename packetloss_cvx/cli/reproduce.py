@@ -105,17 +105,17 @@ def _figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
                     marker_label=rf"max $J_\Delta$ at $\nu$ = {pend['maximiser']['nu']:.3g}",
                     title=caption["fig:log-cost-pendulum"])
     axis = mixed["axis"]
-    draw["fig:cost-diff-mixed"] = plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"log $J_\Delta$", marker=mixed["maximiser"]["mu"],
-                     title=caption["fig:cost-diff-mixed"])
+    draw["fig:cost-diff-mixed"] = plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"$J_\Delta$ (log scale)",
+                                                   marker=mixed["maximiser"]["mu"], title=caption["fig:cost-diff-mixed"])
     for protocol in ("tcp", "udp"):
         name = protocol.upper()
         draw[f"fig:{name}-log-cost-mixed"] = plot_log_contour(
-            axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
+            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{{protocol}}}$ (log scale)",
             title=caption[f"fig:{name}-log-cost-mixed"])
         lines = {f"beta = {beta}": [row["mu"] for row in rows]
                  for beta, rows in data["allocations"][protocol].items()}
         draw[f"fig:{name}-log-cost-mixed-mult"] = plot_log_contour(
-            axis, axis, mixed[protocol], colorbar_label=rf"log $J^*_{{{protocol}}}$",
+            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{{protocol}}}$ (log scale)",
             levels=data["settings"]["alphas"], allocations=lines, title=caption[f"fig:{name}-log-cost-mixed-mult"])
     for label, figure in draw.items():
         save_figure(figure, paths[label].name, folder=folder)

@@ -79,13 +79,13 @@ def _figures(result: DesignSweep, out: RunFolder, skipped: list[str]) -> list[Pa
         figure = plot_cost_lines(result.axes[0], curves, xlabel=label, title=title)
         return [save_figure(figure, "sweep.png", folder=out)]
     paths = []
-    names = {"tcp": "log J*_tcp", "udp": "log J*_udp", "diff": "log J_Delta"}
+    names = {"tcp": "J*_tcp", "udp": "J*_udp", "diff": "J_Delta = J*_udp - J*_tcp"}
     for key, values in curves.items():
         if not np.any(np.asarray(values) > 0):
             skipped.append(f"sweep_{key}.png")
             continue
         figure = plot_log_contour(result.axes[1], result.axes[0], np.asarray(values).reshape(result.shape),
-                                  colorbar_label=names[key], title=f"{title}: {names[key]}")
+                                  colorbar_label=f"{names[key]} (log scale)", title=f"{title}: {names[key]}")
         paths.append(save_figure(figure, f"sweep_{key}.png", folder=out))
     return paths
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..display import fields_repr, to_json
+from ..display import closed_loop_html, fields_html, fields_repr, simulation_html, to_json
 from .base import Frozen, finite_or_none
 
 __all__ = ["ClosedLoop", "ClosedLoopRun", "OpenLoopCheck", "Riccati", "Simulation"]
@@ -34,6 +34,7 @@ class ClosedLoop(Frozen):
     reason: str = ""
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = closed_loop_html
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 
@@ -59,6 +60,7 @@ class Riccati(Frozen):
     residual: float
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -80,6 +82,7 @@ class OpenLoopCheck:
     reason: str = ""
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -111,6 +114,7 @@ class ClosedLoopRun(Frozen):
     note: str = ""
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -140,6 +144,7 @@ class Simulation(Frozen):
     channel: str = "bernoulli"
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = simulation_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:

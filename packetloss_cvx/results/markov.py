@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..display import fields_repr, to_json
+from ..display import fields_html, fields_repr, to_json
 from .base import Frozen, freeze, read_only
 from .plans import Solution
 
@@ -34,6 +34,7 @@ class MarkovSolution:
     plan_expected_cost: float
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -57,6 +58,7 @@ class BurstinessSweep(Frozen):
     exact: dict[str, np.ndarray]
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def __post_init__(self) -> None:
@@ -89,6 +91,7 @@ class MjlsResult(Frozen):
     residual: float
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..display import batch_repr, fields_repr, solution_html, solution_repr, to_json
+from ..display import batch_repr, fields_html, fields_repr, solution_html, solution_repr, to_json
 from .base import Frozen, eigenvalue_pairs
 
 __all__ = ["BatchSolution", "CrossCheck", "Solution"]
@@ -28,9 +28,8 @@ class CrossCheck:
     max_input_diff: float
     cost_rel_diff: float
 
-    to_json = to_json   # to_dict() as JSON text (display.py)
-
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
@@ -122,6 +121,7 @@ class BatchSolution(Frozen):
     method: str
 
     __repr__ = batch_repr
+    _repr_html_ = fields_html
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 

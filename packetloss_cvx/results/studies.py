@@ -8,7 +8,18 @@ from typing import Any
 
 import numpy as np
 
-from ..display import allocation_html, allocation_repr, claim_html, claim_repr, fields_repr, maximiser_repr, to_json
+from ..display import (
+    allocation_html,
+    allocation_repr,
+    claim_html,
+    claim_repr,
+    design_sweep_html,
+    design_sweep_repr,
+    fields_html,
+    fields_repr,
+    maximiser_repr,
+    to_json,
+)
 from ..errors import InputError
 from .base import Frozen, freeze, read_only
 
@@ -125,6 +136,7 @@ class Maximiser(Frozen):
     method: str
 
     __repr__ = maximiser_repr
+    _repr_html_ = fields_html
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 
@@ -147,6 +159,7 @@ class Sweep(Frozen):
     difference_method: str | None
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
 
     def __post_init__(self) -> None:
         freeze(self)
@@ -180,6 +193,7 @@ class MinCost(Frozen):
     method: str
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 
@@ -216,7 +230,8 @@ class DesignSweep(Frozen):
     chunk_size: int
     radii: dict[str, np.ndarray] = field(default_factory=dict)
 
-    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    __repr__ = design_sweep_repr   # one line: the grid and each quantity's range (display.py)
+    _repr_html_ = design_sweep_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def __post_init__(self) -> None:
@@ -239,6 +254,23 @@ class DesignSweep(Frozen):
         out.update({f"radius_{p}": v for p, v in self.radii.items()})
         return {**out, **{f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)}}
 
+    def grid(self, name: str) -> np.ndarray:
+        """The flat array ``name`` (as :meth:`arrays` names it: cost_tcp, cost_udp, cost_diff, radius_<protocol>,
+        mu, x0, horizon) on the sweep's axes: shape :attr:`shape` (mu: ``shape + (m,)``, x0: ``shape + (n,)``), so
+        ``grid("cost_udp")[j, i]`` is at ``axes[0][j], axes[1][i]`` (a 2-D grid: mu2 = axes[0], mu1 = axes[1]).
+        A read-only view, O(1).
+
+        Raises
+        ------
+        InputError
+            Field ``name``: not one of this sweep's arrays (the message lists them).
+        """
+        flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_")}
+        if name not in flat:
+            raise InputError("name", f"expected one of {', '.join(flat)}, found {name!r}")
+        value = flat[name]
+        return value.reshape(*self.shape, -1) if value.ndim == 2 else value.reshape(self.shape)
+
     def to_dict(self) -> dict[str, Any]:
         """Plain lists for JSON. O(P (m + n))."""
         return {"kind": self.kind, "name": self.name, "dims": list(self.dims), "shape": list(self.shape),
@@ -251,11 +283,11 @@ class DesignSweep(Frozen):
             import xarray as xr  # lazy: an optional extra
         except ImportError:
             raise InputError("to_xarray", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
-        dims, shape = self.dims, self.shape
+        dims = self.dims
         # a swept variable that is also a dimension (horizon) is its coordinate, not a second variable
         flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_") and k not in dims}
-        data = {k: ((*dims, "channel" if k == "mu" else "state") if v.ndim == 2 else dims, v.reshape(*shape, -1)
-                    if v.ndim == 2 else v.reshape(shape)) for k, v in flat.items()}
+        data = {k: ((*dims, "channel" if k == "mu" else "state") if v.ndim == 2 else dims, self.grid(k))
+                for k, v in flat.items()}
         attrs = {"kind": self.kind, "name": self.name or "", "chunk_size": self.chunk_size,
                  "cost_diff": "J*_udp - J*_tcp, the difference of the two checked costs"}
         return xr.Dataset(data, coords=dict(zip(dims, self.axes, strict=True)), attrs=attrs)

@@ -20,7 +20,7 @@ __all__ = ["closed_loop_statespace"]
 
 
 def closed_loop_statespace(system: System, gain: npt.ArrayLike, mu: npt.ArrayLike | None = None,
-                           dt: float | bool = True) -> Any:
+                           dt: float | bool | str = "auto") -> Any:
     """The closed loop of ``u = -K x`` over the channel as a discrete-time ``control.StateSpace``.
 
     Its dynamics are the mean's: ``E[x+] = (A - B M K) E[x] + w`` with ``M = diag(mu)``; input ``w``
@@ -34,9 +34,9 @@ def closed_loop_statespace(system: System, gain: npt.ArrayLike, mu: npt.ArrayLik
     gain : array_like, shape (m, n)
     mu : array_like, optional
         Default: the system's stationary channel.
-    dt : float or True
-        The sampling time (True: discrete, unspecified); 0, None or a negative time is an InputError (the
-        loop's matrix is a discrete-time one).
+    dt : float, True or "auto"
+        The sampling time (True: discrete, unspecified); "auto" (default): the system's ``dt``, True when it
+        has none. 0, None or a negative time is an InputError (the loop's matrix is a discrete-time one).
 
     Examples
     --------
@@ -48,6 +48,8 @@ def closed_loop_statespace(system: System, gain: npt.ArrayLike, mu: npt.ArrayLik
     """
     control = load("control", "closed_loop_statespace")
 
+    if isinstance(dt, str) and dt == "auto":
+        dt = True if system.dt is None else system.dt
     if dt is not True and (isinstance(dt, bool) or not isinstance(dt, int | float | np.integer | np.floating)
                            or not (np.isfinite(dt) and dt > 0)):
         # dt = 0 would declare A - B M K a continuous-time matrix, None an unspecified timebase
