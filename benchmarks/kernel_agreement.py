@@ -143,7 +143,7 @@ def dump(path: str) -> None:
 
 
 def _leaves(value):
-    if isinstance(value, tuple) and len(value) == 2 and value[0] == "error":
+    if isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], str):
         return [value]
     if isinstance(value, (tuple, list)):
         return [leaf for v in value for leaf in _leaves(v)]
@@ -162,8 +162,8 @@ def compare(base_path: str, new_path: str) -> None:
         name = key[-1]
         la, lb = _leaves(a), _leaves(b)
         if len(la) != len(lb) or any(isinstance(x, tuple) != isinstance(y, tuple) for x, y in zip(la, lb)):
-            errors_differ.append((key, a if isinstance(a, tuple) and a[:1] == ("error",) else "value",
-                                  b if isinstance(b, tuple) and b[:1] == ("error",) else "value"))
+            errors_differ.append((key, a if isinstance(a, tuple) and isinstance(a[0], str) else "value",
+                                  b if isinstance(b, tuple) and isinstance(b[0], str) else "value"))
             continue
         for x, y in zip(la, lb):
             if isinstance(x, tuple):

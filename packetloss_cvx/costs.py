@@ -14,6 +14,9 @@ multiple of the identity (see docs/claims.md, :func:`paper_optimal_cost`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TypeVar
+
 import numpy as np
 import numpy.typing as npt
 
@@ -28,14 +31,16 @@ from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = [
-    "check_inputs", "closed_form", "expected_cost", "hessian_factor", "loss_variance_term", "paper_optimal_cost",
-    "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
+    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "hessian_diagonal", "hessian_factor",
+    "loss_variance_term", "paper_optimal_cost", "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
 ]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m
 #: (measured crossover for n = 4, m = 2 between N*m = 160 and 200: docs/performance.md),
 #: and only while the condition estimate stays below ``tolerances.DENSE_MAX_CONDITION``.
 AUTO_DENSE_MAX = 160
+
+T = TypeVar("T")
 
 
 def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] | None = None) -> str:
@@ -142,8 +147,14 @@ def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
     return U
 
 
-def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
+def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None) -> np.ndarray:
     """G of Theorem 1 (the Hessian of J is Vbar G): eq:opt-law-1, and eq:opt-law-2 for the UDP-like protocol.
+
+    .. math:: G = \\Omega_g \\bar V + \\Psi\\ [+\\ \\Omega_d (I - \\bar V)]
+
+    ``v``: the stacked delivery probabilities, (N m,) or a batch (P, N m) (default: the prediction's Vbar);
+    the result is (N m, N m) or (P, N m, N m). The one dense form of the Hessian (closed_form, the
+    evaluator's batches, its pointwise and line paths, the cost difference). O(P (N m)^2).
 
     Examples
     --------
@@ -153,11 +164,26 @@ def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
     [[3.5, 1.0], [1.0, 1.5]]
     >>> hessian_factor(p, "udp").tolist()          # + Omega_d (I - Vbar) = diag(2.5, 0.5)
     [[6.0, 1.0], [1.0, 2.0]]
+    >>> hessian_factor(p, "udp", np.array([[1.0, 1.0], [0.5, 0.5]]))[1].tolist()    # a batch of two
+    [[6.0, 1.0], [1.0, 2.0]]
     """
-    G = pred.Omega_g * pred.Vbar[None, :] + np.diag(pred.Psi)
-    if protocol == "udp":
-        G = G + np.diag(pred.Omega_d * (1.0 - pred.Vbar))
+    v = pred.Vbar if v is None else v
+    k = v.shape[-1]
+    G = pred.Omega_g * v[..., None, :]
+    G.reshape(*v.shape[:-1], k * k)[..., :: k + 1] += hessian_diagonal(pred, protocol, v)
     return G
+
+
+def hessian_diagonal(pred: Prediction, protocol: str, v: np.ndarray) -> np.ndarray:
+    """What G adds to ``Omega_g Vbar`` on its diagonal: ``Psi + [UDP] Omega_d (1 - v)``, shaped like v. O(N m).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> hessian_diagonal(prediction(s), "udp", np.array([0.5, 0.5])).tolist()    # 1 + (5, 1) / 2
+    [3.5, 1.5]
+    """
+    return pred.Psi + (pred.Omega_d * (1.0 - v) if protocol == "udp" else 0.0)
 
 
 def loss_variance_term(pred: Prediction, u: np.ndarray) -> float:
@@ -309,15 +335,38 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
     protocol = check_protocol(protocol)
     refuse_correlated(system, protocol)
     weights = udp_variance_weights(system)
+    _, dense = dense_or_recursion(system, method, weights, lambda: _dense_solution(system, protocol, weights))
+    return _recursion_solution(system, protocol, weights) if dense is None else dense
+
+
+def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, float],
+                       build: Callable[[], T]) -> tuple[str, T | None]:
+    """The one method chooser and its fallback, for :func:`closed_form` and
+    :class:`~packetloss_cvx.evaluator.CostEvaluator` alike: :func:`pick_method`; on ``"dense"``,
+    :func:`refuse_dense` then ``build()``. Under ``"auto"`` a NumericalError of either (a dense form that
+    would lose or lost its digits) falls back: ``("recursion", None)``, the recursion not depending on
+    the conditioning; under ``"dense"`` it is raised. Returns ``(method, what build returned or None)``.
+    O(N n^3) (the condition estimate) plus ``build``.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> dense_or_recursion(s, "auto", udp_variance_weights(s), lambda: "built")
+    ('dense', 'built')
+    >>> def lost(): raise NumericalError("a residual too large")
+    >>> dense_or_recursion(s, "auto", udp_variance_weights(s), lost)
+    ('recursion', None)
+    """
     choice = pick_method(system, method, weights)
-    if choice == "dense":
-        try:
-            return _dense_solution(system, protocol, weights)
-        except NumericalError:
-            if method != "auto":
-                raise
-            # "auto" promised the right number: the recursion does not depend on the conditioning
-    return _recursion_solution(system, protocol, weights)
+    if choice == "recursion":
+        return choice, None
+    try:
+        refuse_dense(system, weights)
+        return choice, build()
+    except NumericalError:
+        if method != "auto":
+            raise
+        return "recursion", None
 
 
 def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
@@ -332,7 +381,6 @@ def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray
 
 
 def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
-    refuse_dense(system, weights)
     pred = prediction(system)
     G = hessian_factor(pred, protocol)
     F = solve_checked(G, pred.Omega_gp, "G^-1 Omega_gp (Theorem 1)")     # (N m)×n

@@ -16,18 +16,31 @@ which is invertible even when some mu = 0; ``u_t = -G_t^{-1} B' P_{t+1} A \\hat 
 the same minimiser as the paper's dense law ``-G^{-1} Omega_gp x`` (Theorem 1).
 
 Time O(N (n^3 + m^3)), memory O(N n m) for the gains; no (N n)×(N m) matrix is formed.
+
+This module holds the algebra once, batched over a leading axis (a single point is a batch of one,
+as scipy.linalg's solvers batch): :func:`riccati_step` (the Theorem-1 step, also the closed-loop DP's
+and the Markov jump system's), :func:`backward_batch` (N of them), :func:`rollout_batch` /
+:func:`mean_states` (the mean state forward) and :func:`forward_cost` (the referee every closed form is
+checked against). :func:`backward_pass`, :func:`mean_trajectory` and :func:`recursion_cost` are their
+one-point forms.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _gesv
 
+from .errors import NumericalError
 from .linalg import check_finite
 from .model import STRUCTURE_CACHE_MAX_BYTES, System
 from .protocols import check_protocol
 
-__all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
+__all__ = [
+    "FLAT_MIN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost", "input_weight", "mean_states",
+    "mean_trajectory", "overflow_error", "recursion_cost", "riccati_step", "rollout_batch", "udp_variance_weights",
+]
+
+#: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
+FLAT_MIN = 64
 
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
@@ -108,14 +121,129 @@ def _spread(system: System, d: np.ndarray) -> float:
     return (total + float(psi.max())) / float(psi.min())
 
 
+def input_weight(system: System, protocol: str, mu: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The stage input weight of the mean-state LQ problem per channel and step, ``(..., N, m)`` like
+    ``mu``: ``psi_t + [UDP] (1 - mu_t) d_t`` where ``mu_t < 1`` (a perfect channel adds nothing, even where
+    ``d`` overflowed). It is the diagonal Theorem 1 adds to ``B'PB M`` in G, and the weight of ``mu u^2`` in
+    the forward cost. O(size of mu).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[2.0], mu=[0.5], x0=[1.0])
+    >>> input_weight(s, "udp", np.array([[0.5]]), np.array([[3.0]])).tolist()     # 2 + 0.5 * 3
+    [[3.5]]
+    """
+    psi = system.input_weights
+    if protocol == "tcp":
+        return np.broadcast_to(psi, mu.shape)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return psi + np.where(mu < 1.0, d * (1.0 - mu), 0.0)
+
+
+def overflow_error(name: str, protocol: str) -> NumericalError:
+    """The error of an exact cost beyond the double range (an unstable plant over a long horizon). O(1).
+
+    Examples
+    --------
+    >>> str(overflow_error("the cost-to-go matrix", "tcp")).split(" (")[0]
+    'the cost-to-go matrix overflowed'
+    """
+    return NumericalError(f"{name} overflowed (the exact {protocol}-like expected cost exceeds the double-precision "
+                          "range, 1e308: the open-loop prediction of an unstable plant over this horizon); shorten "
+                          "the horizon or stabilise the plant")
+
+
+def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
+                 Omega: np.ndarray | None = None, *, variance: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """One backward step of Theorem 1's recursion for a batch of k points (a single point is a batch
+    of one): the Hessian factor, the gain and the previous cost-to-go (eq:control-laws).
+
+    .. math:: G = B'PB M + \\mathrm{diag}(a)\\ [+\\ \\mathrm{diag}((1 - \\mu) \\mathrm{diag}(B'PB))],\\quad
+              K = G^{-1} B'PA,\\quad P^- = A'PA - (B'PA)' M K + \\Omega
+
+    with ``M = diag(mu)`` and ``a = added`` (``psi``, plus ``(1 - mu) d`` for the open-loop UDP-like law:
+    :func:`input_weight`). ``variance=True`` adds the loss variance weighted by the cost-to-go itself: the
+    closed-loop DP's modified Riccati map (simulation.riccati) and, per mode, the Markov jump system's coupled
+    equations (markov.mjls, h = mu). The Hessian of the step is ``M G`` (invertible G even where mu = 0).
+
+    Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), ``Omega`` (n, n) or None.
+    Returns ``(K, P_prev)``, (k, m, n) and (k, n, n), P_prev symmetrised. Raises
+    ``numpy.linalg.LinAlgError`` where a G is singular (callers name the cause). From ``FLAT_MIN`` points
+    on, each product is one (k n)×n by n×m product. Time O(k (n^3 + m^3)); a point's answer does not
+    depend on the batch it is in below ``FLAT_MIN`` points.
+
+    Examples
+    --------
+    >>> K, P = riccati_step(np.ones((1, 1, 1)), np.eye(1), np.eye(1), np.ones((1, 1)), np.ones((1, 1)), np.eye(1))
+    >>> float(K[0, 0, 0]), float(P[0, 0, 0])    # scalar DARE step: G = 2, K = 1/2, P = 1 + 1 - 1/2
+    (0.5, 1.5)
+    """
+    k, n = P.shape[0], A.shape[0]
+    m = B.shape[1]
+    row = mu[:, None, :]                                                   # mu as a row: G's columns
+    matmul = np.matmul
+    if k >= FLAT_MIN:
+        PBT = (P.reshape(k * n, n) @ B).reshape(k, n, m).transpose(0, 2, 1).reshape(k * m, n)
+        BPB = (PBT @ B).reshape(k, m, m).transpose(0, 2, 1)
+        rhs = (PBT @ A).reshape(k, m, n)
+        APA = (P.reshape(k * n, n) @ A).reshape(k, n, n).transpose(0, 2, 1).reshape(k * n, n) @ A
+        APA = APA.reshape(k, n, n).transpose(0, 2, 1)                       # A'(P A)
+    else:                 # a small batch: P B once, then B'(P B), (P B)'A and A'(P A)
+        PB = matmul(P, B)
+        BPB = matmul(B.T, PB)
+        rhs = matmul(PB.transpose(0, 2, 1), A)
+        APA = matmul(A.T, matmul(P, A))
+    G = np.multiply(BPB, row, order="C")
+    diagonal = G.reshape(k, m * m)[:, :: m + 1]                           # a view: G's diagonal
+    diagonal += added
+    if variance:
+        diagonal += (1.0 - mu) * np.diagonal(BPB, axis1=1, axis2=2)
+    K = np.linalg.solve(G, rhs)
+    P_prev = APA - matmul(rhs.transpose(0, 2, 1) * row, K)
+    if Omega is not None:
+        P_prev += Omega
+    P_prev += P_prev.transpose(0, 2, 1)                                    # numpy buffers the overlap
+    P_prev *= 0.5
+    return K, P_prev
+
+
+def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gains K (P, N, m, n) and cost-to-go P_0 (P, n, n) (without Q) of the schedules ``mu`` (P, N, m),
+    ``added`` (P, N, m) the diagonal each step's G gets (:func:`input_weight`): N calls of
+    :func:`riccati_step` from ``P_N = Omega_N``. O(P N (n^3 + m^3)); NumericalError
+    (:func:`overflow_error`) where a step's G is singular or anything overflows.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> K, P0 = backward_batch(s, "tcp", np.array([[[1.0]]]), np.array([[[1.0]]]))   # K = 1/2, P0 = 1/2
+    >>> K.ravel().tolist(), P0.ravel().tolist()
+    ([0.5], [0.5])
+    """
+    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    P = mu.shape[0]
+    K = np.empty((N, P, m, n))
+    Pm = np.empty((P, n, n))
+    Pm[:] = W[N - 1]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(N - 1, -1, -1):
+            try:
+                K[t], Pm = riccati_step(Pm, A, B, mu[:, t], added[:, t], W[t - 1] if t > 0 else None)
+            except np.linalg.LinAlgError:
+                raise overflow_error("the cost-to-go matrix", protocol) from None
+    K = K.transpose(1, 0, 2, 3)
+    if not (np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
+        raise overflow_error("the cost-to-go matrix", protocol)
+    return K, Pm
+
+
 def backward_pass(system: System, protocol: str,
                   weights: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Riccati recursion of the mean-state LQ problem: the laws of Theorem 1 (eq:control-laws), step by step.
 
     Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
-    the cost-to-go matrix at step 0 (without Q) and the noise term. The Lyapunov sum
-    S_t (UDP-like weights, noise) runs in the same backward loop, unless ``weights`` (the
-    result of :func:`udp_variance_weights`, already computed by the caller) supplies it.
+    the cost-to-go matrix at step 0 (without Q) and the noise term. ``weights``: the result of
+    :func:`udp_variance_weights` if the caller has it. :func:`backward_batch` on a batch of one.
     Time O(N (n^3 + m^3)), memory O(N m n).
 
     Examples
@@ -127,51 +255,29 @@ def backward_pass(system: System, protocol: str,
     (0.5, 0.75, 0.0)
     """
     protocol = check_protocol(protocol)
-    A, B, W, N = system.A, system.B, system.state_weights, system.horizon
-    m = system.m
-    mu, psi = system.mu_schedule, system.input_weights
-    udp = protocol == "udp"
-    has_noise = bool(np.any(system.noise_cov != 0))
-    track_S = (udp or has_noise) and weights is None   # given the Lyapunov sums, do not redo them
-    keep = np.where(mu < 1.0, 1.0 - mu, 0.0)  # (1 - mu) on lossy channels, 0 on perfect ones
-    D = np.zeros((N, m))                      # diag(Omega_g) per step (UDP-like)
-    K = np.empty((N, m, system.n))
-    P = W[N - 1].copy()
-    S = W[N - 1].copy()
-    noise = 0.0
-    if weights is not None:
-        D, noise = weights[0], weights[1]
-    diag = np.arange(m) * (m + 1)
-    AT = A.T
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(N - 1, -1, -1):
-            PB = P @ B
-            G = (B.T @ PB) * mu[t]
-            G.flat[diag] += psi[t]
-            if weights is not None and udp:
-                G.flat[diag] += D[t] * keep[t]
-            if track_S:
-                if udp:
-                    D[t] = ((S @ B) * B).sum(axis=0)
-                    G.flat[diag] += D[t] * keep[t]
-                if has_noise:
-                    noise += float(np.sum(S * system.noise_cov))
-                if t > 0:
-                    S = W[t - 1] + AT @ S @ A
-            rhs = PB.T @ A                    # B' P A (P is symmetric)
-            _, _, K[t], info = _gesv(G, rhs)
-            if info != 0:
-                _finite("the cost-to-go matrix", np.array(np.nan), protocol)
-            P = AT @ (P @ A) - (rhs.T * mu[t]) @ K[t]
-            if t > 0:
-                P += W[t - 1]
-            P = 0.5 * (P + P.T)
-    if udp:
-        _finite("diag(Omega_g)", D[mu < 1.0], protocol)
+    d, noise = udp_variance_weights(system) if weights is None else weights
+    mu = system.mu_schedule
+    if protocol == "udp":
+        _finite("diag(Omega_g)", d[mu < 1.0], protocol)
     _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
-    _finite("the cost-to-go matrix", P, protocol)
-    _finite("the gains", K, protocol)
-    return K, P, noise
+    K, P0 = backward_batch(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None])
+    return K[0], P0[0], noise
+
+
+def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The plans u_t = -K_t x_t (P, N, m) and their mean states x_1..x_N (P, N, n) from x (P, n), by
+    :func:`mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
+    states to the bit, even where A is unstable). O(P N n (n + m)).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> U, X = rollout_batch(s, np.full((1, 2, 1), 0.5), np.full((1, 2, 1, 1), 0.5), np.array([[2.0]]))
+    >>> U.ravel().tolist(), X.ravel().tolist()     # x1 = 2 + 0.5 (-1), x2 = 1.5 + 0.5 (-0.75)
+    ([-1.0, -0.75], [1.5, 1.125])
+    """
+    U = np.empty((mu.shape[0], system.horizon, system.m))
+    return U, mean_states(system, mu, U, x, K)
 
 
 def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -187,16 +293,8 @@ def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarr
     >>> u.tolist(), x.ravel().tolist()
     ([[-0.5]], [1.0, 0.75])
     """
-    A, B, mu = system.A, system.B, system.mu_schedule
-    N = system.horizon
-    x = np.empty((N + 1, system.n))
-    u = np.empty((N, system.m))
-    x[0] = system.x0
-    with np.errstate(over="ignore", invalid="ignore"):   # callers check finiteness
-        for t in range(N):
-            u[t] = -K[t] @ x[t]
-            x[t + 1] = A @ x[t] + B @ (mu[t] * u[t])
-    return u, x
+    U, X = rollout_batch(system, system.mu_schedule[None], K[None], system.x0[None])
+    return U[0], np.concatenate([system.x0[None], X[0]])
 
 
 def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
@@ -216,24 +314,61 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     (0.6875, 0.75)
     """
     protocol = check_protocol(protocol)
-    A, B, W, mu, psi = system.A, system.B, system.state_weights, system.mu_schedule, system.input_weights
     d, noise = udp_variance_weights(system) if weights is None else weights
-    x = system.x0.copy()
-    total = float(x @ system.initial_weight @ x) + noise
+    x = system.x0
+    mu = system.mu_schedule[None]
     with np.errstate(over="ignore", invalid="ignore"):
-        # the per-step input terms for all steps at once (the same products and per-step sums as step by step)
-        mean = mu * inputs                      # the mean applied input: products in this order stay
-        stage = np.sum(mean * (psi * inputs), axis=1)          # in range when mu is tiny and u huge
-        extra = np.zeros(system.horizon)
-        if protocol == "udp":
-            lossy = mu < 1.0
-            variance = mean * ((1.0 - mu) * d * inputs)
-            extra = np.sum(variance, axis=1) if lossy.all() else [
-                np.sum(v[k]) for v, k in zip(variance, lossy, strict=True)]
-        for t in range(system.horizon):
-            total += float(stage[t])
-            if protocol == "udp":
-                total += float(extra[t])
-            x = A @ x + B @ mean[t]
-            total += float(x @ W[t] @ x)
-    return total
+        base = float(x @ system.initial_weight @ x) + noise
+    return float(forward_cost(system, mu, inputs[None], mean_states(system, mu, inputs[None], x[None]),
+                              input_weight(system, protocol, mu, d), base)[0])
+
+
+def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
+                K: np.ndarray | None = None) -> np.ndarray:
+    """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
+    ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
+    the law's, ``u_t = -K_t x_t``, written into U as it goes (:func:`rollout_batch`). O(P N n (n + m)).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> mean_states(s, np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]])).ravel().tolist()
+    [0.0, 1.0]
+    """
+    AT, BT, N = system.A.T, system.B.T, system.horizon
+    X = np.empty((U.shape[0], N, system.n))
+    with np.errstate(over="ignore", invalid="ignore"):     # callers check finiteness
+        state = x
+        for t in range(N):
+            if K is not None:
+                U[:, t] = -np.matmul(K[:, t], state[:, :, None])[:, :, 0]
+            state = X[:, t] = state @ AT + (mu[:, t] * U[:, t]) @ BT
+    return X
+
+
+def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
+                 base: np.ndarray | float, Omega: np.ndarray | None = None) -> np.ndarray:
+    """The referee: the expected cost of plans U (P, N, m) whose mean states are X (P, N, n) (x_1..x_N),
+    ``base + sum_t mu_t u_t (weight_t u_t) + x_{t+1}' Omega_{t+1} x_{t+1}``: every term nonnegative, so
+    no cancellation (``weight``: :func:`input_weight`; ``base``: x0'Q x0 + the noise term). Every closed
+    form (dense, recursion, batched, pointwise, QP) checks its cost against this sum for its own plan.
+    ``Omega``: blkdiag(Omega_1..Omega_N) as one (N n)×(N n) matrix if the caller keeps one (one product
+    instead of N). Returns (P,). O(P N (n^2 + m)), O(P (N n)^2) with ``Omega``.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[2.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> forward_cost(s, np.full((1, 1, 1), 0.5), np.full((1, 1, 1), -1.0), np.full((1, 1, 1), 0.5),
+    ...              np.ones((1, 1)), 1.0).tolist()        # 1 + 0.5 * 1 + 2 * 0.25
+    [2.0]
+    """
+    P = X.shape[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        # mu u (weight u): the products in this order stay in range when mu is tiny and u huge
+        inputs = np.einsum("ptk,ptk->p", mu * U, weight * U)
+        if Omega is not None:
+            flat = X.reshape(P, -1)
+            states = np.einsum("pk,pk->p", flat @ Omega, flat)
+        else:
+            states = np.einsum("pti,tij,ptj->p", X, system.state_weights, X)
+        return base + (inputs + states)

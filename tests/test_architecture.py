@@ -19,7 +19,7 @@ LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
      "channel", "validation", "threads"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "qp_sparse", "crosscheck", "random_systems",
-     "evaluator", "pointwise", "batch_recursion"},
+     "evaluator", "pointwise"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "cli", "__main__", "__init__"},
