@@ -94,3 +94,61 @@ def test_auto_method_and_formulation(two_actuator, pendulum):
         pl.solve_qp(two_actuator, "tcp", formulation="dense")
     with pytest.raises(pl.InputError, match="method: expected"):
         pl.closed_form(two_actuator, "tcp", method="fast")
+
+
+# ---------------------------------------------------------------- the one Riccati step (recursion.riccati_step)
+
+def _enumerated_dp_step(P, A, B, mu, psi, Omega):
+    """The DP step with the expectation over the 2^m delivery patterns enumerated:
+    min_u sum_v p(v) [(A x + B V u)' P (A x + B V u) + (V u)' Psi (V u)] + x' Omega x."""
+    import itertools
+
+    m = B.shape[1]
+    H, L = np.zeros((m, m)), np.zeros((m, A.shape[0]))
+    for v in itertools.product([0, 1], repeat=m):
+        V = np.diag(v).astype(float)
+        prob = np.prod([mu[i] if v[i] else 1 - mu[i] for i in range(m)])
+        H += prob * V @ (B.T @ P @ B + np.diag(psi)) @ V
+        L += prob * V @ B.T @ P @ A
+    K = np.linalg.solve(H, L)
+    return K, Omega + A.T @ P @ A - L.T @ K
+
+
+@pytest.mark.parametrize("points", [1, 3, 70])          # 70 >= FLAT_MIN: the flattened products
+def test_riccati_step_with_variance_is_the_enumerated_dp_step(points):
+    from packetloss_cvx.recursion import riccati_step
+
+    rng = np.random.default_rng(points)
+    n, m = 3, 3
+    A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+    F = rng.normal(size=(points, n, n))
+    P = F @ F.transpose(0, 2, 1) + np.eye(n)
+    mu, psi = rng.uniform(0.05, 1.0, (points, m)), rng.uniform(0.2, 2.0, (points, m))
+    Omega = np.diag(rng.uniform(0.5, 2.0, n))
+    K, P_prev = riccati_step(P, A, B, mu, psi, Omega, variance=True)
+    for k in range(points):
+        K_ref, P_ref = _enumerated_dp_step(P[k], A, B, mu[k], psi[k], Omega)
+        np.testing.assert_allclose(K[k], K_ref, rtol=1e-11, atol=1e-12 * np.abs(K_ref).max())
+        np.testing.assert_allclose(P_prev[k], P_ref, rtol=1e-11, atol=1e-12 * np.abs(P_ref).max())
+
+
+def test_riccati_step_open_loop_udp_is_the_dense_theorem_1_at_n_1():
+    # N = 1: the open-loop UDP-like law is eq:opt-law-2 with Omega_g = B'Omega_1 B, Omega_d its diagonal:
+    # u = -(Omega_g Vbar + Psi + Omega_d (I - Vbar))^{-1} B'Omega_1 A x, written out here
+    from packetloss_cvx.recursion import input_weight, riccati_step
+
+    rng = np.random.default_rng(5)
+    s = random_system(rng, n=3, m=2, horizon=1, time_varying=False, non_stationary=False)
+    mu, psi, W = s.mu_schedule[0], s.input_weights[0], s.state_weights[0]
+    Og = s.B.T @ W @ s.B
+    G = Og * mu[None, :] + np.diag(psi + np.diag(Og) * (1 - mu))
+    K_ref = np.linalg.solve(G, s.B.T @ W @ s.A)
+    d = np.diag(Og)[None]
+    K, P0 = riccati_step(W[None], s.A, s.B, mu[None], input_weight(s, "udp", mu[None], d))
+    np.testing.assert_allclose(K[0], K_ref, rtol=1e-12)
+    # the cost-to-go: min over u of the UDP-like cost at x is x'P0 x (brute check at a random x)
+    x = rng.normal(size=3)
+    u = -K_ref @ x
+    mean = s.A @ x + s.B @ (mu * u)
+    value = mean @ W @ mean + np.sum(mu * psi * u * u) + np.sum(mu * (1 - mu) * np.diag(Og) * u * u)
+    assert x @ P0[0] @ x == pytest.approx(value, rel=1e-12)
