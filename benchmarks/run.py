@@ -651,6 +651,57 @@ def evaluations(baseline, rows):
     rows.append({"bench": "evaluations", "after": ours, "before": before})
 
 
+# ---------------------------------------------------------------- issue 19: stationary long horizons
+
+def stationary_tail(horizons, repeats, rows):
+    """closed_form(method="recursion") at mu = 1 (n = 4, m = 2, bench_system's plant, rho(A) = 0.95) against
+    scipy's solve_discrete_are on the same (A, B), CPU time (time.process_time; run with
+    OPENBLAS_NUM_THREADS=1), interleaved, minimum over repeats; a fresh System per run (nothing cached), and
+    the full pass (the closure switched off) for the cost agreement and as the before."""
+    import packetloss_cvx.recursion as recursion
+    from scipy.linalg import solve_discrete_are
+
+    print("\n18. stationary long horizons (issue 19): closed_form(method='recursion'), mu = 1, n = 4, m = 2, vs "
+          "scipy solve_discrete_are on the same (A, B); CPU ms, min of interleaved runs")
+    print(f"{'N':>6} {'proto':>5} {'dare ms':>8} {'closed ms':>10} {'ratio':>6} {'full ms':>8} {'full/closed':>11}"
+          f" {'|dJ|/J vs full':>15}")
+
+    def fresh(N):
+        s = bench_system(N)
+        return pl.System(A=s.A, B=s.B, horizon=N, state_weight=np.diag(s.state_weights[0]),
+                         input_weight=s.input_weights[0], mu=[1.0, 1.0], x0=s.x0)
+
+    def cpu(fn):
+        start = time.process_time()
+        out = fn()
+        return time.process_time() - start, out
+
+    saved = recursion.STATIONARY_RUN
+    for N in horizons:
+        s0 = fresh(N)
+        R = np.diag(s0.input_weights[0])
+        for protocol in ("tcp", "udp"):
+            times = {"dare": [], "closed": [], "full": []}
+            for _ in range(repeats):
+                times["dare"].append(cpu(lambda: solve_discrete_are(s0.A, s0.B, s0.state_weights[0], R))[0])
+                system = fresh(N)
+                t, closed = cpu(lambda system=system: pl.closed_form(system, protocol, "recursion"))
+                times["closed"].append(t)
+                system = fresh(N)
+                recursion.STATIONARY_RUN = 10**9
+                try:
+                    t, full = cpu(lambda system=system: pl.closed_form(system, protocol, "recursion"))
+                finally:
+                    recursion.STATIONARY_RUN = saved
+                times["full"].append(t)
+            d, c, f = (min(times[k]) for k in ("dare", "closed", "full"))
+            rel = abs(closed.cost - full.cost) / full.cost
+            print(f"{N:>6} {protocol:>5} {d * 1e3:>8.3f} {c * 1e3:>10.3f} {c / d:>5.1f}x {f * 1e3:>8.1f} "
+                  f"{f / c:>10.0f}x {rel:>15.1e}")
+            rows.append({"bench": "stationary_tail", "N": N, "protocol": protocol, "dare_s": d, "closed_s": c,
+                         "full_s": f, "ratio_to_dare": c / d, "cost_rel_vs_full": rel})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
@@ -689,6 +740,7 @@ def main() -> None:
         15: lambda: shared_qps(1 if quick else 3, rows),
         16: lambda: evaluations(args.baseline, rows),
         17: lambda: systems_and_structure(rows),
+        18: lambda: stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

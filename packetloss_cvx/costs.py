@@ -31,7 +31,7 @@ from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = [
-    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "hessian_diagonal", "hessian_factor",
+    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "lyapunov_weights_if_needed", "hessian_diagonal", "hessian_factor",
     "loss_variance_term", "paper_optimal_cost", "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
 ]
 
@@ -92,10 +92,11 @@ def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
 
 
 def _verified(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
-              weights: tuple[np.ndarray, float], atol: float = 0.0) -> float:
+              weights: tuple[np.ndarray, float], atol: float = 0.0, states: np.ndarray | None = None) -> float:
     """``closed`` if it agrees with the forward cost of the plan ``U`` (a sum of nonnegative terms,
-    free of cancellation) to ``SELF_CHECK_RTOL`` (plus ``atol``); NumericalError otherwise."""
-    forward = recursion_cost(system, U, protocol, weights)
+    free of cancellation; ``states``: its mean states if the caller has them) to ``SELF_CHECK_RTOL`` (plus
+    ``atol``); NumericalError otherwise."""
+    forward = recursion_cost(system, U, protocol, weights, states)
     if not (np.isfinite(forward) and np.isfinite(closed)):
         raise NumericalError(
             f"the {protocol}-like expected cost exceeds the double-precision range (about 1e308): the "
@@ -334,9 +335,30 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
     system = check_system(system)
     protocol = check_protocol(protocol)
     refuse_correlated(system, protocol)
-    weights = udp_variance_weights(system)
+    weights = lyapunov_weights_if_needed(system, protocol, method)
     _, dense = dense_or_recursion(system, method, weights, lambda: _dense_solution(system, protocol, weights))
     return _recursion_solution(system, protocol, weights) if dense is None else dense
+
+
+def lyapunov_weights_if_needed(system: System, protocol: str, method: str) -> tuple[np.ndarray, float]:
+    """udp_variance_weights(system), or zeros where they cannot enter the answer: the recursion is taken
+    without a condition estimate (``"recursion"``, or ``"auto"`` beyond ``AUTO_DENSE_MAX``), there is no
+    noise (the noise term is 0), and the UDP-like variance weight ``(1 - mu) d`` vanishes (TCP-like, or every
+    mu = 1). Saves the O(N n^3) Lyapunov sums of a long perfect-channel horizon. O(N m) otherwise.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> lyapunov_weights_if_needed(s, "udp", "recursion")[0].tolist()     # mu = 1: (1 - mu) d = 0
+    [[0.0], [0.0]]
+    >>> lyapunov_weights_if_needed(s, "udp", "dense")[0].tolist()         # the condition estimate needs them
+    [[5.0], [1.0]]
+    """
+    recursion = method == "recursion" or (method == "auto" and system.horizon * system.m > AUTO_DENSE_MAX)
+    unused = protocol == "tcp" or bool(np.all(system.mu_schedule == 1.0))
+    if recursion and unused and not np.any(system.noise_cov != 0):
+        return np.zeros((system.horizon, system.m)), 0.0
+    return udp_variance_weights(system)
 
 
 def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, float],
@@ -371,11 +393,11 @@ def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, f
 
 def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
     K, P0, noise = backward_pass(system, protocol, weights)
-    U, _ = mean_trajectory(system, K)
+    U, X = mean_trajectory(system, K)
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise
     scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
-    cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale)
+    cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
     return Solution(protocol=protocol, cost=cost, inputs=U, gain=K[0],
                     closed_loop_eigenvalues=_eigs(system, K[0]), method="recursion")
 

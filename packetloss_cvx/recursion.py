@@ -28,19 +28,24 @@ one-point forms.
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg.lapack import dgesv as _gesv
 
 from .errors import NumericalError
 from .linalg import check_finite
 from .model import STRUCTURE_CACHE_MAX_BYTES, System
 from .protocols import check_protocol
+from .tolerances import STATIONARY_RTOL
 
 __all__ = [
-    "FLAT_MIN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost", "input_weight", "mean_states",
+    "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost", "input_weight", "mean_states",
     "mean_trajectory", "overflow_error", "recursion_cost", "riccati_step", "rollout_batch", "udp_variance_weights",
 ]
 
 #: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
 FLAT_MIN = 64
+#: Horizons of at least twice this many steps try to close a stationary tail (tolerances.STATIONARY_RTOL), and a
+#: run of at least this many steps with one gain and one channel is rolled out by powers of its closed loop.
+STATIONARY_RUN = 64
 
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
@@ -74,11 +79,15 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
 
 
 def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
-    """udp_variance_weights, computed: the backward Lyapunov sum S_t, O(N n^3)."""
+    """udp_variance_weights, computed: the backward Lyapunov sum S_t, O(N n^3); once S stops changing
+    (:func:`stationary_close`) over a stationary head (Omega_t the same for every earlier t), the earlier
+    steps take its value: O(L n^3) for a sum that settles in L steps."""
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
     d = np.empty((N, system.m))
     noise = 0.0
     has_noise = bool(np.any(system.noise_cov != 0))
+    settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
+    head = None                                         # Omega_1..Omega_head+1 (W[0..head]) are one weight
     S = W[N - 1].copy()
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(N - 1, -1, -1):
@@ -86,9 +95,46 @@ def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
             if has_noise:
                 noise += float(np.sum(S * system.noise_cov))
             if t > 0:
-                S = W[t - 1] + A.T @ S @ A
+                new = W[t - 1] + A.T @ S @ A
+                if (settle and (head is None or t - 1 <= head) and _small_change(new, S)
+                        and stationary_close(new, S, _radius(A) ** 2)):
+                    head = _leading_run(W[None]) if head is None else head
+                    if t - 1 <= head:                                     # S_{t-1} = ... = S_0 = new
+                        d[:t] = np.einsum("ij,ik,kj->j", B, new, B)
+                        if has_noise:
+                            noise += t * float(np.sum(new * system.noise_cov))
+                        break
+                S = new
     d.setflags(write=False)
     return d, noise
+
+
+def _small_change(new: np.ndarray, old: np.ndarray) -> bool:
+    """A cheap necessary test for :func:`stationary_close` with a contraction q >= 0.01. O(P n^2)."""
+    return bool(np.abs(new - old).max() <= 100.0 * STATIONARY_RTOL * np.abs(new).max())
+
+
+def _radius(loop: np.ndarray) -> np.ndarray:
+    """The spectral radius of each matrix of a stack (or of one matrix). O(P n^3)."""
+    return np.max(np.abs(np.linalg.eigvals(loop)), axis=-1)
+
+
+def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) -> bool:
+    """Whether a backward iterate has settled: its last change, times the remaining geometric sum
+    ``q / (1 - q)`` of a map contracting by ``q`` per step, is below ``STATIONARY_RTOL`` relative to its
+    size (every point of a batch: new, old (..., n, n), q (...,) or a float). Never with q >= 1. O(P n^2).
+
+    Examples
+    --------
+    >>> stationary_close(np.eye(2), np.eye(2) * (1 + 1e-16), 0.25), stationary_close(np.eye(2), 2 * np.eye(2), 0.25)
+    (True, False)
+    """
+    q = np.asarray(q, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        change = np.max(np.abs(new - old), axis=(-2, -1))
+        size = np.max(np.abs(new), axis=(-2, -1))
+        ok = (q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)
+    return bool(np.all(ok))
 
 
 def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None = None) -> float:
@@ -198,7 +244,13 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     diagonal += added
     if variance:
         diagonal += (1.0 - mu) * np.diagonal(BPB, axis1=1, axis2=2)
-    K = np.linalg.solve(G, rhs)
+    if k == 1:                                   # one point: LAPACK's gesv without the stacked wrapper
+        _, _, K, info = _gesv(G[0], rhs[0])
+        if info != 0:
+            raise np.linalg.LinAlgError("singular G")
+        K = K[None]
+    else:
+        K = np.linalg.solve(G, rhs)
     P_prev = APA - matmul(rhs.transpose(0, 2, 1) * row, K)
     if Omega is not None:
         P_prev += Omega
@@ -225,16 +277,39 @@ def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndar
     K = np.empty((N, P, m, n))
     Pm = np.empty((P, n, n))
     Pm[:] = W[N - 1]
+    settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
+    head = None                                         # steps 1..head share mu, the added diagonal and Omega
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(N - 1, -1, -1):
             try:
-                K[t], Pm = riccati_step(Pm, A, B, mu[:, t], added[:, t], W[t - 1] if t > 0 else None)
+                K[t], new = riccati_step(Pm, A, B, mu[:, t], added[:, t], W[t - 1] if t > 0 else None)
+                if (settle and 2 <= t < N - 8 and (head is None or t <= head) and _small_change(new, Pm)
+                        and _settled(new, Pm, A, B, mu[:, t], K[t])):
+                    if head is None:
+                        head = min(_leading_run(mu[:, 1:]), _leading_run(added[:, 1:]), _leading_run(W[None]) + 1)
+                    if t <= head:
+                        # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more step gives
+                        # the gain of P_t for every step 1..t-1, then step 0 (no Omega) as in the full pass
+                        K[1:t], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
+                        K[0], Pm = riccati_step(Pm, A, B, mu[:, 0], added[:, 0], None)
+                        break
             except np.linalg.LinAlgError:
                 raise overflow_error("the cost-to-go matrix", protocol) from None
+            Pm = new
     K = K.transpose(1, 0, 2, 3)
     if not (np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
         raise overflow_error("the cost-to-go matrix", protocol)
     return K, Pm
+
+
+def _settled(new: np.ndarray, old: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) -> bool:
+    """stationary_close for the Riccati map, whose contraction is rho(A - B M K)^2 (eigenvalues only once the
+    change is already below STATIONARY_RTOL). O(P n^3)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        loop = A - np.matmul(B * mu[:, None, :], K)
+        if not np.all(np.isfinite(loop)):
+            return False
+        return stationary_close(new, old, _radius(loop) ** 2)
 
 
 def backward_pass(system: System, protocol: str,
@@ -298,13 +373,14 @@ def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
-                   weights: tuple[np.ndarray, float] | None = None) -> float:
+                   weights: tuple[np.ndarray, float] | None = None, states: np.ndarray | None = None) -> float:
     """J(U) of eq:opt-lqg-simplest with Lemma 1, by a forward pass of the mean state.
 
     Every term added is nonnegative (stage costs of the mean state, the input and loss-variance
     weights, the noise term), so the sum has no cancellation: this is the referee the closed
-    forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``.
-    Time O(N n^3) (the Lyapunov sums), memory O(N m).
+    forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``; ``states``: the
+    plan's mean states x_1..x_N (N, n) if the caller rolled them out with the plan (closed_form's law), else
+    they are rolled forward here from the plan. Time O(N n^3) (the Lyapunov sums), memory O(N m).
 
     Examples
     --------
@@ -319,15 +395,18 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     mu = system.mu_schedule[None]
     with np.errstate(over="ignore", invalid="ignore"):
         base = float(x @ system.initial_weight @ x) + noise
-    return float(forward_cost(system, mu, inputs[None], mean_states(system, mu, inputs[None], x[None]),
-                              input_weight(system, protocol, mu, d), base)[0])
+    X = mean_states(system, mu, inputs[None], x[None]) if states is None else states[None]
+    return float(forward_cost(system, mu, inputs[None], X, input_weight(system, protocol, mu, d), base)[0])
 
 
 def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
                 K: np.ndarray | None = None) -> np.ndarray:
     """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
     ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
-    the law's, ``u_t = -K_t x_t``, written into U as it goes (:func:`rollout_batch`). O(P N n (n + m)).
+    the law's, ``u_t = -K_t x_t``, written into U as it goes (:func:`rollout_batch`); a stationary run of
+    one gain (a settled backward pass, at least STATIONARY_RUN steps) is rolled out by powers of its closed
+    loop where A is stable (rho(A) < 1: rolling the plan forward again, as expected_cost does, then meets the
+    same states to rounding; with an unstable A step by step, to the bit). O(P N n (n + m)).
 
     Examples
     --------
@@ -337,13 +416,75 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
     """
     AT, BT, N = system.A.T, system.B.T, system.horizon
     X = np.empty((U.shape[0], N, system.n))
-    with np.errstate(over="ignore", invalid="ignore"):     # callers check finiteness
+    run = _gain_run(mu, K) if K is not None and N >= 2 * STATIONARY_RUN else None
+    if run is not None and not _radius(system.A) < 1.0:
+        # an unstable A would amplify, in a plan rolled forward again (expected_cost of the plan), the
+        # rounding by which powers differ from steps: there the rollout stays step by step, to the bit
+        run = None
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):     # callers check finiteness
         state = x
-        for t in range(N):
+        t = 0
+        while t < N:
+            if run is not None and t == run[0]:
+                state = _closed_run(system, mu[:, t], K[:, t], state, X, U, *run)
+                t = run[1]
+                continue
             if K is not None:
                 U[:, t] = -np.matmul(K[:, t], state[:, :, None])[:, :, 0]
             state = X[:, t] = state @ AT + (mu[:, t] * U[:, t]) @ BT
+            t += 1
     return X
+
+
+def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
+    """The run of steps 1..b-1 whose gains and channels equal step 1's for every point (the stationary head
+    a settled backward pass fills), if it has at least STATIONARY_RUN steps: its end found by bisection on
+    single steps, then the whole run verified entry by entry. O(P N m n) at most, O(P m n log N) when absent."""
+    N = K.shape[1]
+    if N < 2 * STATIONARY_RUN or not np.array_equal(K[:, 2], K[:, 1]):
+        return None
+    lo, hi = 2, N                                   # K[:, lo] equals K[:, 1]; K[:, hi] (if any) is taken not to
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if np.array_equal(K[:, mid], K[:, 1]) else (lo, mid)
+    b = lo + 1
+    if b - 1 < STATIONARY_RUN or not (_constant(K[:, 1:b]) and _constant(mu[:, 1:b])):
+        return None
+    return 1, b
+
+
+def _constant(values: np.ndarray) -> bool:
+    """Whether ``values[:, k]`` is the same for every k (values (P, L, ...)): each step against the next, as two
+    same-shaped views (no broadcasting over a short last axis). O(P L k)."""
+    return bool(np.array_equal(values[:, 1:], values[:, :-1]))
+
+
+def _leading_run(values: np.ndarray) -> int:
+    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (P, L, ...)). O(P L k)."""
+    P, L = values.shape[:2]
+    if _constant(values):                        # the usual case, one comparison of two views
+        return L - 1
+    same = np.all((values[:, 1:] == values[:, :-1]).reshape(P, L - 1, -1), axis=2).all(axis=0)
+    return int(np.argmin(same)) if not same.all() else L - 1
+
+
+def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, state: np.ndarray, X: np.ndarray, U: np.ndarray,
+                a: int, b: int) -> np.ndarray:
+    """Steps a..b-1 of one gain K (P, m, n) and channel mu (P, m) from x_a = ``state`` (P, n): the states
+    x_a (A - B M K)'^k for k = 1..b-a by repeated squaring (log2(b - a) stacked products; every step is still
+    computed), written into X and U. Returns x_b. O(P (b - a) n^2 + P n^3 log(b - a))."""
+    L = b - a
+    loop = (system.A - np.matmul(system.B * mu[:, None, :], K)).transpose(0, 2, 1)   # (A - B M K)'
+    Y = np.empty((state.shape[0], L + 1, state.shape[1]))
+    Y[:, 0] = state
+    power, k = loop, 1
+    while k < L + 1:                                       # Y[:, k:2k] = Y[:, :k] (A - B M K)'^k
+        j = min(k, L + 1 - k)
+        np.matmul(Y[:, :j], power, out=Y[:, k:k + j])
+        power, k = np.matmul(power, power), k + j
+    U[:, a:b] = -np.matmul(Y[:, :L], K.transpose(0, 2, 1))
+    X[:, a:b] = Y[:, 1:L + 1]
+    return Y[:, L]
 
 
 def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
@@ -369,6 +510,8 @@ def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, w
         if Omega is not None:
             flat = X.reshape(P, -1)
             states = np.einsum("pk,pk->p", flat @ Omega, flat)
+        elif _constant(system.state_weights[None]):          # one weight for every step: one product
+            states = np.einsum("ptj,ptj->p", X @ system.state_weights[0], X)
         else:
-            states = np.einsum("pti,tij,ptj->p", X, system.state_weights, X)
+            states = np.einsum("ptj,ptj->p", np.einsum("pti,tij->ptj", X, system.state_weights), X)
         return base + (inputs + states)
