@@ -148,14 +148,17 @@ def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
     return U
 
 
-def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None) -> np.ndarray:
+def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
+                   rows: np.ndarray | None = None) -> np.ndarray:
     """G of Theorem 1 (the Hessian of J is Vbar G): eq:opt-law-1, and eq:opt-law-2 for the UDP-like protocol.
 
     .. math:: G = \\Omega_g \\bar V + \\Psi\\ [+\\ \\Omega_d (I - \\bar V)]
 
     ``v``: the stacked delivery probabilities, (N m,) or a batch (P, N m) (default: the prediction's Vbar);
-    the result is (N m, N m) or (P, N m, N m). The one dense form of the Hessian (closed_form, the
-    evaluator's batches, its pointwise and line paths, the cost difference). O(P (N m)^2).
+    the result is (N m, N m) or (P, N m, N m). ``rows``: a boolean mask of the entries to keep, for the
+    principal block G[rows, rows] alone (one point; the line's fixed channels). The one dense form of the
+    Hessian (closed_form, the evaluator's batches, its pointwise and line paths, the cost difference).
+    O(P (N m)^2).
 
     Examples
     --------
@@ -169,6 +172,10 @@ def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None)
     [[6.0, 1.0], [1.0, 2.0]]
     """
     v = pred.Vbar if v is None else v
+    if rows is not None:
+        G = pred.Omega_g[np.ix_(rows, rows)] * v[rows]
+        G.flat[:: G.shape[0] + 1] += hessian_diagonal(pred, protocol, v)[rows]
+        return G
     k = v.shape[-1]
     G = pred.Omega_g * v[..., None, :]
     G.reshape(*v.shape[:-1], k * k)[..., :: k + 1] += hessian_diagonal(pred, protocol, v)

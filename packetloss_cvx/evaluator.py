@@ -153,18 +153,24 @@ class CostEvaluator:
 
     # ------------------------------------------------------------------ public
     @blas_limited
-    def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> float:
+    def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None, checked: bool = True) -> float:
         """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
 
         On the dense path at the system's x0, vectors instead of stacks
         (:class:`~packetloss_cvx.pointwise.PointEvaluator`: one LU, checked the same way, equal to
         :meth:`costs` to rounding); otherwise, or where its check fails, a batch of one.
+
+        ``checked=False`` (searches only: the allocation's probes) skips the one-point path's residual and
+        self-check, O((N m)^2) of an O((N m)^3) point: the value is the same as the checked one wherever the
+        check passes, and unchecked where it would fail. A caller must confirm with a checked call every
+        value that a decision its certificate depends on rests on.
         """
         s = self.system
         if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
                 and mu.shape in ((s.m,), (s.horizon, s.m)) and 0.0 <= mu.min() and mu.max() <= 1.0):
             # NaN fails the comparisons: validated below
-            value = self._point.cost(np.tile(mu, (s.horizon, 1)) if mu.ndim == 1 else mu)   # vectors, not stacks
+            value = self._point.cost(np.tile(mu, (s.horizon, 1)) if mu.ndim == 1 else mu,   # vectors, not stacks
+                                     checked)
             if value is not None:
                 return value
         one = numeric_array(mu, "mu")
@@ -174,17 +180,18 @@ class CostEvaluator:
                 return value
         return float(self.costs(one[None], None if x0 is None else numeric_array(x0, "x0")[None])[0])
 
-    def line(self, mu: npt.ArrayLike, i: int) -> Callable[[float], float]:
+    def line(self, mu: npt.ArrayLike, i: int, checked: bool = True) -> Callable[[float], float]:
         """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,) and s in [0, 1], at the system's x0.
 
         On the dense path the other channels are factored once (a Schur complement,
         :meth:`PointEvaluator.line`): per point O(N^3 + (N m)^2) instead of O((N m)^3); every
         point is checked as :meth:`cost` checks it and falls back to :meth:`cost` on a failed check.
+        ``checked=False``: the points' values without the check, with the contract of :meth:`cost`'s.
         """
         base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
         if not (isinstance(i, (int, np.integer)) and 0 <= i < self.system.m):
             raise InputError("i", f"expected a channel index from 0 to {self.system.m - 1}, found {i!r}")
-        fast = None if self._point is None else self._point.line(base, int(i))
+        fast = None if self._point is None else self._point.line(base, int(i), checked)
 
         def at(value: float) -> float:
             if fast is not None and 0.0 <= value <= 1.0:
@@ -193,7 +200,7 @@ class CostEvaluator:
                     return got
             point = base.copy()
             point[i] = value
-            return self.cost(point)
+            return self.cost(point, checked=checked)
 
         return at
 

@@ -80,14 +80,23 @@ class PointEvaluator:
     def _diag(self, v: np.ndarray) -> np.ndarray:
         return hessian_diagonal(self.pred, self.protocol, v)
 
-    def cost(self, mu: np.ndarray) -> float | None:
-        """J*(mu) for a schedule mu (N, m), or None where a check fails. O((N m)^3)."""
+    def cost(self, mu: np.ndarray, checked: bool = True) -> float | None:
+        """J*(mu) for a schedule mu (N, m), or None where a check fails. O((N m)^3). ``checked=False``: the
+        same value without the residual and the self-check (:meth:`_closed`), for callers that confirm
+        with a checked call every value a decision rests on."""
         v = mu.ravel()
-        dg = self._diag(v)
         G = hessian_factor(self.pred, self.protocol, v)
         with np.errstate(all="ignore"):
             _, _, w, info = _gesv(G, self.g, overwrite_a=True)
-        return None if info != 0 else self._checked(v, dg, w)
+        if info != 0:
+            return None
+        return self._checked(v, self._diag(v), w) if checked else self._closed(v, w)
+
+    def _closed(self, v: np.ndarray, w: np.ndarray) -> float | None:
+        """C - g'Vbar w for the solve's w, unchecked (None if not finite or negative). O(N m)."""
+        with np.errstate(all="ignore"):
+            closed = self.const - float(self.g @ (v * w))
+        return closed if np.isfinite(closed) and closed >= 0 else None
 
     def _checked(self, v: np.ndarray, dg: np.ndarray, w: np.ndarray) -> float | None:
         """The cost of the plan u = -w if the solve's residual and the self-check pass. O((N m)^2)."""
@@ -101,7 +110,7 @@ class PointEvaluator:
                 return None
             u = -w
             z = v * u
-            closed = self.const + float(self.g @ z)
+            closed = self.const - float(self.g @ (v * w))
             N, n, m = s.horizon, s.n, s.m
             X = (self.Phi_x + pred.Gamma @ z).reshape(1, N, n)
             mu, U = v.reshape(1, N, m), u.reshape(1, N, m)
@@ -111,12 +120,13 @@ class PointEvaluator:
             ok = ok and abs(closed - forward) <= SELF_CHECK_RTOL * forward
         return closed if ok else None
 
-    def line(self, mu: np.ndarray, i: int) -> Callable[[float], float | None] | None:
+    def line(self, mu: np.ndarray, i: int, checked: bool = True) -> Callable[[float], float | None] | None:
         """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,): the other channels' block
         G_RR of G does not change along the line, so it is factored once and each point solves
         the N×N Schur complement ``s M + diag(psi_i + [UDP] Omega_d,i (1 - s))`` with
         ``M = Omega_g,ii - Omega_g,iR V_R G_RR^{-1} Omega_g,Ri``. None when m = 1 or G_RR is
-        singular (use :meth:`cost`). Setup O((N (m - 1))^3 + N^2 N m), each point O(N^3 + (N m)^2)."""
+        singular (use :meth:`cost`). Setup O((N (m - 1))^3 + N^2 N m), each point O(N^3 + (N m)^2).
+        ``checked=False``: each point's value without its residual and self-check (as :meth:`cost`)."""
         s, pred = self.system, self.pred
         N, m = s.horizon, s.m
         if m == 1:
@@ -126,7 +136,7 @@ class PointEvaluator:
         v = np.tile(mu, N)
         vR = v[~on]
         Og = pred.Omega_g
-        G_RR = hessian_factor(pred, self.protocol, v)[np.ix_(~on, ~on)]                 # the fixed channels
+        G_RR = hessian_factor(pred, self.protocol, v, ~on)                              # the fixed channels
         with np.errstate(all="ignore"):
             factor = lu_factor(G_RR, check_finite=False)
             Y = lu_solve(factor, Og[np.ix_(~on, on)], check_finite=False)        # G_RR^{-1} Omega_g,Ri
@@ -149,6 +159,6 @@ class PointEvaluator:
                 w = np.empty(N * m)
                 w[on] = w_i
                 w[~on] = y - value * (Y @ w_i)
-            return self._checked(vs, dg, w)
+            return self._checked(vs, dg, w) if checked else self._closed(vs, w)
 
         return at
