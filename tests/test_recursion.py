@@ -255,3 +255,22 @@ def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
     d_full, noise_full = _full_pass(monkeypatch, lambda: udp_variance_weights(system_from_dict(unstable.to_dict())))
     np.testing.assert_array_equal(d, d_full)
     assert noise == noise_full
+
+
+def test_a_point_answers_the_same_in_any_batch_below_flat_min():
+    """The brute-force allocator reads a repeated point back instead of evaluating it again: a point's gains
+    and cost-to-go must not depend on the batch it is in (a batch of one takes LAPACK's gesv directly)."""
+    from packetloss_cvx.recursion import FLAT_MIN, backward_batch, input_weight
+
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        s = random_system(rng)
+        mus = rng.uniform(0.0, 1.0, (5, s.horizon, s.m))
+        d = np.abs(rng.normal(size=(s.horizon, s.m)))
+        added = input_weight(s, "udp", mus, d)
+        K5, P5 = backward_batch(s, "udp", mus, added)
+        for k in range(5):
+            K1, P1 = backward_batch(s, "udp", mus[k:k + 1], added[k:k + 1])
+            np.testing.assert_array_equal(K1[0], K5[k])
+            np.testing.assert_array_equal(P1[0], P5[k])
+    assert FLAT_MIN > 5
