@@ -354,7 +354,7 @@ class _ClosedFormEverywhere:
     def __init__(self, system, protocol):
         self.system, self.protocol = system, protocol
 
-    def cost(self, mu):
+    def cost(self, mu, x0=None, checked=True):      # closed_form checks every value anyway
         return pl.closed_form(self.system.with_mu(np.clip(mu, 0.0, 1.0)), self.protocol, "auto").cost
 
     def solve(self, mus):
@@ -363,7 +363,7 @@ class _ClosedFormEverywhere:
         sols = [pl.closed_form(self.system.with_mu(mu), self.protocol, "auto") for mu in mus]
         return SimpleNamespace(costs=np.array([s.cost for s in sols]), inputs=np.array([s.inputs for s in sols]))
 
-    def line(self, mu, i):
+    def line(self, mu, i, checked=True):
         base = np.array(mu, dtype=float)
 
         def at(value):
@@ -379,12 +379,13 @@ BASELINE_ALLOCATION = """
 import json, sys, time
 import numpy as np
 import packetloss_cvx as pl
+from packetloss_cvx.allocation import allocate      # imported before the clock starts (4560768 has no pl.allocate)
 {functions}
 s = allocation_system(int(sys.argv[1]))
 alpha = allocation_alpha(s)
-start = time.perf_counter()
-a = pl.allocate(s, "udp", alpha, [1.0, 1.0, 1.0])
-print(json.dumps({{"time": time.perf_counter() - start, "mu": a.mu.tolist(), "lower_bound": a.lower_bound,
+start = time.process_time()
+a = allocate(s, "udp", alpha, [1.0, 1.0, 1.0])
+print(json.dumps({{"time": time.process_time() - start, "mu": a.mu.tolist(), "lower_bound": a.lower_bound,
                   "boxes": a.boxes, "status": a.status}}))
 """
 
@@ -409,7 +410,9 @@ def allocation(seeds, rows, baseline=None):
 
     print("\n8. UDP-like allocation, m = 3, N = 40: J*(mu) by closed_form per call (before; today's closed_form, "
           "whose structure is now shared by with_mu copies) vs the cached evaluator" +
-          ("; with --baseline, the same allocation run by that checkout" if baseline else ""))
+          ("; with --baseline, the same allocation run by that checkout" if baseline else "") +
+          " (CPU seconds, time.process_time; run with OPENBLAS_NUM_THREADS=1). 'same': the same mu to 1e-9, bound and "
+          "boxes; 'cert': the same status, and each answer's communication cost within the other's certified bounds")
     print(f"{'seed':>5} {'boxes':>6} {'before s':>9} {'after s':>8} {'ratio':>7}  same mu, bound, boxes"
           + (f" {'| baseline s':>12} {'ratio':>7}  same" if baseline else ""))
     cached = udp_module.cost_function
@@ -425,8 +428,8 @@ def allocation(seeds, rows, baseline=None):
         for name, fn in (("after", cached), ("before", old)):
             udp_module.cost_function = tcp_module.cost_function = fn
             try:
-                start = time.perf_counter()
-                runs[name] = (pl.allocate(s, "udp", alpha, [1.0, 1.0, 1.0]), time.perf_counter() - start)
+                start = time.process_time()
+                runs[name] = (pl.allocate(s, "udp", alpha, [1.0, 1.0, 1.0]), time.process_time() - start)
             finally:
                 udp_module.cost_function = tcp_module.cost_function = cached
         (a, ta), (b, tb) = runs["after"], runs["before"]
@@ -440,8 +443,12 @@ def allocation(seeds, rows, baseline=None):
             same_base = bool(np.allclose(a.mu, base["mu"], rtol=0, atol=1e-9) and base["boxes"] == a.boxes
                              and abs(a.lower_bound - base["lower_bound"]) <= 1e-9 * max(1.0, abs(a.lower_bound))
                              and base["status"] == a.status)
-            line += f" {base['time']:>12.2f} {base['time'] / ta:>6.1f}x  {same_base}"
-            row.update(baseline_s=base["time"], baseline_ratio=base["time"] / ta, same_as_baseline=same_base)
+            ours, theirs = a.communication_cost, float(np.sum(base["mu"]))           # beta = 1
+            cert = bool(base["status"] == a.status and a.lower_bound <= theirs + 1e-12
+                        and base["lower_bound"] <= ours + 1e-12)
+            line += f" {base['time']:>12.2f} {base['time'] / ta:>6.1f}x  {same_base} cert {cert}"
+            row.update(baseline_s=base["time"], baseline_ratio=base["time"] / ta, same_as_baseline=same_base,
+                       within_certificates=cert)
         print(line)
         rows.append(row)
 
@@ -796,6 +803,57 @@ def evaluations(baseline, rows):
     rows.append({"bench": "evaluations", "after": ours, "before": before})
 
 
+# ---------------------------------------------------------------- issue 19: stationary long horizons
+
+def stationary_tail(horizons, repeats, rows):
+    """closed_form(method="recursion") at mu = 1 (n = 4, m = 2, bench_system's plant, rho(A) = 0.95) against
+    scipy's solve_discrete_are on the same (A, B), CPU time (time.process_time; run with
+    OPENBLAS_NUM_THREADS=1), interleaved, minimum over repeats; a fresh System per run (nothing cached), and
+    the full pass (the closure switched off) for the cost agreement and as the before."""
+    import packetloss_cvx.recursion as recursion
+    from scipy.linalg import solve_discrete_are
+
+    print("\n18. stationary long horizons (issue 19): closed_form(method='recursion'), mu = 1, n = 4, m = 2, vs "
+          "scipy solve_discrete_are on the same (A, B); CPU ms, min of interleaved runs")
+    print(f"{'N':>6} {'proto':>5} {'dare ms':>8} {'closed ms':>10} {'ratio':>6} {'full ms':>8} {'full/closed':>11}"
+          f" {'|dJ|/J vs full':>15}")
+
+    def fresh(N):
+        s = bench_system(N)
+        return pl.System(A=s.A, B=s.B, horizon=N, state_weight=np.diag(s.state_weights[0]),
+                         input_weight=s.input_weights[0], mu=[1.0, 1.0], x0=s.x0)
+
+    def cpu(fn):
+        start = time.process_time()
+        out = fn()
+        return time.process_time() - start, out
+
+    saved = recursion.STATIONARY_RUN
+    for N in horizons:
+        s0 = fresh(N)
+        R = np.diag(s0.input_weights[0])
+        for protocol in ("tcp", "udp"):
+            times = {"dare": [], "closed": [], "full": []}
+            for _ in range(repeats):
+                times["dare"].append(cpu(lambda: solve_discrete_are(s0.A, s0.B, s0.state_weights[0], R))[0])
+                system = fresh(N)
+                t, closed = cpu(lambda system=system: pl.closed_form(system, protocol, "recursion"))
+                times["closed"].append(t)
+                system = fresh(N)
+                recursion.STATIONARY_RUN = 10**9
+                try:
+                    t, full = cpu(lambda system=system: pl.closed_form(system, protocol, "recursion"))
+                finally:
+                    recursion.STATIONARY_RUN = saved
+                times["full"].append(t)
+            d, c, f = (min(times[k]) for k in ("dare", "closed", "full"))
+            rel = abs(closed.cost - full.cost) / full.cost
+            print(f"{N:>6} {protocol:>5} {d * 1e3:>8.3f} {c * 1e3:>10.3f} {c / d:>5.1f}x {f * 1e3:>8.1f} "
+                  f"{f / c:>10.0f}x {rel:>15.1e}")
+            rows.append({"bench": "stationary_tail", "N": N, "protocol": protocol, "dare_s": d, "closed_s": c,
+                         "full_s": f, "ratio_to_dare": c / d, "cost_rel_vs_full": rel})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
@@ -836,6 +894,7 @@ def main() -> None:
         16: lambda: evaluations(args.baseline, rows),
         17: lambda: systems_and_structure(rows),
         18: lambda: tcp_allocation(args.baseline, rows, 2 if quick else 3),
+        19: lambda: stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

@@ -14,6 +14,9 @@ multiple of the identity (see docs/claims.md, :func:`paper_optimal_cost`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TypeVar
+
 import numpy as np
 import numpy.typing as npt
 
@@ -28,14 +31,16 @@ from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = [
-    "check_inputs", "closed_form", "expected_cost", "hessian_factor", "loss_variance_term", "paper_optimal_cost",
-    "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
+    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "lyapunov_weights_if_needed", "hessian_diagonal", "hessian_factor",
+    "loss_variance_term", "paper_optimal_cost", "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
 ]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m
 #: (measured crossover for n = 4, m = 2 between N*m = 160 and 200: docs/performance.md),
 #: and only while the condition estimate stays below ``tolerances.DENSE_MAX_CONDITION``.
 AUTO_DENSE_MAX = 160
+
+T = TypeVar("T")
 
 
 def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] | None = None) -> str:
@@ -87,10 +92,11 @@ def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
 
 
 def _verified(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
-              weights: tuple[np.ndarray, float], atol: float = 0.0) -> float:
+              weights: tuple[np.ndarray, float], atol: float = 0.0, states: np.ndarray | None = None) -> float:
     """``closed`` if it agrees with the forward cost of the plan ``U`` (a sum of nonnegative terms,
-    free of cancellation) to ``SELF_CHECK_RTOL`` (plus ``atol``); NumericalError otherwise."""
-    forward = recursion_cost(system, U, protocol, weights)
+    free of cancellation; ``states``: its mean states if the caller has them) to ``SELF_CHECK_RTOL`` (plus
+    ``atol``); NumericalError otherwise."""
+    forward = recursion_cost(system, U, protocol, weights, states)
     if not (np.isfinite(forward) and np.isfinite(closed)):
         raise NumericalError(
             f"the {protocol}-like expected cost exceeds the double-precision range (about 1e308): the "
@@ -142,8 +148,17 @@ def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
     return U
 
 
-def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
+def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
+                   rows: np.ndarray | None = None) -> np.ndarray:
     """G of Theorem 1 (the Hessian of J is Vbar G): eq:opt-law-1, and eq:opt-law-2 for the UDP-like protocol.
+
+    .. math:: G = \\Omega_g \\bar V + \\Psi\\ [+\\ \\Omega_d (I - \\bar V)]
+
+    ``v``: the stacked delivery probabilities, (N m,) or a batch (P, N m) (default: the prediction's Vbar);
+    the result is (N m, N m) or (P, N m, N m). ``rows``: a boolean mask of the entries to keep, for the
+    principal block G[rows, rows] alone (one point; the line's fixed channels). The one dense form of the
+    Hessian (closed_form, the evaluator's batches, its pointwise and line paths, the cost difference).
+    O(P (N m)^2).
 
     Examples
     --------
@@ -153,11 +168,30 @@ def hessian_factor(pred: Prediction, protocol: str) -> np.ndarray:
     [[3.5, 1.0], [1.0, 1.5]]
     >>> hessian_factor(p, "udp").tolist()          # + Omega_d (I - Vbar) = diag(2.5, 0.5)
     [[6.0, 1.0], [1.0, 2.0]]
+    >>> hessian_factor(p, "udp", np.array([[1.0, 1.0], [0.5, 0.5]]))[1].tolist()    # a batch of two
+    [[6.0, 1.0], [1.0, 2.0]]
     """
-    G = pred.Omega_g * pred.Vbar[None, :] + np.diag(pred.Psi)
-    if protocol == "udp":
-        G = G + np.diag(pred.Omega_d * (1.0 - pred.Vbar))
+    v = pred.Vbar if v is None else v
+    if rows is not None:
+        G = pred.Omega_g[np.ix_(rows, rows)] * v[rows]
+        G.flat[:: G.shape[0] + 1] += hessian_diagonal(pred, protocol, v)[rows]
+        return G
+    k = v.shape[-1]
+    G = pred.Omega_g * v[..., None, :]
+    G.reshape(*v.shape[:-1], k * k)[..., :: k + 1] += hessian_diagonal(pred, protocol, v)
     return G
+
+
+def hessian_diagonal(pred: Prediction, protocol: str, v: np.ndarray) -> np.ndarray:
+    """What G adds to ``Omega_g Vbar`` on its diagonal: ``Psi + [UDP] Omega_d (1 - v)``, shaped like v. O(N m).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> hessian_diagonal(prediction(s), "udp", np.array([0.5, 0.5])).tolist()    # 1 + (5, 1) / 2
+    [3.5, 1.5]
+    """
+    return pred.Psi + (pred.Omega_d * (1.0 - v) if protocol == "udp" else 0.0)
 
 
 def loss_variance_term(pred: Prediction, u: np.ndarray) -> float:
@@ -308,31 +342,74 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
     system = check_system(system)
     protocol = check_protocol(protocol)
     refuse_correlated(system, protocol)
-    weights = udp_variance_weights(system)
+    weights = lyapunov_weights_if_needed(system, protocol, method)
+    _, dense = dense_or_recursion(system, method, weights, lambda: _dense_solution(system, protocol, weights))
+    return _recursion_solution(system, protocol, weights) if dense is None else dense
+
+
+def lyapunov_weights_if_needed(system: System, protocol: str, method: str) -> tuple[np.ndarray, float]:
+    """udp_variance_weights(system), or zeros where they cannot enter the answer: the recursion is taken
+    without a condition estimate (``"recursion"``, or ``"auto"`` beyond ``AUTO_DENSE_MAX``), there is no
+    noise (the noise term is 0), and the UDP-like variance weight ``(1 - mu) d`` vanishes (TCP-like, or every
+    mu = 1). Saves the O(N n^3) Lyapunov sums of a long perfect-channel horizon. O(N m) otherwise.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> lyapunov_weights_if_needed(s, "udp", "recursion")[0].tolist()     # mu = 1: (1 - mu) d = 0
+    [[0.0], [0.0]]
+    >>> lyapunov_weights_if_needed(s, "udp", "dense")[0].tolist()         # the condition estimate needs them
+    [[5.0], [1.0]]
+    """
+    recursion = method == "recursion" or (method == "auto" and system.horizon * system.m > AUTO_DENSE_MAX)
+    unused = protocol == "tcp" or bool(np.all(system.mu_schedule == 1.0))
+    if recursion and unused and not np.any(system.noise_cov != 0):
+        return np.zeros((system.horizon, system.m)), 0.0
+    return udp_variance_weights(system)
+
+
+def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, float],
+                       build: Callable[[], T]) -> tuple[str, T | None]:
+    """The one method chooser and its fallback, for :func:`closed_form` and
+    :class:`~packetloss_cvx.evaluator.CostEvaluator` alike: :func:`pick_method`; on ``"dense"``,
+    :func:`refuse_dense` then ``build()``. Under ``"auto"`` a NumericalError of either (a dense form that
+    would lose or lost its digits) falls back: ``("recursion", None)``, the recursion not depending on
+    the conditioning; under ``"dense"`` it is raised. Returns ``(method, what build returned or None)``.
+    O(N n^3) (the condition estimate) plus ``build``.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> dense_or_recursion(s, "auto", udp_variance_weights(s), lambda: "built")
+    ('dense', 'built')
+    >>> def lost(): raise NumericalError("a residual too large")
+    >>> dense_or_recursion(s, "auto", udp_variance_weights(s), lost)
+    ('recursion', None)
+    """
     choice = pick_method(system, method, weights)
-    if choice == "dense":
-        try:
-            return _dense_solution(system, protocol, weights)
-        except NumericalError:
-            if method != "auto":
-                raise
-            # "auto" promised the right number: the recursion does not depend on the conditioning
-    return _recursion_solution(system, protocol, weights)
+    if choice == "recursion":
+        return choice, None
+    try:
+        refuse_dense(system, weights)
+        return choice, build()
+    except NumericalError:
+        if method != "auto":
+            raise
+        return "recursion", None
 
 
 def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
     K, P0, noise = backward_pass(system, protocol, weights)
-    U, _ = mean_trajectory(system, K)
+    U, X = mean_trajectory(system, K)
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise
     scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
-    cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale)
+    cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
     return Solution(protocol=protocol, cost=cost, inputs=U, gain=K[0],
                     closed_loop_eigenvalues=_eigs(system, K[0]), method="recursion")
 
 
 def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
-    refuse_dense(system, weights)
     pred = prediction(system)
     G = hessian_factor(pred, protocol)
     F = solve_checked(G, pred.Omega_gp, "G^-1 Omega_gp (Theorem 1)")     # (N m)×n

@@ -18,6 +18,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize, minimize_scalar
 
+from .costs import hessian_factor
 from .errors import InputError
 from .model import System
 from .prediction import Prediction, prediction
@@ -77,9 +78,8 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
     pred = prediction(system) if pred is None else pred
     v = _mu_vector(system, mu)
     g = pred.Omega_gp @ system.x0
-    base = pred.Omega_g * v[None, :] + np.diag(pred.Psi)
-    a = np.linalg.solve(base + np.diag(pred.Omega_d * (1.0 - v)), g)   # G_udp^{-1} g
-    b = np.linalg.solve(base.T, v * g)                                 # G_tcp^{-T} Vbar g
+    a = np.linalg.solve(hessian_factor(pred, "udp", v), g)            # G_udp^{-1} g
+    b = np.linalg.solve(hessian_factor(pred, "tcp", v).T, v * g)      # G_tcp^{-T} Vbar g
     return float(b @ (pred.Omega_d * (1.0 - v) * a))
 
 

@@ -32,17 +32,16 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from .batch_recursion import backward_batch, overflow_error, rollout_batch
-from .costs import AUTO_DENSE_MAX, refuse_correlated, refuse_dense, weight_spread
+from .costs import dense_or_recursion, hessian_diagonal, hessian_factor, refuse_correlated, weight_spread
 from .errors import DimensionError, InputError, NumericalError, ProbabilityError
 from .model import System, check_system, numeric_array
 from .pointwise import PointEvaluator, block_diagonal
 from .prediction import prediction
 from .protocols import check_protocol
-from .recursion import condition_estimate, udp_variance_weights
+from .recursion import backward_batch, forward_cost, input_weight, overflow_error, rollout_batch, udp_variance_weights
 from .results import BatchSolution, Solution
 from .threads import blas_limited
-from .tolerances import DENSE_MAX_CONDITION, DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from .tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .validation import MAX_ENTRIES
 
 __all__ = ["CHUNK_BYTES", "CostEvaluator"]
@@ -97,23 +96,9 @@ class CostEvaluator:
         self._Omega = None
         if Nn <= OMEGA_BLOCKS_MAX:
             self._Omega = block_diagonal(s.state_weights)
-        if method not in ("auto", "dense", "recursion"):
-            raise InputError("method", f"expected 'auto', 'dense' or 'recursion', found {method!r}")
         self.requested = method
-        if method == "auto":
-            dense = s.horizon * s.m <= AUTO_DENSE_MAX and condition_estimate(s, self.weights) <= DENSE_MAX_CONDITION
-        else:
-            dense = method == "dense"
-        self.method = "dense" if dense else "recursion"
-        self._pred = None
-        if dense:
-            refuse_dense(s, self.weights)      # ResourceError / NumericalError, as closed_form
-            try:
-                self._pred = prediction(s)
-            except NumericalError:
-                if method != "auto":
-                    raise
-                self.method = "recursion"      # "auto" falls back, as closed_form does
+        # the one chooser and fallback closed_form takes (InputError on an unknown method)
+        self.method, self._pred = dense_or_recursion(s, method, self.weights, lambda: prediction(s))
         self._point = None if self._pred is None else PointEvaluator(s, self.protocol, self._pred, self.weights)
         self._optimum: Solution | None = None
 
@@ -168,18 +153,24 @@ class CostEvaluator:
 
     # ------------------------------------------------------------------ public
     @blas_limited
-    def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> float:
+    def cost(self, mu: npt.ArrayLike, x0: npt.ArrayLike | None = None, checked: bool = True) -> float:
         """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
 
         On the dense path at the system's x0, vectors instead of stacks
         (:class:`~packetloss_cvx.pointwise.PointEvaluator`: one LU, checked the same way, equal to
         :meth:`costs` to rounding); otherwise, or where its check fails, a batch of one.
+
+        ``checked=False`` (searches only: the allocation's probes) skips the one-point path's residual and
+        self-check, O((N m)^2) of an O((N m)^3) point: the value is the same as the checked one wherever the
+        check passes, and unchecked where it would fail. A caller must confirm with a checked call every
+        value that a decision its certificate depends on rests on.
         """
         s = self.system
         if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
                 and mu.shape in ((s.m,), (s.horizon, s.m)) and 0.0 <= mu.min() and mu.max() <= 1.0):
             # NaN fails the comparisons: validated below
-            value = self._point.cost(np.tile(mu, (s.horizon, 1)) if mu.ndim == 1 else mu)   # vectors, not stacks
+            value = self._point.cost(np.tile(mu, (s.horizon, 1)) if mu.ndim == 1 else mu,   # vectors, not stacks
+                                     checked)
             if value is not None:
                 return value
         one = numeric_array(mu, "mu")
@@ -189,17 +180,18 @@ class CostEvaluator:
                 return value
         return float(self.costs(one[None], None if x0 is None else numeric_array(x0, "x0")[None])[0])
 
-    def line(self, mu: npt.ArrayLike, i: int) -> Callable[[float], float]:
+    def line(self, mu: npt.ArrayLike, i: int, checked: bool = True) -> Callable[[float], float]:
         """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,) and s in [0, 1], at the system's x0.
 
         On the dense path the other channels are factored once (a Schur complement,
         :meth:`PointEvaluator.line`): per point O(N^3 + (N m)^2) instead of O((N m)^3); every
         point is checked as :meth:`cost` checks it and falls back to :meth:`cost` on a failed check.
+        ``checked=False``: the points' values without the check, with the contract of :meth:`cost`'s.
         """
         base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
         if not (isinstance(i, (int, np.integer)) and 0 <= i < self.system.m):
             raise InputError("i", f"expected a channel index from 0 to {self.system.m - 1}, found {i!r}")
-        fast = None if self._point is None else self._point.line(base, int(i))
+        fast = None if self._point is None else self._point.line(base, int(i), checked)
 
         def at(value: float) -> float:
             if fast is not None and 0.0 <= value <= 1.0:
@@ -208,7 +200,7 @@ class CostEvaluator:
                     return got
             point = base.copy()
             point[i] = value
-            return self.cost(point)
+            return self.cost(point, checked=checked)
 
         return at
 
@@ -295,35 +287,16 @@ class CostEvaluator:
 
     def _forward(self, mu: np.ndarray, x: np.ndarray, U: np.ndarray, X: np.ndarray,
                  weight: np.ndarray | None = None, base: np.ndarray | float | None = None) -> np.ndarray:
-        """The forward cost of plans U (P, N, m) whose mean states X (P, N, n) are x_1..x_N:
-        x0'Q x0 + noise + sum_t of the nonnegative stage costs (recursion.recursion_cost).
-        ``weight``: the input weights psi + [UDP] (1 - mu) d where mu < 1, if the caller has them;
-        ``base``: x0'Q x0 + noise, if known. O(P N (n^2 + m)), O(P (N n)^2) up to OMEGA_BLOCKS_MAX."""
+        """The referee (:func:`~packetloss_cvx.recursion.forward_cost`) of plans U (P, N, m) whose mean states
+        X (P, N, n) are x_1..x_N; ``weight``: :func:`~packetloss_cvx.recursion.input_weight` if the caller has
+        it; ``base``: x0'Q x0 + noise, if known. O(P N (n^2 + m)), O(P (N n)^2) up to OMEGA_BLOCKS_MAX."""
         s = self.system
         if weight is None:
-            weight = self._added(mu)
-        P = X.shape[0]
-        with np.errstate(over="ignore", invalid="ignore"):
-            if base is None:
+            weight = input_weight(s, self.protocol, mu, self._d)
+        if base is None:
+            with np.errstate(over="ignore", invalid="ignore"):
                 base = np.einsum("pi,ij,pj->p", x, s.initial_weight, x) + self._noise
-            # mu u (weight u): the products in this order stay in range when mu is tiny and u huge
-            inputs = np.einsum("ptk,ptk->p", mu * U, weight * U)
-            if self._Omega is not None:
-                flat = X.reshape(P, -1)
-                states = np.einsum("pk,pk->p", flat @ self._Omega, flat)
-            else:
-                states = np.einsum("pti,tij,ptj->p", X, s.state_weights, X)
-            return base + (inputs + states)
-
-    def _added(self, mu: np.ndarray) -> np.ndarray:
-        """psi + [UDP] (1 - mu) d where mu < 1 (what G adds on its diagonal), (P, N, m). O(P N m)."""
-        psi = self.system.input_weights
-        if self.protocol == "tcp":
-            return np.broadcast_to(psi, mu.shape)
-        with np.errstate(over="ignore", invalid="ignore"):
-            if self._d_finite:          # mu <= 1: where mu = 1, d (1 - mu) = 0 exactly
-                return psi + self._d * (1.0 - mu)
-            return psi + np.where(mu < 1.0, self._d * (1.0 - mu), 0.0)
+        return forward_cost(s, mu, U, X, weight, base, self._Omega)
 
     def _dense(self, mu, x, idx, costs, inputs, K0, base=None) -> np.ndarray:
         """Theorem 1's dense law for a chunk; returns which points passed their checks."""
@@ -331,9 +304,8 @@ class CostEvaluator:
         N, n, m = s.horizon, s.n, s.m
         P = mu.shape[0]
         v = mu.reshape(P, N * m)
-        G = pred.Omega_g[None, :, :] * v[:, None, :]
-        diag = pred.Psi + (pred.Omega_d * (1.0 - v) if self.protocol == "udp" else 0.0)
-        G.reshape(P, N * m * N * m)[:, :: N * m + 1] += diag                   # the diagonal, as a strided view
+        G = hessian_factor(pred, self.protocol, v)
+        diag = hessian_diagonal(pred, self.protocol, v)
         g = x @ pred.Omega_gp.T                                          # (P, N m)
         rhs = np.broadcast_to(pred.Omega_gp, (P, N * m, n)) if K0 is not None else g[:, :, None]
         ok = np.ones(P, dtype=bool)
@@ -373,7 +345,7 @@ class CostEvaluator:
         P = mu.shape[0]
         if self.protocol == "udp" and not self._d_finite and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
             raise overflow_error("diag(Omega_g)", self.protocol)
-        added = self._added(mu)                                                # (P, N, m)
+        added = input_weight(s, self.protocol, mu, self._d)                   # (P, N, m)
         K, Pm = backward_batch(s, self.protocol, mu, added)
         if not np.isfinite(self._noise):
             raise overflow_error("the cost-to-go matrix", self.protocol)

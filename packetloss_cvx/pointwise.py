@@ -21,8 +21,10 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 from scipy.linalg.lapack import dgesv as _gesv
 
+from .costs import hessian_diagonal, hessian_factor
 from .model import System
 from .prediction import Prediction
+from .recursion import forward_cost, input_weight
 from .tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_RTOL
 
 __all__ = ["OMEGA_DENSE_MAX", "PointEvaluator", "block_diagonal"]
@@ -56,8 +58,8 @@ class PointEvaluator:
 
     def __init__(self, system: System, protocol: str, pred: Prediction, weights: tuple[np.ndarray, float]) -> None:
         s, x = system, system.x0
-        self.system, self.pred, self.udp = s, pred, protocol == "udp"
-        self.d = weights[0].ravel()
+        self.system, self.pred, self.protocol = s, pred, protocol
+        self.d = weights[0]
         self.g = pred.Omega_gp @ x
         self.const = float(x @ (s.initial_weight + pred.Omega_p) @ x) + pred.noise_term
         self.base = float(x @ s.initial_weight @ x) + weights[1]
@@ -72,21 +74,29 @@ class PointEvaluator:
         """The same system's evaluator for ``protocol`` ("tcp" or "udp", checked by the caller), sharing
         every vector (none depends on the protocol). O(1)."""
         other = copy.copy(self)
-        other.udp = protocol == "udp"
+        other.protocol = protocol
         return other
 
     def _diag(self, v: np.ndarray) -> np.ndarray:
-        return self.pred.Psi + (self.pred.Omega_d * (1.0 - v) if self.udp else 0.0)
+        return hessian_diagonal(self.pred, self.protocol, v)
 
-    def cost(self, mu: np.ndarray) -> float | None:
-        """J*(mu) for a schedule mu (N, m), or None where a check fails. O((N m)^3)."""
+    def cost(self, mu: np.ndarray, checked: bool = True) -> float | None:
+        """J*(mu) for a schedule mu (N, m), or None where a check fails. O((N m)^3). ``checked=False``: the
+        same value without the residual and the self-check (:meth:`_closed`), for callers that confirm
+        with a checked call every value a decision rests on."""
         v = mu.ravel()
-        dg = self._diag(v)
-        G = self.pred.Omega_g * v
-        G.flat[:: v.size + 1] += dg
+        G = hessian_factor(self.pred, self.protocol, v)
         with np.errstate(all="ignore"):
             _, _, w, info = _gesv(G, self.g, overwrite_a=True)
-        return None if info != 0 else self._checked(v, dg, w)
+        if info != 0:
+            return None
+        return self._checked(v, self._diag(v), w) if checked else self._closed(v, w)
+
+    def _closed(self, v: np.ndarray, w: np.ndarray) -> float | None:
+        """C - g'Vbar w for the solve's w, unchecked (None if not finite or negative). O(N m)."""
+        with np.errstate(all="ignore"):
+            closed = self.const - float(self.g @ (v * w))
+        return closed if np.isfinite(closed) and closed >= 0 else None
 
     def _checked(self, v: np.ndarray, dg: np.ndarray, w: np.ndarray) -> float | None:
         """The cost of the plan u = -w if the solve's residual and the self-check pass. O((N m)^2)."""
@@ -100,24 +110,23 @@ class PointEvaluator:
                 return None
             u = -w
             z = v * u
-            closed = self.const + float(self.g @ z)
-            X = self.Phi_x + pred.Gamma @ z
-            forward = self.base + float(z @ (pred.Psi * u))
-            if self.udp:
-                forward += float(z @ np.where(v < 1.0, (1.0 - v) * self.d * u, 0.0))
-            forward += float(X @ (self.Omega @ X) if self.Omega is not None else
-                             np.einsum("ti,tij,tj->", X.reshape(s.horizon, s.n), s.state_weights,
-                                       X.reshape(s.horizon, s.n)))
+            closed = self.const - float(self.g @ (v * w))
+            N, n, m = s.horizon, s.n, s.m
+            X = (self.Phi_x + pred.Gamma @ z).reshape(1, N, n)
+            mu, U = v.reshape(1, N, m), u.reshape(1, N, m)
+            forward = float(forward_cost(s, mu, U, X, input_weight(s, self.protocol, mu, self.d), self.base,
+                                         self.Omega)[0])
             ok = np.isfinite(closed) and np.isfinite(forward) and closed >= 0
             ok = ok and abs(closed - forward) <= SELF_CHECK_RTOL * forward
         return closed if ok else None
 
-    def line(self, mu: np.ndarray, i: int) -> Callable[[float], float | None] | None:
+    def line(self, mu: np.ndarray, i: int, checked: bool = True) -> Callable[[float], float | None] | None:
         """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,): the other channels' block
         G_RR of G does not change along the line, so it is factored once and each point solves
         the N×N Schur complement ``s M + diag(psi_i + [UDP] Omega_d,i (1 - s))`` with
         ``M = Omega_g,ii - Omega_g,iR V_R G_RR^{-1} Omega_g,Ri``. None when m = 1 or G_RR is
-        singular (use :meth:`cost`). Setup O((N (m - 1))^3 + N^2 N m), each point O(N^3 + (N m)^2)."""
+        singular (use :meth:`cost`). Setup O((N (m - 1))^3 + N^2 N m), each point O(N^3 + (N m)^2).
+        ``checked=False``: each point's value without its residual and self-check (as :meth:`cost`)."""
         s, pred = self.system, self.pred
         N, m = s.horizon, s.m
         if m == 1:
@@ -127,8 +136,7 @@ class PointEvaluator:
         v = np.tile(mu, N)
         vR = v[~on]
         Og = pred.Omega_g
-        G_RR = Og[np.ix_(~on, ~on)] * vR
-        G_RR.flat[:: vR.size + 1] += self._diag(v)[~on]
+        G_RR = hessian_factor(pred, self.protocol, v, ~on)                              # the fixed channels
         with np.errstate(all="ignore"):
             factor = lu_factor(G_RR, check_finite=False)
             Y = lu_solve(factor, Og[np.ix_(~on, on)], check_finite=False)        # G_RR^{-1} Omega_g,Ri
@@ -138,13 +146,12 @@ class PointEvaluator:
             b = self.g[on] - C @ y
         if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(y)) and np.all(np.isfinite(M))):
             return None
-        psi_i, od_i = pred.Psi[on], pred.Omega_d[on]
-
         def at(value: float) -> float | None:
             vs = v.copy()
             vs[on] = value
+            dg = self._diag(vs)
             S = M * value
-            S.flat[:: N + 1] += psi_i + (od_i * (1.0 - value) if self.udp else 0.0)
+            S.flat[:: N + 1] += dg[on]
             with np.errstate(all="ignore"):
                 _, _, w_i, info = _gesv(S, b, overwrite_a=True)
                 if info != 0:
@@ -152,6 +159,6 @@ class PointEvaluator:
                 w = np.empty(N * m)
                 w[on] = w_i
                 w[~on] = y - value * (Y @ w_i)
-            return self._checked(vs, self._diag(vs), w)
+            return self._checked(vs, dg, w) if checked else self._closed(vs, w)
 
         return at

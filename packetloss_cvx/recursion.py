@@ -16,6 +16,13 @@ which is invertible even when some mu = 0; ``u_t = -G_t^{-1} B' P_{t+1} A \\hat 
 the same minimiser as the paper's dense law ``-G^{-1} Omega_gp x`` (Theorem 1).
 
 Time O(N (n^3 + m^3)), memory O(N n m) for the gains; no (N n)×(N m) matrix is formed.
+
+This module holds the algebra once, batched over a leading axis (a single point is a batch of one,
+as scipy.linalg's solvers batch): :func:`riccati_step` (the Theorem-1 step, also the closed-loop DP's
+and the Markov jump system's), :func:`backward_batch` (N of them), :func:`rollout_batch` /
+:func:`mean_states` (the mean state forward) and :func:`forward_cost` (the referee every closed form is
+checked against). :func:`backward_pass`, :func:`mean_trajectory` and :func:`recursion_cost` are their
+one-point forms.
 """
 
 from __future__ import annotations
@@ -23,15 +30,26 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dgesv as _gesv
 
+from .errors import NumericalError
 from .linalg import check_finite
 from .model import STRUCTURE_CACHE_MAX_BYTES, CacheKey, System
 from .protocols import check_protocol
+from .tolerances import STATIONARY_RTOL
 
 #: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
 VARIANCE_WEIGHTS_KEY = CacheKey("recursion.udp_variance_weights", ("A", "B", "horizon", "state_weights", "noise_cov"))
 CONDITION_KEY = CacheKey("recursion.condition_estimate", ("A", "B", "horizon", "state_weights", "input_weights"))
 
-__all__ = ["backward_pass", "condition_estimate", "mean_trajectory", "recursion_cost", "udp_variance_weights"]
+__all__ = [
+    "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost", "input_weight", "mean_states",
+    "mean_trajectory", "overflow_error", "recursion_cost", "riccati_step", "rollout_batch", "udp_variance_weights",
+]
+
+#: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
+FLAT_MIN = 64
+#: Horizons of at least twice this many steps try to close a stationary tail (tolerances.STATIONARY_RTOL), and a
+#: run of at least this many steps with one gain and one channel is rolled out by powers of its closed loop.
+STATIONARY_RUN = 64
 
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
@@ -65,11 +83,15 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
 
 
 def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
-    """udp_variance_weights, computed: the backward Lyapunov sum S_t, O(N n^3)."""
+    """udp_variance_weights, computed: the backward Lyapunov sum S_t, O(N n^3); once S stops changing
+    (:func:`stationary_close`) over a stationary head (Omega_t the same for every earlier t), the earlier
+    steps take its value: O(L n^3) for a sum that settles in L steps."""
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
     d = np.empty((N, system.m))
     noise = 0.0
     has_noise = bool(np.any(system.noise_cov != 0))
+    settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
+    head = None                                         # Omega_1..Omega_head+1 (W[0..head]) are one weight
     S = W[N - 1].copy()
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(N - 1, -1, -1):
@@ -77,9 +99,46 @@ def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
             if has_noise:
                 noise += float(np.sum(S * system.noise_cov))
             if t > 0:
-                S = W[t - 1] + A.T @ S @ A
+                new = W[t - 1] + A.T @ S @ A
+                if (settle and (head is None or t - 1 <= head) and _small_change(new, S)
+                        and stationary_close(new, S, _radius(A) ** 2)):
+                    head = _leading_run(W[None]) if head is None else head
+                    if t - 1 <= head:                                     # S_{t-1} = ... = S_0 = new
+                        d[:t] = np.einsum("ij,ik,kj->j", B, new, B)
+                        if has_noise:
+                            noise += t * float(np.sum(new * system.noise_cov))
+                        break
+                S = new
     d.setflags(write=False)
     return d, noise
+
+
+def _small_change(new: np.ndarray, old: np.ndarray) -> bool:
+    """A cheap necessary test for :func:`stationary_close` with a contraction q >= 0.01. O(P n^2)."""
+    return bool(np.abs(new - old).max() <= 100.0 * STATIONARY_RTOL * np.abs(new).max())
+
+
+def _radius(loop: np.ndarray) -> np.ndarray:
+    """The spectral radius of each matrix of a stack (or of one matrix). O(P n^3)."""
+    return np.max(np.abs(np.linalg.eigvals(loop)), axis=-1)
+
+
+def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) -> bool:
+    """Whether a backward iterate has settled: its last change, times the remaining geometric sum
+    ``q / (1 - q)`` of a map contracting by ``q`` per step, is below ``STATIONARY_RTOL`` relative to its
+    size (every point of a batch: new, old (..., n, n), q (...,) or a float). Never with q >= 1. O(P n^2).
+
+    Examples
+    --------
+    >>> stationary_close(np.eye(2), np.eye(2) * (1 + 1e-16), 0.25), stationary_close(np.eye(2), 2 * np.eye(2), 0.25)
+    (True, False)
+    """
+    q = np.asarray(q, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        change = np.max(np.abs(new - old), axis=(-2, -1))
+        size = np.max(np.abs(new), axis=(-2, -1))
+        ok = (q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)
+    return bool(np.all(ok))
 
 
 def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None = None) -> float:
@@ -112,14 +171,162 @@ def _spread(system: System, d: np.ndarray) -> float:
     return (total + float(psi.max())) / float(psi.min())
 
 
+def input_weight(system: System, protocol: str, mu: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The stage input weight of the mean-state LQ problem per channel and step, ``(..., N, m)`` like
+    ``mu``: ``psi_t + [UDP] (1 - mu_t) d_t`` where ``mu_t < 1`` (a perfect channel adds nothing, even where
+    ``d`` overflowed). It is the diagonal Theorem 1 adds to ``B'PB M`` in G, and the weight of ``mu u^2`` in
+    the forward cost. O(size of mu).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[2.0], mu=[0.5], x0=[1.0])
+    >>> input_weight(s, "udp", np.array([[0.5]]), np.array([[3.0]])).tolist()     # 2 + 0.5 * 3
+    [[3.5]]
+    """
+    psi = system.input_weights
+    if protocol == "tcp":
+        return np.broadcast_to(psi, mu.shape)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return psi + np.where(mu < 1.0, d * (1.0 - mu), 0.0)
+
+
+def overflow_error(name: str, protocol: str) -> NumericalError:
+    """The error of an exact cost beyond the double range (an unstable plant over a long horizon). O(1).
+
+    Examples
+    --------
+    >>> str(overflow_error("the cost-to-go matrix", "tcp")).split(" (")[0]
+    'the cost-to-go matrix overflowed'
+    """
+    return NumericalError(f"{name} overflowed (the exact {protocol}-like expected cost exceeds the double-precision "
+                          "range, 1e308: the open-loop prediction of an unstable plant over this horizon); shorten "
+                          "the horizon or stabilise the plant")
+
+
+def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
+                 Omega: np.ndarray | None = None, *, variance: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """One backward step of Theorem 1's recursion for a batch of k points (a single point is a batch
+    of one): the Hessian factor, the gain and the previous cost-to-go (eq:control-laws).
+
+    .. math:: G = B'PB M + \\mathrm{diag}(a)\\ [+\\ \\mathrm{diag}((1 - \\mu) \\mathrm{diag}(B'PB))],\\quad
+              K = G^{-1} B'PA,\\quad P^- = A'PA - (B'PA)' M K + \\Omega
+
+    with ``M = diag(mu)`` and ``a = added`` (``psi``, plus ``(1 - mu) d`` for the open-loop UDP-like law:
+    :func:`input_weight`). ``variance=True`` adds the loss variance weighted by the cost-to-go itself: the
+    closed-loop DP's modified Riccati map (simulation.riccati) and, per mode, the Markov jump system's coupled
+    equations (markov.mjls, h = mu). The Hessian of the step is ``M G`` (invertible G even where mu = 0).
+
+    Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), ``Omega`` (n, n) or None.
+    Returns ``(K, P_prev)``, (k, m, n) and (k, n, n), P_prev symmetrised. Raises
+    ``numpy.linalg.LinAlgError`` where a G is singular (callers name the cause). From ``FLAT_MIN`` points
+    on, each product is one (k n)×n by n×m product. Time O(k (n^3 + m^3)); a point's answer does not
+    depend on the batch it is in below ``FLAT_MIN`` points.
+
+    Examples
+    --------
+    >>> K, P = riccati_step(np.ones((1, 1, 1)), np.eye(1), np.eye(1), np.ones((1, 1)), np.ones((1, 1)), np.eye(1))
+    >>> float(K[0, 0, 0]), float(P[0, 0, 0])    # scalar DARE step: G = 2, K = 1/2, P = 1 + 1 - 1/2
+    (0.5, 1.5)
+    """
+    k, n = P.shape[0], A.shape[0]
+    m = B.shape[1]
+    row = mu[:, None, :]                                                   # mu as a row: G's columns
+    matmul = np.matmul
+    if k >= FLAT_MIN:
+        PBT = (P.reshape(k * n, n) @ B).reshape(k, n, m).transpose(0, 2, 1).reshape(k * m, n)
+        BPB = (PBT @ B).reshape(k, m, m).transpose(0, 2, 1)
+        rhs = (PBT @ A).reshape(k, m, n)
+        APA = (P.reshape(k * n, n) @ A).reshape(k, n, n).transpose(0, 2, 1).reshape(k * n, n) @ A
+        APA = APA.reshape(k, n, n).transpose(0, 2, 1)                       # A'(P A)
+    else:                 # a small batch: P B once, then B'(P B), (P B)'A and A'(P A)
+        PB = matmul(P, B)
+        BPB = matmul(B.T, PB)
+        rhs = matmul(PB.transpose(0, 2, 1), A)
+        APA = matmul(A.T, matmul(P, A))
+    G = np.multiply(BPB, row, order="C")
+    diagonal = G.reshape(k, m * m)[:, :: m + 1]                           # a view: G's diagonal
+    diagonal += added
+    if variance:
+        diagonal += (1.0 - mu) * np.diagonal(BPB, axis1=1, axis2=2)
+    if k == 1:                                   # one point: LAPACK's gesv without the stacked wrapper
+        _, _, K, info = _gesv(G[0], rhs[0])
+        if info != 0:
+            raise np.linalg.LinAlgError("singular G")
+        K = K[None]
+    else:
+        K = np.linalg.solve(G, rhs)
+    P_prev = APA - matmul(rhs.transpose(0, 2, 1) * row, K)
+    if Omega is not None:
+        P_prev += Omega
+    P_prev += P_prev.transpose(0, 2, 1)                                    # numpy buffers the overlap
+    P_prev *= 0.5
+    return K, P_prev
+
+
+def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gains K (P, N, m, n) and cost-to-go P_0 (P, n, n) (without Q) of the schedules ``mu`` (P, N, m),
+    ``added`` (P, N, m) the diagonal each step's G gets (:func:`input_weight`): N calls of
+    :func:`riccati_step` from ``P_N = Omega_N``. O(P N (n^3 + m^3)); NumericalError
+    (:func:`overflow_error`) where a step's G is singular or anything overflows.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> K, P0 = backward_batch(s, "tcp", np.array([[[1.0]]]), np.array([[[1.0]]]))   # K = 1/2, P0 = 1/2
+    >>> K.ravel().tolist(), P0.ravel().tolist()
+    ([0.5], [0.5])
+    """
+    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    P = mu.shape[0]
+    K = np.empty((N, P, m, n))
+    Pm = np.empty((P, n, n))
+    Pm[:] = W[N - 1]
+    settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
+    head = None                                         # steps 1..head share mu, the added diagonal and Omega
+    q = None             # the contraction per step, measured once the iterates are near settling
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(N - 1, -1, -1):
+            try:
+                K[t], new = riccati_step(Pm, A, B, mu[:, t], added[:, t], W[t - 1] if t > 0 else None)
+                if settle and 2 <= t < N - 8 and (head is None or t <= head) and _small_change(new, Pm):
+                    q = _contraction(A, B, mu[:, t], K[t]) if q is None else q
+                    if stationary_close(new, Pm, q):
+                        if head is None:
+                            head = min(_leading_run(mu[:, 1:]), _leading_run(added[:, 1:]),
+                                       _leading_run(W[None]) + 1)
+                        if t <= head:
+                            # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more step
+                            # gives the gain of P_t for every step 1..t-1, then step 0 (no Omega) as in the full pass
+                            K[1:t], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
+                            K[0], Pm = riccati_step(Pm, A, B, mu[:, 0], added[:, 0], None)
+                            break
+            except np.linalg.LinAlgError:
+                raise overflow_error("the cost-to-go matrix", protocol) from None
+            Pm = new
+    K = K.transpose(1, 0, 2, 3)
+    if not (np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
+        raise overflow_error("the cost-to-go matrix", protocol)
+    return K, Pm
+
+
+def _contraction(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """rho(A - B M K)^2 per point: the Riccati map's contraction per step near its fixed point (measured
+    once the change is already below 100 STATIONARY_RTOL, where the gain has settled to 1e-12); inf where
+    the loop is not finite. O(P n^3)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        loop = A - np.matmul(B * mu[:, None, :], K)
+        if not np.all(np.isfinite(loop)):
+            return np.full(loop.shape[0], np.inf)
+        return _radius(loop) ** 2
+
+
 def backward_pass(system: System, protocol: str,
                   weights: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Riccati recursion of the mean-state LQ problem: the laws of Theorem 1 (eq:control-laws), step by step.
 
     Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
-    the cost-to-go matrix at step 0 (without Q) and the noise term. The Lyapunov sum
-    S_t (UDP-like weights, noise) runs in the same backward loop, unless ``weights`` (the
-    result of :func:`udp_variance_weights`, already computed by the caller) supplies it.
+    the cost-to-go matrix at step 0 (without Q) and the noise term. ``weights``: the result of
+    :func:`udp_variance_weights` if the caller has it. :func:`backward_batch` on a batch of one.
     Time O(N (n^3 + m^3)), memory O(N m n).
 
     Examples
@@ -131,51 +338,29 @@ def backward_pass(system: System, protocol: str,
     (0.5, 0.75, 0.0)
     """
     protocol = check_protocol(protocol)
-    A, B, W, N = system.A, system.B, system.state_weights, system.horizon
-    m = system.m
-    mu, psi = system.mu_schedule, system.input_weights
-    udp = protocol == "udp"
-    has_noise = bool(np.any(system.noise_cov != 0))
-    track_S = (udp or has_noise) and weights is None   # given the Lyapunov sums, do not redo them
-    keep = np.where(mu < 1.0, 1.0 - mu, 0.0)  # (1 - mu) on lossy channels, 0 on perfect ones
-    D = np.zeros((N, m))                      # diag(Omega_g) per step (UDP-like)
-    K = np.empty((N, m, system.n))
-    P = W[N - 1].copy()
-    S = W[N - 1].copy()
-    noise = 0.0
-    if weights is not None:
-        D, noise = weights[0], weights[1]
-    diag = np.arange(m) * (m + 1)
-    AT = A.T
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(N - 1, -1, -1):
-            PB = P @ B
-            G = (B.T @ PB) * mu[t]
-            G.flat[diag] += psi[t]
-            if weights is not None and udp:
-                G.flat[diag] += D[t] * keep[t]
-            if track_S:
-                if udp:
-                    D[t] = ((S @ B) * B).sum(axis=0)
-                    G.flat[diag] += D[t] * keep[t]
-                if has_noise:
-                    noise += float(np.sum(S * system.noise_cov))
-                if t > 0:
-                    S = W[t - 1] + AT @ S @ A
-            rhs = PB.T @ A                    # B' P A (P is symmetric)
-            _, _, K[t], info = _gesv(G, rhs)
-            if info != 0:
-                _finite("the cost-to-go matrix", np.array(np.nan), protocol)
-            P = AT @ (P @ A) - (rhs.T * mu[t]) @ K[t]
-            if t > 0:
-                P += W[t - 1]
-            P = 0.5 * (P + P.T)
-    if udp:
-        _finite("diag(Omega_g)", D[mu < 1.0], protocol)
+    d, noise = udp_variance_weights(system) if weights is None else weights
+    mu = system.mu_schedule
+    if protocol == "udp":
+        _finite("diag(Omega_g)", d[mu < 1.0], protocol)
     _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
-    _finite("the cost-to-go matrix", P, protocol)
-    _finite("the gains", K, protocol)
-    return K, P, noise
+    K, P0 = backward_batch(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None])
+    return K[0], P0[0], noise
+
+
+def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The plans u_t = -K_t x_t (P, N, m) and their mean states x_1..x_N (P, N, n) from x (P, n), by
+    :func:`mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
+    states to the bit, even where A is unstable). O(P N n (n + m)).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> U, X = rollout_batch(s, np.full((1, 2, 1), 0.5), np.full((1, 2, 1, 1), 0.5), np.array([[2.0]]))
+    >>> U.ravel().tolist(), X.ravel().tolist()     # x1 = 2 + 0.5 (-1), x2 = 1.5 + 0.5 (-0.75)
+    ([-1.0, -0.75], [1.5, 1.125])
+    """
+    U = np.empty((mu.shape[0], system.horizon, system.m))
+    return U, mean_states(system, mu, U, x, K)
 
 
 def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -191,26 +376,19 @@ def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarr
     >>> u.tolist(), x.ravel().tolist()
     ([[-0.5]], [1.0, 0.75])
     """
-    A, B, mu = system.A, system.B, system.mu_schedule
-    N = system.horizon
-    x = np.empty((N + 1, system.n))
-    u = np.empty((N, system.m))
-    x[0] = system.x0
-    with np.errstate(over="ignore", invalid="ignore"):   # callers check finiteness
-        for t in range(N):
-            u[t] = -K[t] @ x[t]
-            x[t + 1] = A @ x[t] + B @ (mu[t] * u[t])
-    return u, x
+    U, X = rollout_batch(system, system.mu_schedule[None], K[None], system.x0[None])
+    return U[0], np.concatenate([system.x0[None], X[0]])
 
 
 def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
-                   weights: tuple[np.ndarray, float] | None = None) -> float:
+                   weights: tuple[np.ndarray, float] | None = None, states: np.ndarray | None = None) -> float:
     """J(U) of eq:opt-lqg-simplest with Lemma 1, by a forward pass of the mean state.
 
     Every term added is nonnegative (stage costs of the mean state, the input and loss-variance
     weights, the noise term), so the sum has no cancellation: this is the referee the closed
-    forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``.
-    Time O(N n^3) (the Lyapunov sums), memory O(N m).
+    forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``; ``states``: the
+    plan's mean states x_1..x_N (N, n) if the caller rolled them out with the plan (closed_form's law), else
+    they are rolled forward here from the plan. Time O(N n^3) (the Lyapunov sums), memory O(N m).
 
     Examples
     --------
@@ -220,24 +398,128 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     (0.6875, 0.75)
     """
     protocol = check_protocol(protocol)
-    A, B, W, mu, psi = system.A, system.B, system.state_weights, system.mu_schedule, system.input_weights
     d, noise = udp_variance_weights(system) if weights is None else weights
-    x = system.x0.copy()
-    total = float(x @ system.initial_weight @ x) + noise
+    x = system.x0
+    mu = system.mu_schedule[None]
     with np.errstate(over="ignore", invalid="ignore"):
-        # the per-step input terms for all steps at once (the same products and per-step sums as step by step)
-        mean = mu * inputs                      # the mean applied input: products in this order stay
-        stage = np.sum(mean * (psi * inputs), axis=1)          # in range when mu is tiny and u huge
-        extra = np.zeros(system.horizon)
-        if protocol == "udp":
-            lossy = mu < 1.0
-            variance = mean * ((1.0 - mu) * d * inputs)
-            extra = np.sum(variance, axis=1) if lossy.all() else [
-                np.sum(v[k]) for v, k in zip(variance, lossy, strict=True)]
-        for t in range(system.horizon):
-            total += float(stage[t])
-            if protocol == "udp":
-                total += float(extra[t])
-            x = A @ x + B @ mean[t]
-            total += float(x @ W[t] @ x)
-    return total
+        base = float(x @ system.initial_weight @ x) + noise
+    X = mean_states(system, mu, inputs[None], x[None]) if states is None else states[None]
+    return float(forward_cost(system, mu, inputs[None], X, input_weight(system, protocol, mu, d), base)[0])
+
+
+def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
+                K: np.ndarray | None = None) -> np.ndarray:
+    """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
+    ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
+    the law's, ``u_t = -K_t x_t``, written into U as it goes (:func:`rollout_batch`); a stationary run of
+    one gain (a settled backward pass, at least STATIONARY_RUN steps) is rolled out by powers of its closed
+    loop where A is stable (rho(A) < 1: rolling the plan forward again, as expected_cost does, then meets the
+    same states to rounding; with an unstable A step by step, to the bit). O(P N n (n + m)).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> mean_states(s, np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]])).ravel().tolist()
+    [0.0, 1.0]
+    """
+    AT, BT, N = system.A.T, system.B.T, system.horizon
+    X = np.empty((U.shape[0], N, system.n))
+    run = _gain_run(mu, K) if K is not None and N >= 2 * STATIONARY_RUN else None
+    if run is not None and not _radius(system.A) < 1.0:
+        # an unstable A would amplify, in a plan rolled forward again (expected_cost of the plan), the
+        # rounding by which powers differ from steps: there the rollout stays step by step, to the bit
+        run = None
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):     # callers check finiteness
+        state = x
+        t = 0
+        while t < N:
+            if run is not None and t == run[0]:
+                state = _closed_run(system, mu[:, t], K[:, t], state, X, U, *run)
+                t = run[1]
+                continue
+            if K is not None:
+                U[:, t] = -np.matmul(K[:, t], state[:, :, None])[:, :, 0]
+            state = X[:, t] = state @ AT + (mu[:, t] * U[:, t]) @ BT
+            t += 1
+    return X
+
+
+def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
+    """The run of steps 1..b-1 whose gains and channels equal step 1's for every point (the stationary head
+    a settled backward pass fills), if it has at least STATIONARY_RUN steps: its end found by bisection on
+    single steps, then the whole run verified entry by entry. O(P N m n) at most, O(P m n log N) when absent."""
+    N = K.shape[1]
+    if N < 2 * STATIONARY_RUN or not np.array_equal(K[:, 2], K[:, 1]):
+        return None
+    lo, hi = 2, N                                   # K[:, lo] equals K[:, 1]; K[:, hi] (if any) is taken not to
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if np.array_equal(K[:, mid], K[:, 1]) else (lo, mid)
+    b = lo + 1
+    if b - 1 < STATIONARY_RUN or not (_constant(K[:, 1:b]) and _constant(mu[:, 1:b])):
+        return None
+    return 1, b
+
+
+def _constant(values: np.ndarray) -> bool:
+    """Whether ``values[:, k]`` is the same for every k (values (P, L, ...)): each step against the next, as two
+    same-shaped views (no broadcasting over a short last axis). O(P L k)."""
+    return bool(np.array_equal(values[:, 1:], values[:, :-1]))
+
+
+def _leading_run(values: np.ndarray) -> int:
+    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (P, L, ...)). O(P L k)."""
+    P, L = values.shape[:2]
+    if _constant(values):                        # the usual case, one comparison of two views
+        return L - 1
+    same = np.all((values[:, 1:] == values[:, :-1]).reshape(P, L - 1, -1), axis=2).all(axis=0)
+    return int(np.argmin(same)) if not same.all() else L - 1
+
+
+def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, state: np.ndarray, X: np.ndarray, U: np.ndarray,
+                a: int, b: int) -> np.ndarray:
+    """Steps a..b-1 of one gain K (P, m, n) and channel mu (P, m) from x_a = ``state`` (P, n): the states
+    x_a (A - B M K)'^k for k = 1..b-a by repeated squaring (log2(b - a) stacked products; every step is still
+    computed), written into X and U. Returns x_b. O(P (b - a) n^2 + P n^3 log(b - a))."""
+    L = b - a
+    loop = (system.A - np.matmul(system.B * mu[:, None, :], K)).transpose(0, 2, 1)   # (A - B M K)'
+    Y = np.empty((state.shape[0], L + 1, state.shape[1]))
+    Y[:, 0] = state
+    power, k = loop, 1
+    while k < L + 1:                                       # Y[:, k:2k] = Y[:, :k] (A - B M K)'^k
+        j = min(k, L + 1 - k)
+        np.matmul(Y[:, :j], power, out=Y[:, k:k + j])
+        power, k = np.matmul(power, power), k + j
+    U[:, a:b] = -np.matmul(Y[:, :L], K.transpose(0, 2, 1))
+    X[:, a:b] = Y[:, 1:L + 1]
+    return Y[:, L]
+
+
+def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
+                 base: np.ndarray | float, Omega: np.ndarray | None = None) -> np.ndarray:
+    """The referee: the expected cost of plans U (P, N, m) whose mean states are X (P, N, n) (x_1..x_N),
+    ``base + sum_t mu_t u_t (weight_t u_t) + x_{t+1}' Omega_{t+1} x_{t+1}``: every term nonnegative, so
+    no cancellation (``weight``: :func:`input_weight`; ``base``: x0'Q x0 + the noise term). Every closed
+    form (dense, recursion, batched, pointwise, QP) checks its cost against this sum for its own plan.
+    ``Omega``: blkdiag(Omega_1..Omega_N) as one (N n)×(N n) matrix if the caller keeps one (one product
+    instead of N). Returns (P,). O(P N (n^2 + m)), O(P (N n)^2) with ``Omega``.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[2.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> forward_cost(s, np.full((1, 1, 1), 0.5), np.full((1, 1, 1), -1.0), np.full((1, 1, 1), 0.5),
+    ...              np.ones((1, 1)), 1.0).tolist()        # 1 + 0.5 * 1 + 2 * 0.25
+    [2.0]
+    """
+    P = X.shape[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        # mu u (weight u): the products in this order stay in range when mu is tiny and u huge
+        inputs = np.einsum("ptk,ptk->p", mu * U, weight * U)
+        if Omega is not None:
+            flat = X.reshape(P, -1)
+            states = np.einsum("pk,pk->p", flat @ Omega, flat)
+        elif _constant(system.state_weights[None]):          # one weight for every step: one product
+            states = np.einsum("ptj,ptj->p", X @ system.state_weights[0], X)
+        else:
+            states = np.einsum("ptj,ptj->p", np.einsum("pti,tij->ptj", X, system.state_weights), X)
+        return base + (inputs + states)

@@ -239,3 +239,33 @@ def test_tcp_gap_not_certified_gives_advice_that_applies(capsys):
     assert code == 4
     assert "ask for a larger --gap" in out
     assert "--max-boxes" not in out    # the caps do not apply to the TCP-like SOCP
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_udp_certificate_survives_wrong_probes(two_actuator, monkeypatch, seed):
+    """The UDP-like search steers by unchecked probes (CostEvaluator.cost / line with checked=False) and takes
+    its three certificate decisions (discard a box, raise an edge's lower end, offer an incumbent) on checked
+    values only: with every probe off by a factor 0.5 or 2 at random, the answer is still feasible and the
+    bound still below the brute-force optimum (the TCP-like bound switched off, so the boxes must prove it)."""
+    from packetloss_cvx.evaluator import CostEvaluator
+
+    rng = np.random.default_rng(seed)
+    cost, line = CostEvaluator.cost, CostEvaluator.line
+
+    def wrong_cost(self, mu, x0=None, checked=True):
+        value = cost(self, mu, x0, checked)
+        return value if checked else value * rng.choice([0.5, 2.0])
+
+    def wrong_line(self, mu, i, checked=True):
+        f = line(self, mu, i, checked)
+        return f if checked else (lambda s: f(s) * rng.choice([0.5, 2.0]))
+
+    monkeypatch.setattr(tcp, "solve_problem", lambda problem, what, attempts: "optimal_inaccurate")
+    ref = brute_force_allocation(two_actuator, "udp", 8.0, (1.0, 0.05))
+    monkeypatch.setattr(CostEvaluator, "cost", wrong_cost)
+    monkeypatch.setattr(CostEvaluator, "line", wrong_line)
+    got = allocate(two_actuator, "udp", 8.0, (1.0, 0.05))
+    assert qp_cost(two_actuator, "udp", got.mu) <= 8.0 * (1 + 1e-7)          # feasible, by the QP twin
+    assert got.lower_bound <= ref[0] + 1e-9
+    assert got.status == "optimal"
+    assert got.communication_cost <= ref[0] / (1 - 1e-4) + 1e-9

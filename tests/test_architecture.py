@@ -30,7 +30,7 @@ LAYERS = [
     {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
      "channel", "validation", "threads", "optional", "safeio", "runfolder"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
-     "evaluator", "pointwise", "batch_recursion"},
+     "evaluator", "pointwise"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
     {"claims"},
     {"plots", "plot_style", "cli", "__main__", "__init__"},

@@ -182,3 +182,35 @@ def test_cost_along_a_coordinate_line_equals_the_closed_form(seed, protocol):
 def test_line_refuses_a_bad_channel_index(two_actuator):
     with pytest.raises(pl.InputError, match="i: expected a channel index"):
         CostEvaluator(two_actuator, "udp").line([0.5, 0.5], 2)
+
+
+def _dense_written_here(s, protocol, mu):
+    """Theorem 1's dense minimiser from the prediction matrices, written out here (not costs.hessian_factor):
+    U* = -G^{-1} Omega_gp x, J* = C + (Omega_gp x)' Vbar U*."""
+    from packetloss_cvx.prediction import prediction
+
+    pred = prediction(s)
+    v = np.tile(mu, s.horizon) if np.ndim(mu) == 1 else np.ravel(mu)
+    G = pred.Omega_g @ np.diag(v) + np.diag(pred.Psi)
+    if protocol == "udp":
+        G = G + np.diag(np.diag(pred.Omega_g) * (1 - v))
+    g = pred.Omega_gp @ s.x0
+    u = -np.linalg.solve(G, g)
+    C = s.x0 @ (s.initial_weight + pred.Omega_p) @ s.x0 + pred.noise_term
+    return C + g @ (v * u), u.reshape(s.horizon, s.m)
+
+
+@pytest.mark.parametrize("seed", range(10))
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_batched_recursion_against_the_dense_formula_written_here(seed, protocol):
+    """The batched kernel (method 'recursion') against an independent algebra, not another copy of itself."""
+    rng = np.random.default_rng(100 + seed)
+    s = random_system(rng, spectral_radius=float(rng.uniform(0.5, 1.1)))
+    mus = rng.uniform(0.0, 1.0, (5, s.m))
+    mus[0, 0], mus[1] = 0.0, 1.0
+    sol = CostEvaluator(s, protocol, "recursion").solve(mus)
+    for k, mu in enumerate(mus):
+        cost, U = _dense_written_here(s, protocol, mu)
+        assert _rel(sol.costs[k], cost) <= 1e-9
+        on = np.broadcast_to(mu > 0, U.shape)
+        assert np.abs(sol.inputs[k] - U)[on].max(initial=0.0) <= 1e-9 * max(1.0, np.abs(U).max())

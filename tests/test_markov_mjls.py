@@ -160,3 +160,85 @@ def test_coupled_riccati_without_stabilising_gains_is_a_numerical_error():
     system = bursty_twin(pl.load_example("two_actuator"), 0.95)
     with pytest.raises(NumericalError, match="not mean-square stabilisable"):
         coupled_riccati(system)
+
+
+# ---------------------------------------------------------------- fractional delivery probabilities
+# (issue 19 item 7: with h not 0 or 1 the loss-variance term h (1 - h) of the coupled equations and the
+# delivered input's weight M Psi were unchecked; the references below are a hand root and an enumeration
+# of the delivery patterns, neither written with the module's algebra)
+
+def test_equal_fractional_h_is_the_scalar_modified_riccati_by_hand():
+    # h_good = h_bad = 0.6: deliveries are Bernoulli(0.6) whatever the mode. Scalar a = 1.1, b = q = psi = 1:
+    # E[(a - v k)^2] P + q + 0.6 k^2 is least at k = a P / (P + 1) (the variance 0.24 k^2 P included), and
+    # P = 1 + a^2 P - 0.6 a^2 P^2 / (P + 1), i.e. 0.516 P^2 - 1.21 P - 1 = 0
+    res = coupled_riccati(scalar(0.2, 0.3, a=1.1, h_good=0.6, h_bad=0.6))
+    P = (1.21 + np.sqrt(1.21**2 + 4 * 0.516)) / (2 * 0.516)
+    assert P == pytest.approx(2.992562, abs=1e-6)
+    np.testing.assert_allclose(res.cost_matrices.ravel(), [P, P], rtol=1e-10)
+    np.testing.assert_allclose(res.gains.ravel(), [1.1 * P / (P + 1)] * 2, rtol=1e-10)
+
+
+def enumerated_bellman(s, P):
+    """The right-hand side of the coupled equations with the expectation over deliveries taken by enumerating
+    the 2^m patterns of each mode: min_u sum_v p(v | a) [(A x + B V u)' E_a (A x + B V u) + (V u)' Psi (V u)]."""
+    import itertools
+
+    modes, T, h = mode_chain(s.channel)
+    A, B, W, Psi = s.A, s.B, s.state_weights[0], np.diag(s.input_weights[0])
+    out, gains = np.empty_like(P), np.zeros((len(modes), s.m, s.n))
+    for a in range(len(modes)):
+        E = sum(T[a, b] * P[b] for b in range(len(modes)))
+        H, L = np.zeros((s.m, s.m)), np.zeros((s.m, s.n))
+        for v in itertools.product([0, 1], repeat=s.m):
+            V = np.diag(v).astype(float)
+            prob = np.prod([h[a, i] if v[i] else 1 - h[a, i] for i in range(s.m)])
+            H += prob * V @ (B.T @ E @ B + Psi) @ V
+            L += prob * V @ B.T @ E @ A
+        on = h[a] > 0
+        K = np.linalg.solve(H[np.ix_(on, on)], L[on])
+        gains[a][on] = K
+        out[a] = W + A.T @ E @ A - L[on].T @ K
+    return out, gains
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_fractional_h_coupled_riccati_solves_the_enumerated_bellman_equation(seed):
+    rng = np.random.default_rng(seed)
+    n, m = 2, 2
+    A = rng.normal(size=(n, n))
+    A *= 1.05 / max(abs(np.linalg.eigvals(A)))
+    hg, hb = rng.uniform(0.55, 0.95, m), rng.uniform(0.05, 0.5, m)
+    if seed == 0:
+        hb[1] = 0.0                                                  # a mode in which one actuator cannot deliver
+    s = pl.System(A=A, B=rng.normal(size=(n, m)), horizon=2, state_weight=rng.uniform(0.5, 2, n),
+                  input_weight=rng.uniform(0.5, 2, m), x0=[1.0, 0.0],
+                  channel=GilbertElliott(p=rng.uniform(0.05, 0.4, m), r=rng.uniform(0.2, 0.8, m), h_good=hg,
+                                         h_bad=hb))
+    res = coupled_riccati(s)
+    rhs, gains = enumerated_bellman(s, res.cost_matrices)
+    np.testing.assert_allclose(rhs, res.cost_matrices, rtol=1e-9, atol=1e-9 * np.max(np.abs(rhs)))
+    np.testing.assert_allclose(res.gains, gains, rtol=1e-8, atol=1e-10)
+
+
+def test_fractional_h_jump_law_stage_costs_by_hand_and_by_the_bernoulli_moments():
+    from packetloss_cvx.markov.mjls import jump_law_stage_costs
+    from packetloss_cvx.simulation.moments import finite_horizon_costs
+
+    # t = 0 by hand: x0 = 1, u = -k x0 delivered with probability 0.6: E[x0^2 + psi (v u)^2] = 1 + 0.6 * 2 * k^2
+    s = pl.System(A=[[1.1]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[2.0], x0=[1.0],
+                  channel=GilbertElliott(p=[0.2], r=[0.3], h_good=[0.6], h_bad=[0.6]))
+    k = 0.7
+    costs = jump_law_stage_costs(s, np.full((2, 1, 1), k), 6)
+    assert costs[0] == pytest.approx(1 + 0.6 * 2 * k**2, rel=1e-14)
+    # every step: equal h makes the deliveries Bernoulli(0.6), the moments of simulation.moments
+    bernoulli = pl.System(A=[[1.1]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[2.0], x0=[1.0], mu=[0.6])
+    stage, _ = finite_horizon_costs(bernoulli, [[k]], 6)
+    np.testing.assert_allclose(costs, stage, rtol=1e-12)
+    # two channels, fractional and unequal h: t = 0 averaged over the initial belief's modes by hand
+    ch = GilbertElliott(p=[0.2, 0.1], r=[0.3, 0.5], h_good=[0.9, 0.8], h_bad=[0.3, 0.1], belief=[0.7, 0.4])
+    s2 = pl.System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[2.0, 3.0],
+                   x0=[1.0, -2.0], channel=ch)
+    K = np.array([[0.5, 0.0], [0.0, 0.25]])                                  # u = (-0.5, 0.5)
+    mu0 = 0.7 * 0.9 + 0.3 * 0.3, 0.4 * 0.8 + 0.6 * 0.1                      # P(delivered) at t = 0 per channel
+    first = jump_law_stage_costs(s2, np.broadcast_to(K, (4, 2, 2)), 1)[0]
+    assert first == pytest.approx(5.0 + 2.0 * mu0[0] * 0.25 + 3.0 * mu0[1] * 0.25, rel=1e-14)

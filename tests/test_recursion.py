@@ -94,3 +94,183 @@ def test_auto_method_and_formulation(two_actuator, pendulum):
         pl.solve_qp(two_actuator, "tcp", formulation="dense")
     with pytest.raises(pl.InputError, match="method: expected"):
         pl.closed_form(two_actuator, "tcp", method="fast")
+
+
+# ---------------------------------------------------------------- the one Riccati step (recursion.riccati_step)
+
+def _enumerated_dp_step(P, A, B, mu, psi, Omega):
+    """The DP step with the expectation over the 2^m delivery patterns enumerated:
+    min_u sum_v p(v) [(A x + B V u)' P (A x + B V u) + (V u)' Psi (V u)] + x' Omega x."""
+    import itertools
+
+    m = B.shape[1]
+    H, L = np.zeros((m, m)), np.zeros((m, A.shape[0]))
+    for v in itertools.product([0, 1], repeat=m):
+        V = np.diag(v).astype(float)
+        prob = np.prod([mu[i] if v[i] else 1 - mu[i] for i in range(m)])
+        H += prob * V @ (B.T @ P @ B + np.diag(psi)) @ V
+        L += prob * V @ B.T @ P @ A
+    K = np.linalg.solve(H, L)
+    return K, Omega + A.T @ P @ A - L.T @ K
+
+
+@pytest.mark.parametrize("points", [1, 3, 70])          # 70 >= FLAT_MIN: the flattened products
+def test_riccati_step_with_variance_is_the_enumerated_dp_step(points):
+    from packetloss_cvx.recursion import riccati_step
+
+    rng = np.random.default_rng(points)
+    n, m = 3, 3
+    A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+    F = rng.normal(size=(points, n, n))
+    P = F @ F.transpose(0, 2, 1) + np.eye(n)
+    mu, psi = rng.uniform(0.05, 1.0, (points, m)), rng.uniform(0.2, 2.0, (points, m))
+    Omega = np.diag(rng.uniform(0.5, 2.0, n))
+    K, P_prev = riccati_step(P, A, B, mu, psi, Omega, variance=True)
+    for k in range(points):
+        K_ref, P_ref = _enumerated_dp_step(P[k], A, B, mu[k], psi[k], Omega)
+        np.testing.assert_allclose(K[k], K_ref, rtol=1e-11, atol=1e-12 * np.abs(K_ref).max())
+        np.testing.assert_allclose(P_prev[k], P_ref, rtol=1e-11, atol=1e-12 * np.abs(P_ref).max())
+
+
+def test_riccati_step_open_loop_udp_is_the_dense_theorem_1_at_n_1():
+    # N = 1: the open-loop UDP-like law is eq:opt-law-2 with Omega_g = B'Omega_1 B, Omega_d its diagonal:
+    # u = -(Omega_g Vbar + Psi + Omega_d (I - Vbar))^{-1} B'Omega_1 A x, written out here
+    from packetloss_cvx.recursion import input_weight, riccati_step
+
+    rng = np.random.default_rng(5)
+    s = random_system(rng, n=3, m=2, horizon=1, time_varying=False, non_stationary=False)
+    mu, psi, W = s.mu_schedule[0], s.input_weights[0], s.state_weights[0]
+    Og = s.B.T @ W @ s.B
+    G = Og * mu[None, :] + np.diag(psi + np.diag(Og) * (1 - mu))
+    K_ref = np.linalg.solve(G, s.B.T @ W @ s.A)
+    d = np.diag(Og)[None]
+    K, P0 = riccati_step(W[None], s.A, s.B, mu[None], input_weight(s, "udp", mu[None], d))
+    np.testing.assert_allclose(K[0], K_ref, rtol=1e-12)
+    # the cost-to-go: min over u of the UDP-like cost at x is x'P0 x (brute check at a random x)
+    x = rng.normal(size=3)
+    u = -K_ref @ x
+    mean = s.A @ x + s.B @ (mu * u)
+    value = mean @ W @ mean + np.sum(mu * psi * u * u) + np.sum(mu * (1 - mu) * np.diag(Og) * u * u)
+    assert x @ P0[0] @ x == pytest.approx(value, rel=1e-12)
+
+
+# ---------------------------------------------------------------- stationary long horizons (issue 19 item 2)
+
+def _full_pass(monkeypatch, fn):
+    """``fn()`` with the stationary closure switched off: every step of every backward pass and rollout."""
+    import packetloss_cvx.recursion as recursion
+
+    with monkeypatch.context() as patch:
+        patch.setattr(recursion, "STATIONARY_RUN", 10**9)
+        return fn()
+
+
+def _long(seed, N, **kw):
+    s = random_system(np.random.default_rng(seed), n=4, m=2, horizon=N, spectral_radius=0.95, full_weights=True,
+                      time_varying=False, non_stationary=False, edge_mu=False, **kw)
+    return s
+
+
+@pytest.mark.parametrize("protocol", PROTOCOLS)
+@pytest.mark.parametrize(("mu", "noise"), [((1.0, 1.0), False), ((0.7, 0.3), True), ((1.0, 0.0), False)])
+def test_stationary_tail_equals_the_full_pass(monkeypatch, protocol, mu, noise):
+    s = System_with_mu = _long(3, 3000, noise=noise).with_mu(list(mu))
+    closed = pl.closed_form(System_with_mu, protocol, "recursion")
+    full = _full_pass(monkeypatch, lambda: pl.closed_form(s.with_mu(list(mu)), protocol, "recursion"))
+    assert closed.cost == pytest.approx(full.cost, rel=1e-12, abs=0)
+    np.testing.assert_allclose(closed.gain, full.gain, rtol=1e-12, atol=1e-13 * np.abs(full.gain).max())
+    np.testing.assert_allclose(closed.inputs, full.inputs, rtol=0, atol=1e-12 * np.abs(full.inputs).max())
+    # the plan rolled forward again (expected_cost's forward pass) gives its cost
+    assert pl.expected_cost(s, closed.inputs, protocol) == pytest.approx(closed.cost, rel=1e-12)
+
+
+def test_stationary_tail_gain_is_the_dare_gain():
+    from scipy.linalg import solve_discrete_are
+
+    s = _long(4, 10_000).with_mu([1.0, 1.0])
+    sol = pl.closed_form(s, "tcp", "recursion")
+    R = np.diag(s.input_weights[0])
+    P = solve_discrete_are(s.A, s.B, s.state_weights[0], R)
+    K = np.linalg.solve(R + s.B.T @ P @ s.B, s.B.T @ P @ s.A)
+    np.testing.assert_allclose(sol.gain, K, rtol=1e-10)
+    # J* = x0'(Q + A'PA - A'PB K) x0 up to the terminal effect, which has died out after 10^4 steps
+    P0 = s.A.T @ P @ s.A - s.A.T @ P @ s.B @ K
+    assert sol.cost == pytest.approx(float(s.x0 @ (s.initial_weight + P0) @ s.x0), rel=1e-10)
+
+
+@pytest.mark.parametrize("which", ["weights", "mu", "input_weights"])
+def test_time_varying_data_keep_the_full_pass(monkeypatch, which):
+    """A step that differs (here the first, t = 0..2) forbids the closure: bit-equal to the full pass."""
+    s = _long(5, 1000)
+    data = s.to_dict()
+    N = s.horizon
+    if which == "weights":
+        W = np.repeat(s.state_weights[:1], N, axis=0)
+        W[1] *= 1.0 + 1e-9
+        data["cost"].pop("state_weight", None)
+        data["cost"]["state_weights"] = W.tolist()
+    elif which == "input_weights":
+        psi = np.repeat(s.input_weights[:1], N, axis=0)
+        psi[2] *= 1.0 + 1e-9
+        data["cost"].pop("input_weight", None)
+        data["cost"]["input_weights"] = psi.tolist()
+    else:
+        mu = np.repeat(s.mu_schedule[:1], N, axis=0)
+        mu[2, 0] *= 1.0 - 1e-9
+        data["channel"].pop("mu", None)
+        data["channel"]["mu_schedule"] = mu.tolist()
+    from packetloss_cvx.io import system_from_dict
+
+    from packetloss_cvx.recursion import backward_pass, udp_variance_weights
+
+    varying = system_from_dict(data)
+    weights = udp_variance_weights(varying)                 # the same Lyapunov weights on both sides
+    for protocol in PROTOCOLS:
+        K, P0, _ = backward_pass(varying, protocol, weights)
+        K_full, P0_full, _ = _full_pass(monkeypatch, lambda protocol=protocol: backward_pass(
+            system_from_dict(varying.to_dict()), protocol, weights))
+        np.testing.assert_array_equal(K, K_full)
+        np.testing.assert_array_equal(P0, P0_full)
+    K, _, _ = backward_pass(s, "tcp")                       # the stationary twin does close its tail:
+    assert np.array_equal(K[1], K[N // 2]) and not np.array_equal(K[1], K[-1])   # one gain, copied
+
+
+def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
+    from packetloss_cvx.io import system_from_dict
+    from packetloss_cvx.recursion import udp_variance_weights
+
+    stable = _long(6, 2000, noise=True)
+    d, noise = udp_variance_weights(stable)
+    d_full, noise_full = _full_pass(monkeypatch, lambda: udp_variance_weights(system_from_dict(stable.to_dict())))
+    np.testing.assert_allclose(d, d_full, rtol=1e-13)
+    assert noise == pytest.approx(noise_full, rel=1e-12)
+    # by hand: far from the end, S_t is the Lyapunov solution S = Omega + A'SA
+    from scipy.linalg import solve_discrete_lyapunov
+
+    S = solve_discrete_lyapunov(stable.A.T, stable.state_weights[0])
+    np.testing.assert_allclose(d[0], np.diag(stable.B.T @ S @ stable.B), rtol=1e-10)
+    unstable = random_system(np.random.default_rng(7), n=3, m=2, horizon=300, spectral_radius=1.02,
+                             time_varying=False, noise=True)
+    d, noise = udp_variance_weights(unstable)
+    d_full, noise_full = _full_pass(monkeypatch, lambda: udp_variance_weights(system_from_dict(unstable.to_dict())))
+    np.testing.assert_array_equal(d, d_full)
+    assert noise == noise_full
+
+
+def test_a_point_answers_the_same_in_any_batch_below_flat_min():
+    """The brute-force allocator reads a repeated point back instead of evaluating it again: a point's gains
+    and cost-to-go must not depend on the batch it is in (a batch of one takes LAPACK's gesv directly)."""
+    from packetloss_cvx.recursion import FLAT_MIN, backward_batch, input_weight
+
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        s = random_system(rng)
+        mus = rng.uniform(0.0, 1.0, (5, s.horizon, s.m))
+        d = np.abs(rng.normal(size=(s.horizon, s.m)))
+        added = input_weight(s, "udp", mus, d)
+        K5, P5 = backward_batch(s, "udp", mus, added)
+        for k in range(5):
+            K1, P1 = backward_batch(s, "udp", mus[k:k + 1], added[k:k + 1])
+            np.testing.assert_array_equal(K1[0], K5[k])
+            np.testing.assert_array_equal(P1[0], P5[k])
+    assert FLAT_MIN > 5

@@ -43,14 +43,14 @@ class _PerCall:
     def __init__(self, system, protocol):
         self.system, self.protocol = system, protocol
 
-    def cost(self, mu):
+    def cost(self, mu, x0=None, checked=True):      # closed_form checks every value anyway
         return pl.closed_form(self.system.with_mu(np.clip(mu, 0.0, 1.0)), self.protocol).cost
 
     def solve(self, mus):
         sols = [pl.closed_form(self.system.with_mu(mu), self.protocol) for mu in mus]
         return SimpleNamespace(costs=np.array([s.cost for s in sols]), inputs=np.array([s.inputs for s in sols]))
 
-    def line(self, mu, i):
+    def line(self, mu, i, checked=True):
         def at(value, base=np.array(mu, dtype=float)):  # noqa: B008
             point = base.copy()
             point[i] = value

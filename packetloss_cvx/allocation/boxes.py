@@ -23,7 +23,7 @@ from ..costs import closed_form
 from ..errors import SolverError
 from ..evaluator import CostEvaluator
 from ..model import System
-from ..tolerances import ALLOCATION_LP_FEASIBILITY
+from ..tolerances import ALLOCATION_AIM_RTOL, ALLOCATION_LP_FEASIBILITY
 from .grammar import Polytope
 
 __all__ = [
@@ -187,31 +187,59 @@ def check_in_polytope(mu: np.ndarray, poly: Polytope, what: str) -> np.ndarray:
     return mu
 
 
-def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> tuple[float, float]:
-    """For ``f(b) <= alpha``: bisect to ``(s_in, s_out)`` with ``s_in - s_out <= tol`` (or
+def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float,
+            fb: float | None = None) -> tuple[float, float]:
+    """For ``f(b) <= alpha``: shrink [a, b] to ``(s_in, s_out)`` with ``s_in - s_out <= tol`` (or
     adjacent floats), ``f(s_in) <= alpha`` and ``f(s_out) > alpha`` the last point found
-    above alpha (both ``a`` if ``f(a) <= alpha``). O(log2((b - a) / tol)) evaluations of f.
+    above alpha (both ``a`` if ``f(a) <= alpha``). ``fb``: f(b) if the caller has it.
+
+    Each step evaluates f where the line through (a, f(a)) and (b, f(b)) crosses alpha (1 -
+    ALLOCATION_AIM_RTOL) (regula falsi,
+    the Illinois variant: an end kept twice has its value halved), at least tol/4 inside the bracket;
+    the bracket is always valid, so the contract is bisection's. J* along a line is smooth: about 4-6
+    evaluations where bisection takes log2((b - a) / tol), 8 to 25 in the allocation; never more than
+    about 4 log2((b - a) / tol).
 
     Examples
     --------
     >>> s_in, s_out = bracket(lambda t: 1 - t, 0.5, 0.0, 1.0, 1e-3)      # 1 - t <= 0.5 from t = 0.5 on
     >>> s_out < 0.5 <= s_in, s_in - s_out <= 1e-3, bracket(lambda t: 1 - t, 2.0, 0.0, 1.0, 1e-3)
     (True, True, (0.0, 0.0))
+    >>> calls = []
+    >>> s_in, s_out = bracket(lambda t: calls.append(t) or np.exp(-3 * t), 0.2, 0.0, 1.0, 1e-9)
+    >>> bool(s_out < np.log(5) / 3 <= s_in), len(calls) <= 12          # bisection: 31 evaluations
+    (True, True)
     """
-    if f(a) <= alpha:
+    fa = f(a)
+    if fa <= alpha:
         return a, a
+    aim = alpha - ALLOCATION_AIM_RTOL * abs(alpha)      # interpolate toward a level just inside (tolerances.py)
+    ga, gb = fa - aim, (f(b) if fb is None else fb) - aim
+    side = 0
     while b - a > tol:
-        mid = 0.5 * (a + b)
-        if not a < mid < b:
-            break
-        if f(mid) <= alpha:
-            b = mid
+        x = b - gb * (b - a) / (gb - ga) if gb - ga < 0 else 0.5 * (a + b)
+        x = min(max(x, a + 0.25 * tol), b - 0.25 * tol)
+        if not a < x < b:
+            x = 0.5 * (a + b)
+            if not a < x < b:
+                break
+        fx = f(x)
+        gx = fx - aim
+        if fx <= alpha:
+            b, gb = x, gx
+            if side == -1:
+                ga *= 0.5
+            side = -1
         else:
-            a = mid
+            a, ga = x, gx
+            if side == 1:
+                gb *= 0.5
+            side = 1
     return b, a
 
 
-def boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> float:
+def boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float,
+             fb: float | None = None) -> float:
     """Smallest t found with ``f(t) <= alpha`` (within tol of the crossing, on the feasible
     side), given ``f(b) <= alpha``. O(log2((b - a) / tol)) evaluations of f.
 
@@ -221,4 +249,4 @@ def boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol:
     >>> 0.5 <= t <= 0.5 + 1e-3
     True
     """
-    return bracket(f, alpha, a, b, tol)[0]
+    return bracket(f, alpha, a, b, tol, fb)[0]

@@ -21,7 +21,7 @@ from collections.abc import Callable, Generator, Sequence
 
 import numpy as np
 
-from ..batch_recursion import FLAT_MIN
+from ..recursion import FLAT_MIN
 from ..errors import InputError
 from ..evaluator import CostEvaluator
 from ..model import System

@@ -14,6 +14,14 @@ runs over boxes [l, u] of the constraint set, best bound first:
 * incumbents are points the closed form finds feasible: the LP point, or the bisection
   between it and the box's maximal point.
 
+Probes and checks: the bisections (edges, the incumbent's line) and the first look at a corner or LP point
+evaluate J* without the one-point self-check (CostEvaluator.cost(checked=False): the same number wherever the
+check passes). A wrong probe could (a) discard a feasible box, (b) raise l_i past a feasible point, or (c)
+offer an infeasible incumbent, and so break the certificate; so each of these three decisions is taken only
+on a checked value: the corner that discards, the point l_i is raised to (else the edge is bisected again,
+checked), and every incumbent. Anything else a wrong probe can do only makes a bound weaker or an
+incumbent worse (a box kept, l_i raised less, an incumbent missed), never wrong.
+
 The search stops when ``(incumbent - lower bound) / incumbent <= gap`` (status "optimal"), or
 at a cap (boxes, time; status "gap_not_certified" with the gap reached). It proves
 infeasibility only when every box was discarded as infeasible (corner) or empty (LP).
@@ -198,22 +206,21 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     weights = np.maximum(beta, SPLIT_WEIGHT_FLOOR)
     search = Search(gap, max(floor, float(beta @ poly.lower())), max_boxes, time_limit, progress)
 
+    def probe(mu: np.ndarray) -> float:
+        """J*(mu) without the one-point self-check (the same number wherever the check passes): a probe
+        only steers; :func:`J` (checked) confirms each value a decision rests on."""
+        return evaluator.cost(np.clip(mu, 0.0, 1.0), checked=False)
+
     def bound(l: np.ndarray, u: np.ndarray):
         """Reduce the box; (lower bound, l, u, LP point), or None when proven infeasible or empty
         or unable to beat the incumbent."""
-        if J(u) > prune_above:
+        if probe(u) > prune_above and J(u) > prune_above:       # discarding needs the checked value
             return None
         l, u = l.copy(), u.copy()
         corner = np.clip(u, 0.0, 1.0)
         for i in range(m):                       # raise l_i to the last point proven infeasible on edge i
             if l[i] < u[i]:
-                line = evaluator.line(corner, i)     # the other channels factored once along the edge
-
-                def along(s: float, line=line) -> float:
-                    return line(min(max(s, 0.0), 1.0))
-
-                l[i] = bracket(along, prune_above, l[i], u[i],
-                               ALLOCATION_EDGE_ATOL + ALLOCATION_EDGE_RTOL * (u[i] - l[i]))[1]
+                l[i] = edge(corner, i, l[i], u[i])
         if np.isfinite(search.best):             # lower u where beta'mu would not beat the incumbent
             rest = beta @ l - beta * l
             positive = beta > 0
@@ -225,13 +232,36 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
             return None
         return lb, l, u, p
 
+    def edge(corner: np.ndarray, i: int, a: float, b: float) -> float:
+        """The last point of edge i (the other channels at the corner, the other channels factored once) that
+        is infeasible, found by unchecked probes; the one point l_i is raised to is then confirmed by a
+        checked evaluation (a wrong probe could only move it: if the checked value is not above the bound,
+        the bisection is run again with checked values, as before)."""
+        tol = ALLOCATION_EDGE_ATOL + ALLOCATION_EDGE_RTOL * (b - a)
+        start = corner.copy()
+        start[i] = min(max(a, 0.0), 1.0)
+        if probe(start) <= prune_above:          # nothing to raise: one point, no line factored
+            return a
+        for checked in (False, True):
+            line = evaluator.line(corner, i, checked)
+
+            def along(s: float, line=line) -> float:
+                return line(min(max(s, 0.0), 1.0))
+
+            out = bracket(along, prune_above, a, b, tol)[1]
+            start[i] = min(max(out, 0.0), 1.0)
+            if out == a or checked or J(start) > prune_above:
+                return out
+        raise AssertionError("unreachable")
+
     def visit(lb: float, l: np.ndarray, u: np.ndarray, p: np.ndarray) -> None:
-        if J(p) <= alpha:
+        if probe(p) <= alpha and J(p) <= alpha:               # an incumbent needs the checked value
             search.offer(p, float(beta @ p))
         else:
             q, _ = box_lp(-np.ones(m), poly, l, u)          # a maximal point of the box and rows
-            if q is not None and J(q) <= alpha:
-                t = boundary(lambda s: J(p + s * (q - p)), alpha, 0.0, 1.0, ALLOCATION_INCUMBENT_SHARE * gap)
+            Jq = None if q is None else probe(q)
+            if Jq is not None and Jq <= alpha:
+                t = boundary(lambda s: probe(p + s * (q - p)), alpha, 0.0, 1.0, ALLOCATION_INCUMBENT_SHARE * gap, Jq)
                 point = p + t * (q - p)
                 if J(point) <= alpha:
                     search.offer(point, float(beta @ point))

@@ -30,6 +30,7 @@ from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator
 from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError, ResourceError
 from ..model import System, check_system
+from ..recursion import riccati_step
 from ..results import MjlsResult
 from ..tolerances import ARPACK_TOL, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 
@@ -387,24 +388,19 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
 
 def _riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray, Psi: np.ndarray,
                   T: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One backward step of the coupled equations: (P_a, K_a) for every mode a."""
-    M, n, m = P.shape[0], A.shape[0], B.shape[1]
+    """One backward step of the coupled equations: (P_a, K_a) for every mode a, all modes as one batch of
+    Theorem 1's step (:func:`packetloss_cvx.recursion.riccati_step` with ``mu = h_a``, ``P = E_a`` and the
+    loss variance weighted by E_a): ``S_a = H_a G_a`` with ``G_a = B'E_aB H_a + diag(psi + (1 - h_a)
+    diag(B'E_aB))`` (the diagonal of ``H Psi H + diag(h (1 - h)) Psi`` is ``h psi``), so ``S_a K = H_a B'E_a A``
+    and ``G_a K = B'E_a A`` agree on the actuators that can deliver; K_a = 0 on the others (their row never
+    reaches P_a: it is multiplied by h = 0). O(M (M n^2 + n^3 + m^3))."""
     E = np.einsum("ab,bij->aij", T, P)
-    out, gains = np.empty_like(P), np.zeros((M, m, n))
+    E = 0.5 * (E + E.transpose(0, 2, 1))
+    psi = np.broadcast_to(np.diag(Psi), h.shape)
     with np.errstate(over="ignore", invalid="ignore"):
-        for a in range(M):
-            Ea = 0.5 * (E[a] + E[a].T)
-            G = B.T @ Ea @ B + Psi
-            L = h[a][:, None] * (B.T @ Ea @ A)                       # H B'E A
-            S = h[a][:, None] * G * h[a][None, :] + np.diag(h[a] * (1 - h[a]) * np.diag(G))
-            active = h[a] > 0
-            Pa = Omega + A.T @ Ea @ A
-            if np.any(active):
-                try:   # a diverging iteration (no stabilising gains) overflows S: the caller sees non-finite P
-                    Ka = np.linalg.solve(S[np.ix_(active, active)], L[active])
-                except np.linalg.LinAlgError:
-                    Ka = np.full((int(active.sum()), n), np.nan)
-                gains[a][active] = Ka
-                Pa = Pa - L[active].T @ Ka
-            out[a] = 0.5 * (Pa + Pa.T)
+        try:   # a diverging iteration (no stabilising gains) overflows: the caller sees non-finite P
+            gains, out = riccati_step(E, A, B, h, psi, Omega, variance=True)
+        except np.linalg.LinAlgError:
+            return np.full_like(P, np.nan), np.full((P.shape[0], B.shape[1], A.shape[0]), np.nan)
+    gains[np.broadcast_to((h <= 0)[:, :, None], gains.shape)] = 0.0
     return out, gains

@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from ..errors import InputError, NumericalError
 from ..model import System
+from ..recursion import riccati_step as riccati_step_batch
 from ..results import Riccati
 from ..tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE, RICCATI_MAX_ITER, RICCATI_RTOL
 from .moments import check_steps, law_cost_to_go, stationary_channel
@@ -44,23 +45,18 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Om
     """One step of the modified Riccati map: the optimal gain for cost-to-go P and the new cost-to-go.
 
     Returns ``(K, P_prev)`` with ``K = G^{-1} B'PA`` and ``P_prev = Omega + A'PA - A'PBM K``
-    (module docstring). Time O(n^3 + m^3).
+    (module docstring): Theorem 1's step (:func:`packetloss_cvx.recursion.riccati_step`, a batch of one)
+    with the loss variance weighted by P itself. Time O(n^3 + m^3).
 
     >>> K, P = riccati_step(np.eye(1), np.eye(1), np.eye(1), np.array([1.0]), np.eye(1), np.array([1.0]))
     >>> float(K[0, 0]), float(P[0, 0])    # scalar DARE step: K = 1/2, P = 1 + 1 - 1/2
     (0.5, 1.5)
     """
-    PB = P @ B
-    BPB = B.T @ PB
-    G = BPB * mu[None, :]
-    G[np.diag_indices_from(G)] += psi + (1.0 - mu) * np.diag(BPB)
-    rhs = PB.T @ A
     try:
-        K = np.linalg.solve(G, rhs)
+        K, P_prev = riccati_step_batch(P[None], A, B, mu[None], psi[None], Omega, variance=True)
     except np.linalg.LinAlgError:
         raise NumericalError("modified Riccati step: the input Hessian G is singular") from None
-    P_prev = Omega + A.T @ P @ A - (rhs.T * mu) @ K
-    return K, 0.5 * (P_prev + P_prev.T)
+    return K[0], P_prev[0]
 
 
 def _weights(system: System, mu: npt.ArrayLike | None) -> tuple[np.ndarray, ...]:
