@@ -111,7 +111,8 @@ def gain_conventions(system: System, protocol: str) -> dict[str, np.ndarray]:
     return {
         "first block of G^-1 Omega_gp": law[:m],
         "first block of G Omega_gp (literal)": (G @ pred.Omega_gp)[:m],
-        "nominal (Omega_g + Psi)^-1 Omega_gp": np.linalg.solve(pred.Omega_g + np.diag(pred.Psi), pred.Omega_gp)[:m],
+        "nominal (Omega_g + Psi)^-1 Omega_gp": np.linalg.solve(hessian_factor(pred, "tcp", np.ones_like(pred.Vbar)),
+                                                               pred.Omega_gp)[:m],
         "last block of G^-1 Omega_gp": law[-m:],
     }
 

@@ -135,10 +135,10 @@ def G_maps(pred: Prediction, nu: float) -> tuple[np.ndarray, np.ndarray]:
     >>> [float(G[0, 0]) for G in G_maps(prediction(s), 1.0)]   # Omega_g = Psi = Omega_d = 1, Omega_h = 0
     [0.5, 0.5]
     """
-    Od = np.diag(pred.Omega_d)
-    GF = np.linalg.inv(nu * pred.Omega_g + np.diag(pred.Psi))
-    GG = np.linalg.inv(nu * pred.Omega_h + Od + np.diag(pred.Psi))
-    return GF, GG
+    shared = np.full(pred.Psi.shape, float(nu))       # one channel nu for every entry: Vbar = nu I
+    # Theorem 1's G at Vbar = nu I (costs.hessian_factor, the one dense Hessian): nu Omega_g + Psi for the
+    # TCP-like law; + Omega_d (1 - nu) for the UDP-like one, which is the paper's nu Omega_h + Omega_d + Psi
+    return tuple(np.linalg.inv(hessian_factor(pred, protocol, shared)) for protocol in ("tcp", "udp"))
 
 
 def lemma2_matrix(pred: Prediction, nu: float) -> np.ndarray:
