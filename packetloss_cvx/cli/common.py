@@ -9,6 +9,7 @@ the subcommand's module, so that bad input is refused without importing cvxpy or
 from __future__ import annotations
 
 import argparse
+import io
 import os
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -16,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..io import load_system
+from ..io import load_system, read_input
 from ..model import System
 
 __all__ = ["CommandResult", "allocation_numbers", "check_figure_format", "check_writable", "floats", "number",
@@ -72,12 +73,20 @@ def number(text: str, field: str) -> float:
 
 
 def read_schedule(path: str) -> np.ndarray:
-    """A CSV file of N rows of m delivery probabilities (``#`` starts a comment). O(N m)."""
+    """A CSV file of N rows of m delivery probabilities (``#`` starts a comment), read as every input file
+    is (:func:`~packetloss_cvx.io.read_input`: a regular file within the ``file_bytes`` budget; a FIFO or
+    /dev/zero is refused before it is read). O(N m).
+
+    Examples
+    --------
+    >>> read_schedule("/dev/zero")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --mu-schedule: /dev/zero is not a regular file (a device, a pipe or a socket)
+    """
+    data = read_input(path, "--mu-schedule")
     try:
-        with Path(path).open(encoding="utf-8") as handle:
-            table = np.loadtxt(handle, delimiter=",", ndmin=2, dtype=float)
-    except OSError as err:
-        raise InputError("--mu-schedule", f"cannot read {path!r}: {err.strerror or err}") from None
+        table = np.loadtxt(io.StringIO(data.decode("utf-8-sig")), delimiter=",", ndmin=2, dtype=float)
     except (ValueError, UnicodeDecodeError):
         raise InputError("--mu-schedule", f"expected rows of comma-separated numbers in {path!r}") from None
     return table
