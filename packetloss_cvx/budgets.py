@@ -21,7 +21,8 @@ from dataclasses import dataclass
 
 from .errors import BudgetError, InputError
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "limit", "simulate_work", "sweep_work"]
+__all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "estimated_seconds", "limit", "simulate_work",
+           "sweep_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -37,6 +38,7 @@ class Budget:
     default: float
     unit: str
     costs: str
+    seconds_per_unit: float = 0.0     # measured, where the unit is work (0: not a work budget)
 
     @property
     def env(self) -> str:
@@ -46,9 +48,9 @@ class Budget:
 
 BUDGETS: dict[str, Budget] = {b.name: b for b in (
     Budget("file_bytes", 16 * 2**20, "bytes of an input file", "a system file is a few kB"),
-    Budget("simulate_work", 5e10, "work units of a Monte Carlo (simulate_work)", "about 10 min"),
+    Budget("simulate_work", 5e10, "work units of a Monte Carlo (simulate_work)", "about 10 min", 1.2e-8),
     Budget("sweep_points", 1e6, "points of a sweep", "about 10 s of a 2x2 system"),
-    Budget("sweep_work", 3e10, "work units of a sweep (sweep_work, burstiness_work)", "about 10 min"),
+    Budget("sweep_work", 3e10, "work units of a sweep (sweep_work, burstiness_work)", "about 12 min", 2.5e-8),
     Budget("audit_cases", 1e4, "random systems of an audit", "about 5 min"),
     Budget("dask_workers", 32, "local Dask workers", "about 5 GB"),
     Budget("allocation_boxes", 1e6, "boxes of the branch and bound", "about 15 min"),
@@ -111,6 +113,18 @@ of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_
                              f"to run it on purpose set {budget.env}={shown}", needed, bound, budget.env)
 
 
+def estimated_seconds(name: str, work: float) -> float:
+    """The time ``work`` units of the work budget ``name`` take on the reference machine (one BLAS thread),
+    from the measured seconds per unit (0 for a budget that does not count work). O(1).
+
+    Examples
+    --------
+    >>> round(estimated_seconds("sweep_work", 3e10) / 60, 1)         # the default sweep budget, in minutes
+    12.5
+    """
+    return work * BUDGETS[name].seconds_per_unit
+
+
 def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans: int, laws: int) -> float:
     """Work units of a Monte Carlo: ``samples (N plans + T laws) n (n + m)`` (``laws`` 0 for the open loop).
 
@@ -124,18 +138,20 @@ def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans:
 
 def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stability: bool = False,
                chunk: int = 2048) -> float:
-    """Work units of a sweep (2e-8 s each, measured): per protocol, every point's N steps of the batched
-    recursion at ``n^3 + m^3 + 8`` each, plus 1000 for each step of each batch (a chunk of ``chunk``
+    """Work units of a sweep (2.5e-8 s each, within a factor 3 on the measured cases): per protocol, every point's N steps of the batched
+    recursion at ``n^3 + m^3 + 40`` each, plus 1000 for each step of each batch (a chunk of ``chunk``
     points of one horizon: the per-step overhead of NumPy calls, which dominates a sweep over long horizons);
     with ``stability`` also ``n^3 min(n^3, 1000)`` per point (Kronecker eigenvalues for small n, Arnoldi
     beyond). O(number of points).
 
     Examples
     --------
-    >>> sweep_work([10] * 40_000, 2, 2, protocols=2)      # a 200 x 200 grid, measured 0.40 s
-    19600000.0
-    >>> sweep_work(range(20_000, 20_002), 2, 2, protocols=2)   # two long horizons, measured 1.68 s
-    81922048.0
+    >>> sweep_work([10] * 40_000, 2, 2, protocols=2)      # a 200 x 200 grid: 1.1 s predicted, 0.40 s measured
+    45200000.0
+    >>> sweep_work([10_000] * 200, 2, 2, protocols=2)     # 200 equal horizons: 6.1 s predicted, 5.6 s measured
+    244000000.0
+    >>> sweep_work(range(10_000, 10_200), 2, 2, protocols=2)   # 200 different ones: 107 s predicted, 105 s measured
+    4266028800.0
     """
     counts: dict[int, int] = {}
     for N in horizons:
@@ -143,7 +159,7 @@ def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stabilit
     points = sum(counts.values())
     steps = sum(N * c for N, c in counts.items())
     batch_steps = sum(N * -(-c // chunk) for N, c in counts.items())
-    work = protocols * (float(steps) * (n ** 3 + m ** 3 + 8) + 1000.0 * batch_steps)
+    work = protocols * (float(steps) * (n ** 3 + m ** 3 + 40) + 1000.0 * batch_steps)
     if stability:
         work += points * protocols * float(n) ** 3 * min(float(n) ** 3, 1000.0)
     return work

@@ -16,11 +16,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..budgets import check, simulate_work
 from ..errors import InputError
 from ..io import load_system, read_input
 from ..model import System
 
-__all__ = ["CommandResult", "allocation_numbers", "check_figure_format", "check_writable", "floats", "number",
+__all__ = ["CommandResult", "allocation_numbers", "check_budgets", "check_figure_format", "check_writable", "floats",
+           "number",
            "preflight", "progress_of", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
@@ -197,6 +199,39 @@ def preflight(args: argparse.Namespace) -> None:
             allocation_numbers(args, system.m)
     if getattr(args, "files", None):
         systems_of(args)
+    check_budgets(args)
+
+
+def check_budgets(args: argparse.Namespace) -> None:
+    """The counts a command line gives checked against their budgets (budgets.py) under the option's name,
+    before the command's module is imported: ``--random``, ``--workers``, ``--max-boxes``, and simulate's
+    ``--samples`` x ``--steps``. (A sweep's points and work are checked by the sweep itself, before any point
+    is evaluated, and named by the option that asked for them.) O(1).
+
+    Examples
+    --------
+    >>> check_budgets(argparse.Namespace(command="audit", random=10**12))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.BudgetError: --random: 1000000000000 random systems is over the budget of 1e+04 random \
+systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_CASES=1e+12
+    """
+    command = getattr(args, "command", None)
+    if command == "audit" and isinstance(getattr(args, "random", None), int):
+        check("audit_cases", args.random, "--random", f"{args.random} random systems")
+    if command == "sweep" and isinstance(getattr(args, "workers", None), int):
+        check("dask_workers", args.workers, "--workers", f"{args.workers} worker processes")
+    if command == "allocate" and isinstance(getattr(args, "max_boxes", None), int):
+        check("allocation_boxes", args.max_boxes, "--max-boxes", f"{args.max_boxes} boxes")
+    if command == "simulate" and min(args.samples, args.steps) >= 1:
+        system = system_of(args)
+        laws = ("tcp", "udp", "dp") if args.law == "all" else (args.law,)
+        plans, loops = sum(law != "dp" for law in laws), len(laws) if args.closed_loop else 0
+        check("simulate_work", simulate_work(args.samples, args.steps, system.horizon, system.n, system.m, plans,
+                                             loops),
+              "--samples", f"{args.samples} samples{f' of {args.steps} steps' if args.closed_loop else ''} "
+                           f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
+                           f"n = {system.n}, m = {system.m}, N = {system.horizon})")
 
 
 def check_figure_format(path: str, field: str) -> None:

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..budgets import BUDGETS, check, sweep_work
+from ..budgets import BUDGETS, check, estimated_seconds, sweep_work
 from ..errors import InputError
 from ..io import read_input
 from ..model import System, numeric_array
@@ -301,14 +301,16 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
             raise InputError("system", "a channel sweep replaces the channel: give a stationary mu")
     field = KIND_FIELDS[kind]
     check("sweep_points", len(mu), field, f"{len(mu)} points")
-    check("sweep_work", sweep_work(horizon.tolist(), system.n, system.m, len(protocols), stability, size), field,
-          f"{len(mu)} points of horizon up to {int(horizon.max())} (n = {system.n}, m = {system.m})")
+    cost = sweep_work(horizon.tolist(), system.n, system.m, len(protocols), stability, size)
+    check("sweep_work", cost, field, f"{len(mu)} points of horizon up to {int(horizon.max())} "
+                                     f"(n = {system.n}, m = {system.m})")
     work = chunks(mu, x0, horizon, size)
     data = system.to_dict()
     if dask is None:
-        columns = run_in_process(data, protocols, work, progress, stability)
+        columns = run_in_process(data, protocols, work, progress, stability, estimated_seconds("sweep_work", cost))
     else:
-        columns = run_on_dask(data, protocols, work, dask, workers, progress, stability)
+        columns = run_on_dask(data, protocols, work, dask, workers, progress, stability,
+                              estimated_seconds("sweep_work", cost))
     costs = {p: columns[f"cost_{p}"] for p in protocols}
     radii = {p: columns[f"radius_{p}"] for p in protocols} if stability else {}
     difference = _difference(costs, mu) if set(protocols) == set(PROTOCOLS) else None
