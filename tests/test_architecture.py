@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
-    {"errors", "budgets", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
+    {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
      "channel", "validation", "threads"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "qp_sparse", "crosscheck", "random_systems",
      "evaluator", "pointwise", "batch_recursion"},

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ..printable import printable
 from ..errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
 from .parser import build_parser, join_negative_values
 
@@ -30,8 +31,8 @@ __all__ = ["main"]
 
 
 def _say(message: str) -> None:
-    """One stderr line, whatever the message holds (a key or a path with a newline in it)."""
-    print(message.replace("\r", "\\r").replace("\n", "\\n"), file=sys.stderr)
+    """One stderr line, whatever the message holds (a key or a path with a newline or an escape sequence in it)."""
+    print(printable(message), file=sys.stderr)
 
 
 def write_json(path: str, data: dict[str, Any]) -> None:
@@ -70,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         elif as_json:
             print(json.dumps(data, allow_nan=False))
         else:
-            print(text)
+            print(printable(text, keep="\n"))   # a name the command missed still cannot drive the terminal
         return code
     except InputError as err:
         _say(f"packetloss-cvx: error: {err}")

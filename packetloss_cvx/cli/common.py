@@ -22,13 +22,18 @@ from ..io import load_system, read_input
 from ..model import System
 
 __all__ = ["CommandResult", "allocation_numbers", "check_budgets", "check_figure_format", "check_writable", "floats",
-           "number",
+           "integers", "number",
            "preflight", "progress_of", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
 #: options that name a file the command writes after its work: checked before the work starts
 OUTPUT_FILES = {"json_out": "--out", "save": "--save", "plot": "--plot"}
+#: every option that names a path, read or written: a name the system cannot hold is refused under its flag
+PATHS = {"file": "file", "files": "file", "mu_schedule": "--mu-schedule", "mu_list": "--mu-list", "out": "--out",
+         **OUTPUT_FILES}
+#: the longest path and path component the command line accepts (POSIX PATH_MAX and NAME_MAX on Linux)
+MAX_PATH, MAX_NAME = 4096, 255
 
 
 class CommandResult(NamedTuple):
@@ -58,6 +63,25 @@ def floats(text: str, field: str) -> list[float]:
     except ValueError:
         raise InputError(field, f"expected comma-separated numbers, found {text!r}") from None
     return values
+
+
+def integers(text: str, field: str) -> list[int]:
+    """``"5,10,20"`` -> ``[5, 10, 20]``: whole numbers only (``inf``, ``nan`` and ``2.5`` are refused with the
+    field's name, not an OverflowError). O(len(text)).
+
+    Examples
+    --------
+    >>> integers("5,1e2", "--horizons")
+    [5, 100]
+    >>> integers("10,inf", "--horizons")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --horizons: expected integers, found '10,inf'
+    """
+    values = floats(text, field)
+    if not all(np.isfinite(v) and v == int(v) for v in values):
+        raise InputError(field, f"expected integers, found {text[:40]!r}")
+    return [int(v) for v in values]
 
 
 def number(text: str, field: str) -> float:
@@ -186,6 +210,11 @@ def preflight(args: argparse.Namespace) -> None:
         value = getattr(args, name, None)
         if isinstance(value, int) and value < 0:
             raise InputError(f"--{name}", f"expected {what} >= 0, found {value}")
+    for name, flag in PATHS.items():
+        value = getattr(args, name, None)
+        for path in value if isinstance(value, list) else [value]:
+            if isinstance(path, str):
+                check_path_length(path, flag)
     for name, flag in OUTPUT_FILES.items():   # a typo in an output path costs nothing, not the whole run
         if isinstance(getattr(args, name, None), str):
             check_writable(getattr(args, name), flag)
@@ -256,6 +285,24 @@ def check_figure_format(path: str, field: str) -> None:
         raise InputError(field, f"cannot write a {suffix!r} figure (formats: {shown})")
 
 
+def check_path_length(path: str, field: str) -> None:
+    """A path no longer than :data:`MAX_PATH` whose components are at most :data:`MAX_NAME` characters (what
+    Linux file systems hold), else an InputError naming ``field`` (was: an OSError, exit 1). O(len(path)).
+
+    Examples
+    --------
+    >>> check_path_length("out/" + "a" * 5000 + ".json", "--out")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --out: file name too long (a component of 5005 characters; at most 255)
+    """
+    longest = max((len(part.encode("utf-8", "surrogateescape")) for part in path.split("/")), default=0)
+    if longest > MAX_NAME:
+        raise InputError(field, f"file name too long (a component of {longest} characters; at most {MAX_NAME})")
+    if len(path.encode("utf-8", "surrogateescape")) > MAX_PATH:
+        raise InputError(field, f"path too long ({len(path)} characters; at most {MAX_PATH})")
+
+
 def check_writable(path: str, field: str) -> None:
     """A FILE the command will write: not a directory, in a directory that exists and may be written, and
     writable if it exists. Nothing is created. O(1).
@@ -269,15 +316,18 @@ def check_writable(path: str, field: str) -> None:
     """
     target = Path(path)
     folder = target.parent if str(target.parent) else Path(".")
-    if target.is_dir():
-        reason = "it is a directory"
-    elif not folder.is_dir():
-        reason = "no such directory"
-    elif not os.access(folder, os.W_OK | os.X_OK) or (target.exists() and not os.access(target, os.W_OK)):
-        reason = "permission denied"
-    else:
-        return
-    raise InputError(field, f"cannot write {path!r}: {reason}")
+    try:
+        if target.is_dir():
+            reason = "it is a directory"
+        elif not folder.is_dir():
+            reason = "no such directory"
+        elif not os.access(folder, os.W_OK | os.X_OK) or (target.exists() and not os.access(target, os.W_OK)):
+            reason = "permission denied"
+        else:
+            return
+    except OSError as err:        # a name the system refuses (too long, a loop of links)
+        reason = err.strerror or str(err)
+    raise InputError(field, f"cannot write {path[:200]!r}: {reason}")
 
 
 def progress_of(args: argparse.Namespace) -> bool | None:

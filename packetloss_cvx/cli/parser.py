@@ -171,6 +171,10 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--formulation", choices=("condensed", "sparse", "auto"), default="auto",
                        help="the cross-checking QP's form, e.g. --formulation sparse")
     solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check (closed form only)")
+    solve.add_argument("--stability", action=argparse.BooleanOptionalAction,
+                       help="each law's mean-square stability in closed loop: --stability computes it at any n "
+                            "(minutes for n in the hundreds), --no-stability skips it (default: computed for "
+                            "n <= 60, skipped with a note above)")
 
     aud = add_command(sub, "audit", "check every claim of the paper on its systems and random ones",
                       examples=["audit --random 20 --seed 1", "audit two_actuator --claim theorem-2 --random 0",
