@@ -16,13 +16,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..budgets import check, simulate_work
+from ..budgets import burstiness_work, check, simulate_work
 from ..errors import InputError
 from ..io import load_system, read_input
 from ..model import System
 
 __all__ = ["CommandResult", "allocation_numbers", "check_budgets", "check_figure_format", "check_writable", "floats",
-           "integers", "number",
+           "integers", "number", "number_range",
            "preflight", "progress_of", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
@@ -82,6 +82,32 @@ def integers(text: str, field: str) -> list[int]:
     if not all(np.isfinite(v) and v == int(v) for v in values):
         raise InputError(field, f"expected integers, found {text[:40]!r}")
     return [int(v) for v in values]
+
+
+def number_range(text: str, field: str) -> np.ndarray:
+    """``"S1,S2,.."`` or ``"LO:HI:K"`` (K values from LO to HI): the values of ``--x0-scales`` and ``--burstiness``.
+    K must be a whole number within the ``sweep_points`` budget, checked before ``linspace`` allocates. O(K).
+
+    Examples
+    --------
+    >>> number_range("0:1:3", "--x0-scales").tolist(), number_range("0.5,2", "--x0-scales").tolist()
+    ([0.0, 0.5, 1.0], [0.5, 2.0])
+    >>> number_range("0:1:inf", "--burstiness")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --burstiness: expected an integer count K >= 1, found 'inf'
+    """
+    if ":" not in text:
+        return np.array(floats(text, field))
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise InputError(field, f"expected LO:HI:K, found {text[:40]!r}")
+    lo, hi = number(parts[0], field), number(parts[1], field)
+    count = number(parts[2], field)
+    if not np.isfinite(count) or count != int(count) or count < 1:
+        raise InputError(field, f"expected an integer count K >= 1, found {parts[2][:40]!r}")
+    check("sweep_points", count, field, f"{int(count)} values")      # before linspace allocates them
+    return np.linspace(lo, hi, int(count))
 
 
 def number(text: str, field: str) -> float:
@@ -233,9 +259,11 @@ def preflight(args: argparse.Namespace) -> None:
 
 def check_budgets(args: argparse.Namespace) -> None:
     """The counts a command line gives checked against their budgets (budgets.py) under the option's name,
-    before the command's module is imported: ``--random``, ``--workers``, ``--max-boxes``, and simulate's
-    ``--samples`` x ``--steps``. (A sweep's points and work are checked by the sweep itself, before any point
-    is evaluated, and named by the option that asked for them.) O(1).
+    before the command's module is imported: ``--random``, ``--workers``, ``--max-boxes``, simulate's
+    ``--samples`` x ``--steps``, sweep's ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and
+    the burstiness work) and the ``--mu-list`` file. (A sweep's other points and its work are checked by the
+    sweep itself, before any point is evaluated, and named by the option that asked for them.) O(1), or
+    O(values) for a list.
 
     Examples
     --------
@@ -252,6 +280,18 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
         check("dask_workers", args.workers, "--workers", f"{args.workers} worker processes")
     if command == "allocate" and isinstance(getattr(args, "max_boxes", None), int):
         check("allocation_boxes", args.max_boxes, "--max-boxes", f"{args.max_boxes} boxes")
+    if command == "sweep":        # what the sweep module would refuse, refused before it is imported
+        if getattr(args, "horizons", None) is not None:
+            integers(args.horizons, "--horizons")
+        if getattr(args, "x0_scales", None) is not None:
+            number_range(args.x0_scales, "--x0-scales")
+        if getattr(args, "mu_list", None) is not None:
+            read_input(args.mu_list, "--mu-list")
+        if getattr(args, "burstiness", None) is not None:
+            values = number_range(args.burstiness, "--burstiness")
+            system = system_of(args)
+            check("sweep_work", burstiness_work(values.size, system.horizon, system.m), "--burstiness",
+                  f"{values.size} values at N = {system.horizon}, m = {system.m}")
     if command == "simulate" and min(args.samples, args.steps) >= 1:
         system = system_of(args)
         laws = ("tcp", "udp", "dp") if args.law == "all" else (args.law,)

@@ -18,9 +18,8 @@ from ..studies import read_mu_list, require_xarray, save_sweep, sweep
 from ..studies.engine import DEFAULT_CHUNK
 from ..studies.output import csv_number
 from ..tolerances import SELF_CHECK_RTOL
-from ..budgets import check
 from . import format as fmt
-from .common import CommandResult, floats, integers
+from .common import CommandResult, integers, number_range
 
 __all__ = ["bursty", "run"]
 
@@ -33,20 +32,6 @@ _AXIS_LABELS = {"nu": r"shared channel $\nu$", "x0_scale": r"scale $s$ of $x_0$ 
                 "horizon": "horizon $N$", "point": "point (row of --mu-list)"}
 
 
-def _scales(text: str, field: str = "--x0-scales") -> np.ndarray:
-    if ":" in text:
-        parts = text.split(":")
-        if len(parts) != 3:
-            raise InputError(field, f"expected LO:HI:K, found {text[:40]!r}")
-        lo, hi = floats(parts[0], field)[0], floats(parts[1], field)[0]
-        count = floats(parts[2], field)[0]
-        if not np.isfinite(count) or count != int(count) or count < 1:
-            raise InputError(field, f"expected an integer count K >= 1, found {parts[2]!r}")
-        check("sweep_points", count, field, f"{int(count)} values")      # before linspace allocates them
-        return np.linspace(lo, hi, int(count))
-    return np.array(floats(text, field))
-
-
 def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
     options: dict[str, Any] = {}
     if args.mu_grid is not None:
@@ -54,7 +39,7 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
     elif args.mu_list is not None:
         options["mu_list"] = read_mu_list(args.mu_list, m)
     elif args.x0_scales is not None:
-        options["x0_scales"] = _scales(args.x0_scales)
+        options["x0_scales"] = number_range(args.x0_scales, "--x0-scales")
     else:
         options["horizons"] = integers(args.horizons, "--horizons")
     if args.channel is not None:
@@ -138,7 +123,7 @@ def bursty(args: argparse.Namespace) -> CommandResult:
                                          f"found {', '.join(ignored)}")
     system = load_system(args.file)
     try:
-        result: BurstinessSweep = burstiness_sweep(system, _scales(args.burstiness, "--burstiness"),
+        result: BurstinessSweep = burstiness_sweep(system, number_range(args.burstiness, "--burstiness"),
                                                    progress=False if args.quiet else None)
     except InputError as err:
         raise err.renamed("--burstiness") if err.field in ("correlations", "correlation") else err from None
