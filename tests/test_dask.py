@@ -73,3 +73,29 @@ def test_bad_dask_argument(two_actuator, dask):
         sweep(two_actuator, mu_grid=2, dask=dask, progress=False)
     assert info.value.field == "dask"
 
+
+
+def test_an_unreachable_scheduler_is_one_line_and_no_wait():
+    # the failed client is closed at once: it used to wait 20 s at exit, then print a 9-line Client.__del__ traceback
+    import os
+    import subprocess
+    import sys
+    import time
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", "sweep", "two_actuator", "--mu-grid", "3",
+                           "--dask", "http://example.invalid:8786"], capture_output=True, text=True, check=False,
+                          timeout=120, env=dict(os.environ))
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("packetloss-cvx: error: --dask: cannot reach")
+    assert time.perf_counter() - start < 15
+
+
+def test_a_scheduler_without_workers_stops_the_sweep(two_actuator, monkeypatch):
+    # the last worker killed (or none joined): the sweep used to wait for ever
+    from packetloss_cvx.studies import engine
+    monkeypatch.setattr(engine, "NO_WORKER_TIMEOUT", 1.0)
+    with distributed.LocalCluster(n_workers=0, processes=False, protocol="tcp", host="127.0.0.1",
+                                  dashboard_address=":0", silence_logs=logging.ERROR) as empty:
+        with pytest.raises(pl.InputError, match="no worker for 1 s") as info:
+            sweep(two_actuator, mu_grid=3, dask=empty.scheduler_address, progress=False)
+    assert info.value.field == "dask" and "0 of 1 chunks done" in str(info.value)
