@@ -47,7 +47,7 @@ def cases(folder: Path) -> dict[str, list[str]]:
     }
 
 
-def run(tree: str, argv: list[str], cap: float) -> tuple[str, float, float, str]:
+def run(tree: str, argv: list[str], cap: float, cwd: str) -> tuple[str, float, float, str]:
     def limits() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, 3 * 2**30))
 
@@ -56,7 +56,8 @@ def run(tree: str, argv: list[str], cap: float) -> tuple[str, float, float, str]
     start = time.perf_counter()
     try:
         proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", *argv], capture_output=True, text=True,
-                              env=env, timeout=cap, preexec_fn=limits, check=False)
+                              env=env, timeout=cap, preexec_fn=limits, check=False,
+                              cwd=cwd)    # not a checkout: python -m puts the working folder first
         code, err = str(proc.returncode), (proc.stderr.splitlines() or [""])[0]
         lines = len(proc.stderr.splitlines())
         err = f"{err[:90]}" + (f" (+{lines - 1} lines)" if lines > 1 else "")
@@ -79,7 +80,7 @@ def main() -> None:
             if args.only and name not in args.only:
                 continue
             for label, tree in (("new", NEW), ("old", args.old), ("new", NEW)):
-                code, wall, cpu, err = run(tree, argv, args.cap)
+                code, wall, cpu, err = run(tree, argv, args.cap, tmp)
                 print(f"{name:18s} {label}  exit {code:7s} wall {wall:7.2f} s  cpu {cpu:7.2f} s  {err}", flush=True)
 
 
