@@ -12,11 +12,12 @@ from ..costs import closed_form
 from ..errors import InputError, NumericalError, ResourceError
 from ..markov import mean_square_radius as markov_radius
 from ..model import System
+from ..progress import progress_bar
 from ..qp import solve_qp
 from ..results import Solution, eigenvalue_pairs
 from ..simulation import is_mean_square_stable, mean_square_radius
 from . import format as fmt
-from .common import CommandResult, system_of
+from .common import CommandResult, progress_of, system_of
 from .markov_section import markov_section
 
 __all__ = ["STABILITY_MAX_N", "run", "stability", "text_details"]
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     # behind a Gilbert-Elliott chain the paper's laws are the plug-in laws (Bernoulli losses at the chain's
     # predicted mu_t), labelled so; the exact costs under the chain are the "markov" section's
     plugin = system if system.channel is None else system.with_mu(system.mu_schedule)
-    for protocol in protocols:
+    for protocol in progress_bar(protocols, desc="solve", progress=progress_of(args)):   # minutes at large n
         sol = closed_form(plugin, protocol, method=args.method)
         entry: dict[str, Any] = {
             "protocol": protocol, "cost": sol.cost, "inputs": sol.inputs.tolist(), "gain": sol.gain.tolist(),
