@@ -40,7 +40,8 @@ packetloss-cvx {__version__}: optimal control over multichannel packet-loss link
 (Casbolt, Jones, Esnaola), every answer computed in closed form and cross-checked by a solver.
 
 exit codes: 0 success; 1 a refused or failed computation; 2 bad input (one line naming
-the field); 3 proved infeasible; 4 allocation gap not certified within its caps.
+the field), or a count beyond its work budget (PACKETLOSS_CVX_BUDGET_<NAME> raises it:
+docs/design.md §4); 3 proved infeasible; 4 allocation gap not certified within its caps.
 Contracts (files, JSON keys): docs/design.md §4. Help on a command: packetloss-cvx COMMAND -h"""
 
 EPILOG = """\
