@@ -14,7 +14,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from .budgets import BUDGETS, check, limit
+from .budgets import BUDGETS, check
 from .errors import InputError
 from .model import System
 
@@ -145,9 +145,12 @@ def read_input(path: str | Path, field: str) -> bytes:
         raise InputError(field, f"{_shown(text)} {problem}")
     with os.fdopen(fd, "rb") as handle:
         check("file_bytes", info.st_size, field, f"{_shown(text)} ({info.st_size} bytes)")
-        data = handle.read(int(min(limit("file_bytes"), 2**62)) + 1)     # bounded: a file that grows as it is read
-    check("file_bytes", len(data), field, f"{_shown(text)} (more than {len(data) - 1} bytes)")
-    return data
+        blocks, size = [], 0
+        while block := handle.read(1 << 20):       # in blocks: a file that grows as it is read stays bounded
+            blocks.append(block)
+            size += len(block)
+            check("file_bytes", size, field, f"{_shown(text)} (more than {size - len(block)} bytes)")
+    return b"".join(blocks)
 
 
 def _shown(path: str) -> str:

@@ -167,6 +167,15 @@ def test_input_files_must_be_regular_and_within_the_cap(tmp_path):
             read(str(huge))
 
 
+def test_an_unbounded_file_budget_still_reads_a_small_file(tmp_path, monkeypatch):
+    from packetloss_cvx.studies import read_mu_list
+    path = tmp_path / "mu.csv"
+    path.write_text("mu1,mu2\n0.5,0.25\n")
+    for value in ("inf", "1e15"):           # a read sized by the budget allocated it: MemoryError
+        monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_FILE_BYTES", value)
+        assert read_mu_list(path, 2).tolist() == [[0.5, 0.25]]
+
+
 def test_a_toml_integer_beyond_python_limit_is_bad_input(tmp_path):
     path = tmp_path / "big.toml"
     path.write_text(BIG_INT_TOML)
