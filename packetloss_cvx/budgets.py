@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 from .errors import BudgetError, InputError
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "estimated_seconds", "limit", "simulate_work",
-           "sweep_work"]
+__all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "count_text", "estimated_seconds", "limit",
+           "simulate_work", "sweep_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -105,12 +105,35 @@ def check(name: str, needed: float, field: str, what: str) -> None:
 of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_CASES=1e+12
     """
     bound = limit(name)
+    needed = _float(needed)
     if needed <= bound:
         return
     budget = BUDGETS[name]
     shown = _rounded_up(needed) if math.isfinite(needed) else "inf"
     raise BudgetError(field, f"{what} is over the budget of {bound:.3g} {budget.unit} ({budget.costs}); "
                              f"to run it on purpose set {budget.env}={shown}", needed, bound, budget.env)
+
+
+def count_text(value: int | float) -> str:
+    """A count as an error line shows it: as typed up to 15 digits, else by its size (an integer of 400 digits
+    is not echoed). O(digits).
+
+    Examples
+    --------
+    >>> count_text(1_000_000), count_text(10 ** 400), count_text(2.5e20)
+    ('1000000', 'a 401-digit number', '2.5e+20')
+    """
+    if isinstance(value, int) and abs(value) >= 10 ** 15:
+        return f"a {len(str(abs(value)))}-digit number"
+    return str(value) if isinstance(value, int) else f"{value:.3g}"
+
+
+def _float(value: float) -> float:
+    """``float(value)``; an integer beyond the double range is infinite work, not an OverflowError."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
 
 
 def estimated_seconds(name: str, work: float) -> float:
@@ -132,8 +155,10 @@ def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans:
     --------
     >>> simulate_work(10_000, 50, 10, 2, 2, plans=2, laws=0)        # simulate two_actuator (open loop)
     1600000.0
+    >>> simulate_work(10 ** 400, 50, 10, 2, 2, plans=2, laws=0)     # beyond the double range: unbounded
+    inf
     """
-    return float(samples) * (float(horizon) * plans + float(steps) * laws) * n * (n + m)
+    return _float(samples) * (float(horizon) * plans + _float(steps) * laws) * n * (n + m)
 
 
 def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stability: bool = False,
@@ -174,7 +199,7 @@ def burstiness_work(values: int, horizon: int, m: int, protocols: int = 2) -> fl
     >>> burstiness_work(20, 80, 1)        # pendulum_bursty, 20 values: measured 0.08 s
     23680000.0
     """
-    return float(values) * protocols * ((float(horizon) * m) ** 3 + 1000.0 * horizon)
+    return _float(values) * protocols * ((float(horizon) * m) ** 3 + 1000.0 * horizon)
 
 
 def _rounded_up(value: float) -> str:

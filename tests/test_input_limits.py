@@ -247,11 +247,19 @@ def test_cli_refuses_counts_beyond_their_budget(argv, option, variable):
       "1000000000000"], "--max-boxes", "ALLOCATION_BOXES=1e+12"),
     (["sweep", "two_actuator", "--x0-scales", "0:1:1000000000000"], "--x0-scales", "SWEEP_POINTS=1e+12"),
     (["sweep", "two_actuator", "--mu-grid", "2000"], "--mu-grid", "SWEEP_POINTS=4e+06"),
+    # integers beyond the double range (401 digits): OverflowError, exit 1, before
+    (["simulate", "two_actuator", "--samples", "1" + "0" * 400], "--samples", "SIMULATE_WORK=inf"),
+    (["simulate", "two_actuator", "--closed-loop", "--steps", "1" + "0" * 400], "--samples", "SIMULATE_WORK=inf"),
+    (["audit", "--random", "1" + "0" * 400], "--random", "AUDIT_CASES=inf"),
+    (["sweep", "two_actuator", "--mu-grid", "1" + "0" * 400], "--mu-grid", "SWEEP_POINTS=inf"),
+    (["allocate", "two_actuator", "--protocol", "udp", "--alpha", "8", "--beta", "1,0.05", "--max-boxes",
+      "1" + "0" * 400], "--max-boxes", "ALLOCATION_BOXES=inf"),
 ])
 def test_cli_in_process_refuses_counts_beyond_their_budget(argv, option, variable, capsys):
     code, line = main_line(argv, capsys)
     assert code == 2
     assert line.startswith(f"packetloss-cvx: error: {option}: ") and f"PACKETLOSS_CVX_BUDGET_{variable}" in line
+    assert len(line) < 400          # a 401-digit count is shown by its size, not echoed
 
 
 @pytest.mark.parametrize(("argv", "option"), [

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..budgets import check
+from ..budgets import check, count_text
 from ..errors import InfeasibleError, InputError, SolverError
 from ..model import System
 from ..protocols import check_protocol
@@ -60,7 +60,7 @@ MAX_BOXES = 20000
 def _max_boxes(value: Any) -> int:
     """A positive count within the ``allocation_boxes`` budget (budgets.py), checked before the search."""
     count = check_count(value, "max_boxes")
-    check("allocation_boxes", count, "max_boxes", f"{count} boxes")
+    check("allocation_boxes", count, "max_boxes", f"{count_text(count)} boxes")
     return count
 
 

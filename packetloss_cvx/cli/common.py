@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..budgets import burstiness_work, check, simulate_work
+from ..budgets import burstiness_work, check, count_text, simulate_work
 from ..errors import InputError
 from ..io import load_system, read_input
 from ..model import System
@@ -275,11 +275,11 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
     """
     command = getattr(args, "command", None)
     if command == "audit" and isinstance(getattr(args, "random", None), int):
-        check("audit_cases", args.random, "--random", f"{args.random} random systems")
+        check("audit_cases", args.random, "--random", f"{count_text(args.random)} random systems")
     if command == "sweep" and isinstance(getattr(args, "workers", None), int):
-        check("dask_workers", args.workers, "--workers", f"{args.workers} worker processes")
+        check("dask_workers", args.workers, "--workers", f"{count_text(args.workers)} worker processes")
     if command == "allocate" and isinstance(getattr(args, "max_boxes", None), int):
-        check("allocation_boxes", args.max_boxes, "--max-boxes", f"{args.max_boxes} boxes")
+        check("allocation_boxes", args.max_boxes, "--max-boxes", f"{count_text(args.max_boxes)} boxes")
     if command == "sweep":        # what the sweep module would refuse, refused before it is imported
         if getattr(args, "horizons", None) is not None:
             integers(args.horizons, "--horizons")
@@ -298,7 +298,8 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
         plans, loops = sum(law != "dp" for law in laws), len(laws) if args.closed_loop else 0
         check("simulate_work", simulate_work(args.samples, args.steps, system.horizon, system.n, system.m, plans,
                                              loops),
-              "--samples", f"{args.samples} samples{f' of {args.steps} steps' if args.closed_loop else ''} "
+              "--samples", f"{count_text(args.samples)} samples"
+                           f"{f' of {count_text(args.steps)} steps' if args.closed_loop else ''} "
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
 

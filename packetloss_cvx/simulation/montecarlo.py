@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..budgets import check, estimated_seconds, simulate_work
+from ..budgets import check, count_text, estimated_seconds, simulate_work
 from ..costs import closed_form, expected_cost
 from ..errors import InputError, NumericalError
 from ..model import System
@@ -185,7 +185,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     plans, loops = sum(law != "dp" for law in laws), len(laws) if closed_loop else 0
     cost = simulate_work(samples, steps, system.horizon, system.n, system.m, plans, loops)
     check("simulate_work", cost, "samples",
-          f"{samples} samples{f' of {steps} steps' if closed_loop else ''} (n = {system.n}, m = {system.m}, "
+          f"{count_text(samples)} samples{f' of {count_text(steps)} steps' if closed_loop else ''} "
+          f"(n = {system.n}, m = {system.m}, "
           f"N = {system.horizon}; {plans} plans, {loops} loops)")        # before anything is drawn
     if system.channel is not None:
         return simulate_markov(system, samples, steps, seed, closed_loop, laws, keep, progress)

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..budgets import BUDGETS, check, estimated_seconds, sweep_work
+from ..budgets import BUDGETS, check, count_text, estimated_seconds, sweep_work
 from ..errors import InputError
 from ..io import read_input
 from ..model import System, numeric_array
@@ -51,7 +51,7 @@ def _count(value: Any, field: str, least: int) -> int:
 def _grid_axis(mu_grid: Any) -> np.ndarray:
     if isinstance(mu_grid, (int, np.integer)) and not isinstance(mu_grid, bool):
         count = _count(mu_grid, "mu_grid", 2)
-        check("sweep_points", count, "mu_grid", f"{count} points per channel")   # before linspace allocates
+        check("sweep_points", count, "mu_grid", f"{count_text(count)} points per channel")   # before linspace allocates
         return np.linspace(0.0, 1.0, count)
     axis = numeric_array(mu_grid, "mu_grid")
     if axis.ndim != 1 or axis.size < 1 or np.any(axis < 0) or np.any(axis > 1):

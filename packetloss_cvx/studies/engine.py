@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..budgets import check
+from ..budgets import check, count_text
 from ..errors import InputError
 from ..evaluator import CostEvaluator
 from ..io import system_from_dict
@@ -181,7 +181,7 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
             count = LOCAL_WORKERS if workers is None else workers
             if isinstance(count, bool) or not isinstance(count, int) or count < 1:
                 raise InputError("workers", f"expected an integer >= 1, found {count!r}")
-            check("dask_workers", count, "workers", f"{count} worker processes")   # before any is started
+            check("dask_workers", count, "workers", f"{count_text(count)} worker processes")   # before any is started
             cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
             owned.append(cluster)
