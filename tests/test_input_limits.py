@@ -167,6 +167,18 @@ def test_input_files_must_be_regular_and_within_the_cap(tmp_path):
             read(str(huge))
 
 
+def test_mu_list_rows_count_against_the_point_budget(tmp_path, monkeypatch):
+    from packetloss_cvx.studies import read_mu_list
+    path = tmp_path / "mu.csv"
+    path.write_text("mu1,mu2\n" + "0.5,0.25\n" * 1001)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_SWEEP_POINTS", "1000")
+    with pytest.raises(pl.ResourceError, match="more than 1000 rows") as info:
+        read_mu_list(path, 2)
+    assert info.value.field == "mu_list"
+    path.write_text("mu1,mu2\n" + "0.5,0.25\n" * 1000)        # the header is not a point
+    assert read_mu_list(path, 2).shape == (1000, 2)
+
+
 def test_an_unbounded_file_budget_still_reads_a_small_file(tmp_path, monkeypatch):
     from packetloss_cvx.studies import read_mu_list
     path = tmp_path / "mu.csv"
