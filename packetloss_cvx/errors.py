@@ -11,6 +11,7 @@ whole ProcessPoolExecutor (BrokenProcessPool for every task, the message lost).
 from __future__ import annotations
 
 __all__ = [
+    "BudgetError",
     "CrossCheckError",
     "DimensionError",
     "FolderBusyError",
@@ -100,7 +101,9 @@ class CrossCheckError(ArithmeticError):
 
 
 class ResourceError(RuntimeError):
-    """A computation whose size is known in advance would not fit the memory budget."""
+    """A computation whose size is known in advance would not fit its budget (memory; or, as
+    :class:`BudgetError`, the work budget of a count the caller gave). ``needed_bytes`` and
+    ``budget_bytes`` are in the budget's unit (bytes for memory)."""
 
     def __init__(self, detail: str, needed_bytes: float, budget_bytes: float) -> None:
         self.needed_bytes = needed_bytes
@@ -109,3 +112,33 @@ class ResourceError(RuntimeError):
 
     def __reduce__(self) -> tuple:
         return type(self), (self.args[0], self.needed_bytes, self.budget_bytes), self.__dict__
+
+
+class BudgetError(ResourceError, InputError):
+    """A count or size the caller gave (samples, steps, points, cases, workers, boxes, a file's bytes)
+    needs more work than its budget (:mod:`packetloss_cvx.budgets`), refused before any work starts.
+
+    Both a :class:`ResourceError` (the work is refused for its size) and an :class:`InputError` (the caller
+    asked for it: ``field`` names the argument or option; the command line exits 2). ``needed`` and ``budget``
+    are in the budget's unit; ``env`` is the environment variable that raises the budget on purpose.
+
+    Examples
+    --------
+    >>> err = BudgetError("samples", "too much", 2e14, 1e11, "PACKETLOSS_CVX_BUDGET_SIMULATE_WORK")
+    >>> isinstance(err, ResourceError), isinstance(err, ValueError), str(err)
+    (True, True, 'samples: too much')
+    >>> err.renamed("--samples").field, err.renamed("--samples").budget
+    ('--samples', 100000000000.0)
+    """
+
+    def __init__(self, field: str, detail: str, needed: float, budget: float, env: str) -> None:
+        self.field, self.detail, self.env = field, detail, env
+        self.needed, self.budget = float(needed), float(budget)
+        ResourceError.__init__(self, f"{field}: {detail}", self.needed, self.budget)
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.field, self.detail, self.needed, self.budget, self.env), self.__dict__
+
+    def renamed(self, field: str) -> BudgetError:
+        """The same refusal, reported under another field name (the command-line option)."""
+        return type(self)(field, self.detail, self.needed, self.budget, self.env)

@@ -4,18 +4,23 @@ shipped with the package (``packetloss_cvx/examples/*.toml``, read with importli
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import stat
 import tomllib
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from .budgets import BUDGETS, check
 from .errors import InputError
 from .model import System
 from .safeio import atomic_write
 
-__all__ = ["dumps_system", "example_names", "load_example", "load_system", "save_system", "system_from_dict"]
+__all__ = ["dumps_system", "example_names", "load_example", "load_system", "read_input", "save_system",
+           "system_from_dict"]
 
 
 # TOML section -> {key: System keyword}
@@ -101,8 +106,63 @@ def _section_of(kw: str) -> str:
     return kw
 
 
-#: A system file is a few kilobytes; anything larger is refused before parsing.
-MAX_FILE_BYTES = 16 * 2**20
+#: A system file is a few kilobytes; anything larger is refused before parsing (the default of the
+#: ``file_bytes`` budget, which applies to every input file: budgets.py).
+MAX_FILE_BYTES = int(BUDGETS["file_bytes"].default)
+
+
+def read_input(path: str | Path, field: str) -> bytes:
+    """The bytes of an input file (a system file, a CSV of channels), refused before they are read when the
+    file is not a regular file (a FIFO or a device would block or never end: it is opened without blocking
+    and checked with ``fstat``) or larger than the ``file_bytes`` budget (a bounded read: ``st_size`` is
+    0 for devices). O(size), at most the budget.
+
+    Raises
+    ------
+    InputError
+        A missing, unreadable or irregular file, or a name the system refuses (too long), named ``field``.
+    BudgetError
+        A file larger than the budget.
+
+    Examples
+    --------
+    >>> read_input("/dev/zero", "--mu-list")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --mu-list: /dev/zero is not a regular file (a device, a pipe or a socket)
+    """
+    text = str(path)
+    if "\x00" in text:
+        raise InputError(field, "expected a file path, found a path with a NUL character")
+    try:
+        fd = os.open(text, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as err:
+        raise InputError(field, f"cannot read {_shown(text)}: {_reason(err)}") from None
+    info = os.fstat(fd)
+    problem = ("is a directory, not a file" if stat.S_ISDIR(info.st_mode) else
+               "is not a regular file (a device, a pipe or a socket)" if not stat.S_ISREG(info.st_mode) else "")
+    if problem:
+        os.close(fd)
+        raise InputError(field, f"{_shown(text)} {problem}")
+    with os.fdopen(fd, "rb") as handle:
+        check("file_bytes", info.st_size, field, f"{_shown(text)} ({info.st_size} bytes)")
+        blocks, size = [], 0
+        while block := handle.read(1 << 20):       # in blocks: a file that grows as it is read stays bounded
+            blocks.append(block)
+            size += len(block)
+            check("file_bytes", size, field, f"{_shown(text)} (more than {size - len(block)} bytes)")
+    return b"".join(blocks)
+
+
+def _shown(path: str) -> str:
+    """A path as an error line shows it: at most 200 characters (a 100,000-character name is not echoed)."""
+    return path if len(path) <= 200 else f"{path[:100]}...({len(path)} characters)"
+
+
+def _reason(err: OSError) -> str:
+    if err.errno == errno.ENAMETOOLONG:
+        return "file name too long"
+    return err.strerror or str(err)
 
 
 def example_names() -> list[str]:
@@ -155,20 +215,16 @@ def load_system(path: str | Path) -> System:
     if "\x00" in text:
         raise InputError("file", "expected a file path, found a path with a NUL character")
     file = Path(text)
-    if not file.exists() and file.suffix == "" and file.name == text and text.replace("-", "_") in example_names():
-        return load_example(text)
     try:
-        if file.exists() and not file.is_dir() and not file.is_file():
-            raise InputError("file", f"{file} is not a regular file (a device, a pipe or a socket)")
-        with open(file, "rb") as handle:           # bounded read: st_size is 0 for devices
-            data = handle.read(MAX_FILE_BYTES + 1)
-        if len(data) > MAX_FILE_BYTES:
-            raise InputError("file", f"{file} is larger than {MAX_FILE_BYTES} bytes; a system file is a few kilobytes")
-    except FileNotFoundError:
+        exists = file.exists()
+    except OSError as err:         # a name longer than the system allows: not a file, and not an example
+        raise InputError("file", f"cannot read {_shown(text)}: {_reason(err)}") from None
+    if not exists and file.suffix == "" and file.name == text and text.replace("-", "_") in example_names():
+        return load_example(text)
+    if not exists:
         hint = f" (or an example name: {', '.join(example_names())})" if file.suffix == "" else ""
-        raise InputError("file", f"no such file: {file}{hint}") from None
-    except OSError as err:
-        raise InputError("file", f"cannot read {file}: {err.strerror or err}") from None
+        raise InputError("file", f"no such file: {_shown(text)}{hint}")
+    data = read_input(file, "file")
     return _parse(data, str(file))
 
 
@@ -181,6 +237,9 @@ def _parse(data: bytes, where: str) -> System:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise InputError("file", f"{where} is not valid TOML: {err}") from None
+    except ValueError as err:   # an integer of more than 4300 digits (Python's int-from-text limit)
+        raise InputError("file", f"{where} holds a number tomllib cannot read ({str(err).split(':')[0]}); "
+                                 "a system file's numbers are within the double range") from None
     except RecursionError:
         raise InputError("file", f"{where} nests arrays too deeply (a system file needs at most 3 levels)") from None
     return system_from_dict(table)

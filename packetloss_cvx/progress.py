@@ -11,7 +11,11 @@ import sys
 from collections.abc import Iterable, Iterator
 from typing import Any, TypeVar
 
-__all__ = ["Bar", "progress_bar", "wants_progress"]
+__all__ = ["ESTIMATE_AFTER", "Bar", "label", "progress_bar", "wants_progress"]
+
+#: Work estimated to take longer than this (seconds) has its estimate in the bar's label from the start
+#: (tqdm's own remaining time appears only once the first step is done, which may be minutes away).
+ESTIMATE_AFTER = 60.0
 
 T = TypeVar("T")
 
@@ -65,9 +69,24 @@ class Bar:
         self.close()
 
 
+def label(desc: str, estimate: float | None) -> str:
+    """A bar's label with the estimated time of the whole work when it exceeds :data:`ESTIMATE_AFTER`.
+
+    Examples
+    --------
+    >>> label("sweep", 30.0), label("sweep", 754.0), label("simulate", 7200.0), label("audit", None)
+    ('sweep', 'sweep (estimated 13 min)', 'simulate (estimated 2 h)', 'audit')
+    """
+    if estimate is None or not estimate > ESTIMATE_AFTER:
+        return desc
+    shown = f"{estimate / 3600:.2g} h" if estimate >= 5400 else f"{estimate / 60:.0f} min"
+    return f"{desc} (estimated {shown})"
+
+
 def progress_bar(iterable: Iterable[T] | None = None, *, total: int | None = None, desc: str = "",
-                 progress: bool | None = None) -> Any:
-    """A tqdm bar on stderr when :func:`wants_progress` says so, else a silent :class:`Bar`.
+                 progress: bool | None = None, estimate: float | None = None) -> Any:
+    """A tqdm bar on stderr when :func:`wants_progress` says so, else a silent :class:`Bar`; ``estimate``
+    (seconds, from budgets.estimated_seconds) is shown in its label when the work takes minutes (:func:`label`).
 
     >>> list(progress_bar(range(3), progress=False))
     [0, 1, 2]
@@ -76,4 +95,4 @@ def progress_bar(iterable: Iterable[T] | None = None, *, total: int | None = Non
         return Bar(iterable)
     from tqdm.auto import tqdm  # lazy: tqdm is only needed when a bar is shown
 
-    return tqdm(iterable, total=total, desc=desc, file=sys.stderr, leave=False, dynamic_ncols=True)
+    return tqdm(iterable, total=total, desc=label(desc, estimate), file=sys.stderr, leave=False, dynamic_ncols=True)

@@ -27,8 +27,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
-    {"errors", "tolerances", "protocols", "results", "model", "io", "linalg", "progress", "display", "statespace",
-     "channel", "validation", "threads", "optional", "safeio", "runfolder"},
+    {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "progress",
+     "display", "statespace", "channel", "validation", "threads", "optional", "safeio", "runfolder"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
      "evaluator", "pointwise"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov"},

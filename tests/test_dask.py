@@ -85,3 +85,27 @@ def test_the_dask_docs_example_grid_is_within_the_sweep_cap():
     sizes = [int(k) for k in re.findall(r"mu_grid=(\d+)", text) + re.findall(r"--mu-grid (\d+)", text)]
     assert sizes
     assert all(k * k <= MAX_SWEEP_POINTS for k in sizes), sizes
+
+
+def test_an_unreachable_scheduler_is_one_line_and_no_wait():
+    # the failed client is closed at once: it used to wait 20 s at exit, then print a 9-line Client.__del__ traceback
+    import os
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", "sweep", "two_actuator", "--mu-grid", "3",
+                           "--dask", "http://example.invalid:8786"], capture_output=True, text=True, check=False,
+                          timeout=120, env=dict(os.environ))
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("packetloss-cvx: error: --dask: cannot reach")
+    assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr
+
+
+def test_a_scheduler_without_workers_stops_the_sweep(two_actuator, monkeypatch):
+    # the last worker killed (or none joined): the sweep used to wait for ever
+    from packetloss_cvx.studies import engine
+    monkeypatch.setattr(engine, "NO_WORKER_TIMEOUT", 1.0)
+    with distributed.LocalCluster(n_workers=0, processes=False, protocol="tcp", host="127.0.0.1",
+                                  dashboard_address=":0", silence_logs=logging.ERROR) as empty:
+        with pytest.raises(pl.InputError, match="no worker for 1 s") as info:
+            sweep(two_actuator, mu_grid=3, dask=empty.scheduler_address, progress=False)
+    assert info.value.field == "dask" and "0 of 1 chunks done" in str(info.value)

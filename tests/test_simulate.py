@@ -174,7 +174,10 @@ def test_solve_non_stationary_channel_uses_the_first_step(tmp_path, capsys):
     assert "first step" in entry["stability_note"]
 
 
-def test_huge_closed_loop_is_refused_before_drawing(two_actuator):
+def test_huge_closed_loop_is_refused_before_drawing(two_actuator, monkeypatch):
     from packetloss_cvx import ResourceError
+    with pytest.raises(ResourceError, match="PACKETLOSS_CVX_BUDGET_SIMULATE_WORK"):    # the work budget first
+        simulate(two_actuator, 10000, steps=10 ** 9, closed_loop=True, progress=False)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_SIMULATE_WORK", "inf")        # raised on purpose: the memory check
     with pytest.raises(ResourceError, match="fewer steps"):
         simulate(two_actuator, 10000, steps=10 ** 9, closed_loop=True, progress=False)

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budgets import check, count_text
 from ..errors import InfeasibleError, InputError, SolverError
 from ..model import System
 from ..protocols import check_protocol
@@ -54,6 +55,13 @@ __all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_c
 
 #: Default cap on the boxes a branch and bound explores before it reports "gap_not_certified".
 MAX_BOXES = 20000
+
+
+def _max_boxes(value: Any) -> int:
+    """A positive count within the ``allocation_boxes`` budget (budgets.py), checked before the search."""
+    count = check_count(value, "max_boxes")
+    check("allocation_boxes", count, "max_boxes", f"{count_text(count)} boxes")
+    return count
 
 
 def _time_limit(value: Any) -> float | None:
@@ -130,7 +138,7 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     system = check_system(system)
     lo, hi = check_bounds(bounds)
     poly = _polytope(constraints, system.m, lo, hi)
-    return _min_cost(system, protocol, poly, check_count(max_boxes, "max_boxes"), _time_limit(time_limit))
+    return _min_cost(system, protocol, poly, _max_boxes(max_boxes), _time_limit(time_limit))
 
 
 def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, proof: str, max_boxes: int,
@@ -218,7 +226,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     beta = check_beta(beta, system.m)
     lo, hi = check_bounds(bounds)
     gap = check_gap(gap)
-    max_boxes = check_count(max_boxes, "max_boxes")
+    max_boxes = _max_boxes(max_boxes)
     time_limit = _time_limit(time_limit)
     poly = _polytope(constraints, system.m, lo, hi)
     # the problem is invariant to the scale of the prices: solve with max(beta) = 1 and scale back,

@@ -6,6 +6,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..budgets import check, count_text
 from ..errors import InputError
 from ..model import System
 from ..progress import progress_bar
@@ -98,6 +99,7 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
         raise InputError("seed", f"expected an integer >= 0, found {seed!r}")
     if isinstance(random, bool) or not isinstance(random, int | np.integer) or random < 0:
         raise InputError("random", f"expected a count >= 0, found {random!r}")
+    check("audit_cases", random, "random", f"{count_text(int(random))} random systems")     # before any is drawn
     rng = np.random.default_rng(seed)
     paper = paper_systems()
     given = list(systems or [])

@@ -31,6 +31,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ..printable import printable
 from ..errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
 from ..safeio import atomic_write
 from .parser import build_parser, join_negative_values
@@ -64,8 +65,8 @@ def _install_handlers() -> dict[int, Any] | None:
 
 
 def _say(message: str) -> None:
-    """One stderr line, whatever the message holds (a key or a path with a newline in it)."""
-    print(message.replace("\r", "\\r").replace("\n", "\\n"), file=sys.stderr)
+    """One stderr line, whatever the message holds (a key or a path with a newline or an escape sequence in it)."""
+    print(printable(message), file=sys.stderr)
 
 
 def write_json(path: str, data: dict[str, Any], force: bool = False) -> None:
@@ -122,7 +123,7 @@ def _run(argv: Sequence[str] | None) -> int:
         elif as_json:
             print(json.dumps(data, allow_nan=False))
         else:
-            print(text)
+            print(printable(text, keep="\n"))   # a name the command missed still cannot drive the terminal
         return code
     except InputError as err:
         _say(f"packetloss-cvx: error: {err}")

@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             ("gap", f"{result.gap:.1e}"),
             ("method", result.method + (f", {result.boxes} box" + ("es" if result.boxes > 1 else "")
                                         if result.boxes else ""))]
-    name = system.name or args.file
+    name = fmt.name(system.name or args.file)
     if result.status == "optimal":
         return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]
                                              + fmt.fields(rows)))

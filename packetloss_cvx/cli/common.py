@@ -9,23 +9,32 @@ the subcommand's module, so that bad input is refused without importing cvxpy or
 from __future__ import annotations
 
 import argparse
+import io
+import os
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..budgets import burstiness_work, check, count_text, simulate_work
 from ..errors import InputError
-from ..io import load_system
+from ..io import load_system, read_input
 from ..model import System
 from ..safeio import check_output_file
 
-__all__ = ["CommandResult", "allocation_numbers", "check_figure_format", "check_writable", "floats", "number",
+__all__ = ["CommandResult", "allocation_numbers", "check_budgets", "check_figure_format", "check_writable", "floats",
+           "integers", "number", "number_range",
            "preflight", "progress_of", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
 #: options that name a file the command writes after its work: checked before the work starts
 OUTPUT_FILES = {"json_out": "--out", "save": "--save", "plot": "--plot"}
+#: every option that names a path, read or written: a name the system cannot hold is refused under its flag
+PATHS = {"file": "file", "files": "file", "mu_schedule": "--mu-schedule", "mu_list": "--mu-list", "out": "--out",
+         **OUTPUT_FILES}
+#: the longest path and path component the command line accepts (POSIX PATH_MAX and NAME_MAX on Linux)
+MAX_PATH, MAX_NAME = 4096, 255
 
 
 class CommandResult(NamedTuple):
@@ -57,6 +66,51 @@ def floats(text: str, field: str) -> list[float]:
     return values
 
 
+def integers(text: str, field: str) -> list[int]:
+    """``"5,10,20"`` -> ``[5, 10, 20]``: whole numbers only (``inf``, ``nan`` and ``2.5`` are refused with the
+    field's name, not an OverflowError). O(len(text)).
+
+    Examples
+    --------
+    >>> integers("5,1e2", "--horizons")
+    [5, 100]
+    >>> integers("10,inf", "--horizons")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --horizons: expected integers, found '10,inf'
+    """
+    values = floats(text, field)
+    if not all(np.isfinite(v) and v == int(v) for v in values):
+        raise InputError(field, f"expected integers, found {text[:40]!r}")
+    return [int(v) for v in values]
+
+
+def number_range(text: str, field: str) -> np.ndarray:
+    """``"S1,S2,.."`` or ``"LO:HI:K"`` (K values from LO to HI): the values of ``--x0-scales`` and ``--burstiness``.
+    K must be a whole number within the ``sweep_points`` budget, checked before ``linspace`` allocates. O(K).
+
+    Examples
+    --------
+    >>> number_range("0:1:3", "--x0-scales").tolist(), number_range("0.5,2", "--x0-scales").tolist()
+    ([0.0, 0.5, 1.0], [0.5, 2.0])
+    >>> number_range("0:1:inf", "--burstiness")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --burstiness: expected an integer count K >= 1, found 'inf'
+    """
+    if ":" not in text:
+        return np.array(floats(text, field))
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise InputError(field, f"expected LO:HI:K, found {text[:40]!r}")
+    lo, hi = number(parts[0], field), number(parts[1], field)
+    count = number(parts[2], field)
+    if not np.isfinite(count) or count != int(count) or count < 1:
+        raise InputError(field, f"expected an integer count K >= 1, found {parts[2][:40]!r}")
+    check("sweep_points", count, field, f"{int(count)} values")      # before linspace allocates them
+    return np.linspace(lo, hi, int(count))
+
+
 def number(text: str, field: str) -> float:
     """Exactly one number.
 
@@ -72,12 +126,20 @@ def number(text: str, field: str) -> float:
 
 
 def read_schedule(path: str) -> np.ndarray:
-    """A CSV file of N rows of m delivery probabilities (``#`` starts a comment). O(N m)."""
+    """A CSV file of N rows of m delivery probabilities (``#`` starts a comment), read as every input file
+    is (:func:`~packetloss_cvx.io.read_input`: a regular file within the ``file_bytes`` budget; a FIFO or
+    /dev/zero is refused before it is read). O(N m).
+
+    Examples
+    --------
+    >>> read_schedule("/dev/zero")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --mu-schedule: /dev/zero is not a regular file (a device, a pipe or a socket)
+    """
+    data = read_input(path, "--mu-schedule")
     try:
-        with Path(path).open(encoding="utf-8") as handle:
-            table = np.loadtxt(handle, delimiter=",", ndmin=2, dtype=float)
-    except OSError as err:
-        raise InputError("--mu-schedule", f"cannot read {path!r}: {err.strerror or err}") from None
+        table = np.loadtxt(io.StringIO(data.decode("utf-8-sig")), delimiter=",", ndmin=2, dtype=float)
     except (ValueError, UnicodeDecodeError):
         raise InputError("--mu-schedule", f"expected rows of comma-separated numbers in {path!r}") from None
     return table
@@ -175,6 +237,11 @@ def preflight(args: argparse.Namespace) -> None:
         value = getattr(args, name, None)
         if isinstance(value, int) and value < 0:
             raise InputError(f"--{name}", f"expected {what} >= 0, found {value}")
+    for name, flag in PATHS.items():
+        value = getattr(args, name, None)
+        for path in value if isinstance(value, list) else [value]:
+            if isinstance(path, str):
+                check_path_length(path, flag)
     for name, flag in OUTPUT_FILES.items():   # a typo in an output path costs nothing, not the whole run
         if isinstance(getattr(args, name, None), str):
             check_writable(getattr(args, name), flag, getattr(args, "force", False))
@@ -188,6 +255,54 @@ def preflight(args: argparse.Namespace) -> None:
             allocation_numbers(args, system.m)
     if getattr(args, "files", None):
         systems_of(args)
+    check_budgets(args)
+
+
+def check_budgets(args: argparse.Namespace) -> None:
+    """The counts a command line gives checked against their budgets (budgets.py) under the option's name,
+    before the command's module is imported: ``--random``, ``--workers``, ``--max-boxes``, simulate's
+    ``--samples`` x ``--steps``, sweep's ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and
+    the burstiness work) and the ``--mu-list`` file. (A sweep's other points and its work are checked by the
+    sweep itself, before any point is evaluated, and named by the option that asked for them.) O(1), or
+    O(values) for a list.
+
+    Examples
+    --------
+    >>> check_budgets(argparse.Namespace(command="audit", random=10**12))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.BudgetError: --random: 1000000000000 random systems is over the budget of 1e+04 random \
+systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_CASES=1e+12
+    """
+    command = getattr(args, "command", None)
+    if command == "audit" and isinstance(getattr(args, "random", None), int):
+        check("audit_cases", args.random, "--random", f"{count_text(args.random)} random systems")
+    if command == "sweep" and isinstance(getattr(args, "workers", None), int):
+        check("dask_workers", args.workers, "--workers", f"{count_text(args.workers)} worker processes")
+    if command == "allocate" and isinstance(getattr(args, "max_boxes", None), int):
+        check("allocation_boxes", args.max_boxes, "--max-boxes", f"{count_text(args.max_boxes)} boxes")
+    if command == "sweep":        # what the sweep module would refuse, refused before it is imported
+        if getattr(args, "horizons", None) is not None:
+            integers(args.horizons, "--horizons")
+        if getattr(args, "x0_scales", None) is not None:
+            number_range(args.x0_scales, "--x0-scales")
+        if getattr(args, "mu_list", None) is not None:
+            read_input(args.mu_list, "--mu-list")
+        if getattr(args, "burstiness", None) is not None:
+            values = number_range(args.burstiness, "--burstiness")
+            system = system_of(args)
+            check("sweep_work", burstiness_work(values.size, system.horizon, system.m), "--burstiness",
+                  f"{values.size} values at N = {system.horizon}, m = {system.m}")
+    if command == "simulate" and min(args.samples, args.steps) >= 1:
+        system = system_of(args)
+        laws = ("tcp", "udp", "dp") if args.law == "all" else (args.law,)
+        plans, loops = sum(law != "dp" for law in laws), len(laws) if args.closed_loop else 0
+        check("simulate_work", simulate_work(args.samples, args.steps, system.horizon, system.n, system.m, plans,
+                                             loops),
+              "--samples", f"{count_text(args.samples)} samples"
+                           f"{f' of {count_text(args.steps)} steps' if args.closed_loop else ''} "
+                           f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
+                           f"n = {system.n}, m = {system.m}, N = {system.horizon})")
 
 
 def check_figure_format(path: str, field: str) -> None:
@@ -210,6 +325,24 @@ def check_figure_format(path: str, field: str) -> None:
     if suffix not in formats:
         shown = ", ".join(formats[:2] + ["..."] + formats[-2:]) if len(formats) > 4 else ", ".join(formats)
         raise InputError(field, f"cannot write a {suffix!r} figure (formats: {shown})")
+
+
+def check_path_length(path: str, field: str) -> None:
+    """A path no longer than :data:`MAX_PATH` whose components are at most :data:`MAX_NAME` characters (what
+    Linux file systems hold), else an InputError naming ``field`` (was: an OSError, exit 1). O(len(path)).
+
+    Examples
+    --------
+    >>> check_path_length("out/" + "a" * 5000 + ".json", "--out")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --out: file name too long (a component of 5005 characters; at most 255)
+    """
+    longest = max((len(part.encode("utf-8", "surrogateescape")) for part in path.split("/")), default=0)
+    if longest > MAX_NAME:
+        raise InputError(field, f"file name too long (a component of {longest} characters; at most {MAX_NAME})")
+    if len(path.encode("utf-8", "surrogateescape")) > MAX_PATH:
+        raise InputError(field, f"path too long ({len(path)} characters; at most {MAX_PATH})")
 
 
 def check_writable(path: str, field: str, force: bool = False) -> None:

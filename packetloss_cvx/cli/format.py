@@ -13,10 +13,11 @@ from typing import Any
 
 import numpy as np
 
+from ..printable import printable
 from ..results import eigenvalue_pairs
 
-__all__ = ["INDENT", "LABEL_WIDTH", "MAX_COLUMNS", "MAX_ROWS", "eigenvalues", "fields", "labels", "matrix", "num",
-           "numbers", "table"]
+__all__ = ["INDENT", "LABEL_WIDTH", "MAX_COLUMNS", "MAX_ROWS", "eigenvalues", "fields", "labels", "matrix", "name",
+           "num", "numbers", "table"]
 
 INDENT = "  "
 #: the width of the label column of :func:`fields`
@@ -24,6 +25,18 @@ LABEL_WIDTH = 16
 #: the most rows and columns :func:`matrix` prints (the JSON has all of them)
 MAX_ROWS = 20
 MAX_COLUMNS = 8
+
+
+def name(text: Any) -> str:
+    r"""A user-given name or path as the text shows it: control characters escaped (:func:`~packetloss_cvx.
+    printable.printable`), so a system named ``"\x1b[31m..."`` prints as ``\x1b[31m...``. O(len(text)).
+
+    Examples
+    --------
+    >>> print(name("two\nlines\x07"))
+    two\nlines\x07
+    """
+    return printable(str(text))
 
 
 def num(value: Any, digits: int = 6) -> str:

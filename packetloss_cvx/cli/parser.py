@@ -40,7 +40,8 @@ packetloss-cvx {__version__}: optimal control over multichannel packet-loss link
 (Casbolt, Jones, Esnaola), every answer computed in closed form and cross-checked by a solver.
 
 exit codes: 0 success; 1 a refused or failed computation; 2 bad input (one line naming
-the field); 3 proved infeasible; 4 allocation gap not certified within its caps.
+the field), or a count beyond its work budget (PACKETLOSS_CVX_BUDGET_<NAME> raises it:
+docs/design.md §4); 3 proved infeasible; 4 allocation gap not certified within its caps.
 Contracts (files, JSON keys): docs/design.md §4. Help on a command: packetloss-cvx COMMAND -h"""
 
 EPILOG = """\
@@ -174,6 +175,10 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--formulation", choices=("condensed", "sparse", "auto"), default="auto",
                        help="the cross-checking QP's form, e.g. --formulation sparse")
     solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check (closed form only)")
+    solve.add_argument("--stability", action=argparse.BooleanOptionalAction,
+                       help="each law's mean-square stability in closed loop: --stability computes it at any n "
+                            "(minutes for n in the hundreds), --no-stability skips it (default: computed for "
+                            "n <= 60, skipped with a note above)")
 
     aud = add_command(sub, "audit", "check every claim of the paper on its systems and random ones",
                       examples=["audit --random 20 --seed 1", "audit two_actuator --claim theorem-2 --random 0",

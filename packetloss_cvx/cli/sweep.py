@@ -21,7 +21,8 @@ from ..studies import read_mu_list, require_xarray, sweep
 from ..studies.engine import DEFAULT_CHUNK
 from ..studies.output import csv_number, write_sweep
 from ..tolerances import SELF_CHECK_RTOL
-from .common import CommandResult, floats
+from . import format as fmt
+from .common import CommandResult, integers, number_range
 
 __all__ = ["bursty", "run"]
 
@@ -34,19 +35,6 @@ _AXIS_LABELS = {"nu": r"shared channel $\nu$", "x0_scale": r"scale $s$ of $x_0$ 
                 "horizon": "horizon $N$", "point": "point (row of --mu-list)"}
 
 
-def _scales(text: str, field: str = "--x0-scales") -> np.ndarray:
-    if ":" in text:
-        parts = text.split(":")
-        if len(parts) != 3:
-            raise InputError(field, f"expected LO:HI:K, found {text[:40]!r}")
-        lo, hi = floats(parts[0], field)[0], floats(parts[1], field)[0]
-        count = floats(parts[2], field)[0]
-        if count != int(count) or not 1 <= count <= 1_000_000:
-            raise InputError(field, f"expected an integer count K >= 1, found {parts[2]!r}")
-        return np.linspace(lo, hi, int(count))
-    return np.array(floats(text, field))
-
-
 def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
     options: dict[str, Any] = {}
     if args.mu_grid is not None:
@@ -54,12 +42,9 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
     elif args.mu_list is not None:
         options["mu_list"] = read_mu_list(args.mu_list, m)
     elif args.x0_scales is not None:
-        options["x0_scales"] = _scales(args.x0_scales)
+        options["x0_scales"] = number_range(args.x0_scales, "--x0-scales")
     else:
-        values = floats(args.horizons, "--horizons")
-        if any(v != int(v) for v in values):
-            raise InputError("--horizons", f"expected integers, found {args.horizons[:40]!r}")
-        options["horizons"] = [int(v) for v in values]
+        options["horizons"] = integers(args.horizons, "--horizons")
     if args.channel is not None:
         if not 1 <= args.channel <= m:
             raise InputError("--channel", f"expected a channel from 1 to {m}, found {args.channel}")
@@ -94,7 +79,7 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
     data: dict[str, Any] = {"name": result.name, "kind": result.kind, "dims": list(result.dims),
                             "shape": list(result.shape), "points": int(result.mu.shape[0])}
     points = f"{data['points']} point{'s' if data['points'] != 1 else ''}"
-    lines = [f"{result.name or 'system'}: {result.kind} sweep, {points} "
+    lines = [f"{fmt.name(result.name or 'system')}: {result.kind} sweep, {points} "
              f"({' x '.join(map(str, result.shape))} over {', '.join(result.dims)})"]
     columns = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
     for key, values in columns.items():
@@ -139,7 +124,7 @@ def bursty(args: argparse.Namespace) -> CommandResult:
         raise InputError("--burstiness", f"takes none of --shared, --channel, --workers, --chunk-size; "
                                          f"found {', '.join(ignored)}")
     system = load_system(args.file)
-    correlations = _scales(args.burstiness, "--burstiness")
+    correlations = number_range(args.burstiness, "--burstiness")
     with _folder(args) as out:       # claimed (checked, locked) before the work, released on any exit
         return _bursty(args, system, correlations, out)
 
@@ -153,7 +138,7 @@ def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, 
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     data: dict[str, Any] = {"name": system.name, "kind": "burstiness", "rate": result.rate.tolist(),
                             "correlation": result.correlation.tolist()}
-    lines = [f"{system.name or args.file}: burstiness sweep at average rates {np.round(result.rate, 6).tolist()}"]
+    lines = [f"{fmt.name(system.name or args.file)}: burstiness sweep at average rates {np.round(result.rate, 6).tolist()}"]
     for p in protocols:
         plugin, exact = result.plugin[p], result.exact[p]
         # a zero minimum (x0 = 0 without noise) has a zero plug-in cost too: its loss is 0, as solve's (markov.compare)

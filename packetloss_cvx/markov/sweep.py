@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..budgets import burstiness_work, check, estimated_seconds
 from ..costs import closed_form
 from ..errors import InputError
 from ..model import System, check_system
@@ -66,9 +67,14 @@ def burstiness_sweep(system: System, correlations: Sequence[float] = DEFAULT_COR
     if values is None or values.ndim != 1 or values.size < 1 or not np.all(np.isfinite(values)) or np.any(values >= 1):
         shown = repr(correlations)[:60] if values is None else np.array2string(values, separator=", ", threshold=8)
         raise InputError("correlations", f"expected a list of finite lambda = 1 - p - r < 1, found {shown}")
+    check("sweep_points", values.size, "correlations", f"{values.size} values")      # before any is evaluated
+    cost = burstiness_work(values.size, system.horizon, system.m, len(PROTOCOLS))
+    check("sweep_work", cost, "correlations",
+          f"{values.size} values at N = {system.horizon}, m = {system.m}")
     plugin = {p: np.empty(values.size) for p in PROTOCOLS}
     exact = {p: np.empty(values.size) for p in PROTOCOLS}
-    for k, lam in enumerate(progress_bar(values, total=values.size, desc="burstiness", progress=progress)):
+    for k, lam in enumerate(progress_bar(values, total=values.size, desc="burstiness", progress=progress,
+                                                 estimate=estimated_seconds("sweep_work", cost))):
         twin = bursty_twin(system, float(lam))
         for protocol in PROTOCOLS:
             exact[protocol][k] = exact_closed_form(twin, protocol).cost

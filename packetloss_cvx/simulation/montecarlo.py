@@ -19,6 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..budgets import check, count_text, estimated_seconds, simulate_work
 from ..costs import closed_form, expected_cost
 from ..errors import InputError, NumericalError
 from ..model import System
@@ -164,6 +165,9 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     InputError
         A count below its minimum, an unknown law, "dp" alone without closed loop, or a closed loop over a
         non-stationary channel.
+    BudgetError
+        More work than the ``simulate_work`` budget (:func:`~packetloss_cvx.budgets.simulate_work`),
+        refused before anything is drawn (``simulate(system, 2**63)`` at once).
     ResourceError
         A block's arrays (O(BLOCK T (n + m + laws))) would exceed the memory budget (refused before drawing).
         Behind a Gilbert–Elliott channel also: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
@@ -197,6 +201,12 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     if not laws or (not closed_loop and laws == ["dp"]):
         raise InputError("law", "the DP optimum is a closed-loop law: run the closed loop (closed_loop=True, "
                                 "--closed-loop) or add tcp or udp")
+    plans, loops = sum(law != "dp" for law in laws), len(laws) if closed_loop else 0
+    cost = simulate_work(samples, steps, system.horizon, system.n, system.m, plans, loops)
+    check("simulate_work", cost, "samples",
+          f"{count_text(samples)} samples{f' of {count_text(steps)} steps' if closed_loop else ''} "
+          f"(n = {system.n}, m = {system.m}, "
+          f"N = {system.horizon}; {plans} plans, {loops} loops)")        # before anything is drawn
     if system.channel is not None:
         return simulate_markov(system, samples, steps, seed, closed_loop, laws, keep, progress)
     if closed_loop:
@@ -206,7 +216,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     blocks = run_blocks(samples)
     plans = {p: closed_form(system, p) for p in laws if p != "dp"}
     work = len(blocks) * (len(plans) > 0) + len(blocks) * closed_loop
-    with progress_bar(total=work, desc="simulate", progress=progress) as bar:
+    with progress_bar(total=work, desc="simulate", progress=progress,
+                      estimate=estimated_seconds("simulate_work", cost)) as bar:
         open_loop = open_loop_checks(plans, blocks, open_part.spawn(len(blocks)),
                                      lambda inputs, size, rng: open_loop_costs(system, inputs, size, rng),
                                      lambda inputs: expected_cost(system, inputs, "udp"), bar)

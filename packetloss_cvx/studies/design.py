@@ -16,13 +16,16 @@ Dask cluster (:mod:`.engine`); both give the same numbers bit for bit. The resul
 from __future__ import annotations
 
 import csv
+import io
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..budgets import BUDGETS, check, count_text, estimated_seconds, sweep_work
 from ..errors import InputError
+from ..io import read_input
 from ..model import System, numeric_array
 from ..protocols import PROTOCOLS, check_protocol
 from ..results import DesignSweep
@@ -31,8 +34,12 @@ from .engine import DEFAULT_CHUNK, chunks, run_in_process, run_on_dask
 
 __all__ = ["MAX_SWEEP_POINTS", "read_mu_list", "sweep"]
 
-#: The most points one sweep evaluates (a 1000 x 1000 grid).
-MAX_SWEEP_POINTS = 1_000_000
+#: The most points one sweep evaluates by default (a 1000 x 1000 grid): the ``sweep_points`` budget
+#: (budgets.py; ``PACKETLOSS_CVX_BUDGET_SWEEP_POINTS`` raises it).
+MAX_SWEEP_POINTS = int(BUDGETS["sweep_points"].default)
+
+#: the argument that asks for each kind of sweep (a budget's refusal names it)
+KIND_FIELDS = {"mu-grid": "mu_grid", "mu-list": "mu_list", "x0-scale": "x0_scales", "horizon": "horizons"}
 
 
 def _count(value: Any, field: str, least: int) -> int:
@@ -44,8 +51,7 @@ def _count(value: Any, field: str, least: int) -> int:
 def _grid_axis(mu_grid: Any) -> np.ndarray:
     if isinstance(mu_grid, (int, np.integer)) and not isinstance(mu_grid, bool):
         count = _count(mu_grid, "mu_grid", 2)
-        if count > MAX_SWEEP_POINTS:     # before linspace: K = 1e8 would allocate first and fail late
-            raise InputError("mu_grid", f"expected at most {MAX_SWEEP_POINTS} points per channel, found {count}")
+        check("sweep_points", count, "mu_grid", f"{count_text(count)} points per channel")   # before linspace allocates
         return np.linspace(0.0, 1.0, count)
     axis = numeric_array(mu_grid, "mu_grid")
     if axis.ndim != 1 or axis.size < 1 or np.any(axis < 0) or np.any(axis > 1):
@@ -56,13 +62,16 @@ def _grid_axis(mu_grid: Any) -> np.ndarray:
 def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     """Channel points from a CSV file: one row per point, m probabilities per row; a first row
     whose cells are all non-numeric (a header such as ``mu1,mu2``) is skipped; a byte-order mark is
-    ignored. O(rows).
+    ignored. Read as every input file is (:func:`~packetloss_cvx.io.read_input`: a regular file within the
+    ``file_bytes`` budget; a FIFO or /dev/zero is refused before it is read). O(rows).
 
     Raises
     ------
     InputError
         A file that cannot be read, a row of the wrong length, or a value outside [0, 1]
         (field ``mu_list``, with the row number).
+    BudgetError
+        A file beyond the ``file_bytes`` budget, or more rows than the ``sweep_points`` budget.
 
     Examples
     --------
@@ -77,11 +86,15 @@ def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     >>> points.tolist()                             # the header row is skipped
     [[0.5, 1.0], [0.0, 0.25]]
     """
+    data = read_input(path, "mu_list")
+    rows: list[list[str]] = []
     try:
-        with open(path, newline="", encoding="utf-8-sig") as handle:    # -sig: Excel's byte-order mark
-            rows = [row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)]
-    except OSError as err:
-        raise InputError("mu_list", f"cannot read {str(path)!r}: {err.strerror or err}") from None
+        text = data.decode("utf-8-sig")                  # -sig: Excel's byte-order mark
+        for row in csv.reader(io.StringIO(text, newline="")):
+            if row and any(c.strip() for c in row):
+                rows.append(row)
+                if len(rows) > 1:      # counted as they are parsed: 16 MiB of "0,0" rows are 4e6 lists
+                    check("sweep_points", len(rows) - 1, "mu_list", f"more than {len(rows) - 2} rows")
     except (UnicodeDecodeError, csv.Error) as err:
         raise InputError("mu_list", f"{str(path)!r} is not a CSV text file: {err}") from None
     points = []
@@ -152,9 +165,8 @@ def _plan(system: System, mu_grid, channel, shared, mu_list, x0_scales, horizons
         raise InputError("mu_grid", f"a grid over every channel needs m <= 2 (found m = {system.m}): "
                                     "give channel= or --channel I (one channel), or shared=True or --shared "
                                     "(every actuator behind one channel)")
-    if axis.size ** 2 > MAX_SWEEP_POINTS:       # before meshgrid allocates K^2 points
-        raise InputError("mu_grid", f"a 2-D grid of K x K points needs K <= {int(MAX_SWEEP_POINTS ** 0.5)}, "
-                                    f"found K = {axis.size}")
+    check("sweep_points", axis.size ** 2, "mu_grid",       # before meshgrid allocates K^2 points
+          f"a 2-D grid of {axis.size} x {axis.size} points")
     mu1, mu2 = np.meshgrid(axis, axis)          # rows follow mu2, columns mu1
     return "mu-grid", ("mu2", "mu1"), (axis, axis), np.column_stack([mu1.ravel(), mu2.ravel()])
 
@@ -167,6 +179,7 @@ def _base_mu(system: System) -> np.ndarray:
 
 def _scales(values: Any) -> np.ndarray:
     arr = numeric_array(values, "x0_scales")
+    check("sweep_points", arr.size, "x0_scales", f"{arr.size} scales")
     if arr.ndim != 1 or arr.size < 1:
         raise InputError("x0_scales", f"expected a non-empty list of numbers, found shape {arr.shape}")
     return arr
@@ -174,6 +187,7 @@ def _scales(values: Any) -> np.ndarray:
 
 def _horizons(system: System, values: Any) -> np.ndarray:
     arr = numeric_array(values, "horizons")
+    check("sweep_points", arr.size, "horizons", f"{arr.size} horizons")
     if arr.ndim != 1 or arr.size < 1 or np.any(arr < 1) or np.any(arr != np.round(arr)):
         raise InputError("horizons", "expected a non-empty list of integers >= 1")
     limit = MAX_ENTRIES // max(system.n ** 2, system.m)    # the System's own bound (model), checked up front
@@ -243,6 +257,10 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
         Bad arguments (the field named), a non-stationary channel for a sweep that keeps the channel,
         per-step weights for a horizon sweep, or a Markov (Gilbert-Elliott) channel, which this
         Bernoulli evaluator does not model.
+    BudgetError
+        More points than the ``sweep_points`` budget, or more work than ``sweep_work``
+        (:func:`~packetloss_cvx.budgets.sweep_work`), refused before any point is evaluated and named by
+        the argument that asked for them.
 
     Notes
     -----
@@ -285,14 +303,18 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
         horizon = np.full(len(mu), system.horizon)
         if not system.is_stationary:
             raise InputError("system", "a channel sweep replaces the channel: give a stationary mu")
-    if len(mu) > MAX_SWEEP_POINTS:
-        raise InputError("sweep", f"expected at most {MAX_SWEEP_POINTS} points, found {len(mu)}")
+    field = KIND_FIELDS[kind]
+    check("sweep_points", len(mu), field, f"{len(mu)} points")
+    cost = sweep_work(horizon.tolist(), system.n, system.m, len(protocols), stability, size)
+    check("sweep_work", cost, field, f"{len(mu)} points of horizon up to {int(horizon.max())} "
+                                     f"(n = {system.n}, m = {system.m})")
     work = chunks(mu, x0, horizon, size)
     data = system.to_dict()
     if dask is None:
-        columns = run_in_process(data, protocols, work, progress, stability)
+        columns = run_in_process(data, protocols, work, progress, stability, estimated_seconds("sweep_work", cost))
     else:
-        columns = run_on_dask(data, protocols, work, dask, workers, progress, stability)
+        columns = run_on_dask(data, protocols, work, dask, workers, progress, stability,
+                              estimated_seconds("sweep_work", cost))
     costs = {p: columns[f"cost_{p}"] for p in protocols}
     radii = {p: columns[f"radius_{p}"] for p in protocols} if stability else {}
     difference = _difference(costs, mu) if set(protocols) == set(PROTOCOLS) else None

@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import logging
 import re
+import time
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from ..budgets import check, count_text
 from ..errors import InputError
 from ..evaluator import CostEvaluator
 from ..io import system_from_dict
@@ -24,7 +26,8 @@ from ..progress import progress_bar
 from ..simulation.stability import mean_square_radius
 from ..threads import blas_limited
 
-__all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "chunks", "evaluate_chunk", "run_in_process", "run_on_dask"]
+__all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "NO_WORKER_TIMEOUT", "chunks", "evaluate_chunk", "run_in_process",
+           "run_on_dask"]
 
 #: Points per chunk unless asked otherwise (docs/dask.md: a chunk should take well over the
 #: ~1-10 ms a Dask task costs, and there should be several chunks per worker).
@@ -32,6 +35,13 @@ DEFAULT_CHUNK = 2048
 
 #: Workers of ``dask="local"`` (one thread each: the evaluator is NumPy on small matrices).
 LOCAL_WORKERS = 2
+
+#: Seconds a Dask sweep waits while its scheduler has no worker (the last one died or was killed, or none
+#: ever joined) before it stops with an InputError naming ``dask``; a worker that joins resets the clock.
+NO_WORKER_TIMEOUT = 60.0
+
+#: Seconds between two looks at the scheduler's workers while no chunk finishes.
+POLL_SECONDS = 0.5
 
 Chunk = tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -117,7 +127,8 @@ def _assemble(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
 
 
 def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk],
-                   progress: bool | None = None, stability: bool = False) -> dict[str, np.ndarray]:
+                   progress: bool | None = None, stability: bool = False,
+                   estimate: float | None = None) -> dict[str, np.ndarray]:
     """Every chunk here, in order. O(P N (n^3 + m^3)).
 
     Examples
@@ -130,7 +141,7 @@ def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: 
     True
     """
     parts = []
-    with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep", progress=progress) as bar:
+    with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep", progress=progress, estimate=estimate) as bar:
         for chunk in work:
             parts.append(evaluate_chunk(system_data, protocols, *chunk, stability))
             bar.update(len(chunk[0]))
@@ -139,16 +150,24 @@ def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: 
 
 def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk], dask: Any,
                 workers: int | None = None, progress: bool | None = None,
-                stability: bool = False) -> dict[str, np.ndarray]:
+                stability: bool = False, estimate: float | None = None) -> dict[str, np.ndarray]:
     """Every chunk as one Dask task; results put back in chunk order.
 
     Parameters
     ----------
     dask : "local", an address such as ``"tcp://host:8786"``, or a ``distributed.Client``
         ``"local"`` starts a :class:`distributed.LocalCluster` of ``workers`` processes
-        (default :data:`LOCAL_WORKERS`, one thread each) and closes it afterwards; an address
-        connects to a running scheduler; a client (e.g. on a dask-jobqueue or Kubernetes
-        cluster) is used as it is.
+        (default :data:`LOCAL_WORKERS`, one thread each, at most the ``dask_workers`` budget) and closes
+        it afterwards; an address connects to a running scheduler; a client (e.g. on a dask-jobqueue or
+        Kubernetes cluster) is used as it is.
+
+    Raises
+    ------
+    InputError
+        A scheduler that cannot be reached (the failed client is closed at once: no 20 s wait, no traceback
+        at exit), or one left without any worker for :data:`NO_WORKER_TIMEOUT` seconds (named ``dask``).
+    BudgetError
+        More local workers than the ``dask_workers`` budget, before any is started.
     """
     try:
         from distributed import Client, LocalCluster, as_completed  # lazy: the `distributed` extra
@@ -162,6 +181,7 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
             count = LOCAL_WORKERS if workers is None else workers
             if isinstance(count, bool) or not isinstance(count, int) or count < 1:
                 raise InputError("workers", f"expected an integer >= 1, found {count!r}")
+            check("dask_workers", count, "workers", f"{count_text(count)} worker processes")   # before any is started
             cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
             owned.append(cluster)
@@ -171,11 +191,20 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
             if not re.fullmatch(r"[a-z]+://\S+|[\w.-]+:\d+", dask):
                 raise InputError("dask", f"expected 'local' or a scheduler address such as tcp://host:8786, "
                                          f"found {dask!r}")
+            made: list[Any] = []
+
+            class Tracked(Client):          # keeps the instance even when its constructor fails
+                def __init__(self, *args: Any, **kwargs: Any) -> None:
+                    made.append(self)
+                    super().__init__(*args, **kwargs)
+
             try:
                 # not the process's default client: a failed one would stay registered as the default
                 # and break the caller's later dask / xarray work (distributed registers it before connecting)
-                client = Client(dask, timeout="10s", set_as_default=False)
+                client = Tracked(dask, timeout="10s", set_as_default=False)
             except Exception as err:    # noqa: BLE001  any failure to connect (ucx:// without ucx-py: TypeError)
+                for failed in made:     # else its __del__ waits 20 s at exit and prints a 9-line traceback
+                    _close_quietly(failed)
                 raise InputError("dask", f"cannot reach a scheduler at {dask!r}: {type(err).__name__}: {err}") from None
             owned.append(client)
         elif hasattr(dask, "submit") and hasattr(dask, "gather"):
@@ -186,12 +215,46 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
                    for chunk in work]
         order = {f.key: k for k, f in enumerate(futures)}
         parts: list[dict[str, np.ndarray] | None] = [None] * len(work)
-        with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress) as bar:
-            for future in as_completed(futures, loop=client.loop):   # not the default client's loop
-                k = order[future.key]
-                parts[k] = future.result()      # a worker's error is raised here with its own type
-                bar.update(len(work[k][0]))
+        with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress,
+                          estimate=estimate) as bar:     # the estimate is one process's: divide by the workers
+            finished = as_completed(futures, loop=client.loop)   # not the default client's loop
+            alone_since: float | None = None
+            while not finished.is_empty():
+                batch = finished.next_batch(block=False)
+                if not batch:        # nothing finished: is anyone working?
+                    alone_since = _no_worker_clock(client, alone_since, sum(p is not None for p in parts), len(work))
+                    time.sleep(POLL_SECONDS)
+                    continue
+                alone_since = None
+                for future in batch:
+                    k = order[future.key]
+                    parts[k] = future.result()      # a worker's error is raised here with its own type
+                    bar.update(len(work[k][0]))
         return _assemble(parts)      # type: ignore[arg-type]
     finally:
         for thing in owned:
+            _close_quietly(thing)
+
+
+def _no_worker_clock(client: Any, since: float | None, done: int, total: int) -> float | None:
+    """When the scheduler has had no worker since (None: it has one now); past :data:`NO_WORKER_TIMEOUT`
+    an InputError: a sweep whose last worker died would otherwise wait for ever. O(1) scheduler call."""
+    if client.nthreads():
+        return None
+    now = time.monotonic()
+    since = now if since is None else since
+    if now - since > NO_WORKER_TIMEOUT:
+        raise InputError("dask", f"the scheduler has had no worker for {NO_WORKER_TIMEOUT:g} s (the last one stopped "
+                                 f"or was killed); stopped with {done} of {total} chunks done")
+    return since
+
+
+def _close_quietly(thing: Any) -> None:
+    """Close a client or cluster within seconds; a failure to close is not the caller's error."""
+    try:
+        if hasattr(thing, "submit"):      # a client: its default close waits 20 s for a scheduler that is gone
+            thing.close(timeout=5)
+        else:
             thing.close()
+    except Exception:       # noqa: BLE001 - closing after an error: the first error is the one to report
+        pass
