@@ -11,6 +11,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from .examples import names as packaged_names
 from .errors import InputError
 from .model import System
 from .safeio import atomic_write
@@ -113,8 +114,7 @@ def example_names() -> list[str]:
     >>> {"pendulum", "two_actuator"} <= set(example_names())
     True
     """
-    folder = resources.files(__package__) / "examples"
-    return sorted(item.name.removesuffix(".toml") for item in folder.iterdir() if item.name.endswith(".toml"))
+    return packaged_names()
 
 
 def load_example(name: str) -> System:

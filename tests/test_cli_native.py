@@ -7,6 +7,7 @@ import json
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,11 +39,16 @@ def imported(*argv):
     return set(ast.literal_eval(line.removeprefix("MODULES ")))
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["--completion", "bash"], ["solve", "--help"],
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["solve", "--help"],
                                   ["audit", "--help"], ["allocate", "--help"], ["solve"], ["frobnicate"]])
 def test_help_version_and_usage_errors_import_nothing_numerical(argv):
     modules = imported(*argv)
     assert not modules, f"{argv} imported {sorted(modules)[:5]}"
+
+
+@pytest.mark.parametrize("shell", ["bash", "zsh"])
+def test_completion_imports_shtab_and_nothing_numerical(shell):
+    assert imported("--completion", shell) == {"shtab"}
 
 
 @pytest.mark.parametrize("argv", [["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
@@ -238,21 +244,48 @@ def test_progress_bars_on_request_and_never_by_default_in_a_pipe(capsys):
     assert capsys.readouterr().err == ""
 
 
-def test_bash_completion_completes_commands_options_and_choices(capsys, tmp_path):
-    with pytest.raises(SystemExit):
-        main(["--completion", "bash"])
-    script = capsys.readouterr().out
-    for name, command in subcommands(build_parser()).items():
-        assert f"    {name}) opts=" in script
+def completion_script(capsys, shell):
+    with pytest.raises(SystemExit) as stop:
+        main(["--completion", shell])
+    assert stop.value.code == 0
+    return capsys.readouterr().out
+
+
+#: a word typed, the words bash offers (in a folder holding plant.toml only)
+COMPLETIONS = [
+    (["solve", "--protocol", "u"], ["udp"]),
+    (["al"], ["allocate"]),
+    (["audit", "--cl"], ["--claim"]),
+    (["sweep", "two_actuator", "--mu-"], ["--mu-grid", "--mu-list"]),
+    (["solve", "pend"], ["pendulum", "pendulum_bursty"]),
+    (["simulate", ""], [*sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml")), "plant.toml"]),
+    (["allocate", "pl"], ["plant.toml"]),
+]
+
+
+def test_bash_completion_completes_commands_options_choices_and_every_packaged_example(capsys, tmp_path):
+    script = completion_script(capsys, "bash")
+    for command in subcommands(build_parser()).values():
         assert all(flag in script for action in command._actions for flag in action.option_strings)
     if shutil.which("bash") is None:
         pytest.skip("no bash to run the script")
-    path = tmp_path / "complete.sh"
-    path.write_text(script)
-    probe = ('source "$1"; COMP_WORDS=(packetloss-cvx solve --protocol u); COMP_CWORD=3; _packetloss_cvx; '
-             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx al); COMP_CWORD=1; _packetloss_cvx; '
-             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx audit --cl); COMP_CWORD=2; _packetloss_cvx; '
-             'echo "${COMPREPLY[@]}"')
-    proc = subprocess.run(["bash", "-c", probe, "probe", str(path)], capture_output=True, text=True, check=True,
-                          cwd=tmp_path)
-    assert proc.stdout.splitlines() == ["udp", "allocate", "--claim"]
+    (tmp_path / "complete.sh").write_text(script)
+    (tmp_path / "work").mkdir()
+    (tmp_path / "work" / "plant.toml").write_text("")
+    probe = [f"source '{tmp_path / 'complete.sh'}'", 't() { COMP_WORDS=("$@"); COMP_CWORD=$(( ${#COMP_WORDS[@]} - 1 )); '
+             'COMP_LINE="$*"; COMP_POINT=${#COMP_LINE}; COMPREPLY=(); _shtab_packetloss_cvx; echo "${COMPREPLY[*]}"; }']
+    probe += ["t packetloss-cvx " + " ".join(f"'{w}'" for w in words) for words, _ in COMPLETIONS]
+    proc = subprocess.run(["bash", "-c", "\n".join(probe)], capture_output=True, text=True, check=True,
+                          cwd=tmp_path / "work")
+    assert [line.split() for line in proc.stdout.splitlines()] == [want for _, want in COMPLETIONS]
+
+
+def test_zsh_completion_is_valid_zsh_and_lists_the_packaged_examples(capsys, tmp_path):
+    script = completion_script(capsys, "zsh")
+    assert script.startswith("#compdef packetloss-cvx")
+    examples = sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml"))
+    assert f"'examples:example:({' '.join(examples)})'" in script
+    if shutil.which("zsh") is None:
+        pytest.skip("no zsh to check the script's syntax")
+    (tmp_path / "_packetloss-cvx").write_text(script)
+    subprocess.run(["zsh", "-n", str(tmp_path / "_packetloss-cvx")], check=True)
