@@ -267,7 +267,8 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--workers", type=int, metavar="W",
                      help="workers of --dask local (default: 2), e.g. --workers 4")
     swp.add_argument("--out", metavar="DIR",
-                     help="write sweep.npz, sweep.csv and a figure into DIR (default: none), e.g. --out sweep-out")
+                     help="a folder: sweep.npz, sweep.csv and the figures (sweep.png; for a 2-D grid sweep_tcp.png, "
+                          "sweep_udp.png, sweep_diff.png) (default: none), e.g. --out sweep-out")
     swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs the xarray extra)")
     swp.add_argument("--stability", action="store_true",
                      help="also each law's mean-square spectral radius in closed loop (radius_tcp, radius_udp)")
