@@ -229,6 +229,27 @@ def test_audit_text_is_an_aligned_table(capsys):
     assert len({ln.index(ln.split()[1]) for ln in lines[2:5]}) == 1     # the verdict column is aligned
 
 
+def test_progress_bars_by_default_on_a_terminal_as_tqdms_disable_none(monkeypatch):
+    import io
+
+    import tqdm
+
+    from packetloss_cvx.progress import progress_bar
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        with progress_bar(range(3), desc="work") as bar:
+            assert list(bar) == [0, 1, 2]
+        assert ("work" in stream.getvalue()) == shown
+        reference = tqdm.tqdm(range(3), file=stream, disable=None)     # tqdm's own rule for the same stream
+        assert bool(reference.disable) == (not shown)
+        reference.close()
+
+
 def test_progress_bars_on_request_and_never_by_default_in_a_pipe(capsys):
     from packetloss_cvx.allocation import pareto_curve
     from packetloss_cvx.claims import audit
