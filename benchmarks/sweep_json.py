@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def one(tree: str, grid: int) -> tuple[float, int]:
-    env = {**os.environ, "PYTHONPATH": tree, "OPENBLAS_NUM_THREADS": "1"}     # run outside both trees: -m finds the tree
+    env = {**os.environ, "PYTHONPATH": tree, "OPENBLAS_NUM_THREADS": "1"}     # run outside both trees
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     done = subprocess.run([sys.executable, "-m", "packetloss_cvx", "sweep", "two_actuator", "--mu-grid", str(grid),
                            "--json", "-q"], env=env, capture_output=True, check=True, cwd=tempfile.gettempdir())

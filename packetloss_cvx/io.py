@@ -11,8 +11,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from .examples import names as packaged_names
 from .errors import InputError
+from .examples import names as packaged_names
 from .model import System
 from .safeio import atomic_write
 

@@ -293,7 +293,8 @@ def test_bash_completion_completes_commands_options_choices_and_every_packaged_e
     (tmp_path / "complete.sh").write_text(script)
     (tmp_path / "work").mkdir()
     (tmp_path / "work" / "plant.toml").write_text("")
-    probe = [f"source '{tmp_path / 'complete.sh'}'", 't() { COMP_WORDS=("$@"); COMP_CWORD=$(( ${#COMP_WORDS[@]} - 1 )); '
+    probe = [f"source '{tmp_path / 'complete.sh'}'",
+             't() { COMP_WORDS=("$@"); COMP_CWORD=$(( ${#COMP_WORDS[@]} - 1 )); '
              'COMP_LINE="$*"; COMP_POINT=${#COMP_LINE}; COMPREPLY=(); _shtab_packetloss_cvx; echo "${COMPREPLY[*]}"; }']
     probe += ["t packetloss-cvx " + " ".join(f"'{w}'" for w in words) for words, _ in COMPLETIONS]
     proc = subprocess.run(["bash", "-c", "\n".join(probe)], capture_output=True, text=True, check=True,

@@ -12,9 +12,9 @@ from packetloss_cvx.cli import main
 from packetloss_cvx.cli.parser import build_parser
 from packetloss_cvx.cli.reference import markdown
 
-PAGE = Path(__file__).resolve().parent.parent / "docs" / "cli.md"
-
 from .test_cli_native import subcommands
+
+PAGE = Path(__file__).resolve().parent.parent / "docs" / "cli.md"
 
 #: the commands that write several files: --out is a folder
 FOLDER_COMMANDS = {"sweep", "reproduce"}
@@ -32,7 +32,8 @@ def test_every_command_says_whether_out_is_a_folder_or_a_file(name):
     assert ("folder" in action.help) == (name in FOLDER_COMMANDS)
 
 
-@pytest.mark.parametrize("argv", [["solve", "two_actuator", "--no-qp"], ["audit", "--random", "0", "--claim", "table-1"],
+@pytest.mark.parametrize("argv", [["solve", "two_actuator", "--no-qp"],
+                                  ["audit", "--random", "0", "--claim", "table-1"],
                                   ["simulate", "pendulum", "--samples", "50"],
                                   ["allocate", "two_actuator", "--protocol", "tcp", "--alpha", "8", "--beta", "1,1"]])
 def test_out_file_is_the_printed_json_object_and_nothing_else(argv, tmp_path, capsys, monkeypatch):

@@ -191,7 +191,8 @@ def test_cli_explains_the_tcp_plans_exact_cost_above_its_formula(tmp_path, capsy
     lines = capsys.readouterr().out.splitlines()
     tcp = next(k for k, line in enumerate(lines) if "TCP-like plan" in line)
     note = lines[tcp + 1]
-    assert "expected-cost-tcp" in note and "docs/claims.md" in note
+    assert "expected-cost-tcp" in note
+    assert "docs/claims.md" in note
     assert f"= {1 / 9:.6g} " in note
     assert not any("expected-cost-tcp" in line for line in lines[tcp + 2:])   # once, under the TCP-like plan only
     assert main(["simulate", path, "--samples", "100", "-q", "--mu", "1"]) == 0   # every packet arrives: no gap

@@ -269,7 +269,8 @@ def test_cli_sweep_json_carries_every_point_against_the_qp(capsys, two_actuator)
     assert all(len(column) == 9 for column in table.values())
     # rows follow mu2 (slowest), then mu1: the axes' Cartesian product in C order
     assert [(table["mu2"][k], table["mu1"][k]) for k in range(9)] == [(a, b) for a in (0, 0.5, 1) for b in (0, 0.5, 1)]
-    assert table["horizon"] == [two_actuator.horizon] * 9 and all(type(v) is int for v in table["horizon"])
+    assert table["horizon"] == [two_actuator.horizon] * 9
+    assert all(type(v) is int for v in table["horizon"])
     assert table["x0_1"] == [two_actuator.x0[0]] * 9
     for k in (1, 4, 5):
         s = two_actuator.with_mu([table["mu1"][k], table["mu2"][k]])
@@ -285,13 +286,17 @@ def test_cli_sweep_json_names_the_file_above_its_size(capsys, tmp_path, monkeypa
     out = tmp_path / "out"
     assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q", "--out", str(out)]) == 0
     data = json.loads(capsys.readouterr().out)
-    assert data["table"] is None and data["table_file"] == str(out / "sweep.csv")
-    assert "9 points" in data["note"] and "sweep.csv" in data["note"]
+    assert data["table"] is None
+    assert data["table_file"] == str(out / "sweep.csv")
+    assert "9 points" in data["note"]
+    assert "sweep.csv" in data["note"]
     with open(data["table_file"]) as handle:
         assert len(list(csv.reader(handle))) == 1 + 9
     assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"]) == 0       # no --out: how to get them
     data = json.loads(capsys.readouterr().out)
-    assert data["table"] is None and data["table_file"] is None and "--out DIR" in data["note"]
+    assert data["table"] is None
+    assert data["table_file"] is None
+    assert "--out DIR" in data["note"]
     monkeypatch.setattr(sweep_command, "JSON_MAX_POINTS", 9)       # at the size: carried
     assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"]) == 0
     assert len(json.loads(capsys.readouterr().out)["table"]["cost_tcp"]) == 9

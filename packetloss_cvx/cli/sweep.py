@@ -14,9 +14,9 @@ from ..io import load_system
 from ..markov import burstiness_sweep
 from ..model import System
 from ..results import BurstinessSweep, DesignSweep
-from ..simulation import is_mean_square_stable
 from ..runfolder import RunFolder
 from ..safeio import save_figure
+from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, require_xarray, sweep
 from ..studies.engine import DEFAULT_CHUNK
 from ..studies.output import csv_header, csv_number, sweep_table, write_sweep
@@ -120,7 +120,8 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
 
 def _points(result: DesignSweep, data: dict[str, Any], table_file: Path | None) -> None:
     """The points into ``data``: ``axes`` (each dimension's values) and ``table`` (sweep.csv's columns -> one
-    value per point, in the CSV's row order), or above :data:`JSON_MAX_POINTS` the CSV's path and a note. O(P (m + n))."""
+    value per point, in the CSV's row order), or above :data:`JSON_MAX_POINTS` the CSV's path and a note.
+    O(P (m + n))."""
     data["axes"] = {d: a.tolist() for d, a in zip(result.dims, result.axes, strict=True)}
     count = result.mu.shape[0]
     if count <= JSON_MAX_POINTS:

@@ -75,7 +75,7 @@ def sweep_table(result: DesignSweep) -> np.ndarray:
     >>> from packetloss_cvx.model import System
     >>> from packetloss_cvx.studies import sweep
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-    >>> sweep_table(sweep(s, mu_grid=[0.0, 1.0])).tolist()    # mu, x0, N, J*_tcp, J*_udp, J_Delta: 1 at mu = 0, 1/2 at 1
+    >>> sweep_table(sweep(s, mu_grid=[0.0, 1.0])).tolist()   # mu, x0, N, J*_tcp, J*_udp, J_Delta; J* = 1/(1 + mu)
     [[0.0, 1.0, 1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.5, 0.5, 0.0]]
     """
     columns = [result.mu, result.x0, result.horizon[:, None]] + [v[:, None] for v in result.costs.values()]
