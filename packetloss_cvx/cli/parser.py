@@ -278,7 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],
                       results=False)
     rep.add_argument("--out", metavar="DIR", default="results",
-                     help="folder for the PNGs, results.json and report.md, e.g. --out paper-results")
+                     help="a folder: one PNG per paper figure, results.json, report.md, claims.md and manifest.json, "
+                          "e.g. --out paper-results")
     rep.add_argument("--quick", action="store_true", help="coarse grids, one alpha, a shorter audit (a smoke test)")
     rep.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
     return parser
