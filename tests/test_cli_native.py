@@ -302,12 +302,46 @@ def test_bash_completion_completes_commands_options_choices_and_every_packaged_e
     assert [line.split() for line in proc.stdout.splitlines()] == [want for _, want in COMPLETIONS]
 
 
-def test_zsh_completion_is_valid_zsh_and_lists_the_packaged_examples(capsys, tmp_path):
+#: zsh driving an interactive zsh on a pseudo-terminal: the completion loaded by compinit from $1, then
+#: $2 typed with a TAB in the folder $3; prints what the terminal showed
+ZSH_PROBE = r"""
+zmodload zsh/zpty
+zpty z 'zsh -f -i'
+zpty -w z "PS1='> '; fpath=($1 \$fpath); autoload -Uz compinit; compinit -u -D; cd $3"
+zpty -w z "zstyle ':completion:*' menu no; zstyle ':completion:*' list-prompt ''"
+zpty -wn z "$2"$'\t\t'
+sleep 2
+zpty -w z $'\C-c'
+sleep 0.5
+out=""
+while zpty -r -t z chunk; do out+=$chunk; done
+zpty -d z
+print -r -- "$out"
+"""
+
+#: a line typed in zsh, what the screen must then show
+ZSH_COMPLETIONS = [
+    ("packetloss-cvx simulate pend", "pendulum_bursty"),                 # the examples listed
+    ("packetloss-cvx solve pl", "packetloss-cvx solve plant.toml"),       # a file name completed
+    ("packetloss-cvx sweep two_actuator --mu-g", "--mu-grid"),           # an option
+]
+
+
+def test_zsh_completion_completes_examples_files_and_options_in_zsh(capsys, tmp_path):
     script = completion_script(capsys, "zsh")
     assert script.startswith("#compdef packetloss-cvx")
     examples = sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml"))
     assert f"'examples:example:({' '.join(examples)})'" in script
     if shutil.which("zsh") is None:
-        pytest.skip("no zsh to check the script's syntax")
-    (tmp_path / "_packetloss-cvx").write_text(script)
-    subprocess.run(["zsh", "-n", str(tmp_path / "_packetloss-cvx")], check=True)
+        pytest.skip("no zsh to run the script")
+    (tmp_path / "fn").mkdir()
+    (tmp_path / "fn" / "_packetloss-cvx").write_text(script)
+    subprocess.run(["zsh", "-n", str(tmp_path / "fn" / "_packetloss-cvx")], check=True)
+    (tmp_path / "work").mkdir()
+    (tmp_path / "work" / "plant.toml").write_text("")
+    for line, shown in ZSH_COMPLETIONS:
+        screen = subprocess.run(["zsh", "-f", "-c", ZSH_PROBE, "probe", str(tmp_path / "fn"), line,
+                                 str(tmp_path / "work")], capture_output=True, text=True, check=True,
+                                timeout=60, env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "TERM": "dumb"}).stdout
+        assert shown in screen, (line, screen[-400:])
+        assert "bad option" not in screen, screen[-400:]       # no error from the completion functions

@@ -30,7 +30,7 @@ def mark_system_file(action: argparse.Action) -> argparse.Action:
     words = " ".join(example_names())
     action.complete = {  # type: ignore[attr-defined]   # shtab's per-action hook
         "bash": "_packetloss_cvx_system_file",
-        "zsh": f"_alternative 'examples:example:({words})' 'files:file:_files'",
+        "zsh": f"{{_alternative 'examples:example:({words})' 'files:file:_files'}}",   # {...}: no compadd options added
         "preamble": {"bash": "_packetloss_cvx_system_file() {\n"
                              f'  compgen -W "{words}" -- "$1"\n'
                              '  compgen -f -- "$1"\n'
