@@ -20,8 +20,9 @@ from .parser import build_parser
 
 __all__ = ["OUT_RULE", "markdown", "write"]
 
-#: what ``--out`` names, stated once for the page (docs/design.md §4 says the same, with the run folders' rules)
-OUT_RULE = ("A command that writes several files takes `--out DIR`, a folder (`sweep`, `reproduce`): a run folder "
+#: what ``--out`` names, stated once for the page (docs/design.md §4 says the same, with the run folders' rules);
+#: ``{folders}``: the commands whose ``--out`` is a DIR, read from the grammar
+OUT_RULE = ("A command that writes several files takes `--out DIR`, a folder ({folders}): a run folder "
             "with a `manifest.json`, refused when it holds files packetloss-cvx did not write unless `--force`. "
             "A command that returns one result takes `--out FILE`: the JSON object it prints with `--json`. "
             "`simulate`'s other files have options of their own, each one file: `--save FILE.npz`, `--plot FILE`.")
@@ -42,6 +43,12 @@ def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.Argument
         if isinstance(action, argparse._SubParsersAction):
             return dict(action.choices)
     return {}
+
+
+def _folder_commands(commands: dict[str, argparse.ArgumentParser]) -> list[str]:
+    """The commands whose ``--out`` is a folder (metavar DIR)."""
+    return [name for name, command in commands.items()
+            if any("--out" in a.option_strings and a.metavar == "DIR" for a in command._actions)]
 
 
 def _usage(parser: argparse.ArgumentParser) -> str:
@@ -107,6 +114,7 @@ def markdown(parser: argparse.ArgumentParser | None = None) -> str:
     """
     parser = parser or build_parser()
     commands = _subcommands(parser)
+    folders = ", ".join(f"`{name}`" for name in _folder_commands(commands))
     lines = ["# Command-line reference", "",
              "<!-- generated from the argparse grammar by `python -m packetloss_cvx.cli.reference docs/cli.md`; "
              "do not edit: tests/test_cli_reference.py regenerates it and compares -->", "",
@@ -115,7 +123,7 @@ def markdown(parser: argparse.ArgumentParser | None = None) -> str:
              "[the design notes](design.md#command-line-packetloss-cvx-and-python-m-packetloss_cvx).", "",
              "```text", _usage(parser), "", (parser.description or "").strip(), "```", "",
              "Commands: " + ", ".join(f"[`{name}`](#packetloss-cvx-{name})" for name in commands) + ".", "",
-             f"**What `--out` names.** {OUT_RULE}", ""]
+             "**What `--out` names.** " + OUT_RULE.format(folders=folders), ""]
     lines += _options(parser) + _examples(parser)
     for name, command in commands.items():
         lines += [f"## packetloss-cvx {name}", "", _cell(command.description or ""), "", "```text", _usage(command),
