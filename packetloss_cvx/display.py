@@ -18,7 +18,7 @@ import numpy as np
 __all__ = [
     "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "closed_loop_html",
     "design_sweep_html", "design_sweep_repr", "field_text", "fields_html", "fields_repr", "html_grid", "html_table",
-    "maximiser_repr",
+    "json_text", "maximiser_repr", "plain",
     "short", "simulation_html", "span", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
 ]
 
@@ -94,8 +94,39 @@ def fields_html(obj: Any) -> str:
     return html_table(type(obj).__name__, [(name, field_text(getattr(obj, name))) for name in names])
 
 
+def plain(value: Any) -> Any:
+    """``value`` with JSON's types only: arrays to (nested) lists, NumPy scalars to Python numbers, complex
+    numbers to ``[re, im]``, tuple keys to ``"a, b"``, any other key to text. The one converter behind
+    :func:`to_json` and ``reproduce``'s results.json. O(size of ``value``).
+
+    >>> plain({(0.9, 0.5): np.array([1.0, 2.0]), "z": 1 + 2j, "n": np.int64(3), 4: [np.float64(0.5)]})
+    {'0.9, 0.5': [1.0, 2.0], 'z': [1.0, 2.0], 'n': 3, '4': [0.5]}
+    """
+    if isinstance(value, dict):
+        return {(", ".join(map(str, k)) if isinstance(k, tuple) else str(k)): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, complex):
+        return [value.real, value.imag]
+    if isinstance(value, np.generic):
+        return plain(value.item())
+    return value
+
+
+def json_text(value: Any, **kwargs: Any) -> str:
+    """``value`` as strict JSON text through :func:`plain` (``kwargs`` go to :func:`json.dumps`, e.g.
+    ``indent=2``). Raises ValueError on a non-finite number (strict JSON has none). O(size of ``value``).
+
+    >>> json_text({"mu": np.array([0.9, 0.5])})
+    '{"mu": [0.9, 0.5]}'
+    """
+    return json.dumps(plain(value), allow_nan=False, **kwargs)
+
+
 def to_json(obj: Any, **kwargs: Any) -> str:
-    """``obj.to_dict()`` as JSON text (``kwargs`` go to :func:`json.dumps`, e.g. ``indent=2``).
+    """``obj.to_dict()`` as JSON text (:func:`json_text`; ``kwargs`` go to :func:`json.dumps`, e.g. ``indent=2``).
 
     Raises ValueError on a non-finite number (strict JSON has none). O(size of the dict).
 
@@ -103,7 +134,7 @@ def to_json(obj: Any, **kwargs: Any) -> str:
     >>> CrossCheck("dense", 1e-9, 0.0).to_json()
     '{"max_input_diff": 1e-09, "cost_rel_diff": 0.0}'
     """
-    return json.dumps(obj.to_dict(), allow_nan=False, **kwargs)
+    return json_text(obj.to_dict(), **kwargs)
 
 
 def html_table(title: str, rows: Sequence[tuple[str, Any]]) -> str:

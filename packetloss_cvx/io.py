@@ -16,6 +16,7 @@ from typing import Any
 
 from .budgets import BUDGETS, check
 from .errors import InputError
+from .examples import names as packaged_names
 from .model import System
 from .safeio import atomic_write
 
@@ -173,8 +174,7 @@ def example_names() -> list[str]:
     >>> {"pendulum", "two_actuator"} <= set(example_names())
     True
     """
-    folder = resources.files(__package__) / "examples"
-    return sorted(item.name.removesuffix(".toml") for item in folder.iterdir() if item.name.endswith(".toml"))
+    return packaged_names()
 
 
 def load_example(name: str) -> System:
@@ -289,6 +289,10 @@ def save_system(system: System, path: str | Path, *, overwrite: bool = False) ->
 
 
 def _toml_value(value: Any) -> str:
+    # Kept rather than tomli-w (checked 2026-11-24, tomli-w 1.2.0): tomli-w writes every array one element
+    # per line, so the two-actuator file's 2 x 2 A takes 10 lines and the pendulum's 4 x 4 A 26, where a
+    # system file shows a matrix on one line; a System holds only finite floats, ints, bools, strings and
+    # (nested) lists of them, which these nine lines write in TOML exactly (floats by their shortest repr).
     if isinstance(value, str):   # a JSON string is a TOML basic string once DEL is escaped and characters
         return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")   # beyond U+FFFF stay raw
     if isinstance(value, bool):

@@ -27,6 +27,7 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
     "cvxpy": "the QP twins and the TCP-like allocation only: closed-form paths never import it (1.5 s)",
     "matplotlib": "figures only (plots.py, --plot): slow to import",
     "tqdm": "progress bars only, when stderr is a terminal",
+    "shtab": "shell completion only (--completion): 0.12 s to import",
     "dask": "the 'distributed' extra: sweeps as Dask tasks",
     "distributed": "the 'distributed' extra: sweeps on a Dask cluster",
     "xarray": "the 'xarray' extra: sweep results as Datasets and NetCDF files",

@@ -7,6 +7,7 @@ import json
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,11 +39,16 @@ def imported(*argv):
     return set(ast.literal_eval(line.removeprefix("MODULES ")))
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["--completion", "bash"], ["solve", "--help"],
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["solve", "--help"],
                                   ["audit", "--help"], ["allocate", "--help"], ["solve"], ["frobnicate"]])
 def test_help_version_and_usage_errors_import_nothing_numerical(argv):
     modules = imported(*argv)
     assert not modules, f"{argv} imported {sorted(modules)[:5]}"
+
+
+@pytest.mark.parametrize("shell", ["bash", "zsh"])
+def test_completion_imports_shtab_and_nothing_numerical(shell):
+    assert imported("--completion", shell) == {"shtab"}
 
 
 @pytest.mark.parametrize("argv", [["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
@@ -223,6 +229,27 @@ def test_audit_text_is_an_aligned_table(capsys):
     assert len({ln.index(ln.split()[1]) for ln in lines[2:5]}) == 1     # the verdict column is aligned
 
 
+def test_progress_bars_by_default_on_a_terminal_as_tqdms_disable_none(monkeypatch):
+    import io
+
+    import tqdm
+
+    from packetloss_cvx.progress import progress_bar
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        with progress_bar(range(3), desc="work") as bar:
+            assert list(bar) == [0, 1, 2]
+        assert ("work" in stream.getvalue()) == shown
+        reference = tqdm.tqdm(range(3), file=stream, disable=None)     # tqdm's own rule for the same stream
+        assert bool(reference.disable) == (not shown)
+        reference.close()
+
+
 def test_progress_bars_on_request_and_never_by_default_in_a_pipe(capsys):
     from packetloss_cvx.allocation import pareto_curve
     from packetloss_cvx.claims import audit
@@ -238,21 +265,83 @@ def test_progress_bars_on_request_and_never_by_default_in_a_pipe(capsys):
     assert capsys.readouterr().err == ""
 
 
-def test_bash_completion_completes_commands_options_and_choices(capsys, tmp_path):
-    with pytest.raises(SystemExit):
-        main(["--completion", "bash"])
-    script = capsys.readouterr().out
-    for name, command in subcommands(build_parser()).items():
-        assert f"    {name}) opts=" in script
+def completion_script(capsys, shell):
+    with pytest.raises(SystemExit) as stop:
+        main(["--completion", shell])
+    assert stop.value.code == 0
+    return capsys.readouterr().out
+
+
+#: a word typed, the words bash offers (in a folder holding plant.toml only)
+COMPLETIONS = [
+    (["solve", "--protocol", "u"], ["udp"]),
+    (["al"], ["allocate"]),
+    (["audit", "--cl"], ["--claim"]),
+    (["sweep", "two_actuator", "--mu-"], ["--mu-grid", "--mu-list"]),
+    (["solve", "pend"], ["pendulum", "pendulum_bursty"]),
+    (["simulate", ""], [*sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml")), "plant.toml"]),
+    (["allocate", "pl"], ["plant.toml"]),
+]
+
+
+def test_bash_completion_completes_commands_options_choices_and_every_packaged_example(capsys, tmp_path):
+    script = completion_script(capsys, "bash")
+    for command in subcommands(build_parser()).values():
         assert all(flag in script for action in command._actions for flag in action.option_strings)
     if shutil.which("bash") is None:
         pytest.skip("no bash to run the script")
-    path = tmp_path / "complete.sh"
-    path.write_text(script)
-    probe = ('source "$1"; COMP_WORDS=(packetloss-cvx solve --protocol u); COMP_CWORD=3; _packetloss_cvx; '
-             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx al); COMP_CWORD=1; _packetloss_cvx; '
-             'echo "${COMPREPLY[@]}"; COMP_WORDS=(packetloss-cvx audit --cl); COMP_CWORD=2; _packetloss_cvx; '
-             'echo "${COMPREPLY[@]}"')
-    proc = subprocess.run(["bash", "-c", probe, "probe", str(path)], capture_output=True, text=True, check=True,
-                          cwd=tmp_path)
-    assert proc.stdout.splitlines() == ["udp", "allocate", "--claim"]
+    (tmp_path / "complete.sh").write_text(script)
+    (tmp_path / "work").mkdir()
+    (tmp_path / "work" / "plant.toml").write_text("")
+    probe = [f"source '{tmp_path / 'complete.sh'}'",
+             't() { COMP_WORDS=("$@"); COMP_CWORD=$(( ${#COMP_WORDS[@]} - 1 )); '
+             'COMP_LINE="$*"; COMP_POINT=${#COMP_LINE}; COMPREPLY=(); _shtab_packetloss_cvx; echo "${COMPREPLY[*]}"; }']
+    probe += ["t packetloss-cvx " + " ".join(f"'{w}'" for w in words) for words, _ in COMPLETIONS]
+    proc = subprocess.run(["bash", "-c", "\n".join(probe)], capture_output=True, text=True, check=True,
+                          cwd=tmp_path / "work")
+    assert [line.split() for line in proc.stdout.splitlines()] == [want for _, want in COMPLETIONS]
+
+
+#: zsh driving an interactive zsh on a pseudo-terminal: the completion loaded by compinit from $1, then
+#: $2 typed with a TAB in the folder $3; prints what the terminal showed
+ZSH_PROBE = r"""
+zmodload zsh/zpty
+zpty z 'zsh -f -i'
+zpty -w z "PS1='> '; fpath=($1 \$fpath); autoload -Uz compinit; compinit -u -D; cd $3"
+zpty -w z "zstyle ':completion:*' menu no; zstyle ':completion:*' list-prompt ''"
+zpty -wn z "$2"$'\t\t'
+sleep 2
+zpty -w z $'\C-c'
+sleep 0.5
+out=""
+while zpty -r -t z chunk; do out+=$chunk; done
+zpty -d z
+print -r -- "$out"
+"""
+
+#: a line typed in zsh, what the screen must then show
+ZSH_COMPLETIONS = [
+    ("packetloss-cvx simulate pend", "pendulum_bursty"),                 # the examples listed
+    ("packetloss-cvx solve pl", "packetloss-cvx solve plant.toml"),       # a file name completed
+    ("packetloss-cvx sweep two_actuator --mu-g", "--mu-grid"),           # an option
+]
+
+
+def test_zsh_completion_completes_examples_files_and_options_in_zsh(capsys, tmp_path):
+    script = completion_script(capsys, "zsh")
+    assert script.startswith("#compdef packetloss-cvx")
+    examples = sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml"))
+    assert f"'examples:example:({' '.join(examples)})'" in script
+    if shutil.which("zsh") is None:
+        pytest.skip("no zsh to run the script")
+    (tmp_path / "fn").mkdir()
+    (tmp_path / "fn" / "_packetloss-cvx").write_text(script)
+    subprocess.run(["zsh", "-n", str(tmp_path / "fn" / "_packetloss-cvx")], check=True)
+    (tmp_path / "work").mkdir()
+    (tmp_path / "work" / "plant.toml").write_text("")
+    for line, shown in ZSH_COMPLETIONS:
+        screen = subprocess.run(["zsh", "-f", "-c", ZSH_PROBE, "probe", str(tmp_path / "fn"), line,
+                                 str(tmp_path / "work")], capture_output=True, text=True, check=True,
+                                timeout=60, env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "TERM": "dumb"}).stdout
+        assert shown in screen, (line, screen[-400:])
+        assert "bad option" not in screen, screen[-400:]       # no error from the completion functions

@@ -181,3 +181,22 @@ def test_huge_closed_loop_is_refused_before_drawing(two_actuator, monkeypatch):
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_SIMULATE_WORK", "inf")        # raised on purpose: the memory check
     with pytest.raises(ResourceError, match="fewer steps"):
         simulate(two_actuator, 10000, steps=10 ** 9, closed_loop=True, progress=False)
+
+
+def test_cli_explains_the_tcp_plans_exact_cost_above_its_formula(tmp_path, capsys):
+    # one step of x' = x + v u from x0 = 1, mu = 1/2: the TCP-like plan u = -2/3 has J* = 2/3 and exact
+    # cost 7/9; the gap is the loss variance u^2 mu (1 - mu) = 1/9 (docs/claims.md, expected-cost-tcp)
+    from packetloss_cvx.io import save_system
+
+    scalar = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    path = str(save_system(scalar, tmp_path / "scalar.toml"))
+    assert main(["simulate", path, "--samples", "100", "-q"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    tcp = next(k for k, line in enumerate(lines) if "TCP-like plan" in line)
+    note = lines[tcp + 1]
+    assert "expected-cost-tcp" in note
+    assert "docs/claims.md" in note
+    assert f"= {1 / 9:.6g} " in note
+    assert not any("expected-cost-tcp" in line for line in lines[tcp + 2:])   # once, under the TCP-like plan only
+    assert main(["simulate", path, "--samples", "100", "-q", "--mu", "1"]) == 0   # every packet arrives: no gap
+    assert "expected-cost-tcp" not in capsys.readouterr().out

@@ -258,3 +258,45 @@ def test_to_xarray_without_the_extra_says_how_to_install_it():
     result = sweep(pl.load_example("two_actuator"), mu_grid=3, progress=False)
     with mock.patch.dict(sys.modules, {"xarray": None}), pytest.raises(InputError, match=r"packetloss-cvx\[xarray\]"):
         result.to_xarray()
+
+
+def test_cli_sweep_json_carries_every_point_against_the_qp(capsys, two_actuator):
+    assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    table = data["table"]
+    assert list(table) == ["mu1", "mu2", "x0_1", "x0_2", "horizon", "cost_tcp", "cost_udp", "cost_diff"]
+    assert data["axes"] == {"mu2": [0.0, 0.5, 1.0], "mu1": [0.0, 0.5, 1.0]}
+    assert all(len(column) == 9 for column in table.values())
+    # rows follow mu2 (slowest), then mu1: the axes' Cartesian product in C order
+    assert [(table["mu2"][k], table["mu1"][k]) for k in range(9)] == [(a, b) for a in (0, 0.5, 1) for b in (0, 0.5, 1)]
+    assert table["horizon"] == [two_actuator.horizon] * 9
+    assert all(type(v) is int for v in table["horizon"])
+    assert table["x0_1"] == [two_actuator.x0[0]] * 9
+    for k in (1, 4, 5):
+        s = two_actuator.with_mu([table["mu1"][k], table["mu2"][k]])
+        for p in ("tcp", "udp"):
+            assert table[f"cost_{p}"][k] == pytest.approx(_qp(s, p), rel=1e-6)
+        assert table["cost_diff"][k] == pytest.approx(table["cost_udp"][k] - table["cost_tcp"][k], rel=1e-9)
+
+
+def test_cli_sweep_json_names_the_file_above_its_size(capsys, tmp_path, monkeypatch):
+    from packetloss_cvx.cli import sweep as sweep_command
+
+    monkeypatch.setattr(sweep_command, "JSON_MAX_POINTS", 8)       # a 3 x 3 grid is over the size
+    out = tmp_path / "out"
+    assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q", "--out", str(out)]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["table"] is None
+    assert data["table_file"] == str(out / "sweep.csv")
+    assert "9 points" in data["note"]
+    assert "sweep.csv" in data["note"]
+    with open(data["table_file"]) as handle:
+        assert len(list(csv.reader(handle))) == 1 + 9
+    assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"]) == 0       # no --out: how to get them
+    data = json.loads(capsys.readouterr().out)
+    assert data["table"] is None
+    assert data["table_file"] is None
+    assert "--out DIR" in data["note"]
+    monkeypatch.setattr(sweep_command, "JSON_MAX_POINTS", 9)       # at the size: carried
+    assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"]) == 0
+    assert len(json.loads(capsys.readouterr().out)["table"]["cost_tcp"]) == 9

@@ -1,84 +1,79 @@
-"""Shell completion, generated from the grammar: ``eval "$(packetloss-cvx --completion bash)"``.
+"""Shell completion, generated from the grammar by shtab: ``eval "$(packetloss-cvx --completion bash)"``.
 
-Completes subcommands, each subcommand's options, choices (``--protocol t<TAB>``), packaged
-example names and file names. Standard library only. O(size of the grammar).
+Completes subcommands, each subcommand's options (an option that takes a value is followed by its
+value, not by another option), choices (``--protocol t<TAB>``), and a system FILE as a packaged
+example name (read from the package data: :func:`packetloss_cvx.examples.names`) or a file name.
+bash and zsh. O(size of the grammar). shtab (0.12 s to import) is loaded only when a script is asked for.
 """
 
 from __future__ import annotations
 
 import argparse
 
-__all__ = ["CompletionAction", "bash_script"]
+from ..examples import names as example_names
 
-EXAMPLES = "pendulum two_actuator"
+__all__ = ["SHELLS", "CompletionAction", "mark_system_file", "script"]
 
-
-def subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
-    """Subcommand name -> its parser."""
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            return dict(action.choices)
-    return {}
+#: the shells a script is generated for
+SHELLS = ("bash", "zsh")
 
 
-def bash_script(parser: argparse.ArgumentParser) -> str:
-    """A bash completion function for ``parser`` (zsh: after ``autoload bashcompinit; bashcompinit``).
+def mark_system_file(action: argparse.Action) -> argparse.Action:
+    """Tell the completion that ``action`` takes a system FILE: an example name or a file name.
+
+    Examples
+    --------
+    >>> parser = argparse.ArgumentParser()
+    >>> mark_system_file(parser.add_argument("file")).complete["bash"]
+    '_packetloss_cvx_system_file'
+    """
+    words = " ".join(example_names())
+    action.complete = {  # type: ignore[attr-defined]   # shtab's per-action hook
+        "bash": "_packetloss_cvx_system_file",
+        "zsh": f"{{_alternative 'examples:example:({words})' 'files:file:_files'}}",   # {...}: no compadd options added
+        "preamble": {"bash": "_packetloss_cvx_system_file() {\n"
+                             f'  compgen -W "{words}" -- "$1"\n'
+                             '  compgen -f -- "$1"\n'
+                             "}\n"},
+    }
+    return action
+
+
+def script(parser: argparse.ArgumentParser, shell: str = "bash") -> str:
+    """The completion script of ``parser`` for ``shell`` (one of :data:`SHELLS`).
 
     Examples
     --------
     >>> from packetloss_cvx.cli.parser import build_parser
-    >>> bash_script(build_parser()).endswith("complete -o filenames -F _packetloss_cvx packetloss-cvx")
-    True
+    >>> text = script(build_parser())
+    >>> "complete -o bashdefault -F _shtab_packetloss_cvx packetloss-cvx" in text, "pendulum_bursty" in text
+    (True, True)
     """
-    commands = subparsers(parser)
-    top = " ".join([*commands, *(s for a in parser._actions for s in a.option_strings)])
-    cases, choices = [], []
-    for name, sub in commands.items():
-        options = " ".join(s for a in sub._actions for s in a.option_strings)
-        cases.append(f'    {name}) opts="{options}";;')
-        for action in sub._actions:
-            if action.choices and action.option_strings:
-                words = " ".join(map(str, action.choices))
-                choices += [f'    {name}:{flag}) COMPREPLY=($(compgen -W "{words}" -- "$cur")); return;;'
-                            for flag in action.option_strings]
-    return "\n".join([
-        "_packetloss_cvx() {",
-        '  local cur="${COMP_WORDS[COMP_CWORD]}" prev="${COMP_WORDS[COMP_CWORD-1]}" cmd="${COMP_WORDS[1]}" opts=""',
-        "  if [ \"$COMP_CWORD\" -eq 1 ]; then",
-        f'    COMPREPLY=($(compgen -W "{top}" -- "$cur")); return',
-        "  fi",
-        '  case "$cmd:$prev" in', *choices, "  esac",
-        '  case "$cmd" in', *cases, "  esac",
-        '  if [[ "$cur" == -* ]]; then',
-        '    COMPREPLY=($(compgen -W "$opts" -- "$cur"))',
-        "  else",
-        f'    COMPREPLY=($(compgen -W "{EXAMPLES}" -- "$cur") $(compgen -f -- "$cur"))',
-        "  fi",
-        "}",
-        "complete -o filenames -F _packetloss_cvx packetloss-cvx",
-    ])
+    import shtab  # lazy: 0.12 s, needed by --completion only
+
+    return shtab.complete(parser, shell=shell)
 
 
 class CompletionAction(argparse.Action):
-    """``--completion bash``: print the script and exit 0.
+    """``--completion SHELL``: print the script and exit 0.
 
     Examples
     --------
     >>> import contextlib
     >>> import io
     >>> parser = argparse.ArgumentParser(prog="demo")
-    >>> _ = parser.add_argument("--completion", choices=("bash",), action=CompletionAction)
+    >>> _ = parser.add_argument("--completion", choices=SHELLS, action=CompletionAction)
     >>> out = io.StringIO()
     >>> with contextlib.redirect_stdout(out):
     ...     try:
-    ...         parser.parse_args(["--completion", "bash"])
+    ...         parser.parse_args(["--completion", "zsh"])
     ...     except SystemExit as stop:
     ...         code = stop.code
-    >>> code, out.getvalue().startswith("_packetloss_cvx() {")
+    >>> code, out.getvalue().startswith("#compdef demo")
     (0, True)
     """
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
                  option_string: str | None = None) -> None:
-        print(bash_script(parser))
+        print(script(parser, str(values)))
         parser.exit()

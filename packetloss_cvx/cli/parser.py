@@ -6,7 +6,7 @@ when the command runs. A new subcommand is one block in :func:`build_parser` and
 
     sim = add_command(sub, "simulate", "sample the closed loop",
                       examples=["simulate two_actuator --samples 1000 --seed 1"])
-    sim.add_argument("file", metavar="FILE", help=FILE_HELP)
+    mark_system_file(sim.add_argument("file", metavar="FILE", help=FILE_HELP))
     add_system_options(sim)                     # --mu, --mu-schedule, --x0, if it takes them
     sim.add_argument("--samples", type=int, default=1000, help="number of sample paths, e.g. 5000")
 
@@ -25,7 +25,7 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import InputError
-from .completion import CompletionAction
+from .completion import SHELLS, CompletionAction, mark_system_file
 
 __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
 
@@ -158,14 +158,15 @@ def build_parser() -> argparse.ArgumentParser:
     """
     parser = Parser(prog="packetloss-cvx", description=DESCRIPTION, epilog=EPILOG, formatter_class=Formatter)
     parser.add_argument("-V", "--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument("--completion", choices=("bash",), action=CompletionAction,
-                        help='print a shell completion script, e.g. eval "$(packetloss-cvx --completion bash)"')
+    parser.add_argument("--completion", choices=SHELLS, action=CompletionAction,
+                        help='print a shell completion script (bash or zsh), e.g. '
+                             'eval "$(packetloss-cvx --completion bash)"')
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser, metavar="COMMAND")
 
     solve = add_command(sub, "solve", "optimal plans, costs and gains of both protocols, cross-checked by a QP",
                         examples=["solve two_actuator", "solve pendulum --protocol udp --mu 0.5 --json",
                                   "solve two_actuator --method recursion --x0 1,-1 --out result.json"])
-    solve.add_argument("file", metavar="FILE", help=FILE_HELP)
+    mark_system_file(solve.add_argument("file", metavar="FILE", help=FILE_HELP))
     solve.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both",
                        help="TCP-like (acknowledged), UDP-like (not) or both, e.g. --protocol udp")
     add_system_options(solve)
@@ -183,7 +184,8 @@ def build_parser() -> argparse.ArgumentParser:
     aud = add_command(sub, "audit", "check every claim of the paper on its systems and random ones",
                       examples=["audit --random 20 --seed 1", "audit two_actuator --claim theorem-2 --random 0",
                                 "audit --report > claims.md"])
-    aud.add_argument("files", nargs="*", metavar="FILE", help="more systems to check the claims on, e.g. pendulum")
+    mark_system_file(aud.add_argument("files", nargs="*", metavar="FILE",
+                                      help="more systems to check the claims on, e.g. pendulum"))
     aud.add_argument("--random", type=int, default=50, help="seeded random systems (>= 0), e.g. --random 200")
     aud.add_argument("--seed", type=int, default=0,
                      help="seeds the random systems, the samples and the shrinking (>= 0), e.g. --seed 1")
@@ -195,7 +197,7 @@ def build_parser() -> argparse.ArgumentParser:
                         examples=["allocate two_actuator --protocol udp --alpha 8 --beta 1,0.05",
                                   "allocate two_actuator --protocol tcp --alpha 8 --beta 1,1 "
                                   '--constraint "mu1 >= mu2"'])
-    alloc.add_argument("file", metavar="FILE", help=FILE_HELP)
+    mark_system_file(alloc.add_argument("file", metavar="FILE", help=FILE_HELP))
     alloc.add_argument("--protocol", choices=("tcp", "udp"), required=True,
                        help="TCP-like (an exact SOCP) or UDP-like (branch and bound), required, e.g. --protocol tcp")
     alloc.add_argument("--alpha", required=True, help="bound on the optimal expected cost, required, e.g. --alpha 8")
@@ -217,7 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
                       examples=["simulate two_actuator --samples 100000 --seed 0",
                                 "simulate pendulum --closed-loop --law all --steps 100 --json",
                                 "simulate two_actuator --closed-loop --plot loop.png --save runs.npz"])
-    sim.add_argument("file", metavar="FILE", help=FILE_HELP)
+    mark_system_file(sim.add_argument("file", metavar="FILE", help=FILE_HELP))
     add_system_options(sim)
     sim.add_argument("--samples", type=int, default=10000, help="sampled runs (>= 2), e.g. --samples 100000")
     sim.add_argument("--steps", type=int, default=50, help="closed-loop steps T, e.g. --steps 200")
@@ -239,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 "sweep pendulum --x0-scales 0:2:5 --json",
                                 "sweep two_actuator --mu-grid 201 --dask local --out sweep-out --netcdf"],
                       results=False)
-    swp.add_argument("file", metavar="FILE", help=FILE_HELP)
+    mark_system_file(swp.add_argument("file", metavar="FILE", help=FILE_HELP))
     swp.add_argument("--protocol", choices=("tcp", "udp", "both"), default="both",
                      help="TCP-like, UDP-like or both (then also J_Delta), e.g. --protocol udp")
     what = swp.add_argument_group("what to sweep (exactly one)").add_mutually_exclusive_group(required=True)
@@ -270,7 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--workers", type=int, metavar="W",
                      help="workers of --dask local (default: 2), e.g. --workers 4")
     swp.add_argument("--out", metavar="DIR",
-                     help="write sweep.npz, sweep.csv and its figures into DIR (default: none), e.g. --out sweep-out")
+                     help="a folder: sweep.npz, sweep.csv and the figures (sweep.png; for a 2-D grid sweep_tcp.png, "
+                          "sweep_udp.png, sweep_diff.png) (default: none), e.g. --out sweep-out")
     swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs the xarray extra)")
     swp.add_argument("--stability", action="store_true",
                      help="also each law's mean-square spectral radius in closed loop (radius_tcp, radius_udp)")
@@ -280,7 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],
                       results=False)
     rep.add_argument("--out", metavar="DIR", default="results",
-                     help="folder for the PNGs, results.json and report.md, e.g. --out paper-results")
+                     help="a folder: one PNG per paper figure, results.json, report.md, claims.md and manifest.json, "
+                          "e.g. --out paper-results")
     rep.add_argument("--quick", action="store_true", help="coarse grids, one alpha, a shorter audit (a smoke test)")
     rep.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
     return parser

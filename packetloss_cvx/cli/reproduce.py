@@ -9,15 +9,13 @@ audit, the figures, the report.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..claims import CLAIMS, audit, markdown_report
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
+from ..display import json_text
 from ..io import load_example
 from ..plots import plot_cost_lines, plot_log_contour
 from ..progress import progress_bar
@@ -47,21 +45,6 @@ SETTINGS = {
     "quick": {"grid": 21, "nu_points": 30, "alphas": (4.78,), "audit_random": 0, "audit_seed": 1,
               "audit_skips": (SLOW_CLAIM,)},
 }
-
-
-def _plain(value: Any) -> Any:
-    """JSON-ready: arrays to lists, complex numbers to [re, im], tuple keys to text."""
-    if isinstance(value, dict):
-        return {(", ".join(map(str, k)) if isinstance(k, tuple) else str(k)): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, complex):
-        return [value.real, value.imag]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 @blas_limited      # the maximisers, tables and audit loops of small dense algebra (threads.py)
@@ -161,7 +144,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         results["figures"] = {label: path.name for label, path in figures.items()}
         results["verdicts"] = verdicts
         with folder.write("results.json", text=True) as handle:
-            handle.write(json.dumps(_plain(results), indent=1, allow_nan=False) + "\n")
+            handle.write(json_text(results, indent=1) + "\n")
         with folder.write("report.md", text=True) as handle:
             handle.write(text)
     files = [*(p.name for p in figures.values()), "results.json", "report.md", CLAIMS_FILE]

@@ -14,12 +14,12 @@ from ..io import load_system
 from ..markov import burstiness_sweep
 from ..model import System
 from ..results import BurstinessSweep, DesignSweep
-from ..simulation import is_mean_square_stable
 from ..runfolder import RunFolder
 from ..safeio import save_figure
+from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, require_xarray, sweep
 from ..studies.engine import DEFAULT_CHUNK
-from ..studies.output import csv_number, write_sweep
+from ..studies.output import csv_header, csv_number, sweep_table, write_sweep
 from ..tolerances import SELF_CHECK_RTOL
 from . import format as fmt
 from .common import CommandResult, integers, number_range
@@ -30,6 +30,10 @@ __all__ = ["bursty", "run"]
 FLAGS = {"mu_grid": "--mu-grid", "mu_list": "--mu-list", "x0_scales": "--x0-scales", "horizons": "--horizons",
          "channel": "--channel", "chunk_size": "--chunk-size", "dask": "--dask", "workers": "--workers",
          "out": "--out", "shared": "--shared", "netcdf": "--netcdf"}
+
+#: ``sweep --json`` carries every point up to this many (a 2-D grid of 223 x 223; about 4.4 MB of JSON for
+#: two channels); above it, the JSON names the file that holds them (``--out DIR``: DIR/sweep.csv)
+JSON_MAX_POINTS = 50_000
 
 _AXIS_LABELS = {"nu": r"shared channel $\nu$", "x0_scale": r"scale $s$ of $x_0$ ($s\,x_0$)",
                 "horizon": "horizon $N$", "point": "point (row of --mu-list)"}
@@ -97,6 +101,24 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
         lines.append(f"  {p.upper()}-like law in closed loop: mean-square radius {np.min(radii):.4g} to "
                      f"{np.max(radii):.4g}; proved stable at {stable} of {radii.size} points")
     return data, lines
+
+
+def _points(result: DesignSweep, data: dict[str, Any], table_file: Path | None) -> None:
+    """The points into ``data``: ``axes`` (each dimension's values) and ``table`` (sweep.csv's columns -> one
+    value per point, in the CSV's row order), or above :data:`JSON_MAX_POINTS` the CSV's path and a note.
+    O(P (m + n))."""
+    data["axes"] = {d: a.tolist() for d, a in zip(result.dims, result.axes, strict=True)}
+    count = result.mu.shape[0]
+    if count <= JSON_MAX_POINTS:
+        columns = dict(zip(csv_header(result), sweep_table(result).T.tolist(), strict=True))
+        columns["horizon"] = [int(v) for v in columns["horizon"]]
+        data["table"] = columns
+        return
+    data["table"] = None
+    data["table_file"] = None if table_file is None else str(table_file)
+    where = (f"they are in {table_file} (the same columns, one row per point)" if table_file is not None else
+             "pass --out DIR to have them in DIR/sweep.csv")
+    data["note"] = f"{count} points are more than sweep --json carries ({JSON_MAX_POINTS}): {where}"
 
 
 def bursty(args: argparse.Namespace) -> CommandResult:
@@ -225,8 +247,9 @@ def _design(args: argparse.Namespace, system: System, protocols: tuple[str, ...]
                        dask=args.dask, workers=args.workers, stability=args.stability,
                        progress=False if args.quiet else None, **options)
         data, lines = _summary(result)
+        paths = write_sweep(result, out, netcdf=args.netcdf) if out is not None else {}
+        _points(result, data, paths.get("csv"))
         if out is not None:
-            paths = write_sweep(result, out, netcdf=args.netcdf)
             skipped: list[str] = []
             paths_list = [*paths.values(), *_figures(result, out, skipped)]
             data["files"] = [str(p) for p in paths_list]

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..results import DesignSweep
 from ..runfolder import RunFolder
 
-__all__ = ["csv_header", "csv_number", "require_xarray", "save_sweep", "write_sweep"]
+__all__ = ["csv_header", "csv_number", "require_xarray", "save_sweep", "sweep_table", "write_sweep"]
 
 
 def require_xarray() -> None:
@@ -64,6 +64,25 @@ def csv_header(result: DesignSweep) -> list[str]:
     costs = [f"cost_{p}" for p in result.costs] + (["cost_diff"] if result.difference is not None else [])
     radii = [f"radius_{p}" for p in result.radii]
     return [f"mu{i + 1}" for i in range(m)] + [f"x0_{i + 1}" for i in range(n)] + ["horizon"] + costs + radii
+
+
+def sweep_table(result: DesignSweep) -> np.ndarray:
+    """One row per point, the columns of :func:`csv_header` (mu, x0, horizon, costs, radii), as floats:
+    the rows of ``sweep.csv`` and of ``sweep --json``'s ``table``. O(P (m + n)).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.studies import sweep
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> sweep_table(sweep(s, mu_grid=[0.0, 1.0])).tolist()   # mu, x0, N, J*_tcp, J*_udp, J_Delta; J* = 1/(1 + mu)
+    [[0.0, 1.0, 1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.5, 0.5, 0.0]]
+    """
+    columns = [result.mu, result.x0, result.horizon[:, None]] + [v[:, None] for v in result.costs.values()]
+    if result.difference is not None:
+        columns.append(result.difference[:, None])
+    columns += [v[:, None] for v in result.radii.values()]
+    return np.hstack([np.asarray(c, dtype=float) for c in columns])
 
 
 def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, overwrite: bool = False,
@@ -127,11 +146,7 @@ def write_sweep(result: DesignSweep, folder: RunFolder, netcdf: bool = False) ->
     paths = {"npz": folder.path / "sweep.npz", "csv": folder.path / "sweep.csv"}
     with folder.write("sweep.npz") as handle:
         np.savez(handle, dims=np.array(result.dims, dtype=str), **result.arrays())
-    columns = [result.mu, result.x0, result.horizon[:, None]] + [v[:, None] for v in result.costs.values()]
-    if result.difference is not None:
-        columns.append(result.difference[:, None])
-    columns += [v[:, None] for v in result.radii.values()]
-    table = np.hstack([np.asarray(c, dtype=float) for c in columns])
+    table = sweep_table(result)
     with folder.write("sweep.csv", text=True) as handle:
         writer = csv.writer(handle)
         writer.writerow(csv_header(result))

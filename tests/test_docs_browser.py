@@ -1,0 +1,97 @@
+"""The documentation site as readers see it: built with ``mkdocs build --strict``, served over HTTP and
+opened in headless Chromium through Selenium. Every page renders with no console error and no failed
+request (the site asks nothing of another host), every image on it loads, and the search finds a function
+by its name. Skips, saying why, where Selenium, Chromium or its driver, or the docs extra is missing
+(Debian: ``apt-get install chromium chromium-driver``; ``pip install selenium``)."""
+
+import functools
+import http.server
+import importlib.util
+import shutil
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+BROWSER = next(filter(None, map(shutil.which, ("chromium", "chromium-browser", "google-chrome"))), None)
+DRIVER = shutil.which("chromedriver")
+
+pytestmark = [
+    pytest.mark.skipif(importlib.util.find_spec("selenium") is None, reason="selenium is not installed"),
+    pytest.mark.skipif(BROWSER is None or DRIVER is None,
+                       reason="no Chromium and chromedriver (Debian: apt-get install chromium chromium-driver)"),
+    pytest.mark.skipif(importlib.util.find_spec("mkdocs") is None or importlib.util.find_spec("mkdocstrings") is None,
+                       reason="the docs extra (mkdocs-material, mkdocstrings[python]) is not installed"),
+]
+
+#: a function's name typed into the search box -> the page whose entry the first results must include
+SEARCHES = {"to_statespace": "Systems and files", "save_sweep": "Studies and simulation"}
+
+
+class QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):
+        pass
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    """The built site served on a free local port: (base URL, site folder)."""
+    folder = tmp_path_factory.mktemp("site")
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(folder)],
+                          cwd=ROOT, capture_output=True, text=True, check=False, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0),
+                                             functools.partial(QuietHandler, directory=str(folder)))
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    yield f"http://127.0.0.1:{server.server_address[1]}/", folder
+    server.shutdown()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"):
+        options.add_argument(flag)
+    options.binary_location = BROWSER
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(options=options, service=Service(DRIVER))
+    yield driver
+    driver.quit()
+
+
+def test_every_page_renders_without_console_errors_and_its_images_load(site, browser):
+    base, folder = site
+    pages = sorted(p.parent.relative_to(folder).as_posix() for p in folder.rglob("index.html"))
+    assert len(pages) >= 20
+    assert "cli" in pages
+    problems = {}
+    for page in pages:
+        browser.get(base + ("" if page == "." else page + "/"))
+        errors = [entry["message"] for entry in browser.get_log("browser") if entry["level"] == "SEVERE"]
+        broken = browser.execute_script(
+            "return Array.from(document.images).filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.src)")
+        article = browser.execute_script("const a = document.querySelector('article'); return a ? a.innerText : ''")
+        if errors or broken or not article.strip():
+            problems[page] = {"console": errors, "images": broken, "empty": not article.strip()}
+    assert not problems, problems
+
+
+@pytest.mark.parametrize("name", sorted(SEARCHES))
+def test_the_search_finds_a_function_by_its_name(site, browser, name):
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    base, _ = site
+    browser.get(base)
+    browser.execute_script("document.getElementById('__search').checked = true")   # open the search overlay
+    browser.find_element(By.CSS_SELECTOR, "input[data-md-component=search-query]").send_keys(name)
+    results = WebDriverWait(browser, 20).until(
+        lambda b: b.find_elements(By.CSS_SELECTOR, ".md-search-result__item") or False)
+    texts = [r.get_attribute("textContent") for r in results[:5]]      # present before the overlay has faded in
+    assert any(SEARCHES[name] in text and name in text for text in texts), texts
