@@ -26,12 +26,10 @@ The solver's point is not taken on trust:
 
 from __future__ import annotations
 
-import threading
-
 import cvxpy as cp
 import numpy as np
 
-from ..convex import PROVEN_INFEASIBLE, require_optimal, solve_problem
+from ..convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, SolverError
 from ..evaluator import CostEvaluator
 from ..model import CacheKey, System
@@ -48,7 +46,7 @@ from ..tolerances import (
 from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, lp
 from .grammar import Polytope
 
-__all__ = ["TCPProgram", "constant_cost", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost", "tcp_solve"]
+__all__ = ["TCPProgram", "constant_cost", "require_answer", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost"]
 
 
 def constant_cost(system: System) -> float:
@@ -65,13 +63,6 @@ def constant_cost(system: System) -> float:
     x0 = system.x0
     return float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]
 
-
-#: The allocation SOCPs' Clarabel settings: ALLOCATION_CLARABEL_ATTEMPTS, each run cold. A program is
-#: compiled once and re-solved for new Parameter values; cvxpy's warm re-solve would update the cached
-#: Clarabel solver in place, keeping the Ruiz equilibration of the first data it saw (Clarabel's
-#: ``update_data``), so an answer would depend on the calls before it. Cold, a solve is a function of
-#: its own data: compilation (64 % of a call) is saved, the factorisation is not.
-COLD_ATTEMPTS = tuple({**settings, "warm_start": False} for settings in ALLOCATION_CLARABEL_ATTEMPTS)
 
 #: Estimated bytes of one compiled program (cvxpy's parameter map and Clarabel's data), per N (n + m)^2:
 #: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.qp_memory_estimate`), which it mirrors.
@@ -94,9 +85,15 @@ class TCPProgram:
     to ``r + sum t <= 1`` (s = 1 / (alpha - C)); "min_cost" minimises ``r + sum t``.
 
     One program per (system structure, kind, k), kept with the system (:meth:`System.structure_cached`,
-    shared with its ``with_mu`` / ``with_x0`` copies); solved cold under a lock (:data:`COLD_ATTEMPTS`).
-    Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in O(N (n + m)^2) (about 17 ms at
-    N = 40, n = m = 3), then each solve maps the Parameters and runs Clarabel (about 3 ms there).
+    shared with its ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
+    (:class:`~packetloss_cvx.convex.ClarabelProgram`) and solved cold under
+    ``ALLOCATION_CLARABEL_ATTEMPTS``: a warm Clarabel keeps the Ruiz equilibration of the first data it
+    saw (``update_data``; answers up to 42 % off across calls), cold a solve is a function of its own
+    data. The Parameters are never assigned (their values go straight into the data map), so calls
+    from several threads share a program without a lock.
+    Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in O(N (n + m)^2) (about 20 ms at
+    N = 40, n = m = 3), then each solve maps the Parameters (O(nnz), about 0.1 ms there) and runs
+    Clarabel (about 2.5 ms there, its set-up 0.5 ms of it).
 
     Examples
     --------
@@ -144,7 +141,7 @@ class TCPProgram:
             self.problem = cp.Problem(cp.Minimize(r + cp.sum(t)), cons)
         if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("the TCP-like allocation SOCP is not DPP")
-        self.lock = threading.Lock()
+        self.compiled = ClarabelProgram(self.problem)
 
     @classmethod
     def of(cls, system: System, kind: str, rows: int) -> TCPProgram:
@@ -160,18 +157,17 @@ class TCPProgram:
     def solve(self, x0: np.ndarray, poly: Polytope, scale: float, beta: np.ndarray | None = None,
               no_mu: str | None = None) -> np.ndarray:
         """The solver's mu for the state ``x0``, the polytope (of this program's number of rows), the
-        cost scale and (kind "allocate") the prices: every Parameter is assigned, then Clarabel runs
-        cold (:func:`tcp_solve`'s status policy). Raises as :func:`tcp_solve`."""
+        cost scale and (kind "allocate") the prices, Clarabel run cold on the compiled data under
+        :func:`require_answer`'s status policy. Raises as :func:`require_answer`."""
         what = "TCP-like allocation SOCP" if self.kind == "allocate" else "TCP-like minimum-cost SOCP"
-        with self.lock:
-            self.x0.value, self.root.value = x0, np.sqrt(scale)
-            self.lo.value, self.hi.value = poly.lower(), poly.upper()
-            if self.rows is not None:
-                self.rows[0].value, self.rows[1].value = poly.G, poly.h
-            if beta is not None:
-                self.beta.value = beta
-            tcp_solve(self.problem, what, no_mu)
-            return np.array(self.mu.value, dtype=float)
+        values = {self.x0: x0, self.root: np.sqrt(scale), self.lo: poly.lower(), self.hi: poly.upper()}
+        if self.kind == "allocate":
+            values[self.beta] = beta
+        if self.rows is not None:
+            values.update({self.rows[0]: poly.G, self.rows[1]: poly.h})
+        status, point = self.compiled.solve(values, what, ALLOCATION_CLARABEL_ATTEMPTS)
+        require_answer(status, what, no_mu)
+        return np.array(point(self.mu), dtype=float)
 
 
 def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = None) -> tuple[float, np.ndarray]:
@@ -236,23 +232,25 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     return S, r
 
 
-def tcp_solve(problem: cp.Problem, what: str, no_mu: str | None) -> None:
-    """Clarabel under the package's one status policy (convex.solve_problem), cold
-    (:data:`COLD_ATTEMPTS`): "optimal", or InfeasibleError(no_mu) on Clarabel's infeasibility
-    certificate (SolverError when ``no_mu`` is None: infeasibility is then known to be impossible),
-    or SolverError.
+def require_answer(status: str, what: str, no_mu: str | None) -> None:
+    """The allocation SOCPs' status policy on the final status of
+    :meth:`ClarabelProgram.solve <packetloss_cvx.convex.ClarabelProgram.solve>`: "optimal" passes,
+    Clarabel's infeasibility certificate raises InfeasibleError(no_mu) (SolverError when ``no_mu`` is
+    None: infeasibility is then known to be impossible), anything else SolverError. O(1).
 
     Examples
     --------
-    >>> mu = cp.Variable()
-    >>> tcp_solve(cp.Problem(cp.Minimize(mu), [mu >= 0.25]), "an LP", None); round(float(mu.value), 6)
-    0.25
-    >>> tcp_solve(cp.Problem(cp.Minimize(mu), [mu >= 1, mu <= 0]), "an LP", "no mu fits")
+    >>> require_answer("optimal", "an LP", None) is None
+    True
+    >>> require_answer("infeasible", "an LP", "no mu fits")
     Traceback (most recent call last):
         ...
     packetloss_cvx.errors.InfeasibleError: no mu fits
+    >>> require_answer("infeasible_inaccurate", "an LP", "no mu fits")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.SolverError: solver status 'infeasible_inaccurate': an LP
     """
-    status = solve_problem(problem, what, COLD_ATTEMPTS)
     if status == PROVEN_INFEASIBLE:
         if no_mu is None:
             raise SolverError("inconsistent", f"{what}: Clarabel reports infeasible, but the LP found a point")
