@@ -43,7 +43,7 @@ from ..tolerances import (
     ALLOCATION_INCUMBENT_SHARE,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, lp
+from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, small_lp
 from .grammar import Polytope
 
 __all__ = ["TCPProgram", "constant_cost", "require_answer", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost"]
@@ -315,8 +315,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         raise SolverError("inconsistent", "TCP-like allocation: J*_tcp does not depend on mu and exceeds alpha, "
                           "yet the SOCP reported a solution")
     keep = scale > 0
-    cuts = (S[keep] / scale[keep, None], (alpha - r[keep]) / scale[keep])
-    point, lower = box_lp(beta, poly, poly.lower(), poly.upper(), extra=cuts)
+    G = np.vstack([poly.G, S[keep] / scale[keep, None]])
+    point, lower = small_lp(beta, G, np.concatenate([poly.h, (alpha - r[keep]) / scale[keep]]), poly.lower(),
+                            poly.upper())
     if point is None:
         raise SolverError("inconsistent", "TCP-like allocation: the tangent cuts near the SOCP's point exclude "
                           "every mu, yet the SOCP reported a solution")
@@ -371,7 +372,7 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     >>> bool(np.allclose(out.mu, 0.5, atol=1e-4)), bool(out.lower_bound <= 4 / 3 <= out.value + 1e-9)
     (True, True)
     """
-    q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
+    q, _ = small_lp(-np.ones(system.m), poly.G, poly.h, poly.lower(), poly.upper())
     if q is None:
         raise InfeasibleError("the linear constraints and bounds admit no mu", None)
     C = constant_cost(system)
@@ -389,8 +390,9 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     h = np.concatenate([poly.h, -r / scale])
     c = np.zeros(m + 1)
     c[-1] = 1.0
-    _, lower = lp(c, G, h, np.append(poly.lower(), C), np.append(poly.upper(), max(f, C)))
+    _, lower = small_lp(c, G, h, np.append(poly.lower(), C), np.append(poly.upper(), max(f, C)))
     lower = min(max(lower, C), f)
     reached = (f - lower) / max(f, ALLOCATION_GAP_FLOOR)
     status = "optimal" if reached <= MIN_COST_RTOL else "gap_not_certified"
-    return Outcome(mu, f, lower, status, 0, "convex SOCP (Clarabel), lower bound from tangent cuts at its point")
+    note = "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
+    return Outcome(mu, f, lower, status, 0, note)
