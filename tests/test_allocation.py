@@ -223,3 +223,25 @@ def test_allocation_is_invariant_to_the_scale_of_the_prices(protocol):
     assert tiny.gap == pytest.approx(unit.gap, rel=1e-6, abs=1e-12)
     assert tiny.lower_bound == pytest.approx(unit.lower_bound * 1e-16, rel=1e-9)
     assert tiny.status == unit.status == "optimal"
+
+
+def test_tcp_min_cost_when_the_socp_point_misses_a_row():
+    """benchmarks/run.py's seed-2 system (N = 40) with mu1 + mu2 + mu3 <= 0.6: Clarabel's point exceeds the
+    row by 3.2e-9, beyond the LP tolerance, and min_cost raised SolverError. The cut LP's point (in the
+    polytope) is taken instead; reference: SLSQP over the closed form, an independent minimiser."""
+    from scipy.optimize import minimize
+
+    s, _ = _tcp_case(2, N=40)
+    got = min_cost(s, "tcp", constraints=[([[1.0, 1.0, 1.0]], [0.2 * 3])])     # the benchmark's 0.6000000000000001
+    assert got.status == "optimal"
+    assert got.mu.sum() <= 0.6 + ALLOCATION_LP_FEASIBILITY and np.all((got.mu >= 0) & (got.mu <= 1))
+    assert got.cost == pytest.approx(pl.closed_form(s.with_mu(got.mu), "tcp").cost, rel=1e-12)
+
+    def J(mu):
+        return pl.closed_form(s.with_mu(np.clip(mu, 0.0, 1.0)), "tcp").cost
+
+    ref = minimize(J, np.full(3, 0.2), method="SLSQP", bounds=[(0.0, 1.0)] * 3,
+                   constraints=[{"type": "ineq", "fun": lambda mu: 0.6 - mu.sum()}], options={"ftol": 1e-14})
+    assert ref.success and ref.x.sum() <= 0.6 + 1e-9
+    assert got.lower_bound <= ref.fun * (1 + 1e-9)
+    assert got.cost <= ref.fun * (1 + 1e-6)

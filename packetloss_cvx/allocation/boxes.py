@@ -30,7 +30,7 @@ from .grammar import Polytope
 
 __all__ = [
     "Outcome", "boundary", "box_lp", "bracket", "check_in_polytope", "cost_at", "cost_function", "dual_bound", "lp",
-    "small_lp",
+    "polytope_excess", "small_lp",
 ]
 
 _HIGHS = {"primal_feasibility_tolerance": ALLOCATION_LP_FEASIBILITY,
@@ -274,11 +274,24 @@ def check_in_polytope(mu: np.ndarray, poly: Polytope, what: str) -> np.ndarray:
         ...
     packetloss_cvx.errors.SolverError: solver status 'constraint_violation': x: mu violates the constraints by 1.00e-01
     """
-    excess = max(float(np.max(poly.G @ mu - poly.h, initial=0.0)),
-                 float(np.max(poly.lo - mu, initial=0.0)), float(np.max(mu - poly.hi, initial=0.0)))
+    excess = polytope_excess(mu, poly)
     if excess > ALLOCATION_LP_FEASIBILITY:
         raise SolverError("constraint_violation", f"{what}: mu violates the constraints by {excess:.2e}")
     return mu
+
+
+def polytope_excess(mu: np.ndarray, poly: Polytope) -> float:
+    """How far ``mu`` is outside the bounds and rows (0 inside). O(m r).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> poly = read_polytope([([[1.0, 1.0]], [1.0])], 2, 0.0, 1.0)        # mu1 + mu2 <= 1
+    >>> polytope_excess(np.array([0.5, 0.5]), poly), round(polytope_excess(np.array([0.5, 0.6]), poly), 12)
+    (0.0, 0.1)
+    """
+    return max(float(np.max(poly.G @ mu - poly.h, initial=0.0)),
+               float(np.max(poly.lo - mu, initial=0.0)), float(np.max(mu - poly.hi, initial=0.0)))
 
 
 def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float) -> tuple[float, float]:
