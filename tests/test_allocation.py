@@ -245,3 +245,16 @@ def test_tcp_min_cost_when_the_socp_point_misses_a_row():
     assert ref.success and ref.x.sum() <= 0.6 + 1e-9
     assert got.lower_bound <= ref.fun * (1 + 1e-9)
     assert got.cost <= ref.fun * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_tcp_allocation_reports_the_closed_form_cost_of_its_point(seed):
+    """allocate's cost comes from the solver's own evaluations (each point once); reference: closed_form at the
+    returned mu (method "auto", built afresh) and the QP twin, which shares none of that code."""
+    s, calls = _tcp_case(seed)
+    for alpha, beta in calls:
+        a = allocate(s, "tcp", alpha, beta)
+        assert a.cost == pytest.approx(pl.closed_form(s.with_mu(a.mu), "tcp").cost, rel=1e-12)
+        assert a.cost == pytest.approx(pl.solve_qp(s.with_mu(a.mu), "tcp", cross_check=False, with_gain=False).cost,
+                                       rel=CROSS_CHECK_COST_RTOL)
+        assert a.cost <= alpha

@@ -42,7 +42,8 @@ class Outcome(NamedTuple):
 
     ``mu`` the point (None if none), ``value`` its objective, ``lower_bound`` a proven lower
     bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
-    ``boxes`` boxes explored, ``note`` how it ended. Construction O(1).
+    ``boxes`` boxes explored, ``note`` how it ended, ``cost`` J*(mu) where the solver evaluated it
+    (:func:`cost_function`, equal to :func:`cost_at` to rounding), else None. Construction O(1).
 
     Examples
     --------
@@ -57,6 +58,7 @@ class Outcome(NamedTuple):
     status: str
     boxes: int
     note: str
+    cost: float | None = None
 
 
 def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:

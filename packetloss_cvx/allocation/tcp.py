@@ -269,7 +269,8 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         tangent cuts at and around the solver's point (:func:`tangent_cuts`, computed before
         mu is moved): every mu of the polytope with J*_tcp(mu) <= alpha meets every cut, so
         no such mu has ``beta'mu < lower_bound``. Status "optimal" when
-        ``(value - lower_bound) / value <= gap``, else "gap_not_certified".
+        ``(value - lower_bound) / value <= gap``, else "gap_not_certified"; ``cost`` J*_tcp(mu)
+        (:func:`~packetloss_cvx.allocation.boxes.cost_function`, each point evaluated once).
 
     Raises
     ------
@@ -300,7 +301,15 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     C = constant_cost(system)
     if alpha < C:
         raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
-    J, evaluator = cost_function(system, "tcp")
+    cost, evaluator = cost_function(system, "tcp")
+    known: dict[bytes, float] = {}
+
+    def J(mu: np.ndarray) -> float:          # the closed form, once per point (the answer's cost is reported)
+        key = np.asarray(mu, dtype=float).tobytes()
+        if key not in known:
+            known[key] = cost(mu)
+        return known[key]
+
     corner = J(poly.upper())
     if corner > alpha * (1 + ALLOCATION_COST_RTOL):
         raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
@@ -341,7 +350,7 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     lower = min(lower, value)
     reached = (value - lower) / max(value, ALLOCATION_GAP_FLOOR)
     status = "optimal" if reached <= gap else "gap_not_certified"
-    return Outcome(mu, value, lower, status, 0, note)
+    return Outcome(mu, value, lower, status, 0, note, J(mu))
 
 
 def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
