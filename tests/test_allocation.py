@@ -258,3 +258,66 @@ def test_tcp_allocation_reports_the_closed_form_cost_of_its_point(seed):
         assert a.cost == pytest.approx(pl.solve_qp(s.with_mu(a.mu), "tcp", cross_check=False, with_gain=False).cost,
                                        rel=CROSS_CHECK_COST_RTOL)
         assert a.cost <= alpha
+
+
+def _least_mu_by_bisection(s, alpha, a, b):
+    """Reference for one channel: sequential bisection of closed_form's J* <= alpha on [a, b] to 1e-14."""
+    def J(mu):
+        return pl.closed_form(s.with_mu([mu]), "tcp").cost
+
+    if J(a) <= alpha:
+        return a
+    while b - a > 1e-14 * b:
+        mid = 0.5 * (a + b)
+        if not a < mid < b:
+            break
+        a, b = (a, mid) if J(mid) <= alpha else (mid, b)
+    return b
+
+
+def _one_channel_cases():
+    rng = np.random.default_rng(19)
+    systems = [pl.load_example("pendulum")]
+    systems += [random_system(rng, n=int(rng.integers(1, 5)), m=1, horizon=int(rng.integers(2, 30)), non_stationary=False)
+                for _ in range(6)]
+    return systems
+
+
+@pytest.mark.parametrize("k", range(7))
+def test_one_channel_tcp_allocation_finds_the_least_feasible_mu(k):
+    """m = 1 takes no SOCP: the crossing of alpha by Newton and chord steps. Reference: sequential bisection of
+    closed_form; also the SOCP (the m > 1 path) on the same call, which must sit inside the certificate."""
+    from packetloss_cvx.allocation.grammar import read_polytope
+    from packetloss_cvx.allocation.tcp import TCPProgram, constant_cost
+
+    s = _one_channel_cases()[k]
+    full, none = (pl.closed_form(s.with_mu([v]), "tcp").cost for v in (1.0, 0.0))
+    for f, row in ((0.3, None), (0.05, None), (0.5, 0.2)):          # row: mu >= 0.2
+        alpha = full + f * (none - full)
+        constraints = [([[-1.0]], [-row])] if row is not None else []
+        a = allocate(s, "tcp", alpha, [2.0], constraints=constraints)
+        ref = _least_mu_by_bisection(s, alpha, row or 0.0, 1.0)
+        assert a.method.startswith("one channel") and "moved" not in a.method
+        assert a.status == ("optimal" if a.gap <= 1e-4 else "gap_not_certified")
+        assert a.communication_cost - a.lower_bound <= 1e-8 + 1e-6 * a.communication_cost   # the cuts' loosening
+        assert a.cost <= alpha
+        assert a.lower_bound <= 2.0 * ref * (1 + 1e-12)
+        assert ref * (1 - 1e-12) - ALLOCATION_LP_FEASIBILITY <= a.mu[0] <= ref * (1 + 1e-7)
+        if row is None:
+            poly = read_polytope([], 1, 0.0, 1.0)
+            socp = TCPProgram.of(s, "allocate", 0).solve(s.x0, poly, 1.0 / (alpha - constant_cost(s)), np.ones(1))
+            # the SOCP's point is no better than the proof allows, nor than ours, to Clarabel's accuracy (5e-8 seen)
+            assert a.lower_bound / 2.0 * (1 - 1e-7) - 1e-9 <= socp[0] and a.mu[0] <= socp[0] * (1 + 1e-7) + 1e-9
+
+
+def test_one_channel_tcp_infeasible_and_min_cost_at_the_upper_end():
+    """J* falls in mu: with mu <= 0.01 an alpha below J*(0.01) is infeasible (proved by monotonicity), and
+    the least cost under mu <= 0.4 is J*(0.4), by closed_form."""
+    s = pl.load_example("pendulum")
+    low = pl.closed_form(s.with_mu([0.01]), "tcp").cost
+    with pytest.raises(pl.InfeasibleError, match="largest admissible mu"):
+        allocate(s, "tcp", low * 0.999, [1.0], constraints=[([[1.0]], [0.01])])
+    got = min_cost(s, "tcp", constraints=[([[1.0]], [0.4])])
+    assert got.mu.tolist() == [0.4] and got.status == "optimal"
+    assert got.cost == pytest.approx(pl.closed_form(s.with_mu([0.4]), "tcp").cost, rel=1e-12)
+    assert got.lower_bound <= got.cost

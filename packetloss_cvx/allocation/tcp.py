@@ -47,7 +47,10 @@ from ..tolerances import (
 from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, polytope_excess, small_lp
 from .grammar import Polytope
 
-__all__ = ["TCPProgram", "constant_cost", "require_answer", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost"]
+__all__ = [
+    "TCPProgram", "constant_cost", "interval", "least_feasible", "require_answer", "tangent", "tangent_cuts",
+    "tcp_allocate", "tcp_min_cost",
+]
 
 
 def constant_cost(system: System) -> float:
@@ -198,14 +201,15 @@ def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = No
     return sol.costs, grads
 
 
-def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None = None,
+                 also: tuple[np.ndarray, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Affine minorants of J*_tcp: rows with ``J*(mu) >= r_k + S_k mu`` for every mu in [0, 1]^m.
 
     Tangents at ``mubar`` and at ``mubar +- step e_i`` for each step of
     ``ALLOCATION_CUT_STEPS`` (clipped into [0, 1]), so that their maximum brackets the
     optimum on whichever side the solver's point errs; each loosened by
-    ``ALLOCATION_COST_RTOL (|J*| + ||grad||_1)`` for the closed form's rounding.
+    ``ALLOCATION_COST_RTOL (|J*| + ||grad||_1)`` for the closed form's rounding. Tangents at the
+    points ``also`` are added (one channel: the infeasible end of the final bracket).
     O(m len(steps)) closed forms, evaluated as one batch.
 
     Examples
@@ -219,7 +223,7 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     (True, True)
     """
     m = system.m
-    points = [mubar]
+    points = [mubar, *also]
     for step in ALLOCATION_CUT_STEPS:
         for i in range(m):
             for sign in (-1.0, 1.0):
@@ -257,6 +261,70 @@ def require_answer(status: str, what: str, no_mu: str | None) -> None:
             raise SolverError("inconsistent", f"{what}: Clarabel reports infeasible, but the LP found a point")
         raise InfeasibleError(no_mu, None)
     require_optimal(status, what)
+
+
+def interval(poly: Polytope) -> tuple[float, float]:
+    """One channel (m = 1): the polytope as the interval [a, b] of mu (a > b when empty). O(r).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> interval(read_polytope([([[1.0]], [0.5]), ([[-2.0]], [-0.2])], 1, 0.0, 1.0))     # 0.1 <= mu <= 0.5
+    (0.1, 0.5)
+    """
+    g, h = poly.G[:, 0], poly.h
+    a = max([float(poly.lo), *(h[g < 0] / g[g < 0]).tolist()])
+    b = min([float(poly.hi), *(h[g > 0] / g[g > 0]).tolist()])
+    return (a, -np.inf) if np.any((g == 0) & (h < 0)) else (a, b)
+
+
+def least_feasible(system: System, evaluator: CostEvaluator, a: float, b: float, alpha: float, tol: float
+                   ) -> tuple[float, float, float, int]:
+    """One channel: the least mu in [a, b] with J*_tcp(mu) <= alpha, given J*(b) <= alpha, to within a
+    relative width ``tol`` on the feasible side; returns it, J* there, the infeasible end of the final
+    bracket (its tangent proves the bound: :func:`tangent_cuts`' ``also``) and the number of batches.
+
+    J*_tcp is convex and falling in mu: a Newton step from the infeasible end lands short of the
+    crossing (the tangent lies below J*), the chord from it to the feasible end beyond it (the chord
+    lies above), so each batch of those two closed forms (:func:`tangent`) shrinks the bracket, the
+    Newton side quadratically; a step that would leave the bracket is replaced by its midpoint. Every
+    decision is the closed form's J* <= alpha at a point, so the answer is feasible whatever the
+    steps. O(log log(1/tol)) batches in practice (at most 200), each O(N (n^3 + m^3)).
+
+    Examples
+    --------
+    J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1): J* <= 0.8 from mu = 0.25 on.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> mu, cost, short, batches = least_feasible(s, CostEvaluator(s, "tcp"), 0.0, 1.0, 0.8, 1e-9)
+    >>> bool(short < 0.25 <= mu <= 0.25 * (1 + 1e-9)), bool(cost <= 0.8), batches
+    (True, True, 5)
+    """
+    f, g = tangent(system, np.array([[a], [b]]), evaluator)
+    if f[0] <= alpha:
+        return a, f[0], a, 1
+    lo, f_lo, g_lo, hi, f_hi = a, f[0], g[0, 0], b, f[1]
+    batches = 1
+    while hi - lo > tol * hi and batches < 200:
+        steps = []
+        if g_lo < 0:
+            steps.append(lo + (alpha - f_lo) / g_lo)
+        if f_hi < f_lo:
+            steps.append(lo + (alpha - f_lo) * (hi - lo) / (f_hi - f_lo))
+        points = sorted({x if lo < x < hi else 0.5 * (lo + hi) for x in steps} | ({0.5 * (lo + hi)} if len(steps) < 2
+                                                                                else set()))
+        points = [x for x in points if lo < x < hi]
+        if not points:                  # adjacent floats
+            break
+        f, g = tangent(system, np.array(points)[:, None], evaluator)
+        batches += 1
+        for x, fx, gx in zip(points, f, g[:, 0], strict=True):
+            if fx <= alpha:
+                if x < hi:
+                    hi, f_hi = x, fx
+            elif x > lo:
+                lo, f_lo, g_lo = x, fx, gx
+    return hi, f_hi, lo, batches
 
 
 def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float) -> Outcome:
@@ -314,12 +382,31 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     if corner > alpha * (1 + ALLOCATION_COST_RTOL):
         raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
                               "and J* falls in every mu_i", None)
-    program = TCPProgram.of(system, "allocate", poly.G.shape[0])
-    mubar = np.clip(program.solve(system.x0, poly, 1.0 / max(alpha - C, np.finfo(float).tiny), beta,
-                                  f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g} "
-                                  "(Clarabel certificate)"), poly.lo, poly.hi)
+    no_mu = f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g}"
+    note = "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
+    if system.m == 1:           # an interval and a convex falling J*: its crossing of alpha, no SOCP
+        a, b = interval(poly)
+        if a > b:
+            raise InfeasibleError(f"{no_mu}: the constraints admit no mu", None)
+        end = J(np.array([b]))
+        if end > alpha * (1 + ALLOCATION_COST_RTOL):
+            raise InfeasibleError(f"{no_mu}: J*_tcp at the largest admissible mu, {b:.6g}, is {end:.6g} "
+                                  "and J* falls in mu", None)
+        if end > alpha:
+            raise SolverError("inconsistent", f"TCP-like allocation: J*_tcp at the largest admissible mu is within "
+                              f"the closed form's accuracy of alpha = {alpha:g}, above it")
+        found, at, short, batches = least_feasible(system, evaluator, a, b, alpha, ALLOCATION_INCUMBENT_SHARE * gap)
+        mubar, also = np.array([found]), (np.array([short]),)
+        known[mubar.tobytes()] = at          # the closed form's J* there (batched: equal to rounding)
+        note = (f"one channel: J* <= alpha from mu = {found:.6g} on (Newton and chord steps on the closed form, "
+                f"{batches} batches), lower bound from tangent cuts at that point")
+    else:
+        program = TCPProgram.of(system, "allocate", poly.G.shape[0])
+        mubar = np.clip(program.solve(system.x0, poly, 1.0 / max(alpha - C, np.finfo(float).tiny), beta,
+                                      f"{no_mu} (Clarabel certificate)"), poly.lo, poly.hi)
+        also = ()
 
-    S, r = tangent_cuts(system, mubar, evaluator)      # the lower bound, before any move
+    S, r = tangent_cuts(system, mubar, evaluator, also)      # the lower bound, before any move
     scale = np.max(np.abs(S), axis=1)
     if np.any((scale == 0) & (r > alpha)):
         raise SolverError("inconsistent", "TCP-like allocation: J*_tcp does not depend on mu and exceeds alpha, "
@@ -333,7 +420,7 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
                           "every mu, yet the SOCP reported a solution")
     lower = max(lower, float(beta @ poly.lower()))
 
-    mu, note = mubar, "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
+    mu = mubar
     if beta @ point < beta @ mubar and J(point) <= alpha:
         mu, note = point, note + "; the LP's point is feasible and attains the bound"
     elif J(mu) > alpha:           # solver tolerance: move onto the feasible set
@@ -388,9 +475,13 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     C = constant_cost(system)
     J, evaluator = cost_function(system, "tcp")
     reference = J(poly.upper()) - C       # the least J* - C over the box
-    program = TCPProgram.of(system, "min_cost", poly.G.shape[0])
-    mu = np.clip(program.solve(system.x0, poly, 1.0 / max(reference, np.finfo(float).tiny)), poly.lo, poly.hi)
-    note = "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
+    if system.m == 1:           # J* falls in mu: the least is at the interval's upper end
+        mu = np.array([min(interval(poly)[1], float(q[0]))])
+        note = "one channel: J* falls in mu, least at the largest admissible mu; lower bound from tangent cuts there"
+    else:
+        program = TCPProgram.of(system, "min_cost", poly.G.shape[0])
+        mu = np.clip(program.solve(system.x0, poly, 1.0 / max(reference, np.finfo(float).tiny)), poly.lo, poly.hi)
+        note = "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
     f = J(mu)
     missed = polytope_excess(mu, poly)
     ceiling = max(f, C) if missed <= ALLOCATION_LP_FEASIBILITY else max(f, J(q), C)   # J(q): q is in the polytope
