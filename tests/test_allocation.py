@@ -278,8 +278,8 @@ def _least_mu_by_bisection(s, alpha, a, b):
 def _one_channel_cases():
     rng = np.random.default_rng(19)
     systems = [pl.load_example("pendulum")]
-    systems += [random_system(rng, n=int(rng.integers(1, 5)), m=1, horizon=int(rng.integers(2, 30)), non_stationary=False)
-                for _ in range(6)]
+    systems += [random_system(rng, n=int(rng.integers(1, 5)), m=1, horizon=int(rng.integers(2, 30)),
+                              non_stationary=False) for _ in range(6)]
     return systems
 
 

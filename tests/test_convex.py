@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 import packetloss_cvx.convex as convex
-from packetloss_cvx.allocation.grammar import read_polytope
 from packetloss_cvx.allocation.tcp import TCPProgram
 from packetloss_cvx.convex import ClarabelProgram, first_answer, solve_problem
 from packetloss_cvx.errors import SolverError
