@@ -151,6 +151,8 @@ class ClarabelProgram:
         if set(self._parameters) != set(program.param_id_to_size):
             raise ValueError("cvxpy replaced a Parameter during compilation: ClarabelProgram cannot map its values")
         self._values, self._index = program.reduced_A.reduced_mat, program.reduced_A.problem_data_index
+        if self._index is None:
+            raise ValueError("ClarabelProgram needs constraints (cvxpy compiled no constraint data)")
         self._cones = dims_to_solver_cones(data[CLARABEL.DIMS])
         nvar = program.x.size
         self._P = sp.triu(sp.csc_array((nvar, nvar))).tocsc()

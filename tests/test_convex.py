@@ -78,6 +78,8 @@ def test_compiled_solve_refuses_bad_values():
         program.solve({a: [1.0, 2.0, 3.0]}, "an SOCP")
     with pytest.raises(ValueError, match="linear objectives"):
         ClarabelProgram(cp.Problem(cp.Minimize(cp.sum_squares(x - a))))
+    with pytest.raises(ValueError, match="DPP"):
+        ClarabelProgram(cp.Problem(cp.Minimize(cp.sum(x)), [cp.multiply(a, a) @ x >= 1]))
 
 
 def test_compiled_solve_follows_the_status_policy(monkeypatch):
