@@ -454,11 +454,13 @@ def allocation(seeds, rows, baseline=None):
 
 
 #: One process's TCP-like allocations (section 18): per case, six calls on one system (alpha 5-50 % of the
-#: way from J*_tcp(1) to J*_tcp(0), seeded prices), CPU time of each call, and the answers.
+#: way from J*_tcp(1) to J*_tcp(0), seeded prices) and six least costs (min_cost under a budget
+#: sum(mu) <= 0.1-0.6 m), CPU time of each call, and the answers.
 TCP_ALLOCATION_RUN = """
 import json, sys, time
 import numpy as np
 import packetloss_cvx as pl
+from packetloss_cvx.allocation import min_cost
 {functions}
 cases = [("seed 1", allocation_system(1)), ("seed 2", allocation_system(2)), ("seed 3", allocation_system(3)),
          ("two_actuator", pl.load_example("two_actuator")), ("pendulum", pl.load_example("pendulum"))]
@@ -474,24 +476,31 @@ for name, s in cases:
         a = pl.allocate(s, "tcp", alpha, beta)
         times.append(time.process_time() - start)
         answers.append([a.mu.tolist(), a.lower_bound, a.status])
-    out[name] = {{"times": times, "answers": answers}}
+    least_times, least = [], []
+    for f in (0.3, 0.1, 0.5, 0.2, 0.4, 0.6):
+        start = time.process_time()
+        c = min_cost(s, "tcp", constraints=[([[1.0] * s.m], [f * s.m])])
+        least_times.append(time.process_time() - start)
+        least.append([c.mu.tolist(), c.lower_bound, c.status])
+    out[name] = {{"times": times, "answers": answers, "min_cost_times": least_times, "min_cost_answers": least}}
 print(json.dumps(out))
 """
 
 
 def tcp_allocation(baseline, rows, rounds: int = 3):
-    """TCP-like allocation, m = 3, N = 40 (seeds 1-3) and the paper's examples: this checkout against
-    ``baseline``, each in fresh processes with one BLAS thread, rounds interleaved; CPU time per call
-    (``time.process_time``), the first call of a system (its SOCP compiled) and the median of the five
-    calls after it (re-solved). Same answers: status, lower bound to 1e-9 relative, mu to 1e-7."""
+    """TCP-like allocation and min_cost, m = 3, N = 40 (seeds 1-3) and the paper's examples: this checkout
+    against ``baseline``, each in fresh processes with one BLAS thread, rounds interleaved; CPU time per
+    call (``time.process_time``), the first call of a system (its SOCP compiled) and the median of the
+    five calls after it (re-solved). Same answers: status, mu to 1e-7, and the largest relative
+    difference of the proved lower bounds (both LPs' multipliers are exact to their tolerances only)."""
     import os
     import subprocess
 
     if not baseline:
         print("\n18. TCP-like allocation: needs --baseline (a checkout to compare with)")
         return
-    print(f"\n18. TCP-like allocation, CPU ms per call (first call of a system | median of the next five), "
-          f"{rounds} interleaved rounds, baseline {baseline}")
+    print(f"\n18. TCP-like allocation and min_cost, CPU ms per call (first call of a system | median of the next "
+          f"five), {rounds} interleaved rounds, baseline {baseline}")
     code = TCP_ALLOCATION_RUN.format(functions="\n".join(inspect.getsource(f) for f in (allocation_system,)))
     runs: dict[str, list[dict]] = {"after": [], "before": []}
     for _ in range(rounds):
@@ -500,19 +509,21 @@ def tcp_allocation(baseline, rows, rounds: int = 3):
             out = subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True, text=True,
                                  cwd=checkout).stdout
             runs[name].append(json.loads(out.strip().splitlines()[-1]))
-    print(f"{'case':<14} {'before first':>12} {'after first':>12} {'before next':>12} {'after next':>11} "
-          f"{'ratio next':>10}  same")
-    for case in runs["after"][0]:
-        first = {k: statistics.median(r[case]["times"][0] for r in v) * 1e3 for k, v in runs.items()}
-        rest = {k: statistics.median(t for r in v for t in r[case]["times"][1:]) * 1e3 for k, v in runs.items()}
-        same = all(x[2] == y[2] and abs(x[1] - y[1]) <= 1e-9 * max(abs(x[1]), 1e-12)
-                   and np.allclose(x[0], y[0], rtol=0, atol=1e-7)
-                   for x, y in zip(runs["after"][0][case]["answers"], runs["before"][0][case]["answers"], strict=True))
-        print(f"{case:<14} {first['before']:>12.1f} {first['after']:>12.1f} {rest['before']:>12.1f} "
-              f"{rest['after']:>11.1f} {rest['before'] / rest['after']:>9.2f}x  {same}")
-        rows.append({"bench": "tcp_allocation", "case": case, "before_first_ms": first["before"],
-                     "after_first_ms": first["after"], "before_next_ms": rest["before"],
-                     "after_next_ms": rest["after"], "ratio_next": rest["before"] / rest["after"], "same": same})
+    print(f"{'call':<9} {'case':<14} {'before first':>12} {'after first':>12} {'before next':>12} {'after next':>11} "
+          f"{'ratio next':>10}  same status, mu  max rel diff lower bound")
+    for call, times, answers in (("allocate", "times", "answers"), ("min_cost", "min_cost_times", "min_cost_answers")):
+        for case in runs["after"][0]:
+            first = {k: statistics.median(r[case][times][0] for r in v) * 1e3 for k, v in runs.items()}
+            rest = {k: statistics.median(t for r in v for t in r[case][times][1:]) * 1e3 for k, v in runs.items()}
+            pairs = list(zip(runs["after"][0][case][answers], runs["before"][0][case][answers], strict=True))
+            same = all(x[2] == y[2] and np.allclose(x[0], y[0], rtol=0, atol=1e-7) for x, y in pairs)
+            bound = max(abs(x[1] - y[1]) / max(abs(y[1]), 1e-12) for x, y in pairs)
+            print(f"{call:<9} {case:<14} {first['before']:>12.1f} {first['after']:>12.1f} {rest['before']:>12.1f} "
+                  f"{rest['after']:>11.1f} {rest['before'] / rest['after']:>9.2f}x  {same!s:>15}  {bound:>10.1e}")
+            rows.append({"bench": "tcp_allocation", "call": call, "case": case, "before_first_ms": first["before"],
+                         "after_first_ms": first["after"], "before_next_ms": rest["before"],
+                         "after_next_ms": rest["after"], "ratio_next": rest["before"] / rest["after"], "same": same,
+                         "lower_bound_max_rel_diff": bound})
 
 
 def evaluator(points, rows):

@@ -223,3 +223,101 @@ def test_allocation_is_invariant_to_the_scale_of_the_prices(protocol):
     assert tiny.gap == pytest.approx(unit.gap, rel=1e-6, abs=1e-12)
     assert tiny.lower_bound == pytest.approx(unit.lower_bound * 1e-16, rel=1e-9)
     assert tiny.status == unit.status == "optimal"
+
+
+def test_tcp_min_cost_when_the_socp_point_misses_a_row():
+    """benchmarks/run.py's seed-2 system (N = 40) with mu1 + mu2 + mu3 <= 0.6: Clarabel's point exceeds the
+    row by 3.2e-9, beyond the LP tolerance, and min_cost raised SolverError. The cut LP's point (in the
+    polytope) is taken instead; reference: SLSQP over the closed form, an independent minimiser."""
+    from scipy.optimize import minimize
+
+    s, _ = _tcp_case(2, N=40)
+    got = min_cost(s, "tcp", constraints=[([[1.0, 1.0, 1.0]], [0.2 * 3])])     # the benchmark's 0.6000000000000001
+    assert got.status == "optimal"
+    assert got.mu.sum() <= 0.6 + ALLOCATION_LP_FEASIBILITY and np.all((got.mu >= 0) & (got.mu <= 1))
+    assert got.cost == pytest.approx(pl.closed_form(s.with_mu(got.mu), "tcp").cost, rel=1e-12)
+
+    def J(mu):
+        return pl.closed_form(s.with_mu(np.clip(mu, 0.0, 1.0)), "tcp").cost
+
+    ref = minimize(J, np.full(3, 0.2), method="SLSQP", bounds=[(0.0, 1.0)] * 3,
+                   constraints=[{"type": "ineq", "fun": lambda mu: 0.6 - mu.sum()}], options={"ftol": 1e-14})
+    assert ref.success and ref.x.sum() <= 0.6 + 1e-9
+    assert got.lower_bound <= ref.fun * (1 + 1e-9)
+    assert got.cost <= ref.fun * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_tcp_allocation_reports_the_closed_form_cost_of_its_point(seed):
+    """allocate's cost comes from the solver's own evaluations (each point once); reference: closed_form at the
+    returned mu (method "auto", built afresh) and the QP twin, which shares none of that code."""
+    s, calls = _tcp_case(seed)
+    for alpha, beta in calls:
+        a = allocate(s, "tcp", alpha, beta)
+        assert a.cost == pytest.approx(pl.closed_form(s.with_mu(a.mu), "tcp").cost, rel=1e-12)
+        assert a.cost == pytest.approx(pl.solve_qp(s.with_mu(a.mu), "tcp", cross_check=False, with_gain=False).cost,
+                                       rel=CROSS_CHECK_COST_RTOL)
+        assert a.cost <= alpha
+
+
+def _least_mu_by_bisection(s, alpha, a, b):
+    """Reference for one channel: sequential bisection of closed_form's J* <= alpha on [a, b] to 1e-14."""
+    def J(mu):
+        return pl.closed_form(s.with_mu([mu]), "tcp").cost
+
+    if J(a) <= alpha:
+        return a
+    while b - a > 1e-14 * b:
+        mid = 0.5 * (a + b)
+        if not a < mid < b:
+            break
+        a, b = (a, mid) if J(mid) <= alpha else (mid, b)
+    return b
+
+
+def _one_channel_cases():
+    rng = np.random.default_rng(19)
+    systems = [pl.load_example("pendulum")]
+    systems += [random_system(rng, n=int(rng.integers(1, 5)), m=1, horizon=int(rng.integers(2, 30)),
+                              non_stationary=False) for _ in range(6)]
+    return systems
+
+
+@pytest.mark.parametrize("k", range(7))
+def test_one_channel_tcp_allocation_finds_the_least_feasible_mu(k):
+    """m = 1 takes no SOCP: the crossing of alpha by Newton and chord steps. Reference: sequential bisection of
+    closed_form; also the SOCP (the m > 1 path) on the same call, which must sit inside the certificate."""
+    from packetloss_cvx.allocation.grammar import read_polytope
+    from packetloss_cvx.allocation.tcp import TCPProgram, constant_cost
+
+    s = _one_channel_cases()[k]
+    full, none = (pl.closed_form(s.with_mu([v]), "tcp").cost for v in (1.0, 0.0))
+    for f, row in ((0.3, None), (0.05, None), (0.5, 0.2)):          # row: mu >= 0.2
+        alpha = full + f * (none - full)
+        constraints = [([[-1.0]], [-row])] if row is not None else []
+        a = allocate(s, "tcp", alpha, [2.0], constraints=constraints)
+        ref = _least_mu_by_bisection(s, alpha, row or 0.0, 1.0)
+        assert a.method.startswith("one channel") and "moved" not in a.method
+        assert a.status == ("optimal" if a.gap <= 1e-4 else "gap_not_certified")
+        assert a.communication_cost - a.lower_bound <= 1e-8 + 1e-6 * a.communication_cost   # the cuts' loosening
+        assert a.cost <= alpha
+        assert a.lower_bound <= 2.0 * ref * (1 + 1e-12)
+        assert ref * (1 - 1e-12) - ALLOCATION_LP_FEASIBILITY <= a.mu[0] <= ref * (1 + 1e-7)
+        if row is None:
+            poly = read_polytope([], 1, 0.0, 1.0)
+            socp = TCPProgram.of(s, "allocate", 0).solve(s.x0, poly, 1.0 / (alpha - constant_cost(s)), np.ones(1))
+            # the SOCP's point is no better than the proof allows, nor than ours, to Clarabel's accuracy (5e-8 seen)
+            assert a.lower_bound / 2.0 * (1 - 1e-7) - 1e-9 <= socp[0] and a.mu[0] <= socp[0] * (1 + 1e-7) + 1e-9
+
+
+def test_one_channel_tcp_infeasible_and_min_cost_at_the_upper_end():
+    """J* falls in mu: with mu <= 0.01 an alpha below J*(0.01) is infeasible (proved by monotonicity), and
+    the least cost under mu <= 0.4 is J*(0.4), by closed_form."""
+    s = pl.load_example("pendulum")
+    low = pl.closed_form(s.with_mu([0.01]), "tcp").cost
+    with pytest.raises(pl.InfeasibleError, match="largest admissible mu"):
+        allocate(s, "tcp", low * 0.999, [1.0], constraints=[([[1.0]], [0.01])])
+    got = min_cost(s, "tcp", constraints=[([[1.0]], [0.4])])
+    assert got.mu.tolist() == [0.4] and got.status == "optimal"
+    assert got.cost == pytest.approx(pl.closed_form(s.with_mu([0.4]), "tcp").cost, rel=1e-12)
+    assert got.lower_bound <= got.cost

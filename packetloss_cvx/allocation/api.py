@@ -258,7 +258,8 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
             floor_note = f"; TCP-like lower bound {relaxation.lower_bound:.6g} (Theorem 2)"
         out = out._replace(note=out.note + floor_note)
     scaled = float(prices @ out.mu)
-    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost_at(system, protocol, out.mu),
+    cost = cost_at(system, protocol, out.mu) if out.cost is None else out.cost
+    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
                       lower_bound=out.lower_bound * unit,
                       gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR),
                       status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)

@@ -26,12 +26,10 @@ The solver's point is not taken on trust:
 
 from __future__ import annotations
 
-import threading
-
 import cvxpy as cp
 import numpy as np
 
-from ..convex import PROVEN_INFEASIBLE, require_optimal, solve_problem
+from ..convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, SolverError
 from ..evaluator import CostEvaluator
 from ..model import CacheKey, System
@@ -43,12 +41,16 @@ from ..tolerances import (
     ALLOCATION_CUT_STEPS,
     ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
+    ALLOCATION_LP_FEASIBILITY,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, lp
+from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, polytope_excess, small_lp
 from .grammar import Polytope
 
-__all__ = ["TCPProgram", "constant_cost", "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost", "tcp_solve"]
+__all__ = [
+    "TCPProgram", "constant_cost", "interval", "least_feasible", "require_answer", "tangent", "tangent_cuts",
+    "tcp_allocate", "tcp_min_cost",
+]
 
 
 def constant_cost(system: System) -> float:
@@ -65,13 +67,6 @@ def constant_cost(system: System) -> float:
     x0 = system.x0
     return float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]
 
-
-#: The allocation SOCPs' Clarabel settings: ALLOCATION_CLARABEL_ATTEMPTS, each run cold. A program is
-#: compiled once and re-solved for new Parameter values; cvxpy's warm re-solve would update the cached
-#: Clarabel solver in place, keeping the Ruiz equilibration of the first data it saw (Clarabel's
-#: ``update_data``), so an answer would depend on the calls before it. Cold, a solve is a function of
-#: its own data: compilation (64 % of a call) is saved, the factorisation is not.
-COLD_ATTEMPTS = tuple({**settings, "warm_start": False} for settings in ALLOCATION_CLARABEL_ATTEMPTS)
 
 #: Estimated bytes of one compiled program (cvxpy's parameter map and Clarabel's data), per N (n + m)^2:
 #: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.qp_memory_estimate`), which it mirrors.
@@ -94,9 +89,15 @@ class TCPProgram:
     to ``r + sum t <= 1`` (s = 1 / (alpha - C)); "min_cost" minimises ``r + sum t``.
 
     One program per (system structure, kind, k), kept with the system (:meth:`System.structure_cached`,
-    shared with its ``with_mu`` / ``with_x0`` copies); solved cold under a lock (:data:`COLD_ATTEMPTS`).
-    Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in O(N (n + m)^2) (about 17 ms at
-    N = 40, n = m = 3), then each solve maps the Parameters and runs Clarabel (about 3 ms there).
+    shared with its ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
+    (:class:`~packetloss_cvx.convex.ClarabelProgram`) and solved cold under
+    ``ALLOCATION_CLARABEL_ATTEMPTS``: a warm Clarabel keeps the Ruiz equilibration of the first data it
+    saw (``update_data``; answers up to 42 % off across calls), cold a solve is a function of its own
+    data. The Parameters are never assigned (their values go straight into the data map), so calls
+    from several threads share a program without a lock.
+    Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in O(N (n + m)^2) (about 20 ms at
+    N = 40, n = m = 3), then each solve maps the Parameters (O(nnz), about 0.1 ms there) and runs
+    Clarabel (about 2.5 ms there, its set-up 0.5 ms of it).
 
     Examples
     --------
@@ -144,7 +145,7 @@ class TCPProgram:
             self.problem = cp.Problem(cp.Minimize(r + cp.sum(t)), cons)
         if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("the TCP-like allocation SOCP is not DPP")
-        self.lock = threading.Lock()
+        self.compiled = ClarabelProgram(self.problem)
 
     @classmethod
     def of(cls, system: System, kind: str, rows: int) -> TCPProgram:
@@ -160,18 +161,17 @@ class TCPProgram:
     def solve(self, x0: np.ndarray, poly: Polytope, scale: float, beta: np.ndarray | None = None,
               no_mu: str | None = None) -> np.ndarray:
         """The solver's mu for the state ``x0``, the polytope (of this program's number of rows), the
-        cost scale and (kind "allocate") the prices: every Parameter is assigned, then Clarabel runs
-        cold (:func:`tcp_solve`'s status policy). Raises as :func:`tcp_solve`."""
+        cost scale and (kind "allocate") the prices, Clarabel run cold on the compiled data under
+        :func:`require_answer`'s status policy. Raises as :func:`require_answer`."""
         what = "TCP-like allocation SOCP" if self.kind == "allocate" else "TCP-like minimum-cost SOCP"
-        with self.lock:
-            self.x0.value, self.root.value = x0, np.sqrt(scale)
-            self.lo.value, self.hi.value = poly.lower(), poly.upper()
-            if self.rows is not None:
-                self.rows[0].value, self.rows[1].value = poly.G, poly.h
-            if beta is not None:
-                self.beta.value = beta
-            tcp_solve(self.problem, what, no_mu)
-            return np.array(self.mu.value, dtype=float)
+        values = {self.x0: x0, self.root: np.sqrt(scale), self.lo: poly.lower(), self.hi: poly.upper()}
+        if self.kind == "allocate":
+            values[self.beta] = beta
+        if self.rows is not None:
+            values.update({self.rows[0]: poly.G, self.rows[1]: poly.h})
+        status, point = self.compiled.solve(values, what, ALLOCATION_CLARABEL_ATTEMPTS)
+        require_answer(status, what, no_mu)
+        return np.array(point(self.mu), dtype=float)
 
 
 def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = None) -> tuple[float, np.ndarray]:
@@ -201,14 +201,15 @@ def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = No
     return sol.costs, grads
 
 
-def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None = None,
+                 also: tuple[np.ndarray, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Affine minorants of J*_tcp: rows with ``J*(mu) >= r_k + S_k mu`` for every mu in [0, 1]^m.
 
     Tangents at ``mubar`` and at ``mubar +- step e_i`` for each step of
     ``ALLOCATION_CUT_STEPS`` (clipped into [0, 1]), so that their maximum brackets the
     optimum on whichever side the solver's point errs; each loosened by
-    ``ALLOCATION_COST_RTOL (|J*| + ||grad||_1)`` for the closed form's rounding.
+    ``ALLOCATION_COST_RTOL (|J*| + ||grad||_1)`` for the closed form's rounding. Tangents at the
+    points ``also`` are added (one channel: the infeasible end of the final bracket).
     O(m len(steps)) closed forms, evaluated as one batch.
 
     Examples
@@ -222,7 +223,7 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     (True, True)
     """
     m = system.m
-    points = [mubar]
+    points = [mubar, *also]
     for step in ALLOCATION_CUT_STEPS:
         for i in range(m):
             for sign in (-1.0, 1.0):
@@ -236,28 +237,94 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     return S, r
 
 
-def tcp_solve(problem: cp.Problem, what: str, no_mu: str | None) -> None:
-    """Clarabel under the package's one status policy (convex.solve_problem), cold
-    (:data:`COLD_ATTEMPTS`): "optimal", or InfeasibleError(no_mu) on Clarabel's infeasibility
-    certificate (SolverError when ``no_mu`` is None: infeasibility is then known to be impossible),
-    or SolverError.
+def require_answer(status: str, what: str, no_mu: str | None) -> None:
+    """The allocation SOCPs' status policy on the final status of
+    :meth:`ClarabelProgram.solve <packetloss_cvx.convex.ClarabelProgram.solve>`: "optimal" passes,
+    Clarabel's infeasibility certificate raises InfeasibleError(no_mu) (SolverError when ``no_mu`` is
+    None: infeasibility is then known to be impossible), anything else SolverError. O(1).
 
     Examples
     --------
-    >>> mu = cp.Variable()
-    >>> tcp_solve(cp.Problem(cp.Minimize(mu), [mu >= 0.25]), "an LP", None); round(float(mu.value), 6)
-    0.25
-    >>> tcp_solve(cp.Problem(cp.Minimize(mu), [mu >= 1, mu <= 0]), "an LP", "no mu fits")
+    >>> require_answer("optimal", "an LP", None) is None
+    True
+    >>> require_answer("infeasible", "an LP", "no mu fits")
     Traceback (most recent call last):
         ...
     packetloss_cvx.errors.InfeasibleError: no mu fits
+    >>> require_answer("infeasible_inaccurate", "an LP", "no mu fits")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.SolverError: solver status 'infeasible_inaccurate': an LP
     """
-    status = solve_problem(problem, what, COLD_ATTEMPTS)
     if status == PROVEN_INFEASIBLE:
         if no_mu is None:
             raise SolverError("inconsistent", f"{what}: Clarabel reports infeasible, but the LP found a point")
         raise InfeasibleError(no_mu, None)
     require_optimal(status, what)
+
+
+def interval(poly: Polytope) -> tuple[float, float]:
+    """One channel (m = 1): the polytope as the interval [a, b] of mu (a > b when empty). O(r).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> interval(read_polytope([([[1.0]], [0.5]), ([[-2.0]], [-0.2])], 1, 0.0, 1.0))     # 0.1 <= mu <= 0.5
+    (0.1, 0.5)
+    """
+    g, h = poly.G[:, 0], poly.h
+    a = max([float(poly.lo), *(h[g < 0] / g[g < 0]).tolist()])
+    b = min([float(poly.hi), *(h[g > 0] / g[g > 0]).tolist()])
+    return (a, -np.inf) if np.any((g == 0) & (h < 0)) else (a, b)
+
+
+def least_feasible(system: System, evaluator: CostEvaluator, a: float, b: float, alpha: float, tol: float
+                   ) -> tuple[float, float, float, int]:
+    """One channel: the least mu in [a, b] with J*_tcp(mu) <= alpha, given J*(b) <= alpha, to within a
+    relative width ``tol`` on the feasible side; returns it, J* there, the infeasible end of the final
+    bracket (its tangent proves the bound: :func:`tangent_cuts`' ``also``) and the number of batches.
+
+    J*_tcp is convex and falling in mu: a Newton step from the infeasible end lands short of the
+    crossing (the tangent lies below J*), the chord from it to the feasible end beyond it (the chord
+    lies above), so each batch of those two closed forms (:func:`tangent`) shrinks the bracket, the
+    Newton side quadratically; a step that would leave the bracket is replaced by its midpoint. Every
+    decision is the closed form's J* <= alpha at a point, so the answer is feasible whatever the
+    steps. O(log log(1/tol)) batches in practice (at most 200), each O(N (n^3 + m^3)).
+
+    Examples
+    --------
+    J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1): J* <= 0.8 from mu = 0.25 on.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> mu, cost, short, batches = least_feasible(s, CostEvaluator(s, "tcp"), 0.0, 1.0, 0.8, 1e-9)
+    >>> bool(short < 0.25 <= mu <= 0.25 * (1 + 1e-9)), bool(cost <= 0.8), batches
+    (True, True, 5)
+    """
+    f, g = tangent(system, np.array([[a], [b]]), evaluator)
+    if f[0] <= alpha:
+        return a, f[0], a, 1
+    lo, f_lo, g_lo, hi, f_hi = a, f[0], g[0, 0], b, f[1]
+    batches = 1
+    while hi - lo > tol * hi and batches < 200:
+        steps = []
+        if g_lo < 0:
+            steps.append(lo + (alpha - f_lo) / g_lo)
+        if f_hi < f_lo:
+            steps.append(lo + (alpha - f_lo) * (hi - lo) / (f_hi - f_lo))
+        points = sorted({x if lo < x < hi else 0.5 * (lo + hi) for x in steps} | ({0.5 * (lo + hi)} if len(steps) < 2
+                                                                                else set()))
+        points = [x for x in points if lo < x < hi]
+        if not points:                  # adjacent floats
+            break
+        f, g = tangent(system, np.array(points)[:, None], evaluator)
+        batches += 1
+        for x, fx, gx in zip(points, f, g[:, 0], strict=True):
+            if fx <= alpha:
+                if x < hi:
+                    hi, f_hi = x, fx
+            elif x > lo:
+                lo, f_lo, g_lo = x, fx, gx
+    return hi, f_hi, lo, batches
 
 
 def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float) -> Outcome:
@@ -270,7 +337,8 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         tangent cuts at and around the solver's point (:func:`tangent_cuts`, computed before
         mu is moved): every mu of the polytope with J*_tcp(mu) <= alpha meets every cut, so
         no such mu has ``beta'mu < lower_bound``. Status "optimal" when
-        ``(value - lower_bound) / value <= gap``, else "gap_not_certified".
+        ``(value - lower_bound) / value <= gap``, else "gap_not_certified"; ``cost`` J*_tcp(mu)
+        (:func:`~packetloss_cvx.allocation.boxes.cost_function`, each point evaluated once).
 
     Raises
     ------
@@ -301,30 +369,58 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     C = constant_cost(system)
     if alpha < C:
         raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
-    J, evaluator = cost_function(system, "tcp")
+    cost, evaluator = cost_function(system, "tcp")
+    known: dict[bytes, float] = {}
+
+    def J(mu: np.ndarray) -> float:          # the closed form, once per point (the answer's cost is reported)
+        key = np.asarray(mu, dtype=float).tobytes()
+        if key not in known:
+            known[key] = cost(mu)
+        return known[key]
+
     corner = J(poly.upper())
     if corner > alpha * (1 + ALLOCATION_COST_RTOL):
         raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
                               "and J* falls in every mu_i", None)
-    program = TCPProgram.of(system, "allocate", poly.G.shape[0])
-    mubar = np.clip(program.solve(system.x0, poly, 1.0 / max(alpha - C, np.finfo(float).tiny), beta,
-                                  f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g} "
-                                  "(Clarabel certificate)"), poly.lo, poly.hi)
+    no_mu = f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g}"
+    note = "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
+    if system.m == 1:           # an interval and a convex falling J*: its crossing of alpha, no SOCP
+        a, b = interval(poly)
+        if a > b:
+            raise InfeasibleError(f"{no_mu}: the constraints admit no mu", None)
+        end = J(np.array([b]))
+        if end > alpha * (1 + ALLOCATION_COST_RTOL):
+            raise InfeasibleError(f"{no_mu}: J*_tcp at the largest admissible mu, {b:.6g}, is {end:.6g} "
+                                  "and J* falls in mu", None)
+        if end > alpha:
+            raise SolverError("inconsistent", f"TCP-like allocation: J*_tcp at the largest admissible mu is within "
+                              f"the closed form's accuracy of alpha = {alpha:g}, above it")
+        found, at, short, batches = least_feasible(system, evaluator, a, b, alpha, ALLOCATION_INCUMBENT_SHARE * gap)
+        mubar, also = np.array([found]), (np.array([short]),)
+        known[mubar.tobytes()] = at          # the closed form's J* there (batched: equal to rounding)
+        note = (f"one channel: J* <= alpha from mu = {found:.6g} on (Newton and chord steps on the closed form, "
+                f"{batches} batches), lower bound from tangent cuts at that point")
+    else:
+        program = TCPProgram.of(system, "allocate", poly.G.shape[0])
+        mubar = np.clip(program.solve(system.x0, poly, 1.0 / max(alpha - C, np.finfo(float).tiny), beta,
+                                      f"{no_mu} (Clarabel certificate)"), poly.lo, poly.hi)
+        also = ()
 
-    S, r = tangent_cuts(system, mubar, evaluator)      # the lower bound, before any move
+    S, r = tangent_cuts(system, mubar, evaluator, also)      # the lower bound, before any move
     scale = np.max(np.abs(S), axis=1)
     if np.any((scale == 0) & (r > alpha)):
         raise SolverError("inconsistent", "TCP-like allocation: J*_tcp does not depend on mu and exceeds alpha, "
                           "yet the SOCP reported a solution")
     keep = scale > 0
-    cuts = (S[keep] / scale[keep, None], (alpha - r[keep]) / scale[keep])
-    point, lower = box_lp(beta, poly, poly.lower(), poly.upper(), extra=cuts)
+    G = np.vstack([poly.G, S[keep] / scale[keep, None]])
+    point, lower = small_lp(beta, G, np.concatenate([poly.h, (alpha - r[keep]) / scale[keep]]), poly.lower(),
+                            poly.upper())
     if point is None:
         raise SolverError("inconsistent", "TCP-like allocation: the tangent cuts near the SOCP's point exclude "
                           "every mu, yet the SOCP reported a solution")
     lower = max(lower, float(beta @ poly.lower()))
 
-    mu, note = mubar, "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
+    mu = mubar
     if beta @ point < beta @ mubar and J(point) <= alpha:
         mu, note = point, note + "; the LP's point is feasible and attains the bound"
     elif J(mu) > alpha:           # solver tolerance: move onto the feasible set
@@ -341,7 +437,7 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     lower = min(lower, value)
     reached = (value - lower) / max(value, ALLOCATION_GAP_FLOOR)
     status = "optimal" if reached <= gap else "gap_not_certified"
-    return Outcome(mu, value, lower, status, 0, note)
+    return Outcome(mu, value, lower, status, 0, note, J(mu))
 
 
 def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
@@ -373,16 +469,22 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     >>> bool(np.allclose(out.mu, 0.5, atol=1e-4)), bool(out.lower_bound <= 4 / 3 <= out.value + 1e-9)
     (True, True)
     """
-    q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
+    q, _ = small_lp(-np.ones(system.m), poly.G, poly.h, poly.lower(), poly.upper())
     if q is None:
         raise InfeasibleError("the linear constraints and bounds admit no mu", None)
     C = constant_cost(system)
     J, evaluator = cost_function(system, "tcp")
     reference = J(poly.upper()) - C       # the least J* - C over the box
-    program = TCPProgram.of(system, "min_cost", poly.G.shape[0])
-    mu = program.solve(system.x0, poly, 1.0 / max(reference, np.finfo(float).tiny))
-    mu = check_in_polytope(np.clip(mu, poly.lo, poly.hi), poly, "TCP-like minimum cost")
+    if system.m == 1:           # J* falls in mu: the least is at the interval's upper end
+        mu = np.array([min(interval(poly)[1], float(q[0]))])
+        note = "one channel: J* falls in mu, least at the largest admissible mu; lower bound from tangent cuts there"
+    else:
+        program = TCPProgram.of(system, "min_cost", poly.G.shape[0])
+        mu = np.clip(program.solve(system.x0, poly, 1.0 / max(reference, np.finfo(float).tiny)), poly.lo, poly.hi)
+        note = "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
     f = J(mu)
+    missed = polytope_excess(mu, poly)
+    ceiling = max(f, C) if missed <= ALLOCATION_LP_FEASIBILITY else max(f, J(q), C)   # J(q): q is in the polytope
     S, r = tangent_cuts(system, mu, evaluator)                   # min t  s.t.  t >= r_k + S_k mu, mu in the polytope
     m = system.m
     scale = np.maximum(np.max(np.abs(S), axis=1), 1.0)
@@ -391,8 +493,16 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     h = np.concatenate([poly.h, -r / scale])
     c = np.zeros(m + 1)
     c[-1] = 1.0
-    _, lower = lp(c, G, h, np.append(poly.lower(), C), np.append(poly.upper(), max(f, C)))
+    point, lower = small_lp(c, G, h, np.append(poly.lower(), C), np.append(poly.upper(), ceiling))
+    if missed > ALLOCATION_LP_FEASIBILITY:
+        # the SOCP's point misses a row by more than the LP tolerance (seen: 3.2e-9): the cut LP's point is in
+        # the polytope and, the cuts being tangents at the SOCP's point, as good to second order
+        if point is None:
+            raise SolverError("inconsistent", "TCP-like minimum cost: the polytope admits q but the cut LP no point")
+        mu = check_in_polytope(np.clip(point[:m], poly.lo, poly.hi), poly, "TCP-like minimum cost")
+        f = J(mu)
+        note += f"; its point missed a row by {missed:.1e}, the cut LP's point taken"
     lower = min(max(lower, C), f)
     reached = (f - lower) / max(f, ALLOCATION_GAP_FLOOR)
     status = "optimal" if reached <= MIN_COST_RTOL else "gap_not_certified"
-    return Outcome(mu, f, lower, status, 0, "convex SOCP (Clarabel), lower bound from tangent cuts at its point")
+    return Outcome(mu, f, lower, status, 0, note)

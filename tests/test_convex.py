@@ -1,0 +1,100 @@
+"""convex.py: Clarabel under one status policy, and a DPP problem compiled once (ClarabelProgram) whose
+solves are cvxpy's own solve of the same problem, bit for bit."""
+
+import cvxpy as cp
+import numpy as np
+import pytest
+
+import packetloss_cvx.convex as convex
+from packetloss_cvx.allocation.tcp import TCPProgram
+from packetloss_cvx.convex import ClarabelProgram, first_answer, solve_problem
+from packetloss_cvx.errors import SolverError
+from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.tolerances import ALLOCATION_CLARABEL_ATTEMPTS, CLARABEL_DEFAULT, CLARABEL_TIGHT
+
+
+def _random_values(program: TCPProgram, system, rng, rows):
+    """Parameter values of a TCP-like program: a random x0, scale, bounds, rows (with zero entries, which
+    cvxpy drops from the data) and prices."""
+    m = system.m
+    lo = rng.uniform(0.0, 0.3, m) * (rng.uniform(size=m) < 0.5)
+    hi = np.maximum(lo, rng.uniform(0.6, 1.0, m))
+    G = rng.normal(size=(rows, m)) * (rng.uniform(size=(rows, m)) < 0.6)
+    h = np.abs(G) @ hi + 0.1
+    values = {program.x0: rng.normal(size=system.n), program.root: rng.uniform(0.05, 2.0), program.lo: lo,
+              program.hi: hi}
+    if program.kind == "allocate":
+        values[program.beta] = rng.uniform(0.5, 1.5, m)
+    if rows:
+        values.update({program.rows[0]: G, program.rows[1]: h})
+    return values
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize(("kind", "rows"), [("allocate", 0), ("allocate", 2), ("min_cost", 1)])
+def test_compiled_solve_is_cvxpys_solve_bit_for_bit(seed, kind, rows):
+    """The reference is cvxpy itself: the same problem, Parameters assigned, problem.solve cold under the
+    same attempts. Same status, same mu to the last bit (the data, cones and settings are the same)."""
+    rng = np.random.default_rng(seed)
+    s = random_system(rng, n=int(rng.integers(1, 4)), m=int(rng.integers(1, 4)), horizon=int(rng.integers(2, 9)))
+    program = TCPProgram(s, kind, rows)
+    for _ in range(3):
+        values = _random_values(program, s, rng, rows)
+        status, point = program.compiled.solve(values, "compiled", ALLOCATION_CLARABEL_ATTEMPTS)
+        for parameter, value in values.items():
+            parameter.value = value
+        expected = solve_problem(program.problem, "cvxpy", tuple({**a, "warm_start": False}
+                                                                 for a in ALLOCATION_CLARABEL_ATTEMPTS))
+        assert status == expected
+        if status == "optimal":
+            assert np.array_equal(point(program.mu), program.mu.value)
+
+
+def test_compiled_data_is_cvxpys_data():
+    """(q, A, b) equal those cvxpy hands Clarabel for the same values, structure included (explicit zeros)."""
+    rng = np.random.default_rng(7)
+    s = random_system(rng, n=3, m=3, horizon=5)
+    program = TCPProgram(s, "allocate", 2)
+    values = _random_values(program, s, rng, 2)
+    values[program.rows[0]] = np.array([[1.0, 0.0, -2.0], [0.0, 0.0, 3.0]])
+    _, q, A, b = program.compiled.data(values)
+    for parameter, value in values.items():
+        parameter.value = value
+    data, _, _ = program.problem.get_problem_data(cp.CLARABEL)
+    assert np.array_equal(q, data["c"]) and np.array_equal(b, data["b"])
+    A, ref = A.tocsc(), data["A"].tocsc()
+    assert np.array_equal(A.indptr, ref.indptr) and np.array_equal(A.indices, ref.indices)
+    assert np.array_equal(A.data, ref.data)
+
+
+def test_compiled_solve_refuses_bad_values():
+    x, a = cp.Variable(2), cp.Parameter(2)
+    program = ClarabelProgram(cp.Problem(cp.Minimize(cp.sum(x)), [cp.norm(x - a) <= 1]))
+    with pytest.raises(SolverError, match="not finite"):
+        program.solve({a: [np.inf, 0.0]}, "an SOCP")
+    with pytest.raises(SolverError, match="missing"):
+        program.solve({}, "an SOCP")
+    with pytest.raises(SolverError, match="reshape|size"):
+        program.solve({a: [1.0, 2.0, 3.0]}, "an SOCP")
+    with pytest.raises(ValueError, match="linear objectives"):
+        ClarabelProgram(cp.Problem(cp.Minimize(cp.sum_squares(x - a))))
+    with pytest.raises(ValueError, match="DPP"):
+        ClarabelProgram(cp.Problem(cp.Minimize(cp.sum(x)), [cp.multiply(a, a) @ x >= 1]))
+
+
+def test_compiled_solve_follows_the_status_policy(monkeypatch):
+    """Proven infeasibility stops the attempts; the tight settings' failure falls through to the defaults."""
+    x, a = cp.Variable(), cp.Parameter()
+    program = ClarabelProgram(cp.Problem(cp.Minimize(x), [x >= a, x <= 0]))
+    assert program.solve({a: 1.0}, "an LP")[0] == "infeasible"
+    status, point = program.solve({a: -0.25}, "an LP")
+    assert status == "optimal" and np.isclose(point(x), -0.25, atol=1e-8)
+    seen = []
+
+    def attempt(settings):
+        seen.append(settings)
+        return "optimal_inaccurate" if settings is CLARABEL_TIGHT else "optimal"
+
+    assert first_answer(attempt, (CLARABEL_TIGHT, CLARABEL_DEFAULT)) == "optimal" and len(seen) == 2
+    monkeypatch.setattr(convex.CLARABEL, "STATUS_MAP", {})      # every Clarabel status unknown
+    assert program.solve({a: -0.25}, "an LP")[0] == "solver_error"
