@@ -62,11 +62,16 @@ def test_information_patterns():
         markov_closed_loop_costs(s, steps=3, samples=3)
 
 
-def test_the_older_closed_loop_api_keeps_the_plan_budget():
+def test_the_older_closed_loop_api_keeps_the_plan_budget(monkeypatch):
     # h strictly between 0 and 1: the filtered belief takes a new value in almost every run, one plan each;
-    # markov_closed_loop_costs planned on without a limit (minutes), simulate refused: now both refuse
+    # markov_closed_loop_costs planned on without a limit (minutes), simulate refused: now both refuse.
+    # The budget is read when the law is built, so a lowered one is met after 60 plans, not 2000 (5 s)
+    from packetloss_cvx.simulation import markov_loop
+
+    assert PLAN_BUDGET == 2000
+    monkeypatch.setattr(markov_loop, "PLAN_BUDGET", 60)
     s = pl.load_example("pendulum_bursty")
     hidden = s.with_channel(GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.2]))
-    with pytest.raises(ResourceError, match=f"more than {PLAN_BUDGET}"):
+    with pytest.raises(ResourceError, match="more than 60"):
         markov_closed_loop_costs(hidden, ["plug-in-tcp"], steps=20, samples=3000, rng=np.random.default_rng(0),
                                  progress=False)

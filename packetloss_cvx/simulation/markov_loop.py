@@ -132,8 +132,10 @@ class BeliefGains:
     refused
     """
 
-    def __init__(self, system: System, protocol: str, budget: int = PLAN_BUDGET, law: str | None = None) -> None:
-        self.system, self.law, self.budget = system, law or f"plug-in-{protocol}", budget   # law: MARKOV_LAWS
+    def __init__(self, system: System, protocol: str, budget: int | None = None, law: str | None = None) -> None:
+        # budget None: PLAN_BUDGET as it is at the call (read then, not frozen at import)
+        self.system, self.law = system, law or f"plug-in-{protocol}"     # law: MARKOV_LAWS
+        self.budget = PLAN_BUDGET if budget is None else budget
         self.cache: dict[bytes, np.ndarray] = {}
 
     def __call__(self, belief: np.ndarray) -> np.ndarray:
