@@ -201,3 +201,50 @@ def test_lmi_gain_is_stabilising_by_enumeration():
     t, K, status = form.stabilise(np.array([0.3, 0.6]))
     assert status == "optimal" and t > 0
     assert enumerated_radius(s.A, s.B, K, [0.3, 0.6]) < 1.0
+
+
+def test_region_map_laws_side_by_side_on_the_scalar_plant():
+    """Hand values: S = {mu > 0.75}; the DP gain fixed at mu = 1 (k = a p / (psi + p), the DARE) is stable iff
+    (a - mu k)^2 + mu (1 - mu) k^2 < 1; every law's region lies inside S."""
+    from packetloss_cvx.simulation.region_map import region_map
+    s = scalar(2.0, psi=1.0)
+    r = region_map(s, laws=("dp", "fixed", "tcp", "udp"))
+    points = dict(zip(r.laws, r.critical, strict=True))
+    assert points["dp"].lower <= 0.75 <= points["dp"].t <= 0.75 + 1e-6
+    p = 2.0 + np.sqrt(5.0)           # DARE p^2 - 4p - 1 = 0 (a = 2, q = r = 1): p = 2 + sqrt(5), k = 2p / (1 + p)
+    k = 2 * p / (1 + p)
+    exact = 3.0 / (4 * k - k * k)    # (a - mu k)^2 + mu (1 - mu) k^2 = a^2 - mu (2 a k - k^2) = 1
+    assert points["fixed"].lower <= exact <= points["fixed"].t <= exact + 1e-6
+    for law in ("tcp", "udp", "fixed"):
+        assert points[law].t >= points["dp"].lower
+
+
+def test_region_map_grid_is_inside_the_stabilisable_set_and_matches_decoupled_thresholds():
+    from packetloss_cvx.simulation.region_map import region_map
+    s = decoupled((2.0, 1.5))
+    r = region_map(s, laws=("dp", "tcp"), grid=6)
+    axis = r.axis
+    expected = (axis[None, :] > 0.75) & (axis[:, None] > 1 - 1 / 2.25)   # rows mu_2, columns mu_1
+    assert np.array_equal(r.stable[0] == 1.0, expected)
+    assert not np.any((r.stable[1] == 1.0) & (r.stable[0] == 0.0))
+    d = r.to_dict()
+    assert set(d) == {"dp", "tcp"} and d["dp"]["grid"]["axis"] == axis.tolist()
+    assert d["dp"]["critical_mu"] == pytest.approx([0.75, 0.75], abs=1e-6)
+
+
+@pytest.mark.parametrize(("kwargs", "field"), [({"direction": [1.0, -1.0]}, "direction"),
+                                               ({"grid": 3, "channels": (0, 2)}, "channels"),
+                                               ({"grid": 3, "channels": (1, 1)}, "channels"),
+                                               ({"laws": ("mpc",)}, "law"), ({"grid": 1}, "grid")])
+def test_region_map_rejects_bad_input(kwargs, field):
+    from packetloss_cvx import InputError
+    from packetloss_cvx.simulation.region_map import region_map
+    with pytest.raises(InputError, match=field):
+        region_map(decoupled((2.0, 1.5)), **kwargs)
+
+
+def test_region_map_refuses_a_huge_grid():
+    from packetloss_cvx import ResourceError
+    from packetloss_cvx.simulation.region_map import region_map
+    with pytest.raises(ResourceError, match="--grid"):
+        region_map(decoupled((2.0, 1.5)), grid=10 ** 4)

@@ -9,7 +9,7 @@ from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
 from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, Solution
-from .region import CriticalPoint, Membership
+from .region import CriticalPoint, Membership, RegionMap
 from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "MjlsResult",
     "OpenLoopCheck",
     "Riccati",
+    "RegionMap",
     "Simulation",
     "Solution",
     "Sweep",

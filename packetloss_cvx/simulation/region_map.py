@@ -1,0 +1,144 @@
+"""Every law's stability region side by side: critical points along a ray and maps over two channels.
+
+Laws: "dp" (the stabilisable set S itself, simulation.region), "tcp" and "udp" (the paper's
+receding-horizon laws at the system's horizon, re-designed at each mu: ``closed_form(system.with_mu(mu),
+p).gain``), and "fixed" (the DP gain designed once at the system's own channel, then run at every mu).
+Each law's region lies inside S: a point where a law is proved stable and S is certified empty raises
+CrossCheckError.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import CrossCheckError, InputError, NumericalError, ResourceError
+from ..model import System
+from ..progress import progress_bar
+from ..results.region import RegionMap
+from ..tolerances import CRITICAL_MU_TOL
+from .critical import critical_point, law_membership
+from .moments import stationary_channel
+from .region import LazyLmi, homogeneous_riccati
+from .riccati import dp_riccati
+
+__all__ = ["LAWS", "REGION_MAX_POINTS", "region_map"]
+
+#: the laws a region map compares
+LAWS = ("dp", "tcp", "udp", "fixed")
+#: a grid of more law-points than this is refused (ResourceError naming --grid): about 2 ms a point for the
+#: receding-horizon laws of the pendulum, so 1e6 law-points is most of an hour on one core
+REGION_MAX_POINTS = 10 ** 6
+
+
+def _law(system: System, name: str) -> str | np.ndarray:
+    if name == "fixed":
+        return dp_riccati(system).gain
+    if name not in ("dp", "tcp", "udp"):
+        raise InputError("law", f"expected some of {', '.join(LAWS)}, found {name!r}")
+    return name
+
+
+def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.ArrayLike | None = None,
+               grid: int | None = None, channels: tuple[int, int] = (0, 1), tol: float = CRITICAL_MU_TOL,
+               progress: bool | None = False) -> RegionMap:
+    """Each law's critical point along ``mu = t * direction`` and, with ``grid``, its region over two channels.
+
+    Parameters
+    ----------
+    system : System
+    laws : tuple of str
+        Of :data:`LAWS`.
+    direction : array_like, optional
+        Nonnegative, not all zero (default: all ones).
+    grid : int, optional
+        K points per axis on [0, 1] for channels ``channels`` (the others at the system's mu).
+    channels : (int, int)
+        The two channels of the map (0-based); one-channel systems take no grid.
+    tol : float
+        Width of each critical bracket in t.
+    progress : bool or None
+        A progress bar over the grid's rows on stderr (None: when stderr is a terminal).
+
+    Returns
+    -------
+    RegionMap
+        ``critical`` per law (results.region.CriticalPoint); with a grid, ``stable`` (1, 0, nan where
+        undecided) and ``radius`` per law, rows the second channel, columns the first. The "dp" radius is
+        min_K rho(L_K) (the least any linear law reaches; < 1 iff mu is in S), the others their law's own.
+
+    Raises
+    ------
+    InputError
+        An unknown law, a bad direction, channels out of range or equal, a grid below 2.
+    ResourceError
+        More than ``REGION_MAX_POINTS`` law-points.
+    CrossCheckError
+        A law proved stable where S is certified empty.
+
+    Time: per law O(log2(1 / tol)) memberships, plus K^2 per law on a grid.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> r = region_map(s, laws=("dp", "fixed"))   # DARE gain at mu = 1: k = 1.618, stable iff mu > 3 / (4k - k^2)
+    >>> [round(p.t, 5) for p in r.critical]
+    [0.75, 0.77839]
+    """
+    laws = tuple(laws)
+    if not laws or any(name not in LAWS for name in laws):
+        raise InputError("law", f"expected some of {', '.join(LAWS)}, found {list(laws)}")
+    d = np.ones(system.m) if direction is None else np.asarray(direction, dtype=float).reshape(-1)
+    if d.shape != (system.m,) or not np.all(np.isfinite(d)) or np.any(d < 0) or not np.any(d > 0):
+        raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")
+    chosen = {name: _law(system, name) for name in laws}
+    critical = tuple(critical_point(system, law, d, tol) for law in chosen.values())
+    critical = tuple(type(p)(name, p.direction, p.t, p.lower, p.inside, p.outside)
+                     for name, p in zip(laws, critical, strict=True))
+    if grid is None:
+        return RegionMap(laws, d, critical, None, (), None, None, None)
+    if system.m < 2:
+        raise InputError("grid", "a map needs two channels; this system has one (its critical points are the answer)")
+    i, j = (int(c) for c in channels)
+    if not (0 <= i < system.m and 0 <= j < system.m) or i == j:
+        raise InputError("channels", f"expected two different channels in 1..{system.m}")
+    if not (isinstance(grid, (int, np.integer)) and grid >= 2):
+        raise InputError("grid", f"expected an integer >= 2, found {grid!r}")
+    points = grid * grid * len(laws)
+    if points > REGION_MAX_POINTS:
+        raise ResourceError(f"--grid {grid}: {points} law-points exceed {REGION_MAX_POINTS} (lower --grid or "
+                            "ask for fewer laws)", float(points), float(REGION_MAX_POINTS))
+    axis = np.linspace(0.0, 1.0, grid)
+    base = stationary_channel(system)
+    stable = np.full((len(laws), grid, grid), np.nan)
+    radius = np.full((len(laws), grid, grid), np.nan)
+    A, B = np.asarray(system.A, dtype=float), np.asarray(system.B, dtype=float)
+    lmi = LazyLmi(A, B)
+    for row, mu_j in enumerate(progress_bar(axis, total=grid, desc="region map", progress=progress)):
+        for col, mu_i in enumerate(axis):
+            mu = base.copy()
+            mu[i], mu[j] = mu_i, mu_j
+            _fill(system, laws, chosen, mu, lmi, stable[:, row, col], radius[:, row, col])
+    return RegionMap(laws, d, critical, axis, (i, j), base, stable, radius)
+
+
+def _fill(system: System, laws: tuple[str, ...], chosen: dict, mu: np.ndarray, lmi: LazyLmi,
+          stable: np.ndarray, radius: np.ndarray) -> None:
+    """One grid point: every law's verdict (1, 0, nan) and radius, and the containment check."""
+    in_s = None
+    for k, name in enumerate(laws):
+        if name == "dp":
+            found = law_membership(system, "dp", mu, lmi=lmi)
+            radius[k] = homogeneous_riccati(np.asarray(system.A, float), np.asarray(system.B, float), mu)[0]
+            in_s = found.stable
+        else:
+            try:
+                found = law_membership(system, chosen[name], mu)
+            except NumericalError:
+                continue   # nan: not a verdict
+            radius[k] = found.radius
+        stable[k] = np.nan if found.stable is None else float(found.stable)
+    if in_s is False and np.any(stable == 1.0):
+        bad = [name for name, v in zip(laws, stable, strict=True) if v == 1.0]
+        raise CrossCheckError(f"region map at mu = {mu.tolist()}: {bad} proved stable where the stabilisable "
+                              "set is certified empty", {name: float(r) for name, r in zip(laws, radius, strict=True)})
