@@ -91,23 +91,15 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
     d = np.ones(system.m) if direction is None else np.asarray(direction, dtype=float).reshape(-1)
     if d.shape != (system.m,) or not np.all(np.isfinite(d)) or np.any(d < 0) or not np.any(d > 0):
         raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")
+    if grid is not None:
+        _check_grid(system, grid, channels, len(laws))
     chosen = {name: _law(system, name) for name in laws}
     critical = tuple(critical_point(system, law, d, tol) for law in chosen.values())
     critical = tuple(type(p)(name, p.direction, p.t, p.lower, p.inside, p.outside)
                      for name, p in zip(laws, critical, strict=True))
     if grid is None:
         return RegionMap(laws, d, critical, None, (), None, None, None)
-    if system.m < 2:
-        raise InputError("grid", "a map needs two channels; this system has one (its critical points are the answer)")
     i, j = (int(c) for c in channels)
-    if not (0 <= i < system.m and 0 <= j < system.m) or i == j:
-        raise InputError("channels", f"expected two different channels in 1..{system.m}")
-    if not (isinstance(grid, (int, np.integer)) and grid >= 2):
-        raise InputError("grid", f"expected an integer >= 2, found {grid!r}")
-    points = grid * grid * len(laws)
-    if points > REGION_MAX_POINTS:
-        raise ResourceError(f"--grid {grid}: {points} law-points exceed {REGION_MAX_POINTS} (lower --grid or "
-                            "ask for fewer laws)", float(points), float(REGION_MAX_POINTS))
     axis = np.linspace(0.0, 1.0, grid)
     base = stationary_channel(system)
     stable = np.full((len(laws), grid, grid), np.nan)
@@ -120,6 +112,21 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
             mu[i], mu[j] = mu_i, mu_j
             _fill(system, laws, chosen, mu, lmi, stable[:, row, col], radius[:, row, col])
     return RegionMap(laws, d, critical, axis, (i, j), base, stable, radius)
+
+
+def _check_grid(system: System, grid: int, channels: tuple[int, int], laws: int) -> None:
+    """Before any work: two channels, in range and different, K >= 2, at most REGION_MAX_POINTS law-points."""
+    if system.m < 2:
+        raise InputError("grid", "a map needs two channels; this system has one (its critical points are the answer)")
+    i, j = (int(c) for c in channels)
+    if not (0 <= i < system.m and 0 <= j < system.m) or i == j:
+        raise InputError("channels", f"expected two different channels in 1..{system.m}")
+    if not (isinstance(grid, (int, np.integer)) and grid >= 2):
+        raise InputError("grid", f"expected an integer >= 2, found {grid!r}")
+    points = grid * grid * laws
+    if points > REGION_MAX_POINTS:
+        raise ResourceError(f"--grid {grid}: {points} law-points exceed {REGION_MAX_POINTS} (lower --grid or "
+                            "ask for fewer laws)", float(points), float(REGION_MAX_POINTS))
 
 
 def _fill(system: System, laws: tuple[str, ...], chosen: dict, mu: np.ndarray, lmi: LazyLmi,
