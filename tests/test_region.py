@@ -248,3 +248,25 @@ def test_region_map_refuses_a_huge_grid():
     from packetloss_cvx.simulation.region_map import region_map
     with pytest.raises(ResourceError, match="--grid"):
         region_map(decoupled((2.0, 1.5)), grid=10 ** 4)
+
+
+def test_region_map_to_xarray_holds_the_same_grid():
+    pytest.importorskip("xarray")
+    from packetloss_cvx.simulation.region_map import region_map
+    r = region_map(decoupled((2.0, 1.5)), laws=("dp",), grid=4)
+    ds = r.to_xarray()
+    assert np.array_equal(ds["stable"].values, r.stable, equal_nan=True)
+    assert ds["mu1"].values.tolist() == r.axis.tolist() and float(ds["t"].sel(law="dp")) == r.critical[0].t
+
+
+def test_results_pickle_and_to_dict_are_plain():
+    import json
+    import pickle
+
+    from packetloss_cvx.simulation.region_map import region_map
+    r = region_map(decoupled((2.0, 1.5)), laws=("dp", "fixed"), grid=3)
+    back = pickle.loads(pickle.dumps(r))
+    assert np.array_equal(back.stable, r.stable) and back.critical[0].inside.verdict == "stable"
+    json.dumps(r.to_dict(), allow_nan=False)
+    json.dumps(r.critical[0].to_dict(), allow_nan=False)
+    assert r.stable.flags.writeable is False

@@ -128,8 +128,8 @@ def _write(result: RegionMap, out: RunFolder) -> list[Path]:
             for k, law in enumerate(result.laws):
                 for row, mu_j in enumerate(result.axis):
                     for col, mu_i in enumerate(result.axis):
-                        writer.writerow([law, csv_number(mu_i), csv_number(mu_j), csv_number(result.stable[k, row, col]),
-                                         csv_number(result.radius[k, row, col])])
+                        cell = (result.stable[k, row, col], result.radius[k, row, col])
+                        writer.writerow([law, csv_number(mu_i), csv_number(mu_j), *(csv_number(v) for v in cell)])
     paths = [out.path / "region.npz", out.path / "region.csv"]
     if result.stable is not None:
         from ..plots import plot_region  # matplotlib only where a figure is asked for

@@ -86,9 +86,9 @@ def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarr
 
     Examples
     --------
-    >>> A, B = np.array([[2.0]]), np.array([[1.0]])   # T = [[4p - p, -2p mu], [-2p mu, p mu]]: det >= 0 iff mu <= 3/4
-    >>> certificate_margin(A, B, np.array([0.6]), np.eye(1)) >= 0, certificate_margin(A, B, np.array([0.9]), np.eye(1)) < 0
-    (True, True)
+    >>> A, B = np.array([[2.0]]), np.array([[1.0]])   # T = [[3p, -2p mu], [-2p mu, p mu]]: PSD iff mu <= 3/4
+    >>> [certificate_margin(A, B, np.array([mu]), np.eye(1)) >= 0 for mu in (0.6, 0.9)]
+    [True, False]
     """
     P = 0.5 * (P + P.T)
     size = float(np.linalg.norm(P, 2))
