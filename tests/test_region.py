@@ -270,3 +270,13 @@ def test_results_pickle_and_to_dict_are_plain():
     json.dumps(r.to_dict(), allow_nan=False)
     json.dumps(r.critical[0].to_dict(), allow_nan=False)
     assert r.stable.flags.writeable is False
+
+
+@pytest.mark.parametrize("mu", [[1.0, 0.22], [1.0, 0.44], [0.33, 1.0], [1.0, 1.0]])
+def test_riccati_form_decides_where_a_deadbeat_law_exists(mu):
+    """B = I and mu_i = 1: min_K rho can be 0 and R(P) vanishes to rounding; the power iteration had divided by
+    that rounding (lambda = -6.4 at (1, 0.44)) and left these points undecided (planted: found before the fix)."""
+    s = load_example("two_actuator")
+    found = membership(s, mu, forms=("riccati",))
+    assert found.verdict == "stable"
+    assert enumerated_radius(s.A, s.B, found.gain, mu) < 1.0

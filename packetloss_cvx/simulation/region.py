@@ -43,6 +43,8 @@ _SHIFT = 0.1
 
 #: power-iteration steps before the policy iteration takes over (n <= KRONECKER_MAX_N), and its step cap
 _POWER_STEPS = 30
+#: lambda below this fraction of tr(A'PA) is zero to rounding (R(P) = 0)
+_ZERO = 1e-12
 _POLICY_STEPS = 50
 
 #: the forms :func:`membership` can run, cheapest first
@@ -137,8 +139,10 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[f
         for _ in range(steps):
             K, R = _homogeneous_step(P, A, B, mu)
             lam = float(np.trace(R))
-            if not (np.isfinite(lam) and lam > 0):
-                break   # R(P) = 0: lambda = 0 (e.g. a nilpotent loop), or an overflow the caller's check refuses
+            if not (np.isfinite(lam) and lam > _ZERO * float(np.trace(A.T @ P @ A))):
+                # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an
+                # overflow the caller's check refuses; iterating on R / lambda would amplify rounding
+                return _finish(P, A, B, mu)
             P_next = (R / lam + _SHIFT * P) / (1.0 + _SHIFT)
             done = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL
             P = P_next
@@ -174,6 +178,8 @@ def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarra
         if not (np.isfinite(lam) and trace != 0.0):
             break
         P = V / trace
+        if lam <= 0.0 or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL:
+            break   # a degenerate Perron root (lambda = 0, its eigenvector not PSD): keep the last good P
         if lam >= last * (1.0 - RICCATI_RTOL):
             best = P if lam <= last else best
             break
