@@ -49,7 +49,7 @@ STRUCTURE_FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "init
 #: dense (N n)×(N m) prediction matrices): :meth:`System.structure_cached`.
 STRUCTURE_CACHE_MAX_BYTES = 8 * 2**20
 #: Every field of a System (what a :class:`CacheKey` may say its value depends on).
-SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name")
+SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt")
 
 
 @dataclass(frozen=True, eq=False)

@@ -50,7 +50,7 @@ def package_keys() -> dict[CacheKey, str]:
 def fields(s: System) -> dict:
     out = {"A": s.A, "B": s.B, "horizon": s.horizon, "state_weights": s.state_weights,
            "input_weights": s.input_weights, "x0": s.x0, "initial_weight": s.initial_weight,
-           "noise_cov": s.noise_cov, "name": s.name}
+           "noise_cov": s.noise_cov, "name": s.name, "dt": s.dt}
     return {**out, "channel": s.channel} if s.channel is not None else {**out, "mu_schedule": s.mu_schedule}
 
 
@@ -68,7 +68,8 @@ def changed(s: System, field: str, rng: np.random.Generator) -> System:
         f[field] = {"A": lambda: 1.1 * s.A, "B": lambda: 0.9 * s.B, "state_weights": lambda: 2.0 * s.state_weights,
                     "input_weights": lambda: 3.0 * s.input_weights, "x0": lambda: s.x0 + 1.0,
                     "initial_weight": lambda: s.initial_weight + np.eye(n),
-                    "noise_cov": lambda: s.noise_cov + 0.5 * np.eye(n), "name": lambda: "another"}[field]()
+                    "noise_cov": lambda: s.noise_cov + 0.5 * np.eye(n), "name": lambda: "another",
+                    "dt": lambda: 0.5 if s.dt is None else 2.0 * s.dt}[field]()
     return System(**f)
 
 
