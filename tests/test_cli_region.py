@@ -65,3 +65,14 @@ def test_region_one_channel_has_no_grid_and_a_huge_grid_is_refused(decoupled_fil
     assert main(["region", decoupled_file, "--grid", "100000"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "ResourceError" in err[0] and "--grid" in err[0]
+
+
+def test_region_refuses_a_gilbert_elliott_file_and_names_a_missing_fixed_law(capsys):
+    """The Bernoulli region is not a bursty channel's (exit 2, field channel); 'fixed' needs a DP law at the
+    file's mu, which mu = 0.01 (outside S: critical t 0.061 on two_actuator) does not have (exit 1, one line)."""
+    assert main(["region", "pendulum_bursty", "--law", "dp"]) == 2
+    assert "channel" in capsys.readouterr().err
+    assert main(["region", "two_actuator", "--mu", "0.01", "--law", "fixed"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fixed" in err[0] and "does not exist" in err[0]
+    assert main(["region", "two_actuator", "--mu", "0.01", "--law", "dp", "--json"]) == 0

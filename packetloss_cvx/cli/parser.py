@@ -275,6 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
                       examples=["region two_actuator --json", "region pendulum --law dp",
                                 "region two_actuator --grid 51 --channels 1,2 --out region-out"], results=False)
     reg.add_argument("file", metavar="FILE", help=FILE_HELP)
+    add_system_options(reg)
     reg.add_argument("--law", choices=("dp", "tcp", "udp", "fixed", "all"), default="all",
                      help="dp (some linear law: the stabilisable set), the paper's tcp / udp laws re-designed at "
                           "each mu, fixed (the DP gain at the file's mu), or all, e.g. --law dp")

@@ -33,7 +33,11 @@ REGION_MAX_POINTS = 10 ** 6
 
 def _law(system: System, name: str) -> str | np.ndarray:
     if name == "fixed":
-        return dp_riccati(system).gain
+        try:
+            return dp_riccati(system).gain
+        except NumericalError as err:
+            raise NumericalError(f"law 'fixed' (the DP gain at the file's mu = {stationary_channel(system).tolist()}) "
+                                 f"does not exist: {err}; give another --mu or leave 'fixed' out") from None
     if name not in ("dp", "tcp", "udp"):
         raise InputError("law", f"expected some of {', '.join(LAWS)}, found {name!r}")
     return name
@@ -70,7 +74,10 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
     Raises
     ------
     InputError
-        An unknown law, a bad direction, channels out of range or equal, a grid below 2.
+        An unknown law, a bad direction, channels out of range or equal, a grid below 2, a Gilbert-Elliott
+        or non-stationary channel (the Bernoulli region is not theirs: give ``system.with_mu(...)``).
+    NumericalError
+        "fixed" asked for where the file's mu has no DP law (outside S, or undecided).
     ResourceError
         More than ``REGION_MAX_POINTS`` law-points.
     CrossCheckError
@@ -85,6 +92,7 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
     >>> [round(p.t, 5) for p in r.critical]
     [0.75, 0.77839]
     """
+    base = stationary_channel(system)   # a Gilbert-Elliott or non-stationary channel is refused (its own region)
     laws = tuple(laws)
     if not laws or any(name not in LAWS for name in laws):
         raise InputError("law", f"expected some of {', '.join(LAWS)}, found {list(laws)}")
@@ -101,7 +109,6 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
         return RegionMap(laws, d, critical, None, (), None, None, None)
     i, j = (int(c) for c in channels)
     axis = np.linspace(0.0, 1.0, grid)
-    base = stationary_channel(system)
     stable = np.full((len(laws), grid, grid), np.nan)
     radius = np.full((len(laws), grid, grid), np.nan)
     A, B = np.asarray(system.A, dtype=float), np.asarray(system.B, dtype=float)
