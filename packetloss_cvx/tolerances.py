@@ -209,8 +209,9 @@ __all__ += ["CERTIFICATE_RTOL", "HOMOGENEOUS_RICCATI_MAX_ITER"]
 #: An infeasibility certificate P of the stabilisable set (simulation/region.py) is accepted when the least
 #: eigenvalue of T_mu(P) is >= -CERTIFICATE_RTOL times its scale (||A'PA|| + ||P|| + ||B'PB||). Measured at the
 #: exact boundary with the homogeneous Riccati eigenvector (scalar a = 2, decoupled (2, 1.5) and (3, 1.2, 0.5),
-#: one state with two channels): 0 to -5.5e-14; 1e-9 inside S the same P gives -8e-11 to -1.3e-10 (refused).
+#: one state with two channels): 0 to -2.1e-15 (-5.5e-14 from the power iteration alone); 1e-9 inside S the
+#: same P gives -8e-11 to -1.3e-10 (refused).
 CERTIFICATE_RTOL = 1e-12
-#: The damped power iteration of the homogeneous modified Riccati map stops after this many steps (its
-#: answer is a candidate certificate, checked either way).
+#: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
+#: many steps (below it, 30 steps and then a policy iteration); its answer is a candidate, checked either way.
 HOMOGENEOUS_RICCATI_MAX_ITER = 5000
