@@ -280,3 +280,28 @@ def test_riccati_form_decides_where_a_deadbeat_law_exists(mu):
     found = membership(s, mu, forms=("riccati",))
     assert found.verdict == "stable"
     assert enumerated_radius(s.A, s.B, found.gain, mu) < 1.0
+
+
+@pytest.mark.parametrize("law", ["tcp", "udp"])
+def test_critical_mu_of_the_paper_laws_against_their_hand_gains(law):
+    """Horizon 1, x+ = 2x + v u, Omega = 1, Psi = 0.1: Theorem 1's first gain is k = a / (mu + psi) (TCP-like;
+    Hessian mu^2 + mu psi) and k = a / (1 + psi) (UDP-like; + mu (1 - mu)); the law is proved stable iff
+    a^2 - 2 a mu k + mu k^2 < 1 - MEAN_SQUARE_MARGIN. Root by brentq, both bracket ends checked."""
+    from scipy.optimize import brentq
+
+    from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+    a, psi = 2.0, 0.1
+    s = System(A=[[a]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[psi], mu=[1.0], x0=[1.0])
+
+    def gain(mu):
+        return a / (mu + psi) if law == "tcp" else a / (1 + psi)
+
+    def excess(mu):
+        k = gain(mu)
+        return a * a - 2 * a * mu * k + mu * k * k - (1 - MEAN_SQUARE_MARGIN)
+
+    exact = brentq(excess, 0.5, 1.0, xtol=1e-14)
+    point = critical_point(s, law)
+    assert point.lower <= exact <= point.t <= point.lower + 1e-6
+    assert point.inside.gain[0, 0] == pytest.approx(gain(point.t), rel=1e-9)
+    assert point.inside.radius < 1 - MEAN_SQUARE_MARGIN <= point.outside.radius
