@@ -52,6 +52,8 @@ def test_region_grid_json_and_out_folder(decoupled_file, tmp_path, capsys):
     (["--direction", "1,-1"], "--direction"), (["--direction", "1"], "--direction"),
     (["--grid", "4", "--channels", "1,3"], "--channels"), (["--grid", "4", "--channels", "2,2"], "--channels"),
     (["--channels", "1,2"], "--channels"), (["--grid", "1"], "--grid"), (["--law", "mpc"], "--law"),
+    (["--dask", "local"], "--dask"), (["--grid", "3", "--dask", "nowhere"], "--dask"),
+    (["--grid", "3", "--workers", "2"], "--workers"),
 ])
 def test_region_bad_input_exits_2_with_one_line(decoupled_file, capsys, argv, field):
     assert main(["region", decoupled_file, *argv]) == 2

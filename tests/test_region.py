@@ -305,3 +305,20 @@ def test_critical_mu_of_the_paper_laws_against_their_hand_gains(law):
     assert point.lower <= exact <= point.t <= point.lower + 1e-6
     assert point.inside.gain[0, 0] == pytest.approx(gain(point.t), rel=1e-9)
     assert point.inside.radius < 1 - MEAN_SQUARE_MARGIN <= point.outside.radius
+
+
+def test_region_map_on_dask_is_bit_identical():
+    distributed = pytest.importorskip("distributed")
+    import logging
+
+    from packetloss_cvx.simulation.region_map import region_map
+    s = load_example("two_actuator")
+    here = region_map(s, laws=("dp", "tcp", "fixed"), grid=7)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
+                                  host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR) as cluster:
+        there = region_map(s, laws=("dp", "tcp", "fixed"), grid=7, dask=cluster.scheduler_address)
+    assert np.array_equal(here.stable, there.stable, equal_nan=True)
+    assert np.array_equal(here.radius, there.radius, equal_nan=True)
+    from packetloss_cvx import InputError
+    with pytest.raises(InputError, match="dask"):
+        region_map(s, laws=("dp",), grid=3, dask="no address")

@@ -286,6 +286,11 @@ def build_parser() -> argparse.ArgumentParser:
                           "e.g. --grid 51")
     reg.add_argument("--channels", metavar="I,J", help="with --grid: the map's channels (default: 1,2), e.g. "
                                                          "--channels 1,3")
+    reg.add_argument("--dask", metavar="local|ADDRESS",
+                     help="with --grid: the map's rows on Dask, a new LocalCluster or a running scheduler (default: "
+                          "in process), e.g. --dask tcp://127.0.0.1:8786")
+    reg.add_argument("--workers", type=int, metavar="W",
+                     help="workers of --dask local (default: 2), e.g. --workers 4")
     reg.add_argument("--out", metavar="DIR",
                      help="write region.npz, region.csv and (with --grid) region.png into DIR (default: none), "
                           "e.g. --out region-out")

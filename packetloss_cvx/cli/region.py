@@ -20,7 +20,8 @@ from .common import CommandResult, floats, progress_of, system_of
 
 __all__ = ["run"]
 
-FLAGS = {"law": "--law", "direction": "--direction", "grid": "--grid", "channels": "--channels"}
+FLAGS = {"law": "--law", "direction": "--direction", "grid": "--grid", "channels": "--channels", "dask": "--dask",
+         "workers": "--workers"}
 
 
 def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
@@ -32,8 +33,12 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
             raise InputError("--direction", f"expected {m} nonnegative numbers, not all zero, found "
                                             f"{args.direction[:60]!r}")
         options["direction"] = d
-    if args.channels is not None and args.grid is None:
-        raise InputError("--channels", "needs --grid K")
+    for flag, value in (("--channels", args.channels), ("--dask", args.dask), ("--workers", args.workers)):
+        if value is not None and args.grid is None:
+            raise InputError(flag, "needs --grid K")
+    if args.workers is not None and args.dask != "local":
+        raise InputError("--workers", "applies to --dask local only")
+    options["dask"], options["workers"] = args.dask, args.workers
     if args.grid is not None:
         if args.grid < 2:
             raise InputError("--grid", f"expected an integer >= 2, found {args.grid}")

@@ -9,26 +9,33 @@ CrossCheckError.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 
 from ..errors import CrossCheckError, InputError, NumericalError, ResourceError
+from ..io import system_from_dict
 from ..model import System
 from ..progress import progress_bar
 from ..results.region import RegionMap
+from ..studies.engine import dask_client
 from ..tolerances import CRITICAL_MU_TOL
 from .critical import critical_point, law_membership
 from .moments import stationary_channel
 from .region import LazyLmi, homogeneous_riccati
 from .riccati import dp_riccati
 
-__all__ = ["LAWS", "REGION_MAX_POINTS", "region_map"]
+__all__ = ["LAWS", "REGION_MAX_POINTS", "REGION_TASK_POINTS", "grid_rows", "region_map"]
 
 #: the laws a region map compares
 LAWS = ("dp", "tcp", "udp", "fixed")
 #: a grid of more law-points than this is refused (ResourceError naming --grid): about 2 ms a point for the
 #: receding-horizon laws of the pendulum, so 1e6 law-points is most of an hour on one core
 REGION_MAX_POINTS = 10 ** 6
+#: grid points per task (whole rows): a point costs about 5 ms for the four laws, so a task takes seconds,
+#: well over a Dask task's overhead, and a 101 x 101 map makes 6 tasks
+REGION_TASK_POINTS = 2048
 
 
 def _law(system: System, name: str) -> str | np.ndarray:
@@ -45,7 +52,7 @@ def _law(system: System, name: str) -> str | np.ndarray:
 
 def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.ArrayLike | None = None,
                grid: int | None = None, channels: tuple[int, int] = (0, 1), tol: float = CRITICAL_MU_TOL,
-               progress: bool | None = False) -> RegionMap:
+               progress: bool | None = False, dask: Any = None, workers: int | None = None) -> RegionMap:
     """Each law's critical point along ``mu = t * direction`` and, with ``grid``, its region over two channels.
 
     Parameters
@@ -63,6 +70,11 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
         Width of each critical bracket in t.
     progress : bool or None
         A progress bar over the grid's rows on stderr (None: when stderr is a terminal).
+    dask : None, "local", a scheduler address or a distributed.Client
+        Where the grid's rows run (:func:`~packetloss_cvx.studies.engine.dask_client`; tasks of about
+        ``REGION_TASK_POINTS`` points, :func:`grid_rows`); the same numbers as in this process.
+    workers : int, optional
+        Workers of ``dask="local"``.
 
     Returns
     -------
@@ -109,16 +121,59 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
         return RegionMap(laws, d, critical, None, (), None, None, None)
     i, j = (int(c) for c in channels)
     axis = np.linspace(0.0, 1.0, grid)
-    stable = np.full((len(laws), grid, grid), np.nan)
-    radius = np.full((len(laws), grid, grid), np.nan)
-    A, B = np.asarray(system.A, dtype=float), np.asarray(system.B, dtype=float)
-    lmi = LazyLmi(A, B)
-    for row, mu_j in enumerate(progress_bar(axis, total=grid, desc="region map", progress=progress)):
-        for col, mu_i in enumerate(axis):
-            mu = base.copy()
-            mu[i], mu[j] = mu_i, mu_j
-            _fill(system, laws, chosen, mu, lmi, stable[:, row, col], radius[:, row, col])
+    fixed = chosen.get("fixed")
+    size = max(1, REGION_TASK_POINTS // grid)
+    work = [np.arange(k, min(k + size, grid)) for k in range(0, grid, size)]
+    args = (system.to_dict(), laws, fixed, axis, (i, j), base)
+    parts: list = [None] * len(work)
+    with progress_bar(total=grid, desc="region map", progress=progress) as bar:
+        if dask is None:
+            if workers is not None:
+                raise InputError("workers", "applies to dask='local' only (without dask the map runs in this process)")
+            for k, rows in enumerate(work):
+                parts[k] = grid_rows(*args, rows)
+                bar.update(len(rows))
+        else:
+            with dask_client(dask, workers) as client:
+                from distributed import as_completed  # lazy: the distributed extra (dask_client checked it)
+                futures = [client.submit(grid_rows, *args, rows, pure=False) for rows in work]
+                order = {f.key: k for k, f in enumerate(futures)}
+                for future in as_completed(futures, loop=client.loop):
+                    k = order[future.key]
+                    parts[k] = future.result()      # a worker's error is raised here with its own type
+                    bar.update(len(work[k]))
+    stable = np.concatenate([p[0] for p in parts], axis=1)
+    radius = np.concatenate([p[1] for p in parts], axis=1)
     return RegionMap(laws, d, critical, axis, (i, j), base, stable, radius)
+
+
+def grid_rows(system_data: dict, laws: tuple[str, ...], fixed: np.ndarray | None, axis: np.ndarray,
+              channels: tuple[int, int], base: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(stable, radius)`` of shape (laws, len(rows), K) for the map's rows ``rows`` (mu_J = axis[rows]): one
+    task, in this process or on a Dask worker (the system rebuilt from ``System.to_dict()``, exact). Time
+    O(len(rows) K) memberships.
+
+    Examples
+    --------
+    >>> s = System(A=np.diag([2.0, 1.5]), B=np.eye(2), horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[1.0, 1.0], x0=[1.0, 1.0])
+    >>> stable, radius = grid_rows(s.to_dict(), ("dp",), None, np.array([0.5, 1.0]), (0, 1), np.ones(2),
+    ...                            np.array([1]))    # mu_2 = 1: stable iff mu_1 > 0.75
+    >>> stable.tolist()
+    [[[0.0, 1.0]]]
+    """
+    system = system_from_dict(system_data)
+    chosen = {name: (fixed if name == "fixed" else name) for name in laws}
+    i, j = channels
+    stable = np.full((len(laws), len(rows), axis.size), np.nan)
+    radius = np.full((len(laws), len(rows), axis.size), np.nan)
+    lmi = LazyLmi(system.A, system.B)
+    for r, row in enumerate(rows):
+        for col, mu_i in enumerate(axis):
+            mu = np.array(base, dtype=float)
+            mu[i], mu[j] = mu_i, axis[row]
+            _fill(system, laws, chosen, mu, lmi, stable[:, r, col], radius[:, r, col])
+    return stable, radius
 
 
 def _check_grid(system: System, grid: int, channels: tuple[int, int], laws: int) -> None:
