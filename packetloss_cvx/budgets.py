@@ -54,6 +54,7 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
     Budget("audit_cases", 1e4, "random systems of an audit", "about 5 min"),
     Budget("dask_workers", 32, "local Dask workers", "about 5 GB"),
     Budget("allocation_boxes", 1e6, "boxes of the branch and bound", "about 15 min"),
+    Budget("region_points", 1.2e5, "law-points of a stability-region map (grid^2 x laws)", "about 10 min", 5.2e-3),
 )}
 
 

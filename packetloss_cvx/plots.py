@@ -31,7 +31,9 @@ from .model import numeric_array
 from .plot_style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_log_ticks, tick_text
 from .safeio import save_figure
 
-__all__ = ["plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto"]
+__all__ = [
+    "plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto", "plot_region",
+]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
 
@@ -406,4 +408,50 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     handles = ax.get_legend_handles_labels()[0] + extra
     if handles:
         fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *, xlabel: str = r"$\mu_1$",
+                ylabel: str = r"$\mu_2$", title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Stability regions over two channels: ``radius`` (the least mean-square radius any linear law reaches,
+    min_K rho(L_K), shape (K, K), rows the second channel) as a colour map clipped to [0, 2] with its level 1
+    in white, and each law's region boundary (the 1/2 level of its 0/1 ``stable`` map; nan undecided) as a line.
+    O(K^2) per law.
+
+    Examples
+    --------
+    >>> axis = [0.0, 0.5, 1.0]
+    >>> radius = [[2.0, 1.5, 1.0], [1.5, 1.0, 0.5], [1.0, 0.5, 0.2]]
+    >>> fig = plot_region(axis, radius, {"dp": [[0, 0, 0], [0, 0, 1], [0, 1, 1]]})
+    >>> len(fig.axes), fig.axes[0].get_xlabel()     # the map and its colour bar
+    (2, '$\\\\mu_1$')
+    """
+    g = numeric_array(axis, "axis")
+    if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
+        raise InputError("axis", "expected an increasing 1-D sequence of at least 2 numbers")
+    r = np.asarray(radius, dtype=float)
+    if r.shape != (g.size, g.size):
+        raise InputError("radius", f"expected shape ({g.size}, {g.size}) but found {r.shape}")
+    fig = Figure(figsize=(7.6, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    mesh = ax.pcolormesh(g, g, np.clip(r, 0.0, 2.0), shading="nearest", cmap="viridis", vmin=0.0, vmax=2.0)
+    fig.colorbar(mesh, ax=ax, label=r"least radius $\min_K \rho(\mathcal{L}_K)$ (clipped at 2)")
+    handles = []
+    if np.nanmin(r) < 1.0 < np.nanmax(r):
+        ax.contour(g, g, r, levels=[1.0], colors="white", linewidths=0.8)
+        handles.append(Line2D([], [], color="lightgrey", linewidth=0.8, label="least radius = 1"))
+    styles = ["-", "--", ":", "-."]
+    colors = ["black", "tab:orange", "tab:red", "tab:cyan"]
+    for k, (law, values) in enumerate(stable.items()):
+        v = np.asarray(values, dtype=float)
+        if v.shape != r.shape:
+            raise InputError("stable", f"{law}: expected shape {r.shape} but found {v.shape}")
+        if np.nanmin(v) < 0.5 < np.nanmax(v):
+            ax.contour(g, g, np.nan_to_num(v, nan=0.5), levels=[0.5], colors=colors[k % 4],
+                       linestyles=styles[k % 4], linewidths=1.6)
+        handles.append(Line2D([], [], color=colors[k % 4], linestyle=styles[k % 4], label=f"{law} boundary"))
+    ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
+    if title:
+        ax.set_title(title)
+    fig.legend(handles=handles, **LEGEND)
     return _save(fig, path)

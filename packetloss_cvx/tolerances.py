@@ -223,3 +223,14 @@ __all__ += ["QP_RESCALE_BELOW"]
 #: QP is scaled again by its first value and re-solved (the minimiser does not change), so that v is O(1)
 #: and the relative criterion governs. A value still below it after the passes raises NumericalError.
 QP_RESCALE_BELOW = max(CLARABEL_TIGHT["tol_gap_abs"], CLARABEL_TIGHT["tol_gap_rel"]) / CROSS_CHECK_COST_RTOL
+__all__ += ["CERTIFICATE_RTOL", "HOMOGENEOUS_RICCATI_MAX_ITER"]
+
+#: An infeasibility certificate P of the stabilisable set (simulation/region.py) is accepted when the least
+#: eigenvalue of T_mu(P) is >= -CERTIFICATE_RTOL times its scale (||A'PA|| + ||P|| + ||B'PB||). Measured at the
+#: exact boundary with the homogeneous Riccati eigenvector (scalar a = 2, decoupled (2, 1.5) and (3, 1.2, 0.5),
+#: one state with two channels): 0 to -2.1e-15 (-5.5e-14 from the power iteration alone); 1e-9 inside S the
+#: same P gives -8e-11 to -1.3e-10 (refused).
+CERTIFICATE_RTOL = 1e-12
+#: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
+#: many steps (below it, 30 steps and then a policy iteration); its answer is a candidate, checked either way.
+HOMOGENEOUS_RICCATI_MAX_ITER = 5000

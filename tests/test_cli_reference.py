@@ -17,7 +17,7 @@ from .test_cli_native import subcommands
 PAGE = Path(__file__).resolve().parent.parent / "docs" / "cli.md"
 
 #: the commands that write several files: --out is a folder
-FOLDER_COMMANDS = {"sweep", "reproduce"}
+FOLDER_COMMANDS = {"sweep", "reproduce", "region"}
 
 
 def out_option(command):
@@ -88,8 +88,8 @@ def test_a_new_command_appears_on_the_page_with_its_options():
 
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    new = add_command(sub, "region", "a command added later", examples=["region pendulum --grid 5"])
+    new = add_command(sub, "later", "a command added later", examples=["later pendulum --grid 5"])
     new.add_argument("--grid", type=int, default=11, help="points per axis")
-    text = section(markdown(parser), "region")
+    text = section(markdown(parser), "later")
     assert "| `--grid` | `GRID` | 11 | points per axis |" in text
-    assert "\npacketloss-cvx region pendulum --grid 5\n" in text
+    assert "\npacketloss-cvx later pendulum --grid 5\n" in text

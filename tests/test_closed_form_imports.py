@@ -34,6 +34,7 @@ def heavy_modules(*argv: str) -> set[str]:
     ["solve", "pendulum_bursty", "--no-qp", "-q"],                 # the Gilbert-Elliott (markov) section too
     ["simulate", "two_actuator", "--samples", "50", "--closed-loop", "-q"],
     ["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"],
+    ["region", "two_actuator", "--law", "all", "--json", "-q"],   # the Riccati forms decide every point
     ["audit", "--random", "1", "--claim", "theorem-2", "--claim", "lemma-1", "--claim", "table-1", "-q"],
 ])
 def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(argv):

@@ -28,6 +28,7 @@ COVERED = (
     "random_systems", "recursion", "validation", "safeio", "runfolder",
     "simulation.channels", "simulation.critical", "simulation.interop", "simulation.markov_channels",
     "simulation.markov_loop", "simulation.markov_montecarlo", "simulation.moments", "simulation.montecarlo",
+    "simulation.region", "simulation.region_lmi", "simulation.region_map",
     "simulation.riccati", "simulation.runs", "simulation.sampling", "simulation.stability", "threads", "display",
     "results.base", "analysis", "optional", "qp", "qp_shared",
     "claims.channel_allocation", "claims.closed_loop", "claims.context",

@@ -30,7 +30,7 @@ from .completion import SHELLS, CompletionAction, mark_system_file
 __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
-NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness")
+NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
              "pendulum_bursty (a Gilbert-Elliott channel)")
@@ -278,6 +278,31 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--stability", action="store_true",
                      help="also each law's mean-square spectral radius in closed loop (radius_tcp, radius_udp)")
     swp.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
+
+    reg = add_command(sub, "region", "can the loop be stabilised over these links: each law's critical mu and map",
+                      examples=["region two_actuator --json", "region pendulum --law dp",
+                                "region two_actuator --grid 51 --channels 1,2 --out region-out"], results=False)
+    reg.add_argument("file", metavar="FILE", help=FILE_HELP)
+    add_system_options(reg)
+    reg.add_argument("--law", choices=("dp", "tcp", "udp", "fixed", "all"), default="all",
+                     help="dp (some linear law: the stabilisable set), the paper's tcp / udp laws re-designed at "
+                          "each mu, fixed (the DP gain at the file's mu), or all, e.g. --law dp")
+    reg.add_argument("--direction", metavar="D1,..,Dm",
+                     help="the ray mu = t * direction, nonnegative (default: all ones), e.g. --direction 1,0.5")
+    reg.add_argument("--grid", type=int, metavar="K",
+                     help="also a K x K map of two channels on [0, 1], the others at the file's mu (default: none), "
+                          "e.g. --grid 51")
+    reg.add_argument("--channels", metavar="I,J", help="with --grid: the map's channels (default: 1,2), e.g. "
+                                                         "--channels 1,3")
+    reg.add_argument("--dask", metavar="local|ADDRESS",
+                     help="with --grid: the map's rows on Dask, a new LocalCluster or a running scheduler (default: "
+                          "in process), e.g. --dask tcp://127.0.0.1:8786")
+    reg.add_argument("--workers", type=int, metavar="W",
+                     help="workers of --dask local (default: 2), e.g. --workers 4")
+    reg.add_argument("--out", metavar="DIR",
+                     help="a folder: region.npz, region.csv and (with --grid) region.png (default: none), "
+                          "e.g. --out region-out")
+    reg.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
 
     rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],

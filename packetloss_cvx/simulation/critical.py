@@ -10,20 +10,56 @@ import numpy.typing as npt
 from ..costs import closed_form
 from ..errors import InputError, NumericalError
 from ..model import System
+from ..results.region import CriticalPoint, Membership
 from ..tolerances import CRITICAL_MU_TOL
 from .moments import stationary_channel
-from .riccati import dp_riccati
+from .region import LazyLmi, membership
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
-__all__ = ["critical_mu", "stable_at"]
+__all__ = ["critical_mu", "critical_point", "law_membership", "stable_at"]
+
+#: the fractions of an undecided bracket tried after its midpoint (a point within about 1e-9 of the
+#: boundary of S has no checkable certificate either way)
+_RETRY_FRACTIONS = (0.25, 0.75, 0.125, 0.875)
+
+
+def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi: LazyLmi | None = None) -> Membership:
+    """The loop of ``law`` over channel ``mu``: decided with its evidence.
+
+    ``law``: a fixed gain (m×n), or "tcp"/"udp" (the receding-horizon law re-designed for ``mu``: the first
+    gain of Theorem 1's closed form), verdict "stable" iff its radius is below 1 by the margin, else
+    "unstable" (not proved stable); or "dp" (the DP optimum for ``mu``: stable iff mu is in the
+    stabilisable set, :func:`~.region.membership`, "undecided" where no certificate can be checked).
+    Time: one design plus one radius; "dp" as :func:`~.region.membership` without the cross-check.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> found = law_membership(s, [[2.0]], np.array([0.9]))   # k = a: radius a^2 (1 - mu) = 0.4
+    >>> found.verdict, round(found.radius, 12)
+    ('stable', 0.4)
+    """
+    if isinstance(law, str):
+        if law == "dp":
+            return membership(system, mu, cross_check=False, lmi=lmi)
+        if law not in ("tcp", "udp"):
+            raise InputError("law", f"expected tcp, udp, dp or a gain matrix, found {law!r}")
+        K = closed_form(system.with_mu(mu), law).gain
+    else:
+        K = law
+    A, B, K_, mu_ = check_law(system.A, system.B, K, mu)
+    radius = mean_square_radius(A, B, K_, mu_)
+    verdict = "stable" if is_mean_square_stable(radius) else "unstable"
+    return Membership(mu_, verdict, K_, radius, None, float("nan"), (("radius", verdict),))
 
 
 def stable_at(system: System, law: str | npt.ArrayLike, mu: np.ndarray) -> bool:
-    """Is the loop proved mean-square stable over channel ``mu``?
+    """Is the loop proved mean-square stable over channel ``mu``? (:func:`law_membership`.)
 
-    ``law``: a fixed gain (m×n), or "tcp"/"udp" (the receding-horizon law re-designed for ``mu``:
-    the first gain of Theorem 1's closed form) or "dp" (the DP optimum for ``mu``: stable iff the
-    modified Riccati equation has a stabilising solution). Time: one design plus one radius.
+    Raises
+    ------
+    NumericalError
+        For "dp", when no certificate can be checked either way (a numerical failure is not a verdict).
 
     Examples
     --------
@@ -33,20 +69,81 @@ def stable_at(system: System, law: str | npt.ArrayLike, mu: np.ndarray) -> bool:
     >>> [stable_at(s, "dp", np.array([mu])) for mu in (0.7, 0.8)]      # scalar critical mu: 1 - 1/a^2 = 0.75
     [False, True]
     """
-    if isinstance(law, str):
-        if law == "dp":
-            try:
-                dp_riccati(system, mu)
-            except NumericalError:
-                return False
-            return True
-        if law not in ("tcp", "udp"):
-            raise InputError("law", f"expected tcp, udp, dp or a gain matrix, found {law!r}")
-        K = closed_form(system.with_mu(mu), law).gain
-    else:
-        K = law
-    A, B, K_, mu_ = check_law(system.A, system.B, K, mu)
-    return is_mean_square_stable(mean_square_radius(A, B, K_, mu_))
+    found = law_membership(system, law, mu)
+    if found.stable is None:
+        raise NumericalError(found.reason)
+    return found.stable
+
+
+def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLike | None = None,
+                   tol: float = CRITICAL_MU_TOL,
+                   stable: Callable[[np.ndarray], bool] | None = None) -> CriticalPoint:
+    """The boundary of a law's region along ``mu = t * direction``, bracketed by two decided points.
+
+    Bisection in t that moves an end only to a decided point (an undecided midpoint is replaced by
+    another point of the bracket, :data:`_RETRY_FRACTIONS`): the upper end keeps a stabilising gain,
+    the lower end (for "dp") an infeasibility certificate. For "dp" the region is monotone in mu
+    (docs/design.md §2), so the ray meets its boundary once and the bracket holds the exact critical
+    point; for another law, stability need not be monotone along the ray and this is one crossing.
+    Time O(log2(1 / tol)) memberships.
+
+    Raises
+    ------
+    NumericalError
+        For "dp": the ray's end is undecided, or no point of a bracket wider than ``tol`` can be decided.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[0.1], mu=[1.0], x0=[1.0])
+    >>> p = critical_point(s, "dp")              # exact: 1 - 1/a^2 = 0.75, bracketed by two certificates
+    >>> bool(p.lower <= 0.75 <= p.t <= p.lower + 1e-6), p.inside.verdict, p.outside.verdict
+    (True, 'stable', 'unstable')
+    """
+    d = np.asarray(stationary_channel(system) if direction is None else direction, dtype=float).reshape(-1)
+    if d.shape != (system.m,) or np.any(d < 0) or not np.any(d > 0) or not np.all(np.isfinite(d)):
+        raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")
+    if not tol > 0:
+        raise InputError("tol", f"expected a positive width, found {tol!r}")
+    name = law if isinstance(law, str) else "gain"
+    lmi = LazyLmi(system.A, system.B)   # built on first use, once for the whole bisection
+
+    def decide(t: float) -> Membership:
+        mu = t * d
+        if stable is not None:
+            verdict = "stable" if stable(mu) else "unstable"
+            return Membership(mu, verdict, None, float("nan"), None, float("nan"), (("stable", verdict),))
+        return law_membership(system, law, mu, lmi=lmi)
+
+    lo, hi = 0.0, 1.0 / float(d.max())
+    top = decide(hi)
+    if top.verdict != "stable":
+        if top.verdict == "undecided":
+            raise NumericalError(f"critical mu: the ray's end is undecided ({top.reason})")
+        return CriticalPoint(name, d, float("inf"), hi, None, top)
+    bottom = decide(lo)
+    if bottom.verdict == "stable":
+        return CriticalPoint(name, d, 0.0, 0.0, bottom, None)
+    if bottom.verdict == "undecided":
+        raise NumericalError(f"critical mu: mu = 0 is undecided ({bottom.reason})")
+    inside, outside = top, bottom
+    while hi - lo > tol:
+        for fraction in (0.5, *_RETRY_FRACTIONS):
+            mid = lo + fraction * (hi - lo)
+            if not lo < mid < hi:
+                break
+            found = decide(mid)
+            if found.verdict != "undecided":
+                break
+        else:
+            raise NumericalError(f"critical mu: no point of the bracket [{lo!r}, {hi!r}] (wider than tol = {tol:g}) "
+                                 "can be decided: every certificate fails within it")
+        if not lo < mid < hi:   # adjacent doubles: a tol below the spacing of floats cannot be met
+            break
+        if found.verdict == "stable":
+            hi, inside = mid, found
+        else:
+            lo, outside = mid, found
+    return CriticalPoint(name, d, hi, lo, inside, outside)
 
 
 def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLike | None = None,
@@ -57,7 +154,7 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
     ----------
     system : System
     law : str or array_like
-        As in :func:`stable_at`: a fixed gain, or "tcp" / "udp" / "dp" re-designed at each mu.
+        As in :func:`law_membership`: a fixed gain, or "tcp" / "udp" / "dp" re-designed at each mu.
     direction : array_like, optional
         Nonnegative, not all zero (default: the system's channel); t runs over [0, 1 / max(direction)].
     tol : float
@@ -68,34 +165,18 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
     Returns
     -------
     float
-        The upper end of the final bracket (a stable point); ``inf`` when the loop is not stable even
-        at the ray's end, 0.0 when it is stable at mu = 0. If stability is not monotone along the
-        ray, this is one crossing between an unstable and a stable point, not necessarily the only one.
-        Time O(log2(1 / tol)) designs and radii.
+        The upper end of the final bracket (a stable point; :func:`critical_point` gives the bracket and
+        both ends' evidence); ``inf`` when the loop is not stable even at the ray's end, 0.0 when it is
+        stable at mu = 0. For "dp" the exact critical point lies in the bracket (a numerical failure is
+        never read as "unstable"). Time O(log2(1 / tol)) designs and radii.
 
     Examples
     --------
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
     >>> round(critical_mu(s, [[2.0]], tol=1e-4), 3)   # fixed k = a: a^2 (1 - mu) < 1 iff mu > 1 - 1/a^2
     0.75
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[0.1], mu=[1.0], x0=[1.0])
+    >>> abs(critical_mu(s, "dp") - 0.75) <= 1e-6    # the DP law's region: mu > 1 - 1/a^2, to the tolerance
+    True
     """
-    d = np.asarray(stationary_channel(system) if direction is None else direction, dtype=float).reshape(-1)
-    if d.shape != (system.m,) or np.any(d < 0) or not np.any(d > 0) or not np.all(np.isfinite(d)):
-        raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")
-    if not tol > 0:
-        raise InputError("tol", f"expected a positive width, found {tol!r}")
-    test = stable if stable is not None else (lambda mu: stable_at(system, law, mu))
-    lo, hi = 0.0, 1.0 / float(d.max())
-    if not test(hi * d):
-        return float("inf")
-    if test(lo * d):
-        return 0.0
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if not lo < mid < hi:   # adjacent doubles: a tol below the spacing of floats cannot be met
-            break
-        if test(mid * d):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return critical_point(system, law, direction, tol, stable).t

@@ -10,10 +10,11 @@ bit. Dask is optional (the ``distributed`` extra) and imported only when asked f
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import re
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -26,8 +27,8 @@ from ..progress import progress_bar
 from ..simulation.stability import mean_square_radius
 from ..threads import blas_limited
 
-__all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "NO_WORKER_TIMEOUT", "chunks", "evaluate_chunk", "run_in_process",
-           "run_on_dask"]
+__all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "NO_WORKER_TIMEOUT", "chunks", "dask_client", "evaluate_chunk",
+           "run_in_process", "run_on_dask"]
 
 #: Points per chunk unless asked otherwise (docs/dask.md: a chunk should take well over the
 #: ~1-10 ms a Dask task costs, and there should be several chunks per worker).
@@ -169,8 +170,55 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
     BudgetError
         More local workers than the ``dask_workers`` budget, before any is started.
     """
+    with dask_client(dask, workers) as client:
+        from distributed import as_completed  # lazy: the `distributed` extra (dask_client refused its absence)
+        futures = [client.submit(evaluate_chunk, system_data, tuple(protocols), *chunk, stability, pure=False)
+                   for chunk in work]
+        order = {f.key: k for k, f in enumerate(futures)}
+        parts: list[dict[str, np.ndarray] | None] = [None] * len(work)
+        with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress,
+                          estimate=estimate) as bar:     # the estimate is one process's: divide by the workers
+            finished = as_completed(futures, loop=client.loop)   # not the default client's loop
+            alone_since: float | None = None
+            while not finished.is_empty():
+                batch = finished.next_batch(block=False)
+                if not batch:        # nothing finished: is anyone working?
+                    alone_since = _no_worker_clock(client, alone_since, sum(p is not None for p in parts), len(work))
+                    time.sleep(POLL_SECONDS)
+                    continue
+                alone_since = None
+                for future in batch:
+                    k = order[future.key]
+                    parts[k] = future.result()      # a worker's error is raised here with its own type
+                    bar.update(len(work[k][0]))
+        return _assemble(parts)      # type: ignore[arg-type]
+
+
+@contextlib.contextmanager
+def dask_client(dask: Any, workers: int | None = None) -> Iterator[Any]:
+    """A ``distributed.Client`` for ``dask`` ("local", a scheduler address, or a Client used as it is); a
+    cluster or client made here is closed on leaving (quietly: no traceback after the error line). Shared
+    by every command that runs on Dask (sweep, region maps). O(1) plus the cluster's start.
+
+    Raises
+    ------
+    InputError
+        Field ``dask`` (not installed, a malformed or unreachable address: the failed client is closed at
+        once, no 20 s wait, no traceback at exit; another type) or ``workers``.
+    BudgetError
+        More local workers than the ``dask_workers`` budget, before any is started.
+
+    Examples
+    --------
+    >>> try:
+    ...     with dask_client("no address"):
+    ...         pass
+    ... except InputError as err:
+    ...     print(err.field)
+    dask
+    """
     try:
-        from distributed import Client, LocalCluster, as_completed  # lazy: the `distributed` extra
+        from distributed import Client, LocalCluster  # lazy: the `distributed` extra
     except ImportError:
         raise InputError("dask", "needs the distributed extra: pip install 'packetloss-cvx[distributed]'") from None
     if workers is not None and not (isinstance(dask, str) and dask == "local"):
@@ -211,26 +259,7 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
             client = dask
         else:
             raise InputError("dask", f"expected 'local', a scheduler address or a Client, found {dask!r}")
-        futures = [client.submit(evaluate_chunk, system_data, tuple(protocols), *chunk, stability, pure=False)
-                   for chunk in work]
-        order = {f.key: k for k, f in enumerate(futures)}
-        parts: list[dict[str, np.ndarray] | None] = [None] * len(work)
-        with progress_bar(total=sum(len(c[0]) for c in work), desc="sweep (dask)", progress=progress,
-                          estimate=estimate) as bar:     # the estimate is one process's: divide by the workers
-            finished = as_completed(futures, loop=client.loop)   # not the default client's loop
-            alone_since: float | None = None
-            while not finished.is_empty():
-                batch = finished.next_batch(block=False)
-                if not batch:        # nothing finished: is anyone working?
-                    alone_since = _no_worker_clock(client, alone_since, sum(p is not None for p in parts), len(work))
-                    time.sleep(POLL_SECONDS)
-                    continue
-                alone_since = None
-                for future in batch:
-                    k = order[future.key]
-                    parts[k] = future.result()      # a worker's error is raised here with its own type
-                    bar.update(len(work[k][0]))
-        return _assemble(parts)      # type: ignore[arg-type]
+        yield client
     finally:
         for thing in owned:
             _close_quietly(thing)

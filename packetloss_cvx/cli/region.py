@@ -1,0 +1,147 @@
+"""``packetloss-cvx region FILE``: can this loop be stabilised over these links, and by which law?"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..results.region import RegionMap
+from ..runfolder import RunFolder
+from ..safeio import save_figure
+from ..simulation.region_map import LAWS, region_map
+from ..studies.output import csv_number
+from .common import CommandResult, floats, progress_of, system_of
+
+__all__ = ["run"]
+
+FLAGS = {"law": "--law", "direction": "--direction", "grid": "--grid", "channels": "--channels", "dask": "--dask",
+         "workers": "--workers"}
+
+
+def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
+    """The command's numbers checked against the file's m: the API's errors, under the option's name."""
+    options: dict[str, Any] = {"laws": LAWS if args.law == "all" else (args.law,)}
+    if args.direction is not None:
+        d = floats(args.direction, "--direction")
+        if len(d) != m or any(not np.isfinite(v) or v < 0 for v in d) or not any(v > 0 for v in d):
+            raise InputError("--direction", f"expected {m} nonnegative numbers, not all zero, found "
+                                            f"{args.direction[:60]!r}")
+        options["direction"] = d
+    for flag, value in (("--channels", args.channels), ("--dask", args.dask), ("--workers", args.workers)):
+        if value is not None and args.grid is None:
+            raise InputError(flag, "needs --grid K")
+    if args.workers is not None and args.dask != "local":
+        raise InputError("--workers", "applies to --dask local only")
+    options["dask"], options["workers"] = args.dask, args.workers
+    if args.grid is not None:
+        if args.grid < 2:
+            raise InputError("--grid", f"expected an integer >= 2, found {args.grid}")
+        if m < 2:
+            raise InputError("--grid", "a map needs two channels; this system has one (its critical mu is the answer)")
+        text = args.channels if args.channels is not None else "1,2"
+        pair = floats(text, "--channels")
+        if len(pair) != 2 or any(v != int(v) or not 1 <= v <= m for v in pair) or pair[0] == pair[1]:
+            raise InputError("--channels", f"expected two different channels from 1 to {m}, found {text[:40]!r}")
+        options["grid"] = args.grid
+        options["channels"] = (int(pair[0]) - 1, int(pair[1]) - 1)
+    return options
+
+
+def run(args: argparse.Namespace) -> CommandResult:
+    """Each law's critical mu along the direction and, with ``--grid``, its region over two channels.
+
+    Examples
+    --------
+    One state, x' = 2x + v u: some law stabilises iff mu > 1 - 1/a^2 = 0.75.
+
+    >>> import tempfile
+    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.cli.parser import build_parser
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = str(save_system(s, Path(folder.name) / "scalar.toml"))
+    >>> result = run(build_parser().parse_args(["region", path, "--law", "dp", "-q"]))
+    >>> result.code, abs(result.data["dp"]["t"] - 0.75) <= 1e-6
+    (0, True)
+    >>> folder.cleanup()
+    """
+    if args.out is not None and not args.out.strip():
+        raise InputError("--out", "expected a folder, found an empty path")
+    system = system_of(args)
+    options = _options(args, system.m)
+    try:
+        with _folder(args) as out:
+            result = region_map(system, progress=progress_of(args), **options)
+            data, lines = result.to_dict(), _text(result)
+            if out is not None:
+                paths = _write(result, out)
+                data = {**data, "files": [str(p) for p in paths]}
+                lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
+    except InputError as err:
+        raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
+    return CommandResult(data, "\n".join(lines))
+
+
+def _folder(args: argparse.Namespace) -> contextlib.AbstractContextManager[RunFolder | None]:
+    if args.out is None:
+        return contextlib.nullcontext()
+    return RunFolder(args.out, command=getattr(args, "command_line", "packetloss-cvx region"),
+                     force=getattr(args, "force", False), field="--out")
+
+
+def _text(result: RegionMap) -> list[str]:
+    lines = [f"critical mu along direction {result.direction.tolist()} (some law of the kind stabilises for mu "
+             "= t * direction, t above):"]
+    for point in result.critical:
+        where = "never, even at the ray's end" if not np.isfinite(point.t) else (
+            f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mu = {np.round(point.mu, 6).tolist()}")
+        lines.append(f"  {point.law:<6} {where}")
+    if result.stable is not None:
+        i, j = result.channels
+        lines.append(f"stable share of the {result.axis.size}x{result.axis.size} grid of (mu{i + 1}, mu{j + 1}):")
+        lines.extend(f"  {law:<6} {100 * result.area(law):.1f} %" for law in result.laws)
+    return lines
+
+
+def _write(result: RegionMap, out: RunFolder) -> list[Path]:
+    """region.npz, region.csv and (with a grid) region.png in the run folder ``out``."""
+    arrays: dict[str, Any] = {"laws": np.array(result.laws), "direction": result.direction,
+                              "t": np.array([p.t for p in result.critical]),
+                              "lower": np.array([p.lower for p in result.critical])}
+    if result.stable is not None:
+        arrays.update(axis=result.axis, channels=np.array(result.channels) + 1, base=result.base,
+                      stable=result.stable, radius=result.radius)
+    with out.write("region.npz") as handle:
+        np.savez(handle, **arrays)
+    with out.write("region.csv", text=True) as handle:
+        writer = csv.writer(handle)
+        if result.stable is None:
+            writer.writerow(["law", "t", "lower", *(f"mu{k + 1}" for k in range(result.direction.size))])
+            for p in result.critical:
+                writer.writerow([p.law, csv_number(p.t), csv_number(p.lower),
+                                 *(csv_number(v) for v in p.t * p.direction)])
+        else:
+            i, j = result.channels
+            writer.writerow(["law", f"mu{i + 1}", f"mu{j + 1}", "stable", "radius"])
+            for k, law in enumerate(result.laws):
+                for row, mu_j in enumerate(result.axis):
+                    for col, mu_i in enumerate(result.axis):
+                        cell = (result.stable[k, row, col], result.radius[k, row, col])
+                        writer.writerow([law, csv_number(mu_i), csv_number(mu_j), *(csv_number(v) for v in cell)])
+    paths = [out.path / "region.npz", out.path / "region.csv"]
+    if result.stable is not None:
+        from ..plots import plot_region  # matplotlib only where a figure is asked for
+        i, j = result.channels
+        dp = result.laws.index("dp") if "dp" in result.laws else None
+        radius = result.radius[dp] if dp is not None else np.full(result.radius.shape[1:], np.nan)
+        figure = plot_region(result.axis, radius, dict(zip(result.laws, result.stable, strict=True)),
+                             xlabel=rf"$\mu_{i + 1}$", ylabel=rf"$\mu_{j + 1}$", title="stability regions")
+        paths.append(save_figure(figure, "region.png", folder=out))
+    return paths

@@ -1,0 +1,140 @@
+"""The stabilisable set: a channel's membership with its certificate, and each law's critical point."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..display import fields_html, fields_repr, to_json
+from ..optional import load
+from .base import Frozen, finite_or_none
+
+__all__ = ["CriticalPoint", "Membership", "RegionMap"]
+
+
+@dataclass(frozen=True)
+class Membership(Frozen):
+    """Is ``mu`` in the stabilisable set S (simulation.region)? ``verdict`` "stable", "unstable" or
+    "undecided". "stable" comes with ``gain`` (a K whose second-moment operator has ``radius`` < 1 by
+    the margin); "unstable" with ``certificate`` (P >= 0, tr P = 1, and ``T_mu(P) >= 0``: no linear law is
+    mean-square stabilising; ``certificate_margin`` the least eigenvalue of T_mu(P) over its scale).
+    ``forms`` pairs each form that was run ("dp", "riccati", "lmi") with its own verdict; the forms that
+    decided agree (else CrossCheckError was raised). ``reason``: why undecided."""
+
+    mu: np.ndarray
+    verdict: str
+    gain: np.ndarray | None
+    radius: float
+    certificate: np.ndarray | None
+    certificate_margin: float
+    forms: tuple[tuple[str, str], ...]
+    reason: str = ""
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    @property
+    def stable(self) -> bool | None:
+        """True / False when decided, None when undecided."""
+        return None if self.verdict == "undecided" else self.verdict == "stable"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats (None for a missing certificate). O(n^2)."""
+        return {"mu": self.mu.tolist(), "verdict": self.verdict,
+                "gain": None if self.gain is None else self.gain.tolist(), "radius": finite_or_none(self.radius),
+                "certificate": None if self.certificate is None else self.certificate.tolist(),
+                "certificate_margin": finite_or_none(self.certificate_margin), "forms": dict(self.forms),
+                "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class CriticalPoint(Frozen):
+    """Where a law's region meets the ray ``mu = t * direction`` (simulation.region.critical_point).
+
+    ``t`` the upper end of the final bracket ``[lower, t]`` (``t - lower <= tol``), ``inside`` and
+    ``outside`` the decided memberships at ``t`` and ``lower`` (for the DP law: a stabilising gain and an
+    infeasibility certificate; None at the ray's ends). ``t`` is ``inf`` when the law is not stable even at
+    the ray's end, 0.0 when it is stable at mu = 0."""
+
+    law: str
+    direction: np.ndarray
+    t: float
+    lower: float
+    inside: Membership | None
+    outside: Membership | None
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    @property
+    def mu(self) -> np.ndarray:
+        """The boundary point ``t * direction`` (inf entries when t is inf)."""
+        return self.t * self.direction
+
+    def to_dict(self) -> dict[str, Any]:
+        """``critical_mu`` (a list of m numbers, None when t is inf), ``t``, the bracket and both certificates."""
+        finite = bool(np.isfinite(self.t))
+        return {"law": self.law, "direction": self.direction.tolist(), "t": finite_or_none(self.t),
+                "lower": float(self.lower), "critical_mu": self.mu.tolist() if finite else None,
+                "inside": None if self.inside is None else self.inside.to_dict(),
+                "outside": None if self.outside is None else self.outside.to_dict()}
+
+
+@dataclass(frozen=True)
+class RegionMap(Frozen):
+    """Every law's region (simulation.region_map): ``critical`` one CriticalPoint per law along ``direction``;
+    with a grid, ``axis`` (K values on [0, 1]) for ``channels`` (I, J; 0-based), the other channels at
+    ``base``, and per law (first axis, in ``laws`` order) ``stable`` (1.0, 0.0, nan where undecided) and
+    ``radius``, rows mu_J, columns mu_I. The "dp" radius is min_K rho(L_K), the others their law's own."""
+
+    laws: tuple[str, ...]
+    direction: np.ndarray
+    critical: tuple[CriticalPoint, ...]
+    axis: np.ndarray | None
+    channels: tuple[int, ...]
+    base: np.ndarray | None
+    stable: np.ndarray | None
+    radius: np.ndarray | None
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    def area(self, law: str) -> float:
+        """The fraction of the grid's points where ``law`` is proved stable (nan without a grid). O(K^2)."""
+        if self.stable is None:
+            return float("nan")
+        return float(np.mean(self.stable[self.laws.index(law)] == 1.0))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Per law: ``critical_mu`` (m numbers, None when t is inf), ``t`` and, with a grid, ``grid``:
+        ``axis``, ``stable`` (true / false / null where undecided), ``radius`` (null where not finite). O(L K^2)."""
+        out: dict[str, Any] = {}
+        for k, (law, point) in enumerate(zip(self.laws, self.critical, strict=True)):
+            entry = point.to_dict()
+            entry = {"critical_mu": entry["critical_mu"], "t": entry["t"], "lower": entry["lower"]}
+            if self.stable is not None:
+                entry["grid"] = {
+                    "axis": self.axis.tolist(), "channels": [c + 1 for c in self.channels],
+                    "stable": [[None if np.isnan(v) else bool(v) for v in row] for row in self.stable[k]],
+                    "radius": [[finite_or_none(v) for v in row] for row in self.radius[k]]}
+            out[law] = entry
+        return out
+
+    def to_xarray(self) -> Any:
+        """An xarray Dataset: ``stable`` and ``radius`` over (law, mu_J, mu_I), ``t`` over law (the 'xarray'
+        extra). O(L K^2)."""
+        xr = load("xarray", "to_xarray")
+        data = {"t": (("law",), np.array([p.t for p in self.critical]))}
+        coords: dict[str, Any] = {"law": list(self.laws)}
+        if self.stable is not None:
+            i, j = self.channels
+            data["stable"] = (("law", f"mu{j + 1}", f"mu{i + 1}"), self.stable)
+            data["radius"] = (("law", f"mu{j + 1}", f"mu{i + 1}"), self.radius)
+            coords[f"mu{i + 1}"] = self.axis
+            coords[f"mu{j + 1}"] = self.axis
+        return xr.Dataset(data, coords=coords)

@@ -1,0 +1,301 @@
+"""The stabilisable set S: is some linear law ``u = -K x`` mean-square stabilising over channel ``mu``?
+
+Full state, independent Bernoulli(mu_i) losses (docs/design.md §2, "The stabilisable set"). For a law K
+the second moment obeys ``S+ = L_K(S) + Sigma_W`` (simulation.stability); ``mu`` is in S iff
+``min_K rho(L_K) < 1``. Two certificates, each checked in numpy by the operator it speaks about:
+
+- **inside**: a gain K whose operator has radius ``< 1 - MEAN_SQUARE_MARGIN`` (stability.mean_square_radius);
+- **outside**: a matrix ``P >= 0``, ``tr P = 1``, with
+
+  .. math:: T_\\mu(P) = \\begin{bmatrix} A'PA - P & -A'PBM \\\\ -MB'PA & MB'PBM + \\mathrm{diag}(\\mu(1-\\mu))
+     \\circ B'PB \\end{bmatrix} \\succeq 0.
+
+  Since ``x'(L_K^*(P) - P)x = [x; Kx]' T_mu(P) [x; Kx]``, this says ``L_K^*(P) >= P`` for every K, so
+  ``<P, L_K^j(X)> >= <P, X> > 0`` for X > 0 and every j: no K makes the loop mean-square stable.
+
+Three forms find them: "dp" (the stabilising solution of the modified Riccati equation,
+simulation.riccati; success is a gain, failure is no verdict), "riccati" (the homogeneous modified
+Riccati map ``R(P) = min_K L_K^*(P)`` with Omega = Psi = 0, power-iterated to its eigenpair
+``R(P) = lambda P``: lambda = min_K rho(L_K); its gain is the inside certificate when lambda < 1, its P the
+outside one when lambda > 1) and "lmi" (simulation.region_lmi: the Schur-complement LMI and its alternative,
+cvxpy + Clarabel). A form that cannot check its certificate says "undecided", never "unstable".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import CrossCheckError, InputError, NumericalError, SolverError
+from ..model import System
+from ..results.region import Membership
+from ..tolerances import CERTIFICATE_RTOL, HOMOGENEOUS_RICCATI_MAX_ITER, KRONECKER_MAX_N, RICCATI_RTOL
+from .moments import stationary_channel
+from .riccati import dp_riccati
+from .stability import check_law, is_mean_square_stable, mean_square_radius, second_moment_matrix
+
+__all__ = ["FORMS", "LazyLmi", "certificate_margin", "homogeneous_riccati", "membership"]
+
+#: the power iteration runs on R + _SHIFT * lambda * I (same eigenvector): a shift removes a peripheral spectrum
+#: (e.g. rotations, eigenvalues -lambda); 0.1 costs little speed where the second eigenvalue is small
+#: (0.5 had taken 280 steps a point on the two_actuator grid)
+_SHIFT = 0.1
+
+#: power-iteration steps before the policy iteration takes over (n <= KRONECKER_MAX_N), and its step cap
+_POWER_STEPS = 30
+#: lambda below this fraction of tr(A'PA) is zero to rounding (R(P) = 0)
+_ZERO = 1e-12
+_POLICY_STEPS = 50
+
+#: the forms :func:`membership` can run, cheapest first
+FORMS = ("riccati", "dp", "lmi")
+
+
+class LazyLmi:
+    """The LMI form of one plant (region_lmi.LmiForm), built and cvxpy imported only when first asked
+    to solve: callers that bisect keep one across points, and a path the Riccati forms decide never
+    loads cvxpy. Time O(1) to make.
+
+    >>> t, K, status = LazyLmi([[2.0]], [[1.0]]).stabilise(np.array([0.9]))   # S = {mu > 0.75}
+    >>> status, t > 0
+    ('optimal', True)
+    """
+
+    def __init__(self, A: npt.ArrayLike, B: npt.ArrayLike) -> None:
+        self.A, self.B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+        self._form = None
+
+    def _get(self):
+        if self._form is None:
+            from .region_lmi import LmiForm
+            self._form = LmiForm(self.A, self.B)
+        return self._form
+
+    def stabilise(self, mu: np.ndarray) -> tuple[float, np.ndarray | None, str]:
+        """As :meth:`region_lmi.LmiForm.stabilise`."""
+        return self._get().stabilise(mu)
+
+    def certify(self, mu: np.ndarray) -> tuple[float, np.ndarray | None, str]:
+        """As :meth:`region_lmi.LmiForm.certify`."""
+        return self._get().certify(mu)
+
+
+def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray) -> float:
+    """The least eigenvalue of ``T_mu(P)`` (module docstring) over its scale ``||A'PA|| + ||P|| + ||B'PB||``.
+
+    ``P >= 0`` with a margin ``>= -CERTIFICATE_RTOL`` proves (to rounding) that no law stabilises. Time
+    O((n + m)^3). Returns ``-inf`` when P is not PSD to the same tolerance or is zero.
+
+    Examples
+    --------
+    >>> A, B = np.array([[2.0]]), np.array([[1.0]])   # T = [[3p, -2p mu], [-2p mu, p mu]]: PSD iff mu <= 3/4
+    >>> [certificate_margin(A, B, np.array([mu]), np.eye(1)) >= 0 for mu in (0.6, 0.9)]
+    [True, False]
+    """
+    P = 0.5 * (P + P.T)
+    size = float(np.linalg.norm(P, 2))
+    if not (size > 0 and np.all(np.isfinite(P))) or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL * size:
+        return float("-inf")
+    PBM = P @ (B * mu)
+    BPB = B.T @ P @ B
+    corner = (B * mu).T @ PBM + np.diag(mu * (1.0 - mu) * np.diag(BPB))
+    T = np.block([[A.T @ P @ A - P, -A.T @ PBM], [-(A.T @ PBM).T, corner]])
+    scale = float(np.linalg.norm(A.T @ P @ A, 2) + size + np.linalg.norm(BPB, 2))
+    return float(np.linalg.eigvalsh(0.5 * (T + T.T))[0]) / scale
+
+
+def _homogeneous_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, R(P))``: the minimiser of ``L_K^*(P)`` (least squares: its Hessian may be singular) and the min."""
+    BPB = B.T @ P @ B
+    H = (BPB * mu[None, :]) * mu[:, None] + np.diag(mu * (1.0 - mu) * np.diag(BPB))
+    rhs = (B * mu).T @ P @ A
+    K = np.linalg.lstsq(H, rhs, rcond=None)[0]
+    R = A.T @ P @ A - rhs.T @ K
+    return K, 0.5 * (R + R.T)
+
+
+def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(lambda, P, K)``: the eigenpair ``R(P) = lambda P`` of the homogeneous modified Riccati map
+    ``R(P) = min_K L_K^*(P)`` (``tr P = 1``) and the gain that attains the minimum.
+
+    ``R`` is monotone, concave and positively homogeneous on the PSD cone; the shifted power iteration
+    ``P <- (R(P) / lambda + 0.1 P) / 1.1`` (the shift removes a peripheral spectrum, e.g. rotations) converges to
+    its Perron eigenpair, and lambda = min_K rho(L_K). Stops when ``||P_next - P|| <= RICCATI_RTOL``; for
+    n <= KRONECKER_MAX_N after 30 steps a policy iteration on the Perron eigenvector finishes it, else after
+    ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. The result is a candidate, checked by the caller. Time
+    O(iterations (n^3 + m^3)), plus O(n^6) a policy step.
+
+    Examples
+    --------
+    >>> lam, P, K = homogeneous_riccati(np.array([[2.0]]), np.array([[1.0]]), np.array([0.5]))
+    >>> round(lam, 12), round(float(K[0, 0]), 12)   # scalar: min_k (a - mu k)^2 + mu(1-mu)k^2 = a^2 (1 - mu) at k = a
+    (2.0, 2.0)
+    """
+    n = A.shape[0]
+    P = np.eye(n) / n
+    K = np.zeros((B.shape[1], n))
+    steps = HOMOGENEOUS_RICCATI_MAX_ITER if n > KRONECKER_MAX_N else _POWER_STEPS
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(steps):
+            K, R = _homogeneous_step(P, A, B, mu)
+            lam = float(np.trace(R))
+            if not (np.isfinite(lam) and lam > _ZERO * float(np.trace(A.T @ P @ A))):
+                # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an
+                # overflow the caller's check refuses; iterating on R / lambda would amplify rounding
+                return _finish(P, A, B, mu)
+            P_next = (R / lam + _SHIFT * P) / (1.0 + _SHIFT)
+            done = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL
+            P = P_next
+            if done:
+                return _finish(P, A, B, mu)
+        if n <= KRONECKER_MAX_N:
+            P = _policy_iteration(P, A, B, mu)
+    return _finish(P, A, B, mu)
+
+
+def _finish(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    K, R = _homogeneous_step(P, A, B, mu)
+    return float(np.trace(R)), P, K
+
+
+def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """From a power-iteration P: K = argmin L_K^*(P), then P = the Perron eigenvector of L_K^* (the transposed
+    Kronecker matrix, exact for n <= KRONECKER_MAX_N), until lambda settles. Each step can only lower
+    rho (L_{K+}^*(P) <= L_K^*(P) = lambda P, a Collatz-Wielandt bound), so it converges where the power
+    iteration crawls (second eigenvalue near the first). Time O(n^6) a step."""
+    n = A.shape[0]
+    best, last = P, np.inf
+    for _ in range(_POLICY_STEPS):
+        K, _ = _homogeneous_step(P, A, B, mu)
+        if not np.all(np.isfinite(K)):
+            break
+        vals, vecs = np.linalg.eig(second_moment_matrix(A, B, K, mu).T)
+        top = int(np.argmax(vals.real))
+        lam = float(vals[top].real)
+        V = vecs[:, top].real.reshape(n, n)
+        V = 0.5 * (V + V.T)
+        trace = float(np.trace(V))
+        if not (np.isfinite(lam) and trace != 0.0):
+            break
+        P = V / trace
+        if lam <= 0.0 or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL:
+            break   # a degenerate Perron root (lambda = 0, its eigenvector not PSD): keep the last good P
+        if lam >= last * (1.0 - RICCATI_RTOL):
+            best = P if lam <= last else best
+            break
+        best, last = P, lam
+    return best
+
+
+def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) -> tuple[str, float]:
+    if K is None or not np.all(np.isfinite(K)):
+        return "undecided", float("nan")
+    try:
+        radius = mean_square_radius(A, B, K, mu)
+    except NumericalError:
+        return "undecided", float("nan")
+    return ("stable" if is_mean_square_stable(radius) else "undecided"), radius
+
+
+def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None) -> tuple[str, float]:
+    if P is None:
+        return "undecided", float("nan")
+    margin = certificate_margin(A, B, mu, P / max(float(np.trace(P)), np.finfo(float).tiny))
+    return ("unstable" if margin >= -CERTIFICATE_RTOL else "undecided"), margin
+
+
+def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str, ...] = FORMS,
+               cross_check: bool = True, lmi: LazyLmi | None = None) -> Membership:
+    """Is ``mu`` in the stabilisable set S? Each form in ``forms`` proposes a certificate, checked in numpy.
+
+    Parameters
+    ----------
+    system : System
+        Plant A, B (the weights do not matter for S, except through the "dp" form's own convergence).
+    mu : array_like, optional
+        The channel (default: the system's stationary channel).
+    forms : tuple of str
+        Of :data:`FORMS`, run in this order.
+    cross_check : bool
+        Run every form and require the decided ones to agree (default); False stops at the first decided.
+    lmi : LazyLmi, optional
+        This plant's LMI form, kept across calls (one is made otherwise).
+
+    Returns
+    -------
+    Membership
+        verdict "stable" with its gain, "unstable" with its certificate P, or "undecided" (no form could
+        check a certificate: within about 1e-9 of the boundary, or a solver failure).
+
+    Raises
+    ------
+    CrossCheckError
+        Two forms decided differently.
+
+    Time: "riccati" O(iterations (n^3 + m^3)); "dp" as :func:`~.riccati.dp_riccati`; "lmi" two Clarabel SDPs.
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> [membership(s, [mu], forms=("riccati", "dp")).verdict for mu in (0.7, 0.8)]   # S = {mu > 0.75}
+    ['unstable', 'stable']
+    """
+    A, B, _, mu_ = check_law(system.A, system.B, np.zeros((system.m, system.n)),
+                             stationary_channel(system) if mu is None else mu)
+    unknown = [f for f in forms if f not in FORMS]
+    if unknown or not forms:
+        raise InputError("forms", f"expected some of {', '.join(FORMS)}, found {list(forms)}")
+    verdicts: dict[str, str] = {}
+    values: dict[str, float] = {}
+    best: dict[str, object] = {}
+    for form in forms:
+        verdict, value, gain, P = _run(form, system, A, B, mu_, lmi)
+        verdicts[form], values[form] = verdict, value
+        if verdict != "undecided" and verdict not in best:
+            best[verdict] = (form, value, gain, P)
+        if verdict != "undecided" and not cross_check:
+            break
+    decided = {v for v in verdicts.values() if v != "undecided"}
+    if len(decided) > 1:
+        raise CrossCheckError(f"stabilisable set at mu = {mu_.tolist()}: the forms disagree ({verdicts}; a "
+                              "stabilising gain's radius and an infeasibility certificate's margin)", values)
+    pairs = tuple(verdicts.items())
+    if not decided:
+        return Membership(mu_, "undecided", None, float("nan"), None, float("nan"), pairs,
+                          f"no form could check a certificate at mu = {mu_.tolist()} (within about 1e-9 of the "
+                          "boundary, or a solver failure)")
+    verdict = decided.pop()
+    _, value, gain, P = best[verdict]
+    if verdict == "stable":
+        return Membership(mu_, verdict, gain, value, None, float("nan"), pairs)
+    return Membership(mu_, verdict, None, float("nan"), P / float(np.trace(P)), value, pairs)
+
+
+def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray,
+         lmi: LazyLmi | None) -> tuple[str, float, np.ndarray | None, np.ndarray | None]:
+    """One form's verdict, its number (a radius or a certificate margin), and its certificate."""
+    if form == "dp":
+        try:
+            dp = dp_riccati(system, mu)
+        except NumericalError:   # no convergence, divergence or a bad residual: not a verdict
+            return "undecided", float("nan"), None, None
+        verdict, radius = _inside(A, B, mu, dp.gain)
+        return verdict, radius, dp.gain, None
+    if form == "riccati":
+        lam, P, K = homogeneous_riccati(A, B, mu)
+        if lam < 1.0:
+            verdict, radius = _inside(A, B, mu, K)
+            return verdict, radius, K, None
+        verdict, margin = _outside(A, B, mu, P)
+        return verdict, margin, None, P
+    lmi = LazyLmi(A, B) if lmi is None else lmi
+    try:
+        t, K, _ = lmi.stabilise(mu)
+        if t > 0:
+            verdict, radius = _inside(A, B, mu, K)
+            return verdict, radius, K, None
+        _, P, _ = lmi.certify(mu)
+    except SolverError:
+        return "undecided", float("nan"), None, None
+    verdict, margin = _outside(A, B, mu, P)
+    return verdict, margin, None, P

@@ -1,0 +1,80 @@
+"""``packetloss-cvx region`` (cli/region.py): JSON keys, files, exit codes. References: the scalar threshold
+1 - 1/a^2 and the decoupled plant's per-channel thresholds (hand values)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from packetloss_cvx import System
+from packetloss_cvx.cli import main
+from packetloss_cvx.io import save_system
+
+
+@pytest.fixture
+def decoupled_file(tmp_path):
+    s = System(A=np.diag([2.0, 1.5]), B=np.eye(2), horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+               mu=[0.9, 0.9], x0=[1.0, 1.0])
+    return str(save_system(s, tmp_path / "decoupled.toml"))
+
+
+def test_region_json_per_law_critical_mu_and_t(decoupled_file, capsys):
+    assert main(["region", decoupled_file, "--law", "dp", "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data) == {"dp"}
+    assert data["dp"]["t"] == pytest.approx(0.75, abs=1e-6)             # max(1 - 1/4, 1 - 1/2.25)
+    assert data["dp"]["critical_mu"] == pytest.approx([0.75, 0.75], abs=1e-6)
+    assert main(["region", decoupled_file, "--law", "dp", "--direction", "0.8,1", "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["dp"]["t"] == pytest.approx(0.75 / 0.8, abs=1e-6)       # channel 1 needs 0.8 t > 0.75
+    assert main(["region", decoupled_file, "--law", "dp", "--direction", "0.5,1", "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["dp"]["t"] is None and data["dp"]["critical_mu"] is None   # 0.75 / 0.5 > 1 = the ray's end
+
+
+def test_region_grid_json_and_out_folder(decoupled_file, tmp_path, capsys):
+    out = tmp_path / "region-out"
+    code = main(["region", decoupled_file, "--law", "all", "--grid", "5", "--channels", "1,2", "--out", str(out),
+                 "--json", "-q"])
+    assert code == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data) == {"dp", "tcp", "udp", "fixed", "files"}
+    grid = data["dp"]["grid"]
+    axis = np.array(grid["axis"])
+    expected = (axis[None, :] > 0.75) & (axis[:, None] > 1 - 1 / 2.25)   # rows mu_2, columns mu_1
+    assert np.array_equal(np.array(grid["stable"], dtype=bool), expected)
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "region.csv", "region.npz", "region.png"]
+    with np.load(out / "region.npz") as npz:
+        assert npz["stable"].shape == (4, 5, 5) and list(npz["laws"]) == ["dp", "tcp", "udp", "fixed"]
+
+
+@pytest.mark.parametrize(("argv", "field"), [
+    (["--direction", "1,-1"], "--direction"), (["--direction", "1"], "--direction"),
+    (["--grid", "4", "--channels", "1,3"], "--channels"), (["--grid", "4", "--channels", "2,2"], "--channels"),
+    (["--channels", "1,2"], "--channels"), (["--grid", "1"], "--grid"), (["--law", "mpc"], "--law"),
+    (["--dask", "local"], "--dask"), (["--grid", "3", "--dask", "nowhere"], "--dask"),
+    (["--grid", "3", "--workers", "2"], "--workers"),
+])
+def test_region_bad_input_exits_2_with_one_line(decoupled_file, capsys, argv, field):
+    assert main(["region", decoupled_file, *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and field in err[0]
+
+
+def test_region_one_channel_has_no_grid_and_a_huge_grid_is_refused(decoupled_file, capsys):
+    assert main(["region", "pendulum", "--grid", "5"]) == 2
+    assert "--grid" in capsys.readouterr().err
+    assert main(["region", decoupled_file, "--grid", "100000"]) == 2       # over the region_points budget
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--grid" in err[0] and "PACKETLOSS_CVX_BUDGET_REGION_POINTS" in err[0]
+
+
+def test_region_refuses_a_gilbert_elliott_file_and_names_a_missing_fixed_law(capsys):
+    """The Bernoulli region is not a bursty channel's (exit 2, field channel); 'fixed' needs a DP law at the
+    file's mu, which mu = 0.01 (outside S: critical t 0.061 on two_actuator) does not have (exit 1, one line)."""
+    assert main(["region", "pendulum_bursty", "--law", "dp"]) == 2
+    assert "channel" in capsys.readouterr().err
+    assert main(["region", "two_actuator", "--mu", "0.01", "--law", "fixed"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fixed" in err[0] and "does not exist" in err[0]
+    assert main(["region", "two_actuator", "--mu", "0.01", "--law", "dp", "--json"]) == 0

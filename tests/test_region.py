@@ -1,0 +1,325 @@
+"""The stabilisable set and critical probabilities (simulation/region.py, region_lmi.py, critical.py).
+
+References: hand values (scalar state: min_k rho = a^2 (1 - mu), and with several channels
+a^2 / (1 + sum of odds)), decoupled plants (per-channel thresholds 1 - 1/a_i^2), the second-moment
+operator enumerated over all 2^m delivery patterns, and random gains against an infeasibility certificate.
+"""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from packetloss_cvx import CrossCheckError, System, load_example
+from packetloss_cvx.simulation import critical as critical_module
+from packetloss_cvx.simulation import region
+from packetloss_cvx.simulation.critical import critical_mu, critical_point
+from packetloss_cvx.simulation.region import certificate_margin, homogeneous_riccati, membership
+from packetloss_cvx.simulation.region_lmi import LmiForm
+
+
+def enumerated_radius(A, B, K, mu):
+    """rho(E[(A - B V K) ⊗ (A - B V K)]) over all 2^m delivery patterns: independent of stability.py."""
+    out = np.zeros((A.shape[0] ** 2,) * 2)
+    for v in itertools.product((0, 1), repeat=len(mu)):
+        p = np.prod([m if vi else 1 - m for m, vi in zip(mu, v, strict=True)])
+        F = A - B @ np.diag(v) @ K
+        out += p * np.kron(F, F)
+    return float(np.max(np.abs(np.linalg.eigvals(out))))
+
+
+def scalar(a=2.0, b=(1.0,), psi=0.1):
+    m = len(b)
+    return System(A=[[a]], B=[list(b)], horizon=2, state_weight=[1.0], input_weight=[psi] * m, mu=[1.0] * m,
+                  x0=[1.0])
+
+
+def decoupled(a):
+    n = len(a)
+    return System(A=np.diag(a), B=np.eye(n), horizon=2, state_weight=[1.0] * n, input_weight=[1.0] * n,
+                  mu=[1.0] * n, x0=[1.0] * n)
+
+
+@pytest.mark.parametrize("mu", [0.3, 0.74, 0.7499, 0.7501, 0.76, 0.95])
+def test_membership_scalar_all_forms_agree_with_the_hand_threshold(mu):
+    s = scalar(2.0)
+    found = membership(s, [mu])
+    assert found.verdict == ("stable" if mu > 0.75 else "unstable")
+    assert all(v in (found.verdict, "undecided") for _, v in found.forms)
+    assert dict(found.forms)["riccati"] == found.verdict and dict(found.forms)["lmi"] == found.verdict
+    if found.stable:   # the gain's radius by enumeration: (a - mu k)^2 + mu (1 - mu) k^2
+        k = found.gain[0, 0]
+        assert (2.0 - mu * k) ** 2 + mu * (1 - mu) * k * k < 1.0
+        assert enumerated_radius(s.A, s.B, found.gain, [mu]) < 1.0
+    else:              # P = 1: T = [[a^2 - 1, -a mu], [-a mu, mu]] >= 0 iff mu (a^2 - 1) >= a^2 mu^2
+        assert found.certificate[0, 0] == pytest.approx(1.0)
+        assert mu * 3.0 - 4.0 * mu * mu >= 0
+        assert found.certificate_margin >= 0 or found.certificate_margin > -1e-12
+
+
+def test_homogeneous_riccati_scalar_is_the_least_radius():
+    for a, mu in [(2.0, 0.5), (3.0, 0.9), (1.5, 0.2)]:
+        lam, P, K = homogeneous_riccati(np.array([[a]]), np.array([[1.0]]), np.array([mu]))
+        assert lam == pytest.approx(a * a * (1 - mu), rel=1e-12)
+        assert K[0, 0] == pytest.approx(a, rel=1e-12)
+
+
+def test_scalar_state_two_channels_region_is_one_plus_sum_of_odds():
+    """x+ = a x + b1 v1 u1 + b2 v2 u2: min_K rho = a^2 / (1 + s1 + s2), s_i = mu_i / (1 - mu_i) (the
+    mean inputs h_i = b_i mu_i k_i minimise (a - h1 - h2)^2 + sum (1 - mu_i)/mu_i h_i^2)."""
+    a = np.sqrt(3.0)
+    s = scalar(a, (1.0, 0.5))
+    rng = np.random.default_rng(0)
+    for mu in rng.uniform(0.05, 0.95, size=(12, 2)):
+        odds = mu / (1 - mu)
+        lam, _, _ = homogeneous_riccati(s.A, s.B, mu)
+        assert lam == pytest.approx(3.0 / (1 + odds.sum()), rel=1e-10)
+        if abs(3.0 / (1 + odds.sum()) - 1) > 1e-6:
+            assert membership(s, mu).stable == (odds.sum() > 2.0)
+
+
+def test_the_region_is_not_convex_in_mu():
+    """design.md §2: with a^2 = 3 the boundary is s1 + s2 = 2: (0.67, 0) and (0, 0.67) are inside (s = 2.03),
+    their midpoint (0.335, 0.335) is outside (s1 + s2 = 1.01)."""
+    s = scalar(np.sqrt(3.0), (1.0, 1.0))
+    assert membership(s, [0.67, 0.0]).stable and membership(s, [0.0, 0.67]).stable
+    assert membership(s, [0.335, 0.335]).stable is False
+
+
+def test_critical_mu_dp_scalar_meets_its_tolerance_on_both_sides():
+    """The issue's case: A = 2, B = 1, Psi = 0.1, Omega = 1; exact 1 - 1/a^2 = 0.75 (was 0.750004768)."""
+    for a in (2.0, 1.5, 3.0, 10.0):
+        exact = 1 - 1 / a ** 2
+        for psi in (0.1, 1.0, 100.0):
+            point = critical_point(scalar(a, psi=psi), "dp")
+            assert point.lower <= exact <= point.t
+            assert point.t - point.lower <= 1e-6
+            assert critical_mu(scalar(a, psi=psi), "dp") == point.t
+
+
+@pytest.mark.parametrize("a", [(2.0, 1.5), (3.0, 1.2, 0.5), (1.1, 4.0)])
+def test_critical_mu_dp_decoupled_plants_give_the_per_channel_thresholds(a):
+    s = decoupled(a)
+    thresholds = np.array([max(0.0, 1 - 1 / x ** 2) for x in a])
+    assert critical_mu(s, "dp", direction=np.ones(len(a))) == pytest.approx(thresholds.max(), abs=1e-6)
+    d = np.linspace(1.0, 0.8, len(a))
+    point = critical_point(s, "dp", direction=d)
+    exact = float(np.max(thresholds / d))
+    if exact > 1.0:    # the ray ends at t = 1 / max(d) = 1 before the slowest channel's threshold
+        assert point.t == np.inf and point.outside.verdict == "unstable"
+    else:
+        assert point.lower <= exact + 1e-12 and exact <= point.t <= exact + 1e-6
+
+
+def test_a_boundary_point_has_a_gain_inside_and_a_certificate_outside():
+    s = load_example("two_actuator")
+    point = critical_point(s, "dp", direction=[1.0, 1.0])
+    inside, outside = point.inside, point.outside
+    assert point.t - point.lower <= 1e-6
+    assert inside.verdict == "stable" and enumerated_radius(s.A, s.B, inside.gain, inside.mu) < 1.0
+    assert outside.verdict == "unstable"
+    P, mu = outside.certificate, outside.mu
+    assert np.linalg.eigvalsh(P)[0] >= -1e-12 and np.trace(P) == pytest.approx(1.0)
+    # no gain beats the certificate: random gains and the DP gain just inside, all with radius >= 1 at mu
+    rng = np.random.default_rng(1)
+    gains = [inside.gain, *(inside.gain + rng.normal(scale=x, size=inside.gain.shape) for x in (1e-3, 0.1, 1.0))]
+    for K in gains:
+        assert enumerated_radius(s.A, s.B, K, mu) >= 1.0 - 1e-9
+
+
+def test_certificate_margin_is_exact_on_the_scalar_case():
+    A, B = np.array([[2.0]]), np.array([[1.0]])
+    for mu in (0.2, 0.5, 0.74):   # least eigenvalue of [[3, -2 mu], [-2 mu, mu]] over 4 + 1 + 1
+        T = np.array([[3.0, -2 * mu], [-2 * mu, mu]])
+        assert certificate_margin(A, B, np.array([mu]), np.eye(1)) == pytest.approx(np.linalg.eigvalsh(T)[0] / 6)
+    assert certificate_margin(A, B, np.array([0.5]), -np.eye(1)) == -np.inf
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_membership_forms_agree_on_random_plants(seed):
+    rng = np.random.default_rng(seed)
+    n, m = 2 + seed % 2, 2
+    A = rng.normal(size=(n, n)) * 1.3
+    B = rng.normal(size=(n, m))
+    s = System(A=A, B=B, horizon=2, state_weight=[1.0] * n, input_weight=[1.0] * m, mu=[1.0] * m, x0=[1.0] * n)
+    form = region.LazyLmi(A, B)
+    for mu in rng.uniform(0.0, 1.0, size=(4, m)):
+        found = membership(s, mu, lmi=form)   # CrossCheckError if two forms decide differently
+        lam = homogeneous_riccati(A, B, mu)[0]
+        if found.stable:
+            assert enumerated_radius(A, B, found.gain, mu) < 1.0
+        elif found.stable is False:
+            assert lam >= 1.0 - 1e-9
+        if abs(lam - 1) > 1e-3:   # away from the boundary both certificates are checkable
+            assert found.verdict == ("stable" if lam < 1 else "unstable")
+
+
+def test_disagreeing_forms_raise_cross_check_error(monkeypatch):
+    """Planted: a certificate check that accepts everything makes "riccati" say unstable where "dp" finds a
+    stabilising solution."""
+    s = scalar(2.0)
+    monkeypatch.setattr(region, "homogeneous_riccati", lambda A, B, mu: (2.0, np.eye(1), np.zeros((1, 1))))
+    monkeypatch.setattr(region, "certificate_margin", lambda A, B, mu, P: 0.0)
+    with pytest.raises(CrossCheckError, match="disagree"):
+        membership(s, [0.9], forms=("riccati", "dp"))
+
+
+def test_a_solver_failure_is_not_a_verdict(monkeypatch):
+    from packetloss_cvx import SolverError
+
+    def fail(self, mu):
+        raise SolverError("numerical_error", "planted")
+
+    monkeypatch.setattr(LmiForm, "stabilise", fail)
+    found = membership(scalar(2.0), [0.5], forms=("lmi",))
+    assert found.verdict == "undecided" and found.stable is None and "no form" in found.reason
+
+
+def test_critical_mu_dp_never_reads_undecided_as_unstable(monkeypatch):
+    """Planted: every form undecided inside (0.7, 0.8): the bisection moves only on decided points and
+    raises when a bracket wider than tol cannot be decided."""
+    true_membership = region.membership
+
+    def blind(system, mu, **kw):
+        found = true_membership(system, mu, **kw)
+        if 0.7 < float(np.asarray(mu)[0]) < 0.8:
+            return found.__class__(found.mu, "undecided", None, np.nan, None, np.nan, (), "planted")
+        return found
+
+    monkeypatch.setattr(critical_module, "membership", blind)
+    from packetloss_cvx import NumericalError
+    with pytest.raises(NumericalError, match="no point of the bracket"):
+        critical_mu(scalar(2.0), "dp")
+    point = critical_point(scalar(2.0), "dp", tol=0.2)   # 0.5 out, 0.75 blind, 0.625 out, 0.8125 in
+    assert (point.lower, point.t) == (0.625, 0.8125)
+    assert point.inside.verdict == "stable" and point.outside.verdict == "unstable"
+
+
+def test_lmi_gain_is_stabilising_by_enumeration():
+    s = load_example("two_actuator")
+    form = LmiForm(np.asarray(s.A, float), np.asarray(s.B, float))
+    t, K, status = form.stabilise(np.array([0.3, 0.6]))
+    assert status == "optimal" and t > 0
+    assert enumerated_radius(s.A, s.B, K, [0.3, 0.6]) < 1.0
+
+
+def test_region_map_laws_side_by_side_on_the_scalar_plant():
+    """Hand values: S = {mu > 0.75}; the DP gain fixed at mu = 1 (k = a p / (psi + p), the DARE) is stable iff
+    (a - mu k)^2 + mu (1 - mu) k^2 < 1; every law's region lies inside S."""
+    from packetloss_cvx.simulation.region_map import region_map
+    s = scalar(2.0, psi=1.0)
+    r = region_map(s, laws=("dp", "fixed", "tcp", "udp"))
+    points = dict(zip(r.laws, r.critical, strict=True))
+    assert points["dp"].lower <= 0.75 <= points["dp"].t <= 0.75 + 1e-6
+    p = 2.0 + np.sqrt(5.0)           # DARE p^2 - 4p - 1 = 0 (a = 2, q = r = 1): p = 2 + sqrt(5), k = 2p / (1 + p)
+    k = 2 * p / (1 + p)
+    exact = 3.0 / (4 * k - k * k)    # (a - mu k)^2 + mu (1 - mu) k^2 = a^2 - mu (2 a k - k^2) = 1
+    assert points["fixed"].lower <= exact <= points["fixed"].t <= exact + 1e-6
+    for law in ("tcp", "udp", "fixed"):
+        assert points[law].t >= points["dp"].lower
+
+
+def test_region_map_grid_is_inside_the_stabilisable_set_and_matches_decoupled_thresholds():
+    from packetloss_cvx.simulation.region_map import region_map
+    s = decoupled((2.0, 1.5))
+    r = region_map(s, laws=("dp", "tcp"), grid=6)
+    axis = r.axis
+    expected = (axis[None, :] > 0.75) & (axis[:, None] > 1 - 1 / 2.25)   # rows mu_2, columns mu_1
+    assert np.array_equal(r.stable[0] == 1.0, expected)
+    assert not np.any((r.stable[1] == 1.0) & (r.stable[0] == 0.0))
+    d = r.to_dict()
+    assert set(d) == {"dp", "tcp"} and d["dp"]["grid"]["axis"] == axis.tolist()
+    assert d["dp"]["critical_mu"] == pytest.approx([0.75, 0.75], abs=1e-6)
+
+
+@pytest.mark.parametrize(("kwargs", "field"), [({"direction": [1.0, -1.0]}, "direction"),
+                                               ({"grid": 3, "channels": (0, 2)}, "channels"),
+                                               ({"grid": 3, "channels": (1, 1)}, "channels"),
+                                               ({"laws": ("mpc",)}, "law"), ({"grid": 1}, "grid")])
+def test_region_map_rejects_bad_input(kwargs, field):
+    from packetloss_cvx import InputError
+    from packetloss_cvx.simulation.region_map import region_map
+    with pytest.raises(InputError, match=field):
+        region_map(decoupled((2.0, 1.5)), **kwargs)
+
+
+def test_region_map_refuses_a_huge_grid():
+    from packetloss_cvx.errors import BudgetError
+    from packetloss_cvx.simulation.region_map import region_map
+    with pytest.raises(BudgetError, match="PACKETLOSS_CVX_BUDGET_REGION_POINTS") as err:
+        region_map(decoupled((2.0, 1.5)), grid=10 ** 4)          # 4e8 law-points, refused before any work
+    assert err.value.field == "grid"
+
+
+def test_region_map_to_xarray_holds_the_same_grid():
+    pytest.importorskip("xarray")
+    from packetloss_cvx.simulation.region_map import region_map
+    r = region_map(decoupled((2.0, 1.5)), laws=("dp",), grid=4)
+    ds = r.to_xarray()
+    assert np.array_equal(ds["stable"].values, r.stable, equal_nan=True)
+    assert ds["mu1"].values.tolist() == r.axis.tolist() and float(ds["t"].sel(law="dp")) == r.critical[0].t
+
+
+def test_results_pickle_and_to_dict_are_plain():
+    import json
+    import pickle
+
+    from packetloss_cvx.simulation.region_map import region_map
+    r = region_map(decoupled((2.0, 1.5)), laws=("dp", "fixed"), grid=3)
+    back = pickle.loads(pickle.dumps(r))
+    assert np.array_equal(back.stable, r.stable) and back.critical[0].inside.verdict == "stable"
+    json.dumps(r.to_dict(), allow_nan=False)
+    json.dumps(r.critical[0].to_dict(), allow_nan=False)
+    assert r.stable.flags.writeable is False
+
+
+@pytest.mark.parametrize("mu", [[1.0, 0.22], [1.0, 0.44], [0.33, 1.0], [1.0, 1.0]])
+def test_riccati_form_decides_where_a_deadbeat_law_exists(mu):
+    """B = I and mu_i = 1: min_K rho can be 0 and R(P) vanishes to rounding; the power iteration had divided by
+    that rounding (lambda = -6.4 at (1, 0.44)) and left these points undecided (planted: found before the fix)."""
+    s = load_example("two_actuator")
+    found = membership(s, mu, forms=("riccati",))
+    assert found.verdict == "stable"
+    assert enumerated_radius(s.A, s.B, found.gain, mu) < 1.0
+
+
+@pytest.mark.parametrize("law", ["tcp", "udp"])
+def test_critical_mu_of_the_paper_laws_against_their_hand_gains(law):
+    """Horizon 1, x+ = 2x + v u, Omega = 1, Psi = 0.1: Theorem 1's first gain is k = a / (mu + psi) (TCP-like;
+    Hessian mu^2 + mu psi) and k = a / (1 + psi) (UDP-like; + mu (1 - mu)); the law is proved stable iff
+    a^2 - 2 a mu k + mu k^2 < 1 - MEAN_SQUARE_MARGIN. Root by brentq, both bracket ends checked."""
+    from scipy.optimize import brentq
+
+    from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+    a, psi = 2.0, 0.1
+    s = System(A=[[a]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[psi], mu=[1.0], x0=[1.0])
+
+    def gain(mu):
+        return a / (mu + psi) if law == "tcp" else a / (1 + psi)
+
+    def excess(mu):
+        k = gain(mu)
+        return a * a - 2 * a * mu * k + mu * k * k - (1 - MEAN_SQUARE_MARGIN)
+
+    exact = brentq(excess, 0.5, 1.0, xtol=1e-14)
+    point = critical_point(s, law)
+    assert point.lower <= exact <= point.t <= point.lower + 1e-6
+    assert point.inside.gain[0, 0] == pytest.approx(gain(point.t), rel=1e-9)
+    assert point.inside.radius < 1 - MEAN_SQUARE_MARGIN <= point.outside.radius
+
+
+def test_region_map_on_dask_is_bit_identical():
+    distributed = pytest.importorskip("distributed")
+    import logging
+
+    from packetloss_cvx.simulation.region_map import region_map
+    s = load_example("two_actuator")
+    here = region_map(s, laws=("dp", "tcp", "fixed"), grid=7)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
+                                  host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR) as cluster:
+        there = region_map(s, laws=("dp", "tcp", "fixed"), grid=7, dask=cluster.scheduler_address)
+    assert np.array_equal(here.stable, there.stable, equal_nan=True)
+    assert np.array_equal(here.radius, there.radius, equal_nan=True)
+    from packetloss_cvx import InputError
+    with pytest.raises(InputError, match="dask"):
+        region_map(s, laws=("dp",), grid=3, dask="no address")
