@@ -148,6 +148,16 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
                        help="the initial state, comma-separated, e.g. --x0 1,-1 (default: the file's)")
 
 
+def add_dask_options(command: argparse.ArgumentParser, what: str) -> None:
+    """``--dask local|ADDRESS`` and ``--workers W`` (studies.engine.dask_client), as every command that runs on
+    Dask takes them; ``what`` opens the --dask help (what runs there)."""
+    command.add_argument("--dask", metavar="local|ADDRESS",
+                         help=f"{what}: a new LocalCluster or a running scheduler (default: in process), "
+                              "e.g. --dask tcp://127.0.0.1:8786")
+    command.add_argument("--workers", type=int, metavar="W",
+                         help="workers of --dask local (default: 2), e.g. --workers 4")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole grammar; ``args.command`` names the module that runs the subcommand.
 
@@ -266,11 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--shared", action="store_true", help="with --mu-grid: every actuator behind one channel nu")
     swp.add_argument("--chunk-size", type=int, default=2048, metavar="C",
                      help="points per batched evaluation and per Dask task, e.g. --chunk-size 10000")
-    swp.add_argument("--dask", metavar="local|ADDRESS",
-                     help="evaluate on Dask: a new LocalCluster or a running scheduler (default: in process), "
-                          "e.g. --dask tcp://127.0.0.1:8786")
-    swp.add_argument("--workers", type=int, metavar="W",
-                     help="workers of --dask local (default: 2), e.g. --workers 4")
+    add_dask_options(swp, "evaluate on Dask")
     swp.add_argument("--out", metavar="DIR",
                      help="a folder: sweep.npz, sweep.csv and the figures (sweep.png; for a 2-D grid sweep_tcp.png, "
                           "sweep_udp.png, sweep_diff.png) (default: none), e.g. --out sweep-out")
@@ -294,11 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "e.g. --grid 51")
     reg.add_argument("--channels", metavar="I,J", help="with --grid: the map's channels (default: 1,2), e.g. "
                                                          "--channels 1,3")
-    reg.add_argument("--dask", metavar="local|ADDRESS",
-                     help="with --grid: the map's rows on Dask, a new LocalCluster or a running scheduler (default: "
-                          "in process), e.g. --dask tcp://127.0.0.1:8786")
-    reg.add_argument("--workers", type=int, metavar="W",
-                     help="workers of --dask local (default: 2), e.g. --workers 4")
+    add_dask_options(reg, "with --grid: the map's rows on Dask")
     reg.add_argument("--out", metavar="DIR",
                      help="a folder: region.npz, region.csv and (with --grid) region.png (default: none), "
                           "e.g. --out region-out")
