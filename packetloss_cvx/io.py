@@ -4,8 +4,11 @@ shipped with the package (``packetloss_cvx/examples/*.toml``, read with importli
 
 from __future__ import annotations
 
+import csv
 import errno
+import io
 import json
+import math
 import os
 import stat
 import tomllib
@@ -20,7 +23,8 @@ from .examples import names as packaged_names
 from .model import System
 from .safeio import atomic_write
 
-__all__ = ["dumps_system", "example_names", "load_example", "load_system", "read_input", "save_system",
+__all__ = ["dumps_system", "example_names", "load_example", "load_system", "read_csv_numbers", "read_input",
+           "save_system",
            "system_from_dict"]
 
 
@@ -110,6 +114,70 @@ def _section_of(kw: str) -> str:
 #: A system file is a few kilobytes; anything larger is refused before parsing (the default of the
 #: ``file_bytes`` budget, which applies to every input file: budgets.py).
 MAX_FILE_BYTES = int(BUDGETS["file_bytes"].default)
+
+
+def read_csv_numbers(path: str | Path, field: str, row_budget: str | None = None,
+                     width: int | None = None) -> list[list[float]]:
+    """The rows of numbers of a CSV input file (``--mu-schedule``, ``--mu-list``), one reader with one set of
+    rules: read as every input file is (:func:`read_input`); UTF-8 with or without Excel's byte-order mark;
+    blank lines and lines starting with ``#`` skipped; a first row whose cells are all non-numeric (a header
+    such as ``mu1,mu2``) skipped, while a first row with a typo among numbers is an error; every value
+    finite; every row ``width`` numbers long (default: as long as the first row of numbers). ``row_budget``: a
+    budget (budgets.py) the rows are counted against as they are parsed. O(size).
+
+    Raises
+    ------
+    InputError
+        Field ``field``: not a CSV text file, a cell that is not a number (with its row number), a value
+        that is not finite, or no row of numbers.
+    BudgetError
+        A file beyond the ``file_bytes`` budget, or more rows than ``row_budget``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     _ = (Path(tmp) / "mu.csv").write_text("\\ufeffmu1,mu2\\n# a comment\\n0.5,1\\n\\n0,0.25\\n")
+    ...     read_csv_numbers(Path(tmp) / "mu.csv", "--mu-list")
+    [[0.5, 1.0], [0.0, 0.25]]
+    """
+    data = read_input(path, field)
+    rows: list[tuple[int, list[str]]] = []
+    try:
+        text = data.decode("utf-8-sig")                  # -sig: Excel's byte-order mark
+        for line, row in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
+            if not row or not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
+                continue
+            rows.append((line, row))
+            if row_budget is not None and len(rows) > 1:   # counted as parsed: 16 MiB of "0,0" are 4e6 lists
+                check(row_budget, len(rows) - 1, field, f"more than {len(rows) - 2} rows")
+    except (UnicodeDecodeError, csv.Error) as err:
+        raise InputError(field, f"{str(path)!r} is not a CSV text file: {err}") from None
+    numbers = []
+    for k, (line, row) in enumerate(rows):
+        try:
+            values = [float(cell) for cell in row]
+        except ValueError:
+            if k == 0 and not any(_is_number(cell) for cell in row):
+                continue          # a header; a first row with a typo among numbers is an error, not a header
+            raise InputError(field, f"row {line}: expected numbers, found {','.join(row)[:60]!r}") from None
+        if not all(map(math.isfinite, values)):
+            raise InputError(field, f"row {line}: expected finite numbers, found {','.join(row)[:60]!r}")
+        width = len(values) if width is None else width
+        if len(values) != width:
+            raise InputError(field, f"row {line}: expected {width} numbers, found {len(values)}")
+        numbers.append(values)
+    if not numbers:
+        raise InputError(field, f"{str(path)!r} has no rows of numbers (comma-separated, one row per line)")
+    return numbers
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def read_input(path: str | Path, field: str) -> bytes:

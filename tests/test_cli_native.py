@@ -158,7 +158,7 @@ def _keywords(system):
 
 @pytest.mark.parametrize(("content", "argv", "match"), [
     ("0.5,0.5\n" * 9, [], "--mu-schedule: expected shape (10, 2)"),
-    ("0.5,0.5\n" * 9 + "0.5,x\n", [], "--mu-schedule: expected rows of comma-separated numbers"),
+    ("0.5,0.5\n" * 9 + "0.5,x\n", [], "--mu-schedule: row 10: expected numbers, found '0.5,x'"),
     ("0.5,0.5\n" * 9 + "0.5,1.5\n", [], "--mu-schedule: expected probabilities"),
     (None, [], "--mu-schedule: cannot read"),
     ("0.5,0.5\n" * 10, ["--mu", "0.5"], "not allowed with"),

@@ -300,3 +300,20 @@ def test_cli_sweep_json_names_the_file_above_its_size(capsys, tmp_path, monkeypa
     monkeypatch.setattr(sweep_command, "JSON_MAX_POINTS", 9)       # at the size: carried
     assert main(["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"]) == 0
     assert len(json.loads(capsys.readouterr().out)["table"]["cost_tcp"]) == 9
+
+
+def test_mu_schedule_and_mu_list_are_read_by_one_reader_with_one_set_of_rules(tmp_path):
+    """--mu-schedule (np.loadtxt: '#' comments, no header) and --mu-list (csv: a header, no comments) had
+    different rules; both now read a header row, '#' comments, blank lines and a byte-order mark alike."""
+    from packetloss_cvx.cli.common import read_schedule
+
+    rows = np.random.default_rng(0).uniform(0, 1, (10, 2)).round(3)
+    text = "\ufeffmu1,mu2\n# an Excel export with a note\n" + "\n".join(f"{a},{b}" for a, b in rows) + "\n\n"
+    path = tmp_path / "channels.csv"
+    path.write_text(text, encoding="utf-8")
+    assert read_schedule(str(path)).tolist() == rows.tolist()
+    assert read_mu_list(path, 2).tolist() == rows.tolist()
+    path.write_text("0.5,0.5\n0.5\n")
+    for read in (lambda: read_schedule(str(path)), lambda: read_mu_list(path, 2)):
+        with pytest.raises(pl.InputError, match="row 2: expected 2 numbers, found 1"):
+            read()

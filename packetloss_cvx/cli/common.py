@@ -18,7 +18,7 @@ import numpy as np
 
 from ..budgets import burstiness_work, check, count_text, simulate_work
 from ..errors import InputError
-from ..io import load_system, read_input
+from ..io import load_system, read_csv_numbers, read_input
 from ..model import System
 from ..safeio import check_output_file
 
@@ -126,9 +126,9 @@ def number(text: str, field: str) -> float:
 
 
 def read_schedule(path: str) -> np.ndarray:
-    """A CSV file of N rows of m delivery probabilities (``#`` starts a comment), read as every input file
-    is (:func:`~packetloss_cvx.io.read_input`: a regular file within the ``file_bytes`` budget; a FIFO or
-    /dev/zero is refused before it is read). O(N m).
+    """A CSV file of N rows of m delivery probabilities, read by the one CSV reader
+    (:func:`~packetloss_cvx.io.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
+    a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(N m).
 
     Examples
     --------
@@ -137,12 +137,7 @@ def read_schedule(path: str) -> np.ndarray:
     ...
     packetloss_cvx.errors.InputError: --mu-schedule: /dev/zero is not a regular file (a device, a pipe or a socket)
     """
-    data = read_input(path, "--mu-schedule")
-    try:
-        table = np.loadtxt(io.StringIO(data.decode("utf-8-sig")), delimiter=",", ndmin=2, dtype=float)
-    except (ValueError, UnicodeDecodeError):
-        raise InputError("--mu-schedule", f"expected rows of comma-separated numbers in {path!r}") from None
-    return table
+    return np.array(read_csv_numbers(path, "--mu-schedule"), dtype=float)     # rows of one width
 
 
 def with_overrides(system: System, args: argparse.Namespace) -> System:

@@ -15,8 +15,6 @@ Dask cluster (:mod:`.engine`); both give the same numbers bit for bit. The resul
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -25,7 +23,7 @@ import numpy as np
 
 from ..budgets import BUDGETS, check, count_text, estimated_seconds, sweep_work
 from ..errors import InputError
-from ..io import read_input
+from ..io import read_csv_numbers
 from ..model import System, numeric_array
 from ..protocols import PROTOCOLS, check_protocol
 from ..results import DesignSweep
@@ -60,10 +58,9 @@ def _grid_axis(mu_grid: Any) -> np.ndarray:
 
 
 def read_mu_list(path: str | Path, m: int) -> np.ndarray:
-    """Channel points from a CSV file: one row per point, m probabilities per row; a first row
-    whose cells are all non-numeric (a header such as ``mu1,mu2``) is skipped; a byte-order mark is
-    ignored. Read as every input file is (:func:`~packetloss_cvx.io.read_input`: a regular file within the
-    ``file_bytes`` budget; a FIFO or /dev/zero is refused before it is read). O(rows).
+    """Channel points from a CSV file: one row per point, m probabilities per row, read by the one CSV reader
+    (:func:`~packetloss_cvx.io.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
+    a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(rows).
 
     Raises
     ------
@@ -82,45 +79,12 @@ def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     ...     read_mu_list(Path(tmp) / "mu.csv", 3)
     Traceback (most recent call last):
         ...
-    packetloss_cvx.errors.InputError: mu_list: row 2: expected 3 probabilities, found 2
+    packetloss_cvx.errors.InputError: mu_list: row 2: expected 3 numbers, found 2
     >>> points.tolist()                             # the header row is skipped
     [[0.5, 1.0], [0.0, 0.25]]
     """
-    data = read_input(path, "mu_list")
-    rows: list[list[str]] = []
-    try:
-        text = data.decode("utf-8-sig")                  # -sig: Excel's byte-order mark
-        for row in csv.reader(io.StringIO(text, newline="")):
-            if row and any(c.strip() for c in row):
-                rows.append(row)
-                if len(rows) > 1:      # counted as they are parsed: 16 MiB of "0,0" rows are 4e6 lists
-                    check("sweep_points", len(rows) - 1, "mu_list", f"more than {len(rows) - 2} rows")
-    except (UnicodeDecodeError, csv.Error) as err:
-        raise InputError("mu_list", f"{str(path)!r} is not a CSV text file: {err}") from None
-    points = []
-    for k, row in enumerate(rows, start=1):
-        try:
-            values = [float(cell) for cell in row]
-        except ValueError:
-            if k == 1 and not any(_is_number(cell) for cell in row):
-                continue          # a header; a first row with a typo among numbers is an error, not a header
-            raise InputError("mu_list", f"row {k}: expected numbers, found {','.join(row)[:60]!r}") from None
-        if not all(np.isfinite(values)):
-            raise InputError("mu_list", f"row {k}: expected finite probabilities, found {','.join(row)[:60]!r}")
-        if len(values) != m:
-            raise InputError("mu_list", f"row {k}: expected {m} probabilities, found {len(values)}")
-        points.append(values)
-    if not points:
-        raise InputError("mu_list", f"{str(path)!r} has no rows of probabilities (comma-separated, one point per row)")
+    points = read_csv_numbers(path, "mu_list", row_budget="sweep_points", width=m)
     return _mu_points(points)
-
-
-def _is_number(cell: str) -> bool:
-    try:
-        float(cell)
-    except ValueError:
-        return False
-    return True
 
 
 def _mu_points(points: Any) -> np.ndarray:
