@@ -23,15 +23,7 @@ from packetloss_cvx.simulation import (
     stationary_second_moment,
 )
 
-
-def enumerated_operator(A, B, K, mu):
-    """E[(A - B V K) ⊗ (A - B V K)] over all 2^m delivery patterns: independent of the closed form."""
-    out = np.zeros((A.shape[0] ** 2,) * 2)
-    for v in itertools.product((0, 1), repeat=len(mu)):
-        p = np.prod([m if bit else 1 - m for bit, m in zip(v, mu, strict=True)])
-        F = A - B @ np.diag(v) @ K
-        out += p * np.kron(F, F)
-    return out
+from .references import enumerated_operator
 
 
 def random_law(rng, n, m, scale=0.3):

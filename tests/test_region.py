@@ -5,7 +5,6 @@ a^2 / (1 + sum of odds)), decoupled plants (per-channel thresholds 1 - 1/a_i^2),
 operator enumerated over all 2^m delivery patterns, and random gains against an infeasibility certificate.
 """
 
-import itertools
 
 import numpy as np
 import pytest
@@ -17,15 +16,7 @@ from packetloss_cvx.simulation.critical import critical_mu, critical_point
 from packetloss_cvx.simulation.region import certificate_margin, homogeneous_riccati, membership
 from packetloss_cvx.simulation.region_lmi import LmiForm
 
-
-def enumerated_radius(A, B, K, mu):
-    """rho(E[(A - B V K) ⊗ (A - B V K)]) over all 2^m delivery patterns: independent of stability.py."""
-    out = np.zeros((A.shape[0] ** 2,) * 2)
-    for v in itertools.product((0, 1), repeat=len(mu)):
-        p = np.prod([m if vi else 1 - m for m, vi in zip(mu, v, strict=True)])
-        F = A - B @ np.diag(v) @ K
-        out += p * np.kron(F, F)
-    return float(np.max(np.abs(np.linalg.eigvals(out))))
+from .references import enumerated_radius
 
 
 def scalar(a=2.0, b=(1.0,), psi=0.1):

@@ -1,7 +1,6 @@
 """``simulate`` (API and CLI): Monte Carlo within 4 standard errors of the exact expectations, the JSON
 schema of the issue, seeding, exit codes, saved trajectories and the figure."""
 
-import itertools
 import json
 
 import numpy as np
@@ -12,17 +11,10 @@ from packetloss_cvx.cli import main
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.simulation.montecarlo import simulate
 
+from .references import enumerated_radius
+
 OPEN = {"formula", "exact", "mean", "stderr", "z"}
 CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable"}
-
-
-def enumerated_radius(A, B, K, mu):
-    out = np.zeros((A.shape[0] ** 2,) * 2)
-    for v in itertools.product((0, 1), repeat=len(mu)):
-        p = np.prod([m if bit else 1 - m for bit, m in zip(v, mu, strict=True)])
-        F = A - B @ np.diag(v) @ K
-        out += p * np.kron(F, F)
-    return float(np.max(np.abs(np.linalg.eigvals(out))))
 
 
 def stable_random_system(seed):
