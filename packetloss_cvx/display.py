@@ -206,7 +206,11 @@ def _solution_rows(sol: Any) -> list[tuple[str, Any]]:
     if sol.closed_loop_eigenvalues is not None and len(sol.closed_loop_eigenvalues):
         # the paper's Tables I-II convention, every packet delivered: not the loop over the lossy channel
         rows.append(("radius of A - B K (all delivered)", f"{np.max(np.abs(sol.closed_loop_eigenvalues)):.6g}"))
-        rows.append(("mean-square stability", "needs the channel: simulation.closed_loop(system, solution.gain)"))
+    if sol.stability is not None:   # attached by simulation.with_stability: the loop over the lossy channel
+        rows.append(("mean-square stability", sol.stability.verdict))
+    elif sol.gain is not None:
+        rows.append(("mean-square stability", "not computed (a Solution does not carry the channel): "
+                                              "packetloss_cvx.simulation.with_stability(system, solution)"))
     if sol.status is not None:
         rows.append(("status", f"{sol.status} in {sol.solve_time:.3g} s"))
     if sol.cross_check is not None:
@@ -231,9 +235,10 @@ def solution_repr(sol: Any) -> str:
 
 
 def solution_html(sol: Any) -> str:
-    """The cost, method, the radius of A - B K with every packet delivered (the paper's Tables I-II; the loop
-    over the lossy channel, mean-square, is :func:`packetloss_cvx.simulation.closed_loop`'s: a Solution does
-    not carry the channel) and (QPs) solver status, as an HTML table.
+    """The cost, method, the radius of A - B K with every packet delivered (the paper's Tables I-II), the
+    mean-square stability of u = -K x over the lossy channel (once
+    :func:`packetloss_cvx.simulation.with_stability` attached it: a Solution does not carry the channel)
+    and (QPs) solver status, as an HTML table.
 
     >>> from packetloss_cvx.results import Solution
     >>> text = solution_html(Solution("udp", 10.25, np.zeros((10, 2)), None, None, "recursion"))

@@ -1,6 +1,7 @@
 """Notebook views of the results: one-line reprs, an HTML table for every result type with the numbers a user
 looks at first, and a design sweep's arrays on its axes (DesignSweep.grid)."""
 
+import dataclasses
 import html
 import re
 
@@ -10,7 +11,7 @@ import pytest
 import packetloss_cvx as pl
 import packetloss_cvx.results as results
 from packetloss_cvx import InputError
-from packetloss_cvx.simulation import closed_loop, dp_riccati, simulate
+from packetloss_cvx.simulation import closed_loop, dp_riccati, simulate, with_stability
 from packetloss_cvx.studies import sweep
 
 
@@ -119,9 +120,56 @@ def test_solution_view_says_which_radius_it_shows():
     page = cells(sol._repr_html_())
     radius = max(abs(np.linalg.eigvals(s.A - s.B @ sol.gain)))
     assert page[page.index("radius of A - B K (all delivered)") + 1] == f"{radius:.6g}"
-    assert "closed_loop(system, solution.gain)" in page[page.index("mean-square stability") + 1]
+    # without the channel the view says so and names the call that attaches it
+    assert "with_stability(system, solution)" in page[page.index("mean-square stability") + 1]
     # not the mean-square radius over the channel, which is another number
     assert abs(radius - second_moment_radius(s.A, s.B, sol.gain, s.mu)) > 1e-3
+
+
+def test_solution_view_shows_mean_square_stability_over_the_channel():
+    s = pl.load_example("pendulum")
+    plain = pl.closed_form(s, "tcp")
+    sol = with_stability(s, plain)
+    expected = second_moment_radius(s.A, s.B, plain.gain, s.mu)       # the Kronecker matrix, independently
+    assert sol.stability.radius == pytest.approx(expected, rel=1e-9)
+    assert sol.stability.stable == (expected < 1)
+    page = cells(sol._repr_html_())
+    shown = page[page.index("mean-square stability") + 1]
+    assert f"{expected:.6g}" in shown and ("NOT mean-square stable" in shown) == (expected >= 1)
+    d = sol.to_dict()
+    assert d["mean_square_spectral_radius"] == pytest.approx(expected, rel=1e-9) and d["stable"] == (expected < 1)
+    assert np.array_equal(sol.inputs, plain.inputs) and sol.cost == plain.cost   # the plan is untouched
+    assert "mean_square_spectral_radius" not in plain.to_dict()                   # nothing added unasked
+
+
+def test_solution_view_says_not_stable_for_a_law_that_diverges():
+    # x' = 2x - v K x, P(v = 1) = 0.5: E[x'^2] = (0.5 (2 - K)^2 + 0.5 * 4) x^2 >= 2 x^2 for every K
+    s = pl.System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    sol = with_stability(s, pl.closed_form(s, "tcp"))
+    K = sol.gain[0, 0]
+    assert sol.stability.radius == pytest.approx(0.5 * (2 - K) ** 2 + 2.0, rel=1e-12)
+    assert not sol.stability.stable
+    page = cells(sol._repr_html_())
+    assert "NOT mean-square stable" in page[page.index("mean-square stability") + 1]
+
+
+def test_solution_stability_behind_a_chain_is_the_markov_jump_radius():
+    # a chain whose two states deliver alike is i.i.d. Bernoulli: the MJLS radius equals the Kronecker one
+    from packetloss_cvx.channel import GilbertElliott
+    s = pl.load_example("two_actuator")
+    chain = GilbertElliott(p=[0.2, 0.3], r=[0.4, 0.1], h_good=[0.7, 0.6], h_bad=[0.7, 0.6])
+    bursty = s.with_channel(chain)
+    plain = pl.closed_form(bursty.with_mu(bursty.mu_schedule), "udp")
+    st = with_stability(bursty, plain).stability
+    assert "Gilbert-Elliott" in st.over
+    assert st.radius == pytest.approx(second_moment_radius(s.A, s.B, plain.gain, np.array([0.7, 0.6])), rel=1e-8)
+
+
+def test_solution_stability_needs_a_gain():
+    s = pl.load_example("pendulum")
+    sol = pl.closed_form(s, "tcp")
+    with pytest.raises(InputError, match="no gain"):
+        with_stability(s, dataclasses.replace(sol, gain=None))
 
 
 def test_every_result_type_has_a_notebook_view():

@@ -9,12 +9,11 @@ from typing import Any
 import numpy as np
 
 from ..costs import closed_form
-from ..errors import InputError, NumericalError, ResourceError
-from ..markov import mean_square_radius as markov_radius
+from ..errors import NumericalError, ResourceError
 from ..model import System
 from ..progress import progress_bar
 from ..results import Solution, eigenvalue_pairs
-from ..simulation import is_mean_square_stable, mean_square_radius
+from ..simulation import loop_stability
 from . import format as fmt
 from .common import CommandResult, progress_of, system_of
 from .markov_section import markov_section
@@ -133,41 +132,15 @@ def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]
 
 def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     """Mean-square stability of the receding-horizon law u = -K x run for ever over the file's channel
-    (the first step's mu when the channel is non-stationary); adds its keys to ``entry``, returns text.
+    (:func:`~packetloss_cvx.simulation.loop_stability`); adds its keys to ``entry``, returns the sentence.
 
     Examples
     --------
-    x' = x - v K x with P(v = 1) = mu: E[x'^2] = (mu (1 - K)^2 + 1 - mu) x^2, so K = 2/3 at mu = 0.5 gives 5/9,
-    and K = 0 (no control of x' = x) gives 1, not stable.
-
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> entry = {}
     >>> "mean-square stable" in stability(s, np.array([[2 / 3]]), entry), entry["stable"]
     (True, True)
-    >>> bool(np.isclose(entry["mean_square_spectral_radius"], 5 / 9))
-    True
-    >>> _ = stability(s, np.array([[0.0]]), entry)
-    >>> entry["stable"]
-    False
     """
-    mu = system.mu_schedule[0]
-    note = "" if system.is_stationary else " (first step's mu: the channel is non-stationary)"
-    where = f"mu = {fmt.numbers(mu)}{note}"
-    try:
-        if system.channel is not None:   # the losses are correlated: the loop is a Markov jump linear system
-            radius = markov_radius(system.A, system.B, system.channel, gain)
-            note, where = "", "the Gilbert-Elliott chain (a Markov jump linear system)"
-        else:
-            radius = mean_square_radius(system.A, system.B, gain, mu)
-    except (NumericalError, ResourceError, InputError) as err:   # InputError: a chain of more channels than
-        # the MJLS operator takes (2^m modes): the file is valid, only this verdict is out of reach
-        entry.update({"mean_square_spectral_radius": None, "stable": False, "stability_note": str(err)})
-        return f"stability not computed: {err}"
-    stable = is_mean_square_stable(radius)
-    entry.update({"mean_square_spectral_radius": radius, "stable": stable})
-    if note:
-        entry["stability_note"] = note.strip(" ()")
-    verdict = ("mean-square stable" if stable else
-               "NOT mean-square stable: E[x x'] grows without bound when u = -K x runs in a loop over these losses"
-               if radius >= 1 else "not proved mean-square stable (the radius is within 1e-9 of 1)")
-    return f"u = -K x over {where}: {verdict} (second-moment spectral radius {radius:.6g})"
+    verdict = loop_stability(system, gain)
+    entry.update(verdict.to_dict())
+    return verdict.verdict

@@ -8,7 +8,7 @@ ever and sampled; region.py: the stabilisable set; base.py: what they share.
 from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
 from .markov import BurstinessSweep, MarkovSolution, MjlsResult
-from .plans import BatchSolution, CrossCheck, Solution
+from .plans import BatchSolution, CrossCheck, LoopStability, Solution
 from .region import CriticalPoint, Membership, RegionMap
 from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
 
@@ -22,6 +22,7 @@ __all__ = [
     "CriticalPoint",
     "CrossCheck",
     "DesignSweep",
+    "LoopStability",
     "MarkovSolution",
     "Membership",
     "Maximiser",

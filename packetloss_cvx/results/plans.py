@@ -10,7 +10,7 @@ import numpy as np
 from ..display import batch_repr, fields_html, fields_repr, solution_html, solution_repr, to_json
 from .base import Frozen, eigenvalue_pairs
 
-__all__ = ["BatchSolution", "CrossCheck", "Solution"]
+__all__ = ["BatchSolution", "CrossCheck", "LoopStability", "Solution"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,58 @@ class CrossCheck:
 
 
 @dataclass(frozen=True)
+class LoopStability:
+    """Mean-square stability of a plan's receding-horizon law u = -K x run for ever over the system's channel
+    (:func:`packetloss_cvx.simulation.loop_stability`).
+
+    Attributes
+    ----------
+    radius : float or None
+        Spectral radius of the second-moment map E[x x'] -> E[x' x'']; None when it was not computed.
+    stable : bool
+        True only when the radius is proved below 1 (``is_mean_square_stable``); False when it is not, or
+        when the radius was not computed (then ``note`` says why: not a verdict).
+    over : str
+        The loop it speaks of: "mu = [...]" (the first step's mu for a schedule) or the Markov chain.
+    note : str or None
+        Why it is not computed, or that the first step's mu stands for a non-stationary channel.
+    """
+
+    radius: float | None
+    stable: bool
+    over: str
+    note: str | None = None
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    @property
+    def computed(self) -> bool:
+        return self.radius is not None
+
+    @property
+    def verdict(self) -> str:
+        """One sentence: the loop, the verdict and the radius (or why there is none)."""
+        if self.radius is None:
+            return f"stability not computed: {self.note}"
+        if self.stable:
+            verdict = "mean-square stable"
+        elif self.radius >= 1:
+            verdict = "NOT mean-square stable: E[x x'] grows without bound when u = -K x runs in a loop over these losses"
+        else:
+            verdict = "not proved mean-square stable (the radius is within 1e-9 of 1)"
+        return f"u = -K x over {self.over}: {verdict} (second-moment spectral radius {self.radius:.6g})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The keys ``solve --json`` gives each protocol's block."""
+        out: dict[str, Any] = {"mean_square_spectral_radius": self.radius, "stable": self.stable}
+        if self.note is not None:
+            out["stability_note"] = self.note
+        return out
+
+
+@dataclass(frozen=True)
 class Solution(Frozen):
     """The optimal open-loop plan for one protocol.
 
@@ -56,6 +108,9 @@ class Solution(Frozen):
     status, solve_time : solver status and seconds (QPs only).
     cross_check : CrossCheck or None
         For QPs, the comparison with the closed form.
+    stability : LoopStability or None
+        Mean-square stability of u = -K x over the channel, once
+        :func:`packetloss_cvx.simulation.with_stability` attached it (a Solution alone does not know the channel).
     """
 
     protocol: str
@@ -67,6 +122,7 @@ class Solution(Frozen):
     status: str | None = None
     solve_time: float | None = None
     cross_check: CrossCheck | None = None
+    stability: LoopStability | None = None
 
     __repr__ = solution_repr   # the headline numbers, not the arrays (display.py)
     _repr_html_ = solution_html
@@ -90,6 +146,8 @@ class Solution(Frozen):
             out["solve_time"] = self.solve_time
         if self.cross_check is not None:
             out.update(self.cross_check.to_dict())
+        if self.stability is not None:
+            out.update(self.stability.to_dict())
         return out
 
 
