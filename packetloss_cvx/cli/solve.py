@@ -104,7 +104,9 @@ def run(args: argparse.Namespace) -> CommandResult:
         lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows)
     if system.channel is not None:   # Gilbert-Elliott: the exact minimiser under the chain beside the plug-in laws
         out["markov"], more = markov_section(system, protocols, qp=not args.no_qp)
-        lines += ["", "Gilbert-Elliott channel"] + [line.strip() for line in more]
+        model = system.channel.to_dict()["model"]
+        heading = "Gilbert-Elliott channel" if model == "gilbert-elliott" else "Markov channel"
+        lines += ["", heading] + [line.strip() for line in more]
     return CommandResult(out, "\n".join(lines))
 
 
@@ -156,7 +158,7 @@ def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     try:
         if system.channel is not None:   # the losses are correlated: the loop is a Markov jump linear system
             radius = markov_radius(system.A, system.B, system.channel, gain)
-            note, where = "", "the Gilbert-Elliott chain (a Markov jump linear system)"
+            note, where = "", "the Markov chain (a Markov jump linear system)"
         else:
             radius = mean_square_radius(system.A, system.B, gain, mu)
     except (NumericalError, ResourceError, InputError) as err:   # InputError: a chain of more channels than
