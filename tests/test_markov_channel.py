@@ -143,7 +143,8 @@ def test_a_nilpotent_chain_is_correlated_although_its_other_eigenvalues_vanish()
     # (T - 1 pi')^2 = 0: every eigenvalue but 1 is 0, T^j = 1 pi' from j = 2, yet steps 0 and 1 are correlated
     T = np.full((3, 3), 1 / 3) + np.outer([1.0, -1.0, 0.0], [0.1, 0.1, -0.2])
     ch = MarkovChannel(transition=[T.tolist()], delivery=[[1.0, 0.5, 0.0]])
-    assert abs(ch.correlation[0]) < 1e-6 and ch.correlated            # a defective eigenvalue 0: 1e-8 rounding
+    assert abs(ch.correlation[0]) < 1e-6
+    assert ch.correlated
     mean, second = path_moments(ch.transition[0], [1.0, 0.5, 0.0], ch.stationary[0], 3)
     assert abs(second[0, 1] - mean[0] * mean[1]) > 1e-3
     np.testing.assert_allclose(channel_covariance(ch, 3)[0, 0, 1], second[0, 1] - mean[0] * mean[1], rtol=1e-12)
@@ -202,16 +203,19 @@ def test_round_trips_equality_pickling_and_immutability():
     assert MarkovChannel.from_table(ch.to_dict()) == ch
     assert pickle.loads(pickle.dumps(ch)) == ch
     assert copy.deepcopy(ch) is ch
-    assert ch != MarkovChannel.from_table(chain()) and ch != GilbertElliott(p=[0.1, 0.2], r=[0.3, 0.3])
+    assert ch != MarkovChannel.from_table(chain())
+    assert ch != GilbertElliott(p=[0.1, 0.2], r=[0.3, 0.3])
     with pytest.raises(AttributeError, match="immutable"):
         ch.delivery = ()
     assert not ch.transition[0].flags.writeable
     assert repr(MarkovChannel.from_table(chain(state=[2, 1]))).endswith("state=[2, 1])")
     s = with_channel(chain(state=[2, 1]))
     again = system_from_dict(tomllib.loads(dumps_system(s)))
-    assert again.channel == s.channel and np.array_equal(again.mu_schedule, s.mu_schedule)
+    assert again.channel == s.channel
+    assert np.array_equal(again.mu_schedule, s.mu_schedule)
     Ts, ds, starts = zip(*s.channel.chain_matrices(), strict=True)
-    assert [T.shape for T in Ts] == [(3, 3), (2, 2)] and not any(a.flags.writeable for a in (*Ts, *ds, *starts))
+    assert [T.shape for T in Ts] == [(3, 3), (2, 2)]
+    assert not any(a.flags.writeable for a in (*Ts, *ds, *starts))
     assert [b.tolist() for b in starts] == [[0.0, 0.0, 1.0], [0.0, 1.0]]
 
 
@@ -257,8 +261,10 @@ def test_two_state_markov_twin_of_pendulum_bursty_gives_the_same_json(argv, caps
         docs.append(json.loads(capsys.readouterr().out))
     ge, mc = docs
     if argv[0] == "solve":       # the channel's own description differs, every number agrees
-        assert mc["markov"].pop("channel")["model"] == "markov" and ge["markov"].pop("channel")["model"] != "markov"
-        assert mc["markov"].pop("belief") == [[0.9, 0.1]] and ge["markov"].pop("belief") == [0.9]
+        assert mc["markov"].pop("channel")["model"] == "markov"
+        assert ge["markov"].pop("channel")["model"] != "markov"
+        assert mc["markov"].pop("belief") == [[0.9, 0.1]]
+        assert ge["markov"].pop("belief") == [0.9]
         assert mc["markov"]["udp"]["relative_loss"] > 0.05
     else:
         assert (ge.pop("channel", "gilbert-elliott"), mc.pop("channel", "markov")) == ("gilbert-elliott", "markov")

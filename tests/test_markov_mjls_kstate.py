@@ -162,7 +162,8 @@ def test_jump_law_stage_costs_match_every_state_path():
 def test_sampled_paths_follow_the_chain():
     ch = MarkovChannel(transition=[T3, T2], delivery=[D3, D2], state=[2, 0])
     states, v = sample_markov_paths(ch, 6, 40_000, np.random.default_rng(12))
-    assert states.dtype.kind == "i" and states.max(axis=(0, 1)).tolist() == [2, 1]
+    assert states.dtype.kind == "i"
+    assert states.max(axis=(0, 1)).tolist() == [2, 1]
     mu = ch.delivery_schedule(6)
     se = np.sqrt(mu * (1 - mu) / 40_000) + 1e-12
     assert np.all(np.abs(v.mean(axis=0) - mu) <= 4 * se)
