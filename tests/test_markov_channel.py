@@ -270,3 +270,17 @@ def test_two_state_markov_twin_of_pendulum_bursty_gives_the_same_json(argv, caps
     else:
         assert (ge.pop("channel", "gilbert-elliott"), mc.pop("channel", "markov")) == ("gilbert-elliott", "markov")
     _numbers_agree(ge, mc)
+
+
+def test_periodic_and_reducible_chains_with_a_given_start():
+    flip = MarkovChannel(transition=[[[0.0, 1.0], [1.0, 0.0]]], delivery=[[1.0, 0.0]], state=[0])
+    assert not flip.belief_settles                                      # 1, 0, 1, 0, ... never settles
+    assert flip.delivery_schedule(4)[:, 0].tolist() == [1.0, 0.0, 1.0, 0.0]
+    assert MarkovChannel(transition=[[[0.0, 1.0], [1.0, 0.0]]], delivery=[[1.0, 0.0]],
+                         belief=[[0.5, 0.5]]).belief_settles              # already the long-run distribution
+    # two closed classes {0} and {1, 2}, started in the transient state 3: the long-run average by hand
+    T = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.5, 0.0], [0.0, 0.25, 0.75, 0.0], [0.5, 0.25, 0.0, 0.25]]
+    ch = MarkovChannel(transition=[T], delivery=[[1.0, 0.5, 0.0, 0.0]], state=[3])
+    # from 3: absorbed in {0} with probability 0.5 / 0.75 = 2/3, in {1, 2} with 1/3 (there 1/3, 2/3)
+    np.testing.assert_allclose(ch.stationary, [[2 / 3, 1 / 9, 2 / 9, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(ch.mean_rate, [2 / 3 + 0.5 / 9], rtol=1e-12)
