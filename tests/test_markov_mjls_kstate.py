@@ -199,3 +199,20 @@ def test_simulate_behind_an_unseen_three_state_chain_agrees_with_the_exact_value
         assert np.isfinite(run.spectral_radius)
     tcp = simulate(s, samples=20, steps=3, seed=seed, closed_loop=True, laws=["tcp"], progress=False)
     assert "continuum" in tcp.closed_loop["tcp"].exact_reason               # a 3-state outcome hides the state
+
+
+def test_closed_loop_costs_behind_an_iid_chain_are_bernoulli_at_the_mean_rate():
+    """markov_closed_loop_costs samples k-state chains: with identical rows each step delivers Bernoulli(pi . d), so the
+    plug-in UDP-like law's realised cost has the Bernoulli loop's exact mean (simulation.moments)."""
+    from packetloss_cvx.costs import closed_form
+    from packetloss_cvx.simulation.markov_loop import markov_closed_loop_costs
+    from packetloss_cvx.simulation.moments import finite_horizon_costs
+
+    ch = MarkovChannel(transition=[[[0.5, 0.3, 0.2]] * 3], delivery=[D3])
+    A, B = plant(16, m=1)
+    s = pl.System(A=A * 0.9, B=B, horizon=3, state_weight=[1.0, 2.0], input_weight=[0.5], x0=[1.0, -1.0],
+                  noise_cov=0.05 * np.eye(2), channel=ch)
+    costs = markov_closed_loop_costs(s, ["plug-in-udp"], steps=6, samples=20_000, rng=np.random.default_rng(17))[0]
+    twin = s.with_mu(ch.mean_rate)
+    stage, terminal = finite_horizon_costs(twin, closed_form(twin, "udp").gain, 6)
+    assert abs(costs.mean() - stage.sum() - terminal) <= 4 * costs.std(ddof=1) / np.sqrt(costs.size)
