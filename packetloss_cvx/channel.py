@@ -29,7 +29,7 @@ import numpy as np
 from .errors import DimensionError, InputError, ProbabilityError
 from .validation import MAX_ENTRIES
 
-__all__ = ["MODEL", "GilbertElliott", "channel_schedule"]
+__all__ = ["MODEL", "GilbertElliott"]
 
 #: The one Markov channel model the TOML schema knows.
 MODEL = "gilbert-elliott"
@@ -200,6 +200,11 @@ class GilbertElliott:
         return 1.0 - self.p - self.r
 
     @property
+    def correlated(self) -> bool:
+        """Whether deliveries may be correlated across steps (some lambda_i != 0). O(m)."""
+        return bool(np.any(self.correlation))
+
+    @property
     def stationary(self) -> np.ndarray:
         """pi_good = r / (p + r) per channel (the initial belief where p + r = 0 and one is given)."""
         total = self.p + self.r
@@ -246,6 +251,15 @@ class GilbertElliott:
             raise InputError("horizon", f"expected at most {MAX_ENTRIES} numbers ({MAX_ENTRIES // max(per_step, 1)} "
                                         f"steps), found {horizon} steps")
 
+    def propagate(self, belief: np.ndarray) -> np.ndarray:
+        """One step of the prior, ``b_{t+1} = r + lambda b_t``; ``belief`` (..., m). O(m) per belief."""
+        return self.r + self.correlation * belief
+
+    def with_belief(self, belief: Any) -> GilbertElliott:
+        """The same chains with another initial P(good), (m,) (clipped to [0, 1]). O(m)."""
+        return GilbertElliott(p=self.p, r=self.r, h_good=self.h_good, h_bad=self.h_bad,
+                              belief=np.clip(belief, 0.0, 1.0))
+
     def delivery_schedule(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """Predicted mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}, (N, m), clipped to [0, 1]. Time O(N m).
 
@@ -274,29 +288,3 @@ class GilbertElliott:
             out["belief"] = self.belief.tolist()
         return out
 
-
-def channel_schedule(channel: Any, m: int, horizon: int, mu: Any,
-                     mu_schedule: Any) -> tuple[GilbertElliott | None, Any]:
-    """For :class:`~packetloss_cvx.model.System`: ``(None, mu_schedule)`` without a channel; with one
-    (a :class:`GilbertElliott` or its TOML table), the validated channel and its predicted schedule
-    ``delivery_schedule(horizon)`` in place of mu. Giving mu or mu_schedule as well is an InputError.
-    Time O(N m).
-
-    Examples
-    --------
-    >>> channel_schedule(None, m=1, horizon=2, mu=None, mu_schedule=[[0.5], [0.7]])
-    (None, [[0.5], [0.7]])
-    >>> chan, schedule = channel_schedule({"model": "gilbert-elliott", "p": [0.1], "r": [0.4]}, 1, 2, None, None)
-    >>> schedule[:, 0].tolist()                  # from the stationary belief r / (p + r) = 0.8
-    [0.8, 0.8]
-    """
-    if channel is None:
-        return None, mu_schedule
-    if mu is not None or mu_schedule is not None:
-        raise InputError("channel", "expected either a Gilbert-Elliott channel (model, p, r, ...) or mu/mu_schedule, "
-                                    "found both")
-    chan = channel if isinstance(channel, GilbertElliott) else GilbertElliott.from_table(channel)
-    if chan.m != m:
-        raise DimensionError("channel.p", f"expected {m} channels (one per actuator, the columns of B) but found "
-                                          f"{chan.m}")
-    return chan, chan.delivery_schedule(horizon)

@@ -36,8 +36,9 @@ _SCHEMA: dict[str, dict[str, str]] = {
         "input_weight": "input_weight", "input_weights": "input_weights",
         "initial_weight": "initial_weight",
     },
-    "channel": {"mu": "mu", "mu_schedule": "mu_schedule",   # or a Gilbert-Elliott chain (channel.py):
-                **{key: f"channel.{key}" for key in ("model", "p", "r", "h_good", "h_bad", "state", "belief")}},
+    "channel": {"mu": "mu", "mu_schedule": "mu_schedule",   # or a Gilbert-Elliott or general Markov chain
+                **{key: f"channel.{key}" for key in ("model", "p", "r", "h_good", "h_bad", "state", "belief",
+                                                     "transition", "delivery")}},
     "state": {"x0": "x0"},
 }
 _REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",)}

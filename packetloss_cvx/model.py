@@ -19,9 +19,10 @@ from typing import Any, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from .channel import GilbertElliott, channel_schedule
+from .channel import GilbertElliott
 from .display import system_html, system_repr, to_json
 from .errors import InputError
+from .markov_channel import MarkovChannel, channel_schedule
 from .statespace import plant_matrices, plant_statespace, sampling_time
 from .validation import (
     exactly_one,
@@ -107,7 +108,7 @@ class System:
         or N such weights for t = 1..N. Exactly one is given.
     input_weight, input_weights : array_like
         Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
-    mu, mu_schedule, channel : array_like, or a channel.GilbertElliott (or its TOML table)
+    mu, mu_schedule, channel : array_like, or a channel.GilbertElliott or markov_channel.MarkovChannel (or a TOML table)
         Delivery probabilities in [0, 1]: one per actuator, N×m (non-stationary), or a Markov channel's mu_t.
     x0 : array_like
         The state X_k (length n).
@@ -147,7 +148,7 @@ class System:
     initial_weight: np.ndarray
     noise_cov: np.ndarray
     name: str | None
-    channel: GilbertElliott | None
+    channel: GilbertElliott | MarkovChannel | None
     dt: float | None
 
     def __init__(
@@ -370,7 +371,7 @@ class System:
         return self._copy_with(x0=frozen(vector_field(x0, "x0", self.n, f"({self.n},)")))
 
     def with_channel(self, channel: Any) -> System:
-        """A copy behind the Markov ``channel`` (a channel.GilbertElliott or its TOML table): its mu_schedule
+        """A copy behind the Markov ``channel`` (a GilbertElliott, a MarkovChannel or a TOML table): its mu_schedule
         is the channel's predicted schedule. The channel and that schedule are validated as
         ``System(..., channel=channel)`` validates them; the other fields, already validated, are kept.
         Time O(N m).
@@ -386,7 +387,7 @@ class System:
         packetloss_cvx.errors.DimensionError: channel.p: expected 1 channels (one per actuator, ...) but found 2
         """
         if channel is None:
-            raise InputError("channel", "expected a Gilbert-Elliott channel, found None (with_mu sets mu without one)")
+            raise InputError("channel", "expected a Markov channel, found None (with_mu sets mu without one)")
         N, m = self.horizon, self.m
         chan, schedule = channel_schedule(channel, m, N, None, None)
         sched = probabilities(matrix_field(schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")

@@ -24,6 +24,8 @@ __all__ = [
     "STATIONARY_RTOL",
     "PSD_FACTOR_RTOL",
     "PSD_RTOL",
+    "ROW_SUM_ATOL",
+    "STATIONARY_GAP",
     "SYMMETRY_RTOL",
 ]
 
@@ -89,6 +91,16 @@ SELF_CHECK_ATOL = 1e-13
 #: benchmarks/kernel_agreement.py's 28 long horizons (N = 200 to 10^4, rho(A) 0.5 to 1.05); benchmarks/run.py
 #: section 18: 1.7e-16 to 3.3e-16 at N = 10^3 to 10^5.
 STATIONARY_RTOL = 1e-14
+
+#: A Markov channel's transition row, belief or state distribution (markov_channel.py) is accepted when it sums to
+#: 1 within ROW_SUM_ATOL, then divided by its sum: decimal entries such as 0.7, 0.2, 0.1 sum to 1 - 1.1e-16
+#: in binary, and a file's rows are rarely written to more than 9 digits; a row off by more is a typing error.
+ROW_SUM_ATOL = 1e-9
+#: A chain's stationary distribution is unique (eigenvalue 1 simple) when the smallest singular value of
+#: [T' - I; 1'] exceeds STATIONARY_GAP. Two states: that value is p + r (measured: 2.0e-3, 2.0e-6, 2.0e-9, 2.0e-12
+#: at p = r = 1e-3 ... 1e-12), so the Gilbert–Elliott rule (p + r > 0) and this one differ only for p + r below
+#: 1e-12, where the chain needs 10^12 steps to forget its start and a stationary start means nothing.
+STATIONARY_GAP = 1e-12
 
 #: What one dense computation or one QP may allocate: a quarter of the machine's memory.
 MEMORY_BUDGET_BYTES = 0.25 * (os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")

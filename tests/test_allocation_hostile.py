@@ -151,9 +151,13 @@ def test_the_brute_force_reference_refuses_what_allocate_refuses(alpha, beta, G,
     assert info.value.field == field
 
 
-def test_allocate_refuses_to_replace_a_gilbert_elliott_chain_silently(capsys):
-    """allocate pendulum_bursty printed a Bernoulli mu* = 0.0049 for a file whose channel is a chain."""
-    assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1"]) == 2
-    assert capsys.readouterr().err.startswith("packetloss-cvx: error: channel: ")
-    assert main(["allocate", "pendulum", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["status"] == "optimal"   # the same plant behind Bernoulli losses
+def test_allocate_on_a_chain_file_allocates_under_the_chain(capsys):
+    """allocate pendulum_bursty once printed a Bernoulli mu* for a file whose channel is a chain; since issue 23
+    item 5 the decision is the chain's mean rate: TCP-like, whose cost holds only mu_t, exactly the Bernoulli
+    allocation of the same plant at that rate; UDP-like, the exact cost under the chain
+    (tests/test_allocation_chains.py)."""
+    assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0
+    chain = json.loads(capsys.readouterr().out)
+    bern = allocate(pl.load_example("pendulum_bursty").with_mu([0.9]), "tcp", 20000, [1.0])
+    assert chain["status"] == "optimal"
+    assert chain["mu"] == bern.mu.tolist()

@@ -161,7 +161,7 @@ def test_solution_stability_behind_a_chain_is_the_markov_jump_radius():
     bursty = s.with_channel(chain)
     plain = pl.closed_form(bursty.with_mu(bursty.mu_schedule), "udp")
     st = with_stability(bursty, plain).stability
-    assert "Gilbert-Elliott" in st.over
+    assert "Markov chain" in st.over
     assert st.radius == pytest.approx(second_moment_radius(s.A, s.B, plain.gain, np.array([0.7, 0.6])), rel=1e-8)
 
 

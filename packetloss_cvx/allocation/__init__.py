@@ -4,7 +4,8 @@ Modules: ``grammar`` (constraint grammar, argument checks, the polytope of const
 ``boxes`` (LPs over sub-boxes with certified bounds, bisection), ``tcp`` (the exact
 TCP-like SOCP), ``udp`` (monotonic branch and bound), ``api`` (allocate, min_cost,
 best_cost_within_budget), ``studies`` (Pareto curve, contour allocations, the J*(mu) grid),
-``brute_force`` (an independent two-channel reference for tests and the audit).
+``brute_force`` (an independent two-channel reference for tests and the audit), ``chains`` (allocation
+behind Markov chains: mean rates chosen, burstiness held, the exact cost under the chain).
 """
 
 from ..results import Allocation

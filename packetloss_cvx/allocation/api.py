@@ -36,6 +36,7 @@ from ..results import Allocation, MinCost
 from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT, ALLOCATION_GAP_FLOOR
 from .boxes import Outcome, cost_at
+from .chains import ChainEvaluator, chain_burstiness, chain_rates
 from .grammar import (
     Constraint,
     Polytope,
@@ -80,9 +81,10 @@ def _polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float) -
         raise InfeasibleError(f"the constraints admit no mu: {err}", None) from None
 
 
-def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, time_limit: float | None) -> MinCost:
+def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, time_limit: float | None,
+              evaluator: Any = None) -> MinCost:
     out: Outcome = (tcp_min_cost(system, poly) if protocol == "tcp"
-                    else udp_min_cost(system, poly, max_boxes, time_limit))
+                    else udp_min_cost(system, poly, max_boxes, time_limit, evaluator))
     return MinCost(protocol=protocol, cost=out.value, lower_bound=out.lower_bound,
                    gap=(out.value - out.lower_bound) / max(out.value, ALLOCATION_GAP_FLOOR), status=out.status,
                    mu=out.mu, method=out.note)
@@ -135,18 +137,28 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     (True, True)
     """
     protocol = check_protocol(protocol)
+    system, evaluator = _behind_chain(system, protocol)
     system = check_system(system)
     lo, hi = check_bounds(bounds)
     poly = _polytope(constraints, system.m, lo, hi)
-    return _min_cost(system, protocol, poly, _max_boxes(max_boxes), _time_limit(time_limit))
+    return _min_cost(system, protocol, poly, _max_boxes(max_boxes), _time_limit(time_limit), evaluator)
+
+
+def _behind_chain(system: System, protocol: str) -> tuple[System, ChainEvaluator | None]:
+    """``(system at its chain's mean rates, the exact-cost evaluator)`` behind a chain (UDP-like; TCP-like: None,
+    its cost holds only the mean rates); ``(system, None)`` without one. Refusals: allocation/chains.py."""
+    if not isinstance(system, System) or system.channel is None:
+        return system, None
+    evaluator = ChainEvaluator(system, chain_burstiness(system)) if protocol == "udp" else None
+    return system.with_mu(chain_rates(system)), evaluator
 
 
 def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, proof: str, max_boxes: int,
-                time_limit: float | None) -> InfeasibleError:
+                time_limit: float | None, evaluator: Any = None) -> InfeasibleError:
     """The InfeasibleError for a proven infeasibility, with the least reachable cost; a known
     feasible point contradicts the proof and is a SolverError instead."""
     try:
-        least = _min_cost(system, protocol, poly, max_boxes, time_limit)
+        least = _min_cost(system, protocol, poly, max_boxes, time_limit, evaluator)
     except InfeasibleError as err:
         return InfeasibleError(f"{proof}; {err}", None)
     if least.cost <= alpha:
@@ -168,7 +180,10 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     Parameters
     ----------
     system : System
-        Stationary channel; its own mu is ignored.
+        Stationary channel; its own mu is ignored. Behind a Markov chain (``system.channel``, stationary start):
+        mu is each channel's mean delivery rate; UDP-like, the cost is the exact expected cost under Gilbert
+        chains with their burstiness held (:mod:`.chains`, which also lists what is refused); TCP-like, the
+        cost holds only the mean rates, so any stationary chain's allocation is the Bernoulli one.
     protocol : {"tcp", "udp"}
     alpha : float
         Bound on the optimal expected cost, > 0.
@@ -221,6 +236,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     (True, 'optimal', True)
     """
     protocol = check_protocol(protocol)
+    system, evaluator = _behind_chain(system, protocol)       # a chain: its mean rates (chains.py)
     system = check_system(system)
     alpha = check_alpha(alpha)
     beta = check_beta(beta, system.m)
@@ -229,6 +245,8 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     max_boxes = _max_boxes(max_boxes)
     time_limit = _time_limit(time_limit)
     poly = _polytope(constraints, system.m, lo, hi)
+    if evaluator is not None:
+        return _chain_allocate(system, evaluator, alpha, beta, poly, gap, max_boxes, time_limit, progress)
     # the problem is invariant to the scale of the prices: solve with max(beta) = 1 and scale back,
     # so that no absolute floor (ALLOCATION_GAP_FLOOR) can certify a gap at tiny prices
     unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
@@ -263,6 +281,27 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
                       lower_bound=out.lower_bound * unit,
                       gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR),
                       status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)
+
+
+def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, beta: np.ndarray, poly: Polytope,
+                    gap: float, max_boxes: int, time_limit: float | None, progress: bool | None) -> Allocation:
+    """The UDP-like allocation behind Gilbert chains: the monotonic branch and bound on the exact cost under the
+    chain (no TCP-like floor: Theorem 2 is not established under a chain), prices scaled as :func:`allocate`."""
+    unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
+    prices = beta / unit
+    try:
+        out = udp_allocate(system, poly, alpha, prices, gap, -np.inf, max_boxes, time_limit, progress=progress,
+                           evaluator=evaluator)
+    except InfeasibleError as err:
+        raise _infeasible(system, "udp", alpha, poly, str(err), max_boxes, time_limit, evaluator) from None
+    note = (f"{out.note}; exact expected cost behind Gilbert chains, burstiness lambda = "
+            f"{np.round(evaluator.lam, 6).tolist()} held")
+    scaled = float(prices @ out.mu)
+    cost = evaluator.cost(out.mu) if out.cost is None else out.cost
+    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
+                      lower_bound=out.lower_bound * unit,
+                      gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR),
+                      status=out.status, method=note, protocol="udp", alpha=alpha, beta=beta, boxes=out.boxes)
 
 
 @blas_limited

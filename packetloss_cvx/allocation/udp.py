@@ -34,6 +34,7 @@ from __future__ import annotations
 import heapq
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -175,10 +176,14 @@ class Search:
 
 
 def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float, floor: float,
-                 max_boxes: int, time_limit: float | None, progress: bool | None = False) -> Outcome:
+                 max_boxes: int, time_limit: float | None, progress: bool | None = False,
+                 evaluator: Any = None) -> Outcome:
     """min beta'mu over the polytope with J*_udp(mu) <= alpha, to a relative ``gap``.
 
-    ``floor`` is a proven lower bound from elsewhere (the TCP-like relaxation, Theorem 2).
+    ``floor`` is a proven lower bound from elsewhere (the TCP-like relaxation, Theorem 2). ``evaluator``: another
+    cost nonincreasing in each mu_i with the ``cost(mu, checked)`` / ``line(mu, i, checked)`` interface of
+    :class:`~packetloss_cvx.evaluator.CostEvaluator` (:class:`~packetloss_cvx.allocation.chains.ChainEvaluator`:
+    the exact cost behind chains); default the system's J*_udp.
     Cost per box and worst-case box count: see the module docstring.
 
     Raises
@@ -201,7 +206,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     ('optimal', True, True)
     """
     m = system.m
-    J, evaluator = cost_function(system, "udp")
+    J, evaluator = _cost(system, evaluator)
     prune_above = alpha * (1 + ALLOCATION_COST_RTOL)
     weights = np.maximum(beta, SPLIT_WEIGHT_FLOOR)
     search = Search(gap, max(floor, float(beta @ poly.lower())), max_boxes, time_limit, progress)
@@ -283,7 +288,15 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     return out
 
 
-def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: float | None) -> Outcome:
+def _cost(system: System, evaluator: Any) -> tuple[Callable[[np.ndarray], float], Any]:
+    """``(J, evaluator)``: the system's J*_udp, or the given evaluator's checked cost."""
+    if evaluator is None:
+        return cost_function(system, "udp")
+    return (lambda mu: evaluator.cost(np.clip(mu, 0.0, 1.0))), evaluator
+
+
+def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: float | None,
+                 evaluator: Any = None) -> Outcome:
     """min J*_udp over the polytope, to ``MIN_COST_RTOL``: the minimum sits at a maximal point;
     boxes are bounded by J*(upper corner) (Theorem 3) and incumbents are maximal LP points.
 
@@ -308,7 +321,7 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
     ([0.5], 0.75, 0.75, 'optimal')
     """
     m = system.m
-    J, _ = cost_function(system, "udp")
+    J, _ = _cost(system, evaluator)
     lower, upper = poly.lower(), poly.upper()
     q, _ = box_lp(-np.ones(m), poly, lower, upper)
     if q is None:

@@ -43,12 +43,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     (3, 'infeasible', 0.5)
     >>> folder.cleanup()
     """
-    system = system_of(args)
-    if system.channel is not None:   # the search replaces the channel by Bernoulli mu: not the file's chain
-        raise InputError("channel", "allocate chooses independent (Bernoulli) delivery probabilities mu, which would "
-                                    "replace this file's Gilbert-Elliott chain: give a file with [channel] mu (or "
-                                    "--mu), or vary the chain's burstiness with `packetloss-cvx sweep "
-                                    f"{args.file} --burstiness 0:0.9:10`")
+    system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     if args.gap is not None:

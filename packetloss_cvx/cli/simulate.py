@@ -100,7 +100,8 @@ def _num(value: float, digits: int = 6) -> str:
 def _text(name: str, sim: Simulation) -> str:
     bursty = sim.channel != "bernoulli"
     lines = [f"{name}: {sim.samples} sampled runs, seed {sim.seed}"
-             + (" (the Gilbert-Elliott chain sampled per run; exact values under the chain)" if bursty else "")]
+             + (f" (the {'Gilbert-Elliott' if sim.channel == 'gilbert-elliott' else 'Markov'} chain sampled per run; "
+                "exact values under the chain)" if bursty else "")]
     for p, c in sim.open_loop.items():
         label = "exact minimiser's plan" if p == EXACT_PLAN else f"{p.upper()}-like {'plug-in ' if bursty else ''}plan"
         if c.reason:

@@ -103,7 +103,9 @@ def run(args: argparse.Namespace) -> CommandResult:
         lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows)
     if system.channel is not None:   # Gilbert-Elliott: the exact minimiser under the chain beside the plug-in laws
         out["markov"], more = markov_section(system, protocols, qp=not args.no_qp)
-        lines += ["", "Gilbert-Elliott channel"] + [line.strip() for line in more]
+        model = system.channel.to_dict()["model"]
+        heading = "Gilbert-Elliott channel" if model == "gilbert-elliott" else "Markov channel"
+        lines += ["", heading] + [line.strip() for line in more]
     return CommandResult(out, "\n".join(lines))
 
 

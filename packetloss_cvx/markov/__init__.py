@@ -1,6 +1,7 @@
-"""Gilbert–Elliott (Markov) channels end to end: prediction from the chain, the exact expected cost
+"""Markov channels (Gilbert–Elliott and k-state) end to end: prediction from the chain, the exact expected cost
 under correlated losses and its minimisers (closed form and QP), Markov jump linear systems, and
-burstiness sweeps. One job per module; the channel description itself is :mod:`packetloss_cvx.channel`.
+burstiness sweeps. One job per module; the channel descriptions themselves are :mod:`packetloss_cvx.channel`
+and :mod:`packetloss_cvx.markov_channel`.
 
     chain.py       beliefs, the HMM filter, plug-in schedules, R = E[v v'] in O(N^2 m)
     exact_cost.py  E[cost] of a plan under correlated losses, its closed-form minimiser

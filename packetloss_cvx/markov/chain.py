@@ -13,7 +13,10 @@ Within one channel, for t != s and d = |t - s| (P^d = 1 pi' + lambda^d (I - 1 pi
 
     Cov(v_t, v_s) = lambda^d b_u (1 - b_u) (h_good - h_bad)^2,   u = min(t, s),
 
-and deliveries of different channels are independent, so R is block-structured.
+and deliveries of different channels are independent, so R is block-structured. A k-state
+:class:`~packetloss_cvx.markov_channel.MarkovChannel` has a distribution over its states as belief, propagated
+by its transition matrix (``pi_{t+1} = pi_t T``) and filtered by Bayes' rule alike; its covariance is
+``(pi_s ∘ (d - mu_s)) T^|t-s| d`` (:func:`channel_covariance`).
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import numpy.typing as npt
 
 from ..channel import GilbertElliott
 from ..errors import InputError
+from ..markov_channel import MarkovChannel
 from ..model import CacheKey, System, check_system
 from ..protocols import check_protocol
 
@@ -37,14 +41,17 @@ __all__ = [
 ]
 
 
-def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:
+def filter_belief(channel: GilbertElliott | MarkovChannel, belief: npt.ArrayLike,
+                  delivered: npt.ArrayLike) -> np.ndarray:
     """One step of the HMM filter: P(good at t+1 | outcome at t), from P(good at t) = ``belief``.
 
     .. math:: b^+ = \\frac{b\\,h_g^v (1-h_g)^{1-v}}{b\\,h_g^v (1-h_g)^{1-v} + (1-b)\\,h_b^v (1-h_b)^{1-v}},
               \\qquad b_{t+1} = r + (1 - p - r)\\,b^+
 
     Time O(m) per belief; ``belief`` and ``delivered`` may carry leading dimensions (one row per run).
-    For the Gilbert channel a delivery gives ``1 - p`` and a loss ``r`` (the state is known).
+    For the Gilbert channel a delivery gives ``1 - p`` and a loss ``r`` (the state is known). A
+    :class:`~packetloss_cvx.markov_channel.MarkovChannel`'s belief is a distribution over its states, (..., m, K):
+    :meth:`~packetloss_cvx.markov_channel.MarkovChannel.filter`, O(m K^2) per belief.
 
     Raises
     ------
@@ -59,6 +66,16 @@ def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt
     """
     b = np.asarray(belief, dtype=float)
     v = np.asarray(delivered)
+    if isinstance(channel, MarkovChannel):
+        if b.ndim < 2 or b.shape[-2:] != (channel.m, max(channel.sizes)) or v.shape != b.shape[:-1]:
+            raise InputError("delivered", f"expected one outcome per channel ({channel.m}) and one distribution over "
+                                          f"{max(channel.sizes)} states per channel (leading dimensions alike), found "
+                                          f"{v.shape} and {b.shape}")
+        if not np.all((b >= 0.0) & (b <= 1.0)):
+            raise InputError("belief", "expected state probabilities in [0, 1]")
+        if v.dtype != bool and not (np.issubdtype(v.dtype, np.number) and np.all((v == 0) | (v == 1))):
+            raise InputError("delivered", "expected outcomes True/False or 1/0 (delivered/lost)")
+        return channel.filter(b, v)
     if v.shape != b.shape or b.ndim < 1 or b.shape[-1] != channel.m:
         raise InputError("delivered", f"expected one outcome and one belief per channel ({channel.m}; leading "
                                       f"dimensions alike), found {v.shape} and {b.shape}")
@@ -78,7 +95,7 @@ def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt
     return np.clip(channel.r + channel.correlation * posterior, 0.0, 1.0)   # a probability, rounding aside
 
 
-def plugin_schedule(channel: GilbertElliott, horizon: int, protocol: str,
+def plugin_schedule(channel: GilbertElliott | MarkovChannel, horizon: int, protocol: str,
                     acknowledged: Sequence[Sequence[bool]] = ()) -> tuple[np.ndarray, np.ndarray]:
     """The predicted delivery probabilities of a plan made after ``len(acknowledged)`` steps.
 
@@ -101,12 +118,11 @@ def plugin_schedule(channel: GilbertElliott, horizon: int, protocol: str,
         raise InputError("horizon", f"expected an integer >= 1, found {horizon!r}")
     b = np.array(channel.initial_belief, dtype=float)
     for outcome in acknowledged:
-        b = filter_belief(channel, b, outcome) if protocol == "tcp" else np.clip(channel.r + channel.correlation * b,
-                                                                                 0.0, 1.0)
+        b = filter_belief(channel, b, outcome) if protocol == "tcp" else np.clip(channel.propagate(b), 0.0, 1.0)
     return channel.delivery_schedule(int(horizon), b), b
 
 
-def attach_channel(system: System, channel: GilbertElliott) -> System:
+def attach_channel(system: System, channel: GilbertElliott | MarkovChannel) -> System:
     """A copy of ``system`` behind the Markov ``channel`` (its mu or mu_schedule replaced by the
     channel's predicted schedule): :meth:`~packetloss_cvx.model.System.with_channel`, which validates the
     channel and the schedule and keeps the system's other, already validated, fields. Time O(N m).
@@ -117,8 +133,8 @@ def attach_channel(system: System, channel: GilbertElliott) -> System:
     >>> attach_channel(s, GilbertElliott(p=[0.1], r=[0.3], state=["bad"])).mu_schedule[:, 0].tolist()
     [0.0, 0.3]
     """
-    if not isinstance(channel, GilbertElliott):
-        raise InputError("channel", f"expected a GilbertElliott, found {type(channel).__name__}")
+    if not isinstance(channel, GilbertElliott | MarkovChannel):
+        raise InputError("channel", f"expected a GilbertElliott or a MarkovChannel, found {type(channel).__name__}")
     return check_system(system).with_channel(channel)
 
 
@@ -138,14 +154,17 @@ def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence
     if system.channel is None:
         raise InputError("system", "expected a system with a Gilbert-Elliott channel ([channel] model = ...)")
     _, b = plugin_schedule(system.channel, system.horizon, protocol, acknowledged)
-    ch = system.channel
-    return attach_channel(system, GilbertElliott(p=ch.p, r=ch.r, h_good=ch.h_good, h_bad=ch.h_bad,
-                                                 belief=np.clip(b, 0.0, 1.0)))
+    return attach_channel(system, system.channel.with_belief(b))
 
 
-def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
+def channel_covariance(channel: GilbertElliott | MarkovChannel, horizon: int) -> np.ndarray:
     """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array. Diagonal mu (1 - mu); off the
     diagonal lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 with u = min(t, s). Time O(N^2 m).
+
+    For a k-state :class:`~packetloss_cvx.markov_channel.MarkovChannel`, with pi_s the state distribution at s
+    and j = t - s > 0, ``Cov(v_s, v_t) = (pi_s ∘ (d - mu_s)) T^j d`` (E[v_s v_t] = (pi_s ∘ d) T^j d, and
+    mu_s mu_t = mu_s pi_s T^j d); the vectors T^j d are centred on their first entry (the weights sum to zero),
+    so a chain with identical rows gives exact zeros. Time O(N^2 m K + N m K^2).
 
     Examples
     --------
@@ -154,6 +173,8 @@ def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
     [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
     """
     channel.check_horizon(horizon, channel.m * horizon if isinstance(horizon, int | np.integer) else 1)
+    if isinstance(channel, MarkovChannel):
+        return _chain_covariance(channel, horizon)
     N = horizon
     b = channel.beliefs(N)                                      # (N, m)
     mu = channel.delivery_schedule(N)
@@ -170,7 +191,25 @@ def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
     return out
 
 
-def second_moments(channel: GilbertElliott, horizon: int) -> np.ndarray:
+def _chain_covariance(channel: MarkovChannel, N: int) -> np.ndarray:
+    beliefs, mu = channel.beliefs(N), channel.delivery_schedule(N)
+    lag = np.abs(np.arange(N)[:, None] - np.arange(N)[None, :])
+    first = np.minimum(np.arange(N)[:, None], np.arange(N)[None, :])
+    out = np.empty((channel.m, N, N))
+    for i, (T, d, k) in enumerate(zip(channel.transition, channel.delivery, channel.sizes, strict=True)):
+        c = np.empty((N, k))                                   # c_j = T^j d
+        c[0] = d
+        for j in range(1, N):
+            c[j] = T @ c[j - 1]
+        c -= c[:, :1]
+        weights = beliefs[:, i, :k] * (d[None, :] - mu[:, i, None])          # pi_s ∘ (d - mu_s), (N, k)
+        table = weights @ c.T                                                  # [s, j] = Cov(v_s, v_{s+j})
+        out[i] = table[first, lag]
+        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
+    return out
+
+
+def second_moments(channel: GilbertElliott | MarkovChannel, horizon: int) -> np.ndarray:
     """E[v_{i,t} v_{i,s}] for each channel, (m, N, N): mu_t mu_s + Cov, with mu_t on the diagonal
     (v is 0 or 1). Time O(N^2 m).
 

@@ -80,7 +80,7 @@ def correlation_term(system: System, inputs: npt.ArrayLike, pred: Prediction | N
     """
     system = check_system(system)
     U = check_inputs(system, inputs).ravel()
-    if system.channel is None or not np.any(system.channel.correlation):
+    if system.channel is None or not system.channel.correlated:
         return 0.0
     pred = dense_prediction(system) if pred is None else pred
     C = stacked_moments(system)[1].copy()

@@ -1,8 +1,10 @@
-"""The loop behind Gilbert–Elliott channels as a Markov jump linear system (MJLS).
+"""The loop behind Markov channels as a Markov jump linear system (MJLS).
 
-Mode theta_k = the joint channel state (2^m modes, channels independent: the mode chain's transition
-matrix is the Kronecker product of the channels' 2×2 ones). In mode a, actuator i's packet arrives with
-probability h_{a,i} (h_good or h_bad), independently. The closed loop ``x_{k+1} = (A - B V_k K_a) x_k``
+Mode theta_k = the joint channel state (2^m modes for Gilbert–Elliott channels, prod_i k_i for k-state
+:class:`~packetloss_cvx.markov_channel.MarkovChannel` ones; channels independent: the mode chain's transition
+matrix is the Kronecker product of the channels' own). In mode a, actuator i's packet arrives with
+probability h_{a,i} (h_good or h_bad; d_i of the state), independently. The closed loop
+``x_{k+1} = (A - B V_k K_a) x_k``
 is mean-square stable iff the spectral radius of its coupled second-moment operator
 
     Q_b  <-  sum_a T_ab E_v[(A - B V K_a) Q_a (A - B V K_a)' | a]
@@ -29,6 +31,7 @@ from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator
 
 from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError, ResourceError
+from ..markov_channel import MarkovChannel
 from ..model import System, check_system
 from ..recursion import riccati_step
 from ..results import MjlsResult
@@ -36,12 +39,14 @@ from ..tolerances import ARPACK_TOL, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 
 __all__ = [
     "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
-    "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "moment_step", "mode_chain",
-    "second_moment_operator",
+    "MAX_MODES", "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "moment_step", "mode_chain",
+    "mode_start", "second_moment_operator",
 ]
 
 #: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the operator is refused.
 MAX_CHANNELS = 6
+#: The product chain of k-state channels is refused beyond as many modes as MAX_CHANNELS Gilbert–Elliott ones give.
+MAX_MODES = 2 ** MAX_CHANNELS
 #: Rows M n^2 of the dense coupled operator beyond which it is refused (ResourceError): its eigenvalues take
 #: O((M n^2)^3) time and 16 (M n^2)^2 bytes (2048 rows: 64 MiB, a few seconds).
 MAX_OPERATOR_DIM = 2048
@@ -49,10 +54,17 @@ MAX_OPERATOR_DIM = 2048
 DENSE_MAX_DIM = 400
 
 
-def mode_chain(channel: GilbertElliott) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def mode_chain(channel: GilbertElliott | MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(modes, T, h)``: the 2^m joint states (1 = good, channel 0 the most significant), their
     transition matrix (Kronecker product of the channels' chains) and per-mode delivery probabilities.
-    Time O(4^m m).
+    Time O(4^m m). For a :class:`~packetloss_cvx.markov_channel.MarkovChannel` the M = prod_i k_i joint states
+    (each row the state indices, channel 0 the most significant, state 0 first: a two-state twin's modes come in
+    the Gilbert–Elliott order), refused beyond :data:`MAX_MODES`; time O(M^2 + M m).
+
+    Raises
+    ------
+    InputError
+        More than :data:`MAX_CHANNELS` Gilbert–Elliott channels, or a product chain beyond :data:`MAX_MODES`.
 
     Examples
     --------
@@ -60,6 +72,16 @@ def mode_chain(channel: GilbertElliott) -> tuple[np.ndarray, np.ndarray, np.ndar
     [[[1], [0]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
     """
     m = channel.m
+    if isinstance(channel, MarkovChannel):
+        M = int(np.prod(channel.sizes))
+        if M > MAX_MODES:
+            raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
+                                        f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES}")
+        modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
+        T = np.ones((1, 1))
+        for Ti in channel.transition:
+            T = np.kron(T, Ti)
+        return modes, T, channel.padded_delivery[np.arange(m), modes]
     if m > MAX_CHANNELS:
         raise InputError("channel", f"the MJLS has 2^m modes; expected at most {MAX_CHANNELS} channels, found {m}")
     modes = np.array(list(itertools.product([1, 0], repeat=m)), dtype=int)
@@ -69,6 +91,21 @@ def mode_chain(channel: GilbertElliott) -> tuple[np.ndarray, np.ndarray, np.ndar
         T = np.kron(T, Ti)
     h = np.where(modes == 1, channel.h_good, channel.h_bad)
     return modes, T, h
+
+
+def mode_start(channel: GilbertElliott | MarkovChannel) -> np.ndarray:
+    """P(mode at the first step) from the channel's initial belief, in :func:`mode_chain`'s order. O(M m).
+
+    Examples
+    --------
+    >>> mode_start(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25])).tolist()   # good, good: 0.25
+    [0.25, 0.75, 0.0, 0.0]
+    """
+    modes = mode_chain(channel)[0]
+    b0 = channel.initial_belief
+    if isinstance(channel, MarkovChannel):
+        return np.prod(b0[np.arange(channel.m), modes], axis=1)
+    return np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
 
 
 def _patterns(h: np.ndarray) -> list[tuple[float, np.ndarray]]:
@@ -113,7 +150,7 @@ def _mode_gains(gains: np.ndarray, M: int, m: int, n: int) -> np.ndarray:
     return K
 
 
-def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, gains: np.ndarray,
+def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | MarkovChannel, gains: np.ndarray,
                            delivery: str = "current") -> np.ndarray:
     """The matrix of the coupled second-moment map on stacked vec(Q_a), (M n^2)×(M n^2).
 
@@ -151,7 +188,7 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott
     return blocks.transpose(1, 2, 0, 3).reshape(M * n * n, M * n * n)                        # rows b, columns a
 
 
-def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, gains: np.ndarray,
+def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | MarkovChannel, gains: np.ndarray,
                        delivery: str = "current", method: str = "auto") -> float:
     """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
     loop is mean-square stable.
@@ -306,8 +343,7 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     if K_all.shape != (steps, M, m, n):
         raise InputError("gains", f"expected ({M}, {m}, {n}) or ({steps}, {M}, {m}, {n}) mode gains, found "
                                   f"{K_all.shape}")
-    b0 = system.channel.initial_belief
-    pi = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)                                   # P(mode at 0)
+    pi = mode_start(system.channel)                                                          # P(mode at 0)
     H2 = delivery_moments(h)
     x0 = system.x0
     if delivery == "next":

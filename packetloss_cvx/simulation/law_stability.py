@@ -3,7 +3,7 @@
 A :class:`~packetloss_cvx.results.Solution` holds the receding-horizon gain K but not the channel, so its
 mean-square stability is computed here, from the system it was solved for: with Bernoulli losses the radius
 of the second-moment operator at mu (:func:`~packetloss_cvx.simulation.stability.mean_square_radius`; the first
-step's mu when the schedule varies), behind a Gilbert-Elliott chain the Markov jump linear system's
+step's mu when the schedule varies), behind a Markov chain (Gilbert-Elliott or k-state) the Markov jump linear system's
 (:func:`packetloss_cvx.markov.mean_square_radius`). ``solve`` prints the same verdict.
 """
 
@@ -53,7 +53,7 @@ def loop_stability(system: System, gain: npt.ArrayLike) -> LoopStability:
         raise InputError("gain", f"expected shape ({system.m}, {system.n}) (m × n) but found {K.shape}")
     mu = system.mu_schedule[0]
     if system.channel is not None:   # the losses are correlated: the loop is a Markov jump linear system
-        over, note = "the Gilbert-Elliott chain (a Markov jump linear system)", None
+        over, note = "the Markov chain (a Markov jump linear system)", None
     else:
         over = f"mu = {_numbers(mu)}"
         note = None if system.is_stationary else "first step's mu: the channel is non-stationary"

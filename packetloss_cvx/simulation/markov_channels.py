@@ -1,8 +1,11 @@
-"""Gilbert–Elliott channels sampled: state paths of the chains, the deliveries they produce, and
+"""Markov channels sampled: state paths of the chains, the deliveries they produce, and
 the realised cost of an open-loop plan under them (the Monte Carlo reference for the exact cost).
 
 The chains of different channels are independent; each starts from the channel's initial belief
-(given, or the stationary distribution) and moves with P(good -> bad) = p, P(bad -> good) = r.
+(given, or the stationary distribution) and moves with P(good -> bad) = p, P(bad -> good) = r
+(Gilbert–Elliott: states are good-state indicators, bool), or by its transition matrix (a k-state
+:class:`~packetloss_cvx.markov_channel.MarkovChannel`: states are indices, int, drawn by inverting the
+cumulative distribution of the current row with one uniform number, so state 0 iff u < P(state 0)).
 """
 
 from __future__ import annotations
@@ -14,10 +17,12 @@ from ..channel import GilbertElliott
 from ..costs import check_inputs
 from ..errors import InputError
 from ..linalg import psd_factor
+from ..markov_channel import MarkovChannel
 from ..model import System
 
 __all__ = [
     "reveals_state", "sample_markov_deliveries", "sample_markov_paths", "sample_markov_plan_costs", "sample_states",
+    "state_delivery",
 ]
 
 
@@ -27,10 +32,38 @@ def _count(value: int, field: str) -> int:
     return int(value)
 
 
-def sample_states(channel: GilbertElliott, horizon: int, samples: int, rng: np.random.Generator) -> np.ndarray:
-    """Good-state indicators S_{i,t} of ``samples`` independent paths: bool (samples, N, m).
+def _draw(u: np.ndarray, probs: np.ndarray) -> np.ndarray:
+    """The state index whose cumulative-probability interval holds ``u`` (..., m), probs (..., m, K)."""
+    cum = np.cumsum(probs, axis=-1)
+    return np.minimum((u[..., None] >= cum).sum(axis=-1), probs.shape[-1] - 1)
 
-    Time and memory O(samples N m).
+
+def _next_states(channel: MarkovChannel, states: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """One step of every chain: rows ``T_i[states]`` inverted at ``u``; ``states`` and ``u`` (..., m)."""
+    rows = channel.padded_transition[np.arange(channel.m), states]          # (..., m, K)
+    return _draw(u, rows)
+
+
+def state_delivery(channel: GilbertElliott | MarkovChannel, states: np.ndarray) -> np.ndarray:
+    """The delivery probability of each sampled state: h_good / h_bad of good-state indicators (Gilbert–Elliott),
+    d_i[state] of state indices (MarkovChannel); same shape (..., m). O(size).
+
+    Examples
+    --------
+    >>> state_delivery(GilbertElliott(p=[0.1], r=[0.5], h_bad=[0.2]), np.array([[True], [False]])).tolist()
+    [[1.0], [0.2]]
+    """
+    if isinstance(channel, MarkovChannel):
+        return channel.padded_delivery[np.arange(channel.m), states]
+    return np.where(states, channel.h_good, channel.h_bad)
+
+
+def sample_states(channel: GilbertElliott | MarkovChannel, horizon: int, samples: int,
+                  rng: np.random.Generator) -> np.ndarray:
+    """Good-state indicators S_{i,t} of ``samples`` independent paths: bool (samples, N, m); state indices (int)
+    for a MarkovChannel.
+
+    Time and memory O(samples N m) (O(samples N m K) for a MarkovChannel).
 
     Examples
     --------
@@ -39,6 +72,14 @@ def sample_states(channel: GilbertElliott, horizon: int, samples: int, rng: np.r
     [False, True, True]
     """
     N, S = _count(horizon, "horizon"), _count(samples, "samples")
+    if isinstance(channel, MarkovChannel):
+        out = np.empty((S, N, channel.m), dtype=np.int64)
+        start = np.broadcast_to(channel.initial_belief, (S, *channel.stationary.shape))
+        state = _draw(rng.random((S, channel.m)), start)
+        for t in range(N):
+            out[:, t] = state
+            state = _next_states(channel, state, rng.random((S, channel.m)))
+        return out
     out = np.empty((S, N, channel.m), dtype=bool)
     good = rng.random((S, channel.m)) < channel.initial_belief
     for t in range(N):
@@ -48,9 +89,10 @@ def sample_states(channel: GilbertElliott, horizon: int, samples: int, rng: np.r
     return out
 
 
-def reveals_state(channel: GilbertElliott) -> bool:
+def reveals_state(channel: GilbertElliott | MarkovChannel) -> bool:
     """True when every channel's outcome reveals its state ({h_good, h_bad} = {0, 1}, e.g. the Gilbert
-    channel): then the TCP-like filtered belief is a function of the last outcome. O(m).
+    channel): then the TCP-like filtered belief is a function of the last outcome. O(m). A MarkovChannel:
+    :meth:`~packetloss_cvx.markov_channel.MarkovChannel.reveals_state` (deliveries 0 and 1, distinct: k <= 2).
 
     Examples
     --------
@@ -59,10 +101,12 @@ def reveals_state(channel: GilbertElliott) -> bool:
     >>> reveals_state(GilbertElliott(p=[0.1, 0.1], r=[0.5, 0.5], h_bad=[0.0, 0.2]))   # channel 1 may deliver when bad
     False
     """
+    if isinstance(channel, MarkovChannel):
+        return channel.reveals_state()
     return bool(np.all(((channel.h_good == 1) & (channel.h_bad == 0)) | ((channel.h_good == 0) & (channel.h_bad == 1))))
 
 
-def sample_markov_paths(channel: GilbertElliott, steps: int, samples: int,
+def sample_markov_paths(channel: GilbertElliott | MarkovChannel, steps: int, samples: int,
                         rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Good-state indicators and deliveries of ``samples`` runs over ``steps`` steps: two bool arrays
     (samples, steps, m), drawn in the Bernoulli samplers' order.
@@ -74,7 +118,9 @@ def sample_markov_paths(channel: GilbertElliott, steps: int, samples: int,
     the delivery is the state's h (no more draws); otherwise a second uniform array gives
     ``v_t = u'_t < h(S_t)``. So a memoryless Gilbert chain (p + r = 1, h_good = 1, h_bad = 0) draws exactly
     the Bernoulli(r) deliveries of the same stream, run by run (the first runs do not depend on ``samples``).
-    Time and memory O(samples steps m).
+    Time and memory O(samples steps m). A MarkovChannel: state indices, ``S_0`` and ``S_t`` the inverse of the
+    cumulative distribution of the initial belief and of the row ``T[S_{t-1}]`` at ``u_t`` (state 0 iff
+    ``u_t < T[S_{t-1}, 0]``: a two-state twin draws the Gilbert–Elliott paths), time O(samples steps m K).
 
     Examples
     --------
@@ -86,6 +132,13 @@ def sample_markov_paths(channel: GilbertElliott, steps: int, samples: int,
     """
     T, S = _count(steps, "steps"), _count(samples, "samples")
     u = rng.random((S, T, channel.m))
+    if isinstance(channel, MarkovChannel):
+        states = np.empty((S, T, channel.m), dtype=np.int64)
+        states[:, 0] = _draw(u[:, 0], np.broadcast_to(channel.initial_belief, (S, *channel.stationary.shape)))
+        for t in range(1, T):
+            states[:, t] = _next_states(channel, states[:, t - 1], u[:, t])
+        h = state_delivery(channel, states)
+        return states, (h == 1 if reveals_state(channel) else rng.random(states.shape) < h)
     good = np.empty((S, T, channel.m), dtype=bool)
     good[:, 0] = u[:, 0] < channel.initial_belief
     for t in range(1, T):
@@ -95,7 +148,7 @@ def sample_markov_paths(channel: GilbertElliott, steps: int, samples: int,
     return good, rng.random(good.shape) < np.where(good, channel.h_good, channel.h_bad)
 
 
-def sample_markov_deliveries(channel: GilbertElliott, horizon: int, samples: int,
+def sample_markov_deliveries(channel: GilbertElliott | MarkovChannel, horizon: int, samples: int,
                              rng: np.random.Generator) -> np.ndarray:
     """Deliveries v_{i,t} (True = the packet arrived): bool (samples, N, m), with P(v = 1 | state)
     = h_good or h_bad. Time O(samples N m).
@@ -109,8 +162,8 @@ def sample_markov_deliveries(channel: GilbertElliott, horizon: int, samples: int
     >>> bool(abs(v.mean() - 0.6 / 0.8) < 0.03), bool(abs(v[v[:, 0], 1].mean() - 0.8) < 0.03)   # r/(p+r); 1 - p
     (True, True)
     """
-    good = sample_states(channel, horizon, samples, rng)
-    return rng.random(good.shape) < np.where(good, channel.h_good, channel.h_bad)
+    states = sample_states(channel, horizon, samples, rng)
+    return rng.random(states.shape) < state_delivery(channel, states)
 
 
 def sample_markov_plan_costs(system: System, inputs: npt.ArrayLike, samples: int,

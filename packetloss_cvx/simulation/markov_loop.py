@@ -1,4 +1,5 @@
-"""Receding-horizon laws run in closed loop behind Gilbert–Elliott channels (the chain sampled per run).
+"""Receding-horizon laws run in closed loop behind Markov channels (the chain sampled per run; Gilbert–Elliott or
+k-state, whose beliefs are distributions over the states).
 
 At every step each law re-plans from the current state with its belief about the channels:
 
@@ -19,7 +20,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..channel import GilbertElliott
 from ..costs import closed_form
 from ..errors import InputError, ResourceError
 from ..linalg import psd_factor
@@ -27,7 +27,7 @@ from ..markov import attach_channel, exact_closed_form, filter_belief
 from ..model import System, check_system
 from ..progress import progress_bar
 from .channels import sample_noise_paths
-from .markov_channels import sample_markov_paths, sample_states
+from .markov_channels import sample_markov_paths, sample_states, state_delivery
 
 __all__ = ["MARKOV_LAWS", "PLAN_BUDGET", "BeliefGains", "markov_closed_loop_costs", "markov_loop_block", "mode_index"]
 
@@ -39,9 +39,7 @@ MARKOV_LAWS = ("plug-in-tcp", "plug-in-udp", "exact-tcp", "exact-udp")
 
 
 def _gain(system: System, law: str, belief: np.ndarray) -> np.ndarray:
-    ch = system.channel
-    moved = attach_channel(system, GilbertElliott(p=ch.p, r=ch.r, h_good=ch.h_good, h_bad=ch.h_bad,
-                                                  belief=np.clip(belief, 0.0, 1.0)))
+    moved = attach_channel(system, system.channel.with_belief(belief))
     kind, protocol = law.rsplit("-", 1)
     plug_in = moved.with_mu(moved.mu_schedule)   # the paper's law on the predicted mu_t
     sol = closed_form(plug_in, protocol) if kind == "plug-in" else exact_closed_form(moved, "udp")
@@ -68,6 +66,7 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
 
     Examples
     --------
+    >>> from packetloss_cvx.channel import GilbertElliott
     >>> from packetloss_cvx.simulation.moments import finite_horizon_costs
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
     ...            channel=GilbertElliott(p=[0.4], r=[0.6]))          # p + r = 1: Bernoulli(0.6) losses
@@ -85,8 +84,8 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
         if law not in MARKOV_LAWS:
             raise InputError("laws", f"expected some of {', '.join(MARKOV_LAWS)}, found {law!r}")
     rng = np.random.default_rng() if rng is None else rng
-    good = sample_states(ch, steps, samples, rng)                          # validates steps and samples
-    delivered = rng.random(good.shape) < np.where(good, ch.h_good, ch.h_bad)
+    states = sample_states(ch, steps, samples, rng)                        # validates steps and samples
+    delivered = rng.random(states.shape) < state_delivery(ch, states)
     L = psd_factor(system.noise_cov)
     noise = rng.standard_normal((steps, samples, L.shape[0])) @ L if L.shape[0] else None
     W, psi = system.state_weights[0], system.input_weights[0]
@@ -105,7 +104,7 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
                 if noise is not None:
                     X = X + noise[t]
                 belief = (filter_belief(ch, belief, delivered[:, t]) if law.endswith("tcp")
-                          else ch.r + ch.correlation * belief)
+                          else ch.propagate(belief))
             total += np.einsum("si,ij,sj->s", X, W, X)
         out[k] = total
     return out
@@ -117,6 +116,7 @@ class BeliefGains:
 
     Examples
     --------
+    >>> from packetloss_cvx.channel import GilbertElliott
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
     ...            channel=GilbertElliott(p=[0.4], r=[0.6]))          # p + r = 1: mu_t = 0.6 from any belief
     >>> gains = BeliefGains(s, "tcp", budget=2)
@@ -158,16 +158,22 @@ class BeliefGains:
         return np.stack([self(row) for row in rows])[inverse.ravel()]
 
 
-def mode_index(good: np.ndarray) -> np.ndarray:
+def mode_index(good: np.ndarray, sizes: Sequence[int] | None = None) -> np.ndarray:
     """The joint mode of :func:`packetloss_cvx.markov.mode_chain` (0 = all good, channel 0 the most significant
-    bit, 1 = bad) of good-state indicators (..., m). O(size).
+    bit, 1 = bad) of good-state indicators (..., m); with ``sizes`` (a MarkovChannel's k_i), of state indices
+    (..., m), mixed radix with channel 0 the most significant digit. O(size).
 
     Examples
     --------
     >>> mode_index(np.array([[True, True], [True, False], [False, True], [False, False]])).tolist()
     [0, 1, 2, 3]
+    >>> mode_index(np.array([[0, 0], [0, 2], [1, 0], [1, 2]]), sizes=(2, 3)).tolist()
+    [0, 2, 3, 5]
     """
     m = good.shape[-1]
+    if sizes is not None:
+        place = np.cumprod([1, *sizes[:0:-1]])[::-1]                      # prod_{j > i} k_j
+        return (good.astype(np.int64) * place).sum(axis=-1)
     return ((~good).astype(np.int64) << np.arange(m - 1, -1, -1)).sum(axis=-1)
 
 
@@ -186,6 +192,7 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
 
     Examples
     --------
+    >>> from packetloss_cvx.channel import GilbertElliott
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
     ...            channel=GilbertElliott(p=[0.0], r=[1.0], belief=[0.5]))   # good for ever, or bad once
     >>> rng = np.random.default_rng
@@ -199,7 +206,7 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
     ch = system.channel
     good, V = sample_markov_paths(ch, steps, samples, losses)
     W = sample_noise_paths(system, steps, samples, noise)
-    modes = mode_index(good)
+    modes = mode_index(good, getattr(ch, "sizes", None))
     Omega, psi = system.state_weights[0], system.input_weights[0]
     L = len(laws)
     X = np.broadcast_to(system.x0, (L, samples, system.n)).copy()
@@ -224,7 +231,7 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
                 X += W[t]
             if "tcp" in laws:
                 filtered = filter_belief(ch, filtered, V[:, t])
-            prior = ch.r + ch.correlation * prior
+            prior = ch.propagate(prior)
         norms[:, :, steps] = np.linalg.norm(X, axis=2)
         states[:, :, steps] = X[:, :keep]
     return stage.mean(axis=2), norms, stage, states
