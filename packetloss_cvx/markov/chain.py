@@ -19,6 +19,7 @@ and deliveries of different channels are independent, so R is block-structured.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -32,9 +33,38 @@ from ..protocols import check_protocol
 MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "channel"))
 
 __all__ = [
-    "attach_channel", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system", "second_moments",
-    "stacked_moments",
+    "attach_channel", "chain_matrices", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system",
+    "second_moments", "stacked_moments",
 ]
+
+
+def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+    """Each channel as a finite-state chain: a tuple of per-channel ``(T, d, pi0)``.
+
+    ``T`` (k×k) is row-stochastic (``T[a, b] = P(S_{t+1} = b | S_t = a)``), ``d`` (k,) the delivery
+    probability in each state, ``pi0`` (k,) the distribution of the state at the first planned step.
+    A :class:`~packetloss_cvx.channel.GilbertElliott` channel is built here, states ordered (good, bad):
+    ``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, ``pi0 = (b, 1 - b)`` with ``b`` its
+    ``initial_belief`` (the given belief or state, else the stationary one, as ``beliefs`` uses). Any other
+    channel object answers for itself through its own ``chain_matrices()`` method, which honours this
+    contract (k may differ between channels). Time O(m k^2).
+
+    Examples
+    --------
+    >>> ((T, d, pi0),) = chain_matrices(GilbertElliott(p=[0.1], r=[0.4], belief=[0.75]))
+    >>> T.tolist(), d.tolist(), pi0.tolist()
+    ([[0.9, 0.1], [0.4, 0.6]], [1.0, 0.0], [0.75, 0.25])
+    """
+    if not isinstance(channel, GilbertElliott):
+        method = getattr(channel, "chain_matrices", None)
+        if method is None:
+            raise InputError("channel", f"expected a Markov channel (GilbertElliott or an object with "
+                                        f"chain_matrices()), found {type(channel).__name__}")
+        return tuple(method())
+    b = channel.initial_belief
+    return tuple((np.array([[1.0 - channel.p[i], channel.p[i]], [channel.r[i], 1.0 - channel.r[i]]]),
+                  np.array([channel.h_good[i], channel.h_bad[i]]), np.array([b[i], 1.0 - b[i]]))
+                 for i in range(channel.m))
 
 
 def filter_belief(channel: GilbertElliott, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:

@@ -47,7 +47,7 @@ def markov_solution(system: System, protocol: str, qp: bool = True) -> MarkovSol
     exact = exact_closed_form(system, protocol)
     twin = None
     if qp:
-        from .qp import exact_qp       # cvxpy (1.5 s to import) only where a QP is asked for
+        from .qp import exact_qp  # cvxpy (1.5 s to import) only where a QP is asked for
 
         twin = exact_qp(system, protocol, reference=exact)
     plugin = closed_form(system.with_mu(system.mu_schedule), protocol)
