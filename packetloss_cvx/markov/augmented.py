@@ -34,10 +34,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg.lapack import dgesv as _gesv
 
 from ..errors import InputError, NumericalError
 from ..model import System
-from ..recursion import input_weight, overflow_error, udp_variance_weights
+from ..recursion import forward_cost, input_weight, mean_states, overflow_error, udp_variance_weights
 from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .chain import chain_matrices
 
@@ -136,14 +137,14 @@ def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
     return out
 
 
-def _input_map(system: System, lift: ChainLift, t: int, out: np.ndarray) -> np.ndarray:
-    """ℬ_t (D×m) written into ``out``: B M_t on xhat, b_i ⊗ gamma_{t,i} on eta_i. O(D m)."""
-    n = system.n
-    out[n:] = 0.0
-    out[:n] = system.B * system.mu_schedule[t]
+def _input_maps(system: System, lift: ChainLift) -> np.ndarray:
+    """ℬ_t (N, D, m) for every step: B M_t on xhat, b_i ⊗ gamma_{t,i} on eta_i (row-major). O(N D m)."""
+    N, n, m = system.horizon, system.n, system.m
+    out = np.zeros((N, lift.size, m))
+    out[:, :n] = system.B[None] * system.mu_schedule[:, None, :]
     for i, gam in enumerate(lift.gamma):
         a, b = lift.offsets[i], lift.offsets[i + 1]
-        out[a:b, i] = np.kron(system.B[:, i], gam[t])
+        out[:, a:b, i] = (system.B[None, :, i, None] * gam[:, None, :]).reshape(N, b - a)
     return out
 
 
@@ -167,18 +168,23 @@ def lq_cross_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, Nc
     (0.5, 0.5)
     """
     PG = P @ G
+    PF = P @ F
     H = R + G.T @ PG
     rhs = PG.T @ F + Ncross
     off = scale == 0.0
-    s = np.where(off, 1.0, scale)
-    Hs = H / np.outer(s, s)
-    Hs[off] = 0.0
-    Hs[:, off] = 0.0
-    Hs[off, off] = 1.0
-    rhs = rhs / s[:, None]
-    rhs[off] = 0.0
-    K = np.linalg.solve(Hs, rhs) / s[:, None]
-    P_prev = F.T @ P @ F - rhs.T @ (K * s[:, None])
+    s = np.where(off, 1.0, scale)[:, None]
+    Hs = H / (s * s.T)
+    rhs = rhs / s
+    if off.any():
+        Hs[off] = 0.0
+        Hs[:, off] = 0.0
+        Hs[off, off] = 1.0
+        rhs[off] = 0.0
+    _, _, y, info = _gesv(Hs, rhs)                    # LAPACK's gesv: no stacked-solve wrapper for one point
+    if info != 0:
+        raise np.linalg.LinAlgError("singular H")
+    K = y / s
+    P_prev = F.T @ PF - rhs.T @ y
     return K, 0.5 * (P_prev + P_prev.T)
 
 
@@ -206,7 +212,7 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     with np.errstate(over="ignore", invalid="ignore"):   # Lemma 1's UDP-like input weight, M (Psi + (I - M) D)
         R = np.where(mu > 0.0, mu * input_weight(system, "udp", mu, d), 0.0)
     K = np.empty((N, m, D))
-    Gs = np.empty((N, D, m))
+    Gs = _input_maps(system, lift)
     P = np.zeros((D, D))
     P[:n, :n] = W[N - 1]
     S = W[N - 1].copy()
@@ -217,8 +223,7 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
                 BSA = B.T @ S @ A
                 for i, gi in enumerate(lift.g):
                     a, b = lift.offsets[i], lift.offsets[i + 1]
-                    Ncross[i, a:b] = np.kron(BSA[i], gi)
-                _input_map(system, lift, t, Gs[t])
+                    Ncross[i, a:b] = np.outer(BSA[i], gi).ravel()          # b_i'S_t A ⊗ g_i (row-major eta_i)
                 K[t], P = lq_cross_step(P, F, Gs[t], np.diag(R[t]), Ncross, scale[t])
                 if t > 0:
                     P[:n, :n] += W[t - 1]
@@ -268,28 +273,25 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
     U = np.asarray(inputs, dtype=float)
     P = U.shape[0]
-    mu, psi = system.mu_schedule, system.input_weights
-    var = mu * (1.0 - mu)
+    mu = system.mu_schedule
     x = system.x0
-    xh = np.repeat(x[None], P, axis=0)
-    eta = [np.zeros((P, n, L.shape[0])) for L in lift.Lam]
-    Sig = np.zeros((P, n, n))
-    total = np.full(P, float(x @ system.initial_weight @ x))
+    chained = [i for i in range(m) if lift.Lam[i].size]
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
+        X = mean_states(system, mu[None], U, np.repeat(x[None], P, axis=0))
+        total = forward_cost(system, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
+        var_u2 = mu * (1.0 - mu) * U * U                      # (P, N, m)
+        eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
+        Sig = np.zeros((P, n, n))
+        Y = np.zeros((P, n, m))                               # column i: E[e_t delta_{t,i}] u_{t,i}
         for t in range(N):
             u = U[:, t]
-            total += np.einsum("pi,pi->p", mu[t] * u, psi[t] * u)
-            Y = np.zeros((P, n, m))                     # column i: E[e_t delta_{t,i}] u_{t,i}
-            for i in range(m):
-                if eta[i].shape[2]:
-                    Y[:, :, i] = (eta[i] @ lift.g[i]) * u[:, i, None]
+            for i in chained:
+                Y[:, :, i] = (eta[i] @ lift.g[i]) * u[:, i, None]
+                eta[i] = A @ eta[i] @ lift.Lam[i] + B[:, i][None, :, None] * (u[:, i, None, None]
+                                                                               * lift.gamma[i][t][None, None, :])
             cross = A @ Y @ B.T
-            loss = (B * (var[t] * u)[:, None, :]) @ (B * u[:, None, :]).transpose(0, 2, 1)   # sum mu(1-mu) u^2 b b'
-            Sig = A @ Sig @ A.T + cross + cross.transpose(0, 2, 1) + loss + system.noise_cov
-            for i in range(m):
-                if eta[i].shape[2]:
-                    eta[i] = A @ eta[i] @ lift.Lam[i] + B[:, i][None, :, None] * (u[:, i, None, None]
-                                                                                   * lift.gamma[i][t][None, None, :])
-            xh = xh @ A.T + (mu[t] * u) @ B.T
-            total += np.einsum("pi,ij,pj->p", xh, W[t], xh) + np.einsum("ij,pji->p", W[t], Sig)
+            Sig = A @ Sig @ A.T + cross + cross.transpose(0, 2, 1) + (B * var_u2[:, t, None, :]) @ B.T \
+                + system.noise_cov
+            total += np.einsum("ij,pji->p", W[t], Sig)
     return total
