@@ -119,9 +119,9 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
         c = pi * (d - rate[:, None])                      # pi_t o (d - mu_t): sums to zero
         gam = (c @ T) @ E
         gam[system.mu_schedule[:, i] == 0.0] = 0.0        # a channel that cannot deliver adds no covariance
-        Lam.append(E.T @ T @ E)
-        g.append(E.T @ d)
-        gamma.append(gam)
+        for value, out in ((E.T @ T @ E, Lam), (E.T @ d, g), (gam, gamma)):
+            value.setflags(write=False)                   # a frozen result: read-only arrays
+            out.append(value)
         offsets.append(offsets[-1] + n * E.shape[1])
     return ChainLift(tuple(Lam), tuple(g), tuple(gamma), tuple(offsets), offsets[-1])
 
