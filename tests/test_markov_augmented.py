@@ -184,6 +184,20 @@ def test_chains_that_disagree_with_the_schedule_are_refused():
         augmented_solve(s, chains)
 
 
+@pytest.mark.parametrize(("T", "d", "pi0", "match"), [
+    ([[0.5, 0.6], [0.5, 0.5]], [1.0, 0.0], [0.5, 0.5], "row-stochastic"),
+    ([[1.2, -0.2], [0.5, 0.5]], [1.0, 0.0], [0.5, 0.5], "row-stochastic"),
+    ([[0.5, 0.5], [0.5, 0.5]], [1.5, 0.0], [0.5, 0.5], "delivery"),
+    ([[0.5, 0.5], [0.5, 0.5]], [1.0, 0.0], [0.7, 0.7], "initial distribution"),
+    ([[0.5, 0.5], [0.5, 0.5]], [1.0, 0.0, 0.0], [0.5, 0.5], "expected"),
+])
+def test_chains_that_break_the_contract_are_refused(T, d, pi0, match):
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    chains = chain_matrices(ThreeStateChains([(T, d, pi0)]))
+    with pytest.raises(InputError, match=match):
+        augmented_solve(s, chains)
+
+
 def test_method_is_checked():
     s = pl.load_example("pendulum_bursty")
     with pytest.raises(InputError, match="method"):

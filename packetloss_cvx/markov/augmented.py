@@ -67,10 +67,18 @@ def _orthogonal_basis(k: int) -> np.ndarray:
 
 
 def _check_chain(i: int, T: np.ndarray, d: np.ndarray, pi0: np.ndarray) -> None:
+    """The chain_matrices() contract, checked where an object outside this package may have answered. O(k^2)."""
     k = d.size
     if T.shape != (k, k) or pi0.shape != (k,) or d.ndim != 1:
         raise InputError("channel", f"channel {i}: chain_matrices() gave T {T.shape}, d {d.shape}, pi0 {pi0.shape}; "
                                     "expected (k, k), (k,), (k,)")
+    tol = 1e-12 * k
+    if not (np.all(T >= 0) and np.all(np.abs(T.sum(axis=1) - 1.0) <= tol)):
+        raise InputError("channel", f"channel {i}: the transition matrix is not row-stochastic")
+    if not np.all((d >= 0) & (d <= 1)):
+        raise InputError("channel", f"channel {i}: delivery probabilities outside [0, 1]")
+    if not (np.all(pi0 >= 0) and abs(pi0.sum() - 1.0) <= tol):
+        raise InputError("channel", f"channel {i}: the initial distribution is not a probability vector")
 
 
 def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
