@@ -11,7 +11,7 @@ from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import InputError
 from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_cost, exact_qp
 from packetloss_cvx.markov.augmented import augmented_solve, chain_cost, chain_lift
-from packetloss_cvx.markov.chain import chain_matrices
+from packetloss_cvx.markov.chain import chain_matrices, channel_covariance
 from packetloss_cvx.random_systems import random_system
 from tests.references import enumerated_chain_cost
 from tests.test_markov_chain import random_channel
@@ -204,3 +204,26 @@ def test_method_is_checked():
         exact_closed_form(s, method="qr")
     with pytest.raises(InputError, match="method"):
         exact_cost(s, np.zeros((s.horizon, 1)), method="qr")
+
+
+def test_the_covariance_of_a_three_state_chain_against_every_loss_pattern():
+    """channel_covariance of any chain_matrices() channel (what the dense route and the QP twin read) against
+    E[v_t v_s] - mu_t mu_s summed over all 2^N loss patterns; and the lumped twin of a Gilbert-Elliott channel
+    through it equals the Gilbert-Elliott formula."""
+    from tests.references import loss_pattern_probabilities
+
+    rng = np.random.default_rng(7)
+    N = 6
+    chains = [random_chain(rng, 3) for _ in range(2)]
+    C = channel_covariance(ThreeStateChains(chains), N)
+    for i, (T, d, pi0) in enumerate(chains):
+        probs = loss_pattern_probabilities(T, d, pi0, N)
+        V = np.array(list(probs)), np.array(list(probs.values()))
+        mean = V[1] @ V[0]
+        second = (V[0] * V[1][:, None]).T @ V[0]
+        np.testing.assert_allclose(C[i], second - np.outer(mean, mean), rtol=0, atol=1e-14)
+    ge = GilbertElliott(p=[0.15], r=[0.35], h_good=[0.9], h_bad=[0.2], belief=[0.4])
+    p, r, hg, hb, b = 0.15, 0.35, 0.9, 0.2, 0.4
+    lumped = ThreeStateChains([([[(1 - p) / 2, (1 - p) / 2, p], [(1 - p) / 2, (1 - p) / 2, p], [r / 2, r / 2, 1 - r]],
+                                [hg, hg, hb], [b / 2, b / 2, 1 - b])])
+    np.testing.assert_allclose(channel_covariance(lumped, 9), channel_covariance(ge, 9), rtol=0, atol=1e-15)

@@ -173,9 +173,12 @@ def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence
                                                  belief=np.clip(b, 0.0, 1.0)))
 
 
-def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
+def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array. Diagonal mu (1 - mu); off the
-    diagonal lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 with u = min(t, s). Time O(N^2 m).
+    diagonal, for a Gilbert–Elliott channel, lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 with u = min(t, s).
+    Any other channel is read through :func:`chain_matrices`: for t < s,
+    ``Cov = sum_a pi_t(a) (d_a - mu_t) (T^(s-t) d)_a`` with ``pi_t = pi0 T^t``, ``mu_t = pi_t d``, which lets the
+    dense route and the QP twin serve k-state chains too. Time O(N^2 m) (plus O(N m k^2)).
 
     Examples
     --------
@@ -183,6 +186,8 @@ def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
     >>> np.round(C[0], 4).tolist()
     [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
     """
+    if not isinstance(channel, GilbertElliott):
+        return _chain_covariance(chain_matrices(channel), horizon)
     channel.check_horizon(horizon, channel.m * horizon if isinstance(horizon, int | np.integer) else 1)
     N = horizon
     b = channel.beliefs(N)                                      # (N, m)
@@ -197,6 +202,29 @@ def channel_covariance(channel: GilbertElliott, horizon: int) -> np.ndarray:
             powers = lam[i] ** np.arange(N, dtype=float)       # 0^0 = 1: the diagonal is replaced below
         out[i] = powers[lag] * spread[first, i]
         out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
+    return out
+
+
+def _chain_covariance(chains: tuple, horizon: int) -> np.ndarray:
+    """channel_covariance from per-channel (T, d, pi0): M[t, L] = c_t . (T^L d) with c_t = pi_t o (d - mu_t),
+    placed at (t, t + L) and mirrored. O(N^2 m + N m k^2)."""
+    GilbertElliott.check_horizon(horizon, len(chains) * horizon if isinstance(horizon, int | np.integer) else 1)
+    N = horizon
+    rows, cols = np.triu_indices(N)
+    out = np.empty((len(chains), N, N))
+    for i, (T, d, pi0) in enumerate(chains):
+        T, d = np.asarray(T, dtype=float), np.asarray(d, dtype=float)
+        pi = np.empty((N, d.size))
+        ahead = np.empty((N, d.size))                   # T^L d for L = 0..N-1
+        pi[0], ahead[0] = pi0, d
+        for t in range(1, N):
+            pi[t] = pi[t - 1] @ T
+            ahead[t] = T @ ahead[t - 1]
+        mu = pi @ d
+        M = (pi * (d - mu[:, None])) @ ahead.T          # (N, N): M[t, L]
+        out[i][rows, cols] = M[rows, cols - rows]
+        out[i][cols, rows] = out[i][rows, cols]
+        out[i][np.diag_indices(N)] = mu * (1.0 - mu)
     return out
 
 
