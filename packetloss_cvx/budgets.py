@@ -191,15 +191,16 @@ def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stabilit
     return work
 
 
-def burstiness_work(values: int, horizon: int, n: int, m: int, protocols: int = 2) -> float:
+def burstiness_work(values: int, horizon: int, m: int, protocols: int = 2, *, n: int) -> float:
     """Work units of a burstiness sweep: per value, protocol and step one step of the exact minimum's augmented
     recursion and of the referee on its state of size D = n (1 + m) (two-state chains), ``2 D^3``, plus 2500
     for the per-step Python work (measured: 148 us a step and value for pendulum_bursty's twin, D = 8, both
-    protocols; this formula says 176). O(1).
+    protocols; this formula says 176). ``n`` is keyword-only: a call written for the older formula (values, N, m)
+    fails loudly rather than count with the wrong sizes. O(1).
 
     Examples
     --------
-    >>> burstiness_work(20, 80, 4, 1)     # pendulum_bursty, 20 values: measured 0.21 s, predicted 0.28 s
+    >>> burstiness_work(20, 80, 1, n=4)   # pendulum_bursty, 20 values: measured 0.21 s, predicted 0.28 s
     11276800.0
     """
     D = float(n) * (1 + m)
