@@ -18,3 +18,40 @@ def enumerated_operator(A, B, K, mu):
 def enumerated_radius(A, B, K, mu):
     """The mean-square radius of u = -K x by enumeration: rho of :func:`enumerated_operator`."""
     return float(np.max(np.abs(np.linalg.eigvals(enumerated_operator(A, B, K, mu)))))
+
+
+def loss_pattern_probabilities(T, d, pi0, horizon):
+    """P(v_0..v_{N-1} = pattern) of one hidden-Markov delivery channel, for every one of the 2^N patterns:
+    pi0 D_{v_0} T D_{v_1} ... T D_{v_{N-1}} 1 with D_v = diag(d^v (1 - d)^(1 - v)) (the forward algorithm)."""
+    T, d = np.asarray(T, float), np.asarray(d, float)
+    out = {}
+    for pattern in itertools.product((0, 1), repeat=horizon):
+        row = np.asarray(pi0, float).copy()
+        for t, v in enumerate(pattern):
+            if t:
+                row = row @ T
+            row = row * (d if v else 1.0 - d)
+        out[pattern] = float(row.sum())
+    return out
+
+
+def enumerated_chain_cost(A, B, state_weights, input_weights, initial_weight, x0, chains, U):
+    """E[x0'Q x0 + sum_t (V_t u_t)'Psi_t (V_t u_t) + x_{t+1}'Omega_{t+1} x_{t+1}] without noise, as the sum over
+    every joint loss pattern of the m independent chains ``(T, d, pi0)`` of its probability times the realised
+    cost of the plan ``U`` (N×m) rolled through the plant: 2^(N m) roll-outs, none of the package's algebra."""
+    N, m = U.shape
+    per_channel = [loss_pattern_probabilities(T, d, pi0, N) for T, d, pi0 in chains]
+    total = float(x0 @ initial_weight @ x0)
+    for patterns in itertools.product(*[list(p.items()) for p in per_channel]):
+        prob = np.prod([p for _, p in patterns])
+        if prob == 0.0:
+            continue
+        v = np.array([pat for pat, _ in patterns]).T          # (N, m)
+        x, cost = np.asarray(x0, float), 0.0
+        for t in range(N):
+            applied = v[t] * U[t]
+            cost += applied @ np.diag(input_weights[t]) @ applied
+            x = A @ x + B @ applied
+            cost += x @ state_weights[t] @ x
+        total += prob * cost
+    return total

@@ -241,7 +241,8 @@ def main_line(argv, capsys):
     (["simulate", "two_actuator", "--samples", "1000000000000"], "--samples", "SIMULATE_WORK=1.6e+14"),
     (["sweep", "two_actuator", "--mu-grid", "3", "--dask", "local", "--workers", "1000000"], "--workers",
      "DASK_WORKERS=1e+06"),
-    (["sweep", "pendulum_bursty", "--burstiness", "0:0.9:1000000"], "--burstiness", "SWEEP_WORK=1.19e+12"),
+    # 1e6 values x 2 protocols x N = 80 x (2 D^3 + 2500), D = n (1 + m) = 8: 5.6384e11, shown rounded up
+    (["sweep", "pendulum_bursty", "--burstiness", "0:0.9:1000000"], "--burstiness", "SWEEP_WORK=5.64e+11"),
 ])
 def test_cli_refuses_counts_beyond_their_budget(argv, option, variable):
     start = time.perf_counter()

@@ -96,8 +96,19 @@ def test_audit_checks_a_gilbert_elliott_file_behind_its_own_channel(capsys):
 def test_overflow_of_the_dense_route_says_what_to_do():
     s = pl.System(A=[[3.0]], B=[[1.0]], horizon=800, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
                   channel=GilbertElliott(p=[0.1], r=[0.2]))
-    with pytest.raises(pl.NumericalError, match=r"rho\(A\)\^N = 3\^800; shorten the horizon"):
+    with pytest.raises(pl.NumericalError, match=r"rho\(A\)\^N = 3\^800; use method='recursion'"):
+        exact_closed_form(s, method="dense")
+
+
+def test_overflow_of_the_recursion_is_a_numerical_error_as_for_bernoulli_losses():
+    """3^800 is beyond the double range whatever the route: the augmented recursion raises as the Bernoulli
+    recursion does on the plug-in schedule, naming the two ways out."""
+    s = pl.System(A=[[3.0]], B=[[1.0]], horizon=800, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                  channel=GilbertElliott(p=[0.1], r=[0.2]))
+    with pytest.raises(pl.NumericalError, match="shorten the horizon or stabilise the plant"):
         exact_closed_form(s)
+    with pytest.raises(pl.NumericalError, match="shorten the horizon or stabilise the plant"):
+        pl.closed_form(s.with_mu(s.mu_schedule), "udp", method="recursion")
 
 
 def test_plug_in_markov_checks_a_chain_file_behind_its_own_chain():

@@ -51,6 +51,27 @@ def test_open_loop_within_four_standard_errors_under_the_chain(seed):
     assert sim.open_loop["exact_minimiser"].exact <= sim.open_loop["udp"].exact * (1 + 1e-12)
 
 
+@pytest.mark.parametrize(("seed", "belief"), [(321, None), (322, [0.2, 0.9]), (323, None)])
+def test_open_loop_at_a_long_horizon_within_four_standard_errors(seed, belief):
+    """Issue 23 item 7: N = 1000 on unseen bursty chains (lambda in [0.5, 0.9]), no noise so that the losses carry
+    the cost: the exact values (augmented recursion) of the plug-in plans and of the exact minimiser's plan within
+    4 standard errors of their sampled realised costs, and the Bernoulli value of the plug-in schedule far outside."""
+    rng = np.random.default_rng(seed)
+    s = random_system(rng, n=3, m=2, horizon=1000, spectral_radius=0.97, non_stationary=False, noise=False,
+                      edge_mu=False, time_varying=False)
+    lam, rate = rng.uniform(0.5, 0.9, 2), rng.uniform(0.6, 0.9, 2)
+    h = {} if seed % 2 else {"h_good": rng.uniform(0.9, 1.0, 2), "h_bad": rng.uniform(0.0, 0.2, 2)}
+    s = attach_channel(s, GilbertElliott(p=(1 - rate) * (1 - lam), r=rate * (1 - lam), belief=belief, **h))
+    sim = simulate(s, 4000, seed=seed, laws=["tcp", "udp"], progress=False)
+    assert set(sim.open_loop) == {"tcp", "udp", "exact_minimiser"}
+    for name, check in sim.open_loop.items():
+        assert abs(check.z) <= 4, (name, check)
+    assert sim.open_loop["exact_minimiser"].exact <= sim.open_loop["udp"].exact * (1 + 1e-12)
+    check = sim.open_loop["udp"]
+    plan = closed_form(s.with_mu(s.mu_schedule), "udp").inputs
+    assert abs(expected_cost(s.with_mu(s.mu_schedule), plan, "udp") - check.mean) > 6 * check.stderr
+
+
 @pytest.mark.parametrize(("seed", "belief"), [(311, None), (312, [0.1, 0.95])])
 def test_closed_loop_within_four_standard_errors_under_the_chain(seed, belief):
     s = bursty(seed, belief=belief)

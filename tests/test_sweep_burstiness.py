@@ -111,3 +111,22 @@ def test_burstiness_errors_name_the_flag_and_accept_a_leading_minus(capsys):
     assert "0.9000000000000001" not in err
     assert main(["sweep", "two_actuator", "--burstiness", "-0.05,0.5", "-q", "--json"]) == 0   # p, r stay in [0, 1]
     capsys.readouterr()
+
+
+def test_a_long_horizon_sweeps_by_the_recursion(capsys, tmp_path):
+    """Issue 23 item 6: N = 10,000, where the dense route is refused (13 GiB), runs within the work budget; the
+    memoryless point equals the Bernoulli recursion's optimum (another algorithm), bursts cost more."""
+    base = pl.load_example("pendulum_bursty")
+    A = base.A / max(abs(np.linalg.eigvals(base.A))) * 0.99          # stabilised: the cost stays in range
+    system = pl.System(A=A, B=base.B, horizon=10_000, state_weight=np.diag(base.state_weights[0]),
+                       input_weight=base.input_weights[0], x0=base.x0, channel=base.channel)
+    with pytest.raises(pl.ResourceError):
+        pl.markov.exact_closed_form(system, method="dense")
+    path = pl.save_system(system, tmp_path / "long.toml")
+    code, out, err = _run(capsys, "sweep", str(path), "--burstiness", "0,0.9", "--json", "-q")
+    assert code == 0, err
+    data = json.loads(out)
+    bernoulli = pl.closed_form(system.with_mu(system.mu_schedule), "udp", method="recursion").cost
+    assert data["udp"]["exact"][0] == pytest.approx(bernoulli, rel=1e-10)
+    assert data["udp"]["plugin"][0] == pytest.approx(bernoulli, rel=1e-10)
+    assert data["udp"]["plugin"][1] > data["udp"]["exact"][1] > data["udp"]["exact"][0]

@@ -27,7 +27,7 @@ STATEMENT = ("Under bursty Gilbert-Elliott losses (lambda = 1 - p - r in {0.5, 0
 def plugin_loss(system: System, correlation: float | None) -> float | None:
     """E[cost] of the UDP-like plug-in plan over the exact minimum, minus 1, on the bursty twin of
     ``system`` (on ``system`` itself with ``correlation=None``; None when the minimum is 0: nothing to
-    lose). Time O((N m)^3 + (N n)^2 N m).
+    lose). Time O(N (D^3 + m^3)), D = n (1 + m) (the augmented recursion).
 
     Examples
     --------

@@ -286,7 +286,7 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
         if getattr(args, "burstiness", None) is not None:
             values = number_range(args.burstiness, "--burstiness")
             system = system_of(args)
-            check("sweep_work", burstiness_work(values.size, system.horizon, system.m), "--burstiness",
+            check("sweep_work", burstiness_work(values.size, system.horizon, system.m, n=system.n), "--burstiness",
                   f"{values.size} values at N = {system.horizon}, m = {system.m}")
     if command == "simulate" and min(args.samples, args.steps) >= 1:
         system = system_of(args)

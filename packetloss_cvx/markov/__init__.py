@@ -1,10 +1,11 @@
 """Markov channels (Gilbert–Elliott and k-state) end to end: prediction from the chain, the exact expected cost
-under correlated losses and its minimisers (closed form and QP), Markov jump linear systems, and
-burstiness sweeps. One job per module; the channel descriptions themselves are :mod:`packetloss_cvx.channel`
-and :mod:`packetloss_cvx.markov_channel`.
+under correlated losses and its minimisers (augmented recursion, dense closed form and QP), Markov jump
+linear systems, and burstiness sweeps. One job per module; the channel descriptions themselves are
+:mod:`packetloss_cvx.channel` and :mod:`packetloss_cvx.markov_channel`.
 
     chain.py       beliefs, the HMM filter, plug-in schedules, R = E[v v'] in O(N^2 m)
-    exact_cost.py  E[cost] of a plan under correlated losses, its closed-form minimiser
+    exact_cost.py  E[cost] of a plan under correlated losses, its closed-form minimiser (method: recursion | dense)
+    augmented.py   that cost as an LQ problem on the augmented state: O(N) recursion and forward referee
     qp.py          the same minimisation as a cvxpy + Clarabel QP, cross-checked
     compare.py     plug-in laws against the exact minimiser, per protocol; bursty twins of a system
     mjls.py        the loop as a Markov jump linear system: mean-square radius, coupled Riccati gains
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from .chain import (
     attach_channel,
+    chain_matrices,
     channel_covariance,
     filter_belief,
     plugin_schedule,
@@ -35,7 +37,8 @@ if TYPE_CHECKING:
     from .qp import exact_qp
 
 __all__ = [
-    "attach_channel", "burstiness_sweep", "bursty_twin", "channel_covariance", "correlation_term", "coupled_riccati",
+    "attach_channel", "burstiness_sweep", "bursty_twin", "chain_matrices", "channel_covariance", "correlation_term",
+    "coupled_riccati",
     "exact_closed_form", "exact_cost", "exact_hessian", "exact_qp", "filter_belief", "markov_solution",
     "mean_square_radius", "mode_chain", "plugin_schedule", "plugin_system", "second_moment_operator",
     "second_moments", "stacked_moments",

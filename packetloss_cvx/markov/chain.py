@@ -22,6 +22,7 @@ by its transition matrix (``pi_{t+1} = pi_t T``) and filtered by Bayes' rule ali
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -36,9 +37,38 @@ from ..protocols import check_protocol
 MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "channel"))
 
 __all__ = [
-    "attach_channel", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system", "second_moments",
-    "stacked_moments",
+    "attach_channel", "chain_matrices", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system",
+    "second_moments", "stacked_moments",
 ]
+
+
+def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+    """Each channel as a finite-state chain: a tuple of per-channel ``(T, d, pi0)``.
+
+    ``T`` (k×k) is row-stochastic (``T[a, b] = P(S_{t+1} = b | S_t = a)``), ``d`` (k,) the delivery
+    probability in each state, ``pi0`` (k,) the distribution of the state at the first planned step.
+    A :class:`~packetloss_cvx.channel.GilbertElliott` channel is built here, states ordered (good, bad):
+    ``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, ``pi0 = (b, 1 - b)`` with ``b`` its
+    ``initial_belief`` (the given belief or state, else the stationary one, as ``beliefs`` uses). Any other
+    channel object answers for itself through its own ``chain_matrices()`` method, which honours this
+    contract (k may differ between channels). Time O(m k^2).
+
+    Examples
+    --------
+    >>> ((T, d, pi0),) = chain_matrices(GilbertElliott(p=[0.1], r=[0.4], belief=[0.75]))
+    >>> T.tolist(), d.tolist(), pi0.tolist()
+    ([[0.9, 0.1], [0.4, 0.6]], [1.0, 0.0], [0.75, 0.25])
+    """
+    if not isinstance(channel, GilbertElliott):
+        method = getattr(channel, "chain_matrices", None)
+        if method is None:
+            raise InputError("channel", f"expected a Markov channel (GilbertElliott or an object with "
+                                        f"chain_matrices()), found {type(channel).__name__}")
+        return tuple(method())
+    b = channel.initial_belief
+    return tuple((np.array([[1.0 - channel.p[i], channel.p[i]], [channel.r[i], 1.0 - channel.r[i]]]),
+                  np.array([channel.h_good[i], channel.h_bad[i]]), np.array([b[i], 1.0 - b[i]]))
+                 for i in range(channel.m))
 
 
 def filter_belief(channel: GilbertElliott | MarkovChannel, belief: npt.ArrayLike,
@@ -157,14 +187,14 @@ def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence
     return attach_channel(system, system.channel.with_belief(b))
 
 
-def channel_covariance(channel: GilbertElliott | MarkovChannel, horizon: int) -> np.ndarray:
+def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array. Diagonal mu (1 - mu); off the
-    diagonal lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 with u = min(t, s). Time O(N^2 m).
-
-    For a k-state :class:`~packetloss_cvx.markov_channel.MarkovChannel`, with pi_s the state distribution at s
-    and j = t - s > 0, ``Cov(v_s, v_t) = (pi_s ∘ (d - mu_s)) T^j d`` (E[v_s v_t] = (pi_s ∘ d) T^j d, and
-    mu_s mu_t = mu_s pi_s T^j d); the vectors T^j d are centred on their first entry (the weights sum to zero),
-    so a chain with identical rows gives exact zeros. Time O(N^2 m K + N m K^2).
+    diagonal, for a Gilbert–Elliott channel, lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 with u = min(t, s).
+    Any other channel (a k-state :class:`~packetloss_cvx.markov_channel.MarkovChannel`, or any object with
+    ``chain_matrices()``) is read through :func:`chain_matrices`: for t < s,
+    ``Cov = sum_a pi_t(a) (d_a - mu_t) (T^(s-t) d)_a`` with ``pi_t = pi0 T^t``, ``mu_t = pi_t d``
+    (E[v_t v_s] = (pi_t ∘ d) T^(s-t) d), which lets the dense route and the QP twin serve k-state chains too;
+    a chain with identical rows gives exact zeros. Time O(N^2 m) (plus O(N m k^2)).
 
     Examples
     --------
@@ -172,9 +202,9 @@ def channel_covariance(channel: GilbertElliott | MarkovChannel, horizon: int) ->
     >>> np.round(C[0], 4).tolist()
     [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
     """
+    if not isinstance(channel, GilbertElliott):
+        return _chain_covariance(chain_matrices(channel), horizon)
     channel.check_horizon(horizon, channel.m * horizon if isinstance(horizon, int | np.integer) else 1)
-    if isinstance(channel, MarkovChannel):
-        return _chain_covariance(channel, horizon)
     N = horizon
     b = channel.beliefs(N)                                      # (N, m)
     mu = channel.delivery_schedule(N)
@@ -191,21 +221,28 @@ def channel_covariance(channel: GilbertElliott | MarkovChannel, horizon: int) ->
     return out
 
 
-def _chain_covariance(channel: MarkovChannel, N: int) -> np.ndarray:
-    beliefs, mu = channel.beliefs(N), channel.delivery_schedule(N)
-    lag = np.abs(np.arange(N)[:, None] - np.arange(N)[None, :])
-    first = np.minimum(np.arange(N)[:, None], np.arange(N)[None, :])
-    out = np.empty((channel.m, N, N))
-    for i, (T, d, k) in enumerate(zip(channel.transition, channel.delivery, channel.sizes, strict=True)):
-        c = np.empty((N, k))                                   # c_j = T^j d
-        c[0] = d
-        for j in range(1, N):
-            c[j] = T @ c[j - 1]
-        c -= c[:, :1]
-        weights = beliefs[:, i, :k] * (d[None, :] - mu[:, i, None])          # pi_s ∘ (d - mu_s), (N, k)
-        table = weights @ c.T                                                  # [s, j] = Cov(v_s, v_{s+j})
-        out[i] = table[first, lag]
-        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
+def _chain_covariance(chains: tuple, horizon: int) -> np.ndarray:
+    """channel_covariance from per-channel (T, d, pi0): M[t, L] = c_t . (T^L d) with c_t = pi_t o (d - mu_t),
+    placed at (t, t + L) and mirrored. The vectors T^L d are centred on their first entry (the weights c_t sum
+    to zero, so this changes nothing in exact arithmetic), so a chain with identical rows gives exact zeros.
+    O(N^2 m + N m k^2)."""
+    GilbertElliott.check_horizon(horizon, len(chains) * horizon if isinstance(horizon, int | np.integer) else 1)
+    N = horizon
+    rows, cols = np.triu_indices(N)
+    out = np.empty((len(chains), N, N))
+    for i, (T, d, pi0) in enumerate(chains):
+        T, d = np.asarray(T, dtype=float), np.asarray(d, dtype=float)
+        pi = np.empty((N, d.size))
+        ahead = np.empty((N, d.size))                   # T^L d for L = 0..N-1
+        pi[0], ahead[0] = pi0, d
+        for t in range(1, N):
+            pi[t] = pi[t - 1] @ T
+            ahead[t] = T @ ahead[t - 1]
+        mu = pi @ d
+        M = (pi * (d - mu[:, None])) @ (ahead - ahead[:, :1]).T          # (N, N): M[t, L]
+        out[i][rows, cols] = M[rows, cols - rows]
+        out[i][cols, rows] = out[i][rows, cols]
+        out[i][np.diag_indices(N)] = mu * (1.0 - mu)
     return out
 
 

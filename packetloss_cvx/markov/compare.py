@@ -25,7 +25,8 @@ def markov_solution(system: System, protocol: str, qp: bool = True) -> MarkovSol
     """The exact minimiser of ``protocol``'s expected cost (with its QP twin when ``qp``), and how
     much the plug-in law loses against it.
 
-    Time O((N m)^3 + (N n)^2 N m) (dense), plus one Clarabel solve with ``qp``.
+    Time O(N (D^3 + m^3)), D = n (1 + m) (the augmented recursion), plus one Clarabel solve with ``qp``
+    (O((N m)^3 + (N n)^2 N m): the QP twin is dense).
 
     Raises
     ------
@@ -47,7 +48,7 @@ def markov_solution(system: System, protocol: str, qp: bool = True) -> MarkovSol
     exact = exact_closed_form(system, protocol)
     twin = None
     if qp:
-        from .qp import exact_qp       # cvxpy (1.5 s to import) only where a QP is asked for
+        from .qp import exact_qp  # cvxpy (1.5 s to import) only where a QP is asked for
 
         twin = exact_qp(system, protocol, reference=exact)
     plugin = closed_form(system.with_mu(system.mu_schedule), protocol)

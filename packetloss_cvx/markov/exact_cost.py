@@ -12,6 +12,11 @@ UDP-like cost (the expected cost of the plan, which sampling measures). The pape
 (eq:opt-lqg-simplest with eq:TCP-err) holds only first moments, so the chain enters it through mu_t
 alone: its plug-in law is already its exact minimiser. Both are convex quadratics in U; the UDP-like
 minimiser is ``U* = -(Omega_g ∘ R + Vbar Psi)^{-1} Vbar Omega_gp x`` on the channels that can deliver.
+
+Two routes to each UDP-like number (``method``): ``"recursion"`` (the default under ``"auto"``), the exact
+LQ problem on the augmented state of :mod:`.augmented`, O(N) time and memory for any finite-state chain;
+``"dense"``, the stacked form above, O((N m)^3 + (N n)^2 N m) time and O((N m)^2) memory (refused beyond
+the memory budget), kept as the independent second computation.
 """
 
 from __future__ import annotations
@@ -20,16 +25,35 @@ import numpy as np
 import numpy.typing as npt
 
 from ..costs import check_inputs, closed_form, expected_cost
-from ..errors import NumericalError, ResourceError
+from ..errors import InputError, NumericalError, ResourceError
 from ..linalg import check_finite, solve_checked
 from ..model import System, check_system
 from ..prediction import Prediction, prediction
 from ..protocols import check_protocol
+from ..recursion import overflow_error
 from ..results import Solution
 from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from .augmented import augmented_solve, chain_cost
 from .chain import stacked_moments
 
-__all__ = ["correlation_term", "dense_prediction", "exact_closed_form", "exact_cost", "exact_hessian"]
+__all__ = ["METHODS", "check_method", "correlation_term", "dense_prediction", "exact_closed_form", "exact_cost",
+           "exact_hessian"]
+
+#: The routes to the exact UDP-like cost and minimiser: "auto" is the augmented recursion.
+METHODS = ("auto", "recursion", "dense")
+
+
+def check_method(method: str) -> str:
+    """``"recursion"`` or ``"dense"`` (``"auto"`` is the recursion); InputError naming ``method`` otherwise. O(1).
+
+    Examples
+    --------
+    >>> check_method("auto"), check_method("dense")
+    ('recursion', 'dense')
+    """
+    if method not in METHODS:
+        raise InputError("method", f"expected 'auto', 'recursion' or 'dense', found {method!r}")
+    return "dense" if method == "dense" else "recursion"
 
 
 def _check_memory(system: System) -> None:
@@ -44,7 +68,7 @@ def _check_memory(system: System) -> None:
 
 def dense_prediction(system: System) -> Prediction:
     """The paper's stacked matrices (:func:`~packetloss_cvx.prediction.prediction`) after the memory check;
-    an overflow says what to do here (there is no O(N) recursion for correlated losses yet).
+    an overflow says what to do here (the recursion, ``method="recursion"``, needs no dense matrix).
     Time O((N n)^2 N m).
 
     Examples
@@ -59,8 +83,8 @@ def dense_prediction(system: System) -> Prediction:
     except NumericalError:
         rho = float(max(abs(np.linalg.eigvals(system.A))))
         raise NumericalError(f"the exact Markov cost needs the dense prediction (Gamma, Omega_g), which overflows for "
-                             f"rho(A)^N = {rho:.3g}^{system.horizon}; shorten the horizon (correlated losses have no "
-                             "O(N) recursion here)") from None
+                             f"rho(A)^N = {rho:.3g}^{system.horizon}; use method='recursion' (the augmented "
+                             "recursion) or shorten the horizon") from None
 
 
 def correlation_term(system: System, inputs: npt.ArrayLike, pred: Prediction | None = None) -> float:
@@ -90,13 +114,20 @@ def correlation_term(system: System, inputs: npt.ArrayLike, pred: Prediction | N
     return float(check_finite("U'(Omega_g o C)U", value))
 
 
-def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp") -> float:
+def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp", method: str = "auto") -> float:
     """The expected cost of the plan ``inputs`` (N×m) under the system's channel.
 
-    ``"udp"``: E[cost | belief] = J_udp(U) + U'(Omega_g ∘ C_off)U, exact under Gilbert–Elliott losses
-    (the forward pass of :func:`~packetloss_cvx.costs.expected_cost` plus :func:`correlation_term`).
-    ``"tcp"``: the paper's TCP-like cost, which holds only the marginals mu_t (= J_tcp(U)).
-    Time O(N n^3) plus O((N n)^2 N m) with a correlated channel.
+    ``"udp"``: E[cost | belief], exact under Markov losses. ``method="auto"``/``"recursion"``: the forward pass
+    of the mean state, the state-chain correlations and the error covariance
+    (:func:`~packetloss_cvx.markov.augmented.chain_cost`: nonnegative terms, O(N n^2 (n + m k)));
+    ``"dense"``: J_udp(U) + U'(Omega_g ∘ C_off)U (the forward pass of
+    :func:`~packetloss_cvx.costs.expected_cost` plus :func:`correlation_term`, O((N n)^2 N m)).
+    ``"tcp"``: the paper's TCP-like cost, which holds only the marginals mu_t (= J_tcp(U)), either method.
+
+    Raises
+    ------
+    NumericalError
+        The cost exceeds the double range (an unstable plant over a long horizon).
 
     Examples
     --------
@@ -104,12 +135,20 @@ def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp") -> 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
     ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
     >>> # x = 0, U = (1, 1): E[(v1)^2] + E[(v1 + v2)^2] + E[v1] + E[v2] = 0.5 + (1 + 2 * 0.4) + 1 = 3.3
-    >>> round(exact_cost(s, [[1.0], [1.0]]), 12)
-    3.3
+    >>> round(exact_cost(s, [[1.0], [1.0]]), 12), round(exact_cost(s, [[1.0], [1.0]], method="dense"), 12)
+    (3.3, 3.3)
     """
     protocol = check_protocol(protocol)
-    base = expected_cost(system.with_mu(system.mu_schedule), inputs, protocol)
-    return base if protocol == "tcp" else base + correlation_term(system, inputs)
+    route = check_method(method)
+    if protocol == "tcp":
+        return expected_cost(system.with_mu(system.mu_schedule), inputs, protocol)
+    if route == "dense":
+        return expected_cost(system.with_mu(system.mu_schedule), inputs, protocol) + correlation_term(system, inputs)
+    system = check_system(system)
+    value = float(chain_cost(system, check_inputs(system, inputs)[None])[0])
+    if not np.isfinite(value):
+        raise overflow_error("the exact Markov cost of these inputs", "udp")
+    return value
 
 
 def exact_hessian(system: System, pred: Prediction | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -136,7 +175,7 @@ def exact_hessian(system: System, pred: Prediction | None = None) -> tuple[np.nd
     return M, s
 
 
-def exact_closed_form(system: System, protocol: str = "udp") -> Solution:
+def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto") -> Solution:
     """The minimiser of :func:`exact_cost` in closed form, with its cost, gain and eigenvalues.
 
     .. math:: U^* = -(\\Omega_g \\circ R + \\bar V\\Psi)^{-1}\\bar V\\Omega_{gp}x,\\qquad
@@ -144,32 +183,52 @@ def exact_closed_form(system: System, protocol: str = "udp") -> Solution:
 
     on the entries with mu_t > 0 (an input over a channel that cannot deliver does not enter the
     cost; it is 0 here). ``"tcp"``: the paper's law with mu_t (:func:`~packetloss_cvx.costs.closed_form`),
-    exact because the TCP-like cost holds only first moments. The cost is checked against
-    :func:`exact_cost` of the plan (forward pass plus correlation term) to ``SELF_CHECK_RTOL``.
-    Time O((N m)^3 + (N n)^2 N m), memory O((N m)^2 + N n N m).
+    exact because the TCP-like cost holds only first moments (``method`` is not used).
+
+    ``method="auto"`` / ``"recursion"``: the backward Riccati recursion of the LQ problem on the augmented
+    state (:func:`~packetloss_cvx.markov.augmented.augmented_solve`), any finite-state chain, time
+    O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)) (n (1 + m) for Gilbert–Elliott channels), memory O(N m D);
+    ``"dense"``: the stacked solve above, time O((N m)^3 + (N n)^2 N m), memory O((N m)^2 + N n N m), refused
+    in advance beyond the memory budget. Either cost is checked against the forward cost of its own plan to
+    ``SELF_CHECK_RTOL`` (the recursion: :func:`~packetloss_cvx.markov.augmented.chain_cost`; the dense route:
+    :func:`exact_cost` with ``method="dense"``).
 
     Raises
     ------
     ResourceError
-        The dense matrices would not fit the memory budget.
+        ``"dense"``: the dense matrices would not fit the memory budget.
     NumericalError
-        A dense solve without a small residual, an overflow, or a self-check that fails.
+        A solve without a small residual, an overflow (an unstable plant over a long horizon, as the Bernoulli
+        recursion), or a self-check that fails.
 
     Examples
     --------
     >>> from packetloss_cvx.channel import GilbertElliott
     >>> bern = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-    >>> bursty = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    >>> bursty = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
     ...                 channel=GilbertElliott(p=[0.2], r=[0.2]))     # mu = 1/2, Cov(v_1, v_2) = 0.15
     >>> # Bernoulli losses: the exact cost is the paper's J_udp, so the minima agree
     >>> bool(np.isclose(exact_closed_form(bern).cost, closed_form(bern, "udp").cost))
     True
+    >>> # correlated losses: the two routes agree
+    >>> bool(np.isclose(exact_closed_form(bursty).cost, exact_closed_form(bursty, method="dense").cost, rtol=1e-12))
+    True
     """
     system = check_system(system)
+    route = check_method(method)
     if check_protocol(protocol) == "tcp":
         sol = closed_form(system, "tcp")
         return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=sol.gain,
                         closed_loop_eigenvalues=sol.closed_loop_eigenvalues, method=f"markov-{sol.method}")
+    if route == "recursion":
+        U, gain, cost = augmented_solve(system)
+        return Solution(protocol="udp", cost=cost, inputs=U, gain=gain,
+                        closed_loop_eigenvalues=np.linalg.eigvals(system.A - system.B @ gain),
+                        method="markov-recursion")
+    return _dense_closed_form(system)
+
+
+def _dense_closed_form(system: System) -> Solution:
     N, m, x = system.horizon, system.m, system.x0
     pred = dense_prediction(system)
     M, s = exact_hessian(system, pred)
@@ -183,7 +242,7 @@ def exact_closed_form(system: System, protocol: str = "udp") -> Solution:
     constant = float(x @ (system.initial_weight + pred.Omega_p) @ x) + pred.noise_term
     cost = constant + float(g @ (pred.Vbar * u))
     U = u.reshape(N, m)
-    forward = exact_cost(system, U, "udp")
+    forward = exact_cost(system, U, "udp", method="dense")
     if not (np.isfinite(cost) and np.isfinite(forward)) or abs(cost - forward) > SELF_CHECK_RTOL * abs(forward) \
             or cost < 0:
         raise NumericalError(f"the exact Markov closed form gives J* = {cost:.10g} but the expected cost of its own "

@@ -48,7 +48,8 @@ def burstiness_sweep(system: System, correlations: Sequence[float] = DEFAULT_COR
 
     Notes
     -----
-    Time O(K ((N m)^3 + (N n)^2 N m)) for K points.
+    Time O(K N (D^3 + m^3)) for K points, D = n (1 + m) (the augmented recursion: any horizon; budgeted by
+    :func:`~packetloss_cvx.budgets.burstiness_work`).
 
     Examples
     --------
@@ -68,7 +69,7 @@ def burstiness_sweep(system: System, correlations: Sequence[float] = DEFAULT_COR
         shown = repr(correlations)[:60] if values is None else np.array2string(values, separator=", ", threshold=8)
         raise InputError("correlations", f"expected a list of finite lambda = 1 - p - r < 1, found {shown}")
     check("sweep_points", values.size, "correlations", f"{values.size} values")      # before any is evaluated
-    cost = burstiness_work(values.size, system.horizon, system.m, len(PROTOCOLS))
+    cost = burstiness_work(values.size, system.horizon, system.m, len(PROTOCOLS), n=system.n)
     check("sweep_work", cost, "correlations",
           f"{values.size} values at N = {system.horizon}, m = {system.m}")
     plugin = {p: np.empty(values.size) for p in PROTOCOLS}

@@ -54,7 +54,7 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     Every law sees the same sampled channel states, deliveries and noise (common random numbers).
     Returns an array (len(laws), samples). Time O(steps samples (n^2 + n m) + G plan), G the number
     of distinct beliefs met (at most 2^m + 1 for TCP-like information on Gilbert channels, one per
-    step for UDP-like), each plan O((N m)^3 + (N n)^2 N m) (the exact one) or less.
+    step for UDP-like), each plan O(N (D^3 + m^3)), D = n (1 + m) (the exact one, the augmented recursion) or less.
 
     Raises
     ------

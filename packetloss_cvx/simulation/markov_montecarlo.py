@@ -78,7 +78,7 @@ def markov_open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng
 def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_loop: bool, laws: Sequence[str],
                     keep: int, progress: bool | None) -> Simulation:
     """:func:`~packetloss_cvx.simulation.simulate` for a system with a Gilbert–Elliott channel (arguments
-    validated there). Same seeding as the Bernoulli path. Time O(samples N n (n + m) + (N m)^3 + (N n)^2 N m)
+    validated there). Same seeding as the Bernoulli path. Time O(samples N n (n + m) + N (D^3 + m^3)), D = n (1 + m)
     open loop; closed loop O(laws samples T n (n + m)) plus one plan per distinct belief and the exact values
     (O(T 4^m n^3) each, the radii O((2^m n^2)^3)).
 

@@ -1,0 +1,305 @@
+"""The exact UDP-like expected cost under finite-state Markov losses as a deterministic LQ problem on an
+augmented state, solved in O(N) time and memory (docs/design.md, "Bursty links", "The exact cost at any
+horizon").
+
+With ``xhat_t = E[x_t]``, ``e_t = x_t - xhat_t``, ``delta_t = v_t - mu_t`` and channel i's chain
+(:func:`~packetloss_cvx.markov.chain.chain_matrices`: T_i, d_i, pi_{i,0}), the correlations
+``xi_{t,i}(a) = E[e_t 1{S_{i,t} = a}]`` (n×k_i, rows summing to zero) obey
+
+.. math:: \\xi_{t+1,i} = A \\xi_{t,i} T_i + b_i u_{t,i} c_{t,i}' T_i, \\qquad
+          c_{t,i} = \\pi_{t,i} \\circ (d_i - \\mu_{t,i}),
+
+and ``E[e_t delta_{t,i}] = xi_{t,i} d_i``. In an orthonormal basis E_i of the vectors orthogonal to 1
+(k_i×(k_i - 1)), ``eta_i = xi_i E_i`` (n×(k_i - 1)) follows ``eta+ = A eta Lambda_i + b_i u_i gamma_i'``
+with ``Lambda_i = E_i' T_i E_i`` (for two states the chain's second eigenvalue 1 - p - r) and
+``gamma_{t,i} = E_i' T_i' c_{t,i}``; ``E[e_t delta_{t,i}] = eta_{t,i} g_i``, ``g_i = E_i' d_i``. The error
+covariance follows
+
+.. math:: \\Sigma_{t+1} = A\\Sigma_t A' + \\sum_i (A \\eta_{t,i} g_i u_{t,i} b_i' + b_i u_{t,i} g_i'\\eta_{t,i}'A')
+          + \\sum_i \\mu_{t,i}(1 - \\mu_{t,i}) u_{t,i}^2 b_i b_i' + \\Sigma_W,
+
+so with the backward Lyapunov sums ``S_t = Omega_{t+1} + A'S_{t+1}A`` the expected cost is, on
+``z_t = (xhat_t, eta_{t,1}, ..., eta_{t,m})`` of size ``n (1 + sum_i (k_i - 1))``,
+
+    x'Q x + sum_t [xhat_{t+1}'Omega_{t+1} xhat_{t+1} + u_t'R_t u_t + 2 u_t'N_t z_t] + sum_t tr(S_t Sigma_W),
+
+``R_t = M_t (Psi_t + (I - M_t) diag(B'S_t B))`` (Lemma 1's UDP-like weight), row i of ``N_t`` pairing
+``b_i'S_t A`` with ``eta_{t,i} g_i``: a deterministic LQ problem with a state-input cross term, whose
+backward Riccati recursion (:func:`lq_cross_step`) gives the exact minimiser. :func:`chain_cost` is the
+referee: the forward pass of ``xhat``, ``eta`` and ``Sigma``, every cost term nonnegative.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg.lapack import dgesv as _gesv
+
+from ..errors import InputError, NumericalError
+from ..model import System
+from ..recursion import forward_cost, input_weight, mean_states, overflow_error, udp_variance_weights
+from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from .chain import chain_matrices
+
+__all__ = ["ChainLift", "augmented_solve", "chain_cost", "chain_lift", "lq_cross_step"]
+
+
+@dataclass(frozen=True)
+class ChainLift:
+    """The chain part of the augmented state, per channel i (q_i = k_i - 1, 0 without a chain):
+    ``Lam[i]`` (q_i, q_i), ``g[i]`` (q_i,), ``gamma[i]`` (N, q_i) (zero where mu_{t,i} = 0), and the
+    offsets of each eta_i in z (``offsets[i]:offsets[i + 1]``, row-major n×q_i). ``size`` is dim z."""
+
+    Lam: tuple[np.ndarray, ...]
+    g: tuple[np.ndarray, ...]
+    gamma: tuple[np.ndarray, ...]
+    offsets: tuple[int, ...]
+    size: int
+
+
+def _orthogonal_basis(k: int) -> np.ndarray:
+    """An orthonormal basis (k×(k-1)) of the vectors orthogonal to the ones vector. O(k^3)."""
+    if k == 1:
+        return np.zeros((1, 0))
+    centred = np.eye(k)[:, : k - 1] - 1.0 / k
+    return np.linalg.qr(centred)[0]
+
+
+def _check_chain(i: int, T: np.ndarray, d: np.ndarray, pi0: np.ndarray) -> None:
+    """The chain_matrices() contract, checked where an object outside this package may have answered. O(k^2)."""
+    k = d.size
+    if T.shape != (k, k) or pi0.shape != (k,) or d.ndim != 1:
+        raise InputError("channel", f"channel {i}: chain_matrices() gave T {T.shape}, d {d.shape}, pi0 {pi0.shape}; "
+                                    "expected (k, k), (k,), (k,)")
+    tol = 1e-12 * k
+    if not (np.all(T >= 0) and np.all(np.abs(T.sum(axis=1) - 1.0) <= tol)):
+        raise InputError("channel", f"channel {i}: the transition matrix is not row-stochastic")
+    if not np.all((d >= 0) & (d <= 1)):
+        raise InputError("channel", f"channel {i}: delivery probabilities outside [0, 1]")
+    if not (np.all(pi0 >= 0) and abs(pi0.sum() - 1.0) <= tol):
+        raise InputError("channel", f"channel {i}: the initial distribution is not a probability vector")
+
+
+def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
+    """The lifted chains (:class:`ChainLift`) of ``chains`` (per channel ``(T, d, pi0)``, default
+    ``chain_matrices(system.channel)``); a system without a channel has none (q_i = 0: the augmented problem
+    is then the paper's Bernoulli UDP-like one). The state distributions ``pi_{t+1} = pi_t T`` are propagated
+    from each ``pi0``; their delivery probabilities ``pi_t d`` must be the system's ``mu_schedule`` (to 1e-9):
+    the mean state uses the schedule, the covariances the chain. Time O(N m k^2).
+
+    Raises
+    ------
+    InputError
+        Chains of the wrong number or shapes, or whose predicted delivery rates are not the system's schedule.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> lift = chain_lift(s)               # Lambda = 1 - p - r; gamma = E'T'c with c = b (1 - b) (1, -1)
+    >>> bool(np.isclose(lift.Lam[0][0, 0], 0.6) and np.allclose(np.abs(lift.gamma[0]), 0.6 * 0.25 * 2 ** 0.5))
+    True
+    """
+    N, n, m = system.horizon, system.n, system.m
+    if chains is None:
+        chains = chain_matrices(system.channel) if system.channel is not None else None
+    if chains is None:                                   # independent losses: nothing to lift
+        return ChainLift((np.zeros((0, 0)),) * m, (np.zeros(0),) * m, (np.zeros((N, 0)),) * m, (n,) * (m + 1), n)
+    if len(chains) != m:
+        raise InputError("channel", f"expected {m} chains (one per actuator), found {len(chains)}")
+    Lam, g, gamma, offsets = [], [], [], [n]
+    for i, (T, d, pi0) in enumerate(chains):
+        T, d, pi0 = (np.asarray(a, dtype=float) for a in (T, d, pi0))
+        _check_chain(i, T, d, pi0)
+        E = _orthogonal_basis(d.size)
+        pi = np.empty((N, d.size))
+        pi[0] = pi0
+        for t in range(1, N):
+            pi[t] = pi[t - 1] @ T
+        rate = pi @ d
+        gap = np.abs(rate - system.mu_schedule[:, i])
+        if not np.all(gap <= 1e-9):
+            t = int(np.argmax(~(gap <= 1e-9)))
+            raise InputError("channel", f"channel {i}: the chain's delivery probability at step {t} is {rate[t]!r} but "
+                                        f"the system's mu_schedule has {system.mu_schedule[t, i]!r}")
+        c = pi * (d - rate[:, None])                      # pi_t o (d - mu_t): sums to zero
+        gam = (c @ T) @ E
+        gam[system.mu_schedule[:, i] == 0.0] = 0.0        # a channel that cannot deliver adds no covariance
+        for value, out in ((E.T @ T @ E, Lam), (E.T @ d, g), (gam, gamma)):
+            value.setflags(write=False)                   # a frozen result: read-only arrays
+            out.append(value)
+        offsets.append(offsets[-1] + n * E.shape[1])
+    return ChainLift(tuple(Lam), tuple(g), tuple(gamma), tuple(offsets), offsets[-1])
+
+
+def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
+    """The constant augmented transition: blkdiag(A, A ⊗ Lambda_1', ...) on row-major eta's. O(D^2)."""
+    n = system.n
+    out = np.zeros((lift.size, lift.size))
+    out[:n, :n] = system.A
+    for i, L in enumerate(lift.Lam):
+        a, b = lift.offsets[i], lift.offsets[i + 1]
+        out[a:b, a:b] = np.kron(system.A, L.T)
+    return out
+
+
+def _input_maps(system: System, lift: ChainLift) -> np.ndarray:
+    """ℬ_t (N, D, m) for every step: B M_t on xhat, b_i ⊗ gamma_{t,i} on eta_i (row-major). O(N D m)."""
+    N, n, m = system.horizon, system.n, system.m
+    out = np.zeros((N, lift.size, m))
+    out[:, :n] = system.B[None] * system.mu_schedule[:, None, :]
+    for i, gam in enumerate(lift.gamma):
+        a, b = lift.offsets[i], lift.offsets[i + 1]
+        out[:, a:b, i] = (system.B[None, :, i, None] * gam[:, None, :]).reshape(N, b - a)
+    return out
+
+
+def lq_cross_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, Ncross: np.ndarray,
+                  scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One backward step of the LQ problem ``z+ = F z + G u`` with stage cost ``u'R u + 2 u'N z``:
+
+    .. math:: H = R + G'PG,\\quad K = H^{-1}(G'PF + N),\\quad P^- = F'PF - (G'PF + N)'K
+
+    (the caller adds the state weight of the step). ``scale`` (m,) scales H symmetrically before the solve
+    (``sqrt(mu)``: H is ``M``-sized for rarely delivering channels); an input of scale 0 does not enter
+    (its gain is 0, H's row and column are replaced by the identity's). Returns ``(K, P-)``, P- symmetrised.
+    This is not Theorem 1's step (:func:`~packetloss_cvx.recursion.riccati_step`): the input map is not
+    ``B M`` and the cross term ``N`` has no counterpart there. Time O(D^3 + m^3), D = dim z.
+
+    Examples
+    --------
+    >>> K, P = lq_cross_step(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1)), np.zeros((1, 1)),
+    ...                      np.ones(1))
+    >>> float(K[0, 0]), float(P[0, 0])          # scalar DARE step: H = 2, K = 1/2, P- = 1 - 1/2
+    (0.5, 0.5)
+    """
+    PG = P @ G
+    PF = P @ F
+    H = R + G.T @ PG
+    rhs = PG.T @ F + Ncross
+    off = scale == 0.0
+    s = np.where(off, 1.0, scale)[:, None]
+    Hs = H / (s * s.T)
+    rhs = rhs / s
+    if off.any():
+        Hs[off] = 0.0
+        Hs[:, off] = 0.0
+        Hs[off, off] = 1.0
+        rhs[off] = 0.0
+    _, _, y, info = _gesv(Hs, rhs)                    # LAPACK's gesv: no stacked-solve wrapper for one point
+    if info != 0:
+        raise np.linalg.LinAlgError("singular H")
+    K = y / s
+    P_prev = F.T @ PF - rhs.T @ y
+    return K, 0.5 * (P_prev + P_prev.T)
+
+
+def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """The exact UDP-like minimiser under the system's chains (or ``chains``, as :func:`chain_lift`) by the
+    augmented Riccati recursion.
+
+    Returns ``(U, gain, cost)``: the plan (N×m), the first step's gain on ``x`` (m×n) and the exact
+    minimum, checked against :func:`chain_cost` of the plan to ``SELF_CHECK_RTOL`` (plus
+    ``SELF_CHECK_ATOL ||P_0|| ||x||^2``). Time O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)), memory
+    O(N m D) for the gains.
+
+    Raises
+    ------
+    NumericalError
+        An overflow (an unstable plant over a long horizon), a singular step, or a failed self-check.
+    """
+    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    lift = chain_lift(system, chains)
+    D = lift.size
+    F = _dynamics(system, lift)
+    mu = system.mu_schedule
+    scale = np.sqrt(mu)
+    d, noise = udp_variance_weights(system)
+    with np.errstate(over="ignore", invalid="ignore"):   # Lemma 1's UDP-like input weight, M (Psi + (I - M) D)
+        R = np.where(mu > 0.0, mu * input_weight(system, "udp", mu, d), 0.0)
+    K = np.empty((N, m, D))
+    Gs = _input_maps(system, lift)
+    P = np.zeros((D, D))
+    P[:n, :n] = W[N - 1]
+    S = W[N - 1].copy()
+    Ncross = np.zeros((m, D))
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            for t in range(N - 1, -1, -1):
+                BSA = B.T @ S @ A
+                for i, gi in enumerate(lift.g):
+                    a, b = lift.offsets[i], lift.offsets[i + 1]
+                    Ncross[i, a:b] = np.outer(BSA[i], gi).ravel()          # b_i'S_t A ⊗ g_i (row-major eta_i)
+                K[t], P = lq_cross_step(P, F, Gs[t], np.diag(R[t]), Ncross, scale[t])
+                if t > 0:
+                    P[:n, :n] += W[t - 1]
+                    S = W[t - 1] + A.T @ S @ A
+        except np.linalg.LinAlgError:
+            raise overflow_error("the augmented cost-to-go matrix", "udp") from None
+        if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K)) and np.isfinite(noise)):
+            raise overflow_error("the augmented cost-to-go matrix", "udp")
+        x = system.x0
+        z = np.zeros(D)
+        z[:n] = x
+        U = np.empty((N, m))
+        for t in range(N):
+            U[t] = -K[t] @ z
+            z = F @ z + Gs[t] @ U[t]
+        cost = float(x @ (system.initial_weight + P[:n, :n]) @ x) + noise
+    forward = float(chain_cost(system, U[None], lift)[0])
+    atol = SELF_CHECK_ATOL * float(np.linalg.norm(P[:n, :n], 2)) * float(x @ x)
+    if not (np.isfinite(cost) and np.isfinite(forward)):
+        raise overflow_error("the exact Markov cost", "udp")
+    if abs(cost - forward) > SELF_CHECK_RTOL * forward + atol or cost < 0:
+        raise NumericalError(f"the augmented recursion gives J* = {cost:.10g} but the expected cost of its own plan "
+                             f"is {forward:.10g}: double precision cannot resolve this problem (weights of very "
+                             "different sizes, or an unstable plant over a long horizon)")
+    return U, K[0][:, :n].copy(), cost
+
+
+def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:
+    """The exact UDP-like expected cost of plans ``inputs`` (P, N, m) under the system's chains, by the
+    forward pass of the mean state, the correlations eta and the error covariance Sigma (module docstring):
+
+        x'Q x + sum_t mu_t psi_t u_t^2 + xhat_{t+1}'Omega_{t+1} xhat_{t+1} + tr(Omega_{t+1} Sigma_{t+1}),
+
+    every term nonnegative (Sigma is a covariance): the referee of :func:`augmented_solve`. Without a chain
+    it is the paper's J_udp. Returns (P,). Time O(P N n^2 (n + m + sum_i (k_i - 1))), memory O(P n^2).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> # x = 0, U = (1, 1): E[v1^2] + E[(v1 + v2)^2] + E[v1] + E[v2] = 0.5 + (1 + 2 * 0.4) + 1 = 3.3
+    >>> round(float(chain_cost(s, np.ones((1, 2, 1)))[0]), 12)
+    3.3
+    """
+    lift = chain_lift(system) if lift is None else lift
+    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    U = np.asarray(inputs, dtype=float)
+    P = U.shape[0]
+    mu = system.mu_schedule
+    x = system.x0
+    chained = [i for i in range(m) if lift.Lam[i].size]
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
+        X = mean_states(system, mu[None], U, np.repeat(x[None], P, axis=0))
+        total = forward_cost(system, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
+        var_u2 = mu * (1.0 - mu) * U * U                      # (P, N, m)
+        eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
+        Sig = np.zeros((P, n, n))
+        Y = np.zeros((P, n, m))                               # column i: E[e_t delta_{t,i}] u_{t,i}
+        for t in range(N):
+            u = U[:, t]
+            for i in chained:
+                Y[:, :, i] = (eta[i] @ lift.g[i]) * u[:, i, None]
+                eta[i] = A @ eta[i] @ lift.Lam[i] + B[:, i][None, :, None] * (u[:, i, None, None]
+                                                                               * lift.gamma[i][t][None, None, :])
+            cross = A @ Y @ B.T
+            Sig = A @ Sig @ A.T + cross + cross.transpose(0, 2, 1) + (B * var_u2[:, t, None, :]) @ B.T \
+                + system.noise_cov
+            total += np.einsum("ij,pji->p", W[t], Sig)
+    return total

@@ -1,0 +1,229 @@
+"""The exact UDP-like cost under finite-state Markov losses as an LQ problem on the augmented state
+(markov/augmented.py, markov.chain.chain_matrices): against the dense second-moment route (N <= 200), the
+cvxpy + Clarabel QP twin, enumeration of every loss pattern (Gilbert–Elliott and a hand-written 3-state
+chain), and the lumped 3-state twin of a Gilbert–Elliott channel."""
+
+import numpy as np
+import pytest
+
+import packetloss_cvx as pl
+from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.errors import InputError
+from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_cost, exact_qp
+from packetloss_cvx.markov.augmented import augmented_solve, chain_cost, chain_lift
+from packetloss_cvx.markov.chain import chain_matrices, channel_covariance
+from packetloss_cvx.random_systems import random_system
+from tests.references import enumerated_chain_cost
+from tests.test_markov_chain import random_channel
+
+
+class ThreeStateChains:
+    """A stand-in for any channel class honouring the chain_matrices() contract: per channel (T, d, pi0)."""
+
+    def __init__(self, chains):
+        self.chains = tuple((np.asarray(T, float), np.asarray(d, float), np.asarray(p, float)) for T, d, p in chains)
+
+    def chain_matrices(self):
+        return self.chains
+
+
+def random_chain(rng, k):
+    T = rng.uniform(0.05, 1, (k, k))
+    T /= T.sum(axis=1, keepdims=True)
+    pi0 = rng.uniform(0, 1, k)
+    return T, rng.uniform(0, 1, k), pi0 / pi0.sum()
+
+
+def schedule(chains, horizon):
+    """mu_{t,i} = pi_{i,t} d_i, pi propagated by T: the predicted delivery rates of the chains."""
+    out = np.empty((horizon, len(chains)))
+    for i, (T, d, pi) in enumerate(chains):
+        row = pi.copy()
+        for t in range(horizon):
+            out[t, i] = row @ d
+            row = row @ T
+    return out
+
+
+def bursty(seed, **kwargs):
+    rng = np.random.default_rng(seed)
+    s = random_system(rng, spectral_radius=rng.uniform(0.5, 1.1), **kwargs)
+    return attach_channel(s, random_channel(rng, s.m, given=seed % 2 == 0))
+
+
+def test_chain_matrices_of_a_gilbert_elliott_channel():
+    ch = GilbertElliott(p=[0.1, 0.3], r=[0.4, 0.2], h_good=[0.9, 1.0], h_bad=[0.2, 0.0], state=["bad", "good"])
+    (T0, d0, p0), (T1, d1, p1) = chain_matrices(ch)
+    np.testing.assert_array_equal(T0, [[0.9, 0.1], [0.4, 0.6]])
+    np.testing.assert_array_equal(T1, [[0.7, 0.3], [0.2, 0.8]])
+    np.testing.assert_array_equal(np.stack([d0, d1]), [[0.9, 0.2], [1.0, 0.0]])
+    np.testing.assert_array_equal(np.stack([p0, p1]), [[0.0, 1.0], [1.0, 0.0]])
+    stationary = chain_matrices(GilbertElliott(p=[0.1], r=[0.4]))[0][2]      # r / (p + r) = 0.8
+    np.testing.assert_allclose(stationary, [0.8, 0.2], rtol=1e-15)
+
+
+def test_chain_matrices_asks_any_other_channel_for_its_own():
+    chains = ((np.full((3, 3), 1 / 3), np.array([1.0, 0.5, 0.0]), np.array([1.0, 0.0, 0.0])),)
+    assert chain_matrices(ThreeStateChains(chains))[0][0].shape == (3, 3)
+    with pytest.raises(InputError, match="chain_matrices"):
+        chain_matrices(object())
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_forward_cost_matches_the_dense_second_moment_route(seed):
+    s = bursty(seed, time_varying=True, noise=seed % 3 == 0)
+    U = np.random.default_rng(100 + seed).normal(size=(s.horizon, s.m))
+    dense = exact_cost(s, U, method="dense")
+    assert exact_cost(s, U) == pytest.approx(dense, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_recursion_matches_the_dense_closed_form(seed):
+    s = bursty(seed, time_varying=seed % 2 == 1, noise=seed % 3 == 0)
+    rec, dense = exact_closed_form(s), exact_closed_form(s, method="dense")
+    assert rec.method == "markov-recursion"
+    assert dense.method == "markov-dense"
+    assert rec.cost == pytest.approx(dense.cost, rel=1e-10)
+    scale = max(1.0, float(np.abs(dense.inputs).max()))
+    np.testing.assert_allclose(rec.inputs, dense.inputs, rtol=0, atol=1e-10 * scale)
+    np.testing.assert_allclose(rec.gain, dense.gain, rtol=0, atol=1e-10 * max(1.0, float(np.abs(dense.gain).max())))
+
+
+@pytest.mark.parametrize("horizon", [150, 200])
+def test_recursion_matches_the_dense_route_on_the_unstable_pendulum_at_long_horizons(horizon):
+    s = pl.load_example("pendulum_bursty")
+    s = pl.System(A=s.A, B=s.B, horizon=horizon, state_weight=np.diag(s.state_weights[0]),
+                  input_weight=s.input_weights[0], x0=s.x0, channel=s.channel)
+    assert max(abs(np.linalg.eigvals(s.A))) > 1
+    rec, dense = exact_closed_form(s), exact_closed_form(s, method="dense")
+    assert rec.cost == pytest.approx(dense.cost, rel=1e-10)
+    np.testing.assert_allclose(rec.gain, dense.gain, rtol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_recursion_matches_the_qp_twin(seed):
+    s = bursty(seed)
+    rec = exact_closed_form(s)
+    qp = exact_qp(s, reference=rec)                   # binds: CrossCheckError beyond its tolerances
+    assert qp.cost == pytest.approx(rec.cost, rel=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_gilbert_elliott_against_every_loss_pattern(seed):
+    rng = np.random.default_rng(seed)
+    s = random_system(rng, n=2, m=2, horizon=4, time_varying=True, noise=False)
+    s = attach_channel(s, random_channel(rng, 2, given=seed % 2 == 0))
+    sol = exact_closed_form(s)
+    chains = [([[1 - p, p], [r, 1 - r]], [hg, hb], [b, 1 - b]) for p, r, hg, hb, b in
+              zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad, s.channel.initial_belief, strict=True)]
+    enum = enumerated_chain_cost(s.A, s.B, s.state_weights, s.input_weights, s.initial_weight, s.x0, chains,
+                                 sol.inputs)
+    assert sol.cost == pytest.approx(enum, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_three_state_chain_against_every_loss_pattern(seed):
+    """A k = 3 chain through chain_matrices' contract: the forward cost of a random plan and the recursion's
+    minimum equal the enumerated expectation, and the enumerated cost is stationary at the minimiser."""
+    rng = np.random.default_rng(seed)
+    N, m = 4, 2
+    chains = chain_matrices(ThreeStateChains([random_chain(rng, 3) for _ in range(m)]))
+    s = random_system(rng, n=2, m=m, horizon=N, time_varying=True, noise=False).with_mu(schedule(chains, N))
+
+    def enum(U):
+        return enumerated_chain_cost(s.A, s.B, s.state_weights, s.input_weights, s.initial_weight, s.x0, chains, U)
+
+    U = rng.normal(size=(N, m))
+    assert float(chain_cost(s, U[None], chain_lift(s, chains))[0]) == pytest.approx(enum(U), rel=1e-12)
+    plan, gain, cost = augmented_solve(s, chains)
+    assert cost == pytest.approx(enum(plan), rel=1e-12)
+    u = plan.ravel()
+    grad = np.empty(u.size)
+    for j in range(u.size):                            # central differences of a quadratic: exact but rounding
+        e = np.zeros(u.size)
+        e[j] = 1e-3
+        grad[j] = (enum((u + e).reshape(N, m)) - enum((u - e).reshape(N, m))) / 2e-3
+    assert np.abs(grad).max() <= 1e-8 * max(1.0, cost)
+    np.testing.assert_allclose(gain @ s.x0, -plan[0], atol=1e-12 * max(1.0, np.abs(plan[0]).max()))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_lumped_three_state_twin_gives_the_gilbert_elliott_numbers(seed):
+    """Splitting the good state into two identical halves changes nothing the controller sees: the k = 3
+    recursion (two eigenvalues besides 1) must reproduce the dense Gilbert–Elliott route."""
+    s = bursty(seed)
+    twins = []
+    for p, r, hg, hb, b in zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad,
+                               s.channel.initial_belief, strict=True):
+        T = [[(1 - p) / 2, (1 - p) / 2, p], [(1 - p) / 2, (1 - p) / 2, p], [r / 2, r / 2, 1 - r]]
+        twins.append((np.array(T), np.array([hg, hg, hb]), np.array([b / 2, b / 2, 1 - b])))
+    plan, gain, cost = augmented_solve(s, chain_matrices(ThreeStateChains(twins)))
+    dense = exact_closed_form(s, method="dense")
+    assert cost == pytest.approx(dense.cost, rel=1e-10)
+    np.testing.assert_allclose(plan, dense.inputs, rtol=0, atol=1e-10 * max(1.0, np.abs(dense.inputs).max()))
+
+
+def test_a_channel_that_cannot_deliver_gets_no_input():
+    """A Gilbert channel known bad now (h_bad = 0: mu_0 = 0) and one that never delivers (h = 0, 0)."""
+    s = pl.System(A=[[1.1, 0.2], [0.0, 0.9]], B=[[1.0, 0.0], [0.3, 1.0]], horizon=6, state_weight=[1.0, 2.0],
+                  input_weight=[1.0, 0.5], x0=[1.0, -1.0],
+                  channel=GilbertElliott(p=[0.2, 0.3], r=[0.3, 0.4], h_good=[1.0, 0.0], state=["bad", "good"]))
+    assert s.mu_schedule[0, 0] == 0.0
+    assert np.all(s.mu_schedule[:, 1] == 0.0)
+    rec, dense = exact_closed_form(s), exact_closed_form(s, method="dense")
+    assert rec.inputs[0, 0] == 0.0
+    assert np.all(rec.inputs[:, 1] == 0.0)
+    assert rec.cost == pytest.approx(dense.cost, rel=1e-10)
+    np.testing.assert_allclose(rec.inputs, dense.inputs, atol=1e-10)
+
+
+def test_chains_that_disagree_with_the_schedule_are_refused():
+    chains = (random_chain(np.random.default_rng(0), 3),)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    with pytest.raises(InputError, match="mu_schedule"):
+        augmented_solve(s, chains)
+
+
+@pytest.mark.parametrize(("T", "d", "pi0", "match"), [
+    ([[0.5, 0.6], [0.5, 0.5]], [1.0, 0.0], [0.5, 0.5], "row-stochastic"),
+    ([[1.2, -0.2], [0.5, 0.5]], [1.0, 0.0], [0.5, 0.5], "row-stochastic"),
+    ([[0.5, 0.5], [0.5, 0.5]], [1.5, 0.0], [0.5, 0.5], "delivery"),
+    ([[0.5, 0.5], [0.5, 0.5]], [1.0, 0.0], [0.7, 0.7], "initial distribution"),
+    ([[0.5, 0.5], [0.5, 0.5]], [1.0, 0.0, 0.0], [0.5, 0.5], "expected"),
+])
+def test_chains_that_break_the_contract_are_refused(T, d, pi0, match):
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    chains = chain_matrices(ThreeStateChains([(T, d, pi0)]))
+    with pytest.raises(InputError, match=match):
+        augmented_solve(s, chains)
+
+
+def test_method_is_checked():
+    s = pl.load_example("pendulum_bursty")
+    with pytest.raises(InputError, match="method"):
+        exact_closed_form(s, method="qr")
+    with pytest.raises(InputError, match="method"):
+        exact_cost(s, np.zeros((s.horizon, 1)), method="qr")
+
+
+def test_the_covariance_of_a_three_state_chain_against_every_loss_pattern():
+    """channel_covariance of any chain_matrices() channel (what the dense route and the QP twin read) against
+    E[v_t v_s] - mu_t mu_s summed over all 2^N loss patterns; and the lumped twin of a Gilbert-Elliott channel
+    through it equals the Gilbert-Elliott formula."""
+    from tests.references import loss_pattern_probabilities
+
+    rng = np.random.default_rng(7)
+    N = 6
+    chains = [random_chain(rng, 3) for _ in range(2)]
+    C = channel_covariance(ThreeStateChains(chains), N)
+    for i, (T, d, pi0) in enumerate(chains):
+        probs = loss_pattern_probabilities(T, d, pi0, N)
+        V = np.array(list(probs)), np.array(list(probs.values()))
+        mean = V[1] @ V[0]
+        second = (V[0] * V[1][:, None]).T @ V[0]
+        np.testing.assert_allclose(C[i], second - np.outer(mean, mean), rtol=0, atol=1e-14)
+    ge = GilbertElliott(p=[0.15], r=[0.35], h_good=[0.9], h_bad=[0.2], belief=[0.4])
+    p, r, hg, hb, b = 0.15, 0.35, 0.9, 0.2, 0.4
+    lumped = ThreeStateChains([([[(1 - p) / 2, (1 - p) / 2, p], [(1 - p) / 2, (1 - p) / 2, p], [r / 2, r / 2, 1 - r]],
+                                [hg, hg, hb], [b / 2, b / 2, 1 - b])])
+    np.testing.assert_allclose(channel_covariance(lumped, 9), channel_covariance(ge, 9), rtol=0, atol=1e-15)
