@@ -24,16 +24,16 @@ With ``P^-`` the predicted covariance, ``q = prod_j (1 - gamma_j)`` the probabil
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import solve_discrete_lyapunov
 
 from ..errors import CrossCheckError, InputError, NumericalError
+from ..results.sensing import CovarianceBounds, CriticalGamma
 from ..sensor import Sensor
 from .kalman import arrival_patterns, measurement_update, pattern_rows, predict
 
-__all__ = ["CriticalGamma", "CovarianceBounds", "covariance_bounds", "critical_gamma", "expected_riccati_map",
+__all__ = ["covariance_bounds", "critical_gamma", "expected_riccati_map",
            "lower_bound_covariance", "riccati_map", "stable_certificate", "upper_bound_covariance"]
 
 #: The value iteration of the upper bound stops when an update changes V by less than this (relative).
@@ -77,7 +77,7 @@ def lower_bound_covariance(A: np.ndarray, Sigma_W: np.ndarray, q: float) -> np.n
     Lyapunov solve when ``q rho(A)^2 < 1``; otherwise doubling ``S <- S + q^j A^j S A'^j`` (the noise may
     leave the unstable modes unexcited). Time O(n^3) per doubling, at most 64.
 
-    >>> float(lower_bound_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.2)[0, 0])   # 1 / (1 - 0.2 * 4)
+    >>> round(float(lower_bound_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.2)[0, 0]), 12)   # 1/(1 - 0.8)
     5.0
     >>> lower_bound_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.25) is None
     True
@@ -169,23 +169,6 @@ def stable_certificate(A: np.ndarray, sensor: Sensor, gamma: np.ndarray) -> np.n
     return None
 
 
-@dataclass(frozen=True)
-class CovarianceBounds:
-    """Stationary bounds on ``lim E[P^-_k]`` (TCP-like filter): ``lower <= E[P^-] <= upper`` (None: unbounded
-    (lower) or no bound found (upper)); their traces (inf when None)."""
-
-    lower: np.ndarray | None
-    upper: np.ndarray | None
-
-    @property
-    def trace_lower(self) -> float:
-        return float("inf") if self.lower is None else float(np.trace(self.lower))
-
-    @property
-    def trace_upper(self) -> float:
-        return float("inf") if self.upper is None else float(np.trace(self.upper))
-
-
 def covariance_bounds(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor) -> CovarianceBounds:
     """The lower and upper bounds of the module docstring at the sensor's gamma; the two must be ordered
     (``upper - lower`` PSD to rounding), else CrossCheckError. Time as :func:`upper_bound_covariance`.
@@ -207,22 +190,6 @@ def covariance_bounds(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor) -> Cov
             raise CrossCheckError("expected error covariance: the upper bound lies below the lower bound",
                                   {"lower": float(np.trace(lower)), "upper": float(np.trace(upper))})
     return CovarianceBounds(lower, upper)
-
-
-@dataclass(frozen=True)
-class CriticalGamma:
-    """The critical arrival rate along ``gamma = t d``: ``lower <= t_c <= upper`` (upper inf: no certificate
-    up to ``1 / max d``); ``exact`` when a theorem makes them equal (``reason`` says which, or why not)."""
-
-    direction: np.ndarray
-    lower: float
-    upper: float
-    exact: bool
-    reason: str
-
-    def to_dict(self) -> dict:
-        return {"direction": self.direction.tolist(), "lower": self.lower, "upper": self.upper, "exact": self.exact,
-                "reason": self.reason}
 
 
 def _all_lost(t: float, d: np.ndarray) -> float:
