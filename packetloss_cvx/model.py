@@ -401,6 +401,15 @@ class System:
         sched = probabilities(matrix_field(schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         return self._copy_with(mu_schedule=frozen(sched), channel=chan)
 
+    def with_sensor(self, sensor: Any) -> System:
+        """A copy measuring through ``sensor`` (a sensor.Sensor or its TOML table; None: full state). Time O(n^3).
+
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> s.with_sensor({"C": [[1.0]], "gamma": [0.9]}).sensor.gamma.tolist(), s.sensor is None
+        ([0.9], True)
+        """
+        return self._copy_with(sensor=sensor_field(sensor, self.n))
+
     def to_dict(self) -> dict[str, Any]:
         """The system in the TOML schema's structure (plain lists), e.g. for JSON.
 

@@ -131,6 +131,8 @@ def upper_bound_covariance(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor,
     True
     """
     gamma_ = sensor.gamma if gamma is None else np.asarray(gamma, dtype=float)
+    if lower_bound_covariance(A, Sigma_W, float(np.prod(1.0 - gamma_))) is None:
+        return None                  # E[P-] >= the diverging lower bound: no upper bound (and no slow divergence)
     V = _iterate(np.array(sensor.P0, dtype=float), A, Sigma_W, sensor, gamma_)
     if V is None:
         return None

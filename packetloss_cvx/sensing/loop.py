@@ -79,12 +79,14 @@ def filter_gains(system: System) -> tuple[np.ndarray, np.ndarray, np.ndarray] | 
     return Pbar, gains, prob
 
 
-def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "") -> EstimatedLoop:
+def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "",
+                   gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, split: bool = True) -> EstimatedLoop:
     """The exact stationary loop of ``u = -K xhat`` (module docstring) at the system's mu and gamma.
 
     Returns the radius of the second-moment operator of ``(xhat, e)``, the average stage cost (inf with the
-    reason when not mean-square stable, or when the filter has no stationary gains) and its two parts.
-    Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
+    reason when not mean-square stable, or when the filter has no stationary gains) and its two parts
+    (``split=False``: not computed, nan; it solves the DP). ``gains``: :func:`filter_gains` of this system when the
+    caller has them (a map over mu at one gamma). Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
 
     Raises
     ------
@@ -107,11 +109,12 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     A, B, Sigma_W = system.A, system.B, system.noise_cov
     Omega, psi = system.state_weights[0], system.input_weights[0]
     sensor = system.sensor
-    try:
-        dp = dp_riccati(system)
-    except NumericalError as err:
-        dp = None
-        dp_reason = str(err)
+    dp, dp_reason = None, "not asked for (split=False)"
+    if split:
+        try:
+            dp = dp_riccati(system)
+        except NumericalError as err:
+            dp_reason = str(err)
     nan = float("nan")
 
     def result(radius: float, cost: float, control: float, estimation: float, S: np.ndarray | None,
@@ -122,7 +125,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     if n > LOOP_MAX_N:
         return result(nan, nan, nan, nan, None, f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); "
                                                f"found n = {n}: use Monte Carlo")
-    gains = filter_gains(system)
+    gains = filter_gains(system) if gains is None else gains
     if gains is None:
         return result(float("inf"), float("inf"), nan, nan, None,
                       "the filter has no stationary gains at this gamma (the expected Riccati iteration diverges)")
@@ -156,7 +159,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     W = np.block([[Omega + K.T @ ((mu * psi)[:, None] * K), Omega], [Omega, Omega]])
     cost = float(np.sum(W * S))
     if dp is None:
-        return result(radius, cost, nan, nan, S, f"no split: {dp_reason}")
+        return result(radius, cost, nan, nan, S, f"no split: {dp_reason}" if split else "")
     P, Kdp = dp.cost_to_go, dp.gain
     BPB = B.T @ P @ B
     H = np.diag(mu * psi) + (B * mu).T @ P @ (B * mu) + np.diag(c * np.diag(BPB))
