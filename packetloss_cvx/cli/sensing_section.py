@@ -12,7 +12,7 @@ from ..errors import InputError, NumericalError
 from ..model import System
 from ..results.base import finite_or_none
 from ..sensing.bounds import covariance_bounds, critical_gamma
-from ..sensing.loop import estimated_loop, filter_gains, require_sensor
+from ..sensing.loop import estimated_loop, loop_map, require_sensor
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.critical import critical_mu
 from ..simulation.riccati import dp_riccati
@@ -152,25 +152,11 @@ def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
 
 
 def coupled_grid(system: System, grid: int) -> dict[str, Any]:
-    """The UDP-like (and TCP-like) loop's verdict on a grid of (gamma scale, mu scale) in (0, 1]^2: the paper's law
-    re-designed at each mu, on the stationary filter at each gamma (sensing.loop). One channel each (a
-    shared scale otherwise). O(grid^2 (2n)^6)."""
-    require_sensor(system)
-    sensor, mu0 = system.sensor, system.mu_schedule[0]
+    """The TCP-like and UDP-like loops' verdicts on a grid of (gamma scale, mu scale) in (0, 1]^2: the paper's law
+    re-designed at each mu on its protocol's stationary filter (sensing.loop.loop_map). O(grid^2 (2n)^6)."""
     ts = np.linspace(1.0 / grid, 1.0, grid)
     out: dict[str, Any] = {"gamma_scale": ts.tolist(), "mu_scale": ts.tolist()}
-    for protocol in ("tcp", "udp"):
-        radius = np.full((grid, grid), np.nan)
-        for i, tg in enumerate(ts):
-            s_gamma = system.with_sensor(sensor.with_gamma(np.clip(tg * sensor.gamma / sensor.gamma.max(), 0, 1)))
-            gains = filter_gains(s_gamma)          # the filter at this gamma, shared by every mu of the row
-            for j, tm in enumerate(ts):
-                if gains is None:
-                    radius[i, j] = np.inf
-                    continue
-                s = s_gamma.with_mu(np.clip(tm * mu0 / mu0.max(), 0, 1))
-                loop = estimated_loop(s, closed_form(s, protocol).gain, protocol, protocol, gains, split=False)
-                radius[i, j] = loop.spectral_radius
+    for protocol, (radius, _) in loop_map(system, ts, ts, ("tcp", "udp")).items():
         stable = np.vectorize(is_mean_square_stable)(radius)
         out[protocol] = {"radius": [[finite_or_none(v) for v in row] for row in radius],
                          "stable": stable.tolist(), "stable_share": float(np.mean(stable))}

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..costs import closed_form
 from ..errors import InputError, NumericalError
 from ..model import System
 from ..results.sensing import EstimatedLoop
@@ -48,7 +49,7 @@ from ..tolerances import KRONECKER_MAX_N
 from .bounds import upper_bound_covariance
 from .kalman import arrival_patterns, measurement_update, pattern_rows
 
-__all__ = ["LOOP_MAX_N", "estimated_loop", "filter_gains", "require_sensor"]
+__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "require_sensor"]
 
 #: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
 LOOP_MAX_N = KRONECKER_MAX_N
@@ -167,3 +168,46 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     control = float(np.sum(P * Sigma_W))
     estimation = float(np.sum((G.T @ H @ G) * S))
     return result(radius, cost, control, estimation, S, "")
+
+
+#: The laws of :func:`loop_map`: the DP law on the TCP-like estimate (optimal by separation), the paper's TCP-like
+#: law on the TCP-like estimate and its UDP-like law on the UDP-like estimate, each re-designed at each mu.
+MAP_LAWS = {"dp": "tcp", "tcp": "tcp", "udp": "udp"}
+
+
+def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
+             laws: tuple[str, ...] = tuple(MAP_LAWS)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each law's exact radius and average stage cost (``(G, M)`` arrays, rows gamma) on the grid
+    ``gamma = s_g gamma_file / max``, ``mu = s_m mu_file / max`` (:func:`estimated_loop`; the filter built once per
+    gamma; inf where the filter has no stationary gains or the DP has no stabilising law). The data of the
+    (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws (2n)^6).
+
+    >>> from packetloss_cvx.sensor import Sensor
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[1.0]))
+    >>> radius, cost = loop_map(s, np.array([0.7, 0.9]), np.array([0.9]), ("dp",))["dp"]
+    >>> radius[:, 0] >= 1, bool(np.isinf(cost[0, 0]))      # gamma = 0.7 < 1 - 1/a^2: no stationary filter
+    (array([ True, False]), True)
+    """
+    require_sensor(system)
+    sensor, mu0 = system.sensor, system.mu_schedule[0]
+    out = {law: (np.full((len(gamma_scales), len(mu_scales)), np.inf),
+                 np.full((len(gamma_scales), len(mu_scales)), np.inf)) for law in laws}
+    for i, sg in enumerate(gamma_scales):
+        s_gamma = system.with_sensor(sensor.with_gamma(np.clip(sg * sensor.gamma / sensor.gamma.max(), 0.0, 1.0)))
+        gains = filter_gains(s_gamma)          # the filter at this gamma, shared by every mu of the row
+        if gains is None:
+            continue
+        for j, sm in enumerate(mu_scales):
+            s = s_gamma.with_mu(np.clip(sm * mu0 / mu0.max(), 0.0, 1.0))
+            for law in laws:
+                if law == "dp":
+                    try:
+                        gain = dp_riccati(s).gain
+                    except NumericalError:
+                        continue
+                else:
+                    gain = closed_form(s, law).gain
+                loop = estimated_loop(s, gain, MAP_LAWS[law], law, gains, split=False)
+                out[law][0][i, j], out[law][1][i, j] = loop.spectral_radius, loop.average_stage_cost
+    return out
