@@ -21,8 +21,8 @@ from .budgets import BUDGETS, check
 from .errors import InputError
 from .examples import names as packaged_names
 from .model import System
-from .sensor import SENSOR_KEYS
 from .safeio import atomic_write
+from .sensor import SENSOR_KEYS
 
 __all__ = ["dumps_system", "example_names", "load_example", "load_system", "read_csv_numbers", "read_input",
            "save_system",

@@ -46,7 +46,8 @@ def _groups(value: Any, p: int) -> tuple[tuple[int, ...], ...]:
     if value is None:
         return (tuple(range(p)),)
     if not isinstance(value, (list, tuple)) or not value:
-        raise InputError("sensor.groups", f"expected a non-empty list of lists of output rows, found {str(value)[:40]!r}")
+        raise InputError("sensor.groups", "expected a non-empty list of lists of output rows, found "
+                                          f"{str(value)[:40]!r}")
     out, seen = [], []
     for j, rows in enumerate(value):
         if not isinstance(rows, (list, tuple)) or not rows:

@@ -20,8 +20,8 @@ from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.allocation import tcp
 from packetloss_cvx.markov import chain
 from packetloss_cvx.model import SYSTEM_FIELDS, CacheKey, System
-from packetloss_cvx.sensor import Sensor
 from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.sensor import Sensor
 
 #: each key of the package -> how its value is read through the public path that keeps it
 READERS = {

@@ -35,23 +35,27 @@ def parse(*argv):
 def test_solve_reports_estimation_and_each_law_on_its_estimate(scalar_file):
     data = solve_run(parse("solve", scalar_file, "--no-qp")).data
     crit = data["estimation"]["critical_gamma"]
-    assert crit["exact"] and crit["lower"] == crit["upper"]
+    assert crit["exact"]
+    assert crit["lower"] == crit["upper"]
     assert crit["lower"] == pytest.approx(0.75)       # one channel: d = gamma / max gamma = 1, t = gamma
     trace = data["estimation"]["error_covariance_trace"]
     # scalar, R = 0: P = 0 on arrival, so E[P-] = 1 + 0.1 * 4 E[P-]: lower = upper = 1 / (1 - 0.4)
-    assert trace["lower"] == pytest.approx(1 / 0.6) and trace["upper"] == pytest.approx(1 / 0.6)
+    assert trace["lower"] == pytest.approx(1 / 0.6)
+    assert trace["upper"] == pytest.approx(1 / 0.6)
     for protocol in ("tcp", "udp"):
         entry = data[protocol]["estimated_state"]
         s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
                    noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.9]))
         want = estimated_loop(s, np.array(data[protocol]["gain"]), protocol).average_stage_cost
-        assert entry["cost"] == pytest.approx(want, rel=1e-12) and entry["stable"]
+        assert entry["cost"] == pytest.approx(want, rel=1e-12)
+        assert entry["stable"]
     assert data["estimation"]["dp"]["cost"] <= data["tcp"]["estimated_state"]["cost"]   # separation: DP is optimal
 
 
 def test_full_state_files_have_no_estimation_keys():
     data = solve_run(parse("solve", "two_actuator", "--no-qp")).data
-    assert "estimation" not in data and "estimated_state" not in data["tcp"]
+    assert "estimation" not in data
+    assert "estimated_state" not in data["tcp"]
 
 
 def test_simulate_closed_loop_reports_each_law_on_the_estimate(scalar_file):
@@ -59,8 +63,10 @@ def test_simulate_closed_loop_reports_each_law_on_the_estimate(scalar_file):
     section = data["estimated_state"]
     assert set(section) == {"tcp", "udp", "dp"}
     for entry in section.values():
-        assert entry["exact_stage_cost"] is None and entry["exact_reason"]
-        assert entry["stderr"] > 0 and entry["stable"] is True
+        assert entry["exact_stage_cost"] is None
+        assert entry["exact_reason"]
+        assert entry["stderr"] > 0
+        assert entry["stable"] is True
         stationary = entry["stationary"]
         assert abs(stationary["mean_stage_cost"] - stationary["exact_stage_cost"]) < 5 * stationary["stderr"]
 
@@ -73,17 +79,22 @@ def test_region_separates_the_tcp_thresholds_and_maps_the_coupled_region(scalar_
     grid = data["sensor"]["grid"]
     # scales 0.25..1 of gamma = mu = 0.9: only the last row/column (0.9 > 0.75) can be stable (TCP: separate)
     stable = np.array(grid["tcp"]["stable"])
-    assert not stable[:-1].any() and not stable[:, :-1].any()
+    assert not stable[:-1].any()
+    assert not stable[:, :-1].any()
 
 
 def test_sensor_grid_needs_a_sensor_and_is_budgeted(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", "region", "two_actuator", "--sensor-grid", "3"],
                           capture_output=True, text=True, cwd=ROOT, timeout=120)
-    assert proc.returncode == 2 and "--sensor-grid" in proc.stderr and proc.stderr.count("\n") == 1
+    assert proc.returncode == 2
+    assert "--sensor-grid" in proc.stderr
+    assert proc.stderr.count("\n") == 1
 
 
 def test_pendulum_sensor_example_reads_and_its_dp_loop_is_stable():
     s = load_example("pendulum_sensor")
-    assert s.sensor.C.shape == (2, 4) and s.sensor.gamma.tolist() == [0.8]
+    assert s.sensor.C.shape == (2, 4)
+    assert s.sensor.gamma.tolist() == [0.8]
     plain = load_example("pendulum")
-    assert np.array_equal(s.A, plain.A) and np.array_equal(s.B, plain.B)
+    assert np.array_equal(s.A, plain.A)
+    assert np.array_equal(s.B, plain.B)

@@ -121,7 +121,8 @@ def test_cost_split_holds_for_the_time_varying_filter_by_simulation(protocol):
     BPB = B.T @ P @ B
     H = np.diag(mu * psi) + (B * mu).T @ P @ (B * mu) + np.diag(mu * (1 - mu) * np.diag(BPB))
     split = np.trace(P @ s.noise_cov) + np.trace(K.T @ H @ K @ run.mean_filtered_covariance)
-    assert np.isnan(run.exact_stage_cost) and run.reason
+    assert np.isnan(run.exact_stage_cost)
+    assert run.reason
     assert abs(run.mean_stage_cost - split) < 4 * run.stderr
 
 

@@ -58,13 +58,16 @@ def test_sensor_file_reads_and_writes_back(tmp_path):
     again.write_text(dumps_system(s))
     assert load_system(again).sensor == s.sensor
     assert pickle.loads(pickle.dumps(s)).sensor == s.sensor
-    assert s.with_mu([0.3]).sensor is s.sensor and s.with_x0([0.0, 1.0]).sensor is s.sensor
+    assert s.with_mu([0.3]).sensor is s.sensor
+    assert s.with_x0([0.0, 1.0]).sensor is s.sensor
 
 
 def test_default_group_is_one_channel_and_P0_defaults_to_zero():
     s = Sensor(C=[[1.0, 0.0], [0.0, 1.0]], gamma=[0.5])
-    assert s.groups == ((0, 1),) and s.g == 1
-    assert np.array_equal(s.P0, np.zeros((2, 2))) and np.array_equal(s.noise_cov, np.zeros((2, 2)))
+    assert s.groups == ((0, 1),)
+    assert s.g == 1
+    assert np.array_equal(s.P0, np.zeros((2, 2)))
+    assert np.array_equal(s.noise_cov, np.zeros((2, 2)))
     with pytest.raises(AttributeError):
         s.gamma = np.array([1.0])
     assert not s.gamma.flags.writeable
@@ -75,7 +78,8 @@ def test_full_state_file_is_unchanged():
     for name in ("pendulum", "two_actuator", "pendulum_bursty"):
         s = load_example(name)
         assert s.sensor is None
-        assert "sensor" not in dumps_system(s) and "P0" not in dumps_system(s)
+        assert "sensor" not in dumps_system(s)
+        assert "P0" not in dumps_system(s)
 
 
 @pytest.mark.parametrize(("section", "line", "error", "field"), [
@@ -132,4 +136,5 @@ def test_cli_bad_sensor_is_one_line_and_exit_2(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", "solve", str(path), "--no-qp"],
                           capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 2
-    assert proc.stderr.strip().count("\n") == 0 and "sensor.gamma" in proc.stderr
+    assert proc.stderr.strip().count("\n") == 0
+    assert "sensor.gamma" in proc.stderr

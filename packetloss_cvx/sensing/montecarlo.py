@@ -41,7 +41,8 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     Returns the mean stage cost over the second half and its standard error, the exact stationary cost
     (the "stationary" filter: sensing.loop; the "kalman" filter: nan with the reason), whether the loop is proved
     stable (the fixed-gain loop's radius; for the Kalman filter None: no exact verdict for a time-varying gain),
-    and the mean of the filter's own covariance P_k over the kept steps (Kalman only; nan otherwise). Time O(samples steps (2^g + n (n^2 + p^2))).
+    and the mean of the filter's own covariance P_k over the kept steps (Kalman only; nan otherwise).
+    Time O(samples steps (2^g + n (n^2 + p^2))).
 
     Raises
     ------

@@ -32,8 +32,8 @@ from .stability import (
     second_moment_matrix,
 )
 
-__all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "solve_fixed_point", "stationary_channel",
-           "stationary_second_moment"]
+__all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "solve_fixed_point",
+           "stationary_channel", "stationary_second_moment"]
 
 
 def check_steps(steps: object, per_step: int) -> None:
