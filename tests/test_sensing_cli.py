@@ -98,3 +98,17 @@ def test_pendulum_sensor_example_reads_and_its_dp_loop_is_stable():
     plain = load_example("pendulum")
     assert np.array_equal(s.A, plain.A)
     assert np.array_equal(s.B, plain.B)
+
+
+def test_gilbert_elliott_sensor_file_is_valid_and_its_estimation_says_why_not(tmp_path):
+    s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
+               noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.1],
+                                                                    "r": [0.4]}))
+    path = str(save_system(s, tmp_path / "bursty_sensor.toml"))
+    result = solve_run(parse("solve", path, "--no-qp"))
+    assert result.code == 0
+    assert result.data["estimation"]["critical_gamma"] == {"lower": None, "upper": None}
+    assert "Gilbert-Elliott" in result.data["estimation"]["reason"]
+    assert result.data["tcp"]["estimated_state"]["cost"] is None
+    sim = simulate_run(parse("simulate", path, "--closed-loop", "--samples", "50", "--steps", "5")).data
+    assert "Gilbert-Elliott" in sim["estimated_state"]["reason"]

@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             if system.sensor is not None:       # lossy sensor links: thresholds (TCP-like), coupled map (UDP-like)
                 data["sensor"], more = region_section(system)
                 lines += more
-                if sensor_grid is not None:
+                if sensor_grid is not None and "reason" not in data["sensor"]:
                     data["sensor"]["grid"] = grid = coupled_grid(system, sensor_grid)
                     lines += [f"stable share of the {sensor_grid}x{sensor_grid} (gamma, mu) scale map, the paper's "
                               "law on its estimate:"] + [f"  {p:<6} {100 * grid[p]['stable_share']:.1f} %"

@@ -30,7 +30,10 @@ def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
     """``solve``'s "estimation": the critical arrival rate (lower = upper where exact) along the file's gamma
     direction and the stationary bounds on tr E[P^-] (TCP-like filter), the DP law on the estimate (TCP-like:
     the optimum by separation), and text lines. O(critical_gamma + one loop)."""
-    require_sensor(system)
+    refused = _refused(system)
+    if refused is not None:
+        return {"critical_gamma": {"lower": None, "upper": None}, "error_covariance_trace": {"lower": None,
+                "upper": None}, "reason": refused}, [f"not computed: {refused}"]
     sensor = system.sensor
     direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
     cg = critical_gamma(system.A, sensor, direction)
@@ -56,6 +59,16 @@ def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
         out["dp"] = estimated_law(system, dp.gain, "tcp", "dp")
         lines.append("DP law on the TCP-like estimate (optimal by separation): " + _law_text(out["dp"]))
     return out, lines
+
+
+def _refused(system: System) -> str | None:
+    """Why the independent-arrival analysis does not apply to this (valid) file, or None: a Gilbert-Elliott
+    sensor (correlated losses); the caller reports the reason instead of failing."""
+    try:
+        require_sensor(system)
+    except InputError as err:
+        return str(err)
+    return None
 
 
 def estimated_law(system: System, gain: np.ndarray, protocol: str, law: str) -> dict[str, Any]:
@@ -90,7 +103,9 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
     """``simulate --closed-loop``'s "estimated_state": each law ("dp" and "tcp" on the TCP-like estimate, "udp" on
     the UDP-like one) sampled with the time-varying Kalman filter (exact cost null, with the reason) and with the
     stationary gains (exact cost from sensing.loop). O(laws samples steps (2^g + n^3))."""
-    require_sensor(system)
+    refused = _refused(system)
+    if refused is not None:
+        return {"reason": refused}, [f"with the estimated state: not run: {refused}"]
     out: dict[str, Any] = {}
     lines = ["with the estimated state (the sensor's links; the runs above measure the full state):"]
     for law in laws:
@@ -132,7 +147,9 @@ def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
     """``region``'s "sensor": TCP-like, the thresholds separate (the filter's critical rate along the file's gamma
     and the DP's critical mu along the file's mu); UDP-like, the coupled map is sensing.loop's radius on a grid
     (``sensor_grid``). O(critical_gamma + critical_mu)."""
-    require_sensor(system)
+    refused = _refused(system)
+    if refused is not None:
+        return {"reason": refused}, [f"sensor: not computed: {refused}"]
     sensor = system.sensor
     direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
     cg = critical_gamma(system.A, sensor, direction)
