@@ -28,7 +28,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
     {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "progress",
-     "display", "statespace", "channel", "sensor", "validation", "threads", "optional", "safeio", "runfolder", "examples"},
+     "display", "statespace", "channel", "sensor", "validation", "threads", "optional", "safeio", "runfolder",
+     "examples"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
      "evaluator", "pointwise"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov", "sensing"},

@@ -125,8 +125,9 @@ def cost_split_sensor(ctx: Context) -> ClaimResult:
             "where the case has none); a case without a stabilising DP law or whose loop on the estimate is not "
             "mean-square stable does not apply. Exact: the loop (xhat, e) with stationary filter gains, margin = "
             "1e-9 - |cost - tr(P Sigma_W) - E[(u + K x)'H(u + K x)]| / cost. Simulated on the paper's systems ("
-            f"{RUNS} runs, the time-varying filter, 2 k steps with radius^k <= {MIXED:g}, the second half averaged): z of the sampled cost "
-            "against tr(P Sigma_W) + tr(K'HK mean P_k), margin 1 - |z| / 4" + (f" ({shown})" if shown else "") + ".")
+            f"{RUNS} runs, the time-varying filter, 2 k steps with radius^k <= {MIXED:g}, the second half averaged): "
+            "z of the sampled cost against tr(P Sigma_W) + tr(K'HK mean P_k), margin 1 - |z| / 4"
+            + (f" ({shown})" if shown else "") + ".")
     return ClaimResult(id="cost-split-sensor", statement=STATEMENT, verdict=tally.verdict(), checked=tally.checked,
                        violations=int(tally.violations), worst=tally.worst, counterexample=None,
                        note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes))
