@@ -22,6 +22,7 @@ from .errors import InputError
 from .examples import names as packaged_names
 from .model import System
 from .safeio import atomic_write
+from .sensor import SENSOR_KEYS
 
 __all__ = ["dumps_system", "example_names", "load_example", "load_system", "read_csv_numbers", "read_input",
            "save_system",
@@ -39,9 +40,11 @@ _SCHEMA: dict[str, dict[str, str]] = {
     "channel": {"mu": "mu", "mu_schedule": "mu_schedule",   # or a Gilbert-Elliott or general Markov chain
                 **{key: f"channel.{key}" for key in ("model", "p", "r", "h_good", "h_bad", "state", "belief",
                                                      "transition", "delivery")}},
-    "state": {"x0": "x0"},
+    "state": {"x0": "x0", "P0": "sensor.P0"},
+    "sensor": {key: f"sensor.{key}" for key in SENSOR_KEYS},     # optional: lossy sensor links (sensor.py)
 }
-_REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",)}
+_REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",), "sensor": ()}
+_OPTIONAL_SECTIONS = ("sensor",)
 
 
 def system_from_dict(data: Mapping[str, Any]) -> System:
@@ -70,6 +73,8 @@ def system_from_dict(data: Mapping[str, Any]) -> System:
     where: dict[str, str] = {"name": "name"}
     for section, keys in _SCHEMA.items():
         if section not in data:
+            if section in _OPTIONAL_SECTIONS:
+                continue
             raise InputError(section, "missing section")
         table = data[section]
         if not isinstance(table, Mapping):
@@ -84,6 +89,12 @@ def system_from_dict(data: Mapping[str, Any]) -> System:
             if key in table:
                 kwargs[kw] = table[key]
                 where[kw] = f"{section}.{key}"
+    sensor = {kw.removeprefix("sensor."): kwargs.pop(kw) for kw in list(kwargs) if kw.startswith("sensor.")}
+    if sensor or "sensor" in data:
+        if "sensor" not in data:
+            raise InputError("state.P0", "the initial state's covariance needs a [sensor] section (without one the "
+                                         "state is measured exactly)")
+        kwargs["sensor"] = sensor
     markov = {kw.removeprefix("channel."): kwargs.pop(kw) for kw in list(kwargs) if kw.startswith("channel.")}
     if markov:
         kwargs["channel"] = markov
@@ -95,6 +106,8 @@ def system_from_dict(data: Mapping[str, Any]) -> System:
 
 
 def _toml_field(field: str, where: Mapping[str, str]) -> str:
+    if field.split(".")[0] in _OPTIONAL_SECTIONS or field == "state.P0":   # already a TOML path (sensor.py)
+        return field
     if "/" in field:  # a paired key
         first, second = field.split("/", 1)
         if "." in first:   # already named by its table (channel.state/belief)

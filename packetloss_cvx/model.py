@@ -12,7 +12,7 @@ Conventions (paper eq:plant, big):
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -23,6 +23,7 @@ from .channel import GilbertElliott
 from .display import system_html, system_repr, to_json
 from .errors import InputError
 from .markov_channel import MarkovChannel, channel_schedule
+from .sensor import Sensor
 from .statespace import plant_matrices, plant_statespace, sampling_time
 from .validation import (
     exactly_one,
@@ -50,7 +51,7 @@ STRUCTURE_FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "init
 #: dense (N n)×(N m) prediction matrices): :meth:`System.structure_cached`.
 STRUCTURE_CACHE_MAX_BYTES = 8 * 2**20
 #: Every field of a System (what a :class:`CacheKey` may say its value depends on).
-SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt")
+SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt", "sensor")
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +120,9 @@ class System:
     name : str, optional
     dt : float, optional
         Sampling time in seconds (python-control interop), metadata: nothing depends on it. None: unspecified.
+    sensor : sensor.Sensor or its TOML table, optional
+        Measurements over lossy sensor links (issue 22: packetloss_cvx.sensing). None: the full state is known
+        (the paper's model); every computation that ignores the sensor is the same with or without one.
 
     Raises
     ------
@@ -135,7 +139,7 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "_structure", "_own",
+        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "sensor", "_structure", "_own",
     )
 
     A: np.ndarray
@@ -150,6 +154,7 @@ class System:
     name: str | None
     channel: GilbertElliott | MarkovChannel | None
     dt: float | None
+    sensor: Sensor | None
 
     def __init__(
         self,
@@ -169,6 +174,7 @@ class System:
         name: str | None = None,
         channel: Any = None,
         dt: float | None = None,
+        sensor: Any = None,
     ) -> None:
         A_ = matrix_field(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
@@ -216,13 +222,14 @@ class System:
             Sigma = symmetric_psd(matrix_field(noise_cov, "noise_cov", n, n, f"({n}, {n})"), "noise_cov")
         if name is not None and not isinstance(name, str):
             raise InputError("name", f"expected a string, found {type(name).__name__}")
+        sensor_ = sensor_field(sensor, n)
 
         for key, value in (
             ("A", frozen(A_)), ("B", frozen(B_)), ("horizon", N),
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("dt", sampling_time(dt)), ("_structure", {}), ("_own", {}),
+            ("dt", sampling_time(dt)), ("sensor", sensor_), ("_structure", {}), ("_own", {}),
         ):
             object.__setattr__(self, key, value)
 
@@ -241,6 +248,8 @@ class System:
         fields = {"A": self.A, "B": self.B, "horizon": self.horizon, "x0": self.x0,
                   "state_weights": self.state_weights, "input_weights": self.input_weights,
                   "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name, "dt": self.dt}
+        if self.sensor is not None:
+            fields["sensor"] = self.sensor
         if self.channel is not None:
             fields["channel"] = self.channel
         else:
@@ -393,6 +402,15 @@ class System:
         sched = probabilities(matrix_field(schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         return self._copy_with(mu_schedule=frozen(sched), channel=chan)
 
+    def with_sensor(self, sensor: Any) -> System:
+        """A copy measuring through ``sensor`` (a sensor.Sensor or its TOML table; None: full state). Time O(n^3).
+
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> s.with_sensor({"C": [[1.0]], "gamma": [0.9]}).sensor.gamma.tolist(), s.sensor is None
+        ([0.9], True)
+        """
+        return self._copy_with(sensor=sensor_field(sensor, self.n))
+
     def to_dict(self) -> dict[str, Any]:
         """The system in the TOML schema's structure (plain lists), e.g. for JSON.
 
@@ -427,9 +445,33 @@ class System:
             "channel": channel,
             "state": {"x0": self.x0.tolist()},
         }
+        if self.sensor is not None:
+            out["sensor"] = self.sensor.to_dict()
+            out["state"]["P0"] = self.sensor.P0.tolist()
         if self.name:
             out = {"name": self.name, **out}
         return out
+
+
+def sensor_field(sensor: Any, n: int) -> Sensor | None:
+    """The System's ``sensor``: None, a :class:`~packetloss_cvx.sensor.Sensor` or its TOML table (with
+    ``P0`` as a key), its C of width n (else a DimensionError naming ``sensor.C``). O(p^3 + n^3).
+
+    >>> sensor_field({"C": [[1.0, 0.0]], "gamma": [0.5]}, 1)
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.DimensionError: sensor.C: expected shape (p, 1) (one column per state) but found (1, 2)
+    """
+    if sensor is None:
+        return None
+    if isinstance(sensor, Mapping):
+        table = {k: v for k, v in sensor.items() if k != "P0"}
+        return Sensor.from_table(table, sensor.get("P0"), n=n)
+    if not isinstance(sensor, Sensor):
+        raise InputError("sensor", f"expected a packetloss_cvx.Sensor or its table, found {type(sensor).__name__}")
+    if sensor.n != n:
+        raise shape_error("sensor.C", f"(p, {n}) (one column per state)", sensor.C.shape)
+    return sensor
 
 
 def _key(key: Any) -> CacheKey:

@@ -43,6 +43,7 @@ LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "simulation.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms cannot decide",
     "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",
     "plots": "figures (matplotlib): only commands asked to draw",
+    "sensing.lmi": "Sinopoli's filter LMI (cvxpy): the critical arrival rate's cross-check, only where asked",
 })
 
 #: library -> the pyproject extra that installs it (the others are required dependencies)

@@ -33,6 +33,7 @@ from .safeio import save_figure
 
 __all__ = [
     "plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto", "plot_region",
+    "plot_sensor_map",
 ]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
@@ -451,6 +452,50 @@ def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *
                        linestyles=styles[k % 4], linewidths=1.6)
         handles.append(Line2D([], [], color=colors[k % 4], linestyle=styles[k % 4], label=f"{law} boundary"))
     ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
+    if title:
+        ax.set_title(title)
+    fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stable: Mapping[str, Any], *,
+                    title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Both links lossy: ``cost`` (shape (G, M), rows gamma; inf where the loop is not stable) on a logarithmic
+    colour map over (mu, gamma), and each law's stability boundary (the 1/2 level of its 0/1 ``stable`` map).
+    O(G M) per law.
+
+    Examples
+    --------
+    >>> fig = plot_sensor_map([0.5, 1.0], [0.5, 1.0], [[np.inf, 4.0], [3.0, 2.0]], {"dp": [[0, 1], [1, 1]]})
+    >>> len(fig.axes), fig.axes[0].get_xlabel()
+    (2, 'actuator delivery rate $\\\\mu$')
+    """
+    g, m = numeric_array(gamma, "gamma"), numeric_array(mu, "mu")
+    c = np.asarray(cost, dtype=float)
+    if c.shape != (g.size, m.size):
+        raise InputError("cost", f"expected shape ({g.size}, {m.size}) but found {c.shape}")
+    fig = Figure(figsize=(7.6, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    finite = c[np.isfinite(c) & (c > 0)]
+    handles = [Patch(facecolor="lightgrey", label="not mean-square stable")]
+    ax.set_facecolor("lightgrey")
+    if finite.size:
+        lo, hi = float(finite.min()), float(finite.max())
+        hi = hi if hi > lo else lo * 10.0
+        mesh = ax.pcolormesh(m, g, np.ma.masked_invalid(np.where(np.isfinite(c), c, np.nan)), shading="nearest",
+                             norm=LogNorm(lo, hi), cmap="viridis")
+        fig.colorbar(mesh, ax=ax, label="average stage cost (DP law on the estimate)")
+    styles, colors = ["-", "--", ":"], ["black", "tab:orange", "tab:red"]
+    for k, (law, values) in enumerate(stable.items()):
+        v = np.asarray(values, dtype=float)
+        if v.shape != c.shape:
+            raise InputError("stable", f"{law}: expected shape {c.shape} but found {v.shape}")
+        if np.nanmin(v) < 0.5 < np.nanmax(v):
+            ax.contour(m, g, v, levels=[0.5], colors=colors[k % 3], linestyles=styles[k % 3], linewidths=1.6)
+        label = f"{law} boundary" + ("" if np.nanmax(v) > 0.5 else " (never stable here)")
+        handles.append(Line2D([], [], color=colors[k % 3], linestyle=styles[k % 3], label=label))
+    ax.set(xlabel=r"actuator delivery rate $\mu$", ylabel=r"sensor delivery rate $\gamma$", xlim=(m[0], m[-1]),
+           ylim=(g[0], g[-1]))
     if title:
         ax.set_title(title)
     fig.legend(handles=handles, **LEGEND)

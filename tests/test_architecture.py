@@ -28,11 +28,12 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
     {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "progress",
-     "display", "statespace", "channel", "markov_channel", "validation", "threads", "optional", "safeio", "runfolder",
+     "display", "statespace", "channel", "markov_channel", "sensor", "validation", "threads", "optional", "safeio",
+     "runfolder",
      "examples"},
     {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
      "evaluator", "pointwise"},
-    {"analysis", "difference", "allocation", "simulation", "studies", "markov"},
+    {"analysis", "difference", "allocation", "simulation", "studies", "markov", "sensing"},
     {"claims"},
     {"plots", "plot_style", "cli", "__main__", "__init__"},
 ]

@@ -21,6 +21,7 @@ from packetloss_cvx.allocation import tcp
 from packetloss_cvx.markov import chain
 from packetloss_cvx.model import SYSTEM_FIELDS, CacheKey, System
 from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.sensor import Sensor
 
 #: each key of the package -> how its value is read through the public path that keeps it
 READERS = {
@@ -50,7 +51,7 @@ def package_keys() -> dict[CacheKey, str]:
 def fields(s: System) -> dict:
     out = {"A": s.A, "B": s.B, "horizon": s.horizon, "state_weights": s.state_weights,
            "input_weights": s.input_weights, "x0": s.x0, "initial_weight": s.initial_weight,
-           "noise_cov": s.noise_cov, "name": s.name, "dt": s.dt}
+           "noise_cov": s.noise_cov, "name": s.name, "dt": s.dt, "sensor": s.sensor}
     return {**out, "channel": s.channel} if s.channel is not None else {**out, "mu_schedule": s.mu_schedule}
 
 
@@ -69,7 +70,8 @@ def changed(s: System, field: str, rng: np.random.Generator) -> System:
                     "input_weights": lambda: 3.0 * s.input_weights, "x0": lambda: s.x0 + 1.0,
                     "initial_weight": lambda: s.initial_weight + np.eye(n),
                     "noise_cov": lambda: s.noise_cov + 0.5 * np.eye(n), "name": lambda: "another",
-                    "dt": lambda: 0.25 if s.dt is None else 2 * s.dt}[field]()
+                    "dt": lambda: 0.25 if s.dt is None else 2 * s.dt,
+                    "sensor": lambda: Sensor(C=np.eye(n)[:1], gamma=[0.7], noise_cov=[[0.1]])}[field]()
     return System(**f)
 
 

@@ -278,7 +278,7 @@ COMPLETIONS = [
     (["al"], ["allocate"]),
     (["audit", "--cl"], ["--claim"]),
     (["sweep", "two_actuator", "--mu-"], ["--mu-grid", "--mu-list"]),
-    (["solve", "pend"], ["pendulum", "pendulum_bursty"]),
+    (["solve", "pend"], ["pendulum", "pendulum_bursty", "pendulum_sensor"]),
     (["simulate", ""], [*sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml")), "plant.toml"]),
     (["allocate", "pl"], ["plant.toml"]),
 ]

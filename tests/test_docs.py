@@ -11,7 +11,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = ["getting-started.md", "tutorials/design-study.md", "tutorials/formula-vs-solver.md",
-         "tutorials/allocation-constraints.md"]
+         "tutorials/allocation-constraints.md", "tutorials/lossy-sensors.md"]
 
 
 def python_blocks(page: str) -> list[str]:

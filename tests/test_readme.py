@@ -65,7 +65,7 @@ def test_getting_started_names_every_packaged_example():
 
     examples = sorted(p.name.removesuffix(".toml") for p in files("packetloss_cvx").joinpath("examples").iterdir()
                       if p.name.endswith(".toml"))
-    assert examples == ["pendulum", "pendulum_bursty", "two_actuator"]
+    assert examples == ["pendulum", "pendulum_bursty", "pendulum_sensor", "two_actuator"]
     for name in examples:
         assert f"`{name}`" in GETTING_STARTED and f"`{name}`" in README
 

@@ -33,7 +33,7 @@ __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "bu
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
-             "pendulum_bursty (a Gilbert-Elliott channel)")
+             "pendulum_bursty (a Gilbert-Elliott channel), pendulum_sensor (a lossy sensor link too)")
 
 DESCRIPTION = f"""\
 packetloss-cvx {__version__}: optimal control over multichannel packet-loss links
@@ -301,6 +301,9 @@ def build_parser() -> argparse.ArgumentParser:
     reg.add_argument("--channels", metavar="I,J", help="with --grid: the map's channels (default: 1,2), e.g. "
                                                          "--channels 1,3")
     add_dask_options(reg, "with --grid: the map's rows on Dask")
+    reg.add_argument("--sensor-grid", type=int, metavar="K",   # issue 22: lossy sensor links
+                     help="a file with [sensor]: also a K x K map of (gamma, mu) scales in (0, 1] for the paper's "
+                          "tcp and udp laws on their estimates (default: none), e.g. --sensor-grid 11")
     reg.add_argument("--out", metavar="DIR",
                      help="a folder: region.npz, region.csv and (with --grid) region.png (default: none), "
                           "e.g. --out region-out")

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budgets import check
 from ..errors import InputError
 from ..results.region import RegionMap
 from ..runfolder import RunFolder
@@ -17,6 +18,7 @@ from ..safeio import save_figure
 from ..simulation.region_map import LAWS, region_map
 from ..studies.output import csv_number
 from .common import CommandResult, floats, progress_of, system_of
+from .sensing_section import coupled_grid, region_section
 
 __all__ = ["run"]
 
@@ -76,10 +78,26 @@ def run(args: argparse.Namespace) -> CommandResult:
         raise InputError("--out", "expected a folder, found an empty path")
     system = system_of(args)
     options = _options(args, system.m)
+    sensor_grid = getattr(args, "sensor_grid", None)
+    if sensor_grid is not None:
+        if system.sensor is None:
+            raise InputError("--sensor-grid", "needs a file with a [sensor] section")
+        if sensor_grid < 2:
+            raise InputError("--sensor-grid", f"expected an integer >= 2, found {sensor_grid}")
+        check("region_points", 2 * sensor_grid * sensor_grid, "--sensor-grid",
+              f"a {sensor_grid} x {sensor_grid} map of 2 laws")
     try:
         with _folder(args) as out:
             result = region_map(system, progress=progress_of(args), **options)
             data, lines = result.to_dict(), _text(result)
+            if system.sensor is not None:       # lossy sensor links: thresholds (TCP-like), coupled map (UDP-like)
+                data["sensor"], more = region_section(system)
+                lines += more
+                if sensor_grid is not None and "reason" not in data["sensor"]:
+                    data["sensor"]["grid"] = grid = coupled_grid(system, sensor_grid)
+                    lines += [f"stable share of the {sensor_grid}x{sensor_grid} (gamma, mu) scale map, the paper's "
+                              "law on its estimate:"] + [f"  {p:<6} {100 * grid[p]['stable_share']:.1f} %"
+                                                        for p in ("tcp", "udp")]
             if out is not None:
                 paths = _write(result, out)
                 data = {**data, "files": [str(p) for p in paths]}

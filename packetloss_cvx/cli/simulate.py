@@ -13,6 +13,7 @@ from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from ..simulation.markov_montecarlo import EXACT_PLAN
 from ..simulation.montecarlo import LAWS, simulate
 from .common import CommandResult, check_figure_format, progress_of, system_of
+from .sensing_section import simulate_section
 
 __all__ = ["run"]
 
@@ -76,7 +77,11 @@ def run(args: argparse.Namespace) -> CommandResult:
                                          "stage_cost_mean": r.stage_cost_mean} for law, r in sim.closed_loop.items()},
                                   title=system.name)
         save_figure(figure, args.plot, overwrite=force, field="--plot")
-    return CommandResult(sim.to_dict(), _text(system.name or args.file, sim))
+    data, text = sim.to_dict(), _text(system.name or args.file, sim)
+    if system.sensor is not None and args.closed_loop:     # lossy sensor links (issue 22)
+        data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)
+        text = "\n".join([text, *more])
+    return CommandResult(data, text)
 
 
 def _save(sim: Simulation, path: str, force: bool) -> None:

@@ -17,6 +17,7 @@ from ..simulation import loop_stability
 from . import format as fmt
 from .common import CommandResult, progress_of, system_of
 from .markov_section import markov_section
+from .sensing_section import estimation_section, protocol_entry
 
 __all__ = ["STABILITY_MAX_N", "run", "stability", "text_details"]
 
@@ -91,6 +92,9 @@ def run(args: argparse.Namespace) -> CommandResult:
                 rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
         rows += text_details(sol, system.n, args.verbose)
+        if system.sensor is not None:     # lossy sensor links (issue 22): the law on the protocol's estimate
+            entry["estimated_state"], text = protocol_entry(system, protocol, sol.gain)
+            rows.append(("estimated state", text))
         wanted = getattr(args, "stability", None)
         if wanted is False or (wanted is None and system.n > STABILITY_MAX_N):
             why = ("skipped (--no-stability)" if wanted is False else
@@ -101,6 +105,9 @@ def run(args: argparse.Namespace) -> CommandResult:
             rows.append(("closed loop", stability(system, sol.gain, entry)))
         out[protocol] = entry
         lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows)
+    if system.sensor is not None:
+        out["estimation"], more = estimation_section(system)
+        lines += ["", "Lossy sensor links (estimated state)"] + [f"  {line}" for line in more]
     if system.channel is not None:   # Gilbert-Elliott: the exact minimiser under the chain beside the plug-in laws
         out["markov"], more = markov_section(system, protocols, qp=not args.no_qp)
         model = system.channel.to_dict()["model"]

@@ -2,7 +2,7 @@
 ``to_dict()`` for JSON (plain lists and floats).
 
 plans.py: one system's solutions; studies.py: design questions; closed_loop.py: the loop run for
-ever and sampled; region.py: the stabilisable set; base.py: what they share.
+ever and sampled; region.py: the stabilisable set; sensing.py: lossy sensors; base.py: what they share.
 """
 
 from .base import eigenvalue_pairs
@@ -10,6 +10,7 @@ from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simu
 from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, LoopStability, Solution
 from .region import CriticalPoint, Membership, RegionMap
+from .sensing import CovarianceBounds, CriticalGamma, EstimatedLoop, EstimatedRun
 from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
 
 __all__ = [
@@ -19,9 +20,13 @@ __all__ = [
     "ClaimResult",
     "ClosedLoop",
     "ClosedLoopRun",
+    "CovarianceBounds",
+    "CriticalGamma",
     "CriticalPoint",
     "CrossCheck",
     "DesignSweep",
+    "EstimatedLoop",
+    "EstimatedRun",
     "LoopStability",
     "MarkovSolution",
     "Membership",

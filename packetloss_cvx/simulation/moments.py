@@ -32,8 +32,8 @@ from .stability import (
     second_moment_matrix,
 )
 
-__all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "stationary_channel",
-           "stationary_second_moment"]
+__all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "solve_fixed_point",
+           "stationary_channel", "stationary_second_moment"]
 
 
 def check_steps(steps: object, per_step: int) -> None:
@@ -86,10 +86,16 @@ def stationary_channel(system: System) -> np.ndarray:
     return system.mu_schedule[0]
 
 
-def _solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callable[[], np.ndarray],
-                       C: np.ndarray, what: str) -> np.ndarray:
+def solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callable[[], np.ndarray],
+                      C: np.ndarray, what: str) -> np.ndarray:
     """X = apply(X) + C for a stable positive map: dense LU on the n^2 x n^2 matrix up to
-    MOMENT_DENSE_MAX_N (O(n^6)), GMRES on the operator beyond (O(n^3 m) per product). Residual checked."""
+    MOMENT_DENSE_MAX_N (O(n^6)), GMRES on the operator beyond (O(n^3 m) per product). Residual checked
+    (NumericalError).
+
+    >>> X = solve_fixed_point(lambda X: 0.5 * X, lambda: 0.5 * np.eye(1), np.array([[1.0]]), "a demo")
+    >>> float(X[0, 0])        # X = X/2 + 1
+    2.0
+    """
     n = C.shape[0]
     with np.errstate(over="ignore", invalid="ignore"):
         if n <= MOMENT_DENSE_MAX_N:
@@ -122,7 +128,7 @@ def stationary_second_moment(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLik
     """
     A_, B_, K_, mu_ = check_law(A, B, K, mu)
     Sigma = np.asarray(noise_cov, dtype=float)
-    return _solve_fixed_point(lambda S: second_moment_map(S, A_, B_, K_, mu_),
+    return solve_fixed_point(lambda S: second_moment_map(S, A_, B_, K_, mu_),
                               lambda: second_moment_matrix(A_, B_, K_, mu_), Sigma, "the stationary second moment")
 
 
@@ -140,7 +146,7 @@ def law_cost_to_go(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt
     """
     A_, B_, K_, mu_ = check_law(A, B, K, mu)
     Q = np.asarray(Omega, dtype=float) + (K_.T * (mu_ * np.asarray(psi, dtype=float))) @ K_
-    return _solve_fixed_point(lambda P: second_moment_adjoint(P, A_, B_, K_, mu_),
+    return solve_fixed_point(lambda P: second_moment_adjoint(P, A_, B_, K_, mu_),
                               lambda: second_moment_matrix(A_, B_, K_, mu_).T, Q, "the cost-to-go of the law")
 
 

@@ -17,6 +17,8 @@ O(n^3 + n^2 m) per product), or from the Kronecker matrix for small n (the test 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 import numpy.typing as npt
 from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs
@@ -29,8 +31,8 @@ from ..tolerances import ARPACK_TOL, KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 RADIUS_RESCALE = 1e100
 
 __all__ = [
-    "check_law", "is_mean_square_stable", "mean_square_radius", "second_moment_adjoint", "second_moment_map",
-    "second_moment_matrix",
+    "check_law", "is_mean_square_stable", "mean_square_radius", "random_matrix_moment", "second_moment_adjoint",
+    "second_moment_map", "second_moment_matrix",
 ]
 
 
@@ -105,7 +107,8 @@ def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.nda
 
 def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """The n^2 x n^2 matrix of ``L`` on row-major ``vec(S)``: ``Abar ⊗ Abar + sum_i c_i F_i ⊗ F_i``,
-    ``F_i = b_i k_i``, ``c_i = mu_i (1 - mu_i)``. Time O(n^4 m), memory 8 n^4 bytes: small n only.
+    ``F_i = b_i k_i``, ``c_i = mu_i (1 - mu_i)`` (:func:`random_matrix_moment`). Time O(n^4 m), memory 8 n^4
+    bytes: small n only.
 
     Examples
     --------
@@ -116,11 +119,24 @@ def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.nda
     True
     """
     Abar = A - (B * mu) @ K
-    out = np.kron(Abar, Abar)
-    for i, c in enumerate(mu * (1.0 - mu)):
+    return random_matrix_moment(Abar, (np.outer(B[:, i], K[i]) for i in range(B.shape[1])), mu * (1.0 - mu))
+
+
+def random_matrix_moment(mean: np.ndarray, directions: Iterable[np.ndarray], variances: np.ndarray) -> np.ndarray:
+    """The d^2 x d^2 matrix of ``S -> E[F S F']`` on row-major ``vec(S)`` for the random matrix
+    ``F = mean + sum_i (z_i - E z_i) D_i`` with independent scalars ``z_i`` of variances ``c_i``:
+    ``mean ⊗ mean + sum_i c_i D_i ⊗ D_i`` (the cross terms vanish). The operator of :func:`second_moment_map`
+    is the case ``D_i = b_i k_i``; the loop with an estimated state (``sensing.loop``) averages it over the
+    sensor's arrival patterns. Time O(d^4) per direction, memory 8 d^4 bytes.
+
+    >>> M = random_matrix_moment(np.array([[1.0]]), [np.array([[2.0]])], np.array([0.25]))
+    >>> float(M[0, 0])          # 1 + 0.25 * 4
+    2.0
+    """
+    out = np.kron(mean, mean)
+    for D, c in zip(directions, variances, strict=True):
         if c:
-            F = np.outer(B[:, i], K[i])
-            out += c * np.kron(F, F)
+            out += c * np.kron(D, D)
     return out
 
 

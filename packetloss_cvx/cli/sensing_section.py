@@ -1,0 +1,180 @@
+"""The lossy-sensor parts of ``solve``, ``simulate --closed-loop`` and ``region`` (issue 22): only for a
+system with a ``[sensor]`` section; a full-state file's output is unchanged."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..costs import closed_form
+from ..errors import InputError, NumericalError
+from ..model import System
+from ..results.base import finite_or_none
+from ..sensing.bounds import covariance_bounds, critical_gamma
+from ..sensing.loop import estimated_loop, loop_map, require_sensor
+from ..sensing.montecarlo import simulate_estimated
+from ..simulation.critical import critical_mu
+from ..simulation.riccati import dp_riccati
+from ..simulation.stability import is_mean_square_stable
+
+__all__ = ["coupled_grid", "estimated_law", "estimation_section", "protocol_entry", "region_section",
+           "simulate_section"]
+
+
+def _num(value: float | None, digits: int = 6) -> str:
+    return f"{value:.{digits}g}" if value is not None and np.isfinite(value) else "n/a"
+
+
+def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
+    """``solve``'s "estimation": the critical arrival rate (lower = upper where exact) along the file's gamma
+    direction and the stationary bounds on tr E[P^-] (TCP-like filter), the DP law on the estimate (TCP-like:
+    the optimum by separation), and text lines. O(critical_gamma + one loop)."""
+    refused = _refused(system)
+    if refused is not None:
+        return {"critical_gamma": {"lower": None, "upper": None}, "error_covariance_trace": {"lower": None,
+                "upper": None}, "reason": refused}, [f"not computed: {refused}"]
+    sensor = system.sensor
+    direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
+    cg = critical_gamma(system.A, sensor, direction)
+    bounds = covariance_bounds(system.A, system.noise_cov, sensor)
+    scale = float(sensor.gamma.max())
+    out: dict[str, Any] = {
+        "gamma": sensor.gamma.tolist(), "groups": [list(g) for g in sensor.groups],
+        "critical_gamma": {"lower": finite_or_none(cg.lower), "upper": finite_or_none(cg.upper), "exact": cg.exact,
+                           "direction": cg.direction.tolist(), "reason": cg.reason},
+        "error_covariance_trace": {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter"},
+        "gamma_scale": scale,
+    }
+    where = "gamma = t d, d = gamma / max gamma; the file's t = " + _num(scale)
+    lines = [f"critical rate t_c: [{_num(cg.lower)}, {_num(cg.upper)}]" + (" (exact)" if cg.exact else "")
+             + f" along {where}",
+             f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
+    try:
+        dp = dp_riccati(system)
+    except NumericalError as err:
+        out["dp"] = {"cost": None, "reason": str(err)}
+        lines.append(f"DP law on the estimate: no law: {err}")
+    else:
+        out["dp"] = estimated_law(system, dp.gain, "tcp", "dp")
+        lines.append("DP law on the TCP-like estimate (optimal by separation): " + _law_text(out["dp"]))
+    return out, lines
+
+
+def _refused(system: System) -> str | None:
+    """Why the independent-arrival analysis does not apply to this (valid) file, or None: a Gilbert-Elliott
+    sensor (correlated losses); the caller reports the reason instead of failing."""
+    try:
+        require_sensor(system)
+    except InputError as err:
+        return str(err)
+    return None
+
+
+def estimated_law(system: System, gain: np.ndarray, protocol: str, law: str) -> dict[str, Any]:
+    """One law's exact stationary loop on the protocol's estimate, as JSON (cost null with a reason)."""
+    try:
+        loop = estimated_loop(system, gain, protocol, law)
+    except InputError as err:            # e.g. a non-stationary or Gilbert-Elliott actuator channel
+        return {"law": law, "protocol": protocol, "cost": None, "stable": False, "reason": str(err)}
+    entry = loop.to_dict()
+    entry.pop("gain")
+    entry["cost"] = entry.pop("average_stage_cost")
+    return entry
+
+
+def _law_text(entry: dict[str, Any]) -> str:
+    if entry.get("cost") is None:
+        return f"cost n/a ({entry.get('reason', '')})"
+    return (f"average stage cost {_num(entry['cost'])} = control {_num(entry.get('control_part'))} + estimation "
+            f"{_num(entry.get('estimation_part'))}; " + ("mean-square stable" if entry["stable"] else "NOT stable")
+            + f" (radius of (xhat, e) {_num(entry.get('spectral_radius'))})")
+
+
+def protocol_entry(system: System, protocol: str, gain: np.ndarray) -> tuple[dict[str, Any], str]:
+    """The paper's receding-horizon law of ``protocol`` on that protocol's estimate, for solve's protocol block."""
+    entry = estimated_law(system, gain, protocol, protocol)
+    note = ("" if protocol == "tcp" else " (certainty equivalence on the UDP estimate: not optimal)")
+    return entry, note.strip(" ()") + (": " if note else "") + _law_text(entry)
+
+
+def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps: int,
+                     seed: int) -> tuple[dict[str, Any], list[str]]:
+    """``simulate --closed-loop``'s "estimated_state": each law ("dp" and "tcp" on the TCP-like estimate, "udp" on
+    the UDP-like one) sampled with the time-varying Kalman filter (exact cost null, with the reason) and with the
+    stationary gains (exact cost from sensing.loop). O(laws samples steps (2^g + n^3))."""
+    refused = _refused(system)
+    if refused is not None:
+        return {"reason": refused}, [f"with the estimated state: not run: {refused}"]
+    out: dict[str, Any] = {}
+    lines = ["with the estimated state (the sensor's links; the runs above measure the full state):"]
+    for law in laws:
+        protocol = "udp" if law == "udp" else "tcp"
+        if law == "dp":
+            try:
+                gain = dp_riccati(system).gain
+            except NumericalError as err:
+                out[law] = {"reason": str(err)}
+                lines.append(f"  DP law: no law: {err}")
+                continue
+        else:
+            gain = closed_form(system, law).gain
+        out[law] = {}
+        for name in ("kalman", "stationary"):
+            try:
+                run = simulate_estimated(system, gain, protocol, name, samples=samples, steps=steps, seed=seed,
+                                         law=law)
+            except InputError as err:
+                if err.field != "sensor.gamma":
+                    raise
+                out[law][name] = {"reason": str(err)}
+                continue
+            out[law][name] = run.to_dict()
+            lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law, {protocol.upper()}-like estimate, {name} "
+                         f"filter: mean stage cost {_num(run.mean_stage_cost)} +- {_num(run.stderr, 3)}, exact "
+                         f"{_num(run.exact_stage_cost)}" + (f" ({run.reason})" if run.reason else ""))
+        kalman = out[law].get("kalman", {})
+        stationary = out[law].get("stationary", {})
+        out[law].update({
+            "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
+            "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""),
+            "stable": stationary.get("stable"),
+        })
+    return out, lines
+
+
+def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
+    """``region``'s "sensor": TCP-like, the thresholds separate (the filter's critical rate along the file's gamma
+    and the DP's critical mu along the file's mu); UDP-like, the coupled map is sensing.loop's radius on a grid
+    (``sensor_grid``). O(critical_gamma + critical_mu)."""
+    refused = _refused(system)
+    if refused is not None:
+        return {"reason": refused}, [f"sensor: not computed: {refused}"]
+    sensor = system.sensor
+    direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
+    cg = critical_gamma(system.A, sensor, direction)
+    mu = system.mu_schedule[0]
+    try:
+        t_mu: float | None = float(critical_mu(system, "dp", mu / mu.max() if mu.max() > 0 else None))
+        why = ""
+    except (NumericalError, InputError) as err:
+        t_mu, why = None, str(err)
+    out = {"tcp": {"critical_gamma": cg.to_dict(), "critical_mu_dp": finite_or_none(t_mu), "reason": why,
+                   "rule": "stable iff gamma = t d with t above the critical rate and mu in the DP's region "
+                           "(separation: the estimation error does not depend on the control)"}}
+    lines = [f"sensor, TCP-like (separate thresholds): gamma along d = {np.round(direction, 6).tolist()} needs "
+             f"t in [{_num(cg.lower)}, {_num(cg.upper)}]" + (" (exact)" if cg.exact else "")
+             + f"; the DP law needs mu = t mu_file / max with t > {_num(t_mu)}"]
+    return out, lines
+
+
+def coupled_grid(system: System, grid: int) -> dict[str, Any]:
+    """The TCP-like and UDP-like loops' verdicts on a grid of (gamma scale, mu scale) in (0, 1]^2: the paper's law
+    re-designed at each mu on its protocol's stationary filter (sensing.loop.loop_map). O(grid^2 (2n)^6)."""
+    ts = np.linspace(1.0 / grid, 1.0, grid)
+    out: dict[str, Any] = {"gamma_scale": ts.tolist(), "mu_scale": ts.tolist()}
+    for protocol, (radius, _) in loop_map(system, ts, ts, ("tcp", "udp")).items():
+        stable = np.vectorize(is_mean_square_stable)(radius)
+        out[protocol] = {"radius": [[finite_or_none(v) for v in row] for row in radius],
+                         "stable": stable.tolist(), "stable_share": float(np.mean(stable))}
+    return out

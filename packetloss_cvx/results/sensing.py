@@ -1,0 +1,128 @@
+"""Results of the lossy-sensor analyses (packetloss_cvx.sensing): covariance bounds, the critical arrival
+rate, a law run for ever on an estimated state, and its Monte Carlo."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..display import fields_html, fields_repr, to_json
+from .base import Frozen, finite_or_none
+
+__all__ = ["CovarianceBounds", "CriticalGamma", "EstimatedLoop", "EstimatedRun"]
+
+
+@dataclass(frozen=True)
+class CovarianceBounds(Frozen):
+    """Stationary bounds on ``lim E[P^-_k]`` (TCP-like filter, sensing.bounds): ``lower <= E[P^-] <= upper``
+    (None: unbounded (lower) or no bound found (upper)); ``trace_lower``, ``trace_upper`` (inf when None)."""
+
+    lower: np.ndarray | None
+    upper: np.ndarray | None
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    @property
+    def trace_lower(self) -> float:
+        return float("inf") if self.lower is None else float(np.trace(self.lower))
+
+    @property
+    def trace_upper(self) -> float:
+        return float("inf") if self.upper is None else float(np.trace(self.upper))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The traces (null when infinite). O(n)."""
+        return {"lower": finite_or_none(self.trace_lower), "upper": finite_or_none(self.trace_upper)}
+
+
+@dataclass(frozen=True)
+class CriticalGamma(Frozen):
+    """The critical arrival rate along ``gamma = t d`` (sensing.bounds.critical_gamma): ``lower <= t_c <= upper``
+    (upper inf: no certificate up to ``1 / max d``); ``exact`` when a theorem makes them equal (``reason``)."""
+
+    direction: np.ndarray
+    lower: float
+    upper: float
+    exact: bool
+    reason: str
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats (null for inf). O(g)."""
+        return {"direction": self.direction.tolist(), "lower": finite_or_none(self.lower),
+                "upper": finite_or_none(self.upper), "exact": self.exact, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class EstimatedLoop(Frozen):
+    """A law ``u = -K xhat`` run for ever on the estimate of a stationary-gain filter (sensing.loop).
+
+    ``protocol`` "tcp" (acks: the prediction uses V u) or "udp" (M u); ``spectral_radius`` of the second-moment
+    operator of ``z = (xhat, e)``; ``stable`` when below 1 by the margin; ``average_stage_cost`` =
+    lim E[x'Omega x + (V u)'Psi(V u)] (inf when not stable, or None-like with ``reason`` when not computed);
+    ``control_part`` = tr(P Sigma_W) (P the DP's cost-to-go) and ``estimation_part`` = E[(u + K_dp x)' H
+    (u + K_dp x)], whose sum is the cost (sensing.loop docstring); ``second_moment`` E[z z'] (2n×2n)."""
+
+    law: str
+    protocol: str
+    gain: np.ndarray
+    spectral_radius: float
+    stable: bool
+    average_stage_cost: float
+    control_part: float
+    estimation_part: float
+    second_moment: np.ndarray | None
+    reason: str = ""
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats (null for inf or nan). O(n^2)."""
+        return {"law": self.law, "protocol": self.protocol, "gain": self.gain.tolist(),
+                "spectral_radius": finite_or_none(self.spectral_radius), "stable": self.stable,
+                "average_stage_cost": finite_or_none(self.average_stage_cost),
+                "control_part": finite_or_none(self.control_part),
+                "estimation_part": finite_or_none(self.estimation_part), "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class EstimatedRun(Frozen):
+    """Monte Carlo of a law on an estimated state (sensing.montecarlo): ``filter`` "kalman" (time-varying,
+    intermittent observations) or "stationary" (the fixed gains of sensing.loop); ``mean_stage_cost`` over the
+    second half of ``steps`` and ``samples`` runs, ``stderr`` from the runs' means; ``exact_stage_cost`` (nan
+    with ``reason`` when there is none); ``mean_filtered_covariance`` the mean of the filter's own P_k over the
+    kept steps (Kalman; nan otherwise)."""
+
+    law: str
+    protocol: str
+    filter: str
+    mean_stage_cost: float
+    stderr: float
+    exact_stage_cost: float
+    stable: bool | None
+    mean_filtered_covariance: np.ndarray
+    samples: int
+    steps: int
+    reason: str = ""
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats (null for inf or nan). O(1)."""
+        return {"law": self.law, "protocol": self.protocol, "filter": self.filter,
+                "mean_stage_cost": finite_or_none(self.mean_stage_cost), "stderr": finite_or_none(self.stderr),
+                "exact_stage_cost": finite_or_none(self.exact_stage_cost), "stable": self.stable,
+                "mean_filtered_trace": finite_or_none(float(np.trace(self.mean_filtered_covariance))),
+                "samples": self.samples,
+                "steps": self.steps, "reason": self.reason}

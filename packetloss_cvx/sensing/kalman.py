@@ -1,0 +1,163 @@
+"""The Kalman filter with intermittent observations (Sinopoli et al., IEEE TAC 49(9), 2004), one group of
+output rows per sensor channel, and its expected error covariance by enumeration of the arrival patterns.
+
+With ``x+ = A x + B V u + w``, ``y = C x + r`` and the arrivals ``a_j`` of the g sensor channels
+(``a_j ~ Bernoulli(gamma_j)``), the filter is
+
+.. math:: \\hat x^-_{k+1} = A \\hat x_k + B\\,\\mathcal V_k u_k, \\qquad
+   P^-_{k+1} = A P_k A' + \\Sigma_W + \\Sigma_{\\mathrm{act}}(u_k),
+
+    TCP-like: V_k known (acks): the prediction uses V_k u_k and Sigma_act = 0;
+    UDP-like: V_k unknown: the prediction uses E[V_k] u_k = M u_k and
+              Sigma_act(u) = sum_i mu_i (1 - mu_i) u_i^2 b_i b_i' = B diag(mu (1 - mu) u^2) B'
+
+(the error ``x+ - xhat-`` gains ``B (V - M) u``, zero-mean, independent of the past, of covariance
+``B diag(mu (1 - mu) u^2) B'`` since ``E[(v_i - mu_i)(v_j - mu_j)] = mu_i (1 - mu_i) [i = j]``; the error is then
+a Gaussian mixture, so this UDP filter is the best *linear* estimator, not the conditional mean), and the
+update uses only the rows ``r(a)`` of the channels that arrived:
+
+.. math:: L = P^- C_r' (C_r P^- C_r' + R_r)^+, \\qquad \\hat x = \\hat x^- + L (y_r - C_r \\hat x^-), \\qquad
+   P = P^- - L C_r P^-
+
+(a lost channel's rows are skipped: with no row, ``P = P^-``). The pseudo-inverse keeps ``R = 0`` with a
+singular ``P^-`` exact (``C = I, R = 0``: ``P = 0``, the full-state limit).
+
+The TCP-like ``P_k`` does not depend on the inputs, only on the arrivals: its expectation is exact by
+enumerating the ``2^(g k)`` arrival paths (:func:`expected_covariance`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..sensor import Sensor
+
+__all__ = ["ENUMERATION_MAX_PATHS", "PATTERN_MAX_CHANNELS", "ExpectedCovariance", "actuation_covariance",
+           "arrival_patterns", "expected_covariance", "measurement_update", "pattern_rows", "predict"]
+
+#: More sensor channels than this are refused by the pattern enumeration (2^g patterns per step).
+PATTERN_MAX_CHANNELS = 10
+#: The exact expected covariance enumerates at most this many arrival paths (2^(g steps)).
+ENUMERATION_MAX_PATHS = 2**16
+
+
+def arrival_patterns(gamma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All ``2^g`` arrival patterns (bool, (2^g, g), row k the binary digits of k) and their probabilities
+    ``prod_j gamma_j^a_j (1 - gamma_j)^(1 - a_j)``. Time O(2^g g).
+
+    >>> arrived, prob = arrival_patterns(np.array([0.9, 0.5]))
+    >>> arrived.astype(int).tolist(), np.round(prob, 12).tolist()
+    ([[0, 0], [0, 1], [1, 0], [1, 1]], [0.05, 0.05, 0.45, 0.45])
+    """
+    g = gamma.size
+    if g > PATTERN_MAX_CHANNELS:
+        raise InputError("sensor.groups", f"expected at most {PATTERN_MAX_CHANNELS} sensor channels (2^g arrival "
+                                          f"patterns are enumerated), found {g}")
+    arrived = np.array(list(itertools.product((False, True), repeat=g)), dtype=bool).reshape(-1, g)
+    prob = np.prod(np.where(arrived, gamma, 1.0 - gamma), axis=1)
+    return arrived, prob
+
+
+def pattern_rows(sensor: Sensor, arrived: np.ndarray) -> np.ndarray:
+    """The output rows delivered by the channels ``arrived`` (bool, (g,)), ascending. O(p).
+
+    >>> s = Sensor(C=np.eye(3), gamma=[0.5, 0.5], groups=[[0, 2], [1]])
+    >>> pattern_rows(s, np.array([True, False])).tolist()
+    [0, 2]
+    """
+    return np.array(sorted(r for j, rows in enumerate(sensor.groups) if arrived[j] for r in rows), dtype=int)
+
+
+def measurement_update(Pm: np.ndarray, C: np.ndarray, R: np.ndarray,
+                       rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The update with the output ``rows`` received, for a stack of predicted covariances ``Pm`` (..., n, n):
+    ``(P, L)``, P (..., n, n) and the gain L (..., n, p) with zero columns for the rows not received.
+    Time O(n^2 p + p^3) per matrix.
+
+    >>> P, L = measurement_update(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0]))
+    >>> float(P[0, 0]), float(L[0, 0])     # scalar: L = 2 / (2 + 2), P = 2 - L 2
+    (1.0, 0.5)
+    """
+    Pm = np.asarray(Pm, dtype=float)
+    L = np.zeros((*Pm.shape[:-1], C.shape[0]))
+    if rows.size == 0:
+        return Pm.copy(), L
+    Cr, Rr = C[rows], R[np.ix_(rows, rows)]
+    PCt = Pm @ Cr.T
+    S = Cr @ PCt + Rr
+    S = 0.5 * (S + np.swapaxes(S, -1, -2))
+    Lr = PCt @ np.linalg.pinv(S, rcond=1e-13, hermitian=True)
+    P = Pm - Lr @ np.swapaxes(PCt, -1, -2)
+    L[..., rows] = Lr
+    return 0.5 * (P + np.swapaxes(P, -1, -2)), L
+
+
+def actuation_covariance(B: np.ndarray, mu: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The UDP-like prediction's extra covariance ``B diag(mu (1 - mu) u^2) B'`` for inputs u (..., m): the
+    error the unacknowledged deliveries add (module docstring). Time O(n^2 m) per input.
+
+    >>> float(actuation_covariance(np.array([[2.0]]), np.array([0.5]), np.array([3.0]))[0, 0])   # 4 * 0.25 * 9
+    9.0
+    """
+    c = mu * (1.0 - mu) * np.asarray(u, dtype=float) ** 2
+    return np.einsum("ij,...j,kj->...ik", B, c, B)
+
+
+def predict(P: np.ndarray, A: np.ndarray, Sigma_W: np.ndarray) -> np.ndarray:
+    """``A P A' + Sigma_W`` for a stack P (..., n, n) (the UDP-like caller adds :func:`actuation_covariance`).
+    Time O(n^3) per matrix."""
+    out = A @ P @ A.T + Sigma_W
+    return 0.5 * (out + np.swapaxes(out, -1, -2))
+
+
+@dataclass(frozen=True)
+class ExpectedCovariance:
+    """The exact expected TCP-like error covariances over ``steps`` steps, from ``P^-_0 = P0``.
+
+    ``predicted[k] = E[P^-_k]`` (k = 0..steps) and ``filtered[k] = E[P_k]`` (after the update at step k,
+    k = 0..steps-1); ``paths``: the number of arrival paths enumerated."""
+
+    predicted: np.ndarray
+    filtered: np.ndarray
+    paths: int
+
+
+def expected_covariance(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor, steps: int,
+                        P0: np.ndarray | None = None) -> ExpectedCovariance:
+    """E[P^-_k] and E[P_k] exactly, by enumerating all ``2^(g steps)`` arrival paths (TCP-like: the
+    covariances do not depend on the inputs). Time O(2^(g steps) (n^3 + n^2 p + p^3)).
+
+    Raises
+    ------
+    InputError
+        Field ``steps``: more than :data:`ENUMERATION_MAX_PATHS` paths (use Monte Carlo or the bounds).
+
+    Examples
+    --------
+    >>> s = Sensor(C=[[1.0]], gamma=[0.5], noise_cov=[[1.0]], P0=[[1.0]])
+    >>> out = expected_covariance(np.array([[1.0]]), np.array([[1.0]]), s, 1)
+    >>> float(out.filtered[0, 0, 0])     # arrived: 1/(1+1) = 0.5; lost: 1; mean 0.75
+    0.75
+    """
+    g = sensor.g
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise InputError("steps", f"expected an integer >= 1, found {steps!r}")
+    if g * steps > np.log2(ENUMERATION_MAX_PATHS):
+        raise InputError("steps", f"{steps} steps of {g} sensor channels are 2^{g * steps} arrival paths, over the "
+                                  f"{ENUMERATION_MAX_PATHS} enumerated exactly: use Monte Carlo or the bounds")
+    arrived, prob = arrival_patterns(sensor.gamma)
+    updates = [pattern_rows(sensor, a) for a in arrived]
+    Pm = np.array(sensor.P0 if P0 is None else P0, dtype=float)[None]
+    weight = np.ones(1)
+    predicted, filtered = [Pm[0].copy()], []
+    for _ in range(steps):
+        P = np.concatenate([measurement_update(Pm, sensor.C, sensor.noise_cov, rows)[0] for rows in updates])
+        weight = np.concatenate([weight * pk for pk in prob])
+        filtered.append(np.einsum("k,kij->ij", weight, P))
+        Pm = predict(P, A, Sigma_W)
+        predicted.append(np.einsum("k,kij->ij", weight, Pm))
+    return ExpectedCovariance(np.array(predicted), np.array(filtered), int(weight.size))

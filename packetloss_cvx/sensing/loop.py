@@ -1,0 +1,213 @@
+"""A law ``u = -K xhat`` run for ever on the estimate of a filter with stationary gains: the loop
+``z = (xhat, e)``, ``e = x - xhat``, is linear with independent random matrices, so its mean-square radius
+and stationary cost are exact from second moments (the operator of simulation.stability on the augmented state,
+averaged over the sensor's arrival patterns).
+
+The filter's gains: ``Pbar`` the stationary predicted covariance of the expected Riccati map (sensing.bounds,
+the modified Riccati fixed point) and, for each arrival pattern a, ``L_a`` the update gain of its rows at
+``Pbar`` (zero columns for rows not received). With ``v_i ~ Bernoulli(mu_i)``, ``a`` the arrivals, noise ``w``
+and ``r``:
+
+    TCP-like (acks, prediction A xhat + B V u):   the V u terms cancel in the error, so
+        xhat+ = (A - B V K) xhat + L_a C A e + L_a (C w + r)
+        e+    = (I - L_a C) A e + (I - L_a C) w - L_a r
+    UDP-like (prediction A xhat + B M u):   e- = A e - B (V - M) K xhat + w, so
+        xhat+ = (A - B M K) xhat + L_a C A e - L_a C B (V - M) K xhat + L_a (C w + r)
+        e+    = (I - L_a C) A e - (I - L_a C) B (V - M) K xhat + (I - L_a C) w - L_a r
+
+``z+ = (F_a + sum_i (v_i - mu_i) D_{a,i}) z + N_a (w, r)``: the TCP-like ``D_i = -[b_i; 0] [k_i, 0]``, the UDP-like
+``D_{a,i} = -[L_a C b_i; (I - L_a C) b_i] [k_i, 0]``. So ``E[z+ z+'] = sum_a p_a (F_a S F_a' + sum_i mu_i (1 -
+mu_i) D_{a,i} S D_{a,i}' + N_a diag(Sigma_W, R) N_a')``; its matrix is
+``sum_a p_a random_matrix_moment(F_a, D_a, mu (1 - mu))``. Stage cost ``x'Omega x + (V u)'Psi(V u)`` has mean
+``tr(W S)``, ``W = [[Omega + K'M Psi K, Omega], [Omega, Omega]]`` (``x = xhat + e``, ``v_i^2 = v_i``).
+
+**The cost splits** (the audit's claim, checked by simulation in the tests): with P the DP's cost-to-go
+(simulation.riccati, full state) and ``H = M Psi + M B'PB M + D(P)`` its input Hessian, for any u chosen
+without knowing V (``E[.|x, u]`` over V and w)
+
+    E[x'Omega x + (V u)'Psi(V u) + x+'P x+ | x, u] = x'P x + (u + K_dp x)' H (u + K_dp x) + tr(P Sigma_W),
+
+so in the stationary loop the average cost is ``tr(P Sigma_W)`` (control part: the full-state optimum) plus
+``E[(u + K_dp x)' H (u + K_dp x)]`` (estimation part; for the DP law on the estimate, ``tr(K'HK E[e e'])``).
+TCP-like with the DP law is then optimal for the estimate's filter (separation, Schenato et al. 2007); the
+UDP-like law on the UDP estimate is certainty equivalence, NOT optimal: its error covariance grows with the
+inputs (the actuation term), which the law ignores.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..costs import closed_form
+from ..errors import InputError, NumericalError
+from ..model import System
+from ..results.sensing import EstimatedLoop
+from ..simulation.moments import solve_fixed_point, stationary_channel
+from ..simulation.riccati import dp_riccati
+from ..simulation.stability import is_mean_square_stable, random_matrix_moment
+from ..tolerances import KRONECKER_MAX_N
+from .bounds import upper_bound_covariance
+from .kalman import arrival_patterns, measurement_update, pattern_rows
+
+__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "require_sensor"]
+
+#: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
+LOOP_MAX_N = KRONECKER_MAX_N
+
+
+def require_sensor(system: System) -> None:
+    """An InputError (field ``sensor``) unless the system has a Bernoulli sensor."""
+    if system.sensor is None:
+        raise InputError("sensor", "expected a system with a [sensor] section (the full-state loop is "
+                                   "simulation.closed_loop)")
+    if system.sensor.channel is not None:
+        raise InputError("sensor.model", "a Gilbert-Elliott sensor's losses are correlated: the independent-arrival "
+                                         "analysis does not describe it (give gamma for the Bernoulli twin)")
+
+
+def filter_gains(system: System) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(Pbar, gains (2^g, n, p), probabilities (2^g,))``: the stationary predicted covariance and each arrival
+    pattern's update gain (module docstring); None when the expected Riccati iteration has no fixed point
+    (the rate is not certified). Time as sensing.bounds.upper_bound_covariance."""
+    require_sensor(system)
+    sensor = system.sensor
+    Pbar = upper_bound_covariance(system.A, system.noise_cov, sensor)
+    if Pbar is None:
+        return None
+    arrived, prob = arrival_patterns(sensor.gamma)
+    gains = np.stack([measurement_update(Pbar, sensor.C, sensor.noise_cov, pattern_rows(sensor, a))[1]
+                      for a in arrived])
+    return Pbar, gains, prob
+
+
+def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "",
+                   gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, split: bool = True) -> EstimatedLoop:
+    """The exact stationary loop of ``u = -K xhat`` (module docstring) at the system's mu and gamma.
+
+    Returns the radius of the second-moment operator of ``(xhat, e)``, the average stage cost (inf with the
+    reason when not mean-square stable, or when the filter has no stationary gains) and its two parts
+    (``split=False``: not computed, nan; it solves the DP). ``gains``: :func:`filter_gains` of this system when the
+    caller has them (a map over mu at one gamma). Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
+
+    Raises
+    ------
+    InputError
+        No Bernoulli sensor; a non-stationary or Gilbert-Elliott actuator channel (simulation.moments).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.sensor import Sensor
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[1.0]))     # C = I, R = 0: full state
+    >>> loop = estimated_loop(s, np.array([[0.5]]), "tcp")
+    >>> round(loop.average_stage_cost, 12)      # x+ = x/2 + w: E x^2 = 4/3, cost (1 + 1/4) 4/3
+    1.666666666667
+    """
+    require_sensor(system)
+    mu = stationary_channel(system)
+    n = system.n
+    K = np.asarray(gain, dtype=float)
+    A, B, Sigma_W = system.A, system.B, system.noise_cov
+    Omega, psi = system.state_weights[0], system.input_weights[0]
+    sensor = system.sensor
+    dp, dp_reason = None, "not asked for (split=False)"
+    if split:
+        try:
+            dp = dp_riccati(system)
+        except NumericalError as err:
+            dp_reason = str(err)
+    nan = float("nan")
+
+    def result(radius: float, cost: float, control: float, estimation: float, S: np.ndarray | None,
+               reason: str) -> EstimatedLoop:
+        return EstimatedLoop(law, protocol, K, radius, is_mean_square_stable(radius), cost, control, estimation, S,
+                             reason)
+
+    if n > LOOP_MAX_N:
+        return result(nan, nan, nan, nan, None, f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); "
+                                               f"found n = {n}: use Monte Carlo")
+    gains = filter_gains(system) if gains is None else gains
+    if gains is None:
+        return result(float("inf"), float("inf"), nan, nan, None,
+                      "the filter has no stationary gains at this gamma (the expected Riccati iteration diverges)")
+    _, L, prob = gains
+    c = mu * (1.0 - mu)
+    eye = np.eye(n)
+    zero = np.zeros((n, n))
+    matrix = np.zeros((4 * n * n, 4 * n * n))
+    noise = np.zeros((2 * n, 2 * n))
+    noise_cov = np.block([[Sigma_W, np.zeros((n, sensor.p))], [np.zeros((sensor.p, n)), sensor.noise_cov]])
+    Abar = A - (B * mu) @ K
+    for La, pa in zip(L, prob, strict=True):
+        if pa == 0.0:
+            continue
+        LC = La @ sensor.C
+        F = np.block([[Abar, LC @ A], [zero, (eye - LC) @ A]])
+        if protocol == "tcp":
+            left = [np.concatenate([B[:, i], np.zeros(n)]) for i in range(B.shape[1])]
+        else:
+            left = [np.concatenate([LC @ B[:, i], (eye - LC) @ B[:, i]]) for i in range(B.shape[1])]
+        D = [-np.outer(b, np.concatenate([K[i], np.zeros(n)])) for i, b in enumerate(left)]
+        matrix += pa * random_matrix_moment(F, D, c)
+        N = np.block([[LC, La], [eye - LC, -La]])
+        noise += pa * (N @ noise_cov @ N.T)
+    radius = float(np.max(np.abs(np.linalg.eigvals(matrix))))
+    if not is_mean_square_stable(radius):
+        return result(radius, float("inf"), nan, nan, None, f"not mean-square stable: the radius of (xhat, e) is "
+                                                             f"{radius:.6g}")
+    S = solve_fixed_point(lambda X: (matrix @ X.ravel()).reshape(2 * n, 2 * n), lambda: matrix, noise,
+                          "the stationary second moment of (xhat, e)")
+    W = np.block([[Omega + K.T @ ((mu * psi)[:, None] * K), Omega], [Omega, Omega]])
+    cost = float(np.sum(W * S))
+    if dp is None:
+        return result(radius, cost, nan, nan, S, f"no split: {dp_reason}" if split else "")
+    P, Kdp = dp.cost_to_go, dp.gain
+    BPB = B.T @ P @ B
+    H = np.diag(mu * psi) + (B * mu).T @ P @ (B * mu) + np.diag(c * np.diag(BPB))
+    G = np.concatenate([Kdp - K, Kdp], axis=1)
+    control = float(np.sum(P * Sigma_W))
+    estimation = float(np.sum((G.T @ H @ G) * S))
+    return result(radius, cost, control, estimation, S, "")
+
+
+#: The laws of :func:`loop_map`: the DP law on the TCP-like estimate (optimal by separation), the paper's TCP-like
+#: law on the TCP-like estimate and its UDP-like law on the UDP-like estimate, each re-designed at each mu.
+MAP_LAWS = {"dp": "tcp", "tcp": "tcp", "udp": "udp"}
+
+
+def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
+             laws: tuple[str, ...] = tuple(MAP_LAWS)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each law's exact radius and average stage cost (``(G, M)`` arrays, rows gamma) on the grid
+    ``gamma = s_g gamma_file / max``, ``mu = s_m mu_file / max`` (:func:`estimated_loop`; the filter built once per
+    gamma; inf where the filter has no stationary gains or the DP has no stabilising law). The data of the
+    (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws (2n)^6).
+
+    >>> from packetloss_cvx.sensor import Sensor
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[1.0]))
+    >>> radius, cost = loop_map(s, np.array([0.7, 0.9]), np.array([0.9]), ("dp",))["dp"]
+    >>> radius[:, 0] >= 1, bool(np.isinf(cost[0, 0]))      # gamma = 0.7 < 1 - 1/a^2: no stationary filter
+    (array([ True, False]), True)
+    """
+    require_sensor(system)
+    sensor, mu0 = system.sensor, system.mu_schedule[0]
+    out = {law: (np.full((len(gamma_scales), len(mu_scales)), np.inf),
+                 np.full((len(gamma_scales), len(mu_scales)), np.inf)) for law in laws}
+    for i, sg in enumerate(gamma_scales):
+        s_gamma = system.with_sensor(sensor.with_gamma(np.clip(sg * sensor.gamma / sensor.gamma.max(), 0.0, 1.0)))
+        gains = filter_gains(s_gamma)          # the filter at this gamma, shared by every mu of the row
+        if gains is None:
+            continue
+        for j, sm in enumerate(mu_scales):
+            s = s_gamma.with_mu(np.clip(sm * mu0 / mu0.max(), 0.0, 1.0))
+            for law in laws:
+                if law == "dp":
+                    try:
+                        gain = dp_riccati(s).gain
+                    except NumericalError:
+                        continue
+                else:
+                    gain = closed_form(s, law).gain
+                loop = estimated_loop(s, gain, MAP_LAWS[law], law, gains, split=False)
+                out[law][0][i, j], out[law][1][i, j] = loop.spectral_radius, loop.average_stage_cost
+    return out

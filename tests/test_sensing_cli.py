@@ -1,0 +1,114 @@
+"""solve, simulate --closed-loop and region on a file with lossy sensor links (cli.sensing_section), and the
+shipped pendulum_sensor example."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from packetloss_cvx.cli.parser import build_parser
+from packetloss_cvx.cli.region import run as region_run
+from packetloss_cvx.cli.simulate import run as simulate_run
+from packetloss_cvx.cli.solve import run as solve_run
+from packetloss_cvx.io import load_example, save_system
+from packetloss_cvx.model import System
+from packetloss_cvx.sensing.loop import estimated_loop
+from packetloss_cvx.sensor import Sensor
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def scalar_file(tmp_path):
+    """x' = 2x + v u + w, y = x (R = 0): the filter's critical rate is 1 - 1/a^2 = 0.75 exactly."""
+    s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
+               noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.9]))
+    return str(save_system(s, tmp_path / "scalar.toml"))
+
+
+def parse(*argv):
+    return build_parser().parse_args(list(argv))
+
+
+def test_solve_reports_estimation_and_each_law_on_its_estimate(scalar_file):
+    data = solve_run(parse("solve", scalar_file, "--no-qp")).data
+    crit = data["estimation"]["critical_gamma"]
+    assert crit["exact"]
+    assert crit["lower"] == crit["upper"]
+    assert crit["lower"] == pytest.approx(0.75)       # one channel: d = gamma / max gamma = 1, t = gamma
+    trace = data["estimation"]["error_covariance_trace"]
+    # scalar, R = 0: P = 0 on arrival, so E[P-] = 1 + 0.1 * 4 E[P-]: lower = upper = 1 / (1 - 0.4)
+    assert trace["lower"] == pytest.approx(1 / 0.6)
+    assert trace["upper"] == pytest.approx(1 / 0.6)
+    for protocol in ("tcp", "udp"):
+        entry = data[protocol]["estimated_state"]
+        s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
+                   noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.9]))
+        want = estimated_loop(s, np.array(data[protocol]["gain"]), protocol).average_stage_cost
+        assert entry["cost"] == pytest.approx(want, rel=1e-12)
+        assert entry["stable"]
+    assert data["estimation"]["dp"]["cost"] <= data["tcp"]["estimated_state"]["cost"]   # separation: DP is optimal
+
+
+def test_full_state_files_have_no_estimation_keys():
+    data = solve_run(parse("solve", "two_actuator", "--no-qp")).data
+    assert "estimation" not in data
+    assert "estimated_state" not in data["tcp"]
+
+
+def test_simulate_closed_loop_reports_each_law_on_the_estimate(scalar_file):
+    data = simulate_run(parse("simulate", scalar_file, "--closed-loop", "--samples", "400", "--steps", "60")).data
+    section = data["estimated_state"]
+    assert set(section) == {"tcp", "udp", "dp"}
+    for entry in section.values():
+        assert entry["exact_stage_cost"] is None
+        assert entry["exact_reason"]
+        assert entry["stderr"] > 0
+        assert entry["stable"] is True
+        stationary = entry["stationary"]
+        assert abs(stationary["mean_stage_cost"] - stationary["exact_stage_cost"]) < 5 * stationary["stderr"]
+
+
+def test_region_separates_the_tcp_thresholds_and_maps_the_coupled_region(scalar_file):
+    data = region_run(parse("region", scalar_file, "--law", "dp", "--sensor-grid", "4", "-q")).data
+    tcp = data["sensor"]["tcp"]
+    assert tcp["critical_gamma"]["lower"] == pytest.approx(0.75)
+    assert tcp["critical_mu_dp"] == pytest.approx(0.75, abs=1e-5)
+    grid = data["sensor"]["grid"]
+    # scales 0.25..1 of gamma = mu = 0.9: only the last row/column (0.9 > 0.75) can be stable (TCP: separate)
+    stable = np.array(grid["tcp"]["stable"])
+    assert not stable[:-1].any()
+    assert not stable[:, :-1].any()
+
+
+def test_sensor_grid_needs_a_sensor_and_is_budgeted(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", "region", "two_actuator", "--sensor-grid", "3"],
+                          capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 2
+    assert "--sensor-grid" in proc.stderr
+    assert proc.stderr.count("\n") == 1
+
+
+def test_pendulum_sensor_example_reads_and_its_dp_loop_is_stable():
+    s = load_example("pendulum_sensor")
+    assert s.sensor.C.shape == (2, 4)
+    assert s.sensor.gamma.tolist() == [0.8]
+    plain = load_example("pendulum")
+    assert np.array_equal(s.A, plain.A)
+    assert np.array_equal(s.B, plain.B)
+
+
+def test_gilbert_elliott_sensor_file_is_valid_and_its_estimation_says_why_not(tmp_path):
+    s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
+               noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.1],
+                                                                    "r": [0.4]}))
+    path = str(save_system(s, tmp_path / "bursty_sensor.toml"))
+    result = solve_run(parse("solve", path, "--no-qp"))
+    assert result.code == 0
+    assert result.data["estimation"]["critical_gamma"] == {"lower": None, "upper": None}
+    assert "Gilbert-Elliott" in result.data["estimation"]["reason"]
+    assert result.data["tcp"]["estimated_state"]["cost"] is None
+    sim = simulate_run(parse("simulate", path, "--closed-loop", "--samples", "50", "--steps", "5")).data
+    assert "Gilbert-Elliott" in sim["estimated_state"]["reason"]

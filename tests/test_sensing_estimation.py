@@ -1,0 +1,176 @@
+"""The Kalman filter with intermittent observations (sensing.kalman), the bounds on its expected error
+covariance and the critical arrival rate (sensing.bounds, sensing.lmi), against independent references:
+a plain per-path filter written here with np.linalg.inv, sampling, scipy's DARE and the scalar thresholds."""
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_discrete_are
+
+from packetloss_cvx.sensing.bounds import (
+    covariance_bounds,
+    critical_gamma,
+    expected_riccati_map,
+    lower_bound_covariance,
+    stable_certificate,
+    upper_bound_covariance,
+)
+from packetloss_cvx.sensing.kalman import ENUMERATION_MAX_PATHS, actuation_covariance, expected_covariance
+from packetloss_cvx.sensor import Sensor
+
+
+def plain_filter_path(A, Q, C, R, groups, P0, arrivals):
+    """The reference: the textbook filter along one arrival path (rows of the arrived groups, inverse)."""
+    Pm, predicted, filtered = P0.copy(), [P0.copy()], []
+    for a in arrivals:
+        rows = [r for j, g in enumerate(groups) if a[j] for r in g]
+        if rows:
+            Cr, Rr = C[rows], R[np.ix_(rows, rows)]
+            K = Pm @ Cr.T @ np.linalg.inv(Cr @ Pm @ Cr.T + Rr)
+            P = (np.eye(len(A)) - K @ Cr) @ Pm
+        else:
+            P = Pm
+        filtered.append(P)
+        Pm = A @ P @ A.T + Q
+        predicted.append(Pm)
+    return predicted, filtered
+
+
+def plant(rng, n=3, p=2):
+    A = rng.normal(size=(n, n))
+    A *= 1.15 / np.max(np.abs(np.linalg.eigvals(A)))
+    W = rng.normal(size=(n, n))
+    C = rng.normal(size=(p, n))
+    V = rng.normal(size=(p, p))
+    return A, W @ W.T / n + 0.1 * np.eye(n), C, V @ V.T / p + 0.1 * np.eye(p)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_enumeration_equals_the_weighted_sum_over_paths_of_the_plain_filter(seed):
+    rng = np.random.default_rng(seed)
+    A, Q, C, R = plant(rng)
+    sensor = Sensor(C=C, noise_cov=R, gamma=[0.7, 0.4], groups=[[0], [1]], P0=np.eye(3))
+    steps = 3
+    out = expected_covariance(A, Q, sensor, steps)
+    want_pred, want_filt = np.zeros((steps + 1, 3, 3)), np.zeros((steps, 3, 3))
+    for path in itertools.product(itertools.product((0, 1), repeat=2), repeat=steps):
+        weight = np.prod([0.7 if a[0] else 0.3 for a in path]) * np.prod([0.4 if a[1] else 0.6 for a in path])
+        pred, filt = plain_filter_path(A, Q, C, R, sensor.groups, np.eye(3), path)
+        want_pred += weight * np.array(pred)
+        want_filt += weight * np.array(filt)
+    assert out.paths == 2 ** (2 * steps)
+    np.testing.assert_allclose(out.predicted, want_pred, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(out.filtered, want_filt, rtol=1e-10, atol=1e-12)
+
+
+def test_enumeration_equals_monte_carlo():
+    rng = np.random.default_rng(7)
+    A, Q, C, R = plant(rng)
+    sensor = Sensor(C=C, noise_cov=R, gamma=[0.6], P0=np.eye(3))
+    steps, samples = 8, 4000
+    exact = np.trace(expected_covariance(A, Q, sensor, steps).predicted[-1])
+    draws = []
+    for _ in range(samples):
+        arrivals = rng.random((steps, 1)) < 0.6
+        draws.append(np.trace(plain_filter_path(A, Q, C, R, sensor.groups, np.eye(3), arrivals)[0][-1]))
+    mean, stderr = np.mean(draws), np.std(draws, ddof=1) / np.sqrt(samples)
+    assert abs(mean - exact) < 4 * stderr
+
+
+def test_too_many_paths_are_refused():
+    sensor = Sensor(C=[[1.0]], gamma=[0.5])
+    with pytest.raises(ValueError, match="steps: .*arrival paths"):
+        expected_covariance(np.eye(1), np.eye(1), sensor, int(np.log2(ENUMERATION_MAX_PATHS)) + 1)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_bounds_hold_at_every_step(seed):
+    """lower_k <= E[P^-_k] <= V_k (V_k the expected Riccati map iterated from P0, S_k the all-lost series)."""
+    rng = np.random.default_rng(seed)
+    A, Q, C, R = plant(rng)
+    sensor = Sensor(C=C, noise_cov=R, gamma=[0.8, 0.5], groups=[[0], [1]], P0=2 * np.eye(3))
+    out = expected_covariance(A, Q, sensor, 6)
+    q = 0.2 * 0.5
+    S, V = sensor.P0.copy(), sensor.P0.copy()
+    for k in range(1, 7):
+        S = q * A @ S @ A.T + Q
+        V = expected_riccati_map(V, A, Q, sensor)
+        assert np.linalg.eigvalsh(out.predicted[k] - S)[0] > -1e-10
+        assert np.linalg.eigvalsh(V - out.predicted[k])[0] > -1e-10
+
+
+def test_stationary_bounds_at_full_arrival_are_the_filter_dare():
+    rng = np.random.default_rng(3)
+    A, Q, C, R = plant(rng)
+    sensor = Sensor(C=C, noise_cov=R, gamma=[1.0])
+    want = solve_discrete_are(A.T, C.T, Q, R)          # the predicted covariance of the stationary filter
+    bounds = covariance_bounds(A, Q, sensor)
+    np.testing.assert_allclose(bounds.upper, want, rtol=1e-9)
+    np.testing.assert_allclose(bounds.lower, Q, rtol=1e-12)  # q = 0: one step of noise
+
+
+def test_full_state_limit_has_no_error():
+    A = np.array([[1.2, 0.3], [0.0, 0.8]])
+    sensor = Sensor(C=np.eye(2), gamma=[1.0])            # C = I, R = 0, gamma = 1
+    out = expected_covariance(A, np.eye(2), sensor, 3)
+    assert np.array_equal(out.filtered, np.zeros((3, 2, 2)))
+    np.testing.assert_allclose(covariance_bounds(A, np.eye(2), sensor).upper, np.eye(2), atol=1e-14)
+
+
+def test_scalar_lower_bound_by_hand():
+    assert float(lower_bound_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.2)[0, 0]) == pytest.approx(5.0)
+    assert lower_bound_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.3) is None
+    # the noise does not excite the unstable mode: the series converges although q rho^2 >= 1
+    S = lower_bound_covariance(np.diag([2.0, 0.5]), np.diag([0.0, 1.0]), 0.5)
+    np.testing.assert_allclose(S, np.diag([0.0, 1.0 / (1.0 - 0.5 * 0.25)]), rtol=1e-12)
+
+
+@pytest.mark.parametrize("a", [1.5, 2.0, 4.0])
+def test_scalar_critical_rate_is_one_minus_one_over_a_squared(a):
+    cg = critical_gamma(np.array([[a]]), Sensor(C=[[1.0]], gamma=[0.5], noise_cov=[[1.0]]))
+    assert cg.exact
+    assert cg.lower == pytest.approx(1 - 1 / a**2, abs=1e-15)
+    assert cg.upper == cg.lower
+
+
+def test_invertible_C_makes_the_lower_bound_exact():
+    A = np.array([[1.4, 0.2], [0.0, 0.5]])
+    cg = critical_gamma(A, Sensor(C=[[1.0, 1.0], [0.0, 1.0]], gamma=[0.5], noise_cov=np.eye(2)))
+    assert cg.exact
+    assert cg.lower == pytest.approx(1 - 1 / 1.4**2)
+
+
+def test_two_channels_lower_bound_by_hand():
+    """gamma = (t, t): every channel lost with probability (1 - t)^2, so t_low = 1 - 1/rho(A)."""
+    A = np.array([[1.5, 0.1], [0.0, 0.3]])
+    sensor = Sensor(C=[[1.0, 0.0], [0.0, 1.0]], gamma=[0.5, 0.5], groups=[[0], [1]], noise_cov=np.eye(2))
+    cg = critical_gamma(A, sensor)
+    assert cg.lower == pytest.approx(1 - 1 / 1.5, abs=1e-12)
+    assert not cg.exact
+    assert cg.upper >= cg.lower
+
+
+def test_certified_rate_agrees_with_sinopoli_lmi():
+    """The certificate's bisection and the LMI decide the same set {exists X > g(X)}: an independent solver."""
+    from packetloss_cvx.sensing.lmi import FilterLmi
+    A = np.array([[1.3, 0.2], [0.0, 0.5]])
+    sensor = Sensor(C=[[1.0, 1.0]], gamma=[0.5], noise_cov=[[1.0]])
+    cg = critical_gamma(A, sensor, tol=1e-6)
+    lmi = FilterLmi(A, sensor)
+    assert lmi.margin(np.array([cg.upper + 2e-3]))[0] > 1e-6
+    assert lmi.margin(np.array([cg.lower - 2e-3]))[0] < 1e-9          # not certified (margin 0 to rounding)
+    assert stable_certificate(A, sensor, np.array([cg.lower - 1e-3])) is None
+
+
+def test_upper_bound_is_none_when_no_bound_exists():
+    sensor = Sensor(C=[[1.0]], gamma=[0.5], noise_cov=[[1.0]])
+    assert upper_bound_covariance(np.array([[2.0]]), np.array([[1.0]]), sensor) is None   # 0.5 < 0.75
+
+
+def test_udp_actuation_covariance_by_sampling():
+    rng = np.random.default_rng(0)
+    B, mu, u = rng.normal(size=(3, 2)), np.array([0.3, 0.8]), np.array([1.5, -2.0])
+    v = rng.random((200_000, 2)) < mu
+    err = ((v - mu) * u) @ B.T                        # B (V - M) u
+    np.testing.assert_allclose(err.T @ err / len(err), actuation_covariance(B, mu, u), atol=0.05)
