@@ -34,8 +34,9 @@ import numpy.typing as npt
 
 from .costs import dense_or_recursion, hessian_diagonal, hessian_factor, refuse_correlated, weight_spread
 from .errors import DimensionError, InputError, NumericalError, ProbabilityError
+from .linalg import block_diagonal
 from .model import System, check_system, numeric_array
-from .pointwise import PointEvaluator, block_diagonal
+from .pointwise import PointEvaluator
 from .prediction import prediction
 from .protocols import check_protocol
 from .recursion import backward_batch, forward_cost, input_weight, overflow_error, rollout_batch, udp_variance_weights
