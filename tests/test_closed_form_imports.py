@@ -34,7 +34,7 @@ def heavy_modules(*argv: str) -> set[str]:
 #: 4x of a bare numpy import); the other commands use SciPy's LU, LAPACK or ARPACK and may import it
 @pytest.mark.parametrize(("argv", "allowed"), [
     (["solve", "two_actuator", "--no-qp", "-q"], set()),
-    (["solve", "pendulum_bursty", "--no-qp", "-q"], set()),                    # the Gilbert-Elliott (markov) section too
+    (["solve", "pendulum_bursty", "--no-qp", "-q"], set()),                   # the Gilbert-Elliott section too
     (["simulate", "two_actuator", "--samples", "50", "--closed-loop", "-q"], {"scipy"}),
     (["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"], {"scipy"}),
     (["region", "two_actuator", "--law", "all", "--json", "-q"], {"scipy"}),   # the Riccati forms decide every point
