@@ -82,8 +82,8 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
 
 
 def cost_differences(system: System, V: np.ndarray, pred: Prediction | None = None) -> np.ndarray:
-    """J_Delta at each row of ``V`` (P, N m), stacked delivery probabilities in [0, 1] (unchecked): the batched
-    form of :func:`cost_difference` (a point is a batch of one, the same bits),
+    """J_Delta at each row of ``V`` (P, N m), stacked delivery probabilities in [0, 1] (unchecked): eq:cost-diff-def
+    in the batched form of :func:`cost_difference` (a point is a batch of one, the same bits),
     ``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g`` with two stacked LU solves per chunk of about
     ``CHUNK_BYTES``. O(P (N m)^3) time, O(CHUNK_BYTES) memory.
 

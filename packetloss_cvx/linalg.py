@@ -23,10 +23,10 @@ def block_diagonal(blocks: np.ndarray) -> np.ndarray:
     [[1.0, 0.0], [0.0, 2.0]]
     """
     N, n, _ = blocks.shape
-    out = np.zeros((N, n, N, n))
+    out = np.zeros((N * n, N * n))                      # owns its data (a caller may make it read-only)
     steps = np.arange(N)
-    out[steps, :, steps, :] = blocks
-    return out.reshape(N * n, N * n)
+    out.reshape(N, n, N, n)[steps, :, steps, :] = blocks
+    return out
 
 
 @cache
