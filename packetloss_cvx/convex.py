@@ -26,7 +26,8 @@ from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL, dims
 from .errors import SolverError
 from .tolerances import ACCEPTED_STATUSES, CLARABEL_DEFAULT, CLARABEL_TIGHT
 
-__all__ = ["PROVEN_INFEASIBLE", "ClarabelProgram", "first_answer", "require_optimal", "solve_problem"]
+__all__ = ["PROVEN_INFEASIBLE", "ClarabelPoint", "ClarabelProgram", "first_answer", "require_optimal",
+           "solve_problem"]
 
 #: The status that proves infeasibility (Clarabel's certificate); "infeasible_inaccurate" does not.
 PROVEN_INFEASIBLE = cp.INFEASIBLE
@@ -104,12 +105,12 @@ def require_optimal(status: str, what: str) -> None:
 
 
 class ClarabelProgram:
-    """A DPP cvxpy problem with a linear objective, compiled once for Clarabel and re-solved cold for
-    new Parameter values.
+    """A DPP cvxpy problem, compiled once for Clarabel and re-solved cold for new Parameter values.
 
     cvxpy's own compilation (``problem.get_problem_data(cp.CLARABEL)``) gives the cone program
-    ``min c'x  s.t.  A x + s = b, s in K`` whose data are affine in the Parameters: one sparse matrix
-    maps the parameter vector to the nonzeros of ``[A b]``, another to ``c``
+    ``min x'Px/2 + c'x + d  s.t.  A x + s = b, s in K`` whose data are affine in the Parameters: one sparse
+    matrix maps the parameter vector to the nonzeros of ``[A b]``, another to ``(c, d)``, a third (a
+    quadratic objective, e.g. the shared condensed QP of :mod:`.qp_shared`) to P
     (cvxpy's ``reduce_problem_data_tensor``). A solve forms that vector, applies the two maps and
     hands Clarabel the matrices ``problem.solve`` would hand it (the same products, the same sparsity,
     the same cones: ``tests/test_convex.py`` compares the two bit for bit), in a new solver per
@@ -143,9 +144,9 @@ class ClarabelProgram:
             warnings.simplefilter("ignore")
             data, _, _ = problem.get_problem_data(cp.CLARABEL)
         program = data[cp.settings.PARAM_PROB]
-        if program.P is not None:
-            raise ValueError("ClarabelProgram takes linear objectives (cone constraints carry the curvature)")
         program.reduced_A.cache()
+        if program.P is not None:                 # a quadratic objective: P mapped like [A b], per solve
+            program.reduced_P.cache()
         self._program = program
         self._parameters = {p.id: p for p in problem.parameters()}
         if set(self._parameters) != set(program.param_id_to_size):
@@ -156,10 +157,20 @@ class ClarabelProgram:
         self._cones = dims_to_solver_cones(data[CLARABEL.DIMS])
         nvar = program.x.size
         self._P = sp.triu(sp.csc_array((nvar, nvar))).tocsc()
+        if program.P is not None:      # a P that no Parameter moves (the usual case) is mapped once
+            fixed = program.reduced_P.reduced_mat[:, :-1].count_nonzero() == 0
+            unit = np.zeros(program.total_param_size + 1)
+            unit[-1] = 1.0                               # the parameter vector's constant entry (cvxpy's layout)
+            self._P = self._quadratic(unit) if fixed else None
 
     def data(self, values: Mapping[cp.Parameter, np.typing.ArrayLike]) -> tuple:
         """Clarabel's ``(P, q, A, b)`` for the Parameter values (every Parameter of the problem).
         O(nnz)."""
+        P, q, _, A, b = self._data(values)
+        return P, q, A, b
+
+    def _data(self, values: Mapping[cp.Parameter, np.typing.ArrayLike]) -> tuple:
+        """``(P, q, d, A, b)``: :meth:`data` and the objective's constant d (cvxpy's offset). O(nnz)."""
         given = {}
         for parameter, value in values.items():
             array = np.asarray(value, dtype=float).reshape(parameter.shape)
@@ -172,21 +183,29 @@ class ClarabelProgram:
         program = self._program
         vector = get_parameter_vector(program.total_param_size, program.param_id_to_col, program.param_id_to_size,
                                       given.__getitem__)
-        q = np.asarray(program.q @ vector).ravel()[:-1]
+        q = np.asarray(program.q @ vector).ravel()
+        q, d = q[:-1], q[-1]                    # the objective's constant: cvxpy adds it to Clarabel's value
         flat = self._values @ vector
         indices, indptr, (rows, cols) = self._index
         end = indptr[cols - 1]                  # the last column of [A b] holds b
         A = sp.csc_array((-flat[:end], indices[:end], indptr[:cols]), shape=(rows, cols - 1))
         b = np.zeros(rows)
         b[indices[end:]] = flat[end:]
-        return self._P, q, A, b
+        return self._quadratic(vector) if self._P is None else self._P, q, d, A, b
+
+    def _quadratic(self, vector: np.ndarray) -> sp.csc_array:
+        """P for a parameter vector, formed as cvxpy's ConicSolver.apply and its Clarabel interface form it
+        (the upper triangle). O(nnz)."""
+        P, _ = self._program.reduced_P.get_matrix_from_tensor(vector, with_offset=False)
+        return sp.triu(P).tocsc()
 
     def solve(self, values: Mapping[cp.Parameter, np.typing.ArrayLike], what: str,
               attempts: Sequence[Mapping] = (CLARABEL_TIGHT, CLARABEL_DEFAULT)
-              ) -> tuple[str, Callable[[cp.Variable], np.ndarray]]:
+              ) -> tuple[str, ClarabelPoint]:
         """Clarabel on the data for ``values`` under :func:`solve_problem`'s policy (each settings
         dict in turn, each run cold, until an accepted status or proven infeasibility). Returns the
-        final status (cvxpy's name for it) and ``variable -> value`` at Clarabel's point.
+        final status (cvxpy's name for it) and Clarabel's point (:class:`ClarabelPoint`: ``variable ->
+        value``, and the objective's value there as cvxpy reports it).
 
         Raises
         ------
@@ -194,7 +213,7 @@ class ClarabelProgram:
             A value that is not finite or of the wrong shape, or Clarabel failing outright.
         """
         try:
-            P, q, A, b = self.data(values)
+            P, q, d, A, b = self._data(values)
         except ValueError as err:
             raise SolverError("solver_error", f"{what}: {err}") from None
         solution = None
@@ -212,11 +231,30 @@ class ClarabelProgram:
             return CLARABEL.STATUS_MAP.get(str(solution.status), cp.SOLVER_ERROR)
 
         status = first_answer(attempt, attempts)
-        x = np.asarray(solution.x, dtype=float) if solution is not None else np.full(self._program.x.size, np.nan)
-        columns = self._program.var_id_to_col
+        if solution is None:
+            return status, ClarabelPoint(np.full(self._program.x.size, np.nan), self._program.var_id_to_col, np.nan)
+        return status, ClarabelPoint(np.asarray(solution.x, dtype=float), self._program.var_id_to_col,
+                                     solution.obj_val + d)
 
-        def point(variable: cp.Variable) -> np.ndarray:
-            start = columns[variable.id]
-            return x[start:start + variable.size].reshape(variable.shape, order="F")
 
-        return status, point
+class ClarabelPoint:
+    """Clarabel's point of a :class:`ClarabelProgram` solve: ``point(variable)`` is the variable's value
+    (cvxpy's column layout), ``point.value`` the objective there as ``problem.value`` gives it (Clarabel's
+    objective plus the compiled constant). Read them only under an accepted status. O(1) to build.
+
+    Examples
+    --------
+    The least (x - a)^2 + 1 is 1, at x = a:
+
+    >>> x, a = cp.Variable(), cp.Parameter()
+    >>> status, point = ClarabelProgram(cp.Problem(cp.Minimize(cp.square(x - a) + 1))).solve({a: 2.0}, "a QP")
+    >>> status, round(float(point(x)), 6), round(point.value, 6)
+    ('optimal', 2.0, 1.0)
+    """
+
+    def __init__(self, x: np.ndarray, columns: Mapping[int, int], value: float) -> None:
+        self._x, self._columns, self.value = x, columns, float(value)
+
+    def __call__(self, variable: cp.Variable) -> np.ndarray:
+        start = self._columns[variable.id]
+        return self._x[start:start + variable.size].reshape(variable.shape, order="F")

@@ -22,31 +22,16 @@ from scipy.linalg import lu_factor, lu_solve
 from scipy.linalg.lapack import dgesv as _gesv
 
 from .costs import hessian_diagonal, hessian_factor
+from .linalg import block_diagonal
 from .model import System
 from .prediction import Prediction
 from .recursion import forward_cost, input_weight
 from .tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_RTOL
 
-__all__ = ["OMEGA_DENSE_MAX", "PointEvaluator", "block_diagonal"]
+__all__ = ["OMEGA_DENSE_MAX", "PointEvaluator"]
 
 #: The forward cost uses blkdiag(Omega_1..Omega_N) as one dense matrix up to this many entries.
 OMEGA_DENSE_MAX = 2**20
-
-
-def block_diagonal(blocks: np.ndarray) -> np.ndarray:
-    """blkdiag(blocks[0], ..., blocks[N-1]) of N square n×n blocks, as one (N n)×(N n) array (the
-    entries of scipy.linalg.block_diag, in one strided assignment). O((N n)^2).
-
-    Examples
-    --------
-    >>> block_diagonal(np.array([[[1.0]], [[2.0]]])).tolist()
-    [[1.0, 0.0], [0.0, 2.0]]
-    """
-    N, n, _ = blocks.shape
-    out = np.zeros((N, n, N, n))
-    steps = np.arange(N)
-    out[steps, :, steps, :] = blocks
-    return out.reshape(N * n, N * n)
 
 
 class PointEvaluator:

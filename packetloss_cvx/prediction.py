@@ -14,9 +14,8 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-import scipy.linalg as sla
 
-from .linalg import check_finite
+from .linalg import block_diagonal, check_finite
 from .model import CacheKey, System
 
 #: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
@@ -66,7 +65,7 @@ class Prediction:
     def Omega(self) -> np.ndarray:
         """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept on the system structure (read-only)."""
         s = self.system
-        return s.structure_cached(OMEGA_KEY, lambda: _read_only(sla.block_diag(*s.state_weights)),
+        return s.structure_cached(OMEGA_KEY, lambda: _read_only(block_diagonal(s.state_weights)),
                                   nbytes=8 * (s.horizon * s.n) ** 2)
 
     @cached_property

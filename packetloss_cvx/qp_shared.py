@@ -16,7 +16,9 @@ at the optimum and adds nothing to the objective. The 200 random systems of the 
 distinct (n, m, N) and fall into 15 buckets: the audit compiles 15 condensed problems instead of
 404 (docs/performance.md, "Audit: compiled QPs shared across systems").
 
-Every solve assigns all three Parameters and runs Clarabel **cold** (``warm_start=False``): cvxpy's
+Every solve maps all three Parameters onto the compiled cone program and runs Clarabel **cold** (a new
+solver, :class:`~packetloss_cvx.convex.ClarabelProgram`: the data ``problem.solve`` would hand Clarabel,
+bit for bit, without cvxpy's per-solve reduction chain, which took 3/4 of a solve): cvxpy's
 default re-solve updates the cached Clarabel solver in place, which keeps the Ruiz equilibration of
 the first data it saw (Clarabel's ``update_data`` "reapplies the original equilibration"), so a
 shared problem would solve each system with another system's scaling and its answers would depend
@@ -28,9 +30,9 @@ assignment of its Parameters to the read of its solution, so threads sharing a b
 
 Complexity and memory: a compile costs 6-10 ms for the audit's sizes and is paid once per bucket;
 a re-solve costs O(R K) to assign and map the Parameters into Clarabel's data plus Clarabel's
-O(K^3 + R K^2) solve (about 1.4 ms through ExpectedCostQP.solve at R, K <= 32). cvxpy keeps, per
-bucket, a parameter map with about R K entries: about 72 bytes per entry of G with its data
-(tracemalloc, docs/performance.md; 1.2 MB at 128 × 128). At most ``SHARED_CACHE_SIZE`` buckets of at
+O(K^3 + R K^2) solve (about 0.8-1.2 ms at R, K <= 32, skipping cvxpy's reduction chain; 1.6-2.2 ms
+through it). cvxpy keeps, per bucket, a parameter map with about R K entries: about 72 bytes per entry
+of G with its data (tracemalloc, docs/performance.md; 1.2 MB at 128 × 128). At most ``SHARED_CACHE_SIZE`` buckets of at
 most ``SHARED_MAX_ENTRIES`` entries each are kept (least recently used first out; about 60 MB at
 worst); a larger shape gets a private, uncached problem of its exact shape.
 """
@@ -43,7 +45,7 @@ from collections import OrderedDict
 import cvxpy as cp
 import numpy as np
 
-from .convex import solve_problem
+from .convex import ClarabelProgram
 from .errors import InputError
 from .tolerances import CLARABEL_TIGHT
 
@@ -59,8 +61,9 @@ SHARED_CACHE_SIZE = 48
 #: holds at most 48 x 1.2 MB): it gets a private problem of its exact shape (R, K), compiled per object.
 SHARED_MAX_ENTRIES = 2**14
 
-#: Clarabel settings of every solve here: the QP twin's tight tolerances, a cold solver (module docstring).
-COLD_SETTINGS = {**CLARABEL_TIGHT, "warm_start": False}
+#: Clarabel settings of every solve here: the QP twin's tight tolerances; every solve is cold (a new Clarabel
+#: solver per solve, :class:`~packetloss_cvx.convex.ClarabelProgram`; module docstring).
+COLD_SETTINGS = dict(CLARABEL_TIGHT)
 
 _lock = threading.Lock()
 _cache: OrderedDict[tuple[int, int], CondensedQP] = OrderedDict()
@@ -114,6 +117,7 @@ class CondensedQP:
                                               + cp.sum_squares(cp.multiply(self.r, self.z))))
         if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("the shared condensed QP is not DPP")
+        self.program: ClarabelProgram | None = None       # compiled on the first solve
         self.lock = threading.Lock()
         self.solves = 0
 
@@ -128,7 +132,7 @@ class CondensedQP:
         InputError
             The data do not fit the problem's shape.
         SolverError
-            cvxpy or Clarabel failed outright (:func:`~packetloss_cvx.convex.solve_problem`).
+            cvxpy or Clarabel failed outright (:meth:`~packetloss_cvx.convex.ClarabelProgram.solve`).
         """
         R, K = self.shape
         rows, k = G.shape
@@ -138,11 +142,16 @@ class CondensedQP:
         c_full, G_full, r_full = np.zeros(R), np.zeros((R, K)), np.ones(K)
         c_full[:rows], G_full[:rows, :k], r_full[:k] = c, G, r
         with self.lock:
-            self.c.value, self.G.value, self.r.value = c_full, G_full, r_full
-            status = solve_problem(self.problem, what, attempts=(COLD_SETTINGS,))
+            if self.program is None:
+                self.program = ClarabelProgram(self.problem)
+            status, point = self.program.solve({self.c: c_full, self.G: G_full, self.r: r_full}, what,
+                                               attempts=(COLD_SETTINGS,))
             self.solves += 1
-            z = None if self.z.value is None else np.array(self.z.value[:k], dtype=float)
-            value = float(self.problem.value) if self.problem.value is not None else float("nan")
+            if status not in cp.settings.SOLUTION_PRESENT:
+                return None, float("nan"), status
+            # the value as problem.solve reports it: the objective evaluated at the point (not Clarabel's own)
+            self.c.value, self.G.value, self.r.value, self.z.value = c_full, G_full, r_full, point(self.z)
+            z, value = np.array(self.z.value[:k], dtype=float), float(self.problem.objective.value)
         return z, value, status
 
 

@@ -28,10 +28,9 @@ one-point forms.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _gesv
 
 from .errors import NumericalError
-from .linalg import check_finite
+from .linalg import check_finite, lapack_dgesv
 from .model import STRUCTURE_CACHE_MAX_BYTES, CacheKey, System
 from .protocols import check_protocol
 from .tolerances import STATIONARY_RTOL
@@ -249,7 +248,7 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     if variance:
         diagonal += (1.0 - mu) * np.diagonal(BPB, axis1=1, axis2=2)
     if k == 1:                                   # one point: LAPACK's gesv without the stacked wrapper
-        _, _, K, info = _gesv(G[0], rhs[0])
+        _, _, K, info = lapack_dgesv()(G[0], rhs[0])
         if info != 0:
             raise np.linalg.LinAlgError("singular G")
         K = K[None]

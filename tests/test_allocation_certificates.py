@@ -93,9 +93,19 @@ def test_issue8_cli_one_answer_no_noise(issue8, tmp_path, capsys):
     assert '"status": "optimal"' in out.out
 
 
+def fail_the_socps(monkeypatch, status):
+    """The TCP-like allocation SOCPs (and only they: the QP twin's condensed problems run through the same
+    ClarabelProgram) end with ``status`` and no point."""
+    solve = ClarabelProgram.solve
+
+    def failing(self, values, what, attempts=()):
+        return (status, None) if "SOCP" in what else solve(self, values, what, attempts)
+    monkeypatch.setattr(ClarabelProgram, "solve", failing)
+
+
 @pytest.mark.parametrize("status", ["optimal_inaccurate", "infeasible_inaccurate", "solver_error"])
 def test_solver_failure_is_an_error_not_infeasibility(two_actuator, monkeypatch, status):
-    monkeypatch.setattr(ClarabelProgram, "solve", lambda self, values, what, attempts: (status, None))
+    fail_the_socps(monkeypatch, status)
     with pytest.raises(pl.SolverError) as info:
         allocate(two_actuator, "tcp", 4.78, (1.0, 1.0))
     assert info.value.status == status
@@ -104,7 +114,7 @@ def test_solver_failure_is_an_error_not_infeasibility(two_actuator, monkeypatch,
 def test_udp_without_the_tcp_bound_still_certifies(two_actuator, monkeypatch):
     """A failed TCP-like relaxation only removes a shortcut: the branch and bound certifies alone
     and says so, and proves infeasibility alone (never from the failure)."""
-    monkeypatch.setattr(ClarabelProgram, "solve", lambda self, values, what, attempts: ("optimal_inaccurate", None))
+    fail_the_socps(monkeypatch, "optimal_inaccurate")
     got = allocate(two_actuator, "udp", 8.0, (1.0, 0.05))
     ref = brute_force_allocation(two_actuator, "udp", 8.0, (1.0, 0.05))
     assert got.status == "optimal"
@@ -261,10 +271,8 @@ def test_udp_certificate_survives_wrong_probes(two_actuator, monkeypatch, seed):
         f = line(self, mu, i, checked)
         return f if checked else (lambda s: f(s) * rng.choice([0.5, 2.0]))
 
-    from packetloss_cvx.convex import ClarabelProgram
-
     # the TCP-like bound switched off: its SOCP never ends 'optimal' (SolverError), so the boxes must prove it
-    monkeypatch.setattr(ClarabelProgram, "solve", lambda self, values, what, attempts: ("optimal_inaccurate", None))
+    fail_the_socps(monkeypatch, "optimal_inaccurate")
     ref = brute_force_allocation(two_actuator, "udp", 8.0, (1.0, 0.05))
     monkeypatch.setattr(CostEvaluator, "cost", wrong_cost)
     monkeypatch.setattr(CostEvaluator, "line", wrong_line)

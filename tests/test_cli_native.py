@@ -339,9 +339,14 @@ def test_zsh_completion_completes_examples_files_and_options_in_zsh(capsys, tmp_
     subprocess.run(["zsh", "-n", str(tmp_path / "fn" / "_packetloss-cvx")], check=True)
     (tmp_path / "work").mkdir()
     (tmp_path / "work" / "plant.toml").write_text("")
-    for line, shown in ZSH_COMPLETIONS:
-        screen = subprocess.run(["zsh", "-f", "-c", ZSH_PROBE, "probe", str(tmp_path / "fn"), line,
-                                 str(tmp_path / "work")], capture_output=True, text=True, check=True,
-                                timeout=60, env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "TERM": "dumb"}).stdout
+    # the probes wait 2.5 s each on their own pseudo-terminal, so they run side by side (one sleeps, not three)
+    probes = [(line, shown, subprocess.Popen(
+                  ["zsh", "-f", "-c", ZSH_PROBE, "probe", str(tmp_path / "fn"), line, str(tmp_path / "work")],
+                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                  env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "TERM": "dumb"}))
+              for line, shown in ZSH_COMPLETIONS]
+    for line, shown, proc in probes:
+        screen, err = proc.communicate(timeout=60)
+        assert proc.returncode == 0, (line, err[-400:])
         assert shown in screen, (line, screen[-400:])
         assert "bad option" not in screen, screen[-400:]       # no error from the completion functions

@@ -15,7 +15,7 @@ PROBE = """
 import sys
 from packetloss_cvx.cli import main
 code = main(sys.argv[1:])
-heavy = {m.split(".")[0] for m in sys.modules} & {"cvxpy", "matplotlib", "dask", "xarray", "control"}
+heavy = {m.split(".")[0] for m in sys.modules} & {"cvxpy", "matplotlib", "dask", "xarray", "control", "scipy"}
 print("PROBE", code, sorted(heavy))
 """
 
@@ -29,16 +29,21 @@ def heavy_modules(*argv: str) -> set[str]:
     return set(ast.literal_eval(modules))
 
 
-@pytest.mark.parametrize("argv", [
-    ["solve", "two_actuator", "--no-qp", "-q"],
-    ["solve", "pendulum_bursty", "--no-qp", "-q"],                 # the Gilbert-Elliott (markov) section too
-    ["simulate", "two_actuator", "--samples", "50", "--closed-loop", "-q"],
-    ["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"],
-    ["region", "two_actuator", "--law", "all", "--json", "-q"],   # the Riccati forms decide every point
-    ["audit", "--random", "1", "--claim", "theorem-2", "--claim", "lemma-1", "--claim", "table-1", "-q"],
+#: solve --no-qp runs its closed forms, self-checks and small-plant stability verdicts on numpy.linalg: SciPy's
+#: import (about 0.15 s, its array-API layer loading numpy.f2py) would be most of its start-up (issue 19: within
+#: 4x of a bare numpy import); the other commands use SciPy's LU, LAPACK or ARPACK and may import it
+@pytest.mark.parametrize(("argv", "allowed"), [
+    (["solve", "two_actuator", "--no-qp", "-q"], set()),
+    # the Gilbert-Elliott section too; its exact O(N) recursion solves one small system a step through LAPACK's
+    # dgesv (linalg.lapack_dgesv: 1.2 us against 4.8 us a step through np.linalg.solve), so SciPy, never cvxpy
+    (["solve", "pendulum_bursty", "--no-qp", "-q"], {"scipy"}),
+    (["simulate", "two_actuator", "--samples", "50", "--closed-loop", "-q"], {"scipy"}),
+    (["sweep", "two_actuator", "--mu-grid", "3", "--json", "-q"], {"scipy"}),
+    (["region", "two_actuator", "--law", "all", "--json", "-q"], {"scipy"}),   # the Riccati forms decide every point
+    (["audit", "--random", "1", "--claim", "theorem-2", "--claim", "lemma-1", "--claim", "table-1", "-q"], {"scipy"}),
 ])
-def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(argv):
-    assert heavy_modules(*argv) == set()
+def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(argv, allowed):
+    assert heavy_modules(*argv) <= allowed
 
 
 @pytest.mark.parametrize("argv", [["solve", "two_actuator", "--protocol", "tcp", "-q"],

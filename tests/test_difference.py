@@ -105,3 +105,23 @@ def test_candidate_distance_equals_a_loop_over_the_roots():
         if loop is None:
             continue
         assert candidate_distance(c, r) == loop
+
+
+def test_cost_differences_in_batches_equal_the_two_closed_forms(monkeypatch):
+    """The stacked J_Delta (sweeps, the 2-D maximiser) against J*_udp - J*_tcp from two closed forms, on random
+    systems and schedules; chunks of a few points give the same bits as one chunk."""
+    import packetloss_cvx.difference as difference
+
+    rng = np.random.default_rng(8)
+    for _ in range(6):
+        s = random_system(rng, n=3, m=2, horizon=int(rng.integers(2, 7)), non_stationary=False)
+        V = rng.uniform(0.05, 1.0, (9, s.horizon * s.m))
+        got = difference.cost_differences(s, V)
+        for v, value in zip(V, got, strict=True):
+            t = s.with_mu(v.reshape(s.horizon, s.m))
+            ref = closed_form(t, "udp", method="recursion").cost - closed_form(t, "tcp", method="recursion").cost
+            assert abs(value - ref) <= 1e-9 * closed_form(t, "udp", method="recursion").cost
+        monkeypatch.setattr(difference, "CHUNK_BYTES", 8 * (s.horizon * s.m) ** 2 * 2)     # two points a chunk
+        assert np.array_equal(difference.cost_differences(s, V), got)
+        monkeypatch.undo()
+

@@ -4,6 +4,7 @@ systems of many shapes; no state carried from one system to the next; the cache'
 
 import threading
 
+import cvxpy as cp
 import numpy as np
 import pytest
 
@@ -100,15 +101,13 @@ def test_a_warm_re_solve_would_carry_the_previous_systems_scaling():
     cold.solve(*data[0], "first")
     z_cold = cold.solve(*data[1], "second")[0]
     assert np.array_equal(z_cold, CondensedQP(8, 8).solve(*data[1], "second alone")[0])
-    warm = CondensedQP(8, 8)
-    settings = qp_shared.COLD_SETTINGS
-    try:
-        qp_shared.COLD_SETTINGS = dict(CLARABEL_TIGHT)                          # cvxpy's default: warm
-        warm.solve(*data[0], "first")
-        z_warm = warm.solve(*data[1], "second")[0]
-    finally:
-        qp_shared.COLD_SETTINGS = settings
-    assert not np.array_equal(z_warm, z_cold)
+    warm = CondensedQP(8, 8)                       # cvxpy's default re-solve of the same problem: warm
+    for c, G, r in data:                           # padded to the problem's 8 x 8 as CondensedQP.solve pads
+        warm.c.value, warm.G.value = np.pad(c, (0, 2)), np.pad(G, ((0, 2), (0, 2)))
+        warm.r.value = np.pad(r, (0, 2), constant_values=1.0)
+        warm.problem.solve(solver=cp.CLARABEL, **CLARABEL_TIGHT)
+    assert warm.problem.status == "optimal"
+    assert not np.array_equal(warm.z.value[:6], z_cold)
 
 
 def test_the_cache_is_bounded_and_large_shapes_are_private(monkeypatch):

@@ -19,7 +19,7 @@ from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.claims.context import Context
 from packetloss_cvx.claims.ordering import optimal_plan
 from packetloss_cvx.evaluator import CostEvaluator
-from packetloss_cvx.pointwise import block_diagonal
+from packetloss_cvx.linalg import block_diagonal
 from packetloss_cvx.random_systems import random_system
 
 

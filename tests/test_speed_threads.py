@@ -145,18 +145,18 @@ def test_the_grid_sweeps_run_under_the_blas_policy(monkeypatch, two_actuator):
     import packetloss_cvx.studies.sweeps as sweeps
 
     seen = []
-    original = sweeps.cost_difference
+    original = sweeps.cost_differences
 
     def spy(*args, **kwargs):
         seen.append(max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"))
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(sweeps, "cost_difference", spy)
+    monkeypatch.setattr(sweeps, "cost_differences", spy)
     with threadpool_limits(2, user_api="blas"):
         sweeps.shared_channel_sweep(two_actuator, [0.2, 0.7])
         sweeps.two_channel_sweep(two_actuator, [0.2, 0.7])
         after = max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
-    assert seen == [1] * 6
+    assert seen == [1] * 2     # one stacked difference per sweep (difference.cost_differences)
     assert after == 2          # the caller's setting is restored
 
 

@@ -34,9 +34,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _gesv
 
 from ..errors import InputError, NumericalError
+from ..linalg import lapack_dgesv
 from ..model import System
 from ..recursion import forward_cost, input_weight, mean_states, overflow_error, udp_variance_weights
 from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
@@ -188,7 +188,7 @@ def lq_cross_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, Nc
         Hs[:, off] = 0.0
         Hs[off, off] = 1.0
         rhs[off] = 0.0
-    _, _, y, info = _gesv(Hs, rhs)                    # LAPACK's gesv: no stacked-solve wrapper for one point
+    _, _, y, info = lapack_dgesv()(Hs, rhs)                    # LAPACK's gesv: no stacked-solve wrapper for one point
     if info != 0:
         raise np.linalg.LinAlgError("singular H")
     K = y / s

@@ -27,7 +27,6 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs
 
 from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError, ResourceError
@@ -273,6 +272,8 @@ def _krylov_radius(A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, K
     """ARPACK on the coupled map (never forming it), checked against Collatz–Wielandt bounds from a positive
     definite tuple X near the Perron vector: ``L(X) >= c X`` proves rho >= c, ``L(X) <= c X`` proves rho <= c
     (blockwise Loewner order; L maps PSD tuples to PSD tuples). Time O(iterations (M^2 n^2 + M n^2 (n + m)))."""
+    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs  # optional.LAZY_IMPORTS
+
     M, n = T.shape[0], A.shape[0]
     D, H2 = M * n * n, delivery_moments(h)
     k = min(6, D - 2)

@@ -26,7 +26,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.linalg import solve_discrete_lyapunov
 
 from ..errors import CrossCheckError, InputError, NumericalError
 from ..results.sensing import CovarianceBounds, CriticalGamma
@@ -84,6 +83,8 @@ def lower_bound_covariance(A: np.ndarray, Sigma_W: np.ndarray, q: float) -> np.n
     """
     rho = float(np.max(np.abs(np.linalg.eigvals(A))))
     if q * rho * rho < 1.0 - 1e-12:
+        from scipy.linalg import solve_discrete_lyapunov  # optional.LAZY_IMPORTS
+
         S = solve_discrete_lyapunov(np.sqrt(q) * A, Sigma_W)
         return 0.5 * (S + S.T)
     S, F = np.array(Sigma_W, dtype=float), np.sqrt(q) * A

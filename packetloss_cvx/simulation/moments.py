@@ -16,7 +16,6 @@ from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
-from scipy.sparse.linalg import LinearOperator, gmres
 
 from ..errors import CrossCheckError, InputError, NumericalError
 from ..model import System
@@ -101,6 +100,8 @@ def solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callabl
         if n <= MOMENT_DENSE_MAX_N:
             X = np.linalg.solve(np.eye(n * n) - matrix(), C.ravel()).reshape(n, n)
         else:
+            from scipy.sparse.linalg import LinearOperator, gmres  # optional.LAZY_IMPORTS
+
             op = LinearOperator((n * n, n * n), dtype=float,
                                 matvec=lambda v: v - apply(v.reshape(n, n)).ravel())
             vec, info = gmres(op, C.ravel(), rtol=1e-13, atol=0.0, restart=min(n * n, 200), maxiter=50)

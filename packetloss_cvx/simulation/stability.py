@@ -21,7 +21,6 @@ from collections.abc import Iterable
 
 import numpy as np
 import numpy.typing as npt
-from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs
 
 from ..errors import DimensionError, InputError, NumericalError
 from ..model import numeric_array
@@ -185,6 +184,8 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
         if not np.all(np.isfinite(vals)):
             raise NumericalError("mean-square radius: the second-moment operator overflows")
         return float(np.max(np.abs(vals)))
+
+    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs  # optional.LAZY_IMPORTS
 
     upper = _power_bound(A_, B_, K_, mu_, int(min(20 * n, 400, max(40, 4e10 // n ** 3))))
     if upper == 0.0:

@@ -8,7 +8,8 @@
 Each cost is a closed form that passed its own checks, evaluated for all points at once by
 :class:`packetloss_cvx.evaluator.CostEvaluator` (equal to :func:`packetloss_cvx.closed_form` to rounding).
 The difference J_Delta = J*_udp - J*_tcp is computed without cancellation
-(:func:`packetloss_cvx.difference.cost_difference`) where the dense form is well conditioned, and
+(:func:`packetloss_cvx.difference.cost_differences`, all points in stacked solves) where the dense form is
+well conditioned, and
 as the difference of the two checked costs otherwise (``difference_method`` says which).
 """
 
@@ -18,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..difference import cost_difference
+from ..difference import cost_differences
 from ..errors import InputError
 from ..evaluator import CostEvaluator
 from ..model import System, numeric_array
@@ -60,7 +61,8 @@ def _sweep(system: System, points: list[np.ndarray], shape: tuple[int, ...], pro
     if set(protocols) == set(PROTOCOLS):
         if condition_estimate(system) <= DENSE_MAX_CONDITION:
             pred = prediction(system)   # Phi, Gamma and the Omega products do not depend on mu
-            difference = np.array([cost_difference(system, mu, pred) for mu in points]).reshape(shape)
+            V = np.repeat(np.reshape(points, (-1, 1, system.m)), system.horizon, axis=1).reshape(len(points), -1)
+            difference = cost_differences(system, V, pred).reshape(shape)
             how = "cancellation-free (difference.cost_difference)"
         else:
             difference = costs["udp"] - costs["tcp"]
