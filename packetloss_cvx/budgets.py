@@ -191,19 +191,23 @@ def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stabilit
     return work
 
 
-def burstiness_work(values: int, horizon: int, m: int, protocols: int = 2, *, n: int) -> float:
-    """Work units of a burstiness sweep: per value, protocol and step one step of the exact minimum's augmented
-    recursion and of the referee on its state of size D = n (1 + m) (two-state chains), ``2 D^3``, plus 2500
-    for the per-step Python work (measured: 148 us a step and value for pendulum_bursty's twin, D = 8, both
-    protocols; this formula says 176). ``n`` is keyword-only: a call written for the older formula (values, N, m)
-    fails loudly rather than count with the wrong sizes. O(1).
+def burstiness_work(values: int, horizon: int, m: int, protocols: int = 2, *, n: int, states: int | None = None
+                    ) -> float:
+    """Work units of a burstiness sweep or map: per value (grid point), protocol and step one step of the exact
+    minimum's augmented recursion and of the referee on its state of size D = n (1 + ``states``), ``2 D^3``, plus
+    2500 for the per-step Python work (measured: 148 us a step and value for pendulum_bursty's twin, D = 8, both
+    protocols; this formula says 176). ``states`` is sum_i (k_i - 1) over the channels' chains (default ``m``:
+    two-state chains). ``n`` is keyword-only: a call written for the older formula (values, N, m) fails loudly
+    rather than count with the wrong sizes. O(1).
 
     Examples
     --------
     >>> burstiness_work(20, 80, 1, n=4)   # pendulum_bursty, 20 values: measured 0.21 s, predicted 0.28 s
     11276800.0
+    >>> burstiness_work(20, 80, 2, n=2, states=1)   # one two-state chain beside an i.i.d. channel: D = 4
+    8409600.0
     """
-    D = float(n) * (1 + m)
+    D = float(n) * (1 + (m if states is None else states))
     return _float(values) * protocols * float(horizon) * (2.0 * D ** 3 + 2500.0)
 
 

@@ -32,7 +32,8 @@ from .plot_style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_
 from .safeio import save_figure
 
 __all__ = [
-    "plot_allocation_contours", "plot_closed_loop", "plot_cost_lines", "plot_log_contour", "plot_pareto", "plot_region",
+    "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines", "plot_log_contour",
+    "plot_pareto", "plot_region",
     "plot_sensor_map",
 ]
 
@@ -409,6 +410,74 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     handles = ax.get_legend_handles_labels()[0] + extra
     if handles:
         fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], cost: Any, loss_percent: Any, *,
+                        cost_label: str = "exact minimum (log scale)", title: str | None = None,
+                        path: str | Path | None = None) -> Figure:
+    """A (mean rate × burstiness) map of one channel in two panels: ``cost`` (the exact minimum) on a logarithmic
+    colour scale (``LogNorm``, ticked in the values) and ``loss_percent`` (the plug-in law's loss, in %) on a
+    linear one from its least to its largest value (0 to 1 when it is constant: no loss). Each grid point is one
+    cell (``pcolormesh``, nearest), burstiness lambda across, mean rate up; the axes may come in any order (they
+    are sorted for drawing). O(R L).
+
+    Parameters
+    ----------
+    rates, correlations : sequence of float, shapes (R,), (L,)
+        Distinct mean rates and values of lambda = 1 - p - r.
+    cost, loss_percent : array_like, shape (R, L)
+        ``[a, b]`` at ``(rates[a], correlations[b])``; ``cost`` needs a positive value (cells <= 0 are drawn in
+        the lowest colour), ``loss_percent`` finite.
+    cost_label, title : str, optional
+    path : str or Path, optional
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match, repeated or non-finite axis values, non-finite numbers, no positive cost.
+
+    Examples
+    --------
+    >>> fig = plot_burstiness_map([0.5, 0.9], [0.0, 0.5, 0.9], [[4.0, 8.0, 20.0], [2.0, 3.0, 9.0]],
+    ...                           [[0.0, 1.0, 9.0], [0.0, 0.5, 5.0]])
+    >>> cost_axis, loss_axis = fig.axes[0], fig.axes[1]
+    >>> norm = cost_axis.collections[0].norm
+    >>> type(norm).__name__, norm.vmin, norm.vmax, loss_axis.collections[0].norm.vmax
+    ('LogNorm', 2.0, 20.0, 9.0)
+    """
+    gy, gx = numeric_array(rates, "rates"), numeric_array(correlations, "correlations")
+    for name, g in (("rates", gy), ("correlations", gx)):
+        if g.ndim != 1 or g.size < 2 or np.unique(g).size != g.size:
+            raise InputError(name, "expected at least 2 distinct numbers")
+    values = {}
+    for name, raw in (("cost", cost), ("loss_percent", loss_percent)):
+        arr = numeric_array(raw, name)
+        if arr.shape != (gy.size, gx.size):
+            raise InputError(name, f"expected shape ({gy.size}, {gx.size}) but found {arr.shape}")
+        values[name] = arr[np.argsort(gy)][:, np.argsort(gx)]
+    gy, gx = np.sort(gy), np.sort(gx)
+    positive = values["cost"][values["cost"] > 0]
+    if not positive.size:
+        raise InputError("cost", "expected some positive values (drawn on a logarithmic scale)")
+    lo, hi = float(positive.min()), float(positive.max())
+    if hi <= lo * (1 + 1e-9):
+        lo, hi = lo / 2, hi * 2                                          # one value: one colour
+    fig = Figure(figsize=(10.5, 4.6), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    mesh = left.pcolormesh(gx, gy, np.where(values["cost"] > 0, values["cost"], lo), shading="nearest",
+                           norm=LogNorm(lo, hi), cmap="viridis")
+    set_log_ticks(fig.colorbar(mesh, ax=left, label=cost_label), lo, hi)
+    loss = values["loss_percent"]
+    low, high = float(loss.min()), float(loss.max())
+    if high - low <= 1e-9 * max(1.0, abs(high)):
+        low, high = min(low, 0.0), max(high, 0.0) + 1.0                 # no loss anywhere: one colour
+    shaded = right.pcolormesh(gx, gy, loss, shading="nearest", vmin=low, vmax=high, cmap="magma")
+    fig.colorbar(shaded, ax=right, label="plug-in law's loss (%, linear scale)")
+    for ax in (left, right):
+        ax.set(xlabel=r"burstiness $\lambda = 1 - p - r$", ylabel=r"mean delivery rate $\mu$")
+    if title:
+        fig.suptitle(title, fontsize=9)
     return _save(fig, path)
 
 

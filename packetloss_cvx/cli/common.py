@@ -285,9 +285,14 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             read_input(args.mu_list, "--mu-list")
         if getattr(args, "burstiness", None) is not None:
             values = number_range(args.burstiness, "--burstiness")
+            rates = number_range(args.mean_rate, "--mean-rate") if getattr(args, "mean_rate", None) else None
+            points = values.size if rates is None else values.size * rates.size
+            field = "--burstiness" if rates is None else "--mean-rate"
+            what = f"{values.size} values" if rates is None else f"{rates.size} x {values.size} points"
+            check("sweep_points", points, field, what)
             system = system_of(args)
-            check("sweep_work", burstiness_work(values.size, system.horizon, system.m, n=system.n), "--burstiness",
-                  f"{values.size} values at N = {system.horizon}, m = {system.m}")
+            check("sweep_work", burstiness_work(points, system.horizon, system.m, n=system.n), field,
+                  f"{what} at N = {system.horizon}, m = {system.m}")
     if command == "simulate" and min(args.samples, args.steps) >= 1:
         system = system_of(args)
         laws = ("tcp", "udp", "dp") if args.law == "all" else (args.law,)

@@ -30,7 +30,8 @@ from .completion import SHELLS, CompletionAction, mark_system_file
 __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
-NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction")
+NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction",
+                "--mean-rate")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
              "pendulum_bursty (a Gilbert-Elliott channel), pendulum_sensor (a lossy sensor link too)")
@@ -270,9 +271,12 @@ def build_parser() -> argparse.ArgumentParser:
                       help="Gilbert channels with the file's average rates and burstiness lambda = 1 - p - r: "
                            "plug-in laws against the exact minimum under correlated losses (required: one of five), "
                            "e.g. --burstiness 0:0.9:10")
+    swp.add_argument("--mean-rate", metavar="M1,M2,..|LO:HI:K",
+                     help="with --burstiness: a map over channel I's (--channel, default 1) mean delivery rate and "
+                          "lambda, the other channels as in the file (default: none), e.g. --mean-rate 0.5:1:11")
     swp.add_argument("--channel", type=int, metavar="I",
                      help="with --mu-grid: sweep channel I only, the others as in the file (default: all channels "
-                          "for m <= 2), e.g. --channel 2")
+                          "for m <= 2); with --mean-rate: the mapped channel (default: 1), e.g. --channel 2")
     swp.add_argument("--shared", action="store_true", help="with --mu-grid: every actuator behind one channel nu")
     swp.add_argument("--chunk-size", type=int, default=2048, metavar="C",
                      help="points per batched evaluation and per Dask task, e.g. --chunk-size 10000")

@@ -11,9 +11,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import load_system
-from ..markov import burstiness_sweep
+from ..markov import burstiness_map, burstiness_sweep
 from ..model import System
-from ..results import BurstinessSweep, DesignSweep
+from ..results import BurstinessMap, BurstinessSweep, DesignSweep, plugin_loss
 from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..simulation import is_mean_square_stable
@@ -24,7 +24,7 @@ from ..tolerances import SELF_CHECK_RTOL
 from . import format as fmt
 from .common import CommandResult, integers, number_range
 
-__all__ = ["bursty", "run"]
+__all__ = ["bursty", "bursty_map", "run"]
 
 #: the API's argument names -> the flags that set them (errors are renamed to the flag)
 FLAGS = {"mu_grid": "--mu-grid", "mu_list": "--mu-list", "x0_scales": "--x0-scales", "horizons": "--horizons",
@@ -139,6 +139,8 @@ def bursty(args: argparse.Namespace) -> CommandResult:
     """
     if args.netcdf or args.dask or args.stability:
         raise InputError("--burstiness", "takes none of --netcdf, --dask, --stability")
+    if getattr(args, "mean_rate", None) is not None:
+        return bursty_map(args)
     ignored = [flag for flag, given in (("--shared", args.shared), ("--channel", args.channel is not None),
                                         ("--workers", args.workers is not None),
                                         ("--chunk-size", args.chunk_size != DEFAULT_CHUNK)) if given]
@@ -163,8 +165,7 @@ def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, 
     lines = [f"{fmt.name(system.name or args.file)}: burstiness sweep at average rates {np.round(result.rate, 6).tolist()}"]
     for p in protocols:
         plugin, exact = result.plugin[p], result.exact[p]
-        # a zero minimum (x0 = 0 without noise) has a zero plug-in cost too: its loss is 0, as solve's (markov.compare)
-        loss = np.divide(plugin, exact, out=np.ones_like(plugin), where=exact > 0) - 1
+        loss = plugin_loss(plugin, exact)      # a zero minimum has a zero plug-in cost too: its loss is 0
         data[p] = {"plugin": plugin.tolist(), "exact": exact.tolist(), "relative_loss": loss.tolist()}
         worst = int(np.argmax(loss))
         if loss[worst] <= SELF_CHECK_RTOL:   # equal to rounding: the plug-in law is the exact minimiser
@@ -186,6 +187,98 @@ def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, 
         save_figure(figure, "burstiness.png", folder=out)
         data["files"] = [str(out.path / "burstiness.csv"), str(out.path / "burstiness.png")]
         lines.append(f"  wrote burstiness.csv, burstiness.png in {out.path}")
+    return CommandResult(data, "\n".join(lines))
+
+
+def bursty_map(args: argparse.Namespace) -> CommandResult:
+    """``--burstiness`` with ``--mean-rate``: the (mean rate × burstiness) map of channel ``--channel`` (default 1),
+    the other channels as in the file (:func:`~packetloss_cvx.markov.burstiness_map`); the JSON carries every
+    point up to :data:`JSON_MAX_POINTS`; ``--out`` writes burstiness_map.csv and a figure per protocol
+    (burstiness_map_<protocol>.png: the exact minimum on a log scale beside the plug-in loss in %).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.cli.parser import build_parser
+    >>> argv = ["sweep", "pendulum_bursty", "--burstiness", "0,0.8", "--mean-rate", "0.9", "--protocol", "udp", "-q"]
+    >>> result = bursty_map(build_parser().parse_args(argv))
+    >>> loss = np.array(result.data["udp"]["relative_loss"])          # 1 rate x 2 lambda: the pendulum's 7.9 %
+    >>> result.code, loss.shape, bool(abs(loss[0, 0]) < 1e-9), round(float(loss[0, 1]), 3)
+    (0, (1, 2), True, 0.079)
+    """
+    ignored = [flag for flag, given in (("--shared", args.shared), ("--workers", args.workers is not None),
+                                        ("--chunk-size", args.chunk_size != DEFAULT_CHUNK)) if given]
+    if ignored:
+        raise InputError("--mean-rate", f"takes none of --shared, --workers, --chunk-size; found {', '.join(ignored)}")
+    system = load_system(args.file)
+    correlations = number_range(args.burstiness, "--burstiness")
+    rates = number_range(args.mean_rate, "--mean-rate")
+    channel = 1 if args.channel is None else args.channel
+    if not 1 <= channel <= system.m:
+        raise InputError("--channel", f"expected a channel from 1 to {system.m}, found {channel}")
+    with _folder(args) as out:       # claimed (checked, locked) before the work, released on any exit
+        try:
+            result = burstiness_map(system, rates, correlations, channel - 1,
+                                    progress=False if args.quiet else None)
+        except InputError as err:
+            names = {"correlations": "--burstiness", "correlation": "--burstiness", "rates": "--mean-rate",
+                     "rate": "--mean-rate", "channel": "--channel"}
+            raise err.renamed(names[err.field]) if err.field in names else err from None
+        return _map_output(args, system, result, out)
+
+
+def _map_output(args: argparse.Namespace, system: System, result: BurstinessMap, out: RunFolder | None
+                ) -> CommandResult:
+    """The map's summary, points (JSON) and, with ``out``, its CSV and figures. O(R L)."""
+    protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
+    shape = (result.rate.size, result.correlation.size)
+    data: dict[str, Any] = {"name": system.name, "kind": "burstiness-map", "channel": result.channel + 1,
+                            "shape": list(shape), "rate": result.rate.tolist(),
+                            "correlation": result.correlation.tolist()}
+    lines = [f"{fmt.name(system.name or args.file)}: burstiness map of channel {result.channel + 1}, "
+             f"{shape[0]} mean rates x {shape[1]} values of lambda (the other channels as in the file)"]
+    carried = shape[0] * shape[1] <= JSON_MAX_POINTS
+    for p in protocols:
+        exact, loss = result.exact[p], result.relative_loss(p)
+        data[p] = ({"plugin": result.plugin[p].tolist(), "exact": exact.tolist(), "relative_loss": loss.tolist()}
+                   if carried else {})
+        a, b = np.unravel_index(int(np.argmax(loss)), shape)
+        data[p]["worst_loss"] = {"relative_loss": float(loss[a, b]), "rate": float(result.rate[a]),
+                                 "correlation": float(result.correlation[b])}
+        lines.append(f"  {p.upper()}-like: exact minimum {np.min(exact):.6g} to {np.max(exact):.6g}; " + (
+            "the plug-in law is the exact minimiser at every point" if loss[a, b] <= SELF_CHECK_RTOL else
+            f"the plug-in law loses up to {100 * loss[a, b]:.3g}% (at mean rate {result.rate[a]:.4g}, "
+            f"lambda = {result.correlation[b]:.4g})"))
+    if not carried:
+        where = "in burstiness_map.csv" if out is not None else "pass --out DIR to have them in DIR/burstiness_map.csv"
+        data["note"] = f"{shape[0] * shape[1]} points are more than sweep --json carries ({JSON_MAX_POINTS}): {where}"
+    if out is not None:
+        header = ",".join(["rate", "lambda"] + [f"{kind}_{p}" for p in protocols for kind in ("plugin", "exact")])
+        rate, lam = np.meshgrid(result.rate, result.correlation, indexing="ij")
+        rows = np.column_stack([rate.ravel(), lam.ravel()] + [
+            col.ravel() for p in protocols for col in (result.plugin[p], result.exact[p])])
+        with out.write("burstiness_map.csv", text=True) as handle:
+            handle.write("\n".join([header] + [",".join(map(csv_number, row)) for row in rows.tolist()]) + "\n")
+        files = [out.path / "burstiness_map.csv"]
+        skipped = []
+        if min(shape) >= 2:
+            from ..plots import plot_burstiness_map  # matplotlib (0.2-0.7 s) only where a figure is asked for
+            for p in protocols:
+                if not np.any(result.exact[p] > 0):
+                    skipped.append(f"burstiness_map_{p}.png")
+                    continue
+                figure = plot_burstiness_map(
+                    result.rate, result.correlation, result.exact[p], 100 * result.relative_loss(p),
+                    cost_label=f"exact minimum J*_{p} (log scale)",
+                    title=f"{system.name or 'system'}: channel {result.channel + 1}, {p.upper()}-like")
+                files.append(save_figure(figure, f"burstiness_map_{p}.png", folder=out))
+        else:
+            skipped.extend(f"burstiness_map_{p}.png" for p in protocols)
+        data["files"] = [str(f) for f in files]
+        lines.append(f"  wrote {', '.join(f.name for f in files)} in {out.path}")
+        if skipped:
+            data["figures_not_drawn"] = skipped
+            lines.append(f"  not drawn: {', '.join(skipped)} (a map needs two rates and two values of lambda, and "
+                         "a positive minimum on its log scale)")
     return CommandResult(data, "\n".join(lines))
 
 
@@ -214,6 +307,8 @@ def run(args: argparse.Namespace) -> CommandResult:
         raise InputError("--out", "expected a folder, found an empty path")
     if getattr(args, "burstiness", None) is not None:
         return bursty(args)
+    if getattr(args, "mean_rate", None) is not None:
+        raise InputError("--mean-rate", "needs --burstiness (a map over mean rate and burstiness)")
     system = load_system(args.file)
     if system.channel is not None:     # the API's message names a Python function; here, the option
         raise InputError("FILE", f"{args.file} has a Gilbert-Elliott (Markov) channel; --mu-grid, --mu-list, "

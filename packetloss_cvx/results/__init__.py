@@ -7,7 +7,7 @@ ever and sampled; region.py: the stabilisable set; sensing.py: lossy sensors; ba
 
 from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
-from .markov import BurstinessSweep, MarkovSolution, MjlsResult
+from .markov import BurstinessMap, BurstinessSweep, MarkovSolution, MjlsResult, plugin_loss
 from .plans import BatchSolution, CrossCheck, LoopStability, Solution
 from .region import CriticalPoint, Membership, RegionMap
 from .sensing import CovarianceBounds, CriticalGamma, EstimatedLoop, EstimatedRun
@@ -16,6 +16,7 @@ from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, S
 __all__ = [
     "Allocation",
     "BatchSolution",
+    "BurstinessMap",
     "BurstinessSweep",
     "ClaimResult",
     "ClosedLoop",
@@ -40,4 +41,5 @@ __all__ = [
     "Solution",
     "Sweep",
     "eigenvalue_pairs",
+    "plugin_loss",
 ]

@@ -1,5 +1,6 @@
 """Results under Gilbert–Elliott channels: the exact minimiser beside the plug-in law, a burstiness
-sweep, and the Markov jump linear system's stability and mode-dependent gains."""
+sweep and a (mean rate × burstiness) map, and the Markov jump linear system's stability and mode-dependent
+gains."""
 
 from __future__ import annotations
 
@@ -9,10 +10,25 @@ from typing import Any
 import numpy as np
 
 from ..display import fields_html, fields_repr, to_json
+from ..errors import InputError
 from .base import Frozen, freeze, read_only
 from .plans import Solution
 
-__all__ = ["BurstinessSweep", "MarkovSolution", "MjlsResult"]
+__all__ = ["BurstinessMap", "BurstinessSweep", "MarkovSolution", "MjlsResult", "plugin_loss"]
+
+
+def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    """``plugin / exact - 1`` elementwise: how much the plug-in law loses against the exact minimum. A zero
+    minimum (x0 = 0 without noise) has a zero plug-in cost too, so its loss is 0, as ``solve``'s
+    (:func:`~packetloss_cvx.markov.markov_solution`). O(size).
+
+    Examples
+    --------
+    >>> plugin_loss(np.array([3.0, 0.0]), np.array([2.0, 0.0])).tolist()
+    [0.5, 0.0]
+    """
+    plugin, exact = np.asarray(plugin, dtype=float), np.asarray(exact, dtype=float)
+    return np.divide(plugin, exact, out=np.ones_like(plugin), where=exact > 0) - 1.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +86,72 @@ class BurstinessSweep(Frozen):
         return {"correlation": self.correlation.tolist(), "rate": self.rate.tolist(),
                 "plugin": {k: v.tolist() for k, v in self.plugin.items()},
                 "exact": {k: v.tolist() for k, v in self.exact.items()}}
+
+
+@dataclass(frozen=True)
+class BurstinessMap(Frozen):
+    """Costs over a (mean rate × burstiness) grid of one channel (:func:`packetloss_cvx.markov.burstiness_map`):
+    channel ``channel`` (0-based) behind the stationary Gilbert channel of long-run rate ``rate[a]`` and
+    burstiness ``correlation[b]`` = lambda = 1 - p - r, the other channels as in the system
+    (:func:`~packetloss_cvx.markov.channel_twin`). ``plugin``: protocol -> the protocol's exact expected cost of its
+    plug-in plan, (R, L) with ``[a, b]`` at ``(rate[a], correlation[b])``; ``exact``: protocol -> the exact minimum,
+    alike. ``name``: the system's. :meth:`relative_loss` is the plug-in law's loss."""
+
+    channel: int
+    rate: np.ndarray
+    correlation: np.ndarray
+    plugin: dict[str, np.ndarray]
+    exact: dict[str, np.ndarray]
+    name: str | None = None
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
+    to_json = to_json       # to_dict() as JSON text (display.py)
+
+    def __post_init__(self) -> None:
+        freeze(self)
+        shape = (self.rate.size, self.correlation.size)
+        for kind in (self.plugin, self.exact):
+            for key, value in kind.items():
+                if np.shape(value) != shape:
+                    raise InputError(key, f"expected costs of shape {shape} (rates × correlations), found "
+                                          f"{np.shape(value)}")
+        object.__setattr__(self, "plugin", {k: read_only(v) for k, v in self.plugin.items()})
+        object.__setattr__(self, "exact", {k: read_only(v) for k, v in self.exact.items()})
+
+    @property
+    def protocols(self) -> tuple[str, ...]:
+        """The protocols evaluated (keys of ``exact``)."""
+        return tuple(self.exact)
+
+    def relative_loss(self, protocol: str) -> np.ndarray:
+        """``plugin / exact - 1`` of ``protocol`` over the grid (:func:`plugin_loss`), (R, L). O(R L)."""
+        return plugin_loss(self.plugin[protocol], self.exact[protocol])
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists: rows over ``rate``, columns over ``correlation``. O(R L)."""
+        return {"name": self.name, "channel": self.channel, "rate": self.rate.tolist(),
+                "correlation": self.correlation.tolist(),
+                **{p: {"plugin": self.plugin[p].tolist(), "exact": self.exact[p].tolist(),
+                       "relative_loss": self.relative_loss(p).tolist()} for p in self.protocols}}
+
+    def to_xarray(self) -> Any:
+        """An :class:`xarray.Dataset` over (``rate``, ``correlation``) (the ``xarray`` extra): ``plugin_<p>``,
+        ``exact_<p>`` and ``loss_<p>`` per protocol; the channel (1-based) and name as attributes. O(R L)."""
+        try:
+            import xarray as xr  # lazy: an optional extra
+        except ImportError:
+            raise InputError("to_xarray", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
+        dims = ("rate", "correlation")
+        data = {}
+        for p in self.protocols:
+            data[f"plugin_{p}"] = (dims, np.asarray(self.plugin[p]))
+            data[f"exact_{p}"] = (dims, np.asarray(self.exact[p]))
+            data[f"loss_{p}"] = (dims, self.relative_loss(p))
+        return xr.Dataset(data, coords={"rate": self.rate, "correlation": self.correlation},
+                          attrs={"kind": "burstiness-map", "channel": self.channel + 1, "name": self.name or "",
+                                 "correlation": "lambda = 1 - p - r of the mapped channel's Gilbert chain",
+                                 "loss": "plugin / exact - 1: the plug-in law's loss against the exact minimum"})
 
 
 @dataclass(frozen=True)
