@@ -9,7 +9,7 @@ from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
 from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, Solution
-from .region import CriticalPoint, Membership, RegionMap
+from .region import CriticalPoint, Membership, RegionMap, StabilityAllocation
 from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
 
 __all__ = [
@@ -32,6 +32,7 @@ __all__ = [
     "RegionMap",
     "Simulation",
     "Solution",
+    "StabilityAllocation",
     "Sweep",
     "eigenvalue_pairs",
 ]
