@@ -80,6 +80,8 @@ def test_region_maps_a_gilbert_elliott_file_over_its_mean_rates(capsys, tmp_path
         assert main(["region", "pendulum_bursty", *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and flag in err[0]
+    assert main(["region", "pendulum_bursty", "--grid", "200000"]) == 2           # over the region_points budget
+    assert "PACKETLOSS_CVX_BUDGET_REGION_POINTS" in capsys.readouterr().err
     out = tmp_path / "chain"
     assert main(["region", "pendulum_bursty", "--grid", "2", "--out", str(out), "-q"]) == 0
     assert {"region.npz", "region.csv"} <= {p.name for p in out.iterdir()}

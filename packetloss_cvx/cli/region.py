@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budgets import check
 from ..errors import InputError
 from ..results.region import RegionMap
 from ..runfolder import RunFolder
@@ -117,6 +118,8 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
         if args.grid < 2:
             raise InputError("--grid", f"expected an integer >= 2, found {args.grid}")
         m = system.m
+        points = args.grid ** 2 if m > 1 else args.grid
+        check("region_points", points, "--grid", f"a rate grid of {points} points behind the chain")
         text = args.channels if args.channels is not None else ("1,2" if m > 1 else "1")
         pair = floats(text, "--channels")
         if (len(pair) != min(m, 2) or any(v != int(v) or not 1 <= v <= m for v in pair)
