@@ -84,6 +84,19 @@ def test_decoupled_plants_take_each_channel_at_its_own_threshold(rho):
     assert np.allclose(got.mu, hand, atol=5e-4)
 
 
+def test_the_riccati_form_decides_decoupled_plants_inside():
+    # the homogeneous Riccati eigenvector of diag(1.2, 2, 0.5), B = I vanishes on the non-dominant blocks; its gain
+    # is taken again from a lifted P (simulation.region), so the cheap form decides where the search asks it
+    a = np.array([1.2, 2.0, 0.5])
+    system = System(A=np.diag(a), B=np.eye(3), horizon=1, state_weight=[1.0] * 3, input_weight=[1.0] * 3,
+                    mu=[1.0] * 3, x0=[1.0] * 3)
+    hand = np.maximum(0.0, 1 - 1 / a**2)
+    for step in (1e-3, 1e-5):
+        found = membership(system, hand + step, forms=("riccati",))
+        assert found.verdict == "stable"
+        assert mean_square_radius(system.A, system.B, found.gain, hand + step) < 1
+
+
 def _boundary_mu2(system, mu1, tol=1e-6):
     """(last mu2 certified outside, first certified inside) at this mu1, by bisection on memberships (None when even
     mu2 = 1 is not inside)."""
