@@ -69,11 +69,27 @@ def test_region_one_channel_has_no_grid_and_a_huge_grid_is_refused(decoupled_fil
     assert len(err) == 1 and "--grid" in err[0] and "PACKETLOSS_CVX_BUDGET_REGION_POINTS" in err[0]
 
 
-def test_region_refuses_a_gilbert_elliott_file_and_names_a_missing_fixed_law(capsys):
-    """The Bernoulli region is not a bursty channel's (exit 2, field channel); 'fixed' needs a DP law at the
-    file's mu, which mu = 0.01 (outside S: critical t 0.061 on two_actuator) does not have (exit 1, one line)."""
-    assert main(["region", "pendulum_bursty", "--law", "dp"]) == 2
-    assert "channel" in capsys.readouterr().err
+def test_region_maps_a_gilbert_elliott_file_over_its_mean_rates(capsys, tmp_path):
+    """Behind a chain: the mode-dependent set (simulation.markov_region) at the file's chain and over its mean rate
+    at the file's burstiness; the paper's laws and a ray over Bernoulli mu are refused (exit 2, one line)."""
+    assert main(["region", "pendulum_bursty", "--law", "dp", "--grid", "3", "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)["dp"]
+    assert data["verdict"] == "stable" and data["radius"] < 1 and data["lambda"] == pytest.approx(data["radius"])
+    assert data["grid"]["axis"] == [0.0, 0.5, 1.0] and data["grid"]["stable"] == [[False, False, True]]
+    for argv, flag in ((["--law", "tcp"], "--law"), (["--direction", "1"], "--direction")):
+        assert main(["region", "pendulum_bursty", *argv]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and flag in err[0]
+    assert main(["region", "pendulum_bursty", "--grid", "200000"]) == 2           # over the region_points budget
+    assert "PACKETLOSS_CVX_BUDGET_REGION_POINTS" in capsys.readouterr().err
+    out = tmp_path / "chain"
+    assert main(["region", "pendulum_bursty", "--grid", "2", "--out", str(out), "-q"]) == 0
+    assert {"region.npz", "region.csv"} <= {p.name for p in out.iterdir()}
+
+
+def test_region_names_a_missing_fixed_law(capsys):
+    """'fixed' needs a DP law at the file's mu, which mu = 0.01 (outside S: critical t 0.061 on two_actuator)
+    does not have (exit 1, one line)."""
     assert main(["region", "two_actuator", "--mu", "0.01", "--law", "fixed"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "fixed" in err[0] and "does not exist" in err[0]

@@ -8,6 +8,7 @@ from typing import Any
 from ..allocation import allocate, parse_constraint
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
+from .allocate_stability import run_target
 from .common import CommandResult, allocation_numbers, number, progress_of, system_of
 
 __all__ = ["run"]
@@ -43,6 +44,11 @@ def run(args: argparse.Namespace) -> CommandResult:
     (3, 'infeasible', 0.5)
     >>> folder.cleanup()
     """
+    if args.target is not None or args.margin is not None:    # design for stability: its own module
+        return run_target(args)
+    if args.protocol is None or args.alpha is None:
+        raise InputError("--protocol" if args.protocol is None else "--alpha",
+                         "required (or --target stable|dp-cost to design for stability)")
     system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)

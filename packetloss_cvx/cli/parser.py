@@ -209,9 +209,11 @@ def build_parser() -> argparse.ArgumentParser:
                                   "allocate two_actuator --protocol tcp --alpha 8 --beta 1,1 "
                                   '--constraint "mu1 >= mu2"'])
     mark_system_file(alloc.add_argument("file", metavar="FILE", help=FILE_HELP))
-    alloc.add_argument("--protocol", choices=("tcp", "udp"), required=True,
-                       help="TCP-like (an exact SOCP) or UDP-like (branch and bound), required, e.g. --protocol tcp")
-    alloc.add_argument("--alpha", required=True, help="bound on the optimal expected cost, required, e.g. --alpha 8")
+    alloc.add_argument("--protocol", choices=("tcp", "udp"),
+                       help="TCP-like (an exact SOCP) or UDP-like (branch and bound), required unless --target, "
+                            "e.g. --protocol tcp")
+    alloc.add_argument("--alpha", help="bound on the optimal expected cost (with --target dp-cost: on the DP law's "
+                                       "stationary cost), required unless --target stable, e.g. --alpha 8")
     alloc.add_argument("--beta", required=True,
                        help="price of each channel, comma-separated, required, e.g. --beta 1,0.05")
     alloc.add_argument("--bounds", default="0,1", help="lo,hi for every mu_i, e.g. --bounds 0.1,0.99")
@@ -225,6 +227,16 @@ def build_parser() -> argparse.ArgumentParser:
     alloc.add_argument("--time-limit", metavar="SECONDS",
                        help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4 "
                             "(default: none), e.g. 60")
+    # design for stability (issue 21 item 5): allocation.stability, cli/allocate_stability.py
+    design = alloc.add_argument_group("design for stability (instead of --protocol)")
+    design.add_argument("--target", choices=("stable", "dp-cost"),
+                        help="the cheapest mu for which some linear law u = -Kx has mean-square radius < RHO "
+                             "(stable), or whose DP law's stationary cost is <= --alpha (dp-cost); default: none "
+                             "(the paper's J* <= alpha with --protocol), e.g. --target stable")
+    design.add_argument("--margin", metavar="RHO",
+                        help="with --target stable: the bound RHO on the mean-square radius (the spectral radius of "
+                             "the second-moment operator), 0 < RHO <= 1 (default: 1, i.e. stable: radius < 1 - 1e-9), "
+                             "e.g. --margin 0.9")
 
     sim = add_command(sub, "simulate", "Monte Carlo of the plans and laws against their exact expectations",
                       examples=["simulate two_actuator --samples 100000 --seed 0",

@@ -15,6 +15,7 @@ from ..errors import InputError
 from ..results.region import RegionMap
 from ..runfolder import RunFolder
 from ..safeio import save_figure
+from ..simulation.markov_region import chain_membership, chain_rate_map, homogeneous_coupled_riccati
 from ..simulation.region_map import LAWS, region_map
 from ..studies.output import csv_number
 from .common import CommandResult, floats, progress_of, system_of
@@ -77,6 +78,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     if args.out is not None and not args.out.strip():
         raise InputError("--out", "expected a folder, found an empty path")
     system = system_of(args)
+    if system.channel is not None:
+        return _chain(args, system)
     options = _options(args, system.m)
     sensor_grid = getattr(args, "sensor_grid", None)
     if sensor_grid is not None:
@@ -104,6 +107,85 @@ def run(args: argparse.Namespace) -> CommandResult:
                 lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
     except InputError as err:
         raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
+    return CommandResult(data, "\n".join(lines))
+
+
+def _chain(args: argparse.Namespace, system) -> CommandResult:
+    """A Gilbert–Elliott file (simulation.markov_region): can some mode-dependent law (the last state known, as
+    a TCP-like acknowledgement reveals it) stabilise the loop behind the file's chain, and, with ``--grid K``,
+    where over the channels' mean rates at the file's burstiness (one channel: a row of K rates)."""
+    if args.law not in ("dp", "all"):
+        raise InputError("--law", "behind a Gilbert-Elliott chain only 'dp' (some mode-dependent linear law) is "
+                                  "mapped; the paper's laws are Bernoulli designs")
+    for flag, value in (("--direction", args.direction), ("--dask", args.dask), ("--workers", args.workers)):
+        if value is not None:
+            raise InputError(flag, "does not apply to a Gilbert-Elliott file (its map is over the mean rates: "
+                                   "--grid K)")
+    chain = system.channel
+    found = chain_membership(system.A, system.B, chain)
+    lam = homogeneous_coupled_riccati(system.A, system.B, chain)[0]
+    entry: dict[str, Any] = {"verdict": found.verdict, "lambda": float(lam), "mean_rate": chain.mean_rate.tolist(),
+                             "burstiness": chain.correlation.tolist(), "information": "last state known (next)",
+                             "radius": None if found.verdict != "stable" else float(found.radius)}
+    lines = [f"behind the file's Gilbert-Elliott chain (mean rates {np.round(chain.mean_rate, 6).tolist()}, "
+             f"burstiness {np.round(chain.correlation, 6).tolist()}), a mode-dependent law knowing the last state:",
+             f"  {found.verdict} (min over such laws of the mean-square radius: {lam:.6g})"]
+    grid = None
+    if args.grid is not None:
+        if args.grid < 2:
+            raise InputError("--grid", f"expected an integer >= 2, found {args.grid}")
+        m = system.m
+        points = args.grid ** 2 if m > 1 else args.grid
+        check("region_points", points, "--grid", f"a rate grid of {points} points behind the chain")
+        text = args.channels if args.channels is not None else ("1,2" if m > 1 else "1")
+        pair = floats(text, "--channels")
+        if (len(pair) != min(m, 2) or any(v != int(v) or not 1 <= v <= m for v in pair)
+                or (len(pair) == 2 and pair[0] == pair[1])):
+            raise InputError("--channels", f"expected {min(m, 2)} different channels from 1 to {m}, found "
+                                           f"{text[:40]!r}")
+        channels = tuple(int(v) - 1 for v in pair) + ((0,) if m == 1 else ())
+        lo = float(np.max(chain.h_bad[list(set(channels))]))
+        hi = float(np.min(chain.h_good[list(set(channels))]))
+        axis = np.linspace(lo, hi, args.grid)
+        stable, lams = chain_rate_map(system.A, system.B, chain, axis, channels[:2])
+        grid = {"axis": axis, "channels": channels, "stable": stable, "lambda": lams}
+        entry["grid"] = {"axis": axis.tolist(), "channels": [c + 1 for c in channels[:m]],
+                         "stable": [[None if np.isnan(v) else bool(v) for v in row] for row in stable],
+                         "lambda": [[float(v) for v in row] for row in lams]}
+        lines.append(f"stable share of the rate grid ({stable.size} points, burstiness kept): "
+                     f"{100 * float(np.mean(stable == 1.0)):.1f} % ({int(np.isnan(stable).sum())} undecided)")
+    data: dict[str, Any] = {"dp": entry}
+    if args.out is not None:
+        with _folder(args) as out:
+            arrays: dict[str, Any] = {"lambda": np.array(lam), "mean_rate": chain.mean_rate,
+                                      "burstiness": chain.correlation}
+            if grid is not None:
+                arrays.update(axis=grid["axis"], channels=np.array(grid["channels"]) + 1, stable=grid["stable"],
+                              radius=grid["lambda"])
+            with out.write("region.npz") as handle:
+                np.savez(handle, **arrays)
+            with out.write("region.csv", text=True) as handle:
+                writer = csv.writer(handle)
+                if grid is None:
+                    writer.writerow(["verdict", "lambda"])
+                    writer.writerow([found.verdict, csv_number(lam)])
+                else:
+                    writer.writerow(["rate_i", "rate_j", "stable", "lambda"])      # rate_j empty for one channel
+                    rows = grid["axis"] if system.m > 1 else [float("nan")]
+                    for row, y in enumerate(rows):
+                        for col, x in enumerate(grid["axis"]):
+                            writer.writerow([csv_number(x), csv_number(y), csv_number(grid["stable"][row, col]),
+                                             csv_number(grid["lambda"][row, col])])
+            paths = [out.path / "region.npz", out.path / "region.csv"]
+            if grid is not None and system.m > 1:
+                from ..plots import plot_region  # matplotlib only where a figure is asked for
+                i, j = grid["channels"][:2]
+                figure = plot_region(grid["axis"], grid["lambda"], {"dp": grid["stable"]},
+                                     xlabel=rf"mean rate of channel {i + 1}", ylabel=rf"mean rate of channel {j + 1}",
+                                     title="stability region behind the chain (burstiness kept)")
+                paths.append(save_figure(figure, "region.png", folder=out))
+            data["files"] = [str(p) for p in paths]
+            lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
     return CommandResult(data, "\n".join(lines))
 
 

@@ -9,7 +9,7 @@ from .base import eigenvalue_pairs
 from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simulation
 from .markov import BurstinessMap, BurstinessSweep, MarkovSolution, MjlsResult, plugin_loss
 from .plans import BatchSolution, CrossCheck, LoopStability, Solution
-from .region import CriticalPoint, Membership, RegionMap
+from .region import CriticalPoint, Membership, RegionMap, StabilityAllocation
 from .sensing import CovarianceBounds, CriticalGamma, EstimatedLoop, EstimatedRun
 from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
 
@@ -39,6 +39,7 @@ __all__ = [
     "RegionMap",
     "Simulation",
     "Solution",
+    "StabilityAllocation",
     "Sweep",
     "eigenvalue_pairs",
     "plugin_loss",

@@ -11,7 +11,7 @@ from ..display import fields_html, fields_repr, to_json
 from ..optional import load
 from .base import Frozen, finite_or_none
 
-__all__ = ["CriticalPoint", "Membership", "RegionMap"]
+__all__ = ["CriticalPoint", "Membership", "RegionMap", "StabilityAllocation"]
 
 
 @dataclass(frozen=True)
@@ -138,3 +138,42 @@ class RegionMap(Frozen):
             coords[f"mu{i + 1}"] = self.axis
             coords[f"mu{j + 1}"] = self.axis
         return xr.Dataset(data, coords=coords)
+
+
+@dataclass(frozen=True)
+class StabilityAllocation(Frozen):
+    """The cheapest channel for a stability target (allocation.stability): ``mu`` certified inside, ``cost``
+    beta'mu, ``lower_bound`` on the optimal beta'mu (proved: LP bounds of the boxes no certificate discarded),
+    ``gap`` (cost - lower_bound) / max(cost, 1e-12), ``status`` "optimal" or "gap_not_certified".
+    ``radius``: the mean-square radius of ``gain`` at mu (the operator's, < ``radius_bound``): for target
+    "stable" the least-radius gain (homogeneous Riccati), for "dp-cost" the DP law. ``dp_cost`` the DP law's
+    stationary cost at mu (``dp_cost_kind`` "average" or "total from x0"; nan when the DP solution failed),
+    ``alpha`` its bound (None for "stable"), ``boxes`` explored, ``method`` how it ended."""
+
+    target: str
+    mu: np.ndarray
+    cost: float
+    lower_bound: float
+    gap: float
+    status: str
+    radius: float
+    radius_bound: float
+    gain: np.ndarray
+    dp_cost: float
+    dp_cost_kind: str
+    alpha: float | None
+    beta: np.ndarray
+    boxes: int
+    method: str
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists and floats (None for nan). O(m n)."""
+        return {"target": self.target, "mu": self.mu.tolist(), "cost": self.cost, "lower_bound": self.lower_bound,
+                "gap": self.gap, "status": self.status, "radius": self.radius, "radius_bound": self.radius_bound,
+                "gain": self.gain.tolist(), "dp_cost": finite_or_none(self.dp_cost),
+                "dp_cost_kind": self.dp_cost_kind or None, "alpha": self.alpha, "beta": self.beta.tolist(),
+                "boxes": self.boxes, "method": self.method}

@@ -46,6 +46,11 @@ _POWER_STEPS = 30
 #: lambda below this fraction of tr(A'PA) is zero to rounding (R(P) = 0)
 _ZERO = 1e-12
 _POLICY_STEPS = 50
+#: where the eigenpair's own gain is not proved stabilising, the gain is taken once more from P + _LIFT I (tr P = 1):
+#: the Perron eigenvector of a decoupled plant vanishes on the blocks whose radius is not the largest, and the
+#: least-squares minimiser gives them gain 0; the lifted P weighs every direction (2026-11-24, issue 21 item 5:
+#: diag(1.2, 2, 0.5), B = I was "undecided" by this form at every mu inside S)
+_LIFT = 1e-6
 
 #: the forms :func:`membership` can run, cheapest first
 FORMS = ("riccati", "dp", "lmi")
@@ -285,6 +290,9 @@ def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray
         lam, P, K = homogeneous_riccati(A, B, mu)
         if lam < 1.0:
             verdict, radius = _inside(A, B, mu, K)
+            if verdict == "undecided":   # P vanishes on a block (decoupled plants): its minimiser leaves it gain 0
+                K = _homogeneous_step(P + _LIFT * np.eye(A.shape[0]), A, B, mu)[0]
+                verdict, radius = _inside(A, B, mu, K)
             return verdict, radius, K, None
         verdict, margin = _outside(A, B, mu, P)
         return verdict, margin, None, P

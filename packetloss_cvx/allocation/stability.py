@@ -1,0 +1,457 @@
+"""Design for stability (issue 21 item 5): the cheapest delivery probabilities whose loop some linear law
+holds with a margin, or whose DP law costs at most alpha.
+
+.. math:: \\min_\\mu \\beta'\\mu \\quad\\text{s.t.}\\quad \\mu \\in S_\\rho = \\{\\mu : \\min_K \\rho(L_K) < \\rho\\}
+   \\ (\\text{target "stable"}) \\quad\\text{or}\\quad J_{dp}(\\mu) \\le \\alpha\\ (\\text{target "dp-cost"}),
+   \\quad \\mu \\in [lo, hi]^m,\\ G\\mu \\le h.
+
+``rho(L_K)`` is the mean-square radius (the spectral radius of the second-moment operator,
+simulation.stability.mean_square_radius, not its square root). ``S_rho`` of the plant (A, B) is S of the plant
+``(A, B) / sqrt(rho)`` (``L_K`` is quadratic in (A, B)), so membership and both certificates are the stabilisable
+set's (simulation.region.membership) on the scaled plant. ``J_dp`` is the DP law's stationary cost
+(simulation.riccati.dp_riccati): the average stage cost ``tr(P Sigma_W)`` when the file has process noise, else
+the total cost ``x0'P x0`` from the file's x0 (a noise-free loop's average cost is 0 wherever it is stable).
+
+Neither feasible set is convex in mu (docs/design.md §2, "Design for stability": the one-state example), and in
+the odds, where the one-state S_rho is a half-space, the objective ``beta'mu = sum beta_i s_i / (1 + s_i)`` is
+concave: no convex program in mu or the odds computes the optimum. Both sets are upper sets (proved there:
+``min_K rho(L_K)`` and the DP cost-to-go P fall in each mu_i), so the search is the monotone branch and bound of
+:mod:`.udp` on a verdict instead of a cost:
+
+* a box is discarded when its upper corner is certified outside (an infeasibility certificate ``T(P) >= 0`` of
+  the scaled plant checked in numpy, or a DP cost above ``alpha (1 + ALLOCATION_COST_RTOL)``);
+* its lower corner is raised along each edge to the last point certified outside;
+* its lower bound is the LP ``min beta'mu`` over the box and rows (:func:`~.boxes.box_lp`, dual evaluated
+  exactly);
+* incumbents are points certified inside: a gain whose radius the operator proves ``< rho (1 - margin)``, or a
+  DP solution whose cost is ``<= alpha``.
+
+An undecided point (within about 1e-9 of the boundary, or a solver failure) is never a verdict: it discards
+nothing, raises no corner and offers no incumbent. Worst case ``(1/gap)^(m-1)`` boxes, each an LP and
+``O(m log(1/tol))`` memberships (a homogeneous Riccati eigenpair, O(iterations (n^3 + m^3)); a DP solution for
+"dp-cost").
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from ..budgets import check, count_text
+from ..errors import InfeasibleError, InputError, NumericalError, SolverError
+from ..model import System
+from ..results.region import StabilityAllocation
+from ..simulation.region import LazyLmi, homogeneous_riccati, membership
+from ..simulation.riccati import dp_riccati
+from ..simulation.stability import mean_square_radius
+from ..threads import blas_limited
+from ..tolerances import (
+    ALLOCATION_COST_RTOL,
+    ALLOCATION_EDGE_ATOL,
+    ALLOCATION_EDGE_RTOL,
+    ALLOCATION_GAP_DEFAULT,
+    ALLOCATION_GAP_FLOOR,
+    ALLOCATION_INCUMBENT_SHARE,
+    MEAN_SQUARE_MARGIN,
+)
+from .boxes import Outcome, box_lp, bracket, check_in_polytope
+from .grammar import (
+    Constraint,
+    Polytope,
+    check_alpha,
+    check_beta,
+    check_bounds,
+    check_count,
+    check_gap,
+    check_number,
+    check_system,
+    read_polytope,
+)
+from .udp import SPLIT_WEIGHT_FLOOR, Search, split
+
+__all__ = ["TARGETS", "Point", "dp_cost", "stability_allocate"]
+
+#: what the design asks of the loop
+TARGETS = ("stable", "dp-cost")
+
+#: default cap on the boxes (as allocation.api.MAX_BOXES)
+MAX_BOXES = 20000
+
+
+class Point(NamedTuple):
+    """One decided (or undecided) channel: ``verdict`` "in", "out" or "undecided"; for "in" the ``gain`` that
+    proves it, its ``radius`` on the unscaled plant and, for "dp-cost", the DP ``cost``."""
+
+    verdict: str
+    gain: np.ndarray | None = None
+    radius: float = float("nan")
+    cost: float = float("nan")
+
+
+def dp_cost(system: System, riccati) -> tuple[float, str]:
+    """The DP law's stationary cost and its kind: ``tr(P Sigma_W)`` ("average") when the system has process
+    noise, else ``x0'P x0`` ("total from x0"). O(n^2).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.simulation.riccati import dp_riccati
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> cost, kind = dp_cost(s, dp_riccati(s))     # DARE: p = 1 + 4p - 4p^2/(1 + p), p = 2 + sqrt(5)
+    >>> bool(np.isclose(cost, 2 + 5 ** 0.5)), kind
+    (True, 'total from x0')
+    """
+    P = riccati.cost_to_go
+    if np.any(system.noise_cov != 0):
+        return float(np.sum(P * system.noise_cov)), "average"
+    return float(system.x0 @ P @ system.x0), "total from x0"
+
+
+def _scaled(system: System, rho: float) -> System:
+    """The plant (A, B) / sqrt(rho) with the same weights: its S is S_rho of ``system``. O(n^2 + n m)."""
+    root = math.sqrt(rho)
+    return System(A=system.A / root, B=system.B / root, horizon=1, x0=system.x0,
+                  state_weight=system.state_weights[0], input_weight=system.input_weights[0],
+                  mu=np.ones(system.m))
+
+
+def _radius_bound(margin) -> float:
+    if margin is None:
+        return 1.0
+    rho = check_number(margin, "margin")
+    if not 0.0 < rho <= 1.0:
+        raise InputError("margin", f"expected a bound rho on the mean-square radius with 0 < rho <= 1, found {rho:g}")
+    return rho
+
+
+#: the membership forms the search asks, the first that decides answering: the homogeneous Riccati eigenpair (cheap,
+#: both certificates), then the LMI (where the eigenpair's gain misses a block, e.g. decoupled plants); and those
+#: that decide the answer once more, all of them cross-checked
+SEARCH_FORMS, CHECK_FORMS = ("riccati", "lmi"), ("riccati", "dp", "lmi")
+
+#: a probe's value where the DP solution fails or the loop is outside S (log(J / alpha) is far below it)
+_OUTSIDE = 40.0
+#: how far (relative) beyond the boundary a line search aims: 10 MEAN_SQUARE_MARGIN, so that the point it
+#: proposes is certified rather than undecided (the certificates' tolerances are 1e-9)
+_AIM = 10 * MEAN_SQUARE_MARGIN
+
+
+class Target(NamedTuple):
+    """A target's two views of a channel: ``decide(mu)``, a :class:`Point` resting on a certificate checked in
+    numpy, and ``probe(mu)``, an unchecked number that is monotone (non-increasing) in each mu_i and crosses
+    ``level`` at the boundary (it only steers the line searches; every decision is taken on ``decide``). The
+    line searches aim ``_AIM`` (relative) beyond the level, to the side they need certified, so that their
+    point clears the certificate's own tolerance (MEAN_SQUARE_MARGIN, ALLOCATION_COST_RTOL)."""
+
+    decide: Callable[[np.ndarray], Point]
+    probe: Callable[[np.ndarray], float]
+    level: float
+
+    def inside(self) -> float:
+        """The level a point proposed as inside aims below."""
+        return self.level - _AIM * max(abs(self.level), 1.0)
+
+    def outside(self) -> float:
+        """The level a point proposed as outside aims above."""
+        return self.level + _AIM * max(abs(self.level), 1.0)
+
+
+def _target(system: System, target: str, rho: float, alpha: float | None, check: bool = False) -> Target:
+    """The target's :class:`Target`: its verdicts from :func:`~packetloss_cvx.simulation.region.membership`'s
+    SEARCH_FORMS, or with ``check`` its CHECK_FORMS cross-checked (forms that decide differently raise
+    CrossCheckError)."""
+    plant = _scaled(system, rho)
+    lmi = LazyLmi(plant.A, plant.B)
+    A, B = system.A, system.B
+    forms = CHECK_FORMS if check else SEARCH_FORMS
+
+    def stable(mu: np.ndarray) -> Point:
+        found = membership(plant, mu, forms=forms, cross_check=check, lmi=lmi)
+        if found.verdict == "unstable":
+            return Point("out")
+        if found.verdict == "undecided":
+            return Point("undecided")
+        return Point("in", found.gain, rho * found.radius)
+
+    def least_radius(mu: np.ndarray) -> float:
+        """min_K rho(L_K) of the scaled plant (< 1 inside S_rho), unchecked."""
+        return homogeneous_riccati(plant.A, plant.B, mu)[0]
+
+    if target == "stable":
+        return Target(stable, least_radius, 1.0)
+
+    def within(mu: np.ndarray) -> Point:
+        if stable(mu).verdict == "out":        # no law holds the loop: no finite cost
+            return Point("out")
+        try:
+            dp = dp_riccati(system, mu)
+        except NumericalError:                  # not a verdict
+            return Point("undecided")
+        cost, _ = dp_cost(system, dp)
+        if cost <= alpha:
+            return Point("in", dp.gain, mean_square_radius(A, B, dp.gain, mu), cost)
+        if cost > alpha * (1.0 + ALLOCATION_COST_RTOL):
+            return Point("out")
+        return Point("undecided")
+
+    def log_cost(mu: np.ndarray) -> float:
+        """log(J_dp / alpha), unchecked; _OUTSIDE plus the least radius where no law holds the loop or the DP
+        solution fails (still monotone: J_dp is infinite there)."""
+        lam = least_radius(mu)
+        if not lam < 1.0:
+            return _OUTSIDE + lam
+        try:
+            cost, _ = dp_cost(system, dp_riccati(system, mu))
+        except NumericalError:
+            return _OUTSIDE
+        return math.log(max(cost, np.finfo(float).tiny) / alpha)
+
+    return Target(within, log_cost, 0.0)
+
+
+def _search(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, max_boxes: int,
+            time_limit: float | None, progress: bool | None) -> tuple[str, Search, dict[bytes, Point]]:
+    """The monotone branch and bound on verdicts (module docstring); returns how it ended, the search and every
+    point decided (keyed by ``mu.tobytes()``: the incumbent's certificate is there)."""
+    m = beta.size
+    weights = np.maximum(beta, SPLIT_WEIGHT_FLOOR)
+    search = Search(gap, float(beta @ poly.lower()), max_boxes, time_limit, progress)
+    seen: dict[bytes, Point] = {}
+
+    def verdict(mu: np.ndarray) -> str:
+        key = mu.tobytes()
+        if key not in seen:
+            seen[key] = goal.decide(mu)
+        return seen[key].verdict
+
+    def halving(point: np.ndarray, i: int, out: float, top: float, tol: float) -> float:
+        """Bisection on verdicts from ``out`` (certified outside) to ``top``: the last point certified outside."""
+        while top - out > tol:
+            point[i] = 0.5 * (out + top)
+            found = verdict(point)
+            if found == "undecided":
+                break
+            if found == "out":
+                out = float(point[i])
+            else:
+                top = float(point[i])
+        return out
+
+    def edge(u: np.ndarray, i: int, a: float) -> float:
+        """The last point of edge i (the others at u) certified outside, from a (kept when nothing is): the
+        probe's regula falsi proposes it, a certificate confirms it, else a bisection on verdicts finds it."""
+        point = u.copy()
+        point[i] = a
+        if goal.probe(point) <= goal.outside():
+            return a
+        top = float(u[i])
+        tol = ALLOCATION_EDGE_ATOL + ALLOCATION_EDGE_RTOL * (top - a)
+
+        def along(s: float) -> float:
+            point[i] = s
+            return goal.probe(point)
+
+        _, proposed = bracket(along, goal.outside(), a, top, tol)
+        point[i] = proposed
+        if proposed > a and verdict(point) == "out":
+            return proposed
+        point[i] = a
+        if verdict(point) != "out":
+            return a
+        return halving(point, i, a, top, tol)
+
+    def bound(l: np.ndarray, u: np.ndarray):
+        if verdict(u) == "out":                  # every point of the box is dominated by u
+            return None
+        l, u = l.copy(), u.copy()
+        for i in range(m):
+            if l[i] < u[i]:
+                l[i] = edge(u, i, float(l[i]))
+        if np.isfinite(search.best):             # lower u where beta'mu would not beat the incumbent
+            rest = beta @ l - beta * l
+            positive = beta > 0
+            u[positive] = np.minimum(u[positive], (search.best - rest[positive]) / beta[positive])
+            if np.any(u < l):
+                return None
+        p, lb = box_lp(beta, poly, l, u)
+        if p is None:
+            return None
+        return lb, l, u, p
+
+    def incumbent(p: np.ndarray, q: np.ndarray) -> np.ndarray | None:
+        """A point certified inside on the segment from p (not inside) to q (inside), near the boundary."""
+        tol = ALLOCATION_INCUMBENT_SHARE * gap
+        s_in, _ = bracket(lambda t: goal.probe(p + t * (q - p)), goal.inside(), 0.0, 1.0, tol)
+        point = p + s_in * (q - p)
+        if verdict(point) == "in":
+            return point
+        lo, hi = 0.0, 1.0
+        while hi - lo > tol:
+            mid = 0.5 * (lo + hi)
+            if verdict(p + mid * (q - p)) == "in":
+                hi = mid
+            else:
+                lo = mid
+        return p + hi * (q - p)
+
+    def visit(lb: float, l: np.ndarray, u: np.ndarray, p: np.ndarray) -> None:
+        if verdict(p) == "in":
+            search.offer(p, float(beta @ p))
+        else:
+            q, _ = box_lp(-np.ones(m), poly, l, u)          # a maximal point of the box and rows
+            if q is not None and verdict(q) == "in":
+                point = incumbent(p, q)
+                search.offer(point, float(beta @ point))
+        halves = split(l, u, weights)
+        if not halves:
+            search.unsplit = min(search.unsplit, lb)
+            return
+        for nl, nu in halves:
+            child = bound(nl, nu)
+            if child is not None:
+                search.push(*child)
+
+    root = bound(poly.lower(), poly.upper())
+    if root is not None:
+        search.push(*root)
+    return search.run(visit), search, seen
+
+
+@blas_limited
+def stability_allocate(system: System, target: str, beta, margin=None, alpha=None, bounds=(0.0, 1.0),
+                       constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
+                       max_boxes: int = MAX_BOXES, time_limit: float | None = None,
+                       progress: bool | None = None) -> StabilityAllocation:
+    """The cheapest channel qualities (min beta'mu) for which some linear law has mean-square radius below
+    ``margin`` (target "stable"), or whose DP law costs at most ``alpha`` (target "dp-cost").
+
+    Parameters
+    ----------
+    system : System
+        Full state, a stationary Bernoulli channel (its own mu is ignored).
+    target : {"stable", "dp-cost"}
+    beta : array_like, shape (m,)
+        Non-negative price of each channel's delivery probability.
+    margin : float, optional
+        Target "stable": the bound rho on the mean-square radius, ``0 < rho <= 1``; the answer's gain is proved
+        to have radius ``< rho (1 - MEAN_SQUARE_MARGIN)``. Default 1: what the product calls stable.
+    alpha : float
+        Target "dp-cost": bound on the DP law's stationary cost (:func:`dp_cost`), > 0.
+    bounds, constraints, gap, max_boxes, time_limit, progress
+        As :func:`~packetloss_cvx.allocation.allocate`.
+
+    Returns
+    -------
+    StabilityAllocation
+        ``mu`` certified inside (its ``gain`` and ``radius`` re-checked by the operator), ``lower_bound``
+        proved (LP bounds of the boxes not discarded by a certificate), ``status`` "optimal" or
+        "gap_not_certified" (a cap was hit; ``gap`` the gap reached).
+
+    Raises
+    ------
+    InputError
+        A bad argument, named by its field (``margin`` outside (0, 1], a Gilbert-Elliott ``channel``, a
+        noise-free system with x0 = 0 for "dp-cost").
+    InfeasibleError
+        Every box was discarded by a certificate: no mu within the bounds and rows meets the target.
+    SolverError
+        A cap hit before any point was certified inside, or a final check failed.
+
+    Notes
+    -----
+    Monotone branch and bound (module docstring); per box an LP and O(m log(1/tol)) memberships, each a
+    homogeneous Riccati eigenpair, O(iterations (n^3 + m^3)), plus a DP solution for "dp-cost".
+
+    Examples
+    --------
+    One state, x+ = 2 x + v u: some law holds the loop with radius below rho iff 4 (1 - mu) < rho.
+
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> a = stability_allocate(s, "stable", [1.0], margin=0.5)
+    >>> a.status, bool(abs(a.mu[0] - 0.875) <= 1e-4), bool(a.radius < 0.5)
+    ('optimal', True, True)
+    """
+    system = check_system(system)
+    if system.channel is not None:
+        raise InputError("channel", "design for stability chooses independent (Bernoulli) delivery probabilities; "
+                                    "this system has a Markov chain ([channel] model)")
+    if system.sensor is not None:   # the loop then also needs the sensor links (gamma > gamma_c): not designed here
+        raise InputError("sensor", "design for stability designs the actuator links of the full-state loop; this "
+                                   "system measures its state over lossy [sensor] links, whose rates it would "
+                                   "ignore: map the (gamma, mu) region with `packetloss-cvx region FILE "
+                                   "--sensor-grid K`, or remove [sensor]")
+    if target not in TARGETS:
+        raise InputError("target", f"expected one of {', '.join(TARGETS)}, found {target!r}")
+    beta = check_beta(beta, system.m)
+    lo, hi = check_bounds(bounds)
+    gap = check_gap(gap)
+    max_boxes = check_count(max_boxes, "max_boxes")
+    check("allocation_boxes", max_boxes, "max_boxes", f"{count_text(max_boxes)} boxes")
+    if time_limit is not None:
+        time_limit = check_number(time_limit, "time_limit")
+        if time_limit <= 0:
+            raise InputError("time_limit", f"expected a positive number of seconds or None, found {time_limit:g}")
+    if target == "stable":
+        if alpha is not None:
+            raise InputError("alpha", "the target 'stable' bounds the radius (margin), not a cost")
+        rho = _radius_bound(margin)
+    else:
+        if margin is not None:
+            raise InputError("margin", "the target 'dp-cost' bounds the DP cost (alpha), not the radius")
+        if alpha is None:
+            raise InputError("alpha", "the target 'dp-cost' needs a bound alpha on the DP law's cost")
+        alpha = check_alpha(alpha)
+        if not (np.any(system.noise_cov != 0) or np.any(system.x0 != 0)):
+            raise InputError("noise_cov", "the DP cost is 0 wherever the loop is stable when there is neither "
+                                          "process noise nor an initial state: ask for the target 'stable'")
+        rho = 1.0
+    try:
+        poly = read_polytope(constraints, system.m, lo, hi)
+    except InfeasibleError as err:
+        raise InfeasibleError(f"the constraints admit no mu: {err}", None) from None
+    unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
+    prices = beta / unit
+    ended, search, seen = _search(poly, prices, gap, _target(system, target, rho, alpha), max_boxes, time_limit,
+                            progress)
+    what = ("design for stability" if target == "stable" else "design for the DP cost")
+    if search.best_mu is None:
+        if ended == "exhausted":
+            goal = (f"mean-square radius below {rho:g}" if target == "stable" else f"DP cost <= {alpha:g}")
+            raise InfeasibleError(f"{what}: no mu within the bounds and constraints gives a {goal} (every box "
+                                  f"discarded by a certificate at its upper corner, or empty; {search.boxes} boxes)",
+                                  None)
+        raise SolverError("gap_not_certified", f"{what}: no mu certified inside and infeasibility not proven; "
+                                               f"{ended}")
+    out = search.outcome(ended, "monotone branch and bound on certified memberships (LP bounds)", what)
+    mu = check_in_polytope(out.mu, poly, what)
+    return _verified(system, target, rho, alpha, mu, beta, out, unit, seen[out.mu.tobytes()],
+                     _target(system, target, rho, alpha, check=True).decide)
+
+
+def _verified(system: System, target: str, rho: float, alpha: float | None, mu: np.ndarray, beta: np.ndarray,
+              out: Outcome, unit: float, point: Point, decide: Callable[[np.ndarray], Point]) -> StabilityAllocation:
+    """The result, after re-checking the incumbent's gain by the operator (its radius < rho) and deciding mu once
+    more by every form, cross-checked: a form that finds mu outside contradicts the gain (SolverError), one that
+    cannot decide (within about 1e-9 of the boundary) is no verdict."""
+    again = decide(mu)
+    if point.verdict != "in" or again.verdict == "out":
+        raise SolverError("inconsistent", f"the allocation mu = {np.round(mu, 9).tolist()} was certified inside, "
+                                          f"yet decided {again.verdict} by a second look")
+    radius = mean_square_radius(system.A, system.B, point.gain, mu)
+    if not radius < rho:
+        raise SolverError("inconsistent", f"the gain found at mu = {np.round(mu, 9).tolist()} has mean-square "
+                                          f"radius {radius:.9g}, not below rho = {rho:g}")
+    try:
+        dp = dp_riccati(system, mu)
+        cost, kind = dp_cost(system, dp)
+    except NumericalError:
+        cost, kind = float("nan"), ""
+    scaled = out.value
+    return StabilityAllocation(
+        target=target, mu=mu, cost=float(beta @ mu), lower_bound=out.lower_bound * unit,
+        gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR), status=out.status, radius=radius,
+        radius_bound=rho, gain=point.gain, dp_cost=cost, dp_cost_kind=kind, alpha=alpha, beta=beta,
+        boxes=out.boxes, method=out.note)
+

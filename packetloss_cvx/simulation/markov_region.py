@@ -1,0 +1,258 @@
+"""The stabilisable set behind Gilbert–Elliott channels (issue 21 item 6): can some mode-dependent linear law
+``u = -K_a x`` (a the channel state the law knows: the last one, or the current one) make the loop mean-square
+stable, and where, over each channel's mean rate at fixed burstiness?
+
+With ``E_a = sum_b T_ab P_b`` (T the mode chain, h_a the per-mode delivery probabilities) the adjoint of the
+coupled second-moment map of gains K is the quadratic ``L_K^*(P)_a = A'E_aA - 2 A'F_a K_a + K_a' H_a K_a``:
+with the deliveries following the next mode b ("next", the default: the law knows the last state, as a TCP-like
+acknowledgement of a Gilbert channel reveals it) ``F_a = sum_b T_ab P_b B H_b`` and ``H_a = sum_b T_ab (H_b B'P_bB
+H_b + diag(h_b (1 - h_b)) ∘ B'P_bB)``; following the current mode a ("current": the law knows the state that
+decides this step's deliveries) ``F_a = E_a B H_a``, ``H_a = H_a B'E_aB H_a + diag(h_a (1 - h_a)) ∘ B'E_aB``
+(H_b = diag(h_b); markov.mjls's two conventions). As for
+Bernoulli losses (simulation.region) two certificates, each checked in numpy by the operator it speaks about:
+
+- **inside**: mode gains K whose coupled map has radius ``< 1 - MEAN_SQUARE_MARGIN`` (mjls.mean_square_radius);
+- **outside**: ``P_a >= 0``, ``sum_a tr P_a = 1``, with, for every mode a,
+
+  .. math:: T_a(P) = \\begin{bmatrix} A'E_aA - P_a & -A'F_a \\\\ -F_a'A & H_a \\end{bmatrix} \\succeq 0,
+
+  i.e. ``L_K^*(P) >= P`` for every K (``x'(L_K^*(P)_a - P_a)x = [x; K_a x]' T_a(P) [x; K_a x]``), so
+  ``<P, L_K^j(Q)> >= <P, Q> > 0`` for Q > 0 and every j: no mode-dependent law is mean-square stabilising.
+
+Both come from the homogeneous coupled Riccati map ``R(P)_a = min_K L_K^*(P)_a`` (the coupled equations of
+markov.mjls with Omega = Psi = 0: ``R(P)_a = A'E_aA - A'F_a H_a^+ F_a'A``), monotone,
+concave and positively homogeneous on the PSD cone: its shifted power iteration reaches ``R(P) = lambda P``,
+lambda = min_K rho(L_K); its minimiser is the inside certificate when lambda < 1, its P the outside one when
+lambda >= 1. A certificate that does not check is "undecided", never "unstable".
+
+A memoryless chain (p + r = 1) is in state good with probability r at every step, independently of the past,
+so under "next" it delivers Bernoulli(r h_good + p h_bad) unknown to the law and its set is S at that mean rate
+(tested; under "current" the law knows which packets will arrive, and the set is larger); one state and a
+Gilbert channel (h_good = 1, h_bad = 0): the deadbeat gain in the good state leaves ``x+ = a x`` in the bad one,
+radius ``a^2 (1 - r)``, so the loop is stabilisable iff ``r > 1 - 1/a^2`` whatever p (tested).
+
+Where the Perron eigenvector vanishes on some modes (a transient state: a channel whose mean rate is h_good
+has p = 0) the minimiser gives those modes gain 0, which may not stabilise them; the gains are then taken
+once more from ``P + _LIFT I`` (optimal to within _LIFT on the support, sensible off it) and checked again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ..channel import GilbertElliott
+from ..errors import InputError, NumericalError
+from ..markov.mjls import mean_square_radius as mjls_radius
+from ..markov.mjls import mode_chain
+from ..results.region import Membership
+from ..tolerances import CERTIFICATE_RTOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
+from .stability import is_mean_square_stable
+
+__all__ = ["chain_at_rate", "chain_certificate_margin", "chain_membership", "chain_rate_map",
+           "homogeneous_coupled_riccati"]
+
+#: the power iteration's shift (as simulation.region: removes a peripheral spectrum)
+_SHIFT = 0.1
+#: the lift of P on every mode when its own minimiser's gains do not check (module docstring)
+_LIFT = 1e-6
+
+
+def _step(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(K, R(P), F, H)`` per mode a: the quadratic ``L_K^*(P)_a = A'E_aA - 2 A'F_a K_a + K_a' H_a K_a`` (module
+    docstring), its minimiser (least squares: H_a may be singular) and minimum. O(M (M (n^2 m + m^2) + n^3 + m^3))."""
+    E = np.einsum("ab,bij->aij", T, P)
+    E = 0.5 * (E + E.transpose(0, 2, 1))
+    BPB = np.einsum("ki,bkl,lj->bij", B, P, B)                     # B'P_bB per mode b
+    own = (BPB * h[:, None, :]) * h[:, :, None] + np.einsum("bi,ij->bij", h * (1 - h),
+                                                             np.eye(B.shape[1])) * BPB
+    if delivery == "current":                                       # deliveries follow mode a, known to the law
+        BEB = np.einsum("ki,akl,lj->aij", B, E, B)
+        F = np.einsum("aij,jk,ak->aik", E, B, h)
+        H = (BEB * h[:, None, :]) * h[:, :, None] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(B.shape[1])) * BEB
+    else:                                                           # deliveries follow the next mode b
+        F = np.einsum("ab,bij,jk,bk->aik", T, P, B, h)
+        H = np.einsum("ab,bij->aij", T, own)
+    K = np.array([np.linalg.lstsq(H[a], F[a].T @ A, rcond=None)[0] for a in range(len(h))])
+    R = np.einsum("ji,ajk,kl->ail", A, E, A) - np.einsum("ji,ajk,akl->ail", A, F, K)
+    return K, 0.5 * (R + R.transpose(0, 2, 1)), F, H
+
+
+def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next"
+                                ) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(lambda, P, K)``: the eigenpair ``R(P) = lambda P`` of the homogeneous coupled Riccati map
+    (``sum_a tr P_a = 1``, P of shape (M, n, n)) and the mode gains (M, m, n) that attain the minimum, by the
+    shifted power iteration until ``||P_next - P|| <= RICCATI_RTOL`` or ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps.
+    A candidate: :func:`chain_membership` checks it. Time O(iterations M (M n^2 + n^3 + m^3)).
+
+    Examples
+    --------
+    >>> lam, P, K = homogeneous_coupled_riccati(np.array([[2.0]]), np.array([[1.0]]), GilbertElliott(p=[0.3], r=[0.6]))
+    >>> round(lam, 9), round(float(K[0, 0, 0]), 9)   # deadbeat when good (h = 1); a^2 (1 - r) = 1.6
+    (1.6, 2.0)
+    """
+    _, T, h = mode_chain(channel)
+    M, n = len(h), A.shape[0]
+    P = np.repeat(np.eye(n)[None] / (n * M), M, axis=0)
+    K = np.zeros((M, B.shape[1], n))
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(HOMOGENEOUS_RICCATI_MAX_ITER):
+            K, R, _, _ = _step(P, A, B, T, h, delivery)
+            lam = float(sum(np.trace(r) for r in R))
+            if not (np.isfinite(lam) and lam > 0):
+                break
+            P_next = (R / lam + _SHIFT * P) / (1.0 + _SHIFT)
+            done = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL
+            P = P_next
+            if done:
+                break
+        K, R, _, _ = _step(P, A, B, T, h, delivery)
+    return float(sum(np.trace(r) for r in R)), P, K
+
+
+def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray,
+                             delivery: str = "next") -> float:
+    """The least eigenvalue over the modes of ``T_a(P) = [[A'E_aA - P_a, -A'F_a], [-F_a'A, H_a]]`` (module
+    docstring) over its scale; ``>= -CERTIFICATE_RTOL`` with P >= 0 proves (to rounding) that no mode-dependent
+    law stabilises. ``-inf`` when P is not PSD or is zero. Time O(M ((n + m)^3 + M n^2 m)).
+
+    Examples
+    --------
+    >>> ch = GilbertElliott(p=[0.3], r=[0.2])          # one state a = 2: stabilisable iff r > 3/4
+    >>> lam, P, K = homogeneous_coupled_riccati(np.array([[2.0]]), np.array([[1.0]]), ch)
+    >>> chain_certificate_margin(np.array([[2.0]]), np.array([[1.0]]), ch, P) >= -1e-12   # CERTIFICATE_RTOL
+    True
+    """
+    _check_delivery(delivery)
+    _, T, h = mode_chain(channel)
+    P = 0.5 * (P + P.transpose(0, 2, 1))
+    size = max(float(np.linalg.norm(p, 2)) for p in P)
+    if not (size > 0 and np.all(np.isfinite(P))) or min(float(np.linalg.eigvalsh(p)[0]) for p in P) < (
+            -CERTIFICATE_RTOL * size):
+        return float("-inf")
+    _, _, F, H = _step(P, A, B, T, h, delivery)
+    E = np.einsum("ab,bij->aij", T, P)
+    worst = np.inf
+    for a in range(len(h)):
+        AEA = A.T @ E[a] @ A
+        Ta = np.block([[AEA - P[a], -A.T @ F[a]], [-(A.T @ F[a]).T, H[a]]])
+        scale = max(float(np.linalg.norm(AEA, 2) + np.linalg.norm(P[a], 2) + np.linalg.norm(H[a], 2)), size)
+        worst = min(worst, float(np.linalg.eigvalsh(0.5 * (Ta + Ta.T))[0]) / scale)
+    return worst
+
+
+def _check_delivery(delivery: str) -> None:
+    if delivery not in ("current", "next"):
+        raise InputError("delivery", f"expected current or next, found {delivery!r}")
+
+
+def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, delivery: str = "next"
+                     ) -> Membership:
+    """Can some mode-dependent linear law make the loop behind ``channel`` mean-square stable? ``delivery`` as
+    markov.mjls: "next" (default; the law knows the last state, as a TCP-like acknowledgement reveals it, the
+    deliveries follow the state the chain moves to) or "current" (the law knows the state that decides this
+    step's deliveries). A Membership: "stable" with the mode gains (M, m, n) and their coupled radius, "unstable"
+    with P (M, n, n) and its margin, or "undecided" (the certificate did not check: near the boundary). ``mu``
+    holds the channel's mean rates. Time as :func:`homogeneous_coupled_riccati` plus one coupled radius
+    (O((M n^2)^3) dense).
+
+    Examples
+    --------
+    >>> a, b = np.array([[2.0]]), np.array([[1.0]])      # one state a = 2: iff r > 3/4, whatever p
+    >>> [chain_membership(a, b, GilbertElliott(p=[0.4], r=[r])).verdict for r in (0.7, 0.8)]
+    ['unstable', 'stable']
+    """
+    return _membership(np.asarray(A, dtype=float), np.asarray(B, dtype=float), channel, delivery)[0]
+
+
+def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str) -> tuple[Membership, float]:
+    """:func:`chain_membership` and the eigenvalue lambda behind it."""
+    _check_delivery(delivery)
+    if not isinstance(channel, GilbertElliott):
+        raise InputError("channel", f"expected a GilbertElliott channel, found {type(channel).__name__}")
+    if channel.m != B.shape[1]:
+        raise InputError("channel", f"expected {B.shape[1]} channels (the columns of B), found {channel.m}")
+    lam, P, K = homogeneous_coupled_riccati(A, B, channel, delivery)
+    rates = channel.mean_rate
+    form = f"coupled-riccati ({delivery})"
+    if lam < 1.0 and np.all(np.isfinite(K)):
+        _, T, h = mode_chain(channel)
+        radius = float("nan")
+        for gains in (K, _step(P + _LIFT * np.eye(A.shape[0]), A, B, T, h, delivery)[0]):
+            try:
+                radius = mjls_radius(A, B, channel, gains, delivery)
+            except NumericalError:
+                radius = float("nan")
+            if is_mean_square_stable(radius):
+                return Membership(rates, "stable", gains, radius, None, float("nan"), ((form, "stable"),)), lam
+    elif lam >= 1.0:
+        margin = chain_certificate_margin(A, B, channel, P / max(float(sum(np.trace(p) for p in P)), 1e-300),
+                                          delivery)
+        if margin >= -CERTIFICATE_RTOL:
+            return Membership(rates, "unstable", None, float("nan"), P, margin, ((form, "unstable"),)), lam
+    return Membership(rates, "undecided", None, float("nan"), None, float("nan"), ((form, "undecided"),),
+                      f"the coupled Riccati eigenpair (lambda = {lam:.12g}) gave no certificate that checks (within "
+                      "about 1e-9 of the boundary)"), lam
+
+
+def chain_at_rate(channel: GilbertElliott, rate: npt.ArrayLike) -> GilbertElliott:
+    """The Gilbert–Elliott channel with each channel's mean delivery rate ``rate_i`` and the same burstiness
+    (correlation ``lambda_i = 1 - p_i - r_i``) and state delivery probabilities. The stationary P(good) is
+    ``g_i = (rate_i - h_bad_i) / (h_good_i - h_bad_i)``, so ``r_i = g_i (1 - lambda_i)``, ``p_i = (1 - g_i)
+    (1 - lambda_i)``. O(m).
+
+    Raises
+    ------
+    InputError
+        A rate outside [h_bad_i, h_good_i], or a chain that never moves (lambda_i = 1).
+
+    Examples
+    --------
+    >>> ch = chain_at_rate(GilbertElliott(p=[0.1], r=[0.3]), [0.5])      # lambda = 0.6 kept
+    >>> [round(float(v), 12) for v in (ch.p[0], ch.r[0], ch.mean_rate[0], ch.correlation[0])]
+    [0.2, 0.2, 0.5, 0.6]
+    """
+    rate = np.atleast_1d(np.asarray(rate, dtype=float))
+    if rate.shape != (channel.m,):
+        raise InputError("rate", f"expected {channel.m} mean rates, found shape {rate.shape}")
+    lam = channel.correlation
+    if np.any(lam >= 1.0):
+        raise InputError("channel", "a chain that never moves (p + r = 0) has no mean rate to vary")
+    span = channel.h_good - channel.h_bad
+    if np.any(span <= 0) or np.any(rate < channel.h_bad - 1e-15) or np.any(rate > channel.h_good + 1e-15):
+        raise InputError("rate", f"expected each mean rate within [h_bad, h_good], found {rate.tolist()}")
+    g = np.clip((rate - channel.h_bad) / span, 0.0, 1.0)
+    return GilbertElliott(p=(1 - g) * (1 - lam), r=g * (1 - lam), h_good=channel.h_good, h_bad=channel.h_bad)
+
+
+def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, axis: npt.ArrayLike,
+                   channels: tuple[int, int] = (0, 1), delivery: str = "next") -> tuple[np.ndarray, np.ndarray]:
+    """The region over the mean rates of channels I, J (the others at their own rates) at fixed burstiness:
+    ``(stable, lam)`` on the grid ``axis`` × ``axis`` (rows rate_J, columns rate_I): 1.0 certified stable, 0.0
+    certified not stabilisable, nan undecided; ``lam`` the homogeneous coupled Riccati eigenvalue (min over mode
+    laws of the coupled radius). One channel (m = 1): one row over ``axis``. Time K^2 memberships.
+
+    Examples
+    --------
+    >>> stable, lam = chain_rate_map([[2.0]], [[1.0]], GilbertElliott(p=[0.5], r=[0.5]), [0.5, 0.9])
+    >>> stable.tolist()                                     # memoryless: Bernoulli, S = {mu > 3/4}
+    [[0.0, 1.0]]
+    """
+    axis = np.asarray(axis, dtype=float)
+    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    base = channel.mean_rate.copy()
+    rows = axis if channel.m > 1 else axis[:1]
+    stable = np.full((len(rows), len(axis)), np.nan)
+    lam = np.full_like(stable, np.nan)
+    for r, y in enumerate(rows):
+        for c, x in enumerate(axis):
+            rate = base.copy()
+            rate[channels[0]] = x
+            if channel.m > 1:
+                rate[channels[1]] = y
+            ch = chain_at_rate(channel, rate)
+            found, lam[r, c] = _membership(A, B, ch, delivery)
+            if found.verdict != "undecided":
+                stable[r, c] = 1.0 if found.verdict == "stable" else 0.0
+    return stable, lam

@@ -1,0 +1,256 @@
+"""Design for stability (allocation.stability, `allocate --target`): the cheapest beta'mu for which some linear law
+has mean-square radius < rho, or whose DP law's cost is <= alpha, against hand values (one state: the odds
+half-space; decoupled plants: per-channel thresholds; the scalar DP cost solved for mu), a brute-force grid on
+two_actuator (grid on mu1, bisection on mu2, both sides), and the monotonicity the search rests on."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize_scalar
+
+from packetloss_cvx import System
+from packetloss_cvx.allocation.stability import stability_allocate
+from packetloss_cvx.cli import main
+from packetloss_cvx.errors import InfeasibleError, InputError
+from packetloss_cvx.io import save_system
+from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.simulation.region import homogeneous_riccati, membership
+from packetloss_cvx.simulation.riccati import dp_riccati
+from packetloss_cvx.simulation.stability import mean_square_radius
+
+GAP = 1e-4
+
+
+def scalar(a=2.0, b=(1.0,), noise=0.0, x0=1.0, psi=1.0, omega=1.0):
+    m = len(b)
+    return System(A=[[a]], B=[list(b)], horizon=1, state_weight=[omega], input_weight=[psi] * m, mu=[1.0] * m,
+                  x0=[x0], noise_cov=[[noise]])
+
+
+def _certified(got, system, rho, beta, reference):
+    """The answer's own claims, re-checked: gain radius by the operator, bound and gap against ``reference``."""
+    assert got.status == "optimal"
+    assert mean_square_radius(system.A, system.B, got.gain, got.mu) < rho
+    assert got.lower_bound <= reference + 1e-9                     # the proved bound is below the optimum
+    assert got.cost <= reference / (1 - GAP) + 1e-9                 # and the channel within the gap above it
+    assert got.cost == pytest.approx(float(np.dot(beta, got.mu)))
+    assert got.gap <= GAP
+
+
+@pytest.mark.parametrize("rho", [1.0, 0.9, 0.5, 0.1])
+@pytest.mark.parametrize("a", [1.5, 2.0, 5.0])
+def test_scalar_cheapest_mu_is_one_minus_rho_over_a_squared(a, rho):
+    # by hand: min_k (a - mu k)^2 + mu (1 - mu) k^2 = a^2 (1 - mu), so radius < rho iff mu > 1 - rho / a^2
+    system = scalar(a)
+    got = stability_allocate(system, "stable", [1.0], margin=rho)
+    _certified(got, system, rho, [1.0], 1 - rho / a**2)
+    assert got.mu[0] == pytest.approx(1 - rho / a**2, abs=2e-4)
+
+
+@pytest.mark.parametrize("rho", [1.0, 0.6])
+@pytest.mark.parametrize("beta", [(1.0, 1.0), (1.0, 2.0), (0.2, 1.0)])
+def test_one_state_two_channels_against_the_odds_half_space(beta, rho):
+    # by hand (docs/design.md): one state, B = [1, 1]: min_K rho(L_K) = a^2 / (1 + s1 + s2), s_i = mu_i / (1 - mu_i),
+    # so the target is s1 + s2 > a^2 / rho - 1; the reference minimises beta'mu on that curve by a scalar search
+    a = 3.0 ** 0.5
+    level = a**2 / rho - 1
+
+    def on_curve(mu1):
+        s2 = max(level - mu1 / (1 - mu1), 0.0)
+        return beta[0] * mu1 + beta[1] * s2 / (1 + s2)
+
+    top = level / (1 + level)                                      # mu1 alone reaches the level here
+    grid = np.linspace(0.0, top, 2001)
+    k = int(np.argmin([on_curve(x) for x in grid]))
+    fine = minimize_scalar(on_curve, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, 2000)]), method="bounded",
+                           options={"xatol": 1e-12})
+    reference = min(float(fine.fun), on_curve(0.0), on_curve(top))
+    system = scalar(a, b=(1.0, 1.0))
+    got = stability_allocate(system, "stable", list(beta), margin=rho)
+    _certified(got, system, rho, beta, reference)
+
+
+@pytest.mark.parametrize("rho", [1.0, 0.8])
+def test_decoupled_plants_take_each_channel_at_its_own_threshold(rho):
+    # diagonal A, B = I: each channel holds its own state, threshold max(0, 1 - rho / a_i^2) (a stable mode needs none)
+    a = np.array([1.2, 2.0, 0.5])
+    system = System(A=np.diag(a), B=np.eye(3), horizon=1, state_weight=[1.0] * 3, input_weight=[1.0] * 3,
+                    mu=[1.0] * 3, x0=[1.0] * 3)
+    beta = np.array([1.0, 0.5, 2.0])
+    hand = np.maximum(0.0, 1 - rho / a**2)
+    got = stability_allocate(system, "stable", beta, margin=rho)
+    _certified(got, system, rho, beta, float(beta @ hand))
+    assert np.allclose(got.mu, hand, atol=5e-4)
+
+
+def test_the_riccati_form_decides_decoupled_plants_inside():
+    # the homogeneous Riccati eigenvector of diag(1.2, 2, 0.5), B = I vanishes on the non-dominant blocks; its gain
+    # is taken again from a lifted P (simulation.region), so the cheap form decides where the search asks it
+    a = np.array([1.2, 2.0, 0.5])
+    system = System(A=np.diag(a), B=np.eye(3), horizon=1, state_weight=[1.0] * 3, input_weight=[1.0] * 3,
+                    mu=[1.0] * 3, x0=[1.0] * 3)
+    hand = np.maximum(0.0, 1 - 1 / a**2)
+    for step in (1e-3, 1e-5):
+        found = membership(system, hand + step, forms=("riccati",))
+        assert found.verdict == "stable"
+        assert mean_square_radius(system.A, system.B, found.gain, hand + step) < 1
+
+
+def _boundary_mu2(system, mu1, tol=1e-6):
+    """(last mu2 certified outside, first certified inside) at this mu1, by bisection on memberships (None when even
+    mu2 = 1 is not inside)."""
+    if membership(system, [mu1, 1.0], forms=("riccati",)).verdict != "stable":
+        return None
+    lo, hi = 0.0, 1.0
+    if membership(system, [mu1, 0.0], forms=("riccati",)).verdict == "stable":
+        return 0.0, 0.0
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        verdict = membership(system, [mu1, mid], forms=("riccati",)).verdict
+        assert verdict != "undecided"
+        lo, hi = (lo, mid) if verdict == "stable" else (mid, hi)
+    return lo, hi
+
+
+@pytest.mark.parametrize("beta", [(1.0, 0.3)])
+def test_two_actuator_against_a_brute_force_grid(two_actuator, beta):
+    # grid on mu1, bisection on mu2: min over the grid of beta'(mu1, first inside) is above the optimum, and
+    # min over cells of beta'(mu1_k, last outside at mu1_{k+1}) below it (S is an upper set)
+    beta = np.array(beta)
+    grid = np.linspace(0.0, 1.0, 21)
+    ends = [_boundary_mu2(two_actuator, x) for x in grid]
+    upper = min(beta @ [x, e[1]] for x, e in zip(grid, ends, strict=True) if e is not None)
+    lower = min(beta @ [grid[k], ends[k + 1][0]] for k in range(len(grid) - 1) if ends[k + 1] is not None)
+    got = stability_allocate(two_actuator, "stable", beta)
+    assert got.status == "optimal"
+    assert lower - 1e-9 <= got.lower_bound <= got.cost <= upper / (1 - GAP) + 1e-9
+    assert mean_square_radius(two_actuator.A, two_actuator.B, got.gain, got.mu) < 1
+
+
+def test_linear_constraints_are_met(two_actuator):
+    got = stability_allocate(two_actuator, "stable", [1.0, 1.0], margin=0.9, constraints=[([[-1.0, 1.0]], [0.0])],
+                             bounds=(0.01, 1.0), gap=1e-3)         # mu2 <= mu1, every mu_i >= 0.01
+    assert got.mu[1] <= got.mu[0] + 1e-9
+    assert np.all(got.mu >= 0.01 - 1e-9)
+    assert mean_square_radius(two_actuator.A, two_actuator.B, got.gain, got.mu) < 0.9
+    # the diagonal's own critical point is a feasible point of these constraints: the answer is no dearer
+    t = 0.25
+    while membership(two_actuator.with_mu([t, t]), forms=("riccati",)).verdict != "stable":
+        t += 0.01
+    assert got.cost <= 2 * t
+
+
+@pytest.mark.parametrize(("noise", "alpha"), [(0.0, 5.0), (0.0, 4.5), (2.0, 10.0)])
+def test_scalar_dp_cost_target_against_the_riccati_solved_for_mu(noise, alpha):
+    # by hand: p = w + a^2 p - mu a^2 b^2 p^2 / (psi + b^2 p); the cost is x0^2 p (no noise) or noise * p, so the
+    # cheapest mu with cost <= alpha solves that equation for mu at p = alpha / x0^2 (or alpha / noise)
+    a, b, w, psi = 2.0, 1.0, 1.0, 1.0
+    p = alpha / (noise if noise else 1.0)
+    hand = (w + a**2 * p - p) * (psi + b**2 * p) / (a**2 * b**2 * p**2)
+    system = scalar(a, noise=noise)
+    got = stability_allocate(system, "dp-cost", [1.0], alpha=alpha)
+    assert got.status == "optimal"
+    assert got.mu[0] == pytest.approx(hand, abs=2e-4)
+    assert got.lower_bound <= hand + 1e-9 <= got.cost / (1 - GAP) + 2e-9
+    cost = dp_riccati(system, got.mu).cost_to_go[0, 0] * (noise if noise else 1.0)
+    assert cost <= alpha * (1 + 1e-9)
+    assert got.dp_cost == pytest.approx(cost)
+    assert got.dp_cost_kind == ("average" if noise else "total from x0")
+
+
+def test_scalar_dp_cost_below_the_full_delivery_cost_is_infeasible():
+    # by hand: at mu = 1 the DARE gives p = 2 + sqrt(5) = 4.24, the least cost of any channel (P falls in mu)
+    with pytest.raises(InfeasibleError, match="DP cost <= 4.2"):
+        stability_allocate(scalar(2.0), "dp-cost", [1.0], alpha=4.2)
+    assert stability_allocate(scalar(2.0), "dp-cost", [1.0], alpha=4.25).mu[0] > 0.99
+
+
+def test_dp_cost_target_on_two_actuator_is_feasible_and_no_dearer_than_the_corner(two_actuator):
+    got = stability_allocate(two_actuator, "dp-cost", [1.0, 0.05], alpha=10.0)
+    P = dp_riccati(two_actuator, got.mu).cost_to_go
+    assert two_actuator.x0 @ P @ two_actuator.x0 <= 10.0 * (1 + 1e-9)
+    assert got.status == "optimal"
+    assert got.lower_bound <= got.cost
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_least_radius_and_dp_cost_fall_in_each_mu(seed):
+    # the lemma the search rests on (docs/design.md): mu <= mu' gives min_K rho(L_K) and P no larger
+    rng = np.random.default_rng(seed)
+    s = random_system(rng, n=int(rng.integers(1, 4)), m=int(rng.integers(1, 4)), spectral_radius=1.3,
+                      non_stationary=False, time_varying=False)
+    mu = rng.uniform(0.3, 1.0, s.m)
+    mu2 = np.minimum(1.0, mu + rng.uniform(0, 0.3, s.m))
+    lam, lam2 = homogeneous_riccati(s.A, s.B, mu)[0], homogeneous_riccati(s.A, s.B, mu2)[0]
+    assert lam2 <= lam * (1 + 1e-8) + 1e-12
+    try:
+        P, P2 = dp_riccati(s, mu).cost_to_go, dp_riccati(s, mu2).cost_to_go
+    except Exception:                                   # outside S at mu: nothing to compare
+        return
+    assert np.linalg.eigvalsh(P - P2)[0] >= -1e-8 * np.linalg.norm(P)
+
+
+def test_bad_arguments_are_named():
+    s = scalar()
+    for margin in (0.0, -0.5, 1.5, float("nan")):
+        with pytest.raises(InputError, match="margin"):
+            stability_allocate(s, "stable", [1.0], margin=margin)
+    with pytest.raises(InputError, match="target"):
+        stability_allocate(s, "stabilise", [1.0])
+    with pytest.raises(InputError, match="alpha"):
+        stability_allocate(s, "dp-cost", [1.0])
+    with pytest.raises(InputError, match="noise_cov"):           # cost 0 wherever stable: nothing to bound
+        stability_allocate(scalar(x0=0.0), "dp-cost", [1.0], alpha=1.0)
+    with pytest.raises(InfeasibleError):
+        stability_allocate(s, "stable", [1.0], bounds=(0.0, 0.7))       # needs mu > 0.75
+
+
+def test_lossy_sensor_and_chain_files_are_refused_not_designed_as_full_state(capsys):
+    # the loop over lossy sensors also needs gamma > gamma_c: a full-state answer would be silently incomplete
+    from packetloss_cvx.io import load_example
+    with pytest.raises(InputError, match="sensor"):
+        stability_allocate(load_example("pendulum_sensor"), "stable", [1.0])
+    with pytest.raises(InputError, match="channel"):
+        stability_allocate(load_example("pendulum_bursty"), "stable", [1.0])
+    assert main(["allocate", "pendulum_sensor", "--target", "stable", "--beta", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--sensor-grid" in err
+
+
+@pytest.fixture
+def scalar_file(tmp_path):
+    return str(save_system(scalar(), tmp_path / "scalar.toml"))
+
+
+def test_cli_target_stable_json(scalar_file, capsys):
+    code = main(["allocate", scalar_file, "--target", "stable", "--margin", "0.5", "--beta", "2", "--json", "-q"])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert {"mu", "cost", "radius", "status", "gap"} <= set(data)
+    assert data["status"] == "optimal"
+    assert data["mu"][0] == pytest.approx(0.875, abs=1e-4)
+    assert data["cost"] == pytest.approx(2 * data["mu"][0])
+    assert data["radius"] < 0.5
+
+
+@pytest.mark.parametrize(("argv", "code", "words"), [
+    (["--target", "stable", "--margin", "1.01"], 2, "--margin"),
+    (["--target", "stable", "--margin", "0"], 2, "--margin"),
+    (["--margin", "0.5"], 2, "--margin"),
+    (["--target", "stable", "--protocol", "tcp"], 2, "--protocol"),
+    (["--target", "stable", "--alpha", "3"], 2, "--alpha"),
+    (["--target", "dp-cost"], 2, "--alpha"),
+    (["--alpha", "3"], 2, "--protocol"),
+    (["--target", "stable", "--bounds", "0,0.7"], 3, "infeasible"),
+    (["--target", "stable", "--max-boxes", "1", "--gap", "1e-9", "--margin", "0.9"], 4, "GAP NOT CERTIFIED"),
+])
+def test_cli_exit_codes(scalar_file, capsys, argv, code, words):
+    two = ["--beta", "1,1"] if "GAP" in words else ["--beta", "1"]
+    path = "two_actuator" if "GAP" in words else scalar_file
+    assert main(["allocate", path, *two, *argv, "-q"]) == code
+    out = capsys.readouterr()
+    assert words in out.out + out.err
+    if code == 2:
+        assert len(out.err.strip().splitlines()) == 1
+        assert "Traceback" not in out.err

@@ -1,0 +1,122 @@
+"""The stabilisable set behind Gilbert–Elliott channels (simulation.markov_region) against hand values (one state
+and a Gilbert channel: r > 1 - 1/a^2 whatever p), the Bernoulli set at a memoryless chain's mean rate, the
+coupled Riccati equation of markov.mjls (another algorithm, with weights), and sampled mode gains."""
+
+import numpy as np
+import pytest
+
+from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.errors import InputError, NumericalError
+from packetloss_cvx.markov.mjls import coupled_riccati
+from packetloss_cvx.markov.mjls import mean_square_radius as mjls_radius
+from packetloss_cvx.model import System
+from packetloss_cvx.simulation.markov_region import (
+    chain_at_rate,
+    chain_certificate_margin,
+    chain_membership,
+    chain_rate_map,
+)
+from packetloss_cvx.simulation.region import membership
+
+
+@pytest.mark.parametrize("a", [1.5, 2.0, 4.0])
+@pytest.mark.parametrize("p", [0.05, 0.4, 0.9])
+def test_one_state_gilbert_channel_needs_r_above_one_minus_one_over_a_squared(a, p):
+    # by hand: deadbeat when good (h = 1), x+ = a x when bad: radius a^2 (1 - r), whatever p
+    threshold = 1 - 1 / a**2
+    A, B = np.array([[a]]), np.array([[1.0]])
+    below = chain_membership(A, B, GilbertElliott(p=[p], r=[threshold - 0.01]))
+    above = chain_membership(A, B, GilbertElliott(p=[p], r=[min(threshold + 0.01, 1.0)]))
+    assert below.verdict == "unstable"
+    assert chain_certificate_margin(A, B, GilbertElliott(p=[p], r=[threshold - 0.01]), below.certificate) >= -1e-12
+    assert above.verdict == "stable"
+    assert mjls_radius(A, B, GilbertElliott(p=[p], r=[min(threshold + 0.01, 1.0)]), above.gain, "next") < 1
+    for delivery in ("current", "next"):                      # one channel: knowing the state changes nothing here
+        assert chain_membership(A, B, GilbertElliott(p=[p], r=[threshold - 0.01]), delivery).verdict == "unstable"
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_memoryless_chain_is_the_bernoulli_set_at_its_mean_rate(seed):
+    rng = np.random.default_rng(seed)
+    n, m = 2, 2
+    A = rng.normal(size=(n, n))
+    A *= rng.uniform(1.0, 1.6) / max(abs(np.linalg.eigvals(A)))
+    B = rng.normal(size=(n, m))
+    s = System(A=A, B=B, horizon=1, state_weight=[1.0] * n, input_weight=[1.0] * m, mu=[1.0] * m, x0=[1.0] * n)
+    agreed = 0
+    for _ in range(10):
+        mu = rng.uniform(0.05, 0.95, m)
+        chain = chain_membership(A, B, GilbertElliott(p=1 - mu, r=mu))        # p + r = 1: memoryless
+        bern = membership(s, mu, forms=("riccati", "lmi"), cross_check=False)
+        if "undecided" not in (chain.verdict, bern.verdict):
+            assert chain.verdict == bern.verdict, mu
+            agreed += 1
+    assert agreed >= 8
+
+
+def test_knowing_the_current_state_can_only_help():
+    # "current" tells the law which packets will arrive: its set contains the "next" one (a law that ignores the
+    # extra knowledge is one of its laws); two channels of two_actuator's plant at a memoryless chain
+    A, B = np.array([[1.03, 0.005], [0.35, 1.01]]), np.eye(2)
+    for mu in ([0.06, 0.06], [0.1, 0.02], [0.03, 0.1]):
+        mu = np.array(mu)
+        ch = GilbertElliott(p=1 - mu, r=mu)
+        if chain_membership(A, B, ch, "next").verdict == "stable":
+            assert chain_membership(A, B, ch, "current").verdict == "stable"
+        assert (chain_membership(A, B, ch, "current").verdict == "unstable") <= (
+            chain_membership(A, B, ch, "next").verdict == "unstable")
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_current_convention_against_the_coupled_riccati_equation(seed):
+    # markov.mjls.coupled_riccati's law knows the current state ("current"): where the set says stable, that
+    # equation (value iteration with Omega > 0) has a stabilising solution; where no law works, it has none
+    rng = np.random.default_rng(100 + seed)
+    A = np.array([[1.0 + rng.uniform(0, 0.4), rng.uniform(-0.5, 0.5)], [0.0, rng.uniform(0.5, 1.3)]])
+    B = rng.normal(size=(2, 2))
+    for _ in range(4):
+        ch = GilbertElliott(p=rng.uniform(0.05, 0.6, 2), r=rng.uniform(0.05, 0.9, 2))
+        found = chain_membership(A, B, ch, delivery="current")
+        s = System(A=A, B=B, horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0], x0=[1.0, 1.0], channel=ch)
+        if found.verdict == "stable":
+            assert coupled_riccati(s).spectral_radius < 1
+        elif found.verdict == "unstable":
+            try:
+                radius = coupled_riccati(s).spectral_radius
+            except NumericalError:
+                continue
+            assert radius >= 1 - 1e-9
+
+
+def test_no_sampled_mode_gains_beat_an_outside_certificate():
+    A, B = np.array([[1.2, 0.3], [0.0, 1.1]]), np.array([[1.0, 0.0], [0.0, 1.0]])
+    ch = GilbertElliott(p=[0.6, 0.6], r=[0.15, 0.15])
+    found = chain_membership(A, B, ch)
+    assert found.verdict == "unstable"
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        K = rng.normal(scale=1.5, size=(4, 2, 2))
+        assert mjls_radius(A, B, ch, K, "next") >= 1 - 1e-9
+
+
+def test_chain_at_rate_keeps_burstiness_and_refuses_bad_rates():
+    base = GilbertElliott(p=[0.1, 0.3], r=[0.2, 0.3], h_good=[1.0, 0.9], h_bad=[0.0, 0.1])
+    ch = chain_at_rate(base, [0.4, 0.5])
+    assert np.allclose(ch.correlation, base.correlation)
+    assert np.allclose(ch.mean_rate, [0.4, 0.5])
+    with pytest.raises(InputError, match="rate"):
+        chain_at_rate(base, [0.4, 0.95])                  # above h_good of channel 2
+    with pytest.raises(InputError, match="rate"):
+        chain_at_rate(base, [0.4])
+
+
+def test_rate_map_of_a_memoryless_chain_is_the_bernoulli_map(two_actuator):
+    axis = np.linspace(0.0, 1.0, 6)
+    stable, lam = chain_rate_map(two_actuator.A, two_actuator.B, GilbertElliott(p=[0.5, 0.5], r=[0.5, 0.5]), axis)
+    for r, y in enumerate(axis):
+        for c, x in enumerate(axis):
+            ref = membership(two_actuator, [x, y], forms=("riccati",)).verdict
+            assert stable[r, c] == (1.0 if ref == "stable" else 0.0)
+    assert np.all(np.diff(stable, axis=1) >= 0)
+    assert np.all(np.diff(stable, axis=0) >= 0)
+    assert np.all((lam < 1) == (stable == 1.0))
