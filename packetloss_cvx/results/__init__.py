@@ -10,7 +10,7 @@ from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simu
 from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, Solution
 from .region import CriticalPoint, Membership, RegionMap
-from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
+from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, PowerAllocation, Sweep
 
 __all__ = [
     "Allocation",
@@ -28,6 +28,7 @@ __all__ = [
     "MinCost",
     "MjlsResult",
     "OpenLoopCheck",
+    "PowerAllocation",
     "Riccati",
     "RegionMap",
     "Simulation",

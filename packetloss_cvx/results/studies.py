@@ -23,7 +23,7 @@ from ..display import (
 from ..errors import InputError
 from .base import Frozen, freeze, read_only
 
-__all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "Sweep"]
+__all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "PowerAllocation", "Sweep"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,45 @@ class Allocation(Frozen):
                 "mu": self.mu.tolist(), "communication_cost": self.communication_cost, "cost": self.cost,
                 "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method,
                 "boxes": self.boxes}
+
+
+@dataclass(frozen=True)
+class PowerAllocation(Frozen):
+    """Transmit power per channel with a certificate (allocation/power.py, issue 24).
+
+    ``problem``: "least-power" (min sum P with J* <= ``limit`` = alpha; ``lower_bound`` proven on the total
+    power) or "least-cost" (min J* with sum P <= ``limit`` = the budget; ``lower_bound`` proven on J*);
+    ``model``: the delivery-versus-power model as a dict; ``power`` (m,), ``total_power``, ``mu`` = mu(power),
+    ``cost`` = J*(mu) by the closed form; ``gap``: (objective - lower_bound) / objective; ``status``
+    "optimal" or "gap_not_certified"; ``method``; ``boxes`` the branch and bound explored. Construction O(m).
+    """
+
+    protocol: str
+    problem: str
+    model: dict
+    power: np.ndarray
+    total_power: float
+    mu: np.ndarray
+    cost: float
+    limit: float
+    lower_bound: float
+    gap: float
+    status: str
+    method: str
+    boxes: int = 0
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats and lists for JSON. O(m)."""
+        limit = "alpha" if self.problem == "least-power" else "budget"
+        return {"protocol": self.protocol, "problem": self.problem, "model": self.model,
+                "power": self.power.tolist(), "total_power": self.total_power, "mu": self.mu.tolist(),
+                "cost": self.cost, limit: self.limit, "lower_bound": self.lower_bound, "gap": self.gap,
+                "status": self.status, "method": self.method, "boxes": self.boxes}
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,273 @@
+"""Power-limited links (allocation/power.py, issue 24): the models, the two problems for both protocols,
+against hand values (one channel: invert mu(P) at the mu the scalar problem needs), decoupled plants
+(a one-dimensional search over the split of the budget), a grid of P, and the mu allocation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq, minimize_scalar
+
+from packetloss_cvx import System, load_system
+from packetloss_cvx.allocation import allocate
+from packetloss_cvx.allocation.power import (
+    least_cost_within_power,
+    least_power,
+    load_power,
+    power_model,
+    power_pareto,
+)
+from packetloss_cvx.errors import InfeasibleError, InputError
+from packetloss_cvx.evaluator import CostEvaluator
+
+
+def scalar() -> System:
+    """One step of x' = x + v u from x0 = 1, Q = R = 1: J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2."""
+    return System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+
+
+def decoupled(w=(1.0, 3.0)) -> System:
+    """Two such plants side by side, x0_i = sqrt(w_i): J*_tcp = sum w_i/(1 + mu_i), J*_udp = sum w_i (1 - mu_i/2)."""
+    return System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+                  mu=[0.5, 0.5], x0=np.sqrt(w))
+
+
+def hand_cost(protocol, mu, w):
+    mu = np.asarray(mu, dtype=float)
+    return float(np.sum(np.asarray(w) / (1 + mu))) if protocol == "tcp" else float(np.sum(np.asarray(w) * (1 - mu / 2)))
+
+
+MODELS = {
+    "exponential": dict(scale=[1.5]),
+    "rayleigh": dict(scale=[0.7]),
+    "table": dict(table=[[0.0, 0.0], [1.0, 0.3], [2.0, 0.5], [5.0, 0.9]]),          # concave
+    "table-s": dict(table=[[0.0, 0.0], [1.0, 0.05], [2.0, 0.6], [4.0, 0.9]]),       # not concave
+}
+
+
+def model_of(name, m=1):
+    kw = MODELS[name]
+    if "scale" in kw:
+        return power_model(name, m, scale=kw["scale"] * m)
+    return power_model("table", m, table=kw["table"])
+
+
+def hand_power(name, mu):
+    """The least power reaching mu, by hand from each model's formula."""
+    if name == "exponential":
+        return -1.5 * np.log(1 - mu)
+    if name == "rayleigh":
+        return -0.7 / np.log(mu)
+    table = np.array(MODELS[name]["table"])
+    return float(np.interp(mu, table[:, 1], table[:, 0]))
+
+
+# ------------------------------------------------------------------ the models
+
+def test_model_formulas_against_hand_values():
+    e = power_model("exponential", 2, scale=[1.0, 2.0])
+    assert np.allclose(e.mu(np.array([1.0, 2.0])), 1 - np.exp(-1.0))
+    r = power_model("rayleigh", 1, scale=2.0)
+    assert np.allclose(r.mu(np.array([4.0])), np.exp(-0.5))
+    assert r.mu(np.array([0.0]))[0] == 0.0
+    t = power_model("table", 2, table=[[0, 0, 0.1], [2, 0.5, 0.3], [4, 0.6, 0.9]])
+    assert np.allclose(t.mu(np.array([1.0, 3.0])), [0.25, 0.6])
+    assert np.allclose(t.mu(np.array([9.0, 9.0])), [0.6, 0.9])
+    assert np.allclose(t.power(np.array([0.25, 0.6])), [1.0, 3.0])
+    assert np.isinf(t.power(np.array([0.7, 0.5]))[0])
+    assert np.allclose(e.slope(np.array([0.0, 2.0])), [1.0, np.exp(-1.0) / 2])      # d/dP (1 - exp(-P/c))
+    assert np.allclose(r.slope(np.array([2.0])), 2 / 4 * np.exp(-1.0))            # c/P^2 exp(-c/P)
+
+
+def test_model_inverse_and_concavity():
+    for name in ("exponential", "rayleigh", "table", "table-s"):
+        model = model_of(name)
+        for mu in (0.2, 0.45, 0.85):
+            assert np.isclose(model.mu(model.power(np.array([mu])))[0], mu, rtol=1e-12)
+    assert model_of("exponential").concave_from()[0] == 0
+    assert model_of("table").concave_from()[0] == 0
+    assert np.isinf(model_of("table-s").concave_from()[0])
+    assert model_of("rayleigh").concave_from()[0] == 0.35
+    # rayleigh's second derivative changes sign at c/2 (finite differences)
+    r, h = model_of("rayleigh"), 1e-4
+    second = [(r.mu(np.array([p + h])) - 2 * r.mu(np.array([p])) + r.mu(np.array([p - h])))[0] for p in (0.3, 0.4)]
+    assert second[0] > 0 > second[1]
+
+
+@pytest.mark.parametrize(("kw", "match"), [
+    (dict(model="exponential", scale=[0.0]), "power.scale: expected positive"),
+    (dict(model="rayleigh", scale=[-1.0]), "power.scale: expected positive"),
+    (dict(model="exponential", scale=[float("nan")]), "power.scale: expected finite"),
+    (dict(model="table", table=[[0, 0], [1, 0.5], [2, 0.4]]), "must not fall"),
+    (dict(model="table", table=[[0, 0], [1, 1.5]]), r"must lie in \[0, 1\]"),
+    (dict(model="table", table=[[0, -0.1], [1, 0.5]]), r"must lie in \[0, 1\]"),
+    (dict(model="table", table=[[0, 0], [0, 0.5]]), "powers must increase"),
+    (dict(model="table", table=[[1, 0], [2, 0.5]]), "first row's power must be 0"),
+    (dict(model="shannon", scale=[1.0]), "power.model: expected one of"),
+])
+def test_model_refuses_bad_input(kw, match):
+    model = kw.pop("model")
+    with pytest.raises(InputError, match=match):
+        power_model(model, 1, **kw)
+
+
+def test_power_table_in_a_system_file(tmp_path):
+    (tmp_path / "curve.csv").write_text("power,mu\n0,0\n1,0.4\n3,0.9\n")
+    base = (load_system("two_actuator"),)
+    from packetloss_cvx.io import dumps_system
+    text = dumps_system(base[0])
+    (tmp_path / "a.toml").write_text(text + '\n[power]\nmodel = "table"\ntable = "curve.csv"\n')
+    (tmp_path / "b.toml").write_text(text + '\n[power]\nmodel = "exponential"\nscale = [1.0, 2.0]\n')
+    (tmp_path / "c.toml").write_text(text + '\n[power]\nmodel = "exponential"\nscale = [1.0, -2.0]\n')
+    assert np.allclose(load_power(tmp_path / "a.toml", 2).mu(np.array([2.0, 0.5])), [0.65, 0.2])
+    assert np.allclose(load_power(tmp_path / "b.toml", 2).scale, [1.0, 2.0])
+    assert load_system(tmp_path / "b.toml").m == 2             # the system loader passes [power] by
+    with pytest.raises(InputError, match="power.scale"):
+        load_power(tmp_path / "c.toml", 2)
+
+
+# ------------------------------------------------------------------ one channel: hand values
+
+@pytest.mark.parametrize("name", ["exponential", "rayleigh", "table", "table-s"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_power_one_channel_inverts_the_model(name, protocol):
+    alpha = 0.8
+    need = 0.25 if protocol == "tcp" else 0.4          # 1/(1 + mu) = 0.8, 1 - mu/2 = 0.8
+    out = least_power(scalar(), protocol, model_of(name), alpha, gap=1e-6)
+    P = hand_power(name, need)
+    assert out.status == "optimal"
+    assert out.cost <= alpha
+    assert out.lower_bound <= P * (1 + 1e-9)
+    assert P <= out.total_power <= P * (1 + 1e-5)
+
+
+@pytest.mark.parametrize("name", ["exponential", "rayleigh", "table", "table-s"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_one_channel_spends_the_budget(name, protocol):
+    budget = 1.7
+    out = least_cost_within_power(scalar(), protocol, model_of(name), budget, gap=1e-7)
+    mu = model_of(name).mu(np.array([budget]))[0]
+    assert np.isclose(out.cost, hand_cost(protocol, [mu], [1.0]), rtol=1e-7)
+    assert out.lower_bound <= hand_cost(protocol, [mu], [1.0]) * (1 + 1e-12)
+    assert out.status == "optimal"
+
+
+# ------------------------------------------------------------------ decoupled plants: a 1-D reference
+
+def split_reference(protocol, name, budget, w):
+    """min over s in [0, B] of the hand cost at powers (s, B - s): the budget is spent (J* falls in P)."""
+    model = model_of(name, 2)
+
+    def f(s):
+        return hand_cost(protocol, model.mu(np.array([s, budget - s])), w)
+
+    grid = np.linspace(0, budget, 2001)
+    k = int(np.argmin([f(s) for s in grid]))
+    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    best = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
+    return min(best.fun, f(grid[k]))
+
+
+@pytest.mark.parametrize("name", ["exponential", "table", "table-s", "rayleigh"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_decoupled_against_the_split_of_the_budget(name, protocol):
+    w, gap = (1.0, 3.0), 1e-4
+    out = least_cost_within_power(decoupled(w), protocol, model_of(name, 2), 2.5, gap=gap)
+    ref = split_reference(protocol, name, 2.5, w)
+    assert out.lower_bound <= ref * (1 + 1e-9)
+    assert out.cost <= ref * (1 + gap)
+    assert out.total_power <= 2.5 * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("name", ["exponential", "table-s"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_power_decoupled_against_a_root_per_budget(name, protocol):
+    """The least power P is the least budget whose least cost reaches alpha: bisect on the 1-D reference."""
+    w, alpha, gap = (1.0, 3.0), 2.9, 1e-4
+    out = least_power(decoupled(w), protocol, model_of(name, 2), alpha, gap=gap)
+    total = brentq(lambda b: split_reference(protocol, name, b, w) - alpha, 1e-6, 40.0, xtol=1e-10)
+    assert out.cost <= alpha
+    assert out.lower_bound <= total * (1 + 1e-6)
+    assert out.total_power <= total * (1 + gap)
+
+
+# ------------------------------------------------------------------ the paper's system: a grid of P
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_two_actuator_against_a_grid_on_the_budget(protocol):
+    s, budget = load_system("two_actuator"), 3.0
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    out = least_cost_within_power(s, protocol, model, budget)
+    ev = CostEvaluator(s, protocol)
+    grid = np.linspace(0, budget, 3001)
+    ref = min(ev.costs(model.mu(np.stack([grid, budget - grid], axis=1))))
+    assert out.lower_bound <= ref * (1 + 1e-9)
+    assert out.cost <= ref * (1 + 1e-4)
+    assert np.isclose(out.cost, ev.cost(model.mu(out.power)), rtol=1e-12)
+
+
+def test_pareto_curve_falls_and_each_point_is_certified():
+    s = load_system("two_actuator")
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    curve = power_pareto(s, "tcp", model, [4.0, 0.0, 1.0, 2.0])
+    costs = [p.cost for p in curve]
+    assert [p.limit for p in curve] == [0.0, 1.0, 2.0, 4.0]
+    assert all(np.diff(costs) < 0)
+    assert np.isclose(costs[0], CostEvaluator(s, "tcp").cost(np.zeros(2)), rtol=1e-12)
+    assert all(p.status == "optimal" and p.lower_bound <= p.cost for p in curve)
+
+
+# ------------------------------------------------------------------ the mu allocation where the problems coincide
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_a_linear_model_is_the_mu_allocation_with_beta_c(protocol):
+    """mu = P / c_i up to P = c_i (a two-row table per channel): total power = c' mu, the paper's beta'mu."""
+    s, c, alpha = load_system("two_actuator"), np.array([2.0, 0.5]), 8.0
+    model = power_model("table", 2, table=[[0.0, 0.0, 0.0], [0.5, 0.25, 1.0], [2.0, 1.0, 1.0]])   # mu_i = P / c_i
+    assert np.allclose(model.mu(np.array([1.0, 0.25])), [0.5, 0.5])
+    out = least_power(s, protocol, model, alpha, gap=1e-6)
+    ref = allocate(s, protocol, alpha, c, gap=1e-6)
+    assert np.isclose(out.total_power, ref.communication_cost, rtol=2e-6)
+    assert out.lower_bound <= ref.communication_cost * (1 + 1e-9)
+    assert ref.lower_bound <= out.total_power
+
+
+def test_tcp_exponential_optimum_is_the_mu_allocation_at_the_marginal_prices():
+    """At the power optimum mu*, the mu allocation with prices beta_i = dP_i/dmu_i = c_i / (1 - mu*_i) (the
+    power's linearisation there) has the same KKT conditions with the same multiplier: it returns mu*."""
+    s, c, alpha = load_system("two_actuator"), np.array([1.0, 2.0]), 8.0
+    out = least_power(s, "tcp", power_model("exponential", 2, scale=c), alpha, gap=1e-7)
+    ref = allocate(s, "tcp", alpha, c / (1 - out.mu), gap=1e-7)
+    assert np.allclose(ref.mu, out.mu, atol=2e-4)
+    assert np.isclose(c @ -np.log1p(-ref.mu), out.total_power, rtol=1e-5)
+
+
+# ------------------------------------------------------------------ errors
+
+def test_infeasible_and_bad_arguments():
+    s = load_system("two_actuator")
+    model = power_model("exponential", 2, scale=1.0)
+    floor = CostEvaluator(s, "tcp").cost(np.ones(2))
+    with pytest.raises(InfeasibleError, match="J\\*_tcp at the largest powers"):
+        least_power(s, "tcp", model, floor * 0.99)
+    with pytest.raises(InputError, match="budget: expected a total power >= 0"):
+        least_cost_within_power(s, "tcp", model, -1.0)
+    with pytest.raises(InputError, match="model: the model has 1 channels"):
+        least_power(s, "tcp", power_model("exponential", 1, scale=1.0), 8.0)
+    with pytest.raises(InputError, match="max_power"):
+        least_power(s, "tcp", model, 8.0, max_power=[1.0, 0.0])
+    with pytest.raises(InfeasibleError):
+        least_cost_within_power(s, "tcp", model, 1.0, constraints=[([[-1.0, 0.0]], [-2.0])])     # P1 >= 2 > budget
+
+
+def test_constraints_on_power_are_met():
+    s = load_system("two_actuator")
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    free = least_power(s, "tcp", model, 8.0)
+    out = least_power(s, "tcp", model, 8.0, constraints=[([[1.0, -1.0]], [0.0])], gap=1e-6)     # P1 <= P2
+    assert out.power[0] <= out.power[1] + 1e-9
+    assert out.cost <= 8.0
+    assert out.total_power >= free.lower_bound * (1 - 1e-9)
+    capped = least_power(s, "udp", model, 8.0, max_power=3.0)
+    assert np.all(capped.power <= 3.0 + 1e-12)
+    assert capped.cost <= 8.0
