@@ -4,12 +4,16 @@ against hand values (one channel: invert mu(P) at the mu the scalar problem need
 
 from __future__ import annotations
 
+import json
+import re
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize_scalar
 
 from packetloss_cvx import System, load_system
 from packetloss_cvx.allocation import allocate
+from packetloss_cvx.allocation.ack import ack_break_even, best_protocol
 from packetloss_cvx.allocation.power import (
     least_cost_within_power,
     least_power,
@@ -17,6 +21,7 @@ from packetloss_cvx.allocation.power import (
     power_model,
     power_pareto,
 )
+from packetloss_cvx.cli import main
 from packetloss_cvx.errors import InfeasibleError, InputError
 from packetloss_cvx.evaluator import CostEvaluator
 
@@ -271,3 +276,115 @@ def test_constraints_on_power_are_met():
     capped = least_power(s, "udp", model, 8.0, max_power=3.0)
     assert np.all(capped.power <= 3.0 + 1e-12)
     assert capped.cost <= 8.0
+
+
+# ------------------------------------------------------------------ the command line
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_least_power_json_holds_the_contract(capsys):
+    code, out, _ = run_cli(capsys, "allocate", "two_actuator", "--protocol", "tcp", "--alpha", "8", "--power",
+                           "exponential", "--power-scale", "1,2", "--json")
+    data = json.loads(out)
+    assert code == 0
+    assert data["status"] == "optimal"
+    assert {"power", "total_power", "mu", "cost", "status", "gap"} <= set(data)
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    assert np.isclose(sum(data["power"]), data["total_power"])
+    assert np.allclose(model.mu(data["power"]), data["mu"])
+    assert data["cost"] <= 8.0
+    assert np.isclose(data["cost"], CostEvaluator(load_system("two_actuator"), "tcp").cost(
+        np.array(data["mu"])), rtol=1e-12)
+
+
+def test_cli_budget_and_the_file_power_table(capsys, tmp_path):
+    from packetloss_cvx.io import dumps_system
+    (tmp_path / "link.csv").write_text("# measured\npower,mu\n0,0\n1,0.5\n3,0.9\n")
+    (tmp_path / "s.toml").write_text(dumps_system(scalar()) + '\n[power]\nmodel = "table"\ntable = "link.csv"\n')
+    code, out, _ = run_cli(capsys, "allocate", str(tmp_path / "s.toml"), "--protocol", "udp", "--budget", "2",
+                           "--json")
+    data = json.loads(out)
+    assert code == 0
+    assert np.isclose(data["power"][0], 2.0)
+    assert np.isclose(data["mu"][0], 0.7)
+    assert np.isclose(data["cost"], 1 - 0.7 / 2, rtol=1e-9)
+
+
+@pytest.mark.parametrize(("argv", "match"), [
+    (["--alpha", "8", "--power", "exponential", "--power-scale", "0,1"], "--power-scale: expected positive"),
+    (["--budget", "-1", "--power", "exponential", "--power-scale", "1"], "--budget: expected a total power >= 0"),
+    (["--alpha", "8", "--power", "table", "--power-table", "{bad}"], "--power-table: mu must not fall"),
+    (["--alpha", "8", "--power", "table", "--power-table", "{out}"], r"--power-table: mu must lie in \[0, 1\]"),
+    (["--alpha", "8", "--power", "exponential"], "--power-scale: the exponential model needs a scale"),
+    (["--budget", "2"], "--power: give a model"),
+    (["--alpha", "8"], "--beta: required"),
+    (["--alpha", "8", "--budget", "2", "--power", "exponential", "--power-scale", "1"], "--budget: give --alpha"),
+    (["--alpha", "8", "--power", "exponential", "--power-scale", "1", "--constraint", "mu1 <= 2"],
+     "--constraint: cannot parse"),
+])
+def test_cli_bad_power_input_exits_2_with_one_line(capsys, tmp_path, argv, match):
+    (tmp_path / "bad.csv").write_text("0,0\n1,0.5\n2,0.4\n")
+    (tmp_path / "out.csv").write_text("0,0\n1,1.5\n")
+    argv = [a.format(bad=tmp_path / "bad.csv", out=tmp_path / "out.csv") for a in argv]
+    code, out, err = run_cli(capsys, "allocate", "two_actuator", "--protocol", "tcp", *argv)
+    assert code == 2
+    assert out == ""
+    assert len(err.splitlines()) == 1
+    assert re.search(match, err), err
+
+
+def test_cli_infeasible_power_exits_3(capsys):
+    code, out, _ = run_cli(capsys, "allocate", "two_actuator", "--protocol", "tcp", "--alpha", "1", "--power",
+                           "exponential", "--power-scale", "1,2", "--json")
+    assert code == 3
+    assert json.loads(out)["status"] == "infeasible"
+
+
+def test_cli_best_protocol_prices_the_ack_link(capsys):
+    """--protocol best: the choice flips where the ack price crosses the break-even price both designs give."""
+    argv = ["allocate", "two_actuator", "--protocol", "best", "--alpha", "8", "--beta", "1,1", "--json"]
+    code, out, _ = run_cli(capsys, *argv, "--ack-price", "0")
+    free = json.loads(out)
+    tcp = allocate(load_system("two_actuator"), "tcp", 8.0, [1.0, 1.0])
+    udp = allocate(load_system("two_actuator"), "udp", 8.0, [1.0, 1.0])
+    assert code == 0
+    assert free["choice"] == "tcp"
+    assert np.isclose(free["break_even_ack_price"], udp.communication_cost - tcp.communication_cost, rtol=1e-3)
+    code, out, _ = run_cli(capsys, *argv, "--ack-price", str(free["break_even_ack_price"] * 1.01))
+    assert code == 0
+    assert json.loads(out)["choice"] == "udp"
+    code, out, _ = run_cli(capsys, "allocate", "two_actuator", "--protocol", "best", "--alpha", "8", "--power",
+                           "exponential", "--power-scale", "1,2", "--ack-power", "0.5", "--json")
+    data = json.loads(out)
+    assert code == 0
+    assert np.isclose(data["tcp_total"], data["tcp"]["total_power"] + 0.5)
+
+
+# ------------------------------------------------------------------ the acknowledgement link priced
+
+def test_ack_break_even_one_channel_against_hand_values():
+    """One step of x' = x + v u: TCP-like needs mu = 1/alpha - 1, UDP-like mu = 2 (1 - alpha) (beta = 1)."""
+    alphas = np.array([0.6, 0.75, 0.9])
+    study = ack_break_even(scalar(), alphas, [1.0], gap=1e-8)
+    assert np.allclose(study["tcp_total"], 1 / alphas - 1, rtol=1e-6)
+    assert np.allclose(study["break_even"], 2 * (1 - alphas) - (1 / alphas - 1), atol=1e-6)
+    power = ack_break_even(scalar(), [0.8], model=power_model("exponential", 1, scale=1.0), gap=1e-8)
+    assert np.isclose(power["break_even"][0], -np.log1p(-0.4) - -np.log1p(-0.25), rtol=1e-5)
+
+
+def test_best_protocol_refuses_a_price_below_zero_and_proves_infeasibility():
+    with pytest.raises(InputError, match="ack_price"):
+        best_protocol(scalar(), 0.8, [1.0], ack_price=-1.0)
+    with pytest.raises(InfeasibleError, match="no TCP-like design"):
+        best_protocol(scalar(), 0.4, [1.0])                            # J*_tcp >= 1/2
+    dear = best_protocol(scalar(), 0.55, [1.0], ack_price=5.0)        # a dear link: UDP-like (mu = 0.9) wins
+    assert dear.choice == "udp"
+    assert dear.certified
+    only = best_protocol(scalar(), 0.54, [1.0], bounds=(0.0, 0.9))      # TCP-like mu = 0.852, UDP-like 0.92 > 0.9
+    assert only.udp is None
+    assert only.choice == "tcp"
+    assert np.isinf(only.break_even)

@@ -33,8 +33,10 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
+from ..convex import ClarabelProgram
 from ..errors import InfeasibleError, InputError
 from ..evaluator import CostEvaluator
+from ..io import load_table, read_csv_numbers
 from ..model import System
 from ..protocols import check_protocol
 from ..results import PowerAllocation
@@ -255,8 +257,6 @@ def load_power(path: str | Path, m: int) -> PowerModel | None:
     >>> load_power("two_actuator", 2) is None          # the packaged example has no [power] table
     True
     """
-    from ..io import load_table, read_csv_numbers
-
     section = load_table(path).get("power")
     if section is None:
         return None
@@ -325,8 +325,6 @@ class PowerProgram:
         if kind == "power":
             cons.append(scaled <= 1.0)
         self.problem = cp.Problem(cp.Minimize(objective), cons)
-        from ..convex import ClarabelProgram
-
         self.compiled = ClarabelProgram(self.problem)
 
     def solve(self, x0: np.ndarray, scale: float, top: np.ndarray, G: np.ndarray, h: np.ndarray,
@@ -517,21 +515,27 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
                               f"{np.round(setup.cost.mu(np.ones(m)), 12).tolist()}) is {corner:.6g} > alpha = "
                               f"{alpha:g}, and J* falls as any power rises", None)
     incumbent = None if found is None else found / top
-    floor, method = -np.inf, "monotonic branch and bound on x = P / top (certified LP bounds)"
+    floor = -np.inf
     tcp = setup if protocol == "tcp" else _Setup(system, "tcp", model, top, constraints)
     if tcp.convex():
         # the TCP-like convex program: for "tcp" the answer, for "udp" a lower bound (Theorem 2: J*_udp >= J*_tcp)
         x, floor = _convex_least_power(tcp, alpha, C)
-        if protocol == "tcp":
-            if J(x) <= alpha:
-                incumbent = x
-            method = "convex program (Clarabel, exponential cone), lower bound from tangent cuts in P"
-        else:
-            method += "; TCP-like convex lower bound (Theorem 2)"
+        if protocol == "tcp" and J(x) <= alpha:
+            incumbent = x
     out = udp_allocate(system, setup.poly, alpha, top, gap, floor, max_boxes, time_limit, progress, cost=setup.cost,
                        incumbent=incumbent, what=f"{protocol.upper()}-like least power")
-    method = method if out.boxes == 0 else f"{method}; {out.note}"
+    method = _method(protocol, tcp.convex(), model, out.boxes, out.note)
     return _result(setup, "least-power", out.mu, out.value, out.lower_bound, out.status, method, out.boxes, alpha)
+
+
+def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: str) -> str:
+    """How the answer was found, in words."""
+    program = ("convex program (Clarabel, " + ("exponential cone" if model.kind == "exponential" else
+                                               "the table's linear pieces") + "), lower bound from tangent cuts in P")
+    if protocol == "tcp" and convex:
+        return program if boxes == 0 else f"{program}; confirmed by branch and bound on x = P / top: {note}"
+    text = f"branch and bound on x = P / top: {note}"
+    return text + ("; lower bound from the TCP-like convex program (Theorem 2)" if convex else "")
 
 
 def _convex_least_power(setup: _Setup, alpha: float, C: float) -> tuple[np.ndarray, float]:
@@ -614,19 +618,15 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
         setup = _Setup(system, protocol, model, top, rows)
     except InfeasibleError as err:
         raise InfeasibleError(f"no power within the budget meets the constraints: {err}", None) from None
-    floor, incumbent, method = -np.inf, None, "branch and bound on maximal points of x = P / top"
+    floor, incumbent = -np.inf, None
     tcp = setup if protocol == "tcp" else _Setup(system, "tcp", model, top, rows)
     if tcp.convex():
-        x, lower = _convex_least_cost(tcp)
-        floor = lower
+        x, floor = _convex_least_cost(tcp)
         if protocol == "tcp":
             incumbent = x
-            method = "convex program (Clarabel, exponential cone), lower bound from tangent cuts in P"
-        else:
-            method += "; TCP-like convex lower bound (Theorem 2)"
     out = udp_min_cost(system, setup.poly, max_boxes, time_limit, cost=setup.cost, incumbent=incumbent, floor=floor,
                        what=f"{protocol.upper()}-like least cost within the power budget", gap=gap)
-    method = method if out.boxes == 0 else f"{method}; {out.note}"
+    method = _method(protocol, tcp.convex(), model, out.boxes, out.note)
     status = out.status if (out.value - out.lower_bound) <= gap * max(out.value, ALLOCATION_GAP_FLOOR) \
         else "gap_not_certified"
     return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, status, method, out.boxes, budget)

@@ -8,6 +8,8 @@ from typing import Any
 from ..allocation import allocate, parse_constraint
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
+from .allocate_power import run as run_power  # issue 24: power, the ack link priced
+from .allocate_power import wants_power
 from .common import CommandResult, allocation_numbers, number, progress_of, system_of
 
 __all__ = ["run"]
@@ -49,6 +51,11 @@ def run(args: argparse.Namespace) -> CommandResult:
                                     "replace this file's Gilbert-Elliott chain: give a file with [channel] mu (or "
                                     "--mu), or vary the chain's burstiness with `packetloss-cvx sweep "
                                     f"{args.file} --burstiness 0:0.9:10`")
+    if args.protocol == "best" or wants_power(args, system):
+        return run_power(args, system)
+    for flag, value in (("--alpha", args.alpha), ("--beta", args.beta)):
+        if value is None:
+            raise InputError(flag, "required" + (" (or buy power: --power)" if flag == "--beta" else ""))
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     if args.gap is not None:

@@ -10,7 +10,7 @@ from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simu
 from .markov import BurstinessSweep, MarkovSolution, MjlsResult
 from .plans import BatchSolution, CrossCheck, Solution
 from .region import CriticalPoint, Membership, RegionMap
-from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, PowerAllocation, Sweep
+from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, PowerAllocation, ProtocolChoice, Sweep
 
 __all__ = [
     "Allocation",
@@ -29,6 +29,7 @@ __all__ = [
     "MjlsResult",
     "OpenLoopCheck",
     "PowerAllocation",
+    "ProtocolChoice",
     "Riccati",
     "RegionMap",
     "Simulation",
