@@ -388,3 +388,54 @@ def test_best_protocol_refuses_a_price_below_zero_and_proves_infeasibility():
     assert only.udp is None
     assert only.choice == "tcp"
     assert np.isinf(only.break_even)
+
+
+# ------------------------------------------------------------------ the water-filling conjecture (claims/power.py)
+
+def kkt_powers(w, budget):
+    """TCP-like, decoupled one-step plants, mu = 1 - exp(-P): w_i y_i / (2 - y_i)^2 = lambda, y_i = exp(-P_i),
+    sum P = B; each y_i the root in (0, 1] of lambda y^2 - (4 lambda + w) y + 4 lambda = 0, lambda by bisection."""
+    w = np.asarray(w, dtype=float)
+
+    def powers(lam):
+        b = 4 * lam + w
+        y = (b - np.sqrt(b * b - 16 * lam * lam)) / (2 * lam)
+        return -np.log(np.clip(y, 1e-300, 1.0))
+
+    lam = brentq(lambda t: powers(t).sum() - budget, 1e-12, w.min() / 1.0 - 1e-12, xtol=1e-15)
+    return powers(lam)
+
+
+def test_water_filling_fails_for_the_tcp_like_cost_by_the_hand_kkt():
+    from packetloss_cvx.claims.power import BUDGETS, level_shift, water_cases
+
+    _, system, protocol = water_cases()[1]
+    shift, powers = level_shift(system, protocol)
+    for budget, P in zip(BUDGETS, powers, strict=True):
+        assert np.allclose(P, kkt_powers((1.0, 3.0), budget), atol=1e-4)
+    hand = [np.diff(kkt_powers((1.0, 3.0), b))[0] for b in BUDGETS]
+    assert np.isclose(hand[0], 0.7473, atol=1e-4)                      # the note's hand value
+    assert np.isclose(shift, abs(hand[1] - hand[0]), atol=2e-4)
+    assert shift > 0.2
+
+
+def test_water_filling_holds_where_the_cost_is_affine_in_mu():
+    """UDP-like, decoupled one-step plants: J* = sum w_i (1 - mu_i/2) = sum w_i (1 + exp(-P_i))/2, KKT
+    (w_i / 2) exp(-P_i) = lambda: P_i = nu - a_i with a_i = -ln(w_i / 2), so P_2 - P_1 = ln 3 at every budget."""
+    from packetloss_cvx.claims.power import level_shift, water_cases
+
+    _, system, _ = water_cases()[1]
+    shift, powers = level_shift(system, "udp", gap=1e-5)
+    assert shift < 1e-3
+    for P in powers:
+        assert np.isclose(P[1] - P[0], np.log(3.0), atol=1e-3)
+
+
+def test_water_filling_claim_verdict_and_counterexample():
+    from packetloss_cvx.claims import CLAIMS
+    from packetloss_cvx.claims.context import Context
+
+    result = CLAIMS["power-water-filling"][1](Context(paper={}, random=[], seed=0))
+    assert result.verdict == "fails"
+    assert result.outcomes == "+--"
+    assert result.counterexample["name"] == "decoupled w = (1, 3)"

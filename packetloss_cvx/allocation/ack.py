@@ -22,7 +22,7 @@ from .api import allocate
 from .grammar import check_number
 from .power import PowerModel, least_power
 
-__all__ = ["ack_break_even", "best_protocol"]
+__all__ = ["ack_break_even", "best_protocol", "break_even_of"]
 
 
 def _design(system: System, protocol: str, alpha: float, beta: Any, model: PowerModel | None,
@@ -136,3 +136,24 @@ def ack_break_even(system: System, alphas: Sequence[float], beta: Any = None, mo
             rows.append((float(alpha), np.nan, np.nan, np.nan))
     data = np.array(rows, dtype=float).reshape(-1, 4)
     return {"alpha": data[:, 0], "tcp_total": data[:, 1], "udp_total": data[:, 2], "break_even": data[:, 3]}
+
+
+def break_even_of(tcp_rows: Sequence[dict], udp_rows: Sequence[dict]) -> dict[str, list]:
+    """The break-even acknowledgement prices from two Pareto curves already computed at the same alphas
+    (:func:`~packetloss_cvx.allocation.pareto_curve` rows, as ``reproduce`` holds them): ``udp - tcp`` of the
+    communication costs, None where either design is missing. O(rows), no solve.
+
+    Examples
+    --------
+    >>> break_even_of([{"alpha": 1.0, "communication_cost": 0.5}, {"alpha": 2.0, "communication_cost": 0.1}],
+    ...               [{"alpha": 1.0, "communication_cost": 0.75}, {"alpha": 2.0, "communication_cost": None}])
+    {'alpha': [1.0, 2.0], 'break_even': [0.25, None]}
+    """
+    alphas, prices = [], []
+    for t, u in zip(tcp_rows, udp_rows, strict=True):
+        if t["alpha"] != u["alpha"]:
+            raise InputError("udp_rows", f"the curves' alphas differ: {t['alpha']} and {u['alpha']}")
+        alphas.append(float(t["alpha"]))
+        missing = t["communication_cost"] is None or u["communication_cost"] is None
+        prices.append(None if missing else float(u["communication_cost"]) - float(t["communication_cost"]))
+    return {"alpha": alphas, "break_even": prices}

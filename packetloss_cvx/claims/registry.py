@@ -23,6 +23,8 @@ from .markov import plug_in_markov
 from .mpc_vs_dp import mpc_vs_dp
 from .ordering import corollary_1, corollary_2, theorem_2, theorem_3
 from .paper import STATEMENTS
+from .power import STATEMENT as POWER_WATER_FILLING
+from .power import power_water_filling
 from .tables import pendulum_maximiser, table_1, table_2
 from .theorem1 import expected_cost_tcp, lemma_1, lemma_quad, theorem_1_costs, theorem_1_laws
 
@@ -54,6 +56,7 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
     claim_id: (statement, _CHECKS[claim_id]) for claim_id, statement in STATEMENTS.items()
 }
 CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's: its laws under bursty losses
+CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture (issue 24)
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain
