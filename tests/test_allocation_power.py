@@ -439,3 +439,13 @@ def test_water_filling_claim_verdict_and_counterexample():
     assert result.verdict == "fails"
     assert result.outcomes == "+--"
     assert result.counterexample["name"] == "decoupled w = (1, 3)"
+
+
+def test_max_boxes_is_counted_against_its_budget():
+    from packetloss_cvx.errors import BudgetError
+
+    model = power_model("exponential", 1, scale=1.0)
+    with pytest.raises(BudgetError, match="max_boxes"):
+        least_power(scalar(), "udp", model, 0.8, max_boxes=10**9)
+    with pytest.raises(BudgetError, match="max_boxes"):
+        least_cost_within_power(scalar(), "udp", model, 1.0, max_boxes=10**9)

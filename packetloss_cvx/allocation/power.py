@@ -33,6 +33,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
+from ..budgets import check, count_text
 from ..convex import ClarabelProgram
 from ..errors import InfeasibleError, InputError
 from ..evaluator import CostEvaluator
@@ -390,6 +391,13 @@ def _scaled(constraints: Sequence[Constraint], top: np.ndarray) -> list:
     return out
 
 
+def _boxes(value: Any) -> int:
+    """A positive count within the ``allocation_boxes`` budget (budgets.py), as allocate checks it."""
+    count = check_count(value, "max_boxes")
+    check("allocation_boxes", count, "max_boxes", f"{count_text(count)} boxes")
+    return count
+
+
 def _cap(value: Any, m: int) -> np.ndarray | None:
     if value is None:
         return None
@@ -500,7 +508,7 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
     if alpha <= 0:
         raise InputError("alpha", f"expected a positive bound on J*, found {alpha:g}")
     gap = check_gap(gap)
-    max_boxes = check_count(max_boxes, "max_boxes")
+    max_boxes = _boxes(max_boxes)
     cap = _cap(max_power, system.m)
     C = constant_cost(system)
     if alpha < C:
@@ -601,7 +609,7 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     if budget < 0:
         raise InputError("budget", f"expected a total power >= 0, found {budget:g}")
     gap = check_gap(gap)
-    max_boxes = check_count(max_boxes, "max_boxes")
+    max_boxes = _boxes(max_boxes)
     cap = _cap(max_power, system.m)
     m = system.m
     top = model.saturation() if cap is None else np.minimum(cap, model.saturation())
