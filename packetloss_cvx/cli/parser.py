@@ -236,12 +236,14 @@ def build_parser() -> argparse.ArgumentParser:
                        help="buy transmit power P per channel: mu = 1 - exp(-P/c), exp(-c/P) or a measured table "
                             "(default: the file's [power] table if --beta is not given), e.g. --power exponential")
     power.add_argument("--power-scale", metavar="C1,C2,..",
-                       help="the constant c of each channel (one for all, or m), e.g. --power-scale 1,2")
+                       help="the constant c of each channel (one for all, or m); required with exponential or "
+                            "rayleigh unless the file's [power] table has it, e.g. --power-scale 1,2")
     power.add_argument("--power-table", metavar="FILE.csv",
-                       help="rows power,mu (or power,mu1,..,mum), powers rising from 0, e.g. --power-table link.csv")
+                       help="rows power,mu (or power,mu1,..,mum), powers rising from 0; required with table unless "
+                            "the file's [power] table has it, e.g. --power-table link.csv")
     power.add_argument("--budget", metavar="B",
-                       help="least J* with total power <= B (instead of --alpha: least power with J* <= alpha), "
-                            "e.g. --budget 3")
+                       help="least J* with total power <= B (instead of --alpha: least power with J* <= alpha; "
+                            "default: none), e.g. --budget 3")
     power.add_argument("--power-max", metavar="P1,P2,..",
                        help="a cap on each channel's power (one for all, or m; default: none), e.g. --power-max 5")
     power.add_argument("--ack-price", metavar="C",
