@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..allocation.power import least_cost_within_power, power_model
 from ..io import load_example
 from ..model import System
 from ..results import ClaimResult
@@ -74,6 +73,8 @@ def level_shift(system: System, protocol: str, budgets=BUDGETS, c: float = 1.0, 
     >>> bool(shift < 1e-5), bool(np.allclose(powers[1], 2.0, atol=1e-5))
     (True, True)
     """
+    from ..allocation.power import least_cost_within_power, power_model  # cvxpy: only when this claim runs
+
     model = power_model("exponential", system.m, scale=c)
     powers = [least_cost_within_power(system, protocol, model, b, gap=gap).power for b in budgets]
     if any(np.any(P <= 1e-6 * b) for P, b in zip(powers, budgets, strict=True)):
