@@ -449,3 +449,35 @@ def test_max_boxes_is_counted_against_its_budget():
         least_power(scalar(), "udp", model, 0.8, max_boxes=10**9)
     with pytest.raises(BudgetError, match="max_boxes"):
         least_cost_within_power(scalar(), "udp", model, 1.0, max_boxes=10**9)
+
+
+def test_a_row_beyond_the_first_search_box_is_no_verdict():
+    """The cap is found by doubling a box from a small one: a row no small box meets (P1 >= 30) must not read
+    as infeasible."""
+    s = load_system("two_actuator")
+    out = least_power(s, "tcp", power_model("exponential", 2, scale=1.0), 8.0, constraints=[([[-1.0, 0.0]], [-30.0])])
+    assert out.power[0] >= 30.0 - 1e-6
+    assert out.cost <= 8.0
+
+
+def test_a_row_beyond_saturation_is_no_verdict():
+    """exponential c = 1 saturates at P = 40 (mu = 1 in double precision): a row P1 >= 50 is not infeasible,
+    the search box is; without a cap that is an InputError naming max_power, with one the search reaches it."""
+    s, model = load_system("two_actuator"), power_model("exponential", 2, scale=1.0)
+    row = [([[-1.0, 0.0]], [-50.0])]
+    with pytest.raises(InputError, match="max_power"):
+        least_power(s, "tcp", model, 8.0, constraints=row)
+    out = least_power(s, "tcp", model, 8.0, constraints=row, max_power=60.0)
+    assert out.power[0] >= 50.0 - 1e-6
+    assert out.cost <= 8.0
+    with pytest.raises(InfeasibleError):
+        least_cost_within_power(s, "tcp", model, 30.0, constraints=row)       # P1 <= 30 < 50: proven
+
+
+def test_a_budget_beyond_saturation_with_a_row_beyond_it_asks_for_a_cap():
+    s, model = load_system("two_actuator"), power_model("exponential", 2, scale=1.0)
+    row = [([[-1.0, 0.0]], [-50.0])]                                    # P1 >= 50 > 40, the saturation
+    with pytest.raises(InputError, match="max_power"):
+        least_cost_within_power(s, "tcp", model, 100.0, constraints=row)
+    out = least_cost_within_power(s, "tcp", model, 100.0, constraints=row, max_power=100.0)
+    assert out.power[0] >= 50.0 - 1e-6

@@ -377,6 +377,21 @@ class _Setup:
         return g, r
 
 
+def _setup(system: System, protocol: str, model: PowerModel, top: np.ndarray, constraints: Sequence[Constraint],
+           cap: np.ndarray | None) -> _Setup:
+    """:class:`_Setup`, where rows no power up to ``top`` meets are a proof of infeasibility only when ``top`` is
+    the caller's cap (or the budget); a box cut at the model's saturation proves nothing (a row may ask for more
+    power than mu needs): then InputError naming ``max_power``."""
+    try:
+        return _Setup(system, protocol, model, top, constraints)
+    except InfeasibleError as err:
+        if cap is not None:
+            raise
+        raise InputError("max_power", f"the constraints ask some channel for more power than the model's saturation "
+                         f"{np.round(top, 6).tolist()} (where mu is 1 to 1e-12 or more): give a cap per channel "
+                         f"(max_power, --power-max) to search up to it ({err})") from None
+
+
 def _scaled(constraints: Sequence[Constraint], top: np.ndarray) -> list:
     """Rows ``G P <= h`` (or callables on P) as rows on x = P / top."""
     out: list = []
@@ -434,15 +449,18 @@ def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, 
     """The box [0, top] to search for the least power: the caller's cap, else the model's saturation cut down
     to the total of a feasible point found by doubling a box (any better point spends less in total, so no
     channel more than that total). Returns top and the feasible point (in P) when one was found."""
-    sat = model.saturation() if cap is None else np.minimum(cap, model.saturation())
+    sat = model.saturation() if cap is None else cap
     if cap is not None:
         return sat, None
     evaluator = CostEvaluator(system, protocol)
     T = float(np.min(sat)) / 2 ** 10 if model.kind != "rayleigh" else float(np.min(model.scale))
     while True:
         box = np.minimum(np.full(system.m, T), sat)
-        setup_poly = read_polytope(_scaled(constraints, box), system.m, 0.0, 1.0)
-        q, _ = box_lp(-np.ones(system.m), setup_poly, np.zeros(system.m), np.ones(system.m))
+        try:
+            setup_poly = read_polytope(_scaled(constraints, box), system.m, 0.0, 1.0)
+            q, _ = box_lp(-np.ones(system.m), setup_poly, np.zeros(system.m), np.ones(system.m))
+        except InfeasibleError:             # a row this box cannot meet (P1 >= 30 in [0, 1]^m): not a verdict
+            q = None
         if q is not None and evaluator.cost(np.clip(model.mu(box * q), 0.0, 1.0)) <= alpha:
             P = box * q
             return np.minimum(sat, max(float(np.sum(P)), float(np.max(P)))), P
@@ -514,7 +532,7 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
     if alpha < C:
         raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
     top, found = _search_cap(system, protocol, model, alpha, constraints, cap)
-    setup = _Setup(system, protocol, model, top, constraints)
+    setup = _setup(system, protocol, model, top, constraints, cap)
     J = setup.cost.checked
     m = system.m
     corner = J(np.ones(m))
@@ -612,9 +630,9 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     max_boxes = _boxes(max_boxes)
     cap = _cap(max_power, system.m)
     m = system.m
-    top = model.saturation() if cap is None else np.minimum(cap, model.saturation())
+    top = model.saturation() if cap is None else cap
     if budget == 0:              # no power at all: the only point, if the constraints admit it
-        setup = _Setup(system, protocol, model, top, constraints)
+        setup = _setup(system, protocol, model, top, constraints, top)    # a row no box point meets misses P = 0
         if np.any(setup.poly.h < 0):
             raise InfeasibleError("the constraints admit no power within a budget of 0", None)
         x = np.zeros(m)
@@ -623,7 +641,8 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     top = np.minimum(top, budget)
     rows = [*constraints, (np.ones((1, m)), np.array([budget]))]
     try:
-        setup = _Setup(system, protocol, model, top, rows)
+        cut = cap is None and bool(np.any(top < budget))        # cut at saturation: rows beyond it prove nothing
+        setup = _setup(system, protocol, model, top, rows, None if cut else top)
     except InfeasibleError as err:
         raise InfeasibleError(f"no power within the budget meets the constraints: {err}", None) from None
     floor, incumbent = -np.inf, None
