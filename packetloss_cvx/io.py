@@ -24,7 +24,8 @@ from .model import System
 from .safeio import atomic_write
 from .sensor import SENSOR_KEYS
 
-__all__ = ["dumps_system", "example_names", "load_example", "load_system", "read_csv_numbers", "read_input",
+__all__ = ["dumps_system", "example_names", "load_example", "load_system", "load_table", "read_csv_numbers",
+           "read_input",
            "save_system",
            "system_from_dict"]
 
@@ -45,6 +46,8 @@ _SCHEMA: dict[str, dict[str, str]] = {
 }
 _REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",), "sensor": ()}
 _OPTIONAL_SECTIONS = ("sensor",)
+#: optional sections a System does not hold, read by their own module (``[power]``: allocation/power.py)
+OTHER_SECTIONS = ("power",)
 
 
 def system_from_dict(data: Mapping[str, Any]) -> System:
@@ -67,8 +70,9 @@ def system_from_dict(data: Mapping[str, Any]) -> System:
     if not isinstance(data, Mapping):
         raise InputError("<file>", "expected a table")
     for key in data:
-        if key != "name" and key not in _SCHEMA:
-            raise InputError(str(key), f"unknown section; expected one of name, {', '.join(_SCHEMA)}")
+        if key != "name" and key not in _SCHEMA and key not in OTHER_SECTIONS:
+            raise InputError(str(key),
+                             f"unknown section; expected one of name, {', '.join([*_SCHEMA, *OTHER_SECTIONS])}")
     kwargs: dict[str, Any] = {"name": data.get("name")}
     where: dict[str, str] = {"name": "name"}
     for section, keys in _SCHEMA.items():
@@ -310,7 +314,28 @@ def load_system(path: str | Path) -> System:
     return _parse(data, str(file))
 
 
+def load_table(path: str | Path) -> dict[str, Any]:
+    """The TOML tables of a system file (or a packaged example) as read, unchecked: for the sections a
+    System does not hold (``OTHER_SECTIONS``). Read under :func:`read_input`'s rules. O(size).
+
+    Examples
+    --------
+    >>> sorted(load_table("two_actuator"))
+    ['channel', 'cost', 'name', 'plant', 'state']
+    """
+    text = str(path)
+    file = Path(text)
+    if "\x00" not in text and not file.exists() and file.suffix == "" and text.replace("-", "_") in example_names():
+        key = text.replace("-", "_")
+        return _toml((resources.files(__package__) / "examples" / f"{key}.toml").read_bytes(), f"example {key}")
+    return _toml(read_input(file, "file"), text)
+
+
 def _parse(data: bytes, where: str) -> System:
+    return system_from_dict(_toml(data, where))
+
+
+def _toml(data: bytes, where: str) -> dict[str, Any]:
     try:
         text = data.decode("utf-8-sig")   # a byte-order mark is tolerated
     except UnicodeDecodeError as err:
@@ -324,7 +349,7 @@ def _parse(data: bytes, where: str) -> System:
                                  "a system file's numbers are within the double range") from None
     except RecursionError:
         raise InputError("file", f"{where} nests arrays too deeply (a system file needs at most 3 levels)") from None
-    return system_from_dict(table)
+    return table
 
 
 def dumps_system(system: System) -> str:

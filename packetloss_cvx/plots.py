@@ -32,9 +32,8 @@ from .plot_style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_
 from .safeio import save_figure
 
 __all__ = [
-    "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines", "plot_log_contour",
-    "plot_pareto", "plot_region",
-    "plot_sensor_map",
+    "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
+    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
 ]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
@@ -568,4 +567,68 @@ def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stab
     if title:
         ax.set_title(title)
     fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = None,
+                      path: str | Path | None = None) -> Figure:
+    """The power-cost trade-off: the least J* against the total power budget (issue 24).
+
+    ``curves``: label to rows with keys ``"budget"`` and ``"cost"`` (``PowerAllocation.to_dict()`` of
+    :func:`~packetloss_cvx.allocation.power.power_pareto`'s points); J* on a log axis. O(rows) to draw.
+
+    Examples
+    --------
+    >>> rows = [{"budget": 0.0, "cost": 4.0}, {"budget": 1.0, "cost": 2.0}]
+    >>> line, = plot_power_pareto({"tcp": rows}).axes[0].lines
+    >>> line.get_xdata().tolist(), line.get_ydata().tolist()
+    ([0.0, 1.0], [4.0, 2.0])
+    """
+    if not isinstance(curves, Mapping) or not curves:
+        raise InputError("curves", "expected a non-empty mapping label -> rows")
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    ax = fig.subplots()
+    for label, rows in curves.items():
+        field = f"curves[{label!r}]"
+        xy = numeric_array([[r["budget"], r["cost"]] for r in _rows(rows, field, ("budget", "cost"))],
+                           field).reshape(-1, 2)
+        ax.plot(xy[:, 0], xy[:, 1], marker="o", ms=3, label=_LABELS.get(label, str(label)))
+    ax.set_yscale("log")
+    ax.set_xlabel(r"total power budget $\sum_i P_i \leq B$")
+    ax.set_ylabel(r"least optimal cost $J^*(\mu(P))$ (log scale)")
+    if title:
+        ax.set_title(title)
+    fig.legend(**LEGEND)
+    return _save(fig, path)
+
+
+def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, currency: str = r"$\beta^\top\mu$",
+                        title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Above which price of the acknowledgement link the UDP-like design wins, against alpha (issue 24):
+    the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
+    Non-finite points (no design) are left out. O(points) to draw.
+
+    Examples
+    --------
+    >>> fig = plot_ack_break_even([1.0, 2.0, 3.0], [0.5, 0.2, float("nan")])
+    >>> fig.axes[0].lines[0].get_ydata().tolist()
+    [0.5, 0.2]
+    """
+    a = np.asarray(alpha, dtype=float)
+    b = np.asarray(break_even, dtype=float)
+    if a.shape != b.shape or a.ndim != 1:
+        raise InputError("break_even", f"expected two lists of one length, found {a.shape} and {b.shape}")
+    keep = np.isfinite(a) & np.isfinite(b)
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black", label="break-even acknowledgement price")
+    top = float(np.max(b[keep])) * 1.15 if keep.any() else 1.0
+    ax.fill_between(a[keep], b[keep], top, alpha=0.25, label="UDP-like cheaper")
+    ax.fill_between(a[keep], 0.0, b[keep], alpha=0.25, label="TCP-like + link cheaper")
+    ax.set_ylim(0.0, top)
+    ax.set_xlabel(r"cost bound $\alpha$")
+    ax.set_ylabel(f"acknowledgement price ({currency})")
+    if title:
+        ax.set_title(title)
+    fig.legend(**LEGEND)
     return _save(fig, path)

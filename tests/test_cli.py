@@ -129,7 +129,8 @@ def test_solve_json_on_unseen_systems(seed, tmp_path, capsys):
 @pytest.mark.parametrize(("argv", "first"), [
     (["simulate", "two_actuator", "--samples", "1e12"], "--samples: invalid int value: '1e12'"),
     (["sweep", "two_actuator", "--protocol", "xx", "--mu-grid", "3"], "--protocol: invalid choice: 'xx'"),
-    (["allocate", "two_actuator", "--alpha", "3"], "arguments: the following arguments are required"),
+    (["allocate", "two_actuator", "--alpha", "3"], "--protocol: required"),
+    (["allocate", "two_actuator", "--target", "stable"], "--beta: required"),
     (["audit", "--only", "theorem-2"], "--only: not an option of this command (see its --help)"),
     (["solve", "two_actuator", "extra"], "extra: unexpected argument"),
 ])

@@ -50,7 +50,7 @@ from .grammar import (
     read_polytope,
 )
 from .tcp import tcp_allocate, tcp_min_cost
-from .udp import udp_allocate, udp_min_cost
+from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
 __all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
 
@@ -84,7 +84,8 @@ def _polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float) -
 def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, time_limit: float | None,
               evaluator: Any = None) -> MinCost:
     out: Outcome = (tcp_min_cost(system, poly) if protocol == "tcp"
-                    else udp_min_cost(system, poly, max_boxes, time_limit, evaluator))
+                    else udp_min_cost(system, poly, max_boxes, time_limit,
+                                      cost=None if evaluator is None else MonotoneCost(evaluator)))
     return MinCost(protocol=protocol, cost=out.value, lower_bound=out.lower_bound,
                    gap=(out.value - out.lower_bound) / max(out.value, ALLOCATION_GAP_FLOOR), status=out.status,
                    mu=out.mu, method=out.note)
@@ -291,7 +292,7 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
     prices = beta / unit
     try:
         out = udp_allocate(system, poly, alpha, prices, gap, -np.inf, max_boxes, time_limit, progress=progress,
-                           evaluator=evaluator)
+                           cost=MonotoneCost(evaluator))
     except InfeasibleError as err:
         raise _infeasible(system, "udp", alpha, poly, str(err), max_boxes, time_limit, evaluator) from None
     note = (f"{out.note}; exact expected cost behind Gilbert chains, burstiness lambda = "

@@ -32,8 +32,9 @@ Constraint = Callable[[cp.Variable], Any] | tuple[Any, Any]
 
 #: A channel index has at most this many digits (mu1 .. mu999999).
 _MAX_INDEX_DIGITS = 6
-_TERM = re.compile(r"\s*([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?)\s*\*?\s*)?"
-                   rf"(mu(\d{{1,{_MAX_INDEX_DIGITS}}})(?!\d))?\s*")
+#: the variables a constraint may name: mu1.. (delivery probabilities) or P1.. (transmit powers, allocation/power.py)
+_TERMS = {name: re.compile(r"\s*([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?)\s*\*?\s*)?"
+                           rf"({name}(\d{{1,{_MAX_INDEX_DIGITS}}})(?!\d))?\s*") for name in ("mu", "P")}
 
 
 def _numbers(value: Any, field: str) -> np.ndarray:
@@ -47,7 +48,7 @@ def _numbers(value: Any, field: str) -> np.ndarray:
         raise InputError(field, "expected a flat list of numbers, found a deeply nested one") from None
 
 
-def _side(text: str, m: int, field: str) -> tuple[np.ndarray, float]:
+def _side(text: str, m: int, field: str, name: str = "mu") -> tuple[np.ndarray, float]:
     """Parse a sum of terms ``[+-] [c [*]] mu<k>`` or ``[+-] c``: returns (coefficients, constant).
     O(len(text))."""
     coef, const, pos = np.zeros(m), 0.0, 0
@@ -55,9 +56,9 @@ def _side(text: str, m: int, field: str) -> tuple[np.ndarray, float]:
     if not text:
         raise InputError(field, "expected an expression on both sides")
     while pos < len(text):
-        match = _TERM.match(text, pos)
+        match = _TERMS[name].match(text, pos)
         if match is None or match.end() == pos or (match.group(2) is None and match.group(3) is None):
-            raise InputError(field, f"cannot parse {text[pos:pos + 40]!r}; expected terms like '2*mu1', 'mu2' "
+            raise InputError(field, f"cannot parse {text[pos:pos + 40]!r}; expected terms like '2*{name}1', '{name}2' "
                              f"or '0.5' (channel numbers up to {_MAX_INDEX_DIGITS} digits)")
         sign = -1.0 if match.group(1) == "-" else 1.0
         if pos > 0 and not match.group(1):
@@ -68,7 +69,7 @@ def _side(text: str, m: int, field: str) -> tuple[np.ndarray, float]:
         if match.group(3):
             k = int(match.group(4))
             if not 1 <= k <= m:
-                raise InputError(field, f"unknown channel {match.group(3)!r}; expected mu1..mu{m}")
+                raise InputError(field, f"unknown channel {match.group(3)!r}; expected {name}1..{name}{m}")
             coef[k - 1] += value
         else:
             const += value
@@ -78,8 +79,9 @@ def _side(text: str, m: int, field: str) -> tuple[np.ndarray, float]:
     return coef, const
 
 
-def parse_constraint(text: str, m: int, field: str = "--constraint") -> tuple[np.ndarray, np.ndarray]:
-    """Parse ``"mu1 + 2*mu2 <= 1.5"``, ``"mu1 >= mu2"``, ``"mu2 == 0.8"`` into (G, h), G mu <= h.
+def parse_constraint(text: str, m: int, field: str = "--constraint", name: str = "mu") -> tuple[np.ndarray, np.ndarray]:
+    """Parse ``"mu1 + 2*mu2 <= 1.5"``, ``"mu1 >= mu2"``, ``"mu2 == 0.8"`` into (G, h), G mu <= h
+    (``name="P"``: the same in transmit powers, ``"P1 <= 2*P2"``).
 
     A small grammar, no ``eval``: linear terms in mu1..mu<m>, finite numbers, one of
     <=, >=, == (< and > are read as <= and >=). O(len(text) + m).
@@ -94,6 +96,8 @@ def parse_constraint(text: str, m: int, field: str = "--constraint") -> tuple[np
     >>> G, h = parse_constraint("mu1 + 2*mu2 <= 1.5", 2)
     >>> G.tolist(), h.tolist()
     ([[1.0, 2.0]], [1.5])
+    >>> parse_constraint("P1 <= 2*P2", 2, name="P")[0].tolist()
+    [[1.0, -2.0]]
     """
     if not isinstance(text, str):
         raise InputError(field, f"expected a string, found {type(text).__name__}")
@@ -101,8 +105,10 @@ def parse_constraint(text: str, m: int, field: str = "--constraint") -> tuple[np
     if len(parts) != 3:
         raise InputError(field, f"expected one comparison (<=, >= or ==) in {text[:80]!r}")
     left, op, right = parts
-    a, c1 = _side(left, m, field)
-    b, c2 = _side(right, m, field)
+    if name not in _TERMS:
+        raise InputError("name", f"expected one of {', '.join(_TERMS)}, found {name!r}")
+    a, c1 = _side(left, m, field, name)
+    b, c2 = _side(right, m, field, name)
     row, rhs = a - b, c2 - c1          # row mu  op  rhs
     if not (np.all(np.isfinite(row)) and np.isfinite(rhs)):
         raise InputError(field, "the two sides differ by more than a float holds")

@@ -48,8 +48,8 @@ from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, 
 from .grammar import Polytope
 
 __all__ = [
-    "TCPProgram", "constant_cost", "interval", "least_feasible", "require_answer", "tangent", "tangent_cuts",
-    "tcp_allocate", "tcp_min_cost",
+    "TCPProgram", "constant_cost", "cost_epigraph", "interval", "least_feasible", "require_answer", "tangent",
+    "tangent_cuts", "tcp_allocate", "tcp_min_cost",
 ]
 
 
@@ -76,6 +76,45 @@ PROGRAM_BYTES_PER_ENTRY = 300
 #: the system's compiled TCP-like programs, one per (kind, number of constraint rows): everything in them but the
 #: Parameters (x0, bounds, rows, prices, scale) depends on these fields only
 PROGRAMS_KEY = CacheKey("allocation.tcp.programs", ("A", "B", "horizon", "state_weights", "input_weights"))
+
+
+def cost_epigraph(system: System, mu: cp.Variable, x0: cp.Parameter, root: cp.Parameter
+                  ) -> tuple[list, cp.Expression, np.ndarray]:
+    """The TCP-like cost as cvxpy constraints in ``mu`` (the one place the SOCP's algebra is written).
+
+    Variables: the mean states ``xhat`` and ``Z = Vbar U`` (the dynamics ``xhat_{t+1} = A xhat_t +
+    B z_t`` as equality constraints, sparse in the horizon), the epigraph ``r >= s ||L xhat||^2`` and
+    ``t_i >= s sum_t psi_{t,i} z_{t,i}^2 / mu_i``, s = root^2 the cost scale. Returns the constraints, the
+    expression ``r + sum t`` (>= s (J*_tcp(mu) - C), with equality at the optimum over the other variables)
+    and the program's constant data as one read-only vector (what tests/test_cache_keys.py compares).
+    O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros. Used by :class:`TCPProgram` and :mod:`.power`.
+
+    Examples
+    --------
+    J*_tcp(mu) - C = 1/(1 + mu) (one step of x' = x + v u from x0 = 1): at mu = 1/2 the least of the expression
+    is 2/3.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> mu, x0, root = cp.Variable(1), cp.Parameter(1, value=[1.0]), cp.Parameter(nonneg=True, value=1.0)
+    >>> cons, scaled, _ = cost_epigraph(s, mu, x0, root)
+    >>> problem = cp.Problem(cp.Minimize(scaled), [*cons, mu == 0.5])
+    >>> bool(np.isclose(problem.solve(solver=cp.CLARABEL), 2 / 3, atol=1e-6))
+    True
+    """
+    N, n, m = system.horizon, system.n, system.m
+    Z = cp.Variable((N, m), name="Z")
+    X = cp.Variable(N * n, name="xhat")
+    t = cp.Variable(m, name="t")
+    r = cp.Variable(name="r")
+    E, Bbig, first, L = sparse_dynamics(system)
+    w = np.sqrt(system.input_weights)
+    constants = np.concatenate([M.toarray().ravel() if M is first else M.data for M in (E, Bbig, first, L)]
+                               + [w.ravel()])
+    constants.flags.writeable = False
+    cons = [E @ X - Bbig @ cp.vec(Z.T, order="F") == first @ x0,
+            cp.sum_squares(root * (L @ X)) <= r if L.shape[0] else r >= 0]
+    cons += [cp.quad_over_lin(root * cp.multiply(w[:, i], Z[:, i]), mu[i]) <= t[i] for i in range(m)]
+    return cons, r + cp.sum(t), constants
 
 
 class TCPProgram:
@@ -115,34 +154,22 @@ class TCPProgram:
     """
 
     def __init__(self, system: System, kind: str, rows: int) -> None:
-        N, n, m = system.horizon, system.n, system.m
+        n, m = system.n, system.m
         self.kind = kind
         self.mu = cp.Variable(m, name="mu")
-        Z = cp.Variable((N, m), name="Z")
-        X = cp.Variable(N * n, name="xhat")
-        t = cp.Variable(m, name="t")
-        r = cp.Variable(name="r")
         self.x0 = cp.Parameter(n, name="x0")
         self.root = cp.Parameter(nonneg=True, name="sqrt_scale")
         self.lo, self.hi = cp.Parameter(m, name="lo"), cp.Parameter(m, name="hi")
         self.rows = (cp.Parameter((rows, m), name="G"), cp.Parameter(rows, name="h")) if rows else None
         self.beta = cp.Parameter(m, name="beta")
-        E, Bbig, first, L = sparse_dynamics(system)
-        w = np.sqrt(system.input_weights)
-        #: the program's constant data, one read-only vector (what tests/test_cache_keys.py compares)
-        self.constants = np.concatenate([M.toarray().ravel() if M is first else M.data for M in (E, Bbig, first, L)]
-                                        + [w.ravel()])
-        self.constants.flags.writeable = False
-        cons = [E @ X - Bbig @ cp.vec(Z.T, order="F") == first @ self.x0,
-                cp.sum_squares(self.root * (L @ X)) <= r if L.shape[0] else r >= 0,
-                self.mu >= self.lo, self.mu <= self.hi]
-        cons += [cp.quad_over_lin(self.root * cp.multiply(w[:, i], Z[:, i]), self.mu[i]) <= t[i] for i in range(m)]
+        epigraph, scaled, self.constants = cost_epigraph(system, self.mu, self.x0, self.root)
+        cons = [*epigraph, self.mu >= self.lo, self.mu <= self.hi]
         if self.rows is not None:
             cons.append(self.rows[0] @ self.mu <= self.rows[1])
         if kind == "allocate":
-            self.problem = cp.Problem(cp.Minimize(self.beta @ self.mu), [*cons, r + cp.sum(t) <= 1.0])
+            self.problem = cp.Problem(cp.Minimize(self.beta @ self.mu), [*cons, scaled <= 1.0])
         else:
-            self.problem = cp.Problem(cp.Minimize(r + cp.sum(t)), cons)
+            self.problem = cp.Problem(cp.Minimize(scaled), cons)
         if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
             raise RuntimeError("the TCP-like allocation SOCP is not DPP")
         self.compiled = ClarabelProgram(self.problem)

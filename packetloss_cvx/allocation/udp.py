@@ -47,18 +47,63 @@ from ..tolerances import (
     ALLOCATION_EDGE_RTOL,
     ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
+    ALLOCATION_LP_FEASIBILITY,
     ALLOCATION_MIN_BOX_WIDTH,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, bracket, check_in_polytope, cost_function
+from .boxes import Outcome, boundary, box_lp, bracket, check_in_polytope, cost_function, polytope_excess
 from .grammar import Polytope
 from .tcp import constant_cost
 
-__all__ = ["Search", "split", "udp_allocate", "udp_min_cost"]
+__all__ = ["MonotoneCost", "Search", "row_caps", "split", "udp_allocate", "udp_min_cost"]
 
 #: Channels with a price below this still get their sides split (scaled by it), so a free
 #: channel does not stall the search.
 SPLIT_WEIGHT_FLOOR = 1e-3
+
+
+class MonotoneCost:
+    """The function the searches minimise or bound: ``x -> J*(mu(x))`` on ``x`` in [0, 1]^m, with
+    ``mu(x) = (phi_1(x_1), .., phi_m(x_m))`` a non-decreasing map per channel into [0, 1] (identity: the
+    delivery probabilities themselves; :mod:`.power`: the delivery that a power ``top_i x_i`` buys). J*
+    falls in every mu_i (Theorem 3), so this function falls in every x_i: every argument of the searches
+    (corners, edges, dominated points) holds for it unchanged. ``probe`` is the unchecked value
+    (:meth:`CostEvaluator.cost` ``checked=False``), ``checked`` the checked one, ``line`` the evaluator's
+    line with the other channels factored once. Each call O(m) plus the evaluator's.
+
+    Examples
+    --------
+    J*_udp = 1 - mu/2 (one step of x' = x + v u from x0 = 1); through phi(x) = x^2 at x = 0.5 it is 1 - 1/8:
+
+    >>> from packetloss_cvx.evaluator import CostEvaluator
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> f = MonotoneCost(CostEvaluator(s, "udp"), lambda x: x ** 2, lambda i, t: t ** 2)
+    >>> f.checked(np.array([0.5])), f.probe(np.array([0.5])), f.line(np.array([1.0]), 0, True)(0.5)
+    (0.875, 0.875, 0.875)
+    """
+
+    def __init__(self, evaluator, to_mu: Callable[[np.ndarray], np.ndarray] | None = None,
+                 channel: Callable[[int, float], float] | None = None) -> None:
+        self.evaluator = evaluator
+        self.to_mu = (lambda x: x) if to_mu is None else to_mu
+        self.channel = (lambda i, t: t) if channel is None else channel
+
+    def mu(self, x: np.ndarray) -> np.ndarray:
+        """mu(x) for x clipped to [0, 1]^m, clipped to [0, 1]. O(m)."""
+        return np.clip(self.to_mu(np.clip(np.asarray(x, dtype=float), 0.0, 1.0)), 0.0, 1.0)
+
+    def checked(self, x: np.ndarray) -> float:
+        """J*(mu(x)), self-checked."""
+        return self.evaluator.cost(self.mu(x))
+
+    def probe(self, x: np.ndarray) -> float:
+        """J*(mu(x)) without the one-point self-check (searches only)."""
+        return self.evaluator.cost(self.mu(x), checked=False)
+
+    def line(self, x: np.ndarray, i: int, checked: bool) -> Callable[[float], float]:
+        """``t -> J*(mu(x with x_i = t))`` for t in [0, 1]."""
+        along = self.evaluator.line(self.mu(x), i, checked)
+        return lambda t: along(min(max(float(self.channel(i, min(max(t, 0.0), 1.0))), 0.0), 1.0))
 
 
 def split(l: np.ndarray, u: np.ndarray, weights: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
@@ -177,13 +222,14 @@ class Search:
 
 def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float, floor: float,
                  max_boxes: int, time_limit: float | None, progress: bool | None = False,
-                 evaluator: Any = None) -> Outcome:
+                 cost: MonotoneCost | None = None, incumbent: np.ndarray | None = None,
+                 what: str = "UDP-like allocation") -> Outcome:
     """min beta'mu over the polytope with J*_udp(mu) <= alpha, to a relative ``gap``.
 
-    ``floor`` is a proven lower bound from elsewhere (the TCP-like relaxation, Theorem 2). ``evaluator``: another
-    cost nonincreasing in each mu_i with the ``cost(mu, checked)`` / ``line(mu, i, checked)`` interface of
-    :class:`~packetloss_cvx.evaluator.CostEvaluator` (:class:`~packetloss_cvx.allocation.chains.ChainEvaluator`:
-    the exact cost behind chains); default the system's J*_udp.
+    ``floor`` is a proven lower bound from elsewhere (the TCP-like relaxation, Theorem 2).
+    ``cost``: any falling function of the coordinates in place of J*_udp (:class:`MonotoneCost`; the
+    power allocation of :mod:`.power`); ``incumbent``: a point to offer first (kept only if the
+    checked cost says it is feasible and it meets the polytope).
     Cost per box and worst-case box count: see the module docstring.
 
     Raises
@@ -206,15 +252,19 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     ('optimal', True, True)
     """
     m = system.m
-    J, evaluator = _cost(system, evaluator)
+    f = MonotoneCost(cost_function(system, "udp")[1]) if cost is None else cost
+    J = f.checked
     prune_above = alpha * (1 + ALLOCATION_COST_RTOL)
     weights = np.maximum(beta, SPLIT_WEIGHT_FLOOR)
     search = Search(gap, max(floor, float(beta @ poly.lower())), max_boxes, time_limit, progress)
+    if incumbent is not None and polytope_excess(incumbent, poly) <= ALLOCATION_LP_FEASIBILITY \
+            and J(incumbent) <= alpha:
+        search.offer(incumbent, float(beta @ incumbent))
 
     def probe(mu: np.ndarray) -> float:
         """J*(mu) without the one-point self-check (the same number wherever the check passes): a probe
         only steers; :func:`J` (checked) confirms each value a decision rests on."""
-        return evaluator.cost(np.clip(mu, 0.0, 1.0), checked=False)
+        return f.probe(mu)
 
     def bound(l: np.ndarray, u: np.ndarray):
         """Reduce the box; (lower bound, l, u, LP point), or None when proven infeasible or empty
@@ -248,7 +298,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         if probe(start) <= prune_above:          # nothing to raise: one point, no line factored
             return a
         for checked in (False, True):
-            line = evaluator.line(corner, i, checked)
+            line = f.line(corner, i, checked)
 
             def along(s: float, line=line) -> float:
                 return line(min(max(s, 0.0), 1.0))
@@ -283,22 +333,41 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     if root is not None:
         search.push(root[0], root[1], root[2], root[3])
     ended = search.run(visit)
-    out = search.outcome(ended, "monotonic branch and bound (certified LP bounds)", "UDP-like allocation")
-    check_in_polytope(out.mu, poly, "UDP-like allocation")
+    out = search.outcome(ended, "monotonic branch and bound (certified LP bounds)", what)
+    check_in_polytope(out.mu, poly, what)
     return out
 
 
-def _cost(system: System, evaluator: Any) -> tuple[Callable[[np.ndarray], float], Any]:
-    """``(J, evaluator)``: the system's J*_udp, or the given evaluator's checked cost."""
-    if evaluator is None:
-        return cost_function(system, "udp")
-    return (lambda mu: evaluator.cost(np.clip(mu, 0.0, 1.0))), evaluator
+def row_caps(poly: Polytope, l: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The upper corner of [l, u] lowered to what each row allows a coordinate alone: for a row ``g'mu <= h``
+    with ``g_i > 0``, ``mu_i <= (h - sum_{j != i} min(g_j l_j, g_j u_j)) / g_i``. Every point of the box that
+    meets the rows lies below it, so J* there (Theorem 3) bounds the box as the corner does, tighter where
+    the box straddles a row (a budget's face). O(m r).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> poly = read_polytope([([[1.0, 1.0]], [1.0])], 2, 0.0, 1.0)        # mu1 + mu2 <= 1
+    >>> row_caps(poly, np.array([0.25, 0.5]), np.ones(2)).tolist()
+    [0.5, 0.75]
+    """
+    cap = u.copy()
+    if not poly.G.shape[0]:
+        return cap
+    least = np.minimum(poly.G * l, poly.G * u)            # (r, m)
+    rest = least.sum(axis=1, keepdims=True) - least       # the other coordinates' least contribution
+    with np.errstate(divide="ignore", invalid="ignore"):
+        limit = np.where(poly.G > 0, (poly.h[:, None] - rest) / np.where(poly.G > 0, poly.G, 1.0), np.inf)
+    return np.maximum(np.minimum(cap, limit.min(axis=0)), l)
 
 
 def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: float | None,
-                 evaluator: Any = None) -> Outcome:
+                 cost: MonotoneCost | None = None, incumbent: np.ndarray | None = None, floor: float = -np.inf,
+                 what: str = "UDP-like minimum cost", gap: float = MIN_COST_RTOL) -> Outcome:
     """min J*_udp over the polytope, to ``MIN_COST_RTOL``: the minimum sits at a maximal point;
     boxes are bounded by J*(upper corner) (Theorem 3) and incumbents are maximal LP points.
+    ``cost``, ``incumbent``: as for :func:`udp_allocate`; ``floor``: a proven lower bound from elsewhere;
+    ``gap``: the relative gap to certify.
 
     Raises
     ------
@@ -321,7 +390,7 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
     ([0.5], 0.75, 0.75, 'optimal')
     """
     m = system.m
-    J, _ = _cost(system, evaluator)
+    J = (MonotoneCost(cost_function(system, "udp")[1]) if cost is None else cost).checked
     lower, upper = poly.lower(), poly.upper()
     q, _ = box_lp(-np.ones(m), poly, lower, upper)
     if q is None:
@@ -329,8 +398,10 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
     if not poly.G.shape[0]:                                # the box alone: its upper corner
         value = J(upper)
         return Outcome(upper, value, value, "optimal", 0, "upper corner of the box (Theorem 3)")
-    search = Search(MIN_COST_RTOL, constant_cost(system), max_boxes, time_limit)
+    search = Search(gap, max(constant_cost(system), floor), max_boxes, time_limit)
     search.offer(q, J(q))
+    if incumbent is not None and polytope_excess(incumbent, poly) <= ALLOCATION_LP_FEASIBILITY:
+        search.offer(incumbent, J(incumbent))
     search.push(J(upper), lower, upper, None)
 
     def visit(lb: float, l: np.ndarray, u: np.ndarray, _data) -> None:
@@ -343,12 +414,12 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
             if point is None:
                 continue
             search.offer(point, J(point))
+            nu = row_caps(poly, nl, nu)
             bound = J(nu)
             if bound < search.best:
                 search.push(bound, nl, nu, None)
 
     ended = search.run(visit)
-    out = search.outcome(ended, "branch and bound on maximal points (bound J*(upper corner))",
-                         "UDP-like minimum cost")
-    check_in_polytope(out.mu, poly, "UDP-like minimum cost")
+    out = search.outcome(ended, "branch and bound on maximal points (bound J* at the corner the rows allow)", what)
+    check_in_polytope(out.mu, poly, what)
     return out

@@ -27,6 +27,8 @@ from .sensing import STATEMENT as COST_SPLIT_SENSOR
 from .sensing import cost_split_sensor
 from .region import STATEMENT as STABILITY_REGION
 from .region import stability_region
+from .power import STATEMENT as POWER_WATER_FILLING
+from .power import power_water_filling
 from .tables import pendulum_maximiser, table_1, table_2
 from .theorem1 import expected_cost_tcp, lemma_1, lemma_quad, theorem_1_costs, theorem_1_laws
 
@@ -60,6 +62,7 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
 CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's: its laws under bursty losses
 CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the paper's: lossy sensors (issue 22)
 CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # issue 21: the open problem
+CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture (issue 24)
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain

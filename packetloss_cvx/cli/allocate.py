@@ -8,6 +8,8 @@ from typing import Any
 from ..allocation import allocate, parse_constraint
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
+from .allocate_power import run as run_power  # issue 24: power, the ack link priced
+from .allocate_power import wants_power
 from .allocate_stability import run_target
 from .common import CommandResult, allocation_numbers, number, progress_of, system_of
 
@@ -46,10 +48,17 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     if args.target is not None or args.margin is not None:    # design for stability: its own module
         return run_target(args)
-    if args.protocol is None or args.alpha is None:
-        raise InputError("--protocol" if args.protocol is None else "--alpha",
-                         "required (or --target stable|dp-cost to design for stability)")
     system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
+    if args.protocol == "best" or wants_power(args, system):
+        if system.channel is not None:
+            raise InputError("channel", "power-limited links map power to independent (Bernoulli) delivery "
+                                        "probabilities; this file has a Markov chain: give a file with [channel] mu")
+        return run_power(args, system)
+    if args.protocol is None:
+        raise InputError("--protocol", "required (or --target stable|dp-cost to design for stability)")
+    for flag, value in (("--alpha", args.alpha), ("--beta", args.beta)):
+        if value is None:
+            raise InputError(flag, "required" + (" (or buy power: --power)" if flag == "--beta" else ""))
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     if args.gap is not None:

@@ -66,6 +66,8 @@ def run_target(args: argparse.Namespace) -> CommandResult:
         raise InputError("--alpha", "--target dp-cost needs the bound on the DP law's stationary cost")
     if args.target == "dp-cost" and args.margin is not None:
         raise InputError("--margin", "applies to --target stable only (dp-cost bounds the cost: --alpha)")
+    if args.beta is None:
+        raise InputError("--beta", "required: the price of each channel's delivery probability, e.g. --beta 1,1")
     system = system_of(args)
     beta, bounds = _numbers(args, system.m)
     options: dict[str, Any] = {}

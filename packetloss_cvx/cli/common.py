@@ -32,7 +32,7 @@ NONNEGATIVE = {"random": "a count", "seed": "an integer"}
 OUTPUT_FILES = {"json_out": "--out", "save": "--save", "plot": "--plot"}
 #: every option that names a path, read or written: a name the system cannot hold is refused under its flag
 PATHS = {"file": "file", "files": "file", "mu_schedule": "--mu-schedule", "mu_list": "--mu-list", "out": "--out",
-         **OUTPUT_FILES}
+         "power_table": "--power-table", **OUTPUT_FILES}
 #: the longest path and path component the command line accepts (POSIX PATH_MAX and NAME_MAX on Linux)
 MAX_PATH, MAX_NAME = 4096, 255
 

@@ -31,7 +31,7 @@ __all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "bu
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction",
-                "--mean-rate")
+                "--mean-rate", "--power-scale", "--power-max", "--budget", "--ack-price", "--ack-power")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
              "pendulum_bursty (a Gilbert-Elliott channel), pendulum_sensor (a lossy sensor link too)")
@@ -207,15 +207,19 @@ def build_parser() -> argparse.ArgumentParser:
     alloc = add_command(sub, "allocate", "the cheapest channel qualities mu with J*(mu) <= alpha (paper §VI)",
                         examples=["allocate two_actuator --protocol udp --alpha 8 --beta 1,0.05",
                                   "allocate two_actuator --protocol tcp --alpha 8 --beta 1,1 "
-                                  '--constraint "mu1 >= mu2"'])
+                                  '--constraint "mu1 >= mu2"',
+                                  "allocate two_actuator --protocol udp --alpha 8 --power exponential "
+                                  "--power-scale 1,2",
+                                  "allocate two_actuator --protocol best --alpha 8 --beta 1,1 --ack-price 0.2"])
     mark_system_file(alloc.add_argument("file", metavar="FILE", help=FILE_HELP))
-    alloc.add_argument("--protocol", choices=("tcp", "udp"),
-                       help="TCP-like (an exact SOCP) or UDP-like (branch and bound), required unless --target, "
-                            "e.g. --protocol tcp")
+    alloc.add_argument("--protocol", choices=("tcp", "udp", "best"),
+                       help="TCP-like (an exact SOCP) or UDP-like (branch and bound), or best: both for the same "
+                            "--alpha, the acknowledgement link priced (--ack-price, --ack-power); required unless "
+                            "--target, e.g. --protocol tcp")
     alloc.add_argument("--alpha", help="bound on the optimal expected cost (with --target dp-cost: on the DP law's "
-                                       "stationary cost), required unless --target stable, e.g. --alpha 8")
-    alloc.add_argument("--beta", required=True,
-                       help="price of each channel, comma-separated, required, e.g. --beta 1,0.05")
+                                       "stationary cost), required unless --target stable or --budget, e.g. --alpha 8")
+    alloc.add_argument("--beta", help="price of each channel, comma-separated, required but with power "
+                                      "(--power or the file's [power] table), e.g. --beta 1,0.05")
     alloc.add_argument("--bounds", default="0,1", help="lo,hi for every mu_i, e.g. --bounds 0.1,0.99")
     alloc.add_argument("--constraint", action="append", metavar="TEXT",
                        help='a linear constraint (repeatable; default: none), e.g. "mu1 + 2*mu2 <= 1.5" or '
@@ -237,6 +241,28 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --target stable: the bound RHO on the mean-square radius (the spectral radius of "
                              "the second-moment operator), 0 < RHO <= 1 (default: 1, i.e. stable: radius < 1 - 1e-9), "
                              "e.g. --margin 0.9")
+    # issue 24: transmit power instead of delivery probabilities, and the acknowledgement link priced
+    power = alloc.add_argument_group("power-limited links (docs/design.md, Power-limited links)")
+    power.add_argument("--power", choices=("exponential", "rayleigh", "table"),
+                       help="buy transmit power P per channel: mu = 1 - exp(-P/c), exp(-c/P) or a measured table "
+                            "(default: the file's [power] table if --beta is not given), e.g. --power exponential")
+    power.add_argument("--power-scale", metavar="C1,C2,..",
+                       help="the constant c of each channel (one for all, or m); required with exponential or "
+                            "rayleigh unless the file's [power] table has it, e.g. --power-scale 1,2")
+    power.add_argument("--power-table", metavar="FILE.csv",
+                       help="rows power,mu (or power,mu1,..,mum), powers rising from 0; required with table unless "
+                            "the file's [power] table has it, e.g. --power-table link.csv")
+    power.add_argument("--budget", metavar="B",
+                       help="least J* with total power <= B (instead of --alpha: least power with J* <= alpha; "
+                            "default: none), e.g. --budget 3")
+    power.add_argument("--power-max", metavar="P1,P2,..",
+                       help="a cap on each channel's power (one for all, or m; default: none), e.g. --power-max 5")
+    power.add_argument("--ack-price", metavar="C",
+                       help="with --protocol best: what the TCP-like design's acknowledgement link costs, in the "
+                            "units of beta'mu (default: 0), e.g. --ack-price 0.3")
+    power.add_argument("--ack-power", metavar="P",
+                       help="with --protocol best and power: the acknowledgement link's transmit power "
+                            "(default: 0), e.g. --ack-power 0.5")
 
     sim = add_command(sub, "simulate", "Monte Carlo of the plans and laws against their exact expectations",
                       examples=["simulate two_actuator --samples 100000 --seed 0",

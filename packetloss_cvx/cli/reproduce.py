@@ -17,14 +17,15 @@ from ..claims import CLAIMS, audit, markdown_report
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
 from ..display import json_text
 from ..io import load_example
-from ..plots import plot_cost_lines, plot_log_contour
+from ..allocation.ack import break_even_of
+from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour
 from ..progress import progress_bar
 from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..studies import paper_figures as pf
 from ..threads import blas_limited
 from .common import CommandResult
-from .reproduce_report import CLAIMS_FILE, FIGURES, report
+from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, report
 
 __all__ = ["ALPHAS", "SETTINGS", "SLOW_CLAIM", "run"]
 
@@ -68,6 +69,10 @@ def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str,
                 data["tables"] = pf.eigenvalue_tables(pendulum, mixed, TABLE_1_MU, TABLE_2_MU)
                 data["tables_paper"] = {"table-1": TABLE_1, "table-2": TABLE_2}
             else:
+                # issue 24: the acknowledgement link's break-even price, from the allocations above (no solve)
+                data["ack"] = {str(list(beta)): break_even_of(data["allocations"]["tcp"][beta],
+                                                              data["allocations"]["udp"][beta])
+                               for beta in data["allocations"]["tcp"]}
                 only = [c for c in CLAIMS if c not in settings["audit_skips"]]
                 data["audit"] = audit(random=settings["audit_random"], seed=settings["audit_seed"], only=only,
                                       progress=progress)
@@ -102,6 +107,11 @@ def _figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
             levels=data["settings"]["alphas"], allocations=lines, title=caption[f"fig:{name}-log-cost-mixed-mult"])
     for label, figure in draw.items():
         save_figure(figure, paths[label].name, folder=folder)
+    ack = data["ack"][str([1.0, 1.0])]         # beyond the paper (issue 24): the acknowledgement link priced
+    paths[ACK_FIGURE] = out / "ack-break-even.png"
+    save_figure(plot_ack_break_even(ack["alpha"], [float("nan") if v is None else v for v in ack["break_even"]],
+                                    title="two-actuator system, beta = (1, 1)"),
+                paths[ACK_FIGURE].name, folder=folder)
     return paths
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from ..claims import markdown_table
 from ..claims.paper import ALLOCATION_ALPHA, PENDULUM_NU_D
 
-__all__ = ["CLAIMS_FILE", "FIGURES", "allocation_table", "claims_link", "report"]
+__all__ = ["ACK_FIGURE", "CLAIMS_FILE", "FIGURES", "allocation_table", "claims_link", "report"]
 
 #: The paper's figure labels with their captions (shortened), in the paper's order.
 FIGURES = {
@@ -25,6 +25,9 @@ FIGURES = {
     "fig:TCP-log-cost-mixed-mult": "TCP-like, with the allocations of eq:opt_M on each contour alpha",
     "fig:UDP-log-cost-mixed-mult": "UDP-like, with the allocations of eq:opt_M on each contour alpha",
 }
+
+#: Beyond the paper (issue 24): the break-even price of the acknowledgement link over alpha
+ACK_FIGURE = "ack-break-even"
 
 #: A channel counts as perfect at mu_i >= this (allocations are certified to a relative gap of 1e-4).
 PERFECT = 0.999
@@ -213,6 +216,24 @@ def _tables(data: dict[str, Any], out: Path) -> list[str]:
     return lines
 
 
+def _ack(data: dict[str, Any], figures: dict[str, Path]) -> list[str]:
+    """The acknowledgement link priced (issue 24; not the paper's): the break-even price per alpha and beta."""
+    rows = ["| cost bound alpha | " + " | ".join(f"beta = {b}" for b in data["ack"]) + " |",
+            "|---|" + "---|" * len(data["ack"])]
+    alphas = next(iter(data["ack"].values()))["alpha"]
+    for k, alpha in enumerate(alphas):
+        cells = [v["break_even"][k] for v in data["ack"].values()]
+        rows.append(f"| {alpha:g} | " + " | ".join("-" if c is None else f"{c:.4g}" for c in cells) + " |")
+    return ["## Beyond the paper: the price of the acknowledgement link", "",
+            f"![the break-even acknowledgement price]({figures[ACK_FIGURE].name})", "",
+            "The TCP-like protocol needs a perfect acknowledgement link, which the paper's communication cost "
+            "beta'mu leaves out (its conclusion). For each alpha, the cheapest UDP-like allocation minus the "
+            "cheapest TCP-like one (the allocations of the -mult figures above, no further solve; both certified "
+            "to a relative gap of 1e-4) is the price of the link above which the UDP-like design is cheaper "
+            "(`allocate FILE --protocol best --ack-price C` decides one case). It is >= 0 by Theorem 2.", "",
+            *rows, ""]
+
+
 def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[str, dict[str, str]]:
     """The Markdown report and a one-line verdict per figure. O(size of the data)."""
     paragraphs = {
@@ -237,6 +258,7 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
         lines += [f"## {label}", "", f"![{label}: {FIGURES[label]}]({figures[label].name})", "",
                   f"*{label}: {FIGURES[label]}.* **{verdict}.** {text}", ""]
     lines += ["## Tables I–II: closed-loop eigenvalues", ""] + _tables(data, out)
+    lines += _ack(data, figures)
     results = data["audit"]
     counts = {v: sum(r.verdict == v for r in results) for v in ("holds", "fails", "not-reproduced", "inconclusive")}
     lines += ["## The audit", "",

@@ -11,7 +11,7 @@ from .markov import BurstinessMap, BurstinessSweep, MarkovSolution, MjlsResult, 
 from .plans import BatchSolution, CrossCheck, LoopStability, Solution
 from .region import CriticalPoint, Membership, RegionMap, StabilityAllocation
 from .sensing import CovarianceBounds, CriticalGamma, EstimatedLoop, EstimatedRun
-from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, Sweep
+from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, PowerAllocation, ProtocolChoice, Sweep
 
 __all__ = [
     "Allocation",
@@ -35,6 +35,8 @@ __all__ = [
     "MinCost",
     "MjlsResult",
     "OpenLoopCheck",
+    "PowerAllocation",
+    "ProtocolChoice",
     "Riccati",
     "RegionMap",
     "Simulation",

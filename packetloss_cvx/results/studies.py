@@ -23,7 +23,8 @@ from ..display import (
 from ..errors import InputError
 from .base import Frozen, freeze, read_only
 
-__all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "Sweep"]
+__all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "PowerAllocation", "ProtocolChoice",
+           "Sweep"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,82 @@ class Allocation(Frozen):
                 "mu": self.mu.tolist(), "communication_cost": self.communication_cost, "cost": self.cost,
                 "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method,
                 "boxes": self.boxes}
+
+
+@dataclass(frozen=True)
+class PowerAllocation(Frozen):
+    """Transmit power per channel with a certificate (allocation/power.py, issue 24).
+
+    ``problem``: "least-power" (min sum P with J* <= ``limit`` = alpha; ``lower_bound`` proven on the total
+    power) or "least-cost" (min J* with sum P <= ``limit`` = the budget; ``lower_bound`` proven on J*);
+    ``model``: the delivery-versus-power model as a dict; ``power`` (m,), ``total_power``, ``mu`` = mu(power),
+    ``cost`` = J*(mu) by the closed form; ``gap``: (objective - lower_bound) / objective; ``status``
+    "optimal" or "gap_not_certified"; ``method``; ``boxes`` the branch and bound explored. Construction O(m).
+    """
+
+    protocol: str
+    problem: str
+    model: dict
+    power: np.ndarray
+    total_power: float
+    mu: np.ndarray
+    cost: float
+    limit: float
+    lower_bound: float
+    gap: float
+    status: str
+    method: str
+    boxes: int = 0
+
+    __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
+    _repr_html_ = fields_html
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats and lists for JSON. O(m)."""
+        limit = "alpha" if self.problem == "least-power" else "budget"
+        return {"protocol": self.protocol, "problem": self.problem, "model": self.model,
+                "power": self.power.tolist(), "total_power": self.total_power, "mu": self.mu.tolist(),
+                "cost": self.cost, limit: self.limit, "lower_bound": self.lower_bound, "gap": self.gap,
+                "status": self.status, "method": self.method, "boxes": self.boxes}
+
+
+@dataclass(frozen=True)
+class ProtocolChoice(Frozen):
+    """TCP-like (plus its acknowledgement link) or UDP-like, for one alpha (allocation/ack.py, issue 24).
+
+    ``currency``: "beta'mu" or "power"; ``tcp``, ``udp``: the two designs (Allocation or PowerAllocation;
+    ``udp`` None when no UDP-like design meets alpha); ``tcp_total``: the TCP-like design's total plus
+    ``ack_price``; ``udp_total`` (inf when none); ``choice``: "tcp" or "udp" (UDP-like on a tie);
+    ``certified``: the chosen total is at most the other's proven lower bound; ``break_even``: the
+    acknowledgement price above which the UDP-like design wins. Construction O(1).
+    """
+
+    alpha: float
+    currency: str
+    ack_price: float
+    tcp: Any
+    udp: Any
+    tcp_total: float
+    udp_total: float
+    choice: str
+    certified: bool
+    break_even: float
+
+    __repr__ = fields_repr   # the headline numbers, not the designs (display.py)
+    _repr_html_ = fields_html
+
+    to_json = to_json   # to_dict() as JSON text (display.py)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats and dicts for JSON (inf as None). O(m)."""
+        def finite(x: float) -> float | None:
+            return float(x) if np.isfinite(x) else None
+        return {"protocol": "best", "alpha": self.alpha, "currency": self.currency, "ack_price": self.ack_price,
+                "choice": self.choice, "certified": self.certified, "tcp_total": finite(self.tcp_total),
+                "udp_total": finite(self.udp_total), "break_even_ack_price": finite(self.break_even),
+                "tcp": self.tcp.to_dict(), "udp": None if self.udp is None else self.udp.to_dict()}
 
 
 @dataclass(frozen=True)

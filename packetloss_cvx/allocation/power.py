@@ -1,0 +1,698 @@
+"""What to buy: transmit power per channel instead of delivery probabilities (issue 24).
+
+Each channel's delivery probability is a non-decreasing function of its transmit power P_i,
+:class:`PowerModel`:
+
+* ``exponential``: ``mu = 1 - exp(-P / c)``, concave;
+* ``rayleigh`` (block Rayleigh fading at a fixed rate): ``mu = exp(-c / P)``, concave only for
+  ``P >= c / 2`` (``mu >= e^-2``);
+* ``table``: piecewise linear through measured points (power, mu), non-decreasing, flat after the last.
+
+Two problems, both protocols, with linear constraints on P (the grammar of ``allocate``, in P1..Pm):
+
+.. math:: \\min_P \\textstyle\\sum_i P_i \\ \\text{s.t.}\\ J^*(\\mu(P)) \\le \\alpha
+   \\qquad\\text{and}\\qquad \\min_P J^*(\\mu(P)) \\ \\text{s.t.}\\ \\textstyle\\sum_i P_i \\le B.
+
+Every search runs on ``x = P / top`` in [0, 1]^m (``top`` a per-channel cap no optimum exceeds), where
+``x -> J*(mu(top x))`` falls in every x_i (Theorem 3 and mu non-decreasing): the certified monotone branch
+and bound of :mod:`.udp` applies unchanged (:class:`~packetloss_cvx.allocation.udp.MonotoneCost`). The
+TCP-like protocol with a model concave on the box (exponential, a concave table) is a convex program
+(docs/design.md "Power-limited links": J*_tcp convex and falling in mu, mu concave in P): it is solved
+by cvxpy + Clarabel (:class:`PowerProgram`, the exponential cone), its point checked by the closed form and
+its lower bound proved by tangent cuts, and the branch and bound only confirms (no box when the cuts
+certify the gap).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+
+from ..budgets import check, count_text
+from ..convex import ClarabelProgram
+from ..errors import InfeasibleError, InputError
+from ..evaluator import CostEvaluator
+from ..io import load_table, read_csv_numbers
+from ..model import System
+from ..protocols import check_protocol
+from ..results import PowerAllocation
+from ..threads import blas_limited
+from ..tolerances import (
+    ALLOCATION_CLARABEL_ATTEMPTS,
+    ALLOCATION_COST_RTOL,
+    ALLOCATION_CUT_STEPS,
+    ALLOCATION_GAP_DEFAULT,
+    ALLOCATION_GAP_FLOOR,
+    ALLOCATION_INCUMBENT_SHARE,
+)
+from .boxes import boundary, box_lp, small_lp
+from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
+from .tcp import constant_cost, cost_epigraph, require_answer, tangent
+from .udp import MonotoneCost, udp_allocate, udp_min_cost
+
+__all__ = ["MODELS", "PowerModel", "PowerProgram", "least_cost_within_power", "least_power", "load_power",
+           "power_model", "power_pareto"]
+
+#: the delivery-versus-power models
+MODELS = ("exponential", "rayleigh", "table")
+
+#: mu reaches 1 - RAYLEIGH_TOP_SLACK at the Rayleigh model's cap P = c / RAYLEIGH_TOP_SLACK (where no optimum
+#: is sought without --power-max: 1e-12 of delivery probability is below every tolerance of J*)
+RAYLEIGH_TOP_SLACK = 1e-12
+#: the exponential model's mu is 1.0 in double precision from P = 40 c on (1 - e^-40 = 1 - 4e-18)
+EXPONENTIAL_TOP = 40.0
+
+
+@dataclass(frozen=True, eq=False)
+class PowerModel:
+    """Delivery probability as a function of transmit power, per channel; validated, immutable.
+
+    ``kind`` one of :data:`MODELS`; ``scale`` (m,) the constants c > 0 (exponential, rayleigh);
+    ``powers`` (K,) increasing from 0 and ``table`` (K, m) non-decreasing in [0, 1] (table). Build with
+    :func:`power_model`. Every method is O(m) per point.
+
+    Examples
+    --------
+    >>> model = power_model("exponential", 2, scale=[1.0, 2.0])
+    >>> model.mu(np.array([np.log(2.0), 0.0])).tolist(), model.power(np.array([0.5, 0.0])).tolist()
+    ([0.5, 0.0], [0.6931471805599453, 0.0])
+    """
+
+    kind: str
+    m: int
+    scale: np.ndarray | None = None
+    powers: np.ndarray | None = None
+    table: np.ndarray | None = None
+
+    def mu(self, P: np.ndarray) -> np.ndarray:
+        """Delivery probabilities at powers ``P`` (..., m) >= 0."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+        if self.kind == "exponential":
+            return -np.expm1(-P / self.scale)
+        if self.kind == "rayleigh":
+            with np.errstate(divide="ignore"):
+                return np.where(P > 0, np.exp(-self.scale / np.where(P > 0, P, 1.0)), 0.0)
+        out = np.empty(np.broadcast_shapes(P.shape, (self.m,)))
+        for i in range(self.m):
+            out[..., i] = np.interp(P[..., i], self.powers, self.table[:, i])
+        return out
+
+    def channel(self, i: int, p: float) -> float:
+        """mu_i at the power p (one channel)."""
+        P = np.zeros(self.m)
+        P[i] = p
+        return float(self.mu(P)[i])
+
+    def slope(self, P: np.ndarray) -> np.ndarray:
+        """d mu_i / d P_i at P (m,) (the right derivative for a table; 0 after its last point): a
+        supergradient of mu_i where mu_i is concave."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+        if self.kind == "exponential":
+            return np.exp(-P / self.scale) / self.scale
+        if self.kind == "rayleigh":
+            safe = np.where(P > 0, P, 1.0)
+            return np.where(P > 0, self.scale / safe ** 2 * np.exp(-self.scale / safe), 0.0)
+        out = np.zeros(self.m)
+        slopes = np.diff(self.table, axis=0) / np.diff(self.powers)[:, None]
+        for i in range(self.m):
+            k = int(np.searchsorted(self.powers, P[i], side="right")) - 1
+            out[i] = slopes[k, i] if k < len(self.powers) - 1 else 0.0
+        return out
+
+    def power(self, mu: np.ndarray) -> np.ndarray:
+        """The least power per channel whose delivery reaches ``mu`` (m,): inf where none does."""
+        mu = np.asarray(mu, dtype=float)
+        with np.errstate(divide="ignore"):
+            if self.kind == "exponential":
+                return np.where(mu >= 1.0, np.inf, -self.scale * np.log1p(-np.minimum(mu, 1.0)))
+            if self.kind == "rayleigh":
+                return np.where(mu <= 0.0, 0.0, np.where(mu >= 1.0, np.inf, -self.scale / np.log(np.clip(mu, 1e-300,
+                                                                                                        1.0))))
+        out = np.empty(self.m)
+        for i in range(self.m):
+            column = self.table[:, i]
+            if mu[i] <= column[0]:
+                out[i] = 0.0
+            elif mu[i] > column[-1]:
+                out[i] = np.inf
+            else:
+                k = int(np.searchsorted(column, mu[i], side="left"))      # column[k-1] < mu <= column[k]
+                lo, hi = column[k - 1], column[k]
+                out[i] = self.powers[k - 1] + (mu[i] - lo) / (hi - lo) * (self.powers[k] - self.powers[k - 1])
+        return out
+
+    def saturation(self) -> np.ndarray:
+        """Per channel a power beyond which mu does not grow (to double precision or to 1e-12): the
+        search box's cap when the caller gives none."""
+        if self.kind == "exponential":
+            return EXPONENTIAL_TOP * self.scale
+        if self.kind == "rayleigh":
+            return self.scale / RAYLEIGH_TOP_SLACK
+        return np.full(self.m, float(self.powers[-1]))
+
+    def concave_from(self) -> np.ndarray:
+        """Per channel the least power from which mu_i is concave (inf: nowhere on a whole table)."""
+        if self.kind == "exponential":
+            return np.zeros(self.m)
+        if self.kind == "rayleigh":
+            return self.scale / 2.0
+        slopes = np.diff(self.table, axis=0) / np.diff(self.powers)[:, None]
+        concave = np.all(np.diff(slopes, axis=0) <= 1e-12 * np.max(np.abs(slopes), axis=0), axis=0)
+        return np.where(concave, 0.0, np.inf)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain lists for JSON. O(K m)."""
+        if self.kind == "table":
+            return {"model": "table", "powers": self.powers.tolist(), "table": self.table.tolist()}
+        return {"model": self.kind, "scale": self.scale.tolist()}
+
+
+def power_model(model: str, m: int, scale: Any = None, table: Any = None) -> PowerModel:
+    """A validated :class:`PowerModel` for m channels.
+
+    ``scale``: one c > 0 per channel (or one for all); ``table``: rows ``(power, mu)`` (one curve for every
+    channel) or ``(power, mu_1, .., mu_m)``, powers increasing from 0, mu non-decreasing in [0, 1].
+
+    Raises
+    ------
+    InputError
+        Field ``power.model``, ``power.scale`` or ``power.table``: an unknown model, a scale that is not
+        positive and finite, a table that is not monotone or leaves [0, 1].
+
+    Examples
+    --------
+    >>> power_model("rayleigh", 2, scale=2.0).scale.tolist()
+    [2.0, 2.0]
+    >>> power_model("table", 1, table=[[0, 0], [1, 0.5], [2, 0.4]])
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: power.table: mu must not fall as power rises (row 3: 0.4 after 0.5)
+    """
+    if model not in MODELS:
+        raise InputError("power.model", f"expected one of {', '.join(MODELS)}, found {str(model)[:40]!r}")
+    if model == "table":
+        if table is None or scale is not None:
+            raise InputError("power.table", "the table model takes a table of (power, mu) rows and no scale")
+        rows = np.atleast_2d(_array(table, "power.table"))
+        if rows.ndim != 2 or rows.shape[1] not in (2, m + 1) or rows.shape[0] < 2:
+            raise InputError("power.table", f"expected at least 2 rows of (power, mu) or (power, mu1..mu{m}), "
+                             f"found shape {rows.shape}")
+        powers = rows[:, 0].copy()
+        mus = np.repeat(rows[:, 1:], m, axis=1) if rows.shape[1] == 2 else rows[:, 1:].copy()
+        if powers[0] != 0.0:
+            raise InputError("power.table", f"the first row's power must be 0 (the delivery of a silent channel), "
+                             f"found {powers[0]:g}")
+        if np.any(np.diff(powers) <= 0):
+            k = int(np.argmax(np.diff(powers) <= 0)) + 2
+            raise InputError("power.table", f"powers must increase (row {k}: {powers[k - 1]:g} after "
+                             f"{powers[k - 2]:g})")
+        if np.any((mus < 0) | (mus > 1)):
+            k = int(np.argmax(np.any((mus < 0) | (mus > 1), axis=1))) + 1
+            raise InputError("power.table", f"mu must lie in [0, 1] (row {k})")
+        if np.any(np.diff(mus, axis=0) < 0):
+            k = int(np.argmax(np.any(np.diff(mus, axis=0) < 0, axis=1))) + 2
+            col = int(np.argmax(np.diff(mus, axis=0)[k - 2] < 0))
+            raise InputError("power.table", f"mu must not fall as power rises (row {k}: {mus[k - 1, col]:g} after "
+                             f"{mus[k - 2, col]:g})")
+        return PowerModel(model, m, powers=_frozen(powers), table=_frozen(mus))
+    if table is not None:
+        raise InputError("power.table", f"the {model} model takes a scale, not a table")
+    if scale is None:
+        raise InputError("power.scale", f"the {model} model needs a scale c > 0 per channel")
+    c = np.atleast_1d(_array(scale, "power.scale"))
+    if c.ndim != 1 or len(c) not in (1, m):
+        raise InputError("power.scale", f"expected 1 or {m} numbers, found shape {c.shape}")
+    if np.any(~(c > 0)):
+        raise InputError("power.scale", f"expected positive numbers, found {c.tolist()}")
+    return PowerModel(model, m, scale=_frozen(np.broadcast_to(c, (m,)).copy()))
+
+
+def _array(value: Any, field: str) -> np.ndarray:
+    try:
+        out = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(field, "expected numbers") from None
+    if not np.all(np.isfinite(out)):
+        raise InputError(field, "expected finite numbers")
+    return out
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def load_power(path: str | Path, m: int) -> PowerModel | None:
+    """The ``[power]`` table of a system file (None when it has none): ``model``, and ``scale`` or ``table``
+    (inline rows, or a CSV file's name relative to the system file, read by
+    :func:`~packetloss_cvx.io.read_csv_numbers`). Errors name ``power.<key>``. O(size).
+
+    Examples
+    --------
+    >>> load_power("two_actuator", 2) is None          # the packaged example has no [power] table
+    True
+    """
+    section = load_table(path).get("power")
+    if section is None:
+        return None
+    if not isinstance(section, dict):
+        raise InputError("power", "expected a table")
+    for key in section:
+        if key not in ("model", "scale", "table"):
+            raise InputError(f"power.{key}", "unknown key; expected one of model, scale, table")
+    if "model" not in section:
+        raise InputError("power.model", "missing field")
+    table = section.get("table")
+    if isinstance(table, str):
+        table = read_csv_numbers(Path(path).parent / table, "power.table")
+    return power_model(section["model"], m, scale=section.get("scale"), table=table)
+
+
+# ------------------------------------------------------------------ the convex program (TCP-like, concave model)
+
+class PowerProgram:
+    """The TCP-like power problem with a concave model as one cvxpy program (DPP), solved by Clarabel.
+
+    Variables: P (m), mu (m) and :func:`~packetloss_cvx.allocation.tcp.cost_epigraph`'s. The link
+    ``mu <= mu(P)`` is convex for a concave model: exponential ``exp(-P_i / c_i) <= 1 - mu_i`` (the
+    exponential cone), a concave table ``mu_i <= a_ik + b_ik P_i`` for each segment k and ``mu_i <= mu_last``.
+    J*_tcp falls in mu, so the link is tight at the optimum. Parameters: x0, sqrt of the cost scale, the cap
+    ``top`` on P and k rows ``G P <= h``. Kind "power": min sum P s.t. scaled cost <= 1 (scale 1 / (alpha - C));
+    kind "cost": min the scaled cost. Size O(N (n + m) + K m); compiled once per call of the API (about
+    20 ms), then each solve maps the Parameters and runs Clarabel.
+
+    Examples
+    --------
+    J*_tcp = 1/(1 + mu) (one step of x' = x + v u from x0 = 1), mu = 1 - exp(-P): J* <= 0.8 needs mu = 1/4,
+    P = log(4/3):
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> program = PowerProgram(s, power_model("exponential", 1, scale=1.0), "power", 0)
+    >>> P = program.solve(s.x0, 1 / 0.8, np.array([40.0]), np.zeros((0, 1)), np.zeros(0))
+    >>> bool(np.isclose(P[0], np.log(4 / 3), atol=1e-6))
+    True
+    """
+
+    def __init__(self, system: System, model: PowerModel, kind: str, rows: int) -> None:
+        n, m = system.n, system.m
+        self.kind = kind
+        self.P = cp.Variable(m, name="P")
+        self.mu = cp.Variable(m, name="mu")
+        self.x0 = cp.Parameter(n, name="x0")
+        self.root = cp.Parameter(nonneg=True, name="sqrt_scale")
+        self.top = cp.Parameter(m, name="top")
+        self.rows = (cp.Parameter((rows, m), name="G"), cp.Parameter(rows, name="h")) if rows else None
+        epigraph, scaled, _ = cost_epigraph(system, self.mu, self.x0, self.root)
+        cons = [*epigraph, self.P >= 0, self.P <= self.top, self.mu >= 0, self.mu <= 1]
+        if model.kind == "exponential":
+            cons.append(cp.exp(cp.multiply(-1.0 / model.scale, self.P)) + self.mu <= 1)
+        elif model.kind == "table":
+            slopes = np.diff(model.table, axis=0) / np.diff(model.powers)[:, None]
+            starts = model.table[:-1] - slopes * model.powers[:-1, None]
+            for k in range(len(slopes)):
+                cons.append(self.mu <= starts[k] + cp.multiply(slopes[k], self.P))
+            cons.append(self.mu <= model.table[-1])
+        else:  # pragma: no cover - the API routes only concave models here
+            raise ValueError(f"no convex program for the {model.kind} model")
+        if self.rows is not None:
+            cons.append(self.rows[0] @ self.P <= self.rows[1])
+        objective = cp.sum(self.P) if kind == "power" else scaled
+        if kind == "power":
+            cons.append(scaled <= 1.0)
+        self.problem = cp.Problem(cp.Minimize(objective), cons)
+        self.compiled = ClarabelProgram(self.problem)
+
+    def solve(self, x0: np.ndarray, scale: float, top: np.ndarray, G: np.ndarray, h: np.ndarray,
+              no_P: str | None = None) -> np.ndarray:
+        """The solver's P (clipped to [0, top]); raises as :func:`~.tcp.require_answer`."""
+        what = "TCP-like power SOCP" if self.kind == "power" else "TCP-like power-budget SOCP"
+        values = {self.x0: x0, self.root: np.sqrt(scale), self.top: top}
+        if self.rows is not None:
+            values.update({self.rows[0]: G, self.rows[1]: h})
+        status, point = self.compiled.solve(values, what, ALLOCATION_CLARABEL_ATTEMPTS)
+        require_answer(status, what, no_P)
+        return np.clip(np.array(point(self.P), dtype=float), 0.0, top)
+
+
+# ------------------------------------------------------------------ the problems
+
+class _Setup:
+    """One problem's data on x = P / top: the model, the cap, the polytope in x, the cost of x."""
+
+    def __init__(self, system: System, protocol: str, model: PowerModel, top: np.ndarray,
+                 constraints: Sequence[Constraint]) -> None:
+        self.system, self.protocol, self.model, self.top = system, protocol, model, top
+        self.poly = read_polytope(_scaled(constraints, top), system.m, 0.0, 1.0)
+        self.evaluator = CostEvaluator(system, protocol)
+        self.cost = MonotoneCost(self.evaluator, lambda x: model.mu(top * x), lambda i, t: model.channel(i, top[i] * t))
+
+    def convex(self) -> bool:
+        """TCP-like with a model concave on the whole box: the convex program applies."""
+        return self.protocol == "tcp" and self.model.kind != "rayleigh" and bool(np.all(self.model.concave_from() == 0))
+
+    def cuts(self, x: np.ndarray, evaluator: CostEvaluator) -> tuple[np.ndarray, np.ndarray]:
+        """Affine minorants ``J(x') >= r_k + g_k x'`` of the convex x -> J*_tcp(mu(top x)) at x and around it
+        (the steps of ``ALLOCATION_CUT_STEPS``): the chain rule on :func:`~.tcp.tangent`'s gradient, with the
+        model's slope a supergradient of the concave mu_i; loosened for rounding as tangent_cuts does."""
+        m = self.system.m
+        points = [x]
+        for step in ALLOCATION_CUT_STEPS:
+            for i in range(m):
+                for sign in (-1.0, 1.0):
+                    p = x.copy()
+                    p[i] = np.clip(p[i] + sign * step, 0.0, 1.0)
+                    if p[i] != x[i]:
+                        points.append(p)
+        X = np.array(points)
+        P = X * self.top
+        f, S = tangent(self.system, self.model.mu(P), evaluator)
+        g = S * np.array([self.model.slope(p) for p in P]) * self.top
+        r = f - np.sum(g * X, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(g).sum(axis=1))
+        return g, r
+
+
+def _setup(system: System, protocol: str, model: PowerModel, top: np.ndarray, constraints: Sequence[Constraint],
+           cap: np.ndarray | None) -> _Setup:
+    """:class:`_Setup`, where rows no power up to ``top`` meets are a proof of infeasibility only when ``top`` is
+    the caller's cap (or the budget); a box cut at the model's saturation proves nothing (a row may ask for more
+    power than mu needs): then InputError naming ``max_power``."""
+    try:
+        return _Setup(system, protocol, model, top, constraints)
+    except InfeasibleError as err:
+        if cap is not None:
+            raise
+        raise InputError("max_power", f"the constraints ask some channel for more power than the model's saturation "
+                         f"{np.round(top, 6).tolist()} (where mu is 1 to 1e-12 or more): give a cap per channel "
+                         f"(max_power, --power-max) to search up to it ({err})") from None
+
+
+def _scaled(constraints: Sequence[Constraint], top: np.ndarray) -> list:
+    """Rows ``G P <= h`` (or callables on P) as rows on x = P / top."""
+    out: list = []
+    for item in constraints:
+        if callable(item):
+            out.append(lambda x, item=item: item(cp.multiply(top, x)))
+        elif isinstance(item, (tuple, list)) and len(item) == 2:
+            G = np.atleast_2d(np.asarray(item[0], dtype=float))
+            out.append((G * top[None, :] if G.ndim == 2 and G.shape[-1] == len(top) else item[0], item[1]))
+        else:
+            out.append(item)
+    return out
+
+
+def _boxes(value: Any) -> int:
+    """A positive count within the ``allocation_boxes`` budget (budgets.py), as allocate checks it."""
+    count = check_count(value, "max_boxes")
+    check("allocation_boxes", count, "max_boxes", f"{count_text(count)} boxes")
+    return count
+
+
+def _cap(value: Any, m: int) -> np.ndarray | None:
+    if value is None:
+        return None
+    cap = np.atleast_1d(_array(value, "max_power"))
+    if cap.ndim != 1 or len(cap) not in (1, m) or np.any(~(cap > 0)):
+        raise InputError("max_power", f"expected 1 or {m} positive numbers, found {cap.tolist()}")
+    return np.broadcast_to(cap, (m,)).copy()
+
+
+def _check(system: System, protocol: str, model: PowerModel) -> tuple[System, str]:
+    system = check_system(system)
+    protocol = check_protocol(protocol)
+    if not isinstance(model, PowerModel):
+        raise InputError("model", f"expected a PowerModel (power_model(...)), found {type(model).__name__}")
+    if model.m != system.m:
+        raise InputError("model", f"the model has {model.m} channels, the system {system.m}")
+    return system, protocol
+
+
+def _result(setup: _Setup, problem: str, x: np.ndarray, value: float, lower: float, status: str, method: str,
+            boxes: int, limit: float) -> PowerAllocation:
+    P = setup.top * x
+    mu = setup.model.mu(P)
+    cost = float(CostEvaluator(setup.system, setup.protocol).cost(np.clip(mu, 0.0, 1.0)))
+    total = float(np.sum(P))
+    return PowerAllocation(protocol=setup.protocol, problem=problem, model=setup.model.to_dict(), power=P,
+                           total_power=total, mu=mu, cost=cost, limit=limit, lower_bound=lower,
+                           gap=(value - lower) / max(abs(value), ALLOCATION_GAP_FLOOR), status=status,
+                           method=method, boxes=boxes)
+
+
+def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, constraints: Sequence[Constraint],
+                cap: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """The box [0, top] to search for the least power: the caller's cap, else the model's saturation cut down
+    to the total of a feasible point found by doubling a box (any better point spends less in total, so no
+    channel more than that total). Returns top and the feasible point (in P) when one was found."""
+    sat = model.saturation() if cap is None else cap
+    if cap is not None:
+        return sat, None
+    evaluator = CostEvaluator(system, protocol)
+    T = float(np.min(sat)) / 2 ** 10 if model.kind != "rayleigh" else float(np.min(model.scale))
+    while True:
+        box = np.minimum(np.full(system.m, T), sat)
+        try:
+            setup_poly = read_polytope(_scaled(constraints, box), system.m, 0.0, 1.0)
+            q, _ = box_lp(-np.ones(system.m), setup_poly, np.zeros(system.m), np.ones(system.m))
+        except InfeasibleError:             # a row this box cannot meet (P1 >= 30 in [0, 1]^m): not a verdict
+            q = None
+        if q is not None and evaluator.cost(np.clip(model.mu(box * q), 0.0, 1.0)) <= alpha:
+            P = box * q
+            return np.minimum(sat, max(float(np.sum(P)), float(np.max(P)))), P
+        if np.all(box >= sat):
+            return sat, None
+        T *= 2.0
+
+
+@blas_limited
+def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
+                constraints: Sequence[Constraint] = (), max_power: Any = None, gap: float = ALLOCATION_GAP_DEFAULT,
+                max_boxes: int = 20000, time_limit: float | None = None,
+                progress: bool | None = None) -> PowerAllocation:
+    """The least total transmit power ``sum P`` with ``J*(mu(P)) <= alpha``, with a certificate.
+
+    Parameters
+    ----------
+    system : System
+        Stationary channel; its own mu is ignored.
+    protocol : {"tcp", "udp"}
+    model : PowerModel
+        Delivery as a function of power (:func:`power_model`, :func:`load_power`).
+    alpha : float
+        Bound on the optimal expected cost, > 0.
+    constraints : sequence
+        Pairs ``(G, h)`` meaning ``G P <= h``, or callables ``f(P)`` returning affine cvxpy constraints.
+    max_power : float or array_like or None
+        A cap per channel (None: no cap; the search box is derived, see :func:`_search_cap`).
+    gap, max_boxes, time_limit, progress
+        As for :func:`~packetloss_cvx.allocation.allocate`.
+
+    Returns
+    -------
+    PowerAllocation
+        ``power`` feasible by the closed form (J*(mu(power)) <= alpha), ``lower_bound`` proven on the total
+        power, ``status`` "optimal" or "gap_not_certified".
+
+    Raises
+    ------
+    InputError
+        A bad argument, named by its field.
+    InfeasibleError
+        Proven: J* at the saturated powers (mu at its largest) exceeds alpha, or every box discarded.
+
+    Notes
+    -----
+    TCP-like with a concave model: one conic program (O(N (n + m)) variables) and 6 m + 1 closed forms and
+    one LP for the bound; otherwise the branch and bound of :func:`~.udp.udp_allocate` on x = P / top, each
+    box an LP and O(m log(1/tol)) closed forms of O(N (n^3 + m^3)).
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1: J*_tcp = 1/(1 + mu) <= 0.8 needs mu = 1/4, i.e. P = log(4/3) with
+    mu = 1 - exp(-P):
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> a = least_power(s, "tcp", power_model("exponential", 1, scale=1.0), 0.8)
+    >>> a.status, bool(np.log(4 / 3) <= a.total_power <= np.log(4 / 3) * (1 + 1e-4)), a.cost <= 0.8
+    ('optimal', True, True)
+    """
+    system, protocol = _check(system, protocol, model)
+    alpha = check_number(alpha, "alpha")
+    if alpha <= 0:
+        raise InputError("alpha", f"expected a positive bound on J*, found {alpha:g}")
+    gap = check_gap(gap)
+    max_boxes = _boxes(max_boxes)
+    cap = _cap(max_power, system.m)
+    C = constant_cost(system)
+    if alpha < C:
+        raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
+    top, found = _search_cap(system, protocol, model, alpha, constraints, cap)
+    setup = _setup(system, protocol, model, top, constraints, cap)
+    J = setup.cost.checked
+    m = system.m
+    corner = J(np.ones(m))
+    if corner > alpha * (1 + ALLOCATION_COST_RTOL):
+        raise InfeasibleError(f"J*_{protocol} at the largest powers searched (mu = "
+                              f"{np.round(setup.cost.mu(np.ones(m)), 12).tolist()}) is {corner:.6g} > alpha = "
+                              f"{alpha:g}, and J* falls as any power rises", None)
+    incumbent = None if found is None else found / top
+    floor = -np.inf
+    tcp = setup if protocol == "tcp" else _Setup(system, "tcp", model, top, constraints)
+    if tcp.convex():
+        # the TCP-like convex program: for "tcp" the answer, for "udp" a lower bound (Theorem 2: J*_udp >= J*_tcp)
+        x, floor = _convex_least_power(tcp, alpha, C)
+        if protocol == "tcp" and J(x) <= alpha:
+            incumbent = x
+    out = udp_allocate(system, setup.poly, alpha, top, gap, floor, max_boxes, time_limit, progress, cost=setup.cost,
+                       incumbent=incumbent, what=f"{protocol.upper()}-like least power")
+    method = _method(protocol, tcp.convex(), model, out.boxes, out.note)
+    return _result(setup, "least-power", out.mu, out.value, out.lower_bound, out.status, method, out.boxes, alpha)
+
+
+def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: str) -> str:
+    """How the answer was found, in words."""
+    program = ("convex program (Clarabel, " + ("exponential cone" if model.kind == "exponential" else
+                                               "the table's linear pieces") + "), lower bound from tangent cuts in P")
+    if protocol == "tcp" and convex:
+        return program if boxes == 0 else f"{program}; confirmed by branch and bound on x = P / top: {note}"
+    text = f"branch and bound on x = P / top: {note}"
+    return text + ("; lower bound from the TCP-like convex program (Theorem 2)" if convex else "")
+
+
+def _convex_least_power(setup: _Setup, alpha: float, C: float) -> tuple[np.ndarray, float]:
+    """The convex program's point moved onto {J* <= alpha} if it is just outside, and the tangent-cut bound."""
+    system, top, poly = setup.system, setup.top, setup.poly
+    program = PowerProgram(system, setup.model, "power", poly.G.shape[0])
+    G = poly.G / top[None, :]
+    P = program.solve(system.x0, 1.0 / max(alpha - C, np.finfo(float).tiny), top, G, poly.h,
+                      f"no power within the cap and constraints reaches J*_tcp <= alpha = {alpha:g}")
+    x = np.clip(P / top, 0.0, 1.0)
+    evaluator = setup.evaluator
+    g, r = setup.cuts(x, evaluator)
+    scale = np.max(np.abs(g), axis=1)
+    keep = scale > 0
+    rows = np.vstack([poly.G, g[keep] / scale[keep, None]])
+    rhs = np.concatenate([poly.h, (alpha - r[keep]) / scale[keep]])
+    point, lower = small_lp(top, rows, rhs, np.zeros(system.m), np.ones(system.m))
+    lower = -np.inf if point is None else lower         # the cuts admit every feasible point: not expected
+    J = setup.cost.checked
+    if J(x) > alpha:                      # solver tolerance: towards a maximal point until the closed form agrees
+        q, _ = box_lp(-np.ones(system.m), poly, np.zeros(system.m), np.ones(system.m))
+        if q is not None and J(q) <= alpha:
+            t = boundary(lambda a: J(x + a * (q - x)), alpha, 0.0, 1.0, ALLOCATION_INCUMBENT_SHARE * 1e-3)
+            x = x + t * (q - x)
+    return x, lower
+
+
+@blas_limited
+def least_cost_within_power(system: System, protocol: str, model: PowerModel, budget: float,
+                            constraints: Sequence[Constraint] = (), max_power: Any = None,
+                            gap: float = ALLOCATION_GAP_DEFAULT, max_boxes: int = 20000,
+                            time_limit: float | None = None) -> PowerAllocation:
+    """The least optimal cost ``J*(mu(P))`` with ``sum P <= budget`` (and the constraints), certified to a
+    relative ``gap`` (as :func:`least_power`'s; the branch and bound's corner bounds converge slowly where the
+    optimum lies inside the budget's face: 2e4 boxes did not reach 1e-6 on two_actuator, UDP-like).
+
+    Raises
+    ------
+    InputError
+        A negative or non-finite budget (field ``budget``), or another bad argument.
+    InfeasibleError
+        The constraints admit no power within the budget.
+
+    Notes
+    -----
+    TCP-like with a concave model: one conic program, 6 m + 1 closed forms and one LP (its bound); otherwise
+    (and to confirm) the branch and bound of :func:`~.udp.udp_min_cost` on x = P / top, top = min(budget, cap,
+    the model's saturation), two LPs and two closed forms per box.
+
+    Examples
+    --------
+    Two decoupled copies of x' = x + v u (N = 1), J*_tcp = sum 1/(1 + mu_i), mu_i = 1 - exp(-P_i): a budget of
+    2 is best split evenly (symmetry and convexity), mu = 1 - e^-1 each:
+
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+    ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
+    >>> best = least_cost_within_power(t, "tcp", power_model("exponential", 2, scale=1.0), 2.0)
+    >>> bool(np.allclose(best.power, 1.0, atol=1e-3)), bool(np.isclose(best.cost, 2 / (2 - np.exp(-1)), rtol=1e-6))
+    (True, True)
+    """
+    system, protocol = _check(system, protocol, model)
+    budget = check_number(budget, "budget")
+    if budget < 0:
+        raise InputError("budget", f"expected a total power >= 0, found {budget:g}")
+    gap = check_gap(gap)
+    max_boxes = _boxes(max_boxes)
+    cap = _cap(max_power, system.m)
+    m = system.m
+    top = model.saturation() if cap is None else cap
+    if budget == 0:              # no power at all: the only point, if the constraints admit it
+        setup = _setup(system, protocol, model, top, constraints, top)    # a row no box point meets misses P = 0
+        if np.any(setup.poly.h < 0):
+            raise InfeasibleError("the constraints admit no power within a budget of 0", None)
+        x = np.zeros(m)
+        value = setup.cost.checked(x)
+        return _result(setup, "least-cost", x, value, value, "optimal", "a budget of 0: every channel silent", 0, 0.0)
+    top = np.minimum(top, budget)
+    rows = [*constraints, (np.ones((1, m)), np.array([budget]))]
+    try:
+        cut = cap is None and bool(np.any(top < budget))        # cut at saturation: rows beyond it prove nothing
+        setup = _setup(system, protocol, model, top, rows, None if cut else top)
+    except InfeasibleError as err:
+        raise InfeasibleError(f"no power within the budget meets the constraints: {err}", None) from None
+    floor, incumbent = -np.inf, None
+    tcp = setup if protocol == "tcp" else _Setup(system, "tcp", model, top, rows)
+    if tcp.convex():
+        x, floor = _convex_least_cost(tcp)
+        if protocol == "tcp":
+            incumbent = x
+    out = udp_min_cost(system, setup.poly, max_boxes, time_limit, cost=setup.cost, incumbent=incumbent, floor=floor,
+                       what=f"{protocol.upper()}-like least cost within the power budget", gap=gap)
+    method = _method(protocol, tcp.convex(), model, out.boxes, out.note)
+    status = out.status if (out.value - out.lower_bound) <= gap * max(out.value, ALLOCATION_GAP_FLOOR) \
+        else "gap_not_certified"
+    return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, status, method, out.boxes, budget)
+
+
+def _convex_least_cost(setup: _Setup) -> tuple[np.ndarray, float]:
+    """The convex program's point and the tangent-cut bound ``min t s.t. t >= r_k + g_k x`` over the polytope."""
+    system, top, poly = setup.system, setup.top, setup.poly
+    m = system.m
+    C = constant_cost(system)
+    reference = setup.cost.checked(np.ones(m)) - C
+    program = PowerProgram(system, setup.model, "cost", poly.G.shape[0])
+    P = program.solve(system.x0, 1.0 / max(reference, np.finfo(float).tiny), top, poly.G / top[None, :], poly.h,
+                      "the power budget and constraints admit no power (Clarabel certificate)")
+    x = np.clip(P / top, 0.0, 1.0)
+    g, r = setup.cuts(x, setup.evaluator)
+    scale = np.maximum(np.max(np.abs(g), axis=1), 1.0)
+    G = np.vstack([np.hstack([poly.G, np.zeros((poly.G.shape[0], 1))]), np.hstack([g, -np.ones((len(r), 1))])
+                   / scale[:, None]])
+    h = np.concatenate([poly.h, -r / scale])
+    c = np.zeros(m + 1)
+    c[-1] = 1.0
+    ceiling = max(setup.cost.checked(x), C)
+    _, lower = small_lp(c, G, h, np.append(np.zeros(m), C), np.append(np.ones(m), ceiling))
+    return x, max(lower, C) if np.isfinite(lower) else C
+
+
+def power_pareto(system: System, protocol: str, model: PowerModel, budgets: Sequence[float],
+                 constraints: Sequence[Constraint] = (), max_power: Any = None,
+                 gap: float = ALLOCATION_GAP_DEFAULT) -> list[PowerAllocation]:
+    """The power-cost trade-off: :func:`least_cost_within_power` at each budget (ascending), each point
+    certified. O(len(budgets)) times one problem.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> curve = power_pareto(s, "tcp", power_model("exponential", 1, scale=1.0), [0.0, 1.0, 3.0])
+    >>> [round(p.cost, 6) for p in curve] == [round(1 / (2 - np.exp(-b)), 6) for b in (0.0, 1.0, 3.0)]
+    True
+    """
+    values = [check_number(b, "budgets") for b in budgets]
+    return [least_cost_within_power(system, protocol, model, b, constraints, max_power, gap) for b in sorted(values)]

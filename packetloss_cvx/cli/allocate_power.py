@@ -1,0 +1,188 @@
+"""``allocate FILE`` with transmit power (``--power``, the file's ``[power]`` table) or ``--protocol best``
+(the acknowledgement link priced): issue 24. :mod:`.allocate` hands these over; this module reads the
+options, calls :mod:`packetloss_cvx.allocation.power` / :mod:`~packetloss_cvx.allocation.ack` and shapes the
+result (exit 0 optimal, 3 infeasible, 4 gap not certified)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from ..allocation import parse_constraint
+from ..allocation.ack import best_protocol
+from ..allocation.power import PowerModel, least_cost_within_power, least_power, load_power, power_model
+from ..errors import InfeasibleError, InputError
+from ..io import read_csv_numbers
+from ..model import System
+from . import format as fmt
+from .common import CommandResult, floats, number, progress_of
+
+__all__ = ["POWER_OPTIONS", "model_of", "run", "wants_power"]
+
+#: the options that ask for power (any of them switches allocate to power)
+POWER_OPTIONS = ("power", "power_scale", "power_table", "budget", "power_max", "ack_power")
+
+#: the API's argument names -> the flags that set them
+FLAGS = {"alpha": "--alpha", "beta": "--beta", "budget": "--budget", "max_power": "--power-max", "gap": "--gap",
+         "max_boxes": "--max-boxes", "time_limit": "--time-limit", "ack_price": "--ack-price",
+         "power.scale": "--power-scale", "power.table": "--power-table", "power.model": "--power"}
+
+
+def wants_power(args: argparse.Namespace, system: System) -> bool:
+    """Power when a power option is given, or when the file has a ``[power]`` table and no ``--beta``."""
+    if any(getattr(args, name, None) is not None for name in POWER_OPTIONS):
+        return True
+    return args.beta is None and load_power(args.file, system.m) is not None
+
+
+def model_of(args: argparse.Namespace, system: System) -> PowerModel:
+    """The power model: the command line's options over the file's ``[power]`` table."""
+    m = system.m
+    given = args.power is not None or args.power_scale is not None or args.power_table is not None
+    from_file = load_power(args.file, m)
+    if not given:
+        if from_file is None:
+            raise InputError("--power", "give a model (exponential, rayleigh, table) with --power-scale or "
+                                        "--power-table, or a [power] table in the system file")
+        return from_file
+    kind = args.power or (from_file.kind if from_file is not None else None)
+    if kind is None:
+        raise InputError("--power", "required with --power-scale or --power-table (or a [power] table in the file)")
+    scale = floats(args.power_scale, "--power-scale") if args.power_scale is not None else (
+        from_file.scale if from_file is not None and from_file.kind == kind and kind != "table" else None)
+    table = read_csv_numbers(args.power_table, "--power-table") if args.power_table is not None else None
+    if table is None and kind == "table" and from_file is not None and from_file.kind == "table":
+        return from_file
+    try:
+        return power_model(kind, m, scale=scale, table=table)
+    except InputError as err:
+        raise (err.renamed(FLAGS[err.field]) if err.field in FLAGS else err) from None
+
+
+def _options(args: argparse.Namespace, system: System, power: bool) -> dict[str, Any]:
+    options: dict[str, Any] = {}
+    if args.gap is not None:
+        options["gap"] = number(args.gap, "--gap")
+    if args.max_boxes is not None:
+        options["max_boxes"] = args.max_boxes
+    if args.time_limit is not None:
+        options["time_limit"] = number(args.time_limit, "--time-limit")
+    if power and args.power_max is not None:
+        options["max_power"] = floats(args.power_max, "--power-max")
+    name = "P" if power else "mu"
+    options["constraints"] = [parse_constraint(text, system.m, name=name) for text in args.constraint or []]
+    return options
+
+
+def run(args: argparse.Namespace, system: System) -> CommandResult:
+    """Power (least total power with ``--alpha``, least J* with ``--budget``) or ``--protocol best``.
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1: J*_tcp = 1/(1 + mu) <= 0.8 needs mu = 1/4, P = log(4/3) when
+    mu = 1 - exp(-P).
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.cli.parser import build_parser
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = str(save_system(s, Path(folder.name) / "scalar.toml"))
+    >>> args = build_parser().parse_args(["allocate", path, "--protocol", "tcp", "--alpha", "0.8", "--power",
+    ...                                   "exponential", "--power-scale", "1"])
+    >>> result = run(args, s)
+    >>> result.code, result.data["status"], bool(abs(result.data["total_power"] - np.log(4 / 3)) < 1e-4)
+    (0, 'optimal', True)
+    >>> folder.cleanup()
+    """
+    power = wants_power(args, system)
+    model = model_of(args, system) if power else None
+    if not power and args.beta is None:
+        raise InputError("--beta", "required (or buy power: --power)")
+    if power and args.beta is not None:
+        raise InputError("--beta", "prices of mu do not apply when buying power (--power); drop one of them")
+    if args.alpha is None and args.budget is None:
+        raise InputError("--alpha", "required" + (" (or --budget)" if power else ""))
+    if args.alpha is not None and args.budget is not None:
+        raise InputError("--budget", "give --alpha (least power with J* <= alpha) or --budget (least J*), not both")
+    options = _options(args, system, power)
+    name = fmt.name(system.name or args.file)
+    try:
+        if args.protocol == "best":
+            return _best(args, system, model, options, name)
+        if args.budget is not None:
+            result = least_cost_within_power(system, args.protocol, model, number(args.budget, "--budget"),
+                                             **options)
+        else:
+            result = least_power(system, args.protocol, model, number(args.alpha, "--alpha"),
+                                 progress=progress_of(args), **options)
+    except InputError as err:
+        raise (err.renamed(FLAGS[err.field]) if err.field in FLAGS else err) from None
+    except InfeasibleError as err:
+        data = {"protocol": args.protocol, "power": None, "total_power": None, "mu": None, "cost": None,
+                "status": "infeasible", "gap": None, "min_cost": err.min_cost, "model": model.to_dict()}
+        return CommandResult(data, f"infeasible: {err}", 3)
+    data = result.to_dict()
+    least = result.problem == "least-power"
+    rows = [("model", f"{model.kind}, c = {fmt.numbers(model.scale)}" if model.scale is not None else
+             f"table of {len(model.powers)} rows"),
+            ("power", fmt.numbers(result.power)), ("total power", fmt.num(result.total_power)),
+            ("mu", fmt.numbers(result.mu)),
+            ("J*", f"{fmt.num(result.cost, 10)} " + (f"<= alpha = {fmt.num(result.limit)}" if least else "")),
+            ("lower bound", f"{fmt.num(result.lower_bound)} on {'the total power' if least else 'J*'} (proved)"),
+            ("gap", f"{result.gap:.1e}"),
+            ("method", result.method + (f", {result.boxes} boxes" if result.boxes else ""))]
+    what = "least total power" if least else f"least J* within a total power of {fmt.num(result.limit)}"
+    if result.status == "optimal":
+        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: {what} for {name}"] + fmt.fields(rows)))
+    heading = f"{args.protocol.upper()}-like: GAP NOT CERTIFIED, {what} for {name} (gap reached {result.gap:.1e})"
+    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", "raise --max-boxes or "
+                                                                         "--time-limit, or --gap")])), 4)
+
+
+def _best(args: argparse.Namespace, system: System, model: PowerModel | None, options: dict[str, Any],
+          name: str) -> CommandResult:
+    if args.budget is not None:
+        raise InputError("--budget", "--protocol best compares the two designs for one --alpha")
+    if model is None and args.ack_power is not None:
+        raise InputError("--ack-power", "prices the link in power: buy power too (--power), or use --ack-price")
+    if model is not None and args.ack_price is not None:
+        raise InputError("--ack-price", "with power the link costs power: use --ack-power")
+    price = args.ack_power if model is not None else args.ack_price
+    flag = "--ack-power" if model is not None else "--ack-price"
+    ack = 0.0 if price is None else number(price, flag)
+    if ack < 0:
+        raise InputError(flag, f"expected a price >= 0, found {ack:g}")
+    alpha = number(args.alpha, "--alpha")
+    beta = None if model is not None else floats(args.beta, "--beta")
+    if beta is not None and len(beta) != system.m:
+        raise InputError("--beta", f"expected {system.m} comma-separated numbers, found {len(beta)}")
+    try:
+        choice = best_protocol(system, alpha, beta, ack, model, **options)
+    except InfeasibleError as err:
+        data = {"protocol": "best", "alpha": alpha, "choice": None, "status": "infeasible", "tcp": None, "udp": None,
+                "min_cost": err.min_cost}
+        return CommandResult(data, f"infeasible: {err}", 3)
+    data = choice.to_dict()
+    designs = [choice.tcp] + ([choice.udp] if choice.udp is not None else [])
+    certified = all(d.status == "optimal" for d in designs)
+    data["status"] = "optimal" if certified else "gap_not_certified"
+    unit = "total power" if model is not None else "beta'mu"
+
+    def line(design, total: float, extra: str) -> str:
+        if design is None:
+            return "no design meets alpha (proved)"
+        spent = design.power if model is not None else design.mu
+        return (f"{fmt.num(total)} {extra}(" + ("power " if model is not None else "mu ") + fmt.numbers(spent)
+                + f", J* {fmt.num(design.cost)})")
+
+    rows = [("TCP-like", line(choice.tcp, choice.tcp_total, f"= {unit} + ack {fmt.num(ack)} ")),
+            ("UDP-like", line(choice.udp, choice.udp_total, "")),
+            ("choice", choice.choice.upper() + "-like" + ("" if choice.certified else
+                                                         " (within the designs' gaps: not certified)")),
+            ("break-even ack", (f"UDP-like wins above {fmt.num(choice.break_even)}" if choice.udp is not None
+                                else "none: only the TCP-like protocol meets alpha"))]
+    heading = f"best protocol for {name} at alpha = {fmt.num(alpha)} ({unit})"
+    return CommandResult(data, "\n".join([heading] + fmt.fields(rows)), 0 if certified else 4)

@@ -1,0 +1,483 @@
+"""Power-limited links (allocation/power.py, issue 24): the models, the two problems for both protocols,
+against hand values (one channel: invert mu(P) at the mu the scalar problem needs), decoupled plants
+(a one-dimensional search over the split of the budget), a grid of P, and the mu allocation."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq, minimize_scalar
+
+from packetloss_cvx import System, load_system
+from packetloss_cvx.allocation import allocate
+from packetloss_cvx.allocation.ack import ack_break_even, best_protocol
+from packetloss_cvx.allocation.power import (
+    least_cost_within_power,
+    least_power,
+    load_power,
+    power_model,
+    power_pareto,
+)
+from packetloss_cvx.cli import main
+from packetloss_cvx.errors import InfeasibleError, InputError
+from packetloss_cvx.evaluator import CostEvaluator
+
+
+def scalar() -> System:
+    """One step of x' = x + v u from x0 = 1, Q = R = 1: J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2."""
+    return System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+
+
+def decoupled(w=(1.0, 3.0)) -> System:
+    """Two such plants side by side, x0_i = sqrt(w_i): J*_tcp = sum w_i/(1 + mu_i), J*_udp = sum w_i (1 - mu_i/2)."""
+    return System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+                  mu=[0.5, 0.5], x0=np.sqrt(w))
+
+
+def hand_cost(protocol, mu, w):
+    mu = np.asarray(mu, dtype=float)
+    return float(np.sum(np.asarray(w) / (1 + mu))) if protocol == "tcp" else float(np.sum(np.asarray(w) * (1 - mu / 2)))
+
+
+MODELS = {
+    "exponential": dict(scale=[1.5]),
+    "rayleigh": dict(scale=[0.7]),
+    "table": dict(table=[[0.0, 0.0], [1.0, 0.3], [2.0, 0.5], [5.0, 0.9]]),          # concave
+    "table-s": dict(table=[[0.0, 0.0], [1.0, 0.05], [2.0, 0.6], [4.0, 0.9]]),       # not concave
+}
+
+
+def model_of(name, m=1):
+    kw = MODELS[name]
+    if "scale" in kw:
+        return power_model(name, m, scale=kw["scale"] * m)
+    return power_model("table", m, table=kw["table"])
+
+
+def hand_power(name, mu):
+    """The least power reaching mu, by hand from each model's formula."""
+    if name == "exponential":
+        return -1.5 * np.log(1 - mu)
+    if name == "rayleigh":
+        return -0.7 / np.log(mu)
+    table = np.array(MODELS[name]["table"])
+    return float(np.interp(mu, table[:, 1], table[:, 0]))
+
+
+# ------------------------------------------------------------------ the models
+
+def test_model_formulas_against_hand_values():
+    e = power_model("exponential", 2, scale=[1.0, 2.0])
+    assert np.allclose(e.mu(np.array([1.0, 2.0])), 1 - np.exp(-1.0))
+    r = power_model("rayleigh", 1, scale=2.0)
+    assert np.allclose(r.mu(np.array([4.0])), np.exp(-0.5))
+    assert r.mu(np.array([0.0]))[0] == 0.0
+    t = power_model("table", 2, table=[[0, 0, 0.1], [2, 0.5, 0.3], [4, 0.6, 0.9]])
+    assert np.allclose(t.mu(np.array([1.0, 3.0])), [0.25, 0.6])
+    assert np.allclose(t.mu(np.array([9.0, 9.0])), [0.6, 0.9])
+    assert np.allclose(t.power(np.array([0.25, 0.6])), [1.0, 3.0])
+    assert np.isinf(t.power(np.array([0.7, 0.5]))[0])
+    assert np.allclose(e.slope(np.array([0.0, 2.0])), [1.0, np.exp(-1.0) / 2])      # d/dP (1 - exp(-P/c))
+    assert np.allclose(r.slope(np.array([2.0])), 2 / 4 * np.exp(-1.0))            # c/P^2 exp(-c/P)
+
+
+def test_model_inverse_and_concavity():
+    for name in ("exponential", "rayleigh", "table", "table-s"):
+        model = model_of(name)
+        for mu in (0.2, 0.45, 0.85):
+            assert np.isclose(model.mu(model.power(np.array([mu])))[0], mu, rtol=1e-12)
+    assert model_of("exponential").concave_from()[0] == 0
+    assert model_of("table").concave_from()[0] == 0
+    assert np.isinf(model_of("table-s").concave_from()[0])
+    assert model_of("rayleigh").concave_from()[0] == 0.35
+    # rayleigh's second derivative changes sign at c/2 (finite differences)
+    r, h = model_of("rayleigh"), 1e-4
+    second = [(r.mu(np.array([p + h])) - 2 * r.mu(np.array([p])) + r.mu(np.array([p - h])))[0] for p in (0.3, 0.4)]
+    assert second[0] > 0 > second[1]
+
+
+@pytest.mark.parametrize(("kw", "match"), [
+    (dict(model="exponential", scale=[0.0]), "power.scale: expected positive"),
+    (dict(model="rayleigh", scale=[-1.0]), "power.scale: expected positive"),
+    (dict(model="exponential", scale=[float("nan")]), "power.scale: expected finite"),
+    (dict(model="table", table=[[0, 0], [1, 0.5], [2, 0.4]]), "must not fall"),
+    (dict(model="table", table=[[0, 0], [1, 1.5]]), r"must lie in \[0, 1\]"),
+    (dict(model="table", table=[[0, -0.1], [1, 0.5]]), r"must lie in \[0, 1\]"),
+    (dict(model="table", table=[[0, 0], [0, 0.5]]), "powers must increase"),
+    (dict(model="table", table=[[1, 0], [2, 0.5]]), "first row's power must be 0"),
+    (dict(model="shannon", scale=[1.0]), "power.model: expected one of"),
+])
+def test_model_refuses_bad_input(kw, match):
+    model = kw.pop("model")
+    with pytest.raises(InputError, match=match):
+        power_model(model, 1, **kw)
+
+
+def test_power_table_in_a_system_file(tmp_path):
+    (tmp_path / "curve.csv").write_text("power,mu\n0,0\n1,0.4\n3,0.9\n")
+    base = (load_system("two_actuator"),)
+    from packetloss_cvx.io import dumps_system
+    text = dumps_system(base[0])
+    (tmp_path / "a.toml").write_text(text + '\n[power]\nmodel = "table"\ntable = "curve.csv"\n')
+    (tmp_path / "b.toml").write_text(text + '\n[power]\nmodel = "exponential"\nscale = [1.0, 2.0]\n')
+    (tmp_path / "c.toml").write_text(text + '\n[power]\nmodel = "exponential"\nscale = [1.0, -2.0]\n')
+    assert np.allclose(load_power(tmp_path / "a.toml", 2).mu(np.array([2.0, 0.5])), [0.65, 0.2])
+    assert np.allclose(load_power(tmp_path / "b.toml", 2).scale, [1.0, 2.0])
+    assert load_system(tmp_path / "b.toml").m == 2             # the system loader passes [power] by
+    with pytest.raises(InputError, match="power.scale"):
+        load_power(tmp_path / "c.toml", 2)
+
+
+# ------------------------------------------------------------------ one channel: hand values
+
+@pytest.mark.parametrize("name", ["exponential", "rayleigh", "table", "table-s"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_power_one_channel_inverts_the_model(name, protocol):
+    alpha = 0.8
+    need = 0.25 if protocol == "tcp" else 0.4          # 1/(1 + mu) = 0.8, 1 - mu/2 = 0.8
+    out = least_power(scalar(), protocol, model_of(name), alpha, gap=1e-6)
+    P = hand_power(name, need)
+    assert out.status == "optimal"
+    assert out.cost <= alpha
+    assert out.lower_bound <= P * (1 + 1e-9)
+    assert P <= out.total_power <= P * (1 + 1e-5)
+
+
+@pytest.mark.parametrize("name", ["exponential", "rayleigh", "table", "table-s"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_one_channel_spends_the_budget(name, protocol):
+    budget = 1.7
+    out = least_cost_within_power(scalar(), protocol, model_of(name), budget, gap=1e-7)
+    mu = model_of(name).mu(np.array([budget]))[0]
+    assert np.isclose(out.cost, hand_cost(protocol, [mu], [1.0]), rtol=1e-7)
+    assert out.lower_bound <= hand_cost(protocol, [mu], [1.0]) * (1 + 1e-12)
+    assert out.status == "optimal"
+
+
+# ------------------------------------------------------------------ decoupled plants: a 1-D reference
+
+def split_reference(protocol, name, budget, w):
+    """min over s in [0, B] of the hand cost at powers (s, B - s): the budget is spent (J* falls in P)."""
+    model = model_of(name, 2)
+
+    def f(s):
+        return hand_cost(protocol, model.mu(np.array([s, budget - s])), w)
+
+    grid = np.linspace(0, budget, 2001)
+    k = int(np.argmin([f(s) for s in grid]))
+    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    best = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
+    return min(best.fun, f(grid[k]))
+
+
+@pytest.mark.parametrize("name", ["exponential", "table", "table-s", "rayleigh"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_decoupled_against_the_split_of_the_budget(name, protocol):
+    w, gap = (1.0, 3.0), 1e-4
+    out = least_cost_within_power(decoupled(w), protocol, model_of(name, 2), 2.5, gap=gap)
+    ref = split_reference(protocol, name, 2.5, w)
+    assert out.lower_bound <= ref * (1 + 1e-9)
+    assert out.cost <= ref * (1 + gap)
+    assert out.total_power <= 2.5 * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("name", ["exponential", "table-s"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_power_decoupled_against_a_root_per_budget(name, protocol):
+    """The least power P is the least budget whose least cost reaches alpha: bisect on the 1-D reference."""
+    w, alpha, gap = (1.0, 3.0), 2.9, 1e-4
+    out = least_power(decoupled(w), protocol, model_of(name, 2), alpha, gap=gap)
+    total = brentq(lambda b: split_reference(protocol, name, b, w) - alpha, 1e-6, 40.0, xtol=1e-10)
+    assert out.cost <= alpha
+    assert out.lower_bound <= total * (1 + 1e-6)
+    assert out.total_power <= total * (1 + gap)
+
+
+# ------------------------------------------------------------------ the paper's system: a grid of P
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_two_actuator_against_a_grid_on_the_budget(protocol):
+    s, budget = load_system("two_actuator"), 3.0
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    out = least_cost_within_power(s, protocol, model, budget)
+    ev = CostEvaluator(s, protocol)
+    grid = np.linspace(0, budget, 3001)
+    ref = min(ev.costs(model.mu(np.stack([grid, budget - grid], axis=1))))
+    assert out.lower_bound <= ref * (1 + 1e-9)
+    assert out.cost <= ref * (1 + 1e-4)
+    assert np.isclose(out.cost, ev.cost(model.mu(out.power)), rtol=1e-12)
+
+
+def test_pareto_curve_falls_and_each_point_is_certified():
+    s = load_system("two_actuator")
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    curve = power_pareto(s, "tcp", model, [4.0, 0.0, 1.0, 2.0])
+    costs = [p.cost for p in curve]
+    assert [p.limit for p in curve] == [0.0, 1.0, 2.0, 4.0]
+    assert all(np.diff(costs) < 0)
+    assert np.isclose(costs[0], CostEvaluator(s, "tcp").cost(np.zeros(2)), rtol=1e-12)
+    assert all(p.status == "optimal" and p.lower_bound <= p.cost for p in curve)
+
+
+# ------------------------------------------------------------------ the mu allocation where the problems coincide
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_a_linear_model_is_the_mu_allocation_with_beta_c(protocol):
+    """mu = P / c_i up to P = c_i (a two-row table per channel): total power = c' mu, the paper's beta'mu."""
+    s, c, alpha = load_system("two_actuator"), np.array([2.0, 0.5]), 8.0
+    model = power_model("table", 2, table=[[0.0, 0.0, 0.0], [0.5, 0.25, 1.0], [2.0, 1.0, 1.0]])   # mu_i = P / c_i
+    assert np.allclose(model.mu(np.array([1.0, 0.25])), [0.5, 0.5])
+    out = least_power(s, protocol, model, alpha, gap=1e-6)
+    ref = allocate(s, protocol, alpha, c, gap=1e-6)
+    assert np.isclose(out.total_power, ref.communication_cost, rtol=2e-6)
+    assert out.lower_bound <= ref.communication_cost * (1 + 1e-9)
+    assert ref.lower_bound <= out.total_power
+
+
+def test_tcp_exponential_optimum_is_the_mu_allocation_at_the_marginal_prices():
+    """At the power optimum mu*, the mu allocation with prices beta_i = dP_i/dmu_i = c_i / (1 - mu*_i) (the
+    power's linearisation there) has the same KKT conditions with the same multiplier: it returns mu*."""
+    s, c, alpha = load_system("two_actuator"), np.array([1.0, 2.0]), 8.0
+    out = least_power(s, "tcp", power_model("exponential", 2, scale=c), alpha, gap=1e-7)
+    ref = allocate(s, "tcp", alpha, c / (1 - out.mu), gap=1e-7)
+    assert np.allclose(ref.mu, out.mu, atol=2e-4)
+    assert np.isclose(c @ -np.log1p(-ref.mu), out.total_power, rtol=1e-5)
+
+
+# ------------------------------------------------------------------ errors
+
+def test_infeasible_and_bad_arguments():
+    s = load_system("two_actuator")
+    model = power_model("exponential", 2, scale=1.0)
+    floor = CostEvaluator(s, "tcp").cost(np.ones(2))
+    with pytest.raises(InfeasibleError, match="J\\*_tcp at the largest powers"):
+        least_power(s, "tcp", model, floor * 0.99)
+    with pytest.raises(InputError, match="budget: expected a total power >= 0"):
+        least_cost_within_power(s, "tcp", model, -1.0)
+    with pytest.raises(InputError, match="model: the model has 1 channels"):
+        least_power(s, "tcp", power_model("exponential", 1, scale=1.0), 8.0)
+    with pytest.raises(InputError, match="max_power"):
+        least_power(s, "tcp", model, 8.0, max_power=[1.0, 0.0])
+    with pytest.raises(InfeasibleError):
+        least_cost_within_power(s, "tcp", model, 1.0, constraints=[([[-1.0, 0.0]], [-2.0])])     # P1 >= 2 > budget
+
+
+def test_constraints_on_power_are_met():
+    s = load_system("two_actuator")
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    free = least_power(s, "tcp", model, 8.0)
+    out = least_power(s, "tcp", model, 8.0, constraints=[([[1.0, -1.0]], [0.0])], gap=1e-6)     # P1 <= P2
+    assert out.power[0] <= out.power[1] + 1e-9
+    assert out.cost <= 8.0
+    assert out.total_power >= free.lower_bound * (1 - 1e-9)
+    capped = least_power(s, "udp", model, 8.0, max_power=3.0)
+    assert np.all(capped.power <= 3.0 + 1e-12)
+    assert capped.cost <= 8.0
+
+
+# ------------------------------------------------------------------ the command line
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_least_power_json_holds_the_contract(capsys):
+    code, out, _ = run_cli(capsys, "allocate", "two_actuator", "--protocol", "tcp", "--alpha", "8", "--power",
+                           "exponential", "--power-scale", "1,2", "--json")
+    data = json.loads(out)
+    assert code == 0
+    assert data["status"] == "optimal"
+    assert {"power", "total_power", "mu", "cost", "status", "gap"} <= set(data)
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+    assert np.isclose(sum(data["power"]), data["total_power"])
+    assert np.allclose(model.mu(data["power"]), data["mu"])
+    assert data["cost"] <= 8.0
+    assert np.isclose(data["cost"], CostEvaluator(load_system("two_actuator"), "tcp").cost(
+        np.array(data["mu"])), rtol=1e-12)
+
+
+def test_cli_budget_and_the_file_power_table(capsys, tmp_path):
+    from packetloss_cvx.io import dumps_system
+    (tmp_path / "link.csv").write_text("# measured\npower,mu\n0,0\n1,0.5\n3,0.9\n")
+    (tmp_path / "s.toml").write_text(dumps_system(scalar()) + '\n[power]\nmodel = "table"\ntable = "link.csv"\n')
+    code, out, _ = run_cli(capsys, "allocate", str(tmp_path / "s.toml"), "--protocol", "udp", "--budget", "2",
+                           "--json")
+    data = json.loads(out)
+    assert code == 0
+    assert np.isclose(data["power"][0], 2.0)
+    assert np.isclose(data["mu"][0], 0.7)
+    assert np.isclose(data["cost"], 1 - 0.7 / 2, rtol=1e-9)
+
+
+@pytest.mark.parametrize(("argv", "match"), [
+    (["--alpha", "8", "--power", "exponential", "--power-scale", "0,1"], "--power-scale: expected positive"),
+    (["--budget", "-1", "--power", "exponential", "--power-scale", "1"], "--budget: expected a total power >= 0"),
+    (["--alpha", "8", "--power", "table", "--power-table", "{bad}"], "--power-table: mu must not fall"),
+    (["--alpha", "8", "--power", "table", "--power-table", "{out}"], r"--power-table: mu must lie in \[0, 1\]"),
+    (["--alpha", "8", "--power", "exponential"], "--power-scale: the exponential model needs a scale"),
+    (["--budget", "2"], "--power: give a model"),
+    (["--alpha", "8"], "--beta: required"),
+    (["--alpha", "8", "--budget", "2", "--power", "exponential", "--power-scale", "1"], "--budget: give --alpha"),
+    (["--alpha", "8", "--power", "exponential", "--power-scale", "1", "--constraint", "mu1 <= 2"],
+     "--constraint: cannot parse"),
+])
+def test_cli_bad_power_input_exits_2_with_one_line(capsys, tmp_path, argv, match):
+    (tmp_path / "bad.csv").write_text("0,0\n1,0.5\n2,0.4\n")
+    (tmp_path / "out.csv").write_text("0,0\n1,1.5\n")
+    argv = [a.format(bad=tmp_path / "bad.csv", out=tmp_path / "out.csv") for a in argv]
+    code, out, err = run_cli(capsys, "allocate", "two_actuator", "--protocol", "tcp", *argv)
+    assert code == 2
+    assert out == ""
+    assert len(err.splitlines()) == 1
+    assert re.search(match, err), err
+
+
+def test_cli_infeasible_power_exits_3(capsys):
+    code, out, _ = run_cli(capsys, "allocate", "two_actuator", "--protocol", "tcp", "--alpha", "1", "--power",
+                           "exponential", "--power-scale", "1,2", "--json")
+    assert code == 3
+    assert json.loads(out)["status"] == "infeasible"
+
+
+def test_cli_best_protocol_prices_the_ack_link(capsys):
+    """--protocol best: the choice flips where the ack price crosses the break-even price both designs give."""
+    argv = ["allocate", "two_actuator", "--protocol", "best", "--alpha", "8", "--beta", "1,1", "--json"]
+    code, out, _ = run_cli(capsys, *argv, "--ack-price", "0")
+    free = json.loads(out)
+    tcp = allocate(load_system("two_actuator"), "tcp", 8.0, [1.0, 1.0])
+    udp = allocate(load_system("two_actuator"), "udp", 8.0, [1.0, 1.0])
+    assert code == 0
+    assert free["choice"] == "tcp"
+    assert np.isclose(free["break_even_ack_price"], udp.communication_cost - tcp.communication_cost, rtol=1e-3)
+    code, out, _ = run_cli(capsys, *argv, "--ack-price", str(free["break_even_ack_price"] * 1.01))
+    assert code == 0
+    assert json.loads(out)["choice"] == "udp"
+    code, out, _ = run_cli(capsys, "allocate", "two_actuator", "--protocol", "best", "--alpha", "8", "--power",
+                           "exponential", "--power-scale", "1,2", "--ack-power", "0.5", "--json")
+    data = json.loads(out)
+    assert code == 0
+    assert np.isclose(data["tcp_total"], data["tcp"]["total_power"] + 0.5)
+
+
+# ------------------------------------------------------------------ the acknowledgement link priced
+
+def test_ack_break_even_one_channel_against_hand_values():
+    """One step of x' = x + v u: TCP-like needs mu = 1/alpha - 1, UDP-like mu = 2 (1 - alpha) (beta = 1)."""
+    alphas = np.array([0.6, 0.75, 0.9])
+    study = ack_break_even(scalar(), alphas, [1.0], gap=1e-8)
+    assert np.allclose(study["tcp_total"], 1 / alphas - 1, rtol=1e-6)
+    assert np.allclose(study["break_even"], 2 * (1 - alphas) - (1 / alphas - 1), atol=1e-6)
+    power = ack_break_even(scalar(), [0.8], model=power_model("exponential", 1, scale=1.0), gap=1e-8)
+    assert np.isclose(power["break_even"][0], -np.log1p(-0.4) - -np.log1p(-0.25), rtol=1e-5)
+
+
+def test_best_protocol_refuses_a_price_below_zero_and_proves_infeasibility():
+    with pytest.raises(InputError, match="ack_price"):
+        best_protocol(scalar(), 0.8, [1.0], ack_price=-1.0)
+    with pytest.raises(InfeasibleError, match="no TCP-like design"):
+        best_protocol(scalar(), 0.4, [1.0])                            # J*_tcp >= 1/2
+    dear = best_protocol(scalar(), 0.55, [1.0], ack_price=5.0)        # a dear link: UDP-like (mu = 0.9) wins
+    assert dear.choice == "udp"
+    assert dear.certified
+    only = best_protocol(scalar(), 0.54, [1.0], bounds=(0.0, 0.9))      # TCP-like mu = 0.852, UDP-like 0.92 > 0.9
+    assert only.udp is None
+    assert only.choice == "tcp"
+    assert np.isinf(only.break_even)
+
+
+# ------------------------------------------------------------------ the water-filling conjecture (claims/power.py)
+
+def kkt_powers(w, budget):
+    """TCP-like, decoupled one-step plants, mu = 1 - exp(-P): w_i y_i / (2 - y_i)^2 = lambda, y_i = exp(-P_i),
+    sum P = B; each y_i the root in (0, 1] of lambda y^2 - (4 lambda + w) y + 4 lambda = 0, lambda by bisection."""
+    w = np.asarray(w, dtype=float)
+
+    def powers(lam):
+        b = 4 * lam + w
+        y = (b - np.sqrt(b * b - 16 * lam * lam)) / (2 * lam)
+        return -np.log(np.clip(y, 1e-300, 1.0))
+
+    lam = brentq(lambda t: powers(t).sum() - budget, 1e-12, w.min() / 1.0 - 1e-12, xtol=1e-15)
+    return powers(lam)
+
+
+def test_water_filling_fails_for_the_tcp_like_cost_by_the_hand_kkt():
+    from packetloss_cvx.claims.power import BUDGETS, level_shift, water_cases
+
+    _, system, protocol = water_cases()[1]
+    shift, powers = level_shift(system, protocol)
+    for budget, P in zip(BUDGETS, powers, strict=True):
+        assert np.allclose(P, kkt_powers((1.0, 3.0), budget), atol=1e-4)
+    hand = [np.diff(kkt_powers((1.0, 3.0), b))[0] for b in BUDGETS]
+    assert np.isclose(hand[0], 0.7473, atol=1e-4)                      # the note's hand value
+    assert np.isclose(shift, abs(hand[1] - hand[0]), atol=2e-4)
+    assert shift > 0.2
+
+
+def test_water_filling_holds_where_the_cost_is_affine_in_mu():
+    """UDP-like, decoupled one-step plants: J* = sum w_i (1 - mu_i/2) = sum w_i (1 + exp(-P_i))/2, KKT
+    (w_i / 2) exp(-P_i) = lambda: P_i = nu - a_i with a_i = -ln(w_i / 2), so P_2 - P_1 = ln 3 at every budget."""
+    from packetloss_cvx.claims.power import level_shift, water_cases
+
+    _, system, _ = water_cases()[1]
+    shift, powers = level_shift(system, "udp", gap=1e-5)
+    assert shift < 1e-3
+    for P in powers:
+        assert np.isclose(P[1] - P[0], np.log(3.0), atol=1e-3)
+
+
+def test_water_filling_claim_verdict_and_counterexample():
+    from packetloss_cvx.claims import CLAIMS
+    from packetloss_cvx.claims.context import Context
+
+    result = CLAIMS["power-water-filling"][1](Context(paper={}, random=[], seed=0))
+    assert result.verdict == "fails"
+    assert result.outcomes == "+--"
+    assert result.counterexample["name"] == "decoupled w = (1, 3)"
+
+
+def test_max_boxes_is_counted_against_its_budget():
+    from packetloss_cvx.errors import BudgetError
+
+    model = power_model("exponential", 1, scale=1.0)
+    with pytest.raises(BudgetError, match="max_boxes"):
+        least_power(scalar(), "udp", model, 0.8, max_boxes=10**9)
+    with pytest.raises(BudgetError, match="max_boxes"):
+        least_cost_within_power(scalar(), "udp", model, 1.0, max_boxes=10**9)
+
+
+def test_a_row_beyond_the_first_search_box_is_no_verdict():
+    """The cap is found by doubling a box from a small one: a row no small box meets (P1 >= 30) must not read
+    as infeasible."""
+    s = load_system("two_actuator")
+    out = least_power(s, "tcp", power_model("exponential", 2, scale=1.0), 8.0, constraints=[([[-1.0, 0.0]], [-30.0])])
+    assert out.power[0] >= 30.0 - 1e-6
+    assert out.cost <= 8.0
+
+
+def test_a_row_beyond_saturation_is_no_verdict():
+    """exponential c = 1 saturates at P = 40 (mu = 1 in double precision): a row P1 >= 50 is not infeasible,
+    the search box is; without a cap that is an InputError naming max_power, with one the search reaches it."""
+    s, model = load_system("two_actuator"), power_model("exponential", 2, scale=1.0)
+    row = [([[-1.0, 0.0]], [-50.0])]
+    with pytest.raises(InputError, match="max_power"):
+        least_power(s, "tcp", model, 8.0, constraints=row)
+    out = least_power(s, "tcp", model, 8.0, constraints=row, max_power=60.0)
+    assert out.power[0] >= 50.0 - 1e-6
+    assert out.cost <= 8.0
+    with pytest.raises(InfeasibleError):
+        least_cost_within_power(s, "tcp", model, 30.0, constraints=row)       # P1 <= 30 < 50: proven
+
+
+def test_a_budget_beyond_saturation_with_a_row_beyond_it_asks_for_a_cap():
+    s, model = load_system("two_actuator"), power_model("exponential", 2, scale=1.0)
+    row = [([[-1.0, 0.0]], [-50.0])]                                    # P1 >= 50 > 40, the saturation
+    with pytest.raises(InputError, match="max_power"):
+        least_cost_within_power(s, "tcp", model, 100.0, constraints=row)
+    out = least_cost_within_power(s, "tcp", model, 100.0, constraints=row, max_power=100.0)
+    assert out.power[0] >= 50.0 - 1e-6
