@@ -29,8 +29,8 @@ from ..tolerances import ALLOCATION_AIM_RTOL, ALLOCATION_LP_FEASIBILITY, CLARABE
 from .grammar import Polytope
 
 __all__ = [
-    "Outcome", "boundary", "box_lp", "bracket", "check_in_polytope", "cost_at", "cost_function", "dual_bound", "lp",
-    "polytope_excess", "small_lp",
+    "Outcome", "boundary", "box_bound", "box_lp", "bracket", "check_in_polytope", "cost_at", "cost_function",
+    "dual_bound", "lp", "polytope_excess", "small_lp",
 ]
 
 _HIGHS = {"primal_feasibility_tolerance": ALLOCATION_LP_FEASIBILITY,
@@ -259,6 +259,34 @@ def box_lp(c: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
     if extra is not None:
         G, h = np.vstack([G, extra[0]]), np.concatenate([h, extra[1]])
     return lp(c, G, h, l, u)
+
+
+def box_bound(beta: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
+              best: float) -> tuple[float, np.ndarray, np.ndarray, np.ndarray] | None:
+    """A box's certified lower bound on ``beta'mu`` for the monotone searches: lower ``u`` (in place) where
+    ``beta'mu`` could not beat the incumbent's ``best``, then :func:`box_lp`. ``(lb, l, u, p)`` with ``p`` the
+    LP's minimiser, or None when the box holds no point of the rows that could improve. O(m r) plus the LP.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.allocation.grammar import read_polytope
+    >>> poly = read_polytope([], 2, 0.0, 1.0)
+    >>> lb, l, u, p = box_bound(np.array([1.0, 1.0]), poly, np.array([0.25, 0.5]), np.ones(2), 1.0)
+    >>> lb, u.tolist()                    # mu1 <= 1 - 0.5 and mu2 <= 1 - 0.25: nothing better above
+    (0.75, [0.5, 0.75])
+    >>> box_bound(np.array([1.0, 1.0]), poly, np.array([0.5, 0.75]), np.ones(2), 1.0) is None
+    True
+    """
+    if np.isfinite(best):                    # lower u where beta'mu would not beat the incumbent
+        rest = beta @ l - beta * l
+        positive = beta > 0
+        u[positive] = np.minimum(u[positive], (best - rest[positive]) / beta[positive])
+        if np.any(u < l):
+            return None
+    p, lb = box_lp(beta, poly, l, u)
+    if p is None:
+        return None
+    return lb, l, u, p
 
 
 def check_in_polytope(mu: np.ndarray, poly: Polytope, what: str) -> np.ndarray:

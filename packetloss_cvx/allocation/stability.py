@@ -57,7 +57,7 @@ from ..tolerances import (
     ALLOCATION_INCUMBENT_SHARE,
     MEAN_SQUARE_MARGIN,
 )
-from .boxes import Outcome, box_lp, bracket, check_in_polytope
+from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope
 from .grammar import (
     Constraint,
     Polytope,
@@ -269,16 +269,7 @@ def _search(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, max_boxe
         for i in range(m):
             if l[i] < u[i]:
                 l[i] = edge(u, i, float(l[i]))
-        if np.isfinite(search.best):             # lower u where beta'mu would not beat the incumbent
-            rest = beta @ l - beta * l
-            positive = beta > 0
-            u[positive] = np.minimum(u[positive], (search.best - rest[positive]) / beta[positive])
-            if np.any(u < l):
-                return None
-        p, lb = box_lp(beta, poly, l, u)
-        if p is None:
-            return None
-        return lb, l, u, p
+        return box_bound(beta, poly, l, u, search.best)
 
     def incumbent(p: np.ndarray, q: np.ndarray) -> np.ndarray | None:
         """A point certified inside on the segment from p (not inside) to q (inside), near the boundary."""

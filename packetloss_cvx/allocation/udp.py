@@ -34,7 +34,6 @@ from __future__ import annotations
 import heapq
 import time
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
@@ -51,7 +50,7 @@ from ..tolerances import (
     ALLOCATION_MIN_BOX_WIDTH,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, bracket, check_in_polytope, cost_function, polytope_excess
+from .boxes import Outcome, boundary, box_bound, box_lp, bracket, check_in_polytope, cost_function, polytope_excess
 from .grammar import Polytope
 from .tcp import constant_cost
 
@@ -276,16 +275,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         for i in range(m):                       # raise l_i to the last point proven infeasible on edge i
             if l[i] < u[i]:
                 l[i] = edge(corner, i, l[i], u[i])
-        if np.isfinite(search.best):             # lower u where beta'mu would not beat the incumbent
-            rest = beta @ l - beta * l
-            positive = beta > 0
-            u[positive] = np.minimum(u[positive], (search.best - rest[positive]) / beta[positive])
-            if np.any(u < l):
-                return None
-        p, lb = box_lp(beta, poly, l, u)
-        if p is None:
-            return None
-        return lb, l, u, p
+        return box_bound(beta, poly, l, u, search.best)
 
     def edge(corner: np.ndarray, i: int, a: float, b: float) -> float:
         """The last point of edge i (the other channels at the corner, the other channels factored once) that
