@@ -45,14 +45,13 @@ from ..threads import blas_limited
 from ..tolerances import (
     ALLOCATION_CLARABEL_ATTEMPTS,
     ALLOCATION_COST_RTOL,
-    ALLOCATION_CUT_STEPS,
     ALLOCATION_GAP_DEFAULT,
     ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
 )
 from .boxes import boundary, box_lp, small_lp
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
-from .tcp import constant_cost, cost_epigraph, require_answer, tangent
+from .tcp import constant_cost, cost_epigraph, cut_points, require_answer, tangent
 from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
 __all__ = ["MODELS", "PowerModel", "PowerProgram", "least_cost_within_power", "least_power", "load_power",
@@ -360,16 +359,7 @@ class _Setup:
         """Affine minorants ``J(x') >= r_k + g_k x'`` of the convex x -> J*_tcp(mu(top x)) at x and around it
         (the steps of ``ALLOCATION_CUT_STEPS``): the chain rule on :func:`~.tcp.tangent`'s gradient, with the
         model's slope a supergradient of the concave mu_i; loosened for rounding as tangent_cuts does."""
-        m = self.system.m
-        points = [x]
-        for step in ALLOCATION_CUT_STEPS:
-            for i in range(m):
-                for sign in (-1.0, 1.0):
-                    p = x.copy()
-                    p[i] = np.clip(p[i] + sign * step, 0.0, 1.0)
-                    if p[i] != x[i]:
-                        points.append(p)
-        X = np.array(points)
+        X = cut_points(x)
         P = X * self.top
         f, S = tangent(self.system, self.model.mu(P), evaluator)
         g = S * np.array([self.model.slope(p) for p in P]) * self.top

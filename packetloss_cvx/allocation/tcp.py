@@ -48,8 +48,8 @@ from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, 
 from .grammar import Polytope
 
 __all__ = [
-    "TCPProgram", "constant_cost", "cost_epigraph", "interval", "least_feasible", "require_answer", "tangent",
-    "tangent_cuts", "tcp_allocate", "tcp_min_cost",
+    "TCPProgram", "constant_cost", "cost_epigraph", "cut_points", "interval", "least_feasible", "require_answer",
+    "tangent", "tangent_cuts", "tcp_allocate", "tcp_min_cost",
 ]
 
 
@@ -228,6 +228,26 @@ def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = No
     return sol.costs, grads
 
 
+def cut_points(center: np.ndarray, also: tuple[np.ndarray, ...] = ()) -> np.ndarray:
+    """Where the tangent cuts touch: ``center``, the points ``also``, and ``center +- step e_i`` for each step of
+    ``ALLOCATION_CUT_STEPS`` clipped into [0, 1] (a clipped point equal to the centre is left out). O(m steps).
+
+    Examples
+    --------
+    >>> cut_points(np.array([1.0])).shape[0] == 1 + len(ALLOCATION_CUT_STEPS)     # only the steps down
+    True
+    """
+    points = [center, *also]
+    for step in ALLOCATION_CUT_STEPS:
+        for i in range(center.size):
+            for sign in (-1.0, 1.0):
+                p = center.copy()
+                p[i] = np.clip(p[i] + sign * step, 0.0, 1.0)
+                if p[i] != center[i]:
+                    points.append(p)
+    return np.array(points)
+
+
 def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None = None,
                  also: tuple[np.ndarray, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Affine minorants of J*_tcp: rows with ``J*(mu) >= r_k + S_k mu`` for every mu in [0, 1]^m.
@@ -249,16 +269,7 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     >>> bool(np.all(r[:, None] + S @ grid[None] <= 1 / (1 + grid))), bool(np.isclose(S[0, 0], -4 / 9))
     (True, True)
     """
-    m = system.m
-    points = [mubar, *also]
-    for step in ALLOCATION_CUT_STEPS:
-        for i in range(m):
-            for sign in (-1.0, 1.0):
-                p = mubar.copy()
-                p[i] = np.clip(p[i] + sign * step, 0.0, 1.0)
-                if p[i] != mubar[i]:
-                    points.append(p)
-    P = np.array(points)
+    P = cut_points(mubar, also)
     f, S = tangent(system, P, evaluator)
     r = f - np.sum(S * P, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
     return S, r

@@ -11,7 +11,7 @@ from . import format as fmt
 from .allocate_power import run as run_power  # issue 24: power, the ack link priced
 from .allocate_power import wants_power
 from .allocate_stability import run_target
-from .common import CommandResult, allocation_numbers, number, progress_of, system_of
+from .common import CommandResult, allocation_numbers, progress_of, search_options, system_of
 
 __all__ = ["run"]
 
@@ -61,12 +61,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             raise InputError(flag, "required" + (" (or buy power: --power)" if flag == "--beta" else ""))
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
-    if args.gap is not None:
-        options["gap"] = number(args.gap, "--gap")
-    if args.max_boxes is not None:
-        options["max_boxes"] = args.max_boxes
-    if args.time_limit is not None:
-        options["time_limit"] = number(args.time_limit, "--time-limit")
+    options.update(search_options(args))
     constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
     options["progress"] = progress_of(args)
     try:

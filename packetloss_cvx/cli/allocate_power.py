@@ -15,7 +15,7 @@ from ..errors import InfeasibleError, InputError
 from ..io import read_csv_numbers
 from ..model import System
 from . import format as fmt
-from .common import CommandResult, floats, number, progress_of
+from .common import CommandResult, floats, number, progress_of, search_options
 
 __all__ = ["POWER_OPTIONS", "model_of", "run", "wants_power"]
 
@@ -61,12 +61,7 @@ def model_of(args: argparse.Namespace, system: System) -> PowerModel:
 
 def _options(args: argparse.Namespace, system: System, power: bool) -> dict[str, Any]:
     options: dict[str, Any] = {}
-    if args.gap is not None:
-        options["gap"] = number(args.gap, "--gap")
-    if args.max_boxes is not None:
-        options["max_boxes"] = args.max_boxes
-    if args.time_limit is not None:
-        options["time_limit"] = number(args.time_limit, "--time-limit")
+    options.update(search_options(args))
     if power and args.power_max is not None:
         options["max_power"] = floats(args.power_max, "--power-max")
     name = "P" if power else "mu"

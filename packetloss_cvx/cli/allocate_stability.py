@@ -10,23 +10,13 @@ from ..allocation import parse_constraint
 from ..allocation.stability import stability_allocate
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
-from .common import CommandResult, floats, number, progress_of, system_of
+from .common import CommandResult, number, prices_and_bounds, progress_of, search_options, system_of
 
 __all__ = ["run_target"]
 
 #: the API's argument names -> the flags that set them (errors are renamed to the flag)
 FLAGS = {"alpha": "--alpha", "beta": "--beta", "bounds": "--bounds", "gap": "--gap", "max_boxes": "--max-boxes",
          "time_limit": "--time-limit", "margin": "--margin", "target": "--target"}
-
-
-def _numbers(args: argparse.Namespace, m: int) -> tuple[list[float], list[float]]:
-    beta = floats(args.beta, "--beta")
-    if len(beta) != m:
-        raise InputError("--beta", f"expected {m} comma-separated numbers, found {len(beta)}")
-    bounds = floats(args.bounds, "--bounds")
-    if len(bounds) != 2:
-        raise InputError("--bounds", f"expected lo,hi, found {args.bounds[:40]!r}")
-    return beta, bounds
 
 
 def run_target(args: argparse.Namespace) -> CommandResult:
@@ -69,18 +59,13 @@ def run_target(args: argparse.Namespace) -> CommandResult:
     if args.beta is None:
         raise InputError("--beta", "required: the price of each channel's delivery probability, e.g. --beta 1,1")
     system = system_of(args)
-    beta, bounds = _numbers(args, system.m)
+    beta, bounds = prices_and_bounds(args, system.m)
     options: dict[str, Any] = {}
     if args.margin is not None:
         options["margin"] = number(args.margin, "--margin")
     if args.alpha is not None:
         options["alpha"] = number(args.alpha, "--alpha")
-    if args.gap is not None:
-        options["gap"] = number(args.gap, "--gap")
-    if args.max_boxes is not None:
-        options["max_boxes"] = args.max_boxes
-    if args.time_limit is not None:
-        options["time_limit"] = number(args.time_limit, "--time-limit")
+    options.update(search_options(args))
     constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
     try:
         result = stability_allocate(system, args.target, beta, bounds=tuple(bounds), constraints=constraints,

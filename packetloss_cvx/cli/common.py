@@ -23,8 +23,8 @@ from ..model import System
 from ..safeio import check_output_file
 
 __all__ = ["CommandResult", "allocation_numbers", "check_budgets", "check_figure_format", "check_writable", "floats",
-           "integers", "number", "number_range",
-           "preflight", "progress_of", "system_of", "systems_of", "with_overrides"]
+           "integers", "number", "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options",
+           "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -205,14 +205,43 @@ def allocation_numbers(args: argparse.Namespace, m: int) -> tuple[float, list[fl
     >>> allocation_numbers(argparse.Namespace(alpha="8", beta="1,0.05", bounds="0,1"), 2)
     (8.0, [1.0, 0.05], [0.0, 1.0])
     """
-    alpha = number(args.alpha, "--alpha")
+    return (number(args.alpha, "--alpha"), *prices_and_bounds(args, m))
+
+
+def prices_and_bounds(args: argparse.Namespace, m: int) -> tuple[list[float], list[float]]:
+    """``--beta`` (m prices) and ``--bounds`` (lo,hi) parsed and counted.
+
+    Examples
+    --------
+    >>> prices_and_bounds(argparse.Namespace(beta="1,0.05", bounds="0,1"), 2)
+    ([1.0, 0.05], [0.0, 1.0])
+    """
     beta = floats(args.beta, "--beta")
     if len(beta) != m:
         raise InputError("--beta", f"expected {m} comma-separated numbers, found {len(beta)}")
     bounds = floats(args.bounds, "--bounds")
     if len(bounds) != 2:
         raise InputError("--bounds", f"expected lo,hi, found {args.bounds[:40]!r}")
-    return alpha, beta, bounds
+    return beta, bounds
+
+
+def search_options(args: argparse.Namespace) -> dict[str, Any]:
+    """``--gap``, ``--max-boxes`` and ``--time-limit`` of the allocation searches, only those given (unset flags
+    keep the API's defaults: one source of truth).
+
+    Examples
+    --------
+    >>> search_options(argparse.Namespace(gap="1e-3", max_boxes=None, time_limit="5"))
+    {'gap': 0.001, 'time_limit': 5.0}
+    """
+    options: dict[str, Any] = {}
+    if args.gap is not None:
+        options["gap"] = number(args.gap, "--gap")
+    if args.max_boxes is not None:
+        options["max_boxes"] = args.max_boxes
+    if args.time_limit is not None:
+        options["time_limit"] = number(args.time_limit, "--time-limit")
+    return options
 
 
 def preflight(args: argparse.Namespace) -> None:
