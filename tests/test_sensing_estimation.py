@@ -16,7 +16,12 @@ from packetloss_cvx.sensing.bounds import (
     stable_certificate,
     upper_bound_covariance,
 )
-from packetloss_cvx.sensing.kalman import ENUMERATION_MAX_PATHS, actuation_covariance, expected_covariance
+from packetloss_cvx.sensing.kalman import (
+    ENUMERATION_MAX_PATHS,
+    actuation_covariance,
+    expected_covariance,
+    measurement_update,
+)
 from packetloss_cvx.sensor import Sensor
 
 
@@ -174,3 +179,27 @@ def test_udp_actuation_covariance_by_sampling():
     v = rng.random((200_000, 2)) < mu
     err = ((v - mu) * u) @ B.T                        # B (V - M) u
     np.testing.assert_allclose(err.T @ err / len(err), actuation_covariance(B, mu, u), atol=0.05)
+
+
+def test_one_row_update_equals_the_pseudoinverse_form_bit_for_bit():
+    """A single received row takes 1/s instead of pinv(S): the same floats as the general form, a zero S
+    (R = 0, the row blind to P) giving a zero gain, on a stack as on one matrix."""
+    rng = np.random.default_rng(5)
+    C, R = rng.normal(size=(2, 3)), np.diag([0.7, 0.0])
+    G = rng.normal(size=(4, 3, 3))
+    Pm = G @ np.swapaxes(G, -1, -2)
+    Pm[3] = np.diag([0.0, 2.0, 1.0])                        # row 1 below sees only the first state: S = 0
+    C[1] = [1.0, 0.0, 0.0]
+    for row in (0, 1):
+        Cr, Rr = C[[row]], R[[row]][:, [row]]
+        PCt = Pm @ Cr.T
+        S = Cr @ PCt + Rr
+        Lr = PCt @ np.linalg.pinv(0.5 * (S + np.swapaxes(S, -1, -2)), rcond=1e-13, hermitian=True)
+        P = Pm - Lr @ np.swapaxes(PCt, -1, -2)
+        got, L = measurement_update(Pm, C, R, np.array([row]))
+        np.testing.assert_array_equal(got, 0.5 * (P + np.swapaxes(P, -1, -2)))
+        np.testing.assert_array_equal(L[..., row:row + 1], Lr)
+        assert not L[..., 1 - row].any()
+        for k in range(4):
+            np.testing.assert_array_equal(measurement_update(Pm[k], C, R, np.array([row]))[0], got[k])
+    assert not measurement_update(Pm[3], C, R, np.array([1]))[1].any()

@@ -90,7 +90,14 @@ def measurement_update(Pm: np.ndarray, C: np.ndarray, R: np.ndarray,
     PCt = Pm @ Cr.T
     S = Cr @ PCt + Rr
     S = 0.5 * (S + np.swapaxes(S, -1, -2))
-    Lr = PCt @ np.linalg.pinv(S, rcond=1e-13, hermitian=True)
+    if S.shape[-1] == 1 and np.all(np.isfinite(S)):
+        # one row received: NumPy's hermitian pinv of a 1 x 1 S is 1/s (0 where s = 0), and the product with it
+        # multiplies each entry by 1/s: the same floats without eigh's per-call overhead (the certificate search
+        # of bounds.critical_gamma makes ~10^5 such updates)
+        with np.errstate(divide="ignore"):
+            Lr = PCt * np.where(S != 0.0, 1.0 / S, 0.0)
+    else:
+        Lr = PCt @ np.linalg.pinv(S, rcond=1e-13, hermitian=True)
     P = Pm - Lr @ np.swapaxes(PCt, -1, -2)
     L[..., rows] = Lr
     return 0.5 * (P + np.swapaxes(P, -1, -2)), L
