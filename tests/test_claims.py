@@ -288,3 +288,27 @@ def test_a_chain_file_is_audited_at_its_plug_in_rates_without_errors(capsys):
     for result in results:
         assert result.errors == 0, (result.id, result.outcomes)
         assert result.outcomes[-1] in "+-.", (result.id, result.outcomes)
+
+
+def test_stability_region_claim_bisects_each_paper_system_once(monkeypatch):
+    """claims.region: the margin and the note's row come from one set of bisections per system (they ran twice),
+    against the hand threshold of a scalar plant (1 - 1/a^2 along the ray); an error is still counted and named."""
+    from packetloss_cvx.claims import region as claim
+    from packetloss_cvx.errors import NumericalError
+
+    s = pl.System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    calls = []
+    real = claim.critical_shared_mu
+    monkeypatch.setattr(claim, "critical_shared_mu", lambda system: calls.append(system) or real(system))
+    result = claim.stability_region(Context(paper={"scalar": s}, random=[], seed=0))
+    assert len(calls) == 1
+    assert result.checked == 1
+    assert "dp mu > 0.75000" in result.note
+
+    def fails(system):
+        raise NumericalError("no bracket")
+
+    monkeypatch.setattr(claim, "critical_shared_mu", fails)
+    result = claim.stability_region(Context(paper={"scalar": s}, random=[], seed=0))
+    assert result.errors == 1
+    assert "scalar: NumericalError" in result.note

@@ -274,3 +274,20 @@ def test_critical_mu_with_a_tolerance_below_double_spacing_ends():
     from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
     t = critical_mu(s, [[2.0]], tol=1e-20)   # fixed k = a = 2: proved stable iff 4 (1 - mu) < 1 - margin
     assert t == pytest.approx(0.75 + MEAN_SQUARE_MARGIN / 4, abs=1e-15)
+
+
+def test_second_moment_matrix_of_a_stack_of_laws_is_each_laws_matrix():
+    """simulation.stability.second_moment_matrix over a stack (K (G, m, n), mu (G, m); the batched homogeneous
+    Riccati's policy step) gives each law's matrix, and each is the operator enumerated over the 2^m patterns."""
+    from packetloss_cvx.simulation.stability import second_moment_matrix
+
+    rng = np.random.default_rng(11)
+    for n, m in [(1, 1), (2, 2), (3, 1), (2, 3)]:
+        A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+        K, mu = rng.normal(size=(4, m, n)), rng.uniform(size=(4, m))
+        mu[0, 0] = 1.0                                         # a perfect channel: c_i = 0 in part of the stack
+        stack = second_moment_matrix(A, B, K, mu)
+        assert stack.shape == (4, n * n, n * n)
+        for g in range(4):
+            assert np.array_equal(stack[g], second_moment_matrix(A, B, K[g], mu[g]))
+            assert np.allclose(stack[g], enumerated_operator(A, B, K[g], mu[g]), rtol=1e-12, atol=1e-12)

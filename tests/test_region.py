@@ -314,3 +314,46 @@ def test_region_map_on_dask_is_bit_identical():
     from packetloss_cvx import InputError
     with pytest.raises(InputError, match="dask"):
         region_map(s, laws=("dp",), grid=3, dask="no address")
+
+
+def test_homogeneous_riccati_batch_agrees_with_its_points_and_the_hand_values():
+    """A stack of channels is one batch (the region map's DP radius): each point agrees with the same point alone
+    to RICCATI_RTOL, the scalar two-channel points with a^2 / (1 + sum of odds), and a positive lambda is the
+    mean-square radius of its own gain (the Perron eigenpair, enumerated over the delivery patterns)."""
+    rng = np.random.default_rng(3)
+    s = scalar(np.sqrt(3.0), (1.0, 0.5))
+    mus = rng.uniform(0.05, 0.95, size=(25, 2))
+    lam, P, K = homogeneous_riccati(s.A, s.B, mus)
+    odds = mus / (1 - mus)
+    assert lam == pytest.approx(3.0 / (1 + odds.sum(axis=1)), rel=1e-10)
+    two = load_example("two_actuator")
+    axis = np.linspace(0.0, 1.0, 9)
+    cases = [(two.A, two.B, np.array([[a, b] for b in axis for a in axis]))]
+    for _ in range(6):
+        n, m = rng.integers(1, 4, size=2)
+        cases.append((rng.normal(size=(n, n)), rng.normal(size=(n, m)), rng.uniform(size=(12, m))))
+    for A, B, mus in cases:
+        A, B = np.asarray(A, float), np.asarray(B, float)
+        lam, P, K = homogeneous_riccati(A, B, mus)
+        assert lam.shape == (len(mus),)
+        assert P.shape == (len(mus), *A.shape)
+        assert K.shape == (len(mus), *B.T.shape)
+        for g, mu in enumerate(mus):
+            one = homogeneous_riccati(A, B, mu)
+            scale = max(1.0, abs(one[0]))
+            assert abs(lam[g] - one[0]) <= 1e-12 * scale
+            assert np.allclose(K[g], one[2], rtol=1e-10, atol=1e-12 * max(1.0, float(np.abs(one[2]).max())))
+            if lam[g] > 1e-6:
+                assert enumerated_radius(A, B, K[g], mu) == pytest.approx(lam[g], rel=1e-8)
+
+
+def test_membership_checks_a_given_eigenpair_at_its_own_mu():
+    """The region map hands its batch's eigenpair to the membership's "riccati" form: a pair from another mu is
+    checked at this mu and leaves the form undecided, never a verdict (scalar a = 2: S = {mu > 0.75})."""
+    s = scalar(2.0)
+    outside = homogeneous_riccati(s.A, s.B, np.array([0.5]))      # lambda 2, its P a certificate at 0.5
+    inside = homogeneous_riccati(s.A, s.B, np.array([0.9]))       # lambda 0.4, gain k = 2
+    assert membership(s, [0.9], forms=("riccati",), riccati=outside).verdict == "undecided"
+    assert membership(s, [0.5], forms=("riccati",), riccati=inside).verdict == "undecided"
+    assert membership(s, [0.9], forms=("riccati",), riccati=inside).verdict == "stable"
+    assert membership(s, [0.5], forms=("riccati",), riccati=outside).verdict == "unstable"

@@ -9,7 +9,9 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
-from packetloss_cvx.cli.reproduce_report import FIGURES
+from packetloss_cvx.cli.reproduce_report import BEYOND_FIGURES, FIGURES, REGION_FIGURE
+
+from .references import enumerated_radius
 
 LABELS = list(FIGURES)
 
@@ -55,7 +57,8 @@ def test_every_link_of_the_report_resolves_in_its_folder(runs):
 def test_deterministic(runs):
     _, (first, second) = runs
     for name in ["results.json", "report.md", "claims.md",
-                 *(f"{label.removeprefix('fig:')}.png" for label in LABELS)]:
+                 *(f"{label.removeprefix('fig:')}.png" for label in LABELS),
+                 *(f"{name}.png" for name in BEYOND_FIGURES)]:
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
 
 
@@ -163,3 +166,33 @@ def test_a_quick_run_does_not_call_a_claim_met_on_one_level(runs):
     report = (out / "report.md").read_text()
     section = report[report.index("## fig:UDP-log-cost-mixed-mult"):]
     assert "matches at the one level drawn (alpha = 4.78); the full run draws more" in section
+
+
+def test_the_region_figure_of_the_two_actuator_system_against_independent_references(runs, two_actuator):
+    """Beyond the paper (issue 21 item 7): region-two-actuator.png with its paragraph, and the map in results.json:
+    the dp verdicts against the LMI form alone (cvxpy + Clarabel, another algorithm), the paper laws' verdicts against
+    the radius of their re-designed gain enumerated over the delivery patterns."""
+    from packetloss_cvx.simulation.region import membership
+
+    _, (out, _) = runs
+    report = (out / "report.md").read_text()
+    assert (out / f"{REGION_FIGURE}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"]({REGION_FIGURE}.png)" in report
+    assert "at every grid point" in report
+    data = json.loads((out / "results.json").read_text())
+    assert data["figures"][REGION_FIGURE] == f"{REGION_FIGURE}.png"
+    region = data["region"]
+    axis = np.array(region["dp"]["grid"]["axis"])
+    assert axis.size == data["settings"]["region_grid"]
+    rng = np.random.default_rng(0)
+    for j, i in rng.integers(0, axis.size, size=(5, 2)):          # rows mu2, columns mu1
+        mu = np.array([axis[i], axis[j]])
+        lmi = membership(two_actuator, mu, forms=("lmi",)).verdict
+        if lmi != "undecided":
+            assert region["dp"]["grid"]["stable"][j][i] == (lmi == "stable")
+        for law in ("tcp", "udp"):
+            gain = pl.closed_form(two_actuator.with_mu(mu), law).gain
+            radius = enumerated_radius(two_actuator.A, two_actuator.B, gain, mu)
+            assert region[law]["grid"]["radius"][j][i] == pytest.approx(radius, rel=1e-9)
+            if abs(radius - 1) > 1e-6:
+                assert region[law]["grid"]["stable"][j][i] == (radius < 1)

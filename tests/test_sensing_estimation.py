@@ -203,3 +203,33 @@ def test_one_row_update_equals_the_pseudoinverse_form_bit_for_bit():
         for k in range(4):
             np.testing.assert_array_equal(measurement_update(Pm[k], C, R, np.array([row]))[0], got[k])
     assert not measurement_update(Pm[3], C, R, np.array([1]))[1].any()
+
+
+def test_measurement_update_of_one_row_is_the_pinv_route_bit_for_bit():
+    """sensing.kalman.measurement_update divides by the 1 x 1 innovation covariance instead of calling pinv (the
+    audit's Monte Carlo and Riccati iteration): the same bits as numpy's pinv on a stack with s = 0 and a tiny s,
+    and the hand update L = P c' / (c P c' + r), P+ = P - L c P."""
+    from packetloss_cvx.sensing.kalman import measurement_update
+
+    rng = np.random.default_rng(4)
+    n = 3
+    C, R = rng.normal(size=(2, n)), np.diag([0.5, 0.0])
+    F = rng.normal(size=(6, n, n))
+    Pm = F @ np.swapaxes(F, -1, -2)
+    Pm[4] = 0.0                                  # row 1 with r = 0: s = 0, pinv gives 0
+    Pm[5] *= 1e-300                              # a tiny s
+    for row in (0, 1):
+        rows = np.array([row])
+        P, L = measurement_update(Pm, C, R, rows)
+        PCt = Pm @ C[rows].T
+        S = C[rows] @ PCt + R[np.ix_(rows, rows)]
+        S = 0.5 * (S + np.swapaxes(S, -1, -2))
+        Lr = PCt @ np.linalg.pinv(S, rcond=1e-13, hermitian=True)
+        assert np.array_equal(L[..., rows], Lr)
+        update = Pm - Lr @ np.swapaxes(PCt, -1, -2)
+        assert np.array_equal(P, 0.5 * (update + np.swapaxes(update, -1, -2)))
+        for k in range(4):                       # the hand update
+            c = C[row]
+            s = c @ Pm[k] @ c + R[row, row]
+            assert np.allclose(L[k, :, row], Pm[k] @ c / s, rtol=1e-12)
+            assert np.allclose(P[k], Pm[k] - np.outer(Pm[k] @ c, Pm[k] @ c) / s, rtol=1e-10, atol=1e-12)

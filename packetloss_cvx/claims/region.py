@@ -40,10 +40,9 @@ def critical_shared_mu(system: System) -> dict[str, float]:
     return {p.law: float(p.t) for p in found.critical}
 
 
-def _margin(system: System) -> float:
-    """min over the paper's laws of (t_law - t_dp) / t_dp: >= 0 when their regions lie in S along the ray
-    (a law that never stabilises has t = inf: margin 1)."""
-    t = critical_shared_mu(system)
+def _margin(t: dict[str, float]) -> float:
+    """min over the paper's laws of (t_law - t_dp) / t_dp from each law's critical t: >= 0 when their regions lie
+    in S along the ray (a law that never stabilises has t = inf: margin 1)."""
     gaps = [1.0 if not np.isfinite(t[law]) else (t[law] - t["dp"]) / max(t["dp"], 1e-12) for law in ("tcp", "udp")]
     return min(gaps)
 
@@ -60,11 +59,17 @@ def stability_region(ctx: Context) -> ClaimResult:
     """
     tally = Tally()
     rows = []
+    found: dict[str, dict[str, float]] = {}
+
+    def margin(s: System, name: str) -> float:     # the three bisections once: the margin and the note's row
+        found[name] = critical_shared_mu(s)
+        return _margin(found[name])
+
     for name, s in ctx.paper.items():
-        tally.run(_margin, s, ctx.label(s))
-        try:
-            t = critical_shared_mu(s)
-        except ArithmeticError as err:     # reported in the tally already
+        tally.run(lambda case, name=name: margin(case, name), s, ctx.label(s))
+        try:       # after an error the bisections run again, for the note to name it (as the tally does)
+            t = found[name] if name in found else critical_shared_mu(s)
+        except ArithmeticError as err:
             rows.append(f"{name}: {type(err).__name__}")
             continue
         rows.append(f"{name}: " + ", ".join(

@@ -3,7 +3,7 @@ examples, with ``results.json`` and ``report.md`` saying, figure by figure, what
 
 Deterministic (no clock, no unseeded randomness in any file written, but for the time in manifest.json). Steps: the pendulum's costs
 over nu, the two-actuator grids, the allocations of §VI for both protocols, Tables I–II, the
-audit, the figures, the report.
+two-actuator system's stability region of each law (beyond the paper), the audit, the figures, the report.
 """
 
 from __future__ import annotations
@@ -18,16 +18,17 @@ from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE
 from ..display import json_text
 from ..io import load_example
 from ..allocation.ack import break_even_of
-from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour
+from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour, plot_region
 from ..progress import progress_bar
 from ..runfolder import RunFolder
 from ..safeio import save_figure
+from ..simulation.region_map import region_map
 from ..studies import paper_figures as pf
 from ..threads import blas_limited
 from .common import CommandResult
-from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, report
+from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, report
 
-__all__ = ["ALPHAS", "SETTINGS", "SLOW_CLAIM", "run"]
+__all__ = ["ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "run"]
 
 #: The cost bounds alpha of the -mult figures: the paper's 4.78 among levels spread from just above
 #: J*(1, 1) = 1.92 to below J*(0, 0) = 140.7 of the two-actuator system (the paper prints none). Above 20
@@ -37,21 +38,27 @@ ALPHAS = (2.5, 3.5, 4.78, 6.0, 8.0, 12.0, 20.0, 35.0, 50.0, 70.0, 100.0)
 #: The claim --quick leaves out of the audit (its 18 brute-force allocations, about 0.5 s).
 SLOW_CLAIM = "allocation-udp-perfect-channel"
 
+#: The region map's K x K grid over (mu1, mu2) of the two-actuator system (issue 21 item 7): the coarsest grid
+#: whose boundaries stay within half a step (0.025) of the 101 x 101 map's, and on which the DP law's boundary
+#: near the axes (S reaches mu1 = 0 at mu2 = 0.115) spans more than two steps. CPU s for dp, tcp, udp, the
+#: eigenpairs batched (docs/performance.md): K = 11 0.4, 16 0.5, 21 0.6, 31 1.1, 41 2.0.
+REGION_GRID = 21
+
 #: Sizes of the full run and of ``--quick`` (a smoke test: coarse grids, one alpha, the audit on the paper's
 #: systems only and without SLOW_CLAIM). The full run's audit is docs/claims.md's (``audit --random 200
 #: --seed 1``), so its claims.md is the project's, case for case.
 SETTINGS = {
     "full": {"grid": 101, "nu_points": 150, "alphas": ALPHAS, "audit_random": 200, "audit_seed": 1,
-             "audit_skips": ()},
+             "audit_skips": (), "region_grid": REGION_GRID},
     "quick": {"grid": 21, "nu_points": 30, "alphas": (4.78,), "audit_random": 0, "audit_seed": 1,
-              "audit_skips": (SLOW_CLAIM,)},
+              "audit_skips": (SLOW_CLAIM,), "region_grid": 6},
 }
 
 
 @blas_limited      # the maximisers, tables and audit loops of small dense algebra (threads.py)
 def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float]) -> dict[str, Any]:
     pendulum, mixed = load_example("pendulum"), load_example("two_actuator")
-    steps = ["pendulum", "grids", "allocations tcp", "allocations udp", "tables", "audit"]
+    steps = ["pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "audit"]
     data: dict[str, Any] = {"settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()}}
     with progress_bar(total=len(steps), desc="reproduce", progress=progress) as bar:
         for step in steps:
@@ -65,6 +72,8 @@ def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str,
                 protocol = step.split()[1]
                 data.setdefault("allocations", {})[protocol] = pf.mixed_allocations(
                     mixed, protocol, settings["alphas"], ALLOCATION_BETAS, progress=progress)
+            elif step == "region":   # beyond the paper (issue 21 item 7): each law's stability region
+                data["region"] = region_map(mixed, laws=REGION_LAWS, grid=settings["region_grid"]).to_dict()
             elif step == "tables":
                 data["tables"] = pf.eigenvalue_tables(pendulum, mixed, TABLE_1_MU, TABLE_2_MU)
                 data["tables_paper"] = {"table-1": TABLE_1, "table-2": TABLE_2}
@@ -112,7 +121,18 @@ def _figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
     save_figure(plot_ack_break_even(ack["alpha"], [float("nan") if v is None else v for v in ack["break_even"]],
                                     title="two-actuator system, beta = (1, 1)"),
                 paths[ACK_FIGURE].name, folder=folder)
+    grid = {law: data["region"][law]["grid"] for law in REGION_LAWS}     # beyond the paper (issue 21 item 7)
+    paths[REGION_FIGURE] = out / f"{REGION_FIGURE}.png"
+    save_figure(plot_region(grid["dp"]["axis"], _numbers(grid["dp"]["radius"]),
+                            {law: _numbers(g["stable"]) for law, g in grid.items()},
+                            title="two-actuator system: stability region of each law"),
+                paths[REGION_FIGURE].name, folder=folder)
     return paths
+
+
+def _numbers(rows: list) -> list:
+    """A RegionMap.to_dict() grid (None where undecided or not finite) as numbers, nan for None."""
+    return [[float("nan") if v is None else float(v) for v in row] for row in rows]
 
 
 def run(args: argparse.Namespace) -> CommandResult:

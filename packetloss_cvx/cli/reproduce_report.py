@@ -14,7 +14,8 @@ import numpy as np
 from ..claims import markdown_table
 from ..claims.paper import ALLOCATION_ALPHA, PENDULUM_NU_D
 
-__all__ = ["ACK_FIGURE", "CLAIMS_FILE", "FIGURES", "allocation_table", "claims_link", "report"]
+__all__ = ["ACK_FIGURE", "BEYOND_FIGURES", "CLAIMS_FILE", "FIGURES", "REGION_FIGURE", "REGION_LAWS", "allocation_table",
+           "claims_link", "region_paragraph", "report"]
 
 #: The paper's figure labels with their captions (shortened), in the paper's order.
 FIGURES = {
@@ -28,6 +29,13 @@ FIGURES = {
 
 #: Beyond the paper (issue 24): the break-even price of the acknowledgement link over alpha
 ACK_FIGURE = "ack-break-even"
+
+#: Beyond the paper (issue 21 item 7): the stability region of each law over (mu1, mu2), two-actuator system
+REGION_FIGURE = "region-two-actuator"
+#: the figures beyond the paper's, in the report's order
+BEYOND_FIGURES = (ACK_FIGURE, REGION_FIGURE)
+#: the laws of that figure: some linear law (the DP law's region, the stabilisable set S) and the paper's two
+REGION_LAWS = ("dp", "tcp", "udp")
 
 #: A channel counts as perfect at mu_i >= this (allocations are certified to a relative gap of 1e-4).
 PERFECT = 0.999
@@ -234,6 +242,39 @@ def _ack(data: dict[str, Any], figures: dict[str, Path]) -> list[str]:
             *rows, ""]
 
 
+def region_paragraph(region: dict[str, Any], link: str) -> list[str]:
+    """The stability region (issue 21 item 7; the paper leaves it open) from ``RegionMap.to_dict()`` of the
+    laws :data:`REGION_LAWS` on a grid: each law's share of the grid and critical shared mu, whether the paper's
+    laws' regions lie in S at every grid point, and where S reaches the axis mu1 = 0. O(K^2).
+
+    >>> grid = {"axis": [0.0, 1.0], "stable": [[False, False], [True, True]], "radius": [[2.0, 1.5], [0.9, 0.1]]}
+    >>> region = {law: {"t": 0.5, "grid": grid} for law in REGION_LAWS}
+    >>> text = " ".join(region_paragraph(region, "claims.md"))
+    >>> "dp 50.0 %, tcp 50.0 %, udp 50.0 %" in text, "at every grid point" in text, "mu2 >= 1 (grid)" in text
+    (True, True, True)
+    """
+    stable = {law: np.array([[np.nan if v is None else float(v) for v in row] for row in region[law]["grid"]["stable"]])
+              for law in REGION_LAWS}
+    axis = np.asarray(region["dp"]["grid"]["axis"], dtype=float)
+    k = axis.size
+    inside = all(bool(np.all(stable["dp"][stable[law] == 1.0] == 1.0)) for law in ("tcp", "udp"))
+    column = np.flatnonzero(stable["dp"][:, 0] == 1.0)          # mu1 = 0: actuator 2 alone
+    alone = f"mu2 >= {axis[column[0]]:g} (grid)" if column.size else "no mu2 of the grid"
+    shares = ", ".join(f"{law} {100 * float(np.mean(stable[law] == 1.0)):.1f} %" for law in REGION_LAWS)
+    critical = ", ".join(f"{law} t = {region[law]['t']:.4g}" if region[law]["t"] is not None else f"{law} never"
+                         for law in REGION_LAWS)
+    undecided = int(sum(np.isnan(v).sum() for v in stable.values()))
+    where = "at every grid point" if inside else "NOT at every grid point"
+    return [f"The paper leaves the stability region of the multiple-input setting open (its conclusion). Over a "
+            f"{k} x {k} grid of (mu1, mu2) (`packetloss-cvx region two_actuator --grid {k} --out DIR` draws this "
+            f"map and the fixed DP gain's): colour, the least mean-square radius min_K rho(L_K) any linear law "
+            f"reaches (< 1 exactly on the stabilisable set S, the DP law's region); lines, each law's boundary. "
+            f"Stable shares of the grid: {shares} ({undecided} law-points undecided). The paper's TCP-like and "
+            f"UDP-like laws are proved stable only where mu is certified in S, {where}; actuator 2 alone (mu1 = 0) "
+            f"keeps the loop in S from {alone}. Along the shared channel mu = t (1, 1): {critical} "
+            f"([stability-region-paper-systems]({link})).", ""]
+
+
 def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[str, dict[str, str]]:
     """The Markdown report and a one-line verdict per figure. O(size of the data)."""
     paragraphs = {
@@ -259,6 +300,9 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
                   f"*{label}: {FIGURES[label]}.* **{verdict}.** {text}", ""]
     lines += ["## Tables I–II: closed-loop eigenvalues", ""] + _tables(data, out)
     lines += _ack(data, figures)
+    lines += ["## Beyond the paper: where the two-actuator system can be stabilised", "",
+              f"![the stability region of each law]({figures[REGION_FIGURE].name})", "",
+              *region_paragraph(data["region"], claims_link(out, "stability-region-paper-systems"))]
     results = data["audit"]
     counts = {v: sum(r.verdict == v for r in results) for v in ("holds", "fails", "not-reproduced", "inconclusive")}
     lines += ["## The audit", "",

@@ -23,13 +23,15 @@ __all__ = ["critical_mu", "critical_point", "law_membership", "stable_at"]
 _RETRY_FRACTIONS = (0.25, 0.75, 0.125, 0.875)
 
 
-def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi: LazyLmi | None = None) -> Membership:
+def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi: LazyLmi | None = None,
+                   riccati: tuple[float, np.ndarray, np.ndarray] | None = None) -> Membership:
     """The loop of ``law`` over channel ``mu``: decided with its evidence.
 
     ``law``: a fixed gain (m×n), or "tcp"/"udp" (the receding-horizon law re-designed for ``mu``: the first
     gain of Theorem 1's closed form), verdict "stable" iff its radius is below 1 by the margin, else
     "unstable" (not proved stable); or "dp" (the DP optimum for ``mu``: stable iff mu is in the
-    stabilisable set, :func:`~.region.membership`, "undecided" where no certificate can be checked).
+    stabilisable set, :func:`~.region.membership`, "undecided" where no certificate can be checked;
+    ``riccati``: the homogeneous Riccati eigenpair at mu when the caller has it, as there).
     Time: one design plus one radius; "dp" as :func:`~.region.membership` without the cross-check.
 
     Examples
@@ -41,7 +43,7 @@ def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi
     """
     if isinstance(law, str):
         if law == "dp":
-            return membership(system, mu, cross_check=False, lmi=lmi)
+            return membership(system, mu, cross_check=False, lmi=lmi, riccati=riccati)
         if law not in ("tcp", "udp"):
             raise InputError("law", f"expected tcp, udp, dp or a gain matrix, found {law!r}")
         K = closed_form(system.with_mu(mu), law).gain

@@ -110,85 +110,114 @@ def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarr
 
 
 def _homogeneous_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(K, R(P))``: the minimiser of ``L_K^*(P)`` (least squares: its Hessian may be singular) and the min."""
+    """``(K, R(P))``: the minimiser of ``L_K^*(P)`` (least squares, the minimum-norm solution: its Hessian may be
+    singular) and the min, for a stack P (..., n, n) with mu (..., m). A Hessian that is not finite gives K = nan."""
     BPB = B.T @ P @ B
-    H = (BPB * mu[None, :]) * mu[:, None] + np.diag(mu * (1.0 - mu) * np.diag(BPB))
-    rhs = (B * mu).T @ P @ A
-    K = np.linalg.lstsq(H, rhs, rcond=None)[0]
-    R = A.T @ P @ A - rhs.T @ K
-    return K, 0.5 * (R + R.T)
+    H = (BPB * mu[..., None, :]) * mu[..., :, None]
+    diagonal = np.arange(B.shape[1])
+    H[..., diagonal, diagonal] += mu * (1.0 - mu) * BPB[..., diagonal, diagonal]
+    rhs = np.swapaxes(B * mu[..., None, :], -1, -2) @ P @ A
+    finite = np.all(np.isfinite(H), axis=(-2, -1))
+    K = np.full(rhs.shape, np.nan)
+    # pinv with lstsq's cutoff (singular values <= eps max(m, m) s_max are zero): the same minimum-norm solution
+    K[finite] = np.linalg.pinv(H[finite], rcond=np.finfo(float).eps * B.shape[1]) @ rhs[finite]
+    R = A.T @ P @ A - np.swapaxes(rhs, -1, -2) @ K
+    return K, 0.5 * (R + np.swapaxes(R, -1, -2))
 
 
 def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)``: the eigenpair ``R(P) = lambda P`` of the homogeneous modified Riccati map
-    ``R(P) = min_K L_K^*(P)`` (``tr P = 1``) and the gain that attains the minimum.
+    ``R(P) = min_K L_K^*(P)`` (``tr P = 1``) and the gain that attains the minimum; for a stack of channels
+    ``mu`` (G, m), the G eigenpairs ``(lambda (G,), P (G, n, n), K (G, m, n))`` in one batch.
 
     ``R`` is monotone, concave and positively homogeneous on the PSD cone; the shifted power iteration
     ``P <- (R(P) / lambda + 0.1 P) / 1.1`` (the shift removes a peripheral spectrum, e.g. rotations) converges to
-    its Perron eigenpair, and lambda = min_K rho(L_K). Stops when ``||P_next - P|| <= RICCATI_RTOL``; for
-    n <= KRONECKER_MAX_N after 30 steps a policy iteration on the Perron eigenvector finishes it, else after
-    ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. The result is a candidate, checked by the caller. Time
-    O(iterations (n^3 + m^3)), plus O(n^6) a policy step.
+    its Perron eigenpair, and lambda = min_K rho(L_K). A point stops when ``||P_next - P|| <= RICCATI_RTOL``; for
+    n <= KRONECKER_MAX_N after 30 steps a policy iteration on the Perron eigenvector finishes the points left,
+    else after ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. Each point of a batch takes exactly the steps it would
+    alone (the batch only shares NumPy's calls), so a batch agrees with its points one by one to rounding
+    (tests/test_region.py). The result is a candidate, checked by the caller. Time O(iterations (n^3 + m^3)) per
+    point, plus O(n^6) a policy step.
 
     Examples
     --------
     >>> lam, P, K = homogeneous_riccati(np.array([[2.0]]), np.array([[1.0]]), np.array([0.5]))
     >>> round(lam, 12), round(float(K[0, 0]), 12)   # scalar: min_k (a - mu k)^2 + mu(1-mu)k^2 = a^2 (1 - mu) at k = a
     (2.0, 2.0)
+    >>> lam, P, K = homogeneous_riccati(np.array([[2.0]]), np.array([[1.0]]), np.array([[0.5], [0.75]]))
+    >>> np.round(lam, 12).tolist()                  # a^2 (1 - mu) at each point of the batch
+    [2.0, 1.0]
     """
+    mu = np.asarray(mu, dtype=float)
+    single = mu.ndim == 1
+    mus = mu.reshape(-1, B.shape[1])
     n = A.shape[0]
-    P = np.eye(n) / n
-    K = np.zeros((B.shape[1], n))
+    P = np.repeat((np.eye(n) / n)[None], mus.shape[0], axis=0)
+    active = np.ones(mus.shape[0], dtype=bool)
     steps = HOMOGENEOUS_RICCATI_MAX_ITER if n > KRONECKER_MAX_N else _POWER_STEPS
-    with np.errstate(over="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for _ in range(steps):
-            K, R = _homogeneous_step(P, A, B, mu)
-            lam = float(np.trace(R))
-            if not (np.isfinite(lam) and lam > _ZERO * float(np.trace(A.T @ P @ A))):
-                # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an
-                # overflow the caller's check refuses; iterating on R / lambda would amplify rounding
-                return _finish(P, A, B, mu)
-            P_next = (R / lam + _SHIFT * P) / (1.0 + _SHIFT)
-            done = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL
-            P = P_next
-            if done:
-                return _finish(P, A, B, mu)
-        if n <= KRONECKER_MAX_N:
-            P = _policy_iteration(P, A, B, mu)
-    return _finish(P, A, B, mu)
-
-
-def _finish(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    K, R = _homogeneous_step(P, A, B, mu)
-    return float(np.trace(R)), P, K
+            idx = np.flatnonzero(active)
+            if not idx.size:
+                break
+            Pa = P[idx]
+            _, R = _homogeneous_step(Pa, A, B, mus[idx])
+            lam = np.trace(R, axis1=-2, axis2=-1)
+            # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an overflow the
+            # caller's check refuses; iterating on R / lambda would amplify rounding: such a point stops here
+            zero = ~(np.isfinite(lam) & (lam > _ZERO * np.trace(A.T @ Pa @ A, axis1=-2, axis2=-1)))
+            P_next = (R / lam[:, None, None] + _SHIFT * Pa) / (1.0 + _SHIFT)
+            done = np.linalg.norm(P_next - Pa, axis=(-2, -1)) <= RICCATI_RTOL
+            P[idx[~zero]] = P_next[~zero]
+            active[idx[zero | done]] = False
+        if n <= KRONECKER_MAX_N and np.any(active):
+            P[active] = _policy_iteration(P[active], A, B, mus[active])
+        K, R = _homogeneous_step(P, A, B, mus)
+    lam = np.trace(R, axis1=-2, axis2=-1)
+    return (float(lam[0]), P[0], K[0]) if single else (lam, P, K)
 
 
 def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """From a power-iteration P: K = argmin L_K^*(P), then P = the Perron eigenvector of L_K^* (the transposed
-    Kronecker matrix, exact for n <= KRONECKER_MAX_N), until lambda settles. Each step can only lower
-    rho (L_{K+}^*(P) <= L_K^*(P) = lambda P, a Collatz-Wielandt bound), so it converges where the power
-    iteration crawls (second eigenvalue near the first). Time O(n^6) a step."""
+    """From power-iteration P (G, n, n) at mu (G, m): K = argmin L_K^*(P), then P = the Perron eigenvector of L_K^*
+    (the transposed Kronecker matrix, exact for n <= KRONECKER_MAX_N), until lambda settles, each point on its
+    own. Each step can only lower rho (L_{K+}^*(P) <= L_K^*(P) = lambda P, a Collatz-Wielandt bound), so it
+    converges where the power iteration crawls (second eigenvalue near the first). Time O(n^6) a step a point."""
     n = A.shape[0]
-    best, last = P, np.inf
+    P, best = P.copy(), P.copy()
+    last = np.full(P.shape[0], np.inf)
+    alive = np.ones(P.shape[0], dtype=bool)
     for _ in range(_POLICY_STEPS):
-        K, _ = _homogeneous_step(P, A, B, mu)
-        if not np.all(np.isfinite(K)):
+        K, _ = _homogeneous_step(P[alive], A, B, mu[alive])
+        idx = np.flatnonzero(alive)
+        finite = np.all(np.isfinite(K), axis=(-2, -1))
+        alive[idx[~finite]] = False          # keep the last good P
+        idx, K = idx[finite], K[finite]
+        if not idx.size:
             break
-        vals, vecs = np.linalg.eig(second_moment_matrix(A, B, K, mu).T)
-        top = int(np.argmax(vals.real))
-        lam = float(vals[top].real)
-        V = vecs[:, top].real.reshape(n, n)
-        V = 0.5 * (V + V.T)
-        trace = float(np.trace(V))
-        if not (np.isfinite(lam) and trace != 0.0):
+        vals, vecs = np.linalg.eig(np.swapaxes(second_moment_matrix(A, B, K, mu[idx]), -1, -2))
+        top = np.argmax(vals.real, axis=-1)
+        rows = np.arange(idx.size)
+        lam = vals[rows, top].real
+        V = vecs[rows, :, top].real.reshape(-1, n, n)
+        V = 0.5 * (V + np.swapaxes(V, -1, -2))
+        trace = np.trace(V, axis1=-2, axis2=-1)
+        usable = np.isfinite(lam) & (trace != 0.0)
+        alive[idx[~usable]] = False
+        idx, lam, V, trace = idx[usable], lam[usable], V[usable], trace[usable]
+        if not idx.size:
             break
-        P = V / trace
-        if lam <= 0.0 or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL:
-            break   # a degenerate Perron root (lambda = 0, its eigenvector not PSD): keep the last good P
-        if lam >= last * (1.0 - RICCATI_RTOL):
-            best = P if lam <= last else best
+        Pn = V / trace[:, None, None]
+        # a degenerate Perron root (lambda = 0, its eigenvector not PSD): keep the last good P
+        degenerate = (lam <= 0.0) | (np.linalg.eigvalsh(Pn)[:, 0] < -CERTIFICATE_RTOL)
+        settled = ~degenerate & (lam >= last[idx] * (1.0 - RICCATI_RTOL))
+        kept = ~degenerate & (~settled | (lam <= last[idx]))
+        best[idx[kept]] = Pn[kept]
+        moving = ~degenerate & ~settled
+        last[idx[moving]] = lam[moving]
+        P[idx[moving]] = Pn[moving]
+        alive[idx[~moving]] = False
+        if not np.any(alive):
             break
-        best, last = P, lam
     return best
 
 
@@ -210,7 +239,8 @@ def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None)
 
 
 def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str, ...] = FORMS,
-               cross_check: bool = True, lmi: LazyLmi | None = None) -> Membership:
+               cross_check: bool = True, lmi: LazyLmi | None = None,
+               riccati: tuple[float, np.ndarray, np.ndarray] | None = None) -> Membership:
     """Is ``mu`` in the stabilisable set S? Each form in ``forms`` proposes a certificate, checked in numpy.
 
     Parameters
@@ -225,6 +255,10 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
         Run every form and require the decided ones to agree (default); False stops at the first decided.
     lmi : LazyLmi, optional
         This plant's LMI form, kept across calls (one is made otherwise).
+    riccati : (lambda, P, K), optional
+        :func:`homogeneous_riccati` at this mu when the caller has it (a region map keeps lambda as the DP
+        radius): the "riccati" form uses it instead of iterating again. Its certificate is checked at mu as
+        always, so a pair from elsewhere can only leave the form undecided, never make a verdict.
 
     Returns
     -------
@@ -254,7 +288,7 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     values: dict[str, float] = {}
     best: dict[str, object] = {}
     for form in forms:
-        verdict, value, gain, P = _run(form, system, A, B, mu_, lmi)
+        verdict, value, gain, P = _run(form, system, A, B, mu_, lmi, riccati)
         verdicts[form], values[form] = verdict, value
         if verdict != "undecided" and verdict not in best:
             best[verdict] = (form, value, gain, P)
@@ -276,8 +310,9 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     return Membership(mu_, verdict, None, float("nan"), P / float(np.trace(P)), value, pairs)
 
 
-def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray,
-         lmi: LazyLmi | None) -> tuple[str, float, np.ndarray | None, np.ndarray | None]:
+def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray, lmi: LazyLmi | None,
+         riccati: tuple[float, np.ndarray, np.ndarray] | None = None
+         ) -> tuple[str, float, np.ndarray | None, np.ndarray | None]:
     """One form's verdict, its number (a radius or a certificate margin), and its certificate."""
     if form == "dp":
         try:
@@ -287,7 +322,7 @@ def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray
         verdict, radius = _inside(A, B, mu, dp.gain)
         return verdict, radius, dp.gain, None
     if form == "riccati":
-        lam, P, K = homogeneous_riccati(A, B, mu)
+        lam, P, K = homogeneous_riccati(A, B, mu) if riccati is None else riccati
         if lam < 1.0:
             verdict, radius = _inside(A, B, mu, K)
             if verdict == "undecided":   # P vanishes on a block (decoupled plants): its minimiser leaves it gain 0

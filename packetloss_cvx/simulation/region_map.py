@@ -148,8 +148,9 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
 def grid_rows(system_data: dict, laws: tuple[str, ...], fixed: np.ndarray | None, axis: np.ndarray,
               channels: tuple[int, int], base: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(stable, radius)`` of shape (laws, len(rows), K) for the map's rows ``rows`` (mu_J = axis[rows]): one
-    task, in this process or on a Dask worker (the system rebuilt from ``System.to_dict()``, exact). Time
-    O(len(rows) K) memberships.
+    task, in this process or on a Dask worker (the system rebuilt from ``System.to_dict()``, exact). The "dp"
+    radius (the homogeneous Riccati eigenvalue) of all the task's points is one batch, whose eigenpairs the
+    membership's "riccati" form checks as its own. Time O(len(rows) K) memberships.
 
     Examples
     --------
@@ -166,11 +167,14 @@ def grid_rows(system_data: dict, laws: tuple[str, ...], fixed: np.ndarray | None
     stable = np.full((len(laws), len(rows), axis.size), np.nan)
     radius = np.full((len(laws), len(rows), axis.size), np.nan)
     lmi = LazyLmi(system.A, system.B)
-    for r, row in enumerate(rows):
-        for col, mu_i in enumerate(axis):
-            mu = np.array(base, dtype=float)
-            mu[i], mu[j] = mu_i, axis[row]
-            _fill(system, laws, chosen, mu, lmi, stable[:, r, col], radius[:, r, col])
+    mus = np.repeat(np.asarray(base, dtype=float)[None], len(rows) * axis.size, axis=0)
+    mus[:, i], mus[:, j] = np.tile(axis, len(rows)), np.repeat(axis[np.asarray(rows, dtype=int)], axis.size)
+    # the homogeneous Riccati eigenpairs of every point in one batch: "dp"'s radius and its membership's first form
+    pairs = homogeneous_riccati(np.asarray(system.A, float), np.asarray(system.B, float), mus) if "dp" in laws else None
+    for g, mu in enumerate(mus):
+        r, col = divmod(g, axis.size)
+        pair = None if pairs is None else (float(pairs[0][g]), pairs[1][g], pairs[2][g])
+        _fill(system, laws, chosen, mu, lmi, pair, stable[:, r, col], radius[:, r, col])
     return stable, radius
 
 
@@ -188,13 +192,14 @@ def _check_grid(system: System, grid: int, channels: tuple[int, int], laws: int)
 
 
 def _fill(system: System, laws: tuple[str, ...], chosen: dict, mu: np.ndarray, lmi: LazyLmi,
-          stable: np.ndarray, radius: np.ndarray) -> None:
-    """One grid point: every law's verdict (1, 0, nan) and radius, and the containment check."""
+          pair: tuple[float, np.ndarray, np.ndarray] | None, stable: np.ndarray, radius: np.ndarray) -> None:
+    """One grid point: every law's verdict (1, 0, nan) and radius, and the containment check; ``pair`` is the
+    point's homogeneous Riccati eigenpair (lambda, P, K) when "dp" is among the laws."""
     in_s = None
     for k, name in enumerate(laws):
-        if name == "dp":
-            found = law_membership(system, "dp", mu, lmi=lmi)
-            radius[k] = homogeneous_riccati(np.asarray(system.A, float), np.asarray(system.B, float), mu)[0]
+        if name == "dp":    # the eigenpair once: lambda is the radius, and the membership's "riccati" form
+            found = law_membership(system, "dp", mu, lmi=lmi, riccati=pair)
+            radius[k] = pair[0]
             in_s = found.stable
         else:
             try:

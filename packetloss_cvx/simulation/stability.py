@@ -106,8 +106,8 @@ def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.nda
 
 def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """The n^2 x n^2 matrix of ``L`` on row-major ``vec(S)``: ``Abar ⊗ Abar + sum_i c_i F_i ⊗ F_i``,
-    ``F_i = b_i k_i``, ``c_i = mu_i (1 - mu_i)`` (:func:`random_matrix_moment`). Time O(n^4 m), memory 8 n^4
-    bytes: small n only.
+    ``F_i = b_i k_i``, ``c_i = mu_i (1 - mu_i)`` (:func:`random_matrix_moment`). A stack of laws: K (..., m, n)
+    with mu (..., m) gives (..., n^2, n^2). Time O(n^4 m) per law, memory 8 n^4 bytes: small n only.
 
     Examples
     --------
@@ -117,8 +117,8 @@ def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.nda
     >>> bool(np.allclose(second_moment_matrix(A, B, K, mu) @ S.ravel(), second_moment_map(S, A, B, K, mu).ravel()))
     True
     """
-    Abar = A - (B * mu) @ K
-    return random_matrix_moment(Abar, (np.outer(B[:, i], K[i]) for i in range(B.shape[1])), mu * (1.0 - mu))
+    Abar = A - (B * mu[..., None, :]) @ K
+    return random_matrix_moment(Abar, (B[:, i, None] * K[..., i, None, :] for i in range(B.shape[1])), mu * (1.0 - mu))
 
 
 def random_matrix_moment(mean: np.ndarray, directions: Iterable[np.ndarray], variances: np.ndarray) -> np.ndarray:
@@ -126,17 +126,25 @@ def random_matrix_moment(mean: np.ndarray, directions: Iterable[np.ndarray], var
     ``F = mean + sum_i (z_i - E z_i) D_i`` with independent scalars ``z_i`` of variances ``c_i``:
     ``mean ⊗ mean + sum_i c_i D_i ⊗ D_i`` (the cross terms vanish). The operator of :func:`second_moment_map`
     is the case ``D_i = b_i k_i``; the loop with an estimated state (``sensing.loop``) averages it over the
-    sensor's arrival patterns. Time O(d^4) per direction, memory 8 d^4 bytes.
+    sensor's arrival patterns. A stack: ``mean`` and each ``D_i`` (..., d, d), ``variances`` (..., k). Time O(d^4)
+    per direction, memory 8 d^4 bytes.
 
     >>> M = random_matrix_moment(np.array([[1.0]]), [np.array([[2.0]])], np.array([0.25]))
     >>> float(M[0, 0])          # 1 + 0.25 * 4
     2.0
     """
-    out = np.kron(mean, mean)
-    for D, c in zip(directions, variances, strict=True):
-        if c:
-            out += c * np.kron(D, D)
+    out = _kron(mean, mean)
+    for D, c in zip(directions, np.moveaxis(np.asarray(variances), -1, 0), strict=True):
+        if np.any(c):
+            out += np.asarray(c)[..., None, None] * _kron(D, D)
     return out
+
+
+def _kron(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.kron`` of the last two axes, over a stack (the same products: 2-D inputs give np.kron's bits)."""
+    a, b = np.asarray(a), np.asarray(b)
+    outer = a[..., :, None, :, None] * b[..., None, :, None, :]
+    return outer.reshape(*outer.shape[:-4], a.shape[-2] * b.shape[-2], a.shape[-1] * b.shape[-1])
 
 
 def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt.ArrayLike,
