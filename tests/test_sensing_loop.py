@@ -154,6 +154,7 @@ def test_noise_free_perfect_sensor_gives_no_verdict_from_undetermined_gains():
     K = dp_riccati(s).gain
     loop = estimated_loop(s, K, "tcp")
     assert not np.isfinite(loop.spectral_radius)
+    assert loop.stable is None                         # no verdict, neither way
     assert "not determined" in loop.reason
 
 

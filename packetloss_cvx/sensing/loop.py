@@ -145,8 +145,8 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
 
     def result(radius: float, cost: float, control: float, estimation: float, S: np.ndarray | None,
                reason: str) -> EstimatedLoop:
-        return EstimatedLoop(law, protocol, K, radius, is_mean_square_stable(radius), cost, control, estimation, S,
-                             reason)
+        verdict = None if np.isnan(radius) else is_mean_square_stable(radius)      # nan: not computed, no verdict
+        return EstimatedLoop(law, protocol, K, radius, verdict, cost, control, estimation, S, reason)
 
     if n > LOOP_MAX_N:
         return result(nan, nan, nan, nan, None, f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); "
