@@ -540,3 +540,22 @@ def test_tcp_convex_program_is_invariant_to_the_power_unit(s):
     out = least_cost_within_power(t, "tcp", power_model("exponential", 2, scale=[s, 2 * s]), 3.0 * s)
     assert out.status == "optimal"
     assert np.isclose(out.cost, ref.cost, rtol=1e-7)
+
+
+@pytest.mark.parametrize(("argv", "match"), [
+    (["--protocol", "tcp", "--alpha", "8", "--beta", "1,1", "--ack-price", "5"], "--ack-price: .*--protocol best"),
+    (["--protocol", "udp", "--alpha", "8", "--power", "exponential", "--power-scale", "1,2", "--ack-power", "5"],
+     "--ack-power: .*--protocol best"),
+    (["--target", "stable", "--beta", "1,1", "--ack-price", "3"], "--ack-price: --target designs"),
+    (["--target", "stable", "--beta", "1,1", "--power", "exponential", "--power-scale", "1,2"],
+     "--power: --target designs"),
+    (["--target", "dp-cost", "--alpha", "10", "--beta", "1,1", "--budget", "3"], "--budget: --target designs"),
+])
+def test_cli_options_a_command_would_ignore_exit_2(capsys, argv, match):
+    """An option the chosen question does not use was ignored (the answer came back without the link's price, or a
+    beta'mu design for a power question): now exit 2 with one line naming it."""
+    code, out, err = run_cli(capsys, "allocate", "two_actuator", *argv)
+    assert code == 2
+    assert out == ""
+    assert len(err.splitlines()) == 1
+    assert re.search(match, err), err
