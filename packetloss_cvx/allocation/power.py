@@ -279,7 +279,7 @@ def load_power(path: str | Path, m: int) -> PowerModel | None:
 class PowerProgram:
     """The TCP-like power problem with a concave model as one cvxpy program (DPP), solved by Clarabel.
 
-    Variables: x = P / top (m), mu (m) and :func:`~packetloss_cvx.allocation.tcp.cost_epigraph`'s. The link
+    Variables: P (m), mu (m) and :func:`~packetloss_cvx.allocation.tcp.cost_epigraph`'s. The link
     ``mu <= mu(P)`` is convex for a concave model: exponential ``exp(-P_i / c_i) <= 1 - mu_i`` (the
     exponential cone), a concave table ``mu_i <= a_ik + b_ik P_i`` for each segment k and ``mu_i <= mu_last``.
     J*_tcp falls in mu, so the link is tight at the optimum. Parameters: x0, sqrt of the cost scale, the cap
@@ -302,31 +302,27 @@ class PowerProgram:
     def __init__(self, system: System, model: PowerModel, kind: str, rows: int) -> None:
         n, m = system.n, system.m
         self.kind = kind
-        # the variable is x = P / top in [0, 1]^m (P = top x), the objective sum P / sum top: the model's scale
-        # then sits in the data only (c = 1e-12 or 1e12 gave Clarabel 'solver_error' with P the variable)
-        self.x = cp.Variable(m, name="x")
+        self.P = cp.Variable(m, name="P")
         self.mu = cp.Variable(m, name="mu")
         self.x0 = cp.Parameter(n, name="x0")
         self.root = cp.Parameter(nonneg=True, name="sqrt_scale")
-        self.top = cp.Parameter(m, nonneg=True, name="top")
-        self.share = cp.Parameter(m, nonneg=True, name="top_share")
-        self.rows = (cp.Parameter((rows, m), name="G_x"), cp.Parameter(rows, name="h")) if rows else None
+        self.top = cp.Parameter(m, name="top")
+        self.rows = (cp.Parameter((rows, m), name="G"), cp.Parameter(rows, name="h")) if rows else None
         epigraph, scaled, _ = cost_epigraph(system, self.mu, self.x0, self.root)
-        P = cp.multiply(self.top, self.x)
-        cons = [*epigraph, self.x >= 0, self.x <= 1, self.mu >= 0, self.mu <= 1]
+        cons = [*epigraph, self.P >= 0, self.P <= self.top, self.mu >= 0, self.mu <= 1]
         if model.kind == "exponential":
-            cons.append(cp.exp(cp.multiply(-1.0 / model.scale, P)) + self.mu <= 1)
+            cons.append(cp.exp(cp.multiply(-1.0 / model.scale, self.P)) + self.mu <= 1)
         elif model.kind == "table":
             slopes = np.diff(model.table, axis=0) / np.diff(model.powers)[:, None]
             starts = model.table[:-1] - slopes * model.powers[:-1, None]
             for k in range(len(slopes)):
-                cons.append(self.mu <= starts[k] + cp.multiply(slopes[k], P))
+                cons.append(self.mu <= starts[k] + cp.multiply(slopes[k], self.P))
             cons.append(self.mu <= model.table[-1])
         else:  # pragma: no cover - the API routes only concave models here
             raise ValueError(f"no convex program for the {model.kind} model")
         if self.rows is not None:
-            cons.append(self.rows[0] @ self.x <= self.rows[1])
-        objective = cp.sum(cp.multiply(self.share, self.x)) if kind == "power" else scaled
+            cons.append(self.rows[0] @ self.P <= self.rows[1])
+        objective = cp.sum(self.P) if kind == "power" else scaled
         if kind == "power":
             cons.append(scaled <= 1.0)
         self.problem = cp.Problem(cp.Minimize(objective), cons)
@@ -334,17 +330,14 @@ class PowerProgram:
 
     def solve(self, x0: np.ndarray, scale: float, top: np.ndarray, G: np.ndarray, h: np.ndarray,
               no_P: str | None = None) -> np.ndarray:
-        """The solver's P (in [0, top]) for rows ``G P <= h``; raises as :func:`~.tcp.require_answer`."""
+        """The solver's P (clipped to [0, top]); raises as :func:`~.tcp.require_answer`."""
         what = "TCP-like power SOCP" if self.kind == "power" else "TCP-like power-budget SOCP"
-        top = np.asarray(top, dtype=float)
         values = {self.x0: x0, self.root: np.sqrt(scale), self.top: top}
-        if self.kind == "power":
-            values[self.share] = top / np.sum(top)
         if self.rows is not None:
-            values.update({self.rows[0]: np.asarray(G, dtype=float) * top[None, :], self.rows[1]: h})
+            values.update({self.rows[0]: G, self.rows[1]: h})
         status, point = self.compiled.solve(values, what, ALLOCATION_CLARABEL_ATTEMPTS)
         require_answer(status, what, no_P)
-        return top * np.clip(np.array(point(self.x), dtype=float), 0.0, 1.0)
+        return np.clip(np.array(point(self.P), dtype=float), 0.0, top)
 
 
 # ------------------------------------------------------------------ the problems
