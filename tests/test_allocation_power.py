@@ -481,3 +481,60 @@ def test_a_budget_beyond_saturation_with_a_row_beyond_it_asks_for_a_cap():
         least_cost_within_power(s, "tcp", model, 100.0, constraints=row)
     out = least_cost_within_power(s, "tcp", model, 100.0, constraints=row, max_power=100.0)
     assert out.power[0] >= 50.0 - 1e-6
+
+
+def test_best_protocol_break_even_does_not_depend_on_the_ack_price():
+    """The break-even price is a property of the two designs: a dear link (1e12) must not round it away
+    (it came out as udp - ((tcp + 1e12) - 1e12), 0.93711 -> 0.93705 on two_actuator at alpha = 8).
+    Hand reference: one step of x' = x + v u, TCP-like mu = 1/alpha - 1, UDP-like mu = 2 (1 - alpha)."""
+    alpha = 0.75
+    hand = 2 * (1 - alpha) - (1 / alpha - 1)
+    for price in (0.0, 1e12):
+        c = best_protocol(scalar(), alpha, [1.0], ack_price=price, gap=1e-9)
+        assert c.choice == ("tcp" if price == 0.0 else "udp")
+        assert np.isclose(c.break_even, hand, rtol=1e-7, atol=0)
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_power_is_zero_where_silent_channels_meet_alpha(protocol):
+    """alpha at or above J* of silent channels (mu(0)): zero power, proved by P >= 0 (was a SolverError of the
+    conic program, its scale 1 / (alpha - C) vanishing). Hand value: J*(mu = 0) = 1 on the one-step plant; on
+    two_actuator the cost of the uncontrolled plan, sum_k x_k' x_k with x_{k+1} = A x_k, k = 1..N."""
+    model = power_model("exponential", 1, scale=1.0)
+    for alpha in (1.0, 1e9):
+        out = least_power(scalar(), protocol, model, alpha)
+        assert out.status == "optimal"
+        assert out.total_power == 0.0
+        assert out.lower_bound == 0.0
+    s = load_system("two_actuator")
+    x, free = np.array(s.x0, dtype=float), 0.0
+    for _ in range(s.horizon):
+        x = np.array(s.A) @ x
+        free += float(x @ x)
+    out = least_power(s, protocol, power_model("exponential", 2, scale=[1.0, 2.0]), 1e9)
+    assert out.total_power == 0.0
+    assert np.isclose(out.cost, free, rtol=1e-9)
+    # a row asking for power: the least the rows admit, P1 = 0.5, is the answer
+    out = least_power(s, protocol, power_model("exponential", 2, scale=[1.0, 2.0]), 1e9,
+                      constraints=[([[-1.0, 0.0]], [-0.5])])
+    assert np.isclose(out.total_power, 0.5, rtol=1e-7)
+    assert out.status == "optimal"
+
+
+@pytest.mark.parametrize(("argv", "match"), [
+    (["--protocol", "tcp", "--alpha", "8", "--beta", "1,1", "--ack-price", "5"], "--ack-price: .*--protocol best"),
+    (["--protocol", "udp", "--alpha", "8", "--power", "exponential", "--power-scale", "1,2", "--ack-power", "5"],
+     "--ack-power: .*--protocol best"),
+    (["--target", "stable", "--beta", "1,1", "--ack-price", "3"], "--ack-price: --target designs"),
+    (["--target", "stable", "--beta", "1,1", "--power", "exponential", "--power-scale", "1,2"],
+     "--power: --target designs"),
+    (["--target", "dp-cost", "--alpha", "10", "--beta", "1,1", "--budget", "3"], "--budget: --target designs"),
+])
+def test_cli_options_a_command_would_ignore_exit_2(capsys, argv, match):
+    """An option the chosen question does not use was ignored (the answer came back without the link's price, or a
+    beta'mu design for a power question): now exit 2 with one line naming it."""
+    code, out, err = run_cli(capsys, "allocate", "two_actuator", *argv)
+    assert code == 2
+    assert out == ""
+    assert len(err.splitlines()) == 1
+    assert re.search(match, err), err

@@ -112,3 +112,19 @@ def test_gilbert_elliott_sensor_file_is_valid_and_its_estimation_says_why_not(tm
     assert result.data["tcp"]["estimated_state"]["cost"] is None
     sim = simulate_run(parse("simulate", path, "--closed-loop", "--samples", "50", "--steps", "5")).data
     assert "Gilbert-Elliott" in sim["estimated_state"]["reason"]
+
+
+def test_sensor_grid_gives_no_verdict_where_the_stationary_gains_are_undetermined(tmp_path):
+    """A noise-free plant with a noiseless full sensor (a = 2, C = 1, R = 0, Sigma_W = 0): the stationary filter's
+    covariance is 0 and its gains undetermined, so no verdict at gamma = 1 (null; it read 'not
+    stable', radius 4, at gamma = mu = 1 where the loop is the full-state DP's, radius < 1 by hand:
+    (2 - k)^2 < 1 for the DP gain k = 2P/(1 + P) in (1, 2))."""
+    s = System(A=[[2.0]], B=[[1.0]], horizon=5, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0],
+               noise_cov=[[0.0]], sensor=Sensor(C=[[1.0]], noise_cov=[[0.0]], gamma=[1.0], P0=[[1.0]]))
+    path = tmp_path / "noise_free.toml"
+    save_system(s, path)
+    grid = region_run(parse("region", str(path), "--law", "dp", "--sensor-grid", "2", "-q")).data["sensor"]["grid"]
+    for protocol in ("tcp", "udp"):
+        # row gamma = 0.5 < 1 - 1/a^2: E[e^2] grows by a^2 (1 - gamma) = 2 a step, not stable; row gamma = 1: null
+        assert grid[protocol]["stable"] == [[False, False], [None, None]]
+        assert grid[protocol]["stable_share"] == 0.0          # the share proved stable

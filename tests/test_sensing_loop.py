@@ -139,3 +139,35 @@ def test_pattern_gains_follow_the_pattern_order():
     _, L, _ = filter_gains(s)
     for k, a in enumerate(itertools.product((False, True), repeat=2)):
         assert [bool(np.any(L[k][:, j])) for j in range(2)] == list(a)
+
+
+def scalar_sensor_loop(W, R, P0=1.0, gamma=1.0, mu=0.9):
+    """x+ = 2x + v u + w, y = x + r: a = 2, Omega = Psi = 1."""
+    return System(A=[[2.0]], B=[[1.0]], horizon=5, state_weight=[1.0], input_weight=[1.0], mu=[mu], x0=[1.0],
+                  noise_cov=[[W]], sensor=Sensor(C=[[1.0]], noise_cov=[[R]], gamma=[gamma], P0=[[P0]]))
+
+
+def test_noise_free_perfect_sensor_gives_no_verdict_from_undetermined_gains():
+    """Sigma_W = 0, R = 0, C = 1, gamma = 1: Pbar = 0, so the update gain is not fixed by it; the pseudo-inverse's
+    zero gain read as radius a^2 = 4, "not mean-square stable", for a perfect sensor. Now no verdict, a reason."""
+    s = scalar_sensor_loop(W=0.0, R=0.0)
+    K = dp_riccati(s).gain
+    loop = estimated_loop(s, K, "tcp")
+    assert not np.isfinite(loop.spectral_radius)
+    assert loop.stable is None                         # no verdict, neither way
+    assert "not determined" in loop.reason
+
+
+def test_noise_free_plant_with_measurement_noise_is_exact_against_hand_values():
+    """Sigma_W = 0, R = 1, gamma = 1: the filter DARE's stabilising root (scipy) is Pbar = 3, L = 3/4, so the
+    error's radius is ((1 - L) a)^2 = 1/4; the DP gain at mu = 0.9 solves 0.6 P^2 - 4P - 1 = 0 (by hand),
+    k = 2P/(1 + P), radius (2 - mu k)^2 + mu (1 - mu) k^2; the TCP-like loop's radius is the larger."""
+    s = scalar_sensor_loop(W=0.0, R=1.0)
+    Pf = solve_discrete_are(np.array([[2.0]]), np.array([[1.0]]), np.array([[0.0]]), np.array([[1.0]]))[0, 0]
+    assert np.isclose(Pf, 3.0)
+    P = (4 + np.sqrt(16 + 2.4)) / 1.2
+    k = 2 * P / (1 + P)
+    dp_radius = (2 - 0.9 * k) ** 2 + 0.09 * k ** 2
+    loop = estimated_loop(s, np.array([[k]]), "tcp")
+    assert loop.reason == ""
+    assert np.isclose(loop.spectral_radius, max(dp_radius, (0.25 * 2) ** 2), rtol=1e-9)

@@ -101,14 +101,15 @@ def best_protocol(system: System, alpha: float, beta: Any = None, ack_price: flo
             return design.communication_cost, design.lower_bound
         return design.total_power, design.lower_bound
 
-    t_value, t_lower = total(tcp)
-    t_value, t_lower = t_value + price, t_lower + price
+    design, t_lower = total(tcp)
+    t_value, t_lower = design + price, t_lower + price
     u_value, u_lower = total(udp) if udp is not None else (np.inf, np.inf)
     choice = "udp" if u_value <= t_value else "tcp"
     certified = bool(u_value <= t_lower) if choice == "udp" else bool(t_value <= u_lower)
+    # the break-even from the designs alone: (design + price) - price loses the design's digits to a dear link
     return ProtocolChoice(alpha=alpha, currency="beta'mu" if model is None else "power", ack_price=price,
                           tcp=tcp, udp=udp, tcp_total=t_value, udp_total=u_value, choice=choice,
-                          certified=certified, break_even=u_value - (t_value - price))
+                          certified=certified, break_even=u_value - design)
 
 
 def ack_break_even(system: System, alphas: Sequence[float], beta: Any = None, model: PowerModel | None = None,

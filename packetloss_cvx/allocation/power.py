@@ -530,6 +530,14 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
         raise InfeasibleError(f"J*_{protocol} at the largest powers searched (mu = "
                               f"{np.round(setup.cost.mu(np.ones(m)), 12).tolist()}) is {corner:.6g} > alpha = "
                               f"{alpha:g}, and J* falls as any power rises", None)
+    # the least total power the rows admit at all is a lower bound; where J* there already meets alpha (alpha
+    # at or above the cost of silent channels, P = 0) it is the answer, and the conic program, whose scale
+    # 1 / (alpha - C) then vanishes, is not asked (it failed with 'solver_error' at alpha = 1e9 on two_actuator)
+    least, floor_lp = box_lp(top.copy(), setup.poly, np.zeros(m), np.ones(m))
+    if least is not None and J(np.clip(least, 0.0, 1.0)) <= alpha:
+        x = np.clip(least, 0.0, 1.0)
+        return _result(setup, "least-power", x, float(top @ x), min(float(floor_lp), float(top @ x)), "optimal",
+                       "the least power the constraints admit (an LP) already meets alpha", 0, alpha)
     incumbent = None if found is None else found / top
     floor = -np.inf
     tcp = setup if protocol == "tcp" else _Setup(system, "tcp", model, top, constraints)

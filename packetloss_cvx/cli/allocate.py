@@ -48,6 +48,9 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     if args.target is not None or args.margin is not None:    # design for stability: its own module
         return run_target(args)
+    for flag, value in (("--ack-price", args.ack_price), ("--ack-power", args.ack_power)):
+        if value is not None and args.protocol != "best":          # was ignored: the answer without the link
+            raise InputError(flag, "prices the acknowledgement link, which only --protocol best compares")
     system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
     if args.protocol == "best" or wants_power(args, system):
         if system.channel is not None:

@@ -56,6 +56,10 @@ def run_target(args: argparse.Namespace) -> CommandResult:
         raise InputError("--alpha", "--target dp-cost needs the bound on the DP law's stationary cost")
     if args.target == "dp-cost" and args.margin is not None:
         raise InputError("--margin", "applies to --target stable only (dp-cost bounds the cost: --alpha)")
+    for flag in ("--power", "--power-scale", "--power-table", "--budget", "--power-max", "--ack-price", "--ack-power"):
+        if getattr(args, flag[2:].replace("-", "_")) is not None:      # was ignored: a beta'mu design came back
+            raise InputError(flag, "--target designs delivery probabilities priced by --beta; power and the "
+                                   "acknowledgement link are options of --protocol")
     if args.beta is None:
         raise InputError("--beta", "required: the price of each channel's delivery probability, e.g. --beta 1,1")
     system = system_of(args)

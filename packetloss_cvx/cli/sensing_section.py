@@ -174,7 +174,9 @@ def coupled_grid(system: System, grid: int) -> dict[str, Any]:
     ts = np.linspace(1.0 / grid, 1.0, grid)
     out: dict[str, Any] = {"gamma_scale": ts.tolist(), "mu_scale": ts.tolist()}
     for protocol, (radius, _) in loop_map(system, ts, ts, ("tcp", "udp")).items():
-        stable = np.vectorize(is_mean_square_stable)(radius)
+        stable = np.vectorize(is_mean_square_stable)(radius)        # nan (gains undetermined): null, no verdict
         out[protocol] = {"radius": [[finite_or_none(v) for v in row] for row in radius],
-                         "stable": stable.tolist(), "stable_share": float(np.mean(stable))}
+                         "stable": [[None if np.isnan(r) else bool(v) for r, v in zip(rr, vv, strict=True)]
+                                    for rr, vv in zip(radius, stable, strict=True)],
+                         "stable_share": float(np.mean(stable))}
     return out

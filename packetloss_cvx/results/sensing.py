@@ -65,7 +65,8 @@ class EstimatedLoop(Frozen):
     """A law ``u = -K xhat`` run for ever on the estimate of a stationary-gain filter (sensing.loop).
 
     ``protocol`` "tcp" (acks: the prediction uses V u) or "udp" (M u); ``spectral_radius`` of the second-moment
-    operator of ``z = (xhat, e)``; ``stable`` when below 1 by the margin; ``average_stage_cost`` =
+    operator of ``z = (xhat, e)``; ``stable`` when below 1 by the margin (None, no verdict, where the radius is
+    not computed: nan with the ``reason``); ``average_stage_cost`` =
     lim E[x'Omega x + (V u)'Psi(V u)] (inf when not stable, or None-like with ``reason`` when not computed);
     ``control_part`` = tr(P Sigma_W) (P the DP's cost-to-go) and ``estimation_part`` = E[(u + K_dp x)' H
     (u + K_dp x)], whose sum is the cost (sensing.loop docstring); ``second_moment`` E[z z'] (2n×2n)."""
@@ -74,7 +75,7 @@ class EstimatedLoop(Frozen):
     protocol: str
     gain: np.ndarray
     spectral_radius: float
-    stable: bool
+    stable: bool | None
     average_stage_cost: float
     control_part: float
     estimation_part: float

@@ -49,7 +49,8 @@ from ..tolerances import KRONECKER_MAX_N
 from .bounds import upper_bound_covariance
 from .kalman import arrival_patterns, measurement_update, pattern_rows
 
-__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "require_sensor"]
+__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "require_sensor",
+           "undetermined_gains"]
 
 #: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
 LOOP_MAX_N = KRONECKER_MAX_N
@@ -78,6 +79,30 @@ def filter_gains(system: System) -> tuple[np.ndarray, np.ndarray, np.ndarray] | 
     gains = np.stack([measurement_update(Pbar, sensor.C, sensor.noise_cov, pattern_rows(sensor, a))[1]
                       for a in arrived])
     return Pbar, gains, prob
+
+
+def undetermined_gains(system: System, gains: tuple[np.ndarray, np.ndarray, np.ndarray]) -> str:
+    """Why the stationary gains say nothing about the loop ("" when they do): some received pattern's innovation
+    covariance ``C_r Pbar C_r' + R_r`` is singular (to 1e-12 of ``|C_r|^2 max(|Pbar|, |Sigma_W|, |P0|) + |R_r|``),
+    so its gain is not fixed by ``Pbar`` and the pseudo-inverse's zero gain leaves the error uncorrected. The
+    case: no noise reaches the measured rows and R = 0 (C = 1, R = 0, Sigma_W = 0, gamma = 1 has Pbar = 0 and a
+    perfect sensor, yet the zero gain read as radius 4, "not stable"). O(2^g p^3)."""
+    sensor = system.sensor
+    Pbar, _, prob = gains
+    arrived, _ = arrival_patterns(sensor.gamma)
+    level = max(np.linalg.norm(Pbar, 2), np.linalg.norm(system.noise_cov, 2), np.linalg.norm(sensor.P0, 2))
+    for a, pa in zip(arrived, prob, strict=True):
+        rows = pattern_rows(sensor, a)
+        if pa == 0.0 or rows.size == 0:
+            continue
+        Cr, Rr = sensor.C[rows], sensor.noise_cov[np.ix_(rows, rows)]
+        S = Cr @ Pbar @ Cr.T + Rr
+        scale = np.linalg.norm(Cr, 2) ** 2 * level + np.linalg.norm(Rr, 2)
+        if np.linalg.eigvalsh(0.5 * (S + S.T))[0] <= 1e-12 * scale:
+            return ("the stationary filter's innovation covariance is singular on the received rows (no noise reaches "
+                    "them and R = 0 there): its gains are not determined by the stationary covariance, so no exact "
+                    "stationary loop (use simulate's time-varying filter)")
+    return ""
 
 
 def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "",
@@ -120,8 +145,8 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
 
     def result(radius: float, cost: float, control: float, estimation: float, S: np.ndarray | None,
                reason: str) -> EstimatedLoop:
-        return EstimatedLoop(law, protocol, K, radius, is_mean_square_stable(radius), cost, control, estimation, S,
-                             reason)
+        verdict = None if np.isnan(radius) else is_mean_square_stable(radius)      # nan: not computed, no verdict
+        return EstimatedLoop(law, protocol, K, radius, verdict, cost, control, estimation, S, reason)
 
     if n > LOOP_MAX_N:
         return result(nan, nan, nan, nan, None, f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); "
@@ -130,6 +155,9 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     if gains is None:
         return result(float("inf"), float("inf"), nan, nan, None,
                       "the filter has no stationary gains at this gamma (the expected Riccati iteration diverges)")
+    undetermined = undetermined_gains(system, gains)
+    if undetermined:
+        return result(nan, nan, nan, nan, None, undetermined)
     _, L, prob = gains
     c = mu * (1.0 - mu)
     eye = np.eye(n)
