@@ -70,7 +70,7 @@ from .grammar import (
     check_system,
     read_polytope,
 )
-from .udp import SPLIT_WEIGHT_FLOOR, Search, split
+from .udp import SPLIT_WEIGHT_FLOOR, Search
 
 __all__ = ["TARGETS", "Point", "dp_cost", "stability_allocate"]
 
@@ -297,14 +297,7 @@ def _search(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, max_boxe
             if q is not None and verdict(q) == "in":
                 point = incumbent(p, q)
                 search.offer(point, float(beta @ point))
-        halves = split(l, u, weights)
-        if not halves:
-            search.unsplit = min(search.unsplit, lb)
-            return
-        for nl, nu in halves:
-            child = bound(nl, nu)
-            if child is not None:
-                search.push(*child)
+        search.branch(l, u, lb, weights, bound)
 
     root = bound(poly.lower(), poly.upper())
     if root is not None:

@@ -171,6 +171,19 @@ class Search:
         heapq.heappush(self.heap, (bound, self.counter, l, u, data))
         self.counter += 1
 
+    def branch(self, l: np.ndarray, u: np.ndarray, lb: float, weights: np.ndarray,
+               bound: Callable[[np.ndarray, np.ndarray], tuple | None]) -> None:
+        """Split the box [l, u] (proven bound ``lb``) and open each half that ``bound`` does not discard; a box
+        too small to split keeps ``lb`` in ``unsplit``. O(m) plus ``bound``'s work per half."""
+        halves = split(l, u, weights)
+        if not halves:
+            self.unsplit = min(self.unsplit, lb)
+            return
+        for nl, nu in halves:
+            child = bound(nl, nu)
+            if child is not None:
+                self.push(*child)
+
     def lower_bound(self) -> float:
         """The proven bound: no admissible point beats the least open or unsplit box's bound,
         the incumbent, or the floor. O(1)."""
@@ -310,14 +323,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
                 point = p + t * (q - p)
                 if J(point) <= alpha:
                     search.offer(point, float(beta @ point))
-        halves = split(l, u, weights)
-        if not halves:
-            search.unsplit = min(search.unsplit, lb)
-            return
-        for nl, nu in halves:
-            child = bound(nl, nu)
-            if child is not None:
-                search.push(child[0], child[1], child[2], child[3])
+        search.branch(l, u, lb, weights, bound)
 
     root = bound(poly.lower(), poly.upper())
     if root is not None:
