@@ -94,3 +94,17 @@ def test_region_names_a_missing_fixed_law(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "fixed" in err[0] and "does not exist" in err[0]
     assert main(["region", "two_actuator", "--mu", "0.01", "--law", "dp", "--json"]) == 0
+
+
+def test_region_all_laws_leaves_out_a_missing_fixed_law_with_a_note(capsys, tmp_path):
+    """--law all (the default) on a plant no mu stabilises (x2' = 3 x2 has no input): 'fixed' has no DP gain to
+    design, so it is left out with the reason, and the other laws still answer 'never' (exit 0), where the whole
+    command used to stop with exit 1."""
+    s = System(A=[[2.0, 0.0], [0.0, 3.0]], B=[[1.0], [0.0]], horizon=5, state_weight=[1.0, 1.0],
+               input_weight=[1.0], mu=[0.9], x0=[1.0, 1.0])
+    path = str(save_system(s, tmp_path / "unstabilisable.toml"))
+    assert main(["region", path, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert "fixed" not in data and set(data) >= {"dp", "tcp", "udp"}
+    assert all(data[law]["critical_mu"] is None and data[law]["t"] is None for law in ("dp", "tcp", "udp"))
+    assert len(data["notes"]) == 1 and "'fixed' left out" in data["notes"][0]

@@ -11,12 +11,13 @@ from typing import Any
 import numpy as np
 
 from ..budgets import check
-from ..errors import InputError
+from ..errors import InputError, NumericalError
 from ..results.region import RegionMap
 from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..simulation.markov_region import chain_membership, chain_rate_map, homogeneous_coupled_riccati
 from ..simulation.region_map import LAWS, region_map
+from ..simulation.riccati import dp_riccati
 from ..studies.output import csv_number
 from .common import CommandResult, floats, progress_of, system_of
 from .sensing_section import coupled_grid, region_section
@@ -81,6 +82,13 @@ def run(args: argparse.Namespace) -> CommandResult:
     if system.channel is not None:
         return _chain(args, system)
     options = _options(args, system.m)
+    left_out = None
+    if args.law == "all":   # 'fixed' is the DP gain at the file's mu: where none exists, the others still answer
+        try:
+            dp_riccati(system)
+        except NumericalError as err:
+            options["laws"] = tuple(law for law in options["laws"] if law != "fixed")
+            left_out = f"law 'fixed' left out: the DP gain at the file's mu does not exist ({err})"
     sensor_grid = getattr(args, "sensor_grid", None)
     if sensor_grid is not None:
         if system.sensor is None:
@@ -93,6 +101,9 @@ def run(args: argparse.Namespace) -> CommandResult:
         with _folder(args) as out:
             result = region_map(system, progress=progress_of(args), **options)
             data, lines = result.to_dict(), _text(result)
+            if left_out is not None:
+                data["notes"] = [left_out]
+                lines.append(f"  {left_out}")
             if system.sensor is not None:       # lossy sensor links: thresholds (TCP-like), coupled map (UDP-like)
                 data["sensor"], more = region_section(system)
                 lines += more
