@@ -149,3 +149,24 @@ def test_solve_json_names_each_protocol_as_the_readme_says(capsys):
     assert data["udp"]["protocol"] == "udp"
     assert main(["solve", "pendulum_bursty", "--json", "--no-qp", "--protocol", "udp"]) == 0
     assert json.loads(capsys.readouterr().out)["udp"]["protocol"] == "udp"
+
+
+def test_a_signal_inside_a_library_import_is_the_interrupt_not_a_fault(monkeypatch, capsys):
+    """SIGINT landing while an extension module initialises surfaces as ImportError("initialization failed")
+    raised while handling our Interrupted: that is exit 130 with the interrupt's line, not "unexpected ImportError"
+    and exit 1 (seen once in the reliability test's SIGINT during a sweep's writes)."""
+    import signal
+
+    import packetloss_cvx.cli as cli
+    import packetloss_cvx.cli.solve as solve
+
+    def interrupted_import(args):
+        try:
+            raise cli.Interrupted(signal.SIGINT)
+        except KeyboardInterrupt:
+            raise ImportError("initialization failed")  # noqa: B904 - the context is the point
+
+    monkeypatch.setattr(solve, "run", interrupted_import)
+    assert main(["solve", "two_actuator"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == ["packetloss-cvx: interrupted by SIGINT"]
