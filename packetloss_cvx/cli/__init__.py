@@ -95,7 +95,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if argv is None:        # the program is ending: a library's exit hook (distributed's close_clusters on a
             sys.stderr.flush()  # cluster still starting) must not add a traceback after the one line
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
-            if _HALF_IMPORTED:  # the signal landed in an extension's import: skip the shutdown that can abort
+            if getattr(err, "half_imported", False):   # the signal landed in an extension's import: skip the
+                # interpreter's shutdown, which can abort on the half-initialised module (exit -6, not 130)
                 sys.stdout.flush()
                 os._exit(code)
         return code
@@ -145,15 +146,15 @@ def _run(argv: Sequence[str] | None) -> int:
     except Exception as err:  # noqa: BLE001 - last line of defence: one line, no traceback
         stop = _interrupt_behind(err)
         if stop is not None:   # a signal that landed inside a library's import (an extension's initialisation
-            raise stop from None   # failing as ImportError "initialization failed") is the interrupt, not a fault
+            stop.half_imported = True   # failing as ImportError "initialization failed") is the interrupt, not a
+            raise stop from None        # fault; the half-initialised module makes the shutdown unsafe
         _say(f"packetloss-cvx: unexpected {type(err).__name__}: {err}")
         return 1
 
 
 def _interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
     """The KeyboardInterrupt (our signal handler's :class:`Interrupted`) that ``err`` was raised while handling,
-    if any: a signal inside an import surfaces as the import's own error. Marks the process as one whose
-    interpreter shutdown is not safe (a half-initialised extension module). O(length of the chain).
+    if any: a signal inside an import surfaces as the import's own error. O(length of the chain).
 
     >>> try:
     ...     try:
@@ -167,13 +168,7 @@ def _interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
     seen = set()
     while err is not None and id(err) not in seen:
         if isinstance(err, KeyboardInterrupt):
-            _HALF_IMPORTED.append(True)
             return err
         seen.add(id(err))
         err = err.__cause__ or err.__context__
     return None
-
-
-#: set when a signal interrupted an import: the program then ends without the interpreter's shutdown, which
-#: can abort on the half-initialised extension (a "Fatal Python error" and exit -6 instead of 130)
-_HALF_IMPORTED: list[bool] = []
