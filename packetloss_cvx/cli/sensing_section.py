@@ -12,11 +12,10 @@ from ..errors import InputError, NumericalError
 from ..model import System
 from ..results.base import finite_or_none
 from ..sensing.bounds import covariance_bounds, critical_gamma
-from ..sensing.loop import estimated_loop, loop_map, require_sensor
+from ..sensing.loop import estimated_loop, loop_map, loop_verdict, no_gains_verdict, require_sensor
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.critical import critical_mu
 from ..simulation.riccati import dp_riccati
-from ..simulation.stability import is_mean_square_stable
 
 __all__ = ["coupled_grid", "estimated_law", "estimation_section", "protocol_entry", "region_section",
            "simulate_section"]
@@ -76,18 +75,23 @@ def estimated_law(system: System, gain: np.ndarray, protocol: str, law: str) -> 
     try:
         loop = estimated_loop(system, gain, protocol, law)
     except InputError as err:            # e.g. a non-stationary or Gilbert-Elliott actuator channel
-        return {"law": law, "protocol": protocol, "cost": None, "stable": False, "reason": str(err)}
+        return {"law": law, "protocol": protocol, "cost": None, "stable": None, "reason": str(err)}   # no verdict
     entry = loop.to_dict()
     entry.pop("gain")
     entry["cost"] = entry.pop("average_stage_cost")
     return entry
 
 
+def _verdict_text(stable: bool | None) -> str:
+    """A sensor-loop verdict in text: proved either way, or "undecided" (JSON null)."""
+    return "undecided" if stable is None else ("mean-square stable" if stable else "NOT stable")
+
+
 def _law_text(entry: dict[str, Any]) -> str:
     if entry.get("cost") is None:
-        return f"cost n/a ({entry.get('reason', '')})"
+        return f"{_verdict_text(entry.get('stable'))}, cost n/a ({entry.get('reason', '')})"
     return (f"average stage cost {_num(entry['cost'])} = control {_num(entry.get('control_part'))} + estimation "
-            f"{_num(entry.get('estimation_part'))}; " + ("mean-square stable" if entry["stable"] else "NOT stable")
+            f"{_num(entry.get('estimation_part'))}; " + _verdict_text(entry["stable"])
             + f" (radius of (xhat, e) {_num(entry.get('spectral_radius'))})")
 
 
@@ -135,11 +139,17 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                          f"{_num(run.exact_stage_cost)}" + (f" ({run.reason})" if run.reason else ""))
         kalman = out[law].get("kalman", {})
         stationary = out[law].get("stationary", {})
+        if "stable" in stationary:
+            stable, why = stationary["stable"], stationary.get("reason", "")
+        else:                            # no stationary gains: proved unbounded, or undecided between the bounds
+            stable, why = no_gains_verdict(system)
         out[law].update({
             "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
             "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""),
-            "stable": stationary.get("stable"),
+            "stable": stable, "stable_reason": why,
         })
+        lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law: " + _verdict_text(stable)
+                     + (f" ({why})" if why else ""))
     return out, lines
 
 
@@ -174,9 +184,10 @@ def coupled_grid(system: System, grid: int) -> dict[str, Any]:
     ts = np.linspace(1.0 / grid, 1.0, grid)
     out: dict[str, Any] = {"gamma_scale": ts.tolist(), "mu_scale": ts.tolist()}
     for protocol, (radius, _) in loop_map(system, ts, ts, ("tcp", "udp")).items():
-        stable = np.vectorize(is_mean_square_stable)(radius)        # nan (gains undetermined): null, no verdict
-        out[protocol] = {"radius": [[finite_or_none(v) for v in row] for row in radius],
-                         "stable": [[None if np.isnan(r) else bool(v) for r, v in zip(rr, vv, strict=True)]
-                                    for rr, vv in zip(radius, stable, strict=True)],
-                         "stable_share": float(np.mean(stable))}
+        # nan (gains undetermined, or gamma between the critical-rate bounds) and a radius within the margin of 1:
+        # null, no verdict; inf only where proved unbounded (sensing.loop.loop_map)
+        verdicts = [[loop_verdict(float(r)) for r in row] for row in radius]
+        out[protocol] = {"radius": [[finite_or_none(v) for v in row] for row in radius], "stable": verdicts,
+                         "stable_share": float(np.mean([[v is True for v in row] for row in verdicts])),
+                         "undecided_share": float(np.mean([[v is None for v in row] for row in verdicts]))}
     return out

@@ -44,13 +44,13 @@ from ..model import System
 from ..results.sensing import EstimatedLoop
 from ..simulation.moments import solve_fixed_point, stationary_channel
 from ..simulation.riccati import dp_riccati
-from ..simulation.stability import is_mean_square_stable, random_matrix_moment
-from ..tolerances import KRONECKER_MAX_N
-from .bounds import upper_bound_covariance
+from ..simulation.stability import random_matrix_moment
+from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
+from .bounds import lower_bound_diverges, upper_bound_covariance
 from .kalman import arrival_patterns, measurement_update, pattern_rows
 
-__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "require_sensor",
-           "undetermined_gains"]
+__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "loop_verdict", "no_gains_verdict",
+           "require_sensor", "undetermined_gains"]
 
 #: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
 LOOP_MAX_N = KRONECKER_MAX_N
@@ -64,6 +64,50 @@ def require_sensor(system: System) -> None:
     if system.sensor.channel is not None:
         raise InputError("sensor.model", "a Gilbert-Elliott sensor's losses are correlated: the independent-arrival "
                                          "analysis does not describe it (give gamma for the Bernoulli twin)")
+
+
+def loop_verdict(radius: float) -> bool | None:
+    """The verdict a radius of the (xhat, e) second-moment operator proves: True below ``1 - MEAN_SQUARE_MARGIN``,
+    False above ``1 + MEAN_SQUARE_MARGIN`` (inf included), None (no verdict) within the margin of 1 or for nan (the
+    eigenvalue solvers agree to about 1e-12 relative, so a radius that close to 1 proves neither). O(1).
+
+    >>> loop_verdict(0.5), loop_verdict(2.0), loop_verdict(1.0), loop_verdict(float("nan"))
+    (True, False, None, None)
+    """
+    if np.isnan(radius):
+        return None
+    if radius < 1.0 - MEAN_SQUARE_MARGIN:
+        return True
+    return False if radius > 1.0 + MEAN_SQUARE_MARGIN else None
+
+
+#: Why ``stable`` is False where the filter has no stationary gains and the lower bound diverges.
+UNBOUNDED_REASON = ("not mean-square stable, proved: the lower bound on the filter's expected error covariance "
+                    "diverges at this gamma (sensing.bounds.lower_bound_diverges), and E[x x'] >= E[P_k] for any law "
+                    "on any estimate (the Kalman filter's P_k is the least error covariance given the TCP-like "
+                    "information, which contains the UDP-like one)")
+#: Why ``stable`` is null where the filter has no stationary gains but the lower bound is finite.
+UNDECIDED_REASON = ("undecided: the filter has no stationary gains at this gamma (the expected Riccati upper-bound "
+                    "iteration diverges or does not settle), yet the lower bound on E[P] is finite: gamma lies between "
+                    "the certified bounds on the critical rate, where neither bound decides")
+
+
+def no_gains_verdict(system: System) -> tuple[bool | None, str]:
+    """The verdict where :func:`filter_gains` is None: ``(False, reason)`` when the lower bound on E[P^-] diverges
+    at the system's gamma (sensing.bounds.lower_bound_diverges: from the noise or from P0; proved, since
+    E[x x'] >= E[P_k] >= q E[P^-_k] -> inf for every law on every estimate), else ``(None,
+    reason)``: the upper-bound iteration diverging proves nothing (Jensen's bound, not E[P]). O(n^3 log).
+
+    >>> from packetloss_cvx.sensor import Sensor
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.5]))   # (1 - 0.5) 2^2 = 2 >= 1
+    >>> no_gains_verdict(s)[0]
+    False
+    """
+    sensor = system.sensor
+    if lower_bound_diverges(system.A, system.noise_cov, sensor.P0, float(np.prod(1.0 - sensor.gamma))):
+        return False, UNBOUNDED_REASON
+    return None, UNDECIDED_REASON
 
 
 def filter_gains(system: System) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -109,8 +153,10 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
                    gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, split: bool = True) -> EstimatedLoop:
     """The exact stationary loop of ``u = -K xhat`` (module docstring) at the system's mu and gamma.
 
-    Returns the radius of the second-moment operator of ``(xhat, e)``, the average stage cost (inf with the
-    reason when not mean-square stable, or when the filter has no stationary gains) and its two parts
+    Returns the radius of the second-moment operator of ``(xhat, e)``, the verdict it proves (:func:`loop_verdict`),
+    the average stage cost (inf with the reason when proved not mean-square stable; nan with the reason, verdict
+    None, when undecided: a radius within the margin of 1, or no stationary gains while the lower bound on E[P] is
+    finite, :func:`no_gains_verdict`) and its two parts
     (``split=False``: not computed, nan; it solves the DP). ``gains``: :func:`filter_gains` of this system when the
     caller has them (a map over mu at one gamma). Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
 
@@ -145,16 +191,16 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
 
     def result(radius: float, cost: float, control: float, estimation: float, S: np.ndarray | None,
                reason: str) -> EstimatedLoop:
-        verdict = None if np.isnan(radius) else is_mean_square_stable(radius)      # nan: not computed, no verdict
-        return EstimatedLoop(law, protocol, K, radius, verdict, cost, control, estimation, S, reason)
+        return EstimatedLoop(law, protocol, K, radius, loop_verdict(radius), cost, control, estimation, S, reason)
 
     if n > LOOP_MAX_N:
         return result(nan, nan, nan, nan, None, f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); "
                                                f"found n = {n}: use Monte Carlo")
     gains = filter_gains(system) if gains is None else gains
-    if gains is None:
-        return result(float("inf"), float("inf"), nan, nan, None,
-                      "the filter has no stationary gains at this gamma (the expected Riccati iteration diverges)")
+    if gains is None:           # proved unbounded (lower bound) or undecided (between the bounds): never a guess
+        verdict, why = no_gains_verdict(system)
+        return result(float("inf") if verdict is False else nan, float("inf") if verdict is False else nan,
+                      nan, nan, None, why)
     undetermined = undetermined_gains(system, gains)
     if undetermined:
         return result(nan, nan, nan, nan, None, undetermined)
@@ -180,7 +226,10 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
         N = np.block([[LC, La], [eye - LC, -La]])
         noise += pa * (N @ noise_cov @ N.T)
     radius = float(np.max(np.abs(np.linalg.eigvals(matrix))))
-    if not is_mean_square_stable(radius):
+    if loop_verdict(radius) is None:
+        return result(radius, nan, nan, nan, None, f"undecided: the radius of (xhat, e) is {radius:.12g}, within "
+                                                   f"{MEAN_SQUARE_MARGIN:g} of 1")
+    if not loop_verdict(radius):
         return result(radius, float("inf"), nan, nan, None, f"not mean-square stable: the radius of (xhat, e) is "
                                                              f"{radius:.6g}")
     S = solve_fixed_point(lambda X: (matrix @ X.ravel()).reshape(2 * n, 2 * n), lambda: matrix, noise,
@@ -207,7 +256,9 @@ def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
              laws: tuple[str, ...] = tuple(MAP_LAWS)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Each law's exact radius and average stage cost (``(G, M)`` arrays, rows gamma) on the grid
     ``gamma = s_g gamma_file / max``, ``mu = s_m mu_file / max`` (:func:`estimated_loop`; the filter built once per
-    gamma; inf where the filter has no stationary gains or the DP has no stabilising law). The data of the
+    gamma; inf where the DP has no stabilising law or the filter has no stationary gains and the lower bound on
+    E[P] diverges (proved unstable), nan where it has none but that bound is finite (undecided,
+    :func:`no_gains_verdict`), the radius as :func:`estimated_loop` gives it otherwise). The data of the
     (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws (2n)^6).
 
     >>> from packetloss_cvx.sensor import Sensor
@@ -224,7 +275,10 @@ def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
     for i, sg in enumerate(gamma_scales):
         s_gamma = system.with_sensor(sensor.with_gamma(np.clip(sg * sensor.gamma / sensor.gamma.max(), 0.0, 1.0)))
         gains = filter_gains(s_gamma)          # the filter at this gamma, shared by every mu of the row
-        if gains is None:
+        if gains is None:                      # inf only where proved unbounded; nan (no verdict) between the bounds
+            if no_gains_verdict(s_gamma)[0] is None:
+                for law in laws:
+                    out[law][0][i], out[law][1][i] = np.nan, np.nan
             continue
         for j, sm in enumerate(mu_scales):
             s = s_gamma.with_mu(np.clip(sm * mu0 / mu0.max(), 0.0, 1.0))
