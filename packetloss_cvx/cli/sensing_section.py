@@ -13,6 +13,7 @@ from ..model import System
 from ..results.base import finite_or_none
 from ..sensing.bounds import covariance_bounds, critical_gamma
 from ..sensing.loop import estimated_loop, loop_map, loop_verdict, no_gains_verdict, require_sensor
+from ..sensing.markov_bounds import filter_stability, markov_covariance_bounds
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.critical import critical_mu
 from ..simulation.riccati import dp_riccati
@@ -34,21 +35,24 @@ def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
         return {"critical_gamma": {"lower": None, "upper": None}, "error_covariance_trace": {"lower": None,
                 "upper": None}, "reason": refused}, [f"not computed: {refused}"]
     sensor = system.sensor
-    direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
-    cg = critical_gamma(system.A, sensor, direction)
-    bounds = covariance_bounds(system.A, system.noise_cov, sensor)
-    scale = float(sensor.gamma.max())
-    out: dict[str, Any] = {
-        "gamma": sensor.gamma.tolist(), "groups": [list(g) for g in sensor.groups],
-        "critical_gamma": {"lower": finite_or_none(cg.lower), "upper": finite_or_none(cg.upper), "exact": cg.exact,
-                           "direction": cg.direction.tolist(), "reason": cg.reason},
-        "error_covariance_trace": {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter"},
-        "gamma_scale": scale,
-    }
-    where = "gamma = t d, d = gamma / max gamma; the file's t = " + _num(scale)
-    lines = [f"critical rate t_c: [{_num(cg.lower)}, {_num(cg.upper)}]" + (" (exact)" if cg.exact else "")
-             + f" along {where}",
-             f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
+    if sensor.channel is not None:
+        out, lines = _chain_estimation(system)
+    else:
+        direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
+        cg = critical_gamma(system.A, sensor, direction)
+        bounds = covariance_bounds(system.A, system.noise_cov, sensor)
+        scale = float(sensor.gamma.max())
+        out = {
+            "gamma": sensor.gamma.tolist(), "groups": [list(g) for g in sensor.groups],
+            "critical_gamma": {"lower": finite_or_none(cg.lower), "upper": finite_or_none(cg.upper),
+                               "exact": cg.exact, "direction": cg.direction.tolist(), "reason": cg.reason},
+            "error_covariance_trace": {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter"},
+            "gamma_scale": scale,
+        }
+        where = "gamma = t d, d = gamma / max gamma; the file's t = " + _num(scale)
+        lines = [f"critical rate t_c: [{_num(cg.lower)}, {_num(cg.upper)}]" + (" (exact)" if cg.exact else "")
+                 + f" along {where}",
+                 f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
     try:
         dp = dp_riccati(system)
     except NumericalError as err:
@@ -60,11 +64,38 @@ def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
     return out, lines
 
 
-def _refused(system: System) -> str | None:
-    """Why the independent-arrival analysis does not apply to this (valid) file, or None: a Gilbert-Elliott
-    sensor (correlated losses); the caller reports the reason instead of failing."""
+#: Why a Gilbert-Elliott sensor has no critical arrival rate in solve's "estimation".
+CHAIN_CRITICAL = ("Gilbert-Elliott sensor links: the long-run rate alone does not decide whether E[P] stays bounded "
+                  "(the losses are correlated); see filter_stability (rho(Lambda) rho(A)^2 < 1 is necessary)")
+
+
+def _chain_estimation(system: System) -> tuple[dict[str, Any], list[str]]:
+    """The "estimation" head behind Gilbert-Elliott sensor links (sensing.markov_bounds): whether E[P] stays
+    bounded (proved either way, or undecided) and the stationary Markov bounds on tr E[P^-]."""
+    sensor = system.sensor
+    out: dict[str, Any] = {"gamma": sensor.gamma.tolist(), "groups": [list(g) for g in sensor.groups],
+                           "critical_gamma": {"lower": None, "upper": None, "exact": False, "reason": CHAIN_CRITICAL}}
     try:
-        require_sensor(system)
+        fs = filter_stability(system.A, system.noise_cov, sensor)
+        bounds = markov_covariance_bounds(system.A, system.noise_cov, sensor)
+    except InputError as err:                      # too many joint chain states for the coupled equations
+        out["error_covariance_trace"] = {"lower": None, "upper": None, "reason": str(err)}
+        out["filter_stability"] = {"bounded": None, "reason": str(err)}
+        return out, [f"Gilbert-Elliott sensor links: not analysed: {err}"]
+    out["error_covariance_trace"] = {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter "
+                                                               "(Markov bounds)"}
+    out["filter_stability"] = fs.to_dict()
+    verdict = {True: "bounded", False: "UNBOUNDED", None: "undecided"}[fs.bounded]
+    return out, [f"Gilbert-Elliott sensor links (long-run rates {np.round(sensor.gamma, 6).tolist()}): E[P-] "
+                 f"{verdict}: {fs.reason}",
+                 f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
+
+
+def _refused(system: System) -> str | None:
+    """Why the sensor analysis does not apply to this (valid) file, or None; the caller reports the reason instead
+    of failing."""
+    try:
+        require_sensor(system, chains=True)
     except InputError as err:
         return str(err)
     return None
@@ -129,7 +160,7 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                 run = simulate_estimated(system, gain, protocol, name, samples=samples, steps=steps, seed=seed,
                                          law=law)
             except InputError as err:
-                if err.field != "sensor.gamma":
+                if err.field not in ("sensor.gamma", "sensor.model"):      # no stationary gains: the reason
                     raise
                 out[law][name] = {"reason": str(err)}
                 continue
@@ -141,7 +172,7 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
         stationary = out[law].get("stationary", {})
         if "stable" in stationary:
             stable, why = stationary["stable"], stationary.get("reason", "")
-        else:                            # no stationary gains: proved unbounded, or undecided between the bounds
+        else:      # no stationary gains, or Gilbert-Elliott links: proved unbounded, or undecided
             stable, why = no_gains_verdict(system)
         out[law].update({
             "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
@@ -161,14 +192,11 @@ def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
     if refused is not None:
         return {"reason": refused}, [f"sensor: not computed: {refused}"]
     sensor = system.sensor
+    if sensor.channel is not None:
+        return _chain_region(system)
     direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
     cg = critical_gamma(system.A, sensor, direction)
-    mu = system.mu_schedule[0]
-    try:
-        t_mu: float | None = float(critical_mu(system, "dp", mu / mu.max() if mu.max() > 0 else None))
-        why = ""
-    except (NumericalError, InputError) as err:
-        t_mu, why = None, str(err)
+    t_mu, why = _dp_critical_mu(system)
     out = {"tcp": {"critical_gamma": cg.to_dict(), "critical_mu_dp": finite_or_none(t_mu), "reason": why,
                    "rule": "stable iff gamma = t d with t above the critical rate and mu in the DP's region "
                            "(separation: the estimation error does not depend on the control)"}}
@@ -176,6 +204,32 @@ def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
              f"t in [{_num(cg.lower)}, {_num(cg.upper)}]" + (" (exact)" if cg.exact else "")
              + f"; the DP law needs mu = t mu_file / max with t > {_num(t_mu)}"]
     return out, lines
+
+
+def _dp_critical_mu(system: System) -> tuple[float | None, str]:
+    mu = system.mu_schedule[0]
+    try:
+        return float(critical_mu(system, "dp", mu / mu.max() if mu.max() > 0 else None)), ""
+    except (NumericalError, InputError) as err:
+        return None, str(err)
+
+
+def _chain_region(system: System) -> tuple[dict[str, Any], list[str]]:
+    """``region``'s "sensor" behind Gilbert-Elliott sensor links: TCP-like, the filter's verdict (proved, or
+    undecided) beside the DP's critical mu; the coupled (gamma, mu) map is not derived (its ``reason``)."""
+    try:
+        fs: dict[str, Any] = filter_stability(system.A, system.noise_cov, system.sensor).to_dict()
+    except InputError as err:
+        fs = {"bounded": None, "reason": str(err)}
+    t_mu, why = _dp_critical_mu(system)
+    out = {"reason": "the coupled (gamma, mu) map behind Gilbert-Elliott sensor links is not derived "
+                     "(no --sensor-grid)",
+           "tcp": {"filter_stability": fs, "critical_mu_dp": finite_or_none(t_mu), "reason": why,
+                   "rule": "needs E[P] bounded (filter_stability) and mu in the DP's region (separation: the "
+                           "estimation error does not depend on the control)"}}
+    verdict = {True: "bounded", False: "UNBOUNDED", None: "undecided"}[fs["bounded"]]
+    return out, [f"sensor (Gilbert-Elliott), TCP-like: E[P-] {verdict} ({fs['reason']}); the DP law needs "
+                 f"mu = t mu_file / max with t > {_num(t_mu)}"]
 
 
 def coupled_grid(system: System, grid: int) -> dict[str, Any]:

@@ -30,7 +30,8 @@ import numpy as np
 from ..errors import CrossCheckError, InputError, NumericalError
 from ..results.sensing import CovarianceBounds, CriticalGamma
 from ..sensor import Sensor
-from .kalman import arrival_patterns, measurement_update, pattern_rows, predict
+from .arrivals import arrival_patterns
+from .kalman import measurement_update, pattern_rows, predict
 
 __all__ = ["DIVERGENCE_MARGIN", "covariance_bounds", "critical_gamma", "expected_riccati_map", "lower_bound_covariance",
            "lower_bound_diverges", "riccati_map", "stable_certificate", "upper_bound_covariance"]

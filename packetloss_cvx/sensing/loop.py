@@ -46,8 +46,10 @@ from ..simulation.moments import solve_fixed_point, stationary_channel
 from ..simulation.riccati import dp_riccati
 from ..simulation.stability import random_matrix_moment
 from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
+from .arrivals import arrival_patterns, sensor_arrivals
 from .bounds import lower_bound_diverges, upper_bound_covariance
-from .kalman import arrival_patterns, measurement_update, pattern_rows
+from .kalman import measurement_update, pattern_rows
+from .markov_bounds import markov_lower_diverges
 
 __all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "loop_verdict", "no_gains_verdict",
            "require_sensor", "undetermined_gains"]
@@ -56,12 +58,13 @@ __all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map
 LOOP_MAX_N = KRONECKER_MAX_N
 
 
-def require_sensor(system: System) -> None:
-    """An InputError (field ``sensor``) unless the system has a Bernoulli sensor."""
+def require_sensor(system: System, chains: bool = False) -> None:
+    """An InputError (field ``sensor``) unless the system has a sensor: a Bernoulli one, or (``chains``) also
+    Gilbert–Elliott links (field ``sensor.model`` otherwise)."""
     if system.sensor is None:
         raise InputError("sensor", "expected a system with a [sensor] section (the full-state loop is "
                                    "simulation.closed_loop)")
-    if system.sensor.channel is not None:
+    if system.sensor.channel is not None and not chains:
         raise InputError("sensor.model", "a Gilbert-Elliott sensor's losses are correlated: the independent-arrival "
                                          "analysis does not describe it (give gamma for the Bernoulli twin)")
 
@@ -92,6 +95,11 @@ UNDECIDED_REASON = ("undecided: the filter has no stationary gains at this gamma
                     "the certified bounds on the critical rate, where neither bound decides")
 
 
+#: Why the loop behind Gilbert–Elliott sensor links has no exact moments (unless proved unbounded).
+CHAIN_REASON = ("no exact loop behind Gilbert-Elliott sensor links: with stationary gains the loop (xhat, e) is a "
+                "Markov jump system, not derived here (the time-varying filter: simulate --closed-loop's Monte Carlo)")
+
+
 def no_gains_verdict(system: System) -> tuple[bool | None, str]:
     """The verdict where :func:`filter_gains` is None: ``(False, reason)`` when the lower bound on E[P^-] diverges
     at the system's gamma (sensing.bounds.lower_bound_diverges: from the noise or from P0; proved, since
@@ -105,6 +113,11 @@ def no_gains_verdict(system: System) -> tuple[bool | None, str]:
     False
     """
     sensor = system.sensor
+    if sensor.channel is not None:      # Markov arrivals: the same argument with the chain's all-lost runs
+        if markov_lower_diverges(system.A, system.noise_cov, sensor.P0, sensor_arrivals(sensor)):
+            return False, UNBOUNDED_REASON.replace("sensing.bounds.lower_bound_diverges",
+                                                   "sensing.markov_bounds.markov_lower_diverges")
+        return None, "undecided: " + CHAIN_REASON
     if lower_bound_diverges(system.A, system.noise_cov, sensor.P0, float(np.prod(1.0 - sensor.gamma))):
         return False, UNBOUNDED_REASON
     return None, UNDECIDED_REASON
@@ -163,7 +176,9 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     Raises
     ------
     InputError
-        No Bernoulli sensor; a non-stationary or Gilbert-Elliott actuator channel (simulation.moments).
+        No sensor; a non-stationary or Gilbert-Elliott actuator channel (simulation.moments). Gilbert–Elliott
+        sensor links give no exact loop: stable False where the lower bound on E[P] is proved to diverge
+        (:func:`no_gains_verdict`), else None, with the reason.
 
     Examples
     --------
@@ -174,10 +189,14 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     >>> round(loop.average_stage_cost, 12)      # x+ = x/2 + w: E x^2 = 4/3, cost (1 + 1/4) 4/3
     1.666666666667
     """
-    require_sensor(system)
+    require_sensor(system, chains=True)
     mu = stationary_channel(system)
     n = system.n
     K = np.asarray(gain, dtype=float)
+    if system.sensor.channel is not None:          # Gilbert-Elliott sensor links: a verdict only where proved
+        verdict, why = no_gains_verdict(system)
+        inf_or_nan = float("inf") if verdict is False else float("nan")
+        return EstimatedLoop(law, protocol, K, inf_or_nan, verdict, inf_or_nan, float("nan"), float("nan"), None, why)
     A, B, Sigma_W = system.A, system.B, system.noise_cov
     Omega, psi = system.state_weights[0], system.input_weights[0]
     sensor = system.sensor
