@@ -85,9 +85,8 @@ def _chain_estimation(system: System) -> tuple[dict[str, Any], list[str]]:
     out["error_covariance_trace"] = {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter "
                                                                "(Markov bounds)"}
     out["filter_stability"] = fs.to_dict()
-    verdict = {True: "bounded", False: "UNBOUNDED", None: "undecided"}[fs.bounded]
     return out, [f"Gilbert-Elliott sensor links (long-run rates {np.round(sensor.gamma, 6).tolist()}): E[P-] "
-                 f"{verdict}: {fs.reason}",
+                 f"{fs.reason}",
                  f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
 
 
@@ -120,7 +119,8 @@ def _verdict_text(stable: bool | None) -> str:
 
 def _law_text(entry: dict[str, Any]) -> str:
     if entry.get("cost") is None:
-        return f"{_verdict_text(entry.get('stable'))}, cost n/a ({entry.get('reason', '')})"
+        why = entry.get("reason", "").removeprefix("undecided: ")
+        return f"{_verdict_text(entry.get('stable'))}, cost n/a ({why})"
     return (f"average stage cost {_num(entry['cost'])} = control {_num(entry.get('control_part'))} + estimation "
             f"{_num(entry.get('estimation_part'))}; " + _verdict_text(entry["stable"])
             + f" (radius of (xhat, e) {_num(entry.get('spectral_radius'))})")
@@ -180,7 +180,7 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
             "stable": stable, "stable_reason": why,
         })
         lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law: " + _verdict_text(stable)
-                     + (f" ({why})" if why else ""))
+                     + (f" ({why.removeprefix('undecided: ')})" if why else ""))
     return out, lines
 
 
@@ -227,9 +227,8 @@ def _chain_region(system: System) -> tuple[dict[str, Any], list[str]]:
            "tcp": {"filter_stability": fs, "critical_mu_dp": finite_or_none(t_mu), "reason": why,
                    "rule": "needs E[P] bounded (filter_stability) and mu in the DP's region (separation: the "
                            "estimation error does not depend on the control)"}}
-    verdict = {True: "bounded", False: "UNBOUNDED", None: "undecided"}[fs["bounded"]]
-    return out, [f"sensor (Gilbert-Elliott), TCP-like: E[P-] {verdict} ({fs['reason']}); the DP law needs "
-                 f"mu = t mu_file / max with t > {_num(t_mu)}"]
+    return out, [f"sensor (Gilbert-Elliott), TCP-like: E[P-] {fs['reason']}; the DP law needs "
+                 f"mu = t mu_file / max with t > {_num(t_mu)}; {out['reason']}"]
 
 
 def coupled_grid(system: System, grid: int) -> dict[str, Any]:
