@@ -245,3 +245,24 @@ def test_the_command_line_analyses_a_gilbert_elliott_sensor_file(tmp_path):
     kalman = sim["dp"]["kalman"]
     assert kalman["mean_stage_cost"] > 0 and kalman["mean_filtered_trace_stderr"] > 0
     assert "Gilbert-Elliott" in sim["dp"]["stationary"]["reason"]
+
+
+def test_a_periodic_chain_and_a_chain_too_large_give_no_verdict_and_say_why():
+    """p = r = 1 alternates for ever (no limit distribution); four channels on n = 12 need S n^2 = 2304 unknowns
+    (over 2048): both are analysed as far as proved, null otherwise, never an error or a guess."""
+    from packetloss_cvx.cli.sensing_section import estimation_section
+
+    s = loop_plant({"model": "gilbert-elliott", "p": [1.0], "r": [1.0]})
+    est, lines = estimation_section(s)
+    assert est["filter_stability"]["bounded"] is None
+    assert est["error_covariance_trace"]["lower"] is None and "p = r = 1" in est["error_covariance_trace"]["reason"]
+    assert est["dp"]["stable"] is None
+    n = 12
+    big = System(A=(1.05 * np.eye(n)).tolist(), B=np.eye(n)[:, :1].tolist(), horizon=2, state_weight=[1.0] * n,
+                 input_weight=[1.0], mu=[0.9], x0=[0.0] * n, noise_cov=np.eye(n).tolist(),
+                 sensor=Sensor(C=np.eye(n)[:4].tolist(), groups=[[0], [1], [2], [3]],
+                               channel={"model": "gilbert-elliott", "p": [0.1] * 4, "r": [0.5] * 4}))
+    loop = estimated_loop(big, np.zeros((1, n)), "tcp")
+    assert loop.stable is None and "2048" in loop.reason
+    with pytest.raises(ValueError, match="2048"):
+        markov_covariance_bounds(big.A, big.noise_cov, big.sensor)

@@ -114,7 +114,11 @@ def no_gains_verdict(system: System) -> tuple[bool | None, str]:
     """
     sensor = system.sensor
     if sensor.channel is not None:      # Markov arrivals: the same argument with the chain's all-lost runs
-        if markov_lower_diverges(system.A, system.noise_cov, sensor.P0, sensor_arrivals(sensor)):
+        try:
+            diverges = markov_lower_diverges(system.A, system.noise_cov, sensor.P0, sensor_arrivals(sensor))
+        except InputError as err:       # more joint chain states than the coupled equations take
+            return None, f"undecided: {err}"
+        if diverges:
             return False, UNBOUNDED_REASON.replace("sensing.bounds.lower_bound_diverges",
                                                    "sensing.markov_bounds.markov_lower_diverges")
         return None, "undecided: " + CHAIN_REASON

@@ -202,7 +202,8 @@ def markov_certificate(A: np.ndarray, sensor: Sensor, arrivals: Arrivals | None 
 
 def markov_covariance_bounds(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor) -> CovarianceBounds:
     """The stationary lower and upper bounds on E[P^-] behind the sensor's chains (module docstring), checked to be
-    ordered (else CrossCheckError). Time as :func:`markov_upper_bound`.
+    ordered (else CrossCheckError); InputError (field ``sensor.p``) for a chain with no limit distribution
+    (p = r = 1), or beyond MARKOV_MAX_UNKNOWNS. Time as :func:`markov_upper_bound`.
 
     >>> ch = {"model": "gilbert-elliott", "p": [0.2], "r": [0.8]}    # p + r = 1: the Bernoulli twin, rate 0.8
     >>> b = markov_covariance_bounds(np.array([[1.1]]), np.eye(1), Sensor(C=[[1.0]], channel=ch))
@@ -210,9 +211,12 @@ def markov_covariance_bounds(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor)
     (1.319261214, 1.319261214)
     """
     arrivals = sensor_arrivals(sensor)
+    if arrivals.limit is None:
+        raise InputError("sensor.p", "a sensor channel with p = r = 1 alternates for ever: its state distribution has "
+                                     "no limit, so there are no stationary bounds (not analysed)")
     lower = markov_lower_bound(A, Sigma_W, arrivals)
     upper = markov_upper_bound(A, Sigma_W, sensor, arrivals)
-    if lower is None and upper is not None and arrivals.limit is not None:
+    if lower is None and upper is not None:
         raise CrossCheckError("expected error covariance (Markov sensor links): the lower bound diverges where the "
                               "upper bound is finite", {"lower": float("inf"), "upper": float(np.trace(upper))})
     if lower is not None and upper is not None:
