@@ -17,7 +17,6 @@ from packetloss_cvx.sensing.markov_bounds import (
     filter_stability,
     markov_certificate,
     markov_covariance_bounds,
-    markov_upper_bound,
 )
 from packetloss_cvx.sensing.montecarlo import sampled_covariance, simulate_estimated
 from packetloss_cvx.sensor import Sensor
@@ -197,7 +196,8 @@ def test_tcp_like_control_on_the_chain_estimate_splits_its_cost_by_separation():
     H = np.diag(mu * psi) + (B * mu).T @ P @ (B * mu) + np.diag(mu * (1 - mu) * np.diag(B.T @ P @ B))
     split = np.trace(P @ s.noise_cov) + np.trace(K.T @ H @ K @ run.mean_filtered_covariance)
     assert abs(run.mean_stage_cost - split) < 4 * run.stderr
-    assert run.stable is None and np.isnan(run.exact_stage_cost)
+    assert run.stable is None
+    assert np.isnan(run.exact_stage_cost)
 
 
 def test_an_iid_chain_loop_costs_what_the_bernoulli_loop_costs():
@@ -215,8 +215,28 @@ def test_the_stationary_filter_behind_a_chain_is_refused_with_its_field():
     s = loop_plant(iid_twin(0.6))
     with pytest.raises(ValueError, match="sensor.model"):
         simulate_estimated(s, dp_riccati(s).gain, "tcp", "stationary", samples=10, steps=4)
-    loop = estimated_loop(s, dp_riccati(s).gain, "tcp")
-    assert loop.stable is None and "Gilbert-Elliott" in loop.reason
+    loop = estimated_loop(s, dp_riccati(s).gain, "udp")        # UDP-like: the error depends on the inputs
+    assert loop.stable is None
+    assert "Gilbert-Elliott" in loop.reason
+    assert np.isnan(loop.average_stage_cost)
+
+
+def test_the_tcp_like_verdict_behind_a_chain_is_proved_by_separation_or_withheld():
+    """Scalar a = 2, C = 1 (exact filter verdict): r = 0.8 keeps E[P] bounded ((1 - r) a^2 = 0.8). With mu = 0.9 the
+    full-state radius of u = -k x is (2 - 0.9 k)^2 + 0.09 k^2 (hand value): k = 1.8 gives 0.3316 (stable, so the
+    loop is proved stable), k = 0.5 gives 2.4025 (not proved either way); r = 0.7 makes E[P] unbounded (False)."""
+    def scalar(r):
+        return System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[0.0],
+                      noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.1],
+                                                                           "r": [r]}))
+    assert (2 - 0.9 * 1.8) ** 2 + 0.09 * 1.8**2 < 1 < (2 - 0.9 * 0.5) ** 2 + 0.09 * 0.5**2
+    good = estimated_loop(scalar(0.8), np.array([[1.8]]), "tcp")
+    assert good.stable is True
+    assert "separation" in good.reason
+    assert estimated_loop(scalar(0.8), np.array([[0.5]]), "tcp").stable is None
+    assert estimated_loop(scalar(0.8), np.array([[1.8]]), "udp").stable is None
+    assert estimated_loop(scalar(0.7), np.array([[1.8]]), "tcp").stable is False
+    assert estimated_loop(scalar(0.7), np.array([[1.8]]), "udp").stable is False
 
 
 def test_the_command_line_analyses_a_gilbert_elliott_sensor_file(tmp_path):
@@ -236,14 +256,16 @@ def test_the_command_line_analyses_a_gilbert_elliott_sensor_file(tmp_path):
     want = 1 + (0.1 / 0.9) * 4 / (1 - 0.2 * 4)                              # the hand value above (R = 0)
     assert est["error_covariance_trace"]["lower"] == pytest.approx(want, rel=1e-12)
     assert est["error_covariance_trace"]["upper"] == pytest.approx(want, rel=1e-9)
-    assert est["dp"]["stable"] is None and est["dp"]["cost"] is None           # the jump loop: not derived
+    assert est["dp"]["stable"] is True
+    assert est["dp"]["cost"] is None
     region = region_run(parse(["region", path, "--law", "dp", "-q"])).data["sensor"]
     assert region["tcp"]["filter_stability"]["bounded"] is True
     assert "not derived" in region["reason"]
     sim = simulate_run(parse(["simulate", path, "--closed-loop", "--samples", "200", "--steps", "20",
                               "--json"])).data["estimated_state"]
     kalman = sim["dp"]["kalman"]
-    assert kalman["mean_stage_cost"] > 0 and kalman["mean_filtered_trace_stderr"] > 0
+    assert kalman["mean_stage_cost"] > 0
+    assert kalman["mean_filtered_trace_stderr"] > 0
     assert "Gilbert-Elliott" in sim["dp"]["stationary"]["reason"]
 
 
@@ -255,7 +277,8 @@ def test_a_periodic_chain_and_a_chain_too_large_give_no_verdict_and_say_why():
     s = loop_plant({"model": "gilbert-elliott", "p": [1.0], "r": [1.0]})
     est, lines = estimation_section(s)
     assert est["filter_stability"]["bounded"] is None
-    assert est["error_covariance_trace"]["lower"] is None and "p = r = 1" in est["error_covariance_trace"]["reason"]
+    assert est["error_covariance_trace"]["lower"] is None
+    assert "p = r = 1" in est["error_covariance_trace"]["reason"]
     assert est["dp"]["stable"] is None
     n = 12
     big = System(A=(1.05 * np.eye(n)).tolist(), B=np.eye(n)[:, :1].tolist(), horizon=2, state_weight=[1.0] * n,
@@ -263,6 +286,7 @@ def test_a_periodic_chain_and_a_chain_too_large_give_no_verdict_and_say_why():
                  sensor=Sensor(C=np.eye(n)[:4].tolist(), groups=[[0], [1], [2], [3]],
                                channel={"model": "gilbert-elliott", "p": [0.1] * 4, "r": [0.5] * 4}))
     loop = estimated_loop(big, np.zeros((1, n)), "tcp")
-    assert loop.stable is None and "2048" in loop.reason
+    assert loop.stable is None
+    assert "2048" in loop.reason
     with pytest.raises(ValueError, match="2048"):
         markov_covariance_bounds(big.A, big.noise_cov, big.sensor)

@@ -44,15 +44,15 @@ from ..model import System
 from ..results.sensing import EstimatedLoop
 from ..simulation.moments import solve_fixed_point, stationary_channel
 from ..simulation.riccati import dp_riccati
-from ..simulation.stability import random_matrix_moment
+from ..simulation.stability import mean_square_radius, random_matrix_moment
 from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 from .arrivals import arrival_patterns, sensor_arrivals
 from .bounds import lower_bound_diverges, upper_bound_covariance
 from .kalman import measurement_update, pattern_rows
-from .markov_bounds import markov_lower_diverges
+from .markov_bounds import filter_stability, markov_lower_diverges
 
-__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "loop_verdict", "no_gains_verdict",
-           "require_sensor", "undetermined_gains"]
+__all__ = ["LOOP_MAX_N", "MAP_LAWS", "chain_loop_verdict", "estimated_loop", "filter_gains", "loop_map",
+           "loop_verdict", "no_gains_verdict", "require_sensor", "undetermined_gains"]
 
 #: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
 LOOP_MAX_N = KRONECKER_MAX_N
@@ -127,6 +127,43 @@ def no_gains_verdict(system: System) -> tuple[bool | None, str]:
     return None, UNDECIDED_REASON
 
 
+#: Why the TCP-like loop on the Kalman estimate behind Gilbert-Elliott links is proved mean-square stable.
+SEPARATION_REASON = ("mean-square stable, proved by separation (the loop with the time-varying Kalman filter): the "
+                     "filter's E[P] is bounded (sensing.markov_bounds.filter_stability: {by}) and the law's full-state "
+                     "loop over the actuator links has second-moment radius {radius:.6g} < 1; "
+                     "x+ = (A - BVK) x + BVK e + w with V independent of e and w. The cost is not derived: Monte Carlo")
+
+
+def chain_loop_verdict(system: System, gain: np.ndarray, protocol: str, mu: np.ndarray) -> tuple[bool | None, str]:
+    """The verdict on ``u = -K xhat`` behind Gilbert–Elliott sensor links, with the time-varying Kalman filter:
+    False where the lower bound on E[P] diverges (:func:`no_gains_verdict`); TCP-like, True where the filter's E[P]
+    is proved bounded and the law's full-state loop over the actuator links is mean-square stable (separation:
+    ``x+ = (A - BVK) x + BVK e + w``, the products of ``A - B V_i K`` after step j independent of ``e_j``, ``w_j``, so
+    ``|x_k|_2 <= sum_j (c rho^(k-j))^(1/2) |BVKe_j + w_j|_2`` is bounded: docs/design.md); else None with the
+    reason. UDP-like: the error depends on the inputs, so only the divergence proves anything. Time
+    O(filter_stability + n^6).
+
+    >>> from packetloss_cvx.sensor import Sensor
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[0.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.1],
+    ...                                                                  "r": [0.8]}))
+    >>> chain_loop_verdict(s, np.array([[1.8]]), "tcp", np.array([0.9]))[0]   # (1 - 0.8) 4 < 1; 0.2^2 + 0.09 1.8^2
+    True
+    """
+    verdict, why = no_gains_verdict(system)
+    if verdict is False or protocol != "tcp":
+        return verdict, why
+    try:
+        fs = filter_stability(system.A, system.noise_cov, system.sensor)
+        radius = mean_square_radius(system.A, system.B, gain, mu)
+    except (InputError, NumericalError) as err:
+        return None, f"undecided: {err}"
+    if fs.bounded is True and loop_verdict(radius) is True:
+        return True, SEPARATION_REASON.format(by=fs.by, radius=radius)
+    return None, (f"undecided: the filter's E[P] is {'bounded' if fs.bounded else 'not proved bounded'} and the "
+                  f"full-state loop's radius is {radius:.6g}; " + CHAIN_REASON)
+
+
 def filter_gains(system: System) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """``(Pbar, gains (2^g, n, p), probabilities (2^g,))``: the stationary predicted covariance and each arrival
     pattern's update gain (module docstring); None when the expected Riccati iteration has no fixed point
@@ -198,7 +235,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     n = system.n
     K = np.asarray(gain, dtype=float)
     if system.sensor.channel is not None:          # Gilbert-Elliott sensor links: a verdict only where proved
-        verdict, why = no_gains_verdict(system)
+        verdict, why = chain_loop_verdict(system, K, protocol, mu)
         inf_or_nan = float("inf") if verdict is False else float("nan")
         return EstimatedLoop(law, protocol, K, inf_or_nan, verdict, inf_or_nan, float("nan"), float("nan"), None, why)
     A, B, Sigma_W = system.A, system.B, system.noise_cov
