@@ -25,7 +25,10 @@ With ``Lambda = diag(e(all lost | s)) T`` (:meth:`.arrivals.Arrivals.loss_matrix
   sum_s w(s|s') (A sum_a e(a|s) U_a(X_s) A' + I)``, ``w(s|s') = pi(s) T[s, s'] / pi(s')`` (the recursion above in the
   stationary chain, conditioned on S_{k+1}); Sinopoli's Lemma carries over (fix the gains at X: the linear part
   maps X strictly below itself, so its radius is below 1, and H at those gains bounds H from above), so the
-  bound sequence stays bounded: proved for the chain started in pi. Neither and no divergence: undecided.
+  bound sequence stays bounded for the chain started in pi. From the file's belief the recursion's weights
+  ``w_k(s|s') = pi_k(s) T[s, s'] / pi_{k+1}(s')`` tend to w (pi_k -> pi > 0), so its linear parts tend to one of
+  radius below 1, hence are contractive in one norm from some step on: bounded from any belief. Neither and no
+  divergence: undecided.
 
 For Gilbert channels (``h_good = 1, h_bad = 0``) ``rho(Lambda) = prod_j (1 - r_j)``: one channel needs
 ``r > 1 - 1/rho(A)^2`` whatever p (Huang and Dey, Automatica 2007, state stability conditions for this channel;
@@ -265,7 +268,7 @@ def filter_stability(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor) -> Filt
         certificate = None
     if certificate is not None:
         return FilterStability(True, loss, exact, "certificate",
-                               "bounded, proved (for the chain in its stationary regime): a checked certificate "
-                               "X - H(X) > 0")
+                               "bounded, proved: a checked certificate X - H(X) > 0 (coupled over the chain's "
+                               "states)")
     return FilterStability(None, loss, exact, "", "undecided: the lower bound is finite and no certificate was found "
                                                   f"(rho(Lambda) rho(A)^2 = {loss:.6g}; < 1 is necessary)")
