@@ -263,6 +263,9 @@ def test_the_command_line_analyses_a_gilbert_elliott_sensor_file(tmp_path):
     assert "not derived" in region["reason"]
     sim = simulate_run(parse(["simulate", path, "--closed-loop", "--samples", "200", "--steps", "20",
                               "--json"])).data["estimated_state"]
+    assert sim["dp"]["stable"] is True                   # TCP-like: separation (filter bounded, DP loop stable)
+    assert "separation" in sim["dp"]["stable_reason"]
+    assert sim["udp"]["stable"] is None                  # UDP-like: not derived
     kalman = sim["dp"]["kalman"]
     assert kalman["mean_stage_cost"] > 0
     assert kalman["mean_filtered_trace_stderr"] > 0

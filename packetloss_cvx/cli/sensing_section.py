@@ -12,7 +12,7 @@ from ..errors import InputError, NumericalError
 from ..model import System
 from ..results.base import finite_or_none
 from ..sensing.bounds import covariance_bounds, critical_gamma
-from ..sensing.loop import estimated_loop, loop_map, loop_verdict, no_gains_verdict, require_sensor
+from ..sensing.loop import estimated_loop, loop_map, loop_verdict, require_sensor
 from ..sensing.markov_bounds import filter_stability, markov_covariance_bounds
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.critical import critical_mu
@@ -172,8 +172,12 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
         stationary = out[law].get("stationary", {})
         if "stable" in stationary:
             stable, why = stationary["stable"], stationary.get("reason", "")
-        else:      # no stationary gains, or Gilbert-Elliott links: proved unbounded, or undecided
-            stable, why = no_gains_verdict(system)
+        else:      # no stationary gains, or Gilbert-Elliott links: the verdict estimated_loop proves, if any
+            try:
+                loop = estimated_loop(system, gain, protocol, law)
+                stable, why = loop.stable, loop.reason
+            except InputError as err:             # e.g. a non-stationary actuator channel: no verdict
+                stable, why = None, str(err)
         out[law].update({
             "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
             "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""),
