@@ -5,7 +5,9 @@ and the filter (sensing.kalman) run together, every step one array operation ove
 UDP-like prediction adds the actuation covariance of its own u). ``filter="stationary"``: the fixed pattern gains
 of sensing.loop, whose exact stationary cost the run is checked against. The stage cost
 ``x'Omega x + (V u)'Psi (V u)`` is averaged over the second half of the steps (the first half is the transient),
-the standard error from the runs' means (independent runs).
+the standard error from the runs' means (independent runs). Arrivals are Bernoulli draws or, behind
+Gilbert–Elliott sensor links, sampled from the chains (sensing.arrivals.ChainSampler). ``sampled_covariance``
+samples the filter's covariances alone (no loop): E[P_k] with standard errors past the exact enumeration.
 """
 
 from __future__ import annotations
