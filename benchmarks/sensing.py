@@ -29,11 +29,17 @@ def main() -> None:
     from packetloss_cvx.io import load_example
     from packetloss_cvx.sensing.bounds import covariance_bounds, critical_gamma
     from packetloss_cvx.sensing.loop import estimated_loop, loop_map
-    from packetloss_cvx.sensing.montecarlo import simulate_estimated
+    from packetloss_cvx.sensing.markov_bounds import filter_stability, markov_covariance_bounds
+    from packetloss_cvx.sensing.montecarlo import sampled_covariance, simulate_estimated
+    from packetloss_cvx.sensor import Sensor
     from packetloss_cvx.simulation import dp_riccati
 
     s = load_example("pendulum_sensor")
     gain = dp_riccati(s).gain
+    # the same link made bursty (a Gilbert channel, long-run rate 0.8): the Markov analyses of the session-28 gaps
+    ge = Sensor(C=s.sensor.C, noise_cov=s.sensor.noise_cov, P0=s.sensor.P0,
+                channel={"model": "gilbert-elliott", "p": [0.05], "r": [0.2]})
+    s_ge = s.with_sensor(ge)
     cases = {
         "solve pendulum --no-qp (full state)": lambda: solve_run(build_parser().parse_args(
             ["solve", "pendulum", "--no-qp", "-q"])),
@@ -44,6 +50,11 @@ def main() -> None:
         "estimated_loop (dp, tcp)": lambda: estimated_loop(s, gain, "tcp", "dp"),
         "simulate_estimated kalman 1000 x 100": lambda: simulate_estimated(s, gain, "tcp", "kalman", 1000, 100),
         "loop_map 5 x 5": lambda: loop_map(s, np.linspace(0.2, 1.0, 5), np.linspace(0.2, 1.0, 5)),
+        "filter_stability (Gilbert-Elliott)": lambda: filter_stability(s.A, s.noise_cov, ge),
+        "markov_covariance_bounds (Gilbert-Elliott)": lambda: markov_covariance_bounds(s.A, s.noise_cov, ge),
+        "sampled_covariance GE 1000 x 100": lambda: sampled_covariance(s.A, s.noise_cov, ge, 100, 1000),
+        "simulate_estimated kalman GE 1000 x 100": lambda: simulate_estimated(s_ge, gain, "tcp", "kalman", 1000,
+                                                                            100),
     }
     times: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(args.repeat):

@@ -528,15 +528,19 @@ def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *
 
 def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stable: Mapping[str, Any], *,
                     title: str | None = None, path: str | Path | None = None) -> Figure:
-    """Both links lossy: ``cost`` (shape (G, M), rows gamma; inf where the loop is not stable) on a logarithmic
-    colour map over (mu, gamma), and each law's stability boundary (the 1/2 level of its 0/1 ``stable`` map).
-    O(G M) per law.
+    """Both links lossy: ``cost`` (shape (G, M), rows gamma; inf where the loop is proved not stable, nan where
+    undecided: sensing.loop.loop_map) on a logarithmic colour map over (mu, gamma), grey where not stable, white
+    where undecided (only when some cell is), and each law's stability boundary (the 1/2 level of its 0/1
+    ``stable`` map). O(G M) per law.
 
     Examples
     --------
     >>> fig = plot_sensor_map([0.5, 1.0], [0.5, 1.0], [[np.inf, 4.0], [3.0, 2.0]], {"dp": [[0, 1], [1, 1]]})
     >>> len(fig.axes), fig.axes[0].get_xlabel()
     (2, 'actuator delivery rate $\\\\mu$')
+    >>> fig = plot_sensor_map([0.5, 1.0], [0.5, 1.0], [[np.nan, 4.0], [3.0, 2.0]], {"dp": [[0, 1], [1, 1]]})
+    >>> [t.get_text() for t in fig.legends[0].get_texts()][:2]
+    ['not mean-square stable', 'undecided (between the critical-rate bounds)']
     """
     g, m = numeric_array(gamma, "gamma"), numeric_array(mu, "mu")
     c = np.asarray(cost, dtype=float)
@@ -553,6 +557,11 @@ def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stab
         mesh = ax.pcolormesh(m, g, np.ma.masked_invalid(np.where(np.isfinite(c), c, np.nan)), shading="nearest",
                              norm=LogNorm(lo, hi), cmap="viridis")
         fig.colorbar(mesh, ax=ax, label="average stage cost (DP law on the estimate)")
+    undecided = np.isnan(c)
+    if np.any(undecided):         # no verdict is not "not stable": drawn apart, never grey
+        ax.pcolormesh(m, g, np.ma.masked_where(~undecided, np.zeros_like(c)), shading="nearest", cmap="Greys",
+                      vmin=0.0, vmax=1.0)                                   # white
+        handles.append(Patch(facecolor="white", edgecolor="grey", label="undecided (between the critical-rate bounds)"))
     styles, colors = ["-", "--", ":"], ["black", "tab:orange", "tab:red"]
     for k, (law, values) in enumerate(stable.items()):
         v = np.asarray(values, dtype=float)

@@ -100,18 +100,25 @@ def test_pendulum_sensor_example_reads_and_its_dp_loop_is_stable():
     assert np.array_equal(s.B, plain.B)
 
 
-def test_gilbert_elliott_sensor_file_is_valid_and_its_estimation_says_why_not(tmp_path):
+def test_gilbert_elliott_sensor_file_is_valid_and_analysed(tmp_path):
+    """A Gilbert channel (h_good = 1, h_bad = 0) with r = 0.4 on x' = 2x: its all-lost runs last (1 - r)^k, and
+    (1 - r) a^2 = 2.4 >= 1, so E[P] is unbounded (proved), though the long-run rate 0.8 is above 1 - 1/a^2 = 0.75."""
     s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
                noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.1],
                                                                     "r": [0.4]}))
     path = str(save_system(s, tmp_path / "bursty_sensor.toml"))
     result = solve_run(parse("solve", path, "--no-qp"))
     assert result.code == 0
-    assert result.data["estimation"]["critical_gamma"] == {"lower": None, "upper": None}
-    assert "Gilbert-Elliott" in result.data["estimation"]["reason"]
+    crit = result.data["estimation"]["critical_gamma"]
+    assert (crit["lower"], crit["upper"]) == (None, None)
+    assert "Gilbert-Elliott" in crit["reason"]
+    assert result.data["estimation"]["filter_stability"]["bounded"] is False
+    assert result.data["estimation"]["filter_stability"]["loss_radius"] == pytest.approx(0.6 * 4)
     assert result.data["tcp"]["estimated_state"]["cost"] is None
+    assert result.data["tcp"]["estimated_state"]["stable"] is False
     sim = simulate_run(parse("simulate", path, "--closed-loop", "--samples", "50", "--steps", "5")).data
-    assert "Gilbert-Elliott" in sim["estimated_state"]["reason"]
+    assert sim["estimated_state"]["dp"]["stable"] is False
+    assert sim["estimated_state"]["dp"]["kalman"]["mean_stage_cost"] is not None      # the runs do happen
 
 
 def test_sensor_grid_gives_no_verdict_where_the_stationary_gains_are_undetermined(tmp_path):

@@ -12,11 +12,11 @@ from ..errors import InputError, NumericalError
 from ..model import System
 from ..results.base import finite_or_none
 from ..sensing.bounds import covariance_bounds, critical_gamma
-from ..sensing.loop import estimated_loop, loop_map, require_sensor
+from ..sensing.loop import estimated_loop, loop_map, loop_verdict, require_sensor
+from ..sensing.markov_bounds import filter_stability, markov_covariance_bounds
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.critical import critical_mu
 from ..simulation.riccati import dp_riccati
-from ..simulation.stability import is_mean_square_stable
 
 __all__ = ["coupled_grid", "estimated_law", "estimation_section", "protocol_entry", "region_section",
            "simulate_section"]
@@ -35,21 +35,24 @@ def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
         return {"critical_gamma": {"lower": None, "upper": None}, "error_covariance_trace": {"lower": None,
                 "upper": None}, "reason": refused}, [f"not computed: {refused}"]
     sensor = system.sensor
-    direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
-    cg = critical_gamma(system.A, sensor, direction)
-    bounds = covariance_bounds(system.A, system.noise_cov, sensor)
-    scale = float(sensor.gamma.max())
-    out: dict[str, Any] = {
-        "gamma": sensor.gamma.tolist(), "groups": [list(g) for g in sensor.groups],
-        "critical_gamma": {"lower": finite_or_none(cg.lower), "upper": finite_or_none(cg.upper), "exact": cg.exact,
-                           "direction": cg.direction.tolist(), "reason": cg.reason},
-        "error_covariance_trace": {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter"},
-        "gamma_scale": scale,
-    }
-    where = "gamma = t d, d = gamma / max gamma; the file's t = " + _num(scale)
-    lines = [f"critical rate t_c: [{_num(cg.lower)}, {_num(cg.upper)}]" + (" (exact)" if cg.exact else "")
-             + f" along {where}",
-             f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
+    if sensor.channel is not None:
+        out, lines = _chain_estimation(system)
+    else:
+        direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
+        cg = critical_gamma(system.A, sensor, direction)
+        bounds = covariance_bounds(system.A, system.noise_cov, sensor)
+        scale = float(sensor.gamma.max())
+        out = {
+            "gamma": sensor.gamma.tolist(), "groups": [list(g) for g in sensor.groups],
+            "critical_gamma": {"lower": finite_or_none(cg.lower), "upper": finite_or_none(cg.upper),
+                               "exact": cg.exact, "direction": cg.direction.tolist(), "reason": cg.reason},
+            "error_covariance_trace": {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter"},
+            "gamma_scale": scale,
+        }
+        where = "gamma = t d, d = gamma / max gamma; the file's t = " + _num(scale)
+        lines = [f"critical rate t_c: [{_num(cg.lower)}, {_num(cg.upper)}]" + (" (exact)" if cg.exact else "")
+                 + f" along {where}",
+                 f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
     try:
         dp = dp_riccati(system)
     except NumericalError as err:
@@ -61,11 +64,37 @@ def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
     return out, lines
 
 
-def _refused(system: System) -> str | None:
-    """Why the independent-arrival analysis does not apply to this (valid) file, or None: a Gilbert-Elliott
-    sensor (correlated losses); the caller reports the reason instead of failing."""
+#: Why a Gilbert-Elliott sensor has no critical arrival rate in solve's "estimation".
+CHAIN_CRITICAL = ("Gilbert-Elliott sensor links: the long-run rate alone does not decide whether E[P] stays bounded "
+                  "(the losses are correlated); see filter_stability (rho(Lambda) rho(A)^2 < 1 is necessary)")
+
+
+def _chain_estimation(system: System) -> tuple[dict[str, Any], list[str]]:
+    """The "estimation" head behind Gilbert-Elliott sensor links (sensing.markov_bounds): whether E[P] stays
+    bounded (proved either way, or undecided) and the stationary Markov bounds on tr E[P^-]."""
+    sensor = system.sensor
+    out: dict[str, Any] = {"gamma": sensor.gamma.tolist(), "groups": [list(g) for g in sensor.groups],
+                           "critical_gamma": {"lower": None, "upper": None, "exact": False, "reason": CHAIN_CRITICAL}}
     try:
-        require_sensor(system)
+        fs = filter_stability(system.A, system.noise_cov, sensor)
+        bounds = markov_covariance_bounds(system.A, system.noise_cov, sensor)
+    except InputError as err:                      # too many joint chain states for the coupled equations
+        out["error_covariance_trace"] = {"lower": None, "upper": None, "reason": str(err)}
+        out["filter_stability"] = {"bounded": None, "reason": str(err)}
+        return out, [f"Gilbert-Elliott sensor links: not analysed: {err}"]
+    out["error_covariance_trace"] = {**bounds.to_dict(), "of": "the stationary E[P(k+1|k)] of the TCP-like filter "
+                                                               "(Markov bounds)"}
+    out["filter_stability"] = fs.to_dict()
+    return out, [f"Gilbert-Elliott sensor links (long-run rates {np.round(sensor.gamma, 6).tolist()}): E[P-] "
+                 f"{fs.reason}",
+                 f"tr E[P-] (stationary, TCP-like filter): [{_num(bounds.trace_lower)}, {_num(bounds.trace_upper)}]"]
+
+
+def _refused(system: System) -> str | None:
+    """Why the sensor analysis does not apply to this (valid) file, or None; the caller reports the reason instead
+    of failing."""
+    try:
+        require_sensor(system, chains=True)
     except InputError as err:
         return str(err)
     return None
@@ -76,18 +105,24 @@ def estimated_law(system: System, gain: np.ndarray, protocol: str, law: str) -> 
     try:
         loop = estimated_loop(system, gain, protocol, law)
     except InputError as err:            # e.g. a non-stationary or Gilbert-Elliott actuator channel
-        return {"law": law, "protocol": protocol, "cost": None, "stable": False, "reason": str(err)}
+        return {"law": law, "protocol": protocol, "cost": None, "stable": None, "reason": str(err)}   # no verdict
     entry = loop.to_dict()
     entry.pop("gain")
     entry["cost"] = entry.pop("average_stage_cost")
     return entry
 
 
+def _verdict_text(stable: bool | None) -> str:
+    """A sensor-loop verdict in text: proved either way, or "undecided" (JSON null)."""
+    return "undecided" if stable is None else ("mean-square stable" if stable else "NOT stable")
+
+
 def _law_text(entry: dict[str, Any]) -> str:
     if entry.get("cost") is None:
-        return f"cost n/a ({entry.get('reason', '')})"
+        why = entry.get("reason", "").removeprefix("undecided: ")
+        return f"{_verdict_text(entry.get('stable'))}, cost n/a ({why})"
     return (f"average stage cost {_num(entry['cost'])} = control {_num(entry.get('control_part'))} + estimation "
-            f"{_num(entry.get('estimation_part'))}; " + ("mean-square stable" if entry["stable"] else "NOT stable")
+            f"{_num(entry.get('estimation_part'))}; " + _verdict_text(entry["stable"])
             + f" (radius of (xhat, e) {_num(entry.get('spectral_radius'))})")
 
 
@@ -125,7 +160,7 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                 run = simulate_estimated(system, gain, protocol, name, samples=samples, steps=steps, seed=seed,
                                          law=law)
             except InputError as err:
-                if err.field != "sensor.gamma":
+                if err.field not in ("sensor.gamma", "sensor.model"):      # no stationary gains: the reason
                     raise
                 out[law][name] = {"reason": str(err)}
                 continue
@@ -135,11 +170,21 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                          f"{_num(run.exact_stage_cost)}" + (f" ({run.reason})" if run.reason else ""))
         kalman = out[law].get("kalman", {})
         stationary = out[law].get("stationary", {})
+        if "stable" in stationary:
+            stable, why = stationary["stable"], stationary.get("reason", "")
+        else:      # no stationary gains, or Gilbert-Elliott links: the verdict estimated_loop proves, if any
+            try:
+                loop = estimated_loop(system, gain, protocol, law)
+                stable, why = loop.stable, loop.reason
+            except InputError as err:             # e.g. a non-stationary actuator channel: no verdict
+                stable, why = None, str(err)
         out[law].update({
             "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
             "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""),
-            "stable": stationary.get("stable"),
+            "stable": stable, "stable_reason": why,
         })
+        lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law: " + _verdict_text(stable)
+                     + (f" ({why.removeprefix('undecided: ')})" if why else ""))
     return out, lines
 
 
@@ -151,14 +196,11 @@ def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
     if refused is not None:
         return {"reason": refused}, [f"sensor: not computed: {refused}"]
     sensor = system.sensor
+    if sensor.channel is not None:
+        return _chain_region(system)
     direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
     cg = critical_gamma(system.A, sensor, direction)
-    mu = system.mu_schedule[0]
-    try:
-        t_mu: float | None = float(critical_mu(system, "dp", mu / mu.max() if mu.max() > 0 else None))
-        why = ""
-    except (NumericalError, InputError) as err:
-        t_mu, why = None, str(err)
+    t_mu, why = _dp_critical_mu(system)
     out = {"tcp": {"critical_gamma": cg.to_dict(), "critical_mu_dp": finite_or_none(t_mu), "reason": why,
                    "rule": "stable iff gamma = t d with t above the critical rate and mu in the DP's region "
                            "(separation: the estimation error does not depend on the control)"}}
@@ -168,15 +210,41 @@ def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
     return out, lines
 
 
+def _dp_critical_mu(system: System) -> tuple[float | None, str]:
+    mu = system.mu_schedule[0]
+    try:
+        return float(critical_mu(system, "dp", mu / mu.max() if mu.max() > 0 else None)), ""
+    except (NumericalError, InputError) as err:
+        return None, str(err)
+
+
+def _chain_region(system: System) -> tuple[dict[str, Any], list[str]]:
+    """``region``'s "sensor" behind Gilbert-Elliott sensor links: TCP-like, the filter's verdict (proved, or
+    undecided) beside the DP's critical mu; the coupled (gamma, mu) map is not derived (its ``reason``)."""
+    try:
+        fs: dict[str, Any] = filter_stability(system.A, system.noise_cov, system.sensor).to_dict()
+    except InputError as err:
+        fs = {"bounded": None, "reason": str(err)}
+    t_mu, why = _dp_critical_mu(system)
+    out = {"reason": "the coupled (gamma, mu) map behind Gilbert-Elliott sensor links is not derived "
+                     "(no --sensor-grid)",
+           "tcp": {"filter_stability": fs, "critical_mu_dp": finite_or_none(t_mu), "reason": why,
+                   "rule": "needs E[P] bounded (filter_stability) and mu in the DP's region (separation: the "
+                           "estimation error does not depend on the control)"}}
+    return out, [f"sensor (Gilbert-Elliott), TCP-like: E[P-] {fs['reason']}; the DP law needs "
+                 f"mu = t mu_file / max with t > {_num(t_mu)}; {out['reason']}"]
+
+
 def coupled_grid(system: System, grid: int) -> dict[str, Any]:
     """The TCP-like and UDP-like loops' verdicts on a grid of (gamma scale, mu scale) in (0, 1]^2: the paper's law
     re-designed at each mu on its protocol's stationary filter (sensing.loop.loop_map). O(grid^2 (2n)^6)."""
     ts = np.linspace(1.0 / grid, 1.0, grid)
     out: dict[str, Any] = {"gamma_scale": ts.tolist(), "mu_scale": ts.tolist()}
     for protocol, (radius, _) in loop_map(system, ts, ts, ("tcp", "udp")).items():
-        stable = np.vectorize(is_mean_square_stable)(radius)        # nan (gains undetermined): null, no verdict
-        out[protocol] = {"radius": [[finite_or_none(v) for v in row] for row in radius],
-                         "stable": [[None if np.isnan(r) else bool(v) for r, v in zip(rr, vv, strict=True)]
-                                    for rr, vv in zip(radius, stable, strict=True)],
-                         "stable_share": float(np.mean(stable))}
+        # nan (gains undetermined, or gamma between the critical-rate bounds) and a radius within the margin of 1:
+        # null, no verdict; inf only where proved unbounded (sensing.loop.loop_map)
+        verdicts = [[loop_verdict(float(r)) for r in row] for row in radius]
+        out[protocol] = {"radius": [[finite_or_none(v) for v in row] for row in radius], "stable": verdicts,
+                         "stable_share": float(np.mean([[v is True for v in row] for row in verdicts])),
+                         "undecided_share": float(np.mean([[v is None for v in row] for row in verdicts]))}
     return out

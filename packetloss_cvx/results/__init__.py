@@ -10,7 +10,7 @@ from .closed_loop import ClosedLoop, ClosedLoopRun, OpenLoopCheck, Riccati, Simu
 from .markov import BurstinessMap, BurstinessSweep, MarkovSolution, MjlsResult, plugin_loss
 from .plans import BatchSolution, CrossCheck, LoopStability, Solution
 from .region import CriticalPoint, Membership, RegionMap, StabilityAllocation
-from .sensing import CovarianceBounds, CriticalGamma, EstimatedLoop, EstimatedRun
+from .sensing import CovarianceBounds, CriticalGamma, EstimatedLoop, EstimatedRun, FilterStability, SampledCovariance
 from .studies import Allocation, ClaimResult, DesignSweep, Maximiser, MinCost, PowerAllocation, ProtocolChoice, Sweep
 
 __all__ = [
@@ -28,6 +28,7 @@ __all__ = [
     "DesignSweep",
     "EstimatedLoop",
     "EstimatedRun",
+    "FilterStability",
     "LoopStability",
     "MarkovSolution",
     "Membership",
@@ -39,6 +40,7 @@ __all__ = [
     "ProtocolChoice",
     "Riccati",
     "RegionMap",
+    "SampledCovariance",
     "Simulation",
     "Solution",
     "StabilityAllocation",

@@ -11,7 +11,7 @@ import numpy as np
 from ..display import fields_html, fields_repr, to_json
 from .base import Frozen, finite_or_none
 
-__all__ = ["CovarianceBounds", "CriticalGamma", "EstimatedLoop", "EstimatedRun"]
+__all__ = ["CovarianceBounds", "CriticalGamma", "EstimatedLoop", "EstimatedRun", "FilterStability", "SampledCovariance"]
 
 
 @dataclass(frozen=True)
@@ -101,7 +101,9 @@ class EstimatedRun(Frozen):
     intermittent observations) or "stationary" (the fixed gains of sensing.loop); ``mean_stage_cost`` over the
     second half of ``steps`` and ``samples`` runs, ``stderr`` from the runs' means; ``exact_stage_cost`` (nan
     with ``reason`` when there is none); ``mean_filtered_covariance`` the mean of the filter's own P_k over the
-    kept steps (Kalman; nan otherwise)."""
+    kept steps (Kalman; nan otherwise), ``mean_filtered_covariance_stderr`` its standard error per entry and
+    ``mean_filtered_trace_stderr`` that of its trace (from the runs' own means over the kept steps: the runs are
+    independent, the steps of one run are not)."""
 
     law: str
     protocol: str
@@ -114,6 +116,8 @@ class EstimatedRun(Frozen):
     samples: int
     steps: int
     reason: str = ""
+    mean_filtered_covariance_stderr: np.ndarray | None = None
+    mean_filtered_trace_stderr: float = float("nan")
 
     __repr__ = fields_repr
     _repr_html_ = fields_html
@@ -125,5 +129,51 @@ class EstimatedRun(Frozen):
                 "mean_stage_cost": finite_or_none(self.mean_stage_cost), "stderr": finite_or_none(self.stderr),
                 "exact_stage_cost": finite_or_none(self.exact_stage_cost), "stable": self.stable,
                 "mean_filtered_trace": finite_or_none(float(np.trace(self.mean_filtered_covariance))),
+                "mean_filtered_trace_stderr": finite_or_none(self.mean_filtered_trace_stderr),
                 "samples": self.samples,
                 "steps": self.steps, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class SampledCovariance(Frozen):
+    """Monte Carlo of the TCP-like filter's expected error covariances (sensing.montecarlo.sampled_covariance):
+    ``predicted[k]`` the mean of ``P^-_k`` (k = 0..steps), ``filtered[k]`` of ``P_k`` (k = 0..steps-1), each with
+    its per-entry standard error over ``samples`` independent arrival paths."""
+
+    predicted: np.ndarray
+    predicted_stderr: np.ndarray
+    filtered: np.ndarray
+    filtered_stderr: np.ndarray
+    samples: int
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    def to_dict(self) -> dict[str, Any]:
+        """The traces per step and their standard errors (the trace's own: the paths' traces). O(steps n)."""
+        return {"predicted_trace": np.trace(self.predicted, axis1=1, axis2=2).tolist(),
+                "filtered_trace": np.trace(self.filtered, axis1=1, axis2=2).tolist(), "samples": self.samples}
+
+
+@dataclass(frozen=True)
+class FilterStability(Frozen):
+    """Whether the TCP-like filter's expected error covariance stays bounded behind Markov (Gilbert–Elliott)
+    sensor links (sensing.markov_bounds.filter_stability): ``bounded`` True (proved: ``by`` says how), False
+    (proved unbounded), None (undecided, ``reason``); ``loss_radius`` = rho(Lambda) rho(A)^2 (Lambda the chain's
+    all-lost matrix; < 1 is necessary, and sufficient when every channel alone observes the state: ``exact``)."""
+
+    bounded: bool | None
+    loss_radius: float
+    exact: bool
+    by: str
+    reason: str
+
+    __repr__ = fields_repr
+    _repr_html_ = fields_html
+    to_json = to_json
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats (null for inf or nan). O(1)."""
+        return {"bounded": self.bounded, "loss_radius": finite_or_none(self.loss_radius), "exact": self.exact,
+                "by": self.by, "reason": self.reason}

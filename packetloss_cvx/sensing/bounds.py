@@ -30,10 +30,11 @@ import numpy as np
 from ..errors import CrossCheckError, InputError, NumericalError
 from ..results.sensing import CovarianceBounds, CriticalGamma
 from ..sensor import Sensor
-from .kalman import arrival_patterns, measurement_update, pattern_rows, predict
+from .arrivals import arrival_patterns
+from .kalman import measurement_update, pattern_rows, predict
 
-__all__ = ["covariance_bounds", "critical_gamma", "expected_riccati_map",
-           "lower_bound_covariance", "riccati_map", "stable_certificate", "upper_bound_covariance"]
+__all__ = ["DIVERGENCE_MARGIN", "covariance_bounds", "critical_gamma", "expected_riccati_map", "lower_bound_covariance",
+           "lower_bound_diverges", "riccati_map", "stable_certificate", "upper_bound_covariance"]
 
 #: The value iteration of the upper bound stops when an update changes V by less than this (relative).
 MARE_RTOL = 1e-12
@@ -102,6 +103,30 @@ def lower_bound_covariance(A: np.ndarray, Sigma_W: np.ndarray, q: float) -> np.n
     if not np.all(np.isfinite(S)) or float(np.linalg.norm(term)) > 1e-12 * float(np.linalg.norm(S)):
         return None          # grows polynomially (a Jordan block on the critical circle): unbounded
     return 0.5 * (S + S.T)
+
+
+#: A divergence verdict is proved at ``q (1 - DIVERGENCE_MARGIN)``: the lower bound rises with q, so a series that
+#: diverges there diverges at q, and a q rho(A)^2 within rounding of 1 is left undecided rather than guessed.
+DIVERGENCE_MARGIN = 1e-9
+
+
+def lower_bound_diverges(A: np.ndarray, Sigma_W: np.ndarray, P0: np.ndarray, q: float) -> bool:
+    """Whether ``E[P^-_k] >= q^k A^k P0 A'^k + sum_{i<k} q^i A^i Sigma_W A'^i`` (P >= 0, and P = P^- with the
+    all-lost probability q, independent of the past) is proved unbounded in k: at ``q' = q (1 -
+    DIVERGENCE_MARGIN)`` the noise series diverges (then it does at q), or the series of the P0 terms does (then
+    ``q' rho^2 >= 1`` on the modes P0 excites, so at q those terms grow by ``1 / (1 - DIVERGENCE_MARGIN)`` or more a
+    step). :func:`lower_bound_covariance` twice: O(n^3) per doubling.
+
+    >>> lower_bound_diverges(np.array([[2.0]]), np.zeros((1, 1)), np.ones((1, 1)), 0.5)   # 0.5^k 4^k P0 = 2^k
+    True
+    >>> lower_bound_diverges(np.array([[2.0]]), np.zeros((1, 1)), np.zeros((1, 1)), 0.5)  # nothing to grow
+    False
+    >>> lower_bound_diverges(np.array([[2.0]]), np.ones((1, 1)), np.zeros((1, 1)), 0.25)  # q a^2 = 1: undecided
+    False
+    """
+    q = q * (1.0 - DIVERGENCE_MARGIN)
+    return (lower_bound_covariance(A, Sigma_W, q) is None
+            or lower_bound_covariance(A, np.asarray(P0, dtype=float), q) is None)
 
 
 def _iterate(V: np.ndarray, A: np.ndarray, Q: np.ndarray, sensor: Sensor,

@@ -23,43 +23,25 @@ update uses only the rows ``r(a)`` of the channels that arrived:
 singular ``P^-`` exact (``C = I, R = 0``: ``P = 0``, the full-state limit).
 
 The TCP-like ``P_k`` does not depend on the inputs, only on the arrivals: its expectation is exact by
-enumerating the ``2^(g k)`` arrival paths (:func:`expected_covariance`).
+enumerating the ``2^(g k)`` arrival paths (:func:`expected_covariance`), Bernoulli or Gilbert–Elliott (the
+filter is the same on every path; only the paths' probabilities differ, :mod:`.arrivals`).
 """
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
 from ..sensor import Sensor
+from .arrivals import sensor_arrivals
 
-__all__ = ["ENUMERATION_MAX_PATHS", "PATTERN_MAX_CHANNELS", "ExpectedCovariance", "actuation_covariance",
-           "arrival_patterns", "expected_covariance", "measurement_update", "pattern_rows", "predict"]
+__all__ = ["ENUMERATION_MAX_PATHS", "ExpectedCovariance", "actuation_covariance", "expected_covariance",
+           "measurement_update", "pattern_rows", "predict"]
 
-#: More sensor channels than this are refused by the pattern enumeration (2^g patterns per step).
-PATTERN_MAX_CHANNELS = 10
 #: The exact expected covariance enumerates at most this many arrival paths (2^(g steps)).
 ENUMERATION_MAX_PATHS = 2**16
-
-
-def arrival_patterns(gamma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """All ``2^g`` arrival patterns (bool, (2^g, g), row k the binary digits of k) and their probabilities
-    ``prod_j gamma_j^a_j (1 - gamma_j)^(1 - a_j)``. Time O(2^g g).
-
-    >>> arrived, prob = arrival_patterns(np.array([0.9, 0.5]))
-    >>> arrived.astype(int).tolist(), np.round(prob, 12).tolist()
-    ([[0, 0], [0, 1], [1, 0], [1, 1]], [0.05, 0.05, 0.45, 0.45])
-    """
-    g = gamma.size
-    if g > PATTERN_MAX_CHANNELS:
-        raise InputError("sensor.groups", f"expected at most {PATTERN_MAX_CHANNELS} sensor channels (2^g arrival "
-                                          f"patterns are enumerated), found {g}")
-    arrived = np.array(list(itertools.product((False, True), repeat=g)), dtype=bool).reshape(-1, g)
-    prob = np.prod(np.where(arrived, gamma, 1.0 - gamma), axis=1)
-    return arrived, prob
 
 
 def pattern_rows(sensor: Sensor, arrived: np.ndarray) -> np.ndarray:
@@ -136,7 +118,10 @@ class ExpectedCovariance:
 def expected_covariance(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor, steps: int,
                         P0: np.ndarray | None = None) -> ExpectedCovariance:
     """E[P^-_k] and E[P_k] exactly, by enumerating all ``2^(g steps)`` arrival paths (TCP-like: the
-    covariances do not depend on the inputs). Time O(2^(g steps) (n^3 + n^2 p + p^3)).
+    covariances do not depend on the inputs), each path weighted by its probability under the sensor's arrival
+    chain (:func:`.arrivals.sensor_arrivals`: the product of the pattern probabilities for Bernoulli channels; for
+    Gilbert–Elliott channels the forward recursion ``w <- (w * emission[:, a]) T`` over the hidden states, so the
+    path probability is exact). Time O(2^(g steps) (n^3 + n^2 p + p^3 + S^2)), S the chain's states.
 
     Raises
     ------
@@ -156,15 +141,17 @@ def expected_covariance(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor, step
     if g * steps > np.log2(ENUMERATION_MAX_PATHS):
         raise InputError("steps", f"{steps} steps of {g} sensor channels are 2^{g * steps} arrival paths, over the "
                                   f"{ENUMERATION_MAX_PATHS} enumerated exactly: use Monte Carlo or the bounds")
-    arrived, prob = arrival_patterns(sensor.gamma)
-    updates = [pattern_rows(sensor, a) for a in arrived]
+    arrivals = sensor_arrivals(sensor)
+    updates = [pattern_rows(sensor, a) for a in arrivals.patterns]
     Pm = np.array(sensor.P0 if P0 is None else P0, dtype=float)[None]
-    weight = np.ones(1)
+    weight = arrivals.initial[None, :]                  # (paths, S): P(the path so far, S_k = s)
     predicted, filtered = [Pm[0].copy()], []
     for _ in range(steps):
         P = np.concatenate([measurement_update(Pm, sensor.C, sensor.noise_cov, rows)[0] for rows in updates])
-        weight = np.concatenate([weight * pk for pk in prob])
-        filtered.append(np.einsum("k,kij->ij", weight, P))
+        joint = np.concatenate([weight * e for e in arrivals.emission.T])      # the path extended by each pattern
+        prob = joint.sum(axis=1)
+        filtered.append(np.einsum("k,kij->ij", prob, P))
         Pm = predict(P, A, Sigma_W)
-        predicted.append(np.einsum("k,kij->ij", weight, Pm))
-    return ExpectedCovariance(np.array(predicted), np.array(filtered), int(weight.size))
+        predicted.append(np.einsum("k,kij->ij", prob, Pm))
+        weight = joint @ arrivals.transition
+    return ExpectedCovariance(np.array(predicted), np.array(filtered), int(prob.size))

@@ -20,7 +20,8 @@ import numpy as np
 from ..convex import solve_problem
 from ..sensor import Sensor
 from ..tolerances import CLARABEL_TIGHT
-from .kalman import arrival_patterns, pattern_rows
+from .arrivals import arrival_patterns
+from .kalman import pattern_rows
 
 __all__ = ["FilterLmi"]
 

@@ -44,26 +44,124 @@ from ..model import System
 from ..results.sensing import EstimatedLoop
 from ..simulation.moments import solve_fixed_point, stationary_channel
 from ..simulation.riccati import dp_riccati
-from ..simulation.stability import is_mean_square_stable, random_matrix_moment
-from ..tolerances import KRONECKER_MAX_N
-from .bounds import upper_bound_covariance
-from .kalman import arrival_patterns, measurement_update, pattern_rows
+from ..simulation.stability import mean_square_radius, random_matrix_moment
+from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
+from .arrivals import arrival_patterns, sensor_arrivals
+from .bounds import lower_bound_diverges, upper_bound_covariance
+from .kalman import measurement_update, pattern_rows
+from .markov_bounds import filter_stability, markov_lower_diverges
 
-__all__ = ["LOOP_MAX_N", "MAP_LAWS", "estimated_loop", "filter_gains", "loop_map", "require_sensor",
-           "undetermined_gains"]
+__all__ = ["LOOP_MAX_N", "MAP_LAWS", "chain_loop_verdict", "estimated_loop", "filter_gains", "loop_map",
+           "loop_verdict", "no_gains_verdict", "require_sensor", "undetermined_gains"]
 
 #: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
 LOOP_MAX_N = KRONECKER_MAX_N
 
 
-def require_sensor(system: System) -> None:
-    """An InputError (field ``sensor``) unless the system has a Bernoulli sensor."""
+def require_sensor(system: System, chains: bool = False) -> None:
+    """An InputError (field ``sensor``) unless the system has a sensor: a Bernoulli one, or (``chains``) also
+    Gilbert–Elliott links (field ``sensor.model`` otherwise)."""
     if system.sensor is None:
         raise InputError("sensor", "expected a system with a [sensor] section (the full-state loop is "
                                    "simulation.closed_loop)")
-    if system.sensor.channel is not None:
+    if system.sensor.channel is not None and not chains:
         raise InputError("sensor.model", "a Gilbert-Elliott sensor's losses are correlated: the independent-arrival "
                                          "analysis does not describe it (give gamma for the Bernoulli twin)")
+
+
+def loop_verdict(radius: float) -> bool | None:
+    """The verdict a radius of the (xhat, e) second-moment operator proves: True below ``1 - MEAN_SQUARE_MARGIN``,
+    False above ``1 + MEAN_SQUARE_MARGIN`` (inf included), None (no verdict) within the margin of 1 or for nan (the
+    eigenvalue solvers agree to about 1e-12 relative, so a radius that close to 1 proves neither). O(1).
+
+    >>> loop_verdict(0.5), loop_verdict(2.0), loop_verdict(1.0), loop_verdict(float("nan"))
+    (True, False, None, None)
+    """
+    if np.isnan(radius):
+        return None
+    if radius < 1.0 - MEAN_SQUARE_MARGIN:
+        return True
+    return False if radius > 1.0 + MEAN_SQUARE_MARGIN else None
+
+
+#: Why ``stable`` is False where the filter has no stationary gains and the lower bound diverges.
+UNBOUNDED_REASON = ("not mean-square stable, proved: the lower bound on the filter's expected error covariance "
+                    "diverges at this gamma (sensing.bounds.lower_bound_diverges), and E[x x'] >= E[P_k] for any law "
+                    "on any estimate (the Kalman filter's P_k is the least error covariance given the TCP-like "
+                    "information, which contains the UDP-like one)")
+#: Why ``stable`` is null where the filter has no stationary gains but the lower bound is finite.
+UNDECIDED_REASON = ("undecided: the filter has no stationary gains at this gamma (the expected Riccati upper-bound "
+                    "iteration diverges or does not settle), yet the lower bound on E[P] is finite: gamma lies between "
+                    "the certified bounds on the critical rate, where neither bound decides")
+
+
+#: Why the loop behind Gilbert–Elliott sensor links has no exact moments (unless proved unbounded).
+CHAIN_REASON = ("no exact loop behind Gilbert-Elliott sensor links: with stationary gains the loop (xhat, e) is a "
+                "Markov jump system, not derived here (the time-varying filter: simulate --closed-loop's Monte Carlo)")
+
+
+def no_gains_verdict(system: System) -> tuple[bool | None, str]:
+    """The verdict where :func:`filter_gains` is None: ``(False, reason)`` when the lower bound on E[P^-] diverges
+    at the system's gamma (sensing.bounds.lower_bound_diverges: from the noise or from P0; proved, since
+    E[x x'] >= E[P_k] >= q E[P^-_k] -> inf for every law on every estimate), else ``(None,
+    reason)``: the upper-bound iteration diverging proves nothing (Jensen's bound, not E[P]). O(n^3 log).
+
+    >>> from packetloss_cvx.sensor import Sensor
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.5]))   # (1 - 0.5) 2^2 = 2 >= 1
+    >>> no_gains_verdict(s)[0]
+    False
+    """
+    sensor = system.sensor
+    if sensor.channel is not None:      # Markov arrivals: the same argument with the chain's all-lost runs
+        try:
+            diverges = markov_lower_diverges(system.A, system.noise_cov, sensor.P0, sensor_arrivals(sensor))
+        except InputError as err:       # more joint chain states than the coupled equations take
+            return None, f"undecided: {err}"
+        if diverges:
+            return False, UNBOUNDED_REASON.replace("sensing.bounds.lower_bound_diverges",
+                                                   "sensing.markov_bounds.markov_lower_diverges")
+        return None, "undecided: " + CHAIN_REASON
+    if lower_bound_diverges(system.A, system.noise_cov, sensor.P0, float(np.prod(1.0 - sensor.gamma))):
+        return False, UNBOUNDED_REASON
+    return None, UNDECIDED_REASON
+
+
+#: Why the TCP-like loop on the Kalman estimate behind Gilbert-Elliott links is proved mean-square stable.
+SEPARATION_REASON = ("mean-square stable, proved by separation (the loop with the time-varying Kalman filter): the "
+                     "filter's E[P] is bounded (sensing.markov_bounds.filter_stability: {by}) and the law's full-state "
+                     "loop over the actuator links has second-moment radius {radius:.6g} < 1; "
+                     "x+ = (A - BVK) x + BVK e + w with V independent of e and w. The cost is not derived: Monte Carlo")
+
+
+def chain_loop_verdict(system: System, gain: np.ndarray, protocol: str, mu: np.ndarray) -> tuple[bool | None, str]:
+    """The verdict on ``u = -K xhat`` behind Gilbert–Elliott sensor links, with the time-varying Kalman filter:
+    False where the lower bound on E[P] diverges (:func:`no_gains_verdict`); TCP-like, True where the filter's E[P]
+    is proved bounded and the law's full-state loop over the actuator links is mean-square stable (separation:
+    ``x+ = (A - BVK) x + BVK e + w``, the products of ``A - B V_i K`` after step j independent of ``e_j``, ``w_j``, so
+    ``|x_k|_2 <= sum_j (c rho^(k-j))^(1/2) |BVKe_j + w_j|_2`` is bounded: docs/design.md); else None with the
+    reason. UDP-like: the error depends on the inputs, so only the divergence proves anything. Time
+    O(filter_stability + n^6).
+
+    >>> from packetloss_cvx.sensor import Sensor
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[0.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.1],
+    ...                                                                  "r": [0.8]}))
+    >>> chain_loop_verdict(s, np.array([[1.8]]), "tcp", np.array([0.9]))[0]   # (1 - 0.8) 4 < 1; 0.2^2 + 0.09 1.8^2
+    True
+    """
+    verdict, why = no_gains_verdict(system)
+    if verdict is False or protocol != "tcp":
+        return verdict, why
+    try:
+        fs = filter_stability(system.A, system.noise_cov, system.sensor)
+        radius = mean_square_radius(system.A, system.B, gain, mu)
+    except (InputError, NumericalError) as err:
+        return None, f"undecided: {err}"
+    if fs.bounded is True and loop_verdict(radius) is True:
+        return True, SEPARATION_REASON.format(by=fs.by, radius=radius)
+    return None, (f"undecided: the filter's E[P] is {'bounded' if fs.bounded else 'not proved bounded'} and the "
+                  f"full-state loop's radius is {radius:.6g}; " + CHAIN_REASON)
 
 
 def filter_gains(system: System) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -109,15 +207,19 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
                    gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, split: bool = True) -> EstimatedLoop:
     """The exact stationary loop of ``u = -K xhat`` (module docstring) at the system's mu and gamma.
 
-    Returns the radius of the second-moment operator of ``(xhat, e)``, the average stage cost (inf with the
-    reason when not mean-square stable, or when the filter has no stationary gains) and its two parts
+    Returns the radius of the second-moment operator of ``(xhat, e)``, the verdict it proves (:func:`loop_verdict`),
+    the average stage cost (inf with the reason when proved not mean-square stable; nan with the reason, verdict
+    None, when undecided: a radius within the margin of 1, or no stationary gains while the lower bound on E[P] is
+    finite, :func:`no_gains_verdict`) and its two parts
     (``split=False``: not computed, nan; it solves the DP). ``gains``: :func:`filter_gains` of this system when the
     caller has them (a map over mu at one gamma). Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
 
     Raises
     ------
     InputError
-        No Bernoulli sensor; a non-stationary or Gilbert-Elliott actuator channel (simulation.moments).
+        No sensor; a non-stationary or Gilbert-Elliott actuator channel (simulation.moments). Gilbert–Elliott
+        sensor links give no exact loop: stable False where the lower bound on E[P] is proved to diverge
+        (:func:`no_gains_verdict`), else None, with the reason.
 
     Examples
     --------
@@ -128,10 +230,14 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     >>> round(loop.average_stage_cost, 12)      # x+ = x/2 + w: E x^2 = 4/3, cost (1 + 1/4) 4/3
     1.666666666667
     """
-    require_sensor(system)
+    require_sensor(system, chains=True)
     mu = stationary_channel(system)
     n = system.n
     K = np.asarray(gain, dtype=float)
+    if system.sensor.channel is not None:          # Gilbert-Elliott sensor links: a verdict only where proved
+        verdict, why = chain_loop_verdict(system, K, protocol, mu)
+        inf_or_nan = float("inf") if verdict is False else float("nan")
+        return EstimatedLoop(law, protocol, K, inf_or_nan, verdict, inf_or_nan, float("nan"), float("nan"), None, why)
     A, B, Sigma_W = system.A, system.B, system.noise_cov
     Omega, psi = system.state_weights[0], system.input_weights[0]
     sensor = system.sensor
@@ -145,16 +251,16 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
 
     def result(radius: float, cost: float, control: float, estimation: float, S: np.ndarray | None,
                reason: str) -> EstimatedLoop:
-        verdict = None if np.isnan(radius) else is_mean_square_stable(radius)      # nan: not computed, no verdict
-        return EstimatedLoop(law, protocol, K, radius, verdict, cost, control, estimation, S, reason)
+        return EstimatedLoop(law, protocol, K, radius, loop_verdict(radius), cost, control, estimation, S, reason)
 
     if n > LOOP_MAX_N:
         return result(nan, nan, nan, nan, None, f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); "
                                                f"found n = {n}: use Monte Carlo")
     gains = filter_gains(system) if gains is None else gains
-    if gains is None:
-        return result(float("inf"), float("inf"), nan, nan, None,
-                      "the filter has no stationary gains at this gamma (the expected Riccati iteration diverges)")
+    if gains is None:           # proved unbounded (lower bound) or undecided (between the bounds): never a guess
+        verdict, why = no_gains_verdict(system)
+        return result(float("inf") if verdict is False else nan, float("inf") if verdict is False else nan,
+                      nan, nan, None, why)
     undetermined = undetermined_gains(system, gains)
     if undetermined:
         return result(nan, nan, nan, nan, None, undetermined)
@@ -180,7 +286,10 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
         N = np.block([[LC, La], [eye - LC, -La]])
         noise += pa * (N @ noise_cov @ N.T)
     radius = float(np.max(np.abs(np.linalg.eigvals(matrix))))
-    if not is_mean_square_stable(radius):
+    if loop_verdict(radius) is None:
+        return result(radius, nan, nan, nan, None, f"undecided: the radius of (xhat, e) is {radius:.12g}, within "
+                                                   f"{MEAN_SQUARE_MARGIN:g} of 1")
+    if not loop_verdict(radius):
         return result(radius, float("inf"), nan, nan, None, f"not mean-square stable: the radius of (xhat, e) is "
                                                              f"{radius:.6g}")
     S = solve_fixed_point(lambda X: (matrix @ X.ravel()).reshape(2 * n, 2 * n), lambda: matrix, noise,
@@ -207,7 +316,9 @@ def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
              laws: tuple[str, ...] = tuple(MAP_LAWS)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Each law's exact radius and average stage cost (``(G, M)`` arrays, rows gamma) on the grid
     ``gamma = s_g gamma_file / max``, ``mu = s_m mu_file / max`` (:func:`estimated_loop`; the filter built once per
-    gamma; inf where the filter has no stationary gains or the DP has no stabilising law). The data of the
+    gamma; inf where the DP has no stabilising law or the filter has no stationary gains and the lower bound on
+    E[P] diverges (proved unstable), nan where it has none but that bound is finite (undecided,
+    :func:`no_gains_verdict`), the radius as :func:`estimated_loop` gives it otherwise). The data of the
     (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws (2n)^6).
 
     >>> from packetloss_cvx.sensor import Sensor
@@ -224,7 +335,10 @@ def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
     for i, sg in enumerate(gamma_scales):
         s_gamma = system.with_sensor(sensor.with_gamma(np.clip(sg * sensor.gamma / sensor.gamma.max(), 0.0, 1.0)))
         gains = filter_gains(s_gamma)          # the filter at this gamma, shared by every mu of the row
-        if gains is None:
+        if gains is None:                      # inf only where proved unbounded; nan (no verdict) between the bounds
+            if no_gains_verdict(s_gamma)[0] is None:
+                for law in laws:
+                    out[law][0][i], out[law][1][i] = np.nan, np.nan
             continue
         for j, sm in enumerate(mu_scales):
             s = s_gamma.with_mu(np.clip(sm * mu0 / mu0.max(), 0.0, 1.0))

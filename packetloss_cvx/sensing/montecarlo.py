@@ -5,7 +5,9 @@ and the filter (sensing.kalman) run together, every step one array operation ove
 UDP-like prediction adds the actuation covariance of its own u). ``filter="stationary"``: the fixed pattern gains
 of sensing.loop, whose exact stationary cost the run is checked against. The stage cost
 ``x'Omega x + (V u)'Psi (V u)`` is averaged over the second half of the steps (the first half is the transient),
-the standard error from the runs' means (independent runs).
+the standard error from the runs' means (independent runs). Arrivals are Bernoulli draws or, behind
+Gilbert–Elliott sensor links, sampled from the chains (sensing.arrivals.ChainSampler). ``sampled_covariance``
+samples the filter's covariances alone (no loop): E[P_k] with standard errors past the exact enumeration.
 """
 
 from __future__ import annotations
@@ -16,12 +18,14 @@ from ..budgets import check, simulate_work
 from ..errors import InputError
 from ..linalg import psd_factor
 from ..model import System
-from ..results.sensing import EstimatedRun
+from ..results.sensing import EstimatedRun, SampledCovariance
+from ..sensor import Sensor
 from ..simulation.moments import stationary_channel
-from .kalman import actuation_covariance, arrival_patterns, measurement_update, pattern_rows
+from .arrivals import ChainSampler, arrival_patterns
+from .kalman import actuation_covariance, measurement_update, pattern_rows, predict
 from .loop import estimated_loop, filter_gains, require_sensor
 
-__all__ = ["FILTERS", "simulate_estimated"]
+__all__ = ["FILTERS", "pattern_update", "sampled_covariance", "simulate_estimated"]
 
 #: The filters a run can use.
 FILTERS = ("kalman", "stationary")
@@ -41,17 +45,19 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     Returns the mean stage cost over the second half and its standard error, the exact stationary cost
     (the "stationary" filter: sensing.loop; the "kalman" filter: nan with the reason), whether the loop is proved
     stable (the fixed-gain loop's radius; for the Kalman filter None: no exact verdict for a time-varying gain),
-    and the mean of the filter's own covariance P_k over the kept steps (Kalman only; nan otherwise).
+    and the mean of the filter's own covariance P_k over the kept steps with its per-entry standard error and the
+    standard error of its trace (each from the runs' own means over the kept steps, the runs independent; Kalman
+    only; nan otherwise). Gilbert–Elliott sensor links: the Kalman filter only, arrivals sampled from the chains.
     Time O(samples steps (2^g + n (n^2 + p^2))).
 
     Raises
     ------
     InputError
-        No Bernoulli sensor, an unknown filter or protocol, steps < 2.
+        No sensor, an unknown filter or protocol, steps < 2; the stationary filter behind Gilbert–Elliott links.
     BudgetError
         Beyond the ``simulate_work`` budget.
     """
-    require_sensor(system)
+    require_sensor(system, chains=True)
     if filter not in FILTERS:
         raise InputError("filter", f"expected one of {', '.join(FILTERS)}, found {filter!r}")
     if protocol not in ("tcp", "udp"):
@@ -72,6 +78,9 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     rows = [pattern_rows(sensor, a) for a in arrived]
     digits = 2 ** np.arange(sensor.g - 1, -1, -1)        # itertools.product order: channel 0 most significant
     exact, reason, stable = float("nan"), "the time-varying filter has no exact stationary cost: Monte Carlo", None
+    if sensor.channel is not None and filter == "stationary":
+        raise InputError("sensor.model", "stationary filter gains behind Gilbert-Elliott sensor links are not derived "
+                                         "(the loop would be a Markov jump system): use filter='kalman'")
     if filter == "stationary":
         fixed = filter_gains(system)
         if fixed is None:
@@ -87,18 +96,15 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     keep = steps // 2
     total = np.zeros(samples)
     covariance = np.zeros((n, n))
+    per_run = np.zeros((samples, n, n))              # each run's sum of P_k over the kept steps: the standard error
+    sampler = None if sensor.channel is None else ChainSampler(sensor, rng, samples)
     with np.errstate(over="ignore", invalid="ignore"):
         for k in range(steps):
-            a = rng.random((samples, sensor.g)) < sensor.gamma
+            a = rng.random((samples, sensor.g)) < sensor.gamma if sampler is None else sampler.step()
             y = x @ C.T + _noise(rng, R, samples)
             pattern = a @ digits
             if filter == "kalman":
-                P = np.empty_like(Pm)
-                L = np.zeros((samples, n, sensor.p))
-                for j, r in enumerate(rows):
-                    sel = pattern == j
-                    if np.any(sel):
-                        P[sel], L[sel] = measurement_update(Pm[sel], C, R, r)
+                P, L = pattern_update(Pm, pattern, rows, C, R)
             else:
                 L = gains[pattern]
             xhat = xm + np.einsum("sij,sj->si", L, y - xm @ C.T)
@@ -110,6 +116,7 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
                 total += stage
                 if filter == "kalman":
                     covariance += P.sum(axis=0)
+                    per_run += P
             x = x @ A.T + applied @ B.T + _noise(rng, Sigma_W, samples)
             xm = xhat @ A.T + (applied if protocol == "tcp" else mu * u) @ B.T
             if filter == "kalman":
@@ -119,5 +126,78 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     means = total / keep
     mean = float(means.mean())
     stderr = float(means.std(ddof=1) / np.sqrt(samples))
-    covariance = covariance / (keep * samples) if filter == "kalman" else np.full((n, n), np.nan)
-    return EstimatedRun(law, protocol, filter, mean, stderr, exact, stable, covariance, samples, steps, reason)
+    if filter == "kalman":
+        covariance = covariance / (keep * samples)
+        run_means = per_run / keep
+        cov_stderr = run_means.std(axis=0, ddof=1) / np.sqrt(samples)
+        trace_stderr = float(np.trace(run_means, axis1=1, axis2=2).std(ddof=1) / np.sqrt(samples))
+    else:
+        covariance = cov_stderr = np.full((n, n), np.nan)
+        trace_stderr = float("nan")
+    return EstimatedRun(law, protocol, filter, mean, stderr, exact, stable, covariance, samples, steps, reason,
+                        cov_stderr, trace_stderr)
+
+
+def pattern_update(Pm: np.ndarray, pattern: np.ndarray, rows: list[np.ndarray], C: np.ndarray,
+                   R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The measurement update of each run (``Pm`` (samples, n, n)) with the rows of its arrival ``pattern``
+    (indices into ``rows``, the pattern's rows), one :func:`.kalman.measurement_update` per pattern present.
+    Returns P (samples, n, n) and the gains (samples, n, p). O(samples (n^2 p + p^3))."""
+    P = np.empty_like(Pm)
+    L = np.zeros((*Pm.shape[:-1], C.shape[0]))
+    for j, r in enumerate(rows):
+        sel = pattern == j
+        if np.any(sel):
+            P[sel], L[sel] = measurement_update(Pm[sel], C, R, r)
+    return P, L
+
+
+def sampled_covariance(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor, steps: int, samples: int = 2000,
+                       seed: int = 0) -> SampledCovariance:
+    """E[P^-_k] and E[P_k] (TCP-like filter, k = 0..steps) by sampling ``samples`` arrival paths of the sensor
+    (Bernoulli draws as :func:`simulate_estimated`'s, or Gilbert–Elliott chains, :class:`.arrivals.ChainSampler`)
+    with the per-entry standard error of each mean (independent paths): the Monte Carlo counterpart of
+    :func:`.kalman.expected_covariance` for horizons past its enumeration. Time O(samples steps (n^3 + p^3)).
+
+    Raises
+    ------
+    InputError
+        ``steps`` or ``samples`` not an integer >= 1 (>= 2 for samples).
+    BudgetError
+        Beyond the ``simulate_work`` budget.
+
+    Examples
+    --------
+    >>> s = Sensor(C=[[1.0]], gamma=[1.0], noise_cov=[[1.0]], P0=[[1.0]])      # every packet arrives: no spread
+    >>> out = sampled_covariance(np.array([[1.0]]), np.array([[1.0]]), s, 1, samples=4)
+    >>> float(out.filtered[0, 0, 0]), float(out.filtered_stderr[0, 0, 0])    # 1 / (1 + 1)
+    (0.5, 0.0)
+    """
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise InputError("steps", f"expected an integer >= 1, found {steps!r}")
+    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 2:
+        raise InputError("samples", f"expected an integer >= 2, found {samples!r}")
+    n = A.shape[0]
+    check("simulate_work", simulate_work(samples, steps, 1, n + sensor.p, 1, plans=0, laws=n), "samples",
+          f"{samples} filter paths of {steps} steps")
+    rng = np.random.default_rng(seed)
+    arrived, _ = arrival_patterns(sensor.gamma)
+    rows = [pattern_rows(sensor, a) for a in arrived]
+    digits = 2 ** np.arange(sensor.g - 1, -1, -1)
+    sampler = None if sensor.channel is None else ChainSampler(sensor, rng, samples)
+    Pm = np.broadcast_to(sensor.P0, (samples, n, n)).copy()
+    predicted, filtered = [Pm], []
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(steps):
+            a = rng.random((samples, sensor.g)) < sensor.gamma if sampler is None else sampler.step()
+            P, _ = pattern_update(Pm, a @ digits, rows, sensor.C, sensor.noise_cov)
+            Pm = predict(P, A, Sigma_W)
+            filtered.append(P)
+            predicted.append(Pm)
+
+    def stats(stack: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        arr = np.stack(stack)                               # (steps, samples, n, n)
+        return arr.mean(axis=1), arr.std(axis=1, ddof=1) / np.sqrt(samples)
+
+    (pm, pse), (fm, fse) = stats(predicted), stats(filtered)
+    return SampledCovariance(pm, pse, fm, fse, int(samples))
