@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
 from ..model import System
-from ..recursion import forward_cost, input_weight, mean_states, overflow_error, udp_variance_weights
+from ..recursion import forward_cost, input_weight, lyapunov_cross_weights, mean_states, overflow_error
 from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .chain import chain_matrices
 
@@ -210,32 +210,29 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     NumericalError
         An overflow (an unstable plant over a long horizon), a singular step, or a failed self-check.
     """
-    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    W, N, n, m = system.state_weights, system.horizon, system.n, system.m
     lift = chain_lift(system, chains)
     D = lift.size
     F = _dynamics(system, lift)
     mu = system.mu_schedule
     scale = np.sqrt(mu)
-    d, noise = udp_variance_weights(system)
+    d, noise, BSA = lyapunov_cross_weights(system)     # the backward Lyapunov sum S_t: diag(B'S_tB) and B'S_tA
     with np.errstate(over="ignore", invalid="ignore"):   # Lemma 1's UDP-like input weight, M (Psi + (I - M) D)
         R = np.where(mu > 0.0, mu * input_weight(system, "udp", mu, d), 0.0)
     K = np.empty((N, m, D))
     Gs = _input_maps(system, lift)
     P = np.zeros((D, D))
     P[:n, :n] = W[N - 1]
-    S = W[N - 1].copy()
     Ncross = np.zeros((m, D))
     with np.errstate(over="ignore", invalid="ignore"):
         try:
             for t in range(N - 1, -1, -1):
-                BSA = B.T @ S @ A
                 for i, gi in enumerate(lift.g):
                     a, b = lift.offsets[i], lift.offsets[i + 1]
-                    Ncross[i, a:b] = np.outer(BSA[i], gi).ravel()          # b_i'S_t A ⊗ g_i (row-major eta_i)
+                    Ncross[i, a:b] = np.outer(BSA[t, i], gi).ravel()       # b_i'S_t A ⊗ g_i (row-major eta_i)
                 K[t], P = lq_cross_step(P, F, Gs[t], np.diag(R[t]), Ncross, scale[t])
                 if t > 0:
                     P[:n, :n] += W[t - 1]
-                    S = W[t - 1] + A.T @ S @ A
         except np.linalg.LinAlgError:
             raise overflow_error("the augmented cost-to-go matrix", "udp") from None
         if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K)) and np.isfinite(noise)):
