@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..budgets import check, duration_text, estimated_seconds, markov_recursion_work
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
 from ..model import System
@@ -42,7 +43,8 @@ from ..recursion import forward_cost, input_weight, lyapunov_cross_weights, mean
 from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .chain import chain_matrices
 
-__all__ = ["ChainLift", "augmented_solve", "chain_cost", "chain_lift", "lq_cross_step"]
+__all__ = ["ChainLift", "augmented_size", "augmented_solve", "chain_cost", "chain_lift", "check_recursion_budget",
+           "lq_cross_step"]
 
 
 @dataclass(frozen=True)
@@ -134,6 +136,41 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
     return ChainLift(tuple(Lam), tuple(g), tuple(gamma), tuple(offsets), offsets[-1])
 
 
+def augmented_size(system: System, chains: tuple | None = None) -> int:
+    """D = n (1 + sum_i (k_i - 1)), the size of the augmented state (n without a chain), from the chains' sizes
+    alone (nothing lifted). O(m).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> augmented_size(s)                  # n (1 + m) for Gilbert–Elliott channels
+    2
+    """
+    if chains is None:
+        chains = chain_matrices(system.channel) if system.channel is not None else ()
+    return system.n * (1 + sum(max(np.shape(d)[0] - 1, 0) for _, d, _ in chains))
+
+
+def check_recursion_budget(system: System, size: int, instead: str) -> None:
+    """Refuse, before any work, an augmented recursion beyond the ``markov_recursion_work`` budget
+    (:func:`~packetloss_cvx.budgets.markov_recursion_work`), naming the channel, the estimated time and
+    ``instead`` (what to use in its place). O(1).
+
+    Raises
+    ------
+    BudgetError
+        Field ``channel``: the chain (its number of states) makes the recursion too long.
+    """
+    N = system.horizon
+    work = markov_recursion_work(N, size)
+    seconds = estimated_seconds("markov_recursion_work", work)
+    check("markov_recursion_work", work, "channel",
+          f"the exact Markov recursion over N = {N} steps on an augmented state of size D = {size} (about "
+          f"{duration_text(seconds)}; {instead})")
+
+
 def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
     """The constant augmented transition: blkdiag(A, A ⊗ Lambda_1', ...) on row-major eta's. O(D^2)."""
     n = system.n
@@ -207,6 +244,9 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
 
     Raises
     ------
+    BudgetError
+        The recursion's estimated time is beyond the ``markov_recursion_work`` budget (checked before any work:
+        :func:`check_recursion_budget`; the message names the dense route when it fits the memory budget).
     NumericalError
         An overflow (an unstable plant over a long horizon), a singular step, or a failed self-check.
     """
