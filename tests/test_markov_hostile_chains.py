@@ -80,7 +80,8 @@ def test_recursion_against_the_enumerated_minimum(name, horizon):
     if CHAINS[name].m == 3 and horizon == 4:
         horizon = 3                                   # 2^(N m) patterns
     s = system_behind(name, 17 * horizon, horizon, noise=False, time_varying=True)
-    assert exact_closed_form(s, "udp", method="recursion").cost == pytest.approx(enumerated_minimum(s), rel=1e-9, abs=1e-12)
+    recursion = exact_closed_form(s, "udp", method="recursion").cost
+    assert recursion == pytest.approx(enumerated_minimum(s), rel=1e-9, abs=1e-12)
 
 
 @pytest.mark.parametrize("name", sorted(CHAINS))
