@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 from .errors import BudgetError, InputError
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "count_text", "estimated_seconds", "limit",
-           "simulate_work", "sweep_work"]
+__all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "count_text", "duration_text",
+           "estimated_seconds", "limit", "markov_recursion_work", "simulate_work", "sweep_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -55,6 +55,8 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
     Budget("dask_workers", 32, "local Dask workers", "about 5 GB"),
     Budget("allocation_boxes", 1e6, "boxes of the branch and bound", "about 15 min"),
     Budget("region_points", 1.2e5, "law-points of a stability-region map (grid^2 x laws)", "about 10 min", 5.2e-3),
+    Budget("markov_recursion_work", 5e12, "work units of one exact Markov recursion (markov_recursion_work)",
+           "about 10 min", 1.2e-10),
 )}
 
 
@@ -127,6 +129,19 @@ def count_text(value: int | float) -> str:
     if isinstance(value, int) and abs(value) >= 10 ** 15:
         return f"a {len(str(abs(value)))}-digit number"
     return str(value) if isinstance(value, int) else f"{value:.3g}"
+
+
+def duration_text(seconds: float) -> str:
+    """An estimated time as an error line shows it: seconds below a minute, else minutes, else hours. O(1).
+
+    Examples
+    --------
+    >>> duration_text(0.384), duration_text(150.0), duration_text(7200.0)
+    ('0.38 s', '2.5 min', '2 h')
+    """
+    if seconds < 60:
+        return f"{seconds:.2g} s"
+    return f"{seconds / 60:.2g} min" if seconds < 3600 else f"{seconds / 3600:.2g} h"
 
 
 def _float(value: float) -> float:
@@ -209,6 +224,24 @@ def burstiness_work(values: int, horizon: int, m: int, protocols: int = 2, *, n:
     """
     D = float(n) * (1 + (m if states is None else states))
     return _float(values) * protocols * float(horizon) * (2.0 * D ** 3 + 2500.0)
+
+
+def markov_recursion_work(horizon: int, size: int) -> float:
+    """Work units of one exact UDP-like minimum under Markov losses by the augmented recursion
+    (markov/augmented.py): per step ``D^3`` for the Riccati step on the augmented state of size D (its products
+    and solve), plus 6e5 for the step's Python and small-matrix work; 1.2e-10 s a unit (benchmarks/markov_auto.py
+    --fit: D from 2 to 200, N from 10 to 640). The budget check of :func:`~packetloss_cvx.markov.exact_closed_form`
+    and its ``method="auto"`` chooser both read it. O(1).
+
+    Examples
+    --------
+    >>> markov_recursion_work(80, 8)       # pendulum_bursty: 48 ms predicted
+    48040960.0
+    >>> work = markov_recursion_work(100, 800)      # a 200-state chain behind a plant of n = 4, N = 100
+    >>> round(estimated_seconds("markov_recursion_work", work), 1)      # measured: 5 s
+    6.2
+    """
+    return _float(horizon) * (float(size) ** 3 + 6e5)
 
 
 def _rounded_up(value: float) -> str:

@@ -397,8 +397,16 @@ class MarkovChannel:
         return arr
 
     def propagate(self, belief: np.ndarray) -> np.ndarray:
-        """One step of the prior: ``pi_{t+1} = pi_t T`` per channel; ``belief`` (..., m, K). O(m K^2) per belief."""
-        return np.einsum("...ia,iab->...ib", belief, self.padded_transition)
+        """One step of the prior: ``pi_{t+1} = pi_t T`` per channel; ``belief`` (..., m, K). A two-state channel
+        takes the same step in Gilbert–Elliott's form, ``b+ = T[1, 0] + (T[0, 0] - T[1, 0]) b``, ``1 - b+`` (equal
+        in exact arithmetic for a distribution), so that a channel and its two-state twin give the same bits.
+        O(m K^2) per belief."""
+        out = np.einsum("...ia,iab->...ib", belief, self.padded_transition)
+        for i, T in enumerate(self.transition):
+            if T.shape[0] == 2:
+                good = T[1, 0] + (T[0, 0] - T[1, 0]) * belief[..., i, 0]
+                out[..., i, 0], out[..., i, 1] = good, 1.0 - good
+        return out
 
     def beliefs(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """The state distributions at t = 0..horizon-1 from ``belief`` (default the initial one), (N, m, K).

@@ -40,8 +40,9 @@ VARIANCE_WEIGHTS_KEY = CacheKey("recursion.udp_variance_weights", ("A", "B", "ho
 CONDITION_KEY = CacheKey("recursion.condition_estimate", ("A", "B", "horizon", "state_weights", "input_weights"))
 
 __all__ = [
-    "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost", "input_weight", "mean_states",
-    "mean_trajectory", "overflow_error", "recursion_cost", "riccati_step", "rollout_batch", "udp_variance_weights",
+    "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost",
+    "input_weight", "lyapunov_cross_weights", "mean_states", "mean_trajectory", "overflow_error", "recursion_cost",
+    "riccati_step", "rollout_batch", "udp_variance_weights",
 ]
 
 #: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
@@ -77,16 +78,33 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     >>> bool(np.allclose(d.ravel(), prediction(s).Omega_d))    # the dense diagonal of Omega_g
     True
     """
-    return system.structure_cached(VARIANCE_WEIGHTS_KEY, lambda: _lyapunov_weights(system),
+    return system.structure_cached(VARIANCE_WEIGHTS_KEY, lambda: _lyapunov_weights(system)[:2],
                                    nbytes=8 * system.horizon * system.m)
 
 
-def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
-    """udp_variance_weights, computed: the backward Lyapunov sum S_t, O(N n^3); once S stops changing
-    (:func:`stationary_close`) over a stationary head (Omega_t the same for every earlier t), the earlier
-    steps take its value: O(L n^3) for a sum that settles in L steps."""
+def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarray]:
+    """:func:`udp_variance_weights` ``(d, noise)`` with the products ``B' S_t A`` (N, m, n) of the same backward
+    Lyapunov sum ``S_t = Omega_{t+1} + A' S_{t+1} A``, which the exact cost under Markov losses pairs with the
+    state-chain correlations (markov/augmented.py: row i of its cross term is ``b_i' S_t A``). One kernel for both:
+    time O(N n^3 + N m n^2), memory O(N m n); not kept on the system (d is, through udp_variance_weights).
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> d, noise, BSA = lyapunov_cross_weights(s)      # S_1 = 1, S_0 = 5: B'S_tA = 2 S_t
+    >>> d.ravel().tolist(), BSA.ravel().tolist()
+    ([5.0, 1.0], [10.0, 2.0])
+    """
+    return _lyapunov_weights(system, cross=True)
+
+
+def _lyapunov_weights(system: System, cross: bool = False) -> tuple:
+    """udp_variance_weights, computed (and ``B' S_t A`` per step with ``cross``): the backward Lyapunov sum S_t,
+    O(N n^3); once S stops changing (:func:`stationary_close`) over a stationary head (Omega_t the same for every
+    earlier t), the earlier steps take its value: O(L n^3) for a sum that settles in L steps."""
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
     d = np.empty((N, system.m))
+    BSA = np.empty((N, system.m, system.n)) if cross else None
     noise = 0.0
     has_noise = bool(np.any(system.noise_cov != 0))
     settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
@@ -95,6 +113,8 @@ def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(N - 1, -1, -1):
             d[t] = np.einsum("ij,ik,kj->j", B, S, B)
+            if cross:
+                BSA[t] = B.T @ S @ A
             if has_noise:
                 noise += float(np.sum(S * system.noise_cov))
             if t > 0:
@@ -104,12 +124,14 @@ def _lyapunov_weights(system: System) -> tuple[np.ndarray, float]:
                     head = _leading_run(W[None]) if head is None else head
                     if t - 1 <= head:                                     # S_{t-1} = ... = S_0 = new
                         d[:t] = np.einsum("ij,ik,kj->j", B, new, B)
+                        if cross:
+                            BSA[:t] = B.T @ new @ A
                         if has_noise:
                             noise += t * float(np.sum(new * system.noise_cov))
                         break
                 S = new
     d.setflags(write=False)
-    return d, noise
+    return (d, noise, BSA) if cross else (d, noise)
 
 
 def _small_change(new: np.ndarray, old: np.ndarray) -> bool:

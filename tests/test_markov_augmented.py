@@ -3,15 +3,18 @@
 cvxpy + Clarabel QP twin, enumeration of every loss pattern (Gilbert–Elliott and a hand-written 3-state
 chain), and the lumped 3-state twin of a Gilbert–Elliott channel."""
 
+import importlib
+
 import numpy as np
 import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.errors import InputError
+from packetloss_cvx.errors import BudgetError, InputError
 from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_cost, exact_qp
 from packetloss_cvx.markov.augmented import augmented_solve, chain_cost, chain_lift
 from packetloss_cvx.markov.chain import chain_matrices, channel_covariance
+from packetloss_cvx.markov_channel import MarkovChannel
 from packetloss_cvx.random_systems import random_system
 from tests.references import enumerated_chain_cost
 from tests.test_markov_chain import random_channel
@@ -103,7 +106,7 @@ def test_recursion_matches_the_dense_route_on_the_unstable_pendulum_at_long_hori
 @pytest.mark.parametrize("seed", range(3))
 def test_recursion_matches_the_qp_twin(seed):
     s = bursty(seed)
-    rec = exact_closed_form(s)
+    rec = exact_closed_form(s, method="recursion")
     qp = exact_qp(s, reference=rec)                   # binds: CrossCheckError beyond its tolerances
     assert qp.cost == pytest.approx(rec.cost, rel=1e-10)
 
@@ -113,7 +116,7 @@ def test_gilbert_elliott_against_every_loss_pattern(seed):
     rng = np.random.default_rng(seed)
     s = random_system(rng, n=2, m=2, horizon=4, time_varying=True, noise=False)
     s = attach_channel(s, random_channel(rng, 2, given=seed % 2 == 0))
-    sol = exact_closed_form(s)
+    sol = exact_closed_form(s, method="recursion")
     chains = [([[1 - p, p], [r, 1 - r]], [hg, hb], [b, 1 - b]) for p, r, hg, hb, b in
               zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad, s.channel.initial_belief, strict=True)]
     enum = enumerated_chain_cost(s.A, s.B, s.state_weights, s.input_weights, s.initial_weight, s.x0, chains,
@@ -227,3 +230,84 @@ def test_the_covariance_of_a_three_state_chain_against_every_loss_pattern():
     lumped = ThreeStateChains([([[(1 - p) / 2, (1 - p) / 2, p], [(1 - p) / 2, (1 - p) / 2, p], [r / 2, r / 2, 1 - r]],
                                 [hg, hg, hb], [b / 2, b / 2, 1 - b])])
     np.testing.assert_allclose(channel_covariance(lumped, 9), channel_covariance(ge, 9), rtol=0, atol=1e-15)
+
+
+# --- method="auto" and the recursion's time budget (docs/design.md, "The exact cost at any horizon") ---------------
+
+def pendulum_at(horizon, radius=None):
+    """pendulum_bursty at another horizon (and A scaled to spectral radius ``radius``)."""
+    s = pl.load_example("pendulum_bursty")
+    A = s.A if radius is None else s.A * radius / max(abs(np.linalg.eigvals(s.A)))
+    return pl.System(A=A, B=s.B, horizon=horizon, state_weight=np.diag(s.state_weights[0]),
+                     input_weight=s.input_weights[0], x0=s.x0, channel=s.channel)
+
+
+def test_auto_takes_the_dense_route_where_it_is_faster_and_safe(monkeypatch):
+    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+
+    short = pendulum_at(80)
+    auto, rec = exact_closed_form(short), exact_closed_form(short, method="recursion")
+    assert auto.method == "markov-dense"                       # N m = 80: about 2 ms against 5 ms
+    assert auto.cost == pytest.approx(rec.cost, rel=1e-10)
+    np.testing.assert_allclose(auto.gain, rec.gain, rtol=1e-8)
+    assert exact_closed_form(pendulum_at(160)).method == "markov-recursion"        # condition estimate beyond 1e8
+    assert exact_closed_form(pendulum_at(600, radius=0.99)).method == "markov-recursion"   # the recursion is faster
+    monkeypatch.setattr(exact_module, "MEMORY_BUDGET_BYTES", 1e5)                  # the dense route would not fit
+    assert exact_closed_form(short).method == "markov-recursion"
+
+
+def test_auto_falls_back_to_the_recursion_when_the_dense_route_loses_its_digits(monkeypatch):
+    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+
+    def lost(system):
+        raise pl.NumericalError("planted: the dense prediction lost its digits")
+
+    monkeypatch.setattr(exact_module, "dense_prediction", lost)
+    sol = exact_closed_form(pendulum_at(80))
+    assert sol.method == "markov-recursion"
+    with pytest.raises(pl.NumericalError, match="planted"):
+        exact_closed_form(pendulum_at(80), method="dense")
+
+
+def test_the_recursion_is_refused_beyond_its_time_budget_before_any_work(monkeypatch):
+    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+    from packetloss_cvx.budgets import markov_recursion_work
+
+    def never(*args, **kwargs):
+        raise AssertionError("the recursion ran")
+
+    s = pendulum_at(80)
+    work = markov_recursion_work(80, 8)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK", str(work))
+    assert exact_closed_form(s, method="recursion").method == "markov-recursion"     # at the budget: runs
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK", str(work * 0.99))
+    monkeypatch.setattr(exact_module, "augmented_solve", never)
+    with pytest.raises(BudgetError, match=r"^channel: the exact Markov recursion over N = 80 steps on an augmented "
+                                             r"state of size D = 8 .*method='dense' needs about .* within the memory "
+                                             r"budget.*PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK=") as err:
+        exact_closed_form(s, method="recursion")
+    assert isinstance(err.value, pl.InputError)
+    monkeypatch.setattr(exact_module, "MEMORY_BUDGET_BYTES", 1e5)
+    with pytest.raises(BudgetError, match="over the memory budget: use a chain with fewer states or a shorter"):
+        exact_closed_form(s)                                   # auto: the dense route does not fit either
+
+
+def test_a_chain_too_large_for_the_budget_exits_2_with_one_line(tmp_path, capsys, monkeypatch):
+    """A 100-state chain behind a scalar plant at N = 2000: D = 100, the recursion (about 0.4 s) is faster than the
+    dense route (about 2.6 s), so auto takes it; a budget of 1e9 units refuses it before any work, in one line."""
+    from packetloss_cvx.cli import main
+    from packetloss_cvx.io import dumps_system
+
+    rng = np.random.default_rng(0)
+    T = rng.uniform(size=(100, 100)) + 50 * np.eye(100)
+    ch = MarkovChannel(transition=[T / T.sum(axis=1, keepdims=True)], delivery=[rng.uniform(size=100)])
+    s = pl.System(A=[[0.9]], B=[[1.0]], horizon=2000, state_weight=[1.0], input_weight=[1.0], x0=[1.0], channel=ch)
+    path = tmp_path / "big.toml"
+    path.write_text(dumps_system(s))
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK", "1e9")
+    code = main(["solve", str(path), "--no-qp"])
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert err.count("\n") == 1
+    assert "D = 100" in err
+    assert "PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK" in err

@@ -272,6 +272,50 @@ def test_two_state_markov_twin_of_pendulum_bursty_gives_the_same_json(argv, caps
     _numbers_agree(ge, mc)
 
 
+def _differing(a, b, path=""):
+    """The paths where two JSON documents hold different values (bits, not tolerances)."""
+    if isinstance(a, dict):
+        return [p for k in a for p in _differing(a[k], b[k], f"{path}.{k}")]
+    if isinstance(a, list):
+        return [p for k, (x, y) in enumerate(zip(a, b, strict=True)) for p in _differing(x, y, f"{path}[{k}]")]
+    same = a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+    return [] if same else [path]
+
+
+def test_the_exact_two_state_twin_gives_the_same_bits(capsys, tmp_path):
+    """The twin written by MarkovChannel.from_gilbert_elliott (its T[1, 1] is 1 - r as Gilbert–Elliott computes it,
+    0.8200000000000001, not the 0.82 a person types) gives the same bits through solve --json, and through
+    simulate --json every number but the tcp closed loop's exact stage cost, whose jump-law recursion starts from
+    mjls.mode_start ((b, 1 - b) on one side, the twin's (r, p) / (p + r) on the other; within 1e-10)."""
+    ge = pl.load_example("pendulum_bursty")
+    twin = MarkovChannel.from_gilbert_elliott(ge.channel)
+    assert twin.transition[0][1, 1] == 1.0 - 0.18 != 0.82
+    for method in ("recursion", "dense"):                  # both routes, whichever auto takes
+        a, b = exact_closed_form(ge, method=method), exact_closed_form(ge.with_channel(twin), method=method)
+        assert a.cost == b.cost
+        np.testing.assert_array_equal(a.inputs, b.inputs)
+        assert exact_cost(ge, a.inputs) == exact_cost(ge.with_channel(twin), a.inputs)
+    path = tmp_path / "twin.toml"
+    path.write_text(dumps_system(ge.with_channel(twin)))
+    for argv in (("solve", "--no-qp"), ("simulate", "--samples", "300", "--closed-loop", "--law", "all", "--steps",
+                                          "10")):
+        docs = []
+        for name in ("pendulum_bursty", str(path)):
+            assert main([argv[0], name, "--json", "-q", *argv[1:]]) == 0
+            docs.append(json.loads(capsys.readouterr().out))
+        a, b = docs
+        if argv[0] == "solve":
+            for doc in docs:
+                doc["markov"].pop("channel")
+                doc["markov"].pop("belief")
+            assert _differing(a, b) == []
+        else:
+            a.pop("channel", None)
+            b.pop("channel", None)
+            assert set(_differing(a, b)) <= {".tcp.closed_loop.exact_stage_cost"}
+            _numbers_agree(a, b)
+
+
 def test_periodic_and_reducible_chains_with_a_given_start():
     flip = MarkovChannel(transition=[[[0.0, 1.0], [1.0, 0.0]]], delivery=[[1.0, 0.0]], state=[0])
     assert not flip.belief_settles                                      # 1, 0, 1, 0, ... never settles

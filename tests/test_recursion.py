@@ -257,6 +257,32 @@ def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
     assert noise == noise_full
 
 
+def test_lyapunov_cross_weights_share_the_variance_weights_kernel():
+    """``B'S_tA`` (the exact Markov cost's cross term) from the same backward sum as ``diag(B'S_tB)``: the dense
+    ``Omega_gp`` block t is ``B'S_t A^(t+1)`` (time-varying weights), and a long stable horizon closes to the
+    Lyapunov solution."""
+    from scipy.linalg import solve_discrete_lyapunov
+
+    from packetloss_cvx.prediction import prediction
+    from packetloss_cvx.recursion import lyapunov_cross_weights, udp_variance_weights
+
+    short = random_system(np.random.default_rng(11), n=3, m=2, horizon=12, spectral_radius=1.05, time_varying=True,
+                          noise=True)
+    d, noise, BSA = lyapunov_cross_weights(short)
+    d_ref, noise_ref = udp_variance_weights(short)
+    np.testing.assert_array_equal(d, d_ref)
+    assert noise == noise_ref
+    Ogp = prediction(short).Omega_gp
+    for t in range(short.horizon):
+        np.testing.assert_allclose(BSA[t] @ np.linalg.matrix_power(short.A, t), Ogp[2 * t:2 * t + 2], rtol=1e-10,
+                                   atol=1e-12 * np.abs(Ogp).max())
+    stable = _long(6, 2000, noise=True)
+    d, _, BSA = lyapunov_cross_weights(stable)
+    S = solve_discrete_lyapunov(stable.A.T, stable.state_weights[0])
+    np.testing.assert_allclose(BSA[0], stable.B.T @ S @ stable.A, rtol=1e-10, atol=1e-12 * np.abs(BSA[0]).max())
+    np.testing.assert_array_equal(d, udp_variance_weights(stable)[0])
+
+
 def test_a_point_answers_the_same_in_any_batch_below_flat_min():
     """The brute-force allocator reads a repeated point back instead of evaluating it again: a point's gains
     and cost-to-go must not depend on the batch it is in (a batch of one takes LAPACK's gesv directly)."""

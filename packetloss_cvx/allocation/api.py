@@ -36,7 +36,7 @@ from ..results import Allocation, MinCost
 from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT, ALLOCATION_GAP_FLOOR
 from .boxes import Outcome, cost_at
-from .chains import ChainEvaluator, chain_burstiness, chain_rates
+from .chains import ChainEvaluator, chain_family, chain_rates
 from .grammar import (
     Constraint,
     Polytope,
@@ -141,7 +141,7 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     system, evaluator = _behind_chain(system, protocol)
     system = check_system(system)
     lo, hi = check_bounds(bounds)
-    poly = _polytope(constraints, system.m, lo, hi)
+    poly = _polytope([*constraints, *_family_rows(evaluator, lo)], system.m, lo, hi)
     return _min_cost(system, protocol, poly, _max_boxes(max_boxes), _time_limit(time_limit), evaluator)
 
 
@@ -150,8 +150,21 @@ def _behind_chain(system: System, protocol: str) -> tuple[System, ChainEvaluator
     its cost holds only the mean rates); ``(system, None)`` without one. Refusals: allocation/chains.py."""
     if not isinstance(system, System) or system.channel is None:
         return system, None
-    evaluator = ChainEvaluator(system, chain_burstiness(system)) if protocol == "udp" else None
+    evaluator = ChainEvaluator(system, chain_family(system)) if protocol == "udp" else None
     return system.with_mu(chain_rates(system)), evaluator
+
+
+def _family_rows(evaluator: ChainEvaluator | None, lo: float) -> list:
+    """The rows ``mu_i <= top_i`` of the channels whose family stops below 1 (deliveries scaled: chains.py); a lower
+    bound above a top is infeasible, said here with the reason rather than as rows that admit no mu."""
+    if evaluator is None:
+        return []
+    top = evaluator.family.top
+    if lo > top.min():
+        i = int(np.argmin(top))
+        raise InfeasibleError(f"channel {i + 1}'s chain reaches mean rates up to {top[i]:.6g} only (its deliveries "
+                              f"scaled, transition held), below the lower bound {lo:g}", None)
+    return evaluator.family.rows()
 
 
 def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, proof: str, max_boxes: int,
@@ -182,8 +195,9 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     ----------
     system : System
         Stationary channel; its own mu is ignored. Behind a Markov chain (``system.channel``, stationary start):
-        mu is each channel's mean delivery rate; UDP-like, the cost is the exact expected cost under Gilbert
-        chains with their burstiness held (:mod:`.chains`, which also lists what is refused); TCP-like, the
+        mu is each channel's mean delivery rate; UDP-like, the cost is the exact expected cost under the chains,
+        Gilbert channels with their burstiness held, any other chain with its deliveries scaled (mean rates up to
+        ``mubar / max(d)``, added as rows; :mod:`.chains`, which also lists what is refused); TCP-like, the
         cost holds only the mean rates, so any stationary chain's allocation is the Bernoulli one.
     protocol : {"tcp", "udp"}
     alpha : float
@@ -245,7 +259,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     gap = check_gap(gap)
     max_boxes = _max_boxes(max_boxes)
     time_limit = _time_limit(time_limit)
-    poly = _polytope(constraints, system.m, lo, hi)
+    poly = _polytope([*constraints, *_family_rows(evaluator, lo)], system.m, lo, hi)
     if evaluator is not None:
         return _chain_allocate(system, evaluator, alpha, beta, poly, gap, max_boxes, time_limit, progress)
     # the problem is invariant to the scale of the prices: solve with max(beta) = 1 and scale back,
@@ -286,8 +300,9 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
 
 def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, beta: np.ndarray, poly: Polytope,
                     gap: float, max_boxes: int, time_limit: float | None, progress: bool | None) -> Allocation:
-    """The UDP-like allocation behind Gilbert chains: the monotonic branch and bound on the exact cost under the
-    chain (no TCP-like floor: Theorem 2 is not established under a chain), prices scaled as :func:`allocate`."""
+    """The UDP-like allocation behind chains (each channel along its family, chains.py): the monotonic branch and
+    bound on the exact cost under the chain (no TCP-like floor: Theorem 2 is not established under a chain), prices
+    scaled as :func:`allocate`."""
     unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
     prices = beta / unit
     try:
@@ -295,8 +310,7 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
                            cost=MonotoneCost(evaluator))
     except InfeasibleError as err:
         raise _infeasible(system, "udp", alpha, poly, str(err), max_boxes, time_limit, evaluator) from None
-    note = (f"{out.note}; exact expected cost behind Gilbert chains, burstiness lambda = "
-            f"{np.round(evaluator.lam, 6).tolist()} held")
+    note = f"{out.note}; exact expected cost {evaluator.family.describe()}"
     scaled = float(prices @ out.mu)
     cost = evaluator.cost(out.mu) if out.cost is None else out.cost
     return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,

@@ -35,14 +35,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..budgets import check, duration_text, estimated_seconds, markov_recursion_work
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
 from ..model import System
-from ..recursion import forward_cost, input_weight, mean_states, overflow_error, udp_variance_weights
+from ..recursion import forward_cost, input_weight, lyapunov_cross_weights, mean_states, overflow_error
 from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .chain import chain_matrices
 
-__all__ = ["ChainLift", "augmented_solve", "chain_cost", "chain_lift", "lq_cross_step"]
+__all__ = ["ChainLift", "augmented_size", "augmented_solve", "chain_cost", "chain_lift", "check_recursion_budget",
+           "lq_cross_step"]
 
 
 @dataclass(frozen=True)
@@ -134,6 +136,41 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
     return ChainLift(tuple(Lam), tuple(g), tuple(gamma), tuple(offsets), offsets[-1])
 
 
+def augmented_size(system: System, chains: tuple | None = None) -> int:
+    """D = n (1 + sum_i (k_i - 1)), the size of the augmented state (n without a chain), from the chains' sizes
+    alone (nothing lifted). O(m).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> augmented_size(s)                  # n (1 + m) for Gilbert–Elliott channels
+    2
+    """
+    if chains is None:
+        chains = chain_matrices(system.channel) if system.channel is not None else ()
+    return system.n * (1 + sum(max(np.shape(d)[0] - 1, 0) for _, d, _ in chains))
+
+
+def check_recursion_budget(system: System, size: int, instead: str) -> None:
+    """Refuse, before any work, an augmented recursion beyond the ``markov_recursion_work`` budget
+    (:func:`~packetloss_cvx.budgets.markov_recursion_work`), naming the channel, the estimated time and
+    ``instead`` (what to use in its place). O(1).
+
+    Raises
+    ------
+    BudgetError
+        Field ``channel``: the chain (its number of states) makes the recursion too long.
+    """
+    N = system.horizon
+    work = markov_recursion_work(N, size)
+    seconds = estimated_seconds("markov_recursion_work", work)
+    check("markov_recursion_work", work, "channel",
+          f"the exact Markov recursion over N = {N} steps on an augmented state of size D = {size} (about "
+          f"{duration_text(seconds)}; {instead})")
+
+
 def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
     """The constant augmented transition: blkdiag(A, A ⊗ Lambda_1', ...) on row-major eta's. O(D^2)."""
     n = system.n
@@ -207,35 +244,35 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
 
     Raises
     ------
+    BudgetError
+        The recursion's estimated time is beyond the ``markov_recursion_work`` budget (checked before any work:
+        :func:`check_recursion_budget`; the message names the dense route when it fits the memory budget).
     NumericalError
         An overflow (an unstable plant over a long horizon), a singular step, or a failed self-check.
     """
-    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    W, N, n, m = system.state_weights, system.horizon, system.n, system.m
     lift = chain_lift(system, chains)
     D = lift.size
     F = _dynamics(system, lift)
     mu = system.mu_schedule
     scale = np.sqrt(mu)
-    d, noise = udp_variance_weights(system)
+    d, noise, BSA = lyapunov_cross_weights(system)     # the backward Lyapunov sum S_t: diag(B'S_tB) and B'S_tA
     with np.errstate(over="ignore", invalid="ignore"):   # Lemma 1's UDP-like input weight, M (Psi + (I - M) D)
         R = np.where(mu > 0.0, mu * input_weight(system, "udp", mu, d), 0.0)
     K = np.empty((N, m, D))
     Gs = _input_maps(system, lift)
     P = np.zeros((D, D))
     P[:n, :n] = W[N - 1]
-    S = W[N - 1].copy()
     Ncross = np.zeros((m, D))
     with np.errstate(over="ignore", invalid="ignore"):
         try:
             for t in range(N - 1, -1, -1):
-                BSA = B.T @ S @ A
                 for i, gi in enumerate(lift.g):
                     a, b = lift.offsets[i], lift.offsets[i + 1]
-                    Ncross[i, a:b] = np.outer(BSA[i], gi).ravel()          # b_i'S_t A ⊗ g_i (row-major eta_i)
+                    Ncross[i, a:b] = np.outer(BSA[t, i], gi).ravel()       # b_i'S_t A ⊗ g_i (row-major eta_i)
                 K[t], P = lq_cross_step(P, F, Gs[t], np.diag(R[t]), Ncross, scale[t])
                 if t > 0:
                     P[:n, :n] += W[t - 1]
-                    S = W[t - 1] + A.T @ S @ A
         except np.linalg.LinAlgError:
             raise overflow_error("the augmented cost-to-go matrix", "udp") from None
         if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K)) and np.isfinite(noise)):

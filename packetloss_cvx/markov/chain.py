@@ -49,7 +49,8 @@ def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarr
     probability in each state, ``pi0`` (k,) the distribution of the state at the first planned step.
     A :class:`~packetloss_cvx.channel.GilbertElliott` channel is built here, states ordered (good, bad):
     ``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, ``pi0 = (b, 1 - b)`` with ``b`` its
-    ``initial_belief`` (the given belief or state, else the stationary one, as ``beliefs`` uses). Any other
+    ``initial_belief`` (the given belief or state; from the stationary start ``(r, p) / (p + r)``, the bits
+    of its two-state MarkovChannel twin). Any other
     channel object answers for itself through its own ``chain_matrices()`` method, which honours this
     contract (k may differ between channels). Time O(m k^2).
 
@@ -66,8 +67,9 @@ def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarr
                                         f"chain_matrices()), found {type(channel).__name__}")
         return tuple(method())
     b = channel.initial_belief
+    bad = 1.0 - b if channel.belief is not None else channel.p / (channel.p + channel.r)   # (r, p) / (p + r)
     return tuple((np.array([[1.0 - channel.p[i], channel.p[i]], [channel.r[i], 1.0 - channel.r[i]]]),
-                  np.array([channel.h_good[i], channel.h_bad[i]]), np.array([b[i], 1.0 - b[i]]))
+                  np.array([channel.h_good[i], channel.h_bad[i]]), np.array([b[i], bad[i]]))
                  for i in range(channel.m))
 
 
@@ -189,7 +191,8 @@ def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence
 
 def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array. Diagonal mu (1 - mu); off the
-    diagonal, for a Gilbert–Elliott channel, lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 with u = min(t, s).
+    diagonal, for a Gilbert–Elliott channel and every two-state channel of a MarkovChannel (one formula, so that
+    a channel and its twin give the same bits), lambda^|t-s| b_u (1 - b_u) (d_0 - d_1)^2 with u = min(t, s).
     Any other channel (a k-state :class:`~packetloss_cvx.markov_channel.MarkovChannel`, or any object with
     ``chain_matrices()``) is read through :func:`chain_matrices`: for t < s,
     ``Cov = sum_a pi_t(a) (d_a - mu_t) (T^(s-t) d)_a`` with ``pi_t = pi0 T^t``, ``mu_t = pi_t d``
@@ -203,35 +206,49 @@ def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
     """
     if not isinstance(channel, GilbertElliott):
-        return _chain_covariance(chain_matrices(channel), horizon)
+        return _chain_covariance(channel, chain_matrices(channel), horizon)
     channel.check_horizon(horizon, channel.m * horizon if isinstance(horizon, int | np.integer) else 1)
-    N = horizon
-    b = channel.beliefs(N)                                      # (N, m)
-    mu = channel.delivery_schedule(N)
-    spread = b * (1.0 - b) * (channel.h_good - channel.h_bad) ** 2
-    lag = np.abs(np.arange(N)[:, None] - np.arange(N)[None, :])
-    first = np.minimum(np.arange(N)[:, None], np.arange(N)[None, :])
-    lam = channel.correlation
-    out = np.empty((channel.m, N, N))
+    out = np.empty((channel.m, horizon, horizon))
+    b, mu = channel.beliefs(horizon), channel.delivery_schedule(horizon)
     for i in range(channel.m):
-        with np.errstate(under="ignore"):
-            powers = lam[i] ** np.arange(N, dtype=float)       # 0^0 = 1: the diagonal is replaced below
-        out[i] = powers[lag] * spread[first, i]
-        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
+        out[i] = _two_state_covariance(b[:, i], channel.correlation[i], channel.h_good[i] - channel.h_bad[i], mu[:, i])
     return out
 
 
-def _chain_covariance(chains: tuple, horizon: int) -> np.ndarray:
+def _two_state_covariance(b: np.ndarray, lam: float, spread: float, mu: np.ndarray) -> np.ndarray:
+    """One two-state channel's covariance (N, N): ``lambda^|t-s| b_u (1 - b_u) (d_0 - d_1)^2`` (u = min(t, s)) off
+    the diagonal, ``mu (1 - mu)`` on it, from ``P^j = 1 pi' + lambda^j (I - 1 pi')``; ``b`` (N,) the probability
+    of state 0. The one formula for a Gilbert–Elliott channel and a two-state chain alike, so that a channel and
+    its two-state twin give the same bits. O(N^2)."""
+    N = b.size
+    lag = np.abs(np.arange(N)[:, None] - np.arange(N)[None, :])
+    first = np.minimum(np.arange(N)[:, None], np.arange(N)[None, :])
+    with np.errstate(under="ignore"):
+        powers = lam ** np.arange(N, dtype=float)                  # 0^0 = 1: the diagonal is replaced below
+    out = powers[lag] * (b * (1.0 - b) * spread ** 2)[first]
+    out[np.diag_indices(N)] = mu * (1.0 - mu)
+    return out
+
+
+def _chain_covariance(channel: Any, chains: tuple, horizon: int) -> np.ndarray:
     """channel_covariance from per-channel (T, d, pi0): M[t, L] = c_t . (T^L d) with c_t = pi_t o (d - mu_t),
     placed at (t, t + L) and mirrored. The vectors T^L d are centred on their first entry (the weights c_t sum
     to zero, so this changes nothing in exact arithmetic), so a chain with identical rows gives exact zeros.
-    O(N^2 m + N m k^2)."""
+    A two-state channel of a :class:`~packetloss_cvx.markov_channel.MarkovChannel` takes the two-state formula
+    on the channel's own beliefs and schedule instead (what a Gilbert–Elliott channel takes: its twin gives the
+    same bits). O(N^2 m + N m k^2)."""
     GilbertElliott.check_horizon(horizon, len(chains) * horizon if isinstance(horizon, int | np.integer) else 1)
     N = horizon
     rows, cols = np.triu_indices(N)
     out = np.empty((len(chains), N, N))
+    own = isinstance(channel, MarkovChannel) and 2 in channel.sizes
+    beliefs, schedule = (channel.beliefs(N), channel.delivery_schedule(N)) if own else (None, None)
     for i, (T, d, pi0) in enumerate(chains):
         T, d = np.asarray(T, dtype=float), np.asarray(d, dtype=float)
+        if own and d.size == 2:
+            out[i] = _two_state_covariance(beliefs[:, i, 0], float(T[0, 0] - T[1, 0]), float(d[0] - d[1]),
+                                           schedule[:, i])
+            continue
         pi = np.empty((N, d.size))
         ahead = np.empty((N, d.size))                   # T^L d for L = 0..N-1
         pi[0], ahead[0] = pi0, d

@@ -13,10 +13,11 @@ UDP-like cost (the expected cost of the plan, which sampling measures). The pape
 alone: its plug-in law is already its exact minimiser. Both are convex quadratics in U; the UDP-like
 minimiser is ``U* = -(Omega_g ∘ R + Vbar Psi)^{-1} Vbar Omega_gp x`` on the channels that can deliver.
 
-Two routes to each UDP-like number (``method``): ``"recursion"`` (the default under ``"auto"``), the exact
-LQ problem on the augmented state of :mod:`.augmented`, O(N) time and memory for any finite-state chain;
+Two routes to each UDP-like number (``method``): ``"recursion"``, the exact LQ problem on the augmented state of
+:mod:`.augmented`, O(N) time and memory for any finite-state chain (refused beyond its time budget);
 ``"dense"``, the stacked form above, O((N m)^3 + (N n)^2 N m) time and O((N m)^2) memory (refused beyond
-the memory budget), kept as the independent second computation.
+the memory budget), kept as the independent second computation. ``"auto"``: for the minimiser the route
+:func:`auto_route` estimates faster (dense for short horizons), for the cost of a plan the recursion's forward pass.
 """
 
 from __future__ import annotations
@@ -24,27 +25,37 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from ..budgets import duration_text, estimated_seconds, markov_recursion_work
 from ..costs import check_inputs, closed_form, expected_cost
 from ..errors import InputError, NumericalError, ResourceError
 from ..linalg import check_finite, solve_checked
 from ..model import System, check_system
 from ..prediction import Prediction, prediction
 from ..protocols import check_protocol
-from ..recursion import overflow_error
+from ..recursion import condition_estimate, overflow_error
 from ..results import Solution
-from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
-from .augmented import augmented_solve, chain_cost
+from ..tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from .augmented import augmented_size, augmented_solve, chain_cost, check_recursion_budget
 from .chain import stacked_moments
 
-__all__ = ["METHODS", "check_method", "correlation_term", "dense_prediction", "exact_closed_form", "exact_cost",
-           "exact_hessian"]
+__all__ = ["DENSE_SECONDS", "METHODS", "auto_route", "check_method", "correlation_term", "dense_prediction",
+           "exact_closed_form", "exact_cost", "exact_hessian", "route_seconds"]
 
-#: The routes to the exact UDP-like cost and minimiser: "auto" is the augmented recursion.
+#: The routes to the exact UDP-like cost and minimiser: "auto" is the faster of the two for the minimiser
+#: (:func:`auto_route`) and the recursion's forward pass for the cost of a plan.
 METHODS = ("auto", "recursion", "dense")
+
+#: The dense route's time model, seconds ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the
+#: (N n)^2 N m products of Omega_g). benchmarks/markov_auto.py, one BLAS thread, 2026-11-24: its least-squares
+#: fit is (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make
+#: ``auto`` take the faster route in 75 of its 77 cases, the other two within 14 % (docs/performance.md).
+DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
 
 
 def check_method(method: str) -> str:
-    """``"recursion"`` or ``"dense"`` (``"auto"`` is the recursion); InputError naming ``method`` otherwise. O(1).
+    """``"recursion"`` or ``"dense"`` (``"auto"`` is the recursion here: the cost of a plan by its forward pass;
+    :func:`exact_closed_form` resolves ``"auto"`` for the minimiser by :func:`auto_route`); InputError naming
+    ``method`` otherwise. O(1).
 
     Examples
     --------
@@ -56,14 +67,64 @@ def check_method(method: str) -> str:
     return "dense" if method == "dense" else "recursion"
 
 
-def _check_memory(system: System) -> None:
-    """The dense route holds a few (N m)×(N m) and (N n)×(N m) matrices: refuse before building them."""
+def _dense_bytes(system: System) -> float:
+    """What the dense route holds: a few (N m)×(N m) and (N n)×(N m) matrices. O(1)."""
     N, n, m = system.horizon, system.n, system.m
-    needed = 8.0 * (6 * (N * m) ** 2 + 3 * (N * n) * (N * m) + 4 * N * n * n)
+    return 8.0 * (6 * (N * m) ** 2 + 3 * (N * n) * (N * m) + 4 * N * n * n)
+
+
+def _check_memory(system: System) -> None:
+    """Refuse the dense route before building its matrices beyond the memory budget."""
+    N, n, m = system.horizon, system.n, system.m
+    needed = _dense_bytes(system)
     if needed > MEMORY_BUDGET_BYTES:
         raise ResourceError(f"the exact Markov cost needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} "
                             f"(dense Omega_g and R); budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
                             MEMORY_BUDGET_BYTES)
+
+
+def route_seconds(system: System) -> tuple[float, float]:
+    """The estimated CPU seconds (one BLAS thread) of the exact UDP-like minimum by each route, ``(dense,
+    recursion)``: :data:`DENSE_SECONDS` and the recursion's work (:func:`~packetloss_cvx.budgets.markov_recursion_work`
+    on the augmented size D) at its measured seconds per unit. O(m).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=400, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> [round(1e3 * t, 1) for t in route_seconds(s)]        # ms at N = 400: about the crossover for m = n = 1
+    [21.1, 28.8]
+    """
+    N, n, m = system.horizon, system.n, system.m
+    a, b, c = DENSE_SECONDS
+    dense = a + b * float(N * m) ** 3 + c * float(N * n) ** 2 * (N * m)
+    recursion = estimated_seconds("markov_recursion_work", markov_recursion_work(N, augmented_size(system)))
+    return dense, recursion
+
+
+def auto_route(system: System) -> str:
+    """The route ``method="auto"`` takes for the exact UDP-like minimum: ``"dense"`` where it is estimated faster
+    (:func:`route_seconds`), its matrices fit the memory budget and the condition estimate is within
+    ``DENSE_MAX_CONDITION`` (the Bernoulli chooser's rule: the Markov Hessian, scaled by sqrt(mu), has the same
+    bound, trace Omega_g + max Psi over min Psi), else ``"recursion"``. The one chooser of the Markov routes
+    (:func:`exact_closed_form`; its dense fallback is there). O(m) plus, where the time favours the dense route,
+    the condition estimate's O(N n^3) (kept on the system).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=20, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> long = System(A=[[1.0]], B=[[1.0]], horizon=2000, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...               channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> auto_route(s), auto_route(long)          # N = 20: 0.6 against 1.4 ms; N = 2000: 2.4 s against 0.14 s
+    ('dense', 'recursion')
+    """
+    dense, recursion = route_seconds(system)
+    if dense >= recursion or _dense_bytes(system) > MEMORY_BUDGET_BYTES:
+        return "recursion"
+    return "dense" if condition_estimate(system) <= DENSE_MAX_CONDITION else "recursion"
 
 
 def dense_prediction(system: System) -> Prediction:
@@ -185,18 +246,23 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
     cost; it is 0 here). ``"tcp"``: the paper's law with mu_t (:func:`~packetloss_cvx.costs.closed_form`),
     exact because the TCP-like cost holds only first moments (``method`` is not used).
 
-    ``method="auto"`` / ``"recursion"``: the backward Riccati recursion of the LQ problem on the augmented
+    ``method="recursion"``: the backward Riccati recursion of the LQ problem on the augmented
     state (:func:`~packetloss_cvx.markov.augmented.augmented_solve`), any finite-state chain, time
-    O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)) (n (1 + m) for Gilbert–Elliott channels), memory O(N m D);
-    ``"dense"``: the stacked solve above, time O((N m)^3 + (N n)^2 N m), memory O((N m)^2 + N n N m), refused
-    in advance beyond the memory budget. Either cost is checked against the forward cost of its own plan to
+    O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)) (n (1 + m) for Gilbert–Elliott channels), memory O(N m D),
+    refused in advance beyond the ``markov_recursion_work`` budget (BudgetError naming what the dense route
+    would need); ``"dense"``: the stacked solve above, time O((N m)^3 + (N n)^2 N m), memory
+    O((N m)^2 + N n N m), refused in advance beyond the memory budget; ``"auto"``: the route
+    :func:`auto_route` estimates faster (the dense one for short horizons, within the memory budget and
+    well conditioned), falling back to the recursion if the dense route raises NumericalError. Either cost is
+    checked against the forward cost of its own plan to
     ``SELF_CHECK_RTOL`` (the recursion: :func:`~packetloss_cvx.markov.augmented.chain_cost`; the dense route:
     :func:`exact_cost` with ``method="dense"``).
 
     Raises
     ------
     ResourceError
-        ``"dense"``: the dense matrices would not fit the memory budget.
+        ``"dense"``: the dense matrices would not fit the memory budget. BudgetError (a ResourceError and an
+        InputError naming ``channel``): the recursion's estimated time is beyond its budget.
     NumericalError
         A solve without a small residual, an overflow (an unstable plant over a long horizon, as the Bernoulli
         recursion), or a self-check that fails.
@@ -220,7 +286,18 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
         sol = closed_form(system, "tcp")
         return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=sol.gain,
                         closed_loop_eigenvalues=sol.closed_loop_eigenvalues, method=f"markov-{sol.method}")
+    if method == "auto" and auto_route(system) == "dense":
+        try:
+            return _dense_closed_form(system)
+        except NumericalError:           # a dense form that lost its digits: the recursion does not depend on them
+            route = "recursion"
     if route == "recursion":
+        size = augmented_size(system)
+        dense, _ = route_seconds(system)
+        instead = (f"method='dense' needs about {duration_text(dense)} and {_dense_bytes(system) / 2**30:.2g} GiB"
+                   + (", within the memory budget" if _dense_bytes(system) <= MEMORY_BUDGET_BYTES else
+                      ", over the memory budget: use a chain with fewer states or a shorter horizon"))
+        check_recursion_budget(system, size, instead)
         U, gain, cost = augmented_solve(system)
         return Solution(protocol="udp", cost=cost, inputs=U, gain=gain,
                         closed_loop_eigenvalues=np.linalg.eigvals(system.A - system.B @ gain),
