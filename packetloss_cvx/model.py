@@ -33,6 +33,7 @@ from .validation import (
     numeric_array,
     probabilities,
     psd_weight,
+    psd_weights,
     shape_error,
     symmetric_psd,
     vector_field,
@@ -193,7 +194,7 @@ class System:
             W = np.repeat(psd_weight(state_weight, "state_weight", n)[None], N, axis=0)
         else:
             items = weight_sequence(state_weights, "state_weights", N)
-            W = np.stack([psd_weight(w, f"state_weights[{t}]", n) for t, w in enumerate(items)])
+            W = psd_weights(items, "state_weights", n)
 
         exactly_one(input_weight, input_weights, ("input_weight", "input_weights"))
         if input_weight is not None:
@@ -422,7 +423,7 @@ class System:
         (2, [1.0], [[1.0]])
         """
         def weight(mat: np.ndarray) -> list:
-            return np.diag(mat).tolist() if np.allclose(mat, np.diag(np.diag(mat)), rtol=0, atol=0) else mat.tolist()
+            return np.diag(mat).tolist() if np.array_equal(mat, np.diag(np.diag(mat))) else mat.tolist()   # finite
 
         cost: dict[str, Any] = {"horizon": self.horizon}
         if np.all(self.state_weights == self.state_weights[0]):

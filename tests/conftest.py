@@ -17,6 +17,37 @@ def pendulum() -> pl.System:
     return pl.load_system(EXAMPLES / "pendulum.toml")
 
 
+#: the test files that take longest (wall seconds of one run, -n 0, b25c584, load 2-3), longest first. They run
+#: first, and the many short files fill in behind them: with ``--dist loadfile --no-loadscope-reorder`` (pyproject)
+#: xdist hands out files in this order, so no worker is left starting a 20 s file while the other has finished.
+#: (xdist's own order, by the number of tests in a file, put these few-test files last.) A file missing here
+#: only runs later; nothing else depends on the order.
+HEAVIEST_FIRST = (
+    "tests/test_docs_site.py",               # 21 s (the mkdocs build, then Chromium)
+    "tests/test_allocation_stability.py",    # 15 s
+    "tests/test_allocation_power.py",        # 13 s
+    "tests/test_claims_doc.py",              # 13 s
+    "tests/test_properties.py",              # 13 s
+    "tests/test_reliability.py",             # 11 s (subprocesses killed in their writes)
+    "tests/test_region.py",                  # 8 s
+    "tests/test_markov_region.py",           # 8 s
+    "tests/test_reproduce.py",               # 8 s
+    "tests/test_packaging.py",               # 7 s (a wheel built by pip)
+    "tests/test_dask.py",                    # 7 s
+    "tests/test_simulate_markov.py",         # 7 s
+    "tests/test_sensing_estimation.py",      # 6 s
+    "tests/test_closed_form_imports.py",     # 6 s (fresh interpreters)
+    "tests/test_allocation_chains.py",       # 5 s
+)
+
+
+def pytest_collection_modifyitems(items):
+    """The files of HEAVIEST_FIRST first, in that order; every other test keeps its place relative to the others
+    (a stable sort), and a file's tests keep theirs. O(items log items)."""
+    rank = {path: k for k, path in enumerate(HEAVIEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
+
+
 #: files longer than this are listed for review at the end of a test run (a report, never a failure: a
 #: module is cut at its seams, not at a line count)
 LONG_FILE_LINES = 600

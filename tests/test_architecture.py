@@ -13,6 +13,7 @@ failure.
 """
 
 import ast
+import functools
 import re
 import tomllib
 from pathlib import Path
@@ -71,8 +72,23 @@ def _resolve(module: str, node: ast.ImportFrom) -> str | None:
     return target or "__init__"
 
 
+@functools.cache
+def _tree(path: Path) -> ast.Module:
+    """The module's syntax tree, parsed once for the four tests that read it (they only read it)."""
+    return ast.parse(path.read_text())
+
+
 def _imports(module: str, path: Path):
-    tree = ast.parse(path.read_text())
+    return _import_list(module, path)
+
+
+@functools.cache
+def _import_list(module: str, path: Path) -> tuple:
+    """Every import of ``module`` as (node, target inside the package or None), found once per module."""
+    return tuple(_find_imports(module, _tree(path)))
+
+
+def _find_imports(module: str, tree: ast.Module):
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
             target = _resolve(module, node)
@@ -114,7 +130,7 @@ def test_no_private_name_crosses_a_module(module):
 
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_no_function_level_imports(module):
-    tree = ast.parse(MODULES[module].read_text())
+    tree = _tree(MODULES[module])
     for fn in ast.walk(tree):
         if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
             continue

@@ -154,3 +154,58 @@ def test_missing_and_non_toml_files(tmp_path):
         pl.load_system(tmp_path / "absent.toml")
     with pytest.raises(pl.InputError, match=r"file: .* is not valid TOML"):
         pl.load_system(write(tmp_path, "this is = = not toml"))
+
+
+def _weights_one_by_one(items, n):
+    """The reference: psd_weight a step at a time (what System did before the stacked check)."""
+    from packetloss_cvx.validation import psd_weight
+    return np.stack([psd_weight(w, f"state_weights[{t}]", n) for t, w in enumerate(items)])
+
+
+def _error_of(build):
+    try:
+        build()
+    except ValueError as err:
+        return type(err), str(err)
+    return None
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_stacked_weight_check_gives_the_step_by_step_floats_and_first_error(seed):
+    """validation.psd_weights against psd_weight step by step: the same floats bit for bit (diagonals, full
+    matrices, asymmetry within the tolerance, eigenvalues a rounding below 0 that get repaired) and the same
+    first error (type and text) wherever one or two steps are bad, in any order."""
+    from packetloss_cvx.validation import psd_weights
+    rng = np.random.default_rng(seed)
+    n, N = int(rng.integers(1, 5)), int(rng.integers(2, 30))
+
+    def good(kind):
+        F = rng.normal(size=(n, n))
+        if kind == "diag":
+            return rng.uniform(0.0, 2.0, n)
+        W = F @ F.T
+        if kind == "asymmetric":                         # within SYMMETRY_RTOL: accepted, symmetrised
+            W = W + 1e-14 * np.linalg.norm(W, 2) * np.triu(np.ones((n, n)), 1)
+        if kind == "rank-deficient":                     # eigenvalues a rounding below 0: repaired
+            v = F[:, :1]
+            W = v @ v.T * 1e3
+        return W
+
+    kinds = rng.choice(["diag", "full", "full", "asymmetric", "rank-deficient"], N)
+    items = [good(k) for k in kinds]
+    assert np.array_equal(psd_weights(items, "state_weights", n), _weights_one_by_one(items, n))
+    as_lists = [w.tolist() for w in items]
+    assert np.array_equal(psd_weights(as_lists, "state_weights", n), _weights_one_by_one(as_lists, n))
+    bad = {"not psd": -np.eye(n) - 1e-3, "nan": np.full((n, n), np.nan), "shape": np.ones((n + 1, n + 1)),
+           "negative diagonal": -np.ones(n), "asymmetric": np.triu(np.ones((n, n)), 1) + np.eye(n) if n > 1 else
+           np.array([[-1.0]]), "string": "W"}
+    for name, value in bad.items():
+        for t in {0, N // 2, N - 1}:
+            wrong = list(items)
+            wrong[t] = value
+            for second in (None, (t + 1) % N):
+                if second is not None:
+                    wrong[second] = bad["not psd"]
+                expected = _error_of(lambda w=wrong: _weights_one_by_one(w, n))
+                assert expected is not None, name
+                assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected, (name, t, second)

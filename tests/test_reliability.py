@@ -261,10 +261,10 @@ def test_a_full_disk_leaves_no_partial_file(small_disk, capsys):
     assert sorted(os.listdir(small_disk)) == ["ballast", "s"]         # no 0-byte r.json or p.png, no temporary
 
 
-def test_a_users_files_are_never_replaced_without_force(tmp_path, capsys):
+def test_a_users_files_are_never_replaced_without_force(tmp_path, capsys, monkeypatch):
     """Every command that writes, pointed at a user's files: exit 2, one line naming the path and --force,
     the files byte for byte as they were; with --force the run goes through."""
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)          # and back after the test: the files after this one run from the root
     (tmp_path / "mine").mkdir()
     user = {"r.json": b"{}", "s.npz": b"not ours", "p.png": b"a photo", "mine/sweep.csv": b"a,b\n"}
     for name, raw in user.items():

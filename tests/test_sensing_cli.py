@@ -1,13 +1,10 @@
 """solve, simulate --closed-loop and region on a file with lossy sensor links (cli.sensing_section), and the
 shipped pendulum_sensor example."""
 
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from packetloss_cvx.cli import main
 from packetloss_cvx.cli.parser import build_parser
 from packetloss_cvx.cli.region import run as region_run
 from packetloss_cvx.cli.simulate import run as simulate_run
@@ -16,8 +13,6 @@ from packetloss_cvx.io import load_example, save_system
 from packetloss_cvx.model import System
 from packetloss_cvx.sensing.loop import estimated_loop
 from packetloss_cvx.sensor import Sensor
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture
@@ -83,12 +78,13 @@ def test_region_separates_the_tcp_thresholds_and_maps_the_coupled_region(scalar_
     assert not stable[:, :-1].any()
 
 
-def test_sensor_grid_needs_a_sensor_and_is_budgeted(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", "region", "two_actuator", "--sensor-grid", "3"],
-                          capture_output=True, text=True, cwd=ROOT, timeout=120)
-    assert proc.returncode == 2
-    assert "--sensor-grid" in proc.stderr
-    assert proc.stderr.count("\n") == 1
+def test_sensor_grid_needs_a_sensor_and_is_budgeted(capsys):
+    # in process (the command's exit code and its stderr; the process itself is test_cli's and test_input_limits')
+    code = main(["region", "two_actuator", "--sensor-grid", "3"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--sensor-grid" in err
+    assert err.count("\n") == 1
 
 
 def test_pendulum_sensor_example_reads_and_its_dp_loop_is_stable():
