@@ -34,8 +34,8 @@ import cvxpy as cp
 import numpy as np
 
 from ..budgets import check, count_text
-from ..convex import ClarabelProgram
-from ..errors import InfeasibleError, InputError
+from ..convex import ClarabelProgram, require_optimal
+from ..errors import InfeasibleError, InputError, SolverError
 from ..evaluator import CostEvaluator
 from ..io import load_table, read_csv_numbers
 from ..model import System
@@ -51,7 +51,7 @@ from ..tolerances import (
 )
 from .boxes import boundary, box_lp, small_lp
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
-from .tcp import constant_cost, cost_epigraph, cut_points, require_answer, tangent
+from .tcp import constant_cost, cost_epigraph, cut_points, tangent
 from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
 __all__ = ["MODELS", "PowerModel", "PowerProgram", "least_cost_within_power", "least_power", "load_power",
@@ -153,6 +153,14 @@ class PowerModel:
         if self.kind == "rayleigh":
             return self.scale / RAYLEIGH_TOP_SLACK
         return np.full(self.m, float(self.powers[-1]))
+
+    def unit(self) -> np.ndarray:
+        """Per channel the model's own unit of power: c (exponential, rayleigh), the last tabulated power (table).
+        The conic program's variable is P / unit, so the unit in which a user states powers (1e-12 or 1e12)
+        sits in no coefficient of the cones."""
+        if self.kind == "table":
+            return np.full(self.m, float(self.powers[-1]))
+        return self.scale.copy()
 
     def concave_from(self) -> np.ndarray:
         """Per channel the least power from which mu_i is concave (inf: nowhere on a whole table)."""
@@ -278,9 +286,10 @@ def load_power(path: str | Path, m: int) -> PowerModel | None:
 class PowerProgram:
     """The TCP-like power problem with a concave model as one cvxpy program (DPP), solved by Clarabel.
 
-    Variables: P (m), mu (m) and :func:`~packetloss_cvx.allocation.tcp.cost_epigraph`'s. The link
-    ``mu <= mu(P)`` is convex for a concave model: exponential ``exp(-P_i / c_i) <= 1 - mu_i`` (the
-    exponential cone), a concave table ``mu_i <= a_ik + b_ik P_i`` for each segment k and ``mu_i <= mu_last``.
+    Variables: y = P / unit (m; the model's own unit, :meth:`PowerModel.unit`), mu (m) and
+    :func:`~packetloss_cvx.allocation.tcp.cost_epigraph`'s. The link ``mu <= mu(P)`` is convex for a concave
+    model: exponential ``exp(-y_i) <= 1 - mu_i`` (the exponential cone, the same numbers at every scale c), a
+    concave table ``mu_i <= a_ik + b_ik P_i`` for each segment k and ``mu_i <= mu_last``.
     J*_tcp falls in mu, so the link is tight at the optimum. Parameters: x0, sqrt of the cost scale, the cap
     ``top`` on P and k rows ``G P <= h``. Kind "power": min sum P s.t. scaled cost <= 1 (scale 1 / (alpha - C));
     kind "cost": min the scaled cost. Size O(N (n + m) + K m); compiled once per call of the API (about
@@ -301,42 +310,52 @@ class PowerProgram:
     def __init__(self, system: System, model: PowerModel, kind: str, rows: int) -> None:
         n, m = system.n, system.m
         self.kind = kind
-        self.P = cp.Variable(m, name="P")
+        # the variable is y = P / unit, the model's own unit (PowerModel.unit): the exponential cone then reads
+        # exp(-y_i) + mu_i <= 1 at every scale c, where with P the variable its coefficient 1/c was 1e12 at c = 1e-12
+        # (Clarabel 'optimal_inaccurate' or 'solver_error', and at c = 1e12 a false infeasibility certificate). A
+        # program in x = P / top (reverted 4645732) was as well scaled, but puts top / c (40, or B / c) in the cone:
+        # the least-cost points moved by up to 4.6e-5 in P from the KKT root (design.md, "Power-limited links")
+        self.unit = model.unit()
+        self.y = cp.Variable(m, name="P_per_unit")
         self.mu = cp.Variable(m, name="mu")
         self.x0 = cp.Parameter(n, name="x0")
         self.root = cp.Parameter(nonneg=True, name="sqrt_scale")
-        self.top = cp.Parameter(m, name="top")
-        self.rows = (cp.Parameter((rows, m), name="G"), cp.Parameter(rows, name="h")) if rows else None
+        self.top = cp.Parameter(m, name="top_per_unit")
+        self.rows = (cp.Parameter((rows, m), name="G_per_unit"), cp.Parameter(rows, name="h")) if rows else None
         epigraph, scaled, _ = cost_epigraph(system, self.mu, self.x0, self.root)
-        cons = [*epigraph, self.P >= 0, self.P <= self.top, self.mu >= 0, self.mu <= 1]
+        cons = [*epigraph, self.y >= 0, self.y <= self.top, self.mu >= 0, self.mu <= 1]
         if model.kind == "exponential":
-            cons.append(cp.exp(cp.multiply(-1.0 / model.scale, self.P)) + self.mu <= 1)
+            cons.append(cp.exp(-self.y) + self.mu <= 1)
         elif model.kind == "table":
-            slopes = np.diff(model.table, axis=0) / np.diff(model.powers)[:, None]
-            starts = model.table[:-1] - slopes * model.powers[:-1, None]
+            slopes = np.diff(model.table, axis=0) / np.diff(model.powers)[:, None] * self.unit[None, :]
+            starts = model.table[:-1] - slopes * (model.powers[:-1, None] / self.unit[None, :])
             for k in range(len(slopes)):
-                cons.append(self.mu <= starts[k] + cp.multiply(slopes[k], self.P))
+                cons.append(self.mu <= starts[k] + cp.multiply(slopes[k], self.y))
             cons.append(self.mu <= model.table[-1])
         else:  # pragma: no cover - the API routes only concave models here
             raise ValueError(f"no convex program for the {model.kind} model")
         if self.rows is not None:
-            cons.append(self.rows[0] @ self.P <= self.rows[1])
-        objective = cp.sum(self.P) if kind == "power" else scaled
+            cons.append(self.rows[0] @ self.y <= self.rows[1])
+        # sum P in units of the largest unit (sum y where every unit is equal)
+        objective = cp.sum(cp.multiply(self.unit / np.max(self.unit), self.y)) if kind == "power" else scaled
         if kind == "power":
             cons.append(scaled <= 1.0)
         self.problem = cp.Problem(cp.Minimize(objective), cons)
         self.compiled = ClarabelProgram(self.problem)
 
-    def solve(self, x0: np.ndarray, scale: float, top: np.ndarray, G: np.ndarray, h: np.ndarray,
-              no_P: str | None = None) -> np.ndarray:
-        """The solver's P (clipped to [0, top]); raises as :func:`~.tcp.require_answer`."""
+    def solve(self, x0: np.ndarray, scale: float, top: np.ndarray, G: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """The solver's P (clipped to [0, top]) for the cap ``top`` and rows ``G P <= h``.
+
+        Raises SolverError on any status but "optimal", Clarabel's infeasibility certificate included: it is
+        never a verdict here (it was false at c = 1e12 with P the variable); the callers prove infeasibility
+        by the branch and bound or an LP."""
         what = "TCP-like power SOCP" if self.kind == "power" else "TCP-like power-budget SOCP"
-        values = {self.x0: x0, self.root: np.sqrt(scale), self.top: top}
+        values = {self.x0: x0, self.root: np.sqrt(scale), self.top: np.asarray(top, dtype=float) / self.unit}
         if self.rows is not None:
-            values.update({self.rows[0]: G, self.rows[1]: h})
+            values.update({self.rows[0]: np.asarray(G, dtype=float) * self.unit[None, :], self.rows[1]: h})
         status, point = self.compiled.solve(values, what, ALLOCATION_CLARABEL_ATTEMPTS)
-        require_answer(status, what, no_P)
-        return np.clip(np.array(point(self.P), dtype=float), 0.0, top)
+        require_optimal(status, what)
+        return np.clip(self.unit * np.array(point(self.y), dtype=float), 0.0, top)
 
 
 # ------------------------------------------------------------------ the problems
@@ -423,13 +442,15 @@ def _check(system: System, protocol: str, model: PowerModel) -> tuple[System, st
 
 
 def _result(setup: _Setup, problem: str, x: np.ndarray, value: float, lower: float, status: str, method: str,
-            boxes: int, limit: float) -> PowerAllocation:
+            boxes: int, limit: float, unit: float = 1.0) -> PowerAllocation:
+    """The result at x; ``value`` and ``lower`` in units of ``unit`` (the gap is taken there, the bound reported
+    times it)."""
     P = setup.top * x
     mu = setup.model.mu(P)
     cost = float(CostEvaluator(setup.system, setup.protocol).cost(np.clip(mu, 0.0, 1.0)))
     total = float(np.sum(P))
     return PowerAllocation(protocol=setup.protocol, problem=problem, model=setup.model.to_dict(), power=P,
-                           total_power=total, mu=mu, cost=cost, limit=limit, lower_bound=lower,
+                           total_power=total, mu=mu, cost=cost, limit=limit, lower_bound=lower * unit,
                            gap=(value - lower) / max(abs(value), ALLOCATION_GAP_FLOOR), status=status,
                            method=method, boxes=boxes)
 
@@ -493,7 +514,10 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
     InputError
         A bad argument, named by its field.
     InfeasibleError
-        Proven: J* at the saturated powers (mu at its largest) exceeds alpha, or every box discarded.
+        Proven, never from the conic program's status (a Clarabel failure or infeasibility certificate hands the
+        problem to the branch and bound): alpha below the constant cost C; J* at the saturated powers (mu at its
+        largest) above alpha; a row no point of the box meets (grammar.read_polytope, without a solver); every
+        box discarded (its upper corner above alpha by the checked closed form, or its LP empty).
 
     Notes
     -----
@@ -519,37 +543,48 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
     max_boxes = _boxes(max_boxes)
     cap = _cap(max_power, system.m)
     C = constant_cost(system)
-    if alpha < C:
+    if alpha < C:        # proof: C bounds J* below for every mu (tcp.constant_cost)
         raise InfeasibleError(f"alpha = {alpha:g} is below the cost no channel can reduce, C = {C:.6g}", None)
     top, found = _search_cap(system, protocol, model, alpha, constraints, cap)
     setup = _setup(system, protocol, model, top, constraints, cap)
     J = setup.cost.checked
     m = system.m
     corner = J(np.ones(m))
-    if corner > alpha * (1 + ALLOCATION_COST_RTOL):
+    if corner > alpha * (1 + ALLOCATION_COST_RTOL):     # proof: the checked closed form at the largest mu (Theorem 3)
         raise InfeasibleError(f"J*_{protocol} at the largest powers searched (mu = "
                               f"{np.round(setup.cost.mu(np.ones(m)), 12).tolist()}) is {corner:.6g} > alpha = "
                               f"{alpha:g}, and J* falls as any power rises", None)
     # the least total power the rows admit at all is a lower bound; where J* there already meets alpha (alpha
     # at or above the cost of silent channels, P = 0) it is the answer, and the conic program, whose scale
     # 1 / (alpha - C) then vanishes, is not asked (it failed with 'solver_error' at alpha = 1e9 on two_actuator)
-    least, floor_lp = box_lp(top.copy(), setup.poly, np.zeros(m), np.ones(m))
+    # the searches price x by top / max(top) and report in P: the relative gap and the branch and bound's split
+    # weights then do not see the unit of power (at c = 1e-12 the absolute floors of both would decide)
+    unit = float(np.max(top))
+    prices = top / unit
+    least, floor_lp = box_lp(prices.copy(), setup.poly, np.zeros(m), np.ones(m))
     if least is not None and J(np.clip(least, 0.0, 1.0)) <= alpha:
         x = np.clip(least, 0.0, 1.0)
-        return _result(setup, "least-power", x, float(top @ x), min(float(floor_lp), float(top @ x)), "optimal",
-                       "the least power the constraints admit (an LP) already meets alpha", 0, alpha)
+        return _result(setup, "least-power", x, float(prices @ x), min(float(floor_lp), float(prices @ x)), "optimal",
+                       "the least power the constraints admit (an LP) already meets alpha", 0, alpha, unit)
     incumbent = None if found is None else found / top
-    floor = -np.inf
+    floor, failed = -np.inf, ""
     tcp = setup if protocol == "tcp" else _Setup(system, "tcp", model, top, constraints)
     if tcp.convex():
-        # the TCP-like convex program: for "tcp" the answer, for "udp" a lower bound (Theorem 2: J*_udp >= J*_tcp)
-        x, floor = _convex_least_power(tcp, alpha, C)
-        if protocol == "tcp" and J(x) <= alpha:
-            incumbent = x
-    out = udp_allocate(system, setup.poly, alpha, top, gap, floor, max_boxes, time_limit, progress, cost=setup.cost,
-                       incumbent=incumbent, what=f"{protocol.upper()}-like least power")
-    method = _method(protocol, tcp.convex(), model, out.boxes, out.note)
-    return _result(setup, "least-power", out.mu, out.value, out.lower_bound, out.status, method, out.boxes, alpha)
+        # the TCP-like convex program: for "tcp" the answer, for "udp" a lower bound (Theorem 2: J*_udp >= J*_tcp);
+        # a solver failure (Clarabel's infeasibility certificate included) is no verdict: the branch and bound,
+        # which proves infeasibility by discarding every box, answers alone
+        try:
+            x, floor = _convex_least_power(tcp, alpha, C, prices)
+        except SolverError as err:
+            failed = f"; the convex program failed ({err}), so the branch and bound answered alone"
+        else:
+            if protocol == "tcp" and J(x) <= alpha:
+                incumbent = x
+    out = udp_allocate(system, setup.poly, alpha, prices, gap, floor, max_boxes, time_limit, progress,
+                       cost=setup.cost, incumbent=incumbent, what=f"{protocol.upper()}-like least power")
+    method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note) + failed
+    return _result(setup, "least-power", out.mu, out.value, out.lower_bound, out.status, method, out.boxes, alpha,
+                   unit)
 
 
 def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: str) -> str:
@@ -562,13 +597,13 @@ def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: st
     return text + ("; lower bound from the TCP-like convex program (Theorem 2)" if convex else "")
 
 
-def _convex_least_power(setup: _Setup, alpha: float, C: float) -> tuple[np.ndarray, float]:
-    """The convex program's point moved onto {J* <= alpha} if it is just outside, and the tangent-cut bound."""
+def _convex_least_power(setup: _Setup, alpha: float, C: float, prices: np.ndarray) -> tuple[np.ndarray, float]:
+    """The convex program's point moved onto {J* <= alpha} if it is just outside, and the tangent-cut bound on
+    ``prices' x`` (prices = top / max(top))."""
     system, top, poly = setup.system, setup.top, setup.poly
     program = PowerProgram(system, setup.model, "power", poly.G.shape[0])
     G = poly.G / top[None, :]
-    P = program.solve(system.x0, 1.0 / max(alpha - C, np.finfo(float).tiny), top, G, poly.h,
-                      f"no power within the cap and constraints reaches J*_tcp <= alpha = {alpha:g}")
+    P = program.solve(system.x0, 1.0 / max(alpha - C, np.finfo(float).tiny), top, G, poly.h)
     x = np.clip(P / top, 0.0, 1.0)
     evaluator = setup.evaluator
     g, r = setup.cuts(x, evaluator)
@@ -576,7 +611,7 @@ def _convex_least_power(setup: _Setup, alpha: float, C: float) -> tuple[np.ndarr
     keep = scale > 0
     rows = np.vstack([poly.G, g[keep] / scale[keep, None]])
     rhs = np.concatenate([poly.h, (alpha - r[keep]) / scale[keep]])
-    point, lower = small_lp(top, rows, rhs, np.zeros(system.m), np.ones(system.m))
+    point, lower = small_lp(prices, rows, rhs, np.zeros(system.m), np.ones(system.m))
     lower = -np.inf if point is None else lower         # the cuts admit every feasible point: not expected
     J = setup.cost.checked
     if J(x) > alpha:                      # solver tolerance: towards a maximal point until the closed form agrees
@@ -601,7 +636,8 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     InputError
         A negative or non-finite budget (field ``budget``), or another bad argument.
     InfeasibleError
-        The constraints admit no power within the budget.
+        The constraints admit no power within the budget: a row no point of the box meets (without a solver), or
+        the LP over x = P / top in [0, 1]^m (HiGHS, scale-free data) finds no point; never from Clarabel.
 
     Notes
     -----
@@ -631,7 +667,7 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     top = model.saturation() if cap is None else cap
     if budget == 0:              # no power at all: the only point, if the constraints admit it
         setup = _setup(system, protocol, model, top, constraints, top)    # a row no box point meets misses P = 0
-        if np.any(setup.poly.h < 0):
+        if np.any(setup.poly.h < 0):                                      # proof: G 0 = 0 > h
             raise InfeasibleError("the constraints admit no power within a budget of 0", None)
         x = np.zeros(m)
         value = setup.cost.checked(x)
@@ -643,15 +679,22 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
         setup = _setup(system, protocol, model, top, rows, None if cut else top)
     except InfeasibleError as err:
         raise InfeasibleError(f"no power within the budget meets the constraints: {err}", None) from None
-    floor, incumbent = -np.inf, None
+    if box_lp(-np.ones(m), setup.poly, np.zeros(m), np.ones(m))[0] is None:     # proof: HiGHS on the scale-free LP
+        raise InfeasibleError("no power within the budget meets the constraints (an LP over x = P / top in [0, 1]^m "
+                              "finds no point)", None)
+    floor, incumbent, failed = -np.inf, None, ""
     tcp = setup if protocol == "tcp" else _Setup(system, "tcp", model, top, rows)
     if tcp.convex():
-        x, floor = _convex_least_cost(tcp)
-        if protocol == "tcp":
-            incumbent = x
+        try:                # a solver failure is no verdict: the branch and bound then answers alone
+            x, floor = _convex_least_cost(tcp)
+        except SolverError as err:
+            failed = f"; the convex program failed ({err}), so the branch and bound answered alone"
+        else:
+            if protocol == "tcp":
+                incumbent = x
     out = udp_min_cost(system, setup.poly, max_boxes, time_limit, cost=setup.cost, incumbent=incumbent, floor=floor,
                        what=f"{protocol.upper()}-like least cost within the power budget", gap=gap)
-    method = _method(protocol, tcp.convex(), model, out.boxes, out.note)
+    method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note) + failed
     status = out.status if (out.value - out.lower_bound) <= gap * max(out.value, ALLOCATION_GAP_FLOOR) \
         else "gap_not_certified"
     return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, status, method, out.boxes, budget)
@@ -664,8 +707,7 @@ def _convex_least_cost(setup: _Setup) -> tuple[np.ndarray, float]:
     C = constant_cost(system)
     reference = setup.cost.checked(np.ones(m)) - C
     program = PowerProgram(system, setup.model, "cost", poly.G.shape[0])
-    P = program.solve(system.x0, 1.0 / max(reference, np.finfo(float).tiny), top, poly.G / top[None, :], poly.h,
-                      "the power budget and constraints admit no power (Clarabel certificate)")
+    P = program.solve(system.x0, 1.0 / max(reference, np.finfo(float).tiny), top, poly.G / top[None, :], poly.h)
     x = np.clip(P / top, 0.0, 1.0)
     g, r = setup.cuts(x, setup.evaluator)
     scale = np.maximum(np.max(np.abs(g), axis=1), 1.0)
