@@ -1,13 +1,7 @@
 """What to buy: transmit power per channel instead of delivery probabilities (issue 24).
 
-Each channel's delivery probability is a non-decreasing function of its transmit power P_i,
-:class:`PowerModel`:
-
-* ``exponential``: ``mu = 1 - exp(-P / c)``, concave;
-* ``rayleigh`` (block Rayleigh fading at a fixed rate): ``mu = exp(-c / P)``, concave only for
-  ``P >= c / 2`` (``mu >= e^-2``);
-* ``table``: piecewise linear through measured points (power, mu), non-decreasing, flat after the last.
-
+Each channel's delivery probability is a non-decreasing function of its transmit power P_i, a
+:class:`~packetloss_cvx.allocation.delivery.PowerModel` (exponential, rayleigh, table: :mod:`.delivery`).
 Two problems, both protocols, with linear constraints on P (the grammar of ``allocate``, in P1..Pm):
 
 .. math:: \\min_P \\textstyle\\sum_i P_i \\ \\text{s.t.}\\ J^*(\\mu(P)) \\le \\alpha
@@ -26,8 +20,6 @@ certify the gap).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import cvxpy as cp
@@ -37,7 +29,6 @@ from ..budgets import check, count_text
 from ..convex import ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, InputError, SolverError
 from ..evaluator import CostEvaluator
-from ..io import load_table, read_csv_numbers
 from ..model import System
 from ..protocols import check_protocol
 from ..results import PowerAllocation
@@ -49,237 +40,14 @@ from ..tolerances import (
     ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
 )
+from ..validation import numeric_array
 from .boxes import boundary, box_lp, small_lp
+from .delivery import PowerModel
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
 from .tcp import constant_cost, cost_epigraph, cut_points, tangent
 from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
-__all__ = ["MODELS", "PowerModel", "PowerProgram", "least_cost_within_power", "least_power", "load_power",
-           "power_model", "power_pareto"]
-
-#: the delivery-versus-power models
-MODELS = ("exponential", "rayleigh", "table")
-
-#: mu reaches 1 - RAYLEIGH_TOP_SLACK at the Rayleigh model's cap P = c / RAYLEIGH_TOP_SLACK (where no optimum
-#: is sought without --power-max: 1e-12 of delivery probability is below every tolerance of J*)
-RAYLEIGH_TOP_SLACK = 1e-12
-#: the exponential model's mu is 1.0 in double precision from P = 40 c on (1 - e^-40 = 1 - 4e-18)
-EXPONENTIAL_TOP = 40.0
-
-
-@dataclass(frozen=True, eq=False)
-class PowerModel:
-    """Delivery probability as a function of transmit power, per channel; validated, immutable.
-
-    ``kind`` one of :data:`MODELS`; ``scale`` (m,) the constants c > 0 (exponential, rayleigh);
-    ``powers`` (K,) increasing from 0 and ``table`` (K, m) non-decreasing in [0, 1] (table). Build with
-    :func:`power_model`. Every method is O(m) per point.
-
-    Examples
-    --------
-    >>> model = power_model("exponential", 2, scale=[1.0, 2.0])
-    >>> model.mu(np.array([np.log(2.0), 0.0])).tolist(), model.power(np.array([0.5, 0.0])).tolist()
-    ([0.5, 0.0], [0.6931471805599453, 0.0])
-    """
-
-    kind: str
-    m: int
-    scale: np.ndarray | None = None
-    powers: np.ndarray | None = None
-    table: np.ndarray | None = None
-
-    def mu(self, P: np.ndarray) -> np.ndarray:
-        """Delivery probabilities at powers ``P`` (..., m) >= 0."""
-        P = np.maximum(np.asarray(P, dtype=float), 0.0)
-        if self.kind == "exponential":
-            return -np.expm1(-P / self.scale)
-        if self.kind == "rayleigh":
-            with np.errstate(divide="ignore"):
-                return np.where(P > 0, np.exp(-self.scale / np.where(P > 0, P, 1.0)), 0.0)
-        out = np.empty(np.broadcast_shapes(P.shape, (self.m,)))
-        for i in range(self.m):
-            out[..., i] = np.interp(P[..., i], self.powers, self.table[:, i])
-        return out
-
-    def channel(self, i: int, p: float) -> float:
-        """mu_i at the power p (one channel)."""
-        P = np.zeros(self.m)
-        P[i] = p
-        return float(self.mu(P)[i])
-
-    def slope(self, P: np.ndarray) -> np.ndarray:
-        """d mu_i / d P_i at P (m,) (the right derivative for a table; 0 after its last point): a
-        supergradient of mu_i where mu_i is concave."""
-        P = np.maximum(np.asarray(P, dtype=float), 0.0)
-        if self.kind == "exponential":
-            return np.exp(-P / self.scale) / self.scale
-        if self.kind == "rayleigh":
-            safe = np.where(P > 0, P, 1.0)
-            return np.where(P > 0, self.scale / safe ** 2 * np.exp(-self.scale / safe), 0.0)
-        out = np.zeros(self.m)
-        slopes = np.diff(self.table, axis=0) / np.diff(self.powers)[:, None]
-        for i in range(self.m):
-            k = int(np.searchsorted(self.powers, P[i], side="right")) - 1
-            out[i] = slopes[k, i] if k < len(self.powers) - 1 else 0.0
-        return out
-
-    def power(self, mu: np.ndarray) -> np.ndarray:
-        """The least power per channel whose delivery reaches ``mu`` (m,): inf where none does."""
-        mu = np.asarray(mu, dtype=float)
-        with np.errstate(divide="ignore"):
-            if self.kind == "exponential":
-                return np.where(mu >= 1.0, np.inf, -self.scale * np.log1p(-np.minimum(mu, 1.0)))
-            if self.kind == "rayleigh":
-                return np.where(mu <= 0.0, 0.0, np.where(mu >= 1.0, np.inf, -self.scale / np.log(np.clip(mu, 1e-300,
-                                                                                                        1.0))))
-        out = np.empty(self.m)
-        for i in range(self.m):
-            column = self.table[:, i]
-            if mu[i] <= column[0]:
-                out[i] = 0.0
-            elif mu[i] > column[-1]:
-                out[i] = np.inf
-            else:
-                k = int(np.searchsorted(column, mu[i], side="left"))      # column[k-1] < mu <= column[k]
-                lo, hi = column[k - 1], column[k]
-                out[i] = self.powers[k - 1] + (mu[i] - lo) / (hi - lo) * (self.powers[k] - self.powers[k - 1])
-        return out
-
-    def saturation(self) -> np.ndarray:
-        """Per channel a power beyond which mu does not grow (to double precision or to 1e-12): the
-        search box's cap when the caller gives none."""
-        if self.kind == "exponential":
-            return EXPONENTIAL_TOP * self.scale
-        if self.kind == "rayleigh":
-            return self.scale / RAYLEIGH_TOP_SLACK
-        return np.full(self.m, float(self.powers[-1]))
-
-    def unit(self) -> np.ndarray:
-        """Per channel the model's own unit of power: c (exponential, rayleigh), the last tabulated power (table).
-        The conic program's variable is P / unit, so the unit in which a user states powers (1e-12 or 1e12)
-        sits in no coefficient of the cones."""
-        if self.kind == "table":
-            return np.full(self.m, float(self.powers[-1]))
-        return self.scale.copy()
-
-    def concave_from(self) -> np.ndarray:
-        """Per channel the least power from which mu_i is concave (inf: nowhere on a whole table)."""
-        if self.kind == "exponential":
-            return np.zeros(self.m)
-        if self.kind == "rayleigh":
-            return self.scale / 2.0
-        slopes = np.diff(self.table, axis=0) / np.diff(self.powers)[:, None]
-        concave = np.all(np.diff(slopes, axis=0) <= 1e-12 * np.max(np.abs(slopes), axis=0), axis=0)
-        return np.where(concave, 0.0, np.inf)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain lists for JSON. O(K m)."""
-        if self.kind == "table":
-            return {"model": "table", "powers": self.powers.tolist(), "table": self.table.tolist()}
-        return {"model": self.kind, "scale": self.scale.tolist()}
-
-
-def power_model(model: str, m: int, scale: Any = None, table: Any = None) -> PowerModel:
-    """A validated :class:`PowerModel` for m channels.
-
-    ``scale``: one c > 0 per channel (or one for all); ``table``: rows ``(power, mu)`` (one curve for every
-    channel) or ``(power, mu_1, .., mu_m)``, powers increasing from 0, mu non-decreasing in [0, 1].
-
-    Raises
-    ------
-    InputError
-        Field ``power.model``, ``power.scale`` or ``power.table``: an unknown model, a scale that is not
-        positive and finite, a table that is not monotone or leaves [0, 1].
-
-    Examples
-    --------
-    >>> power_model("rayleigh", 2, scale=2.0).scale.tolist()
-    [2.0, 2.0]
-    >>> power_model("table", 1, table=[[0, 0], [1, 0.5], [2, 0.4]])
-    Traceback (most recent call last):
-        ...
-    packetloss_cvx.errors.InputError: power.table: mu must not fall as power rises (row 3: 0.4 after 0.5)
-    """
-    if model not in MODELS:
-        raise InputError("power.model", f"expected one of {', '.join(MODELS)}, found {str(model)[:40]!r}")
-    if model == "table":
-        if table is None or scale is not None:
-            raise InputError("power.table", "the table model takes a table of (power, mu) rows and no scale")
-        rows = np.atleast_2d(_array(table, "power.table"))
-        if rows.ndim != 2 or rows.shape[1] not in (2, m + 1) or rows.shape[0] < 2:
-            raise InputError("power.table", f"expected at least 2 rows of (power, mu) or (power, mu1..mu{m}), "
-                             f"found shape {rows.shape}")
-        powers = rows[:, 0].copy()
-        mus = np.repeat(rows[:, 1:], m, axis=1) if rows.shape[1] == 2 else rows[:, 1:].copy()
-        if powers[0] != 0.0:
-            raise InputError("power.table", f"the first row's power must be 0 (the delivery of a silent channel), "
-                             f"found {powers[0]:g}")
-        if np.any(np.diff(powers) <= 0):
-            k = int(np.argmax(np.diff(powers) <= 0)) + 2
-            raise InputError("power.table", f"powers must increase (row {k}: {powers[k - 1]:g} after "
-                             f"{powers[k - 2]:g})")
-        if np.any((mus < 0) | (mus > 1)):
-            k = int(np.argmax(np.any((mus < 0) | (mus > 1), axis=1))) + 1
-            raise InputError("power.table", f"mu must lie in [0, 1] (row {k})")
-        if np.any(np.diff(mus, axis=0) < 0):
-            k = int(np.argmax(np.any(np.diff(mus, axis=0) < 0, axis=1))) + 2
-            col = int(np.argmax(np.diff(mus, axis=0)[k - 2] < 0))
-            raise InputError("power.table", f"mu must not fall as power rises (row {k}: {mus[k - 1, col]:g} after "
-                             f"{mus[k - 2, col]:g})")
-        return PowerModel(model, m, powers=_frozen(powers), table=_frozen(mus))
-    if table is not None:
-        raise InputError("power.table", f"the {model} model takes a scale, not a table")
-    if scale is None:
-        raise InputError("power.scale", f"the {model} model needs a scale c > 0 per channel")
-    c = np.atleast_1d(_array(scale, "power.scale"))
-    if c.ndim != 1 or len(c) not in (1, m):
-        raise InputError("power.scale", f"expected 1 or {m} numbers, found shape {c.shape}")
-    if np.any(~(c > 0)):
-        raise InputError("power.scale", f"expected positive numbers, found {c.tolist()}")
-    return PowerModel(model, m, scale=_frozen(np.broadcast_to(c, (m,)).copy()))
-
-
-def _array(value: Any, field: str) -> np.ndarray:
-    try:
-        out = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise InputError(field, "expected numbers") from None
-    if not np.all(np.isfinite(out)):
-        raise InputError(field, "expected finite numbers")
-    return out
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
-def load_power(path: str | Path, m: int) -> PowerModel | None:
-    """The ``[power]`` table of a system file (None when it has none): ``model``, and ``scale`` or ``table``
-    (inline rows, or a CSV file's name relative to the system file, read by
-    :func:`~packetloss_cvx.io.read_csv_numbers`). Errors name ``power.<key>``. O(size).
-
-    Examples
-    --------
-    >>> load_power("two_actuator", 2) is None          # the packaged example has no [power] table
-    True
-    """
-    section = load_table(path).get("power")
-    if section is None:
-        return None
-    if not isinstance(section, dict):
-        raise InputError("power", "expected a table")
-    for key in section:
-        if key not in ("model", "scale", "table"):
-            raise InputError(f"power.{key}", "unknown key; expected one of model, scale, table")
-    if "model" not in section:
-        raise InputError("power.model", "missing field")
-    table = section.get("table")
-    if isinstance(table, str):
-        table = read_csv_numbers(Path(path).parent / table, "power.table")
-    return power_model(section["model"], m, scale=section.get("scale"), table=table)
-
+__all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pareto"]
 
 # ------------------------------------------------------------------ the convex program (TCP-like, concave model)
 
@@ -300,6 +68,7 @@ class PowerProgram:
     J*_tcp = 1/(1 + mu) (one step of x' = x + v u from x0 = 1), mu = 1 - exp(-P): J* <= 0.8 needs mu = 1/4,
     P = log(4/3):
 
+    >>> from packetloss_cvx.allocation.delivery import power_model
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> program = PowerProgram(s, power_model("exponential", 1, scale=1.0), "power", 0)
     >>> P = program.solve(s.x0, 1 / 0.8, np.array([40.0]), np.zeros((0, 1)), np.zeros(0))
@@ -425,7 +194,7 @@ def _boxes(value: Any) -> int:
 def _cap(value: Any, m: int) -> np.ndarray | None:
     if value is None:
         return None
-    cap = np.atleast_1d(_array(value, "max_power"))
+    cap = np.atleast_1d(numeric_array(value, "max_power"))
     if cap.ndim != 1 or len(cap) not in (1, m) or np.any(~(cap > 0)):
         raise InputError("max_power", f"expected 1 or {m} positive numbers, found {cap.tolist()}")
     return np.broadcast_to(cap, (m,)).copy()
@@ -493,7 +262,7 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
         Stationary channel; its own mu is ignored.
     protocol : {"tcp", "udp"}
     model : PowerModel
-        Delivery as a function of power (:func:`power_model`, :func:`load_power`).
+        Delivery as a function of power (:func:`~.delivery.power_model`, :func:`~.delivery.load_power`).
     alpha : float
         Bound on the optimal expected cost, > 0.
     constraints : sequence
@@ -530,6 +299,7 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
     One step of x' = x + v u from x0 = 1: J*_tcp = 1/(1 + mu) <= 0.8 needs mu = 1/4, i.e. P = log(4/3) with
     mu = 1 - exp(-P):
 
+    >>> from packetloss_cvx.allocation.delivery import power_model
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> a = least_power(s, "tcp", power_model("exponential", 1, scale=1.0), 0.8)
     >>> a.status, bool(np.log(4 / 3) <= a.total_power <= np.log(4 / 3) * (1 + 1e-4)), a.cost <= 0.8
@@ -650,6 +420,7 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     Two decoupled copies of x' = x + v u (N = 1), J*_tcp = sum 1/(1 + mu_i), mu_i = 1 - exp(-P_i): a budget of
     2 is best split evenly (symmetry and convexity), mu = 1 - e^-1 each:
 
+    >>> from packetloss_cvx.allocation.delivery import power_model
     >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
     ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
     >>> best = least_cost_within_power(t, "tcp", power_model("exponential", 2, scale=1.0), 2.0)
@@ -729,6 +500,7 @@ def power_pareto(system: System, protocol: str, model: PowerModel, budgets: Sequ
 
     Examples
     --------
+    >>> from packetloss_cvx.allocation.delivery import power_model
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> curve = power_pareto(s, "tcp", power_model("exponential", 1, scale=1.0), [0.0, 1.0, 3.0])
     >>> [round(p.cost, 6) for p in curve] == [round(1 / (2 - np.exp(-b)), 6) for b in (0.0, 1.0, 3.0)]
