@@ -92,3 +92,25 @@ def test_unit_of_power_is_the_models_own():
     assert power_model("exponential", 2, scale=[1e-12, 3.0]).unit().tolist() == [1e-12, 3.0]
     assert power_model("rayleigh", 1, scale=7.0).unit().tolist() == [7.0]
     assert model_of("table", 2).unit().tolist() == [5.0, 5.0]
+
+
+def test_rayleigh_majorant_lies_above_the_curve_and_touches_it_at_the_tangents():
+    """f(P) = exp(-c/P) on a fine grid (hand formula): the majorant is >= f everywhere on [0, 300 c], equal to it
+    at each tangent power p c (p >= 1), concave, and refuses another model."""
+    from packetloss_cvx.allocation.delivery import rayleigh_majorant
+
+    c = np.array([0.7, 2.0])
+    model = power_model("rayleigh", 2, scale=c)
+    at = np.array([0.4, 1.0, 1.7, 3.0, 12.0])                      # 0.4 is raised to 1: below it f is convex
+    major = rayleigh_majorant(model, at)
+    assert np.all(major.concave_from() == 0)
+    for i in range(2):
+        P = np.linspace(0.0, 300 * c[i], 300001)
+        f = np.exp(-c[i] / np.maximum(P, 1e-300))
+        g = major.mu(np.outer(P, np.eye(2)[i]))[:, i]
+        assert np.all(g >= f - 1e-15)
+        touch = np.array([1.0, 1.7, 3.0, 12.0]) * c[i]
+        assert np.allclose(major.mu(np.outer(touch, np.eye(2)[i]))[:, i], np.exp(-1 / np.array([1.0, 1.7, 3.0, 12.0])),
+                           rtol=1e-12)
+    with pytest.raises(InputError, match="rayleigh majorant"):
+        rayleigh_majorant(power_model("exponential", 1, scale=1.0), at)

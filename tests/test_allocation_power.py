@@ -596,3 +596,60 @@ def test_cli_power_scale_1e12_answers(capsys):
     ref = least_power(load_system("two_actuator"), "tcp", power_model("exponential", 2, scale=[1.0, 2.0]), 8.0)
     assert data["status"] == "optimal"
     assert np.isclose(data["total_power"] / 1e12, ref.total_power, rtol=2e-4)     # each certified to 1e-4
+
+
+# ------------------------------------------------------------------ rayleigh, TCP-like: the tangent relaxation
+
+def rayleigh_face_reference(system, c, budget):
+    """min over P_1 in [0, B] of J*_tcp(exp(-c / P)) at (P_1, B - P_1) (the budget is spent: J* falls in P):
+    a grid, then a bounded scalar search around its best point, on the hand formula of the curve."""
+    ev, c = CostEvaluator(system, "tcp"), np.asarray(c, dtype=float)
+
+    def f(p1):
+        P = np.array([p1, budget - p1])
+        return ev.cost(np.where(P > 0, np.exp(-c / np.maximum(P, 1e-300)), 0.0))
+
+    grid = np.linspace(0, budget, 3001)
+    k = int(np.argmin([f(p) for p in grid]))
+    best = minimize_scalar(f, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, 3000)]), method="bounded",
+                           options={"xatol": 1e-10})
+    return min(best.fun, f(grid[k]))
+
+
+@pytest.mark.parametrize("budget", [6.0, 12.0])
+def test_rayleigh_tcp_least_cost_by_the_tangent_relaxation(budget):
+    """Where the optimum has every P_i >= c_i, the conic programs on the tangent majorant certify the answer
+    alone (no box), against a 1-D search on the budget's face with the hand formula of the curve."""
+    s, c = load_system("two_actuator"), [1.0, 2.0]
+    out = least_cost_within_power(s, "tcp", power_model("rayleigh", 2, scale=c), budget)
+    ref = rayleigh_face_reference(s, c, budget)
+    assert out.status == "optimal"
+    assert out.lower_bound <= ref * (1 + 1e-9)
+    assert out.cost <= ref * (1 + 1e-4)
+    assert np.all(out.power >= np.array(c))
+    assert out.boxes == 0
+    assert "tangents above the rayleigh curve" in out.method
+
+
+def test_rayleigh_tcp_least_power_by_the_tangent_relaxation():
+    """alpha = 3 on two_actuator (optimum P_i >= c_i) against the nested 1-D reference (P_2 from J* = alpha by
+    brentq for each P_1, the sum minimised over P_1); and alpha = 8 (P_i < c_i: the branch and bound finishes
+    from the relaxation's floor), the same reference."""
+    s, c = load_system("two_actuator"), np.array([1.0, 2.0])
+    ev = CostEvaluator(s, "tcp")
+
+    def mu(P):
+        return np.where(P > 0, np.exp(-c / np.maximum(P, 1e-300)), 0.0)
+
+    for alpha in (3.0, 8.0):
+        def second(p1, alpha=alpha):
+            return brentq(lambda p2: ev.cost(mu(np.array([p1, p2]))) - alpha, 1e-9, 200.0, xtol=1e-13)
+
+        best = minimize_scalar(lambda p1: p1 + second(p1), bounds=(1e-6, 6.0), method="bounded",
+                               options={"xatol": 1e-10})
+        out = least_power(s, "tcp", power_model("rayleigh", 2, scale=c), alpha)
+        assert out.status == "optimal"
+        assert out.cost <= alpha
+        assert out.lower_bound <= best.fun * (1 + 1e-9)
+        assert out.total_power <= best.fun * (1 + 1e-4)
+        assert (out.boxes == 0) == (alpha == 3.0)        # P_i >= c_i at alpha = 3 only

@@ -25,7 +25,8 @@ from ..errors import InputError
 from ..io import load_table, read_csv_numbers
 from ..validation import numeric_array
 
-__all__ = ["EXPONENTIAL_TOP", "MODELS", "RAYLEIGH_TOP_SLACK", "PowerModel", "load_power", "power_model"]
+__all__ = ["EXPONENTIAL_TOP", "MODELS", "RAYLEIGH_TOP_SLACK", "PowerModel", "load_power", "power_model",
+           "rayleigh_majorant"]
 
 #: the delivery-versus-power models
 MODELS = ("exponential", "rayleigh", "table")
@@ -239,3 +240,40 @@ def load_power(path: str | Path, m: int) -> PowerModel | None:
     if isinstance(table, str):
         table = read_csv_numbers(Path(path).parent / table, "power.table")
     return power_model(section["model"], m, scale=section.get("scale"), table=table)
+
+
+def rayleigh_majorant(model: PowerModel, at: np.ndarray) -> PowerModel:
+    """A concave table above the rayleigh curve ``f(P) = exp(-c/P)`` everywhere on P >= 0: the least of its
+    tangents at the powers ``p c`` for each ``p`` of ``at`` (in units of c, clipped to >= 1) and of mu = 1.
+
+    With ``l = 1/p`` the tangent at ``p c`` is ``e^-l (1 - l + l^2 P / c)``; f is the least of these over
+    ``p >= 1/2`` (docs/design.md, "Rayleigh's concave part"), and those with ``p >= 1`` lie above f's concave
+    envelope (the line ``P / (e c)`` up to c, where the tangent at p = 1 passes through the origin, then f),
+    so every finite set of them, with mu <= 1, is a concave majorant: J* of it bounds J* of f below. Its
+    breakpoints (consecutive tangents' crossings, then the last one's meeting mu = 1) per channel, merged
+    into one power column. O(K m log(K m)) for K tangents.
+
+    Examples
+    --------
+    One tangent (at P = c, the line P / (e c)) and the cap: the table is (0, 0), (e c, 1).
+
+    >>> t = rayleigh_majorant(power_model("rayleigh", 1, scale=2.0), np.array([1.0]))
+    >>> np.round(t.powers, 6).tolist(), t.table[:, 0].tolist()
+    ([0.0, 5.436564], [0.0, 1.0])
+    """
+    if model.kind != "rayleigh":
+        raise InputError("model", f"a rayleigh majorant needs the rayleigh model, found {model.kind}")
+    p = np.unique(np.maximum(np.asarray(at, dtype=float).ravel(), 1.0))
+    l = 1.0 / p
+    lines = []                   # per channel: (breakpoints, slopes, intercepts) in P
+    for c in model.scale:
+        slope = np.exp(-l) * l ** 2 / c              # falls as p rises: the tangents in order
+        start = np.exp(-l) * (1.0 - l)
+        cross = (start[1:] - start[:-1]) / (slope[:-1] - slope[1:])
+        full = (1.0 - start[-1]) / slope[-1]
+        lines.append((np.concatenate([[0.0], cross, [full]]), slope, start))
+    powers = np.unique(np.concatenate([b for b, _, _ in lines]))
+    table = np.empty((len(powers), model.m))
+    for i, (_, slope, start) in enumerate(lines):
+        table[:, i] = np.minimum(np.min(start[None, :] + slope[None, :] * powers[:, None], axis=1), 1.0)
+    return PowerModel("table", model.m, powers=_frozen(powers), table=_frozen(np.clip(table, 0.0, 1.0)))

@@ -42,12 +42,17 @@ from ..tolerances import (
 )
 from ..validation import numeric_array
 from .boxes import boundary, box_lp, small_lp
-from .delivery import PowerModel
+from .delivery import PowerModel, rayleigh_majorant
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
 from .tcp import constant_cost, cost_epigraph, cut_points, tangent
 from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
 __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pareto"]
+
+#: tangents of the rayleigh curve in its first relaxation (geometric in P / c from 1 to top / c), and the most
+#: relaxations solved (TCP-like), each adding the tangents at the last relaxed point's powers
+RAYLEIGH_TANGENTS = 16
+RAYLEIGH_ROUNDS = 6
 
 # ------------------------------------------------------------------ the convex program (TCP-like, concave model)
 
@@ -98,8 +103,15 @@ class PowerProgram:
         elif model.kind == "table":
             slopes = np.diff(model.table, axis=0) / np.diff(model.powers)[:, None] * self.unit[None, :]
             starts = model.table[:-1] - slopes * (model.powers[:-1, None] / self.unit[None, :])
-            for k in range(len(slopes)):
-                cons.append(self.mu <= starts[k] + cp.multiply(slopes[k], self.y))
+            same = np.zeros_like(slopes, dtype=bool)     # a segment on the line of the one before: a duplicate row
+            same[1:] = np.isclose(slopes[1:], slopes[:-1], rtol=1e-9, atol=0.0) & \
+                np.isclose(starts[1:], starts[:-1], rtol=1e-9, atol=1e-15)
+            for k in range(len(slopes)):       # (merged power columns repeat lines: Clarabel stalled on them)
+                keep = np.flatnonzero(~same[k])
+                if len(keep) == m:
+                    cons.append(self.mu <= starts[k] + cp.multiply(slopes[k], self.y))
+                elif len(keep):
+                    cons.append(self.mu[keep] <= starts[k, keep] + cp.multiply(slopes[k, keep], self.y[keep]))
             cons.append(self.mu <= model.table[-1])
         else:  # pragma: no cover - the API routes only concave models here
             raise ValueError(f"no convex program for the {model.kind} model")
@@ -350,6 +362,10 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
         else:
             if protocol == "tcp" and J(x) <= alpha:
                 incumbent = x
+    elif model.kind == "rayleigh" and protocol == "tcp":    # (UDP-like: J*_tcp's floor sits far below J*_udp)
+        x, floor, failed = _rayleigh_relaxation(tcp, constraints, "least-power", alpha, C, prices, gap)
+        if x is not None:
+            incumbent = x
     out = udp_allocate(system, setup.poly, alpha, prices, gap, floor, max_boxes, time_limit, progress,
                        cost=setup.cost, incumbent=incumbent, what=f"{protocol.upper()}-like least power")
     method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note) + failed
@@ -365,6 +381,58 @@ def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: st
         return program if boxes == 0 else f"{program}; confirmed by branch and bound on x = P / top: {note}"
     text = f"branch and bound on x = P / top: {note}"
     return text + ("; lower bound from the TCP-like convex program (Theorem 2)" if convex else "")
+
+
+def _rayleigh_relaxation(setup: _Setup, constraints: Sequence[Constraint], problem: str, alpha: float, C: float,
+                         prices: np.ndarray | None, gap: float) -> tuple[np.ndarray | None, float, str]:
+    """TCP-like rayleigh through conic programs: the problem with the curve replaced by
+    :func:`~.delivery.rayleigh_majorant` (a concave table above it, so its J*_tcp is lower at every P) is convex,
+    and its certified bound (tangent cuts) bounds the rayleigh problem below. Its point, moved onto {J* <= alpha}
+    by the true curve for the least power, is the incumbent. Each round adds the tangents at the point's powers
+    (Kelley's cutting planes) until the incumbent is within ``gap`` of the bound: where the optimum has every
+    P_i >= c_i (the majorant is exact there in the limit) the branch and bound then explores no box; elsewhere
+    it starts from this floor. Returns (incumbent or None, floor, the note for ``method``); a conic failure
+    is no verdict (the bound found before is kept, the note says so). O(RAYLEIGH_ROUNDS) conic programs with
+    O(K) table rows."""
+    system, model, top = setup.system, setup.model, setup.top
+    J = setup.cost.checked                                      # J*_tcp of the true curve
+    at = list(np.geomspace(1.0, max(2.0, float(np.max(top / model.scale))), RAYLEIGH_TANGENTS))
+    floor, best, best_value, done = -np.inf, None, np.inf, 0
+    try:
+        for done in range(1, RAYLEIGH_ROUNDS + 1):  # noqa: B007 - the count is reported
+            relaxed = _Setup(system, "tcp", rayleigh_majorant(model, np.array(at)), top, constraints)
+            if problem == "least-power":
+                x, lower = _convex_least_power(relaxed, alpha, C, prices)
+                cut = x
+                if J(x) > alpha:                    # relaxed-feasible only: towards a maximal point by the true J
+                    q, _ = box_lp(-np.ones(system.m), relaxed.poly, np.zeros(system.m), np.ones(system.m))
+                    if q is None or J(q) > alpha:
+                        x = None
+                    else:
+                        t = boundary(lambda a, x=x, q=q: J(x + a * (q - x)), alpha, 0.0, 1.0,
+                                     ALLOCATION_INCUMBENT_SHARE * 1e-3)
+                        x = x + t * (q - x)
+                value = np.inf if x is None else float(prices @ x)
+            else:
+                x, lower = _convex_least_cost(relaxed)
+                cut, value = x, J(x)
+            stalled = bool(np.isfinite(floor)) and lower - floor <= 0.1 * gap * max(abs(lower), ALLOCATION_GAP_FLOOR)
+            floor = max(floor, lower)
+            if value < best_value:
+                best, best_value = x, value
+            if best_value - floor <= gap * max(abs(best_value), ALLOCATION_GAP_FLOOR):
+                break
+            # Kelley: cut at the relaxed optimum; a tangent within 1e-7 (relative) of one taken adds nothing but
+            # near-parallel rows (J* moves by ~1e-14 there; Clarabel ended 'optimal_inaccurate' on such tables)
+            new = [p for p in top * cut / model.scale if p > 1.0 and np.min(np.abs(np.array(at) - p)) > 1e-7 * p]
+            if not new or stalled:     # the point sits where the majorant is the line P / (e c), or a channel does
+                break                  # (P_i < c_i): the cuts there cannot close the gap
+            at.extend(new)
+    except SolverError as err:
+        return best, floor, f"; a rayleigh relaxation's convex program failed ({err}), so the branch and bound " \
+                            f"answered from the bound found before"
+    return best, floor, (f"; lower bound from {done} conic program(s) on a concave table of tangents above the "
+                         f"rayleigh curve ({len(at)} tangents)")
 
 
 def _convex_least_power(setup: _Setup, alpha: float, C: float, prices: np.ndarray) -> tuple[np.ndarray, float]:
@@ -463,6 +531,8 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
         else:
             if protocol == "tcp":
                 incumbent = x
+    elif model.kind == "rayleigh" and protocol == "tcp":
+        incumbent, floor, failed = _rayleigh_relaxation(tcp, rows, "least-cost", 0.0, constant_cost(system), None, gap)
     out = udp_min_cost(system, setup.poly, max_boxes, time_limit, cost=setup.cost, incumbent=incumbent, floor=floor,
                        what=f"{protocol.upper()}-like least cost within the power budget", gap=gap)
     method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note) + failed
