@@ -88,10 +88,14 @@ def test_power_table_in_a_system_file(tmp_path):
 
 
 def test_unit_of_power_is_the_models_own():
-    """The conic program's variable is P / unit: c per channel, a table's last power (hand values)."""
+    """The conic program's variable is P / unit: c per channel, a table's least power reaching half its last mu
+    (hand values: 0.45 on (1, 0.3)-(2, 0.5) is at P = 1.75; a channel at its last mu from P = 0 takes the last
+    power)."""
     assert power_model("exponential", 2, scale=[1e-12, 3.0]).unit().tolist() == [1e-12, 3.0]
     assert power_model("rayleigh", 1, scale=7.0).unit().tolist() == [7.0]
-    assert model_of("table", 2).unit().tolist() == [5.0, 5.0]
+    assert np.allclose(model_of("table", 2).unit(), [1.75, 1.75], rtol=1e-15)
+    flat = power_model("table", 2, table=[[0.0, 0.0, 0.6], [4.0, 0.8, 0.6]])
+    assert np.allclose(flat.unit(), [2.0, 4.0], rtol=1e-15)
 
 
 def test_rayleigh_majorant_lies_above_the_curve_and_touches_it_at_the_tangents():

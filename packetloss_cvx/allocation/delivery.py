@@ -126,11 +126,14 @@ class PowerModel:
         return np.full(self.m, float(self.powers[-1]))
 
     def unit(self) -> np.ndarray:
-        """Per channel the model's own unit of power: c (exponential, rayleigh), the last tabulated power (table).
+        """Per channel the model's own unit of power: c (exponential, rayleigh); for a table the least power that
+        reaches half of its last mu (the last power where that is 0: mu(0) already there, or a dead channel).
         The conic program's variable is P / unit, so the unit in which a user states powers (1e-12 or 1e12)
-        sits in no coefficient of the cones."""
+        sits in no coefficient of the cones; a table's half-way power, not its last (a last row at 1e9 beside
+        the action at 1 made Clarabel fail where unit 1 did not). O(K m)."""
         if self.kind == "table":
-            return np.full(self.m, float(self.powers[-1]))
+            half = self.power(self.table[-1] / 2.0)
+            return np.where((half > 0) & np.isfinite(half), half, float(self.powers[-1]))
         return self.scale.copy()
 
     def concave_from(self) -> np.ndarray:
