@@ -368,19 +368,21 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
             incumbent = x
     out = udp_allocate(system, setup.poly, alpha, prices, gap, floor, max_boxes, time_limit, progress,
                        cost=setup.cost, incumbent=incumbent, what=f"{protocol.upper()}-like least power")
-    method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note) + failed
+    method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note, failed)
     return _result(setup, "least-power", out.mu, out.value, out.lower_bound, out.status, method, out.boxes, alpha,
                    unit)
 
 
-def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: str) -> str:
-    """How the answer was found, in words."""
+def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: str, extra: str = "") -> str:
+    """How the answer was found, in words; ``extra`` the rayleigh relaxation's note (or a conic failure's)."""
+    if extra.startswith("; lower bound from") and boxes == 0:       # the rayleigh relaxation certified alone
+        return extra[len("; lower bound from "):] + ", certified with no box of the branch and bound"
     program = ("convex program (Clarabel, " + ("exponential cone" if model.kind == "exponential" else
                                                "the table's linear pieces") + "), lower bound from tangent cuts in P")
     if protocol == "tcp" and convex:
         return program if boxes == 0 else f"{program}; confirmed by branch and bound on x = P / top: {note}"
     text = f"branch and bound on x = P / top: {note}"
-    return text + ("; lower bound from the TCP-like convex program (Theorem 2)" if convex else "")
+    return text + ("; lower bound from the TCP-like convex program (Theorem 2)" if convex else "") + extra
 
 
 def _rayleigh_relaxation(setup: _Setup, constraints: Sequence[Constraint], problem: str, alpha: float, C: float,
@@ -535,7 +537,7 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
         incumbent, floor, failed = _rayleigh_relaxation(tcp, rows, "least-cost", 0.0, constant_cost(system), None, gap)
     out = udp_min_cost(system, setup.poly, max_boxes, time_limit, cost=setup.cost, incumbent=incumbent, floor=floor,
                        what=f"{protocol.upper()}-like least cost within the power budget", gap=gap)
-    method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note) + failed
+    method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note, failed)
     status = out.status if (out.value - out.lower_bound) <= gap * max(out.value, ALLOCATION_GAP_FLOOR) \
         else "gap_not_certified"
     return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, status, method, out.boxes, budget)
