@@ -427,8 +427,10 @@ def _rayleigh_relaxation(setup: _Setup, constraints: Sequence[Constraint], probl
             # Kelley: cut at the relaxed optimum; a tangent within 1e-7 (relative) of one taken adds nothing but
             # near-parallel rows (J* moves by ~1e-14 there; Clarabel ended 'optimal_inaccurate' on such tables)
             new = [p for p in top * cut / model.scale if p > 1.0 and np.min(np.abs(np.array(at) - p)) > 1e-7 * p]
-            if not new or stalled:     # the point sits where the majorant is the line P / (e c), or a channel does
-                break                  # (P_i < c_i): the cuts there cannot close the gap
+            if stalled or np.any(top * cut <= model.scale):   # a channel at P_i <= c_i, where the majorant is the
+                break                  # line P / (e c) above f: no tangent closes that gap (measured: same boxes)
+            if not new:
+                break
             at.extend(new)
     except SolverError as err:
         return best, floor, f"; a rayleigh relaxation's convex program failed ({err}), so the branch and bound " \
