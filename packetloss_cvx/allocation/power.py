@@ -470,8 +470,9 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
                             gap: float = ALLOCATION_GAP_DEFAULT, max_boxes: int = 20000,
                             time_limit: float | None = None) -> PowerAllocation:
     """The least optimal cost ``J*(mu(P))`` with ``sum P <= budget`` (and the constraints), certified to a
-    relative ``gap`` (as :func:`least_power`'s; the branch and bound's corner bounds converge slowly where the
-    optimum lies inside the budget's face: 2e4 boxes did not reach 1e-6 on two_actuator, UDP-like).
+    relative ``gap`` (as :func:`least_power`'s; the branch and bound's corner bounds lose a first-order term
+    where the optimum lies inside the budget's face, so the boxes grow like gap^-1/2: two_actuator, UDP-like,
+    exponential c = (1, 2), B = 3: 766 boxes at 1e-4, 2366 at 1e-5, 7043 at 1e-6, 3.2 / 8.4 / 26.6 s CPU).
 
     Raises
     ------
