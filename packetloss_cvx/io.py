@@ -46,7 +46,7 @@ _SCHEMA: dict[str, dict[str, str]] = {
 }
 _REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",), "sensor": ()}
 _OPTIONAL_SECTIONS = ("sensor",)
-#: optional sections a System does not hold, read by their own module (``[power]``: allocation/power.py)
+#: optional sections a System does not hold, read by their own module (``[power]``: allocation/delivery.py)
 OTHER_SECTIONS = ("power",)
 
 

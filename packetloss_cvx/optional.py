@@ -46,6 +46,8 @@ LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "simulation.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms cannot decide",
     "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",
     "allocation.power": "power-limited links (cvxpy): only the power-water-filling claim of the audit",
+    "allocation.delivery": "the delivery-versus-power models, through the allocation package (cvxpy): only the "
+                           "power-water-filling claim of the audit",
     "plots": "figures (matplotlib): only commands asked to draw",
     "sensing.lmi": "Sinopoli's filter LMI (cvxpy): the critical arrival rate's cross-check, only where asked",
 })

@@ -14,13 +14,8 @@ from scipy.optimize import brentq, minimize_scalar
 from packetloss_cvx import System, load_system
 from packetloss_cvx.allocation import allocate
 from packetloss_cvx.allocation.ack import ack_break_even, best_protocol
-from packetloss_cvx.allocation.power import (
-    least_cost_within_power,
-    least_power,
-    load_power,
-    power_model,
-    power_pareto,
-)
+from packetloss_cvx.allocation.delivery import power_model
+from packetloss_cvx.allocation.power import least_cost_within_power, least_power, power_pareto
 from packetloss_cvx.cli import main
 from packetloss_cvx.errors import InfeasibleError, InputError
 from packetloss_cvx.evaluator import CostEvaluator
@@ -65,70 +60,6 @@ def hand_power(name, mu):
         return -0.7 / np.log(mu)
     table = np.array(MODELS[name]["table"])
     return float(np.interp(mu, table[:, 1], table[:, 0]))
-
-
-# ------------------------------------------------------------------ the models
-
-def test_model_formulas_against_hand_values():
-    e = power_model("exponential", 2, scale=[1.0, 2.0])
-    assert np.allclose(e.mu(np.array([1.0, 2.0])), 1 - np.exp(-1.0))
-    r = power_model("rayleigh", 1, scale=2.0)
-    assert np.allclose(r.mu(np.array([4.0])), np.exp(-0.5))
-    assert r.mu(np.array([0.0]))[0] == 0.0
-    t = power_model("table", 2, table=[[0, 0, 0.1], [2, 0.5, 0.3], [4, 0.6, 0.9]])
-    assert np.allclose(t.mu(np.array([1.0, 3.0])), [0.25, 0.6])
-    assert np.allclose(t.mu(np.array([9.0, 9.0])), [0.6, 0.9])
-    assert np.allclose(t.power(np.array([0.25, 0.6])), [1.0, 3.0])
-    assert np.isinf(t.power(np.array([0.7, 0.5]))[0])
-    assert np.allclose(e.slope(np.array([0.0, 2.0])), [1.0, np.exp(-1.0) / 2])      # d/dP (1 - exp(-P/c))
-    assert np.allclose(r.slope(np.array([2.0])), 2 / 4 * np.exp(-1.0))            # c/P^2 exp(-c/P)
-
-
-def test_model_inverse_and_concavity():
-    for name in ("exponential", "rayleigh", "table", "table-s"):
-        model = model_of(name)
-        for mu in (0.2, 0.45, 0.85):
-            assert np.isclose(model.mu(model.power(np.array([mu])))[0], mu, rtol=1e-12)
-    assert model_of("exponential").concave_from()[0] == 0
-    assert model_of("table").concave_from()[0] == 0
-    assert np.isinf(model_of("table-s").concave_from()[0])
-    assert model_of("rayleigh").concave_from()[0] == 0.35
-    # rayleigh's second derivative changes sign at c/2 (finite differences)
-    r, h = model_of("rayleigh"), 1e-4
-    second = [(r.mu(np.array([p + h])) - 2 * r.mu(np.array([p])) + r.mu(np.array([p - h])))[0] for p in (0.3, 0.4)]
-    assert second[0] > 0 > second[1]
-
-
-@pytest.mark.parametrize(("kw", "match"), [
-    (dict(model="exponential", scale=[0.0]), "power.scale: expected positive"),
-    (dict(model="rayleigh", scale=[-1.0]), "power.scale: expected positive"),
-    (dict(model="exponential", scale=[float("nan")]), "power.scale: expected finite"),
-    (dict(model="table", table=[[0, 0], [1, 0.5], [2, 0.4]]), "must not fall"),
-    (dict(model="table", table=[[0, 0], [1, 1.5]]), r"must lie in \[0, 1\]"),
-    (dict(model="table", table=[[0, -0.1], [1, 0.5]]), r"must lie in \[0, 1\]"),
-    (dict(model="table", table=[[0, 0], [0, 0.5]]), "powers must increase"),
-    (dict(model="table", table=[[1, 0], [2, 0.5]]), "first row's power must be 0"),
-    (dict(model="shannon", scale=[1.0]), "power.model: expected one of"),
-])
-def test_model_refuses_bad_input(kw, match):
-    model = kw.pop("model")
-    with pytest.raises(InputError, match=match):
-        power_model(model, 1, **kw)
-
-
-def test_power_table_in_a_system_file(tmp_path):
-    (tmp_path / "curve.csv").write_text("power,mu\n0,0\n1,0.4\n3,0.9\n")
-    base = (load_system("two_actuator"),)
-    from packetloss_cvx.io import dumps_system
-    text = dumps_system(base[0])
-    (tmp_path / "a.toml").write_text(text + '\n[power]\nmodel = "table"\ntable = "curve.csv"\n')
-    (tmp_path / "b.toml").write_text(text + '\n[power]\nmodel = "exponential"\nscale = [1.0, 2.0]\n')
-    (tmp_path / "c.toml").write_text(text + '\n[power]\nmodel = "exponential"\nscale = [1.0, -2.0]\n')
-    assert np.allclose(load_power(tmp_path / "a.toml", 2).mu(np.array([2.0, 0.5])), [0.65, 0.2])
-    assert np.allclose(load_power(tmp_path / "b.toml", 2).scale, [1.0, 2.0])
-    assert load_system(tmp_path / "b.toml").m == 2             # the system loader passes [power] by
-    with pytest.raises(InputError, match="power.scale"):
-        load_power(tmp_path / "c.toml", 2)
 
 
 # ------------------------------------------------------------------ one channel: hand values
@@ -538,3 +469,187 @@ def test_cli_options_a_command_would_ignore_exit_2(capsys, argv, match):
     assert out == ""
     assert len(err.splitlines()) == 1
     assert re.search(match, err), err
+
+
+# ------------------------------------------------------------------ the unit of power: every scale in [1e-12, 1e12]
+
+def scaled_model(name, m, s):
+    """MODELS[name] with every power multiplied by s: P = s P' maps it onto the model at s = 1 exactly."""
+    kw = MODELS[name]
+    if "scale" in kw:
+        return power_model(name, m, scale=np.array(kw["scale"] * m) * s)
+    table = np.array(kw["table"])
+    table[:, 0] *= s
+    return power_model("table", m, table=table)
+
+
+def face_kkt_power(system, c, budget):
+    """Reference for the budget problem on two channels with only sum P = B active: the KKT condition
+    g_1 phi_1'(P_1) = g_2 phi_2'(P_2) on the face, solved for P_1 by brentq in units of c_1 (the envelope gradient
+    g of the closed form, tcp.tangent; exponential phi = 1 - exp(-P / c_i))."""
+    from packetloss_cvx.allocation.tcp import tangent
+
+    c = np.asarray(c, dtype=float)
+    unit = c[0]
+
+    def h(p1):
+        P = np.array([p1, budget / unit - p1]) * unit
+        _, g = tangent(system, -np.expm1(-P / c))
+        d = -g * np.exp(-P / c) / c * unit
+        return d[0] - d[1]
+
+    p1 = brentq(h, 1e-9 * budget / unit, budget / unit * (1 - 1e-9), xtol=1e-14)
+    return np.array([p1 * unit, budget - p1 * unit])
+
+
+@pytest.mark.parametrize("s", [1e-12, 1e12])
+@pytest.mark.parametrize("name", ["exponential", "rayleigh", "table", "table-s"])
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_one_channel_answers_at_extreme_units_of_power(s, name, protocol):
+    """Hand values times s (the model's formula inverted at the mu the scalar problem needs). With P the conic
+    program's variable, c = 1e-12 gave 'optimal_inaccurate' and c = 1e12 an InfeasibleError read from Clarabel."""
+    alpha = 0.8
+    need = 0.25 if protocol == "tcp" else 0.4
+    out = least_power(scalar(), protocol, scaled_model(name, 1, s), alpha, gap=1e-6)
+    P = s * hand_power(name, need)
+    assert out.status == "optimal"
+    assert out.cost <= alpha
+    assert out.lower_bound <= P * (1 + 1e-9)
+    assert P <= out.total_power <= P * (1 + 1e-5)
+    budget = 1.7
+    out = least_cost_within_power(scalar(), protocol, scaled_model(name, 1, s), budget * s, gap=1e-7)
+    hand = hand_cost(protocol, [model_of(name).mu(np.array([budget]))[0]], [1.0])
+    assert out.status == "optimal"
+    assert np.isclose(out.cost, hand, rtol=1e-7)
+    assert out.lower_bound <= hand * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("s", [1e-12, 1e12])
+def test_two_actuator_tcp_at_extreme_units_of_power_against_the_kkt_root(s):
+    """Least cost within a budget (exponential c = s (1, 2), B = 3 s) against the KKT root on the budget's face,
+    and the least power for alpha = 8 against a nested 1-D reference (P_2 from J* = alpha by brentq for each
+    P_1, the sum minimised over P_1), both in units of s. Each answer certified to the gap 1e-6 in its objective."""
+    t, c = load_system("two_actuator"), np.array([1.0, 2.0]) * s
+    model = power_model("exponential", 2, scale=c)
+    ev = CostEvaluator(t, "tcp")
+    ref_P = face_kkt_power(t, c, 3.0 * s)
+    ref = ev.cost(model.mu(ref_P))
+    out = least_cost_within_power(t, "tcp", model, 3.0 * s, gap=1e-6)
+    assert out.status == "optimal"
+    assert out.lower_bound <= ref * (1 + 1e-9)
+    assert out.cost <= ref * (1 + 1e-6)
+    assert out.total_power <= 3.0 * s * (1 + 1e-9)
+    assert np.allclose(out.power / s, ref_P / s, atol=1e-3)
+
+    def second(p1):                      # the least P_2 / s with J*(mu(s p1, s p2)) <= 8, J* falling in p2
+        return brentq(lambda p2: ev.cost(model.mu(np.array([p1, p2]) * s)) - 8.0, 0.0, 80.0, xtol=1e-13)
+
+    best = minimize_scalar(lambda p1: p1 + second(p1), bounds=(0.0, 3.0), method="bounded",
+                           options={"xatol": 1e-10})
+    out = least_power(t, "tcp", model, 8.0, gap=1e-6)
+    assert out.status == "optimal"
+    assert out.cost <= 8.0
+    assert out.lower_bound / s <= best.fun * (1 + 1e-9)
+    assert out.total_power / s <= best.fun * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("s", [1e-12, 1e12])
+def test_udp_least_power_at_extreme_units_of_power_against_the_split(s):
+    """UDP-like, decoupled w = (1, 3), exponential c = 1.5 s: the least power is s times the least budget whose
+    hand-cost split reaches alpha (the 1-D reference at s = 1). The branch and bound prices x by top / max(top),
+    so neither its gap floor nor its split weights see s."""
+    w, alpha, gap = (1.0, 3.0), 2.9, 1e-4
+    out = least_power(decoupled(w), "udp", scaled_model("exponential", 2, s), alpha, gap=gap)
+    total = brentq(lambda b: split_reference("udp", "exponential", b, w) - alpha, 1e-6, 40.0, xtol=1e-10)
+    assert out.status == "optimal"
+    assert out.cost <= alpha
+    assert out.lower_bound / s <= total * (1 + 1e-6)
+    assert out.total_power / s <= total * (1 + gap)
+
+
+def test_a_failed_conic_program_is_no_verdict(monkeypatch):
+    """Clarabel's infeasibility certificate (false at c = 1e12 before the program was written in P / c) and any
+    other failure hand the problem to the branch and bound, which answers (hand value log(4/3) on the one-step
+    plant) or proves infeasibility by discarding every box."""
+    from packetloss_cvx.convex import ClarabelProgram
+
+    def fails(self, values, what, attempts=()):
+        return "infeasible", None
+
+    monkeypatch.setattr(ClarabelProgram, "solve", fails)
+    model = power_model("exponential", 1, scale=1.0)
+    out = least_power(scalar(), "tcp", model, 0.8, gap=1e-6)
+    assert out.status == "optimal"
+    assert np.log(4 / 3) <= out.total_power <= np.log(4 / 3) * (1 + 1e-6)
+    assert "the convex program failed" in out.method
+    out = least_cost_within_power(scalar(), "tcp", model, 1.7, gap=1e-7)
+    assert np.isclose(out.cost, hand_cost("tcp", [-np.expm1(-1.7)], [1.0]), rtol=1e-7)
+    with pytest.raises(InfeasibleError, match="every box was proven infeasible"):     # P <= 0.01 misses alpha
+        least_power(scalar(), "tcp", model, 0.8, constraints=[([[1.0]], [0.01])])
+
+
+def test_cli_power_scale_1e12_answers(capsys):
+    code, out, err = run_cli(capsys, "allocate", "two_actuator", "--protocol", "tcp", "--alpha", "8", "--power",
+                             "exponential", "--power-scale", "1e12,2e12", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    ref = least_power(load_system("two_actuator"), "tcp", power_model("exponential", 2, scale=[1.0, 2.0]), 8.0)
+    assert data["status"] == "optimal"
+    assert np.isclose(data["total_power"] / 1e12, ref.total_power, rtol=2e-4)     # each certified to 1e-4
+
+
+# ------------------------------------------------------------------ rayleigh, TCP-like: the tangent relaxation
+
+def rayleigh_face_reference(system, c, budget):
+    """min over P_1 in [0, B] of J*_tcp(exp(-c / P)) at (P_1, B - P_1) (the budget is spent: J* falls in P):
+    a grid, then a bounded scalar search around its best point, on the hand formula of the curve."""
+    ev, c = CostEvaluator(system, "tcp"), np.asarray(c, dtype=float)
+
+    def f(p1):
+        P = np.array([p1, budget - p1])
+        return ev.cost(np.where(P > 0, np.exp(-c / np.maximum(P, 1e-300)), 0.0))
+
+    grid = np.linspace(0, budget, 3001)
+    k = int(np.argmin([f(p) for p in grid]))
+    best = minimize_scalar(f, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, 3000)]), method="bounded",
+                           options={"xatol": 1e-10})
+    return min(best.fun, f(grid[k]))
+
+
+@pytest.mark.parametrize("budget", [6.0, 12.0])
+def test_rayleigh_tcp_least_cost_by_the_tangent_relaxation(budget):
+    """Where the optimum has every P_i >= c_i, the conic programs on the tangent majorant certify the answer
+    alone (no box), against a 1-D search on the budget's face with the hand formula of the curve."""
+    s, c = load_system("two_actuator"), [1.0, 2.0]
+    out = least_cost_within_power(s, "tcp", power_model("rayleigh", 2, scale=c), budget)
+    ref = rayleigh_face_reference(s, c, budget)
+    assert out.status == "optimal"
+    assert out.lower_bound <= ref * (1 + 1e-9)
+    assert out.cost <= ref * (1 + 1e-4)
+    assert np.all(out.power >= np.array(c))
+    assert out.boxes == 0
+    assert "tangents above the rayleigh curve" in out.method
+
+
+def test_rayleigh_tcp_least_power_by_the_tangent_relaxation():
+    """alpha = 3 on two_actuator (optimum P_i >= c_i) against the nested 1-D reference (P_2 from J* = alpha by
+    brentq for each P_1, the sum minimised over P_1); and alpha = 8 (P_i < c_i: the branch and bound finishes
+    from the relaxation's floor), the same reference."""
+    s, c = load_system("two_actuator"), np.array([1.0, 2.0])
+    ev = CostEvaluator(s, "tcp")
+
+    def mu(P):
+        return np.where(P > 0, np.exp(-c / np.maximum(P, 1e-300)), 0.0)
+
+    for alpha in (3.0, 8.0):
+        def second(p1, alpha=alpha):
+            return brentq(lambda p2: ev.cost(mu(np.array([p1, p2]))) - alpha, 1e-9, 200.0, xtol=1e-13)
+
+        best = minimize_scalar(lambda p1: p1 + second(p1), bounds=(1e-6, 6.0), method="bounded",
+                               options={"xatol": 1e-10})
+        out = least_power(s, "tcp", power_model("rayleigh", 2, scale=c), alpha)
+        assert out.status == "optimal"
+        assert out.cost <= alpha
+        assert out.lower_bound <= best.fun * (1 + 1e-9)
+        assert out.total_power <= best.fun * (1 + 1e-4)
+        assert (out.boxes == 0) == (alpha == 3.0)        # P_i >= c_i at alpha = 3 only

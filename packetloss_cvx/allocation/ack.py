@@ -19,8 +19,9 @@ from ..errors import InfeasibleError, InputError
 from ..model import System
 from ..results import ProtocolChoice
 from .api import allocate
+from .delivery import PowerModel
 from .grammar import check_number
-from .power import PowerModel, least_power
+from .power import least_power
 
 __all__ = ["ack_break_even", "best_protocol", "break_even_of"]
 

@@ -73,7 +73,8 @@ def level_shift(system: System, protocol: str, budgets=BUDGETS, c: float = 1.0, 
     >>> bool(shift < 1e-5), bool(np.allclose(powers[1], 2.0, atol=1e-5))
     (True, True)
     """
-    from ..allocation.power import least_cost_within_power, power_model  # cvxpy: only when this claim runs
+    from ..allocation.delivery import power_model  # cvxpy (the allocation package): only when this claim runs
+    from ..allocation.power import least_cost_within_power
 
     model = power_model("exponential", system.m, scale=c)
     powers = [least_cost_within_power(system, protocol, model, b, gap=gap).power for b in budgets]

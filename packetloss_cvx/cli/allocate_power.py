@@ -1,6 +1,7 @@
 """``allocate FILE`` with transmit power (``--power``, the file's ``[power]`` table) or ``--protocol best``
 (the acknowledgement link priced): issue 24. :mod:`.allocate` hands these over; this module reads the
-options, calls :mod:`packetloss_cvx.allocation.power` / :mod:`~packetloss_cvx.allocation.ack` and shapes the
+options, calls :mod:`packetloss_cvx.allocation.power` / :mod:`~packetloss_cvx.allocation.ack` (the model from
+:mod:`~packetloss_cvx.allocation.delivery`) and shapes the
 result (exit 0 optimal, 3 infeasible, 4 gap not certified)."""
 
 from __future__ import annotations
@@ -10,7 +11,8 @@ from typing import Any
 
 from ..allocation import parse_constraint
 from ..allocation.ack import best_protocol
-from ..allocation.power import PowerModel, least_cost_within_power, least_power, load_power, power_model
+from ..allocation.delivery import PowerModel, load_power, power_model
+from ..allocation.power import least_cost_within_power, least_power
 from ..errors import InfeasibleError, InputError
 from ..io import read_csv_numbers
 from ..model import System
