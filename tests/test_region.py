@@ -357,3 +357,50 @@ def test_membership_checks_a_given_eigenpair_at_its_own_mu():
     assert membership(s, [0.5], forms=("riccati",), riccati=inside).verdict == "undecided"
     assert membership(s, [0.9], forms=("riccati",), riccati=inside).verdict == "stable"
     assert membership(s, [0.5], forms=("riccati",), riccati=outside).verdict == "unstable"
+
+
+@pytest.mark.parametrize("mu", [[0.9, 1.0], [0.5, 1.0], [0.0, 1.0], [1.0, 0.9], [1.0, 0.0], [1.0, 1.0]])
+def test_least_radius_is_zero_where_one_always_delivered_channel_deadbeats_the_plant(mu):
+    """two_actuator with mu_2 = 1: (A, b_2) is controllable (A_12 = 0.005), so u_2 = -k x with
+    k = (0.35 + 1.03^2 / 0.005, 2.04) makes A - b_2 k nilpotent (trace 0, determinant 0, by hand) and u_1 = 0:
+    L_K(X) = F X F' with F^2 = 0, so min_K rho(L_K) = 0 (not a^2 (1 - mu_1) = 0.106, the channel-1 value); the
+    same by symmetry through b_1 (A_21 = 0.35). The eigenvalue had come out -9e-7 here (planted: the trace of
+    A'PA - A'PBM K fails the sign check)."""
+    s = load_example("two_actuator")
+    A = np.asarray(s.A, float)
+    k2 = np.array([A[1, 0] + A[0, 0] ** 2 / A[0, 1], A[0, 0] + A[1, 1]])
+    F = A - np.outer([0.0, 1.0], k2)
+    assert np.allclose(F @ F, 0.0, atol=1e-9)
+    lam, P, K = homogeneous_riccati(A, np.asarray(s.B, float), np.array(mu))
+    assert 0.0 <= lam <= 1e-12
+
+
+def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lmi():
+    """The "dp" radius grid is min_K rho(L_K) >= 0 (the map had shown -1.2e-9 and -9e-7 at deadbeat points), and
+    at interior points it is bracketed by the LMI form run on the scaled plant A / sqrt(rho) (S_rho = S of
+    A / sqrt(rho), the gain scaled back by sqrt(rho)): infeasible at 0.999 lambda, feasible at 1.001 lambda with
+    a gain whose radius (enumerated over the delivery patterns) is below 1.001 lambda."""
+    from packetloss_cvx.simulation.region_map import region_map
+    s = load_example("two_actuator")
+    result = region_map(s, laws=("dp",), grid=11)
+    radius = result.radius[0]
+    assert np.all(np.isfinite(radius)) and np.all(radius >= 0.0)
+    assert np.all(radius[-1] <= 1e-12) and np.all(radius[:, -1] <= 1e-12)     # mu_2 = 1 or mu_1 = 1: deadbeat
+    A, B = np.asarray(s.A, float), np.asarray(s.B, float)
+    for row, col in [(2, 6), (9, 9), (8, 2), (5, 0)]:
+        mu = np.array([result.axis[col], result.axis[row]])
+        lam = radius[row, col]
+        below = LmiForm(A / np.sqrt(0.999 * lam), B).stabilise(mu)
+        above = LmiForm(A / np.sqrt(1.001 * lam), B).stabilise(mu)
+        assert below[0] < 0 and above[0] > 0
+        assert enumerated_radius(A, B, np.sqrt(1.001 * lam) * above[1], mu) < 1.001 * lam
+    assert "least mean-square radius" in result.to_dict()["dp"]["grid"]["radius_meaning"]
+
+
+def test_least_radius_of_a_decoupled_plant_is_its_worst_block():
+    """diag(a), B = I: min_K rho(L_K) = max_i a_i^2 (1 - mu_i), each block's scalar value (hand)."""
+    a = np.array([2.0, 1.5, 0.5])
+    rng = np.random.default_rng(4)
+    mus = rng.uniform(0.0, 1.0, size=(10, 3))
+    lam, _, _ = homogeneous_riccati(np.diag(a), np.eye(3), mus)
+    assert lam == pytest.approx(np.max(a * a * (1 - mus), axis=1), rel=1e-9)
