@@ -119,11 +119,16 @@ def test_a_boundary_point_has_a_gain_inside_and_a_certificate_outside():
 
 
 def test_certificate_margin_is_exact_on_the_scalar_case():
+    """The margin is the radius bound P proves, minus one: scalar R(p) = a^2 (1 - mu) p, so a^2 (1 - mu) - 1 (hand);
+    two channels on one state: a^2 / (1 + s1 + s2) - 1, s_i the odds (design.md)."""
     A, B = np.array([[2.0]]), np.array([[1.0]])
-    for mu in (0.2, 0.5, 0.74):   # least eigenvalue of [[3, -2 mu], [-2 mu, mu]] over 4 + 1 + 1
-        T = np.array([[3.0, -2 * mu], [-2 * mu, mu]])
-        assert certificate_margin(A, B, np.array([mu]), np.eye(1)) == pytest.approx(np.linalg.eigvalsh(T)[0] / 6)
+    for mu in (0.2, 0.5, 0.74, 0.9):
+        assert certificate_margin(A, B, np.array([mu]), np.eye(1)) == pytest.approx(4.0 * (1 - mu) - 1, abs=1e-14)
     assert certificate_margin(A, B, np.array([0.5]), -np.eye(1)) == -np.inf
+    mu = np.array([0.3, 0.6])
+    odds = mu / (1 - mu)
+    margin = certificate_margin(np.array([[np.sqrt(3.0)]]), np.array([[1.0, 0.5]]), mu, np.eye(1))
+    assert margin == pytest.approx(3.0 / (1 + odds.sum()) - 1, abs=1e-14)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -404,3 +409,21 @@ def test_least_radius_of_a_decoupled_plant_is_its_worst_block():
     mus = rng.uniform(0.0, 1.0, size=(10, 3))
     lam, _, _ = homogeneous_riccati(np.diag(a), np.eye(3), mus)
     assert lam == pytest.approx(np.max(a * a * (1 - mus), axis=1), rel=1e-9)
+
+
+@pytest.mark.parametrize("mu2", [0.075947, 0.0759469])
+def test_membership_with_large_gains_near_the_boundary_decides_instead_of_raising(mu2):
+    """A = [[1.03, 5e-5], [0.35, 1.01]], B = I, mu = (0, mu2) about 1e-6 inside S: the least-radius gain is about
+    620 and its radius 1 - 6e-7 (enumerated). The LMI's certificate there proves only rho >= 1 - 3.5e-6 for every
+    law, but the least eigenvalue of T_mu(P) over its scale shrinks like 1 / ||K||^2 and had passed
+    CERTIFICATE_RTOL: membership raised CrossCheckError (planted: the old check raises at both points). The margin
+    is now the radius bound itself, so the LMI's P is refused and the point is decided by the forms that check."""
+    A, B = np.array([[1.03, 5e-5], [0.35, 1.01]]), np.eye(2)
+    s = System(A=A, B=B, horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0], mu=[0.5, 0.5], x0=[1.0, 1.0])
+    mu = np.array([0.0, mu2])
+    found = membership(s, mu)
+    assert found.verdict == "stable" and dict(found.forms)["lmi"] in ("stable", "undecided")
+    assert np.abs(found.gain).max() > 100
+    assert 1 - 1e-5 < enumerated_radius(A, B, found.gain, mu) < 1.0
+    _, P, _ = LmiForm(A, B).certify(mu)
+    assert -1e-4 < certificate_margin(A, B, mu, P) < -1e-7

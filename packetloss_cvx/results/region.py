@@ -19,7 +19,7 @@ class Membership(Frozen):
     """Is ``mu`` in the stabilisable set S (simulation.region)? ``verdict`` "stable", "unstable" or
     "undecided". "stable" comes with ``gain`` (a K whose second-moment operator has ``radius`` < 1 by
     the margin); "unstable" with ``certificate`` (P >= 0, tr P = 1, and ``T_mu(P) >= 0``: no linear law is
-    mean-square stabilising; ``certificate_margin`` the least eigenvalue of T_mu(P) over its scale).
+    mean-square stabilising; ``certificate_margin`` = c - 1, c the bound P proves on every law's radius).
     ``forms`` pairs each form that was run ("dp", "riccati", "lmi") with its own verdict; the forms that
     decided agree (else CrossCheckError was raised). ``reason``: why undecided."""
 
