@@ -45,6 +45,7 @@ from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError
 from ..markov.mjls import mean_square_radius as mjls_radius
 from ..markov.mjls import mode_chain
+from ..recursion import riccati_step
 from ..results.region import Membership
 from ..tolerances import CERTIFICATE_RTOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
 from .stability import is_mean_square_stable
@@ -61,19 +62,22 @@ _LIFT = 1e-6
 def _step(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(K, R(P), F, H)`` per mode a: the quadratic ``L_K^*(P)_a = A'E_aA - 2 A'F_a K_a + K_a' H_a K_a`` (module
-    docstring), its minimiser (least squares: H_a may be singular) and minimum. O(M (M (n^2 m + m^2) + n^3 + m^3))."""
+    docstring), its minimiser (least squares: H_a may be singular) and minimum. "current" is, per mode, Theorem 1's
+    step with no weights at ``(E_a, h_a)`` (:func:`~packetloss_cvx.recursion.riccati_step`, least squares: the one
+    kernel markov.mjls's coupled equations run, there with their weights). O(M (M (n^2 m + m^2) + n^3 + m^3))."""
     E = np.einsum("ab,bij->aij", T, P)
     E = 0.5 * (E + E.transpose(0, 2, 1))
     BPB = np.einsum("ki,bkl,lj->bij", B, P, B)                     # B'P_bB per mode b
     own = (BPB * h[:, None, :]) * h[:, :, None] + np.einsum("bi,ij->bij", h * (1 - h),
                                                              np.eye(B.shape[1])) * BPB
-    if delivery == "current":                                       # deliveries follow mode a, known to the law
+    if delivery == "current":   # deliveries follow mode a, known to the law: per mode the Bernoulli step at (E_a, h_a)
         BEB = np.einsum("ki,akl,lj->aij", B, E, B)
         F = np.einsum("aij,jk,ak->aik", E, B, h)
         H = (BEB * h[:, None, :]) * h[:, :, None] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(B.shape[1])) * BEB
-    else:                                                           # deliveries follow the next mode b
-        F = np.einsum("ab,bij,jk,bk->aik", T, P, B, h)
-        H = np.einsum("ab,bij->aij", T, own)
+        K, R = riccati_step(E, A, B, h, np.zeros_like(h), variance=True, least_squares=True)
+        return K, R, F, H
+    F = np.einsum("ab,bij,jk,bk->aik", T, P, B, h)                  # deliveries follow the next mode b
+    H = np.einsum("ab,bij->aij", T, own)
     K = np.array([np.linalg.lstsq(H[a], F[a].T @ A, rcond=None)[0] for a in range(len(h))])
     R = np.einsum("ji,ajk,kl->ail", A, E, A) - np.einsum("ji,ajk,akl->ail", A, F, K)
     return K, 0.5 * (R + R.transpose(0, 2, 1)), F, H

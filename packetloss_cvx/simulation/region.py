@@ -28,6 +28,7 @@ import numpy.typing as npt
 
 from ..errors import CrossCheckError, InputError, NumericalError, SolverError
 from ..model import System
+from ..recursion import riccati_step
 from ..results.region import Membership
 from ..tolerances import (
     CERTIFICATE_KERNEL_RTOL,
@@ -190,18 +191,13 @@ def radius_bound(F: np.ndarray, P: np.ndarray) -> float:
 
 def _homogeneous_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(K, R(P))``: the minimiser of ``L_K^*(P)`` (least squares, the minimum-norm solution: its Hessian may be
-    singular) and the min, for a stack P (..., n, n) with mu (..., m). A Hessian that is not finite gives K = nan."""
-    BPB = B.T @ P @ B
-    H = (BPB * mu[..., None, :]) * mu[..., :, None]
-    diagonal = np.arange(B.shape[1])
-    H[..., diagonal, diagonal] += mu * (1.0 - mu) * BPB[..., diagonal, diagonal]
-    rhs = np.swapaxes(B * mu[..., None, :], -1, -2) @ P @ A
-    finite = np.all(np.isfinite(H), axis=(-2, -1))
-    K = np.full(rhs.shape, np.nan)
-    # pinv with lstsq's cutoff (singular values <= eps max(m, m) s_max are zero): the same minimum-norm solution
-    K[finite] = np.linalg.pinv(H[finite], rcond=np.finfo(float).eps * B.shape[1]) @ rhs[finite]
-    R = A.T @ P @ A - np.swapaxes(rhs, -1, -2) @ K
-    return K, 0.5 * (R + np.swapaxes(R, -1, -2))
+    singular) and the min, for a stack P (..., n, n) with mu (..., m): Theorem 1's step
+    (:func:`~packetloss_cvx.recursion.riccati_step`) with no weights, the loss variance weighted by P, the Hessian
+    solved by least squares. A Hessian that is not finite gives K = nan."""
+    lead = P.shape[:-2]
+    P2, mu2 = P.reshape(-1, *P.shape[-2:]), np.broadcast_to(mu, (*lead, B.shape[1])).reshape(-1, B.shape[1])
+    K, R = riccati_step(P2, A, B, mu2, np.zeros_like(mu2), variance=True, least_squares=True)
+    return K.reshape(*lead, *K.shape[1:]), R.reshape(P.shape)
 
 
 def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
