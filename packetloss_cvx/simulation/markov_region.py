@@ -46,12 +46,13 @@ from ..errors import InputError, NumericalError
 from ..markov.mjls import mean_square_radius as mjls_radius
 from ..markov.mjls import mode_chain
 from ..recursion import riccati_step
-from ..results.region import Membership
-from ..tolerances import CERTIFICATE_RTOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
+from ..results.region import CriticalPoint, Membership
+from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
+from .critical import critical_point
 from .stability import is_mean_square_stable
 
-__all__ = ["chain_at_rate", "chain_certificate_margin", "chain_membership", "chain_rate_map",
-           "homogeneous_coupled_riccati"]
+__all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "chain_membership", "chain_rate_map",
+           "critical_rate_unproved", "homogeneous_coupled_riccati"]
 
 #: the power iteration's shift (as simulation.region: removes a peripheral spectrum)
 _SHIFT = 0.1
@@ -260,3 +261,65 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, 
             if found.verdict != "undecided":
                 stable[r, c] = 1.0 if found.verdict == "stable" else 0.0
     return stable, lam
+
+
+def critical_rate_unproved(channel: GilbertElliott) -> str | None:
+    """Why no critical mean rate is offered behind ``channel`` (None where the region is proved monotone in the
+    mean rates at fixed burstiness: every channel with ``h_bad = 0`` and burstiness ``lambda_i >= 0``;
+    docs/design.md, "The critical mean rate behind a chain"). O(m).
+
+    >>> critical_rate_unproved(GilbertElliott(p=[0.1], r=[0.3])) is None
+    True
+    >>> critical_rate_unproved(GilbertElliott(p=[0.6], r=[0.7]))[:40]
+    'monotonicity in the mean rate is proved '
+    """
+    bad = [i + 1 for i in range(channel.m) if channel.h_bad[i] != 0.0 or channel.correlation[i] < 0.0]
+    if not bad:
+        return None
+    return ("monotonicity in the mean rate is proved for channels with h_bad = 0 and burstiness >= 0 only (a "
+            f"thinning of the chain); channel(s) {bad} are outside it, so no bisection is offered (the rate map "
+            "--grid K still answers point by point)")
+
+
+def chain_critical_rate(system, direction: npt.ArrayLike | None = None, tol: float = CRITICAL_MU_TOL,
+                        delivery: str = "next") -> CriticalPoint:
+    """The least ``t`` with mean rates ``t * direction`` (burstiness and h kept, :func:`chain_at_rate`) at which some
+    mode-dependent law stabilises the loop behind the system's chain: :func:`~.critical.critical_point`'s bisection
+    on decided points, the upper end with stabilising mode gains, the lower end with an infeasibility certificate,
+    so the exact critical rate lies in ``[lower, t]``. Offered only where the region is proved monotone along the
+    ray (:func:`critical_rate_unproved`). ``direction`` nonnegative, not all zero (default all ones); t runs to
+    ``min_i h_good_i / direction_i``. Time O(log2(1 / tol)) chain memberships.
+
+    Raises
+    ------
+    InputError
+        No Gilbert-Elliott channel, a bad direction, or a chain outside the proof (the reason).
+    NumericalError
+        The ray's end or mu = 0 undecided, or no point of a bracket wider than ``tol`` decidable.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model import System
+    >>> s = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.4], r=[0.4]))     # one state, a Gilbert channel: iff r > 1 - 1/a^2
+    >>> point = chain_critical_rate(s)               # burstiness 0.2 kept: r = 0.8 rate, so rate > (5/9) / 0.8
+    >>> bool(point.lower <= 25 / 36 <= point.t <= point.lower + 1e-6), point.inside.verdict, point.outside.verdict
+    (True, 'stable', 'unstable')
+    """
+    channel = system.channel
+    if not isinstance(channel, GilbertElliott):
+        raise InputError("channel", "expected a system with a Gilbert-Elliott channel")
+    _check_delivery(delivery)
+    reason = critical_rate_unproved(channel)
+    if reason is not None:
+        raise InputError("channel", reason)
+    d = np.ones(channel.m) if direction is None else np.asarray(direction, dtype=float).reshape(-1)
+    if d.shape != (channel.m,) or not np.all(np.isfinite(d)) or np.any(d < 0) or not np.any(d > 0):
+        raise InputError("direction", f"expected {channel.m} nonnegative numbers, not all zero")
+    A, B = np.asarray(system.A, dtype=float), np.asarray(system.B, dtype=float)
+    end = float(np.min(channel.h_good[d > 0] / d[d > 0]))
+
+    def decide(rate: np.ndarray) -> Membership:
+        return chain_membership(A, B, chain_at_rate(channel, np.minimum(rate, channel.h_good)), delivery)
+
+    return critical_point(system, "dp", d, tol, decide=decide, end=end)
