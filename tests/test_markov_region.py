@@ -161,3 +161,18 @@ def test_no_critical_mean_rate_where_monotonicity_is_not_proved():
         assert critical_rate_unproved(ch) is not None
         with pytest.raises(InputError, match="h_bad = 0 and burstiness >= 0"):
             chain_critical_rate(s)
+
+
+@pytest.mark.parametrize(("P", "delivery", "expected"), [((0.5, 0.5), "next", 0.2), ((0.9, 0.1), "next", 0.4 / 3 - 1),
+                                                        ((0.0, 1.0), "next", 2.2), ((0.0, 1.0), "current", 2.2),
+                                                        ((0.5, 0.5), "current", -1.0)])
+def test_chain_certificate_margin_is_the_radius_bound_by_hand(P, delivery, expected):
+    """One state a = 2 behind a Gilbert channel (p = 0.3, r = 0.2; modes good, bad), P = (p_g, p_b). "next": the law
+    in mode a is deadbeat when the next state is good, so R(P)_good = p a^2 p_b and R(P)_bad = (1 - r) a^2 p_b;
+    "current": R(P)_good = 0 (delivered now), R(P)_bad = a^2 (r p_g + (1 - r) p_b). The margin is
+    min_a R(P)_a / P_a - 1 over the modes P weighs (hand). The check before (T_a's least eigenvalue over its scale)
+    gives other numbers (planted: fails)."""
+    ch = GilbertElliott(p=[0.3], r=[0.2])
+    P = np.array(P)[:, None, None]
+    margin = chain_certificate_margin(np.array([[2.0]]), np.array([[1.0]]), ch, P, delivery)
+    assert margin == pytest.approx(expected, abs=1e-12)
