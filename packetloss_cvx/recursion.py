@@ -225,7 +225,8 @@ def overflow_error(name: str, protocol: str) -> NumericalError:
 
 
 def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
-                 Omega: np.ndarray | None = None, *, variance: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                 Omega: np.ndarray | None = None, *, variance: bool = False,
+                 least_squares: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """One backward step of Theorem 1's recursion for a batch of k points (a single point is a batch
     of one): the Hessian factor, the gain and the previous cost-to-go (eq:control-laws).
 
@@ -236,6 +237,11 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     :func:`input_weight`). ``variance=True`` adds the loss variance weighted by the cost-to-go itself: the
     closed-loop DP's modified Riccati map (simulation.riccati) and, per mode, the Markov jump system's coupled
     equations (markov.mjls, h = mu). The Hessian of the step is ``M G`` (invertible G even where mu = 0).
+
+    ``least_squares=True`` solves the Hessian ``M G`` itself by its minimum-norm least-squares solution (pinv with
+    lstsq's cutoff, ``eps m s_max``), for the homogeneous maps whose Hessian may be singular (no weights:
+    simulation.region's modified Riccati map, simulation.markov_region's coupled one); a point whose Hessian is not
+    finite gets K = nan. ``P_prev`` is the same expression, ``A'PA - (MB'PA)'K``.
 
     Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), ``Omega`` (n, n) or None.
     Returns ``(K, P_prev)``, (k, m, n) and (k, n, n), P_prev symmetrised. Raises
@@ -269,7 +275,12 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     diagonal += added
     if variance:
         diagonal += (1.0 - mu) * np.diagonal(BPB, axis1=1, axis2=2)
-    if k == 1:                                   # one point: LAPACK's gesv without the stacked wrapper
+    if least_squares:                            # H = M G, possibly singular: the minimum-norm solution of H K = M B'PA
+        H = G * mu[:, :, None]
+        finite = np.all(np.isfinite(H), axis=(-2, -1))
+        K = np.full(rhs.shape, np.nan)
+        K[finite] = np.linalg.pinv(H[finite], rcond=np.finfo(float).eps * m) @ (rhs[finite] * mu[finite, :, None])
+    elif k == 1:                                   # one point: LAPACK's gesv without the stacked wrapper
         _, _, K, info = lapack_dgesv()(G[0], rhs[0])
         if info != 0:
             raise np.linalg.LinAlgError("singular G")

@@ -235,14 +235,21 @@ __all__ += ["QP_RESCALE_BELOW"]
 #: QP is scaled again by its first value and re-solved (the minimiser does not change), so that v is O(1)
 #: and the relative criterion governs. A value still below it after the passes raises NumericalError.
 QP_RESCALE_BELOW = max(CLARABEL_TIGHT["tol_gap_abs"], CLARABEL_TIGHT["tol_gap_rel"]) / CROSS_CHECK_COST_RTOL
-__all__ += ["CERTIFICATE_RTOL", "HOMOGENEOUS_RICCATI_MAX_ITER"]
+__all__ += ["CERTIFICATE_KERNEL_RTOL", "CERTIFICATE_RTOL", "HOMOGENEOUS_RICCATI_MAX_ITER"]
 
-#: An infeasibility certificate P of the stabilisable set (simulation/region.py) is accepted when the least
-#: eigenvalue of T_mu(P) is >= -CERTIFICATE_RTOL times its scale (||A'PA|| + ||P|| + ||B'PB||). Measured at the
-#: exact boundary with the homogeneous Riccati eigenvector (scalar a = 2, decoupled (2, 1.5) and (3, 1.2, 0.5),
-#: one state with two channels): 0 to -2.1e-15 (-5.5e-14 from the power iteration alone); 1e-9 inside S the
-#: same P gives -8e-11 to -1.3e-10 (refused).
+#: An infeasibility certificate P of the stabilisable set (simulation/region.py) is accepted when the bound it proves
+#: on every law's mean-square radius, the largest c with R(P) >= c P (R the homogeneous Riccati map, computed as a
+#: least-squares residual), is >= 1 - CERTIFICATE_RTOL: a band on the radius (until session 28 on the least
+#: eigenvalue of T_mu(P) over ||A'PA|| + ||P|| + ||B'PB||, which shrinks like 1 / ||K||^2 with the gain and passed a
+#: P from 1e-6 inside S where the gains were about 600). Measured at the exact boundary with the homogeneous Riccati
+#: eigenvector (scalar a = 2, decoupled (2, 1.5) and (3, 1.2, 0.5), one state with two channels): c - 1 from -6.7e-16
+#: to +4.4e-16; 1e-9 inside S -1.4e-9 to -4e-9 (refused), as an inside certificate needs rho < 1 - 1e-9.
 CERTIFICATE_RTOL = 1e-12
+#: In that bound the directions P does not weigh (its eigenvalues at or below n eps max) are minimised out; one that
+#: R's factor F maps to at most CERTIFICATE_KERNEL_RTOL ||F|| counts as no direction: rounding (a rank-one P whose
+#: eigenvector is tilted by 5e-14 relative, random plant seed 2 of tests/test_region.py, had left c = 1.3e-8 where
+#: it is 3.26; the tilt is far below any direction a law could use).
+CERTIFICATE_KERNEL_RTOL = 1e-10
 #: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
 #: many steps (below it, 30 steps and then a policy iteration); its answer is a candidate, checked either way.
 HOMOGENEOUS_RICCATI_MAX_ITER = 5000

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from packetloss_cvx import System
+from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
 from packetloss_cvx.io import save_system
 
@@ -76,7 +77,7 @@ def test_region_maps_a_gilbert_elliott_file_over_its_mean_rates(capsys, tmp_path
     data = json.loads(capsys.readouterr().out)["dp"]
     assert data["verdict"] == "stable" and data["radius"] < 1 and data["lambda"] == pytest.approx(data["radius"])
     assert data["grid"]["axis"] == [0.0, 0.5, 1.0] and data["grid"]["stable"] == [[False, False, True]]
-    for argv, flag in ((["--law", "tcp"], "--law"), (["--direction", "1"], "--direction")):
+    for argv, flag in ((["--law", "tcp"], "--law"), (["--direction", "-1"], "--direction")):
         assert main(["region", "pendulum_bursty", *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and flag in err[0]
@@ -108,3 +109,22 @@ def test_region_all_laws_leaves_out_a_missing_fixed_law_with_a_note(capsys, tmp_
     assert "fixed" not in data and set(data) >= {"dp", "tcp", "udp"}
     assert all(data[law]["critical_mu"] is None and data[law]["t"] is None for law in ("dp", "tcp", "udp"))
     assert len(data["notes"]) == 1 and "'fixed' left out" in data["notes"][0]
+
+
+def test_region_gives_the_critical_mean_rate_behind_a_chain_where_it_is_proved(capsys, tmp_path):
+    """A one-state plant behind a Gilbert channel (h_bad = 0, burstiness 0.2): stabilisable iff r > 1 - 1/a^2, and
+    r = 0.8 rate at this burstiness, so the critical mean rate is (5/9) / 0.8 = 25/36 (hand), bracketed to 1e-6;
+    with h_bad > 0 no bisection is offered: critical_mu null and the reason (the monotonicity is not proved there)."""
+    s = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+               channel=GilbertElliott(p=[0.4], r=[0.4]))
+    path = str(save_system(s, tmp_path / "gilbert.toml"))
+    assert main(["region", path, "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)["dp"]
+    assert data["lower"] <= 25 / 36 <= data["t"] <= data["lower"] + 1e-6
+    assert data["critical_mu"] == [data["t"]] and data["direction"] == [1.0]
+    fractional = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                        channel=GilbertElliott(p=[0.4], r=[0.4], h_good=[0.9], h_bad=[0.1]))
+    path = str(save_system(fractional, tmp_path / "fractional.toml"))
+    assert main(["region", path, "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)["dp"]
+    assert data["critical_mu"] is None and data["t"] is None and "h_bad = 0" in data["critical_mu_reason"]

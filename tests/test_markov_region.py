@@ -13,8 +13,10 @@ from packetloss_cvx.model import System
 from packetloss_cvx.simulation.markov_region import (
     chain_at_rate,
     chain_certificate_margin,
+    chain_critical_rate,
     chain_membership,
     chain_rate_map,
+    critical_rate_unproved,
 )
 from packetloss_cvx.simulation.region import membership
 
@@ -120,3 +122,57 @@ def test_rate_map_of_a_memoryless_chain_is_the_bernoulli_map(two_actuator):
     assert np.all(np.diff(stable, axis=1) >= 0)
     assert np.all(np.diff(stable, axis=0) >= 0)
     assert np.all((lam < 1) == (stable == 1.0))
+
+
+@pytest.mark.parametrize(("a", "corr", "d"), [((1.5, 1.2), (0.2, 0.6), (1.0, 1.0)),
+                                              ((2.0, 1.1), (0.0, 0.9), (1.0, 0.3)),
+                                              ((1.3, 3.0), (0.5, 0.1), (0.0, 1.0))])
+def test_critical_mean_rate_of_a_decoupled_plant_is_its_worst_channel(a, corr, d):
+    """diag(a), B = I behind two Gilbert channels (h_good = 1, h_bad = 0) with burstiness lambda_i kept: block i is
+    stabilisable iff r_i = rate_i (1 - lambda_i) > 1 - 1/a_i^2 (hand: deadbeat when good, x+ = a x when bad), so
+    along rates t d the critical t is max_i (1 - 1/a_i^2) / ((1 - lambda_i) d_i) (inf past the ray's end
+    min_i 1 / d_i); both ends carry their certificates, checked here by the coupled radius of sampled gains."""
+    a, corr, d = np.array(a), np.array(corr), np.array(d)
+    ch = chain_at_rate(GilbertElliott(p=(1 - corr) / 2, r=(1 - corr) / 2), [0.5, 0.5])
+    s = System(A=np.diag(a), B=np.eye(2), horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+               x0=[1.0, 1.0], channel=ch)
+    point = chain_critical_rate(s, d)
+    with np.errstate(divide="ignore"):
+        exact = float(np.max(np.where(d > 0, (1 - 1 / a**2) / ((1 - corr) * d), np.where(a > 1, np.inf, 0.0))))
+    end = float(np.min(1 / d[d > 0]))
+    if exact >= end:
+        assert point.t == np.inf and point.outside.verdict == "unstable"
+        return
+    assert point.lower <= exact <= point.t <= point.lower + 1e-6
+    assert point.inside.verdict == "stable" and point.outside.verdict == "unstable"
+    inside = chain_at_rate(ch, point.t * d)
+    assert mjls_radius(s.A, s.B, inside, point.inside.gain, "next") < 1.0
+    outside = chain_at_rate(ch, point.lower * d)
+    rng = np.random.default_rng(0)
+    for K in rng.normal(scale=2.0, size=(50, 4, 2, 2)):
+        assert mjls_radius(s.A, s.B, outside, K, "next") >= 1 - 1e-9
+
+
+def test_no_critical_mean_rate_where_monotonicity_is_not_proved():
+    """h_bad > 0 or negative burstiness: outside the thinning proof (docs/design.md), so no bisection; the guard
+    planted off, the bisection answers here (the test fails)."""
+    for ch in (GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.2]), GilbertElliott(p=[0.6], r=[0.7])):
+        s = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0], channel=ch)
+        assert critical_rate_unproved(ch) is not None
+        with pytest.raises(InputError, match="h_bad = 0 and burstiness >= 0"):
+            chain_critical_rate(s)
+
+
+@pytest.mark.parametrize(("P", "delivery", "expected"), [((0.5, 0.5), "next", 0.2), ((0.9, 0.1), "next", 0.4 / 3 - 1),
+                                                        ((0.0, 1.0), "next", 2.2), ((0.0, 1.0), "current", 2.2),
+                                                        ((0.5, 0.5), "current", -1.0)])
+def test_chain_certificate_margin_is_the_radius_bound_by_hand(P, delivery, expected):
+    """One state a = 2 behind a Gilbert channel (p = 0.3, r = 0.2; modes good, bad), P = (p_g, p_b). "next": the law
+    in mode a is deadbeat when the next state is good, so R(P)_good = p a^2 p_b and R(P)_bad = (1 - r) a^2 p_b;
+    "current": R(P)_good = 0 (delivered now), R(P)_bad = a^2 (r p_g + (1 - r) p_b). The margin is
+    min_a R(P)_a / P_a - 1 over the modes P weighs (hand). The check before (T_a's least eigenvalue over its scale)
+    gives other numbers (planted: fails)."""
+    ch = GilbertElliott(p=[0.3], r=[0.2])
+    P = np.array(P)[:, None, None]
+    margin = chain_certificate_margin(np.array([[2.0]]), np.array([[1.0]]), ch, P, delivery)
+    assert margin == pytest.approx(expected, abs=1e-12)

@@ -300,3 +300,47 @@ def test_a_point_answers_the_same_in_any_batch_below_flat_min():
             np.testing.assert_array_equal(K1[0], K5[k])
             np.testing.assert_array_equal(P1[0], P5[k])
     assert FLAT_MIN > 5
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_least_squares_riccati_step_against_delivery_pattern_enumeration(seed):
+    """The homogeneous step (no weights, loss variance weighted by P, Hessian possibly singular) that
+    simulation.region and simulation.markov_region's "current" convention run through riccati_step: against
+    E_v[(A - BVK)'P(A - BVK)] enumerated over the 2^m delivery patterns (its Hessian and linear term summed pattern
+    by pattern, the minimum-norm minimiser by lstsq, the minimum evaluated as that sum). Points with mu_i in {0, 1}
+    and rank-deficient P make the Hessian singular."""
+    import itertools
+
+    from packetloss_cvx.recursion import riccati_step
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(1, 4)), int(rng.integers(1, 4))
+    A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+    points = []
+    for case in range(6):
+        root = rng.normal(size=(n, n if case % 2 else 1))
+        mu = rng.uniform(size=m)
+        if case >= 2:
+            mu[rng.integers(m)] = float(case % 3 == 0)
+        points.append((root @ root.T, mu))
+    P = np.array([p for p, _ in points])
+    mu = np.array([u for _, u in points])
+    K, R = riccati_step(P, A, B, mu, np.zeros_like(mu), variance=True, least_squares=True)
+    for g, (Pg, mug) in enumerate(points):
+        H, rhs = np.zeros((m, m)), np.zeros((m, n))
+        patterns = []
+        for v in itertools.product([0.0, 1.0], repeat=m):
+            v = np.array(v)
+            prob = float(np.prod(np.where(v == 1, mug, 1 - mug)))
+            BV = B * v
+            H += prob * BV.T @ Pg @ BV
+            rhs += prob * BV.T @ Pg @ A
+            patterns.append((prob, BV))
+        K_ref = np.linalg.lstsq(H, rhs, rcond=None)[0]
+
+        def cost(gain, Pg=Pg, patterns=patterns):
+            return sum(prob * (A - BV @ gain).T @ Pg @ (A - BV @ gain) for prob, BV in patterns)
+
+        scale = max(1.0, float(np.abs(cost(K_ref)).max()), float(np.abs(K_ref).max()) ** 2)
+        assert np.allclose(R[g], cost(K_ref), atol=1e-10 * scale)
+        assert np.allclose(cost(K[g]), cost(K_ref), atol=1e-10 * scale)
+        assert np.allclose(K[g], K_ref, atol=1e-8 * max(1.0, float(np.abs(K_ref).max())))

@@ -119,11 +119,16 @@ def test_a_boundary_point_has_a_gain_inside_and_a_certificate_outside():
 
 
 def test_certificate_margin_is_exact_on_the_scalar_case():
+    """The margin is the radius bound P proves, minus one: scalar R(p) = a^2 (1 - mu) p, so a^2 (1 - mu) - 1 (hand);
+    two channels on one state: a^2 / (1 + s1 + s2) - 1, s_i the odds (design.md)."""
     A, B = np.array([[2.0]]), np.array([[1.0]])
-    for mu in (0.2, 0.5, 0.74):   # least eigenvalue of [[3, -2 mu], [-2 mu, mu]] over 4 + 1 + 1
-        T = np.array([[3.0, -2 * mu], [-2 * mu, mu]])
-        assert certificate_margin(A, B, np.array([mu]), np.eye(1)) == pytest.approx(np.linalg.eigvalsh(T)[0] / 6)
+    for mu in (0.2, 0.5, 0.74, 0.9):
+        assert certificate_margin(A, B, np.array([mu]), np.eye(1)) == pytest.approx(4.0 * (1 - mu) - 1, abs=1e-14)
     assert certificate_margin(A, B, np.array([0.5]), -np.eye(1)) == -np.inf
+    mu = np.array([0.3, 0.6])
+    odds = mu / (1 - mu)
+    margin = certificate_margin(np.array([[np.sqrt(3.0)]]), np.array([[1.0, 0.5]]), mu, np.eye(1))
+    assert margin == pytest.approx(3.0 / (1 + odds.sum()) - 1, abs=1e-14)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -357,3 +362,68 @@ def test_membership_checks_a_given_eigenpair_at_its_own_mu():
     assert membership(s, [0.5], forms=("riccati",), riccati=inside).verdict == "undecided"
     assert membership(s, [0.9], forms=("riccati",), riccati=inside).verdict == "stable"
     assert membership(s, [0.5], forms=("riccati",), riccati=outside).verdict == "unstable"
+
+
+@pytest.mark.parametrize("mu", [[0.9, 1.0], [0.5, 1.0], [0.0, 1.0], [1.0, 0.9], [1.0, 0.0], [1.0, 1.0]])
+def test_least_radius_is_zero_where_one_always_delivered_channel_deadbeats_the_plant(mu):
+    """two_actuator with mu_2 = 1: (A, b_2) is controllable (A_12 = 0.005), so u_2 = -k x with
+    k = (0.35 + 1.03^2 / 0.005, 2.04) makes A - b_2 k nilpotent (trace 0, determinant 0, by hand) and u_1 = 0:
+    L_K(X) = F X F' with F^2 = 0, so min_K rho(L_K) = 0 (not a^2 (1 - mu_1) = 0.106, the channel-1 value); the
+    same by symmetry through b_1 (A_21 = 0.35). The eigenvalue had come out -9e-7 here (planted: the trace of
+    A'PA - A'PBM K fails the sign check)."""
+    s = load_example("two_actuator")
+    A = np.asarray(s.A, float)
+    k2 = np.array([A[1, 0] + A[0, 0] ** 2 / A[0, 1], A[0, 0] + A[1, 1]])
+    F = A - np.outer([0.0, 1.0], k2)
+    assert np.allclose(F @ F, 0.0, atol=1e-9)
+    lam, P, K = homogeneous_riccati(A, np.asarray(s.B, float), np.array(mu))
+    assert 0.0 <= lam <= 1e-12
+
+
+def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lmi():
+    """The "dp" radius grid is min_K rho(L_K) >= 0 (the map had shown -1.2e-9 and -9e-7 at deadbeat points), and
+    at interior points it is bracketed by the LMI form run on the scaled plant A / sqrt(rho) (S_rho = S of
+    A / sqrt(rho), the gain scaled back by sqrt(rho)): infeasible at 0.999 lambda, feasible at 1.001 lambda with
+    a gain whose radius (enumerated over the delivery patterns) is below 1.001 lambda."""
+    from packetloss_cvx.simulation.region_map import region_map
+    s = load_example("two_actuator")
+    result = region_map(s, laws=("dp",), grid=11)
+    radius = result.radius[0]
+    assert np.all(np.isfinite(radius)) and np.all(radius >= 0.0)
+    assert np.all(radius[-1] <= 1e-12) and np.all(radius[:, -1] <= 1e-12)     # mu_2 = 1 or mu_1 = 1: deadbeat
+    A, B = np.asarray(s.A, float), np.asarray(s.B, float)
+    for row, col in [(2, 6), (9, 9), (8, 2), (5, 0)]:
+        mu = np.array([result.axis[col], result.axis[row]])
+        lam = radius[row, col]
+        below = LmiForm(A / np.sqrt(0.999 * lam), B).stabilise(mu)
+        above = LmiForm(A / np.sqrt(1.001 * lam), B).stabilise(mu)
+        assert below[0] < 0 and above[0] > 0
+        assert enumerated_radius(A, B, np.sqrt(1.001 * lam) * above[1], mu) < 1.001 * lam
+    assert "least mean-square radius" in result.to_dict()["dp"]["grid"]["radius_meaning"]
+
+
+def test_least_radius_of_a_decoupled_plant_is_its_worst_block():
+    """diag(a), B = I: min_K rho(L_K) = max_i a_i^2 (1 - mu_i), each block's scalar value (hand)."""
+    a = np.array([2.0, 1.5, 0.5])
+    rng = np.random.default_rng(4)
+    mus = rng.uniform(0.0, 1.0, size=(10, 3))
+    lam, _, _ = homogeneous_riccati(np.diag(a), np.eye(3), mus)
+    assert lam == pytest.approx(np.max(a * a * (1 - mus), axis=1), rel=1e-9)
+
+
+@pytest.mark.parametrize("mu2", [0.075947, 0.0759469])
+def test_membership_with_large_gains_near_the_boundary_decides_instead_of_raising(mu2):
+    """A = [[1.03, 5e-5], [0.35, 1.01]], B = I, mu = (0, mu2) about 1e-6 inside S: the least-radius gain is about
+    620 and its radius 1 - 6e-7 (enumerated). The LMI's certificate there proves only rho >= 1 - 3.5e-6 for every
+    law, but the least eigenvalue of T_mu(P) over its scale shrinks like 1 / ||K||^2 and had passed
+    CERTIFICATE_RTOL: membership raised CrossCheckError (planted: the old check raises at both points). The margin
+    is now the radius bound itself, so the LMI's P is refused and the point is decided by the forms that check."""
+    A, B = np.array([[1.03, 5e-5], [0.35, 1.01]]), np.eye(2)
+    s = System(A=A, B=B, horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0], mu=[0.5, 0.5], x0=[1.0, 1.0])
+    mu = np.array([0.0, mu2])
+    found = membership(s, mu)
+    assert found.verdict == "stable" and dict(found.forms)["lmi"] in ("stable", "undecided")
+    assert np.abs(found.gain).max() > 100
+    assert 1 - 1e-5 < enumerated_radius(A, B, found.gain, mu) < 1.0
+    _, P, _ = LmiForm(A, B).certify(mu)
+    assert -1e-4 < certificate_margin(A, B, mu, P) < -1e-7

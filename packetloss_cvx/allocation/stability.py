@@ -136,7 +136,8 @@ _OUTSIDE = 40.0
 #: how far (relative) beyond the boundary a line search aims: 100 MEAN_SQUARE_MARGIN, so that the point it
 #: proposes is certified rather than undecided (the certificates' tolerances are 1e-9), and no rounding-level
 #: LMI certificate (1e-12 of T's scale, which a large gain stretches) contradicts a point 1e-8 inside: with 10,
-#: two_actuator at rho = 0.5 ended in CrossCheckError (hostile review 2026-11-24)
+#: two_actuator at rho = 0.5 ended in CrossCheckError (hostile review 2026-11-24; since session 28 the certificate's
+#: tolerance is a band on the radius, which a gain no longer stretches, and the aim is kept as the search's margin)
 _AIM = 100 * MEAN_SQUARE_MARGIN
 
 

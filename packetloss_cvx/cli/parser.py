@@ -336,7 +336,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="dp (some linear law: the stabilisable set), the paper's tcp / udp laws re-designed at "
                           "each mu, fixed (the DP gain at the file's mu), or all, e.g. --law dp")
     reg.add_argument("--direction", metavar="D1,..,Dm",
-                     help="the ray mu = t * direction, nonnegative (default: all ones), e.g. --direction 1,0.5")
+                     help="the ray mu = t * direction, nonnegative (default: all ones; behind a Gilbert-Elliott chain "
+                          "the ray of mean rates, burstiness kept), e.g. --direction 1,0.5")
     reg.add_argument("--grid", type=int, metavar="K",
                      help="also a K x K map of two channels on [0, 1], the others at the file's mu (default: none), "
                           "e.g. --grid 51")

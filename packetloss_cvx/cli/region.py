@@ -15,7 +15,13 @@ from ..errors import InputError, NumericalError
 from ..results.region import RegionMap
 from ..runfolder import RunFolder
 from ..safeio import save_figure
-from ..simulation.markov_region import chain_membership, chain_rate_map, homogeneous_coupled_riccati
+from ..simulation.markov_region import (
+    chain_critical_rate,
+    chain_membership,
+    chain_rate_map,
+    critical_rate_unproved,
+    homogeneous_coupled_riccati,
+)
 from ..simulation.region_map import LAWS, region_map
 from ..simulation.riccati import dp_riccati
 from ..studies.output import csv_number
@@ -128,11 +134,18 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
     if args.law not in ("dp", "all"):
         raise InputError("--law", "behind a Gilbert-Elliott chain only 'dp' (some mode-dependent linear law) is "
                                   "mapped; the paper's laws are Bernoulli designs")
-    for flag, value in (("--direction", args.direction), ("--dask", args.dask), ("--workers", args.workers)):
+    for flag, value in (("--dask", args.dask), ("--workers", args.workers)):
         if value is not None:
             raise InputError(flag, "does not apply to a Gilbert-Elliott file (its map is over the mean rates: "
                                    "--grid K)")
     chain = system.channel
+    direction = None
+    if args.direction is not None:
+        direction = floats(args.direction, "--direction")
+        if (len(direction) != system.m or any(not np.isfinite(v) or v < 0 for v in direction)
+                or not any(v > 0 for v in direction)):
+            raise InputError("--direction", f"expected {system.m} nonnegative numbers, not all zero, found "
+                                            f"{args.direction[:60]!r}")
     found = chain_membership(system.A, system.B, chain)
     lam = homogeneous_coupled_riccati(system.A, system.B, chain)[0]
     entry: dict[str, Any] = {"verdict": found.verdict, "lambda": float(lam), "mean_rate": chain.mean_rate.tolist(),
@@ -165,6 +178,7 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                          "lambda": [[float(v) for v in row] for row in lams]}
         lines.append(f"stable share of the rate grid ({stable.size} points, burstiness kept): "
                      f"{100 * float(np.mean(stable == 1.0)):.1f} % ({int(np.isnan(stable).sum())} undecided)")
+    entry.update(_critical_rate(system, direction, lines))      # after the grid's budget: refused before any work
     data: dict[str, Any] = {"dp": entry}
     if args.out is not None:
         with _folder(args) as out:
@@ -198,6 +212,22 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
             data["files"] = [str(p) for p in paths]
             lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
     return CommandResult(data, "\n".join(lines))
+
+
+def _critical_rate(system, direction: list[float] | None, lines: list[str]) -> dict[str, Any]:
+    """The critical mean rates along ``direction`` at the file's burstiness (markov_region.chain_critical_rate),
+    where monotonicity is proved; else ``critical_mu`` null with the reason."""
+    reason = critical_rate_unproved(system.channel)
+    if reason is not None:
+        lines.append(f"  no critical mean rate: {reason}")
+        return {"critical_mu": None, "t": None, "critical_mu_reason": reason}
+    point = chain_critical_rate(system, direction)
+    where = "never, even at the ray's end" if not np.isfinite(point.t) else (
+        f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mean rates {np.round(point.mu, 6).tolist()}")
+    lines.append(f"critical mean rates along direction {point.direction.tolist()} (burstiness kept): {where}")
+    data = point.to_dict()
+    return {"critical_mu": data["critical_mu"], "t": data["t"], "lower": data["lower"],
+            "direction": data["direction"]}
 
 
 def _folder(args: argparse.Namespace) -> contextlib.AbstractContextManager[RunFolder | None]:

@@ -11,7 +11,7 @@ from ..display import fields_html, fields_repr, to_json
 from ..optional import load
 from .base import Frozen, finite_or_none
 
-__all__ = ["CriticalPoint", "Membership", "RegionMap", "StabilityAllocation"]
+__all__ = ["RADIUS_MEANING", "CriticalPoint", "Membership", "RegionMap", "StabilityAllocation"]
 
 
 @dataclass(frozen=True)
@@ -19,7 +19,7 @@ class Membership(Frozen):
     """Is ``mu`` in the stabilisable set S (simulation.region)? ``verdict`` "stable", "unstable" or
     "undecided". "stable" comes with ``gain`` (a K whose second-moment operator has ``radius`` < 1 by
     the margin); "unstable" with ``certificate`` (P >= 0, tr P = 1, and ``T_mu(P) >= 0``: no linear law is
-    mean-square stabilising; ``certificate_margin`` the least eigenvalue of T_mu(P) over its scale).
+    mean-square stabilising; ``certificate_margin`` = c - 1, c the bound P proves on every law's radius).
     ``forms`` pairs each form that was run ("dp", "riccati", "lmi") with its own verdict; the forms that
     decided agree (else CrossCheckError was raised). ``reason``: why undecided."""
 
@@ -84,12 +84,21 @@ class CriticalPoint(Frozen):
                 "outside": None if self.outside is None else self.outside.to_dict()}
 
 
+#: what a region map's ``radius`` grid holds, written into its JSON: the "dp" law's and every other law's
+RADIUS_MEANING = {
+    "dp": "the least mean-square radius over linear laws u = -Kx, min_K rho(L_K) (the homogeneous modified "
+          "Riccati eigenvalue; 0 where a deadbeat law exists, never negative; < 1 iff some law stabilises)",
+    "law": "the mean-square radius rho(L_K) of this law's own gain at each mu (< 1 - 1e-9: proved stable)"}
+
+
 @dataclass(frozen=True)
 class RegionMap(Frozen):
     """Every law's region (simulation.region_map): ``critical`` one CriticalPoint per law along ``direction``;
     with a grid, ``axis`` (K values on [0, 1]) for ``channels`` (I, J; 0-based), the other channels at
     ``base``, and per law (first axis, in ``laws`` order) ``stable`` (1.0, 0.0, nan where undecided) and
-    ``radius``, rows mu_J, columns mu_I. The "dp" radius is min_K rho(L_K), the others their law's own."""
+    ``radius``, rows mu_J, columns mu_I. The "dp" radius is the least mean-square radius over linear laws,
+    min_K rho(L_K) (the homogeneous Riccati eigenvalue: 0 where a deadbeat law exists, never negative; < 1 iff mu
+    is in S), the others the radius of their law's own gain (:data:`RADIUS_MEANING`)."""
 
     laws: tuple[str, ...]
     direction: np.ndarray
@@ -112,7 +121,8 @@ class RegionMap(Frozen):
 
     def to_dict(self) -> dict[str, Any]:
         """Per law: ``critical_mu`` (m numbers, None when t is inf), ``t`` and, with a grid, ``grid``:
-        ``axis``, ``stable`` (true / false / null where undecided), ``radius`` (null where not finite). O(L K^2)."""
+        ``axis``, ``stable`` (true / false / null where undecided), ``radius`` (null where not finite) and
+        ``radius_meaning`` (:data:`RADIUS_MEANING`). O(L K^2)."""
         out: dict[str, Any] = {}
         for k, (law, point) in enumerate(zip(self.laws, self.critical, strict=True)):
             entry = point.to_dict()
@@ -121,7 +131,8 @@ class RegionMap(Frozen):
                 entry["grid"] = {
                     "axis": self.axis.tolist(), "channels": [c + 1 for c in self.channels],
                     "stable": [[None if np.isnan(v) else bool(v) for v in row] for row in self.stable[k]],
-                    "radius": [[finite_or_none(v) for v in row] for row in self.radius[k]]}
+                    "radius": [[finite_or_none(v) for v in row] for row in self.radius[k]],
+                    "radius_meaning": RADIUS_MEANING["dp" if law == "dp" else "law"]}
             out[law] = entry
         return out
 

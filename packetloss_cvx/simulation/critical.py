@@ -79,7 +79,9 @@ def stable_at(system: System, law: str | npt.ArrayLike, mu: np.ndarray) -> bool:
 
 def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLike | None = None,
                    tol: float = CRITICAL_MU_TOL,
-                   stable: Callable[[np.ndarray], bool] | None = None) -> CriticalPoint:
+                   stable: Callable[[np.ndarray], bool] | None = None,
+                   decide: Callable[[np.ndarray], Membership] | None = None,
+                   end: float | None = None) -> CriticalPoint:
     """The boundary of a law's region along ``mu = t * direction``, bracketed by two decided points.
 
     Bisection in t that moves an end only to a decided point (an undecided midpoint is replaced by
@@ -87,7 +89,9 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
     the lower end (for "dp") an infeasibility certificate. For "dp" the region is monotone in mu
     (docs/design.md §2), so the ray meets its boundary once and the bracket holds the exact critical
     point; for another law, stability need not be monotone along the ray and this is one crossing.
-    Time O(log2(1 / tol)) memberships.
+    ``decide`` (mu -> Membership) replaces the law's membership with another region's, monotone along the ray
+    by its own proof (e.g. markov_region's mean rates behind a chain), and ``end`` the ray's end in t (default
+    ``1 / max(direction)``). Time O(log2(1 / tol)) memberships.
 
     Raises
     ------
@@ -108,15 +112,18 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
         raise InputError("tol", f"expected a positive width, found {tol!r}")
     name = law if isinstance(law, str) else "gain"
     lmi = LazyLmi(system.A, system.B)   # built on first use, once for the whole bisection
+    given = decide
 
     def decide(t: float) -> Membership:
         mu = t * d
+        if given is not None:
+            return given(mu)
         if stable is not None:
             verdict = "stable" if stable(mu) else "unstable"
             return Membership(mu, verdict, None, float("nan"), None, float("nan"), (("stable", verdict),))
         return law_membership(system, law, mu, lmi=lmi)
 
-    lo, hi = 0.0, 1.0 / float(d.max())
+    lo, hi = 0.0, (1.0 / float(d.max()) if end is None else float(end))
     top = decide(hi)
     if top.verdict != "stable":
         if top.verdict == "undecided":

@@ -45,12 +45,16 @@ from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError
 from ..markov.mjls import mean_square_radius as mjls_radius
 from ..markov.mjls import mode_chain
-from ..results.region import Membership
-from ..tolerances import CERTIFICATE_RTOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
+from ..recursion import riccati_step
+from ..results.region import CriticalPoint, Membership
+from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
+from .critical import critical_point
+from .region import least_squares_residual, moment_factor, psd_factor, radius_bound
 from .stability import is_mean_square_stable
 
-__all__ = ["chain_at_rate", "chain_certificate_margin", "chain_membership", "chain_rate_map",
-           "homogeneous_coupled_riccati"]
+__all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "chain_membership", "chain_outside",
+           "chain_rate_map",
+           "critical_rate_unproved", "homogeneous_coupled_riccati"]
 
 #: the power iteration's shift (as simulation.region: removes a peripheral spectrum)
 _SHIFT = 0.1
@@ -59,24 +63,23 @@ _LIFT = 1e-6
 
 
 def _step(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str
-          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(K, R(P), F, H)`` per mode a: the quadratic ``L_K^*(P)_a = A'E_aA - 2 A'F_a K_a + K_a' H_a K_a`` (module
-    docstring), its minimiser (least squares: H_a may be singular) and minimum. O(M (M (n^2 m + m^2) + n^3 + m^3))."""
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, R(P))`` per mode a: the quadratic ``L_K^*(P)_a = A'E_aA - 2 A'F_a K_a + K_a' H_a K_a`` (module
+    docstring), its minimiser (least squares: H_a may be singular) and minimum. "current" is, per mode, Theorem 1's
+    step with no weights at ``(E_a, h_a)`` (:func:`~packetloss_cvx.recursion.riccati_step`, least squares: the one
+    kernel markov.mjls's coupled equations run, there with their weights). O(M (M (n^2 m + m^2) + n^3 + m^3))."""
     E = np.einsum("ab,bij->aij", T, P)
     E = 0.5 * (E + E.transpose(0, 2, 1))
+    if delivery == "current":   # deliveries follow mode a, known to the law: per mode the Bernoulli step at (E_a, h_a)
+        return riccati_step(E, A, B, h, np.zeros_like(h), variance=True, least_squares=True)
     BPB = np.einsum("ki,bkl,lj->bij", B, P, B)                     # B'P_bB per mode b
     own = (BPB * h[:, None, :]) * h[:, :, None] + np.einsum("bi,ij->bij", h * (1 - h),
                                                              np.eye(B.shape[1])) * BPB
-    if delivery == "current":                                       # deliveries follow mode a, known to the law
-        BEB = np.einsum("ki,akl,lj->aij", B, E, B)
-        F = np.einsum("aij,jk,ak->aik", E, B, h)
-        H = (BEB * h[:, None, :]) * h[:, :, None] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(B.shape[1])) * BEB
-    else:                                                           # deliveries follow the next mode b
-        F = np.einsum("ab,bij,jk,bk->aik", T, P, B, h)
-        H = np.einsum("ab,bij->aij", T, own)
+    F = np.einsum("ab,bij,jk,bk->aik", T, P, B, h)                  # deliveries follow the next mode b
+    H = np.einsum("ab,bij->aij", T, own)
     K = np.array([np.linalg.lstsq(H[a], F[a].T @ A, rcond=None)[0] for a in range(len(h))])
     R = np.einsum("ji,ajk,kl->ail", A, E, A) - np.einsum("ji,ajk,akl->ail", A, F, K)
-    return K, 0.5 * (R + R.transpose(0, 2, 1)), F, H
+    return K, 0.5 * (R + R.transpose(0, 2, 1))
 
 
 def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next"
@@ -98,7 +101,7 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
     K = np.zeros((M, B.shape[1], n))
     with np.errstate(over="ignore", invalid="ignore"):
         for _ in range(HOMOGENEOUS_RICCATI_MAX_ITER):
-            K, R, _, _ = _step(P, A, B, T, h, delivery)
+            K, R = _step(P, A, B, T, h, delivery)
             lam = float(sum(np.trace(r) for r in R))
             if not (np.isfinite(lam) and lam > 0):
                 break
@@ -107,15 +110,27 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
             P = P_next
             if done:
                 break
-        K, R, _, _ = _step(P, A, B, T, h, delivery)
-    return float(sum(np.trace(r) for r in R)), P, K
+        K, _ = _step(P, A, B, T, h, delivery)
+    # lambda = sum_a tr R(P+)_a / sum_a tr P+_a, a sum of squares: never negative (as simulation.region's)
+    if not np.all(np.isfinite(P)):
+        return float("nan"), P, K
+    L, w = psd_factor(P)
+    total = float(np.sum(w))
+    squares = sum(float(np.sum(F * F)) for F in _riccati_factors(L, A, B, T, h, delivery))
+    return (squares / total if total > 0 else float("nan")), P, K
 
 
 def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray,
                              delivery: str = "next") -> float:
-    """The least eigenvalue over the modes of ``T_a(P) = [[A'E_aA - P_a, -A'F_a], [-F_a'A, H_a]]`` (module
-    docstring) over its scale; ``>= -CERTIFICATE_RTOL`` with P >= 0 proves (to rounding) that no mode-dependent
-    law stabilises. ``-inf`` when P is not PSD or is zero. Time O(M ((n + m)^3 + M n^2 m)).
+    """``c - 1``, c the bound every mode-dependent law's coupled radius meets by the certificate P (M, n, n): the
+    largest c with ``R(P)_a >= c P_a`` for every mode a that P weighs, so ``L_K^*(P) >= c P`` and ``rho(L_K) >= c``
+    for every K (Collatz-Wielandt), i.e. ``T_a(P)`` (module docstring) with ``A'E_aA - cP_a`` in its corner is PSD.
+    ``R(P)_a = F_a'F_a`` is the least-squares residual (region.least_squares_residual) of the factors of
+    ``L_K^*(P)_a``, stacked over the next mode b with weights ``sqrt(T_ab)`` (region.moment_factor at P_b with
+    h_b, "next", or h_a, "current"); each mode's bound is region.radius_bound. ``>= -CERTIFICATE_RTOL`` proves (to
+    rounding) that no mode-dependent law stabilises: a band on the radius, as for Bernoulli losses (the least
+    eigenvalue of T_a over its scale, the check before, shrinks like ``1 / ||K||^2``). ``-inf`` when P is not PSD
+    or is zero. Time O(M (M (n + m) (m + n)^2 + n^3)).
 
     Examples
     --------
@@ -127,19 +142,51 @@ def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertEllio
     _check_delivery(delivery)
     _, T, h = mode_chain(channel)
     P = 0.5 * (P + P.transpose(0, 2, 1))
-    size = max(float(np.linalg.norm(p, 2)) for p in P)
-    if not (size > 0 and np.all(np.isfinite(P))) or min(float(np.linalg.eigvalsh(p)[0]) for p in P) < (
-            -CERTIFICATE_RTOL * size):
+    size = max(float(np.linalg.norm(p, 2)) for p in P) if np.all(np.isfinite(P)) else float("nan")
+    if not size > 0 or min(float(np.linalg.eigvalsh(p)[0]) for p in P) < -CERTIFICATE_RTOL * size:
         return float("-inf")
-    _, _, F, H = _step(P, A, B, T, h, delivery)
-    E = np.einsum("ab,bij->aij", T, P)
-    worst = np.inf
-    for a in range(len(h)):
-        AEA = A.T @ E[a] @ A
-        Ta = np.block([[AEA - P[a], -A.T @ F[a]], [-(A.T @ F[a]).T, H[a]]])
-        scale = max(float(np.linalg.norm(AEA, 2) + np.linalg.norm(P[a], 2) + np.linalg.norm(H[a], 2)), size)
-        worst = min(worst, float(np.linalg.eigvalsh(0.5 * (Ta + Ta.T))[0]) / scale)
-    return worst
+    factors = _riccati_factors(psd_factor(P)[0], A, B, T, h, delivery)
+    worst = min((radius_bound(F, P[a]) for a, F in enumerate(factors) if np.any(P[a])), default=np.inf)
+    return worst - 1.0                                # a mode P does not weigh asks nothing of R(P)_a
+
+
+def _riccati_factors(L: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str
+                     ) -> list[np.ndarray]:
+    """``F_a`` with ``R(P)_a = F_a'F_a`` for ``P_b = L_b L_b'``: the factors of ``L_K^*(P)_a`` stacked over the next
+    mode b (weights ``sqrt(T_ab)``; deliveries h_b, "next", or h_a, "current"), least-squares residual in u.
+    O(M^2 (n + m)(m + n)^2)."""
+    M, n = len(h), A.shape[0]
+    out = []
+    for a in range(M):
+        rates = h if delivery == "next" else np.repeat(h[a][None], M, axis=0)
+        phi_x, phi_u = moment_factor(L, A, B, rates)
+        weight = np.sqrt(T[a])[:, None, None]
+        out.append(least_squares_residual((weight * phi_x).reshape(-1, n), (weight * phi_u).reshape(-1, B.shape[1])))
+    return out
+
+
+def chain_outside(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray, delivery: str
+                  ) -> tuple[float, np.ndarray | None]:
+    """``(margin, certificate)``: P (normalised to ``sum_a tr P_a = 1``) when its margin is ``>= -CERTIFICATE_RTOL``,
+    else P with its eigenvalues below 1e-12, 1e-9, 1e-6 of the largest (over all modes) cut off, the first that
+    checks (each a certificate in its own right: the power iteration leaves rounding weight on modes and blocks of
+    smaller radius); ``(margin of P, None)`` when none does. Time O(4 chain margins)."""
+    P = P / max(float(sum(np.trace(p) for p in P)), np.finfo(float).tiny)
+    margin = chain_certificate_margin(A, B, channel, P, delivery)
+    if margin >= -CERTIFICATE_RTOL:
+        return margin, P
+    w, U = np.linalg.eigh(0.5 * (P + P.transpose(0, 2, 1)))
+    top = float(np.max(w))
+    for cut in (1e-12, 1e-9, 1e-6):
+        kept = w > cut * top
+        if np.all(kept) or not np.any(kept):
+            continue
+        Q = np.einsum("aij,aj,akj->aik", U, np.where(kept, w, 0.0), U)
+        Q = Q / float(sum(np.trace(q) for q in Q))
+        cut_margin = chain_certificate_margin(A, B, channel, Q, delivery)
+        if cut_margin >= -CERTIFICATE_RTOL:
+            return cut_margin, Q
+    return margin, None
 
 
 def _check_delivery(delivery: str) -> None:
@@ -187,10 +234,9 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery:
             if is_mean_square_stable(radius):
                 return Membership(rates, "stable", gains, radius, None, float("nan"), ((form, "stable"),)), lam
     elif lam >= 1.0:
-        margin = chain_certificate_margin(A, B, channel, P / max(float(sum(np.trace(p) for p in P)), 1e-300),
-                                          delivery)
-        if margin >= -CERTIFICATE_RTOL:
-            return Membership(rates, "unstable", None, float("nan"), P, margin, ((form, "unstable"),)), lam
+        margin, certificate = chain_outside(A, B, channel, P, delivery)
+        if certificate is not None:
+            return Membership(rates, "unstable", None, float("nan"), certificate, margin, ((form, "unstable"),)), lam
     return Membership(rates, "undecided", None, float("nan"), None, float("nan"), ((form, "undecided"),),
                       f"the coupled Riccati eigenpair (lambda = {lam:.12g}) gave no certificate that checks (within "
                       "about 1e-9 of the boundary)"), lam
@@ -256,3 +302,65 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, 
             if found.verdict != "undecided":
                 stable[r, c] = 1.0 if found.verdict == "stable" else 0.0
     return stable, lam
+
+
+def critical_rate_unproved(channel: GilbertElliott) -> str | None:
+    """Why no critical mean rate is offered behind ``channel`` (None where the region is proved monotone in the
+    mean rates at fixed burstiness: every channel with ``h_bad = 0`` and burstiness ``lambda_i >= 0``;
+    docs/design.md, "The critical mean rate behind a chain"). O(m).
+
+    >>> critical_rate_unproved(GilbertElliott(p=[0.1], r=[0.3])) is None
+    True
+    >>> critical_rate_unproved(GilbertElliott(p=[0.6], r=[0.7]))[:40]
+    'monotonicity in the mean rate is proved '
+    """
+    bad = [i + 1 for i in range(channel.m) if channel.h_bad[i] != 0.0 or channel.correlation[i] < 0.0]
+    if not bad:
+        return None
+    return ("monotonicity in the mean rate is proved for channels with h_bad = 0 and burstiness >= 0 only (a "
+            f"thinning of the chain); channel(s) {bad} are outside it, so no bisection is offered (the rate map "
+            "--grid K still answers point by point)")
+
+
+def chain_critical_rate(system, direction: npt.ArrayLike | None = None, tol: float = CRITICAL_MU_TOL,
+                        delivery: str = "next") -> CriticalPoint:
+    """The least ``t`` with mean rates ``t * direction`` (burstiness and h kept, :func:`chain_at_rate`) at which some
+    mode-dependent law stabilises the loop behind the system's chain: :func:`~.critical.critical_point`'s bisection
+    on decided points, the upper end with stabilising mode gains, the lower end with an infeasibility certificate,
+    so the exact critical rate lies in ``[lower, t]``. Offered only where the region is proved monotone along the
+    ray (:func:`critical_rate_unproved`). ``direction`` nonnegative, not all zero (default all ones); t runs to
+    ``min_i h_good_i / direction_i``. Time O(log2(1 / tol)) chain memberships.
+
+    Raises
+    ------
+    InputError
+        No Gilbert-Elliott channel, a bad direction, or a chain outside the proof (the reason).
+    NumericalError
+        The ray's end or mu = 0 undecided, or no point of a bracket wider than ``tol`` decidable.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model import System
+    >>> s = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.4], r=[0.4]))     # one state, a Gilbert channel: iff r > 1 - 1/a^2
+    >>> point = chain_critical_rate(s)               # burstiness 0.2 kept: r = 0.8 rate, so rate > (5/9) / 0.8
+    >>> bool(point.lower <= 25 / 36 <= point.t <= point.lower + 1e-6), point.inside.verdict, point.outside.verdict
+    (True, 'stable', 'unstable')
+    """
+    channel = system.channel
+    if not isinstance(channel, GilbertElliott):
+        raise InputError("channel", "expected a system with a Gilbert-Elliott channel")
+    _check_delivery(delivery)
+    reason = critical_rate_unproved(channel)
+    if reason is not None:
+        raise InputError("channel", reason)
+    d = np.ones(channel.m) if direction is None else np.asarray(direction, dtype=float).reshape(-1)
+    if d.shape != (channel.m,) or not np.all(np.isfinite(d)) or np.any(d < 0) or not np.any(d > 0):
+        raise InputError("direction", f"expected {channel.m} nonnegative numbers, not all zero")
+    A, B = np.asarray(system.A, dtype=float), np.asarray(system.B, dtype=float)
+    end = float(np.min(channel.h_good[d > 0] / d[d > 0]))
+
+    def decide(rate: np.ndarray) -> Membership:
+        return chain_membership(A, B, chain_at_rate(channel, np.minimum(rate, channel.h_good)), delivery)
+
+    return critical_point(system, "dp", d, tol, decide=decide, end=end)

@@ -28,8 +28,15 @@ import numpy.typing as npt
 
 from ..errors import CrossCheckError, InputError, NumericalError, SolverError
 from ..model import System
+from ..recursion import riccati_step
 from ..results.region import Membership
-from ..tolerances import CERTIFICATE_RTOL, HOMOGENEOUS_RICCATI_MAX_ITER, KRONECKER_MAX_N, RICCATI_RTOL
+from ..tolerances import (
+    CERTIFICATE_KERNEL_RTOL,
+    CERTIFICATE_RTOL,
+    HOMOGENEOUS_RICCATI_MAX_ITER,
+    KRONECKER_MAX_N,
+    RICCATI_RTOL,
+)
 from .moments import stationary_channel
 from .riccati import dp_riccati
 from .stability import check_law, is_mean_square_stable, mean_square_radius, second_moment_matrix
@@ -86,43 +93,111 @@ class LazyLmi:
 
 
 def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray) -> float:
-    """The least eigenvalue of ``T_mu(P)`` (module docstring) over its scale ``||A'PA|| + ||P|| + ||B'PB||``.
+    """``c - 1``, c the bound every law's mean-square radius meets by the infeasibility certificate P: the largest
+    c with ``R(P) >= c P`` (:func:`radius_bound` of :func:`riccati_factor`; equivalently ``T_mu(P)`` with
+    ``A'PA - cP`` in its corner is PSD), so ``rho(L_K) >= c`` for every K.
 
-    ``P >= 0`` with a margin ``>= -CERTIFICATE_RTOL`` proves (to rounding) that no law stabilises. Time
-    O((n + m)^3). Returns ``-inf`` when P is not PSD to the same tolerance or is zero.
+    ``P >= 0`` with a margin ``>= -CERTIFICATE_RTOL`` proves (to rounding) that no law stabilises: a band on the
+    radius, not on T's scale (the least eigenvalue of ``T_mu(P)`` over its scale, the check before, shrinks like
+    ``1 / ||K||^2`` with the gain, so a P from 1e-6 inside S had passed it where the gains were about 600). Time
+    O((n + m)^3). Returns ``-inf`` when P is not PSD to ``CERTIFICATE_RTOL`` times its norm, is zero or not finite;
+    the bound speaks of P's PSD part.
 
     Examples
     --------
-    >>> A, B = np.array([[2.0]]), np.array([[1.0]])   # T = [[3p, -2p mu], [-2p mu, p mu]]: PSD iff mu <= 3/4
-    >>> [certificate_margin(A, B, np.array([mu]), np.eye(1)) >= 0 for mu in (0.6, 0.9)]
-    [True, False]
+    >>> A, B = np.array([[2.0]]), np.array([[1.0]])   # R(p) = a^2 (1 - mu) p: no law stabilises iff mu <= 3/4
+    >>> [round(certificate_margin(A, B, np.array([mu]), np.eye(1)), 12) for mu in (0.6, 0.9)]
+    [0.6, -0.6]
     """
     P = 0.5 * (P + P.T)
-    size = float(np.linalg.norm(P, 2))
-    if not (size > 0 and np.all(np.isfinite(P))) or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL * size:
+    size = float(np.linalg.norm(P, 2)) if np.all(np.isfinite(P)) else float("nan")
+    if not size > 0 or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL * size:
         return float("-inf")
-    PBM = P @ (B * mu)
-    BPB = B.T @ P @ B
-    corner = (B * mu).T @ PBM + np.diag(mu * (1.0 - mu) * np.diag(BPB))
-    T = np.block([[A.T @ P @ A - P, -A.T @ PBM], [-(A.T @ PBM).T, corner]])
-    scale = float(np.linalg.norm(A.T @ P @ A, 2) + size + np.linalg.norm(BPB, 2))
-    return float(np.linalg.eigvalsh(0.5 * (T + T.T))[0]) / scale
+    L, _ = psd_factor(P)
+    return radius_bound(riccati_factor(L, A, B, mu), P) - 1.0
+
+
+def psd_factor(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(L, w)``: ``P+ = L L'`` the PSD part of a symmetric stack P (..., n, n), its eigenvalues w (ascending) at or
+    below ``n eps max(w)`` taken as zero (so P+ has an exact kernel there), and those eigenvalues ``w`` (..., n) with
+    the dropped ones set to 0; ``L = U diag(sqrt(w))``, its columns the eigenvectors. Time O(n^3) a point."""
+    w, U = np.linalg.eigh(0.5 * (P + np.swapaxes(P, -1, -2)))
+    top = np.max(w, axis=-1, keepdims=True)
+    w = np.where(w > P.shape[-1] * np.finfo(float).eps * np.maximum(top, 0.0), w, 0.0)
+    return U * np.sqrt(w)[..., None, :], w
+
+
+def moment_factor(L: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(Phi_x, Phi_u)`` with ``E[(Ax - BVu)' P (Ax - BVu)] = ||Phi_x x + Phi_u u||^2`` for ``P = L L'`` (stacks:
+    L (..., n, r), mu (..., m); the factors (..., r + m, n) and (..., r + m, m)): the mean and the loss variance of
+    the delivered input, ``c_i = mu_i (1 - mu_i)``,
+
+    .. math:: \\Phi_x = \\begin{bmatrix} L'A \\\\ 0 \\end{bmatrix},\\quad \\Phi_u = \\begin{bmatrix} -L'BM \\\\
+       \\mathrm{diag}(\\sqrt{c_i \\|L'b_i\\|^2}) \\end{bmatrix}.
+
+    Time O(r n (n + m)) a point."""
+    m = B.shape[1]
+    LA, LB = np.swapaxes(L, -1, -2) @ A, np.swapaxes(L, -1, -2) @ B
+    spread = np.sqrt(mu * (1.0 - mu) * np.sum(LB * LB, axis=-2))
+    phi_u = np.concatenate([-LB * mu[..., None, :], spread[..., :, None] * np.eye(m)], axis=-2)
+    phi_x = np.concatenate([LA, np.zeros((*spread.shape, A.shape[0]))], axis=-2)
+    return phi_x, phi_u
+
+
+def least_squares_residual(phi_x: np.ndarray, phi_u: np.ndarray, scale: float = 0.0) -> np.ndarray:
+    """``F = (I - U U') Phi_x``, U the left singular vectors of ``Phi_u`` above lstsq's cutoff (``eps max(k, m)
+    max(s_max, scale)``, the minimum-norm minimiser's; ``scale`` makes columns at rounding level of a larger
+    problem count as zero): ``min_u ||Phi_x x + Phi_u u||^2 = ||F x||^2``, an orthogonal projection, whose error
+    does not grow with the minimising gain as a difference ``A'PA - A'PBM K`` does. Stacks on the leading axes.
+    Time O(k (m + n)^2) a point."""
+    U, sv, _ = np.linalg.svd(phi_u, full_matrices=False)
+    cutoff = np.finfo(float).eps * max(phi_u.shape[-2:]) * np.maximum(sv[..., :1], scale)
+    U = U * (sv > cutoff)[..., None, :]
+    return phi_x - U @ (np.swapaxes(U, -1, -2) @ phi_x)
+
+
+def riccati_factor(L: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """``F`` with ``R(P) = F'F`` for ``P = L L'`` (stacks): the homogeneous modified Riccati map as the
+    least-squares residual of :func:`moment_factor` (``R(P) = min_u E[(Ax - BVu)'P(Ax - BVu)]``), PSD by
+    construction. Time O((r + m)(m + n)^2) a point.
+
+    >>> F = riccati_factor(np.eye(1), np.array([[2.0]]), np.array([[1.0]]), np.array([0.5]))
+    >>> round(float(np.sum(F * F)), 12)             # scalar: R(1) = a^2 (1 - mu)
+    2.0
+    """
+    return least_squares_residual(*moment_factor(L, A, B, mu))
+
+
+def radius_bound(F: np.ndarray, P: np.ndarray) -> float:
+    """The largest c with ``F'F >= c P`` (P PSD, one point): ``min ||F x||^2 / x'Px`` over x with ``Px != 0``. With
+    ``F'F = min_K L_K^*(P)`` this is the Collatz-Wielandt bound ``rho(L_K) >= c`` for every K (``L_K^*(P) >= c P``,
+    ``P >= 0``, ``P != 0``). Eigenvalues of P at or below ``n eps max`` count as its kernel, whose directions are
+    minimised out first (a projection; a kernel direction F maps below ``CERTIFICATE_KERNEL_RTOL ||F||`` is
+    rounding, no direction at all); 0.0 where the support is wider than F's rank. Time O(n^3 + k n^2)."""
+    w, U = np.linalg.eigh(0.5 * (P + P.T))
+    keep = w > P.shape[0] * np.finfo(float).eps * max(float(w[-1]), 0.0)
+    if not np.any(keep):
+        return float("-inf")
+    Y = F @ U
+    support = Y[:, keep]
+    if not np.all(keep):
+        support = least_squares_residual(support, Y[:, ~keep],
+                                         CERTIFICATE_KERNEL_RTOL / np.finfo(float).eps * float(np.linalg.norm(F, 2)))
+    G = support / np.sqrt(w[keep])
+    if G.shape[0] < G.shape[1]:
+        return 0.0
+    return float(np.linalg.svd(G, compute_uv=False)[-1] ** 2)
 
 
 def _homogeneous_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(K, R(P))``: the minimiser of ``L_K^*(P)`` (least squares, the minimum-norm solution: its Hessian may be
-    singular) and the min, for a stack P (..., n, n) with mu (..., m). A Hessian that is not finite gives K = nan."""
-    BPB = B.T @ P @ B
-    H = (BPB * mu[..., None, :]) * mu[..., :, None]
-    diagonal = np.arange(B.shape[1])
-    H[..., diagonal, diagonal] += mu * (1.0 - mu) * BPB[..., diagonal, diagonal]
-    rhs = np.swapaxes(B * mu[..., None, :], -1, -2) @ P @ A
-    finite = np.all(np.isfinite(H), axis=(-2, -1))
-    K = np.full(rhs.shape, np.nan)
-    # pinv with lstsq's cutoff (singular values <= eps max(m, m) s_max are zero): the same minimum-norm solution
-    K[finite] = np.linalg.pinv(H[finite], rcond=np.finfo(float).eps * B.shape[1]) @ rhs[finite]
-    R = A.T @ P @ A - np.swapaxes(rhs, -1, -2) @ K
-    return K, 0.5 * (R + np.swapaxes(R, -1, -2))
+    singular) and the min, for a stack P (..., n, n) with mu (..., m): Theorem 1's step
+    (:func:`~packetloss_cvx.recursion.riccati_step`) with no weights, the loss variance weighted by P, the Hessian
+    solved by least squares. A Hessian that is not finite gives K = nan."""
+    lead = P.shape[:-2]
+    P2, mu2 = P.reshape(-1, *P.shape[-2:]), np.broadcast_to(mu, (*lead, B.shape[1])).reshape(-1, B.shape[1])
+    K, R = riccati_step(P2, A, B, mu2, np.zeros_like(mu2), variance=True, least_squares=True)
+    return K.reshape(*lead, *K.shape[1:]), R.reshape(P.shape)
 
 
 def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -172,9 +247,24 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[f
             active[idx[zero | done]] = False
         if n <= KRONECKER_MAX_N and np.any(active):
             P[active] = _policy_iteration(P[active], A, B, mus[active])
-        K, R = _homogeneous_step(P, A, B, mus)
-    lam = np.trace(R, axis1=-2, axis2=-1)
+        K, _ = _homogeneous_step(P, A, B, mus)
+    lam = _eigenvalue(P, A, B, mus)
     return (float(lam[0]), P[0], K[0]) if single else (lam, P, K)
+
+
+def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """lambda = tr R(P+) / tr P+ at the found eigenvector (P+ its PSD part): a sum of squares over a sum of
+    nonnegative eigenvalues, so it cannot be negative (A'PA - A'PBM K had given -1.2e-9 and -9e-7 where a
+    deadbeat law makes it 0); nan where P is not finite. O(n^3 + (n + m)^3) a point."""
+    lam = np.full(P.shape[0], np.nan)
+    finite = np.all(np.isfinite(P), axis=(-2, -1))
+    if np.any(finite):
+        L, w = psd_factor(P[finite])
+        F = riccati_factor(L, A, B, mu[finite])
+        total = np.sum(w, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lam[finite] = np.where(total > 0, np.sum(F * F, axis=(-2, -1)) / total, np.nan)
+    return lam
 
 
 def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -231,11 +321,33 @@ def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) 
     return ("stable" if is_mean_square_stable(radius) else "undecided"), radius
 
 
-def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None) -> tuple[str, float]:
-    if P is None:
-        return "undecided", float("nan")
-    margin = certificate_margin(A, B, mu, P / max(float(np.trace(P)), np.finfo(float).tiny))
-    return ("unstable" if margin >= -CERTIFICATE_RTOL else "undecided"), margin
+#: relative eigenvalue cuts under which an infeasibility certificate's P is tried again without those directions:
+#: the power iteration leaves weight ~1e-13 on a block whose own radius is below the top one (decoupled (3, 1.2,
+#: 0.5) at the boundary: the bound of P is that block's 0.175, of P cut at 1e-12 exactly 1); each cut P is a
+#: certificate in its own right, checked as any other
+_CUTS = (1e-12, 1e-9, 1e-6)
+
+
+def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None
+             ) -> tuple[str, float, np.ndarray | None]:
+    """"unstable" with the margin and the (possibly cut, :data:`_CUTS`) P that checks, else "undecided"."""
+    if P is None or not np.all(np.isfinite(P)):
+        return "undecided", float("nan"), None
+    P = 0.5 * (P + P.T) / max(float(np.trace(P)), np.finfo(float).tiny)
+    margin = certificate_margin(A, B, mu, P)
+    if margin >= -CERTIFICATE_RTOL:
+        return "unstable", margin, P
+    w, U = np.linalg.eigh(P)
+    for cut in _CUTS:
+        kept = w > cut * w[-1]
+        if np.all(kept) or not np.any(kept):
+            continue
+        Q = (U[:, kept] * w[kept]) @ U[:, kept].T
+        Q = 0.5 * (Q + Q.T) / float(np.trace(Q))
+        cut_margin = certificate_margin(A, B, mu, Q)
+        if cut_margin >= -CERTIFICATE_RTOL:
+            return "unstable", cut_margin, Q
+    return "undecided", margin, None
 
 
 def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str, ...] = FORMS,
@@ -329,7 +441,7 @@ def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray
                 K = _homogeneous_step(P + _LIFT * np.eye(A.shape[0]), A, B, mu)[0]
                 verdict, radius = _inside(A, B, mu, K)
             return verdict, radius, K, None
-        verdict, margin = _outside(A, B, mu, P)
+        verdict, margin, P = _outside(A, B, mu, P)
         return verdict, margin, None, P
     lmi = LazyLmi(A, B) if lmi is None else lmi
     try:
@@ -340,5 +452,5 @@ def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray
         _, P, _ = lmi.certify(mu)
     except SolverError:
         return "undecided", float("nan"), None, None
-    verdict, margin = _outside(A, B, mu, P)
+    verdict, margin, P = _outside(A, B, mu, P)
     return verdict, margin, None, P
