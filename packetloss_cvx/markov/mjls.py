@@ -35,6 +35,7 @@ from ..model import System, check_system
 from ..recursion import riccati_step
 from ..results import MjlsResult
 from ..tolerances import ARPACK_TOL, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from .chain import chain_matrices
 
 __all__ = [
     "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
@@ -93,7 +94,9 @@ def mode_chain(channel: GilbertElliott | MarkovChannel) -> tuple[np.ndarray, np.
 
 
 def mode_start(channel: GilbertElliott | MarkovChannel) -> np.ndarray:
-    """P(mode at the first step) from the channel's initial belief, in :func:`mode_chain`'s order. O(M m).
+    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.markov.chain.chain_matrices`
+    (so a Gilbert–Elliott channel and its two-state twin start from the same bits), in :func:`mode_chain`'s order.
+    O(M m).
 
     Examples
     --------
@@ -101,10 +104,9 @@ def mode_start(channel: GilbertElliott | MarkovChannel) -> np.ndarray:
     [0.25, 0.75, 0.0, 0.0]
     """
     modes = mode_chain(channel)[0]
-    b0 = channel.initial_belief
-    if isinstance(channel, MarkovChannel):
-        return np.prod(b0[np.arange(channel.m), modes], axis=1)
-    return np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
+    states = modes if isinstance(channel, MarkovChannel) else 1 - modes     # Gilbert–Elliott: mode 1 is state 0
+    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]                 # one start per channel, its twin's bits
+    return np.prod([starts[i][states[:, i]] for i in range(channel.m)], axis=0)
 
 
 def _patterns(h: np.ndarray) -> list[tuple[float, np.ndarray]]:
