@@ -25,7 +25,7 @@ from .linalg import solve_checked
 from .model import System, check_system, numeric_array
 from .prediction import Prediction, prediction
 from .protocols import check_protocol
-from .recursion import backward_pass, condition_estimate, mean_trajectory, recursion_cost, udp_variance_weights
+from .recursion import condition_estimate, optimal_plan, recursion_cost, udp_variance_weights
 from .results import Solution
 from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
@@ -399,8 +399,7 @@ def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, f
 
 
 def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
-    K, P0, noise = backward_pass(system, protocol, weights)
-    U, X = mean_trajectory(system, K)
+    K, P0, noise, U, X = optimal_plan(system, protocol, weights)
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise
     scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
