@@ -904,7 +904,7 @@ def main() -> None:
         15: lambda: shared_qps(1 if quick else 3, rows),
         16: lambda: evaluations(args.baseline, rows),
         17: lambda: systems_and_structure(rows),
-        18: lambda: tcp_allocation(args.baseline, rows, 2 if quick else 3),
+        18: lambda: tcp_allocation(args.baseline, rows, 2 if quick else 5),
         19: lambda: stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
