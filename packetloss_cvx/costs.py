@@ -399,13 +399,13 @@ def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, f
 
 
 def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
-    K, P0, noise, U, X = optimal_plan(system, protocol, weights)
+    gain, P0, noise, U, X = optimal_plan(system, protocol, weights)
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise
     scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
     cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
-    return Solution(protocol=protocol, cost=cost, inputs=U, gain=K[0],
-                    closed_loop_eigenvalues=_eigs(system, K[0]), method="recursion")
+    return Solution(protocol=protocol, cost=cost, inputs=U, gain=gain,
+                    closed_loop_eigenvalues=_eigs(system, gain), method="recursion")
 
 
 def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:

@@ -337,10 +337,12 @@ def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndar
     return K, Pm
 
 
-def _backward(system: System, protocol: str, mu: np.ndarray,
-              added: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
+def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
+              copies: bool = True) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
     """:func:`backward_batch`, and the run ``(1, b)`` of steps 1..b-1 whose gains are one copied gain when the
-    pass closed its stationary tail (None otherwise), for the rollout (:func:`_states`) to take as it is."""
+    pass closed its stationary tail (None otherwise), for the rollout (:func:`_states`) to take as it is. With
+    ``copies`` False the run's gains after the first (K[:, 2:b]) are left unwritten, for a caller that reads
+    only K[:, 1] of the run."""
     A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
     P = mu.shape[0]
     K = np.empty((N, P, m, n))
@@ -356,13 +358,12 @@ def _backward(system: System, protocol: str, mu: np.ndarray,
             try:
                 K[t], new = riccati_step(Pm, A, B, mu[:, t], added[:, t], W[t - 1] if t > 0 else None)
                 if settle and t == check and t >= 2:
-                    if head is not None and t > head:
-                        check = head                    # the steps before head differ: nothing closes there
-                    elif not _near(*(drift := _drift(new, Pm))):
-                        excess = _excess(*drift)
-                        check, last = t - _wait(excess, last, t), (t, excess)
-                    else:
-                        check = t - 1
+                    drift = _drift(new, Pm) if head is None or t <= head else None    # before head: none closes
+                    excess = _excess(*drift) if drift is not None else np.nan
+                    check, last = t - _wait(excess, last, t), (t, excess)
+                    if drift is None:
+                        check = head
+                    elif excess <= 1.0 or _near(*drift):
                         q = _contraction(A, B, mu[:, t], K[t]) if q is None else q
                         if _settled(*drift, q):
                             if head is None:
@@ -373,7 +374,8 @@ def _backward(system: System, protocol: str, mu: np.ndarray,
                                 # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more
                                 # step gives the gain of P_t for every step 1..t-1, then step 0 (no Omega)
                                 K[1], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
-                                _repeat_first(K[1:t])
+                                if copies:
+                                    _repeat_first(K[1:t])
                                 K[0], Pm = riccati_step(Pm, A, B, mu[:, 0], added[:, 0], None)
                                 run = (1, t)
                                 break
@@ -392,15 +394,19 @@ MAX_WAIT = 8
 
 def _wait(excess: float, last: tuple[int, float] | None, t: int) -> int:
     """How many steps a backward pass may go before weighing its drift again (1 to MAX_WAIT): the steps until
-    ``excess`` (the largest change over :func:`_near`'s bound), shrinking by the factor per step seen since the
-    ``last`` weighing (step, excess), reaches 1. A pass that settles faster than that closes the few steps
-    later; one that does not shrink is weighed every step. O(1)."""
-    if last is None or not 1.0 < excess < math.inf or not 0.0 < last[1] < math.inf:
+    ``excess`` (the largest change over :func:`_near`'s bound), shrinking by the factor f per step seen since the
+    ``last`` weighing (step, excess), meets the closing bound of :func:`_settled` with f for the contraction
+    (``(1 - f) / (100 f)`` in units of the near bound). A pass that settles faster than that closes the few
+    steps later; one that does not shrink is weighed every step. O(1)."""
+    if last is None or not 0.0 < excess < math.inf or not 0.0 < last[1] < math.inf:
         return 1
     factor = (excess / last[1]) ** (1.0 / (last[0] - t))
     if not 0.0 < factor < 1.0:
         return 1
-    return int(min(MAX_WAIT, max(1.0, math.floor(math.log(excess) / -math.log(factor)))))
+    target = (1.0 - factor) / (100.0 * factor)
+    if excess <= target:
+        return 1
+    return int(min(MAX_WAIT, max(1.0, math.floor(math.log(excess / target) / -math.log(factor)))))
 
 
 def _excess(change: np.ndarray, size: np.ndarray) -> float:
@@ -451,8 +457,8 @@ def backward_pass(system: System, protocol: str,
     return K, P0, noise
 
 
-def _one_point_backward(system: System, protocol: str, weights: tuple[np.ndarray, float] | None
-                        ) -> tuple[np.ndarray, np.ndarray, float, tuple[int, int] | None]:
+def _one_point_backward(system: System, protocol: str, weights: tuple[np.ndarray, float] | None,
+                        copies: bool = True) -> tuple[np.ndarray, np.ndarray, float, tuple[int, int] | None]:
     """:func:`backward_pass`, and the run of copied gains its stationary tail closed (:func:`_backward`)."""
     protocol = check_protocol(protocol)
     d, noise = udp_variance_weights(system) if weights is None else weights
@@ -460,28 +466,32 @@ def _one_point_backward(system: System, protocol: str, weights: tuple[np.ndarray
     if protocol == "udp":
         _finite("diag(Omega_g)", d[mu < 1.0], protocol)
     _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
-    K, P0, run = _backward(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None])
+    K, P0, run = _backward(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None], copies)
     return K[0], P0[0], noise, run
 
 
 def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
-    """:func:`backward_pass` then :func:`mean_trajectory`: ``(K, P0, noise, U, X)``, the rollout taking the run
-    of one gain that the backward pass closed (its stationary tail) as it is, instead of searching K for it.
-    Time O(N (n^3 + m^3)) without a stationary tail; with one that settles in L steps, O(L (n^3 + m^3)) for
-    the pass plus O(N n (n + m)) of memory-bound work for the gains, the plan and its states.
+    """:func:`backward_pass` then :func:`mean_trajectory`: ``(K0, P0, noise, U, X)`` with K0 = K[0], the
+    receding-horizon gain (the whole K is not kept: a closed stationary tail's copies of one gain are not
+    written), the rollout taking the run of one gain that the backward pass closed as it is, instead of
+    searching K for it. Time O(N (n^3 + m^3)) without a stationary tail; with one that settles in L steps,
+    O(L (n^3 + m^3)) for the pass plus O(N n (n + m)) of memory-bound work for the plan and its states.
 
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-    >>> K, P0, noise, U, X = optimal_plan(s, "udp")       # backward_pass's example, rolled out
-    >>> float(P0[0, 0]), U.tolist(), X.ravel().tolist()
-    (0.75, [[-0.5]], [1.0, 0.75])
+    >>> K0, P0, noise, U, X = optimal_plan(s, "udp")       # backward_pass's example, rolled out
+    >>> float(K0[0, 0]), float(P0[0, 0]), U.tolist(), X.ravel().tolist()
+    (0.5, 0.75, [[-0.5]], [1.0, 0.75])
     """
-    K, P0, noise, run = _one_point_backward(system, protocol, weights)
+    K, P0, noise, run = _one_point_backward(system, protocol, weights, copies=False)
+    if run is not None and _by_powers(system, run) is None:      # step by step: every gain of the run is read
+        _repeat_first(K[run[0]:run[1]])
+        run = None
     U = np.empty((1, system.horizon, system.m))
-    X = _states(system, system.mu_schedule[None], U, system.x0[None], K[None], run)
-    return K, P0, noise, U[0], np.concatenate([system.x0[None], X[0]])
+    X = _states(system, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
+    return K[0], P0, noise, U[0], X[0]
 
 
 def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -560,21 +570,29 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
     [0.0, 1.0]
     """
     run = _gain_run(mu, K) if K is not None and system.horizon >= 2 * STATIONARY_RUN else None
-    return _states(system, mu, U, x, K, run)
+    return _states(system, mu, U, x, K, _by_powers(system, run))
+
+
+def _by_powers(system: System, run: tuple[int, int] | None) -> tuple[int, int] | None:
+    """``run`` where it may be rolled out by powers of its closed loop: where A is stable (rho(A) < 1). An
+    unstable A would amplify, in a plan rolled forward again (expected_cost of the plan), the rounding by which
+    powers differ from steps: there the rollout stays step by step, to the bit (None). O(n^3)."""
+    return run if run is not None and _radius(system.A) < 1.0 else None
 
 
 def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
-            run: tuple[int, int] | None) -> np.ndarray:
-    """:func:`mean_states` with the run ``(1, b)`` of one gain and channel already known (None: none). After the
-    run, a state that is exactly zero at every point (a stable closed loop underflows after some hundreds of
-    steps) stays zero under any finite gains: the rest of the plan and its states are zeros, as the steps give
-    them (to the sign of zero)."""
+            run: tuple[int, int] | None, start: bool = False) -> np.ndarray:
+    """:func:`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
+    vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state that is exactly zero at every point (a stable closed loop
+    underflows after some hundreds of steps) stays zero under any finite gains: the rest of the plan and its
+    states are zeros, as the steps give them (to the sign of zero). ``start``: return x_0..x_N (P, N + 1, n)."""
     AT, BT, N = system.A.T, system.B.T, system.horizon
-    X = np.empty((U.shape[0], N, system.n))
-    if run is not None and not _radius(system.A) < 1.0:
-        # an unstable A would amplify, in a plan rolled forward again (expected_cost of the plan), the
-        # rounding by which powers differ from steps: there the rollout stays step by step, to the bit
-        run = None
+    if start:
+        full = np.empty((U.shape[0], N + 1, system.n))
+        full[:, 0] = x
+        X = full[:, 1:]
+    else:
+        X = np.empty((U.shape[0], N, system.n))
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):     # callers check finiteness
         state = x
         t = 0
@@ -591,7 +609,7 @@ def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.
                 U[:, t] = -np.matmul(K[:, t], state[:, :, None])[:, :, 0]
             state = X[:, t] = state @ AT + (mu[:, t] * U[:, t]) @ BT
             t += 1
-    return X
+    return full if start else X
 
 
 def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:

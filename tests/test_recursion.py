@@ -238,21 +238,25 @@ def test_time_varying_data_keep_the_full_pass(monkeypatch, which):
 def test_optimal_plan_is_the_backward_pass_rolled_out(monkeypatch):
     """optimal_plan (the rollout told where the closed run of one gain is) gives the floats of backward_pass then
     mean_trajectory (which search K for that run), with and without a closed tail; and with the closure switched
-    off the same plan to 1e-12 (full pass, every step rolled out one by one)."""
+    off the same plan to 1e-12 (full pass, every step rolled out one by one). An unstable A (its closed tail rolled
+    out step by step) included."""
     from packetloss_cvx.io import system_from_dict
     from packetloss_cvx.recursion import backward_pass, mean_trajectory, optimal_plan
 
-    for s in (_long(8, 4000).with_mu([1.0, 1.0]), _long(9, 3000).with_mu([0.8, 0.4]), _long(10, 200)):
+    unstable = random_system(np.random.default_rng(12), n=3, m=2, horizon=600, spectral_radius=1.05,
+                             full_weights=True, time_varying=False, non_stationary=False, edge_mu=False)
+    for s in (_long(8, 4000).with_mu([1.0, 1.0]), _long(9, 3000).with_mu([0.8, 0.4]), _long(10, 200),
+              unstable.with_mu([0.9, 0.9])):                   # rolled out step by step: every gain read
         for protocol in PROTOCOLS:
-            K, P0, noise, U, X = optimal_plan(s, protocol)
+            K0, P0, noise, U, X = optimal_plan(s, protocol)
             K_ref, P0_ref, noise_ref = backward_pass(s, protocol)
             U_ref, X_ref = mean_trajectory(s, K_ref)
-            np.testing.assert_array_equal(K, K_ref)
+            np.testing.assert_array_equal(K0, K_ref[0])
             np.testing.assert_array_equal(P0, P0_ref)
             np.testing.assert_array_equal(U, U_ref)
             np.testing.assert_array_equal(X, X_ref)
             assert noise == noise_ref
-            K_full, P0_full, _, U_full, X_full = _full_pass(
+            _, P0_full, _, U_full, _ = _full_pass(
                 monkeypatch, lambda s=s, protocol=protocol: optimal_plan(system_from_dict(s.to_dict()), protocol))
             np.testing.assert_allclose(P0, P0_full, rtol=1e-12)
             np.testing.assert_allclose(U, U_full, rtol=0, atol=1e-12 * np.abs(U_full).max())
