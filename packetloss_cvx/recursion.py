@@ -583,9 +583,10 @@ def _by_powers(system: System, run: tuple[int, int] | None) -> tuple[int, int] |
 def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
             run: tuple[int, int] | None, start: bool = False) -> np.ndarray:
     """:func:`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
-    vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state that is exactly zero at every point (a stable closed loop
-    underflows after some hundreds of steps) stays zero under any finite gains: the rest of the plan and its
-    states are zeros, as the steps give them (to the sign of zero). ``start``: return x_0..x_N (P, N + 1, n)."""
+    vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state
+    that is exactly zero at every point (a stable closed loop underflows after some hundreds of steps) stays
+    zero under any finite gains: the rest of the plan and its states are zeros, as the steps give them (to the
+    sign of zero). ``start``: return x_0..x_N (P, N + 1, n)."""
     AT, BT, N = system.A.T, system.B.T, system.horizon
     if start:
         full = np.empty((U.shape[0], N + 1, system.n))
