@@ -85,7 +85,10 @@ def _chains():
 
 def dump(path: str) -> None:
     import packetloss_cvx as pl
-    from packetloss_cvx.analysis import cost_difference
+    try:
+        from packetloss_cvx.difference import cost_difference
+    except ImportError:                # before the merge of issue 19
+        from packetloss_cvx.analysis import cost_difference
     from packetloss_cvx.evaluator import CostEvaluator
     from packetloss_cvx.markov.mjls import coupled_riccati, jump_law_stage_costs
     from packetloss_cvx.simulation.riccati import dp_finite_horizon, dp_riccati

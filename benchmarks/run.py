@@ -475,24 +475,26 @@ for name, s in cases:
         start = time.process_time()
         a = pl.allocate(s, "tcp", alpha, beta)
         times.append(time.process_time() - start)
-        answers.append([a.mu.tolist(), a.lower_bound, a.status])
+        answers.append([a.mu.tolist(), a.lower_bound, a.status, float(beta @ a.mu)])
     least_times, least = [], []
     for f in (0.3, 0.1, 0.5, 0.2, 0.4, 0.6):
         start = time.process_time()
         c = min_cost(s, "tcp", constraints=[([[1.0] * s.m], [f * s.m])])
         least_times.append(time.process_time() - start)
-        least.append([c.mu.tolist(), c.lower_bound, c.status])
+        least.append([c.mu.tolist(), c.lower_bound, c.status, c.cost])
     out[name] = {{"times": times, "answers": answers, "min_cost_times": least_times, "min_cost_answers": least}}
 print(json.dumps(out))
 """
 
 
-def tcp_allocation(baseline, rows, rounds: int = 3):
+def tcp_allocation(baseline, rows, rounds: int = 5):
     """TCP-like allocation and min_cost, m = 3, N = 40 (seeds 1-3) and the paper's examples: this checkout
     against ``baseline``, each in fresh processes with one BLAS thread, rounds interleaved; CPU time per
     call (``time.process_time``), the first call of a system (its SOCP compiled) and the median of the
-    five calls after it (re-solved). Same answers: status, mu to 1e-7, and the largest relative
-    difference of the proved lower bounds (both LPs' multipliers are exact to their tolerances only)."""
+    five calls after it (re-solved). The ratio of those medians per round: its median and range over the
+    rounds. Same answers: status, mu to 1e-7, the largest relative difference of the proved lower bounds
+    (both LPs' multipliers are exact to their tolerances only), and whether each answer lies inside the
+    other checkout's certified bounds (value >= the other's lower bound, to 1e-12 relative)."""
     import os
     import subprocess
 
@@ -510,19 +512,26 @@ def tcp_allocation(baseline, rows, rounds: int = 3):
                                  cwd=checkout).stdout
             runs[name].append(json.loads(out.strip().splitlines()[-1]))
     print(f"{'call':<9} {'case':<14} {'before first':>12} {'after first':>12} {'before next':>12} {'after next':>11} "
-          f"{'ratio next':>10}  same status, mu  max rel diff lower bound")
+          f"{'ratio next (range)':>22}  same status, mu  inside bounds  max rel diff lower bound")
     for call, times, answers in (("allocate", "times", "answers"), ("min_cost", "min_cost_times", "min_cost_answers")):
         for case in runs["after"][0]:
             first = {k: statistics.median(r[case][times][0] for r in v) * 1e3 for k, v in runs.items()}
             rest = {k: statistics.median(t for r in v for t in r[case][times][1:]) * 1e3 for k, v in runs.items()}
+            ratios = [statistics.median(b[case][times][1:]) / statistics.median(a[case][times][1:])
+                      for b, a in zip(runs["before"], runs["after"], strict=True)]
             pairs = list(zip(runs["after"][0][case][answers], runs["before"][0][case][answers], strict=True))
             same = all(x[2] == y[2] and np.allclose(x[0], y[0], rtol=0, atol=1e-7) for x, y in pairs)
             bound = max(abs(x[1] - y[1]) / max(abs(y[1]), 1e-12) for x, y in pairs)
+            inside = all(x[2] == y[2] and x[3] >= y[1] * (1 - 1e-12) and y[3] >= x[1] * (1 - 1e-12)
+                         for x, y in pairs)
+            ratio = statistics.median(ratios)
             print(f"{call:<9} {case:<14} {first['before']:>12.1f} {first['after']:>12.1f} {rest['before']:>12.1f} "
-                  f"{rest['after']:>11.1f} {rest['before'] / rest['after']:>9.2f}x  {same!s:>15}  {bound:>10.1e}")
+                  f"{rest['after']:>11.1f} {ratio:>6.2f}x ({min(ratios):.2f}-{max(ratios):.2f})  {same!s:>15}  "
+                  f"{inside!s:>13}  {bound:>10.1e}")
             rows.append({"bench": "tcp_allocation", "call": call, "case": case, "before_first_ms": first["before"],
                          "after_first_ms": first["after"], "before_next_ms": rest["before"],
-                         "after_next_ms": rest["after"], "ratio_next": rest["before"] / rest["after"], "same": same,
+                         "after_next_ms": rest["after"], "ratio_next": ratio, "ratio_next_range": [min(ratios),
+                         max(ratios)], "same": same, "inside_certified_bounds": inside,
                          "lower_bound_max_rel_diff": bound})
 
 
@@ -824,7 +833,7 @@ def stationary_tail(horizons, repeats, rows):
     import packetloss_cvx.recursion as recursion
     from scipy.linalg import solve_discrete_are
 
-    print("\n18. stationary long horizons (issue 19): closed_form(method='recursion'), mu = 1, n = 4, m = 2, vs "
+    print("\n19. stationary long horizons (issue 19): closed_form(method='recursion'), mu = 1, n = 4, m = 2, vs "
           "scipy solve_discrete_are on the same (A, B); CPU ms, min of interleaved runs")
     print(f"{'N':>6} {'proto':>5} {'dare ms':>8} {'closed ms':>10} {'ratio':>6} {'full ms':>8} {'full/closed':>11}"
           f" {'|dJ|/J vs full':>15}")
@@ -865,6 +874,67 @@ def stationary_tail(horizons, repeats, rows):
                          "full_s": f, "ratio_to_dare": c / d, "cost_rel_vs_full": rel})
 
 
+#: One process's stationary long horizon (section 19 with a baseline): closed_form(method="recursion") at mu = 1
+#: on a fresh System per call, against scipy's solve_discrete_are on the same (A, B) repeated back to back (the
+#: second call timed: a warm DARE), alternating, CPU time; the medians.
+STATIONARY_RUN_CODE = """
+import json, statistics, sys, time
+import numpy as np
+from scipy.linalg import solve_discrete_are
+import packetloss_cvx as pl
+data = json.loads(sys.argv[1])
+A, B, q, r, x0 = (np.array(data[k]) for k in ("A", "B", "q", "r", "x0"))
+Q, R = np.diag(q), np.diag(r)
+def fresh():
+    return pl.System(A=A, B=B, horizon=data["N"], state_weight=Q, input_weight=r, mu=[1.0] * B.shape[1], x0=x0)
+pl.closed_form(fresh(), data["protocol"], "recursion")
+dare, closed = [], []
+for _ in range(data["repeats"]):
+    solve_discrete_are(A, B, Q, R)
+    start = time.process_time()
+    solve_discrete_are(A, B, Q, R)
+    dare.append(time.process_time() - start)
+    system = fresh()
+    start = time.process_time()
+    pl.closed_form(system, data["protocol"], "recursion")
+    closed.append(time.process_time() - start)
+print(json.dumps({"dare": statistics.median(dare), "closed": statistics.median(closed)}))
+"""
+
+
+def stationary_rounds(baseline, N, rounds, rows, repeats=21, protocol="tcp"):
+    """Section 19 against a baseline checkout: per round, one fresh process per checkout (interleaved, one BLAS
+    thread) times closed_form at N against a warm DARE (:data:`STATIONARY_RUN_CODE`); the per-round ratio of the
+    medians, its median and range over the rounds."""
+    import os
+    import subprocess
+
+    s = bench_system(N)
+    data = {"A": s.A.tolist(), "B": s.B.tolist(), "q": np.diag(s.state_weights[0]).tolist(),
+            "r": s.input_weights[0].tolist(), "x0": s.x0.tolist(), "N": N, "protocol": protocol}
+    checkouts = {"baseline": Path(baseline).resolve(), "this": Path(__file__).resolve().parent.parent}
+    out: dict[str, list[dict]] = {k: [] for k in checkouts}
+    for _ in range(rounds):
+        for name, checkout in checkouts.items():
+            env = {**os.environ, "PYTHONPATH": str(checkout), "OPENBLAS_NUM_THREADS": "1"}
+            arg = json.dumps({**data, "repeats": repeats if name == "this" else 3})
+            text = subprocess.run([sys.executable, "-c", STATIONARY_RUN_CODE, arg], env=env, check=True,
+                                  capture_output=True, text=True, cwd=checkout).stdout
+            out[name].append(json.loads(text.strip().splitlines()[-1]))
+    print(f"\n   N = {N}, {protocol}, {rounds} interleaved rounds, fresh processes; ratio = median closed_form / "
+          f"median warm DARE of the same process")
+    print(f"   {'checkout':<40} {'warm dare ms':>12} {'closed_form ms':>15} {'ratio median (range)':>22}")
+    for name, checkout in checkouts.items():
+        ratios = [r["closed"] / r["dare"] for r in out[name]]
+        dare = statistics.median(r["dare"] for r in out[name]) * 1e3
+        closed = statistics.median(r["closed"] for r in out[name]) * 1e3
+        print(f"   {str(checkout):<40} {dare:>12.3f} {closed:>15.3f} {statistics.median(ratios):>9.2f}x "
+              f"({min(ratios):.2f}-{max(ratios):.2f})")
+        rows.append({"bench": "stationary_rounds", "checkout": str(checkout), "N": N, "protocol": protocol,
+                     "warm_dare_ms": dare, "closed_ms": closed, "ratio_median": statistics.median(ratios),
+                     "ratio_range": [min(ratios), max(ratios)]})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a minute or two)")
@@ -872,7 +942,7 @@ def main() -> None:
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
     parser.add_argument("--baseline",
-                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18: before/after)")
+                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18, 19: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
@@ -904,8 +974,9 @@ def main() -> None:
         15: lambda: shared_qps(1 if quick else 3, rows),
         16: lambda: evaluations(args.baseline, rows),
         17: lambda: systems_and_structure(rows),
-        18: lambda: tcp_allocation(args.baseline, rows, 2 if quick else 3),
-        19: lambda: stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
+        18: lambda: tcp_allocation(args.baseline, rows, 2 if quick else 5),
+        19: lambda: (stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
+                     args.baseline and stationary_rounds(args.baseline, 10_000, 2 if quick else 5, rows)),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

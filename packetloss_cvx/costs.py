@@ -25,7 +25,7 @@ from .linalg import solve_checked
 from .model import System, check_system, numeric_array
 from .prediction import Prediction, prediction
 from .protocols import check_protocol
-from .recursion import backward_pass, condition_estimate, mean_trajectory, recursion_cost, udp_variance_weights
+from .recursion import condition_estimate, optimal_plan, recursion_cost, udp_variance_weights
 from .results import Solution
 from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
@@ -399,14 +399,13 @@ def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, f
 
 
 def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:
-    K, P0, noise = backward_pass(system, protocol, weights)
-    U, X = mean_trajectory(system, K)
+    gain, P0, noise, U, X = optimal_plan(system, protocol, weights)
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise
     scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
     cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
-    return Solution(protocol=protocol, cost=cost, inputs=U, gain=K[0],
-                    closed_loop_eigenvalues=_eigs(system, K[0]), method="recursion")
+    return Solution(protocol=protocol, cost=cost, inputs=U, gain=gain,
+                    closed_loop_eigenvalues=_eigs(system, gain), method="recursion")
 
 
 def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, float]) -> Solution:

@@ -27,6 +27,8 @@ one-point forms.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import NumericalError
@@ -38,11 +40,12 @@ from .tolerances import STATIONARY_RTOL
 #: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
 VARIANCE_WEIGHTS_KEY = CacheKey("recursion.udp_variance_weights", ("A", "B", "horizon", "state_weights", "noise_cov"))
 CONDITION_KEY = CacheKey("recursion.condition_estimate", ("A", "B", "horizon", "state_weights", "input_weights"))
+WEIGHT_HEAD_KEY = CacheKey("recursion.weight_head", ("horizon", "state_weights"))
 
 __all__ = [
     "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost",
-    "input_weight", "lyapunov_cross_weights", "mean_states", "mean_trajectory", "overflow_error", "recursion_cost",
-    "riccati_step", "rollout_batch", "udp_variance_weights",
+    "input_weight", "lyapunov_cross_weights", "mean_states", "mean_trajectory", "optimal_plan", "overflow_error",
+    "recursion_cost", "riccati_step", "rollout_batch", "udp_variance_weights", "weight_head",
 ]
 
 #: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
@@ -121,7 +124,7 @@ def _lyapunov_weights(system: System, cross: bool = False) -> tuple:
                 new = W[t - 1] + A.T @ S @ A
                 if (settle and (head is None or t - 1 <= head) and _small_change(new, S)
                         and stationary_close(new, S, _radius(A) ** 2)):
-                    head = _leading_run(W[None]) if head is None else head
+                    head = len(weight_head(system)) - 1 if head is None else head
                     if t - 1 <= head:                                     # S_{t-1} = ... = S_0 = new
                         d[:t] = np.einsum("ij,ik,kj->j", B, new, B)
                         if cross:
@@ -132,6 +135,24 @@ def _lyapunov_weights(system: System, cross: bool = False) -> tuple:
                 S = new
     d.setflags(write=False)
     return (d, noise, BSA) if cross else (d, noise)
+
+
+def weight_head(system: System) -> np.ndarray:
+    """The leading state weights equal to the first, ``state_weights[:h + 1]`` (a read-only view; all N for a
+    time-invariant weight). The backward passes close a stationary tail only inside it, and the forward cost
+    weighs every state with one product when it is the whole horizon. Kept on the system structure
+    (:meth:`~packetloss_cvx.model.System.structure_cached`): its O(N n^2) comparison is made once per structure,
+    not once per pass. O(1) after the first call.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weights=[[1.0], [1.0], [2.0]], input_weight=[1.0],
+    ...            mu=[1.0], x0=[1.0])
+    >>> len(weight_head(s)), weight_head(s.with_mu([0.5])) is weight_head(s)    # Omega_1 = Omega_2 != Omega_3
+    (2, True)
+    """
+    W = system.state_weights
+    return system.structure_cached(WEIGHT_HEAD_KEY, lambda: W[:_leading_run(W[None]) + 1])
 
 
 def _small_change(new: np.ndarray, old: np.ndarray) -> bool:
@@ -154,12 +175,26 @@ def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) ->
     >>> stationary_close(np.eye(2), np.eye(2) * (1 + 1e-16), 0.25), stationary_close(np.eye(2), 2 * np.eye(2), 0.25)
     (True, False)
     """
-    q = np.asarray(q, dtype=float)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        change = np.max(np.abs(new - old), axis=(-2, -1))
-        size = np.max(np.abs(new), axis=(-2, -1))
-        ok = (q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)
-    return bool(np.all(ok))
+        return _settled(*_drift(new, old), q)
+
+
+def _drift(new: np.ndarray, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``max |new - old|`` and ``max |new|`` per matrix of a stack: what :func:`stationary_close` weighs (the
+    caller ignores overflow in np.errstate, as the backward passes do). O(P n^2)."""
+    return np.abs(new - old).max(axis=(-2, -1)), np.abs(new).max(axis=(-2, -1))
+
+
+def _near(change: np.ndarray, size: np.ndarray) -> bool:
+    """A necessary condition of :func:`_settled` with a contraction q >= 0.01 (whose geometric factor
+    q / (1 - q) is then at least 1/99): change <= 100 STATIONARY_RTOL size at every point. O(P)."""
+    return bool((change <= 100.0 * STATIONARY_RTOL * size).all())
+
+
+def _settled(change: np.ndarray, size: np.ndarray, q: np.ndarray | float) -> bool:
+    """:func:`stationary_close` of a change and size (:func:`_drift`), in the caller's np.errstate. O(P)."""
+    q = np.asarray(q, dtype=float)
+    return bool(((q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)).all())
 
 
 def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None = None) -> float:
@@ -257,6 +292,8 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     """
     k, n = P.shape[0], A.shape[0]
     m = B.shape[1]
+    if k == 1 and not least_squares:
+        return _one_point_step(P[0], A, B, mu[0], added[0], Omega, variance)
     row = mu[:, None, :]                                                   # mu as a row: G's columns
     matmul = np.matmul
     if k >= FLAT_MIN:
@@ -280,11 +317,6 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
         finite = np.all(np.isfinite(H), axis=(-2, -1))
         K = np.full(rhs.shape, np.nan)
         K[finite] = np.linalg.pinv(H[finite], rcond=np.finfo(float).eps * m) @ (rhs[finite] * mu[finite, :, None])
-    elif k == 1:                                   # one point: LAPACK's gesv without the stacked wrapper
-        _, _, K, info = lapack_dgesv()(G[0], rhs[0])
-        if info != 0:
-            raise np.linalg.LinAlgError("singular G")
-        K = K[None]
     else:
         K = np.linalg.solve(G, rhs)
     P_prev = APA - matmul(rhs.transpose(0, 2, 1) * row, K)
@@ -293,6 +325,32 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     P_prev += P_prev.transpose(0, 2, 1)                                    # numpy buffers the overlap
     P_prev *= 0.5
     return K, P_prev
+
+
+def _one_point_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
+                    Omega: np.ndarray | None, variance: bool) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`riccati_step` for a batch of one, in two-dimensional products and LAPACK's gesv without the
+    stacked wrappers (a long stationary pass is a few dozen of these: 12 against 16 us a step). The same
+    BLAS products in the same order, so the same floats as the batched form (tests/test_recursion.py). O(n^3 + m^3)."""
+    dot = np.dot
+    PB = dot(P, B)
+    BPB = dot(B.T, PB)
+    rhs = dot(PB.T, A)
+    APA = dot(A.T, dot(P, A))
+    G = BPB * mu
+    diagonal = G.reshape(-1)[:: B.shape[1] + 1]                           # a view: G's diagonal
+    diagonal += added
+    if variance:
+        diagonal += (1.0 - mu) * np.diagonal(BPB)
+    _, _, K, info = lapack_dgesv()(G, rhs)
+    if info != 0:
+        raise np.linalg.LinAlgError("singular G")
+    P_prev = APA - dot(rhs.T * mu, K)
+    if Omega is not None:
+        P_prev += Omega
+    P_prev += P_prev.T                                                     # numpy buffers the overlap
+    P_prev *= 0.5
+    return K[None], P_prev[None]
 
 
 def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -308,6 +366,16 @@ def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndar
     >>> K.ravel().tolist(), P0.ravel().tolist()
     ([0.5], [0.5])
     """
+    K, Pm, _ = _backward(system, protocol, mu, added)
+    return K, Pm
+
+
+def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
+              copies: bool = True) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
+    """:func:`backward_batch`, and the run ``(1, b)`` of steps 1..b-1 whose gains are one copied gain when the
+    pass closed its stationary tail (None otherwise), for the rollout (:func:`_states`) to take as it is. With
+    ``copies`` False the run's gains after the first (K[:, 2:b]) are left unwritten, for a caller that reads
+    only K[:, 1] of the run."""
     A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
     P = mu.shape[0]
     K = np.empty((N, P, m, n))
@@ -316,29 +384,78 @@ def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndar
     settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
     head = None                                         # steps 1..head share mu, the added diagonal and Omega
     q = None             # the contraction per step, measured once the iterates are near settling
-    with np.errstate(over="ignore", invalid="ignore"):
+    run = None
+    check, last = N - 9, None                           # the next step whose drift is weighed; the last weighing
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for t in range(N - 1, -1, -1):
             try:
                 K[t], new = riccati_step(Pm, A, B, mu[:, t], added[:, t], W[t - 1] if t > 0 else None)
-                if settle and 2 <= t < N - 8 and (head is None or t <= head) and _small_change(new, Pm):
-                    q = _contraction(A, B, mu[:, t], K[t]) if q is None else q
-                    if stationary_close(new, Pm, q):
-                        if head is None:
-                            head = min(_leading_run(mu[:, 1:]), _leading_run(added[:, 1:]),
-                                       _leading_run(W[None]) + 1)
-                        if t <= head:
-                            # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more step
-                            # gives the gain of P_t for every step 1..t-1, then step 0 (no Omega) as in the full pass
-                            K[1:t], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
-                            K[0], Pm = riccati_step(Pm, A, B, mu[:, 0], added[:, 0], None)
-                            break
+                if settle and t == check and t >= 2:
+                    drift = _drift(new, Pm) if head is None or t <= head else None    # before head: none closes
+                    excess = _excess(*drift) if drift is not None else np.nan
+                    check, last = t - _wait(excess, last, t), (t, excess)
+                    if drift is None:
+                        check = head
+                    elif excess <= 1.0 or _near(*drift):
+                        q = _contraction(A, B, mu[:, t], K[t]) if q is None else q
+                        if _settled(*drift, q):
+                            if head is None:
+                                head = min(_leading_run(mu[:, 1:]), _leading_run(added[:, 1:]),
+                                           len(weight_head(system)))
+                            check = min(t - 1, head)
+                            if t <= head:
+                                # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more
+                                # step gives the gain of P_t for every step 1..t-1, then step 0 (no Omega)
+                                K[1], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
+                                if copies:
+                                    _repeat_first(K[1:t])
+                                K[0], Pm = riccati_step(Pm, A, B, mu[:, 0], added[:, 0], None)
+                                run = (1, t)
+                                break
             except np.linalg.LinAlgError:
                 raise overflow_error("the cost-to-go matrix", protocol) from None
             Pm = new
-    K = K.transpose(1, 0, 2, 3)
-    if not (np.all(np.isfinite(Pm)) and np.all(np.isfinite(K))):
+    computed = (K,) if run is None else (K[:2], K[run[1]:])          # the copies repeat K[1]
+    if not (np.all(np.isfinite(Pm)) and all(np.all(np.isfinite(k)) for k in computed)):
         raise overflow_error("the cost-to-go matrix", protocol)
-    return K, Pm
+    return K.transpose(1, 0, 2, 3), Pm, run
+
+
+#: The most steps a backward pass lets pass between two weighings of its drift (:func:`_wait`).
+MAX_WAIT = 8
+
+
+def _wait(excess: float, last: tuple[int, float] | None, t: int) -> int:
+    """How many steps a backward pass may go before weighing its drift again (1 to MAX_WAIT): the steps until
+    ``excess`` (the largest change over :func:`_near`'s bound), shrinking by the factor f per step seen since the
+    ``last`` weighing (step, excess), meets the closing bound of :func:`_settled` with f for the contraction
+    (``(1 - f) / (100 f)`` in units of the near bound). A pass that settles faster than that closes the few
+    steps later; one that does not shrink is weighed every step. O(1)."""
+    if last is None or not 0.0 < excess < math.inf or not 0.0 < last[1] < math.inf:
+        return 1
+    factor = (excess / last[1]) ** (1.0 / (last[0] - t))
+    if not 0.0 < factor < 1.0:
+        return 1
+    target = (1.0 - factor) / (100.0 * factor)
+    if excess <= target:
+        return 1
+    return int(min(MAX_WAIT, max(1.0, math.floor(math.log(excess / target) / -math.log(factor)))))
+
+
+def _excess(change: np.ndarray, size: np.ndarray) -> float:
+    """The largest ``change / (100 STATIONARY_RTOL size)`` over a batch (:func:`_near` holds where it is <= 1);
+    nan where a size is 0 or not finite. O(P)."""
+    return float((change / (100.0 * STATIONARY_RTOL * size)).max())
+
+
+def _repeat_first(rows: np.ndarray) -> None:
+    """``rows[1:] = rows[0]`` in place by doubling copies of contiguous blocks (log2 L copies of memory instead
+    of L broadcast copies of one small block: 23 against 56 us for 10^4 gains of 2×4). O(L k)."""
+    L, done = rows.shape[0], 1
+    while done < L:
+        step = min(done, L - done)
+        rows[done:done + step] = rows[:step]
+        done += step
 
 
 def _contraction(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) -> np.ndarray:
@@ -369,14 +486,45 @@ def backward_pass(system: System, protocol: str,
     >>> float(K[0, 0, 0]), float(P0[0, 0]), noise
     (0.5, 0.75, 0.0)
     """
+    K, P0, noise, _ = _one_point_backward(system, protocol, weights)
+    return K, P0, noise
+
+
+def _one_point_backward(system: System, protocol: str, weights: tuple[np.ndarray, float] | None,
+                        copies: bool = True) -> tuple[np.ndarray, np.ndarray, float, tuple[int, int] | None]:
+    """:func:`backward_pass`, and the run of copied gains its stationary tail closed (:func:`_backward`)."""
     protocol = check_protocol(protocol)
     d, noise = udp_variance_weights(system) if weights is None else weights
     mu = system.mu_schedule
     if protocol == "udp":
         _finite("diag(Omega_g)", d[mu < 1.0], protocol)
     _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
-    K, P0 = backward_batch(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None])
-    return K[0], P0[0], noise
+    K, P0, run = _backward(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None], copies)
+    return K[0], P0[0], noise, run
+
+
+def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
+    """:func:`backward_pass` then :func:`mean_trajectory`: ``(K0, P0, noise, U, X)`` with K0 = K[0], the
+    receding-horizon gain (the whole K is not kept: a closed stationary tail's copies of one gain are not
+    written), the rollout taking the run of one gain that the backward pass closed as it is, instead of
+    searching K for it. Time O(N (n^3 + m^3)) without a stationary tail; with one that settles in L steps,
+    O(L (n^3 + m^3)) for the pass plus O(N n (n + m)) of memory-bound work for the plan and its states.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> K0, P0, noise, U, X = optimal_plan(s, "udp")       # backward_pass's example, rolled out
+    >>> float(K0[0, 0]), float(P0[0, 0]), U.tolist(), X.ravel().tolist()
+    (0.5, 0.75, [[-0.5]], [1.0, 0.75])
+    """
+    K, P0, noise, run = _one_point_backward(system, protocol, weights, copies=False)
+    if run is not None and _by_powers(system, run) is None:      # step by step: every gain of the run is read
+        _repeat_first(K[run[0]:run[1]])
+        run = None
+    U = np.empty((1, system.horizon, system.m))
+    X = _states(system, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
+    return K[0], P0, noise, U[0], X[0]
 
 
 def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -454,26 +602,48 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
     >>> mean_states(s, np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]])).ravel().tolist()
     [0.0, 1.0]
     """
+    run = _gain_run(mu, K) if K is not None and system.horizon >= 2 * STATIONARY_RUN else None
+    return _states(system, mu, U, x, K, _by_powers(system, run))
+
+
+def _by_powers(system: System, run: tuple[int, int] | None) -> tuple[int, int] | None:
+    """``run`` where it may be rolled out by powers of its closed loop: where A is stable (rho(A) < 1). An
+    unstable A would amplify, in a plan rolled forward again (expected_cost of the plan), the rounding by which
+    powers differ from steps: there the rollout stays step by step, to the bit (None). O(n^3)."""
+    return run if run is not None and _radius(system.A) < 1.0 else None
+
+
+def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
+            run: tuple[int, int] | None, start: bool = False) -> np.ndarray:
+    """:func:`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
+    vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state
+    that is exactly zero at every point (a stable closed loop underflows after some hundreds of steps) stays
+    zero under any finite gains: the rest of the plan and its states are zeros, as the steps give them (to the
+    sign of zero). ``start``: return x_0..x_N (P, N + 1, n)."""
     AT, BT, N = system.A.T, system.B.T, system.horizon
-    X = np.empty((U.shape[0], N, system.n))
-    run = _gain_run(mu, K) if K is not None and N >= 2 * STATIONARY_RUN else None
-    if run is not None and not _radius(system.A) < 1.0:
-        # an unstable A would amplify, in a plan rolled forward again (expected_cost of the plan), the
-        # rounding by which powers differ from steps: there the rollout stays step by step, to the bit
-        run = None
+    if start:
+        full = np.empty((U.shape[0], N + 1, system.n))
+        full[:, 0] = x
+        X = full[:, 1:]
+    else:
+        X = np.empty((U.shape[0], N, system.n))
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):     # callers check finiteness
         state = x
         t = 0
         while t < N:
             if run is not None and t == run[0]:
-                state = _closed_run(system, mu[:, t], K[:, t], state, X, U, *run)
+                state = _closed_run(system, mu[:, t], K[:, t], X, U, *run)
                 t = run[1]
+                if not state.any() and np.all(np.isfinite(K[:, t:])):
+                    U[:, t:] = 0.0
+                    X[:, t:] = 0.0
+                    break
                 continue
             if K is not None:
                 U[:, t] = -np.matmul(K[:, t], state[:, :, None])[:, :, 0]
             state = X[:, t] = state @ AT + (mu[:, t] * U[:, t]) @ BT
             t += 1
-    return X
+    return full if start else X
 
 
 def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
@@ -508,22 +678,27 @@ def _leading_run(values: np.ndarray) -> int:
     return int(np.argmin(same)) if not same.all() else L - 1
 
 
-def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, state: np.ndarray, X: np.ndarray, U: np.ndarray,
+def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
                 a: int, b: int) -> np.ndarray:
-    """Steps a..b-1 of one gain K (P, m, n) and channel mu (P, m) from x_a = ``state`` (P, n): the states
+    """Steps a..b-1 (a >= 1) of one gain K (P, m, n) and channel mu (P, m) from x_a = ``X[:, a - 1]``: the states
     x_a (A - B M K)'^k for k = 1..b-a by repeated squaring (log2(b - a) stacked products; every step is still
-    computed), written into X and U. Returns x_b. O(P (b - a) n^2 + P n^3 log(b - a))."""
+    computed), written into X and U in place. Returns x_b. O(P (b - a) n^2 + P n^3 log(b - a))."""
     L = b - a
     loop = (system.A - np.matmul(system.B * mu[:, None, :], K)).transpose(0, 2, 1)   # (A - B M K)'
-    Y = np.empty((state.shape[0], L + 1, state.shape[1]))
-    Y[:, 0] = state
+    Y = X[:, a - 1:b]                                      # x_a .. x_b, x_a already written
     power, k = loop, 1
     while k < L + 1:                                       # Y[:, k:2k] = Y[:, :k] (A - B M K)'^k
         j = min(k, L + 1 - k)
+        if not power.any() and np.isfinite(Y[:, :k]).all():
+            Y[:, k:] = 0.0                                 # the power underflowed to 0: so does every later state
+            break
         np.matmul(Y[:, :j], power, out=Y[:, k:k + j])
         power, k = np.matmul(power, power), k + j
-    U[:, a:b] = -np.matmul(Y[:, :L], K.transpose(0, 2, 1))
-    X[:, a:b] = Y[:, 1:L + 1]
+    plan = U[:, a:b]
+    rows = min(k, L)                                       # the states from k on are 0, and so is their input
+    np.matmul(Y[:, :rows], np.ascontiguousarray(K.transpose(0, 2, 1)), out=plan[:, :rows])   # BLAS: contiguous
+    np.negative(plan[:, :rows], out=plan[:, :rows])
+    plan[:, rows:] = 0.0
     return Y[:, L]
 
 
@@ -550,7 +725,7 @@ def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, w
         if Omega is not None:
             flat = X.reshape(P, -1)
             states = np.einsum("pk,pk->p", flat @ Omega, flat)
-        elif _constant(system.state_weights[None]):          # one weight for every step: one product
+        elif len(weight_head(system)) == system.horizon:    # one weight for every step: one product
             states = np.einsum("ptj,ptj->p", X @ system.state_weights[0], X)
         else:
             states = np.einsum("ptj,ptj->p", np.einsum("pti,tij->ptj", X, system.state_weights), X)

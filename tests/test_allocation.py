@@ -193,9 +193,10 @@ def test_tcp_program_is_dpp_and_kept_with_the_system_structure():
 
 
 def test_tcp_calls_alternating_on_one_system_answer_as_each_alone():
-    """Re-solves assign every Parameter and run Clarabel cold: a warm re-solve keeps the equilibration of
-    the data it saw first (answers up to 42 % off across systems), so each answer must be exactly the
-    one the call gets in a program of its own, whatever ran before it."""
+    """Re-solves assign every Parameter and run Clarabel on their own data (the first attempt on a kept solver
+    without equilibration, updated; an equilibrated warm re-solve would keep the scaling of the data it saw
+    first, answers up to 42 % off across systems), so each answer must be exactly the one the call gets in a
+    program of its own, whatever ran before it."""
     s, calls = _tcp_case(1)
     expected = [_alone(s, *call) for call in calls]
     for _ in range(2):

@@ -152,7 +152,7 @@ def test_tcp_lower_bound_does_not_rest_on_the_solver_tolerance(two_actuator, mon
     feasibility and the bound (tangent cuts at that point, before the move) is still below the
     brute-force optimum; the status tells whether the requested gap was reached."""
     loose = ({"tol_gap_abs": 1e-3, "tol_gap_rel": 1e-3, "tol_feas": 1e-3, "max_iter": 200},)
-    monkeypatch.setattr(tcp, "ALLOCATION_CLARABEL_ATTEMPTS", loose)
+    monkeypatch.setattr(tcp, "ALLOCATION_TCP_ATTEMPTS", loose)
     ref = brute_force_allocation(two_actuator, "tcp", 4.78, (1.0, 1.0))
     for gap in (1e-2, 1e-9):
         got = allocate(two_actuator, "tcp", 4.78, (1.0, 1.0), gap=gap)

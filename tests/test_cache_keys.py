@@ -31,6 +31,7 @@ READERS = {
     prediction_module.NOISE_TERM_KEY: lambda s: (prediction_module.prediction(s).noise_term,),
     recursion.VARIANCE_WEIGHTS_KEY: lambda s: recursion.udp_variance_weights(s),
     recursion.CONDITION_KEY: lambda s: (recursion.condition_estimate(s),),
+    recursion.WEIGHT_HEAD_KEY: lambda s: (recursion.weight_head(s),),
     chain.MOMENTS_KEY: lambda s: chain.stacked_moments(s),
     tcp.PROGRAMS_KEY: lambda s: (tcp.TCPProgram.of(s, "min_cost", 0).constants,),
 }

@@ -10,7 +10,12 @@ from packetloss_cvx.allocation.tcp import TCPProgram
 from packetloss_cvx.convex import ClarabelProgram, first_answer, solve_problem
 from packetloss_cvx.errors import SolverError
 from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.tolerances import ALLOCATION_CLARABEL_ATTEMPTS, CLARABEL_DEFAULT, CLARABEL_TIGHT
+from packetloss_cvx.tolerances import (
+    ALLOCATION_CLARABEL_ATTEMPTS,
+    ALLOCATION_TCP_ATTEMPTS,
+    CLARABEL_DEFAULT,
+    CLARABEL_TIGHT,
+)
 
 
 def _random_values(program: TCPProgram, system, rng, rows):
@@ -48,6 +53,49 @@ def test_compiled_solve_is_cvxpys_solve_bit_for_bit(seed, kind, rows):
         assert status == expected
         if status == "optimal":
             assert np.array_equal(point(program.mu), program.mu.value)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize(("kind", "rows"), [("allocate", 0), ("allocate", 2), ("min_cost", 1)])
+def test_a_kept_solver_updated_with_new_data_is_a_new_solver_bit_for_bit(seed, kind, rows):
+    """Attempts without equilibration (the TCP-like program's first) run on a solver kept and updated with each
+    solve's data. Reference: cvxpy's own problem.solve, cold (a new solver each time), under the same attempts,
+    for a sequence of values on one program: same status and the same mu to the last bit, whatever was solved
+    before on the kept solver."""
+    rng = np.random.default_rng(100 + seed)
+    s = random_system(rng, n=int(rng.integers(1, 4)), m=int(rng.integers(2, 4)), horizon=int(rng.integers(2, 12)))
+    program = TCPProgram(s, kind, rows)
+    attempts = tuple({**a, "warm_start": False} for a in ALLOCATION_TCP_ATTEMPTS)
+    for _ in range(5):
+        values = _random_values(program, s, rng, rows)
+        status, point = program.compiled.solve(values, "compiled", ALLOCATION_TCP_ATTEMPTS)
+        for parameter, value in values.items():
+            parameter.value = value
+        assert status == solve_problem(program.problem, "cvxpy", attempts)
+        if status == "optimal":
+            assert np.array_equal(point(program.mu), program.mu.value)
+
+
+def test_kept_solvers_are_per_thread():
+    """Two threads solving one program at once (a shared System's program) get the answers a single thread gets,
+    bit for bit: each thread updates its own kept solver."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(7)
+    s = random_system(rng, n=3, m=3, horizon=10)
+    program = TCPProgram(s, "allocate", 1)
+    batches = [[_random_values(program, s, rng, 1) for _ in range(6)] for _ in range(2)]
+
+    def run(batch):
+        return [program.compiled.solve(v, "threads", ALLOCATION_TCP_ATTEMPTS) for v in batch]
+
+    serial = [[(st, pt(program.mu).copy()) for st, pt in run(b)] for b in batches]
+    with ThreadPoolExecutor(2) as pool:
+        parallel = [[(st, pt(program.mu).copy()) for st, pt in out] for out in pool.map(run, batches)]
+    for one, other in zip(serial, parallel, strict=True):
+        for (st1, mu1), (st2, mu2) in zip(one, other, strict=True):
+            assert st1 == st2
+            assert np.array_equal(mu1, mu2, equal_nan=True)
 
 
 @pytest.mark.parametrize("shape", [(8, 8), (24, 16), (64, 64)])

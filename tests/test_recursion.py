@@ -235,6 +235,59 @@ def test_time_varying_data_keep_the_full_pass(monkeypatch, which):
     assert np.array_equal(K[1], K[N // 2]) and not np.array_equal(K[1], K[-1])   # one gain, copied
 
 
+def test_optimal_plan_is_the_backward_pass_rolled_out(monkeypatch):
+    """optimal_plan (the rollout told where the closed run of one gain is) gives the floats of backward_pass then
+    mean_trajectory (which search K for that run), with and without a closed tail; and with the closure switched
+    off the same plan to 1e-12 (full pass, every step rolled out one by one). An unstable A (its closed tail rolled
+    out step by step) included."""
+    from packetloss_cvx.io import system_from_dict
+    from packetloss_cvx.recursion import backward_pass, mean_trajectory, optimal_plan
+
+    unstable = random_system(np.random.default_rng(12), n=3, m=2, horizon=600, spectral_radius=1.05,
+                             full_weights=True, time_varying=False, non_stationary=False, edge_mu=False)
+    for s in (_long(8, 4000).with_mu([1.0, 1.0]), _long(9, 3000).with_mu([0.8, 0.4]), _long(10, 200),
+              unstable.with_mu([0.9, 0.9])):                   # rolled out step by step: every gain read
+        for protocol in PROTOCOLS:
+            K0, P0, noise, U, X = optimal_plan(s, protocol)
+            K_ref, P0_ref, noise_ref = backward_pass(s, protocol)
+            U_ref, X_ref = mean_trajectory(s, K_ref)
+            np.testing.assert_array_equal(K0, K_ref[0])
+            np.testing.assert_array_equal(P0, P0_ref)
+            np.testing.assert_array_equal(U, U_ref)
+            np.testing.assert_array_equal(X, X_ref)
+            assert noise == noise_ref
+            _, P0_full, _, U_full, _ = _full_pass(
+                monkeypatch, lambda s=s, protocol=protocol: optimal_plan(system_from_dict(s.to_dict()), protocol))
+            np.testing.assert_allclose(P0, P0_full, rtol=1e-12)
+            np.testing.assert_allclose(U, U_full, rtol=0, atol=1e-12 * np.abs(U_full).max())
+
+
+def test_a_state_that_underflowed_to_zero_stays_zero_only_under_finite_gains(monkeypatch):
+    """A stable closed loop's mean state rolled out by powers underflows to exactly 0 after some hundreds of steps,
+    and the rollout then writes zeros for the rest of the horizon: the plan and states of every step rolled out one
+    by one (which linger in subnormal numbers, 1e-323, instead of reaching 0).
+    A gain that is not finite after that point must still poison the plan (0 * inf is nan), never leave zeros."""
+    from packetloss_cvx.recursion import backward_pass, mean_states
+
+    s = _long(11, 5000).with_mu([1.0, 1.0])
+    K, _, _ = backward_pass(s, "tcp")
+    mu, x = s.mu_schedule[None], s.x0[None]
+    U = np.empty((1, s.horizon, s.m))
+    X = mean_states(s, mu, U, x, K[None])
+    assert not X[0, -100:].any()                                 # the case in question: the state reached 0
+    assert X[0, 0].any()
+    U_steps = np.empty_like(U)
+    X_steps = _full_pass(monkeypatch, lambda: mean_states(s, mu, U_steps, x, K[None]))
+    assert np.abs(X_steps[0, -100:]).max() < 1e-300             # step by step, the tail lingers in subnormals
+    np.testing.assert_allclose(X, X_steps, rtol=0, atol=1e-13 * np.abs(X_steps).max())
+    np.testing.assert_allclose(U, U_steps, rtol=0, atol=1e-13 * np.abs(U_steps).max())
+    K_bad = K.copy()
+    K_bad[-3] = np.inf
+    X_bad = mean_states(s, mu, np.empty_like(U), x, K_bad[None])
+    assert np.isnan(X_bad[0, -2:]).all()
+    assert not np.isnan(X_bad[0, :-3]).any()
+
+
 def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
     from packetloss_cvx.io import system_from_dict
     from packetloss_cvx.recursion import udp_variance_weights

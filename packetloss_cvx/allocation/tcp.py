@@ -10,7 +10,7 @@ is an SOCP. Each quad-over-lin term gets its own epigraph variable ``t_i`` and t
 divided by ``alpha - C``: with the terms summed in one constraint, Clarabel ended
 ``optimal_inaccurate`` on 36 of 200 test problems (typically when an optimal mu_i is 0, the
 cone's apex, as in the 3-channel case of issue 8); in this form on none
-(``tolerances.ALLOCATION_CLARABEL_ATTEMPTS``).
+(``tolerances.ALLOCATION_CLARABEL_ATTEMPTS``; the program here runs ``ALLOCATION_TCP_ATTEMPTS``).
 
 The solver's point is not taken on trust:
 
@@ -36,12 +36,12 @@ from ..model import CacheKey, System
 from ..qp import sparse_dynamics
 from ..recursion import udp_variance_weights
 from ..tolerances import (
-    ALLOCATION_CLARABEL_ATTEMPTS,
     ALLOCATION_COST_RTOL,
     ALLOCATION_CUT_STEPS,
     ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
     ALLOCATION_LP_FEASIBILITY,
+    ALLOCATION_TCP_ATTEMPTS,
     MIN_COST_RTOL,
 )
 from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, polytope_excess, small_lp
@@ -129,14 +129,15 @@ class TCPProgram:
 
     One program per (system structure, kind, k), kept with the system (:meth:`System.structure_cached`,
     shared with its ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
-    (:class:`~packetloss_cvx.convex.ClarabelProgram`) and solved cold under
-    ``ALLOCATION_CLARABEL_ATTEMPTS``: a warm Clarabel keeps the Ruiz equilibration of the first data it
-    saw (``update_data``; answers up to 42 % off across calls), cold a solve is a function of its own
-    data. The Parameters are never assigned (their values go straight into the data map), so calls
-    from several threads share a program without a lock.
-    Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in O(N (n + m)^2) (about 20 ms at
-    N = 40, n = m = 3), then each solve maps the Parameters (O(nnz), about 0.1 ms there) and runs
-    Clarabel (about 2.5 ms there, its set-up 0.5 ms of it).
+    (:class:`~packetloss_cvx.convex.ClarabelProgram`) and solved under ``ALLOCATION_TCP_ATTEMPTS``: the
+    tight settings without equilibration on a solver kept per thread and updated with each call's data (a
+    function of its own data: without an equilibration nothing of the previous data is carried over,
+    whereas a warm equilibrated Clarabel keeps the Ruiz scaling of the first data it saw, answers up to
+    42 % off across calls), then Clarabel's defaults on a new equilibrated solver. The Parameters are
+    never assigned (their values go straight into the data map), so calls from several threads share a
+    program without a lock. Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in
+    O(N (n + m)^2) (about 20 ms at N = 40, n = m = 3), then each solve maps the Parameters (O(nnz), about
+    0.3 ms there) and runs Clarabel (about 2 ms there; a new solver's set-up would add 0.4 ms).
 
     Examples
     --------
@@ -196,7 +197,7 @@ class TCPProgram:
             values[self.beta] = beta
         if self.rows is not None:
             values.update({self.rows[0]: poly.G, self.rows[1]: poly.h})
-        status, point = self.compiled.solve(values, what, ALLOCATION_CLARABEL_ATTEMPTS)
+        status, point = self.compiled.solve(values, what, ALLOCATION_TCP_ATTEMPTS)
         require_answer(status, what, no_mu)
         return np.array(point(self.mu), dtype=float)
 
@@ -269,10 +270,18 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
     >>> bool(np.all(r[:, None] + S @ grid[None] <= 1 / (1 + grid))), bool(np.isclose(S[0, 0], -4 / 9))
     (True, True)
     """
+    S, r, _ = _cuts(system, mubar, evaluator, also)
+    return S, r
+
+
+def _cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None,
+          also: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, float]:
+    """:func:`tangent_cuts`, and J*_tcp at ``mubar`` (clipped into [0, 1]), the first of its batch. O(m len(steps))
+    closed forms, as one batch."""
     P = cut_points(mubar, also)
     f, S = tangent(system, P, evaluator)
     r = f - np.sum(S * P, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
-    return S, r
+    return S, r, float(f[0])
 
 
 def require_answer(status: str, what: str, no_mu: str | None) -> None:
@@ -444,7 +453,8 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
                                       f"{no_mu} (Clarabel certificate)"), poly.lo, poly.hi)
         also = ()
 
-    S, r = tangent_cuts(system, mubar, evaluator, also)      # the lower bound, before any move
+    S, r, at_mubar = _cuts(system, mubar, evaluator, also)     # the lower bound, before any move
+    known.setdefault(mubar.tobytes(), at_mubar)              # J* there (clipped), checked in the batch
     scale = np.max(np.abs(S), axis=1)
     if np.any((scale == 0) & (r > alpha)):
         raise SolverError("inconsistent", "TCP-like allocation: J*_tcp does not depend on mu and exceeds alpha, "
