@@ -55,3 +55,21 @@ def enumerated_chain_cost(A, B, state_weights, input_weights, initial_weight, x0
             cost += x @ state_weights[t] @ x
         total += prob * cost
     return total
+
+
+def textbook_filter_path(A, Q, C, R, groups, P0, arrivals):
+    """The Kalman filter's covariances along one arrival path, written as in a textbook (the rows of the groups
+    that arrived, an explicit inverse): the predicted P^-_0..P^-_N and the filtered P_0..P_{N-1}."""
+    Pm, predicted, filtered = P0.copy(), [P0.copy()], []
+    for a in arrivals:
+        rows = [r for j, g in enumerate(groups) if a[j] for r in g]
+        if rows:
+            Cr, Rr = C[rows], R[np.ix_(rows, rows)]
+            K = Pm @ Cr.T @ np.linalg.inv(Cr @ Pm @ Cr.T + Rr)
+            P = (np.eye(len(A)) - K @ Cr) @ Pm
+        else:
+            P = Pm
+        filtered.append(P)
+        Pm = A @ P @ A.T + Q
+        predicted.append(Pm)
+    return predicted, filtered

@@ -19,6 +19,7 @@ from packetloss_cvx.allocation.power import least_cost_within_power, least_power
 from packetloss_cvx.cli import main
 from packetloss_cvx.errors import InfeasibleError, InputError
 from packetloss_cvx.evaluator import CostEvaluator
+from tests.test_allocation_delivery import MODELS, model_of
 
 
 def scalar() -> System:
@@ -35,21 +36,6 @@ def decoupled(w=(1.0, 3.0)) -> System:
 def hand_cost(protocol, mu, w):
     mu = np.asarray(mu, dtype=float)
     return float(np.sum(np.asarray(w) / (1 + mu))) if protocol == "tcp" else float(np.sum(np.asarray(w) * (1 - mu / 2)))
-
-
-MODELS = {
-    "exponential": dict(scale=[1.5]),
-    "rayleigh": dict(scale=[0.7]),
-    "table": dict(table=[[0.0, 0.0], [1.0, 0.3], [2.0, 0.5], [5.0, 0.9]]),          # concave
-    "table-s": dict(table=[[0.0, 0.0], [1.0, 0.05], [2.0, 0.6], [4.0, 0.9]]),       # not concave
-}
-
-
-def model_of(name, m=1):
-    kw = MODELS[name]
-    if "scale" in kw:
-        return power_model(name, m, scale=kw["scale"] * m)
-    return power_model("table", m, table=kw["table"])
 
 
 def hand_power(name, mu):

@@ -23,23 +23,7 @@ from packetloss_cvx.sensing.kalman import (
     measurement_update,
 )
 from packetloss_cvx.sensor import Sensor
-
-
-def plain_filter_path(A, Q, C, R, groups, P0, arrivals):
-    """The reference: the textbook filter along one arrival path (rows of the arrived groups, inverse)."""
-    Pm, predicted, filtered = P0.copy(), [P0.copy()], []
-    for a in arrivals:
-        rows = [r for j, g in enumerate(groups) if a[j] for r in g]
-        if rows:
-            Cr, Rr = C[rows], R[np.ix_(rows, rows)]
-            K = Pm @ Cr.T @ np.linalg.inv(Cr @ Pm @ Cr.T + Rr)
-            P = (np.eye(len(A)) - K @ Cr) @ Pm
-        else:
-            P = Pm
-        filtered.append(P)
-        Pm = A @ P @ A.T + Q
-        predicted.append(Pm)
-    return predicted, filtered
+from tests.references import textbook_filter_path
 
 
 def plant(rng, n=3, p=2):
@@ -61,7 +45,7 @@ def test_enumeration_equals_the_weighted_sum_over_paths_of_the_plain_filter(seed
     want_pred, want_filt = np.zeros((steps + 1, 3, 3)), np.zeros((steps, 3, 3))
     for path in itertools.product(itertools.product((0, 1), repeat=2), repeat=steps):
         weight = np.prod([0.7 if a[0] else 0.3 for a in path]) * np.prod([0.4 if a[1] else 0.6 for a in path])
-        pred, filt = plain_filter_path(A, Q, C, R, sensor.groups, np.eye(3), path)
+        pred, filt = textbook_filter_path(A, Q, C, R, sensor.groups, np.eye(3), path)
         want_pred += weight * np.array(pred)
         want_filt += weight * np.array(filt)
     assert out.paths == 2 ** (2 * steps)
@@ -78,7 +62,7 @@ def test_enumeration_equals_monte_carlo():
     draws = []
     for _ in range(samples):
         arrivals = rng.random((steps, 1)) < 0.6
-        draws.append(np.trace(plain_filter_path(A, Q, C, R, sensor.groups, np.eye(3), arrivals)[0][-1]))
+        draws.append(np.trace(textbook_filter_path(A, Q, C, R, sensor.groups, np.eye(3), arrivals)[0][-1]))
     mean, stderr = np.mean(draws), np.std(draws, ddof=1) / np.sqrt(samples)
     assert abs(mean - exact) < 4 * stderr
 

@@ -21,23 +21,7 @@ from packetloss_cvx.sensing.markov_bounds import (
 from packetloss_cvx.sensing.montecarlo import sampled_covariance, simulate_estimated
 from packetloss_cvx.sensor import Sensor
 from packetloss_cvx.simulation.riccati import dp_riccati
-
-
-def textbook_path(A, Q, C, R, groups, P0, arrivals):
-    """One arrival path through the textbook filter (np.linalg.inv): the predicted and filtered covariances."""
-    Pm, predicted, filtered = P0.copy(), [P0.copy()], []
-    for a in arrivals:
-        rows = [r for j, g in enumerate(groups) if a[j] for r in g]
-        if rows:
-            Cr, Rr = C[rows], R[np.ix_(rows, rows)]
-            K = Pm @ Cr.T @ np.linalg.inv(Cr @ Pm @ Cr.T + Rr)
-            P = (np.eye(len(A)) - K @ Cr) @ Pm
-        else:
-            P = Pm
-        filtered.append(P)
-        Pm = A @ P @ A.T + Q
-        predicted.append(Pm)
-    return predicted, filtered
+from tests.references import textbook_filter_path
 
 
 def path_probability(arrivals, p, r, hg, hb, belief):
@@ -80,7 +64,7 @@ def test_enumeration_equals_the_sum_over_arrival_and_state_paths(seed):
     want_pred, want_filt, total = np.zeros((steps + 1, 3, 3)), np.zeros((steps, 3, 3)), 0.0
     for path in itertools.product(itertools.product((0, 1), repeat=2), repeat=steps):
         w = path_probability(path, CHAIN["p"], CHAIN["r"], CHAIN["h_good"], CHAIN["h_bad"], CHAIN["belief"])
-        pred, filt = textbook_path(A, Q, C, R, sensor.groups, np.eye(3), path)
+        pred, filt = textbook_filter_path(A, Q, C, R, sensor.groups, np.eye(3), path)
         want_pred += w * np.array(pred)
         want_filt += w * np.array(filt)
         total += w
