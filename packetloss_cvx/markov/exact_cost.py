@@ -13,10 +13,11 @@ UDP-like cost (the expected cost of the plan, which sampling measures). The pape
 alone: its plug-in law is already its exact minimiser. Both are convex quadratics in U; the UDP-like
 minimiser is ``U* = -(Omega_g ∘ R + Vbar Psi)^{-1} Vbar Omega_gp x`` on the channels that can deliver.
 
-Two routes to each UDP-like number (``method``): ``"recursion"`` (the default under ``"auto"``), the exact
-LQ problem on the augmented state of :mod:`.augmented`, O(N) time and memory for any finite-state chain;
-``"dense"``, the stacked form above, O((N m)^3 + (N n)^2 N m) time and O((N m)^2) memory (refused beyond
-the memory budget), kept as the independent second computation.
+Two routes to each UDP-like number (``method``): ``"recursion"``, the exact LQ problem on the augmented state
+of :mod:`.augmented`, O(N) time and memory for any finite-state chain; ``"dense"``, the stacked form above,
+O((N m)^3 + (N n)^2 N m) time and O((N m)^2) memory (refused beyond the memory budget), the independent second
+computation. ``"auto"``: the recursion for a plan's cost (the referee); for the minimiser the dense route up to
+N m = :data:`AUTO_DENSE_MAX`, where it is faster, and the recursion beyond (:func:`exact_closed_form`).
 """
 
 from __future__ import annotations
@@ -24,27 +25,35 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from ..costs import check_inputs, closed_form, expected_cost
+from ..costs import check_inputs, closed_form, dense_or_recursion, expected_cost
 from ..errors import InputError, NumericalError, ResourceError
 from ..linalg import check_finite, solve_checked
 from ..model import System, check_system
 from ..prediction import Prediction, prediction
 from ..protocols import check_protocol
-from ..recursion import overflow_error
+from ..recursion import overflow_error, udp_variance_weights
 from ..results import Solution
 from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 from .augmented import augmented_solve, chain_cost
 from .chain import stacked_moments
 
-__all__ = ["METHODS", "check_method", "correlation_term", "dense_prediction", "exact_closed_form", "exact_cost",
+__all__ = ["AUTO_DENSE_MAX", "METHODS", "check_method", "correlation_term", "dense_prediction", "exact_closed_form", "exact_cost",
            "exact_hessian"]
 
-#: The routes to the exact UDP-like cost and minimiser: "auto" is the augmented recursion.
+#: The routes to the exact UDP-like cost and minimiser: "auto" is the augmented recursion for the cost
+#: (:func:`exact_cost`, the referee) and the faster of the two for the minimiser (:func:`exact_closed_form`).
 METHODS = ("auto", "recursion", "dense")
+#: ``exact_closed_form(method="auto")`` takes the dense route up to this many decision variables N m (and while
+#: the condition estimate allows it, falling back to the recursion on a NumericalError: costs.dense_or_recursion).
+#: Measured 2026-11-24 (docs/performance.md, "The Markov closed form's crossover"): dense / recursion time
+#: 0.13-0.58 up to N m = 480 (pendulum, two_actuator, random n = 3-4, m = 2-3 twins at lambda = 0.9), 2.4-4.5
+#: from N m = 640 (the (N m)^3 solve and the (N n)^2 N m products leave the cache), so 400 keeps a margin.
+AUTO_DENSE_MAX = 400
 
 
 def check_method(method: str) -> str:
-    """``"recursion"`` or ``"dense"`` (``"auto"`` is the recursion); InputError naming ``method`` otherwise. O(1).
+    """``"recursion"`` or ``"dense"`` (``"auto"`` is the recursion here; :func:`exact_closed_form` resolves it by size
+    first); InputError naming ``method`` otherwise. O(1).
 
     Examples
     --------
@@ -185,11 +194,14 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
     cost; it is 0 here). ``"tcp"``: the paper's law with mu_t (:func:`~packetloss_cvx.costs.closed_form`),
     exact because the TCP-like cost holds only first moments (``method`` is not used).
 
-    ``method="auto"`` / ``"recursion"``: the backward Riccati recursion of the LQ problem on the augmented
+    ``method="recursion"``: the backward Riccati recursion of the LQ problem on the augmented
     state (:func:`~packetloss_cvx.markov.augmented.augmented_solve`), any finite-state chain, time
     O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)) (n (1 + m) for Gilbert–Elliott channels), memory O(N m D);
     ``"dense"``: the stacked solve above, time O((N m)^3 + (N n)^2 N m), memory O((N m)^2 + N n N m), refused
-    in advance beyond the memory budget. Either cost is checked against the forward cost of its own plan to
+    in advance beyond the memory budget. ``"auto"``: the dense route up to N m = :data:`AUTO_DENSE_MAX` where its
+    condition estimate allows it (2-7 times faster there: at N m = 80 about 0.7 ms against 5 ms), the recursion
+    beyond and wherever the dense route raises NumericalError (the chooser and fallback of
+    :func:`~packetloss_cvx.costs.dense_or_recursion`); the two routes agree to 1e-10 relative (tested). Either cost is checked against the forward cost of its own plan to
     ``SELF_CHECK_RTOL`` (the recursion: :func:`~packetloss_cvx.markov.augmented.chain_cost`; the dense route:
     :func:`exact_cost` with ``method="dense"``).
 
@@ -220,6 +232,11 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
         sol = closed_form(system, "tcp")
         return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=sol.gain,
                         closed_loop_eigenvalues=sol.closed_loop_eigenvalues, method=f"markov-{sol.method}")
+    if method == "auto":        # the faster route where it is exact (AUTO_DENSE_MAX), the recursion otherwise
+        route, dense = dense_or_recursion(system, "auto", udp_variance_weights(system),
+                                          lambda: _dense_closed_form(system), AUTO_DENSE_MAX)
+        if dense is not None:
+            return dense
     if route == "recursion":
         U, gain, cost = augmented_solve(system)
         return Solution(protocol="udp", cost=cost, inputs=U, gain=gain,
