@@ -27,10 +27,10 @@ __all__ = ["FILTERS", "simulate_estimated"]
 FILTERS = ("kalman", "stationary")
 
 
-def _noise(rng: np.random.Generator, cov: np.ndarray, samples: int) -> np.ndarray:
-    factor = psd_factor(cov)
+def _noise(rng: np.random.Generator, factor: np.ndarray, samples: int) -> np.ndarray:
+    """``samples`` draws of N(0, F'F) for the factor ``F = psd_factor(cov)`` (factored once per run, not per step)."""
     if factor.shape[0] == 0:
-        return np.zeros((samples, cov.shape[0]))
+        return np.zeros((samples, factor.shape[1]))
     return rng.standard_normal((samples, factor.shape[0])) @ factor
 
 
@@ -80,8 +80,9 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
         gains = fixed[1]
         loop = estimated_loop(system, K, protocol, law)
         exact, reason, stable = loop.average_stage_cost, loop.reason, loop.stable
+    R_factor, W_factor = psd_factor(R), psd_factor(Sigma_W)
     rng = np.random.default_rng(seed)
-    x = system.x0 + _noise(rng, sensor.P0, samples)
+    x = system.x0 + _noise(rng, psd_factor(sensor.P0), samples)
     xm = np.broadcast_to(system.x0, (samples, n)).copy()
     Pm = np.broadcast_to(sensor.P0, (samples, n, n)).copy()
     keep = steps // 2
@@ -90,7 +91,7 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     with np.errstate(over="ignore", invalid="ignore"):
         for k in range(steps):
             a = rng.random((samples, sensor.g)) < sensor.gamma
-            y = x @ C.T + _noise(rng, R, samples)
+            y = x @ C.T + _noise(rng, R_factor, samples)
             pattern = a @ digits
             if filter == "kalman":
                 P = np.empty_like(Pm)
@@ -110,7 +111,7 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
                 total += stage
                 if filter == "kalman":
                     covariance += P.sum(axis=0)
-            x = x @ A.T + applied @ B.T + _noise(rng, Sigma_W, samples)
+            x = x @ A.T + applied @ B.T + _noise(rng, W_factor, samples)
             xm = xhat @ A.T + (applied if protocol == "tcp" else mu * u) @ B.T
             if filter == "kalman":
                 Pm = A @ P @ A.T + Sigma_W
