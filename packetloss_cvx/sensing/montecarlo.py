@@ -94,11 +94,17 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
             y = x @ C.T + _noise(rng, R_factor, samples)
             pattern = a @ digits
             if filter == "kalman":
-                P = np.empty_like(Pm)
+                # a run that received nothing keeps P = P^-, L = 0 (the update's own answer, without the call); a
+                # pattern that every run shares is updated in place of a gather and a scatter: the same floats
+                P = Pm.copy()
                 L = np.zeros((samples, n, sensor.p))
                 for j, r in enumerate(rows):
+                    if r.size == 0:
+                        continue
                     sel = pattern == j
-                    if np.any(sel):
+                    if sel.all():
+                        P, L = measurement_update(Pm, C, R, r)
+                    elif np.any(sel):
                         P[sel], L[sel] = measurement_update(Pm[sel], C, R, r)
             else:
                 L = gains[pattern]
@@ -114,7 +120,9 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
             x = x @ A.T + applied @ B.T + _noise(rng, W_factor, samples)
             xm = xhat @ A.T + (applied if protocol == "tcp" else mu * u) @ B.T
             if filter == "kalman":
-                Pm = A @ P @ A.T + Sigma_W
+                # A P_s A' for every run: the stacked A @ P, then one (samples n) x n product by A' in place of
+                # samples small ones (the same floats, tested; 2-3x faster at n = 2-4)
+                Pm = (np.matmul(A, P).reshape(-1, n) @ A.T).reshape(P.shape) + Sigma_W
                 if protocol == "udp":
                     Pm += actuation_covariance(B, mu, u)
     means = total / keep
