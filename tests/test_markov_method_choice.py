@@ -11,9 +11,9 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import NumericalError
+from packetloss_cvx.markov.chain import attach_channel
 from packetloss_cvx.markov.exact_cost import AUTO_DENSE_MAX, exact_closed_form
 from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.markov.chain import attach_channel
 
 
 def bursty(seed, horizon, m=2):

@@ -7,6 +7,8 @@ time-varying filter (sensing.montecarlo: cost against ``tr(P Sigma_W) + tr(K'HK 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -14,7 +16,7 @@ import numpy as np
 from ..errors import NumericalError
 from ..io import system_from_dict
 from ..model import System
-from ..results import ClaimResult
+from ..results import ClaimResult, Riccati
 from ..sensing.loop import estimated_loop
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.riccati import NO_SOLUTION, dp_riccati
@@ -51,12 +53,21 @@ def sensed(system: System) -> System | None:
     return system_from_dict(data)
 
 
-def _split(system: System) -> tuple[float, float, float, System, Any, float] | None:
+def _split(system: System, solve: Callable[[System], Riccati] | None = None
+           ) -> tuple[float, float, float, System, Any, float] | None:
+    """The exact loop's cost and parts on ``sensed(system)``, the twin, its DP and the loop's radius (None where the
+    claim does not apply). ``solve``: the DP of ``system`` itself when the caller keeps it (the audit's
+    :meth:`Context.dp`, solved for mpc-vs-dp already): the DP depends on A, B, mu and the weights only, so the
+    twin's is the case's with the twin's noise in its average stage cost (the same floats as solving it again)."""
     s = sensed(system)
     if s is None:
         return None
     try:
-        dp = dp_riccati(s)
+        if solve is None:
+            dp = dp_riccati(s)
+        else:
+            own = solve(system)
+            dp = replace(own, average_stage_cost=float(np.sum(own.cost_to_go * s.noise_cov)))
     except NumericalError as err:
         if str(err).startswith(NO_SOLUTION):
             return None
@@ -108,7 +119,7 @@ def cost_split_sensor(ctx: Context) -> ClaimResult:
     zs: dict[str, float | None] = {}
 
     def margin(s: System) -> float | None:
-        found = _split(s)            # once a case: the exact margin and the simulation share it
+        found = _split(s, ctx.dp)    # once a case: the exact margin and the simulation share it
         if found is None:
             return None
         exact = _exact_margin(found)

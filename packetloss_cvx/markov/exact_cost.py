@@ -37,8 +37,8 @@ from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 from .augmented import augmented_solve, chain_cost
 from .chain import stacked_moments
 
-__all__ = ["AUTO_DENSE_MAX", "METHODS", "check_method", "correlation_term", "dense_prediction", "exact_closed_form", "exact_cost",
-           "exact_hessian"]
+__all__ = ["AUTO_DENSE_MAX", "METHODS", "check_method", "correlation_term", "dense_prediction", "exact_closed_form",
+           "exact_cost", "exact_hessian"]
 
 #: The routes to the exact UDP-like cost and minimiser: "auto" is the augmented recursion for the cost
 #: (:func:`exact_cost`, the referee) and the faster of the two for the minimiser (:func:`exact_closed_form`).

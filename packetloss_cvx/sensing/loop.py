@@ -41,8 +41,8 @@ import numpy as np
 from ..costs import closed_form
 from ..errors import InputError, NumericalError
 from ..model import System
-from ..results.sensing import EstimatedLoop
 from ..results import Riccati
+from ..results.sensing import EstimatedLoop
 from ..simulation.moments import solve_fixed_point, stationary_channel
 from ..simulation.riccati import dp_riccati
 from ..simulation.stability import is_mean_square_stable, random_matrix_moment
