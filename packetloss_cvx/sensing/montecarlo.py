@@ -95,15 +95,17 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
             pattern = a @ digits
             if filter == "kalman":
                 # a run that received nothing keeps P = P^-, L = 0 (the update's own answer, without the call); a
-                # pattern that every run shares is updated in place of a gather and a scatter: the same floats
+                # pattern most runs share is computed for every run and kept where it arrived (each run's update
+                # is its own: the same floats), cheaper than gathering and scattering most of the stack
                 P = Pm.copy()
                 L = np.zeros((samples, n, sensor.p))
                 for j, r in enumerate(rows):
                     if r.size == 0:
                         continue
                     sel = pattern == j
-                    if sel.all():
-                        P, L = measurement_update(Pm, C, R, r)
+                    if 2 * np.count_nonzero(sel) >= samples:
+                        Pj, Lj = measurement_update(Pm, C, R, r)
+                        P, L = np.where(sel[:, None, None], Pj, P), np.where(sel[:, None, None], Lj, L)
                     elif np.any(sel):
                         P[sel], L[sel] = measurement_update(Pm[sel], C, R, r)
             else:
