@@ -43,9 +43,11 @@ AUTO_DENSE_MAX = 160
 T = TypeVar("T")
 
 
-def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] | None = None) -> str:
-    """Resolve ``"auto"`` to the faster exact path: ``"dense"`` for small, well-conditioned
-    problems, ``"recursion"`` otherwise. Time O(N n^3) (the condition estimate).
+def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] | None = None,
+                dense_max: int = AUTO_DENSE_MAX) -> str:
+    """Resolve ``"auto"`` to the faster exact path: ``"dense"`` for small (N m <= ``dense_max``, the caller's
+    measured crossover), well-conditioned problems, ``"recursion"`` otherwise. Time O(N n^3) (the condition
+    estimate).
 
     Examples
     --------
@@ -58,7 +60,7 @@ def pick_method(system: System, method: str, weights: tuple[np.ndarray, float] |
     packetloss_cvx.errors.InputError: method: expected 'auto', 'dense' or 'recursion', found 'qr'
     """
     if method == "auto":
-        if system.horizon * system.m > AUTO_DENSE_MAX:
+        if system.horizon * system.m > dense_max:
             return "recursion"
         return "dense" if condition_estimate(system, weights) <= DENSE_MAX_CONDITION else "recursion"
     if method not in ("dense", "recursion"):
@@ -369,9 +371,10 @@ def lyapunov_weights_if_needed(system: System, protocol: str, method: str) -> tu
 
 
 def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, float],
-                       build: Callable[[], T]) -> tuple[str, T | None]:
-    """The one method chooser and its fallback, for :func:`closed_form` and
-    :class:`~packetloss_cvx.evaluator.CostEvaluator` alike: :func:`pick_method`; on ``"dense"``,
+                       build: Callable[[], T], dense_max: int = AUTO_DENSE_MAX) -> tuple[str, T | None]:
+    """The one method chooser and its fallback, for :func:`closed_form`,
+    :class:`~packetloss_cvx.evaluator.CostEvaluator` and the Markov closed form alike (``dense_max``: the
+    caller's crossover, :func:`pick_method`): :func:`pick_method`; on ``"dense"``,
     :func:`refuse_dense` then ``build()``. Under ``"auto"`` a NumericalError of either (a dense form that
     would lose or lost its digits) falls back: ``("recursion", None)``, the recursion not depending on
     the conditioning; under ``"dense"`` it is raised. Returns ``(method, what build returned or None)``.
@@ -386,7 +389,7 @@ def dense_or_recursion(system: System, method: str, weights: tuple[np.ndarray, f
     >>> dense_or_recursion(s, "auto", udp_variance_weights(s), lost)
     ('recursion', None)
     """
-    choice = pick_method(system, method, weights)
+    choice = pick_method(system, method, weights, dense_max)
     if choice == "recursion":
         return choice, None
     try:

@@ -83,7 +83,7 @@ def test_forward_cost_matches_the_dense_second_moment_route(seed):
 @pytest.mark.parametrize("seed", range(10))
 def test_recursion_matches_the_dense_closed_form(seed):
     s = bursty(seed, time_varying=seed % 2 == 1, noise=seed % 3 == 0)
-    rec, dense = exact_closed_form(s), exact_closed_form(s, method="dense")
+    rec, dense = exact_closed_form(s, method="recursion"), exact_closed_form(s, method="dense")
     assert rec.method == "markov-recursion"
     assert dense.method == "markov-dense"
     assert rec.cost == pytest.approx(dense.cost, rel=1e-10)
@@ -98,7 +98,7 @@ def test_recursion_matches_the_dense_route_on_the_unstable_pendulum_at_long_hori
     s = pl.System(A=s.A, B=s.B, horizon=horizon, state_weight=np.diag(s.state_weights[0]),
                   input_weight=s.input_weights[0], x0=s.x0, channel=s.channel)
     assert max(abs(np.linalg.eigvals(s.A))) > 1
-    rec, dense = exact_closed_form(s), exact_closed_form(s, method="dense")
+    rec, dense = exact_closed_form(s, method="recursion"), exact_closed_form(s, method="dense")
     assert rec.cost == pytest.approx(dense.cost, rel=1e-10)
     np.testing.assert_allclose(rec.gain, dense.gain, rtol=1e-9)
 
@@ -111,12 +111,13 @@ def test_recursion_matches_the_qp_twin(seed):
     assert qp.cost == pytest.approx(rec.cost, rel=1e-10)
 
 
+@pytest.mark.parametrize("method", ["recursion", "dense"])
 @pytest.mark.parametrize("seed", range(4))
-def test_gilbert_elliott_against_every_loss_pattern(seed):
+def test_gilbert_elliott_against_every_loss_pattern(seed, method):
     rng = np.random.default_rng(seed)
     s = random_system(rng, n=2, m=2, horizon=4, time_varying=True, noise=False)
     s = attach_channel(s, random_channel(rng, 2, given=seed % 2 == 0))
-    sol = exact_closed_form(s, method="recursion")
+    sol = exact_closed_form(s, method=method)
     chains = [([[1 - p, p], [r, 1 - r]], [hg, hb], [b, 1 - b]) for p, r, hg, hb, b in
               zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad, s.channel.initial_belief, strict=True)]
     enum = enumerated_chain_cost(s.A, s.B, s.state_weights, s.input_weights, s.initial_weight, s.x0, chains,
@@ -173,7 +174,7 @@ def test_a_channel_that_cannot_deliver_gets_no_input():
                   channel=GilbertElliott(p=[0.2, 0.3], r=[0.3, 0.4], h_good=[1.0, 0.0], state=["bad", "good"]))
     assert s.mu_schedule[0, 0] == 0.0
     assert np.all(s.mu_schedule[:, 1] == 0.0)
-    rec, dense = exact_closed_form(s), exact_closed_form(s, method="dense")
+    rec, dense = exact_closed_form(s, method="recursion"), exact_closed_form(s, method="dense")
     assert rec.inputs[0, 0] == 0.0
     assert np.all(rec.inputs[:, 1] == 0.0)
     assert rec.cost == pytest.approx(dense.cost, rel=1e-10)

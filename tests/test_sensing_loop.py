@@ -171,3 +171,29 @@ def test_noise_free_plant_with_measurement_noise_is_exact_against_hand_values():
     loop = estimated_loop(s, np.array([[k]]), "tcp")
     assert loop.reason == ""
     assert np.isclose(loop.spectral_radius, max(dp_radius, (0.25 * 2) ** 2), rtol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_callers_dp_solution_is_used_and_gives_the_split_of_two_dares(seed):
+    """estimated_loop(..., dp=...) takes the caller's DP solution instead of solving it again (the cost-split claim
+    passes the one it has): no losses, the split is scipy's two DAREs' (control tr(X Q), estimation
+    tr(K'(Psi + B'XB)K P_f)); a different caller's solution is the one whose P enters the control part."""
+    rng = np.random.default_rng(10 + seed)
+    s = random_plant(rng, mu=np.ones(2), gamma=(1.0,), p=1)
+    A, B, C, Q, R = s.A, s.B, s.sensor.C, s.noise_cov, s.sensor.noise_cov
+    Omega, Psi = s.state_weights[0], np.diag(s.input_weights[0])
+    X = solve_discrete_are(A, B, Omega, Psi)
+    K = np.linalg.solve(Psi + B.T @ X @ B, B.T @ X @ A)
+    Pp = solve_discrete_are(A.T, C.T, Q, R)
+    Pf = Pp - Pp @ C.T @ np.linalg.solve(C @ Pp @ C.T + R, C @ Pp)
+    dp = dp_riccati(s)
+    given = estimated_loop(s, dp.gain, "tcp", "dp", dp=dp)
+    solved = estimated_loop(s, dp.gain, "tcp", "dp")
+    assert (given.average_stage_cost, given.control_part, given.estimation_part) == \
+        (solved.average_stage_cost, solved.control_part, solved.estimation_part)
+    assert given.control_part == pytest.approx(np.trace(X @ Q), rel=1e-9)
+    assert given.estimation_part == pytest.approx(np.trace(K.T @ (Psi + B.T @ X @ B) @ K @ Pf), rel=1e-8)
+    other = dp_riccati(s.with_mu([0.9, 0.95]))
+    assert estimated_loop(s, dp.gain, "tcp", "dp", dp=other).control_part == pytest.approx(
+        float(np.sum(other.cost_to_go * Q)), rel=1e-14)
+    assert estimated_loop(s, dp.gain, "tcp", "dp", dp=dp, split=False).control_part != given.control_part  # nan

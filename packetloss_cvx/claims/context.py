@@ -7,11 +7,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import NumericalError
 from ..evaluator import CostEvaluator
 from ..io import load_example
 from ..model import System
 from ..protocols import check_protocol
-from ..results import Solution
+from ..results import Riccati, Solution
+from ..simulation.riccati import dp_riccati
 
 __all__ = ["Context", "interior", "paper_systems"]
 
@@ -36,6 +38,8 @@ class Context:
         QP twins per system (:class:`ExpectedCostQP`: its data built once; the condensed problems
         it solves are compiled once per padded shape and shared by every case, :mod:`..qp_shared`)
         and cost evaluators per (system, protocol), keyed by ``id`` (the cases live as long as the context).
+    riccati : dict
+        The DP optimum per case (:meth:`dp`), or the NumericalError it raised, keyed by ``id``.
     """
 
     paper: dict[str, System]
@@ -45,6 +49,7 @@ class Context:
     cache: dict = field(default_factory=dict)
     problems: dict = field(default_factory=dict)
     evaluators: dict = field(default_factory=dict)
+    riccati: dict = field(default_factory=dict)
 
     @property
     def cases(self) -> list[System]:
@@ -78,6 +83,31 @@ class Context:
                 problem = self.problems[id(system)] = ExpectedCostQP(system, protocol)
             self.cache[key] = problem.solve(with_gain=False, cross_check=False, protocol=protocol)
         return self.cache[key]
+
+    def dp(self, system: System) -> Riccati:
+        """``dp_riccati(system)`` for one of the cases, solved once per audit (mpc-vs-dp and cost-split-sensor both
+        need it); its NumericalError (no stabilising law) is raised again on every call. Any other system is solved
+        afresh (``id`` is only unique among objects alive together: the cases are). O(1) after the first call.
+
+        Examples
+        --------
+        >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+        >>> ctx = Context(paper={}, random=[s], seed=0)
+        >>> ctx.dp(s) is ctx.dp(s), round(float(ctx.dp(s).cost_to_go[0, 0]), 12)     # P = 1 + sqrt 3
+        (True, 2.732050807569)
+        """
+        if not any(system is case for case in self.cases):
+            return dp_riccati(system)
+        key = id(system)
+        if key not in self.riccati:
+            try:
+                self.riccati[key] = dp_riccati(system)
+            except NumericalError as err:
+                self.riccati[key] = err
+        found = self.riccati[key]
+        if isinstance(found, Exception):
+            raise found
+        return found
 
     def evaluator(self, system: System, protocol: str) -> CostEvaluator:
         """The cached :class:`CostEvaluator` of ``system`` (its structure built once per audit, shared by

@@ -15,7 +15,7 @@ import numpy as np
 from ..costs import closed_form
 from ..errors import NumericalError
 from ..model import System
-from ..results import ClaimResult
+from ..results import ClaimResult, Riccati
 from ..simulation import closed_loop, dp_riccati
 from ..simulation.riccati import NO_SOLUTION
 from ..threads import blas_limited
@@ -29,12 +29,14 @@ __all__ = ["mpc_vs_dp", "relative_excess"]
 PSD_SLACK = 1e-9
 
 
-def relative_excess(system: System, gain: Callable[[str], np.ndarray] | None = None) -> dict[str, float] | None:
+def relative_excess(system: System, gain: Callable[[str], np.ndarray] | None = None,
+                    solve: Callable[[System], Riccati] = dp_riccati) -> dict[str, float] | None:
     """Each law's exact closed-loop cost over the DP optimum's, minus one, at the system's own x0 and
     Sigma_W (cost ``tr(P (x0 x0' + Sigma_W))``: the total cost from x0 plus the average stage cost);
     ``inf`` for a law that is not mean-square stable; the key ``"psd"``: min eig(P_K - P) / ||P|| over
     the stable laws. None when the channel is non-stationary or no law stabilises (no DP solution).
-    ``gain``: protocol -> K (asked only once a DP solution exists) when the caller has them, else closed_form's.
+    ``gain``: protocol -> K (asked only once a DP solution exists) when the caller has them, else closed_form's;
+    ``solve``: the DP solver (the audit's :meth:`Context.dp`, which keeps each case's for the other claims).
     Time O(n^6) (two moment solves per law) plus the Riccati iteration.
 
     Examples
@@ -47,7 +49,7 @@ def relative_excess(system: System, gain: Callable[[str], np.ndarray] | None = N
     if not system.is_stationary:
         return None
     try:
-        dp = dp_riccati(system)
+        dp = solve(system)
     except NumericalError as err:
         if str(err).startswith(NO_SOLUTION):
             return None
@@ -90,7 +92,7 @@ def mpc_vs_dp(ctx: Context) -> ClaimResult:
     found: dict[int, dict[str, float] | None | Exception] = {}
     for s in ctx.cases:
         try:
-            found[id(s)] = relative_excess(s, lambda p, s=s: optimal_plan(ctx, s, p, case=True).gain)
+            found[id(s)] = relative_excess(s, lambda p, s=s: optimal_plan(ctx, s, p, case=True).gain, ctx.dp)
         except (ArithmeticError, ValueError) as err:
             found[id(s)] = err
 

@@ -7,6 +7,8 @@ time-varying filter (sensing.montecarlo: cost against ``tr(P Sigma_W) + tr(K'HK 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -14,7 +16,7 @@ import numpy as np
 from ..errors import NumericalError
 from ..io import system_from_dict
 from ..model import System
-from ..results import ClaimResult
+from ..results import ClaimResult, Riccati
 from ..sensing.loop import estimated_loop
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.riccati import NO_SOLUTION, dp_riccati
@@ -51,36 +53,43 @@ def sensed(system: System) -> System | None:
     return system_from_dict(data)
 
 
-def _split(system: System) -> tuple[float, float, float, System, Any, float] | None:
+def _split(system: System, solve: Callable[[System], Riccati] | None = None
+           ) -> tuple[float, float, float, System, Any, float] | None:
+    """The exact loop's cost and parts on ``sensed(system)``, the twin, its DP and the loop's radius (None where the
+    claim does not apply). ``solve``: the DP of ``system`` itself when the caller keeps it (the audit's
+    :meth:`Context.dp`, solved for mpc-vs-dp already): the DP depends on A, B, mu and the weights only, so the
+    twin's is the case's with the twin's noise in its average stage cost (the same floats as solving it again)."""
     s = sensed(system)
     if s is None:
         return None
     try:
-        dp = dp_riccati(s)
+        if solve is None:
+            dp = dp_riccati(s)
+        else:
+            own = solve(system)
+            dp = replace(own, average_stage_cost=float(np.sum(own.cost_to_go * s.noise_cov)))
     except NumericalError as err:
         if str(err).startswith(NO_SOLUTION):
             return None
         raise
-    loop = estimated_loop(s, dp.gain, "tcp", "dp")
+    loop = estimated_loop(s, dp.gain, "tcp", "dp", dp=dp)        # the DP solved once (it was solved twice a case)
     if not loop.stable or not loop.average_stage_cost > 0:
         return None
     return loop.average_stage_cost, loop.control_part, loop.estimation_part, s, dp, loop.spectral_radius
 
 
-def _exact_margin(system: System) -> float | None:
-    found = _split(system)
-    if found is None:
-        return None
+def _exact_margin(found: tuple[float, float, float, System, Any, float]) -> float:
     cost, control, estimation = found[:3]
     return SPLIT_RTOL - abs(cost - control - estimation) / cost
 
 
-def simulated_z(system: System, seed: int) -> float | None:
+def simulated_z(system: System, seed: int,
+                found: tuple[float, float, float, System, Any, float] | None = None) -> float | None:
     """(sampled cost - tr(P Sigma_W) - tr(K'HK mean P_k)) / stderr for the time-varying filter on ``sensed(system)``;
     None where the claim does not apply, or where the loop mixes too slowly for MAX_STEPS (the window is the
-    steps whose second half starts where radius^(steps/2) <= MIXED: the start's transient is gone).
-    O(RUNS steps n^3)."""
-    found = _split(system)
+    steps whose second half starts where radius^(steps/2) <= MIXED: the start's transient is gone). ``found``:
+    the case's exact split when the caller has it (not solved again). O(RUNS steps n^3)."""
+    found = _split(system) if found is None else found
     if found is None:
         return None
     steps = 2 * int(np.ceil(np.log(MIXED) / np.log(found[5]))) if found[5] > 0 else 2
@@ -110,10 +119,13 @@ def cost_split_sensor(ctx: Context) -> ClaimResult:
     zs: dict[str, float | None] = {}
 
     def margin(s: System) -> float | None:
-        exact = _exact_margin(s)
-        if exact is None or id(s) not in paper:
+        found = _split(s, ctx.dp)    # once a case: the exact margin and the simulation share it
+        if found is None:
+            return None
+        exact = _exact_margin(found)
+        if id(s) not in paper:
             return exact
-        z = simulated_z(s, ctx.seed)
+        z = simulated_z(s, ctx.seed, found)
         zs[paper[id(s)]] = z
         return exact if z is None else min(exact, 1.0 - abs(z) / Z_MAX)
 

@@ -26,20 +26,20 @@ import numpy as np
 import numpy.typing as npt
 
 from ..budgets import duration_text, estimated_seconds, markov_recursion_work
-from ..costs import check_inputs, closed_form, expected_cost
+from ..costs import check_inputs, closed_form, dense_or_recursion, expected_cost, pick_method
 from ..errors import InputError, NumericalError, ResourceError
 from ..linalg import check_finite, solve_checked
 from ..model import System, check_system
 from ..prediction import Prediction, prediction
 from ..protocols import check_protocol
-from ..recursion import condition_estimate, overflow_error
+from ..recursion import overflow_error, udp_variance_weights
 from ..results import Solution
-from ..tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
 from .augmented import augmented_size, augmented_solve, chain_cost, check_recursion_budget
 from .chain import stacked_moments
 
-__all__ = ["DENSE_SECONDS", "METHODS", "auto_route", "check_method", "correlation_term", "dense_prediction",
-           "exact_closed_form", "exact_cost", "exact_hessian", "route_seconds"]
+__all__ = ["DENSE_SECONDS", "METHODS", "auto_route", "check_method", "correlation_term", "dense_max",
+           "dense_prediction", "exact_closed_form", "exact_cost", "exact_hessian", "route_seconds"]
 
 #: The routes to the exact UDP-like cost and minimiser: "auto" is the faster of the two for the minimiser
 #: (:func:`auto_route`) and the recursion's forward pass for the cost of a plan.
@@ -103,13 +103,31 @@ def route_seconds(system: System) -> tuple[float, float]:
     return dense, recursion
 
 
+def dense_max(system: System) -> int:
+    """The crossover handed to the one chooser (:func:`~packetloss_cvx.costs.dense_or_recursion`) for this system:
+    its own N m where the dense route is estimated faster (:func:`route_seconds`) and its matrices fit the memory
+    budget, else 0 (the recursion). O(m).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=20, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> dense_max(s)                             # N = 20: 0.6 against 1.4 ms
+    20
+    """
+    dense, recursion = route_seconds(system)
+    if dense >= recursion or _dense_bytes(system) > MEMORY_BUDGET_BYTES:
+        return 0
+    return system.horizon * system.m
+
+
 def auto_route(system: System) -> str:
-    """The route ``method="auto"`` takes for the exact UDP-like minimum: ``"dense"`` where it is estimated faster
-    (:func:`route_seconds`), its matrices fit the memory budget and the condition estimate is within
-    ``DENSE_MAX_CONDITION`` (the Bernoulli chooser's rule: the Markov Hessian, scaled by sqrt(mu), has the same
-    bound, trace Omega_g + max Psi over min Psi), else ``"recursion"``. The one chooser of the Markov routes
-    (:func:`exact_closed_form`; its dense fallback is there). O(m) plus, where the time favours the dense route,
-    the condition estimate's O(N n^3) (kept on the system).
+    """The route ``method="auto"`` takes for the exact UDP-like minimum, before any fallback: the one chooser
+    :func:`~packetloss_cvx.costs.pick_method` at this system's crossover (:func:`dense_max`), so ``"dense"`` where it
+    is estimated faster, fits the memory budget and the condition estimate is within ``DENSE_MAX_CONDITION``
+    (the Markov Hessian, scaled by sqrt(mu), has the Bernoulli bound: trace Omega_g + max Psi over min Psi),
+    else ``"recursion"``. O(m) plus, where the time favours the dense route, the condition estimate's O(N n^3).
 
     Examples
     --------
@@ -121,10 +139,7 @@ def auto_route(system: System) -> str:
     >>> auto_route(s), auto_route(long)          # N = 20: 0.6 against 1.4 ms; N = 2000: 2.4 s against 0.14 s
     ('dense', 'recursion')
     """
-    dense, recursion = route_seconds(system)
-    if dense >= recursion or _dense_bytes(system) > MEMORY_BUDGET_BYTES:
-        return "recursion"
-    return "dense" if condition_estimate(system) <= DENSE_MAX_CONDITION else "recursion"
+    return pick_method(system, "auto", udp_variance_weights(system), dense_max(system))
 
 
 def dense_prediction(system: System) -> Prediction:
@@ -286,11 +301,11 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
         sol = closed_form(system, "tcp")
         return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=sol.gain,
                         closed_loop_eigenvalues=sol.closed_loop_eigenvalues, method=f"markov-{sol.method}")
-    if method == "auto" and auto_route(system) == "dense":
-        try:
-            return _dense_closed_form(system)
-        except NumericalError:           # a dense form that lost its digits: the recursion does not depend on them
-            route = "recursion"
+    if method == "auto":         # the one chooser and fallback, at this system's estimated crossover
+        route, dense = dense_or_recursion(system, "auto", udp_variance_weights(system),
+                                          lambda: _dense_closed_form(system), dense_max(system))
+        if dense is not None:
+            return dense
     if route == "recursion":
         size = augmented_size(system)
         dense, _ = route_seconds(system)

@@ -35,8 +35,8 @@ DEFAULT_RATES = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
 
 def _evaluate(twin: System, plugin: dict[str, np.ndarray], exact: dict[str, np.ndarray], at: tuple) -> None:
     """Both protocols at one twin into ``plugin[p][at]`` and ``exact[p][at]``: the exact minimum
-    (:func:`exact_closed_form`, the augmented recursion) and the exact cost of the plug-in plan (the paper's law
-    on the twin's ``mu_schedule``). Time O(N (D^3 + m^3))."""
+    (:func:`exact_closed_form`: the dense route up to N m = 400, the augmented recursion beyond) and the exact
+    cost of the plug-in plan (the paper's law on the twin's ``mu_schedule``). Time O(N (D^3 + m^3)) at most."""
     for protocol in PROTOCOLS:
         exact[protocol][at] = exact_closed_form(twin, protocol).cost
         plugin[protocol][at] = exact_cost(twin, closed_form(twin.with_mu(twin.mu_schedule), protocol).inputs,

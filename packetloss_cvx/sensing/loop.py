@@ -41,6 +41,7 @@ import numpy as np
 from ..costs import closed_form
 from ..errors import InputError, NumericalError
 from ..model import System
+from ..results import Riccati
 from ..results.sensing import EstimatedLoop
 from ..simulation.moments import solve_fixed_point, stationary_channel
 from ..simulation.riccati import dp_riccati
@@ -204,7 +205,8 @@ def undetermined_gains(system: System, gains: tuple[np.ndarray, np.ndarray, np.n
 
 
 def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "",
-                   gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, split: bool = True) -> EstimatedLoop:
+                   gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, split: bool = True,
+                   dp: Riccati | None = None) -> EstimatedLoop:
     """The exact stationary loop of ``u = -K xhat`` (module docstring) at the system's mu and gamma.
 
     Returns the radius of the second-moment operator of ``(xhat, e)``, the verdict it proves (:func:`loop_verdict`),
@@ -212,7 +214,8 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     None, when undecided: a radius within the margin of 1, or no stationary gains while the lower bound on E[P] is
     finite, :func:`no_gains_verdict`) and its two parts
     (``split=False``: not computed, nan; it solves the DP). ``gains``: :func:`filter_gains` of this system when the
-    caller has them (a map over mu at one gamma). Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
+    caller has them (a map over mu at one gamma); ``dp``: ``dp_riccati(system)`` when the caller has it (not solved
+    again). Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
 
     Raises
     ------
@@ -241,8 +244,9 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     A, B, Sigma_W = system.A, system.B, system.noise_cov
     Omega, psi = system.state_weights[0], system.input_weights[0]
     sensor = system.sensor
-    dp, dp_reason = None, "not asked for (split=False)"
-    if split:
+    dp = dp if split else None
+    dp_reason = "not asked for (split=False)"
+    if split and dp is None:
         try:
             dp = dp_riccati(system)
         except NumericalError as err:

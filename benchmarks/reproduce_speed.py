@@ -1,0 +1,140 @@
+"""``packetloss-cvx reproduce`` CPU time against older checkouts, side by side in one run (issue 19 item 6: under
+10 s CPU on two cores; docs/performance.md, "reproduce under 10 s CPU").
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/reproduce_speed.py [--rounds 3] [--baseline DIR ...] [--steps]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/reproduce_speed.py --crossover
+
+1. Default: the full ``reproduce`` in a fresh interpreter per run, this checkout and each ``--baseline`` checkout
+   (default /work/base/f7d69cd and /work/base/cfb251d when present) interleaved round by round (every checkout once a
+   round, so a busy spell of the shared machine hits all of them), CPU seconds = user + sys of the child
+   (``os.times`` of the reaped child), one BLAS thread. Prints each run, the medians and the ratios to this checkout.
+   ``--steps``: also each step's CPU seconds in this checkout (the command's own step timer read on
+   ``time.process_time``), one extra run.
+2. ``--crossover``: ``markov.exact_closed_form`` by ``method="recursion"`` and ``method="dense"`` on Gilbert twins
+   (lambda = 0.9) of pendulum, two_actuator and two random plants over N, CPU ms (best of 3), the ratio and the
+   relative difference of J*: the measurement behind ``markov.exact_cost.AUTO_DENSE_MAX``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+BASELINES = [Path("/work/base/f7d69cd"), Path("/work/base/cfb251d")]
+
+STEP_TIMER = """
+import sys, time, types
+import packetloss_cvx.cli.reproduce as r
+r.time = types.SimpleNamespace(perf_counter=time.process_time)    # the step timer on CPU time
+from packetloss_cvx.cli import main
+main(["reproduce", "-q", "--out", sys.argv[1]])
+"""
+
+
+def timed(checkout: Path, out: Path, steps: bool = False) -> tuple[float, str]:
+    """CPU seconds (user + sys of the reaped child) of one fresh ``reproduce`` of ``checkout`` into ``out``, and
+    its stdout."""
+    shutil.rmtree(out, ignore_errors=True)
+    env = {**os.environ, "PYTHONPATH": str(checkout), "OPENBLAS_NUM_THREADS": "1"}
+    cmd = [sys.executable, "-c", STEP_TIMER, str(out)] if steps else \
+        [sys.executable, "-m", "packetloss_cvx", "reproduce", "-q", "--out", str(out)]
+    before = os.times()
+    done = subprocess.run(cmd, env=env, cwd=tempfile.gettempdir(), capture_output=True, text=True, check=False)
+    after = os.times()
+    if done.returncode != 0:
+        raise SystemExit(f"reproduce failed in {checkout}: {done.stderr.strip().splitlines()[-1:]}")
+    return (after.children_user - before.children_user) + (after.children_system - before.children_system), \
+        done.stdout
+
+
+def compare(rounds: int, baselines: list[Path], steps: bool) -> None:
+    checkouts = [ROOT, *[b for b in baselines if b.exists()]]
+    times: dict[Path, list[float]] = {c: [] for c in checkouts}
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(rounds):
+            for c in checkouts:
+                cpu, _ = timed(c, Path(tmp) / f"out-{c.name}")
+                times[c].append(cpu)
+                print(f"round {k + 1}: {c.name:12s} {cpu:6.2f} s CPU (load {os.getloadavg()[0]:.1f})", flush=True)
+        mine = statistics.median(times[ROOT])
+        print("\ncheckout       median CPU s   runs                      / this checkout")
+        for c in checkouts:
+            med = statistics.median(times[c])
+            print(f"{c.name:14s} {med:8.2f}      {', '.join(f'{t:.2f}' for t in times[c]):26s} {med / mine:.2f}")
+        if steps:
+            _, stdout = timed(ROOT, Path(tmp) / "steps", steps=True)
+            print("\nsteps of this checkout (CPU s):", next(line.strip() for line in stdout.splitlines()
+                                                          if "seconds:" in line))
+
+
+def crossover() -> None:
+    sys.path.insert(0, str(ROOT))
+    import numpy as np
+
+    import packetloss_cvx as pl
+    from packetloss_cvx.io import system_from_dict
+    from packetloss_cvx.markov import bursty_twin, exact_closed_form
+    from packetloss_cvx.threads import blas_limited
+
+    def best(f, k):
+        out = []
+        for _ in range(3):
+            start = time.process_time()
+            for _ in range(k):
+                f()
+            out.append((time.process_time() - start) / k)
+        return min(out)
+
+    rng = np.random.default_rng(3)
+    A4 = rng.standard_normal((4, 4))
+    A4 *= 0.95 / max(abs(np.linalg.eigvals(A4)))
+    A3 = rng.standard_normal((3, 3))
+    A3 *= 0.9 / max(abs(np.linalg.eigvals(A3)))
+    cases = {"pendulum (n 4, m 1)": pl.load_example("pendulum"),
+             "two_actuator (n 2, m 2)": pl.load_example("two_actuator"),
+             "random (n 4, m 2)": pl.System(A=A4, B=rng.standard_normal((4, 2)), horizon=10, state_weight=np.ones(4),
+                                            input_weight=np.ones(2), mu=[0.6, 0.8], x0=np.ones(4)),
+             "random (n 3, m 3)": pl.System(A=A3, B=rng.standard_normal((3, 3)), horizon=10, state_weight=np.ones(3),
+                                            input_weight=np.ones(3), mu=[0.6, 0.8, 0.7], x0=np.ones(3))}
+
+    @blas_limited
+    def go():
+        print("system                    N   N m   recursion ms   dense ms   dense/rec   J* rel. diff")
+        for name, base in cases.items():
+            for N in (2, 8, 20, 40, 80, 160, 240, 320):
+                data = base.to_dict()
+                data["cost"]["horizon"] = N
+                s = bursty_twin(system_from_dict(data), 0.9)
+                k = max(1, 200 // N)
+                rec = best(lambda s=s: exact_closed_form(s, "udp", method="recursion"), k)
+                dense = best(lambda s=s: exact_closed_form(s, "udp", method="dense"), k)
+                a = exact_closed_form(s, "udp", method="recursion").cost
+                b = exact_closed_form(s, "udp", method="dense").cost
+                print(f"{name:24s} {N:4d} {N * s.m:4d}   {rec * 1e3:10.2f}   {dense * 1e3:8.2f}   {dense / rec:8.2f}"
+                      f"   {abs(a - b) / abs(a):.1e}", flush=True)
+    go()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--baseline", type=Path, action="append", help="another checkout (repeatable)")
+    parser.add_argument("--steps", action="store_true", help="also this checkout's steps, one more run")
+    parser.add_argument("--crossover", action="store_true", help="the Markov closed form's two routes over N")
+    args = parser.parse_args()
+    if args.crossover:
+        crossover()
+    else:
+        compare(args.rounds, args.baseline or BASELINES, args.steps)
+
+
+if __name__ == "__main__":
+    main()
