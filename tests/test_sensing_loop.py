@@ -42,16 +42,23 @@ def test_full_state_limit_reproduces_the_full_state_loop(seed, protocol):
     assert got.spectral_radius == pytest.approx(want.spectral_radius, rel=1e-9)
 
 
-@pytest.mark.parametrize("seed", range(3))
-def test_no_losses_is_standard_lqg_from_two_dares(seed):
-    rng = np.random.default_rng(seed)
-    s = random_plant(rng, mu=np.ones(2), gamma=(1.0,), p=1)
+def lqg_by_two_dares(s):
+    """The loss-free reference from scipy: the control DARE's X and gain K, the filter DARE's
+    predicted Pp and filtered Pf."""
     A, B, C, Q, R = s.A, s.B, s.sensor.C, s.noise_cov, s.sensor.noise_cov
     Omega, Psi = s.state_weights[0], np.diag(s.input_weights[0])
     X = solve_discrete_are(A, B, Omega, Psi)
     K = np.linalg.solve(Psi + B.T @ X @ B, B.T @ X @ A)
     Pp = solve_discrete_are(A.T, C.T, Q, R)
     Pf = Pp - Pp @ C.T @ np.linalg.solve(C @ Pp @ C.T + R, C @ Pp)
+    return A, B, Q, Psi, X, K, Pp, Pf
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_no_losses_is_standard_lqg_from_two_dares(seed):
+    rng = np.random.default_rng(seed)
+    s = random_plant(rng, mu=np.ones(2), gamma=(1.0,), p=1)
+    A, B, Q, Psi, X, K, Pp, Pf = lqg_by_two_dares(s)
     want = np.trace(X @ Q) + np.trace(K.T @ (Psi + B.T @ X @ B) @ K @ Pf)
     for protocol in ("tcp", "udp"):
         got = estimated_loop(s, K, protocol, "lqg")
@@ -180,12 +187,7 @@ def test_a_callers_dp_solution_is_used_and_gives_the_split_of_two_dares(seed):
     tr(K'(Psi + B'XB)K P_f)); a different caller's solution is the one whose P enters the control part."""
     rng = np.random.default_rng(10 + seed)
     s = random_plant(rng, mu=np.ones(2), gamma=(1.0,), p=1)
-    A, B, C, Q, R = s.A, s.B, s.sensor.C, s.noise_cov, s.sensor.noise_cov
-    Omega, Psi = s.state_weights[0], np.diag(s.input_weights[0])
-    X = solve_discrete_are(A, B, Omega, Psi)
-    K = np.linalg.solve(Psi + B.T @ X @ B, B.T @ X @ A)
-    Pp = solve_discrete_are(A.T, C.T, Q, R)
-    Pf = Pp - Pp @ C.T @ np.linalg.solve(C @ Pp @ C.T + R, C @ Pp)
+    A, B, Q, Psi, X, K, Pp, Pf = lqg_by_two_dares(s)
     dp = dp_riccati(s)
     given = estimated_loop(s, dp.gain, "tcp", "dp", dp=dp)
     solved = estimated_loop(s, dp.gain, "tcp", "dp")
