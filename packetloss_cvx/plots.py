@@ -48,6 +48,21 @@ def _rows(rows: Any, field: str, keys: tuple[str, ...]) -> list[Mapping]:
     return list(rows)
 
 
+def _curves(curves: Any, x: str, y: str, *, skip_missing: bool) -> tuple[Figure, Any]:
+    """A figure with one line of ``(row[x], row[y])`` per label of ``curves`` (label -> rows); rows whose ``y`` is
+    None left out where ``skip_missing`` (an infeasible point), else an InputError like any other bad number."""
+    if not isinstance(curves, Mapping) or not curves:
+        raise InputError("curves", "expected a non-empty mapping label -> rows")
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    ax = fig.subplots()
+    for label, rows in curves.items():
+        field = f"curves[{label!r}]"
+        kept = [r for r in _rows(rows, field, (x, y)) if not (skip_missing and r[y] is None)]
+        xy = numeric_array([[r[x], r[y]] for r in kept], field).reshape(-1, 2)
+        ax.plot(xy[:, 0], xy[:, 1], marker="o", ms=3, label=_LABELS.get(label, str(label)))
+    return fig, ax
+
+
 def _save(fig: Figure, path: str | Path | None) -> Figure:
     """Saved atomically (safeio.save_figure); an existing file is replaced, as Matplotlib's savefig does: a
     figure is redrawn from its data (the command line refuses without --force, docs/design.md §4)."""
@@ -89,15 +104,7 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     >>> line.get_xdata().tolist(), line.get_ydata().tolist()
     ([1.0, 3.0], [2.0, 0.5])
     """
-    if not isinstance(curves, Mapping) or not curves:
-        raise InputError("curves", "expected a non-empty mapping label -> rows")
-    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
-    ax = fig.subplots()
-    for label, rows in curves.items():
-        field = f"curves[{label!r}]"
-        kept = [r for r in _rows(rows, field, ("alpha", "communication_cost")) if r["communication_cost"] is not None]
-        xy = numeric_array([[r["alpha"], r["communication_cost"]] for r in kept], field).reshape(-1, 2)
-        ax.plot(xy[:, 0], xy[:, 1], marker="o", ms=3, label=_LABELS.get(label, str(label)))
+    fig, ax = _curves(curves, "alpha", "communication_cost", skip_missing=True)
     ax.set_xlabel(r"cost bound $\alpha$")
     ax.set_ylabel(r"communication cost $\beta^\top\mu^*$")
     if title:
@@ -593,15 +600,7 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | N
     >>> line.get_xdata().tolist(), line.get_ydata().tolist()
     ([0.0, 1.0], [4.0, 2.0])
     """
-    if not isinstance(curves, Mapping) or not curves:
-        raise InputError("curves", "expected a non-empty mapping label -> rows")
-    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
-    ax = fig.subplots()
-    for label, rows in curves.items():
-        field = f"curves[{label!r}]"
-        xy = numeric_array([[r["budget"], r["cost"]] for r in _rows(rows, field, ("budget", "cost"))],
-                           field).reshape(-1, 2)
-        ax.plot(xy[:, 0], xy[:, 1], marker="o", ms=3, label=_LABELS.get(label, str(label)))
+    fig, ax = _curves(curves, "budget", "cost", skip_missing=False)
     ax.set_yscale("log")
     ax.set_xlabel(r"total power budget $\sum_i P_i \leq B$")
     ax.set_ylabel(r"least optimal cost $J^*(\mu(P))$ (log scale)")
