@@ -128,3 +128,35 @@ def test_region_gives_the_critical_mean_rate_behind_a_chain_where_it_is_proved(c
     assert main(["region", path, "--json", "-q"]) == 0
     data = json.loads(capsys.readouterr().out)["dp"]
     assert data["critical_mu"] is None and data["t"] is None and "h_bad = 0" in data["critical_mu_reason"]
+
+
+@pytest.mark.parametrize("p", [0.0, 1e-17])
+def test_region_on_a_chain_that_never_moves_answers_and_gives_no_critical_mean_rate(capsys, tmp_path, p):
+    """p + r = 0 with a given state (or p so small that 1 - p - r rounds to 1): a valid file whose burstiness is 1,
+    so no mean rate can be varied at fixed burstiness. The membership still answers (by hand: the bad state is
+    absorbing and delivers nothing, x+ = 1.5 x there, so no mode-dependent law stabilises every start) and
+    critical_mu is null with the reason: never exit 2 on a file the model accepts."""
+    s = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+               channel=GilbertElliott(p=[p], r=[0.0], state=["good"]))
+    path = str(save_system(s, tmp_path / "still.toml"))
+    assert main(["region", path, "--json", "-q"]) == 0
+    data = json.loads(capsys.readouterr().out)["dp"]
+    assert data["verdict"] == "unstable"
+    assert data["critical_mu"] is None
+    assert data["t"] is None
+    assert "never move" in data["critical_mu_reason"]
+
+
+def test_region_on_a_chain_with_a_channel_that_never_delivers_answers_without_a_critical_mean_rate(capsys, tmp_path):
+    """h_good = h_bad = 0 on channel 2 (a file the model accepts): its mean rate is 0 whatever the chain, so there is
+    no ray of mean rates through it; region answers the membership (by hand: channel 2 never delivers, so the second,
+    decoupled mode x2+ = 1.2 x2 is never controlled) and gives critical_mu null with the reason, never exit 2."""
+    s = System(A=np.diag([1.5, 1.2]), B=np.eye(2), horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+               x0=[1.0, 1.0], channel=GilbertElliott(p=[0.4, 0.2], r=[0.4, 0.3], h_good=[1.0, 0.0]))
+    path = str(save_system(s, tmp_path / "dead.toml"))
+    for argv in ([], ["--direction", "1,0"]):
+        assert main(["region", path, "--json", "-q", *argv]) == 0
+        data = json.loads(capsys.readouterr().out)["dp"]
+        assert data["verdict"] == "unstable"
+        assert data["critical_mu"] is None
+        assert "never deliver" in data["critical_mu_reason"]

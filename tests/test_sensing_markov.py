@@ -277,3 +277,26 @@ def test_a_periodic_chain_and_a_chain_too_large_give_no_verdict_and_say_why():
     assert "2048" in loop.reason
     with pytest.raises(ValueError, match="2048"):
         markov_covariance_bounds(big.A, big.noise_cov, big.sensor)
+
+
+def test_a_bad_state_the_chain_never_enters_proves_nothing_and_one_it_leaves_late_still_counts():
+    """p = 0: the good state is absorbing. Started good (given, or the stationary start), C = 1 and h_good = 1 deliver
+    every step, so P- is the Riccati fixed point 1 + 4P/(P + 1) at a = 2, R = Sigma_W = 1: P = 2 + sqrt(5) (hand),
+    both bounds, and bounded, though the unreachable bad state has (1 - r) a^2 = 3.6. Started bad with r = 0.1,
+    E[P-_k] >= 0.9^(k-1) 4^(k-1) (lost k-1 times in a row, noise alone): unbounded, and the exact enumeration grows."""
+    A, one = np.array([[2.0]]), np.eye(1)
+    for start in ({"state": ["good"]}, {}):
+        sensor = Sensor(C=[[1.0]], noise_cov=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.0], "r": [0.1],
+                                                               **start})
+        fs = filter_stability(A, one, sensor)
+        assert (fs.bounded, fs.by) == (True, "one-step observability")
+        assert fs.loss_radius == 0.0                      # no loss in the states it visits
+        b = markov_covariance_bounds(A, one, sensor)
+        assert b.trace_lower == pytest.approx(1.0, rel=1e-12)
+        assert b.trace_upper == pytest.approx(2 + np.sqrt(5), rel=1e-9)
+    bad = Sensor(C=[[1.0]], noise_cov=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.0], "r": [0.1],
+                                                        "state": ["bad"]}, P0=[[0.0]])
+    assert filter_stability(A, one, bad).bounded is False
+    path = expected_covariance(A, one, bad, 14).predicted[:, 0, 0]
+    assert path[-1] > 0.9 ** 13 * 4 ** 13 > 1e5
+    assert np.all(np.diff(path[4:]) > 0)

@@ -161,7 +161,8 @@ class FilterStability(Frozen):
     """Whether the TCP-like filter's expected error covariance stays bounded behind Markov (Gilbert–Elliott)
     sensor links (sensing.markov_bounds.filter_stability): ``bounded`` True (proved: ``by`` says how), False
     (proved unbounded), None (undecided, ``reason``); ``loss_radius`` = rho(Lambda) rho(A)^2 (Lambda the chain's
-    all-lost matrix; < 1 is necessary, and sufficient when every channel alone observes the state: ``exact``)."""
+    all-lost matrix on the states it can visit from its initial distribution; < 1 is necessary, and sufficient
+    when every channel alone observes the state: ``exact``)."""
 
     bounded: bool | None
     loss_radius: float

@@ -9,8 +9,10 @@ With ``Lambda = diag(e(all lost | s)) T`` (:meth:`.arrivals.Arrivals.loss_matrix
   ``E[P^-_k] >= sum_{i<k} (pi_{k-i} Lambda^i 1) A^i Sigma_W A'^i``; as ``pi_k -> pi`` the stationary bound is
   ``sum_s pi_s Y_s`` with ``Y_s = Sigma_W + sum_s' Lambda[s, s'] A Y_s' A'`` (a coupled Lyapunov equation; the
   Bernoulli ``S = q A S A' + Sigma_W`` is its one-state case). Also ``E[P^-_k] >= (pi_0 Lambda^k 1) A^k P0 A'^k``.
-  Either series diverging at ``Lambda (1 - DIVERGENCE_MARGIN)`` proves ``E[P^-_k]`` unbounded (root test: its
-  terms then grow without bound). It converges when ``rho(Lambda) rho(A)^2 < 1``.
+  So does the noise series from ``pi_1`` (term i: ``P(L_{i+1} >= i) A^i Sigma_W A'^i``, the transient of a bad
+  start). Any of these diverging at ``Lambda (1 - DIVERGENCE_MARGIN)`` proves ``E[P^-_k]`` unbounded (root test:
+  its terms then grow without bound); each runs over the states its start reaches (others never contribute). It
+  converges when ``rho(Lambda) rho(A)^2 < 1`` (Lambda on the states the chain visits: :func:`reachable_loss_radius`).
 * **Upper bound** (Jensen, per chain state). Given ``S_k = s`` the pattern ``a_k`` is independent of ``P^-_k``
   and of ``S_{k+1}``, and each ``g_a(V) = A U_a(V) A' + Sigma_W`` is concave and monotone, so with
   ``W_{k,s} = E[P^-_k | S_k = s]``: ``E[P^-_{k+1} 1{S_{k+1} = s'}] <= sum_s T[s, s'] pi_k(s) sum_a e(a|s)
@@ -47,7 +49,8 @@ from .bounds import CERTIFICATE_MAX_ITER, DIVERGENCE_MARGIN, MARE_DIVERGENCE, MA
 from .kalman import measurement_update, pattern_rows, predict
 
 __all__ = ["MARKOV_MAX_UNKNOWNS", "filter_stability", "markov_certificate", "markov_covariance_bounds",
-           "markov_lower_bound", "markov_lower_diverges", "markov_upper_bound", "weighted_series"]
+           "markov_lower_bound", "markov_lower_diverges", "markov_upper_bound", "reachable_loss_radius",
+           "weighted_series"]
 
 #: The coupled Lyapunov equation of the lower bound has S n^2 unknowns: at most this many (S = 2^g states).
 MARKOV_MAX_UNKNOWNS = 2048
@@ -70,9 +73,11 @@ def weighted_series(A: np.ndarray, X: np.ndarray, Lam: np.ndarray, start: np.nda
     X = np.asarray(X, dtype=float)
     if float(np.linalg.norm(X)) == 0.0:
         return np.zeros((n, n))
+    keep = _reachable(Lam, start)        # (start Lambda^i)_s = 0 elsewhere: states start never runs into
+    Lam, start, S = Lam[np.ix_(keep, keep)], start[keep], int(keep.sum())
     M = np.kron(Lam, np.kron(A, A))
     v = np.tile(X.ravel(), S)
-    rho = float(np.max(np.abs(np.linalg.eigvals(Lam)))) * float(np.max(np.abs(np.linalg.eigvals(A)))) ** 2
+    rho = _radius(Lam) * _radius(A) ** 2
     if rho < 1.0 - 1e-12:
         y = np.linalg.solve(np.eye(S * n * n) - M, v)
     else:
@@ -93,15 +98,42 @@ def weighted_series(A: np.ndarray, X: np.ndarray, Lam: np.ndarray, start: np.nda
     return 0.5 * (out + out.T)
 
 
+def _reachable(M: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """The states (bool, (S,)) some walk along ``M``'s nonzero entries reaches from ``start``'s support, the support
+    included: ``(start M^i)_s = 0`` for every i outside them. O(S^3)."""
+    seen = np.asarray(start) > 0.0
+    while True:
+        nxt = seen | np.any(M[seen] != 0.0, axis=0)
+        if np.array_equal(nxt, seen):
+            return seen
+        seen = nxt
+
+
+def _radius(M: np.ndarray) -> float:
+    """The spectral radius (0 for an empty matrix). O(S^3)."""
+    return float(np.max(np.abs(np.linalg.eigvals(M)))) if M.size else 0.0
+
+
 def markov_lower_diverges(A: np.ndarray, Sigma_W: np.ndarray, P0: np.ndarray, arrivals: Arrivals) -> bool:
-    """Either lower-bound series (noise from the limit distribution, P0 from the initial one) diverges at
-    ``Lambda (1 - DIVERGENCE_MARGIN)``: E[P^-_k] proved unbounded (module docstring). False when the chain has no
-    limit distribution (nothing proved). Time as :func:`weighted_series`."""
+    """A lower-bound series (noise from the limit distribution; noise from ``pi_1``, the run of losses since step 1,
+    whose term i is ``P(L_{i+1} >= i) A^i Sigma_W A'^i <= E[P^-_{i+1}]``; P0 from the initial distribution)
+    diverges at ``Lambda (1 - DIVERGENCE_MARGIN)``: E[P^-_k] proved unbounded (module docstring). Each series runs
+    over the states its start reaches (:func:`weighted_series`): a bad state the chain never enters proves nothing.
+    False when the chain has no limit distribution (nothing proved). Time as :func:`weighted_series`."""
     if arrivals.limit is None:
         return False
     Lam = arrivals.loss_matrix() * (1.0 - DIVERGENCE_MARGIN)
     return (weighted_series(A, Sigma_W, Lam, arrivals.limit) is None
+            or weighted_series(A, Sigma_W, Lam, arrivals.initial @ arrivals.transition) is None
             or weighted_series(A, P0, Lam, arrivals.initial) is None)
+
+
+def reachable_loss_radius(arrivals: Arrivals) -> float:
+    """``rho(Lambda)`` over the states the chain can visit from its initial distribution (closed under T, so
+    ``P(L_k >= i) = pi_{k-i} Lambda^i 1`` only involves them): the radius the one-step observability proof needs.
+    O(S^3)."""
+    keep = _reachable(arrivals.transition, arrivals.initial)
+    return _radius(arrivals.loss_matrix()[np.ix_(keep, keep)])
 
 
 def markov_lower_bound(A: np.ndarray, Sigma_W: np.ndarray, arrivals: Arrivals) -> np.ndarray | None:
@@ -249,7 +281,7 @@ def filter_stability(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor) -> Filt
     arrivals = sensor_arrivals(sensor)
     n = A.shape[0]
     rho_A = float(np.max(np.abs(np.linalg.eigvals(A))))
-    loss = float(np.max(np.abs(np.linalg.eigvals(arrivals.loss_matrix())))) * rho_A * rho_A
+    loss = reachable_loss_radius(arrivals) * rho_A * rho_A
     exact = all(np.linalg.matrix_rank(sensor.C[list(rows)]) == n for rows in sensor.groups)
     if arrivals.limit is None:
         return FilterStability(None, loss, exact, "", "undecided: a channel with p = r = 1 alternates for ever, so "

@@ -306,14 +306,26 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, 
 
 def critical_rate_unproved(channel: GilbertElliott) -> str | None:
     """Why no critical mean rate is offered behind ``channel`` (None where the region is proved monotone in the
-    mean rates at fixed burstiness: every channel with ``h_bad = 0`` and burstiness ``lambda_i >= 0``;
-    docs/design.md, "The critical mean rate behind a chain"). O(m).
+    mean rates at fixed burstiness: every channel with ``h_bad = 0`` and burstiness ``0 <= lambda_i < 1``, a
+    chain that moves, and ``h_good_i > 0``; docs/design.md, "The critical mean rate behind a chain"). O(m).
 
     >>> critical_rate_unproved(GilbertElliott(p=[0.1], r=[0.3])) is None
     True
     >>> critical_rate_unproved(GilbertElliott(p=[0.6], r=[0.7]))[:40]
     'monotonicity in the mean rate is proved '
+    >>> critical_rate_unproved(GilbertElliott(p=[0.0], r=[0.0], state=["good"]))[:31]   # a chain that never moves
+    'channel(s) [1] never move (1 - '
+    >>> critical_rate_unproved(GilbertElliott(p=[0.1], r=[0.3], h_good=[0.0]))[:28]          # never delivers
+    'channel(s) [1] never deliver'
     """
+    still = [i + 1 for i in range(channel.m) if channel.correlation[i] >= 1.0]
+    if still:                   # p + r = 0 (a given state), or below the resolution of 1 - p - r: no ray to run
+        return (f"channel(s) {still} never move (1 - p - r = 1 in floating point): at fixed burstiness the mean rate "
+                "cannot be varied, so there is no critical mean rate (the membership above still answers)")
+    dead = [i + 1 for i in range(channel.m) if channel.h_good[i] == 0.0 and channel.h_bad[i] == 0.0]
+    if dead:                    # its mean rate is 0 whatever the chain: nothing to vary
+        return (f"channel(s) {dead} never deliver (h_good = h_bad = 0): their mean rate cannot be varied, so there "
+                "is no critical mean rate (the membership above still answers)")
     bad = [i + 1 for i in range(channel.m) if channel.h_bad[i] != 0.0 or channel.correlation[i] < 0.0]
     if not bad:
         return None
