@@ -639,3 +639,18 @@ def test_rayleigh_tcp_least_power_by_the_tangent_relaxation():
         assert out.lower_bound <= best.fun * (1 + 1e-9)
         assert out.total_power <= best.fun * (1 + 1e-4)
         assert (out.boxes == 0) == (alpha == 3.0)        # P_i >= c_i at alpha = 3 only
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+@pytest.mark.parametrize("last", [1e12, 1e24])
+def test_least_power_with_a_table_far_beyond_its_action(protocol, last):
+    # the table acts at P ~ 1 and ends at 1e12 or 1e24: the search box must come down to the answer's scale, or the
+    # gap's absolute floor (in x = P / top) certifies any point; by hand mu = 0.75 is on the segment (1, 0.6)-(2, 0.9)
+    model = power_model("table", 1, table=[[0.0, 0.0], [1.0, 0.6], [2.0, 0.9], [last, 0.99]])
+    alpha = hand_cost(protocol, [0.75], [1.0])
+    a = least_power(scalar(), protocol, model, alpha, gap=1e-6)
+    assert a.status == "optimal"
+    assert a.total_power == pytest.approx(1.5, rel=1e-5)
+    assert a.lower_bound <= 1.5 * (1 + 1e-9)
+    assert a.lower_bound >= 1.5 * (1 - 2e-6)
+    assert a.cost <= alpha * (1 + 1e-9)
