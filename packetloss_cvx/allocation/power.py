@@ -53,8 +53,7 @@ __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pare
 #: relaxations solved (TCP-like), each adding the tangents at the last relaxed point's powers
 RAYLEIGH_TANGENTS = 16
 RAYLEIGH_ROUNDS = 6
-#: the most halvings of the least-power search box (:func:`_search_cap`): the span of double precision
-SEARCH_HALVINGS = 2100
+SEARCH_HALVINGS = 2100     #: the most halvings of the least-power search box (_search_cap): double precision's span
 
 # ------------------------------------------------------------------ the convex program (TCP-like, concave model)
 
@@ -243,11 +242,9 @@ def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, 
     """The box [0, top] to search for the least power: the caller's cap or the model's saturation, cut down to
     the total of a feasible point (any better point spends less in total, so no channel more than that total).
     The point: the most a box [0, T]^m allows (an LP) where it meets alpha, T doubled from below until it does,
-    then halved while it still does, so that top sits within a factor 2 m of the least power's scale (where
-    no m-fold half box is feasible the least power spends more than T / 2 on some channel). Without the halving
-    a table's last row at 1e24 beside its action at 1 left top 1e21 times the answer, whose value in x = P / top
-    fell below the gap's absolute floor: "optimal" was reported 33 % above the least power, with lower bound 0.
-    Returns top and the feasible point (in P) when one was found. O(log2(top / P*)) LPs and closed forms."""
+    then halved while it still does: top within 2 m of the least power's scale (else a table ending at 1e24 beside
+    its action at 1 put the answer's x = P / top under the gap's absolute floor: "optimal", lower bound 0, 33 %
+    above the least power). Returns top and the feasible point (in P) if found. O(log2(top / P*)) LPs, closed forms."""
     sat = model.saturation() if cap is None else cap
     evaluator = CostEvaluator(system, protocol)
 
