@@ -322,3 +322,24 @@ def test_one_channel_tcp_infeasible_and_min_cost_at_the_upper_end():
     assert got.mu.tolist() == [0.4] and got.status == "optimal"
     assert got.cost == pytest.approx(pl.closed_form(s.with_mu([0.4]), "tcp").cost, rel=1e-12)
     assert got.lower_bound <= got.cost
+
+
+@pytest.mark.parametrize("protocol", ["udp"])        # TCP-like: the SOCP raises SolverError here (no verdict)
+def test_min_cost_at_tiny_costs_against_a_grid(protocol):
+    # x0 = 1e-10: every cost is 1e-20 times the x0 = 1 plant's, below the gap's absolute floor 1e-12; the minimiser
+    # does not move. Reference: the closed form on a grid of the row mu_1 + mu_2 = 1 (J* falls in mu: the minimum is
+    # on it), refined around its best point
+    s = pl.System(A=[[1.05, 0.2], [0.0, 0.9]], B=[[0.0, 1.0], [1.0, 0.3]], horizon=5, state_weight=[1.0, 1.0],
+                  input_weight=[0.5, 0.5], x0=[1e-10, 1e-10], mu=[0.5, 0.5])
+
+    def on_row(t):
+        return pl.closed_form(s.with_mu([t, 1.0 - t]), protocol).cost
+
+    grid = np.linspace(0.0, 1.0, 201)
+    t0 = grid[int(np.argmin([on_row(t) for t in grid]))]
+    best = min(on_row(t) for t in np.linspace(max(t0 - 0.005, 0.0), min(t0 + 0.005, 1.0), 201))
+    r = min_cost(s, protocol, constraints=[(np.array([[1.0, 1.0]]), np.array([1.0]))])
+    assert r.status == "optimal"
+    assert r.cost == pytest.approx(best, rel=1e-5, abs=0.0)       # (approx's default abs 1e-12 would pass anything)
+    assert r.lower_bound <= best * (1 + 1e-9)
+    assert r.gap <= 1e-5

@@ -639,3 +639,42 @@ def test_rayleigh_tcp_least_power_by_the_tangent_relaxation():
         assert out.lower_bound <= best.fun * (1 + 1e-9)
         assert out.total_power <= best.fun * (1 + 1e-4)
         assert (out.boxes == 0) == (alpha == 3.0)        # P_i >= c_i at alpha = 3 only
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+@pytest.mark.parametrize("last", [1e12, 1e24])
+def test_least_power_with_a_table_far_beyond_its_action(protocol, last):
+    # the table acts at P ~ 1 and ends at 1e12 or 1e24: the search box must come down to the answer's scale, or the
+    # gap's absolute floor (in x = P / top) certifies any point; by hand mu = 0.75 is on the segment (1, 0.6)-(2, 0.9)
+    model = power_model("table", 1, table=[[0.0, 0.0], [1.0, 0.6], [2.0, 0.9], [last, 0.99]])
+    alpha = hand_cost(protocol, [0.75], [1.0])
+    a = least_power(scalar(), protocol, model, alpha, gap=1e-6)
+    assert a.status == "optimal"
+    assert a.total_power == pytest.approx(1.5, rel=1e-5)
+    assert a.lower_bound <= 1.5 * (1 + 1e-9)
+    assert a.lower_bound >= 1.5 * (1 - 2e-6)
+    assert a.cost <= alpha * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_within_power_at_tiny_costs(protocol):
+    # x0 scaled by 1e-10: every cost is 1e-20 times the decoupled plant's, below the gap's absolute floor 1e-12; the
+    # optimal powers do not move. Reference: the split of B = 2 between the channels (exponential, c = 1) by a scalar
+    # search on the hand costs (UDP-like by hand: w_i e^-P_i equal, P_1 = 1 - log(3) / 2)
+    w = np.array([1.0, 3.0])
+    tiny = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+                  mu=[0.5, 0.5], x0=1e-10 * np.sqrt(w))
+    model = power_model("exponential", 2, scale=1.0)
+
+    def hand(p1):
+        return hand_cost(protocol, model.mu(np.array([p1, 2.0 - p1])), w)
+
+    split = minimize_scalar(hand, bounds=(0.0, 2.0), method="bounded", options={"xatol": 1e-10})
+    if protocol == "udp":
+        assert split.x == pytest.approx(1.0 - np.log(3.0) / 2.0, abs=1e-6)
+    a = least_cost_within_power(tiny, protocol, model, 2.0, gap=1e-5)
+    assert a.status == "optimal"
+    assert a.cost / 1e-20 == pytest.approx(split.fun, rel=2e-5)
+    assert a.lower_bound / 1e-20 <= split.fun * (1 + 1e-9)
+    assert a.lower_bound / 1e-20 >= split.fun * (1 - 2e-5)
+    assert a.gap <= 1e-5

@@ -87,7 +87,7 @@ def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, tim
                     else udp_min_cost(system, poly, max_boxes, time_limit,
                                       cost=None if evaluator is None else MonotoneCost(evaluator)))
     return MinCost(protocol=protocol, cost=out.value, lower_bound=out.lower_bound,
-                   gap=(out.value - out.lower_bound) / max(out.value, ALLOCATION_GAP_FLOOR), status=out.status,
+                   gap=(out.value - out.lower_bound) / max(abs(out.value), np.finfo(float).tiny), status=out.status,
                    mu=out.mu, method=out.note)
 
 

@@ -53,6 +53,7 @@ __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pare
 #: relaxations solved (TCP-like), each adding the tangents at the last relaxed point's powers
 RAYLEIGH_TANGENTS = 16
 RAYLEIGH_ROUNDS = 6
+SEARCH_HALVINGS = 2100     #: the most halvings of the least-power search box (_search_cap): double precision's span
 
 # ------------------------------------------------------------------ the convex program (TCP-like, concave model)
 
@@ -223,42 +224,52 @@ def _check(system: System, protocol: str, model: PowerModel) -> tuple[System, st
 
 
 def _result(setup: _Setup, problem: str, x: np.ndarray, value: float, lower: float, status: str, method: str,
-            boxes: int, limit: float, unit: float = 1.0) -> PowerAllocation:
+            boxes: int, limit: float, unit: float = 1.0, size: float = 1.0) -> PowerAllocation:
     """The result at x; ``value`` and ``lower`` in units of ``unit`` (the gap is taken there, the bound reported
-    times it)."""
+    times it), the gap's floor ``ALLOCATION_GAP_FLOOR * size``."""
     P = setup.top * x
     mu = setup.model.mu(P)
     cost = float(CostEvaluator(setup.system, setup.protocol).cost(np.clip(mu, 0.0, 1.0)))
     total = float(np.sum(P))
     return PowerAllocation(protocol=setup.protocol, problem=problem, model=setup.model.to_dict(), power=P,
                            total_power=total, mu=mu, cost=cost, limit=limit, lower_bound=lower * unit,
-                           gap=(value - lower) / max(abs(value), ALLOCATION_GAP_FLOOR), status=status,
+                           gap=(value - lower) / max(abs(value), ALLOCATION_GAP_FLOOR * size), status=status,
                            method=method, boxes=boxes)
 
 
 def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, constraints: Sequence[Constraint],
                 cap: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-    """The box [0, top] to search for the least power: the caller's cap, else the model's saturation cut down
-    to the total of a feasible point found by doubling a box (any better point spends less in total, so no
-    channel more than that total). Returns top and the feasible point (in P) when one was found."""
+    """The box [0, top] to search for the least power: the caller's cap or the model's saturation, cut down to
+    the total of a feasible point (any better point spends less in total, so no channel more than that total).
+    The point: the most a box [0, T]^m allows (an LP) where it meets alpha, T doubled from below until it does,
+    then halved while it still does: top within 2 m of the least power's scale (else a table ending at 1e24 beside
+    its action at 1 put the answer's x = P / top under the gap's absolute floor: "optimal", lower bound 0, 33 %
+    above the least power). Returns top and the feasible point (in P) if found. O(log2(top / P*)) LPs, closed forms."""
     sat = model.saturation() if cap is None else cap
-    if cap is not None:
-        return sat, None
     evaluator = CostEvaluator(system, protocol)
-    T = float(np.min(sat)) / 2 ** 10 if model.kind != "rayleigh" else float(np.min(model.scale))
-    while True:
+
+    def feasible(T: float) -> np.ndarray | None:
         box = np.minimum(np.full(system.m, T), sat)
         try:
             setup_poly = read_polytope(_scaled(constraints, box), system.m, 0.0, 1.0)
             q, _ = box_lp(-np.ones(system.m), setup_poly, np.zeros(system.m), np.ones(system.m))
         except InfeasibleError:             # a row this box cannot meet (P1 >= 30 in [0, 1]^m): not a verdict
-            q = None
+            return None
         if q is not None and evaluator.cost(np.clip(model.mu(box * q), 0.0, 1.0)) <= alpha:
-            P = box * q
-            return np.minimum(sat, max(float(np.sum(P)), float(np.max(P)))), P
-        if np.all(box >= sat):
+            return box * q
+        return None
+
+    T = float(np.min(sat)) / 2 ** 10 if model.kind != "rayleigh" else float(np.min(model.scale))
+    while (P := feasible(T)) is None:
+        if np.all(np.minimum(np.full(system.m, T), sat) >= sat):
             return sat, None
         T *= 2.0
+    for _ in range(SEARCH_HALVINGS):      # down to where half the box no longer meets alpha (or spends nothing)
+        half = feasible(T / 2.0)
+        if half is None or not np.any(half > 0):
+            break
+        T, P = T / 2.0, half
+    return np.minimum(sat, max(float(np.sum(P)), float(np.max(P)))), P
 
 
 @blas_limited
@@ -541,9 +552,11 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     out = udp_min_cost(system, setup.poly, max_boxes, time_limit, cost=setup.cost, incumbent=incumbent, floor=floor,
                        what=f"{protocol.upper()}-like least cost within the power budget", gap=gap)
     method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note, failed)
-    status = out.status if (out.value - out.lower_bound) <= gap * max(out.value, ALLOCATION_GAP_FLOOR) \
+    size = abs(setup.cost.checked(setup.poly.lower()))       # the largest cost on the box: the floor's unit
+    status = out.status if (out.value - out.lower_bound) <= gap * max(out.value, ALLOCATION_GAP_FLOOR * size) \
         else "gap_not_certified"
-    return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, status, method, out.boxes, budget)
+    return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, status, method, out.boxes, budget,
+                   size=size)
 
 
 def _convex_least_cost(setup: _Setup) -> tuple[np.ndarray, float]:

@@ -131,7 +131,9 @@ class Search:
     """Best-first search over boxes for a minimum: the incumbent, the open boxes and the caps.
 
     ``floor`` is a lower bound known from elsewhere (the TCP-like relaxation, C). The
-    certificate is ``incumbent - max(least open bound, floor) <= gap * incumbent``. Heap
+    certificate is ``incumbent - max(least open bound, floor) <= gap * incumbent``, the incumbent floored at
+    ``ALLOCATION_GAP_FLOOR * scale`` (``scale`` the problem's own size, e.g. its largest cost: an absolute floor
+    certified anything where every cost is below 1e-12, as with weights of 1e-20). Heap
     operations O(log boxes); the work is in ``visit``.
 
     Examples
@@ -152,8 +154,9 @@ class Search:
     """
 
     def __init__(self, gap: float, floor: float, max_boxes: int, time_limit: float | None,
-                 progress: bool | None = False) -> None:
+                 progress: bool | None = False, scale: float = 1.0) -> None:
         self.gap, self.floor, self.max_boxes, self.time_limit = gap, floor, max_boxes, time_limit
+        self.scale = scale
         self.progress = progress
         self.best, self.best_mu = np.inf, None
         self.heap: list = []
@@ -192,8 +195,8 @@ class Search:
 
     def certified(self) -> bool:
         """Whether the incumbent is within ``gap`` of the proven bound. O(1)."""
-        return bool(np.isfinite(self.best)
-                    and self.best - self.lower_bound() <= self.gap * max(abs(self.best), ALLOCATION_GAP_FLOOR))
+        size = max(abs(self.best), ALLOCATION_GAP_FLOOR * self.scale)
+        return bool(np.isfinite(self.best) and self.best - self.lower_bound() <= self.gap * size)
 
     def run(self, visit: Callable[[float, np.ndarray, np.ndarray, object], None]) -> str:
         """Pop and visit boxes until certified, out of boxes, or at a cap (the first box is always
@@ -394,7 +397,8 @@ def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: flo
     if not poly.G.shape[0]:                                # the box alone: its upper corner
         value = J(upper)
         return Outcome(upper, value, value, "optimal", 0, "upper corner of the box (Theorem 3)")
-    search = Search(gap, max(constant_cost(system), floor), max_boxes, time_limit)
+    # the gap's floor in the problem's own size, J* at the lower corner (the largest cost on the box)
+    search = Search(gap, max(constant_cost(system), floor), max_boxes, time_limit, scale=abs(J(lower)))
     search.offer(q, J(q))
     if incumbent is not None and polytope_excess(incumbent, poly) <= ALLOCATION_LP_FEASIBILITY:
         search.offer(incumbent, J(incumbent))
