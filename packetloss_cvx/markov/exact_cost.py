@@ -139,7 +139,8 @@ def auto_route(system: System) -> str:
     >>> auto_route(s), auto_route(long)          # N = 20: 0.6 against 1.4 ms; N = 2000: 2.4 s against 0.14 s
     ('dense', 'recursion')
     """
-    return pick_method(system, "auto", udp_variance_weights(system), dense_max(system))
+    limit = dense_max(system)
+    return pick_method(system, "auto", udp_variance_weights(system), limit) if limit else "recursion"
 
 
 def dense_prediction(system: System) -> Prediction:
@@ -301,9 +302,12 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
         sol = closed_form(system, "tcp")
         return Solution(protocol="tcp", cost=sol.cost, inputs=sol.inputs, gain=sol.gain,
                         closed_loop_eigenvalues=sol.closed_loop_eigenvalues, method=f"markov-{sol.method}")
-    if method == "auto":         # the one chooser and fallback, at this system's estimated crossover
+    # auto: the one chooser and fallback at this system's estimated crossover; past it straight to the recursion,
+    # without the condition estimate's O(N n^3) Lyapunov sum (the recursion runs its own)
+    limit = dense_max(system) if method == "auto" else 0
+    if limit:
         route, dense = dense_or_recursion(system, "auto", udp_variance_weights(system),
-                                          lambda: _dense_closed_form(system), dense_max(system))
+                                          lambda: _dense_closed_form(system), limit)
         if dense is not None:
             return dense
     if route == "recursion":
