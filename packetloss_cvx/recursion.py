@@ -18,7 +18,8 @@ the same minimiser as the paper's dense law ``-G^{-1} Omega_gp x`` (Theorem 1).
 Time O(N (n^3 + m^3)), memory O(N n m) for the gains; no (N n)×(N m) matrix is formed.
 
 This module holds the algebra once, batched over a leading axis (a single point is a batch of one,
-as scipy.linalg's solvers batch): :func:`riccati_step` (the Theorem-1 step, also the closed-loop DP's
+as scipy.linalg's solvers batch; :func:`riccati_step` also takes the point itself, as 2-D arrays, by the same
+code): :func:`riccati_step` (the Theorem-1 step, also the closed-loop DP's
 and the Markov jump system's), :func:`backward_batch` (N of them), :func:`rollout_batch` /
 :func:`mean_states` (the mean state forward) and :func:`forward_cost` (the referee every closed form is
 checked against). :func:`backward_pass`, :func:`mean_trajectory` and :func:`recursion_cost` are their
@@ -262,8 +263,8 @@ def overflow_error(name: str, protocol: str) -> NumericalError:
 def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
                  Omega: np.ndarray | None = None, *, variance: bool = False,
                  least_squares: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """One backward step of Theorem 1's recursion for a batch of k points (a single point is a batch
-    of one): the Hessian factor, the gain and the previous cost-to-go (eq:control-laws).
+    """One backward step of Theorem 1's recursion for a batch of k points or for one point: the Hessian
+    factor, the gain and the previous cost-to-go (eq:control-laws).
 
     .. math:: G = B'PB M + \\mathrm{diag}(a)\\ [+\\ \\mathrm{diag}((1 - \\mu) \\mathrm{diag}(B'PB))],\\quad
               K = G^{-1} B'PA,\\quad P^- = A'PA - (B'PA)' M K + \\Omega
@@ -278,79 +279,79 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     simulation.region's modified Riccati map, simulation.markov_region's coupled one); a point whose Hessian is not
     finite gets K = nan. ``P_prev`` is the same expression, ``A'PA - (MB'PA)'K``.
 
-    Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), ``Omega`` (n, n) or None.
-    Returns ``(K, P_prev)``, (k, m, n) and (k, n, n), P_prev symmetrised. Raises
-    ``numpy.linalg.LinAlgError`` where a G is singular (callers name the cause). From ``FLAT_MIN`` points
-    on, each product is one (k n)×n by n×m product. Time O(k (n^3 + m^3)); a point's answer does not
-    depend on the batch it is in below ``FLAT_MIN`` points.
+    Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), or one point: ``P`` (n, n), ``mu`` and
+    ``added`` (m,); ``Omega`` (n, n) or None. Returns ``(K, P_prev)``, (k, m, n) and (k, n, n) (one point: (m, n)
+    and (n, n)), P_prev symmetrised. Raises ``numpy.linalg.LinAlgError`` where a G is singular (callers name the
+    cause). The algebra is written once for both ranks (``@``-style products: ``np.dot`` on a point,
+    ``np.matmul`` on a stack; the last two axes transposed; mu broadcast as G's row). A batch of one is taken as
+    the point: two-dimensional products and LAPACK's gesv without the stacked wrappers (12 against 16 us a step),
+    the same BLAS calls in the same order as a point of a stack, so the same floats. From ``FLAT_MIN`` points on,
+    the products B'PB, B'PA, A'PA are one (k n)×n by n×m (n×n) product each (:func:`_flat_products`).
+    Time O(k (n^3 + m^3)); a point's answer does not depend on the batch it is in below ``FLAT_MIN`` points.
 
     Examples
     --------
     >>> K, P = riccati_step(np.ones((1, 1, 1)), np.eye(1), np.eye(1), np.ones((1, 1)), np.ones((1, 1)), np.eye(1))
     >>> float(K[0, 0, 0]), float(P[0, 0, 0])    # scalar DARE step: G = 2, K = 1/2, P = 1 + 1 - 1/2
     (0.5, 1.5)
+    >>> K, P = riccati_step(np.ones((1, 1)), np.eye(1), np.eye(1), np.ones(1), np.ones(1), np.eye(1))   # one point
+    >>> K.tolist(), P.tolist()
+    ([[0.5]], [[1.5]])
     """
-    k, n = P.shape[0], A.shape[0]
+    if P.ndim == 3 and P.shape[0] == 1 and not least_squares:          # a batch of one is the point
+        K, P_prev = riccati_step(P[0], A, B, mu[0], added[0], Omega, variance=variance)
+        return K[None], P_prev[None]
     m = B.shape[1]
-    if k == 1 and not least_squares:
-        return _one_point_step(P[0], A, B, mu[0], added[0], Omega, variance)
-    row = mu[:, None, :]                                                   # mu as a row: G's columns
-    matmul = np.matmul
-    if k >= FLAT_MIN:
-        PBT = (P.reshape(k * n, n) @ B).reshape(k, n, m).transpose(0, 2, 1).reshape(k * m, n)
-        BPB = (PBT @ B).reshape(k, m, m).transpose(0, 2, 1)
-        rhs = (PBT @ A).reshape(k, m, n)
-        APA = (P.reshape(k * n, n) @ A).reshape(k, n, n).transpose(0, 2, 1).reshape(k * n, n) @ A
-        APA = APA.reshape(k, n, n).transpose(0, 2, 1)                       # A'(P A)
-    else:                 # a small batch: P B once, then B'(P B), (P B)'A and A'(P A)
-        PB = matmul(P, B)
-        BPB = matmul(B.T, PB)
-        rhs = matmul(PB.transpose(0, 2, 1), A)
-        APA = matmul(A.T, matmul(P, A))
+    mm = np.dot if P.ndim == 2 else np.matmul          # np.dot: a 2-D product without matmul's stack set-up
+    if P.ndim == 3 and P.shape[0] >= FLAT_MIN:
+        BPB, rhs, APA = _flat_products(P, A, B)
+    else:                 # P B once, then B'(P B), (P B)'A and A'(P A)
+        PB = mm(P, B)
+        BPB = mm(B.T, PB)
+        rhs = mm(PB.swapaxes(-1, -2), A)
+        APA = mm(A.T, mm(P, A))
+    row = mu[..., None, :]                                                 # mu as a row: G's columns
     G = np.multiply(BPB, row, order="C")
-    diagonal = G.reshape(k, m * m)[:, :: m + 1]                           # a view: G's diagonal
+    diagonal = G.reshape(G.shape[:-2] + (m * m,))[..., :: m + 1]          # a view: G's diagonal
     diagonal += added
     if variance:
-        diagonal += (1.0 - mu) * np.diagonal(BPB, axis1=1, axis2=2)
-    if least_squares:                            # H = M G, possibly singular: the minimum-norm solution of H K = M B'PA
-        H = G * mu[:, :, None]
-        finite = np.all(np.isfinite(H), axis=(-2, -1))
-        K = np.full(rhs.shape, np.nan)
-        K[finite] = np.linalg.pinv(H[finite], rcond=np.finfo(float).eps * m) @ (rhs[finite] * mu[finite, :, None])
-    else:
+        diagonal += (1.0 - mu) * np.diagonal(BPB, axis1=-2, axis2=-1)
+    if least_squares:
+        K = _least_squares(G, rhs, mu)
+    elif G.ndim == 3:
         K = np.linalg.solve(G, rhs)
-    P_prev = APA - matmul(rhs.transpose(0, 2, 1) * row, K)
+    else:                                        # LAPACK's gesv directly: no stacked-solve wrapper for one point
+        _, _, K, info = lapack_dgesv()(G, rhs)
+        if info != 0:
+            raise np.linalg.LinAlgError("singular G")
+    P_prev = APA - mm(rhs.swapaxes(-1, -2) * row, K)
     if Omega is not None:
         P_prev += Omega
-    P_prev += P_prev.transpose(0, 2, 1)                                    # numpy buffers the overlap
+    P_prev += P_prev.swapaxes(-1, -2)                                      # numpy buffers the overlap
     P_prev *= 0.5
     return K, P_prev
 
 
-def _one_point_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
-                    Omega: np.ndarray | None, variance: bool) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`riccati_step` for a batch of one, in two-dimensional products and LAPACK's gesv without the
-    stacked wrappers (a long stationary pass is a few dozen of these: 12 against 16 us a step). The same
-    BLAS products in the same order, so the same floats as the batched form (tests/test_recursion.py). O(n^3 + m^3)."""
-    dot = np.dot
-    PB = dot(P, B)
-    BPB = dot(B.T, PB)
-    rhs = dot(PB.T, A)
-    APA = dot(A.T, dot(P, A))
-    G = BPB * mu
-    diagonal = G.reshape(-1)[:: B.shape[1] + 1]                           # a view: G's diagonal
-    diagonal += added
-    if variance:
-        diagonal += (1.0 - mu) * np.diagonal(BPB)
-    _, _, K, info = lapack_dgesv()(G, rhs)
-    if info != 0:
-        raise np.linalg.LinAlgError("singular G")
-    P_prev = APA - dot(rhs.T * mu, K)
-    if Omega is not None:
-        P_prev += Omega
-    P_prev += P_prev.T                                                     # numpy buffers the overlap
-    P_prev *= 0.5
-    return K[None], P_prev[None]
+def _flat_products(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """B'PB, B'PA and A'PA of a stack P (k, n, n) as one (k n)×n by n×m (n×n) product each instead of k small
+    ones: :func:`riccati_step`'s products for k >= FLAT_MIN. O(k n^2 (n + m))."""
+    k, n, m = P.shape[0], A.shape[0], B.shape[1]
+    PBT = (P.reshape(k * n, n) @ B).reshape(k, n, m).transpose(0, 2, 1).reshape(k * m, n)
+    BPB = (PBT @ B).reshape(k, m, m).transpose(0, 2, 1)
+    rhs = (PBT @ A).reshape(k, m, n)
+    APA = (P.reshape(k * n, n) @ A).reshape(k, n, n).transpose(0, 2, 1).reshape(k * n, n) @ A
+    return BPB, rhs, APA.reshape(k, n, n).transpose(0, 2, 1)                # A'(P A)
+
+
+def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """The minimum-norm least-squares solution of ``H K = M rhs``, H = M G possibly singular (pinv with lstsq's
+    cutoff ``eps m s_max``), per point of a stack; nan where H is not finite. O(k (m^3 + m^2 n))."""
+    m = G.shape[-1]
+    H = G * mu[..., :, None]
+    finite = np.all(np.isfinite(H), axis=(-2, -1))
+    K = np.full(rhs.shape, np.nan)
+    K[finite] = np.linalg.pinv(H[finite], rcond=np.finfo(float).eps * m) @ (rhs * mu[..., :, None])[finite]
+    return K
 
 
 def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

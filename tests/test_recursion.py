@@ -132,6 +132,60 @@ def test_riccati_step_with_variance_is_the_enumerated_dp_step(points):
         np.testing.assert_allclose(P_prev[k], P_ref, rtol=1e-11, atol=1e-12 * np.abs(P_ref).max())
 
 
+def _minimised_stage(P, A, B, mu, added, Omega, variance):
+    """Theorem 1's step from the stage quadratic it minimises, written out here: at x, the expected
+    ``(A x + B M u)' P (A x + B M u) + u' M diag(added) u [+ u' diag(mu (1 - mu) diag(B'PB)) u] + x' Omega x``
+    has Hessian H = M B'PB M + M diag(added) [+ diag(mu (1 - mu) diag(B'PB))] and linear term L = M B'PA x; its
+    minimiser u = -H^-1 L (every mu > 0) and minimum x'(Omega + A'PA - L' H^-1 L) x."""
+    M = np.diag(mu)
+    BPB = B.T @ P @ B
+    H = M @ BPB @ M + M @ np.diag(added) + (np.diag(mu * (1 - mu) * np.diag(BPB)) if variance else 0.0)
+    L = M @ B.T @ P @ A
+    K = np.linalg.solve(H, L)
+    return K, Omega + A.T @ P @ A - L.T @ K
+
+
+@pytest.mark.parametrize("variance", [False, True])
+def test_riccati_step_is_one_kernel_for_a_point_a_stack_and_a_flat_stack(variance):
+    """riccati_step's algebra is written once for every rank: one point (2-D products, LAPACK's gesv directly), a
+    batch of one (taken as that point), a point of a small stack (stacked products and solve) and of a stack of
+    FLAT_MIN points or more (flattened products) all meet the stage quadratic's minimiser (written out above); the
+    point, the batch of one and the small stack to the bit. A change to the step is seen on every path; a path
+    that drifts from the others breaks the bit-for-bit equalities."""
+    from packetloss_cvx.recursion import FLAT_MIN, riccati_step
+
+    rng = np.random.default_rng(29 + variance)
+    n, m, k = 4, 3, FLAT_MIN + 2
+    A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+    F = rng.normal(size=(k, n, n))
+    P = F @ F.transpose(0, 2, 1) + 0.1 * np.eye(n)
+    mu, added = rng.uniform(0.05, 1.0, (k, m)), rng.uniform(0.2, 2.0, (k, m))
+    mu[1, 0] = 1.0                                                     # a perfect channel
+    Omega = np.diag(rng.uniform(0.5, 2.0, n))
+    K_flat, P_flat = riccati_step(P, A, B, mu, added, Omega, variance=variance)
+    K_stack, P_stack = riccati_step(P[:4], A, B, mu[:4], added[:4], Omega, variance=variance)
+    for j in range(4):
+        K_ref, P_ref = _minimised_stage(P[j], A, B, mu[j], added[j], Omega, variance)
+        K_point, P_point = riccati_step(P[j], A, B, mu[j], added[j], Omega, variance=variance)
+        assert K_point.shape == (m, n)
+        assert P_point.shape == (n, n)
+        np.testing.assert_allclose(K_point, K_ref, rtol=1e-10, atol=1e-11 * np.abs(K_ref).max())
+        np.testing.assert_allclose(P_point, P_ref, rtol=1e-10, atol=1e-11 * np.abs(P_ref).max())
+        np.testing.assert_allclose(K_flat[j], K_ref, rtol=1e-10, atol=1e-11 * np.abs(K_ref).max())
+        np.testing.assert_allclose(P_flat[j], P_ref, rtol=1e-10, atol=1e-11 * np.abs(P_ref).max())
+        K_one, P_one = riccati_step(P[j:j + 1], A, B, mu[j:j + 1], added[j:j + 1], Omega, variance=variance)
+        for point, one, stacked in ((K_point, K_one, K_stack), (P_point, P_one, P_stack)):
+            np.testing.assert_array_equal(point, one[0])
+            np.testing.assert_array_equal(point, stacked[j])
+    # the least-squares form on one point is the stack's row (the homogeneous maps: no weights, no Omega)
+    zero = np.zeros_like(mu[:4])
+    K_ls, R_ls = riccati_step(P[:4], A, B, mu[:4], zero, variance=True, least_squares=True)
+    for j in range(4):
+        K_point, R_point = riccati_step(P[j], A, B, mu[j], zero[j], variance=True, least_squares=True)
+        np.testing.assert_array_equal(K_point, K_ls[j])
+        np.testing.assert_array_equal(R_point, R_ls[j])
+
+
 def test_riccati_step_open_loop_udp_is_the_dense_theorem_1_at_n_1():
     # N = 1: the open-loop UDP-like law is eq:opt-law-2 with Omega_g = B'Omega_1 B, Omega_d its diagonal:
     # u = -(Omega_g Vbar + Psi + Omega_d (I - Vbar))^{-1} B'Omega_1 A x, written out here

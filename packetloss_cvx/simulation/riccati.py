@@ -45,7 +45,7 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Om
     """One step of the modified Riccati map: the optimal gain for cost-to-go P and the new cost-to-go.
 
     Returns ``(K, P_prev)`` with ``K = G^{-1} B'PA`` and ``P_prev = Omega + A'PA - A'PBM K``
-    (module docstring): Theorem 1's step (:func:`packetloss_cvx.recursion.riccati_step`, a batch of one)
+    (module docstring): Theorem 1's step (:func:`packetloss_cvx.recursion.riccati_step` on one point)
     with the loss variance weighted by P itself. Time O(n^3 + m^3).
 
     >>> K, P = riccati_step(np.eye(1), np.eye(1), np.eye(1), np.array([1.0]), np.eye(1), np.array([1.0]))
@@ -53,10 +53,9 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Om
     (0.5, 1.5)
     """
     try:
-        K, P_prev = riccati_step_batch(P[None], A, B, mu[None], psi[None], Omega, variance=True)
+        return riccati_step_batch(P, A, B, mu, psi, Omega, variance=True)
     except np.linalg.LinAlgError:
         raise NumericalError("modified Riccati step: the input Hessian G is singular") from None
-    return K[0], P_prev[0]
 
 
 def _weights(system: System, mu: npt.ArrayLike | None) -> tuple[np.ndarray, ...]:
