@@ -18,6 +18,8 @@ from packetloss_cvx.cli.common import progress_of
 from packetloss_cvx.cli.parser import add_command, build_parser
 from packetloss_cvx.optional import LAZY_IMPORTS
 
+from .processes import Zygote
+
 #: what --help, usage errors and bad input must not import: the heavy optional libraries (the package's one
 #: list, packetloss_cvx.optional) and SciPy (required, but nothing numerical runs before the input is checked)
 HEAVY = frozenset(LAZY_IMPORTS) | {"scipy"}
@@ -33,29 +35,40 @@ print("MODULES", sorted({{m for m in sys.modules if m.split(".")[0] in {sorted(H
 """
 
 
-def imported(*argv):
-    proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=False)
+@pytest.fixture(scope="module")
+def zygote():
+    """The parent every probe is forked from (tests/processes.py): it imported only packetloss_cvx.cli, the
+    probe's first import, and none of the probed packages (a planted eager import there fails here)."""
+    with Zygote(["packetloss_cvx.cli"]) as parent:
+        assert "packetloss_cvx" in parent.modules
+        assert not parent.modules & (HEAVY | {"numpy"}), sorted(parent.modules & (HEAVY | {"numpy"}))
+        yield parent
+
+
+def imported(zygote, *argv):
+    """The probed packages' modules loaded by ``python -c PROBE argv`` (forked from the zygote)."""
+    proc = zygote.run(list(argv), code=PROBE)
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("MODULES")][-1]
     return set(ast.literal_eval(line.removeprefix("MODULES ")))
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["--version"], ["solve", "--help"],
                                   ["audit", "--help"], ["allocate", "--help"], ["solve"], ["frobnicate"]])
-def test_help_version_and_usage_errors_import_nothing_numerical(argv):
-    modules = imported(*argv)
+def test_help_version_and_usage_errors_import_nothing_numerical(zygote, argv):
+    modules = imported(zygote, *argv)
     assert not modules, f"{argv} imported {sorted(modules)[:5]}"
 
 
 @pytest.mark.parametrize("shell", ["bash", "zsh"])
-def test_completion_imports_shtab_and_nothing_numerical(shell):
-    assert imported("--completion", shell) == {"shtab"}
+def test_completion_imports_shtab_and_nothing_numerical(zygote, shell):
+    assert imported(zygote, "--completion", shell) == {"shtab"}
 
 
 @pytest.mark.parametrize("argv", [["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
                                   ["solve", "two_actuator", "--mu", "x"], ["audit", "--random", "-1"],
                                   ["allocate", "two_actuator", "--protocol", "udp", "--alpha", "8", "--beta", "1"]])
-def test_bad_input_imports_numpy_only(argv):
-    modules = imported(*argv)
+def test_bad_input_imports_numpy_only(zygote, argv):
+    modules = imported(zygote, *argv)
     assert not {m for m in modules if m.split(".")[0] in HEAVY}, sorted(modules)[:5]
     assert "numpy" in modules       # the probe sees what it should: loading a file needs NumPy
 

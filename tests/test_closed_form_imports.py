@@ -1,16 +1,20 @@
 """The closed-form paths load no solver: ``solve --no-qp``, ``simulate``, ``sweep`` and the audit's
 claims that need no QP import no cvxpy (1.5 s of a 1.9 s ``solve --no-qp`` before it was lazy), and no
-command that draws no figure imports matplotlib. Each command runs in a fresh interpreter; the probe
-reports the heavy top-level packages found in ``sys.modules`` at exit. The commands that do solve a QP
-are run too: the probe must see cvxpy there, or it could not fail.
+command that draws no figure imports matplotlib. Each command runs in an interpreter of its own, forked from one
+that imported only ``packetloss_cvx.cli`` (what the probe's first line imports) and NumPy (which every command here
+imports to load its system, and which brings none of the probed packages: the fixture asserts it); the probe
+reports the heavy top-level packages found in ``sys.modules`` at exit. The commands that do solve a QP are run
+too: the probe must see cvxpy there, or it could not fail.
 """
 
 import ast
-import subprocess
-import sys
 
 import pytest
 
+from .processes import Zygote
+
+#: the top-level packages the probe reports
+PROBED = {"cvxpy", "matplotlib", "dask", "xarray", "control", "scipy"}
 PROBE = """
 import sys
 from packetloss_cvx.cli import main
@@ -20,8 +24,17 @@ print("PROBE", code, sorted(heavy))
 """
 
 
-def heavy_modules(*argv: str) -> set[str]:
-    proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=False)
+@pytest.fixture(scope="module")
+def zygote():
+    """The parent every probe is forked from: packetloss_cvx.cli and NumPy imported, none of PROBED."""
+    with Zygote(["packetloss_cvx.cli", "numpy"]) as parent:
+        assert {"numpy", "packetloss_cvx"} <= parent.modules
+        assert not parent.modules & PROBED, sorted(parent.modules & PROBED)
+        yield parent
+
+
+def heavy_modules(zygote, *argv: str) -> set[str]:
+    proc = zygote.run(list(argv), code=PROBE)
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("PROBE")]
     assert line, proc.stderr[-2000:]
     code, _, modules = line[-1].removeprefix("PROBE ").partition(" ")
@@ -42,11 +55,11 @@ def heavy_modules(*argv: str) -> set[str]:
     (["region", "two_actuator", "--law", "all", "--json", "-q"], {"scipy"}),   # the Riccati forms decide every point
     (["audit", "--random", "1", "--claim", "theorem-2", "--claim", "lemma-1", "--claim", "table-1", "-q"], {"scipy"}),
 ])
-def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(argv, allowed):
-    assert heavy_modules(*argv) <= allowed
+def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(zygote, argv, allowed):
+    assert heavy_modules(zygote, *argv) <= allowed
 
 
 @pytest.mark.parametrize("argv", [["solve", "two_actuator", "--protocol", "tcp", "-q"],
                                   ["audit", "--random", "0", "--claim", "theorem-1-costs", "-q"]])
-def test_commands_that_solve_a_qp_do_import_cvxpy(argv):
-    assert "cvxpy" in heavy_modules(*argv)
+def test_commands_that_solve_a_qp_do_import_cvxpy(zygote, argv):
+    assert "cvxpy" in heavy_modules(zygote, *argv)
