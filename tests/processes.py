@@ -164,18 +164,20 @@ class Zygote:
         """``python -m module args`` or ``python -c code args`` as a forked child, started."""
         if (module is None) == (code is None):
             raise ValueError("give exactly one of module and code")
-        self.count += 1
-        folder = self.folder / str(self.count)
+        with self.news:             # threads may start children at once: each its own number
+            self.count += 1
+            number = self.count
+        folder = self.folder / str(number)
         folder.mkdir()
-        request = {"id": self.count, "module": module, "code": code, "args": [str(a) for a in args],
+        request = {"id": number, "module": module, "code": code, "args": [str(a) for a in args],
                    "cwd": str(cwd or os.getcwd()), "env": dict(self.env if env is None else env),
                    "stdout": str(folder / "stdout"), "stderr": str(folder / "stderr")}
         with self.news:
             self.proc.stdin.write(json.dumps(request) + "\n")
             self.proc.stdin.flush()
-            if not self.news.wait_for(lambda: self.count in self.pids, timeout=60):
+            if not self.news.wait_for(lambda: number in self.pids, timeout=60):
                 raise RuntimeError("the zygote did not fork")
-            pid = self.pids[self.count]
+            pid = self.pids[number]
         return Child(self, pid, folder)
 
     def run(self, args: list[str], *, timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:
