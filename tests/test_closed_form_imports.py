@@ -2,9 +2,10 @@
 claims that need no QP import no cvxpy (1.5 s of a 1.9 s ``solve --no-qp`` before it was lazy), and no
 command that draws no figure imports matplotlib. Each command runs in an interpreter of its own, forked from one
 that imported only ``packetloss_cvx.cli`` (what the probe's first line imports) and NumPy (which every command here
-imports to load its system, and which brings none of the probed packages: the fixture asserts it); the probe
-reports the heavy top-level packages found in ``sys.modules`` at exit. The commands that do solve a QP are run
-too: the probe must see cvxpy there, or it could not fail.
+imports to load its system), plus, for the commands allowed SciPy and those that must import cvxpy, the SciPy
+modules they use: what the probe does not examine there. Each parent's modules are asserted free of what its
+children are probed for. The probe reports the heavy top-level packages found in ``sys.modules`` at exit. The
+commands that do solve a QP are run too: the probe must see cvxpy there, or it could not fail.
 """
 
 import ast
@@ -25,11 +26,24 @@ print("PROBE", code, sorted(heavy))
 
 
 @pytest.fixture(scope="module")
-def zygote():
-    """The parent every probe is forked from: packetloss_cvx.cli and NumPy imported, none of PROBED."""
+def numpy_parent():
+    """The parent of the probes allowed nothing: packetloss_cvx.cli and NumPy imported, none of PROBED."""
     with Zygote(["packetloss_cvx.cli", "numpy"]) as parent:
         assert {"numpy", "packetloss_cvx"} <= parent.modules
         assert not parent.modules & PROBED, sorted(parent.modules & PROBED)
+        yield parent
+
+
+#: the SciPy modules the commands allowed SciPy import (a run of each, listed from sys.modules)
+SCIPY_USED = ["scipy.linalg", "scipy.optimize", "scipy.sparse", "scipy.spatial", "scipy.special"]
+
+
+@pytest.fixture(scope="module")
+def scipy_parent():
+    """The parent of the probes allowed SciPy or required to import cvxpy: SciPy too, none of the rest of PROBED."""
+    with Zygote(["packetloss_cvx.cli", "numpy", *SCIPY_USED]) as parent:
+        assert "scipy" in parent.modules
+        assert not parent.modules & (PROBED - {"scipy"}), sorted(parent.modules & PROBED)
         yield parent
 
 
@@ -55,11 +69,12 @@ def heavy_modules(zygote, *argv: str) -> set[str]:
     (["region", "two_actuator", "--law", "all", "--json", "-q"], {"scipy"}),   # the Riccati forms decide every point
     (["audit", "--random", "1", "--claim", "theorem-2", "--claim", "lemma-1", "--claim", "table-1", "-q"], {"scipy"}),
 ])
-def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(zygote, argv, allowed):
-    assert heavy_modules(zygote, *argv) <= allowed
+def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(request, argv, allowed):
+    parent = request.getfixturevalue("scipy_parent" if "scipy" in allowed else "numpy_parent")
+    assert heavy_modules(parent, *argv) <= allowed
 
 
 @pytest.mark.parametrize("argv", [["solve", "two_actuator", "--protocol", "tcp", "-q"],
                                   ["audit", "--random", "0", "--claim", "theorem-1-costs", "-q"]])
-def test_commands_that_solve_a_qp_do_import_cvxpy(zygote, argv):
-    assert "cvxpy" in heavy_modules(zygote, *argv)
+def test_commands_that_solve_a_qp_do_import_cvxpy(scipy_parent, argv):
+    assert "cvxpy" in heavy_modules(scipy_parent, *argv)
