@@ -17,8 +17,10 @@ the tests use (``pid``, ``poll``, ``wait``, ``send_signal``, ``communicate``, ``
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -42,7 +44,9 @@ def _serve():
         ready, _, _ = select.select([0], [], [], 0.002 if children else 0.05)
         if ready:
             chunk = os.read(0, 65536)
-            if not chunk:
+            if not chunk:               # closed: the test killed what still ran; reap it, leave no zombie
+                for pid in children:
+                    os.waitpid(pid, 0)
                 return None
             pending += chunk
             while b"\n" in pending:
@@ -188,6 +192,12 @@ class Zygote:
         return subprocess.CompletedProcess(args, child.returncode, out, err)
 
     def close(self) -> None:
+        """Kill the children still running (a test that timed out), stop the zygote, remove the output files."""
+        with self.news:
+            running = [pid for pid in self.pids.values() if pid not in self.exits]
+        for pid in running:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
         self.proc.stdin.close()
         self.proc.wait(timeout=60)
         self.reader.join(timeout=5)
