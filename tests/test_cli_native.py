@@ -18,6 +18,8 @@ from packetloss_cvx.cli.common import progress_of
 from packetloss_cvx.cli.parser import add_command, build_parser
 from packetloss_cvx.optional import LAZY_IMPORTS
 
+from .processes import Zygote
+
 #: what --help, usage errors and bad input must not import: the heavy optional libraries (the package's one
 #: list, packetloss_cvx.optional) and SciPy (required, but nothing numerical runs before the input is checked)
 HEAVY = frozenset(LAZY_IMPORTS) | {"scipy"}
@@ -33,29 +35,40 @@ print("MODULES", sorted({{m for m in sys.modules if m.split(".")[0] in {sorted(H
 """
 
 
-def imported(*argv):
-    proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=False)
+@pytest.fixture(scope="module")
+def zygote():
+    """The parent every probe is forked from (tests/processes.py): it imported only packetloss_cvx.cli, the
+    probe's first import, and none of the probed packages (a planted eager import there fails here)."""
+    with Zygote(["packetloss_cvx.cli"]) as parent:
+        assert "packetloss_cvx" in parent.modules
+        assert not parent.modules & (HEAVY | {"numpy"}), sorted(parent.modules & (HEAVY | {"numpy"}))
+        yield parent
+
+
+def imported(zygote, *argv):
+    """The probed packages' modules loaded by ``python -c PROBE argv`` (forked from the zygote)."""
+    proc = zygote.run(list(argv), code=PROBE)
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("MODULES")][-1]
     return set(ast.literal_eval(line.removeprefix("MODULES ")))
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["--version"], ["solve", "--help"],
                                   ["audit", "--help"], ["allocate", "--help"], ["solve"], ["frobnicate"]])
-def test_help_version_and_usage_errors_import_nothing_numerical(argv):
-    modules = imported(*argv)
+def test_help_version_and_usage_errors_import_nothing_numerical(zygote, argv):
+    modules = imported(zygote, *argv)
     assert not modules, f"{argv} imported {sorted(modules)[:5]}"
 
 
 @pytest.mark.parametrize("shell", ["bash", "zsh"])
-def test_completion_imports_shtab_and_nothing_numerical(shell):
-    assert imported("--completion", shell) == {"shtab"}
+def test_completion_imports_shtab_and_nothing_numerical(zygote, shell):
+    assert imported(zygote, "--completion", shell) == {"shtab"}
 
 
 @pytest.mark.parametrize("argv", [["solve", "no-such-file.toml"], ["solve", "two_actuator", "--mu", "2"],
                                   ["solve", "two_actuator", "--mu", "x"], ["audit", "--random", "-1"],
                                   ["allocate", "two_actuator", "--protocol", "udp", "--alpha", "8", "--beta", "1"]])
-def test_bad_input_imports_numpy_only(argv):
-    modules = imported(*argv)
+def test_bad_input_imports_numpy_only(zygote, argv):
+    modules = imported(zygote, *argv)
     assert not {m for m in modules if m.split(".")[0] in HEAVY}, sorted(modules)[:5]
     assert "numpy" in modules       # the probe sees what it should: loading a file needs NumPy
 
@@ -302,21 +315,39 @@ def test_bash_completion_completes_commands_options_choices_and_every_packaged_e
     assert [line.split() for line in proc.stdout.splitlines()] == [want for _, want in COMPLETIONS]
 
 
-#: zsh driving an interactive zsh on a pseudo-terminal: the completion loaded by compinit from $1, then
-#: $2 typed with a TAB in the folder $3; prints what the terminal showed
+#: zsh driving one interactive zsh on a pseudo-terminal: the completion loaded by compinit from $1, in the folder
+#: $2; then for each pair (line, text) after them, the line typed with a TAB, the screen read until it shows the
+#: text (or 30 s pass), the line aborted and a marker command run: every byte the completion wrote comes before the
+#: marker's output (``DONE42-k``; the typed line echoes ``DONE$((6*7))-k``), so each line's screen is read whole
+#: without a fixed sleep. Prints each line's screen followed by a line ZSH_SCREEN_END.
+ZSH_SCREEN_END = "=== end of screen ==="
 ZSH_PROBE = r"""
 zmodload zsh/zpty
+zmodload zsh/zselect
 zpty z 'zsh -f -i'
-zpty -w z "PS1='> '; fpath=($1 \$fpath); autoload -Uz compinit; compinit -u -D; cd $3"
+zpty -w z "PS1='> '; fpath=($1 \$fpath); autoload -Uz compinit; compinit -u -D; cd $2"
 zpty -w z "zstyle ':completion:*' menu no; zstyle ':completion:*' list-prompt ''"
-zpty -wn z "$2"$'\t\t'
-sleep 2
-zpty -w z $'\C-c'
-sleep 0.5
-out=""
-while zpty -r -t z chunk; do out+=$chunk; done
+read_until() {
+  local deadline=$(( SECONDS + 30 ))
+  while [[ $out != *$1* ]] && (( SECONDS < deadline )); do
+    if zpty -r -t z chunk; then out+=$chunk; else zselect -t 1; fi
+  done
+}
+shift 2
+k=0
+while (( $# >= 2 )); do
+  k=$(( k + 1 ))
+  out=""
+  zpty -wn z "$1"$'\t\t'
+  read_until "$2"
+  zpty -w z $'\C-c'
+  zpty -w z "print DONE\$((6*7))-$k"
+  read_until "DONE42-$k"
+  print -r -- "$out"
+  print -r -- "=== end of screen ==="
+  shift 2
+done
 zpty -d z
-print -r -- "$out"
 """
 
 #: a line typed in zsh, what the screen must then show
@@ -339,14 +370,15 @@ def test_zsh_completion_completes_examples_files_and_options_in_zsh(capsys, tmp_
     subprocess.run(["zsh", "-n", str(tmp_path / "fn" / "_packetloss-cvx")], check=True)
     (tmp_path / "work").mkdir()
     (tmp_path / "work" / "plant.toml").write_text("")
-    # the probes wait 2.5 s each on their own pseudo-terminal, so they run side by side (one sleeps, not three)
-    probes = [(line, shown, subprocess.Popen(
-                  ["zsh", "-f", "-c", ZSH_PROBE, "probe", str(tmp_path / "fn"), line, str(tmp_path / "work")],
-                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                  env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "TERM": "dumb"}))
-              for line, shown in ZSH_COMPLETIONS]
-    for line, shown, proc in probes:
-        screen, err = proc.communicate(timeout=60)
-        assert proc.returncode == 0, (line, err[-400:])
+    # one shell types the lines in turn: compinit (most of a probe's 0.8 s) runs once, not once per line
+    pairs = [text for pair in ZSH_COMPLETIONS for text in pair]
+    proc = subprocess.run(["zsh", "-f", "-c", ZSH_PROBE, "probe", str(tmp_path / "fn"), str(tmp_path / "work"),
+                           *pairs], capture_output=True, text=True, timeout=120, check=False,
+                          env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "TERM": "dumb"})
+    assert proc.returncode == 0, proc.stderr[-400:]
+    screens = proc.stdout.split(ZSH_SCREEN_END + "\n")
+    assert len(screens) == len(ZSH_COMPLETIONS) + 1, proc.stdout[-400:]
+    assert not screens[-1].strip(), proc.stdout[-400:]
+    for (line, shown), screen in zip(ZSH_COMPLETIONS, screens[:-1], strict=True):
         assert shown in screen, (line, screen[-400:])
         assert "bad option" not in screen, screen[-400:]       # no error from the completion functions

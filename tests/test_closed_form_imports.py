@@ -1,16 +1,21 @@
 """The closed-form paths load no solver: ``solve --no-qp``, ``simulate``, ``sweep`` and the audit's
 claims that need no QP import no cvxpy (1.5 s of a 1.9 s ``solve --no-qp`` before it was lazy), and no
-command that draws no figure imports matplotlib. Each command runs in a fresh interpreter; the probe
-reports the heavy top-level packages found in ``sys.modules`` at exit. The commands that do solve a QP
-are run too: the probe must see cvxpy there, or it could not fail.
+command that draws no figure imports matplotlib. Each command runs in an interpreter of its own, forked from one
+that imported only ``packetloss_cvx.cli`` (what the probe's first line imports) and NumPy (which every command here
+imports to load its system), plus, for the commands allowed SciPy and those that must import cvxpy, the SciPy
+modules they use: what the probe does not examine there. Each parent's modules are asserted free of what its
+children are probed for. The probe reports the heavy top-level packages found in ``sys.modules`` at exit. The
+commands that do solve a QP are run too: the probe must see cvxpy there, or it could not fail.
 """
 
 import ast
-import subprocess
-import sys
 
 import pytest
 
+from .processes import Zygote
+
+#: the top-level packages the probe reports
+PROBED = {"cvxpy", "matplotlib", "dask", "xarray", "control", "scipy"}
 PROBE = """
 import sys
 from packetloss_cvx.cli import main
@@ -20,8 +25,30 @@ print("PROBE", code, sorted(heavy))
 """
 
 
-def heavy_modules(*argv: str) -> set[str]:
-    proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=False)
+@pytest.fixture(scope="module")
+def numpy_parent():
+    """The parent of the probes allowed nothing: packetloss_cvx.cli and NumPy imported, none of PROBED."""
+    with Zygote(["packetloss_cvx.cli", "numpy"]) as parent:
+        assert {"numpy", "packetloss_cvx"} <= parent.modules
+        assert not parent.modules & PROBED, sorted(parent.modules & PROBED)
+        yield parent
+
+
+#: the SciPy modules the commands allowed SciPy import (a run of each, listed from sys.modules)
+SCIPY_USED = ["scipy.linalg", "scipy.optimize", "scipy.sparse", "scipy.spatial", "scipy.special"]
+
+
+@pytest.fixture(scope="module")
+def scipy_parent():
+    """The parent of the probes allowed SciPy or required to import cvxpy: SciPy too, none of the rest of PROBED."""
+    with Zygote(["packetloss_cvx.cli", "numpy", *SCIPY_USED]) as parent:
+        assert "scipy" in parent.modules
+        assert not parent.modules & (PROBED - {"scipy"}), sorted(parent.modules & PROBED)
+        yield parent
+
+
+def heavy_modules(zygote, *argv: str) -> set[str]:
+    proc = zygote.run(list(argv), code=PROBE)
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("PROBE")]
     assert line, proc.stderr[-2000:]
     code, _, modules = line[-1].removeprefix("PROBE ").partition(" ")
@@ -42,11 +69,12 @@ def heavy_modules(*argv: str) -> set[str]:
     (["region", "two_actuator", "--law", "all", "--json", "-q"], {"scipy"}),   # the Riccati forms decide every point
     (["audit", "--random", "1", "--claim", "theorem-2", "--claim", "lemma-1", "--claim", "table-1", "-q"], {"scipy"}),
 ])
-def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(argv, allowed):
-    assert heavy_modules(*argv) <= allowed
+def test_closed_form_commands_import_no_cvxpy_and_no_matplotlib(request, argv, allowed):
+    parent = request.getfixturevalue("scipy_parent" if "scipy" in allowed else "numpy_parent")
+    assert heavy_modules(parent, *argv) <= allowed
 
 
 @pytest.mark.parametrize("argv", [["solve", "two_actuator", "--protocol", "tcp", "-q"],
                                   ["audit", "--random", "0", "--claim", "theorem-1-costs", "-q"]])
-def test_commands_that_solve_a_qp_do_import_cvxpy(argv):
-    assert "cvxpy" in heavy_modules(*argv)
+def test_commands_that_solve_a_qp_do_import_cvxpy(scipy_parent, argv):
+    assert "cvxpy" in heavy_modules(scipy_parent, *argv)

@@ -3,15 +3,13 @@
 regular files within their cap, the last exit-1 inputs are exit 2, long solve work is optional, and
 user-given names are printed with their control characters escaped (docs/design.md §4, "Work budgets").
 
-The command-line cases run as subprocesses where the exit code and the single stderr line are the
-contract; each references an independent expectation (a hand-computed work count, the operating
+The command-line cases run as processes of their own where the exit code and the single stderr line are the
+contract (forked from a parent that imported ``packetloss_cvx.cli`` and NumPy: tests/processes.py); each references an independent expectation (a hand-computed work count, the operating
 system's own verdict on a file) rather than the code under test.
 """
 
 import json
 import os
-import subprocess
-import sys
 import time
 
 import numpy as np
@@ -22,6 +20,8 @@ from packetloss_cvx.claims import audit
 from packetloss_cvx.markov import burstiness_sweep
 from packetloss_cvx.simulation import simulate
 from packetloss_cvx.studies import sweep
+
+from .processes import Zygote
 
 #: a 5,001-digit integer in a TOML matrix (Python refuses int-from-text beyond 4300 digits)
 BIG_INT_TOML = """[plant]
@@ -38,10 +38,16 @@ x0 = [1.0]
 """.replace("{zeros}", "0" * 5000)
 
 
-def cli(*argv, env=None):
-    """``python -m packetloss_cvx argv``: (exit code, stdout, stderr)."""
-    proc = subprocess.run([sys.executable, "-m", "packetloss_cvx", *argv], capture_output=True, text=True,
-                          check=False, timeout=120, env={**os.environ, **(env or {})})
+@pytest.fixture(scope="module")
+def zygote():
+    """The parent the command-line cases fork from: the start-up and these imports are not what they test."""
+    with Zygote(["packetloss_cvx.cli", "packetloss_cvx.cli.common", "numpy"]) as parent:
+        yield parent
+
+
+def cli(zygote, *argv, env=None):
+    """``python -m packetloss_cvx argv`` (forked from ``zygote``): (exit code, stdout, stderr)."""
+    proc = zygote.run(list(argv), module="packetloss_cvx", timeout=120, env={**os.environ, **(env or {})})
     return proc.returncode, proc.stdout, proc.stderr
 
 
@@ -213,7 +219,7 @@ def test_printable_escapes_every_control_character(raw, shown):
     assert printable(raw) == shown
 
 
-def test_solve_prints_a_hostile_name_escaped(tmp_path, capsys):
+def test_solve_prints_a_hostile_name_escaped(tmp_path, capsys, zygote):
     from packetloss_cvx.cli import main
     path = tmp_path / "evil.toml"
     path.write_text('name = "ev\\u001b[31mil\\nline\\u0007"\n' + BIG_INT_TOML.replace("1" + "0" * 5000, "1.1"))
@@ -221,7 +227,7 @@ def test_solve_prints_a_hostile_name_escaped(tmp_path, capsys):
     out = capsys.readouterr().out
     assert not any(ch in out for ch in "\x1b\x07"), out
     assert out.splitlines()[0].startswith("ev\\x1b[31mil\\nline\\x07: n=1")
-    code, _, err = cli("solve", str(tmp_path / "x\x1b[31m\x07.toml"))     # a path on the error line
+    code, _, err = cli(zygote, "solve", str(tmp_path / "x\x1b[31m\x07.toml"))     # a path on the error line
     assert code == 2 and "\x1b" not in err and "x\\x1b[31m\\x07.toml" in one_error_line(err)
 
 
@@ -244,9 +250,9 @@ def main_line(argv, capsys):
     # 1e6 values x 2 protocols x N = 80 x (2 D^3 + 2500), D = n (1 + m) = 8: 5.6384e11, shown rounded up
     (["sweep", "pendulum_bursty", "--burstiness", "0:0.9:1000000"], "--burstiness", "SWEEP_WORK=5.64e+11"),
 ])
-def test_cli_refuses_counts_beyond_their_budget(argv, option, variable):
+def test_cli_refuses_counts_beyond_their_budget(zygote, argv, option, variable):
     start = time.perf_counter()
-    code, out, err = cli(*argv)
+    code, out, err = cli(zygote, *argv)
     line = one_error_line(err)
     assert code == 2 and out == ""
     assert line.startswith(f"packetloss-cvx: error: {option}: ") and f"PACKETLOSS_CVX_BUDGET_{variable}" in line
@@ -281,8 +287,8 @@ def test_cli_in_process_refuses_counts_beyond_their_budget(argv, option, variabl
     (["solve", "a" * 100_000], "file"),
     (["sweep", "two_actuator", "--mu-list", "/dev/zero"], "--mu-list"),
 ])
-def test_cli_exits_2_with_one_line(argv, option):
-    code, out, err = cli(*argv)
+def test_cli_exits_2_with_one_line(zygote, argv, option):
+    code, out, err = cli(zygote, *argv)
     assert code == 2 and out == ""
     assert one_error_line(err).startswith(f"packetloss-cvx: error: {option}: ")
 
@@ -302,14 +308,14 @@ def test_cli_in_process_exits_2_with_one_line(argv, option, capsys):
     assert code == 2 and line.startswith(f"packetloss-cvx: error: {option}: ")
 
 
-def test_cli_refuses_a_fifo_and_a_huge_integer(tmp_path):
+def test_cli_refuses_a_fifo_and_a_huge_integer(tmp_path, zygote):
     fifo = tmp_path / "mu.csv"
     os.mkfifo(fifo)
-    code, _, err = cli("solve", "two_actuator", "--mu-schedule", str(fifo))
+    code, _, err = cli(zygote, "solve", "two_actuator", "--mu-schedule", str(fifo))
     assert code == 2 and "not a regular file" in one_error_line(err)
     big = tmp_path / "big.toml"
     big.write_text(BIG_INT_TOML)
-    code, _, err = cli("audit", str(big), "--random", "0")
+    code, _, err = cli(zygote, "audit", str(big), "--random", "0")
     assert code == 2 and one_error_line(err).startswith("packetloss-cvx: error: file: ")
 
 

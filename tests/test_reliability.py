@@ -5,7 +5,10 @@ Each hostile case runs the real command line in a subprocess (or, for a full dis
 the PNG chunk layout, ``hashlib`` against the manifest): each is absent or complete, never truncated.
 Interrupt times are seeded; a signal is sent a seeded delay after the first temporary file appears, so
 it lands in the writes (the dangerous part), not only in the computation. Subprocesses run at the same
-time to keep the module within a few seconds on two cores.
+time to keep the module within a few seconds on two cores. A run interrupted in its writes is forked from a
+parent that already imported the package and its numerical stack (tests/processes.py: the interpreter's start-up
+and the imports are not what it tests; its own ``python -m packetloss_cvx`` entry, signal handlers, writes and
+exit are); the run interrupted during its imports starts a fresh interpreter.
 """
 
 import csv
@@ -27,14 +30,30 @@ from packetloss_cvx.cli import main
 from packetloss_cvx.runfolder import LOCK_NAME, MANIFEST_NAME
 from packetloss_cvx.safeio import TEMP_PREFIX
 
+from .processes import Zygote
+
 ROOT = Path(__file__).resolve().parent.parent
 POINTS = 40_000            # a sweep whose CSV takes about half a second to write: room for a signal to land in it
 EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGKILL: -signal.SIGKILL}
 
 
-def _start(args, cwd):
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
-    return subprocess.Popen([sys.executable, "-m", "packetloss_cvx", *args, "-q"], cwd=cwd, env=env,
+ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
+#: what the forked runs find imported: the command modules of sweep and reproduce and their numerical stack
+PRELOAD = ["packetloss_cvx.cli", "packetloss_cvx.cli.sweep", "packetloss_cvx.cli.reproduce", "packetloss_cvx.plots",
+           "packetloss_cvx.studies", "cvxpy", "scipy.linalg", "matplotlib.figure", "matplotlib.backends.backend_agg"]
+
+
+@pytest.fixture(scope="module")
+def zygote():
+    with Zygote(PRELOAD, env=ENV) as parent:
+        yield parent
+
+
+def _start(args, cwd, zygote=None):
+    """``python -m packetloss_cvx args -q`` in ``cwd``: a fresh interpreter, or forked from ``zygote``."""
+    if zygote is not None:
+        return zygote.start([*args, "-q"], module="packetloss_cvx", cwd=cwd, env=ENV)
+    return subprocess.Popen([sys.executable, "-m", "packetloss_cvx", *args, "-q"], cwd=cwd, env=ENV,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
@@ -150,7 +169,7 @@ def _one_line(err, signum):
     assert lines[0] == f"packetloss-cvx: interrupted by {signal.Signals(signum).name}"
 
 
-def test_interrupted_and_killed_runs_leave_only_complete_files(tmp_path):
+def test_interrupted_and_killed_runs_leave_only_complete_files(tmp_path, zygote):
     """Two sweeps (SIGINT, SIGKILL in their writes), a reproduce --quick (a seeded signal at a seeded point)
     and a SIGINT during the imports, all at once; then a run into the killed one's folder cleans up. (SIGTERM
     in a sweep's writes: the two-writer test below.)"""
@@ -162,8 +181,9 @@ def test_interrupted_and_killed_runs_leave_only_complete_files(tmp_path):
              (sweep + ["s-import"], "s-import", signal.SIGINT, rng.uniform(0.0, 0.3), False)]
     results = {}
 
-    def one(args, name, signum, delay, first_write):
-        results[name] = _interrupt(_start(args, tmp_path), tmp_path / name, signum, delay, first_write)
+    def one(args, name, signum, delay, first_write):   # in the writes: forked; in the imports: a fresh interpreter
+        proc = _start(args, tmp_path, zygote if first_write else None)
+        results[name] = _interrupt(proc, tmp_path / name, signum, delay, first_write)
 
     threads = [threading.Thread(target=one, args=case) for case in cases]
     for thread in threads:
@@ -212,11 +232,11 @@ def _check_folder_reproduce(folder, killed):
                 assert hashlib.sha256(raw).hexdigest() == f["sha256"]
 
 
-def test_two_runs_into_one_folder_cannot_interleave(tmp_path, capsys):
+def test_two_runs_into_one_folder_cannot_interleave(tmp_path, capsys, zygote):
     """The second run refuses at once (exit 2, one line naming the folder and the first run's pid); the
     first, terminated in its writes, leaves only complete files of its own."""
     out = tmp_path / "shared"
-    first = _start(["sweep", "two_actuator", "--x0-scales", f"0:1:{POINTS}", "--out", str(out)], tmp_path)
+    first = _start(["sweep", "two_actuator", "--x0-scales", f"0:1:{POINTS}", "--out", str(out)], tmp_path, zygote)
     assert _wait_for(lambda: (out / LOCK_NAME).exists(), first)
     code = main(["sweep", "two_actuator", "--x0-scales", "0:2:7", "--out", str(out), "-q"])
     err = capsys.readouterr().err.strip().splitlines()
