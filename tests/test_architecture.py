@@ -15,6 +15,7 @@ failure.
 import ast
 import functools
 import re
+import sys
 import tomllib
 from pathlib import Path
 
@@ -22,7 +23,7 @@ import pytest
 
 from packetloss_cvx.optional import EXTRAS, LAZY_IMPORTS, LAZY_MODULES
 
-from .conftest import LONG_FILE_LINES, long_files
+from .conftest import LONG_FILE_LINES, long_files, pytest_collection
 
 PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
@@ -173,6 +174,22 @@ def test_long_files_are_listed_for_review_not_failed(tmp_path):
         (tmp_path / name).write_text("x = 1\n" * lines)
     assert long_files(tmp_path, ("pkg", ".")) == [("longer.py", 2 * LONG_FILE_LINES),
                                                    ("pkg/long.py", LONG_FILE_LINES + 1)]
+
+
+@pytest.mark.parametrize("environment_says", [True, False])
+def test_collection_writes_bytecode_and_gives_the_flag_back(monkeypatch, environment_says):
+    """The suite's collection hook (tests/conftest.py) writes the bytecode cache during collection only: the
+    flag is False inside it and, after it, what it was before (PYTHONDONTWRITEBYTECODE / -B, or a test's)."""
+    monkeypatch.setattr(sys, "dont_write_bytecode", environment_says)
+    during = pytest_collection(session=None)
+    next(during)
+    assert sys.dont_write_bytecode is False
+    with pytest.raises(StopIteration):
+        during.send(None)
+    assert sys.dont_write_bytecode is environment_says
+    # and this test runs after the real collection: the flag is the interpreter's own again
+    monkeypatch.undo()
+    assert sys.dont_write_bytecode == bool(sys.flags.dont_write_bytecode)
 
 
 def test_every_lazy_library_is_installed_by_a_dependency_or_an_extra():
