@@ -7,10 +7,15 @@ import packetloss_cvx as pl
 from packetloss_cvx import InputError, System, closed_form, load_example
 from packetloss_cvx.simulation import closed_loop_statespace, dp_riccati
 
-control = pytest.importorskip("control")
+
+@pytest.fixture(scope="module")
+def control():
+    """python-control, imported by the tests that use it (not at collection: every xdist worker collects this
+    module and one runs it; the import is 0.5 s with the matplotlib it loads); without it they skip."""
+    return pytest.importorskip("control")
 
 
-def test_closed_loop_statespace_poles_are_the_mean_dynamics():
+def test_closed_loop_statespace_poles_are_the_mean_dynamics(control):
     s = load_example("two_actuator")
     K = closed_form(s, "tcp").gain
     cl = closed_loop_statespace(s, K, dt=0.05)
@@ -24,7 +29,7 @@ def test_closed_loop_statespace_poles_are_the_mean_dynamics():
     assert np.allclose(resp.states[:, 3], np.linalg.matrix_power(Abar, 3) @ s.x0)
 
 
-def test_from_statespace_round_trip_and_dare():
+def test_from_statespace_round_trip_and_dare(control):
     plant = control.ss([[1.1, 0.2], [0.0, 0.9]], [[0.0], [1.0]], np.eye(2), np.zeros((2, 1)), dt=0.1)
     s = System.from_statespace(plant, horizon=5, state_weight=[1.0, 1.0], input_weight=[2.0], mu=[1.0],
                                x0=[1.0, 0.0])
@@ -37,7 +42,7 @@ def test_from_statespace_round_trip_and_dare():
     assert np.allclose(dp.gain, K, rtol=1e-9)
 
 
-def test_from_statespace_rejects_continuous_time_and_others():
+def test_from_statespace_rejects_continuous_time_and_others(control):
     continuous = control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]])
     with pytest.raises(InputError, match="discrete-time"):
         System.from_statespace(continuous, horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
@@ -78,7 +83,7 @@ def test_without_python_control_the_interop_names_the_extra(monkeypatch):
     assert err.value.field == "sys"
 
 
-def continuous_plant():
+def continuous_plant(control):
     """A damped oscillator and an integrator, continuous time: python-control discretises it (zero-order hold)."""
     return control.ss([[0.0, 1.0, 0.0], [-2.0, -0.3, 0.0], [1.0, 0.0, 0.0]], [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
                       np.eye(3), np.zeros((3, 2)))
@@ -89,8 +94,8 @@ def fields(**over):
             "x0": [1.0, 0.0, -1.0], **over}
 
 
-def test_from_statespace_keeps_dt_and_to_statespace_gives_the_same_plant_back():
-    plant = control.c2d(continuous_plant(), 0.05)
+def test_from_statespace_keeps_dt_and_to_statespace_gives_the_same_plant_back(control):
+    plant = control.c2d(continuous_plant(control), 0.05)
     s = System.from_statespace(plant, **fields())
     assert s.dt == 0.05
     back = s.to_statespace()
@@ -107,13 +112,13 @@ def test_from_statespace_keeps_dt_and_to_statespace_gives_the_same_plant_back():
     # and the hold-equivalent matrices are python-control's c2d, not a copy of ours: the first state
     # of the continuous oscillator after one step from x0 = e1, by the matrix exponential
     from scipy.linalg import expm
-    assert np.allclose(back.A, expm(continuous_plant().A * 0.05), rtol=1e-12)
+    assert np.allclose(back.A, expm(continuous_plant(control).A * 0.05), rtol=1e-12)
     # a second trip is the identity on the System
     again = System.from_statespace(back, **fields())
     assert again.to_dict() == s.to_dict()
 
 
-def test_unspecified_discrete_time_is_none_and_back_to_true():
+def test_unspecified_discrete_time_is_none_and_back_to_true(control):
     plant = control.ss([[1.1]], [[1.0]], [[1.0]], [[0.0]], True)
     s = System.from_statespace(plant, horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     assert s.dt is None
@@ -121,11 +126,11 @@ def test_unspecified_discrete_time_is_none_and_back_to_true():
     assert "dt" not in s.to_dict()["plant"]         # a file without dt is written as before
 
 
-def test_dt_survives_toml_pickle_and_copies(tmp_path):
+def test_dt_survives_toml_pickle_and_copies(control, tmp_path):
     import pickle
 
     from packetloss_cvx import load_system, save_system
-    s = System.from_statespace(control.c2d(continuous_plant(), 0.2), **fields())
+    s = System.from_statespace(control.c2d(continuous_plant(control), 0.2), **fields())
     loaded = load_system(save_system(s, tmp_path / "plant.toml"))
     assert loaded.dt == 0.2 and loaded.to_dict() == s.to_dict()
     assert "dt = 0.2" in (tmp_path / "plant.toml").read_text()
@@ -154,7 +159,7 @@ def test_bad_sampling_times_are_refused_with_their_field(bad, tmp_path):
         assert err.value.field == "plant.dt"
 
 
-def test_from_statespace_takes_dt_from_the_statespace_only():
+def test_from_statespace_takes_dt_from_the_statespace_only(control):
     with pytest.raises(InputError) as err:
         System.from_statespace(control.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]], 0.1), dt=0.2, horizon=2,
                                state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])

@@ -6,6 +6,8 @@ independent algorithm; tolerances: the cross-check's own (tolerances.CROSS_CHECK
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -32,10 +34,23 @@ def _spread_systems(seed: int, count: int, keep) -> dict[int, pl.System]:
 
 
 #: seed 3, systems 266, 276, 288: on main the sparse form said 'optimal' 0.56 %, 2.7 % and 6.5 % high
-CASES = _spread_systems(3, 289, {266, 276, 288})
+CASE_KEYS = (266, 276, 288)
 #: seed 11: more of the same family; on main these were beyond the tolerances (the sparse form's J up to
 #: 9e-5 relative, inputs up to 4 %; system 67's condensed TCP inputs by 1.1e-6)
-MORE = _spread_systems(11, 108, {11, 64, 67, 107})
+MORE_KEYS = (11, 64, 67, 107)
+
+
+@functools.cache
+def cases() -> dict[int, pl.System]:
+    """The seed-3 systems, drawn when a test first needs them (not at collection: every xdist worker collects
+    this module, one runs it; the 289 draws cost 0.07 s)."""
+    return _spread_systems(3, 289, set(CASE_KEYS))
+
+
+@functools.cache
+def more() -> dict[int, pl.System]:
+    """The seed-11 systems, drawn when a test first needs them."""
+    return _spread_systems(11, 108, set(MORE_KEYS))
 
 
 def _agree(sol: pl.Solution, ref: pl.Solution, system: pl.System) -> None:
@@ -48,9 +63,9 @@ def _agree(sol: pl.Solution, ref: pl.Solution, system: pl.System) -> None:
 
 @pytest.mark.parametrize("formulation", ["sparse", "condensed"])
 @pytest.mark.parametrize("protocol", ["udp", "tcp"])
-@pytest.mark.parametrize("k", sorted(CASES))
+@pytest.mark.parametrize("k", CASE_KEYS)
 def test_badly_scaled_cases_agree_with_the_recursion(k, protocol, formulation):
-    system = CASES[k]
+    system = cases()[k]
     ref = pl.closed_form(system, protocol, method="recursion")
     sol = ExpectedCostQP(system, protocol, formulation).solve(cross_check=False)
     assert sol.status == "optimal"
@@ -61,16 +76,16 @@ def test_badly_scaled_cases_agree_with_the_recursion(k, protocol, formulation):
 
 
 @pytest.mark.parametrize("formulation", ["sparse", "condensed"])
-@pytest.mark.parametrize("k", sorted(MORE))
+@pytest.mark.parametrize("k", MORE_KEYS)
 def test_more_badly_scaled_systems(k, formulation):
-    system = MORE[k]
+    system = more()[k]
     for protocol in ("udp", "tcp"):
         ref = pl.closed_form(system, protocol, method="recursion")
         _agree(ExpectedCostQP(system, protocol, formulation).solve(cross_check=False, with_gain=False), ref, system)
 
 
 def test_the_new_scale_is_kept_for_later_solves():
-    system = CASES[288]
+    system = cases()[288]
     qp = ExpectedCostQP(system, "udp", "sparse")
     qp.solve(cross_check=False, with_gain=False)
     assert qp.rescaled >= 1
@@ -85,7 +100,7 @@ def test_the_new_scale_is_kept_for_later_solves():
 def test_without_the_passes_a_tiny_minimum_raises(monkeypatch):
     monkeypatch.setattr(qp_module, "QP_RESCALE_PASSES", 0)
     with pytest.raises(NumericalError, match="closed form"):
-        ExpectedCostQP(CASES[276], "udp", "sparse").solve(cross_check=False)
+        ExpectedCostQP(cases()[276], "udp", "sparse").solve(cross_check=False)
 
 
 @pytest.mark.parametrize("formulation", ["sparse", "condensed"])
