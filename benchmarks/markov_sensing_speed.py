@@ -33,6 +33,20 @@ CASES = {
         "from packetloss_cvx.sensing.bounds import critical_gamma\n"
         "s = load_example('pendulum_sensor')\n",
         "cg = critical_gamma(s.A, s.sensor)\nresult = (cg.lower, cg.upper, cg.exact)"),
+    "simulate, N = 1000 bursty chain, 4000 runs (test_simulate_markov, seed 322)": (
+        "import numpy as np\n"
+        "from packetloss_cvx.channel import GilbertElliott\n"
+        "from packetloss_cvx.markov import attach_channel\n"
+        "from packetloss_cvx.random_systems import random_system\n"
+        "from packetloss_cvx.simulation.montecarlo import simulate\n"
+        "rng = np.random.default_rng(322)\n"
+        "s = random_system(rng, n=3, m=2, horizon=1000, spectral_radius=0.97, non_stationary=False, noise=False,\n"
+        "                  edge_mu=False, time_varying=False)\n"
+        "lam, rate = rng.uniform(0.5, 0.9, 2), rng.uniform(0.6, 0.9, 2)\n"
+        "h = {'h_good': rng.uniform(0.9, 1.0, 2), 'h_bad': rng.uniform(0.0, 0.2, 2)}\n"
+        "s = attach_channel(s, GilbertElliott(p=(1 - rate) * (1 - lam), r=rate * (1 - lam), belief=[0.2, 0.9], **h))\n",
+        "sim = simulate(s, 4000, seed=322, laws=['tcp', 'udp'], progress=False)\n"
+        "result = sorted((k, v.mean, v.stderr, v.exact) for k, v in sim.open_loop.items())"),
 }
 
 CHILD = """
