@@ -47,6 +47,20 @@ CASES = {
         "s = attach_channel(s, GilbertElliott(p=(1 - rate) * (1 - lam), r=rate * (1 - lam), belief=[0.2, 0.9], **h))\n",
         "sim = simulate(s, 4000, seed=322, laws=['tcp', 'udp'], progress=False)\n"
         "result = sorted((k, v.mean, v.stderr, v.exact) for k, v in sim.open_loop.items())"),
+    "region --law dp --sensor-grid 4, scalar sensor file (test_sensing_cli)": (
+        "import tempfile\n"
+        "from pathlib import Path\n"
+        "from packetloss_cvx.cli.parser import build_parser\n"
+        "from packetloss_cvx.cli.region import run\n"
+        "from packetloss_cvx.io import save_system\n"
+        "from packetloss_cvx.model import System\n"
+        "from packetloss_cvx.sensor import Sensor\n"
+        "s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],\n"
+        "           noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.9]))\n"
+        "folder = tempfile.TemporaryDirectory()\n"
+        "path = str(save_system(s, Path(folder.name) / 'scalar.toml'))\n"
+        "args = build_parser().parse_args(['region', path, '--law', 'dp', '--sensor-grid', '4', '-q'])\n",
+        "result = run(args).data"),
 }
 
 CHILD = """
