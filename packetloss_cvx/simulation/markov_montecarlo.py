@@ -77,7 +77,17 @@ def markov_open_loop_draws(system: System, samples: int,
     """The deliveries (samples, N, m) with the chain sampled per run
     (:func:`~packetloss_cvx.simulation.markov_channels.sample_markov_paths`) and the noise (samples, N, n) as
     :func:`~packetloss_cvx.simulation.channels.sample_noise`, or None without noise. Time and memory
-    O(samples N (m + n))."""
+    O(samples N (m + n)).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.0], r=[1.0], state=["bad"]))     # bad, then good for ever
+    >>> V, W = markov_open_loop_draws(s, 2, np.random.default_rng(0))
+    >>> V[:, :, 0].tolist(), W is None
+    ([[False, True, True], [False, True, True]], True)
+    """
     N, n = system.horizon, system.n
     _, V = sample_markov_paths(system.channel, N, samples, rng)
     W = sample_noise(system, samples, rng).reshape(samples, N, n) if system.noise_cov.any() else None
