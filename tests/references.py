@@ -38,23 +38,24 @@ def loss_pattern_probabilities(T, d, pi0, horizon):
 def enumerated_chain_cost(A, B, state_weights, input_weights, initial_weight, x0, chains, U):
     """E[x0'Q x0 + sum_t (V_t u_t)'Psi_t (V_t u_t) + x_{t+1}'Omega_{t+1} x_{t+1}] without noise, as the sum over
     every joint loss pattern of the m independent chains ``(T, d, pi0)`` of its probability times the realised
-    cost of the plan ``U`` (N×m) rolled through the plant: 2^(N m) roll-outs, none of the package's algebra."""
+    cost of the plan ``U`` (N×m) rolled through the plant: 2^(N m) roll-outs (all patterns rolled out together,
+    one row each), none of the package's algebra."""
     N, m = U.shape
     per_channel = [loss_pattern_probabilities(T, d, pi0, N) for T, d, pi0 in chains]
-    total = float(x0 @ initial_weight @ x0)
-    for patterns in itertools.product(*[list(p.items()) for p in per_channel]):
-        prob = np.prod([p for _, p in patterns])
-        if prob == 0.0:
-            continue
-        v = np.array([pat for pat, _ in patterns]).T          # (N, m)
-        x, cost = np.asarray(x0, float), 0.0
-        for t in range(N):
-            applied = v[t] * U[t]
-            cost += applied @ np.diag(input_weights[t]) @ applied
-            x = A @ x + B @ applied
-            cost += x @ state_weights[t] @ x
-        total += prob * cost
-    return total
+    patterns = [np.array(list(p), dtype=float).reshape(-1, N) for p in per_channel]        # (2^N, N) per channel
+    probs = [np.array(list(p.values())) for p in per_channel]
+    joint = np.indices([len(p) for p in probs]).reshape(m, -1)        # the joint patterns, in itertools.product order
+    prob = np.prod([probs[i][joint[i]] for i in range(m)], axis=0)
+    keep = prob != 0.0
+    v = np.stack([patterns[i][joint[i][keep]] for i in range(m)], axis=-1)          # (patterns, N, m)
+    x = np.tile(np.asarray(x0, float), (v.shape[0], 1))
+    cost = np.zeros(v.shape[0])
+    for t in range(N):
+        applied = v[:, t] * U[t]
+        cost += np.einsum("pi,ij,pj->p", applied, np.diag(input_weights[t]), applied)
+        x = x @ A.T + applied @ B.T
+        cost += np.einsum("pi,ij,pj->p", x, state_weights[t], x)
+    return float(x0 @ initial_weight @ x0) + float(prob[keep] @ cost)
 
 
 def textbook_filter_path(A, Q, C, R, groups, P0, arrivals):

@@ -25,11 +25,12 @@ def moments_by_enumeration(p, r, hg, hb, b0, N):
     h = np.array([hg, hb])
     pi0 = np.array([b0, 1 - b0])
     R = np.empty((N, N))
+    power = [np.linalg.matrix_power(P, k) for k in range(N)]      # P^k, each power computed once
     for t in range(N):
         for s in range(N):
             lo, hi = min(t, s), max(t, s)
-            left = pi0 @ np.linalg.matrix_power(P, lo)
-            R[t, s] = left @ h if t == s else left @ np.diag(h) @ np.linalg.matrix_power(P, hi - lo) @ h
+            left = pi0 @ power[lo]
+            R[t, s] = left @ h if t == s else left @ np.diag(h) @ power[hi - lo] @ h
     return R
 
 

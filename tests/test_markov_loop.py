@@ -75,3 +75,18 @@ def test_the_older_closed_loop_api_keeps_the_plan_budget(monkeypatch):
     with pytest.raises(ResourceError, match="more than 60"):
         markov_closed_loop_costs(hidden, ["plug-in-tcp"], steps=20, samples=3000, rng=np.random.default_rng(0),
                                  progress=False)
+
+
+def test_belief_gains_of_many_beliefs_are_the_gains_of_each():
+    """simulation.markov_loop.BeliefGains.many (distinct rows by a lexsort) gives, belief by belief, the gain of
+    that belief alone: rows equal in one column and not the other, equal after rounding to 12 digits, repeated."""
+    from packetloss_cvx.simulation.markov_loop import BeliefGains
+    s = pl.System(A=[[1.1, 0.2], [0.0, 0.9]], B=[[1.0, 0.0], [0.3, 1.0]], horizon=3, state_weight=[1.0, 1.0],
+                  input_weight=[1.0, 1.0], x0=[1.0, 0.0], channel=GilbertElliott(p=[0.2, 0.3], r=[0.5, 0.6]))
+    rng = np.random.default_rng(4)
+    levels = np.array([0.3, 0.55, 0.8])
+    beliefs = levels[rng.integers(0, 3, size=(60, 2))]
+    beliefs[::7] += 1e-14                                           # the same plan after rounding
+    many = BeliefGains(s, "tcp").many(beliefs)
+    one = BeliefGains(s, "tcp")
+    np.testing.assert_array_equal(many, np.stack([one(b) for b in beliefs]))

@@ -131,3 +131,18 @@ def test_sensor_grid_gives_no_verdict_where_the_stationary_gains_are_undetermine
         # row gamma = 0.5 < 1 - 1/a^2: E[e^2] grows by a^2 (1 - gamma) = 2 a step, not stable; row gamma = 1: null
         assert grid[protocol]["stable"] == [[False, False], [None, None]]
         assert grid[protocol]["stable_share"] == 0.0          # the share proved stable
+
+
+@pytest.mark.parametrize("mu", [[0.9, 0.9], [0.9, 0.45]])
+def test_region_reports_the_dp_critical_mu_along_the_file_mu(tmp_path, mu):
+    """cli.sensing_section takes the DP's critical mu from the region map's points when one lies along the file's
+    mu direction (mu = 0.9 on both channels: the map's default direction, ones), and bisects afresh otherwise
+    (0.9, 0.45: the map's ray is not the file's): either way the number critical_mu gives along mu / max mu."""
+    from packetloss_cvx.simulation import critical_mu
+    s = System(A=[[1.5]], B=[[1.0, 0.5]], horizon=3, state_weight=[1.0], input_weight=[1.0, 1.0], mu=mu, x0=[1.0],
+               noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.9]))
+    path = str(save_system(s, tmp_path / "two_inputs.toml"))
+    data = region_run(parse("region", path, "--law", "dp", "-q")).data
+    direction = np.array(mu) / max(mu)
+    assert data["sensor"]["tcp"]["critical_mu_dp"] == critical_mu(s, "dp", direction)
+    assert (data["dp"]["t"] == data["sensor"]["tcp"]["critical_mu_dp"]) == (mu[0] == mu[1])   # the map's ray: ones

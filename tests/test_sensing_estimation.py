@@ -20,7 +20,10 @@ from packetloss_cvx.sensing.kalman import (
     ENUMERATION_MAX_PATHS,
     actuation_covariance,
     expected_covariance,
+    hermitian_pinv,
     measurement_update,
+    pattern_rows,
+    predict,
 )
 from packetloss_cvx.sensor import Sensor
 from tests.references import textbook_filter_path
@@ -187,6 +190,40 @@ def test_one_row_update_equals_the_pseudoinverse_form_bit_for_bit():
         for k in range(4):
             np.testing.assert_array_equal(measurement_update(Pm[k], C, R, np.array([row]))[0], got[k])
     assert not measurement_update(Pm[3], C, R, np.array([1]))[1].any()
+
+
+def test_hermitian_pinv_is_numpys_pinv_bit_for_bit():
+    """sensing.kalman.hermitian_pinv replays NumPy's hermitian pinv for one matrix: the same floats on full-rank,
+    singular, indefinite, zero and badly scaled symmetric matrices of sizes 1 to 5."""
+    rng = np.random.default_rng(11)
+    for k in range(400):
+        p = int(rng.integers(1, 6))
+        F = rng.normal(size=(p, p)) * 10.0 ** rng.uniform(-6, 6)
+        S = F @ F.T
+        if k % 3 == 0:
+            S[:, 0] = S[0, :] = 0.0                  # singular: a zero singular value cut off
+        if k % 7 == 0:
+            S = S - 2.0 * np.diag(np.diag(S))        # indefinite: signs move into v
+        if k % 50 == 0:
+            S = np.zeros((p, p))
+        S = 0.5 * (S + S.T)
+        np.testing.assert_array_equal(hermitian_pinv(S), np.linalg.pinv(S, rcond=1e-13, hermitian=True))
+
+
+def test_expected_riccati_map_is_the_pattern_sum_of_stacked_updates_bit_for_bit():
+    """sensing.bounds.riccati_map (the rows of each pattern selected once) gives the same floats as the sum over
+    the arrival patterns of measurement_update on a stack of one matrix (NumPy's pinv route), then predict."""
+    from packetloss_cvx.sensing.arrivals import arrival_patterns
+    rng = np.random.default_rng(12)
+    A, W, C, R = plant(rng, n=3, p=3)
+    sensor = Sensor(C=C, gamma=[0.6, 0.3], groups=[[0, 2], [1]], noise_cov=R)
+    arrived, prob = arrival_patterns(sensor.gamma)
+    for _ in range(5):
+        G = rng.normal(size=(3, 3))
+        V = G @ G.T
+        parts = [pk * measurement_update(V[None], C, R, pattern_rows(sensor, a))[0][0]
+                 for a, pk in zip(arrived, prob, strict=True)]
+        np.testing.assert_array_equal(expected_riccati_map(V, A, W, sensor), predict(sum(parts), A, W))
 
 
 def test_measurement_update_of_one_row_is_the_pinv_route_bit_for_bit():

@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> CommandResult:
                 data["notes"] = [left_out]
                 lines.append(f"  {left_out}")
             if system.sensor is not None:       # lossy sensor links: thresholds (TCP-like), coupled map (UDP-like)
-                data["sensor"], more = region_section(system)
+                data["sensor"], more = region_section(system, result.critical)
                 lines += more
                 if sensor_grid is not None and "reason" not in data["sensor"]:
                     data["sensor"]["grid"] = grid = coupled_grid(system, sensor_grid)

@@ -3,6 +3,7 @@ system with a ``[sensor]`` section; a full-state file's output is unchanged."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -11,6 +12,7 @@ from ..costs import closed_form
 from ..errors import InputError, NumericalError
 from ..model import System
 from ..results.base import finite_or_none
+from ..results.region import CriticalPoint
 from ..sensing.bounds import covariance_bounds, critical_gamma
 from ..sensing.loop import estimated_loop, loop_map, loop_verdict, require_sensor
 from ..sensing.markov_bounds import filter_stability, markov_covariance_bounds
@@ -188,19 +190,21 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
     return out, lines
 
 
-def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
+def region_section(system: System, known: Sequence[CriticalPoint] = ()) -> tuple[dict[str, Any], list[str]]:
     """``region``'s "sensor": TCP-like, the thresholds separate (the filter's critical rate along the file's gamma
     and the DP's critical mu along the file's mu); UDP-like, the coupled map is sensing.loop's radius on a grid
-    (``sensor_grid``). O(critical_gamma + critical_mu)."""
+    (``sensor_grid``). ``known``: critical points already found at the default tolerance (the region map's);
+    the DP's along the file's mu direction is taken from them when there, not bisected again (the same call,
+    the same number). O(critical_gamma + critical_mu)."""
     refused = _refused(system)
     if refused is not None:
         return {"reason": refused}, [f"sensor: not computed: {refused}"]
     sensor = system.sensor
     if sensor.channel is not None:
-        return _chain_region(system)
+        return _chain_region(system, known)
     direction = sensor.gamma / sensor.gamma.max() if sensor.gamma.max() > 0 else np.ones(sensor.g)
     cg = critical_gamma(system.A, sensor, direction)
-    t_mu, why = _dp_critical_mu(system)
+    t_mu, why = _dp_critical_mu(system, known)
     out = {"tcp": {"critical_gamma": cg.to_dict(), "critical_mu_dp": finite_or_none(t_mu), "reason": why,
                    "rule": "stable iff gamma = t d with t above the critical rate and mu in the DP's region "
                            "(separation: the estimation error does not depend on the control)"}}
@@ -210,22 +214,26 @@ def region_section(system: System) -> tuple[dict[str, Any], list[str]]:
     return out, lines
 
 
-def _dp_critical_mu(system: System) -> tuple[float | None, str]:
+def _dp_critical_mu(system: System, known: Sequence[CriticalPoint] = ()) -> tuple[float | None, str]:
     mu = system.mu_schedule[0]
+    direction = mu / mu.max() if mu.max() > 0 else None
+    for point in known:        # critical_mu(system, "dp", direction) is critical_point(system, "dp", direction).t
+        if point.law == "dp" and direction is not None and np.array_equal(point.direction, direction):
+            return float(point.t), ""
     try:
-        return float(critical_mu(system, "dp", mu / mu.max() if mu.max() > 0 else None)), ""
+        return float(critical_mu(system, "dp", direction)), ""
     except (NumericalError, InputError) as err:
         return None, str(err)
 
 
-def _chain_region(system: System) -> tuple[dict[str, Any], list[str]]:
+def _chain_region(system: System, known: Sequence[CriticalPoint] = ()) -> tuple[dict[str, Any], list[str]]:
     """``region``'s "sensor" behind Gilbert-Elliott sensor links: TCP-like, the filter's verdict (proved, or
     undecided) beside the DP's critical mu; the coupled (gamma, mu) map is not derived (its ``reason``)."""
     try:
         fs: dict[str, Any] = filter_stability(system.A, system.noise_cov, system.sensor).to_dict()
     except InputError as err:
         fs = {"bounded": None, "reason": str(err)}
-    t_mu, why = _dp_critical_mu(system)
+    t_mu, why = _dp_critical_mu(system, known)
     out = {"reason": "the coupled (gamma, mu) map behind Gilbert-Elliott sensor links is not derived "
                      "(no --sensor-grid)",
            "tcp": {"filter_stability": fs, "critical_mu_dp": finite_or_none(t_mu), "reason": why,

@@ -23,6 +23,7 @@ With ``P^-`` the predicted covariance, ``q = prod_j (1 - gamma_j)`` the probabil
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -31,7 +32,7 @@ from ..errors import CrossCheckError, InputError, NumericalError
 from ..results.sensing import CovarianceBounds, CriticalGamma
 from ..sensor import Sensor
 from .arrivals import arrival_patterns
-from .kalman import measurement_update, pattern_rows, predict
+from .kalman import RowUpdate, pattern_rows, predict
 
 __all__ = ["DIVERGENCE_MARGIN", "covariance_bounds", "critical_gamma", "expected_riccati_map", "lower_bound_covariance",
            "lower_bound_diverges", "riccati_map", "stable_certificate", "upper_bound_covariance"]
@@ -49,14 +50,15 @@ MARE_DIVERGENCE = 1e12
 def riccati_map(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor,
                 gamma: np.ndarray | None = None) -> Callable[[np.ndarray], np.ndarray]:
     """``V -> g(V) = A (sum_a p_a U_a(V)) A' + Sigma_W`` (module docstring), the arrival patterns and their
-    rows listed once: the expected filter step, the update of :func:`.kalman.measurement_update` averaged
+    rows selected once (:class:`.kalman.RowUpdate`): the expected filter step, the update averaged
     over the patterns. Time O(2^g (n^3 + p^3)) per call."""
     arrived, prob = arrival_patterns(sensor.gamma if gamma is None else np.asarray(gamma, dtype=float))
-    terms = [(float(pk), pattern_rows(sensor, a)) for a, pk in zip(arrived, prob, strict=True) if pk > 0.0]
-    C, R = sensor.C, sensor.noise_cov
+    terms = [(float(pk), RowUpdate(sensor.C, sensor.noise_cov, pattern_rows(sensor, a)))
+             for a, pk in zip(arrived, prob, strict=True) if pk > 0.0]
 
     def apply(V: np.ndarray) -> np.ndarray:
-        return predict(sum(pk * measurement_update(V, C, R, rows)[0] for pk, rows in terms), A, Sigma_W)
+        V = np.asarray(V, dtype=float)
+        return predict(sum(pk * update.covariance(V) for pk, update in terms), A, Sigma_W)
 
     return apply
 
@@ -186,7 +188,8 @@ def stable_certificate(A: np.ndarray, sensor: Sensor, gamma: np.ndarray) -> np.n
     step = riccati_map(A, 2.0 * eye, sensor, gamma)
     for _ in range(CERTIFICATE_MAX_ITER):
         new = step(X)                                                      # g(X) + I
-        if not np.all(np.isfinite(new)) or float(np.linalg.norm(new)) > MARE_DIVERGENCE * n:
+        size = float(np.linalg.norm(new))                                  # inf or nan where an entry is
+        if not math.isfinite(size) or size > MARE_DIVERGENCE * n:
             return None
         gap = X - (new - eye)                                              # X - g(X)
         if float(np.linalg.eigvalsh(0.5 * (gap + gap.T))[0]) > 0.0:

@@ -46,7 +46,7 @@ from ..results.sensing import CovarianceBounds, FilterStability
 from ..sensor import Sensor
 from .arrivals import Arrivals, sensor_arrivals
 from .bounds import CERTIFICATE_MAX_ITER, DIVERGENCE_MARGIN, MARE_DIVERGENCE, MARE_MAX_ITER, MARE_RTOL
-from .kalman import measurement_update, pattern_rows, predict
+from .kalman import RowUpdate, pattern_rows, predict
 
 __all__ = ["MARKOV_MAX_UNKNOWNS", "filter_stability", "markov_certificate", "markov_covariance_bounds",
            "markov_lower_bound", "markov_lower_diverges", "markov_upper_bound", "reachable_loss_radius",
@@ -146,12 +146,12 @@ def markov_lower_bound(A: np.ndarray, Sigma_W: np.ndarray, arrivals: Arrivals) -
 
 def _expected_step(A: np.ndarray, Q: np.ndarray, sensor: Sensor, arrivals: Arrivals):
     """``V (S, n, n) -> (A sum_a e(a|s) U_a(V_s) A' + Q)_s``, the per-state expected filter step."""
-    terms = [(arrivals.emission[:, k], pattern_rows(sensor, a)) for k, a in enumerate(arrivals.patterns)
-             if np.any(arrivals.emission[:, k] > 0.0)]
+    terms = [(arrivals.emission[:, k, None, None], RowUpdate(sensor.C, sensor.noise_cov, pattern_rows(sensor, a)))
+             for k, a in enumerate(arrivals.patterns) if np.any(arrivals.emission[:, k] > 0.0)]
 
     def apply(V: np.ndarray) -> np.ndarray:
-        return predict(sum(e[:, None, None] * measurement_update(V, sensor.C, sensor.noise_cov, rows)[0]
-                           for e, rows in terms), A, Q)
+        V = np.asarray(V, dtype=float)
+        return predict(sum(e * update.covariance(V) for e, update in terms), A, Q)
 
     return apply
 

@@ -131,18 +131,23 @@ def sample_markov_paths(channel: GilbertElliott | MarkovChannel, steps: int, sam
     True
     """
     T, S = _count(steps, "steps"), _count(samples, "samples")
-    u = rng.random((S, T, channel.m))
+    # the chain steps in time: walk it time-major, (T, S, m) contiguous per step (a step of the (S, T, m) layout
+    # strides over whole runs, ~3x slower at T = 1000), then hand back the (S, T, m) layout; the same numbers
+    u = np.ascontiguousarray(rng.random((S, T, channel.m)).swapaxes(0, 1))
     if isinstance(channel, MarkovChannel):
-        states = np.empty((S, T, channel.m), dtype=np.int64)
-        states[:, 0] = _draw(u[:, 0], np.broadcast_to(channel.initial_belief, (S, *channel.stationary.shape)))
+        states = np.empty((T, S, channel.m), dtype=np.int64)
+        states[0] = _draw(u[0], np.broadcast_to(channel.initial_belief, (S, *channel.stationary.shape)))
         for t in range(1, T):
-            states[:, t] = _next_states(channel, states[:, t - 1], u[:, t])
+            states[t] = _next_states(channel, states[t - 1], u[t])
+        states = np.ascontiguousarray(states.swapaxes(0, 1))
         h = state_delivery(channel, states)
         return states, (h == 1 if reveals_state(channel) else rng.random(states.shape) < h)
-    good = np.empty((S, T, channel.m), dtype=bool)
-    good[:, 0] = u[:, 0] < channel.initial_belief
+    good = np.empty((T, S, channel.m), dtype=bool)
+    good[0] = u[0] < channel.initial_belief
+    stay, enter = 1.0 - channel.p, channel.r
     for t in range(1, T):
-        good[:, t] = u[:, t] < np.where(good[:, t - 1], 1.0 - channel.p, channel.r)
+        np.less(u[t], np.where(good[t - 1], stay, enter), out=good[t])
+    good = np.ascontiguousarray(good.swapaxes(0, 1))
     if reveals_state(channel):
         return good, np.where(good, channel.h_good, channel.h_bad) == 1
     return good, rng.random(good.shape) < np.where(good, channel.h_good, channel.h_bad)

@@ -153,9 +153,21 @@ class BeliefGains:
         return self.cache[key]
 
     def many(self, beliefs: np.ndarray) -> np.ndarray:
-        """K (S, m, n) at the beliefs (S, m): one plan per distinct row. Time O(S m log S) plus new plans."""
-        rows, inverse = np.unique(np.round(beliefs, 12), axis=0, return_inverse=True)
-        return np.stack([self(row) for row in rows])[inverse.ravel()]
+        """K (S, m, n) at the beliefs (S, m) (or (S, m, k): a k-state chain's): one plan per distinct row.
+        Time O(S m k log S) plus new plans.
+
+        The distinct rows ascending (lexicographically) and each belief's row, as ``np.unique(axis=0,
+        return_inverse=True)`` gives them, by a lexsort of the columns (np.unique sorts the rows as one
+        structured dtype: 6x slower on 4096 beliefs)."""
+        rounded = np.round(beliefs, 12)
+        flat = rounded.reshape(len(rounded), -1)           # a k-state chain's belief rows are (m, k)
+        order = np.lexsort(flat.T[::-1])                   # column 0 the primary key
+        ordered = rounded[order]
+        first = np.ones(len(ordered), dtype=bool)           # the first of each run of equal rows
+        np.any(flat[order[1:]] != flat[order[:-1]], axis=1, out=first[1:])
+        inverse = np.empty(len(ordered), dtype=np.int64)
+        inverse[order] = np.cumsum(first) - 1
+        return np.stack([self(row) for row in ordered[first]])[inverse]
 
 
 def mode_index(good: np.ndarray, sizes: Sequence[int] | None = None) -> np.ndarray:

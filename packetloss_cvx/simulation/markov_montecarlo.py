@@ -42,7 +42,7 @@ from .runs import (
 )
 from .stability import is_mean_square_stable
 
-__all__ = ["DP_NOTE", "EXACT_PLAN", "markov_open_loop_costs", "simulate_markov"]
+__all__ = ["DP_NOTE", "EXACT_PLAN", "markov_open_loop_costs", "markov_open_loop_draws", "simulate_markov"]
 
 #: The open-loop entry of the exact minimiser's plan.
 EXACT_PLAN = "exact_minimiser"
@@ -69,10 +69,29 @@ def markov_open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng
     >>> bool(abs(c.mean() - exact_cost(s, U)) < 4 * c.std() / 4000 ** 0.5)
     True
     """
+    return plan_costs(system, inputs, *markov_open_loop_draws(system, samples, rng))
+
+
+def markov_open_loop_draws(system: System, samples: int,
+                           rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+    """The deliveries (samples, N, m) with the chain sampled per run
+    (:func:`~packetloss_cvx.simulation.markov_channels.sample_markov_paths`) and the noise (samples, N, n) as
+    :func:`~packetloss_cvx.simulation.channels.sample_noise`, or None without noise. Time and memory
+    O(samples N (m + n)).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.0], r=[1.0], state=["bad"]))     # bad, then good for ever
+    >>> V, W = markov_open_loop_draws(s, 2, np.random.default_rng(0))
+    >>> V[:, :, 0].tolist(), W is None
+    ([[False, True, True], [False, True, True]], True)
+    """
     N, n = system.horizon, system.n
     _, V = sample_markov_paths(system.channel, N, samples, rng)
     W = sample_noise(system, samples, rng).reshape(samples, N, n) if system.noise_cov.any() else None
-    return plan_costs(system, inputs, V, W)
+    return V, W
 
 
 def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_loop: bool, laws: Sequence[str],
@@ -108,7 +127,8 @@ def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_
     work = len(blocks) * (len(plans) > 0) + len(blocks) * closed_loop
     with progress_bar(total=work, desc="simulate (Gilbert-Elliott)", progress=progress) as bar:
         open_loop = open_loop_checks(plans, blocks, open_part.spawn(len(blocks)),
-                                     lambda inputs, size, rng: markov_open_loop_costs(system, inputs, size, rng),
+                                     lambda size, rng: markov_open_loop_draws(system, size, rng),
+                                     lambda inputs, draws: plan_costs(system, inputs, *draws),
                                      lambda inputs: exact_cost(system, inputs, "udp"), bar)
         if extra:
             open_loop[EXACT_PLAN] = OpenLoopCheck(np.nan, np.nan, np.nan, np.nan, np.nan, reason=extra)

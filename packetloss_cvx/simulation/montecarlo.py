@@ -47,13 +47,19 @@ __all__ = ["BLOCK", "LAWS", "law_gains", "simulate", "z_score"]
 LAWS = ("tcp", "udp", "dp")
 
 
-def open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
-    """Realised costs ``x'Qx + sum_t X_{t+1}'Omega_t X_{t+1} + (V_t u_t)'Psi_t (V_t u_t)`` of the plan
-    ``inputs`` (N×m), deliveries and noise from :mod:`.channels`. Time O(samples N n (n + m))."""
+def open_loop_draws(system: System, samples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+    """The deliveries (samples, N, m) and the noise (samples, N, n), or None without noise, of ``samples`` open-loop
+    runs, from :mod:`.channels`. Time and memory O(samples N (m + n))."""
     N, m, n = system.horizon, system.m, system.n
     V = sample_deliveries(system, samples, rng).reshape(samples, N, m)
     W = sample_noise(system, samples, rng).reshape(samples, N, n) if system.noise_cov.any() else None
-    return plan_costs(system, inputs, V, W)
+    return V, W
+
+
+def open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Realised costs ``x'Qx + sum_t X_{t+1}'Omega_t X_{t+1} + (V_t u_t)'Psi_t (V_t u_t)`` of the plan
+    ``inputs`` (N×m) on :func:`open_loop_draws`. Time O(samples N n (n + m))."""
+    return plan_costs(system, inputs, *open_loop_draws(system, samples, rng))
 
 
 def law_gains(system: System, laws: Sequence[str]) -> dict[str, np.ndarray | str]:
@@ -219,7 +225,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     with progress_bar(total=work, desc="simulate", progress=progress,
                       estimate=estimated_seconds("simulate_work", cost)) as bar:
         open_loop = open_loop_checks(plans, blocks, open_part.spawn(len(blocks)),
-                                     lambda inputs, size, rng: open_loop_costs(system, inputs, size, rng),
+                                     lambda size, rng: open_loop_draws(system, size, rng),
+                                     lambda inputs, draws: plan_costs(system, inputs, *draws),
                                      lambda inputs: expected_cost(system, inputs, "udp"), bar)
         runs, trajectories = {}, None
         if closed_loop:

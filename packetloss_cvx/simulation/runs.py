@@ -103,29 +103,31 @@ def z_score(mean: float, stderr: float, exact: float) -> float:
 
 
 def open_loop_checks(plans: dict[str, Any], blocks: list[int], streams: list[np.random.SeedSequence],
-                     sample: Callable[[np.ndarray, int, np.random.Generator], np.ndarray],
+                     draw: Callable[[int, np.random.Generator], Any], cost: Callable[[np.ndarray, Any], np.ndarray],
                      exact: Callable[[np.ndarray], float], bar: Any) -> dict[str, OpenLoopCheck]:
-    """Each plan (``.inputs``, ``.cost`` the formula) sampled block by block on the same draws (one
-    generator per plan from each block's stream), against ``exact(inputs)``; ``bar`` moves one step a
-    block. O(samples) memory per plan, plus what ``sample`` costs.
+    """Each plan (``.inputs``, ``.cost`` the formula) sampled block by block on the same draws, against
+    ``exact(inputs)``: each block's draws ``draw(size, rng)`` (rng from the block's stream) made once and costed
+    for every plan, ``cost(inputs, draws)``; ``bar`` moves one step a block. O(samples) memory per plan, plus one
+    block's draws; time one draw per block plus what ``cost`` costs per plan.
 
     Examples
     --------
     >>> from types import SimpleNamespace
     >>> plan = SimpleNamespace(inputs=np.zeros((1, 1)), cost=1.0)
-    >>> def sample(inputs, size, rng):
-    ...     return 1.0 + rng.standard_normal(size)      # mean 1, variance 1
+    >>> def draw(size, rng):
+    ...     return rng.standard_normal(size)
     >>> seqs = np.random.SeedSequence(0).spawn(2)
-    >>> checks = open_loop_checks({"a": plan, "b": plan}, [500, 500], seqs, sample, lambda u: 1.0, SimpleNamespace(
-    ...     update=lambda k: None))
-    >>> checks["a"] == checks["b"], abs(checks["a"].z) < 4     # the same draws for every plan
+    >>> checks = open_loop_checks({"a": plan, "b": plan}, [500, 500], seqs, draw, lambda u, z: 1.0 + z,
+    ...                           lambda u: 1.0, SimpleNamespace(update=lambda k: None))
+    >>> checks["a"] == checks["b"], abs(checks["a"].z) < 4     # the same draws for every plan; mean 1, variance 1
     (True, True)
     """
     costs: dict[str, list[np.ndarray]] = {p: [] for p in plans}
     if plans:
         for size, stream in zip(blocks, streams, strict=True):
+            draws = draw(size, np.random.default_rng(stream))
             for p, sol in plans.items():
-                costs[p].append(sample(sol.inputs, size, np.random.default_rng(stream)))
+                costs[p].append(cost(sol.inputs, draws))
             bar.update(1)
     checks = {}
     for p, sol in plans.items():
@@ -176,13 +178,16 @@ def plan_costs(system: System, inputs: np.ndarray, delivered: np.ndarray, noise:
     samples = delivered.shape[0]
     X = np.repeat(system.x0[None], samples, axis=0)
     total = np.full(samples, float(system.x0 @ system.initial_weight @ system.x0))
+    # time-major copies: each step reads one contiguous (samples, .) slice; the same numbers
+    delivered = np.ascontiguousarray(np.swapaxes(delivered, 0, 1))
+    noise = None if noise is None else np.ascontiguousarray(np.swapaxes(noise, 0, 1))
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(system.horizon):
-            applied = delivered[:, t] * inputs[t]
+            applied = delivered[t] * inputs[t]
             total += applied ** 2 @ system.input_weights[t]
             X = X @ system.A.T + applied @ system.B.T
             if noise is not None:
-                X += noise[:, t]
+                X += noise[t]
             total += np.einsum("si,si->s", X @ system.state_weights[t], X)   # a 3-operand einsum: ~10x slower
     return total
 
