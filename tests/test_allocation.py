@@ -343,3 +343,15 @@ def test_min_cost_at_tiny_costs_against_a_grid(protocol):
     assert r.cost == pytest.approx(best, rel=1e-5, abs=0.0)       # (approx's default abs 1e-12 would pass anything)
     assert r.lower_bound <= best * (1 + 1e-9)
     assert r.gap <= 1e-5
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_min_cost_reports_the_gap_it_certified(protocol):
+    """min_cost's gap is the one definition (allocation.udp.reported_gap): (cost - lower bound) / cost wherever the
+    cost is above 1e-12 times J* at the box's lower corner (the floor's unit; the closed form at mu = 0 here)."""
+    s = pl.System(A=[[1.05, 0.2], [0.0, 0.9]], B=[[0.0, 1.0], [1.0, 0.3]], horizon=5, state_weight=[1.0, 1.0],
+                  input_weight=[0.5, 0.5], x0=[1.0, 1.0], mu=[0.5, 0.5])
+    r = min_cost(s, protocol, constraints=[(np.array([[1.0, 1.0]]), np.array([1.0]))])
+    assert r.cost > 1e-12 * pl.closed_form(s.with_mu([0.0, 0.0]), protocol).cost
+    assert r.lower_bound < r.cost                                   # a gap to report
+    assert r.gap == pytest.approx((r.cost - r.lower_bound) / r.cost, rel=1e-12, abs=0.0)

@@ -678,3 +678,14 @@ def test_least_cost_within_power_at_tiny_costs(protocol):
     assert a.lower_bound / 1e-20 <= split.fun * (1 + 1e-9)
     assert a.lower_bound / 1e-20 >= split.fun * (1 - 2e-5)
     assert a.gap <= 1e-5
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_within_power_reports_the_gap_it_certified(protocol):
+    """The power problem's gap is allocation.udp.reported_gap, as min_cost's: (cost - lower bound) / cost where the
+    cost is above 1e-12 times J* at P = 0 (the floor's unit; by hand sum w_i for both protocols)."""
+    w = (1.0, 3.0)
+    out = least_cost_within_power(decoupled(w), protocol, model_of("exponential", 2), 2.5, gap=1e-4)
+    assert out.cost > 1e-12 * hand_cost(protocol, [0.0, 0.0], w)
+    assert out.lower_bound < out.cost
+    assert out.gap == pytest.approx((out.cost - out.lower_bound) / out.cost, rel=1e-12, abs=0.0)

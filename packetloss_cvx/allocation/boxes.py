@@ -52,7 +52,9 @@ class Outcome(NamedTuple):
     ``mu`` the point (None if none), ``value`` its objective, ``lower_bound`` a proven lower
     bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
     ``boxes`` boxes explored, ``note`` how it ended, ``cost`` J*(mu) where the solver evaluated it
-    (:func:`cost_function`, equal to :func:`cost_at` to rounding), else None. Construction O(1).
+    (:func:`cost_function`, equal to :func:`cost_at` to rounding), else None; ``scale`` the unit of the gap's
+    floor where a search certified against one (:func:`~packetloss_cvx.allocation.udp.gap_unit`), else None.
+    Construction O(1).
 
     Examples
     --------
@@ -68,6 +70,7 @@ class Outcome(NamedTuple):
     boxes: int
     note: str
     cost: float | None = None
+    scale: float | None = None
 
 
 def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
