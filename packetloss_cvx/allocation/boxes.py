@@ -203,15 +203,8 @@ def highs_optimum(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u:
     model.col_lower_, model.col_upper_ = np.asarray(l, dtype=float), np.asarray(u, dtype=float)
     model.row_lower_ = np.full(rows, -highs_core.kHighsInf)
     model.row_upper_ = np.asarray(h, dtype=float)
-    options = highs_core.HighsOptions()       # scipy's _linprog_highs for method "highs" and our two tolerances
-    options.presolve = "on"
-    options.highs_debug_level = highs_core.HighsDebugLevel.kHighsDebugLevelNone
-    options.log_to_console = options.output_flag = False
-    options.simplex_strategy = highs_simplex.SimplexStrategy.kSimplexStrategyDual
-    options.primal_feasibility_tolerance = _HIGHS["primal_feasibility_tolerance"]
-    options.dual_feasibility_tolerance = _HIGHS["dual_feasibility_tolerance"]
     solver = highs_core._Highs()
-    if solver.passOptions(options) == highs_core.HighsStatus.kError or \
+    if solver.passOptions(_HIGHS_OPTIONS) == highs_core.HighsStatus.kError or \
             solver.passModel(model) == highs_core.HighsStatus.kError or \
             solver.run() == highs_core.HighsStatus.kError:
         return None
@@ -226,6 +219,24 @@ def highs_optimum(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u:
             and np.all(h - row >= -_LINPROG_CHECK)):
         return None
     return x, np.array(solution.row_dual)
+
+
+def _highs_options():
+    """scipy's _linprog_highs options for method "highs" with our two tolerances, built once (30 us; passOptions
+    copies them into each solver)."""
+    if highs_core is None:      # pragma: no cover - an older scipy
+        return None
+    options = highs_core.HighsOptions()
+    options.presolve = "on"
+    options.highs_debug_level = highs_core.HighsDebugLevel.kHighsDebugLevelNone
+    options.log_to_console = options.output_flag = False
+    options.simplex_strategy = highs_simplex.SimplexStrategy.kSimplexStrategyDual
+    options.primal_feasibility_tolerance = _HIGHS["primal_feasibility_tolerance"]
+    options.dual_feasibility_tolerance = _HIGHS["dual_feasibility_tolerance"]
+    return options
+
+
+_HIGHS_OPTIONS = _highs_options()
 
 
 def small_lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
