@@ -131,7 +131,8 @@ __all__ += [
 #: The allocation's line searches (regula falsi, boxes.bracket) aim at alpha (1 - ALLOCATION_AIM_RTOL), not
 #: at alpha: converging onto the crossing itself left an incumbent at J* = alpha - 1e-15, which another
 #: evaluation path of J* (the reported cost, closed_form) put 6e-14 above alpha. Only the aim: every
-#: decision still compares with alpha.
+#: decision still compares with alpha. (Where the two crossings lie more than the search's tol apart, the margin
+#: cannot be kept within tol: boxes.bracket then ends just beyond alpha's crossing.)
 ALLOCATION_AIM_RTOL = 1e-10
 
 #: Every proof of the allocation that rests on a closed-form cost J*(mu) trusts it to this

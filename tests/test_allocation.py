@@ -8,7 +8,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, min_cost, parse_constraint
-from packetloss_cvx.allocation.brute_force import brute_force_allocation
+from packetloss_cvx.allocation.brute_force import brute_force_allocation, brute_force_allocations
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.tolerances import ALLOCATION_LP_FEASIBILITY, CROSS_CHECK_COST_RTOL
 
@@ -22,10 +22,11 @@ def qp_cost(system, protocol, mu):
     return pl.solve_qp(system.with_mu(mu), protocol, cross_check=False, with_gain=False).cost
 
 
-def _check(system, protocol, alpha, beta, constraints=(), G=None, h=None, gap=1e-4):
+def _check(system, protocol, alpha, beta, constraints=(), G=None, h=None, gap=1e-4, ref=None):
+    """``ref``: the brute force's answer where a fixture computed it (else computed here)."""
     G = np.zeros((0, 2)) if G is None else G
     h = np.zeros(0) if h is None else h
-    ref = brute_force_allocation(system, protocol, alpha, beta, G, h)
+    ref = brute_force_allocation(system, protocol, alpha, beta, G, h) if ref is None else ref
     got = allocate(system, protocol, alpha, beta, constraints=constraints, gap=gap)
     assert got.status == "optimal"
     assert got.cost <= alpha                                      # feasible by the closed form ...
@@ -41,11 +42,32 @@ def _check(system, protocol, alpha, beta, constraints=(), G=None, h=None, gap=1e
     return got, ref
 
 
+TWO_ACTUATOR_BETAS = [(1.0, 1.0), (0.05, 1.0), (1.0, 0.05)]
+TWO_ACTUATOR_ALPHAS = [4.78, 8.0]
+
+
+@pytest.fixture(scope="module")
+def two_actuator_references(two_actuator):
+    """protocol -> {(alpha, beta): the brute force's answer} for every case below, each protocol's six searches run
+    side by side once (brute_force_allocations: each answer the one the case gives alone)."""
+    found: dict = {}
+
+    def get(protocol):
+        if protocol not in found:
+            cases = [(alpha, beta) for beta in TWO_ACTUATOR_BETAS for alpha in TWO_ACTUATOR_ALPHAS]
+            answers = brute_force_allocations(two_actuator, protocol, [(a, b, np.zeros((0, 2)), np.zeros(0))
+                                                                       for a, b in cases])
+            found[protocol] = dict(zip(cases, answers, strict=True))
+        return found[protocol]
+
+    return get
+
+
 @pytest.mark.parametrize("protocol", ["tcp", "udp"])
-@pytest.mark.parametrize("beta", [(1.0, 1.0), (0.05, 1.0), (1.0, 0.05)])
-@pytest.mark.parametrize("alpha", [4.78, 8.0])
-def test_two_actuator_against_brute_force(two_actuator, protocol, beta, alpha):
-    _check(two_actuator, protocol, alpha, beta)
+@pytest.mark.parametrize("beta", TWO_ACTUATOR_BETAS)
+@pytest.mark.parametrize("alpha", TWO_ACTUATOR_ALPHAS)
+def test_two_actuator_against_brute_force(two_actuator, two_actuator_references, protocol, beta, alpha):
+    _check(two_actuator, protocol, alpha, beta, ref=two_actuator_references(protocol)[(alpha, beta)])
 
 
 @pytest.mark.parametrize("protocol", ["tcp", "udp"])
@@ -343,3 +365,15 @@ def test_min_cost_at_tiny_costs_against_a_grid(protocol):
     assert r.cost == pytest.approx(best, rel=1e-5, abs=0.0)       # (approx's default abs 1e-12 would pass anything)
     assert r.lower_bound <= best * (1 + 1e-9)
     assert r.gap <= 1e-5
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_min_cost_reports_the_gap_it_certified(protocol):
+    """min_cost's gap is the one definition (allocation.udp.reported_gap): (cost - lower bound) / cost wherever the
+    cost is above 1e-12 times J* at the box's lower corner (the floor's unit; the closed form at mu = 0 here)."""
+    s = pl.System(A=[[1.05, 0.2], [0.0, 0.9]], B=[[0.0, 1.0], [1.0, 0.3]], horizon=5, state_weight=[1.0, 1.0],
+                  input_weight=[0.5, 0.5], x0=[1.0, 1.0], mu=[0.5, 0.5])
+    r = min_cost(s, protocol, constraints=[(np.array([[1.0, 1.0]]), np.array([1.0]))])
+    assert r.cost > 1e-12 * pl.closed_form(s.with_mu([0.0, 0.0]), protocol).cost
+    assert r.lower_bound < r.cost                                   # a gap to report
+    assert r.gap == pytest.approx((r.cost - r.lower_bound) / r.cost, rel=1e-12, abs=0.0)

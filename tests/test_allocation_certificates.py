@@ -131,7 +131,8 @@ def test_lp_failure_propagates(two_actuator, monkeypatch):
     class Failed:
         status, message = 4, "numerical difficulties"
 
-    monkeypatch.setattr(boxes, "linprog", lambda *args, **kwargs: Failed())
+    monkeypatch.setattr(boxes, "highs_optimum", lambda *args: None)     # HiGHS called directly had no optimum:
+    monkeypatch.setattr(boxes, "linprog", lambda *args, **kwargs: Failed())     # linprog reports why
     with pytest.raises(pl.SolverError, match="linprog status 4"):
         allocate(two_actuator, "udp", 6.0, (1.0, 1.0), constraints=[parse_constraint("mu1 >= mu2", 2)])
 
@@ -281,3 +282,23 @@ def test_udp_certificate_survives_wrong_probes(two_actuator, monkeypatch, seed):
     assert got.lower_bound <= ref[0] + 1e-9
     assert got.status == "optimal"
     assert got.communication_cost <= ref[0] / (1 - 1e-4) + 1e-9
+
+
+@pytest.mark.parametrize(("slope", "curve"), [(1e-3, 0.0), (1e-3, 0.45), (2.0, 0.25)])
+def test_line_search_reaches_alpha_within_tol_in_few_evaluations(slope, curve):
+    """allocation.boxes.bracket aims at alpha (1 - ALLOCATION_AIM_RTOL): where alpha's own crossing lies far more
+    than tol beyond that aim (a shallow J*: here 1e-7 away at tol = 1e-9), it still ends with the contract
+    (f(s_in) <= alpha < f(s_out), s_in - s_out <= tol; the crossing by hand between them) in at most
+    4 log2((b - a) / tol) evaluations, as its docstring says (it crept by tol / 4: 300-800 evaluations)."""
+    def f(t):
+        calls.append(t)
+        return 1.0 - slope * t + curve * slope * t * t
+
+    for crossing in (0.25, 0.4, 0.7):
+        calls: list = []
+        alpha = 1.0 - slope * crossing + curve * slope * crossing ** 2
+        s_in, s_out = boxes.bracket(f, alpha, 0.0, 1.0, 1e-9)
+        assert f(s_in) <= alpha < f(s_out)
+        assert 0.0 < s_in - s_out <= 1e-9
+        assert s_out < crossing * (1 + 1e-12) and crossing * (1 - 1e-12) < s_in
+        assert len(calls) - 2 <= 4 * np.log2(1.0 / 1e-9)

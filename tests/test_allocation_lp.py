@@ -74,3 +74,45 @@ def test_small_lp_falls_back_to_highs_when_clarabel_does_not_solve(monkeypatch):
     c, G, h, l, u = np.ones(2), np.array([[-1.0, -1.0]]), np.array([-1.0]), np.zeros(2), np.ones(2)
     point, bound = small_lp(c, G, h, l, u)
     assert len(calls) == 1 and bound == pytest.approx(1.0) and np.isclose(point.sum(), 1.0)
+
+
+def _box_lp(rng):
+    """A random LP of the searches' shape: a few channels, a few rows (some zeros), a sub-box of [0, 1]^m,
+    sometimes infeasible."""
+    m, r = int(rng.integers(1, 6)), int(rng.integers(1, 5))
+    G = rng.normal(size=(r, m))
+    G[rng.uniform(size=(r, m)) < 0.3] = 0.0
+    l = rng.uniform(0.0, 0.3, m)
+    return rng.normal(size=m), G, rng.normal(size=r) + 1.0, l, l + rng.uniform(0.0, 1.0, m)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_lp_answers_bit_for_bit_as_linprog(seed):
+    """allocation.boxes.lp calls scipy's HiGHS directly (highs_optimum): the same point, the same multipliers
+    and the same verdict as scipy.optimize.linprog with the same options, to the last bit, on 50 random LPs."""
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        c, G, h, l, u = _box_lp(rng)
+        ref = linprog(c, A_ub=G, b_ub=h, bounds=list(zip(l, u, strict=True)), method="highs", options=boxes._HIGHS)
+        direct = boxes.highs_optimum(c, G, h, l, u)
+        point, bound = boxes.lp(c, G, h, l, u)
+        if ref.status == 2:
+            assert direct == (None, None)
+            assert point is None
+            assert bound == np.inf
+            continue
+        assert ref.status == 0
+        assert np.array_equal(direct[0], ref.x)
+        assert np.array_equal(direct[1], ref.ineqlin.marginals)
+        assert np.array_equal(point, np.clip(ref.x, l, u))
+        assert bound == boxes.dual_bound(c, G, h, l, u, -ref.ineqlin.marginals)
+
+
+def test_lp_leaves_what_highs_does_not_solve_to_linprog(monkeypatch):
+    """Where the direct call has no answer (an older scipy, here simulated), lp runs linprog: same result."""
+    c, G, h, l, u = np.ones(2), np.array([[-1.0, -1.0]]), np.array([-1.0]), np.zeros(2), np.ones(2)
+    monkeypatch.setattr(boxes, "highs_optimum", lambda *args: None)
+    point, bound = boxes.lp(c, G, h, l, u)
+    assert point.sum() == pytest.approx(1.0)
+    assert bound == 1.0
+    assert boxes.lp(c, G, np.array([-3.0]), l, u) == (None, np.inf)

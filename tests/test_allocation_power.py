@@ -38,6 +38,12 @@ def hand_cost(protocol, mu, w):
     return float(np.sum(np.asarray(w) / (1 + mu))) if protocol == "tcp" else float(np.sum(np.asarray(w) * (1 - mu / 2)))
 
 
+def hand_costs(protocol, mu, w):
+    """hand_cost at each row of mu (k, m) in one pass: the same sums, bit for bit."""
+    w = np.asarray(w)
+    return np.sum(w / (1 + mu), axis=-1) if protocol == "tcp" else np.sum(w * (1 - mu / 2), axis=-1)
+
+
 def hand_power(name, mu):
     """The least power reaching mu, by hand from each model's formula."""
     if name == "exponential":
@@ -84,7 +90,7 @@ def split_reference(protocol, name, budget, w):
         return hand_cost(protocol, model.mu(np.array([s, budget - s])), w)
 
     grid = np.linspace(0, budget, 2001)
-    k = int(np.argmin([f(s) for s in grid]))
+    k = int(np.argmin(hand_costs(protocol, model.mu(np.stack([grid, budget - grid], axis=1)), w)))
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
     best = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
     return min(best.fun, f(grid[k]))
@@ -678,3 +684,14 @@ def test_least_cost_within_power_at_tiny_costs(protocol):
     assert a.lower_bound / 1e-20 <= split.fun * (1 + 1e-9)
     assert a.lower_bound / 1e-20 >= split.fun * (1 - 2e-5)
     assert a.gap <= 1e-5
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_least_cost_within_power_reports_the_gap_it_certified(protocol):
+    """The power problem's gap is allocation.udp.reported_gap, as min_cost's: (cost - lower bound) / cost where the
+    cost is above 1e-12 times J* at P = 0 (the floor's unit; by hand sum w_i for both protocols)."""
+    w = (1.0, 3.0)
+    out = least_cost_within_power(decoupled(w), protocol, model_of("exponential", 2), 2.5, gap=1e-4)
+    assert out.cost > 1e-12 * hand_cost(protocol, [0.0, 0.0], w)
+    assert out.lower_bound < out.cost
+    assert out.gap == pytest.approx((out.cost - out.lower_bound) / out.cost, rel=1e-12, abs=0.0)

@@ -50,7 +50,7 @@ from .grammar import (
     read_polytope,
 )
 from .tcp import tcp_allocate, tcp_min_cost
-from .udp import MonotoneCost, udp_allocate, udp_min_cost
+from .udp import MonotoneCost, reported_gap, udp_allocate, udp_min_cost
 
 __all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
 
@@ -87,7 +87,7 @@ def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, tim
                     else udp_min_cost(system, poly, max_boxes, time_limit,
                                       cost=None if evaluator is None else MonotoneCost(evaluator)))
     return MinCost(protocol=protocol, cost=out.value, lower_bound=out.lower_bound,
-                   gap=(out.value - out.lower_bound) / max(abs(out.value), np.finfo(float).tiny), status=out.status,
+                   gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status,
                    mu=out.mu, method=out.note)
 
 

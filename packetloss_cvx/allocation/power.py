@@ -45,7 +45,7 @@ from .boxes import boundary, box_lp, small_lp
 from .delivery import PowerModel, rayleigh_majorant
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
 from .tcp import constant_cost, cost_epigraph, cut_points, tangent
-from .udp import MonotoneCost, udp_allocate, udp_min_cost
+from .udp import MonotoneCost, reported_gap, udp_allocate, udp_min_cost
 
 __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pareto"]
 
@@ -224,16 +224,16 @@ def _check(system: System, protocol: str, model: PowerModel) -> tuple[System, st
 
 
 def _result(setup: _Setup, problem: str, x: np.ndarray, value: float, lower: float, status: str, method: str,
-            boxes: int, limit: float, unit: float = 1.0, size: float = 1.0) -> PowerAllocation:
+            boxes: int, limit: float, unit: float = 1.0, size: float | None = 1.0) -> PowerAllocation:
     """The result at x; ``value`` and ``lower`` in units of ``unit`` (the gap is taken there, the bound reported
-    times it), the gap's floor ``ALLOCATION_GAP_FLOOR * size``."""
+    times it), the gap :func:`~.udp.reported_gap` with the search's ``size``."""
     P = setup.top * x
     mu = setup.model.mu(P)
     cost = float(CostEvaluator(setup.system, setup.protocol).cost(np.clip(mu, 0.0, 1.0)))
     total = float(np.sum(P))
     return PowerAllocation(protocol=setup.protocol, problem=problem, model=setup.model.to_dict(), power=P,
                            total_power=total, mu=mu, cost=cost, limit=limit, lower_bound=lower * unit,
-                           gap=(value - lower) / max(abs(value), ALLOCATION_GAP_FLOOR * size), status=status,
+                           gap=reported_gap(value, lower, size), status=status,
                            method=method, boxes=boxes)
 
 
@@ -552,11 +552,9 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     out = udp_min_cost(system, setup.poly, max_boxes, time_limit, cost=setup.cost, incumbent=incumbent, floor=floor,
                        what=f"{protocol.upper()}-like least cost within the power budget", gap=gap)
     method = _method(protocol, tcp.convex() and not failed, model, out.boxes, out.note, failed)
-    size = abs(setup.cost.checked(setup.poly.lower()))       # the largest cost on the box: the floor's unit
-    status = out.status if (out.value - out.lower_bound) <= gap * max(out.value, ALLOCATION_GAP_FLOOR * size) \
-        else "gap_not_certified"
-    return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, status, method, out.boxes, budget,
-                   size=size)
+    # the search's verdict and the unit of its gap's floor (J* at the box's lower corner, its largest cost)
+    return _result(setup, "least-cost", out.mu, out.value, out.lower_bound, out.status, method, out.boxes, budget,
+                   size=out.scale)
 
 
 def _convex_least_cost(setup: _Setup) -> tuple[np.ndarray, float]:

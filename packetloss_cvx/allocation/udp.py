@@ -54,7 +54,7 @@ from .boxes import Outcome, boundary, box_bound, box_lp, bracket, check_in_polyt
 from .grammar import Polytope
 from .tcp import constant_cost
 
-__all__ = ["MonotoneCost", "Search", "row_caps", "split", "udp_allocate", "udp_min_cost"]
+__all__ = ["MonotoneCost", "Search", "gap_unit", "reported_gap", "row_caps", "split", "udp_allocate", "udp_min_cost"]
 
 #: Channels with a price below this still get their sides split (scaled by it), so a free
 #: channel does not stall the search.
@@ -127,6 +127,34 @@ def split(l: np.ndarray, u: np.ndarray, weights: np.ndarray) -> tuple[tuple[np.n
     return (l, low_u), (high_l, u)
 
 
+def gap_unit(value: float, scale: float | None) -> float:
+    """What a relative gap is taken of, by the searches' certificate (:meth:`Search.certified`) and in every
+    reported minimum-cost gap (:func:`reported_gap`): ``|value|``, floored at ``ALLOCATION_GAP_FLOOR * scale``
+    (``scale`` the problem's own size, e.g. J* at the box's lower corner, its largest cost: an absolute floor
+    certified anything where every cost was below 1e-12) and at the least normal double; ``scale`` None: no
+    floor in the problem's size (a solver that certified a plain relative gap). O(1).
+
+    Examples
+    --------
+    >>> gap_unit(2.0, 1.0), gap_unit(-2.0, None), gap_unit(1e-15, 10.0), gap_unit(0.0, 0.0) > 0
+    (2.0, 2.0, 1e-11, True)
+    """
+    floor = 0.0 if scale is None else ALLOCATION_GAP_FLOOR * abs(scale)
+    return float(max(abs(value), floor, np.finfo(float).tiny))
+
+
+def reported_gap(value: float, lower: float, scale: float | None) -> float:
+    """The gap a result reports: ``(value - lower) / gap_unit(value, scale)``, the quantity the search
+    certified against the requested gap. O(1).
+
+    Examples
+    --------
+    >>> reported_gap(2.0, 1.5, 1.0), reported_gap(0.5, 0.0, 1e12)      # the second below its floor, 1e-12 * 1e12
+    (0.25, 0.5)
+    """
+    return (value - lower) / gap_unit(value, scale)
+
+
 class Search:
     """Best-first search over boxes for a minimum: the incumbent, the open boxes and the caps.
 
@@ -195,8 +223,8 @@ class Search:
 
     def certified(self) -> bool:
         """Whether the incumbent is within ``gap`` of the proven bound. O(1)."""
-        size = max(abs(self.best), ALLOCATION_GAP_FLOOR * self.scale)
-        return bool(np.isfinite(self.best) and self.best - self.lower_bound() <= self.gap * size)
+        return bool(np.isfinite(self.best) and self.best - self.lower_bound() <= self.gap * gap_unit(self.best,
+                                                                                                    self.scale))
 
     def run(self, visit: Callable[[float, np.ndarray, np.ndarray, object], None]) -> str:
         """Pop and visit boxes until certified, out of boxes, or at a cap (the first box is always
@@ -232,7 +260,7 @@ class Search:
         lower = min(self.lower_bound(), self.best)
         status = "optimal" if ended in ("certified", "exhausted") else "gap_not_certified"
         note = method if status == "optimal" else f"{method}; {ended}"
-        return Outcome(self.best_mu, self.best, lower, status, self.boxes, note)
+        return Outcome(self.best_mu, self.best, lower, status, self.boxes, note, scale=self.scale)
 
 
 def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float, floor: float,
