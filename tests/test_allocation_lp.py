@@ -116,3 +116,26 @@ def test_lp_leaves_what_highs_does_not_solve_to_linprog(monkeypatch):
     assert point.sum() == pytest.approx(1.0)
     assert bound == 1.0
     assert boxes.lp(c, G, np.array([-3.0]), l, u) == (None, np.inf)
+
+
+def test_lp_answers_by_linprog_when_scipys_private_highs_binding_changed(monkeypatch):
+    """boxes calls scipy's private HiGHS binding: a scipy whose binding lost a name (AttributeError) or changed a
+    signature (TypeError) gets linprog's answer, not an exception; the options builder likewise gives None."""
+    c, G, h, l, u = np.ones(2), np.array([[-1.0, -1.0]]), np.array([-1.0]), np.zeros(2), np.ones(2)
+    ref = linprog(c, A_ub=G, b_ub=h, bounds=list(zip(l, u, strict=True)), method="highs", options=boxes._HIGHS)
+
+    class Renamed:              # the binding without HighsLp / HighsOptions
+        pass
+
+    class Resigned:             # the binding whose constructors take other arguments
+        def HighsLp(self, *args):   # noqa: N802 - the binding's name
+            raise TypeError("HighsLp() takes 1 positional argument")
+
+    for binding in (Renamed(), Resigned()):
+        monkeypatch.setattr(boxes, "highs_core", binding)
+        assert boxes.highs_optimum(c, G, h, l, u) is None
+        point, bound = boxes.lp(c, G, h, l, u)
+        assert np.array_equal(point, np.clip(ref.x, l, u))
+        assert bound == 1.0
+    monkeypatch.setattr(boxes, "highs_core", Renamed())
+    assert boxes._highs_options() is None

@@ -188,8 +188,19 @@ def highs_optimum(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u:
     >>> highs_optimum(np.ones(2), np.array([[-1.0, -1.0]]), np.array([-3.0]), np.zeros(2), np.ones(2))
     (None, None)
     """
-    if highs_core is None or not (np.all(np.isfinite(G)) and np.all(np.isfinite(c)) and np.all(l <= u)):
+    if _HIGHS_OPTIONS is None or not (np.all(np.isfinite(G)) and np.all(np.isfinite(c)) and np.all(l <= u)):
         return None             # an older scipy, or data linprog checks or HiGHS refuses: linprog answers
+    try:
+        return _highs_run(c, G, h, l, u)
+    except (AttributeError, TypeError):     # a scipy whose private HiGHS binding changed shape: linprog answers
+        return None
+
+
+def _highs_run(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
+               ) -> tuple[np.ndarray | None, np.ndarray | None] | None:
+    """:func:`highs_optimum`'s call of scipy's HiGHS binding (``scipy.optimize._highspy``, private to scipy: any
+    change of its shape raises AttributeError or TypeError, which the caller answers by linprog). O(m r) plus the
+    simplex."""
     rows, cols = G.shape
     nonzero = G.T != 0                      # CSC: column by column, rows ascending (as scipy.sparse.csc_array(G))
     model = highs_core.HighsLp()
@@ -226,11 +237,19 @@ def _highs_options():
     copies them into each solver)."""
     if highs_core is None:      # pragma: no cover - an older scipy
         return None
-    options = highs_core.HighsOptions()
+    try:
+        return _highs_options_of(highs_core, highs_simplex)
+    except (AttributeError, TypeError):     # a scipy whose private HiGHS binding changed shape: linprog alone
+        return None
+
+
+def _highs_options_of(core, simplex):
+    """The options object of :func:`_highs_options` from the binding ``core`` (its simplex constants ``simplex``). O(1)."""
+    options = core.HighsOptions()
     options.presolve = "on"
-    options.highs_debug_level = highs_core.HighsDebugLevel.kHighsDebugLevelNone
+    options.highs_debug_level = core.HighsDebugLevel.kHighsDebugLevelNone
     options.log_to_console = options.output_flag = False
-    options.simplex_strategy = highs_simplex.SimplexStrategy.kSimplexStrategyDual
+    options.simplex_strategy = simplex.SimplexStrategy.kSimplexStrategyDual
     options.primal_feasibility_tolerance = _HIGHS["primal_feasibility_tolerance"]
     options.dual_feasibility_tolerance = _HIGHS["dual_feasibility_tolerance"]
     return options
