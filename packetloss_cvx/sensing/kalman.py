@@ -69,7 +69,9 @@ def measurement_update(Pm: np.ndarray, C: np.ndarray, R: np.ndarray,
     if rows.size == 0:
         return Pm.copy(), L
     Cr, Rr = C[rows], R[np.ix_(rows, rows)]
-    PCt = Pm @ Cr.T
+    # P^- C_r' for the whole stack as one (... n) x n product: NumPy's stacked matmul with a 2-D operand makes one
+    # small product per matrix (about 40x slower for 1000 runs at n = 4); the same floats (tested bit for bit)
+    PCt = (Pm.reshape(-1, Pm.shape[-1]) @ Cr.T).reshape(*Pm.shape[:-1], Cr.shape[0])
     S = Cr @ PCt + Rr
     S = 0.5 * (S + np.swapaxes(S, -1, -2))
     if S.shape[-1] == 1 and np.all(np.isfinite(S)):
