@@ -54,9 +54,11 @@ def riccati_map(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor,
     arrived, prob = arrival_patterns(sensor.gamma if gamma is None else np.asarray(gamma, dtype=float))
     terms = [(float(pk), pattern_rows(sensor, a)) for a, pk in zip(arrived, prob, strict=True) if pk > 0.0]
     C, R = sensor.C, sensor.noise_cov
+    blocks = [(C[rows], R[np.ix_(rows, rows)]) for _, rows in terms]      # each pattern's rows, taken once
 
     def apply(V: np.ndarray) -> np.ndarray:
-        return predict(sum(pk * measurement_update(V, C, R, rows)[0] for pk, rows in terms), A, Sigma_W)
+        return predict(sum(pk * measurement_update(V, C, R, rows, rows_blocks)[0]
+                           for (pk, rows), rows_blocks in zip(terms, blocks, strict=True)), A, Sigma_W)
 
     return apply
 
