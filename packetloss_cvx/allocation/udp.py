@@ -89,8 +89,9 @@ class MonotoneCost:
         self.channel = (lambda i, t: t) if channel is None else channel
 
     def mu(self, x: np.ndarray) -> np.ndarray:
-        """mu(x) for x clipped to [0, 1]^m, clipped to [0, 1] (the identity: clipped once, the same floats). O(m)."""
-        x = np.clip(np.asarray(x, dtype=float), 0.0, 1.0)
+        """mu(x) for x clipped to [0, 1]^m, clipped to [0, 1] (the identity: clipped once, the same floats; the
+        array method that np.clip calls, without its wrapper). O(m)."""
+        x = np.asarray(x, dtype=float).clip(0.0, 1.0)
         return x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0)
 
     def checked(self, x: np.ndarray) -> float:
