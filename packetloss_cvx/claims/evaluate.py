@@ -191,7 +191,14 @@ class SimpleSystems:
 
 
 def simple_systems(ctx: Context) -> SimpleSystems:
-    """The audit's :class:`SimpleSystems` of its seed (made on the first shrink, kept in ``ctx.simple``). O(1)."""
+    """The audit's :class:`SimpleSystems` of its seed (made on the first shrink, kept in ``ctx.simple``). O(1).
+
+    Examples
+    --------
+    >>> ctx = Context(paper={}, random=[], seed=3)
+    >>> simple_systems(ctx) is simple_systems(ctx), list(ctx.simple)      # one per audit and seed
+    (True, [3])
+    """
     if ctx.seed not in ctx.simple:
         ctx.simple[ctx.seed] = SimpleSystems(ctx.seed)
     return ctx.simple[ctx.seed]
