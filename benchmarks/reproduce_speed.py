@@ -3,6 +3,7 @@
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/reproduce_speed.py [--rounds 3] [--baseline DIR ...] [--steps]
     OPENBLAS_NUM_THREADS=1 python benchmarks/reproduce_speed.py --crossover
+    OPENBLAS_NUM_THREADS=1 python benchmarks/reproduce_speed.py --parts [--rounds 3] [--baseline DIR ...]
 
 1. Default: the full ``reproduce`` in a fresh interpreter per run, this checkout and each ``--baseline`` checkout
    (default /work/base/f7d69cd and /work/base/cfb251d when present) interleaved round by round (every checkout once a
@@ -13,6 +14,12 @@
 2. ``--crossover``: ``markov.exact_closed_form`` by ``method="recursion"`` and ``method="dense"`` on Gilbert twins
    (lambda = 0.9) of pendulum, two_actuator and two random plants over N, CPU ms (best of 3), the ratio and the
    relative difference of J*: the measurement behind ``markov.exact_cost.AUTO_DENSE_MAX``.
+3. ``--parts``: the parts of ``reproduce`` that session 29 made faster, each in a fresh interpreter per checkout
+   (imports paid before the clock starts), the checkouts interleaved round by round, CPU seconds (process_time):
+   the 33 UDP-like allocations of the two-actuator system (reproduce's step), the sensing Monte Carlo of the
+   audit's cost-split-sensor on the paper systems (with each one's exact split), the expected-Riccati upper
+   bounds of the 129 sensed twins of the full audit's cases, and the full audit (``audit --random 200 --seed 1``).
+   Each part also prints a digest of its answers: equal digests, the same numbers (repr of every float).
 """
 
 from __future__ import annotations
@@ -123,15 +130,90 @@ def crossover() -> None:
     go()
 
 
+PARTS = {
+    "udp allocations": """
+from packetloss_cvx.io import load_example
+from packetloss_cvx.studies import paper_figures as pf
+from packetloss_cvx.claims.paper import ALLOCATION_BETAS
+from packetloss_cvx.cli.reproduce import ALPHAS
+mixed = load_example("two_actuator")
+def part():
+    return pf.mixed_allocations(mixed, "udp", ALPHAS, ALLOCATION_BETAS, progress=False)
+""",
+    "sensing monte carlo": """
+from packetloss_cvx.claims.context import paper_systems
+from packetloss_cvx.claims.sensing import simulated_z
+systems = paper_systems()
+def part():
+    return {name: simulated_z(s, 1) for name, s in systems.items()}
+""",
+    "expected riccati bounds": """
+import numpy as np
+from packetloss_cvx.claims.context import paper_systems
+from packetloss_cvx.claims.sensing import sensed
+from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.sensing.bounds import upper_bound_covariance
+rng = np.random.default_rng(1)
+twins = [t for t in (sensed(s) for s in [*paper_systems().values(), *(random_system(rng) for _ in range(200))])
+         if t is not None]
+def part():
+    return [upper_bound_covariance(t.A, t.noise_cov, t.sensor) for t in twins]
+""",
+    "audit": """
+import cvxpy  # noqa: F401  (imported before the clock, as reproduce has it by then)
+from packetloss_cvx.claims import audit, markdown_report
+def part():
+    results = audit(random=200, seed=1, progress=False)
+    return markdown_report(results) + repr([r.to_dict() for r in results])
+""",
+}
+
+PART_RUNNER = """
+import hashlib, pickle, sys, time
+from packetloss_cvx.threads import blas_limited
+exec(sys.argv[1])
+run = blas_limited(part)
+start = time.process_time()
+answer = run()
+cpu = time.process_time() - start
+print(cpu, hashlib.sha256(repr(answer).encode()).hexdigest()[:12])
+"""
+
+
+def parts(rounds: int, baselines: list[Path]) -> None:
+    """Each of :data:`PARTS` in a fresh interpreter per checkout, interleaved; CPU s and answer digests."""
+    checkouts = [ROOT, *[b for b in baselines if b.exists()]]
+    for name, code in PARTS.items():
+        times: dict[Path, list[float]] = {c: [] for c in checkouts}
+        digests: dict[Path, set[str]] = {c: set() for c in checkouts}
+        for _ in range(rounds):
+            for c in checkouts:
+                env = {**os.environ, "PYTHONPATH": str(c), "OPENBLAS_NUM_THREADS": "1"}
+                done = subprocess.run([sys.executable, "-c", PART_RUNNER, code], env=env, cwd=tempfile.gettempdir(),
+                                      capture_output=True, text=True, check=True)
+                cpu, digest = done.stdout.split()[-2:]
+                times[c].append(float(cpu))
+                digests[c].add(digest)
+        mine = statistics.median(times[ROOT])
+        print(f"\n{name} (load {os.getloadavg()[0]:.1f})")
+        for c in checkouts:
+            med = statistics.median(times[c])
+            print(f"  {c.name:14s} {med:7.3f} s  runs {', '.join(f'{t:.3f}' for t in times[c]):28s} "
+                  f"/ this {med / mine:5.2f}  answers {','.join(sorted(digests[c]))}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline", type=Path, action="append", help="another checkout (repeatable)")
     parser.add_argument("--steps", action="store_true", help="also this checkout's steps, one more run")
     parser.add_argument("--crossover", action="store_true", help="the Markov closed form's two routes over N")
+    parser.add_argument("--parts", action="store_true", help="the parts session 29 made faster, with answer digests")
     args = parser.parse_args()
     if args.crossover:
         crossover()
+    elif args.parts:
+        parts(args.rounds, args.baseline or BASELINES)
     else:
         compare(args.rounds, args.baseline or BASELINES, args.steps)
 

@@ -151,15 +151,16 @@ def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
 
 
 def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
-                   rows: np.ndarray | None = None) -> np.ndarray:
+                   rows: np.ndarray | None = None, block: np.ndarray | None = None) -> np.ndarray:
     """G of Theorem 1 (the Hessian of J is Vbar G): eq:opt-law-1, and eq:opt-law-2 for the UDP-like protocol.
 
     .. math:: G = \\Omega_g \\bar V + \\Psi\\ [+\\ \\Omega_d (I - \\bar V)]
 
     ``v``: the stacked delivery probabilities, (N m,) or a batch (P, N m) (default: the prediction's Vbar);
     the result is (N m, N m) or (P, N m, N m). ``rows``: a boolean mask of the entries to keep, for the
-    principal block G[rows, rows] alone (one point; the line's fixed channels). The one dense form of the
-    Hessian (closed_form, the evaluator's batches, its pointwise and line paths, the cost difference).
+    principal block G[rows, rows] alone (one point; the line's fixed channels); ``block``: Omega_g[rows, rows]
+    where the caller keeps it (the line's, per channel: the fancy index costs more than the product). The one
+    dense form of the Hessian (closed_form, the evaluator's batches, its pointwise and line paths, the cost difference).
     O(P (N m)^2).
 
     Examples
@@ -175,7 +176,7 @@ def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
     """
     v = pred.Vbar if v is None else v
     if rows is not None:
-        G = pred.Omega_g[np.ix_(rows, rows)] * v[rows]
+        G = (pred.Omega_g[np.ix_(rows, rows)] if block is None else block) * v[rows]
         G.flat[:: G.shape[0] + 1] += hessian_diagonal(pred, protocol, v)[rows]
         return G
     k = v.shape[-1]

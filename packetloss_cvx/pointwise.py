@@ -18,8 +18,9 @@ import copy
 from collections.abc import Callable
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve
 from scipy.linalg.lapack import dgesv as _gesv
+from scipy.linalg.lapack import dgetrf as _getrf
+from scipy.linalg.lapack import dgetrs as _getrs
 
 from .costs import hessian_diagonal, hessian_factor
 from .linalg import block_diagonal
@@ -54,6 +55,8 @@ class PointEvaluator:
         self.g_norm = float(np.linalg.norm(self.g))
         #: blkdiag(Omega_t) as one matrix while small (one matvec per forward cost), else per block
         self.Omega = block_diagonal(s.state_weights) if (s.horizon * s.n) ** 2 <= OMEGA_DENSE_MAX else None
+        #: per channel i, the line's masks and blocks of Omega_g (:meth:`_blocks`), made on the first line along i
+        self.blocks: dict[int, tuple[np.ndarray, ...]] = {}
 
     def with_protocol(self, protocol: str) -> PointEvaluator:
         """The same system's evaluator for ``protocol`` ("tcp" or "udp", checked by the caller), sharing
@@ -71,17 +74,17 @@ class PointEvaluator:
         with a checked call every value a decision rests on."""
         v = mu.ravel()
         G = hessian_factor(self.pred, self.protocol, v)
-        with np.errstate(all="ignore"):
+        with np.errstate(all="ignore"):      # one floating-point context for the solve and the value
             _, _, w, info = _gesv(G, self.g, overwrite_a=True)
-        if info != 0:
-            return None
-        return self._checked(v, self._diag(v), w) if checked else self._closed(v, w)
+            if info != 0:
+                return None
+            return self._checked(v, self._diag(v), w) if checked else self._closed(v, w)
 
     def _closed(self, v: np.ndarray, w: np.ndarray) -> float | None:
-        """C - g'Vbar w for the solve's w, unchecked (None if not finite or negative). O(N m)."""
-        with np.errstate(all="ignore"):
-            closed = self.const - float(self.g @ (v * w))
-        return closed if np.isfinite(closed) and closed >= 0 else None
+        """C - g'Vbar w for the solve's w, unchecked (None if not finite or negative); the caller holds
+        ``np.errstate(all="ignore")``. O(N m)."""
+        closed = self.const - float(self.g @ (v * w))
+        return closed if closed >= 0 and closed != np.inf else None     # False for NaN
 
     def _checked(self, v: np.ndarray, dg: np.ndarray, w: np.ndarray) -> float | None:
         """The cost of the plan u = -w if the solve's residual and the self-check pass. O((N m)^2)."""
@@ -116,20 +119,20 @@ class PointEvaluator:
         N, m = s.horizon, s.m
         if m == 1:
             return None
-        on = np.zeros(N * m, dtype=bool)
-        on[np.arange(N) * m + i] = True
+        on, off, Og_RR, Og_Ri, Og_iR, Og_ii = self._blocks(i)
         v = np.tile(mu, N)
-        vR = v[~on]
-        Og = pred.Omega_g
-        G_RR = hessian_factor(pred, self.protocol, v, ~on)                              # the fixed channels
+        vR = v[off]
+        G_RR = hessian_factor(pred, self.protocol, v, off, Og_RR)                       # the fixed channels
         with np.errstate(all="ignore"):
-            factor = lu_factor(G_RR, check_finite=False)
-            Y = lu_solve(factor, Og[np.ix_(~on, on)], check_finite=False)        # G_RR^{-1} Omega_g,Ri
-            y = lu_solve(factor, self.g[~on], check_finite=False)
-            C = Og[np.ix_(on, ~on)] * vR                                          # G_iR
-            M = Og[np.ix_(on, on)] - C @ Y
+            # LAPACK's LU (getrf/getrs, as scipy.linalg.lu_factor/lu_solve call them, without their wrappers: the
+            # same floats); a singular G_RR leaves non-finite Y or y, refused below
+            lu, piv, _ = _getrf(G_RR, overwrite_a=True)
+            Y = _getrs(lu, piv, Og_Ri)[0]                                         # G_RR^{-1} Omega_g,Ri
+            y = _getrs(lu, piv, self.g[off])[0]
+            C = Og_iR * vR                                                        # G_iR
+            M = Og_ii - C @ Y
             b = self.g[on] - C @ y
-        if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(y)) and np.all(np.isfinite(M))):
+        if not (np.isfinite(Y).all() and np.isfinite(y).all() and np.isfinite(M).all()):
             return None
         def at(value: float) -> float | None:
             vs = v.copy()
@@ -143,7 +146,20 @@ class PointEvaluator:
                     return None
                 w = np.empty(N * m)
                 w[on] = w_i
-                w[~on] = y - value * (Y @ w_i)
-            return self._checked(vs, dg, w) if checked else self._closed(vs, w)
+                w[off] = y - value * (Y @ w_i)
+                return self._checked(vs, dg, w) if checked else self._closed(vs, w)
 
         return at
+
+    def _blocks(self, i: int) -> tuple[np.ndarray, ...]:
+        """Channel i's line structure, made once per channel: the masks of its entries ``on`` and the others
+        ``off`` in the stacked (N m,) vectors, and the blocks Omega_g[off, off], [off, on], [on, off], [on, on]
+        (copies: the same numbers the line indexed out of Omega_g at every call). O((N m)^2) the first time."""
+        if i not in self.blocks:
+            s, Og = self.system, self.pred.Omega_g
+            on = np.zeros(s.horizon * s.m, dtype=bool)
+            on[np.arange(s.horizon) * s.m + i] = True
+            off = ~on
+            self.blocks[i] = (on, off, Og[np.ix_(off, off)], Og[np.ix_(off, on)], Og[np.ix_(on, off)],
+                              Og[np.ix_(on, on)])
+        return self.blocks[i]

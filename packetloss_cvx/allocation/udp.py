@@ -84,12 +84,15 @@ class MonotoneCost:
     def __init__(self, evaluator, to_mu: Callable[[np.ndarray], np.ndarray] | None = None,
                  channel: Callable[[int, float], float] | None = None) -> None:
         self.evaluator = evaluator
+        self.identity = to_mu is None
         self.to_mu = (lambda x: x) if to_mu is None else to_mu
         self.channel = (lambda i, t: t) if channel is None else channel
 
     def mu(self, x: np.ndarray) -> np.ndarray:
-        """mu(x) for x clipped to [0, 1]^m, clipped to [0, 1]. O(m)."""
-        return np.clip(self.to_mu(np.clip(np.asarray(x, dtype=float), 0.0, 1.0)), 0.0, 1.0)
+        """mu(x) for x clipped to [0, 1]^m, clipped to [0, 1] (the identity: clipped once, the same floats; the
+        array method that np.clip calls, without its wrapper). O(m)."""
+        x = np.asarray(x, dtype=float).clip(0.0, 1.0)
+        return x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0)
 
     def checked(self, x: np.ndarray) -> float:
         """J*(mu(x)), self-checked."""

@@ -40,6 +40,9 @@ class Context:
         and cost evaluators per (system, protocol), keyed by ``id`` (the cases live as long as the context).
     riccati : dict
         The DP optimum per case (:meth:`dp`), or the NumericalError it raised, keyed by ``id``.
+    simple : dict
+        The simple systems the claims' shrinking tries, per seed (:func:`.evaluate.simple_systems`): drawn
+        once per audit, so their cached structure is shared by every claim that shrinks.
     """
 
     paper: dict[str, System]
@@ -50,6 +53,7 @@ class Context:
     problems: dict = field(default_factory=dict)
     evaluators: dict = field(default_factory=dict)
     riccati: dict = field(default_factory=dict)
+    simple: dict = field(default_factory=dict)
 
     @property
     def cases(self) -> list[System]:

@@ -27,7 +27,8 @@ from ..results import ClaimResult
 from .context import Context
 from .paper import STATEMENTS
 
-__all__ = ["CASE_ERRORS", "Tally", "Z", "evaluate", "shrink", "simple_system", "verdict", "z_margin"]
+__all__ = ["CASE_ERRORS", "SimpleSystems", "Tally", "Z", "evaluate", "shrink", "simple_system", "simple_systems",
+           "verdict", "z_margin"]
 
 #: Monte Carlo checks allow Z standard errors (two-sided 99.994 % per case).
 Z = 4.0
@@ -161,6 +162,48 @@ def _sizes(max_total: int = 9) -> Iterator[tuple[int, int, int]]:
                     yield n, m, N
 
 
+class SimpleSystems:
+    """The simple systems :func:`shrink` tries for one seed, in its order: ``tries`` per size (n, m, N), sizes by
+    n + m + N; each drawn once, when first asked for (the same draws in the same order as drawing them afresh).
+    An audit keeps one per seed (:func:`simple_systems`), so every claim's shrinking tries the same System
+    objects and their cached structure (prediction, evaluator data) is built once, not once per claim.
+    O(1) per system after its first draw.
+
+    Examples
+    --------
+    >>> first = SimpleSystems(0)
+    >>> a = [s.to_dict() for s, _ in zip(first, range(3))]
+    >>> b = [simple_system(np.random.default_rng(0), 1, 1, 1).to_dict()]     # the first draw of seed 0
+    >>> a[0] == b[0], [s for s, _ in zip(first, range(3))] == first.made[:3]   # drawn once, then reused
+    (True, True)
+    """
+
+    def __init__(self, seed: int, tries: int = 12) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.sizes = [size for size in _sizes() for _ in range(tries)]
+        self.made: list[System] = []
+
+    def __iter__(self) -> Iterator[System]:
+        for k, (n, m, N) in enumerate(self.sizes):
+            if k == len(self.made):
+                self.made.append(simple_system(self.rng, n, m, N))
+            yield self.made[k]
+
+
+def simple_systems(ctx: Context) -> SimpleSystems:
+    """The audit's :class:`SimpleSystems` of its seed (made on the first shrink, kept in ``ctx.simple``). O(1).
+
+    Examples
+    --------
+    >>> ctx = Context(paper={}, random=[], seed=3)
+    >>> simple_systems(ctx) is simple_systems(ctx), list(ctx.simple)      # one per audit and seed
+    (True, [3])
+    """
+    if ctx.seed not in ctx.simple:
+        ctx.simple[ctx.seed] = SimpleSystems(ctx.seed)
+    return ctx.simple[ctx.seed]
+
+
 def _violates(margin: Margin, system: System) -> bool:
     """Whether ``system`` is a proven violation; a candidate whose check errors is not one."""
     try:
@@ -170,7 +213,8 @@ def _violates(margin: Margin, system: System) -> bool:
     return value is not None and value < 0
 
 
-def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System] = ()) -> System | None:
+def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System] = (),
+           candidates: SimpleSystems | None = None) -> System | None:
     """The first violating simple system in order of size n + m + N, else the smallest
     violating one among ``fallback``.
 
@@ -184,6 +228,9 @@ def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System
         Simple systems tried per size (n, m, N).
     fallback : sequence of System
         Where to look when no simple system violates.
+    candidates : SimpleSystems, optional
+        The simple systems of ``seed`` and ``tries`` already drawn (an audit's, :func:`simple_systems`);
+        default: drawn afresh.
 
     Returns
     -------
@@ -195,12 +242,9 @@ def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System
     >>> (found.n, found.m, found.horizon)            # sizes n + m + N = 3 hold; the first of size 4 is (1, 1, 2)
     (1, 1, 2)
     """
-    rng = np.random.default_rng(seed)
-    for n, m, N in _sizes():
-        for _ in range(tries):
-            system = simple_system(rng, n, m, N)
-            if _violates(margin, system):
-                return system
+    for system in SimpleSystems(seed, tries) if candidates is None else candidates:
+        if _violates(margin, system):
+            return system
     bad = [s for s in fallback if _violates(margin, s)]
     return min(bad, key=lambda s: (s.n + s.m + s.horizon, s.n, s.m)) if bad else None
 
@@ -243,7 +287,7 @@ def evaluate(claim_id: str, ctx: Context, cases: Sequence[System], margin: Margi
         tally.run(margin, s, ctx.label(s))
     counterexample = None
     if tally.violations and shrinkable:
-        found = shrink(margin, ctx.seed, fallback=cases)
+        found = shrink(margin, ctx.seed, fallback=cases, candidates=simple_systems(ctx))
         counterexample = found.to_dict() if found is not None else None
     return ClaimResult(
         id=claim_id, statement=STATEMENTS[claim_id], verdict=tally.verdict(), checked=tally.checked,

@@ -12,7 +12,7 @@ from ..model import System
 from ..results import ClaimResult
 from ..tolerances import CROSS_CHECK_COST_RTOL
 from .context import Context
-from .evaluate import Tally, shrink
+from .evaluate import Tally, shrink, simple_systems
 
 __all__ = ["CORRELATIONS", "STATEMENT", "plug_in_markov", "plugin_loss"]
 
@@ -71,7 +71,7 @@ def plug_in_markov(ctx: Context) -> ClaimResult:
             paper.append(f"{name}: {type(err).__name__}")
     counterexample = None
     if tally.violations:
-        found = shrink(_margin, ctx.seed, fallback=ctx.cases)
+        found = shrink(_margin, ctx.seed, fallback=ctx.cases, candidates=simple_systems(ctx))
         counterexample = None if found is None else bursty_twin(found, max(CORRELATIONS)).to_dict()
     note = ("Each case behind stationary Gilbert channels (h_good = 1, h_bad = 0) with its own time-averaged "
             "delivery rates mu and p = (1 - mu)(1 - lambda), r = mu (1 - lambda); margin = 1e-7 - (E[cost] of the "

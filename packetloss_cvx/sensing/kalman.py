@@ -99,7 +99,9 @@ class RowUpdate:
         Time O(n^2 r + r^3) per matrix."""
         if self.rows.size == 0:
             return Pm.copy(), None
-        PCt = Pm @ self.Cr.T
+        # P^- C_r' for a whole stack as one (... n) x n product: NumPy's stacked matmul with a 2-D operand makes one
+        # small product per matrix (about 40x slower for 1000 runs at n = 4); the same floats (tested bit for bit)
+        PCt = (Pm.reshape(-1, Pm.shape[-1]) @ self.Cr.T).reshape(*Pm.shape[:-1], self.Cr.shape[0])
         S = self.Cr @ PCt + self.Rr
         S = 0.5 * (S + S.swapaxes(-1, -2))
         if S.shape[-1] == 1 and S.ndim == 2 and math.isfinite(s := float(S[0, 0])):
