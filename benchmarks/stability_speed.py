@@ -72,7 +72,8 @@ def main() -> None:
             new.append(run(ROOT, call))
         t_old, a_old = min(old)
         t_new, a_new = min(new)
-        same = len(a_old) == len(a_new) and all(abs(x - y) <= 1e-9 * max(1.0, abs(x)) for x, y in zip(a_old, a_new))
+        same = len(a_old) == len(a_new) and all(abs(x - y) <= 1e-9 * max(1.0, abs(x))
+                                                for x, y in zip(a_old, a_new, strict=False))
         print(f"| {name} | {t_old:.2f} | {t_new:.2f} | {t_old / t_new:.2f} | {same} |", flush=True)
 
 

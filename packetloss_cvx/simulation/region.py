@@ -51,7 +51,8 @@ _SHIFT = 0.1
 #: power-iteration steps before the policy iteration takes over (n <= KRONECKER_MAX_N), and its step cap
 _POWER_STEPS = 30
 #: power steps after which a point whose steps shrink too slowly to converge within _POWER_STEPS is handed to the
-#: policy iteration at once (asked at this step only) (two_actuator: steps shrink by about 0.8 each, 120 to go; the 26 steps left were waste)
+#: policy iteration at once, asked at this step only (two_actuator: steps shrink by about 0.8 each, 120 to go; the
+#: 26 power steps left were waste)
 _POWER_WATCH = 4
 #: lambda below this fraction of tr(A'PA) is zero to rounding (R(P) = 0)
 _ZERO = 1e-12
