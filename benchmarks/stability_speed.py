@@ -52,8 +52,9 @@ print(json.dumps([seconds, answer]))
 
 def run(tree: Path, call: str) -> tuple[float, list]:
     env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS="1")
+    # cwd = the tree: "-c" puts the working folder first on sys.path, ahead of PYTHONPATH
     out = subprocess.run([sys.executable, "-c", SCRIPT.format(call=call)], env=env, capture_output=True, text=True,
-                         check=True)
+                         check=True, cwd=tree)
     seconds, answer = json.loads(out.stdout.strip().splitlines()[-1])
     return seconds, answer
 

@@ -43,8 +43,8 @@ import numpy.typing as npt
 
 from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError
+from ..markov.mjls import DENSE_MAX_DIM, mode_chain, second_moment_operator
 from ..markov.mjls import mean_square_radius as mjls_radius
-from ..markov.mjls import mode_chain
 from ..recursion import riccati_step
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
@@ -58,6 +58,10 @@ __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "
 
 #: the power iteration's shift (as simulation.region: removes a peripheral spectrum)
 _SHIFT = 0.1
+#: power steps before the policy iteration takes over (M n^2 <= DENSE_MAX_DIM), the step after which a point
+#: too slow to converge within them is handed over at once, and the policy iteration's step cap (as
+#: simulation.region: pendulum_bursty's coupled steps shrink by about 0.93 each, some 360 power steps a point)
+_POWER_STEPS, _POWER_WATCH, _POLICY_STEPS = 30, 4, 50
 #: the lift of P on every mode when its own minimiser's gains do not check (module docstring)
 _LIFT = 1e-6
 
@@ -86,8 +90,11 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
                                 ) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)``: the eigenpair ``R(P) = lambda P`` of the homogeneous coupled Riccati map
     (``sum_a tr P_a = 1``, P of shape (M, n, n)) and the mode gains (M, m, n) that attain the minimum, by the
-    shifted power iteration until ``||P_next - P|| <= RICCATI_RTOL`` or ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps.
-    A candidate: :func:`chain_membership` checks it. Time O(iterations M (M n^2 + n^3 + m^3)).
+    shifted power iteration until ``||P_next - P|| <= RICCATI_RTOL``; for ``M n^2 <= DENSE_MAX_DIM`` a policy
+    iteration on the Perron eigenvector of the dense coupled operator finishes a point after 30 steps, or after 4
+    when its last two steps shrink too slowly to reach RICCATI_RTOL within the 30 (as simulation.region's), else
+    the iteration stops after ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. A candidate: :func:`chain_membership` checks
+    it. Time O(iterations M (M n^2 + n^3 + m^3)), plus O((M n^2)^3) a policy step.
 
     Examples
     --------
@@ -99,17 +106,28 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
     M, n = len(h), A.shape[0]
     P = np.repeat(np.eye(n)[None] / (n * M), M, axis=0)
     K = np.zeros((M, B.shape[1], n))
+    policy = M * n * n <= DENSE_MAX_DIM
+    steps = _POWER_STEPS if policy else HOMOGENEOUS_RICCATI_MAX_ITER
+    slow, last = policy, float("inf")
     with np.errstate(over="ignore", invalid="ignore"):
-        for _ in range(HOMOGENEOUS_RICCATI_MAX_ITER):
+        for step in range(steps):
             K, R = _step(P, A, B, T, h, delivery)
             lam = float(sum(np.trace(r) for r in R))
             if not (np.isfinite(lam) and lam > 0):
+                slow = False
                 break
             P_next = (R / lam + _SHIFT * P) / (1.0 + _SHIFT)
-            done = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL
+            moved = float(np.linalg.norm(P_next - P))
             P = P_next
-            if done:
+            if moved <= RICCATI_RTOL:
+                slow = False
                 break
+            if policy and step + 1 == _POWER_WATCH and not (
+                    moved < last and np.log(RICCATI_RTOL / moved) / np.log(moved / last) <= steps - step - 1):
+                break                   # too slow to converge within the power steps (as simulation.region)
+            last = moved
+        if slow:
+            P = _policy_iteration(P, A, B, channel, T, h, delivery)
         K, _ = _step(P, A, B, T, h, delivery)
     # lambda = sum_a tr R(P+)_a / sum_a tr P+_a, a sum of squares: never negative (as simulation.region's)
     if not np.all(np.isfinite(P)):
@@ -118,6 +136,40 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
     total = float(np.sum(w))
     squares = sum(float(np.sum(F * F)) for F in _riccati_factors(L, A, B, T, h, delivery))
     return (squares / total if total > 0 else float("nan")), P, K
+
+
+def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray,
+                      h: np.ndarray, delivery: str) -> np.ndarray:
+    """From power-iteration P (M, n, n): the mode gains K = argmin L_K^*(P), then P = the Perron eigenvector of
+    L_K^* (the transpose of markov.mjls.second_moment_operator, dense), until lambda settles (as
+    simulation.region's, for the coupled map). Each step can only lower rho (``L_{K+}^*(P) <= L_K^*(P) = lambda
+    P``, a Collatz-Wielandt bound), so it converges where the power iteration crawls. A candidate like the power
+    iteration's: the caller checks it. Time O((M n^2)^3) a step."""
+    M, n = P.shape[0], A.shape[0]
+    best, last = P.copy(), float("inf")
+    for _ in range(_POLICY_STEPS):
+        K, _ = _step(P, A, B, T, h, delivery)
+        if not np.all(np.isfinite(K)):
+            break
+        vals, vecs = np.linalg.eig(second_moment_operator(A, B, channel, K, delivery).T)
+        top = int(np.argmax(vals.real))
+        lam = float(vals[top].real)
+        V = vecs[:, top].real.reshape(M, n, n)        # rows of the operator: vec(Q_b) row-major, b first
+        V = 0.5 * (V + V.transpose(0, 2, 1))
+        trace = float(np.trace(V, axis1=-2, axis2=-1).sum())
+        if not (np.isfinite(lam) and trace != 0.0):
+            break
+        Pn = V / trace
+        # a degenerate Perron root (lambda = 0, its eigenvector not PSD): keep the last good P
+        if lam <= 0.0 or min(float(np.linalg.eigvalsh(p)[0]) for p in Pn) < -CERTIFICATE_RTOL:
+            break
+        settled = lam >= last * (1.0 - RICCATI_RTOL)
+        if not settled or lam <= last:
+            best = Pn
+        if settled:
+            break
+        last, P = lam, Pn
+    return best
 
 
 def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray,
