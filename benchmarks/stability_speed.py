@@ -5,7 +5,7 @@
 
 Each case runs in a fresh interpreter (PYTHONPATH = this tree, then the baseline; interleaved, best of
 ``--repeats``), timed in CPU seconds (time.process_time) around the call only, and prints its answer so the two
-trees can be compared (the largest difference of mu, beta'mu, the lower bound and the boxes): the channel of
+trees can be compared (the largest difference of mu, beta'mu and the lower bound; the boxes): the channel of
 ``stability_allocate`` (targets "stable" and "dp-cost", the cases of benchmarks/stability_design.py), and the
 least radius ``homogeneous_riccati`` over a 21 x 21 grid of two_actuator point by point (the search's probe).
 """
@@ -64,8 +64,8 @@ def main() -> None:
     parser.add_argument("--baseline", type=Path, required=True, help="a checkout of the commit to compare against")
     parser.add_argument("--repeats", type=int, default=1)
     args = parser.parse_args()
-    print("| case | baseline CPU s | this tree CPU s | ratio | largest answer difference |")
-    print("|---|---|---|---|---|")
+    print("| case | baseline CPU s | this tree CPU s | ratio | largest answer difference | boxes |")
+    print("|---|---|---|---|---|---|")
     for name, call in CASES.items():
         old, new = [], []
         for _ in range(args.repeats):
@@ -73,8 +73,10 @@ def main() -> None:
             new.append(run(ROOT, call))
         t_old, a_old = min(old)
         t_new, a_new = min(new)
-        diff = max(abs(x - y) for x, y in zip(a_old, a_new, strict=True))
-        print(f"| {name} | {t_old:.2f} | {t_new:.2f} | {t_old / t_new:.2f} | {diff:.1e} |", flush=True)
+        boxes = f"{a_old[-1]} -> {a_new[-1]}" if len(a_old) > 1 else "-"
+        numbers = slice(0, -1) if len(a_old) > 1 else slice(None)
+        diff = max(abs(x - y) for x, y in zip(a_old[numbers], a_new[numbers], strict=True))
+        print(f"| {name} | {t_old:.2f} | {t_new:.2f} | {t_old / t_new:.2f} | {diff:.1e} | {boxes} |", flush=True)
 
 
 if __name__ == "__main__":
