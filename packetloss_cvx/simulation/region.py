@@ -50,6 +50,10 @@ _SHIFT = 0.1
 
 #: power-iteration steps before the policy iteration takes over (n <= KRONECKER_MAX_N), and its step cap
 _POWER_STEPS = 30
+#: power steps after which a point whose steps shrink too slowly to converge within _POWER_STEPS is handed to the
+#: policy iteration at once, asked at this step only (two_actuator: steps shrink by about 0.8 each, 120 to go; the
+#: 26 power steps left were waste)
+_POWER_WATCH = 4
 #: lambda below this fraction of tr(A'PA) is zero to rounding (R(P) = 0)
 _ZERO = 1e-12
 _POLICY_STEPS = 50
@@ -208,8 +212,10 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[f
     ``R`` is monotone, concave and positively homogeneous on the PSD cone; the shifted power iteration
     ``P <- (R(P) / lambda + 0.1 P) / 1.1`` (the shift removes a peripheral spectrum, e.g. rotations) converges to
     its Perron eigenpair, and lambda = min_K rho(L_K). A point stops when ``||P_next - P|| <= RICCATI_RTOL``; for
-    n <= KRONECKER_MAX_N after 30 steps a policy iteration on the Perron eigenvector finishes the points left,
-    else after ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. Each point of a batch takes exactly the steps it would
+    n <= KRONECKER_MAX_N a policy iteration on the Perron eigenvector finishes the points left after 30 steps,
+    and after step 4 those whose last two steps shrink too slowly to reach RICCATI_RTOL within the 30 (on
+    two_actuator nearly every point: its steps shrink by about 0.8); else the iteration stops after
+    ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. Each point of a batch takes exactly the steps it would
     alone (the batch only shares NumPy's calls), so a batch agrees with its points one by one to rounding
     (tests/test_region.py). The result is a candidate, checked by the caller. Time O(iterations (n^3 + m^3)) per
     point, plus O(n^6) a policy step.
@@ -229,27 +235,62 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[f
     n = A.shape[0]
     P = np.repeat((np.eye(n) / n)[None], mus.shape[0], axis=0)
     active = np.ones(mus.shape[0], dtype=bool)
-    steps = HOMOGENEOUS_RICCATI_MAX_ITER if n > KRONECKER_MAX_N else _POWER_STEPS
+    policy = n <= KRONECKER_MAX_N
+    slow = np.zeros(mus.shape[0], dtype=bool)          # handed to the policy iteration before the last power step
+    steps = _POWER_STEPS if policy else HOMOGENEOUS_RICCATI_MAX_ITER
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for _ in range(steps):
-            idx = np.flatnonzero(active)
-            if not idx.size:
-                break
-            Pa = P[idx]
-            _, R = _homogeneous_step(Pa, A, B, mus[idx])
-            lam = np.trace(R, axis1=-2, axis2=-1)
-            # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an overflow the
-            # caller's check refuses; iterating on R / lambda would amplify rounding: such a point stops here
-            zero = ~(np.isfinite(lam) & (lam > _ZERO * np.trace(A.T @ Pa @ A, axis1=-2, axis2=-1)))
-            P_next = (R / lam[:, None, None] + _SHIFT * Pa) / (1.0 + _SHIFT)
-            done = np.linalg.norm(P_next - Pa, axis=(-2, -1)) <= RICCATI_RTOL
-            P[idx[~zero]] = P_next[~zero]
-            active[idx[zero | done]] = False
-        if n <= KRONECKER_MAX_N and np.any(active):
-            P[active] = _policy_iteration(P[active], A, B, mus[active])
+        _power(P, A, B, mus, active, slow if policy else None, 0, steps)
+        if policy and np.any(active | slow):
+            left = np.flatnonzero(active | slow)
+            found, moved = _policy_iteration(P[left], A, B, mus[left])
+            P[left[moved]] = found[moved]
+            # handed over early and not moved by the policy iteration (its first Perron eigenvector degenerate):
+            # the power steps left, then the policy iteration, as without the hand-off
+            back = left[~moved & slow[left]]
+            if back.size:
+                active[:] = False
+                active[back] = True
+                _power(P, A, B, mus, active, None, _POWER_WATCH, steps)
+                if np.any(active):
+                    P[active] = _policy_iteration(P[active], A, B, mus[active])[0]
         K, _ = _homogeneous_step(P, A, B, mus)
     lam = _eigenvalue(P, A, B, mus)
     return (float(lam[0]), P[0], K[0]) if single else (lam, P, K)
+
+
+def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray, active: np.ndarray,
+           slow: np.ndarray | None, first: int, steps: int) -> None:
+    """The shifted power iteration's steps ``first .. steps - 1`` on the points ``active`` (G,), in place on P and
+    ``active`` (a point leaves when it stops: ``||P_next - P|| <= RICCATI_RTOL`` or its zero test). With ``slow``
+    (G,), after step _POWER_WATCH a point whose last two steps shrink too slowly to reach RICCATI_RTOL by the last
+    step leaves too, marked in ``slow``. Time O((steps - first) (n^3 + m^3)) a point."""
+    last = np.full(P.shape[0], np.inf)               # each point's previous step ||P_next - P||
+    for step in range(first, steps):
+        idx = np.flatnonzero(active)
+        if not idx.size:
+            break
+        Pa = P[idx]
+        _, R = _homogeneous_step(Pa, A, B, mus[idx])
+        lam = np.trace(R, axis1=-2, axis2=-1)
+        # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an overflow the
+        # caller's check refuses; iterating on R / lambda would amplify rounding: such a point stops here
+        zero = ~(np.isfinite(lam) & (lam > _ZERO * np.trace(A.T @ Pa @ A, axis1=-2, axis2=-1)))
+        P_next = (R / lam[:, None, None] + _SHIFT * Pa) / (1.0 + _SHIFT)
+        moved = np.linalg.norm(P_next - Pa, axis=(-2, -1))
+        done = moved <= RICCATI_RTOL
+        P[idx[~zero]] = P_next[~zero]
+        active[idx[zero | done]] = False
+        if slow is not None and step + 1 == _POWER_WATCH:
+            # a point whose steps shrink too slowly to reach RICCATI_RTOL by the last power step (ratio r of its
+            # last two steps: log(RTOL / step) / log r steps to go) goes to the policy iteration now; asked once
+            # only: later, a deadbeat point's steps stall at rounding as lambda -> 0 (two_actuator with mu_2 = 1),
+            # and the power iteration's own zero test, not the policy iteration, ends it
+            rate = moved / last[idx]
+            to_go = np.where(rate < 1.0, np.log(RICCATI_RTOL / moved) / np.log(rate), np.inf)
+            hand = ~zero & ~done & ~(to_go <= steps - step - 1)
+            slow[idx[hand]] = True
+            active[idx[hand]] = False
+        last[idx] = moved
 
 
 def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -267,15 +308,17 @@ def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> 
     return lam
 
 
-def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
+def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """From power-iteration P (G, n, n) at mu (G, m): K = argmin L_K^*(P), then P = the Perron eigenvector of L_K^*
     (the transposed Kronecker matrix, exact for n <= KRONECKER_MAX_N), until lambda settles, each point on its
-    own. Each step can only lower rho (L_{K+}^*(P) <= L_K^*(P) = lambda P, a Collatz-Wielandt bound), so it
-    converges where the power iteration crawls (second eigenvalue near the first). Time O(n^6) a step a point."""
+    own; returns the P found and which points it moved (G,) (False: P given back). Each step can only lower rho
+    (L_{K+}^*(P) <= L_K^*(P) = lambda P, a Collatz-Wielandt bound), so it converges where the power iteration
+    crawls (second eigenvalue near the first). Time O(n^6) a step a point."""
     n = A.shape[0]
     P, best = P.copy(), P.copy()
     last = np.full(P.shape[0], np.inf)
     alive = np.ones(P.shape[0], dtype=bool)
+    moved_any = np.zeros(P.shape[0], dtype=bool)
     for _ in range(_POLICY_STEPS):
         K, _ = _homogeneous_step(P[alive], A, B, mu[alive])
         idx = np.flatnonzero(alive)
@@ -302,13 +345,14 @@ def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarra
         settled = ~degenerate & (lam >= last[idx] * (1.0 - RICCATI_RTOL))
         kept = ~degenerate & (~settled | (lam <= last[idx]))
         best[idx[kept]] = Pn[kept]
+        moved_any[idx[kept]] = True
         moving = ~degenerate & ~settled
         last[idx[moving]] = lam[moving]
         P[idx[moving]] = Pn[moving]
         alive[idx[~moving]] = False
         if not np.any(alive):
             break
-    return best
+    return best, moved_any
 
 
 def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) -> tuple[str, float]:
