@@ -1,6 +1,7 @@
 """Sweeps on Dask: a LocalCluster over loopback TCP (in this process) gives the in-process arrays bit for
 bit, through a scheduler address or a Client; a worker's error comes back with its own type."""
 
+import importlib.util
 import logging
 
 import numpy as np
@@ -9,11 +10,19 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx.studies import sweep
 
-distributed = pytest.importorskip("distributed")
+#: the file needs Dask's distributed; it is imported by the first test that uses it (0.3 s at collection otherwise,
+#: paid by every xdist worker whether or not it runs this file)
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="needs distributed")
 
 
 @pytest.fixture(scope="module")
-def cluster():
+def distributed():
+    import distributed
+    return distributed
+
+
+@pytest.fixture(scope="module")
+def cluster(distributed):
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
                                   host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR) as c:
         yield c
@@ -35,7 +44,7 @@ def test_dask_over_loopback_is_bit_identical(cluster, two_actuator):
     assert there.costs["udp"].reshape(13, 13)[0, 12] == pytest.approx(qp, rel=1e-6)
 
 
-def test_dask_client_and_other_sweeps(cluster, pendulum):
+def test_dask_client_and_other_sweeps(cluster, pendulum, distributed):
     with distributed.Client(cluster) as client:
         for kwargs in ({"x0_scales": [0.5, 1.0, 2.0]}, {"horizons": [5, 20, 40]}, {"mu_grid": 7}):
             _same(sweep(pendulum, chunk_size=2, progress=False, **kwargs),
@@ -100,7 +109,7 @@ def test_an_unreachable_scheduler_is_one_line_and_no_wait():
     assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr
 
 
-def test_a_scheduler_without_workers_stops_the_sweep(two_actuator, monkeypatch):
+def test_a_scheduler_without_workers_stops_the_sweep(two_actuator, monkeypatch, distributed):
     # the last worker killed (or none joined): the sweep used to wait for ever
     from packetloss_cvx.studies import engine
     monkeypatch.setattr(engine, "NO_WORKER_TIMEOUT", 1.0)
