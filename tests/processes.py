@@ -9,9 +9,9 @@ re-raised as the signal); what the interpreter and the preloads read from the en
 ``PYTHON*`` variables, the BLAS thread counts: :func:`startup_variables`) is the zygote's, so a child asked for other
 values of them is refused (ValueError), not run with the zygote's. What a child starts with is what a fresh
 interpreter has after importing the same modules, no more: :attr:`Zygote.modules` lists the top-level packages
-loaded, so a test of imports asserts its forbidden ones absent there, and an eager import planted in a command still lands in the child's ``sys.modules``.
-The child saves Python's start-up (~20 ms) and the preloaded imports (``packetloss_cvx.cli`` ~40 ms, NumPy ~100
-ms, the plotting and solver stack ~1.3 s) per run.
+loaded, so a test of imports asserts its forbidden ones absent there, and an eager import planted in a command
+still lands in the child's ``sys.modules``. The child saves Python's start-up (~20 ms) and the preloaded imports
+(``packetloss_cvx.cli`` ~40 ms, NumPy ~100 ms, the plotting and solver stack ~1.3 s) per run.
 
 The zygote reaps its children and reports each exit status; :class:`Child` mirrors the part of ``subprocess.Popen``
 the tests use (``pid``, ``poll``, ``wait``, ``send_signal``, ``communicate``, ``returncode``). POSIX only (fork).
