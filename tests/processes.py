@@ -5,11 +5,13 @@ A :class:`Zygote` is a fresh interpreter (``python -c``, the test's environment)
 given and then waits; each :meth:`Zygote.run` or :meth:`Zygote.start` forks it, and the child runs ``python -c
 CODE args`` or ``python -m MODULE args`` from there: its own folder, environment, stdin (``/dev/null``), stdout and
 stderr, its own exit through the interpreter's normal shutdown (atexit, ``__del__``, an uncaught KeyboardInterrupt
-re-raised as the signal). What a child starts with is what a fresh interpreter has after importing the same
-modules, no more: :attr:`Zygote.modules` lists the top-level packages loaded, so a test of imports asserts its
-forbidden ones absent there, and an eager import planted in a command still lands in the child's ``sys.modules``.
-The child saves Python's start-up (~20 ms) and the preloaded imports (``packetloss_cvx.cli`` ~40 ms, NumPy ~100
-ms, the plotting and solver stack ~1.3 s) per run.
+re-raised as the signal); what the interpreter and the preloads read from the environment at start-up (Python's
+``PYTHON*`` variables, the BLAS thread counts: :func:`startup_variables`) is the zygote's, so a child asked for other
+values of them is refused (ValueError), not run with the zygote's. What a child starts with is what a fresh
+interpreter has after importing the same modules, no more: :attr:`Zygote.modules` lists the top-level packages
+loaded, so a test of imports asserts its forbidden ones absent there, and an eager import planted in a command
+still lands in the child's ``sys.modules``. The child saves Python's start-up (~20 ms) and the preloaded imports
+(``packetloss_cvx.cli`` ~40 ms, NumPy ~100 ms, the plotting and solver stack ~1.3 s) per run.
 
 The zygote reaps its children and reports each exit status; :class:`Child` mirrors the part of ``subprocess.Popen``
 the tests use (``pid``, ``poll``, ``wait``, ``send_signal``, ``communicate``, ``returncode``). POSIX only (fork).
@@ -92,6 +94,14 @@ else:
 """
 
 
+def startup_variables(env: dict[str, str]) -> dict[str, str]:
+    """The variables of ``env`` an interpreter reads at start-up (Python's own, ``PYTHON*``) or its preloads read at
+    import (the BLAS thread counts ``*_NUM_THREADS``, the package's ``PACKETLOSS_CVX_BLAS_THREADS``, matplotlib's
+    ``MPL*``): a forked child inherits the zygote's reading of them, whatever its own environment says. O(len(env))."""
+    return {k: v for k, v in env.items()
+            if k.startswith(("PYTHON", "MPL")) or k.endswith("_NUM_THREADS") or k == "PACKETLOSS_CVX_BLAS_THREADS"}
+
+
 class Child:
     """One forked run: the part of ``subprocess.Popen`` the tests use. ``returncode`` as Popen's (``-signum``
     when a signal ended it)."""
@@ -168,13 +178,18 @@ class Zygote:
         """``python -m module args`` or ``python -c code args`` as a forked child, started."""
         if (module is None) == (code is None):
             raise ValueError("give exactly one of module and code")
+        env = dict(self.env if env is None else env)
+        if startup_variables(env) != startup_variables(self.env):   # a fresh interpreter would read them; a fork cannot
+            differ = sorted(set(startup_variables(env).items()) ^ set(startup_variables(self.env).items()))
+            raise ValueError(f"a forked child cannot take other start-up variables than its zygote's: "
+                             f"{sorted({k for k, _ in differ})}; start a Zygote with that environment")
         with self.news:             # threads may start children at once: each its own number
             self.count += 1
             number = self.count
         folder = self.folder / str(number)
         folder.mkdir()
         request = {"id": number, "module": module, "code": code, "args": [str(a) for a in args],
-                   "cwd": str(cwd or os.getcwd()), "env": dict(self.env if env is None else env),
+                   "cwd": str(cwd or os.getcwd()), "env": env,
                    "stdout": str(folder / "stdout"), "stderr": str(folder / "stderr")}
         with self.news:
             self.proc.stdin.write(json.dumps(request) + "\n")

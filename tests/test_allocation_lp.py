@@ -139,3 +139,16 @@ def test_lp_answers_by_linprog_when_scipys_private_highs_binding_changed(monkeyp
         assert bound == 1.0
     monkeypatch.setattr(boxes, "highs_core", Renamed())
     assert boxes._highs_options() is None
+
+
+@pytest.mark.parametrize("bad", [np.inf, -np.inf, np.nan])
+def test_lp_refuses_a_non_finite_right_hand_side_as_linprog_does(bad):
+    """linprog refuses a right-hand side with inf or nan (ValueError); lp's direct HiGHS call must leave such data to
+    it, not answer (HiGHS takes h = +inf as a free row, and the weak-duality bound is then nan)."""
+    c, G, l, u = np.ones(2), np.array([[-1.0, -1.0], [1.0, 0.0]]), np.zeros(2), np.ones(2)
+    h = np.array([-1.0, bad])
+    with pytest.raises(ValueError, match="b_ub"):
+        linprog(c, A_ub=G, b_ub=h, bounds=list(zip(l, u, strict=True)), method="highs", options=boxes._HIGHS)
+    assert boxes.highs_optimum(c, G, h, l, u) is None
+    with pytest.raises(ValueError, match="b_ub"):
+        boxes.lp(c, G, h, l, u)

@@ -380,6 +380,20 @@ def test_least_radius_is_zero_where_one_always_delivered_channel_deadbeats_the_p
     assert 0.0 <= lam <= 1e-12
 
 
+def test_least_radius_is_zero_at_a_single_input_deadbeat_point_handed_over_early():
+    """x+ = diag(-0.39, 1.05, -0.13) x + b u, b = (1.5, 1.4, 2.3), mu = 1: (A, b) is controllable (distinct
+    eigenvalues, no zero in b), so Ackermann's gain k = e3' C^-1 A^3 (C the controllability matrix) makes A - b k
+    nilpotent (F^3 = 0) and min_K rho(L_K) = 0. simulation.region hands this point to the policy iteration after 4
+    power steps (they shrink too slowly); the policy steps stop at rounding there (lambda 1.3e-7, not a fixed point
+    of R), so the power iteration must take the point back, as without the hand-off."""
+    A, b = np.diag([-0.39, 1.05, -0.13]), np.array([1.5, 1.4, 2.3])
+    C = np.column_stack([b, A @ b, A @ A @ b])
+    F = A - np.outer(b, np.linalg.solve(C.T, np.eye(3)[2]) @ np.linalg.matrix_power(A, 3))
+    assert np.allclose(np.linalg.matrix_power(F, 3), 0.0, atol=1e-9)
+    lam, P, K = homogeneous_riccati(A, b[:, None], np.array([1.0]))
+    assert 0.0 <= lam <= 1e-12
+
+
 def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lmi():
     """The "dp" radius grid is min_K rho(L_K) >= 0 (the map had shown -1.2e-9 and -9e-7 at deadbeat points), and
     at interior points it is bracketed by the LMI form run on the scaled plant A / sqrt(rho) (S_rho = S of

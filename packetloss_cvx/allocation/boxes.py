@@ -188,7 +188,8 @@ def highs_optimum(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u:
     >>> highs_optimum(np.ones(2), np.array([[-1.0, -1.0]]), np.array([-3.0]), np.zeros(2), np.ones(2))
     (None, None)
     """
-    if _HIGHS_OPTIONS is None or not (np.all(np.isfinite(G)) and np.all(np.isfinite(c)) and np.all(l <= u)):
+    if _HIGHS_OPTIONS is None or not (np.all(np.isfinite(G)) and np.all(np.isfinite(c)) and np.all(np.isfinite(h))
+                                      and np.all(l <= u)):
         return None             # an older scipy, or data linprog checks or HiGHS refuses: linprog answers
     try:
         return _highs_run(c, G, h, l, u)
