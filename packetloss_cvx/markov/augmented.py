@@ -32,6 +32,7 @@ referee: the forward pass of ``xhat``, ``eta`` and ``Sigma``, every cost term no
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -60,12 +61,17 @@ class ChainLift:
     size: int
 
 
+@lru_cache(maxsize=64)
 def _orthogonal_basis(k: int) -> np.ndarray:
-    """An orthonormal basis (k×(k-1)) of the vectors orthogonal to the ones vector. O(k^3)."""
+    """An orthonormal basis (k×(k-1)) of the vectors orthogonal to the ones vector, read-only: one QR per k per
+    process (a function of k alone; a chain allocation's grid lifts the same 2-state chains thousands of times).
+    O(k^3) once, O(1) after."""
     if k == 1:
-        return np.zeros((1, 0))
-    centred = np.eye(k)[:, : k - 1] - 1.0 / k
-    return np.linalg.qr(centred)[0]
+        basis = np.zeros((1, 0))
+    else:
+        basis = np.linalg.qr(np.eye(k)[:, : k - 1] - 1.0 / k)[0]
+    basis.setflags(write=False)
+    return basis
 
 
 def _check_chain(i: int, T: np.ndarray, d: np.ndarray, pi0: np.ndarray) -> None:
