@@ -178,13 +178,15 @@ def check_recursion_budget(system: System, size: int, instead: str) -> None:
 
 
 def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
-    """The constant augmented transition: blkdiag(A, A ⊗ Lambda_1', ...) on row-major eta's. O(D^2)."""
-    n = system.n
+    """The constant augmented transition: blkdiag(A, A ⊗ Lambda_1', ...) on row-major eta's. O(D^2). Each
+    Kronecker block as the broadcast product of A and Lambda_i' (the products np.kron forms, one multiplication
+    per entry, without its generic dimension handling: about 50 us of a 2x2 chain's 0.3 ms evaluation)."""
+    n, A = system.n, system.A
     out = np.zeros((lift.size, lift.size))
-    out[:n, :n] = system.A
+    out[:n, :n] = A
     for i, L in enumerate(lift.Lam):
         a, b = lift.offsets[i], lift.offsets[i + 1]
-        out[a:b, a:b] = np.kron(system.A, L.T)
+        out[a:b, a:b] = (A[:, None, :, None] * L.T[None, :, None, :]).reshape(b - a, b - a)
     return out
 
 
