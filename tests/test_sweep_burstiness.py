@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
+import packetloss_cvx.markov  # noqa: F401  (pl.markov below: the subpackage is not one of the lazy names)
 from packetloss_cvx.cli import main
 
 from .conftest import EXAMPLES
