@@ -352,6 +352,23 @@ def test_homogeneous_riccati_batch_agrees_with_its_points_and_the_hand_values():
                 assert enumerated_radius(A, B, K[g], mu) == pytest.approx(lam[g], rel=1e-8)
 
 
+def test_homogeneous_riccati_deadbeat_point_handed_over_early_resumes_its_power_steps():
+    """A point the power iteration hands to the policy iteration early (its steps shrink too slowly) whose first
+    policy step is degenerate (lambda = 0: a deadbeat law, its Perron eigenvector not PSD) resumes its power steps,
+    as without the hand-off. Reference by hand: A diagonal with distinct eigenvalues, B with no zero entry
+    (controllable, one input), every packet delivered: the deadbeat gain (Ackermann) makes A - BK nilpotent, so
+    min_K rho(L_K) = rho(A - BK)^2 = 0. Stopping at the hand-off instead leaves lambda = 0.0019."""
+    A, B, mu = np.diag([-0.5, -0.1, 0.2]), np.array([[1.0], [2.0], [0.5]]), np.array([1.0])
+    C = np.hstack([B, A @ B, A @ A @ B])                          # Ackermann: K = e_n' C^-1 A^3
+    deadbeat = np.linalg.solve(C, np.linalg.matrix_power(A, 3))[-1:]
+    assert np.allclose(np.linalg.matrix_power(A - B @ deadbeat, 3), 0.0, atol=1e-12)
+    lam, P, K = homogeneous_riccati(A, B, mu)
+    assert 0.0 <= lam <= 1e-12
+    assert enumerated_radius(A, B, K, mu) <= 1e-6                 # the gain found is (nearly) deadbeat too
+    batch = homogeneous_riccati(A, B, np.array([[1.0], [0.5]]))   # the same point inside a batch: the same steps
+    assert 0.0 <= batch[0][0] <= 1e-12
+
+
 def test_membership_checks_a_given_eigenpair_at_its_own_mu():
     """The region map hands its batch's eigenpair to the membership's "riccati" form: a pair from another mu is
     checked at this mu and leaves the form undecided, never a verdict (scalar a = 2: S = {mu > 0.75})."""
