@@ -369,6 +369,23 @@ def test_homogeneous_riccati_deadbeat_point_handed_over_early_resumes_its_power_
     assert 0.0 <= batch[0][0] <= 1e-12
 
 
+def test_membership_runs_the_dp_form_only_where_a_gain_could_pass(monkeypatch):
+    """The "dp" form proves only "stable" (radius < 1 - 1e-9). Scalar a = 2 at mu = 0.75, by hand: every gain's
+    radius is (a - mu k)^2 + mu (1 - mu) k^2 >= a^2 (1 - mu) = 1, and the "riccati" form's P = 1 shows it (R(1) = 1),
+    so the DP is not run there (its value iteration would crawl to its step cap) and the verdict stays undecided.
+    Where the "riccati" form decides (mu = 0.6 unstable, 0.9 stable) the DP still runs as the cross-check."""
+    s = scalar(2.0)
+    ran = []
+    real = region.dp_riccati
+    monkeypatch.setattr(region, "dp_riccati", lambda system, mu: ran.append(float(mu[0])) or real(system, mu))
+    found = membership(s, [0.75], forms=("riccati", "dp"))
+    assert ran == [] and found.verdict == "undecided" and dict(found.forms) == {"riccati": "undecided",
+                                                                               "dp": "undecided"}
+    assert membership(s, [0.6], forms=("riccati", "dp")).verdict == "unstable"
+    assert membership(s, [0.9], forms=("riccati", "dp")).verdict == "stable"
+    assert ran == [0.6, 0.9]
+
+
 def test_membership_checks_a_given_eigenpair_at_its_own_mu():
     """The region map hands its batch's eigenpair to the membership's "riccati" form: a pair from another mu is
     checked at this mu and leaves the form undecided, never a verdict (scalar a = 2: S = {mu > 0.75})."""
