@@ -379,8 +379,9 @@ def test_membership_runs_the_dp_form_only_where_a_gain_could_pass(monkeypatch):
     real = region.dp_riccati
     monkeypatch.setattr(region, "dp_riccati", lambda system, mu: ran.append(float(mu[0])) or real(system, mu))
     found = membership(s, [0.75], forms=("riccati", "dp"))
-    assert ran == [] and found.verdict == "undecided" and dict(found.forms) == {"riccati": "undecided",
-                                                                               "dp": "undecided"}
+    assert ran == []
+    assert found.verdict == "undecided"
+    assert dict(found.forms) == {"riccati": "undecided", "dp": "undecided"}
     assert membership(s, [0.6], forms=("riccati", "dp")).verdict == "unstable"
     assert membership(s, [0.9], forms=("riccati", "dp")).verdict == "stable"
     assert ran == [0.6, 0.9]
