@@ -352,6 +352,41 @@ def test_homogeneous_riccati_batch_agrees_with_its_points_and_the_hand_values():
                 assert enumerated_radius(A, B, K[g], mu) == pytest.approx(lam[g], rel=1e-8)
 
 
+def test_homogeneous_riccati_deadbeat_point_handed_over_early_resumes_its_power_steps():
+    """A point the power iteration hands to the policy iteration early (its steps shrink too slowly) whose first
+    policy step is degenerate (lambda = 0: a deadbeat law, its Perron eigenvector not PSD) resumes its power steps,
+    as without the hand-off. Reference by hand: A diagonal with distinct eigenvalues, B with no zero entry
+    (controllable, one input), every packet delivered: the deadbeat gain (Ackermann) makes A - BK nilpotent, so
+    min_K rho(L_K) = rho(A - BK)^2 = 0. Stopping at the hand-off instead leaves lambda = 0.0019."""
+    A, B, mu = np.diag([-0.5, -0.1, 0.2]), np.array([[1.0], [2.0], [0.5]]), np.array([1.0])
+    C = np.hstack([B, A @ B, A @ A @ B])                          # Ackermann: K = e_n' C^-1 A^3
+    deadbeat = np.linalg.solve(C, np.linalg.matrix_power(A, 3))[-1:]
+    assert np.allclose(np.linalg.matrix_power(A - B @ deadbeat, 3), 0.0, atol=1e-12)
+    lam, P, K = homogeneous_riccati(A, B, mu)
+    assert 0.0 <= lam <= 1e-12
+    assert enumerated_radius(A, B, K, mu) <= 1e-6                 # the gain found is (nearly) deadbeat too
+    batch = homogeneous_riccati(A, B, np.array([[1.0], [0.5]]))   # the same point inside a batch: the same steps
+    assert 0.0 <= batch[0][0] <= 1e-12
+
+
+def test_membership_runs_the_dp_form_only_where_a_gain_could_pass(monkeypatch):
+    """The "dp" form proves only "stable" (radius < 1 - 1e-9). Scalar a = 2 at mu = 0.75, by hand: every gain's
+    radius is (a - mu k)^2 + mu (1 - mu) k^2 >= a^2 (1 - mu) = 1, and the "riccati" form's P = 1 shows it (R(1) = 1),
+    so the DP is not run there (its value iteration would crawl to its step cap) and the verdict stays undecided.
+    Where the "riccati" form decides (mu = 0.6 unstable, 0.9 stable) the DP still runs as the cross-check."""
+    s = scalar(2.0)
+    ran = []
+    real = region.dp_riccati
+    monkeypatch.setattr(region, "dp_riccati", lambda system, mu: ran.append(float(mu[0])) or real(system, mu))
+    found = membership(s, [0.75], forms=("riccati", "dp"))
+    assert ran == []
+    assert found.verdict == "undecided"
+    assert dict(found.forms) == {"riccati": "undecided", "dp": "undecided"}
+    assert membership(s, [0.6], forms=("riccati", "dp")).verdict == "unstable"
+    assert membership(s, [0.9], forms=("riccati", "dp")).verdict == "stable"
+    assert ran == [0.6, 0.9]
+
+
 def test_membership_checks_a_given_eigenpair_at_its_own_mu():
     """The region map hands its batch's eigenpair to the membership's "riccati" form: a pair from another mu is
     checked at this mu and leaves the form undecided, never a verdict (scalar a = 2: S = {mu > 0.75})."""
