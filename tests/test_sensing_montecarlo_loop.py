@@ -95,3 +95,32 @@ def test_the_run_is_the_plain_loop_bit_for_bit(case, protocol, filter):  # noqa:
     assert (got.mean_stage_cost, got.stderr) == (mean, stderr)
     if filter == "kalman":
         np.testing.assert_array_equal(got.mean_filtered_covariance, covariance)
+
+
+@pytest.mark.parametrize("split", [
+    (50, 50, 0, 0),      # two patterns with half the runs each: both "shared by most runs"
+    (0, 0, 50, 50),
+    (10, 60, 20, 10),    # one pattern shared by most runs, the others scattered
+    (100, 0, 0, 0),      # nothing received anywhere
+    (25, 25, 25, 25),    # no pattern shared by most runs
+])
+def test_pattern_update_is_each_patterns_gathered_update(split):
+    """pattern_update (a shared pattern computed for every run and the others written in place) against the
+    update of each pattern's runs gathered, as the plain loop above does it: the same floats, whatever the split."""
+    from packetloss_cvx.sensing.montecarlo import pattern_update
+
+    s = CASES[2]                                  # two sensor channels: four arrival patterns
+    sensor, rng = s.sensor, np.random.default_rng(7)
+    arrived, _ = arrival_patterns(sensor.gamma)
+    rows = [pattern_rows(sensor, a) for a in arrived]
+    pattern = rng.permutation(np.repeat(np.arange(4), split))
+    F = rng.normal(size=(100, 3, 3))
+    Pm = F @ F.swapaxes(1, 2) + 0.1 * np.eye(3)
+    P, L = pattern_update(Pm, pattern, rows, sensor.C, sensor.noise_cov)
+    want_P, want_L = Pm.copy(), np.zeros((100, 3, sensor.p))
+    for j, r in enumerate(rows):
+        sel = pattern == j
+        if np.any(sel):
+            want_P[sel], want_L[sel] = measurement_update(Pm[sel], sensor.C, sensor.noise_cov, r)
+    np.testing.assert_array_equal(P, want_P)
+    np.testing.assert_array_equal(L, want_L)

@@ -112,9 +112,8 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
             u = -xhat @ K.T
             v = rng.random((samples, m)) < mu
             applied = v * u
-            stage = np.einsum("si,ij,sj->s", x, Omega, x) + (applied * applied) @ psi
-            if k >= steps - keep:
-                total += stage
+            if k >= steps - keep:           # the stage cost of the kept half only (the transient's is never read)
+                total += np.einsum("si,ij,sj->s", x, Omega, x) + (applied * applied) @ psi
                 if filter == "kalman":
                     covariance += P.sum(axis=0)
                     per_run += P
@@ -149,17 +148,20 @@ def pattern_update(Pm: np.ndarray, pattern: np.ndarray, rows: list[np.ndarray], 
     samples = Pm.shape[0]
     # a run that received nothing keeps P = P^-, L = 0 (the update's own answer, without the call); a pattern most
     # runs share is computed for every run and kept where it arrived (each run's update is its own: the same
-    # floats), cheaper than gathering and scattering most of the stack
-    P = Pm.copy()
-    L = np.zeros((*Pm.shape[:-1], C.shape[0]))
+    # floats), cheaper than gathering and scattering most of the stack: the fresh update takes the other runs'
+    # values in place (the first such pattern; two can hold half the runs each: the second is then scattered)
+    counts = np.bincount(pattern, minlength=len(rows))
+    major = next((j for j, r in enumerate(rows) if r.size and 2 * counts[j] >= samples), None)
+    if major is None:
+        P, L = Pm.copy(), np.zeros((*Pm.shape[:-1], C.shape[0]))
+    else:
+        P, L = measurement_update(Pm, C, R, rows[major])
+        other = (pattern != major)[:, None, None]
+        np.copyto(P, Pm, where=other)
+        np.copyto(L, 0.0, where=other)
     for j, r in enumerate(rows):
-        if r.size == 0:
-            continue
-        sel = pattern == j
-        if 2 * np.count_nonzero(sel) >= samples:
-            Pj, Lj = measurement_update(Pm, C, R, r)
-            P, L = np.where(sel[:, None, None], Pj, P), np.where(sel[:, None, None], Lj, L)
-        elif np.any(sel):
+        if r.size and j != major and counts[j]:
+            sel = pattern == j
             P[sel], L[sel] = measurement_update(Pm[sel], C, R, r)
     return P, L
 
