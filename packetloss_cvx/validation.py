@@ -202,7 +202,9 @@ def psd_weights(items: list, field: str, n: int) -> np.ndarray:
         return np.stack([psd_weight(w, f"{field}[{t}]", n) for t, w in enumerate(items)])
 
     try:
-        arrays = [numeric_array(w, f"{field}[{t}]") for t, w in enumerate(items)]
+        arrays = _as_one_stack(items, field)
+        if arrays is None:
+            arrays = [numeric_array(w, f"{field}[{t}]") for t, w in enumerate(items)]
     except InputError:
         return one_by_one()                      # raises the first step's error, whatever it is
     full = [t for t, arr in enumerate(arrays) if arr.shape == (n, n)]
@@ -224,6 +226,18 @@ def psd_weights(items: list, field: str, n: int) -> np.ndarray:
     for t in sorted(set(range(len(arrays))) - passed):
         out[t] = psd_weight(arrays[t], f"{field}[{t}]", n)
     return out
+
+
+def _as_one_stack(items: list, field: str) -> list[np.ndarray] | None:
+    """The steps of a list of nested lists (a TOML file's, ``tolist()``'s) converted by one :func:`numeric_array` of
+    the whole list: the same floats as step by step. Its walk is stricter than each step's (one more level of
+    nesting, the entries of all steps counted together), so whatever it accepts every step accepts alone, and
+    whatever it refuses (a bad entry, ragged or mixed shapes) raises InputError: the caller then goes step by step
+    for the step's own error. None when a step is not a list (arrays go step by step: a masked array's mask is
+    checked there). Time O(N n^2)."""
+    if not all(type(w) is list for w in items):
+        return None
+    return list(numeric_array(items, field))
 
 
 def symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
