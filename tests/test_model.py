@@ -233,5 +233,6 @@ def test_weights_as_nested_lists_give_the_step_by_step_floats_and_first_error(se
             wrong = list(full)
             wrong[t] = value
             expected = _error_of(lambda w=wrong: _weights_one_by_one(w, n))
-            assert expected is not None and f"state_weights[{t}]" in expected[1], name
+            assert expected is not None, name
+            assert f"state_weights[{t}]" in expected[1], name
             assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected, (name, t)
