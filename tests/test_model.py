@@ -236,3 +236,22 @@ def test_weights_as_nested_lists_give_the_step_by_step_floats_and_first_error(se
             assert expected is not None, name
             assert f"state_weights[{t}]" in expected[1], name
             assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected, (name, t)
+
+
+def test_weights_as_arrays_of_one_shape_give_the_step_by_step_floats_and_first_error():
+    """Plain arrays of one shape are checked as one stack: the same floats as psd_weight step by step (integer
+    and float arrays mixed), and a boolean, complex or non-finite step refused with that step's own error."""
+    from packetloss_cvx.validation import psd_weights
+    rng = np.random.default_rng(7)
+    n, N = 3, 12
+    F = rng.normal(size=(N, n, n))
+    items = [f @ f.T for f in F]
+    items[2] = np.eye(n, dtype=np.int64) * 3
+    assert np.array_equal(psd_weights(items, "state_weights", n), _weights_one_by_one(items, n))
+    for value in (np.eye(n, dtype=bool), np.eye(n) + 0j, np.full((n, n), np.inf), -np.eye(n)):
+        wrong = list(items)
+        wrong[5] = value
+        expected = _error_of(lambda w=wrong: _weights_one_by_one(w, n))
+        assert expected is not None
+        assert "state_weights[5]" in expected[1]
+        assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected
