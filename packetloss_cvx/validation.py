@@ -202,7 +202,9 @@ def psd_weights(items: list, field: str, n: int) -> np.ndarray:
         return np.stack([psd_weight(w, f"{field}[{t}]", n) for t, w in enumerate(items)])
 
     try:
-        arrays = [numeric_array(w, f"{field}[{t}]") for t, w in enumerate(items)]
+        arrays = _as_one_stack(items, field)
+        if arrays is None:
+            arrays = [numeric_array(w, f"{field}[{t}]") for t, w in enumerate(items)]
     except InputError:
         return one_by_one()                      # raises the first step's error, whatever it is
     full = [t for t, arr in enumerate(arrays) if arr.shape == (n, n)]
@@ -226,6 +228,22 @@ def psd_weights(items: list, field: str, n: int) -> np.ndarray:
     return out
 
 
+def _as_one_stack(items: list, field: str) -> list[np.ndarray] | None:
+    """The steps of a list of nested lists (a TOML file's, ``tolist()``'s) converted by one :func:`numeric_array` of
+    the whole list: the same floats as step by step. Its walk is stricter than each step's (one more level of
+    nesting, the entries of all steps counted together), so whatever it accepts every step accepts alone, and
+    whatever it refuses (a bad entry, ragged or mixed shapes) raises InputError: the caller then goes step by step
+    for the step's own error. Plain numeric arrays of one shape (random_systems', NumPy callers') likewise, stacked
+    first (each array's dtype checked: NumPy would promote a boolean one). None otherwise (a masked array, whose
+    mask is checked step by step, mixed types or shapes). Time O(N n^2)."""
+    if all(type(w) is list for w in items):
+        return list(numeric_array(items, field))
+    if (all(type(w) is np.ndarray and w.dtype.kind in "iuf" for w in items)
+            and len({w.shape for w in items}) == 1):
+        return list(numeric_array(np.stack(items), field))
+    return None
+
+
 def symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
     """Symmetric to SYMMETRY_RTOL and PSD to PSD_RTOL, both relative to ||arr||; eigenvalues that are
     negative only by rounding are set to zero, so the returned weight is exactly PSD. Time O(n^3).
@@ -235,13 +253,16 @@ def symmetric_psd(arr: np.ndarray, field: str) -> np.ndarray:
         ...
     packetloss_cvx.errors.InputError: noise_cov: expected a positive semidefinite matrix, found the eigenvalue -1 ...
     """
-    scale = float(np.linalg.norm(arr, ord=2))
-    # an exactly symmetric matrix (the usual input) has no asymmetry to measure: skip its 2-norm (an SVD)
-    if not np.array_equal(arr, arr.T) and np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
-        raise InputError(field, "expected a symmetric matrix")
+    # ||arr|| (an SVD) only where a tolerance needs it: an exactly symmetric matrix (the usual input) has no
+    # asymmetry to measure, and no eigenvalue >= 0 is below -PSD_RTOL ||arr|| (the usual PSD weight)
+    scale = None
+    if not np.array_equal(arr, arr.T):
+        scale = float(np.linalg.norm(arr, ord=2))
+        if np.linalg.norm(arr - arr.T, ord=2) > SYMMETRY_RTOL * scale:
+            raise InputError(field, "expected a symmetric matrix")
     sym = 0.5 * (arr + arr.T)
     vals, vecs = np.linalg.eigh(sym)
-    if vals.min() < -PSD_RTOL * scale:
+    if vals.min() < 0 and vals.min() < -PSD_RTOL * (float(np.linalg.norm(arr, ord=2)) if scale is None else scale):
         raise InputError(field, f"expected a positive semidefinite matrix, found the eigenvalue {vals.min():.3g} "
                                 f"beside {vals.max():.3g}")
     if vals.min() < 0:

@@ -209,3 +209,49 @@ def test_stacked_weight_check_gives_the_step_by_step_floats_and_first_error(seed
                 expected = _error_of(lambda w=wrong: _weights_one_by_one(w, n))
                 assert expected is not None, name
                 assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected, (name, t, second)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_weights_as_nested_lists_give_the_step_by_step_floats_and_first_error(seed):
+    """Steps given as nested lists (a TOML file's) are converted as one stack: the same floats bit for bit as
+    psd_weight step by step, and where a step is bad (an entry that is not a finite number or beyond the double
+    range, a wrong or ragged shape, an indefinite or asymmetric matrix) the same first error, naming that step."""
+    from packetloss_cvx.validation import psd_weights
+    rng = np.random.default_rng(100 + seed)
+    n, N = int(rng.integers(1, 5)), int(rng.integers(2, 30))
+    F = rng.normal(size=(N, n, n))
+    full = [(f @ f.T).tolist() for f in F]
+    diagonal = [rng.uniform(0.0, 2.0, n).tolist() for _ in range(N)]
+    for items in (full, diagonal):
+        assert np.array_equal(psd_weights(items, "state_weights", n), _weights_one_by_one(items, n))
+    bad = {"nan": [[float("nan")] * n] * n, "huge integer": [[10**400] * n] * n, "string": [["W"] * n] * n,
+           "boolean": [[True] * n] * n, "shape": np.ones((n + 1, n + 1)).tolist(), "ragged": [[1.0] * n, [1.0]],
+           "not psd": (-np.eye(n) - 1e-3).tolist(), "negative diagonal": [-1.0] * n,
+           "asymmetric": (np.triu(np.ones((n, n)), 1) + np.eye(n) if n > 1 else -np.eye(1)).tolist()}
+    for name, value in bad.items():
+        for t in {0, N // 2, N - 1}:
+            wrong = list(full)
+            wrong[t] = value
+            expected = _error_of(lambda w=wrong: _weights_one_by_one(w, n))
+            assert expected is not None, name
+            assert f"state_weights[{t}]" in expected[1], name
+            assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected, (name, t)
+
+
+def test_weights_as_arrays_of_one_shape_give_the_step_by_step_floats_and_first_error():
+    """Plain arrays of one shape are checked as one stack: the same floats as psd_weight step by step (integer
+    and float arrays mixed), and a boolean, complex or non-finite step refused with that step's own error."""
+    from packetloss_cvx.validation import psd_weights
+    rng = np.random.default_rng(7)
+    n, N = 3, 12
+    F = rng.normal(size=(N, n, n))
+    items = [f @ f.T for f in F]
+    items[2] = np.eye(n, dtype=np.int64) * 3
+    assert np.array_equal(psd_weights(items, "state_weights", n), _weights_one_by_one(items, n))
+    for value in (np.eye(n, dtype=bool), np.eye(n) + 0j, np.full((n, n), np.inf), -np.eye(n)):
+        wrong = list(items)
+        wrong[5] = value
+        expected = _error_of(lambda w=wrong: _weights_one_by_one(w, n))
+        assert expected is not None
+        assert "state_weights[5]" in expected[1]
+        assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected
