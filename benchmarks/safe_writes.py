@@ -40,8 +40,9 @@ print(cpu, wall)
 
 def one(tree: str, points: int, scratch: str) -> tuple[float, float]:
     env = {**os.environ, "PYTHONPATH": tree, "OPENBLAS_NUM_THREADS": "1"}
-    done = subprocess.run([sys.executable, "-c", SNIPPET, str(points), scratch], env=env, capture_output=True,
-                          text=True, check=True)
+    # cwd=tree: "python -c" puts the working folder ahead of PYTHONPATH (the baseline would import this tree)
+    done = subprocess.run([sys.executable, "-c", SNIPPET, str(points), str(Path(scratch).resolve())], env=env,
+                          capture_output=True, text=True, check=True, cwd=tree)
     cpu, wall = map(float, done.stdout.split())
     return cpu, wall
 
