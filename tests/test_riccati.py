@@ -107,3 +107,26 @@ def test_policy_cost_to_go_of_dp_gain_is_its_solution(two_actuator):
     P = law_cost_to_go(two_actuator.A, two_actuator.B, dp.gain, two_actuator.mu, two_actuator.state_weights[0],
                        two_actuator.input_weights[0])
     assert np.allclose(P, dp.cost_to_go, rtol=1e-10)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_dp_input_hessian_is_the_expectation_over_the_delivery_patterns(seed):
+    """dp_input_hessian against E[V Psi V + V B'PB V] enumerated over the 2^m delivery patterns V = diag(v), each v_i
+    delivered with probability mu_i independently (the expectation written out, not the closed form)."""
+    import itertools
+
+    from packetloss_cvx.simulation.riccati import dp_input_hessian
+
+    rng = np.random.default_rng(seed)
+    n, m = 3, 3
+    B = rng.normal(size=(n, m))
+    X = rng.normal(size=(n, n))
+    P = X @ X.T + np.eye(n)
+    mu = rng.uniform(0.05, 0.95, size=m)
+    psi = rng.uniform(0.1, 2.0, size=m)
+    expected = np.zeros((m, m))
+    for v in itertools.product([0.0, 1.0], repeat=m):
+        V = np.diag(v)
+        probability = np.prod(np.where(np.array(v) == 1.0, mu, 1.0 - mu))
+        expected += probability * (V @ np.diag(psi) @ V + V @ B.T @ P @ B @ V)
+    assert np.allclose(dp_input_hessian(B, P, mu, psi), expected, rtol=1e-12, atol=0.0)

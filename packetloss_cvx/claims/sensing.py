@@ -19,7 +19,7 @@ from ..model import System
 from ..results import ClaimResult, Riccati
 from ..sensing.loop import estimated_loop
 from ..sensing.montecarlo import simulate_estimated
-from ..simulation.riccati import NO_SOLUTION, dp_riccati
+from ..simulation.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
 from .context import Context
 from .evaluate import Tally
 
@@ -98,8 +98,7 @@ def simulated_z(system: System, seed: int,
     s, dp = found[3], found[4]
     run = simulate_estimated(s, dp.gain, "tcp", "kalman", samples=RUNS, steps=max(steps, 2), seed=seed)
     mu, P, K, B, psi = s.mu, dp.cost_to_go, dp.gain, s.B, s.input_weights[0]
-    BPB = B.T @ P @ B
-    H = np.diag(mu * psi) + (B * mu).T @ P @ (B * mu) + np.diag(mu * (1 - mu) * np.diag(BPB))
+    H = dp_input_hessian(B, P, mu, psi)
     split = float(np.sum(P * s.noise_cov) + np.sum((K.T @ H @ K) * run.mean_filtered_covariance))
     return (run.mean_stage_cost - split) / run.stderr
 

@@ -44,7 +44,7 @@ from ..model import System
 from ..results import Riccati
 from ..results.sensing import EstimatedLoop
 from ..simulation.moments import solve_fixed_point, stationary_channel
-from ..simulation.riccati import dp_riccati
+from ..simulation.riccati import dp_input_hessian, dp_riccati
 from ..simulation.stability import mean_square_radius, random_matrix_moment
 from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 from .arrivals import arrival_patterns, sensor_arrivals
@@ -303,8 +303,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     if dp is None:
         return result(radius, cost, nan, nan, S, f"no split: {dp_reason}" if split else "")
     P, Kdp = dp.cost_to_go, dp.gain
-    BPB = B.T @ P @ B
-    H = np.diag(mu * psi) + (B * mu).T @ P @ (B * mu) + np.diag(c * np.diag(BPB))
+    H = dp_input_hessian(B, P, mu, psi)
     G = np.concatenate([Kdp - K, Kdp], axis=1)
     control = float(np.sum(P * Sigma_W))
     estimation = float(np.sum((G.T @ H @ G) * S))
