@@ -49,7 +49,7 @@ from ..recursion import riccati_step
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, HOMOGENEOUS_RICCATI_MAX_ITER, RICCATI_RTOL
 from .critical import critical_point
-from .region import least_squares_residual, moment_factor, psd_factor, radius_bound
+from .region import converges_within, least_squares_residual, moment_factor, psd_factor, radius_bound
 from .stability import is_mean_square_stable
 
 __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "chain_membership", "chain_outside",
@@ -152,8 +152,7 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
         P = P_next
         if moved <= RICCATI_RTOL:
             return P, "stopped"
-        if watch and step + 1 == _POWER_WATCH and not (
-                moved < last and np.log(RICCATI_RTOL / moved) / np.log(moved / last) <= steps - step - 1):
+        if watch and step + 1 == _POWER_WATCH and not converges_within(moved, last, steps - step - 1):
             return P, "slow"
         last = moved
     return P, "steps"
