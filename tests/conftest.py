@@ -1,3 +1,7 @@
+from __future__ import annotations
+
+import atexit
+import gc
 from pathlib import Path
 
 import pytest
@@ -46,6 +50,17 @@ def pytest_collection_modifyitems(items):
     (a stable sort), and a file's tests keep theirs. O(items log items)."""
     rank = {path: k for k, path in enumerate(HEAVIEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
+
+
+def pytest_configure(config):
+    """At this process's exit (an atexit handler, after pytest has returned, its last garbage collection and
+    unraisable-exception check done), move every object to the garbage collector's permanent generation, so the
+    interpreter's shutdown does not walk and free the ~230,000 objects of the imported numerical stack one
+    cycle at a time: ~0.8 s CPU less for each of the three pytest processes (the workers' exits are on the run's
+    critical path). What it skips: freeing memory the OS takes back anyway, and ``__del__`` of objects in reference
+    cycles still alive at exit, which Python never promised to call; atexit handlers and ``weakref.finalize``
+    still run. O(1)."""
+    atexit.register(gc.freeze)
 
 
 #: files longer than this are listed for review at the end of a test run (a report, never a failure: a
