@@ -1,6 +1,6 @@
-"""The documentation site: built once with ``mkdocs build --strict`` (which must pass), then as readers see it, served over HTTP and
-opened in headless Chromium through Selenium. Every page renders with no console error and no failed
-request (the site asks nothing of another host), every image on it loads, and the search finds a function
+"""The documentation site: built once with ``mkdocs build --strict`` (which must pass), then as readers see it,
+served over HTTP and opened in headless Chromium through Selenium. Every page renders with no console error and
+no failed request (the site asks nothing of another host), every image on it loads, and the search finds a function
 by its name. Skips, saying why, where Selenium, Chromium or its driver, or the docs extra is missing
 (Debian: ``apt-get install chromium chromium-driver``; ``pip install selenium``)."""
 
@@ -137,8 +137,8 @@ def search_box(site, browser):
 @NEEDS_BROWSER[0]
 @NEEDS_BROWSER[1]
 def test_the_search_finds_a_function_by_its_name(browser, search_box, name):
-    from selenium.webdriver.common.by import By
     from selenium.common.exceptions import TimeoutException
+    from selenium.webdriver.common.by import By
     from selenium.webdriver.common.keys import Keys
     from selenium.webdriver.support.ui import WebDriverWait
 
