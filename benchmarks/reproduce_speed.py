@@ -19,7 +19,8 @@
    the 33 UDP-like allocations of the two-actuator system (reproduce's step), the sensing Monte Carlo of the
    audit's cost-split-sensor on the paper systems (with each one's exact split), the expected-Riccati upper
    bounds of the 129 sensed twins of the full audit's cases, the QP twin's claims (theorem-1-laws and
-   theorem-1-costs of the full audit: 404 condensed solves) and the full audit (``audit --random 200 --seed 1``);
+   theorem-1-costs of the full audit: 404 condensed solves), the eight figures of the full run (drawn and saved;
+   the answers are the PNGs' digests) and the full audit (``audit --random 200 --seed 1``);
    ``--only NAME`` (repeatable) runs the parts named.
    Each part also prints a digest of its answers: equal digests, the same numbers (repr of every float).
 """
@@ -167,6 +168,18 @@ from packetloss_cvx.claims import audit, markdown_report
 def part():
     results = audit(random=200, seed=1, only=["theorem-1-laws", "theorem-1-costs"], progress=False)
     return markdown_report(results) + repr([r.to_dict() for r in results])
+""",
+    "figures": """
+import tempfile
+from pathlib import Path
+from packetloss_cvx.cli import reproduce as r
+from packetloss_cvx.runfolder import RunFolder
+from packetloss_cvx.safeio import file_digest
+settings = {**r.SETTINGS["full"], "audit_skips": tuple(r.CLAIMS)}     # the full run's data, no audit
+data = r._compute(settings, False, {})
+def part():
+    with tempfile.TemporaryDirectory() as tmp, RunFolder(Path(tmp) / "out", command="bench") as folder:
+        return sorted((p.name, file_digest(p)) for p in r._figures(data, folder).values())
 """,
     "audit": """
 import cvxpy  # noqa: F401  (imported before the clock, as reproduce has it by then)
