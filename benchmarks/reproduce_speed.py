@@ -18,7 +18,10 @@
    (imports paid before the clock starts), the checkouts interleaved round by round, CPU seconds (process_time):
    the 33 UDP-like allocations of the two-actuator system (reproduce's step), the sensing Monte Carlo of the
    audit's cost-split-sensor on the paper systems (with each one's exact split), the expected-Riccati upper
-   bounds of the 129 sensed twins of the full audit's cases, and the full audit (``audit --random 200 --seed 1``).
+   bounds of the 129 sensed twins of the full audit's cases, the QP twin's claims (theorem-1-laws and
+   theorem-1-costs of the full audit: 404 condensed solves), the eight figures of the full run (drawn and saved;
+   the answers are the PNGs' digests) and the full audit (``audit --random 200 --seed 1``);
+   ``--only NAME`` (repeatable) runs the parts named.
    Each part also prints a digest of its answers: equal digests, the same numbers (repr of every float).
 """
 
@@ -159,6 +162,25 @@ twins = [t for t in (sensed(s) for s in [*paper_systems().values(), *(random_sys
 def part():
     return [upper_bound_covariance(t.A, t.noise_cov, t.sensor) for t in twins]
 """,
+    "qp twin": """
+import cvxpy  # noqa: F401  (imported before the clock, as reproduce has it by then)
+from packetloss_cvx.claims import audit, markdown_report
+def part():
+    results = audit(random=200, seed=1, only=["theorem-1-laws", "theorem-1-costs"], progress=False)
+    return markdown_report(results) + repr([r.to_dict() for r in results])
+""",
+    "figures": """
+import tempfile
+from pathlib import Path
+from packetloss_cvx.cli import reproduce as r
+from packetloss_cvx.runfolder import RunFolder
+from packetloss_cvx.safeio import file_digest
+settings = {**r.SETTINGS["full"], "audit_skips": tuple(r.CLAIMS)}     # the full run's data, no audit
+data = r._compute(settings, False, {})
+def part():
+    with tempfile.TemporaryDirectory() as tmp, RunFolder(Path(tmp) / "out", command="bench") as folder:
+        return sorted((p.name, file_digest(p)) for p in r._figures(data, folder).values())
+""",
     "audit": """
 import cvxpy  # noqa: F401  (imported before the clock, as reproduce has it by then)
 from packetloss_cvx.claims import audit, markdown_report
@@ -180,10 +202,13 @@ print(cpu, hashlib.sha256(repr(answer).encode()).hexdigest()[:12])
 """
 
 
-def parts(rounds: int, baselines: list[Path]) -> None:
-    """Each of :data:`PARTS` in a fresh interpreter per checkout, interleaved; CPU s and answer digests."""
+def parts(rounds: int, baselines: list[Path], only: list[str] | None = None) -> None:
+    """Each of :data:`PARTS` (or those named in ``only``) in a fresh interpreter per checkout, interleaved; CPU s
+    and answer digests."""
     checkouts = [ROOT, *[b for b in baselines if b.exists()]]
     for name, code in PARTS.items():
+        if only and name not in only:
+            continue
         times: dict[Path, list[float]] = {c: [] for c in checkouts}
         digests: dict[Path, set[str]] = {c: set() for c in checkouts}
         for _ in range(rounds):
@@ -209,11 +234,13 @@ def main() -> None:
     parser.add_argument("--steps", action="store_true", help="also this checkout's steps, one more run")
     parser.add_argument("--crossover", action="store_true", help="the Markov closed form's two routes over N")
     parser.add_argument("--parts", action="store_true", help="the parts session 29 made faster, with answer digests")
+    parser.add_argument("--only", action="append", choices=list(PARTS),
+                        help="with --parts: only this part (repeatable)")
     args = parser.parse_args()
     if args.crossover:
         crossover()
     elif args.parts:
-        parts(args.rounds, args.baseline or BASELINES)
+        parts(args.rounds, args.baseline or BASELINES, args.only)
     else:
         compare(args.rounds, args.baseline or BASELINES, args.steps)
 

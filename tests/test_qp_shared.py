@@ -11,7 +11,14 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx import qp_shared
 from packetloss_cvx.io import load_example
-from packetloss_cvx.qp_shared import CondensedQP, cached_shapes, clear_cache, condensed_problem, padded
+from packetloss_cvx.qp_shared import (
+    CondensedQP,
+    cached_shapes,
+    clear_cache,
+    condensed_problem,
+    objective_value,
+    padded,
+)
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.tolerances import CLARABEL_TIGHT, CROSS_CHECK_COST_RTOL, CROSS_CHECK_INPUT_ATOL
 
@@ -153,6 +160,23 @@ def test_threads_sharing_a_bucket_get_their_own_answers():
     for k, answers in got.items():
         assert all(np.array_equal(a.inputs, expected[k].inputs) and a.cost == expected[k].cost for a in answers)
     assert len(got) == 6
+
+
+@pytest.mark.parametrize(("rows", "cols"), [(8, 8), (16, 8), (32, 24)])
+def test_the_objective_value_is_cvxpys_evaluation_bit_for_bit(rows, cols):
+    """objective_value against cvxpy's own numeric evaluation of the compiled expression (Parameters and the
+    Variable assigned, problem.objective.value): the same float, at scales 1e-3..1e3, and a solve reports it."""
+    rng = np.random.default_rng(rows * cols)
+    qp = CondensedQP(rows, cols)
+    for _ in range(50):
+        c, z = rng.normal(size=rows) * 10 ** rng.uniform(-3, 3), rng.normal(size=cols) * 10 ** rng.uniform(-3, 3)
+        G, r = rng.normal(size=(rows, cols)), np.abs(rng.normal(size=cols))
+        qp.c.value, qp.G.value, qp.r.value, qp.z.value = c, G, r, z
+        assert objective_value(c, G, r, z) == float(qp.problem.objective.value)
+    z, value, status = qp.solve(c, G, r, "a random QP")
+    qp.z.value = z
+    assert status == "optimal"
+    assert value == float(qp.problem.objective.value)
 
 
 def test_data_larger_than_the_problem_are_refused():

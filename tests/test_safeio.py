@@ -126,6 +126,51 @@ def test_save_figure_writes_the_format_of_the_extension(tmp_path):
     assert _names(tmp_path) == ["f.png", "f.svg"]
 
 
+def _figures():
+    """Constrained-layout figures of every kind reproduce saves (log axes, a log colour bar with contours, labels and
+    paths, a legend beside the axes, a suptitle, mathtext), and one without a layout engine."""
+    from matplotlib.figure import Figure
+
+    from packetloss_cvx.plots import plot_ack_break_even, plot_cost_lines, plot_log_contour, plot_region
+
+    rng = np.random.default_rng(5)
+    axis = np.linspace(0.0, 1.0, 21)
+    values = np.exp(4.0 * np.add.outer(1.0 - axis, 1.0 - axis)) + rng.uniform(0.0, 0.1, (21, 21))
+    nu = np.geomspace(1e-4, 1.0, 30)
+    plain = Figure()
+    plain.add_subplot().plot([0, 1], [1, 0])
+    return {
+        "lines": plot_cost_lines(nu, {"tcp": 1.0 / nu, "udp": 2.0 / nu, "diff": 1.0 / nu}, xlabel=r"$\nu$",
+                                 xscale="log", marker=0.01, marker_label=r"max at $\nu$ = 0.01", title="a\nb"),
+        "contour": plot_log_contour(axis, axis, values, colorbar_label=r"$J^*$ (log scale)", levels=[5.0, 20.0],
+                                    allocations={"beta = (1, 1)": [(0.2, 0.9), (0.5, 0.5)]}, marker=(0.3, 0.3),
+                                    title="contour\nwith levels"),
+        "region": plot_region(axis, values / values.max() * 2.0, {"dp": values < 10.0, "tcp": values < 5.0},
+                              title="region"),
+        "ack": plot_ack_break_even([2.0, 4.0, 8.0], [0.5, float("nan"), 1.5], title="ack"),
+        "no engine": plain,
+    }
+
+
+def test_save_figure_writes_the_bytes_of_a_plain_savefig(tmp_path):
+    """save_figure runs a constrained layout once (laid_out_once) instead of letting savefig draw twice: the PNG must
+    be the one Matplotlib's own ``savefig(dpi=FIGURE_DPI)`` writes, byte for byte, for a fresh copy of each figure
+    (a second save of one figure is no reference: clabel's inline labels cut the contours at the first draw), and the
+    figure is left as it was (engine, dpi, canvas)."""
+    import io
+
+    from packetloss_cvx.safeio import FIGURE_DPI
+
+    mine, theirs = _figures(), _figures()
+    for name, fig in mine.items():
+        engine, dpi, canvas = fig.get_layout_engine(), fig.dpi, fig.canvas
+        path = save_figure(fig, tmp_path / name)
+        reference = io.BytesIO()
+        theirs[name].savefig(reference, format="png", dpi=FIGURE_DPI)
+        assert path.read_bytes() == reference.getvalue(), name
+        assert (fig.get_layout_engine(), fig.dpi, fig.canvas) == (engine, dpi, canvas), name
+
+
 def test_save_system_refuses_an_existing_file_unless_overwrite(tmp_path):
     path = tmp_path / "plant.toml"
     path.write_text("# the user's notes")

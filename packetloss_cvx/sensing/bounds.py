@@ -131,17 +131,31 @@ def lower_bound_diverges(A: np.ndarray, Sigma_W: np.ndarray, P0: np.ndarray, q: 
             or lower_bound_covariance(A, np.asarray(P0, dtype=float), q) is None)
 
 
+def _frobenius(X: np.ndarray) -> float:
+    """``np.linalg.norm(X)`` of a float array by the operations it applies (the flattened array's dot with itself,
+    its square root: the same float) without its generic argument handling, which was a fifth of a step of
+    :func:`_iterate` at n = 2-4. O(size).
+
+    >>> X = np.random.default_rng(0).normal(size=(50, 4, 4)) * 1e3
+    >>> all(_frobenius(x) == float(np.linalg.norm(x)) for x in (*X, X, X[:, :2].swapaxes(1, 2)))
+    True
+    """
+    flat = X.ravel(order="K")
+    return math.sqrt(flat.dot(flat))
+
+
 def _iterate(V: np.ndarray, A: np.ndarray, Q: np.ndarray, sensor: Sensor,
              gamma: np.ndarray, steps: int = MARE_MAX_ITER) -> np.ndarray | None:
     """The fixed point of ``V <- g(V)`` with noise Q from V, or None when it diverges or does not settle."""
     scale = max(float(np.linalg.norm(Q)), float(np.linalg.norm(V)), np.finfo(float).tiny)
     step = riccati_map(A, Q, sensor, gamma)
+    tiny = np.finfo(float).tiny
     for _ in range(steps):
         new = step(V)
-        size = float(np.linalg.norm(new))
-        if not np.isfinite(size) or size > MARE_DIVERGENCE * scale:
+        size = _frobenius(new)
+        if not math.isfinite(size) or size > MARE_DIVERGENCE * scale:
             return None
-        if float(np.linalg.norm(new - V)) <= MARE_RTOL * max(size, np.finfo(float).tiny):
+        if _frobenius(new - V) <= MARE_RTOL * max(size, tiny):
             return new
         V = new
     return None
