@@ -695,3 +695,33 @@ def test_least_cost_within_power_reports_the_gap_it_certified(protocol):
     assert out.cost > 1e-12 * hand_cost(protocol, [0.0, 0.0], w)
     assert out.lower_bound < out.cost
     assert out.gap == pytest.approx((out.cost - out.lower_bound) / out.cost, rel=1e-12, abs=0.0)
+
+
+def test_the_compiled_power_program_is_kept_by_content(monkeypatch):
+    """PowerProgram.of keeps one compiled program per content of what the program is built from: an equal fresh
+    system (or one with another x0, a Parameter) shares it; another A, B, horizon, state or input weight, model
+    scale or table, kind or row count gets its own. A kept program answers as a new one does, bit for bit."""
+    from packetloss_cvx.allocation import power
+
+    model = power_model("exponential", 2, scale=[1.0, 2.0])
+
+    def plant(**change):
+        fields = dict(A=np.eye(2), B=np.eye(2), horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+                      mu=[0.5, 0.5], x0=[1.0, 1.0])
+        return System(**{**fields, **change})
+
+    kept = power.PowerProgram.of(plant(), model, "cost", 1)
+    assert power.PowerProgram.of(plant(), model, "cost", 1) is kept
+    assert power.PowerProgram.of(plant(x0=[3.0, -1.0]), model, "cost", 1) is kept
+    others = [(plant(A=[[1.0, 0.1], [0.0, 1.0]]), model, "cost", 1),
+              (plant(B=[[1.0, 0.0], [0.5, 1.0]]), model, "cost", 1),
+              (plant(horizon=3), model, "cost", 1), (plant(state_weight=[1.0, 2.0]), model, "cost", 1),
+              (plant(input_weight=[1.0, 2.0]), model, "cost", 1),
+              (plant(), power_model("exponential", 2, scale=[1.0, 3.0]), "cost", 1),
+              (plant(), model_of("table", 2), "cost", 1), (plant(), model_of("table-s", 2), "cost", 1),
+              (plant(), model, "power", 1), (plant(), model, "cost", 2)]
+    assert all(power.PowerProgram.of(*args) is not kept for args in others)
+    fresh = least_cost_within_power(plant(x0=[0.5, 2.0]), "tcp", model, 2.0)
+    monkeypatch.setattr(power, "PROGRAMS_KEPT", 0)                     # every program new
+    new = least_cost_within_power(plant(x0=[0.5, 2.0]), "tcp", model, 2.0)
+    assert (fresh.power.tolist(), fresh.cost, fresh.lower_bound) == (new.power.tolist(), new.cost, new.lower_bound)

@@ -19,6 +19,8 @@ certify the gap).
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 from typing import Any
 
@@ -29,7 +31,7 @@ from ..budgets import check, count_text
 from ..convex import ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, InputError, SolverError
 from ..evaluator import CostEvaluator
-from ..model import System
+from ..model import STRUCTURE_CACHE_MAX_BYTES, System
 from ..protocols import check_protocol
 from ..results import PowerAllocation
 from ..threads import blas_limited
@@ -44,7 +46,7 @@ from ..validation import numeric_array
 from .boxes import boundary, box_lp, small_lp
 from .delivery import PowerModel, rayleigh_majorant
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
-from .tcp import constant_cost, cost_epigraph, cut_points, tangent
+from .tcp import PROGRAM_BYTES_PER_ENTRY, PROGRAMS_KEY, constant_cost, cost_epigraph, cut_points, tangent
 from .udp import MonotoneCost, reported_gap, udp_allocate, udp_min_cost
 
 __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pareto"]
@@ -54,6 +56,10 @@ __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pare
 RAYLEIGH_TANGENTS = 16
 RAYLEIGH_ROUNDS = 6
 SEARCH_HALVINGS = 2100     #: the most halvings of the least-power search box (_search_cap): double precision's span
+#: compiled power programs kept (PowerProgram.of), the least recently used dropped first
+PROGRAMS_KEPT = 32
+_PROGRAMS: OrderedDict = OrderedDict()
+_PROGRAMS_LOCK = threading.Lock()
 
 # ------------------------------------------------------------------ the convex program (TCP-like, concave model)
 
@@ -66,8 +72,8 @@ class PowerProgram:
     concave table ``mu_i <= a_ik + b_ik P_i`` for each segment k and ``mu_i <= mu_last``.
     J*_tcp falls in mu, so the link is tight at the optimum. Parameters: x0, sqrt of the cost scale, the cap
     ``top`` on P and k rows ``G P <= h``. Kind "power": min sum P s.t. scaled cost <= 1 (scale 1 / (alpha - C));
-    kind "cost": min the scaled cost. Size O(N (n + m) + K m); compiled once per call of the API (about
-    20 ms), then each solve maps the Parameters and runs Clarabel.
+    kind "cost": min the scaled cost. Size O(N (n + m) + K m); compiled once (about 20 ms) and kept by
+    content (:meth:`of`), then each solve maps the Parameters and runs Clarabel.
 
     Examples
     --------
@@ -124,6 +130,47 @@ class PowerProgram:
             cons.append(scaled <= 1.0)
         self.problem = cp.Problem(cp.Minimize(objective), cons)
         self.compiled = ClarabelProgram(self.problem)
+
+    @classmethod
+    def of(cls, system: System, model: PowerModel, kind: str, rows: int) -> PowerProgram:
+        """The program for this system's structure, model, kind and number of rows: compiled on first use and kept
+        (the ``PROGRAMS_KEPT`` most recent, by content, while its estimated size fits ``STRUCTURE_CACHE_MAX_BYTES``),
+        so a problem asked again on an equal system (a fresh copy, another call) does not compile it again (10-16 ms
+        on two_actuator). The key is every input of the constructor: the system's fields its algebra reads
+        (:data:`~.tcp.PROGRAMS_KEY`: :func:`~.tcp.cost_epigraph`), the model's kind and data (its unit and table),
+        ``kind`` and ``rows``; x0, the cost scale, the cap and the rows' values are Parameters given to
+        :meth:`solve`, which assigns none of them (as :class:`~.tcp.TCPProgram`: shared without a lock). O(size of
+        the key) when kept.
+
+        Examples
+        --------
+        >>> from packetloss_cvx.allocation.delivery import power_model
+        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+        >>> model = power_model("exponential", 1, scale=1.0)
+        >>> PowerProgram.of(s, model, "power", 0) is PowerProgram.of(s.with_x0([2.0]), model, "power", 0)
+        True
+        >>> PowerProgram.of(s, model, "power", 0) is PowerProgram.of(s, power_model("exponential", 1, scale=2.0),
+        ...                                                          "power", 0)
+        False
+        """
+        N, n, m = system.horizon, system.n, system.m
+        if PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2 > STRUCTURE_CACHE_MAX_BYTES:
+            return cls(system, model, kind, rows)
+        parts: list = [kind, rows, model.kind, model.m]
+        for value in [*(getattr(system, name) for name in sorted(PROGRAMS_KEY.depends_on)),
+                      model.scale, model.powers, model.table]:
+            array = None if value is None else np.asarray(value)
+            parts.append(None if array is None else (array.dtype.str, array.shape, array.tobytes()))
+        key = tuple(parts)
+        with _PROGRAMS_LOCK:
+            program = _PROGRAMS.pop(key, None)
+        if program is None:
+            program = cls(system, model, kind, rows)
+        with _PROGRAMS_LOCK:
+            _PROGRAMS[key] = program            # the most recent last
+            while len(_PROGRAMS) > PROGRAMS_KEPT:
+                _PROGRAMS.pop(next(iter(_PROGRAMS)))
+        return program
 
     def solve(self, x0: np.ndarray, scale: float, top: np.ndarray, G: np.ndarray, h: np.ndarray) -> np.ndarray:
         """The solver's P (clipped to [0, top]) for the cap ``top`` and rows ``G P <= h``.
@@ -454,7 +501,7 @@ def _convex_least_power(setup: _Setup, alpha: float, C: float, prices: np.ndarra
     """The convex program's point moved onto {J* <= alpha} if it is just outside, and the tangent-cut bound on
     ``prices' x`` (prices = top / max(top))."""
     system, top, poly = setup.system, setup.top, setup.poly
-    program = PowerProgram(system, setup.model, "power", poly.G.shape[0])
+    program = PowerProgram.of(system, setup.model, "power", poly.G.shape[0])
     G = poly.G / top[None, :]
     P = program.solve(system.x0, 1.0 / max(alpha - C, np.finfo(float).tiny), top, G, poly.h)
     x = np.clip(P / top, 0.0, 1.0)
@@ -563,7 +610,7 @@ def _convex_least_cost(setup: _Setup) -> tuple[np.ndarray, float]:
     m = system.m
     C = constant_cost(system)
     reference = setup.cost.checked(np.ones(m)) - C
-    program = PowerProgram(system, setup.model, "cost", poly.G.shape[0])
+    program = PowerProgram.of(system, setup.model, "cost", poly.G.shape[0])
     P = program.solve(system.x0, 1.0 / max(reference, np.finfo(float).tiny), top, poly.G / top[None, :], poly.h)
     x = np.clip(P / top, 0.0, 1.0)
     g, r = setup.cuts(x, setup.evaluator)

@@ -87,6 +87,12 @@ class MonotoneCost:
         self.identity = to_mu is None
         self.to_mu = (lambda x: x) if to_mu is None else to_mu
         self.channel = (lambda i, t: t) if channel is None else channel
+        # the checked values already computed, by the bytes of the clipped x: the searches check the same point
+        # again (udp_min_cost's LP vertex is shared by boxes; a box's upper corner is its upper half's). A checked
+        # value also answers a probe (the probe's number wherever the check passes, the better one where it
+        # fails). Probes are not remembered: a probe is allowed to be wrong, and asking again is what lets a
+        # search steered by a wrong probe recover (tests/test_allocation_certificates.py's wrong probes)
+        self.known: dict[bytes, float] = {}
 
     def mu(self, x: np.ndarray) -> np.ndarray:
         """mu(x) for x clipped to [0, 1]^m, clipped to [0, 1] (the identity: clipped once, the same floats; the
@@ -95,17 +101,40 @@ class MonotoneCost:
         return x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0)
 
     def checked(self, x: np.ndarray) -> float:
-        """J*(mu(x)), self-checked."""
-        return self.evaluator.cost(self.mu(x))
+        """J*(mu(x)), self-checked; a point asked before answered from memory (the same float). O(m) then."""
+        x = np.asarray(x, dtype=float).clip(0.0, 1.0)
+        key = x.tobytes()
+        value = self.known.get(key)
+        if value is None:
+            value = self.evaluator.cost(x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0))
+            remember(self.known, key, value)
+        return value
 
     def probe(self, x: np.ndarray) -> float:
-        """J*(mu(x)) without the one-point self-check (searches only)."""
-        return self.evaluator.cost(self.mu(x), checked=False)
+        """J*(mu(x)) without the one-point self-check (searches only); a point checked before answered from
+        memory."""
+        x = np.asarray(x, dtype=float).clip(0.0, 1.0)
+        value = self.known.get(x.tobytes())
+        if value is None:
+            value = self.evaluator.cost(x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0), checked=False)
+        return value
 
     def line(self, x: np.ndarray, i: int, checked: bool) -> Callable[[float], float]:
         """``t -> J*(mu(x with x_i = t))`` for t in [0, 1]."""
         along = self.evaluator.line(self.mu(x), i, checked)
         return lambda t: along(min(max(float(self.channel(i, min(max(t, 0.0), 1.0))), 0.0), 1.0))
+
+
+#: the most checked values a :class:`MonotoneCost` keeps: about 100 bytes each at m = 2;
+#: beyond it the memory starts again (the values are the same; only the repeats cost again)
+MEMORY_MAX = 2**16
+
+
+def remember(memory: dict, key: bytes, value: float) -> None:
+    """``memory[key] = value``, the memory emptied first when it holds ``MEMORY_MAX`` values. O(1) amortised."""
+    if len(memory) >= MEMORY_MAX:
+        memory.clear()
+    memory[key] = value
 
 
 def split(l: np.ndarray, u: np.ndarray, weights: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
