@@ -377,7 +377,8 @@ def test_membership_runs_the_dp_form_only_where_a_gain_could_pass(monkeypatch):
     s = scalar(2.0)
     ran = []
     real = region.dp_riccati
-    monkeypatch.setattr(region, "dp_riccati", lambda system, mu: ran.append(float(mu[0])) or real(system, mu))
+    monkeypatch.setattr(region, "dp_riccati",
+                        lambda system, mu, **start: ran.append(float(mu[0])) or real(system, mu, **start))
     found = membership(s, [0.75], forms=("riccati", "dp"))
     assert ran == []
     assert found.verdict == "undecided"

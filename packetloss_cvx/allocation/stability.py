@@ -462,7 +462,7 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
         raise SolverError("inconsistent", f"the gain found at mu = {np.round(mu, 9).tolist()} has mean-square "
                                           f"radius {radius:.9g}, not below rho = {rho:g}")
     try:
-        dp = dp_riccati(system, mu)
+        dp = dp_riccati(system, mu, gain=point.gain)       # the policy iteration from the proved gain
         cost, kind = dp_cost(system, dp)
     except NumericalError:
         cost, kind = float("nan"), ""
