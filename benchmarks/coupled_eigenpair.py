@@ -6,9 +6,9 @@ against a baseline checkout, side by side in one run (docs/performance.md, sessi
 The 24 chains of tests/test_markov_region.py's "current"-convention test (seeds 100..105, four chains each),
 each tree in a fresh interpreter started in its own folder (interleaved, best of ``--repeats``), CPU seconds
 (time.process_time) around the 24 calls of ``homogeneous_coupled_riccati``, and per tree the accuracy: the
-chains where ``|lambda - rho(L_K)| > 1e-9 lambda`` and the largest, K the returned gains and rho markov.mjls's
+chains where ``|lambda - rho(L_K)| > 1e-9 lambda``, K the returned gains and rho markov.mjls's
 operator (the radius of the law the eigenpair reports: lambda where K is the minimiser; a least-squares gain that
-leaves a mode P vanishes on at 0 can be dearer), and the largest fixed-point residual ``||R(P) / lambda - P||``.
+leaves a mode P vanishes on at 0 can be dearer), the largest and the second largest.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = """
 import json, time, numpy as np
 from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.markov.mjls import mean_square_radius, mode_chain
+from packetloss_cvx.markov.mjls import mean_square_radius
 from packetloss_cvx.simulation import markov_region as mr
 cases = []
 for seed in range(6):
@@ -36,14 +36,8 @@ for seed in range(6):
 start = time.process_time()
 found = [mr.homogeneous_coupled_riccati(A, B, ch, "current") for A, B, ch in cases]
 seconds = time.process_time() - start
-gaps, residual = [], 0.0
-for (A, B, ch), (lam, P, K) in zip(cases, found):
-    gaps.append(abs(lam - mean_square_radius(A, B, ch, K, "current")) / lam)
-    _, T, h = mode_chain(ch)
-    R = mr._step(P, A, B, T, h, "current")[1]
-    residual = max(residual, float(np.linalg.norm(R / sum(np.trace(r) for r in R) - P / np.trace(P, axis1=1,
-                                                                                                 axis2=2).sum())))
-print(json.dumps([seconds, sum(g > 1e-9 for g in gaps), max(gaps), residual]))
+gaps = [abs(lam - mean_square_radius(A, B, ch, K, "current")) / lam for (A, B, ch), (lam, P, K) in zip(cases, found)]
+print(json.dumps([seconds, sum(g > 1e-9 for g in gaps), max(gaps), sorted(gaps)[-2]]))
 """
 
 
@@ -64,11 +58,11 @@ def main() -> None:
     for _ in range(args.repeats):
         old.append(run(args.baseline))
         new.append(run(ROOT))
-    print("| tree | CPU s (24 chains) | chains abs(lambda - rho(L_K)) > 1e-9 lambda | largest | largest residual |")
+    print("| tree | CPU s (24 chains) | chains abs(lambda - rho(L_K)) > 1e-9 lambda | largest | second largest |")
     print("|---|---|---|---|---|")
     for name, runs in (("baseline", old), ("this tree", new)):
-        seconds, count, gap, residual = min(runs)
-        print(f"| {name} | {seconds:.3f} | {count} | {gap:.1e} | {residual:.1e} |")
+        seconds, count, gap, second = min(runs)
+        print(f"| {name} | {seconds:.3f} | {count} | {gap:.1e} | {second:.1e} |")
     print(f"ratio {min(old)[0] / min(new)[0]:.1f}")
 
 
