@@ -27,6 +27,9 @@ CASES = {
         "stability_allocate(load_example('two_actuator'), 'stable', [1.0, 1.0], margin=0.9, "
         "constraints=[([[-1.0, 1.0]], [0.0])], bounds=(0.01, 1.0), gap=1e-3, progress=False)"),
     "stable (1, 0.05)": "stability_allocate(load_example('two_actuator'), 'stable', [1.0, 0.05], progress=False)",
+    "stable (1, 0.3)": "stability_allocate(load_example('two_actuator'), 'stable', [1.0, 0.3], progress=False)",
+    "stable (1, 1) margin 0.5": (
+        "stability_allocate(load_example('two_actuator'), 'stable', [1.0, 1.0], margin=0.5, progress=False)"),
     "dp-cost (1, 0.05) alpha 10": (
         "stability_allocate(load_example('two_actuator'), 'dp-cost', [1.0, 0.05], alpha=10.0, progress=False)"),
     "dp-cost (1, 1) alpha 10": (

@@ -17,6 +17,7 @@ from packetloss_cvx.simulation.markov_region import (
     chain_membership,
     chain_rate_map,
     critical_rate_unproved,
+    homogeneous_coupled_riccati,
 )
 from packetloss_cvx.simulation.region import membership
 
@@ -89,6 +90,28 @@ def test_current_convention_against_the_coupled_riccati_equation(seed):
                 continue
             assert radius >= 1 - 1e-9
 
+
+
+@pytest.mark.parametrize(("seed", "draw"), [(0, 1), (3, 0), (5, 0), (5, 1), (5, 2)])
+def test_current_convention_eigenpair_is_sandwiched_by_its_gains_and_its_certificate(seed, draw):
+    # the chains of the test above where the Perron eigenvector concentrates on the all-lost mode (the policy
+    # iteration's P settles off a fixed point): lambda = min_K rho(L_K) lies between the Collatz-Wielandt bound of
+    # its own P (every law's radius >= 1 + margin) and the radius of its own gains (markov.mjls's operator); both
+    # within 1e-9 relative of lambda pin it down (the power iteration's stall had left it 1e-5 off). The modes P
+    # weighs at rounding level (trace <= 1e-12, some of them slightly negative) are dropped from the certificate:
+    # what is left is PSD, so still a Collatz-Wielandt test matrix
+    rng = np.random.default_rng(100 + seed)
+    A = np.array([[1.0 + rng.uniform(0, 0.4), rng.uniform(-0.5, 0.5)], [0.0, rng.uniform(0.5, 1.3)]])
+    B = rng.normal(size=(2, 2))
+    chains = [GilbertElliott(p=rng.uniform(0.05, 0.6, 2), r=rng.uniform(0.05, 0.9, 2)) for _ in range(4)]
+    lam, P, K = homogeneous_coupled_riccati(A, B, chains[draw], "current")
+    weighed = np.trace(P, axis1=-2, axis2=-1) > 1e-12
+    Q = np.where(weighed[:, None, None], P, 0.0)
+    below = 1.0 + chain_certificate_margin(A, B, chains[draw], Q / np.trace(Q, axis1=-2, axis2=-1).sum(), "current")
+    above = mjls_radius(A, B, chains[draw], K, "current")
+    assert below <= above * (1 + 1e-12)
+    assert lam == pytest.approx(below, rel=1e-9)
+    assert lam == pytest.approx(above, rel=1e-9)
 
 def test_no_sampled_mode_gains_beat_an_outside_certificate():
     A, B = np.array([[1.2, 0.3], [0.0, 1.1]]), np.array([[1.0, 0.0], [0.0, 1.0]])

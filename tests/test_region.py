@@ -377,7 +377,8 @@ def test_membership_runs_the_dp_form_only_where_a_gain_could_pass(monkeypatch):
     s = scalar(2.0)
     ran = []
     real = region.dp_riccati
-    monkeypatch.setattr(region, "dp_riccati", lambda system, mu: ran.append(float(mu[0])) or real(system, mu))
+    monkeypatch.setattr(region, "dp_riccati",
+                        lambda system, mu, **start: ran.append(float(mu[0])) or real(system, mu, **start))
     found = membership(s, [0.75], forms=("riccati", "dp"))
     assert ran == []
     assert found.verdict == "undecided"
@@ -476,3 +477,28 @@ def test_membership_with_large_gains_near_the_boundary_decides_instead_of_raisin
     assert 1 - 1e-5 < enumerated_radius(A, B, found.gain, mu) < 1.0
     _, P, _ = LmiForm(A, B).certify(mu)
     assert -1e-4 < certificate_margin(A, B, mu, P) < -1e-7
+
+
+def test_homogeneous_riccati_started_from_another_blocks_eigenvector_finds_the_dominant_block():
+    # decoupled: lambda = max_i a_i^2 (1 - mu_i) by hand = 1.44 * 0.5 = 0.72 (block 1); a start concentrated on
+    # block 2 (another channel's P) has no weight on block 1, which the mix with I / n restores
+    a = np.array([1.2, 2.0, 0.5])
+    A, B, mu = np.diag(a), np.eye(3), np.array([0.5, 0.9, 0.2])
+    lam, P, K = homogeneous_riccati(A, B, mu, start=np.diag([0.0, 1.0, 0.0]))
+    assert lam == pytest.approx(float(np.max(a**2 * (1 - mu))), rel=1e-10)
+    assert P[0, 0] == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_homogeneous_riccati_started_near_the_eigenvector_is_the_least_radius(seed, two_actuator):
+    # a start from a nearby channel's P (as the design-for-stability search passes): lambda is its own gain's
+    # radius (the operator's, enumerated over the delivery patterns) and the cold start's, and scalar by hand
+    rng = np.random.default_rng(seed)
+    mu = rng.uniform(0.05, 0.95, 2)
+    A, B = two_actuator.A, two_actuator.B
+    near = homogeneous_riccati(A, B, np.clip(mu + rng.normal(scale=0.02, size=2), 0.0, 1.0))[1]
+    lam, _, K = homogeneous_riccati(A, B, mu, start=near)
+    assert lam == pytest.approx(enumerated_radius(A, B, K, mu), rel=1e-9)
+    assert lam == pytest.approx(homogeneous_riccati(A, B, mu)[0], rel=1e-10)
+    scalar_lam = homogeneous_riccati(np.array([[2.0]]), np.array([[1.0]]), np.array([mu[0]]), start=np.eye(1))[0]
+    assert scalar_lam == pytest.approx(4 * (1 - mu[0]), rel=1e-12)

@@ -130,3 +130,33 @@ def test_dp_input_hessian_is_the_expectation_over_the_delivery_patterns(seed):
         probability = np.prod(np.where(np.array(v) == 1.0, mu, 1.0 - mu))
         expected += probability * (V @ np.diag(psi) @ V + V @ B.T @ P @ B @ V)
     assert np.allclose(dp_input_hessian(B, P, mu, psi), expected, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("gap", [1e-2, 1e-3, 1e-4])
+def test_started_from_a_stabilising_gain_is_the_same_solution(gap):
+    # scalar a = 2, b = w = psi = 1, mu = 3/4 + gap: by hand p solves b^2 (1 - a^2 + mu a^2) p^2
+    # + (psi (1 - a^2) - w b^2) p - w psi = 0 (the equation times psi + b^2 p); the gain k = a is stabilising
+    # (radius a^2 (1 - mu) = 1 - 4 gap), and the policy iteration from it skips the value iteration
+    a, mu = 2.0, 0.75 + gap
+    s = System(A=[[a]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[mu], x0=[1.0])
+    c2, c1, c0 = 1 - a * a + mu * a * a, (1 - a * a) - 1, -1.0
+    p = (-c1 + np.sqrt(c1 * c1 - 4 * c2 * c0)) / (2 * c2)
+    cold, started = dp_riccati(s), dp_riccati(s, gain=[[a]])
+    assert started.cost_to_go[0, 0] == pytest.approx(p, rel=1e-9)
+    assert cold.cost_to_go[0, 0] == pytest.approx(p, rel=1e-9)
+    assert started.iterations < cold.iterations
+    assert started.spectral_radius == pytest.approx(mean_square_radius(s.A, s.B, started.gain, s.mu))
+
+
+def test_a_start_that_is_not_stabilising_or_sees_no_unstable_mode_is_ignored():
+    # k = 0.5 leaves radius (2 - 0.9 * 0.5)^2 + 0.09 * 0.25 > 1: the value iteration runs as without it
+    s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    assert dp_riccati(s, gain=[[0.5]]).cost_to_go[0, 0] == dp_riccati(s).cost_to_go[0, 0]
+    # Omega does not see the unstable mode: the DP optimum leaves it alone (no stabilising solution), and a
+    # stabilising start must not turn that into Hewer's stabilising solution
+    s = System(A=[[1.5, 0], [0, 0.5]], B=[[1.0], [1.0]], horizon=2, state_weight=[0.0, 1.0],
+               input_weight=[1.0], mu=[0.9], x0=[1.0, 1.0])
+    K = np.array([[1.5, 0.0]])
+    assert mean_square_radius(s.A, s.B, K, s.mu) < 1
+    with pytest.raises(NumericalError, match="stabilising"):
+        dp_riccati(s, gain=K)

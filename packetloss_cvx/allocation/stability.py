@@ -190,16 +190,34 @@ class _Recent:
 _RECENT = 64
 
 
-def _target(system: System, target: str, rho: float, alpha: float | None, check: bool = False) -> Target:
+def _memos(system: System, rho: float) -> tuple[_Recent, _Recent]:
+    """The scaled plant's homogeneous Riccati eigenpairs and the system's DP solutions, each a :class:`_Recent`:
+    kept by the search and handed to the final check, which asks them again at the answer's mu. Each eigenpair's
+    power iteration starts from the last one's P (homogeneous_riccati's ``start``): the search asks along lines
+    and edges, where consecutive channels are near. O(1)."""
+    plant = _scaled(system, rho)
+    last: list[np.ndarray] = []
+
+    def eigenpair(mu: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        found = homogeneous_riccati(plant.A, plant.B, mu, start=last[0] if last else None)
+        if np.all(np.isfinite(found[1])):
+            last[:] = [found[1]]
+        return found
+
+    return _Recent(eigenpair), _Recent(lambda mu: dp_riccati(system, mu))
+
+
+def _target(system: System, target: str, rho: float, alpha: float | None, check: bool = False,
+            memos: tuple[_Recent, _Recent] | None = None) -> Target:
     """The target's :class:`Target`: its verdicts from :func:`~packetloss_cvx.simulation.region.membership`'s
     SEARCH_FORMS, or with ``check`` its CHECK_FORMS cross-checked (forms that decide differently raise
-    CrossCheckError)."""
+    CrossCheckError). ``memos`` (:func:`_memos`, made here when not given): the check shares the search's, so the
+    answer's eigenpair and DP solution, the same calls on the same floats, are not computed twice."""
     plant = _scaled(system, rho)
     lmi = LazyLmi(plant.A, plant.B)
     A, B = system.A, system.B
     forms = CHECK_FORMS if check else SEARCH_FORMS
-    eigenpairs = _Recent(lambda mu: homogeneous_riccati(plant.A, plant.B, mu))
-    solutions = _Recent(lambda mu: dp_riccati(system, mu))
+    eigenpairs, solutions = _memos(system, rho) if memos is None else memos
 
     def stable(mu: np.ndarray) -> Point:
         found = membership(plant, mu, forms=forms, cross_check=check, lmi=lmi, riccati=eigenpairs(mu))
@@ -431,8 +449,9 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
         raise InfeasibleError(f"the constraints admit no mu: {err}", None) from None
     unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
     prices = beta / unit
-    ended, search, seen = _search(poly, prices, gap, _target(system, target, rho, alpha), max_boxes, time_limit,
-                            progress)
+    memos = _memos(system, rho)
+    ended, search, seen = _search(poly, prices, gap, _target(system, target, rho, alpha, memos=memos), max_boxes,
+                                  time_limit, progress)
     what = ("design for stability" if target == "stable" else "design for the DP cost")
     if search.best_mu is None:
         if ended == "exhausted":
@@ -445,7 +464,7 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
     out = search.outcome(ended, "monotone branch and bound on certified memberships (LP bounds)", what)
     mu = check_in_polytope(out.mu, poly, what)
     return _verified(system, target, rho, alpha, mu, beta, out, unit, seen[out.mu.tobytes()],
-                     _target(system, target, rho, alpha, check=True).decide)
+                     _target(system, target, rho, alpha, check=True, memos=memos).decide)
 
 
 def _verified(system: System, target: str, rho: float, alpha: float | None, mu: np.ndarray, beta: np.ndarray,
@@ -462,7 +481,7 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
         raise SolverError("inconsistent", f"the gain found at mu = {np.round(mu, 9).tolist()} has mean-square "
                                           f"radius {radius:.9g}, not below rho = {rho:g}")
     try:
-        dp = dp_riccati(system, mu)
+        dp = dp_riccati(system, mu, gain=point.gain)       # the policy iteration from the proved gain
         cost, kind = dp_cost(system, dp)
     except NumericalError:
         cost, kind = float("nan"), ""

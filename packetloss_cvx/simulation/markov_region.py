@@ -65,7 +65,8 @@ _POWER_STEPS, _POWER_WATCH, _POLICY_STEPS = 30, 4, 50
 #: how far from a fixed point of R (``||R(P) / lambda - P||``, sum of traces 1) a policy iteration's P may be and
 #: still be taken: the power iteration's own stop (its step is this residual / 1.1). On 24 random chains, both
 #: conventions, the policy iteration's P came out within 1.8e-14 at 39 points and 2e-6 to 4e-3 away at 9
-#: (transient or gainless modes: the Perron eigenvector of L_K^* at a K that is not R's minimiser there)
+#: (transient or gainless modes: the Perron eigenvector of L_K^* at a K that is not R's minimiser there); more
+#: policy steps then reach a fixed point (:func:`_policy_until_fixed`, session 30), else the power steps go on
 _FIXED_TOL = RICCATI_RTOL
 #: the lift of P on every mode when its own minimiser's gains do not check (module docstring)
 _LIFT = 1e-6
@@ -113,11 +114,16 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
     K = np.zeros((M, B.shape[1], n))
     policy = M * n * n <= DENSE_MAX_DIM
     steps = _POWER_STEPS if policy else HOMOGENEOUS_RICCATI_MAX_ITER
+    gains = None
     with np.errstate(over="ignore", invalid="ignore"):
         P, ended = _power(P, A, B, T, h, delivery, 0, steps, policy)
         if policy and ended != "stopped":
             found, moved = _policy_iteration(P, A, B, channel, T, h, delivery)
-            if moved and _fixed(found, A, B, T, h, delivery):
+            fixed = moved and _fixed(found, A, B, T, h, delivery)
+            if moved and not fixed:
+                found, gains = _policy_until_fixed(found, A, B, channel, T, h, delivery)
+                fixed = gains is not None
+            if fixed:
                 P = found
             else:
                 # not a fixed point of R: on a transient mode (a chain state never reached again, e.g. good with
@@ -125,7 +131,9 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
                 # R; the power iteration goes on as without the policy iteration
                 P, _ = _power(P, A, B, T, h, delivery, _POWER_WATCH if ended == "slow" else steps,
                               HOMOGENEOUS_RICCATI_MAX_ITER, False)
-        K, _ = _step(P, A, B, T, h, delivery)
+        # the gains whose Perron eigenvector P is where the policy steps found it (a minimiser at P, of radius
+        # lambda; the least-squares minimiser at P leaves the modes P nearly vanishes on with gain 0), else P's own
+        K = gains if gains is not None else _step(P, A, B, T, h, delivery)[0]
     # lambda = sum_a tr R(P+)_a / sum_a tr P+_a, a sum of squares: never negative (as simulation.region's)
     if not np.all(np.isfinite(P)):
         return float("nan"), P, K
@@ -165,6 +173,55 @@ def _fixed(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
     return bool(np.isfinite(lam) and lam > 0 and float(np.linalg.norm(R / lam - P)) <= _FIXED_TOL)
 
 
+def _perron(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray, h: np.ndarray,
+            delivery: str) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """One policy step from P (M, n, n): K = argmin L_K^*(P), then ``(rho(L_K), its Perron eigenvector of L_K^*
+    scaled to sum_a tr = 1, K)``; None where K or the eigenvector is not finite, or the root is degenerate
+    (lambda <= 0, or the eigenvector not PSD to CERTIFICATE_RTOL). O((M n^2)^3)."""
+    M, n = P.shape[0], A.shape[0]
+    K, _ = _step(P, A, B, T, h, delivery)
+    if not np.all(np.isfinite(K)):
+        return None
+    vals, vecs = np.linalg.eig(second_moment_operator(A, B, channel, K, delivery).T)
+    top = int(np.argmax(vals.real))
+    lam = float(vals[top].real)
+    V = vecs[:, top].real.reshape(M, n, n)        # rows of the operator: vec(Q_b) row-major, b first
+    V = 0.5 * (V + V.transpose(0, 2, 1))
+    trace = float(np.trace(V, axis1=-2, axis2=-1).sum())
+    if not (np.isfinite(lam) and trace != 0.0):
+        return None
+    Pn = V / trace
+    # a degenerate Perron root (lambda = 0, its eigenvector not PSD): keep the last good P
+    if lam <= 0.0 or min(float(np.linalg.eigvalsh(p)[0]) for p in Pn) < -CERTIFICATE_RTOL:
+        return None
+    return lam, Pn, K
+
+
+def _policy_until_fixed(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray,
+                        h: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Policy steps (:func:`_perron`) from a settled policy iteration's P that is not a fixed point of R, at most
+    _POLICY_STEPS, until one is (:func:`_fixed`): ``(that P, the gains K whose Perron eigenvector it is)``, else
+    ``(P, None)``. Since ``L_K^*(P) = lambda P = R(P)`` there to RICCATI_RTOL, K attains R's minimum at P, and its
+    radius is lambda.
+
+    Where the eigenvector concentrates on a gainless mode (the chain state where every channel is lost, known to
+    a "current" law) the other modes' P_a tend to 0 and every E_a to rank one, the Hessians H_a to singular, and
+    the least-squares minimiser is free along their near-kernel: lambda settles (its error is second order in K)
+    while P is still 1e-6 to 1e-3 from a fixed point, and the next step's K may throw it back. The steps wander,
+    but land on a fixed point of R to rounding within a few (tests/test_markov_region.py's "current" chains: 3 to
+    21), where the power iteration crawls towards one (5,000 steps, the residual still about 1e-5). A P taken
+    here is checked like any other: the caller's certificates. O(_POLICY_STEPS (M n^2)^3)."""
+    Q = P
+    for _ in range(_POLICY_STEPS):
+        found = _perron(Q, A, B, channel, T, h, delivery)
+        if found is None:
+            break
+        _, Q, K = found
+        if _fixed(Q, A, B, T, h, delivery):
+            return Q, K
+    return P, None
+
+
 def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray,
                       h: np.ndarray, delivery: str) -> tuple[np.ndarray, bool]:
     """From power-iteration P (M, n, n): the mode gains K = argmin L_K^*(P), then P = the Perron eigenvector of
@@ -173,24 +230,12 @@ def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: Gilb
     P``, a Collatz-Wielandt bound), so it converges where the power iteration crawls. A candidate like the power
     iteration's: the caller checks it. Returns the P found and whether it moved (False: P given back). Time
     O((M n^2)^3) a step."""
-    M, n = P.shape[0], A.shape[0]
     best, last, moved = P.copy(), float("inf"), False
     for _ in range(_POLICY_STEPS):
-        K, _ = _step(P, A, B, T, h, delivery)
-        if not np.all(np.isfinite(K)):
+        found = _perron(P, A, B, channel, T, h, delivery)
+        if found is None:
             break
-        vals, vecs = np.linalg.eig(second_moment_operator(A, B, channel, K, delivery).T)
-        top = int(np.argmax(vals.real))
-        lam = float(vals[top].real)
-        V = vecs[:, top].real.reshape(M, n, n)        # rows of the operator: vec(Q_b) row-major, b first
-        V = 0.5 * (V + V.transpose(0, 2, 1))
-        trace = float(np.trace(V, axis1=-2, axis2=-1).sum())
-        if not (np.isfinite(lam) and trace != 0.0):
-            break
-        Pn = V / trace
-        # a degenerate Perron root (lambda = 0, its eigenvector not PSD): keep the last good P
-        if lam <= 0.0 or min(float(np.linalg.eigvalsh(p)[0]) for p in Pn) < -CERTIFICATE_RTOL:
-            break
+        lam, Pn, _ = found
         settled = lam >= last * (1.0 - RICCATI_RTOL)
         if not settled or lam <= last:
             best, moved = Pn, True

@@ -78,7 +78,7 @@ def _weights(system: System, mu: npt.ArrayLike | None) -> tuple[np.ndarray, ...]
     return A, B, mu_, system.state_weights[0], system.input_weights[0]
 
 
-def dp_riccati(system: System, mu: npt.ArrayLike | None = None) -> Riccati:
+def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray | None = None) -> Riccati:
     """The stationary DP optimum: the stabilising solution of the modified Riccati equation.
 
     Value iteration from ``P = Omega`` until the gain is mean-square stabilising, then policy
@@ -87,11 +87,19 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None) -> Riccati:
     :func:`~.moments.closed_loop`. Time O(iterations (n^3 + m^3)) plus O(n^6) per policy step
     (n <= 30; GMRES beyond).
 
+    With ``gain``, a law already proved mean-square stabilising at mu (its radius checked here again) and
+    ``Omega > 0``, the policy iteration starts from it: the stabilising solution is unique, so the answer is the
+    same to RICCATI_RTOL and passes the same checks, without the value iteration, which crawls near the boundary
+    of the stabilisable set (1e-7 inside it on two_actuator: 1,433 steps, 35 ms, against 8 policy steps, 2 ms).
+    A gain that is not stabilising there, or from which the policy iteration does not converge, is ignored.
+
     Parameters
     ----------
     system : System
     mu : array_like, optional
         Another channel (default: the system's stationary channel).
+    gain : ndarray (m, n), optional
+        A mean-square stabilising law at mu to start the policy iteration from.
 
     Returns
     -------
@@ -118,8 +126,11 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None) -> Riccati:
     scale = max(float(np.linalg.norm(Omega)), float(np.max(psi)))
     P = Omega.copy()
     iterations = 0
+    started = _started(gain, A, B, mu_, Omega, psi)
+    if started is not None:
+        P, iterations = started
     with np.errstate(over="ignore", invalid="ignore"):
-        while True:
+        while started is None:
             K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
             iterations += 1
             size = float(np.linalg.norm(P_next))
@@ -151,6 +162,27 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None) -> Riccati:
         raise NumericalError(f"modified Riccati equation: relative residual {residual:.1e} after {iterations} "
                              "iterations")
     return Riccati(K, P, float(np.sum(P * system.noise_cov)), radius, iterations, residual)
+
+
+def _started(gain: np.ndarray | None, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
+             psi: np.ndarray) -> tuple[np.ndarray, int] | None:
+    """The policy iteration from ``gain`` where that law is finite, of shape (m, n), mean-square stabilising at mu
+    and the iteration converges: ``(P, steps)``, else None (the value iteration then runs as without it). Only
+    with ``Omega > 0``: a singular Omega may not see an unstable mode, where the value iteration's limit (the
+    optimum) is not the stabilising solution that Hewer's iteration reaches. O(steps n^6)."""
+    if gain is None:
+        return None
+    K = np.asarray(gain, dtype=float)
+    if K.shape != (B.shape[1], A.shape[0]) or not np.all(np.isfinite(K)) or not np.linalg.eigvalsh(Omega)[0] > 0:
+        return None
+    try:
+        if not is_mean_square_stable(mean_square_radius(A, B, K, mu)):
+            return None
+        with np.errstate(over="ignore", invalid="ignore"):
+            P, steps = _policy_iteration(K, A, B, mu, Omega, psi)
+    except (NumericalError, np.linalg.LinAlgError):
+        return None
+    return (P, steps) if np.all(np.isfinite(P)) else None
 
 
 def _policy_iteration(K: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
