@@ -47,6 +47,19 @@ CASES = {
         "s = attach_channel(s, GilbertElliott(p=(1 - rate) * (1 - lam), r=rate * (1 - lam), belief=[0.2, 0.9], **h))\n",
         "sim = simulate(s, 4000, seed=322, laws=['tcp', 'udp'], progress=False)\n"
         "result = sorted((k, v.mean, v.stderr, v.exact) for k, v in sim.open_loop.items())"),
+    "simulate, N = 1000 Gilbert chain (outcomes reveal the state), 4000 runs (test_simulate_markov, seed 321)": (
+        "import numpy as np\n"
+        "from packetloss_cvx.channel import GilbertElliott\n"
+        "from packetloss_cvx.markov import attach_channel\n"
+        "from packetloss_cvx.random_systems import random_system\n"
+        "from packetloss_cvx.simulation.montecarlo import simulate\n"
+        "rng = np.random.default_rng(321)\n"
+        "s = random_system(rng, n=3, m=2, horizon=1000, spectral_radius=0.97, non_stationary=False, noise=False,\n"
+        "                  edge_mu=False, time_varying=False)\n"
+        "lam, rate = rng.uniform(0.5, 0.9, 2), rng.uniform(0.6, 0.9, 2)\n"
+        "s = attach_channel(s, GilbertElliott(p=(1 - rate) * (1 - lam), r=rate * (1 - lam)))\n",
+        "sim = simulate(s, 4000, seed=321, laws=['tcp', 'udp'], progress=False)\n"
+        "result = sorted((k, v.mean, v.stderr, v.exact) for k, v in sim.open_loop.items())"),
     "region --law dp --sensor-grid 4, scalar sensor file (test_sensing_cli)": (
         "import tempfile\n"
         "from pathlib import Path\n"

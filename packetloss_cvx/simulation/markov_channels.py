@@ -118,7 +118,10 @@ def sample_markov_paths(channel: GilbertElliott | MarkovChannel, steps: int, sam
     the delivery is the state's h (no more draws); otherwise a second uniform array gives
     ``v_t = u'_t < h(S_t)``. So a memoryless Gilbert chain (p + r = 1, h_good = 1, h_bad = 0) draws exactly
     the Bernoulli(r) deliveries of the same stream, run by run (the first runs do not depend on ``samples``).
-    Time and memory O(samples steps m). A MarkovChannel: state indices, ``S_0`` and ``S_t`` the inverse of the
+    Time and memory O(samples steps m). The arrays are (samples, steps, m) views of time-major (steps, samples, m)
+    data: a consumer stepping in time (:func:`~packetloss_cvx.simulation.runs.plan_costs`, the closed loops) reads
+    one contiguous slice a step and its time-major copy is no copy at all.
+    A MarkovChannel: state indices, ``S_0`` and ``S_t`` the inverse of the
     cumulative distribution of the initial belief and of the row ``T[S_{t-1}]`` at ``u_t`` (state 0 iff
     ``u_t < T[S_{t-1}, 0]``: a two-state twin draws the Gilbert–Elliott paths), time O(samples steps m K).
 
@@ -132,25 +135,27 @@ def sample_markov_paths(channel: GilbertElliott | MarkovChannel, steps: int, sam
     """
     T, S = _count(steps, "steps"), _count(samples, "samples")
     # the chain steps in time: walk it time-major, (T, S, m) contiguous per step (a step of the (S, T, m) layout
-    # strides over whole runs, ~3x slower at T = 1000), then hand back the (S, T, m) layout; the same numbers
+    # strides over whole runs, ~3x slower at T = 1000), and hand back (S, T, m) views of the time-major arrays
+    # (the deliveries too: the consumers step in time); the same numbers
     u = np.ascontiguousarray(rng.random((S, T, channel.m)).swapaxes(0, 1))
     if isinstance(channel, MarkovChannel):
         states = np.empty((T, S, channel.m), dtype=np.int64)
         states[0] = _draw(u[0], np.broadcast_to(channel.initial_belief, (S, *channel.stationary.shape)))
         for t in range(1, T):
             states[t] = _next_states(channel, states[t - 1], u[t])
-        states = np.ascontiguousarray(states.swapaxes(0, 1))
         h = state_delivery(channel, states)
-        return states, (h == 1 if reveals_state(channel) else rng.random(states.shape) < h)
+        v = h == 1 if reveals_state(channel) else rng.random((S, T, channel.m)).swapaxes(0, 1) < h
+        return states.swapaxes(0, 1), v.swapaxes(0, 1)
     good = np.empty((T, S, channel.m), dtype=bool)
     good[0] = u[0] < channel.initial_belief
     stay, enter = 1.0 - channel.p, channel.r
     for t in range(1, T):
         np.less(u[t], np.where(good[t - 1], stay, enter), out=good[t])
-    good = np.ascontiguousarray(good.swapaxes(0, 1))
     if reveals_state(channel):
-        return good, np.where(good, channel.h_good, channel.h_bad) == 1
-    return good, rng.random(good.shape) < np.where(good, channel.h_good, channel.h_bad)
+        v = np.where(good, channel.h_good, channel.h_bad) == 1
+    else:
+        v = rng.random((S, T, channel.m)).swapaxes(0, 1) < np.where(good, channel.h_good, channel.h_bad)
+    return good.swapaxes(0, 1), v.swapaxes(0, 1)
 
 
 def sample_markov_deliveries(channel: GilbertElliott | MarkovChannel, horizon: int, samples: int,
