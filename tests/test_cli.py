@@ -170,3 +170,18 @@ def test_a_signal_inside_a_library_import_is_the_interrupt_not_a_fault(monkeypat
     assert main(["solve", "two_actuator"]) == 130
     err = capsys.readouterr().err
     assert err.strip().splitlines() == ["packetloss-cvx: interrupted by SIGINT"]
+
+
+def test_the_program_freezes_the_collector_at_its_end_and_an_in_process_call_does_not(capsys):
+    """``main()`` without argv ends the program: it freezes what is alive so the shutdown does not collect it again;
+    ``main(argv)`` (tests, notebooks) leaves the caller's garbage collector alone."""
+    import gc
+
+    before = gc.get_freeze_count()
+    assert main(["solve", "no-such-file.toml"]) == 2
+    assert gc.get_freeze_count() == before
+    probe = ("import gc, sys; from packetloss_cvx.cli import main; sys.argv = ['packetloss-cvx', 'solve', "
+             "'no-such-file.toml']; code = main(); print(code, gc.get_freeze_count() > 0)")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    assert done.stdout.split() == ["2", "True"]
+    assert done.stderr.count("\n") == 1            # the one line of bad input, and nothing from the shutdown
