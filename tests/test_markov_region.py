@@ -199,3 +199,21 @@ def test_chain_certificate_margin_is_the_radius_bound_by_hand(P, delivery, expec
     P = np.array(P)[:, None, None]
     margin = chain_certificate_margin(np.array([[2.0]]), np.array([[1.0]]), ch, P, delivery)
     assert margin == pytest.approx(expected, abs=1e-12)
+
+
+@pytest.mark.parametrize(("a", "p", "r"), [
+    ([1.0081973392691654, 1.6570049780089249, 1.2145586912876247], [0.528405766277057, 0.1964285046745779],
+     [0.5977019058914226, 0.5906309904931722]),
+    ([1.2124664594314019, 1.8375938704985586, 1.6428041510616023], [0.27899003775333686, 0.2775204509256364],
+     [0.7651880185776133, 0.2345712165067831]),
+])
+def test_current_convention_eigenvalue_of_a_plant_with_a_mode_no_channel_actuates(a, p, r):
+    # decoupled, B the first two columns of I, by hand: state 3 evolves as x3' = a3 x3 under every law, radius
+    # a3^2; state i = 1, 2 at best deadbeat while its channel is good (delivered), a_i x_i while bad, so its least
+    # radius is a_i^2 P(bad -> bad) = a_i^2 (1 - r_i); lambda = min over laws = the largest of the three (a3^2
+    # here), >= 1: unstable. (The policy steps' gains wander to 1e18-1e32 on state 3; they once gave 0.82 for 1.475)
+    A, B = np.diag(a), np.eye(3)[:, :2]
+    chain = GilbertElliott(p=p, r=r)
+    lam, _, _ = homogeneous_coupled_riccati(A, B, chain, "current")
+    assert lam == pytest.approx(max(a[2] ** 2, *(a[i] ** 2 * (1 - r[i]) for i in range(2))), rel=1e-9)
+    assert chain_membership(A, B, chain, "current").verdict == "unstable"

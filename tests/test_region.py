@@ -502,3 +502,20 @@ def test_homogeneous_riccati_started_near_the_eigenvector_is_the_least_radius(se
     assert lam == pytest.approx(homogeneous_riccati(A, B, mu)[0], rel=1e-10)
     scalar_lam = homogeneous_riccati(np.array([[2.0]]), np.array([[1.0]]), np.array([mu[0]]), start=np.eye(1))[0]
     assert scalar_lam == pytest.approx(4 * (1 - mu[0]), rel=1e-12)
+
+
+def test_a_started_eigenpair_that_misses_the_dominant_block_is_no_verdict():
+    # decoupled, mode 4 not actuated: every law leaves it x4' = a4 x4, so every radius is >= a4^2 = 4.58 by hand and
+    # the plant is unstable at every mu. Started from the eigenpair at a nearby-in-the-search mu (as design for
+    # stability passes it), the candidate may end on another block (lambda below 1): its gain must not pass, and the
+    # forms together still find the certificate of instability
+    A = np.diag([2.2328375202156794, 1.8467869759883448, 2.3686199262347265, 2.13978466512856])
+    B = np.eye(4)[:, :3]
+    before = np.array([0.49593374634389376, 0.4820853325965151, 0.7344779211378196])
+    mu = np.array([0.9401060489353833, 0.4949396686027038, 0.5799140883727022])
+    s = System(A=A, B=B, horizon=2, state_weight=np.ones(4), input_weight=np.ones(3), mu=mu, x0=np.ones(4))
+    started = homogeneous_riccati(A, B, mu, start=homogeneous_riccati(A, B, before)[1])
+    assert membership(s, mu, forms=("riccati",), riccati=started).verdict != "stable"
+    found = membership(s, mu, riccati=started)
+    assert found.verdict == "unstable"
+    assert found.gain is None

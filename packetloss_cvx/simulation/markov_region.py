@@ -134,13 +134,18 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
         # the gains whose Perron eigenvector P is where the policy steps found it (a minimiser at P, of radius
         # lambda; the least-squares minimiser at P leaves the modes P nearly vanishes on with gain 0), else P's own
         K = gains if gains is not None else _step(P, A, B, T, h, delivery)[0]
-    # lambda = sum_a tr R(P+)_a / sum_a tr P+_a, a sum of squares: never negative (as simulation.region's)
+    return _eigenvalue(P, A, B, T, h, delivery), P, K
+
+
+def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str) -> float:
+    """lambda = sum_a tr R(P+)_a / sum_a tr P+_a (P+ the PSD part of P), a sum of squares: never negative (as
+    simulation.region's); nan where P is not finite or has no PSD part. O(M (M n^2 m + n^3))."""
     if not np.all(np.isfinite(P)):
-        return float("nan"), P, K
+        return float("nan")
     L, w = psd_factor(P)
     total = float(np.sum(w))
     squares = sum(float(np.sum(F * F)) for F in _riccati_factors(L, A, B, T, h, delivery))
-    return (squares / total if total > 0 else float("nan")), P, K
+    return squares / total if total > 0 else float("nan")
 
 
 def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str, first: int,
@@ -200,9 +205,12 @@ def _perron(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott
 def _policy_until_fixed(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray,
                         h: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Policy steps (:func:`_perron`) from a settled policy iteration's P that is not a fixed point of R, at most
-    _POLICY_STEPS, until one is (:func:`_fixed`): ``(that P, the gains K whose Perron eigenvector it is)``, else
-    ``(P, None)``. Since ``L_K^*(P) = lambda P = R(P)`` there to RICCATI_RTOL, K attains R's minimum at P, and its
-    radius is lambda.
+    _POLICY_STEPS, until one is (:func:`_fixed`) whose lambda (:func:`_eigenvalue`, what the caller reports) is the
+    gains' Perron root to _FIXED_TOL: ``(that P, the gains K whose Perron eigenvector it is)``, else ``(P, None)``.
+    Since ``L_K^*(P) = lambda P = R(P)`` there to RICCATI_RTOL, K attains R's minimum at P, and its radius is
+    lambda. (Where the wandering gains reach 1e18-1e32 on a mode no channel actuates, a fixed point of R by the
+    traces can have a sum-of-squares lambda far below the root: 0.82 against 1.475 = a_3^2 on a decoupled plant,
+    tests/test_markov_region.py; such a P is not taken.)
 
     Where the eigenvector concentrates on a gainless mode (the chain state where every channel is lost, known to
     a "current" law) the other modes' P_a tend to 0 and every E_a to rank one, the Hessians H_a to singular, and
@@ -216,8 +224,8 @@ def _policy_until_fixed(P: np.ndarray, A: np.ndarray, B: np.ndarray, channel: Gi
         found = _perron(Q, A, B, channel, T, h, delivery)
         if found is None:
             break
-        _, Q, K = found
-        if _fixed(Q, A, B, T, h, delivery):
+        root, Q, K = found
+        if _fixed(Q, A, B, T, h, delivery) and abs(_eigenvalue(Q, A, B, T, h, delivery) - root) <= _FIXED_TOL * root:
             return Q, K
     return P, None
 

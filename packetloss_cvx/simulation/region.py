@@ -230,10 +230,11 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray, start: np.
 
     ``start`` (n, n), optional: a PSD matrix near the eigenvector (a nearby channel's P), where every point's
     iteration starts instead of ``I / n``, mixed as ``(1 - _START_MIX) start / tr(start) + _START_MIX I / n``: an
-    interior point of the PSD cone, from which the power iteration reaches the Perron eigenvector as from
-    ``I / n`` (the mix keeps the directions a nearby channel's P may lack, e.g. a decoupled plant's other
-    blocks), in fewer steps where the start is near it. A start that is not finite, or whose trace is not
-    positive, is ignored.
+    interior point of the PSD cone (the mix keeps the directions a nearby channel's P may lack, e.g. a decoupled
+    plant's other blocks), in fewer steps where the start is near the eigenvector. Not always the same
+    candidate: on a decoupled plant the steps can end on another block's eigenvector than the cold start's
+    (either may miss the dominant block; tests/test_region.py), which the caller's checks then refuse. A start
+    that is not finite, or whose trace is not positive, is ignored.
 
     Examples
     --------
