@@ -217,3 +217,21 @@ def test_current_convention_eigenvalue_of_a_plant_with_a_mode_no_channel_actuate
     lam, _, _ = homogeneous_coupled_riccati(A, B, chain, "current")
     assert lam == pytest.approx(max(a[2] ** 2, *(a[i] ** 2 * (1 - r[i]) for i in range(2))), rel=1e-9)
     assert chain_membership(A, B, chain, "current").verdict == "unstable"
+
+
+@pytest.mark.parametrize(("a", "p", "r"), [
+    ([1.3941867660288976, 1.992023228581445], [0.5580599465563497, 0.13360434638739538],
+     [0.492470444487148, 0.5721613295775925]),
+    ([1.1713572524069735, 1.4945801644671766], [0.24676147676492927, 0.5075901237429848],
+     [0.40193063229018183, 0.466062275332867]),
+])
+def test_current_convention_decoupled_plant_outside_is_proved_unstable(a, p, r):
+    # decoupled, B = I, by hand: state i at best deadbeat while its channel is good, a_i x_i while bad, least
+    # radius a_i^2 (1 - r_i) > 1 here for state 2 (1.698 and 1.193): unstable. The settled policy steps' P gives no
+    # outside certificate that checks; the power iteration's P proves it (8 of 400 such draws; 1bc1ef6 decided them)
+    A, B = np.diag(a), np.eye(2)
+    chain = GilbertElliott(p=p, r=r)
+    assert max(a[i] ** 2 * (1 - r[i]) for i in range(2)) > 1.19
+    found = chain_membership(A, B, chain, "current")
+    assert found.verdict == "unstable"
+    assert found.certificate is not None

@@ -92,15 +92,18 @@ def _step(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndar
     return K, 0.5 * (R + R.transpose(0, 2, 1))
 
 
-def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next"
-                                ) -> tuple[float, np.ndarray, np.ndarray]:
+def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next",
+                                settle: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)``: the eigenpair ``R(P) = lambda P`` of the homogeneous coupled Riccati map
     (``sum_a tr P_a = 1``, P of shape (M, n, n)) and the mode gains (M, m, n) that attain the minimum, by the
     shifted power iteration until ``||P_next - P|| <= RICCATI_RTOL``; for ``M n^2 <= DENSE_MAX_DIM`` a policy
     iteration on the Perron eigenvector of the dense coupled operator finishes a point after 30 steps, or after 4
     when its last two steps shrink too slowly to reach RICCATI_RTOL within the 30 (as simulation.region's), else
-    the iteration stops after ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. A candidate: :func:`chain_membership` checks
-    it. Time O(iterations M (M n^2 + n^3 + m^3)), plus O((M n^2)^3) a policy step.
+    the iteration stops after ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. Where the policy iteration settles off a
+    fixed point of R, more policy steps look for one (``settle``; False: the power iteration goes on from the power
+    iteration's P at once, which gives another certificate where the settled P weighs some modes by 1e-26 or less).
+    A candidate: :func:`chain_membership` checks it. Time O(iterations M (M n^2 + n^3 + m^3)), plus O((M n^2)^3) a
+    policy step.
 
     Examples
     --------
@@ -120,7 +123,7 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
         if policy and ended != "stopped":
             found, moved = _policy_iteration(P, A, B, channel, T, h, delivery)
             fixed = moved and _fixed(found, A, B, T, h, delivery)
-            if moved and not fixed:
+            if moved and not fixed and settle:
                 found, gains = _policy_until_fixed(found, A, B, channel, T, h, delivery)
                 fixed = gains is not None
             if fixed:
@@ -347,32 +350,50 @@ def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott
 
 
 def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str) -> tuple[Membership, float]:
-    """:func:`chain_membership` and the eigenvalue lambda behind it."""
+    """:func:`chain_membership` and the eigenvalue lambda behind it. An eigenpair whose certificates do not check
+    is tried again without the settling policy steps (``homogeneous_coupled_riccati(settle=False)``): their fixed
+    point can weigh a mode by 1e-26 or less, where the outside certificate fails and the power iteration's P
+    proves "unstable" (two decoupled plants in tests/test_markov_region.py)."""
     _check_delivery(delivery)
     if not isinstance(channel, GilbertElliott):
         raise InputError("channel", f"expected a GilbertElliott channel, found {type(channel).__name__}")
     if channel.m != B.shape[1]:
         raise InputError("channel", f"expected {B.shape[1]} channels (the columns of B), found {channel.m}")
     lam, P, K = homogeneous_coupled_riccati(A, B, channel, delivery)
+    found = _decide(A, B, channel, delivery, lam, P, K)
+    if found is None and len(mode_chain(channel)[2]) * A.shape[0] ** 2 <= DENSE_MAX_DIM:
+        again = homogeneous_coupled_riccati(A, B, channel, delivery, settle=False)
+        found = _decide(A, B, channel, delivery, *again)
+        if found is not None:
+            return found, again[0]
+    if found is not None:
+        return found, lam
+    form = f"coupled-riccati ({delivery})"
+    return Membership(channel.mean_rate, "undecided", None, float("nan"), None, float("nan"), ((form, "undecided"),),
+                      f"the coupled Riccati eigenpair (lambda = {lam:.12g}) gave no certificate that checks (within "
+                      "about 1e-9 of the boundary)"), lam
+
+
+def _decide(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str, lam: float, P: np.ndarray,
+            K: np.ndarray) -> Membership | None:
+    """The verdict an eigenpair ``(lam, P, K)`` proves: "stable" by a gain whose coupled radius is below 1 (K, or
+    the gains at P lifted), "unstable" by P's outside certificate; None where neither checks. O(coupled radius)."""
     rates = channel.mean_rate
     form = f"coupled-riccati ({delivery})"
     if lam < 1.0 and np.all(np.isfinite(K)):
         _, T, h = mode_chain(channel)
-        radius = float("nan")
         for gains in (K, _step(P + _LIFT * np.eye(A.shape[0]), A, B, T, h, delivery)[0]):
             try:
                 radius = mjls_radius(A, B, channel, gains, delivery)
             except NumericalError:
                 radius = float("nan")
             if is_mean_square_stable(radius):
-                return Membership(rates, "stable", gains, radius, None, float("nan"), ((form, "stable"),)), lam
+                return Membership(rates, "stable", gains, radius, None, float("nan"), ((form, "stable"),))
     elif lam >= 1.0:
         margin, certificate = chain_outside(A, B, channel, P, delivery)
         if certificate is not None:
-            return Membership(rates, "unstable", None, float("nan"), certificate, margin, ((form, "unstable"),)), lam
-    return Membership(rates, "undecided", None, float("nan"), None, float("nan"), ((form, "undecided"),),
-                      f"the coupled Riccati eigenpair (lambda = {lam:.12g}) gave no certificate that checks (within "
-                      "about 1e-9 of the boundary)"), lam
+            return Membership(rates, "unstable", None, float("nan"), certificate, margin, ((form, "unstable"),))
+    return None
 
 
 def chain_at_rate(channel: GilbertElliott, rate: npt.ArrayLike) -> GilbertElliott:
