@@ -291,7 +291,8 @@ def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, 
     The point: the most a box [0, T]^m allows (an LP) where it meets alpha, T doubled from below until it does,
     then halved while it still does: top within 2 m of the least power's scale (else a table ending at 1e24 beside
     its action at 1 put the answer's x = P / top under the gap's absolute floor: "optimal", lower bound 0, 33 %
-    above the least power). Returns top and the feasible point (in P) if found. O(log2(top / P*)) LPs, closed forms."""
+    above the least power). Returns top and the feasible point (in P) if found. O(log2(top / P*)) LPs, closed
+    forms (no halving after a doubling: its first box is the one the doubling rejected last)."""
     sat = model.saturation() if cap is None else cap
     evaluator = CostEvaluator(system, protocol)
 
@@ -307,11 +308,13 @@ def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, 
         return None
 
     T = float(np.min(sat)) / 2 ** 10 if model.kind != "rayleigh" else float(np.min(model.scale))
+    doubled = False
     while (P := feasible(T)) is None:
         if np.all(np.minimum(np.full(system.m, T), sat) >= sat):
             return sat, None
-        T *= 2.0
-    for _ in range(SEARCH_HALVINGS):      # down to where half the box no longer meets alpha (or spends nothing)
+        T, doubled = T * 2.0, True
+    # after a doubling, T / 2 is the box just found not to meet alpha (feasible is deterministic): no halving
+    for _ in range(0 if doubled else SEARCH_HALVINGS):  # down to where half the box no longer meets alpha
         half = feasible(T / 2.0)
         if half is None or not np.any(half > 0):
             break
