@@ -176,10 +176,12 @@ from packetloss_cvx.cli import reproduce as r
 from packetloss_cvx.runfolder import RunFolder
 from packetloss_cvx.safeio import file_digest
 settings = {**r.SETTINGS["full"], "audit_skips": tuple(r.CLAIMS)}     # the full run's data, no audit
-data = r._compute(settings, False, {})
+compute = getattr(r, "compute", None) or getattr(r, "_compute")          # so named before session 30
+draw_figures = getattr(r, "draw_figures", None) or getattr(r, "_figures")
+data = compute(settings, False, {})
 def part():
     with tempfile.TemporaryDirectory() as tmp, RunFolder(Path(tmp) / "out", command="bench") as folder:
-        return sorted((p.name, file_digest(p)) for p in r._figures(data, folder).values())
+        return sorted((p.name, file_digest(p)) for p in draw_figures(data, folder).values())
 """,
     "audit": """
 import cvxpy  # noqa: F401  (imported before the clock, as reproduce has it by then)

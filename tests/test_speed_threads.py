@@ -177,5 +177,5 @@ def test_reproduce_computes_under_the_blas_policy(monkeypatch):
         monkeypatch.setattr(rep.pf, name, spy)
     monkeypatch.setattr(rep, "audit", spy)
     with threadpool_limits(2, user_api="blas"):
-        rep._compute(rep.SETTINGS["quick"], False, {})      # noqa: SLF001
+        rep.compute(rep.SETTINGS["quick"], False, {})
     assert seen == [1] * 6

@@ -28,7 +28,7 @@ from ..threads import blas_limited
 from .common import CommandResult
 from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, report
 
-__all__ = ["ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "run"]
+__all__ = ["ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "compute", "draw_figures", "run"]
 
 #: The cost bounds alpha of the -mult figures: the paper's 4.78 among levels spread from just above
 #: J*(1, 1) = 1.92 to below J*(0, 0) = 140.7 of the two-actuator system (the paper prints none). Above 20
@@ -56,7 +56,9 @@ SETTINGS = {
 
 
 @blas_limited      # the maximisers, tables and audit loops of small dense algebra (threads.py)
-def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float]) -> dict[str, Any]:
+def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float]) -> dict[str, Any]:
+    """The data of every figure, table and the audit for ``settings`` (one of :data:`SETTINGS`), each step's wall
+    seconds put in ``seconds``; nothing is written. Called by :func:`run` (and by benchmarks/reproduce_speed.py)."""
     pendulum, mixed = load_example("pendulum"), load_example("two_actuator")
     steps = ["pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "audit"]
     data: dict[str, Any] = {"settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()}}
@@ -90,7 +92,9 @@ def _compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str,
     return data
 
 
-def _figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
+def draw_figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
+    """Every figure of :func:`compute`'s ``data`` saved into ``folder``: ``{label: path}``. Called by :func:`run`
+    (and by benchmarks/reproduce_speed.py)."""
     out = folder.path
     paths = {label: out / f"{label.removeprefix('fig:')}.png" for label in FIGURES}
     pend, mixed = data["pendulum"], data["mixed"]
@@ -161,9 +165,9 @@ def run(args: argparse.Namespace) -> CommandResult:
     with RunFolder(args.out, command=getattr(args, "command_line", "packetloss-cvx reproduce"),
                    force=getattr(args, "force", False), field="--out") as folder:    # before any work
         seconds: dict[str, float] = {}      # printed, never written: the files stay deterministic
-        data = _compute(settings, progress, seconds)
+        data = compute(settings, progress, seconds)
         start = time.perf_counter()
-        figures = _figures(data, folder)
+        figures = draw_figures(data, folder)
         seconds["figures"] = time.perf_counter() - start
         with folder.write(CLAIMS_FILE, text=True) as handle:
             handle.write(markdown_report(data["audit"]))
