@@ -92,18 +92,16 @@ def _step(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndar
     return K, 0.5 * (R + R.transpose(0, 2, 1))
 
 
-def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next",
-                                settle: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next"
+                                ) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)``: the eigenpair ``R(P) = lambda P`` of the homogeneous coupled Riccati map
     (``sum_a tr P_a = 1``, P of shape (M, n, n)) and the mode gains (M, m, n) that attain the minimum, by the
     shifted power iteration until ``||P_next - P|| <= RICCATI_RTOL``; for ``M n^2 <= DENSE_MAX_DIM`` a policy
     iteration on the Perron eigenvector of the dense coupled operator finishes a point after 30 steps, or after 4
     when its last two steps shrink too slowly to reach RICCATI_RTOL within the 30 (as simulation.region's), else
     the iteration stops after ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. Where the policy iteration settles off a
-    fixed point of R, more policy steps look for one (``settle``; False: the power iteration goes on from the power
-    iteration's P at once, which gives another certificate where the settled P weighs some modes by 1e-26 or less).
-    A candidate: :func:`chain_membership` checks it. Time O(iterations M (M n^2 + n^3 + m^3)), plus O((M n^2)^3) a
-    policy step.
+    fixed point of R, more policy steps look for one (:func:`_policy_until_fixed`). A candidate:
+    :func:`chain_membership` checks it. Time O(iterations M (M n^2 + n^3 + m^3)), plus O((M n^2)^3) a policy step.
 
     Examples
     --------
@@ -111,6 +109,15 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
     >>> round(lam, 9), round(float(K[0, 0, 0]), 9)   # deadbeat when good (h = 1); a^2 (1 - r) = 1.6
     (1.6, 2.0)
     """
+    return _eigenpair(A, B, channel, delivery, settle=True)[:3]
+
+
+def _eigenpair(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str, settle: bool
+               ) -> tuple[float, np.ndarray, np.ndarray, bool]:
+    """:func:`homogeneous_coupled_riccati`'s ``(lambda, P, K)`` and whether the settling policy steps gave them.
+    ``settle`` False: where the policy iteration settles off a fixed point of R the power iteration goes on at
+    once (no :func:`_policy_until_fixed`), which gives another P, a certificate where the settled P weighs some
+    modes by 1e-26 or less (:func:`_membership`)."""
     _, T, h = mode_chain(channel)
     M, n = len(h), A.shape[0]
     P = np.repeat(np.eye(n)[None] / (n * M), M, axis=0)
@@ -137,7 +144,7 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
         # the gains whose Perron eigenvector P is where the policy steps found it (a minimiser at P, of radius
         # lambda; the least-squares minimiser at P leaves the modes P nearly vanishes on with gain 0), else P's own
         K = gains if gains is not None else _step(P, A, B, T, h, delivery)[0]
-    return _eigenvalue(P, A, B, T, h, delivery), P, K
+    return _eigenvalue(P, A, B, T, h, delivery), P, K, gains is not None
 
 
 def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str) -> float:
@@ -351,7 +358,7 @@ def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott
 
 def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str) -> tuple[Membership, float]:
     """:func:`chain_membership` and the eigenvalue lambda behind it. An eigenpair whose certificates do not check
-    is tried again without the settling policy steps (``homogeneous_coupled_riccati(settle=False)``): their fixed
+    is tried again without the settling policy steps (``_eigenpair(settle=False)``), where they gave it: their fixed
     point can weigh a mode by 1e-26 or less, where the outside certificate fails and the power iteration's P
     proves "unstable" (two decoupled plants in tests/test_markov_region.py)."""
     _check_delivery(delivery)
@@ -359,10 +366,10 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery:
         raise InputError("channel", f"expected a GilbertElliott channel, found {type(channel).__name__}")
     if channel.m != B.shape[1]:
         raise InputError("channel", f"expected {B.shape[1]} channels (the columns of B), found {channel.m}")
-    lam, P, K = homogeneous_coupled_riccati(A, B, channel, delivery)
+    lam, P, K, settled = _eigenpair(A, B, channel, delivery, settle=True)
     found = _decide(A, B, channel, delivery, lam, P, K)
-    if found is None and len(mode_chain(channel)[2]) * A.shape[0] ** 2 <= DENSE_MAX_DIM:
-        again = homogeneous_coupled_riccati(A, B, channel, delivery, settle=False)
+    if found is None and settled:        # only then does the other route give another P
+        again = _eigenpair(A, B, channel, delivery, settle=False)[:3]
         found = _decide(A, B, channel, delivery, *again)
         if found is not None:
             return found, again[0]
