@@ -97,7 +97,10 @@ class MonotoneCost:
     def mu(self, x: np.ndarray) -> np.ndarray:
         """mu(x) for x clipped to [0, 1]^m, clipped to [0, 1] (the identity: clipped once, the same floats; the
         array method that np.clip calls, without its wrapper). O(m)."""
-        x = np.asarray(x, dtype=float).clip(0.0, 1.0)
+        return self._of_clipped(np.asarray(x, dtype=float).clip(0.0, 1.0))
+
+    def _of_clipped(self, x: np.ndarray) -> np.ndarray:
+        """mu(x) for x already in [0, 1]^m (:meth:`mu` after its clip). O(m)."""
         return x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0)
 
     def checked(self, x: np.ndarray) -> float:
@@ -106,7 +109,7 @@ class MonotoneCost:
         key = x.tobytes()
         value = self.known.get(key)
         if value is None:
-            value = self.evaluator.cost(x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0))
+            value = self.evaluator.cost(self._of_clipped(x))
             remember(self.known, key, value)
         return value
 
@@ -116,7 +119,7 @@ class MonotoneCost:
         x = np.asarray(x, dtype=float).clip(0.0, 1.0)
         value = self.known.get(x.tobytes())
         if value is None:
-            value = self.evaluator.cost(x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0), checked=False)
+            value = self.evaluator.cost(self._of_clipped(x), checked=False)
         return value
 
     def line(self, x: np.ndarray, i: int, checked: bool) -> Callable[[float], float]:
