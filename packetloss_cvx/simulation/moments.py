@@ -27,8 +27,8 @@ from .stability import (
     is_mean_square_stable,
     mean_square_radius,
     second_moment_adjoint,
-    second_moment_map,
     second_moment_matrix,
+    second_moment_step,
 )
 
 __all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "solve_fixed_point",
@@ -129,7 +129,7 @@ def stationary_second_moment(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLik
     """
     A_, B_, K_, mu_ = check_law(A, B, K, mu)
     Sigma = np.asarray(noise_cov, dtype=float)
-    return solve_fixed_point(lambda S: second_moment_map(S, A_, B_, K_, mu_),
+    return solve_fixed_point(second_moment_step(A_, B_, K_, mu_),
                               lambda: second_moment_matrix(A_, B_, K_, mu_), Sigma, "the stationary second moment")
 
 
@@ -234,8 +234,9 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     """
     check_steps(steps, system.m * system.n)
     K_all = np.asarray(gains, dtype=float)
-    K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 2 else K_all
     mu_all = np.asarray(stationary_channel(system) if mu is None else mu, dtype=float)
+    one_law = K_all.ndim == 2 and mu_all.ndim == 1           # every step's weight and map are the first step's
+    K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 2 else K_all
     mu_all = np.broadcast_to(mu_all, (steps, system.m)) if mu_all.ndim == 1 else mu_all
     if K_all.shape != (steps, system.m, system.n) or mu_all.shape != (steps, system.m):
         raise InputError("gains", f"expected ({system.m}, {system.n}) or ({steps}, {system.m}, {system.n}) gains "
@@ -246,11 +247,14 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
     S = np.outer(system.x0, system.x0)
     stage = np.empty(steps)
+    step = None
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps):
-            K, m_ = K_all[t], mu_all[t]
-            stage[t] = float(np.sum((Omega + (K.T * (m_ * psi)) @ K) * S))
-            S = second_moment_map(S, A, B, K, m_) + Sigma
+            if step is None or not one_law:       # one law: its stage weight and map formed once, not every step
+                K, m_ = K_all[t], mu_all[t]
+                weight, step = Omega + (K.T * (m_ * psi)) @ K, second_moment_step(A, B, K, m_)
+            stage[t] = float(np.sum(weight * S))
+            S = step(S) + Sigma
         terminal = float(np.sum(Omega * S))
     stage[~np.isfinite(stage)] = np.inf
     return stage, terminal if np.isfinite(terminal) else float("inf")
