@@ -30,8 +30,8 @@ from ..tolerances import ARPACK_TOL, KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 RADIUS_RESCALE = 1e100
 
 __all__ = [
-    "check_law", "is_mean_square_stable", "mean_square_radius", "random_matrix_moment", "second_moment_adjoint",
-    "second_moment_map", "second_moment_matrix", "second_moment_step",
+    "check_law", "is_mean_square_stable", "law_radius", "mean_square_radius", "random_matrix_moment",
+    "second_moment_adjoint", "second_moment_map", "second_moment_matrix", "second_moment_step",
 ]
 
 
@@ -195,7 +195,20 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
     >>> round(mean_square_radius([[2.0]], [[1.0]], [[2.0]], [0.5]), 12)   # scalar: (a - mu k)^2 + mu(1-mu)k^2
     2.0
     """
-    A_, B_, K_, mu_ = check_law(A, B, K, mu)
+    return law_radius(*check_law(A, B, K, mu), method=method)
+
+
+def law_radius(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, method: str = "auto",
+               matrix: Callable[[], np.ndarray] | None = None) -> float:
+    """:func:`mean_square_radius` of a law already checked (the arrays :func:`check_law` returns): a caller that
+    checked it once (simulation.moments.closed_loop) does not check it again, and ``matrix`` gives the law's
+    :func:`second_moment_matrix` when the caller keeps it for its moment solves too (built once). Time as
+    :func:`mean_square_radius`.
+
+    >>> A, B, K, mu = check_law([[2.0]], [[1.0]], [[2.0]], [0.5])
+    >>> round(law_radius(A, B, K, mu), 12)                      # (a - mu k)^2 + mu (1 - mu) k^2
+    2.0
+    """
     n = A_.shape[0]
     if method not in ("auto", "kronecker", "krylov"):
         raise InputError("method", f"expected auto, kronecker or krylov, found {method!r}")
@@ -207,7 +220,7 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
             return scale * scale * mean_square_radius(A_ / scale, B_, K_ / scale, mu_, method=method)
     if method == "kronecker" or (method == "auto" and n <= KRONECKER_MAX_N) or n * n < 8:
         with np.errstate(over="ignore", invalid="ignore"):
-            matrix = second_moment_matrix(A_, B_, K_, mu_)
+            matrix = second_moment_matrix(A_, B_, K_, mu_) if matrix is None else matrix()
             vals = np.linalg.eigvals(matrix) if np.all(np.isfinite(matrix)) else np.array([np.inf])
         if not np.all(np.isfinite(vals)):
             raise NumericalError("mean-square radius: the second-moment operator overflows")
