@@ -268,7 +268,9 @@ class ExpectedCostQP:
         self._free = mu > QP_PIN_MU
         self._v = mu.ravel()
         self._select(mu, self._free, protocol)
-        self.x.value = x
+        # x is a System's validated state (x0, or x0 scaled): kept as cvxpy keeps a value (save_value), without the
+        # value setter's validation of it again (a tenth of a condensed solve's Python time)
+        self.x.save_value(x)
 
     def _solve_raw(self, protocol: str) -> tuple[np.ndarray, float, str]:
         what = f"{protocol}-like {self.formulation} QP"
@@ -394,7 +396,7 @@ class ExpectedCostQP:
         if with_gain:
             columns = []
             for j in range(n):
-                self.x.value = np.eye(n)[j]
+                self.x.save_value(np.eye(n)[j])         # a unit state: nothing to validate
                 columns.append(-self._solve_raw(protocol)[0][:m])
             gain = np.column_stack(columns)
             eigs = np.linalg.eigvals(system.A - system.B @ gain)

@@ -18,7 +18,7 @@ from packetloss_cvx import prediction as prediction_module
 from packetloss_cvx import recursion
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.allocation import tcp
-from packetloss_cvx.markov import chain
+from packetloss_cvx.markov import augmented, chain
 from packetloss_cvx.model import SYSTEM_FIELDS, CacheKey, System
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.sensor import Sensor
@@ -33,6 +33,8 @@ READERS = {
     recursion.CONDITION_KEY: lambda s: (recursion.condition_estimate(s),),
     recursion.WEIGHT_HEAD_KEY: lambda s: (recursion.weight_head(s),),
     chain.MOMENTS_KEY: lambda s: chain.stacked_moments(s),
+    augmented.LIFT_KEY: lambda s: (lambda lift: (*lift.Lam, *lift.g, *lift.gamma, lift.offsets, lift.size))(
+        augmented.chain_lift(s)),
     tcp.PROGRAMS_KEY: lambda s: (tcp.TCPProgram.of(s, "min_cost", 0).constants,),
 }
 
@@ -91,8 +93,8 @@ def test_every_key_of_the_package_is_read_here_and_names_fields_of_system():
     assert set(SYSTEM_FIELDS) == {name for name in System.__slots__ if not name.startswith("_")}
     for key in keys:
         assert key.depends_on <= set(SYSTEM_FIELDS), key
-    assert all(key.structural for key in keys if key is not chain.MOMENTS_KEY)
-    assert not chain.MOMENTS_KEY.structural
+    assert all(key.structural for key in keys if key not in (chain.MOMENTS_KEY, augmented.LIFT_KEY))
+    assert not chain.MOMENTS_KEY.structural and not augmented.LIFT_KEY.structural
 
 
 def test_a_key_is_a_declared_object_not_a_string():

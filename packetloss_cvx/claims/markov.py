@@ -6,6 +6,8 @@ cost is compared with the exact minimum (:mod:`packetloss_cvx.markov`).
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..costs import closed_form
 from ..markov import bursty_twin, exact_closed_form, exact_cost
 from ..model import System
@@ -24,10 +26,14 @@ STATEMENT = ("Under bursty Gilbert-Elliott losses (lambda = 1 - p - r in {0.5, 0
              "expected cost.")
 
 
-def plugin_loss(system: System, correlation: float | None) -> float | None:
+def plugin_loss(system: System, correlation: float | None, plans: dict[bytes, np.ndarray] | None = None
+                ) -> float | None:
     """E[cost] of the UDP-like plug-in plan over the exact minimum, minus 1, on the bursty twin of
     ``system`` (on ``system`` itself with ``correlation=None``; None when the minimum is 0: nothing to
-    lose). Time O(N (D^3 + m^3)), D = n (1 + m) (the augmented recursion).
+    lose). ``plans``: the plug-in plans of ``system``'s twins computed so far, by schedule, filled in here (the
+    twins at two burstiness levels of one case usually predict the same mu_t to the bit, and then have the same
+    plug-in plan: the paper's law on the same data). Time O(N (D^3 + m^3)), D = n (1 + m) (the augmented
+    recursion).
 
     Examples
     --------
@@ -39,13 +45,18 @@ def plugin_loss(system: System, correlation: float | None) -> float | None:
     exact = exact_closed_form(twin, "udp")
     if exact.cost <= 0:
         return None
-    return exact_cost(twin, closed_form(twin.with_mu(twin.mu_schedule), "udp").inputs, "udp") / exact.cost - 1.0
+    plans = {} if plans is None else plans
+    key = twin.mu_schedule.tobytes()
+    if key not in plans:
+        plans[key] = closed_form(twin.with_mu(twin.mu_schedule), "udp").inputs
+    return exact_cost(twin, plans[key], "udp") / exact.cost - 1.0
 
 
 def _losses(system: System) -> list[float | None]:
     """:func:`plugin_loss` behind the system's own Gilbert-Elliott channel if it has one, else at each of
-    :data:`CORRELATIONS`."""
-    return [plugin_loss(system, lam) for lam in ((None,) if system.channel is not None else CORRELATIONS)]
+    :data:`CORRELATIONS` (a plug-in plan computed once per schedule the twins predict)."""
+    plans: dict[bytes, np.ndarray] = {}
+    return [plugin_loss(system, lam, plans) for lam in ((None,) if system.channel is not None else CORRELATIONS)]
 
 
 def _margin(system: System, losses: list[float | None] | None = None) -> float | None:

@@ -39,10 +39,14 @@ import numpy as np
 from ..budgets import check, duration_text, estimated_seconds, markov_recursion_work
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
-from ..model import System
+from ..model import CacheKey, System
 from ..recursion import forward_cost, input_weight, lyapunov_cross_weights, mean_states, overflow_error
 from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .chain import chain_matrices
+
+#: The lift of a system's own chains (:func:`chain_lift`), kept on the system: n and m (A's and B's shapes), the
+#: horizon, the schedule the chains must predict and the chains themselves.
+LIFT_KEY = CacheKey("markov.augmented.chain_lift", ("A", "B", "horizon", "mu_schedule", "channel"))
 
 __all__ = ["ChainLift", "augmented_size", "augmented_solve", "chain_cost", "chain_lift", "check_recursion_budget",
            "lq_cross_step"]
@@ -110,11 +114,21 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
     >>> bool(np.isclose(lift.Lam[0][0, 0], 0.6) and np.allclose(np.abs(lift.gamma[0]), 0.6 * 0.25 * 2 ** 0.5))
     True
     """
+    if chains is None:           # the system's own chains: lifted once and kept on the system (the exact minimum
+        # and the referee's cost of a plan both lift them; a read-only value, as every kept one)
+        return system.cached(LIFT_KEY, lambda: _lift(system, chain_matrices(system.channel)
+                                                     if system.channel is not None else None))
+    return _lift(system, chains)
+
+
+def _lift(system: System, chains: tuple | None) -> ChainLift:
+    """:func:`chain_lift` of ``chains`` (None: independent losses). Time O(N m k^2)."""
     N, n, m = system.horizon, system.n, system.m
-    if chains is None:
-        chains = chain_matrices(system.channel) if system.channel is not None else None
     if chains is None:                                   # independent losses: nothing to lift
-        return ChainLift((np.zeros((0, 0)),) * m, (np.zeros(0),) * m, (np.zeros((N, 0)),) * m, (n,) * (m + 1), n)
+        none = [np.zeros(shape) for shape in ((0, 0), (0,), (N, 0))]
+        for value in none:
+            value.setflags(write=False)
+        return ChainLift((none[0],) * m, (none[1],) * m, (none[2],) * m, (n,) * (m + 1), n)
     if len(chains) != m:
         raise InputError("channel", f"expected {m} chains (one per actuator), found {len(chains)}")
     Lam, g, gamma, offsets = [], [], [], [n]

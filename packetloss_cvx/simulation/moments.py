@@ -25,10 +25,10 @@ from ..validation import MAX_ENTRIES
 from .stability import (
     check_law,
     is_mean_square_stable,
-    mean_square_radius,
+    law_radius,
     second_moment_adjoint,
-    second_moment_map,
     second_moment_matrix,
+    second_moment_step,
 )
 
 __all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "solve_fixed_point",
@@ -127,10 +127,15 @@ def stationary_second_moment(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLik
     >>> float(S[0, 0])   # S = 0.25 S + 0.75
     1.0
     """
-    A_, B_, K_, mu_ = check_law(A, B, K, mu)
-    Sigma = np.asarray(noise_cov, dtype=float)
-    return solve_fixed_point(lambda S: second_moment_map(S, A_, B_, K_, mu_),
-                              lambda: second_moment_matrix(A_, B_, K_, mu_), Sigma, "the stationary second moment")
+    return _second_moment(*check_law(A, B, K, mu), np.asarray(noise_cov, dtype=float))
+
+
+def _second_moment(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, Sigma: np.ndarray,
+                   matrix: Callable[[], np.ndarray] | None = None) -> np.ndarray:
+    """:func:`stationary_second_moment` of a checked law; ``matrix``: its second_moment_matrix when the caller keeps
+    it (:func:`closed_loop`)."""
+    matrix = (lambda: second_moment_matrix(A_, B_, K_, mu_)) if matrix is None else matrix
+    return solve_fixed_point(second_moment_step(A_, B_, K_, mu_), matrix, Sigma, "the stationary second moment")
 
 
 def law_cost_to_go(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt.ArrayLike,
@@ -145,10 +150,17 @@ def law_cost_to_go(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt
     >>> bool(np.isclose(P[0, 0], (1 + 0.9 * 2 ** 2) / (1 - r)))   # P = Omega + mu psi k^2 + r P
     True
     """
-    A_, B_, K_, mu_ = check_law(A, B, K, mu)
+    return _cost_to_go(*check_law(A, B, K, mu), Omega, psi)
+
+
+def _cost_to_go(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, Omega: npt.ArrayLike,
+                psi: npt.ArrayLike, matrix: Callable[[], np.ndarray] | None = None) -> np.ndarray:
+    """:func:`law_cost_to_go` of a checked law; ``matrix``: its second_moment_matrix when the caller keeps it
+    (:func:`closed_loop`; the adjoint's matrix is its transpose)."""
     Q = np.asarray(Omega, dtype=float) + (K_.T * (mu_ * np.asarray(psi, dtype=float))) @ K_
-    return solve_fixed_point(lambda P: second_moment_adjoint(P, A_, B_, K_, mu_),
-                              lambda: second_moment_matrix(A_, B_, K_, mu_).T, Q, "the cost-to-go of the law")
+    matrix = (lambda: second_moment_matrix(A_, B_, K_, mu_)) if matrix is None else matrix
+    return solve_fixed_point(lambda P: second_moment_adjoint(P, A_, B_, K_, mu_), lambda: matrix().T, Q,
+                             "the cost-to-go of the law")
 
 
 def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.ArrayLike | None = None,
@@ -188,15 +200,22 @@ def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.Arra
     (False, inf)
     """
     mu_ = stationary_channel(system) if mu is None else mu
-    A, B, K, mu_ = check_law(system.A, system.B, gain, mu_)
-    radius = mean_square_radius(A, B, K, mu_, method=method)
+    A, B, K, mu_ = check_law(system.A, system.B, gain, mu_)          # checked once for the radius and both solves
+    kept: list[np.ndarray] = []
+
+    def matrix() -> np.ndarray:          # the law's n^2 x n^2 matrix: built once, read by the radius and both solves
+        if not kept:
+            kept.append(second_moment_matrix(A, B, K, mu_))
+        return kept[0]
+
+    radius = law_radius(A, B, K, mu_, method=method, matrix=matrix)
     if not is_mean_square_stable(radius):
         reason = (f"not mean-square stable: the second-moment operator has spectral radius {radius:.6g} >= 1, "
                   "so E[x x'] and the average cost grow without bound")
         return ClosedLoop(law, K, mu_, radius, False, float("inf"), None, None, reason)
     Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
-    P = law_cost_to_go(A, B, K, mu_, Omega, psi)
-    S = stationary_second_moment(A, B, K, mu_, Sigma)
+    P = _cost_to_go(A, B, K, mu_, Omega, psi, matrix)
+    S = _second_moment(A, B, K, mu_, np.asarray(Sigma, dtype=float), matrix)
     by_cost_to_go = float(np.sum(P * Sigma))
     by_moment = float(np.sum((Omega + (K.T * (mu_ * psi)) @ K) * S))
     if abs(by_cost_to_go - by_moment) > MOMENT_RESIDUAL_RTOL * max(abs(by_moment), abs(by_cost_to_go)):
@@ -234,8 +253,9 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     """
     check_steps(steps, system.m * system.n)
     K_all = np.asarray(gains, dtype=float)
-    K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 2 else K_all
     mu_all = np.asarray(stationary_channel(system) if mu is None else mu, dtype=float)
+    one_law = K_all.ndim == 2 and mu_all.ndim == 1           # every step's weight and map are the first step's
+    K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 2 else K_all
     mu_all = np.broadcast_to(mu_all, (steps, system.m)) if mu_all.ndim == 1 else mu_all
     if K_all.shape != (steps, system.m, system.n) or mu_all.shape != (steps, system.m):
         raise InputError("gains", f"expected ({system.m}, {system.n}) or ({steps}, {system.m}, {system.n}) gains "
@@ -246,11 +266,14 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
     S = np.outer(system.x0, system.x0)
     stage = np.empty(steps)
+    step = None
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps):
-            K, m_ = K_all[t], mu_all[t]
-            stage[t] = float(np.sum((Omega + (K.T * (m_ * psi)) @ K) * S))
-            S = second_moment_map(S, A, B, K, m_) + Sigma
+            if step is None or not one_law:       # one law: its stage weight and map formed once, not every step
+                K, m_ = K_all[t], mu_all[t]
+                weight, step = Omega + (K.T * (m_ * psi)) @ K, second_moment_step(A, B, K, m_)
+            stage[t] = float(np.sum(weight * S))
+            S = step(S) + Sigma
         terminal = float(np.sum(Omega * S))
     stage[~np.isfinite(stage)] = np.inf
     return stage, terminal if np.isfinite(terminal) else float("inf")

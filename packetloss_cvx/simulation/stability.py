@@ -17,7 +17,7 @@ O(n^3 + n^2 m) per product), or from the Kronecker matrix for small n (the test 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 import numpy.typing as npt
@@ -30,8 +30,8 @@ from ..tolerances import ARPACK_TOL, KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 RADIUS_RESCALE = 1e100
 
 __all__ = [
-    "check_law", "is_mean_square_stable", "mean_square_radius", "random_matrix_moment", "second_moment_adjoint",
-    "second_moment_map", "second_moment_matrix",
+    "check_law", "is_mean_square_stable", "law_radius", "mean_square_radius", "random_matrix_moment",
+    "second_moment_adjoint", "second_moment_map", "second_moment_matrix", "second_moment_step",
 ]
 
 
@@ -72,7 +72,8 @@ def check_law(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike,
 
 
 def second_moment_map(S: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """``L(S) = Abar S Abar' + B diag(mu (1 - mu) diag(K S K')) B'``: the module docstring's operator.
+    """``L(S) = Abar S Abar' + B diag(mu (1 - mu) diag(K S K')) B'``: the module docstring's operator
+    (:func:`second_moment_step` applied once).
 
     Time O(n^3 + n^2 m). Arrays as returned by :func:`check_law`.
 
@@ -80,9 +81,28 @@ def second_moment_map(S: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray
     >>> float(second_moment_map(np.eye(1), A, B, K, np.array([0.5]))[0, 0])   # (2 - 1)^2 + 0.25 * 4
     2.0
     """
+    return second_moment_step(A, B, K, mu)(S)
+
+
+def second_moment_step(A: np.ndarray, B: np.ndarray, K: np.ndarray,
+                       mu: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``S -> L(S)`` (:func:`second_moment_map`) for one law, its parts that do not depend on S (``Abar`` and
+    ``mu (1 - mu)``) formed once: a caller applying one law many times (a finite horizon, a fixed-point or power
+    iteration) pays O(n^2 m) once instead of every step; the same floats as :func:`second_moment_map`. Time
+    O(n^2 m) to build, O(n^3 + n^2 m) per application.
+
+    >>> step = second_moment_step(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0.5]))
+    >>> float(step(np.eye(1))[0, 0]), float(step(2 * np.eye(1))[0, 0])      # L is linear: 2, then 4
+    (2.0, 4.0)
+    """
     Abar = A - (B * mu) @ K
-    c = mu * (1.0 - mu) * np.einsum("ij,jk,ik->i", K, S, K)
-    return Abar @ S @ Abar.T + (B * c) @ B.T
+    variance = mu * (1.0 - mu)
+
+    def apply(S: np.ndarray) -> np.ndarray:
+        c = variance * np.einsum("ij,jk,ik->i", K, S, K)
+        return Abar @ S @ Abar.T + (B * c) @ B.T
+
+    return apply
 
 
 def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -175,7 +195,20 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
     >>> round(mean_square_radius([[2.0]], [[1.0]], [[2.0]], [0.5]), 12)   # scalar: (a - mu k)^2 + mu(1-mu)k^2
     2.0
     """
-    A_, B_, K_, mu_ = check_law(A, B, K, mu)
+    return law_radius(*check_law(A, B, K, mu), method=method)
+
+
+def law_radius(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, method: str = "auto",
+               matrix: Callable[[], np.ndarray] | None = None) -> float:
+    """:func:`mean_square_radius` of a law already checked (the arrays :func:`check_law` returns): a caller that
+    checked it once (simulation.moments.closed_loop) does not check it again, and ``matrix`` gives the law's
+    :func:`second_moment_matrix` when the caller keeps it for its moment solves too (built once). Time as
+    :func:`mean_square_radius`.
+
+    >>> A, B, K, mu = check_law([[2.0]], [[1.0]], [[2.0]], [0.5])
+    >>> round(law_radius(A, B, K, mu), 12)                      # (a - mu k)^2 + mu (1 - mu) k^2
+    2.0
+    """
     n = A_.shape[0]
     if method not in ("auto", "kronecker", "krylov"):
         raise InputError("method", f"expected auto, kronecker or krylov, found {method!r}")
@@ -187,7 +220,7 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
             return scale * scale * mean_square_radius(A_ / scale, B_, K_ / scale, mu_, method=method)
     if method == "kronecker" or (method == "auto" and n <= KRONECKER_MAX_N) or n * n < 8:
         with np.errstate(over="ignore", invalid="ignore"):
-            matrix = second_moment_matrix(A_, B_, K_, mu_)
+            matrix = second_moment_matrix(A_, B_, K_, mu_) if matrix is None else matrix()
             vals = np.linalg.eigvals(matrix) if np.all(np.isfinite(matrix)) else np.array([np.inf])
         if not np.all(np.isfinite(vals)):
             raise NumericalError("mean-square radius: the second-moment operator overflows")
@@ -199,9 +232,11 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
     if upper == 0.0:
         return 0.0   # L^k(I) = 0: L vanishes on the PSD cone, hence on every symmetric matrix
 
+    step = second_moment_step(A_, B_, K_, mu_)
+
     def apply(v: np.ndarray) -> np.ndarray:
         S = v.reshape(n, n)
-        return second_moment_map(0.5 * (S + S.T), A_, B_, K_, mu_).ravel()
+        return step(0.5 * (S + S.T)).ravel()
 
     # L is applied to the symmetric part: the Perron eigenvector is symmetric (PSD), and the skew
     # part's eigenvalues are dominated by it (a completely positive map attains its radius on the cone).
@@ -248,8 +283,9 @@ def _power_bound(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, st
     """``min_k ||L^k(I)||_2^(1/k)`` over k = 1..steps: an upper bound on the radius (for a positive map the
     induced norm is attained at I, Russo–Dye, and rho <= ||L^k||^(1/k)). Time O(steps (n^3 + n^2 m))."""
     X, log_scale, best = np.eye(A.shape[0]), 0.0, np.inf
+    step = second_moment_step(A, B, K, mu)
     for k in range(1, steps + 1):
-        X = second_moment_map(X, A, B, K, mu)
+        X = step(X)
         size = float(np.linalg.norm(X, 2))
         if size == 0.0:
             return 0.0
