@@ -158,7 +158,8 @@ def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
 
     ``v``: the stacked delivery probabilities, (N m,) or a batch (P, N m) (default: the prediction's Vbar);
     the result is (N m, N m) or (P, N m, N m). ``rows``: a boolean mask of the entries to keep, for the
-    principal block G[rows, rows] alone (one point; the line's fixed channels); ``block``: Omega_g[rows, rows]
+    principal block G[rows, rows] alone (one point; the line's fixed channels; or the ascending indices of
+    those entries); ``block``: Omega_g[rows, rows]
     where the caller keeps it (the line's, per channel: the fancy index costs more than the product). The one
     dense form of the Hessian (closed_form, the evaluator's batches, its pointwise and line paths, the cost difference).
     O(P (N m)^2).
