@@ -168,8 +168,11 @@ class CostEvaluator:
         """
         s = self.system
         if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
-                and mu.shape in ((s.m,), (s.horizon, s.m)) and 0.0 <= mu.min() and mu.max() <= 1.0):
-            # NaN fails the comparisons: validated below
+                and mu.shape in ((s.m,), (s.horizon, s.m))
+                and (all(0.0 <= p <= 1.0 for p in mu.tolist()) if mu.ndim == 1
+                     else 0.0 <= mu.min() and mu.max() <= 1.0)):
+            # NaN fails the comparisons: validated below. One channel vector's m entries compared as Python floats
+            # (a search's probe: 0.3 us against 2 us for the two reductions)
             schedule = mu
             if mu.ndim == 1:            # the stationary schedule (N, m): a filled array (np.tile costs 3x more)
                 schedule = np.empty((s.horizon, s.m))
