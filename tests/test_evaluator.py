@@ -199,6 +199,16 @@ def test_line_refuses_a_bad_channel_index(two_actuator):
         CostEvaluator(two_actuator, "udp").line([0.5, 0.5], 2)
 
 
+@pytest.mark.parametrize(("mu", "error"), [
+    ([0.5, 1.2], pl.ProbabilityError), ([-1e-300, 0.5], pl.ProbabilityError), ([np.nan, 0.5], pl.InputError),
+    ([0.5, np.nan], pl.InputError), ([0.5, 0.5, 0.5], pl.DimensionError),
+])
+def test_line_refuses_a_bad_channel_vector(two_actuator, mu, error):
+    """A channel vector taken as it is (a search's line) only when it is one: the rest is refused naming mu."""
+    with pytest.raises(error, match="mu"):
+        CostEvaluator(two_actuator, "udp").line(np.array(mu), 0)
+
+
 def _dense_written_here(s, protocol, mu):
     """Theorem 1's dense minimiser from the prediction matrices, written out here (not costs.hessian_factor):
     U* = -G^{-1} Omega_gp x, J* = C + (Omega_gp x)' Vbar U*."""
