@@ -24,7 +24,8 @@ everything cvxpy, SciPy and Matplotlib keep. Frozen objects are still freed by r
 among them stays until the end. When the program ends, the objects
 alive at that point are frozen out of the cyclic garbage collector (``gc.freeze``) just before ``main`` returns, so
 the interpreter's shutdown does not walk them all again to free memory the operating system takes back anyway:
-0.25-0.3 s of CPU at the end of a full ``reproduce`` (docs/performance.md, "The command line's exit"). Every file is
+0.25-0.3 s of CPU at the end of a full ``reproduce`` when measured, before the imports were frozen as well
+(docs/performance.md, "The command line's exit"; now only what the command made is left to freeze). Every file is
 complete and closed before that (atomic writes end in a rename inside the command), the standard streams are still
 flushed by the interpreter, and exit handlers (``atexit``, ``weakref.finalize``) still run; only ``__del__`` of
 objects caught in reference cycles at exit is skipped. Called with ``argv`` (in process: tests, notebooks) ``main``
