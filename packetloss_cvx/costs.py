@@ -158,7 +158,8 @@ def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
 
     ``v``: the stacked delivery probabilities, (N m,) or a batch (P, N m) (default: the prediction's Vbar);
     the result is (N m, N m) or (P, N m, N m). ``rows``: a boolean mask of the entries to keep, for the
-    principal block G[rows, rows] alone (one point; the line's fixed channels); ``block``: Omega_g[rows, rows]
+    principal block G[rows, rows] alone (one point; the line's fixed channels; or the ascending indices of
+    those entries); ``block``: Omega_g[rows, rows]
     where the caller keeps it (the line's, per channel: the fancy index costs more than the product). The one
     dense form of the Hessian (closed_form, the evaluator's batches, its pointwise and line paths, the cost difference).
     O(P (N m)^2).
@@ -180,6 +181,10 @@ def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
         G.flat[:: G.shape[0] + 1] += hessian_diagonal(pred, protocol, v)[rows]
         return G
     k = v.shape[-1]
+    if v.ndim == 1:     # one point: the same products without the batch's axes (the searches' probes: 1 us less)
+        G = pred.Omega_g * v
+        G.reshape(k * k)[:: k + 1] += hessian_diagonal(pred, protocol, v)
+        return G
     G = pred.Omega_g * v[..., None, :]
     G.reshape(*v.shape[:-1], k * k)[..., :: k + 1] += hessian_diagonal(pred, protocol, v)
     return G

@@ -168,7 +168,8 @@ class CostEvaluator:
         """
         s = self.system
         if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
-                and mu.shape in ((s.m,), (s.horizon, s.m)) and 0.0 <= mu.min() and mu.max() <= 1.0):
+                and (_channel_vector(mu, s.m) or (mu.shape == (s.horizon, s.m)
+                                                  and 0.0 <= mu.min() and mu.max() <= 1.0))):
             # NaN fails the comparisons: validated below
             schedule = mu
             if mu.ndim == 1:            # the stationary schedule (N, m): a filled array (np.tile costs 3x more)
@@ -192,7 +193,10 @@ class CostEvaluator:
         point is checked as :meth:`cost` checks it and falls back to :meth:`cost` on a failed check.
         ``checked=False``: the points' values without the check, with the contract of :meth:`cost`'s.
         """
-        base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
+        if isinstance(mu, np.ndarray) and mu.dtype == np.float64 and _channel_vector(mu, self.system.m):
+            base = mu.copy()            # already a channel vector (a search's line): nothing to convert
+        else:
+            base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
         if not (isinstance(i, (int, np.integer)) and 0 <= i < self.system.m):
             raise InputError("i", f"expected a channel index from 0 to {self.system.m - 1}, found {i!r}")
         fast = None if self._point is None else self._point.line(base, int(i), checked)
@@ -387,4 +391,11 @@ class CostEvaluator:
                 f"{forward[k]:.10g} differ by {rel:.1e} (relative): double precision cannot resolve this problem "
                 f"({weight_spread(self.system)}); rescale the weights")
         return agree
+
+
+def _channel_vector(mu: np.ndarray, m: int) -> bool:
+    """Whether a float array ``mu`` is one channel vector, shape (m,) with every entry in [0, 1] (NaN fails the
+    comparisons): its m entries compared as Python floats, 0.3 us where two NumPy reductions take 2 us (the
+    searches' probes and lines, thousands per allocation). O(m)."""
+    return mu.shape == (m,) and all(0.0 <= p <= 1.0 for p in mu.tolist())
 

@@ -55,7 +55,7 @@ class PointEvaluator:
         self.g_norm = float(np.linalg.norm(self.g))
         #: blkdiag(Omega_t) as one matrix while small (one matvec per forward cost), else per block
         self.Omega = block_diagonal(s.state_weights) if (s.horizon * s.n) ** 2 <= OMEGA_DENSE_MAX else None
-        #: per channel i, the line's masks and blocks of Omega_g (:meth:`_blocks`), made on the first line along i
+        #: per channel i, the line's entries and blocks of Omega_g (:meth:`_blocks`), made on the first line along i
         self.blocks: dict[int, tuple[np.ndarray, ...]] = {}
 
     def with_protocol(self, protocol: str) -> PointEvaluator:
@@ -120,7 +120,9 @@ class PointEvaluator:
         if m == 1:
             return None
         on, off, Og_RR, Og_Ri, Og_iR, Og_ii = self._blocks(i)
-        v = np.tile(mu, N)
+        v = np.empty((N, m))             # mu at every step (np.tile: the same numbers at 5x the cost)
+        v[:] = mu
+        v = v.reshape(-1)
         vR = v[off]
         G_RR = hessian_factor(pred, self.protocol, v, off, Og_RR)                       # the fixed channels
         with np.errstate(all="ignore"):
@@ -152,14 +154,17 @@ class PointEvaluator:
         return at
 
     def _blocks(self, i: int) -> tuple[np.ndarray, ...]:
-        """Channel i's line structure, made once per channel: the masks of its entries ``on`` and the others
-        ``off`` in the stacked (N m,) vectors, and the blocks Omega_g[off, off], [off, on], [on, off], [on, on]
-        (copies: the same numbers the line indexed out of Omega_g at every call). O((N m)^2) the first time."""
+        """Channel i's line structure, made once per channel: its entries ``on`` (every m-th from i, a slice) and
+        the others ``off`` (their indices, ascending) in the stacked (N m,) vectors, and the blocks
+        Omega_g[off, off], [off, on], [on, off], [on, on] (copies: the same numbers the line indexed out of
+        Omega_g at every call). A slice and an index array pick the same entries in the same order as the
+        boolean masks they replace, at a third of the cost per point. O((N m)^2) the first time."""
         if i not in self.blocks:
             s, Og = self.system, self.pred.Omega_g
-            on = np.zeros(s.horizon * s.m, dtype=bool)
-            on[np.arange(s.horizon) * s.m + i] = True
-            off = ~on
-            self.blocks[i] = (on, off, Og[np.ix_(off, off)], Og[np.ix_(off, on)], Og[np.ix_(on, off)],
-                              Og[np.ix_(on, on)])
+            size = s.horizon * s.m
+            on = slice(i, size, s.m)
+            off = np.flatnonzero(np.arange(size) % s.m != i)
+            mine = np.arange(i, size, s.m)
+            self.blocks[i] = (on, off, Og[np.ix_(off, off)], Og[np.ix_(off, mine)], Og[np.ix_(mine, off)],
+                              Og[np.ix_(mine, mine)])
         return self.blocks[i]

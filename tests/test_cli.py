@@ -185,3 +185,24 @@ def test_the_program_freezes_the_collector_at_its_end_and_an_in_process_call_doe
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
     assert done.stdout.split() == ["2", "True"]
     assert done.stderr.count("\n") == 1            # the one line of bad input, and nothing from the shutdown
+
+
+def test_the_program_runs_its_command_with_the_imports_frozen_and_the_collector_on(monkeypatch):
+    """``main()`` without argv imports the subcommand's module with the collector off, freezes what the imports
+    made and turns the collector back on before the command runs; ``main(argv)`` leaves both alone."""
+    import gc
+
+    import packetloss_cvx.cli.solve as solve
+
+    seen = []
+    run = solve.run
+    monkeypatch.setattr(solve, "run", lambda args: (seen.append((gc.isenabled(), gc.get_freeze_count())), run(args))[1])
+    before = gc.get_freeze_count()
+    assert main(["solve", "two_actuator", "--no-qp"]) == 0
+    assert seen == [(True, before)]
+    assert gc.isenabled()
+    probe = ("import gc, sys; import packetloss_cvx.cli.solve as s; from packetloss_cvx.cli import main; run = s.run; "
+             "s.run = lambda args: (print(gc.isenabled(), gc.get_freeze_count() > 0), run(args))[1]; "
+             "sys.argv = ['packetloss-cvx', 'solve', 'two_actuator', '--no-qp', '--json']; main()")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    assert done.stdout.splitlines()[0] == "True True", done.stderr

@@ -147,6 +147,21 @@ def test_bad_channels_are_refused_naming_mu(two_actuator, mus, error, match):
         CostEvaluator(two_actuator, "udp").costs(mus)
 
 
+@pytest.mark.parametrize(("mu", "error", "match"), [
+    ([0.5, 1.2], pl.ProbabilityError, "mu: expected probabilities"),
+    ([-1e-300, 0.5], pl.ProbabilityError, "mu: expected probabilities"),
+    ([np.nan, 0.5], pl.InputError, "mu"),
+    ([0.5, np.nan], pl.InputError, "mu"),
+    ([[0.5, np.nan]] * 10, pl.InputError, "mu"),
+])
+@pytest.mark.parametrize("checked", [True, False])
+def test_one_point_refuses_bad_channels_as_the_batch_does(two_actuator, mu, error, match, checked):
+    """The one-point path's own range test (a channel vector's entries compared one by one) lets no NaN or
+    out-of-range entry through: each is refused by the batch's validation, checked or not."""
+    with pytest.raises(error, match=match):
+        CostEvaluator(two_actuator, "udp").cost(np.array(mu), checked=checked)
+
+
 def test_bad_arguments(two_actuator):
     with pytest.raises(pl.InputError, match="protocol"):
         CostEvaluator(two_actuator, "ftp")
@@ -182,6 +197,16 @@ def test_cost_along_a_coordinate_line_equals_the_closed_form(seed, protocol):
 def test_line_refuses_a_bad_channel_index(two_actuator):
     with pytest.raises(pl.InputError, match="i: expected a channel index"):
         CostEvaluator(two_actuator, "udp").line([0.5, 0.5], 2)
+
+
+@pytest.mark.parametrize(("mu", "error"), [
+    ([0.5, 1.2], pl.ProbabilityError), ([-1e-300, 0.5], pl.ProbabilityError), ([np.nan, 0.5], pl.InputError),
+    ([0.5, np.nan], pl.InputError), ([0.5, 0.5, 0.5], pl.DimensionError),
+])
+def test_line_refuses_a_bad_channel_vector(two_actuator, mu, error):
+    """A channel vector taken as it is (a search's line) only when it is one: the rest is refused naming mu."""
+    with pytest.raises(error, match="mu"):
+        CostEvaluator(two_actuator, "udp").line(np.array(mu), 0)
 
 
 def _dense_written_here(s, protocol, mu):

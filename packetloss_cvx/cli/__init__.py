@@ -16,10 +16,16 @@ raises :class:`Interrupted` (a KeyboardInterrupt) wherever the run is, so every 
 out removes its temporary files and releases its folder's lock (safeio.py); a second signal during that
 clean-up is ignored.
 
-When the program ends (``main()`` without ``argv``: the console script, ``python -m packetloss_cvx``), the objects
+When the program runs (``main()`` without ``argv``: the console script, ``python -m packetloss_cvx``), the
+subcommand's module is imported with the cyclic garbage collector off, and the objects alive then (modules, their
+tables and registries: alive until the program ends) are frozen out of it (``gc.freeze``) before the command runs:
+the import's collections are skipped and the command's full collections walk only what the command made, not
+everything cvxpy, SciPy and Matplotlib keep. Frozen objects are still freed by reference counting; only a cycle
+among them stays until the end. When the program ends, the objects
 alive at that point are frozen out of the cyclic garbage collector (``gc.freeze``) just before ``main`` returns, so
 the interpreter's shutdown does not walk them all again to free memory the operating system takes back anyway:
-0.25-0.3 s of CPU at the end of a full ``reproduce`` (docs/performance.md, "The command line's exit"). Every file is
+0.25-0.3 s of CPU at the end of a full ``reproduce`` when measured, before the imports were frozen as well
+(docs/performance.md, "The command line's exit"; now only what the command made is left to freeze). Every file is
 complete and closed before that (atomic writes end in a rename inside the command), the standard streams are still
 flushed by the interpreter, and exit handlers (``atexit``, ``weakref.finalize``) still run; only ``__del__`` of
 objects caught in reference cycles at exit is skipped. Called with ``argv`` (in process: tests, notebooks) ``main``
@@ -128,7 +134,7 @@ def _run(argv: Sequence[str] | None) -> int:
         with warnings.catch_warnings():   # one stderr line, always: numerical warnings are checked, not printed
             warnings.simplefilter("ignore")
             importlib.import_module(f"{__name__}.common").preflight(args)   # NumPy: not needed for --help
-            command = importlib.import_module(f"{__name__}.{args.command}")
+            command = _import_command(args.command, program=argv is None)
             data, text, code = command.run(args)
         if getattr(args, "json_out", None):
             write_json(args.json_out, data, getattr(args, "force", False))
@@ -162,6 +168,23 @@ def _run(argv: Sequence[str] | None) -> int:
             raise stop from None        # fault; the half-initialised module makes the shutdown unsafe
         _say(f"packetloss-cvx: unexpected {type(err).__name__}: {err}")
         return 1
+
+
+def _import_command(name: str, program: bool) -> Any:
+    """The module that runs subcommand ``name``. For the program (``program``: ``main()`` without ``argv``) the
+    cyclic garbage collector is off during the import and what the import made is then frozen out of it (module
+    docstring): modules and their tables live as long as the program, so neither the import's collections nor the
+    command's full collections need to walk them. In process the collector is left alone."""
+    if not program:
+        return importlib.import_module(f"{__name__}.{name}")
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return importlib.import_module(f"{__name__}.{name}")
+    finally:
+        gc.freeze()
+        if enabled:
+            gc.enable()
 
 
 def _interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
