@@ -433,10 +433,10 @@ def polytope_excess(mu: np.ndarray, poly: Polytope) -> float:
 
 
 def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float,
-            fb: float | None = None, fa: float | None = None) -> tuple[float, float]:
+            fb: float | None = None) -> tuple[float, float]:
     """For ``f(b) <= alpha``: shrink [a, b] to ``(s_in, s_out)`` with ``s_in - s_out <= tol`` (or
     adjacent floats), ``f(s_in) <= alpha`` and ``f(s_out) > alpha`` the last point found
-    above alpha (both ``a`` if ``f(a) <= alpha``). ``fb``, ``fa``: f(b), f(a) if the caller has them.
+    above alpha (both ``a`` if ``f(a) <= alpha``). ``fb``: f(b) if the caller has it.
 
     Each step evaluates f where the line through (a, f(a)) and (b, f(b)) crosses alpha (1 -
     ALLOCATION_AIM_RTOL) (regula falsi,
@@ -457,7 +457,7 @@ def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: 
     >>> bool(s_out < np.log(5) / 3 <= s_in), len(calls) <= 12          # bisection: 31 evaluations
     (True, True)
     """
-    fa = f(a) if fa is None else fa
+    fa = f(a)
     if fa <= alpha:
         return a, a
     aim = alpha - ALLOCATION_AIM_RTOL * abs(alpha)      # interpolate toward a level just inside (tolerances.py)
@@ -498,10 +498,9 @@ def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: 
 
 
 def boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol: float,
-             fb: float | None = None, fa: float | None = None) -> float:
+             fb: float | None = None) -> float:
     """Smallest t found with ``f(t) <= alpha`` (within tol of the crossing, on the feasible
-    side), given ``f(b) <= alpha``; ``fb``, ``fa``: f(b), f(a) if the caller has them (:func:`bracket`).
-    O(log2((b - a) / tol)) evaluations of f.
+    side), given ``f(b) <= alpha``. O(log2((b - a) / tol)) evaluations of f.
 
     Examples
     --------
@@ -509,4 +508,4 @@ def boundary(f: Callable[[float], float], alpha: float, a: float, b: float, tol:
     >>> 0.5 <= t <= 0.5 + 1e-3
     True
     """
-    return bracket(f, alpha, a, b, tol, fb, fa)[0]
+    return bracket(f, alpha, a, b, tol, fb)[0]

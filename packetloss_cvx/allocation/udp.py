@@ -379,15 +379,13 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         raise AssertionError("unreachable")
 
     def visit(lb: float, l: np.ndarray, u: np.ndarray, p: np.ndarray) -> None:
-        Jp = probe(p)
-        if Jp <= alpha and J(p) <= alpha:                   # an incumbent needs the checked value
+        if probe(p) <= alpha and J(p) <= alpha:               # an incumbent needs the checked value
             search.offer(p, float(beta @ p))
         else:
             q, _ = box_lp(-np.ones(m), poly, l, u)          # a maximal point of the box and rows
             Jq = None if q is None else probe(q)
-            if Jq is not None and Jq <= alpha:              # the line's ends: q's probe and p's (s = 0 is p)
-                t = boundary(lambda s: probe(p + s * (q - p)), alpha, 0.0, 1.0, ALLOCATION_INCUMBENT_SHARE * gap, Jq,
-                             Jp)
+            if Jq is not None and Jq <= alpha:
+                t = boundary(lambda s: probe(p + s * (q - p)), alpha, 0.0, 1.0, ALLOCATION_INCUMBENT_SHARE * gap, Jq)
                 point = p + t * (q - p)
                 if J(point) <= alpha:
                     search.offer(point, float(beta @ point))
