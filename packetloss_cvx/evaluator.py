@@ -167,7 +167,7 @@ class CostEvaluator:
         value that a decision its certificate depends on rests on.
         """
         s = self.system
-        if (x0 is None and self._point is not None and isinstance(mu, np.ndarray) and mu.dtype == np.float64
+        if (x0 is None and self._point is not None and type(mu) is np.ndarray and mu.dtype == np.float64
                 and (_channel_vector(mu, s.m) or (mu.shape == (s.horizon, s.m)
                                                   and 0.0 <= mu.min() and mu.max() <= 1.0))):
             # NaN fails the comparisons: validated below
@@ -193,7 +193,7 @@ class CostEvaluator:
         point is checked as :meth:`cost` checks it and falls back to :meth:`cost` on a failed check.
         ``checked=False``: the points' values without the check, with the contract of :meth:`cost`'s.
         """
-        if isinstance(mu, np.ndarray) and mu.dtype == np.float64 and _channel_vector(mu, self.system.m):
+        if type(mu) is np.ndarray and mu.dtype == np.float64 and _channel_vector(mu, self.system.m):
             base = mu.copy()            # already a channel vector (a search's line): nothing to convert
         else:
             base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
@@ -394,7 +394,8 @@ class CostEvaluator:
 
 
 def _channel_vector(mu: np.ndarray, m: int) -> bool:
-    """Whether a float array ``mu`` is one channel vector, shape (m,) with every entry in [0, 1] (NaN fails the
+    """Whether a plain float array ``mu`` (an ``np.ndarray`` itself: a masked array's ``tolist`` gives None for its
+    masked entries, and :func:`.validation.numeric_array` refuses those) is one channel vector, shape (m,) with every entry in [0, 1] (NaN fails the
     comparisons): its m entries compared as Python floats, 0.3 us where two NumPy reductions take 2 us (the
     searches' probes and lines, thousands per allocation). O(m)."""
     return mu.shape == (m,) and all(0.0 <= p <= 1.0 for p in mu.tolist())
