@@ -403,23 +403,6 @@ class System:
         sched = probabilities(matrix_field(schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         return self._copy_with(mu_schedule=frozen(sched), channel=chan)
 
-    def with_noise_cov(self, noise_cov: npt.ArrayLike) -> System:
-        """A copy with the process noise covariance Sigma_W replaced, validated as the constructor validates it (n×n,
-        symmetric, PSD); the other fields, already validated, are kept. Sigma_W enters the kept structure (the noise
-        term, the Lyapunov weights), so the copy starts its own. Time O(n^3).
-
-        >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-        >>> s.with_noise_cov([[0.5]]).noise_cov.tolist(), s.noise_cov.tolist()
-        ([[0.5]], [[0.0]])
-        >>> s.with_noise_cov([[-1.0]])  # doctest: +ELLIPSIS
-        Traceback (most recent call last):
-            ...
-        packetloss_cvx.errors.InputError: noise_cov: expected a positive semidefinite matrix, ...
-        """
-        n = self.n
-        Sigma = symmetric_psd(matrix_field(noise_cov, "noise_cov", n, n, f"({n}, {n})"), "noise_cov")
-        return self._copy_with(noise_cov=frozen(Sigma))
-
     def with_sensor(self, sensor: Any) -> System:
         """A copy measuring through ``sensor`` (a sensor.Sensor or its TOML table; None: full state). Time O(n^3).
 

@@ -56,3 +56,17 @@ def test_mpc_vs_dp_with_the_shared_dp_is_the_one_solved_afresh(k):
     ctx = Context(paper={}, random=cases(), seed=0)
     s = ctx.random[k]
     assert relative_excess(s, solve=ctx.dp) == relative_excess(s)
+
+
+def test_the_sensed_twin_keeps_the_cases_initial_error_covariance():
+    """A case that already has a sensor: its twin measures over the claim's link, from the case's own P0 (state.P0
+    of its file), with the case's Sigma_W; only the sensor's C, gamma and R are the claim's."""
+    from packetloss_cvx.io import load_example
+
+    case = load_example("pendulum_sensor")
+    twin = sensing_claim.sensed(case)
+    assert np.any(case.sensor.P0)
+    assert np.array_equal(twin.sensor.P0, case.sensor.P0)
+    assert np.array_equal(twin.noise_cov, case.noise_cov)
+    assert twin.sensor.gamma.tolist() == [0.9]
+    assert twin.sensor.C.tolist() == np.eye(case.n)[:1].tolist()

@@ -109,29 +109,6 @@ def test_noise_term_is_shared_and_equals_the_trace():
     assert prediction(s.with_mu(np.full(s.m, 0.3))).noise_term == p.noise_term
 
 
-@pytest.mark.parametrize("seed", range(8))
-def test_with_noise_cov_equals_the_validated_round_trip_and_keeps_its_own_structure(seed):
-    """The noise replaced on a validated system (only Sigma_W validated) against the full validation of the same
-    system with that noise; the copy does not share the kept structure (Sigma_W enters the noise term)."""
-    rng = np.random.default_rng(seed)
-    s = random_system(rng, noise=bool(seed % 2))
-    F = rng.normal(size=(s.n, s.n))
-    noise = F @ F.T / s.n
-    fast = s.with_noise_cov(noise)
-    data = s.to_dict()
-    data["plant"]["noise_cov"] = noise.tolist()
-    slow = system_from_dict(data)
-    for key in FIELDS:
-        assert np.array_equal(getattr(fast, key), getattr(slow, key)), key
-    assert not fast.noise_cov.flags.writeable
-    assert prediction(fast).noise_term == prediction(slow).noise_term
-    assert prediction(fast).noise_term != prediction(s).noise_term
-    with pytest.raises(DimensionError, match=r"^noise_cov"):
-        s.with_noise_cov(np.eye(s.n + 1))
-    with pytest.raises(InputError, match=r"^noise_cov: expected a positive semidefinite"):
-        s.with_noise_cov(-np.eye(s.n))
-
-
 def test_a_copy_with_another_structure_does_not_share_the_cache():
     s = load_example("pendulum")
     p = prediction(s)

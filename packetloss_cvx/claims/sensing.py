@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import NumericalError
+from ..io import system_from_dict
 from ..model import System
 from ..results import ClaimResult, Riccati
 from ..sensing.loop import estimated_loop
@@ -45,10 +46,11 @@ def sensed(system: System) -> System | None:
     """
     if not system.is_stationary or system.channel is not None:
         return None
-    # copies of the validated system: only the replaced noise and the new sensor are validated (a round trip through
-    # to_dict and system_from_dict validated every field again)
-    twin = system if np.any(system.noise_cov) else system.with_noise_cov(0.01 * np.eye(system.n))
-    return twin.with_sensor({"C": np.eye(system.n)[:1].tolist(), "gamma": [0.9], "noise_cov": [[0.01]]})
+    data = system.to_dict()
+    if not np.any(system.noise_cov):
+        data["plant"]["noise_cov"] = (0.01 * np.eye(system.n)).tolist()
+    data["sensor"] = {"C": np.eye(system.n)[:1].tolist(), "gamma": [0.9], "noise_cov": [[0.01]]}
+    return system_from_dict(data)
 
 
 def _split(system: System, solve: Callable[[System], Riccati] | None = None
