@@ -302,3 +302,40 @@ def test_line_search_reaches_alpha_within_tol_in_few_evaluations(slope, curve):
         assert 0.0 < s_in - s_out <= 1e-9
         assert s_out < crossing * (1 + 1e-12) and crossing * (1 - 1e-12) < s_in
         assert len(calls) - 2 <= 4 * np.log2(1.0 / 1e-9)
+
+
+def test_udp_incumbent_line_starts_from_the_checked_value_after_a_wrong_probe(two_actuator, monkeypatch):
+    """Each box's LP point p is probed, then checked where the probe says feasible; where the check says not, the line
+    from p toward the box's maximal point must start from p's checked value (the probe asked again answers from the
+    checked memory). Here every probe at an LP point not yet checked says 'feasible' (min(J, alpha)), and the search
+    has no start and no bound from elsewhere: it still ends optimal, feasible and within its gap of the brute-force
+    optimum. (Taking the first, wrong probe as the line's value at p ended every such line at p itself: no incumbent,
+    SolverError 'gap_not_certified'.)"""
+    from packetloss_cvx.allocation import udp
+    from packetloss_cvx.allocation.grammar import read_polytope
+    from packetloss_cvx.evaluator import CostEvaluator
+
+    alpha, beta, lp_points = 8.0, np.array([1.0, 0.05]), set()
+    box_bound = udp.box_bound
+
+    def recording_box_bound(*args, **kwargs):
+        out = box_bound(*args, **kwargs)
+        if out is not None:
+            lp_points.add(np.asarray(out[3], dtype=float).clip(0.0, 1.0).tobytes())
+        return out
+
+    class OptimisticAtLpPoints(udp.MonotoneCost):
+        def probe(self, x):
+            key = np.asarray(x, dtype=float).clip(0.0, 1.0).tobytes()
+            value = super().probe(x)
+            return min(value, alpha) if key in lp_points and key not in self.known else value
+
+    ref = brute_force_allocation(two_actuator, "udp", alpha, tuple(beta))
+    monkeypatch.setattr(udp, "box_bound", recording_box_bound)
+    got = udp.udp_allocate(two_actuator, read_polytope([], 2, 0.0, 1.0), alpha, beta, 1e-4, -np.inf, 3000, None,
+                           cost=OptimisticAtLpPoints(CostEvaluator(two_actuator, "udp")))
+    assert lp_points                                                          # the wrong probes were asked
+    assert got.status == "optimal"
+    assert qp_cost(two_actuator, "udp", got.mu) <= alpha * (1 + 1e-7)        # feasible, by the QP twin
+    assert got.lower_bound <= ref[0] + 1e-9
+    assert got.value <= ref[0] / (1 - 1e-4) + 1e-9
