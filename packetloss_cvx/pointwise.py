@@ -56,7 +56,7 @@ class PointEvaluator:
         #: blkdiag(Omega_t) as one matrix while small (one matvec per forward cost), else per block
         self.Omega = block_diagonal(s.state_weights) if (s.horizon * s.n) ** 2 <= OMEGA_DENSE_MAX else None
         #: per channel i, the line's entries and blocks of Omega_g (:meth:`_blocks`), made on the first line along i
-        self.blocks: dict[int, tuple[np.ndarray, ...]] = {}
+        self.blocks: dict[int, tuple[slice | np.ndarray, ...]] = {}
 
     def with_protocol(self, protocol: str) -> PointEvaluator:
         """The same system's evaluator for ``protocol`` ("tcp" or "udp", checked by the caller), sharing
@@ -153,7 +153,7 @@ class PointEvaluator:
 
         return at
 
-    def _blocks(self, i: int) -> tuple[np.ndarray, ...]:
+    def _blocks(self, i: int) -> tuple[slice | np.ndarray, ...]:
         """Channel i's line structure, made once per channel: its entries ``on`` (every m-th from i, a slice) and
         the others ``off`` (their indices, ascending) in the stacked (N m,) vectors, and the blocks
         Omega_g[off, off], [off, on], [on, off], [on, on] (copies: the same numbers the line indexed out of
