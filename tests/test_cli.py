@@ -187,6 +187,31 @@ def test_the_program_freezes_the_collector_at_its_end_and_an_in_process_call_doe
     assert done.stderr.count("\n") == 1            # the one line of bad input, and nothing from the shutdown
 
 
+
+def test_a_signal_after_the_programs_end_is_ignored_and_an_in_process_call_restores_the_callers_handlers():
+    """Once ``main()`` (the program) returns, its files are complete and its code decided: a SIGINT or SIGTERM
+    landing before the process exits is ignored (the interpreter's own handlers would end it by the signal, or
+    with a KeyboardInterrupt traceback, after a finished run). ``main(argv)`` puts the caller's handlers back."""
+    import signal
+
+    def mine(signum, frame):
+        raise AssertionError("not expected")
+
+    previous = {s: signal.signal(s, mine) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        assert main(["solve", "no-such-file.toml"]) == 2
+        assert signal.getsignal(signal.SIGINT) is mine
+        assert signal.getsignal(signal.SIGTERM) is mine
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    probe = ("import os, signal, sys; from packetloss_cvx.cli import main; sys.argv = ['packetloss-cvx', 'solve', "
+             "'no-such-file.toml']; code = main(); os.kill(os.getpid(), signal.SIGINT); "
+             "os.kill(os.getpid(), signal.SIGTERM); print(code, 'after both signals')")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stdout.strip()) == (0, "2 after both signals"), done.stderr
+    assert done.stderr.count("\n") == 1            # the one line of bad input, no traceback
+
 def test_the_program_runs_its_command_with_the_imports_frozen_and_the_collector_on(monkeypatch):
     """``main()`` without argv imports the subcommand's module with the collector off, freezes what the imports
     made and turns the collector back on before the command runs; ``main(argv)`` leaves both alone."""

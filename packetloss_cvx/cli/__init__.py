@@ -14,7 +14,8 @@ so ``--help``, ``--version`` and bad input answer without importing cvxpy or Sci
 SIGINT and SIGTERM end a run with one line on stderr and exit 130 / 143 (128 + the signal): the handler
 raises :class:`Interrupted` (a KeyboardInterrupt) wherever the run is, so every ``with`` block on the way
 out removes its temporary files and releases its folder's lock (safeio.py); a second signal during that
-clean-up is ignored.
+clean-up is ignored, and so is one that lands after the program's run is over (``main()`` without ``argv`` has
+returned: its files are complete and its code decided). ``main(argv)`` restores the caller's handlers.
 
 When the program runs (``main()`` without ``argv``: the console script, ``python -m packetloss_cvx``), the
 subcommand's module is imported with the cyclic garbage collector off, and every object tracked then (modules, their
@@ -120,7 +121,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if previous is not None:
             for signum, handler in previous.items():
-                signal.signal(signum, handler)
+                # the program ends here (its files complete, its code decided): a signal from now on has nothing to
+                # stop, and the interpreter's own handlers would end it by the signal or with a traceback; in
+                # process (main(argv)) the caller's handlers come back
+                signal.signal(signum, signal.SIG_IGN if argv is None else handler)
         if argv is None:        # the program ends: its shutdown need not collect what is alive now (module docstring)
             gc.freeze()
 
