@@ -1,6 +1,7 @@
 """Output folders written by one run at a time, listed in a manifest (docs/design.md §4, "Files and runs").
 
-* A folder is refused if it holds a file that no manifest of this package lists, unless ``force=True``
+* A folder is refused if it holds a file that no manifest of this package lists, or a listed file that is no
+  longer the one its complete manifest describes (size and sha256: edited since), unless ``force=True``
   (``--force``): a user's files are never replaced silently. An empty folder is accepted.
 * The folder carries ``manifest.json`` (command, version, time, each file with its size and sha256,
   ``"complete": true``), written last and atomically. While a run writes, the manifest says
@@ -188,19 +189,38 @@ class RunFolder:
 
     def _check_owner(self) -> None:
         manifest = read_manifest(self.path)
-        listed = {f["name"] for f in manifest["files"]} if manifest else set()
+        entries = {f["name"]: f for f in manifest["files"]} if manifest else {}
         ours = {LOCK_NAME, MANIFEST_NAME} if manifest else {LOCK_NAME}
         try:
             present = [name for name in os.listdir(self.path) if name not in ours and not name.startswith(TEMP_PREFIX)]
         except OSError as err:
             raise self._fail(err) from None
-        foreign = sorted(name for name in present if name not in listed)
-        if foreign and not self.force:
-            what = "no manifest of packetloss-cvx lists" if manifest else "it holds files packetloss-cvx did not write:"
-            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+        foreign = sorted(name for name in present if name not in entries)
+        changed = sorted(name for name in present if name in entries and not self._as_listed(entries[name]))
+        if (foreign or changed) and not self.force:
+            if foreign:
+                what = "no manifest of packetloss-cvx lists" if manifest else "it holds files packetloss-cvx did not write:"
+                names = foreign
+            else:
+                what, names = "files changed since packetloss-cvx wrote them:", changed
+            shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
             raise OutputExistsError(self.field, f"refusing to write into {str(self.path)!r}: {what} {shown}; "
                                                 "pass --force to write there anyway")
-        self.previous = sorted(name for name in present if name in listed)
+        self.previous = sorted(name for name in present if name in entries and name not in changed)
+
+    def _as_listed(self, entry: dict[str, Any]) -> bool:
+        """Whether the file a manifest entry names is the one the entry describes: its size and sha256 where the entry
+        records them (a complete run's manifest), any file of that name where it does not (an unfinished run's list
+        of the names it may have left). A file edited since, or replaced by a folder, is not. O(size of the file)."""
+        if "sha256" not in entry:
+            return True
+        path = self.path / entry["name"]
+        try:
+            if not path.is_file() or ("bytes" in entry and path.stat().st_size != entry["bytes"]):
+                return False
+            return file_digest(path) == entry["sha256"]
+        except OSError:
+            return False
 
     # -- writing ----------------------------------------------------------------------------------------
     def _manifest(self, complete: bool) -> dict[str, Any]:

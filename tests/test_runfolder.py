@@ -71,6 +71,31 @@ def test_a_folder_with_a_users_file_is_refused_unless_force(tmp_path):
         _run(tmp_path / "ours", {"a": b"2"})
 
 
+
+def test_a_run_file_edited_since_is_refused_unless_force_and_kept_if_not_rewritten(tmp_path):
+    """A file the complete manifest lists but whose size or sha256 no longer match (edited by hand since) is the
+    user's now: a rerun is refused without --force; forced, a file the new run does not write stays, unlisted.
+    A manifest entry whose hash matches no file of that name (a hand-made manifest) does not make it the package's."""
+    out = tmp_path / "run"
+    _run(out, {"sweep.csv": b"x,y\n1,2\n", "sweep.png": b"figure"})
+    (out / "sweep.csv").write_bytes(b"x,y\n1,2\nmy annotations\n")        # longer: the size differs
+    (out / "sweep.png").write_bytes(b"FIGURE")                              # same size: only the sha256 differs
+    with pytest.raises(OutputExistsError, match=r"changed since packetloss-cvx wrote them: sweep.csv, sweep.png; "
+                                                r"pass --force"):
+        _run(out, {"sweep.npz": b"new"})
+    assert (out / "sweep.csv").read_bytes().endswith(b"my annotations\n")
+    _run(out, {"sweep.csv": b"new"}, force=True)                            # forced: the rewritten one is replaced
+    assert (out / "sweep.png").read_bytes() == b"FIGURE"                     # the edited one not rewritten stays
+    assert [f["name"] for f in _manifest(out)["files"]] == ["sweep.csv"]
+    made = tmp_path / "made"
+    made.mkdir()
+    (made / "notes.txt").write_text("the user's")
+    (made / MANIFEST_NAME).write_text(json.dumps({"packetloss_cvx": "0.1.0", "complete": True,
+                                                  "files": [{"name": "notes.txt", "sha256": "x"}]}))
+    with pytest.raises(OutputExistsError, match="changed since packetloss-cvx wrote them: notes.txt"):
+        _run(made, {"a": b"1"})
+    assert (made / "notes.txt").read_text() == "the user's"
+
 def test_an_empty_folder_is_accepted_and_special_paths_refused(tmp_path):
     (tmp_path / "empty").mkdir()
     _run(tmp_path / "empty", {"a": b"1"})
