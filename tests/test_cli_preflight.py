@@ -14,6 +14,10 @@ from packetloss_cvx.cli import simulate as simulate_command
     (["simulate", "two_actuator", "--closed-loop", "--save", "{tmp}/runs.txt"], "--save"),
     (["simulate", "two_actuator", "--closed-loop", "--plot", "{tmp}/no-such-dir/loop.png"], "--plot"),
     (["simulate", "two_actuator", "--plot", "{tmp}/loop.png"], "--plot"),
+    # two outputs of one run into one file: the figure would be replaced by the JSON (with --force silently)
+    (["simulate", "two_actuator", "--closed-loop", "--plot", "{tmp}/q.png", "--out", "{tmp}/q.png", "--force"],
+     "--plot"),
+    (["simulate", "two_actuator", "--closed-loop", "--save", "{tmp}/x.npz", "--out", "{tmp}/./x.npz"], "--save"),
 ])
 def test_a_bad_output_path_is_refused_before_the_work(argv, field, tmp_path, capsys, monkeypatch):
     """These were refused only after the whole computation (a long audit or simulation lost to a typo)."""

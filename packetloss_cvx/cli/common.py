@@ -266,8 +266,13 @@ def preflight(args: argparse.Namespace) -> None:
         for path in value if isinstance(value, list) else [value]:
             if isinstance(path, str):
                 check_path_length(path, flag)
+    seen: dict[str, str] = {}
     for name, flag in OUTPUT_FILES.items():   # a typo in an output path costs nothing, not the whole run
         if isinstance(getattr(args, name, None), str):
+            target = os.path.realpath(getattr(args, name))
+            if target in seen:                # two outputs of one run into one file: one would replace the other
+                raise InputError(flag, f"names the same file as {seen[target]}: {getattr(args, name)!r}")
+            seen[target] = flag
             check_writable(getattr(args, name), flag, getattr(args, "force", False))
     if isinstance(getattr(args, "save", None), str) and not args.save.endswith(".npz"):
         raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
