@@ -16,6 +16,7 @@ from packetloss_cvx.allocation.brute_force import brute_force_allocation
 from packetloss_cvx.allocation.tcp import tangent
 from packetloss_cvx.cli import main
 from packetloss_cvx.convex import ClarabelProgram
+from packetloss_cvx.io import system_from_dict
 from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL
 
 # The 3-channel case of issue 8: beta = (2, 1, 1), mu1 <= mu2, mu1 + mu2 >= 1.2. Before the
@@ -339,3 +340,21 @@ def test_udp_incumbent_line_starts_from_the_checked_value_after_a_wrong_probe(tw
     assert qp_cost(two_actuator, "udp", got.mu) <= alpha * (1 + 1e-7)        # feasible, by the QP twin
     assert got.lower_bound <= ref[0] + 1e-9
     assert got.value <= ref[0] / (1 - 1e-4) + 1e-9
+
+
+def test_a_relaxation_whose_cuts_are_not_finite_is_a_numerical_error_and_the_udp_search_goes_without_it():
+    """An input weight of 1e-300 beside 1 makes J*_tcp's tangent cuts nan near the SOCP's point: the TCP-like
+    allocation raises a typed NumericalError (it was SciPy's ValueError from linprog, an untyped 'bad input'); the
+    UDP-like search proceeds without that bound, as it does when the SOCP fails, and its answer is certified."""
+    data = pl.load_example("two_actuator").to_dict()
+    data["cost"]["input_weight"] = [1e-300, 1.0]
+    system = system_from_dict(data)
+    with pytest.raises(pl.NumericalError, match="not finite at a tangent point"):
+        allocate(system, "tcp", 5.0, (1.0, 1.0))
+    got = allocate(system, "udp", 5.0, (1.0, 1.0))
+    assert got.status == "optimal"
+    assert "TCP-like bound unavailable" in got.method
+    assert got.cost <= 5.0 * (1 + 1e-9)
+    assert got.lower_bound <= got.communication_cost
+    worse = got.mu * (1 - 1e-3)                          # a cheaper channel pair just below the answer is infeasible
+    assert pl.closed_form(system.with_mu(worse), "udp", method="recursion").cost > 5.0

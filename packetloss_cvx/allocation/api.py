@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..budgets import check, count_text
-from ..errors import InfeasibleError, InputError, SolverError
+from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..model import System
 from ..protocols import check_protocol
 from ..results import Allocation, MinCost
@@ -275,7 +275,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     except InfeasibleError as err:
         proof = str(err) if protocol == "tcp" else f"the TCP-like relaxation is infeasible (Theorem 2): {err}"
         raise infeasible(proof) from None
-    except SolverError as err:
+    except (SolverError, NumericalError) as err:       # the relaxation failed: the UDP-like search goes without it
         if protocol == "tcp":
             raise
         relaxation, floor_note = None, f"; TCP-like bound unavailable ({err})"

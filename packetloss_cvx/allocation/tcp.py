@@ -30,7 +30,7 @@ import cvxpy as cp
 import numpy as np
 
 from ..convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
-from ..errors import InfeasibleError, SolverError
+from ..errors import InfeasibleError, NumericalError, SolverError
 from ..evaluator import CostEvaluator
 from ..model import CacheKey, System
 from ..qp import sparse_dynamics
@@ -281,6 +281,9 @@ def _cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None,
     P = cut_points(mubar, also)
     f, S = tangent(system, P, evaluator)
     r = f - np.sum(S * P, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
+    if not (np.all(np.isfinite(S)) and np.all(np.isfinite(r))):    # a cut of nan or inf proves nothing
+        raise NumericalError(f"TCP-like allocation: J*_tcp or its gradient is not finite at a tangent point near mu = "
+                             f"{np.round(mubar, 6).tolist()} (weights of very different scales?): no cut can be made")
     return S, r, float(f[0])
 
 
