@@ -199,8 +199,9 @@ class RunFolder:
         changed = sorted(name for name in present if name in entries and not self._as_listed(entries[name]))
         if (foreign or changed) and not self.force:
             if foreign:
-                what = "no manifest of packetloss-cvx lists" if manifest else "it holds files packetloss-cvx did not write:"
                 names = foreign
+                what = "no manifest of packetloss-cvx lists" if manifest else \
+                    "it holds files packetloss-cvx did not write:"
             else:
                 what, names = "files changed since packetloss-cvx wrote them:", changed
             shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
