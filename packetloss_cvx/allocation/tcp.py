@@ -279,8 +279,9 @@ def _cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None,
     """:func:`tangent_cuts`, and J*_tcp at ``mubar`` (clipped into [0, 1]), the first of its batch. O(m len(steps))
     closed forms, as one batch."""
     P = cut_points(mubar, also)
-    f, S = tangent(system, P, evaluator)
-    r = f - np.sum(S * P, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
+    with np.errstate(over="ignore", invalid="ignore"):      # checked below: a cut of nan or inf raises, typed
+        f, S = tangent(system, P, evaluator)
+        r = f - np.sum(S * P, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
     if not (np.all(np.isfinite(S)) and np.all(np.isfinite(r))):    # a cut of nan or inf proves nothing
         raise NumericalError(f"TCP-like allocation: J*_tcp or its gradient is not finite at a tangent point near mu = "
                              f"{np.round(mubar, 6).tolist()} (weights of very different scales?): no cut can be made")
