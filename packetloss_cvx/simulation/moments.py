@@ -12,6 +12,7 @@ Monte Carlo is then a check of these numbers, not the answer.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -201,13 +202,8 @@ def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.Arra
     """
     mu_ = stationary_channel(system) if mu is None else mu
     A, B, K, mu_ = check_law(system.A, system.B, gain, mu_)          # checked once for the radius and both solves
-    kept: list[np.ndarray] = []
-
-    def matrix() -> np.ndarray:          # the law's n^2 x n^2 matrix: built once, read by the radius and both solves
-        if not kept:
-            kept.append(second_moment_matrix(A, B, K, mu_))
-        return kept[0]
-
+    # the law's n^2 x n^2 matrix, built on first use and read again by the radius and both solves
+    matrix = functools.cache(lambda: second_moment_matrix(A, B, K, mu_))
     radius = law_radius(A, B, K, mu_, method=method, matrix=matrix)
     if not is_mean_square_stable(radius):
         reason = (f"not mean-square stable: the second-moment operator has spectral radius {radius:.6g} >= 1, "
