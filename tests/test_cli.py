@@ -187,7 +187,6 @@ def test_the_program_freezes_the_collector_at_its_end_and_an_in_process_call_doe
     assert done.stderr.count("\n") == 1            # the one line of bad input, and nothing from the shutdown
 
 
-
 def test_a_signal_after_the_programs_end_is_ignored_and_an_in_process_call_restores_the_callers_handlers():
     """Once ``main()`` (the program) returns, its files are complete and its code decided: a SIGINT or SIGTERM
     landing before the process exits is ignored (the interpreter's own handlers would end it by the signal, or
@@ -211,6 +210,7 @@ def test_a_signal_after_the_programs_end_is_ignored_and_an_in_process_call_resto
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
     assert (done.returncode, done.stdout.strip()) == (0, "2 after both signals"), done.stderr
     assert done.stderr.count("\n") == 1            # the one line of bad input, no traceback
+
 
 def test_the_program_runs_its_command_with_the_imports_frozen_and_the_collector_on(monkeypatch):
     """``main()`` without argv imports the subcommand's module with the collector off, freezes what the imports

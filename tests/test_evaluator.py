@@ -209,7 +209,6 @@ def test_line_refuses_a_bad_channel_vector(two_actuator, mu, error):
         CostEvaluator(two_actuator, "udp").line(np.array(mu), 0)
 
 
-
 @pytest.mark.parametrize("mask", [[False, True], [True, True]])
 @pytest.mark.parametrize("checked", [True, False])
 def test_masked_channels_are_refused_on_the_one_point_paths(two_actuator, mask, checked):
@@ -221,6 +220,7 @@ def test_masked_channels_are_refused_on_the_one_point_paths(two_actuator, mask, 
         evaluator.cost(mu, checked=checked)
     with pytest.raises(pl.InputError, match="mu: expected plain numbers, found a masked array"):
         evaluator.line(mu, 0, checked=checked)
+
 
 def _dense_written_here(s, protocol, mu):
     """Theorem 1's dense minimiser from the prediction matrices, written out here (not costs.hessian_factor):
