@@ -18,6 +18,10 @@ __all__ = [
     "CROSS_CHECK_INPUT_ATOL",
     "DENSE_MAX_CONDITION",
     "DENSE_RESIDUAL_RTOL",
+    "KERNEL_MARGIN_RTOL",
+    "KERNEL_POINT_RTOL",
+    "KERNEL_VALUE_RTOL",
+    "KERNEL_ZERO_ATOL",
     "MEMORY_BUDGET_BYTES",
     "PLAN_CHECK_MAX_GROWTH",
     "SELF_CHECK_ATOL",
@@ -112,6 +116,28 @@ STATIONARY_GAP = 1e-12
 #: such plants for every input: the split reports ``dropped`` and ``kept`` so that a verdict resting on it can be
 #: called exact (``dropped == 0``: a mode no input touches, exact block structure) or said to rest on a rank decision.
 CONTROLLABILITY_RTOL = 1e-12
+
+#: Two runs of one computation under different BLAS kernels (OPENBLAS_CORETYPE) round differently. A number a
+#: user sees may move between kernels by no more than what it is trusted to: a closed-form cost, a table's
+#: eigenvalue or a radius by KERNEL_VALUE_RTOL (= SELF_CHECK_RTOL, what the self-check guarantees; measured on
+#: reproduce's results.json, Haswell against Prescott: 4.6e-13 worst, 7.0e-12 for an eigenvalue of A - BK) ...
+KERNEL_VALUE_RTOL = SELF_CHECK_RTOL
+#: ... with an absolute floor for quantities that are exactly zero in exact arithmetic (a mean-square radius at a
+#: deadbeat point: 1e-32 to 1e-30 measured, i.e. (eps ||A||)^2), times the quantity's own scale (1 for a radius,
+#: a claim's tolerance for its worst margin) ...
+KERNEL_ZERO_ATOL = 1e-12
+#: ... a maximiser's location by KERNEL_POINT_RTOL: at a smooth maximum the location is determined only to about
+#: the square root of the value's relative accuracy (measured 4.3e-8 for the two-actuator maximiser, 1.3e-9 for
+#: the pendulum's; the values agree to 7e-16) ...
+KERNEL_POINT_RTOL = 1e-6
+#: ... a holding claim's worst margin (its tolerance less the largest error, an error at rounding level) by
+#: KERNEL_MARGIN_RTOL of the margin (measured: lemma-2's 9.989e-6 against 9.972e-6, 1.7e-3; cost-split-sensor
+#: 1.2e-3), as only the verdict, not the rounding error's digits, is a result ...
+KERNEL_MARGIN_RTOL = 1e-2
+#: ... and an allocation's communication cost and lower bound by its certified relative gap (each run's are within
+#: the gap of the same optimum; measured 5.5e-5 at the default gap 1e-4). Its point mu is not unique to better than
+#: the gap where the optimum is flat (measured: a component 1.2e-6 against 2.4e-7), so it is compared through its
+#: cost, not entry by entry.
 
 #: What one dense computation or one QP may allocate: a quarter of the machine's memory.
 MEMORY_BUDGET_BYTES = 0.25 * (os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
