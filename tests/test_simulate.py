@@ -77,8 +77,9 @@ def test_cli_schema_and_unstable_exit_zero(capsys):
     for p in ("tcp", "udp"):
         assert set(data[p]) == {"open_loop", "closed_loop"}
         assert set(data[p]["open_loop"]) == OPEN
-        assert set(data[p]["closed_loop"]) == CLOSED
+        assert set(data[p]["closed_loop"]) == CLOSED | {"stderr_reason"}   # unstable: no error bar, and why
         assert data[p]["closed_loop"]["stable"] is False   # the paper's pendulum laws: radius > 1
+        assert data[p]["closed_loop"]["stderr"] is None
     assert set(data["dp"]) == {"closed_loop"}
     assert data["dp"]["closed_loop"]["stable"] is True
 

@@ -40,6 +40,7 @@ from .runs import (
     z_score,
 )
 from .stability import is_mean_square_stable, mean_square_radius
+from .tails import error_bar_reason
 
 __all__ = ["BLOCK", "LAWS", "law_gains", "simulate", "z_score"]
 
@@ -254,6 +255,8 @@ def _closed_loop(system: System, gains: dict[str, np.ndarray | str], steps: int,
         st = stats[names.index(law)]
         radius = mean_square_radius(system.A, system.B, gain, system.mu_schedule[0])
         exact = float(finite_horizon_costs(system, gain, steps)[0].mean())
-        out[law] = ClosedLoopRun(law, st.mean, st.stderr, exact, radius, is_mean_square_stable(radius), st.norm_mean,
-                                 st.norm_std, st.stage_mean)
+        no_bar = error_bar_reason(system.A, system.B, gain, system.mu_schedule[0])
+        out[law] = ClosedLoopRun(law, st.mean, np.nan if no_bar else st.stderr, exact, radius,
+                                 is_mean_square_stable(radius), st.norm_mean, st.norm_std, st.stage_mean,
+                                 stderr_reason=no_bar)
     return out, trajectories
