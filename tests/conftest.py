@@ -27,7 +27,9 @@ def pendulum() -> pl.System:
 #: (xdist's own order, by the number of tests in a file, put these few-test files last.) A file missing here
 #: only runs later; nothing else depends on the order.
 HEAVIEST_FIRST = (
+    "tests/test_examples_kernels.py",        # 60 s (every example and command, under a second kernel too)
     "tests/test_docs_site.py",               # 21 s (the mkdocs build, then Chromium)
+    "tests/test_reproduce_kernels.py",       # 10 s (reproduce --quick under a second kernel)
     "tests/test_allocation_stability.py",    # 15 s
     "tests/test_allocation_power.py",        # 13 s
     "tests/test_claims_doc.py",              # 13 s
