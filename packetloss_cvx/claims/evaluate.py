@@ -28,8 +28,8 @@ from ..tolerances import RESOLVED_MIN
 from .context import Context
 from .paper import STATEMENTS
 
-__all__ = ["CASE_ERRORS", "SimpleSystems", "Tally", "Z", "cost_scale", "evaluate", "input_scale", "relative_error",
-           "resolved", "shrink", "simple_system", "simple_systems", "verdict", "z_margin"]
+__all__ = ["CASE_ERRORS", "SimpleSystems", "Tally", "Z", "cost_scale", "evaluate", "relative_error", "resolved",
+           "shrink", "simple_system", "simple_systems", "verdict", "z_margin"]
 
 #: Monte Carlo checks allow Z standard errors (two-sided 99.994 % per case).
 Z = 4.0
@@ -328,19 +328,6 @@ def cost_scale(system: System) -> float:
                  float(system.input_weights.max(initial=0.0)))
     x = float(np.abs(system.x0).max(initial=0.0))
     return weight * (x * x + system.horizon * float(np.linalg.norm(system.noise_cov, 2)))
-
-
-def input_scale(system: System) -> float:
-    """The size of an input whose cost is the problem's cost scale, ``sqrt(cost_scale / max psi)`` (the dearest input):
-    B scaled by c and the input weights by c^2 (the same problem in other input units) scale it by 1 / c. O(N n^3).
-
-    Examples
-    --------
-    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[4], mu=[0.5], x0=[2])
-    >>> input_scale(s)                             # cost scale 4 * 2^2 = 16, an input of weight 4 costs 16 at 2
-    2.0
-    """
-    return float(np.sqrt(cost_scale(system) / float(system.input_weights.max())))
 
 
 def relative_error(value: float, reference: float, floor: float) -> float:

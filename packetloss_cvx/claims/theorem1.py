@@ -7,13 +7,14 @@ import numpy as np
 
 from ..costs import closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from ..errors import NumericalError
+from ..linalg import frobenius
 from ..model import System
 from ..prediction import prediction
 from ..results import ClaimResult, Solution
 from ..simulation import sample_deliveries, sample_noise, sample_plan_costs
 from ..tolerances import CROSS_CHECK_COST_RTOL, CROSS_CHECK_FLOOR
 from .context import Context, interior
-from .evaluate import Z, cost_scale, enough_deliveries, evaluate, input_scale, relative_error, resolved, z_margin
+from .evaluate import Z, cost_scale, enough_deliveries, evaluate, relative_error, resolved, z_margin
 
 __all__ = ["expected_cost_tcp", "lemma_1", "lemma_quad", "monte_carlo_cases", "theorem_1_costs", "theorem_1_laws"]
 
@@ -33,7 +34,7 @@ def theorem_1_laws(ctx: Context) -> ClaimResult:
     def margin(s: System) -> float:
         worst = 1e-6
         twin = None if s in ctx.cases else ExpectedCostQP(s, "tcp")     # one object, both protocols
-        floor = CROSS_CHECK_FLOOR * input_scale(s)
+        x = float(np.abs(s.x0).max(initial=0.0))
         for p in ("tcp", "udp"):
             qp = ctx.qp(s, p) if twin is None else twin.solve(with_gain=False, cross_check=False, protocol=p)
             mask = s.mu_schedule.ravel() > 0
@@ -42,13 +43,15 @@ def theorem_1_laws(ctx: Context) -> ClaimResult:
             law = found.inputs.ravel()[mask]
             diff = float(np.abs(qp.inputs.ravel()[mask] - law).max(initial=0.0))
             size = resolved(float(np.abs(law).max(initial=0.0)), f"the {p}-like optimal plan's largest input")
+            floor = CROSS_CHECK_FLOOR * frobenius(found.gain) * x      # the law's size from a state of x0's size
             worst = min(worst, 1e-6 - relative_error(diff, 0.0, max(size, floor)))
         return worst
     return evaluate("theorem-1-laws", ctx, ctx.cases, margin,
-                    "margin = 1e-6 - max|U_qp - U*| / max(max|U*|, 1e-9 u_s) over both protocols (Clarabel, "
-                    "tolerances 1e-10), with u_s = sqrt(largest weight (max|x0|^2 + N ||Sigma_W||) / max psi) the "
-                    "problem's own input scale. A QP whose value is above the cost of the closed form's plan did not "
-                    "reach the minimum: that case is undecided, not a violation.")
+                    "margin = 1e-6 - max|U_qp - U*| / max(max|U*|, 1e-9 ||K|| max|x0|) over both protocols "
+                    "(Clarabel, tolerances 1e-10): relative at every scale, the floor (for a plan that is zero, "
+                    "Omega_gp x0 = 0) the size of the law's plan from a state of x0's size. A QP whose value is above "
+                    "the cost of the closed form's plan did not reach the minimum: that case is undecided, not a "
+                    "violation.")
 
 
 def theorem_1_costs(ctx: Context) -> ClaimResult:
