@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 __all__ = [
     "ACCEPTED_STATUSES",
     "CLARABEL_DEFAULT",
@@ -274,6 +276,16 @@ RICCATI_MAX_ITER = 20000
 RICCATI_DIVERGENCE = 1e14
 #: Critical delivery probabilities along a ray are bisected to this width in t.
 CRITICAL_MU_TOL = 1e-6
+__all__ += ["RESOLVED_MIN"]
+
+#: A nonzero quantity below RESOLVED_MIN = tiny / eps (2.2e-308 / 2.2e-16, about 1.0e-292) has rounding-level parts
+#: in the subnormal range, where double precision keeps fewer than 53 bits: the sums and products that computed it
+#: may have lost digits, and nothing bounds how many. A check meeting one (the audit's costs and plans of a system
+#: whose weights or x0 are scaled towards 1e-300) reports the case undecided. A guarantee, not an observed edge:
+#: measured on two_actuator with x0 scaled by c (costs 2.8 c^2), the closed form's cost against c^2 times the
+#: unscaled one is off by 4.1e-15 at c = 1e-140 (2.8e-280), 6.3e-15 at 1e-150 (2.8e-300, already below the bound),
+#: 9.8e-15 at 1e-155 (subnormal), and at 1e-160 (2.8e-320) its self-check fails, 1.8e-4 apart.
+RESOLVED_MIN = float(np.finfo(float).tiny / np.finfo(float).eps)
 __all__ += ["QP_PIN_MU"]
 
 #: The QP twin carries the mean delivered input z = mu u with the weight (psi + ...) / mu, and pins z = 0
