@@ -174,6 +174,12 @@ class ControllableSplit:
     coordinates spanning the reachable subspace. ``dropped`` is the largest singular value the staircase
     treated as zero (0.0 when every zero was exact, as for a mode no input touches) and ``kept`` the least one
     it kept (``inf`` when nothing is reached), both relative to ``||[A, B]||_2``.
+
+    Examples
+    --------
+    >>> split = controllable_split(np.diag([0.5, 2.0]), np.array([[1.0], [0.0]]))   # the second mode is not reached
+    >>> split.nc, split.A_cc.tolist(), split.A_uu.tolist(), split.B_c.tolist()
+    (1, [[0.5]], [[2.0]], [[1.0]])
     """
 
     T: np.ndarray
