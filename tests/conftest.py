@@ -85,7 +85,10 @@ def long_files(root: Path, folders=REPORTED_FOLDERS) -> list[tuple[str, int]]:
 
 
 def pytest_terminal_summary(terminalreporter):
-    """After every run: the files over LONG_FILE_LINES lines, for a maintainer to look at their seams."""
+    """After a verbose run (``-v``): the files over LONG_FILE_LINES lines, for a maintainer to look at their seams
+    (a user's run of the README's command is not a code review)."""
+    if terminalreporter.config.get_verbosity() < 1:
+        return
     listed = long_files(EXAMPLES.parents[1])
     if listed:
         terminalreporter.write_sep("-", f"files over {LONG_FILE_LINES} lines (for review along their seams, "
