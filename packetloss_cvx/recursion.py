@@ -777,8 +777,8 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
     the law's, ``u_t = -K_t x_t``, written into U as it goes (:func:`rollout_batch`); a stationary run of
     one gain (a settled backward pass, at least STATIONARY_RUN steps) is rolled out by powers of its closed
     loop and the time-varying steps after it by a scan of their closed-loop products (:func:`_scanned_run`)
-    where A is stable (rho(A) < 1: rolling the plan forward again, as expected_cost does, then meets the same
-    states to rounding; with an unstable A step by step, to the bit). O(P N n (n + m)).
+    where A is stable or the run's closed loop is (:func:`_by_powers`; otherwise step by step, to the bit).
+    O(P N n (n + m)).
 
     Examples
     --------
@@ -792,10 +792,23 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
 
 def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
     """``run`` where it may be rolled out by powers of its closed loop, and the steps after it by a scan
-    (:func:`_scanned_run`): where A is stable (rho(A) < 1). An unstable A would amplify, in a plan rolled forward
-    again (expected_cost of the plan), the rounding by which powers differ from steps: there the rollout stays
-    step by step, to the bit (None). O(n^3)."""
-    return run if run is not None and _radius(system.A) < 1.0 else None
+    (:func:`_scanned_run`): where A is stable (rho(A) < 1), or the run's closed loop ``A - B M K`` (mu[:, 1],
+    K[:, 1]) is at every point (a closed stationary tail's is: its contraction q < 1). None otherwise: an
+    unstable plant under an unstable loop is rolled out step by step, to the bit. O(P n^3).
+
+    The plan of an unstable plant (rho(A) > 1) is then not the float-for-float rollout of the recursion
+    ``x_{t+1} = A x_t + B M u_t`` that :func:`mean_states` runs open loop: rolled forward again from its inputs
+    alone, its rounding grows with A's unstable modes, so its open-loop cost (expected_cost of the plan) is not
+    resolved over long horizons (the pendulum at N = 2000: 3.1e78 against the plan's 25175). Neither is that of a
+    plan rolled out step by step: its exact open-loop cost (300 digits) is 3.1e76; a float forward pass gives
+    25175 only by repeating the rollout's own rounding. The plan's cost is checked on the closed-loop states it
+    was rolled out with (the law's states)."""
+    if run is None:
+        return None
+    if _radius(system.A) < 1.0:
+        return run
+    loop = _closed_loop(system.A, system.B, mu[:, run[0]], K[:, run[0]])
+    return run if np.all(np.isfinite(loop)) and np.all(_radius(loop) < 1.0) else None
 
 
 def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,

@@ -292,15 +292,15 @@ def test_time_varying_data_keep_the_full_pass(monkeypatch, which):
 def test_optimal_plan_is_the_backward_pass_rolled_out(monkeypatch):
     """optimal_plan (the rollout told where the closed run of one gain is) gives the floats of backward_pass then
     mean_trajectory (which search K for that run), with and without a closed tail; and with the closure switched
-    off the same plan to 1e-12 (full pass, every step rolled out one by one). An unstable A (its closed tail rolled
-    out step by step) included."""
+    off the same plan to 1e-12 (full pass, every step rolled out one by one). An unstable A (its stationary closed
+    loop stable: rolled out by powers and a scan) included."""
     from packetloss_cvx.io import system_from_dict
     from packetloss_cvx.recursion import backward_pass, mean_trajectory, optimal_plan
 
     unstable = random_system(np.random.default_rng(12), n=3, m=2, horizon=600, spectral_radius=1.05,
                              full_weights=True, time_varying=False, non_stationary=False, edge_mu=False)
     for s in (_long(8, 4000).with_mu([1.0, 1.0]), _long(9, 3000).with_mu([0.8, 0.4]), _long(10, 200),
-              unstable.with_mu([0.9, 0.9])):                   # rolled out step by step: every gain read
+              unstable.with_mu([0.9, 0.9])):
         for protocol in PROTOCOLS:
             K0, P0, noise, U, X = optimal_plan(s, protocol)
             K_ref, P0_ref, noise_ref = backward_pass(s, protocol)
@@ -453,6 +453,24 @@ def test_doubled_backward_pass_equals_the_step_by_step_pass(monkeypatch, seed):
             assert close(a, b)
     assert calls
     assert all(calls)
+
+
+def test_unstable_plant_under_a_stable_loop_is_rolled_out_by_powers_and_a_scan(monkeypatch):
+    """The slowly converging plant (rho(A) = 1.06) at N = 2000: its tail closes after about 1,600 steps, so the
+    plan is steps 1..~400 by powers of the stationary closed loop (stable) and the ~1,600 time-varying steps after
+    them by a scan of their closed-loop products: plan, states and cost against every step rolled out one by one,
+    to PATH_AGREEMENT_RTOL."""
+    from packetloss_cvx.io import system_from_dict
+    from packetloss_cvx.recursion import optimal_plan
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    s = _slow(2000)
+    K0, P0, _, U, X = optimal_plan(s, "tcp")
+    K0_ref, P0_ref, _, U_ref, X_ref = _full_pass(monkeypatch, lambda: optimal_plan(system_from_dict(s.to_dict()),
+                                                                                   "tcp"))
+    for a, b in ((K0, K0_ref), (P0, P0_ref), (U, U_ref), (X, X_ref)):
+        assert np.abs(a - b).max() <= PATH_AGREEMENT_RTOL * np.abs(b).max()
+    assert max(abs(np.linalg.eigvals(s.A))) > 1.05
 
 
 @pytest.mark.parametrize("L", [1, 2, 5, 37, 64, 100])
