@@ -105,13 +105,16 @@ def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarra
 def _lyapunov_weights(system: System, cross: bool = False) -> tuple:
     """udp_variance_weights, computed (and ``B' S_t A`` per step with ``cross``): the backward Lyapunov sum S_t,
     O(N n^3); once S stops changing (:func:`stationary_close`) over a stationary head (Omega_t the same for every
-    earlier t), the earlier steps take its value: O(L n^3) for a sum that settles in L steps."""
+    earlier t), the earlier steps take its value: O(L n^3) for a sum that settles in L steps. An unstable A's sum
+    never settles (q = rho(A)^2 >= 1): its steps are not weighed at all."""
     A, B, W, N = system.A, system.B, system.state_weights, system.horizon
     d = np.empty((N, system.m))
     BSA = np.empty((N, system.m, system.n)) if cross else None
     noise = 0.0
     has_noise = bool(np.any(system.noise_cov != 0))
-    settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
+    # only long horizons are worth the checks, and only a stable A's sum settles (q = rho(A)^2 < 1)
+    q = _radius(A) ** 2 if N >= 2 * STATIONARY_RUN else math.inf
+    settle = q < 1.0
     head = None                                         # Omega_1..Omega_head+1 (W[0..head]) are one weight
     S = W[N - 1].copy()
     with np.errstate(over="ignore", invalid="ignore"):
@@ -124,7 +127,7 @@ def _lyapunov_weights(system: System, cross: bool = False) -> tuple:
             if t > 0:
                 new = W[t - 1] + A.T @ S @ A
                 if (settle and (head is None or t - 1 <= head) and _small_change(new, S)
-                        and stationary_close(new, S, _radius(A) ** 2)):
+                        and stationary_close(new, S, q)):
                     head = len(weight_head(system)) - 1 if head is None else head
                     if t - 1 <= head:                                     # S_{t-1} = ... = S_0 = new
                         d[:t] = np.einsum("ij,ik,kj->j", B, new, B)
@@ -191,6 +194,8 @@ def _row_max(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     """The largest entry of each row of ``values`` (p, k), shaped ``shape``: by a reduction over the first axis of
     the transposed copy (NumPy reduces a short last axis row by row: 175 against 12 us for 1,600 rows of 16).
     O(p k)."""
+    if values.shape[0] < 64:
+        return values.max(axis=1).reshape(shape)
     return np.ascontiguousarray(values.T).max(axis=0).reshape(shape)
 
 
@@ -395,17 +400,19 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
     # one point whose steps 1..N-1 are one map: once its drift predicts more than DOUBLING_AFTER steps to
     # settle, the rest of the pass by doubling (_doubled_backward)
     doubling = settle and _one_map(system, mu, added)
-    head = None                                         # steps 1..head share mu, the added diagonal and Omega
+    # steps 1..head share mu, the added diagonal and Omega: only there can a tail close, so only there is the
+    # drift weighed (an unstable plant's UDP-like pass, whose added diagonal grows at every step, never is)
+    head = min(_leading_run(mu[:, 1:]), _leading_run(added[:, 1:]), len(weight_head(system))) if settle else 0
     q = None             # the contraction per step, measured once the iterates are near settling
     run = None
-    check, last = N - 9, None                           # the next step whose drift is weighed; the last weighing
+    check, last = min(N - 9, head), None                # the next step whose drift is weighed; the last weighing
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for t in range(N - 1, -1, -1):
             try:
                 K[t], new = riccati_step(Pm, A, B, mu[:, t], added[:, t], W[t - 1] if t > 0 else None)
-                if settle and t == check and t >= 2:
-                    drift = _drift(new, Pm) if head is None or t <= head else None    # before head: none closes
-                    excess = _excess(*drift) if drift is not None else np.nan
+                if settle and t == check and 2 <= t <= head:
+                    drift = _drift(new, Pm)
+                    excess = _excess(*drift)
                     if doubling and last is not None and _to_settle(excess, last, t) > DOUBLING_AFTER:
                         doubled = _doubled_backward(system, mu, added, K[:, 0], copies, t, new[0], q)
                         if doubled is not None:
@@ -413,24 +420,17 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
                             break
                         doubling = False                # not finite there: step by step, which says why
                     check, last = t - _wait(excess, last, t), (t, excess)
-                    if drift is None:
-                        check = head
-                    elif excess <= 1.0 or _near(*drift):
+                    if excess <= 1.0 or _near(*drift):
                         q = _contraction(A, B, mu[:, t], K[t]) if q is None else q
                         if _settled(*drift, q):
-                            if head is None:
-                                head = min(_leading_run(mu[:, 1:]), _leading_run(added[:, 1:]),
-                                           len(weight_head(system)))
-                            check = min(t - 1, head)
-                            if t <= head:
-                                # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more
-                                # step gives the gain of P_t for every step 1..t-1, then step 0 (no Omega)
-                                K[1], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
-                                if copies:
-                                    _repeat_first(K[1:t])
-                                K[0], Pm = riccati_step(Pm, A, B, mu[:, 0], added[:, 0], None)
-                                run = (1, t)
-                                break
+                            # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more
+                            # step gives the gain of P_t for every step 1..t-1, then step 0 (no Omega)
+                            K[1], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
+                            if copies:
+                                _repeat_first(K[1:t])
+                            K[0], Pm = riccati_step(Pm, A, B, mu[:, 0], added[:, 0], None)
+                            run = (1, t)
+                            break
             except np.linalg.LinAlgError:
                 raise overflow_error("the cost-to-go matrix", protocol) from None
             Pm = new

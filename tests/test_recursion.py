@@ -538,6 +538,34 @@ def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
     assert noise == noise_full
 
 
+def test_drift_is_weighed_only_where_a_tail_can_close(monkeypatch):
+    """The Lyapunov sums of an unstable plant never settle (q = rho(A)^2 >= 1) and the UDP-like pass of an unstable
+    plant with mu < 1 has a different added diagonal at every step (it grows with the sums): neither weighs its
+    drift at any step. Their stable twins (and the TCP-like pass, one map) do."""
+    import packetloss_cvx.recursion as recursion
+    from packetloss_cvx.io import system_from_dict
+
+    weighed = {"sum": 0, "pass": 0}
+    small_change, drift = recursion._small_change, recursion._drift
+
+    def count(name, fn):
+        def counted(*args):
+            weighed[name] += 1
+            return fn(*args)
+        return counted
+
+    monkeypatch.setattr(recursion, "_small_change", count("sum", small_change))
+    monkeypatch.setattr(recursion, "_drift", count("pass", drift))
+    for rho, protocol, expected in ((1.05, "udp", 0), (1.05, "tcp", 1), (0.95, "udp", 1)):
+        s = random_system(np.random.default_rng(1), n=4, m=2, horizon=1000, spectral_radius=rho, time_varying=False,
+                          non_stationary=False, noise=True).with_mu([0.8, 0.5])
+        weighed.update({"sum": 0, "pass": 0})
+        pl.closed_form(system_from_dict(s.to_dict()), protocol, "recursion")
+        assert (weighed["pass"] > 0) == bool(expected)
+        if protocol == "udp":
+            assert (weighed["sum"] > 0) == bool(expected)
+
+
 def test_lyapunov_cross_weights_share_the_variance_weights_kernel():
     """``B'S_tA`` (the exact Markov cost's cross term) from the same backward sum as ``diag(B'S_tB)``: the dense
     ``Omega_gp`` block t is ``B'S_t A^(t+1)`` (time-varying weights), and a long stable horizon closes to the
