@@ -45,8 +45,9 @@ WEIGHT_HEAD_KEY = CacheKey("recursion.weight_head", ("horizon", "state_weights")
 
 __all__ = [
     "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost",
-    "input_weight", "lyapunov_cross_weights", "mean_states", "mean_trajectory", "optimal_plan", "overflow_error",
-    "recursion_cost", "riccati_step", "rollout_batch", "udp_variance_weights", "weight_head",
+    "input_weight", "leading_run", "lyapunov_cross_weights", "mean_states", "mean_trajectory", "optimal_plan",
+    "overflow_error", "recursion_cost", "riccati_step", "rollout_batch", "stationary_close", "states_by_powers",
+    "udp_variance_weights", "weight_head",
 ]
 
 #: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
@@ -156,7 +157,7 @@ def weight_head(system: System) -> np.ndarray:
     (2, True)
     """
     W = system.state_weights
-    return system.structure_cached(WEIGHT_HEAD_KEY, lambda: W[:_leading_run(W[None]) + 1])
+    return system.structure_cached(WEIGHT_HEAD_KEY, lambda: W[:leading_run(W[None]) + 1])
 
 
 def _small_change(new: np.ndarray, old: np.ndarray) -> bool:
@@ -402,7 +403,7 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
     doubling = settle and _one_map(system, mu, added)
     # steps 1..head share mu, the added diagonal and Omega: only there can a tail close, so only there is the
     # drift weighed (an unstable plant's UDP-like pass, whose added diagonal grows at every step, never is)
-    head = min(_leading_run(mu[:, 1:]), _leading_run(added[:, 1:]), len(weight_head(system))) if settle else 0
+    head = min(leading_run(mu[:, 1:]), leading_run(added[:, 1:]), len(weight_head(system))) if settle else 0
     q = None             # the contraction per step, measured once the iterates are near settling
     run = None
     check, last = min(N - 9, head), None                # the next step whose drift is weighed; the last weighing
@@ -912,8 +913,15 @@ def _constant(values: np.ndarray) -> bool:
     return bool(np.array_equal(values[:, 1:], values[:, :-1]))
 
 
-def _leading_run(values: np.ndarray) -> int:
-    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (P, L, ...)). O(P L k)."""
+def leading_run(values: np.ndarray) -> int:
+    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (P, L, ...)), to the bit: how
+    far a backward pass's data are one map. O(P L k).
+
+    Examples
+    --------
+    >>> leading_run(np.array([[1.0, 1.0, 2.0, 1.0]])), leading_run(np.ones((2, 3, 1)))
+    (1, 2)
+    """
     P, L = values.shape[:2]
     if _constant(values):                        # the usual case, one comparison of two views
         return L - 1
@@ -924,25 +932,40 @@ def _leading_run(values: np.ndarray) -> int:
 def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
                 a: int, b: int) -> np.ndarray:
     """Steps a..b-1 (a >= 1) of one gain K (P, m, n) and channel mu (P, m) from x_a = ``X[:, a - 1]``: the states
-    x_a (A - B M K)'^k for k = 1..b-a by repeated squaring (log2(b - a) stacked products; every step is still
-    computed), written into X and U in place. Returns x_b. O(P (b - a) n^2 + P n^3 log(b - a))."""
+    x_a (A - B M K)'^k for k = 1..b-a by :func:`states_by_powers`, written into X and U in place. Returns x_b.
+    O(P (b - a) n^2 + P n^3 log(b - a))."""
     L = b - a
-    loop = _closed_loop(system.A, system.B, mu, K).transpose(0, 2, 1)                # (A - B M K)'
     Y = X[:, a - 1:b]                                      # x_a .. x_b, x_a already written
-    power, k = loop, 1
-    while k < L + 1:                                       # Y[:, k:2k] = Y[:, :k] (A - B M K)'^k
-        j = min(k, L + 1 - k)
-        if not power.any() and np.isfinite(Y[:, :k]).all():
-            Y[:, k:] = 0.0                                 # the power underflowed to 0: so does every later state
-            break
-        np.matmul(Y[:, :j], power, out=Y[:, k:k + j])
-        power, k = np.matmul(power, power), k + j
-    plan = U[:, a:b]
-    rows = min(k, L)                                       # the states from k on are 0, and so is their input
+    rows = min(states_by_powers(Y, _closed_loop(system.A, system.B, mu, K).transpose(0, 2, 1)), L)
+    plan = U[:, a:b]                                       # the states from ``rows`` on are 0, and so is their input
     np.matmul(Y[:, :rows], np.ascontiguousarray(K.transpose(0, 2, 1)), out=plan[:, :rows])   # BLAS: contiguous
     np.negative(plan[:, :rows], out=plan[:, :rows])
     plan[:, rows:] = 0.0
     return Y[:, L]
+
+
+def states_by_powers(Y: np.ndarray, loop: np.ndarray) -> int:
+    """``Y[:, k] = Y[:, 0] loop^k`` for every k >= 1 (Y (P, L + 1, d) in place, row vectors; loop (P, d, d) or
+    (d, d), the transposed closed loop) by repeated squaring: log2(L) stacked products, every state still computed.
+    Once a power underflows to 0 (a stable loop after some hundreds of steps) the later states are written as 0.
+    Returns the number of leading rows computed as products (L + 1 when none underflowed). O(P L d^2 + P d^3 log L).
+
+    Examples
+    --------
+    >>> Y = np.zeros((1, 4, 1)); Y[0, 0] = 1.0
+    >>> states_by_powers(Y, np.array([[0.5]])), Y.ravel().tolist()
+    (4, [1.0, 0.5, 0.25, 0.125])
+    """
+    L = Y.shape[1] - 1
+    power, k = loop, 1
+    while k < L + 1:                                       # Y[:, k:2k] = Y[:, :k] loop^k
+        j = min(k, L + 1 - k)
+        if not power.any() and np.isfinite(Y[:, :k]).all():
+            Y[:, k:] = 0.0                                 # the power underflowed to 0: so does every later state
+            return k
+        np.matmul(Y[:, :j], power, out=Y[:, k:k + j])
+        power, k = np.matmul(power, power), k + j
+    return k
 
 
 def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
