@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import cvxpy as cp
@@ -416,8 +417,6 @@ def _proved_empty(G: np.ndarray, h: np.ndarray, lo: float, hi: float) -> bool:
     >>> _proved_empty(G, np.array([-1.5, 1.5 - 1e-12]), 0.0, 1.0), _proved_empty(G, np.array([-1.5, 1.5]), 0.0, 1.0)
     (True, False)
     """
-    from fractions import Fraction
-
     m = G.shape[1]
     rows = [([Fraction(float(x)) for x in g], Fraction(float(c))) for g, c in zip(G, h, strict=True)]
     for j in range(m):                                   # the box as rows: mu_j <= hi, -mu_j <= -lo
