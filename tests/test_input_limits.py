@@ -349,3 +349,37 @@ def test_solve_skips_the_stability_verdict_above_its_size_unless_asked(tmp_path)
     out = tmp_path / "skipped.json"
     assert main(["solve", "two_actuator", "--no-qp", "--no-stability", "-q", "--out", str(out)]) == 0
     assert json.loads(out.read_text())["udp"]["stability_note"].startswith("not computed: skipped (--no-stability)")
+
+
+def scalar_file(tmp_path, horizon):
+    """A stable scalar plant (a = 0.9, b = 1) over ``horizon`` steps, as a TOML file."""
+    path = tmp_path / f"scalar-{horizon}.toml"
+    path.write_text(f"[plant]\nA = [[0.9]]\nB = [[1.0]]\n[cost]\nhorizon = {horizon}\nstate_weight = [1.0]\n"
+                    "input_weight = [1.0]\n[channel]\nmu = [0.5]\n[state]\nx0 = [1.0]\n")
+    return str(path)
+
+
+def test_solve_prices_its_horizon_with_and_without_the_qp_cross_check(tmp_path, capsys, monkeypatch):
+    """``solve`` of a scalar plant over 1e6 steps with the default QP cross-check ran past 120 s at 3.1 GiB; over
+    5e7 steps with ``--no-qp`` it ended in "unexpected MemoryError" (exit 1) after 45 s. Its horizon is priced
+    before the work: 1e6 steps with the cross-check are refused (exit 2, one line naming the horizon, ``--no-qp``
+    and the variable), the closed forms alone are answered; the memory is priced too (here a budget of 1e8 bytes
+    stands in for a quarter of a small machine)."""
+    path = scalar_file(tmp_path, 10 ** 6)
+    start = time.perf_counter()
+    code, line = main_line(["solve", path], capsys)
+    assert time.perf_counter() - start < 20
+    # by hand: 2 protocols x 1e6 steps x (0.45 + 0.0175 + 28 + 1.1 + 1.5) = 6.2135e7 > 6e7
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: cost.horizon: N = 1000000 (n = 1, m = 1) with the QP cross-check")
+    assert "--no-qp" in line and line.endswith("PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07")
+    from packetloss_cvx.cli import main
+    assert main(["solve", path, "--no-qp", "-q", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["horizon"] == 10 ** 6
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e8")
+    code, line = main_line(["solve", path, "--no-qp"], capsys)
+    # by hand: 1e6 steps x (260 + 15 + 40) bytes = 3.15e8
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: cost.horizon: N = 1000000 (n = 1, m = 1) (about 0.293 GiB)")
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=3.15e+08")
+
