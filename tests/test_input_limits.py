@@ -383,3 +383,14 @@ def test_solve_prices_its_horizon_with_and_without_the_qp_cross_check(tmp_path, 
     assert line.startswith("packetloss-cvx: error: cost.horizon: N = 1000000 (n = 1, m = 1) (about 0.293 GiB)")
     assert line.endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=3.15e+08")
 
+
+
+def test_a_closed_loop_beyond_its_memory_budget_is_a_budget_refusal(capsys, monkeypatch):
+    """A closed-loop simulation whose block arrays exceed the memory budget exited 1 ("ResourceError") where the
+    help promises 2 for a count beyond its budget: it is refused under ``--steps`` with the variable."""
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "4e9")      # the same verdict on any machine
+    code, line = main_line(["simulate", "pendulum", "--closed-loop", "--steps", "10000000", "--samples", "10"], capsys)
+    # by hand: a block of 10 runs x 10000001 steps x (2 m + 16 n + 16 laws) = 10 x 10000001 x 114 = 1.14e10 bytes
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: --steps: ")
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=1.15e+10")
