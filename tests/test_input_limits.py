@@ -372,7 +372,8 @@ def test_solve_prices_its_horizon_with_and_without_the_qp_cross_check(tmp_path, 
     # by hand: 2 protocols x 1e6 steps x (0.45 + 0.0175 + 28 + 1.1 + 1.5) = 6.2135e7 > 6e7
     assert code == 2
     assert line.startswith("packetloss-cvx: error: cost.horizon: N = 1000000 (n = 1, m = 1) with the QP cross-check")
-    assert "--no-qp" in line and line.endswith("PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07")
+    assert "--no-qp" in line
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07")
     from packetloss_cvx.cli import main
     assert main(["solve", path, "--no-qp", "-q", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["horizon"] == 10 ** 6
@@ -394,3 +395,27 @@ def test_a_closed_loop_beyond_its_memory_budget_is_a_budget_refusal(capsys, monk
     assert code == 2
     assert line.startswith("packetloss-cvx: error: --steps: ")
     assert line.endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=1.15e+10")
+
+
+@pytest.mark.parametrize("m", ["2", 2.0, True, 0, -3, None])
+def test_parse_constraint_takes_a_positive_integer_dimension(m):
+    """``parse_constraint(text, "2")`` raised a TypeError from NumPy; every m that is not a positive integer is an
+    InputError under ``m``."""
+    from packetloss_cvx.allocation.grammar import parse_constraint
+    with pytest.raises(pl.InputError, match="^m: expected a positive integer"):
+        parse_constraint("mu1 <= 1", m)
+
+
+def test_parse_constraint_prices_its_dimension():
+    """``parse_constraint("mu1 <= 1", 10**9)`` raised a bare MemoryError allocating dense rows of 1e9 coefficients:
+    the rows' memory is priced first (by hand: 5 arrays x 8 bytes x 1e9 = 4e10 bytes), refused under ``m``; a
+    dimension within the budget still parses."""
+    from packetloss_cvx.allocation.grammar import parse_constraint
+    start = time.perf_counter()
+    with pytest.raises(pl.ResourceError, match="^m: .*PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=4e\\+10$") as info:
+        parse_constraint("mu1 <= 1", 10 ** 9)
+    assert isinstance(info.value, pl.InputError)
+    assert time.perf_counter() - start < 1
+    G, h = parse_constraint("mu1 + mu3 <= 1", 3)
+    assert G.tolist() == [[1.0, 0.0, 1.0]]
+    assert h.tolist() == [1.0]
