@@ -4,8 +4,9 @@ regular files within their cap, the last exit-1 inputs are exit 2, long solve wo
 user-given names are printed with their control characters escaped (docs/design.md §4, "Work budgets").
 
 The command-line cases run as processes of their own where the exit code and the single stderr line are the
-contract (forked from a parent that imported ``packetloss_cvx.cli`` and NumPy: tests/processes.py); each references an independent expectation (a hand-computed work count, the operating
-system's own verdict on a file) rather than the code under test.
+contract (forked from a parent that imported ``packetloss_cvx.cli`` and NumPy: tests/processes.py); each
+references an independent expectation (a hand-computed work count, the operating system's own verdict on a file)
+rather than the code under test.
 """
 
 import json
@@ -68,7 +69,8 @@ def test_simulate_refuses_a_huge_sample_count_at_once(two_actuator):
         simulate(two_actuator, 2 ** 63)
     assert time.process_time() - start < 1.0          # refused, not started (it ran past 300 s)
     err = info.value
-    assert isinstance(err, ValueError) and err.field == "samples"
+    assert isinstance(err, ValueError)
+    assert err.field == "samples"
     # 2^63 samples x (N = 10 steps x 2 plans) x n (n + m) = 2 x 2 x 4: the work counted by hand
     assert err.needed == pytest.approx(2.0 ** 63 * 20 * 8)
     assert err.env == "PACKETLOSS_CVX_BUDGET_SIMULATE_WORK"
@@ -90,7 +92,8 @@ def test_simulate_closed_loop_counts_steps_and_laws(two_actuator):
 def test_sweep_refuses_points_beyond_the_budget(two_actuator, kwargs, field):
     with pytest.raises(pl.ResourceError) as info:
         sweep(two_actuator, progress=False, **kwargs)
-    assert info.value.field == field and info.value.budget == 1e6
+    assert info.value.field == field
+    assert info.value.budget == 1e6
 
 
 def test_sweep_refuses_work_beyond_the_budget():
@@ -148,7 +151,8 @@ def test_budget_error_pickles_and_renames():
     assert (type(again), again.field, again.needed, again.budget, again.env) == (
         BudgetError, "samples", 3.0, 2.0, "PACKETLOSS_CVX_BUDGET_SIMULATE_WORK")
     renamed = err.renamed("--samples")
-    assert str(renamed) == "--samples: too many" and isinstance(renamed, pl.ResourceError)
+    assert str(renamed) == "--samples: too many"
+    assert isinstance(renamed, pl.ResourceError)
 
 
 # --- input files: regular files within their cap ----------------------------------------------------------
@@ -199,7 +203,8 @@ def test_a_toml_integer_beyond_python_limit_is_bad_input(tmp_path):
     path.write_text(BIG_INT_TOML)
     with pytest.raises(pl.InputError) as info:
         pl.load_system(path)
-    assert info.value.field == "file" and "4300 digits" in str(info.value)
+    assert info.value.field == "file"
+    assert "4300 digits" in str(info.value)
 
 
 def test_a_name_too_long_for_the_system_is_bad_input():
@@ -228,7 +233,9 @@ def test_solve_prints_a_hostile_name_escaped(tmp_path, capsys, zygote):
     assert not any(ch in out for ch in "\x1b\x07"), out
     assert out.splitlines()[0].startswith("ev\\x1b[31mil\\nline\\x07: n=1")
     code, _, err = cli(zygote, "solve", str(tmp_path / "x\x1b[31m\x07.toml"))     # a path on the error line
-    assert code == 2 and "\x1b" not in err and "x\\x1b[31m\\x07.toml" in one_error_line(err)
+    assert code == 2
+    assert "\x1b" not in err
+    assert "x\\x1b[31m\\x07.toml" in one_error_line(err)
 
 
 # --- the command line: exit 2, one line ------------------------------------------------------------------
@@ -254,8 +261,10 @@ def test_cli_refuses_counts_beyond_their_budget(zygote, argv, option, variable):
     start = time.perf_counter()
     code, out, err = cli(zygote, *argv)
     line = one_error_line(err)
-    assert code == 2 and out == ""
-    assert line.startswith(f"packetloss-cvx: error: {option}: ") and f"PACKETLOSS_CVX_BUDGET_{variable}" in line
+    assert code == 2
+    assert out == ""
+    assert line.startswith(f"packetloss-cvx: error: {option}: ")
+    assert f"PACKETLOSS_CVX_BUDGET_{variable}" in line
     assert time.perf_counter() - start < 30          # refused upfront (each climbed for minutes before)
 
 
@@ -277,7 +286,8 @@ def test_cli_refuses_counts_beyond_their_budget(zygote, argv, option, variable):
 def test_cli_in_process_refuses_counts_beyond_their_budget(argv, option, variable, capsys):
     code, line = main_line(argv, capsys)
     assert code == 2
-    assert line.startswith(f"packetloss-cvx: error: {option}: ") and f"PACKETLOSS_CVX_BUDGET_{variable}" in line
+    assert line.startswith(f"packetloss-cvx: error: {option}: ")
+    assert f"PACKETLOSS_CVX_BUDGET_{variable}" in line
     assert len(line) < 400          # a 401-digit count is shown by its size, not echoed
 
 
@@ -289,7 +299,8 @@ def test_cli_in_process_refuses_counts_beyond_their_budget(argv, option, variabl
 ])
 def test_cli_exits_2_with_one_line(zygote, argv, option):
     code, out, err = cli(zygote, *argv)
-    assert code == 2 and out == ""
+    assert code == 2
+    assert out == ""
     assert one_error_line(err).startswith(f"packetloss-cvx: error: {option}: ")
 
 
@@ -305,18 +316,21 @@ def test_cli_exits_2_with_one_line(zygote, argv, option):
 ])
 def test_cli_in_process_exits_2_with_one_line(argv, option, capsys):
     code, line = main_line(argv, capsys)
-    assert code == 2 and line.startswith(f"packetloss-cvx: error: {option}: ")
+    assert code == 2
+    assert line.startswith(f"packetloss-cvx: error: {option}: ")
 
 
 def test_cli_refuses_a_fifo_and_a_huge_integer(tmp_path, zygote):
     fifo = tmp_path / "mu.csv"
     os.mkfifo(fifo)
     code, _, err = cli(zygote, "solve", "two_actuator", "--mu-schedule", str(fifo))
-    assert code == 2 and "not a regular file" in one_error_line(err)
+    assert code == 2
+    assert "not a regular file" in one_error_line(err)
     big = tmp_path / "big.toml"
     big.write_text(BIG_INT_TOML)
     code, _, err = cli(zygote, "audit", str(big), "--random", "0")
-    assert code == 2 and one_error_line(err).startswith("packetloss-cvx: error: file: ")
+    assert code == 2
+    assert one_error_line(err).startswith("packetloss-cvx: error: file: ")
 
 
 # --- solve's closed-loop verdict: cheap by default, optional ------------------------------------------------
@@ -335,7 +349,8 @@ def test_solve_skips_the_stability_verdict_above_its_size_unless_asked(tmp_path)
     out = tmp_path / "out.json"
     assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--out", str(out)]) == 0
     entry = json.loads(out.read_text())["tcp"]
-    assert entry["mean_square_spectral_radius"] is None and entry["stable"] is False
+    assert entry["mean_square_spectral_radius"] is None
+    assert entry["stable"] is False
     assert "--stability" in entry["stability_note"]
     out = tmp_path / "asked.json"          # a new file: an existing one is refused without --force
     assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--stability", "--out", str(out)]) == 0
