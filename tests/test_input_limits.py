@@ -434,3 +434,37 @@ def test_parse_constraint_prices_its_dimension():
     G, h = parse_constraint("mu1 + mu3 <= 1", 3)
     assert G.tolist() == [[1.0, 0.0, 1.0]]
     assert h.tolist() == [1.0]
+
+
+def two_channel_file(tmp_path, horizon):
+    """A stable scalar plant with two channels (b = (2, 1)) over ``horizon`` steps, as a TOML file."""
+    path = tmp_path / f"two-channel-{horizon}.toml"
+    path.write_text(f"[plant]\nA = [[0.9]]\nB = [[2.0, 1.0]]\n[cost]\nhorizon = {horizon}\nstate_weight = [1.0]\n"
+                    "input_weight = [1.0, 1.0]\n[channel]\nmu = [0.6, 0.6]\n[state]\nx0 = [1.0]\n")
+    return str(path)
+
+
+def test_the_udp_like_search_prices_its_boxes_by_their_horizon(tmp_path, capsys, monkeypatch):
+    """A box of the UDP-like branch and bound costs O(N) (its cost evaluations): at N = 1e5 the default cap of 2e4
+    boxes was about 17 hours, and the search ran for minutes. A cap the caller gives is priced (refused under
+    ``--max-boxes``: by hand, 2e4 boxes x (1000 + 30 (100 + 3e4 x 1.02)) = 1.8422e10 units at N = 3e4); the default
+    cap is what the ``allocation_work`` budget affords, so the search answers within the budget's time (here a
+    budget of 2.5 boxes at N = 3000 stops a search that needs more at 2 boxes, 'gap_not_certified')."""
+    code, line = main_line(["allocate", two_channel_file(tmp_path, 30_000), "--protocol", "udp", "--alpha", "0.5",
+                            "--beta", "1,0.5", "--max-boxes", "20000"], capsys)
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: --max-boxes: 20000 boxes at N = 30000 (n = 1, m = 2: ")
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_ALLOCATION_WORK=1.85e+10")
+    system = pl.load_system(two_channel_file(tmp_path, 3000))
+    full = pl.allocate(system, "udp", alpha=0.5, beta=[1.0, 0.5], progress=False)
+    assert full.status == "optimal"
+    assert full.boxes > 2
+    box = 1000 + 30 * (100 + 3000 * 1.02)              # by hand: a box at N = 3000, n = 1, m = 2
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_ALLOCATION_WORK", str(2.5 * box))
+    capped = pl.allocate(system, "udp", alpha=0.5, beta=[1.0, 0.5], progress=False)
+    assert capped.status == "gap_not_certified"
+    assert capped.boxes == 2
+    assert "cap of 2 boxes" in capped.method
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_ALLOCATION_WORK", str(0.5 * box))
+    with pytest.raises(pl.ResourceError, match="^horizon: one box of the UDP-like search at N = 3000"):
+        pl.allocate(system, "udp", alpha=0.5, beta=[1.0, 0.5], progress=False)
