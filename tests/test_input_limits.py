@@ -305,6 +305,11 @@ def test_cli_exits_2_with_one_line(zygote, argv, option):
 
 
 @pytest.mark.parametrize(("argv", "option"), [
+    # --channels inf,1 was an OverflowError and nan,1 a ValueError (int() of the parsed float): exit 1
+    (["region", "two_actuator", "--grid", "3", "--channels", "inf,1"], "--channels"),
+    (["region", "two_actuator", "--grid", "3", "--channels", "nan,1"], "--channels"),
+    (["region", "two_actuator", "--grid", "3", "--channels", "1,-inf"], "--channels"),
+    (["region", "pendulum_bursty", "--grid", "3", "--channels", "inf"], "--channels"),
     (["sweep", "two_actuator", "--horizons", "nan"], "--horizons"),
     (["sweep", "two_actuator", "--horizons", "5,2.5"], "--horizons"),
     (["sweep", "two_actuator", "--x0-scales", "0:1:inf"], "--x0-scales"),
