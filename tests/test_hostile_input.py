@@ -169,3 +169,21 @@ def test_rows_as_arrays_and_masked_arrays():
     assert pl.System(**{**BASE, "A": rows}).A.tolist() == [[1.0, 0.0], [0.0, 1.0]]
     with pytest.raises(pl.InputError, match="masked"):
         pl.System(**{**BASE, "x0": np.ma.array([1.0, 0.0], mask=[True, False])})
+
+
+@pytest.mark.parametrize(("call", "field"), [
+    # each raised an untyped error (TypeError, AttributeError) or was accepted with a meaningless value
+    (lambda s, tmp: __import__("packetloss_cvx.simulation", fromlist=["simulate"]).simulate(
+        s, 10, closed_loop="no", progress=False), "closed_loop"),
+    (lambda s, tmp: pl.audit(systems="pendulum", random=0, progress=False), "systems"),
+    (lambda s, tmp: pl.audit(systems=[s, "pendulum"], random=0, progress=False), "systems"),
+    (lambda s, tmp: __import__("packetloss_cvx.allocation.delivery", fromlist=["power_model"]).power_model(
+        "exponential", 0, scale=[1]), "m"),
+    (lambda s, tmp: __import__("packetloss_cvx.allocation.delivery", fromlist=["power_model"]).power_model(
+        "exponential", "2", scale=[1]), "m"),
+])
+def test_api_arguments_of_the_wrong_type_are_typed_input_errors(call, field, tmp_path):
+    with pytest.raises(pl.InputError) as info:
+        call(pl.load_example("two_actuator"), tmp_path)
+    assert info.value.field == field
+

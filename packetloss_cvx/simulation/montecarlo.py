@@ -198,6 +198,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     True
     """
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
+    if not isinstance(closed_loop, bool | np.bool_):       # "no" is truthy: it would have run the closed loop
+        raise InputError("closed_loop", f"expected True or False, found {closed_loop!r:.40}")
     seed = check_count(seed, "seed", 0)
     keep = min(check_count(keep, "keep", 0), samples)
     laws = list(dict.fromkeys(laws))
