@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from .errors import FolderBusyError, InputError, OutputExistsError
-from .safeio import TEMP_PREFIX, atomic_write, clean_temporaries, file_digest, pid_alive, refuse_special
+from .safeio import TEMP_PREFIX, atomic_write, check_flag, clean_temporaries, file_digest, pid_alive, refuse_special
 
 __all__ = ["LOCK_NAME", "MANIFEST_NAME", "RunFolder", "read_manifest"]
 
@@ -90,7 +90,7 @@ class RunFolder:
             raise InputError(field, "expected a folder, found an empty path")
         self.path = Path(path)
         self.command = command
-        self.force = force
+        self.force = check_flag(force, "force")
         self.field = field
         self.written: list[str] = []
         self.previous: list[str] = []       # names the previous run (complete or not) left
@@ -226,7 +226,7 @@ class RunFolder:
     # -- writing ----------------------------------------------------------------------------------------
     def _manifest(self, complete: bool) -> dict[str, Any]:
         data: dict[str, Any] = {"packetloss_cvx": _version(), "command": self.command, "complete": complete,
-                                "written": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+                                "written": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
         if complete:
             data["files"] = [{"name": name, "bytes": (self.path / name).stat().st_size,
                               "sha256": file_digest(self.path / name)} for name in self.written]

@@ -29,8 +29,8 @@ from typing import IO, Any
 
 from .errors import InputError, OutputExistsError
 
-__all__ = ["FIGURE_DPI", "TEMP_PREFIX", "atomic_write", "check_output_file", "clean_temporaries", "figure_path",
-           "file_digest", "laid_out_once", "pid_alive", "refuse_special", "save_figure"]
+__all__ = ["FIGURE_DPI", "TEMP_PREFIX", "atomic_write", "check_flag", "check_output_file", "clean_temporaries",
+           "figure_path", "file_digest", "laid_out_once", "pid_alive", "refuse_special", "save_figure"]
 
 #: the recognisable start of every temporary file (``<prefix><pid>-<random>-<name>``)
 TEMP_PREFIX = ".packetloss-cvx-tmp-"
@@ -58,6 +58,24 @@ def refuse_special(path: Path, field: str) -> os.stat_result | None:
             stat.S_ISSOCK(info.st_mode):
         raise InputError(field, f"cannot write {str(path)!r}: not a regular file (a FIFO, device or socket)")
     return info
+
+
+def check_flag(value: Any, field: str) -> bool:
+    """``value`` if it is ``True`` or ``False`` (a NumPy bool too), else an InputError naming ``field``: leave to
+    replace a user's file is given by ``True``, never by any truthy value (``overwrite="no"`` replaced the file). O(1).
+
+    Examples
+    --------
+    >>> check_flag(True, "overwrite")
+    True
+    >>> check_flag("no", "overwrite")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: overwrite: expected True or False, found 'no'
+    """
+    if not (isinstance(value, bool) or type(value).__name__ == "bool_"):    # numpy.bool_, without importing NumPy
+        raise InputError(field, f"expected True or False, found {value!r:.40}")
+    return bool(value)
 
 
 def check_output_file(path: str | Path, field: str, overwrite: bool = False) -> None:
@@ -205,7 +223,7 @@ def atomic_write(path: str | Path, *, overwrite: bool = False, text: bool = Fals
     ('first', ['data.txt'])
     """
     path = Path(path)
-    check_output_file(path, field, overwrite)
+    check_output_file(path, field, check_flag(overwrite, "overwrite"))
     clean_temporaries(path.parent)
     temp = path.parent / f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}-{path.name[-_NAME_KEPT:]}"
     try:
@@ -256,6 +274,7 @@ def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False, field: s
     ('empty.png', b'\x89PNG')
     """
     path = figure_path(path)
+    check_flag(overwrite, "overwrite")
     fmt = path.suffix[1:].lower()
     target = folder.write(path.name) if folder is not None else atomic_write(path, overwrite=overwrite, field=field)
     with target as handle:

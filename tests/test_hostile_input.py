@@ -187,3 +187,16 @@ def test_api_arguments_of_the_wrong_type_are_typed_input_errors(call, field, tmp
         call(pl.load_example("two_actuator"), tmp_path)
     assert info.value.field == field
 
+
+
+def test_save_system_overwrites_only_when_told_so_by_a_bool(tmp_path):
+    """``overwrite="no"`` (any truthy value) replaced the file; only ``True`` does."""
+    system = pl.load_example("two_actuator")
+    path = pl.save_system(system, tmp_path / "s.toml")
+    path.write_text("# the user's own file\n")
+    for value in ("no", "False", 1, [True]):
+        with pytest.raises(pl.InputError, match="^overwrite: expected True or False"):
+            pl.save_system(system, path, overwrite=value)
+    assert path.read_text() == "# the user's own file\n"
+    pl.save_system(system, path, overwrite=True)
+    assert pl.load_system(path).name == system.name
