@@ -180,3 +180,14 @@ def test_save_system_refuses_an_existing_file_unless_overwrite(tmp_path):
     assert path.read_text() == "# the user's notes"
     pl.save_system(system, path, overwrite=True)
     assert np.array_equal(pl.load_system(path).A, system.A)
+
+
+def test_a_path_ending_in_a_slash_names_a_folder_not_a_file(tmp_path):
+    """``save_system(s, "newdir/")`` (and ``--out newdir/``) wrote a FILE named newdir: a trailing '/' says the
+    user means a folder, so a FILE write is refused (naming the path and an example) and nothing is created."""
+    system = pl.load_example("two_actuator")
+    for path in (f"{tmp_path}/newdir/", f"{tmp_path}/newdir//"):
+        with pytest.raises(pl.InputError, match="names a folder") as info:
+            pl.save_system(system, path)
+        assert info.value.field == "path"
+    assert list(tmp_path.iterdir()) == []
