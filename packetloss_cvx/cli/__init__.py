@@ -112,8 +112,10 @@ def _install_handlers(stopper: _Stopper) -> dict[int, Any] | None:
 
 
 def _say(message: str) -> None:
-    """One stderr line, whatever the message holds (a key or a path with a newline or an escape sequence in it)."""
-    print(printable(message), file=sys.stderr)
+    """One stderr line, whatever the message holds (a key or a path with a newline or an escape sequence in it);
+    nothing when standard error is closed (``print(file=None)`` would write to standard output)."""
+    if sys.stderr is not None:
+        print(printable(message), file=sys.stderr)
 
 
 def write_json(path: str, data: dict[str, Any], force: bool = False) -> None:
@@ -219,6 +221,9 @@ def _command(argv: Sequence[str] | None, stopper: _Stopper) -> int:
     """Parse, check, import and run the command, write ``--out`` and print; returns the exit code. Between the
     steps ``stopper.check()`` raises a signal that a library swallowed, so a run never goes on past it."""
     stopper.check()
+    if sys.stdout is None:      # started with standard output closed (`>&-`): print() would lose the result silently
+        raise InputError("stdout", "standard output is closed, so the result would be lost; send it to a file or to "
+                                   "/dev/null (> out.txt)")
     parser = build_parser()
     words = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(join_negative_values(words))
