@@ -123,7 +123,13 @@ class RunFolder:
             return self._claim()            # created meanwhile by another run: look again
         except OSError as err:
             raise self._fail(err) from None
-        self._lock()
+        try:
+            self._lock()
+        except BaseException:
+            if self.created:                # a folder this run made and could not lock (a full disk): not left behind
+                with contextlib.suppress(OSError):
+                    self.path.rmdir()
+            raise
         clean_temporaries(self.path)
 
     def _lock(self) -> None:
@@ -141,8 +147,12 @@ class RunFolder:
                 raise self._fail(err) from None
             try:
                 os.write(fd, f"{os.getpid()}\n".encode())
-            finally:
+            except OSError as err:          # a full disk: no lock of ours stays behind (it would look busy), exit 2
                 os.close(fd)
+                with contextlib.suppress(OSError):
+                    os.unlink(lock)
+                raise self._fail(err) from None
+            os.close(fd)
             self.locked = True
             return
         raise FolderBusyError(self.field, f"{str(self.path)!r}: its lock changes hands too often; try again")

@@ -281,6 +281,22 @@ def test_a_full_disk_leaves_no_partial_file(small_disk, capsys):
     assert sorted(os.listdir(small_disk)) == ["ballast", "s"]         # no 0-byte r.json or p.png, no temporary
 
 
+
+def test_a_full_disk_leaves_no_lock_and_is_one_line(small_disk, capsys):
+    """On a disk with no block left the folder's lock could be created but not written: the run exited 1
+    ("unexpected OSError") and left an empty .packetloss-cvx.lock (and the folder it made). Now: exit 2, one line
+    naming --out, nothing left; a folder that was there keeps only what it held."""
+    (small_disk / "old").mkdir()
+    free = os.statvfs(small_disk)
+    (small_disk / "ballast").write_bytes(b"\0" * (free.f_bavail * free.f_frsize))
+    for name in ("new", "old"):
+        assert main(["sweep", "two_actuator", "--mu-grid", "3", "--out", str(small_disk / name), "-q"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1, err
+        assert err[0].startswith(f"packetloss-cvx: error: --out: cannot use '{small_disk / name}': No space left")
+    assert sorted(os.listdir(small_disk)) == ["ballast", "old"]
+    assert os.listdir(small_disk / "old") == []
+
 def test_a_users_files_are_never_replaced_without_force(tmp_path, capsys, monkeypatch):
     """Every command that writes, pointed at a user's files: exit 2, one line naming the path and --force,
     the files byte for byte as they were; with --force the run goes through."""
