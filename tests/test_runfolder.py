@@ -183,3 +183,62 @@ def test_two_runs_taking_over_one_stale_lock_cannot_both_win(tmp_path, monkeypat
     finally:
         other.kill()
         other.wait()
+
+
+def _interrupted(folder, files, failing="c"):
+    """A run that writes ``files`` and is interrupted while writing ``failing`` (its temporary file removed)."""
+    try:
+        with RunFolder(folder, command="test") as run:
+            for name, payload in files.items():
+                with run.write(name) as handle:
+                    handle.write(payload)
+            with run.write(failing) as handle:
+                handle.write(b"half")
+                raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        return
+    raise AssertionError("the run was not interrupted")
+
+
+def test_a_file_an_interrupted_run_finished_and_the_user_edited_is_the_users(tmp_path):
+    """After an interrupted sweep the user appended a note to its sweep.csv: the next run replaced it without
+    --force, because an unfinished run's manifest listed names only. Each file the run finishes is listed with
+    its size and sha256 at once, so an edit is seen as after a complete run."""
+    out = tmp_path / "run"
+    _interrupted(out, {"sweep.npz": b"arrays", "sweep.csv": b"x,y\n1,2\n"}, failing="sweep.png")
+    manifest = _manifest(out)
+    assert manifest["complete"] is False
+    assert {f["name"]: f.get("sha256") for f in manifest["files"]} == {
+        "sweep.npz": hashlib.sha256(b"arrays").hexdigest(), "sweep.csv": hashlib.sha256(b"x,y\n1,2\n").hexdigest(),
+        "sweep.png": None}
+    with (out / "sweep.csv").open("ab") as handle:
+        handle.write(b"# my note\n")
+    with pytest.raises(OutputExistsError, match="changed since packetloss-cvx wrote them: sweep.csv"):
+        _run(out, {"sweep.csv": b"new", "sweep.npz": b"new"})
+    assert (out / "sweep.csv").read_bytes() == b"x,y\n1,2\n# my note\n"
+    (out / "sweep.csv").write_bytes(b"x,y\n1,2\n")                           # the note taken back: ours again
+    _run(out, {"sweep.csv": b"new"})
+    assert sorted(os.listdir(out)) == [MANIFEST_NAME, "sweep.csv"]
+
+
+def test_an_unfinished_manifest_naming_a_users_file_does_not_let_a_run_delete_it(tmp_path):
+    """An unfinished manifest lists the file in flight by name only (its content unknown): such an entry is taken as
+    the package's only for a file that appeared after that manifest was written (the run's own last write); an older
+    file of that name is the user's (a hand-made or stale manifest naming thesis.tex let the next run delete it)."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "thesis.tex").write_text("the user's")
+    old = time.time() - 60
+    os.utime(out / "thesis.tex", (old, old))
+    (out / MANIFEST_NAME).write_text(json.dumps({"packetloss_cvx": "0.1.0", "complete": False,
+                                                 "files": [{"name": "thesis.tex"}]}))
+    with pytest.raises(OutputExistsError, match="changed since packetloss-cvx wrote them: thesis.tex"):
+        _run(out, {"sweep.npz": b"x"})
+    assert (out / "thesis.tex").read_text() == "the user's"
+    # the run's own file in flight when it stopped (written after its manifest): the package's
+    later = time.time() + 60
+    (out / "thesis.tex").write_text("written by the run")
+    os.utime(out / "thesis.tex", (later, later))
+    _run(out, {"sweep.npz": b"x"})
+    assert sorted(os.listdir(out)) == [MANIFEST_NAME, "sweep.npz"]
+
