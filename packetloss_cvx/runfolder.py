@@ -4,12 +4,13 @@
   longer the one its complete manifest describes (size and sha256: edited since), unless ``force=True``
   (``--force``): a user's files are never replaced silently. An empty folder is accepted.
 * The folder carries ``manifest.json`` (command, version, time, each file with its size and sha256,
-  ``"complete": true``), written last and atomically. While a run
+  ``"complete": true``, and the sha256 of its own content, ``"digest"``), written last and atomically. While a run
   writes, the manifest says ``"complete": false`` and lists every name the run (or the run it replaces) may have
   left, each file the run has finished with its size and sha256 as soon as it is finished, so the package's folder
   is always recognisably its own and a file edited after an interrupted run is seen as after a complete one. The
   one file in flight is listed by name only: such an entry makes a file the package's only if it is not older
   than the manifest (the run's last write); an older one is a user's file.
+* A manifest edited by hand (its digest no longer matches) is a changed file: refused without ``force``.
 * A new run into the package's own folder replaces the run as a whole: files of the previous run that
   this one does not write are removed before its manifest is written. With ``--force`` in a folder
   holding other files, those files are left alone and are not listed.
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import hashlib
 import json
 import os
 import secrets
@@ -37,7 +39,7 @@ from typing import IO, Any
 from .errors import FolderBusyError, InputError, OutputExistsError
 from .safeio import TEMP_PREFIX, atomic_write, check_flag, clean_temporaries, file_digest, pid_alive, refuse_special
 
-__all__ = ["LOCK_NAME", "MANIFEST_NAME", "RunFolder", "read_manifest"]
+__all__ = ["LOCK_NAME", "MANIFEST_NAME", "RunFolder", "manifest_digest", "read_manifest"]
 
 LOCK_NAME = ".packetloss-cvx.lock"
 MANIFEST_NAME = "manifest.json"
@@ -62,6 +64,16 @@ def read_manifest(folder: str | Path) -> dict[str, Any] | None:
         return None
     return data
 
+
+def manifest_digest(data: dict[str, Any]) -> str:
+    """The sha256 of a manifest's content without its ``"digest"`` (keys sorted, as JSON): what the manifest records
+    of itself, so that an edit inside it is seen. O(size).
+
+    >>> manifest_digest({"b": 1, "a": [2], "digest": "x"}) == manifest_digest({"a": [2], "b": 1})
+    True
+    """
+    body = {key: value for key, value in data.items() if key != "digest"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()
 
 
 class RunFolder:
@@ -215,6 +227,8 @@ class RunFolder:
         foreign = sorted(name for name in present if name not in entries)
         verified = {name: self._verified(entries[name], written) for name in present if name in entries}
         changed = sorted(name for name, entry in verified.items() if entry is None)
+        if manifest is not None and "digest" in manifest and manifest["digest"] != manifest_digest(manifest):
+            changed.append(MANIFEST_NAME)   # edited by hand (a manifest without a digest is an earlier version's)
         if (foreign or changed) and not self.force:
             if foreign:
                 names = foreign
@@ -271,6 +285,7 @@ class RunFolder:
                     files.append({"name": name})
             data["files"] = files
             data["note"] = "a run that did not finish: these files may come from different runs"
+        data["digest"] = manifest_digest(data)
         return data
 
     def _write_manifest(self, complete: bool) -> None:

@@ -242,3 +242,19 @@ def test_an_unfinished_manifest_naming_a_users_file_does_not_let_a_run_delete_it
     _run(out, {"sweep.npz": b"x"})
     assert sorted(os.listdir(out)) == [MANIFEST_NAME, "sweep.npz"]
 
+
+def test_a_users_edit_inside_the_manifest_is_refused_unless_force(tmp_path):
+    """The manifest carries the sha256 of its own content: a user's edit inside it (a note in its command) was
+    replaced silently by the next run; now it is refused as a changed file, and --force replaces it."""
+    out = tmp_path / "run"
+    _run(out, {"a": b"1"})
+    manifest = _manifest(out)
+    manifest["command"] += "  # the run of the paper's table 2"
+    (out / MANIFEST_NAME).write_text(json.dumps(manifest, indent=1) + "\n")
+    with pytest.raises(OutputExistsError, match="changed since packetloss-cvx wrote them: manifest.json"):
+        _run(out, {"a": b"2"})
+    assert "table 2" in (out / MANIFEST_NAME).read_text()
+    _run(out, {"a": b"2"}, force=True)
+    assert "table 2" not in (out / MANIFEST_NAME).read_text()
+    _run(out, {"a": b"3"})                                      # the package's manifest again: no --force needed
+    assert (out / "a").read_bytes() == b"3"
