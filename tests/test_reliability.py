@@ -237,7 +237,13 @@ def test_two_runs_into_one_folder_cannot_interleave(tmp_path, capsys, zygote):
     first, terminated in its writes, leaves only complete files of its own."""
     out = tmp_path / "shared"
     first = _start(["sweep", "two_actuator", "--x0-scales", f"0:1:{POINTS}", "--out", str(out)], tmp_path, zygote)
-    assert _wait_for(lambda: (out / LOCK_NAME).exists(), first)
+    def locked():       # the lock is created, then its pid written: the refusal names the pid only after that
+        try:
+            return (out / LOCK_NAME).read_text().strip().isdigit()
+        except OSError:
+            return False
+
+    assert _wait_for(locked, first)
     code = main(["sweep", "two_actuator", "--x0-scales", "0:2:7", "--out", str(out), "-q"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
