@@ -37,7 +37,9 @@ def test_the_manifest_lists_each_file_with_its_size_and_sha256(tmp_path):
     files = {"a.bin": os.urandom(3000), "b.csv": b"x,y\n1,2\n"}
     _run(out, files)
     manifest = _manifest(out)
-    assert manifest["complete"] is True and manifest["command"] == "test" and manifest["packetloss_cvx"]
+    assert manifest["complete"] is True
+    assert manifest["command"] == "test"
+    assert manifest["packetloss_cvx"]
     assert {f["name"]: (f["bytes"], f["sha256"]) for f in manifest["files"]} == {
         name: (len(data), hashlib.sha256(data).hexdigest()) for name, data in files.items()}
     assert sorted(os.listdir(out)) == ["a.bin", "b.csv", MANIFEST_NAME]      # the lock is gone
@@ -57,7 +59,8 @@ def test_a_folder_with_a_users_file_is_refused_unless_force(tmp_path):
     (out / "notes.txt").write_text("the user's")
     with pytest.raises(OutputExistsError, match=r"notes.txt; pass --force") as err:
         _run(out, {"sweep.npz": b"x"})
-    assert isinstance(err.value, ValueError) and err.value.field == "out"
+    assert isinstance(err.value, ValueError)
+    assert err.value.field == "out"
     assert sorted(os.listdir(out)) == ["notes.txt"]                        # refused before anything, lock gone
     _run(out, {"sweep.npz": b"x"}, force=True)
     _run(out, {"sweep.csv": b"y"}, force=True)                             # forced again: the user's file stays
@@ -109,7 +112,7 @@ def test_an_empty_folder_is_accepted_and_special_paths_refused(tmp_path):
 def test_a_failed_run_leaves_an_incomplete_manifest_and_no_folder_it_made_empty(tmp_path):
     out = tmp_path / "run"
     _run(out, {"a": b"1", "b": b"2"})
-    with pytest.raises(RuntimeError), RunFolder(out, command="test") as run:
+    with pytest.raises(RuntimeError), RunFolder(out, command="test") as run:   # noqa: PT012 - a failing run's block
         with run.write("c") as handle:
             handle.write(b"3")
         raise RuntimeError("the sweep failed")
