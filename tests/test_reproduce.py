@@ -95,7 +95,7 @@ def test_unwritable_out_exit_2(capsys, tmp_path):
 
 def test_the_full_runs_audit_is_the_projects():
     # reproduce's claims.md is docs/claims.md's block (test_claims_doc checks that command's output
-    # byte for byte): the same number of random systems and the same seed
+    # by value): the same number of random systems and the same seed
     from pathlib import Path
 
     from packetloss_cvx.cli.reproduce import SETTINGS
