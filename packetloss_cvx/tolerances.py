@@ -356,3 +356,16 @@ __all__ += ["CLAIMS_DOC_RTOL"]
 #: 8.3e-4; every other printed quantity at most 6.8e-8 (the pendulum's Theorem-4 maximiser). 5e-3 is four times the
 #: largest; a count, a verdict or a case's outcome is never compared with a tolerance.
 CLAIMS_DOC_RTOL = 5e-3
+
+__all__ += ["ROUNDING_ORDER_RTOL"]
+
+#: Two computations of one quantity that exact arithmetic makes equal and that differ only in the order of their
+#: floating-point operations (a stack of matrices against each matrix alone, a gathered update against one written
+#: in place, 1/s against a 1 x 1 pseudo-inverse, one (S n) x n product against S small ones, a filter loop against
+#: its vectorised form) agree within ROUNDING_ORDER_RTOL times the quantity's largest entry. Bit for bit is not a
+#: contract between them: the BLAS kernel picks the order of each product's sums (OpenBLAS's Prescott kernel rounds
+#: a stack of 3 x 3 updates up to 1.2e-15 of its scale away from the same updates gathered, where Haswell and
+#: SkylakeX agree to the bit). Measured on the tests that compare such pairs (tests/test_sensing_estimation.py,
+#: tests/test_sensing_montecarlo_loop.py) under OpenBLAS's Prescott, Nehalem, Sandybridge, Haswell, Zen, SkylakeX
+#: and native kernels: at most 1.2e-15; 1e-12 leaves room for longer chains of products.
+ROUNDING_ORDER_RTOL = 1e-12
