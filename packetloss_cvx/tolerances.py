@@ -365,7 +365,9 @@ __all__ += ["ROUNDING_ORDER_RTOL"]
 #: its vectorised form) agree within ROUNDING_ORDER_RTOL times the quantity's largest entry. Bit for bit is not a
 #: contract between them: the BLAS kernel picks the order of each product's sums (OpenBLAS's Prescott kernel rounds
 #: a stack of 3 x 3 updates up to 1.2e-15 of its scale away from the same updates gathered, where Haswell and
-#: SkylakeX agree to the bit). Measured on the tests that compare such pairs (tests/test_sensing_estimation.py,
-#: tests/test_sensing_montecarlo_loop.py) under OpenBLAS's Prescott, Nehalem, Sandybridge, Haswell, Zen, SkylakeX
-#: and native kernels: at most 1.2e-15; 1e-12 leaves room for longer chains of products.
+#: SkylakeX agree to the bit). Measured on the tests that compare such pairs under OpenBLAS's Prescott, Nehalem,
+#: Sandybridge, Haswell, Zen, SkylakeX and native kernels: at most 1.2e-15 (tests/test_sensing_estimation.py,
+#: tests/test_sensing_montecarlo_loop.py); equal to the bit (tests/test_closed_loop.py's stack of laws,
+#: tests/test_model.py's repaired weights, tests/test_qp_shared.py's objective against cvxpy's evaluation).
+#: 1e-12 leaves room for longer chains of products.
 ROUNDING_ORDER_RTOL = 1e-12
