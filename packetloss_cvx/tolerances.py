@@ -154,7 +154,9 @@ KERNEL_ZERO_ATOL = 1e-12
 KERNEL_POINT_RTOL = 1e-6
 #: ... a holding claim's worst margin (its tolerance less the largest error, an error at rounding level) by
 #: KERNEL_MARGIN_RTOL of the margin (measured: lemma-2's 9.989e-6 against 9.972e-6, 1.7e-3; cost-split-sensor
-#: 1.2e-3), as only the verdict, not the rounding error's digits, is a result ...
+#: 1.2e-3; docs/claims.md's audit under seven kernels: cost-split-sensor 1.2e-3, lemma-2 8.3e-4, theorem-1-laws
+#: 3.7e-7, mpc-vs-dp 6.7e-8, a failing claim's at most 1.3e-8), as only the verdict, not the rounding error's digits,
+#: is a result ...
 KERNEL_MARGIN_RTOL = 1e-2
 #: ... the DP cost at a stability allocation's mu* (on the stabilisable set's boundary, where the cost grows like
 #: 1 / (1 - radius)) by KERNEL_BOUNDARY_RTOL: it moves with mu* inside its certified gap, amplified by that
@@ -341,21 +343,6 @@ CERTIFICATE_KERNEL_RTOL = 1e-10
 #: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
 #: many steps (below it, 30 steps and then a policy iteration); its answer is a candidate, checked either way.
 HOMOGENEOUS_RICCATI_MAX_ITER = 5000
-
-# ------------------------------------------------------------------ documents checked against a fresh run
-
-__all__ += ["CLAIMS_DOC_RTOL"]
-
-#: docs/claims.md is checked against a fresh audit by value (tests/test_claims_doc.py): ids, verdicts, counts,
-#: outcomes, every other word and the counterexamples' data exactly; a printed non-integer number d against the fresh
-#: f within one unit in the last digit both print (a value on a rounding boundary) plus CLAIMS_DOC_RTOL max(|d|, |f|).
-#: The relative part is for margins of the form threshold - (a rounding-level error), which move by the error's own
-#: size when the BLAS kernel changes. Measured on ``audit --random 200 --seed 1`` under OpenBLAS's Prescott, Nehalem,
-#: Sandybridge, Haswell, Zen, SkylakeX and native (SkylakeX) kernels: cost-split-sensor's worst margin (1e-9 - a
-#: residual of 0.9e-12 to 2.0e-12) 1.2e-3 relative, lemma-2's (1e-5 - a finite-difference error of 3.1e-8 to 4.0e-8)
-#: 8.3e-4; every other printed quantity at most 6.8e-8 (the pendulum's Theorem-4 maximiser). 5e-3 is four times the
-#: largest; a count, a verdict or a case's outcome is never compared with a tolerance.
-CLAIMS_DOC_RTOL = 5e-3
 
 __all__ += ["ROUNDING_ORDER_RTOL"]
 

@@ -126,11 +126,8 @@ def pendulum_maximiser(ctx: Context) -> ClaimResult:
         c = difference.lemma3_candidates(base, variant, pred)
         real = np.sort(c[(np.abs(c.imag) < 1e-12) & (c.real > 0) & (c.real < 1)].real)
         cands[variant] = real
-    # six decimals, as the maximisers above: Theorem 4's point is a bounded search's, and its seventh and later
-    # digits move with the BLAS kernel (0.99143994 to 0.99144007 across OpenBLAS's kernels)
-    nearest = {v: round(float(c[np.argmin(np.abs(c - PENDULUM_NU_D))]), 6) if c.size else None
-               for v, c in cands.items()}
-    thm4 = {v: None if (r := difference.theorem4_maximiser(base, v, pred=pred)) is None else round(float(r.point[0]), 6)
+    nearest = {v: float(c[np.argmin(np.abs(c - PENDULUM_NU_D))]) if c.size else None for v, c in cands.items()}
+    thm4 = {v: (None if (r := difference.theorem4_maximiser(base, v, pred=pred)) is None else float(r.point[0]))
             for v in ("lemma", "proof")}
     distance = min(abs(f - PENDULUM_NU_D) for f in found)
     verdict = "holds" if distance < 5e-5 else "not-reproduced"
