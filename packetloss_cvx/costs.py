@@ -31,8 +31,9 @@ from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = [
-    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "lyapunov_weights_if_needed", "hessian_diagonal", "hessian_factor",
-    "loss_variance_term", "paper_optimal_cost", "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
+    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "hessian_diagonal", "hessian_factor",
+    "loss_variance_term", "lyapunov_weights_if_needed", "paper_optimal_cost", "pick_method", "refuse_correlated",
+    "refuse_dense", "weight_spread",
 ]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m

@@ -156,7 +156,8 @@ def test_allocations_are_a_table_per_protocol(runs):
                 cells += 1
         assert cells == sum(len(r) for r in table.values())          # nothing else in the table
     paragraph = [line for line in (out / "report.md").read_text().splitlines() if "listed in the table" in line]
-    assert len(paragraph) == 2 and all(len(p) < 1200 for p in paragraph)   # the numbers left the paragraph
+    assert len(paragraph) == 2
+    assert all(len(p) < 1200 for p in paragraph)                       # the numbers left the paragraph
 
 
 def test_a_quick_run_does_not_call_a_claim_met_on_one_level(runs):
