@@ -128,7 +128,8 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
                     Pm += actuation_covariance(B, mu, u)
     means = total / keep
     mean = float(means.mean())
-    stderr = float(means.std(ddof=1) / np.sqrt(samples))
+    with np.errstate(over="ignore"):        # squares beyond a float: stderr inf, which callers refuse (no z)
+        stderr = float(means.std(ddof=1) / np.sqrt(samples))
     if filter == "kalman":
         covariance = covariance / (keep * samples)
         run_means = per_run / keep
