@@ -244,3 +244,53 @@ def test_edge_cases_agree_everywhere(changes, protocol):
         assert qp.status == "optimal"
         assert qp.cross_check.max_input_diff < 1e-6
         assert abs(qp.cost - dense.cost) <= 1e-7 * max(1.0, dense.cost)
+
+
+# ---------------------------------------------------------------- the self-check's band, pinned on both sides
+
+def _referee_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
+    """The self-check's referee (the forward cost of the plan, costs.recursion_cost) moved by a chosen amount, so
+    that the disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
+    import packetloss_cvx.costs as costs_module
+
+    real = costs_module.recursion_cost
+    monkeypatch.setattr(costs_module, "recursion_cost", lambda *a, **k: real(*a, **k) * (1 + relative) + absolute)
+
+
+@pytest.mark.parametrize("method", ["dense", "recursion"])
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(two_actuator, monkeypatch, method,
+                                                                                factor, kept):
+    """A closed-form cost off its plan's forward cost by 3 SELF_CHECK_RTOL (relative) raises, by 0.3 is returned:
+    the band is SELF_CHECK_RTOL to within a factor 3 either way. (two_actuator's own disagreement is at rounding
+    level, and the recursion's absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 is 1e-4 of the band here.)"""
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    exact = pl.closed_form(two_actuator, "udp", method).cost
+    _referee_off(monkeypatch, relative=factor * SELF_CHECK_RTOL)
+    if kept:
+        assert pl.closed_form(two_actuator, "udp", method).cost == pytest.approx(exact, rel=1e-14)
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
+            pl.closed_form(two_actuator, "udp", method)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(monkeypatch, factor, kept):
+    """The recursion's absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 on its own: a state weight of 1e6 on a mode no
+    input reaches and x0 outside it make ||P_0|| = 1e6 (0.81 + ... + 0.81^10) (by hand: the mode decays by 0.9, its
+    cost-to-go is that geometric sum; the other mode's is below 2) while the cost is below 2, so the absolute term is
+    about 1e3 times SELF_CHECK_RTOL's. A disagreement of 3 times the term raises, 0.3 times passes."""
+    from packetloss_cvx.tolerances import SELF_CHECK_ATOL
+
+    s = pl.System(A=[[0.9, 0.0], [0.0, 0.5]], B=[[0.0], [1.0]], horizon=10, state_weight=[1e6, 1.0],
+                  input_weight=[1.0], mu=[0.5], x0=[0.0, 1.0])
+    norm_P0 = 1e6 * sum(0.81 ** t for t in range(1, 11))
+    exact = pl.closed_form(s, "tcp", "recursion").cost
+    assert 0.0 < exact < 2.0                            # x0 = e_2: the cost is the weak mode's alone
+    _referee_off(monkeypatch, absolute=factor * SELF_CHECK_ATOL * norm_P0 * 1.0)
+    if kept:
+        assert pl.closed_form(s, "tcp", "recursion").cost == exact
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
+            pl.closed_form(s, "tcp", "recursion")
