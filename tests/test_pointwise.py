@@ -1,7 +1,7 @@
 """The one-point dense path (pointwise.PointEvaluator): its two checks, the solve's residual and the self-check
 against the forward cost of its own plan, each refusing (None: the caller takes the checked batch path) a
-disagreement of 3 times its tolerance and keeping one of 0.3 times; and its unchecked values (``checked=False``,
-the allocation's probes) against the closed form."""
+disagreement of 3 times its tolerance and keeping one of 0.3 times. Its values, checked and unchecked, against the
+closed form: tests/test_evaluator.py (through CostEvaluator.cost and line)."""
 
 import numpy as np
 import pytest
