@@ -185,7 +185,7 @@ def test_batch_solution_is_frozen(two_actuator):
 def test_cost_along_a_coordinate_line_equals_the_closed_form(seed, protocol, checked):
     """The Schur complement along an edge (the other channels factored once) against closed_form; unchecked
     (``checked=False``, the allocation's probes: no residual, no self-check, no fall-back) as well as checked, and
-    the one-point cost likewise (a factor dropped on the unchecked path gave 105.31 for 25.82 with every test passing)."""
+    the one-point cost likewise (a factor dropped on the unchecked path gave 105.31 for 25.82, every test passing)."""
     rng = np.random.default_rng(seed)
     s = random_system(rng, m=int(rng.integers(1, 4)), non_stationary=False)
     ev = CostEvaluator(s, protocol)
@@ -309,8 +309,8 @@ def test_batch_recursion_self_check_absolute_term_is_self_check_atol_times_p0_an
 
 
 def _with_residual(G: np.ndarray, rhs: np.ndarray, X: np.ndarray, fraction: float, keep: np.ndarray) -> np.ndarray:
-    """X moved so that G X - rhs is ``fraction`` DENSE_RESIDUAL_RTOL (||G||_F ||X|| + ||rhs||) exactly (to rounding), along
-    a direction that leaves keep' X unchanged (the cost C - g'Vbar X is then unchanged to first order, so that only
+    """X moved so that G X - rhs is ``fraction`` DENSE_RESIDUAL_RTOL (||G||_F ||X|| + ||rhs||) exactly (to rounding),
+    along a direction that leaves keep' X unchanged (the cost C - g'Vbar X is then unchanged to first order, so that only
     the residual check can object). G (k, k), rhs and X (k, r), keep (k,)."""
     from packetloss_cvx.tolerances import DENSE_RESIDUAL_RTOL
 
@@ -328,7 +328,7 @@ def _with_residual(G: np.ndarray, rhs: np.ndarray, X: np.ndarray, fraction: floa
 @pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
 def test_batch_dense_solve_refuses_3_and_keeps_0_3_times_dense_residual_rtol(two_actuator, monkeypatch, factor, kept):
     """The dense path's LU solve returned with a relative residual ||G F - rhs|| / (||G|| ||F|| + ||rhs||) of 3
-    DENSE_RESIDUAL_RTOL: the point is refused (method 'dense' raises); of 0.3: kept, with the cost of the exact solve."""
+    DENSE_RESIDUAL_RTOL: the point is refused (method 'dense' raises); of 0.3: kept, with the exact solve's cost."""
     mus = np.array([[0.9, 0.5]])
     evaluator = CostEvaluator(two_actuator, "udp", "dense")
     exact = evaluator.costs(mus)

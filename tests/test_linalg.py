@@ -20,7 +20,8 @@ def test_solve_checked_refuses_3_and_keeps_0_3_times_dense_residual_rtol(monkeyp
     rhs = rng.normal(size=(6, columns)) if columns > 1 else rng.normal(size=6)
     exact = np.linalg.solve(G, rhs)
     r = rng.normal(size=rhs.shape)
-    r *= factor * DENSE_RESIDUAL_RTOL * (np.linalg.norm(G) * np.linalg.norm(exact) + np.linalg.norm(rhs)) / np.linalg.norm(r)
+    scale = np.linalg.norm(G) * np.linalg.norm(exact) + np.linalg.norm(rhs)
+    r *= factor * DENSE_RESIDUAL_RTOL * scale / np.linalg.norm(r)
     off = exact + np.linalg.solve(G, r)
     assert np.linalg.cond(G) < 10
     monkeypatch.setattr(np.linalg, "solve", lambda a, b: off)

@@ -54,7 +54,8 @@ def test_solve_residual_refuses_3_and_keeps_0_3_times_dense_residual_rtol(two_ac
         y = np.linalg.solve(G0.T, keep)          # keep' G^{-1} r = y' r: r orthogonal to y moves no cost
         r = np.zeros_like(w)
         r[0], r[1] = y[1], -y[0]
-        r *= factor * DENSE_RESIDUAL_RTOL * (np.linalg.norm(G0) * np.linalg.norm(w) + np.linalg.norm(g)) / np.linalg.norm(r)
+        scale = np.linalg.norm(G0) * np.linalg.norm(w) + np.linalg.norm(g)
+        r *= factor * DENSE_RESIDUAL_RTOL * scale / np.linalg.norm(r)
         return lu, piv, w + np.linalg.solve(G0, r), info
 
     monkeypatch.setattr(pointwise_module, "_gesv", gesv)
