@@ -310,8 +310,8 @@ def test_batch_recursion_self_check_absolute_term_is_self_check_atol_times_p0_an
 
 def _with_residual(G: np.ndarray, rhs: np.ndarray, X: np.ndarray, fraction: float, keep: np.ndarray) -> np.ndarray:
     """X moved so that G X - rhs is ``fraction`` DENSE_RESIDUAL_RTOL (||G||_F ||X|| + ||rhs||) exactly (to rounding),
-    along a direction that leaves keep' X unchanged (the cost C - g'Vbar X is then unchanged to first order, so that only
-    the residual check can object). G (k, k), rhs and X (k, r), keep (k,)."""
+    along a direction that leaves keep' X unchanged (the cost C - g'Vbar X then moves only at second order: the
+    residual check alone can object). G (k, k), rhs and X (k, r), keep (k,)."""
     from packetloss_cvx.tolerances import DENSE_RESIDUAL_RTOL
 
     y = np.linalg.solve(G.T, keep)                      # keep' G^{-1} r = y' r: r orthogonal to y moves nothing
