@@ -377,3 +377,19 @@ def test_min_cost_reports_the_gap_it_certified(protocol):
     assert r.cost > 1e-12 * pl.closed_form(s.with_mu([0.0, 0.0]), protocol).cost
     assert r.lower_bound < r.cost                                   # a gap to report
     assert r.gap == pytest.approx((r.cost - r.lower_bound) / r.cost, rel=1e-12, abs=0.0)
+
+
+@pytest.mark.parametrize("scale", [1e-20, 1.0, 1e20])
+@pytest.mark.parametrize(("factor", "floored"), [(3.0, False), (0.3, True)])
+def test_gap_unit_floors_values_below_allocation_gap_floor_times_the_problem_scale(scale, factor, floored):
+    """The unit a gap is taken of (allocation.udp.gap_unit: the searches' certificate and every reported minimum-cost
+    gap) is |value|, floored at ALLOCATION_GAP_FLOOR times the problem's own scale: a value 3 times the floor is its
+    own unit, one 0.3 times the floor gets the floor, at every scale (the floor is relative to the problem)."""
+    from packetloss_cvx.allocation.udp import gap_unit, reported_gap
+    from packetloss_cvx.tolerances import ALLOCATION_GAP_FLOOR
+
+    floor = ALLOCATION_GAP_FLOOR * scale
+    value = factor * floor
+    assert gap_unit(value, scale) == (floor if floored else value)
+    assert reported_gap(value, 0.0, scale) == pytest.approx(factor if floored else 1.0, rel=1e-15)
+    assert gap_unit(value, None) == value                       # no problem scale: a plain relative gap
