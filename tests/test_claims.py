@@ -312,3 +312,18 @@ def test_stability_region_claim_bisects_each_paper_system_once(monkeypatch):
     result = claim.stability_region(Context(paper={"scalar": s}, random=[], seed=0))
     assert result.errors == 1
     assert "scalar: NumericalError" in result.note
+
+
+@pytest.mark.parametrize(("factor", "checked"), [(3.0, 0), (0.3, 1)])
+def test_lemma_2_skips_a_case_above_dense_max_condition_and_checks_one_below(factor, checked):
+    """lemma-2 evaluates eq:cost-diff-deriv with dense inverses, so a case whose condition estimate is beyond
+    DENSE_MAX_CONDITION is skipped (not checked, not an error); the integrator of tests/test_costs.py puts the
+    estimate at factor times the band: skipped at 3, checked (and holding) at 0.3."""
+    from packetloss_cvx.claims.cost_difference import lemma_2
+    from packetloss_cvx.tolerances import DENSE_MAX_CONDITION
+
+    psi = 55.0 / (factor * DENSE_MAX_CONDITION - 1.0)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=10, state_weight=[1.0], input_weight=[psi], mu=[0.7], x0=[1.0])
+    r = lemma_2(Context(paper={}, random=[s], seed=0))
+    assert (r.checked, r.errors, r.violations) == (checked, 0, 0)
+    assert r.verdict == ("holds" if checked else "inconclusive")

@@ -294,3 +294,27 @@ def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(mo
     else:
         with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
             pl.closed_form(s, "tcp", "recursion")
+
+
+@pytest.mark.parametrize(("factor", "dense"), [(3.0, False), (0.3, True)])
+def test_dense_path_is_refused_above_dense_max_condition_and_taken_below(factor, dense):
+    """The condition estimate (sum diag Omega_g + max Psi) / min Psi of an integrator x+ = x + u with unit state
+    weight over N = 10 steps is (55 + psi) / psi (by hand: input s reaches the states s + 1..N, so diag Omega_g =
+    (10, 9, ..., 1)); psi puts it at factor DENSE_MAX_CONDITION. Above (3): "auto" takes the recursion and "dense"
+    is refused before anything is built; below (0.3): "auto" takes the dense path and "dense" answers, both equal to
+    the recursion."""
+    from packetloss_cvx.costs import pick_method
+    from packetloss_cvx.recursion import condition_estimate
+    from packetloss_cvx.tolerances import DENSE_MAX_CONDITION
+
+    psi = 55.0 / (factor * DENSE_MAX_CONDITION - 1.0)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=10, state_weight=[1.0], input_weight=[psi], mu=[0.7], x0=[1.0])
+    assert condition_estimate(s) == pytest.approx(factor * DENSE_MAX_CONDITION, rel=1e-12)
+    reference = pl.closed_form(s, "udp", "recursion").cost
+    assert pick_method(s, "auto") == ("dense" if dense else "recursion")
+    assert pl.closed_form(s, "udp").method == ("dense" if dense else "recursion")
+    if dense:
+        assert pl.closed_form(s, "udp", "dense").cost == pytest.approx(reference, rel=1e-9)
+    else:
+        with pytest.raises(pl.NumericalError, match="condition estimate .* exceeds"):
+            pl.closed_form(s, "udp", "dense")
