@@ -393,3 +393,21 @@ def test_gap_unit_floors_values_below_allocation_gap_floor_times_the_problem_sca
     assert gap_unit(value, scale) == (floor if floored else value)
     assert reported_gap(value, 0.0, scale) == pytest.approx(factor if floored else 1.0, rel=1e-15)
     assert gap_unit(value, None) == value                       # no problem scale: a plain relative gap
+
+
+@pytest.mark.parametrize(("protocol", "bounds"), [("tcp", (0.0, 1.0)), ("udp", (0.0, 1.0)), ("udp", (0.0, 0.9))])
+@pytest.mark.parametrize(("factor", "proved"), [(3.0, True), (0.3, False)])
+def test_infeasibility_is_proved_only_beyond_allocation_cost_rtol(two_actuator, protocol, bounds, factor, proved):
+    """alpha just below the least reachable cost, J* at the upper corner of the bounds (J* falls in every mu_i,
+    Theorem 3): the allocation proves infeasibility only where J*(corner) > alpha (1 + ALLOCATION_COST_RTOL), the
+    accuracy it trusts the closed form to. At 3 times the band below: InfeasibleError; at 0.3 times: no proof either
+    way (SolverError), never an answer. Bounds (0, 1) are decided by the TCP-like relaxation's corner (both
+    protocols), (0, 0.9) by the UDP-like boxes (the relaxation is feasible there)."""
+    from packetloss_cvx.errors import InfeasibleError, SolverError
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    corner = pl.closed_form(two_actuator.with_mu([bounds[1]] * 2), protocol).cost
+    alpha = corner / (1 + factor * ALLOCATION_COST_RTOL)
+    by = "at the upper corner of the bounds" if bounds[1] == 1.0 else "every box was proven infeasible"
+    with pytest.raises(InfeasibleError if proved else SolverError, match=by if proved else "solver status"):
+        allocate(two_actuator, protocol, alpha, [1.0, 1.0], bounds=bounds, max_boxes=50)

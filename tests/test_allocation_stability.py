@@ -310,3 +310,16 @@ def test_the_search_stops_at_the_first_box_that_certifies_the_requested_gap(gap)
     short = stability_allocate(system, "stable", [0.5, 3.0], gap=gap, max_boxes=got.boxes - 1)
     assert short.status == "gap_not_certified"
     assert short.gap > gap
+
+
+@pytest.mark.parametrize(("factor", "proved"), [(3.0, True), (0.3, False)])
+def test_a_dp_cost_target_is_proved_out_of_reach_only_beyond_allocation_cost_rtol(factor, proved):
+    """alpha just below the least DP cost of any channel (mu = 1: the DARE's p = 2 + sqrt(5) by hand, P falls in
+    mu): a channel is decided out only where its DP cost exceeds alpha (1 + ALLOCATION_COST_RTOL). At 3 times the
+    band below: InfeasibleError; at 0.3 times: no proof either way (SolverError), never an answer."""
+    from packetloss_cvx.errors import SolverError
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    alpha = (2 + 5 ** 0.5) / (1 + factor * ALLOCATION_COST_RTOL)
+    with pytest.raises(InfeasibleError if proved else SolverError):
+        stability_allocate(scalar(2.0), "dp-cost", [1.0], alpha=alpha, max_boxes=50)
