@@ -411,3 +411,33 @@ def test_infeasibility_is_proved_only_beyond_allocation_cost_rtol(two_actuator, 
     by = "at the upper corner of the bounds" if bounds[1] == 1.0 else "every box was proven infeasible"
     with pytest.raises(InfeasibleError if proved else SolverError, match=by if proved else "solver status"):
         allocate(two_actuator, protocol, alpha, [1.0, 1.0], bounds=bounds, max_boxes=50)
+
+
+@pytest.mark.parametrize(("factor", "accepted"), [(3.0, True), (0.3, False)])
+def test_a_gap_finer_than_allocation_gap_min_is_refused_naming_gap(two_actuator, factor, accepted):
+    """The smallest gap an allocation may be asked to certify is ALLOCATION_GAP_MIN (finer would be finer than the
+    closed form's trusted accuracy): 3 times it is taken, 0.3 times it is refused before any work, naming gap."""
+    from packetloss_cvx.tolerances import ALLOCATION_GAP_MIN
+
+    gap = factor * ALLOCATION_GAP_MIN
+    if accepted:
+        got = allocate(two_actuator, "tcp", 8.0, [1.0, 1.0], gap=gap)
+        assert got.gap <= gap or got.status == "gap_not_certified"
+    else:
+        with pytest.raises(pl.InputError, match=r"^gap: expected a number in \["):
+            allocate(two_actuator, "tcp", 8.0, [1.0, 1.0], gap=gap)
+
+
+def test_a_tangent_cut_is_loosened_by_allocation_cost_rtol_of_the_value_and_gradient():
+    """Each tangent cut of J*_tcp is lowered by ALLOCATION_COST_RTOL (|J*| + ||grad||_1) for the closed form's
+    rounding: at its own touching point the cut lies exactly that far below J*. One step of x' = x + v u from x0 = 1:
+    J*_tcp = 1 / (1 + mu), gradient -1 / (1 + mu)^2 (by hand), so at mu = 1/2 the cut is 10/9 ALLOCATION_COST_RTOL
+    below 2/3 (to 1e-6 of that amount: a band moved 10x either way fails)."""
+    from packetloss_cvx.allocation.tcp import tangent_cuts
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    S, r = tangent_cuts(s, np.array([0.5]))
+    below = 2 / 3 - (r[0] + S[0, 0] * 0.5)
+    assert S[0, 0] == pytest.approx(-4 / 9, rel=1e-12)
+    assert below == pytest.approx(ALLOCATION_COST_RTOL * (2 / 3 + 4 / 9), rel=1e-6)
