@@ -441,3 +441,41 @@ def test_a_tangent_cut_is_loosened_by_allocation_cost_rtol_of_the_value_and_grad
     below = 2 / 3 - (r[0] + S[0, 0] * 0.5)
     assert S[0, 0] == pytest.approx(-4 / 9, rel=1e-12)
     assert below == pytest.approx(ALLOCATION_COST_RTOL * (2 / 3 + 4 / 9), rel=1e-6)
+
+
+@pytest.mark.parametrize(("factor", "status"), [(3.0, "gap_not_certified"), (0.3, "optimal")])
+def test_tcp_min_cost_is_optimal_only_within_min_cost_rtol(monkeypatch, factor, status):
+    """The TCP-like least cost is certified ("optimal") when its gap to the tangent cuts' bound is within
+    MIN_COST_RTOL. One step of x' = x + v u from x0 = 1 with mu <= 0.6: the least is J*_tcp(0.6) = 1 / 1.6 (by hand,
+    J* falls in mu); the cuts planted lower by factor MIN_COST_RTOL J* make the gap that (plus their own 1e-9
+    loosening): "gap_not_certified" at 3, "optimal" at 0.3, the reported gap the planted one either way."""
+    import packetloss_cvx.allocation.tcp as tcp_module
+    from packetloss_cvx.tolerances import MIN_COST_RTOL
+
+    least = 1 / 1.6
+    real = tcp_module.tangent_cuts
+
+    def lowered(*args, **kwargs):
+        S, r = real(*args, **kwargs)
+        return S, r - factor * MIN_COST_RTOL * least
+
+    monkeypatch.setattr(tcp_module, "tangent_cuts", lowered)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    got = min_cost(s, "tcp", constraints=[(np.array([[1.0]]), np.array([0.6]))])
+    assert got.status == status
+    assert got.cost == pytest.approx(least, rel=1e-12)
+    assert got.gap == pytest.approx(factor * MIN_COST_RTOL, rel=0.01)
+
+
+def test_udp_min_cost_certifies_min_cost_rtol_and_stops_there(two_actuator):
+    """The UDP-like least cost is certified to MIN_COST_RTOL: the reported gap is within it, and the search stops at
+    the first box that certifies it (on this problem the gap halves every other box, measured 2e-6, 2e-6, 9.9e-7,
+    so it ends within (MIN_COST_RTOL / 2, MIN_COST_RTOL]); a search aiming 10 times finer ends below a tenth, one
+    aiming 10 times coarser above it."""
+    from packetloss_cvx.tolerances import MIN_COST_RTOL
+
+    rows = [(np.array([[1.0, 1.0]]), np.array([1.2]))]
+    got = min_cost(two_actuator, "udp", constraints=rows)
+    assert got.status == "optimal"
+    assert MIN_COST_RTOL / 10 < got.gap <= MIN_COST_RTOL
+    assert got.gap == pytest.approx((got.cost - got.lower_bound) / got.cost, rel=1e-9)
