@@ -37,11 +37,44 @@ def test_fourth_moments_propagate_as_an_enumeration_of_delivery_paths(seed):
             p *= np.prod(np.where(np.array(v) == 1.0, mu, 1.0 - mu))
             x = (A - (B * np.array(v)) @ K) @ x
         expected += p * np.einsum("i,j,k,l->ijkl", x, x, x, x)
-    mats, probs = tails._patterns(B, K, A, mu)
-    X = np.einsum("i,j,k,l->ijkl", x0, x0, x0, x0)
+    F, prob = tails._mode_law(A, B, K[None], mu[None])
+    X = np.einsum("i,j,k,l->ijkl", x0, x0, x0, x0)[None]
     for _ in range(3):
-        X = tails._apply(X, mats, probs)
+        X = tails._apply(X, F, prob, np.ones((1, 1)), "current")
+    assert np.allclose(X[0], expected, rtol=1e-12, atol=1e-14 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("delivery", ["current", "next"])
+def test_coupled_fourth_moments_propagate_as_an_enumeration_of_mode_and_delivery_paths(delivery):
+    """Behind a two-mode chain with mode gains: E[x_3^(4) ; mode_3] by enumerating modes and deliveries."""
+    rng = np.random.default_rng(7)
+    A, B = rng.normal(size=(2, 2)), rng.normal(size=(2, 1))
+    K = 0.4 * rng.normal(size=(2, 1, 2))
+    h, T = np.array([[0.9], [0.2]]), np.array([[0.8, 0.2], [0.4, 0.6]])
+    x0, start = np.array([0.3, 1.0]), np.array([0.7, 0.3])
+    expected = np.zeros((2, 2, 2, 2, 2))
+    for modes in itertools.product((0, 1), repeat=4):          # modes at t = 0..3
+        for v in itertools.product((0.0, 1.0), repeat=3):
+            p, x = start[modes[0]], x0
+            for t in range(3):
+                p *= T[modes[t], modes[t + 1]]
+                q = h[modes[t] if delivery == "current" else modes[t + 1], 0]
+                p *= q if v[t] else 1.0 - q
+                x = (A - B * v[t] @ K[modes[t]]) @ x
+            expected[modes[3]] += p * np.einsum("i,j,k,l->ijkl", x, x, x, x)
+    F, prob = tails._mode_law(A, B, K, h)
+    X = start[:, None, None, None, None] * np.einsum("i,j,k,l->ijkl", x0, x0, x0, x0)[None]
+    for _ in range(3):
+        X = tails._apply(X, F, prob, T, delivery)
     assert np.allclose(X, expected, rtol=1e-12, atol=1e-14 * np.abs(expected).max())
+
+
+def test_bernoulli_channels_are_the_one_mode_chain():
+    """A memoryless two-mode chain (identical rows) that delivers with probability mu in both modes has the
+    Bernoulli loop's fourth-moment radius."""
+    A, B, K, mu = _two_input_law(1)
+    chain = fourth_moment_radius(A, B, K, np.vstack([mu, mu]), np.full((2, 2), 0.5))
+    assert chain == pytest.approx(fourth_moment_radius(A, B, K, mu), rel=1e-10)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -55,7 +88,7 @@ def test_the_operator_path_agrees_with_the_kronecker_matrix(seed, monkeypatch):
         F = A - (B * np.array(v)) @ K
         L4 += p * np.kron(np.kron(F, F), np.kron(F, F))
     reference = np.abs(np.linalg.eigvals(L4)).max()
-    monkeypatch.setattr(tails, "FOURTH_MOMENT_DENSE_MAX_N", 0)
+    monkeypatch.setattr(tails, "FOURTH_MOMENT_DENSE_MAX_DIM", 0)
     assert fourth_moment_radius(A, B, K, mu) == pytest.approx(reference, rel=1e-8)
 
 
@@ -82,6 +115,17 @@ def test_a_heavy_tailed_loop_is_sampled_without_an_error_bar(heavy):
     assert "fourth moments grow" in run.stderr_reason
     assert run.to_dict()["stderr"] is None
     assert "stderr_reason" in run.to_dict()
+
+
+def test_behind_a_chain_the_mode_dependent_law_gets_its_bar_and_a_belief_law_says_why_not():
+    sim = simulate(pl.load_example("pendulum_bursty"), samples=300, steps=10, seed=0, closed_loop=True,
+                   progress=False)
+    for law, run in sim.closed_loop.items():
+        if np.isnan(run.spectral_radius):
+            assert np.isnan(run.stderr), law
+            assert run.stderr_reason.startswith("no error bar"), law
+        elif run.stderr_reason == "":
+            assert np.isfinite(run.stderr), law
 
 
 def test_a_light_tailed_loop_keeps_its_error_bar(two_actuator):
