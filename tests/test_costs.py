@@ -301,3 +301,79 @@ def test_closed_form_reports_its_cost_to_the_forward_sums_rounding():
         assert abs(Fraction(cost) - exact) <= bound, (s, cost, float(exact))
         checked += 1
     assert checked >= 60          # 2 + 65: at 1e12 the self-check refuses every plant, at 1e9 half of them
+
+
+# ---------------------------------------------------------------- the self-check's band, pinned on both sides
+
+def _referee_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
+    """The self-check's referee (the forward cost of the plan, costs.recursion_cost) moved by a chosen amount, so
+    that the disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
+    import packetloss_cvx.costs as costs_module
+
+    real = costs_module.recursion_cost
+    monkeypatch.setattr(costs_module, "recursion_cost", lambda *a, **k: real(*a, **k) * (1 + relative) + absolute)
+
+
+@pytest.mark.parametrize("method", ["dense", "recursion"])
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(two_actuator, monkeypatch, method,
+                                                                                factor, kept):
+    """A closed-form cost off its plan's forward cost by 3 SELF_CHECK_RTOL (relative) raises, by 0.3 is kept:
+    the band is SELF_CHECK_RTOL to within a factor 3 either way. (two_actuator's own disagreement is at rounding
+    level, and the recursion's absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 is 1e-4 of the band here.)"""
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    exact = pl.closed_form(two_actuator, "udp", method).cost
+    _referee_off(monkeypatch, relative=factor * SELF_CHECK_RTOL)
+    if kept:      # returned, and as the forward cost of its plan (the referee's number), which closed_form reports
+        assert pl.closed_form(two_actuator, "udp", method).cost == pytest.approx(
+            exact * (1 + factor * SELF_CHECK_RTOL), rel=1e-14)
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
+            pl.closed_form(two_actuator, "udp", method)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(monkeypatch, factor, kept):
+    """The recursion's absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 on its own: a state weight of 1e6 on a mode no
+    input reaches and x0 outside it make ||P_0|| = 1e6 (0.81 + ... + 0.81^10) (by hand: the mode decays by 0.9, its
+    cost-to-go is that geometric sum; the other mode's is below 2) while the cost is below 2, so the absolute term is
+    about 1e3 times SELF_CHECK_RTOL's. A disagreement of 3 times the term raises, 0.3 times passes."""
+    from packetloss_cvx.tolerances import SELF_CHECK_ATOL
+
+    s = pl.System(A=[[0.9, 0.0], [0.0, 0.5]], B=[[0.0], [1.0]], horizon=10, state_weight=[1e6, 1.0],
+                  input_weight=[1.0], mu=[0.5], x0=[0.0, 1.0])
+    norm_P0 = 1e6 * sum(0.81 ** t for t in range(1, 11))
+    exact = pl.closed_form(s, "tcp", "recursion").cost
+    assert 0.0 < exact < 2.0                            # x0 = e_2: the cost is the weak mode's alone
+    _referee_off(monkeypatch, absolute=factor * SELF_CHECK_ATOL * norm_P0 * 1.0)
+    if kept:      # returned, as the (moved) forward cost of its plan
+        assert pl.closed_form(s, "tcp", "recursion").cost == pytest.approx(
+            exact + factor * SELF_CHECK_ATOL * norm_P0, rel=1e-14)
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
+            pl.closed_form(s, "tcp", "recursion")
+
+
+@pytest.mark.parametrize(("factor", "dense"), [(3.0, False), (0.3, True)])
+def test_dense_path_is_refused_above_dense_max_condition_and_taken_below(factor, dense):
+    """The condition estimate (sum diag Omega_g + max Psi) / min Psi of an integrator x+ = x + u with unit state
+    weight over N = 10 steps is (55 + psi) / psi (by hand: input s reaches the states s + 1..N, so diag Omega_g =
+    (10, 9, ..., 1)); psi puts it at factor DENSE_MAX_CONDITION. Above (3): "auto" takes the recursion and "dense"
+    is refused before anything is built; below (0.3): "auto" takes the dense path and "dense" answers, both equal to
+    the recursion."""
+    from packetloss_cvx.costs import pick_method
+    from packetloss_cvx.recursion import condition_estimate
+    from packetloss_cvx.tolerances import DENSE_MAX_CONDITION
+
+    psi = 55.0 / (factor * DENSE_MAX_CONDITION - 1.0)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=10, state_weight=[1.0], input_weight=[psi], mu=[0.7], x0=[1.0])
+    assert condition_estimate(s) == pytest.approx(factor * DENSE_MAX_CONDITION, rel=1e-12)
+    reference = pl.closed_form(s, "udp", "recursion").cost
+    assert pick_method(s, "auto") == ("dense" if dense else "recursion")
+    assert pl.closed_form(s, "udp").method == ("dense" if dense else "recursion")
+    if dense:
+        assert pl.closed_form(s, "udp", "dense").cost == pytest.approx(reference, rel=1e-9)
+    else:
+        with pytest.raises(pl.NumericalError, match="condition estimate .* exceeds"):
+            pl.closed_form(s, "udp", "dense")

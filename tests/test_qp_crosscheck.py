@@ -2,6 +2,8 @@
 
 Each side of the check must bind on its own: a disagreement in the inputs alone (costs equal) and one
 in the cost alone (inputs equal) both raise :class:`CrossCheckError`; a reference equal to the plan passes.
+Each band (and the QP's check of its objective against the forward cost of its own plan) is pinned on both
+sides: 3 times outside raises, 0.3 times inside passes.
 """
 
 import dataclasses
@@ -12,7 +14,12 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.qp import compare
-from packetloss_cvx.tolerances import CROSS_CHECK_INPUT_ATOL
+from packetloss_cvx.tolerances import (
+    CROSS_CHECK_COST_RTOL,
+    CROSS_CHECK_FLOOR,
+    CROSS_CHECK_INPUT_ATOL,
+    PLAN_CHECK_MAX_GROWTH,
+)
 
 
 @pytest.fixture(scope="module")
@@ -55,3 +62,94 @@ def test_a_cost_that_disagrees_alone_raises(two_actuator):
     s, ref = two_actuator
     with pytest.raises(pl.CrossCheckError, match="rel dJ = 1.0e-06"):
         compare(np.array(ref.inputs), ref.cost * (1 + 1e-6), ref, s)
+
+
+# ---------------------------------------------------------------- each band pinned on both sides
+
+@pytest.mark.parametrize(("factor", "passes"), [(3.0, False), (0.3, True)])
+def test_input_band_is_cross_check_input_atol_of_the_largest_mean_input(two_actuator, factor, passes):
+    """One entry of Vbar U moved by factor CROSS_CHECK_INPUT_ATOL max|Vbar U*|, the cost exact: raises at 3,
+    passes at 0.3 (reporting the difference it saw)."""
+    s, ref = two_actuator
+    scale = float(np.abs(s.mu_schedule * ref.inputs).max())
+    planted = np.array(ref.inputs)
+    planted[3, 1] += factor * CROSS_CHECK_INPUT_ATOL * scale / s.mu_schedule[3, 1]
+    if passes:
+        check = compare(planted, ref.cost, ref, s)
+        assert check.max_input_diff == pytest.approx(factor * CROSS_CHECK_INPUT_ATOL * scale, rel=1e-6)
+    else:
+        with pytest.raises(pl.CrossCheckError, match="disagree"):
+            compare(planted, ref.cost, ref, s)
+
+
+@pytest.mark.parametrize(("factor", "passes"), [(3.0, False), (0.3, True)])
+def test_cost_band_is_cross_check_cost_rtol_relative(two_actuator, factor, passes):
+    """The plan exact, the cost off by factor CROSS_CHECK_COST_RTOL relative: raises at 3, passes at 0.3."""
+    s, ref = two_actuator
+    cost = ref.cost * (1 + factor * CROSS_CHECK_COST_RTOL)
+    if passes:
+        check = compare(np.array(ref.inputs), cost, ref, s)
+        assert check.cost_rel_diff == pytest.approx(factor * CROSS_CHECK_COST_RTOL, rel=1e-6)
+    else:
+        with pytest.raises(pl.CrossCheckError, match="disagree"):
+            compare(np.array(ref.inputs), cost, ref, s)
+
+
+@pytest.mark.parametrize(("factor", "passes"), [(3.0, False), (0.3, True)])
+def test_against_an_exact_zero_the_bands_are_taken_of_cross_check_floor_times_the_problem_scale(factor, passes):
+    """No state weight: J* = 0 and U* = 0 exactly, so both bands are taken of CROSS_CHECK_FLOOR times the problem's
+    own size scale = (s_J, s_x) (here (4, 2)): a cost of factor CROSS_CHECK_COST_RTOL CROSS_CHECK_FLOOR s_J, or one
+    mean input of factor CROSS_CHECK_INPUT_ATOL CROSS_CHECK_FLOOR s_x, raises at 3 and passes at 0.3."""
+    s = pl.System(A=[[1.1, 0.2], [0.0, 0.9]], B=[[1.0], [0.5]], horizon=3, state_weight=[0.0, 0.0],
+                  input_weight=[1.0], mu=[0.5], x0=[2.0, -1.0])
+    ref = pl.closed_form(s, "tcp")
+    assert ref.cost == 0.0
+    assert not np.any(ref.inputs)
+    scale = (4.0, 2.0)
+    cost = factor * CROSS_CHECK_COST_RTOL * CROSS_CHECK_FLOOR * scale[0]
+    inputs = np.zeros_like(ref.inputs)
+    inputs[1, 0] = factor * CROSS_CHECK_INPUT_ATOL * CROSS_CHECK_FLOOR * scale[1] / 0.5
+    for plan, value in ((np.zeros_like(ref.inputs), cost), (inputs, 0.0)):
+        if passes:
+            compare(plan, value, ref, s, scale)
+        else:
+            with pytest.raises(pl.CrossCheckError, match="disagree"):
+                compare(plan, value, ref, s, scale)
+
+
+@pytest.mark.parametrize(("factor", "passes"), [(3.0, False), (0.3, True)])
+def test_qp_objective_against_its_own_plan_binds_at_cross_check_cost_rtol(two_actuator, monkeypatch, factor, passes):
+    """The QP's objective against the forward cost of its own plan (qp.recursion_cost, moved by factor
+    CROSS_CHECK_COST_RTOL relative): NumericalError at 3, the answer at 0.3."""
+    import packetloss_cvx.qp as qp_module
+
+    s, ref = two_actuator
+    real = qp_module.recursion_cost
+    monkeypatch.setattr(qp_module, "recursion_cost",
+                        lambda *a, **k: real(*a, **k) * (1 + factor * CROSS_CHECK_COST_RTOL))
+    if passes:
+        assert pl.solve_qp(s, "tcp", with_gain=False, cross_check=False).cost == pytest.approx(ref.cost, rel=1e-8)
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its\\s+own plan"):
+            pl.solve_qp(s, "tcp", with_gain=False, cross_check=False)
+
+
+@pytest.mark.parametrize(("factor", "checked"), [(3.0, False), (0.3, True)])
+def test_qp_objective_is_checked_only_up_to_plan_check_max_growth(monkeypatch, factor, checked):
+    """The plan check is made while the open-loop growth max_t |a^t| = a^N is within PLAN_CHECK_MAX_GROWTH: a scalar
+    plant with a^40 = factor PLAN_CHECK_MAX_GROWTH and a forward cost moved by 1e-4 relative raises at 0.3 (checked)
+    and is answered at 3 (beyond the growth, where a fixed plan's cost amplifies its rounding)."""
+    import packetloss_cvx.qp as qp_module
+    from packetloss_cvx.linalg import power_growth
+
+    a = (factor * PLAN_CHECK_MAX_GROWTH) ** (1 / 40)
+    s = pl.System(A=[[a]], B=[[1.0]], horizon=40, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    assert power_growth(s.A, 40) == pytest.approx(factor * PLAN_CHECK_MAX_GROWTH, rel=1e-12)
+    reference = pl.closed_form(s, "tcp", "recursion").cost
+    real = qp_module.recursion_cost
+    monkeypatch.setattr(qp_module, "recursion_cost", lambda *a, **k: real(*a, **k) * (1 + 1e-4))
+    if checked:
+        with pytest.raises(pl.NumericalError, match="forward cost of its\\s+own plan"):
+            pl.solve_qp(s, "tcp", with_gain=False, cross_check=False)
+    else:
+        assert pl.solve_qp(s, "tcp", with_gain=False, cross_check=False).cost == pytest.approx(reference, rel=1e-7)

@@ -190,3 +190,35 @@ def test_a_start_that_is_not_stabilising_or_sees_no_unstable_mode_is_ignored():
     assert mean_square_radius(s.A, s.B, K, s.mu) < 1
     with pytest.raises(NumericalError, match="stabilising"):
         dp_riccati(s, gain=K)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_final_residual_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol(monkeypatch, factor, kept):
+    """The check after the iterations, one more step of the modified Riccati map from the answer P, sees a relative
+    residual ||step(P) - P|| / ||P|| of factor MOMENT_RESIDUAL_RTOL (planted on that step; the iterations stop at
+    RICCATI_RTOL, 1000 times below): NumericalError at 3, the hand value at 0.3 (scalar a = 2, mu = 0.8: p solves the
+    quadratic of test_started_from_a_stabilising_gain_is_the_same_solution)."""
+    import packetloss_cvx.simulation.riccati as riccati_module
+    from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
+
+    a, mu = 2.0, 0.8
+    s = System(A=[[a]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[mu], x0=[1.0])
+    c2, c1, c0 = 1 - a * a + mu * a * a, (1 - a * a) - 1, -1.0
+    p = (-c1 + np.sqrt(c1 * c1 - 4 * c2 * c0)) / (2 * c2)
+    answer = dp_riccati(s).cost_to_go.copy()
+    real = riccati_module.riccati_step
+
+    def step(P, *args):
+        K, new = real(P, *args)
+        if np.array_equal(P, answer):                   # the check's step (no iteration starts from the answer)
+            new = new + factor * MOMENT_RESIDUAL_RTOL * np.linalg.norm(P)
+        return K, new
+
+    monkeypatch.setattr(riccati_module, "riccati_step", step)
+    if kept:
+        got = dp_riccati(s)
+        assert got.cost_to_go[0, 0] == pytest.approx(p, rel=1e-9)
+        assert got.residual == pytest.approx(factor * MOMENT_RESIDUAL_RTOL, rel=0.01)
+    else:
+        with pytest.raises(NumericalError, match="modified Riccati equation: relative residual 3.0e-09"):
+            dp_riccati(s)
