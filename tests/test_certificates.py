@@ -15,6 +15,7 @@ import pytest
 
 from packetloss_cvx.errors import NumericalError
 from packetloss_cvx.linalg import Dyadic, exact_psd
+from packetloss_cvx.simulation import region
 from packetloss_cvx.simulation.certificates import (
     inside_proved,
     law_proved_stable,
@@ -25,7 +26,8 @@ from packetloss_cvx.simulation.certificates import (
     tilted,
 )
 from packetloss_cvx.simulation.moments import solve_fixed_point
-from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+from packetloss_cvx.simulation.region import homogeneous_riccati
+from packetloss_cvx.tolerances import CERTIFICATE_RTOL, MEAN_SQUARE_MARGIN
 
 from .references import enumerated_radius
 
@@ -106,6 +108,35 @@ def test_inside_witness_is_decided_at_the_exact_radius():
     assert not inside_proved(A, B, K, mu, -np.eye(1), 1.0)           # X must be definite
     assert law_proved_stable(A, B, K, mu)
     assert stability_witness(A, B, K, mu, 0.5) is None                # its radius is not below 0.5
+
+
+def test_a_chain_of_integrators_false_certificate_is_refused_and_its_gain_proved():
+    """A = I4 + N (ones on the superdiagonal), b = e4, mu = 0.0124 (the issue's plant): the exact least radius is
+    (1 - mu)^(1/4) = 0.99689 < 1 (Elia), and the gain K = [4.888e-9, 6.896e-6, 4.1397e-3, 1.00413] has radius
+    0.99750 (enumerated). The unscaled power iteration (its P graded from 4e-14 to 1) gave lambda 1.00137 and a P that
+    a float check accepted with margin 6.6e-4 under the Haswell kernel (the P and its float margin move with the
+    kernel); in exact arithmetic neither that P nor any of its cuts proves anything, and the gain is proved
+    stable."""
+    A, B, mu = np.eye(4) + np.eye(4, k=1), np.eye(4)[:, 3:], np.array([0.0124])
+    K = np.array([[4.888e-9, 6.896e-6, 4.1397e-3, 1.00413]])
+    assert enumerated_radius(A, B, K, mu) == pytest.approx(0.99750, abs=1e-5)
+    assert law_proved_stable(A, B, K, mu)
+    lam, P, _ = _unscaled(A, B, mu)
+    assert lam > 1.0                                                  # the candidate is wrong
+    w, U = np.linalg.eigh(P / np.trace(P))
+    cuts = [(U[:, w > c * w[-1]] * w[w > c * w[-1]]) @ U[:, w > c * w[-1]].T for c in (0.0, 1e-12, 1e-9, 1e-6)]
+    for Q in cuts:
+        assert not outside_proved(A, B, mu, Q / np.trace(Q), 1.0 - CERTIFICATE_RTOL)
+
+
+def _unscaled(A, B, mu):
+    """The homogeneous Riccati eigenpair without the graded refinement (region._GRADED = 0)."""
+    saved = region._GRADED
+    region._GRADED = 0.0
+    try:
+        return homogeneous_riccati(A, B, mu)
+    finally:
+        region._GRADED = saved
 
 
 def test_a_rank_one_certificate_is_proved_tilted_not_as_rounded():
