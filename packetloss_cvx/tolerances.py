@@ -235,8 +235,10 @@ KRONECKER_MAX_N = 20
 MOMENT_DENSE_MAX_N = 30
 MOMENT_RESIDUAL_RTOL = 1e-9
 #: The modified Riccati equation (simulation/riccati.py) has converged when
-#: ||P_next - P|| <= RICCATI_RTOL ||P||; its value iteration gives up after RICCATI_MAX_ITER steps
-#: or when ||P|| exceeds RICCATI_DIVERGENCE times its start (no stabilising solution).
+#: ||P_next - P|| <= RICCATI_RTOL ||P||; its value iteration gives up after RICCATI_MAX_ITER steps. Once ||P||
+#: exceeds RICCATI_DIVERGENCE times the weights (and at each further factor RICCATI_DIVERGENCE^(1/4)) its direction
+#: is checked in exact arithmetic as a certificate that no law stabilises ("no stabilising solution" only then):
+#: growth is no proof, a chain of integrators (1.001 on the diagonal, mu = 0.0186) has an optimum with ||P|| = 2e16.
 RICCATI_RTOL = 1e-12
 RICCATI_MAX_ITER = 20000
 RICCATI_DIVERGENCE = 1e14
