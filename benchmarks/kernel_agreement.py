@@ -8,7 +8,9 @@ schedules, mu with zeros and ones, time-varying weights, unstable A, noise, Q; p
 horizons for the stationary tail and Gilbert-Elliott chains with fractional h for the MJLS), the
 closed forms (dense / recursion / auto, both protocols: cost, plan, gain), CostEvaluator
 (costs, solve, line), expected_cost, cost_difference, dp_riccati, dp_finite_horizon and
-coupled_riccati. An error is recorded by its type. ``compare`` prints the worst relative difference per
+coupled_riccati; on the slowly converging plant (:func:`slow_plant`, rho(A) = 1.06) and long uniform horizons
+of unstable plants also every gain of backward_pass and expected_cost of the closed form's plan (the plan rolled
+forward again, open loop). An error is recorded by its type. ``compare`` prints the worst relative difference per
 quantity (max |a - b| / max |b| per array) and whether the same calls raised the same errors.
 Written before the kernel was merged (issue 19), run against the baseline and the branch.
 """
@@ -59,8 +61,29 @@ def _systems():
         s = random_system(np.random.default_rng(k), n=4, m=2, horizon=10_000, spectral_radius=0.95,
                           time_varying=False, non_stationary=False, noise=k % 2 == 1, edge_mu=False)
         out.append(("long", s.with_mu([1.0, 1.0]) if k < 2 else s))
+    for N in (300, 2_000, 10_000):        # the slowly converging plant (rho(A) = 1.06), and its variants
+        for mu in ([1.0, 1.0], [0.9, 0.6], [1.0, 0.0]):
+            out.append(("slow", slow_plant(N).with_mu(mu)))
+    for k in range(8):                    # long uniform horizons of unstable plants (rho(A) up to 1.1)
+        n, m = int(rng.integers(2, 5)), int(rng.integers(1, 3))
+        s = random_system(rng, n=n, m=m, horizon=int(rng.choice([500, 3000])),
+                          spectral_radius=float(rng.uniform(1.0, 1.1)), time_varying=False, non_stationary=False,
+                          edge_mu=False)
+        out.append(("slow", s.with_mu(np.ones(m)) if k % 2 else s))
     _ = System
     return out
+
+
+def slow_plant(N: int):
+    """The paper's pendulum A with two inputs, weights diag(5, 1, 1, 1) and (2, 1), x0 = (0.1, 0, 0.1, 0), mu = 1:
+    its Riccati pass converges slowly (the closed loop contracts by about 0.99 per step)."""
+    from packetloss_cvx import System
+
+    A = [[1.001, 0.005, 0.000, 0.000], [0.35, 1.001, -0.135, 0.000], [-0.001, 0.000, 1.001, 0.005],
+         [-0.375, -0.001, 0.590, 1.001]]
+    B = [[0.001, 0.2], [0.540, 0.0], [-0.002, 0.1], [-1.066, 0.3]]
+    return System(A=A, B=B, horizon=N, state_weight=[5.0, 1.0, 1.0, 1.0], input_weight=[2.0, 1.0], mu=[1.0, 1.0],
+                  x0=[0.1, 0.0, 0.1, 0.0])
 
 
 def _chains():
@@ -91,6 +114,7 @@ def dump(path: str) -> None:
         from packetloss_cvx.analysis import cost_difference
     from packetloss_cvx.evaluator import CostEvaluator
     from packetloss_cvx.markov.mjls import coupled_riccati, jump_law_stage_costs
+    from packetloss_cvx.recursion import backward_pass
     from packetloss_cvx.simulation.riccati import dp_finite_horizon, dp_riccati
 
     res: dict = {}
@@ -98,13 +122,19 @@ def dump(path: str) -> None:
     for k, (kind, s) in enumerate(_systems()):
         for p in ("tcp", "udp"):
             methods = ("dense", "recursion", "auto") if kind == "random" else ("recursion", "auto")
+            if kind == "slow":            # every gain of the backward pass, and the plan rolled forward again
+                out = _call(lambda s=s, p=p: backward_pass(s, p))
+                res[(k, p, "backward_pass")] = out if isinstance(out[0], str) else (out[0], out[1])
+                sol = _call(lambda s=s, p=p: pl.closed_form(s, p, "recursion"))
+                res[(k, p, "expected_cost_of_plan")] = sol if isinstance(sol, tuple) else _call(
+                    lambda s=s, p=p, sol=sol: pl.expected_cost(s, sol.inputs, p))
             for method in methods:
                 sol = _call(lambda s=s, p=p, method=method: pl.closed_form(s, p, method))
                 res[(k, p, method, "closed_form")] = sol if isinstance(sol, tuple) else (
                     sol.cost, np.array(sol.inputs), np.array(sol.gain))
             U = rng.normal(size=(s.horizon, s.m))
             res[(k, p, "expected_cost")] = _call(lambda s=s, p=p, U=U: pl.expected_cost(s, U, p))
-            if kind == "long":
+            if kind in ("long", "slow"):
                 continue
             res[(k, p, "expected_cost_dense")] = _call(lambda s=s, p=p, U=U: pl.expected_cost(s, U, p, "dense"))
             mus = rng.uniform(0, 1, (4, s.m))
@@ -164,11 +194,11 @@ def compare(base_path: str, new_path: str) -> None:
         a = new.get(key, ("error", "missing"))
         name = key[-1]
         la, lb = _leaves(a), _leaves(b)
-        if len(la) != len(lb) or any(isinstance(x, tuple) != isinstance(y, tuple) for x, y in zip(la, lb)):
+        if len(la) != len(lb) or any(isinstance(x, tuple) != isinstance(y, tuple) for x, y in zip(la, lb, strict=True)):
             errors_differ.append((key, a if isinstance(a, tuple) and isinstance(a[0], str) else "value",
                                   b if isinstance(b, tuple) and isinstance(b[0], str) else "value"))
             continue
-        for x, y in zip(la, lb):
+        for x, y in zip(la, lb, strict=True):
             if isinstance(x, tuple):
                 if x != y:
                     errors_differ.append((key, x, y))

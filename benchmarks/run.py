@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from slow_plant import slow_plant  # noqa: E402  (benchmarks/slow_plant.py, section 20)
 from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 17)
 
 import packetloss_cvx as pl  # noqa: E402
@@ -942,7 +943,7 @@ def main() -> None:
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
     parser.add_argument("--baseline",
-                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18, 19: before/after)")
+                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18-20: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
@@ -977,6 +978,7 @@ def main() -> None:
         18: lambda: tcp_allocation(args.baseline, rows, 2 if quick else 5),
         19: lambda: (stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
                      args.baseline and stationary_rounds(args.baseline, 10_000, 2 if quick else 5, rows)),
+        20: lambda: slow_plant(args.baseline, rows, 2 if quick else 5),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

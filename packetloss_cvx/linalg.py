@@ -13,7 +13,7 @@ from .errors import NumericalError
 from .tolerances import CONTROLLABILITY_RTOL, DENSE_RESIDUAL_RTOL, PSD_FACTOR_RTOL
 
 __all__ = ["ControllableSplit", "Dyadic", "block_diagonal", "check_finite", "controllable_split", "exact_psd",
-           "lapack_dgesv", "power_growth", "psd_factor", "solve_checked"]
+           "frobenius", "lapack_dgesv", "power_growth", "psd_factor", "solve_checked"]
 
 
 def block_diagonal(blocks: np.ndarray) -> np.ndarray:
@@ -65,6 +65,35 @@ def psd_factor(W: np.ndarray) -> np.ndarray:
     vals, vecs = np.linalg.eigh(W)
     keep = vals > PSD_FACTOR_RTOL * max(0.0, float(vals.max(initial=0.0)))   # relative: tiny weights are kept
     return np.sqrt(vals[keep])[:, None] * vecs[:, keep].T
+
+
+#: ``np.linalg.norm``'s Frobenius norm squares the entries: below about 1e-154 the squares underflow (a matrix of
+#: 1e-200 entries has norm 0.0), above about 1e154 they overflow (inf). Between these it is used as it is.
+_SQUARES_SAFE = (1e-150, 1e150)
+
+
+def frobenius(X: np.ndarray) -> float:
+    """The Frobenius norm of ``X`` at every scale: ``np.linalg.norm(X)`` where its squares neither underflow nor
+    overflow (the same float), else ``s ||X / s||`` with ``s = max|X|`` (as LAPACK's dnrm2 scales). 0 for a zero
+    or empty array; inf or nan where X holds them. O(X.size).
+
+    Examples
+    --------
+    >>> X = np.array([[3e-200, 0.0], [0.0, 4e-200]])
+    >>> float(np.linalg.norm(X)), frobenius(X)          # the squares underflow: 0.0 against 5e-200
+    (0.0, 5e-200)
+    >>> frobenius(1e200 * np.ones((2, 2))), frobenius(np.array([[3.0, 4.0]]))
+    (2e+200, 5.0)
+    """
+    X = np.asarray(X, dtype=float)
+    with np.errstate(over="ignore", under="ignore"):
+        value = float(np.linalg.norm(X))
+    if _SQUARES_SAFE[0] <= value <= _SQUARES_SAFE[1]:
+        return value
+    s = float(np.abs(X).max(initial=0.0))
+    if s == 0.0 or not np.isfinite(s):
+        return s                        # 0, inf, or nan (max propagates nan)
+    return s * float(np.linalg.norm(X / s))
 
 
 def check_finite(name: str, arr: np.ndarray | float,
@@ -146,6 +175,12 @@ class ControllableSplit:
     coordinates spanning the reachable subspace. ``dropped`` is the largest singular value the staircase
     treated as zero (0.0 when every zero was exact, as for a mode no input touches) and ``kept`` the least one
     it kept (``inf`` when nothing is reached), both relative to ``||[A, B]||_2``.
+
+    Examples
+    --------
+    >>> split = controllable_split(np.diag([0.5, 2.0]), np.array([[1.0], [0.0]]))   # the second mode is not reached
+    >>> split.nc, split.A_cc.tolist(), split.A_uu.tolist(), split.B_c.tolist()
+    (1, [[0.5]], [[2.0]], [[1.0]])
     """
 
     T: np.ndarray

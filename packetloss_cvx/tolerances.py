@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 __all__ = [
     "ACCEPTED_STATUSES",
     "CLARABEL_DEFAULT",
@@ -18,11 +20,17 @@ __all__ = [
     "CROSS_CHECK_INPUT_ATOL",
     "DENSE_MAX_CONDITION",
     "DENSE_RESIDUAL_RTOL",
+    "KERNEL_BOUNDARY_RTOL",
+    "KERNEL_MARGIN_RTOL",
+    "KERNEL_POINT_RTOL",
+    "KERNEL_VALUE_RTOL",
+    "KERNEL_ZERO_ATOL",
     "MEMORY_BUDGET_BYTES",
     "PLAN_CHECK_MAX_GROWTH",
     "SELF_CHECK_ATOL",
     "SELF_CHECK_RTOL",
     "STATIONARY_RTOL",
+    "PATH_AGREEMENT_RTOL",
     "PSD_FACTOR_RTOL",
     "PSD_RTOL",
     "ROW_SUM_ATOL",
@@ -92,6 +100,11 @@ SELF_CHECK_ATOL = 1e-13
 #: benchmarks/kernel_agreement.py's 28 long horizons (N = 200 to 10^4, rho(A) 0.5 to 1.05); benchmarks/run.py
 #: section 18: 1.7e-16 to 3.3e-16 at N = 10^3 to 10^5.
 STATIONARY_RTOL = 1e-14
+#: Two exact paths to the same numbers (the backward pass by doubling and step by step; a rollout by powers and
+#: scans and step by step) agree to PATH_AGREEMENT_RTOL of each array's largest entry: every cost, plan and gain.
+#: Measured: worst 5.6e-14 over benchmarks/kernel_agreement.py's 405 systems (the gains of the slowly converging
+#: plant with one usable input, against the step-by-step pass; each of the two within 8.3e-14 of an 80-bit pass).
+PATH_AGREEMENT_RTOL = 1e-12
 
 #: A Markov channel's transition row, belief or state distribution (markov_channel.py) is accepted when it sums to
 #: 1 within ROW_SUM_ATOL, then divided by its sum: decimal entries such as 0.7, 0.2, 0.1 sum to 1 - 1.1e-16
@@ -112,6 +125,33 @@ STATIONARY_GAP = 1e-12
 #: such plants for every input: the split reports ``dropped`` and ``kept`` so that a verdict resting on it can be
 #: called exact (``dropped == 0``: a mode no input touches, exact block structure) or said to rest on a rank decision.
 CONTROLLABILITY_RTOL = 1e-12
+
+#: Two runs of one computation under different BLAS kernels (OPENBLAS_CORETYPE) round differently. A number a
+#: user sees may move between kernels by no more than what it is trusted to: a closed-form cost, a table's
+#: eigenvalue or a radius by KERNEL_VALUE_RTOL (= SELF_CHECK_RTOL, what the self-check guarantees; measured on
+#: reproduce's results.json, Haswell against Prescott: 4.6e-13 worst, 7.0e-12 for an eigenvalue of A - BK) ...
+KERNEL_VALUE_RTOL = SELF_CHECK_RTOL
+#: ... with an absolute floor for quantities that are exactly zero in exact arithmetic (a mean-square radius at a
+#: deadbeat point: 1e-32 to 1e-30 measured, i.e. (eps ||A||)^2), times the quantity's own scale (1 for a radius,
+#: a claim's tolerance for its worst margin) ...
+KERNEL_ZERO_ATOL = 1e-12
+#: ... a maximiser's location by KERNEL_POINT_RTOL: at a smooth maximum the location is determined only to about
+#: the square root of the value's relative accuracy (measured 4.3e-8 for the two-actuator maximiser, 1.3e-9 for
+#: the pendulum's; the values agree to 7e-16) ...
+KERNEL_POINT_RTOL = 1e-6
+#: ... a holding claim's worst margin (its tolerance less the largest error, an error at rounding level) by
+#: KERNEL_MARGIN_RTOL of the margin (measured: lemma-2's 9.989e-6 against 9.972e-6, 1.7e-3; cost-split-sensor
+#: 1.2e-3), as only the verdict, not the rounding error's digits, is a result ...
+KERNEL_MARGIN_RTOL = 1e-2
+#: ... the DP cost at a stability allocation's mu* (on the stabilisable set's boundary, where the cost grows like
+#: 1 / (1 - radius)) by KERNEL_BOUNDARY_RTOL: it moves with mu* inside its certified gap, amplified by that
+#: conditioning (measured between Haswell and Prescott: 5.3e-5 relative at the pendulum's mu*, where it is 3.1e10;
+#: 1.1e-8 at the two-actuator system's) ...
+KERNEL_BOUNDARY_RTOL = 1e-3
+#: ... and an allocation's communication cost and lower bound by its certified relative gap (each run's are within
+#: the gap of the same optimum; measured 5.5e-5 at the default gap 1e-4). Its point mu is not unique to better than
+#: the gap where the optimum is flat (measured: a component 1.2e-6 against 2.4e-7), so it is compared through its
+#: cost, not entry by entry.
 
 #: What one dense computation or one QP may allocate: a quarter of the machine's memory.
 MEMORY_BUDGET_BYTES = 0.25 * (os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -244,6 +284,16 @@ RICCATI_MAX_ITER = 20000
 RICCATI_DIVERGENCE = 1e14
 #: Critical delivery probabilities along a ray are bisected to this width in t.
 CRITICAL_MU_TOL = 1e-6
+__all__ += ["RESOLVED_MIN"]
+
+#: A nonzero quantity below RESOLVED_MIN = tiny / eps (2.2e-308 / 2.2e-16, about 1.0e-292) has rounding-level parts
+#: in the subnormal range, where double precision keeps fewer than 53 bits: the sums and products that computed it
+#: may have lost digits, and nothing bounds how many. A check meeting one (the audit's costs and plans of a system
+#: whose weights or x0 are scaled towards 1e-300) reports the case undecided. A guarantee, not an observed edge:
+#: measured on two_actuator with x0 scaled by c (costs 2.8 c^2), the closed form's cost against c^2 times the
+#: unscaled one is off by 4.1e-15 at c = 1e-140 (2.8e-280), 6.3e-15 at 1e-150 (2.8e-300, already below the bound),
+#: 9.8e-15 at 1e-155 (subnormal), and at 1e-160 (2.8e-320) its self-check fails, 1.8e-4 apart.
+RESOLVED_MIN = float(np.finfo(float).tiny / np.finfo(float).eps)
 __all__ += ["QP_PIN_MU"]
 
 #: The QP twin carries the mean delivered input z = mu u with the weight (psi + ...) / mu, and pins z = 0

@@ -27,7 +27,9 @@ def pendulum() -> pl.System:
 #: (xdist's own order, by the number of tests in a file, put these few-test files last.) A file missing here
 #: only runs later; nothing else depends on the order.
 HEAVIEST_FIRST = (
+    "tests/test_examples_kernels.py",        # 60 s (every example and command, under a second kernel too)
     "tests/test_docs_site.py",               # 21 s (the mkdocs build, then Chromium)
+    "tests/test_reproduce_kernels.py",       # 10 s (reproduce --quick under a second kernel)
     "tests/test_allocation_stability.py",    # 15 s
     "tests/test_allocation_power.py",        # 13 s
     "tests/test_claims_doc.py",              # 13 s
@@ -83,7 +85,10 @@ def long_files(root: Path, folders=REPORTED_FOLDERS) -> list[tuple[str, int]]:
 
 
 def pytest_terminal_summary(terminalreporter):
-    """After every run: the files over LONG_FILE_LINES lines, for a maintainer to look at their seams."""
+    """After a verbose run (``-v``): the files over LONG_FILE_LINES lines, for a maintainer to look at their seams
+    (a user's run of the README's command is not a code review)."""
+    if terminalreporter.config.get_verbosity() < 1:
+        return
     listed = long_files(EXAMPLES.parents[1])
     if listed:
         terminalreporter.write_sep("-", f"files over {LONG_FILE_LINES} lines (for review along their seams, "

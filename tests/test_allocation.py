@@ -377,3 +377,38 @@ def test_min_cost_reports_the_gap_it_certified(protocol):
     assert r.cost > 1e-12 * pl.closed_form(s.with_mu([0.0, 0.0]), protocol).cost
     assert r.lower_bound < r.cost                                   # a gap to report
     assert r.gap == pytest.approx((r.cost - r.lower_bound) / r.cost, rel=1e-12, abs=0.0)
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_constraints_contradictory_by_less_than_the_solver_tolerance_are_infeasible(two_actuator, protocol):
+    """mu1 + mu2 >= 1.5 and mu1 + mu2 <= 1.5 - 1e-12 admit no channel: proved exactly, not 'optimal' within the LP
+    tolerance (both protocols returned status optimal, the TCP-like one 4.6e-10 below the first row)."""
+    tight = [parse_constraint("mu1 + mu2 >= 1.5", 2), parse_constraint("mu1 + mu2 <= 1.499999999999", 2)]
+    with pytest.raises(pl.InfeasibleError, match="contradiction proved in exact rational arithmetic"):
+        allocate(two_actuator, protocol, alpha=8.0, beta=[1.0, 1.0], constraints=tight)
+    touching = [parse_constraint("mu1 + mu2 >= 1.5", 2), parse_constraint("mu1 + mu2 <= 1.5", 2)]
+    result = allocate(two_actuator, protocol, alpha=8.0, beta=[1.0, 1.0], constraints=touching)
+    assert result.status == "optimal"
+    assert result.mu.sum() == pytest.approx(1.5, abs=1e-8)
+
+
+def test_exact_emptiness_is_decided_against_an_enumeration_of_vertices():
+    """Random 2-channel polytopes: empty exactly when no point of a fine grid plus every pairwise row intersection
+    satisfies the rows (an independent test of feasibility in the plane)."""
+    from itertools import combinations
+
+    from packetloss_cvx.allocation.grammar import _proved_empty
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        G = rng.normal(size=(3, 2))
+        h = rng.normal(size=3) * 0.5
+        lines = [*zip(G, h, strict=True), (np.array([1.0, 0.0]), 1.0), (np.array([-1.0, 0.0]), 0.0),
+                 (np.array([0.0, 1.0]), 1.0), (np.array([0.0, -1.0]), 0.0)]
+        points = []
+        for (g1, c1), (g2, c2) in combinations(lines, 2):
+            M = np.vstack([g1, g2])
+            if abs(np.linalg.det(M)) > 1e-9:
+                points.append(np.linalg.solve(M, [c1, c2]))
+        feasible = any(np.all(G @ p <= h + 1e-9) and np.all(p >= -1e-9) and np.all(p <= 1 + 1e-9) for p in points)
+        assert _proved_empty(G, h, 0.0, 1.0) == (not feasible)

@@ -8,7 +8,7 @@
   in test_cli_native.py reads it too).
 
 Size is not a rule: a module is cut at its seams, not at a line count. Files over about 600 lines are
-listed for review at the end of every test run (``long_files``, printed by tests/conftest.py), never a
+listed for review at the end of a verbose test run (``long_files``, printed by tests/conftest.py with ``-v``), never a
 failure.
 """
 

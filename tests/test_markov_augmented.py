@@ -92,6 +92,61 @@ def test_recursion_matches_the_dense_closed_form(seed):
     np.testing.assert_allclose(rec.gain, dense.gain, rtol=0, atol=1e-10 * max(1.0, float(np.abs(dense.gain).max())))
 
 
+@pytest.mark.parametrize("case", ["gilbert-elliott", "slow gilbert-elliott", "three-state"])
+def test_a_stationary_chain_closes_the_value_and_rolls_its_run_by_powers(monkeypatch, case):
+    """Chains started in their stationary distributions on a stable plant (noise): below the step where the
+    Lyapunov sums closed, every step is one map, and the augmented value closes its stationary tail (the run of one
+    gain rolled out by powers of its closed loop, the steps after it one by one). Against the full pass, every step
+    one by one (PATH_AGREEMENT_RTOL), and the dense second-moment route (another formulation: cost, plan and gain
+    to 1e-10; rho(A) = 0.6, N = 300). "slow": rho(A) = 0.97 and a weak B, where the plan after the run is still
+    1e-3 of its largest input (a wrong step after the run shows)."""
+    import packetloss_cvx.markov.augmented as augmented
+    from packetloss_cvx.io import system_from_dict
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    slow = case == "slow gilbert-elliott"
+    rng = np.random.default_rng(0 if slow else 5)
+    s = random_system(rng, n=3, m=2, horizon=700 if slow else 300, spectral_radius=0.97 if slow else 0.6,
+                      full_weights=True, time_varying=False, non_stationary=False, noise=True, edge_mu=False)
+    chain_list = None
+    if case != "three-state":
+        channel = GilbertElliott(p=[0.1, 0.3], r=[0.4, 0.5], h_good=[0.95, 0.9], h_bad=[0.2, 0.0])
+        s = pl.System(A=s.A, B=0.05 * s.B if slow else s.B, horizon=s.horizon, state_weight=s.state_weights[0],
+                      input_weight=s.input_weights[0], x0=s.x0, noise_cov=s.noise_cov, channel=channel)
+    else:
+        T = np.array([[0.8, 0.15, 0.05], [0.2, 0.6, 0.2], [0.1, 0.3, 0.6]])
+        d = np.array([1.0, 0.5, 0.0])
+        w, v = np.linalg.eig(T.T)
+        pi = np.real(v[:, np.argmin(abs(w - 1))])
+        pi /= pi.sum()
+        chain_list = ((T, d, pi), (T, d[::-1].copy(), pi))
+        s = s.with_mu(np.repeat([[pi @ d, pi @ d[::-1]]], s.horizon, axis=0))
+    runs = []
+    powers = augmented.states_by_powers
+
+    def spy(*args):
+        runs.append(args[0].shape[1])
+        return powers(*args)
+
+    monkeypatch.setattr(augmented, "states_by_powers", spy)
+    U, gain, cost = augmented_solve(s, chain_list)
+    assert runs                                           # the tail closed ...
+    assert runs[0] > 100                                  # ... more than 100 steps before step 1
+    if slow:
+        assert np.abs(U[runs[0] + 1:]).max() > 1e-4 * np.abs(U).max()
+    with monkeypatch.context() as patch:
+        patch.setattr(augmented, "STATIONARY_RUN", 10**9)
+        U_full, gain_full, cost_full = augmented_solve(system_from_dict(s.to_dict()), chain_list)
+    assert len(runs) == 1
+    for a, b in ((U, U_full), (gain, gain_full), (cost, cost_full)):
+        assert np.abs(np.asarray(a) - b).max() <= PATH_AGREEMENT_RTOL * np.abs(b).max()
+    if case == "gilbert-elliott":
+        dense = exact_closed_form(s, method="dense")
+        assert cost == pytest.approx(dense.cost, rel=1e-10)
+        np.testing.assert_allclose(U, dense.inputs, rtol=0, atol=1e-10 * float(np.abs(dense.inputs).max()))
+        np.testing.assert_allclose(gain, dense.gain, rtol=0, atol=1e-10 * float(np.abs(dense.gain).max()))
+
+
 @pytest.mark.parametrize("horizon", [150, 200])
 def test_recursion_matches_the_dense_route_on_the_unstable_pendulum_at_long_horizons(horizon):
     s = pl.load_example("pendulum_bursty")

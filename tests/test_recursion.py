@@ -274,7 +274,6 @@ def test_time_varying_data_keep_the_full_pass(monkeypatch, which):
         data["channel"].pop("mu", None)
         data["channel"]["mu_schedule"] = mu.tolist()
     from packetloss_cvx.io import system_from_dict
-
     from packetloss_cvx.recursion import backward_pass, udp_variance_weights
 
     varying = system_from_dict(data)
@@ -286,21 +285,22 @@ def test_time_varying_data_keep_the_full_pass(monkeypatch, which):
         np.testing.assert_array_equal(K, K_full)
         np.testing.assert_array_equal(P0, P0_full)
     K, _, _ = backward_pass(s, "tcp")                       # the stationary twin does close its tail:
-    assert np.array_equal(K[1], K[N // 2]) and not np.array_equal(K[1], K[-1])   # one gain, copied
+    assert np.array_equal(K[1], K[N // 2])                  # one gain, copied
+    assert not np.array_equal(K[1], K[-1])
 
 
 def test_optimal_plan_is_the_backward_pass_rolled_out(monkeypatch):
     """optimal_plan (the rollout told where the closed run of one gain is) gives the floats of backward_pass then
     mean_trajectory (which search K for that run), with and without a closed tail; and with the closure switched
-    off the same plan to 1e-12 (full pass, every step rolled out one by one). An unstable A (its closed tail rolled
-    out step by step) included."""
+    off the same plan to 1e-12 (full pass, every step rolled out one by one). An unstable A (its stationary closed
+    loop stable: rolled out by powers and a scan) included."""
     from packetloss_cvx.io import system_from_dict
     from packetloss_cvx.recursion import backward_pass, mean_trajectory, optimal_plan
 
     unstable = random_system(np.random.default_rng(12), n=3, m=2, horizon=600, spectral_radius=1.05,
                              full_weights=True, time_varying=False, non_stationary=False, edge_mu=False)
     for s in (_long(8, 4000).with_mu([1.0, 1.0]), _long(9, 3000).with_mu([0.8, 0.4]), _long(10, 200),
-              unstable.with_mu([0.9, 0.9])):                   # rolled out step by step: every gain read
+              unstable.with_mu([0.9, 0.9])):
         for protocol in PROTOCOLS:
             K0, P0, noise, U, X = optimal_plan(s, protocol)
             K_ref, P0_ref, noise_ref = backward_pass(s, protocol)
@@ -342,6 +342,180 @@ def test_a_state_that_underflowed_to_zero_stays_zero_only_under_finite_gains(mon
     assert not np.isnan(X_bad[0, :-3]).any()
 
 
+#: The slowly converging plant: the paper's pendulum A (rho(A) = 1.06) with two inputs; its Riccati pass contracts
+#: by about 0.98 a step and settles after about 1,600 steps.
+SLOW_A = [[1.001, 0.005, 0.000, 0.000], [0.35, 1.001, -0.135, 0.000], [-0.001, 0.000, 1.001, 0.005],
+          [-0.375, -0.001, 0.590, 1.001]]
+SLOW_B = [[0.001, 0.2], [0.540, 0.0], [-0.002, 0.1], [-1.066, 0.3]]
+
+
+def _slow(N, mu=(1.0, 1.0)):
+    return pl.System(A=SLOW_A, B=SLOW_B, horizon=N, state_weight=[5, 1, 1, 1], input_weight=[2, 1], mu=list(mu),
+                     x0=[0.1, 0, 0.1, 0])
+
+
+def _solve_80bit(G, R):
+    """G X = R by Gauss-Jordan elimination with partial pivoting, in the arrays' own precision."""
+    m = G.shape[0]
+    T = np.concatenate([G, R], axis=1)
+    for k in range(m):
+        p = k + int(np.argmax(np.abs(T[k:, k])))
+        T[[k, p]] = T[[p, k]]
+        T[k] = T[k] / T[k, k]
+        for i in range(m):
+            if i != k:
+                T[i] = T[i] - T[i, k] * T[k]
+    return T[:, m:]
+
+
+def _tcp_riccati_80bit(s):
+    """The TCP-like backward pass of Theorem 1 written out step by step in np.longdouble (80-bit on x86), every
+    step: G = B'PB M + Psi, K = G^-1 B'PA, P- = A'PA - (B'PA)' M K + Omega. An independent reference."""
+    ld = np.longdouble
+    A, B = s.A.astype(ld), s.B.astype(ld)
+    M, Psi = np.diag(s.mu_schedule[0].astype(ld)), np.diag(s.input_weights[0].astype(ld))
+    P = s.state_weights[-1].astype(ld)
+    K = np.empty((s.horizon, s.m, s.n), dtype=ld)
+    for t in range(s.horizon - 1, -1, -1):
+        rhs = B.T @ P @ A
+        K[t] = _solve_80bit(B.T @ P @ B @ M + Psi, rhs)
+        P = A.T @ P @ A - rhs.T @ M @ K[t] + (s.state_weights[t - 1].astype(ld) if t > 0 else 0)
+        P = (P + P.T) / 2
+    return K.astype(float), P.astype(float)
+
+
+def _doubling_spy(monkeypatch):
+    """Count the backward passes that went on by doubling (recursion._doubled_backward returning a result)."""
+    import packetloss_cvx.recursion as recursion
+
+    calls = []
+    original = recursion._doubled_backward
+
+    def spy(*args):
+        out = original(*args)
+        calls.append(out is not None)
+        return out
+
+    monkeypatch.setattr(recursion, "_doubled_backward", spy)
+    return calls
+
+
+@pytest.mark.parametrize("mu", [(1.0, 1.0), (1.0, 0.0), (0.9, 0.6)])
+@pytest.mark.parametrize("N", [300, 2000])
+def test_doubled_backward_pass_meets_an_80_bit_pass(monkeypatch, mu, N):
+    """The slowly converging plant's pass goes on by doubling after its first steps (at N = 300 it never settles:
+    every step 1..N-1 by doubling and batched steps; at N = 2000 its tail closes after about 1,600): every gain
+    and P_0 within PATH_AGREEMENT_RTOL of the 80-bit step-by-step pass (measured: 6.6e-14; the float step-by-step
+    pass is within 8.3e-14). mu = (1, 0) leaves one usable input: G = B M B' formed in floats would give every
+    direction some control, 3.9e-13 (the reason the doubling keeps G as a factor)."""
+    from packetloss_cvx.recursion import backward_pass
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    calls = _doubling_spy(monkeypatch)
+    s = _slow(N, mu)
+    K, P0, _ = backward_pass(s, "tcp")
+    assert calls == [True]
+    K_ref, P0_ref = _tcp_riccati_80bit(s)
+    assert np.abs(K - K_ref).max() <= PATH_AGREEMENT_RTOL * np.abs(K_ref).max()
+    assert np.abs(P0 - P0_ref).max() <= PATH_AGREEMENT_RTOL * np.abs(P0_ref).max()
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_doubled_backward_pass_equals_the_step_by_step_pass(monkeypatch, seed):
+    """Long horizons of one map (stable and unstable plants, mu at 0, fractional and 1, noise): backward_pass and
+    closed_form by doubling (handed over at the pass's first chance, whatever it predicts) against the full
+    step-by-step pass, to PATH_AGREEMENT_RTOL of each array's largest entry (costs, plans, every gain)."""
+    import packetloss_cvx.recursion as recursion
+    from packetloss_cvx.io import system_from_dict
+    from packetloss_cvx.recursion import backward_pass
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    monkeypatch.setattr(recursion, "DOUBLING_AFTER", -1)
+
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(1, 5)), int(rng.integers(1, 4))
+    s = random_system(rng, n=n, m=m, horizon=int(rng.choice([300, 1500, 4000])), full_weights=True,
+                      spectral_radius=float(rng.uniform(0.97, 1.08)), time_varying=False, non_stationary=False,
+                      noise=seed % 2 == 1, edge_mu=seed % 4 == 2)
+    if seed % 3 == 0:
+        s = s.with_mu(np.ones(m))
+    calls = _doubling_spy(monkeypatch)
+
+    def close(a, b):
+        return np.abs(np.asarray(a) - b).max() <= PATH_AGREEMENT_RTOL * np.abs(b).max()
+
+    for protocol in PROTOCOLS:
+        K, P0, _ = backward_pass(s, protocol)
+        sol = pl.closed_form(s, protocol, "recursion")
+        K_ref, P0_ref, _ = _full_pass(monkeypatch, lambda p=protocol: backward_pass(system_from_dict(s.to_dict()), p))
+        ref = _full_pass(monkeypatch, lambda p=protocol: pl.closed_form(system_from_dict(s.to_dict()), p, "recursion"))
+        for a, b in ((K, K_ref), (P0, P0_ref), (sol.cost, ref.cost), (sol.inputs, ref.inputs), (sol.gain, ref.gain)):
+            assert close(a, b)
+    assert calls
+    assert all(calls)
+
+
+def test_unstable_plant_under_a_stable_loop_is_rolled_out_by_powers_and_a_scan(monkeypatch):
+    """The slowly converging plant (rho(A) = 1.06) at N = 2000: its tail closes after about 1,600 steps, so the
+    plan is steps 1..~400 by powers of the stationary closed loop (stable) and the ~1,600 time-varying steps after
+    them by a scan of their closed-loop products: plan, states and cost against every step rolled out one by one,
+    to PATH_AGREEMENT_RTOL."""
+    from packetloss_cvx.io import system_from_dict
+    from packetloss_cvx.recursion import optimal_plan
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    s = _slow(2000)
+    K0, P0, _, U, X = optimal_plan(s, "tcp")
+    K0_ref, P0_ref, _, U_ref, X_ref = _full_pass(monkeypatch, lambda: optimal_plan(system_from_dict(s.to_dict()),
+                                                                                   "tcp"))
+    for a, b in ((K0, K0_ref), (P0, P0_ref), (U, U_ref), (X, X_ref)):
+        assert np.abs(a - b).max() <= PATH_AGREEMENT_RTOL * np.abs(b).max()
+    assert max(abs(np.linalg.eigvals(s.A))) > 1.05
+
+
+@pytest.mark.parametrize("L", [1, 2, 5, 37, 64, 100])
+def test_scan_of_time_varying_gains_equals_the_steps(L):
+    """recursion._scanned_run (Blelloch's scan of the closed-loop products) against x_{t+1} = A x_t + B M_t u_t,
+    u_t = -K_t x_t written out step by step, for three points at once, lengths that are and are not powers of two,
+    time-varying channels and gains."""
+    from packetloss_cvx.recursion import _scanned_run
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    rng = np.random.default_rng(L)
+    s = random_system(rng, n=3, m=2, horizon=L + 3, spectral_radius=1.1, time_varying=False)
+    P, a, b = 3, 2, L + 2
+    mu = rng.uniform(0.0, 1.0, (P, s.horizon, s.m))
+    K = 0.3 * rng.normal(size=(P, s.horizon, s.m, s.n))
+    x = rng.normal(size=(P, s.n))
+    X, U = np.full((P, s.horizon, s.n), np.nan), np.full((P, s.horizon, s.m), np.nan)
+    last = _scanned_run(s, mu, K, X, U, x.copy(), a, b)
+    X_ref, U_ref, state = np.empty((P, L, s.n)), np.empty((P, L, s.m)), x
+    for i, t in enumerate(range(a, b)):
+        U_ref[:, i] = -np.einsum("pij,pj->pi", K[:, t], state)
+        state = X_ref[:, i] = state @ s.A.T + (mu[:, t] * U_ref[:, i]) @ s.B.T
+    assert np.abs(X[:, a:b] - X_ref).max() <= PATH_AGREEMENT_RTOL * np.abs(X_ref).max()
+    assert np.abs(U[:, a:b] - U_ref).max() <= PATH_AGREEMENT_RTOL * np.abs(U_ref).max()
+    np.testing.assert_array_equal(last, X[:, b - 1])
+    assert np.isnan(X[:, :a]).all()                 # nothing outside steps a..b-1 written
+    assert np.isnan(X[:, b:]).all()
+    assert np.isnan(U[:, b:]).all()
+
+
+def test_unstable_plant_under_an_unstable_run_is_rolled_out_step_by_step():
+    """A run of one gain whose closed loop is unstable, on an unstable plant, is rolled out step by step: the
+    plan rolled forward again open loop (mean_states without gains, as expected_cost does) meets its states to
+    the bit. (A gain of zero: the run's loop is A itself.)"""
+    from packetloss_cvx.recursion import mean_states
+
+    s = random_system(np.random.default_rng(3), n=3, m=2, horizon=400, spectral_radius=1.02, time_varying=False)
+    mu, x = s.mu_schedule[None], s.x0[None]
+    K = np.zeros((1, s.horizon, s.m, s.n))
+    K[0, 0] = K[0, -1] = 0.1                       # a run of one gain over steps 1..N-2
+    U = np.empty((1, s.horizon, s.m))
+    X = mean_states(s, mu, U, x, K)
+    np.testing.assert_array_equal(mean_states(s, mu, U, x), X)
+
+
 def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
     from packetloss_cvx.io import system_from_dict
     from packetloss_cvx.recursion import udp_variance_weights
@@ -362,6 +536,34 @@ def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
     d_full, noise_full = _full_pass(monkeypatch, lambda: udp_variance_weights(system_from_dict(unstable.to_dict())))
     np.testing.assert_array_equal(d, d_full)
     assert noise == noise_full
+
+
+def test_drift_is_weighed_only_where_a_tail_can_close(monkeypatch):
+    """The Lyapunov sums of an unstable plant never settle (q = rho(A)^2 >= 1) and the UDP-like pass of an unstable
+    plant with mu < 1 has a different added diagonal at every step (it grows with the sums): neither weighs its
+    drift at any step. Their stable twins (and the TCP-like pass, one map) do."""
+    import packetloss_cvx.recursion as recursion
+    from packetloss_cvx.io import system_from_dict
+
+    weighed = {"sum": 0, "pass": 0}
+    small_change, drift = recursion._small_change, recursion._drift
+
+    def count(name, fn):
+        def counted(*args):
+            weighed[name] += 1
+            return fn(*args)
+        return counted
+
+    monkeypatch.setattr(recursion, "_small_change", count("sum", small_change))
+    monkeypatch.setattr(recursion, "_drift", count("pass", drift))
+    for rho, protocol, expected in ((1.05, "udp", 0), (1.05, "tcp", 1), (0.95, "udp", 1)):
+        s = random_system(np.random.default_rng(1), n=4, m=2, horizon=1000, spectral_radius=rho, time_varying=False,
+                          non_stationary=False, noise=True).with_mu([0.8, 0.5])
+        weighed.update({"sum": 0, "pass": 0})
+        pl.closed_form(system_from_dict(s.to_dict()), protocol, "recursion")
+        assert (weighed["pass"] > 0) == bool(expected)
+        if protocol == "udp":
+            assert (weighed["sum"] > 0) == bool(expected)
 
 
 def test_lyapunov_cross_weights_share_the_variance_weights_kernel():

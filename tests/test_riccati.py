@@ -1,6 +1,8 @@
 """The dynamic-programming optimum (simulation/riccati.py) against scipy's DARE, the scalar critical
 probability, the equation as the issue writes it, forward second moments and the receding-horizon laws."""
 
+import math
+
 import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
@@ -16,7 +18,7 @@ from packetloss_cvx.simulation import (
     mean_square_radius,
 )
 from packetloss_cvx.simulation.riccati import NO_SOLUTION
-from packetloss_cvx.tolerances import RICCATI_DIVERGENCE
+from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE
 
 from .references import enumerated_radius
 
@@ -62,6 +64,32 @@ def test_scalar_critical_probability(a):
     # no gain at all stabilises below it: min_k (a - mu k)^2 + mu (1 - mu) k^2 = a^2 (1 - mu) at k = a
     mu = critical - 0.01
     assert min(mean_square_radius([[a]], [[1.0]], [[k]], [mu]) for k in np.linspace(0, 2 * a, 401)) > 1
+
+
+@pytest.mark.parametrize(("q", "b"), [(1.0, 1.0), (1e-200, 1.0), (1e-300, 1.0), (1e-300, 1e100), (1.0, 1e-100),
+                                    (1e-20, 1e-100)])
+def test_scalar_solution_by_hand_at_any_scale(q, b):
+    """a = 1.2, mu = 0.8, psi = 1: G = psi + b^2 P, so P = q + a^2 P - mu a^2 b^2 P^2 / (psi + b^2 P), the positive
+    root of b^2 (1 - a^2 + mu a^2) P^2 + (psi (1 - a^2) - q b^2) P - q psi = 0 (no cancellation: both terms of the
+    numerator are positive). A state weight of 1e-200 once stopped the iteration at its first step (the Frobenius
+    norm of a 1e-200 matrix squared its entries to 0.0); B = 1e-100 (P about 1e200) was called "no stabilising
+    solution" (the divergence test ignored B)."""
+    a, mu, psi = 1.2, 0.8, 1.0
+    alpha, beta = b * b * (1 - a * a + mu * a * a), psi * (1 - a * a) - q * b * b
+    P = (-beta + math.sqrt(beta * beta + 4 * alpha * q * psi)) / (2 * alpha)
+    s = System(A=[[a]], B=[[b]], horizon=1, state_weight=[q], input_weight=[psi], mu=[mu], x0=[1.0])
+    dp = dp_riccati(s)
+    assert dp.cost_to_go[0, 0] == pytest.approx(P, rel=MOMENT_RESIDUAL_RTOL)
+    assert dp.gain[0, 0] == pytest.approx(a * b * P / (psi + b * b * P), rel=MOMENT_RESIDUAL_RTOL)
+    assert dp.spectral_radius < 1
+
+
+def test_a_cost_to_go_beyond_double_precision_is_refused_not_called_unstabilisable():
+    """B = 1e-160 puts P near 1e320: no room to tell divergence from convergence, which is not "no solution"."""
+    s = System(A=[[1.2]], B=[[1e-160]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.8], x0=[1.0])
+    with pytest.raises(NumericalError, match="leaves no room in double precision") as err:
+        dp_riccati(s)
+    assert not str(err.value).startswith(NO_SOLUTION)
 
 
 def test_unobserved_unstable_mode_has_no_stabilising_solution():

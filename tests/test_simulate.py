@@ -77,8 +77,9 @@ def test_cli_schema_and_unstable_exit_zero(capsys):
     for p in ("tcp", "udp"):
         assert set(data[p]) == {"open_loop", "closed_loop"}
         assert set(data[p]["open_loop"]) == OPEN
-        assert set(data[p]["closed_loop"]) == CLOSED
+        assert set(data[p]["closed_loop"]) == CLOSED | {"stderr_reason"}   # unstable: no error bar, and why
         assert data[p]["closed_loop"]["stable"] is False   # the paper's pendulum laws: radius > 1
+        assert data[p]["closed_loop"]["stderr"] is None
     assert set(data["dp"]) == {"closed_loop"}
     assert data["dp"]["closed_loop"]["stable"] is True
 
@@ -171,7 +172,7 @@ def test_huge_closed_loop_is_refused_before_drawing(two_actuator, monkeypatch):
     with pytest.raises(ResourceError, match="PACKETLOSS_CVX_BUDGET_SIMULATE_WORK"):    # the work budget first
         simulate(two_actuator, 10000, steps=10 ** 9, closed_loop=True, progress=False)
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_SIMULATE_WORK", "inf")        # raised on purpose: the memory check
-    with pytest.raises(ResourceError, match="fewer steps"):
+    with pytest.raises(ResourceError, match="steps: .*PACKETLOSS_CVX_BUDGET_MEMORY_BYTES"):
         simulate(two_actuator, 10000, steps=10 ** 9, closed_loop=True, progress=False)
 
 

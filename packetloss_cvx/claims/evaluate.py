@@ -21,14 +21,15 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, SolverError
+from ..errors import InputError, NumericalError, SolverError
 from ..model import System
 from ..results import ClaimResult
+from ..tolerances import RESOLVED_MIN
 from .context import Context
 from .paper import STATEMENTS
 
-__all__ = ["CASE_ERRORS", "SimpleSystems", "Tally", "Z", "evaluate", "shrink", "simple_system", "simple_systems",
-           "verdict", "z_margin"]
+__all__ = ["CASE_ERRORS", "SimpleSystems", "Tally", "Z", "cost_scale", "evaluate", "relative_error", "resolved",
+           "shrink", "simple_system", "simple_systems", "verdict", "z_margin"]
 
 #: Monte Carlo checks allow Z standard errors (two-sided 99.994 % per case).
 Z = 4.0
@@ -310,8 +311,68 @@ def enough_deliveries(system: System, samples: int) -> bool:
     return bool(np.all(samples * np.minimum(mu, 1 - mu)[random] >= MIN_EXPECTED_OUTCOMES))
 
 
+def cost_scale(system: System) -> float:
+    """The size of ``system``'s costs: its largest weight (state, initial or input) times ``max|x0|^2 + N ||Sigma_W||``
+    (what the state contributes, from x0 and from the noise over the horizon). Scaling the weights by c scales it by
+    c, x0 (and Sigma_W by its square) by c scales it by c^2: a comparison floored at a fraction of it means the same
+    at every scale. 0 only when nothing costs anything (x0 = 0 without noise). O(N n^3).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[3], input_weight=[1], mu=[0.5], x0=[2])
+    >>> cost_scale(s), cost_scale(s.with_x0([0.5])), cost_scale(s.with_x0([0.0]))
+    (12.0, 0.75, 0.0)
+    """
+    weight = max(float(np.linalg.eigvalsh(system.state_weights).max(initial=0.0)),
+                 float(np.linalg.eigvalsh(system.initial_weight).max(initial=0.0)),
+                 float(system.input_weights.max(initial=0.0)))
+    x = float(np.abs(system.x0).max(initial=0.0))
+    return weight * (x * x + system.horizon * float(np.linalg.norm(system.noise_cov, 2)))
+
+
+def relative_error(value: float, reference: float, floor: float) -> float:
+    """``|value - reference| / max(|reference|, floor)``: relative, with an absolute floor (a fraction of the problem's
+    own scale, never a fixed number) where the reference is near zero; 0 for two exact zeros, inf for a difference
+    against a zero scale.
+
+    Examples
+    --------
+    >>> relative_error(1.5, 1.0, 1e-9), relative_error(0.25, 0.0, 0.5), relative_error(0.0, 0.0, 0.0)
+    (0.5, 0.5, 0.0)
+    """
+    scale = max(abs(reference), floor)
+    difference = abs(value - reference)
+    if scale > 0:
+        return difference / scale
+    return 0.0 if difference == 0 else float("inf")
+
+
+def resolved(value: float, what: str) -> float:
+    """``value``, or NumericalError when it is nonzero and below ``RESOLVED_MIN`` (about 1e-292) in size: its
+    rounding-level parts are subnormal, so a comparison of it decides nothing (the case is undecided, not a
+    violation and not a pass).
+
+    Examples
+    --------
+    >>> resolved(1e-200, "the cost"), resolved(0.0, "the cost")
+    (1e-200, 0.0)
+    >>> resolved(3e-300, "the cost")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.NumericalError: the cost is 3e-300, within 2^52 of double precision's subnormal range ...
+    """
+    if 0 < abs(value) < RESOLVED_MIN:
+        raise NumericalError(f"{what} is {value:.3g}, within 2^52 of double precision's subnormal range (below "
+                             f"{RESOLVED_MIN:.1e}): the computation lost digits at this scale, so the case is "
+                             "undecided")
+    return value
+
+
 def z_margin(samples: np.ndarray, expect: float) -> float:
-    """Z - |z| of the sample mean against ``expect``; a degenerate sample must match to 1e-9.
+    """Z - |z| of the sample mean against ``expect``; a degenerate sample must match to 1e-9 relative. Computed on the
+    samples divided by their scale ``max(|expect|, max|samples|)`` rounded to a power of two (exact: the same floats
+    as unscaled), so the margin is the same at every scale and the standard deviation's squares do not underflow; a
+    scale below ``RESOLVED_MIN`` raises NumericalError (:func:`resolved`).
 
     Examples
     --------
@@ -319,9 +380,17 @@ def z_margin(samples: np.ndarray, expect: float) -> float:
     [4.0, 2.0]
     >>> [float(z_margin(np.array([1.0, 1.0]), e)) for e in (1.0, 1.1)]   # degenerate: exact or -inf
     [4.0, -inf]
+    >>> tiny = 2.0 ** -660                        # about 2e-199: its square underflows to 0.0, the margin does not
+    >>> float(z_margin(np.array([0.0, 2 * tiny]), 3 * tiny)), float(z_margin(np.array([0.0, 2.0]), 3.0))
+    (2.0, 2.0)
     """
-    se = samples.std(ddof=1) / np.sqrt(samples.size)
-    err = abs(samples.mean() - expect)
-    if se <= 1e-12 * max(1.0, abs(expect)):
-        return Z if err <= 1e-9 * max(1.0, abs(expect)) else -np.inf
+    scale = resolved(max(abs(float(expect)), float(np.abs(samples).max(initial=0.0))), "the sampled quantity's scale")
+    if scale == 0:
+        return Z                                   # every sample and the expectation are exactly zero
+    exponent = int(np.frexp(scale)[1])            # divided by a power of two: exact, the same z as unscaled
+    x, e = np.ldexp(samples, -exponent), float(np.ldexp(expect, -exponent))
+    se = x.std(ddof=1) / np.sqrt(x.size)
+    err = abs(x.mean() - e)
+    if se <= 1e-12:
+        return Z if err <= 1e-9 else -np.inf
     return Z - err / se

@@ -14,13 +14,14 @@ import numpy as np
 
 from ..costs import closed_form
 from ..errors import NumericalError
+from ..linalg import frobenius
 from ..model import System
 from ..results import ClaimResult, Riccati
 from ..simulation import closed_loop, dp_riccati
 from ..simulation.riccati import NO_SOLUTION
 from ..threads import blas_limited
 from .context import Context
-from .evaluate import evaluate
+from .evaluate import evaluate, resolved
 from .ordering import optimal_plan
 
 __all__ = ["mpc_vs_dp", "relative_excess"]
@@ -56,7 +57,7 @@ def relative_excess(system: System, gain: Callable[[str], np.ndarray] | None = N
         raise
     C = np.outer(system.x0, system.x0) + system.noise_cov
     base = float(np.sum(dp.cost_to_go * C))
-    scale = float(np.linalg.norm(dp.cost_to_go))
+    scale = resolved(frobenius(dp.cost_to_go), "||P|| of the DP law")
     out: dict[str, float] = {"psd": np.inf}
     for p in ("tcp", "udp"):
         loop = closed_loop(system, closed_form(system, p).gain if gain is None else gain(p), p)

@@ -8,13 +8,16 @@ from scipy.optimize import brentq
 
 from .. import difference
 from ..costs import closed_form, expected_cost
+from ..errors import NumericalError
 from ..evaluator import CostEvaluator
+from ..linalg import frobenius
 from ..model import System
 from ..prediction import prediction
 from ..results import ClaimResult, Solution
 from ..threads import blas_limited
+from ..tolerances import CROSS_CHECK_FLOOR, RESOLVED_MIN
 from .context import Context, interior
-from .evaluate import evaluate
+from .evaluate import cost_scale, evaluate, resolved
 
 __all__ = ["case_ids", "corollary_1", "corollary_2", "optimal_plan", "theorem_2", "theorem_3"]
 
@@ -79,11 +82,18 @@ def theorem_2(ctx: Context) -> ClaimResult:
         if not interior(s) or not np.any(prediction(s).Omega_gp @ s.x0):
             return None  # Omega_gp x0 = 0: both optima are C, the trivial equality
         # the cancellation-free difference: a strict inequality needs value > 0, not >= 0
-        value = difference.cost_difference(s) / max(abs(optimal_plan(ctx, s, "tcp", id(s) in cases).cost), 1e-9)
+        gap = difference.cost_difference(s)
+        if not abs(gap) >= RESOLVED_MIN:   # a product of three small factors: 0.0 here may be an underflow
+            raise NumericalError(f"J*_udp - J*_tcp is {gap:.3g}, below {RESOLVED_MIN:.1e}: at this scale double "
+                                 "precision does not resolve its sign, so the case is undecided")
+        cost = resolved(optimal_plan(ctx, s, "tcp", id(s) in cases).cost, "J*_tcp")
+        value = gap / max(abs(cost), CROSS_CHECK_FLOOR * cost_scale(s))
         return value if value > 0 else min(value, -1e-300)
     return evaluate("theorem-2", ctx, ctx.cases, margin,
                     "margin = (J*_udp - J*_tcp)/J*_tcp, the difference computed without cancellation "
-                    "(difference.cost_difference). Holds: J_udp(U) >= J_tcp(U) for every U (the extra "
+                    "(difference.cost_difference); a difference below 1e-292 in size (a product of three factors "
+                    "that underflows for weights near 1e-100 against input weights of one) is undecided. Holds: "
+                    "J_udp(U) >= J_tcp(U) for every U (the extra "
                     "term is PSD), so the minima are ordered. The paper's proof orders non-symmetric matrices "
                     "(G^-1 Vbar) and uses the wrong cost formula. Cases with Omega_gp x0 = 0 (e.g. x0 = 0), where "
                     "both optima equal C, are skipped: there the strict inequality fails trivially.")
@@ -106,9 +116,9 @@ def corollary_1(ctx: Context) -> ClaimResult:
     def margin(s: System) -> float | None:
         if not interior(s):
             return None
-        a = np.linalg.norm(optimal_plan(ctx, s, "tcp", id(s) in cases).inputs)
-        b = np.linalg.norm(optimal_plan(ctx, s, "udp", id(s) in cases).inputs)
-        return (a - b) / max(a, 1e-300)
+        a = resolved(frobenius(optimal_plan(ctx, s, "tcp", id(s) in cases).inputs), "||U*_tcp||")
+        b = resolved(frobenius(optimal_plan(ctx, s, "udp", id(s) in cases).inputs), "||U*_udp||")
+        return (a - b) / a if a > 0 else (0.0 if b == 0 else -np.inf)     # a = b = 0: Omega_gp x0 = 0, as before
     return evaluate("corollary-1", ctx, ctx.cases, margin,
                     "margin = (||U*_tcp|| - ||U*_udp||)/||U*_tcp||. The proof's step 'G_G^-1 < G_F^-1 implies "
                     "G_G^-1 g < G_F^-1 g' applies a matrix order to vectors; it is not a valid inference.")

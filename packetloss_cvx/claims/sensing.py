@@ -20,8 +20,9 @@ from ..results import ClaimResult, Riccati
 from ..sensing.loop import estimated_loop
 from ..sensing.montecarlo import simulate_estimated
 from ..simulation.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
+from ..tolerances import RESOLVED_MIN
 from .context import Context
-from .evaluate import Tally
+from .evaluate import Tally, resolved
 
 __all__ = ["STATEMENT", "cost_split_sensor", "sensed"]
 
@@ -80,6 +81,7 @@ def _split(system: System, solve: Callable[[System], Riccati] | None = None
 
 def _exact_margin(found: tuple[float, float, float, System, Any, float]) -> float:
     cost, control, estimation = found[:3]
+    resolved(cost, "the loop's average stage cost")
     return SPLIT_RTOL - abs(cost - control - estimation) / cost
 
 
@@ -87,19 +89,30 @@ def simulated_z(system: System, seed: int,
                 found: tuple[float, float, float, System, Any, float] | None = None) -> float | None:
     """(sampled cost - tr(P Sigma_W) - tr(K'HK mean P_k)) / stderr for the time-varying filter on ``sensed(system)``;
     None where the claim does not apply, or where the loop mixes too slowly for MAX_STEPS (the window is the
-    steps whose second half starts where radius^(steps/2) <= MIXED: the start's transient is gone). ``found``:
+    steps whose second half starts where radius^(steps/2) start <= MIXED: the start's transient is gone, relative to
+    the stationary cost; ``start = max(1, (1 - radius) x0'P x0 / cost)``, x0's cost over the transient spread over
+    its length, so a larger x0 needs a longer window and the test means the same at every scale of x0). ``found``:
     the case's exact split when the caller has it (not solved again). O(RUNS steps n^3)."""
     found = _split(system) if found is None else found
     if found is None:
         return None
-    steps = 2 * int(np.ceil(np.log(MIXED) / np.log(found[5]))) if found[5] > 0 else 2
+    s, dp = found[3], found[4]
+    start = max(1.0, (1.0 - found[5]) * float(s.x0 @ dp.cost_to_go @ s.x0) / found[0])
+    if not np.isfinite(start):
+        return None
+    steps = 2 * int(np.ceil(np.log(MIXED / start) / np.log(found[5]))) if found[5] > 0 else 2
     if steps > MAX_STEPS:
         return None
-    s, dp = found[3], found[4]
     run = simulate_estimated(s, dp.gain, "tcp", "kalman", samples=RUNS, steps=max(steps, 2), seed=seed)
     mu, P, K, B, psi = s.mu, dp.cost_to_go, dp.gain, s.B, s.input_weights[0]
     H = dp_input_hessian(B, P, mu, psi)
     split = float(np.sum(P * s.noise_cov) + np.sum((K.T @ H @ K) * run.mean_filtered_covariance))
+    with np.errstate(over="ignore", under="ignore"):
+        variance = run.stderr ** 2 * RUNS         # of one run's mean cost, from the squares of its deviations
+    if not RESOLVED_MIN <= variance < np.inf:
+        raise NumericalError(f"the simulated costs (about {run.mean_stage_cost:.3g}) have a variance of {variance:.3g} "
+                             f"across runs, outside [{RESOLVED_MIN:.1e}, inf): its squares under- or overflowed, so "
+                             "no z")
     return (run.mean_stage_cost - split) / run.stderr
 
 
@@ -136,8 +149,9 @@ def cost_split_sensor(ctx: Context) -> ClaimResult:
             "where the case has none); a case without a stabilising DP law or whose loop on the estimate is not "
             "mean-square stable does not apply. Exact: the loop (xhat, e) with stationary filter gains, margin = "
             "1e-9 - |cost - tr(P Sigma_W) - E[(u + K x)'H(u + K x)]| / cost. Simulated on the paper's systems ("
-            f"{RUNS} runs, the time-varying filter, 2 k steps with radius^k <= {MIXED:g}, the second half averaged): "
-            "z of the sampled cost against tr(P Sigma_W) + tr(K'HK mean P_k), margin 1 - |z| / 4"
+            f"{RUNS} runs, the time-varying filter, 2 k steps with radius^k max(1, (1 - radius) x0'P x0 / cost) <= "
+            f"{MIXED:g}, the second half averaged): z of the sampled cost against tr(P Sigma_W) + tr(K'HK mean "
+            "P_k), margin 1 - |z| / 4"
             + (f" ({shown})" if shown else "") + ".")
     return ClaimResult(id="cost-split-sensor", statement=STATEMENT, verdict=tally.verdict(), checked=tally.checked,
                        violations=int(tally.violations), worst=tally.worst, counterexample=None,

@@ -127,9 +127,10 @@ def _text(name: str, sim: Simulation) -> str:
         verdict = (f"mean-square stable ({radius} spectral radius {_num(r.spectral_radius)})" if r.stable else
                    f"NOT mean-square stable ({radius} spectral radius {_num(r.spectral_radius)})"
                    if np.isfinite(r.spectral_radius) else "mean-square stability not decided")
-        lines.append(f"  {label}, closed loop over {sim.steps} steps: mean stage cost {_num(r.mean_stage_cost)} +- "
-                     f"{_num(r.stderr, 3)}, exact {_num(r.exact_stage_cost)}; {verdict}")
-        for extra in (r.exact_reason, r.note):
+        spread = f" +- {_num(r.stderr, 3)}" if not r.stderr_reason else ""
+        lines.append(f"  {label}, closed loop over {sim.steps} steps: mean stage cost {_num(r.mean_stage_cost)}"
+                     f"{spread}, exact {_num(r.exact_stage_cost)}; {verdict}")
+        for extra in (r.stderr_reason, r.exact_reason, r.note):
             if extra:
                 lines.append(f"    ({extra})")
         if not r.stable and np.isfinite(r.spectral_radius):

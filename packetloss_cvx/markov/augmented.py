@@ -40,7 +40,18 @@ from ..budgets import check, duration_text, estimated_seconds, markov_recursion_
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
 from ..model import CacheKey, System
-from ..recursion import forward_cost, input_weight, lyapunov_cross_weights, mean_states, overflow_error
+from ..recursion import (
+    STATIONARY_RUN,
+    forward_cost,
+    input_weight,
+    leading_run,
+    lyapunov_cross_weights,
+    mean_states,
+    overflow_error,
+    states_by_powers,
+    stationary_close,
+    weight_head,
+)
 from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .chain import chain_matrices
 
@@ -262,7 +273,10 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     Returns ``(U, gain, cost)``: the plan (N×m), the first step's gain on ``x`` (m×n) and the exact
     minimum, checked against :func:`chain_cost` of the plan to ``SELF_CHECK_RTOL`` (plus
     ``SELF_CHECK_ATOL ||P_0|| ||x||^2``). Time O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)), memory
-    O(N m D) for the gains.
+    O(N m D) for the gains; where the steps are one map (chains started in their stationary distributions, a
+    stable A whose Lyapunov sums closed) the value closes its stationary tail after L steps and the run of one
+    gain is rolled out by powers of its closed loop: O(L (D^3 + m^3) + N D^2) for the solve, the referee
+    :func:`chain_cost` staying O(N n^2 (n + m + sum_i (k_i - 1))).
 
     Raises
     ------
@@ -285,27 +299,46 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     Gs = _input_maps(system, lift)
     P = np.zeros((D, D))
     P[:n, :n] = W[N - 1]
-    Ncross = np.zeros((m, D))
+    # steps 1..head are one map (the input maps, R, the cross terms and Omega equal to the bit: a chain started in
+    # its stationary distribution, below the step where the Lyapunov sums closed): there the value closes its
+    # stationary tail as recursion._backward's does (remaining drift under STATIONARY_RTOL)
+    head = min(leading_run(Gs[None, 1:]), leading_run(R[None, 1:]), leading_run(BSA[None, 1:]),
+               len(weight_head(system))) if N >= 2 * STATIONARY_RUN else 0
+    q, run = None, None
     with np.errstate(over="ignore", invalid="ignore"):
         try:
             for t in range(N - 1, -1, -1):
-                for i, gi in enumerate(lift.g):
-                    a, b = lift.offsets[i], lift.offsets[i + 1]
-                    Ncross[i, a:b] = np.outer(BSA[t, i], gi).ravel()       # b_i'S_t A ⊗ g_i (row-major eta_i)
-                K[t], P = lq_cross_step(P, F, Gs[t], np.diag(R[t]), Ncross, scale[t])
-                if t > 0:
-                    P[:n, :n] += W[t - 1]
+                K[t], new = _augmented_step(P, F, Gs[t], R[t], BSA[t], lift, scale[t], W[t - 1] if t > 0 else None)
+                if 2 <= t <= head:
+                    if q is None and stationary_close(new, P, 0.01):      # near: the change below 99 STATIONARY_RTOL
+                        q = float(np.max(np.abs(np.linalg.eigvals(F - Gs[t] @ K[t])))) ** 2
+                    if q is not None and stationary_close(new, P, q):
+                        # P_t = P_{t-1} = ... = P_1 to rounding: its gain for steps 1..t-1, then step 0
+                        K[1], P = _augmented_step(new, F, Gs[1], R[1], BSA[1], lift, scale[1], W[0])
+                        K[2:t] = K[1]
+                        K[0], P = _augmented_step(P, F, Gs[0], R[0], BSA[0], lift, scale[0], None)
+                        run = (1, t)
+                        break
+                P = new
         except np.linalg.LinAlgError:
             raise overflow_error("the augmented cost-to-go matrix", "udp") from None
         if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K)) and np.isfinite(noise)):
             raise overflow_error("the augmented cost-to-go matrix", "udp")
         x = system.x0
-        z = np.zeros(D)
-        z[:n] = x
-        U = np.empty((N, m))
-        for t in range(N):
-            U[t] = -K[t] @ z
-            z = F @ z + Gs[t] @ U[t]
+        U, Z = np.empty((N, m)), np.zeros((N + 1, D))
+        Z[0, :n] = x
+        t = 0
+        while t < N:
+            if run is not None and t == run[0]:     # the run of one gain by powers of its closed loop (stable: q < 1)
+                states_by_powers(Z[None, t:run[1]], (F - Gs[t] @ K[t]).T)
+                U[t:run[1]] = -Z[t:run[1]] @ K[t].T
+                t = run[1] - 1
+                Z[t + 1] = F @ Z[t] + Gs[t] @ U[t]
+                t += 1
+                continue
+            U[t] = -K[t] @ Z[t]
+            Z[t + 1] = F @ Z[t] + Gs[t] @ U[t]
+            t += 1
         cost = float(x @ (system.initial_weight + P[:n, :n]) @ x) + noise
     forward = float(chain_cost(system, U[None], lift)[0])
     atol = SELF_CHECK_ATOL * float(np.linalg.norm(P[:n, :n], 2)) * float(x @ x)
@@ -316,6 +349,21 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
                              f"is {forward:.10g}: double precision cannot resolve this problem (weights of very "
                              "different sizes, or an unstable plant over a long horizon)")
     return U, K[0][:, :n].copy(), cost
+
+
+def _augmented_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, BSA: np.ndarray, lift: ChainLift,
+                    scale: np.ndarray, Omega: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """One step of :func:`augmented_solve`'s backward pass: the cross term ``N`` (row i: b_i'S_t A ⊗ g_i, row-major
+    eta_i) from ``BSA`` = B'S_t A, :func:`lq_cross_step`, then the state weight ``Omega`` on the xhat block (None:
+    step 0). Returns ``(K_t, P_t)``. O(D^3 + m^3)."""
+    Ncross = np.zeros((G.shape[1], F.shape[0]))
+    for i, gi in enumerate(lift.g):
+        Ncross[i, lift.offsets[i]:lift.offsets[i + 1]] = np.outer(BSA[i], gi).ravel()
+    K, P_prev = lq_cross_step(P, F, G, np.diag(R), Ncross, scale)
+    if Omega is not None:
+        n = Omega.shape[0]
+        P_prev[:n, :n] += Omega
+    return K, P_prev
 
 
 def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:

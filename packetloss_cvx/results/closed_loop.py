@@ -98,7 +98,8 @@ class ClosedLoopRun(Frozen):
     ``spectral_radius`` and ``stable`` as in ClosedLoop, ``reason`` why there is no law ("" if there is); per
     step: ``state_norm_mean``, ``state_norm_std`` of ||x_t|| (t <= steps) and ``stage_cost_mean``;
     ``exact_reason`` why a law that ran has no exact value or radius (nan, e.g. a belief-dependent law behind a
-    Markov channel); ``note`` what the law is, where the label does not say it all."""
+    Markov channel); ``note`` what the law is, where the label does not say it all; ``stderr_reason`` why the sample
+    has no error bar (``stderr`` nan: the loop's fourth moments grow, simulation.tails), "" when it has one."""
 
     law: str
     mean_stage_cost: float
@@ -112,21 +113,24 @@ class ClosedLoopRun(Frozen):
     reason: str = ""
     exact_reason: str = ""
     note: str = ""
+    stderr_reason: str = ""
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
-        """The issue's schema (plus ``reason`` when there is no law or no exact value, ``note`` when set);
-        non-finite numbers are None. O(1)."""
+        """The issue's schema (plus ``reason`` when there is no law or no exact value, ``note`` when set, and
+        ``stderr_reason`` when the sample has no error bar: ``stderr`` is then None); non-finite numbers are None.
+        O(1)."""
         out: dict[str, Any] = {"mean_stage_cost": finite_or_none(self.mean_stage_cost),
                                "stderr": finite_or_none(self.stderr),
                                "exact_stage_cost": finite_or_none(self.exact_stage_cost),
                                "mean_square_spectral_radius": finite_or_none(self.spectral_radius),
                                "stable": self.stable}
         reason = self.reason or self.exact_reason
-        return {**out, **({"reason": reason} if reason else {}), **({"note": self.note} if self.note else {})}
+        return {**out, **({"reason": reason} if reason else {}), **({"note": self.note} if self.note else {}),
+                **({"stderr_reason": self.stderr_reason} if self.stderr_reason else {})}
 
 
 @dataclass(frozen=True)

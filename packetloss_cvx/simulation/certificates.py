@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import NumericalError
-from ..linalg import Dyadic, exact_psd
+from ..linalg import Dyadic, exact_psd, frobenius
 from ..tolerances import MEAN_SQUARE_MARGIN
 from .moments import solve_fixed_point
 from .stability import law_radius, second_moment_matrix, second_moment_step
@@ -217,5 +217,6 @@ def no_law_proved(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray) -
     """
     if not np.all(np.isfinite(P)):
         return False
-    P = 0.5 * (P + P.T) / max(float(np.linalg.norm(P)), np.finfo(float).tiny)
+    P = 0.5 * (P + P.T)
+    P = P / max(frobenius(P), np.finfo(float).tiny)
     return any(outside_proved(A, B, mu, Q, 1.0) for tilt in (False, True) for Q in candidates(A, P, 1.0, tilt))

@@ -41,6 +41,7 @@ from .runs import (
     run_blocks,
 )
 from .stability import is_mean_square_stable
+from .tails import error_bar_reason
 
 __all__ = ["DP_NOTE", "EXACT_PLAN", "markov_open_loop_costs", "markov_open_loop_draws", "simulate_markov"]
 
@@ -164,11 +165,12 @@ def _closed_loop(system: System, laws: list[str], steps: int, blocks: list[int],
             out[law] = ClosedLoopRun(law, np.nan, np.nan, np.nan, np.nan, False, nan, nan, nan[:-1], reason=dp_reason,
                                      note=DP_NOTE)
             continue
-        exact, radius, reason = _exact(system, law, steps, tcp if law == "tcp" else udp, dp)
+        exact, radius, reason, limit = _exact(system, law, steps, tcp if law == "tcp" else udp, dp)
         st = stats[names.index(law)]
-        out[law] = ClosedLoopRun(law, st.mean, st.stderr, exact, radius, is_mean_square_stable(radius), st.norm_mean,
-                                 st.norm_std, st.stage_mean, exact_reason=reason,
-                                 note=_note(system, law))
+        no_bar = _error_bar(system, limit)
+        out[law] = ClosedLoopRun(law, st.mean, np.nan if no_bar else st.stderr, exact, radius,
+                                 is_mean_square_stable(radius), st.norm_mean, st.norm_std, st.stage_mean,
+                                 exact_reason=reason, note=_note(system, law), stderr_reason=no_bar)
     return out, trajectories
 
 
@@ -181,18 +183,31 @@ def _note(system: System, law: str) -> str:
     return ""
 
 
-def _exact(system: System, law: str, steps: int, gains: BeliefGains | None, dp) -> tuple[float, float, str]:
-    """``(exact mean stage cost, MJLS radius, reason)`` of a law behind the chain; nan with the reason where
-    no finite mode description exists, or the mode chain or the dense operator is refused."""
+def _error_bar(system: System, limit: tuple[np.ndarray, str] | None) -> str:
+    """Why the law's sampled cost has no error bar behind the chain ("" when its limiting law's coupled fourth
+    moments are proved bounded, simulation.tails)."""
+    if limit is None:
+        return ("no error bar: the law has no finite Markov jump description, so its fourth moments (the sample's "
+                "variance) are unproved; use the exact value where one is given")
+    _, T, h = mode_chain(system.channel)
+    return error_bar_reason(system.A, system.B, limit[0], h, T, limit[1])
+
+
+def _exact(system: System, law: str, steps: int, gains: BeliefGains | None,
+           dp) -> tuple[float, float, str, tuple[np.ndarray, str] | None]:
+    """``(exact mean stage cost, MJLS radius, reason, (limiting mode gains, delivery))`` of a law behind the chain;
+    nan with the reason where no finite mode description exists, or the mode chain or the dense operator is
+    refused (the limiting law None where there is none)."""
     ch = system.channel
     if law == "tcp" and not reveals_state(ch):
         return np.nan, np.nan, ("the TCP-like law re-plans at the HMM-filtered belief, which takes a continuum of "
                                 "values when an outcome does not reveal its channel's state (h_good, h_bad not "
-                                "1 and 0): no finite Markov jump description, so no exact value or MJLS radius")
+                                "1 and 0): no finite Markov jump description, so no exact value or MJLS radius"), None
     try:
         modes, _, h = mode_chain(ch)
         if law == "dp":
-            return float(jump_law_stage_costs(system, dp.gains, steps, "current").mean()), dp.spectral_radius, ""
+            return (float(jump_law_stage_costs(system, dp.gains, steps, "current").mean()), dp.spectral_radius, "",
+                    (dp.gains, "current"))
         if law == "udp":
             prior, K = np.array(ch.initial_belief, dtype=float), []
             for _ in range(steps):                       # the simulation's own propagation, hence its plans
@@ -207,13 +222,15 @@ def _exact(system: System, law: str, steps: int, gains: BeliefGains | None, dp) 
             delivery, first, limit = "next", gains(np.array(ch.initial_belief, dtype=float)), table
         exact = float(jump_law_stage_costs(system, table, steps, delivery, first_gain=first).mean())
     except (InputError, ResourceError) as err:
-        return np.nan, np.nan, str(err)
+        return np.nan, np.nan, str(err), None
     settles = ch.belief_settles if isinstance(ch, MarkovChannel) else not np.any(
         (ch.correlation <= -1) & (ch.initial_belief != ch.stationary))
     if law == "udp" and not settles:
         return exact, np.nan, ("the propagated belief of a periodic or frozen chain (|1 - p - r| = 1) need not settle: "
-                               "no limiting law whose radius decides stability")
+                               "no limiting law whose radius decides stability"), None
+    M = len(mode_chain(ch)[0])
+    limit = np.broadcast_to(limit, (M, *np.shape(limit)[-2:])) if np.ndim(limit) == 2 else limit
     try:
-        return exact, mean_square_radius(system.A, system.B, ch, limit, delivery), ""
+        return exact, mean_square_radius(system.A, system.B, ch, limit, delivery), "", (np.asarray(limit), delivery)
     except ResourceError as err:
-        return exact, np.nan, str(err)
+        return exact, np.nan, str(err), (np.asarray(limit), delivery)

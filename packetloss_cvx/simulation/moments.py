@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import CrossCheckError, InputError, NumericalError
+from ..linalg import frobenius
 from ..model import System
 from ..results import ClosedLoop
 from ..tolerances import MOMENT_DENSE_MAX_N, MOMENT_RESIDUAL_RTOL
@@ -114,8 +115,8 @@ def solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callabl
                 raise NumericalError(f"{what}: GMRES did not converge (info {info})")
             X = vec.reshape(n, n)
         X = 0.5 * (X + X.T)
-        scale = max(float(np.linalg.norm(X)), float(np.linalg.norm(C)), np.finfo(float).tiny)
-        residual = float(np.linalg.norm(X - apply(X) - C)) / scale
+        scale = max(frobenius(X), frobenius(C), np.finfo(float).tiny)
+        residual = frobenius(X - apply(X) - C) / scale
     if not (np.all(np.isfinite(X)) and residual <= MOMENT_RESIDUAL_RTOL):
         raise NumericalError(f"{what}: the linear solve lost its digits (relative residual {residual:.1e})")
     return X

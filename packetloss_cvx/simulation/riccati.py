@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError, NumericalError
+from ..linalg import frobenius
 from ..model import System
 from ..recursion import riccati_step as riccati_step_batch
 from ..results import Riccati
@@ -128,7 +129,12 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
     True
     """
     A, B, mu_, Omega, psi = _weights(system, mu)
-    scale = max(float(np.linalg.norm(Omega)), float(np.max(psi)))
+    scale = _cost_to_go_scale(B, Omega, psi)
+    if not RICCATI_DIVERGENCE * scale < np.finfo(float).max:
+        raise NumericalError(f"modified Riccati equation: the cost-to-go's scale (the weights, and the input weights "
+                             f"over ||B e_i||^2: {scale:.3g}) leaves no room in double precision to tell divergence "
+                             "from convergence; rescale the inputs (B by c and the input weights by c^2 is the same "
+                             "problem)")
     P = Omega.copy()
     iterations = 0
     started = _started(gain, A, B, mu_, Omega, psi)
@@ -139,7 +145,7 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
         while started is None:
             K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
             iterations += 1
-            size = float(np.linalg.norm(P_next))
+            size = frobenius(P_next)
             if not np.isfinite(size):
                 raise NumericalError(f"modified Riccati equation: undecided at mu = {mu_.tolist()}: the value "
                                      f"iteration overflows after {iterations} steps and its direction proves no bound "
@@ -150,7 +156,7 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
                                          f"||P|| > {size:.3g}, and its direction proves every law's mean-square "
                                          "radius >= 1 in exact arithmetic: no law holds the second moment bounded)")
                 check_at = size * RICCATI_DIVERGENCE ** 0.25
-            converged = float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL * size
+            converged = frobenius(P_next - P) <= RICCATI_RTOL * size
             P = P_next
             if converged:
                 break
@@ -165,7 +171,7 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
                                      f"mu = {mu_.tolist()} (no stabilising solution, or too close to the critical "
                                      "probability)")
     K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
-    residual = float(np.linalg.norm(P_next - P)) / max(float(np.linalg.norm(P)), np.finfo(float).tiny)
+    residual = frobenius(P_next - P) / max(frobenius(P), np.finfo(float).tiny)
     radius = mean_square_radius(A, B, K, mu_)
     if not is_mean_square_stable(radius):
         raise NumericalError(f"modified Riccati equation: the solution found at mu = {mu_.tolist()} is not "
@@ -175,6 +181,23 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
         raise NumericalError(f"modified Riccati equation: relative residual {residual:.1e} after {iterations} "
                              "iterations")
     return Riccati(K, P, float(np.sum(P * system.noise_cov)), radius, iterations, residual)
+
+
+def _cost_to_go_scale(B: np.ndarray, Omega: np.ndarray, psi: np.ndarray) -> float:
+    """The size the stabilising cost-to-go is measured against (its divergence test): the larger of ||Omega|| and
+    the input weights in state units, ``psi_i / ||B e_i||^2`` over the inputs that move the state (an input of
+    weight psi through a column b costs like a state weight psi / ||b||^2; with B and Psi scaled by c and c^2 the
+    problem is the same, and so is this scale). O(n m).
+
+    >>> _cost_to_go_scale(np.array([[1e-100]]), np.array([[1.0]]), np.array([1.0]))     # P is about 1e200 here
+    1e+200
+    """
+    top = float(np.abs(B).max(initial=0.0))
+    columns = np.sqrt(np.sum(np.square(B / top), axis=0)) * top if top > 0 else np.zeros(B.shape[1])   # ||B e_i||
+    moving = columns > 0
+    with np.errstate(over="ignore"):
+        inputs = float(np.max((np.sqrt(psi[moving]) / columns[moving]) ** 2, initial=0.0))
+    return max(frobenius(Omega), float(np.max(psi, initial=0.0)), inputs)
 
 
 def _started(gain: np.ndarray | None, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
@@ -206,7 +229,7 @@ def _policy_iteration(K: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarra
     for step in range(1, _POLICY_MAX_ITER + 1):
         K, _ = riccati_step(P, A, B, mu, Omega, psi)
         P_next = law_cost_to_go(A, B, K, mu, Omega, psi)
-        if float(np.linalg.norm(P_next - P)) <= RICCATI_RTOL * float(np.linalg.norm(P_next)):
+        if frobenius(P_next - P) <= RICCATI_RTOL * frobenius(P_next):
             return P_next, step
         P = P_next
     raise NumericalError(f"modified Riccati equation: policy iteration did not converge in {_POLICY_MAX_ITER} steps")

@@ -1,0 +1,143 @@
+"""Section 20 of benchmarks/run.py: closed_form on a slowly converging plant against scipy's DARE, this checkout beside
+a baseline checkout, and whether both give the same numbers.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/slow_plant.py [--baseline ../main] [--rounds 5] [--N 10000]
+
+The plant: the paper's pendulum A (packetloss_cvx/examples/pendulum.toml, rho(A) = 1.06) with two inputs,
+B = [[0.001, 0.2], [0.540, 0.0], [-0.002, 0.1], [-1.066, 0.3]], weights diag(5, 1, 1, 1) and (2, 1),
+x0 = (0.1, 0, 0.1, 0), mu = 1: its Riccati pass contracts by about 0.98 a step (about 1,600 steps before its tail
+settles) and its plan is rolled out through an unstable A. Each round runs one fresh process per checkout
+(interleaved, one BLAS thread): closed_form(method="recursion") on one System, TCP-like and UDP-like, against
+scipy's solve_discrete_are on the same (A, B, Q, R) called back to back (the second call timed: a warm DARE),
+alternating, CPU time (``time.process_time``), medians over the repeats; the ratio closed_form / DARE per round, its
+median and range. The same processes return the cost, plan and gain at N and at N = 2000 and 300, also with mu =
+(0.9, 0.6) and (1, 0): the largest difference between the checkouts relative to each array's largest entry.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+A = [[1.001, 0.005, 0.000, 0.000], [0.35, 1.001, -0.135, 0.000], [-0.001, 0.000, 1.001, 0.005],
+     [-0.375, -0.001, 0.590, 1.001]]
+B = [[0.001, 0.2], [0.540, 0.0], [-0.002, 0.1], [-1.066, 0.3]]
+
+#: One process: the timings at N and the numbers of every case, as JSON on the last line of stdout.
+RUN_CODE = """
+import json, statistics, sys, time
+import numpy as np
+from scipy.linalg import solve_discrete_are
+import packetloss_cvx as pl
+data = json.loads(sys.argv[1])
+A, B = np.array(data["A"]), np.array(data["B"])
+Q, R = np.diag([5.0, 1.0, 1.0, 1.0]), np.diag([2.0, 1.0])
+def system(N, mu=(1.0, 1.0)):
+    return pl.System(A=A, B=B, horizon=N, state_weight=[5, 1, 1, 1], input_weight=[2, 1], mu=list(mu),
+                     x0=[0.1, 0, 0.1, 0])
+out = {"times": {}, "numbers": {}}
+s = system(data["N"])
+for protocol in ("tcp", "udp"):
+    pl.closed_form(s, protocol, "recursion")
+    dare, closed = [], []
+    for _ in range(data["repeats"]):
+        solve_discrete_are(A, B, Q, R)
+        start = time.process_time()
+        solve_discrete_are(A, B, Q, R)
+        dare.append(time.process_time() - start)
+        start = time.process_time()
+        pl.closed_form(s, protocol, "recursion")
+        closed.append(time.process_time() - start)
+    out["times"][protocol] = {"dare": statistics.median(dare), "closed": statistics.median(closed)}
+for N in sorted({300, 2000, data["N"]}):
+    for mu in ((1.0, 1.0), (0.9, 0.6), (1.0, 0.0)):
+        for protocol in ("tcp", "udp"):
+            key = f"N={N} mu={mu} {protocol}"
+            try:
+                sol = pl.closed_form(system(N, mu), protocol, "recursion")
+                out["numbers"][key] = {"cost": sol.cost, "inputs": sol.inputs.tolist(), "gain": sol.gain.tolist()}
+            except pl.NumericalError as exc:
+                out["numbers"][key] = {"error": type(exc).__name__}
+print(json.dumps(out))
+"""
+
+
+def _run(checkout: Path, N: int, repeats: int) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(checkout), "OPENBLAS_NUM_THREADS": "1"}
+    arg = json.dumps({"A": A, "B": B, "N": N, "repeats": repeats})
+    text = subprocess.run([sys.executable, "-c", RUN_CODE, arg], env=env, check=True, capture_output=True, text=True,
+                          cwd=checkout).stdout
+    return json.loads(text.strip().splitlines()[-1])
+
+
+def _differences(new: dict, base: dict) -> tuple[float, list[str]]:
+    """The largest difference of cost, plan and gain over the cases, relative to each array's largest entry; the
+    cases whose outcome (a value or an error) differs."""
+    worst, differ = 0.0, []
+    for key, b in base.items():
+        a = new.get(key, {"error": "missing"})
+        if ("error" in a) != ("error" in b) or a.get("error") != b.get("error"):
+            differ.append(key)
+            continue
+        for name in ("cost", "inputs", "gain") if "error" not in b else ():
+            x, y = np.asarray(a[name], dtype=float), np.asarray(b[name], dtype=float)
+            scale = float(np.max(np.abs(y)))
+            worst = max(worst, float(np.max(np.abs(x - y))) / scale if scale > 0 else float(np.max(np.abs(x))))
+    return worst, differ
+
+
+def slow_plant(baseline: str | None, rows: list, rounds: int = 5, N: int = 10_000, repeats: int = 9) -> None:
+    """Section 20: see the module docstring."""
+    checkouts = {"this": Path(__file__).resolve().parent.parent}
+    if baseline:
+        checkouts = {"baseline": Path(baseline).resolve(), **checkouts}
+    print(f"\n20. closed_form on the slowly converging plant (rho(A) = 1.06), N = {N}, mu = 1, against a warm DARE on "
+          f"the same (A, B, Q, R): CPU ms, {rounds} interleaved rounds of fresh processes, one BLAS thread")
+    runs: dict[str, list[dict]] = {k: [] for k in checkouts}
+    for _ in range(rounds):
+        for name, checkout in checkouts.items():
+            runs[name].append(_run(checkout, N, repeats))
+    print(f"   {'checkout':<34} {'proto':>5} {'warm dare ms':>12} {'closed_form ms':>15} "
+          f"{'/ dare, median (range)':>24}")
+    for name, checkout in checkouts.items():
+        for protocol in ("tcp", "udp"):
+            times = [r["times"][protocol] for r in runs[name]]
+            ratios = [t["closed"] / t["dare"] for t in times]
+            dare = statistics.median(t["dare"] for t in times) * 1e3
+            closed = statistics.median(t["closed"] for t in times) * 1e3
+            print(f"   {str(checkout):<34} {protocol:>5} {dare:>12.3f} {closed:>15.3f} "
+                  f"{statistics.median(ratios):>10.1f}x ({min(ratios):.1f}-{max(ratios):.1f})")
+            rows.append({"bench": "slow_plant", "checkout": str(checkout), "N": N, "protocol": protocol,
+                         "warm_dare_ms": dare, "closed_ms": closed, "ratio_to_dare": statistics.median(ratios),
+                         "ratio_range": [min(ratios), max(ratios)]})
+    if baseline:
+        for protocol in ("tcp", "udp"):
+            speedups = [b["times"][protocol]["closed"] / t["times"][protocol]["closed"]
+                        for b, t in zip(runs["baseline"], runs["this"], strict=True)]
+            print(f"   {protocol}: baseline / this {statistics.median(speedups):.0f}x "
+                  f"({min(speedups):.0f}-{max(speedups):.0f})")
+        worst, differ = _differences(runs["this"][0]["numbers"], runs["baseline"][0]["numbers"])
+        print(f"   numbers (cost, plan, gain) of {len(runs['this'][0]['numbers'])} cases (N = 300, 2000, {N}; mu = 1, "
+              f"(0.9, 0.6), (1, 0); both protocols): worst relative difference {worst:.1e}; outcomes that differ: "
+              f"{differ or 'none'}")
+        rows.append({"bench": "slow_plant_agreement", "worst_relative": worst, "outcomes_differ": differ})
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", help="a checkout to compare with (before/after and the numbers)")
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--N", type=int, default=10_000)
+    args = parser.parse_args()
+    slow_plant(args.baseline, [], args.rounds, args.N)
+
+
+if __name__ == "__main__":
+    main()
