@@ -31,8 +31,9 @@ from .threads import blas_limited
 from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 
 __all__ = [
-    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "lyapunov_weights_if_needed", "hessian_diagonal", "hessian_factor",
-    "loss_variance_term", "paper_optimal_cost", "pick_method", "refuse_correlated", "refuse_dense", "weight_spread",
+    "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "hessian_diagonal", "hessian_factor",
+    "loss_variance_term", "lyapunov_weights_if_needed", "paper_optimal_cost", "pick_method", "refuse_correlated",
+    "refuse_dense", "weight_spread",
 ]
 
 #: ``method="auto"`` uses the dense form up to this many decision variables N*m
@@ -93,11 +94,14 @@ def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
             f"long horizon, or weights of very different sizes); use method='recursion'")
 
 
-def _verified(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
-              weights: tuple[np.ndarray, float], atol: float = 0.0, states: np.ndarray | None = None) -> float:
-    """``closed`` if it agrees with the forward cost of the plan ``U`` (a sum of nonnegative terms,
-    free of cancellation; ``states``: its mean states if the caller has them) to ``SELF_CHECK_RTOL`` (plus
-    ``atol``); NumericalError otherwise."""
+def _self_checked(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
+                  weights: tuple[np.ndarray, float], atol: float = 0.0, states: np.ndarray | None = None) -> float:
+    """The forward cost of the plan ``U`` (a sum of nonnegative terms, free of cancellation; ``states``: its
+    mean states if the caller has them) if ``closed`` agrees with it to ``SELF_CHECK_RTOL`` (plus ``atol``);
+    NumericalError otherwise. The forward cost is the one to report as J*: ``closed`` (x'P_0 x, or
+    C - g'Vbar G^-1 g) cancels and is right to about eps ||P_0|| ||x||^2, the forward cost to about
+    eps sqrt(||P_0|| ||x||^2 J*) (its states cancel, its sum does not), and the plan's own error enters it only at
+    second order."""
     forward = recursion_cost(system, U, protocol, weights, states)
     if not (np.isfinite(forward) and np.isfinite(closed)):
         raise NumericalError(
@@ -108,7 +112,7 @@ def _verified(system: System, protocol: str, closed: float, U: np.ndarray, metho
             f"method '{method}': the closed-form cost {closed:.10g} and the forward cost of its own plan "
             f"{forward:.10g} differ by {abs(closed - forward) / max(forward, 1e-300):.1e} (relative): double "
             f"precision cannot resolve this problem ({weight_spread(system)}); rescale the weights")
-    return closed
+    return forward
 
 
 def weight_spread(system: System) -> str:
@@ -288,7 +292,9 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     weights = udp_variance_weights(system)
     if choice == "dense":
         refuse_dense(system, weights)
-        return _verified(system, protocol, dense_cost(system, U, protocol), U, "dense", weights)
+        value = dense_cost(system, U, protocol)
+        _self_checked(system, protocol, value, U, "dense", weights)
+        return value
     value = recursion_cost(system, U, protocol, weights)
     if not np.isfinite(value):
         raise NumericalError(f"the {protocol}-like expected cost of these inputs exceeds the double-precision "
@@ -315,7 +321,8 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
         ``"recursion"`` is the exact backward recursion: O(N (n^3 + m^3)); ``"auto"`` (default)
         takes the dense form for small well-conditioned problems and the recursion otherwise.
         Every method checks its cost against the forward cost of its own plan (a sum of
-        nonnegative terms) and raises rather than return a number that fails the check.
+        nonnegative terms) and raises rather than return a number that fails the check; the
+        cost returned is the forward one, which does not cancel (``FORWARD_COST_ROUNDING``).
 
     Returns
     -------
@@ -408,7 +415,7 @@ def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise
     scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
-    cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
+    cost = _self_checked(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
     return Solution(protocol=protocol, cost=cost, inputs=U, gain=gain,
                     closed_loop_eigenvalues=_eigs(system, gain), method="recursion")
 
@@ -421,7 +428,7 @@ def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, fl
     g = pred.Omega_gp @ system.x0
     cost = _constant(system, pred) + float(g @ (pred.Vbar * u))             # C - g' Vbar G^{-1} g
     U = u.reshape(system.horizon, system.m)
-    cost = _verified(system, protocol, cost, U, "dense", weights)
+    cost = _self_checked(system, protocol, cost, U, "dense", weights)
     gain = F[: system.m]
     return Solution(protocol=protocol, cost=cost, inputs=U, gain=gain,
                     closed_loop_eigenvalues=_eigs(system, gain), method="dense")

@@ -86,9 +86,22 @@ DENSE_MAX_CONDITION = 1e8
 #: nonnegative terms, free of cancellation): |J_closed - J_forward| <= SELF_CHECK_RTOL * J_forward
 #: + SELF_CHECK_ATOL * ||P_0|| ||x||^2 (the last term only for the recursion, whose x'P_0 x has
 #: that rounding scale). Well-posed systems agree to 1e-14 (300 random ones: worst 4.7e-15);
-#: badly scaled weights (1e10 against 1) disagree by 5e-7 and more.
+#: badly scaled weights (1e10 against 1) disagree by 5e-7 and more. closed_form then reports J_forward
+#: (FORWARD_COST_ROUNDING), the more accurate of the two.
 SELF_CHECK_RTOL = 1e-9
 SELF_CHECK_ATOL = 1e-13
+
+__all__ += ["FORWARD_COST_ROUNDING"]
+
+#: closed_form reports the forward cost of its own plan, not the x'P_0 x (or C - g'Vbar G^-1 g) it checks against
+#: it: that one cancels, off by up to about eps ||P_0|| ||x||^2; the forward sum's terms are nonnegative and its
+#: states cancel only to about eps sqrt(||Q|| ||x||^2 J*), and the plan's own rounding enters it at second order.
+#: |J_reported - J*| <= FORWARD_COST_ROUNDING eps sqrt(||Q|| ||x||^2 J*) (N = 1, ||x|| the larger of |x0|, |A x0|).
+#: Measured against the exact rational J* of 238 random one-step plants (n = 1..3, one input, the first state's
+#: weight scaled by 1 to 1e14; tests/test_costs.py), under OpenBLAS's Haswell and Prescott kernels: the forward
+#: cost within 1.2 of that bound's unit, x'P_0 x up to 1700 times it (1.2e-9 relative where J* = 246 and
+#: ||Q|| ||x||^2 = 3.4e9: the property test's failure of 1.35e-9 against its 1e-9).
+FORWARD_COST_ROUNDING = 4.0
 
 #: The backward passes (the Riccati recursion, the Lyapunov sums) close a stationary tail (A, B, the
 #: weights and mu the same at every earlier step) once their estimated remaining drift is below
@@ -141,7 +154,9 @@ KERNEL_ZERO_ATOL = 1e-12
 KERNEL_POINT_RTOL = 1e-6
 #: ... a holding claim's worst margin (its tolerance less the largest error, an error at rounding level) by
 #: KERNEL_MARGIN_RTOL of the margin (measured: lemma-2's 9.989e-6 against 9.972e-6, 1.7e-3; cost-split-sensor
-#: 1.2e-3), as only the verdict, not the rounding error's digits, is a result ...
+#: 1.2e-3; docs/claims.md's audit under seven kernels: cost-split-sensor 1.2e-3, lemma-2 8.3e-4, theorem-1-laws
+#: 3.7e-7, mpc-vs-dp 6.7e-8, a failing claim's at most 1.3e-8), as only the verdict, not the rounding error's digits,
+#: is a result ...
 KERNEL_MARGIN_RTOL = 1e-2
 #: ... the DP cost at a stability allocation's mu* (on the stabilisable set's boundary, where the cost grows like
 #: 1 / (1 - radius)) by KERNEL_BOUNDARY_RTOL: it moves with mu* inside its certified gap, amplified by that
@@ -342,3 +357,18 @@ __all__ += ["LEAST_RADIUS_ATOL"]
 #: Haswell kernel, 1.17e-12 and 5.99e-12 (4.7e-12 and 5.4e-12 ||A||^2) under Prescott, from P's rounding-level
 #: eigenvalues that its PSD part keeps.
 LEAST_RADIUS_ATOL = 1e-12
+
+__all__ += ["ROUNDING_ORDER_RTOL"]
+
+#: Two computations of one quantity that exact arithmetic makes equal and that differ only in the order of their
+#: floating-point operations (a stack of matrices against each matrix alone, a gathered update against one written
+#: in place, 1/s against a 1 x 1 pseudo-inverse, one (S n) x n product against S small ones, a filter loop against
+#: its vectorised form) agree within ROUNDING_ORDER_RTOL times the quantity's largest entry. Bit for bit is not a
+#: contract between them: the BLAS kernel picks the order of each product's sums (OpenBLAS's Prescott kernel rounds
+#: a stack of 3 x 3 updates up to 1.2e-15 of its scale away from the same updates gathered, where Haswell and
+#: SkylakeX agree to the bit). Measured on the tests that compare such pairs under OpenBLAS's Prescott, Nehalem,
+#: Sandybridge, Haswell, Zen, SkylakeX and native kernels: at most 1.2e-15 (tests/test_sensing_estimation.py,
+#: tests/test_sensing_montecarlo_loop.py); equal to the bit (tests/test_closed_loop.py's stack of laws,
+#: tests/test_model.py's repaired weights, tests/test_qp_shared.py's objective against cvxpy's evaluation).
+#: 1e-12 leaves room for longer chains of products.
+ROUNDING_ORDER_RTOL = 1e-12

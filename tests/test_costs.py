@@ -1,6 +1,7 @@
 """Theorem 1 in closed form against the Clarabel QPs and against first principles."""
 
 import itertools
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ import packetloss_cvx as pl
 from packetloss_cvx.costs import dense_cost, loss_variance_term
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.tolerances import FORWARD_COST_ROUNDING
 
 PROTOCOLS = ("tcp", "udp")
 SEEDS = range(60)
@@ -244,3 +246,58 @@ def test_edge_cases_agree_everywhere(changes, protocol):
         assert qp.status == "optimal"
         assert qp.cross_check.max_input_diff < 1e-6
         assert abs(qp.cost - dense.cost) <= 1e-7 * max(1.0, dense.cost)
+
+
+def _exact_one_step_cost(s: pl.System) -> Fraction:
+    """J* of a one-step, one-input plant without noise or initial weight, in exact rationals (the floats' own
+    values): J(u) = mu psi u^2 + x1'Q x1 with x1 = A x0 + B mu u, so J* = c - b^2 / a."""
+    A, Q = [[Fraction(v) for v in row] for row in s.A], [[Fraction(v) for v in row] for row in s.state_weights[-1]]
+    mu, psi, n = Fraction(s.mu_schedule[0, 0]), Fraction(s.input_weights[0, 0]), s.n
+    Ax = [sum(A[i][j] * Fraction(s.x0[j]) for j in range(n)) for i in range(n)]
+    Bm = [mu * Fraction(s.B[i, 0]) for i in range(n)]
+
+    def q(u, v):
+        return sum(u[i] * Q[i][j] * v[j] for i in range(n) for j in range(n))
+
+    return q(Ax, Ax) - q(Bm, Ax) ** 2 / (mu * psi + q(Bm, Bm))
+
+
+def _one_step(seed: int) -> pl.System:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 4))
+    A, B, x0, F = rng.normal(size=(n, n)), rng.normal(size=(n, 1)), rng.normal(size=n), rng.normal(size=(n, n))
+    scale = np.ones(n)
+    scale[0] = 10.0 ** (1.5 * (seed % 5))                   # the first state's weight scaled by 1, 1e3, .. 1e12
+    Q = (F @ F.T) * np.outer(scale, scale)
+    return pl.System(A=A, B=B, horizon=1, state_weight=0.5 * (Q + Q.T), input_weight=[rng.uniform(0.1, 3.0)],
+                     mu=[rng.uniform(0.05, 1.0)], x0=x0)
+
+
+# the property test's two plants (test_properties.py) where x'P_0 x was 1.2e-9 and 1.35e-9 off J*
+_B, _X0 = [[1.0456178814698995], [-0.9665560777473944]], [0.4693589970308669, -0.10091860953805483]
+_W = np.array([[1525164907.728891, -3051029695.0352793], [-3051029695.0352793, 13959962207.449608]])
+ILL_SCALED = [
+    pl.System(A=[[-0.49127842742221245, 1.1555119228289465], [0.7534845491148024, 0.33030971694088673]], B=_B,
+              horizon=1, state_weight=_W, input_weight=[1.7428878051607914], mu=[0.527821227873708], x0=_X0),
+    pl.System(A=[[-0.13398502566060339, 0.31513961531698537], [0.2054957861222188, 0.09008446825660546]], B=_B,
+              horizon=1, state_weight=_W * 1e4, input_weight=[1.7428878051607914], mu=[0.527821227873708], x0=_X0),
+]
+
+
+def test_closed_form_reports_its_cost_to_the_forward_sums_rounding():
+    """closed_form's J* against the exact rational minimum, within FORWARD_COST_ROUNDING eps sqrt(||Q|| ||x||^2 J*)
+    (tolerances.py): the rounding of the forward cost it reports; x'P_0 x, which it checks, is off by up to
+    eps ||Q|| ||x||^2 (1.2e-9 relative on the first plant). A plant the self-check refuses is not counted."""
+    checked = 0
+    for s in [*ILL_SCALED, *(_one_step(seed) for seed in range(100))]:
+        try:
+            cost = pl.closed_form(s, "tcp", method="recursion").cost
+        except pl.NumericalError:
+            continue
+        exact = _exact_one_step_cost(s)
+        x2 = max(float(s.x0 @ s.x0), float(np.sum((s.A @ s.x0) ** 2)))
+        bound = FORWARD_COST_ROUNDING * np.finfo(float).eps * np.sqrt(np.linalg.norm(s.state_weights[-1], 2) * x2
+                                                                        * float(exact))
+        assert abs(Fraction(cost) - exact) <= bound, (s, cost, float(exact))
+        checked += 1
+    assert checked >= 60          # 2 + 65: at 1e12 the self-check refuses every plant, at 1e9 half of them
