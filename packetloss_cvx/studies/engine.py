@@ -13,6 +13,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import re
+import signal
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from typing import Any
@@ -236,8 +238,8 @@ def dask_client(dask: Any, workers: int | None = None) -> Iterator[Any]:
             if isinstance(count, bool) or not isinstance(count, int) or count < 1:
                 raise InputError("workers", f"expected an integer >= 1, found {count!r}")
             check("dask_workers", count, "workers", f"{count_text(count)} worker processes")   # before any is started
-            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+            cluster = _deaf_to_sigint(lambda: LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                                                           dashboard_address=None, silence_logs=logging.ERROR))
             owned.append(cluster)
             client = Client(cluster, set_as_default=False)
             owned.insert(0, client)
@@ -269,6 +271,53 @@ def dask_client(dask: Any, workers: int | None = None) -> Iterator[Any]:
     finally:
         for thing in owned:
             _close_quietly(thing)
+
+
+#: Seconds an interrupted caller waits for a local cluster still starting, to close it (two workers: about 1-2 s)
+CLUSTER_START_WAIT = 60.0
+
+
+def _deaf_to_sigint(make: Any) -> Any:
+    """``make()`` (a LocalCluster) built in a thread that blocks SIGINT, so that every thread and process it starts
+    (the cluster's IO loop, its worker processes: the signal mask is inherited through fork and exec) blocks SIGINT
+    from birth. A Ctrl-C at a terminal goes to the whole process group: the workers used to receive it too and print
+    their own KeyboardInterrupt tracebacks (50-90 lines, from an import or the worker's loop) after the command's
+    one line. Now only this process hears it, and closes the cluster, whose nannies stop the workers. This thread
+    blocks SIGINT only for the instant the builder thread starts (a signal then is held pending, not lost).
+
+    Interrupted while the cluster starts, the caller waits for the build (at most :data:`CLUSTER_START_WAIT`) and
+    closes what it made. Where signal masks do not exist (Windows) ``make()`` runs here. O(1) plus the start."""
+    if not hasattr(signal, "pthread_sigmask"):
+        return make()
+    # multiprocessing's resource tracker, started by the first worker's spawn, unblocks SIGINT and SIGTERM in the
+    # thread that starts it (it blocks them around its own spawn, then unblocks rather than restores): started
+    # here first, it leaves the builder's mask alone (measured on Python 3.11: the workers were not deaf without it)
+    from multiprocessing import resource_tracker
+    resource_tracker.ensure_running()
+    made: dict[str, Any] = {}
+
+    def build() -> None:
+        try:
+            made["cluster"] = make()
+        except BaseException as err:      # noqa: BLE001 - handed to the caller
+            made["error"] = err
+
+    builder = threading.Thread(target=build, name="packetloss-cvx LocalCluster start", daemon=True)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        builder.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    try:
+        builder.join()           # interruptible: the signal's handler raises here
+    except BaseException:
+        builder.join(CLUSTER_START_WAIT)
+        if "cluster" in made:
+            _close_quietly(made["cluster"])
+        raise
+    if "error" in made:
+        raise made["error"]
+    return made["cluster"]
 
 
 def _no_worker_clock(client: Any, since: float | None, done: int, total: int) -> float | None:
