@@ -238,8 +238,11 @@ def dask_client(dask: Any, workers: int | None = None) -> Iterator[Any]:
             if isinstance(count, bool) or not isinstance(count, int) or count < 1:
                 raise InputError("workers", f"expected an integer >= 1, found {count!r}")
             check("dask_workers", count, "workers", f"{count_text(count)} worker processes")   # before any is started
+            # logs at CRITICAL only: a worker's error comes back as its task's exception, the scheduler's loss as
+            # the no-worker InputError; what distributed logged at ERROR was noise after an interrupt ("Failed to
+            # communicate with scheduler during heartbeat", 30-75 lines from the workers in 3 of 6 SIGINTs)
             cluster = _deaf_to_sigint(lambda: LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                                                           dashboard_address=None, silence_logs=logging.ERROR))
+                                                           dashboard_address=None, silence_logs=logging.CRITICAL))
             owned.append(cluster)
             client = Client(cluster, set_as_default=False)
             owned.insert(0, client)
