@@ -3,6 +3,14 @@ bit, through a scheduler address or a Client; a worker's error comes back with i
 
 import importlib.util
 import logging
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +21,8 @@ from packetloss_cvx.studies import sweep
 #: the file needs Dask's distributed; it is imported by the first test that uses it (0.3 s at collection otherwise,
 #: paid by every xdist worker whether or not it runs this file)
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="needs distributed")
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
@@ -123,3 +133,86 @@ def test_a_scheduler_without_workers_stops_the_sweep(two_actuator, monkeypatch, 
         with pytest.raises(pl.InputError, match=f"no worker for {NO_WORKER_WAIT:g} s") as info:
             sweep(two_actuator, mu_grid=3, dask=empty.scheduler_address, progress=False)
     assert info.value.field == "dask" and "0 of 1 chunks done" in str(info.value)
+
+
+def _session(sid):
+    """The processes of session ``sid`` (the command and every process it started), from /proc: pid -> cmdline."""
+    found = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            stat = open(f"/proc/{entry}/stat").read()
+            cmdline = open(f"/proc/{entry}/cmdline").read().replace("\0", " ")
+        except OSError:          # gone meanwhile
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()     # after "pid (comm) ": state, ppid, pgrp, session, ...
+        if int(fields[3]) == sid and fields[0] != "Z":
+            found[int(entry)] = cmdline
+    return found
+
+
+#: a signal as a terminal sends Ctrl-C (to the whole foreground process group: the workers too) or as `kill PID`
+SENDS = {"group": os.killpg, "pid": os.kill}
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc") or not hasattr(os, "killpg"), reason="needs /proc and process groups")
+def test_a_signal_during_a_local_dask_sweep_is_one_line_and_leaves_no_process(tmp_path):
+    """``sweep --dask local`` stopped by SIGINT (Ctrl-C: the whole process group, workers included, or the command's
+    pid alone) or SIGTERM at seeded moments after its two workers are started: exit 130 / 143, exactly one stderr
+    line, no traceback, each file written complete, and no process of the run left. The workers used to hear a
+    Ctrl-C themselves (KeyboardInterrupt tracebacks from their imports and loops, 50-90 lines) and to log heartbeat
+    failures while the cluster was torn down."""
+    rng = random.Random(9)
+    cases = [(how, signum, rng.uniform(lo, hi)) for how, signum, lo, hi in
+             [("group", signal.SIGINT, 0.0, 0.6), ("group", signal.SIGINT, 0.6, 2.0),
+              ("group", signal.SIGTERM, 0.0, 2.0), ("pid", signal.SIGINT, 1.0, 2.5),
+              ("pid", signal.SIGINT, 1.5, 3.0), ("pid", signal.SIGTERM, 0.5, 2.5)]]
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
+    results = {}
+
+    def one(k, how, signum, delay):
+        folder = tmp_path / str(k)
+        folder.mkdir()
+        proc = subprocess.Popen([sys.executable, "-m", "packetloss_cvx", "sweep", "two_actuator", "--mu-grid", "201",
+                                 "--dask", "local", "--workers", "2", "--out", "run", "-q"], cwd=folder, env=env,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        end = time.monotonic() + 60
+        while (proc.poll() is None and time.monotonic() < end
+               and sum("spawn_main" in line for line in _session(proc.pid).values()) < 2):
+            time.sleep(0.01)
+        time.sleep(delay)
+        alive = proc.poll() is None
+        if alive:
+            SENDS[how](proc.pid, signum)
+        out, err = proc.communicate(timeout=60)
+        end = time.monotonic() + 10            # a worker notices its parent gone within a moment
+        while _session(proc.pid) and time.monotonic() < end:
+            time.sleep(0.05)
+        results[k] = (alive, proc.returncode, err, _session(proc.pid), folder / "run")
+
+    for start in range(0, len(cases), 2):        # two at a time: two cores, shared
+        threads = [threading.Thread(target=one, args=(start + j, *case))
+                   for j, case in enumerate(cases[start:start + 2])]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    interrupted = 0
+    for k, (how, signum, delay) in enumerate(cases):
+        alive, code, err, left, run = results[k]
+        where = (how, signal.Signals(signum).name, round(delay, 3), code, err[-800:])
+        assert left == {}, where
+        assert "Traceback" not in err, where
+        if (run / "sweep.npz").exists():          # written atomically: complete, with the whole grid
+            with np.load(run / "sweep.npz") as data:
+                assert data["cost_tcp"].size == 201 * 201, where
+        if code == 0:            # the run had ended before the signal
+            assert err == "", where
+            assert (run / "sweep.npz").exists(), where
+            continue
+        assert alive, where
+        assert code == {signal.SIGINT: 130, signal.SIGTERM: 143}[signum], where
+        assert err.splitlines() == [f"packetloss-cvx: interrupted by {signal.Signals(signum).name}"], where
+        interrupted += 1
+    assert interrupted >= len(cases) - 1      # the delays lie within the sweep: the signals land in it
