@@ -278,3 +278,14 @@ CERTIFICATE_KERNEL_RTOL = 1e-10
 #: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
 #: many steps (below it, 30 steps and then a policy iteration); its answer is a candidate, checked either way.
 HOMOGENEOUS_RICCATI_MAX_ITER = 5000
+__all__ += ["COUPLED_BRACKET_RTOL", "COUPLED_POLICY_REGULARISATION", "COUPLED_ZERO_RTOL"]
+
+#: simulation.markov_region's policy iteration runs on ``L_K^* + eps Pi`` (``Pi(P)_a = (sum_b tr P_b) I / (M n)``,
+#: rho(Pi) = 1) with ``eps = COUPLED_POLICY_REGULARISATION lambda``: its Perron eigenvector is positive definite, so
+#: every step lowers the root and the gains stay bounded where the least radius's eigenvector vanishes.
+COUPLED_POLICY_REGULARISATION = 1e-10
+#: ... and R(P) counts as zero (every part deadbeat: least radius 0) where ``||F|| <= COUPLED_ZERO_RTOL ||Phi_x||``.
+COUPLED_ZERO_RTOL = 1e-12
+#: ... and its gains' radius and its eigenvector's Collatz-Wielandt bound have met (the least radius is found) when
+#: they agree to COUPLED_BRACKET_RTOL relative.
+COUPLED_BRACKET_RTOL = 1e-10
