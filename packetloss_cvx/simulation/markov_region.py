@@ -154,10 +154,11 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
     ||P_next - P||)``, "zero" (R is nilpotent, below), "stopped" (``||P_next - P|| <= RICCATI_RTOL``, or lambda not
     positive and finite) or "steps".
 
-    Steps ``0 .. M n`` run R itself from ``I / (M n)`` with the zero test of :func:`_apply`: where ``R^j(I) = 0`` to
-    rounding, ``R^j(P) = 0`` for every PSD P (monotone) and the least radius is 0 (every chain path can be driven to
-    zero in j steps); the kernels of ``R^j(I)_a`` grow with j and stay once they stop growing, so M n + 1 steps
-    decide it. Later steps run the regularised map ``R_eps`` (:func:`_apply`, ``eps = COUPLED_POLICY_REGULARISATION
+    Steps ``0 .. M n`` run R itself, unshifted, from ``I / (M n)`` with the zero test of :func:`_apply`: where
+    ``R^j(I) = 0`` to rounding, ``R^j(P) = 0`` for every PSD P (monotone) and the least radius is 0 (every chain
+    path can be driven to zero in j steps); the kernels of ``R^j(I)_a`` grow with j and stay once they stop growing,
+    so M n + 1 steps decide it. Later steps run the regularised map ``R_eps`` (:func:`_apply`, ``eps =
+    COUPLED_POLICY_REGULARISATION
     lambda``, lambda R's at the step before): it maps every nonzero PSD tuple to a positive definite one, so its
     eigenvector is unique and positive definite and its power iteration converges from any start (nonlinear
     Perron–Frobenius). It has no other fixed point to stall at, and its gains are defined everywhere: on a direction
@@ -173,7 +174,8 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
         total = float(np.trace(R, axis1=-2, axis2=-1).sum())
         if not (np.isfinite(lam) and lam > 0 and np.isfinite(total)):
             return P, lam, "stopped", moved
-        P_next = (R / total + _SHIFT * P) / (1.0 + _SHIFT)
+        shift = _SHIFT if step >= plain else 0.0        # a shifted step keeps some of P: R^j(I) = 0 unseen
+        P_next = (R / total + shift * P) / (1.0 + shift)
         moved = float(np.linalg.norm(P_next - P))
         P = P_next
         if moved <= RICCATI_RTOL and step >= plain:
@@ -214,27 +216,42 @@ def _gains(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
     return K + step
 
 
-def _perron(operator: np.ndarray, M: int, n: int) -> tuple[float, np.ndarray, float, float] | None:
-    """``(root, V, radius, error)``: the eigenvalue of the (M n^2)^2 matrix ``operator`` (a cone-preserving map on
-    stacked ``vec(P_a)``, rows a first) of largest real part, its eigenvector as (M, n, n) symmetrised with ``sum_a tr
-    V_a = 1``, the spectral radius, and a bound on the eigenvector's error relative to its largest eigenvalue (over
-    the modes); None where they are not finite or the eigenvector has trace 0.
+@functools.cache
+def _duplication(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(D, E)``: ``vec(S) = D vech(S)`` for symmetric n×n S (row-major vec, vech the entries i <= j) and ``E =
+    D^+`` (``vech(S) = E vec(S)``, the off-diagonal pairs averaged). O(n^4)."""
+    pairs = [(i, j) for i in range(n) for j in range(i, n)]
+    D = np.zeros((n * n, len(pairs)))
+    for k, (i, j) in enumerate(pairs):
+        D[i * n + j, k] = D[j * n + i, k] = 1.0
+    return D, np.linalg.pinv(D)
 
-    The eigenvector is the right singular vector v of ``operator - root I`` for its least singular value s_N, not
-    LAPACK's eigenvector: on deadbeat gains (many structural zeros) numpy.linalg.eig's balancing returned a vector
-    of mixed signs, trace 0.04, for a simple root 1.71 whose null vector is well conditioned (next singular value
-    0.41; a decoupled plant behind two channels, every kernel). v is the exact null vector of a matrix within
-    ``s_N + N eps s_1`` of ``operator - root I`` (the root's own error included), so it is off by at most that over
-    the next singular value s_(N-1) (a perturbation bound): ``error``, which decides what in it is rounding.
-    O((M n^2)^3)."""
-    vals = np.linalg.eigvals(operator)
+
+def _perron(operator: np.ndarray, M: int, n: int) -> tuple[float, np.ndarray, float, float] | None:
+    """``(root, V, radius, error)`` of the (M n^2)^2 matrix ``operator`` (a cone-preserving map on stacked
+    ``vec(P_a)``, rows a first) restricted to symmetric tuples: its eigenvalue of largest real part, its eigenvector
+    as (M, n, n) with ``sum_a tr V_a = 1``, the spectral radius (the Perron root, attained on the PSD cone: the same on
+    all matrices), and a bound on the eigenvector's error relative to its largest eigenvalue (over the modes); None
+    where they are not finite or the eigenvector has trace 0.
+
+    Restricted, because a complex pair mu, conj(mu) of a mode's closed loop gives ``|mu|^2`` twice on all matrices
+    (a symmetric and an antisymmetric eigenvector), once on symmetric ones. The eigenvector is the right singular
+    vector v of ``restricted - root I`` for its least singular value s_N, not LAPACK's eigenvector: on deadbeat gains
+    (many structural zeros) numpy.linalg.eig's balancing returned a vector of mixed signs, trace 0.04, for a simple
+    root 1.71 whose null vector is well conditioned (next singular value 0.41; a decoupled plant behind two
+    channels, every kernel). v is the exact null vector of a matrix within ``s_N + N eps s_1`` of ``restricted - root
+    I`` (the root's own error included), so it is off by at most that over the next singular value s_(N-1) (a
+    perturbation bound): ``error``, which decides what in it is rounding. O((M n^2)^3)."""
+    D, E = _duplication(n)
+    blocks = operator.reshape(M, n * n, M, n * n)
+    restricted = np.einsum("pi,aibj,jq->apbq", E, blocks, D).reshape(M * D.shape[1], M * D.shape[1])
+    vals = np.linalg.eigvals(restricted)
     if not np.all(np.isfinite(vals)):
         return None
     root, radius = float(np.max(vals.real)), float(np.max(np.abs(vals)))
-    N = operator.shape[0]
-    _, s, vt = np.linalg.svd(operator - root * np.eye(N))
-    V = vt[-1].reshape(M, n, n)
-    V = 0.5 * (V + V.transpose(0, 2, 1))
+    N = restricted.shape[0]
+    _, s, vt = np.linalg.svd(restricted - root * np.eye(N))
+    V = (vt[-1].reshape(M, -1) @ D.T).reshape(M, n, n)
     trace = float(np.trace(V, axis1=-2, axis2=-1).sum())
     top = float(np.max(np.abs(np.linalg.eigvalsh(V))))
     if not (np.isfinite(trace) and trace != 0.0 and top > 0.0):
@@ -316,6 +333,7 @@ def _reachable_eigenpair(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, 
         if zero:
             return 0.0, vector, gains
         bound = _bound(vector, A, B, T, h, delivery)
+        bound = bound if np.isfinite(bound) else -np.inf          # inf: the vector weighs nothing, proves nothing
         if upper < radius:
             radius, K = upper, gains
         if V is None or bound > lower:
