@@ -11,7 +11,8 @@ conventions). The homogeneous coupled Riccati map ``R(P)_a = min_K L_K^*(P)_a`` 
 positively homogeneous on the PSD cone; its eigenvalue ``R(P) = lambda P`` is the least radius.
 
 **The part no input reaches** is decided structurally, never by gains. With the controllability split
-(linalg.controllable_split) ``T'AT = [[A_cc, A_cu], [0, A_uu]]``, ``T'B = [[B_c], [0]]`` (T orthogonal), every law
+(linalg.controllable_split, of A and the channels that ever deliver: one with h = 0 in every mode never acts)
+``T'AT = [[A_cc, A_cu], [0, A_uu]]``, ``T'B = [[B_c], [0]]`` (T orthogonal), every law
 and every delivery pattern leaves ``x_u+ = A_uu x_u``, so the loop's second moment ``E[x x']`` is block triangular
 in time: ``E[x_u x_u']`` grows as ``A_uu^t (.) A_uu'^t`` (rate ``rho(A_uu)^2`` exactly, whatever K), the reachable
 block ``E[x_c x_c']`` at the coupled radius of ``(A_cc, B_c)`` under the chain (``x_u`` enters it only as an input
@@ -56,6 +57,7 @@ _CHECKPOINTS, _POLICY_STEPS = (30, 90, 270, 810, 2430, HOMOGENEOUS_RICCATI_MAX_I
 #: the unregularised policy steps that finish the regularised ones (:func:`_refine`), the cut of the eigenvector's
 #: directions they take the gains from, and the cut of the eigenvector returned (rounding of the eigenvalue routine)
 _REFINE_STEPS, _REFINE_CUT, _EIGENVECTOR_CUT = 3, 1e-9, 1e-13
+
 
 def _rates(h: np.ndarray, delivery: str) -> np.ndarray:
     """``(M, M, m)``: the delivery probabilities of a step from mode a into mode b, h_b ("next") or h_a
@@ -108,12 +110,12 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
     ``R^j(I) = 0`` to rounding, ``R^j(P) = 0`` for every PSD P (monotone) and the least radius is 0 (every chain
     path can be driven to zero in j steps); the kernels of ``R^j(I)_a`` grow with j and stay once they stop growing,
     so M n + 1 steps decide it. Later steps run the regularised map ``R_eps`` (:func:`_apply`, ``eps =
-    COUPLED_POLICY_REGULARISATION
-    lambda``, lambda R's at the step before): it maps every nonzero PSD tuple to a positive definite one, so its
-    eigenvector is unique and positive definite and its power iteration converges from any start (nonlinear
-    Perron–Frobenius). It has no other fixed point to stall at, and its gains are defined everywhere: on a direction
-    R's eigenvector vanishes on (a transient mode, a block the inputs cancel) as eps times that part's discounted
-    cost-to-go chooses them. Its eigenvalue is R's to O(eps). O((steps - first) M^2 (n + m)(m + n)^2)."""
+    COUPLED_POLICY_REGULARISATION lambda``, lambda R's at the step before): it maps every nonzero PSD tuple to a
+    positive definite one, so its eigenvector is unique and positive definite and its power iteration converges from
+    any start (nonlinear Perron–Frobenius). It has no other fixed point to stall at, and its gains are defined
+    everywhere: on a direction R's eigenvector vanishes on (a transient mode, a block the inputs cancel) as eps times
+    that part's discounted cost-to-go chooses them. Its eigenvalue is R's to O(eps).
+    O((steps - first) M^2 (n + m)(m + n)^2)."""
     plain = P.shape[0] * P.shape[1] + 1
     lam, moved = float("nan"), float("inf")
     for step in range(first, steps):
@@ -432,7 +434,7 @@ def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertEllio
                              delivery: str = "next") -> float:
     """``c - 1``, c the bound every mode-dependent law's coupled radius meets by the certificate P (M, n, n): the
     largest c with ``R(P)_a >= c P_a`` for every mode a that P weighs, so ``L_K^*(P) >= c P`` and ``rho(L_K) >= c``
-    for every K (Collatz–Wielandt), i.e. ``T_a(P)`` (module docstring) with ``A'E_aA - cP_a`` in its corner is PSD.
+    for every K (Collatz–Wielandt), i.e. ``[[A'E_aA - cP_a, -A'F_a], [-F_a'A, H_a]] >= 0`` for every mode.
     ``R(P)_a = F_a'F_a`` is the least-squares residual (region.least_squares_residual) of the factors of
     ``L_K^*(P)_a``, stacked over the next mode b with weights ``sqrt(T_ab)`` (region.moment_factor at P_b with
     h_b, "next", or h_a, "current"); each mode's bound is region.radius_bound.
