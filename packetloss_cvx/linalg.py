@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import cache
+from typing import TypeVar
 
 import numpy as np
 
@@ -13,7 +15,9 @@ from .errors import NumericalError
 from .tolerances import CONTROLLABILITY_RTOL, DENSE_RESIDUAL_RTOL, PSD_FACTOR_RTOL
 
 __all__ = ["ControllableSplit", "Dyadic", "block_diagonal", "check_finite", "controllable_split", "exact_psd",
-           "frobenius", "lapack_dgesv", "power_growth", "psd_factor", "solve_checked"]
+           "frobenius", "lapack_dgesv", "power_growth", "psd_factor", "solve_checked", "typed_linalg"]
+
+_F = TypeVar("_F", bound=Callable)
 
 
 def block_diagonal(blocks: np.ndarray) -> np.ndarray:
@@ -114,6 +118,33 @@ def check_finite(name: str, arr: np.ndarray | float,
     if not np.all(np.isfinite(arr)):
         raise NumericalError(f"{name} overflowed ({why}); {advice}")
     return arr
+
+
+def typed_linalg(what: str) -> Callable[[_F], _F]:
+    """A decorator: a LAPACK failure inside the function (numpy.linalg.LinAlgError: an SVD or eigenvalue routine
+    that did not converge, a singular solve) raised as :class:`NumericalError` naming ``what``, never untyped and
+    never taken for an answer. O(1).
+
+    Examples
+    --------
+    >>> @typed_linalg("the example")
+    ... def fails():
+    ...     raise np.linalg.LinAlgError("SVD did not converge")
+    >>> fails()
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.NumericalError: the example: a linear-algebra routine failed (SVD did not converge); ...
+    """
+    def wrap(func: _F) -> _F:
+        @functools.wraps(func)
+        def inner(*args, **kwargs):
+            try:
+                return func(*args, **kwargs)
+            except np.linalg.LinAlgError as err:
+                raise NumericalError(f"{what}: a linear-algebra routine failed ({err}); the plant is too badly "
+                                     "scaled or conditioned for this computation") from None
+        return inner  # type: ignore[return-value]
+    return wrap
 
 
 def solve_checked(G: np.ndarray, rhs: np.ndarray, name: str, instead: str = "method='recursion'") -> np.ndarray:

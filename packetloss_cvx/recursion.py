@@ -290,8 +290,8 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
 
     ``least_squares=True`` solves the Hessian ``M G`` itself by its minimum-norm least-squares solution (pinv with
     lstsq's cutoff, ``eps m s_max``), for the homogeneous maps whose Hessian may be singular (no weights:
-    simulation.region's modified Riccati map, simulation.markov_region's coupled one); a point whose Hessian is not
-    finite gets K = nan. ``P_prev`` is the same expression, ``A'PA - (MB'PA)'K``.
+    simulation.region's modified Riccati map); a point whose Hessian is not finite gets K = nan. ``P_prev`` is the
+    same expression, ``A'PA - (MB'PA)'K``.
 
     Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), or one point: ``P`` (n, n), ``mu`` and
     ``added`` (m,); ``Omega`` (n, n) or None. Returns ``(K, P_prev)``, (k, m, n) and (k, n, n) (one point: (m, n)

@@ -372,3 +372,25 @@ __all__ += ["ROUNDING_ORDER_RTOL"]
 #: tests/test_model.py's repaired weights, tests/test_qp_shared.py's objective against cvxpy's evaluation).
 #: 1e-12 leaves room for longer chains of products.
 ROUNDING_ORDER_RTOL = 1e-12
+
+__all__ += ["COUPLED_BRACKET_RTOL", "COUPLED_POLICY_REGULARISATION", "COUPLED_ZERO_RTOL"]
+
+#: simulation.markov_region's least radius behind a chain (benchmarks/chain_region_tolerances.py measures all three,
+#: on 313 seeded chains: 160 random, pendulum_bursty at 9 mean rates, 24 "current" chains, 120 at the ends of their
+#: mean rates). Its power iteration and policy iteration run on ``R + eps Pi`` (``Pi(P)_a = (sum_b tr P_b) I / (M n)``,
+#: rho(Pi) = 1), ``eps = COUPLED_POLICY_REGULARISATION lambda``, so that the eigenvector is positive definite and the
+#: gains are defined where R's vanishes. Measured, lambda pinned to 1e-9 by its certificate and its gains' radius:
+#: 312 of 313 for eps from 1e-14 to 1e-10, 311 at 1e-8 and at 0, 310 and one undecided at 1e-6 (the gains on R's
+#: support are off by O(eps / weight), their radius by its square; below 1e-10 nothing changes, above it the
+#: regularised parts start to matter).
+COUPLED_POLICY_REGULARISATION = 1e-10
+#: R(P) is zero to rounding (R nilpotent: least radius exactly 0) where ``sum_a tr R(P)_a <= COUPLED_ZERO_RTOL^2
+#: ||A||^2 sum_a tr P_a``. Measured over the first M n + 1 steps of R from I: at most 1.2e-15 (the square root of
+#: that ratio) on 412 points whose least radius is 0 (400 random controllable plants behind chains that deliver
+#: everything after the first step, 12 two_actuator points with a channel at mean rate 1), at least 0.058 on 400
+#: random chains; the same to the digits printed under Haswell, Prescott, Nehalem, Sandybridge, Zen and SkylakeX.
+COUPLED_ZERO_RTOL = 1e-12
+#: Its checkpoints stop where the gains' radius and the eigenvector's Collatz-Wielandt bound agree to
+#: COUPLED_BRACKET_RTOL relative (the least radius is then pinned between them). Measured at the first checkpoint
+#: (30 power steps) on the 313 chains: median 8e-16, 99 % 9.3e-12, largest 4.9e-11 (Haswell; Prescott 2.1e-11).
+COUPLED_BRACKET_RTOL = 1e-10

@@ -2,6 +2,8 @@
 and a Gilbert channel: r > 1 - 1/a^2 whatever p), the Bernoulli set at a memoryless chain's mean rate, the
 coupled Riccati equation of markov.mjls (another algorithm, with weights), and sampled mode gains."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -20,6 +22,14 @@ from packetloss_cvx.simulation.markov_region import (
     homogeneous_coupled_riccati,
 )
 from packetloss_cvx.simulation.region import membership
+from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+
+
+def pl_load(name):
+    from packetloss_cvx import load_system
+    from packetloss_cvx.examples import __file__ as examples
+
+    return load_system(Path(examples).parent / f"{name}.toml")
 
 
 @pytest.mark.parametrize("a", [1.5, 2.0, 4.0])
@@ -113,6 +123,41 @@ def test_current_convention_eigenpair_is_sandwiched_by_its_gains_and_its_certifi
     assert lam == pytest.approx(below, rel=1e-9)
     assert lam == pytest.approx(above, rel=1e-9)
 
+def _chain_at_an_end(k):
+    """The k-th of a seeded sequence of plants (n = 2..4, one or two channels) behind a chain at the end of its mean
+    rate (0 or 1, the other channel's 0, 1 or 1/2; burstiness 0 .. 0.9): a transient state (p = 0 or r = 0), whose
+    modes R's eigenvector vanishes on, and closed loops whose complex pairs give double roots on all matrices."""
+    rng = np.random.default_rng(9)
+    for _ in range(k + 1):
+        n, m = int(rng.integers(2, 5)), int(rng.integers(1, 3))
+        A = rng.normal(size=(n, n))
+        A *= rng.uniform(0.9, 1.4) / max(abs(np.linalg.eigvals(A)))
+        B = rng.normal(size=(n, m))
+        corr = rng.uniform(0.0, 0.9, m)
+        base = GilbertElliott(p=(1 - corr) / 2, r=(1 - corr) / 2)
+        rate = rng.choice([0.0, 1.0, 0.5], size=m) if m > 1 else rng.choice([0.0, 1.0], size=1)
+    return A, B, chain_at_rate(base, rate), ("next", "current")[k % 2]
+
+
+@pytest.mark.parametrize("k", [1, 2, 6, 8, 11, 46, 55, 56, 105])
+def test_eigenpair_is_sandwiched_behind_chains_at_the_ends_of_their_mean_rates(k):
+    """lambda = min_K rho(L_K) lies between the Collatz-Wielandt bound of its own P (every law's radius >= it) and the
+    radius of its own gains (markov.mjls's operator on all matrices); both within 1e-9 of lambda pin it down, and the
+    verdict follows. Chosen among 120 such chains where a step of the engine had mattered: the eigenvalue problem
+    restricted to symmetric tuples (a complex pair's double root had made the eigenvector's error bound useless:
+    34 of the 120 unpinned, 16 undecided), the unregularised policy steps from the cleaned eigenvector (5 unpinned,
+    one undecided), the regularised power iteration (one)."""
+    A, B, ch, delivery = _chain_at_an_end(k)
+    lam, P, K = homogeneous_coupled_riccati(A, B, ch, delivery)
+    weighed = np.trace(P, axis1=-2, axis2=-1) > 1e-12
+    Q = np.where(weighed[:, None, None], P, 0.0)
+    below = 1.0 + chain_certificate_margin(A, B, ch, Q / np.trace(Q, axis1=-2, axis2=-1).sum(), delivery)
+    above = mjls_radius(A, B, ch, K, delivery)
+    assert lam == pytest.approx(below, rel=1e-9)
+    assert lam == pytest.approx(above, rel=1e-9)
+    assert chain_membership(A, B, ch, delivery).verdict == ("stable" if lam < 1 else "unstable")
+
+
 def test_no_sampled_mode_gains_beat_an_outside_certificate():
     A, B = np.array([[1.2, 0.3], [0.0, 1.1]]), np.array([[1.0, 0.0], [0.0, 1.0]])
     ch = GilbertElliott(p=[0.6, 0.6], r=[0.15, 0.15])
@@ -164,10 +209,12 @@ def test_critical_mean_rate_of_a_decoupled_plant_is_its_worst_channel(a, corr, d
         exact = float(np.max(np.where(d > 0, (1 - 1 / a**2) / ((1 - corr) * d), np.where(a > 1, np.inf, 0.0))))
     end = float(np.min(1 / d[d > 0]))
     if exact >= end:
-        assert point.t == np.inf and point.outside.verdict == "unstable"
+        assert point.t == np.inf
+        assert point.outside.verdict == "unstable"
         return
     assert point.lower <= exact <= point.t <= point.lower + 1e-6
-    assert point.inside.verdict == "stable" and point.outside.verdict == "unstable"
+    assert point.inside.verdict == "stable"
+    assert point.outside.verdict == "unstable"
     inside = chain_at_rate(ch, point.t * d)
     assert mjls_radius(s.A, s.B, inside, point.inside.gain, "next") < 1.0
     outside = chain_at_rate(ch, point.lower * d)
@@ -235,3 +282,173 @@ def test_current_convention_decoupled_plant_outside_is_proved_unstable(a, p, r):
     found = chain_membership(A, B, chain, "current")
     assert found.verdict == "unstable"
     assert found.certificate is not None
+
+
+def _coupled_plant(a_c, a_u, coupling):
+    """x_u drives x_c (coupling), one input reaches x_c only: T'AT = [[a_c, coupling], [0, a_u]], T'B = [[1], [0]]."""
+    return np.array([[a_c, coupling], [0.0, a_u]]), np.array([[1.0], [0.0]])
+
+
+def _rotation(seed, n):
+    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(n, n)))
+    return q * np.sign(np.diag(r))
+
+
+@pytest.mark.parametrize("delivery", ["next", "current"])
+@pytest.mark.parametrize(("a_c", "a_u", "r", "verdict"), [
+    (2.0, 1.5, 0.6, "unstable"),       # x_u dominates: rho(A_uu)^2 = 2.25 > a_c^2 (1 - r) = 1.6
+    (2.0, 0.9, 0.6, "unstable"),       # the reached part dominates: 1.6 > 0.81, the part no input reaches is stable
+    (2.0, 0.9, 0.9, "stable"),         # both below 1: 0.4 and 0.81
+    (1.5, 1.02, 0.7, "unstable"),      # barely: 1.0404 > 0.675
+])
+@pytest.mark.parametrize("rotated", [False, True])
+def test_least_radius_with_a_part_no_input_reaches_is_the_larger_of_the_two_radii(a_c, a_u, r, verdict, delivery,
+                                                                                rotated):
+    """By hand: x_u+ = a_u x_u under every law (no input reaches it), so its second moment grows by a_u^2 whatever
+    the gains; x_c behind one Gilbert channel is at best deadbeat when delivered and a_c x_c + x_u when lost, so with
+    x_u = 0 its least radius is a_c^2 (1 - r) (module docstring), and x_u only feeds it a decaying input. The least
+    radius is the larger of a_u^2 and a_c^2 (1 - r), under both conventions, in the split's coordinates and in any
+    others (``rotated``: Q A Q', Q B for a random orthogonal Q, so no entry of B is zero and the part no input
+    reaches is found only by the staircase). The verdict's certificate is checked by 200 sampled mode gains, none of
+    which beats it; the returned gains attain lambda."""
+    A, B = _coupled_plant(a_c, a_u, 0.7)
+    if rotated:
+        Q = _rotation(3, 2)
+        A, B = Q @ A @ Q.T, Q @ B
+    ch = GilbertElliott(p=[0.3], r=[r])
+    hand = max(a_u**2, a_c**2 * (1 - r))
+    lam, P, K = homogeneous_coupled_riccati(A, B, ch, delivery)
+    assert lam == pytest.approx(hand, rel=1e-12)
+    assert mjls_radius(A, B, ch, K, delivery) == pytest.approx(hand, rel=1e-9)
+    found = chain_membership(A, B, ch, delivery)
+    assert found.verdict == verdict
+    rng = np.random.default_rng(7)
+    if verdict == "stable":
+        assert mjls_radius(A, B, ch, found.gain, delivery) < 1
+        return
+    assert chain_certificate_margin(A, B, ch, found.certificate, delivery) == pytest.approx(hand - 1, rel=1e-9)
+    for gains in rng.normal(scale=3.0, size=(200, 2, 1, 2)):
+        assert mjls_radius(A, B, ch, gains, delivery) >= 1
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_least_radius_of_a_decoupled_plant_hidden_by_a_rotation_is_its_largest_block(seed):
+    """diag(a) with B the first two columns of I behind two Gilbert channels ("current"), seen through a random
+    orthogonal Q: by hand, lambda = max(a_3^2, a_i^2 (1 - r_i)) (tests above), whatever Q. The mode no channel
+    actuates is found by the staircase only to rounding (B's third row in the split's coordinates is about 1e-16),
+    and a gain of 1e16 on it would fool a solver that takes rounding for an input."""
+    rng = np.random.default_rng(200 + seed)
+    a = rng.uniform(1.0, 1.9, 3)
+    chain = GilbertElliott(p=rng.uniform(0.1, 0.6, 2), r=rng.uniform(0.2, 0.8, 2))
+    Q = _rotation(seed, 3)
+    A, B = Q @ np.diag(a) @ Q.T, Q @ np.eye(3)[:, :2]
+    hand = max(a[2] ** 2, *(a[i] ** 2 * (1 - chain.r[i]) for i in range(2)))
+    lam, P, K = homogeneous_coupled_riccati(A, B, chain, "current")
+    assert lam == pytest.approx(hand, rel=1e-9)
+    assert np.abs(K).max() < 10 * a.max()
+    found = chain_membership(A, B, chain, "current")
+    assert found.verdict == ("unstable" if hand >= 1 else "stable")
+    assert chain_certificate_margin(A, B, chain, found.certificate, "current") >= hand - 1 - 1e-9
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_a_dominant_part_no_input_reaches_gives_its_radius_exactly_in_any_coordinates(seed):
+    """Random plants with a planted part no input reaches (n = 3..5, one or two channels, up to n - m such modes)
+    coupled into the reached part, its largest |a_u| above every |a_c|, seen through a random orthogonal Q (no
+    entry of B is zero): by hand, lambda = max a_u^2 (it bounds the reached part's least radius, at most
+    rho(A_cc)^2 = max a_c^2), and every law's radius is at least that (the certificate, exact). Without the
+    controllability split the engine wandered on about one plant in ten (lambda 1.4505 for 1.4671, 1.6489 for
+    1.6910; two undecided), its gains on the rotated unreached modes fed by rounding couplings."""
+    rng = np.random.default_rng(2000 + seed)
+    n, m = int(rng.integers(3, 6)), int(rng.integers(1, 3))
+    nu = int(rng.integers(1, n - m + 1))
+    a_c = rng.uniform(0.5, 1.5, n - nu)
+    a_u = rng.uniform(1.0, 1.3, nu) * max(a_c.max(), 0.9)
+    Ad = np.diag(np.concatenate([a_c, a_u]))
+    Ad[: n - nu, n - nu:] = rng.normal(size=(n - nu, nu))
+    Bd = np.zeros((n, m))
+    Bd[: n - nu] = rng.normal(size=(n - nu, m))
+    q, r = np.linalg.qr(rng.normal(size=(n, n)))
+    Q = q * np.sign(np.diag(r))
+    A, B = Q @ Ad @ Q.T, Q @ Bd
+    ch = GilbertElliott(p=rng.uniform(0.1, 0.6, m), r=rng.uniform(0.2, 0.8, m))
+    delivery = ("next", "current")[seed % 2]
+    hand = float(np.max(a_u)) ** 2
+    lam, P, K = homogeneous_coupled_riccati(A, B, ch, delivery)
+    assert lam == pytest.approx(hand, rel=1e-9)
+    found = chain_membership(A, B, ch, delivery)
+    assert found.verdict == "unstable"
+    assert found.certificate_margin == pytest.approx(hand - 1, rel=1e-9)
+
+
+def test_a_channel_that_never_delivers_actuates_nothing():
+    """h_good = h_bad = 0 on channel 2: its column of B never acts, so x2+ = 1.2 x2 under every law (hand: lambda =
+    max(1.2^2, 1.5^2 (1 - r_1)) = 1.44), decided structurally; the gains on x2 stay 0 (they were 3e15 when the
+    Hessians of rounding were inverted) and the certificate is exact."""
+    A, B = np.diag([1.5, 1.2]), np.eye(2)
+    ch = GilbertElliott(p=[0.4, 0.2], r=[0.4, 0.3], h_good=[1.0, 0.0])
+    for delivery in ("next", "current"):
+        lam, P, K = homogeneous_coupled_riccati(A, B, ch, delivery)
+        assert lam == pytest.approx(1.44, rel=1e-12)
+        assert np.abs(K).max() <= 1.5 * (1 + 1e-9)
+        found = chain_membership(A, B, ch, delivery)
+        assert found.verdict == "unstable"
+        assert found.certificate_margin == pytest.approx(0.44, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_least_radius_is_zero_where_every_chain_path_can_be_driven_to_zero(seed):
+    """A chain that is good at every step after the first (p = 0, r = 1) delivers every packet from then on, so a
+    controllable plant can be driven to zero in n steps (pole placement at 0; the first, lost step changes
+    nothing): the least radius is exactly 0 (R^j(I) = 0, detected), not the 1e-9 .. 1e-3 that the radius of gains
+    near deadbeat has in floating point (a nilpotent loop's eigenvalues move by eps^(1/n)); the gains returned
+    stabilise."""
+    rng = np.random.default_rng(300 + seed)
+    n, m = 2 + seed % 3, 1 + seed % 2
+    A = rng.normal(size=(n, n)) * 1.5
+    B = rng.normal(size=(n, m))
+    ch = GilbertElliott(p=[0.0] * m, r=[1.0] * m)
+    for delivery in ("next", "current"):
+        lam, P, K = homogeneous_coupled_riccati(A, B, ch, delivery)
+        assert lam == 0.0
+        assert mjls_radius(A, B, ch, K, delivery) < 1 - MEAN_SQUARE_MARGIN
+        assert chain_membership(A, B, ch, delivery).verdict == "stable"
+
+
+def test_pendulum_bursty_at_the_ends_of_its_mean_rate():
+    """pendulum_bursty's chain at burstiness 0.8: at mean rate 1 the good state is absorbing (p = 0) and the bad one
+    transient, lost with probability 1 - r = 0.8 each step it lasts: the least radius is 0.8 rho(A)^2 (by hand: the
+    single input is controllable, so the good state's loop can be made as fast as wanted; the bad state's is A);
+    at mean rate 0 the bad state is absorbing and nothing is ever delivered: rho(A)^2. Under some kernels the
+    first was "undecided" (lambda 0.9014, far from 1: gains of the transient state taken from a P that vanishes
+    there)."""
+    s = pl_load("pendulum_bursty")
+    rho2 = float(np.max(np.abs(np.linalg.eigvals(s.A)))) ** 2
+    for rate, hand, verdict in ((1.0, 0.8 * rho2, "stable"), (0.0, rho2, "unstable")):
+        ch = chain_at_rate(s.channel, [rate])
+        lam, P, K = homogeneous_coupled_riccati(s.A, s.B, ch)
+        assert lam == pytest.approx(hand, rel=1e-9)
+        found = chain_membership(s.A, s.B, ch)
+        assert found.verdict == verdict
+        if verdict == "stable":
+            assert mjls_radius(s.A, s.B, ch, found.gain, "next") < 1
+        else:
+            assert chain_certificate_margin(s.A, s.B, ch, found.certificate) >= -1e-12
+
+
+def test_a_failed_linear_algebra_routine_is_a_numerical_error(monkeypatch):
+    """numpy.linalg.LinAlgError (an SVD or eigenvalue routine that did not converge) from inside the engine reaches
+    the caller as NumericalError naming the computation, never as a verdict or an untyped error."""
+    def fail(*args, **kwargs):
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    A, B = np.array([[2.0]]), np.array([[1.0]])
+    ch = GilbertElliott(p=[0.3], r=[0.6])
+    monkeypatch.setattr(np.linalg, "svd", fail)
+    with pytest.raises(NumericalError, match="linear-algebra routine failed"):
+        chain_membership(A, B, ch)
+    with pytest.raises(NumericalError, match="linear-algebra routine failed"):
+        homogeneous_coupled_riccati(A, B, ch)
+    monkeypatch.setattr(np.linalg, "eigvals", fail)
+    with pytest.raises(NumericalError, match="eigenvalue routine failed"):
+        mjls_radius(A, B, ch, np.ones((2, 1, 1)), "next")

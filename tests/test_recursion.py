@@ -614,7 +614,7 @@ def test_a_point_answers_the_same_in_any_batch_below_flat_min():
 @pytest.mark.parametrize("seed", range(4))
 def test_least_squares_riccati_step_against_delivery_pattern_enumeration(seed):
     """The homogeneous step (no weights, loss variance weighted by P, Hessian possibly singular) that
-    simulation.region and simulation.markov_region's "current" convention run through riccati_step: against
+    simulation.region runs through riccati_step: against
     E_v[(A - BVK)'P(A - BVK)] enumerated over the 2^m delivery patterns (its Hessian and linear term summed pattern
     by pattern, the minimum-norm minimiser by lstsq, the minimum evaluated as that sum). Points with mu_i in {0, 1}
     and rank-deficient P make the Hessian singular."""

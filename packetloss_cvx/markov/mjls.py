@@ -198,7 +198,8 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | M
     beyond :data:`MAX_OPERATOR_DIM` rows; "krylov", ARPACK on the map applied matrix-free
     (O(M^2 n^2 + M n^2 (n + m)) per product, O(M n^2) memory per vector), its value checked against
     Collatz–Wielandt bounds proven from its eigenvector (NumericalError outside them); "auto", dense up to
-    :data:`DENSE_MAX_DIM` rows, else Krylov (falling back to dense within :data:`MAX_OPERATOR_DIM` rows).
+    :data:`DENSE_MAX_DIM` rows, else Krylov (falling back to dense within :data:`MAX_OPERATOR_DIM` rows). A failed
+    eigenvalue routine (numpy.linalg.LinAlgError) is a NumericalError, as is an operator that is not finite.
 
     Examples
     --------
@@ -226,7 +227,10 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | M
                 raise
     op = second_moment_operator(A, B, channel, K, delivery)
     with np.errstate(over="ignore", invalid="ignore"):
-        vals = np.linalg.eigvals(op) if np.all(np.isfinite(op)) else np.array([np.inf])
+        try:
+            vals = np.linalg.eigvals(op) if np.all(np.isfinite(op)) else np.array([np.inf])
+        except np.linalg.LinAlgError as err:
+            raise NumericalError(f"MJLS mean-square radius: the eigenvalue routine failed ({err})") from None
     if not np.all(np.isfinite(vals)):
         raise NumericalError("MJLS mean-square radius: the second-moment operator is not finite")
     return float(max(abs(vals)))
@@ -300,12 +304,18 @@ def _krylov_radius(A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, K
     X = v.real.reshape(M, n, n)
     X = 0.5 * (X + X.transpose(0, 2, 1))
     X = X if np.einsum("aii->", X) >= 0 else -X
-    w, U = np.linalg.eigh(X)
+    try:
+        w, U = np.linalg.eigh(X)
+    except np.linalg.LinAlgError as err:
+        raise NumericalError(f"MJLS mean-square radius: the Collatz-Wielandt check failed ({err})") from None
     w = np.maximum(w, 1e-10 * max(float(w.max()), np.finfo(float).tiny))
     root_inv = np.einsum("aij,aj,akj->aik", U, 1 / np.sqrt(w), U)
     Y = moment_step(np.einsum("aij,aj,akj->aik", U, w, U), K, T, A, B, h, H2, delivery)[0]
     Z = np.einsum("aij,ajk,akl->ail", root_inv, Y, root_inv)
-    ratios = np.linalg.eigvalsh(0.5 * (Z + Z.transpose(0, 2, 1)))
+    try:
+        ratios = np.linalg.eigvalsh(0.5 * (Z + Z.transpose(0, 2, 1)))
+    except np.linalg.LinAlgError as err:
+        raise NumericalError(f"MJLS mean-square radius: the Collatz-Wielandt check failed ({err})") from None
     lower, upper = max(float(ratios[:, 0].min()), 0.0), float(ratios[:, -1].max())
     if not (np.isfinite(radius) and lower * (1.0 - 1e-9) <= radius <= upper * (1.0 + 1e-9)):
         raise NumericalError(f"MJLS mean-square radius: ARPACK's {radius:.6g} lies outside the proven bounds "
