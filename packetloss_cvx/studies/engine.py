@@ -17,6 +17,7 @@ import signal
 import threading
 import time
 from collections.abc import Iterator, Sequence
+from multiprocessing import resource_tracker
 from typing import Any
 
 import numpy as np
@@ -295,7 +296,6 @@ def _deaf_to_sigint(make: Any) -> Any:
     # multiprocessing's resource tracker, started by the first worker's spawn, unblocks SIGINT and SIGTERM in the
     # thread that starts it (it blocks them around its own spawn, then unblocks rather than restores): started
     # here first, it leaves the builder's mask alone (measured on Python 3.11: the workers were not deaf without it)
-    from multiprocessing import resource_tracker
     resource_tracker.ensure_running()
     made: dict[str, Any] = {}
 
