@@ -32,7 +32,8 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
     "distributed": "the 'distributed' extra: sweeps on a Dask cluster",
     "xarray": "the 'xarray' extra: sweep results as Datasets and NetCDF files",
     "control": "the 'control' extra: python-control interop (StateSpace in and out)",
-    "scipy": "ARPACK, GMRES and LU only where used (large n, the pointwise and QP paths): importing any of "
+    "scipy": "ARPACK, GMRES, LU and the complex Schur form only where used (large n, the pointwise and QP "
+             "paths, the error bound of a plan rolled out on a plant that rotates): importing any of "
              "SciPy costs about 0.15 s (its array-API layer clones NumPy's namespace, loading numpy.f2py and "
              "numpy.testing), so the closed-form paths (numpy.linalg) never import it",
 })
