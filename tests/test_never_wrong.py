@@ -179,6 +179,27 @@ def test_plan_cost_tolerance_is_pinned_on_both_sides(psi, resolved):
                 evaluate(s, U, "tcp")
 
 
+def test_markov_exact_cost_of_a_plan_is_refused_where_its_mean_states_are_not_resolved():
+    """The Gilbert-Elliott pendulum over 2000 steps under the plug-in law's plan: the TCP-like cost (the mean states
+    alone) is refused as the Bernoulli one is. The UDP-like cost is returned: the lost inputs' variance, amplified
+    by A^t, makes it about 1e106, beside which the mean states' rounding (1e78) is nothing. With a chain that never
+    loses (p = 0, mu = 1) the UDP-like cost is the mean states' alone, and it is refused."""
+    from packetloss_cvx.markov import exact_cost
+
+    data = pl.load_example("pendulum_bursty").to_dict()
+    data["cost"]["horizon"] = 2000
+    bursty = system_from_dict(data)
+    data["channel"]["p"] = [0.0]
+    perfect = system_from_dict(data)
+    U = pl.closed_form(bursty.with_mu(bursty.mu_schedule), "tcp").inputs
+    with pytest.raises(pl.NumericalError, match="not resolved"):
+        exact_cost(bursty, U, "tcp")
+    assert exact_cost(bursty, U, "udp") > 1e100
+    U = pl.closed_form(perfect.with_mu(perfect.mu_schedule), "tcp").inputs
+    with pytest.raises(pl.NumericalError, match="udp-like expected cost of this plan is not resolved"):
+        exact_cost(perfect, U, "udp")
+
+
 def test_expected_cost_beyond_the_double_range_raises():
     s = pl.load_example("two_actuator")
     with pytest.raises(pl.NumericalError, match="double-precision range"):
