@@ -142,7 +142,7 @@ def _rolled_error(s, U, enough=0.0):
     return bound, abs(rolled - exact), exact
 
 
-@pytest.mark.parametrize(("seed", "rho", "N"), [(0, 3.0, 24), (1, 3.0, 30), (2, 2.0, 40), (3, 1.5, 60)])
+@pytest.mark.parametrize(("seed", "rho", "N"), [(0, 3.0, 24), (1, 3.0, 30), (5, 2.0, 50), (3, 1.5, 90), (6, 1.3, 150)])
 def test_rollout_cost_error_holds_and_is_tight_where_the_plan_cancels_an_unstable_growth(seed, rho, N):
     """The optimal plan of an unstable plant steers x to zero: its rolled-out states carry the rounding amplified by
     rho^t. The bound holds against the exact sums and is within 1 % of the true error (its estimate is the error)."""
