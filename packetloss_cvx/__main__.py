@@ -1,8 +1,9 @@
-"""``python -m packetloss_cvx``.
+"""``python -m packetloss_cvx`` and the ``packetloss-cvx`` console script (its entry point is :func:`main` here).
 
-SIGINT and SIGTERM are handled from the first line: until ``main`` installs its own handler (which removes
-temporary files and locks on the way out) nothing has been written, so the early handler only says one
-line and exits 130 / 143, where Python would print a KeyboardInterrupt traceback from inside an import.
+SIGINT and SIGTERM are handled from this module's first lines: until ``main`` installs its own handler (which removes
+temporary files and locks on the way out) nothing has been written, so the early handler only says one line and
+exits 130 / 143, where Python would print a KeyboardInterrupt traceback from inside an import. Only the program
+imports this module (the console script, ``-m``), so the library's own import changes no handler.
 """
 
 import os
@@ -21,4 +22,7 @@ for _signum in (signal.SIGINT, signal.SIGTERM):
 
 from .cli import main  # noqa: E402  after the handlers: an import interrupted is one line, not a traceback
 
-sys.exit(main())
+__all__ = ["main"]
+
+if __name__ == "__main__":
+    sys.exit(main())

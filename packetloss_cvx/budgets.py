@@ -8,8 +8,9 @@ any array is allocated. The one way to raise a budget on purpose is its environm
 ``PACKETLOSS_CVX_BUDGET_<NAME>`` (a positive number, or ``inf`` for no bound), read when the check runs,
 so it works the same for the command line and the API.
 
-The work formulas (:func:`simulate_work`, :func:`sweep_work`, :func:`burstiness_work`) live here once;
-the API and the command line's preflight both call them. Imports nothing numerical.
+The work formulas (:func:`simulate_work`, :func:`sweep_work`, :func:`burstiness_work`, :func:`solve_work`) and the
+memory of a size a caller gives (:func:`solve_bytes`, the ``memory_bytes`` budget) live here once; the API and the
+command line's preflight both call them. Imports nothing numerical.
 """
 
 from __future__ import annotations
@@ -20,9 +21,11 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from .errors import BudgetError, InputError
+from .tolerances import MEMORY_BUDGET_BYTES
 
 __all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "count_text", "duration_text",
-           "estimated_seconds", "limit", "markov_recursion_work", "simulate_work", "sweep_work"]
+           "estimated_seconds", "limit", "markov_recursion_work", "qp_work", "simulate_work", "solve_bytes",
+           "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -57,6 +60,11 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
     Budget("region_points", 1.2e5, "law-points of a stability-region map (grid^2 x laws)", "about 10 min", 5.2e-3),
     Budget("markov_recursion_work", 5e12, "work units of one exact Markov recursion (markov_recursion_work)",
            "about 10 min", 1.2e-10),
+    Budget("solve_work", 6e7, "work units of one solve (solve_work)", "about 1 min", 1e-6),
+    Budget("allocation_work", 9e8, "work units of a UDP-like branch and bound (boxes x udp_box_work)", "about 15 min",
+           1e-6),
+    Budget("memory_bytes", MEMORY_BUDGET_BYTES, "bytes of memory for one computation of a size the caller gave",
+           "a quarter of this machine's memory"),
 )}
 
 
@@ -179,9 +187,9 @@ def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans:
 
 def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stability: bool = False,
                chunk: int = 2048) -> float:
-    """Work units of a sweep (2.5e-8 s each, within a factor 3 on the measured cases): per protocol, every point's N steps of the batched
-    recursion at ``n^3 + m^3 + 40`` each, plus 1000 for each step of each batch (a chunk of ``chunk``
-    points of one horizon: the per-step overhead of NumPy calls, which dominates a sweep over long horizons);
+    """Work units of a sweep (2.5e-8 s each, within a factor 3 on the measured cases): per protocol, every point's N
+    steps of the batched recursion at ``n^3 + m^3 + 40`` each, plus 1000 for each step of each batch (a chunk of
+    ``chunk`` points of one horizon: the per-step overhead of NumPy calls, which dominates a sweep over long horizons);
     with ``stability`` also ``n^3 min(n^3, 1000)`` per point (Kronecker eigenvalues for small n, Arnoldi
     beyond). O(number of points).
 
@@ -242,6 +250,79 @@ def markov_recursion_work(horizon: int, size: int) -> float:
     6.2
     """
     return _float(horizon) * (float(size) ** 3 + 6e5)
+
+
+def qp_work(horizon: int, n: int, m: int, formulation: str = "sparse") -> float:
+    """Work units (1e-6 s each) of one protocol's QP cross-check (qp.py: cvxpy's compile and Clarabel's solve),
+    per step ``28 + 1.1 n^2 + 1.5 n m``, and for the condensed form also its dense factorisation ``1.3e-3 (N m)^3``.
+    Fitted on ``solve`` with the cross-check, one BLAS thread (both protocols): n = m = 1, N = 2e5 12.5 s
+    (predicted 12.2), N = 5e5 30.5 s (30.6); n = 4, m = 2, N = 4e4 5.3 s (4.6); n = 10, m = 3, N = 2e4 8.3 s (7.3);
+    n = 30, m = 5, N = 2000 4.7 s (5.0); condensed n = m = 1, N = 2000 21 s (21). ``formulation`` "auto" is
+    priced as the sparse form (auto takes the condensed form only for N m <= 60, where both cost milliseconds). O(1).
+
+    Examples
+    --------
+    >>> qp_work(10 ** 6, 1, 1)                          # a scalar plant over a million steps: about 31 s
+    30600000.0
+    """
+    work = _float(horizon) * (28.0 + 1.1 * n * n + 1.5 * n * m)
+    if formulation == "condensed":
+        work += 1.3e-3 * (_float(horizon) * m) ** 3
+    return work
+
+
+def solve_work(horizon: int, n: int, m: int, protocols: int = 2, qp: str | None = "sparse") -> float:
+    """Work units (1e-6 s each) of ``solve``: per protocol the closed form, ``N (0.45 + 0.0175 n^2)`` (the recursion,
+    its plan and gain, the JSON of the plan), and unless ``qp`` is None the QP cross-check (:func:`qp_work`, ``qp``
+    its formulation). Measured with ``--no-qp`` (both protocols, one BLAS thread, less the 0.3 s start): n = m = 1,
+    N = 1e6 0.94 s (predicted 0.94); n = 4, m = 2, N = 5e5 0.68 s (0.73); n = 10, m = 3, N = 2e5 0.87 s (0.88);
+    n = 30, m = 5, N = 5e4 1.8 s (1.6). O(1).
+
+    Examples
+    --------
+    >>> solve_work(10 ** 6, 1, 1)                       # the cross-check is 60 times the closed forms
+    62135000.0
+    >>> solve_work(10 ** 6, 1, 1, qp=None)
+    935000.0
+    """
+    closed = _float(horizon) * (0.45 + 0.0175 * n * n)
+    return protocols * (closed + (0.0 if qp is None else qp_work(horizon, n, m, qp)))
+
+
+def solve_bytes(horizon: int, n: int, m: int, qp: str | None = "sparse") -> float:
+    """Peak bytes of ``solve`` beyond the interpreter's own: per step ``260 + 15 n^2 + 40 m`` for the closed forms and
+    the plans printed as JSON, and with the QP cross-check ``3000 + 350 n^2 + 500 n m`` more (cvxpy's and Clarabel's
+    data; the condensed form also ``250 (N n) (N m)``). Fitted on the peak resident memory of ``solve`` (less 65 MB,
+    110 MB with the QP's imports): n = m = 1, N = 5e6 1.34 GB (predicted 1.58), N = 5e5 with the QP 1.74 GB (2.08);
+    n = 30, m = 5, N = 5e4 0.68 GB (0.70), N = 2000 with the QP 0.71 GB (0.81). O(1).
+
+    Examples
+    --------
+    >>> solve_bytes(5 * 10 ** 7, 1, 1, qp=None) / 2 ** 30           # what ended in a MemoryError: 15 GiB
+    14.668...
+    """
+    N = _float(horizon)
+    need = N * (260.0 + 15.0 * n * n + 40.0 * m)
+    if qp is not None:
+        need += N * (3000.0 + 350.0 * n * n + 500.0 * n * m)
+        if qp == "condensed":
+            need += 250.0 * (N * n) * (N * m)
+    return need
+
+
+def udp_box_work(horizon: int, n: int, m: int) -> float:
+    """Work units (1e-6 s each) of one box of the UDP-like branch and bound on the closed-form cost
+    (allocation/udp.py): about ``15 m`` cost evaluations (its corner probes and the line searches along its edges;
+    27 a box measured for m = 2) of ``100 + N (1 + 0.02 n^2)`` each, and 1000 for its LP. Measured (one BLAS thread):
+    a scalar plant with two channels, 15 boxes, N = 3e4 11.3 s (predicted 13.8), N = 1e4 1.1 s (4.7: the shorter
+    horizon's arrays stay in cache). The box count is what the budget bounds: the cost of a box grows with N. O(1).
+
+    Examples
+    --------
+    >>> udp_box_work(100_000, 1, 2) / 1e6                  # seconds a box over 1e5 steps
+    3.064
+    """
+    return 1000.0 + 15.0 * m * (100.0 + _float(horizon) * (1.0 + 0.02 * n * n))
 
 
 def _rounded_up(value: float) -> str:

@@ -107,12 +107,15 @@ def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
             f"long horizon, or weights of very different sizes); use method='recursion'")
 
 
-def _verified(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
-              weights: tuple[np.ndarray, float], atol: float = 0.0, states: np.ndarray | None = None) -> float:
-    """``closed`` if it agrees with the forward cost of the plan ``U`` (a sum of nonnegative terms,
-    free of cancellation; ``states``: its mean states if the caller has them, else the plan is rolled out open
-    loop and must be resolved, :func:`~packetloss_cvx.recursion.plan_cost`) to ``SELF_CHECK_RTOL`` (plus
-    ``atol``); NumericalError otherwise."""
+def _self_checked(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
+                  weights: tuple[np.ndarray, float], atol: float = 0.0, states: np.ndarray | None = None) -> float:
+    """The forward cost of the plan ``U`` (a sum of nonnegative terms, free of cancellation; ``states``: its
+    mean states if the caller has them, else the plan is rolled out open loop and must be resolved,
+    :func:`~packetloss_cvx.recursion.plan_cost`) if ``closed`` agrees with it to ``SELF_CHECK_RTOL`` (plus
+    ``atol``); NumericalError otherwise. The forward cost is the one to report as J*: ``closed`` (x'P_0 x, or
+    C - g'Vbar G^-1 g) cancels and is right to about eps ||P_0|| ||x||^2, the forward cost to about
+    eps sqrt(||P_0|| ||x||^2 J*) (its states cancel, its sum does not), and the plan's own error enters it only at
+    second order."""
     if states is None:
         forward, bound = plan_cost(system, U, protocol, weights)
         if np.isfinite(forward) and not bound <= PLAN_COST_RTOL * forward:
@@ -123,12 +126,13 @@ def _verified(system: System, protocol: str, closed: float, U: np.ndarray, metho
                 "rolls out)")
     else:
         forward = recursion_cost(system, U, protocol, weights, states)
-    return _agreeing(system, protocol, closed, forward, method, atol)
+    _agree(system, protocol, closed, forward, method, atol)
+    return forward
 
 
-def _agreeing(system: System, protocol: str, closed: float, forward: float, method: str, atol: float = 0.0) -> float:
-    """``closed`` if it agrees with the referee ``forward`` to ``SELF_CHECK_RTOL`` (plus ``atol``) and is
-    nonnegative; NumericalError otherwise."""
+def _agree(system: System, protocol: str, closed: float, forward: float, method: str, atol: float = 0.0) -> None:
+    """Raise NumericalError unless ``closed`` is nonnegative and agrees with the referee ``forward`` to
+    ``SELF_CHECK_RTOL`` (plus ``atol``), both finite."""
     if not (np.isfinite(forward) and np.isfinite(closed)):
         raise NumericalError(
             f"the {protocol}-like expected cost exceeds the double-precision range (about 1e308): the "
@@ -138,7 +142,6 @@ def _agreeing(system: System, protocol: str, closed: float, forward: float, meth
             f"method '{method}': the closed-form cost {closed:.10g} and the forward cost of its own plan "
             f"{forward:.10g} differ by {abs(closed - forward) / max(forward, 1e-300):.1e} (relative): double "
             f"precision cannot resolve this problem ({weight_spread(system)}); rescale the weights")
-    return closed
 
 
 def weight_spread(system: System) -> str:
@@ -332,7 +335,9 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     value, bound = plan_cost(system, U, protocol, weights)
     check_plan_cost(system, protocol, value, bound)
     if choice == "dense":
-        return _agreeing(system, protocol, dense_cost(system, U, protocol), value, "dense")
+        dense = dense_cost(system, U, protocol)
+        _agree(system, protocol, dense, value, "dense")
+        return dense
     return value
 
 
@@ -355,7 +360,8 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
         ``"recursion"`` is the exact backward recursion: O(N (n^3 + m^3)); ``"auto"`` (default)
         takes the dense form for small well-conditioned problems and the recursion otherwise.
         Every method checks its cost against the forward cost of its own plan (a sum of
-        nonnegative terms) and raises rather than return a number that fails the check.
+        nonnegative terms) and raises rather than return a number that fails the check; the
+        cost returned is the forward one, which does not cancel (``FORWARD_COST_ROUNDING``).
 
     Returns
     -------
@@ -448,7 +454,7 @@ def _recursion_solution(system: System, protocol: str, weights: tuple[np.ndarray
     x = system.x0
     cost = float(x @ (system.initial_weight + P0) @ x) + noise
     scale = SELF_CHECK_ATOL * float(np.linalg.norm(P0, 2)) * float(x @ x)
-    cost = _verified(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
+    cost = _self_checked(system, protocol, cost, U, "recursion", weights, atol=scale, states=X[1:])
     return Solution(protocol=protocol, cost=cost, inputs=U, gain=gain,
                     closed_loop_eigenvalues=_eigs(system, gain), method="recursion")
 
@@ -461,7 +467,7 @@ def _dense_solution(system: System, protocol: str, weights: tuple[np.ndarray, fl
     g = pred.Omega_gp @ system.x0
     cost = _constant(system, pred) + float(g @ (pred.Vbar * u))             # C - g' Vbar G^{-1} g
     U = u.reshape(system.horizon, system.m)
-    cost = _verified(system, protocol, cost, U, "dense", weights)
+    cost = _self_checked(system, protocol, cost, U, "dense", weights)
     gain = F[: system.m]
     return Solution(protocol=protocol, cost=cost, inputs=U, gain=gain,
                     closed_loop_eigenvalues=_eigs(system, gain), method="dense")

@@ -387,12 +387,11 @@ def save_system(system: System, path: str | Path, *, overwrite: bool = False) ->
     >>> path.name, dumps_system(again) == dumps_system(s)
     ('plant.toml', True)
     """
-    path = Path(path)
     if not isinstance(system, System):
         raise InputError("system", f"expected a System, found {type(system).__name__}")
-    with atomic_write(path, overwrite=overwrite, text=True, field="path") as handle:
+    with atomic_write(path, overwrite=overwrite, text=True, field="path") as handle:   # the path as given ('dir/')
         handle.write(dumps_system(system))
-    return path
+    return Path(path)
 
 
 def _toml_value(value: Any) -> str:

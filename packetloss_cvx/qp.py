@@ -36,6 +36,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .budgets import check, duration_text, estimated_seconds, qp_work
 from .convex import solve_problem
 from .costs import closed_form, refuse_correlated
 from .errors import CrossCheckError, InputError, NumericalError, ResourceError, SolverError
@@ -173,6 +174,14 @@ class ExpectedCostQP:
     protocol : {"tcp", "udp"}
     formulation : {"condensed", "sparse", "auto"}
 
+    Raises
+    ------
+    BudgetError
+        The QP's work (:func:`~packetloss_cvx.budgets.qp_work`, its horizon) beyond the ``solve_work`` budget, under
+        ``horizon``, before cvxpy sees it.
+    ResourceError
+        Its memory (:meth:`memory_estimate`) beyond ``tolerances.MEMORY_BUDGET_BYTES``.
+
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0],
@@ -202,6 +211,9 @@ class ExpectedCostQP:
         refuse_correlated(system, self.protocol)
         self.system = system
         N, n, m = system.horizon, system.n, system.m
+        work = qp_work(N, n, m, self.formulation)       # the horizon priced before cvxpy sees it (budgets.py)
+        check("solve_work", work, "horizon", f"the {self.formulation} QP of N = {N} (n = {n}, m = {m}), about "
+                                             f"{duration_text(estimated_seconds('solve_work', work))}")
         needed = self.memory_estimate(system)
         if needed > MEMORY_BUDGET_BYTES:
             raise ResourceError(

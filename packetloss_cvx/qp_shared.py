@@ -155,22 +155,20 @@ class CondensedQP:
             at = point(self.z)
             for leaf, value in ((self.c, c_full), (self.G, G_full), (self.r, r_full), (self.z, at)):
                 leaf.save_value(value)
-        # the value as problem.solve reports it: the objective evaluated at the point (not Clarabel's own), by
-        # the operations of cvxpy's numeric evaluation, in its order; the same floats (tests/test_qp_shared.py)
+        # the value as problem.solve reports it: the objective evaluated at the point (not Clarabel's own)
         return np.array(at[:k], dtype=float), objective_value(c_full, G_full, r_full, at), status
 
 
 def objective_value(c: np.ndarray, G: np.ndarray, r: np.ndarray, z: np.ndarray) -> float:
-    """``||c + G z||^2 + ||r ∘ z||^2`` as cvxpy's ``objective.value`` computes it for :class:`CondensedQP`'s
-    expression (``quad_over_lin(c + G z, 1) + quad_over_lin(r * z, 1)``, each ``np.square(x).sum() / 1.0``),
-    so the same floats. O(R K).
+    """``||c + G z||^2 + ||r ∘ z||^2``, :class:`CondensedQP`'s objective at ``z`` (cvxpy's ``objective.value`` of its
+    expression ``quad_over_lin(c + G z, 1) + quad_over_lin(r * z, 1)``, to rounding). O(R K).
 
     Examples
     --------
     >>> objective_value(np.array([1.0]), np.array([[1.0]]), np.array([1.0]), np.array([-0.5]))     # 1/4 + 1/4
     0.5
     """
-    return float(np.square(c + G @ z).sum() / 1.0 + np.square(np.multiply(r, z)).sum() / 1.0)
+    return float(np.square(c + G @ z).sum() + np.square(r * z).sum())
 
 
 def condensed_problem(rows: int, cols: int) -> CondensedQP:

@@ -4,10 +4,13 @@
   longer the one its complete manifest describes (size and sha256: edited since), unless ``force=True``
   (``--force``): a user's files are never replaced silently. An empty folder is accepted.
 * The folder carries ``manifest.json`` (command, version, time, each file with its size and sha256,
-  ``"complete": true``), written last and atomically. While a run writes, the manifest says
-  ``"complete": false`` and lists every name the run (or the run it replaces) may have left, so the
-  package's folder is always recognisably its own, and a complete one is recognisably one run (its
-  hashes match).
+  ``"complete": true``, and the sha256 of its own content, ``"digest"``), written last and atomically. While a run
+  writes, the manifest says ``"complete": false`` and lists every name the run (or the run it replaces) may have
+  left, each file the run has finished with its size and sha256 as soon as it is finished, so the package's folder
+  is always recognisably its own and a file edited after an interrupted run is seen as after a complete one. The
+  one file in flight is listed by name only: such an entry makes a file the package's only if it is not older
+  than the manifest (the run's last write); an older one is a user's file.
+* A manifest edited by hand (its digest no longer matches) is a changed file: refused without ``force``.
 * A new run into the package's own folder replaces the run as a whole: files of the previous run that
   this one does not write are removed before its manifest is written. With ``--force`` in a folder
   holding other files, those files are left alone and are not listed.
@@ -22,19 +25,21 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import hashlib
 import json
 import os
 import secrets
 import stat
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
 from .errors import FolderBusyError, InputError, OutputExistsError
-from .safeio import TEMP_PREFIX, atomic_write, clean_temporaries, file_digest, pid_alive, refuse_special
+from .safeio import TEMP_PREFIX, atomic_write, check_flag, clean_temporaries, file_digest, pid_alive, refuse_special
 
-__all__ = ["LOCK_NAME", "MANIFEST_NAME", "RunFolder", "read_manifest"]
+__all__ = ["LOCK_NAME", "MANIFEST_NAME", "RunFolder", "manifest_digest", "read_manifest"]
 
 LOCK_NAME = ".packetloss-cvx.lock"
 MANIFEST_NAME = "manifest.json"
@@ -58,6 +63,17 @@ def read_manifest(folder: str | Path) -> dict[str, Any] | None:
     if not all(isinstance(f, dict) and isinstance(f.get("name"), str) for f in data["files"]):
         return None
     return data
+
+
+def manifest_digest(data: dict[str, Any]) -> str:
+    """The sha256 of a manifest's content without its ``"digest"`` (keys sorted, as JSON): what the manifest records
+    of itself, so that an edit inside it is seen. O(size).
+
+    >>> manifest_digest({"b": 1, "a": [2], "digest": "x"}) == manifest_digest({"a": [2], "b": 1})
+    True
+    """
+    body = {key: value for key, value in data.items() if key != "digest"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()
 
 
 class RunFolder:
@@ -90,10 +106,12 @@ class RunFolder:
             raise InputError(field, "expected a folder, found an empty path")
         self.path = Path(path)
         self.command = command
-        self.force = force
+        self.force = check_flag(force, "force")
         self.field = field
         self.written: list[str] = []
+        self.done: dict[str, dict[str, Any]] = {}     # the files this run finished: their entries (size, sha256)
         self.previous: list[str] = []       # names the previous run (complete or not) left
+        self.carried: dict[str, dict[str, Any]] = {}  # their entries, with the sha256 of what is there
         self.created = False
         self.locked = False
         self.marked = False                  # the manifest says "complete": false for this run
@@ -123,7 +141,13 @@ class RunFolder:
             return self._claim()            # created meanwhile by another run: look again
         except OSError as err:
             raise self._fail(err) from None
-        self._lock()
+        try:
+            self._lock()
+        except BaseException:
+            if self.created:                # a folder this run made and could not lock (a full disk): not left behind
+                with contextlib.suppress(OSError):
+                    self.path.rmdir()
+            raise
         clean_temporaries(self.path)
 
     def _lock(self) -> None:
@@ -141,8 +165,12 @@ class RunFolder:
                 raise self._fail(err) from None
             try:
                 os.write(fd, f"{os.getpid()}\n".encode())
-            finally:
+            except OSError as err:          # a full disk: no lock of ours stays behind (it would look busy), exit 2
                 os.close(fd)
+                with contextlib.suppress(OSError):
+                    os.unlink(lock)
+                raise self._fail(err) from None
+            os.close(fd)
             self.locked = True
             return
         raise FolderBusyError(self.field, f"{str(self.path)!r}: its lock changes hands too often; try again")
@@ -193,10 +221,14 @@ class RunFolder:
         ours = {LOCK_NAME, MANIFEST_NAME} if manifest else {LOCK_NAME}
         try:
             present = [name for name in os.listdir(self.path) if name not in ours and not name.startswith(TEMP_PREFIX)]
+            written = (self.path / MANIFEST_NAME).stat().st_mtime if manifest else 0.0
         except OSError as err:
             raise self._fail(err) from None
         foreign = sorted(name for name in present if name not in entries)
-        changed = sorted(name for name in present if name in entries and not self._as_listed(entries[name]))
+        verified = {name: self._verified(entries[name], written) for name in present if name in entries}
+        changed = sorted(name for name, entry in verified.items() if entry is None)
+        if manifest is not None and "digest" in manifest and manifest["digest"] != manifest_digest(manifest):
+            changed.append(MANIFEST_NAME)   # edited by hand (a manifest without a digest is an earlier version's)
         if (foreign or changed) and not self.force:
             if foreign:
                 names = foreign
@@ -208,32 +240,52 @@ class RunFolder:
             raise OutputExistsError(self.field, f"refusing to write into {str(self.path)!r}: {what} {shown}; "
                                                 "pass --force to write there anyway")
         self.previous = sorted(name for name in present if name in entries and name not in changed)
+        self.carried = {name: verified[name] for name in self.previous}    # listed by this run's unfinished manifest
 
-    def _as_listed(self, entry: dict[str, Any]) -> bool:
-        """Whether the file a manifest entry names is the one the entry describes: its size and sha256 where the entry
-        records them (a complete run's manifest), any file of that name where it does not (an unfinished run's list
-        of the names it may have left). A file edited since, or replaced by a folder, is not. O(size of the file)."""
-        if "sha256" not in entry:
-            return True
-        path = self.path / entry["name"]
+    def _verified(self, entry: dict[str, Any], written: float) -> dict[str, Any] | None:
+        """The file a manifest entry names, as an entry with its size and sha256, if it is the package's: the one the
+        entry describes (its size and sha256), or, where the entry has no hash (the file an unfinished run was
+        writing when it stopped) or marks the file as being rewritten (``"writing"``), a file not older than the
+        manifest (``written``, its mtime): it appeared after the run listed it. None for a file edited since, one
+        older than an entry without a hash (a user's file the list names), or a folder. O(size of the file)."""
+        path, hashed = self.path / entry["name"], "sha256" in entry
         try:
-            if not path.is_file() or ("bytes" in entry and path.stat().st_size != entry["bytes"]):
-                return False
-            return file_digest(path) == entry["sha256"]
+            if not path.is_file():
+                return None
+            info = path.stat()
+            if hashed and info.st_size == entry.get("bytes", info.st_size):
+                now = self._entry(entry["name"])
+                if now["sha256"] == entry["sha256"]:
+                    return now
+            if (not hashed or entry.get("writing") is True) and info.st_mtime >= written:
+                return self._entry(entry["name"])
         except OSError:
-            return False
+            pass
+        return None
+
+    def _entry(self, name: str) -> dict[str, Any]:
+        """The manifest entry of the file ``name`` as it is now: its size and sha256. O(size of the file)."""
+        path = self.path / name
+        return {"name": name, "bytes": path.stat().st_size, "sha256": file_digest(path)}
 
     # -- writing ----------------------------------------------------------------------------------------
     def _manifest(self, complete: bool) -> dict[str, Any]:
         data: dict[str, Any] = {"packetloss_cvx": _version(), "command": self.command, "complete": complete,
-                                "written": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+                                "written": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
         if complete:
-            data["files"] = [{"name": name, "bytes": (self.path / name).stat().st_size,
-                              "sha256": file_digest(self.path / name)} for name in self.written]
+            data["files"] = [self.done.get(name) or self._entry(name) for name in self.written]
         else:
-            names = sorted(set(self.previous) | set(self.written))
-            data["files"] = [{"name": name} for name in names]
+            files = []
+            for name in sorted(set(self.previous) | set(self.written)):
+                if name in self.done:                   # finished by this run
+                    files.append(self.done[name])
+                elif name in self.carried:              # the previous run's, perhaps being rewritten now
+                    files.append({**self.carried[name], "writing": name in self.written})
+                else:                                   # in flight: its content is not known yet
+                    files.append({"name": name})
+            data["files"] = files
             data["note"] = "a run that did not finish: these files may come from different runs"
+        data["digest"] = manifest_digest(data)
         return data
 
     def _write_manifest(self, complete: bool) -> None:
@@ -250,9 +302,22 @@ class RunFolder:
             raise InputError(self.field, f"{name!r} is not a file name this folder can hold")
         if name not in self.written:
             self.written.append(name)
+        self.done.pop(name, None)
         self._write_manifest(complete=False)
         self.marked = True
-        return atomic_write(self.path / name, overwrite=True, text=text, field=self.field)
+        return self._writing(name, text)
+
+    @contextlib.contextmanager
+    def _writing(self, name: str, text: bool) -> Iterator[IO[Any]]:
+        """:func:`atomic_write` of ``name``; once it is in place, its size and sha256 go into the unfinished manifest
+        (an edit after an interrupted run is then seen). O(size) to hash."""
+        with atomic_write(self.path / name, overwrite=True, text=text, field=self.field) as handle:
+            yield handle
+        try:
+            self.done[name] = self._entry(name)
+        except OSError as err:
+            raise self._fail(err) from None
+        self._write_manifest(complete=False)
 
     # -- leaving ----------------------------------------------------------------------------------------
     def __exit__(self, kind: type[BaseException] | None, *rest: object) -> None:

@@ -29,8 +29,9 @@ from typing import IO, Any
 
 from .errors import InputError, OutputExistsError
 
-__all__ = ["FIGURE_DPI", "TEMP_PREFIX", "atomic_write", "check_output_file", "clean_temporaries", "figure_path",
-           "file_digest", "laid_out_once", "pid_alive", "refuse_special", "save_figure"]
+__all__ = ["FIGURE_DPI", "TEMP_PREFIX", "atomic_write", "check_flag", "check_output_file", "clean_temporaries",
+           "figure_path", "file_digest", "laid_out_once", "pid_alive", "refuse_folder_name", "refuse_special",
+           "save_figure"]
 
 #: the recognisable start of every temporary file (``<prefix><pid>-<random>-<name>``)
 TEMP_PREFIX = ".packetloss-cvx-tmp-"
@@ -60,6 +61,39 @@ def refuse_special(path: Path, field: str) -> os.stat_result | None:
     return info
 
 
+def check_flag(value: Any, field: str) -> bool:
+    """``value`` if it is ``True`` or ``False`` (a NumPy bool too), else an InputError naming ``field``: leave to
+    replace a user's file is given by ``True``, never by any truthy value (``overwrite="no"`` replaced the file). O(1).
+
+    Examples
+    --------
+    >>> check_flag(True, "overwrite")
+    True
+    >>> check_flag("no", "overwrite")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: overwrite: expected True or False, found 'no'
+    """
+    if not (isinstance(value, bool) or type(value).__name__ == "bool_"):    # numpy.bool_, without importing NumPy
+        raise InputError(field, f"expected True or False, found {value!r:.40}")
+    return bool(value)
+
+
+def refuse_folder_name(path: str | Path, field: str) -> None:
+    """Refuse a FILE path that ends in '/': the user names a folder (``Path`` drops the slash, and ``--out newdir/``
+    wrote a file named newdir). O(1).
+
+    >>> refuse_folder_name("runs/", "--out")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --out: cannot write 'runs/': it names a folder (a trailing '/'); give a FILE, \
+e.g. 'runs/result.json'
+    """
+    if isinstance(path, str) and path.endswith(("/", os.sep)):
+        raise InputError(field, f"cannot write {path!r}: it names a folder (a trailing '/'); give a FILE, e.g. "
+                                f"{path.rstrip('/' + os.sep) + '/result.json'!r}")
+
+
 def check_output_file(path: str | Path, field: str, overwrite: bool = False) -> None:
     """Refuse, before any work, a FILE that cannot become a regular file here: a directory, a FIFO or device,
     a missing or unwritable folder, an existing file without ``overwrite``. Nothing is created. O(1).
@@ -78,6 +112,7 @@ def check_output_file(path: str | Path, field: str, overwrite: bool = False) -> 
     target = Path(path)
     if not str(path).strip():
         raise InputError(field, "expected a file name, found an empty path")
+    refuse_folder_name(path, field)
     folder = target.parent
     try:
         info = refuse_special(target, field)
@@ -204,8 +239,8 @@ def atomic_write(path: str | Path, *, overwrite: bool = False, text: bool = Fals
     ...     target.read_text(), [p.name for p in Path(tmp).iterdir()]      # the old file, no temporary
     ('first', ['data.txt'])
     """
+    check_output_file(path, field, check_flag(overwrite, "overwrite"))      # the path as given: a trailing '/'
     path = Path(path)
-    check_output_file(path, field, overwrite)
     clean_temporaries(path.parent)
     temp = path.parent / f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}-{path.name[-_NAME_KEPT:]}"
     try:
@@ -255,6 +290,8 @@ def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False, field: s
     ...     path.name, path.read_bytes()[:4]
     ('empty.png', b'\x89PNG')
     """
+    check_flag(overwrite, "overwrite")
+    refuse_folder_name(path, field)
     path = figure_path(path)
     fmt = path.suffix[1:].lower()
     target = folder.write(path.name) if folder is not None else atomic_write(path, overwrite=overwrite, field=field)

@@ -86,9 +86,22 @@ DENSE_MAX_CONDITION = 1e8
 #: nonnegative terms, free of cancellation): |J_closed - J_forward| <= SELF_CHECK_RTOL * J_forward
 #: + SELF_CHECK_ATOL * ||P_0|| ||x||^2 (the last term only for the recursion, whose x'P_0 x has
 #: that rounding scale). Well-posed systems agree to 1e-14 (300 random ones: worst 4.7e-15);
-#: badly scaled weights (1e10 against 1) disagree by 5e-7 and more.
+#: badly scaled weights (1e10 against 1) disagree by 5e-7 and more. closed_form then reports J_forward
+#: (FORWARD_COST_ROUNDING), the more accurate of the two.
 SELF_CHECK_RTOL = 1e-9
 SELF_CHECK_ATOL = 1e-13
+
+__all__ += ["FORWARD_COST_ROUNDING"]
+
+#: closed_form reports the forward cost of its own plan, not the x'P_0 x (or C - g'Vbar G^-1 g) it checks against
+#: it: that one cancels, off by up to about eps ||P_0|| ||x||^2; the forward sum's terms are nonnegative and its
+#: states cancel only to about eps sqrt(||Q|| ||x||^2 J*), and the plan's own rounding enters it at second order.
+#: |J_reported - J*| <= FORWARD_COST_ROUNDING eps sqrt(||Q|| ||x||^2 J*) (N = 1, ||x|| the larger of |x0|, |A x0|).
+#: Measured against the exact rational J* of 238 random one-step plants (n = 1..3, one input, the first state's
+#: weight scaled by 1 to 1e14; tests/test_costs.py), under OpenBLAS's Haswell and Prescott kernels: the forward
+#: cost within 1.2 of that bound's unit, x'P_0 x up to 1700 times it (1.2e-9 relative where J* = 246 and
+#: ||Q|| ||x||^2 = 3.4e9: the property test's failure of 1.35e-9 against its 1e-9).
+FORWARD_COST_ROUNDING = 4.0
 
 #: The backward passes (the Riccati recursion, the Lyapunov sums) close a stationary tail (A, B, the
 #: weights and mu the same at every earlier step) once their estimated remaining drift is below
@@ -141,7 +154,9 @@ KERNEL_ZERO_ATOL = 1e-12
 KERNEL_POINT_RTOL = 1e-6
 #: ... a holding claim's worst margin (its tolerance less the largest error, an error at rounding level) by
 #: KERNEL_MARGIN_RTOL of the margin (measured: lemma-2's 9.989e-6 against 9.972e-6, 1.7e-3; cost-split-sensor
-#: 1.2e-3), as only the verdict, not the rounding error's digits, is a result ...
+#: 1.2e-3; docs/claims.md's audit under seven kernels: cost-split-sensor 1.2e-3, lemma-2 8.3e-4, theorem-1-laws
+#: 3.7e-7, mpc-vs-dp 6.7e-8, a failing claim's at most 1.3e-8), as only the verdict, not the rounding error's digits,
+#: is a result ...
 KERNEL_MARGIN_RTOL = 1e-2
 #: ... the DP cost at a stability allocation's mu* (on the stabilisable set's boundary, where the cost grows like
 #: 1 / (1 - radius)) by KERNEL_BOUNDARY_RTOL: it moves with mu* inside its certified gap, amplified by that
@@ -167,10 +182,10 @@ MEMORY_BUDGET_BYTES = 0.25 * (os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_P
 #: the bound held on every one; 70 were refused (closed-form plans of rho = 3 plants, N 23-40, steering the state to
 #: zero), each truly off by 1.26e-9 to 1 (relative; the bound within 1 % of the true error there), and every one
 #: returned was truly within 9.9e-10 (Haswell kernels; under Prescott, 4,840 other plans: the bound held on all, 40
-#: refused each truly off by 1.07e-9 or more, those returned within 8.9e-10). The pendulum (rho = 1.061) at N = 400: bound 2.217e-13, true 2.206e-13
-#: (returned); N = 500: 7.72783e-7 against 7.72782e-7 (refused); N = 2000: 1.10977283659e78 against
-#: 1.10977283658e78 on an exact cost of 1.4687e80 (refused; the optimum is 25445). A stable plant (n = 4, m = 2,
-#: N = 10^5, a random plan): 1.6e-15 relative.
+#: refused each truly off by 1.07e-9 or more, those returned within 8.9e-10). The pendulum (rho = 1.061) at
+#: N = 400: bound 2.217e-13, true 2.206e-13 (returned); N = 500: 7.72783e-7 against 7.72782e-7 (refused);
+#: N = 2000: 1.10977283659e78 against 1.10977283658e78 on an exact cost of 1.4687e80 (refused; the optimum is 25445).
+#: A stable plant (n = 4, m = 2, N = 10^5, a random plan): 1.6e-15 relative.
 PLAN_COST_RTOL = SELF_CHECK_RTOL
 
 # ------------------------------------------------------------------ channel allocation (allocation/)
@@ -285,8 +300,10 @@ KRONECKER_MAX_N = 20
 MOMENT_DENSE_MAX_N = 30
 MOMENT_RESIDUAL_RTOL = 1e-9
 #: The modified Riccati equation (simulation/riccati.py) has converged when
-#: ||P_next - P|| <= RICCATI_RTOL ||P||; its value iteration gives up after RICCATI_MAX_ITER steps
-#: or when ||P|| exceeds RICCATI_DIVERGENCE times its start (no stabilising solution).
+#: ||P_next - P|| <= RICCATI_RTOL ||P||; its value iteration gives up after RICCATI_MAX_ITER steps. Once ||P||
+#: exceeds RICCATI_DIVERGENCE times the weights (and at each further factor RICCATI_DIVERGENCE^(1/4)) its direction
+#: is checked in exact arithmetic as a certificate that no law stabilises ("no stabilising solution" only then):
+#: growth is no proof, a chain of integrators (1.001 on the diagonal, mu = 0.0186) has an optimum with ||P|| = 2e16.
 RICCATI_RTOL = 1e-12
 RICCATI_MAX_ITER = 20000
 RICCATI_DIVERGENCE = 1e14
@@ -338,3 +355,30 @@ CERTIFICATE_KERNEL_RTOL = 1e-10
 #: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
 #: many steps (below it, 30 steps and then a policy iteration); its answer is a candidate, checked either way.
 HOMOGENEOUS_RICCATI_MAX_ITER = 5000
+__all__ += ["LEAST_RADIUS_ATOL"]
+
+#: The least mean-square radius min_K rho(L_K) (simulation/region.py) is zero to rounding where the homogeneous
+#: Riccati map's power iteration finds tr R(P) <= LEAST_RADIUS_ATOL ||A||_2^2 tr P: an absolute floor scaled to the
+#: plant (R(P) = A'PA - ... is a difference of terms of size ||A||^2 ||P||, and iterating on R(P) / lambda below it
+#: amplifies their rounding: the last iterate's P carries eigenvalues of eps ||A||^2 / lambda, -8e-7 at lambda 1e-10).
+#: The point stops there and reports tr R(P) / tr P, in [0, LEAST_RADIUS_ATOL ||A||_2^2] by that test. Where the
+#: always-delivered channels alone reach the state, the least radius is exactly 0 (their deadbeat law) and is
+#: reported so: measured before that rule at two such points, the iteration's own value was 0 and 5.2e-32 under the
+#: Haswell kernel, 1.17e-12 and 5.99e-12 (4.7e-12 and 5.4e-12 ||A||^2) under Prescott, from P's rounding-level
+#: eigenvalues that its PSD part keeps.
+LEAST_RADIUS_ATOL = 1e-12
+
+__all__ += ["ROUNDING_ORDER_RTOL"]
+
+#: Two computations of one quantity that exact arithmetic makes equal and that differ only in the order of their
+#: floating-point operations (a stack of matrices against each matrix alone, a gathered update against one written
+#: in place, 1/s against a 1 x 1 pseudo-inverse, one (S n) x n product against S small ones, a filter loop against
+#: its vectorised form) agree within ROUNDING_ORDER_RTOL times the quantity's largest entry. Bit for bit is not a
+#: contract between them: the BLAS kernel picks the order of each product's sums (OpenBLAS's Prescott kernel rounds
+#: a stack of 3 x 3 updates up to 1.2e-15 of its scale away from the same updates gathered, where Haswell and
+#: SkylakeX agree to the bit). Measured on the tests that compare such pairs under OpenBLAS's Prescott, Nehalem,
+#: Sandybridge, Haswell, Zen, SkylakeX and native kernels: at most 1.2e-15 (tests/test_sensing_estimation.py,
+#: tests/test_sensing_montecarlo_loop.py); equal to the bit (tests/test_closed_loop.py's stack of laws,
+#: tests/test_model.py's repaired weights, tests/test_qp_shared.py's objective against cvxpy's evaluation).
+#: 1e-12 leaves room for longer chains of products.
+ROUNDING_ORDER_RTOL = 1e-12

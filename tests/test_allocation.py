@@ -379,6 +379,108 @@ def test_min_cost_reports_the_gap_it_certified(protocol):
     assert r.gap == pytest.approx((r.cost - r.lower_bound) / r.cost, rel=1e-12, abs=0.0)
 
 
+@pytest.mark.parametrize("scale", [1e-20, 1.0, 1e20])
+@pytest.mark.parametrize(("factor", "floored"), [(3.0, False), (0.3, True)])
+def test_gap_unit_floors_values_below_allocation_gap_floor_times_the_problem_scale(scale, factor, floored):
+    """The unit a gap is taken of (allocation.udp.gap_unit: the searches' certificate and every reported minimum-cost
+    gap) is |value|, floored at ALLOCATION_GAP_FLOOR times the problem's own scale: a value 3 times the floor is its
+    own unit, one 0.3 times the floor gets the floor, at every scale (the floor is relative to the problem)."""
+    from packetloss_cvx.allocation.udp import gap_unit, reported_gap
+    from packetloss_cvx.tolerances import ALLOCATION_GAP_FLOOR
+
+    floor = ALLOCATION_GAP_FLOOR * scale
+    value = factor * floor
+    assert gap_unit(value, scale) == (floor if floored else value)
+    assert reported_gap(value, 0.0, scale) == pytest.approx(factor if floored else 1.0, rel=1e-15)
+    assert gap_unit(value, None) == value                       # no problem scale: a plain relative gap
+
+
+@pytest.mark.parametrize(("protocol", "bounds"), [("tcp", (0.0, 1.0)), ("udp", (0.0, 1.0)), ("udp", (0.0, 0.9))])
+@pytest.mark.parametrize(("factor", "proved"), [(3.0, True), (0.3, False)])
+def test_infeasibility_is_proved_only_beyond_allocation_cost_rtol(two_actuator, protocol, bounds, factor, proved):
+    """alpha just below the least reachable cost, J* at the upper corner of the bounds (J* falls in every mu_i,
+    Theorem 3): the allocation proves infeasibility only where J*(corner) > alpha (1 + ALLOCATION_COST_RTOL), the
+    accuracy it trusts the closed form to. At 3 times the band below: InfeasibleError; at 0.3 times: no proof either
+    way (SolverError), never an answer. Bounds (0, 1) are decided by the TCP-like relaxation's corner (both
+    protocols), (0, 0.9) by the UDP-like boxes (the relaxation is feasible there)."""
+    from packetloss_cvx.errors import InfeasibleError, SolverError
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    corner = pl.closed_form(two_actuator.with_mu([bounds[1]] * 2), protocol).cost
+    alpha = corner / (1 + factor * ALLOCATION_COST_RTOL)
+    by = "at the upper corner of the bounds" if bounds[1] == 1.0 else "every box was proven infeasible"
+    with pytest.raises(InfeasibleError if proved else SolverError, match=by if proved else "solver status"):
+        allocate(two_actuator, protocol, alpha, [1.0, 1.0], bounds=bounds, max_boxes=50)
+
+
+@pytest.mark.parametrize(("factor", "accepted"), [(3.0, True), (0.3, False)])
+def test_a_gap_finer_than_allocation_gap_min_is_refused_naming_gap(two_actuator, factor, accepted):
+    """The smallest gap an allocation may be asked to certify is ALLOCATION_GAP_MIN (finer would be finer than the
+    closed form's trusted accuracy): 3 times it is taken, 0.3 times it is refused before any work, naming gap."""
+    from packetloss_cvx.tolerances import ALLOCATION_GAP_MIN
+
+    gap = factor * ALLOCATION_GAP_MIN
+    if accepted:
+        got = allocate(two_actuator, "tcp", 8.0, [1.0, 1.0], gap=gap)
+        assert got.gap <= gap or got.status == "gap_not_certified"
+    else:
+        with pytest.raises(pl.InputError, match=r"^gap: expected a number in \["):
+            allocate(two_actuator, "tcp", 8.0, [1.0, 1.0], gap=gap)
+
+
+def test_a_tangent_cut_is_loosened_by_allocation_cost_rtol_of_the_value_and_gradient():
+    """Each tangent cut of J*_tcp is lowered by ALLOCATION_COST_RTOL (|J*| + ||grad||_1) for the closed form's
+    rounding: at its own touching point the cut lies exactly that far below J*. One step of x' = x + v u from x0 = 1:
+    J*_tcp = 1 / (1 + mu), gradient -1 / (1 + mu)^2 (by hand), so at mu = 1/2 the cut is 10/9 ALLOCATION_COST_RTOL
+    below 2/3 (to 1e-6 of that amount: a band moved 10x either way fails)."""
+    from packetloss_cvx.allocation.tcp import tangent_cuts
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    S, r = tangent_cuts(s, np.array([0.5]))
+    below = 2 / 3 - (r[0] + S[0, 0] * 0.5)
+    assert S[0, 0] == pytest.approx(-4 / 9, rel=1e-12)
+    assert below == pytest.approx(ALLOCATION_COST_RTOL * (2 / 3 + 4 / 9), rel=1e-6)
+
+
+@pytest.mark.parametrize(("factor", "status"), [(3.0, "gap_not_certified"), (0.3, "optimal")])
+def test_tcp_min_cost_is_optimal_only_within_min_cost_rtol(monkeypatch, factor, status):
+    """The TCP-like least cost is certified ("optimal") when its gap to the tangent cuts' bound is within
+    MIN_COST_RTOL. One step of x' = x + v u from x0 = 1 with mu <= 0.6: the least is J*_tcp(0.6) = 1 / 1.6 (by hand,
+    J* falls in mu); the cuts planted lower by factor MIN_COST_RTOL J* make the gap that (plus their own 1e-9
+    loosening): "gap_not_certified" at 3, "optimal" at 0.3, the reported gap the planted one either way."""
+    import packetloss_cvx.allocation.tcp as tcp_module
+    from packetloss_cvx.tolerances import MIN_COST_RTOL
+
+    least = 1 / 1.6
+    real = tcp_module.tangent_cuts
+
+    def lowered(*args, **kwargs):
+        S, r = real(*args, **kwargs)
+        return S, r - factor * MIN_COST_RTOL * least
+
+    monkeypatch.setattr(tcp_module, "tangent_cuts", lowered)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    got = min_cost(s, "tcp", constraints=[(np.array([[1.0]]), np.array([0.6]))])
+    assert got.status == status
+    assert got.cost == pytest.approx(least, rel=1e-12)
+    assert got.gap == pytest.approx(factor * MIN_COST_RTOL, rel=0.01)
+
+
+def test_udp_min_cost_certifies_min_cost_rtol_and_stops_there(two_actuator):
+    """The UDP-like least cost is certified to MIN_COST_RTOL: the reported gap is within it, and the search stops at
+    the first box that certifies it (on this problem the gap halves every other box, measured 2e-6, 2e-6, 9.9e-7,
+    so it ends within (MIN_COST_RTOL / 2, MIN_COST_RTOL]); a search aiming 10 times finer ends below a tenth, one
+    aiming 10 times coarser above it."""
+    from packetloss_cvx.tolerances import MIN_COST_RTOL
+
+    rows = [(np.array([[1.0, 1.0]]), np.array([1.2]))]
+    got = min_cost(two_actuator, "udp", constraints=rows)
+    assert got.status == "optimal"
+    assert MIN_COST_RTOL / 10 < got.gap <= MIN_COST_RTOL
+    assert got.gap == pytest.approx((got.cost - got.lower_bound) / got.cost, rel=1e-9)
+
+
 @pytest.mark.parametrize("protocol", ["tcp", "udp"])
 def test_constraints_contradictory_by_less_than_the_solver_tolerance_are_infeasible(two_actuator, protocol):
     """mu1 + mu2 >= 1.5 and mu1 + mu2 <= 1.5 - 1e-12 admit no channel: proved exactly, not 'optimal' within the LP

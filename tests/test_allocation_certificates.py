@@ -358,3 +358,16 @@ def test_a_relaxation_whose_cuts_are_not_finite_is_a_numerical_error_and_the_udp
     assert got.lower_bound <= got.communication_cost
     worse = got.mu * (1 - 1e-3)                          # a cheaper channel pair just below the answer is infeasible
     assert pl.closed_form(system.with_mu(worse), "udp", method="recursion").cost > 5.0
+
+
+@pytest.mark.parametrize(("alpha", "tol"), [(0.5, 1e-9), (0.5, 1e-6), (0.25, 1e-6)])
+def test_line_search_aims_allocation_aim_rtol_inside_alpha(alpha, tol):
+    """allocation.boxes.bracket interpolates toward alpha (1 - ALLOCATION_AIM_RTOL), not alpha: on a straight line
+    f(t) = 1 - t the first secant lands on that level exactly, and every later step is above alpha (outside), so the
+    point it returns inside is ALLOCATION_AIM_RTOL alpha below alpha (by hand; to 1e-6 of that margin)."""
+    from packetloss_cvx.allocation.boxes import bracket
+    from packetloss_cvx.tolerances import ALLOCATION_AIM_RTOL
+
+    s_in, s_out = bracket(lambda t: 1.0 - t, alpha, 0.0, 1.0, tol)
+    assert 0.0 < s_in - s_out <= tol
+    assert (alpha - (1.0 - s_in)) / alpha == pytest.approx(ALLOCATION_AIM_RTOL, rel=1e-6)

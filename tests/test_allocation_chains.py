@@ -62,6 +62,23 @@ def test_allocation_is_certified_against_a_grid_of_the_exact_cost():
     assert a.cost == pytest.approx(qp.cost, rel=1e-7)
 
 
+@pytest.mark.parametrize("max_boxes", [1, 2, 4])
+def test_a_capped_allocation_reports_the_gap_between_its_own_cost_and_bound(max_boxes):
+    """Stopped at a cap, the reported gap is (communication cost - lower bound) / communication cost of the reported
+    numbers (prices whose largest is 3: the scaled and unscaled costs differ), and the bound is below every grid
+    point that meets alpha (the exact cost by the chain's own evaluator)."""
+    s = two_channel(GILBERT)
+    alpha, beta = 1.05 * exact_closed_form(s).cost, np.array([3.0, 1.0])
+    a = allocate(s, "udp", alpha, beta, max_boxes=max_boxes)
+    assert a.status == "gap_not_certified"
+    assert a.gap == pytest.approx((a.communication_cost - a.lower_bound) / a.communication_cost, rel=1e-12)
+    assert a.communication_cost == pytest.approx(float(beta @ a.mu), rel=1e-12)
+    evaluator = ChainEvaluator(s.with_mu([0.8, 0.5]), np.array([0.6, 0.3]))
+    grid = np.linspace(0.0, 1.0, 21)
+    best = min(beta @ mu for mu in (np.array([x, y]) for x in grid for y in grid) if evaluator.cost(mu) <= alpha)
+    assert a.lower_bound <= best * (1 + 1e-9)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_exact_cost_falls_as_a_mean_rate_rises(seed):
     """The monotonicity the certificate rests on (proved in docs/design.md): seeded random plants and lambdas."""

@@ -152,3 +152,22 @@ def test_lp_refuses_a_non_finite_right_hand_side_as_linprog_does(bad):
     assert boxes.highs_optimum(c, G, h, l, u) is None
     with pytest.raises(ValueError, match="b_ub"):
         boxes.lp(c, G, h, l, u)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_an_answer_outside_the_rows_by_3_lp_feasibilities_is_refused_and_by_0_3_kept(factor, kept):
+    """Every answer is checked against the bounds and rows to ALLOCATION_LP_FEASIBILITY (HiGHS's own feasibility
+    tolerance): a row mu1 + mu2 <= 1 or the bound mu <= 1 missed by 3 times it raises SolverError naming the
+    excess; by 0.3 times the point is returned as it is."""
+    from packetloss_cvx.allocation.boxes import check_in_polytope
+    from packetloss_cvx.allocation.grammar import read_polytope
+    from packetloss_cvx.errors import SolverError
+
+    poly = read_polytope([([[1.0, 1.0]], [1.0])], 2, 0.0, 1.0)
+    excess = factor * ALLOCATION_LP_FEASIBILITY
+    for mu in (np.array([0.5, 0.5 + excess]), np.array([0.0, 1.0 + excess])):
+        if kept:
+            assert check_in_polytope(mu, poly, "a test") is mu
+        else:
+            with pytest.raises(SolverError, match="a test: mu violates the constraints by 3.00e-09"):
+                check_in_polytope(mu, poly, "a test")

@@ -725,3 +725,37 @@ def test_the_compiled_power_program_is_kept_by_content(monkeypatch):
     monkeypatch.setattr(power, "PROGRAMS_KEPT", 0)                     # every program new
     new = least_cost_within_power(plant(x0=[0.5, 2.0]), "tcp", model, 2.0)
     assert (fresh.power.tolist(), fresh.cost, fresh.lower_bound) == (new.power.tolist(), new.cost, new.lower_bound)
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+@pytest.mark.parametrize(("factor", "proved"), [(3.0, True), (0.3, False)])
+def test_least_power_proves_infeasibility_only_beyond_allocation_cost_rtol(two_actuator, protocol, factor, proved):
+    """alpha just below J* at the largest powers allowed (max_power 2 on the exponential model: mu = 1 - e^-2 on each
+    channel, J* falls as any power rises): infeasibility is proved only where J* there exceeds alpha (1 +
+    ALLOCATION_COST_RTOL). At 3 times the band below: InfeasibleError; at 0.3 times: no proof (SolverError)."""
+    from packetloss_cvx.costs import closed_form
+    from packetloss_cvx.errors import SolverError
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    mu = 1 - np.exp(-2.0)
+    alpha = closed_form(two_actuator.with_mu([mu, mu]), protocol).cost / (1 + factor * ALLOCATION_COST_RTOL)
+    with pytest.raises(InfeasibleError if proved else SolverError,
+                       match="at the largest powers searched" if proved else "infeasibility not proven"):
+        least_power(two_actuator, protocol, power_model("exponential", 2, scale=1.0), alpha, max_power=2.0,
+                    max_boxes=50)
+
+
+def test_a_power_cut_is_loosened_by_allocation_cost_rtol_of_the_value_and_gradient():
+    """As the TCP-like tangent cuts (test_allocation.py): a cut of x -> J*_tcp(mu(top x)) lies ALLOCATION_COST_RTOL
+    (|J| + ||g||_1) below J at its touching point. Scalar J*_tcp = 1 / (1 + mu), exponential model mu = 1 - e^-P,
+    top T = 2, x = 1/2: P = 1, J = 1 / (2 - e^-1), g = -e^-1 T / (2 - e^-1)^2 (by hand, the chain rule)."""
+    from packetloss_cvx.allocation.power import _Setup
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    setup = _Setup(scalar(), "tcp", power_model("exponential", 1, scale=1.0), np.array([2.0]), ())
+    g, r = setup.cuts(np.array([0.5]), setup.evaluator)
+    J = 1 / (2 - np.exp(-1.0))
+    slope = -np.exp(-1.0) * 2.0 / (2 - np.exp(-1.0)) ** 2
+    assert g[0, 0] == pytest.approx(slope, rel=1e-9)
+    below = J - (r[0] + g[0, 0] * 0.5)
+    assert below == pytest.approx(ALLOCATION_COST_RTOL * (J + abs(slope)), rel=1e-6)

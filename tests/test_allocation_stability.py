@@ -279,3 +279,47 @@ def test_two_actuator_margin_half_is_answered_not_a_cross_check_error():
     assert out.status == "optimal"
     assert enumerated_radius(s.A, s.B, out.gain, out.mu) < 0.5
     assert out.lower_bound <= out.cost <= out.lower_bound * (1 + 1e-4)
+
+
+@pytest.mark.parametrize("beta", [(0.5, 3.0), (3.0, 1.0)])
+@pytest.mark.parametrize("max_boxes", [2, 3, 4])
+def test_a_capped_search_reports_the_gap_between_its_own_cost_and_bound(beta, max_boxes):
+    """Stopped at a cap, the reported gap is (cost - lower_bound) / cost of the reported numbers, and the bound and
+    the cost bracket the optimum: one state, B = [1, 1], a^2 = 3, rho = 1 needs s1 + s2 > 2 (s_i = mu_i / (1 - mu_i),
+    the odds half-space), and beta'mu on that curve is least at an end (mu = s / (1 + s) is concave), so the optimum
+    is 2/3 min(beta) by hand. (A gap taken over the bound instead of the cost reported 0.588 for 0.370; prices whose
+    largest is not 1 separate the scaled and unscaled costs.)"""
+    system = scalar(3.0 ** 0.5, b=(1.0, 1.0))
+    optimum = 2.0 / 3.0 * min(beta)
+    got = stability_allocate(system, "stable", list(beta), max_boxes=max_boxes)
+    assert got.status == "gap_not_certified"
+    assert got.cost == pytest.approx(float(np.dot(beta, got.mu)), rel=1e-12)
+    assert got.lower_bound <= optimum * (1 + 1e-9) <= got.cost * (1 + 2e-9)
+    assert got.gap == pytest.approx((got.cost - got.lower_bound) / got.cost, rel=1e-12)
+    assert got.gap > GAP                                          # the cap stopped it short of the default gap
+
+
+@pytest.mark.parametrize("gap", [1e-2, 1e-4])
+def test_the_search_stops_at_the_first_box_that_certifies_the_requested_gap(gap):
+    """The gap is met (got.gap <= gap) and not by a margin bought with extra boxes: one box fewer leaves it above
+    gap, so a search that aimed at gap / 10 (or 10 gap) would fail one side or the other."""
+    system = scalar(3.0 ** 0.5, b=(1.0, 1.0))
+    got = stability_allocate(system, "stable", [0.5, 3.0], gap=gap)
+    assert got.status == "optimal"
+    assert got.gap <= gap
+    short = stability_allocate(system, "stable", [0.5, 3.0], gap=gap, max_boxes=got.boxes - 1)
+    assert short.status == "gap_not_certified"
+    assert short.gap > gap
+
+
+@pytest.mark.parametrize(("factor", "proved"), [(3.0, True), (0.3, False)])
+def test_a_dp_cost_target_is_proved_out_of_reach_only_beyond_allocation_cost_rtol(factor, proved):
+    """alpha just below the least DP cost of any channel (mu = 1: the DARE's p = 2 + sqrt(5) by hand, P falls in
+    mu): a channel is decided out only where its DP cost exceeds alpha (1 + ALLOCATION_COST_RTOL). At 3 times the
+    band below: InfeasibleError; at 0.3 times: no proof either way (SolverError), never an answer."""
+    from packetloss_cvx.errors import SolverError
+    from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
+
+    alpha = (2 + 5 ** 0.5) / (1 + factor * ALLOCATION_COST_RTOL)
+    with pytest.raises(InfeasibleError if proved else SolverError):
+        stability_allocate(scalar(2.0), "dp-cost", [1.0], alpha=alpha, max_boxes=50)

@@ -204,3 +204,22 @@ def test_command_line_bad_input_exits_2_with_one_line(capsys, argv, field):
     assert err.count("\n") == 1
     assert "Traceback" not in err
     assert f"error: {field}:" in err
+
+
+@pytest.mark.parametrize(("factor", "exact_words"), [(3.0, False), (0.3, True)])
+def test_a_map_loss_within_self_check_rtol_reads_as_the_exact_minimiser(capsys, monkeypatch, factor, exact_words):
+    """As the sweep's summary (tests/test_sweep_burstiness.py): the map calls the plug-in law the exact minimiser only
+    where its largest loss is within SELF_CHECK_RTOL; a planted loss of 3 times the band is printed as a loss."""
+    import packetloss_cvx.cli.sweep as sweep_command
+    from packetloss_cvx.results import BurstinessMap
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    exact = np.array([[2.0, 3.0]])
+    planted = BurstinessMap(channel=0, rate=np.array([0.9]), correlation=np.array([0.0, 0.5]),
+                            plugin={p: exact * (1 + factor * SELF_CHECK_RTOL) for p in ("tcp", "udp")},
+                            exact={p: exact for p in ("tcp", "udp")})
+    monkeypatch.setattr(sweep_command, "burstiness_map", lambda *a, **k: planted)
+    code, out, err = _run(capsys, "sweep", "pendulum_bursty", "--burstiness", "0,0.5", "--mean-rate", "0.9", "-q")
+    assert code == 0, err
+    assert ("the plug-in law is the exact minimiser at every point" in out) is exact_words
+    assert ("the plug-in law loses up to" in out) is not exact_words

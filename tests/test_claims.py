@@ -312,3 +312,33 @@ def test_stability_region_claim_bisects_each_paper_system_once(monkeypatch):
     result = claim.stability_region(Context(paper={"scalar": s}, random=[], seed=0))
     assert result.errors == 1
     assert "scalar: NumericalError" in result.note
+
+
+@pytest.mark.parametrize(("factor", "checked"), [(3.0, 0), (0.3, 1)])
+def test_lemma_2_skips_a_case_above_dense_max_condition_and_checks_one_below(factor, checked):
+    """lemma-2 evaluates eq:cost-diff-deriv with dense inverses, so a case whose condition estimate is beyond
+    DENSE_MAX_CONDITION is skipped (not checked, not an error); the integrator of tests/test_costs.py puts the
+    estimate at factor times the band: skipped at 3, checked (and holding) at 0.3."""
+    from packetloss_cvx.claims.cost_difference import lemma_2
+    from packetloss_cvx.tolerances import DENSE_MAX_CONDITION
+
+    psi = 55.0 / (factor * DENSE_MAX_CONDITION - 1.0)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=10, state_weight=[1.0], input_weight=[psi], mu=[0.7], x0=[1.0])
+    r = lemma_2(Context(paper={}, random=[s], seed=0))
+    assert (r.checked, r.errors, r.violations) == (checked, 0, 0)
+    assert r.verdict == ("holds" if checked else "inconclusive")
+
+
+@pytest.mark.parametrize(("factor", "verdict"), [(3.0, "fails"), (0.3, "holds")])
+def test_plug_in_markov_holds_within_cross_check_cost_rtol_and_fails_beyond(monkeypatch, factor, verdict):
+    """plug-in-markov's margin is CROSS_CHECK_COST_RTOL less the plug-in law's largest relative loss (the QP
+    twin's cost agreement: a loss below it is not told apart from none): a planted loss of 3 times the band fails
+    the claim, 0.3 times holds."""
+    import packetloss_cvx.claims.markov as markov_claim
+    from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL
+
+    monkeypatch.setattr(markov_claim, "_losses", lambda system: [0.0, factor * CROSS_CHECK_COST_RTOL])
+    s = pl.System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    r = markov_claim.plug_in_markov(Context(paper={}, random=[s], seed=0))
+    assert (r.verdict, r.checked, r.errors) == (verdict, 1, 0)
+    assert r.worst == pytest.approx((1 - factor) * CROSS_CHECK_COST_RTOL, rel=1e-12)

@@ -231,3 +231,22 @@ def test_the_program_runs_its_command_with_the_imports_frozen_and_the_collector_
              "sys.argv = ['packetloss-cvx', 'solve', 'two_actuator', '--no-qp', '--json']; main()")
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
     assert done.stdout.splitlines()[0] == "True True", done.stderr
+
+
+def test_a_closed_standard_output_is_an_error_not_a_lost_result(monkeypatch, capsys):
+    """``solve --json >&-`` (standard output closed) exited 0 with its result lost: Python sets ``sys.stdout`` to None
+    and print() then writes nothing. It is refused before the work (exit 2, one line), as a program and in process."""
+    import os
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    done = subprocess.run(["sh", "-c", f'"{sys.executable}" -m packetloss_cvx solve two_actuator --json --no-qp >&-'],
+                          capture_output=True, text=True, timeout=60, env=env)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [
+        "packetloss-cvx: error: stdout: standard output is closed, so the result would be lost; send it to a file "
+        "or to /dev/null (> out.txt)"]
+    monkeypatch.setattr(sys, "stdout", None)
+    assert main(["solve", "two_actuator", "--no-qp"]) == 2
+    assert capsys.readouterr().err.startswith("packetloss-cvx: error: stdout: standard output is closed")

@@ -18,6 +18,9 @@ from packetloss_cvx.cli import simulate as simulate_command
     (["simulate", "two_actuator", "--closed-loop", "--plot", "{tmp}/q.png", "--out", "{tmp}/q.png", "--force"],
      "--plot"),
     (["simulate", "two_actuator", "--closed-loop", "--save", "{tmp}/x.npz", "--out", "{tmp}/./x.npz"], "--save"),
+    # a FILE option given a folder that does not exist yet (a trailing '/'): it wrote a file named like the folder
+    (["solve", "two_actuator", "--out", "{tmp}/newdir/"], "--out"),
+    (["simulate", "two_actuator", "--closed-loop", "--plot", "{tmp}/figures/"], "--plot"),
 ])
 def test_a_bad_output_path_is_refused_before_the_work(argv, field, tmp_path, capsys, monkeypatch):
     """These were refused only after the whole computation (a long audit or simulation lost to a typo)."""

@@ -22,6 +22,7 @@ from packetloss_cvx.simulation import (
     mean_square_radius,
     stationary_second_moment,
 )
+from packetloss_cvx.tolerances import ROUNDING_ORDER_RTOL
 
 from .references import enumerated_operator
 
@@ -278,7 +279,8 @@ def test_critical_mu_with_a_tolerance_below_double_spacing_ends():
 
 def test_second_moment_matrix_of_a_stack_of_laws_is_each_laws_matrix():
     """simulation.stability.second_moment_matrix over a stack (K (G, m, n), mu (G, m); the batched homogeneous
-    Riccati's policy step) gives each law's matrix, and each is the operator enumerated over the 2^m patterns."""
+    Riccati's policy step) gives each law's matrix (to rounding: ROUNDING_ORDER_RTOL, the stack's products summed
+    in the order the BLAS kernel picks), and each is the operator enumerated over the 2^m patterns."""
     from packetloss_cvx.simulation.stability import second_moment_matrix
 
     rng = np.random.default_rng(11)
@@ -289,5 +291,61 @@ def test_second_moment_matrix_of_a_stack_of_laws_is_each_laws_matrix():
         stack = second_moment_matrix(A, B, K, mu)
         assert stack.shape == (4, n * n, n * n)
         for g in range(4):
-            assert np.array_equal(stack[g], second_moment_matrix(A, B, K[g], mu[g]))
+            one = second_moment_matrix(A, B, K[g], mu[g])
+            np.testing.assert_allclose(stack[g], one, rtol=0, atol=ROUNDING_ORDER_RTOL * np.abs(one).max())
             assert np.allclose(stack[g], enumerated_operator(A, B, K[g], mu[g]), rtol=1e-12, atol=1e-12)
+
+
+# ---------------------------------------------------------------- the bands, pinned on both sides
+
+@pytest.mark.parametrize(("factor", "stable"), [(3.0, True), (0.3, False)])
+def test_a_radius_3_margins_below_one_is_stable_and_0_3_margins_is_not(factor, stable):
+    """is_mean_square_stable's band: stable iff radius < 1 - MEAN_SQUARE_MARGIN."""
+    from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+
+    assert is_mean_square_stable(1.0 - factor * MEAN_SQUARE_MARGIN) is stable
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_fixed_point_residual_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol(monkeypatch, factor, kept):
+    """X = X / 2 + C solved by a dense LU that returns 2 C + e E (E symmetric, ||E||_F = 1): the residual
+    ||X - X/2 - C|| is e / 2 and the scale max(||X||, ||C||) is 2 ||C|| (to e), so the relative residual is
+    e / (4 ||C||) (by hand); e = 4 factor MOMENT_RESIDUAL_RTOL ||C||: NumericalError at 3, X returned at 0.3."""
+    from packetloss_cvx.simulation.moments import solve_fixed_point
+    from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
+
+    C = np.array([[2.0, 0.5], [0.5, 1.0]])
+    E = np.array([[0.0, 1.0], [1.0, 0.0]]) / np.sqrt(2.0)
+    off = 2.0 * C + 4.0 * factor * MOMENT_RESIDUAL_RTOL * np.linalg.norm(C) * E
+    monkeypatch.setattr(np.linalg, "solve", lambda a, b: off.ravel())
+    if kept:
+        assert np.array_equal(solve_fixed_point(lambda X: 0.5 * X, lambda: 0.5 * np.eye(4), C, "a test"), off)
+    else:
+        with pytest.raises(pl.NumericalError, match="a test: the linear solve lost its digits"):
+            solve_fixed_point(lambda X: 0.5 * X, lambda: 0.5 * np.eye(4), C, "a test")
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_average_cost_cross_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol(monkeypatch, factor, kept):
+    """closed_loop's two computations of the average stage cost, tr(P_K Sigma_W) and tr((Omega + K'M Psi K) S),
+    made to disagree by factor MOMENT_RESIDUAL_RTOL (the cost-to-go solve's answer scaled): CrossCheckError at 3, the
+    loop at 0.3 with its cost by hand (scalar a = 2, k = 2, mu = 0.8, sigma = 1: radius r = (2 - 0.8 * 2)^2
+    + 0.8 * 0.2 * 4 = 0.8, moment S = sigma / (1 - r) = 5, cost (1 + 0.8 * 4) S = 21)."""
+    import packetloss_cvx.simulation.moments as moments_module
+    from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
+
+    s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.8], x0=[1.0],
+               noise_cov=[[1.0]])
+    real = moments_module.solve_fixed_point
+
+    def solve(apply, matrix, C, what):
+        X = real(apply, matrix, C, what)
+        return X * (1 + factor * MOMENT_RESIDUAL_RTOL) if what == "the cost-to-go of the law" else X
+
+    monkeypatch.setattr(moments_module, "solve_fixed_point", solve)
+    if kept:
+        loop = closed_loop(s, [[2.0]])
+        assert loop.average_stage_cost == pytest.approx(21.0, rel=1e-12)
+    else:
+        with pytest.raises(pl.CrossCheckError, match="average stage cost"):
+            closed_loop(s, [[2.0]])

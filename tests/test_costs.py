@@ -1,6 +1,7 @@
 """Theorem 1 in closed form against the Clarabel QPs and against first principles."""
 
 import itertools
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ import packetloss_cvx as pl
 from packetloss_cvx.costs import dense_cost, loss_variance_term
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.tolerances import FORWARD_COST_ROUNDING
 
 PROTOCOLS = ("tcp", "udp")
 SEEDS = range(60)
@@ -244,3 +246,141 @@ def test_edge_cases_agree_everywhere(changes, protocol):
         assert qp.status == "optimal"
         assert qp.cross_check.max_input_diff < 1e-6
         assert abs(qp.cost - dense.cost) <= 1e-7 * max(1.0, dense.cost)
+
+
+def _exact_one_step_cost(s: pl.System) -> Fraction:
+    """J* of a one-step, one-input plant without noise or initial weight, in exact rationals (the floats' own
+    values): J(u) = mu psi u^2 + x1'Q x1 with x1 = A x0 + B mu u, so J* = c - b^2 / a."""
+    A, Q = [[Fraction(v) for v in row] for row in s.A], [[Fraction(v) for v in row] for row in s.state_weights[-1]]
+    mu, psi, n = Fraction(s.mu_schedule[0, 0]), Fraction(s.input_weights[0, 0]), s.n
+    Ax = [sum(A[i][j] * Fraction(s.x0[j]) for j in range(n)) for i in range(n)]
+    Bm = [mu * Fraction(s.B[i, 0]) for i in range(n)]
+
+    def q(u, v):
+        return sum(u[i] * Q[i][j] * v[j] for i in range(n) for j in range(n))
+
+    return q(Ax, Ax) - q(Bm, Ax) ** 2 / (mu * psi + q(Bm, Bm))
+
+
+def _one_step(seed: int) -> pl.System:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 4))
+    A, B, x0, F = rng.normal(size=(n, n)), rng.normal(size=(n, 1)), rng.normal(size=n), rng.normal(size=(n, n))
+    scale = np.ones(n)
+    scale[0] = 10.0 ** (1.5 * (seed % 5))                   # the first state's weight scaled by 1, 1e3, .. 1e12
+    Q = (F @ F.T) * np.outer(scale, scale)
+    return pl.System(A=A, B=B, horizon=1, state_weight=0.5 * (Q + Q.T), input_weight=[rng.uniform(0.1, 3.0)],
+                     mu=[rng.uniform(0.05, 1.0)], x0=x0)
+
+
+# the property test's two plants (test_properties.py) where x'P_0 x was 1.2e-9 and 1.35e-9 off J*
+_B, _X0 = [[1.0456178814698995], [-0.9665560777473944]], [0.4693589970308669, -0.10091860953805483]
+_W = np.array([[1525164907.728891, -3051029695.0352793], [-3051029695.0352793, 13959962207.449608]])
+ILL_SCALED = [
+    pl.System(A=[[-0.49127842742221245, 1.1555119228289465], [0.7534845491148024, 0.33030971694088673]], B=_B,
+              horizon=1, state_weight=_W, input_weight=[1.7428878051607914], mu=[0.527821227873708], x0=_X0),
+    pl.System(A=[[-0.13398502566060339, 0.31513961531698537], [0.2054957861222188, 0.09008446825660546]], B=_B,
+              horizon=1, state_weight=_W * 1e4, input_weight=[1.7428878051607914], mu=[0.527821227873708], x0=_X0),
+]
+
+
+def test_closed_form_reports_its_cost_to_the_forward_sums_rounding():
+    """closed_form's J* against the exact rational minimum, within FORWARD_COST_ROUNDING eps sqrt(||Q|| ||x||^2 J*)
+    (tolerances.py): the rounding of the forward cost it reports; x'P_0 x, which it checks, is off by up to
+    eps ||Q|| ||x||^2 (1.2e-9 relative on the first plant). A plant the self-check refuses is not counted."""
+    checked = 0
+    for s in [*ILL_SCALED, *(_one_step(seed) for seed in range(100))]:
+        try:
+            cost = pl.closed_form(s, "tcp", method="recursion").cost
+        except pl.NumericalError:
+            continue
+        exact = _exact_one_step_cost(s)
+        x2 = max(float(s.x0 @ s.x0), float(np.sum((s.A @ s.x0) ** 2)))
+        bound = FORWARD_COST_ROUNDING * np.finfo(float).eps * np.sqrt(np.linalg.norm(s.state_weights[-1], 2) * x2
+                                                                        * float(exact))
+        assert abs(Fraction(cost) - exact) <= bound, (s, cost, float(exact))
+        checked += 1
+    assert checked >= 60          # 2 + 65: at 1e12 the self-check refuses every plant, at 1e9 half of them
+
+
+# ---------------------------------------------------------------- the self-check's band, pinned on both sides
+
+def _referee_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
+    """The self-check's referee (the forward cost of the plan: costs.recursion_cost on the law's states, or
+    costs.plan_cost for a plan rolled out open loop, the dense path's) moved by a chosen amount, so that the
+    disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
+    import packetloss_cvx.costs as costs_module
+
+    real, real_plan = costs_module.recursion_cost, costs_module.plan_cost
+
+    def plan_off(*args, **kwargs):
+        value, bound = real_plan(*args, **kwargs)
+        return value * (1 + relative) + absolute, bound
+
+    monkeypatch.setattr(costs_module, "recursion_cost", lambda *a, **k: real(*a, **k) * (1 + relative) + absolute)
+    monkeypatch.setattr(costs_module, "plan_cost", plan_off)
+
+
+@pytest.mark.parametrize("method", ["dense", "recursion"])
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(two_actuator, monkeypatch, method,
+                                                                                factor, kept):
+    """A closed-form cost off its plan's forward cost by 3 SELF_CHECK_RTOL (relative) raises, by 0.3 is kept:
+    the band is SELF_CHECK_RTOL to within a factor 3 either way. (two_actuator's own disagreement is at rounding
+    level, and the recursion's absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 is 1e-4 of the band here.)"""
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    exact = pl.closed_form(two_actuator, "udp", method).cost
+    _referee_off(monkeypatch, relative=factor * SELF_CHECK_RTOL)
+    if kept:      # returned, and as the forward cost of its plan (the referee's number), which closed_form reports
+        assert pl.closed_form(two_actuator, "udp", method).cost == pytest.approx(
+            exact * (1 + factor * SELF_CHECK_RTOL), rel=1e-14)
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
+            pl.closed_form(two_actuator, "udp", method)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(monkeypatch, factor, kept):
+    """The recursion's absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 on its own: a state weight of 1e6 on a mode no
+    input reaches and x0 outside it make ||P_0|| = 1e6 (0.81 + ... + 0.81^10) (by hand: the mode decays by 0.9, its
+    cost-to-go is that geometric sum; the other mode's is below 2) while the cost is below 2, so the absolute term is
+    about 1e3 times SELF_CHECK_RTOL's. A disagreement of 3 times the term raises, 0.3 times passes."""
+    from packetloss_cvx.tolerances import SELF_CHECK_ATOL
+
+    s = pl.System(A=[[0.9, 0.0], [0.0, 0.5]], B=[[0.0], [1.0]], horizon=10, state_weight=[1e6, 1.0],
+                  input_weight=[1.0], mu=[0.5], x0=[0.0, 1.0])
+    norm_P0 = 1e6 * sum(0.81 ** t for t in range(1, 11))
+    exact = pl.closed_form(s, "tcp", "recursion").cost
+    assert 0.0 < exact < 2.0                            # x0 = e_2: the cost is the weak mode's alone
+    _referee_off(monkeypatch, absolute=factor * SELF_CHECK_ATOL * norm_P0 * 1.0)
+    if kept:      # returned, as the (moved) forward cost of its plan
+        assert pl.closed_form(s, "tcp", "recursion").cost == pytest.approx(
+            exact + factor * SELF_CHECK_ATOL * norm_P0, rel=1e-14)
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
+            pl.closed_form(s, "tcp", "recursion")
+
+
+@pytest.mark.parametrize(("factor", "dense"), [(3.0, False), (0.3, True)])
+def test_dense_path_is_refused_above_dense_max_condition_and_taken_below(factor, dense):
+    """The condition estimate (sum diag Omega_g + max Psi) / min Psi of an integrator x+ = x + u with unit state
+    weight over N = 10 steps is (55 + psi) / psi (by hand: input s reaches the states s + 1..N, so diag Omega_g =
+    (10, 9, ..., 1)); psi puts it at factor DENSE_MAX_CONDITION. Above (3): "auto" takes the recursion and "dense"
+    is refused before anything is built; below (0.3): "auto" takes the dense path and "dense" answers, both equal to
+    the recursion."""
+    from packetloss_cvx.costs import pick_method
+    from packetloss_cvx.recursion import condition_estimate
+    from packetloss_cvx.tolerances import DENSE_MAX_CONDITION
+
+    psi = 55.0 / (factor * DENSE_MAX_CONDITION - 1.0)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=10, state_weight=[1.0], input_weight=[psi], mu=[0.7], x0=[1.0])
+    assert condition_estimate(s) == pytest.approx(factor * DENSE_MAX_CONDITION, rel=1e-12)
+    reference = pl.closed_form(s, "udp", "recursion").cost
+    assert pick_method(s, "auto") == ("dense" if dense else "recursion")
+    assert pl.closed_form(s, "udp").method == ("dense" if dense else "recursion")
+    if dense:
+        assert pl.closed_form(s, "udp", "dense").cost == pytest.approx(reference, rel=1e-9)
+    else:
+        with pytest.raises(pl.NumericalError, match="condition estimate .* exceeds"):
+            pl.closed_form(s, "udp", "dense")

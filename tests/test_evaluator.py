@@ -8,6 +8,7 @@ import packetloss_cvx as pl
 import packetloss_cvx.evaluator as evaluator_module
 from packetloss_cvx.evaluator import CostEvaluator
 from packetloss_cvx.io import system_from_dict
+from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
 
 RTOL = 1e-12
@@ -180,18 +181,23 @@ def test_batch_solution_is_frozen(two_actuator):
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("protocol", ["tcp", "udp"])
-def test_cost_along_a_coordinate_line_equals_the_closed_form(seed, protocol):
-    """The Schur complement along an edge (the other channels factored once) against closed_form."""
+@pytest.mark.parametrize("checked", [True, False])
+def test_cost_along_a_coordinate_line_equals_the_closed_form(seed, protocol, checked):
+    """The Schur complement along an edge (the other channels factored once) against closed_form; unchecked
+    (``checked=False``, the allocation's probes: no residual, no self-check, no fall-back) as well as checked, and
+    the one-point cost likewise (a factor dropped on the unchecked path gave 105.31 for 25.82, every test passing)."""
     rng = np.random.default_rng(seed)
     s = random_system(rng, m=int(rng.integers(1, 4)), non_stationary=False)
     ev = CostEvaluator(s, protocol)
     mu = rng.uniform(0.0, 1.0, s.m)
     for i in range(s.m):
-        line = ev.line(mu, i)
+        line = ev.line(mu, i, checked)
         for value in (0.0, 0.37, 1.0):
             point = mu.copy()
             point[i] = value
-            assert _rel(line(value), pl.closed_form(s.with_mu(point), protocol).cost) <= RTOL
+            reference = pl.closed_form(s.with_mu(point), protocol).cost
+            assert _rel(line(value), reference) <= RTOL
+            assert _rel(ev.cost(point, checked=checked), reference) <= RTOL
 
 
 def test_line_refuses_a_bad_channel_index(two_actuator):
@@ -225,8 +231,6 @@ def test_masked_channels_are_refused_on_the_one_point_paths(two_actuator, mask, 
 def _dense_written_here(s, protocol, mu):
     """Theorem 1's dense minimiser from the prediction matrices, written out here (not costs.hessian_factor):
     U* = -G^{-1} Omega_gp x, J* = C + (Omega_gp x)' Vbar U*."""
-    from packetloss_cvx.prediction import prediction
-
     pred = prediction(s)
     v = np.tile(mu, s.horizon) if np.ndim(mu) == 1 else np.ravel(mu)
     G = pred.Omega_g @ np.diag(v) + np.diag(pred.Psi)
@@ -252,3 +256,95 @@ def test_batched_recursion_against_the_dense_formula_written_here(seed, protocol
         assert _rel(sol.costs[k], cost) <= 1e-9
         on = np.broadcast_to(mu > 0, U.shape)
         assert np.abs(sol.inputs[k] - U)[on].max(initial=0.0) <= 1e-9 * max(1.0, np.abs(U).max())
+
+
+# ---------------------------------------------------------------- the checks' bands, pinned on both sides
+
+def _referee_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
+    """The evaluator's self-check referee (recursion.forward_cost, the forward cost of each point's plan) moved by a
+    chosen amount: the disagreement the check sees is ``relative`` of the forward cost plus ``absolute``."""
+    real = evaluator_module.forward_cost
+    monkeypatch.setattr(evaluator_module, "forward_cost", lambda *a, **k: real(*a, **k) * (1 + relative) + absolute)
+
+
+@pytest.mark.parametrize(("method", "match"), [("dense", "failed the dense solve's residual or the self-check"),
+                                               ("recursion", "forward cost of its own plan")])
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_batch_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(two_actuator, monkeypatch, method, match,
+                                                                          factor, kept):
+    """Every point of a batch whose cost is off its plan's forward cost by 3 SELF_CHECK_RTOL raises (a dense point
+    asked for by method 'dense' is not recomputed), by 0.3 SELF_CHECK_RTOL is returned as it is."""
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    mus = np.array([[0.9, 0.5], [0.3, 0.8]])
+    evaluator = CostEvaluator(two_actuator, "udp", method)
+    exact = evaluator.costs(mus)
+    _referee_off(monkeypatch, relative=factor * SELF_CHECK_RTOL)
+    if kept:
+        assert np.array_equal(evaluator.costs(mus), exact)
+    else:
+        with pytest.raises(pl.NumericalError, match=match):
+            evaluator.costs(mus)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_batch_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(monkeypatch, factor, kept):
+    """The batched recursion's absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 on its own (as closed_form's, see
+    tests/test_costs.py): ||P_0|| = 1e6 (0.81 + ... + 0.81^10) by hand, from the weight on a mode no input reaches,
+    while x0 lies outside that mode and the cost is below 2."""
+    from packetloss_cvx.tolerances import SELF_CHECK_ATOL
+
+    s = pl.System(A=[[0.9, 0.0], [0.0, 0.5]], B=[[0.0], [1.0]], horizon=10, state_weight=[1e6, 1.0],
+                  input_weight=[1.0], mu=[0.5], x0=[0.0, 1.0])
+    norm_P0 = 1e6 * sum(0.81 ** t for t in range(1, 11))
+    evaluator = CostEvaluator(s, "tcp", "recursion")
+    exact = evaluator.costs([[0.5], [0.2]])
+    assert np.all(exact < 2.0)
+    _referee_off(monkeypatch, absolute=factor * SELF_CHECK_ATOL * norm_P0 * 1.0)
+    if kept:
+        assert np.array_equal(evaluator.costs([[0.5], [0.2]]), exact)
+    else:
+        with pytest.raises(pl.NumericalError, match="forward cost of its own plan"):
+            evaluator.costs([[0.5], [0.2]])
+
+
+def _with_residual(G: np.ndarray, rhs: np.ndarray, X: np.ndarray, fraction: float, keep: np.ndarray) -> np.ndarray:
+    """X moved so that G X - rhs is ``fraction`` DENSE_RESIDUAL_RTOL (||G||_F ||X|| + ||rhs||) exactly (to rounding),
+    along a direction that leaves keep' X unchanged (the cost C - g'Vbar X then moves only at second order: the
+    residual check alone can object). G (k, k), rhs and X (k, r), keep (k,)."""
+    from packetloss_cvx.tolerances import DENSE_RESIDUAL_RTOL
+
+    y = np.linalg.solve(G.T, keep)                      # keep' G^{-1} r = y' r: r orthogonal to y moves nothing
+    r = np.zeros(G.shape[0])
+    r[0], r[1] = y[1], -y[0]
+    r /= np.linalg.norm(r)
+    size = fraction * DENSE_RESIDUAL_RTOL * (np.linalg.norm(G) * np.linalg.norm(X) + np.linalg.norm(rhs))
+    step = np.linalg.solve(G, size * r)
+    out = X.copy()
+    out[:, 0] += step
+    return out
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_batch_dense_solve_refuses_3_and_keeps_0_3_times_dense_residual_rtol(two_actuator, monkeypatch, factor, kept):
+    """The dense path's LU solve returned with a relative residual ||G F - rhs|| / (||G|| ||F|| + ||rhs||) of 3
+    DENSE_RESIDUAL_RTOL: the point is refused (method 'dense' raises); of 0.3: kept, with the exact solve's cost."""
+    mus = np.array([[0.9, 0.5]])
+    evaluator = CostEvaluator(two_actuator, "udp", "dense")
+    exact = evaluator.costs(mus)
+    v = np.tile(mus[0], two_actuator.horizon)
+    keep = v * (prediction(two_actuator).Omega_gp @ two_actuator.x0)          # Vbar g: the cost's direction
+    real = np.linalg.solve
+
+    def solve(G, rhs):
+        X = real(G, rhs)
+        if G.ndim != 3:
+            return X
+        return np.stack([_with_residual(G[p], rhs[p], X[p], factor, keep) for p in range(G.shape[0])])
+
+    monkeypatch.setattr(np.linalg, "solve", solve)
+    if kept:
+        assert evaluator.costs(mus) == pytest.approx(exact, rel=1e-13)
+    else:
+        with pytest.raises(pl.NumericalError, match="failed the dense solve's residual"):
+            evaluator.costs(mus)

@@ -169,3 +169,34 @@ def test_rows_as_arrays_and_masked_arrays():
     assert pl.System(**{**BASE, "A": rows}).A.tolist() == [[1.0, 0.0], [0.0, 1.0]]
     with pytest.raises(pl.InputError, match="masked"):
         pl.System(**{**BASE, "x0": np.ma.array([1.0, 0.0], mask=[True, False])})
+
+
+@pytest.mark.parametrize(("call", "field"), [
+    # each raised an untyped error (TypeError, AttributeError) or was accepted with a meaningless value
+    (lambda s, tmp: __import__("packetloss_cvx.simulation", fromlist=["simulate"]).simulate(
+        s, 10, closed_loop="no", progress=False), "closed_loop"),
+    (lambda s, tmp: pl.audit(systems="pendulum", random=0, progress=False), "systems"),
+    (lambda s, tmp: pl.audit(systems=[s, "pendulum"], random=0, progress=False), "systems"),
+    (lambda s, tmp: __import__("packetloss_cvx.allocation.delivery", fromlist=["power_model"]).power_model(
+        "exponential", 0, scale=[1]), "m"),
+    (lambda s, tmp: __import__("packetloss_cvx.allocation.delivery", fromlist=["power_model"]).power_model(
+        "exponential", "2", scale=[1]), "m"),
+])
+def test_api_arguments_of_the_wrong_type_are_typed_input_errors(call, field, tmp_path):
+    with pytest.raises(pl.InputError) as info:
+        call(pl.load_example("two_actuator"), tmp_path)
+    assert info.value.field == field
+
+
+
+def test_save_system_overwrites_only_when_told_so_by_a_bool(tmp_path):
+    """``overwrite="no"`` (any truthy value) replaced the file; only ``True`` does."""
+    system = pl.load_example("two_actuator")
+    path = pl.save_system(system, tmp_path / "s.toml")
+    path.write_text("# the user's own file\n")
+    for value in ("no", "False", 1, [True]):
+        with pytest.raises(pl.InputError, match="^overwrite: expected True or False"):
+            pl.save_system(system, path, overwrite=value)
+    assert path.read_text() == "# the user's own file\n"
+    pl.save_system(system, path, overwrite=True)
+    assert pl.load_system(path).name == system.name

@@ -4,8 +4,9 @@ regular files within their cap, the last exit-1 inputs are exit 2, long solve wo
 user-given names are printed with their control characters escaped (docs/design.md §4, "Work budgets").
 
 The command-line cases run as processes of their own where the exit code and the single stderr line are the
-contract (forked from a parent that imported ``packetloss_cvx.cli`` and NumPy: tests/processes.py); each references an independent expectation (a hand-computed work count, the operating
-system's own verdict on a file) rather than the code under test.
+contract (forked from a parent that imported ``packetloss_cvx.cli`` and NumPy: tests/processes.py); each
+references an independent expectation (a hand-computed work count, the operating system's own verdict on a file)
+rather than the code under test.
 """
 
 import json
@@ -68,7 +69,8 @@ def test_simulate_refuses_a_huge_sample_count_at_once(two_actuator):
         simulate(two_actuator, 2 ** 63)
     assert time.process_time() - start < 1.0          # refused, not started (it ran past 300 s)
     err = info.value
-    assert isinstance(err, ValueError) and err.field == "samples"
+    assert isinstance(err, ValueError)
+    assert err.field == "samples"
     # 2^63 samples x (N = 10 steps x 2 plans) x n (n + m) = 2 x 2 x 4: the work counted by hand
     assert err.needed == pytest.approx(2.0 ** 63 * 20 * 8)
     assert err.env == "PACKETLOSS_CVX_BUDGET_SIMULATE_WORK"
@@ -90,7 +92,8 @@ def test_simulate_closed_loop_counts_steps_and_laws(two_actuator):
 def test_sweep_refuses_points_beyond_the_budget(two_actuator, kwargs, field):
     with pytest.raises(pl.ResourceError) as info:
         sweep(two_actuator, progress=False, **kwargs)
-    assert info.value.field == field and info.value.budget == 1e6
+    assert info.value.field == field
+    assert info.value.budget == 1e6
 
 
 def test_sweep_refuses_work_beyond_the_budget():
@@ -148,7 +151,8 @@ def test_budget_error_pickles_and_renames():
     assert (type(again), again.field, again.needed, again.budget, again.env) == (
         BudgetError, "samples", 3.0, 2.0, "PACKETLOSS_CVX_BUDGET_SIMULATE_WORK")
     renamed = err.renamed("--samples")
-    assert str(renamed) == "--samples: too many" and isinstance(renamed, pl.ResourceError)
+    assert str(renamed) == "--samples: too many"
+    assert isinstance(renamed, pl.ResourceError)
 
 
 # --- input files: regular files within their cap ----------------------------------------------------------
@@ -199,7 +203,8 @@ def test_a_toml_integer_beyond_python_limit_is_bad_input(tmp_path):
     path.write_text(BIG_INT_TOML)
     with pytest.raises(pl.InputError) as info:
         pl.load_system(path)
-    assert info.value.field == "file" and "4300 digits" in str(info.value)
+    assert info.value.field == "file"
+    assert "4300 digits" in str(info.value)
 
 
 def test_a_name_too_long_for_the_system_is_bad_input():
@@ -228,7 +233,9 @@ def test_solve_prints_a_hostile_name_escaped(tmp_path, capsys, zygote):
     assert not any(ch in out for ch in "\x1b\x07"), out
     assert out.splitlines()[0].startswith("ev\\x1b[31mil\\nline\\x07: n=1")
     code, _, err = cli(zygote, "solve", str(tmp_path / "x\x1b[31m\x07.toml"))     # a path on the error line
-    assert code == 2 and "\x1b" not in err and "x\\x1b[31m\\x07.toml" in one_error_line(err)
+    assert code == 2
+    assert "\x1b" not in err
+    assert "x\\x1b[31m\\x07.toml" in one_error_line(err)
 
 
 # --- the command line: exit 2, one line ------------------------------------------------------------------
@@ -254,8 +261,10 @@ def test_cli_refuses_counts_beyond_their_budget(zygote, argv, option, variable):
     start = time.perf_counter()
     code, out, err = cli(zygote, *argv)
     line = one_error_line(err)
-    assert code == 2 and out == ""
-    assert line.startswith(f"packetloss-cvx: error: {option}: ") and f"PACKETLOSS_CVX_BUDGET_{variable}" in line
+    assert code == 2
+    assert out == ""
+    assert line.startswith(f"packetloss-cvx: error: {option}: ")
+    assert f"PACKETLOSS_CVX_BUDGET_{variable}" in line
     assert time.perf_counter() - start < 30          # refused upfront (each climbed for minutes before)
 
 
@@ -277,7 +286,8 @@ def test_cli_refuses_counts_beyond_their_budget(zygote, argv, option, variable):
 def test_cli_in_process_refuses_counts_beyond_their_budget(argv, option, variable, capsys):
     code, line = main_line(argv, capsys)
     assert code == 2
-    assert line.startswith(f"packetloss-cvx: error: {option}: ") and f"PACKETLOSS_CVX_BUDGET_{variable}" in line
+    assert line.startswith(f"packetloss-cvx: error: {option}: ")
+    assert f"PACKETLOSS_CVX_BUDGET_{variable}" in line
     assert len(line) < 400          # a 401-digit count is shown by its size, not echoed
 
 
@@ -289,11 +299,17 @@ def test_cli_in_process_refuses_counts_beyond_their_budget(argv, option, variabl
 ])
 def test_cli_exits_2_with_one_line(zygote, argv, option):
     code, out, err = cli(zygote, *argv)
-    assert code == 2 and out == ""
+    assert code == 2
+    assert out == ""
     assert one_error_line(err).startswith(f"packetloss-cvx: error: {option}: ")
 
 
 @pytest.mark.parametrize(("argv", "option"), [
+    # --channels inf,1 was an OverflowError and nan,1 a ValueError (int() of the parsed float): exit 1
+    (["region", "two_actuator", "--grid", "3", "--channels", "inf,1"], "--channels"),
+    (["region", "two_actuator", "--grid", "3", "--channels", "nan,1"], "--channels"),
+    (["region", "two_actuator", "--grid", "3", "--channels", "1,-inf"], "--channels"),
+    (["region", "pendulum_bursty", "--grid", "3", "--channels", "inf"], "--channels"),
     (["sweep", "two_actuator", "--horizons", "nan"], "--horizons"),
     (["sweep", "two_actuator", "--horizons", "5,2.5"], "--horizons"),
     (["sweep", "two_actuator", "--x0-scales", "0:1:inf"], "--x0-scales"),
@@ -305,18 +321,21 @@ def test_cli_exits_2_with_one_line(zygote, argv, option):
 ])
 def test_cli_in_process_exits_2_with_one_line(argv, option, capsys):
     code, line = main_line(argv, capsys)
-    assert code == 2 and line.startswith(f"packetloss-cvx: error: {option}: ")
+    assert code == 2
+    assert line.startswith(f"packetloss-cvx: error: {option}: ")
 
 
 def test_cli_refuses_a_fifo_and_a_huge_integer(tmp_path, zygote):
     fifo = tmp_path / "mu.csv"
     os.mkfifo(fifo)
     code, _, err = cli(zygote, "solve", "two_actuator", "--mu-schedule", str(fifo))
-    assert code == 2 and "not a regular file" in one_error_line(err)
+    assert code == 2
+    assert "not a regular file" in one_error_line(err)
     big = tmp_path / "big.toml"
     big.write_text(BIG_INT_TOML)
     code, _, err = cli(zygote, "audit", str(big), "--random", "0")
-    assert code == 2 and one_error_line(err).startswith("packetloss-cvx: error: file: ")
+    assert code == 2
+    assert one_error_line(err).startswith("packetloss-cvx: error: file: ")
 
 
 # --- solve's closed-loop verdict: cheap by default, optional ------------------------------------------------
@@ -335,7 +354,8 @@ def test_solve_skips_the_stability_verdict_above_its_size_unless_asked(tmp_path)
     out = tmp_path / "out.json"
     assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--out", str(out)]) == 0
     entry = json.loads(out.read_text())["tcp"]
-    assert entry["mean_square_spectral_radius"] is None and entry["stable"] is False
+    assert entry["mean_square_spectral_radius"] is None
+    assert entry["stable"] is False
     assert "--stability" in entry["stability_note"]
     out = tmp_path / "asked.json"          # a new file: an existing one is refused without --force
     assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--stability", "--out", str(out)]) == 0
@@ -349,3 +369,107 @@ def test_solve_skips_the_stability_verdict_above_its_size_unless_asked(tmp_path)
     out = tmp_path / "skipped.json"
     assert main(["solve", "two_actuator", "--no-qp", "--no-stability", "-q", "--out", str(out)]) == 0
     assert json.loads(out.read_text())["udp"]["stability_note"].startswith("not computed: skipped (--no-stability)")
+
+
+def scalar_file(tmp_path, horizon):
+    """A stable scalar plant (a = 0.9, b = 1) over ``horizon`` steps, as a TOML file."""
+    path = tmp_path / f"scalar-{horizon}.toml"
+    path.write_text(f"[plant]\nA = [[0.9]]\nB = [[1.0]]\n[cost]\nhorizon = {horizon}\nstate_weight = [1.0]\n"
+                    "input_weight = [1.0]\n[channel]\nmu = [0.5]\n[state]\nx0 = [1.0]\n")
+    return str(path)
+
+
+def test_solve_prices_its_horizon_with_and_without_the_qp_cross_check(tmp_path, capsys, monkeypatch):
+    """``solve`` of a scalar plant over 1e6 steps with the default QP cross-check ran past 120 s at 3.1 GiB; over
+    5e7 steps with ``--no-qp`` it ended in "unexpected MemoryError" (exit 1) after 45 s. Its horizon is priced
+    before the work: 1e6 steps with the cross-check are refused (exit 2, one line naming the horizon, ``--no-qp``
+    and the variable), the closed forms alone are answered; the memory is priced too (here a budget of 1e8 bytes
+    stands in for a quarter of a small machine)."""
+    path = scalar_file(tmp_path, 10 ** 6)
+    start = time.perf_counter()
+    code, line = main_line(["solve", path], capsys)
+    assert time.perf_counter() - start < 20
+    # by hand: 2 protocols x 1e6 steps x (0.45 + 0.0175 + 28 + 1.1 + 1.5) = 6.2135e7 > 6e7
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: cost.horizon: N = 1000000 (n = 1, m = 1) with the QP cross-check")
+    assert "--no-qp" in line
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07")
+    from packetloss_cvx.cli import main
+    assert main(["solve", path, "--no-qp", "-q", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["horizon"] == 10 ** 6
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e8")
+    code, line = main_line(["solve", path, "--no-qp"], capsys)
+    # by hand: 1e6 steps x (260 + 15 + 40) bytes = 3.15e8
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: cost.horizon: N = 1000000 (n = 1, m = 1) (about 0.293 GiB)")
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=3.15e+08")
+
+
+
+def test_a_closed_loop_beyond_its_memory_budget_is_a_budget_refusal(capsys, monkeypatch):
+    """A closed-loop simulation whose block arrays exceed the memory budget exited 1 ("ResourceError") where the
+    help promises 2 for a count beyond its budget: it is refused under ``--steps`` with the variable."""
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "4e9")      # the same verdict on any machine
+    code, line = main_line(["simulate", "pendulum", "--closed-loop", "--steps", "10000000", "--samples", "10"], capsys)
+    # by hand: a block of 10 runs x 10000001 steps x (2 m + 16 n + 16 laws) = 10 x 10000001 x 114 = 1.14e10 bytes
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: --steps: ")
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=1.15e+10")
+
+
+@pytest.mark.parametrize("m", ["2", 2.0, True, 0, -3, None])
+def test_parse_constraint_takes_a_positive_integer_dimension(m):
+    """``parse_constraint(text, "2")`` raised a TypeError from NumPy; every m that is not a positive integer is an
+    InputError under ``m``."""
+    from packetloss_cvx.allocation.grammar import parse_constraint
+    with pytest.raises(pl.InputError, match="^m: expected a positive integer"):
+        parse_constraint("mu1 <= 1", m)
+
+
+def test_parse_constraint_prices_its_dimension():
+    """``parse_constraint("mu1 <= 1", 10**9)`` raised a bare MemoryError allocating dense rows of 1e9 coefficients:
+    the rows' memory is priced first (by hand: 5 arrays x 8 bytes x 1e9 = 4e10 bytes), refused under ``m``; a
+    dimension within the budget still parses."""
+    from packetloss_cvx.allocation.grammar import parse_constraint
+    start = time.perf_counter()
+    with pytest.raises(pl.ResourceError, match="^m: .*PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=4e\\+10$") as info:
+        parse_constraint("mu1 <= 1", 10 ** 9)
+    assert isinstance(info.value, pl.InputError)
+    assert time.perf_counter() - start < 1
+    G, h = parse_constraint("mu1 + mu3 <= 1", 3)
+    assert G.tolist() == [[1.0, 0.0, 1.0]]
+    assert h.tolist() == [1.0]
+
+
+def two_channel_file(tmp_path, horizon):
+    """A stable scalar plant with two channels (b = (2, 1)) over ``horizon`` steps, as a TOML file."""
+    path = tmp_path / f"two-channel-{horizon}.toml"
+    path.write_text(f"[plant]\nA = [[0.9]]\nB = [[2.0, 1.0]]\n[cost]\nhorizon = {horizon}\nstate_weight = [1.0]\n"
+                    "input_weight = [1.0, 1.0]\n[channel]\nmu = [0.6, 0.6]\n[state]\nx0 = [1.0]\n")
+    return str(path)
+
+
+def test_the_udp_like_search_prices_its_boxes_by_their_horizon(tmp_path, capsys, monkeypatch):
+    """A box of the UDP-like branch and bound costs O(N) (its cost evaluations): at N = 1e5 the default cap of 2e4
+    boxes was about 17 hours, and the search ran for minutes. A cap the caller gives is priced (refused under
+    ``--max-boxes``: by hand, 2e4 boxes x (1000 + 30 (100 + 3e4 x 1.02)) = 1.8422e10 units at N = 3e4); the default
+    cap is what the ``allocation_work`` budget affords, so the search answers within the budget's time (here a
+    budget of 2.5 boxes at N = 3000 stops a search that needs more at 2 boxes, 'gap_not_certified')."""
+    code, line = main_line(["allocate", two_channel_file(tmp_path, 30_000), "--protocol", "udp", "--alpha", "0.5",
+                            "--beta", "1,0.5", "--max-boxes", "20000"], capsys)
+    assert code == 2
+    assert line.startswith("packetloss-cvx: error: --max-boxes: 20000 boxes at N = 30000 (n = 1, m = 2: ")
+    assert line.endswith("PACKETLOSS_CVX_BUDGET_ALLOCATION_WORK=1.85e+10")
+    system = pl.load_system(two_channel_file(tmp_path, 3000))
+    full = pl.allocate(system, "udp", alpha=0.5, beta=[1.0, 0.5], progress=False)
+    assert full.status == "optimal"
+    assert full.boxes > 2
+    box = 1000 + 30 * (100 + 3000 * 1.02)              # by hand: a box at N = 3000, n = 1, m = 2
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_ALLOCATION_WORK", str(2.5 * box))
+    capped = pl.allocate(system, "udp", alpha=0.5, beta=[1.0, 0.5], progress=False)
+    assert capped.status == "gap_not_certified"
+    assert capped.boxes == 2
+    assert "cap of 2 boxes" in capped.method
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_ALLOCATION_WORK", str(0.5 * box))
+    with pytest.raises(pl.ResourceError, match="^horizon: one box of the UDP-like search at N = 3000"):
+        pl.allocate(system, "udp", alpha=0.5, beta=[1.0, 0.5], progress=False)

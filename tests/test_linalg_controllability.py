@@ -61,9 +61,10 @@ def test_a_chain_of_integrators_is_controllable_from_its_last_state():
 
 
 def test_threshold_is_relative_to_the_plant_on_both_sides():
-    """A coupling of 100x the threshold counts as reached, one of 1/100 of it does not, at any scale of [A, B]."""
+    """A coupling of 100x or 3x the threshold counts as reached, one of 0.3x or 1/100 of it does not, at any scale of
+    [A, B] (so the threshold moved 10x either way fails here)."""
     for scale in (1e-8, 1.0, 1e8):
-        for factor, expected_nc in ((100.0, 2), (0.01, 1)):
+        for factor, expected_nc in ((100.0, 2), (3.0, 2), (0.3, 1), (0.01, 1)):
             eps = factor * CONTROLLABILITY_RTOL
             A = scale * np.array([[0.5, 0.0], [eps, 1.2]])
             B = scale * np.array([[1.0], [0.0]])

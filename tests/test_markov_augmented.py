@@ -367,3 +367,48 @@ def test_a_chain_too_large_for_the_budget_exits_2_with_one_line(tmp_path, capsys
     assert err.count("\n") == 1
     assert "D = 100" in err
     assert "PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK" in err
+
+
+# ---------------------------------------------------------------- the self-check's band, pinned on both sides
+
+def _chain_cost_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
+    """augmented_solve's referee (chain_cost, the exact forward cost of the plan) moved by a chosen amount."""
+    augmented_module = importlib.import_module("packetloss_cvx.markov.augmented")
+    real = augmented_module.chain_cost
+    monkeypatch.setattr(augmented_module, "chain_cost", lambda *a, **k: real(*a, **k) * (1 + relative) + absolute)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_recursion_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monkeypatch, factor, kept):
+    """The augmented recursion's cost off its plan's chain_cost by 3 SELF_CHECK_RTOL (relative) raises, by 0.3 is
+    returned (pendulum_bursty at N = 40: its own disagreement is at rounding level)."""
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    s = pendulum_at(40)
+    exact = augmented_solve(s)[2]
+    _chain_cost_off(monkeypatch, relative=factor * SELF_CHECK_RTOL)
+    if kept:
+        assert augmented_solve(s)[2] == exact
+    else:
+        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+            augmented_solve(s)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(monkeypatch, factor, kept):
+    """The absolute term SELF_CHECK_ATOL ||P_0|| ||x||^2 on its own: a weight of 1e6 on a mode no input reaches makes
+    ||P_0|| = 1e6 (0.81 + ... + 0.81^10) (by hand: the mode decays by 0.9 whatever the channel does), x0 outside
+    it keeps the cost below 1, so the term is over 1e3 times SELF_CHECK_RTOL's."""
+    from packetloss_cvx.tolerances import SELF_CHECK_ATOL
+
+    s = pl.System(A=[[0.9, 0.0], [0.0, 0.5]], B=[[0.0], [1.0]], horizon=10, state_weight=[1e6, 1.0],
+                  input_weight=[1.0], x0=[0.0, 1.0], channel=GilbertElliott(p=[0.2], r=[0.3]))
+    norm_P0 = 1e6 * sum(0.81 ** t for t in range(1, 11))
+    exact = augmented_solve(s)[2]
+    assert 0.0 < exact < 1.0
+    _chain_cost_off(monkeypatch, absolute=factor * SELF_CHECK_ATOL * norm_P0 * 1.0)
+    if kept:
+        assert augmented_solve(s)[2] == exact
+    else:
+        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+            augmented_solve(s)

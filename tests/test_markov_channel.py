@@ -101,6 +101,41 @@ def test_rows_within_the_stated_tolerance_are_accepted_and_rescaled():
         MarkovChannel(transition=[[[0.7, 0.2, 0.1 + 3 * ROW_SUM_ATOL], *T[1:]]], delivery=[[1.0, 0.5, 0.0]])
 
 
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_a_belief_off_one_by_3_row_sum_atols_is_refused_and_by_0_3_rescaled(factor, kept):
+    """A belief (or initial distribution) is a probability vector summing to 1 within ROW_SUM_ATOL, as a row is."""
+    belief = [0.3, 0.7 + factor * ROW_SUM_ATOL]
+    if kept:
+        ch = MarkovChannel(transition=[T2], delivery=[[1.0, 0.0]], belief=[belief])
+        np.testing.assert_allclose(ch.belief[0], np.array(belief) / sum(belief), rtol=1e-15)
+        assert abs(ch.belief[0].sum() - 1.0) <= 2e-16
+    else:
+        with pytest.raises(pl.ProbabilityError, match=r"belief\[0\]: expected probabilities summing to 1"):
+            MarkovChannel(transition=[T2], delivery=[[1.0, 0.0]], belief=[belief])
+
+
+@pytest.mark.parametrize(("factor", "unique"), [(3.0, True), (0.3, False)])
+def test_a_stationary_start_needs_the_smallest_singular_value_above_stationary_gap(factor, unique):
+    """A 3-state chain that lumps to the two-state chain with p = r = e (state 0 against states 1 and 2, which mix
+    at once): the smallest singular value of [T' - I; 1'] is 2 e (p + r, the tolerance's own measurement; checked
+    here by an SVD), put at factor STATIONARY_GAP. At 3 the stationary start is defined, (1/2, 1/4, 1/4) by hand; at
+    0.3 the chain is taken as having two closed classes and a stationary start is refused naming the field."""
+    from packetloss_cvx.tolerances import STATIONARY_GAP
+
+    e = factor * STATIONARY_GAP / 2
+    T = np.array([[1 - e, e / 2, e / 2], [e, (1 - e) / 2, (1 - e) / 2], [e, (1 - e) / 2, (1 - e) / 2]])
+    smallest = np.linalg.svd(np.vstack([T.T - np.eye(3), np.ones((1, 3))]), compute_uv=False)[-1]
+    assert smallest == pytest.approx(factor * STATIONARY_GAP, rel=1e-3)
+    if unique:
+        ch = MarkovChannel(transition=[T.tolist()], delivery=[[1.0, 0.5, 0.0]])
+        # least squares on a system whose smallest singular value is 6e-12: accurate to about eps / 6e-12 = 4e-5
+        # (measured 2.7e-5), which is what a chain that needs 1e11 steps to forget its start allows
+        np.testing.assert_allclose(ch.stationary[0], [0.5, 0.25, 0.25], rtol=1e-4)
+    else:
+        with pytest.raises(pl.InputError, match=r"transition\[0\]: the chain has more than one stationary"):
+            MarkovChannel(transition=[T.tolist()], delivery=[[1.0, 0.5, 0.0]])
+
+
 def test_a_bad_chain_file_exits_2_with_one_line(capsys, tmp_path):
     text = dumps_system(with_channel(chain())).replace("0.95, 0.1", "0.95, 1.1")
     path = tmp_path / "bad.toml"

@@ -2,6 +2,8 @@
 from path enumeration, against Monte Carlo (4 standard errors) on seeded random systems, its
 minimiser in closed form against the cvxpy + Clarabel QP, and the memoryless reduction to Bernoulli."""
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_cost,
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.simulation.markov_channels import sample_markov_plan_costs
+from packetloss_cvx.tolerances import SELF_CHECK_RTOL
 from tests.test_markov_chain import moments_by_enumeration, random_channel
 
 
@@ -135,3 +138,19 @@ def test_the_udp_like_cost_of_a_chain_is_refused_not_the_plug_in_number():
     assert exact_cost(s, plug_in.inputs, "udp") > 3 * plug_in.cost       # 51735 against 15706
     assert exact_closed_form(s, "udp").cost < exact_cost(s, plug_in.inputs, "udp")
     assert pl.closed_form(s, "tcp").cost == pytest.approx(exact_closed_form(s, "tcp").cost, rel=1e-10)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_dense_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monkeypatch, factor, kept):
+    """The dense route's J* off the exact forward cost of its own plan (exact_cost, method 'dense') by 3
+    SELF_CHECK_RTOL (relative) raises, by 0.3 is returned."""
+    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+    s = bursty(3)
+    exact = exact_closed_form(s, method="dense").cost
+    real = exact_module.exact_cost
+    monkeypatch.setattr(exact_module, "exact_cost", lambda *a, **k: real(*a, **k) * (1 + factor * SELF_CHECK_RTOL))
+    if kept:
+        assert exact_closed_form(s, method="dense").cost == exact
+    else:
+        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+            exact_closed_form(s, method="dense")

@@ -242,3 +242,32 @@ def test_fractional_h_jump_law_stage_costs_by_hand_and_by_the_bernoulli_moments(
     mu0 = 0.7 * 0.9 + 0.3 * 0.3, 0.4 * 0.8 + 0.6 * 0.1                      # P(delivered) at t = 0 per channel
     first = jump_law_stage_costs(s2, np.broadcast_to(K, (4, 2, 2)), 1)[0]
     assert first == pytest.approx(5.0 + 2.0 * mu0[0] * 0.25 + 3.0 * mu0[1] * 0.25, rel=1e-14)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monkeypatch, factor, kept):
+    """The check after the iteration, one more step from the answer P, sees a residual max|step(P) - P| / max|P| of
+    factor SELF_CHECK_RTOL (planted on that step's largest entry; the iteration itself stops 100 times below it):
+    NumericalError at 3, the answer (the hand values of test_hand_derived_two_mode_scalar) at 0.3."""
+    import packetloss_cvx.markov.mjls as mjls_module
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    s = scalar(0.0, 0.5)
+    answer = coupled_riccati(s).cost_matrices.copy()
+    real = mjls_module._riccati_step
+
+    def step(P, *args):
+        new, K = real(P, *args)
+        if np.array_equal(P, answer):                   # the check's step (the iteration never starts from P)
+            new = new.copy()
+            new.flat[np.argmax(np.abs(new))] += factor * SELF_CHECK_RTOL * np.max(np.abs(P))
+        return new, K
+
+    monkeypatch.setattr(mjls_module, "_riccati_step", step)
+    if kept:
+        res = coupled_riccati(s)
+        np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-10)
+        assert res.residual == pytest.approx(factor * SELF_CHECK_RTOL, rel=0.05)
+    else:
+        with pytest.raises(NumericalError, match="relative residual 3.0e-09"):
+            coupled_riccati(s)

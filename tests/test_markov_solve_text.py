@@ -4,6 +4,7 @@ verdicts follow the proven rule (is_mean_square_stable), with the radius recompu
 import json
 
 import numpy as np
+import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx import load_example
@@ -84,3 +85,17 @@ def test_a_small_real_plug_in_loss_is_not_printed_as_zero(capsys, tmp_path):
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("UDP-like exact"))
     assert "0.0000%" not in line
     assert f"({100 * loss:+.3g}%)" in line
+
+
+def test_a_plug_in_loss_is_equal_within_five_self_check_rtols_and_a_loss_beyond():
+    """The section's words for the plug-in law's relative loss: below 5 SELF_CHECK_RTOL (the precision each of the two
+    costs is checked to, twice over, with room) "equal within 5e-9 relative"; a loss of 3 times that band is printed
+    as a loss, one of 0.3 times is not, on both signs."""
+    from packetloss_cvx.cli.markov_section import _percent
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    band = 5 * SELF_CHECK_RTOL
+    for sign in (1.0, -1.0):
+        assert _percent(sign * 0.3 * band) == "equal within 5e-9 relative"
+        assert _percent(sign * 3 * band) == f"{100 * sign * 3 * band:+.3g}%"
+    assert band == pytest.approx(5e-9)                 # the printed "5e-9" is this band

@@ -5,6 +5,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.io import system_from_dict
+from packetloss_cvx.tolerances import ROUNDING_ORDER_RTOL
 
 GOOD = {
     "A": [[1.0, 0.1], [0.0, 1.0]], "B": [[0.0], [1.0]], "horizon": 3,
@@ -172,9 +173,11 @@ def _error_of(build):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_stacked_weight_check_gives_the_step_by_step_floats_and_first_error(seed):
-    """validation.psd_weights against psd_weight step by step: the same floats bit for bit (diagonals, full
-    matrices, asymmetry within the tolerance, eigenvalues a rounding below 0 that get repaired) and the same
-    first error (type and text) wherever one or two steps are bad, in any order."""
+    """validation.psd_weights against psd_weight step by step: the same floats bit for bit where a step is stored as
+    given or symmetrised (diagonals, full matrices, asymmetry within the tolerance), the same values to rounding
+    (ROUNDING_ORDER_RTOL) where eigenvalues a rounding below 0 are repaired (an eigen-decomposition and a product,
+    stacked against one at a time), and the same first error (type and text) wherever one or two steps are bad,
+    in any order."""
     from packetloss_cvx.validation import psd_weights
     rng = np.random.default_rng(seed)
     n, N = int(rng.integers(1, 5)), int(rng.integers(2, 30))
@@ -193,9 +196,14 @@ def test_stacked_weight_check_gives_the_step_by_step_floats_and_first_error(seed
 
     kinds = rng.choice(["diag", "full", "full", "asymmetric", "rank-deficient"], N)
     items = [good(k) for k in kinds]
-    assert np.array_equal(psd_weights(items, "state_weights", n), _weights_one_by_one(items, n))
     as_lists = [w.tolist() for w in items]
-    assert np.array_equal(psd_weights(as_lists, "state_weights", n), _weights_one_by_one(as_lists, n))
+    for given in (items, as_lists):
+        got, want = psd_weights(given, "state_weights", n), _weights_one_by_one(given, n)
+        for t, kind in enumerate(kinds):
+            if kind == "rank-deficient":
+                np.testing.assert_allclose(got[t], want[t], rtol=0, atol=ROUNDING_ORDER_RTOL * np.abs(want[t]).max())
+            else:
+                assert np.array_equal(got[t], want[t]), (t, kind)
     bad = {"not psd": -np.eye(n) - 1e-3, "nan": np.full((n, n), np.nan), "shape": np.ones((n + 1, n + 1)),
            "negative diagonal": -np.ones(n), "asymmetric": np.triu(np.ones((n, n)), 1) + np.eye(n) if n > 1 else
            np.array([[-1.0]]), "string": "W"}
@@ -255,3 +263,44 @@ def test_weights_as_arrays_of_one_shape_give_the_step_by_step_floats_and_first_e
         assert expected is not None
         assert "state_weights[5]" in expected[1]
         assert _error_of(lambda w=wrong: psd_weights(w, "state_weights", n)) == expected
+
+
+# ---------------------------------------------------------------- the weights' bands, pinned on both sides
+
+@pytest.mark.parametrize("field", ["state_weight", "noise_cov"])
+@pytest.mark.parametrize("scale", [1e-30, 1.0, 1e30])
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_asymmetry_of_3_times_symmetry_rtol_is_refused_and_of_0_3_kept(field, scale, factor, kept):
+    """W = diag(2, 1) + e (e1 e2' - e2 e1') has ||W - W'||_2 = 2 e and ||W||_2 = 2 + O(e^2) (by hand): e = factor
+    SYMMETRY_RTOL is refused at 3, symmetrised at 0.3, at every scale of W (the band is relative)."""
+    from packetloss_cvx.tolerances import SYMMETRY_RTOL
+
+    e = factor * SYMMETRY_RTOL
+    W = scale * np.array([[2.0, e], [-e, 1.0]])
+    if kept:
+        s = pl.System(**{**GOOD, field: W.tolist()})
+        got = s.state_weights[0] if field == "state_weight" else s.noise_cov
+        assert np.array_equal(got, got.T)
+        assert np.allclose(got, scale * np.diag([2.0, 1.0]), rtol=0.0, atol=1e-15 * scale)
+    else:
+        with pytest.raises(pl.InputError, match=f"{field}: expected a symmetric matrix"):
+            pl.System(**{**GOOD, field: W.tolist()})
+
+
+@pytest.mark.parametrize("field", ["state_weight", "noise_cov", "initial_weight"])
+@pytest.mark.parametrize("scale", [1e-30, 1.0, 1e30])
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_eigenvalue_of_minus_3_times_psd_rtol_is_refused_and_of_minus_0_3_set_to_zero(field, scale, factor, kept):
+    """diag(1, -factor PSD_RTOL) times scale: its least eigenvalue is exactly -factor PSD_RTOL ||W||. At 3 it is
+    refused naming the field, at 0.3 accepted as a rounding of a PSD weight and set to zero."""
+    from packetloss_cvx.tolerances import PSD_RTOL
+
+    W = scale * np.diag([1.0, -factor * PSD_RTOL])
+    if kept:
+        s = pl.System(**{**GOOD, field: W.tolist()})
+        got = {"state_weight": s.state_weights[0], "noise_cov": s.noise_cov, "initial_weight": s.initial_weight}[field]
+        assert np.linalg.eigvalsh(got).min() >= 0.0
+        assert np.allclose(got, scale * np.diag([1.0, 0.0]), rtol=0.0, atol=1e-15 * scale)
+    else:
+        with pytest.raises(pl.InputError, match=f"{field}: expected a positive semidefinite matrix"):
+            pl.System(**{**GOOD, field: W.tolist()})

@@ -80,3 +80,21 @@ def test_nothing_delivered_costs_the_open_loop_exactly():
         assert sol.cost == pytest.approx(1.0 + 4.0 + 16.0, rel=1e-14)      # x0'Q x0 + x1^2 + x2^2
         assert not sol.inputs.any()
 
+
+
+@pytest.mark.parametrize("formulation", ["sparse", "condensed"])
+@pytest.mark.parametrize(("factor", "pinned"), [(3.0, False), (0.3, True)])
+def test_a_channel_is_pinned_at_or_below_qp_pin_mu_and_solved_above(two_actuator, formulation, factor, pinned):
+    """A channel of delivery probability factor QP_PIN_MU: at 0.3 its mean input is pinned to zero (input reported
+    0), at 3 it is a variable whose input agrees with the closed form's (Clarabel resolves it there: 4e-12 measured
+    down to 1e-30); the cost agrees with the closed form either way (pinning changes it by mu sum psi u^2)."""
+    from packetloss_cvx.tolerances import QP_PIN_MU
+
+    s = two_actuator.with_mu([factor * QP_PIN_MU, 0.5])
+    ref = pl.closed_form(s, "udp", method="recursion")
+    sol = pl.solve_qp(s, "udp", formulation, with_gain=False, cross_check=False)
+    assert sol.cost == pytest.approx(ref.cost, rel=CROSS_CHECK_COST_RTOL)
+    if pinned:
+        assert not np.any(sol.inputs[:, 0])
+    else:
+        np.testing.assert_allclose(sol.inputs[:, 0], ref.inputs[:, 0], rtol=1e-6)

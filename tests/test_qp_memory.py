@@ -51,3 +51,19 @@ def test_re_solves_across_pinned_channels_and_schedules_agree_with_the_closed_fo
         assert np.allclose(mean * got.inputs, mean * ref.inputs, rtol=1e-5, atol=1e-6)
         live = mean[0] > QP_PIN_MU                         # a pinned channel's input is any value (reported 0)
         assert np.allclose(got.gain[live], ref.gain[live], rtol=1e-5, atol=1e-6)
+
+
+def test_a_qp_beyond_the_solve_budget_is_refused_before_cvxpy_sees_it():
+    """The QP's horizon is priced (budgets.qp_work) before cvxpy compiles anything: 2e6 steps of a scalar plant are
+    refused at once under ``horizon`` (by hand: 2e6 (28 + 1.1 + 1.5) = 6.12e7 units of 1e-6 s, over the 6e7 budget),
+    where compiling and solving took minutes and gigabytes."""
+    import time
+
+    s = pl.System(A=[[0.9]], B=[[1.0]], horizon=2 * 10 ** 6, state_weight=[1.0], input_weight=[1.0], mu=[0.5],
+                  x0=[1.0])
+    start = time.perf_counter()
+    with pytest.raises(pl.ResourceError, match="PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.12e\\+07") as info:
+        pl.solve_qp(s, "udp")
+    assert time.perf_counter() - start < 5
+    assert info.value.field == "horizon"
+    assert isinstance(info.value, ValueError)         # a BudgetError: the caller's size, an InputError too

@@ -113,3 +113,18 @@ def test_an_exactly_zero_minimum_is_not_rescaled(formulation):
     assert qp.rescaled == 0
     assert np.abs(sol.inputs).max() <= 1e-12
     assert sol.cost == pytest.approx(pl.closed_form(s, "udp", method="recursion").cost, rel=CROSS_CHECK_COST_RTOL)
+
+
+@pytest.mark.parametrize("formulation", ["sparse", "condensed"])
+@pytest.mark.parametrize(("factor", "rescaled"), [(3.0, 0), (0.3, 1)])
+def test_a_scaled_minimum_below_qp_rescale_below_is_solved_again_and_one_above_is_not(formulation, factor, rescaled):
+    """One step, unit weights and x0 (the QP's own scale): min_u (a + u)^2 + u^2 = a^2 / 2 by hand, put at factor
+    QP_RESCALE_BELOW. At 0.3 the QP is rescaled once, at 3 not; the minimum is a^2 / 2 either way."""
+    from packetloss_cvx.tolerances import QP_RESCALE_BELOW
+
+    a = np.sqrt(2 * factor * QP_RESCALE_BELOW)
+    s = pl.System(A=[[a]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    qp = ExpectedCostQP(s, "tcp", formulation)
+    sol = qp.solve(cross_check=False, with_gain=False)
+    assert qp.rescaled == rescaled
+    assert sol.cost == pytest.approx(a * a / 2, rel=CROSS_CHECK_COST_RTOL)

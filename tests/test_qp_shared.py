@@ -20,7 +20,7 @@ from packetloss_cvx.qp_shared import (
     padded,
 )
 from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.tolerances import CLARABEL_TIGHT, CROSS_CHECK_COST_RTOL, CROSS_CHECK_INPUT_ATOL
+from packetloss_cvx.tolerances import CLARABEL_TIGHT, CROSS_CHECK_COST_RTOL, CROSS_CHECK_INPUT_ATOL, ROUNDING_ORDER_RTOL
 
 
 def _systems(seed: int, count: int) -> list[pl.System]:
@@ -163,20 +163,21 @@ def test_threads_sharing_a_bucket_get_their_own_answers():
 
 
 @pytest.mark.parametrize(("rows", "cols"), [(8, 8), (16, 8), (32, 24)])
-def test_the_objective_value_is_cvxpys_evaluation_bit_for_bit(rows, cols):
+def test_the_objective_value_is_cvxpys_evaluation(rows, cols):
     """objective_value against cvxpy's own numeric evaluation of the compiled expression (Parameters and the
-    Variable assigned, problem.objective.value): the same float, at scales 1e-3..1e3, and a solve reports it."""
+    Variable assigned, problem.objective.value): the same value to rounding (ROUNDING_ORDER_RTOL), at scales
+    1e-3..1e3, and a solve reports it."""
     rng = np.random.default_rng(rows * cols)
     qp = CondensedQP(rows, cols)
     for _ in range(50):
         c, z = rng.normal(size=rows) * 10 ** rng.uniform(-3, 3), rng.normal(size=cols) * 10 ** rng.uniform(-3, 3)
         G, r = rng.normal(size=(rows, cols)), np.abs(rng.normal(size=cols))
         qp.c.value, qp.G.value, qp.r.value, qp.z.value = c, G, r, z
-        assert objective_value(c, G, r, z) == float(qp.problem.objective.value)
+        assert objective_value(c, G, r, z) == pytest.approx(float(qp.problem.objective.value), rel=ROUNDING_ORDER_RTOL)
     z, value, status = qp.solve(c, G, r, "a random QP")
     qp.z.value = z
     assert status == "optimal"
-    assert value == float(qp.problem.objective.value)
+    assert value == pytest.approx(float(qp.problem.objective.value), rel=ROUNDING_ORDER_RTOL)
 
 
 def test_data_larger_than_the_problem_are_refused():

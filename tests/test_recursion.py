@@ -653,3 +653,24 @@ def test_least_squares_riccati_step_against_delivery_pattern_enumeration(seed):
         assert np.allclose(R[g], cost(K_ref), atol=1e-10 * scale)
         assert np.allclose(cost(K[g]), cost(K_ref), atol=1e-10 * scale)
         assert np.allclose(K[g], K_ref, atol=1e-8 * max(1.0, float(np.abs(K_ref).max())))
+
+
+@pytest.mark.parametrize("q", [0.01, 0.5, 0.99])
+@pytest.mark.parametrize(("factor", "closed"), [(3.0, False), (0.3, True)])
+def test_a_stationary_tail_closes_when_its_remaining_drift_is_below_stationary_rtol(q, factor, closed):
+    """stationary_close's band: the last change times the remaining geometric sum q / (1 - q) against
+    STATIONARY_RTOL times the iterate's size. A change that leaves factor STATIONARY_RTOL to come (by hand: change
+    = factor STATIONARY_RTOL size (1 - q) / q) closes at 0.3 and not at 3, for slow and fast contractions alike, in
+    a batch as for one point; never at q >= 1."""
+    from packetloss_cvx.recursion import stationary_close
+    from packetloss_cvx.tolerances import STATIONARY_RTOL
+
+    size = 7.0
+    change = factor * STATIONARY_RTOL * size * (1 - q) / q
+    new = np.diag([size, 1.0])
+    old = new.copy()
+    old[0, 1] = old[1, 0] = change
+    assert stationary_close(new, old, q) is closed
+    batch_new, batch_old = np.stack([new, 2 * new]), np.stack([old, 2 * new])
+    assert stationary_close(batch_new, batch_old, np.array([q, q])) is closed
+    assert stationary_close(new, new, 1.0) is False

@@ -15,6 +15,7 @@ from packetloss_cvx.simulation import region
 from packetloss_cvx.simulation.critical import critical_mu, critical_point
 from packetloss_cvx.simulation.region import certificate_margin, homogeneous_riccati, membership
 from packetloss_cvx.simulation.region_lmi import LmiForm
+from packetloss_cvx.tolerances import CRITICAL_MU_TOL, LEAST_RADIUS_ATOL, MEAN_SQUARE_MARGIN
 
 from .references import enumerated_radius
 
@@ -110,7 +111,7 @@ def test_a_boundary_point_has_a_gain_inside_and_a_certificate_outside():
     assert inside.verdict == "stable" and enumerated_radius(s.A, s.B, inside.gain, inside.mu) < 1.0
     assert outside.verdict == "unstable"
     P, mu = outside.certificate, outside.mu
-    assert np.linalg.eigvalsh(P)[0] >= -1e-12 and np.trace(P) == pytest.approx(1.0)
+    assert np.linalg.eigvalsh(P)[-1] > 0 and np.trace(P) == pytest.approx(1.0)    # a certificate: P not <= 0
     # no gain beats the certificate: random gains and the DP gain just inside, all with radius >= 1 at mu
     rng = np.random.default_rng(1)
     gains = [inside.gain, *(inside.gain + rng.normal(scale=x, size=inside.gain.shape) for x in (1e-3, 0.1, 1.0))]
@@ -156,8 +157,9 @@ def test_disagreeing_forms_raise_cross_check_error(monkeypatch):
     s = scalar(2.0)
     monkeypatch.setattr(region, "homogeneous_riccati", lambda A, B, mu: (2.0, np.eye(1), np.zeros((1, 1))))
     monkeypatch.setattr(region, "certificate_margin", lambda A, B, mu, P: 0.0)
+    monkeypatch.setattr(region, "outside_proved", lambda A, B, mu, P, c: True)
     with pytest.raises(CrossCheckError, match="disagree"):
-        membership(s, [0.9], forms=("riccati", "dp"))
+        membership(s, [0.9], forms=("dp", "riccati"))
 
 
 def test_a_solver_failure_is_not_a_verdict(monkeypatch):
@@ -363,17 +365,19 @@ def test_homogeneous_riccati_deadbeat_point_handed_over_early_resumes_its_power_
     deadbeat = np.linalg.solve(C, np.linalg.matrix_power(A, 3))[-1:]
     assert np.allclose(np.linalg.matrix_power(A - B @ deadbeat, 3), 0.0, atol=1e-12)
     lam, P, K = homogeneous_riccati(A, B, mu)
-    assert 0.0 <= lam <= 1e-12
+    assert lam == 0.0                                             # (A, b) controllable, delivered always: exactly 0
     assert enumerated_radius(A, B, K, mu) <= 1e-6                 # the gain found is (nearly) deadbeat too
     batch = homogeneous_riccati(A, B, np.array([[1.0], [0.5]]))   # the same point inside a batch: the same steps
-    assert 0.0 <= batch[0][0] <= 1e-12
+    assert batch[0][0] == 0.0
+    assert enumerated_radius(A, B, batch[2][0], mu) <= 1e-6
 
 
 def test_membership_runs_the_dp_form_only_where_a_gain_could_pass(monkeypatch):
     """The "dp" form proves only "stable" (radius < 1 - 1e-9). Scalar a = 2 at mu = 0.75, by hand: every gain's
     radius is (a - mu k)^2 + mu (1 - mu) k^2 >= a^2 (1 - mu) = 1, and the "riccati" form's P = 1 shows it (R(1) = 1),
-    so the DP is not run there (its value iteration would crawl to its step cap) and the verdict stays undecided.
-    Where the "riccati" form decides (mu = 0.6 unstable, 0.9 stable) the DP still runs as the cross-check."""
+    so the DP is not run there (its value iteration would crawl to its step cap) and the verdict stays undecided;
+    nor where the "riccati" form proved "unstable" (mu = 0.6: radius >= 1.6). Where it proved "stable" (0.9) the DP
+    still runs as the cross-check."""
     s = scalar(2.0)
     ran = []
     real = region.dp_riccati
@@ -385,16 +389,20 @@ def test_membership_runs_the_dp_form_only_where_a_gain_could_pass(monkeypatch):
     assert dict(found.forms) == {"riccati": "undecided", "dp": "undecided"}
     assert membership(s, [0.6], forms=("riccati", "dp")).verdict == "unstable"
     assert membership(s, [0.9], forms=("riccati", "dp")).verdict == "stable"
-    assert ran == [0.6, 0.9]
+    assert ran == [0.9]
 
 
 def test_membership_checks_a_given_eigenpair_at_its_own_mu():
     """The region map hands its batch's eigenpair to the membership's "riccati" form: a pair from another mu is
-    checked at this mu and leaves the form undecided, never a verdict (scalar a = 2: S = {mu > 0.75})."""
+    checked at this mu, so its certificate P proves nothing there and its gain only what it proves at this mu
+    (scalar a = 2: S = {mu > 0.75}; the pair at 0.5 has P = 1 and the gain k = a, whose radius a^2 (1 - mu) is 0.4 at
+    mu = 0.9 by hand: a proved "stable" there, never "unstable")."""
     s = scalar(2.0)
     outside = homogeneous_riccati(s.A, s.B, np.array([0.5]))      # lambda 2, its P a certificate at 0.5
     inside = homogeneous_riccati(s.A, s.B, np.array([0.9]))       # lambda 0.4, gain k = 2
-    assert membership(s, [0.9], forms=("riccati",), riccati=outside).verdict == "undecided"
+    found = membership(s, [0.9], forms=("riccati",), riccati=outside)
+    assert found.verdict == "stable"
+    assert found.radius == pytest.approx(4 * (1 - 0.9), rel=1e-12)
     assert membership(s, [0.5], forms=("riccati",), riccati=inside).verdict == "undecided"
     assert membership(s, [0.9], forms=("riccati",), riccati=inside).verdict == "stable"
     assert membership(s, [0.5], forms=("riccati",), riccati=outside).verdict == "unstable"
@@ -413,7 +421,7 @@ def test_least_radius_is_zero_where_one_always_delivered_channel_deadbeats_the_p
     F = A - np.outer([0.0, 1.0], k2)
     assert np.allclose(F @ F, 0.0, atol=1e-9)
     lam, P, K = homogeneous_riccati(A, np.asarray(s.B, float), np.array(mu))
-    assert 0.0 <= lam <= 1e-12
+    assert lam == 0.0
 
 
 def test_least_radius_is_zero_at_a_single_input_deadbeat_point_handed_over_early():
@@ -427,7 +435,7 @@ def test_least_radius_is_zero_at_a_single_input_deadbeat_point_handed_over_early
     F = A - np.outer(b, np.linalg.solve(C.T, np.eye(3)[2]) @ np.linalg.matrix_power(A, 3))
     assert np.allclose(np.linalg.matrix_power(F, 3), 0.0, atol=1e-9)
     lam, P, K = homogeneous_riccati(A, b[:, None], np.array([1.0]))
-    assert 0.0 <= lam <= 1e-12
+    assert lam == 0.0
 
 
 def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lmi():
@@ -440,7 +448,8 @@ def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lm
     result = region_map(s, laws=("dp",), grid=11)
     radius = result.radius[0]
     assert np.all(np.isfinite(radius)) and np.all(radius >= 0.0)
-    assert np.all(radius[-1] <= 1e-12) and np.all(radius[:, -1] <= 1e-12)     # mu_2 = 1 or mu_1 = 1: deadbeat
+    assert np.all(radius[-1] == 0.0)                  # mu_2 = 1 or mu_1 = 1: deadbeat, exactly 0
+    assert np.all(radius[:, -1] == 0.0)
     A, B = np.asarray(s.A, float), np.asarray(s.B, float)
     for row, col in [(2, 6), (9, 9), (8, 2), (5, 0)]:
         mu = np.array([result.axis[col], result.axis[row]])
@@ -519,3 +528,140 @@ def test_a_started_eigenpair_that_misses_the_dominant_block_is_no_verdict():
     found = membership(s, mu, riccati=started)
     assert found.verdict == "unstable"
     assert found.gain is None
+
+
+def chain(a0, n=4):
+    """A = a0 I + N (ones on the superdiagonal: one Jordan block), b = e_n: controllable, one input."""
+    A = a0 * np.eye(n) + np.eye(n, k=1)
+    return System(A=A, B=np.eye(n)[:, n - 1:], horizon=2, state_weight=[1.0] * n, input_weight=[1.0], mu=[1.0],
+                  x0=[1.0] * n)
+
+
+def test_membership_of_a_chain_of_integrators_inside_s_is_never_unstable():
+    """A = I4 + N, b = e4, mu = 0.0124: mu is in S (Elia: (1 - mu) |1|^8 < 1), the least radius is (1 - mu)^(1/4) =
+    0.99689. The verdict had been "unstable" with a float-checked certificate ("every law's radius >= 1.000664"); it
+    is "stable" with a gain whose enumerated radius is below 1. Given the unscaled iteration's eigenpair (lambda
+    1.0014, its P the float-checked certificate), the "riccati" form is not "unstable" either: the exact check
+    refuses that P, and the pair's own gain (enumerated radius 0.9996) is what it proves."""
+    s, mu = chain(1.0), np.array([0.0124])
+    A, B = np.asarray(s.A, float), np.asarray(s.B, float)
+    found = membership(s, mu, forms=("riccati", "dp"))
+    assert found.verdict == "stable"
+    assert enumerated_radius(A, B, found.gain, mu) < 1.0
+    saved = region._GRADED
+    try:
+        region._GRADED = 0.0                                  # the iteration without its graded refinement
+        wrong = homogeneous_riccati(A, B, mu)
+    finally:
+        region._GRADED = saved
+    assert wrong[0] > 1.0
+    given = membership(s, mu, forms=("riccati",), riccati=wrong)
+    assert given.verdict != "unstable"
+    if given.stable:
+        assert enumerated_radius(A, B, given.gain, mu) < 1.0
+
+
+@pytest.mark.parametrize(("a0", "mu"), [(1.0, 0.0124), (1.001, 0.002), (1.001, 0.0079), (1.001, 0.0186),
+                                        (1.3, 0.5)])
+def test_least_radius_of_a_jordan_chain_is_the_single_input_value(a0, mu):
+    """One Jordan block of size 4, one input: S_rho (the set of mu with a law of radius < rho) is, by Elia's
+    single-input theorem on A / sqrt(rho), (1 - mu) (a0^2 / rho)^4 < 1, so min_K rho(L_K) = a0^2 (1 - mu)^(1/4)
+    (rho below a0^2). The P of this plant is graded (its diagonal spans 1e-14 ... 1): unscaled, the iteration had
+    stopped 1e-2 off (1.0101 for 1.0015 at mu = 0.002); on the plant scaled by powers of two it agrees to the
+    margin a radius is trusted to."""
+    s = chain(a0)
+    lam = homogeneous_riccati(np.asarray(s.A, float), np.asarray(s.B, float), np.array([mu]))[0]
+    assert lam == pytest.approx(a0 ** 2 * (1 - mu) ** 0.25, rel=MEAN_SQUARE_MARGIN)
+
+
+def _single_input_plant(rng):
+    """A = Q J Q' (Q orthogonal), J block diagonal: Jordan blocks (size 1 to 3) of distinct real eigenvalues and
+    perhaps one rotation block, each driven at its last state (b = Q (1 at each block's end)): controllable, one
+    input. Returns the plant and its Mahler measure prod |lambda_i|^2 over |lambda_i| >= 1 (exact by construction)."""
+    blocks, mahler = [], 1.0
+    values = rng.permutation([1.08, 1.25, -1.4, 0.6, -0.3, 0.85, 1.6])[: int(rng.integers(2, 4))]
+    for value in values:
+        size = int(rng.integers(1, 4))
+        blocks.append(value * np.eye(size) + np.eye(size, k=1))
+        mahler *= value ** (2 * size) if abs(value) >= 1 else 1.0
+    if rng.random() < 0.5:                                   # a complex pair r e^{+-i theta}
+        r, theta = float(rng.choice([0.7, 1.15])), float(rng.uniform(0.3, 2.5))
+        blocks.append(r * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]]))
+        mahler *= r ** 4 if r >= 1 else 1.0
+    n = sum(len(b) for b in blocks)
+    J, b, k = np.zeros((n, n)), np.zeros(n), 0
+    for block in blocks:
+        J[k:k + len(block), k:k + len(block)] = block
+        k += len(block)
+        b[k - 1] = 1.0
+    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    s = System(A=Q @ J @ Q.T, B=(Q @ b)[:, None], horizon=2, state_weight=[1.0] * n, input_weight=[1.0], mu=[1.0],
+               x0=[1.0] * n)
+    return s, mahler
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_critical_mu_of_single_input_plants_is_one_minus_the_inverse_mahler_measure(seed):
+    """Elia (2005): over one input erased with probability 1 - mu, mu is in S iff (1 - mu) prod |lambda_i(A)|^2 < 1
+    over the unstable eigenvalues (Jordan blocks counted with their size). The DP law's critical point, bracketed
+    by an exact stability witness and an exact infeasibility certificate, holds 1 - 1 / prod within
+    CRITICAL_MU_TOL. (The 1.001 chain had given 0.01866 for 0.00796, by false "unstable" verdicts.)"""
+    s, mahler = _single_input_plant(np.random.default_rng(seed)) if seed else (chain(1.001), 1.001 ** 8)
+    exact = 1.0 - 1.0 / mahler
+    point = critical_point(s, "dp")
+    assert point.lower <= exact <= point.t
+    assert point.t - point.lower <= CRITICAL_MU_TOL
+    assert point.inside.verdict == "stable"
+    assert point.outside is None or point.outside.verdict == "unstable"
+
+
+def test_a_mode_no_input_reaches_is_decided_by_the_split():
+    """A = [[0.5, 1], [0, 1.2]], b = e1: x2+ = 1.2 x2 whatever the law, so every law's radius is >= 1.44 and the
+    least radius is 1.44 (the reached part's own, 0.25 (1 - mu), is smaller): "unstable" with margin 0.44 at every mu
+    (hand). The form had been "undecided" (its eigenpair 0.72), where diag(0.5, 1.2) was decided; now both are, and
+    the least radius is the unreached mode's."""
+    for A in ([[0.5, 1.0], [0.0, 1.2]], [[0.5, 0.0], [0.0, 1.2]]):
+        s = System(A=A, B=[[1.0], [0.0]], horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0], mu=[1.0],
+                   x0=[1.0, 1.0])
+        for mu in (0.1, 0.5, 1.0):
+            found = membership(s, [mu], forms=("riccati",))
+            assert found.verdict == "unstable"
+            assert found.certificate_margin == pytest.approx(0.44, rel=1e-8)
+            lam = homogeneous_riccati(np.asarray(s.A, float), np.asarray(s.B, float), np.array([mu]))[0]
+            assert lam == pytest.approx(1.44, rel=1e-15)
+    # two unreached modes, the 1.2 one coupled in: the least radius is still 1.44 (the unscaled and the balanced
+    # iterations had ended on another eigenvector, 0.576 at mu = 0.6)
+    A, b = np.array([[0.5, 1.0, 0.3], [0.0, 1.2, 1.0], [0.0, 0.0, 0.3]]), np.array([[1.0], [0.0], [0.0]])
+    assert homogeneous_riccati(A, b, np.array([0.6]))[0] == pytest.approx(1.44, rel=1e-15)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_least_radius_of_a_nilpotent_plant_is_zero_to_its_registered_floor(seed):
+    """A = Q N Q' (N strictly upper triangular, Q orthogonal): K = 0 gives L_K = A (.) A', nilpotent, so
+    min_K rho(L_K) = 0 at every mu (hand); no channel always delivers, so no structural rule applies and the power
+    iteration's zero test ends it. Its value is zero to the absolute floor LEAST_RADIUS_ATOL ||A||_2^2 (the test's
+    own bound). The PSD part of the last iterate had given up to 1e-5 ||A||^2 (and digits that moved with the BLAS
+    kernel)."""
+    rng = np.random.default_rng(seed)
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    A, B = Q @ np.triu(2.0 * rng.normal(size=(3, 3)), 1) @ Q.T, rng.normal(size=(3, 1))
+    lam, _, _ = homogeneous_riccati(A, B, np.array([[0.3], [0.7]]))
+    assert np.all(lam >= 0.0)
+    assert np.all(lam <= LEAST_RADIUS_ATOL * np.linalg.norm(A, 2) ** 2)
+
+
+def test_a_gain_whose_float_radius_is_below_one_outside_s_is_not_proved_stable():
+    """A = Q (1.01 I5 + N) Q' (one Jordan block, rotated), b = Q e5, mu = 3e-4 below Elia's critical 1 - 1.01^-10:
+    no law stabilises. The gain below (the unscaled iteration's there, under the Haswell kernel) has a computed
+    radius (the Kronecker matrix's eigenvalues, inaccurate on this near-defective operator) of 0.99809 under the
+    Haswell and Zen kernels, 1.0053 under Prescott and Sandybridge, 1.0062 under Nehalem, 1.0111 under SkylakeX: a
+    float check had called such points "stable" on some machines. Its exact witness fails under every kernel, so
+    the law is "unstable" (not proved stable), and the membership is never "stable"."""
+    Q, _ = np.linalg.qr(np.random.default_rng(4).normal(size=(5, 5)))
+    A, B = Q @ (1.01 * np.eye(5) + np.eye(5, k=1)) @ Q.T, Q[:, 4:]
+    mu = np.array([1.0 - 1.01 ** -10 - 3e-4])
+    K = np.array([[-0.3534089184782489, -0.045768897755073895, 0.4469970598266664, 0.10674279979866828,
+                   0.8780697419034694]])
+    s = System(A=A, B=B, horizon=2, state_weight=[1.0] * 5, input_weight=[1.0], mu=[1.0], x0=[1.0] * 5)
+    assert critical_module.law_membership(s, K, mu).verdict == "unstable"
+    assert membership(s, mu, forms=("riccati", "dp")).verdict != "stable"

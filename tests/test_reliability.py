@@ -114,12 +114,14 @@ def _check_file(path, points):
     if path.suffix == ".npz":
         with np.load(path) as npz:
             arrays = {k: npz[k] for k in npz.files}
-        assert arrays["cost_tcp"].shape == (points,) and arrays["mu"].shape[0] == points
+        assert arrays["cost_tcp"].shape == (points,)
+        assert arrays["mu"].shape[0] == points
         return arrays
     if path.suffix == ".csv":
         with path.open(newline="") as handle:
             rows = list(csv.reader(handle))
-        assert len(rows) == points + 1 and len(rows[-1]) == len(rows[0])
+        assert len(rows) == points + 1
+        assert len(rows[-1]) == len(rows[0])
         return rows
     if path.suffix == ".png":
         assert _png_complete(path.read_bytes()), path.name
@@ -191,7 +193,7 @@ def test_interrupted_and_killed_runs_leave_only_complete_files(tmp_path, zygote)
     for thread in threads:
         thread.join()
     tried = 0
-    for args, name, signum, _, _ in cases:
+    for _args, name, signum, _, _ in cases:
         code, err = results[name]
         killed = signum == signal.SIGKILL
         assert code in (EXIT[signum], 0), (name, code, err)       # 0: the run finished before the signal
@@ -237,10 +239,17 @@ def test_two_runs_into_one_folder_cannot_interleave(tmp_path, capsys, zygote):
     first, terminated in its writes, leaves only complete files of its own."""
     out = tmp_path / "shared"
     first = _start(["sweep", "two_actuator", "--x0-scales", f"0:1:{POINTS}", "--out", str(out)], tmp_path, zygote)
-    assert _wait_for(lambda: (out / LOCK_NAME).exists(), first)
+    def locked():       # the lock is created, then its pid written: the refusal names the pid only after that
+        try:
+            return (out / LOCK_NAME).read_text().strip().isdigit()
+        except OSError:
+            return False
+
+    assert _wait_for(locked, first)
     code = main(["sweep", "two_actuator", "--x0-scales", "0:2:7", "--out", str(out), "-q"])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1
+    assert code == 2
+    assert len(err) == 1
     assert f"'{out}' is being written by another run (pid {first.pid})" in err[0]
     code, stderr = _interrupt(first, out, signal.SIGTERM, random.Random(3).uniform(0.0, 0.8))
     assert code in (143, 0), stderr
@@ -267,7 +276,9 @@ def test_a_full_disk_leaves_no_partial_file(small_disk, capsys):
     disk cannot either: each is one line naming its option, and nothing partial is left."""
     assert main(["sweep", "two_actuator", "--x0-scales", "0:1:30000", "--out", str(small_disk / "s"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "No space left on device" in err[0] and err[0].startswith("packetloss-cvx: error: --out")
+    assert len(err) == 1
+    assert "No space left on device" in err[0]
+    assert err[0].startswith("packetloss-cvx: error: --out")
     assert _check_folder(small_disk / "s", 30000, killed=False) in ("partial", "absent")
     assert not (small_disk / "s" / "sweep.npz").exists()
     free = os.statvfs(small_disk)
@@ -277,9 +288,27 @@ def test_a_full_disk_leaves_no_partial_file(small_disk, capsys):
     assert main(["simulate", "two_actuator", "--samples", "20", "--steps", "3", "--closed-loop", "--plot",
                  str(small_disk / "p.png"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("packetloss-cvx: error: --plot: ") and "No space left" in err[0]
+    assert len(err) == 1
+    assert err[0].startswith("packetloss-cvx: error: --plot: ")
+    assert "No space left" in err[0]
     assert sorted(os.listdir(small_disk)) == ["ballast", "s"]         # no 0-byte r.json or p.png, no temporary
 
+
+
+def test_a_full_disk_leaves_no_lock_and_is_one_line(small_disk, capsys):
+    """On a disk with no block left the folder's lock could be created but not written: the run exited 1
+    ("unexpected OSError") and left an empty .packetloss-cvx.lock (and the folder it made). Now: exit 2, one line
+    naming --out, nothing left; a folder that was there keeps only what it held."""
+    (small_disk / "old").mkdir()
+    free = os.statvfs(small_disk)
+    (small_disk / "ballast").write_bytes(b"\0" * (free.f_bavail * free.f_frsize))
+    for name in ("new", "old"):
+        assert main(["sweep", "two_actuator", "--mu-grid", "3", "--out", str(small_disk / name), "-q"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1, err
+        assert err[0].startswith(f"packetloss-cvx: error: --out: cannot use '{small_disk / name}': No space left")
+    assert sorted(os.listdir(small_disk)) == ["ballast", "old"]
+    assert os.listdir(small_disk / "old") == []
 
 def test_a_users_files_are_never_replaced_without_force(tmp_path, capsys, monkeypatch):
     """Every command that writes, pointed at a user's files: exit 2, one line naming the path and --force,
@@ -299,7 +328,8 @@ def test_a_users_files_are_never_replaced_without_force(tmp_path, capsys, monkey
     for command in commands:
         assert main([*command, "-q"]) == 2, command
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and "--force" in err[0], err
+        assert len(err) == 1, err
+        assert "--force" in err[0], err
     for name, raw in user.items():
         assert (tmp_path / name).read_bytes() == raw, name
     assert main(["solve", "two_actuator", "--no-qp", "--out", "r.json", "-q", "--force"]) == 0

@@ -95,7 +95,7 @@ def test_unwritable_out_exit_2(capsys, tmp_path):
 
 def test_the_full_runs_audit_is_the_projects():
     # reproduce's claims.md is docs/claims.md's block (test_claims_doc checks that command's output
-    # byte for byte): the same number of random systems and the same seed
+    # by value): the same number of random systems and the same seed
     from pathlib import Path
 
     from packetloss_cvx.cli.reproduce import SETTINGS
@@ -156,7 +156,8 @@ def test_allocations_are_a_table_per_protocol(runs):
                 cells += 1
         assert cells == sum(len(r) for r in table.values())          # nothing else in the table
     paragraph = [line for line in (out / "report.md").read_text().splitlines() if "listed in the table" in line]
-    assert len(paragraph) == 2 and all(len(p) < 1200 for p in paragraph)   # the numbers left the paragraph
+    assert len(paragraph) == 2
+    assert all(len(p) < 1200 for p in paragraph)                       # the numbers left the paragraph
 
 
 def test_a_quick_run_does_not_call_a_claim_met_on_one_level(runs):

@@ -74,6 +74,16 @@ def test_each_band_of_the_comparison_fails_at_ten_times_and_passes_at_a_tenth(tw
         assert compare_results(here, _moved(here, path, 1 + 0.1 * rtol)) == [], path
 
 
+@pytest.mark.parametrize(("factor", "agree"), [(3.0, False), (0.3, True)])
+def test_a_quantity_zero_in_one_run_is_compared_to_kernel_zero_atol(factor, agree):
+    """A number exactly zero under one kernel (a radius at a deadbeat point) against factor KERNEL_ZERO_ATOL under
+    another: a difference at 3 times the floor is reported, at 0.3 times it is rounding."""
+    from packetloss_cvx.tolerances import KERNEL_ZERO_ATOL
+
+    here, there = {"radius": [0.0]}, {"radius": [factor * KERNEL_ZERO_ATOL]}
+    assert (compare_results(here, there) == []) is agree
+
+
 def test_the_command_bands_fail_at_ten_times_and_pass_at_a_tenth():
     """The bands of a command's JSON (tests/test_examples_kernels.py): a stability allocation's DP cost, its cost
     (the certified gap), and a cross-check's measure (within the cross-check's band, whatever its value)."""

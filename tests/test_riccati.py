@@ -18,7 +18,9 @@ from packetloss_cvx.simulation import (
     mean_square_radius,
 )
 from packetloss_cvx.simulation.riccati import NO_SOLUTION
-from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
+from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE
+
+from .references import enumerated_radius
 
 
 def issue_residual(P, A, B, mu, Omega, psi):
@@ -190,3 +192,66 @@ def test_a_start_that_is_not_stabilising_or_sees_no_unstable_mode_is_ignored():
     assert mean_square_radius(s.A, s.B, K, s.mu) < 1
     with pytest.raises(NumericalError, match="stabilising"):
         dp_riccati(s, gain=K)
+
+
+@pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
+def test_final_residual_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol(monkeypatch, factor, kept):
+    """The check after the iterations, one more step of the modified Riccati map from the answer P, sees a relative
+    residual ||step(P) - P|| / ||P|| of factor MOMENT_RESIDUAL_RTOL (planted on that step; the iterations stop at
+    RICCATI_RTOL, 1000 times below): NumericalError at 3, the hand value at 0.3 (scalar a = 2, mu = 0.8: p solves the
+    quadratic of test_started_from_a_stabilising_gain_is_the_same_solution)."""
+    import packetloss_cvx.simulation.riccati as riccati_module
+    from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
+
+    a, mu = 2.0, 0.8
+    s = System(A=[[a]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[mu], x0=[1.0])
+    c2, c1, c0 = 1 - a * a + mu * a * a, (1 - a * a) - 1, -1.0
+    p = (-c1 + np.sqrt(c1 * c1 - 4 * c2 * c0)) / (2 * c2)
+    answer = dp_riccati(s).cost_to_go.copy()
+    real = riccati_module.riccati_step
+
+    def step(P, *args):
+        K, new = real(P, *args)
+        if np.array_equal(P, answer):                   # the check's step (no iteration starts from the answer)
+            new = new + factor * MOMENT_RESIDUAL_RTOL * np.linalg.norm(P)
+        return K, new
+
+    monkeypatch.setattr(riccati_module, "riccati_step", step)
+    if kept:
+        got = dp_riccati(s)
+        assert got.cost_to_go[0, 0] == pytest.approx(p, rel=1e-9)
+        assert got.residual == pytest.approx(factor * MOMENT_RESIDUAL_RTOL, rel=0.01)
+    else:
+        with pytest.raises(NumericalError, match="modified Riccati equation: relative residual 3.0e-09"):
+            dp_riccati(s)
+
+
+def test_a_large_optimum_past_the_divergence_check_is_solved_not_denied():
+    """A = 1.001 I4 + N (one Jordan block), b = e4, mu = 0.0186: mu is in S (Elia: (1 - mu) 1.001^8 < 1), and the
+    DP optimum has ||P|| = 2e16, past RICCATI_DIVERGENCE times the weights (2e14), where growth had been read as "no
+    stabilising solution". Growth proves nothing: the iteration goes on until its greedy law stabilises and the
+    policy iteration ends it. Checked: the gain's radius by enumeration, and the equation's own residual."""
+    A = 1.001 * np.eye(4) + np.eye(4, k=1)
+    s = System(A=A, B=np.eye(4)[:, 3:], horizon=2, state_weight=[1.0] * 4, input_weight=[1.0], mu=[0.0186],
+               x0=[1.0] * 4)
+    dp = dp_riccati(s)
+    assert float(np.linalg.norm(dp.cost_to_go)) > RICCATI_DIVERGENCE * 2.0
+    assert enumerated_radius(s.A, s.B, dp.gain, [0.0186]) < 1.0
+    residual = issue_residual(dp.cost_to_go, s.A, s.B, np.array([0.0186]), np.eye(4), np.ones(1))
+    assert float(np.linalg.norm(residual)) <= 1e-9 * float(np.linalg.norm(dp.cost_to_go))
+
+
+@pytest.mark.parametrize(("A", "B", "mu"), [
+    ([[2.0]], [[1.0]], 0.5),                                  # every law's radius >= a^2 (1 - mu) = 2
+    ([[2.0, 1.0], [0.0, 0.5]], [[0.6], [-0.2]], 0.3),         # x'A = 2 x' for x = (3, 2): radius >= 4 (0.7) = 2.8
+    ([[0.5, 1.0], [0.0, 1.2]], [[1.0], [0.0]], 0.9),          # x2+ = 1.2 x2 whatever the law: radius >= 1.44
+])
+def test_no_stabilising_solution_is_said_with_its_proof(A, B, mu):
+    """Below the critical probability (hand bounds in the parameters) the value iteration diverges and its direction
+    proves every law's radius >= 1 in exact arithmetic (certificates.no_law_proved; the rank-one direction of the
+    second plant only tilted, the third's only with its exact zeros): the reason starts with NO_SOLUTION."""
+    n = len(A)
+    s = System(A=A, B=B, horizon=2, state_weight=[1.0] * n, input_weight=[1.0], mu=[mu], x0=[1.0] * n)
+    with pytest.raises(NumericalError, match="exact arithmetic") as err:
+        dp_riccati(s)
+    assert str(err.value).startswith(NO_SOLUTION)

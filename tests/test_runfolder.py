@@ -37,7 +37,9 @@ def test_the_manifest_lists_each_file_with_its_size_and_sha256(tmp_path):
     files = {"a.bin": os.urandom(3000), "b.csv": b"x,y\n1,2\n"}
     _run(out, files)
     manifest = _manifest(out)
-    assert manifest["complete"] is True and manifest["command"] == "test" and manifest["packetloss_cvx"]
+    assert manifest["complete"] is True
+    assert manifest["command"] == "test"
+    assert manifest["packetloss_cvx"]
     assert {f["name"]: (f["bytes"], f["sha256"]) for f in manifest["files"]} == {
         name: (len(data), hashlib.sha256(data).hexdigest()) for name, data in files.items()}
     assert sorted(os.listdir(out)) == ["a.bin", "b.csv", MANIFEST_NAME]      # the lock is gone
@@ -57,7 +59,8 @@ def test_a_folder_with_a_users_file_is_refused_unless_force(tmp_path):
     (out / "notes.txt").write_text("the user's")
     with pytest.raises(OutputExistsError, match=r"notes.txt; pass --force") as err:
         _run(out, {"sweep.npz": b"x"})
-    assert isinstance(err.value, ValueError) and err.value.field == "out"
+    assert isinstance(err.value, ValueError)
+    assert err.value.field == "out"
     assert sorted(os.listdir(out)) == ["notes.txt"]                        # refused before anything, lock gone
     _run(out, {"sweep.npz": b"x"}, force=True)
     _run(out, {"sweep.csv": b"y"}, force=True)                             # forced again: the user's file stays
@@ -109,7 +112,7 @@ def test_an_empty_folder_is_accepted_and_special_paths_refused(tmp_path):
 def test_a_failed_run_leaves_an_incomplete_manifest_and_no_folder_it_made_empty(tmp_path):
     out = tmp_path / "run"
     _run(out, {"a": b"1", "b": b"2"})
-    with pytest.raises(RuntimeError), RunFolder(out, command="test") as run:
+    with pytest.raises(RuntimeError), RunFolder(out, command="test") as run:   # noqa: PT012 - a failing run's block
         with run.write("c") as handle:
             handle.write(b"3")
         raise RuntimeError("the sweep failed")
@@ -183,3 +186,78 @@ def test_two_runs_taking_over_one_stale_lock_cannot_both_win(tmp_path, monkeypat
     finally:
         other.kill()
         other.wait()
+
+
+def _interrupted(folder, files, failing="c"):
+    """A run that writes ``files`` and is interrupted while writing ``failing`` (its temporary file removed)."""
+    try:
+        with RunFolder(folder, command="test") as run:
+            for name, payload in files.items():
+                with run.write(name) as handle:
+                    handle.write(payload)
+            with run.write(failing) as handle:
+                handle.write(b"half")
+                raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        return
+    raise AssertionError("the run was not interrupted")
+
+
+def test_a_file_an_interrupted_run_finished_and_the_user_edited_is_the_users(tmp_path):
+    """After an interrupted sweep the user appended a note to its sweep.csv: the next run replaced it without
+    --force, because an unfinished run's manifest listed names only. Each file the run finishes is listed with
+    its size and sha256 at once, so an edit is seen as after a complete run."""
+    out = tmp_path / "run"
+    _interrupted(out, {"sweep.npz": b"arrays", "sweep.csv": b"x,y\n1,2\n"}, failing="sweep.png")
+    manifest = _manifest(out)
+    assert manifest["complete"] is False
+    assert {f["name"]: f.get("sha256") for f in manifest["files"]} == {
+        "sweep.npz": hashlib.sha256(b"arrays").hexdigest(), "sweep.csv": hashlib.sha256(b"x,y\n1,2\n").hexdigest(),
+        "sweep.png": None}
+    with (out / "sweep.csv").open("ab") as handle:
+        handle.write(b"# my note\n")
+    with pytest.raises(OutputExistsError, match="changed since packetloss-cvx wrote them: sweep.csv"):
+        _run(out, {"sweep.csv": b"new", "sweep.npz": b"new"})
+    assert (out / "sweep.csv").read_bytes() == b"x,y\n1,2\n# my note\n"
+    (out / "sweep.csv").write_bytes(b"x,y\n1,2\n")                           # the note taken back: ours again
+    _run(out, {"sweep.csv": b"new"})
+    assert sorted(os.listdir(out)) == [MANIFEST_NAME, "sweep.csv"]
+
+
+def test_an_unfinished_manifest_naming_a_users_file_does_not_let_a_run_delete_it(tmp_path):
+    """An unfinished manifest lists the file in flight by name only (its content unknown): such an entry is taken as
+    the package's only for a file that appeared after that manifest was written (the run's own last write); an older
+    file of that name is the user's (a hand-made or stale manifest naming thesis.tex let the next run delete it)."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "thesis.tex").write_text("the user's")
+    old = time.time() - 60
+    os.utime(out / "thesis.tex", (old, old))
+    (out / MANIFEST_NAME).write_text(json.dumps({"packetloss_cvx": "0.1.0", "complete": False,
+                                                 "files": [{"name": "thesis.tex"}]}))
+    with pytest.raises(OutputExistsError, match="changed since packetloss-cvx wrote them: thesis.tex"):
+        _run(out, {"sweep.npz": b"x"})
+    assert (out / "thesis.tex").read_text() == "the user's"
+    # the run's own file in flight when it stopped (written after its manifest): the package's
+    later = time.time() + 60
+    (out / "thesis.tex").write_text("written by the run")
+    os.utime(out / "thesis.tex", (later, later))
+    _run(out, {"sweep.npz": b"x"})
+    assert sorted(os.listdir(out)) == [MANIFEST_NAME, "sweep.npz"]
+
+
+def test_a_users_edit_inside_the_manifest_is_refused_unless_force(tmp_path):
+    """The manifest carries the sha256 of its own content: a user's edit inside it (a note in its command) was
+    replaced silently by the next run; now it is refused as a changed file, and --force replaces it."""
+    out = tmp_path / "run"
+    _run(out, {"a": b"1"})
+    manifest = _manifest(out)
+    manifest["command"] += "  # the run of the paper's table 2"
+    (out / MANIFEST_NAME).write_text(json.dumps(manifest, indent=1) + "\n")
+    with pytest.raises(OutputExistsError, match="changed since packetloss-cvx wrote them: manifest.json"):
+        _run(out, {"a": b"2"})
+    assert "table 2" in (out / MANIFEST_NAME).read_text()
+    _run(out, {"a": b"2"}, force=True)
+    assert "table 2" not in (out / MANIFEST_NAME).read_text()
+    _run(out, {"a": b"3"})                                      # the package's manifest again: no --force needed
+    assert (out / "a").read_bytes() == b"3"

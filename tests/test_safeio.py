@@ -36,8 +36,8 @@ def test_an_error_mid_write_leaves_the_previous_file_and_no_temporary(tmp_path):
     target = tmp_path / "a.txt"
     target.write_text("previous")
     for error in (RuntimeError("boom"), KeyboardInterrupt()):
-        with pytest.raises(type(error)), atomic_write(target, overwrite=True, text=True) as handle:
-            handle.write("new but partial")
+        with pytest.raises(type(error)), atomic_write(target, overwrite=True, text=True) as handle:  # noqa: PT012
+            handle.write("new but partial")         # the write interrupted inside its block is what is tested
             raise error
         assert target.read_text() == "previous"
         assert _names(tmp_path) == ["a.txt"]
@@ -54,11 +54,12 @@ def test_an_existing_file_is_refused_before_and_at_the_rename(tmp_path):
             handle.write("x")
     # a file that appears while we write (another writer) is not replaced either: os.link refuses
     other = tmp_path / "race.json"
-    with pytest.raises(OutputExistsError, match="race.json"):
+    with pytest.raises(OutputExistsError, match="race.json"):     # noqa: PT012 - the race happens inside the block
         with atomic_write(other, text=True) as handle:
             handle.write("ours")
             other.write_text("theirs")
-    assert other.read_text() == "theirs" and target.read_text() == "the user's"
+    assert other.read_text() == "theirs"
+    assert target.read_text() == "the user's"
     assert not [n for n in _names(tmp_path) if n.startswith(TEMP_PREFIX)]
     assert isinstance(OutputExistsError("f", "d"), ValueError)
 
@@ -115,7 +116,8 @@ def test_save_figure_writes_the_format_of_the_extension(tmp_path):
     figure.add_subplot().plot([0, 1], [1, 0])
     png = save_figure(figure, tmp_path / "f")                   # no extension: PNG, .png appended
     svg = save_figure(figure, tmp_path / "f.svg")
-    assert png.name == "f.png" and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert png.name == "f.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert b"<svg" in svg.read_bytes()[:400]
     with pytest.raises(OutputExistsError):
         save_figure(figure, tmp_path / "f.svg")
@@ -180,3 +182,14 @@ def test_save_system_refuses_an_existing_file_unless_overwrite(tmp_path):
     assert path.read_text() == "# the user's notes"
     pl.save_system(system, path, overwrite=True)
     assert np.array_equal(pl.load_system(path).A, system.A)
+
+
+def test_a_path_ending_in_a_slash_names_a_folder_not_a_file(tmp_path):
+    """``save_system(s, "newdir/")`` (and ``--out newdir/``) wrote a FILE named newdir: a trailing '/' says the
+    user means a folder, so a FILE write is refused (naming the path and an example) and nothing is created."""
+    system = pl.load_example("two_actuator")
+    for path in (f"{tmp_path}/newdir/", f"{tmp_path}/newdir//"):
+        with pytest.raises(pl.InputError, match="names a folder") as info:
+            pl.save_system(system, path)
+        assert info.value.field == "path"
+    assert list(tmp_path.iterdir()) == []

@@ -199,3 +199,13 @@ def test_a_callers_dp_solution_is_used_and_gives_the_split_of_two_dares(seed):
     assert estimated_loop(s, dp.gain, "tcp", "dp", dp=other).control_part == pytest.approx(
         float(np.sum(other.cost_to_go * Q)), rel=1e-14)
     assert estimated_loop(s, dp.gain, "tcp", "dp", dp=dp, split=False).control_part != given.control_part  # nan
+
+
+@pytest.mark.parametrize(("radius", "verdict"), [(-3.0, True), (-0.3, None), (0.3, None), (3.0, False)])
+def test_a_loop_verdict_needs_the_radius_a_margin_away_from_one(radius, verdict):
+    """loop_verdict's band on both sides of 1: a radius 3 MEAN_SQUARE_MARGIN below 1 proves stable, 3 above proves
+    unstable, 0.3 either side proves nothing (the eigenvalue solvers agree to about 1e-12 only)."""
+    from packetloss_cvx.sensing.loop import loop_verdict
+    from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
+
+    assert loop_verdict(1.0 + radius * MEAN_SQUARE_MARGIN) is verdict

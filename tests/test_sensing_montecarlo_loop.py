@@ -1,8 +1,9 @@
-"""sensing.montecarlo.simulate_estimated against the plain loop it was written as (issue 19: the run's noise
-factors computed once, a shared or empty arrival pattern updated without a gather and scatter, the prediction
-A P A' as one product by A'): the same random draws and the same floats, bit for bit, for both filters and
-protocols, one and two sensor channels. The loop below is the reference: every step factors its noise, updates
-each pattern's runs by gathering them, and predicts with the stacked ``A @ P @ A.T``."""
+"""sensing.montecarlo.simulate_estimated against the plain loop it was written as (the run's noise factors
+computed once, a shared or empty arrival pattern updated without a gather and scatter, the prediction A P A' as
+one product by A'): the same random draws, and the same values up to the order of the floating-point operations
+(tolerances.ROUNDING_ORDER_RTOL), for both filters and protocols, one and two sensor channels. The loop below is
+the reference: every step factors its noise, updates each pattern's runs by gathering them, and predicts with the
+stacked ``A @ P @ A.T``."""
 
 import numpy as np
 import pytest
@@ -16,6 +17,13 @@ from packetloss_cvx.sensing.montecarlo import simulate_estimated
 from packetloss_cvx.sensor import Sensor
 from packetloss_cvx.simulation.moments import stationary_channel
 from packetloss_cvx.simulation.riccati import dp_riccati
+from packetloss_cvx.tolerances import ROUNDING_ORDER_RTOL
+
+
+def assert_same_to_rounding(actual, desired):
+    """Two orders of one computation: within ROUNDING_ORDER_RTOL of the largest entry (tolerances.py)."""
+    desired = np.asarray(desired)
+    np.testing.assert_allclose(actual, desired, rtol=0, atol=ROUNDING_ORDER_RTOL * np.abs(desired).max(initial=0.0))
 
 
 def noise(rng, cov, samples):
@@ -87,14 +95,15 @@ CASES = [plant(0, 2, (0.9,)), plant(1, 4, (0.7,)), plant(2, 3, (0.8, 0.5), group
 
 @pytest.mark.parametrize("case", range(len(CASES)))
 @pytest.mark.parametrize(("protocol", "filter"), [("tcp", "kalman"), ("udp", "kalman"), ("tcp", "stationary")])
-def test_the_run_is_the_plain_loop_bit_for_bit(case, protocol, filter):  # noqa: A002
+def test_the_run_is_the_plain_loop(case, protocol, filter):  # noqa: A002
     s = CASES[case]
     K = dp_riccati(s).gain
     got = simulate_estimated(s, K, protocol, filter, samples=300, steps=40, seed=case)
     mean, stderr, covariance = plain_loop(s, K, protocol, filter, samples=300, steps=40, seed=case)
-    assert (got.mean_stage_cost, got.stderr) == (mean, stderr)
+    assert_same_to_rounding(got.mean_stage_cost, mean)
+    assert_same_to_rounding(got.stderr, stderr)
     if filter == "kalman":
-        np.testing.assert_array_equal(got.mean_filtered_covariance, covariance)
+        assert_same_to_rounding(got.mean_filtered_covariance, covariance)
 
 
 @pytest.mark.parametrize("split", [
@@ -106,7 +115,9 @@ def test_the_run_is_the_plain_loop_bit_for_bit(case, protocol, filter):  # noqa:
 ])
 def test_pattern_update_is_each_patterns_gathered_update(split):
     """pattern_update (a shared pattern computed for every run and the others written in place) against the
-    update of each pattern's runs gathered, as the plain loop above does it: the same floats, whatever the split."""
+    update of each pattern's runs gathered, as the plain loop above does it: the same values to rounding
+    (ROUNDING_ORDER_RTOL, each run at its own scale), whatever the split; a run that received nothing keeps P^-
+    exactly and a zero gain."""
     from packetloss_cvx.sensing.montecarlo import pattern_update
 
     s = CASES[2]                                  # two sensor channels: four arrival patterns
@@ -122,5 +133,9 @@ def test_pattern_update_is_each_patterns_gathered_update(split):
         sel = pattern == j
         if np.any(sel):
             want_P[sel], want_L[sel] = measurement_update(Pm[sel], sensor.C, sensor.noise_cov, r)
-    np.testing.assert_array_equal(P, want_P)
-    np.testing.assert_array_equal(L, want_L)
+    for k in range(len(Pm)):
+        assert_same_to_rounding(P[k], want_P[k])
+        assert_same_to_rounding(L[k], want_L[k])
+    nothing = pattern == 0                       # pattern 0: no channel arrived
+    assert np.array_equal(P[nothing], Pm[nothing])
+    assert not L[nothing].any()

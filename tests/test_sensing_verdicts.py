@@ -12,12 +12,14 @@ from packetloss_cvx.cli.parser import build_parser
 from packetloss_cvx.cli.region import run as region_run
 from packetloss_cvx.cli.simulate import run as simulate_run
 from packetloss_cvx.cli.solve import run as solve_run
+from packetloss_cvx.errors import NumericalError
 from packetloss_cvx.io import save_system
 from packetloss_cvx.model import System
+from packetloss_cvx.sensing import loop as loop_module
 from packetloss_cvx.sensing.bounds import lower_bound_diverges, stable_certificate, upper_bound_covariance
-from packetloss_cvx.sensing.loop import estimated_loop, loop_verdict, no_gains_verdict
+from packetloss_cvx.sensing.loop import estimated_loop, loop_map, loop_verdict, no_gains_verdict
 from packetloss_cvx.sensor import Sensor
-from packetloss_cvx.simulation.riccati import dp_riccati
+from packetloss_cvx.simulation.riccati import NO_SOLUTION, dp_riccati
 
 # x+ = diag(1.3, -1.2) x + B v u + w, y = x1 + x2 + r: one row for two unstable modes. Lower bound on the critical
 # rate 1 - 1/1.3^2 = 0.4083 (by hand); no certificate X > g(X) at 0.5 (checked below), so 0.5 is between the bounds.
@@ -109,3 +111,16 @@ def test_region_sensor_grid_has_no_verdict_on_the_undecided_row(tmp_path):
     for protocol in ("tcp", "udp"):
         assert grid[protocol]["stable"][0] == [None, None]
         assert grid[protocol]["undecided_share"] >= 0.5
+
+
+@pytest.mark.parametrize(("reason", "radius"), [(NO_SOLUTION + " at mu = [0.5] (proved)", np.inf),
+                                                ("modified Riccati equation: undecided at mu = [0.5]", np.nan)])
+def test_loop_map_reports_inf_only_where_no_dp_law_is_proved(monkeypatch, reason, radius):
+    """The (gamma, mu) map's DP radius is inf ("proved unbounded") only where dp_riccati proves that no law
+    stabilises; a DP that fails otherwise (no convergence, an overflow without proof) is no verdict: nan."""
+    def failing(system, mu=None, gain=None):
+        raise NumericalError(reason)
+
+    monkeypatch.setattr(loop_module, "dp_riccati", failing)
+    out, _ = loop_map(plant(0.95), np.array([1.0]), np.array([1.0]), ("dp",))["dp"]
+    assert np.array_equal(out, np.full((1, 1), radius), equal_nan=True)

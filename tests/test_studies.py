@@ -69,3 +69,20 @@ def test_grid_difference_is_not_negative_at_the_deterministic_corners(two_actuat
     point = two_actuator.with_mu([0.3, 0.6])
     qp = pl.solve_qp(point, "udp").cost - pl.solve_qp(point, "tcp").cost
     assert result.difference[6, 3] == pytest.approx(qp, rel=1e-6)
+
+
+@pytest.mark.parametrize(("factor", "cancellation_free"), [(3.0, False), (0.3, True)])
+def test_the_difference_is_taken_cancellation_free_only_below_dense_max_condition(factor, cancellation_free):
+    """J_Delta by difference.cost_difference (dense inverses) only where the condition estimate is within
+    DENSE_MAX_CONDITION; above it, the difference of the two closed forms. The integrator x+ = x + u, unit state
+    weight, N = 10 has the estimate (55 + psi) / psi by hand (see tests/test_costs.py), put at factor times the
+    band; either way J_Delta equals the difference of the recursion's costs."""
+    from packetloss_cvx.tolerances import DENSE_MAX_CONDITION
+
+    psi = 55.0 / (factor * DENSE_MAX_CONDITION - 1.0)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=10, state_weight=[1.0], input_weight=[psi], mu=[0.7], x0=[1.0])
+    sweep = shared_channel_sweep(s, [0.3, 0.7])
+    assert sweep.difference_method.startswith("cancellation-free" if cancellation_free else "difference of the two")
+    for k, nu in enumerate((0.3, 0.7)):
+        udp, tcp = (pl.closed_form(s.with_mu([nu]), p, "recursion").cost for p in ("udp", "tcp"))
+        assert sweep.difference[k] == pytest.approx(udp - tcp, rel=1e-6)

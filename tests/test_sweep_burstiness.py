@@ -131,3 +131,23 @@ def test_a_long_horizon_sweeps_by_the_recursion(capsys, tmp_path):
     assert data["udp"]["exact"][0] == pytest.approx(bernoulli, rel=1e-10)
     assert data["udp"]["plugin"][0] == pytest.approx(bernoulli, rel=1e-10)
     assert data["udp"]["plugin"][1] > data["udp"]["exact"][1] > data["udp"]["exact"][0]
+
+
+@pytest.mark.parametrize(("factor", "exact_words"), [(3.0, False), (0.3, True)])
+def test_a_plug_in_loss_within_self_check_rtol_reads_as_the_exact_minimiser(capsys, monkeypatch, factor, exact_words):
+    """The summary calls the plug-in law the exact minimiser only where its loss is within SELF_CHECK_RTOL, the
+    precision each cost is checked to: a loss of 3 times the band is printed as a loss, of 0.3 times as equality
+    (the sweep's costs planted, so that the loss is known)."""
+    import packetloss_cvx.cli.sweep as sweep_command
+    from packetloss_cvx.results import BurstinessSweep
+    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+
+    exact = np.array([2.0, 3.0])
+    planted = BurstinessSweep(correlation=np.array([0.0, 0.5]), rate=np.array([0.9, 0.5]),
+                              plugin={p: exact * (1 + factor * SELF_CHECK_RTOL) for p in ("tcp", "udp")},
+                              exact={p: exact for p in ("tcp", "udp")})
+    monkeypatch.setattr(sweep_command, "burstiness_sweep", lambda *a, **k: planted)
+    code, out, err = _run(capsys, "sweep", "two_actuator", "--burstiness", "0,0.5", "-q")
+    assert code == 0, err
+    assert ("the plug-in law is the exact minimiser at every lambda" in out) is exact_words
+    assert ("the plug-in law loses up to" in out) is not exact_words

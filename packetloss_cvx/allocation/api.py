@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..budgets import check, count_text
+from ..budgets import check, count_text, duration_text, estimated_seconds, limit, udp_box_work
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..model import System
 from ..protocols import check_protocol
@@ -58,10 +58,27 @@ __all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_c
 MAX_BOXES = 20000
 
 
-def _max_boxes(value: Any) -> int:
-    """A positive count within the ``allocation_boxes`` budget (budgets.py), checked before the search."""
+def _max_boxes(value: Any, system: System | None = None) -> int:
+    """The cap on the branch and bound's boxes: a positive count within the ``allocation_boxes`` budget (budgets.py),
+    checked before the search. Given a ``system`` (the UDP-like search on its closed-form cost), the boxes' work is
+    priced too (:func:`~packetloss_cvx.budgets.udp_box_work`, a box's cost grows with the horizon): a cap the caller
+    gave beyond the ``allocation_work`` budget is refused under ``max_boxes``; the default (None) is
+    :data:`MAX_BOXES`, or as many boxes as that budget affords at this horizon (the search then ends
+    "gap_not_certified" at that cap, within the budget's time); a horizon where not one box fits is refused under
+    ``horizon``. O(1)."""
+    box = None if system is None else udp_box_work(system.horizon, system.n, system.m)
+    size = "" if system is None else f"at N = {system.horizon} (n = {system.n}, m = {system.m}: about " \
+                                     f"{duration_text(estimated_seconds('allocation_work', box))} a box)"
+    if value is None:
+        if box is None:
+            return MAX_BOXES
+        check("allocation_work", box, "horizon", f"one box of the UDP-like search {size}")
+        afford = limit("allocation_work") / box
+        return MAX_BOXES if afford >= MAX_BOXES else max(1, int(afford))
     count = check_count(value, "max_boxes")
     check("allocation_boxes", count, "max_boxes", f"{count_text(count)} boxes")
+    if box is not None:
+        check("allocation_work", count * box, "max_boxes", f"{count_text(count)} boxes {size}")
     return count
 
 
@@ -93,7 +110,7 @@ def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, tim
 
 @blas_limited
 def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequence[Constraint] = (),
-             max_boxes: int = MAX_BOXES, time_limit: float | None = None) -> MinCost:
+             max_boxes: int | None = None, time_limit: float | None = None) -> MinCost:
     """The least optimal cost J*(mu) reachable within the bounds and constraints.
 
     Parameters
@@ -101,7 +118,8 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     system, protocol, bounds, constraints
         As for :func:`allocate`.
     max_boxes, time_limit
-        Caps of the UDP-like branch and bound (the TCP-like one is a single SOCP).
+        Caps of the UDP-like branch and bound (the TCP-like one is a single SOCP); ``max_boxes`` as for
+        :func:`allocate` (None: what the ``allocation_work`` budget affords, at most :data:`MAX_BOXES`).
 
     Returns
     -------
@@ -142,7 +160,8 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     system = check_system(system)
     lo, hi = check_bounds(bounds)
     poly = _polytope([*constraints, *_family_rows(evaluator, lo)], system.m, lo, hi)
-    return _min_cost(system, protocol, poly, _max_boxes(max_boxes), _time_limit(time_limit), evaluator)
+    boxes = _max_boxes(max_boxes, system if protocol == "udp" and evaluator is None else None)
+    return _min_cost(system, protocol, poly, boxes, _time_limit(time_limit), evaluator)
 
 
 def _behind_chain(system: System, protocol: str) -> tuple[System, ChainEvaluator | None]:
@@ -187,7 +206,7 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
 @blas_limited
 def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
-             max_boxes: int = MAX_BOXES, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
+             max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
     """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
     The paper's eq:alpha_channels (J* <= alpha), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
 
@@ -211,8 +230,11 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         constraints on the variable mu (read into rows once).
     gap : float
         Relative optimality gap to certify, ``tolerances.ALLOCATION_GAP_MIN <= gap < 1``.
-    max_boxes : int
-        Cap on the UDP-like branch and bound's boxes.
+    max_boxes : int or None
+        Cap on the UDP-like branch and bound's boxes; within the ``allocation_boxes`` budget, and on the
+        closed-form cost its work (boxes x :func:`~packetloss_cvx.budgets.udp_box_work`, which grows with the
+        horizon) within ``allocation_work``. None: :data:`MAX_BOXES`, or as many boxes as ``allocation_work``
+        affords at this horizon.
     time_limit : float or None
         Cap on the UDP-like branch and bound's seconds (None: no limit).
     progress : bool or None
@@ -257,7 +279,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     beta = check_beta(beta, system.m)
     lo, hi = check_bounds(bounds)
     gap = check_gap(gap)
-    max_boxes = _max_boxes(max_boxes)
+    max_boxes = _max_boxes(max_boxes, system if protocol == "udp" and evaluator is None else None)
     time_limit = _time_limit(time_limit)
     poly = _polytope([*constraints, *_family_rows(evaluator, lo)], system.m, lo, hi)
     if evaluator is not None:
@@ -321,7 +343,7 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
 
 @blas_limited
 def best_cost_within_budget(system: System, protocol: str, beta, budget: float, bounds=(0.0, 1.0),
-                            constraints: Sequence[Constraint] = (), max_boxes: int = MAX_BOXES,
+                            constraints: Sequence[Constraint] = (), max_boxes: int | None = None,
                             time_limit: float | None = None) -> MinCost:
     """The other side of the trade-off: min J*(mu) subject to beta'mu <= budget.
 

@@ -176,6 +176,9 @@ def power_model(model: str, m: int, scale: Any = None, table: Any = None) -> Pow
     """
     if model not in MODELS:
         raise InputError("power.model", f"expected one of {', '.join(MODELS)}, found {str(model)[:40]!r}")
+    if isinstance(m, bool) or not isinstance(m, int | np.integer) or m < 1:
+        raise InputError("m", f"expected the number of channels, an integer >= 1, found {m!r:.40}")
+    m = int(m)
     if model == "table":
         if table is None or scale is not None:
             raise InputError("power.table", "the table model takes a table of (power, mu) rows and no scale")

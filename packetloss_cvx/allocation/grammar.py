@@ -20,6 +20,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
+from ..budgets import check, count_text
 from ..errors import InfeasibleError, InputError
 from ..model import System, numeric_array
 from ..tolerances import ALLOCATION_GAP_MIN
@@ -90,7 +91,10 @@ def parse_constraint(text: str, m: int, field: str = "--constraint", name: str =
     Raises
     ------
     InputError
-        Anything else, under ``field``.
+        Anything else, under ``field``; ``m`` not a positive integer, under ``m``.
+    BudgetError
+        ``m`` whose dense rows (five arrays of m doubles while parsing) exceed the ``memory_bytes`` budget, under
+        ``m``, before any is allocated.
 
     Examples
     --------
@@ -100,6 +104,9 @@ def parse_constraint(text: str, m: int, field: str = "--constraint", name: str =
     >>> parse_constraint("P1 <= 2*P2", 2, name="P")[0].tolist()
     [[1.0, -2.0]]
     """
+    m = check_count(m, "m")
+    check("memory_bytes", 40.0 * m, "m", f"{count_text(m)} channels (dense rows of m coefficients, "
+                                         f"about {40.0 * m / 2**30:.3g} GiB)")
     if not isinstance(text, str):
         raise InputError(field, f"expected a string, found {type(text).__name__}")
     parts = re.split(r"(<=|>=|==|<|>|=)", text)

@@ -23,12 +23,12 @@ from .markov import plug_in_markov
 from .mpc_vs_dp import mpc_vs_dp
 from .ordering import corollary_1, corollary_2, theorem_2, theorem_3
 from .paper import STATEMENTS
-from .sensing import STATEMENT as COST_SPLIT_SENSOR
-from .sensing import cost_split_sensor
-from .region import STATEMENT as STABILITY_REGION
-from .region import stability_region
 from .power import STATEMENT as POWER_WATER_FILLING
 from .power import power_water_filling
+from .region import STATEMENT as STABILITY_REGION
+from .region import stability_region
+from .sensing import STATEMENT as COST_SPLIT_SENSOR
+from .sensing import cost_split_sensor
 from .tables import pendulum_maximiser, table_1, table_2
 from .theorem1 import expected_cost_tcp, lemma_1, lemma_quad, theorem_1_costs, theorem_1_laws
 
@@ -111,7 +111,7 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
     check("audit_cases", random, "random", f"{count_text(int(random))} random systems")     # before any is drawn
     rng = np.random.default_rng(seed)
     paper = paper_systems()
-    given = list(systems or [])
+    given = _given_systems(systems)
     cases = [random_system(rng) for _ in range(random)]
     # the paper's claims are stated for independent losses: a caller's system behind a Gilbert-Elliott chain
     # is audited at its plug-in mu_t, except by the claims about chains, which see the chain itself
@@ -159,3 +159,24 @@ def run_claim(claim_id: str, ctx: Context) -> ClaimResult:
         detail = str(err).splitlines()[0] if str(err) else ""
         return ClaimResult(claim_id, CLAIMS[claim_id][0], "inconclusive", 0, 0, None, None,
                            f"The check raised {type(err).__name__}: {detail}. Nothing was checked.", errors=1)
+
+
+def _given_systems(systems: object) -> list[System]:
+    """``audit``'s ``systems``: None or an iterable of :class:`System` (a name or a lone System is refused, not
+    taken letter by letter or failing on ``.channel``). O(len).
+
+    >>> _given_systems(None), len(_given_systems(tuple(paper_systems().values())))
+    ([], 2)
+    """
+    if systems is None:
+        return []
+    given = None
+    if not isinstance(systems, str | bytes | System):
+        try:
+            given = list(systems)
+        except TypeError:
+            given = None
+    if given is None or not all(isinstance(s, System) for s in given):
+        raise InputError("systems", f"expected a sequence of System objects (load_system, load_example), found "
+                                    f"{systems!r:.60}")
+    return given

@@ -14,8 +14,13 @@ so ``--help``, ``--version`` and bad input answer without importing cvxpy or Sci
 SIGINT and SIGTERM end a run with one line on stderr and exit 130 / 143 (128 + the signal): the handler
 raises :class:`Interrupted` (a KeyboardInterrupt) wherever the run is, so every ``with`` block on the way
 out removes its temporary files and releases its folder's lock (safeio.py); a second signal during that
-clean-up is ignored, and so is one that lands after the program's run is over (``main()`` without ``argv`` has
-returned: its files are complete and its code decided). ``main(argv)`` restores the caller's handlers.
+clean-up only is recorded (the handler sees the interrupt being handled). Nothing is set to "ignore" while the run
+lasts: an interrupt that a library swallows is raised again between the run's steps and decides the exit code, and
+an error that a signal surfaced as (an extension's import failing) is the interrupt. A signal while ``main`` decides
+the code and restores the handlers is recorded and reported; one that lands after the program's run is over
+(``main()`` without ``argv`` has returned: its files are complete and its code decided) is ignored. ``main(argv)``
+restores the caller's handlers. The console script enters at ``packetloss_cvx.__main__``, whose first lines install
+an early handler (one line, 130 / 143) for the imports before ``main``.
 
 When the program runs (``main()`` without ``argv``: the console script, ``python -m packetloss_cvx``), the
 subcommand's module is imported with the cyclic garbage collector off, and every object tracked then (modules, their
@@ -49,8 +54,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..printable import printable
 from ..errors import CrossCheckError, InfeasibleError, InputError, NumericalError, ResourceError, SolverError
+from ..printable import printable
 from ..safeio import atomic_write
 from .parser import build_parser, join_negative_values
 
@@ -68,23 +73,49 @@ class Interrupted(KeyboardInterrupt):
         super().__init__(signal.Signals(signum).name)
 
 
-def _stop(signum: int, frame: object) -> None:
-    for other in STOP_SIGNALS:       # once: a second signal must not interrupt the clean-up
-        signal.signal(other, signal.SIG_IGN)
-    raise Interrupted(signum)
+class _Stopper:
+    """The handler of SIGINT and SIGTERM during one ``main`` call. It remembers the first signal and raises
+    :class:`Interrupted` where the run is, except where the run must not be interrupted: while an interrupt is
+    already on its way out (a ``with`` block's or a ``finally``'s clean-up runs with it as the exception being
+    handled), in ``main``'s own frame (which decides the exit code) and once the run is over (``over``). Nothing
+    is set to "ignore": a library that swallows the interrupt (a bare ``except:`` around an import) leaves the run
+    interruptible, and :meth:`check` raises the swallowed signal again at the run's next step."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None      # the first stop signal received
+        self.over = False                   # the run's exit code is being decided: record, never raise
+
+    def __call__(self, signum: int, frame: Any) -> None:
+        if self.signum is None:
+            self.signum = signum
+        if self.over or frame is None or frame.f_code in _QUIET_CODES:
+            return
+        err, seen = sys.exc_info()[1], 0
+        while err is not None and seen < 64:      # an interrupt being handled: a clean-up, not interrupted twice
+            if isinstance(err, KeyboardInterrupt):
+                return
+            err, seen = err.__cause__ or err.__context__, seen + 1
+        raise Interrupted(signum)
+
+    def check(self) -> None:
+        """Raise the interrupt received so far (one a library swallowed). O(1)."""
+        if self.signum is not None:
+            raise Interrupted(self.signum)
 
 
-def _install_handlers() -> dict[int, Any] | None:
-    """Our handlers for SIGINT and SIGTERM, and the previous ones (None outside the main thread)."""
+def _install_handlers(stopper: _Stopper) -> dict[int, Any] | None:
+    """``stopper`` for SIGINT and SIGTERM, and the previous handlers (None outside the main thread)."""
     try:
-        return {signum: signal.signal(signum, _stop) for signum in STOP_SIGNALS}
+        return {signum: signal.signal(signum, stopper) for signum in STOP_SIGNALS}
     except ValueError:       # not the main thread: signals are not ours to handle
         return None
 
 
 def _say(message: str) -> None:
-    """One stderr line, whatever the message holds (a key or a path with a newline or an escape sequence in it)."""
-    print(printable(message), file=sys.stderr)
+    """One stderr line, whatever the message holds (a key or a path with a newline or an escape sequence in it);
+    nothing when standard error is closed (``print(file=None)`` would write to standard output)."""
+    if sys.stderr is not None:
+        print(printable(message), file=sys.stderr)
 
 
 def write_json(path: str, data: dict[str, Any], force: bool = False) -> None:
@@ -100,79 +131,124 @@ def main(argv: Sequence[str] | None = None) -> int:
     >>> main(["solve", "no-such-file.toml"])
     2
     """
+    program = argv is None
     for stream in (sys.stdout, sys.stderr):   # a terminal that cannot show a name gets an escape, not a crash
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
-    previous = _install_handlers()
+    stopper = _Stopper()
+    previous = _install_handlers(stopper)
+    # From here to the end this frame is never interrupted (the handler records a signal that lands in it, and
+    # every signal once ``over`` is set): only _run is, and what the signal did is decided below.
+    interrupt: BaseException | None = None
+    code = 1
     try:
-        return _run(argv)
-    except KeyboardInterrupt as err:      # Ctrl-C before our handler (or a library's own KeyboardInterrupt)
-        signum = err.signum if isinstance(err, Interrupted) else signal.SIGINT
-        _say(f"packetloss-cvx: interrupted by {signal.Signals(signum).name}")
-        code = STOP_SIGNALS.get(signum, 128 + signum)
-        if argv is None:        # the program is ending: a library's exit hook (distributed's close_clusters on a
-            sys.stderr.flush()  # cluster still starting) must not add a traceback after the one line
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
-            if getattr(err, "half_imported", False):   # the signal landed in an extension's import: skip the
-                # interpreter's shutdown, which can abort on the half-initialised module (exit -6, not 130)
-                sys.stdout.flush()
-                os._exit(code)
-        return code
+        code = _run(argv, stopper)
+    except KeyboardInterrupt as err:      # our Interrupted (or a library's own KeyboardInterrupt)
+        interrupt = err
     finally:
+        stopper.over = True
         if previous is not None:
             for signum, handler in previous.items():
                 # the program ends here (its files complete, its code decided): a signal from now on has nothing to
                 # stop, and the interpreter's own handlers would end it by the signal or with a traceback; in
                 # process (main(argv)) the caller's handlers come back
-                signal.signal(signum, signal.SIG_IGN if argv is None else handler)
-        if argv is None:        # the program ends: its shutdown need not collect what is alive now (module docstring)
-            gc.freeze()
+                signal.signal(signum, signal.SIG_IGN if program else handler)
+    if interrupt is not None or stopper.signum is not None:
+        signum = getattr(interrupt, "signum", None) or stopper.signum or signal.SIGINT
+        _say(f"packetloss-cvx: interrupted by {signal.Signals(signum).name}")
+        code = STOP_SIGNALS.get(signum, 128 + signum)
+        if program:             # the program is ending: a library's exit hook (distributed's close_clusters on a
+            _quiet_stderr()     # cluster still starting) must not add a traceback after the one line
+            if getattr(interrupt, "half_imported", False):   # the signal surfaced as a library's own error (an
+                # extension's import failing): skip the interpreter's shutdown, which can abort on the
+                # half-initialised module (exit -6, not 130)
+                if sys.stdout is not None:
+                    sys.stdout.flush()
+                os._exit(code)
+    if program:        # the program ends: its shutdown need not collect what is alive now (module docstring)
+        gc.freeze()
+    return code
 
 
-def _run(argv: Sequence[str] | None) -> int:
-    parser = build_parser()
+def _quiet_stderr() -> None:
+    """Standard error onto /dev/null, after what was said is flushed."""
+    if sys.stderr is not None:
+        sys.stderr.flush()
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
+
+
+def _run(argv: Sequence[str] | None, stopper: _Stopper) -> int:
+    """The command, and its exit code with one stderr line for a failure. An error raised after a signal arrived
+    (or while handling one) is the interrupt: it is raised as :class:`Interrupted`."""
     try:
-        words = list(sys.argv[1:] if argv is None else argv)
-        args = parser.parse_args(join_negative_values(words))
-        args.command_line = shlex.join(["packetloss-cvx", *words])     # for a run folder's manifest
-        start = time.perf_counter()
-        with warnings.catch_warnings():   # one stderr line, always: numerical warnings are checked, not printed
-            warnings.simplefilter("ignore")
-            importlib.import_module(f"{__name__}.common").preflight(args)   # NumPy: not needed for --help
-            command = _import_command(args.command, program=argv is None)
-            data, text, code = command.run(args)
-        if getattr(args, "json_out", None):
-            write_json(args.json_out, data, getattr(args, "force", False))
-        if getattr(args, "verbose", 0):
-            _say(f"packetloss-cvx: {args.command} took {time.perf_counter() - start:.3g} s")
-        as_json = getattr(args, "json", False)
-        if code == 3 and not as_json:
-            _say(f"packetloss-cvx: {text}")
-        elif as_json:
-            print(json.dumps(data, allow_nan=False))
-        else:
-            print(printable(text, keep="\n"))   # a name the command missed still cannot drive the terminal
-        return code
-    except InputError as err:
-        _say(f"packetloss-cvx: error: {err}")
-        return 2
-    except InfeasibleError as err:
-        _say(f"packetloss-cvx: infeasible: {err}")
-        return 3
-    except (SolverError, NumericalError, CrossCheckError, ResourceError) as err:
-        _say(f"packetloss-cvx: {type(err).__name__}: {err}")
-        return 1
+        return _command(argv, stopper)
     except BrokenPipeError:  # the reader went away (e.g. `| head`): stop quietly
+        if stopper.signum is not None:
+            raise Interrupted(stopper.signum) from None
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
     except Exception as err:  # noqa: BLE001 - last line of defence: one line, no traceback
-        stop = _interrupt_behind(err)
-        if stop is not None:   # a signal that landed inside a library's import (an extension's initialisation
-            stop.half_imported = True   # failing as ImportError "initialization failed") is the interrupt, not a
-            raise stop from None        # fault; the half-initialised module makes the shutdown unsafe
-        _say(f"packetloss-cvx: unexpected {type(err).__name__}: {err}")
-        return 1
+        behind = _interrupt_behind(err)
+        if behind is not None or stopper.signum is not None:
+            # the signal surfaced as another error (a library's import failing with "initialization failed", or
+            # NumPy's "C-extensions failed" with the interrupt cleared): that is the interrupt, not a fault; the
+            # half-initialised module makes the interpreter's shutdown unsafe
+            stop = Interrupted(getattr(behind, "signum", None) or stopper.signum or signal.SIGINT)
+            stop.half_imported = True
+            raise stop from None
+        code, line = _failure(err)
+        _say(line)
+        return code
+
+
+def _failure(err: Exception) -> tuple[int, str]:
+    """The exit code and the one line of an error that ended a command.
+
+    >>> _failure(InputError("--mu", "expected probabilities in [0, 1], found 2"))
+    (2, 'packetloss-cvx: error: --mu: expected probabilities in [0, 1], found 2')
+    """
+    if isinstance(err, InputError):
+        return 2, f"packetloss-cvx: error: {err}"
+    if isinstance(err, InfeasibleError):
+        return 3, f"packetloss-cvx: infeasible: {err}"
+    if isinstance(err, (SolverError, NumericalError, CrossCheckError, ResourceError)):
+        return 1, f"packetloss-cvx: {type(err).__name__}: {err}"
+    return 1, f"packetloss-cvx: unexpected {type(err).__name__}: {err}"
+
+
+def _command(argv: Sequence[str] | None, stopper: _Stopper) -> int:
+    """Parse, check, import and run the command, write ``--out`` and print; returns the exit code. Between the
+    steps ``stopper.check()`` raises a signal that a library swallowed, so a run never goes on past it."""
+    stopper.check()
+    if sys.stdout is None:      # started with standard output closed (`>&-`): print() would lose the result silently
+        raise InputError("stdout", "standard output is closed, so the result would be lost; send it to a file or to "
+                                   "/dev/null (> out.txt)")
+    parser = build_parser()
+    words = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(join_negative_values(words))
+    args.command_line = shlex.join(["packetloss-cvx", *words])     # for a run folder's manifest
+    start = time.perf_counter()
+    with warnings.catch_warnings():   # one stderr line, always: numerical warnings are checked, not printed
+        warnings.simplefilter("ignore")
+        importlib.import_module(f"{__name__}.common").preflight(args)   # NumPy: not needed for --help
+        stopper.check()
+        command = _import_command(args.command, program=argv is None)
+        stopper.check()
+        data, text, code = command.run(args)
+    stopper.check()
+    if getattr(args, "json_out", None):
+        write_json(args.json_out, data, getattr(args, "force", False))
+    if getattr(args, "verbose", 0):
+        _say(f"packetloss-cvx: {args.command} took {time.perf_counter() - start:.3g} s")
+    as_json = getattr(args, "json", False)
+    if code == 3 and not as_json:
+        _say(f"packetloss-cvx: {text}")
+    elif as_json:
+        print(json.dumps(data, allow_nan=False))
+    else:
+        print(printable(text, keep="\n"))   # a name the command missed still cannot drive the terminal
+    return code
 
 
 def _import_command(name: str, program: bool) -> Any:
@@ -212,3 +288,8 @@ def _interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
         seen.add(id(err))
         err = err.__cause__ or err.__context__
     return None
+
+
+#: the frames the handler never raises in: main's own (it decides the exit code) and the handler's (a second signal
+#: landing inside the first one's handling)
+_QUIET_CODES = frozenset({main.__code__, _Stopper.__call__.__code__})

@@ -9,14 +9,22 @@ the subcommand's module, so that bad input is refused without importing cvxpy or
 from __future__ import annotations
 
 import argparse
-import io
 import os
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..budgets import burstiness_work, check, count_text, simulate_work
+from ..budgets import (
+    burstiness_work,
+    check,
+    count_text,
+    duration_text,
+    estimated_seconds,
+    simulate_work,
+    solve_bytes,
+    solve_work,
+)
 from ..errors import InputError
 from ..io import load_system, read_csv_numbers, read_input
 from ..model import System
@@ -327,6 +335,8 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             system = system_of(args)
             check("sweep_work", burstiness_work(points, system.horizon, system.m, n=system.n), field,
                   f"{what} at N = {system.horizon}, m = {system.m}")
+    if command == "solve":
+        check_solve(system_of(args), args)
     if command == "simulate" and min(args.samples, args.steps) >= 1:
         system = system_of(args)
         laws = ("tcp", "udp", "dp") if args.law == "all" else (args.law,)
@@ -337,6 +347,40 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                            f"{f' of {count_text(args.steps)} steps' if args.closed_loop else ''} "
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
+
+
+def check_solve(system: System, args: argparse.Namespace) -> None:
+    """``solve``'s horizon priced before the work: its time (``solve_work``, with or without the QP cross-check) and
+    its memory (``memory_bytes``), each refused under the file's ``cost.horizon`` with the way out (``--no-qp``: the
+    cross-check is 60 times the closed forms). O(1).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model import System
+    >>> s = System(A=[[0.9]], B=[[1.0]], horizon=10 ** 6, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> check_solve(s, argparse.Namespace(protocol="both", no_qp=True, formulation="auto"))     # 0.93 s: silent
+    >>> check_solve(s, argparse.Namespace(protocol="both", no_qp=False, formulation="auto"))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.BudgetError: cost.horizon: N = 1000000 (n = 1, m = 1) with the QP cross-check (about 1 \
+min; --no-qp skips it: 0.93 s) is over the budget of 6e+07 work units of one solve (solve_work) (about 1 min); to run \
+it on purpose set PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07
+    """
+    N, n, m = system.horizon, system.n, system.m
+    protocols = 2 if getattr(args, "protocol", "both") == "both" else 1
+    qp = None if getattr(args, "no_qp", False) else getattr(args, "formulation", "auto")
+    qp = "sparse" if qp == "auto" else qp
+    size = f"N = {N} (n = {n}, m = {m})"
+    if qp is None:
+        what = f"{size} without the QP cross-check"
+    else:
+        alone = estimated_seconds("solve_work", solve_work(N, n, m, protocols, qp=None))
+        what = f"{size} with the QP cross-check (about {{}}; --no-qp skips it: {duration_text(alone)})"
+    work = solve_work(N, n, m, protocols, qp)
+    check("solve_work", work, "cost.horizon", what.format(duration_text(estimated_seconds("solve_work", work))))
+    need = solve_bytes(N, n, m, qp)
+    check("memory_bytes", need, "cost.horizon", f"{size}{'' if qp is None else ' with the QP cross-check'} "
+                                               f"(about {need / 2**30:.3g} GiB)")
 
 
 def check_figure_format(path: str, field: str) -> None:

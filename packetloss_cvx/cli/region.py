@@ -25,7 +25,7 @@ from ..simulation.markov_region import (
 from ..simulation.region_map import LAWS, region_map
 from ..simulation.riccati import dp_riccati
 from ..studies.output import csv_number
-from .common import CommandResult, floats, progress_of, system_of
+from .common import CommandResult, floats, integers, progress_of, system_of
 from .sensing_section import coupled_grid, region_section
 
 __all__ = ["run"]
@@ -55,11 +55,11 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
         if m < 2:
             raise InputError("--grid", "a map needs two channels; this system has one (its critical mu is the answer)")
         text = args.channels if args.channels is not None else "1,2"
-        pair = floats(text, "--channels")
-        if len(pair) != 2 or any(v != int(v) or not 1 <= v <= m for v in pair) or pair[0] == pair[1]:
+        pair = integers(text, "--channels")       # inf and nan refused here, not by int() (exit 1)
+        if len(pair) != 2 or any(not 1 <= v <= m for v in pair) or pair[0] == pair[1]:
             raise InputError("--channels", f"expected two different channels from 1 to {m}, found {text[:40]!r}")
         options["grid"] = args.grid
-        options["channels"] = (int(pair[0]) - 1, int(pair[1]) - 1)
+        options["channels"] = (pair[0] - 1, pair[1] - 1)
     return options
 
 
@@ -162,12 +162,12 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
         points = args.grid ** 2 if m > 1 else args.grid
         check("region_points", points, "--grid", f"a rate grid of {points} points behind the chain")
         text = args.channels if args.channels is not None else ("1,2" if m > 1 else "1")
-        pair = floats(text, "--channels")
-        if (len(pair) != min(m, 2) or any(v != int(v) or not 1 <= v <= m for v in pair)
+        pair = integers(text, "--channels")
+        if (len(pair) != min(m, 2) or any(not 1 <= v <= m for v in pair)
                 or (len(pair) == 2 and pair[0] == pair[1])):
             raise InputError("--channels", f"expected {min(m, 2)} different channels from 1 to {m}, found "
                                            f"{text[:40]!r}")
-        channels = tuple(int(v) - 1 for v in pair) + ((0,) if m == 1 else ())
+        channels = tuple(v - 1 for v in pair) + ((0,) if m == 1 else ())
         lo = float(np.max(chain.h_bad[list(set(channels))]))
         hi = float(np.min(chain.h_good[list(set(channels))]))
         axis = np.linspace(lo, hi, args.grid)

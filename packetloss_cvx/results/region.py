@@ -18,8 +18,9 @@ __all__ = ["RADIUS_MEANING", "CriticalPoint", "Membership", "RegionMap", "Stabil
 class Membership(Frozen):
     """Is ``mu`` in the stabilisable set S (simulation.region)? ``verdict`` "stable", "unstable" or
     "undecided". "stable" comes with ``gain`` (a K whose second-moment operator has ``radius`` < 1 by
-    the margin); "unstable" with ``certificate`` (P >= 0, tr P = 1, and ``T_mu(P) >= 0``: no linear law is
-    mean-square stabilising; ``certificate_margin`` = c - 1, c the bound P proves on every law's radius).
+    the margin, proved in exact arithmetic); "unstable" with ``certificate`` (P symmetric and not negative
+    semidefinite, usually P >= 0 with tr P = 1, and ``T_c(P) >= 0`` exactly: no linear law is mean-square
+    stabilising; ``certificate_margin`` = c - 1, c the bound P proves on every law's radius).
     ``forms`` pairs each form that was run ("dp", "riccati", "lmi") with its own verdict; the forms that
     decided agree (else CrossCheckError was raised). ``reason``: why undecided."""
 

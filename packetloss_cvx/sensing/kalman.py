@@ -60,24 +60,19 @@ UPDATE_PINV_RCOND = 1e-13
 
 
 def hermitian_pinv(S: np.ndarray, rcond: float = UPDATE_PINV_RCOND) -> np.ndarray:
-    """``np.linalg.pinv(S, rcond, hermitian=True)`` for one symmetric matrix, the same floats (the same eigh, sort,
-    cutoff and products as NumPy 2's pinv and svd(hermitian=True), with plain indexing in place of the stacked
-    take_along_axis): half the per-call overhead, for the ~10^5 small updates of a certificate search.
-    Time O(p^3).
+    """The pseudo-inverse of one symmetric matrix, ``U diag(1/s) U'`` over its eigenvalues s of magnitude above
+    ``rcond`` times the largest (the cut-off of ``np.linalg.pinv(S, rcond, hermitian=True)``, whose values it gives
+    to rounding, without the stacked machinery's per-call overhead: the ~10^5 small updates of a certificate
+    search). Time O(p^3).
 
     >>> hermitian_pinv(np.array([[2.0, 0.0], [0.0, 0.0]])).tolist()
     [[0.5, 0.0], [0.0, 0.0]]
     """
     s, u = np.linalg.eigh(S)
-    sgn = np.copysign(1.0, s)                 # the sign moves into v, as in svd(hermitian=True)
-    s = np.abs(s)
-    order = np.argsort(s)[::-1]
-    sgn, s, u = sgn[order], s[order], u[:, order]
-    vt = (u * sgn).T.conjugate()
-    large = s > rcond * s.max()
-    s = np.divide(1, s, where=large, out=s)
-    s[~large] = 0
-    return vt.T @ (s[:, None] * u.T)
+    large = np.abs(s) > rcond * np.abs(s).max()
+    inverse = np.zeros_like(s)
+    inverse[large] = 1.0 / s[large]
+    return (u * inverse) @ u.T
 
 
 class RowUpdate:
@@ -100,17 +95,18 @@ class RowUpdate:
         if self.rows.size == 0:
             return Pm.copy(), None
         # P^- C_r' for a whole stack as one (... n) x n product: NumPy's stacked matmul with a 2-D operand makes one
-        # small product per matrix (about 40x slower for 1000 runs at n = 4); the same floats (tested bit for bit)
+        # small product per matrix (about 40x slower for 1000 runs at n = 4); the same products, summed in the order
+        # the BLAS kernel picks (tests/test_sensing_estimation.py: to ROUNDING_ORDER_RTOL)
         PCt = (Pm.reshape(-1, Pm.shape[-1]) @ self.Cr.T).reshape(*Pm.shape[:-1], self.Cr.shape[0])
         S = self.Cr @ PCt + self.Rr
         S = 0.5 * (S + S.swapaxes(-1, -2))
         if S.shape[-1] == 1 and S.ndim == 2 and math.isfinite(s := float(S[0, 0])):
-            # one row, one matrix: 1/s (0 where s = 0), the same floats as the stacked branch below
+            # one row, one matrix: 1/s (0 where s = 0), as the stacked branch below without its arrays
             Lr = PCt * (1.0 / s if s != 0.0 else 0.0)
         elif S.shape[-1] == 1 and np.all(np.isfinite(S)):
-            # one row received: NumPy's hermitian pinv of a 1 x 1 S is 1/s (0 where s = 0), and the product with it
-            # multiplies each entry by 1/s: the same floats without eigh's per-call overhead (the certificate search
-            # of bounds.critical_gamma makes ~10^5 such updates)
+            # one row received: the hermitian pinv of a 1 x 1 S is 1/s (0 where s = 0), and the product with it
+            # multiplies each entry by 1/s: no eigh and its per-call overhead (the certificate search of
+            # bounds.critical_gamma makes ~10^5 such updates)
             with np.errstate(divide="ignore"):
                 Lr = PCt * np.where(S != 0.0, 1.0 / S, 0.0)
         elif S.ndim == 2:

@@ -44,7 +44,7 @@ from ..model import System
 from ..results import Riccati
 from ..results.sensing import EstimatedLoop
 from ..simulation.moments import solve_fixed_point, stationary_channel
-from ..simulation.riccati import dp_input_hessian, dp_riccati
+from ..simulation.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
 from ..simulation.stability import mean_square_radius, random_matrix_moment
 from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 from .arrivals import arrival_patterns, sensor_arrivals
@@ -319,9 +319,10 @@ def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
              laws: tuple[str, ...] = tuple(MAP_LAWS)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Each law's exact radius and average stage cost (``(G, M)`` arrays, rows gamma) on the grid
     ``gamma = s_g gamma_file / max``, ``mu = s_m mu_file / max`` (:func:`estimated_loop`; the filter built once per
-    gamma; inf where the DP has no stabilising law or the filter has no stationary gains and the lower bound on
-    E[P] diverges (proved unstable), nan where it has none but that bound is finite (undecided,
-    :func:`no_gains_verdict`), the radius as :func:`estimated_loop` gives it otherwise). The data of the
+    gamma; inf where the DP is proved to have no stabilising law (simulation.riccati.NO_SOLUTION) or the filter has
+    no stationary gains and the lower bound on E[P] diverges (proved unstable), nan where the DP or the filter
+    fails without such a proof (undecided, :func:`no_gains_verdict`), the radius as :func:`estimated_loop` gives it
+    otherwise). The data of the
     (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws (2n)^6).
 
     >>> from packetloss_cvx.sensor import Sensor
@@ -349,7 +350,9 @@ def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
                 if law == "dp":
                     try:
                         gain = dp_riccati(s).gain
-                    except NumericalError:
+                    except NumericalError as err:   # inf only where no law is proved to exist; else no verdict
+                        if not str(err).startswith(NO_SOLUTION):
+                            out[law][0][i, j], out[law][1][i, j] = np.nan, np.nan
                         continue
                 else:
                     gain = closed_form(s, law).gain

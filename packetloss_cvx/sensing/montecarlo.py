@@ -121,13 +121,15 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
             xm = xhat @ A.T + (applied if protocol == "tcp" else mu * u) @ B.T
             if filter == "kalman":
                 # A P_s A' for every run: the stacked A @ P, then one (samples n) x n product by A' in place of
-                # samples small ones (the same floats, tested; 2-3x faster at n = 2-4)
+                # samples small ones (the same products in another order, tested to ROUNDING_ORDER_RTOL; 2-3x faster
+                # at n = 2-4)
                 Pm = (np.matmul(A, P).reshape(-1, n) @ A.T).reshape(P.shape) + Sigma_W
                 if protocol == "udp":
                     Pm += actuation_covariance(B, mu, u)
     means = total / keep
     mean = float(means.mean())
-    stderr = float(means.std(ddof=1) / np.sqrt(samples))
+    with np.errstate(over="ignore"):        # squares beyond a float: stderr inf, which callers refuse (no z)
+        stderr = float(means.std(ddof=1) / np.sqrt(samples))
     if filter == "kalman":
         covariance = covariance / (keep * samples)
         run_means = per_run / keep
@@ -147,9 +149,10 @@ def pattern_update(Pm: np.ndarray, pattern: np.ndarray, rows: list[np.ndarray], 
     Returns P (samples, n, n) and the gains (samples, n, p). O(samples (n^2 p + p^3))."""
     samples = Pm.shape[0]
     # a run that received nothing keeps P = P^-, L = 0 (the update's own answer, without the call); a pattern most
-    # runs share is computed for every run and kept where it arrived (each run's update is its own: the same
-    # floats), cheaper than gathering and scattering most of the stack: the fresh update takes the other runs'
-    # values in place (the first such pattern; two can hold half the runs each: the second is then scattered)
+    # runs share is computed for every run and kept where it arrived (each run's update is its own: a gathered
+    # update's values, to rounding), cheaper than gathering and scattering most of the stack: the fresh update takes
+    # the other runs' values in place (the first such pattern; two can hold half the runs each: the second is then
+    # scattered)
     counts = np.bincount(pattern, minlength=len(rows))
     major = next((j for j, r in enumerate(rows) if r.size and 2 * counts[j] >= samples), None)
     if major is None:

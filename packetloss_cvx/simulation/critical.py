@@ -12,6 +12,7 @@ from ..errors import InputError, NumericalError
 from ..model import System
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CRITICAL_MU_TOL
+from .certificates import law_proved_stable
 from .moments import stationary_channel
 from .region import LazyLmi, membership
 from .stability import check_law, is_mean_square_stable, mean_square_radius
@@ -28,11 +29,12 @@ def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi
     """The loop of ``law`` over channel ``mu``: decided with its evidence.
 
     ``law``: a fixed gain (m×n), or "tcp"/"udp" (the receding-horizon law re-designed for ``mu``: the first
-    gain of Theorem 1's closed form), verdict "stable" iff its radius is below 1 by the margin, else
-    "unstable" (not proved stable); or "dp" (the DP optimum for ``mu``: stable iff mu is in the
-    stabilisable set, :func:`~.region.membership`, "undecided" where no certificate can be checked;
-    ``riccati``: the homogeneous Riccati eigenpair at mu when the caller has it, as there).
-    Time: one design plus one radius; "dp" as :func:`~.region.membership` without the cross-check.
+    gain of Theorem 1's closed form), verdict "stable" iff its radius is below 1 by the margin and an exact witness
+    proves it (certificates.law_proved_stable), else "unstable" (not proved stable); or "dp" (the DP optimum for
+    ``mu``: stable iff mu is in the stabilisable set, :func:`~.region.membership`, "undecided" where no certificate
+    can be checked; ``riccati``: the homogeneous Riccati eigenpair at mu when the caller has it, as there).
+    Time: one design, one radius and its witness (O(n^6)); "dp" as :func:`~.region.membership` without the
+    cross-check.
 
     Examples
     --------
@@ -51,7 +53,7 @@ def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi
         K = law
     A, B, K_, mu_ = check_law(system.A, system.B, K, mu)
     radius = mean_square_radius(A, B, K_, mu_)
-    verdict = "stable" if is_mean_square_stable(radius) else "unstable"
+    verdict = "stable" if is_mean_square_stable(radius) and law_proved_stable(A, B, K_, mu_, radius) else "unstable"
     return Membership(mu_, verdict, K_, radius, None, float("nan"), (("radius", verdict),))
 
 

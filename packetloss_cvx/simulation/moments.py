@@ -90,8 +90,8 @@ def stationary_channel(system: System) -> np.ndarray:
 def solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callable[[], np.ndarray],
                       C: np.ndarray, what: str) -> np.ndarray:
     """X = apply(X) + C for a stable positive map: dense LU on the n^2 x n^2 matrix up to
-    MOMENT_DENSE_MAX_N (O(n^6)), GMRES on the operator beyond (O(n^3 m) per product). Residual checked
-    (NumericalError).
+    MOMENT_DENSE_MAX_N (O(n^6)), GMRES on the operator beyond (O(n^3 m) per product). Residual checked; a singular
+    system, a GMRES failure or a lost residual raise NumericalError.
 
     >>> X = solve_fixed_point(lambda X: 0.5 * X, lambda: 0.5 * np.eye(1), np.array([[1.0]]), "a demo")
     >>> float(X[0, 0])        # X = X/2 + 1
@@ -100,7 +100,11 @@ def solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callabl
     n = C.shape[0]
     with np.errstate(over="ignore", invalid="ignore"):
         if n <= MOMENT_DENSE_MAX_N:
-            X = np.linalg.solve(np.eye(n * n) - matrix(), C.ravel()).reshape(n, n)
+            try:
+                X = np.linalg.solve(np.eye(n * n) - matrix(), C.ravel()).reshape(n, n)
+            except np.linalg.LinAlgError:   # exactly singular: the map has the eigenvalue 1 (not stable)
+                raise NumericalError(f"{what}: the linear system is singular (the map has the eigenvalue 1 to "
+                                     "working precision: not mean-square stable)") from None
         else:
             from scipy.sparse.linalg import LinearOperator, gmres  # optional.LAZY_IMPORTS
 

@@ -174,10 +174,10 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
         non-stationary channel.
     BudgetError
         More work than the ``simulate_work`` budget (:func:`~packetloss_cvx.budgets.simulate_work`),
-        refused before anything is drawn (``simulate(system, 2**63)`` at once).
+        refused before anything is drawn (``simulate(system, 2**63)`` at once); or, under ``steps``, a closed
+        loop's block arrays (O(BLOCK T (n + m + laws))) beyond the ``memory_bytes`` budget.
     ResourceError
-        A block's arrays (O(BLOCK T (n + m + laws))) would exceed the memory budget (refused before drawing).
-        Behind a Gilbert–Elliott channel also: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
+        Behind a Gilbert–Elliott channel: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
         distinct beliefs (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
 
     Notes
@@ -199,6 +199,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     True
     """
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
+    if not isinstance(closed_loop, bool | np.bool_):       # "no" is truthy: it would have run the closed loop
+        raise InputError("closed_loop", f"expected True or False, found {closed_loop!r:.40}")
     seed = check_count(seed, "seed", 0)
     keep = min(check_count(keep, "keep", 0), samples)
     laws = list(dict.fromkeys(laws))

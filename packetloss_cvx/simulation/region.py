@@ -21,10 +21,15 @@ outside one when lambda > 1) and "lmi" (simulation.region_lmi: the Schur-complem
 cvxpy + Clarabel). A form that cannot check its certificate says "undecided", never "unstable".
 
 The "dp" form can only prove "stable" (its gain's radius below ``1 - MEAN_SQUARE_MARGIN``). When the "riccati"
-form ran before it undecided and its P bounds every law's radius at ``1 - MEAN_SQUARE_MARGIN / 2`` or more (the
-outside check with that band, :data:`_DP_HOPELESS`), no gain can pass, so the "dp" form says "undecided" without
-running: on the boundary the DP's value iteration crawls to its step cap (scalar a = 2 at mu = 0.75: 20,000
-steps, 0.5 s) for that same verdict.
+form ran before it and proved "unstable", or undecided but its P bounds every law's radius at
+``1 - MEAN_SQUARE_MARGIN / 2`` or more (the outside check with that band, :data:`_DP_HOPELESS`), no gain can pass
+(both checks are exact), so the "dp" form says "undecided" without running: outside S the DP's value iteration
+crawls to its step cap near the boundary (scalar a = 2 at mu = 0.75: 20,000 steps, 0.5 s) for that same verdict.
+
+Every certificate is re-checked in exact rational arithmetic (simulation.certificates): a verdict is a proof about
+the plant as stored, or the form says "undecided". Where the inputs that deliver leave a part of the state
+unreached (linalg.controllable_split), that part's radius ``rho(A_uu)^2`` bounds every law's radius exactly and its
+Stein certificate decides (:func:`_unreached`).
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import CrossCheckError, InputError, NumericalError, SolverError
+from ..linalg import ControllableSplit, controllable_split
 from ..model import System
 from ..recursion import riccati_step
 from ..results.region import Membership
@@ -41,14 +47,17 @@ from ..tolerances import (
     CERTIFICATE_RTOL,
     HOMOGENEOUS_RICCATI_MAX_ITER,
     KRONECKER_MAX_N,
+    LEAST_RADIUS_ATOL,
     MEAN_SQUARE_MARGIN,
     RICCATI_RTOL,
 )
+from .certificates import candidates, law_proved_stable, outside_proved
 from .moments import stationary_channel
 from .riccati import dp_riccati
-from .stability import check_law, is_mean_square_stable, mean_square_radius, second_moment_matrix
+from .stability import check_law, is_mean_square_stable, law_radius, mean_square_radius, second_moment_matrix
 
-__all__ = ["FORMS", "LazyLmi", "certificate_margin", "converges_within", "homogeneous_riccati", "membership"]
+__all__ = ["FORMS", "LazyLmi", "certificate_margin", "converges_within", "homogeneous_riccati", "membership",
+           "proved_margin"]
 
 #: the power iteration runs on R + _SHIFT * lambda * I (same eigenvector): a shift removes a peripheral spectrum
 #: (e.g. rotations, eigenvalues -lambda); 0.1 costs little speed where the second eigenvalue is small
@@ -61,8 +70,6 @@ _POWER_STEPS = 30
 #: policy iteration at once, asked at this step only (two_actuator: steps shrink by about 0.8 each, 120 to go; the
 #: 26 power steps left were waste)
 _POWER_WATCH = 4
-#: lambda below this fraction of tr(A'PA) is zero to rounding (R(P) = 0)
-_ZERO = 1e-12
 _POLICY_STEPS = 50
 #: where the eigenpair's own gain is not proved stabilising, the gain is taken once more from P + _LIFT I (tr P = 1):
 #: the Perron eigenvector of a decoupled plant vanishes on the blocks whose radius is not the largest, and the
@@ -248,14 +255,137 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray, start: np.
     mu = np.asarray(mu, dtype=float)
     single = mu.ndim == 1
     mus = mu.reshape(-1, B.shape[1])
+    n, m = B.shape
+    lam, P, K = np.empty(mus.shape[0]), np.empty((mus.shape[0], n, n)), np.empty((mus.shape[0], m, n))
+    reaches = mus > 0.0                               # a channel that never delivers reaches nothing
+    try:
+        for pattern in np.unique(reaches, axis=0):
+            idx = np.flatnonzero(np.all(reaches == pattern, axis=1))
+            split = controllable_split(A, B[:, pattern])
+            if split.nc == n:
+                lam[idx], P[idx], K[idx] = _graded(A, B, mus[idx], start)
+            else:
+                lam[idx], P[idx], K[idx] = _split_eigenpairs(split, A, B, mus[idx], start)
+    except np.linalg.LinAlgError as err:
+        raise NumericalError(f"homogeneous Riccati eigenpair: a linear-algebra routine failed ({err}); no "
+                             "candidate certificate") from None
+    return (float(lam[0]), P[0], K[0]) if single else (lam, P, K)
+
+
+def _split_eigenpairs(split: ControllableSplit, A: np.ndarray, B: np.ndarray, mus: np.ndarray,
+                      start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`homogeneous_riccati` where the inputs that deliver leave a part unreached (``split``, the Kalman
+    decomposition ``T'AT = [[A_cc, A_cu], [0, A_uu]]``, ``T'B = [[B_c], [0]]``): the second-moment operator is block
+    triangular, so ``rho(L_K) = max(rho of the reached part's operator, rho(A_uu)^2)`` and the least radius is
+    ``max(lambda_c, rho(A_uu)^2)``, lambda_c the reached part's own (computed on (A_cc, B_c)); the gain is the
+    reached part's, 0 on the rest. P: where the unreached part decides, the Perron eigenvector of
+    ``X -> A_uu' X A_uu``; else the eigenvector of the whole map, iterated from the reached part's (checked by the
+    caller like any candidate). Time that of the reached part's iteration (and the whole one's)."""
+    n, m = B.shape
+    G, nc, T = mus.shape[0], split.nc, split.T
+    Tc, Tu = T[:, :nc], T[:, nc:]
+    unreached = split.uncontrollable_radius ** 2
+    lam_c, K = np.zeros(G), np.zeros((G, m, n))
+    P_c = np.zeros((G, nc, nc))
+    if nc:
+        start_c = None if start is None else Tc.T @ np.asarray(start, dtype=float) @ Tc
+        lam_c, P_c, K_c = _graded(split.A_cc, (T.T @ B)[:nc], mus, start_c)
+        K = K_c @ Tc.T
+    lam = np.maximum(lam_c, unreached)
+    P = np.empty((G, n, n))
+    top = unreached >= lam_c
+    if np.any(top):
+        P[top] = Tu @ _perron_adjoint(split.A_uu) @ Tu.T
+    for g in np.flatnonzero(~top):
+        P[g] = _graded(A, B, mus[g:g + 1], Tc @ P_c[g] @ Tc.T)[1][0]
+    return lam, P, K
+
+
+def _perron_adjoint(A: np.ndarray) -> np.ndarray:
+    """The Perron eigenvector of ``X -> A'XA`` (PSD, trace 1): ``Re(w w^H)`` for a left eigenvector w of A's
+    eigenvalue of largest modulus (``A'XA = |lambda|^2 X``). O(n^3).
+
+    >>> A = np.array([[2.0, 1.0], [0.0, 0.5]])                 # A' w = 2 w for w = (3, 2) / sqrt(13)
+    >>> X = _perron_adjoint(A)
+    >>> X.round(12).tolist(), bool(np.allclose(A.T @ X @ A, 4 * X))
+    ([[0.692307692308, 0.461538461538], [0.461538461538, 0.307692307692]], True)
+    """
+    vals, vecs = np.linalg.eig(A.T)
+    w = vecs[:, int(np.argmax(np.abs(vals)))]
+    X = np.outer(w.real, w.real) + np.outer(w.imag, w.imag)
+    return X / float(np.trace(X))
+
+
+#: a P whose diagonal spans more than this (least over largest, zeros aside) is refined on the plant scaled by
+#: diagonal powers of two (:func:`_graded`)
+_GRADED = 1e-6
+#: the refinement's passes at most (the second changes nothing where the first balanced P)
+_BALANCE_PASSES = 2
+
+
+def _graded(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The iteration (:func:`_iterate`), and for each point whose P is graded (its diagonal spans more than
+    :data:`_GRADED`) the iteration again on the plant scaled by ``D = diag(2^round(-log2(P_ii) / 2))``
+    (``A -> D^-1 A D``, ``B -> D^-1 B``: exact in floating point, the same operators up to similarity), started from
+    ``D P D``, mapped back (``P = D^-1 P~ D^-1``, ``K = K~ D^-1``, exact too). On a chain of integrators (P's
+    diagonal 4e-14 ... 1) the unscaled iteration is not a fixed point (lambda 1.0101 for 1.0015); scaled, it
+    matches the exact single-input value to 1e-14 (tests/test_region.py). Time: the iteration's, twice or three
+    times for a graded point."""
+    lam, P, K = _iterate(A, B, mus, start)
+    for g in range(mus.shape[0]):
+        best, gap = (lam[g], P[g], K[g]), None
+        for _ in range(_BALANCE_PASSES):
+            d = np.diagonal(best[1])
+            positive = d > 0
+            if not (np.all(np.isfinite(best[1])) and np.any(positive)) or \
+                    float(d[positive].min()) >= _GRADED * float(d[positive].max()):
+                break
+            D = np.where(positive, np.exp2(np.clip(np.round(-0.5 * np.log2(np.where(positive, d, 1.0))),
+                                                   -_BALANCE_EXP, _BALANCE_EXP)), 1.0)
+            l_, P_, K_ = _iterate(A * D[None, :] / D[:, None], B / D[:, None], mus[g:g + 1],
+                                  D[:, None] * best[1] * D[None, :])
+            found = (l_[0], P_[0] / D[:, None] / D[None, :], K_[0] / D[None, :])
+            # kept only where its gain's radius is nearer its lambda than the last one's (an eigenpair of the
+            # minimising law): on a decoupled plant the scaled steps can end on a block that is not the largest
+            # (lambda 0.16 where 1.0001), whose gain leaves the largest block unstable
+            gap = _gap(A, B, mus[g], *best) if gap is None else gap
+            found_gap = _gap(A, B, mus[g], *found)
+            if not found_gap < gap:
+                break
+            best, gap = found, found_gap
+        lam[g], P[g], K[g] = best
+    return lam, P, K
+
+
+def _gap(A: np.ndarray, B: np.ndarray, mu: np.ndarray, lam: float, P: np.ndarray, K: np.ndarray) -> float:
+    """``|rho(L_K) - lambda|`` of a candidate eigenpair (inf where the radius fails). O(n^6)."""
+    try:
+        return abs(law_radius(A, B, K, mu) - lam) if np.all(np.isfinite(K)) else float("inf")
+    except NumericalError:
+        return float("inf")
+
+
+#: the balancing exponents are clipped to +-_BALANCE_EXP (no scaled entry overflows for a plant below 1e150)
+_BALANCE_EXP = 100
+
+
+def _iterate(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shifted power iteration and its policy iteration (:func:`homogeneous_riccati`) on one plant, for the
+    stack of channels ``mus`` (G, m); a point where the always-delivered channels alone reach the whole state
+    (controllable_split of their columns) has lambda 0.0 exactly: their deadbeat law makes every L_K nilpotent.
+    Time O(iterations (n^3 + m^3)) a point, plus O(n^6) a policy step."""
     n = A.shape[0]
     P = np.repeat(_first_iterate(n, start)[None], mus.shape[0], axis=0)
     active = np.ones(mus.shape[0], dtype=bool)
+    zeroed = np.full(mus.shape[0], np.nan)            # tr R(P) / tr P where the zero test stopped a point
     policy = n <= KRONECKER_MAX_N
     slow = np.zeros(mus.shape[0], dtype=bool)          # handed to the policy iteration before the last power step
     steps = _POWER_STEPS if policy else HOMOGENEOUS_RICCATI_MAX_ITER
+    floor = LEAST_RADIUS_ATOL * float(np.linalg.norm(A, 2)) ** 2
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        _power(P, A, B, mus, active, slow if policy else None, 0, steps)
+        _power(P, A, B, mus, active, zeroed, floor, slow if policy else None, 0, steps)
         if policy and np.any(active | slow):
             left = np.flatnonzero(active | slow)
             found, moved = _policy_iteration(P[left], A, B, mus[left])
@@ -270,12 +400,18 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray, start: np.
             if back.size:
                 active[:] = False
                 active[back] = True
-                _power(P, A, B, mus, active, None, _POWER_WATCH, steps)
+                _power(P, A, B, mus, active, zeroed, floor, None, _POWER_WATCH, steps)
                 if np.any(active):
                     P[active] = _policy_iteration(P[active], A, B, mus[active])[0]
         K, _ = _homogeneous_step(P, A, B, mus)
     lam = _eigenvalue(P, A, B, mus)
-    return (float(lam[0]), P[0], K[0]) if single else (lam, P, K)
+    stopped = ~np.isnan(zeroed)   # stopped by the zero test: tr R(P) / tr P there, in [0, floor] by that test
+    lam[stopped] = np.clip(zeroed[stopped], 0.0, floor)
+    always = mus == 1.0
+    for pattern in np.unique(always[np.any(always, axis=1)], axis=0):
+        if controllable_split(A, B[:, pattern]).nc == n:
+            lam[np.all(always == pattern, axis=1)] = 0.0
+    return lam, P, K
 
 
 #: the weight of I / n in a started power iteration's first iterate (:func:`homogeneous_riccati`)
@@ -294,12 +430,13 @@ def _first_iterate(n: int, start: np.ndarray | None) -> np.ndarray:
     return (1.0 - _START_MIX) * (0.5 * (start + start.T)) / trace + _START_MIX * plain
 
 
-def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray, active: np.ndarray,
-           slow: np.ndarray | None, first: int, steps: int) -> None:
+def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray, active: np.ndarray, zeroed: np.ndarray,
+           floor: float, slow: np.ndarray | None, first: int, steps: int) -> None:
     """The shifted power iteration's steps ``first .. steps - 1`` on the points ``active`` (G,), in place on P and
-    ``active`` (a point leaves when it stops: ``||P_next - P|| <= RICCATI_RTOL`` or its zero test). With ``slow``
-    (G,), after step _POWER_WATCH a point whose last two steps shrink too slowly to reach RICCATI_RTOL by the last
-    step leaves too, marked in ``slow``. Time O((steps - first) (n^3 + m^3)) a point."""
+    ``active`` (a point leaves when it stops: ``||P_next - P|| <= RICCATI_RTOL``, or its zero test ``tr R(P) <=
+    floor tr P`` (``floor = LEAST_RADIUS_ATOL ||A||_2^2``), which records a finite ``tr R(P) / tr P`` in
+    ``zeroed``). With ``slow`` (G,), after step _POWER_WATCH a point whose last two steps shrink too slowly to reach
+    RICCATI_RTOL by the last step leaves too, marked in ``slow``. Time O((steps - first) (n^3 + m^3)) a point."""
     last = np.full(P.shape[0], np.inf)               # each point's previous step ||P_next - P||
     for step in range(first, steps):
         idx = np.flatnonzero(active)
@@ -310,12 +447,14 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray, active:
         lam = np.trace(R, axis1=-2, axis2=-1)
         # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an overflow the
         # caller's check refuses; iterating on R / lambda would amplify rounding: such a point stops here
-        zero = ~(np.isfinite(lam) & (lam > _ZERO * np.trace(A.T @ Pa @ A, axis1=-2, axis2=-1)))
+        zero = ~(np.isfinite(lam) & (lam > floor * np.trace(Pa, axis1=-2, axis2=-1)))
         P_next = (R / lam[:, None, None] + _SHIFT * Pa) / (1.0 + _SHIFT)
         moved = np.linalg.norm(P_next - Pa, axis=(-2, -1))
         done = moved <= RICCATI_RTOL
         P[idx[~zero]] = P_next[~zero]
         active[idx[zero | done]] = False
+        small = zero & np.isfinite(lam)               # not an overflow: R(P) vanishes to the floor
+        zeroed[idx[small]] = lam[small] / np.trace(Pa[small], axis1=-2, axis2=-1)
         if slow is not None and step + 1 == _POWER_WATCH:
             # a point whose steps shrink too slowly to reach RICCATI_RTOL by the last power step (ratio r of its
             # last two steps: log(RTOL / step) / log r steps to go) goes to the policy iteration now; asked once
@@ -384,9 +523,13 @@ def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarra
         finite = np.all(np.isfinite(K), axis=(-2, -1))
         alive[idx[~finite]] = False          # keep the last good P
         idx, K = idx[finite], K[finite]
+        M = np.swapaxes(second_moment_matrix(A, B, K, mu[idx]), -1, -2)
+        finite = np.all(np.isfinite(M), axis=(-2, -1))   # an overflowing operator: keep the last good P
+        alive[idx[~finite]] = False
+        idx, M = idx[finite], M[finite]
         if not idx.size:
             break
-        vals, vecs = np.linalg.eig(np.swapaxes(second_moment_matrix(A, B, K, mu[idx]), -1, -2))
+        vals, vecs = np.linalg.eig(M)
         top = np.argmax(vals.real, axis=-1)
         rows = np.arange(idx.size)
         lam = vals[rows, top].real
@@ -415,13 +558,16 @@ def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarra
 
 
 def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) -> tuple[str, float]:
+    """"stable" with the law's radius where K's radius is below ``1 - MEAN_SQUARE_MARGIN`` and an exact witness
+    proves it (certificates.law_proved_stable), else "undecided" (with the computed radius where there is one)."""
     if K is None or not np.all(np.isfinite(K)):
         return "undecided", float("nan")
     try:
         radius = mean_square_radius(A, B, K, mu)
     except NumericalError:
         return "undecided", float("nan")
-    return ("stable" if is_mean_square_stable(radius) else "undecided"), radius
+    proved = is_mean_square_stable(radius) and law_proved_stable(A, B, K, mu, radius)
+    return ("stable" if proved else "undecided"), radius
 
 
 #: relative eigenvalue cuts under which an infeasibility certificate's P is tried again without those directions:
@@ -430,32 +576,97 @@ def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) 
 #: certificate in its own right, checked as any other
 _CUTS = (1e-12, 1e-9, 1e-6)
 #: the certificate margin from which the "dp" form is not run (module docstring): every law's radius is then at
-#: least 1 - MEAN_SQUARE_MARGIN / 2, which a computed radius (solvers agree to about 1e-12) cannot bring below the
-#: 1 - MEAN_SQUARE_MARGIN that "stable" needs
+#: least 1 - MEAN_SQUARE_MARGIN / 2, proved exactly, so no gain can be proved below the 1 - MEAN_SQUARE_MARGIN that
+#: "stable" needs (nor after a proved "unstable" of the "riccati" form, whose margin is above this one)
 _DP_HOPELESS = -0.5 * MEAN_SQUARE_MARGIN
 
 
 def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, floor: float = -CERTIFICATE_RTOL
              ) -> tuple[str, float, np.ndarray | None]:
-    """"unstable" with the margin and the (possibly cut, :data:`_CUTS`) P that checks (margin ``>= floor``: every
-    law's radius at least ``1 + floor``), else "undecided"."""
+    """"unstable" with the margin and the certificate that proves every law's radius at least ``1 + margin >= 1 +
+    floor`` in exact arithmetic (:func:`proved_margin`), else "undecided" with the float estimate of P's margin
+    (:func:`certificate_margin`). Tried in turn: P and P cut at :data:`_CUTS` (each also snapped), then each of
+    them tilted (certificates.candidates)."""
     if P is None or not np.all(np.isfinite(P)):
         return "undecided", float("nan"), None
     P = 0.5 * (P + P.T) / max(float(np.trace(P)), np.finfo(float).tiny)
     margin = certificate_margin(A, B, mu, P)
-    if margin >= floor:
-        return "unstable", margin, P
     w, U = np.linalg.eigh(P)
+    candidates = [(P, margin)]
     for cut in _CUTS:
         kept = w > cut * w[-1]
         if np.all(kept) or not np.any(kept):
             continue
         Q = (U[:, kept] * w[kept]) @ U[:, kept].T
         Q = 0.5 * (Q + Q.T) / float(np.trace(Q))
-        cut_margin = certificate_margin(A, B, mu, Q)
-        if cut_margin >= floor:
-            return "unstable", cut_margin, Q
+        candidates.append((Q, certificate_margin(A, B, mu, Q)))
+    for tilt in (False, True):       # the candidates as they are first (a PSD certificate where one checks)
+        for Q, estimate in candidates:
+            proved = proved_margin(A, B, mu, Q, estimate, floor, tilt)
+            if proved is not None:
+                return "unstable", *proved
     return "undecided", margin, None
+
+
+def proved_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, estimate: float, floor: float,
+                  tilt: bool = False) -> tuple[float, np.ndarray] | None:
+    """``(c - 1, certificate)`` for the largest c tried that a candidate of P proves exactly (every law's radius
+    >= c, certificates.outside_proved; the candidates of certificates.candidates: P and P snapped, or with ``tilt``
+    those tilted): P's float ``estimate`` of the margin lowered by CERTIFICATE_RTOL relative, then ``1 + floor``;
+    None where none holds, or where the estimate is below the floor by more than its own rounding. Time
+    O((n + m)^3) integer operations a try, at most 24 tries.
+
+    >>> A, B = np.array([[2.0]]), np.array([[1.0]])      # every law's radius >= a^2 (1 - mu) = 1.6 at mu = 0.6
+    >>> margin, P = proved_margin(A, B, np.array([0.6]), np.eye(1), 0.6, -1e-12)
+    >>> 0.6 * (1 - 1e-11) < margin <= 0.6, P.tolist()
+    (True, [[1.0]])
+    """
+    if not estimate >= floor - CERTIFICATE_RTOL:
+        return None
+    for c in ([(1.0 + estimate) * (1.0 - CERTIFICATE_RTOL)] if estimate > floor else []) + [1.0 + floor]:
+        if c < 1.0 + floor:
+            continue
+        for Q in candidates(A, P, c, tilt):
+            if outside_proved(A, B, mu, Q, c):
+                return c - 1.0, Q
+    return None
+
+
+def _unreached(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """``(margin, P)`` where the part no delivering input reaches (controllable_split of B's columns with mu > 0)
+    has ``rho(A_uu)^2 >= 1 - CERTIFICATE_RTOL`` and its Stein certificate checks exactly: ``P = T_u S T_u'`` with
+    ``A_uu' S A_uu - cS = cI`` (S has a positive direction iff ``rho(A_uu)^2 > c``; ``T_c(P) = 0 + cI + 0`` where the
+    split is exact, e.g. a mode no column of B touches), tried at ``c = rho(A_uu)^2 (1 - 1e-9)`` and at ``1 -
+    CERTIFICATE_RTOL``. None otherwise (no such part, or a split resting on a rank decision: its coupling rounded
+    away, the check fails and the other certificates decide). Time O(n^4 + n_u^6).
+
+    >>> margin, P = _unreached(np.array([[0.5, 1.0], [0.0, 1.2]]), np.array([[1.0], [0.0]]), np.array([0.5]))
+    >>> round(margin, 6), P.round(12).tolist()      # every law leaves x2+ = 1.2 x2: radius >= 1.44
+    (0.44, [[0.0, 0.0], [0.0, 1.0]])
+    """
+    split = controllable_split(A, B[:, mu > 0.0])
+    if split.nc == A.shape[0]:
+        return None
+    top = split.uncontrollable_radius ** 2
+    Au, Tu = split.A_uu, split.T[:, split.nc:]
+    k = Au.shape[0]
+    for c in (top * (1.0 - 1e-9), 1.0 - CERTIFICATE_RTOL):
+        if not 1.0 - CERTIFICATE_RTOL <= c <= top:
+            continue
+        with np.errstate(all="ignore"):
+            try:
+                S = np.linalg.solve(np.kron(Au.T, Au.T) - c * np.eye(k * k), c * np.eye(k).ravel()).reshape(k, k)
+            except np.linalg.LinAlgError:
+                continue
+        P = Tu @ (0.5 * (S + S.T)) @ Tu.T
+        if not np.all(np.isfinite(P)):
+            continue
+        scale = float(np.trace(P)) if np.trace(P) > 0 else float(np.linalg.norm(P, 2))
+        P = P / scale
+        for Q in candidates(A, P, c, tilt=False):
+            if outside_proved(A, B, mu, Q, c):
+                return c - 1.0, Q
+    return None
 
 
 def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str, ...] = FORMS,
@@ -483,8 +694,9 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     Returns
     -------
     Membership
-        verdict "stable" with its gain, "unstable" with its certificate P, or "undecided" (no form could
-        check a certificate: within about 1e-9 of the boundary, or a solver failure).
+        verdict "stable" with its gain, "unstable" with its certificate P (symmetric, not negative semidefinite,
+        tr P = 1 where P >= 0), each proved in exact arithmetic (simulation.certificates), or "undecided" (no form
+        could check a certificate: near the boundary, on an ill-conditioned plant, or a solver failure).
 
     Raises
     ------
@@ -510,9 +722,13 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     pair = riccati
     for form in forms:
         if form == "riccati" and pair is None:
-            pair = homogeneous_riccati(A, B, mu_)
-        if form == "dp" and verdicts.get("riccati") == "undecided" and \
-                _outside(A, B, mu_, pair[1], _DP_HOPELESS)[0] == "unstable":
+            try:
+                pair = homogeneous_riccati(A, B, mu_)
+            except NumericalError:     # no candidate: the form is undecided
+                pair = (float("nan"), np.full((system.n, system.n), np.nan), np.full((system.m, system.n), np.nan))
+        if form == "dp" and (verdicts.get("riccati") == "unstable" or (verdicts.get("riccati") == "undecided" and
+                                                                      _outside(A, B, mu_, pair[1], _DP_HOPELESS)[0]
+                                                                      == "unstable")):
             verdicts[form], values[form] = "undecided", float("nan")    # no gain can pass (_DP_HOPELESS)
             continue
         verdict, value, gain, P = _run(form, system, A, B, mu_, lmi, pair, best.get("stable", (None,) * 3)[2])
@@ -528,13 +744,13 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     pairs = tuple(verdicts.items())
     if not decided:
         return Membership(mu_, "undecided", None, float("nan"), None, float("nan"), pairs,
-                          f"no form could check a certificate at mu = {mu_.tolist()} (within about 1e-9 of the "
-                          "boundary, or a solver failure)")
+                          f"no form could check a certificate at mu = {mu_.tolist()} in exact arithmetic (near the "
+                          "boundary, on an ill-conditioned plant, or a solver failure)")
     verdict = decided.pop()
     _, value, gain, P = best[verdict]
     if verdict == "stable":
         return Membership(mu_, verdict, gain, value, None, float("nan"), pairs)
-    return Membership(mu_, verdict, None, float("nan"), P / float(np.trace(P)), value, pairs)
+    return Membership(mu_, verdict, None, float("nan"), P, value, pairs)
 
 
 def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray, lmi: LazyLmi | None,
@@ -552,14 +768,21 @@ def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray
         return verdict, radius, dp.gain, None
     if form == "riccati":
         lam, P, K = homogeneous_riccati(A, B, mu) if riccati is None else riccati
+        unreached = _unreached(A, B, mu)
+        if unreached is not None:
+            return "unstable", unreached[0], None, unreached[1]
         if lam < 1.0:
             verdict, radius = _inside(A, B, mu, K)
             if verdict == "undecided":   # P vanishes on a block (decoupled plants): its minimiser leaves it gain 0
                 K = _homogeneous_step(P + _LIFT * np.eye(A.shape[0]), A, B, mu)[0]
                 verdict, radius = _inside(A, B, mu, K)
             return verdict, radius, K, None
-        verdict, margin, P = _outside(A, B, mu, P)
-        return verdict, margin, None, P
+        verdict, margin, P_ = _outside(A, B, mu, P)
+        if verdict == "undecided":   # no certificate that checks: lambda may be wrong, and its gain is a candidate
+            inside, radius = _inside(A, B, mu, K)
+            if inside == "stable":
+                return inside, radius, K, None
+        return verdict, margin, None, P_
     lmi = LazyLmi(A, B) if lmi is None else lmi
     try:
         t, K, _ = lmi.stabilise(mu)

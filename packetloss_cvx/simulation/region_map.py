@@ -170,12 +170,28 @@ def grid_rows(system_data: dict, laws: tuple[str, ...], fixed: np.ndarray | None
     mus = np.repeat(np.asarray(base, dtype=float)[None], len(rows) * axis.size, axis=0)
     mus[:, i], mus[:, j] = np.tile(axis, len(rows)), np.repeat(axis[np.asarray(rows, dtype=int)], axis.size)
     # the homogeneous Riccati eigenpairs of every point in one batch: "dp"'s radius and its membership's first form
-    pairs = homogeneous_riccati(np.asarray(system.A, float), np.asarray(system.B, float), mus) if "dp" in laws else None
+    pairs = _eigenpairs(np.asarray(system.A, float), np.asarray(system.B, float), mus) if "dp" in laws else None
     for g, mu in enumerate(mus):
         r, col = divmod(g, axis.size)
         pair = None if pairs is None else (float(pairs[0][g]), pairs[1][g], pairs[2][g])
         _fill(system, laws, chosen, mu, lmi, pair, stable[:, r, col], radius[:, r, col])
     return stable, radius
+
+
+def _eigenpairs(A: np.ndarray, B: np.ndarray, mus: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """homogeneous_riccati of the batch; where a linear-algebra failure stops the batch (NumericalError), each point
+    alone, a point that fails again getting a nan pair (its radius nan, its "riccati" form undecided)."""
+    try:
+        return homogeneous_riccati(A, B, mus)
+    except NumericalError:
+        n, m = B.shape
+        lam, P, K = np.full(len(mus), np.nan), np.full((len(mus), n, n), np.nan), np.full((len(mus), m, n), np.nan)
+        for g, mu in enumerate(mus):
+            try:
+                lam[g], P[g], K[g] = homogeneous_riccati(A, B, mu)
+            except NumericalError:
+                continue
+        return lam, P, K
 
 
 def _check_grid(system: System, grid: int, channels: tuple[int, int], laws: int) -> None:

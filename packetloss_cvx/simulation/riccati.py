@@ -28,6 +28,7 @@ from ..model import System
 from ..recursion import riccati_step as riccati_step_batch
 from ..results import Riccati
 from ..tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE, RICCATI_MAX_ITER, RICCATI_RTOL
+from .certificates import no_law_proved
 from .moments import check_steps, law_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
@@ -109,9 +110,13 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
     Raises
     ------
     NumericalError
-        No stabilising solution: the value iteration diverges (the losses are too frequent for
-        any law to hold the second moment), does not converge, or ends at a law that is not
-        mean-square stabilising (e.g. an unstable mode that Omega does not see).
+        Its reason starts with :data:`NO_SOLUTION` only where that is proved: the value iteration grows past
+        ``RICCATI_DIVERGENCE`` times the weights and its direction P proves, in exact arithmetic, every law's
+        mean-square radius at least 1 (certificates.no_law_proved; asked again each time ``||P||`` grows by
+        ``RICCATI_DIVERGENCE^(1/4)``). Growth alone proves nothing: on a chain of integrators the optimum's
+        ``||P||`` is 2e16 (at mu = 0.0186, 1.001 on the diagonal), past the 2e14 that had been read as divergence.
+        Other reasons (no verdict): the iteration overflows or does not converge in ``RICCATI_MAX_ITER`` steps,
+        or ends at a law that is not mean-square stabilising (e.g. an unstable mode that Omega does not see).
 
     Examples
     --------
@@ -135,14 +140,22 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
     started = _started(gain, A, B, mu_, Omega, psi)
     if started is not None:
         P, iterations = started
+    check_at = RICCATI_DIVERGENCE * scale             # the next size at which a growing P is asked for a proof
     with np.errstate(over="ignore", invalid="ignore"):
         while started is None:
             K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
             iterations += 1
             size = frobenius(P_next)
-            if not np.isfinite(size) or size > RICCATI_DIVERGENCE * scale:
-                raise NumericalError(f"{NO_SOLUTION} at mu = {mu_.tolist()} (the value iteration diverges, "
-                                     f"||P|| > {size:.3g}: no law holds the second moment bounded under these losses)")
+            if not np.isfinite(size):
+                raise NumericalError(f"modified Riccati equation: undecided at mu = {mu_.tolist()}: the value "
+                                     f"iteration overflows after {iterations} steps and its direction proves no bound "
+                                     "on the laws' radii (dp_riccati: a stabilising solution is denied only by proof)")
+            if size > check_at:
+                if no_law_proved(A, B, mu_, P_next):
+                    raise NumericalError(f"{NO_SOLUTION} at mu = {mu_.tolist()} (the value iteration diverges, "
+                                         f"||P|| > {size:.3g}, and its direction proves every law's mean-square "
+                                         "radius >= 1 in exact arithmetic: no law holds the second moment bounded)")
+                check_at = size * RICCATI_DIVERGENCE ** 0.25
             converged = frobenius(P_next - P) <= RICCATI_RTOL * size
             P = P_next
             if converged:

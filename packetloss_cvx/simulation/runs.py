@@ -9,10 +9,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..errors import InputError, ResourceError
+from ..budgets import check, count_text
+from ..errors import InputError
 from ..model import System
 from ..results import OpenLoopCheck
-from ..tolerances import MEMORY_BUDGET_BYTES
 
 __all__ = [
     "BLOCK", "LoopStats", "check_count", "check_loop_memory", "loop_statistics", "open_loop_checks", "plan_costs",
@@ -138,26 +138,26 @@ def open_loop_checks(plans: dict[str, Any], blocks: list[int], streams: list[np.
 
 
 def check_loop_memory(system: System, block: int, steps: int, laws: int, keep: int) -> None:
-    """Refuse, before drawing, a closed loop whose block arrays exceed the memory budget: deliveries and
-    noise as drawn and as the loop reads them (runs last: a copy of each, block steps (2 m + 16 n)), norms and
-    stage costs (16 laws block steps), kept states.
+    """Refuse, before drawing, a closed loop whose block arrays exceed the ``memory_bytes`` budget (budgets.py):
+    deliveries and noise as drawn and as the loop reads them (runs last: a copy of each, block steps (2 m + 16 n)),
+    norms and stage costs (16 laws block steps), kept states. The steps are the caller's count: a
+    :class:`~packetloss_cvx.errors.BudgetError` under ``steps``, as for the work budget.
 
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> check_loop_memory(s, BLOCK, 50, 3, 0)            # 4096 * 51 * 66 bytes: fine
+    >>> from packetloss_cvx.errors import BudgetError
     >>> try:
     ...     check_loop_memory(s, BLOCK, 10**7, 3, 0)      # about 2e12 bytes
-    ... except ResourceError:
-    ...     print("refused")
-    refused
+    ... except BudgetError as err:
+    ...     print(err.field, err.env)
+    steps PACKETLOSS_CVX_BUDGET_MEMORY_BYTES
     """
     needed = (block * (steps + 1) * (2 * system.m + 16 * system.n + 16 * laws)
               + 8 * laws * keep * (steps + 1) * system.n)
-    if needed > MEMORY_BUDGET_BYTES:
-        raise ResourceError(f"the closed-loop simulation needs about {needed / 2**30:.1f} GiB per block of {block} "
-                            f"runs over {steps} steps (budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB): fewer steps",
-                            needed, MEMORY_BUDGET_BYTES)
+    check("memory_bytes", needed, "steps", f"{count_text(steps)} steps of a closed loop (about {needed / 2**30:.3g} "
+                                           f"GiB for a block of {block} runs)")
 
 
 def plan_costs(system: System, inputs: np.ndarray, delivered: np.ndarray, noise: np.ndarray | None) -> np.ndarray:

@@ -188,7 +188,7 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
     Raises
     ------
     NumericalError
-        ARPACK did not converge, or the operator is not finite.
+        ARPACK or LAPACK's eigenvalue solver did not converge, or the operator is not finite.
 
     Examples
     --------
@@ -221,7 +221,11 @@ def law_radius(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, 
     if method == "kronecker" or (method == "auto" and n <= KRONECKER_MAX_N) or n * n < 8:
         with np.errstate(over="ignore", invalid="ignore"):
             matrix = second_moment_matrix(A_, B_, K_, mu_) if matrix is None else matrix()
-            vals = np.linalg.eigvals(matrix) if np.all(np.isfinite(matrix)) else np.array([np.inf])
+            try:
+                vals = np.linalg.eigvals(matrix) if np.all(np.isfinite(matrix)) else np.array([np.inf])
+            except np.linalg.LinAlgError:
+                raise NumericalError("mean-square radius: the eigenvalues of the second-moment operator did not "
+                                     "converge") from None
         if not np.all(np.isfinite(vals)):
             raise NumericalError("mean-square radius: the second-moment operator overflows")
         return float(np.max(np.abs(vals)))

@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import InputError
 from ..results import DesignSweep
 from ..runfolder import RunFolder
+from ..safeio import check_flag
 
 __all__ = ["csv_header", "csv_number", "require_xarray", "save_sweep", "sweep_table", "write_sweep"]
 
@@ -121,7 +122,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, ov
     """
     if netcdf:
         require_xarray()        # before writing anything
-    with RunFolder(out, command=command, force=overwrite) as folder:
+    with RunFolder(out, command=command, force=check_flag(overwrite, "overwrite")) as folder:
         return write_sweep(result, folder, netcdf)
 
 

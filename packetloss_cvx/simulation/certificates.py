@@ -1,0 +1,222 @@
+"""Certificates of mean-square (in)stability, re-checked in exact rational arithmetic.
+
+A verdict of the stabilisable set (simulation.region) rests on one inequality between matrices computed in floating
+point. On a well-conditioned plant a check to rounding is a proof; on an ill-conditioned one (a chain of
+integrators at small mu: a certificate's P with eigenvalues 1, 2e-5, 2e-10, 0) the rounding of the check is larger
+than the margin it reports, and a float check had proved "every law's radius >= 1.000664" where a gain of radius
+0.9975 exists. So the final inequality is re-checked exactly: every double is a dyadic rational, the inequality's
+matrix is formed from the very doubles of A, B, mu and the certificate without rounding (linalg.Dyadic), and its
+definiteness decided by exact elimination (linalg.exact_psd). A certificate that passes is a proof about the plant
+as stored; one that fails gives no verdict ("undecided").
+
+- **outside**: a symmetric P, not negative semidefinite, with ``T_c(P) >= 0`` proves ``rho(L_K) >= c`` for every
+  law K (:func:`outside_proved`). With ``x'(L_K^*(P) - cP)x = [x; Kx]' T_c(P) [x; Kx]``, ``L_K^*(P) >= cP`` for
+  every K; were ``rho(L_K) < c``, ``P = -sum_j (L_K^* / c)^j (W) / c <= 0`` for ``W = L_K^*(P) - cP >= 0``. P need
+  not be PSD (a P >= 0, P != 0 is the usual case): an indefinite P proves it for a part no input reaches, where the
+  Stein equation of that part gives a definite, hence robust, inequality.
+- **inside**: ``X > 0`` with ``L_K(X) < c X`` proves ``rho(L_K) < c`` (:func:`inside_proved`; L_K is a positive
+  map: ``L_K^j(X) <= c'^j X`` for some ``c' < c``). X is the solution of ``X = L_K(X) / r + I`` for an r between
+  the law's computed radius and c (:func:`stability_witness`), so that ``cX - L_K(X) = (c - r) X + r I`` up to the
+  solve's residual: definite by a margin the rounding cannot reach unless the solve has lost its digits.
+
+Time: O((n + m)^3) integer operations on numbers of O((n + m) 53) bits for a check (n = 4: about 0.3 ms), plus
+O(n^6) for the witness's dense solve (n <= MOMENT_DENSE_MAX_N).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import NumericalError
+from ..linalg import Dyadic, exact_psd, frobenius
+from ..tolerances import MEAN_SQUARE_MARGIN
+from .moments import solve_fixed_point
+from .stability import law_radius, second_moment_matrix, second_moment_step
+
+__all__ = ["SNAP", "TILTS", "candidates", "inside_proved", "law_proved_stable", "no_law_proved", "outside_matrix",
+           "outside_proved", "snapped", "stability_witness", "tilted"]
+
+#: entries at or below these fractions of a certificate's largest are tried as exact zeros (:func:`snapped`): the
+#: rounding of an orthogonal transform (1e-17 where the split of a zero row of B is exact), and the iteration's own
+#: tolerance (RICCATI_RTOL = 1e-12 on the eigenvector: 1.7e-13 off the block of a decoupled plant's mode that only
+#: one input reaches)
+SNAP = (1e-13, 1e-10)
+
+#: the tilts ``P - t ||P|| S / ||S||`` tried on a certificate P that does not check exactly (:func:`tilted`)
+TILTS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
+
+
+def _exact(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[Dyadic, Dyadic, Dyadic, Dyadic]:
+    """A, B, mu and mu (1 - mu) (vectors (m,)), exactly."""
+    mu = np.asarray(mu, dtype=float).reshape(-1)
+    mu_ = Dyadic.of(mu)
+    return Dyadic.of(A), Dyadic.of(B), mu_, mu_ * (Dyadic.of(np.ones_like(mu)) - mu_)
+
+
+def _symmetric(P: np.ndarray) -> Dyadic:
+    """``(P + P') / 2`` exactly."""
+    P_ = Dyadic.of(P)
+    P_ = P_ + P_.T
+    return Dyadic(P_.ints, P_.exp - 1)
+
+
+def outside_matrix(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, c: float) -> Dyadic:
+    """``T_c(P)`` exactly, for the symmetric part of P: ``[[A'PA - cP, -A'PBM], [-MB'PA, MB'PBM + diag(mu (1 - mu)
+    diag(B'PB))]]``, (n + m)×(n + m). NumericalError on a non-finite entry. O((n + m)^3) integer operations.
+
+    >>> T = outside_matrix(np.array([[2.0]]), np.array([[1.0]]), np.array([0.5]), np.eye(1), 1.0)
+    >>> [[float(T.fraction(i, j)) for j in range(2)] for i in range(2)]     # [[a^2 - c, -a mu], [-a mu, mu]]
+    [[3.0, -1.0], [-1.0, 0.5]]
+    """
+    A_, B_, mu_, var = _exact(A, B, mu)
+    P_ = _symmetric(P)
+    PB = P_ @ B_
+    APA, APBM, BPB = A_.T @ (P_ @ A_), A_.T @ PB * mu_, B_.T @ PB
+    corner = BPB * mu_.outer(mu_) + (var * BPB.diag()).diag()
+    return Dyadic.block([[APA - Dyadic.of(float(c)) * P_, -APBM], [-APBM.T, corner]])
+
+
+def outside_proved(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, c: float) -> bool:
+    """Does P prove ``rho(L_K) >= c`` for every law K, exactly (module docstring): ``T_c(P) >= 0`` and P not
+    negative semidefinite? False for a P that is None or not finite. Time O((n + m)^3) integer operations.
+
+    >>> A, B = np.array([[2.0]]), np.array([[1.0]])          # every law's radius >= a^2 (1 - mu): 2 at mu = 1/2
+    >>> [outside_proved(A, B, np.array([0.5]), np.eye(1), c) for c in (2.0, 2.0 + 2.0 ** -40)]
+    [True, False]
+    """
+    if P is None or not np.all(np.isfinite(P)) or not c > 0:
+        return False
+    if not exact_psd(outside_matrix(A, B, mu, P, c)):
+        return False
+    return not exact_psd(-_symmetric(P))
+
+
+def inside_proved(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, X: np.ndarray | None,
+                  c: float) -> bool:
+    """Does X prove ``rho(L_K) < c`` exactly: ``X > 0`` and ``cX - L_K(X) > 0`` (module docstring), X taken
+    symmetric? Time O(n^3 + n^2 m) integer operations.
+
+    >>> A, B, K = np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]])   # L_K(x) = a^2 (1 - mu) x = x / 2
+    >>> [inside_proved(A, B, K, np.array([0.875]), np.eye(1), c) for c in (0.5 + 2.0 ** -50, 0.5)]
+    [True, False]
+    """
+    if X is None or not (np.all(np.isfinite(X)) and np.all(np.isfinite(K))):
+        return False
+    A_, B_, mu_, var = _exact(A, B, mu)
+    K_, X_ = Dyadic.of(K), _symmetric(X)
+    Abar = A_ - (B_ * mu_) @ K_
+    image = Abar @ X_ @ Abar.T + B_ @ (var * (K_ @ X_ @ K_.T).diag()).diag() @ B_.T
+    return exact_psd(X_, strict=True) and exact_psd(Dyadic.of(float(c)) * X_ - image, strict=True)
+
+
+def stability_witness(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, c: float,
+                      radius: float | None = None) -> np.ndarray | None:
+    """A candidate X for :func:`inside_proved` at c: the solution of ``X = L_K(X) / r + I``, r the midpoint of the
+    law's computed radius (``radius``, else :func:`~.stability.law_radius`) and c; None where that radius is not
+    below c or the solve fails (a residual check, NumericalError). Time O(n^6) (n <= MOMENT_DENSE_MAX_N).
+
+    >>> X = stability_witness(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0.9]), 0.5)
+    >>> round(float(X[0, 0]), 12)                    # r = 0.45: x = 0.4 x / 0.45 + 1 = 9
+    9.0
+    """
+    try:
+        radius = law_radius(A, B, K, mu) if radius is None else radius
+    except NumericalError:
+        return None
+    if not (np.isfinite(radius) and radius < c):
+        return None
+    r = max(0.5 * (max(radius, 0.0) + c), 0.5 * c)
+    step = second_moment_step(A, B, K, mu)
+    try:
+        return solve_fixed_point(lambda X: step(X) / r, lambda: second_moment_matrix(A, B, K, mu) / r,
+                                 np.eye(A.shape[0]), "a stability witness")
+    except (NumericalError, np.linalg.LinAlgError):
+        return None
+
+
+def law_proved_stable(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, radius: float | None = None,
+                      c: float = 1.0 - MEAN_SQUARE_MARGIN) -> bool:
+    """Is ``rho(L_K) < c`` (default ``1 - MEAN_SQUARE_MARGIN``, the margin of a "stable" verdict) proved exactly by
+    the witness of :func:`stability_witness`? Arrays as stability.check_law returns them. Time O(n^6).
+
+    >>> A, B = np.array([[2.0]]), np.array([[1.0]])     # k = a: radius a^2 (1 - mu)
+    >>> [law_proved_stable(A, B, np.array([[2.0]]), np.array([mu])) for mu in (0.8, 0.75)]
+    [True, False]
+    """
+    return inside_proved(A, B, K, mu, stability_witness(A, B, K, mu, c, radius), c)
+
+
+def tilted(A: np.ndarray, P: np.ndarray, c: float) -> list[np.ndarray]:
+    """``P - t ||P|| S / ||S||`` for t in :data:`TILTS`, S the solution of the Stein equation ``cS - A'SA = I``
+    (none where it has no finite solution). A certificate P that is singular (a rank-one Perron eigenvector ``vv'``:
+    every law leaves ``v'x`` to grow, v a left eigenvector of A) proves its bound only with its exact kernel, which
+    the rounding of v misses; tilted, ``T_c`` gains ``t (cS - A'SA) = t I`` on that kernel (where no input acts on
+    it, as at a Perron eigenvector whose inputs all deliver with probability in (0, 1)) and is then definite by a
+    margin the rounding cannot undo, while ``v'(P - tS)v > 0`` keeps it a certificate (P need not be PSD). Time
+    O(n^6) (a dense n^2 solve).
+
+    >>> A = np.array([[2.0, 1.0], [0.0, 0.5]])        # x'A = 2 x' for x = (3, 2): every law leaves it at radius >= ...
+    >>> B, mu = np.array([[0.6], [-0.2]]), np.array([0.5])
+    >>> v = np.array([3.0, 2.0]) / np.sqrt(13.0)       # ... 4 (1 - mu) = 2, by the scalar case; v'B is not 0
+    >>> [outside_proved(A, B, mu, P, 1.9) for P in [np.outer(v, v), *tilted(A, np.outer(v, v), 1.9)]]
+    [False, True, True, True, True, True, True]
+    """
+    n = A.shape[0]
+    with np.errstate(all="ignore"):
+        try:
+            S = np.linalg.solve(c * np.eye(n * n) - np.kron(A.T, A.T), np.eye(n).ravel()).reshape(n, n)
+        except np.linalg.LinAlgError:
+            return []
+    S = 0.5 * (S + S.T)
+    size = float(np.linalg.norm(S))
+    if not (np.isfinite(size) and size > 0):
+        return []
+    scale = float(np.linalg.norm(P)) / size
+    return [P - t * scale * S for t in TILTS]
+
+
+def snapped(P: np.ndarray) -> list[np.ndarray]:
+    """P with its entries at or below each fraction in :data:`SNAP` of its largest set to exactly 0 (where that
+    zeroes anything, and differs from the last). Exact block structure of the plant (a zero row of B, decoupled
+    blocks) gives certificates with exact zeros, which an orthogonal transform or an iteration leaves at 1e-17 to
+    1e-13 instead; the exact check needs them back. Candidates only: the check decides. O(n^2).
+
+    >>> [Q.tolist() for Q in snapped(np.array([[1.0, 2e-13], [2e-13, 3e-33]]))]
+    [[[1.0, 2e-13], [2e-13, 0.0]], [[1.0, 0.0], [0.0, 0.0]]]
+    """
+    P = np.asarray(P, dtype=float)
+    out, last = [], P
+    for level in SNAP:
+        small = np.abs(P) <= level * float(np.abs(P).max(initial=0.0))
+        Q = np.where(small, 0.0, P)
+        if not np.array_equal(Q, last):
+            out.append(Q)
+            last = Q
+    return out
+
+
+def candidates(A: np.ndarray, P: np.ndarray, c: float, tilt: bool = False) -> list[np.ndarray]:
+    """The certificates tried for P at c: P and P :func:`snapped`; with ``tilt``, each of those :func:`tilted`
+    instead. O(n^2), O(n^6) with the tilts' Stein solve.
+
+    >>> len(candidates(np.array([[2.0]]), np.eye(1), 1.0)), len(candidates(np.array([[2.0]]), np.eye(1), 1.0, True))
+    (1, 6)
+    """
+    plain = [P, *snapped(P)]
+    return [Q for R in plain for Q in tilted(A, R, c)] if tilt else plain
+
+
+def no_law_proved(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray) -> bool:
+    """Does P, or P tilted (:func:`tilted`), prove exactly that every law's radius is at least 1 (so that no law is
+    mean-square stable)? The proof the DP (simulation.riccati) needs to say "no stabilising solution" from the
+    direction of its diverging iterate. Time O((n + m)^3) integer operations a try (:func:`candidates`).
+
+    >>> A, B = np.array([[2.0]]), np.array([[1.0]])      # every law's radius >= a^2 (1 - mu): 1 at mu = 3/4
+    >>> [no_law_proved(A, B, np.array([mu]), np.eye(1)) for mu in (0.75, 0.75 + 2.0 ** -40)]
+    [True, False]
+    """
+    if not np.all(np.isfinite(P)):
+        return False
+    P = 0.5 * (P + P.T)
+    P = P / max(frobenius(P), np.finfo(float).tiny)
+    return any(outside_proved(A, B, mu, Q, 1.0) for tilt in (False, True) for Q in candidates(A, P, 1.0, tilt))
