@@ -21,7 +21,7 @@ a posteriori, in three parts:
 
 The result is close to the true error where the plan's cost is resolved (it is mostly the computed error
 estimate itself) and refuses only where the rounding really moves the cost. Time O(P N n (n + m) + P N L n^2)
-with a block of L = 32 steps; no Python loop over the steps (the blocks' carries: N / L steps).
+with a block of L = 32 steps; no Python loop over the steps.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ UNIT_ROUNDOFF = float(np.finfo(float).eps) / 2.0
 _SUBNORMAL = float(np.finfo(float).smallest_subnormal)
 #: Veltkamp's splitting constant 2^27 + 1 for double precision
 _SPLITTER = 134217729.0
-#: the steps of one block of :func:`linear_scan` (a (L n)×(L n) Toeplitz product per block; N / L carries)
+#: the steps of one block of :func:`linear_scan` (a (L n)×(L n) Toeplitz product per block, the blocks carried by a scan)
 SCAN_BLOCK = 32
 
 
@@ -134,36 +134,46 @@ def step_residuals(A: np.ndarray, B: np.ndarray, prev: np.ndarray, nxt: np.ndarr
 
 def linear_scan(M: np.ndarray, S: np.ndarray, block: int = SCAN_BLOCK) -> np.ndarray:
     """``y_t = M y_{t-1} + S_t`` from ``y_{-1} = 0`` for every t, S (P, N, n): in blocks of ``block`` steps, each
-    one product with the block's Toeplitz matrix of the powers M^0..M^{L-1}, and a carry between blocks (N / L
-    Python steps instead of N). The rounding differs from the step-by-step recursion's: callers bound what they
-    use through its residuals, or (M and S nonnegative) by the relative error of nonnegative sums. O(P N L n^2).
+    one product with the block's Toeplitz matrix of the powers M^0..M^{L-1}, the blocks' ends carried by the same
+    scan of M^L over the N / L blocks (recursively: O(log N) NumPy calls, no Python loop over the steps). The
+    rounding differs from the step-by-step recursion's: callers bound what they use through its residuals, or (M
+    and S nonnegative) by the relative error of nonnegative sums. O(P N L n^2).
 
     Examples
     --------
-    >>> linear_scan(np.array([[0.5]]), np.ones((1, 4, 1)), block=2).ravel().tolist()    # 1, 1.5, 1.75, 1.875
-    [1.0, 1.5, 1.75, 1.875]
+    >>> linear_scan(np.array([[0.5]]), np.ones((1, 5, 1)), block=2).ravel().tolist()   # 1, 1.5, 1.75, ...
+    [1.0, 1.5, 1.75, 1.875, 1.9375]
     """
     P, N, n = S.shape
     L = max(1, min(block, N))
     nb = -(-N // L)
-    powers = np.empty((L + 1, n, n))
-    powers[0] = np.eye(n)
     with np.errstate(all="ignore"):
-        for j in range(1, L + 1):
-            powers[j] = M @ powers[j - 1]
+        powers = _powers(M, L)
         lag = np.arange(L)[:, None] - np.arange(L)[None, :]          # j - i
         toeplitz = np.where((lag >= 0)[:, :, None, None], powers[np.clip(lag, 0, L)], 0.0)   # (L, L, n, n)
         big = toeplitz.transpose(0, 2, 1, 3).reshape(L * n, L * n)   # row (j, a), column (i, b)
         padded = np.zeros((P, nb * L, n))
         padded[:, :N] = S
-        local = (padded.reshape(P * nb, L * n) @ big.T).reshape(P, nb, L, n)
-        carry = np.zeros((P, nb, n))
-        c = np.zeros((P, n))
-        for k in range(nb):                                           # y at the end of block k - 1
-            carry[:, k] = c
-            c = c @ powers[L].T + local[:, k, L - 1]
-        Y = local + np.einsum("jab,pkb->pkja", powers[1:], carry)
+        Y = (padded.reshape(P * nb, L * n) @ big.T).reshape(P, nb, L, n)
+        if nb > 1:                    # y at the end of block k - 1 obeys the same recursion, with M^L, over blocks
+            carry = np.zeros((P, nb, n))
+            carry[:, 1:] = linear_scan(powers[L], np.ascontiguousarray(Y[:, :-1, L - 1]), block)
+            Y += np.einsum("jab,pkb->pkja", powers[1:], carry)
     return Y.reshape(P, nb * L, n)[:, :N]
+
+
+def _powers(M: np.ndarray, L: int) -> np.ndarray:
+    """M^0..M^L (L + 1, n, n) by doubling: M^{j + k} = M^j M^k for j = 1..k, log2(L) stacked products. O(L n^3)."""
+    n = M.shape[0]
+    powers = np.empty((L + 1, n, n))
+    powers[0] = np.eye(n)
+    powers[1:2] = M
+    k = 1
+    while k < L:
+        j = min(k, L - k)
+        np.matmul(powers[1:j + 1], powers[k], out=powers[k + 1:k + j + 1])
+        k += j
+    return powers
 
 
 def _abs_basis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
