@@ -74,15 +74,18 @@ def test_step_residuals_are_the_exact_residuals_to_their_bound(seed):
             assert err[0, t, i] <= 4 * UNIT_ROUNDOFF * abs(float(exact)) + 1e-28 * np.abs(X[0, t]).max()
 
 
-@pytest.mark.parametrize("N", [1, 5, SCAN_BLOCK, SCAN_BLOCK + 1, 3 * SCAN_BLOCK + 7])
-def test_linear_scan_of_nonnegative_data_is_within_its_inflation(N):
+@pytest.mark.parametrize(("N", "block"), [(1, SCAN_BLOCK), (5, SCAN_BLOCK), (SCAN_BLOCK, SCAN_BLOCK),
+                                          (SCAN_BLOCK + 1, SCAN_BLOCK), (3 * SCAN_BLOCK + 7, SCAN_BLOCK),
+                                          (40, 4), (70, 4)])
+def test_linear_scan_of_nonnegative_data_is_within_its_inflation(N, block):
     """propagation_bound inflates the scan by 1 + gamma_{4 (N + 2L)(n + 2)}: the rounding of nonnegative sums
-    stays inside it, on both sides (checked against the exact recursion)."""
+    stays inside it, on both sides (checked against the exact recursion), with the blocks' ends carried one level
+    deep and, with blocks of 4 steps, two and three levels deep."""
     rng = np.random.default_rng(N)
     n = 3
     M = rng.uniform(0.0, 0.45, (n, n))
     S = rng.uniform(0.0, 1.0, (2, N, n))
-    Y = linear_scan(M, S)
+    Y = linear_scan(M, S, block)
     grow = 1.0 + gamma(4 * (N + 2 * SCAN_BLOCK) * (n + 2))
     for p in range(2):
         y = [F(0)] * n
