@@ -44,7 +44,8 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
 LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "qp": "the QP twin (cvxpy): solve without --no-qp, the audit's QP claims",
     "markov.qp": "the Gilbert-Elliott QP twin (cvxpy)",
-    "simulation.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms cannot decide",
+    "simulation.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms "
+                             "cannot decide",
     "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",
     "allocation.power": "power-limited links (cvxpy): only the power-water-filling claim of the audit",
     "allocation.delivery": "the delivery-versus-power models, through the allocation package (cvxpy): only the "

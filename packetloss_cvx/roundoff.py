@@ -39,7 +39,8 @@ UNIT_ROUNDOFF = float(np.finfo(float).eps) / 2.0
 _SUBNORMAL = float(np.finfo(float).smallest_subnormal)
 #: Veltkamp's splitting constant 2^27 + 1 for double precision
 _SPLITTER = 134217729.0
-#: the steps of one block of :func:`linear_scan` (a (L n)×(L n) Toeplitz product per block, the blocks carried by a scan)
+#: the steps of one block of :func:`linear_scan` (a (L n)×(L n) Toeplitz product per block; the blocks' ends
+#: carried by a scan)
 SCAN_BLOCK = 32
 
 
