@@ -25,10 +25,23 @@ from .linalg import solve_checked
 from .model import System, check_system, numeric_array
 from .prediction import Prediction, prediction
 from .protocols import check_protocol
-from .recursion import condition_estimate, optimal_plan, recursion_cost, udp_variance_weights
+from .recursion import (
+    check_plan_cost,
+    condition_estimate,
+    optimal_plan,
+    plan_cost,
+    recursion_cost,
+    udp_variance_weights,
+)
 from .results import Solution
 from .threads import blas_limited
-from .tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from .tolerances import (
+    DENSE_MAX_CONDITION,
+    MEMORY_BUDGET_BYTES,
+    PLAN_COST_RTOL,
+    SELF_CHECK_ATOL,
+    SELF_CHECK_RTOL,
+)
 
 __all__ = [
     "check_inputs", "closed_form", "dense_or_recursion", "expected_cost", "hessian_diagonal", "hessian_factor",
@@ -97,12 +110,29 @@ def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
 def _self_checked(system: System, protocol: str, closed: float, U: np.ndarray, method: str,
                   weights: tuple[np.ndarray, float], atol: float = 0.0, states: np.ndarray | None = None) -> float:
     """The forward cost of the plan ``U`` (a sum of nonnegative terms, free of cancellation; ``states``: its
-    mean states if the caller has them) if ``closed`` agrees with it to ``SELF_CHECK_RTOL`` (plus ``atol``);
-    NumericalError otherwise. The forward cost is the one to report as J*: ``closed`` (x'P_0 x, or
+    mean states if the caller has them, else the plan is rolled out open loop and must be resolved,
+    :func:`~packetloss_cvx.recursion.plan_cost`) if ``closed`` agrees with it to ``SELF_CHECK_RTOL`` (plus
+    ``atol``); NumericalError otherwise. The forward cost is the one to report as J*: ``closed`` (x'P_0 x, or
     C - g'Vbar G^-1 g) cancels and is right to about eps ||P_0|| ||x||^2, the forward cost to about
     eps sqrt(||P_0|| ||x||^2 J*) (its states cancel, its sum does not), and the plan's own error enters it only at
     second order."""
-    forward = recursion_cost(system, U, protocol, weights, states)
+    if states is None:
+        forward, bound = plan_cost(system, U, protocol, weights)
+        if np.isfinite(forward) and not bound <= PLAN_COST_RTOL * forward:
+            raise NumericalError(
+                f"method '{method}': the forward cost of its plan, the referee of its self-check, is not resolved "
+                f"({forward:.6g}, which rounding may move by up to {bound:.2g}): the open-loop growth of A over the "
+                "horizon amplifies a fixed plan's rounding; use method='recursion' (checked on the states its law "
+                "rolls out)")
+    else:
+        forward = recursion_cost(system, U, protocol, weights, states)
+    _agree(system, protocol, closed, forward, method, atol)
+    return forward
+
+
+def _agree(system: System, protocol: str, closed: float, forward: float, method: str, atol: float = 0.0) -> None:
+    """Raise NumericalError unless ``closed`` is nonnegative and agrees with the referee ``forward`` to
+    ``SELF_CHECK_RTOL`` (plus ``atol``), both finite."""
     if not (np.isfinite(forward) and np.isfinite(closed)):
         raise NumericalError(
             f"the {protocol}-like expected cost exceeds the double-precision range (about 1e308): the "
@@ -112,7 +142,6 @@ def _self_checked(system: System, protocol: str, closed: float, U: np.ndarray, m
             f"method '{method}': the closed-form cost {closed:.10g} and the forward cost of its own plan "
             f"{forward:.10g} differ by {abs(closed - forward) / max(forward, 1e-300):.1e} (relative): double "
             f"precision cannot resolve this problem ({weight_spread(system)}); rescale the weights")
-    return forward
 
 
 def weight_spread(system: System) -> str:
@@ -270,6 +299,10 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     nonnegative stage costs (O(N n^3), no cancellation); ``"dense"`` evaluates the quadratic
     form of eq:opt-lqg-simplest (O((N n)^2 N m)), refused where its condition estimate says
     it would lose digits, and checked against the forward pass.
+    Either way the value is returned only where the forward pass is resolved to ``PLAN_COST_RTOL``
+    (relative; :func:`~packetloss_cvx.recursion.plan_cost` bounds its error a posteriori): on an unstable plant
+    over a long horizon the rolled-out states of a fixed plan carry its rounding amplified by the open-loop
+    growth of A, and the cost of the plan is then not computable in double precision.
     The paper's labels: eq:TCP-prediction-error and eq:lqg-sub-err (the cost with the prediction error),
     eq:opt-lqg-simplest (its value for a plan U).
     Note: for a fixed plan U, the sampled expectation of the realised cost is
@@ -283,6 +316,13 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     >>> # J_udp = E[(1 + v u)^2 + v u^2] with u = -1: 0.5*0 + 0.5*1 + 0.5 = 1.0
     >>> bool(np.isclose(expected_cost(s, [[-1.0]], "udp"), 1.0))
     True
+
+    Raises
+    ------
+    NumericalError
+        The cost exceeds the double range, or its error bound exceeds ``PLAN_COST_RTOL`` of it (the plan's
+        rounding amplified by an unstable A: use the closed form's own cost or a shorter horizon), or
+        ``"dense"`` where its condition estimate or its self-check refuses.
     """
     system = check_system(system)
     protocol = check_protocol(protocol)
@@ -292,13 +332,12 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     weights = udp_variance_weights(system)
     if choice == "dense":
         refuse_dense(system, weights)
-        value = dense_cost(system, U, protocol)
-        _self_checked(system, protocol, value, U, "dense", weights)
-        return value
-    value = recursion_cost(system, U, protocol, weights)
-    if not np.isfinite(value):
-        raise NumericalError(f"the {protocol}-like expected cost of these inputs exceeds the double-precision "
-                             "range (about 1e308)")
+    value, bound = plan_cost(system, U, protocol, weights)
+    check_plan_cost(system, protocol, value, bound)
+    if choice == "dense":
+        dense = dense_cost(system, U, protocol)
+        _agree(system, protocol, dense, value, "dense")
+        return dense
     return value
 
 

@@ -32,7 +32,8 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
     "distributed": "the 'distributed' extra: sweeps on a Dask cluster",
     "xarray": "the 'xarray' extra: sweep results as Datasets and NetCDF files",
     "control": "the 'control' extra: python-control interop (StateSpace in and out)",
-    "scipy": "ARPACK, GMRES and LU only where used (large n, the pointwise and QP paths): importing any of "
+    "scipy": "ARPACK, GMRES, LU and the complex Schur form only where used (large n, the pointwise and QP "
+             "paths, the error bound of a plan rolled out on a plant that rotates): importing any of "
              "SciPy costs about 0.15 s (its array-API layer clones NumPy's namespace, loading numpy.f2py and "
              "numpy.testing), so the closed-form paths (numpy.linalg) never import it",
 })
@@ -43,7 +44,8 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
 LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "qp": "the QP twin (cvxpy): solve without --no-qp, the audit's QP claims",
     "markov.qp": "the Gilbert-Elliott QP twin (cvxpy)",
-    "simulation.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms cannot decide",
+    "simulation.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms "
+                             "cannot decide",
     "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",
     "allocation.power": "power-limited links (cvxpy): only the power-water-filling claim of the audit",
     "allocation.delivery": "the delivery-versus-power models, through the allocation package (cvxpy): only the "

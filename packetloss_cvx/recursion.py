@@ -36,7 +36,8 @@ from .errors import NumericalError
 from .linalg import check_finite, lapack_dgesv
 from .model import STRUCTURE_CACHE_MAX_BYTES, CacheKey, System
 from .protocols import check_protocol
-from .tolerances import STATIONARY_RTOL
+from .roundoff import UNIT_ROUNDOFF, gamma, rollout_cost_error
+from .tolerances import PLAN_COST_RTOL, STATIONARY_RTOL
 
 #: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
 VARIANCE_WEIGHTS_KEY = CacheKey("recursion.udp_variance_weights", ("A", "B", "horizon", "state_weights", "noise_cov"))
@@ -44,10 +45,10 @@ CONDITION_KEY = CacheKey("recursion.condition_estimate", ("A", "B", "horizon", "
 WEIGHT_HEAD_KEY = CacheKey("recursion.weight_head", ("horizon", "state_weights"))
 
 __all__ = [
-    "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "condition_estimate", "forward_cost",
-    "input_weight", "leading_run", "lyapunov_cross_weights", "mean_states", "mean_trajectory", "optimal_plan",
-    "overflow_error", "recursion_cost", "riccati_step", "rollout_batch", "stationary_close", "states_by_powers",
-    "udp_variance_weights", "weight_head",
+    "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "check_plan_cost", "condition_estimate",
+    "forward_cost", "input_weight", "leading_run", "lyapunov_cross_weights", "mean_states", "mean_trajectory",
+    "optimal_plan", "overflow_error", "plan_cost", "recursion_cost", "riccati_step", "rollout_batch",
+    "stationary_close", "states_by_powers", "udp_variance_weights", "weight_head",
 ]
 
 #: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
@@ -751,8 +752,16 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     Every term added is nonnegative (stage costs of the mean state, the input and loss-variance
     weights, the noise term), so the sum has no cancellation: this is the referee the closed
     forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``; ``states``: the
-    plan's mean states x_1..x_N (N, n) if the caller rolled them out with the plan (closed_form's law), else
-    they are rolled forward here from the plan. Time O(N n^3) (the Lyapunov sums), memory O(N m).
+    plan's mean states x_1..x_N (N, n) if the caller rolled them out with the plan (closed_form's law: its cost
+    is that of those states), else they are rolled forward here from the plan, open loop, and the value is
+    returned only where :func:`plan_cost`'s error bound is within ``PLAN_COST_RTOL`` of it. Time O(N n^3) (the
+    Lyapunov sums), memory O(N m); rolled out here, O(N n (n + m) L) more for the bound (L = 32).
+
+    Raises
+    ------
+    NumericalError
+        The states rolled out here: the cost exceeds the double range, or the plan's rounding, amplified by the
+        open-loop growth of A over the horizon, may move it by more than ``PLAN_COST_RTOL`` (relative).
 
     Examples
     --------
@@ -762,13 +771,111 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     (0.6875, 0.75)
     """
     protocol = check_protocol(protocol)
+    if states is None:
+        value, bound = plan_cost(system, inputs, protocol, weights)
+        check_plan_cost(system, protocol, value, bound)
+        return value
     d, noise = udp_variance_weights(system) if weights is None else weights
     x = system.x0
     mu = system.mu_schedule[None]
     with np.errstate(over="ignore", invalid="ignore"):
         base = float(x @ system.initial_weight @ x) + noise
-    X = mean_states(system, mu, inputs[None], x[None]) if states is None else states[None]
-    return float(forward_cost(system, mu, inputs[None], X, input_weight(system, protocol, mu, d), base)[0])
+    return float(forward_cost(system, mu, inputs[None], states[None], input_weight(system, protocol, mu, d),
+                              base)[0])
+
+
+def plan_cost(system: System, inputs: np.ndarray, protocol: str,
+              weights: tuple[np.ndarray, float] | None = None) -> tuple[float, float]:
+    """J(U) of a fixed plan by the forward pass of its mean state rolled out open loop (the value
+    :func:`recursion_cost` returns), and a bound on that value's error: ``(value, bound)`` with ``|value - J(U)|
+    <= bound``, J(U) the exact cost of these floats (A, B, mu, x0, the plan, the weights; ``weights`` as
+    :func:`udp_variance_weights` computed them, sums of positive semidefinite terms, taken as given).
+
+    The forward pass has no cancellation, but its states are not the plan's: an unstable A amplifies their
+    rounding like A^t while a plan that steers the state to zero keeps the states small (the pendulum's optimal
+    plan over N = 2000 steps: 1.5e80 where its cost is about 3e76, and the optimum 25445).
+    The bound (:func:`~packetloss_cvx.roundoff.rollout_cost_error`) is the states' error estimated from their
+    residuals in twice the working precision plus what the rest of their rounding can change; to it is added the
+    rounding of the sum itself, measured against ``math.fsum`` of the same stage terms. inf where the value is not
+    finite. O(N n (n + m) L) with L = 32 (no Python loop over the steps), O(N n^3) for the Lyapunov sums if
+    ``weights`` is None.
+
+    Examples
+    --------
+    >>> def held(N):                   # x_t = 0.1 held by u_t = -0.2 (0.2 is 2 * 0.1 in binary too): J = 0.05 N
+    ...     s = System(A=[[3.0]], B=[[1.0]], horizon=N, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.1])
+    ...     return plan_cost(s, np.full((N, 1), -0.2), "tcp")
+    >>> value, bound = held(5)
+    >>> bool(abs(value - 0.25) <= bound < 1e-15)                  # resolved
+    True
+    >>> value, bound = held(40)                   # the rolled-out states drift from 0.1 like 3^t
+    >>> f"{value:.4g}", bool(abs(value - 2.0) <= bound), bool(bound > 1e-9 * value)      # and the bound says so
+    ('1.427e+04', True, True)
+    """
+    d, noise = udp_variance_weights(system) if weights is None else weights
+    x = system.x0
+    mu, U = system.mu_schedule[None], inputs[None]
+    Q = system.state_weights[0] if len(weight_head(system)) == system.horizon else system.state_weights
+    with np.errstate(over="ignore", invalid="ignore"):
+        first = float(x @ system.initial_weight @ x)
+        X = mean_states(system, mu, U, x[None])
+        weight = input_weight(system, protocol, mu, d)
+        value = float(forward_cost(system, mu, U, X, weight, first + noise)[0])
+        if not np.isfinite(value):
+            return value, math.inf
+        bound = float(rollout_cost_error(system.A, system.B, mu, U, x[None], X, Q, PLAN_COST_RTOL * value)[0])
+        return value, bound + _sum_error(system, mu, U, X, Q, weight, first, noise, value)
+
+
+def _sum_error(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, Q: np.ndarray, weight: np.ndarray,
+               first: float, noise: float, value: float) -> float:
+    """A bound on ``|value - J|``, value the forward pass's sum of the stage terms of states X (1, N, n) and J
+    their exact sum: the terms computed step by step (each within gamma_{2n+1} |x|'|Q||x|, or gamma_{m+6} of its
+    nonnegative input term) and summed by ``math.fsum`` (correctly rounded), so the order in which forward_cost
+    summed them does not enter: its rounding is measured, not bounded by gamma_{N n}. O(N n^2)."""
+    n, m = system.n, system.m
+    aX = np.abs(X[0])
+    if Q.ndim == 2:
+        states = np.einsum("tj,tj->t", X[0] @ Q, X[0])
+        size = float(np.einsum("tj,tj->", aX @ np.abs(Q), aX))
+    else:
+        states = np.einsum("tj,tj->t", np.einsum("ti,tij->tj", X[0], Q), X[0])
+        size = float(np.einsum("ti,tij,tj->", aX, np.abs(Q), aX))
+    inputs = np.einsum("tk,tk->t", (mu * U)[0], (weight * U)[0])
+    x = np.abs(system.x0)
+    size += float(x @ np.abs(system.initial_weight) @ x)
+    total = math.fsum([first, noise, *states.tolist(), *inputs.tolist()])
+    return ((1.0 + UNIT_ROUNDOFF) * abs(value - total) + UNIT_ROUNDOFF * abs(total) + gamma(2 * n + 2) * size
+            + gamma(m + 6) * float(np.sum(inputs)))
+
+
+def check_plan_cost(system: System, protocol: str, value: float, bound: float) -> None:
+    """Raise unless ``value`` (:func:`plan_cost`) is finite and its error bound within ``PLAN_COST_RTOL`` of it: the
+    error says why (the open-loop growth of A over the horizon amplifies the plan's rounding) and what to use
+    instead. O(n^3) (A's spectral radius, for the message).
+
+    Examples
+    --------
+    >>> s = System(A=[[3.0]], B=[[1.0]], horizon=40, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.1])
+    >>> check_plan_cost(s, "tcp", 0.4, 1e-12)          # resolved: nothing to say
+    >>> check_plan_cost(s, "tcp", 0.4, 0.02)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.NumericalError: the tcp-like expected cost of this plan is not resolved: ...
+    """
+    if not np.isfinite(value):
+        raise NumericalError(f"the {protocol}-like expected cost of these inputs exceeds the double-precision "
+                             "range (about 1e308)")
+    if bound <= PLAN_COST_RTOL * value:
+        return
+    rho = float(_radius(system.A))
+    raise NumericalError(
+        f"the {protocol}-like expected cost of this plan is not resolved: its forward pass gives {value:.6g}, but "
+        f"rounding may move that by up to {bound:.2g} ({bound / value if value > 0 else math.inf:.1e} relative, "
+        f"more than PLAN_COST_RTOL = {PLAN_COST_RTOL:.0e}): the open-loop growth of A over the horizon (spectral "
+        f"radius {rho:.4g}, N = {system.horizon}) amplifies the plan's rounding, so the cost of a fixed plan is "
+        "not computable to that accuracy here; use the closed form's own cost (closed_form(...).cost, checked "
+        "on the states its law rolls out), a shorter horizon, or a feedback law (closed loop) instead of a plan")
 
 
 def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
@@ -800,10 +907,10 @@ def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: n
     The plan of an unstable plant (rho(A) > 1) is then not the float-for-float rollout of the recursion
     ``x_{t+1} = A x_t + B M u_t`` that :func:`mean_states` runs open loop: rolled forward again from its inputs
     alone, its rounding grows with A's unstable modes, so its open-loop cost (expected_cost of the plan) is not
-    resolved over long horizons (the pendulum at N = 2000: 3.1e78 against the plan's 25175). Neither is that of a
-    plan rolled out step by step: its exact open-loop cost (300 digits) is 3.1e76; a float forward pass gives
-    25175 only by repeating the rollout's own rounding. The plan's cost is checked on the closed-loop states it
-    was rolled out with (the law's states)."""
+    resolved over long horizons, and :func:`plan_cost` says so (the pendulum at N = 2000: a forward pass of 1.48e80,
+    the plan's exact open-loop cost 1.47e80, the optimum 25445). Neither is that of a plan rolled out step by step
+    (a float forward pass meets 25175 there only by repeating the rollout's own rounding). The plan's cost is checked
+    on the closed-loop states it was rolled out with (the law's states)."""
     if run is None:
         return None
     if _radius(system.A) < 1.0:

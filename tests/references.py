@@ -1,6 +1,7 @@
 """Independent references shared by several test files (written without the package's algebra)."""
 
 import itertools
+from fractions import Fraction
 
 import numpy as np
 
@@ -74,3 +75,41 @@ def textbook_filter_path(A, Q, C, R, groups, P0, arrivals):
         Pm = A @ P @ A.T + Q
         predicted.append(Pm)
     return predicted, filtered
+
+
+def exact_mean_states(A, B, x0, mu, U):
+    """The mean states x_1..x_N of ``x_{t+1} = A x_t + B (mu_t u_t)`` from the floats A, B, x0, mu (N×m), U (N×m), in
+    exact rational arithmetic (lists of Fractions): what a float rollout approximates."""
+    n, m = np.shape(B)
+    Af = [[Fraction(float(v)) for v in row] for row in np.asarray(A)]
+    Bf = [[Fraction(float(v)) for v in row] for row in np.asarray(B)]
+    x, out = [Fraction(float(v)) for v in x0], []
+    for t in range(np.shape(U)[0]):
+        z = [Fraction(float(mu[t][k])) * Fraction(float(U[t][k])) for k in range(m)]
+        x = [sum(Af[i][j] * x[j] for j in range(n)) + sum(Bf[i][k] * z[k] for k in range(m)) for i in range(n)]
+        out.append(x)
+    return out
+
+
+def exact_quadratic(states, Q):
+    """sum_t x_t' Q_t x_t in exact arithmetic: states (lists of Fractions or floats), Q (n, n) or (N, n, n) floats."""
+    Q = np.asarray(Q)
+    total = Fraction(0)
+    for t, x in enumerate(states):
+        W = Q if Q.ndim == 2 else Q[t]
+        x = [Fraction(v) for v in x]
+        total += sum(x[i] * Fraction(float(W[i, j])) * x[j] for i in range(len(x)) for j in range(len(x))
+                     if W[i, j] != 0)
+    return total
+
+
+def exact_plan_cost(system, U, input_weights, noise=0.0):
+    """The expected cost of the float plan U (N×m) in exact arithmetic: x0'Q x0 + noise + sum_t mu_t w_t u_t^2 +
+    x_{t+1}'Omega_{t+1} x_{t+1} with the exact mean states, the stage input weights ``input_weights`` (N×m: psi for
+    the TCP-like cost, psi + (1 - mu) diag(Omega_g) for the UDP-like one) and the noise term taken as given."""
+    mu = system.mu_schedule
+    cost = exact_quadratic([system.x0], system.initial_weight) + Fraction(float(noise))
+    for t in range(system.horizon):
+        cost += sum(Fraction(float(mu[t, k])) * Fraction(float(input_weights[t, k])) * Fraction(float(U[t, k])) ** 2
+                    for k in range(system.m))
+    return cost + exact_quadratic(exact_mean_states(system.A, system.B, system.x0, mu, U), system.state_weights)

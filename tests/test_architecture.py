@@ -28,7 +28,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
 #: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
-    {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "progress",
+    {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "roundoff",
+     "progress",
      "display", "statespace", "channel", "markov_channel", "sensor", "validation", "threads", "optional", "safeio",
      "runfolder",
      "examples"},

@@ -306,12 +306,19 @@ def test_closed_form_reports_its_cost_to_the_forward_sums_rounding():
 # ---------------------------------------------------------------- the self-check's band, pinned on both sides
 
 def _referee_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
-    """The self-check's referee (the forward cost of the plan, costs.recursion_cost) moved by a chosen amount, so
-    that the disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
+    """The self-check's referee (the forward cost of the plan: costs.recursion_cost on the law's states, or
+    costs.plan_cost for a plan rolled out open loop, the dense path's) moved by a chosen amount, so that the
+    disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
     import packetloss_cvx.costs as costs_module
 
-    real = costs_module.recursion_cost
+    real, real_plan = costs_module.recursion_cost, costs_module.plan_cost
+
+    def plan_off(*args, **kwargs):
+        value, bound = real_plan(*args, **kwargs)
+        return value * (1 + relative) + absolute, bound
+
     monkeypatch.setattr(costs_module, "recursion_cost", lambda *a, **k: real(*a, **k) * (1 + relative) + absolute)
+    monkeypatch.setattr(costs_module, "plan_cost", plan_off)
 
 
 @pytest.mark.parametrize("method", ["dense", "recursion"])

@@ -25,7 +25,7 @@ COVERED = (
     "channel", "convex", "costs", "difference", "io", "linalg", "markov.chain", "markov.compare",
     "markov.exact_cost",
     "markov.mjls", "markov.qp", "markov.sweep", "model", "plots", "prediction", "progress", "protocols",
-    "random_systems", "recursion", "validation", "safeio", "runfolder",
+    "random_systems", "recursion", "roundoff", "validation", "safeio", "runfolder",
     "simulation.certificates", "simulation.channels", "simulation.critical", "simulation.interop",
     "simulation.markov_channels",
     "simulation.markov_loop", "simulation.markov_montecarlo", "simulation.moments", "simulation.montecarlo",

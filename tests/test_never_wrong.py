@@ -5,13 +5,18 @@ References are independent of the path under test: the exact O(N) recursion wher
 its own check, the Clarabel QP twin, a hand value, or the forward pass of the mean state.
 """
 
+from fractions import Fraction
+
 import numpy as np
 import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.io import system_from_dict
 from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import recursion_cost
+from packetloss_cvx.recursion import plan_cost, recursion_cost
+from packetloss_cvx.tolerances import PLAN_COST_RTOL
+
+from .references import exact_plan_cost
 
 
 def _readme(N: int) -> pl.System:
@@ -102,6 +107,97 @@ def test_expected_cost_of_the_optimal_plan_on_an_unstable_plant():
     qp = pl.solve_qp(s, "tcp", "sparse", with_gain=False, cross_check=False)
     value = pl.expected_cost(s, sol.inputs, "tcp")
     assert abs(value - qp.cost) <= 1e-7 * qp.cost
+
+
+def _issue_pendulum(N: int) -> pl.System:
+    data = pl.load_example("pendulum").to_dict()
+    data["cost"]["horizon"] = N
+    return system_from_dict(data)
+
+
+def test_expected_cost_of_the_pendulums_plan_over_2000_steps_raises():
+    """expected_cost of the closed form's plan returned 1.48e80 (the optimum is 25445): the plan steers the unstable
+    pendulum (rho(A) = 1.061) to zero, so its states rolled out open loop carry its rounding amplified 1.061^t. The
+    exact open-loop cost of that float plan (fractions, 7 minutes) is 1.4687e80; the forward pass is off by 1.1e78,
+    which the bound says (1.1097728365937e78 against the true 1.1097728365867e78). Now NumericalError saying why and
+    what to use; the closed form's own cost is unaffected."""
+    s = _issue_pendulum(2000)
+    sol = pl.closed_form(s, "tcp")
+    assert sol.method == "recursion"
+    for method in ("auto", "recursion"):
+        with pytest.raises(pl.NumericalError, match=r"not resolved(.|\n)*open-loop growth of A(.|\n)*closed_form"):
+            pl.expected_cost(s, sol.inputs, "tcp", method=method)
+    with pytest.raises(pl.NumericalError, match="condition estimate"):
+        pl.expected_cost(s, sol.inputs, "tcp", method="dense")
+    with pytest.raises(pl.NumericalError, match="not resolved"):
+        recursion_cost(s, sol.inputs, "tcp")
+    value, bound = plan_cost(s, sol.inputs, "tcp")
+    assert bound > 1e-3 * value                      # the true error: 0.75 % (the docstring's measurement)
+
+
+def test_a_refused_plan_cost_was_in_fact_inaccurate():
+    """The pendulum over 500 steps: its forward pass is off by 7.7e-7 (relative, against the exact rational cost of
+    the float plan), and it is refused; the bound is within 1e-5 of the true error."""
+    s = _issue_pendulum(500)
+    U = pl.closed_form(s, "tcp").inputs
+    exact = exact_plan_cost(s, U, np.broadcast_to(s.input_weights, U.shape))
+    value, bound = plan_cost(s, U, "tcp")
+    error = abs(Fraction(value) - exact)
+    assert error > Fraction(PLAN_COST_RTOL) * exact
+    assert error <= Fraction(bound) <= error * Fraction(1 + 1e-5)
+    with pytest.raises(pl.NumericalError, match="not resolved"):
+        pl.expected_cost(s, U, "tcp")
+
+
+def _held(N: int, psi: float) -> tuple[pl.System, np.ndarray]:
+    """x_t = 0.1 held by u_t = -0.2 on a = 3 (0.2 is 2 x 0.1 in binary too, so 3 x 0.1 - 0.2 is 0.1 exactly): the
+    exact states never move; the rolled-out ones drift from the first step's rounding, times 3^t."""
+    s = pl.System(A=[[3.0]], B=[[1.0]], horizon=N, state_weight=[1.0], input_weight=[psi], mu=[1.0], x0=[0.1])
+    return s, np.full((N, 1), -0.2)
+
+
+@pytest.mark.parametrize(("psi", "resolved"), [(40.0, True), (4.0, False)])
+def test_plan_cost_tolerance_is_pinned_on_both_sides(psi, resolved):
+    """The held plan over 20 steps: rounding moves its rolled-out cost by 9.68e-9 (against fractions). With psi = 40
+    the cost is 32.2: 3.0e-10 relative, inside PLAN_COST_RTOL = 1e-9 (returned) and outside a band 10x tighter; with
+    psi = 4 it is 3.4: 2.8e-9, outside (refused) and inside a band 10x wider. Either verdict is the true error's
+    (the bound is within 1e-5 of it)."""
+    s, U = _held(20, psi)
+    exact = exact_plan_cost(s, U, np.full(U.shape, psi))
+    value, bound = plan_cost(s, U, "tcp")
+    error = abs(Fraction(value) - exact)
+    assert error <= Fraction(bound) <= error * Fraction(1.001)
+    assert Fraction(PLAN_COST_RTOL / 10) * exact < error < Fraction(PLAN_COST_RTOL * 10) * exact
+    if resolved:
+        assert error <= Fraction(PLAN_COST_RTOL) * exact
+        assert pl.expected_cost(s, U, "tcp") == value
+        assert recursion_cost(s, U, "tcp") == value
+    else:
+        assert error > Fraction(PLAN_COST_RTOL) * exact
+        for evaluate in (pl.expected_cost, recursion_cost):
+            with pytest.raises(pl.NumericalError, match="not resolved"):
+                evaluate(s, U, "tcp")
+
+
+def test_markov_exact_cost_of_a_plan_is_refused_where_its_mean_states_are_not_resolved():
+    """The Gilbert-Elliott pendulum over 2000 steps under the plug-in law's plan: the TCP-like cost (the mean states
+    alone) is refused as the Bernoulli one is. The UDP-like cost is returned: the lost inputs' variance, amplified
+    by A^t, makes it about 1e106, beside which the mean states' rounding (1e78) is nothing. With a chain that never
+    loses (p = 0, mu = 1) the UDP-like cost is the mean states' alone, and it is refused."""
+    from packetloss_cvx.markov import exact_cost
+
+    data = pl.load_example("pendulum_bursty").to_dict()
+    data["cost"]["horizon"] = 2000
+    bursty = system_from_dict(data)
+    data["channel"]["p"] = [0.0]
+    perfect = system_from_dict(data)
+    U = pl.closed_form(bursty.with_mu(bursty.mu_schedule), "tcp").inputs
+    with pytest.raises(pl.NumericalError, match="not resolved"):
+        exact_cost(bursty, U, "tcp")
+    assert exact_cost(bursty, U, "udp") > 1e100
+    U = pl.closed_form(perfect.with_mu(perfect.mu_schedule), "tcp").inputs
+    with pytest.raises(pl.NumericalError, match="udp-like expected cost of this plan is not resolved"):
+        exact_cost(perfect, U, "udp")
 
 
 def test_expected_cost_beyond_the_double_range_raises():

@@ -48,11 +48,12 @@ from ..recursion import (
     lyapunov_cross_weights,
     mean_states,
     overflow_error,
+    plan_cost,
     states_by_powers,
     stationary_close,
     weight_head,
 )
-from ..tolerances import SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .chain import chain_matrices
 
 #: The lift of a system's own chains (:func:`chain_lift`), kept on the system: n and m (A's and B's shapes), the
@@ -60,7 +61,7 @@ from .chain import chain_matrices
 LIFT_KEY = CacheKey("markov.augmented.chain_lift", ("A", "B", "horizon", "mu_schedule", "channel"))
 
 __all__ = ["ChainLift", "augmented_size", "augmented_solve", "chain_cost", "chain_lift", "check_recursion_budget",
-           "lq_cross_step"]
+           "lq_cross_step", "mean_state_bound"]
 
 
 @dataclass(frozen=True)
@@ -344,6 +345,12 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     atol = SELF_CHECK_ATOL * float(np.linalg.norm(P[:n, :n], 2)) * float(x @ x)
     if not (np.isfinite(cost) and np.isfinite(forward)):
         raise overflow_error("the exact Markov cost", "udp")
+    bound = mean_state_bound(system, U)
+    if not bound <= PLAN_COST_RTOL * forward:
+        raise NumericalError(f"the augmented recursion's referee, the expected cost of its own plan rolled out open "
+                             f"loop ({forward:.6g}), is not resolved (rounding may move it by up to {bound:.2g}): the "
+                             "open-loop growth of A over the horizon amplifies a fixed plan's rounding; shorten the "
+                             "horizon")
     if abs(cost - forward) > SELF_CHECK_RTOL * forward + atol or cost < 0:
         raise NumericalError(f"the augmented recursion gives J* = {cost:.10g} but the expected cost of its own plan "
                              f"is {forward:.10g}: double precision cannot resolve this problem (weights of very "
@@ -364,6 +371,25 @@ def _augmented_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, 
         n = Omega.shape[0]
         P_prev[:n, :n] += Omega
     return K, P_prev
+
+
+def mean_state_bound(system: System, inputs: np.ndarray) -> float:
+    """A bound on the rounding of :func:`chain_cost`'s mean-state part for the plan ``inputs`` (N×m): the TCP-like
+    forward pass of the paper's system on the chains' predicted mu_t without its noise term
+    (:func:`~packetloss_cvx.recursion.plan_cost`). The correlations and the error covariance are sums of
+    nonnegative terms driven by the plan itself (no cancellation of an open-loop growth against the plan): only
+    the mean states can carry the plan's rounding amplified by an unstable A. O(N n (n + m) L), L = 32.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> round(float(chain_cost(s, np.ones((1, 2, 1)))[0]), 12), bool(mean_state_bound(s, np.ones((2, 1))) < 1e-14)
+    (3.3, True)
+    """
+    N, m = system.horizon, system.m
+    return plan_cost(system.with_mu(system.mu_schedule), inputs, "tcp", (np.zeros((N, m)), 0.0))[1]
 
 
 def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:

@@ -32,10 +32,10 @@ from ..linalg import check_finite, solve_checked
 from ..model import System, check_system
 from ..prediction import Prediction, prediction
 from ..protocols import check_protocol
-from ..recursion import overflow_error, udp_variance_weights
+from ..recursion import check_plan_cost, overflow_error, udp_variance_weights
 from ..results import Solution
 from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
-from .augmented import augmented_size, augmented_solve, chain_cost, check_recursion_budget
+from .augmented import augmented_size, augmented_solve, chain_cost, check_recursion_budget, mean_state_bound
 from .chain import stacked_moments
 
 __all__ = ["DENSE_SECONDS", "METHODS", "auto_route", "check_method", "correlation_term", "dense_max",
@@ -204,7 +204,10 @@ def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp", met
     Raises
     ------
     NumericalError
-        The cost exceeds the double range (an unstable plant over a long horizon).
+        The cost exceeds the double range (an unstable plant over a long horizon), or it is not resolved to
+        ``PLAN_COST_RTOL``: the plan's rolled-out mean states carry its rounding amplified by the open-loop growth
+        of A (:func:`~packetloss_cvx.recursion.check_plan_cost`; the correlations and the error covariance are
+        sums of nonnegative terms, no cancellation).
 
     Examples
     --------
@@ -222,9 +225,11 @@ def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp", met
     if route == "dense":
         return expected_cost(system.with_mu(system.mu_schedule), inputs, protocol) + correlation_term(system, inputs)
     system = check_system(system)
-    value = float(chain_cost(system, check_inputs(system, inputs)[None])[0])
+    U = check_inputs(system, inputs)
+    value = float(chain_cost(system, U[None])[0])
     if not np.isfinite(value):
         raise overflow_error("the exact Markov cost of these inputs", "udp")
+    check_plan_cost(system, "udp", value, mean_state_bound(system, U))
     return value
 
 
