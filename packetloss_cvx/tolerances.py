@@ -20,7 +20,6 @@ __all__ = [
     "CROSS_CHECK_INPUT_ATOL",
     "DENSE_MAX_CONDITION",
     "DENSE_RESIDUAL_RTOL",
-    "KERNEL_BOUNDARY_RTOL",
     "KERNEL_MARGIN_RTOL",
     "KERNEL_POINT_RTOL",
     "KERNEL_VALUE_RTOL",
@@ -158,11 +157,6 @@ KERNEL_POINT_RTOL = 1e-6
 #: 3.7e-7, mpc-vs-dp 6.7e-8, a failing claim's at most 1.3e-8), as only the verdict, not the rounding error's digits,
 #: is a result ...
 KERNEL_MARGIN_RTOL = 1e-2
-#: ... the DP cost at a stability allocation's mu* (on the stabilisable set's boundary, where the cost grows like
-#: 1 / (1 - radius)) by KERNEL_BOUNDARY_RTOL: it moves with mu* inside its certified gap, amplified by that
-#: conditioning (measured between Haswell and Prescott: 5.3e-5 relative at the pendulum's mu*, where it is 3.1e10;
-#: 1.1e-8 at the two-actuator system's) ...
-KERNEL_BOUNDARY_RTOL = 1e-3
 #: ... and an allocation's communication cost and lower bound by its certified relative gap (each run's are within
 #: the gap of the same optimum; measured 5.5e-5 at the default gap 1e-4). Its point mu is not unique to better than
 #: the gap where the optimum is flat (measured: a component 1.2e-6 against 2.4e-7), so it is compared through its

@@ -20,7 +20,6 @@ from packetloss_cvx.tolerances import (
     ALLOCATION_GAP_DEFAULT,
     CROSS_CHECK_COST_RTOL,
     CROSS_CHECK_INPUT_ATOL,
-    KERNEL_BOUNDARY_RTOL,
     KERNEL_MARGIN_RTOL,
     KERNEL_POINT_RTOL,
     KERNEL_VALUE_RTOL,
@@ -45,8 +44,6 @@ def _tolerance(path: str, data: dict) -> tuple[float, float] | None:
         return None                                 # a flat optimum's point: compared through its cost (registry)
     if re.fullmatch(r"/(cost|lower_bound)", path) and "target" in data:
         return ALLOCATION_GAP_DEFAULT, 0.0          # a stability allocation: within the certified gap
-    if path == "/dp_cost" and "target" in data:
-        return KERNEL_BOUNDARY_RTOL, 0.0            # the DP cost at mu*, on the stabilisable set's boundary
     if re.fullmatch(r"/allocations/\w+/[^/]+\[\d+\]/(communication_cost|lower_bound)", path):
         return ALLOCATION_GAP_DEFAULT, 0.0          # each run is within the certified gap of one optimum
     if m := re.fullmatch(r"/ack/\[([^\]]*)\]/break_even\[\d+\]", path):

@@ -323,3 +323,19 @@ def test_a_dp_cost_target_is_proved_out_of_reach_only_beyond_allocation_cost_rto
     alpha = (2 + 5 ** 0.5) / (1 + factor * ALLOCATION_COST_RTOL)
     with pytest.raises(InfeasibleError if proved else SolverError):
         stability_allocate(scalar(2.0), "dp-cost", [1.0], alpha=alpha, max_boxes=50)
+
+
+def test_the_dp_cost_is_reported_inside_the_set_and_not_on_its_boundary(two_actuator):
+    """The cheapest stabilisable links lie on the boundary (the DP law's radius 1 - 1e-7, within DP_COST_BOUNDARY):
+    no DP cost there (one BLAS kernel found 7.8e8, another no solution); with a margin of 0.9 the point is inside
+    (radius 1 - 0.1, beyond the band) and its DP cost is the Riccati solution's x0'P x0."""
+    from packetloss_cvx.allocation.stability import DP_COST_BOUNDARY, stability_allocate
+    from packetloss_cvx.simulation import dp_riccati
+
+    edge = stability_allocate(two_actuator, "stable", beta=[1.0, 1.0])
+    assert 1.0 - edge.radius < DP_COST_BOUNDARY
+    assert np.isnan(edge.dp_cost)
+    inside = stability_allocate(two_actuator, "stable", beta=[1.0, 1.0], margin=0.9)
+    assert 1.0 - inside.radius > 1e4 * DP_COST_BOUNDARY
+    reference = dp_riccati(two_actuator, inside.mu).cost_to_go
+    assert inside.dp_cost == pytest.approx(float(two_actuator.x0 @ reference @ two_actuator.x0), rel=1e-8)

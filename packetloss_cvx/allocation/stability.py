@@ -72,7 +72,14 @@ from .grammar import (
 )
 from .udp import SPLIT_WEIGHT_FLOOR, Search
 
-__all__ = ["TARGETS", "Point", "dp_cost", "stability_allocate"]
+__all__ = ["DP_COST_BOUNDARY", "TARGETS", "Point", "dp_cost", "stability_allocate"]
+
+#: The DP cost at an allocation's mu is reported only where the DP law's radius is below 1 by this much: the cheapest
+#: stabilisable links lie on the stabilisable set's boundary, where the cost grows like 1 / (1 - radius) and the
+#: Riccati solution is decided by rounding (two_actuator's --target stable: radius 1 - 1e-7, a cost of 7.8e8 under
+#: OpenBLAS's Sandybridge kernel and no solution under Prescott; the pendulum's 3.1e10 moved 5.3e-5 between kernels).
+#: A margin below 1 (--margin) keeps mu inside, where the cost is well conditioned.
+DP_COST_BOUNDARY = 1e-6
 
 #: what the design asks of the loop
 TARGETS = ("stable", "dp-cost")
@@ -483,6 +490,8 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
     try:
         dp = dp_riccati(system, mu, gain=point.gain)       # the policy iteration from the proved gain
         cost, kind = dp_cost(system, dp)
+        if 1.0 - mean_square_radius(system.A, system.B, dp.gain, mu) < DP_COST_BOUNDARY:
+            cost, kind = float("nan"), ""                  # on the boundary: a cost of ~1 / (1 - radius), unresolved
     except NumericalError:
         cost, kind = float("nan"), ""
     scaled = out.value
