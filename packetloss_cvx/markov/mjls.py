@@ -120,6 +120,20 @@ def _patterns(h: np.ndarray) -> list[tuple[float, np.ndarray]]:
     return out
 
 
+def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every delivery pattern v in {0, 1}^m (2^m, m), and P(v | mode) (M, 2^m) for per-mode delivery probabilities
+    ``h`` (M, m), the channels independent given the mode. O(M 2^m m).
+
+    Examples
+    --------
+    >>> patterns, prob = delivery_patterns(np.array([[0.9], [0.2]]))
+    >>> patterns.tolist(), prob.round(12).tolist()
+    ([[1.0], [0.0]], [[0.9, 0.1], [0.2, 0.8]])
+    """
+    patterns = np.array(list(itertools.product([1, 0], repeat=h.shape[1])), dtype=float)
+    return patterns, np.prod(np.where(patterns[None] == 1, h[:, None], 1 - h[:, None]), axis=2)
+
+
 def check_operator_size(modes: int, n: int) -> None:
     """Refuse, before building it, a dense coupled operator beyond :data:`MAX_OPERATOR_DIM` rows.
 
@@ -175,8 +189,7 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott
     M, n, m = len(modes), A.shape[0], B.shape[1]
     check_operator_size(M, n)
     K = _mode_gains(gains, M, m, n)
-    patterns = np.array(list(itertools.product([1, 0], repeat=m)), dtype=float)              # (2^m, m)
-    prob = np.prod(np.where(patterns[None] == 1, h[:, None], 1 - h[:, None]), axis=2)        # (M, 2^m): P(v | mode)
+    patterns, prob = delivery_patterns(h)
     kron = np.empty((M, len(patterns), n * n, n * n))
     for a in range(M):
         for k, v in enumerate(patterns):

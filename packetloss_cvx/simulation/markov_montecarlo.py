@@ -228,7 +228,7 @@ def _exact(system: System, law: str, steps: int, gains: BeliefGains | None,
     if law == "udp" and not settles:
         return exact, np.nan, ("the propagated belief of a periodic or frozen chain (|1 - p - r| = 1) need not settle: "
                                "no limiting law whose radius decides stability"), None
-    M = len(mode_chain(ch)[0])
+    M = len(modes)
     limit = np.broadcast_to(limit, (M, *np.shape(limit)[-2:])) if np.ndim(limit) == 2 else limit
     try:
         return exact, mean_square_radius(system.A, system.B, ch, limit, delivery), "", (np.asarray(limit), delivery)

@@ -16,10 +16,9 @@ gets no error bar ("" when it does).
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
+from ..markov.mjls import delivery_patterns
 from ..tolerances import MEAN_SQUARE_MARGIN
 
 __all__ = ["FOURTH_MOMENT_DENSE_MAX_DIM", "FOURTH_MOMENT_MAX_DIM", "FOURTH_MOMENT_MAX_N", "error_bar_reason",
@@ -36,16 +35,10 @@ FOURTH_MOMENT_MAX_N = 16
 FOURTH_MOMENT_MAX_M = 12
 
 
-def _patterns(m: int) -> np.ndarray:
-    """Every delivery pattern v in {0, 1}^m, (2^m, m)."""
-    return np.array(list(itertools.product((0.0, 1.0), repeat=m)))
-
-
 def _mode_law(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per mode a: the closed-loop matrices F_{a,v} of every pattern v and their probabilities P(v | a)
-    ((M, 2^m, n, n) and (M, 2^m)); K is (M, m, n), h is (M, m)."""
-    v = _patterns(B.shape[1])
-    prob = np.prod(np.where(v[None] == 1.0, h[:, None], 1.0 - h[:, None]), axis=2)
+    ((M, 2^m, n, n) and (M, 2^m), the patterns of markov.mjls.delivery_patterns); K is (M, m, n), h is (M, m)."""
+    v, prob = delivery_patterns(h)
     F = A[None, None] - np.einsum("ij,vj,ajk->avik", B, v, K)
     return F, prob
 
