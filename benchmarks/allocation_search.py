@@ -31,8 +31,8 @@ CASES = """
 import json, time
 import packetloss_cvx as pl
 from packetloss_cvx import load_example
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.markov import exact_closed_form
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.lq.markov_cost import exact_closed_form
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, parse_constraint
 from packetloss_cvx.allocation.delivery import power_model
 from packetloss_cvx.allocation.power import least_cost_within_power, least_power

@@ -27,7 +27,12 @@ sys.path.insert(0, str(ROOT))
 
 import packetloss_cvx as pl  # noqa: E402
 from packetloss_cvx.errors import NumericalError  # noqa: E402
-from packetloss_cvx.markov import burstiness_map, channel_twin, exact_closed_form, exact_cost  # noqa: E402
+from packetloss_cvx.lq.markov_cost import (
+    exact_closed_form,
+    exact_cost,  # noqa: E402
+)
+from packetloss_cvx.model.twins import channel_twin
+from packetloss_cvx.studies.burstiness import burstiness_map
 
 RATES = np.linspace(0.5, 1.0, 6)
 LAMBDAS = np.linspace(0.0, 0.95, 6)

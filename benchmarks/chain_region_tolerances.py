@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-import packetloss_cvx.simulation.chain_radius as cr
-import packetloss_cvx.simulation.markov_region as mr
+import packetloss_cvx.closedloop.chain_radius as cr
+import packetloss_cvx.closedloop.markov_region as mr
 from packetloss_cvx import load_system
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.markov.mjls import mean_square_radius, mode_chain
+from packetloss_cvx.closedloop.mjls import mean_square_radius, mode_chain
+from packetloss_cvx.model.channel import GilbertElliott
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "packetloss_cvx" / "examples"
+EXAMPLES = Path(__file__).resolve().parent.parent / "packetloss_cvx" / "model" / "examples"
 
 
 def zero_ratio(A, B, ch, delivery):

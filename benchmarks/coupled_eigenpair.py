@@ -24,9 +24,9 @@ ROOT = Path(__file__).resolve().parent.parent
 
 SCRIPT = """
 import json, time, numpy as np
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.markov.mjls import mean_square_radius
-from packetloss_cvx.simulation import markov_region as mr
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.closedloop.mjls import mean_square_radius
+from packetloss_cvx.closedloop import markov_region as mr
 cases = []
 for seed in range(6):
     rng = np.random.default_rng(100 + seed)

@@ -36,7 +36,7 @@ def _call(fn):
 
 def _systems():
     from packetloss_cvx import System
-    from packetloss_cvx.random_systems import random_system
+    from packetloss_cvx.model.random_systems import random_system
 
     rng = np.random.default_rng(19)
     out = []
@@ -88,7 +88,7 @@ def slow_plant(N: int):
 
 def _chains():
     from packetloss_cvx import System
-    from packetloss_cvx.channel import GilbertElliott
+    from packetloss_cvx.model.channel import GilbertElliott
 
     rng = np.random.default_rng(7)
     out = []
@@ -108,14 +108,11 @@ def _chains():
 
 def dump(path: str) -> None:
     import packetloss_cvx as pl
-    try:
-        from packetloss_cvx.difference import cost_difference
-    except ImportError:                # before the merge of issue 19
-        from packetloss_cvx.analysis import cost_difference
-    from packetloss_cvx.evaluator import CostEvaluator
-    from packetloss_cvx.markov.mjls import coupled_riccati, jump_law_stage_costs
-    from packetloss_cvx.recursion import backward_pass
-    from packetloss_cvx.simulation.riccati import dp_finite_horizon, dp_riccati
+    from packetloss_cvx.closedloop.mjls import coupled_riccati, jump_law_stage_costs
+    from packetloss_cvx.closedloop.riccati import dp_finite_horizon, dp_riccati
+    from packetloss_cvx.lq.difference import cost_difference
+    from packetloss_cvx.lq.evaluator import CostEvaluator
+    from packetloss_cvx.lq.recursion import backward_pass
 
     res: dict = {}
     rng = np.random.default_rng(3)

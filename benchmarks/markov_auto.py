@@ -26,9 +26,12 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import packetloss_cvx as pl  # noqa: E402
-from packetloss_cvx.markov import exact_closed_form  # noqa: E402
-from packetloss_cvx.markov.exact_cost import auto_route, route_seconds  # noqa: E402
-from packetloss_cvx.markov_channel import MarkovChannel  # noqa: E402
+from packetloss_cvx.lq.markov_cost import (  # noqa: E402
+    auto_route,
+    exact_closed_form,  # noqa: E402
+    route_seconds,
+)
+from packetloss_cvx.model.markov_channel import MarkovChannel  # noqa: E402
 
 SHAPES = [(1, 1, 2), (2, 1, 2), (4, 1, 2), (2, 2, 2), (4, 2, 2), (4, 2, 3), (8, 2, 3), (2, 1, 20), (1, 1, 50),
           (4, 1, 20), (2, 2, 20)]

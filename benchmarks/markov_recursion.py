@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 import packetloss_cvx as pl  # noqa: E402
 from packetloss_cvx.errors import NumericalError, ResourceError  # noqa: E402
-from packetloss_cvx.markov import exact_closed_form  # noqa: E402
+from packetloss_cvx.lq.markov_cost import exact_closed_form  # noqa: E402
 
 
 def at_horizon(system, horizon, A=None):

@@ -24,21 +24,21 @@ CASES = {
     "critical_gamma, two channels (test_sensing_estimation)": (
         "import numpy as np\n"
         "from packetloss_cvx.sensing.bounds import critical_gamma\n"
-        "from packetloss_cvx.sensor import Sensor\n"
+        "from packetloss_cvx.model.sensor import Sensor\n"
         "A = np.array([[1.5, 0.1], [0.0, 0.3]])\n"
         "sensor = Sensor(C=[[1.0, 0.0], [0.0, 1.0]], gamma=[0.5, 0.5], groups=[[0], [1]], noise_cov=np.eye(2))\n",
         "cg = critical_gamma(A, sensor)\nresult = (cg.lower, cg.upper, cg.exact)"),
     "critical_gamma, pendulum_sensor": (
-        "from packetloss_cvx.io import load_example\n"
+        "from packetloss_cvx.model.files import load_example\n"
         "from packetloss_cvx.sensing.bounds import critical_gamma\n"
         "s = load_example('pendulum_sensor')\n",
         "cg = critical_gamma(s.A, s.sensor)\nresult = (cg.lower, cg.upper, cg.exact)"),
     "simulate, N = 1000 bursty chain, 4000 runs (test_simulate_markov, seed 322)": (
         "import numpy as np\n"
-        "from packetloss_cvx.channel import GilbertElliott\n"
-        "from packetloss_cvx.markov import attach_channel\n"
-        "from packetloss_cvx.random_systems import random_system\n"
-        "from packetloss_cvx.simulation.montecarlo import simulate\n"
+        "from packetloss_cvx.model.channel import GilbertElliott\n"
+        "from packetloss_cvx.model.chain import attach_channel\n"
+        "from packetloss_cvx.model.random_systems import random_system\n"
+        "from packetloss_cvx.montecarlo.simulate import simulate\n"
         "rng = np.random.default_rng(322)\n"
         "s = random_system(rng, n=3, m=2, horizon=1000, spectral_radius=0.97, non_stationary=False, noise=False,\n"
         "                  edge_mu=False, time_varying=False)\n"
@@ -49,10 +49,10 @@ CASES = {
         "result = sorted((k, v.mean, v.stderr, v.exact) for k, v in sim.open_loop.items())"),
     "simulate, N = 1000 Gilbert chain (outcomes reveal the state), 4000 runs (test_simulate_markov, seed 321)": (
         "import numpy as np\n"
-        "from packetloss_cvx.channel import GilbertElliott\n"
-        "from packetloss_cvx.markov import attach_channel\n"
-        "from packetloss_cvx.random_systems import random_system\n"
-        "from packetloss_cvx.simulation.montecarlo import simulate\n"
+        "from packetloss_cvx.model.channel import GilbertElliott\n"
+        "from packetloss_cvx.model.chain import attach_channel\n"
+        "from packetloss_cvx.model.random_systems import random_system\n"
+        "from packetloss_cvx.montecarlo.simulate import simulate\n"
         "rng = np.random.default_rng(321)\n"
         "s = random_system(rng, n=3, m=2, horizon=1000, spectral_radius=0.97, non_stationary=False, noise=False,\n"
         "                  edge_mu=False, time_varying=False)\n"
@@ -65,9 +65,9 @@ CASES = {
         "from pathlib import Path\n"
         "from packetloss_cvx.cli.parser import build_parser\n"
         "from packetloss_cvx.cli.region import run\n"
-        "from packetloss_cvx.io import save_system\n"
-        "from packetloss_cvx.model import System\n"
-        "from packetloss_cvx.sensor import Sensor\n"
+        "from packetloss_cvx.model.files import save_system\n"
+        "from packetloss_cvx.model.system import System\n"
+        "from packetloss_cvx.model.sensor import Sensor\n"
         "s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],\n"
         "           noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.9]))\n"
         "folder = tempfile.TemporaryDirectory()\n"
@@ -75,8 +75,8 @@ CASES = {
         "args = build_parser().parse_args(['region', path, '--law', 'dp', '--sensor-grid', '4', '-q'])\n",
         "result = run(args).data"),
     "simulate pendulum_bursty --closed-loop, 20000 runs x 25 steps": (
-        "from packetloss_cvx.io import load_example\n"
-        "from packetloss_cvx.simulation.montecarlo import simulate\n"
+        "from packetloss_cvx.model.files import load_example\n"
+        "from packetloss_cvx.montecarlo.simulate import simulate\n"
         "s = load_example('pendulum_bursty')\n",
         "sim = simulate(s, 20000, steps=25, seed=311, closed_loop=True, progress=False)\n"
         "result = sorted((k, v.mean_stage_cost, v.stderr) for k, v in sim.closed_loop.items())"),

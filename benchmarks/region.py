@@ -18,13 +18,13 @@ import time
 import numpy as np
 
 from packetloss_cvx import load_example
-from packetloss_cvx.simulation.region import LazyLmi, membership
-from packetloss_cvx.simulation.region_map import region_map
+from packetloss_cvx.closedloop.region import LazyLmi, membership
+from packetloss_cvx.studies.region_map import region_map
 
 SCALAR = """
 import time, json
 from packetloss_cvx import System
-from packetloss_cvx.simulation import critical_mu
+from packetloss_cvx.closedloop.critical import critical_mu
 s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[0.1], mu=[1.0], x0=[1.0])
 t0 = time.process_time(); t = critical_mu(s, "dp"); print(json.dumps([t, time.process_time() - t0]))
 """

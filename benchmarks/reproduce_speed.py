@@ -90,8 +90,9 @@ def crossover() -> None:
     import numpy as np
 
     import packetloss_cvx as pl
-    from packetloss_cvx.io import system_from_dict
-    from packetloss_cvx.markov import bursty_twin, exact_closed_form
+    from packetloss_cvx.lq.markov_cost import exact_closed_form
+    from packetloss_cvx.model.files import system_from_dict
+    from packetloss_cvx.model.twins import bursty_twin
     from packetloss_cvx.threads import blas_limited
 
     def best(f, k):
@@ -135,7 +136,7 @@ def crossover() -> None:
 
 PARTS = {
     "udp allocations": """
-from packetloss_cvx.io import load_example
+from packetloss_cvx.model.files import load_example
 from packetloss_cvx.studies import paper_figures as pf
 from packetloss_cvx.claims.paper import ALLOCATION_BETAS
 from packetloss_cvx.cli.reproduce import ALPHAS
@@ -154,7 +155,7 @@ def part():
 import numpy as np
 from packetloss_cvx.claims.context import paper_systems
 from packetloss_cvx.claims.sensing import sensed
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.sensing.bounds import upper_bound_covariance
 rng = np.random.default_rng(1)
 twins = [t for t in (sensed(s) for s in [*paper_systems().values(), *(random_system(rng) for _ in range(200))])

@@ -37,7 +37,7 @@ def _load(root: Path):
         del sys.modules[name]
     sys.path.insert(0, str(root))
     try:
-        return importlib.import_module("packetloss_cvx.recursion")
+        return importlib.import_module("packetloss_cvx.lq.recursion")
     finally:
         sys.path.pop(0)
 
@@ -59,7 +59,7 @@ UDP_CASE = """
 import json, sys, time
 sys.path.insert(0, {bench!r})
 from packetloss_cvx.cli import reproduce
-from packetloss_cvx.io import load_example
+from packetloss_cvx.model.files import load_example
 from packetloss_cvx.studies import paper_figures
 from packetloss_cvx.allocation import allocate
 from run import allocation_alpha, allocation_system

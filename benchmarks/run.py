@@ -27,7 +27,7 @@ from slow_plant import slow_plant  # noqa: E402  (benchmarks/slow_plant.py, sect
 from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 17)
 
 import packetloss_cvx as pl  # noqa: E402
-from packetloss_cvx.random_systems import random_system  # noqa: E402
+from packetloss_cvx.model.random_systems import random_system  # noqa: E402
 
 PROTOCOL = "udp"  # the protocol with more work (the variance weights)
 
@@ -148,7 +148,7 @@ def verification_cost(N, rows):
 def self_check(horizons, rows):
     print("\n7. what the self-check costs: closed_form (Riccati + forward pass of its plan) vs the bare Riccati")
     print(f"{'N':>6} {'bare s':>10} {'checked s':>10} {'ratio':>8}")
-    from packetloss_cvx.recursion import backward_pass, mean_trajectory
+    from packetloss_cvx.lq.recursion import backward_pass, mean_trajectory
 
     def bare(s):
         K, P0, noise = backward_pass(s, PROTOCOL)
@@ -228,7 +228,7 @@ def minimal_loop(system: pl.System, gains: np.ndarray, steps: int, samples: int,
     sample_noise_paths from the same generator), one array operation per step over runs and laws, and only
     each run's mean stage cost (no norms, no kept states). Runs first with the issue's stage cost
     ``((X @ Omega) * X).sum(-1)``, or runs last (``X`` (L, n, runs)) as the simulator holds them."""
-    from packetloss_cvx.simulation.channels import sample_delivery_paths, sample_noise_paths
+    from packetloss_cvx.montecarlo.channels import sample_delivery_paths, sample_noise_paths
 
     V = sample_delivery_paths(system, steps, samples, rng)
     W = sample_noise_paths(system, steps, samples, rng)
@@ -269,15 +269,15 @@ def cpu_medians(fns: dict, repeats: int) -> dict:
 def closed_loop(samples: int, steps: int, n_big: int, rows: list) -> None:
     """Closed loop: vectorised simulation vs a per-run loop; the mean-square radius at n_big, operator
     (ARPACK) vs the n^2 x n^2 Kronecker matrix."""
-    from packetloss_cvx.simulation import closed_loop as exact_loop
-    from packetloss_cvx.simulation import mean_square_radius
-    from packetloss_cvx.simulation.montecarlo import closed_loop_block
+    from packetloss_cvx.closedloop.moments import closed_loop as exact_loop
+    from packetloss_cvx.closedloop.stability import mean_square_radius
+    from packetloss_cvx.montecarlo.simulate import closed_loop_block
     print("\n14. closed loop: the simulator vs a minimal vectorised loop and a per-run loop; mean-square radius, "
           "operator vs Kronecker")
 
     from threadpoolctl import threadpool_limits
 
-    from packetloss_cvx.simulation.montecarlo import BLOCK, law_gains
+    from packetloss_cvx.montecarlo.simulate import BLOCK, law_gains
 
     s = bench_system(10)
     K = pl.closed_form(s, "tcp").gain
@@ -537,7 +537,7 @@ def tcp_allocation(baseline, rows, rounds: int = 5):
 
 
 def evaluator(points, rows):
-    from packetloss_cvx.evaluator import CostEvaluator
+    from packetloss_cvx.lq.evaluator import CostEvaluator
 
     print(f"\n9. batched evaluator: {points} channels, loop of closed_form vs CostEvaluator (UDP-like)")
     print(f"{'system':>14} {'loop s':>8} {'batch s':>8} {'ratio':>7} {'one point: cf ms':>17} {'ev ms':>6} "
@@ -562,7 +562,7 @@ QP_MEMORY = """
 import time, tracemalloc
 import numpy as np
 import packetloss_cvx as pl
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
 def bench_system(N):
     return random_system(np.random.default_rng(2026), n=4, m=2, horizon=N, spectral_radius=0.95, full_weights=False,
                          time_varying=False, non_stationary=False, noise=False, edge_mu=False)
@@ -687,7 +687,7 @@ def shared_qps(repeats, rows):
     solve each, no gain, no cross-check), with every problem compiled per object (exact shape,
     ``SHARED_MAX_ENTRIES = 0``) against the problems shared by padded shape (from an empty cache:
     the shared side pays its compiles); interleaved, medians of ``repeats``."""
-    from packetloss_cvx import qp_shared
+    from packetloss_cvx.qp import shared as qp_shared
 
     rng = np.random.default_rng(1)
     systems = [random_system(rng) for _ in range(200)]
@@ -729,7 +729,7 @@ import json, time
 import numpy as np
 from packetloss_cvx.claims import registry
 from packetloss_cvx.claims.context import Context, paper_systems
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
 rng = np.random.default_rng(1)
 ctx = Context(paper=paper_systems(), random=[random_system(rng) for _ in range(200)], seed=1)
 out = {}
@@ -758,7 +758,7 @@ from packetloss_cvx.allocation import brute_force
 from packetloss_cvx.claims.channel_allocation import GRID, alpha_levels
 from packetloss_cvx.claims.context import paper_systems
 from packetloss_cvx.claims.paper import ALLOCATION_BETAS
-from packetloss_cvx.evaluator import CostEvaluator
+from packetloss_cvx.lq.evaluator import CostEvaluator
 from packetloss_cvx.threads import blas_limited
 s = paper_systems()["two_actuator"]
 ev = CostEvaluator(s, "udp", "recursion")
@@ -831,8 +831,9 @@ def stationary_tail(horizons, repeats, rows):
     scipy's solve_discrete_are on the same (A, B), CPU time (time.process_time; run with
     OPENBLAS_NUM_THREADS=1), interleaved, minimum over repeats; a fresh System per run (nothing cached), and
     the full pass (the closure switched off) for the cost agreement and as the before."""
-    import packetloss_cvx.recursion as recursion
     from scipy.linalg import solve_discrete_are
+
+    import packetloss_cvx.lq.recursion as recursion
 
     print("\n19. stationary long horizons (issue 19): closed_form(method='recursion'), mu = 1, n = 4, m = 2, vs "
           "scipy solve_discrete_are on the same (A, B); CPU ms, min of interleaved runs")

@@ -26,13 +26,13 @@ def main() -> None:
 
     from packetloss_cvx.cli.parser import build_parser
     from packetloss_cvx.cli.solve import run as solve_run
-    from packetloss_cvx.io import load_example
+    from packetloss_cvx.closedloop.riccati import dp_riccati
+    from packetloss_cvx.model.files import load_example
+    from packetloss_cvx.model.sensor import Sensor
     from packetloss_cvx.sensing.bounds import covariance_bounds, critical_gamma
     from packetloss_cvx.sensing.loop import estimated_loop, loop_map
     from packetloss_cvx.sensing.markov_bounds import filter_stability, markov_covariance_bounds
     from packetloss_cvx.sensing.montecarlo import sampled_covariance, simulate_estimated
-    from packetloss_cvx.sensor import Sensor
-    from packetloss_cvx.simulation import dp_riccati
 
     s = load_example("pendulum_sensor")
     gain = dp_riccati(s).gain

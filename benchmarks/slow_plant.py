@@ -3,7 +3,7 @@ a baseline checkout, and whether both give the same numbers.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/slow_plant.py [--baseline ../main] [--rounds 5] [--N 10000]
 
-The plant: the paper's pendulum A (packetloss_cvx/examples/pendulum.toml, rho(A) = 1.06) with two inputs,
+The plant: the paper's pendulum A (packetloss_cvx/model/examples/pendulum.toml, rho(A) = 1.06) with two inputs,
 B = [[0.001, 0.2], [0.540, 0.0], [-0.002, 0.1], [-1.066, 0.3]], weights diag(5, 1, 1, 1) and (2, 1),
 x0 = (0.1, 0, 0.1, 0), mu = 1: its Riccati pass contracts by about 0.98 a step (about 1,600 steps before its tail
 settles) and its plan is rolled out through an unstable A. Each round runs one fresh process per checkout

@@ -25,8 +25,8 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = """
 import json, time, numpy as np
 import packetloss_cvx as pl
-from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.model.random_systems import random_system
 
 def per_call(f, k=300, rounds=7):
     f()

@@ -14,7 +14,7 @@ import numpy as np
 
 from packetloss_cvx import System, load_example
 from packetloss_cvx.allocation.stability import stability_allocate
-from packetloss_cvx.simulation import critical_mu
+from packetloss_cvx.closedloop.critical import critical_mu
 
 CASES = (
     ("scalar a=2", "stable", (1.0,), {"margin": 0.5}),

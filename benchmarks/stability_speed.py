@@ -43,7 +43,7 @@ SCRIPT = """
 import json, time, numpy as np
 from packetloss_cvx import load_example
 from packetloss_cvx.allocation.stability import stability_allocate
-from packetloss_cvx.simulation.region import homogeneous_riccati
+from packetloss_cvx.closedloop.region import homogeneous_riccati
 s = load_example('two_actuator')
 start = time.process_time()
 got = {call}

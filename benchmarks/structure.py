@@ -10,18 +10,18 @@ import time
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.difference import (
+from packetloss_cvx.lq.difference import (
     cost_difference,
     maximise_cost_difference,
     scalar_channel,
     shared_channel_differences,
 )
-from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.markov import attach_channel
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import recursion_cost, udp_variance_weights
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.lq.recursion import recursion_cost, udp_variance_weights
+from packetloss_cvx.model.chain import attach_channel
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.model.random_systems import random_system
 
 
 def _step_by_step_cost(system, inputs, protocol, weights):

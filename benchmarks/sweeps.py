@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import packetloss_cvx as pl  # noqa: E402
-from packetloss_cvx.evaluator import CostEvaluator  # noqa: E402
+from packetloss_cvx.lq.evaluator import CostEvaluator  # noqa: E402
 from packetloss_cvx.studies import sweep  # noqa: E402
 
 
@@ -42,7 +42,7 @@ BASELINE_BATCH = """
 import sys, time
 import numpy as np
 import packetloss_cvx as pl
-from packetloss_cvx.evaluator import CostEvaluator
+from packetloss_cvx.lq.evaluator import CostEvaluator
 K, protocol, repeats = int(sys.argv[1]), sys.argv[2], int(sys.argv[3])
 axis = np.linspace(0.0, 1.0, K)
 mu1, mu2 = np.meshgrid(axis, axis)

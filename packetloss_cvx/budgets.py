@@ -238,7 +238,8 @@ def markov_recursion_work(horizon: int, size: int) -> float:
     """Work units of one exact UDP-like minimum under Markov losses by the augmented recursion
     (markov/augmented.py): per step ``D^3`` for the Riccati step on the augmented state of size D (its products
     and solve), plus 6e5 for the step's Python and small-matrix work; 1.2e-10 s a unit (benchmarks/markov_auto.py
-    --fit: D from 2 to 200, N from 10 to 640). The budget check of :func:`~packetloss_cvx.markov.exact_closed_form`
+    --fit: D from 2 to 200, N from 10 to 640). The budget check of
+    :func:`~packetloss_cvx.lq.markov_cost.exact_closed_form`
     and its ``method="auto"`` chooser both read it. O(1).
 
     Examples

@@ -185,7 +185,7 @@ def system_repr(system: Any) -> str:
 def system_html(system: Any) -> str:
     """The dimensions, channel, initial state and (when small) A and B, as an HTML table.
 
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0],
     ...            noise_cov=[[2.0]], name="a<b")
     >>> text = system_html(s)
@@ -206,11 +206,12 @@ def _solution_rows(sol: Any) -> list[tuple[str, Any]]:
     if sol.closed_loop_eigenvalues is not None and len(sol.closed_loop_eigenvalues):
         # the paper's Tables I-II convention, every packet delivered: not the loop over the lossy channel
         rows.append(("radius of A - B K (all delivered)", f"{np.max(np.abs(sol.closed_loop_eigenvalues)):.6g}"))
-    if sol.stability is not None:   # attached by simulation.with_stability: the loop over the lossy channel
+    if sol.stability is not None:   # attached by closedloop.with_stability: the loop over the lossy channel
         rows.append(("mean-square stability", sol.stability.verdict))
     elif sol.gain is not None:
-        rows.append(("mean-square stability", "not computed (a Solution does not carry the channel): "
-                                              "packetloss_cvx.simulation.with_stability(system, solution)"))
+        rows.append(("mean-square stability",
+                     "not computed (a Solution does not carry the channel): "
+                     "packetloss_cvx.closedloop.law_stability.with_stability(system, solution)"))
     if sol.status is not None:
         rows.append(("status", f"{sol.status} in {sol.solve_time:.3g} s"))
     if sol.cross_check is not None:
@@ -237,7 +238,7 @@ def solution_repr(sol: Any) -> str:
 def solution_html(sol: Any) -> str:
     """The cost, method, the radius of A - B K with every packet delivered (the paper's Tables I-II), the
     mean-square stability of u = -K x over the lossy channel (once
-    :func:`packetloss_cvx.simulation.with_stability` attached it: a Solution does not carry the channel)
+    :func:`packetloss_cvx.closedloop.law_stability.with_stability` attached it: a Solution does not carry the channel)
     and (QPs) solver status, as an HTML table.
 
     >>> from packetloss_cvx.results import Solution

@@ -42,15 +42,16 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
 #: why a caller imports it inside the function that needs it: so that its caller's other paths never load
 #: cvxpy or matplotlib (tests/test_closed_form_imports.py runs those paths and checks sys.modules)
 LAZY_MODULES: Mapping[str, str] = MappingProxyType({
-    "qp": "the QP twin (cvxpy): solve without --no-qp, the audit's QP claims",
-    "markov.qp": "the Gilbert-Elliott QP twin (cvxpy)",
-    "simulation.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms "
+    "qp.expected_cost": "the QP twin (cvxpy): solve without --no-qp, the audit's QP claims",
+    "qp.markov": "the Markov-chain QP twin (cvxpy)",
+    "closedloop.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms "
                              "cannot decide",
     "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",
     "allocation.power": "power-limited links (cvxpy): only the power-water-filling claim of the audit",
     "allocation.delivery": "the delivery-versus-power models, through the allocation package (cvxpy): only the "
                            "power-water-filling claim of the audit",
-    "plots": "figures (matplotlib): only commands asked to draw",
+    "plots": "figures (matplotlib), through the plots package: only commands asked to draw",
+    "plots.figures": "figures (matplotlib): only commands asked to draw",
     "sensing.lmi": "Sinopoli's filter LMI (cvxpy): the critical arrival rate's cross-check, only where asked",
 })
 

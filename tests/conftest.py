@@ -8,7 +8,7 @@ import pytest
 
 import packetloss_cvx as pl
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "packetloss_cvx" / "examples"
+EXAMPLES = Path(__file__).resolve().parent.parent / "packetloss_cvx" / "model" / "examples"
 
 
 @pytest.fixture(scope="session")

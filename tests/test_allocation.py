@@ -9,7 +9,7 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, min_cost, parse_constraint
 from packetloss_cvx.allocation.brute_force import brute_force_allocation, brute_force_allocations
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.tolerances import ALLOCATION_LP_FEASIBILITY, CROSS_CHECK_COST_RTOL
 
 #: The brute force and the allocation evaluate J* by separate calls; their feasible sets may

@@ -15,8 +15,8 @@ from packetloss_cvx.allocation import allocate, min_cost, parse_constraint
 from packetloss_cvx.allocation.brute_force import brute_force_allocation
 from packetloss_cvx.allocation.tcp import tangent
 from packetloss_cvx.cli import main
-from packetloss_cvx.convex import ClarabelProgram
-from packetloss_cvx.io import system_from_dict
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.qp.convex import ClarabelProgram
 from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL
 
 # The 3-channel case of issue 8: beta = (2, 1, 1), mu1 <= mu2, mu1 + mu2 >= 1.2. Before the
@@ -260,7 +260,7 @@ def test_udp_certificate_survives_wrong_probes(two_actuator, monkeypatch, seed):
     its three certificate decisions (discard a box, raise an edge's lower end, offer an incumbent) on checked
     values only: with every probe off by a factor 0.5 or 2 at random, the answer is still feasible and the
     bound still below the brute-force optimum (the TCP-like bound switched off, so the boxes must prove it)."""
-    from packetloss_cvx.evaluator import CostEvaluator
+    from packetloss_cvx.lq.evaluator import CostEvaluator
 
     rng = np.random.default_rng(seed)
     cost, line = CostEvaluator.cost, CostEvaluator.line
@@ -314,7 +314,7 @@ def test_udp_incumbent_line_starts_from_the_checked_value_after_a_wrong_probe(tw
     SolverError 'gap_not_certified'.)"""
     from packetloss_cvx.allocation import udp
     from packetloss_cvx.allocation.grammar import read_polytope
-    from packetloss_cvx.evaluator import CostEvaluator
+    from packetloss_cvx.lq.evaluator import CostEvaluator
 
     alpha, beta, lp_points = 8.0, np.array([1.0, 0.05]), set()
     box_bound = udp.box_bound

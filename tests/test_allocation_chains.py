@@ -13,12 +13,13 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx.allocation import allocate, min_cost
 from packetloss_cvx.allocation.chains import ChainEvaluator, chain_at, chain_family
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
-from packetloss_cvx.costs import closed_form
-from packetloss_cvx.io import dumps_system
-from packetloss_cvx.markov import exact_closed_form, exact_cost, exact_qp
-from packetloss_cvx.markov_channel import MarkovChannel
+from packetloss_cvx.lq.costs import closed_form
+from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import dumps_system
+from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.qp.markov import exact_qp
 
 
 def two_channel(channel, horizon=4):

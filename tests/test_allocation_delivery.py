@@ -75,7 +75,7 @@ def test_model_refuses_bad_input(kw, match):
 def test_power_table_in_a_system_file(tmp_path):
     (tmp_path / "curve.csv").write_text("power,mu\n0,0\n1,0.4\n3,0.9\n")
     base = (load_system("two_actuator"),)
-    from packetloss_cvx.io import dumps_system
+    from packetloss_cvx.model.files import dumps_system
     text = dumps_system(base[0])
     (tmp_path / "a.toml").write_text(text + '\n[power]\nmodel = "table"\ntable = "curve.csv"\n')
     (tmp_path / "b.toml").write_text(text + '\n[power]\nmodel = "exponential"\nscale = [1.0, 2.0]\n')

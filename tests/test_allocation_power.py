@@ -18,7 +18,7 @@ from packetloss_cvx.allocation.delivery import power_model
 from packetloss_cvx.allocation.power import least_cost_within_power, least_power, power_pareto
 from packetloss_cvx.cli import main
 from packetloss_cvx.errors import InfeasibleError, InputError
-from packetloss_cvx.evaluator import CostEvaluator
+from packetloss_cvx.lq.evaluator import CostEvaluator
 from tests.test_allocation_delivery import MODELS, model_of
 
 
@@ -225,7 +225,7 @@ def test_cli_least_power_json_holds_the_contract(capsys):
 
 
 def test_cli_budget_and_the_file_power_table(capsys, tmp_path):
-    from packetloss_cvx.io import dumps_system
+    from packetloss_cvx.model.files import dumps_system
     (tmp_path / "link.csv").write_text("# measured\npower,mu\n0,0\n1,0.5\n3,0.9\n")
     (tmp_path / "s.toml").write_text(dumps_system(scalar()) + '\n[power]\nmodel = "table"\ntable = "link.csv"\n')
     code, out, _ = run_cli(capsys, "allocate", str(tmp_path / "s.toml"), "--protocol", "udp", "--budget", "2",
@@ -563,7 +563,7 @@ def test_a_failed_conic_program_is_no_verdict(monkeypatch):
     """Clarabel's infeasibility certificate (false at c = 1e12 before the program was written in P / c) and any
     other failure hand the problem to the branch and bound, which answers (hand value log(4/3) on the one-step
     plant) or proves infeasibility by discarding every box."""
-    from packetloss_cvx.convex import ClarabelProgram
+    from packetloss_cvx.qp.convex import ClarabelProgram
 
     def fails(self, values, what, attempts=()):
         return "infeasible", None
@@ -733,8 +733,8 @@ def test_least_power_proves_infeasibility_only_beyond_allocation_cost_rtol(two_a
     """alpha just below J* at the largest powers allowed (max_power 2 on the exponential model: mu = 1 - e^-2 on each
     channel, J* falls as any power rises): infeasibility is proved only where J* there exceeds alpha (1 +
     ALLOCATION_COST_RTOL). At 3 times the band below: InfeasibleError; at 0.3 times: no proof (SolverError)."""
-    from packetloss_cvx.costs import closed_form
     from packetloss_cvx.errors import SolverError
+    from packetloss_cvx.lq.costs import closed_form
     from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
 
     mu = 1 - np.exp(-2.0)

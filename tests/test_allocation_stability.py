@@ -12,12 +12,12 @@ from scipy.optimize import minimize_scalar
 from packetloss_cvx import System
 from packetloss_cvx.allocation.stability import stability_allocate
 from packetloss_cvx.cli import main
+from packetloss_cvx.closedloop.region import homogeneous_riccati, membership
+from packetloss_cvx.closedloop.riccati import dp_riccati
+from packetloss_cvx.closedloop.stability import mean_square_radius
 from packetloss_cvx.errors import InfeasibleError, InputError
-from packetloss_cvx.io import save_system
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.simulation.region import homogeneous_riccati, membership
-from packetloss_cvx.simulation.riccati import dp_riccati
-from packetloss_cvx.simulation.stability import mean_square_radius
+from packetloss_cvx.model.files import save_system
+from packetloss_cvx.model.random_systems import random_system
 
 GAP = 1e-4
 
@@ -208,7 +208,7 @@ def test_bad_arguments_are_named():
 
 def test_lossy_sensor_and_chain_files_are_refused_not_designed_as_full_state(capsys):
     # the loop over lossy sensors also needs gamma > gamma_c: a full-state answer would be silently incomplete
-    from packetloss_cvx.io import load_example
+    from packetloss_cvx.model.files import load_example
     with pytest.raises(InputError, match="sensor"):
         stability_allocate(load_example("pendulum_sensor"), "stable", [1.0])
     with pytest.raises(InputError, match="channel"):
@@ -273,7 +273,7 @@ def test_two_actuator_margin_half_is_answered_not_a_cross_check_error():
     the LMI's infeasibility certificate, checked to 1e-12 of T's scale, passed with the gain's 76 entry: the forms
     'disagreed' (CrossCheckError, exit 1). Aiming 1e-7 inside clears it. The answer's gain is re-checked by
     enumerating the delivery patterns."""
-    from packetloss_cvx.io import load_example
+    from packetloss_cvx.model.files import load_example
     s = load_example("two_actuator")
     out = stability_allocate(s, "stable", [1.0, 1.0], margin=0.5)
     assert out.status == "optimal"
@@ -330,7 +330,7 @@ def test_the_dp_cost_is_reported_inside_the_set_and_not_on_its_boundary(two_actu
     no DP cost there (one BLAS kernel found 7.8e8, another no solution); with a margin of 0.9 the point is inside
     (radius 1 - 0.1, beyond the band) and its DP cost is the Riccati solution's x0'P x0."""
     from packetloss_cvx.allocation.stability import DP_COST_BOUNDARY, stability_allocate
-    from packetloss_cvx.simulation import dp_riccati
+    from packetloss_cvx.closedloop.riccati import dp_riccati
 
     edge = stability_allocate(two_actuator, "stable", beta=[1.0, 1.0])
     assert 1.0 - edge.radius < DP_COST_BOUNDARY

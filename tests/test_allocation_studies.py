@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.allocation import allocate, contour_allocations, cost_grid, pareto_curve
+from packetloss_cvx.allocation import allocate
 from packetloss_cvx.allocation.brute_force import brute_force_allocation
+from packetloss_cvx.studies.allocation import contour_allocations, cost_grid, pareto_curve
 
 
 def test_pareto_curve_rows(two_actuator):

@@ -6,10 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import packetloss_cvx as pl
-from packetloss_cvx import analysis as an
-from packetloss_cvx import difference
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.lq import analysis as an
+from packetloss_cvx.lq import difference
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.model.random_systems import random_system
 
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True)  # the same inputs on every run
 seeds = st.integers(0, 2**32 - 1)

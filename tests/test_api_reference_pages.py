@@ -16,7 +16,7 @@ def test_every_sensing_module_is_on_an_api_page():
     sensing = {f"packetloss_cvx.sensing.{p.stem}" for p in (ROOT / "packetloss_cvx" / "sensing").glob("*.py")
                if p.stem != "__init__"}
     assert len(sensing) >= 7
-    missing = (sensing | {"packetloss_cvx.sensor", "packetloss_cvx.results.sensing"}) - listed_modules()
+    missing = (sensing | {"packetloss_cvx.model.sensor", "packetloss_cvx.results.sensing"}) - listed_modules()
     assert not missing
 
 

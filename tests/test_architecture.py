@@ -26,18 +26,21 @@ from .conftest import LONG_FILE_LINES, long_files
 
 PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
-#: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
+#: the folders, bottom up: each imports only from its own folder, the infrastructure (layer 0) and the folders
+#: below it, so there is no loop between folders; plots and the command line are the top
 LAYERS = [
-    {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "roundoff",
-     "progress",
-     "display", "statespace", "channel", "markov_channel", "sensor", "validation", "threads", "optional", "safeio",
-     "runfolder",
-     "examples"},
-    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
-     "evaluator", "pointwise"},
-    {"analysis", "difference", "allocation", "simulation", "studies", "markov", "sensing"},
+    {"errors", "tolerances", "budgets", "printable", "optional", "threads", "progress", "safeio", "runfolder",
+     "linalg", "display", "results"},
+    {"model"},
+    {"lq"},
+    {"qp"},
+    {"closedloop"},
+    {"montecarlo"},
+    {"sensing"},
+    {"allocation"},
+    {"studies"},
     {"claims"},
-    {"plots", "plot_style", "cli", "__main__", "__init__"},
+    {"plots", "cli", "__main__", "__init__"},
 ]
 #: lazy imports allowed inside functions: the heavy optional libraries, listed once in the package
 LAZY_OK = frozenset(LAZY_IMPORTS)

@@ -10,12 +10,15 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
 from packetloss_cvx.errors import BudgetError, InputError
-from packetloss_cvx.markov import attach_channel, burstiness_map, channel_twin, exact_closed_form, exact_cost
-from packetloss_cvx.markov_channel import MarkovChannel
-from packetloss_cvx.model import System
+from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
+from packetloss_cvx.model.chain import attach_channel
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.system import System
+from packetloss_cvx.model.twins import channel_twin
+from packetloss_cvx.studies.burstiness import burstiness_map
 from tests.references import enumerated_chain_cost
 
 
@@ -144,7 +147,7 @@ def test_bad_grids_are_refused_naming_the_field(kwargs, field):
 def test_grid_beyond_the_work_budget_is_refused_before_any_point(monkeypatch):
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_SWEEP_WORK", "1e6")
     calls = []
-    monkeypatch.setattr("packetloss_cvx.markov.sweep._evaluate", lambda *a: calls.append(a))
+    monkeypatch.setattr("packetloss_cvx.studies.burstiness._evaluate", lambda *a: calls.append(a))
     with pytest.raises(BudgetError, match="rates"):
         burstiness_map(pl.load_example("pendulum_bursty"), np.linspace(0.5, 1, 10), [0.0, 0.5], progress=False)
     assert calls == []

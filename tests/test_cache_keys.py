@@ -14,14 +14,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import packetloss_cvx
-from packetloss_cvx import prediction as prediction_module
-from packetloss_cvx import recursion
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.allocation import tcp
-from packetloss_cvx.markov import augmented, chain
-from packetloss_cvx.model import SYSTEM_FIELDS, CacheKey, System
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.sensor import Sensor
+from packetloss_cvx.lq import augmented, recursion
+from packetloss_cvx.lq import prediction as prediction_module
+from packetloss_cvx.model import chain
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.model.sensor import Sensor
+from packetloss_cvx.model.system import SYSTEM_FIELDS, CacheKey, System
 
 #: each key of the package -> how its value is read through the public path that keeps it
 READERS = {

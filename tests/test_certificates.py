@@ -13,10 +13,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from packetloss_cvx.errors import NumericalError
-from packetloss_cvx.linalg import Dyadic, exact_psd
-from packetloss_cvx.simulation import region
-from packetloss_cvx.simulation.certificates import (
+from packetloss_cvx.closedloop import region
+from packetloss_cvx.closedloop.certificates import (
     inside_proved,
     law_proved_stable,
     no_law_proved,
@@ -25,8 +23,10 @@ from packetloss_cvx.simulation.certificates import (
     stability_witness,
     tilted,
 )
-from packetloss_cvx.simulation.moments import solve_fixed_point
-from packetloss_cvx.simulation.region import homogeneous_riccati
+from packetloss_cvx.closedloop.moments import solve_fixed_point
+from packetloss_cvx.closedloop.region import homogeneous_riccati
+from packetloss_cvx.errors import NumericalError
+from packetloss_cvx.linalg import Dyadic, exact_psd
 from packetloss_cvx.tolerances import CERTIFICATE_RTOL, MEAN_SQUARE_MARGIN
 
 from .references import enumerated_radius

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
 from packetloss_cvx.errors import InputError
-from packetloss_cvx.io import dumps_system, system_from_dict
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import dumps_system, system_from_dict
 
 BASE = {
     "plant": {"A": [[1.0, 0.1], [0.0, 1.0]], "B": [[0.0, 1.0], [1.0, 0.0]]},

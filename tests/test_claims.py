@@ -10,8 +10,8 @@ from packetloss_cvx.claims import CLAIMS, audit, channel_allocation, markdown_re
 from packetloss_cvx.claims.context import Context, paper_systems
 from packetloss_cvx.claims.evaluate import evaluate, verdict
 from packetloss_cvx.cli import main
-from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.simulation import closed_loop_costs, sample_plan_costs
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.montecarlo.sampling import closed_loop_costs, sample_plan_costs
 
 
 def test_theorem_1_cost_counterexample_by_hand():

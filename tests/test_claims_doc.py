@@ -32,7 +32,7 @@ from packetloss_cvx.claims.channel_allocation import alpha_levels, perfect_chann
 from packetloss_cvx.claims.evaluate import verdict
 from packetloss_cvx.claims.paper import ALLOCATION_BETAS
 from packetloss_cvx.cli import main
-from packetloss_cvx.io import load_example, system_from_dict
+from packetloss_cvx.model.files import load_example, system_from_dict
 from packetloss_cvx.tolerances import KERNEL_MARGIN_RTOL, KERNEL_POINT_RTOL, KERNEL_VALUE_RTOL
 
 DOC = (Path(__file__).resolve().parent.parent / "docs" / "claims.md").read_text()

@@ -20,7 +20,7 @@ from packetloss_cvx.claims import sensing
 from packetloss_cvx.claims.context import Context
 from packetloss_cvx.claims.evaluate import Z, cost_scale, resolved, z_margin
 from packetloss_cvx.claims.registry import run_claim
-from packetloss_cvx.io import system_from_dict
+from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.tolerances import RESOLVED_MIN
 
 #: the claims whose comparisons are scaled to the problem (theorem-1-*, cost-split-sensor: the issue's three)

@@ -9,9 +9,9 @@ from packetloss_cvx import System
 from packetloss_cvx.claims import sensing as sensing_claim
 from packetloss_cvx.claims.context import Context
 from packetloss_cvx.claims.mpc_vs_dp import relative_excess
+from packetloss_cvx.closedloop.riccati import NO_SOLUTION
 from packetloss_cvx.errors import NumericalError
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.simulation.riccati import NO_SOLUTION
+from packetloss_cvx.model.random_systems import random_system
 
 
 def cases(k=12):
@@ -61,7 +61,7 @@ def test_mpc_vs_dp_with_the_shared_dp_is_the_one_solved_afresh(k):
 def test_the_sensed_twin_keeps_the_cases_initial_error_covariance():
     """A case that already has a sensor: its twin measures over the claim's link, from the case's own P0 (state.P0
     of its file), with the case's Sigma_W; only the sensor's C, gamma and R are the claim's."""
-    from packetloss_cvx.io import load_example
+    from packetloss_cvx.model.files import load_example
 
     case = load_example("pendulum_sensor")
     twin = sensing_claim.sensed(case)

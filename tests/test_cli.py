@@ -108,7 +108,7 @@ def test_solve_json_on_unseen_systems(seed, tmp_path, capsys):
     """Any valid combination of the schema's keys, written to a file and solved from the CLI."""
     import numpy as np
 
-    from packetloss_cvx.random_systems import random_system
+    from packetloss_cvx.model.random_systems import random_system
 
     system = random_system(np.random.default_rng(5000 + seed))
     path = tmp_path / "system.toml"

@@ -264,8 +264,8 @@ def test_progress_bars_by_default_on_a_terminal_as_tqdms_disable_none(monkeypatc
 
 
 def test_progress_bars_on_request_and_never_by_default_in_a_pipe(capsys):
-    from packetloss_cvx.allocation import pareto_curve
     from packetloss_cvx.claims import audit
+    from packetloss_cvx.studies.allocation import pareto_curve
 
     system = pl.load_example("two_actuator")
     audit(random=0, only=["theorem-2"], progress=True)
@@ -292,7 +292,7 @@ COMPLETIONS = [
     (["audit", "--cl"], ["--claim"]),
     (["sweep", "two_actuator", "--mu-"], ["--mu-grid", "--mu-list"]),
     (["solve", "pend"], ["pendulum", "pendulum_bursty", "pendulum_sensor"]),
-    (["simulate", ""], [*sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml")), "plant.toml"]),
+    (["simulate", ""], [*sorted(p.stem for p in (Path(pl.__file__).parent / "model" / "examples").glob("*.toml")), "plant.toml"]),
     (["allocate", "pl"], ["plant.toml"]),
 ]
 
@@ -361,7 +361,7 @@ ZSH_COMPLETIONS = [
 def test_zsh_completion_completes_examples_files_and_options_in_zsh(capsys, tmp_path):
     script = completion_script(capsys, "zsh")
     assert script.startswith("#compdef packetloss-cvx")
-    examples = sorted(p.stem for p in (Path(pl.__file__).parent / "examples").glob("*.toml"))
+    examples = sorted(p.stem for p in (Path(pl.__file__).parent / "model" / "examples").glob("*.toml"))
     assert f"'examples:example:({' '.join(examples)})'" in script
     if shutil.which("zsh") is None:
         pytest.skip("no zsh to run the script")

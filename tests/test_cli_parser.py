@@ -9,7 +9,7 @@ from packetloss_cvx.cli import main
 def test_every_packaged_example_is_named_in_the_help():
     """FILE's help listed pendulum and two_actuator, not pendulum_bursty (the one Gilbert-Elliott example)."""
     from packetloss_cvx.cli.parser import FILE_HELP
-    from packetloss_cvx.io import example_names
+    from packetloss_cvx.model.files import example_names
     assert all(name in FILE_HELP for name in example_names())
 
 

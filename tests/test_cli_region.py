@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from packetloss_cvx import System
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
-from packetloss_cvx.io import save_system
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import save_system
 
 
 @pytest.fixture

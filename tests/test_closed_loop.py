@@ -11,17 +11,16 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx import InputError, System, closed_form, load_example
-from packetloss_cvx.markov import bursty_twin
-from packetloss_cvx.simulation import (
+from packetloss_cvx.closedloop.critical import critical_mu
+from packetloss_cvx.closedloop.moments import (
     closed_loop,
-    critical_mu,
-    dp_riccati,
     finite_horizon_costs,
-    is_mean_square_stable,
     law_cost_to_go,
-    mean_square_radius,
     stationary_second_moment,
 )
+from packetloss_cvx.closedloop.riccati import dp_finite_horizon, dp_riccati
+from packetloss_cvx.closedloop.stability import is_mean_square_stable, mean_square_radius
+from packetloss_cvx.model.twins import bursty_twin
 from packetloss_cvx.tolerances import ROUNDING_ORDER_RTOL
 
 from .references import enumerated_operator
@@ -171,7 +170,7 @@ def test_to_dict_has_no_inf():
 
 
 def test_critical_mu_scalar_fixed_gain_and_redesigned():
-    from packetloss_cvx.simulation import critical_mu
+    from packetloss_cvx.closedloop.critical import critical_mu
     a = 2.0
     s = System(A=[[a]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
     # fixed k = a: radius a^2 (1 - mu) < 1 iff mu > 1 - 1/a^2
@@ -184,7 +183,7 @@ def test_critical_mu_scalar_fixed_gain_and_redesigned():
 
 
 def test_critical_mu_and_finite_costs_reject_bad_input():
-    from packetloss_cvx.simulation import critical_mu
+    from packetloss_cvx.closedloop.critical import critical_mu
     s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
     with pytest.raises(InputError, match="direction"):
         critical_mu(s, "dp", direction=[0.0])
@@ -241,7 +240,7 @@ def test_bernoulli_closed_loop_is_refused_behind_a_gilbert_elliott_chain():
 
 
 @pytest.mark.parametrize("call", [
-    lambda s: pl.simulation.dp_finite_horizon(s, 10**9),
+    lambda s: dp_finite_horizon(s, 10**9),
     lambda s: finite_horizon_costs(s, np.zeros((1, 1)), 10**9),
 ])
 def test_a_billion_steps_is_refused_before_it_is_allocated(call):
@@ -257,7 +256,7 @@ def test_an_overflowing_gain_is_not_stable_and_not_a_linalg_crash():
     """A finite gain of 1e200 squared to inf in the second-moment operator: np.linalg raised LinAlgError
     (Kronecker path, n = 2) or 'SVD did not converge' with LAPACK noise on stderr (ARPACK path, n = 25).
     The operator is quadratic in (A, K), so the radius of the scaled loop times c^2 is exact: about 1e400."""
-    from packetloss_cvx.simulation import is_mean_square_stable, mean_square_radius
+    from packetloss_cvx.closedloop.stability import is_mean_square_stable, mean_square_radius
     for n in (2, 25):
         A, B = np.diag([2.0] + [1.0] * (n - 1)), np.ones((n, 1))
         radius = mean_square_radius(A, B, np.full((1, n), 1e200), [0.5])
@@ -281,7 +280,7 @@ def test_second_moment_matrix_of_a_stack_of_laws_is_each_laws_matrix():
     """simulation.stability.second_moment_matrix over a stack (K (G, m, n), mu (G, m); the batched homogeneous
     Riccati's policy step) gives each law's matrix (to rounding: ROUNDING_ORDER_RTOL, the stack's products summed
     in the order the BLAS kernel picks), and each is the operator enumerated over the 2^m patterns."""
-    from packetloss_cvx.simulation.stability import second_moment_matrix
+    from packetloss_cvx.closedloop.stability import second_moment_matrix
 
     rng = np.random.default_rng(11)
     for n, m in [(1, 1), (2, 2), (3, 1), (2, 3)]:
@@ -311,7 +310,7 @@ def test_fixed_point_residual_check_refuses_3_and_keeps_0_3_times_moment_residua
     """X = X / 2 + C solved by a dense LU that returns 2 C + e E (E symmetric, ||E||_F = 1): the residual
     ||X - X/2 - C|| is e / 2 and the scale max(||X||, ||C||) is 2 ||C|| (to e), so the relative residual is
     e / (4 ||C||) (by hand); e = 4 factor MOMENT_RESIDUAL_RTOL ||C||: NumericalError at 3, X returned at 0.3."""
-    from packetloss_cvx.simulation.moments import solve_fixed_point
+    from packetloss_cvx.closedloop.moments import solve_fixed_point
     from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
 
     C = np.array([[2.0, 0.5], [0.5, 1.0]])
@@ -331,7 +330,7 @@ def test_average_cost_cross_check_refuses_3_and_keeps_0_3_times_moment_residual_
     made to disagree by factor MOMENT_RESIDUAL_RTOL (the cost-to-go solve's answer scaled): CrossCheckError at 3, the
     loop at 0.3 with its cost by hand (scalar a = 2, k = 2, mu = 0.8, sigma = 1: radius r = (2 - 0.8 * 2)^2
     + 0.8 * 0.2 * 4 = 0.8, moment S = sigma / (1 - r) = 5, cost (1 + 0.8 * 4) S = 21)."""
-    import packetloss_cvx.simulation.moments as moments_module
+    import packetloss_cvx.closedloop.moments as moments_module
     from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
 
     s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.8], x0=[1.0],

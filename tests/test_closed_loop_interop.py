@@ -5,7 +5,8 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx import InputError, System, closed_form, load_example
-from packetloss_cvx.simulation import closed_loop_statespace, dp_riccati
+from packetloss_cvx.closedloop.interop import closed_loop_statespace
+from packetloss_cvx.closedloop.riccati import dp_riccati
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +55,7 @@ def test_the_closed_loop_statespace_stays_discrete_time():
     """dt=0 returned a continuous-time StateSpace of the discrete-time matrix A - B M K (poles read as
     continuous-time ones: a stable loop looks unstable and the reverse); dt=-1 leaked control's ValueError."""
     control = pytest.importorskip("control")
-    from packetloss_cvx.simulation import closed_loop_statespace
+    from packetloss_cvx.closedloop.interop import closed_loop_statespace
     s = pl.load_example("two_actuator")
     for dt in (0, None, -1.0, float("nan"), False, "0.1"):
         with pytest.raises(InputError) as err:
@@ -72,7 +73,7 @@ def test_without_python_control_the_interop_names_the_extra(monkeypatch):
     how to install it (optional.load), not a bare ModuleNotFoundError traceback."""
     import sys
 
-    from packetloss_cvx.statespace import plant_matrices
+    from packetloss_cvx.model.statespace import plant_matrices
 
     monkeypatch.setitem(sys.modules, "control", None)          # import control -> ImportError
     with pytest.raises(InputError, match=r"pip install 'packetloss-cvx\[control\]'") as err:

@@ -5,11 +5,11 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-import packetloss_cvx.convex as convex
+import packetloss_cvx.qp.convex as convex
 from packetloss_cvx.allocation.tcp import TCPProgram
-from packetloss_cvx.convex import ClarabelProgram, first_answer, solve_problem
 from packetloss_cvx.errors import SolverError
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp.convex import ClarabelProgram, first_answer, solve_problem
 from packetloss_cvx.tolerances import (
     ALLOCATION_CLARABEL_ATTEMPTS,
     ALLOCATION_TCP_ATTEMPTS,
@@ -105,7 +105,7 @@ def test_a_quadratic_objective_is_cvxpys_solve_bit_for_bit(shape):
     problem.solve of the same problem, cold: same status and z to the last bit (the same data to one solver), the
     objective value (qp_shared.objective_value against cvxpy's evaluation) to rounding, on data padded as the
     audit pads them and scaled over nine decades."""
-    from packetloss_cvx.qp_shared import CondensedQP
+    from packetloss_cvx.qp.shared import CondensedQP
 
     rng = np.random.default_rng(sum(shape))
     compiled, reference = CondensedQP(*shape), CondensedQP(*shape)

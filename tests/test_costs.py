@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.costs import dense_cost, loss_variance_term
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.lq.costs import dense_cost, loss_variance_term
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.tolerances import FORWARD_COST_ROUNDING
 
 PROTOCOLS = ("tcp", "udp")
@@ -309,7 +309,7 @@ def _referee_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> N
     """The self-check's referee (the forward cost of the plan: costs.recursion_cost on the law's states, or
     costs.plan_cost for a plan rolled out open loop, the dense path's) moved by a chosen amount, so that the
     disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
-    import packetloss_cvx.costs as costs_module
+    import packetloss_cvx.lq.costs as costs_module
 
     real, real_plan = costs_module.recursion_cost, costs_module.plan_cost
 
@@ -369,8 +369,8 @@ def test_dense_path_is_refused_above_dense_max_condition_and_taken_below(factor,
     (10, 9, ..., 1)); psi puts it at factor DENSE_MAX_CONDITION. Above (3): "auto" takes the recursion and "dense"
     is refused before anything is built; below (0.3): "auto" takes the dense path and "dense" answers, both equal to
     the recursion."""
-    from packetloss_cvx.costs import pick_method
-    from packetloss_cvx.recursion import condition_estimate
+    from packetloss_cvx.lq.costs import pick_method
+    from packetloss_cvx.lq.recursion import condition_estimate
     from packetloss_cvx.tolerances import DENSE_MAX_CONDITION
 
     psi = 55.0 / (factor * DENSE_MAX_CONDITION - 1.0)

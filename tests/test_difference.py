@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from packetloss_cvx.claims.cost_difference import candidate_distance
-from packetloss_cvx.costs import closed_form
-from packetloss_cvx.difference import (
+from packetloss_cvx.errors import InputError
+from packetloss_cvx.lq.costs import closed_form
+from packetloss_cvx.lq.difference import (
     G_maps,
     cost_difference,
     lemma2_matrix,
@@ -16,10 +17,9 @@ from packetloss_cvx.difference import (
     shared_channel_differences,
     theorem4_maximiser,
 )
-from packetloss_cvx.errors import InputError
-from packetloss_cvx.io import load_example
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.model.files import load_example
+from packetloss_cvx.model.random_systems import random_system
 
 NUS = np.concatenate([[0.0, 1e-9, 1e-4], np.linspace(0.01, 0.99, 23), [1 - 1e-6, 1.0]])
 
@@ -110,7 +110,7 @@ def test_candidate_distance_equals_a_loop_over_the_roots():
 def test_cost_differences_in_batches_equal_the_two_closed_forms(monkeypatch):
     """The stacked J_Delta (sweeps, the 2-D maximiser) against J*_udp - J*_tcp from two closed forms, on random
     systems and schedules; chunks of a few points give the same bits as one chunk."""
-    import packetloss_cvx.difference as difference
+    import packetloss_cvx.lq.difference as difference
 
     rng = np.random.default_rng(8)
     for _ in range(6):

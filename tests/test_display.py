@@ -103,7 +103,8 @@ def test_every_result_type_has_a_one_line_repr_and_json():
 
     import packetloss_cvx as pl
     import packetloss_cvx.results as results
-    from packetloss_cvx.simulation import closed_loop, dp_riccati
+    from packetloss_cvx.closedloop.moments import closed_loop
+    from packetloss_cvx.closedloop.riccati import dp_riccati
 
     for name in results.__all__:
         cls = getattr(results, name)
@@ -128,7 +129,7 @@ def test_a_bursty_system_says_so_in_its_repr():
 
 
 def test_a_gilbert_elliott_repr_shows_what_was_given():
-    from packetloss_cvx.channel import GilbertElliott
+    from packetloss_cvx.model.channel import GilbertElliott
     assert repr(GilbertElliott(p=[0.1], r=[0.4])) == "GilbertElliott(m=1, p=[0.1], r=[0.4])"
     text = repr(GilbertElliott(p=[0.1], r=[0.4], state=["bad"]))
     assert text == "GilbertElliott(m=1, p=[0.1], r=[0.4], state=['bad'])"

@@ -1,10 +1,7 @@
 """The documentation site's pages: their tutorials' code runs and the nav names every page (the strict build and
 the browser check: tests/test_docs_site.py)."""
 
-import importlib.util
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest

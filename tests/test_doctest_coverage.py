@@ -22,24 +22,20 @@ import packetloss_cvx
 
 #: modules (under packetloss_cvx) whose every public function and class has a ``>>>`` example
 COVERED = (
-    "channel", "convex", "costs", "difference", "io", "linalg", "markov.chain", "markov.compare",
-    "markov.exact_cost",
-    "markov.mjls", "markov.qp", "markov.sweep", "model", "plots", "prediction", "progress", "protocols",
-    "random_systems", "recursion", "roundoff", "validation", "safeio", "runfolder",
-    "simulation.certificates", "simulation.channels", "simulation.critical", "simulation.interop",
-    "simulation.markov_channels",
-    "simulation.markov_loop", "simulation.markov_montecarlo", "simulation.moments", "simulation.montecarlo",
-    "simulation.region", "simulation.region_lmi", "simulation.region_map",
-    "simulation.riccati", "simulation.runs", "simulation.sampling", "simulation.stability", "threads", "display",
-    "results.base", "analysis", "optional", "qp", "qp_shared",
-    "claims.channel_allocation", "claims.closed_loop", "claims.context",
-    "claims.cost_difference", "claims.evaluate", "claims.markov", "claims.mpc_vs_dp", "claims.ordering",
-    "claims.registry", "claims.report", "claims.tables", "claims.theorem1",
-    "studies.design", "studies.output", "studies.paper_figures", "studies.sweeps",
-    "cli.allocate", "cli.audit", "cli.common", "cli.completion", "cli.format", "cli.markov_section",
-    "cli.parser", "cli.reproduce", "cli.simulate", "cli.solve", "cli.sweep",
-    "allocation.api", "allocation.boxes", "allocation.brute_force", "allocation.grammar",
-    "allocation.studies", "allocation.tcp", "allocation.udp",
+    "allocation.api", "allocation.boxes", "allocation.brute_force", "allocation.grammar", "allocation.tcp",
+    "allocation.udp", "claims.channel_allocation", "claims.closed_loop", "claims.context", "claims.cost_difference",
+    "claims.evaluate", "claims.markov", "claims.mpc_vs_dp", "claims.ordering", "claims.registry", "claims.report",
+    "claims.tables", "claims.theorem1", "cli.allocate", "cli.audit", "cli.common", "cli.completion", "cli.format",
+    "cli.markov_section", "cli.parser", "cli.reproduce", "cli.simulate", "cli.solve", "cli.sweep",
+    "closedloop.certificates", "closedloop.critical", "closedloop.interop", "closedloop.mjls", "closedloop.moments",
+    "closedloop.region", "closedloop.region_lmi", "closedloop.riccati", "closedloop.stability", "display", "linalg",
+    "lq.analysis", "lq.costs", "lq.difference", "lq.markov_cost", "lq.prediction", "lq.recursion", "lq.roundoff",
+    "model.chain", "model.channel", "model.files", "model.protocols", "model.random_systems", "model.system",
+    "model.twins", "model.validation", "montecarlo.channels", "montecarlo.markov", "montecarlo.markov_channels",
+    "montecarlo.markov_loop", "montecarlo.runs", "montecarlo.sampling", "montecarlo.simulate", "optional",
+    "plots.figures", "progress", "qp.convex", "qp.expected_cost", "qp.markov", "qp.markov_solution", "qp.shared",
+    "results.base", "runfolder", "safeio", "studies.allocation", "studies.burstiness", "studies.design",
+    "studies.output", "studies.paper_figures", "studies.region_map", "studies.sweeps", "threads",
 )
 
 

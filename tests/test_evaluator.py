@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-import packetloss_cvx.evaluator as evaluator_module
-from packetloss_cvx.evaluator import CostEvaluator
-from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.random_systems import random_system
+import packetloss_cvx.lq.evaluator as evaluator_module
+from packetloss_cvx.lq.evaluator import CostEvaluator
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.model.random_systems import random_system
 
 RTOL = 1e-12
 

@@ -8,8 +8,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm, to_rgb
 from matplotlib.patheffects import withStroke
 
-from packetloss_cvx.plot_style import log_ticks, tick_text
 from packetloss_cvx.plots import plot_closed_loop, plot_cost_lines, plot_log_contour, plot_pareto
+from packetloss_cvx.plots.style import log_ticks, tick_text
 
 AXIS = np.linspace(0.0, 1.0, 61)
 MU1, MU2 = np.meshgrid(AXIS, AXIS)                       # [j, i] = (AXIS[i], AXIS[j]): rows follow mu2

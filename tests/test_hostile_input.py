@@ -6,6 +6,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
+from packetloss_cvx.model.files import dumps_system, system_from_dict
 
 BASE = {"A": [[1.0, 0.0], [0.0, 1.0]], "B": [[1.0], [0.5]], "horizon": 5, "state_weight": [1, 1],
         "input_weight": [1], "mu": [0.5], "x0": [1, 0]}
@@ -44,7 +45,7 @@ def test_load_system_refuses_a_nul_in_the_path():
 
 
 def _toml(tmp_path, name, old, new, prefix=b""):
-    text = pl.io.dumps_system(pl.load_example("two_actuator"))
+    text = dumps_system(pl.load_example("two_actuator"))
     assert old in text
     path = tmp_path / name
     path.write_bytes(prefix + text.replace(old, new).encode())
@@ -125,7 +126,7 @@ def test_devices_and_pipes_are_not_read(tmp_path):
 def test_newlines_in_names_keep_one_stderr_line(tmp_path, capsys):
     assert main(["solve", "no\nsuch\nfile"]) == 2
     path = tmp_path / "nl.toml"
-    path.write_text(pl.io.dumps_system(pl.load_example("two_actuator")) + '"a\\nb" = 1\n')
+    path.write_text(dumps_system(pl.load_example("two_actuator")) + '"a\\nb" = 1\n')
     assert main(["solve", str(path)]) == 2
     _, err = capsys.readouterr()
     assert err.count("\n") == 2            # one line per command
@@ -144,7 +145,7 @@ def test_save_system_round_trips_any_name(tmp_path):
     """json.dumps wrote surrogate pairs for characters beyond U+FFFF, which TOML forbids."""
     data = pl.load_example("two_actuator").to_dict()
     data["name"] = 'pump \U0001f600 \x7f tab\t "q" \\ \u00e9'
-    system = pl.io.system_from_dict(data)
+    system = system_from_dict(data)
     assert pl.load_system(pl.save_system(system, tmp_path / "s.toml")).name == data["name"]
     with pytest.raises(pl.InputError) as info:
         pl.save_system(system, tmp_path)
@@ -173,7 +174,7 @@ def test_rows_as_arrays_and_masked_arrays():
 
 @pytest.mark.parametrize(("call", "field"), [
     # each raised an untyped error (TypeError, AttributeError) or was accepted with a meaningless value
-    (lambda s, tmp: __import__("packetloss_cvx.simulation", fromlist=["simulate"]).simulate(
+    (lambda s, tmp: __import__("packetloss_cvx.montecarlo", fromlist=["simulate"]).simulate(
         s, 10, closed_loop="no", progress=False), "closed_loop"),
     (lambda s, tmp: pl.audit(systems="pendulum", random=0, progress=False), "systems"),
     (lambda s, tmp: pl.audit(systems=[s, "pendulum"], random=0, progress=False), "systems"),

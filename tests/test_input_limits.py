@@ -18,9 +18,9 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.claims import audit
-from packetloss_cvx.markov import burstiness_sweep
-from packetloss_cvx.simulation import simulate
+from packetloss_cvx.montecarlo.simulate import simulate
 from packetloss_cvx.studies import sweep
+from packetloss_cvx.studies.burstiness import burstiness_sweep
 
 from .processes import Zygote
 

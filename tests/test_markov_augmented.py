@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import BudgetError, InputError
-from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_cost, exact_qp
-from packetloss_cvx.markov.augmented import augmented_solve, chain_cost, chain_lift
-from packetloss_cvx.markov.chain import chain_matrices, channel_covariance
-from packetloss_cvx.markov_channel import MarkovChannel
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.lq.augmented import augmented_solve, chain_cost, chain_lift
+from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
+from packetloss_cvx.model.chain import attach_channel, chain_matrices, channel_covariance
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp.markov import exact_qp
 from tests.references import enumerated_chain_cost
 from tests.test_markov_chain import random_channel
 
@@ -100,8 +101,8 @@ def test_a_stationary_chain_closes_the_value_and_rolls_its_run_by_powers(monkeyp
     one by one (PATH_AGREEMENT_RTOL), and the dense second-moment route (another formulation: cost, plan and gain
     to 1e-10; rho(A) = 0.6, N = 300). "slow": rho(A) = 0.97 and a weak B, where the plan after the run is still
     1e-3 of its largest input (a wrong step after the run shows)."""
-    import packetloss_cvx.markov.augmented as augmented
-    from packetloss_cvx.io import system_from_dict
+    import packetloss_cvx.lq.augmented as augmented
+    from packetloss_cvx.model.files import system_from_dict
     from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
 
     slow = case == "slow gilbert-elliott"
@@ -301,7 +302,7 @@ def pendulum_at(horizon, radius=None):
 
 
 def test_auto_takes_the_dense_route_where_it_is_faster_and_safe(monkeypatch):
-    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+    exact_module = importlib.import_module("packetloss_cvx.lq.markov_cost")   # the name is also a function
 
     short = pendulum_at(80)
     auto, rec = exact_closed_form(short), exact_closed_form(short, method="recursion")
@@ -315,7 +316,7 @@ def test_auto_takes_the_dense_route_where_it_is_faster_and_safe(monkeypatch):
 
 
 def test_auto_falls_back_to_the_recursion_when_the_dense_route_loses_its_digits(monkeypatch):
-    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+    exact_module = importlib.import_module("packetloss_cvx.lq.markov_cost")   # the name is also a function
 
     def lost(system):
         raise pl.NumericalError("planted: the dense prediction lost its digits")
@@ -328,7 +329,7 @@ def test_auto_falls_back_to_the_recursion_when_the_dense_route_loses_its_digits(
 
 
 def test_the_recursion_is_refused_beyond_its_time_budget_before_any_work(monkeypatch):
-    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+    exact_module = importlib.import_module("packetloss_cvx.lq.markov_cost")   # the name is also a function
     from packetloss_cvx.budgets import markov_recursion_work
 
     def never(*args, **kwargs):
@@ -354,7 +355,7 @@ def test_a_chain_too_large_for_the_budget_exits_2_with_one_line(tmp_path, capsys
     """A 100-state chain behind a scalar plant at N = 2000: D = 100, the recursion (about 0.4 s) is faster than the
     dense route (about 2.6 s), so auto takes it; a budget of 1e9 units refuses it before any work, in one line."""
     from packetloss_cvx.cli import main
-    from packetloss_cvx.io import dumps_system
+    from packetloss_cvx.model.files import dumps_system
 
     rng = np.random.default_rng(0)
     T = rng.uniform(size=(100, 100)) + 50 * np.eye(100)
@@ -375,7 +376,7 @@ def test_a_chain_too_large_for_the_budget_exits_2_with_one_line(tmp_path, capsys
 
 def _chain_cost_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
     """augmented_solve's referee (chain_cost, the exact forward cost of the plan) moved by a chosen amount."""
-    augmented_module = importlib.import_module("packetloss_cvx.markov.augmented")
+    augmented_module = importlib.import_module("packetloss_cvx.lq.augmented")
     real = augmented_module.chain_cost
     monkeypatch.setattr(augmented_module, "chain_cost", lambda *a, **k: real(*a, **k) * (1 + relative) + absolute)
 

@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
-from packetloss_cvx.io import dumps_system, system_from_dict
-from packetloss_cvx.markov import channel_covariance, exact_closed_form, exact_cost, filter_belief, second_moments
-from packetloss_cvx.markov_channel import MarkovChannel
+from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
+from packetloss_cvx.model.chain import channel_covariance, filter_belief, second_moments
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import dumps_system, system_from_dict
+from packetloss_cvx.model.markov_channel import MarkovChannel
 from packetloss_cvx.tolerances import ROW_SUM_ATOL
 
 BASE = {

@@ -6,14 +6,15 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.claims import CLAIMS
 from packetloss_cvx.claims.context import Context
 from packetloss_cvx.claims.markov import plug_in_markov, plugin_loss
 from packetloss_cvx.cli import main
-from packetloss_cvx.io import dumps_system, system_from_dict
-from packetloss_cvx.markov import exact_closed_form, exact_cost, markov_solution
-from packetloss_cvx.simulation.markov_channels import sample_markov_plan_costs
+from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import dumps_system, system_from_dict
+from packetloss_cvx.montecarlo.markov_channels import sample_markov_plan_costs
+from packetloss_cvx.qp.markov_solution import markov_solution
 
 
 def run(capsys, *argv):

@@ -8,11 +8,13 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_cost, exact_qp
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.simulation.markov_channels import sample_markov_plan_costs
+from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.model.chain import attach_channel
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.montecarlo.markov_channels import sample_markov_plan_costs
+from packetloss_cvx.qp.markov import exact_qp
 from packetloss_cvx.tolerances import SELF_CHECK_RTOL
 from tests.test_markov_chain import moments_by_enumeration, random_channel
 
@@ -126,7 +128,7 @@ def test_the_udp_like_cost_of_a_chain_is_refused_not_the_plug_in_number():
     the expected cost of that plan under the chain is 51735: a number without a word. It is refused now,
     with the two ways out; the TCP-like cost (first moments only) stays exact."""
     from packetloss_cvx.errors import InputError
-    from packetloss_cvx.markov import exact_closed_form, exact_cost
+    from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
 
     s = pl.load_example("pendulum_bursty")
     for call in (lambda: pl.closed_form(s, "udp"), lambda: pl.solve_qp(s, "udp"),
@@ -144,7 +146,7 @@ def test_the_udp_like_cost_of_a_chain_is_refused_not_the_plug_in_number():
 def test_dense_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monkeypatch, factor, kept):
     """The dense route's J* off the exact forward cost of its own plan (exact_cost, method 'dense') by 3
     SELF_CHECK_RTOL (relative) raises, by 0.3 is returned."""
-    exact_module = importlib.import_module("packetloss_cvx.markov.exact_cost")   # the name is also a function
+    exact_module = importlib.import_module("packetloss_cvx.lq.markov_cost")   # the name is also a function
     s = bursty(3)
     exact = exact_closed_form(s, method="dense").cost
     real = exact_module.exact_cost

@@ -10,12 +10,13 @@ import itertools
 import numpy as np
 import pytest
 
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import NumericalError
-from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_qp
-from packetloss_cvx.markov.chain import chain_matrices
-from packetloss_cvx.markov_channel import MarkovChannel
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.lq.markov_cost import exact_closed_form
+from packetloss_cvx.model.chain import attach_channel, chain_matrices
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp.markov import exact_qp
 from tests.references import enumerated_chain_cost
 
 CHAINS = {

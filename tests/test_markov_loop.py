@@ -5,11 +5,12 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.closedloop.mjls import mode_chain, second_moment_operator
 from packetloss_cvx.errors import ResourceError
-from packetloss_cvx.markov import attach_channel, bursty_twin
-from packetloss_cvx.markov.mjls import mode_chain, second_moment_operator
-from packetloss_cvx.simulation.markov_loop import PLAN_BUDGET, markov_closed_loop_costs
+from packetloss_cvx.model.chain import attach_channel
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.twins import bursty_twin
+from packetloss_cvx.montecarlo.markov_loop import PLAN_BUDGET, markov_closed_loop_costs
 
 
 def exact_loop_cost(system, K, steps):
@@ -66,7 +67,7 @@ def test_the_older_closed_loop_api_keeps_the_plan_budget(monkeypatch):
     # h strictly between 0 and 1: the filtered belief takes a new value in almost every run, one plan each;
     # markov_closed_loop_costs planned on without a limit (minutes), simulate refused: now both refuse.
     # The budget is read when the law is built, so a lowered one is met after 60 plans, not 2000 (5 s)
-    from packetloss_cvx.simulation import markov_loop
+    from packetloss_cvx.montecarlo import markov_loop
 
     assert PLAN_BUDGET == 2000
     monkeypatch.setattr(markov_loop, "PLAN_BUDGET", 60)
@@ -80,7 +81,7 @@ def test_the_older_closed_loop_api_keeps_the_plan_budget(monkeypatch):
 def test_belief_gains_of_many_beliefs_are_the_gains_of_each():
     """simulation.markov_loop.BeliefGains.many (distinct rows by a lexsort) gives, belief by belief, the gain of
     that belief alone: rows equal in one column and not the other, equal after rounding to 12 digits, repeated."""
-    from packetloss_cvx.simulation.markov_loop import BeliefGains
+    from packetloss_cvx.montecarlo.markov_loop import BeliefGains
     s = pl.System(A=[[1.1, 0.2], [0.0, 0.9]], B=[[1.0, 0.0], [0.3, 1.0]], horizon=3, state_weight=[1.0, 1.0],
                   input_weight=[1.0, 1.0], x0=[1.0, 0.0], channel=GilbertElliott(p=[0.2, 0.3], r=[0.5, 0.6]))
     rng = np.random.default_rng(4)

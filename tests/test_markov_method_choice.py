@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import NumericalError
-from packetloss_cvx.markov.chain import attach_channel
-from packetloss_cvx.markov.exact_cost import auto_route, dense_max, exact_closed_form
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.lq.markov_cost import auto_route, dense_max, exact_closed_form
+from packetloss_cvx.model.chain import attach_channel
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.random_systems import random_system
 
 
 def bursty(seed, horizon, m=2):
@@ -63,7 +63,7 @@ def test_auto_falls_back_to_the_recursion_when_the_dense_route_raises(monkeypatc
     def lost(system):
         raise NumericalError("planted: the dense self-check failed")
 
-    monkeypatch.setattr(importlib.import_module("packetloss_cvx.markov.exact_cost"), "_dense_closed_form", lost)
+    monkeypatch.setattr(importlib.import_module("packetloss_cvx.lq.markov_cost"), "_dense_closed_form", lost)
     assert exact_closed_form(s).method == "markov-recursion"
     with pytest.raises(NumericalError, match="planted"):
         exact_closed_form(s, method="dense")

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.closedloop.mjls import coupled_riccati, mean_square_radius, mode_chain, second_moment_operator
 from packetloss_cvx.errors import NumericalError
-from packetloss_cvx.markov import bursty_twin
-from packetloss_cvx.markov.mjls import coupled_riccati, mean_square_radius, mode_chain, second_moment_operator
-from packetloss_cvx.simulation.markov_channels import sample_markov_deliveries, sample_states
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.twins import bursty_twin
+from packetloss_cvx.montecarlo.markov_channels import sample_markov_deliveries, sample_states
 
 PHI = (1 + 5**0.5) / 2
 
@@ -221,8 +221,8 @@ def test_fractional_h_coupled_riccati_solves_the_enumerated_bellman_equation(see
 
 
 def test_fractional_h_jump_law_stage_costs_by_hand_and_by_the_bernoulli_moments():
-    from packetloss_cvx.markov.mjls import jump_law_stage_costs
-    from packetloss_cvx.simulation.moments import finite_horizon_costs
+    from packetloss_cvx.closedloop.mjls import jump_law_stage_costs
+    from packetloss_cvx.closedloop.moments import finite_horizon_costs
 
     # t = 0 by hand: x0 = 1, u = -k x0 delivered with probability 0.6: E[x0^2 + psi (v u)^2] = 1 + 0.6 * 2 * k^2
     s = pl.System(A=[[1.1]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[2.0], x0=[1.0],
@@ -249,7 +249,7 @@ def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check
     """The check after the iteration, one more step from the answer P, sees a residual max|step(P) - P| / max|P| of
     factor SELF_CHECK_RTOL (planted on that step's largest entry; the iteration itself stops 100 times below it):
     NumericalError at 3, the answer (the hand values of test_hand_derived_two_mode_scalar) at 0.3."""
-    import packetloss_cvx.markov.mjls as mjls_module
+    import packetloss_cvx.closedloop.mjls as mjls_module
     from packetloss_cvx.tolerances import SELF_CHECK_RTOL
 
     s = scalar(0.0, 0.5)

@@ -5,10 +5,10 @@ simulation/stability.py (memoryless chains, beyond the dense limit); the dense o
 import numpy as np
 import pytest
 
-from packetloss_cvx.channel import GilbertElliott
+from packetloss_cvx.closedloop.mjls import MAX_OPERATOR_DIM, mean_square_radius, second_moment_operator
+from packetloss_cvx.closedloop.stability import mean_square_radius as bernoulli_radius
 from packetloss_cvx.errors import ResourceError
-from packetloss_cvx.markov.mjls import MAX_OPERATOR_DIM, mean_square_radius, second_moment_operator
-from packetloss_cvx.simulation import mean_square_radius as bernoulli_radius
+from packetloss_cvx.model.channel import GilbertElliott
 
 
 def case(seed, n, m, scale=1.0):

@@ -9,13 +9,19 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.markov import coupled_riccati, mean_square_radius, mode_chain
-from packetloss_cvx.markov.mjls import MAX_MODES, jump_law_stage_costs, mode_start
-from packetloss_cvx.markov_channel import MarkovChannel
-from packetloss_cvx.simulation import simulate
-from packetloss_cvx.simulation.markov_channels import sample_markov_paths, sample_states
-from packetloss_cvx.simulation.riccati import dp_riccati
+from packetloss_cvx.closedloop.mjls import (
+    MAX_MODES,
+    coupled_riccati,
+    jump_law_stage_costs,
+    mean_square_radius,
+    mode_chain,
+    mode_start,
+)
+from packetloss_cvx.closedloop.riccati import dp_riccati
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.montecarlo.markov_channels import sample_markov_paths, sample_states
+from packetloss_cvx.montecarlo.simulate import simulate
 from tests.references import enumerated_radius
 
 T3 = [[0.7, 0.2, 0.1], [0.1, 0.5, 0.4], [0.3, 0.3, 0.4]]
@@ -204,9 +210,9 @@ def test_simulate_behind_an_unseen_three_state_chain_agrees_with_the_exact_value
 def test_closed_loop_costs_behind_an_iid_chain_are_bernoulli_at_the_mean_rate():
     """markov_closed_loop_costs samples k-state chains: with identical rows each step delivers Bernoulli(pi . d), so the
     plug-in UDP-like law's realised cost has the Bernoulli loop's exact mean (simulation.moments)."""
-    from packetloss_cvx.costs import closed_form
-    from packetloss_cvx.simulation.markov_loop import markov_closed_loop_costs
-    from packetloss_cvx.simulation.moments import finite_horizon_costs
+    from packetloss_cvx.closedloop.moments import finite_horizon_costs
+    from packetloss_cvx.lq.costs import closed_form
+    from packetloss_cvx.montecarlo.markov_loop import markov_closed_loop_costs
 
     ch = MarkovChannel(transition=[[[0.5, 0.3, 0.2]] * 3], delivery=[D3])
     A, B = plant(16, m=1)

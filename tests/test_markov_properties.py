@@ -8,7 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import packetloss_cvx as pl
-from packetloss_cvx.markov import attach_channel, exact_closed_form, exact_cost, exact_qp
+from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
+from packetloss_cvx.model.chain import attach_channel
+from packetloss_cvx.qp.markov import exact_qp
 from tests.test_markov_chain import random_channel
 from tests.test_properties import systems
 

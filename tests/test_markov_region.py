@@ -7,12 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.errors import InputError, NumericalError
-from packetloss_cvx.markov.mjls import coupled_riccati
-from packetloss_cvx.markov.mjls import mean_square_radius as mjls_radius
-from packetloss_cvx.model import System
-from packetloss_cvx.simulation.markov_region import (
+from packetloss_cvx.closedloop.markov_region import (
     chain_at_rate,
     chain_certificate_margin,
     chain_critical_rate,
@@ -21,13 +16,18 @@ from packetloss_cvx.simulation.markov_region import (
     critical_rate_unproved,
     homogeneous_coupled_riccati,
 )
-from packetloss_cvx.simulation.region import membership
+from packetloss_cvx.closedloop.mjls import coupled_riccati
+from packetloss_cvx.closedloop.mjls import mean_square_radius as mjls_radius
+from packetloss_cvx.closedloop.region import membership
+from packetloss_cvx.errors import InputError, NumericalError
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.system import System
 from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
 
 
 def pl_load(name):
     from packetloss_cvx import load_system
-    from packetloss_cvx.examples import __file__ as examples
+    from packetloss_cvx.model.examples import __file__ as examples
 
     return load_system(Path(examples).parent / f"{name}.toml")
 

@@ -9,9 +9,9 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx import load_example
 from packetloss_cvx.cli import main
-from packetloss_cvx.costs import closed_form
-from packetloss_cvx.markov import exact_closed_form
-from packetloss_cvx.simulation import is_mean_square_stable
+from packetloss_cvx.closedloop.stability import is_mean_square_stable
+from packetloss_cvx.lq.costs import closed_form
+from packetloss_cvx.lq.markov_cost import exact_closed_form
 
 from .conftest import EXAMPLES
 
@@ -58,8 +58,8 @@ def test_the_gilbert_elliott_section_is_headed_once(capsys):
 def test_a_chain_beyond_the_mjls_size_is_not_stable_and_not_bad_input():
     """solve on a valid 7-channel Gilbert-Elliott file exited 2 ('expected at most 6 channels') from its
     stability line: the MJLS operator's 2^m modes are out of reach, the file is not bad input."""
-    from packetloss_cvx.channel import GilbertElliott
     from packetloss_cvx.cli.solve import stability
+    from packetloss_cvx.model.channel import GilbertElliott
     system = pl.System(A=[[0.9, 0.1], [0.0, 0.8]], B=np.ones((2, 7)), horizon=3, state_weight=[1.0, 1.0],
                        input_weight=[1.0] * 7, channel=GilbertElliott(p=[0.1] * 7, r=[0.3] * 7), x0=[1.0, 1.0])
     entry: dict = {}

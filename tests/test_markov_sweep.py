@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.markov import burstiness_sweep, bursty_twin, exact_qp
-from packetloss_cvx.simulation.markov_channels import sample_markov_plan_costs
+from packetloss_cvx.model.twins import bursty_twin
+from packetloss_cvx.montecarlo.markov_channels import sample_markov_plan_costs
+from packetloss_cvx.qp.markov import exact_qp
+from packetloss_cvx.studies.burstiness import burstiness_sweep
 
 
 def test_sweep_of_the_two_actuator_system():

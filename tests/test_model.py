@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.io import system_from_dict
+from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.tolerances import ROUNDING_ORDER_RTOL
 
 GOOD = {
@@ -159,7 +159,7 @@ def test_missing_and_non_toml_files(tmp_path):
 
 def _weights_one_by_one(items, n):
     """The reference: psd_weight a step at a time (what System did before the stacked check)."""
-    from packetloss_cvx.validation import psd_weight
+    from packetloss_cvx.model.validation import psd_weight
     return np.stack([psd_weight(w, f"state_weights[{t}]", n) for t, w in enumerate(items)])
 
 
@@ -178,7 +178,7 @@ def test_stacked_weight_check_gives_the_step_by_step_floats_and_first_error(seed
     (ROUNDING_ORDER_RTOL) where eigenvalues a rounding below 0 are repaired (an eigen-decomposition and a product,
     stacked against one at a time), and the same first error (type and text) wherever one or two steps are bad,
     in any order."""
-    from packetloss_cvx.validation import psd_weights
+    from packetloss_cvx.model.validation import psd_weights
     rng = np.random.default_rng(seed)
     n, N = int(rng.integers(1, 5)), int(rng.integers(2, 30))
 
@@ -224,7 +224,7 @@ def test_weights_as_nested_lists_give_the_step_by_step_floats_and_first_error(se
     """Steps given as nested lists (a TOML file's) are converted as one stack: the same floats bit for bit as
     psd_weight step by step, and where a step is bad (an entry that is not a finite number or beyond the double
     range, a wrong or ragged shape, an indefinite or asymmetric matrix) the same first error, naming that step."""
-    from packetloss_cvx.validation import psd_weights
+    from packetloss_cvx.model.validation import psd_weights
     rng = np.random.default_rng(100 + seed)
     n, N = int(rng.integers(1, 5)), int(rng.integers(2, 30))
     F = rng.normal(size=(N, n, n))
@@ -249,7 +249,7 @@ def test_weights_as_nested_lists_give_the_step_by_step_floats_and_first_error(se
 def test_weights_as_arrays_of_one_shape_give_the_step_by_step_floats_and_first_error():
     """Plain arrays of one shape are checked as one stack: the same floats as psd_weight step by step (integer
     and float arrays mixed), and a boolean, complex or non-finite step refused with that step's own error."""
-    from packetloss_cvx.validation import psd_weights
+    from packetloss_cvx.model.validation import psd_weights
     rng = np.random.default_rng(7)
     n, N = 3, 12
     F = rng.normal(size=(N, n, n))

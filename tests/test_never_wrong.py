@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import plan_cost, recursion_cost
+from packetloss_cvx.lq.recursion import plan_cost, recursion_cost
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.tolerances import PLAN_COST_RTOL
 
 from .references import exact_plan_cost
@@ -184,7 +184,7 @@ def test_markov_exact_cost_of_a_plan_is_refused_where_its_mean_states_are_not_re
     alone) is refused as the Bernoulli one is. The UDP-like cost is returned: the lost inputs' variance, amplified
     by A^t, makes it about 1e106, beside which the mean states' rounding (1e78) is nothing. With a chain that never
     loses (p = 0, mu = 1) the UDP-like cost is the mean states' alone, and it is refused."""
-    from packetloss_cvx.markov import exact_cost
+    from packetloss_cvx.lq.markov_cost import exact_cost
 
     data = pl.load_example("pendulum_bursty").to_dict()
     data["cost"]["horizon"] = 2000
@@ -299,7 +299,7 @@ def test_api_cross_check_binds():
 def test_cli_skips_a_qp_that_cannot_fit_and_says_why(capsys, tmp_path, monkeypatch):
     """N = 50000 with m = 1: the QP needs about 0.13 GiB (it needed 18.6 GiB before its memory became
     linear in N), refused here against a 0.1 GB budget; the closed form needs a few MB."""
-    monkeypatch.setattr("packetloss_cvx.qp.MEMORY_BUDGET_BYTES", 1e8)
+    monkeypatch.setattr("packetloss_cvx.qp.expected_cost.MEMORY_BUDGET_BYTES", 1e8)
     path = tmp_path / "long.toml"
     pl.save_system(_readme(1), path)
     path.write_text(path.read_text().replace("horizon = 1", "horizon = 50000"))
@@ -391,7 +391,7 @@ def test_cross_check_against_an_exact_zero(two_actuator):
 def test_qp_memory_grows_with_n_and_is_refused_in_advance(monkeypatch):
     """The estimate counts the state terms (~250 N n^2 bytes measured): n = 3000 over 5 steps needs ~11 GiB,
     and a 300-state system is refused against a budget it would exceed."""
-    from packetloss_cvx.qp import qp_memory_estimate
+    from packetloss_cvx.qp.expected_cost import qp_memory_estimate
 
     def system(n: int) -> pl.System:
         return pl.System(A=np.eye(n) * 0.5, B=np.ones((n, 1)), horizon=5, state_weight=np.ones(n),
@@ -400,6 +400,6 @@ def test_qp_memory_grows_with_n_and_is_refused_in_advance(monkeypatch):
     small = system(300)
     assert qp_memory_estimate(small, "sparse") > 8e7
     assert qp_memory_estimate(system(600), "sparse") - 1e7 > 3.9 * (qp_memory_estimate(small, "sparse") - 1e7)
-    monkeypatch.setattr("packetloss_cvx.qp.MEMORY_BUDGET_BYTES", 5e7)
+    monkeypatch.setattr("packetloss_cvx.qp.expected_cost.MEMORY_BUDGET_BYTES", 5e7)
     with pytest.raises(pl.ResourceError, match="GiB"):
         pl.ExpectedCostQP(small, "tcp", "sparse")

@@ -11,7 +11,10 @@ import pytest
 import packetloss_cvx as pl
 import packetloss_cvx.results as results
 from packetloss_cvx import InputError
-from packetloss_cvx.simulation import closed_loop, dp_riccati, simulate, with_stability
+from packetloss_cvx.closedloop.law_stability import with_stability
+from packetloss_cvx.closedloop.moments import closed_loop
+from packetloss_cvx.closedloop.riccati import dp_riccati
+from packetloss_cvx.montecarlo.simulate import simulate
 from packetloss_cvx.studies import sweep
 
 
@@ -155,7 +158,7 @@ def test_solution_view_says_not_stable_for_a_law_that_diverges():
 
 def test_solution_stability_behind_a_chain_is_the_markov_jump_radius():
     # a chain whose two states deliver alike is i.i.d. Bernoulli: the MJLS radius equals the Kronecker one
-    from packetloss_cvx.channel import GilbertElliott
+    from packetloss_cvx.model.channel import GilbertElliott
     s = pl.load_example("two_actuator")
     chain = GilbertElliott(p=[0.2, 0.3], r=[0.4, 0.1], h_good=[0.7, 0.6], h_bad=[0.7, 0.6])
     bursty = s.with_channel(chain)

@@ -36,7 +36,7 @@ def test_wheel_holds_every_module_and_data_file(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     wanted = {p.relative_to(ROOT).as_posix() for p in PACKAGE.rglob("*")
               if p.suffix in (".py", ".toml") and "__pycache__" not in p.parts}
-    assert "packetloss_cvx/examples/pendulum.toml" in wanted
+    assert "packetloss_cvx/model/examples/pendulum.toml" in wanted
     assert wanted <= names, sorted(wanted - names)
 
 

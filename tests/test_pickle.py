@@ -10,8 +10,8 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx import errors
-from packetloss_cvx.channel import GilbertElliott
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.random_systems import random_system
 
 FIELDS = ("A", "B", "state_weights", "input_weights", "mu_schedule", "x0", "initial_weight", "noise_cov")
 

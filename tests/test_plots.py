@@ -10,7 +10,7 @@ import pytest
 from matplotlib.figure import Figure
 
 import packetloss_cvx as pl
-import packetloss_cvx.plots as plots
+import packetloss_cvx.plots.figures as plots
 from packetloss_cvx.plots import plot_allocation_contours, plot_pareto
 
 CURVES = {

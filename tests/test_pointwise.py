@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-import packetloss_cvx.pointwise as pointwise_module
-from packetloss_cvx.pointwise import PointEvaluator
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.recursion import udp_variance_weights
+import packetloss_cvx.lq.pointwise as pointwise_module
+from packetloss_cvx.lq.pointwise import PointEvaluator
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.lq.recursion import udp_variance_weights
 from packetloss_cvx.tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_RTOL
 
 MU = np.array([0.9, 0.5])

@@ -12,9 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import packetloss_cvx as pl
-from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import plan_cost, recursion_cost
+from packetloss_cvx.lq.recursion import plan_cost, recursion_cost
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.tolerances import PLAN_COST_RTOL
 
 REFUSALS = (pl.NumericalError, pl.ResourceError)

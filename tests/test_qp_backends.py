@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.qp import (
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp.expected_cost import (
     AUTO_CONDENSED_MAX,
     CondensedExpectedCostQP,
     ExpectedCostQP,
@@ -14,7 +15,6 @@ from packetloss_cvx.qp import (
     choose_backend,
     qp_memory_estimate,
 )
-from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL, CROSS_CHECK_INPUT_ATOL
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.qp import compare
+from packetloss_cvx.qp.expected_cost import compare
 from packetloss_cvx.tolerances import (
     CROSS_CHECK_COST_RTOL,
     CROSS_CHECK_FLOOR,
@@ -122,7 +122,7 @@ def test_against_an_exact_zero_the_bands_are_taken_of_cross_check_floor_times_th
 def test_qp_objective_against_its_own_plan_binds_at_cross_check_cost_rtol(two_actuator, monkeypatch, factor, passes):
     """The QP's objective against the forward cost of its own plan (qp.plan_cost, moved by factor
     CROSS_CHECK_COST_RTOL relative): NumericalError at 3, the answer at 0.3."""
-    import packetloss_cvx.qp as qp_module
+    import packetloss_cvx.qp.expected_cost as qp_module
 
     s, ref = two_actuator
     real = qp_module.plan_cost
@@ -145,7 +145,7 @@ def test_qp_objective_is_checked_only_where_its_plans_cost_is_resolved(two_actua
     PLAN_COST_RTOL of it: with the forward cost moved by 1e-4 relative and its bound set to factor PLAN_COST_RTOL of
     it, the QP raises at 0.3 (checked) and is answered at 3 (not resolved: a fixed plan's cost on an unstable plant
     over a long horizon, where the cross-check binds instead)."""
-    import packetloss_cvx.qp as qp_module
+    import packetloss_cvx.qp.expected_cost as qp_module
 
     s, ref = two_actuator
     real = qp_module.plan_cost
@@ -166,7 +166,7 @@ def test_qp_objective_check_is_skipped_on_an_unstable_plant_where_its_plan_is_no
     """A scalar plant a = 1.5 over 200 steps (a^200 = 1.6e35): the QP's plan, right to Clarabel's accuracy, rolled
     out open loop has a forward cost of order 1e40 against a minimum of order 1 (the plan cancels the growth); its
     bound says so, the check is not made, and the QP's answer agrees with the closed form."""
-    from packetloss_cvx.recursion import plan_cost
+    from packetloss_cvx.lq.recursion import plan_cost
 
     s = pl.System(A=[[1.5]], B=[[1.0]], horizon=200, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
     qp = pl.solve_qp(s, "tcp", with_gain=False, cross_check=False)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.qp import qp_memory_estimate
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp.expected_cost import qp_memory_estimate
 from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL, QP_PIN_MU
 
 

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-import packetloss_cvx.qp as qp_module
+import packetloss_cvx.qp.expected_cost as qp_module
 from packetloss_cvx.errors import NumericalError
-from packetloss_cvx.qp import ExpectedCostQP
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp.expected_cost import ExpectedCostQP
 from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL, CROSS_CHECK_INPUT_ATOL
 
 

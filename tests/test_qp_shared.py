@@ -9,17 +9,10 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx import qp_shared
-from packetloss_cvx.io import load_example
-from packetloss_cvx.qp_shared import (
-    CondensedQP,
-    cached_shapes,
-    clear_cache,
-    condensed_problem,
-    objective_value,
-    padded,
-)
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.files import load_example
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp import shared as qp_shared
+from packetloss_cvx.qp.shared import CondensedQP, cached_shapes, clear_cache, condensed_problem, objective_value, padded
 from packetloss_cvx.tolerances import CLARABEL_TIGHT, CROSS_CHECK_COST_RTOL, CROSS_CHECK_INPUT_ATOL, ROUNDING_ORDER_RTOL
 
 

@@ -63,7 +63,7 @@ def test_the_readme_counts_reproduces_figures_and_files():
 def test_getting_started_names_every_packaged_example():
     from importlib.resources import files
 
-    examples = sorted(p.name.removesuffix(".toml") for p in files("packetloss_cvx").joinpath("examples").iterdir()
+    examples = sorted(p.name.removesuffix(".toml") for p in files("packetloss_cvx").joinpath("model", "examples").iterdir()
                       if p.name.endswith(".toml"))
     assert examples == ["pendulum", "pendulum_bursty", "pendulum_sensor", "two_actuator"]
     for name in examples:

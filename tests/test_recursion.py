@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import packetloss_cvx as pl
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
 
 PROTOCOLS = ("tcp", "udp")
 
@@ -116,7 +116,7 @@ def _enumerated_dp_step(P, A, B, mu, psi, Omega):
 
 @pytest.mark.parametrize("points", [1, 3, 70])          # 70 >= FLAT_MIN: the flattened products
 def test_riccati_step_with_variance_is_the_enumerated_dp_step(points):
-    from packetloss_cvx.recursion import riccati_step
+    from packetloss_cvx.lq.recursion import riccati_step
 
     rng = np.random.default_rng(points)
     n, m = 3, 3
@@ -152,7 +152,7 @@ def test_riccati_step_is_one_kernel_for_a_point_a_stack_and_a_flat_stack(varianc
     FLAT_MIN points or more (flattened products) all meet the stage quadratic's minimiser (written out above); the
     point, the batch of one and the small stack to the bit. A change to the step is seen on every path; a path
     that drifts from the others breaks the bit-for-bit equalities."""
-    from packetloss_cvx.recursion import FLAT_MIN, riccati_step
+    from packetloss_cvx.lq.recursion import FLAT_MIN, riccati_step
 
     rng = np.random.default_rng(29 + variance)
     n, m, k = 4, 3, FLAT_MIN + 2
@@ -189,7 +189,7 @@ def test_riccati_step_is_one_kernel_for_a_point_a_stack_and_a_flat_stack(varianc
 def test_riccati_step_open_loop_udp_is_the_dense_theorem_1_at_n_1():
     # N = 1: the open-loop UDP-like law is eq:opt-law-2 with Omega_g = B'Omega_1 B, Omega_d its diagonal:
     # u = -(Omega_g Vbar + Psi + Omega_d (I - Vbar))^{-1} B'Omega_1 A x, written out here
-    from packetloss_cvx.recursion import input_weight, riccati_step
+    from packetloss_cvx.lq.recursion import input_weight, riccati_step
 
     rng = np.random.default_rng(5)
     s = random_system(rng, n=3, m=2, horizon=1, time_varying=False, non_stationary=False)
@@ -212,7 +212,7 @@ def test_riccati_step_open_loop_udp_is_the_dense_theorem_1_at_n_1():
 
 def _full_pass(monkeypatch, fn):
     """``fn()`` with the stationary closure switched off: every step of every backward pass and rollout."""
-    import packetloss_cvx.recursion as recursion
+    import packetloss_cvx.lq.recursion as recursion
 
     with monkeypatch.context() as patch:
         patch.setattr(recursion, "STATIONARY_RUN", 10**9)
@@ -273,8 +273,8 @@ def test_time_varying_data_keep_the_full_pass(monkeypatch, which):
         mu[2, 0] *= 1.0 - 1e-9
         data["channel"].pop("mu", None)
         data["channel"]["mu_schedule"] = mu.tolist()
-    from packetloss_cvx.io import system_from_dict
-    from packetloss_cvx.recursion import backward_pass, udp_variance_weights
+    from packetloss_cvx.lq.recursion import backward_pass, udp_variance_weights
+    from packetloss_cvx.model.files import system_from_dict
 
     varying = system_from_dict(data)
     weights = udp_variance_weights(varying)                 # the same Lyapunov weights on both sides
@@ -294,8 +294,8 @@ def test_optimal_plan_is_the_backward_pass_rolled_out(monkeypatch):
     mean_trajectory (which search K for that run), with and without a closed tail; and with the closure switched
     off the same plan to 1e-12 (full pass, every step rolled out one by one). An unstable A (its stationary closed
     loop stable: rolled out by powers and a scan) included."""
-    from packetloss_cvx.io import system_from_dict
-    from packetloss_cvx.recursion import backward_pass, mean_trajectory, optimal_plan
+    from packetloss_cvx.lq.recursion import backward_pass, mean_trajectory, optimal_plan
+    from packetloss_cvx.model.files import system_from_dict
 
     unstable = random_system(np.random.default_rng(12), n=3, m=2, horizon=600, spectral_radius=1.05,
                              full_weights=True, time_varying=False, non_stationary=False, edge_mu=False)
@@ -321,7 +321,7 @@ def test_a_state_that_underflowed_to_zero_stays_zero_only_under_finite_gains(mon
     and the rollout then writes zeros for the rest of the horizon: the plan and states of every step rolled out one
     by one (which linger in subnormal numbers, 1e-323, instead of reaching 0).
     A gain that is not finite after that point must still poison the plan (0 * inf is nan), never leave zeros."""
-    from packetloss_cvx.recursion import backward_pass, mean_states
+    from packetloss_cvx.lq.recursion import backward_pass, mean_states
 
     s = _long(11, 5000).with_mu([1.0, 1.0])
     K, _, _ = backward_pass(s, "tcp")
@@ -386,7 +386,7 @@ def _tcp_riccati_80bit(s):
 
 def _doubling_spy(monkeypatch):
     """Count the backward passes that went on by doubling (recursion._doubled_backward returning a result)."""
-    import packetloss_cvx.recursion as recursion
+    import packetloss_cvx.lq.recursion as recursion
 
     calls = []
     original = recursion._doubled_backward
@@ -408,7 +408,7 @@ def test_doubled_backward_pass_meets_an_80_bit_pass(monkeypatch, mu, N):
     and P_0 within PATH_AGREEMENT_RTOL of the 80-bit step-by-step pass (measured: 6.6e-14; the float step-by-step
     pass is within 8.3e-14). mu = (1, 0) leaves one usable input: G = B M B' formed in floats would give every
     direction some control, 3.9e-13 (the reason the doubling keeps G as a factor)."""
-    from packetloss_cvx.recursion import backward_pass
+    from packetloss_cvx.lq.recursion import backward_pass
     from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
 
     calls = _doubling_spy(monkeypatch)
@@ -425,9 +425,9 @@ def test_doubled_backward_pass_equals_the_step_by_step_pass(monkeypatch, seed):
     """Long horizons of one map (stable and unstable plants, mu at 0, fractional and 1, noise): backward_pass and
     closed_form by doubling (handed over at the pass's first chance, whatever it predicts) against the full
     step-by-step pass, to PATH_AGREEMENT_RTOL of each array's largest entry (costs, plans, every gain)."""
-    import packetloss_cvx.recursion as recursion
-    from packetloss_cvx.io import system_from_dict
-    from packetloss_cvx.recursion import backward_pass
+    import packetloss_cvx.lq.recursion as recursion
+    from packetloss_cvx.lq.recursion import backward_pass
+    from packetloss_cvx.model.files import system_from_dict
     from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
 
     monkeypatch.setattr(recursion, "DOUBLING_AFTER", -1)
@@ -460,8 +460,8 @@ def test_unstable_plant_under_a_stable_loop_is_rolled_out_by_powers_and_a_scan(m
     plan is steps 1..~400 by powers of the stationary closed loop (stable) and the ~1,600 time-varying steps after
     them by a scan of their closed-loop products: plan, states and cost against every step rolled out one by one,
     to PATH_AGREEMENT_RTOL."""
-    from packetloss_cvx.io import system_from_dict
-    from packetloss_cvx.recursion import optimal_plan
+    from packetloss_cvx.lq.recursion import optimal_plan
+    from packetloss_cvx.model.files import system_from_dict
     from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
 
     s = _slow(2000)
@@ -478,7 +478,7 @@ def test_scan_of_time_varying_gains_equals_the_steps(L):
     """recursion._scanned_run (Blelloch's scan of the closed-loop products) against x_{t+1} = A x_t + B M_t u_t,
     u_t = -K_t x_t written out step by step, for three points at once, lengths that are and are not powers of two,
     time-varying channels and gains."""
-    from packetloss_cvx.recursion import _scanned_run
+    from packetloss_cvx.lq.recursion import _scanned_run
     from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
 
     rng = np.random.default_rng(L)
@@ -505,7 +505,7 @@ def test_unstable_plant_under_an_unstable_run_is_rolled_out_step_by_step():
     """A run of one gain whose closed loop is unstable, on an unstable plant, is rolled out step by step: the
     plan rolled forward again open loop (mean_states without gains, as expected_cost does) meets its states to
     the bit. (A gain of zero: the run's loop is A itself.)"""
-    from packetloss_cvx.recursion import mean_states
+    from packetloss_cvx.lq.recursion import mean_states
 
     s = random_system(np.random.default_rng(3), n=3, m=2, horizon=400, spectral_radius=1.02, time_varying=False)
     mu, x = s.mu_schedule[None], s.x0[None]
@@ -517,8 +517,8 @@ def test_unstable_plant_under_an_unstable_run_is_rolled_out_step_by_step():
 
 
 def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
-    from packetloss_cvx.io import system_from_dict
-    from packetloss_cvx.recursion import udp_variance_weights
+    from packetloss_cvx.lq.recursion import udp_variance_weights
+    from packetloss_cvx.model.files import system_from_dict
 
     stable = _long(6, 2000, noise=True)
     d, noise = udp_variance_weights(stable)
@@ -542,8 +542,8 @@ def test_drift_is_weighed_only_where_a_tail_can_close(monkeypatch):
     """The Lyapunov sums of an unstable plant never settle (q = rho(A)^2 >= 1) and the UDP-like pass of an unstable
     plant with mu < 1 has a different added diagonal at every step (it grows with the sums): neither weighs its
     drift at any step. Their stable twins (and the TCP-like pass, one map) do."""
-    import packetloss_cvx.recursion as recursion
-    from packetloss_cvx.io import system_from_dict
+    import packetloss_cvx.lq.recursion as recursion
+    from packetloss_cvx.model.files import system_from_dict
 
     weighed = {"sum": 0, "pass": 0}
     small_change, drift = recursion._small_change, recursion._drift
@@ -572,8 +572,8 @@ def test_lyapunov_cross_weights_share_the_variance_weights_kernel():
     Lyapunov solution."""
     from scipy.linalg import solve_discrete_lyapunov
 
-    from packetloss_cvx.prediction import prediction
-    from packetloss_cvx.recursion import lyapunov_cross_weights, udp_variance_weights
+    from packetloss_cvx.lq.prediction import prediction
+    from packetloss_cvx.lq.recursion import lyapunov_cross_weights, udp_variance_weights
 
     short = random_system(np.random.default_rng(11), n=3, m=2, horizon=12, spectral_radius=1.05, time_varying=True,
                           noise=True)
@@ -595,7 +595,7 @@ def test_lyapunov_cross_weights_share_the_variance_weights_kernel():
 def test_a_point_answers_the_same_in_any_batch_below_flat_min():
     """The brute-force allocator reads a repeated point back instead of evaluating it again: a point's gains
     and cost-to-go must not depend on the batch it is in (a batch of one takes LAPACK's gesv directly)."""
-    from packetloss_cvx.recursion import FLAT_MIN, backward_batch, input_weight
+    from packetloss_cvx.lq.recursion import FLAT_MIN, backward_batch, input_weight
 
     rng = np.random.default_rng(11)
     for _ in range(20):
@@ -620,7 +620,7 @@ def test_least_squares_riccati_step_against_delivery_pattern_enumeration(seed):
     and rank-deficient P make the Hessian singular."""
     import itertools
 
-    from packetloss_cvx.recursion import riccati_step
+    from packetloss_cvx.lq.recursion import riccati_step
     rng = np.random.default_rng(seed)
     n, m = int(rng.integers(1, 4)), int(rng.integers(1, 4))
     A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
@@ -662,7 +662,7 @@ def test_a_stationary_tail_closes_when_its_remaining_drift_is_below_stationary_r
     STATIONARY_RTOL times the iterate's size. A change that leaves factor STATIONARY_RTOL to come (by hand: change
     = factor STATIONARY_RTOL size (1 - q) / q) closes at 0.3 and not at 3, for slow and fast contractions alike, in
     a batch as for one point; never at q >= 1."""
-    from packetloss_cvx.recursion import stationary_close
+    from packetloss_cvx.lq.recursion import stationary_close
     from packetloss_cvx.tolerances import STATIONARY_RTOL
 
     size = 7.0

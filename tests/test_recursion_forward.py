@@ -7,10 +7,10 @@ units in the last place only: 1e-14 relative."""
 import numpy as np
 import pytest
 
-from packetloss_cvx.costs import dense_cost
-from packetloss_cvx.model import System
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import recursion_cost, udp_variance_weights
+from packetloss_cvx.lq.costs import dense_cost
+from packetloss_cvx.lq.recursion import recursion_cost, udp_variance_weights
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.model.system import System
 
 
 def step_by_step(system, inputs, protocol):

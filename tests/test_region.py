@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from packetloss_cvx import CrossCheckError, System, load_example
-from packetloss_cvx.simulation import critical as critical_module
-from packetloss_cvx.simulation import region
-from packetloss_cvx.simulation.critical import critical_mu, critical_point
-from packetloss_cvx.simulation.region import certificate_margin, homogeneous_riccati, membership
-from packetloss_cvx.simulation.region_lmi import LmiForm
+from packetloss_cvx.closedloop import critical as critical_module
+from packetloss_cvx.closedloop import region
+from packetloss_cvx.closedloop.critical import critical_mu, critical_point
+from packetloss_cvx.closedloop.region import certificate_margin, homogeneous_riccati, membership
+from packetloss_cvx.closedloop.region_lmi import LmiForm
 from packetloss_cvx.tolerances import CRITICAL_MU_TOL, LEAST_RADIUS_ATOL, MEAN_SQUARE_MARGIN
 
 from .references import enumerated_radius
@@ -204,7 +204,7 @@ def test_lmi_gain_is_stabilising_by_enumeration():
 def test_region_map_laws_side_by_side_on_the_scalar_plant():
     """Hand values: S = {mu > 0.75}; the DP gain fixed at mu = 1 (k = a p / (psi + p), the DARE) is stable iff
     (a - mu k)^2 + mu (1 - mu) k^2 < 1; every law's region lies inside S."""
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     s = scalar(2.0, psi=1.0)
     r = region_map(s, laws=("dp", "fixed", "tcp", "udp"))
     points = dict(zip(r.laws, r.critical, strict=True))
@@ -218,7 +218,7 @@ def test_region_map_laws_side_by_side_on_the_scalar_plant():
 
 
 def test_region_map_grid_is_inside_the_stabilisable_set_and_matches_decoupled_thresholds():
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     s = decoupled((2.0, 1.5))
     r = region_map(s, laws=("dp", "tcp"), grid=6)
     axis = r.axis
@@ -236,14 +236,14 @@ def test_region_map_grid_is_inside_the_stabilisable_set_and_matches_decoupled_th
                                                ({"laws": ("mpc",)}, "law"), ({"grid": 1}, "grid")])
 def test_region_map_rejects_bad_input(kwargs, field):
     from packetloss_cvx import InputError
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     with pytest.raises(InputError, match=field):
         region_map(decoupled((2.0, 1.5)), **kwargs)
 
 
 def test_region_map_refuses_a_huge_grid():
     from packetloss_cvx.errors import BudgetError
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     with pytest.raises(BudgetError, match="PACKETLOSS_CVX_BUDGET_REGION_POINTS") as err:
         region_map(decoupled((2.0, 1.5)), grid=10 ** 4)          # 4e8 law-points, refused before any work
     assert err.value.field == "grid"
@@ -251,7 +251,7 @@ def test_region_map_refuses_a_huge_grid():
 
 def test_region_map_to_xarray_holds_the_same_grid():
     pytest.importorskip("xarray")
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     r = region_map(decoupled((2.0, 1.5)), laws=("dp",), grid=4)
     ds = r.to_xarray()
     assert np.array_equal(ds["stable"].values, r.stable, equal_nan=True)
@@ -262,7 +262,7 @@ def test_results_pickle_and_to_dict_are_plain():
     import json
     import pickle
 
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     r = region_map(decoupled((2.0, 1.5)), laws=("dp", "fixed"), grid=3)
     back = pickle.loads(pickle.dumps(r))
     assert np.array_equal(back.stable, r.stable) and back.critical[0].inside.verdict == "stable"
@@ -310,7 +310,7 @@ def test_region_map_on_dask_is_bit_identical():
     distributed = pytest.importorskip("distributed")
     import logging
 
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     s = load_example("two_actuator")
     here = region_map(s, laws=("dp", "tcp", "fixed"), grid=7)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
@@ -443,7 +443,7 @@ def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lm
     at interior points it is bracketed by the LMI form run on the scaled plant A / sqrt(rho) (S_rho = S of
     A / sqrt(rho), the gain scaled back by sqrt(rho)): infeasible at 0.999 lambda, feasible at 1.001 lambda with
     a gain whose radius (enumerated over the delivery patterns) is below 1.001 lambda."""
-    from packetloss_cvx.simulation.region_map import region_map
+    from packetloss_cvx.studies.region_map import region_map
     s = load_example("two_actuator")
     result = region_map(s, laws=("dp",), grid=11)
     radius = result.radius[0]

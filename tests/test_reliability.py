@@ -39,7 +39,7 @@ EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGKILL: -signal.SIGKILL
 
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
 #: what the forked runs find imported: the command modules of sweep and reproduce and their numerical stack
-PRELOAD = ["packetloss_cvx.cli", "packetloss_cvx.cli.sweep", "packetloss_cvx.cli.reproduce", "packetloss_cvx.plots",
+PRELOAD = ["packetloss_cvx.cli", "packetloss_cvx.cli.sweep", "packetloss_cvx.cli.reproduce", "packetloss_cvx.plots.figures",
            "packetloss_cvx.studies", "cvxpy", "scipy.linalg", "matplotlib.figure", "matplotlib.backends.backend_agg"]
 
 

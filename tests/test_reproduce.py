@@ -173,7 +173,7 @@ def test_the_region_figure_of_the_two_actuator_system_against_independent_refere
     """Beyond the paper (issue 21 item 7): region-two-actuator.png with its paragraph, and the map in results.json:
     the dp verdicts against the LMI form alone (cvxpy + Clarabel, another algorithm), the paper laws' verdicts against
     the radius of their re-designed gain enumerated over the delivery patterns."""
-    from packetloss_cvx.simulation.region import membership
+    from packetloss_cvx.closedloop.region import membership
 
     _, (out, _) = runs
     report = (out / "report.md").read_text()

@@ -8,16 +8,10 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from packetloss_cvx import NumericalError, System, closed_form
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.simulation import (
-    closed_loop,
-    dp_finite_horizon,
-    dp_riccati,
-    finite_horizon_costs,
-    law_cost_to_go,
-    mean_square_radius,
-)
-from packetloss_cvx.simulation.riccati import NO_SOLUTION
+from packetloss_cvx.closedloop.moments import closed_loop, finite_horizon_costs, law_cost_to_go
+from packetloss_cvx.closedloop.riccati import NO_SOLUTION, dp_finite_horizon, dp_riccati
+from packetloss_cvx.closedloop.stability import mean_square_radius
+from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE
 
 from .references import enumerated_radius
@@ -147,7 +141,7 @@ def test_dp_input_hessian_is_the_expectation_over_the_delivery_patterns(seed):
     delivered with probability mu_i independently (the expectation written out, not the closed form)."""
     import itertools
 
-    from packetloss_cvx.simulation.riccati import dp_input_hessian
+    from packetloss_cvx.closedloop.riccati import dp_input_hessian
 
     rng = np.random.default_rng(seed)
     n, m = 3, 3
@@ -200,7 +194,7 @@ def test_final_residual_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol
     residual ||step(P) - P|| / ||P|| of factor MOMENT_RESIDUAL_RTOL (planted on that step; the iterations stop at
     RICCATI_RTOL, 1000 times below): NumericalError at 3, the hand value at 0.3 (scalar a = 2, mu = 0.8: p solves the
     quadratic of test_started_from_a_stabilising_gain_is_the_same_solution)."""
-    import packetloss_cvx.simulation.riccati as riccati_module
+    import packetloss_cvx.closedloop.riccati as riccati_module
     from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
 
     a, mu = 2.0, 0.8

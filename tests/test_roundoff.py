@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import mean_states, weight_head
-from packetloss_cvx.roundoff import (
+from packetloss_cvx.lq.recursion import mean_states, weight_head
+from packetloss_cvx.lq.roundoff import (
     SCAN_BLOCK,
     UNIT_ROUNDOFF,
     gamma,
@@ -25,6 +24,7 @@ from packetloss_cvx.roundoff import (
     two_product,
     two_sum,
 )
+from packetloss_cvx.model.random_systems import random_system
 
 from .references import exact_mean_states, exact_quadratic
 

@@ -9,10 +9,10 @@ from packetloss_cvx.cli.parser import build_parser
 from packetloss_cvx.cli.region import run as region_run
 from packetloss_cvx.cli.simulate import run as simulate_run
 from packetloss_cvx.cli.solve import run as solve_run
-from packetloss_cvx.io import load_example, save_system
-from packetloss_cvx.model import System
+from packetloss_cvx.model.files import load_example, save_system
+from packetloss_cvx.model.sensor import Sensor
+from packetloss_cvx.model.system import System
 from packetloss_cvx.sensing.loop import estimated_loop
-from packetloss_cvx.sensor import Sensor
 
 
 @pytest.fixture
@@ -138,7 +138,7 @@ def test_region_reports_the_dp_critical_mu_along_the_file_mu(tmp_path, mu):
     """cli.sensing_section takes the DP's critical mu from the region map's points when one lies along the file's
     mu direction (mu = 0.9 on both channels: the map's default direction, ones), and bisects afresh otherwise
     (0.9, 0.45: the map's ray is not the file's): either way the number critical_mu gives along mu / max mu."""
-    from packetloss_cvx.simulation import critical_mu
+    from packetloss_cvx.closedloop.critical import critical_mu
     s = System(A=[[1.5]], B=[[1.0, 0.5]], horizon=3, state_weight=[1.0], input_weight=[1.0, 1.0], mu=mu, x0=[1.0],
                noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.9]))
     path = str(save_system(s, tmp_path / "two_inputs.toml"))

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
 
+from packetloss_cvx.model.sensor import Sensor
 from packetloss_cvx.sensing.bounds import (
     covariance_bounds,
     critical_gamma,
@@ -25,7 +26,6 @@ from packetloss_cvx.sensing.kalman import (
     pattern_rows,
     predict,
 )
-from packetloss_cvx.sensor import Sensor
 from packetloss_cvx.tolerances import ROUNDING_ORDER_RTOL
 from tests.references import textbook_filter_path
 

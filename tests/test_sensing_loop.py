@@ -9,13 +9,13 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from packetloss_cvx import System
+from packetloss_cvx.closedloop.moments import closed_loop
+from packetloss_cvx.closedloop.riccati import dp_riccati
+from packetloss_cvx.closedloop.stability import mean_square_radius
 from packetloss_cvx.errors import InputError
+from packetloss_cvx.model.sensor import Sensor
 from packetloss_cvx.sensing.loop import estimated_loop, filter_gains
 from packetloss_cvx.sensing.montecarlo import simulate_estimated
-from packetloss_cvx.sensor import Sensor
-from packetloss_cvx.simulation.moments import closed_loop
-from packetloss_cvx.simulation.riccati import dp_riccati
-from packetloss_cvx.simulation.stability import mean_square_radius
 
 
 def random_plant(rng, n=3, m=2, p=2, mu=None, gamma=(0.8,), groups=None, C=None, R=None):

@@ -8,7 +8,9 @@ import itertools
 import numpy as np
 import pytest
 
-from packetloss_cvx.model import System
+from packetloss_cvx.closedloop.riccati import dp_riccati
+from packetloss_cvx.model.sensor import Sensor
+from packetloss_cvx.model.system import System
 from packetloss_cvx.sensing.arrivals import ChainSampler, sensor_arrivals
 from packetloss_cvx.sensing.bounds import covariance_bounds, stable_certificate
 from packetloss_cvx.sensing.kalman import expected_covariance
@@ -19,8 +21,6 @@ from packetloss_cvx.sensing.markov_bounds import (
     markov_covariance_bounds,
 )
 from packetloss_cvx.sensing.montecarlo import sampled_covariance, simulate_estimated
-from packetloss_cvx.sensor import Sensor
-from packetloss_cvx.simulation.riccati import dp_riccati
 from tests.references import textbook_filter_path
 
 
@@ -228,7 +228,7 @@ def test_the_command_line_analyses_a_gilbert_elliott_sensor_file(tmp_path):
     from packetloss_cvx.cli.region import run as region_run
     from packetloss_cvx.cli.simulate import run as simulate_run
     from packetloss_cvx.cli.solve import run as solve_run
-    from packetloss_cvx.io import save_system
+    from packetloss_cvx.model.files import save_system
 
     chain = {"model": "gilbert-elliott", "p": [0.1], "r": [0.8]}                # C = 1: exact, (1 - 0.8) 4 < 1
     s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],

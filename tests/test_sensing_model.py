@@ -7,8 +7,8 @@ import pytest
 
 from packetloss_cvx import System
 from packetloss_cvx.errors import DimensionError, InputError, ProbabilityError
-from packetloss_cvx.io import dumps_system, load_example, load_system
-from packetloss_cvx.sensor import Sensor
+from packetloss_cvx.model.files import dumps_system, load_example, load_system
+from packetloss_cvx.model.sensor import Sensor
 
 GOOD = """
 [plant]

@@ -5,11 +5,11 @@ entry and for the trace, from the runs' own means over the kept steps): the exac
 import numpy as np
 import pytest
 
-from packetloss_cvx.model import System
+from packetloss_cvx.closedloop.riccati import dp_riccati
+from packetloss_cvx.model.sensor import Sensor
+from packetloss_cvx.model.system import System
 from packetloss_cvx.sensing.kalman import expected_covariance
 from packetloss_cvx.sensing.montecarlo import simulate_estimated
-from packetloss_cvx.sensor import Sensor
-from packetloss_cvx.simulation.riccati import dp_riccati
 
 CHAIN = {"model": "gilbert-elliott", "p": [0.1], "r": [0.25], "h_good": [0.95], "h_bad": [0.15]}
 

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from packetloss_cvx import System
+from packetloss_cvx.closedloop.moments import stationary_channel
+from packetloss_cvx.closedloop.riccati import dp_riccati
 from packetloss_cvx.linalg import psd_factor
+from packetloss_cvx.model.sensor import Sensor
 from packetloss_cvx.sensing.arrivals import arrival_patterns
 from packetloss_cvx.sensing.kalman import actuation_covariance, measurement_update, pattern_rows
 from packetloss_cvx.sensing.loop import filter_gains
 from packetloss_cvx.sensing.montecarlo import simulate_estimated
-from packetloss_cvx.sensor import Sensor
-from packetloss_cvx.simulation.moments import stationary_channel
-from packetloss_cvx.simulation.riccati import dp_riccati
 from packetloss_cvx.tolerances import ROUNDING_ORDER_RTOL
 
 

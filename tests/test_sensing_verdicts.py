@@ -12,14 +12,14 @@ from packetloss_cvx.cli.parser import build_parser
 from packetloss_cvx.cli.region import run as region_run
 from packetloss_cvx.cli.simulate import run as simulate_run
 from packetloss_cvx.cli.solve import run as solve_run
+from packetloss_cvx.closedloop.riccati import NO_SOLUTION, dp_riccati
 from packetloss_cvx.errors import NumericalError
-from packetloss_cvx.io import save_system
-from packetloss_cvx.model import System
+from packetloss_cvx.model.files import save_system
+from packetloss_cvx.model.sensor import Sensor
+from packetloss_cvx.model.system import System
 from packetloss_cvx.sensing import loop as loop_module
 from packetloss_cvx.sensing.bounds import lower_bound_diverges, stable_certificate, upper_bound_covariance
 from packetloss_cvx.sensing.loop import estimated_loop, loop_map, loop_verdict, no_gains_verdict
-from packetloss_cvx.sensor import Sensor
-from packetloss_cvx.simulation.riccati import NO_SOLUTION, dp_riccati
 
 # x+ = diag(1.3, -1.2) x + B v u + w, y = x1 + x2 + r: one row for two unstable modes. Lower bound on the critical
 # rate 1 - 1/1.3^2 = 0.4083 (by hand); no certificate X > g(X) at 0.5 (checked below), so 0.5 is between the bounds.

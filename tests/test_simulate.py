@@ -8,8 +8,8 @@ import pytest
 
 from packetloss_cvx import InputError, System, closed_form, expected_cost
 from packetloss_cvx.cli import main
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.simulation.montecarlo import simulate
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.montecarlo.simulate import simulate
 
 from .references import enumerated_radius
 
@@ -179,7 +179,7 @@ def test_huge_closed_loop_is_refused_before_drawing(two_actuator, monkeypatch):
 def test_cli_explains_the_tcp_plans_exact_cost_above_its_formula(tmp_path, capsys):
     # one step of x' = x + v u from x0 = 1, mu = 1/2: the TCP-like plan u = -2/3 has J* = 2/3 and exact
     # cost 7/9; the gap is the loss variance u^2 mu (1 - mu) = 1/9 (docs/claims.md, expected-cost-tcp)
-    from packetloss_cvx.io import save_system
+    from packetloss_cvx.model.files import save_system
 
     scalar = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     path = str(save_system(scalar, tmp_path / "scalar.toml"))

@@ -11,18 +11,19 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx import System
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
-from packetloss_cvx.costs import closed_form, expected_cost
+from packetloss_cvx.closedloop.mjls import jump_law_stage_costs, mean_square_radius, mode_chain, second_moment_operator
+from packetloss_cvx.closedloop.moments import finite_horizon_costs
+from packetloss_cvx.closedloop.stability import mean_square_radius as bernoulli_radius
 from packetloss_cvx.errors import ResourceError
-from packetloss_cvx.io import system_from_dict
-from packetloss_cvx.markov import attach_channel, bursty_twin, mode_chain
-from packetloss_cvx.markov.mjls import jump_law_stage_costs, mean_square_radius, second_moment_operator
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.simulation import finite_horizon_costs
-from packetloss_cvx.simulation import mean_square_radius as bernoulli_radius
-from packetloss_cvx.simulation.markov_loop import BeliefGains
-from packetloss_cvx.simulation.montecarlo import simulate
+from packetloss_cvx.lq.costs import closed_form, expected_cost
+from packetloss_cvx.model.chain import attach_channel
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import system_from_dict
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.model.twins import bursty_twin
+from packetloss_cvx.montecarlo.markov_loop import BeliefGains
+from packetloss_cvx.montecarlo.simulate import simulate
 
 OPEN = {"formula", "exact", "mean", "stderr", "z"}
 CLOSED = {"mean_square_spectral_radius", "stable", "mean_stage_cost", "stderr", "exact_stage_cost"}

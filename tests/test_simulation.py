@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.simulation import sample_deliveries, sample_noise, sample_plan_costs
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.montecarlo.channels import sample_deliveries, sample_noise
+from packetloss_cvx.montecarlo.sampling import sample_plan_costs
 
 SAMPLES = 200_000
 

@@ -8,9 +8,9 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
-from packetloss_cvx.simulation import tails
-from packetloss_cvx.simulation.montecarlo import simulate
-from packetloss_cvx.simulation.tails import error_bar_reason, fourth_moment_radius
+from packetloss_cvx.closedloop import tails
+from packetloss_cvx.closedloop.tails import error_bar_reason, fourth_moment_radius
+from packetloss_cvx.montecarlo.simulate import simulate
 
 
 @pytest.mark.parametrize(("a", "k", "mu"), [(2.0, 2.0, 0.8), (1.5, 1.0, 0.6), (0.9, 0.3, 0.1), (3.0, 2.5, 0.95)])

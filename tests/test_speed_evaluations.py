@@ -15,12 +15,12 @@ from scipy.linalg import block_diag
 
 import packetloss_cvx as pl
 from packetloss_cvx.allocation.brute_force import brute_force_allocation, brute_force_allocations
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.claims.context import Context
 from packetloss_cvx.claims.ordering import optimal_plan
-from packetloss_cvx.evaluator import CostEvaluator
 from packetloss_cvx.linalg import block_diagonal
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.lq.evaluator import CostEvaluator
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.random_systems import random_system
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -6,10 +6,10 @@ import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 import packetloss_cvx as pl
-import packetloss_cvx.costs as costs_module
+import packetloss_cvx.lq.costs as costs_module
 from packetloss_cvx import threads
 from packetloss_cvx.errors import InputError
-from packetloss_cvx.evaluator import CostEvaluator
+from packetloss_cvx.lq.evaluator import CostEvaluator
 from packetloss_cvx.threads import blas_threads, set_blas_threads
 
 

@@ -13,14 +13,15 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import DimensionError, InputError, ProbabilityError
-from packetloss_cvx.io import load_example, system_from_dict
-from packetloss_cvx.markov import attach_channel, bursty_twin, stacked_moments
-from packetloss_cvx.model import STRUCTURE_FIELDS, CacheKey, System
-from packetloss_cvx.prediction import prediction
-from packetloss_cvx.random_systems import random_system
-from packetloss_cvx.recursion import condition_estimate, udp_variance_weights
+from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.lq.recursion import condition_estimate, udp_variance_weights
+from packetloss_cvx.model.chain import attach_channel, stacked_moments
+from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import load_example, system_from_dict
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.model.system import STRUCTURE_FIELDS, CacheKey, System
+from packetloss_cvx.model.twins import bursty_twin
 
 FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "mu_schedule", "x0", "initial_weight", "noise_cov",
           "name")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-from packetloss_cvx.random_systems import random_system
+from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.studies import shared_channel_sweep, two_channel_sweep
 
 

@@ -9,6 +9,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
+from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.studies import read_mu_list, save_sweep, sweep
 
 
@@ -65,7 +66,7 @@ def test_horizons_against_the_qp(two_actuator):
     assert result.horizon.tolist() == [3, 10]
     data = two_actuator.to_dict()
     data["cost"]["horizon"] = 3
-    short = pl.io.system_from_dict(data)
+    short = system_from_dict(data)
     assert result.costs["udp"][0] == pytest.approx(_qp(short, "udp"), rel=1e-6)
     assert result.costs["udp"][1] == pytest.approx(_qp(two_actuator, "udp"), rel=1e-6)
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
-import packetloss_cvx.markov  # noqa: F401  (pl.markov below: the subpackage is not one of the lazy names)
 from packetloss_cvx.cli import main
+from packetloss_cvx.lq.markov_cost import exact_closed_form
 
 from .conftest import EXAMPLES
 
@@ -75,7 +75,7 @@ def test_a_chain_file_outside_burstiness_points_to_the_option(capsys, argv):
     assert code == 2
     assert len(err.strip().splitlines()) == 1
     assert "packetloss-cvx sweep pendulum_bursty --burstiness" in err
-    assert "packetloss_cvx.markov" not in err
+    assert "packetloss_cvx." not in err
 
 
 def test_the_rate_is_the_files_not_a_rounded_mean(capsys):
@@ -122,7 +122,7 @@ def test_a_long_horizon_sweeps_by_the_recursion(capsys, tmp_path):
     system = pl.System(A=A, B=base.B, horizon=10_000, state_weight=np.diag(base.state_weights[0]),
                        input_weight=base.input_weights[0], x0=base.x0, channel=base.channel)
     with pytest.raises(pl.ResourceError):
-        pl.markov.exact_closed_form(system, method="dense")
+        exact_closed_form(system, method="dense")
     path = pl.save_system(system, tmp_path / "long.toml")
     code, out, err = _run(capsys, "sweep", str(path), "--burstiness", "0,0.9", "--json", "-q")
     assert code == 0, err

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from packetloss_cvx.errors import InputError
-from packetloss_cvx.validation import MAX_ENTRIES, MAX_NESTING, check_numbers, digits, numeric_array
+from packetloss_cvx.model.validation import MAX_ENTRIES, MAX_NESTING, check_numbers, digits, numeric_array
 
 
 def walk(value: Any, field: str) -> None:

@@ -3,17 +3,15 @@
 Modules: ``grammar`` (constraint grammar, argument checks, the polytope of constraints),
 ``boxes`` (LPs over sub-boxes with certified bounds, bisection), ``tcp`` (the exact
 TCP-like SOCP), ``udp`` (monotonic branch and bound), ``api`` (allocate, min_cost,
-best_cost_within_budget), ``studies`` (Pareto curve, contour allocations, the J*(mu) grid),
-``brute_force`` (an independent two-channel reference for tests and the audit), ``chains`` (allocation
+best_cost_within_budget), ``brute_force`` (an independent two-channel reference for tests and the audit), ``chains``
+(allocation
 behind Markov chains: mean rates chosen, burstiness held, the exact cost under the chain).
 """
 
 from ..results import Allocation
 from .api import MinCost, allocate, best_cost_within_budget, min_cost
 from .grammar import parse_constraint
-from .studies import contour_allocations, cost_grid, pareto_curve
 
 __all__ = [
-    "Allocation", "MinCost", "allocate", "best_cost_within_budget", "contour_allocations", "cost_grid", "min_cost",
-    "parse_constraint", "pareto_curve",
+    "Allocation", "MinCost", "allocate", "best_cost_within_budget", "min_cost", "parse_constraint",
 ]

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InfeasibleError, InputError
-from ..model import System
+from ..model.system import System
 from ..results import ProtocolChoice
 from .api import allocate
 from .delivery import PowerModel

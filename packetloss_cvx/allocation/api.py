@@ -30,8 +30,8 @@ import numpy as np
 
 from ..budgets import check, count_text, duration_text, estimated_seconds, limit, udp_box_work
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
-from ..model import System
-from ..protocols import check_protocol
+from ..model.protocols import check_protocol
+from ..model.system import System
 from ..results import Allocation, MinCost
 from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT, ALLOCATION_GAP_FLOOR

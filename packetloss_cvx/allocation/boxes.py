@@ -27,10 +27,10 @@ try:        # the HiGHS build scipy's linprog runs (scipy >= 1.15): the same sol
 except ImportError:         # pragma: no cover - an older scipy: linprog alone
     highs_core = highs_simplex = None
 
-from ..costs import closed_form
 from ..errors import SolverError
-from ..evaluator import CostEvaluator
-from ..model import System
+from ..lq.costs import closed_form
+from ..lq.evaluator import CostEvaluator
+from ..model.system import System
 from ..tolerances import ALLOCATION_AIM_RTOL, ALLOCATION_LP_FEASIBILITY, CLARABEL_TIGHT
 from .grammar import Polytope
 

@@ -21,10 +21,10 @@ from collections.abc import Callable, Generator, Sequence
 
 import numpy as np
 
-from ..recursion import FLAT_MIN
 from ..errors import InputError
-from ..evaluator import CostEvaluator
-from ..model import System
+from ..lq.evaluator import CostEvaluator
+from ..lq.recursion import FLAT_MIN
+from ..model.system import System
 from ..threads import blas_limited
 from ..tolerances import BRUTE_FORCE_BISECTION_TOL, BRUTE_FORCE_ROW_ATOL
 from .grammar import check_alpha, check_beta

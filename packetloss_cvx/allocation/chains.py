@@ -5,7 +5,7 @@ Per channel the family (the **k-state rule**, :func:`chain_family`; docs/design.
 
 * *burstiness held* for a Gilbert channel (two states, delivering always in one and never in the other, burstiness
   ``lambda = 1 - p - r`` in [0, 1)): ``p = (1 - mu)(1 - lambda)``, ``r = mu (1 - lambda)``
-  (:func:`~packetloss_cvx.markov.bursty_twin`'s family), every mean rate in [0, 1];
+  (:func:`~packetloss_cvx.model.twins.bursty_twin`'s family), every mean rate in [0, 1];
 * *deliveries scaled* for every other chain (k states, fractional deliveries, lambda < 0): the transition matrix
   held and the delivery vector scaled, ``d(mu) = d mu / mubar`` (mubar the file's mean rate), which reaches the
   mean rates ``[0, mubar / max(d)]``: the link the file describes with an independent erasure added, the loss
@@ -40,12 +40,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..channel import GilbertElliott
 from ..errors import InputError
-from ..markov import exact_closed_form
-from ..markov.chain import chain_matrices
-from ..markov_channel import MarkovChannel
-from ..model import System
+from ..lq.markov_cost import exact_closed_form
+from ..model.chain import chain_matrices
+from ..model.channel import GilbertElliott
+from ..model.markov_channel import MarkovChannel
+from ..model.system import System
 
 __all__ = ["ChainEvaluator", "ChainFamily", "chain_at", "chain_family", "chain_rates"]
 
@@ -195,7 +195,7 @@ class ChainEvaluator:
     family (:class:`ChainFamily`, or an array of burstiness for Gilbert channels), with the interface the branch and
     bound uses (:meth:`cost`, :meth:`line`). Rates above a family's top are evaluated at the top (the function
     stays nonincreasing; the allocation's rows keep its answers below). Every value is self-checked by
-    :func:`~packetloss_cvx.markov.exact_closed_form` (``checked`` is accepted and ignored: nothing is skipped).
+    :func:`~packetloss_cvx.lq.markov_cost.exact_closed_form` (``checked`` is accepted and ignored: nothing is skipped).
     Per point the cost of ``exact_closed_form`` at the system's horizon.
 
     Examples

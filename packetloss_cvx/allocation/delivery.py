@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..io import load_table, read_csv_numbers
-from ..validation import numeric_array
+from ..model.files import load_table, read_csv_numbers
+from ..model.validation import numeric_array
 
 __all__ = ["EXPONENTIAL_TOP", "MODELS", "RAYLEIGH_TOP_SLACK", "PowerModel", "load_power", "power_model",
            "rayleigh_majorant"]
@@ -225,7 +225,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 def load_power(path: str | Path, m: int) -> PowerModel | None:
     """The ``[power]`` table of a system file (None when it has none): ``model``, and ``scale`` or ``table``
     (inline rows, or a CSV file's name relative to the system file, read by
-    :func:`~packetloss_cvx.io.read_csv_numbers`). Errors name ``power.<key>``. O(size).
+    :func:`~packetloss_cvx.model.files.read_csv_numbers`). Errors name ``power.<key>``. O(size).
 
     Examples
     --------

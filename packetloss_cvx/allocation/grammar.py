@@ -22,7 +22,7 @@ import numpy as np
 
 from ..budgets import check, count_text
 from ..errors import InfeasibleError, InputError
-from ..model import System, numeric_array
+from ..model.system import System, numeric_array
 from ..tolerances import ALLOCATION_GAP_MIN
 
 __all__ = [
@@ -40,7 +40,7 @@ _TERMS = {name: re.compile(r"\s*([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\
 
 
 def _numbers(value: Any, field: str) -> np.ndarray:
-    """:func:`~packetloss_cvx.model.numeric_array`, with integers too large for a float and
+    """:func:`~packetloss_cvx.model.system.numeric_array`, with integers too large for a float and
     absurdly deep nesting reported as InputError too."""
     try:
         return numeric_array(value, field)

@@ -28,11 +28,12 @@ import cvxpy as cp
 import numpy as np
 
 from ..budgets import check, count_text
-from ..convex import ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, InputError, SolverError
-from ..evaluator import CostEvaluator
-from ..model import STRUCTURE_CACHE_MAX_BYTES, System
-from ..protocols import check_protocol
+from ..lq.evaluator import CostEvaluator
+from ..model.protocols import check_protocol
+from ..model.system import STRUCTURE_CACHE_MAX_BYTES, System
+from ..model.validation import numeric_array
+from ..qp.convex import ClarabelProgram, require_optimal
 from ..results import PowerAllocation
 from ..threads import blas_limited
 from ..tolerances import (
@@ -42,7 +43,6 @@ from ..tolerances import (
     ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
 )
-from ..validation import numeric_array
 from .boxes import boundary, box_lp, small_lp
 from .delivery import PowerModel, rayleigh_majorant
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope

@@ -41,12 +41,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..budgets import check, count_text
+from ..closedloop.region import LazyLmi, homogeneous_riccati, membership
+from ..closedloop.riccati import dp_riccati
+from ..closedloop.stability import mean_square_radius
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
-from ..model import System
+from ..model.system import System
 from ..results.region import StabilityAllocation
-from ..simulation.region import LazyLmi, homogeneous_riccati, membership
-from ..simulation.riccati import dp_riccati
-from ..simulation.stability import mean_square_radius
 from ..threads import blas_limited
 from ..tolerances import (
     ALLOCATION_COST_RTOL,
@@ -104,7 +104,7 @@ def dp_cost(system: System, riccati) -> tuple[float, str]:
 
     Examples
     --------
-    >>> from packetloss_cvx.simulation.riccati import dp_riccati
+    >>> from packetloss_cvx.closedloop.riccati import dp_riccati
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
     >>> cost, kind = dp_cost(s, dp_riccati(s))     # DARE: p = 1 + 4p - 4p^2/(1 + p), p = 2 + sqrt(5)
     >>> bool(np.isclose(cost, 2 + 5 ** 0.5)), kind
@@ -216,7 +216,7 @@ def _memos(system: System, rho: float) -> tuple[_Recent, _Recent]:
 
 def _target(system: System, target: str, rho: float, alpha: float | None, check: bool = False,
             memos: tuple[_Recent, _Recent] | None = None) -> Target:
-    """The target's :class:`Target`: its verdicts from :func:`~packetloss_cvx.simulation.region.membership`'s
+    """The target's :class:`Target`: its verdicts from :func:`~packetloss_cvx.closedloop.region.membership`'s
     SEARCH_FORMS, or with ``check`` its CHECK_FORMS cross-checked (forms that decide differently raise
     CrossCheckError). ``memos`` (:func:`_memos`, made here when not given): the check shares the search's, so the
     answer's eigenpair and DP solution, the same calls on the same floats, are not computed twice."""

@@ -29,12 +29,12 @@ from __future__ import annotations
 import cvxpy as cp
 import numpy as np
 
-from ..convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, NumericalError, SolverError
-from ..evaluator import CostEvaluator
-from ..model import CacheKey, System
-from ..qp import sparse_dynamics
-from ..recursion import udp_variance_weights
+from ..lq.evaluator import CostEvaluator
+from ..lq.recursion import udp_variance_weights
+from ..model.system import CacheKey, System
+from ..qp.convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
+from ..qp.expected_cost import sparse_dynamics
 from ..tolerances import (
     ALLOCATION_COST_RTOL,
     ALLOCATION_CUT_STEPS,
@@ -69,7 +69,7 @@ def constant_cost(system: System) -> float:
 
 
 #: Estimated bytes of one compiled program (cvxpy's parameter map and Clarabel's data), per N (n + m)^2:
-#: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.qp_memory_estimate`), which it mirrors.
+#: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.expected_cost.qp_memory_estimate`), which it mirrors.
 PROGRAM_BYTES_PER_ENTRY = 300
 
 
@@ -129,7 +129,7 @@ class TCPProgram:
 
     One program per (system structure, kind, k), kept with the system (:meth:`System.structure_cached`,
     shared with its ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
-    (:class:`~packetloss_cvx.convex.ClarabelProgram`) and solved under ``ALLOCATION_TCP_ATTEMPTS``: the
+    (:class:`~packetloss_cvx.qp.convex.ClarabelProgram`) and solved under ``ALLOCATION_TCP_ATTEMPTS``: the
     tight settings without equilibration on a solver kept per thread and updated with each call's data (a
     function of its own data: without an equilibration nothing of the previous data is carried over,
     whereas a warm equilibrated Clarabel keeps the Ruiz scaling of the first data it saw, answers up to
@@ -290,7 +290,7 @@ def _cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None,
 
 def require_answer(status: str, what: str, no_mu: str | None) -> None:
     """The allocation SOCPs' status policy on the final status of
-    :meth:`ClarabelProgram.solve <packetloss_cvx.convex.ClarabelProgram.solve>`: "optimal" passes,
+    :meth:`ClarabelProgram.solve <packetloss_cvx.qp.convex.ClarabelProgram.solve>`: "optimal" passes,
     Clarabel's infeasibility certificate raises InfeasibleError(no_mu) (SolverError when ``no_mu`` is
     None: infeasibility is then known to be impossible), anything else SolverError. O(1).
 

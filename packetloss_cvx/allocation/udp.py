@@ -38,7 +38,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import InfeasibleError, SolverError
-from ..model import System
+from ..model.system import System
 from ..progress import progress_bar
 from ..tolerances import (
     ALLOCATION_COST_RTOL,
@@ -74,7 +74,7 @@ class MonotoneCost:
     --------
     J*_udp = 1 - mu/2 (one step of x' = x + v u from x0 = 1); through phi(x) = x^2 at x = 0.5 it is 1 - 1/8:
 
-    >>> from packetloss_cvx.evaluator import CostEvaluator
+    >>> from packetloss_cvx.lq.evaluator import CostEvaluator
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> f = MonotoneCost(CostEvaluator(s, "udp"), lambda x: x ** 2, lambda i, t: t ** 2)
     >>> f.checked(np.array([0.5])), f.probe(np.array([0.5])), f.line(np.array([1.0]), 0, True)(0.5)

@@ -3,8 +3,8 @@ independent brute-force allocator: one case per price vector beta and cost bound
 
 from __future__ import annotations
 
-from ..costs import closed_form
-from ..model import System
+from ..lq.costs import closed_form
+from ..model.system import System
 from ..results import ClaimResult
 from .context import Context
 from .evaluate import CASE_ERRORS, Tally

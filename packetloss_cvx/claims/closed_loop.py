@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..costs import closed_form
-from ..model import System
+from ..closedloop.moments import finite_horizon_costs
+from ..lq.costs import closed_form
+from ..model.system import System
 from ..results import ClaimResult
-from ..simulation import finite_horizon_costs
 from ..threads import blas_limited
 from .context import Context
 from .evaluate import evaluate

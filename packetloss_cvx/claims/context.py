@@ -7,13 +7,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..closedloop.riccati import dp_riccati
 from ..errors import NumericalError
-from ..evaluator import CostEvaluator
-from ..io import load_example
-from ..model import System
-from ..protocols import check_protocol
+from ..lq.evaluator import CostEvaluator
+from ..model.files import load_example
+from ..model.protocols import check_protocol
+from ..model.system import System
 from ..results import Riccati, Solution
-from ..simulation.riccati import dp_riccati
 
 __all__ = ["Context", "interior", "paper_systems"]
 
@@ -78,7 +78,7 @@ class Context:
         """The QP twin's answer for ``system`` (solved once per audit). One :class:`ExpectedCostQP`
         per system serves both protocols; the audit's 200 random systems share 15 compiled condensed
         problems (one per padded shape, docs/performance.md, "Audit: compiled QPs shared across systems")."""
-        from ..qp import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
+        from ..qp.expected_cost import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
 
         key = (id(system), protocol)
         if key not in self.cache:

@@ -7,10 +7,10 @@ import dataclasses
 
 import numpy as np
 
-from .. import difference
-from ..model import System
-from ..prediction import Prediction, prediction
-from ..recursion import condition_estimate
+from ..lq import difference
+from ..lq.prediction import Prediction, prediction
+from ..lq.recursion import condition_estimate
+from ..model.system import System
 from ..results import ClaimResult
 from ..tolerances import DENSE_MAX_CONDITION
 from .context import Context

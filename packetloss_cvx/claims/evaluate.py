@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, NumericalError, SolverError
-from ..model import System
+from ..model.system import System
 from ..results import ClaimResult
 from ..tolerances import RESOLVED_MIN
 from .context import Context

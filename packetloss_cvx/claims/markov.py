@@ -1,16 +1,17 @@
 """plug-in-markov: are the paper's laws, fed the chain's predicted mu_t, still optimal when losses
 come in bursts? Each case is put behind Gilbert channels with its own average delivery rates and
 burstiness lambda = 1 - p - r in :data:`CORRELATIONS`, and the UDP-like plug-in law's exact expected
-cost is compared with the exact minimum (:mod:`packetloss_cvx.markov`).
+cost is compared with the exact minimum (:mod:`packetloss_cvx.lq.markov_cost`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..costs import closed_form
-from ..markov import bursty_twin, exact_closed_form, exact_cost
-from ..model import System
+from ..lq.costs import closed_form
+from ..lq.markov_cost import exact_closed_form, exact_cost
+from ..model.system import System
+from ..model.twins import bursty_twin
 from ..results import ClaimResult
 from ..tolerances import CROSS_CHECK_COST_RTOL
 from .context import Context

@@ -12,13 +12,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..costs import closed_form
+from ..closedloop.moments import closed_loop
+from ..closedloop.riccati import NO_SOLUTION, dp_riccati
 from ..errors import NumericalError
 from ..linalg import frobenius
-from ..model import System
+from ..lq.costs import closed_form
+from ..model.system import System
 from ..results import ClaimResult, Riccati
-from ..simulation import closed_loop, dp_riccati
-from ..simulation.riccati import NO_SOLUTION
 from ..threads import blas_limited
 from .context import Context
 from .evaluate import evaluate, resolved

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from .. import difference
-from ..costs import closed_form, expected_cost
 from ..errors import NumericalError
-from ..evaluator import CostEvaluator
 from ..linalg import frobenius
-from ..model import System
-from ..prediction import prediction
+from ..lq import difference
+from ..lq.costs import closed_form, expected_cost
+from ..lq.evaluator import CostEvaluator
+from ..lq.prediction import prediction
+from ..model.system import System
 from ..results import ClaimResult, Solution
 from ..threads import blas_limited
 from ..tolerances import CROSS_CHECK_FLOOR, RESOLVED_MIN
@@ -25,7 +25,7 @@ __all__ = ["case_ids", "corollary_1", "corollary_2", "optimal_plan", "theorem_2"
 def optimal_plan(ctx: Context, system: System, protocol: str, case: bool | None = None) -> Solution:
     """Theorem 1's plan at the system's own channel: from the audit's cached evaluator for one of its
     cases (built once, shared by the claims, :meth:`CostEvaluator.optimum`), from
-    :func:`~packetloss_cvx.costs.closed_form` for any other system (a shrunk counterexample's candidates,
+    :func:`~packetloss_cvx.lq.costs.closed_form` for any other system (a shrunk counterexample's candidates,
     computed as before). Equal to rounding either way (tests: 1e-12). ``case``: whether ``system`` is one
     of the cases, when the caller knows (:func:`case_ids`), else looked up.
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io import load_example
-from ..model import System
+from ..model.files import load_example
+from ..model.system import System
 from ..results import ClaimResult
 from .context import Context
 from .evaluate import Tally

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import System
+from ..model.system import System
 from ..results import ClaimResult
-from ..simulation.region_map import region_map
+from ..studies.region_map import region_map
 from .context import Context
 from .evaluate import Tally
 

@@ -8,9 +8,9 @@ import numpy as np
 
 from ..budgets import check, count_text
 from ..errors import InputError
-from ..model import System
+from ..model.random_systems import random_system
+from ..model.system import System
 from ..progress import progress_bar
-from ..random_systems import random_system
 from ..results import ClaimResult
 from ..threads import blas_limited
 from .channel_allocation import allocation_udp_perfect

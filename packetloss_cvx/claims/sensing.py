@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
+from ..closedloop.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
 from ..errors import NumericalError
-from ..io import system_from_dict
-from ..model import System
+from ..model.files import system_from_dict
+from ..model.system import System
 from ..results import ClaimResult, Riccati
 from ..sensing.loop import estimated_loop
 from ..sensing.montecarlo import simulate_estimated
-from ..simulation.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
 from ..tolerances import RESOLVED_MIN
 from .context import Context
 from .evaluate import Tally, resolved

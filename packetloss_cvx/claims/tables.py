@@ -8,12 +8,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .. import analysis as an
-from .. import difference
-from ..costs import closed_form
-from ..io import system_from_dict
-from ..model import System
-from ..prediction import prediction
+from ..lq import analysis as an
+from ..lq import difference
+from ..lq.costs import closed_form
+from ..lq.prediction import prediction
+from ..model.files import system_from_dict
+from ..model.system import System
 from ..results import ClaimResult
 from .context import Context
 from .paper import PENDULUM_NU_D, STATEMENTS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU

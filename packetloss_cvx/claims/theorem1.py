@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..costs import closed_form, expected_cost, loss_variance_term, paper_optimal_cost
 from ..errors import NumericalError
 from ..linalg import frobenius
-from ..model import System
-from ..prediction import prediction
+from ..lq.costs import closed_form, expected_cost, loss_variance_term, paper_optimal_cost
+from ..lq.prediction import prediction
+from ..model.system import System
+from ..montecarlo.channels import sample_deliveries, sample_noise
+from ..montecarlo.sampling import sample_plan_costs
 from ..results import ClaimResult, Solution
-from ..simulation import sample_deliveries, sample_noise, sample_plan_costs
 from ..tolerances import CROSS_CHECK_COST_RTOL, CROSS_CHECK_FLOOR
 from .context import Context, interior
 from .evaluate import Z, cost_scale, enough_deliveries, evaluate, relative_error, resolved, z_margin
@@ -29,7 +30,7 @@ def theorem_1_laws(ctx: Context) -> ClaimResult:
     >>> theorem_1_laws(ctx).verdict                  # the QP's minimiser is u = -2/3 (TCP-like), -1/2 (UDP-like)
     'holds'
     """
-    from ..qp import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
+    from ..qp.expected_cost import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
 
     def margin(s: System) -> float:
         worst = 1e-6
@@ -64,7 +65,7 @@ def theorem_1_costs(ctx: Context) -> ClaimResult:
     >>> theorem_1_costs(ctx).verdict     # one channel: Vbar = I/2 commutes with G, the printed form is exact
     'holds'
     """
-    from ..qp import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
+    from ..qp.expected_cost import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
 
     def margin(s: System) -> float:
         worst = 1e-7

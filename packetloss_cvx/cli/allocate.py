@@ -31,9 +31,9 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.model.files import save_system
     >>> from packetloss_cvx.cli.parser import build_parser
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> folder = tempfile.TemporaryDirectory()
     >>> path = str(save_system(s, Path(folder.name) / "scalar.toml"))

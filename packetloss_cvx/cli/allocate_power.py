@@ -14,8 +14,8 @@ from ..allocation.ack import best_protocol
 from ..allocation.delivery import PowerModel, load_power, power_model
 from ..allocation.power import least_cost_within_power, least_power
 from ..errors import InfeasibleError, InputError
-from ..io import read_csv_numbers
-from ..model import System
+from ..model.files import read_csv_numbers
+from ..model.system import System
 from . import format as fmt
 from .common import CommandResult, floats, number, progress_of, search_options
 
@@ -82,7 +82,7 @@ def run(args: argparse.Namespace, system: System) -> CommandResult:
     >>> import tempfile
     >>> from pathlib import Path
     >>> import numpy as np
-    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.model.files import save_system
     >>> from packetloss_cvx.cli.parser import build_parser
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> folder = tempfile.TemporaryDirectory()

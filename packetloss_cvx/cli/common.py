@@ -26,8 +26,8 @@ from ..budgets import (
     solve_work,
 )
 from ..errors import InputError
-from ..io import load_system, read_csv_numbers, read_input
-from ..model import System
+from ..model.files import load_system, read_csv_numbers, read_input
+from ..model.system import System
 from ..safeio import check_output_file
 
 __all__ = ["CommandResult", "allocation_numbers", "check_budgets", "check_figure_format", "check_writable", "floats",
@@ -135,7 +135,7 @@ def number(text: str, field: str) -> float:
 
 def read_schedule(path: str) -> np.ndarray:
     """A CSV file of N rows of m delivery probabilities, read by the one CSV reader
-    (:func:`~packetloss_cvx.io.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
+    (:func:`~packetloss_cvx.model.files.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
     a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(N m).
 
     Examples
@@ -154,7 +154,7 @@ def with_overrides(system: System, args: argparse.Namespace) -> System:
 
     Examples
     --------
-    >>> from packetloss_cvx.io import load_example
+    >>> from packetloss_cvx.model.files import load_example
     >>> with_overrides(load_example("two_actuator"), argparse.Namespace(mu="0.5")).mu.tolist()
     [0.5, 0.5]
     """
@@ -356,7 +356,7 @@ def check_solve(system: System, args: argparse.Namespace) -> None:
 
     Examples
     --------
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[0.9]], B=[[1.0]], horizon=10 ** 6, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> check_solve(s, argparse.Namespace(protocol="both", no_qp=True, formulation="auto"))     # 0.93 s: silent
     >>> check_solve(s, argparse.Namespace(protocol="both", no_qp=False, formulation="auto"))

@@ -2,7 +2,7 @@
 
 Completes subcommands, each subcommand's options (an option that takes a value is followed by its
 value, not by another option), choices (``--protocol t<TAB>``), and a system FILE as a packaged
-example name (read from the package data: :func:`packetloss_cvx.examples.names`) or a file name.
+example name (read from the package data: :func:`packetloss_cvx.model.examples.names`) or a file name.
 bash and zsh. O(size of the grammar). shtab (0.12 s to import) is loaded only when a script is asked for.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..examples import names as example_names
+from ..model.examples import names as example_names
 
 __all__ = ["SHELLS", "CompletionAction", "mark_system_file", "script"]
 

@@ -8,12 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from ..costs import closed_form
+from ..closedloop.mjls import mean_square_radius
+from ..closedloop.stability import is_mean_square_stable
 from ..errors import InputError, NumericalError, ResourceError
-from ..markov import markov_solution, mean_square_radius
-from ..markov_channel import MarkovChannel
-from ..model import System
-from ..simulation import is_mean_square_stable
+from ..lq.costs import closed_form
+from ..model.markov_channel import MarkovChannel
+from ..model.system import System
+from ..qp.markov_solution import markov_solution
 
 __all__ = ["markov_section"]
 
@@ -47,10 +48,10 @@ def _radius(system: System, gain: np.ndarray) -> tuple[float | None, bool, str]:
 def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tuple[dict[str, Any], list[str]]:
     """``(data, lines)`` for a system with a Markov channel: JSON under "markov" and the text lines.
 
-    Per protocol: :func:`~packetloss_cvx.markov.markov_solution`, and the mean-square radius of the loop
+    Per protocol: :func:`~packetloss_cvx.qp.markov_solution.markov_solution`, and the mean-square radius of the loop
     u = -K x behind the chain (a Markov jump linear system) for the plug-in and the exact receding-horizon
     gains, both computed at the file's belief; "stable" only where
-    :func:`~packetloss_cvx.simulation.is_mean_square_stable` proves it (a radius not computed is reported
+    :func:`~packetloss_cvx.closedloop.stability.is_mean_square_stable` proves it (a radius not computed is reported
     with its reason, never as stable).
 
     A disagreement of the QP with the closed form (CrossCheckError) propagates; a QP beyond the
@@ -60,7 +61,7 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
     --------
     The TCP-like cost holds only the marginals mu_t, so its plug-in law is the exact minimiser under the chain:
 
-    >>> from packetloss_cvx.io import load_example
+    >>> from packetloss_cvx.model.files import load_example
     >>> data, lines = markov_section(load_example("pendulum_bursty"), ("tcp",), qp=False)
     >>> abs(data["tcp"]["relative_loss"]) < 1e-9, sorted(data["tcp"]["stable"]), lines[1].startswith("the laws above")
     (True, ['exact', 'plug_in'], True)

@@ -11,20 +11,20 @@ from typing import Any
 import numpy as np
 
 from ..budgets import check
-from ..errors import InputError, NumericalError
-from ..results.region import RegionMap
-from ..runfolder import RunFolder
-from ..safeio import save_figure
-from ..simulation.markov_region import (
+from ..closedloop.markov_region import (
     chain_critical_rate,
     chain_membership,
     chain_rate_map,
     critical_rate_unproved,
     homogeneous_coupled_riccati,
 )
-from ..simulation.region_map import LAWS, region_map
-from ..simulation.riccati import dp_riccati
+from ..closedloop.riccati import dp_riccati
+from ..errors import InputError, NumericalError
+from ..results.region import RegionMap
+from ..runfolder import RunFolder
+from ..safeio import save_figure
 from ..studies.output import csv_number
+from ..studies.region_map import LAWS, region_map
 from .common import CommandResult, floats, integers, progress_of, system_of
 from .sensing_section import coupled_grid, region_section
 
@@ -71,8 +71,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     One state, x' = 2x + v u: some law stabilises iff mu > 1 - 1/a^2 = 0.75.
 
     >>> import tempfile
-    >>> from packetloss_cvx.io import save_system
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.files import save_system
+    >>> from packetloss_cvx.model.system import System
     >>> from packetloss_cvx.cli.parser import build_parser
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
     >>> folder = tempfile.TemporaryDirectory()

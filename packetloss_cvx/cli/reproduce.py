@@ -1,7 +1,8 @@
 """``packetloss-cvx reproduce [--out DIR]``: every figure and table of the paper from the packaged
 examples, with ``results.json`` and ``report.md`` saying, figure by figure, what matches the paper.
 
-Deterministic (no clock, no unseeded randomness in any file written, but for the time in manifest.json). Steps: the pendulum's costs
+Deterministic (no clock, no unseeded randomness in any file written, but for the time in manifest.json). Steps: the
+pendulum's costs
 over nu, the two-actuator grids, the allocations of §VI for both protocols, Tables I–II, the
 two-actuator system's stability region of each law (beyond the paper), the audit, the figures, the report.
 """
@@ -13,17 +14,17 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ..allocation.ack import break_even_of
 from ..claims import CLAIMS, audit, markdown_report
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
 from ..display import json_text
-from ..io import load_example
-from ..allocation.ack import break_even_of
+from ..model.files import load_example
 from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour, plot_region
 from ..progress import progress_bar
 from ..runfolder import RunFolder
 from ..safeio import save_figure
-from ..simulation.region_map import region_map
 from ..studies import paper_figures as pf
+from ..studies.region_map import region_map
 from ..threads import blas_limited
 from .common import CommandResult
 from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, report

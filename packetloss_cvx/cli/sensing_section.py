@@ -8,17 +8,17 @@ from typing import Any
 
 import numpy as np
 
-from ..costs import closed_form
+from ..closedloop.critical import critical_mu
+from ..closedloop.riccati import dp_riccati
 from ..errors import InputError, NumericalError
-from ..model import System
+from ..lq.costs import closed_form
+from ..model.system import System
 from ..results.base import finite_or_none
 from ..results.region import CriticalPoint
 from ..sensing.bounds import covariance_bounds, critical_gamma
 from ..sensing.loop import estimated_loop, loop_map, loop_verdict, require_sensor
 from ..sensing.markov_bounds import filter_stability, markov_covariance_bounds
 from ..sensing.montecarlo import simulate_estimated
-from ..simulation.critical import critical_mu
-from ..simulation.riccati import dp_riccati
 
 __all__ = ["coupled_grid", "estimated_law", "estimation_section", "protocol_entry", "region_section",
            "simulate_section"]

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..montecarlo.markov import EXACT_PLAN
+from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
-from ..simulation.markov_montecarlo import EXACT_PLAN
-from ..simulation.montecarlo import LAWS, simulate
 from .common import CommandResult, check_figure_format, progress_of, system_of
 from .sensing_section import simulate_section
 
@@ -41,8 +41,8 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from packetloss_cvx.io import save_system
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.files import save_system
+    >>> from packetloss_cvx.model.system import System
     >>> from packetloss_cvx.cli.parser import build_parser
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> folder = tempfile.TemporaryDirectory()

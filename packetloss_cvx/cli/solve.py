@@ -8,12 +8,12 @@ from typing import Any
 
 import numpy as np
 
-from ..costs import closed_form
+from ..closedloop.law_stability import loop_stability
 from ..errors import NumericalError, ResourceError
-from ..model import System
+from ..lq.costs import closed_form
+from ..model.system import System
 from ..progress import progress_bar
 from ..results import Solution, eigenvalue_pairs
-from ..simulation import loop_stability
 from . import format as fmt
 from .common import CommandResult, progress_of, system_of
 from .markov_section import markov_section
@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from packetloss_cvx.io import save_system
+    >>> from packetloss_cvx.model.files import save_system
     >>> from packetloss_cvx.cli.parser import build_parser
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> folder = tempfile.TemporaryDirectory()
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             label += ": the paper's formula on the chain's mu_t, not the expected cost under the chain (below)"
         rows: list[tuple[str, object]] = [("cost", label)]
         if not args.no_qp:
-            from ..qp import solve_qp     # cvxpy (1.5 s to import) only where a QP is asked for
+            from ..qp.expected_cost import solve_qp  # cvxpy (1.5 s to import) only where a QP is asked for
 
             try:
                 qp = solve_qp(plugin, protocol, args.formulation, with_gain=False, reference=sol)
@@ -141,7 +141,7 @@ def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]
 
 def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     """Mean-square stability of the receding-horizon law u = -K x run for ever over the file's channel
-    (:func:`~packetloss_cvx.simulation.loop_stability`); adds its keys to ``entry``, returns the sentence.
+    (:func:`~packetloss_cvx.closedloop.law_stability.loop_stability`); adds its keys to ``entry``, returns the sentence.
 
     Examples
     --------

@@ -9,15 +9,15 @@ from typing import Any
 
 import numpy as np
 
+from ..closedloop.stability import is_mean_square_stable
 from ..errors import InputError
-from ..io import load_system
-from ..markov import burstiness_map, burstiness_sweep
-from ..model import System
+from ..model.files import load_system
+from ..model.system import System
 from ..results import BurstinessMap, BurstinessSweep, DesignSweep, plugin_loss
 from ..runfolder import RunFolder
 from ..safeio import save_figure
-from ..simulation import is_mean_square_stable
 from ..studies import read_mu_list, require_xarray, sweep
+from ..studies.burstiness import burstiness_map, burstiness_sweep
 from ..studies.engine import DEFAULT_CHUNK
 from ..studies.output import csv_header, csv_number, sweep_table, write_sweep
 from ..tolerances import SELF_CHECK_RTOL
@@ -123,7 +123,7 @@ def _points(result: DesignSweep, data: dict[str, Any], table_file: Path | None) 
 
 def bursty(args: argparse.Namespace) -> CommandResult:
     """``--burstiness``: each protocol's plug-in law against the exact minimum under Gilbert channels of
-    the file's average rates (:func:`~packetloss_cvx.markov.burstiness_sweep`); ``--out`` writes
+    the file's average rates (:func:`~packetloss_cvx.studies.burstiness.burstiness_sweep`); ``--out`` writes
     burstiness.csv and a figure.
 
     Examples
@@ -192,7 +192,8 @@ def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, 
 
 def bursty_map(args: argparse.Namespace) -> CommandResult:
     """``--burstiness`` with ``--mean-rate``: the (mean rate × burstiness) map of channel ``--channel`` (default 1),
-    the other channels as in the file (:func:`~packetloss_cvx.markov.burstiness_map`); the JSON carries every
+    the other channels as in the file (:func:`~packetloss_cvx.studies.burstiness.burstiness_map`); the JSON carries
+    every
     point up to :data:`JSON_MAX_POINTS`; ``--out`` writes burstiness_map.csv and a figure per protocol
     (burstiness_map_<protocol>.png: the exact minimum on a log scale beside the plug-in loss in %).
 
@@ -291,8 +292,8 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from packetloss_cvx.io import save_system
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.files import save_system
+    >>> from packetloss_cvx.model.system import System
     >>> from packetloss_cvx.cli.parser import build_parser
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> folder = tempfile.TemporaryDirectory()

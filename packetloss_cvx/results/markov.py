@@ -20,7 +20,7 @@ __all__ = ["BurstinessMap", "BurstinessSweep", "MarkovSolution", "MjlsResult", "
 def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """``plugin / exact - 1`` elementwise: how much the plug-in law loses against the exact minimum. A zero
     minimum (x0 = 0 without noise) has a zero plug-in cost too, so its loss is 0, as ``solve``'s
-    (:func:`~packetloss_cvx.markov.markov_solution`). O(size).
+    (:func:`~packetloss_cvx.qp.markov_solution.markov_solution`). O(size).
 
     Examples
     --------
@@ -33,7 +33,7 @@ def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class MarkovSolution:
-    """One protocol under a Gilbert–Elliott channel (:func:`packetloss_cvx.markov.markov_solution`).
+    """One protocol under a Gilbert–Elliott channel (:func:`packetloss_cvx.qp.markov_solution.markov_solution`).
 
     ``exact``: the minimiser of the protocol's exact expected cost (closed form); ``qp``: its
     cvxpy + Clarabel twin (cross-checked) or None; ``plugin_cost``: the protocol's exact cost of the
@@ -65,7 +65,7 @@ class MarkovSolution:
 @dataclass(frozen=True)
 class BurstinessSweep(Frozen):
     """Costs over the burstiness lambda = 1 - p - r at fixed average delivery rates ``rate``
-    (:func:`packetloss_cvx.markov.burstiness_sweep`). ``plugin``: protocol -> the protocol's exact cost
+    (:func:`packetloss_cvx.studies.burstiness.burstiness_sweep`). ``plugin``: protocol -> the protocol's exact cost
     of its plug-in plan; ``exact``: protocol -> the exact minimum; each an array over ``correlation``."""
 
     correlation: np.ndarray
@@ -90,10 +90,12 @@ class BurstinessSweep(Frozen):
 
 @dataclass(frozen=True)
 class BurstinessMap(Frozen):
-    """Costs over a (mean rate × burstiness) grid of one channel (:func:`packetloss_cvx.markov.burstiness_map`):
+    """Costs over a (mean rate × burstiness) grid of one channel
+    (:func:`packetloss_cvx.studies.burstiness.burstiness_map`):
     channel ``channel`` (0-based) behind the stationary Gilbert channel of long-run rate ``rate[a]`` and
     burstiness ``correlation[b]`` = lambda = 1 - p - r, the other channels as in the system
-    (:func:`~packetloss_cvx.markov.channel_twin`). ``plugin``: protocol -> the protocol's exact expected cost of its
+    (:func:`~packetloss_cvx.model.twins.channel_twin`). ``plugin``: protocol -> the protocol's exact expected cost of
+    its
     plug-in plan, (R, L) with ``[a, b]`` at ``(rate[a], correlation[b])``; ``exact``: protocol -> the exact minimum,
     alike. ``name``: the system's. :meth:`relative_loss` is the plug-in law's loss."""
 
@@ -156,7 +158,7 @@ class BurstinessMap(Frozen):
 
 @dataclass(frozen=True)
 class MjlsResult(Frozen):
-    """Mode-dependent optimal control of a Markov jump linear system (:mod:`packetloss_cvx.markov.mjls`).
+    """Mode-dependent optimal control of a Markov jump linear system (:mod:`packetloss_cvx.closedloop.mjls`).
 
     ``gains[k]``: u = -gains[k] x in mode k; ``cost_matrices[k]``: the coupled Riccati solutions P_k;
     ``modes``: each mode's channel states (Gilbert–Elliott: 1 = good, 0 = bad per actuator; a MarkovChannel: the

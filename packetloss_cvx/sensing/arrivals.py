@@ -5,7 +5,7 @@ With ``S_k`` the joint state (``2^g`` states for g Gilbert–Elliott channels, o
 over (good, bad), channel 0 most significant), the arrival pattern ``a_k`` of step k is drawn from
 ``emission[S_k]`` (channel j delivers with ``h_good_j`` in its good state, ``h_bad_j`` in its bad one,
 independently), and then ``S_{k+1} ~ transition[S_k]``; ``S_0 ~ initial`` (the file's belief or state, else the
-stationary distribution: :func:`packetloss_cvx.markov.chain.chain_matrices`). Given ``S_k``, ``a_k`` is
+stationary distribution: :func:`packetloss_cvx.model.chain.chain_matrices`). Given ``S_k``, ``a_k`` is
 independent of the past and of ``S_{k+1}``: the two facts the expected covariance's recursions
 (:func:`.kalman.expected_covariance`) and the Markov bounds (:mod:`.markov_bounds`) rest on.
 
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..markov.chain import chain_matrices
-from ..sensor import Sensor
+from ..model.chain import chain_matrices
+from ..model.sensor import Sensor
 
 __all__ = ["PATTERN_MAX_CHANNELS", "Arrivals", "ChainSampler", "arrival_patterns", "sensor_arrivals"]
 

@@ -29,8 +29,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import CrossCheckError, InputError, NumericalError
+from ..model.sensor import Sensor
 from ..results.sensing import CovarianceBounds, CriticalGamma
-from ..sensor import Sensor
 from .arrivals import arrival_patterns
 from .kalman import RowUpdate, pattern_rows, predict
 

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..sensor import Sensor
+from ..model.sensor import Sensor
 from .arrivals import sensor_arrivals
 
 __all__ = ["ENUMERATION_MAX_PATHS", "ExpectedCovariance", "actuation_covariance", "expected_covariance",

@@ -17,8 +17,8 @@ from __future__ import annotations
 import cvxpy as cp
 import numpy as np
 
-from ..convex import solve_problem
-from ..sensor import Sensor
+from ..model.sensor import Sensor
+from ..qp.convex import solve_problem
 from ..tolerances import CLARABEL_TIGHT
 from .arrivals import arrival_patterns
 from .kalman import pattern_rows

@@ -38,14 +38,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..costs import closed_form
+from ..closedloop.moments import solve_fixed_point, stationary_channel
+from ..closedloop.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
+from ..closedloop.stability import mean_square_radius, random_matrix_moment
 from ..errors import InputError, NumericalError
-from ..model import System
+from ..lq.costs import closed_form
+from ..model.system import System
 from ..results import Riccati
 from ..results.sensing import EstimatedLoop
-from ..simulation.moments import solve_fixed_point, stationary_channel
-from ..simulation.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
-from ..simulation.stability import mean_square_radius, random_matrix_moment
 from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
 from .arrivals import arrival_patterns, sensor_arrivals
 from .bounds import lower_bound_diverges, upper_bound_covariance
@@ -107,7 +107,7 @@ def no_gains_verdict(system: System) -> tuple[bool | None, str]:
     E[x x'] >= E[P_k] >= q E[P^-_k] -> inf for every law on every estimate), else ``(None,
     reason)``: the upper-bound iteration diverging proves nothing (Jensen's bound, not E[P]). O(n^3 log).
 
-    >>> from packetloss_cvx.sensor import Sensor
+    >>> from packetloss_cvx.model.sensor import Sensor
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
     ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[0.5]))   # (1 - 0.5) 2^2 = 2 >= 1
     >>> no_gains_verdict(s)[0]
@@ -144,7 +144,7 @@ def chain_loop_verdict(system: System, gain: np.ndarray, protocol: str, mu: np.n
     reason. UDP-like: the error depends on the inputs, so only the divergence proves anything. Time
     O(filter_stability + n^6).
 
-    >>> from packetloss_cvx.sensor import Sensor
+    >>> from packetloss_cvx.model.sensor import Sensor
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[0.0],
     ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], channel={"model": "gilbert-elliott", "p": [0.1],
     ...                                                                  "r": [0.8]}))
@@ -226,7 +226,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
 
     Examples
     --------
-    >>> from packetloss_cvx.sensor import Sensor
+    >>> from packetloss_cvx.model.sensor import Sensor
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
     ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[1.0]))     # C = I, R = 0: full state
     >>> loop = estimated_loop(s, np.array([[0.5]]), "tcp")
@@ -325,7 +325,7 @@ def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
     otherwise). The data of the
     (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws (2n)^6).
 
-    >>> from packetloss_cvx.sensor import Sensor
+    >>> from packetloss_cvx.model.sensor import Sensor
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],
     ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[1.0]))
     >>> radius, cost = loop_map(s, np.array([0.7, 0.9]), np.array([0.9]), ("dp",))["dp"]

@@ -42,8 +42,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import CrossCheckError, InputError, NumericalError
+from ..model.sensor import Sensor
 from ..results.sensing import CovarianceBounds, FilterStability
-from ..sensor import Sensor
 from .arrivals import Arrivals, sensor_arrivals
 from .bounds import CERTIFICATE_MAX_ITER, DIVERGENCE_MARGIN, MARE_DIVERGENCE, MARE_MAX_ITER, MARE_RTOL
 from .kalman import RowUpdate, pattern_rows, predict

@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..budgets import check, simulate_work
+from ..closedloop.moments import stationary_channel
 from ..errors import InputError
 from ..linalg import psd_factor
-from ..model import System
+from ..model.sensor import Sensor
+from ..model.system import System
 from ..results.sensing import EstimatedRun, SampledCovariance
-from ..sensor import Sensor
-from ..simulation.moments import stationary_channel
 from .arrivals import ChainSampler, arrival_patterns
 from .kalman import actuation_covariance, measurement_update, pattern_rows, predict
 from .loop import estimated_loop, filter_gains, require_sensor

@@ -23,11 +23,11 @@ import numpy as np
 
 from ..budgets import BUDGETS, check, count_text, estimated_seconds, sweep_work
 from ..errors import InputError
-from ..io import read_csv_numbers
-from ..model import System, numeric_array
-from ..protocols import PROTOCOLS, check_protocol
+from ..model.files import read_csv_numbers
+from ..model.protocols import PROTOCOLS, check_protocol
+from ..model.system import System, numeric_array
+from ..model.validation import MAX_ENTRIES
 from ..results import DesignSweep
-from ..validation import MAX_ENTRIES
 from .engine import DEFAULT_CHUNK, chunks, run_in_process, run_on_dask
 
 __all__ = ["MAX_SWEEP_POINTS", "read_mu_list", "sweep"]
@@ -59,7 +59,7 @@ def _grid_axis(mu_grid: Any) -> np.ndarray:
 
 def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     """Channel points from a CSV file: one row per point, m probabilities per row, read by the one CSV reader
-    (:func:`~packetloss_cvx.io.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
+    (:func:`~packetloss_cvx.model.files.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
     a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(rows).
 
     Raises
@@ -232,7 +232,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
 
     Examples
     --------
-    >>> from packetloss_cvx.io import load_example
+    >>> from packetloss_cvx.model.files import load_example
     >>> result = sweep(load_example("two_actuator"), mu_grid=3)
     >>> result.dims, result.shape, result.mu.shape
     (('mu2', 'mu1'), (3, 3), (9, 2))
@@ -241,7 +241,8 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
     """
     if getattr(system, "channel", None) is not None:
         raise InputError("system", "it has a Gilbert-Elliott (Markov) channel; sweep evaluates independent "
-                                   "Bernoulli channels (packetloss_cvx.markov.burstiness_sweep sweeps burstiness)")
+                                   "Bernoulli channels (packetloss_cvx.studies.burstiness.burstiness_sweep sweeps "
+                                   "burstiness)")
     protocols = tuple(dict.fromkeys(check_protocol(p, "protocols") for p in protocols))
     if not protocols:
         raise InputError("protocols", "expected at least one of 'tcp', 'udp'")

@@ -1,7 +1,7 @@
 """Where a sweep's points are evaluated: in this process, or chunk by chunk on a Dask cluster.
 
 The points are split into chunks of ``chunk_size`` consecutive points; each chunk is one call of
-:func:`evaluate_chunk` (one batched :class:`~packetloss_cvx.evaluator.CostEvaluator` evaluation per
+:func:`evaluate_chunk` (one batched :class:`~packetloss_cvx.lq.evaluator.CostEvaluator` evaluation per
 protocol and per distinct horizon, channels and initial states batched together). Both
 paths call the same function on the same chunks, with the system rebuilt from the same plain
 dictionary (``System.to_dict()``, exact for every float), so their results are identical bit for
@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 
 from ..budgets import check, count_text
+from ..closedloop.stability import mean_square_radius
 from ..errors import InputError
-from ..evaluator import CostEvaluator
-from ..io import system_from_dict
+from ..lq.evaluator import CostEvaluator
+from ..model.files import system_from_dict
 from ..progress import progress_bar
-from ..simulation.stability import mean_square_radius
 from ..threads import blas_limited
 
 __all__ = ["DEFAULT_CHUNK", "LOCAL_WORKERS", "NO_WORKER_TIMEOUT", "chunks", "dask_client", "evaluate_chunk",
@@ -83,7 +83,7 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     stability : bool
         Also the spectral radius of the second-moment operator of each protocol's receding-horizon
         law ``u = -K x`` run in closed loop over the point's channel
-        (:func:`~packetloss_cvx.simulation.stability.mean_square_radius`; mean-square stable iff < 1).
+        (:func:`~packetloss_cvx.closedloop.stability.mean_square_radius`; mean-square stable iff < 1).
 
     Returns
     -------
@@ -100,7 +100,7 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     --------
     One step of x' = x + v u from x0 = 1 (Q = R = 1): J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2.
 
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> out = evaluate_chunk(s.to_dict(), ["tcp", "udp"], np.array([[0.0], [0.5]]), np.ones((2, 1)), np.ones(2, int))
     >>> bool(np.allclose(out["cost_tcp"], [1, 2 / 3]) and np.allclose(out["cost_udp"], [1, 0.75]))
@@ -141,7 +141,7 @@ def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: 
 
     Examples
     --------
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> mu = np.array([[0.0], [0.5], [1.0]])            # J*_tcp = 1/(1 + mu), in two chunks
     >>> out = run_in_process(s.to_dict(), ["tcp"], chunks(mu, np.ones((3, 1)), np.ones(3, int), 2))

@@ -55,7 +55,7 @@ def csv_header(result: DesignSweep) -> list[str]:
 
     Examples
     --------
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> from packetloss_cvx.studies import sweep
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> csv_header(sweep(s, mu_grid=2)), csv_header(sweep(s, mu_grid=2, protocols=["udp"]))[-1]
@@ -73,7 +73,7 @@ def sweep_table(result: DesignSweep) -> np.ndarray:
 
     Examples
     --------
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> from packetloss_cvx.studies import sweep
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> sweep_table(sweep(s, mu_grid=[0.0, 1.0])).tolist()   # mu, x0, N, J*_tcp, J*_udp, J_Delta; J* = 1/(1 + mu)
@@ -107,7 +107,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, ov
     Examples
     --------
     >>> import tempfile
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> from packetloss_cvx.studies import sweep
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> with tempfile.TemporaryDirectory() as tmp:
@@ -134,7 +134,7 @@ def write_sweep(result: DesignSweep, folder: RunFolder, netcdf: bool = False) ->
     Examples
     --------
     >>> import tempfile
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> from packetloss_cvx.studies import sweep
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> with tempfile.TemporaryDirectory() as tmp, RunFolder(Path(tmp) / "run", command="example") as folder:

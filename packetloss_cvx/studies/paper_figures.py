@@ -1,6 +1,6 @@
 """The data behind each of the paper's figures and tables, computed from its two case studies.
 
-Each function returns plain data (arrays, lists, floats) that :mod:`packetloss_cvx.plots` draws and
+Each function returns plain data (arrays, lists, floats) that :mod:`packetloss_cvx.plots.figures` draws and
 ``packetloss-cvx reproduce`` reports: nothing here draws, and nothing here knows what the paper
 printed (that is :mod:`packetloss_cvx.claims.paper`).
 
@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from .. import analysis as an
-from .. import difference
-from ..allocation import contour_allocations
-from ..model import System
+from ..lq import analysis as an
+from ..lq import difference
+from ..model.system import System
+from .allocation import contour_allocations
 from .sweeps import shared_channel_sweep, two_channel_sweep
 
 __all__ = ["PAPER_BETAS", "eigenvalue_tables", "log_cost_pendulum", "mixed_allocations", "mixed_grids",
@@ -46,7 +46,7 @@ def pendulum_nus(points: int) -> np.ndarray:
 
 def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
     """fig:log-cost-pendulum: J*_tcp(nu), J*_udp(nu) and J_Delta(nu) with every actuator behind one
-    channel nu, and the maximiser of J_Delta (:func:`~packetloss_cvx.difference.maximise_cost_difference`).
+    channel nu, and the maximiser of J_Delta (:func:`~packetloss_cvx.lq.difference.maximise_cost_difference`).
 
     Returns ``{"nu", "tcp", "udp", "diff", "difference_method", "maximiser": {"nu", "value", "method"}}``
     (arrays for the curves). O(points (N m)^3).
@@ -55,7 +55,7 @@ def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
     --------
     One step of x' = x + v u: J_Delta(nu) = 1 - nu/2 - 1/(1 + nu), largest at nu = sqrt(2) - 1, 1.5 - sqrt(2).
 
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> best = log_cost_pendulum(s, points=2)["maximiser"]
     >>> bool(np.isclose(best["nu"], 2 ** 0.5 - 1, atol=1e-6) and np.isclose(best["value"], 1.5 - 2 ** 0.5))
@@ -72,7 +72,7 @@ def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
 def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
     """fig:cost-diff-mixed, fig:TCP-log-cost-mixed, fig:UDP-log-cost-mixed: J* and J_Delta over a
     ``grid`` × ``grid`` grid of [0, 1]^2 (``values[j, i]`` at ``mu1 = axis[i], mu2 = axis[j]``) and the
-    maximiser of J_Delta (:func:`~packetloss_cvx.difference.maximise_cost_difference_2d`).
+    maximiser of J_Delta (:func:`~packetloss_cvx.lq.difference.maximise_cost_difference_2d`).
 
     O(grid^2 (N m)^3).
 
@@ -80,7 +80,7 @@ def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
     --------
     Two decoupled copies of x' = x + v u, N = 1: J_Delta is the sum of two, each largest at sqrt(2) - 1.
 
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
     ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
     >>> out = mixed_grids(t, grid=3)
@@ -110,7 +110,7 @@ def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
     Two decoupled copies of x' = x + v u, N = 1: J*_tcp = 1/(1 + mu1) + 1/(1 + mu2) = 1.5 costs
     mu1 + mu2 at least 2/3 (mu1 = mu2 = 1/3); a cheap channel is bought in full (0.05 * 1).
 
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
     ...            mu=[0.5, 0.5], x0=[1.0, 1.0])
     >>> out = mixed_allocations(t, "tcp", [1.5])
@@ -126,7 +126,7 @@ def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
 def eigenvalue_tables(pendulum: System, mixed: System, mu_pendulum: Sequence[float],
                       mu_mixed: Sequence[float]) -> dict[str, dict[str, dict[str, list[complex]]]]:
     """tab:closed-loop-eig and tab:closed-loop-eig-mixed: closed-loop eigenvalues of both laws
-    (:func:`~packetloss_cvx.analysis.eigenvalue_table`: ``"A-BK"``, the paper's convention, and ``"A-BMK"``).
+    (:func:`~packetloss_cvx.lq.analysis.eigenvalue_table`: ``"A-BK"``, the paper's convention, and ``"A-BMK"``).
 
     O((N m)^3) per system.
 
@@ -135,7 +135,7 @@ def eigenvalue_tables(pendulum: System, mixed: System, mu_pendulum: Sequence[flo
     x' = x + v u, N = 1, mu = 0.5: the TCP-like gain is K = 1/(1 + mu) = 2/3, so A - BK = 1/3 and
     A - B mu K = 2/3; the UDP-like gain is 1/2 (0.5 and 0.75).
 
-    >>> from packetloss_cvx.model import System
+    >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> one = eigenvalue_tables(s, s, [0.5], [0.5])["table-1"]
     >>> bool(np.allclose([one["tcp"]["A-BK"][0], one["tcp"]["A-BMK"][0]], [1 / 3, 2 / 3]))

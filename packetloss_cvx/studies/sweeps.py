@@ -6,9 +6,9 @@
   UDP-log-cost-mixed and cost-diff-mixed).
 
 Each cost is a closed form that passed its own checks, evaluated for all points at once by
-:class:`packetloss_cvx.evaluator.CostEvaluator` (equal to :func:`packetloss_cvx.closed_form` to rounding).
+:class:`packetloss_cvx.lq.evaluator.CostEvaluator` (equal to :func:`packetloss_cvx.closed_form` to rounding).
 The difference J_Delta = J*_udp - J*_tcp is computed without cancellation
-(:func:`packetloss_cvx.difference.cost_differences`, all points in stacked solves) where the dense form is
+(:func:`packetloss_cvx.lq.difference.cost_differences`, all points in stacked solves) where the dense form is
 well conditioned, and
 as the difference of the two checked costs otherwise (``difference_method`` says which).
 """
@@ -19,13 +19,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..difference import cost_differences
 from ..errors import InputError
-from ..evaluator import CostEvaluator
-from ..model import System, numeric_array
-from ..prediction import prediction
-from ..protocols import PROTOCOLS, check_protocol
-from ..recursion import condition_estimate
+from ..lq.difference import cost_differences
+from ..lq.evaluator import CostEvaluator
+from ..lq.prediction import prediction
+from ..lq.recursion import condition_estimate
+from ..model.protocols import PROTOCOLS, check_protocol
+from ..model.system import System, numeric_array
 from ..results import Sweep
 from ..threads import blas_limited
 from ..tolerances import DENSE_MAX_CONDITION
@@ -86,7 +86,7 @@ def shared_channel_sweep(system: System, nus: Sequence[float] | np.ndarray,
 
     Examples
     --------
-    >>> from packetloss_cvx.io import load_example
+    >>> from packetloss_cvx.model.files import load_example
     >>> sweep = shared_channel_sweep(load_example("two_actuator"), [0.5, 0.9])
     >>> bool(np.all(np.diff(sweep.costs["tcp"]) < 0))   # Theorem 3: more delivery, less cost
     True

@@ -1,0 +1,24 @@
+"""The closed loop as a Markov jump linear system: the mode engine.
+
+``stability`` and ``mjls`` (the second-moment operator and its mean-square radius; the coupled Riccati
+equation over modes), ``riccati`` (the dynamic-programming optimum, one mode), ``moments`` (exact costs of
+linear laws from second moments), ``region`` and ``markov_region`` (the least radius over laws, membership,
+certificates), ``certificates`` and ``chain_radius`` (verdicts that survive rounding), ``critical`` (critical
+channels), ``region_lmi`` (the LMI form), ``law_stability`` (the verdict on a Solution's law), ``tails``
+(fourth moments: error bars of sampled costs), ``interop`` (the loop as a python-control system).
+"""
+
+from .critical import critical_mu, critical_point, law_membership, stable_at
+from .interop import closed_loop_statespace
+from .law_stability import loop_stability, with_stability
+from .moments import closed_loop, finite_horizon_costs, law_cost_to_go, stationary_second_moment
+from .region import membership
+from .riccati import dp_finite_horizon, dp_riccati, riccati_step
+from .stability import is_mean_square_stable, mean_square_radius, second_moment_map, second_moment_matrix
+
+__all__ = [
+    "closed_loop", "closed_loop_statespace", "critical_mu", "critical_point", "dp_finite_horizon", "dp_riccati",
+    "finite_horizon_costs", "is_mean_square_stable", "law_cost_to_go", "law_membership", "loop_stability",
+    "mean_square_radius", "membership", "riccati_step", "second_moment_map", "second_moment_matrix", "stable_at",
+    "stationary_second_moment", "with_stability",
+]

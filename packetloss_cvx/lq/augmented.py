@@ -1,0 +1,438 @@
+"""The exact UDP-like expected cost under finite-state Markov losses as a deterministic LQ problem on an
+augmented state, solved in O(N) time and memory (docs/design.md, "Bursty links", "The exact cost at any
+horizon").
+
+With ``xhat_t = E[x_t]``, ``e_t = x_t - xhat_t``, ``delta_t = v_t - mu_t`` and channel i's chain
+(:func:`~packetloss_cvx.model.chain.chain_matrices`: T_i, d_i, pi_{i,0}), the correlations
+``xi_{t,i}(a) = E[e_t 1{S_{i,t} = a}]`` (n×k_i, rows summing to zero) obey
+
+.. math:: \\xi_{t+1,i} = A \\xi_{t,i} T_i + b_i u_{t,i} c_{t,i}' T_i, \\qquad
+          c_{t,i} = \\pi_{t,i} \\circ (d_i - \\mu_{t,i}),
+
+and ``E[e_t delta_{t,i}] = xi_{t,i} d_i``. In an orthonormal basis E_i of the vectors orthogonal to 1
+(k_i×(k_i - 1)), ``eta_i = xi_i E_i`` (n×(k_i - 1)) follows ``eta+ = A eta Lambda_i + b_i u_i gamma_i'``
+with ``Lambda_i = E_i' T_i E_i`` (for two states the chain's second eigenvalue 1 - p - r) and
+``gamma_{t,i} = E_i' T_i' c_{t,i}``; ``E[e_t delta_{t,i}] = eta_{t,i} g_i``, ``g_i = E_i' d_i``. The error
+covariance follows
+
+.. math:: \\Sigma_{t+1} = A\\Sigma_t A' + \\sum_i (A \\eta_{t,i} g_i u_{t,i} b_i' + b_i u_{t,i} g_i'\\eta_{t,i}'A')
+          + \\sum_i \\mu_{t,i}(1 - \\mu_{t,i}) u_{t,i}^2 b_i b_i' + \\Sigma_W,
+
+so with the backward Lyapunov sums ``S_t = Omega_{t+1} + A'S_{t+1}A`` the expected cost is, on
+``z_t = (xhat_t, eta_{t,1}, ..., eta_{t,m})`` of size ``n (1 + sum_i (k_i - 1))``,
+
+    x'Q x + sum_t [xhat_{t+1}'Omega_{t+1} xhat_{t+1} + u_t'R_t u_t + 2 u_t'N_t z_t] + sum_t tr(S_t Sigma_W),
+
+``R_t = M_t (Psi_t + (I - M_t) diag(B'S_t B))`` (Lemma 1's UDP-like weight), row i of ``N_t`` pairing
+``b_i'S_t A`` with ``eta_{t,i} g_i``: a deterministic LQ problem with a state-input cross term, whose
+backward Riccati recursion (:func:`lq_cross_step`) gives the exact minimiser. :func:`chain_cost` is the
+referee: the forward pass of ``xhat``, ``eta`` and ``Sigma``, every cost term nonnegative.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..budgets import check, duration_text, estimated_seconds, markov_recursion_work
+from ..errors import InputError, NumericalError
+from ..linalg import lapack_dgesv
+from ..model.chain import chain_matrices
+from ..model.system import CacheKey, System
+from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from .recursion import (
+    STATIONARY_RUN,
+    forward_cost,
+    input_weight,
+    leading_run,
+    lyapunov_cross_weights,
+    mean_states,
+    overflow_error,
+    plan_cost,
+    states_by_powers,
+    stationary_close,
+    weight_head,
+)
+
+#: The lift of a system's own chains (:func:`chain_lift`), kept on the system: n and m (A's and B's shapes), the
+#: horizon, the schedule the chains must predict and the chains themselves.
+LIFT_KEY = CacheKey("markov.augmented.chain_lift", ("A", "B", "horizon", "mu_schedule", "channel"))
+
+__all__ = ["ChainLift", "augmented_size", "augmented_solve", "chain_cost", "chain_lift", "check_recursion_budget",
+           "lq_cross_step", "mean_state_bound"]
+
+
+@dataclass(frozen=True)
+class ChainLift:
+    """The chain part of the augmented state, per channel i (q_i = k_i - 1, 0 without a chain):
+    ``Lam[i]`` (q_i, q_i), ``g[i]`` (q_i,), ``gamma[i]`` (N, q_i) (zero where mu_{t,i} = 0), and the
+    offsets of each eta_i in z (``offsets[i]:offsets[i + 1]``, row-major n×q_i). ``size`` is dim z."""
+
+    Lam: tuple[np.ndarray, ...]
+    g: tuple[np.ndarray, ...]
+    gamma: tuple[np.ndarray, ...]
+    offsets: tuple[int, ...]
+    size: int
+
+
+@lru_cache(maxsize=64)
+def _orthogonal_basis(k: int) -> np.ndarray:
+    """An orthonormal basis (k×(k-1)) of the vectors orthogonal to the ones vector, read-only: one QR per k per
+    process (a function of k alone; a chain allocation's grid lifts the same 2-state chains thousands of times).
+    O(k^3) once, O(1) after."""
+    if k == 1:
+        basis = np.zeros((1, 0))
+    else:
+        basis = np.linalg.qr(np.eye(k)[:, : k - 1] - 1.0 / k)[0]
+    basis.setflags(write=False)
+    return basis
+
+
+def _check_chain(i: int, T: np.ndarray, d: np.ndarray, pi0: np.ndarray) -> None:
+    """The chain_matrices() contract, checked where an object outside this package may have answered. O(k^2)."""
+    k = d.size
+    if T.shape != (k, k) or pi0.shape != (k,) or d.ndim != 1:
+        raise InputError("channel", f"channel {i}: chain_matrices() gave T {T.shape}, d {d.shape}, pi0 {pi0.shape}; "
+                                    "expected (k, k), (k,), (k,)")
+    tol = 1e-12 * k
+    if not (np.all(T >= 0) and np.all(np.abs(T.sum(axis=1) - 1.0) <= tol)):
+        raise InputError("channel", f"channel {i}: the transition matrix is not row-stochastic")
+    if not np.all((d >= 0) & (d <= 1)):
+        raise InputError("channel", f"channel {i}: delivery probabilities outside [0, 1]")
+    if not (np.all(pi0 >= 0) and abs(pi0.sum() - 1.0) <= tol):
+        raise InputError("channel", f"channel {i}: the initial distribution is not a probability vector")
+
+
+def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
+    """The lifted chains (:class:`ChainLift`) of ``chains`` (per channel ``(T, d, pi0)``, default
+    ``chain_matrices(system.channel)``); a system without a channel has none (q_i = 0: the augmented problem
+    is then the paper's Bernoulli UDP-like one). The state distributions ``pi_{t+1} = pi_t T`` are propagated
+    from each ``pi0``; their delivery probabilities ``pi_t d`` must be the system's ``mu_schedule`` (to 1e-9):
+    the mean state uses the schedule, the covariances the chain. Time O(N m k^2).
+
+    Raises
+    ------
+    InputError
+        Chains of the wrong number or shapes, or whose predicted delivery rates are not the system's schedule.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> lift = chain_lift(s)               # Lambda = 1 - p - r; gamma = E'T'c with c = b (1 - b) (1, -1)
+    >>> bool(np.isclose(lift.Lam[0][0, 0], 0.6) and np.allclose(np.abs(lift.gamma[0]), 0.6 * 0.25 * 2 ** 0.5))
+    True
+    """
+    if chains is None:           # the system's own chains: lifted once and kept on the system (the exact minimum
+        # and the referee's cost of a plan both lift them; a read-only value, as every kept one)
+        return system.cached(LIFT_KEY, lambda: _lift(system, chain_matrices(system.channel)
+                                                     if system.channel is not None else None))
+    return _lift(system, chains)
+
+
+def _lift(system: System, chains: tuple | None) -> ChainLift:
+    """:func:`chain_lift` of ``chains`` (None: independent losses). Time O(N m k^2)."""
+    N, n, m = system.horizon, system.n, system.m
+    if chains is None:                                   # independent losses: nothing to lift
+        none = [np.zeros(shape) for shape in ((0, 0), (0,), (N, 0))]
+        for value in none:
+            value.setflags(write=False)
+        return ChainLift((none[0],) * m, (none[1],) * m, (none[2],) * m, (n,) * (m + 1), n)
+    if len(chains) != m:
+        raise InputError("channel", f"expected {m} chains (one per actuator), found {len(chains)}")
+    Lam, g, gamma, offsets = [], [], [], [n]
+    for i, (T, d, pi0) in enumerate(chains):
+        T, d, pi0 = (np.asarray(a, dtype=float) for a in (T, d, pi0))
+        _check_chain(i, T, d, pi0)
+        E = _orthogonal_basis(d.size)
+        pi = np.empty((N, d.size))
+        pi[0] = pi0
+        for t in range(1, N):
+            pi[t] = pi[t - 1] @ T
+        rate = pi @ d
+        gap = np.abs(rate - system.mu_schedule[:, i])
+        if not np.all(gap <= 1e-9):
+            t = int(np.argmax(~(gap <= 1e-9)))
+            raise InputError("channel", f"channel {i}: the chain's delivery probability at step {t} is {rate[t]!r} but "
+                                        f"the system's mu_schedule has {system.mu_schedule[t, i]!r}")
+        c = pi * (d - rate[:, None])                      # pi_t o (d - mu_t): sums to zero
+        gam = (c @ T) @ E
+        gam[system.mu_schedule[:, i] == 0.0] = 0.0        # a channel that cannot deliver adds no covariance
+        for value, out in ((E.T @ T @ E, Lam), (E.T @ d, g), (gam, gamma)):
+            value.setflags(write=False)                   # a frozen result: read-only arrays
+            out.append(value)
+        offsets.append(offsets[-1] + n * E.shape[1])
+    return ChainLift(tuple(Lam), tuple(g), tuple(gamma), tuple(offsets), offsets[-1])
+
+
+def augmented_size(system: System, chains: tuple | None = None) -> int:
+    """D = n (1 + sum_i (k_i - 1)), the size of the augmented state (n without a chain), from the chains' sizes
+    alone (nothing lifted). O(m).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> augmented_size(s)                  # n (1 + m) for Gilbert–Elliott channels
+    2
+    """
+    if chains is None:
+        chains = chain_matrices(system.channel) if system.channel is not None else ()
+    return system.n * (1 + sum(max(np.shape(d)[0] - 1, 0) for _, d, _ in chains))
+
+
+def check_recursion_budget(system: System, size: int, instead: str) -> None:
+    """Refuse, before any work, an augmented recursion beyond the ``markov_recursion_work`` budget
+    (:func:`~packetloss_cvx.budgets.markov_recursion_work`), naming the channel, the estimated time and
+    ``instead`` (what to use in its place). O(1).
+
+    Raises
+    ------
+    BudgetError
+        Field ``channel``: the chain (its number of states) makes the recursion too long.
+    """
+    N = system.horizon
+    work = markov_recursion_work(N, size)
+    seconds = estimated_seconds("markov_recursion_work", work)
+    check("markov_recursion_work", work, "channel",
+          f"the exact Markov recursion over N = {N} steps on an augmented state of size D = {size} (about "
+          f"{duration_text(seconds)}; {instead})")
+
+
+def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
+    """The constant augmented transition: blkdiag(A, A ⊗ Lambda_1', ...) on row-major eta's. O(D^2). Each
+    Kronecker block as the broadcast product of A and Lambda_i' (the products np.kron forms, one multiplication
+    per entry, without its generic dimension handling: about 50 us of a 2x2 chain's 0.3 ms evaluation)."""
+    n, A = system.n, system.A
+    out = np.zeros((lift.size, lift.size))
+    out[:n, :n] = A
+    for i, L in enumerate(lift.Lam):
+        a, b = lift.offsets[i], lift.offsets[i + 1]
+        out[a:b, a:b] = (A[:, None, :, None] * L.T[None, :, None, :]).reshape(b - a, b - a)
+    return out
+
+
+def _input_maps(system: System, lift: ChainLift) -> np.ndarray:
+    """ℬ_t (N, D, m) for every step: B M_t on xhat, b_i ⊗ gamma_{t,i} on eta_i (row-major). O(N D m)."""
+    N, n, m = system.horizon, system.n, system.m
+    out = np.zeros((N, lift.size, m))
+    out[:, :n] = system.B[None] * system.mu_schedule[:, None, :]
+    for i, gam in enumerate(lift.gamma):
+        a, b = lift.offsets[i], lift.offsets[i + 1]
+        out[:, a:b, i] = (system.B[None, :, i, None] * gam[:, None, :]).reshape(N, b - a)
+    return out
+
+
+def lq_cross_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, Ncross: np.ndarray,
+                  scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One backward step of the LQ problem ``z+ = F z + G u`` with stage cost ``u'R u + 2 u'N z``:
+
+    .. math:: H = R + G'PG,\\quad K = H^{-1}(G'PF + N),\\quad P^- = F'PF - (G'PF + N)'K
+
+    (the caller adds the state weight of the step). ``scale`` (m,) scales H symmetrically before the solve
+    (``sqrt(mu)``: H is ``M``-sized for rarely delivering channels); an input of scale 0 does not enter
+    (its gain is 0, H's row and column are replaced by the identity's). Returns ``(K, P-)``, P- symmetrised.
+    This is not Theorem 1's step (:func:`~packetloss_cvx.lq.recursion.riccati_step`): the input map is not
+    ``B M`` and the cross term ``N`` has no counterpart there. Time O(D^3 + m^3), D = dim z.
+
+    Examples
+    --------
+    >>> K, P = lq_cross_step(np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1)), np.zeros((1, 1)),
+    ...                      np.ones(1))
+    >>> float(K[0, 0]), float(P[0, 0])          # scalar DARE step: H = 2, K = 1/2, P- = 1 - 1/2
+    (0.5, 0.5)
+    """
+    PG = P @ G
+    PF = P @ F
+    H = R + G.T @ PG
+    rhs = PG.T @ F + Ncross
+    off = scale == 0.0
+    s = np.where(off, 1.0, scale)[:, None]
+    Hs = H / (s * s.T)
+    rhs = rhs / s
+    if off.any():
+        Hs[off] = 0.0
+        Hs[:, off] = 0.0
+        Hs[off, off] = 1.0
+        rhs[off] = 0.0
+    _, _, y, info = lapack_dgesv()(Hs, rhs)                    # LAPACK's gesv: no stacked-solve wrapper for one point
+    if info != 0:
+        raise np.linalg.LinAlgError("singular H")
+    K = y / s
+    P_prev = F.T @ PF - rhs.T @ y
+    return K, 0.5 * (P_prev + P_prev.T)
+
+
+def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """The exact UDP-like minimiser under the system's chains (or ``chains``, as :func:`chain_lift`) by the
+    augmented Riccati recursion.
+
+    Returns ``(U, gain, cost)``: the plan (N×m), the first step's gain on ``x`` (m×n) and the exact
+    minimum, checked against :func:`chain_cost` of the plan to ``SELF_CHECK_RTOL`` (plus
+    ``SELF_CHECK_ATOL ||P_0|| ||x||^2``). Time O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)), memory
+    O(N m D) for the gains; where the steps are one map (chains started in their stationary distributions, a
+    stable A whose Lyapunov sums closed) the value closes its stationary tail after L steps and the run of one
+    gain is rolled out by powers of its closed loop: O(L (D^3 + m^3) + N D^2) for the solve, the referee
+    :func:`chain_cost` staying O(N n^2 (n + m + sum_i (k_i - 1))).
+
+    Raises
+    ------
+    BudgetError
+        The recursion's estimated time is beyond the ``markov_recursion_work`` budget (checked before any work:
+        :func:`check_recursion_budget`; the message names the dense route when it fits the memory budget).
+    NumericalError
+        An overflow (an unstable plant over a long horizon), a singular step, or a failed self-check.
+    """
+    W, N, n, m = system.state_weights, system.horizon, system.n, system.m
+    lift = chain_lift(system, chains)
+    D = lift.size
+    F = _dynamics(system, lift)
+    mu = system.mu_schedule
+    scale = np.sqrt(mu)
+    d, noise, BSA = lyapunov_cross_weights(system)     # the backward Lyapunov sum S_t: diag(B'S_tB) and B'S_tA
+    with np.errstate(over="ignore", invalid="ignore"):   # Lemma 1's UDP-like input weight, M (Psi + (I - M) D)
+        R = np.where(mu > 0.0, mu * input_weight(system, "udp", mu, d), 0.0)
+    K = np.empty((N, m, D))
+    Gs = _input_maps(system, lift)
+    P = np.zeros((D, D))
+    P[:n, :n] = W[N - 1]
+    # steps 1..head are one map (the input maps, R, the cross terms and Omega equal to the bit: a chain started in
+    # its stationary distribution, below the step where the Lyapunov sums closed): there the value closes its
+    # stationary tail as recursion._backward's does (remaining drift under STATIONARY_RTOL)
+    head = min(leading_run(Gs[None, 1:]), leading_run(R[None, 1:]), leading_run(BSA[None, 1:]),
+               len(weight_head(system))) if N >= 2 * STATIONARY_RUN else 0
+    q, run = None, None
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            for t in range(N - 1, -1, -1):
+                K[t], new = _augmented_step(P, F, Gs[t], R[t], BSA[t], lift, scale[t], W[t - 1] if t > 0 else None)
+                if 2 <= t <= head:
+                    if q is None and stationary_close(new, P, 0.01):      # near: the change below 99 STATIONARY_RTOL
+                        q = float(np.max(np.abs(np.linalg.eigvals(F - Gs[t] @ K[t])))) ** 2
+                    if q is not None and stationary_close(new, P, q):
+                        # P_t = P_{t-1} = ... = P_1 to rounding: its gain for steps 1..t-1, then step 0
+                        K[1], P = _augmented_step(new, F, Gs[1], R[1], BSA[1], lift, scale[1], W[0])
+                        K[2:t] = K[1]
+                        K[0], P = _augmented_step(P, F, Gs[0], R[0], BSA[0], lift, scale[0], None)
+                        run = (1, t)
+                        break
+                P = new
+        except np.linalg.LinAlgError:
+            raise overflow_error("the augmented cost-to-go matrix", "udp") from None
+        if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K)) and np.isfinite(noise)):
+            raise overflow_error("the augmented cost-to-go matrix", "udp")
+        x = system.x0
+        U, Z = np.empty((N, m)), np.zeros((N + 1, D))
+        Z[0, :n] = x
+        t = 0
+        while t < N:
+            if run is not None and t == run[0]:     # the run of one gain by powers of its closed loop (stable: q < 1)
+                states_by_powers(Z[None, t:run[1]], (F - Gs[t] @ K[t]).T)
+                U[t:run[1]] = -Z[t:run[1]] @ K[t].T
+                t = run[1] - 1
+                Z[t + 1] = F @ Z[t] + Gs[t] @ U[t]
+                t += 1
+                continue
+            U[t] = -K[t] @ Z[t]
+            Z[t + 1] = F @ Z[t] + Gs[t] @ U[t]
+            t += 1
+        cost = float(x @ (system.initial_weight + P[:n, :n]) @ x) + noise
+    forward = float(chain_cost(system, U[None], lift)[0])
+    atol = SELF_CHECK_ATOL * float(np.linalg.norm(P[:n, :n], 2)) * float(x @ x)
+    if not (np.isfinite(cost) and np.isfinite(forward)):
+        raise overflow_error("the exact Markov cost", "udp")
+    bound = mean_state_bound(system, U)
+    if not bound <= PLAN_COST_RTOL * forward:
+        raise NumericalError(f"the augmented recursion's referee, the expected cost of its own plan rolled out open "
+                             f"loop ({forward:.6g}), is not resolved (rounding may move it by up to {bound:.2g}): the "
+                             "open-loop growth of A over the horizon amplifies a fixed plan's rounding; shorten the "
+                             "horizon")
+    if abs(cost - forward) > SELF_CHECK_RTOL * forward + atol or cost < 0:
+        raise NumericalError(f"the augmented recursion gives J* = {cost:.10g} but the expected cost of its own plan "
+                             f"is {forward:.10g}: double precision cannot resolve this problem (weights of very "
+                             "different sizes, or an unstable plant over a long horizon)")
+    return U, K[0][:, :n].copy(), cost
+
+
+def _augmented_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, BSA: np.ndarray, lift: ChainLift,
+                    scale: np.ndarray, Omega: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """One step of :func:`augmented_solve`'s backward pass: the cross term ``N`` (row i: b_i'S_t A ⊗ g_i, row-major
+    eta_i) from ``BSA`` = B'S_t A, :func:`lq_cross_step`, then the state weight ``Omega`` on the xhat block (None:
+    step 0). Returns ``(K_t, P_t)``. O(D^3 + m^3)."""
+    Ncross = np.zeros((G.shape[1], F.shape[0]))
+    for i, gi in enumerate(lift.g):
+        Ncross[i, lift.offsets[i]:lift.offsets[i + 1]] = np.outer(BSA[i], gi).ravel()
+    K, P_prev = lq_cross_step(P, F, G, np.diag(R), Ncross, scale)
+    if Omega is not None:
+        n = Omega.shape[0]
+        P_prev[:n, :n] += Omega
+    return K, P_prev
+
+
+def mean_state_bound(system: System, inputs: np.ndarray) -> float:
+    """A bound on the rounding of :func:`chain_cost`'s mean-state part for the plan ``inputs`` (N×m): the TCP-like
+    forward pass of the paper's system on the chains' predicted mu_t without its noise term
+    (:func:`~packetloss_cvx.lq.recursion.plan_cost`). The correlations and the error covariance are sums of
+    nonnegative terms driven by the plan itself (no cancellation of an open-loop growth against the plan): only
+    the mean states can carry the plan's rounding amplified by an unstable A. O(N n (n + m) L), L = 32.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> round(float(chain_cost(s, np.ones((1, 2, 1)))[0]), 12), bool(mean_state_bound(s, np.ones((2, 1))) < 1e-14)
+    (3.3, True)
+    """
+    N, m = system.horizon, system.m
+    return plan_cost(system.with_mu(system.mu_schedule), inputs, "tcp", (np.zeros((N, m)), 0.0))[1]
+
+
+def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:
+    """The exact UDP-like expected cost of plans ``inputs`` (P, N, m) under the system's chains, by the
+    forward pass of the mean state, the correlations eta and the error covariance Sigma (module docstring):
+
+        x'Q x + sum_t mu_t psi_t u_t^2 + xhat_{t+1}'Omega_{t+1} xhat_{t+1} + tr(Omega_{t+1} Sigma_{t+1}),
+
+    every term nonnegative (Sigma is a covariance): the referee of :func:`augmented_solve`. Without a chain
+    it is the paper's J_udp. Returns (P,). Time O(P N n^2 (n + m + sum_i (k_i - 1))), memory O(P n^2).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
+    >>> # x = 0, U = (1, 1): E[v1^2] + E[(v1 + v2)^2] + E[v1] + E[v2] = 0.5 + (1 + 2 * 0.4) + 1 = 3.3
+    >>> round(float(chain_cost(s, np.ones((1, 2, 1)))[0]), 12)
+    3.3
+    """
+    lift = chain_lift(system) if lift is None else lift
+    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    U = np.asarray(inputs, dtype=float)
+    P = U.shape[0]
+    mu = system.mu_schedule
+    x = system.x0
+    chained = [i for i in range(m) if lift.Lam[i].size]
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
+        X = mean_states(system, mu[None], U, np.repeat(x[None], P, axis=0))
+        total = forward_cost(system, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
+        var_u2 = mu * (1.0 - mu) * U * U                      # (P, N, m)
+        eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
+        Sig = np.zeros((P, n, n))
+        Y = np.zeros((P, n, m))                               # column i: E[e_t delta_{t,i}] u_{t,i}
+        for t in range(N):
+            u = U[:, t]
+            for i in chained:
+                Y[:, :, i] = (eta[i] @ lift.g[i]) * u[:, i, None]
+                eta[i] = A @ eta[i] @ lift.Lam[i] + B[:, i][None, :, None] * (u[:, i, None, None]
+                                                                               * lift.gamma[i][t][None, None, :])
+            cross = A @ Y @ B.T
+            Sig = A @ Sig @ A.T + cross + cross.transpose(0, 2, 1) + (B * var_u2[:, t, None, :]) @ B.T \
+                + system.noise_cov
+            total += np.einsum("ij,pji->p", W[t], Sig)
+    return total

@@ -1,0 +1,642 @@
+"""Matplotlib figures drawn from data that something else computed.
+
+Each function takes data (for instance from :mod:`packetloss_cvx.studies.allocation`),
+returns a :class:`matplotlib.figure.Figure` and, when ``path`` is given, saves it there.
+Figures are built without pyplot, so a notebook's backend and open figures are untouched,
+and nothing here computes an allocation or a cost.
+
+Example
+-------
+>>> from packetloss_cvx.plots import plot_pareto
+>>> fig = plot_pareto({"tcp": [{"alpha": 5.0, "communication_cost": 1.2},
+...                            {"alpha": 8.0, "communication_cost": 0.9}]})
+>>> [line.get_label() for line in fig.axes[0].lines]
+['TCP-like']
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from ..errors import InputError
+from ..model.system import numeric_array
+from ..safeio import save_figure
+from .style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_log_ticks, tick_text
+
+__all__ = [
+    "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
+    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
+]
+
+_LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
+
+
+def _rows(rows: Any, field: str, keys: tuple[str, ...]) -> list[Mapping]:
+    if not isinstance(rows, Sequence) or isinstance(rows, str):
+        raise InputError(field, "expected a list of rows (dicts)")
+    for k, row in enumerate(rows):
+        if not isinstance(row, Mapping) or any(key not in row for key in keys):
+            raise InputError(f"{field}[{k}]", f"expected a dict with keys {', '.join(keys)}")
+    return list(rows)
+
+
+def _curves(curves: Any, x: str, y: str, *, skip_missing: bool) -> tuple[Figure, Any]:
+    """A figure with one line of ``(row[x], row[y])`` per label of ``curves`` (label -> rows); rows whose ``y`` is
+    None left out where ``skip_missing`` (an infeasible point), else an InputError like any other bad number."""
+    if not isinstance(curves, Mapping) or not curves:
+        raise InputError("curves", "expected a non-empty mapping label -> rows")
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    ax = fig.subplots()
+    for label, rows in curves.items():
+        field = f"curves[{label!r}]"
+        kept = [r for r in _rows(rows, field, (x, y)) if not (skip_missing and r[y] is None)]
+        xy = numeric_array([[r[x], r[y]] for r in kept], field).reshape(-1, 2)
+        ax.plot(xy[:, 0], xy[:, 1], marker="o", ms=3, label=_LABELS.get(label, str(label)))
+    return fig, ax
+
+
+def _save(fig: Figure, path: str | Path | None) -> Figure:
+    """Saved atomically (safeio.save_figure); an existing file is replaced, as Matplotlib's savefig does: a
+    figure is redrawn from its data (the command line refuses without --force, docs/design.md §4)."""
+    if path is not None:
+        save_figure(fig, path, overwrite=True)
+    return fig
+
+
+def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = None,
+                path: str | Path | None = None) -> Figure:
+    """The trade-off between the cost bound alpha and the communication cost beta'mu*.
+
+    Parameters
+    ----------
+    curves : mapping
+        Label (``"tcp"``, ``"udp"`` or any text) to rows with keys ``"alpha"`` and
+        ``"communication_cost"`` (as :func:`~packetloss_cvx.allocation.pareto_curve`
+        returns); rows whose communication cost is None (infeasible) are left out.
+    title : str, optional
+    path : str or Path, optional
+        Where to save the figure (the format follows the extension).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One line per label, in the order given. O(number of rows) to draw.
+
+    Raises
+    ------
+    InputError
+        Malformed rows or non-finite numbers (field ``curves[label][k]``), or a path that
+        cannot be written (field ``path``).
+
+    Examples
+    --------
+    >>> rows = [{"alpha": 1.0, "communication_cost": 2.0}, {"alpha": 2.0, "communication_cost": None},
+    ...         {"alpha": 3.0, "communication_cost": 0.5}]
+    >>> line, = plot_pareto({"tcp": rows}).axes[0].lines       # the infeasible row is left out
+    >>> line.get_xdata().tolist(), line.get_ydata().tolist()
+    ([1.0, 3.0], [2.0, 0.5])
+    """
+    fig, ax = _curves(curves, "alpha", "communication_cost", skip_missing=True)
+    ax.set_xlabel(r"cost bound $\alpha$")
+    ax.set_ylabel(r"communication cost $\beta^\top\mu^*$")
+    if title:
+        ax.set_title(title)
+    fig.legend(**LEGEND)
+    return _save(fig, path)
+
+
+def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Mapping[Any, Sequence[Mapping]],
+                             levels: Sequence[float], *, title: str | None = None,
+                             path: str | Path | None = None) -> Figure:
+    """Figs. 6–7: J*(mu) over [0, 1]^2 on a logarithmic colour scale, the contours J* = alpha and the optimal
+    allocation on each contour for each price vector beta (:func:`plot_log_contour` draws it).
+
+    Parameters
+    ----------
+    axis : sequence of float, shape (g,)
+        Grid of mu1 and mu2, increasing (``cost_grid``'s first output).
+    costs : array_like, shape (g, g)
+        ``costs[j, i] = J*(axis[i], axis[j])``, positive (``cost_grid``'s second output).
+    allocations : mapping
+        beta (any label) to rows with key ``"mu"`` (a pair, or None when infeasible), as
+        :func:`~packetloss_cvx.allocation.contour_allocations` returns.
+    levels : sequence of float
+        The cost bounds alpha drawn as contours.
+    title : str, optional
+    path : str or Path, optional
+        Where to save the figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        O(g^2) to contour the grid, plus the points.
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match, non-finite or non-positive costs, malformed rows, or a
+        path that cannot be written; the field is named.
+
+    Examples
+    --------
+    >>> axis = [0.1, 0.5, 1.0]
+    >>> costs = [[9.0, 6.0, 5.0], [6.0, 3.0, 2.0], [5.0, 2.0, 1.0]]     # falls as either mu rises
+    >>> fig = plot_allocation_contours(axis, costs, {(1, 1): [{"mu": (0.5, 1.0)}, {"mu": None}]}, [2.0, 5.0])
+    >>> [(line.get_xdata().tolist(), line.get_ydata().tolist()) for line in fig.axes[0].lines]
+    [([0.5], [1.0])]
+    """
+    grid = numeric_array(axis, "axis")
+    if grid.ndim != 1 or grid.size < 2 or np.any(np.diff(grid) <= 0):
+        raise InputError("axis", "expected an increasing 1-D sequence of at least 2 numbers")
+    J = numeric_array(costs, "costs")
+    if J.shape != (grid.size, grid.size):
+        raise InputError("costs", f"expected shape ({grid.size}, {grid.size}) but found {J.shape}")
+    if np.any(J <= 0):
+        raise InputError("costs", "expected positive costs (drawn on a logarithmic scale)")
+    if numeric_array(levels, "levels").size == 0:
+        raise InputError("levels", "expected at least one cost bound")
+    if not isinstance(allocations, Mapping):
+        raise InputError("allocations", "expected a mapping beta -> rows")
+    lines = {f"beta={beta}": [r["mu"] for r in _rows(rows, f"allocations[{beta!r}]", ("mu",))]
+             for beta, rows in allocations.items()}
+    return plot_log_contour(grid, grid, J, colorbar_label=r"$J^*$ (log scale)", levels=levels, allocations=lines,
+                            title=title, path=path)
+
+
+def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | None = None,
+                     path: str | Path | None = None) -> Figure:
+    """Closed-loop runs: the mean of ||x_t|| with a band of one standard deviation, and the mean
+    cumulative stage cost, one line per law.
+
+    Parameters
+    ----------
+    curves : mapping
+        Law (``"tcp"``, ``"udp"``, ``"dp"`` or any text) to a mapping with ``"state_norm_mean"`` and
+        ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"`` (length T), as
+        :class:`~packetloss_cvx.results.ClosedLoopRun` holds them. Non-finite values are not drawn.
+    title : str, optional
+    path : str or Path, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels; O(laws T) to draw.
+
+    Raises
+    ------
+    InputError
+        Missing keys or mismatched lengths (field ``curves[law]``), or a path that cannot be written.
+
+    Examples
+    --------
+    >>> run = {"state_norm_mean": [1.0, 0.5, 0.25], "state_norm_std": [0.0, 0.1, 0.1], "stage_cost_mean": [2.0, 1.0]}
+    >>> left, right = plot_closed_loop({"tcp": run}).axes
+    >>> left.lines[0].get_ydata().tolist(), right.lines[0].get_ydata().tolist()    # right: the running sum
+    ([1.0, 0.5, 0.25], [2.0, 3.0])
+    """
+    if not isinstance(curves, Mapping) or not curves:
+        raise InputError("curves", "expected a non-empty mapping law -> curves")
+    fig = Figure(figsize=(10, 3.6), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    labels = {**_LABELS, "dp": "DP optimum"}
+    for law, data in curves.items():
+        field = f"curves[{law!r}]"
+        if not isinstance(data, Mapping) or any(k not in data for k in ("state_norm_mean", "state_norm_std",
+                                                                         "stage_cost_mean")):
+            raise InputError(field, "expected keys state_norm_mean, state_norm_std, stage_cost_mean")
+        mean, std = np.asarray(data["state_norm_mean"], float), np.asarray(data["state_norm_std"], float)
+        stage = np.asarray(data["stage_cost_mean"], float)
+        if mean.shape != std.shape or mean.ndim != 1 or stage.shape != (mean.size - 1,):
+            raise InputError(field, "expected T + 1 norms (mean and std) and T stage costs")
+        t = np.arange(mean.size)
+        line, = left.plot(t, mean, label=labels.get(law, str(law)))
+        left.fill_between(t, np.maximum(mean - std, 0.0), mean + std, color=line.get_color(), alpha=0.2)
+        right.plot(t[1:], np.cumsum(stage), color=line.get_color(), label=labels.get(law, str(law)))
+    left.set_xlabel("step t")
+    left.set_ylabel(r"$\|x_t\|$: mean $\pm$ one std")
+    right.set_xlabel("step t")
+    right.set_ylabel("mean cumulative stage cost")
+    fig.legend(handles=right.get_legend_handles_labels()[0], **LEGEND)
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path)
+
+
+def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: str, log: bool = True,
+                    xscale: str = "linear", marker: float | None = None, marker_label: str | None = None,
+                    title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Costs against one swept quantity (Fig. log-cost-pendulum and 1-D sweeps).
+
+    Parameters
+    ----------
+    x : sequence of float, shape (P,)
+        The swept values (nu, mu_i, an x0 scale, horizons).
+    curves : mapping
+        Label (``"tcp"``, ``"udp"``, ``"diff"`` or any text) to values of shape (P,).
+    xlabel : str
+    log : bool
+        Draw the values on a logarithmic y axis; values <= 0 (J_Delta where every mu_i is 0 or 1) are not on
+        it: left out, and the curve's legend entry says how many.
+    xscale : {"linear", "log"}
+    marker : float, optional
+        An x to mark with a vertical dotted line (e.g. the maximiser of J_Delta), labelled ``marker_label``.
+    title : str, optional
+    path : str or Path, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The legend beside the axes. O(P) per curve.
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match or non-finite numbers (the field named), an unwritable path.
+
+    Examples
+    --------
+    >>> fig = plot_cost_lines([0.1, 0.5, 0.9], {"tcp": [1.0, 20.0, 0.0]}, xlabel="nu", marker=0.5)
+    >>> line = fig.axes[0].lines[0]                       # the values on a log axis; 0 is not on it
+    >>> line.get_ydata()[:2].tolist(), bool(np.isnan(line.get_ydata()[2])), fig.axes[0].get_yscale()
+    ([1.0, 20.0], True, 'log')
+    >>> line.get_label()
+    'TCP-like $J^*$ (1 point <= 0: off the log axis)'
+    """
+    xs = numeric_array(x, "x")
+    if xs.ndim != 1 or xs.size < 1:
+        raise InputError("x", "expected a non-empty 1-D sequence")
+    if not isinstance(curves, Mapping) or not curves:
+        raise InputError("curves", "expected a non-empty mapping label -> values")
+    fig = Figure(figsize=(7.4, 3.8), layout="constrained")
+    ax = fig.subplots()
+    names = {"tcp": "TCP-like $J^*$", "udp": "UDP-like $J^*$", "diff": r"$J_\Delta = J^*_{udp} - J^*_{tcp}$"}
+    for label, values in curves.items():
+        ys = numeric_array(values, f"curves[{label!r}]")
+        if ys.shape != xs.shape:
+            raise InputError(f"curves[{label!r}]", f"expected shape {xs.shape} but found {ys.shape}")
+        text = names.get(label, str(label))
+        dropped = int(np.sum(ys <= 0)) if log else 0
+        if dropped:
+            text += f" ({dropped} point{'s' if dropped > 1 else ''} <= 0: off the log axis)"
+            ys = np.where(ys > 0, ys, np.nan)
+        ax.plot(xs, ys, ls="--" if label == "diff" else "-", lw=1.6, label=text)
+    if marker is not None:
+        ax.axvline(marker, color="k", ls=":", lw=1.2, label=marker_label)
+    ax.set_xscale(xscale)
+    if log:
+        ax.set_yscale("log")
+        shown = np.concatenate([line.get_ydata() for line in ax.lines if line.get_label() != marker_label])
+        shown = shown[np.isfinite(shown) & (shown > 0)]
+        if shown.size:
+            set_log_ticks(ax.yaxis, shown.min(), shown.max())
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("expected cost (log scale)" if log else "expected cost")
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
+    fig.legend(**LEGEND)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: Any, *, xlabel: str = r"$\mu_1$",
+                     ylabel: str = r"$\mu_2$", colorbar_label: str = "expected cost (log scale)",
+                     marker: Sequence[float] | None = None, levels: Sequence[float] | None = None,
+                     allocations: Mapping[Any, Sequence[Sequence[float] | None]] | None = None,
+                     title: str | None = None, path: str | Path | None = None) -> Figure:
+    """A positive quantity over a 2-D grid on a logarithmic colour scale (``LogNorm``; the colour bar is
+    ticked in the values themselves), for Figs. cost-diff-mixed, TCP-/UDP-log-cost-mixed and, with
+    ``levels`` and ``allocations``, their ``-mult`` variants.
+
+    Parameters
+    ----------
+    axis_x, axis_y : sequence of float, shapes (gx,), (gy,)
+        Increasing grid values.
+    values : array_like, shape (gy, gx)
+        ``values[j, i]`` at ``(axis_x[i], axis_y[j])``. The colour scale spans the positive values (from
+        their 2nd percentile when they span more than four decades, so that a few near-zero values, J_Delta
+        at the corners, do not flatten it); values below it, 0 included (J_Delta = 0 where every mu_i is 0
+        or 1), are drawn in its lowest colour (the colour bar's arrow; a legend entry says so).
+    marker : pair, optional
+        A point marked with a white cross edged in black, never clipped by the axes (the maximiser of J_Delta).
+    levels : sequence of float, optional
+        Values drawn as contour lines (the cost bounds alpha), each labelled once where the label has room
+        (no label collides with another or sits on another line); the legend lists them all.
+    allocations : mapping, optional
+        Label (e.g. beta) to points (pairs, or None where there is none): each a bright line outlined in
+        black through its points (the paper's eq:opt_M lines), markers unclipped on the axes' edges.
+    title : str, optional
+    path : str or Path, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The map, its colour bar and the legend beside them. O(gx gy) to contour the grid, O(L V^2) to place
+        the labels of L levels of V vertices.
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match, non-finite numbers, no positive value, malformed points, an unwritable path.
+
+    Examples
+    --------
+    >>> fig = plot_log_contour([0.0, 1.0], [0.0, 0.5, 1.0], [[1.0, 10.0], [10.0, 100.0], [100.0, 1000.0]],
+    ...                        marker=(0.5, 0.5))
+    >>> ax, bar = fig.axes           # a log colour scale over the values: 1 to 1000
+    >>> norm = ax.collections[0].norm
+    >>> type(norm).__name__, norm.vmin, norm.vmax, ax.lines[0].get_xydata().tolist()
+    ('LogNorm', 1.0, 1000.0, [[0.5, 0.5]])
+    """
+    gx, gy = numeric_array(axis_x, "axis_x"), numeric_array(axis_y, "axis_y")
+    for name, g in (("axis_x", gx), ("axis_y", gy)):
+        if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
+            raise InputError(name, "expected an increasing 1-D sequence of at least 2 numbers")
+    raw = numeric_array(values, "values")
+    if raw.shape != (gy.size, gx.size):
+        raise InputError("values", f"expected shape ({gy.size}, {gx.size}) but found {raw.shape}")
+    positive = raw[raw > 0]
+    if not positive.size:
+        raise InputError("values", "expected some positive values (drawn on a logarithmic scale)")
+    lo, hi = float(positive.min()), float(positive.max())
+    if hi > 1e4 * lo:                    # a few near-zero values (J_Delta at the corners) must not flatten the rest
+        lo = float(np.percentile(positive, 2))
+    if hi <= lo * (1 + 1e-9):
+        lo, hi = lo / 2, hi * 2                                          # one value: one colour
+    fig = Figure(figsize=(7.9, 5.0), layout="constrained")
+    ax = fig.subplots()
+    ax.set_box_aspect(1)
+    ax.set_xlim(gx[0], gx[-1])
+    ax.set_ylim(gy[0], gy[-1])
+    below = raw < lo
+    filled = ax.contourf(gx, gy, np.where(raw > 0, raw, lo / 10), levels=np.geomspace(lo, hi, 31),
+                         norm=LogNorm(lo, hi), cmap="viridis", extend="min" if below.any() else "neither")
+    set_log_ticks(fig.colorbar(filled, ax=ax, label=colorbar_label), lo, hi)
+    extra: list[Any] = []
+    if below.any():
+        zero = ", 0 included" if np.any(raw <= 0) else ""
+        extra.append(Patch(color=filled.cmap(0.0), label=f"< {lo:.3g}{zero}"))
+    for k, (label, points) in enumerate((allocations or {}).items()):
+        kept = [p for p in points if p is not None]
+        if not kept:
+            continue
+        pts = numeric_array(kept, f"allocations[{label!r}]")
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise InputError(f"allocations[{label!r}]", "expected points as pairs (mu1, mu2)")
+        colour, dashes, mark = PATH_STYLES[k % len(PATH_STYLES)]
+        ax.plot(pts[:, 0], pts[:, 1], color=colour, ls=dashes, lw=1.5, marker=mark, ms=4.5, mec="k", mew=0.6,
+                path_effects=OUTLINE, clip_on=False, zorder=4, label=str(label))
+    if marker is not None:
+        point = numeric_array(marker, "marker").ravel()
+        ax.plot([point[0]], [point[1]], marker="X", color="w", mec="k", mew=1.3, ms=12, ls="none",
+                clip_on=False, zorder=5, label="maximiser")
+    drawn = [line.get_xydata() for line in ax.lines]      # contour labels keep clear of the paths and the marker
+    if levels is not None:
+        lv = np.sort(numeric_array(levels, "levels").ravel())
+        inside = lv[(lv > np.min(raw)) & (lv < np.max(raw))]
+        if inside.size:
+            cs = ax.contour(gx, gy, raw, levels=inside, colors="0.93", linewidths=0.7)
+            chosen, points = contour_label_points(ax, cs, drawn)
+            if chosen:
+                ax.clabel(cs, levels=chosen, manual=points, inline=True, fmt=tick_text, fontsize=7.5)
+            names = [tick_text(a) for a in inside]
+            rows = [", ".join(names[k:k + 5]) for k in range(0, len(names), 5)]
+            extra.append(Line2D([], [], color="0.55", lw=0.9, label="contours $\\alpha$:\n" + ",\n".join(rows)))
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
+    handles = ax.get_legend_handles_labels()[0] + extra
+    if handles:
+        fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], cost: Any, loss_percent: Any, *,
+                        cost_label: str = "exact minimum (log scale)", title: str | None = None,
+                        path: str | Path | None = None) -> Figure:
+    """A (mean rate × burstiness) map of one channel in two panels: ``cost`` (the exact minimum) on a logarithmic
+    colour scale (``LogNorm``, ticked in the values) and ``loss_percent`` (the plug-in law's loss, in %) on a
+    linear one from its least to its largest value (0 to 1 when it is constant: no loss). Each grid point is one
+    cell (``pcolormesh``, nearest), burstiness lambda across, mean rate up; the axes may come in any order (they
+    are sorted for drawing). O(R L).
+
+    Parameters
+    ----------
+    rates, correlations : sequence of float, shapes (R,), (L,)
+        Distinct mean rates and values of lambda = 1 - p - r.
+    cost, loss_percent : array_like, shape (R, L)
+        ``[a, b]`` at ``(rates[a], correlations[b])``; ``cost`` needs a positive value (cells <= 0 are drawn in
+        the lowest colour), ``loss_percent`` finite.
+    cost_label, title : str, optional
+    path : str or Path, optional
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match, repeated or non-finite axis values, non-finite numbers, no positive cost.
+
+    Examples
+    --------
+    >>> fig = plot_burstiness_map([0.5, 0.9], [0.0, 0.5, 0.9], [[4.0, 8.0, 20.0], [2.0, 3.0, 9.0]],
+    ...                           [[0.0, 1.0, 9.0], [0.0, 0.5, 5.0]])
+    >>> cost_axis, loss_axis = fig.axes[0], fig.axes[1]
+    >>> norm = cost_axis.collections[0].norm
+    >>> type(norm).__name__, norm.vmin, norm.vmax, loss_axis.collections[0].norm.vmax
+    ('LogNorm', 2.0, 20.0, 9.0)
+    """
+    gy, gx = numeric_array(rates, "rates"), numeric_array(correlations, "correlations")
+    for name, g in (("rates", gy), ("correlations", gx)):
+        if g.ndim != 1 or g.size < 2 or np.unique(g).size != g.size:
+            raise InputError(name, "expected at least 2 distinct numbers")
+    values = {}
+    for name, raw in (("cost", cost), ("loss_percent", loss_percent)):
+        arr = numeric_array(raw, name)
+        if arr.shape != (gy.size, gx.size):
+            raise InputError(name, f"expected shape ({gy.size}, {gx.size}) but found {arr.shape}")
+        values[name] = arr[np.argsort(gy)][:, np.argsort(gx)]
+    gy, gx = np.sort(gy), np.sort(gx)
+    positive = values["cost"][values["cost"] > 0]
+    if not positive.size:
+        raise InputError("cost", "expected some positive values (drawn on a logarithmic scale)")
+    lo, hi = float(positive.min()), float(positive.max())
+    if hi <= lo * (1 + 1e-9):
+        lo, hi = lo / 2, hi * 2                                          # one value: one colour
+    fig = Figure(figsize=(10.5, 4.6), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    mesh = left.pcolormesh(gx, gy, np.where(values["cost"] > 0, values["cost"], lo), shading="nearest",
+                           norm=LogNorm(lo, hi), cmap="viridis")
+    set_log_ticks(fig.colorbar(mesh, ax=left, label=cost_label), lo, hi)
+    loss = values["loss_percent"]
+    low, high = float(loss.min()), float(loss.max())
+    if high - low <= 1e-9 * max(1.0, abs(high)):
+        low, high = min(low, 0.0), max(high, 0.0) + 1.0                 # no loss anywhere: one colour
+    shaded = right.pcolormesh(gx, gy, loss, shading="nearest", vmin=low, vmax=high, cmap="magma")
+    fig.colorbar(shaded, ax=right, label="plug-in law's loss (%, linear scale)")
+    for ax in (left, right):
+        ax.set(xlabel=r"burstiness $\lambda = 1 - p - r$", ylabel=r"mean delivery rate $\mu$")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    return _save(fig, path)
+
+
+def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *, xlabel: str = r"$\mu_1$",
+                ylabel: str = r"$\mu_2$", title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Stability regions over two channels: ``radius`` (the least mean-square radius any linear law reaches,
+    min_K rho(L_K), shape (K, K), rows the second channel) as a colour map clipped to [0, 2] with its level 1
+    in white, and each law's region boundary (the 1/2 level of its 0/1 ``stable`` map; nan undecided) as a line.
+    O(K^2) per law.
+
+    Examples
+    --------
+    >>> axis = [0.0, 0.5, 1.0]
+    >>> radius = [[2.0, 1.5, 1.0], [1.5, 1.0, 0.5], [1.0, 0.5, 0.2]]
+    >>> fig = plot_region(axis, radius, {"dp": [[0, 0, 0], [0, 0, 1], [0, 1, 1]]})
+    >>> len(fig.axes), fig.axes[0].get_xlabel()     # the map and its colour bar
+    (2, '$\\\\mu_1$')
+    """
+    g = numeric_array(axis, "axis")
+    if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
+        raise InputError("axis", "expected an increasing 1-D sequence of at least 2 numbers")
+    r = np.asarray(radius, dtype=float)
+    if r.shape != (g.size, g.size):
+        raise InputError("radius", f"expected shape ({g.size}, {g.size}) but found {r.shape}")
+    fig = Figure(figsize=(7.6, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    mesh = ax.pcolormesh(g, g, np.clip(r, 0.0, 2.0), shading="nearest", cmap="viridis", vmin=0.0, vmax=2.0)
+    fig.colorbar(mesh, ax=ax, label=r"least radius $\min_K \rho(\mathcal{L}_K)$ (clipped at 2)")
+    handles = []
+    if np.nanmin(r) < 1.0 < np.nanmax(r):
+        ax.contour(g, g, r, levels=[1.0], colors="white", linewidths=0.8)
+        handles.append(Line2D([], [], color="lightgrey", linewidth=0.8, label="least radius = 1"))
+    styles = ["-", "--", ":", "-."]
+    colors = ["black", "tab:orange", "tab:red", "tab:cyan"]
+    for k, (law, values) in enumerate(stable.items()):
+        v = np.asarray(values, dtype=float)
+        if v.shape != r.shape:
+            raise InputError("stable", f"{law}: expected shape {r.shape} but found {v.shape}")
+        if np.nanmin(v) < 0.5 < np.nanmax(v):
+            ax.contour(g, g, np.nan_to_num(v, nan=0.5), levels=[0.5], colors=colors[k % 4],
+                       linestyles=styles[k % 4], linewidths=1.6)
+        handles.append(Line2D([], [], color=colors[k % 4], linestyle=styles[k % 4], label=f"{law} boundary"))
+    ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
+    if title:
+        ax.set_title(title)
+    fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stable: Mapping[str, Any], *,
+                    title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Both links lossy: ``cost`` (shape (G, M), rows gamma; inf where the loop is proved not stable, nan where
+    undecided: sensing.loop.loop_map) on a logarithmic colour map over (mu, gamma), grey where not stable, white
+    where undecided (only when some cell is), and each law's stability boundary (the 1/2 level of its 0/1
+    ``stable`` map). O(G M) per law.
+
+    Examples
+    --------
+    >>> fig = plot_sensor_map([0.5, 1.0], [0.5, 1.0], [[np.inf, 4.0], [3.0, 2.0]], {"dp": [[0, 1], [1, 1]]})
+    >>> len(fig.axes), fig.axes[0].get_xlabel()
+    (2, 'actuator delivery rate $\\\\mu$')
+    >>> fig = plot_sensor_map([0.5, 1.0], [0.5, 1.0], [[np.nan, 4.0], [3.0, 2.0]], {"dp": [[0, 1], [1, 1]]})
+    >>> [t.get_text() for t in fig.legends[0].get_texts()][:2]
+    ['not mean-square stable', 'undecided (between the critical-rate bounds)']
+    """
+    g, m = numeric_array(gamma, "gamma"), numeric_array(mu, "mu")
+    c = np.asarray(cost, dtype=float)
+    if c.shape != (g.size, m.size):
+        raise InputError("cost", f"expected shape ({g.size}, {m.size}) but found {c.shape}")
+    fig = Figure(figsize=(7.6, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    finite = c[np.isfinite(c) & (c > 0)]
+    handles = [Patch(facecolor="lightgrey", label="not mean-square stable")]
+    ax.set_facecolor("lightgrey")
+    if finite.size:
+        lo, hi = float(finite.min()), float(finite.max())
+        hi = hi if hi > lo else lo * 10.0
+        mesh = ax.pcolormesh(m, g, np.ma.masked_invalid(np.where(np.isfinite(c), c, np.nan)), shading="nearest",
+                             norm=LogNorm(lo, hi), cmap="viridis")
+        fig.colorbar(mesh, ax=ax, label="average stage cost (DP law on the estimate)")
+    undecided = np.isnan(c)
+    if np.any(undecided):         # no verdict is not "not stable": drawn apart, never grey
+        ax.pcolormesh(m, g, np.ma.masked_where(~undecided, np.zeros_like(c)), shading="nearest", cmap="Greys",
+                      vmin=0.0, vmax=1.0)                                   # white
+        handles.append(Patch(facecolor="white", edgecolor="grey", label="undecided (between the critical-rate bounds)"))
+    styles, colors = ["-", "--", ":"], ["black", "tab:orange", "tab:red"]
+    for k, (law, values) in enumerate(stable.items()):
+        v = np.asarray(values, dtype=float)
+        if v.shape != c.shape:
+            raise InputError("stable", f"{law}: expected shape {c.shape} but found {v.shape}")
+        if np.nanmin(v) < 0.5 < np.nanmax(v):
+            ax.contour(m, g, v, levels=[0.5], colors=colors[k % 3], linestyles=styles[k % 3], linewidths=1.6)
+        label = f"{law} boundary" + ("" if np.nanmax(v) > 0.5 else " (never stable here)")
+        handles.append(Line2D([], [], color=colors[k % 3], linestyle=styles[k % 3], label=label))
+    ax.set(xlabel=r"actuator delivery rate $\mu$", ylabel=r"sensor delivery rate $\gamma$", xlim=(m[0], m[-1]),
+           ylim=(g[0], g[-1]))
+    if title:
+        ax.set_title(title)
+    fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = None,
+                      path: str | Path | None = None) -> Figure:
+    """The power-cost trade-off: the least J* against the total power budget (issue 24).
+
+    ``curves``: label to rows with keys ``"budget"`` and ``"cost"`` (``PowerAllocation.to_dict()`` of
+    :func:`~packetloss_cvx.allocation.power.power_pareto`'s points); J* on a log axis. O(rows) to draw.
+
+    Examples
+    --------
+    >>> rows = [{"budget": 0.0, "cost": 4.0}, {"budget": 1.0, "cost": 2.0}]
+    >>> line, = plot_power_pareto({"tcp": rows}).axes[0].lines
+    >>> line.get_xdata().tolist(), line.get_ydata().tolist()
+    ([0.0, 1.0], [4.0, 2.0])
+    """
+    fig, ax = _curves(curves, "budget", "cost", skip_missing=False)
+    ax.set_yscale("log")
+    ax.set_xlabel(r"total power budget $\sum_i P_i \leq B$")
+    ax.set_ylabel(r"least optimal cost $J^*(\mu(P))$ (log scale)")
+    if title:
+        ax.set_title(title)
+    fig.legend(**LEGEND)
+    return _save(fig, path)
+
+
+def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, currency: str = r"$\beta^\top\mu$",
+                        title: str | None = None, path: str | Path | None = None) -> Figure:
+    """Above which price of the acknowledgement link the UDP-like design wins, against alpha (issue 24):
+    the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
+    Non-finite points (no design) are left out. O(points) to draw.
+
+    Examples
+    --------
+    >>> fig = plot_ack_break_even([1.0, 2.0, 3.0], [0.5, 0.2, float("nan")])
+    >>> fig.axes[0].lines[0].get_ydata().tolist()
+    [0.5, 0.2]
+    """
+    a = np.asarray(alpha, dtype=float)
+    b = np.asarray(break_even, dtype=float)
+    if a.shape != b.shape or a.ndim != 1:
+        raise InputError("break_even", f"expected two lists of one length, found {a.shape} and {b.shape}")
+    keep = np.isfinite(a) & np.isfinite(b)
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black", label="break-even acknowledgement price")
+    top = float(np.max(b[keep])) * 1.15 if keep.any() else 1.0
+    ax.fill_between(a[keep], b[keep], top, alpha=0.25, label="UDP-like cheaper")
+    ax.fill_between(a[keep], 0.0, b[keep], alpha=0.25, label="TCP-like + link cheaper")
+    ax.set_ylim(0.0, top)
+    ax.set_xlabel(r"cost bound $\alpha$")
+    ax.set_ylabel(f"acknowledgement price ({currency})")
+    if title:
+        ax.set_title(title)
+    fig.legend(**LEGEND)
+    return _save(fig, path)
