@@ -11,7 +11,7 @@ linear systems, and burstiness sweeps. One job per module; the channel descripti
     mjls.py        the loop as a Markov jump linear system: mean-square radius, coupled Riccati gains
     sweep.py       burstiness sweeps at fixed average delivery rates; the (mean rate × burstiness) map of a channel
 
-``exact_qp`` is imported on first use (PEP 562): the QP module imports cvxpy (1.5 s), which the closed-form
+``exact_qp`` is imported on first use (PEP 562): the QP module imports cvxpy (slow to import), which the closed-form
 paths that use this package (``solve --no-qp``, ``simulate``, the audit's closed-form claims) never need.
 """
 
