@@ -1,6 +1,6 @@
 """UDP-like allocation behind Markov chains, each channel along its family (allocation/chains.py): Gilbert
-channels with their burstiness held, every other chain with its deliveries scaled (docs/design.md, "Allocation
-behind chains"; issue 23 item 5, the k-state rule).
+channels with their burstiness held, every other chain with its deliveries scaled (docs/design.md §2.5, the
+k-state rule).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/allocation_chains.py [--json]
 

@@ -1,6 +1,6 @@
 """The (mean rate × burstiness) map of one channel: ``markov.burstiness_map`` (the augmented recursion at every
-point) against the same grid by the dense route, side by side in one run (docs/performance.md, "The burstiness
-map"; issue 23 item 6).
+point) against the same grid by the dense route, side by side in one run (docs/performance.md,
+"Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/burstiness_map.py [--quick] [--json]
 

@@ -1,5 +1,5 @@
 """The coupled homogeneous Riccati eigenpair behind Gilbert-Elliott chains (simulation.markov_region), this tree
-against a baseline checkout, side by side in one run (docs/performance.md, session 30; issue 19 item 6).
+against a baseline checkout, side by side in one run (docs/performance.md, "Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/coupled_eigenpair.py --baseline /work/base/1bc1ef6 [--repeats 2]
 

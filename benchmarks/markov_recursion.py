@@ -1,5 +1,5 @@
 """The exact UDP-like minimum under a Gilbert–Elliott channel: the augmented recursion against the dense route,
-side by side in one run (docs/performance.md, "Bursty links at any horizon"; issue 23 item 2).
+side by side in one run (docs/performance.md, "Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/markov_recursion.py [--quick] [--json]
 

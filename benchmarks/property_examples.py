@@ -1,5 +1,5 @@
 """Where test_properties' time goes, per Hypothesis example: the engine, the draws, the body (docs/performance.md,
-"The property tests: where each example's time goes"; issue 19 item 6).
+"Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/property_examples.py [--tree PATH] [TEST_NAME ...]
 

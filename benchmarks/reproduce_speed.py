@@ -1,5 +1,5 @@
 """``packetloss-cvx reproduce`` CPU time against older checkouts, side by side in one run (issue 19 item 6: under
-10 s CPU on two cores; docs/performance.md, "reproduce under 10 s CPU").
+10 s CPU on two cores; docs/performance.md, "Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/reproduce_speed.py [--rounds 3] [--baseline DIR ...] [--steps]
     OPENBLAS_NUM_THREADS=1 python benchmarks/reproduce_speed.py --crossover

@@ -1,4 +1,4 @@
-"""What safe writes cost (docs/performance.md, "Safe writes"): saving issue 20's large sweep, this tree
+"""What safe writes cost (docs/performance.md, "Other benchmarks"): saving issue 20's large sweep, this tree
 against a baseline checkout, interleaved, in fresh processes.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/safe_writes.py --baseline /work/base/cfb251d [--points 400000]

@@ -1,5 +1,5 @@
 """A small system's fixed costs, this tree against a baseline checkout, side by side in one run
-(docs/performance.md, "Small systems: validation and the block Toeplitz matrices"; issue 19 item 6).
+(docs/performance.md, "Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/small_system_overhead.py --baseline /work/base/4815b1d [--repeats 2]
 

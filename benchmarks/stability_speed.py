@@ -1,5 +1,5 @@
 """Design for stability and the stabilisable set, this tree against a baseline checkout, side by side in one run
-(docs/performance.md, "Design for stability: the eigenpair's cost"; issue 19 item 6).
+(docs/performance.md, "Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/stability_speed.py --baseline /work/base/e520261 [--repeats 2]
 

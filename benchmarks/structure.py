@@ -1,5 +1,5 @@
-"""Section 17 of benchmarks/run.py: systems and their structure (docs/performance.md, "Audit: systems and
-structure"). Each fast path against the path it replaced, reproduced here, on the audit's 200 random systems
+"""Section 17 of benchmarks/run.py: systems and their structure (docs/performance.md,
+"Section 17"). Each fast path against the path it replaced, reproduced here, on the audit's 200 random systems
 (seed 1), side by side in one run; CPU seconds (``time.process_time``), medians of 3."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""What ``sweep --json`` costs now that it carries the points (docs/performance.md, "sweep --json"): the
+"""What ``sweep --json`` costs now that it carries the points (docs/performance.md, "Other benchmarks"): the
 issue's grid, this tree against a baseline checkout, interleaved, each run a fresh process.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/sweep_json.py --baseline /work/base/cfb251d [--grid 201] [--repeats 3]

@@ -1,4 +1,4 @@
-"""Sweeps and reproduce, side by side in one run (docs/performance.md, "Sweeps, Dask and reproduce").
+"""Sweeps and reproduce, side by side in one run (docs/performance.md, "Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/sweeps.py [--quick] [--json] [--only 1,2,3] [--baseline DIR]
 

@@ -38,10 +38,10 @@ def block_diagonal(blocks: np.ndarray) -> np.ndarray:
 
 @cache
 def lapack_dgesv() -> Callable:
-    """LAPACK's ``dgesv`` (``scipy.linalg.lapack``), imported on the first call: one small solve costs 1.2 us
-    through it against 4.8 us through ``np.linalg.solve``'s stacked wrapper, but importing SciPy costs about
-    0.15 s, which the closed-form paths that never solve one small system alone do not pay
-    (optional.LAZY_IMPORTS). O(1) after the first call.
+    """LAPACK's ``dgesv`` (``scipy.linalg.lapack``), imported on the first call: one small solve costs a quarter of
+    what ``np.linalg.solve``'s stacked wrapper costs, but importing SciPy costs more than a short command's work,
+    which the closed-form paths that never solve one small system alone do not pay (optional.LAZY_IMPORTS).
+    O(1) after the first call.
 
     Examples
     --------

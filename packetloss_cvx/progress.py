@@ -24,8 +24,8 @@ def wants_progress(progress: bool | None) -> bool:
     """``progress`` resolved: ``None`` means "when stderr is a terminal".
 
     This is tqdm's own ``disable=None`` rule, decided here before tqdm is imported: handing ``None`` to tqdm
-    would import it (tqdm.auto, 0.06-0.1 s) on every run that shows no bar, a piped or scripted command
-    included (measured 2026-11-24: ``sweep pendulum --x0-scales 0:2:5 -q`` took 0.05 s more CPU, 7%).
+    would import it (tqdm.auto, a noticeable share of a short command's start-up) on every run that shows no
+    bar, a piped or scripted command included.
 
     Examples
     --------

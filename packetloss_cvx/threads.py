@@ -1,9 +1,9 @@
 """The BLAS thread policy: the library's own small dense linear algebra runs single-threaded.
 
 The matrices here are small (n, m <= tens, N m <= 160 on the dense path), where a threaded BLAS
-spends more time waking and synchronising threads than computing: measured on 2 cores, the dense
-closed form at N = 40 took 24-40 ms with OpenBLAS's default threads against 1.8 ms on one
-(docs/performance.md, "BLAS threads"). So every public entry point that computes
+spends more time waking and synchronising threads than computing: on 2 cores the dense closed form at
+N = 40 runs an order of magnitude slower on OpenBLAS's default threads than on one (docs/performance.md,
+section 11). So every public entry point that computes
 (:func:`blas_limited`) runs with the BLAS thread pools limited to :func:`blas_threads` threads
 (default 1) through threadpoolctl, and restores them on return: the user's own setting, and NumPy
 calls outside this library, are untouched.
@@ -81,7 +81,7 @@ def blas_threads() -> int | None:
 
 
 def _controller() -> ThreadpoolController:
-    """A controller of the BLAS libraries loaded now: it scans them (0.4-7 ms), so it is made again
+    """A controller of the BLAS libraries loaded now: scanning them is not free, so it is made again
     only when modules were imported since (an import may load another BLAS, e.g. cvxpy's)."""
     with _lock:
         if _state["controller"] is None or _state["modules"] != len(sys.modules):
@@ -94,7 +94,7 @@ def blas_limited(fn: F) -> F:
     """Run ``fn`` with the BLAS pools limited to :func:`blas_threads` threads, restored on return.
 
     Nested calls (a limited function calling another) limit once, at the outermost call of each
-    thread: the inner ones cost a thread-local counter; about 25 us for the outermost call. Across
+    thread: the inner ones cost a thread-local counter, only the outermost call threadpoolctl's switch. Across
     Python threads, threadpoolctl lets only one thread at a time own a shared (pthreads) OpenBLAS
     pool: calls from other threads then run with whatever that thread set, and nobody's restore
     overwrites another's.

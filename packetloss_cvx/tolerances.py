@@ -108,7 +108,7 @@ FORWARD_COST_ROUNDING = 4.0
 #: asymptotic contraction per step (rho(A - B M K)^2 for the Riccati map, rho(A)^2 for the Lyapunov sum;
 #: never closed when q >= 1). The iterates then jitter at rounding level (measured 7e-17 to 4e-16 on the
 #: N = 10^4, n = 4, m = 2 benchmark, contraction 0.29), so closing leaves the costs where the full pass puts
-#: them: against cfb251d's full pass, worst 4.6e-14 relative (costs) and 9.6e-15 (plans, gains) over
+#: them: against the full pass, worst 4.6e-14 relative (costs) and 9.6e-15 (plans, gains) over
 #: benchmarks/kernel_agreement.py's 28 long horizons (N = 200 to 10^4, rho(A) 0.5 to 1.05); benchmarks/run.py
 #: section 18: 1.7e-16 to 3.3e-16 at N = 10^3 to 10^5.
 STATIONARY_RTOL = 1e-14
@@ -242,7 +242,7 @@ MIN_COST_RTOL = 1e-6
 __all__ += ["ALLOCATION_CLARABEL_ATTEMPTS"]
 
 #: The allocation SOCPs (epigraph form, cost scaled by 1 / (alpha - C)) try the tight settings,
-#: then Clarabel's defaults. On 200 test problems (the 3-channel case of issue 8 over 40 random
+#: then Clarabel's defaults. On 200 test problems (a 3-channel case over 40 random
 #: systems, the 2-channel test systems, random m = 2..4) the tight settings end "optimal" on
 #: 175 and the defaults on all 200; the former single summed constraint on 164.
 ALLOCATION_CLARABEL_ATTEMPTS = (CLARABEL_TIGHT, CLARABEL_DEFAULT)
@@ -335,8 +335,8 @@ __all__ += ["CERTIFICATE_KERNEL_RTOL", "CERTIFICATE_RTOL", "HOMOGENEOUS_RICCATI_
 
 #: An infeasibility certificate P of the stabilisable set (simulation/region.py) is accepted when the bound it proves
 #: on every law's mean-square radius, the largest c with R(P) >= c P (R the homogeneous Riccati map, computed as a
-#: least-squares residual), is >= 1 - CERTIFICATE_RTOL: a band on the radius (until session 28 on the least
-#: eigenvalue of T_mu(P) over ||A'PA|| + ||P|| + ||B'PB||, which shrinks like 1 / ||K||^2 with the gain and passed a
+#: least-squares residual), is >= 1 - CERTIFICATE_RTOL: a band on the radius (not on the least
+#: eigenvalue of T_mu(P) over ||A'PA|| + ||P|| + ||B'PB||, which shrinks like 1 / ||K||^2 with the gain and would pass a
 #: P from 1e-6 inside S where the gains were about 600). Measured at the exact boundary with the homogeneous Riccati
 #: eigenvector (scalar a = 2, decoupled (2, 1.5) and (3, 1.2, 0.5), one state with two channels): c - 1 from -6.7e-16
 #: to +4.4e-16; 1e-9 inside S -1.4e-9 to -4e-9 (refused), as an inside certificate needs rho < 1 - 1e-9.

@@ -1,4 +1,5 @@
-"""Derived systems and the per-structure cache (docs/performance.md, "Audit: systems and structure").
+"""Derived systems and the per-structure cache (docs/design.md §4, "Derived systems";
+docs/performance.md, "Section 17").
 
 ``System.with_channel`` (the fast path of markov.attach_channel) against the full validation of the
 TOML round trip it replaces; the prediction matrices and Lyapunov weights kept on a system against the

@@ -1,4 +1,4 @@
-"""The acknowledgement link priced (issue 24 item 5): the TCP-like protocol needs a perfect acknowledgement
+"""The acknowledgement link priced: the TCP-like protocol needs a perfect acknowledgement
 link, which the paper's communication cost leaves out (its conclusion). For one alpha, the cheapest
 TCP-like design plus the link's price against the cheapest UDP-like design, in either currency: beta'mu
 (:func:`~packetloss_cvx.allocation.allocate`) or total transmit power (:func:`.power.least_power`).

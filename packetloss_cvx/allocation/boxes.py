@@ -171,10 +171,10 @@ def lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
 def highs_optimum(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
                   ) -> tuple[np.ndarray | None, np.ndarray | None] | None:
     """What ``linprog(c, A_ub=G, b_ub=h, bounds=(l, u), method="highs", options=_HIGHS)`` answers, where it answers
-    "optimal" or "infeasible", without linprog's parsing and option checks (1.3 ms a call against 0.3 ms; the LP
-    itself about 0.1 ms): the same HiGHS build (scipy's), the same model (G as CSC without its zeros, rows
-    ``-inf <= G x <= h``) and the same options as scipy's ``_linprog_highs`` passes, so the same simplex run,
-    bit for bit (tests/test_allocation_lp.py compares the two on random LPs).
+    "optimal" or "infeasible", without linprog's parsing and option checks (several times the LP itself): the same
+    HiGHS build (scipy's), the same model (G as CSC without its zeros, rows ``-inf <= G x <= h``) and the same
+    options as scipy's ``_linprog_highs`` passes, so the same simplex run, bit for bit (tests/test_allocation_lp.py
+    compares the two on random LPs).
 
     Returns ``(x, row duals)`` at an optimum that linprog's own check (``_LINPROG_CHECK``) accepts, ``(None,
     None)`` when HiGHS proves the LP infeasible (linprog's status 2), and None for anything else (or a scipy
@@ -234,7 +234,7 @@ def _highs_run(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np
 
 
 def _highs_options():
-    """scipy's _linprog_highs options for method "highs" with our two tolerances, built once (30 us; passOptions
+    """scipy's _linprog_highs options for method "highs" with our two tolerances, built once (passOptions
     copies them into each solver)."""
     if highs_core is None:      # pragma: no cover - an older scipy
         return None
@@ -268,8 +268,8 @@ def small_lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.n
     The bound is :func:`dual_bound` at Clarabel's row multipliers, proved whatever their accuracy, as
     :func:`lp`'s is at HiGHS's; the point is an optimum to Clarabel's tolerance (``CLARABEL_TIGHT``),
     not necessarily a vertex, with coordinates within ``ALLOCATION_LP_FEASIBILITY`` of a bound put on
-    it (where the rows allow). Why: ``linprog`` spends 1-2 ms validating options around a HiGHS run of
-    0.1 ms; one Clarabel solve of this size takes about 0.2 ms.
+    it (where the rows allow). Why: ``linprog`` spends ten times the HiGHS run validating its options,
+    where one Clarabel solve of this size costs about twice the HiGHS run.
 
     Notes
     -----

@@ -1,4 +1,4 @@
-"""Delivery probability as a function of transmit power, per channel (issue 24): the model of a power-limited
+"""Delivery probability as a function of transmit power, per channel: the model of a power-limited
 link, apart from the problems that buy power (:mod:`.power`).
 
 :class:`PowerModel` (validated by :func:`power_model`, read from a system file's ``[power]`` table by

@@ -1,4 +1,4 @@
-"""What to buy: transmit power per channel instead of delivery probabilities (issue 24).
+"""What to buy: transmit power per channel instead of delivery probabilities.
 
 Each channel's delivery probability is a non-decreasing function of its transmit power P_i, a
 :class:`~packetloss_cvx.allocation.delivery.PowerModel` (exponential, rayleigh, table: :mod:`.delivery`).
@@ -72,7 +72,7 @@ class PowerProgram:
     concave table ``mu_i <= a_ik + b_ik P_i`` for each segment k and ``mu_i <= mu_last``.
     J*_tcp falls in mu, so the link is tight at the optimum. Parameters: x0, sqrt of the cost scale, the cap
     ``top`` on P and k rows ``G P <= h``. Kind "power": min sum P s.t. scaled cost <= 1 (scale 1 / (alpha - C));
-    kind "cost": min the scaled cost. Size O(N (n + m) + K m); compiled once (about 20 ms) and kept by
+    kind "cost": min the scaled cost. Size O(N (n + m) + K m); compiled once and kept by
     content (:meth:`of`), then each solve maps the Parameters and runs Clarabel.
 
     Examples
@@ -135,8 +135,8 @@ class PowerProgram:
     def of(cls, system: System, model: PowerModel, kind: str, rows: int) -> PowerProgram:
         """The program for this system's structure, model, kind and number of rows: compiled on first use and kept
         (the ``PROGRAMS_KEPT`` most recent, by content, while its estimated size fits ``STRUCTURE_CACHE_MAX_BYTES``),
-        so a problem asked again on an equal system (a fresh copy, another call) does not compile it again (10-16 ms
-        on two_actuator). The key is every input of the constructor: the system's fields its algebra reads
+        so a problem asked again on an equal system (a fresh copy, another call) does not compile it again (a compile
+        costs several solves). The key is every input of the constructor: the system's fields its algebra reads
         (:data:`~.tcp.PROGRAMS_KEY`: :func:`~.tcp.cost_epigraph`), the model's kind and data (its unit and table),
         ``kind`` and ``rows``; x0, the cost scale, the cap and the rows' values are Parameters given to
         :meth:`solve`, which assigns none of them (as :class:`~.tcp.TCPProgram`: shared without a lock). O(size of
@@ -533,7 +533,7 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     """The least optimal cost ``J*(mu(P))`` with ``sum P <= budget`` (and the constraints), certified to a
     relative ``gap`` (as :func:`least_power`'s; the branch and bound's corner bounds lose a first-order term
     where the optimum lies inside the budget's face, so the boxes grow like gap^-1/2: two_actuator, UDP-like,
-    exponential c = (1, 2), B = 3: 766 boxes at 1e-4, 2366 at 1e-5, 7043 at 1e-6, 3.2 / 8.4 / 26.6 s CPU).
+    exponential c = (1, 2), B = 3: 766 boxes at 1e-4, 2366 at 1e-5, 7043 at 1e-6).
 
     Raises
     ------

@@ -1,4 +1,4 @@
-"""Design for stability (issue 21 item 5): the cheapest delivery probabilities whose loop some linear law
+"""Design for stability: the cheapest delivery probabilities whose loop some linear law
 holds with a margin, or whose DP law costs at most alpha.
 
 .. math:: \\min_\\mu \\beta'\\mu \\quad\\text{s.t.}\\quad \\mu \\in S_\\rho = \\{\\mu : \\min_K \\rho(L_K) < \\rho\\}
@@ -143,8 +143,8 @@ _OUTSIDE = 40.0
 #: how far (relative) beyond the boundary a line search aims: 100 MEAN_SQUARE_MARGIN, so that the point it
 #: proposes is certified rather than undecided (the certificates' tolerances are 1e-9), and no rounding-level
 #: LMI certificate (1e-12 of T's scale, which a large gain stretches) contradicts a point 1e-8 inside: with 10,
-#: two_actuator at rho = 0.5 ended in CrossCheckError (hostile review 2026-11-24; since session 28 the certificate's
-#: tolerance is a band on the radius, which a gain no longer stretches, and the aim is kept as the search's margin)
+#: two_actuator at rho = 0.5 ended in CrossCheckError; the certificate's tolerance
+#: is now a band on the radius, which a gain does not stretch, and the aim is kept as the search's margin)
 _AIM = 100 * MEAN_SQUARE_MARGIN
 
 

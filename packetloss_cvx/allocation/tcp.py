@@ -9,7 +9,7 @@ optimal cost ``J*_tcp(mu) = min_Z J`` is convex in mu and the allocation (eq:cha
 is an SOCP. Each quad-over-lin term gets its own epigraph variable ``t_i`` and the cost is
 divided by ``alpha - C``: with the terms summed in one constraint, Clarabel ended
 ``optimal_inaccurate`` on 36 of 200 test problems (typically when an optimal mu_i is 0, the
-cone's apex, as in the 3-channel case of issue 8); in this form on none
+cone's apex); in this form on none
 (``tolerances.ALLOCATION_CLARABEL_ATTEMPTS``; the program here runs ``ALLOCATION_TCP_ATTEMPTS``).
 
 The solver's point is not taken on trust:
@@ -136,8 +136,8 @@ class TCPProgram:
     42 % off across calls), then Clarabel's defaults on a new equilibrated solver. The Parameters are
     never assigned (their values go straight into the data map), so calls from several threads share a
     program without a lock. Size O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros; compiled in
-    O(N (n + m)^2) (about 20 ms at N = 40, n = m = 3), then each solve maps the Parameters (O(nnz), about
-    0.3 ms there) and runs Clarabel (about 2 ms there; a new solver's set-up would add 0.4 ms).
+    O(N (n + m)^2), then each solve maps the Parameters (O(nnz)) and runs Clarabel (on a kept solver: a new
+    solver's set-up would add a fifth).
 
     Examples
     --------

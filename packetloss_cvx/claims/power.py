@@ -1,5 +1,5 @@
 """power-water-filling: the paper's conjecture that spreading a power budget over the actuation channels
-"becomes a water filling problem" (issue 24 item 4), made precise and checked on hand-checkable cases.
+"becomes a water filling problem", made precise and checked on hand-checkable cases.
 
 *What water filling means here.* With ``mu_i = 1 - exp(-P_i / c)`` (one c for every channel), the budget
 problem ``min J*(mu(P)) s.t. sum P <= B, P >= 0`` has a water-filling solution if ``P_i = (nu - a_i)^+``

@@ -1,4 +1,4 @@
-"""stability-region-paper-systems (issue 21 item 7): where can the paper's systems be stabilised at all, and by
+"""stability-region-paper-systems (the paper leaves it open): where can the paper's systems be stabilised at all, and by
 which law? Along the shared channel mu = t (1, ..., 1) each law's critical t (simulation.region_map): the
 stabilisable set S (some linear law; the DP law's region) and the paper's TCP-like and UDP-like receding-horizon
 laws re-designed at each mu. Every law's region lies in S (a law proved stable where S is certified empty is a

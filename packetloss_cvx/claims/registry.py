@@ -60,9 +60,9 @@ CLAIMS: dict[str, tuple[str, Callable[[Context], ClaimResult]]] = {
     claim_id: (statement, _CHECKS[claim_id]) for claim_id, statement in STATEMENTS.items()
 }
 CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's: its laws under bursty losses
-CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the paper's: lossy sensors (issue 22)
-CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # issue 21: the open problem
-CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture (issue 24)
+CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the paper's: lossy sensors
+CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # the paper's open problem
+CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain

@@ -1,4 +1,4 @@
-"""cost-split-sensor (issue 22; not the paper's): over a lossy sensor link, the DP law on the TCP-like Kalman
+"""cost-split-sensor (not the paper's): over a lossy sensor link, the DP law on the TCP-like Kalman
 estimate costs the full-state optimum plus an estimation part. Each case measures its first state over one
 link (gamma = 0.9, R = 0.01; Sigma_W = 0.01 I where the case has no noise); the split is checked exactly on the
 loop with stationary filter gains (sensing.loop), and on the paper's systems also by simulating the

@@ -8,7 +8,7 @@ from typing import Any
 from ..allocation import allocate, parse_constraint
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
-from .allocate_power import run as run_power  # issue 24: power, the ack link priced
+from .allocate_power import run as run_power  # power, the ack link priced
 from .allocate_power import wants_power
 from .allocate_stability import run_target
 from .common import CommandResult, allocation_numbers, progress_of, search_options, system_of

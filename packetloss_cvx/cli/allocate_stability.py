@@ -1,5 +1,5 @@
 """``packetloss-cvx allocate FILE --target stable|dp-cost``: the cheapest channel qualities for which some linear
-law holds the loop with a margin, or whose DP law costs at most alpha (issue 21 item 5; allocation.stability)."""
+law holds the loop with a margin, or whose DP law costs at most alpha (allocation.stability)."""
 
 from __future__ import annotations
 

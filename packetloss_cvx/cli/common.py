@@ -407,7 +407,7 @@ def check_figure_format(path: str, field: str) -> None:
 
 def check_path_length(path: str, field: str) -> None:
     """A path no longer than :data:`MAX_PATH` whose components are at most :data:`MAX_NAME` characters (what
-    Linux file systems hold), else an InputError naming ``field`` (was: an OSError, exit 1). O(len(path)).
+    Linux file systems hold), else an InputError naming ``field`` (exit 2, not an OSError). O(len(path)).
 
     Examples
     --------

@@ -231,7 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
     alloc.add_argument("--time-limit", metavar="SECONDS",
                        help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4 "
                             "(default: none), e.g. 60")
-    # design for stability (issue 21 item 5): allocation.stability, cli/allocate_stability.py
+    # design for stability: allocation.stability, cli/allocate_stability.py
     design = alloc.add_argument_group("design for stability (instead of --protocol)")
     design.add_argument("--target", choices=("stable", "dp-cost"),
                         help="the cheapest mu for which some linear law u = -Kx has mean-square radius < RHO "
@@ -241,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --target stable: the bound RHO on the mean-square radius (the spectral radius of "
                              "the second-moment operator), 0 < RHO <= 1 (default: 1, i.e. stable: radius < 1 - 1e-9), "
                              "e.g. --margin 0.9")
-    # issue 24: transmit power instead of delivery probabilities, and the acknowledgement link priced
+    # transmit power instead of delivery probabilities, and the acknowledgement link priced
     power = alloc.add_argument_group("power-limited links (docs/design.md, Power-limited links)")
     power.add_argument("--power", choices=("exponential", "rayleigh", "table"),
                        help="buy transmit power P per channel: mu = 1 - exp(-P/c), exp(-c/P) or a measured table "
@@ -344,7 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
     reg.add_argument("--channels", metavar="I,J", help="with --grid: the map's channels (default: 1,2), e.g. "
                                                          "--channels 1,3")
     add_dask_options(reg, "with --grid: the map's rows on Dask")
-    reg.add_argument("--sensor-grid", type=int, metavar="K",   # issue 22: lossy sensor links
+    reg.add_argument("--sensor-grid", type=int, metavar="K",   # lossy sensor links
                      help="a file with [sensor]: also a K x K map of (gamma, mu) scales in (0, 1] for the paper's "
                           "tcp and udp laws on their estimates (default: none), e.g. --sensor-grid 11")
     reg.add_argument("--out", metavar="DIR",

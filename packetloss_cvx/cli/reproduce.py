@@ -34,13 +34,13 @@ __all__ = ["ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "run"]
 
 #: The cost bounds alpha of the -mult figures: the paper's 4.78 among levels spread from just above
 #: J*(1, 1) = 1.92 to below J*(0, 0) = 140.7 of the two-actuator system (the paper prints none). Above 20
-#: the UDP-like branch and bound takes about 1 s per alpha (three betas; 12-25 s before 2026-11-22).
+#: the UDP-like branch and bound takes about 1 s per alpha (three betas).
 ALPHAS = (2.5, 3.5, 4.78, 6.0, 8.0, 12.0, 20.0, 35.0, 50.0, 70.0, 100.0)
 
 #: The claim --quick leaves out of the audit (its 18 brute-force allocations, about 0.5 s).
 SLOW_CLAIM = "allocation-udp-perfect-channel"
 
-#: The region map's K x K grid over (mu1, mu2) of the two-actuator system (issue 21 item 7): the coarsest grid
+#: The region map's K x K grid over (mu1, mu2) of the two-actuator system: the coarsest grid
 #: whose boundaries stay within half a step (0.025) of the 101 x 101 map's, and on which the DP law's boundary
 #: near the axes (S reaches mu1 = 0 at mu2 = 0.115) spans more than two steps. CPU s for dp, tcp, udp, the
 #: eigenpairs batched (docs/performance.md): K = 11 0.4, 16 0.5, 21 0.6, 31 1.1, 41 2.0.
@@ -76,13 +76,13 @@ def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, 
                 protocol = step.split()[1]
                 data.setdefault("allocations", {})[protocol] = pf.mixed_allocations(
                     mixed, protocol, settings["alphas"], ALLOCATION_BETAS, progress=progress)
-            elif step == "region":   # beyond the paper (issue 21 item 7): each law's stability region
+            elif step == "region":   # beyond the paper: each law's stability region
                 data["region"] = region_map(mixed, laws=REGION_LAWS, grid=settings["region_grid"]).to_dict()
             elif step == "tables":
                 data["tables"] = pf.eigenvalue_tables(pendulum, mixed, TABLE_1_MU, TABLE_2_MU)
                 data["tables_paper"] = {"table-1": TABLE_1, "table-2": TABLE_2}
             else:
-                # issue 24: the acknowledgement link's break-even price, from the allocations above (no solve)
+                # the acknowledgement link's break-even price, from the allocations above (no solve)
                 data["ack"] = {str(list(beta)): break_even_of(data["allocations"]["tcp"][beta],
                                                               data["allocations"]["udp"][beta])
                                for beta in data["allocations"]["tcp"]}
@@ -122,12 +122,12 @@ def draw_figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
             levels=data["settings"]["alphas"], allocations=lines, title=caption[f"fig:{name}-log-cost-mixed-mult"])
     for label, figure in draw.items():
         save_figure(figure, paths[label].name, folder=folder)
-    ack = data["ack"][str([1.0, 1.0])]         # beyond the paper (issue 24): the acknowledgement link priced
+    ack = data["ack"][str([1.0, 1.0])]         # beyond the paper: the acknowledgement link priced
     paths[ACK_FIGURE] = out / "ack-break-even.png"
     save_figure(plot_ack_break_even(ack["alpha"], [float("nan") if v is None else v for v in ack["break_even"]],
                                     title="two-actuator system, beta = (1, 1)"),
                 paths[ACK_FIGURE].name, folder=folder)
-    grid = {law: data["region"][law]["grid"] for law in REGION_LAWS}     # beyond the paper (issue 21 item 7)
+    grid = {law: data["region"][law]["grid"] for law in REGION_LAWS}     # beyond the paper
     paths[REGION_FIGURE] = out / f"{REGION_FIGURE}.png"
     save_figure(plot_region(grid["dp"]["axis"], _numbers(grid["dp"]["radius"]),
                             {law: _numbers(g["stable"]) for law, g in grid.items()},

@@ -27,10 +27,10 @@ FIGURES = {
     "fig:UDP-log-cost-mixed-mult": "UDP-like, with the allocations of eq:opt_M on each contour alpha",
 }
 
-#: Beyond the paper (issue 24): the break-even price of the acknowledgement link over alpha
+#: Beyond the paper: the break-even price of the acknowledgement link over alpha
 ACK_FIGURE = "ack-break-even"
 
-#: Beyond the paper (issue 21 item 7): the stability region of each law over (mu1, mu2), two-actuator system
+#: Beyond the paper: the stability region of each law over (mu1, mu2), two-actuator system
 REGION_FIGURE = "region-two-actuator"
 #: the figures beyond the paper's, in the report's order
 BEYOND_FIGURES = (ACK_FIGURE, REGION_FIGURE)
@@ -225,7 +225,7 @@ def _tables(data: dict[str, Any], out: Path) -> list[str]:
 
 
 def _ack(data: dict[str, Any], figures: dict[str, Path]) -> list[str]:
-    """The acknowledgement link priced (issue 24; not the paper's): the break-even price per alpha and beta."""
+    """The acknowledgement link priced (not the paper's): the break-even price per alpha and beta."""
     rows = ["| cost bound alpha | " + " | ".join(f"beta = {b}" for b in data["ack"]) + " |",
             "|---|" + "---|" * len(data["ack"])]
     alphas = next(iter(data["ack"].values()))["alpha"]
@@ -243,7 +243,7 @@ def _ack(data: dict[str, Any], figures: dict[str, Path]) -> list[str]:
 
 
 def region_paragraph(region: dict[str, Any], link: str) -> list[str]:
-    """The stability region (issue 21 item 7; the paper leaves it open) from ``RegionMap.to_dict()`` of the
+    """The stability region (the paper leaves it open) from ``RegionMap.to_dict()`` of the
     laws :data:`REGION_LAWS` on a grid: each law's share of the grid and critical shared mu, whether the paper's
     laws' regions lie in S at every grid point, and where S reaches the axis mu1 = 0. O(K^2).
 

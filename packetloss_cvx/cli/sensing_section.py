@@ -1,4 +1,4 @@
-"""The lossy-sensor parts of ``solve``, ``simulate --closed-loop`` and ``region`` (issue 22): only for a
+"""The lossy-sensor parts of ``solve``, ``simulate --closed-loop`` and ``region``: only for a
 system with a ``[sensor]`` section; a full-state file's output is unchanged."""
 
 from __future__ import annotations

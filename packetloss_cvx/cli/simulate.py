@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> CommandResult:
                                   title=system.name)
         save_figure(figure, args.plot, overwrite=force, field="--plot")
     data, text = sim.to_dict(), _text(system.name or args.file, sim)
-    if system.sensor is not None and args.closed_loop:     # lossy sensor links (issue 22)
+    if system.sensor is not None and args.closed_loop:     # lossy sensor links
         data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)
         text = "\n".join([text, *more])
     return CommandResult(data, text)

@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> CommandResult:
                 rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
         rows += text_details(sol, system.n, args.verbose)
-        if system.sensor is not None:     # lossy sensor links (issue 22): the law on the protocol's estimate
+        if system.sensor is not None:     # lossy sensor links: the law on the protocol's estimate
             entry["estimated_state"], text = protocol_entry(system, protocol, sol.gain)
             rows.append(("estimated state", text))
         wanted = getattr(args, "stability", None)

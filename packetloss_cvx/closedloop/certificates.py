@@ -19,7 +19,7 @@ as stored; one that fails gives no verdict ("undecided").
   the law's computed radius and c (:func:`stability_witness`), so that ``cX - L_K(X) = (c - r) X + r I`` up to the
   solve's residual: definite by a margin the rounding cannot reach unless the solve has lost its digits.
 
-Time: O((n + m)^3) integer operations on numbers of O((n + m) 53) bits for a check (n = 4: about 0.3 ms), plus
+Time: O((n + m)^3) integer operations on numbers of O((n + m) 53) bits for a check, plus
 O(n^6) for the witness's dense solve (n <= MOMENT_DENSE_MAX_N).
 """
 

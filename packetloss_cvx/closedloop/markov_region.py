@@ -1,4 +1,4 @@
-"""The stabilisable set behind Gilbert–Elliott channels (issue 21 item 6): can some mode-dependent linear law
+"""The stabilisable set behind Gilbert–Elliott channels: can some mode-dependent linear law
 ``u = -K_a x`` (a the channel state the law knows: the last one, or the current one) make the loop mean-square
 stable, and where, over each channel's mean rate at fixed burstiness?
 

@@ -24,7 +24,7 @@ The "dp" form can only prove "stable" (its gain's radius below ``1 - MEAN_SQUARE
 form ran before it and proved "unstable", or undecided but its P bounds every law's radius at
 ``1 - MEAN_SQUARE_MARGIN / 2`` or more (the outside check with that band, :data:`_DP_HOPELESS`), no gain can pass
 (both checks are exact), so the "dp" form says "undecided" without running: outside S the DP's value iteration
-crawls to its step cap near the boundary (scalar a = 2 at mu = 0.75: 20,000 steps, 0.5 s) for that same verdict.
+crawls to its step cap near the boundary (scalar a = 2 at mu = 0.75: 20,000 steps) for that same verdict.
 
 Every certificate is re-checked in exact rational arithmetic (simulation.certificates): a verdict is a proof about
 the plant as stored, or the form says "undecided". Where the inputs that deliver leave a part of the state
@@ -73,8 +73,8 @@ _POWER_WATCH = 4
 _POLICY_STEPS = 50
 #: where the eigenpair's own gain is not proved stabilising, the gain is taken once more from P + _LIFT I (tr P = 1):
 #: the Perron eigenvector of a decoupled plant vanishes on the blocks whose radius is not the largest, and the
-#: least-squares minimiser gives them gain 0; the lifted P weighs every direction (2026-11-24, issue 21 item 5:
-#: diag(1.2, 2, 0.5), B = I was "undecided" by this form at every mu inside S)
+#: least-squares minimiser gives them gain 0; the lifted P weighs every direction (without it,
+#: diag(1.2, 2, 0.5), B = I is "undecided" by this form at every mu inside S)
 _LIFT = 1e-6
 
 #: the forms :func:`membership` can run, cheapest first

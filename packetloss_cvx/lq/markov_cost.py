@@ -46,9 +46,9 @@ __all__ = ["DENSE_SECONDS", "METHODS", "auto_route", "check_method", "correlatio
 METHODS = ("auto", "recursion", "dense")
 
 #: The dense route's time model, seconds ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the
-#: (N n)^2 N m products of Omega_g). benchmarks/markov_auto.py, one BLAS thread, 2026-11-24: its least-squares
+#: (N n)^2 N m products of Omega_g). benchmarks/markov_auto.py, one BLAS thread: its least-squares
 #: fit is (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make
-#: ``auto`` take the faster route in 75 of its 77 cases, the other two within 14 % (docs/performance.md).
+#: ``auto`` take the faster route in 75 of its 77 cases, the other two within 14 %.
 DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
 
 
@@ -113,7 +113,7 @@ def dense_max(system: System) -> int:
     >>> from packetloss_cvx.model.channel import GilbertElliott
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=20, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
     ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
-    >>> dense_max(s)                             # N = 20: 0.6 against 1.4 ms
+    >>> dense_max(s)                             # N = 20: the dense route is faster
     20
     """
     dense, recursion = route_seconds(system)
@@ -136,7 +136,7 @@ def auto_route(system: System) -> str:
     ...            channel=GilbertElliott(p=[0.2], r=[0.2]))
     >>> long = System(A=[[1.0]], B=[[1.0]], horizon=2000, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
     ...               channel=GilbertElliott(p=[0.2], r=[0.2]))
-    >>> auto_route(s), auto_route(long)          # N = 20: 0.6 against 1.4 ms; N = 2000: 2.4 s against 0.14 s
+    >>> auto_route(s), auto_route(long)          # the dense route at N = 20, the recursion at N = 2000
     ('dense', 'recursion')
     """
     limit = dense_max(system)

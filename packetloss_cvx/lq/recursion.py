@@ -194,7 +194,7 @@ def _drift(new: np.ndarray, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _row_max(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     """The largest entry of each row of ``values`` (p, k), shaped ``shape``: by a reduction over the first axis of
-    the transposed copy (NumPy reduces a short last axis row by row: 175 against 12 us for 1,600 rows of 16).
+    the transposed copy (NumPy reduces a short last axis row by row, an order of magnitude slower).
     O(p k)."""
     if values.shape[0] < 64:
         return values.max(axis=1).reshape(shape)
@@ -299,7 +299,7 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     and (n, n)), P_prev symmetrised. Raises ``numpy.linalg.LinAlgError`` where a G is singular (callers name the
     cause). The algebra is written once for both ranks (``@``-style products: ``np.dot`` on a point,
     ``np.matmul`` on a stack; the last two axes transposed; mu broadcast as G's row). A batch of one is taken as
-    the point: two-dimensional products and LAPACK's gesv without the stacked wrappers (12 against 16 us a step),
+    the point: two-dimensional products and LAPACK's gesv without the stacked wrappers' overhead,
     the same BLAS calls in the same order as a point of a stack, so the same floats. From ``FLAT_MIN`` points on,
     the products B'PB, B'PA, A'PA are one (k n)×n by n×m (n×n) product each (:func:`_flat_products`).
     Time O(k (n^3 + m^3)); a point's answer does not depend on the batch it is in below ``FLAT_MIN`` points.
@@ -621,7 +621,7 @@ def _excess(change: np.ndarray, size: np.ndarray) -> float:
 
 def _repeat_first(rows: np.ndarray) -> None:
     """``rows[1:] = rows[0]`` in place by doubling copies of contiguous blocks (log2 L copies of memory instead
-    of L broadcast copies of one small block: 23 against 56 us for 10^4 gains of 2×4). O(L k)."""
+    of L broadcast copies of one small block, each with NumPy's per-copy overhead). O(L k)."""
     L, done = rows.shape[0], 1
     while done < L:
         step = min(done, L - done)

@@ -375,7 +375,7 @@ def dumps_system(system: System) -> str:
 def save_system(system: System, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``system`` to ``path`` as TOML, atomically (:func:`~packetloss_cvx.safeio.atomic_write`);
     returns the path. An existing file is refused (:class:`~packetloss_cvx.errors.OutputExistsError`, a
-    ValueError) unless ``overwrite=True`` (migration 2026-11-24: it was replaced silently).
+    ValueError) unless ``overwrite=True`` (a user's file is never replaced silently).
 
     Examples
     --------
@@ -395,7 +395,7 @@ def save_system(system: System, path: str | Path, *, overwrite: bool = False) ->
 
 
 def _toml_value(value: Any) -> str:
-    # Kept rather than tomli-w (checked 2026-11-24, tomli-w 1.2.0): tomli-w writes every array one element
+    # Kept rather than tomli-w (tomli-w 1.2.0): tomli-w writes every array one element
     # per line, so the two-actuator file's 2 x 2 A takes 10 lines and the pendulum's 4 x 4 A 26, where a
     # system file shows a matrix on one line; a System holds only finite floats, ints, bools, strings and
     # (nested) lists of them, which these nine lines write in TOML exactly (floats by their shortest repr).

@@ -1,4 +1,4 @@
-"""Lossy sensor links: the validated, immutable description of what the controller measures (issue 22).
+"""Lossy sensor links: the validated, immutable description of what the controller measures.
 
 Measurements ``y_k = C x_k + r_k``, ``r_k ~ N(0, R)`` (R = ``noise_cov``), are sent over g sensor channels,
 channel j carrying the output rows ``groups[j]`` and delivering them with probability ``gamma[j]``

@@ -122,7 +122,7 @@ class System:
     dt : float, optional
         Sampling time in seconds (python-control interop), metadata: nothing depends on it. None: unspecified.
     sensor : sensor.Sensor or its TOML table, optional
-        Measurements over lossy sensor links (issue 22: packetloss_cvx.sensing). None: the full state is known
+        Measurements over lossy sensor links (packetloss_cvx.sensing). None: the full state is known
         (the paper's model); every computation that ignores the sensor is the same with or without one.
 
     Raises

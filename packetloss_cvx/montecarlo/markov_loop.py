@@ -62,8 +62,8 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     InputError
         No Markov channel, an unknown law, or counts below 1.
     ResourceError
-        A law met more than PLAN_BUDGET distinct beliefs (one plan each; before 2026-11-22 it planned
-        on without a limit), as :func:`~packetloss_cvx.montecarlo.simulate.simulate` refuses them.
+        A law met more than PLAN_BUDGET distinct beliefs (one plan each: a law with
+        unboundedly many beliefs would plan without end), as :func:`~packetloss_cvx.montecarlo.simulate.simulate` refuses them.
 
     Examples
     --------

@@ -588,7 +588,7 @@ def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stab
 
 def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = None,
                       path: str | Path | None = None) -> Figure:
-    """The power-cost trade-off: the least J* against the total power budget (issue 24).
+    """The power-cost trade-off: the least J* against the total power budget.
 
     ``curves``: label to rows with keys ``"budget"`` and ``"cost"`` (``PowerAllocation.to_dict()`` of
     :func:`~packetloss_cvx.allocation.power.power_pareto`'s points); J* on a log axis. O(rows) to draw.
@@ -612,7 +612,7 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | N
 
 def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, currency: str = r"$\beta^\top\mu$",
                         title: str | None = None, path: str | Path | None = None) -> Figure:
-    """Above which price of the acknowledgement link the UDP-like design wins, against alpha (issue 24):
+    """Above which price of the acknowledgement link the UDP-like design wins, against alpha:
     the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
     Non-finite points (no design) are left out. O(points) to draw.
 

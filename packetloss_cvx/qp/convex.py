@@ -123,11 +123,11 @@ class ClarabelProgram:
     attempt: cold, so an answer depends on its own data only (a warm Clarabel keeps the
     equilibration of the first data it saw). What ``problem.solve`` adds per call, re-applying the
     Parameters through its reduction chain, setting up its solver interface and unpacking every
-    variable, is skipped (about 2 ms of a 5 ms solve at 250 variables).
+    variable, is skipped (about two fifths of a small solve).
 
     An attempt whose settings switch Clarabel's equilibration off (``equilibrate_enable`` False) runs on a
-    solver kept per thread and given the new data (``update``: its KKT pattern and ordering kept, about
-    0.4 ms of set-up saved at N = 40, n = m = 3): without an equilibration to carry over, Clarabel then
+    solver kept per thread and given the new data (``update``: its KKT pattern and ordering kept, the
+    set-up saved): without an equilibration to carry over, Clarabel then
     computes the floats a new solver computes (``tests/test_convex.py``). With the equilibration on, an
     updated solver would keep the scaling of the first data it saw, so those attempts build a new solver.
 

@@ -28,13 +28,12 @@ Thread-safety and processes: the cache is per process (a module-level dict behin
 worker process builds its own on first use. Each compiled problem carries a lock held from the
 assignment of its Parameters to the read of its solution, so threads sharing a bucket take turns.
 
-Complexity and memory: a compile costs 6-10 ms for the audit's sizes and is paid once per bucket;
-a re-solve costs O(R K) to assign and map the Parameters into Clarabel's data plus Clarabel's
-O(K^3 + R K^2) solve (about 0.8-1.2 ms at R, K <= 32, skipping cvxpy's reduction chain; 1.6-2.2 ms
-through it). cvxpy keeps, per bucket, a parameter map with about R K entries: about 72 bytes per entry
-of G with its data (tracemalloc, docs/performance.md; 1.2 MB at 128 × 128). At most ``SHARED_CACHE_SIZE`` buckets of at
-most ``SHARED_MAX_ENTRIES`` entries each are kept (least recently used first out; about 60 MB at
-worst); a larger shape gets a private, uncached problem of its exact shape.
+Complexity and memory: a compile is paid once per bucket; a re-solve costs O(R K) to assign and map the
+Parameters into Clarabel's data plus Clarabel's O(K^3 + R K^2) solve, skipping cvxpy's reduction chain (which
+about doubles a small re-solve). cvxpy keeps, per bucket, a parameter map with about R K entries: about 72 bytes
+per entry of G with its data (tracemalloc; 1.2 MB at 128 × 128). At most ``SHARED_CACHE_SIZE`` buckets of at
+most ``SHARED_MAX_ENTRIES`` entries each are kept (least recently used first out; about 60 MB at worst); a larger
+shape gets a private, uncached problem of its exact shape.
 """
 
 from __future__ import annotations

@@ -67,7 +67,7 @@ class Allocation(Frozen):
 
 @dataclass(frozen=True)
 class PowerAllocation(Frozen):
-    """Transmit power per channel with a certificate (allocation/power.py, issue 24).
+    """Transmit power per channel with a certificate (allocation/power.py).
 
     ``problem``: "least-power" (min sum P with J* <= ``limit`` = alpha; ``lower_bound`` proven on the total
     power) or "least-cost" (min J* with sum P <= ``limit`` = the budget; ``lower_bound`` proven on J*);
@@ -106,7 +106,7 @@ class PowerAllocation(Frozen):
 
 @dataclass(frozen=True)
 class ProtocolChoice(Frozen):
-    """TCP-like (plus its acknowledgement link) or UDP-like, for one alpha (allocation/ack.py, issue 24).
+    """TCP-like (plus its acknowledgement link) or UDP-like, for one alpha (allocation/ack.py).
 
     ``currency``: "beta'mu" or "power"; ``tcp``, ``udp``: the two designs (Allocation or PowerAllocation;
     ``udp`` None when no UDP-like design meets alpha); ``tcp_total``: the TCP-like design's total plus

@@ -121,8 +121,8 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
             xm = xhat @ A.T + (applied if protocol == "tcp" else mu * u) @ B.T
             if filter == "kalman":
                 # A P_s A' for every run: the stacked A @ P, then one (samples n) x n product by A' in place of
-                # samples small ones (the same products in another order, tested to ROUNDING_ORDER_RTOL; 2-3x faster
-                # at n = 2-4)
+                # samples small ones (the same products in another order, tested to ROUNDING_ORDER_RTOL; fewer
+                # calls at n = 2-4)
                 Pm = (np.matmul(A, P).reshape(-1, n) @ A.T).reshape(P.shape) + Sigma_W
                 if protocol == "udp":
                     Pm += actuation_covariance(B, mu, u)
