@@ -27,7 +27,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-from ..budgets import check, count_text
+from ..budgets import check, count_text, program_bytes
 from ..convex import ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, InputError, SolverError
 from ..evaluator import CostEvaluator
@@ -46,7 +46,7 @@ from ..validation import numeric_array
 from .boxes import boundary, box_lp, small_lp
 from .delivery import PowerModel, rayleigh_majorant
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
-from .tcp import PROGRAM_BYTES_PER_ENTRY, PROGRAMS_KEY, constant_cost, cost_epigraph, cut_points, tangent
+from .tcp import PROGRAMS_KEY, constant_cost, cost_epigraph, cut_points, tangent
 from .udp import MonotoneCost, reported_gap, udp_allocate, udp_min_cost
 
 __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pareto"]
@@ -154,7 +154,7 @@ class PowerProgram:
         False
         """
         N, n, m = system.horizon, system.n, system.m
-        if PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2 > STRUCTURE_CACHE_MAX_BYTES:
+        if program_bytes(N, n, m) > STRUCTURE_CACHE_MAX_BYTES:
             return cls(system, model, kind, rows)
         parts: list = [kind, rows, model.kind, model.m]
         for value in [*(getattr(system, name) for name in sorted(PROGRAMS_KEY.depends_on)),

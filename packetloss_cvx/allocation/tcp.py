@@ -29,6 +29,7 @@ from __future__ import annotations
 import cvxpy as cp
 import numpy as np
 
+from ..budgets import program_bytes
 from ..convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, NumericalError, SolverError
 from ..evaluator import CostEvaluator
@@ -66,11 +67,6 @@ def constant_cost(system: System) -> float:
     """
     x0 = system.x0
     return float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]
-
-
-#: Estimated bytes of one compiled program (cvxpy's parameter map and Clarabel's data), per N (n + m)^2:
-#: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.qp_memory_estimate`), which it mirrors.
-PROGRAM_BYTES_PER_ENTRY = 300
 
 
 #: the system's compiled TCP-like programs, one per (kind, number of constraint rows): everything in them but the
@@ -180,7 +176,7 @@ class TCPProgram:
         """The system's program of this kind and number of rows: built on first use and kept with the
         system's structure (beyond ``STRUCTURE_CACHE_MAX_BYTES`` estimated, built per call). O(1) when kept."""
         N, n, m = system.horizon, system.n, system.m
-        programs = system.structure_cached(PROGRAMS_KEY, dict, nbytes=PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2)
+        programs = system.structure_cached(PROGRAMS_KEY, dict, nbytes=program_bytes(N, n, m))
         program = programs.get((kind, rows))
         if program is None:          # two threads may both build one; setdefault keeps the first
             program = programs.setdefault((kind, rows), cls(system, kind, rows))

@@ -25,16 +25,17 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from ..budgets import duration_text, estimated_seconds, markov_recursion_work
+from ..budgets import check, duration_text, estimated_seconds, gib_text, markov_dense_bytes, markov_recursion_work
+from ..budgets import limit as budget
 from ..costs import check_inputs, closed_form, dense_or_recursion, expected_cost, pick_method
-from ..errors import InputError, NumericalError, ResourceError
+from ..errors import InputError, NumericalError
 from ..linalg import check_finite, solve_checked
 from ..model import System, check_system
 from ..prediction import Prediction, prediction
 from ..protocols import check_protocol
 from ..recursion import check_plan_cost, overflow_error, udp_variance_weights
 from ..results import Solution
-from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from ..tolerances import SELF_CHECK_RTOL
 from .augmented import augmented_size, augmented_solve, chain_cost, check_recursion_budget, mean_state_bound
 from .chain import stacked_moments
 
@@ -68,19 +69,18 @@ def check_method(method: str) -> str:
 
 
 def _dense_bytes(system: System) -> float:
-    """What the dense route holds: a few (N m)×(N m) and (N n)×(N m) matrices. O(1)."""
-    N, n, m = system.horizon, system.n, system.m
-    return 8.0 * (6 * (N * m) ** 2 + 3 * (N * n) * (N * m) + 4 * N * n * n)
+    """What the dense route holds (:func:`~packetloss_cvx.budgets.markov_dense_bytes`). O(1)."""
+    return markov_dense_bytes(system.horizon, system.n, system.m)
 
 
 def _check_memory(system: System) -> None:
-    """Refuse the dense route before building its matrices beyond the memory budget."""
+    """Refuse the dense route before building its matrices beyond the ``memory_bytes`` budget (BudgetError under
+    ``method``)."""
     N, n, m = system.horizon, system.n, system.m
     needed = _dense_bytes(system)
-    if needed > MEMORY_BUDGET_BYTES:
-        raise ResourceError(f"the exact Markov cost needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} "
-                            f"(dense Omega_g and R); budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
-                            MEMORY_BUDGET_BYTES)
+    check("memory_bytes", needed, "method", f"the exact Markov cost by method 'dense' for N = {N}, n = {n}, m = {m} "
+                                            f"(dense Omega_g and R, about {gib_text(needed)})",
+          instead="use method='recursion' (the augmented recursion, O(N) memory)")
 
 
 def route_seconds(system: System) -> tuple[float, float]:
@@ -117,7 +117,7 @@ def dense_max(system: System) -> int:
     20
     """
     dense, recursion = route_seconds(system)
-    if dense >= recursion or _dense_bytes(system) > MEMORY_BUDGET_BYTES:
+    if dense >= recursion or _dense_bytes(system) > budget("memory_bytes"):
         return 0
     return system.horizon * system.m
 
@@ -281,9 +281,9 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
 
     Raises
     ------
-    ResourceError
-        ``"dense"``: the dense matrices would not fit the memory budget. BudgetError (a ResourceError and an
-        InputError naming ``channel``): the recursion's estimated time is beyond its budget.
+    BudgetError
+        (a ResourceError and an InputError) ``"dense"``: the dense matrices would not fit the ``memory_bytes``
+        budget (under ``method``); the recursion's estimated time is beyond its budget (under ``channel``).
     NumericalError
         A solve without a small residual, an overflow (an unstable plant over a long horizon, as the Bernoulli
         recursion), or a self-check that fails.
@@ -319,7 +319,7 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
         size = augmented_size(system)
         dense, _ = route_seconds(system)
         instead = (f"method='dense' needs about {duration_text(dense)} and {_dense_bytes(system) / 2**30:.2g} GiB"
-                   + (", within the memory budget" if _dense_bytes(system) <= MEMORY_BUDGET_BYTES else
+                   + (", within the memory budget" if _dense_bytes(system) <= budget("memory_bytes") else
                       ", over the memory budget: use a chain with fewer states or a shorter horizon"))
         check_recursion_budget(system, size, instead)
         U, gain, cost = augmented_solve(system)
