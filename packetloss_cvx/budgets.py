@@ -9,12 +9,13 @@ any array is allocated. The one way to raise a budget on purpose is its environm
 so it works the same for the command line and the API.
 
 The work formulas (:func:`simulate_work`, :func:`sweep_work`, :func:`burstiness_work`, :func:`solve_work`,
-:func:`qp_work`, :func:`markov_recursion_work`, :func:`udp_box_work`) and the memory formulas (:func:`solve_bytes`,
-:func:`dense_bytes`, :func:`markov_dense_bytes`, :func:`qp_bytes`, :func:`operator_bytes`, :func:`krylov_bytes`,
-:func:`loop_bytes`, :func:`constraint_bytes`, checked against the ``memory_bytes`` budget; :func:`program_bytes`, what a
-cache is charged) live here once; the API and the command line's preflight both call them. Every refusal is
-:func:`check`'s one line (what was asked, the budget, what to use instead, the variable that raises it), a
-BudgetError (a ValueError): the command line exits 2. Imports nothing numerical.
+:func:`qp_work`, :func:`markov_recursion_work`, :func:`markov_dense_seconds`, :func:`udp_box_work`) and the memory
+formulas (:func:`solve_bytes`, :func:`dense_bytes`, :func:`markov_dense_bytes`, :func:`qp_bytes`,
+:func:`operator_bytes`, :func:`krylov_bytes`, :func:`loop_bytes`, :func:`constraint_bytes`, checked against the
+``memory_bytes`` budget; :func:`program_bytes`, what a cache is charged) live here once; the API and the command
+line's preflight both call them. Every refusal is :func:`check`'s one line (what was asked, the budget, what to use
+instead, the variable that raises it), a BudgetError (a ValueError): the command line exits 2. Imports nothing
+numerical.
 """
 
 from __future__ import annotations
@@ -27,11 +28,11 @@ from dataclasses import dataclass
 from .errors import BudgetError, InputError
 from .tolerances import MEMORY_BUDGET_BYTES
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work", "check",
-           "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text",
-           "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_recursion_work", "operator_bytes",
-           "program_bytes", "qp_bytes", "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work",
-           "udp_box_work"]
+__all__ = ["BUDGETS", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work",
+           "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text",
+           "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds", "markov_recursion_work",
+           "operator_bytes", "program_bytes", "qp_bytes", "qp_work", "simulate_work", "solve_bytes", "solve_work",
+           "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -261,6 +262,27 @@ def burstiness_work(values: int, horizon: int, m: int, protocols: int = 2, *, n:
     """
     D = float(n) * (1 + (m if states is None else states))
     return _float(values) * protocols * float(horizon) * (2.0 * D ** 3 + 2500.0)
+
+
+#: The Markov dense route's time model (:func:`markov_dense_seconds`), seconds ``(a, b, c)``.
+MARKOV_DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
+
+
+def markov_dense_seconds(horizon: int, n: int, m: int) -> float:
+    """Seconds (one BLAS thread) of the exact UDP-like minimum under Markov losses by the dense route
+    (markov/exact_cost.py), ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the (N n)^2 N m products of
+    Omega_g) with (a, b, c) = :data:`MARKOV_DENSE_SECONDS`. benchmarks/markov_auto.py: its least-squares fit is
+    (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make ``auto`` take
+    the faster route in 75 of its 77 cases, the other two within 14 % (docs/performance.md). O(1).
+
+    Examples
+    --------
+    >>> round(1e3 * markov_dense_seconds(400, 1, 1), 1)          # ms: about the crossover for m = n = 1
+    21.1
+    """
+    N = horizon
+    a, b, c = MARKOV_DENSE_SECONDS
+    return a + b * float(N * m) ** 3 + c * float(N * n) ** 2 * (N * m)
 
 
 def markov_recursion_work(horizon: int, size: int) -> float:

@@ -25,7 +25,16 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from ..budgets import check, duration_text, estimated_seconds, gib_text, markov_dense_bytes, markov_recursion_work
+from ..budgets import (
+    MARKOV_DENSE_SECONDS,
+    check,
+    duration_text,
+    estimated_seconds,
+    gib_text,
+    markov_dense_bytes,
+    markov_dense_seconds,
+    markov_recursion_work,
+)
 from ..budgets import limit as budget
 from ..costs import check_inputs, closed_form, dense_or_recursion, expected_cost, pick_method
 from ..errors import InputError, NumericalError
@@ -46,11 +55,8 @@ __all__ = ["DENSE_SECONDS", "METHODS", "auto_route", "check_method", "correlatio
 #: (:func:`auto_route`) and the recursion's forward pass for the cost of a plan.
 METHODS = ("auto", "recursion", "dense")
 
-#: The dense route's time model, seconds ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the
-#: (N n)^2 N m products of Omega_g). benchmarks/markov_auto.py, one BLAS thread, 2026-11-24: its least-squares
-#: fit is (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make
-#: ``auto`` take the faster route in 75 of its 77 cases, the other two within 14 % (docs/performance.md).
-DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
+#: The dense route's time model (:func:`~packetloss_cvx.budgets.markov_dense_seconds`, which holds the measurement).
+DENSE_SECONDS = MARKOV_DENSE_SECONDS
 
 
 def check_method(method: str) -> str:
@@ -85,8 +91,9 @@ def _check_memory(system: System) -> None:
 
 def route_seconds(system: System) -> tuple[float, float]:
     """The estimated CPU seconds (one BLAS thread) of the exact UDP-like minimum by each route, ``(dense,
-    recursion)``: :data:`DENSE_SECONDS` and the recursion's work (:func:`~packetloss_cvx.budgets.markov_recursion_work`
-    on the augmented size D) at its measured seconds per unit. O(m).
+    recursion)``: :func:`~packetloss_cvx.budgets.markov_dense_seconds` and the recursion's work
+    (:func:`~packetloss_cvx.budgets.markov_recursion_work` on the augmented size D) at its measured seconds per unit.
+    O(m).
 
     Examples
     --------
@@ -97,8 +104,7 @@ def route_seconds(system: System) -> tuple[float, float]:
     [21.1, 28.8]
     """
     N, n, m = system.horizon, system.n, system.m
-    a, b, c = DENSE_SECONDS
-    dense = a + b * float(N * m) ** 3 + c * float(N * n) ** 2 * (N * m)
+    dense = markov_dense_seconds(N, n, m)
     recursion = estimated_seconds("markov_recursion_work", markov_recursion_work(N, augmented_size(system)))
     return dense, recursion
 
