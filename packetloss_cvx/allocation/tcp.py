@@ -39,13 +39,21 @@ from ..recursion import udp_variance_weights
 from ..tolerances import (
     ALLOCATION_COST_RTOL,
     ALLOCATION_CUT_STEPS,
-    ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
     ALLOCATION_LP_FEASIBILITY,
     ALLOCATION_TCP_ATTEMPTS,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, polytope_excess, small_lp
+from .boxes import (
+    Outcome,
+    boundary,
+    box_lp,
+    check_in_polytope,
+    cost_function,
+    polytope_excess,
+    reported_gap,
+    small_lp,
+)
 from .grammar import Polytope
 
 __all__ = [
@@ -375,7 +383,8 @@ def least_feasible(system: System, evaluator: CostEvaluator, a: float, b: float,
 
 
 def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float) -> Outcome:
-    """min beta'mu over the polytope with J*_tcp(mu) <= alpha.
+    """min beta'mu over the polytope with J*_tcp(mu) <= alpha, ``beta`` at unit prices (largest 1:
+    :func:`~packetloss_cvx.allocation.boxes.unit_prices`).
 
     Returns
     -------
@@ -383,8 +392,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         ``mu`` with J*_tcp(mu) <= alpha by the closed form; ``lower_bound`` proved by the
         tangent cuts at and around the solver's point (:func:`tangent_cuts`, computed before
         mu is moved): every mu of the polytope with J*_tcp(mu) <= alpha meets every cut, so
-        no such mu has ``beta'mu < lower_bound``. Status "optimal" when
-        ``(value - lower_bound) / value <= gap``, else "gap_not_certified"; ``cost`` J*_tcp(mu)
+        no such mu has ``beta'mu < lower_bound``. Status "optimal" when the gap
+        (:func:`~packetloss_cvx.allocation.boxes.reported_gap` at scale 1) is within ``gap``, else
+        "gap_not_certified"; ``cost`` J*_tcp(mu)
         (:func:`~packetloss_cvx.allocation.boxes.cost_function`, each point evaluated once).
 
     Raises
@@ -483,9 +493,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     mu = check_in_polytope(np.clip(mu, poly.lo, poly.hi), poly, "TCP-like allocation")
     value = float(beta @ mu)
     lower = min(lower, value)
-    reached = (value - lower) / max(value, ALLOCATION_GAP_FLOOR)
+    reached = reported_gap(value, lower, 1.0)           # beta at unit prices (boxes.unit_prices)
     status = "optimal" if reached <= gap else "gap_not_certified"
-    return Outcome(mu, value, lower, status, 0, note, J(mu))
+    return Outcome(mu, value, lower, status, 0, note, J(mu), scale=1.0)
 
 
 def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
@@ -534,6 +544,9 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     missed = polytope_excess(mu, poly)
     ceiling = max(f, C) if missed <= ALLOCATION_LP_FEASIBILITY else max(f, J(q), C)   # J(q): q is in the polytope
     S, r = tangent_cuts(system, mu, evaluator)                   # min t  s.t.  t >= r_k + S_k mu, mu in the polytope
+    size = abs(J(poly.lower()))           # the problem's own size: J* at the box's lower corner, its largest cost
+    unit = size if size > 0 else 1.0      # t in units of it: the LP does not see the weights' scale
+    S, r = S / unit, r / unit
     m = system.m
     scale = np.maximum(np.max(np.abs(S), axis=1), 1.0)
     G = np.vstack([np.hstack([poly.G, np.zeros((poly.G.shape[0], 1))]),
@@ -541,7 +554,8 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     h = np.concatenate([poly.h, -r / scale])
     c = np.zeros(m + 1)
     c[-1] = 1.0
-    point, lower = small_lp(c, G, h, np.append(poly.lower(), C), np.append(poly.upper(), ceiling))
+    point, lower = small_lp(c, G, h, np.append(poly.lower(), C / unit), np.append(poly.upper(), ceiling / unit))
+    lower *= unit
     if missed > ALLOCATION_LP_FEASIBILITY:
         # the SOCP's point misses a row by more than the LP tolerance (seen: 3.2e-9): the cut LP's point is in
         # the polytope and, the cuts being tangents at the SOCP's point, as good to second order
@@ -550,7 +564,10 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
         mu = check_in_polytope(np.clip(point[:m], poly.lo, poly.hi), poly, "TCP-like minimum cost")
         f = J(mu)
         note += f"; its point missed a row by {missed:.1e}, the cut LP's point taken"
+    if point is None:           # (mu, ceiling) meets every cut: an 'infeasible' cut LP failed and proves nothing
+        lower = C
+        note += "; the cut LP failed, so the lower bound is the constant cost C"
     lower = min(max(lower, C), f)
-    reached = (f - lower) / max(f, ALLOCATION_GAP_FLOOR)
+    reached = reported_gap(f, lower, size)
     status = "optimal" if reached <= MIN_COST_RTOL else "gap_not_certified"
-    return Outcome(mu, f, lower, status, 0, note)
+    return Outcome(mu, f, lower, status, 0, note, scale=size)
