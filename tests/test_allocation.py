@@ -441,6 +441,29 @@ def test_the_tcp_like_least_cost_takes_its_gap_relative_to_the_problem(monkeypat
     assert out.status == ("optimal" if certified else "gap_not_certified")
 
 
+def test_a_failed_cut_lp_proves_only_the_constant_cost(monkeypatch):
+    """The cut LP of the TCP-like least cost is feasible by construction ((mu, ceiling) meets every tangent cut), so
+    its 'infeasible' is a failure: the bound is then the constant cost C (here 0: no noise, no initial weight), not
+    the least cost itself (a gap of 0, certified, before)."""
+    from packetloss_cvx.allocation import tcp as tcp_module
+    from packetloss_cvx.allocation.grammar import read_polytope
+
+    real = tcp_module.small_lp
+
+    def failing(c, *args, **kwargs):
+        if c[-1] == 1.0 and not np.any(c[:-1]):
+            return None, np.inf                 # what small_lp returns for an LP it finds infeasible
+        return real(c, *args, **kwargs)
+
+    monkeypatch.setattr(tcp_module, "small_lp", failing)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1e-3], mu=[0.5], x0=[1.0])
+    out = tcp_module.tcp_min_cost(s, read_polytope([], 1, 0.0, 1.0))
+    assert out.value == pytest.approx(_scalar_lq(1.0, 1, 1.0, 1e-3, 1.0), rel=1e-9)
+    assert out.lower_bound == 0.0
+    assert out.status == "gap_not_certified"
+    assert "the cut LP failed" in out.note
+
+
 @pytest.mark.parametrize(("protocol", "bounds"), [("tcp", (0.0, 1.0)), ("udp", (0.0, 1.0)), ("udp", (0.0, 0.9))])
 @pytest.mark.parametrize(("factor", "proved"), [(3.0, True), (0.3, False)])
 def test_infeasibility_is_proved_only_beyond_allocation_cost_rtol(two_actuator, protocol, bounds, factor, proved):
