@@ -8,9 +8,14 @@ any array is allocated. The one way to raise a budget on purpose is its environm
 ``PACKETLOSS_CVX_BUDGET_<NAME>`` (a positive number, or ``inf`` for no bound), read when the check runs,
 so it works the same for the command line and the API.
 
-The work formulas (:func:`simulate_work`, :func:`sweep_work`, :func:`burstiness_work`, :func:`solve_work`) and the
-memory of a size a caller gives (:func:`solve_bytes`, the ``memory_bytes`` budget) live here once; the API and the
-command line's preflight both call them. Imports nothing numerical.
+The work formulas (:func:`simulate_work`, :func:`sweep_work`, :func:`burstiness_work`, :func:`solve_work`,
+:func:`qp_work`, :func:`markov_recursion_work`, :func:`markov_dense_seconds`, :func:`udp_box_work`) and the memory
+formulas (:func:`solve_bytes`, :func:`dense_bytes`, :func:`markov_dense_bytes`, :func:`qp_bytes`,
+:func:`operator_bytes`, :func:`krylov_bytes`, :func:`loop_bytes`, :func:`constraint_bytes`, checked against the
+``memory_bytes`` budget; :func:`program_bytes`, what a cache is charged) live here once; the API and the command
+line's preflight both call them. Every refusal is :func:`check`'s one line (what was asked, the budget, what to use
+instead, the variable that raises it), a BudgetError (a ValueError): the command line exits 2. Imports nothing
+numerical.
 """
 
 from __future__ import annotations
@@ -23,9 +28,11 @@ from dataclasses import dataclass
 from .errors import BudgetError, InputError
 from .tolerances import MEMORY_BUDGET_BYTES
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "Budget", "burstiness_work", "check", "count_text", "duration_text",
-           "estimated_seconds", "limit", "markov_recursion_work", "qp_work", "simulate_work", "solve_bytes",
-           "solve_work", "sweep_work", "udp_box_work"]
+__all__ = ["BUDGETS", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work",
+           "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text",
+           "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds", "markov_recursion_work",
+           "operator_bytes", "program_bytes", "qp_bytes", "qp_work", "simulate_work", "solve_bytes", "solve_work",
+           "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -65,6 +72,8 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
            1e-6),
     Budget("memory_bytes", MEMORY_BUDGET_BYTES, "bytes of memory for one computation of a size the caller gave",
            "a quarter of this machine's memory"),
+    Budget("operator_rows", 2048, "rows of a dense second-moment operator (modes x n^2)",
+           "64 MiB and a few seconds for its eigenvalues"),
 )}
 
 
@@ -98,13 +107,17 @@ def limit(name: str) -> float:
     return value
 
 
-def check(name: str, needed: float, field: str, what: str) -> None:
-    """Refuse ``needed`` (in the budget's unit) beyond the budget ``name``, naming ``field``. O(1).
+def check(name: str, needed: float, field: str, what: str, instead: str = "") -> None:
+    """Refuse ``needed`` (in the budget's unit) beyond the budget ``name``, naming ``field``; ``instead``, what to
+    use instead (a cheaper method, a smaller size), goes before the variable that raises the budget. The one shape
+    of every refusal: ``field: what is over the budget of B unit (costs); instead, or to run it on purpose set
+    VARIABLE=needed``. O(1).
 
     Raises
     ------
     BudgetError
-        With the work asked for, the budget, what the default costs and the variable that raises it.
+        With the work asked for, the budget, what the default costs, what to use instead and the variable that
+        raises it.
 
     Examples
     --------
@@ -114,6 +127,11 @@ def check(name: str, needed: float, field: str, what: str) -> None:
     ...
     packetloss_cvx.errors.BudgetError: --random: 1e12 random systems is over the budget of 1e+04 random systems \
 of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_CASES=1e+12
+    >>> check("audit_cases", 10**5, "--random", "1e5 random systems", instead="use --random 1000")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.BudgetError: --random: 1e5 random systems is over the budget of 1e+04 random systems \
+of an audit (about 5 min); use --random 1000, or to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_CASES=1e+05
     """
     bound = limit(name)
     needed = _float(needed)
@@ -121,8 +139,9 @@ of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_
         return
     budget = BUDGETS[name]
     shown = _rounded_up(needed) if math.isfinite(needed) else "inf"
+    way = f"{instead}, or " if instead else ""
     raise BudgetError(field, f"{what} is over the budget of {bound:.3g} {budget.unit} ({budget.costs}); "
-                             f"to run it on purpose set {budget.env}={shown}", needed, bound, budget.env)
+                             f"{way}to run it on purpose set {budget.env}={shown}", needed, bound, budget.env)
 
 
 def count_text(value: int | float) -> str:
@@ -150,6 +169,17 @@ def duration_text(seconds: float) -> str:
     if seconds < 60:
         return f"{seconds:.2g} s"
     return f"{seconds / 60:.2g} min" if seconds < 3600 else f"{seconds / 3600:.2g} h"
+
+
+def gib_text(size: float) -> str:
+    """Bytes as an error line shows them: GiB to three digits. O(1).
+
+    Examples
+    --------
+    >>> gib_text(2 ** 30), gib_text(3.15e8)
+    ('1 GiB', '0.293 GiB')
+    """
+    return f"{size / 2 ** 30:.3g} GiB"
 
 
 def _float(value: float) -> float:
@@ -234,6 +264,27 @@ def burstiness_work(values: int, horizon: int, m: int, protocols: int = 2, *, n:
     return _float(values) * protocols * float(horizon) * (2.0 * D ** 3 + 2500.0)
 
 
+#: The Markov dense route's time model (:func:`markov_dense_seconds`), seconds ``(a, b, c)``.
+MARKOV_DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
+
+
+def markov_dense_seconds(horizon: int, n: int, m: int) -> float:
+    """Seconds (one BLAS thread) of the exact UDP-like minimum under Markov losses by the dense route
+    (markov/exact_cost.py), ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the (N n)^2 N m products of
+    Omega_g) with (a, b, c) = :data:`MARKOV_DENSE_SECONDS`. benchmarks/markov_auto.py: its least-squares fit is
+    (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make ``auto`` take
+    the faster route in 75 of its 77 cases, the other two within 14 % (docs/performance.md). O(1).
+
+    Examples
+    --------
+    >>> round(1e3 * markov_dense_seconds(400, 1, 1), 1)          # ms: about the crossover for m = n = 1
+    21.1
+    """
+    N = horizon
+    a, b, c = MARKOV_DENSE_SECONDS
+    return a + b * float(N * m) ** 3 + c * float(N * n) ** 2 * (N * m)
+
+
 def markov_recursion_work(horizon: int, size: int) -> float:
     """Work units of one exact UDP-like minimum under Markov losses by the augmented recursion
     (markov/augmented.py): per step ``D^3`` for the Riccati step on the augmented state of size D (its products
@@ -295,20 +346,134 @@ def solve_bytes(horizon: int, n: int, m: int, qp: str | None = "sparse") -> floa
     the plans printed as JSON, and with the QP cross-check ``3000 + 350 n^2 + 500 n m`` more (cvxpy's and Clarabel's
     data; the condensed form also ``250 (N n) (N m)``). Fitted on the peak resident memory of ``solve`` (less 65 MB,
     110 MB with the QP's imports): n = m = 1, N = 5e6 1.34 GB (predicted 1.58), N = 5e5 with the QP 1.74 GB (2.08);
-    n = 30, m = 5, N = 5e4 0.68 GB (0.70), N = 2000 with the QP 0.71 GB (0.81). O(1).
+    n = 30, m = 5, N = 5e4 0.68 GB (0.70), N = 2000 with the QP 0.71 GB (0.81). With the cross-check it is at least
+    the closed forms' bytes and the QP's own (:func:`qp_bytes`, the estimate the QP is refused by), which is the
+    larger where m is large beside n; so a QP that would be refused is refused with ``solve``, before any work. O(1).
 
     Examples
     --------
     >>> solve_bytes(5 * 10 ** 7, 1, 1, qp=None) / 2 ** 30           # what ended in a MemoryError: 15 GiB
     14.668...
+    >>> solve_bytes(5000, 1, 20) == 5000 * 1075 + qp_bytes(5000, 1, 20)     # twenty channels: the QP's estimate
+    True
     """
     N = _float(horizon)
     need = N * (260.0 + 15.0 * n * n + 40.0 * m)
-    if qp is not None:
-        need += N * (3000.0 + 350.0 * n * n + 500.0 * n * m)
-        if qp == "condensed":
-            need += 250.0 * (N * n) * (N * m)
-    return need
+    if qp is None:
+        return need
+    fitted = need + N * (3000.0 + 350.0 * n * n + 500.0 * n * m)
+    if qp == "condensed":
+        fitted += 250.0 * (N * n) * (N * m)
+    return max(fitted, need + qp_bytes(horizon, n, m, qp))
+
+
+def dense_bytes(horizon: int, n: int, m: int) -> float:
+    """Bytes of the dense Theorem-1 method (costs.py): Gamma, Omega Gamma, Omega_g, G and its LU, the powers of A, Phi
+    and Omega Phi, ``8 (3 (N n)(N m) + 2 (N m)^2 + 4 N n^2)``. O(1).
+
+    Examples
+    --------
+    >>> dense_bytes(60_000, 2, 1) / 2 ** 30         # a 2-state plant over 60000 steps: the recursion is O(N)
+    214.58...
+    """
+    N = horizon
+    return 8.0 * (3 * (N * n) * (N * m) + 2 * (N * m) ** 2 + 4 * N * n * n)
+
+
+def markov_dense_bytes(horizon: int, n: int, m: int) -> float:
+    """Bytes of the dense route to the exact cost under Markov losses (markov/exact_cost.py): a few (N m)×(N m) and
+    (N n)×(N m) matrices, ``8 (6 (N m)^2 + 3 (N n)(N m) + 4 N n^2)``. O(1).
+
+    Examples
+    --------
+    >>> markov_dense_bytes(80, 4, 1)                # pendulum_bursty
+    962560.0
+    """
+    N = horizon
+    return 8.0 * (6 * (N * m) ** 2 + 3 * (N * n) * (N * m) + 4 * N * n * n)
+
+
+def qp_bytes(horizon: int, n: int, m: int, formulation: str = "sparse") -> float:
+    """Bytes of one expected-cost QP (qp.py) at its peak. The sparse form (tracemalloc over its compile and first
+    solve; n = 1..100, m = 1..8, N up to 8000, full weights): about 250 N n^2 bytes for the state terms, 350 N n m
+    for the dynamics' input columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB,
+    ``260 N n^2 + 400 N n m + 650 N m + 1e7`` (no Parameter multiplies a Variable, so cvxpy keeps no (N m)^2 map).
+    The condensed form adds its dense (N n)×(N m) data, a Parameter since its problems are shared by shape: 150 bytes
+    per entry measured at the peak. O(1).
+
+    Examples
+    --------
+    >>> qp_bytes(1, 1, 1), qp_bytes(1, 1, 1, "condensed")          # one 1x1 dense block more
+    (10001310.0, 10001460.0)
+    """
+    N = _float(horizon)
+    need = 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
+    return need + 150.0 * (N * n) * (N * m) if formulation == "condensed" else need
+
+
+def operator_bytes(rows: int) -> float:
+    """Bytes of a dense second-moment operator of ``rows`` rows (markov/mjls.py) and its eigenvalue routine's copy,
+    ``16 rows^2``; its eigenvalues take O(rows^3) time, which the ``operator_rows`` budget bounds. O(1).
+
+    Examples
+    --------
+    >>> operator_bytes(2048) / 2 ** 20                # the default budget: 64 MiB
+    64.0
+    """
+    return 8.0 * rows * rows * 2
+
+
+def krylov_bytes(rows: int, vectors: int) -> float:
+    """Bytes of ARPACK's Krylov basis on an operator of ``rows`` rows, ``8 rows vectors``. O(1).
+
+    Examples
+    --------
+    >>> krylov_bytes(2 ** 20, 24) / 2 ** 20
+    192.0
+    """
+    return 8.0 * rows * vectors
+
+
+def loop_bytes(block: int, steps: int, n: int, m: int, laws: int, keep: int) -> float:
+    """Bytes of a sampled closed loop's block arrays (simulation/runs.py): deliveries and noise as drawn and as the
+    loop reads them (a copy of each, block steps (2 m + 16 n)), norms and stage costs (16 laws block steps), and the
+    ``keep`` kept runs' states (8 laws keep steps n). O(1).
+
+    Examples
+    --------
+    >>> loop_bytes(10, 10_000_000, 4, 1, 3, 0)        # a block of 10 runs of pendulum, 1e7 steps, three laws
+    11400001140
+    """
+    return block * (steps + 1) * (2 * m + 16 * n + 16 * laws) + 8 * laws * keep * (steps + 1) * n
+
+
+#: Bytes of one compiled TCP-like allocation program (cvxpy's parameter map and Clarabel's data) per N (n + m)^2:
+#: the sparse QP's measurement (:func:`qp_bytes`), which it mirrors.
+PROGRAM_BYTES_PER_ENTRY = 300
+
+
+def program_bytes(horizon: int, n: int, m: int) -> float:
+    """Bytes of one compiled TCP-like allocation program (allocation/tcp.py), ``300 N (n + m)^2``: what the system's
+    cache of them is charged (model.STRUCTURE_CACHE_MAX_BYTES). O(1).
+
+    Examples
+    --------
+    >>> program_bytes(80, 4, 1)
+    600000
+    """
+    return PROGRAM_BYTES_PER_ENTRY * horizon * (n + m) ** 2
+
+
+def constraint_bytes(m: int) -> float:
+    """Bytes of parsing one linear constraint over ``m`` channels (allocation/grammar.py): five dense arrays of m
+    doubles. O(1).
+
+    Examples
+    --------
+    >>> constraint_bytes(10 ** 9)
+    40000000000.0
+    """
+    return 40.0 * m
 
 
 def udp_box_work(horizon: int, n: int, m: int) -> float:

@@ -101,8 +101,9 @@ class CrossCheckError(ArithmeticError):
 
 
 class ResourceError(RuntimeError):
-    """A computation whose size is known in advance would not fit its budget (memory; or, as
-    :class:`BudgetError`, the work budget of a count the caller gave). ``needed_bytes`` and
+    """A computation does not fit its budget. Refused before any work starts it is a :class:`BudgetError` (also a
+    ValueError: the command line exits 2); a plain ResourceError is a limit met during the work, whose size was not
+    known in advance (e.g. a belief law that re-plans more often than its plan budget). ``needed_bytes`` and
     ``budget_bytes`` are in the budget's unit (bytes for memory)."""
 
     def __init__(self, detail: str, needed_bytes: float, budget_bytes: float) -> None:
@@ -115,8 +116,9 @@ class ResourceError(RuntimeError):
 
 
 class BudgetError(ResourceError, InputError):
-    """A count or size the caller gave (samples, steps, points, cases, workers, boxes, a file's bytes)
-    needs more work than its budget (:mod:`packetloss_cvx.budgets`), refused before any work starts.
+    """A count or size the caller gave (samples, steps, points, cases, workers, boxes, a file's bytes), or the
+    memory a system and a method need (the dense method, a QP, a second-moment operator), is beyond its budget
+    (:mod:`packetloss_cvx.budgets`), refused before any work starts; the message says what to use instead.
 
     Both a :class:`ResourceError` (the work is refused for its size) and an :class:`InputError` (the caller
     asked for it: ``field`` names the argument or option; the command line exits 2). ``needed`` and ``budget``

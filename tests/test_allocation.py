@@ -395,6 +395,75 @@ def test_gap_unit_floors_values_below_allocation_gap_floor_times_the_problem_sca
     assert gap_unit(value, None) == value                       # no problem scale: a plain relative gap
 
 
+def _scalar_lq(a: float, horizon: int, omega: float, psi: float, mu: float) -> float:
+    """J*_tcp of x+ = a x + v u, x0 = 1, state weight omega, input weight psi, at mu in {0, 1} by hand: sum_t omega
+    a^(2t) with nothing delivered, the scalar LQ Riccati recursion with everything delivered."""
+    if mu == 0.0:
+        return sum(omega * a ** (2 * t) for t in range(1, horizon + 1))
+    value = omega                                        # weight of x_N
+    for t in range(horizon - 1, -1, -1):
+        value = a * a * value * psi / (value + psi) + (omega if t >= 1 else 0.0)
+    return value
+
+
+@pytest.mark.parametrize("scale", [1e-20, 1.0, 1e20])
+@pytest.mark.parametrize(("a", "horizon", "psi", "certified"), [(1.0, 1, 1e-3, False), (10.0, 12, 1.0, True)])
+def test_the_tcp_like_least_cost_takes_its_gap_relative_to_the_problem(monkeypatch, scale, a, horizon, psi,
+                                                                       certified):
+    """The least J*_tcp over mu in [0, 1] of a scalar plant (at mu = 1), with the cut LP's lower bound planted 1e-3
+    (relative) below it. The problem's size is J*(0), its largest cost. Above the band (a = 1, N = 1: the least cost
+    is 1e-3 of J*(0), far above ALLOCATION_GAP_FLOOR of it) the gap is 1e-3 > MIN_COST_RTOL, not certified, at every
+    scale of the weights; below it (a = 10, N = 12: the least cost is 1e-22 of J*(0)) the gap is taken of the floor,
+    1e-12 J*(0), and certified, at every scale. The absolute floor 1e-12 certified the first at scale 1e-20 and
+    refused the second at 1e20."""
+    from packetloss_cvx.allocation import tcp as tcp_module
+    from packetloss_cvx.allocation.grammar import read_polytope
+    from packetloss_cvx.allocation.udp import reported_gap
+
+    real = tcp_module.small_lp
+
+    def loose(c, *args, **kwargs):              # the cut LP (min t) proves 1e-3 less than it does
+        point, lower = real(c, *args, **kwargs)
+        if c[-1] == 1.0 and not np.any(c[:-1]) and point is not None:
+            lower -= 1e-3 * abs(lower)
+        return point, lower
+
+    monkeypatch.setattr(tcp_module, "small_lp", loose)
+    s = pl.System(A=[[a]], B=[[1.0]], horizon=horizon, state_weight=[scale], input_weight=[psi * scale], mu=[0.5],
+                  x0=[1.0])
+    out = tcp_module.tcp_min_cost(s, read_polytope([], 1, 0.0, 1.0))
+    least, size = _scalar_lq(a, horizon, scale, psi * scale, 1.0), _scalar_lq(a, horizon, scale, psi * scale, 0.0)
+    assert out.value == pytest.approx(least, rel=1e-9)
+    assert out.scale == pytest.approx(size, rel=1e-9)
+    expected = 1e-3 * least / max(least, 1e-12 * size)      # the planted 1e-3, and the LP's own 1e-6 at most
+    assert reported_gap(out.value, out.lower_bound, out.scale) == pytest.approx(expected, rel=1e-3)
+    assert (expected < 1e-6) == certified
+    assert out.status == ("optimal" if certified else "gap_not_certified")
+
+
+def test_a_failed_cut_lp_proves_only_the_constant_cost(monkeypatch):
+    """The cut LP of the TCP-like least cost is feasible by construction ((mu, ceiling) meets every tangent cut), so
+    its 'infeasible' is a failure: the bound is then the constant cost C (here 0: no noise, no initial weight), not
+    the least cost itself (a gap of 0, certified, before)."""
+    from packetloss_cvx.allocation import tcp as tcp_module
+    from packetloss_cvx.allocation.grammar import read_polytope
+
+    real = tcp_module.small_lp
+
+    def failing(c, *args, **kwargs):
+        if c[-1] == 1.0 and not np.any(c[:-1]):
+            return None, np.inf                 # what small_lp returns for an LP it finds infeasible
+        return real(c, *args, **kwargs)
+
+    monkeypatch.setattr(tcp_module, "small_lp", failing)
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1e-3], mu=[0.5], x0=[1.0])
+    out = tcp_module.tcp_min_cost(s, read_polytope([], 1, 0.0, 1.0))
+    assert out.value == pytest.approx(_scalar_lq(1.0, 1, 1.0, 1e-3, 1.0), rel=1e-9)
+    assert out.lower_bound == 0.0
+    assert out.status == "gap_not_certified"
+    assert "the cut LP failed" in out.note
+
+
 @pytest.mark.parametrize(("protocol", "bounds"), [("tcp", (0.0, 1.0)), ("udp", (0.0, 1.0)), ("udp", (0.0, 0.9))])
 @pytest.mark.parametrize(("factor", "proved"), [(3.0, True), (0.3, False)])
 def test_infeasibility_is_proved_only_beyond_allocation_cost_rtol(two_actuator, protocol, bounds, factor, proved):

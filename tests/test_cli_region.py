@@ -160,3 +160,33 @@ def test_region_on_a_chain_with_a_channel_that_never_delivers_answers_without_a_
         assert data["verdict"] == "unstable"
         assert data["critical_mu"] is None
         assert "never deliver" in data["critical_mu_reason"]
+
+
+def test_a_chain_lambda_is_printed_to_the_digits_its_own_accuracy_supports(tmp_path, capsys):
+    """The one chain of tests/test_markov_region.py's seeded chains at the ends of their mean rates (k = 97) whose
+    coupled map has a defective root: lambda, and the coupled radius of its own gains (which lambda claims to be) by
+    the dense eigenvalues and by ARPACK on the matrix-free map, spread over about 6e-6 (on the other chains they agree
+    within 1e-9 of lambda). The text shows lambda to the digits that supports with ``±`` beside it, JSON and CSV round
+    it so and give ``lambda_error``; 0.8352448407578126 claimed 16 digits. Reference: the two eigenvalue routines'
+    spread on the same gains."""
+    from packetloss_cvx.closedloop.markov_region import homogeneous_coupled_riccati
+    from packetloss_cvx.closedloop.mjls import mean_square_radius
+
+    from .test_markov_region import _chain_at_an_end
+
+    A, B, chain, _ = _chain_at_an_end(97)
+    path = str(save_system(System(A=A, B=B, horizon=2, state_weight=np.ones(4), input_weight=[1.0, 1.0],
+                                  x0=np.ones(4), channel=chain), tmp_path / "defective.toml"))
+    lam, _, K = homogeneous_coupled_riccati(A, B, chain, "next")
+    radii = [mean_square_radius(A, B, chain, K, "next", method=method) for method in ("dense", "krylov")]
+    spread = max(abs(lam - r) for r in radii)
+    assert 1e-6 < spread < 1e-4                                  # known to about five digits
+    argv = ["region", path, "--law", "dp", "--direction", "1,0", "-q"]
+    assert main([*argv, "--json", "--out", str(tmp_path / "out")]) == 0
+    data = json.loads(capsys.readouterr().out)["dp"]
+    assert spread / 2 <= data["lambda_error"] <= spread
+    assert data["lambda"] == float(f"{data['lambda']:.5g}")      # no more digits than the error supports
+    assert abs(data["lambda"] - lam) <= data["lambda_error"]
+    assert (tmp_path / "out" / "region.csv").read_text().splitlines()[1] == f"stable,{data['lambda']!r}"
+    assert main(argv) == 0
+    assert f"radius: {data['lambda']:.5g} ± {data['lambda_error']:.1g})" in capsys.readouterr().out

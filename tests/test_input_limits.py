@@ -473,3 +473,75 @@ def test_the_udp_like_search_prices_its_boxes_by_their_horizon(tmp_path, capsys,
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_ALLOCATION_WORK", str(0.5 * box))
     with pytest.raises(pl.ResourceError, match="^horizon: one box of the UDP-like search at N = 3000"):
         pl.allocate(system, "udp", alpha=0.5, beta=[1.0, 0.5], progress=False)
+
+
+# --- sizes a system and a method imply: refused upfront as bad input (a ValueError), exit 2 and one line ------------
+
+
+def wide_file(tmp_path):
+    """Twenty channels on a scalar plant over 5000 steps: the sparse QP's own bytes exceed solve's fitted peak."""
+    s = pl.System(A=[[0.9]], B=np.ones((1, 20)), horizon=5000, state_weight=[1.0], input_weight=np.ones(20),
+                  mu=np.full(20, 0.5), x0=[1.0])
+    return str(pl.save_system(s, tmp_path / "wide.toml"))
+
+
+@pytest.mark.parametrize(("argv", "env", "start", "instead", "variable"), [
+    # by hand: 8 x (3 (N n)(N m) + 2 (N m)^2 + 4 N n^2) = 8 x (1200 + 800 + 160) = 17280 bytes, N = 10, n = m = 2
+    (["solve", "two_actuator", "--method", "dense", "--no-qp"], {"MEMORY_BYTES": "1e4"},
+     "method: method 'dense' for N = 10, n = 2, m = 2", "use method='recursion'", "MEMORY_BYTES=1.73e+04"),
+    # by hand: 2 modes x n^2 = 2 x 16 = 32 rows of the coupled operator
+    (["region", "pendulum_bursty", "--law", "dp", "--grid", "3"], {"OPERATOR_ROWS": "10"},
+     "channel: the MJLS second-moment operator, dense with 2^m n^2 = 2 * 4^2 = 32 rows", "use fewer chain states",
+     "OPERATOR_ROWS=32"),
+    # by hand: the closed forms 5000 x 1075 + the sparse QP 5000 x (260 + 8000 + 13000) + 1e7 = 1.2168e8 bytes
+    (["solve", "{wide}", "--protocol", "tcp"], {"MEMORY_BYTES": "1e8"},
+     "cost.horizon: N = 5000 (n = 1, m = 20) with the QP cross-check", "--no-qp skips the cross-check",
+     "MEMORY_BYTES=1.22e+08"),
+])
+def test_cli_refuses_system_derived_sizes_with_exit_2_and_one_line(zygote, tmp_path, argv, env, start, instead,
+                                                                    variable):
+    """The dense method's memory, the MJLS operator's rows and the QP's memory are refused before any work like a
+    count the caller typed: exit 2 and one line saying what to use instead (they were ResourceErrors, exit 1: the
+    dense method on the command line, the QP's inside an audit)."""
+    argv = [word.replace("{wide}", wide_file(tmp_path)) if word == "{wide}" else word for word in argv]
+    code, out, err = cli(zygote, *argv, env={f"PACKETLOSS_CVX_BUDGET_{k}": v for k, v in env.items()})
+    line = one_error_line(err)
+    assert (code, out) == (2, "")
+    assert line.startswith(f"packetloss-cvx: error: {start}")
+    assert f"; {instead}" in line
+    assert line.endswith(f", or to run it on purpose set PACKETLOSS_CVX_BUDGET_{variable}")
+
+
+def test_api_refuses_system_derived_sizes_as_typed_bad_input(monkeypatch):
+    """The same refusals in the API: a BudgetError, which is a ValueError (InputError) and a ResourceError (the
+    name callers already catch), with the bytes or rows asked for counted by hand."""
+    from packetloss_cvx.closedloop.mjls import second_moment_operator
+    from packetloss_cvx.errors import BudgetError
+    from packetloss_cvx.lq.markov_cost import exact_closed_form
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e4")
+    two = pl.load_example("two_actuator")
+    with pytest.raises(BudgetError) as info:
+        pl.closed_form(two, "tcp", method="dense")
+    assert isinstance(info.value, ValueError)
+    assert isinstance(info.value, pl.ResourceError)
+    assert (info.value.field, info.value.needed) == ("method", 17280.0)
+    # the exact Markov cost's dense route, N = 80, n = 4, m = 1: 8 x (6 x 80^2 + 3 x 320 x 80 + 4 x 80 x 16)
+    with pytest.raises(BudgetError) as info:
+        exact_closed_form(pl.load_example("pendulum_bursty"), method="dense")
+    assert isinstance(info.value, ValueError)
+    assert (info.value.field, info.value.needed) == ("method", 962560.0)
+    # the sparse QP, N = 10, n = m = 2: 260 x 40 + 400 x 40 + 650 x 20 + 1e7 bytes
+    with pytest.raises(BudgetError) as info:
+        pl.ExpectedCostQP(two, "tcp", "sparse")
+    assert isinstance(info.value, ValueError)
+    assert (info.value.field, info.value.needed) == ("horizon", 10039400.0)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_OPERATOR_ROWS", "35")
+    one_channel = GilbertElliott(p=[0.5], r=[0.5])                    # 2 modes x 4^2 = 32 rows: within 35
+    assert second_moment_operator(np.eye(4), np.ones((4, 1)), one_channel, np.ones((1, 4))).shape == (32, 32)
+    two_channels = GilbertElliott(p=[0.5, 0.5], r=[0.5, 0.5])         # 4 modes x 3^2 = 36 rows: refused
+    with pytest.raises(BudgetError) as info:
+        second_moment_operator(np.eye(3), np.ones((3, 2)), two_channels, np.ones((2, 3)))
+    assert isinstance(info.value, ValueError)
+    assert (info.value.field, info.value.needed) == ("channel", 36.0)

@@ -302,8 +302,6 @@ def pendulum_at(horizon, radius=None):
 
 
 def test_auto_takes_the_dense_route_where_it_is_faster_and_safe(monkeypatch):
-    exact_module = importlib.import_module("packetloss_cvx.lq.markov_cost")   # the name is also a function
-
     short = pendulum_at(80)
     auto, rec = exact_closed_form(short), exact_closed_form(short, method="recursion")
     assert auto.method == "markov-dense"                       # N m = 80: about 2 ms against 5 ms
@@ -311,7 +309,7 @@ def test_auto_takes_the_dense_route_where_it_is_faster_and_safe(monkeypatch):
     np.testing.assert_allclose(auto.gain, rec.gain, rtol=1e-8)
     assert exact_closed_form(pendulum_at(160)).method == "markov-recursion"        # condition estimate beyond 1e8
     assert exact_closed_form(pendulum_at(600, radius=0.99)).method == "markov-recursion"   # the recursion is faster
-    monkeypatch.setattr(exact_module, "MEMORY_BUDGET_BYTES", 1e5)                  # the dense route would not fit
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e5")                  # the dense route would not fit
     assert exact_closed_form(short).method == "markov-recursion"
 
 
@@ -346,7 +344,7 @@ def test_the_recursion_is_refused_beyond_its_time_budget_before_any_work(monkeyp
                                              r"budget.*PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK=") as err:
         exact_closed_form(s, method="recursion")
     assert isinstance(err.value, pl.InputError)
-    monkeypatch.setattr(exact_module, "MEMORY_BUDGET_BYTES", 1e5)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e5")
     with pytest.raises(BudgetError, match="over the memory budget: use a chain with fewer states or a shorter"):
         exact_closed_form(s)                                   # auto: the dense route does not fit either
 

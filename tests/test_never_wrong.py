@@ -296,21 +296,44 @@ def test_api_cross_check_binds():
     assert info.value.values["qp"] == pytest.approx(2.79847, rel=1e-5)
 
 
-def test_cli_skips_a_qp_that_cannot_fit_and_says_why(capsys, tmp_path, monkeypatch):
-    """N = 50000 with m = 1: the QP needs about 0.13 GiB (it needed 18.6 GiB before its memory became
-    linear in N), refused here against a 0.1 GB budget; the closed form needs a few MB."""
-    monkeypatch.setattr("packetloss_cvx.qp.expected_cost.MEMORY_BUDGET_BYTES", 1e8)
+def test_cli_refuses_a_solve_whose_qp_cannot_fit_and_names_no_qp(capsys, tmp_path, monkeypatch):
+    """N = 50000 with n = 2, m = 1: solve with the QP cross-check needs about 0.27 GiB (solve_bytes, by hand
+    50000 x (260 + 60 + 40 + 3000 + 1400 + 1000) = 2.88e8 bytes), refused upfront against a 1e8-byte budget (exit 2,
+    one line naming --no-qp); the closed form alone needs 1.8e7 and is answered."""
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e8")
     path = tmp_path / "long.toml"
     pl.save_system(_readme(1), path)
     path.write_text(path.read_text().replace("horizon = 1", "horizon = 50000"))
     code, out, err = _run(capsys, "solve", str(path), "--protocol", "tcp", "--json")
+    assert (code, out) == (2, "")
+    assert err.count("\n") == 1
+    assert err.startswith("packetloss-cvx: error: cost.horizon: N = 50000 (n = 2, m = 1) with the QP cross-check")
+    assert "--no-qp skips the cross-check" in err
+    assert err.rstrip().endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=2.88e+08")
+    code, out, err = _run(capsys, "solve", str(path), "--protocol", "tcp", "--json", "--no-qp")
     assert code == 0, err
     import json
 
-    data = json.loads(out)
-    assert data["tcp"]["qp"]["status"] == "skipped"
-    assert "GiB" in data["tcp"]["qp"]["reason"]
-    assert data["tcp"]["cost"] == pytest.approx(1.3044129215697624, rel=1e-9)   # the N = 200 value: converged
+    assert json.loads(out)["tcp"]["cost"] == pytest.approx(1.3044129215697624, rel=1e-9)   # the N = 200 value
+
+
+def test_cli_refuses_a_solve_whose_qp_alone_cannot_fit(capsys, tmp_path, monkeypatch):
+    """Twenty channels on a scalar plant over 5000 steps: solve's fitted peak with the cross-check fits a 1e8-byte
+    budget (by hand 5000 x (260 + 15 + 800 + 3000 + 350 + 10000) = 7.2e7 bytes), the sparse QP's own estimate does
+    not (by hand 5000 x (260 + 8000 + 13000) + 1e7 = 1.163e8, plus the closed forms' 5000 x 1075): refused upfront,
+    exit 2 and one line naming --no-qp, where the QP was skipped after the closed forms (or, with ExpectedCostQP's
+    own check, exit 1 in an audit)."""
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e8")
+    s = pl.System(A=[[0.9]], B=np.ones((1, 20)), horizon=5000, state_weight=[1.0], input_weight=np.ones(20),
+                  mu=np.full(20, 0.5), x0=[1.0])
+    path = pl.save_system(s, tmp_path / "wide.toml")
+    code, out, err = _run(capsys, "solve", str(path), "--protocol", "tcp", "--json")
+    assert (code, out) == (2, "")
+    assert err.count("\n") == 1
+    assert err.startswith("packetloss-cvx: error: cost.horizon: N = 5000 (n = 1, m = 20) with the QP cross-check "
+                          "(about 0.113 GiB)")
+    assert "; --no-qp skips the cross-check, or to run it on purpose set " in err
+    assert err.rstrip().endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=1.22e+08")
 
 
 def test_cli_unstable_udp_reports_the_skipped_cross_check(capsys, tmp_path):
@@ -400,6 +423,6 @@ def test_qp_memory_grows_with_n_and_is_refused_in_advance(monkeypatch):
     small = system(300)
     assert qp_memory_estimate(small, "sparse") > 8e7
     assert qp_memory_estimate(system(600), "sparse") - 1e7 > 3.9 * (qp_memory_estimate(small, "sparse") - 1e7)
-    monkeypatch.setattr("packetloss_cvx.qp.expected_cost.MEMORY_BUDGET_BYTES", 5e7)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "5e7")
     with pytest.raises(pl.ResourceError, match="GiB"):
         pl.ExpectedCostQP(small, "tcp", "sparse")

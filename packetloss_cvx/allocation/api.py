@@ -34,8 +34,8 @@ from ..model.protocols import check_protocol
 from ..model.system import System
 from ..results import Allocation, MinCost
 from ..threads import blas_limited
-from ..tolerances import ALLOCATION_GAP_DEFAULT, ALLOCATION_GAP_FLOOR
-from .boxes import Outcome, cost_at
+from ..tolerances import ALLOCATION_GAP_DEFAULT
+from .boxes import Outcome, cost_at, reported_gap, unit_prices
 from .chains import ChainEvaluator, chain_family, chain_rates
 from .grammar import (
     Constraint,
@@ -50,7 +50,7 @@ from .grammar import (
     read_polytope,
 )
 from .tcp import tcp_allocate, tcp_min_cost
-from .udp import MonotoneCost, reported_gap, udp_allocate, udp_min_cost
+from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
 __all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
 
@@ -285,9 +285,8 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     if evaluator is not None:
         return _chain_allocate(system, evaluator, alpha, beta, poly, gap, max_boxes, time_limit, progress)
     # the problem is invariant to the scale of the prices: solve with max(beta) = 1 and scale back,
-    # so that no absolute floor (ALLOCATION_GAP_FLOOR) can certify a gap at tiny prices
-    unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
-    prices = beta / unit
+    # so that no floor of the gap can certify it at tiny prices (boxes.unit_prices, boxes.gap_unit)
+    prices, unit = unit_prices(beta)
 
     def infeasible(proof: str) -> InfeasibleError:
         return _infeasible(system, protocol, alpha, poly, proof, max_boxes, time_limit)
@@ -316,7 +315,7 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     cost = cost_at(system, protocol, out.mu) if out.cost is None else out.cost
     return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
                       lower_bound=out.lower_bound * unit,
-                      gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR),
+                      gap=reported_gap(scaled, out.lower_bound, out.scale),
                       status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)
 
 
@@ -325,8 +324,7 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
     """The UDP-like allocation behind chains (each channel along its family, chains.py): the monotonic branch and
     bound on the exact cost under the chain (no TCP-like floor: Theorem 2 is not established under a chain), prices
     scaled as :func:`allocate`."""
-    unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
-    prices = beta / unit
+    prices, unit = unit_prices(beta)
     try:
         out = udp_allocate(system, poly, alpha, prices, gap, -np.inf, max_boxes, time_limit, progress=progress,
                            cost=MonotoneCost(evaluator))
@@ -337,7 +335,7 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
     cost = evaluator.cost(out.mu) if out.cost is None else out.cost
     return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
                       lower_bound=out.lower_bound * unit,
-                      gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR),
+                      gap=reported_gap(scaled, out.lower_bound, out.scale),
                       status=out.status, method=note, protocol="udp", alpha=alpha, beta=beta, boxes=out.boxes)
 
 

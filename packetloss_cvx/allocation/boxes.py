@@ -31,12 +31,12 @@ from ..errors import SolverError
 from ..lq.costs import closed_form
 from ..lq.evaluator import CostEvaluator
 from ..model.system import System
-from ..tolerances import ALLOCATION_AIM_RTOL, ALLOCATION_LP_FEASIBILITY, CLARABEL_TIGHT
+from ..tolerances import ALLOCATION_AIM_RTOL, ALLOCATION_GAP_FLOOR, ALLOCATION_LP_FEASIBILITY, CLARABEL_TIGHT
 from .grammar import Polytope
 
 __all__ = [
     "Outcome", "boundary", "box_bound", "box_lp", "bracket", "check_in_polytope", "cost_at", "cost_function",
-    "dual_bound", "highs_optimum", "lp", "polytope_excess", "small_lp",
+    "dual_bound", "gap_unit", "highs_optimum", "lp", "polytope_excess", "reported_gap", "small_lp", "unit_prices",
 ]
 
 _HIGHS = {"primal_feasibility_tolerance": ALLOCATION_LP_FEASIBILITY,
@@ -53,7 +53,7 @@ class Outcome(NamedTuple):
     bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
     ``boxes`` boxes explored, ``note`` how it ended, ``cost`` J*(mu) where the solver evaluated it
     (:func:`cost_function`, equal to :func:`cost_at` to rounding), else None; ``scale`` the unit of the gap's
-    floor where a search certified against one (:func:`~packetloss_cvx.allocation.udp.gap_unit`), else None.
+    floor (:func:`gap_unit`): 1 at unit prices, J* at the box's lower corner for a cost.
     Construction O(1).
 
     Examples
@@ -71,6 +71,53 @@ class Outcome(NamedTuple):
     note: str
     cost: float | None = None
     scale: float | None = None
+
+
+def gap_unit(value: float, scale: float | None) -> float:
+    """What a relative gap is taken of, the one definition for every allocation (the searches' certificate,
+    :meth:`~packetloss_cvx.allocation.udp.Search.certified`, the TCP-like programs' and the power relaxations'
+    stopping tests, and every reported gap, :func:`reported_gap`): ``|value|``, floored at
+    ``ALLOCATION_GAP_FLOOR * scale`` and at the least normal double. ``scale`` is the problem's own size: 1 for a
+    communication cost or a power at prices scaled by :func:`unit_prices` (the largest price is 1), J* at the box's
+    lower corner (its largest cost) for a cost. An absolute floor certified anything where every cost was below
+    1e-12 (weights of 1e-20). ``scale`` None: no floor in the problem's size. O(1).
+
+    Examples
+    --------
+    >>> gap_unit(2.0, 1.0), gap_unit(-2.0, None), gap_unit(1e-15, 10.0), gap_unit(0.0, 0.0) > 0
+    (2.0, 2.0, 1e-11, True)
+    """
+    floor = 0.0 if scale is None else ALLOCATION_GAP_FLOOR * abs(scale)
+    return float(max(abs(value), floor, np.finfo(float).tiny))
+
+
+def reported_gap(value: float, lower: float, scale: float | None) -> float:
+    """The gap a result reports: ``(value - lower) / gap_unit(value, scale)``, the quantity the search
+    certified against the requested gap. O(1).
+
+    Examples
+    --------
+    >>> reported_gap(2.0, 1.5, 1.0), reported_gap(0.5, 0.0, 1e12)      # the second below its floor, 1e-12 * 1e12
+    (0.25, 0.5)
+    """
+    return (value - lower) / gap_unit(value, scale)
+
+
+def unit_prices(beta: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(prices, unit)``: the prices scaled so that the largest is 1, and the unit they were divided by (1 where no
+    price is positive). The one price scaling of every allocation: its problem is invariant to the prices' scale,
+    so it is solved at unit prices, its gaps taken with :func:`gap_unit` at scale 1, and its bounds reported times
+    ``unit``. O(m).
+
+    Examples
+    --------
+    >>> prices, unit = unit_prices(np.array([1e-20, 4e-20]))
+    >>> prices.tolist(), unit
+    ([0.25, 1.0], 4e-20)
+    """
+    top = float(np.max(beta))
+    unit = top if top > 0 else 1.0
+    return beta / unit, unit
 
 
 def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
@@ -245,7 +292,8 @@ def _highs_options():
 
 
 def _highs_options_of(core, simplex):
-    """The options object of :func:`_highs_options` from the binding ``core`` (its simplex constants ``simplex``). O(1)."""
+    """The options object of :func:`_highs_options` from the binding ``core`` (its simplex constants ``simplex``).
+    O(1)."""
     options = core.HighsOptions()
     options.presolve = "on"
     options.highs_debug_level = core.HighsDebugLevel.kHighsDebugLevelNone

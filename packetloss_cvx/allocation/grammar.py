@@ -20,7 +20,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-from ..budgets import check, count_text
+from ..budgets import check, constraint_bytes, count_text, gib_text
 from ..errors import InfeasibleError, InputError
 from ..model.system import System, numeric_array
 from ..tolerances import ALLOCATION_GAP_MIN
@@ -105,8 +105,8 @@ def parse_constraint(text: str, m: int, field: str = "--constraint", name: str =
     [[1.0, -2.0]]
     """
     m = check_count(m, "m")
-    check("memory_bytes", 40.0 * m, "m", f"{count_text(m)} channels (dense rows of m coefficients, "
-                                         f"about {40.0 * m / 2**30:.3g} GiB)")
+    check("memory_bytes", constraint_bytes(m), "m", f"{count_text(m)} channels (dense rows of m coefficients, "
+                                                    f"about {gib_text(constraint_bytes(m))})")
     if not isinstance(text, str):
         raise InputError(field, f"expected a string, found {type(text).__name__}")
     parts = re.split(r"(<=|>=|==|<|>|=)", text)

@@ -27,7 +27,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-from ..budgets import check, count_text
+from ..budgets import check, count_text, program_bytes
 from ..errors import InfeasibleError, InputError, SolverError
 from ..lq.evaluator import CostEvaluator
 from ..model.protocols import check_protocol
@@ -40,14 +40,13 @@ from ..tolerances import (
     ALLOCATION_CLARABEL_ATTEMPTS,
     ALLOCATION_COST_RTOL,
     ALLOCATION_GAP_DEFAULT,
-    ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
 )
-from .boxes import boundary, box_lp, small_lp
+from .boxes import boundary, box_lp, gap_unit, reported_gap, small_lp, unit_prices
 from .delivery import PowerModel, rayleigh_majorant
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
-from .tcp import PROGRAM_BYTES_PER_ENTRY, PROGRAMS_KEY, constant_cost, cost_epigraph, cut_points, tangent
-from .udp import MonotoneCost, reported_gap, udp_allocate, udp_min_cost
+from .tcp import PROGRAMS_KEY, constant_cost, cost_epigraph, cut_points, tangent
+from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
 __all__ = ["PowerProgram", "least_cost_within_power", "least_power", "power_pareto"]
 
@@ -154,7 +153,7 @@ class PowerProgram:
         False
         """
         N, n, m = system.horizon, system.n, system.m
-        if PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2 > STRUCTURE_CACHE_MAX_BYTES:
+        if program_bytes(N, n, m) > STRUCTURE_CACHE_MAX_BYTES:
             return cls(system, model, kind, rows)
         parts: list = [kind, rows, model.kind, model.m]
         for value in [*(getattr(system, name) for name in sorted(PROGRAMS_KEY.depends_on)),
@@ -402,8 +401,7 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
     # 1 / (alpha - C) then vanishes, is not asked (it failed with 'solver_error' at alpha = 1e9 on two_actuator)
     # the searches price x by top / max(top) and report in P: the relative gap and the branch and bound's split
     # weights then do not see the unit of power (at c = 1e-12 the absolute floors of both would decide)
-    unit = float(np.max(top))
-    prices = top / unit
+    prices, unit = unit_prices(top)
     least, floor_lp = box_lp(prices.copy(), setup.poly, np.zeros(m), np.ones(m))
     if least is not None and J(np.clip(least, 0.0, 1.0)) <= alpha:
         x = np.clip(least, 0.0, 1.0)
@@ -454,11 +452,13 @@ def _rayleigh_relaxation(setup: _Setup, constraints: Sequence[Constraint], probl
     by the true curve for the least power, is the incumbent. Each round adds the tangents at the point's powers
     (Kelley's cutting planes) until the incumbent is within ``gap`` of the bound: where the optimum has every
     P_i >= c_i (the majorant is exact there in the limit) the branch and bound then explores no box; elsewhere
-    it starts from this floor. Returns (incumbent or None, floor, the note for ``method``); a conic failure
-    is no verdict (the bound found before is kept, the note says so). O(RAYLEIGH_ROUNDS) conic programs with
-    O(K) table rows."""
+    it starts from this floor. The gap is :func:`~.boxes.gap_unit`'s, at the problem's size: 1 for the power at unit
+    prices, J* at the box's lower corner (its largest cost) for the cost. Returns (incumbent or None, floor, the note
+    for ``method``); a conic failure is no verdict (the bound found before is kept, the note says so).
+    O(RAYLEIGH_ROUNDS) conic programs with O(K) table rows."""
     system, model, top = setup.system, setup.model, setup.top
     J = setup.cost.checked                                      # J*_tcp of the true curve
+    size = 1.0 if problem == "least-power" else abs(J(setup.poly.lower()))
     at = list(np.geomspace(1.0, max(2.0, float(np.max(top / model.scale))), RAYLEIGH_TANGENTS))
     floor, best, best_value, done = -np.inf, None, np.inf, 0
     try:
@@ -479,11 +479,11 @@ def _rayleigh_relaxation(setup: _Setup, constraints: Sequence[Constraint], probl
             else:
                 x, lower = _convex_least_cost(relaxed)
                 cut, value = x, J(x)
-            stalled = bool(np.isfinite(floor)) and lower - floor <= 0.1 * gap * max(abs(lower), ALLOCATION_GAP_FLOOR)
+            stalled = bool(np.isfinite(floor)) and lower - floor <= 0.1 * gap * gap_unit(lower, size)
             floor = max(floor, lower)
             if value < best_value:
                 best, best_value = x, value
-            if best_value - floor <= gap * max(abs(best_value), ALLOCATION_GAP_FLOOR):
+            if best_value - floor <= gap * gap_unit(best_value, size):
                 break
             # Kelley: cut at the relaxed optimum; a tangent within 1e-7 (relative) of one taken adds nothing but
             # near-parallel rows (J* moves by ~1e-14 there; Clarabel ended 'optimal_inaccurate' on such tables)

@@ -53,11 +53,10 @@ from ..tolerances import (
     ALLOCATION_EDGE_ATOL,
     ALLOCATION_EDGE_RTOL,
     ALLOCATION_GAP_DEFAULT,
-    ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
     MEAN_SQUARE_MARGIN,
 )
-from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope
+from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope, reported_gap, unit_prices
 from .grammar import (
     Constraint,
     Polytope,
@@ -454,8 +453,7 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
         poly = read_polytope(constraints, system.m, lo, hi)
     except InfeasibleError as err:
         raise InfeasibleError(f"the constraints admit no mu: {err}", None) from None
-    unit = float(beta.max()) if float(beta.max()) > 0 else 1.0
-    prices = beta / unit
+    prices, unit = unit_prices(beta)
     memos = _memos(system, rho)
     ended, search, seen = _search(poly, prices, gap, _target(system, target, rho, alpha, memos=memos), max_boxes,
                                   time_limit, progress)
@@ -494,10 +492,9 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
             cost, kind = float("nan"), ""                  # on the boundary: a cost of ~1 / (1 - radius), unresolved
     except NumericalError:
         cost, kind = float("nan"), ""
-    scaled = out.value
     return StabilityAllocation(
         target=target, mu=mu, cost=float(beta @ mu), lower_bound=out.lower_bound * unit,
-        gap=(scaled - out.lower_bound) / max(scaled, ALLOCATION_GAP_FLOOR), status=out.status, radius=radius,
+        gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status, radius=radius,
         radius_bound=rho, gain=point.gain, dp_cost=cost, dp_cost_kind=kind, alpha=alpha, beta=beta,
         boxes=out.boxes, method=out.note)
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import cvxpy as cp
 import numpy as np
 
+from ..budgets import program_bytes
 from ..errors import InfeasibleError, NumericalError, SolverError
 from ..lq.evaluator import CostEvaluator
 from ..lq.recursion import udp_variance_weights
@@ -38,13 +39,21 @@ from ..qp.expected_cost import sparse_dynamics
 from ..tolerances import (
     ALLOCATION_COST_RTOL,
     ALLOCATION_CUT_STEPS,
-    ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
     ALLOCATION_LP_FEASIBILITY,
     ALLOCATION_TCP_ATTEMPTS,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_lp, check_in_polytope, cost_function, polytope_excess, small_lp
+from .boxes import (
+    Outcome,
+    boundary,
+    box_lp,
+    check_in_polytope,
+    cost_function,
+    polytope_excess,
+    reported_gap,
+    small_lp,
+)
 from .grammar import Polytope
 
 __all__ = [
@@ -66,11 +75,6 @@ def constant_cost(system: System) -> float:
     """
     x0 = system.x0
     return float(x0 @ system.initial_weight @ x0) + udp_variance_weights(system)[1]
-
-
-#: Estimated bytes of one compiled program (cvxpy's parameter map and Clarabel's data), per N (n + m)^2:
-#: the sparse QP twin's measurement (:func:`~packetloss_cvx.qp.expected_cost.qp_memory_estimate`), which it mirrors.
-PROGRAM_BYTES_PER_ENTRY = 300
 
 
 #: the system's compiled TCP-like programs, one per (kind, number of constraint rows): everything in them but the
@@ -180,7 +184,7 @@ class TCPProgram:
         """The system's program of this kind and number of rows: built on first use and kept with the
         system's structure (beyond ``STRUCTURE_CACHE_MAX_BYTES`` estimated, built per call). O(1) when kept."""
         N, n, m = system.horizon, system.n, system.m
-        programs = system.structure_cached(PROGRAMS_KEY, dict, nbytes=PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2)
+        programs = system.structure_cached(PROGRAMS_KEY, dict, nbytes=program_bytes(N, n, m))
         program = programs.get((kind, rows))
         if program is None:          # two threads may both build one; setdefault keeps the first
             program = programs.setdefault((kind, rows), cls(system, kind, rows))
@@ -379,7 +383,8 @@ def least_feasible(system: System, evaluator: CostEvaluator, a: float, b: float,
 
 
 def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float) -> Outcome:
-    """min beta'mu over the polytope with J*_tcp(mu) <= alpha.
+    """min beta'mu over the polytope with J*_tcp(mu) <= alpha, ``beta`` at unit prices (largest 1:
+    :func:`~packetloss_cvx.allocation.boxes.unit_prices`).
 
     Returns
     -------
@@ -387,8 +392,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
         ``mu`` with J*_tcp(mu) <= alpha by the closed form; ``lower_bound`` proved by the
         tangent cuts at and around the solver's point (:func:`tangent_cuts`, computed before
         mu is moved): every mu of the polytope with J*_tcp(mu) <= alpha meets every cut, so
-        no such mu has ``beta'mu < lower_bound``. Status "optimal" when
-        ``(value - lower_bound) / value <= gap``, else "gap_not_certified"; ``cost`` J*_tcp(mu)
+        no such mu has ``beta'mu < lower_bound``. Status "optimal" when the gap
+        (:func:`~packetloss_cvx.allocation.boxes.reported_gap` at scale 1) is within ``gap``, else
+        "gap_not_certified"; ``cost`` J*_tcp(mu)
         (:func:`~packetloss_cvx.allocation.boxes.cost_function`, each point evaluated once).
 
     Raises
@@ -487,9 +493,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     mu = check_in_polytope(np.clip(mu, poly.lo, poly.hi), poly, "TCP-like allocation")
     value = float(beta @ mu)
     lower = min(lower, value)
-    reached = (value - lower) / max(value, ALLOCATION_GAP_FLOOR)
+    reached = reported_gap(value, lower, 1.0)           # beta at unit prices (boxes.unit_prices)
     status = "optimal" if reached <= gap else "gap_not_certified"
-    return Outcome(mu, value, lower, status, 0, note, J(mu))
+    return Outcome(mu, value, lower, status, 0, note, J(mu), scale=1.0)
 
 
 def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
@@ -538,6 +544,9 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     missed = polytope_excess(mu, poly)
     ceiling = max(f, C) if missed <= ALLOCATION_LP_FEASIBILITY else max(f, J(q), C)   # J(q): q is in the polytope
     S, r = tangent_cuts(system, mu, evaluator)                   # min t  s.t.  t >= r_k + S_k mu, mu in the polytope
+    size = abs(J(poly.lower()))           # the problem's own size: J* at the box's lower corner, its largest cost
+    unit = size if size > 0 else 1.0      # t in units of it: the LP does not see the weights' scale
+    S, r = S / unit, r / unit
     m = system.m
     scale = np.maximum(np.max(np.abs(S), axis=1), 1.0)
     G = np.vstack([np.hstack([poly.G, np.zeros((poly.G.shape[0], 1))]),
@@ -545,7 +554,8 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
     h = np.concatenate([poly.h, -r / scale])
     c = np.zeros(m + 1)
     c[-1] = 1.0
-    point, lower = small_lp(c, G, h, np.append(poly.lower(), C), np.append(poly.upper(), ceiling))
+    point, lower = small_lp(c, G, h, np.append(poly.lower(), C / unit), np.append(poly.upper(), ceiling / unit))
+    lower *= unit
     if missed > ALLOCATION_LP_FEASIBILITY:
         # the SOCP's point misses a row by more than the LP tolerance (seen: 3.2e-9): the cut LP's point is in
         # the polytope and, the cuts being tangents at the SOCP's point, as good to second order
@@ -554,7 +564,10 @@ def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
         mu = check_in_polytope(np.clip(point[:m], poly.lo, poly.hi), poly, "TCP-like minimum cost")
         f = J(mu)
         note += f"; its point missed a row by {missed:.1e}, the cut LP's point taken"
+    if point is None:           # (mu, ceiling) meets every cut: an 'infeasible' cut LP failed and proves nothing
+        lower = C
+        note += "; the cut LP failed, so the lower bound is the constant cost C"
     lower = min(max(lower, C), f)
-    reached = (f - lower) / max(f, ALLOCATION_GAP_FLOOR)
+    reached = reported_gap(f, lower, size)
     status = "optimal" if reached <= MIN_COST_RTOL else "gap_not_certified"
-    return Outcome(mu, f, lower, status, 0, note)
+    return Outcome(mu, f, lower, status, 0, note, scale=size)

@@ -44,13 +44,23 @@ from ..tolerances import (
     ALLOCATION_COST_RTOL,
     ALLOCATION_EDGE_ATOL,
     ALLOCATION_EDGE_RTOL,
-    ALLOCATION_GAP_FLOOR,
     ALLOCATION_INCUMBENT_SHARE,
     ALLOCATION_LP_FEASIBILITY,
     ALLOCATION_MIN_BOX_WIDTH,
     MIN_COST_RTOL,
 )
-from .boxes import Outcome, boundary, box_bound, box_lp, bracket, check_in_polytope, cost_function, polytope_excess
+from .boxes import (
+    Outcome,
+    boundary,
+    box_bound,
+    box_lp,
+    bracket,
+    check_in_polytope,
+    cost_function,
+    gap_unit,
+    polytope_excess,
+    reported_gap,
+)
 from .grammar import Polytope
 from .tcp import constant_cost
 
@@ -160,34 +170,6 @@ def split(l: np.ndarray, u: np.ndarray, weights: np.ndarray) -> tuple[tuple[np.n
     low_u, high_l = u.copy(), l.copy()
     low_u[i], high_l[i] = mid, mid
     return (l, low_u), (high_l, u)
-
-
-def gap_unit(value: float, scale: float | None) -> float:
-    """What a relative gap is taken of, by the searches' certificate (:meth:`Search.certified`) and in every
-    reported minimum-cost gap (:func:`reported_gap`): ``|value|``, floored at ``ALLOCATION_GAP_FLOOR * scale``
-    (``scale`` the problem's own size, e.g. J* at the box's lower corner, its largest cost: an absolute floor
-    certified anything where every cost was below 1e-12) and at the least normal double; ``scale`` None: no
-    floor in the problem's size (a solver that certified a plain relative gap). O(1).
-
-    Examples
-    --------
-    >>> gap_unit(2.0, 1.0), gap_unit(-2.0, None), gap_unit(1e-15, 10.0), gap_unit(0.0, 0.0) > 0
-    (2.0, 2.0, 1e-11, True)
-    """
-    floor = 0.0 if scale is None else ALLOCATION_GAP_FLOOR * abs(scale)
-    return float(max(abs(value), floor, np.finfo(float).tiny))
-
-
-def reported_gap(value: float, lower: float, scale: float | None) -> float:
-    """The gap a result reports: ``(value - lower) / gap_unit(value, scale)``, the quantity the search
-    certified against the requested gap. O(1).
-
-    Examples
-    --------
-    >>> reported_gap(2.0, 1.5, 1.0), reported_gap(0.5, 0.0, 1e12)      # the second below its floor, 1e-12 * 1e12
-    (0.25, 0.5)
-    """
-    return (value - lower) / gap_unit(value, scale)
 
 
 class Search:

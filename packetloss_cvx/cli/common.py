@@ -21,6 +21,7 @@ from ..budgets import (
     count_text,
     duration_text,
     estimated_seconds,
+    gib_text,
     simulate_work,
     solve_bytes,
     solve_work,
@@ -380,7 +381,8 @@ it on purpose set PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07
     check("solve_work", work, "cost.horizon", what.format(duration_text(estimated_seconds("solve_work", work))))
     need = solve_bytes(N, n, m, qp)
     check("memory_bytes", need, "cost.horizon", f"{size}{'' if qp is None else ' with the QP cross-check'} "
-                                               f"(about {need / 2**30:.3g} GiB)")
+                                               f"(about {gib_text(need)})",
+          instead="use a shorter horizon" if qp is None else "--no-qp skips the cross-check")
 
 
 def check_figure_format(path: str, field: str) -> None:

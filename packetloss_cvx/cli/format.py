@@ -17,7 +17,7 @@ from ..printable import printable
 from ..results import eigenvalue_pairs
 
 __all__ = ["INDENT", "LABEL_WIDTH", "MAX_COLUMNS", "MAX_ROWS", "eigenvalues", "fields", "labels", "matrix", "name",
-           "num", "numbers", "table"]
+           "num", "num_within", "numbers", "supported", "supported_digits", "table"]
 
 INDENT = "  "
 #: the width of the label column of :func:`fields`
@@ -50,6 +50,48 @@ def num(value: Any, digits: int = 6) -> str:
     if value is None:
         return "-"
     return f"{float(value):.{digits}g}"
+
+
+def supported_digits(value: float, error: float, most: int = 17) -> int:
+    """The significant digits of ``value`` that its accuracy estimate ``error`` (an absolute error) supports:
+    ``floor(log10(|value| / error))``, at least 1 and at most ``most`` (``most`` where the error is 0, unknown (nan)
+    or the value is not finite). O(1).
+
+    Examples
+    --------
+    >>> supported_digits(0.8352448407578126, 6.2e-6), supported_digits(0.8352448407578126, 1e-16)
+    (5, 15)
+    >>> supported_digits(0.5, 0.0), supported_digits(0.5, float("nan"), most=6), supported_digits(1e-3, 1.0)
+    (17, 6, 1)
+    """
+    if not (np.isfinite(value) and error > 0 and np.isfinite(error)) or value == 0:
+        return most
+    return int(min(most, max(1, np.floor(np.log10(abs(value) / error)))))
+
+
+def supported(value: float, error: float) -> float:
+    """``value`` rounded to the significant digits its accuracy estimate ``error`` supports (:func:`supported_digits`):
+    what JSON and CSV print. O(1).
+
+    Examples
+    --------
+    >>> supported(0.8352448407578126, 6.2e-6), supported(0.8352448407578126, 0.0)
+    (0.83524, 0.8352448407578126)
+    """
+    return float(f"{value:.{supported_digits(value, error)}g}")
+
+
+def num_within(value: float, error: float, digits: int = 6) -> str:
+    """``value`` as :func:`num` prints it, to no more digits than ``error`` supports, with ``± error`` beside it where
+    that is fewer than ``digits``. O(1).
+
+    Examples
+    --------
+    >>> num_within(0.8352448407578126, 6.2e-6), num_within(0.8352448407578126, 1e-16)
+    ('0.83524 ± 6e-06', '0.835245')
+    """
+    shown = supported_digits(value, error, digits)
+    return num(value, shown) + (f" ± {error:.1g}" if shown < digits else "")
 
 
 def numbers(values: Sequence[float] | np.ndarray, digits: int = 6) -> str:

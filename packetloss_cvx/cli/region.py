@@ -13,10 +13,9 @@ import numpy as np
 from ..budgets import check
 from ..closedloop.markov_region import (
     chain_critical_rate,
-    chain_membership,
+    chain_least_radius,
     chain_rate_map,
     critical_rate_unproved,
-    homogeneous_coupled_riccati,
 )
 from ..closedloop.riccati import dp_riccati
 from ..errors import InputError, NumericalError
@@ -26,6 +25,7 @@ from ..safeio import save_figure
 from ..studies.output import csv_number
 from ..studies.region_map import LAWS, region_map
 from .common import CommandResult, floats, integers, progress_of, system_of
+from .format import num_within, supported
 from .sensing_section import coupled_grid, region_section
 
 __all__ = ["run"]
@@ -146,14 +146,16 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                 or not any(v > 0 for v in direction)):
             raise InputError("--direction", f"expected {system.m} nonnegative numbers, not all zero, found "
                                             f"{args.direction[:60]!r}")
-    found = chain_membership(system.A, system.B, chain)
-    lam = homogeneous_coupled_riccati(system.A, system.B, chain)[0]
-    entry: dict[str, Any] = {"verdict": found.verdict, "lambda": float(lam), "mean_rate": chain.mean_rate.tolist(),
+    # lambda printed to the digits its own accuracy estimate supports (a defective root is known to about 1e-5)
+    found, lam, error = chain_least_radius(system.A, system.B, chain)
+    entry: dict[str, Any] = {"verdict": found.verdict, "lambda": supported(lam, error),
+                             "lambda_error": None if np.isnan(error) else error,
+                             "mean_rate": chain.mean_rate.tolist(),
                              "burstiness": chain.correlation.tolist(), "information": "last state known (next)",
                              "radius": None if found.verdict != "stable" else float(found.radius)}
     lines = [f"behind the file's Gilbert-Elliott chain (mean rates {np.round(chain.mean_rate, 6).tolist()}, "
              f"burstiness {np.round(chain.correlation, 6).tolist()}), a mode-dependent law knowing the last state:",
-             f"  {found.verdict} (min over such laws of the mean-square radius: {lam:.6g})"]
+             f"  {found.verdict} (min over such laws of the mean-square radius: {num_within(lam, error)})"]
     grid = None
     if args.grid is not None:
         if args.grid < 2:
@@ -182,8 +184,8 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
     data: dict[str, Any] = {"dp": entry}
     if args.out is not None:
         with _folder(args) as out:
-            arrays: dict[str, Any] = {"lambda": np.array(lam), "mean_rate": chain.mean_rate,
-                                      "burstiness": chain.correlation}
+            arrays: dict[str, Any] = {"lambda": np.array(lam), "lambda_error": np.array(error),
+                                      "mean_rate": chain.mean_rate, "burstiness": chain.correlation}
             if grid is not None:
                 arrays.update(axis=grid["axis"], channels=np.array(grid["channels"]) + 1, stable=grid["stable"],
                               radius=grid["lambda"])
@@ -193,7 +195,7 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                 writer = csv.writer(handle)
                 if grid is None:
                     writer.writerow(["verdict", "lambda"])
-                    writer.writerow([found.verdict, csv_number(lam)])
+                    writer.writerow([found.verdict, csv_number(supported(lam, error))])
                 else:
                     writer.writerow(["rate_i", "rate_j", "stable", "lambda"])      # rate_j empty for one channel
                     rows = grid["axis"] if system.m > 1 else [float("nan")]

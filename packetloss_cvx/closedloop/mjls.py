@@ -28,14 +28,15 @@ import itertools
 
 import numpy as np
 
-from ..errors import InputError, NumericalError, ResourceError
+from ..budgets import BUDGETS, check, gib_text, krylov_bytes, limit, operator_bytes
+from ..errors import InputError, NumericalError
 from ..lq.recursion import riccati_step
 from ..model.chain import chain_matrices
 from ..model.channel import GilbertElliott
 from ..model.markov_channel import MarkovChannel
 from ..model.system import System, check_system
 from ..results import MjlsResult
-from ..tolerances import ARPACK_TOL, MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from ..tolerances import ARPACK_TOL, SELF_CHECK_RTOL
 
 __all__ = [
     "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
@@ -47,9 +48,10 @@ __all__ = [
 MAX_CHANNELS = 6
 #: The product chain of k-state channels is refused beyond as many modes as MAX_CHANNELS Gilbert–Elliott ones give.
 MAX_MODES = 2 ** MAX_CHANNELS
-#: Rows M n^2 of the dense coupled operator beyond which it is refused (ResourceError): its eigenvalues take
-#: O((M n^2)^3) time and 16 (M n^2)^2 bytes (2048 rows: 64 MiB, a few seconds).
-MAX_OPERATOR_DIM = 2048
+#: Rows M n^2 of the dense coupled operator beyond which it is refused by default (BudgetError): its eigenvalues take
+#: O((M n^2)^3) time and 16 (M n^2)^2 bytes (2048 rows: 64 MiB, a few seconds). The ``operator_rows`` budget
+#: (budgets.py; ``PACKETLOSS_CVX_BUDGET_OPERATOR_ROWS`` raises it).
+MAX_OPERATOR_DIM = int(BUDGETS["operator_rows"].default)
 #: Rows up to which :func:`mean_square_radius` takes the dense eigenvalues by default (above: matrix-free Krylov).
 DENSE_MAX_DIM = 400
 
@@ -135,26 +137,25 @@ def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_operator_size(modes: int, n: int) -> None:
-    """Refuse, before building it, a dense coupled operator beyond :data:`MAX_OPERATOR_DIM` rows.
+    """Refuse, before building it, a dense coupled operator beyond the ``operator_rows`` budget (budgets.py; by
+    default :data:`MAX_OPERATOR_DIM` rows).
 
     Raises
     ------
-    ResourceError
-        ``modes n^2 > MAX_OPERATOR_DIM``: the message names the size, its memory and the way out.
+    BudgetError
+        ``modes n^2`` beyond the budget, under ``channel``: the message names the size, its memory and the way out.
 
     Examples
     --------
     >>> check_operator_size(4, 3), check_operator_size(2**10, 10)    # 4 * 3^2 = 36 rows pass; 102400 do not
     Traceback (most recent call last):
-    packetloss_cvx.errors.ResourceError: the MJLS second-moment operator is dense with 2^m n^2 = 1024 * 10^2 ...
+    packetloss_cvx.errors.BudgetError: channel: the MJLS second-moment operator, dense with 2^m n^2 = 1024 * 10^2 ...
     """
     dim = modes * n * n
-    if dim > MAX_OPERATOR_DIM:
-        needed = 8.0 * dim * dim * 2
-        raise ResourceError(f"the MJLS second-moment operator is dense with 2^m n^2 = {modes} * {n}^2 = {dim} rows "
-                            f"(about {needed / 2**30:.2f} GiB and O({dim}^3) time for its eigenvalues); this "
-                            f"computation is limited to {MAX_OPERATOR_DIM} rows: fewer states or channels",
-                            needed, 8.0 * MAX_OPERATOR_DIM ** 2 * 2)
+    check("operator_rows", dim, "channel",
+          f"the MJLS second-moment operator, dense with 2^m n^2 = {modes} * {n}^2 = {dim} rows (about "
+          f"{gib_text(operator_bytes(dim))} and O({dim}^3) time for its eigenvalues)",
+          instead="use fewer chain states or channels (mean_square_radius's method='krylov' builds no dense operator)")
 
 
 def _mode_gains(gains: np.ndarray, M: int, m: int, n: int) -> np.ndarray:
@@ -207,8 +208,8 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | M
     """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
     loop is mean-square stable.
 
-    ``method``: "dense", the eigenvalues of the (M n^2)^2 matrix, time O((M n^2)^3), refused (ResourceError)
-    beyond :data:`MAX_OPERATOR_DIM` rows; "krylov", ARPACK on the map applied matrix-free
+    ``method``: "dense", the eigenvalues of the (M n^2)^2 matrix, time O((M n^2)^3), refused (BudgetError)
+    beyond the ``operator_rows`` budget (:data:`MAX_OPERATOR_DIM` rows); "krylov", ARPACK on the map applied matrix-free
     (O(M^2 n^2 + M n^2 (n + m)) per product, O(M n^2) memory per vector), its value checked against
     Collatz–Wielandt bounds proven from its eigenvector (NumericalError outside them); "auto", dense up to
     :data:`DENSE_MAX_DIM` rows, else Krylov (falling back to dense within :data:`MAX_OPERATOR_DIM` rows). A failed
@@ -236,7 +237,7 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | M
             with np.errstate(over="ignore", invalid="ignore"):
                 return _krylov_radius(A, B, T, h, K, delivery)
         except NumericalError:
-            if method == "krylov" or dim > MAX_OPERATOR_DIM:
+            if method == "krylov" or dim > limit("operator_rows"):
                 raise
     op = second_moment_operator(A, B, channel, K, delivery)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -297,9 +298,10 @@ def _krylov_radius(A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, K
     D, H2 = M * n * n, delivery_moments(h)
     k = min(6, D - 2)
     ncv = min(D, max(2 * k + 1, 20))
-    if 8.0 * D * (ncv + 4) > MEMORY_BUDGET_BYTES:
-        raise ResourceError(f"the MJLS radius needs {ncv + 4} Krylov vectors of 2^m n^2 = {D} entries "
-                            f"({8.0 * D * (ncv + 4) / 2**30:.1f} GiB)", 8.0 * D * (ncv + 4), MEMORY_BUDGET_BYTES)
+    needed = krylov_bytes(D, ncv + 4)
+    check("memory_bytes", needed, "channel", f"the MJLS radius's {ncv + 4} Krylov vectors of 2^m n^2 = {D} entries "
+                                             f"(about {gib_text(needed)})",
+          instead="use fewer chain states or channels")
 
     def apply(v: np.ndarray) -> np.ndarray:
         Q = v.reshape(M, n, n)

@@ -20,13 +20,14 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import DimensionError, InputError, NumericalError, ResourceError
+from ..budgets import check, dense_bytes, gib_text
+from ..errors import DimensionError, InputError, NumericalError
 from ..linalg import solve_checked
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system, numeric_array
 from ..results import Solution
 from ..threads import blas_limited
-from ..tolerances import DENSE_MAX_CONDITION, MEMORY_BUDGET_BYTES, PLAN_COST_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from ..tolerances import DENSE_MAX_CONDITION, PLAN_COST_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .prediction import Prediction, prediction
 from .recursion import (
     check_plan_cost,
@@ -86,13 +87,9 @@ def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
     True
     """
     N, n, m = system.horizon, system.n, system.m
-    # Gamma, Omega Gamma, Omega_g, G and its LU; the powers of A, Phi and Omega Phi
-    needed = 8.0 * (3 * (N * n) * (N * m) + 2 * (N * m) ** 2 + 4 * N * n * n)
-    if needed > MEMORY_BUDGET_BYTES:
-        raise ResourceError(
-            f"method 'dense' needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} (budget "
-            f"{MEMORY_BUDGET_BYTES / 2**30:.1f} GiB); use method='recursion' (exact, O(N) memory)",
-            needed, MEMORY_BUDGET_BYTES)
+    needed = dense_bytes(N, n, m)
+    check("memory_bytes", needed, "method", f"method 'dense' for N = {N}, n = {n}, m = {m} (about {gib_text(needed)})",
+          instead="use method='recursion' (exact, O(N) memory; --method recursion)")
     kappa = condition_estimate(system, weights)
     if kappa > DENSE_MAX_CONDITION:
         raise NumericalError(
@@ -367,8 +364,9 @@ def closed_form(system: System, protocol: str, method: str = "auto") -> Solution
         ``"dense"`` where its condition estimate exceeds ``DENSE_MAX_CONDITION`` (before anything
         is built), a dense solve whose residual is not small, a cost that disagrees with the
         forward cost of its plan (badly scaled weights), or an exact cost beyond the double range.
-    ResourceError
-        ``"dense"`` where its matrices would not fit the memory budget.
+    BudgetError
+        ``"dense"`` where its matrices would not fit the ``memory_bytes`` budget (before anything is built; a
+        ResourceError and a ValueError, field ``method``).
 
     References
     ----------

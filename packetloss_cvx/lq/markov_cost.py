@@ -25,14 +25,24 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from ..budgets import duration_text, estimated_seconds, markov_recursion_work
-from ..errors import InputError, NumericalError, ResourceError
+from ..budgets import (
+    MARKOV_DENSE_SECONDS,
+    check,
+    duration_text,
+    estimated_seconds,
+    gib_text,
+    markov_dense_bytes,
+    markov_dense_seconds,
+    markov_recursion_work,
+)
+from ..budgets import limit as budget
+from ..errors import InputError, NumericalError
 from ..linalg import check_finite, solve_checked
 from ..model.chain import stacked_moments
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system
 from ..results import Solution
-from ..tolerances import MEMORY_BUDGET_BYTES, SELF_CHECK_RTOL
+from ..tolerances import SELF_CHECK_RTOL
 from .augmented import augmented_size, augmented_solve, chain_cost, check_recursion_budget, mean_state_bound
 from .costs import check_inputs, closed_form, dense_or_recursion, expected_cost, pick_method
 from .prediction import Prediction, prediction
@@ -45,11 +55,8 @@ __all__ = ["DENSE_SECONDS", "METHODS", "auto_route", "check_method", "correlatio
 #: (:func:`auto_route`) and the recursion's forward pass for the cost of a plan.
 METHODS = ("auto", "recursion", "dense")
 
-#: The dense route's time model, seconds ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the
-#: (N n)^2 N m products of Omega_g). benchmarks/markov_auto.py, one BLAS thread: its least-squares
-#: fit is (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make
-#: ``auto`` take the faster route in 75 of its 77 cases, the other two within 14 %.
-DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
+#: The dense route's time model (:func:`~packetloss_cvx.budgets.markov_dense_seconds`, which holds the measurement).
+DENSE_SECONDS = MARKOV_DENSE_SECONDS
 
 
 def check_method(method: str) -> str:
@@ -68,25 +75,25 @@ def check_method(method: str) -> str:
 
 
 def _dense_bytes(system: System) -> float:
-    """What the dense route holds: a few (N m)×(N m) and (N n)×(N m) matrices. O(1)."""
-    N, n, m = system.horizon, system.n, system.m
-    return 8.0 * (6 * (N * m) ** 2 + 3 * (N * n) * (N * m) + 4 * N * n * n)
+    """What the dense route holds (:func:`~packetloss_cvx.budgets.markov_dense_bytes`). O(1)."""
+    return markov_dense_bytes(system.horizon, system.n, system.m)
 
 
 def _check_memory(system: System) -> None:
-    """Refuse the dense route before building its matrices beyond the memory budget."""
+    """Refuse the dense route before building its matrices beyond the ``memory_bytes`` budget (BudgetError under
+    ``method``)."""
     N, n, m = system.horizon, system.n, system.m
     needed = _dense_bytes(system)
-    if needed > MEMORY_BUDGET_BYTES:
-        raise ResourceError(f"the exact Markov cost needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} "
-                            f"(dense Omega_g and R); budget {MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
-                            MEMORY_BUDGET_BYTES)
+    check("memory_bytes", needed, "method", f"the exact Markov cost by method 'dense' for N = {N}, n = {n}, m = {m} "
+                                            f"(dense Omega_g and R, about {gib_text(needed)})",
+          instead="use method='recursion' (the augmented recursion, O(N) memory)")
 
 
 def route_seconds(system: System) -> tuple[float, float]:
     """The estimated CPU seconds (one BLAS thread) of the exact UDP-like minimum by each route, ``(dense,
-    recursion)``: :data:`DENSE_SECONDS` and the recursion's work (:func:`~packetloss_cvx.budgets.markov_recursion_work`
-    on the augmented size D) at its measured seconds per unit. O(m).
+    recursion)``: :func:`~packetloss_cvx.budgets.markov_dense_seconds` and the recursion's work
+    (:func:`~packetloss_cvx.budgets.markov_recursion_work` on the augmented size D) at its measured seconds per unit.
+    O(m).
 
     Examples
     --------
@@ -97,8 +104,7 @@ def route_seconds(system: System) -> tuple[float, float]:
     [21.1, 28.8]
     """
     N, n, m = system.horizon, system.n, system.m
-    a, b, c = DENSE_SECONDS
-    dense = a + b * float(N * m) ** 3 + c * float(N * n) ** 2 * (N * m)
+    dense = markov_dense_seconds(N, n, m)
     recursion = estimated_seconds("markov_recursion_work", markov_recursion_work(N, augmented_size(system)))
     return dense, recursion
 
@@ -117,7 +123,7 @@ def dense_max(system: System) -> int:
     20
     """
     dense, recursion = route_seconds(system)
-    if dense >= recursion or _dense_bytes(system) > MEMORY_BUDGET_BYTES:
+    if dense >= recursion or _dense_bytes(system) > budget("memory_bytes"):
         return 0
     return system.horizon * system.m
 
@@ -281,9 +287,9 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
 
     Raises
     ------
-    ResourceError
-        ``"dense"``: the dense matrices would not fit the memory budget. BudgetError (a ResourceError and an
-        InputError naming ``channel``): the recursion's estimated time is beyond its budget.
+    BudgetError
+        (a ResourceError and an InputError) ``"dense"``: the dense matrices would not fit the ``memory_bytes``
+        budget (under ``method``); the recursion's estimated time is beyond its budget (under ``channel``).
     NumericalError
         A solve without a small residual, an overflow (an unstable plant over a long horizon, as the Bernoulli
         recursion), or a self-check that fails.
@@ -319,7 +325,7 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
         size = augmented_size(system)
         dense, _ = route_seconds(system)
         instead = (f"method='dense' needs about {duration_text(dense)} and {_dense_bytes(system) / 2**30:.2g} GiB"
-                   + (", within the memory budget" if _dense_bytes(system) <= MEMORY_BUDGET_BYTES else
+                   + (", within the memory budget" if _dense_bytes(system) <= budget("memory_bytes") else
                       ", over the memory budget: use a chain with fewer states or a shorter horizon"))
         check_recursion_budget(system, size, instead)
         U, gain, cost = augmented_solve(system)

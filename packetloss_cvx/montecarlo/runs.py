@@ -9,7 +9,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..budgets import check, count_text
+from ..budgets import check, count_text, gib_text, loop_bytes
 from ..errors import InputError
 from ..model.system import System
 from ..results import OpenLoopCheck
@@ -154,10 +154,9 @@ def check_loop_memory(system: System, block: int, steps: int, laws: int, keep: i
     ...     print(err.field, err.env)
     steps PACKETLOSS_CVX_BUDGET_MEMORY_BYTES
     """
-    needed = (block * (steps + 1) * (2 * system.m + 16 * system.n + 16 * laws)
-              + 8 * laws * keep * (steps + 1) * system.n)
-    check("memory_bytes", needed, "steps", f"{count_text(steps)} steps of a closed loop (about {needed / 2**30:.3g} "
-                                           f"GiB for a block of {block} runs)")
+    needed = loop_bytes(block, steps, system.n, system.m, laws, keep)
+    check("memory_bytes", needed, "steps", f"{count_text(steps)} steps of a closed loop (about {gib_text(needed)} "
+                                           f"for a block of {block} runs)", instead="use fewer steps")
 
 
 def plan_costs(system: System, inputs: np.ndarray, delivered: np.ndarray, noise: np.ndarray | None) -> np.ndarray:

@@ -36,8 +36,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..budgets import check, duration_text, estimated_seconds, qp_work
-from ..errors import CrossCheckError, InputError, NumericalError, ResourceError, SolverError
+from ..budgets import check, duration_text, estimated_seconds, gib_text, qp_bytes, qp_work
+from ..errors import CrossCheckError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
 from ..lq.costs import closed_form, refuse_correlated
 from ..lq.prediction import prediction
@@ -52,7 +52,6 @@ from ..tolerances import (
     CROSS_CHECK_COST_RTOL,
     CROSS_CHECK_FLOOR,
     CROSS_CHECK_INPUT_ATOL,
-    MEMORY_BUDGET_BYTES,
     PLAN_COST_RTOL,
     QP_PIN_MU,
     QP_RESCALE_BELOW,
@@ -178,9 +177,8 @@ class ExpectedCostQP:
     ------
     BudgetError
         The QP's work (:func:`~packetloss_cvx.budgets.qp_work`, its horizon) beyond the ``solve_work`` budget, under
-        ``horizon``, before cvxpy sees it.
-    ResourceError
-        Its memory (:meth:`memory_estimate`) beyond ``tolerances.MEMORY_BUDGET_BYTES``.
+        ``horizon``, before cvxpy sees it; its memory (:meth:`memory_estimate`) beyond the ``memory_bytes`` budget,
+        under ``horizon`` too.
 
     Examples
     --------
@@ -215,12 +213,11 @@ class ExpectedCostQP:
         check("solve_work", work, "horizon", f"the {self.formulation} QP of N = {N} (n = {n}, m = {m}), about "
                                              f"{duration_text(estimated_seconds('solve_work', work))}")
         needed = self.memory_estimate(system)
-        if needed > MEMORY_BUDGET_BYTES:
-            raise ResourceError(
-                f"the {self.formulation} QP needs about {needed / 2**30:.1f} GiB for N = {N}, n = {n}, m = {m} (cvxpy "
-                f"keeps ~260 N n^2 bytes of state terms); budget "
-                f"{MEMORY_BUDGET_BYTES / 2**30:.1f} GiB", needed,
-                MEMORY_BUDGET_BYTES)
+        check("memory_bytes", needed, "horizon",
+              f"the {self.formulation} QP of N = {N} (n = {n}, m = {m}; about {gib_text(needed)}: cvxpy keeps ~260 "
+              f"N n^2 bytes of state terms)",
+              instead="use the closed forms, which need no QP (closed_form; solve --no-qp), or a shorter horizon"
+              + (" or formulation='sparse'" if self.formulation == "condensed" else ""))
         self._d, self._noise = udp_variance_weights(system)
         if not (np.all(np.isfinite(self._d)) and np.isfinite(self._noise)):
             raise NumericalError(
@@ -462,11 +459,10 @@ class CondensedExpectedCostQP(ExpectedCostQP):
 
     @classmethod
     def memory_estimate(cls, system: System) -> float:
-        """The sparse form's bytes (:meth:`SparseExpectedCostQP.memory_estimate`) plus the dense
-        (N n)×(N m) data, a Parameter since the problems are shared by shape (150 bytes per entry measured
-        at the peak, 66-88 when they were constants: :mod:`.qp_shared`). O(1)."""
-        N, n, m = system.horizon, system.n, system.m
-        return SparseExpectedCostQP.memory_estimate(system) + 150.0 * (N * n) * (N * m)
+        """The sparse form's bytes plus the dense (N n)×(N m) data, a Parameter since the problems are shared by
+        shape (:func:`~packetloss_cvx.budgets.qp_bytes`; 66-88 bytes an entry when they were constants:
+        :mod:`.qp_shared`). O(1)."""
+        return qp_bytes(system.horizon, system.n, system.m, "condensed")
 
     def _build_data(self) -> None:
         self._data = condensed_data(self.system, self._scale)    # (L Phi, L Gamma) / sqrt(scale), or None
@@ -537,12 +533,10 @@ class SparseExpectedCostQP(ExpectedCostQP):
 
     @classmethod
     def memory_estimate(cls, system: System) -> float:
-        """Measured (tracemalloc, compile and first solve; n = 1..100, m = 1..8, N up to 8000, full
-        weights): about 250 N n^2 bytes for the state terms, 350 N n m for the dynamics' input
-        columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB. No Parameter
-        multiplies a Variable, so cvxpy keeps no (N m)^2 map. O(1)."""
-        N, n, m = system.horizon, system.n, system.m
-        return 260.0 * N * n * n + 400.0 * N * n * m + 650.0 * N * m + 1e7
+        """Measured (:func:`~packetloss_cvx.budgets.qp_bytes`): about 250 N n^2 bytes for the state terms, 350 N n m
+        for the dynamics' input columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB.
+        O(1)."""
+        return qp_bytes(system.horizon, system.n, system.m, "sparse")
 
     def _build_data(self) -> None:
         E, Bbig, first, L = sparse_dynamics(self.system)
