@@ -209,7 +209,9 @@ def worker(repeats: int) -> None:
 def _run(root: Path, repeats: int) -> dict:
     env = {**os.environ, "PYTHONPATH": str(root), "OPENBLAS_NUM_THREADS": "1"}
     done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--worker", str(repeats)], env=env,
-                          capture_output=True, text=True, check=True, cwd=root)
+                          capture_output=True, text=True, cwd=root)
+    if done.returncode:
+        raise RuntimeError(f"{root}: the worker failed\n{done.stderr[-3000:]}")
     data = json.loads(done.stdout.strip().splitlines()[-1])
     if not data["module"].startswith(str(root)):
         raise RuntimeError(f"{root}: imported {data['module']}")
