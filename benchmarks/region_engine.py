@@ -1,7 +1,9 @@
 """The stabilisable-set engine against a baseline commit, side by side in one run: CPU time (time.process_time,
 OPENBLAS_NUM_THREADS=1) and the answers of each case, each version in its own subprocess, interleaved rounds,
-best of the rounds. Cases: ``packetloss-cvx region`` on every shipped example (the CLI's run, its JSON data), and
-the plants and channels of tests/test_region.py (least radii, memberships, critical points).
+best of the rounds. Cases: ``packetloss-cvx region`` on every shipped example (the CLI's run, its JSON data), the
+plants and channels of tests/test_region.py (least radii, memberships, critical points), and a few of
+tests/test_markov_region.py's (Gilbert-Elliott chains: memberships under both conventions, a rate map, a critical
+mean rate). Rounds alternate which version runs first.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/region_engine.py [--baseline /work/wt/base-region] [--rounds 3]
 
@@ -180,13 +182,45 @@ def _cases():
         A, B = np.array([[2.0]]), np.array([[1.0]])
         return [certificate_margin(A, B, np.array([mu]), np.eye(1)) for mu in np.linspace(0.05, 0.95, 19)]
 
+    from packetloss_cvx.channel import GilbertElliott
+    from packetloss_cvx.simulation.markov_region import (
+        chain_at_rate,
+        chain_critical_rate,
+        chain_membership,
+        chain_rate_map,
+    )
+
+    def chain_memberships():
+        out = []
+        for seed in range(6):
+            rng = np.random.default_rng(seed)
+            n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
+            A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+            ch = GilbertElliott(p=rng.uniform(0.05, 0.6, m), r=rng.uniform(0.05, 0.9, m))
+            for delivery in ("next", "current"):
+                found = chain_membership(A, B, ch, delivery)
+                out.append([found.verdict, found.radius, found.certificate_margin])
+        return out
+
+    def chain_map():
+        two = load_example("two_actuator")
+        return list(chain_rate_map(two.A, two.B, GilbertElliott(p=[0.3, 0.2], r=[0.4, 0.5]), np.linspace(0, 1, 4)))
+
+    def chain_critical():
+        a, corr = np.array([1.5, 1.2]), np.array([0.2, 0.6])
+        ch = chain_at_rate(GilbertElliott(p=(1 - corr) / 2, r=(1 - corr) / 2), [0.5, 0.5])
+        s = System(A=np.diag(a), B=np.eye(2), horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
+                   x0=[1.0, 1.0], channel=ch)
+        return point(chain_critical_rate(s, [1.0, 1.0]))
+
     cases.update({"scalar memberships": scalar_forms, "scalar critical": scalar_critical,
                   "decoupled critical": decoupled_critical, "random memberships": random_memberships,
                   "batch two_actuator 9x9": batch_two_actuator, "batch random": batch_random,
                   "jordan least radius": jordan, "jordan membership": jordan_membership,
                   "single-input critical (Mahler)": mahler, "unreached mode": unreached,
                   "nilpotent least radius": nilpotent, "deadbeat memberships": deadbeat,
-                  "certificate margins": margins})
+                  "certificate margins": margins, "chain memberships (Markov)": chain_memberships,
+                  "chain rate map 4x4 (Markov)": chain_map, "chain critical rate (Markov)": chain_critical})
     return cases
 
 
@@ -241,8 +275,8 @@ def main() -> None:
         return
     roots = {"baseline": Path(args.baseline).resolve(), "this": HERE}
     best: dict[str, dict] = {"baseline": {}, "this": {}}
-    for _ in range(args.rounds):
-        for label, root in roots.items():
+    for k in range(args.rounds):
+        for label, root in (list(roots.items()) if k % 2 == 0 else list(roots.items())[::-1]):
             data = _run(root, args.repeats)
             for name, value in data.items():
                 if name == "module":
