@@ -6,6 +6,7 @@ tests/test_markov_region.py's (Gilbert-Elliott chains: memberships under both co
 mean rate). Rounds alternate which version runs first.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/region_engine.py [--baseline /work/wt/base-region] [--rounds 3]
+    OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_engine.py --one-mode
 
 Prints per case: baseline and this CPU seconds, their ratio, the largest relative difference of the numbers
 (lambdas, radii, margins, critical points) and whether every verdict is the same.
@@ -240,6 +241,49 @@ def worker(repeats: int) -> None:
     print(json.dumps(out))
 
 
+def one_mode() -> None:
+    """The chain strategy (chain_radius.homogeneous_coupled_riccati: regularised power and policy iteration, no
+    balancing) run on Bernoulli channels as one-mode chains, against the Bernoulli strategy (region.homogeneous_riccati:
+    batched power iteration, Kronecker policy iteration, graded balancing) at the same points: the largest relative
+    difference of the least radius per family and the CPU ratio. Why the two iterations are kept apart."""
+    import numpy as np
+
+    from packetloss_cvx import load_example
+    from packetloss_cvx.markov_channel import MarkovChannel
+    from packetloss_cvx.simulation.chain_radius import homogeneous_coupled_riccati
+    from packetloss_cvx.simulation.region import homogeneous_riccati
+
+    def channel(mu):
+        return MarkovChannel(transition=[[[1.0]]] * len(mu), delivery=[[float(x)] for x in mu])
+
+    two = load_example("two_actuator")
+    axis = np.linspace(0.05, 1.0, 6)
+    cases = [("two_actuator 6x6", np.asarray(two.A, float), np.asarray(two.B, float), np.array([a, b]))
+             for a in axis for b in axis]
+    cases += [("Jordan chains (graded P)", a0 * np.eye(4) + np.eye(4, k=1), np.eye(4)[:, 3:], np.array([mu]))
+              for a0, mu in ((1.0, 0.0124), (1.001, 0.002), (1.3, 0.5))]
+    for seed in range(10):
+        rng = np.random.default_rng(seed)
+        n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
+        cases.append(("random plants", rng.normal(size=(n, n)), rng.normal(size=(n, m)), rng.uniform(size=m)))
+    cases += [("decoupled plants", np.diag(a), np.eye(len(a)), np.full(len(a), mu))
+              for a in ((2.0, 1.5), (3.0, 1.2, 0.5)) for mu in (0.3, 0.6, 0.9)]
+    worst: dict[str, float] = {}
+    cpu = [0.0, 0.0]
+    for name, A, B, mu in cases:
+        t0 = time.process_time()
+        lam_b = homogeneous_riccati(A, B, mu)[0]
+        t1 = time.process_time()
+        lam_c = homogeneous_coupled_riccati(A, B, channel(mu))[0]
+        cpu[0] += t1 - t0
+        cpu[1] += time.process_time() - t1
+        worst[name] = max(worst.get(name, 0.0), 0.0 if lam_b == lam_c else abs(lam_b - lam_c) / abs(lam_b))
+    print("one-mode chains through the chain strategy against the Bernoulli strategy (least radius):")
+    for name, rel in worst.items():
+        print(f"    {name:<26} max rel diff {rel:.1e}")
+    print(f"    CPU: Bernoulli strategy {cpu[0]:.3f} s, chain strategy {cpu[1]:.3f} s ({cpu[1] / cpu[0]:.1f}x)")
+
+
 def _run(root: Path, repeats: int) -> dict:
     env = {**os.environ, "PYTHONPATH": str(root), "OPENBLAS_NUM_THREADS": "1"}
     done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--worker", str(repeats)], env=env,
@@ -269,9 +313,13 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--worker", type=int, default=None)
+    parser.add_argument("--one-mode", action="store_true", help="only the one-mode comparison of the two strategies")
     args = parser.parse_args()
     if args.worker is not None:
         worker(args.worker)
+        return
+    if args.one_mode:
+        one_mode()
         return
     roots = {"baseline": Path(args.baseline).resolve(), "this": HERE}
     best: dict[str, dict] = {"baseline": {}, "this": {}}
