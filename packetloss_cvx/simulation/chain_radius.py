@@ -1,7 +1,8 @@
 """The least mean-square radius behind Gilbert–Elliott channels and its certificates: ``lambda = inf_K rho(L_K)`` over
 mode-dependent laws ``u = -K_a x``, computed without gains that diverge (:func:`homogeneous_coupled_riccati`), and
 the bound a certificate P proves on every law's radius (:func:`chain_certificate_margin`). simulation.markov_region
-decides the stabilisable set from them.
+decides the stabilisable set from them. The map's algebra is simulation.riccati_map's (as simulation.region's, whose
+Bernoulli losses are its one-mode chain).
 
 With ``E_a = sum_b T_ab P_b`` (T the mode chain, h_a the per-mode delivery probabilities) the adjoint of the
 coupled second-moment map of gains K is the quadratic ``L_K^*(P)_a = A'E_aA - 2 A'F_a K_a + K_a' H_a K_a``
