@@ -67,9 +67,10 @@ from .riccati_map import (
     converges_within,
     cut_candidates,
     perron_adjoint,
+    psd_part_factor,
     psd_size,
     reach_split,
-    riccati_squares,
+    riccati_factors,
 )
 from .stability import check_law, is_mean_square_stable, law_radius, mean_square_radius, second_moment_matrix
 
@@ -412,9 +413,11 @@ def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> 
     lam = np.full(P.shape[0], np.nan)
     finite = np.all(np.isfinite(P), axis=(-2, -1))
     if np.any(finite):
-        _, squares, total = riccati_squares(P[finite][:, None], A, B, *bernoulli_rates(mu[finite]))
+        L, w = psd_part_factor(P[finite])
+        F = riccati_factors(L[:, None], A, B, *bernoulli_rates(mu[finite]))[:, 0]
+        total = np.sum(w, axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            lam[finite] = np.where(total > 0, squares / total, np.nan)
+            lam[finite] = np.where(total > 0, np.sum(F * F, axis=(-2, -1)) / total, np.nan)
     return lam
 
 

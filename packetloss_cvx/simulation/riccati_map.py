@@ -170,7 +170,9 @@ def certificate_bound(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray
     1.6
     """
     F = riccati_squares(P, A, B, T, d, scaled)[0] if scaled else riccati_factors(psd_part_factor(P)[0], A, B, T, d)
-    return min((radius_bound(F[a], P[a]) for a in range(len(P)) if np.any(P[a])), default=np.inf)
+    if len(P) == 1:
+        return radius_bound(F[0], P[0]) if np.any(P) else np.inf
+    return min((radius_bound(F[a], P[a]) for a in np.flatnonzero(np.any(P != 0, axis=(-2, -1)))), default=np.inf)
 
 
 def cut_candidates(P: np.ndarray, cuts: tuple[float, ...] = CUTS):
@@ -235,7 +237,9 @@ def psd_size(P: np.ndarray) -> float:
     O(M n^3)."""
     if not np.all(np.isfinite(P)):
         return float("nan")
-    size = max(float(np.linalg.norm(p, 2)) for p in P)
-    if not size > 0 or min(float(np.linalg.eigvalsh(p)[0]) for p in P) < -CERTIFICATE_RTOL * size:
+    w = np.linalg.eigvalsh(P)                       # symmetric: ||P_a||_2 is its largest |eigenvalue|
+    least = float(np.min(w[:, 0]))
+    size = max(-least, float(np.max(w[:, -1])))
+    if not size > 0 or least < -CERTIFICATE_RTOL * size:
         return float("nan")
     return size
