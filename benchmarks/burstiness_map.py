@@ -1,4 +1,4 @@
-"""The (mean rate × burstiness) map of one channel: ``markov.burstiness_map`` (the augmented recursion at every
+"""The (mean rate × burstiness) map of one channel: ``studies.burstiness.burstiness_map`` (the augmented recursion at every
 point) against the same grid by the dense route, side by side in one run (docs/performance.md,
 "Other benchmarks").
 

@@ -1,4 +1,4 @@
-"""The measurements behind simulation.chain_radius's tolerances (tolerances.COUPLED_ZERO_RTOL,
+"""The measurements behind closedloop.chain_radius's tolerances (tolerances.COUPLED_ZERO_RTOL,
 COUPLED_POLICY_REGULARISATION, COUPLED_BRACKET_RTOL), on seeded plants and chains; run under each OpenBLAS kernel:
 
     OPENBLAS_CORETYPE=Prescott python benchmarks/chain_region_tolerances.py [--eps 1e-8 1e-10 1e-12]

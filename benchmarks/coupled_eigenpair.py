@@ -1,4 +1,4 @@
-"""The coupled homogeneous Riccati eigenpair behind Gilbert-Elliott chains (simulation.markov_region), this tree
+"""The coupled homogeneous Riccati eigenpair behind Gilbert-Elliott chains (closedloop.markov_region), this tree
 against a baseline checkout, side by side in one run (docs/performance.md, "Other benchmarks").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/coupled_eigenpair.py --baseline /work/base/1bc1ef6 [--repeats 2]
@@ -6,7 +6,7 @@ against a baseline checkout, side by side in one run (docs/performance.md, "Othe
 The 24 chains of tests/test_markov_region.py's "current"-convention test (seeds 100..105, four chains each),
 each tree in a fresh interpreter started in its own folder (interleaved, best of ``--repeats``), CPU seconds
 (time.process_time) around the 24 calls of ``homogeneous_coupled_riccati``, and per tree the accuracy: the
-chains where ``|lambda - rho(L_K)| > 1e-9 lambda``, K the returned gains and rho markov.mjls's
+chains where ``|lambda - rho(L_K)| > 1e-9 lambda``, K the returned gains and rho closedloop.mjls's
 operator (the radius of the law the eigenpair reports: lambda where K is the minimiser; a least-squares gain that
 leaves a mode P vanishes on at 0 can be dearer), the largest and the second largest.
 """

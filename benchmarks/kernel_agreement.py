@@ -3,7 +3,7 @@
     OPENBLAS_NUM_THREADS=1 PYTHONPATH=CHECKOUT python benchmarks/kernel_agreement.py dump OUT.pkl
     python benchmarks/kernel_agreement.py compare BASE.pkl NEW.pkl
 
-``dump`` evaluates, on seeded random systems (``random_systems.random_system``: non-stationary mu
+``dump`` evaluates, on seeded random systems (``model.random_systems.random_system``: non-stationary mu
 schedules, mu with zeros and ones, time-varying weights, unstable A, noise, Q; plus long stationary
 horizons for the stationary tail and Gilbert-Elliott chains with fractional h for the MJLS), the
 closed forms (dense / recursion / auto, both protocols: cost, plan, gain), CostEvaluator

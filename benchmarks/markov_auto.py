@@ -7,7 +7,7 @@ stacked solve against the augmented recursion, side by side in one run (docs/per
 For plants of n = 1..8 states behind m = 1..2 chains of k = 2..50 states (augmented size D = n (1 + m (k - 1)))
 and horizons N = 10..640, ``exact_closed_form`` with method="dense" and method="recursion", CPU time
 (time.process_time), runs interleaved, best of 3 (1 with --quick). Printed per case: both times, their ratio,
-the two estimates ``markov.exact_cost.route_seconds`` gives, the route ``auto`` takes and the time it loses
+the two estimates ``lq.markov_cost.route_seconds`` gives, the route ``auto`` takes and the time it loses
 against the faster route. ``--fit`` prints the least-squares coefficients of the two time models
 (dense: a + b (N m)^3 + c (N n)^2 N m; recursion: N (e + f D^3)) from the measured cases.
 """

@@ -11,9 +11,9 @@
    (``os.times`` of the reaped child), one BLAS thread. Prints each run, the medians and the ratios to this checkout.
    ``--steps``: also each step's CPU seconds in this checkout (the command's own step timer read on
    ``time.process_time``), one extra run.
-2. ``--crossover``: ``markov.exact_closed_form`` by ``method="recursion"`` and ``method="dense"`` on Gilbert twins
+2. ``--crossover``: ``lq.markov_cost.exact_closed_form`` by ``method="recursion"`` and ``method="dense"`` on Gilbert twins
    (lambda = 0.9) of pendulum, two_actuator and two random plants over N, CPU ms (best of 3), the ratio and the
-   relative difference of J*: the measurement behind ``markov.exact_cost.AUTO_DENSE_MAX``.
+   relative difference of J*: the measurement behind ``lq.markov_cost.AUTO_DENSE_MAX``.
 3. ``--parts``: the parts of ``reproduce`` that session 29 made faster, each in a fresh interpreter per checkout
    (imports paid before the clock starts), the checkouts interleaved round by round, CPU seconds (process_time):
    the 33 UDP-like allocations of the two-actuator system (reproduce's step), the sensing Monte Carlo of the

@@ -1,4 +1,4 @@
-"""``recursion.riccati_step`` on one point, a batch of one, a small stack and a flattened stack, this checkout
+"""``lq.recursion.riccati_step`` on one point, a batch of one, a small stack and a flattened stack, this checkout
 beside a baseline checkout, interleaved in one process (issue 19 item 1: the one-point fast path is the kernel
 itself on 2-D arrays; it must not be slower than the copy it replaced).
 

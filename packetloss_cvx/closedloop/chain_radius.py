@@ -1,7 +1,8 @@
 """The least mean-square radius behind Gilbert–Elliott channels and its certificates: ``lambda = inf_K rho(L_K)`` over
 mode-dependent laws ``u = -K_a x``, computed without gains that diverge (:func:`homogeneous_coupled_riccati`), and
 the bound a certificate P proves on every law's radius (:func:`chain_certificate_margin`). simulation.markov_region
-decides the stabilisable set from them.
+decides the stabilisable set from them. The map's algebra is simulation.riccati_map's (as simulation.region's, whose
+Bernoulli losses are its one-mode chain).
 
 With ``E_a = sum_b T_ab P_b`` (T the mode chain, h_a the per-mode delivery probabilities) the adjoint of the
 coupled second-moment map of gains K is the quadratic ``L_K^*(P)_a = A'E_aA - 2 A'F_a K_a + K_a' H_a K_a``
@@ -34,7 +35,7 @@ import functools
 import numpy as np
 
 from ..errors import InputError, NumericalError
-from ..linalg import ControllableSplit, controllable_split, typed_linalg
+from ..linalg import typed_linalg
 from ..model.channel import GilbertElliott
 from ..tolerances import (
     CERTIFICATE_RTOL,
@@ -45,56 +46,41 @@ from ..tolerances import (
     RICCATI_RTOL,
 )
 from .mjls import DENSE_MAX_DIM, mode_chain, second_moment_operator
-from .region import least_squares_residual, moment_factor, psd_factor, radius_bound
+from .riccati_map import (
+    POLICY_STEPS,
+    SHIFT,
+    certificate_bound,
+    chain_rates,
+    perron_adjoint,
+    psd_size,
+    reach_split,
+    riccati_squares,
+)
 
 __all__ = ["chain_certificate_margin", "check_delivery", "homogeneous_coupled_riccati"]
 
-#: the power iteration's shift (as simulation.region: removes a peripheral spectrum)
-_SHIFT = 0.1
-#: the power steps after which the policy iteration is tried (M n^2 <= DENSE_MAX_DIM; :func:`_reachable_eigenpair`)
-#: and its step cap
-_CHECKPOINTS, _POLICY_STEPS = (30, 90, 270, 810, 2430, HOMOGENEOUS_RICCATI_MAX_ITER), 50
+#: the power steps after which the policy iteration is tried (M n^2 <= DENSE_MAX_DIM; :func:`_reachable_eigenpair`;
+#: its step cap riccati_map.POLICY_STEPS, the power iteration's shift riccati_map.SHIFT)
+_CHECKPOINTS = (30, 90, 270, 810, 2430, HOMOGENEOUS_RICCATI_MAX_ITER)
 #: the unregularised policy steps that finish the regularised ones (:func:`_refine`), the cut of the eigenvector's
 #: directions they take the gains from, and the cut of the eigenvector returned (rounding of the eigenvalue routine)
 _REFINE_STEPS, _REFINE_CUT, _EIGENVECTOR_CUT = 3, 1e-9, 1e-13
 
 
-def _rates(h: np.ndarray, delivery: str) -> np.ndarray:
-    """``(M, M, m)``: the delivery probabilities of a step from mode a into mode b, h_b ("next") or h_a
-    ("current"). O(M^2 m)."""
-    M = len(h)
-    return np.broadcast_to(h[None] if delivery == "next" else h[:, None], (M, M, h.shape[1]))
-
-
-def _riccati_factors(L: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str
-                     ) -> list[np.ndarray]:
-    """``F_a`` with ``R(P)_a = F_a'F_a`` for ``P_b = L_b L_b'``: the factors of ``L_K^*(P)_a`` stacked over the next
-    mode b with weights ``sqrt(T_ab)`` (region.moment_factor at the step's delivery rates), least-squares residual in
-    u. The residual drops input directions below lstsq's cutoff of ``||L|| ||B||`` (the size the columns of ``Phi_u``
-    have before cancellation), not of the columns' own largest: where P weighs only directions no input reaches,
-    ``L'B`` is rounding and its own largest column would count as an input. O(M^2 (n + m)(m + n)^2)."""
-    M, n, m = len(h), A.shape[0], B.shape[1]
-    scale = float(np.max(np.linalg.norm(L, 2, axis=(1, 2)))) * float(np.linalg.norm(B, 2)) if L.size else 0.0
-    phi_x, phi_u = moment_factor(np.broadcast_to(L, (M, *L.shape)), A, B, _rates(h, delivery))   # [a, b]
-    weight = np.sqrt(T)[:, :, None, None]
-    return list(least_squares_residual((weight * phi_x).reshape(M, -1, n), (weight * phi_u).reshape(M, -1, m), scale))
-
-
 def _apply(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str, eps: float
            ) -> tuple[np.ndarray, float, bool]:
     """``(R_eps(P), lambda, zero)``: ``R_eps(P) = R(P) + eps Pi(P)``, ``Pi(P)_a = (sum_b tr P_b) I / (M n)`` (rho(Pi) =
-    1), R as a sum of squares ``F_a'F_a`` (never negative; its error does not grow with the minimising gain, unlike
-    ``A'E_aA - A'F_a K_a``); ``lambda = sum_a tr R(P)_a / sum_a tr P+_a`` (R's, P+ the PSD part of P) and whether
-    R(P) is zero to rounding, ``sum_a tr R(P)_a <= COUPLED_ZERO_RTOL^2 ||A||^2 sum_a tr P+_a``: its factors are below
-    the rounding of ``L'A``, on a scale set by the plant and all of P (not by what R would give without inputs at P:
-    where the inputs cancel one mode in a step, the next step's P weighs the others by rounding only, and so
-    would that). O(M^2 (n + m)(m + n)^2 + M n^3)."""
+    1), R as a sum of squares ``F_a'F_a`` (riccati_map.riccati_squares, its cutoff scaled to all of P; never
+    negative; its error does not grow with the minimising gain, unlike ``A'E_aA - A'F_a K_a``); ``lambda = sum_a tr
+    R(P)_a / sum_a tr P+_a`` (R's, P+ the PSD part of P) and whether R(P) is zero to rounding, ``sum_a tr R(P)_a <=
+    COUPLED_ZERO_RTOL^2 ||A||^2 sum_a tr P+_a``: its factors are below the rounding of ``L'A``, on a scale set by
+    the plant and all of P (not by what R would give without inputs at P: where the inputs cancel one mode in a
+    step, the next step's P weighs the others by rounding only, and so would that). O(M^2 (n + m)(m + n)^2 + M
+    n^3)."""
     M, n = P.shape[0], P.shape[1]
-    L, w = psd_factor(P)
-    factors = _riccati_factors(L, A, B, T, h, delivery)
-    weight = float(np.sum(w))
+    factors, squares, weight = riccati_squares(P, A, B, *chain_rates(T, h, delivery), scaled=True)
+    weight, squares = float(weight), float(squares)
     R = np.stack([F.T @ F for F in factors]) + (eps * weight / (M * n)) * np.eye(n)
-    squares = float(sum(np.sum(F * F) for F in factors))
     lam = squares / weight if weight > 0 else float("nan")
     zero = weight > 0 and squares <= COUPLED_ZERO_RTOL ** 2 * float(np.linalg.norm(A, 2)) ** 2 * weight
     return R, lam, bool(zero)
@@ -126,7 +112,7 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
         total = float(np.trace(R, axis1=-2, axis2=-1).sum())
         if not (np.isfinite(lam) and lam > 0 and np.isfinite(total)):
             return P, lam, "stopped", moved
-        shift = _SHIFT if step >= plain else 0.0        # a shifted step keeps some of P: R^j(I) = 0 unseen
+        shift = SHIFT if step >= plain else 0.0        # a shifted step keeps some of P: R^j(I) = 0 unseen
         P_next = (R / total + shift * P) / (1.0 + shift)
         moved = float(np.linalg.norm(P_next - P))
         P = P_next
@@ -139,9 +125,9 @@ def _hessians(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.
               ) -> tuple[np.ndarray, np.ndarray]:
     """``(H, G)`` per mode with ``L_K^*(P)_a = A'E_aA - G_a'K_a - K_a'G_a + K_a' H_a K_a``: ``H_a = sum_b T_ab (D B'P_bB
     D + diag(d (1 - d)) ∘ B'P_bB)``, ``G_a = sum_b T_ab D B'P_b A`` (D = diag(d), d the step's delivery rates,
-    :func:`_rates`); the minimisers solve ``H_a K_a = G_a``. O(M^2 m (m + n) + M n^2 (n + m))."""
+    riccati_map.chain_rates); the minimisers solve ``H_a K_a = G_a``. O(M^2 m (m + n) + M n^2 (n + m))."""
     m = B.shape[1]
-    d = _rates(h, delivery)
+    d = chain_rates(T, h, delivery)[1]
     BPB = np.einsum("ki,bkl,lj->bij", B, P, B)
     BPA = np.einsum("ki,bkl,lj->bij", B, P, A)
     H = np.einsum("ab,abi,abj,bij->aij", T, d, d, BPB)
@@ -218,7 +204,7 @@ def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: Gi
     """``(K, P_eps)``: from the power iteration's P (:func:`_power`, positive definite), a policy iteration on the
     regularised map ``L_K^* + eps Pi`` (``eps = COUPLED_POLICY_REGULARISATION lambda``): K <- the minimiser at P_eps
     nearest K (:func:`_gains`), P_eps the Perron eigenvector of the regularised map at K, while its root falls by
-    more than RICCATI_RTOL, at most _POLICY_STEPS steps; the gains of the least root and their eigenvector.
+    more than RICCATI_RTOL, at most riccati_map.POLICY_STEPS steps; the gains of the least root and their eigenvector.
 
     P_eps is positive definite, so each step can only lower the root (``L_{K+}^*(P_eps) <= L_K^*(P_eps)``, a
     Collatz–Wielandt bound) and a fixed point is R_eps's eigenvector, unique. Near it the steps converge
@@ -240,7 +226,7 @@ def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: Gi
         raise NumericalError("the coupled Riccati policy iteration: the gains of the power iteration's eigenvector "
                              "or their operator are not finite")
     root, P_eps = found[:2]
-    for _ in range(_POLICY_STEPS):
+    for _ in range(POLICY_STEPS):
         K_next = _gains(P_eps, A, B, T, h, delivery, K)
         found = regularised(K_next) if np.all(np.isfinite(K_next)) else None
         if found is None or not found[0] < root * (1.0 - RICCATI_RTOL):
@@ -348,27 +334,6 @@ def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, chan
     return K, V, radius
 
 
-def _split(A: np.ndarray, B: np.ndarray, h: np.ndarray) -> tuple[ControllableSplit, np.ndarray]:
-    """``(split, T'B)``: the controllability split of A by the channels that ever deliver (a column whose h is 0 in
-    every mode never acts: ``V_i = 0`` always), and every channel's input map in its coordinates with the rows of the
-    part they do not reach set to exact zeros (the live channels' are the staircase's dropped couplings; a dead
-    channel's never deliver). O(n^4 + n^2 m)."""
-    split = controllable_split(A, B[:, np.any(h > 0, axis=0)])
-    Bt = split.T.T @ B
-    Bt[split.nc:] = 0.0
-    return split, Bt
-
-
-def _dominant_left(A_uu: np.ndarray) -> np.ndarray:
-    """``W = Re(w w^H) / tr``, w a left eigenvector of A_uu for an eigenvalue nu of largest modulus: PSD with
-    ``A_uu' W A_uu = |nu|^2 W`` (``A_uu' w = nu w`` conjugated), the certificate of the part no input reaches.
-    O(n^3)."""
-    vals, vecs = np.linalg.eig(A_uu.T)
-    w = vecs[:, int(np.argmax(np.abs(vals)))]
-    W = np.outer(w.real, w.real) + np.outer(w.imag, w.imag)
-    return W / np.trace(W)
-
-
 @typed_linalg("the coupled Riccati eigenpair")
 def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next"
                                 ) -> tuple[float, np.ndarray, np.ndarray]:
@@ -405,7 +370,7 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
     _, T, h = mode_chain(channel)
     M, n, m = len(h), A.shape[0], B.shape[1]
     with np.errstate(over="ignore", invalid="ignore"):
-        split, Bt = _split(A, B, h)
+        split, Bt = reach_split(A, B, np.any(h > 0, axis=0))
         if split.nc == n:
             return _reachable_eigenpair(A, B, channel, T, h, delivery)
         nc = split.nc
@@ -416,17 +381,16 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
             lam_c, P_c, K_c = _reachable_eigenpair(split.A_cc, Bt[:nc], channel, T, h, delivery)
             K = np.einsum("aij,kj->aik", K_c, reach)                      # u = -K_c x_c, x_c = T_c' x
         if nc == 0 or not lam_c > lam_u:
-            P = np.repeat((rest @ _dominant_left(split.A_uu) @ rest.T)[None] / M, M, axis=0)
+            P = np.repeat((rest @ perron_adjoint(split.A_uu) @ rest.T)[None] / M, M, axis=0)
         else:
             P = np.einsum("ij,ajk,lk->ail", reach, P_c, reach)
     return max(lam_u, lam_c), 0.5 * (P + P.transpose(0, 2, 1)), K
 
 
 def _bound(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str) -> float:
-    """The largest c with ``R(P)_a >= c P_a`` over the modes P weighs (region.radius_bound of :func:`_riccati_factors`;
-    inf where P weighs none). O(M^2 (n + m)(m + n)^2 + M n^3)."""
-    factors = _riccati_factors(psd_factor(P)[0], A, B, T, h, delivery)
-    return min((radius_bound(F, P[a]) for a, F in enumerate(factors) if np.any(P[a])), default=np.inf)
+    """The largest c with ``R(P)_a >= c P_a`` over the modes P weighs (riccati_map.certificate_bound, its cutoff
+    scaled to all of P; inf where P weighs none). O(M^2 (n + m)(m + n)^2 + M n^3)."""
+    return certificate_bound(P, A, B, *chain_rates(T, h, delivery), scaled=True)
 
 
 @typed_linalg("the chain certificate's margin")
@@ -435,9 +399,9 @@ def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertEllio
     """``c - 1``, c the bound every mode-dependent law's coupled radius meets by the certificate P (M, n, n): the
     largest c with ``R(P)_a >= c P_a`` for every mode a that P weighs, so ``L_K^*(P) >= c P`` and ``rho(L_K) >= c``
     for every K (Collatz–Wielandt), i.e. ``[[A'E_aA - cP_a, -A'F_a], [-F_a'A, H_a]] >= 0`` for every mode.
-    ``R(P)_a = F_a'F_a`` is the least-squares residual (region.least_squares_residual) of the factors of
-    ``L_K^*(P)_a``, stacked over the next mode b with weights ``sqrt(T_ab)`` (region.moment_factor at P_b with
-    h_b, "next", or h_a, "current"); each mode's bound is region.radius_bound.
+    ``R(P)_a = F_a'F_a`` is the least-squares residual of the factors of ``L_K^*(P)_a``, stacked over the next mode
+    b with weights ``sqrt(T_ab)`` (riccati_map.riccati_factors at P_b with h_b, "next", or h_a, "current"); each
+    mode's bound is riccati_map.radius_bound.
 
     Where some part of the plant no input reaches (linalg.controllable_split), the bound is taken in the split's
     coordinates, the couplings it dropped set to zero, and also over the reachable subspace alone where P weighs it
@@ -460,10 +424,10 @@ def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertEllio
     _, T, h = mode_chain(channel)
     P = np.asarray(P, dtype=float)
     P = 0.5 * (P + P.transpose(0, 2, 1))
-    size = max(float(np.linalg.norm(p, 2)) for p in P) if np.all(np.isfinite(P)) else float("nan")
-    if not size > 0 or min(float(np.linalg.eigvalsh(p)[0]) for p in P) < -CERTIFICATE_RTOL * size:
+    size = psd_size(P)
+    if not size > 0:
         return float("-inf")
-    split, Bt = _split(A, B, h)
+    split, Bt = reach_split(A, B, np.any(h > 0, axis=0))
     nc, n = split.nc, A.shape[0]
     if nc == n:
         return _bound(P, A, B, T, h, delivery) - 1.0

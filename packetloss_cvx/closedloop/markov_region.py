@@ -44,6 +44,7 @@ from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, MEAN_SQUARE_MARGIN
 from .chain_radius import chain_certificate_margin, check_delivery, homogeneous_coupled_riccati
 from .critical import critical_point
 from .mjls import mean_square_radius as mjls_radius
+from .riccati_map import cut_candidates
 from .stability import is_mean_square_stable
 
 __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "chain_least_radius", "chain_membership",
@@ -54,21 +55,15 @@ __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "
 def chain_outside(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray, delivery: str
                   ) -> tuple[float, np.ndarray | None]:
     """``(margin, certificate)``: P (normalised to ``sum_a tr P_a = 1``) when its margin is ``>= -CERTIFICATE_RTOL``,
-    else P with its eigenvalues below 1e-12, 1e-9, 1e-6 of the largest (over all modes) cut off, the first that
-    checks (each a certificate in its own right: an eigenvector leaves rounding weight on modes and blocks of
-    smaller radius); ``(margin of P, None)`` when none does. Time O(4 chain margins)."""
+    else P with its eigenvalues below riccati_map.CUTS (1e-12, 1e-9, 1e-6) of the largest (over all modes) cut off,
+    the first that checks (riccati_map.cut_candidates, each a certificate in its own right: an eigenvector leaves
+    rounding weight on modes and blocks of smaller radius); ``(margin of P, None)`` when none does. Time O(4 chain
+    margins)."""
     P = P / max(float(sum(np.trace(p) for p in P)), np.finfo(float).tiny)
     margin = chain_certificate_margin(A, B, channel, P, delivery)
     if margin >= -CERTIFICATE_RTOL:
         return margin, P
-    w, U = np.linalg.eigh(0.5 * (P + P.transpose(0, 2, 1)))
-    top = float(np.max(w))
-    for cut in (1e-12, 1e-9, 1e-6):
-        kept = w > cut * top
-        if np.all(kept) or not np.any(kept):
-            continue
-        Q = np.einsum("aij,aj,akj->aik", U, np.where(kept, w, 0.0), U)
-        Q = Q / float(sum(np.trace(q) for q in Q))
+    for Q in cut_candidates(0.5 * (P + P.transpose(0, 2, 1))):
         cut_margin = chain_certificate_margin(A, B, channel, Q, delivery)
         if cut_margin >= -CERTIFICATE_RTOL:
             return cut_margin, Q

@@ -20,6 +20,12 @@ Riccati map ``R(P) = min_K L_K^*(P)`` with Omega = Psi = 0, power-iterated to it
 outside one when lambda > 1) and "lmi" (simulation.region_lmi: the Schur-complement LMI and its alternative,
 cvxpy + Clarabel). A form that cannot check its certificate says "undecided", never "unstable".
 
+The map's algebra (R as a sum of squares, the Collatz–Wielandt bound of a certificate, its cuts, the part no input
+reaches) is simulation.riccati_map's, over M-mode channels: Bernoulli losses are its one-mode chain, and
+simulation.chain_radius iterates the same map behind Gilbert–Elliott chains. The iteration here is its own (batched
+over channels, a Kronecker policy iteration, graded balancing): the chain's run on one-mode chains moves the least
+radius of a graded Jordan chain by 5e-3 and takes 5x the time (benchmarks/region_engine.py --one-mode).
+
 The "dp" form can only prove "stable" (its gain's radius below ``1 - MEAN_SQUARE_MARGIN``). When the "riccati"
 form ran before it and proved "unstable", or undecided but its P bounds every law's radius at
 ``1 - MEAN_SQUARE_MARGIN / 2`` or more (the outside check with that band, :data:`_DP_HOPELESS`), no gain can pass
@@ -43,7 +49,6 @@ from ..lq.recursion import riccati_step
 from ..model.system import System
 from ..results.region import Membership
 from ..tolerances import (
-    CERTIFICATE_KERNEL_RTOL,
     CERTIFICATE_RTOL,
     HOMOGENEOUS_RICCATI_MAX_ITER,
     KRONECKER_MAX_N,
@@ -54,23 +59,31 @@ from ..tolerances import (
 from .certificates import candidates, law_proved_stable, outside_proved
 from .moments import stationary_channel
 from .riccati import dp_riccati
+from .riccati_map import (
+    POLICY_STEPS,
+    SHIFT,
+    bernoulli_rates,
+    certificate_bound,
+    converges_within,
+    cut_candidates,
+    perron_adjoint,
+    psd_part_factor,
+    psd_size,
+    reach_split,
+    riccati_factors,
+)
 from .stability import check_law, is_mean_square_stable, law_radius, mean_square_radius, second_moment_matrix
 
 __all__ = ["FORMS", "LazyLmi", "certificate_margin", "converges_within", "homogeneous_riccati", "membership",
            "proved_margin"]
 
-#: the power iteration runs on R + _SHIFT * lambda * I (same eigenvector): a shift removes a peripheral spectrum
-#: (e.g. rotations, eigenvalues -lambda); 0.1 costs little speed where the second eigenvalue is small
-#: (0.5 had taken 280 steps a point on the two_actuator grid)
-_SHIFT = 0.1
-
-#: power-iteration steps before the policy iteration takes over (n <= KRONECKER_MAX_N), and its step cap
+#: power-iteration steps before the policy iteration takes over (n <= KRONECKER_MAX_N; the policy iteration's step
+#: cap: riccati_map.POLICY_STEPS; the power iteration's shift: riccati_map.SHIFT)
 _POWER_STEPS = 30
 #: power steps after which a point whose steps shrink too slowly to converge within _POWER_STEPS is handed to the
 #: policy iteration at once, asked at this step only (two_actuator: steps shrink by about 0.8 each, 120 to go; the
 #: 26 power steps left were waste)
 _POWER_WATCH = 4
-_POLICY_STEPS = 50
 #: where the eigenpair's own gain is not proved stabilising, the gain is taken once more from P + _LIFT I (tr P = 1):
 #: the Perron eigenvector of a decoupled plant vanishes on the blocks whose radius is not the largest, and the
 #: least-squares minimiser gives them gain 0; the lifted P weighs every direction (without it,
@@ -112,7 +125,7 @@ class LazyLmi:
 
 def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray) -> float:
     """``c - 1``, c the bound every law's mean-square radius meets by the infeasibility certificate P: the largest
-    c with ``R(P) >= c P`` (:func:`radius_bound` of :func:`riccati_factor`; equivalently ``T_mu(P)`` with
+    c with ``R(P) >= c P`` (riccati_map.certificate_bound at the one-mode chain; equivalently ``T_mu(P)`` with
     ``A'PA - cP`` in its corner is PSD), so ``rho(L_K) >= c`` for every K.
 
     ``P >= 0`` with a margin ``>= -CERTIFICATE_RTOL`` proves (to rounding) that no law stabilises: a band on the
@@ -127,84 +140,10 @@ def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarr
     >>> [round(certificate_margin(A, B, np.array([mu]), np.eye(1)), 12) for mu in (0.6, 0.9)]
     [0.6, -0.6]
     """
-    P = 0.5 * (P + P.T)
-    size = float(np.linalg.norm(P, 2)) if np.all(np.isfinite(P)) else float("nan")
-    if not size > 0 or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL * size:
+    P = 0.5 * (P + P.T)[None]
+    if not psd_size(P) > 0:
         return float("-inf")
-    L, _ = psd_factor(P)
-    return radius_bound(riccati_factor(L, A, B, mu), P) - 1.0
-
-
-def psd_factor(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(L, w)``: ``P+ = L L'`` the PSD part of a symmetric stack P (..., n, n), its eigenvalues w (ascending) at or
-    below ``n eps max(w)`` taken as zero (so P+ has an exact kernel there), and those eigenvalues ``w`` (..., n) with
-    the dropped ones set to 0; ``L = U diag(sqrt(w))``, its columns the eigenvectors. Time O(n^3) a point."""
-    w, U = np.linalg.eigh(0.5 * (P + np.swapaxes(P, -1, -2)))
-    top = np.max(w, axis=-1, keepdims=True)
-    w = np.where(w > P.shape[-1] * np.finfo(float).eps * np.maximum(top, 0.0), w, 0.0)
-    return U * np.sqrt(w)[..., None, :], w
-
-
-def moment_factor(L: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(Phi_x, Phi_u)`` with ``E[(Ax - BVu)' P (Ax - BVu)] = ||Phi_x x + Phi_u u||^2`` for ``P = L L'`` (stacks:
-    L (..., n, r), mu (..., m); the factors (..., r + m, n) and (..., r + m, m)): the mean and the loss variance of
-    the delivered input, ``c_i = mu_i (1 - mu_i)``,
-
-    .. math:: \\Phi_x = \\begin{bmatrix} L'A \\\\ 0 \\end{bmatrix},\\quad \\Phi_u = \\begin{bmatrix} -L'BM \\\\
-       \\mathrm{diag}(\\sqrt{c_i \\|L'b_i\\|^2}) \\end{bmatrix}.
-
-    Time O(r n (n + m)) a point."""
-    m = B.shape[1]
-    LA, LB = np.swapaxes(L, -1, -2) @ A, np.swapaxes(L, -1, -2) @ B
-    spread = np.sqrt(mu * (1.0 - mu) * np.sum(LB * LB, axis=-2))
-    phi_u = np.concatenate([-LB * mu[..., None, :], spread[..., :, None] * np.eye(m)], axis=-2)
-    phi_x = np.concatenate([LA, np.zeros((*spread.shape, A.shape[0]))], axis=-2)
-    return phi_x, phi_u
-
-
-def least_squares_residual(phi_x: np.ndarray, phi_u: np.ndarray, scale: float = 0.0) -> np.ndarray:
-    """``F = (I - U U') Phi_x``, U the left singular vectors of ``Phi_u`` above lstsq's cutoff (``eps max(k, m)
-    max(s_max, scale)``, the minimum-norm minimiser's; ``scale`` makes columns at rounding level of a larger
-    problem count as zero): ``min_u ||Phi_x x + Phi_u u||^2 = ||F x||^2``, an orthogonal projection, whose error
-    does not grow with the minimising gain as a difference ``A'PA - A'PBM K`` does. Stacks on the leading axes.
-    Time O(k (m + n)^2) a point."""
-    U, sv, _ = np.linalg.svd(phi_u, full_matrices=False)
-    cutoff = np.finfo(float).eps * max(phi_u.shape[-2:]) * np.maximum(sv[..., :1], scale)
-    U = U * (sv > cutoff)[..., None, :]
-    return phi_x - U @ (np.swapaxes(U, -1, -2) @ phi_x)
-
-
-def riccati_factor(L: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """``F`` with ``R(P) = F'F`` for ``P = L L'`` (stacks): the homogeneous modified Riccati map as the
-    least-squares residual of :func:`moment_factor` (``R(P) = min_u E[(Ax - BVu)'P(Ax - BVu)]``), PSD by
-    construction. Time O((r + m)(m + n)^2) a point.
-
-    >>> F = riccati_factor(np.eye(1), np.array([[2.0]]), np.array([[1.0]]), np.array([0.5]))
-    >>> round(float(np.sum(F * F)), 12)             # scalar: R(1) = a^2 (1 - mu)
-    2.0
-    """
-    return least_squares_residual(*moment_factor(L, A, B, mu))
-
-
-def radius_bound(F: np.ndarray, P: np.ndarray) -> float:
-    """The largest c with ``F'F >= c P`` (P PSD, one point): ``min ||F x||^2 / x'Px`` over x with ``Px != 0``. With
-    ``F'F = min_K L_K^*(P)`` this is the Collatz-Wielandt bound ``rho(L_K) >= c`` for every K (``L_K^*(P) >= c P``,
-    ``P >= 0``, ``P != 0``). Eigenvalues of P at or below ``n eps max`` count as its kernel, whose directions are
-    minimised out first (a projection; a kernel direction F maps below ``CERTIFICATE_KERNEL_RTOL ||F||`` is
-    rounding, no direction at all); 0.0 where the support is wider than F's rank. Time O(n^3 + k n^2)."""
-    w, U = np.linalg.eigh(0.5 * (P + P.T))
-    keep = w > P.shape[0] * np.finfo(float).eps * max(float(w[-1]), 0.0)
-    if not np.any(keep):
-        return float("-inf")
-    Y = F @ U
-    support = Y[:, keep]
-    if not np.all(keep):
-        support = least_squares_residual(support, Y[:, ~keep],
-                                         CERTIFICATE_KERNEL_RTOL / np.finfo(float).eps * float(np.linalg.norm(F, 2)))
-    G = support / np.sqrt(w[keep])
-    if G.shape[0] < G.shape[1]:
-        return 0.0
-    return float(np.linalg.svd(G, compute_uv=False)[-1] ** 2)
+    return certificate_bound(P, A, B, *bernoulli_rates(mu)) - 1.0
 
 
 def _homogeneous_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -261,26 +200,27 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray, start: np.
     try:
         for pattern in np.unique(reaches, axis=0):
             idx = np.flatnonzero(np.all(reaches == pattern, axis=1))
-            split = controllable_split(A, B[:, pattern])
+            split, Bt = reach_split(A, B, pattern)
             if split.nc == n:
                 lam[idx], P[idx], K[idx] = _graded(A, B, mus[idx], start)
             else:
-                lam[idx], P[idx], K[idx] = _split_eigenpairs(split, A, B, mus[idx], start)
+                lam[idx], P[idx], K[idx] = _split_eigenpairs(split, Bt, A, B, mus[idx], start)
     except np.linalg.LinAlgError as err:
         raise NumericalError(f"homogeneous Riccati eigenpair: a linear-algebra routine failed ({err}); no "
                              "candidate certificate") from None
     return (float(lam[0]), P[0], K[0]) if single else (lam, P, K)
 
 
-def _split_eigenpairs(split: ControllableSplit, A: np.ndarray, B: np.ndarray, mus: np.ndarray,
+def _split_eigenpairs(split: ControllableSplit, Bt: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray,
                       start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`homogeneous_riccati` where the inputs that deliver leave a part unreached (``split``, the Kalman
-    decomposition ``T'AT = [[A_cc, A_cu], [0, A_uu]]``, ``T'B = [[B_c], [0]]``): the second-moment operator is block
-    triangular, so ``rho(L_K) = max(rho of the reached part's operator, rho(A_uu)^2)`` and the least radius is
-    ``max(lambda_c, rho(A_uu)^2)``, lambda_c the reached part's own (computed on (A_cc, B_c)); the gain is the
-    reached part's, 0 on the rest. P: where the unreached part decides, the Perron eigenvector of
-    ``X -> A_uu' X A_uu``; else the eigenvector of the whole map, iterated from the reached part's (checked by the
-    caller like any candidate). Time that of the reached part's iteration (and the whole one's)."""
+    decomposition ``T'AT = [[A_cc, A_cu], [0, A_uu]]``, ``Bt = T'B = [[B_c], [0]]``: riccati_map.reach_split): the
+    second-moment operator is block triangular, so ``rho(L_K) = max(rho of the reached part's operator,
+    rho(A_uu)^2)`` and the least radius is ``max(lambda_c, rho(A_uu)^2)``, lambda_c the reached part's own
+    (computed on (A_cc, B_c)); the gain is the reached part's, 0 on the rest. P: where the unreached part decides,
+    the Perron eigenvector of ``X -> A_uu' X A_uu``; else the eigenvector of the whole map, iterated from the reached
+    part's (checked by the caller like any candidate). Time that of the reached part's iteration (and the whole
+    one's)."""
     n, m = B.shape
     G, nc, T = mus.shape[0], split.nc, split.T
     Tc, Tu = T[:, :nc], T[:, nc:]
@@ -289,31 +229,16 @@ def _split_eigenpairs(split: ControllableSplit, A: np.ndarray, B: np.ndarray, mu
     P_c = np.zeros((G, nc, nc))
     if nc:
         start_c = None if start is None else Tc.T @ np.asarray(start, dtype=float) @ Tc
-        lam_c, P_c, K_c = _graded(split.A_cc, (T.T @ B)[:nc], mus, start_c)
+        lam_c, P_c, K_c = _graded(split.A_cc, Bt[:nc], mus, start_c)
         K = K_c @ Tc.T
     lam = np.maximum(lam_c, unreached)
     P = np.empty((G, n, n))
     top = unreached >= lam_c
     if np.any(top):
-        P[top] = Tu @ _perron_adjoint(split.A_uu) @ Tu.T
+        P[top] = Tu @ perron_adjoint(split.A_uu) @ Tu.T
     for g in np.flatnonzero(~top):
         P[g] = _graded(A, B, mus[g:g + 1], Tc @ P_c[g] @ Tc.T)[1][0]
     return lam, P, K
-
-
-def _perron_adjoint(A: np.ndarray) -> np.ndarray:
-    """The Perron eigenvector of ``X -> A'XA`` (PSD, trace 1): ``Re(w w^H)`` for a left eigenvector w of A's
-    eigenvalue of largest modulus (``A'XA = |lambda|^2 X``). O(n^3).
-
-    >>> A = np.array([[2.0, 1.0], [0.0, 0.5]])                 # A' w = 2 w for w = (3, 2) / sqrt(13)
-    >>> X = _perron_adjoint(A)
-    >>> X.round(12).tolist(), bool(np.allclose(A.T @ X @ A, 4 * X))
-    ([[0.692307692308, 0.461538461538], [0.461538461538, 0.307692307692]], True)
-    """
-    vals, vecs = np.linalg.eig(A.T)
-    w = vecs[:, int(np.argmax(np.abs(vals)))]
-    X = np.outer(w.real, w.real) + np.outer(w.imag, w.imag)
-    return X / float(np.trace(X))
 
 
 #: a P whose diagonal spans more than this (least over largest, zeros aside) is refined on the plant scaled by
@@ -453,7 +378,7 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray, active:
         # R(P) = 0 to rounding: lambda = 0 (a deadbeat law, e.g. mu_i = 1 and B invertible), or an overflow the
         # caller's check refuses; iterating on R / lambda would amplify rounding: such a point stops here
         zero = ~(np.isfinite(lam) & (lam > floor * np.trace(Pa, axis1=-2, axis2=-1)))
-        P_next = (R / lam[:, None, None] + _SHIFT * Pa) / (1.0 + _SHIFT)
+        P_next = (R / lam[:, None, None] + SHIFT * Pa) / (1.0 + SHIFT)
         moved = np.linalg.norm(P_next - Pa, axis=(-2, -1))
         done = moved <= RICCATI_RTOL
         P[idx[~zero]] = P_next[~zero]
@@ -469,21 +394,6 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray, active:
             slow[idx[hand]] = True
             active[idx[hand]] = False
         last[idx] = moved
-
-
-def converges_within(moved: np.ndarray, last: np.ndarray, steps_left: int) -> np.ndarray:
-    """Does a power iteration whose last two steps moved ``last`` then ``moved`` (``||P_next - P||``, above
-    RICCATI_RTOL) reach RICCATI_RTOL within ``steps_left`` more steps at that rate r = moved / last: r < 1 and
-    ``log(RTOL / moved) / log r <= steps_left``? The hand-off test of this module's and simulation.markov_region's
-    power iterations. Elementwise; O(1) a point.
-
-    >>> converges_within(np.array([1e-6, 1e-2]), np.array([1e-3, 2e-2]), 10).tolist()   # rates 1e-3 and 0.5
-    [True, False]
-    """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rate = np.asarray(moved, dtype=float) / last
-        to_go = np.where(rate < 1.0, np.log(RICCATI_RTOL / moved) / np.log(rate), np.inf)
-    return to_go <= steps_left
 
 
 def _fixed(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -503,8 +413,8 @@ def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> 
     lam = np.full(P.shape[0], np.nan)
     finite = np.all(np.isfinite(P), axis=(-2, -1))
     if np.any(finite):
-        L, w = psd_factor(P[finite])
-        F = riccati_factor(L, A, B, mu[finite])
+        L, w = psd_part_factor(P[finite])
+        F = riccati_factors(L[:, None], A, B, *bernoulli_rates(mu[finite]))[:, 0]
         total = np.sum(w, axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
             lam[finite] = np.where(total > 0, np.sum(F * F, axis=(-2, -1)) / total, np.nan)
@@ -522,7 +432,7 @@ def _policy_iteration(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarra
     last = np.full(P.shape[0], np.inf)
     alive = np.ones(P.shape[0], dtype=bool)
     moved_any = np.zeros(P.shape[0], dtype=bool)
-    for _ in range(_POLICY_STEPS):
+    for _ in range(POLICY_STEPS):
         K, _ = _homogeneous_step(P[alive], A, B, mu[alive])
         idx = np.flatnonzero(alive)
         finite = np.all(np.isfinite(K), axis=(-2, -1))
@@ -575,11 +485,6 @@ def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) 
     return ("stable" if proved else "undecided"), radius
 
 
-#: relative eigenvalue cuts under which an infeasibility certificate's P is tried again without those directions:
-#: the power iteration leaves weight ~1e-13 on a block whose own radius is below the top one (decoupled (3, 1.2,
-#: 0.5) at the boundary: the bound of P is that block's 0.175, of P cut at 1e-12 exactly 1); each cut P is a
-#: certificate in its own right, checked as any other
-_CUTS = (1e-12, 1e-9, 1e-6)
 #: the certificate margin from which the "dp" form is not run (module docstring): every law's radius is then at
 #: least 1 - MEAN_SQUARE_MARGIN / 2, proved exactly, so no gain can be proved below the 1 - MEAN_SQUARE_MARGIN that
 #: "stable" needs (nor after a proved "unstable" of the "riccati" form, whose margin is above this one)
@@ -590,21 +495,15 @@ def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None,
              ) -> tuple[str, float, np.ndarray | None]:
     """"unstable" with the margin and the certificate that proves every law's radius at least ``1 + margin >= 1 +
     floor`` in exact arithmetic (:func:`proved_margin`), else "undecided" with the float estimate of P's margin
-    (:func:`certificate_margin`). Tried in turn: P and P cut at :data:`_CUTS` (each also snapped), then each of
+    (:func:`certificate_margin`). Tried in turn: P and P cut at riccati_map.CUTS (each also snapped), then each of
     them tilted (certificates.candidates)."""
     if P is None or not np.all(np.isfinite(P)):
         return "undecided", float("nan"), None
     P = 0.5 * (P + P.T) / max(float(np.trace(P)), np.finfo(float).tiny)
     margin = certificate_margin(A, B, mu, P)
-    w, U = np.linalg.eigh(P)
-    candidates = [(P, margin)]
-    for cut in _CUTS:
-        kept = w > cut * w[-1]
-        if np.all(kept) or not np.any(kept):
-            continue
-        Q = (U[:, kept] * w[kept]) @ U[:, kept].T
-        Q = 0.5 * (Q + Q.T) / float(np.trace(Q))
-        candidates.append((Q, certificate_margin(A, B, mu, Q)))
+    # the power iteration leaves weight ~1e-13 on a block whose own radius is below the top one (decoupled (3, 1.2,
+    # 0.5) at the boundary: the bound of P is that block's 0.175, of P cut at 1e-12 exactly 1)
+    candidates = [(P, margin)] + [(Q[0], certificate_margin(A, B, mu, Q[0])) for Q in cut_candidates(P[None])]
     for tilt in (False, True):       # the candidates as they are first (a PSD certificate where one checks)
         for Q, estimate in candidates:
             proved = proved_margin(A, B, mu, Q, estimate, floor, tilt)
@@ -649,7 +548,7 @@ def _unreached(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.
     >>> round(margin, 6), P.round(12).tolist()      # every law leaves x2+ = 1.2 x2: radius >= 1.44
     (0.44, [[0.0, 0.0], [0.0, 1.0]])
     """
-    split = controllable_split(A, B[:, mu > 0.0])
+    split = reach_split(A, B, mu > 0.0)[0]
     if split.nc == A.shape[0]:
         return None
     top = split.uncontrollable_radius ** 2
