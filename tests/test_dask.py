@@ -69,16 +69,19 @@ def test_stability_on_dask_is_bit_identical(cluster, two_actuator):
     assert "radius_tcp" in there.arrays()
 
 
-def test_a_worker_error_keeps_its_type(cluster):
-    # badly scaled weights: every closed form refuses them (NumericalError), on the worker as here
-    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1e12], input_weight=[1e-6], mu=[0.5], x0=[1.0])
-    try:
-        pl.closed_form(s, "tcp")
-    except pl.NumericalError:
-        with pytest.raises(pl.NumericalError):
-            sweep(s, mu_grid=3, dask=cluster.scheduler_address, progress=False)
-    else:
-        pytest.skip("this system is not refused here")
+def test_a_worker_error_keeps_its_type(cluster, two_actuator, monkeypatch):
+    """A typed error raised inside a Dask task reaches the caller with its own type and message. The error is
+    planted in the chunk evaluation (the cluster's workers are threads of this process, so they see the patch) and
+    names the thread that raised it: a worker's, not this one's."""
+    from packetloss_cvx.studies import engine
+
+    def refuse(system_data):
+        raise pl.NumericalError(f"planted refusal on thread {threading.current_thread().name!r}")
+
+    monkeypatch.setattr(engine, "system_from_dict", refuse)
+    with pytest.raises(pl.NumericalError, match="^planted refusal on thread") as info:
+        sweep(two_actuator, mu_grid=3, dask=cluster.scheduler_address, progress=False)
+    assert repr(threading.main_thread().name) not in str(info.value)
 
 
 def test_workers_only_with_a_local_cluster(cluster, two_actuator):
@@ -115,8 +118,10 @@ def test_an_unreachable_scheduler_is_one_line_and_no_wait():
                            "--dask", "http://example.invalid:8786"], capture_output=True, text=True, check=False,
                           timeout=120, env=dict(os.environ))
     assert proc.returncode == 2
-    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("packetloss-cvx: error: --dask: cannot reach")
-    assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr
+    assert proc.stderr.count("\n") == 1
+    assert proc.stderr.startswith("packetloss-cvx: error: --dask: cannot reach")
+    assert "Traceback" not in proc.stderr
+    assert "Exception ignored" not in proc.stderr
 
 
 #: the no-worker timeout the test sets (the product's is NO_WORKER_TIMEOUT, 60 s): the test waits it out, so it
@@ -132,7 +137,8 @@ def test_a_scheduler_without_workers_stops_the_sweep(two_actuator, monkeypatch, 
                                   dashboard_address=":0", silence_logs=logging.ERROR) as empty:
         with pytest.raises(pl.InputError, match=f"no worker for {NO_WORKER_WAIT:g} s") as info:
             sweep(two_actuator, mu_grid=3, dask=empty.scheduler_address, progress=False)
-    assert info.value.field == "dask" and "0 of 1 chunks done" in str(info.value)
+    assert info.value.field == "dask"
+    assert "0 of 1 chunks done" in str(info.value)
 
 
 def _session(sid):
