@@ -94,7 +94,8 @@ def test_pendulum_at_mu_one_long_horizons(N):
         assert sol.cost == pytest.approx(float(s.x0 @ (s.initial_weight + P0) @ s.x0), rel=1e-9)
         np.testing.assert_allclose(sol.inputs[0], -K0 @ s.x0, rtol=1e-9)
         np.testing.assert_allclose(sol.gain, K0, rtol=1e-9)
-    else:   # independent: the forward pass of the plan (nonnegative terms) and the sparse QP
+    else:   # plumbing: the reported cost is the forward pass of the reported plan (closed_form's own referee, so
+            # this cannot disagree unless the wrong plan or cost is returned); independent: the sparse QP
         assert np.isclose(recursion_cost(s, sol.inputs, "tcp"), sol.cost, rtol=1e-9)
         qp = pl.solve_qp(s, "tcp", "sparse", with_gain=False, cross_check=False)
         assert abs(qp.cost - sol.cost) <= 1e-7 * sol.cost
