@@ -132,7 +132,7 @@ def test_lp_failure_propagates(two_actuator, monkeypatch):
     class Failed:
         status, message = 4, "numerical difficulties"
 
-    monkeypatch.setattr(boxes, "highs_optimum", lambda *args: None)     # HiGHS called directly had no optimum:
+    monkeypatch.setattr(boxes, "highs_optimum", lambda *args: None)     # HiGHS called directly finds no optimum:
     monkeypatch.setattr(boxes, "linprog", lambda *args, **kwargs: Failed())     # linprog reports why
     with pytest.raises(pl.SolverError, match="linprog status 4"):
         allocate(two_actuator, "udp", 6.0, (1.0, 1.0), constraints=[parse_constraint("mu1 >= mu2", 2)])

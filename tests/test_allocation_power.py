@@ -1,4 +1,4 @@
-"""Power-limited links (allocation/power.py, issue 24): the models, the two problems for both protocols,
+"""Power-limited links (allocation/power.py): the models, the two problems for both protocols,
 against hand values (one channel: invert mu(P) at the mu the scalar problem needs), decoupled plants
 (a one-dimensional search over the split of the budget), a grid of P, and the mu allocation."""
 

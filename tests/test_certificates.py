@@ -166,8 +166,8 @@ def test_snapping_restores_the_exact_zeros_of_a_decoupled_certificate():
 
 
 def test_a_singular_fixed_point_solve_is_a_numerical_error():
-    """X = X + C has no solution (the map has the eigenvalue 1): numpy's LinAlgError had escaped membership,
-    critical_point and region_map near a boundary; it is a NumericalError."""
+    """X = X + C has no solution (the map has the eigenvalue 1): a NumericalError, not numpy's LinAlgError escaping
+    membership, critical_point and region_map near a boundary."""
     with pytest.raises(NumericalError, match="singular"):
         solve_fixed_point(lambda X: X, lambda: np.eye(1), np.eye(1), "a demo")
 

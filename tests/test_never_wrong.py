@@ -1,6 +1,6 @@
 """Never silently wrong: every default path returns the right number or raises a typed error.
 
-Each case here was a wrong number returned without an error (issue "Never silently wrong").
+Each case is one where a wrong number could be returned without an error.
 References are independent of the path under test: the exact O(N) recursion where it passes
 its own check, the Clarabel QP twin, a hand value, or the forward pass of the mean state.
 """

@@ -1,5 +1,5 @@
 """``sweep --burstiness``: the plug-in laws against the exact minimum under Gilbert channels of the
-file's average rates (issue 11, item 5), on the command line."""
+file's average rates, on the command line."""
 
 import json
 
@@ -67,7 +67,7 @@ def test_bad_burstiness_is_one_line_and_exit_2(capsys, argv, field):
 
 
 @pytest.mark.parametrize("argv", [
-    ["sweep", "pendulum_bursty", "--mu-grid", "3"],     # (allocate takes chain files since issue 23 item 5)
+    ["sweep", "pendulum_bursty", "--mu-grid", "3"],     # (allocate takes chain files)
 ])
 def test_a_chain_file_outside_burstiness_points_to_the_option(capsys, argv):
     # on the command line the way out is an option, not a Python function
