@@ -23,7 +23,7 @@ from packetloss_cvx.claims.registry import run_claim
 from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.tolerances import RESOLVED_MIN
 
-#: the claims whose comparisons are scaled to the problem (theorem-1-*, cost-split-sensor: the issue's three)
+#: the claims whose comparisons are scaled to the problem (theorem-1-* and cost-split-sensor among them)
 CLAIMS = ("theorem-1-laws", "theorem-1-costs", "cost-split-sensor", "theorem-2", "corollary-1", "expected-cost-tcp",
           "lemma-1", "lemma-quad-expectation", "mpc-vs-dp")
 

@@ -81,7 +81,8 @@ def test_the_region_is_not_convex_in_mu():
 
 
 def test_critical_mu_dp_scalar_meets_its_tolerance_on_both_sides():
-    """The issue's case: A = 2, B = 1, Psi = 0.1, Omega = 1; exact 1 - 1/a^2 = 0.75 (was 0.750004768)."""
+    """A = 2, B = 1, Psi = 0.1, Omega = 1 and other scalars: exact 1 - 1/a^2 (0.75 at a = 2), met within the tolerance
+    from both sides (a bisection stopped early would report 0.750004768)."""
     for a in (2.0, 1.5, 3.0, 10.0):
         exact = 1 - 1 / a ** 2
         for psi in (0.1, 1.0, 100.0):
