@@ -347,7 +347,7 @@ def span(values: Any) -> str:
 
 def design_sweep_repr(d: Any) -> str:
     """One line: ``DesignSweep('two-actuator', kind='mu-grid', shape={'mu2': 11, 'mu1': 11}, J*_tcp in [..], ...)``:
-    each quantity's range, never its values. O(P).
+    each quantity's range, never its values. O(points).
 
     >>> from types import SimpleNamespace
     >>> d = SimpleNamespace(name="x", kind="horizon", dims=("horizon",), shape=(3,),
@@ -367,7 +367,7 @@ def design_sweep_repr(d: Any) -> str:
 
 def design_sweep_html(d: Any) -> str:
     """The grid's dimensions and, per quantity, its range and where its maximum is (as ``DesignSweep.grid`` indexes
-    it), and how many points are mean-square stable. O(P).
+    it), and how many points are mean-square stable. O(points).
 
     >>> from types import SimpleNamespace
     >>> d = SimpleNamespace(name=None, kind="mu-grid", dims=("mu1",), shape=(3,), axes=(np.array([0.0, 0.5, 1.0]),),
@@ -394,7 +394,7 @@ def design_sweep_html(d: Any) -> str:
         if label.startswith("mean-square"):
             text += f"; stable (< 1) at {int(np.sum(arr < 1))} of {arr.size}"
         rows.append((label, text))
-    rows.append(("arrays", f"flat (P,) fields; shaped {tuple(d.shape)}: .grid(name); to_xarray()"))
+    rows.append(("arrays", f"flat (points,) fields; shaped {tuple(d.shape)}: .grid(name); to_xarray()"))
     return html_table("DesignSweep", rows)
 
 

@@ -1,4 +1,4 @@
-"""Honest allocation (issue 8): solver failures are errors, infeasibility needs a proof, lower
+"""Honest allocation: solver failures are errors, infeasibility needs a proof, lower
 bounds are proved, caps give "gap_not_certified", and warnings stay captured."""
 
 import json
@@ -19,21 +19,20 @@ from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.qp.convex import ClarabelProgram
 from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL
 
-# The 3-channel case of issue 8: beta = (2, 1, 1), mu1 <= mu2, mu1 + mu2 >= 1.2. Before the
-# fix, at alpha = 9.4 the UDP-like path said "alpha = 9.4 is below the least reachable udp-like
-# cost 1.62578" (a swallowed SolverError read as infeasible) and the TCP-like SOCP ended
-# "optimal_inaccurate" (quad-over-lin terms summed in one constraint, optimal mu3 = 0).
-ISSUE_8 = {"A": [[0.53, 0.52, 0.92], [-0.2, 0.28, -0.19], [-0.72, -0.36, 0.07]],
+# A 3-channel allocation with prices beta = (2, 1, 1) and rows mu1 <= mu2, mu1 + mu2 >= 1.2, whose optimum puts
+# mu3 = 0: a case where a solver failure could be read as infeasibility (the UDP-like path) and where the TCP-like
+# SOCP is badly conditioned (quad-over-lin terms summed in one constraint) unless built term by term.
+THREE_CHANNEL = {"A": [[0.53, 0.52, 0.92], [-0.2, 0.28, -0.19], [-0.72, -0.36, 0.07]],
            "B": [[-0.92, -0.19, 1.12], [0.57, 0.57, 0.35], [-0.18, -1.87, 0.99]], "horizon": 5,
            "state_weight": [[0.91, -1.1, -0.48], [-1.1, 1.68, 0.25], [-0.48, 0.25, 0.94]],
            "input_weight": [1.76, 1.83, 1.93], "mu": [0.5, 0.5, 0.5], "x0": [-1.51, 0.22, -0.11]}
-ISSUE_8_TEXT = ["mu1 <= mu2", "mu1 + mu2 >= 1.2"]
-ISSUE_8_BETA = (2.0, 1.0, 1.0)
+THREE_CHANNEL_ROWS = ["mu1 <= mu2", "mu1 + mu2 >= 1.2"]
+THREE_CHANNEL_PRICES = (2.0, 1.0, 1.0)
 
 
 @pytest.fixture(scope="module")
-def issue8():
-    return pl.System(**ISSUE_8), [parse_constraint(t, 3) for t in ISSUE_8_TEXT]
+def three_channel():
+    return pl.System(**THREE_CHANNEL), [parse_constraint(t, 3) for t in THREE_CHANNEL_ROWS]
 
 
 def qp_cost(system, protocol, mu):
@@ -41,27 +40,27 @@ def qp_cost(system, protocol, mu):
 
 
 @pytest.mark.parametrize("protocol", ["tcp", "udp"])
-def test_issue8_vertex_case(issue8, protocol):
+def test_three_channel_slack_cost_bound_is_met_at_the_cheapest_vertex(three_channel, protocol):
     """alpha = 9.4 is met with room to spare at mu = (0.2, 1, 0), which is also the vertex
     minimising beta'mu over the constraints (by hand: mu3 = 0, mu2 = 1, mu1 = 1.2 - mu2), so
     the optimum is exactly 1.4."""
-    system, cons = issue8
+    system, cons = three_channel
     assert qp_cost(system, protocol, [0.2, 1.0, 0.0]) < 9.4 / 2
-    got = allocate(system, protocol, 9.4, ISSUE_8_BETA, constraints=cons)
+    got = allocate(system, protocol, 9.4, THREE_CHANNEL_PRICES, constraints=cons)
     assert got.status == "optimal"
     assert np.allclose(got.mu, [0.2, 1.0, 0.0], atol=1e-8)
     assert got.lower_bound <= 1.4 + 1e-12
     assert got.communication_cost == pytest.approx(1.4, abs=1e-8)
 
 
-def test_issue8_active_cost(issue8):
+def test_three_channel_active_cost_bound_is_met_with_a_proved_lower_bound(three_channel):
     """At alpha = 2.5 the cost bound is active: both protocols answer, feasibly by the QP twin,
     and the UDP-like cost respects the TCP-like lower bound (Theorem 2)."""
-    system, cons = issue8
+    system, cons = three_channel
     with warnings.catch_warnings():
         warnings.simplefilter("error")        # the tight SOCP attempt ends inaccurate here: captured
-        t = allocate(system, "tcp", 2.5, ISSUE_8_BETA, constraints=cons)
-        u = allocate(system, "udp", 2.5, ISSUE_8_BETA, constraints=cons)
+        t = allocate(system, "tcp", 2.5, THREE_CHANNEL_PRICES, constraints=cons)
+        u = allocate(system, "udp", 2.5, THREE_CHANNEL_PRICES, constraints=cons)
     for got in (t, u):
         assert got.status == "optimal"
         assert qp_cost(system, got.protocol, got.mu) <= 2.5 * (1 + CROSS_CHECK_COST_RTOL)
@@ -72,21 +71,22 @@ def test_issue8_active_cost(issue8):
     # A reference for the bounds: with mu3 = 0 the third actuator never acts, so the system
     # without it has the same cost; the brute force over (mu1, mu2) with mu3 = 0 is beta'mu at
     # a feasible point, never below the optimum, so never below a valid lower bound.
-    reduced = pl.System(**{**ISSUE_8, "B": np.array(ISSUE_8["B"])[:, :2], "input_weight": ISSUE_8["input_weight"][:2],
-                           "mu": [0.5, 0.5]})
+    reduced = pl.System(**{**THREE_CHANNEL, "B": np.array(THREE_CHANNEL["B"])[:, :2],
+                           "input_weight": THREE_CHANNEL["input_weight"][:2], "mu": [0.5, 0.5]})
     assert qp_cost(reduced, "udp", [0.6, 0.9]) == pytest.approx(qp_cost(system, "udp", [0.6, 0.9, 0.0]), rel=1e-9)
-    G = np.vstack([parse_constraint(text, 2)[0] for text in ISSUE_8_TEXT])
-    h = np.concatenate([parse_constraint(text, 2)[1] for text in ISSUE_8_TEXT])
+    G = np.vstack([parse_constraint(text, 2)[0] for text in THREE_CHANNEL_ROWS])
+    h = np.concatenate([parse_constraint(text, 2)[1] for text in THREE_CHANNEL_ROWS])
     for got in (t, u):
-        ref = brute_force_allocation(reduced, got.protocol, 2.5, ISSUE_8_BETA[:2], G, h)
+        ref = brute_force_allocation(reduced, got.protocol, 2.5, THREE_CHANNEL_PRICES[:2], G, h)
         assert got.lower_bound <= ref[0] + 1e-9
 
 
-def test_issue8_cli_one_answer_no_noise(issue8, tmp_path, capsys):
-    system, _ = issue8
-    path = pl.save_system(system, tmp_path / "issue8.toml")
+def test_three_channel_allocation_on_the_command_line_prints_one_answer_and_no_warning(three_channel, tmp_path,
+                                                                                      capsys):
+    system, _ = three_channel
+    path = pl.save_system(system, tmp_path / "three_channel.toml")
     argv = ["allocate", str(path), "--protocol", "tcp", "--alpha", "2.5", "--beta", "2,1,1", "--json"]
-    for text in ISSUE_8_TEXT:
+    for text in THREE_CHANNEL_ROWS:
         argv += ["--constraint", text]
     assert main(argv) == 0
     out = capsys.readouterr()
@@ -132,7 +132,7 @@ def test_lp_failure_propagates(two_actuator, monkeypatch):
     class Failed:
         status, message = 4, "numerical difficulties"
 
-    monkeypatch.setattr(boxes, "highs_optimum", lambda *args: None)     # HiGHS called directly had no optimum:
+    monkeypatch.setattr(boxes, "highs_optimum", lambda *args: None)     # HiGHS called directly finds no optimum:
     monkeypatch.setattr(boxes, "linprog", lambda *args, **kwargs: Failed())     # linprog reports why
     with pytest.raises(pl.SolverError, match="linprog status 4"):
         allocate(two_actuator, "udp", 6.0, (1.0, 1.0), constraints=[parse_constraint("mu1 >= mu2", 2)])
@@ -301,7 +301,8 @@ def test_line_search_reaches_alpha_within_tol_in_few_evaluations(slope, curve):
         s_in, s_out = boxes.bracket(f, alpha, 0.0, 1.0, 1e-9)
         assert f(s_in) <= alpha < f(s_out)
         assert 0.0 < s_in - s_out <= 1e-9
-        assert s_out < crossing * (1 + 1e-12) and crossing * (1 - 1e-12) < s_in
+        assert s_out < crossing * (1 + 1e-12)
+        assert crossing * (1 - 1e-12) < s_in
         assert len(calls) - 2 <= 4 * np.log2(1.0 / 1e-9)
 
 

@@ -1,4 +1,4 @@
-"""Allocation behind Markov chains (allocation/chains.py; issue 23 item 5): mean rates chosen along each channel's
+"""Allocation behind Markov chains (allocation/chains.py): mean rates chosen along each channel's
 family (Gilbert channels: burstiness held; any other chain: deliveries scaled), the exact cost under the chain as
 the constraint. References: the Bernoulli allocation for memoryless chains and for every TCP-like case, grids of
 the exact cost by the dense route on chains built here, the QP twin of the exact minimum, every coin pattern of a

@@ -1,4 +1,4 @@
-"""The delivery-versus-power models (allocation/delivery.py, issue 24): mu(P), its inverse and slope against the
+"""The delivery-versus-power models (allocation/delivery.py): mu(P), its inverse and slope against the
 formulas by hand, concavity, the unit of power, bad input, the [power] table of a system file."""
 
 from __future__ import annotations

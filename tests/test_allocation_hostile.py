@@ -1,4 +1,4 @@
-"""Hostile input to the allocation (issue 8, item 6): a typed InputError naming the field in the
+"""Hostile input to the allocation: a typed InputError naming the field in the
 API, exit code 2 with one stderr line naming the flag on the command line; never a traceback,
 a warning dump, a hang or a silent answer."""
 
@@ -152,8 +152,8 @@ def test_the_brute_force_reference_refuses_what_allocate_refuses(alpha, beta, G,
 
 
 def test_allocate_on_a_chain_file_allocates_under_the_chain(capsys):
-    """allocate pendulum_bursty once printed a Bernoulli mu* for a file whose channel is a chain; since issue 23
-    item 5 the decision is the chain's mean rate: TCP-like, whose cost holds only mu_t, exactly the Bernoulli
+    """allocate on a file whose channel is a chain allocates under the chain, not a Bernoulli mu*: the decision is
+    the chain's mean rate: TCP-like, whose cost holds only mu_t, exactly the Bernoulli
     allocation of the same plant at that rate; UDP-like, the exact cost under the chain
     (tests/test_allocation_chains.py)."""
     assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0

@@ -1,4 +1,4 @@
-"""Power-limited links (allocation/power.py, issue 24): the models, the two problems for both protocols,
+"""Power-limited links (allocation/power.py): the models, the two problems for both protocols,
 against hand values (one channel: invert mu(P) at the mu the scalar problem needs), decoupled plants
 (a one-dimensional search over the split of the budget), a grid of P, and the mu allocation."""
 
@@ -420,8 +420,8 @@ def test_best_protocol_break_even_does_not_depend_on_the_ack_price():
 
 @pytest.mark.parametrize("protocol", ["tcp", "udp"])
 def test_least_power_is_zero_where_silent_channels_meet_alpha(protocol):
-    """alpha at or above J* of silent channels (mu(0)): zero power, proved by P >= 0 (was a SolverError of the
-    conic program, its scale 1 / (alpha - C) vanishing). Hand value: J*(mu = 0) = 1 on the one-step plant; on
+    """alpha at or above J* of silent channels (mu(0)): zero power, proved by P >= 0, not a SolverError of the
+    conic program (whose scale 1 / (alpha - C) vanishes there). Hand value: J*(mu = 0) = 1 on the one-step plant; on
     two_actuator the cost of the uncontrolled plan, sum_k x_k' x_k with x_{k+1} = A x_k, k = 1..N."""
     model = power_model("exponential", 1, scale=1.0)
     for alpha in (1.0, 1e9):

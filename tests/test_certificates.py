@@ -111,10 +111,10 @@ def test_inside_witness_is_decided_at_the_exact_radius():
 
 
 def test_a_chain_of_integrators_false_certificate_is_refused_and_its_gain_proved():
-    """A = I4 + N (ones on the superdiagonal), b = e4, mu = 0.0124 (the issue's plant): the exact least radius is
-    (1 - mu)^(1/4) = 0.99689 < 1 (Elia), and the gain K = [4.888e-9, 6.896e-6, 4.1397e-3, 1.00413] has radius
-    0.99750 (enumerated). The unscaled power iteration (its P graded from 4e-14 to 1) gave lambda 1.00137 and a P that
-    a float check accepted with margin 6.6e-4 under the Haswell kernel (the P and its float margin move with the
+    """A = I4 + N (ones on the superdiagonal), b = e4, mu = 0.0124 (a chain of integrators near S's edge): the exact
+    least radius is (1 - mu)^(1/4) = 0.99689 < 1 (Elia), and the gain K = [4.888e-9, 6.896e-6, 4.1397e-3, 1.00413] has
+    radius 0.99750 (enumerated). The unscaled power iteration (its P graded from 4e-14 to 1) gives lambda 1.00137 and a
+    P that a float check accepts with margin 6.6e-4 under the Haswell kernel (the P and its float margin move with the
     kernel); in exact arithmetic neither that P nor any of its cuts proves anything, and the gain is proved
     stable."""
     A, B, mu = np.eye(4) + np.eye(4, k=1), np.eye(4)[:, 3:], np.array([0.0124])
@@ -166,8 +166,8 @@ def test_snapping_restores_the_exact_zeros_of_a_decoupled_certificate():
 
 
 def test_a_singular_fixed_point_solve_is_a_numerical_error():
-    """X = X + C has no solution (the map has the eigenvalue 1): numpy's LinAlgError had escaped membership,
-    critical_point and region_map near a boundary; it is a NumericalError."""
+    """X = X + C has no solution (the map has the eigenvalue 1): a NumericalError, not numpy's LinAlgError escaping
+    membership, critical_point and region_map near a boundary."""
     with pytest.raises(NumericalError, match="singular"):
         solve_fixed_point(lambda X: X, lambda: np.eye(1), np.eye(1), "a demo")
 

@@ -101,7 +101,7 @@ def test_audit_cli_bad_claim(capsys):
     assert "claim: unknown claim id" in capsys.readouterr().err
 
 
-# ---------------------------------------------------------------- honest verdicts (issue 8)
+# ---------------------------------------------------------------- honest verdicts
 # A case whose check raises is *errored*: counted, named, never read as agreement.
 
 def _overflowing_system() -> pl.System:

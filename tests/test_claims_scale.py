@@ -23,7 +23,7 @@ from packetloss_cvx.claims.registry import run_claim
 from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.tolerances import RESOLVED_MIN
 
-#: the claims whose comparisons are scaled to the problem (theorem-1-*, cost-split-sensor: the issue's three)
+#: the claims whose comparisons are scaled to the problem (theorem-1-* and cost-split-sensor among them)
 CLAIMS = ("theorem-1-laws", "theorem-1-costs", "cost-split-sensor", "theorem-2", "corollary-1", "expected-cost-tcp",
           "lemma-1", "lemma-quad-expectation", "mpc-vs-dp")
 
@@ -103,8 +103,8 @@ def test_a_claim_true_for_the_rescaled_problem_holds_or_is_undecided(claim, what
 
 def test_the_simulated_sensor_split_waits_for_the_transient_of_a_larger_start():
     """The pendulum's split is exact at any x0; its simulated check averages a window that starts once the start's
-    transient has decayed. With x0 x 1e5 the fixed window (radius^k <= 1e-3) kept x0's transient: z = 127.7 at seed
-    0 (x0 x 1: 1.39), a violation of an exact identity. The window now grows with x0's cost, or the case is not
+    transient has decayed. With x0 x 1e5 a fixed window (radius^k <= 1e-3) would keep x0's transient (z = 127.7 at
+    seed 0; x0 x 1: 1.39), a violation of an exact identity: the window grows with x0's cost, or the case is not
     simulated (more than 2000 steps to mix) and rests on the exact split."""
     pendulum = pl.load_example("pendulum")
     far = _scaled(pendulum, "x0", 1e5)

@@ -28,10 +28,9 @@ EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}
 
 
 def test_an_interrupt_a_library_swallows_still_ends_the_run(monkeypatch, capsys, tmp_path):
-    """A bare ``except:`` around a library's import once swallowed the interrupt, and the handler had already set
-    SIGINT and SIGTERM to "ignore": the run finished, wrote its file and exited 0, deaf to a second Ctrl-C. Now the
-    swallowed interrupt ends the run before it writes or prints (130, one line), and a second signal still
-    interrupts."""
+    """A bare ``except:`` around a library's import swallows the interrupt after the handler has set SIGINT and
+    SIGTERM to "ignore": the run must still end before it writes or prints (130, one line), not finish and exit 0
+    deaf to a second Ctrl-C; and a second signal still interrupts."""
     steps = []
 
     def swallowing_command(args):

@@ -39,7 +39,7 @@ def test_a_bad_output_path_is_refused_before_the_work(argv, field, tmp_path, cap
 
 
 def test_a_figure_format_matplotlib_cannot_write_is_refused_before_the_sampling(capsys, monkeypatch):
-    # was: the whole Monte Carlo ran (19 s at --samples 200000), then exit 2 under "path", nothing printed
+    # the --plot format is checked before any sampling: a refusal after the Monte Carlo would waste the run
     def never(*args, **kwargs):
         raise AssertionError("sampled before the --plot check")
 

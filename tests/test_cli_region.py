@@ -30,7 +30,8 @@ def test_region_json_per_law_critical_mu_and_t(decoupled_file, capsys):
     assert data["dp"]["t"] == pytest.approx(0.75 / 0.8, abs=1e-6)       # channel 1 needs 0.8 t > 0.75
     assert main(["region", decoupled_file, "--law", "dp", "--direction", "0.5,1", "--json", "-q"]) == 0
     data = json.loads(capsys.readouterr().out)
-    assert data["dp"]["t"] is None and data["dp"]["critical_mu"] is None   # 0.75 / 0.5 > 1 = the ray's end
+    assert data["dp"]["t"] is None                     # 0.75 / 0.5 > 1 = the ray's end
+    assert data["dp"]["critical_mu"] is None
 
 
 def test_region_grid_json_and_out_folder(decoupled_file, tmp_path, capsys):
@@ -46,7 +47,8 @@ def test_region_grid_json_and_out_folder(decoupled_file, tmp_path, capsys):
     assert np.array_equal(np.array(grid["stable"], dtype=bool), expected)
     assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "region.csv", "region.npz", "region.png"]
     with np.load(out / "region.npz") as npz:
-        assert npz["stable"].shape == (4, 5, 5) and list(npz["laws"]) == ["dp", "tcp", "udp", "fixed"]
+        assert npz["stable"].shape == (4, 5, 5)
+        assert list(npz["laws"]) == ["dp", "tcp", "udp", "fixed"]
 
 
 @pytest.mark.parametrize(("argv", "field"), [
@@ -59,7 +61,8 @@ def test_region_grid_json_and_out_folder(decoupled_file, tmp_path, capsys):
 def test_region_bad_input_exits_2_with_one_line(decoupled_file, capsys, argv, field):
     assert main(["region", decoupled_file, *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and field in err[0]
+    assert len(err) == 1
+    assert field in err[0]
 
 
 def test_region_one_channel_has_no_grid_and_a_huge_grid_is_refused(decoupled_file, capsys):
@@ -67,7 +70,9 @@ def test_region_one_channel_has_no_grid_and_a_huge_grid_is_refused(decoupled_fil
     assert "--grid" in capsys.readouterr().err
     assert main(["region", decoupled_file, "--grid", "100000"]) == 2       # over the region_points budget
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--grid" in err[0] and "PACKETLOSS_CVX_BUDGET_REGION_POINTS" in err[0]
+    assert len(err) == 1
+    assert "--grid" in err[0]
+    assert "PACKETLOSS_CVX_BUDGET_REGION_POINTS" in err[0]
 
 
 def test_region_maps_a_gilbert_elliott_file_over_its_mean_rates(capsys, tmp_path):
@@ -75,12 +80,16 @@ def test_region_maps_a_gilbert_elliott_file_over_its_mean_rates(capsys, tmp_path
     at the file's burstiness; the paper's laws and a ray over Bernoulli mu are refused (exit 2, one line)."""
     assert main(["region", "pendulum_bursty", "--law", "dp", "--grid", "3", "--json", "-q"]) == 0
     data = json.loads(capsys.readouterr().out)["dp"]
-    assert data["verdict"] == "stable" and data["radius"] < 1 and data["lambda"] == pytest.approx(data["radius"])
-    assert data["grid"]["axis"] == [0.0, 0.5, 1.0] and data["grid"]["stable"] == [[False, False, True]]
+    assert data["verdict"] == "stable"
+    assert data["radius"] < 1
+    assert data["lambda"] == pytest.approx(data["radius"])
+    assert data["grid"]["axis"] == [0.0, 0.5, 1.0]
+    assert data["grid"]["stable"] == [[False, False, True]]
     for argv, flag in ((["--law", "tcp"], "--law"), (["--direction", "-1"], "--direction")):
         assert main(["region", "pendulum_bursty", *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and flag in err[0]
+        assert len(err) == 1
+        assert flag in err[0]
     assert main(["region", "pendulum_bursty", "--grid", "200000"]) == 2           # over the region_points budget
     assert "PACKETLOSS_CVX_BUDGET_REGION_POINTS" in capsys.readouterr().err
     out = tmp_path / "chain"
@@ -93,22 +102,26 @@ def test_region_names_a_missing_fixed_law(capsys):
     does not have (exit 1, one line)."""
     assert main(["region", "two_actuator", "--mu", "0.01", "--law", "fixed"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "fixed" in err[0] and "does not exist" in err[0]
+    assert len(err) == 1
+    assert "fixed" in err[0]
+    assert "does not exist" in err[0]
     assert main(["region", "two_actuator", "--mu", "0.01", "--law", "dp", "--json"]) == 0
 
 
 def test_region_all_laws_leaves_out_a_missing_fixed_law_with_a_note(capsys, tmp_path):
     """--law all (the default) on a plant no mu stabilises (x2' = 3 x2 has no input): 'fixed' has no DP gain to
-    design, so it is left out with the reason, and the other laws still answer 'never' (exit 0), where the whole
-    command used to stop with exit 1."""
+    design, so it is left out with the reason, and the other laws still answer 'never' (exit 0): one law without a
+    design does not stop the command."""
     s = System(A=[[2.0, 0.0], [0.0, 3.0]], B=[[1.0], [0.0]], horizon=5, state_weight=[1.0, 1.0],
                input_weight=[1.0], mu=[0.9], x0=[1.0, 1.0])
     path = str(save_system(s, tmp_path / "unstabilisable.toml"))
     assert main(["region", path, "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
-    assert "fixed" not in data and set(data) >= {"dp", "tcp", "udp"}
+    assert "fixed" not in data
+    assert set(data) >= {"dp", "tcp", "udp"}
     assert all(data[law]["critical_mu"] is None and data[law]["t"] is None for law in ("dp", "tcp", "udp"))
-    assert len(data["notes"]) == 1 and "'fixed' left out" in data["notes"][0]
+    assert len(data["notes"]) == 1
+    assert "'fixed' left out" in data["notes"][0]
 
 
 def test_region_gives_the_critical_mean_rate_behind_a_chain_where_it_is_proved(capsys, tmp_path):
@@ -121,13 +134,16 @@ def test_region_gives_the_critical_mean_rate_behind_a_chain_where_it_is_proved(c
     assert main(["region", path, "--json", "-q"]) == 0
     data = json.loads(capsys.readouterr().out)["dp"]
     assert data["lower"] <= 25 / 36 <= data["t"] <= data["lower"] + 1e-6
-    assert data["critical_mu"] == [data["t"]] and data["direction"] == [1.0]
+    assert data["critical_mu"] == [data["t"]]
+    assert data["direction"] == [1.0]
     fractional = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
                         channel=GilbertElliott(p=[0.4], r=[0.4], h_good=[0.9], h_bad=[0.1]))
     path = str(save_system(fractional, tmp_path / "fractional.toml"))
     assert main(["region", path, "--json", "-q"]) == 0
     data = json.loads(capsys.readouterr().out)["dp"]
-    assert data["critical_mu"] is None and data["t"] is None and "h_bad = 0" in data["critical_mu_reason"]
+    assert data["critical_mu"] is None
+    assert data["t"] is None
+    assert "h_bad = 0" in data["critical_mu_reason"]
 
 
 @pytest.mark.parametrize("p", [0.0, 1e-17])

@@ -66,7 +66,7 @@ def heavy_modules(zygote, *argv: str) -> set[str]:
 
 
 #: solve --no-qp runs its closed forms, self-checks and small-plant stability verdicts on numpy.linalg: SciPy's
-#: import (about 0.15 s, its array-API layer loading numpy.f2py) would be most of its start-up (issue 19: within
+#: import (about 0.15 s, its array-API layer loading numpy.f2py) would be most of its start-up (the target: within
 #: 4x of a bare numpy import); the other commands use SciPy's LU, LAPACK or ARPACK and may import it
 @pytest.mark.parametrize(("argv", "allowed"), [
     (["solve", "two_actuator", "--no-qp", "-q"], set()),

@@ -222,8 +222,8 @@ def _gilbert_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, p: np.ndarray, 
 
 
 def test_bernoulli_closed_loop_is_refused_behind_a_gilbert_elliott_chain():
-    """closed_loop() on a bursty system used to answer with the Bernoulli radius 0.47 ("stable") where the
-    loop behind the chain has radius 1.06 (not mean-square stable)."""
+    """closed_loop() on a bursty system refuses rather than answer with the Bernoulli radius (0.47, "stable") where
+    the loop behind the chain has radius 1.06 (not mean-square stable)."""
     system = bursty_twin(pl.load_example("two_actuator"), 0.95)
     gain = pl.closed_form(system, "tcp").gain
     ch = system.channel
@@ -244,7 +244,7 @@ def test_bernoulli_closed_loop_is_refused_behind_a_gilbert_elliott_chain():
     lambda s: finite_horizon_costs(s, np.zeros((1, 1)), 10**9),
 ])
 def test_a_billion_steps_is_refused_before_it_is_allocated(call):
-    """dp_finite_horizon(system, 10**9) used to allocate 8 GB and loop for ever (killed after minutes)."""
+    """A billion steps (8 GB of gains, minutes of work) is refused by the budget before anything is allocated."""
     scalar = pl.System(A=[[2.0]], B=[[1.0]], horizon=5, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
     with pytest.raises(InputError) as err:
         call(scalar)

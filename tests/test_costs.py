@@ -273,7 +273,7 @@ def _one_step(seed: int) -> pl.System:
                      mu=[rng.uniform(0.05, 1.0)], x0=x0)
 
 
-# the property test's two plants (test_properties.py) where x'P_0 x was 1.2e-9 and 1.35e-9 off J*
+# two ill-scaled plants (found by test_properties.py) where x'P_0 x is 1.2e-9 and 1.35e-9 off J*
 _B, _X0 = [[1.0456178814698995], [-0.9665560777473944]], [0.4693589970308669, -0.10091860953805483]
 _W = np.array([[1525164907.728891, -3051029695.0352793], [-3051029695.0352793, 13959962207.449608]])
 ILL_SCALED = [

@@ -1,4 +1,4 @@
-"""Every public function has a docstring with an example that runs as a doctest (issue 13, item 5).
+"""Every public function has a docstring with an example that runs as a doctest.
 
 A public function is one named in its module's ``__all__`` and defined there (re-exports are counted
 where they are defined); a public class needs an example on itself or on one of its methods. The

@@ -1,5 +1,6 @@
-"""The structure-cached batched evaluator against independent references: the per-point
-closed form (both methods), the QP twin on a sample, hand values, and the same refusals."""
+"""The structure-cached batched evaluator: a batch answers as the per-point closed form (both methods) and refuses
+as it does (a plumbing check where the two share a kernel); against independent references: Theorem 1's dense
+minimiser written out here, the QP twin on a sample, and hand values."""
 
 import numpy as np
 import pytest

@@ -3,7 +3,7 @@ given as ``MarkovChannel`` (absorbing, periodic, reducible with a given start, a
 that always or never deliver, beliefs at the simplex corners, one-state chains, fractional deliveries), N = 1,
 time-varying weights and noise: against the minimum of the enumerated expected cost (every loss pattern, no
 noise), the dense second-moment route and the QP twin; unstable plants at long horizons raise NumericalError,
-never inf or nan (issue 23, hostile review)."""
+never inf or nan."""
 
 import itertools
 

@@ -163,9 +163,9 @@ def test_coupled_riccati_without_stabilising_gains_is_a_numerical_error():
 
 
 # ---------------------------------------------------------------- fractional delivery probabilities
-# (issue 19 item 7: with h not 0 or 1 the loss-variance term h (1 - h) of the coupled equations and the
-# delivered input's weight M Psi were unchecked; the references below are a hand root and an enumeration
-# of the delivery patterns, neither written with the module's algebra)
+# (with h not 0 or 1 the coupled equations gain the loss-variance term h (1 - h) and the delivered input's weight
+# M Psi; the references below are a hand root and an enumeration of the delivery patterns, neither written with the
+# module's algebra)
 
 def test_equal_fractional_h_is_the_scalar_modified_riccati_by_hand():
     # h_good = h_bad = 0.6: deliveries are Bernoulli(0.6) whatever the mode. Scalar a = 1.1, b = q = psi = 1:

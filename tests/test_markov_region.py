@@ -107,7 +107,7 @@ def test_current_convention_eigenpair_is_sandwiched_by_its_gains_and_its_certifi
     # the chains of the test above where the Perron eigenvector concentrates on the all-lost mode (the policy
     # iteration's P settles off a fixed point): lambda = min_K rho(L_K) lies between the Collatz-Wielandt bound of
     # its own P (every law's radius >= 1 + margin) and the radius of its own gains (markov.mjls's operator); both
-    # within 1e-9 relative of lambda pin it down (the power iteration's stall had left it 1e-5 off). The modes P
+    # within 1e-9 relative of lambda pin it down (a stalled power iteration leaves it 1e-5 off). The modes P
     # weighs at rounding level (trace <= 1e-12, some of them slightly negative) are dropped from the certificate:
     # what is left is PSD, so still a Collatz-Wielandt test matrix
     rng = np.random.default_rng(100 + seed)

@@ -1,6 +1,6 @@
 """Never silently wrong: every default path returns the right number or raises a typed error.
 
-Each case here was a wrong number returned without an error (issue "Never silently wrong").
+Each case is one where a wrong number could be returned without an error.
 References are independent of the path under test: the exact O(N) recursion where it passes
 its own check, the Clarabel QP twin, a hand value, or the forward pass of the mean state.
 """
@@ -94,7 +94,8 @@ def test_pendulum_at_mu_one_long_horizons(N):
         assert sol.cost == pytest.approx(float(s.x0 @ (s.initial_weight + P0) @ s.x0), rel=1e-9)
         np.testing.assert_allclose(sol.inputs[0], -K0 @ s.x0, rtol=1e-9)
         np.testing.assert_allclose(sol.gain, K0, rtol=1e-9)
-    else:   # independent: the forward pass of the plan (nonnegative terms) and the sparse QP
+    else:   # plumbing: the reported cost is the forward pass of the reported plan (closed_form's own referee, so
+            # this cannot disagree unless the wrong plan or cost is returned); independent: the sparse QP
         assert np.isclose(recursion_cost(s, sol.inputs, "tcp"), sol.cost, rtol=1e-9)
         qp = pl.solve_qp(s, "tcp", "sparse", with_gain=False, cross_check=False)
         assert abs(qp.cost - sol.cost) <= 1e-7 * sol.cost
@@ -109,19 +110,19 @@ def test_expected_cost_of_the_optimal_plan_on_an_unstable_plant():
     assert abs(value - qp.cost) <= 1e-7 * qp.cost
 
 
-def _issue_pendulum(N: int) -> pl.System:
+def _pendulum_over(N: int) -> pl.System:
     data = pl.load_example("pendulum").to_dict()
     data["cost"]["horizon"] = N
     return system_from_dict(data)
 
 
 def test_expected_cost_of_the_pendulums_plan_over_2000_steps_raises():
-    """expected_cost of the closed form's plan returned 1.48e80 (the optimum is 25445): the plan steers the unstable
-    pendulum (rho(A) = 1.061) to zero, so its states rolled out open loop carry its rounding amplified 1.061^t. The
-    exact open-loop cost of that float plan (fractions, 7 minutes) is 1.4687e80; the forward pass is off by 1.1e78,
-    which the bound says (1.1097728365937e78 against the true 1.1097728365867e78). Now NumericalError saying why and
-    what to use; the closed form's own cost is unaffected."""
-    s = _issue_pendulum(2000)
+    """The closed form's plan steers the unstable pendulum (rho(A) = 1.061) to zero, so its states rolled out open
+    loop carry its rounding amplified 1.061^t: a forward pass gives 1.48e80 where the optimum is 25445. The exact
+    open-loop cost of that float plan (fractions, 7 minutes) is 1.4687e80; the forward pass is off by 1.1e78, which
+    the bound says (1.1097728365937e78 against the true 1.1097728365867e78). expected_cost raises NumericalError
+    saying why and what to use; the closed form's own cost is unaffected."""
+    s = _pendulum_over(2000)
     sol = pl.closed_form(s, "tcp")
     assert sol.method == "recursion"
     for method in ("auto", "recursion"):
@@ -138,7 +139,7 @@ def test_expected_cost_of_the_pendulums_plan_over_2000_steps_raises():
 def test_a_refused_plan_cost_was_in_fact_inaccurate():
     """The pendulum over 500 steps: its forward pass is off by 7.7e-7 (relative, against the exact rational cost of
     the float plan), and it is refused; the bound is within 1e-5 of the true error."""
-    s = _issue_pendulum(500)
+    s = _pendulum_over(500)
     U = pl.closed_form(s, "tcp").inputs
     exact = exact_plan_cost(s, U, np.broadcast_to(s.input_weights, U.shape))
     value, bound = plan_cost(s, U, "tcp")

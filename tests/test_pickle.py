@@ -77,7 +77,7 @@ def test_every_error_pickles_as_itself(error):
 
 
 def test_a_workers_input_error_reaches_the_caller_and_spares_the_other_tasks():
-    # was: BrokenProcessPool for all three tasks, the InputError's message lost
+    # the typed error and its message cross the process boundary; the pool survives it for the other tasks
     with ProcessPoolExecutor(2) as pool:
         futures = [pool.submit(_closed_form_cost, mu) for mu in ([0.5, 0.5], [1.5, 0.5], [0.9, 0.9])]
         with pytest.raises(errors.ProbabilityError, match=r"mu: expected probabilities in \[0, 1\]"):

@@ -55,8 +55,9 @@ def test_closed_form_default_equals_the_recursion_or_raises(system, protocol):
         return
     assert np.isfinite(default.cost)
     assert default.cost >= 0
-    # an independent referee: the forward pass of the plan, nonnegative terms only, where it is resolved (an
-    # unstable plant amplifies the plan's rounding in its open-loop rollout: then it refuses, saying so)
+    # plumbing, not an independent referee: the reported cost is the forward pass of the reported plan (the referee
+    # closed_form runs itself), where that pass is resolved (an unstable plant amplifies the plan's rounding in its
+    # open-loop rollout: then it refuses, saying so); the cost itself is compared with method='recursion' below
     value, bound = plan_cost(system, default.inputs, protocol)
     if bound <= PLAN_COST_RTOL * value:
         assert np.isclose(recursion_cost(system, default.inputs, protocol), default.cost, rtol=1e-9, atol=0)

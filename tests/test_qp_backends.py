@@ -9,8 +9,10 @@ import packetloss_cvx as pl
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.qp.expected_cost import (
     AUTO_CONDENSED_MAX,
+    CondensedBackend,
     CondensedExpectedCostQP,
     ExpectedCostQP,
+    SparseBackend,
     SparseExpectedCostQP,
     choose_backend,
     qp_memory_estimate,
@@ -22,15 +24,20 @@ def _system(horizon, m=2, seed=3):
     return random_system(np.random.default_rng(seed), n=2, m=m, horizon=horizon, non_stationary=False)
 
 
-@pytest.mark.parametrize(("horizon", "backend"), [(AUTO_CONDENSED_MAX // 2, CondensedExpectedCostQP),
-                                                  (AUTO_CONDENSED_MAX // 2 + 1, SparseExpectedCostQP)])
+@pytest.mark.parametrize(("horizon", "backend"), [(AUTO_CONDENSED_MAX // 2, CondensedBackend),
+                                                  (AUTO_CONDENSED_MAX // 2 + 1, SparseBackend)])
 def test_auto_picks_the_condensed_backend_up_to_its_crossover(horizon, backend):
     s = _system(horizon)                                   # N m = 60 (condensed) or 62 (sparse)
     qp = ExpectedCostQP(s, "udp")
-    assert type(qp) is backend and isinstance(qp, ExpectedCostQP)
+    assert type(qp) is ExpectedCostQP                      # constructed as written: the backend is a part
+    assert type(qp.backend) is backend
+    assert qp.formulation == backend.formulation
     assert choose_backend(s, "auto") is backend
-    assert type(ExpectedCostQP(s, "udp", "sparse")) is SparseExpectedCostQP
-    assert type(ExpectedCostQP(s, "udp", "condensed")) is CondensedExpectedCostQP
+    assert type(ExpectedCostQP(s, "udp", "sparse").backend) is SparseBackend
+    assert type(ExpectedCostQP(s, "udp", "condensed").backend) is CondensedBackend
+    fixed = SparseExpectedCostQP(s, "udp"), CondensedExpectedCostQP(s, "udp")
+    assert [type(qp.backend) for qp in fixed] == [SparseBackend, CondensedBackend]
+    assert all(isinstance(qp, ExpectedCostQP) for qp in fixed)
 
 
 def test_a_bad_formulation_is_bad_input():

@@ -128,7 +128,7 @@ def test_an_object_keeps_its_private_problem_beyond_the_shared_sizes(monkeypatch
     s = random_system(np.random.default_rng(51), n=2, m=2, horizon=3, non_stationary=False)
     qp = pl.ExpectedCostQP(s, "udp", "condensed")
     got = qp.solve(cross_check=False)                                           # n + 1 = 3 solves
-    (private,) = qp._own.values()
+    (private,) = qp.backend._own.values()
     assert not private.shared
     assert private.solves == 3
     assert private.shape == (6, 6)
@@ -181,9 +181,9 @@ def test_data_larger_than_the_problem_are_refused():
 @pytest.mark.parametrize(("a", "N", "mu"), [(4.0, 25, 0.5), (4.0, 25, 0.9), (8.0, 16, 0.5)])
 def test_an_unresolvable_minimum_is_refused_not_reported(a, N, mu):
     """x' = [[a, 1], [0, 0.5]] x + [1, 1]' u over N steps: L Phi x ~ 1e15 against a minimum ~ 50. The shared
-    (Parameter) problem ended 'optimal' with J off the recursion's by 2e-5 to 8e-3 relative (reported as such
-    with cross_check=False; a CrossCheckError blaming a disagreement otherwise, where the per-system problem
-    had raised NumericalError and `solve` printed 'QP cross-check skipped'). Now NumericalError, as before."""
+    (Parameter) problem can end 'optimal' with J off the recursion's by 2e-5 to 8e-3 relative: it is refused with
+    NumericalError (as the per-system problem is, and `solve` then prints 'QP cross-check skipped'), neither
+    reported with cross_check=False nor blamed on a disagreement (CrossCheckError)."""
     s = pl.System(A=[[a, 1.0], [0.0, 0.5]], B=[[1.0], [1.0]], horizon=N, state_weight=[1.0, 1.0],
                   input_weight=[1.0], mu=[mu], x0=[1.0, 1.0])
     with pytest.raises(pl.NumericalError, match="cannot resolve|Clarabel ended"):

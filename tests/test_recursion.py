@@ -208,7 +208,7 @@ def test_riccati_step_open_loop_udp_is_the_dense_theorem_1_at_n_1():
     assert x @ P0[0] @ x == pytest.approx(value, rel=1e-12)
 
 
-# ---------------------------------------------------------------- stationary long horizons (issue 19 item 2)
+# ---------------------------------------------------------------- stationary long horizons
 
 def _full_pass(monkeypatch, fn):
     """``fn()`` with the stationary closure switched off: every step of every backward pass and rollout."""

@@ -38,7 +38,8 @@ def test_membership_scalar_all_forms_agree_with_the_hand_threshold(mu):
     found = membership(s, [mu])
     assert found.verdict == ("stable" if mu > 0.75 else "unstable")
     assert all(v in (found.verdict, "undecided") for _, v in found.forms)
-    assert dict(found.forms)["riccati"] == found.verdict and dict(found.forms)["lmi"] == found.verdict
+    assert dict(found.forms)["riccati"] == found.verdict
+    assert dict(found.forms)["lmi"] == found.verdict
     if found.stable:   # the gain's radius by enumeration: (a - mu k)^2 + mu (1 - mu) k^2
         k = found.gain[0, 0]
         assert (2.0 - mu * k) ** 2 + mu * (1 - mu) * k * k < 1.0
@@ -74,12 +75,14 @@ def test_the_region_is_not_convex_in_mu():
     """design.md §2: with a^2 = 3 the boundary is s1 + s2 = 2: (0.67, 0) and (0, 0.67) are inside (s = 2.03),
     their midpoint (0.335, 0.335) is outside (s1 + s2 = 1.01)."""
     s = scalar(np.sqrt(3.0), (1.0, 1.0))
-    assert membership(s, [0.67, 0.0]).stable and membership(s, [0.0, 0.67]).stable
+    assert membership(s, [0.67, 0.0]).stable
+    assert membership(s, [0.0, 0.67]).stable
     assert membership(s, [0.335, 0.335]).stable is False
 
 
 def test_critical_mu_dp_scalar_meets_its_tolerance_on_both_sides():
-    """The issue's case: A = 2, B = 1, Psi = 0.1, Omega = 1; exact 1 - 1/a^2 = 0.75 (was 0.750004768)."""
+    """A = 2, B = 1, Psi = 0.1, Omega = 1 and other scalars: exact 1 - 1/a^2 (0.75 at a = 2), met within the tolerance
+    from both sides (a bisection stopped early would report 0.750004768)."""
     for a in (2.0, 1.5, 3.0, 10.0):
         exact = 1 - 1 / a ** 2
         for psi in (0.1, 1.0, 100.0):
@@ -98,9 +101,11 @@ def test_critical_mu_dp_decoupled_plants_give_the_per_channel_thresholds(a):
     point = critical_point(s, "dp", direction=d)
     exact = float(np.max(thresholds / d))
     if exact > 1.0:    # the ray ends at t = 1 / max(d) = 1 before the slowest channel's threshold
-        assert point.t == np.inf and point.outside.verdict == "unstable"
+        assert point.t == np.inf
+        assert point.outside.verdict == "unstable"
     else:
-        assert point.lower <= exact + 1e-12 and exact <= point.t <= exact + 1e-6
+        assert point.lower <= exact + 1e-12
+        assert exact <= point.t <= exact + 1e-6
 
 
 def test_a_boundary_point_has_a_gain_inside_and_a_certificate_outside():
@@ -108,10 +113,12 @@ def test_a_boundary_point_has_a_gain_inside_and_a_certificate_outside():
     point = critical_point(s, "dp", direction=[1.0, 1.0])
     inside, outside = point.inside, point.outside
     assert point.t - point.lower <= 1e-6
-    assert inside.verdict == "stable" and enumerated_radius(s.A, s.B, inside.gain, inside.mu) < 1.0
+    assert inside.verdict == "stable"
+    assert enumerated_radius(s.A, s.B, inside.gain, inside.mu) < 1.0
     assert outside.verdict == "unstable"
     P, mu = outside.certificate, outside.mu
-    assert np.linalg.eigvalsh(P)[-1] > 0 and np.trace(P) == pytest.approx(1.0)    # a certificate: P not <= 0
+    assert np.linalg.eigvalsh(P)[-1] > 0                # a certificate: P not <= 0
+    assert np.trace(P) == pytest.approx(1.0)
     # no gain beats the certificate: random gains and the DP gain just inside, all with radius >= 1 at mu
     rng = np.random.default_rng(1)
     gains = [inside.gain, *(inside.gain + rng.normal(scale=x, size=inside.gain.shape) for x in (1e-3, 0.1, 1.0))]
@@ -170,7 +177,9 @@ def test_a_solver_failure_is_not_a_verdict(monkeypatch):
 
     monkeypatch.setattr(LmiForm, "stabilise", fail)
     found = membership(scalar(2.0), [0.5], forms=("lmi",))
-    assert found.verdict == "undecided" and found.stable is None and "no form" in found.reason
+    assert found.verdict == "undecided"
+    assert found.stable is None
+    assert "no form" in found.reason
 
 
 def test_critical_mu_dp_never_reads_undecided_as_unstable(monkeypatch):
@@ -190,14 +199,16 @@ def test_critical_mu_dp_never_reads_undecided_as_unstable(monkeypatch):
         critical_mu(scalar(2.0), "dp")
     point = critical_point(scalar(2.0), "dp", tol=0.2)   # 0.5 out, 0.75 blind, 0.625 out, 0.8125 in
     assert (point.lower, point.t) == (0.625, 0.8125)
-    assert point.inside.verdict == "stable" and point.outside.verdict == "unstable"
+    assert point.inside.verdict == "stable"
+    assert point.outside.verdict == "unstable"
 
 
 def test_lmi_gain_is_stabilising_by_enumeration():
     s = load_example("two_actuator")
     form = LmiForm(np.asarray(s.A, float), np.asarray(s.B, float))
     t, K, status = form.stabilise(np.array([0.3, 0.6]))
-    assert status == "optimal" and t > 0
+    assert status == "optimal"
+    assert t > 0
     assert enumerated_radius(s.A, s.B, K, [0.3, 0.6]) < 1.0
 
 
@@ -226,7 +237,8 @@ def test_region_map_grid_is_inside_the_stabilisable_set_and_matches_decoupled_th
     assert np.array_equal(r.stable[0] == 1.0, expected)
     assert not np.any((r.stable[1] == 1.0) & (r.stable[0] == 0.0))
     d = r.to_dict()
-    assert set(d) == {"dp", "tcp"} and d["dp"]["grid"]["axis"] == axis.tolist()
+    assert set(d) == {"dp", "tcp"}
+    assert d["dp"]["grid"]["axis"] == axis.tolist()
     assert d["dp"]["critical_mu"] == pytest.approx([0.75, 0.75], abs=1e-6)
 
 
@@ -255,7 +267,8 @@ def test_region_map_to_xarray_holds_the_same_grid():
     r = region_map(decoupled((2.0, 1.5)), laws=("dp",), grid=4)
     ds = r.to_xarray()
     assert np.array_equal(ds["stable"].values, r.stable, equal_nan=True)
-    assert ds["mu1"].values.tolist() == r.axis.tolist() and float(ds["t"].sel(law="dp")) == r.critical[0].t
+    assert ds["mu1"].values.tolist() == r.axis.tolist()
+    assert float(ds["t"].sel(law="dp")) == r.critical[0].t
 
 
 def test_results_pickle_and_to_dict_are_plain():
@@ -265,7 +278,8 @@ def test_results_pickle_and_to_dict_are_plain():
     from packetloss_cvx.studies.region_map import region_map
     r = region_map(decoupled((2.0, 1.5)), laws=("dp", "fixed"), grid=3)
     back = pickle.loads(pickle.dumps(r))
-    assert np.array_equal(back.stable, r.stable) and back.critical[0].inside.verdict == "stable"
+    assert np.array_equal(back.stable, r.stable)
+    assert back.critical[0].inside.verdict == "stable"
     json.dumps(r.to_dict(), allow_nan=False)
     json.dumps(r.critical[0].to_dict(), allow_nan=False)
     assert r.stable.flags.writeable is False
@@ -273,8 +287,8 @@ def test_results_pickle_and_to_dict_are_plain():
 
 @pytest.mark.parametrize("mu", [[1.0, 0.22], [1.0, 0.44], [0.33, 1.0], [1.0, 1.0]])
 def test_riccati_form_decides_where_a_deadbeat_law_exists(mu):
-    """B = I and mu_i = 1: min_K rho can be 0 and R(P) vanishes to rounding; the power iteration had divided by
-    that rounding (lambda = -6.4 at (1, 0.44)) and left these points undecided (planted: found before the fix)."""
+    """B = I and mu_i = 1: min_K rho can be 0 and R(P) vanishes to rounding; a power iteration that divides by that
+    rounding (lambda = -6.4 at (1, 0.44)) would leave these points undecided."""
     s = load_example("two_actuator")
     found = membership(s, mu, forms=("riccati",))
     assert found.verdict == "stable"
@@ -413,7 +427,7 @@ def test_least_radius_is_zero_where_one_always_delivered_channel_deadbeats_the_p
     """two_actuator with mu_2 = 1: (A, b_2) is controllable (A_12 = 0.005), so u_2 = -k x with
     k = (0.35 + 1.03^2 / 0.005, 2.04) makes A - b_2 k nilpotent (trace 0, determinant 0, by hand) and u_1 = 0:
     L_K(X) = F X F' with F^2 = 0, so min_K rho(L_K) = 0 (not a^2 (1 - mu_1) = 0.106, the channel-1 value); the
-    same by symmetry through b_1 (A_21 = 0.35). The eigenvalue had come out -9e-7 here (planted: the trace of
+    same by symmetry through b_1 (A_21 = 0.35). Rounding can make the eigenvalue -9e-7 here (planted: the trace of
     A'PA - A'PBM K fails the sign check)."""
     s = load_example("two_actuator")
     A = np.asarray(s.A, float)
@@ -439,7 +453,7 @@ def test_least_radius_is_zero_at_a_single_input_deadbeat_point_handed_over_early
 
 
 def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lmi():
-    """The "dp" radius grid is min_K rho(L_K) >= 0 (the map had shown -1.2e-9 and -9e-7 at deadbeat points), and
+    """The "dp" radius grid is min_K rho(L_K) >= 0 (rounding gives -1.2e-9 and -9e-7 at deadbeat points), and
     at interior points it is bracketed by the LMI form run on the scaled plant A / sqrt(rho) (S_rho = S of
     A / sqrt(rho), the gain scaled back by sqrt(rho)): infeasible at 0.999 lambda, feasible at 1.001 lambda with
     a gain whose radius (enumerated over the delivery patterns) is below 1.001 lambda."""
@@ -447,7 +461,8 @@ def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lm
     s = load_example("two_actuator")
     result = region_map(s, laws=("dp",), grid=11)
     radius = result.radius[0]
-    assert np.all(np.isfinite(radius)) and np.all(radius >= 0.0)
+    assert np.all(np.isfinite(radius))
+    assert np.all(radius >= 0.0)
     assert np.all(radius[-1] == 0.0)                  # mu_2 = 1 or mu_1 = 1: deadbeat, exactly 0
     assert np.all(radius[:, -1] == 0.0)
     A, B = np.asarray(s.A, float), np.asarray(s.B, float)
@@ -456,7 +471,8 @@ def test_region_map_radius_is_the_least_radius_never_negative_and_matches_the_lm
         lam = radius[row, col]
         below = LmiForm(A / np.sqrt(0.999 * lam), B).stabilise(mu)
         above = LmiForm(A / np.sqrt(1.001 * lam), B).stabilise(mu)
-        assert below[0] < 0 and above[0] > 0
+        assert below[0] < 0
+        assert above[0] > 0
         assert enumerated_radius(A, B, np.sqrt(1.001 * lam) * above[1], mu) < 1.001 * lam
     assert "least mean-square radius" in result.to_dict()["dp"]["grid"]["radius_meaning"]
 
@@ -474,14 +490,15 @@ def test_least_radius_of_a_decoupled_plant_is_its_worst_block():
 def test_membership_with_large_gains_near_the_boundary_decides_instead_of_raising(mu2):
     """A = [[1.03, 5e-5], [0.35, 1.01]], B = I, mu = (0, mu2) about 1e-6 inside S: the least-radius gain is about
     620 and its radius 1 - 6e-7 (enumerated). The LMI's certificate there proves only rho >= 1 - 3.5e-6 for every
-    law, but the least eigenvalue of T_mu(P) over its scale shrinks like 1 / ||K||^2 and had passed
-    CERTIFICATE_RTOL: membership raised CrossCheckError (planted: the old check raises at both points). The margin
-    is now the radius bound itself, so the LMI's P is refused and the point is decided by the forms that check."""
+    law, but the least eigenvalue of T_mu(P) over its scale shrinks like 1 / ||K||^2 and passes CERTIFICATE_RTOL: a
+    check with that margin raises CrossCheckError at both points (planted). The margin is the radius bound itself,
+    so the LMI's P is refused and the point is decided by the forms that check."""
     A, B = np.array([[1.03, 5e-5], [0.35, 1.01]]), np.eye(2)
     s = System(A=A, B=B, horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0], mu=[0.5, 0.5], x0=[1.0, 1.0])
     mu = np.array([0.0, mu2])
     found = membership(s, mu)
-    assert found.verdict == "stable" and dict(found.forms)["lmi"] in ("stable", "undecided")
+    assert found.verdict == "stable"
+    assert dict(found.forms)["lmi"] in ("stable", "undecided")
     assert np.abs(found.gain).max() > 100
     assert 1 - 1e-5 < enumerated_radius(A, B, found.gain, mu) < 1.0
     _, P, _ = LmiForm(A, B).certify(mu)
@@ -539,8 +556,8 @@ def chain(a0, n=4):
 
 def test_membership_of_a_chain_of_integrators_inside_s_is_never_unstable():
     """A = I4 + N, b = e4, mu = 0.0124: mu is in S (Elia: (1 - mu) |1|^8 < 1), the least radius is (1 - mu)^(1/4) =
-    0.99689. The verdict had been "unstable" with a float-checked certificate ("every law's radius >= 1.000664"); it
-    is "stable" with a gain whose enumerated radius is below 1. Given the unscaled iteration's eigenpair (lambda
+    0.99689. A float-checked certificate claims "every law's radius >= 1.000664" ("unstable"); the verdict must be
+    "stable" with a gain whose enumerated radius is below 1. Given the unscaled iteration's eigenpair (lambda
     1.0014, its P the float-checked certificate), the "riccati" form is not "unstable" either: the exact check
     refuses that P, and the pair's own gain (enumerated radius 0.9996) is what it proves."""
     s, mu = chain(1.0), np.array([0.0124])
@@ -605,7 +622,7 @@ def test_critical_mu_of_single_input_plants_is_one_minus_the_inverse_mahler_meas
     """Elia (2005): over one input erased with probability 1 - mu, mu is in S iff (1 - mu) prod |lambda_i(A)|^2 < 1
     over the unstable eigenvalues (Jordan blocks counted with their size). The DP law's critical point, bracketed
     by an exact stability witness and an exact infeasibility certificate, holds 1 - 1 / prod within
-    CRITICAL_MU_TOL. (The 1.001 chain had given 0.01866 for 0.00796, by false "unstable" verdicts.)"""
+    CRITICAL_MU_TOL. (The 1.001 chain is the hard case: false "unstable" verdicts give 0.01866 for 0.00796.)"""
     s, mahler = _single_input_plant(np.random.default_rng(seed)) if seed else (chain(1.001), 1.001 ** 8)
     exact = 1.0 - 1.0 / mahler
     point = critical_point(s, "dp")
@@ -618,8 +635,8 @@ def test_critical_mu_of_single_input_plants_is_one_minus_the_inverse_mahler_meas
 def test_a_mode_no_input_reaches_is_decided_by_the_split():
     """A = [[0.5, 1], [0, 1.2]], b = e1: x2+ = 1.2 x2 whatever the law, so every law's radius is >= 1.44 and the
     least radius is 1.44 (the reached part's own, 0.25 (1 - mu), is smaller): "unstable" with margin 0.44 at every mu
-    (hand). The form had been "undecided" (its eigenpair 0.72), where diag(0.5, 1.2) was decided; now both are, and
-    the least radius is the unreached mode's."""
+    (hand). The eigenpair of the reached part (0.72) must not leave the form "undecided": both plants are decided
+    alike, and the least radius is the unreached mode's."""
     for A in ([[0.5, 1.0], [0.0, 1.2]], [[0.5, 0.0], [0.0, 1.2]]):
         s = System(A=A, B=[[1.0], [0.0]], horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0], mu=[1.0],
                    x0=[1.0, 1.0])

@@ -1,4 +1,4 @@
-"""No data lost: the command line interrupted, killed, raced and starved of disk, as issue 20 measured it.
+"""No data lost: the command line interrupted, killed, raced and starved of disk.
 
 Each hostile case runs the real command line in a subprocess (or, for a full disk, in process on a
 2 MB tmpfs) and then reads every file left with an independent reader (``np.load``, ``csv``, ``json``,
@@ -39,8 +39,9 @@ EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGKILL: -signal.SIGKILL
 
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
 #: what the forked runs find imported: the command modules of sweep and reproduce and their numerical stack
-PRELOAD = ["packetloss_cvx.cli", "packetloss_cvx.cli.sweep", "packetloss_cvx.cli.reproduce", "packetloss_cvx.plots.figures",
-           "packetloss_cvx.studies", "cvxpy", "scipy.linalg", "matplotlib.figure", "matplotlib.backends.backend_agg"]
+PRELOAD = ["packetloss_cvx.cli", "packetloss_cvx.cli.sweep", "packetloss_cvx.cli.reproduce",
+           "packetloss_cvx.plots.figures", "packetloss_cvx.studies", "cvxpy", "scipy.linalg", "matplotlib.figure",
+           "matplotlib.backends.backend_agg"]
 
 
 @pytest.fixture(scope="module")

@@ -170,7 +170,7 @@ def test_a_quick_run_does_not_call_a_claim_met_on_one_level(runs):
 
 
 def test_the_region_figure_of_the_two_actuator_system_against_independent_references(runs, two_actuator):
-    """Beyond the paper (issue 21 item 7): region-two-actuator.png with its paragraph, and the map in results.json:
+    """Beyond the paper: region-two-actuator.png with its paragraph, and the map in results.json:
     the dp verdicts against the LMI form alone (cvxpy + Clarabel, another algorithm), the paper laws' verdicts against
     the radius of their re-designed gain enumerated over the delivery patterns."""
     from packetloss_cvx.closedloop.region import membership

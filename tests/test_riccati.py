@@ -1,5 +1,6 @@
-"""The dynamic-programming optimum (simulation/riccati.py) against scipy's DARE, the scalar critical
-probability, the equation as the issue writes it, forward second moments and the receding-horizon laws."""
+"""The dynamic-programming optimum (closedloop/riccati.py) against scipy's DARE, the scalar critical
+probability, the modified Riccati equation written out (Schenato et al. 2007), forward second moments and the
+receding-horizon laws."""
 
 import math
 
@@ -17,8 +18,8 @@ from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE
 from .references import enumerated_radius
 
 
-def issue_residual(P, A, B, mu, Omega, psi):
-    """P - (Omega + A'PA - A'PBM (M Psi + M B'PB M + D(P))^-1 M B'PA), written as the issue does (mu > 0)."""
+def modified_riccati_residual(P, A, B, mu, Omega, psi):
+    """P - (Omega + A'PA - A'PBM (M Psi + M B'PB M + D(P))^-1 M B'PA), written out term by term (mu > 0)."""
     M = np.diag(mu)
     BPB = B.T @ P @ B
     D = np.diag(mu * (1 - mu) * np.diag(BPB))
@@ -36,10 +37,10 @@ def test_equals_scipy_dare_at_mu_one(seed):
 
 
 @pytest.mark.parametrize("seed", range(8))
-def test_solves_the_issue_equation_and_stabilises(seed):
+def test_solves_the_modified_riccati_equation_written_out_and_stabilises(seed):
     s = random_system(np.random.default_rng(100 + seed), non_stationary=False, edge_mu=False)
     dp = dp_riccati(s)
-    r = issue_residual(dp.cost_to_go, s.A, s.B, s.mu, s.state_weights[0], s.input_weights[0])
+    r = modified_riccati_residual(dp.cost_to_go, s.A, s.B, s.mu, s.state_weights[0], s.input_weights[0])
     assert np.abs(r).max() <= 1e-9 * np.abs(dp.cost_to_go).max()
     assert dp.spectral_radius < 1
     assert dp.spectral_radius == pytest.approx(mean_square_radius(s.A, s.B, dp.gain, s.mu))
@@ -231,7 +232,7 @@ def test_a_large_optimum_past_the_divergence_check_is_solved_not_denied():
     dp = dp_riccati(s)
     assert float(np.linalg.norm(dp.cost_to_go)) > RICCATI_DIVERGENCE * 2.0
     assert enumerated_radius(s.A, s.B, dp.gain, [0.0186]) < 1.0
-    residual = issue_residual(dp.cost_to_go, s.A, s.B, np.array([0.0186]), np.eye(4), np.ones(1))
+    residual = modified_riccati_residual(dp.cost_to_go, s.A, s.B, np.array([0.0186]), np.eye(4), np.ones(1))
     assert float(np.linalg.norm(residual)) <= 1e-9 * float(np.linalg.norm(dp.cost_to_go))
 
 

@@ -18,7 +18,12 @@ from packetloss_cvx.model.files import save_system
 from packetloss_cvx.model.sensor import Sensor
 from packetloss_cvx.model.system import System
 from packetloss_cvx.sensing import loop as loop_module
-from packetloss_cvx.sensing.bounds import lower_bound_diverges, stable_certificate, upper_bound_covariance
+from packetloss_cvx.sensing.bounds import (
+    critical_gamma,
+    lower_bound_diverges,
+    stable_certificate,
+    upper_bound_covariance,
+)
 from packetloss_cvx.sensing.loop import estimated_loop, loop_map, loop_verdict, no_gains_verdict
 
 # x+ = diag(1.3, -1.2) x + B v u + w, y = x1 + x2 + r: one row for two unstable modes. Lower bound on the critical
@@ -37,8 +42,13 @@ def parse(*argv):
 
 
 def test_the_case_lies_between_the_bounds():
+    """critical_gamma's bounds bracket gamma = 0.5: its lower bound is the hand value 1 - 1/rho(A)^2 (one channel),
+    and no certificate exists at 0.5 (so the upper bound lies above it)."""
     s = plant(0.5)
-    assert 1 - 1 / 1.3**2 < 0.5                                            # above the lower bound (hand value)
+    bounds = critical_gamma(s.A, s.sensor)
+    assert bounds.lower == pytest.approx(1 - 1 / 1.3**2, rel=1e-12)        # the hand value, below 0.5
+    assert bounds.lower < 0.5 < bounds.upper
+    assert not bounds.exact                                                # one row for two modes: bounds only
     assert stable_certificate(s.A, s.sensor, np.array([0.5])) is None      # no certificate: not above the upper
     assert upper_bound_covariance(s.A, s.noise_cov, s.sensor) is None      # the upper-bound iteration diverges
     assert not lower_bound_diverges(s.A, s.noise_cov, s.sensor.P0, 0.5)    # the lower bound is finite

@@ -1,5 +1,5 @@
 """``simulate`` (API and CLI): Monte Carlo within 4 standard errors of the exact expectations, the JSON
-schema of the issue, seeding, exit codes, saved trajectories and the figure."""
+schema, seeding, exit codes, saved trajectories and the figure."""
 
 import json
 

@@ -124,7 +124,7 @@ def test_expected_cost_runs_single_threaded_too(two_actuator, spy):
 
 
 def test_set_blas_threads_takes_numpy_integers():
-    # was: set_blas_threads(np.int64(2)) -> InputError "expected an integer >= 1 or None, found np.int64(2)"
+    # a NumPy integer is an integer: accepted, and stored as a plain int
     try:
         set_blas_threads(np.int64(2))
         assert blas_threads() == 2
@@ -138,8 +138,8 @@ def test_set_blas_threads_takes_numpy_integers():
 
 
 def test_the_grid_sweeps_run_under_the_blas_policy(monkeypatch, two_actuator):
-    # was: shared_channel_sweep / two_channel_sweep looped difference.cost_difference (dense (N m)^3 per point)
-    # with the process's BLAS threads: the pendulum's 298-point sweep took 0.45 s threaded, 0.19 s on one
+    # shared_channel_sweep / two_channel_sweep evaluate many small dense problems: they run under the BLAS thread
+    # policy (one thread), where small products are faster than threaded ones
     from threadpoolctl import threadpool_info, threadpool_limits
 
     import packetloss_cvx.studies.sweeps as sweeps
@@ -162,7 +162,7 @@ def test_the_grid_sweeps_run_under_the_blas_policy(monkeypatch, two_actuator):
 
 
 def test_reproduce_computes_under_the_blas_policy(monkeypatch):
-    # was: its steps outside the sweeps (the maximisers, tables) ran with the process's BLAS threads
+    # every step of reproduce, the maximisers and tables outside the sweeps included, runs under the BLAS policy
     from threadpoolctl import threadpool_info, threadpool_limits
 
     import packetloss_cvx.cli.reproduce as rep

@@ -60,7 +60,7 @@ def test_two_channel_sweep_needs_two_channels(pendulum):
 
 
 def test_grid_difference_is_not_negative_at_the_deterministic_corners(two_actuator):
-    # was: J_Delta = -2.9e-16 at mu = (0, 1) in reproduce's results.json (Theorem 2 visibly violated)
+    # Theorem 2: J_Delta >= 0; at the deterministic corners it is exactly 0, never a rounding residue below 0
     result = two_channel_sweep(two_actuator, np.linspace(0, 1, 11))
     assert np.all(result.difference >= 0)
     assert result.difference[0, 0] == result.difference[-1, 0] == result.difference[0, -1] == 0

@@ -230,7 +230,7 @@ def test_a_sweep_of_zero_costs_saves_its_data_and_skips_only_the_log_figures(cap
 
 def test_a_horizon_sweep_converts_to_xarray_and_netcdf(capsys, tmp_path, two_actuator):
     xr = pytest.importorskip("xarray")
-    # was: ValueError "variables {'horizon'} are found in both data_vars and coords"; CLI exit 1 "unexpected"
+    # horizon is a coordinate of the dataset, not also a data variable (xarray refuses a name in both)
     result = sweep(two_actuator, horizons=[3, 5], progress=False)
     dataset = result.to_xarray()
     assert dataset["horizon"].values.tolist() == [3, 5]

@@ -1,5 +1,5 @@
 """``sweep --burstiness``: the plug-in laws against the exact minimum under Gilbert channels of the
-file's average rates (issue 11, item 5), on the command line."""
+file's average rates, on the command line."""
 
 import json
 
@@ -67,7 +67,7 @@ def test_bad_burstiness_is_one_line_and_exit_2(capsys, argv, field):
 
 
 @pytest.mark.parametrize("argv", [
-    ["sweep", "pendulum_bursty", "--mu-grid", "3"],     # (allocate takes chain files since issue 23 item 5)
+    ["sweep", "pendulum_bursty", "--mu-grid", "3"],     # (allocate takes chain files)
 ])
 def test_a_chain_file_outside_burstiness_points_to_the_option(capsys, argv):
     # on the command line the way out is an option, not a Python function
@@ -86,9 +86,8 @@ def test_the_rate_is_the_files_not_a_rounded_mean(capsys):
 
 
 def test_a_burstiness_sweep_of_zero_costs_is_not_nan(capsys, tmp_path):
-    # x0 = 0 without noise (valid input): every cost is 0 and plugin / exact - 1 was 0/0: the text read
-    # "loses up to nan%" and --json exited 1 ("unexpected ValueError: Out of range float values are not JSON
-    # compliant"); solve's chain section already takes a zero minimum's loss as 0 (markov.compare)
+    # x0 = 0 without noise (valid input): every cost is 0 and plugin / exact - 1 is 0/0: the loss must read 0 (as
+    # solve's chain section takes a zero minimum's loss, markov.compare), not "nan%" in the text nor a JSON error
     path = tmp_path / "zero.toml"
     path.write_text((EXAMPLES / "two_actuator.toml").read_text().replace("x0 = [1.0, 1.0]", "x0 = [0.0, 0.0]"))
     assert main(["sweep", str(path), "--burstiness", "0,0.5", "--quiet"]) == 0

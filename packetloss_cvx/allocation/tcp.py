@@ -212,7 +212,7 @@ def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = No
     By the envelope theorem on ``J(Z, mu)``, at the optimal ``Z = Vbar U*`` the gradient of
     J*_tcp is the partial derivative of J in mu; it stays finite at mu_i = 0, where the closed
     form's inputs are the limit of the optimal law. O(N (n^3 + m^3)). Points may also be a
-    batch (P, m): then costs (P,) and gradients (P, m) from one batched evaluation (``evaluator``,
+    batch (points, m): then costs (points,) and gradients (points, m) from one batched evaluation (``evaluator``,
     a TCP-like :class:`CostEvaluator` of ``system``, reused when given).
 
     Examples
@@ -282,10 +282,10 @@ def _cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None,
           also: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, float]:
     """:func:`tangent_cuts`, and J*_tcp at ``mubar`` (clipped into [0, 1]), the first of its batch. O(m len(steps))
     closed forms, as one batch."""
-    P = cut_points(mubar, also)
+    points = cut_points(mubar, also)
     with np.errstate(over="ignore", invalid="ignore"):      # checked below: a cut of nan or inf raises, typed
-        f, S = tangent(system, P, evaluator)
-        r = f - np.sum(S * P, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
+        f, S = tangent(system, points, evaluator)
+        r = f - np.sum(S * points, axis=1) - ALLOCATION_COST_RTOL * (np.abs(f) + np.abs(S).sum(axis=1))
     if not (np.all(np.isfinite(S)) and np.all(np.isfinite(r))):    # a cut of nan or inf proves nothing
         raise NumericalError(f"TCP-like allocation: J*_tcp or its gradient is not finite at a tangent point near mu = "
                              f"{np.round(mubar, 6).tolist()} (weights of very different scales?): no cut can be made")

@@ -23,7 +23,7 @@ TIE_RTOL = 1e-9
 
 
 def exact_cost(system: System, protocol: str, steps: int = STEPS, gain: np.ndarray | None = None) -> float:
-    """E[sum_{t<steps} x_t'Omega_1 x_t + (V u_t)'Psi_0 (V u_t) + x_T'Omega_1 x_T] from x0, with noise, for the
+    """E[sum_{t<steps} x_t'Omega_1 x_t + (V u_t)'Psi_0 (V u_t) + x_steps'Omega_1 x_steps] from x0, with noise, for the
     protocol's receding-horizon law u = -K x (``gain``: K when the caller has it, else closed_form's);
     ``inf`` when it overflows. Time O(steps n^3)."""
     K = closed_form(system, protocol).gain if gain is None else gain

@@ -106,7 +106,7 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
 def _points(result: DesignSweep, data: dict[str, Any], table_file: Path | None) -> None:
     """The points into ``data``: ``axes`` (each dimension's values) and ``table`` (sweep.csv's columns -> one
     value per point, in the CSV's row order), or above :data:`JSON_MAX_POINTS` the CSV's path and a note.
-    O(P (m + n))."""
+    O(points (m + n))."""
     data["axes"] = {d: a.tolist() for d, a in zip(result.dims, result.axes, strict=True)}
     count = result.mu.shape[0]
     if count <= JSON_MAX_POINTS:
@@ -162,7 +162,8 @@ def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, 
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     data: dict[str, Any] = {"name": system.name, "kind": "burstiness", "rate": result.rate.tolist(),
                             "correlation": result.correlation.tolist()}
-    lines = [f"{fmt.name(system.name or args.file)}: burstiness sweep at average rates {np.round(result.rate, 6).tolist()}"]
+    rates = np.round(result.rate, 6).tolist()
+    lines = [f"{fmt.name(system.name or args.file)}: burstiness sweep at average rates {rates}"]
     for p in protocols:
         plugin, exact = result.plugin[p], result.exact[p]
         loss = plugin_loss(plugin, exact)      # a zero minimum has a zero plug-in cost too: its loss is 0

@@ -100,8 +100,8 @@ def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_
                     keep: int, progress: bool | None) -> Simulation:
     """:func:`~packetloss_cvx.montecarlo.simulate.simulate` for a system with a Gilbert–Elliott channel (arguments
     validated there). Same seeding as the Bernoulli path. Time O(samples N n (n + m) + N (D^3 + m^3)), D = n (1 + m)
-    open loop; closed loop O(laws samples T n (n + m)) plus one plan per distinct belief and the exact values
-    (O(T 4^m n^3) each, the radii O((2^m n^2)^3)).
+    open loop; closed loop O(laws samples steps n (n + m)) plus one plan per distinct belief and the exact values
+    (O(steps 4^m n^3) each, the radii O((2^m n^2)^3)).
 
     Examples
     --------

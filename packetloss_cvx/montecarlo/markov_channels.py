@@ -133,28 +133,28 @@ def sample_markov_paths(channel: GilbertElliott | MarkovChannel, steps: int, sam
     >>> bool(np.array_equal(v, bern) and np.array_equal(good, v))
     True
     """
-    T, S = _count(steps, "steps"), _count(samples, "samples")
-    # the chain steps in time: walk it time-major, (T, S, m) contiguous per step (a step of the (S, T, m) layout
-    # strides over whole runs, ~3x slower at T = 1000), and hand back (S, T, m) views of the time-major arrays
-    # (the deliveries too: the consumers step in time); the same numbers
-    u = np.ascontiguousarray(rng.random((S, T, channel.m)).swapaxes(0, 1))
+    steps, samples = _count(steps, "steps"), _count(samples, "samples")
+    # the chain steps in time: walk it time-major, (steps, samples, m) contiguous per step (a step of the (samples,
+    # steps, m) layout strides over whole runs, ~3x slower at 1000 steps), and hand back (samples, steps, m) views of
+    # the time-major arrays (the deliveries too: the consumers step in time); the same numbers
+    u = np.ascontiguousarray(rng.random((samples, steps, channel.m)).swapaxes(0, 1))
     if isinstance(channel, MarkovChannel):
-        states = np.empty((T, S, channel.m), dtype=np.int64)
-        states[0] = _draw(u[0], np.broadcast_to(channel.initial_belief, (S, *channel.stationary.shape)))
-        for t in range(1, T):
+        states = np.empty((steps, samples, channel.m), dtype=np.int64)
+        states[0] = _draw(u[0], np.broadcast_to(channel.initial_belief, (samples, *channel.stationary.shape)))
+        for t in range(1, steps):
             states[t] = _next_states(channel, states[t - 1], u[t])
         h = state_delivery(channel, states)
-        v = h == 1 if reveals_state(channel) else rng.random((S, T, channel.m)).swapaxes(0, 1) < h
+        v = h == 1 if reveals_state(channel) else rng.random((samples, steps, channel.m)).swapaxes(0, 1) < h
         return states.swapaxes(0, 1), v.swapaxes(0, 1)
-    good = np.empty((T, S, channel.m), dtype=bool)
+    good = np.empty((steps, samples, channel.m), dtype=bool)
     good[0] = u[0] < channel.initial_belief
     stay, enter = 1.0 - channel.p, channel.r
-    for t in range(1, T):
+    for t in range(1, steps):
         np.less(u[t], np.where(good[t - 1], stay, enter), out=good[t])
     if reveals_state(channel):
         v = np.where(good, channel.h_good, channel.h_bad) == 1
     else:
-        v = rng.random((S, T, channel.m)).swapaxes(0, 1) < np.where(good, channel.h_good, channel.h_bad)
+        v = rng.random((samples, steps, channel.m)).swapaxes(0, 1) < np.where(good, channel.h_good, channel.h_bad)
     return good.swapaxes(0, 1), v.swapaxes(0, 1)
 
 

@@ -50,7 +50,8 @@ def _gain(system: System, law: str, belief: np.ndarray) -> np.ndarray:
 def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, steps: int = 50,
                              samples: int = 1000, rng: np.random.Generator | None = None,
                              progress: bool | None = None) -> np.ndarray:
-    """Realised closed-loop costs ``sum_{t<T} x_t' Omega_1 x_t + (V_t u_t)' Psi_0 (V_t u_t) + x_T' Omega_1 x_T``.
+    """Realised closed-loop costs ``sum_{t<steps} x_t' Omega_1 x_t + (V_t u_t)' Psi_0 (V_t u_t) + x_steps' Omega_1
+    x_steps``.
 
     Every law sees the same sampled channel states, deliveries and noise (common random numbers).
     Returns an array (len(laws), samples). Time O(steps samples (n^2 + n m) + G plan), G the number
@@ -62,8 +63,8 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     InputError
         No Markov channel, an unknown law, or counts below 1.
     ResourceError
-        A law met more than PLAN_BUDGET distinct beliefs (one plan each: a law with
-        unboundedly many beliefs would plan without end), as :func:`~packetloss_cvx.montecarlo.simulate.simulate` refuses them.
+        A law met more than PLAN_BUDGET distinct beliefs (one plan each: a law with unboundedly many beliefs would
+        plan without end), as :func:`~packetloss_cvx.montecarlo.simulate.simulate` refuses them.
 
     Examples
     --------

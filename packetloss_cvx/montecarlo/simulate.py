@@ -2,7 +2,7 @@
 
 Open loop: each protocol's optimal plan U* is applied whatever the losses; the sampled realised
 cost is compared with the plan's exact expectation under the stated model. Closed loop: stationary
-laws ``u = -K x`` (the receding-horizon laws of both protocols and the DP optimum) run for T steps
+laws ``u = -K x`` (the receding-horizon laws of both protocols and the DP optimum) run for ``steps`` steps
 on the same sampled losses and noise (common random numbers); each run's mean stage cost is compared
 with its exact expectation from second moments (:mod:`.moments`).
 
@@ -151,7 +151,7 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     samples : int
         Runs (>= 2), vectorised in blocks of :data:`BLOCK`.
     steps : int
-        Closed-loop steps T (>= 1).
+        Closed-loop steps (>= 1).
     seed : int
         Seeds every stream (>= 0).
     closed_loop : bool
@@ -175,15 +175,15 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     BudgetError
         More work than the ``simulate_work`` budget (:func:`~packetloss_cvx.budgets.simulate_work`),
         refused before anything is drawn (``simulate(system, 2**63)`` at once); or, under ``steps``, a closed
-        loop's block arrays (O(BLOCK T (n + m + laws))) beyond the ``memory_bytes`` budget.
+        loop's block arrays (O(BLOCK steps (n + m + laws))) beyond the ``memory_bytes`` budget.
     ResourceError
         Behind a Gilbert–Elliott channel: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
         distinct beliefs (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
 
     Notes
     -----
-    Time O(samples N n (n + m)) open loop, O(laws samples T n (n + m)) closed loop, plus the exact values
-    (O(T n^3) each); memory O(BLOCK (N + T) (n + m) laws).
+    Time O(samples N n (n + m)) open loop, O(laws samples steps n (n + m)) closed loop, plus the exact values
+    (O(steps n^3) each); memory O(BLOCK (N + steps) (n + m) laws).
 
     Behind a Gilbert–Elliott channel (``system.channel``) the chain is sampled per run and every number is
     compared with the exact expectation under the chain (:mod:`.markov_montecarlo`): the open loop adds the

@@ -237,10 +237,10 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
 
     Parameters
     ----------
-    x : sequence of float, shape (P,)
+    x : sequence of float, shape (points,)
         The swept values (nu, mu_i, an x0 scale, horizons).
     curves : mapping
-        Label (``"tcp"``, ``"udp"``, ``"diff"`` or any text) to values of shape (P,).
+        Label (``"tcp"``, ``"udp"``, ``"diff"`` or any text) to values of shape (points,).
     xlabel : str
     log : bool
         Draw the values on a logarithmic y axis; values <= 0 (J_Delta where every mu_i is 0 or 1) are not on
@@ -254,7 +254,7 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
     Returns
     -------
     matplotlib.figure.Figure
-        The legend beside the axes. O(P) per curve.
+        The legend beside the axes. O(points) per curve.
 
     Raises
     ------

@@ -1,24 +1,25 @@
 """The expected-cost minimisation as cvxpy QPs solved with Clarabel (the solver twin), and its cross-check.
 
-One interface, :class:`ExpectedCostQP`, and two backends that solve the same problem in the mean
+One class, :class:`ExpectedCostQP`, and two backends that solve the same problem in the mean
 delivered input ``Z = Vbar U``, both DPP and re-solved by assigning new values to their
 ``cp.Parameter``s, without recompiling:
 
-* :class:`CondensedExpectedCostQP`: variables Z only; ``sum_squares(L Phi x + L Gamma Z)`` with every
+* :class:`CondensedBackend`: variables Z only; ``sum_squares(L Phi x + L Gamma Z)`` with every
   datum a Parameter: one compiled problem per padded shape serves every system (:mod:`.qp_shared`).
   Dense data of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
-* :class:`SparseExpectedCostQP`: mean states and Z as variables, the dynamics ``xhat_{t+1} = A xhat_t
+* :class:`SparseBackend`: mean states and Z as variables, the dynamics ``xhat_{t+1} = A xhat_t
   + B z_t`` as equality constraints (:func:`sparse_dynamics`); Parameters: the state x and, for a
   stationary channel, ``1/mu`` and ``1/mu - 1`` per channel. No Parameter multiplies a Variable, so
   the canonicalisation is linear in N (``multiply(v, U)`` kept an (N m)×(N m) map:
   docs/performance.md); every constant is block-sparse, so build and solve are O(N (n + m)^3),
   memory O(N (n + m)^2).
 
-``ExpectedCostQP(system, protocol, formulation)`` returns the backend :func:`choose_backend` picks
-("auto": condensed up to ``AUTO_CONDENSED_MAX`` decision variables). The interface owns what both
+``ExpectedCostQP(system, protocol, formulation)`` holds the backend the function :func:`choose_backend` picks
+("auto": condensed up to ``AUTO_CONDENSED_MAX`` decision variables) as ``.backend``. The class owns what both
 share: validation, the weights, the rescaling of tiny minima, the forward self-check, the gain and
 the cross-check against the closed form (:func:`compare`); a backend owns its data, its problems,
-and four steps (assign, solve, open-loop value, rescale).
+and four steps (select, minimise, open-loop value, rescale). :class:`CondensedExpectedCostQP` and
+:class:`SparseExpectedCostQP` are the class with its formulation fixed.
 
 The input terms of eq:opt-lqg-simplest with Lemma 1, ``U' Vbar Psi U + [UDP] U' Vbar Omega_d
 (I - Vbar) U``, are ``sum (psi + [UDP] diag(Omega_g)(1 - mu)) z^2 / mu``; the diagonal of Omega_g
@@ -60,8 +61,9 @@ from .convex import solve_problem
 from .shared import condensed_problem
 
 __all__ = [
-    "AUTO_CONDENSED_MAX", "CLARABEL_SETTINGS", "CondensedExpectedCostQP", "ExpectedCostQP", "SparseExpectedCostQP",
-    "choose_backend", "compare", "condensed_data", "qp_memory_estimate", "solve_qp", "sparse_dynamics",
+    "AUTO_CONDENSED_MAX", "CLARABEL_SETTINGS", "CondensedBackend", "CondensedExpectedCostQP", "ExpectedCostQP",
+    "SparseBackend", "SparseExpectedCostQP", "choose_backend", "compare", "condensed_data", "qp_memory_estimate",
+    "solve_qp", "sparse_dynamics",
 ]
 
 #: Tightened Clarabel tolerances (tolerances.CLARABEL_TIGHT): the cross-check promises inputs to 1e-6.
@@ -125,7 +127,7 @@ def compare(inputs: np.ndarray, cost: float, reference: Solution, system: System
 
 # ---------------------------------------------------------------------------------------- the interface
 
-def choose_backend(system: System, formulation: str) -> type[ExpectedCostQP]:
+def choose_backend(system: System, formulation: str) -> type[Backend]:
     """The backend class for ``formulation``: "condensed", "sparse", or "auto" (condensed while
     N m <= ``AUTO_CONDENSED_MAX``, the measured crossover). O(1).
 
@@ -133,11 +135,11 @@ def choose_backend(system: System, formulation: str) -> type[ExpectedCostQP]:
     --------
     >>> s = System(A=[[1]], B=[[1]], horizon=100, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> choose_backend(s, "auto").__name__, choose_backend(s, "condensed").formulation
-    ('SparseExpectedCostQP', 'condensed')
+    ('SparseBackend', 'condensed')
     """
     if formulation == "auto":
         formulation = "condensed" if system.horizon * system.m <= AUTO_CONDENSED_MAX else "sparse"
-    backends = {cls.formulation: cls for cls in (CondensedExpectedCostQP, SparseExpectedCostQP)}
+    backends = {cls.formulation: cls for cls in (CondensedBackend, SparseBackend)}
     if formulation not in backends:
         raise InputError("formulation", f"expected 'condensed', 'sparse' or 'auto', found {formulation!r}")
     return backends[formulation]
@@ -145,7 +147,7 @@ def choose_backend(system: System, formulation: str) -> type[ExpectedCostQP]:
 
 def qp_memory_estimate(system: System, formulation: str) -> float:
     """Bytes the chosen backend's QP needs at its peak, known before building it: linear in N
-    (:meth:`ExpectedCostQP.memory_estimate`).
+    (:meth:`Backend.memory_estimate`).
 
     Examples
     --------
@@ -161,8 +163,8 @@ def qp_memory_estimate(system: System, formulation: str) -> float:
 class ExpectedCostQP:
     """One protocol's expected-cost QP for one system, re-solvable for new mu or x0.
 
-    ``ExpectedCostQP(system, protocol, formulation)`` builds the backend :func:`choose_backend` picks
-    (:class:`CondensedExpectedCostQP` or :class:`SparseExpectedCostQP`, both instances of this class).
+    ``ExpectedCostQP(system, protocol, formulation)`` builds the backend the function :func:`choose_backend` picks
+    for ``formulation`` (:class:`CondensedBackend` or :class:`SparseBackend`) and keeps it as ``backend``.
     An instance is not thread-safe (it keeps the current x, mu); the condensed backend's compiled
     problems are shared by shape and thread-safe (:mod:`.qp_shared`).
 
@@ -185,26 +187,18 @@ class ExpectedCostQP:
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0],
     ...            input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> qp = ExpectedCostQP(s, "udp", "sparse")
-    >>> type(qp).__name__
-    'SparseExpectedCostQP'
+    >>> qp.formulation, type(qp.backend).__name__
+    ('sparse', 'SparseBackend')
     >>> a, b = qp.solve(), qp.solve(mu=[0.9])      # the second re-uses the compiled problem
     >>> bool(b.cost < a.cost)
     True
     """
 
-    #: the backend's name ("condensed" or "sparse"), reported as ``Solution.method = "qp-<formulation>"``
-    formulation = ""
-
-    def __new__(cls, system: System | None = None, protocol: str | None = None, formulation: str = "auto"):
-        if cls is ExpectedCostQP:       # the chooser: the interface itself is never built
-            cls = choose_backend(check_system(system), formulation)
-        return super().__new__(cls)
-
     def __init__(self, system: System, protocol: str, formulation: str = "auto") -> None:
         system = check_system(system)
-        if formulation not in ("auto", self.formulation):
-            raise InputError("formulation", f"the {type(self).__name__} backend is {self.formulation!r}, found "
-                                            f"{formulation!r}")
+        backend = choose_backend(system, formulation)
+        #: the backend's name ("condensed" or "sparse"), reported as ``Solution.method = "qp-<formulation>"``
+        self.formulation = backend.formulation
         self.protocol = check_protocol(protocol)
         refuse_correlated(system, self.protocol)
         self.system = system
@@ -212,7 +206,7 @@ class ExpectedCostQP:
         work = qp_work(N, n, m, self.formulation)       # the horizon priced before cvxpy sees it (budgets.py)
         check("solve_work", work, "horizon", f"the {self.formulation} QP of N = {N} (n = {n}, m = {m}), about "
                                              f"{duration_text(estimated_seconds('solve_work', work))}")
-        needed = self.memory_estimate(system)
+        needed = backend.memory_estimate(system)
         check("memory_bytes", needed, "horizon",
               f"the {self.formulation} QP of N = {N} (n = {n}, m = {m}; about {gib_text(needed)}: cvxpy keeps ~260 "
               f"N n^2 bytes of state terms)",
@@ -231,40 +225,9 @@ class ExpectedCostQP:
         #: how many solves of this object were re-solved rescaled (``tolerances.QP_RESCALE_BELOW``)
         self.rescaled = 0
         self.x = cp.Parameter(n, name="x")
-        self._build_data()
+        #: the formulation's data, problems and steps (:class:`Backend`), built at the current scale
+        self.backend = backend(self)
         self._assign(system.mu_schedule, system.x0, self.protocol)
-
-    # ------------------------------------------------------------------ what a backend provides
-    @classmethod
-    def memory_estimate(cls, system: System) -> float:
-        """Bytes this backend's QP needs at its peak (measured; docs/performance.md). O(1)."""
-        raise NotImplementedError
-
-    def _build_data(self) -> None:
-        """The backend's data at the current scale ``self._scale``."""
-        raise NotImplementedError
-
-    def _select(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> None:
-        """Make the problem for ``mu`` (N×m) with the entries ``free`` current (``self.x`` is set after)."""
-        raise NotImplementedError
-
-    def _minimise(self, what: str) -> tuple[np.ndarray | None, float, str]:
-        """``(z, value, status)`` of the current problem (some entry free): z on the free entries, the scaled
-        minimum. Raises SolverError when cvxpy or Clarabel fails outright."""
-        raise NotImplementedError
-
-    def _open_loop(self) -> float:
-        """The scaled objective at z = 0 (no input delivered), an upper bound of the minimum that is zero exactly
-        when the minimum is (no weighted state moves)."""
-        raise NotImplementedError
-
-    def _rescale_data(self, root: float) -> None:
-        """Multiply the backend's state-weight factor by ``root`` (the common scale grew by 1 / root^2)."""
-        raise NotImplementedError
-
-    def _state_size(self) -> float:
-        """||c|| for a backend whose minimum is the squared residual ``||c + G z||^2`` (0 when it is not)."""
-        return 0.0
 
     # ------------------------------------------------------------------ shared by both backends
     def _weights(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> np.ndarray:
@@ -275,7 +238,7 @@ class ExpectedCostQP:
     def _assign(self, mu: np.ndarray, x: np.ndarray, protocol: str) -> None:
         self._free = mu > QP_PIN_MU
         self._v = mu.ravel()
-        self._select(mu, self._free, protocol)
+        self.backend.select(mu, self._free, protocol)
         # x is a System's validated state (x0, or x0 scaled): kept as cvxpy keeps a value (save_value), without the
         # value setter's validation of it again (a tenth of a condensed solve's Python time)
         self.x.save_value(x)
@@ -285,9 +248,9 @@ class ExpectedCostQP:
         u = np.zeros(self._v.size)         # an input never delivered changes nothing: reported as 0
         flat = self._free.ravel()
         if not flat.any():                 # nothing delivered: the open-loop state cost
-            return u, self._open_loop(), "optimal"
+            return u, self.backend.open_loop(), "optimal"
         try:
-            z, value, status = self._minimise(what)
+            z, value, status = self.backend.minimise(what)
         except SolverError as err:
             raise self._out_of_range(err.status, protocol) from None
         if status not in ACCEPTED_STATUSES:
@@ -297,7 +260,7 @@ class ExpectedCostQP:
 
     def _rescale(self, value: float) -> None:
         """Multiply the common scale by ``value`` (the last scaled minimum, positive). O(N n (n + m))."""
-        self._rescale_data(1.0 / np.sqrt(value))
+        self.backend.rescale_data(1.0 / np.sqrt(value))
         self._scale *= value
 
     def _solve_scaled(self, mu: np.ndarray, x: np.ndarray, protocol: str) -> tuple[np.ndarray, float, str]:
@@ -306,7 +269,7 @@ class ExpectedCostQP:
         ``QP_RESCALE_PASSES`` times, keeping the new scale. Raises NumericalError if v stays below it while
         the minimum is not exactly zero (some weighted state moves). The minimiser does not depend on the scale."""
         def too_small(v: float) -> bool:      # below the threshold, with a minimum that is not exactly zero
-            return v < QP_RESCALE_BELOW and self._free.any() and self._open_loop() > 0.0
+            return v < QP_RESCALE_BELOW and self._free.any() and self.backend.open_loop() > 0.0
 
         u, value, status = self._solve_raw(protocol)
         for _ in range(QP_RESCALE_PASSES):
@@ -326,10 +289,10 @@ class ExpectedCostQP:
         return u, value, status
 
     def _check_resolvable(self, value: float, protocol: str) -> None:
-        """Raise when the minimum v = ||c + G z||^2 + ||r z||^2 (c = L Phi x, :meth:`_state_size`), a squared
+        """Raise when the minimum v = ||c + G z||^2 + ||r z||^2 (c = L Phi x, :meth:`Backend.state_size`), a squared
         residual of terms of size ||c||, is below double precision's resolution at CROSS_CHECK_COST_RTOL (2 eps
         ||c|| / sqrt(v) relative): there Clarabel may say 'optimal' with v wrong in the third digit. O(N n)."""
-        c = self._state_size() if self._free.any() else 0.0
+        c = self.backend.state_size() if self._free.any() else 0.0
         if not 2.0 * np.finfo(float).eps * c <= CROSS_CHECK_COST_RTOL * np.sqrt(max(value, 0.0)):
             raise NumericalError(
                 f"the {protocol}-like {self.formulation} QP's minimum {value:.3g} is the square of a residual of "
@@ -420,6 +383,84 @@ class ExpectedCostQP:
         )
 
 
+class CondensedExpectedCostQP(ExpectedCostQP):
+    """:class:`ExpectedCostQP` with the condensed formulation (:class:`CondensedBackend`).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> sol = CondensedExpectedCostQP(s, "tcp").solve(cross_check=False)   # u = -2/3, J = 2/3
+    >>> sol.method, bool(np.allclose([sol.inputs[0, 0], sol.cost], [-2 / 3, 2 / 3], atol=1e-7))
+    ('qp-condensed', True)
+    """
+
+    def __init__(self, system: System, protocol: str, formulation: str = "condensed") -> None:
+        _fixed("condensed", formulation)
+        super().__init__(system, protocol, "condensed")
+
+
+class SparseExpectedCostQP(ExpectedCostQP):
+    """:class:`ExpectedCostQP` with the sparse formulation (:class:`SparseBackend`).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> sol = SparseExpectedCostQP(s, "tcp").solve(cross_check=False)      # u = -2/3, J = 2/3
+    >>> sol.method, bool(np.allclose([sol.inputs[0, 0], sol.cost], [-2 / 3, 2 / 3], atol=1e-7))
+    ('qp-sparse', True)
+    """
+
+    def __init__(self, system: System, protocol: str, formulation: str = "sparse") -> None:
+        _fixed("sparse", formulation)
+        super().__init__(system, protocol, "sparse")
+
+
+def _fixed(own: str, formulation: str) -> None:
+    if formulation not in ("auto", own):
+        raise InputError("formulation", f"the {own} QP's backend is {own!r}, found {formulation!r}")
+
+
+# ---------------------------------------------------------------------------------------- what a backend provides
+
+class Backend:
+    """One formulation of the expected-cost QP: its data, its compiled problems and four steps, run by the
+    :class:`ExpectedCostQP` ``qp`` that holds it (whose state ``qp.x``, weights and common scale ``qp._scale`` it
+    reads). Built with the data at the current scale."""
+
+    #: the formulation's name, reported as ``Solution.method = "qp-<formulation>"``
+    formulation = ""
+
+    def __init__(self, qp: ExpectedCostQP) -> None:
+        self.qp = qp
+
+    @classmethod
+    def memory_estimate(cls, system: System) -> float:
+        """Bytes this backend's QP needs at its peak (measured; docs/performance.md). O(1)."""
+        raise NotImplementedError
+
+    def select(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> None:
+        """Make the problem for ``mu`` (N×m) with the entries ``free`` current (``qp.x`` is set after)."""
+        raise NotImplementedError
+
+    def minimise(self, what: str) -> tuple[np.ndarray | None, float, str]:
+        """``(z, value, status)`` of the current problem (some entry free): z on the free entries, the scaled
+        minimum. Raises SolverError when cvxpy or Clarabel fails outright."""
+        raise NotImplementedError
+
+    def open_loop(self) -> float:
+        """The scaled objective at z = 0 (no input delivered), an upper bound of the minimum that is zero exactly
+        when the minimum is (no weighted state moves)."""
+        raise NotImplementedError
+
+    def rescale_data(self, root: float) -> None:
+        """Multiply the backend's state-weight factor by ``root`` (the common scale grew by 1 / root^2)."""
+        raise NotImplementedError
+
+    def state_size(self) -> float:
+        """||c|| for a backend whose minimum is the squared residual ``||c + G z||^2`` (0 when it is not)."""
+        return 0.0
+
+
 # ---------------------------------------------------------------------------------------- the condensed backend
 
 def condensed_data(system: System, scale: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -439,7 +480,7 @@ def condensed_data(system: System, scale: float) -> tuple[np.ndarray, np.ndarray
     return (L @ pred.Phi, L @ pred.Gamma) if L.shape[0] else None
 
 
-class CondensedExpectedCostQP(ExpectedCostQP):
+class CondensedBackend(Backend):
     """The condensed backend: ``min ||c + G z||^2 + ||r ∘ z||^2`` over the free entries z, with
     ``c = L Phi x / sqrt(s)``, ``G = (L Gamma / sqrt(s))[:, free]`` (:func:`condensed_data`) and ``r`` the
     square roots of the input weights; solved by the problem compiled once per padded shape and shared
@@ -449,10 +490,14 @@ class CondensedExpectedCostQP(ExpectedCostQP):
 
     Examples
     --------
-    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
-    >>> sol = CondensedExpectedCostQP(s, "tcp").solve(cross_check=False)   # u = -2/3, J = 2/3
-    >>> sol.method, bool(np.allclose([sol.inputs[0, 0], sol.cost], [-2 / 3, 2 / 3], atol=1e-7))
-    ('qp-condensed', True)
+    x' = x + z from x = 1 over two steps, weights 1, mu = 1/2 (input weight psi / mu = 2): z = 0 leaves
+    x = 1, 1 (open loop 2); the minimum of (1 + z1)^2 + (1 + z1 + z2)^2 + 2 z1^2 + 2 z2^2 is 10/11 (by hand).
+
+    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> backend = ExpectedCostQP(s, "tcp", "condensed").backend
+    >>> z, value, status = backend.minimise("a demo")
+    >>> backend.open_loop(), bool(np.isclose(value, 10 / 11, rtol=1e-8)), status
+    (2.0, True, 'optimal')
     """
 
     formulation = "condensed"
@@ -464,32 +509,33 @@ class CondensedExpectedCostQP(ExpectedCostQP):
         :mod:`.qp_shared`). O(1)."""
         return qp_bytes(system.horizon, system.n, system.m, "condensed")
 
-    def _build_data(self) -> None:
-        self._data = condensed_data(self.system, self._scale)    # (L Phi, L Gamma) / sqrt(scale), or None
+    def __init__(self, qp: ExpectedCostQP) -> None:
+        super().__init__(qp)
+        self._data = condensed_data(qp.system, qp._scale)        # (L Phi, L Gamma) / sqrt(scale), or None
         self._own: dict[tuple, object] = {}                      # beyond SHARED_MAX_ENTRIES: per shape
 
-    def _select(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> None:
+    def select(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> None:
         flat = free.ravel()           # the shared problem's data: its Parameters are set per solve
         self._G = self._data[1][:, flat] if self._data is not None else np.zeros((0, int(flat.sum())))
-        self._r = np.sqrt(self._weights(mu, free, protocol).ravel()[flat])
+        self._r = np.sqrt(self.qp._weights(mu, free, protocol).ravel()[flat])
 
-    def _minimise(self, what: str) -> tuple[np.ndarray | None, float, str]:
-        c = self._data[0] @ self.x.value if self._data is not None else np.zeros(0)
+    def minimise(self, what: str) -> tuple[np.ndarray | None, float, str]:
+        c = self._data[0] @ self.qp.x.value if self._data is not None else np.zeros(0)
         problem = self._own.get(self._G.shape) or condensed_problem(*self._G.shape)
         if not problem.shared:
             self._own[self._G.shape] = problem
         return problem.solve(c, self._G, self._r, what)
 
-    def _open_loop(self) -> float:
+    def open_loop(self) -> float:
         """O((N n) n)."""
-        return float(np.sum((self._data[0] @ self.x.value) ** 2)) if self._data is not None else 0.0
+        return float(np.sum((self._data[0] @ self.qp.x.value) ** 2)) if self._data is not None else 0.0
 
-    def _rescale_data(self, root: float) -> None:
+    def rescale_data(self, root: float) -> None:
         """The data are rescaled in place (the shared problems take them as Parameters)."""
         self._data = None if self._data is None else (self._data[0] * root, self._data[1] * root)
 
-    def _state_size(self) -> float:
-        return float(np.linalg.norm(self._data[0] @ self.x.value)) if self._data is not None else 0.0
+    def state_size(self) -> float:
+        return float(np.linalg.norm(self._data[0] @ self.qp.x.value)) if self._data is not None else 0.0
 
 
 # ---------------------------------------------------------------------------------------- the sparse backend
@@ -515,7 +561,7 @@ def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.cs
     return E, Bbig, first, L
 
 
-class SparseExpectedCostQP(ExpectedCostQP):
+class SparseBackend(Backend):
     """The sparse backend: the mean states and ``Z = Vbar U`` (free entries) as variables, the dynamics
     as equality constraints (:func:`sparse_dynamics`), compiled by this object per protocol and pinned set
     (stationary channel: ``1/mu``, ``1/mu - 1`` as Parameters) or per schedule (weights as constants).
@@ -523,10 +569,13 @@ class SparseExpectedCostQP(ExpectedCostQP):
 
     Examples
     --------
-    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
-    >>> sol = SparseExpectedCostQP(s, "tcp").solve(cross_check=False)      # u = -2/3, J = 2/3
-    >>> sol.method, bool(np.allclose([sol.inputs[0, 0], sol.cost], [-2 / 3, 2 / 3], atol=1e-7))
-    ('qp-sparse', True)
+    The case of :class:`CondensedBackend`'s example: open loop 2, minimum 10/11 (by hand).
+
+    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> backend = ExpectedCostQP(s, "tcp", "sparse").backend
+    >>> z, value, status = backend.minimise("a demo")
+    >>> backend.open_loop(), bool(np.isclose(value, 10 / 11, rtol=1e-8)), status
+    (2.0, True, 'optimal')
     """
 
     formulation = "sparse"
@@ -538,14 +587,15 @@ class SparseExpectedCostQP(ExpectedCostQP):
         O(1)."""
         return qp_bytes(system.horizon, system.n, system.m, "sparse")
 
-    def _build_data(self) -> None:
-        E, Bbig, first, L = sparse_dynamics(self.system)
+    def __init__(self, qp: ExpectedCostQP) -> None:
+        super().__init__(qp)
+        E, Bbig, first, L = sparse_dynamics(qp.system)
         self._dynamics = (E, Bbig, first)
-        self._L = L / np.sqrt(self._scale)
+        self._L = L / np.sqrt(qp._scale)
         self._problems: dict[tuple, tuple] = {}      # compiled per pinned set / schedule
 
-    def _select(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> None:
-        if not free.any():            # nothing delivered: no problem to solve (:meth:`_open_loop`)
+    def select(self, mu: np.ndarray, free: np.ndarray, protocol: str) -> None:
+        if not free.any():            # nothing delivered: no problem to solve (:meth:`open_loop`)
             return
         if np.all(mu == mu[0]):       # one problem per protocol: a zero-weighted diag(Omega_g) term of an
             # unstable plant (1e70) made Clarabel fail the TCP-like QP it solved without the term
@@ -555,7 +605,7 @@ class SparseExpectedCostQP(ExpectedCostQP):
                 self._params[0].value = 1.0 / v
                 self._params[1].value = np.where(v < 1.0, 1.0 / v - 1.0, 0.0)
         else:
-            self._build(("schedule", protocol, mu.tobytes()), free, self._weights(mu, free, protocol))
+            self._build(("schedule", protocol, mu.tobytes()), free, self.qp._weights(mu, free, protocol))
 
     def _build(self, key: tuple, free: np.ndarray, weight: np.ndarray | None) -> None:
         """The problem for the entries ``free`` (N×m, mu > QP_PIN_MU, at least one): built on first use, kept
@@ -572,7 +622,8 @@ class SparseExpectedCostQP(ExpectedCostQP):
         if key in self._problems:
             self.problem, self.Z, self._params = self._problems[key]
             return
-        N, n, m = self.system.horizon, self.system.n, self.system.m
+        qp = self.qp
+        N, n, m = qp.system.horizon, qp.system.n, qp.system.m
         flat = free.ravel()
         k = int(flat.sum())
         select = sp.csr_matrix((np.ones(k), (np.flatnonzero(flat), np.arange(k))), shape=(N * m, k))
@@ -584,7 +635,7 @@ class SparseExpectedCostQP(ExpectedCostQP):
             flat_Z = cp.vec(Z.T, order="F")
             params = (cp.Parameter(len(channels), nonneg=True, name="inv_mu"),
                       cp.Parameter(len(channels), nonneg=True, name="inv_mu_minus_one"))
-            psi, d = self.system.input_weights / self._scale, self._d / self._scale
+            psi, d = qp.system.input_weights / qp._scale, qp._d / qp._scale
             terms.append(params[0] @ cp.sum(cp.multiply(psi[:, channels], cp.square(Z)), axis=0))
             if key[1] == "udp":
                 terms.append(params[1] @ cp.sum(cp.multiply(d[:, channels], cp.square(Z)), axis=0))
@@ -593,7 +644,7 @@ class SparseExpectedCostQP(ExpectedCostQP):
             terms.append(cp.sum_squares(cp.multiply(np.sqrt(weight.ravel()[flat]), Z)))
         E, Bbig, first = self._dynamics
         X = cp.Variable(N * n, name="xhat")
-        constraints = [E @ X - (Bbig @ select) @ flat_Z == first @ self.x]
+        constraints = [E @ X - (Bbig @ select) @ flat_Z == first @ qp.x]
         if self._L.shape[0]:
             terms.append(cp.sum_squares(self._L @ X))
         problem = cp.Problem(cp.Minimize(cp.sum(terms)), constraints)
@@ -604,17 +655,17 @@ class SparseExpectedCostQP(ExpectedCostQP):
         self._problems[key] = (problem, Z, params)
         self.problem, self.Z, self._params = problem, Z, params
 
-    def _minimise(self, what: str) -> tuple[np.ndarray | None, float, str]:
+    def minimise(self, what: str) -> tuple[np.ndarray | None, float, str]:
         status = solve_problem(self.problem, what, attempts=(CLARABEL_SETTINGS,))
         return self.Z.value, self.problem.value, status
 
-    def _open_loop(self) -> float:
+    def open_loop(self) -> float:
         """A block-bidiagonal solve, O(N n^2)."""
         E, _, first = self._dynamics
-        return float(np.sum((self._L @ spla.spsolve_triangular(E, first @ self.x.value)) ** 2)) \
+        return float(np.sum((self._L @ spla.spsolve_triangular(E, first @ self.qp.x.value)) ** 2)) \
             if self._L.shape[0] else 0.0
 
-    def _rescale_data(self, root: float) -> None:
+    def rescale_data(self, root: float) -> None:
         """The problems, whose weights are constants, are dropped and rebuilt on their next use."""
         self._L = self._L * root
         self._problems = {}

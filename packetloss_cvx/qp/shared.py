@@ -1,6 +1,6 @@
 """The condensed expected-cost QP compiled once per padded shape and shared by every system of that shape.
 
-The problem of the condensed backend (:class:`~packetloss_cvx.qp.expected_cost.CondensedExpectedCostQP`, which owns
+The problem of the condensed backend (:class:`~packetloss_cvx.qp.expected_cost.CondensedBackend`, which owns
 its data) is, with all of a system's data as
 ``cp.Parameter``s (DPP),
 

@@ -75,7 +75,8 @@ class LoopStability:
         if self.stable:
             verdict = "mean-square stable"
         elif self.radius >= 1:
-            verdict = "NOT mean-square stable: E[x x'] grows without bound when u = -K x runs in a loop over these losses"
+            verdict = ("NOT mean-square stable: E[x x'] grows without bound when u = -K x runs in a loop over these "
+                       "losses")
         else:
             verdict = "not proved mean-square stable (the radius is within 1e-9 of 1)"
         return f"u = -K x over {self.over}: {verdict} (second-moment spectral radius {self.radius:.6g})"
@@ -155,22 +156,23 @@ class Solution(Frozen):
 
 @dataclass(frozen=True)
 class BatchSolution(Frozen):
-    """Optimal plans for P channels of one system (:class:`~packetloss_cvx.lq.evaluator.CostEvaluator`).
+    """Optimal plans for a batch of channels (``points`` of them) of one system
+    (:class:`~packetloss_cvx.lq.evaluator.CostEvaluator`).
 
     Attributes
     ----------
     protocol : {"tcp", "udp"}
-    costs : ndarray, shape (P,)
+    costs : ndarray, shape (points,)
         Optimal expected costs J*, each checked against the forward cost of its own plan.
-    inputs : ndarray, shape (P, N, m)
+    inputs : ndarray, shape (points, N, m)
         Commanded inputs U* per point.
-    gains : ndarray, shape (P, m, n)
+    gains : ndarray, shape (points, m, n)
         Receding-horizon gains K of the first step per point.
     method : str
         "dense", "recursion", or "mixed" (dense, with the recursion for points whose dense
         solve failed its checks).
 
-    Construction O(P N m n) (read-only copies).
+    Construction O(points N m n) (read-only copies).
     """
 
     protocol: str
@@ -185,6 +187,6 @@ class BatchSolution(Frozen):
     to_json = to_json   # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain lists for JSON. O(P N m n)."""
+        """Plain lists for JSON. O(points N m n)."""
         return {"protocol": self.protocol, "costs": self.costs.tolist(), "inputs": self.inputs.tolist(),
                 "gains": self.gains.tolist(), "method": self.method}

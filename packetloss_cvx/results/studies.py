@@ -282,16 +282,16 @@ class MinCost(Frozen):
 
 @dataclass(frozen=True)
 class DesignSweep(Frozen):
-    """Optimal costs over a design study (:func:`packetloss_cvx.studies.sweep`), P points.
+    """Optimal costs over a design study (:func:`packetloss_cvx.studies.sweep`), over its points.
 
     ``kind``: "mu-grid", "mu-list", "x0-scale" or "horizon"; ``dims``/``axes``: the swept dimensions,
     slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2), the points being the axes'
-    Cartesian product in C order; ``mu`` (P, m), ``x0`` (P, n), ``horizon`` (P,): each point;
-    ``costs``: protocol -> J* (P,); ``difference``: J*_udp - J*_tcp (P,) or None, the difference of
+    Cartesian product in C order; ``mu`` (points, m), ``x0`` (points, n), ``horizon`` (points,): each point;
+    ``costs``: protocol -> J* (points,); ``difference``: J*_udp - J*_tcp (points,) or None, the difference of
     the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 J*_udp
     absolute (so not relatively where the costs nearly agree); ``name``: the system's;
     ``chunk_size``: points per batched evaluation (in process or per Dask task); ``radii``: protocol ->
-    the mean-square spectral radius of its receding-horizon law's closed loop at each point (P,), when
+    the mean-square spectral radius of its receding-horizon law's closed loop at each point (points,), when
     asked for (stable iff < 1), else empty.
     """
 
@@ -324,7 +324,7 @@ class DesignSweep(Frozen):
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Flat arrays as ``sweep.npz`` stores them: mu, x0, horizon, cost_<protocol>, cost_diff,
-        radius_<protocol>, axis_<dim>. O(P)."""
+        radius_<protocol>, axis_<dim>. O(points)."""
         out = {"mu": self.mu, "x0": self.x0, "horizon": self.horizon, **{f"cost_{p}": v for p, v in self.costs.items()}}
         if self.difference is not None:
             out["cost_diff"] = self.difference
@@ -349,13 +349,13 @@ class DesignSweep(Frozen):
         return value.reshape(*self.shape, -1) if value.ndim == 2 else value.reshape(self.shape)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain lists for JSON. O(P (m + n))."""
+        """Plain lists for JSON. O(points (m + n))."""
         return {"kind": self.kind, "name": self.name, "dims": list(self.dims), "shape": list(self.shape),
                 "chunk_size": self.chunk_size, **{k: v.tolist() for k, v in self.arrays().items()}}
 
     def to_xarray(self) -> Any:
         """An :class:`xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
-        mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(P (m + n))."""
+        mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(points (m + n))."""
         try:
             import xarray as xr  # lazy: an optional extra
         except ImportError:

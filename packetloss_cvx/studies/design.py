@@ -90,7 +90,7 @@ def read_mu_list(path: str | Path, m: int) -> np.ndarray:
 def _mu_points(points: Any) -> np.ndarray:
     arr = numeric_array(points, "mu_list")
     if arr.ndim != 2 or arr.shape[0] < 1:
-        raise InputError("mu_list", f"expected P rows of m probabilities, found shape {arr.shape}")
+        raise InputError("mu_list", f"expected rows of m probabilities, found shape {arr.shape}")
     bad = np.flatnonzero(np.any((arr < 0) | (arr > 1), axis=1))
     if bad.size:
         raise InputError("mu_list", f"row {bad[0] + 1}: expected probabilities in [0, 1]")
@@ -98,7 +98,7 @@ def _mu_points(points: Any) -> np.ndarray:
 
 
 def _plan(system: System, mu_grid, channel, shared, mu_list, x0_scales, horizons):
-    """(kind, dims, axes, mu (P, m)) of the one sweep asked for."""
+    """(kind, dims, axes, mu (points, m)) of the one sweep asked for."""
     given = [k for k, v in (("mu_grid", mu_grid), ("mu_list", mu_list), ("x0_scales", x0_scales),
                             ("horizons", horizons)) if v is not None]
     if len(given) != 1:
@@ -169,7 +169,7 @@ def _horizons(system: System, values: Any) -> np.ndarray:
 def _difference(costs: dict[str, np.ndarray], mu: np.ndarray) -> np.ndarray:
     """J*_udp - J*_tcp, exactly 0 where every channel is deterministic (each mu_i in {0, 1}: the UDP-like
     term U' Vbar Omega_d (I - Vbar) U vanishes and the two problems are the same; their two evaluations
-    would differ by rounding, about 1e-15 J*, and could make the difference negative). O(P m)."""
+    would differ by rounding, about 1e-15 J*, and could make the difference negative). O(points m)."""
     diff = costs["udp"] - costs["tcp"]
     diff[np.all((mu == 0) | (mu == 1), axis=1)] = 0.0
     return diff
@@ -191,7 +191,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
         channel of a single-channel system, over ``channel`` (0-based; the others as in the system),
         over one channel shared by every actuator (``shared=True``), or over [0, 1]^2 for m = 2
         (dims ``("mu2", "mu1")``: rows follow mu2).
-    mu_list : array_like, shape (P, m)
+    mu_list : array_like, shape (points, m)
         Channel points (see :func:`read_mu_list`).
     x0_scales : sequence of float
         The initial state ``scale * system.x0`` for each scale.
@@ -228,7 +228,8 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
 
     Notes
     -----
-    O(P N (n^3 + m^3)) for P points, plus O(P n^6) with ``stability``; memory O(P (m + n)).
+    O(points N (n^3 + m^3)) over the design's points, plus O(points n^6) with ``stability``; memory
+    O(points (m + n)).
 
     Examples
     --------

@@ -55,7 +55,7 @@ Chunk = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def chunks(mu: np.ndarray, x0: np.ndarray, horizon: np.ndarray, size: int) -> list[Chunk]:
-    """Consecutive slices of ``size`` points (the last may be shorter). O(P).
+    """Consecutive slices of ``size`` points (the last may be shorter). O(points).
 
     Examples
     --------
@@ -77,9 +77,9 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
         The system in the TOML schema's structure (``System.to_dict()``): plain data, so it
         travels to a Dask worker (a :class:`~packetloss_cvx.System` is immutable and not pickled).
     protocols : sequence of {"tcp", "udp"}
-    mu : ndarray, shape (P, m)
-    x0 : ndarray, shape (P, n)
-    horizon : ndarray of int, shape (P,)
+    mu : ndarray, shape (points, m)
+    x0 : ndarray, shape (points, n)
+    horizon : ndarray of int, shape (points,)
     stability : bool
         Also the spectral radius of the second-moment operator of each protocol's receding-horizon
         law ``u = -K x`` run in closed loop over the point's channel
@@ -88,12 +88,12 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     Returns
     -------
     dict
-        ``"cost_<protocol>"`` -> costs, shape (P,); with ``stability``, ``"radius_<protocol>"`` too.
+        ``"cost_<protocol>"`` -> costs, shape (points,); with ``stability``, ``"radius_<protocol>"`` too.
 
     Notes
     -----
     The points are grouped by horizon; each group is one batched evaluation per protocol (channels
-    and initial states per point). O(P N (n^3 + m^3)) work, or O(P (N m)^3) where the evaluator
+    and initial states per point). O(points N (n^3 + m^3)) work, or O(points (N m)^3) where the evaluator
     takes the dense path (it picks the faster exact path, by N, m and the batch's size).
 
     Examples
@@ -137,7 +137,7 @@ def _assemble(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
 def run_in_process(system_data: dict[str, Any], protocols: Sequence[str], work: list[Chunk],
                    progress: bool | None = None, stability: bool = False,
                    estimate: float | None = None) -> dict[str, np.ndarray]:
-    """Every chunk here, in order. O(P N (n^3 + m^3)).
+    """Every chunk here, in order. O(points N (n^3 + m^3)).
 
     Examples
     --------

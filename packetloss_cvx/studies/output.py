@@ -69,7 +69,7 @@ def csv_header(result: DesignSweep) -> list[str]:
 
 def sweep_table(result: DesignSweep) -> np.ndarray:
     """One row per point, the columns of :func:`csv_header` (mu, x0, horizon, costs, radii), as floats:
-    the rows of ``sweep.csv`` and of ``sweep --json``'s ``table``. O(P (m + n)).
+    the rows of ``sweep.csv`` and of ``sweep --json``'s ``table``. O(points (m + n)).
 
     Examples
     --------
@@ -91,7 +91,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, ov
     """Write ``sweep.npz``, ``sweep.csv`` (and ``sweep.nc`` with ``netcdf=True``) into the folder ``out``,
     atomically, with its ``manifest.json`` (:class:`~packetloss_cvx.safeio.RunFolder`: a folder holding
     files no manifest of this package lists is refused unless ``overwrite=True``; the package's own folder
-    is replaced run for run, stale files removed). O(P (m + n)).
+    is replaced run for run, stale files removed). O(points (m + n)).
 
     Returns
     -------
@@ -129,7 +129,7 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, ov
 def write_sweep(result: DesignSweep, folder: RunFolder, netcdf: bool = False) -> dict[str, Path]:
     """:func:`save_sweep`'s files written into an entered :class:`~packetloss_cvx.safeio.RunFolder` (the
     command line's, which holds the figures too). Floats in the CSV are written with the shortest text
-    that reads back exactly (:func:`csv_number`); the CSV is streamed row by row. O(P (m + n)).
+    that reads back exactly (:func:`csv_number`); the CSV is streamed row by row. O(points (m + n)).
 
     Examples
     --------
@@ -151,7 +151,7 @@ def write_sweep(result: DesignSweep, folder: RunFolder, netcdf: bool = False) ->
     with folder.write("sweep.csv", text=True) as handle:
         writer = csv.writer(handle)
         writer.writerow(csv_header(result))
-        writer.writerows([csv_number(v) for v in row] for row in table.tolist())   # streamed: no P-row list
+        writer.writerows([csv_number(v) for v in row] for row in table.tolist())   # streamed: no list of every row
     if netcdf:
         paths["netcdf"] = folder.path / "sweep.nc"
         data = result.to_xarray().to_netcdf(engine="scipy")     # bytes: NetCDF3 has no streaming writer
