@@ -76,7 +76,7 @@ def mode_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.
         return _next_step(A, B, K, h, T)
     if delivery != "current":
         raise InputError("delivery", f"expected current or next, found {delivery!r}")
-    Abar = A - (B * h[..., None, :]) @ K
+    Abar = A - (B * (h if h.ndim == 1 else h[..., None, :])) @ K
     Abar_t = Abar.mT
     variance = h * (1.0 - h)
 
@@ -108,7 +108,8 @@ def _next_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np
 def _stage_weight(Omega: np.ndarray, psi: np.ndarray, K: np.ndarray, g: np.ndarray) -> np.ndarray:
     """``Omega + K' diag(psi g) K`` per mode: with g the delivery probabilities of the inputs' mode, ``tr(W Q)`` is the
     expected stage cost (``v_i^2 = v_i``: ``E[(V u)' Psi (V u)] = u' diag(psi g) u``)."""
-    return Omega + (K.mT * (g * psi)[..., None, :]) @ K
+    weights = g * psi
+    return Omega + (K.mT * (weights if weights.ndim == 1 else weights[..., None, :])) @ K
 
 
 def mode_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray | None = None,
@@ -335,15 +336,18 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
     else:
         Q, R, pi = start[:, None, None] * np.outer(x0, x0), T, start
     stage = np.empty(steps)
-    step = None
+    each_step = not one_law or delivery == "next"             # "next": t = 0 has its own law, t = 1 the gains'
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps):
-            if step is None or not one_law or (delivery == "next" and t == 1):
-                K = np.asarray(first_gain, dtype=float)[None] if delivery == "next" and t == 0 else K_all[t]
-                h = h_all[t] if T is None else h_all
-                R = T if t > 0 or delivery == "current" else R
-                step = mode_step(A, B, K, h, R, delivery)
-                weight = _stage_weight(Omega, psi, K, h if delivery == "current" else R @ h)
+            if t == 0 or (each_step and (not one_law or t == 1)):
+                if T is None:
+                    K, h = K_all[t], h_all[t]
+                    step, weight = mode_step(A, B, K, h), _stage_weight(Omega, psi, K, h)
+                else:
+                    K = np.asarray(first_gain, dtype=float)[None] if delivery == "next" and t == 0 else K_all[t]
+                    R = R if delivery == "next" and t == 0 else T
+                    step = mode_step(A, B, K, h_all, R, delivery)
+                    weight = _stage_weight(Omega, psi, K, h_all if delivery == "current" else R @ h_all)
             stage[t] = float(np.sum(weight * Q))
             if T is None:
                 Q = step(Q) + Sigma
