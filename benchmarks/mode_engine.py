@@ -3,7 +3,8 @@
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/mode_engine.py --baseline /path/to/baseline/checkout [--rounds 7]
 
-Each round times every case with the baseline's functions and this checkout's, one after the other (CPU time,
+Each round times every case with the baseline's functions and this checkout's, one after the other, the first of
+the two alternating from round to round (CPU time,
 ``time.process_time``, every packetloss_cvx module reloaded from the checkout before its turn); prints the medians in
 milliseconds per call, the ratio this / baseline (median and range of the per-round ratios) and the largest
 relative change of the answers (elementwise, over every float the case returns).
@@ -124,8 +125,8 @@ def main() -> None:
     times: dict[str, dict[str, list[float]]] = {}
     answers: dict[str, dict[str, np.ndarray]] = {"base": {}, "this": {}}
     labels: list[str] = []
-    for _ in range(args.rounds):
-        for tree, root in trees.items():
+    for round_ in range(args.rounds):
+        for tree, root in sorted(trees.items(), reverse=bool(round_ % 2)):      # each goes first every other round
             cases = _cases(_load(root))
             labels = labels or [label for label, _ in cases]
             for label, call in cases:
