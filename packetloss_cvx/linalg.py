@@ -15,8 +15,7 @@ from .errors import NumericalError
 from .tolerances import CONTROLLABILITY_RTOL, DENSE_RESIDUAL_RTOL, PSD_FACTOR_RTOL
 
 __all__ = ["ControllableSplit", "Dyadic", "block_diagonal", "check_finite", "controllable_split", "exact_psd",
-           "frobenius", "lapack_dgesv", "power_growth", "psd_factor", "solve_checked", "states_by_powers",
-           "typed_linalg"]
+           "frobenius", "lapack_dgesv", "power_growth", "psd_factor", "solve_checked", "typed_linalg"]
 
 _F = TypeVar("_F", bound=Callable)
 
@@ -416,35 +415,3 @@ def exact_psd(M: Dyadic, strict: bool = False) -> bool:
                 ai[j] = (pivot * ai[j] - aip * row[j]) // previous
         previous = pivot
     return True
-
-
-def states_by_powers(Y: np.ndarray, loop: np.ndarray, axis: int = 1) -> int:
-    """``Y[k] = Y[0] loop^k`` along ``axis`` for every k >= 1, in place, by repeated squaring: ``Y[k:k + j] =
-    Y[:j] loop^k`` for k = 1, 2, 4, ..., log2(L) stacked products, every entry still computed (the doubling kernel
-    of every time-invariant rollout). ``axis=1``: Y (P, L + 1, d) row vectors (the recursion's and the augmented
-    recursion's states), loop (P, d, d) or (d, d), the transposed closed loop; ``axis=0``: Y (L + 1, d, d)
-    matrices from Y[0] (the identity: roundoff's powers M^0..M^L, each one product's bits). Once a power underflows
-    to 0 (a stable loop after some hundreds of steps) the later entries are written as 0. Returns the number of
-    leading entries computed as products (L + 1 when none underflowed). O(P L d^2 + P d^3 log L) (axis=0:
-    O(L d^3)).
-
-    Examples
-    --------
-    >>> Y = np.zeros((1, 4, 1)); Y[0, 0] = 1.0
-    >>> states_by_powers(Y, np.array([[0.5]])), Y.ravel().tolist()
-    (4, [1.0, 0.5, 0.25, 0.125])
-    >>> Y = np.empty((4, 2, 2)); Y[0] = np.eye(2)
-    >>> _ = states_by_powers(Y, np.array([[1.0, 1.0], [0.0, 1.0]]), axis=0); Y[3].tolist()     # [[1, 3], [0, 1]]
-    [[1.0, 3.0], [0.0, 1.0]]
-    """
-    lead = (slice(None),) * axis
-    L = Y.shape[axis] - 1
-    power, k = loop, 1
-    while k < L + 1:                                       # Y[k:2k] = Y[:k] loop^k
-        j = min(k, L + 1 - k)
-        if not power.any() and np.isfinite(Y[lead + (slice(0, k),)]).all():
-            Y[lead + (slice(k, None),)] = 0.0              # the power underflowed to 0: so does every later entry
-            return k
-        np.matmul(Y[lead + (slice(0, j),)], power, out=Y[lead + (slice(k, k + j),)])
-        power, k = np.matmul(power, power), k + j
-    return k

@@ -33,7 +33,7 @@ import math
 import numpy as np
 
 from .errors import NumericalError
-from .linalg import check_finite, lapack_dgesv, states_by_powers
+from .linalg import check_finite, lapack_dgesv
 from .model import STRUCTURE_CACHE_MAX_BYTES, CacheKey, System
 from .protocols import check_protocol
 from .roundoff import UNIT_ROUNDOFF, gamma, rollout_cost_error
@@ -1036,9 +1036,6 @@ def leading_run(values: np.ndarray) -> int:
     return int(np.argmin(same)) if not same.all() else L - 1
 
 
-# states_by_powers (linalg's doubling kernel) is re-exported here, where the recursion's runs use it
-
-
 def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
                 a: int, b: int) -> np.ndarray:
     """Steps a..b-1 (a >= 1) of one gain K (P, m, n) and channel mu (P, m) from x_a = ``X[:, a - 1]``: the states
@@ -1052,6 +1049,30 @@ def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U:
     np.negative(plan[:, :rows], out=plan[:, :rows])
     plan[:, rows:] = 0.0
     return Y[:, L]
+
+
+def states_by_powers(Y: np.ndarray, loop: np.ndarray) -> int:
+    """``Y[:, k] = Y[:, 0] loop^k`` for every k >= 1 (Y (P, L + 1, d) in place, row vectors; loop (P, d, d) or
+    (d, d), the transposed closed loop) by repeated squaring: log2(L) stacked products, every state still computed.
+    Once a power underflows to 0 (a stable loop after some hundreds of steps) the later states are written as 0.
+    Returns the number of leading rows computed as products (L + 1 when none underflowed). O(P L d^2 + P d^3 log L).
+
+    Examples
+    --------
+    >>> Y = np.zeros((1, 4, 1)); Y[0, 0] = 1.0
+    >>> states_by_powers(Y, np.array([[0.5]])), Y.ravel().tolist()
+    (4, [1.0, 0.5, 0.25, 0.125])
+    """
+    L = Y.shape[1] - 1
+    power, k = loop, 1
+    while k < L + 1:                                       # Y[:, k:2k] = Y[:, :k] loop^k
+        j = min(k, L + 1 - k)
+        if not power.any() and np.isfinite(Y[:, :k]).all():
+            Y[:, k:] = 0.0                                 # the power underflowed to 0: so does every later state
+            return k
+        np.matmul(Y[:, :j], power, out=Y[:, k:k + j])
+        power, k = np.matmul(power, power), k + j
+    return k
 
 
 def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,

@@ -30,8 +30,6 @@ import math
 
 import numpy as np
 
-from .linalg import states_by_powers
-
 __all__ = ["SCAN_BLOCK", "UNIT_ROUNDOFF", "gamma", "linear_scan", "propagation_bound", "rollout_cost_error",
            "step_residuals", "two_product", "two_sum"]
 
@@ -166,10 +164,16 @@ def linear_scan(M: np.ndarray, S: np.ndarray, block: int = SCAN_BLOCK) -> np.nda
 
 
 def _powers(M: np.ndarray, L: int) -> np.ndarray:
-    """M^0..M^L (L + 1, n, n) by doubling (linalg.states_by_powers from the identity). O(L n^3)."""
-    powers = np.empty((L + 1, *M.shape))
-    powers[0] = np.eye(M.shape[0])
-    states_by_powers(powers, M, axis=0)
+    """M^0..M^L (L + 1, n, n) by doubling: M^{j + k} = M^j M^k for j = 1..k, log2(L) stacked products. O(L n^3)."""
+    n = M.shape[0]
+    powers = np.empty((L + 1, n, n))
+    powers[0] = np.eye(n)
+    powers[1:2] = M
+    k = 1
+    while k < L:
+        j = min(k, L - k)
+        np.matmul(powers[1:j + 1], powers[k], out=powers[k + 1:k + j + 1])
+        k += j
     return powers
 
 
