@@ -80,6 +80,8 @@ def _cases(mod: dict) -> list[tuple[str, object]]:
         ("closed_loop two_actuator", lambda: mo.closed_loop(two, dp_two.gain)),
         ("dp_riccati two_actuator", lambda: ri.dp_riccati(two)),
         ("dp_riccati pendulum", lambda: ri.dp_riccati(pend)),
+        ("outside_proved pendulum (exact)", lambda: ce.outside_proved(pend.A, pend.B, pend.mu_schedule[0],
+                                                                      dp_pend.cost_to_go, 0.5)),
         ("law_proved_stable pendulum", lambda: ce.law_proved_stable(pend.A, pend.B, dp_pend.gain,
                                                                     pend.mu_schedule[0])),
     ]
