@@ -80,9 +80,12 @@ def mode_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.
     Abar_t = Abar.mT
     variance = h * (1.0 - h)
 
+    one = K.ndim == 2                                      # one law without a mode axis (Bernoulli)
+    spec = "ij,jk,ik->i" if one else "aij,ajk,aik->ai"
+
     def apply(Q: np.ndarray) -> np.ndarray:
-        c = variance * np.einsum("...ij,...jk,...ik->...i", K, Q, K)
-        Y = Abar @ Q @ Abar_t + (B * c[..., None, :]) @ B.T
+        c = variance * np.einsum(spec, K, Q, K)
+        Y = Abar @ Q @ Abar_t + (B * (c if one else c[:, None, :])) @ B.T
         return Y if T is None else np.tensordot(T, Y, axes=(0, 0))
 
     return apply
