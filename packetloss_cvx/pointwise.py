@@ -22,12 +22,13 @@ from scipy.linalg.lapack import dgesv as _gesv
 from scipy.linalg.lapack import dgetrf as _getrf
 from scipy.linalg.lapack import dgetrs as _getrs
 
-from .costs import hessian_diagonal, hessian_factor
+from .dense import dense_constant, hessian_diagonal, hessian_factor
 from .linalg import block_diagonal
 from .model import System
+from .policy import self_check
 from .prediction import Prediction
 from .recursion import forward_cost, input_weight
-from .tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_RTOL
+from .tolerances import DENSE_RESIDUAL_RTOL
 
 __all__ = ["OMEGA_DENSE_MAX", "PointEvaluator"]
 
@@ -47,7 +48,7 @@ class PointEvaluator:
         self.system, self.pred, self.protocol = s, pred, protocol
         self.d = weights[0]
         self.g = pred.Omega_gp @ x
-        self.const = float(x @ (s.initial_weight + pred.Omega_p) @ x) + pred.noise_term
+        self.const = dense_constant(s, pred, x)
         self.base = float(x @ s.initial_weight @ x) + weights[1]
         self.Phi_x = pred.Phi @ x
         self.col2 = np.sum(pred.Omega_g ** 2, axis=0)
@@ -104,8 +105,7 @@ class PointEvaluator:
             mu, U = v.reshape(1, N, m), u.reshape(1, N, m)
             forward = float(forward_cost(s, mu, U, X, input_weight(s, self.protocol, mu, self.d), self.base,
                                          self.Omega)[0])
-            ok = np.isfinite(closed) and np.isfinite(forward) and closed >= 0
-            ok = ok and abs(closed - forward) <= SELF_CHECK_RTOL * forward
+            ok = bool(self_check(s, self.protocol, closed, forward, "dense", raise_=False))
         return closed if ok else None
 
     def line(self, mu: np.ndarray, i: int, checked: bool = True) -> Callable[[float], float | None] | None:

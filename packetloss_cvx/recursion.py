@@ -34,15 +34,23 @@ import numpy as np
 
 from .errors import NumericalError
 from .linalg import check_finite, lapack_dgesv
-from .model import STRUCTURE_CACHE_MAX_BYTES, CacheKey, System
+from .model import System
 from .protocols import check_protocol
 from .roundoff import UNIT_ROUNDOFF, gamma, rollout_cost_error
+from .structure import (
+    STATIONARY_RUN,
+    Structure,
+    all_steps_equal,
+    condition_from,
+    leading_run,
+    lyapunov_weights,
+    settled,
+    spectral_radius,
+    stationary_close,
+    structure_of,
+)
+from .structure import drift as _drift
 from .tolerances import PLAN_COST_RTOL, STATIONARY_RTOL
-
-#: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
-VARIANCE_WEIGHTS_KEY = CacheKey("recursion.udp_variance_weights", ("A", "B", "horizon", "state_weights", "noise_cov"))
-CONDITION_KEY = CacheKey("recursion.condition_estimate", ("A", "B", "horizon", "state_weights", "input_weights"))
-WEIGHT_HEAD_KEY = CacheKey("recursion.weight_head", ("horizon", "state_weights"))
 
 __all__ = [
     "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "check_plan_cost", "condition_estimate",
@@ -53,9 +61,6 @@ __all__ = [
 
 #: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
 FLAT_MIN = 64
-#: Horizons of at least twice this many steps try to close a stationary tail (tolerances.STATIONARY_RTOL), and a
-#: run of at least this many steps with one gain and one channel is rolled out by powers of its closed loop.
-STATIONARY_RUN = 64
 
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
@@ -71,8 +76,8 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
 
     Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
     ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m), the first time for a system
-    structure: ``d`` (read-only) is kept on the system and its with_mu / with_x0 copies
-    (:meth:`~packetloss_cvx.model.System.structure_cached`; it depends on neither mu nor x0).
+    structure: kept on its :class:`~packetloss_cvx.structure.Structure` (``d`` read-only; it depends on neither
+    mu nor x0).
 
     Examples
     --------
@@ -84,15 +89,15 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     >>> bool(np.allclose(d.ravel(), prediction(s).Omega_d))    # the dense diagonal of Omega_g
     True
     """
-    return system.structure_cached(VARIANCE_WEIGHTS_KEY, lambda: _lyapunov_weights(system)[:2],
-                                   nbytes=8 * system.horizon * system.m)
+    return structure_of(system).variance_weights
 
 
 def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarray]:
     """:func:`udp_variance_weights` ``(d, noise)`` with the products ``B' S_t A`` (N, m, n) of the same backward
     Lyapunov sum ``S_t = Omega_{t+1} + A' S_{t+1} A``, which the exact cost under Markov losses pairs with the
-    state-chain correlations (markov/augmented.py: row i of its cross term is ``b_i' S_t A``). One kernel for both:
-    time O(N n^3 + N m n^2), memory O(N m n); not kept on the system (d is, through udp_variance_weights).
+    state-chain correlations (markov/augmented.py: row i of its cross term is ``b_i' S_t A``). One kernel for both
+    (:func:`~packetloss_cvx.structure.lyapunov_weights`): time O(N n^3 + N m n^2), memory O(N m n); not kept (d is,
+    on the structure).
 
     Examples
     --------
@@ -101,54 +106,13 @@ def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarra
     >>> d.ravel().tolist(), BSA.ravel().tolist()
     ([5.0, 1.0], [10.0, 2.0])
     """
-    return _lyapunov_weights(system, cross=True)
+    return lyapunov_weights(structure_of(system), cross=True)
 
 
-def _lyapunov_weights(system: System, cross: bool = False) -> tuple:
-    """udp_variance_weights, computed (and ``B' S_t A`` per step with ``cross``): the backward Lyapunov sum S_t,
-    O(N n^3); once S stops changing (:func:`stationary_close`) over a stationary head (Omega_t the same for every
-    earlier t), the earlier steps take its value: O(L n^3) for a sum that settles in L steps. An unstable A's sum
-    never settles (q = rho(A)^2 >= 1): its steps are not weighed at all."""
-    A, B, W, N = system.A, system.B, system.state_weights, system.horizon
-    d = np.empty((N, system.m))
-    BSA = np.empty((N, system.m, system.n)) if cross else None
-    noise = 0.0
-    has_noise = bool(np.any(system.noise_cov != 0))
-    # only long horizons are worth the checks, and only a stable A's sum settles (q = rho(A)^2 < 1)
-    q = _radius(A) ** 2 if N >= 2 * STATIONARY_RUN else math.inf
-    settle = q < 1.0
-    head = None                                         # Omega_1..Omega_head+1 (W[0..head]) are one weight
-    S = W[N - 1].copy()
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(N - 1, -1, -1):
-            d[t] = np.einsum("ij,ik,kj->j", B, S, B)
-            if cross:
-                BSA[t] = B.T @ S @ A
-            if has_noise:
-                noise += float(np.sum(S * system.noise_cov))
-            if t > 0:
-                new = W[t - 1] + A.T @ S @ A
-                if (settle and (head is None or t - 1 <= head) and _small_change(new, S)
-                        and stationary_close(new, S, q)):
-                    head = len(weight_head(system)) - 1 if head is None else head
-                    if t - 1 <= head:                                     # S_{t-1} = ... = S_0 = new
-                        d[:t] = np.einsum("ij,ik,kj->j", B, new, B)
-                        if cross:
-                            BSA[:t] = B.T @ new @ A
-                        if has_noise:
-                            noise += t * float(np.sum(new * system.noise_cov))
-                        break
-                S = new
-    d.setflags(write=False)
-    return (d, noise, BSA) if cross else (d, noise)
-
-
-def weight_head(system: System) -> np.ndarray:
+def weight_head(system: System | Structure) -> np.ndarray:
     """The leading state weights equal to the first, ``state_weights[:h + 1]`` (a read-only view; all N for a
-    time-invariant weight). The backward passes close a stationary tail only inside it, and the forward cost
-    weighs every state with one product when it is the whole horizon. Kept on the system structure
-    (:meth:`~packetloss_cvx.model.System.structure_cached`): its O(N n^2) comparison is made once per structure,
-    not once per pass. O(1) after the first call.
+    time-invariant weight): :attr:`~packetloss_cvx.structure.Structure.weight_head`. O(1) after the first call for
+    a structure.
 
     Examples
     --------
@@ -157,60 +121,13 @@ def weight_head(system: System) -> np.ndarray:
     >>> len(weight_head(s)), weight_head(s.with_mu([0.5])) is weight_head(s)    # Omega_1 = Omega_2 != Omega_3
     (2, True)
     """
-    W = system.state_weights
-    return system.structure_cached(WEIGHT_HEAD_KEY, lambda: W[:leading_run(W[None]) + 1])
-
-
-def _small_change(new: np.ndarray, old: np.ndarray) -> bool:
-    """A cheap necessary test for :func:`stationary_close` with a contraction q >= 0.01. O(P n^2)."""
-    return bool(np.abs(new - old).max() <= 100.0 * STATIONARY_RTOL * np.abs(new).max())
-
-
-def _radius(loop: np.ndarray) -> np.ndarray:
-    """The spectral radius of each matrix of a stack (or of one matrix). O(P n^3)."""
-    return np.max(np.abs(np.linalg.eigvals(loop)), axis=-1)
-
-
-def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) -> bool:
-    """Whether a backward iterate has settled: its last change, times the remaining geometric sum
-    ``q / (1 - q)`` of a map contracting by ``q`` per step, is below ``STATIONARY_RTOL`` relative to its
-    size (every point of a batch: new, old (..., n, n), q (...,) or a float). Never with q >= 1. O(P n^2).
-
-    Examples
-    --------
-    >>> stationary_close(np.eye(2), np.eye(2) * (1 + 1e-16), 0.25), stationary_close(np.eye(2), 2 * np.eye(2), 0.25)
-    (True, False)
-    """
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _settled(*_drift(new, old), q)
-
-
-def _drift(new: np.ndarray, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``max |new - old|`` and ``max |new|`` per matrix of a stack: what :func:`stationary_close` weighs (the
-    caller ignores overflow in np.errstate, as the backward passes do). O(P n^2)."""
-    lead, k = new.shape[:-2], new.shape[-1] * new.shape[-2]
-    return _row_max(np.abs(new - old).reshape(-1, k), lead), _row_max(np.abs(new).reshape(-1, k), lead)
-
-
-def _row_max(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    """The largest entry of each row of ``values`` (p, k), shaped ``shape``: by a reduction over the first axis of
-    the transposed copy (NumPy reduces a short last axis row by row: 175 against 12 us for 1,600 rows of 16).
-    O(p k)."""
-    if values.shape[0] < 64:
-        return values.max(axis=1).reshape(shape)
-    return np.ascontiguousarray(values.T).max(axis=0).reshape(shape)
+    return structure_of(system).weight_head
 
 
 def _near(change: np.ndarray, size: np.ndarray) -> bool:
-    """A necessary condition of :func:`_settled` with a contraction q >= 0.01 (whose geometric factor
+    """A necessary condition of :func:`.settled` with a contraction q >= 0.01 (whose geometric factor
     q / (1 - q) is then at least 1/99): change <= 100 STATIONARY_RTOL size at every point. O(P)."""
     return bool((change <= 100.0 * STATIONARY_RTOL * size).all())
-
-
-def _settled(change: np.ndarray, size: np.ndarray, q: np.ndarray | float) -> bool:
-    """:func:`stationary_close` of a change and size (:func:`_drift`), in the caller's np.errstate. O(P)."""
-    q = np.asarray(q, dtype=float)
-    return bool(((q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)).all())
 
 
 def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None = None) -> float:
@@ -219,7 +136,7 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     curvature per delivered input). The dense formulas lose about ``log10(estimate * eps)``
     digits; the recursion does not depend on it. ``inf`` when Omega_g overflows.
     Time O(N n^3) (the Lyapunov sums of :func:`udp_variance_weights`), no dense matrix; O(1) once kept
-    on the system structure (with ``weights`` None or the system's own).
+    on the system's structure (with ``weights`` None or the system's own).
 
     Examples
     --------
@@ -227,20 +144,10 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     >>> condition_estimate(s)                      # (trace Omega_g + max Psi) / min Psi = (5 + 1 + 1) / 1
     7.0
     """
-    kept = 8 * system.horizon * system.m <= STRUCTURE_CACHE_MAX_BYTES    # udp_variance_weights keeps d
-    if weights is None or (kept and weights is udp_variance_weights(system)):   # the system's own weights
-        return system.structure_cached(CONDITION_KEY,
-                                       lambda: _spread(system, udp_variance_weights(system)[0]))
-    return _spread(system, weights[0])
-
-
-def _spread(system: System, d: np.ndarray) -> float:
-    psi = system.input_weights
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = float(np.sum(d))
-    if not np.isfinite(total):
-        return float("inf")
-    return (total + float(psi.max())) / float(psi.min())
+    structure = structure_of(system)
+    if weights is None or weights is structure.variance_weights:                # the system's own weights
+        return structure.condition
+    return condition_from(structure, weights[0])
 
 
 def input_weight(system: System, protocol: str, mu: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -390,7 +297,7 @@ def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndar
 def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
               copies: bool = True) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
     """:func:`backward_batch`, and the run ``(1, b)`` of steps 1..b-1 whose gains are one copied gain when the
-    pass closed its stationary tail (None otherwise), for the rollout (:func:`_states`) to take as it is. With
+    pass closed its stationary tail (None otherwise), for the rollout (:func:`_roll_out`) to take as it is. With
     ``copies`` False the run's gains after the first (K[:, 2:b]) are left unwritten, for a caller that reads
     only K[:, 1] of the run."""
     A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
@@ -424,7 +331,7 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
                     check, last = t - _wait(excess, last, t), (t, excess)
                     if excess <= 1.0 or _near(*drift):
                         q = _contraction(A, B, mu[:, t], K[t]) if q is None else q
-                        if _settled(*drift, q):
+                        if settled(*drift, q):
                             # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more
                             # step gives the gain of P_t for every step 1..t-1, then step 0 (no Omega)
                             K[1], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
@@ -453,8 +360,8 @@ DOUBLING_CHUNK = 8
 def _one_map(system: System, mu: np.ndarray, added: np.ndarray) -> bool:
     """Whether the backward pass of one point is one map at every step 1..N-1: the same channel and added diagonal
     there (finite), and one state weight at every step (the terminal one included). O(N (m + n^2)) at most."""
-    return bool(mu.shape[0] == 1 and len(weight_head(system)) == system.horizon and _constant(mu[:, 1:])
-                and _constant(added[:, 1:]) and np.all(np.isfinite(added[:, 1])))
+    return bool(mu.shape[0] == 1 and len(weight_head(system)) == system.horizon and all_steps_equal(mu[:, 1:])
+                and all_steps_equal(added[:, 1:]) and np.all(np.isfinite(added[:, 1])))
 
 
 def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.ndarray, copies: bool, top: int,
@@ -467,7 +374,7 @@ def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.n
     square-root form: :func:`_doubling`). The cost-to-go at every c-th step back from P_top (c = DOUBLING_CHUNK)
     comes from doubling, 2^k points at a time (:func:`_fractional`); the c - 1 steps between them and every
     gain from c batched :func:`riccati_step` calls over those points (:func:`_fine_steps`). The stationary tail
-    closes at the first step whose drift :func:`_settled` accepts (the step-by-step pass weighs only some steps
+    closes at the first step whose drift :func:`.settled` accepts (the step-by-step pass weighs only some steps
     and closes at or after it; both are within STATIONARY_RTOL of the fixed point), as :func:`_backward` closes
     it: K[1] from P_t, copies for steps 1..t-1, then step 0. Writes K[:top] (K: (N, m, n)); returns
     ``(P_0 (1, n, n), run)``, or None where anything is not finite (the step-by-step pass then goes on from
@@ -535,7 +442,7 @@ def _fine_steps(system: System, starts: np.ndarray, mu1: np.ndarray, add1: np.nd
                 q: float | None, top: int) -> tuple[float | None, int | None, np.ndarray | None]:
     """The steps between the c-th points ``starts[j] = P_{top - j c}`` (J, n, n) of :func:`_doubled_backward`: c
     batched :func:`riccati_step` calls over the J points write the gains K_t of steps top-1 down to
-    max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift :func:`_settled`
+    max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift :func:`.settled`
     accepts with the contraction q (measured, if None, as :func:`_backward` measures it: at the first step whose
     drift is near), ``(q, None, P_1)`` where none does and step 1 was reached, ``(q, None, None)`` otherwise.
     O(J c (n^3 + m^3)) in c calls."""
@@ -586,7 +493,7 @@ MAX_WAIT = 8
 def _wait(excess: float, last: tuple[int, float] | None, t: int) -> int:
     """How many steps a backward pass may go before weighing its drift again (1 to MAX_WAIT): the steps until
     ``excess`` (the largest change over :func:`_near`'s bound), shrinking by the factor f per step seen since the
-    ``last`` weighing (step, excess), meets the closing bound of :func:`_settled` with f for the contraction
+    ``last`` weighing (step, excess), meets the closing bound of :func:`.settled` with f for the contraction
     (``(1 - f) / (100 f)`` in units of the near bound). A pass that settles faster than that closes the few
     steps later; one that does not shrink is weighed every step. O(1)."""
     if last is None or not 0.0 < excess < math.inf or not 0.0 < last[1] < math.inf:
@@ -650,7 +557,7 @@ def _contraction(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) ->
         loop = _closed_loop(A, B, mu, K)
         if not np.all(np.isfinite(loop)):
             return np.full(loop.shape[0], np.inf)
-        return _radius(loop) ** 2
+        return spectral_radius(loop) ** 2
 
 
 def backward_pass(system: System, protocol: str,
@@ -708,7 +615,7 @@ def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float
         _repeat_first(K[run[0]:run[1]])
         run = None
     U = np.empty((1, system.horizon, system.m))
-    X = _states(system, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
+    X = _roll_out(system, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
     return K[0], P0, noise, U[0], X[0]
 
 
@@ -868,7 +775,7 @@ def check_plan_cost(system: System, protocol: str, value: float, bound: float) -
                              "range (about 1e308)")
     if bound <= PLAN_COST_RTOL * value:
         return
-    rho = float(_radius(system.A))
+    rho = float(spectral_radius(system.A))
     raise NumericalError(
         f"the {protocol}-like expected cost of this plan is not resolved: its forward pass gives {value:.6g}, but "
         f"rounding may move that by up to {bound:.2g} ({bound / value if value > 0 else math.inf:.1e} relative, "
@@ -895,7 +802,7 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
     [0.0, 1.0]
     """
     run = _gain_run(mu, K) if K is not None and system.horizon >= 2 * STATIONARY_RUN else None
-    return _states(system, mu, U, x, K, _by_powers(system, run, mu, K) if run is not None else None)
+    return _roll_out(system, mu, U, x, K, _by_powers(system, run, mu, K) if run is not None else None)
 
 
 def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
@@ -913,13 +820,13 @@ def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: n
     on the closed-loop states it was rolled out with (the law's states)."""
     if run is None:
         return None
-    if _radius(system.A) < 1.0:
+    if spectral_radius(system.A) < 1.0:
         return run
     loop = _closed_loop(system.A, system.B, mu[:, run[0]], K[:, run[0]])
-    return run if np.all(np.isfinite(loop)) and np.all(_radius(loop) < 1.0) else None
+    return run if np.all(np.isfinite(loop)) and np.all(spectral_radius(loop) < 1.0) else None
 
 
-def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
+def _roll_out(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
             run: tuple[int, int] | None, start: bool = False) -> np.ndarray:
     """:func:`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
     vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state
@@ -1009,31 +916,9 @@ def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
         mid = (lo + hi) // 2
         lo, hi = (mid, hi) if np.array_equal(K[:, mid], K[:, 1]) else (lo, mid)
     b = lo + 1
-    if b - 1 < STATIONARY_RUN or not (_constant(K[:, 1:b]) and _constant(mu[:, 1:b])):
+    if b - 1 < STATIONARY_RUN or not (all_steps_equal(K[:, 1:b]) and all_steps_equal(mu[:, 1:b])):
         return None
     return 1, b
-
-
-def _constant(values: np.ndarray) -> bool:
-    """Whether ``values[:, k]`` is the same for every k (values (P, L, ...)): each step against the next, as two
-    same-shaped views (no broadcasting over a short last axis). O(P L k)."""
-    return bool(np.array_equal(values[:, 1:], values[:, :-1]))
-
-
-def leading_run(values: np.ndarray) -> int:
-    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (P, L, ...)), to the bit: how
-    far a backward pass's data are one map. O(P L k).
-
-    Examples
-    --------
-    >>> leading_run(np.array([[1.0, 1.0, 2.0, 1.0]])), leading_run(np.ones((2, 3, 1)))
-    (1, 2)
-    """
-    P, L = values.shape[:2]
-    if _constant(values):                        # the usual case, one comparison of two views
-        return L - 1
-    same = np.all((values[:, 1:] == values[:, :-1]).reshape(P, L - 1, -1), axis=2).all(axis=0)
-    return int(np.argmin(same)) if not same.all() else L - 1
 
 
 def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,

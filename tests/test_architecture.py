@@ -26,15 +26,18 @@ from .conftest import LONG_FILE_LINES, long_files
 
 PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 
-#: model/io/linalg -> prediction/recursion/costs/qp -> analysis/allocation/simulation/studies -> claims -> plots/cli
+#: model/io/linalg -> the Theorem-1 pipeline (structure/prediction -> recursion/dense kernels -> policy -> its callers
+#: costs/evaluator/pointwise, and qp) -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
     {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "roundoff",
      "progress",
      "display", "statespace", "channel", "markov_channel", "sensor", "validation", "threads", "optional", "safeio",
      "runfolder",
      "examples"},
-    {"prediction", "recursion", "costs", "convex", "qp", "qp_shared", "random_systems",
-     "evaluator", "pointwise"},
+    {"structure", "prediction"},
+    {"recursion", "dense"},
+    {"policy"},
+    {"costs", "convex", "qp", "qp_shared", "random_systems", "evaluator", "pointwise"},
     {"analysis", "difference", "allocation", "simulation", "studies", "markov", "sensing"},
     {"claims"},
     {"plots", "plot_style", "cli", "__main__", "__init__"},

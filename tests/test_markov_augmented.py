@@ -392,7 +392,7 @@ def test_recursion_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monk
     if kept:
         assert augmented_solve(s)[2] == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             augmented_solve(s)
 
 
@@ -412,5 +412,5 @@ def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(mo
     if kept:
         assert augmented_solve(s)[2] == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             augmented_solve(s)

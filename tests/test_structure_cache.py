@@ -17,7 +17,7 @@ from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import DimensionError, InputError, ProbabilityError
 from packetloss_cvx.io import load_example, system_from_dict
 from packetloss_cvx.markov import attach_channel, bursty_twin, stacked_moments
-from packetloss_cvx.model import STRUCTURE_FIELDS, CacheKey, System
+from packetloss_cvx.model import STRUCTURE_FIELDS, CacheKey, StructureStore, System
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.recursion import condition_estimate, udp_variance_weights
@@ -115,22 +115,19 @@ def test_a_copy_with_another_structure_does_not_share_the_cache():
     longer = System(A=s.A, B=s.B, horizon=s.horizon + 1, state_weights=list(s.state_weights) + [s.state_weights[-1]],
                     input_weight=s.input_weights[0], mu=s.mu_schedule[0], x0=s.x0)
     assert prediction(longer).Omega_g.shape != p.Omega_g.shape
-    calls = []
-    marker = CacheKey("test.marker", ("A",))
-    s.structure_cached(marker, lambda: calls.append(1) or 1)
+    marker = StructureStore(CacheKey("test.marker", ("A",)))
+    marker.put(s, 1)
     for copy in (s.with_mu(np.full(s.m, 0.5)), s.with_x0(np.ones(s.n))):
-        copy.structure_cached(marker, lambda: calls.append(1) or 1)
-    assert calls == [1]
+        assert marker.get(copy) == 1                     # the copies share the structure
+    assert marker.get(longer) is None                    # another structure: nothing kept for it
     assert set(STRUCTURE_FIELDS) <= set(System.__slots__)
 
 
 def test_large_values_are_not_kept():
     s = load_example("two_actuator")
-    calls = []
-    large = CacheKey("test.large", ("A", "B"))
-    for _ in range(2):
-        s.structure_cached(large, lambda: calls.append(1) or 1, nbytes=10**12)
-    assert calls == [1, 1]
+    large = StructureStore(CacheKey("test.large", ("A", "B")))
+    assert large.put(s, 1, nbytes=10**12) == 1
+    assert large.get(s) is None
 
 
 def test_the_cache_dies_with_its_systems():

@@ -32,7 +32,7 @@ import numpy as np
 from ..convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
 from ..errors import InfeasibleError, NumericalError, SolverError
 from ..evaluator import CostEvaluator
-from ..model import CacheKey, System
+from ..model import CacheKey, StructureStore, System
 from ..qp import sparse_dynamics
 from ..recursion import udp_variance_weights
 from ..tolerances import (
@@ -76,6 +76,7 @@ PROGRAM_BYTES_PER_ENTRY = 300
 #: the system's compiled TCP-like programs, one per (kind, number of constraint rows): everything in them but the
 #: Parameters (x0, bounds, rows, prices, scale) depends on these fields only
 PROGRAMS_KEY = CacheKey("allocation.tcp.programs", ("A", "B", "horizon", "state_weights", "input_weights"))
+_PROGRAMS = StructureStore(PROGRAMS_KEY)
 
 
 def cost_epigraph(system: System, mu: cp.Variable, x0: cp.Parameter, root: cp.Parameter
@@ -127,8 +128,8 @@ class TCPProgram:
     the k rows ``G mu <= h``, and the prices beta. ``kind`` "allocate" minimises ``beta'mu`` subject
     to ``r + sum t <= 1`` (s = 1 / (alpha - C)); "min_cost" minimises ``r + sum t``.
 
-    One program per (system structure, kind, k), kept with the system (:meth:`System.structure_cached`,
-    shared with its ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
+    One program per (system structure, kind, k), kept here (a :class:`~packetloss_cvx.model.StructureStore`,
+    shared by a system's ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
     (:class:`~packetloss_cvx.convex.ClarabelProgram`) and solved under ``ALLOCATION_TCP_ATTEMPTS``: the
     tight settings without equilibration on a solver kept per thread and updated with each call's data (a
     function of its own data: without an equilibration nothing of the previous data is carried over,
@@ -180,7 +181,9 @@ class TCPProgram:
         """The system's program of this kind and number of rows: built on first use and kept with the
         system's structure (beyond ``STRUCTURE_CACHE_MAX_BYTES`` estimated, built per call). O(1) when kept."""
         N, n, m = system.horizon, system.n, system.m
-        programs = system.structure_cached(PROGRAMS_KEY, dict, nbytes=PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2)
+        programs = _PROGRAMS.get(system)
+        if programs is None:
+            programs = _PROGRAMS.put(system, {}, nbytes=PROGRAM_BYTES_PER_ENTRY * N * (n + m) ** 2)
         program = programs.get((kind, rows))
         if program is None:          # two threads may both build one; setdefault keeps the first
             program = programs.setdefault((kind, rows), cls(system, kind, rows))

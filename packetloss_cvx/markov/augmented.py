@@ -40,6 +40,7 @@ from ..budgets import check, duration_text, estimated_seconds, markov_recursion_
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
 from ..model import CacheKey, System
+from ..policy import self_check
 from ..recursion import (
     STATIONARY_RUN,
     forward_cost,
@@ -53,7 +54,7 @@ from ..recursion import (
     stationary_close,
     weight_head,
 )
-from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL
 from .chain import chain_matrices
 
 #: The lift of a system's own chains (:func:`chain_lift`), kept on the system: n and m (A's and B's shapes), the
@@ -351,10 +352,7 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
                              f"loop ({forward:.6g}), is not resolved (rounding may move it by up to {bound:.2g}): the "
                              "open-loop growth of A over the horizon amplifies a fixed plan's rounding; shorten the "
                              "horizon")
-    if abs(cost - forward) > SELF_CHECK_RTOL * forward + atol or cost < 0:
-        raise NumericalError(f"the augmented recursion gives J* = {cost:.10g} but the expected cost of its own plan "
-                             f"is {forward:.10g}: double precision cannot resolve this problem (weights of very "
-                             "different sizes, or an unstable plant over a long horizon)")
+    self_check(system, "udp", cost, forward, "markov-recursion", atol=atol)
     return U, K[0][:, :n].copy(), cost
 
 
