@@ -40,8 +40,9 @@ from .pointwise import PointEvaluator
 from .policy import choose, refuse_correlated, self_check, weight_spread
 from .prediction import prediction
 from .protocols import check_protocol
-from .recursion import backward_batch, forward_cost, input_weight, overflow_error, rollout_batch, udp_variance_weights
+from .recursion import backward_batch, forward_cost, input_weight, overflow_error, rollout_batch
 from .results import BatchSolution, Solution
+from .structure import structure_of
 from .threads import blas_limited
 from .tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
 from .validation import MAX_ENTRIES
@@ -88,7 +89,9 @@ class CostEvaluator:
         self.system = check_system(system)
         self.protocol = check_protocol(protocol)
         s = self.system
-        self.weights = udp_variance_weights(s)
+        #: what does not depend on mu, built once per system structure: the kernels' first argument
+        self.structure = structure_of(s)
+        self.weights = self.structure.variance_weights
         self._d, self._noise = self.weights
         self._d_finite = bool(np.all(np.isfinite(self._d)))
         with np.errstate(over="ignore", invalid="ignore"):
@@ -305,7 +308,7 @@ class CostEvaluator:
         if base is None:
             with np.errstate(over="ignore", invalid="ignore"):
                 base = np.einsum("pi,ij,pj->p", x, s.initial_weight, x) + self._noise
-        return forward_cost(s, mu, U, X, weight, base, self._Omega)
+        return forward_cost(self.structure, mu, U, X, weight, base, self._Omega)
 
     def _dense(self, mu, x, idx, costs, inputs, K0, base=None) -> np.ndarray:
         """Theorem 1's dense law for a chunk; returns which points passed their checks."""
@@ -355,14 +358,14 @@ class CostEvaluator:
         if self.protocol == "udp" and not self._d_finite and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
             raise overflow_error("diag(Omega_g)", self.protocol)
         added = input_weight(s, self.protocol, mu, self._d)                   # (P, N, m)
-        K, Pm = backward_batch(s, self.protocol, mu, added)
+        K, Pm = backward_batch(self.structure, self.protocol, mu, added)
         if not np.isfinite(self._noise):
             raise overflow_error("the cost-to-go matrix", self.protocol)
         with np.errstate(over="ignore", invalid="ignore"):
             # x'(Q + P_0)x in an order that does not depend on the batch (einsum's three-operand form
             # reduces a batch of one n = 2 point in another order): a point's cost is a function of the point
             closed = np.einsum("pj,pj->p", np.matmul(x[:, None, :], s.initial_weight + Pm)[:, 0, :], x) + self._noise
-        U, X = rollout_batch(s, mu, K, x)
+        U, X = rollout_batch(self.structure, mu, K, x)
         forward = self._forward(mu, x, U, X, added, base)
         atol = np.zeros(P)
         rough = np.abs(closed - forward) > SELF_CHECK_RTOL * forward

@@ -28,6 +28,7 @@ from .model import System
 from .policy import self_check
 from .prediction import Prediction
 from .recursion import forward_cost, input_weight
+from .structure import structure_of
 from .tolerances import DENSE_RESIDUAL_RTOL
 
 __all__ = ["OMEGA_DENSE_MAX", "PointEvaluator"]
@@ -46,6 +47,7 @@ class PointEvaluator:
     def __init__(self, system: System, protocol: str, pred: Prediction, weights: tuple[np.ndarray, float]) -> None:
         s, x = system, system.x0
         self.system, self.pred, self.protocol = s, pred, protocol
+        self.structure = structure_of(s)
         self.d = weights[0]
         self.g = pred.Omega_gp @ x
         self.const = dense_constant(s, pred, x)
@@ -103,8 +105,8 @@ class PointEvaluator:
             N, n, m = s.horizon, s.n, s.m
             X = (self.Phi_x + pred.Gamma @ z).reshape(1, N, n)
             mu, U = v.reshape(1, N, m), u.reshape(1, N, m)
-            forward = float(forward_cost(s, mu, U, X, input_weight(s, self.protocol, mu, self.d), self.base,
-                                         self.Omega)[0])
+            weight = input_weight(s, self.protocol, mu, self.d)
+            forward = float(forward_cost(self.structure, mu, U, X, weight, self.base, self.Omega)[0])
             ok = bool(self_check(s, self.protocol, closed, forward, "dense", raise_=False))
         return closed if ok else None
 

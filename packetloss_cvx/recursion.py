@@ -276,7 +276,8 @@ def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray
     return K
 
 
-def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def backward_batch(structure: System | Structure, protocol: str, mu: np.ndarray,
+                   added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Gains K (P, N, m, n) and cost-to-go P_0 (P, n, n) (without Q) of the schedules ``mu`` (P, N, m),
     ``added`` (P, N, m) the diagonal each step's G gets (:func:`input_weight`): N calls of
     :func:`riccati_step` from ``P_N = Omega_N`` (a stationary tail closed, and for one point whose steps are one
@@ -290,17 +291,19 @@ def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndar
     >>> K.ravel().tolist(), P0.ravel().tolist()
     ([0.5], [0.5])
     """
-    K, Pm, _ = _backward(system, protocol, mu, added)
+    structure = structure_of(structure)
+    K, Pm, _ = _backward(structure, protocol, mu, added)
     return K, Pm
 
 
-def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
+def _backward(structure: Structure, protocol: str, mu: np.ndarray, added: np.ndarray,
               copies: bool = True) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
     """:func:`backward_batch`, and the run ``(1, b)`` of steps 1..b-1 whose gains are one copied gain when the
     pass closed its stationary tail (None otherwise), for the rollout (:func:`_roll_out`) to take as it is. With
     ``copies`` False the run's gains after the first (K[:, 2:b]) are left unwritten, for a caller that reads
     only K[:, 1] of the run."""
-    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    A, B, W, N = structure.A, structure.B, structure.state_weights, structure.horizon
+    n, m = structure.n, structure.m
     P = mu.shape[0]
     K = np.empty((N, P, m, n))
     Pm = np.empty((P, n, n))
@@ -308,10 +311,10 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
     settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
     # one point whose steps 1..N-1 are one map: once its drift predicts more than DOUBLING_AFTER steps to
     # settle, the rest of the pass by doubling (_doubled_backward)
-    doubling = settle and _one_map(system, mu, added)
+    doubling = settle and _one_map(structure, mu, added)
     # steps 1..head share mu, the added diagonal and Omega: only there can a tail close, so only there is the
     # drift weighed (an unstable plant's UDP-like pass, whose added diagonal grows at every step, never is)
-    head = min(leading_run(mu[:, 1:]), leading_run(added[:, 1:]), len(weight_head(system))) if settle else 0
+    head = min(leading_run(mu[:, 1:]), leading_run(added[:, 1:]), len(structure.weight_head)) if settle else 0
     q = None             # the contraction per step, measured once the iterates are near settling
     run = None
     check, last = min(N - 9, head), None                # the next step whose drift is weighed; the last weighing
@@ -323,7 +326,7 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
                     drift = _drift(new, Pm)
                     excess = _excess(*drift)
                     if doubling and last is not None and _to_settle(excess, last, t) > DOUBLING_AFTER:
-                        doubled = _doubled_backward(system, mu, added, K[:, 0], copies, t, new[0], q)
+                        doubled = _doubled_backward(structure, mu, added, K[:, 0], copies, t, new[0], q)
                         if doubled is not None:
                             Pm, run = doubled
                             break
@@ -357,14 +360,14 @@ DOUBLING_AFTER = 64
 DOUBLING_CHUNK = 8
 
 
-def _one_map(system: System, mu: np.ndarray, added: np.ndarray) -> bool:
+def _one_map(structure: Structure, mu: np.ndarray, added: np.ndarray) -> bool:
     """Whether the backward pass of one point is one map at every step 1..N-1: the same channel and added diagonal
     there (finite), and one state weight at every step (the terminal one included). O(N (m + n^2)) at most."""
-    return bool(mu.shape[0] == 1 and len(weight_head(system)) == system.horizon and all_steps_equal(mu[:, 1:])
+    return bool(mu.shape[0] == 1 and structure.time_invariant_weight and all_steps_equal(mu[:, 1:])
                 and all_steps_equal(added[:, 1:]) and np.all(np.isfinite(added[:, 1])))
 
 
-def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.ndarray, copies: bool, top: int,
+def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K: np.ndarray, copies: bool, top: int,
                       P_top: np.ndarray, q: float | None) -> tuple[np.ndarray, tuple[int, int] | None] | None:
     """The rest of :func:`_backward` of one point from step ``top`` down (``P_top``: its cost-to-go; q: the
     contraction if measured), where every step 1..top-1 is one Riccati map Phi (:func:`_one_map`), without a
@@ -382,7 +385,7 @@ def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.n
     6.6e-14 of an 80-bit pass where the step-by-step one is within 8.3e-14 (the slowly converging plant,
     benchmarks/slow_plant.py). Time O(L (n^3 + m^3)) for a tail settling in L steps, in O(c + log L) batched
     calls; memory O(L n^2)."""
-    A, B, Q = system.A, system.B, system.state_weights[0]
+    A, B, Q = structure.A, structure.B, structure.state_weights[0]
     c = DOUBLING_CHUNK
     mu1, add1 = mu[:, 1], added[:, 1]                  # (1, m): the map of steps 1..N-1
     last = (top - 2) // c + 1                          # the c-th points j c <= top - 2 (step top - j c - 1 >= 1)
@@ -410,7 +413,7 @@ def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.n
                     maps = _doubling(*maps)
                     continue
                 used = J if trigger is None else trigger + 1
-                q, t, Pt = _fine_steps(system, coarse[:used], mu1, add1, K, q, top)
+                q, t, Pt = _fine_steps(structure, coarse[:used], mu1, add1, K, q, top)
                 if t is None and Pt is None:           # no step of that stretch settled: reach further
                     floor = used
                     continue
@@ -438,7 +441,7 @@ def _power(A: np.ndarray, F: np.ndarray, H: np.ndarray, P: np.ndarray) -> np.nda
     return riccati_step(P, A, F, np.ones((P.shape[0], r)), np.ones((P.shape[0], r)), H)[1]
 
 
-def _fine_steps(system: System, starts: np.ndarray, mu1: np.ndarray, add1: np.ndarray, K: np.ndarray,
+def _fine_steps(structure: Structure, starts: np.ndarray, mu1: np.ndarray, add1: np.ndarray, K: np.ndarray,
                 q: float | None, top: int) -> tuple[float | None, int | None, np.ndarray | None]:
     """The steps between the c-th points ``starts[j] = P_{top - j c}`` (J, n, n) of :func:`_doubled_backward`: c
     batched :func:`riccati_step` calls over the J points write the gains K_t of steps top-1 down to
@@ -446,7 +449,7 @@ def _fine_steps(system: System, starts: np.ndarray, mu1: np.ndarray, add1: np.nd
     accepts with the contraction q (measured, if None, as :func:`_backward` measures it: at the first step whose
     drift is near), ``(q, None, P_1)`` where none does and step 1 was reached, ``(q, None, None)`` otherwise.
     O(J c (n^3 + m^3)) in c calls."""
-    A, B, Q, n, m = system.A, system.B, system.state_weights[0], system.n, system.m
+    A, B, Q, n, m = structure.A, structure.B, structure.state_weights[0], structure.n, structure.m
     c, J = DOUBLING_CHUNK, starts.shape[0]
     count = min(J * c, top - 1)                                # steps top-1 .. top-count
     Ps, Ks = np.empty((J, c, n, n)), np.empty((J, c, m, n))
@@ -590,7 +593,8 @@ def _one_point_backward(system: System, protocol: str, weights: tuple[np.ndarray
     if protocol == "udp":
         _finite("diag(Omega_g)", d[mu < 1.0], protocol)
     _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
-    K, P0, run = _backward(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None], copies)
+    K, P0, run = _backward(structure_of(system), protocol, mu[None], input_weight(system, protocol, mu, d)[None],
+                           copies)
     return K[0], P0[0], noise, run
 
 
@@ -611,15 +615,17 @@ def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float
     (0.5, 0.75, [[-0.5]], [1.0, 0.75])
     """
     K, P0, noise, run = _one_point_backward(system, protocol, weights, copies=False)
-    if run is not None and _by_powers(system, run, system.mu_schedule[None], K[None]) is None:   # step by step
+    structure = structure_of(system)
+    if run is not None and _by_powers(structure, run, system.mu_schedule[None], K[None]) is None:   # step by step
         _repeat_first(K[run[0]:run[1]])
         run = None
     U = np.empty((1, system.horizon, system.m))
-    X = _roll_out(system, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
+    X = _roll_out(structure, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
     return K[0], P0, noise, U[0], X[0]
 
 
-def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def rollout_batch(structure: System | Structure, mu: np.ndarray, K: np.ndarray,
+                  x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The plans u_t = -K_t x_t (P, N, m) and their mean states x_1..x_N (P, N, n) from x (P, n), by
     :func:`mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
     states to the bit, even where A is unstable). O(P N n (n + m)).
@@ -631,8 +637,9 @@ def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) 
     >>> U.ravel().tolist(), X.ravel().tolist()     # x1 = 2 + 0.5 (-1), x2 = 1.5 + 0.5 (-0.75)
     ([-1.0, -0.75], [1.5, 1.125])
     """
-    U = np.empty((mu.shape[0], system.horizon, system.m))
-    return U, mean_states(system, mu, U, x, K)
+    structure = structure_of(structure)
+    U = np.empty((mu.shape[0], structure.horizon, structure.m))
+    return U, mean_states(structure, mu, U, x, K)
 
 
 def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -687,8 +694,8 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     mu = system.mu_schedule[None]
     with np.errstate(over="ignore", invalid="ignore"):
         base = float(x @ system.initial_weight @ x) + noise
-    return float(forward_cost(system, mu, inputs[None], states[None], input_weight(system, protocol, mu, d),
-                              base)[0])
+    return float(forward_cost(structure_of(system), mu, inputs[None], states[None],
+                              input_weight(system, protocol, mu, d), base)[0])
 
 
 def plan_cost(system: System, inputs: np.ndarray, protocol: str,
@@ -722,12 +729,13 @@ def plan_cost(system: System, inputs: np.ndarray, protocol: str,
     d, noise = udp_variance_weights(system) if weights is None else weights
     x = system.x0
     mu, U = system.mu_schedule[None], inputs[None]
-    Q = system.state_weights[0] if len(weight_head(system)) == system.horizon else system.state_weights
+    structure = structure_of(system)
+    Q = system.state_weights[0] if structure.time_invariant_weight else system.state_weights
     with np.errstate(over="ignore", invalid="ignore"):
         first = float(x @ system.initial_weight @ x)
-        X = mean_states(system, mu, U, x[None])
+        X = mean_states(structure, mu, U, x[None])
         weight = input_weight(system, protocol, mu, d)
-        value = float(forward_cost(system, mu, U, X, weight, first + noise)[0])
+        value = float(forward_cost(structure, mu, U, X, weight, first + noise)[0])
         if not np.isfinite(value):
             return value, math.inf
         bound = float(rollout_cost_error(system.A, system.B, mu, U, x[None], X, Q, PLAN_COST_RTOL * value)[0])
@@ -785,7 +793,7 @@ def check_plan_cost(system: System, protocol: str, value: float, bound: float) -
         "on the states its law rolls out), a shorter horizon, or a feedback law (closed loop) instead of a plan")
 
 
-def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
+def mean_states(structure: System | Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
                 K: np.ndarray | None = None) -> np.ndarray:
     """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
     ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
@@ -801,11 +809,13 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
     >>> mean_states(s, np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]])).ravel().tolist()
     [0.0, 1.0]
     """
-    run = _gain_run(mu, K) if K is not None and system.horizon >= 2 * STATIONARY_RUN else None
-    return _roll_out(system, mu, U, x, K, _by_powers(system, run, mu, K) if run is not None else None)
+    structure = structure_of(structure)
+    run = _gain_run(mu, K) if K is not None and structure.horizon >= 2 * STATIONARY_RUN else None
+    return _roll_out(structure, mu, U, x, K, _by_powers(structure, run, mu, K) if run is not None else None)
 
 
-def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
+def _by_powers(structure: Structure, run: tuple[int, int] | None, mu: np.ndarray,
+               K: np.ndarray) -> tuple[int, int] | None:
     """``run`` where it may be rolled out by powers of its closed loop, and the steps after it by a scan
     (:func:`_scanned_run`): where A is stable (rho(A) < 1), or the run's closed loop ``A - B M K`` (mu[:, 1],
     K[:, 1]) is at every point (a closed stationary tail's is: its contraction q < 1). None otherwise: an
@@ -820,13 +830,13 @@ def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: n
     on the closed-loop states it was rolled out with (the law's states)."""
     if run is None:
         return None
-    if spectral_radius(system.A) < 1.0:
+    if structure.open_loop_radius < 1.0:
         return run
-    loop = _closed_loop(system.A, system.B, mu[:, run[0]], K[:, run[0]])
+    loop = _closed_loop(structure.A, structure.B, mu[:, run[0]], K[:, run[0]])
     return run if np.all(np.isfinite(loop)) and np.all(spectral_radius(loop) < 1.0) else None
 
 
-def _roll_out(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
+def _roll_out(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
             run: tuple[int, int] | None, start: bool = False) -> np.ndarray:
     """:func:`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
     vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state
@@ -835,20 +845,20 @@ def _roll_out(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: n
     sign of zero); otherwise the steps after the run are a scan of their closed-loop products
     (:func:`_scanned_run`) in blocks of at most SCAN_BLOCK_ENTRIES entries (P n^2 per step; step by step where a
     block would hold fewer than SCAN_MIN steps). ``start``: return x_0..x_N (P, N + 1, n)."""
-    AT, BT, N = system.A.T, system.B.T, system.horizon
+    AT, BT, N = structure.A.T, structure.B.T, structure.horizon
     if start:
-        full = np.empty((U.shape[0], N + 1, system.n))
+        full = np.empty((U.shape[0], N + 1, structure.n))
         full[:, 0] = x
         X = full[:, 1:]
     else:
-        X = np.empty((U.shape[0], N, system.n))
-    block = 1 << max(0, (SCAN_BLOCK_ENTRIES // (U.shape[0] * system.n ** 2)).bit_length() - 1)
+        X = np.empty((U.shape[0], N, structure.n))
+    block = 1 << max(0, (SCAN_BLOCK_ENTRIES // (U.shape[0] * structure.n ** 2)).bit_length() - 1)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):     # callers check finiteness
         state = x
         t = 0
         while t < N:
             if run is not None and t == run[0]:
-                state = _closed_run(system, mu[:, t], K[:, t], X, U, *run)
+                state = _closed_run(structure, mu[:, t], K[:, t], X, U, *run)
                 t = run[1]
                 if not state.any() and np.all(np.isfinite(K[:, t:])):
                     U[:, t:] = 0.0
@@ -857,7 +867,7 @@ def _roll_out(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: n
                 if block >= SCAN_MIN:
                     while t < N:
                         end = min(N, t + block)
-                        state = _scanned_run(system, mu, K, X, U, state, t, end)
+                        state = _scanned_run(structure, mu, K, X, U, state, t, end)
                         t = end
                     break
                 continue
@@ -874,18 +884,18 @@ SCAN_BLOCK_ENTRIES = 2**18
 SCAN_MIN = 16
 
 
-def _scanned_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray, state: np.ndarray,
+def _scanned_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray, state: np.ndarray,
                  a: int, b: int) -> np.ndarray:
     """Steps a..b-1 of the time-varying gains K[:, a:b] from x_a = ``state`` (P, n) by a work-efficient scan
     (Blelloch's up-sweep of pairwise products of the closed loops ``L_t = A - B M_t K_t``, then a down-sweep of
     the states at the block starts; row vectors, ``x_{t+1}' = x_t' L_t'``): 2 log2(b - a) stacked products
     instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b.
     O(P (b - a) n^3)."""
-    P, n, m, L = state.shape[0], system.n, system.m, b - a
+    P, n, m, L = state.shape[0], structure.n, structure.m, b - a
     T = 1 << (L - 1).bit_length()                            # padded to a power of two with identities
     loops = np.empty((P, T, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
     MK = np.ascontiguousarray((K[:, a:b] * mu[:, a:b, :, None]).swapaxes(-1, -2))
-    np.subtract(system.A.T, (MK.reshape(-1, m) @ system.B.T).reshape(P, L, n, n), out=loops[:, :L])
+    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(P, L, n, n), out=loops[:, :L])
     loops[:, L:] = np.eye(n)
     levels = [loops]
     while levels[-1].shape[1] > 1:                           # products of 2, 4, ... consecutive steps
@@ -921,14 +931,14 @@ def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
     return 1, b
 
 
-def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
+def _closed_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
                 a: int, b: int) -> np.ndarray:
     """Steps a..b-1 (a >= 1) of one gain K (P, m, n) and channel mu (P, m) from x_a = ``X[:, a - 1]``: the states
     x_a (A - B M K)'^k for k = 1..b-a by :func:`states_by_powers`, written into X and U in place. Returns x_b.
     O(P (b - a) n^2 + P n^3 log(b - a))."""
     L = b - a
     Y = X[:, a - 1:b]                                      # x_a .. x_b, x_a already written
-    rows = min(states_by_powers(Y, _closed_loop(system.A, system.B, mu, K).transpose(0, 2, 1)), L)
+    rows = min(states_by_powers(Y, _closed_loop(structure.A, structure.B, mu, K).transpose(0, 2, 1)), L)
     plan = U[:, a:b]                                       # the states from ``rows`` on are 0, and so is their input
     np.matmul(Y[:, :rows], np.ascontiguousarray(K.transpose(0, 2, 1)), out=plan[:, :rows])   # BLAS: contiguous
     np.negative(plan[:, :rows], out=plan[:, :rows])
@@ -960,7 +970,7 @@ def states_by_powers(Y: np.ndarray, loop: np.ndarray) -> int:
     return k
 
 
-def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
+def forward_cost(structure: System | Structure, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
                  base: np.ndarray | float, Omega: np.ndarray | None = None) -> np.ndarray:
     """The referee: the expected cost of plans U (P, N, m) whose mean states are X (P, N, n) (x_1..x_N),
     ``base + sum_t mu_t u_t (weight_t u_t) + x_{t+1}' Omega_{t+1} x_{t+1}``: every term nonnegative, so
@@ -976,6 +986,7 @@ def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, w
     ...              np.ones((1, 1)), 1.0).tolist()        # 1 + 0.5 * 1 + 2 * 0.25
     [2.0]
     """
+    structure = structure_of(structure)
     P = X.shape[0]
     with np.errstate(over="ignore", invalid="ignore"):
         # mu u (weight u): the products in this order stay in range when mu is tiny and u huge
@@ -983,8 +994,8 @@ def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, w
         if Omega is not None:
             flat = X.reshape(P, -1)
             states = np.einsum("pk,pk->p", flat @ Omega, flat)
-        elif len(weight_head(system)) == system.horizon:    # one weight for every step: one product
-            states = np.einsum("ptj,ptj->p", X @ system.state_weights[0], X)
+        elif structure.time_invariant_weight:    # one weight for every step: one product
+            states = np.einsum("ptj,ptj->p", X @ structure.state_weights[0], X)
         else:
-            states = np.einsum("ptj,ptj->p", np.einsum("pti,tij->ptj", X, system.state_weights), X)
+            states = np.einsum("ptj,ptj->p", np.einsum("pti,tij->ptj", X, structure.state_weights), X)
         return base + (inputs + states)
