@@ -276,7 +276,7 @@ def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray
     return K
 
 
-def backward_batch(structure: System | Structure, protocol: str, mu: np.ndarray,
+def backward_batch(structure: Structure, protocol: str, mu: np.ndarray,
                    added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Gains K (P, N, m, n) and cost-to-go P_0 (P, n, n) (without Q) of the schedules ``mu`` (P, N, m),
     ``added`` (P, N, m) the diagonal each step's G gets (:func:`input_weight`): N calls of
@@ -287,11 +287,10 @@ def backward_batch(structure: System | Structure, protocol: str, mu: np.ndarray,
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> K, P0 = backward_batch(s, "tcp", np.array([[[1.0]]]), np.array([[[1.0]]]))   # K = 1/2, P0 = 1/2
+    >>> K, P0 = backward_batch(structure_of(s), "tcp", np.array([[[1.0]]]), np.array([[[1.0]]]))   # K = 1/2, P0 = 1/2
     >>> K.ravel().tolist(), P0.ravel().tolist()
     ([0.5], [0.5])
     """
-    structure = structure_of(structure)
     K, Pm, _ = _backward(structure, protocol, mu, added)
     return K, Pm
 
@@ -624,7 +623,7 @@ def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float
     return K[0], P0, noise, U[0], X[0]
 
 
-def rollout_batch(structure: System | Structure, mu: np.ndarray, K: np.ndarray,
+def rollout_batch(structure: Structure, mu: np.ndarray, K: np.ndarray,
                   x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The plans u_t = -K_t x_t (P, N, m) and their mean states x_1..x_N (P, N, n) from x (P, n), by
     :func:`mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
@@ -633,11 +632,10 @@ def rollout_batch(structure: System | Structure, mu: np.ndarray, K: np.ndarray,
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> U, X = rollout_batch(s, np.full((1, 2, 1), 0.5), np.full((1, 2, 1, 1), 0.5), np.array([[2.0]]))
+    >>> U, X = rollout_batch(structure_of(s), np.full((1, 2, 1), 0.5), np.full((1, 2, 1, 1), 0.5), np.array([[2.0]]))
     >>> U.ravel().tolist(), X.ravel().tolist()     # x1 = 2 + 0.5 (-1), x2 = 1.5 + 0.5 (-0.75)
     ([-1.0, -0.75], [1.5, 1.125])
     """
-    structure = structure_of(structure)
     U = np.empty((mu.shape[0], structure.horizon, structure.m))
     return U, mean_states(structure, mu, U, x, K)
 
@@ -655,7 +653,7 @@ def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarr
     >>> u.tolist(), x.ravel().tolist()
     ([[-0.5]], [1.0, 0.75])
     """
-    U, X = rollout_batch(system, system.mu_schedule[None], K[None], system.x0[None])
+    U, X = rollout_batch(structure_of(system), system.mu_schedule[None], K[None], system.x0[None])
     return U[0], np.concatenate([system.x0[None], X[0]])
 
 
@@ -793,7 +791,7 @@ def check_plan_cost(system: System, protocol: str, value: float, bound: float) -
         "on the states its law rolls out), a shorter horizon, or a feedback law (closed loop) instead of a plan")
 
 
-def mean_states(structure: System | Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
+def mean_states(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
                 K: np.ndarray | None = None) -> np.ndarray:
     """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
     ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
@@ -806,10 +804,10 @@ def mean_states(structure: System | Structure, mu: np.ndarray, U: np.ndarray, x:
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> mean_states(s, np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]])).ravel().tolist()
+    >>> X = mean_states(structure_of(s), np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]]))
+    >>> X.ravel().tolist()
     [0.0, 1.0]
     """
-    structure = structure_of(structure)
     run = _gain_run(mu, K) if K is not None and structure.horizon >= 2 * STATIONARY_RUN else None
     return _roll_out(structure, mu, U, x, K, _by_powers(structure, run, mu, K) if run is not None else None)
 
@@ -970,7 +968,7 @@ def states_by_powers(Y: np.ndarray, loop: np.ndarray) -> int:
     return k
 
 
-def forward_cost(structure: System | Structure, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
+def forward_cost(structure: Structure, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
                  base: np.ndarray | float, Omega: np.ndarray | None = None) -> np.ndarray:
     """The referee: the expected cost of plans U (P, N, m) whose mean states are X (P, N, n) (x_1..x_N),
     ``base + sum_t mu_t u_t (weight_t u_t) + x_{t+1}' Omega_{t+1} x_{t+1}``: every term nonnegative, so
@@ -982,11 +980,10 @@ def forward_cost(structure: System | Structure, mu: np.ndarray, U: np.ndarray, X
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[2.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-    >>> forward_cost(s, np.full((1, 1, 1), 0.5), np.full((1, 1, 1), -1.0), np.full((1, 1, 1), 0.5),
+    >>> forward_cost(structure_of(s), np.full((1, 1, 1), 0.5), np.full((1, 1, 1), -1.0), np.full((1, 1, 1), 0.5),
     ...              np.ones((1, 1)), 1.0).tolist()        # 1 + 0.5 * 1 + 2 * 0.25
     [2.0]
     """
-    structure = structure_of(structure)
     P = X.shape[0]
     with np.errstate(over="ignore", invalid="ignore"):
         # mu u (weight u): the products in this order stay in range when mu is tiny and u huge

@@ -54,6 +54,7 @@ from ..recursion import (
     stationary_close,
     weight_head,
 )
+from ..structure import structure_of
 from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL
 from .chain import chain_matrices
 
@@ -417,8 +418,9 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     chained = [i for i in range(m) if lift.Lam[i].size]
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
-        X = mean_states(system, mu[None], U, np.repeat(x[None], P, axis=0))
-        total = forward_cost(system, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
+        structure = structure_of(system)
+        X = mean_states(structure, mu[None], U, np.repeat(x[None], P, axis=0))
+        total = forward_cost(structure, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
         var_u2 = mu * (1.0 - mu) * U * U                      # (P, N, m)
         eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
         Sig = np.zeros((P, n, n))
