@@ -45,7 +45,7 @@ from ..tolerances import (
     HOMOGENEOUS_RICCATI_MAX_ITER,
     RICCATI_RTOL,
 )
-from .region import least_squares_residual, moment_factor, psd_factor, radius_bound
+from .region import least_squares_residual, moment_factor, psd_part_factor, radius_bound
 
 __all__ = ["chain_certificate_margin", "check_delivery", "homogeneous_coupled_riccati"]
 
@@ -90,7 +90,7 @@ def _apply(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
     where the inputs cancel one mode in a step, the next step's P weighs the others by rounding only, and so
     would that). O(M^2 (n + m)(m + n)^2 + M n^3)."""
     M, n = P.shape[0], P.shape[1]
-    L, w = psd_factor(P)
+    L, w = psd_part_factor(P)
     factors = _riccati_factors(L, A, B, T, h, delivery)
     weight = float(np.sum(w))
     R = np.stack([F.T @ F for F in factors]) + (eps * weight / (M * n)) * np.eye(n)
@@ -425,7 +425,7 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertEl
 def _bound(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str) -> float:
     """The largest c with ``R(P)_a >= c P_a`` over the modes P weighs (region.radius_bound of :func:`_riccati_factors`;
     inf where P weighs none). O(M^2 (n + m)(m + n)^2 + M n^3)."""
-    factors = _riccati_factors(psd_factor(P)[0], A, B, T, h, delivery)
+    factors = _riccati_factors(psd_part_factor(P)[0], A, B, T, h, delivery)
     return min((radius_bound(F, P[a]) for a, F in enumerate(factors) if np.any(P[a])), default=np.inf)
 
 

@@ -131,11 +131,11 @@ def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarr
     size = float(np.linalg.norm(P, 2)) if np.all(np.isfinite(P)) else float("nan")
     if not size > 0 or float(np.linalg.eigvalsh(P)[0]) < -CERTIFICATE_RTOL * size:
         return float("-inf")
-    L, _ = psd_factor(P)
+    L, _ = psd_part_factor(P)
     return radius_bound(riccati_factor(L, A, B, mu), P) - 1.0
 
 
-def psd_factor(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def psd_part_factor(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(L, w)``: ``P+ = L L'`` the PSD part of a symmetric stack P (..., n, n), its eigenvalues w (ascending) at or
     below ``n eps max(w)`` taken as zero (so P+ has an exact kernel there), and those eigenvalues ``w`` (..., n) with
     the dropped ones set to 0; ``L = U diag(sqrt(w))``, its columns the eigenvectors. Time O(n^3) a point."""
@@ -503,7 +503,7 @@ def _eigenvalue(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> 
     lam = np.full(P.shape[0], np.nan)
     finite = np.all(np.isfinite(P), axis=(-2, -1))
     if np.any(finite):
-        L, w = psd_factor(P[finite])
+        L, w = psd_part_factor(P[finite])
         F = riccati_factor(L, A, B, mu[finite])
         total = np.sum(w, axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
