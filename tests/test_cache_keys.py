@@ -16,8 +16,8 @@ from hypothesis import strategies as st
 import packetloss_cvx
 from packetloss_cvx import prediction as prediction_module
 from packetloss_cvx import recursion, structure
-from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.allocation import tcp
+from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.markov import augmented, chain
 from packetloss_cvx.model import SYSTEM_FIELDS, CacheKey, StructureStore, System
 from packetloss_cvx.random_systems import random_system
