@@ -37,19 +37,9 @@ from .linalg import check_finite, lapack_dgesv
 from .model import System
 from .protocols import check_protocol
 from .roundoff import UNIT_ROUNDOFF, gamma, rollout_cost_error
-from .structure import (
-    STATIONARY_RUN,
-    Structure,
-    all_steps_equal,
-    condition_from,
-    leading_run,
-    lyapunov_weights,
-    settled,
-    spectral_radius,
-    stationary_close,
-    structure_of,
-)
-from .structure import drift as _drift
+from .settling import STATIONARY_RUN, all_steps_equal, leading_run, settled, spectral_radius, stationary_close
+from .settling import drift as _drift
+from .structure import Structure, condition_from, lyapunov_weights, structure_of
 from .tolerances import PLAN_COST_RTOL, STATIONARY_RTOL
 
 __all__ = [
@@ -125,7 +115,7 @@ def weight_head(system: System | Structure) -> np.ndarray:
 
 
 def _near(change: np.ndarray, size: np.ndarray) -> bool:
-    """A necessary condition of :func:`.settled` with a contraction q >= 0.01 (whose geometric factor
+    """A necessary condition of :func:`settled` with a contraction q >= 0.01 (whose geometric factor
     q / (1 - q) is then at least 1/99): change <= 100 STATIONARY_RTOL size at every point. O(P)."""
     return bool((change <= 100.0 * STATIONARY_RTOL * size).all())
 
@@ -376,7 +366,7 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
     square-root form: :func:`_doubling`). The cost-to-go at every c-th step back from P_top (c = DOUBLING_CHUNK)
     comes from doubling, 2^k points at a time (:func:`_fractional`); the c - 1 steps between them and every
     gain from c batched :func:`riccati_step` calls over those points (:func:`_fine_steps`). The stationary tail
-    closes at the first step whose drift :func:`.settled` accepts (the step-by-step pass weighs only some steps
+    closes at the first step whose drift :func:`settled` accepts (the step-by-step pass weighs only some steps
     and closes at or after it; both are within STATIONARY_RTOL of the fixed point), as :func:`_backward` closes
     it: K[1] from P_t, copies for steps 1..t-1, then step 0. Writes K[:top] (K: (N, m, n)); returns
     ``(P_0 (1, n, n), run)``, or None where anything is not finite (the step-by-step pass then goes on from
@@ -444,7 +434,7 @@ def _fine_steps(structure: Structure, starts: np.ndarray, mu1: np.ndarray, add1:
                 q: float | None, top: int) -> tuple[float | None, int | None, np.ndarray | None]:
     """The steps between the c-th points ``starts[j] = P_{top - j c}`` (J, n, n) of :func:`_doubled_backward`: c
     batched :func:`riccati_step` calls over the J points write the gains K_t of steps top-1 down to
-    max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift :func:`.settled`
+    max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift :func:`settled`
     accepts with the contraction q (measured, if None, as :func:`_backward` measures it: at the first step whose
     drift is near), ``(q, None, P_1)`` where none does and step 1 was reached, ``(q, None, None)`` otherwise.
     O(J c (n^3 + m^3)) in c calls."""
@@ -495,7 +485,7 @@ MAX_WAIT = 8
 def _wait(excess: float, last: tuple[int, float] | None, t: int) -> int:
     """How many steps a backward pass may go before weighing its drift again (1 to MAX_WAIT): the steps until
     ``excess`` (the largest change over :func:`_near`'s bound), shrinking by the factor f per step seen since the
-    ``last`` weighing (step, excess), meets the closing bound of :func:`.settled` with f for the contraction
+    ``last`` weighing (step, excess), meets the closing bound of :func:`settled` with f for the contraction
     (``(1 - f) / (100 f)`` in units of the near bound). A pass that settles faster than that closes the few
     steps later; one that does not shrink is weighed every step. O(1)."""
     if last is None or not 0.0 < excess < math.inf or not 0.0 < last[1] < math.inf:

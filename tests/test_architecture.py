@@ -30,7 +30,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "packetloss_cvx"
 #: costs/evaluator/pointwise, and qp) -> analysis/allocation/simulation/studies -> claims -> plots/cli
 LAYERS = [
     {"errors", "budgets", "printable", "tolerances", "protocols", "results", "model", "io", "linalg", "roundoff",
-     "progress",
+     "settling", "progress",
      "display", "statespace", "channel", "markov_channel", "sensor", "validation", "threads", "optional", "safeio",
      "runfolder",
      "examples"},

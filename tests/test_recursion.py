@@ -548,7 +548,7 @@ def test_drift_is_weighed_only_where_a_tail_can_close(monkeypatch):
     from packetloss_cvx.io import system_from_dict
 
     weighed = {"sum": 0, "pass": 0}
-    small_change, drift = structure._small_change, recursion._drift
+    small_change, drift = structure.small_change, recursion._drift
 
     def count(name, fn):
         def counted(*args):
@@ -556,7 +556,7 @@ def test_drift_is_weighed_only_where_a_tail_can_close(monkeypatch):
             return fn(*args)
         return counted
 
-    monkeypatch.setattr(structure, "_small_change", count("sum", small_change))
+    monkeypatch.setattr(structure, "small_change", count("sum", small_change))
     monkeypatch.setattr(recursion, "_drift", count("pass", drift))
     for rho, protocol, expected in ((1.05, "udp", 0), (1.05, "tcp", 1), (0.95, "udp", 1)):
         s = random_system(np.random.default_rng(1), n=4, m=2, horizon=1000, spectral_radius=rho, time_varying=False,
