@@ -140,7 +140,7 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     return condition_from(structure, weights[0])
 
 
-def input_weight(system: System, protocol: str, mu: np.ndarray, d: np.ndarray) -> np.ndarray:
+def input_weight(structure: System | Structure, protocol: str, mu: np.ndarray, d: np.ndarray) -> np.ndarray:
     """The stage input weight of the mean-state LQ problem per channel and step, ``(..., N, m)`` like
     ``mu``: ``psi_t + [UDP] (1 - mu_t) d_t`` where ``mu_t < 1`` (a perfect channel adds nothing, even where
     ``d`` overflowed). It is the diagonal Theorem 1 adds to ``B'PB M`` in G, and the weight of ``mu u^2`` in
@@ -152,7 +152,7 @@ def input_weight(system: System, protocol: str, mu: np.ndarray, d: np.ndarray) -
     >>> input_weight(s, "udp", np.array([[0.5]]), np.array([[3.0]])).tolist()     # 2 + 0.5 * 3
     [[3.5]]
     """
-    psi = system.input_weights
+    psi = structure.input_weights
     if protocol == "tcp":
         return np.broadcast_to(psi, mu.shape)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -569,21 +569,22 @@ def backward_pass(system: System, protocol: str,
     >>> float(K[0, 0, 0]), float(P0[0, 0]), noise
     (0.5, 0.75, 0.0)
     """
-    K, P0, noise, _ = _one_point_backward(system, protocol, weights)
+    K, P0, noise, _ = _one_point_backward(system, structure_of(system), protocol, weights)
     return K, P0, noise
 
 
-def _one_point_backward(system: System, protocol: str, weights: tuple[np.ndarray, float] | None,
+def _one_point_backward(system: System, structure: Structure, protocol: str,
+                        weights: tuple[np.ndarray, float] | None,
                         copies: bool = True) -> tuple[np.ndarray, np.ndarray, float, tuple[int, int] | None]:
-    """:func:`backward_pass`, and the run of copied gains its stationary tail closed (:func:`_backward`)."""
+    """:func:`backward_pass` (``structure``: the system's), and the run of copied gains its stationary tail closed
+    (:func:`_backward`)."""
     protocol = check_protocol(protocol)
-    d, noise = udp_variance_weights(system) if weights is None else weights
+    d, noise = structure.variance_weights if weights is None else weights
     mu = system.mu_schedule
     if protocol == "udp":
         _finite("diag(Omega_g)", d[mu < 1.0], protocol)
     _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
-    K, P0, run = _backward(structure_of(system), protocol, mu[None], input_weight(system, protocol, mu, d)[None],
-                           copies)
+    K, P0, run = _backward(structure, protocol, mu[None], input_weight(structure, protocol, mu, d)[None], copies)
     return K[0], P0[0], noise, run
 
 
@@ -603,8 +604,8 @@ def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float
     >>> float(K0[0, 0]), float(P0[0, 0]), U.tolist(), X.ravel().tolist()
     (0.5, 0.75, [[-0.5]], [1.0, 0.75])
     """
-    K, P0, noise, run = _one_point_backward(system, protocol, weights, copies=False)
     structure = structure_of(system)
+    K, P0, noise, run = _one_point_backward(system, structure, protocol, weights, copies=False)
     if run is not None and _by_powers(structure, run, system.mu_schedule[None], K[None]) is None:   # step by step
         _repeat_first(K[run[0]:run[1]])
         run = None
@@ -677,13 +678,14 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
         value, bound = plan_cost(system, inputs, protocol, weights)
         check_plan_cost(system, protocol, value, bound)
         return value
-    d, noise = udp_variance_weights(system) if weights is None else weights
+    structure = structure_of(system)
+    d, noise = structure.variance_weights if weights is None else weights
     x = system.x0
     mu = system.mu_schedule[None]
     with np.errstate(over="ignore", invalid="ignore"):
         base = float(x @ system.initial_weight @ x) + noise
-    return float(forward_cost(structure_of(system), mu, inputs[None], states[None],
-                              input_weight(system, protocol, mu, d), base)[0])
+    return float(forward_cost(structure, mu, inputs[None], states[None], input_weight(structure, protocol, mu, d),
+                              base)[0])
 
 
 def plan_cost(system: System, inputs: np.ndarray, protocol: str,
@@ -714,15 +716,15 @@ def plan_cost(system: System, inputs: np.ndarray, protocol: str,
     >>> f"{value:.4g}", bool(abs(value - 2.0) <= bound), bool(bound > 1e-9 * value)      # and the bound says so
     ('1.427e+04', True, True)
     """
-    d, noise = udp_variance_weights(system) if weights is None else weights
+    structure = structure_of(system)
+    d, noise = structure.variance_weights if weights is None else weights
     x = system.x0
     mu, U = system.mu_schedule[None], inputs[None]
-    structure = structure_of(system)
     Q = system.state_weights[0] if structure.time_invariant_weight else system.state_weights
     with np.errstate(over="ignore", invalid="ignore"):
         first = float(x @ system.initial_weight @ x)
         X = mean_states(structure, mu, U, x[None])
-        weight = input_weight(system, protocol, mu, d)
+        weight = input_weight(structure, protocol, mu, d)
         value = float(forward_cost(structure, mu, U, X, weight, first + noise)[0])
         if not np.isfinite(value):
             return value, math.inf
