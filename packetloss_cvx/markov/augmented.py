@@ -54,6 +54,7 @@ from ..recursion import (
     stationary_close,
     weight_head,
 )
+from ..settling import small_change
 from ..structure import structure_of
 from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL
 from .chain import chain_matrices
@@ -425,7 +426,8 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
         eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
         Sig = np.zeros((P, n, n))
         Y = np.zeros((P, n, m))                               # column i: E[e_t delta_{t,i}] u_{t,i}
-        for t in range(N):
+        end = _plan_end(U)
+        for t in range(end):
             u = U[:, t]
             for i in chained:
                 Y[:, :, i] = (eta[i] @ lift.g[i]) * u[:, i, None]
@@ -435,4 +437,37 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
             Sig = A @ Sig @ A.T + cross + cross.transpose(0, 2, 1) + (B * var_u2[:, t, None, :]) @ B.T \
                 + system.noise_cov
             total += np.einsum("ij,pji->p", W[t], Sig)
+        if end < N:
+            total += _free_tail(system, Sig, end, finite=all(np.all(np.isfinite(e)) for e in eta.values()))
+    return total
+
+
+def _plan_end(U: np.ndarray) -> int:
+    """One past the last step at which some plan of ``U`` (P, N, m) has a nonzero input (0 for all-zero plans): from
+    there on the correlations no longer enter the error covariance. O(P N m)."""
+    moving = np.flatnonzero(np.any(U != 0.0, axis=(0, 2)))
+    return int(moving[-1]) + 1 if moving.size else 0
+
+
+def _free_tail(system: System, Sig: np.ndarray, start: int, finite: bool) -> np.ndarray:
+    """``sum_{t >= start} tr(Omega_{t+1} Sigma_{t+1})`` once every plan has ended (:func:`_plan_end`): the cross
+    terms and the loss variance of the input are exact zeros, so the error covariance is the free Lyapunov recursion
+    ``Sigma+ = A Sigma A' + Sigma_W`` from ``Sig`` (P, n, n) = Sigma_start, the same floats as :func:`chain_cost`'s
+    full step. Where A is stable (q = rho(A)^2 < 1), the state weight is one weight and everything is finite, its
+    settled tail is closed as the Lyapunov sums of :mod:`~packetloss_cvx.structure` close theirs: once the change of
+    Sigma times ``q / (1 - q)`` is below ``STATIONARY_RTOL`` of its size (``stationary_close``), each remaining step
+    adds the settled term; a Sigma that is exactly 0 (no noise: it underflowed) adds nothing more. O(L n^3) for a
+    tail that settles in L steps, O((N - start) n^3) otherwise. Returns (P,)."""
+    structure = structure_of(system)
+    A, W, N, noise_cov = system.A, system.state_weights, system.horizon, system.noise_cov
+    q = structure.open_loop_radius ** 2
+    closable = finite and q < 1.0 and structure.time_invariant_weight
+    total = np.zeros(Sig.shape[0])
+    for t in range(start, N):
+        new = A @ Sig @ A.T + noise_cov
+        term = np.einsum("ij,pji->p", W[t], new)
+        if closable and (not new.any() or (small_change(new, Sig) and stationary_close(new, Sig, q))):
+            return total + (N - t) * term                  # Sigma_{t+1} = ... = Sigma_N to rounding
+        total += term
+        Sig = new
     return total
