@@ -10,6 +10,11 @@
 The minimum is ``C - x' Omega_gp' Vbar G^{-1} Omega_gp x``; the paper prints
 ``G^{-1} Vbar`` in place of ``Vbar G^{-1}``, which differs whenever Vbar is not a
 multiple of the identity (see docs/claims.md, :func:`paper_optimal_cost`).
+
+This module is the API of the Theorem-1 pipeline: :func:`closed_form` validates and hands the system to
+:func:`~packetloss_cvx.policy.solve` (the method choice, the kernel, the one self-check); the kernels are
+:mod:`~packetloss_cvx.dense` and :mod:`~packetloss_cvx.recursion`, on the system's
+:class:`~packetloss_cvx.structure.Structure`. The chooser and the dense kernels are also importable from here.
 """
 
 from __future__ import annotations
