@@ -13,7 +13,7 @@ Conventions (paper eq:plant, big):
 from __future__ import annotations
 
 import weakref
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -42,7 +42,7 @@ from .validation import (
 )
 
 __all__ = ["STRUCTURE_CACHE_MAX_BYTES", "STRUCTURE_FIELDS", "SYSTEM_FIELDS", "CacheKey", "StructureStore", "System",
-           "check_system", "numeric_array"]
+           "SystemStore", "check_system", "numeric_array"]
 
 T = TypeVar("T")
 
@@ -58,13 +58,13 @@ SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt"
 
 @dataclass(frozen=True, eq=False)
 class CacheKey:
-    """One quantity derived from a :class:`System`: the key of a :class:`StructureStore` and of :meth:`System.cached`.
+    """One quantity derived from a :class:`System`: the key of a :class:`StructureStore` or a :class:`SystemStore`.
 
     A key is a typed object, declared once by the module that builds the quantity, and compared by
     identity: two modules cannot collide on a name, and a key says which fields of the system its value
     depends on (``depends_on``, names from :data:`SYSTEM_FIELDS`). A key whose fields are all in
     :data:`STRUCTURE_FIELDS` may be kept in a :class:`StructureStore` (shared by ``with_mu``, ``with_x0`` and
-    ``with_channel`` copies); any other only on its own system. ``tests/test_cache_keys.py`` holds
+    ``with_channel`` copies); any other only per system (:class:`SystemStore`). ``tests/test_cache_keys.py`` holds
     every key of the package to what it says. ``name`` is for reading (repr, errors) only.
 
     Examples
@@ -97,19 +97,49 @@ class CacheKey:
         return f"CacheKey({self.name!r}, depends_on={sorted(self.depends_on)})"
 
 
-class _StructureToken:
-    """The identity a system shares with its copies of the same structure (:attr:`System.structure_token`)."""
+class _Token:
+    """An identity that systems hand to the stores of the layers above (:attr:`System.structure_token`,
+    :attr:`System.own_token`): weakly referable, nothing else."""
 
     __slots__ = ("__weakref__",)
 
 
-class StructureStore:
-    """Values that depend only on a system's structure (:data:`STRUCTURE_FIELDS`), kept by the module that builds
-    them rather than on the System: one store per quantity, declared beside its builder with the quantity's
-    :class:`CacheKey`, weakly keyed by :attr:`System.structure_token` (shared by ``with_mu``, ``with_x0``,
-    ``with_channel`` and ``with_sensor`` copies), so a value lives as long as some system of its structure and is
-    never found by another structure. A value must not refer to a system (it would keep its key alive); arrays in
-    it are read-only (it is shared). :meth:`get` then :meth:`put` on a miss: no callback. O(1).
+class _Store:
+    """Values derived from systems, kept by the module that builds them (not on the System), weakly keyed by a
+    token of the system: the value lives as long as the token's systems do. :meth:`get` then :meth:`put` on a
+    miss: no callback into the System. A value must not refer to a system (it would keep its key alive); arrays in
+    it are read-only (it is shared). O(1)."""
+
+    __slots__ = ("key", "max_bytes", "_values")
+
+    def __init__(self, key: CacheKey, max_bytes: int = STRUCTURE_CACHE_MAX_BYTES) -> None:
+        self.key, self.max_bytes = _key(key), max_bytes
+        self._values: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+    @staticmethod
+    def _token(system: System) -> _Token:
+        raise NotImplementedError
+
+    def get(self, system: System) -> Any:
+        """The value kept for ``system``, or None. O(1)."""
+        return self._values.get(self._token(system))
+
+    def put(self, system: System, value: T, nbytes: int = 0) -> T:
+        """Keep ``value`` for ``system`` (unless ``nbytes`` exceeds the store's ``max_bytes``: then it is returned and
+        not kept) and return the value kept: the first one, if another thread kept one meanwhile. O(1)."""
+        if nbytes > self.max_bytes:
+            return value
+        return self._values.setdefault(self._token(system), value)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.key!r})"
+
+
+class StructureStore(_Store):
+    """Values that depend only on a system's structure (:data:`STRUCTURE_FIELDS`), one store per quantity declared
+    beside its builder with the quantity's :class:`CacheKey`, keyed by :attr:`System.structure_token` (shared by
+    ``with_mu``, ``with_x0``, ``with_channel`` and ``with_sensor`` copies): a value is never found by another
+    structure. A key that names a field outside the structure is a TypeError (use :class:`SystemStore`).
 
     Examples
     --------
@@ -122,30 +152,38 @@ class StructureStore:
     >>> StructureStore(CacheKey("demo.mu", ("mu_schedule",)))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
         ...
-    TypeError: CacheKey('demo.mu', ...) depends on more than the structure: keep it with System.cached
+    TypeError: CacheKey('demo.mu', ...) depends on more than the structure: keep it in a SystemStore
     """
 
-    __slots__ = ("key", "max_bytes", "_values")
+    __slots__ = ()
 
     def __init__(self, key: CacheKey, max_bytes: int = STRUCTURE_CACHE_MAX_BYTES) -> None:
-        if not _key(key).structural:
-            raise TypeError(f"{key!r} depends on more than the structure: keep it with System.cached")
-        self.key, self.max_bytes = key, max_bytes
-        self._values: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+        super().__init__(key, max_bytes)
+        if not key.structural:
+            raise TypeError(f"{key!r} depends on more than the structure: keep it in a SystemStore")
 
-    def get(self, system: System) -> Any:
-        """The value kept for ``system``'s structure, or None. O(1)."""
-        return self._values.get(system.structure_token)
+    @staticmethod
+    def _token(system: System) -> _Token:
+        return system.structure_token
 
-    def put(self, system: System, value: T, nbytes: int = 0) -> T:
-        """Keep ``value`` for ``system``'s structure (unless ``nbytes`` exceeds the store's ``max_bytes``: then it is
-        returned and not kept) and return the value kept: the first one, if another thread kept one meanwhile. O(1)."""
-        if nbytes > self.max_bytes:
-            return value
-        return self._values.setdefault(system.structure_token, value)
 
-    def __repr__(self) -> str:
-        return f"StructureStore({self.key!r})"
+class SystemStore(_Store):
+    """Values of one system (any field may enter them: the system is immutable, and every copy has its own
+    :attr:`System.own_token`), one store per quantity declared beside its builder with its :class:`CacheKey`.
+
+    Examples
+    --------
+    >>> MU = SystemStore(CacheKey("demo.mu", ("mu_schedule",)))
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> MU.put(s, float(s.mu[0])), MU.get(s), MU.get(s.with_mu([0.9])) is None
+    (0.5, 0.5, True)
+    """
+
+    __slots__ = ()
+
+    @staticmethod
+    def _token(system: System) -> _Token:
+        return system.own_token
 
 
 class System:
@@ -282,8 +320,8 @@ class System:
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("dt", sampling_time(dt)), ("sensor", sensor_), ("_structure", _StructureToken()),
-            ("_own", {}),
+            ("dt", sampling_time(dt)), ("sensor", sensor_), ("_structure", _Token()),
+            ("_own", _Token()),
         ):
             object.__setattr__(self, key, value)
 
@@ -343,8 +381,8 @@ class System:
         for key in self.__slots__:
             object.__setattr__(new, key, fields.get(key, getattr(self, key)))
         if "_structure" in fields or any(key in fields for key in STRUCTURE_FIELDS):
-            object.__setattr__(new, "_structure", _StructureToken())
-        object.__setattr__(new, "_own", {})
+            object.__setattr__(new, "_structure", _Token())
+        object.__setattr__(new, "_own", _Token())
         return new
 
     @property
@@ -354,19 +392,11 @@ class System:
         :class:`StructureStore`. O(1)."""
         return self._structure
 
-    def cached(self, key: CacheKey, build: Callable[[], T], nbytes: int = 0) -> T:
-        """``build()``, computed once and kept for this system only (any field may enter it: the system is
-        immutable, and its copies start with an empty store). ``nbytes``: the value's size; above
-        :data:`STRUCTURE_CACHE_MAX_BYTES` it is built on every call and not kept. O(1) after the first call.
-
-        Examples
-        --------
-        >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-        >>> MU = CacheKey("demo.mu", ("mu_schedule",))
-        >>> s.cached(MU, lambda: float(s.mu[0])), s.with_mu([0.9]).cached(MU, lambda: 0.9)
-        (0.5, 0.9)
-        """
-        return _kept(self._own, _key(key), build, nbytes)
+    @property
+    def own_token(self) -> object:
+        """An object of this system alone (every copy gets its own): the weak key of every :class:`SystemStore`.
+        O(1)."""
+        return self._own
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
         """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
@@ -513,16 +543,6 @@ def _key(key: Any) -> CacheKey:
         raise TypeError(f"a cache key is a model.CacheKey declared by the module that builds the value, "
                         f"found {type(key).__name__} {key!r}")
     return key
-
-
-def _kept(store: dict, key: CacheKey, build: Callable[[], T], nbytes: int) -> T:
-    if nbytes > STRUCTURE_CACHE_MAX_BYTES:
-        return build()
-    try:
-        return store[key]
-    except KeyError:
-        value = store[key] = build()
-        return value
 
 
 def check_system(system: Any, field: str = "system") -> System:

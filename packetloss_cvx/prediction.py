@@ -64,7 +64,7 @@ class Prediction:
 
     @cached_property
     def Omega(self) -> np.ndarray:
-        """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept on the system structure (read-only)."""
+        """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept per system structure (read-only)."""
         s = self.system
         kept = _OMEGAS.get(s)
         if kept is None:
@@ -131,7 +131,7 @@ def prediction(system: System) -> Prediction:
     The paper's labels: big (Phi, Gamma, Lambda), eq:matrix-plant (X = Phi x + Gamma Y U + Lambda W).
 
     Time O((N n)^2 N m + (N m)^2 N n), memory O(N^2 n (n + m)), the first time for a system structure;
-    O(1) after that while the matrices fit ``STRUCTURE_CACHE_MAX_BYTES`` (kept on the system, shared by its
+    O(1) after that while the matrices fit ``STRUCTURE_CACHE_MAX_BYTES`` (kept per system structure, shared by its
     ``with_mu`` / ``with_x0`` copies: they depend on neither mu nor x0).
 
     Raises

@@ -19,7 +19,7 @@ from packetloss_cvx import recursion, structure
 from packetloss_cvx.allocation import tcp
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.markov import augmented, chain
-from packetloss_cvx.model import SYSTEM_FIELDS, CacheKey, StructureStore, System
+from packetloss_cvx.model import SYSTEM_FIELDS, CacheKey, StructureStore, System, SystemStore
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.sensor import Sensor
 
@@ -102,7 +102,7 @@ def test_a_key_is_a_declared_object_not_a_string():
     with pytest.raises(TypeError, match="CacheKey"):
         StructureStore("prediction.core")
     with pytest.raises(TypeError, match="CacheKey"):
-        s.cached("chain.stacked_moments", lambda: 1)
+        SystemStore("chain.stacked_moments")
     with pytest.raises(TypeError, match="depends on more than the structure"):
         StructureStore(CacheKey("test.mu", ("mu_schedule",)))                   # would be shared by with_mu copies
     with pytest.raises(ValueError, match="depends_on"):

@@ -17,7 +17,7 @@ from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.errors import DimensionError, InputError, ProbabilityError
 from packetloss_cvx.io import load_example, system_from_dict
 from packetloss_cvx.markov import attach_channel, bursty_twin, stacked_moments
-from packetloss_cvx.model import STRUCTURE_FIELDS, CacheKey, StructureStore, System
+from packetloss_cvx.model import STRUCTURE_FIELDS, CacheKey, StructureStore, System, SystemStore
 from packetloss_cvx.prediction import prediction
 from packetloss_cvx.random_systems import random_system
 from packetloss_cvx.recursion import condition_estimate, udp_variance_weights
@@ -153,9 +153,10 @@ def test_own_cache_is_not_shared_with_copies():
     assert np.array_equal(C, C_ref)
     plain = twin.with_mu(twin.mu_schedule)                   # the same mu_t without the chain: independent losses
     assert np.array_equal(stacked_moments(plain)[1], np.diag(v * (1 - v)))
-    value = CacheKey("test.value", ("x0",))
-    assert twin.cached(value, lambda: 1) == 1
-    assert twin.with_x0(np.zeros(twin.n)).cached(value, lambda: 2) == 2
+    value = SystemStore(CacheKey("test.value", ("x0",)))
+    assert value.put(twin, 1) == 1
+    assert value.get(twin) == 1
+    assert value.get(twin.with_x0(np.zeros(twin.n))) is None               # a copy has its own store
 
 
 def test_no_kept_array_has_a_writable_base():

@@ -39,7 +39,7 @@ import numpy as np
 from ..budgets import check, duration_text, estimated_seconds, markov_recursion_work
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
-from ..model import CacheKey, System
+from ..model import CacheKey, System, SystemStore
 from ..policy import self_check
 from ..recursion import (
     STATIONARY_RUN,
@@ -59,9 +59,10 @@ from ..structure import structure_of
 from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL
 from .chain import chain_matrices
 
-#: The lift of a system's own chains (:func:`chain_lift`), kept on the system: n and m (A's and B's shapes), the
-#: horizon, the schedule the chains must predict and the chains themselves.
+#: The lift of a system's own chains (:func:`chain_lift`), kept per system (a SystemStore): n and m (A's and B's
+#: shapes), the horizon, the schedule the chains must predict and the chains themselves.
 LIFT_KEY = CacheKey("markov.augmented.chain_lift", ("A", "B", "horizon", "mu_schedule", "channel"))
+_LIFTS = SystemStore(LIFT_KEY)
 
 __all__ = ["ChainLift", "augmented_size", "augmented_solve", "chain_cost", "chain_lift", "check_recursion_budget",
            "lq_cross_step", "mean_state_bound"]
@@ -129,10 +130,13 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
     >>> bool(np.isclose(lift.Lam[0][0, 0], 0.6) and np.allclose(np.abs(lift.gamma[0]), 0.6 * 0.25 * 2 ** 0.5))
     True
     """
-    if chains is None:           # the system's own chains: lifted once and kept on the system (the exact minimum
+    if chains is None:           # the system's own chains: lifted once and kept for the system (the exact minimum
         # and the referee's cost of a plan both lift them; a read-only value, as every kept one)
-        return system.cached(LIFT_KEY, lambda: _lift(system, chain_matrices(system.channel)
-                                                     if system.channel is not None else None))
+        kept = _LIFTS.get(system)
+        if kept is None:
+            kept = _LIFTS.put(system, _lift(system, chain_matrices(system.channel)
+                                            if system.channel is not None else None))
+        return kept
     return _lift(system, chains)
 
 
