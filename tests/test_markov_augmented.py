@@ -391,7 +391,7 @@ def test_recursion_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monk
     if kept:
         assert augmented_solve(s)[2] == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             augmented_solve(s)
 
 
@@ -411,5 +411,26 @@ def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(mo
     if kept:
         assert augmented_solve(s)[2] == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             augmented_solve(s)
+
+
+@pytest.mark.parametrize(("seed", "noise"), [(0, True), (1, True), (2, False)])
+def test_the_chain_cost_closes_the_free_tail_after_the_plan_ends(monkeypatch, seed, noise):
+    """After a plan's last nonzero input the error covariance follows Sigma+ = A Sigma A' + Sigma_W alone; on a
+    stable plant with one state weight and noise it settles and the rest of the horizon adds its settled term
+    (chain_cost closes the tail there). Against the dense second-moment route (J_udp + U'(Omega_g o C_off)U) of the
+    same plan: a plan that ends at step 40 of 300."""
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    augmented_module = importlib.import_module("packetloss_cvx.lq.augmented")
+    rng = np.random.default_rng(300 + seed)
+    s = attach_channel(random_system(rng, n=3, m=2, horizon=300, spectral_radius=0.9, time_varying=False,
+                                     non_stationary=False, noise=noise), GilbertElliott(p=[0.1, 0.3], r=[0.4, 0.2]))
+    U = np.zeros((s.horizon, s.m))
+    U[:40] = rng.normal(size=(40, s.m))
+    closed = []
+    real = augmented_module.stationary_close
+    monkeypatch.setattr(augmented_module, "stationary_close", lambda *a: closed.append(real(*a)) or closed[-1])
+    assert exact_cost(s, U) == pytest.approx(exact_cost(s, U, method="dense"), rel=PATH_AGREEMENT_RTOL)
+    assert any(closed) == noise            # without noise Sigma decays to 0 without settling: every step is summed

@@ -154,5 +154,5 @@ def test_dense_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_r
     if kept:
         assert exact_closed_form(s, method="dense").cost == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             exact_closed_form(s, method="dense")

@@ -287,7 +287,7 @@ def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check
 
     s = scalar(0.0, 0.5)
     answer = coupled_riccati(s).cost_matrices.copy()
-    real = mjls_module._riccati_step
+    real = mjls_module._coupled_riccati_step
 
     def step(P, *args):
         new, K = real(P, *args)
@@ -296,7 +296,7 @@ def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check
             new.flat[np.argmax(np.abs(new))] += factor * SELF_CHECK_RTOL * np.max(np.abs(P))
         return new, K
 
-    monkeypatch.setattr(mjls_module, "_riccati_step", step)
+    monkeypatch.setattr(mjls_module, "_coupled_riccati_step", step)
     if kept:
         res = coupled_riccati(s)
         np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-10)

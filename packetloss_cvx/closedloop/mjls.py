@@ -289,14 +289,14 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
     iteration = 0
     while iteration < max_iter:
         iteration += 1
-        new, K = _riccati_step(P, A, B, Omega, Psi, T, h)
+        new, K = _coupled_riccati_step(P, A, B, Omega, Psi, T, h)
         if not np.all(np.isfinite(new)):
             break
         change = float(np.max(np.abs(new - P))) / max(float(np.max(np.abs(new))), 1e-300)
         P = new
         if change <= 1e-2 * SELF_CHECK_RTOL:
             break
-    again, K = _riccati_step(P, A, B, Omega, Psi, T, h)
+    again, K = _coupled_riccati_step(P, A, B, Omega, Psi, T, h)
     scale = max(float(np.max(np.abs(P))), 1e-300)
     residual = float(np.max(np.abs(again - P))) / scale if np.all(np.isfinite(again)) else float("inf")
     if not residual <= SELF_CHECK_RTOL:
@@ -308,7 +308,7 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
                       iterations=iteration, residual=residual)
 
 
-def _riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray, Psi: np.ndarray,
+def _coupled_riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray, Psi: np.ndarray,
                   T: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One backward step of the coupled equations: (P_a, K_a) for every mode a, all modes as one batch of
     Theorem 1's step (:func:`packetloss_cvx.lq.recursion.riccati_step` with ``mu = h_a``, ``P = E_a`` and the

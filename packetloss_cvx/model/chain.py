@@ -31,10 +31,11 @@ from ..errors import InputError
 from .channel import GilbertElliott
 from .markov_channel import MarkovChannel
 from .protocols import check_protocol
-from .system import CacheKey, System, check_system
+from .system import CacheKey, System, SystemStore, check_system
 
-#: (Vbar, C) of stacked_moments, kept on its own system (System.cached): it depends on the channel and schedule
+#: (Vbar, C) of stacked_moments, kept per system (a SystemStore): it depends on the channel and schedule
 MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "channel"))
+_MOMENTS = SystemStore(MOMENTS_KEY)
 
 __all__ = [
     "attach_channel", "chain_matrices", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system",
@@ -285,7 +286,7 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     ``t m + i`` is channel i at step t), C of shape (N m, N m). Without a Markov channel the
     deliveries are independent Bernoulli(mu_schedule): C = diag(Vbar (1 - Vbar)).
     ``R = Vbar Vbar' + C``. Time O((N m)^2) (the N^2 m non-zero entries, placed in the dense C), the first
-    time: the read-only pair is kept on the system (:meth:`~packetloss_cvx.model.system.System.cached`).
+    time: the read-only pair is kept for the system (a :class:`~packetloss_cvx.model.system.SystemStore`).
 
     Examples
     --------
@@ -295,7 +296,10 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     ([0.5, 0.5], [[0.25, 0.0], [0.0, 0.25]])
     """
     N, m = system.horizon, system.m
-    return system.cached(MOMENTS_KEY, lambda: _moments(system), nbytes=8 * (N * m) ** 2)
+    kept = _MOMENTS.get(system)
+    if kept is None:
+        kept = _MOMENTS.put(system, _moments(system), nbytes=8 * (N * m) ** 2)
+    return kept
 
 
 def _moments(system: System) -> tuple[np.ndarray, np.ndarray]:
