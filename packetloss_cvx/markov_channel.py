@@ -1,4 +1,4 @@
-"""General finite-state Markov channels, and the one place a System's channel model is chosen.
+"""Markov packet-loss channels: the one channel type, and the one place a System's channel model is chosen.
 
 Channel i is a Markov chain S_{i,t} in {0, ..., k_i - 1} with a k_i×k_i row-stochastic transition matrix
 ``T_i[a, b] = P(S_{t+1} = b | S_t = a)``; a packet sent at step t arrives with probability ``d_i[S_{i,t}]``.
@@ -6,8 +6,9 @@ Channels are independent of each other and of the noise. The distribution of S_{
 the first planned step) is a known ``state`` (an index), a ``belief`` (a k_i-vector), or, with neither, the
 chain's unique stationary distribution. The predicted delivery probabilities ``mu_{i,t} = pi_{i,t} . d_i``,
 ``pi_{i,t+1} = pi_{i,t} T_i``, are the plug-in schedule a :class:`~packetloss_cvx.model.System` with this
-channel carries, exactly as for :class:`~packetloss_cvx.channel.GilbertElliott` (the two-state chain with
-``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, state 0 = good).
+channel carries. A Gilbert–Elliott channel is a constructor of this one type (:func:`GilbertElliott`): the
+two-state chain with ``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, state 0 = good; its rates
+``p``, ``r``, ``h_good``, ``h_bad`` read back from any channel whose chains all have two states.
 
 The number of states may differ per channel. Arrays that hold every channel (beliefs (..., m, K), the
 padded chain) use ``K = max k_i`` columns; the columns past k_i are states that cannot be reached (zero
@@ -15,7 +16,10 @@ probability, delivery 0, their own absorbing row), so they never change a number
 
 TOML (docs/design.md §4, "Bursty links"): ``[channel] model = "markov"`` with ``transition`` (a list of m
 matrices), ``delivery`` (a list of m vectors), and at most one of ``state`` (m integers) or ``belief``
-(m vectors). Every error names its field (``channel.transition``, ``channel.delivery[1]``).
+(m vectors); or ``model = "gilbert-elliott"`` with per-channel arrays ``p``, ``r``, optional ``h_good``
+(default 1), ``h_bad`` (default 0), and at most one of ``state = ["good", "bad"]`` or ``belief = [0.9, 0.2]``
+(P(good)). A channel remembers which of the two tables it was given (``form``) and writes that one back.
+Every error names its field (``channel.transition``, ``channel.delivery[1]``, ``channel.p``).
 """
 
 from __future__ import annotations
@@ -25,16 +29,68 @@ from typing import Any
 
 import numpy as np
 
-from .channel import MODEL as GE_MODEL
-from .channel import GilbertElliott
 from .errors import DimensionError, InputError, ProbabilityError
 from .tolerances import ROW_SUM_ATOL, STATIONARY_GAP
+from .validation import MAX_ENTRIES
 
-__all__ = ["MODEL", "MarkovChannel", "channel_schedule", "parse_channel"]
+__all__ = ["GE_MODEL", "MODEL", "GilbertElliott", "MarkovChannel", "channel_schedule", "gilbert_rates",
+           "parse_channel"]
 
 #: The general finite-state chain's name in the TOML schema.
 MODEL = "markov"
+#: The Gilbert–Elliott (two-state) table's name in the TOML schema.
+GE_MODEL = "gilbert-elliott"
 _KEYS = ("model", "transition", "delivery", "state", "belief")
+_GE_KEYS = ("model", "p", "r", "h_good", "h_bad", "state", "belief")
+_GE_STATES = {"good": 0, "bad": 1}
+
+
+def _rates(value: Any, field: str, m: int | None) -> np.ndarray:
+    """A length-m vector of probabilities in [0, 1] (a bare number is broadcast when m is known)."""
+    items = value.tolist() if isinstance(value, np.ndarray) else value
+    flat = items if isinstance(items, (list, tuple)) else [items]
+    for item in flat:
+        if isinstance(item, (bool, np.bool_)) or not isinstance(item, (int, float, np.integer, np.floating)):
+            raise InputError(field, f"expected numbers in [0, 1], found {type(item).__name__} {str(item)[:40]!r}")
+    try:
+        arr = np.array(flat, dtype=float)
+    except OverflowError:
+        raise InputError(field, "expected numbers in [0, 1], found an integer beyond the double range") from None
+    if not isinstance(items, (list, tuple)) and m is not None:
+        arr = np.full(m, arr[0])
+    if arr.ndim != 1 or arr.size < 1 or (m is not None and arr.size != m):
+        raise DimensionError(field, f"expected shape ({m if m is not None else 'm'},) (one per channel) but found "
+                                    f"{arr.shape}")
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0.0) or np.any(arr > 1.0):
+        bad = arr[~(np.isfinite(arr) & (arr >= 0.0) & (arr <= 1.0))][0]
+        raise ProbabilityError(field, f"expected probabilities in [0, 1], found {bad}")
+    return arr
+
+
+def _ge_states(value: Any, field: str, m: int) -> list[int]:
+    """The state index (0 good, 1 bad) of each of m channels from "good" / "bad"."""
+    items = [value] * m if isinstance(value, str) else value
+    if not isinstance(items, (list, tuple)) or not all(isinstance(s, str) for s in items):
+        raise InputError(field, f'expected a list of "good" / "bad", one per channel, found {str(value)[:40]!r}')
+    if len(items) != m:
+        raise DimensionError(field, f"expected {m} states (one per channel) but found {len(items)}")
+    wrong = [s for s in items if s not in _GE_STATES]
+    if wrong:
+        raise InputError(field, f'expected "good" or "bad", found {wrong[0][:20]!r}')
+    return [_GE_STATES[s] for s in items]
+
+
+def gilbert_rates(rate: Any, correlation: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(p, r)`` of the two-state chains with stationary P(good) ``rate`` and second eigenvalue
+    ``lambda = 1 - p - r = correlation``: ``p = (1 - rate)(1 - lambda)``, ``r = rate (1 - lambda)``
+    (r / (p + r) = rate). No validation (the callers check their own ranges). O(size).
+
+    Examples
+    --------
+    >>> [a.tolist() for a in gilbert_rates(np.array([0.8]), 0.5)]
+    [[0.09999999999999998], [0.4]]
+    """
+    return (1.0 - rate) * (1.0 - correlation), rate * (1.0 - correlation)
 
 
 def _numbers(value: Any, field: str) -> np.ndarray:
@@ -108,6 +164,12 @@ def _stationary(T: np.ndarray) -> np.ndarray | None:
     return pi / pi.sum()
 
 
+def _draw(u: np.ndarray, probs: np.ndarray) -> np.ndarray:
+    """The state index whose cumulative-probability interval holds ``u`` (..., m), probs (..., m, K)."""
+    cum = np.cumsum(probs, axis=-1)
+    return np.minimum((u[..., None] >= cum).sum(axis=-1), probs.shape[-1] - 1)
+
+
 def _cesaro(belief: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The long-run average distribution lim (1/n) sum_{t<n} belief T^t of a chain without a unique stationary
     one, by 60 doublings (average over 2^60 steps: the 1/n error is below 1e-18). Time O(k^3)."""
@@ -119,7 +181,7 @@ def _cesaro(belief: np.ndarray, T: np.ndarray) -> np.ndarray:
 
 
 class MarkovChannel:
-    """m independent finite-state Markov packet-loss channels (k_i states each).
+    """m independent finite-state Markov packet-loss channels (k_i states each): the one channel type.
 
     Parameters
     ----------
@@ -156,13 +218,14 @@ class MarkovChannel:
     """
 
     __slots__ = ("transition", "delivery", "belief", "state_given", "sizes", "padded_transition",
-                 "padded_delivery", "_stationary", "_unique")
+                 "padded_delivery", "_stationary", "_unique", "form")
 
     transition: tuple[np.ndarray, ...]
     delivery: tuple[np.ndarray, ...]
     belief: tuple[np.ndarray, ...] | None
     state_given: bool
     sizes: tuple[int, ...]
+    form: str
 
     def __init__(self, *, transition: Any, delivery: Any, state: Any = None, belief: Any = None,
                  prefix: str = "") -> None:
@@ -207,13 +270,19 @@ class MarkovChannel:
         elif belief is not None:
             items = _per_channel(belief, prefix + "belief", m)
             beliefs = [_frozen(_distribution(b, f"{prefix}belief[{i}]", sizes[i])) for i, b in enumerate(items)]
+        self._freeze(Ts, ds, beliefs, state is not None, MODEL, f"{prefix}transition")
+
+    def _freeze(self, Ts: list[np.ndarray], ds: list[np.ndarray], beliefs: list[np.ndarray] | None, state_given: bool,
+                form: str, field: str) -> None:
+        """Store validated chains (read-only), their padded arrays and stationary distributions. O(m K^3)."""
+        m, sizes = len(Ts), tuple(T.shape[0] for T in Ts)
         stationary = [_stationary(T) for T in Ts]
         if beliefs is None and any(pi is None for pi in stationary):
             i = next(i for i, pi in enumerate(stationary) if pi is None)
-            raise InputError(f"{prefix}transition[{i}]", "the chain has more than one stationary distribution "
-                                                          "(eigenvalue 1 is not simple: more than one closed class of "
-                                                          "states), so the stationary start is not defined; give "
-                                                          "state or belief")
+            raise InputError(f"{field}[{i}]", "the chain has more than one stationary distribution "
+                                              "(eigenvalue 1 is not simple: more than one closed class of "
+                                              "states), so the stationary start is not defined; give "
+                                              "state or belief")
         K = max(sizes)
         PT, Pd, stat = np.zeros((m, K, K)), np.zeros((m, K)), np.zeros((m, K))
         for i, k in enumerate(sizes):
@@ -222,14 +291,71 @@ class MarkovChannel:
             Pd[i, :k] = ds[i]
             stat[i, :k] = stationary[i] if stationary[i] is not None else _cesaro(beliefs[i], Ts[i])
         for key, value in (("transition", tuple(Ts)), ("delivery", tuple(ds)),
-                           ("belief", None if beliefs is None else tuple(beliefs)), ("state_given", state is not None),
+                           ("belief", None if beliefs is None else tuple(beliefs)), ("state_given", state_given),
                            ("sizes", sizes), ("padded_transition", _frozen(PT)), ("padded_delivery", _frozen(Pd)),
-                           ("_stationary", _frozen(stat)), ("_unique", all(pi is not None for pi in stationary))):
+                           ("_stationary", _frozen(stat)), ("_unique", all(pi is not None for pi in stationary)),
+                           ("form", form)):
             object.__setattr__(self, key, value)
 
     @classmethod
+    def gilbert_elliott(cls, *, p: Any, r: Any, h_good: Any = 1.0, h_bad: Any = 0.0, state: Any = None,
+                        belief: Any = None, prefix: str = "") -> MarkovChannel:
+        """m independent Gilbert–Elliott channels: two-state chains, state 0 = good,
+        ``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``.
+
+        Parameters
+        ----------
+        p, r : array_like
+            P(good -> bad) and P(bad -> good) per channel, in [0, 1].
+        h_good, h_bad : array_like, optional
+            Delivery probability in each state (default 1 and 0: the Gilbert channel).
+        state : sequence of {"good", "bad"}, optional
+            The known state at the first planned step.
+        belief : array_like, optional
+            P(good) at the first planned step. At most one of ``state`` and ``belief``;
+            with neither, the stationary distribution (which needs p + r > 0).
+        prefix : str
+            Prepended to every field name in errors (``"channel."`` inside a System).
+
+        Raises
+        ------
+        InputError, DimensionError, ProbabilityError
+            Naming the field (``channel.p`` ...).
+
+        Examples
+        --------
+        >>> ch = MarkovChannel.gilbert_elliott(p=[0.1], r=[0.4])
+        >>> ch.stationary.tolist(), ch.correlation.tolist(), ch.p.tolist()
+        ([[0.8, 0.2]], [0.5], [0.1])
+        >>> ch.delivery_schedule(3)[:, 0].tolist()
+        [0.8, 0.8, 0.8]
+        """
+        p_ = _rates(p, prefix + "p", None)
+        m = p_.size
+        r_ = _rates(r, prefix + "r", m)
+        hg, hb = _rates(h_good, prefix + "h_good", m), _rates(h_bad, prefix + "h_bad", m)
+        if state is not None and belief is not None:
+            raise InputError(prefix + "state/belief", "expected at most one of the two, found both")
+        beliefs = None
+        if state is not None:
+            beliefs = [_frozen(np.eye(2)[s]) for s in _ge_states(state, prefix + "state", m)]
+        elif belief is not None:
+            beliefs = [_frozen([b, 1.0 - b]) for b in _rates(belief, prefix + "belief", m).tolist()]
+        if beliefs is None and np.any(p_ + r_ == 0):
+            i = int(np.argmax(p_ + r_ == 0))
+            raise InputError(prefix + "p", f"channel {i} has p + r = 0: the chain never moves, so it has no unique "
+                                           "stationary distribution; give state or belief")
+        Ts = [_frozen([[1.0 - a, a], [b, 1.0 - b]]) for a, b in zip(p_.tolist(), r_.tolist(), strict=True)]
+        ds = [_frozen([g, b]) for g, b in zip(hg.tolist(), hb.tolist(), strict=True)]
+        out = object.__new__(cls)
+        out._freeze(Ts, ds, beliefs, state is not None, GE_MODEL, prefix + "p")
+        return out
+
+    @classmethod
     def from_table(cls, table: Mapping[str, Any], prefix: str = "channel.") -> MarkovChannel:
-        """Build from the TOML ``[channel]`` table (keys model, transition, delivery, state, belief).
+        """Build from the TOML ``[channel]`` table of either model (by its ``model`` key): ``"markov"`` (keys
+        model, transition, delivery, state, belief) or ``"gilbert-elliott"`` (keys model, p, r, h_good, h_bad,
+        state, belief; the model the table is read as when it names none).
 
         Examples
         --------
@@ -237,9 +363,17 @@ class MarkovChannel:
         ...                                "delivery": [[1.0, 0.0]], "state": [1]})
         >>> ch.initial_belief.tolist(), MarkovChannel.from_table(ch.to_dict()) == ch
         ([[0.0, 1.0]], True)
+        >>> ge = MarkovChannel.from_table({"model": "gilbert-elliott", "p": [0.1], "r": [0.4], "state": ["bad"]})
+        >>> ge.initial_belief.tolist(), MarkovChannel.from_table(ge.to_dict()).to_dict() == ge.to_dict()
+        ([[0.0, 1.0]], True)
         """
         if not isinstance(table, Mapping):
             raise InputError(prefix.rstrip("."), f"expected a table, found {type(table).__name__}")
+        if table.get("model") != MODEL:
+            if table.get("model") not in (GE_MODEL, None):
+                raise InputError(prefix + "model", f'expected "{GE_MODEL}" or "{MODEL}", found '
+                                                   f'{str(table["model"])[:40]!r}')
+            return cls.gilbert_elliott_table(table, prefix)
         unknown = [k for k in table if k not in _KEYS]
         if unknown:
             raise InputError(prefix + str(unknown[0]), f"unknown key for model \"{MODEL}\"; expected one of "
@@ -250,22 +384,28 @@ class MarkovChannel:
         return cls(**{k: table[k] for k in _KEYS[1:] if k in table}, prefix=prefix)
 
     @classmethod
-    def from_gilbert_elliott(cls, channel: GilbertElliott) -> MarkovChannel:
-        """The two-state twin of a Gilbert–Elliott channel: state 0 = good, ``T = [[1 - p, p], [r, 1 - r]]``,
-        ``d = (h_good, h_bad)``, the same state or belief. O(m).
+    def gilbert_elliott_table(cls, table: Mapping[str, Any], prefix: str = "channel.") -> MarkovChannel:
+        """Build from a ``model = "gilbert-elliott"`` table (keys model, p, r, h_good, h_bad, state, belief); any
+        other model is refused, naming the field.
 
         Examples
         --------
-        >>> MarkovChannel.from_gilbert_elliott(GilbertElliott(p=[0.25], r=[0.5], state=["bad"])).to_dict()
-        {'model': 'markov', 'transition': [[[0.75, 0.25], [0.5, 0.5]]], 'delivery': [[1.0, 0.0]], 'state': [1]}
+        >>> ch = MarkovChannel.gilbert_elliott_table({"model": "gilbert-elliott", "p": [0.1], "r": [0.4]})
+        >>> ch.to_dict()
+        {'model': 'gilbert-elliott', 'p': [0.1], 'r': [0.4], 'h_good': [1.0], 'h_bad': [0.0]}
         """
-        T = [[[1.0 - p, p], [r, 1.0 - r]] for p, r in zip(channel.p.tolist(), channel.r.tolist(), strict=True)]
-        d = [[g, b] for g, b in zip(channel.h_good.tolist(), channel.h_bad.tolist(), strict=True)]
-        if channel.belief is None:
-            return cls(transition=T, delivery=d)
-        if channel.state_given:
-            return cls(transition=T, delivery=d, state=[0 if b == 1.0 else 1 for b in channel.belief.tolist()])
-        return cls(transition=T, delivery=d, belief=[[b, 1.0 - b] for b in channel.belief.tolist()])
+        if not isinstance(table, Mapping):
+            raise InputError(prefix.rstrip("."), f"expected a table, found {type(table).__name__}")
+        unknown = [k for k in table if k not in _GE_KEYS]
+        if unknown:
+            raise InputError(prefix + str(unknown[0]), f"unknown key; expected one of {', '.join(_GE_KEYS)}")
+        if table.get("model") != GE_MODEL:
+            found = "nothing" if "model" not in table else repr(table["model"])[:40]
+            raise InputError(prefix + "model", f'expected "{GE_MODEL}" (the Markov channel model), found {found}')
+        for key in ("p", "r"):
+            if key not in table:
+                raise InputError(prefix + key, "missing field (one per channel)")
+        return cls.gilbert_elliott(**{k: table[k] for k in _GE_KEYS[1:] if k in table}, prefix=prefix)
 
     def __setattr__(self, key: str, value: Any) -> None:
         raise AttributeError("MarkovChannel is immutable: build a new one")
@@ -281,7 +421,16 @@ class MarkovChannel:
         return MarkovChannel.from_table, (self.to_dict(),)
 
     def __repr__(self) -> str:
-        """``MarkovChannel(m=1, states=[3], transition=..., delivery=..., state=[2])``."""
+        """``MarkovChannel(m=1, states=[3], transition=..., delivery=..., state=[2])``; a channel given as a
+        Gilbert–Elliott table, the parameters that differ from the defaults (``GilbertElliott(m=1, p=[0.1],
+        r=[0.4], state=['bad'])``: h_good, h_bad only when not the Gilbert (1, 0), the state or belief only when
+        given)."""
+        if self.form == GE_MODEL:
+            table = self.to_dict()
+            extra = "" if np.all(self.h_good == 1) and np.all(self.h_bad == 0) else (
+                f", h_good={table['h_good']}, h_bad={table['h_bad']}")
+            extra += "".join(f", {key}={table[key]}" for key in ("state", "belief") if key in table)
+            return f"GilbertElliott(m={self.m}, p={table['p']}, r={table['r']}{extra})"
         extra = ""
         if self.belief is not None:
             extra = (f", state={[int(np.argmax(b)) for b in self.belief]}" if self.state_given
@@ -306,6 +455,47 @@ class MarkovChannel:
     def m(self) -> int:
         """Number of channels."""
         return len(self.sizes)
+
+    @property
+    def two_state(self) -> bool:
+        """Whether every chain has two states (a Gilbert–Elliott channel: ``p``, ``r``, ``h_good``, ``h_bad`` are
+        defined). O(m)."""
+        return all(k == 2 for k in self.sizes)
+
+    def _two_states(self, name: str) -> None:
+        if not self.two_state:
+            raise InputError("channel", f"{name} is a two-state (Gilbert–Elliott) chain's parameter; this channel's "
+                                        f"chains have {list(self.sizes)} states")
+
+    @property
+    def p(self) -> np.ndarray:
+        """P(good -> bad) = T_i[0, 1] per channel, (m,), of a channel whose chains all have two states. O(1).
+
+        Raises
+        ------
+        InputError
+            A chain with other than two states.
+        """
+        self._two_states("p")
+        return self.padded_transition[:, 0, 1]
+
+    @property
+    def r(self) -> np.ndarray:
+        """P(bad -> good) = T_i[1, 0] per channel, (m,), of a two-state channel (as :attr:`p`). O(1)."""
+        self._two_states("r")
+        return self.padded_transition[:, 1, 0]
+
+    @property
+    def h_good(self) -> np.ndarray:
+        """The delivery probability in state 0 (good) per channel, (m,), of a two-state channel. O(1)."""
+        self._two_states("h_good")
+        return self.padded_delivery[:, 0]
+
+    @property
+    def h_bad(self) -> np.ndarray:
+        """The delivery probability in state 1 (bad) per channel, (m,), of a two-state channel. O(1)."""
+        self._two_states("h_bad")
+        return self.padded_delivery[:, 1]
 
     @property
     def stationary(self) -> np.ndarray:
@@ -379,8 +569,14 @@ class MarkovChannel:
         return tuple((T, d, _frozen(start[i, :k])) for i, (T, d, k) in
                      enumerate(zip(self.transition, self.delivery, self.sizes, strict=True)))
 
-    #: ``horizon`` an integer >= 1 whose arrays fit in MAX_ENTRIES (the one check, GilbertElliott's)
-    check_horizon = staticmethod(GilbertElliott.check_horizon)
+    @staticmethod
+    def check_horizon(horizon: Any, per_step: int) -> None:
+        """``horizon`` an integer >= 1 whose arrays (``per_step`` numbers a step) fit in MAX_ENTRIES."""
+        if isinstance(horizon, bool) or not isinstance(horizon, int | np.integer) or horizon < 1:
+            raise InputError("horizon", f"expected an integer >= 1, found {horizon!r}")
+        if horizon * max(per_step, 1) > MAX_ENTRIES:
+            raise InputError("horizon", f"expected at most {MAX_ENTRIES} numbers ({MAX_ENTRIES // max(per_step, 1)} "
+                                        f"steps), found {horizon} steps")
 
     def check_belief(self, belief: Any, field: str = "belief") -> np.ndarray:
         """A belief as an (m, K) array (K = max k_i, zeros past k_i): probabilities summing to one per channel.
@@ -397,16 +593,8 @@ class MarkovChannel:
         return arr
 
     def propagate(self, belief: np.ndarray) -> np.ndarray:
-        """One step of the prior: ``pi_{t+1} = pi_t T`` per channel; ``belief`` (..., m, K). A two-state channel
-        takes the same step in Gilbert–Elliott's form, ``b+ = T[1, 0] + (T[0, 0] - T[1, 0]) b``, ``1 - b+`` (equal
-        in exact arithmetic for a distribution), so that a channel and its two-state twin give the same bits.
-        O(m K^2) per belief."""
-        out = np.einsum("...ia,iab->...ib", belief, self.padded_transition)
-        for i, T in enumerate(self.transition):
-            if T.shape[0] == 2:
-                good = T[1, 0] + (T[0, 0] - T[1, 0]) * belief[..., i, 0]
-                out[..., i, 0], out[..., i, 1] = good, 1.0 - good
-        return out
+        """One step of the prior: ``pi_{t+1} = pi_t T`` per channel; ``belief`` (..., m, K). O(m K^2) per belief."""
+        return np.einsum("...ia,iab->...ib", belief, self.padded_transition)
 
     def beliefs(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """The state distributions at t = 0..horizon-1 from ``belief`` (default the initial one), (N, m, K).
@@ -450,15 +638,44 @@ class MarkovChannel:
         joint = belief * like
         total = joint.sum(axis=-1, keepdims=True)
         if np.any(total <= 0.0):
-            i = int(np.argwhere(total[..., 0] <= 0.0)[0][-1])
-            raise InputError("delivered", f"channel {i}: an outcome has probability 0 under the belief and the channel")
+            at = tuple(np.argwhere(total[..., 0] <= 0.0)[0])
+            raise InputError("delivered", f"channel {at[-1]}: outcome {'delivered' if v[at][0] else 'lost'} has "
+                                          "probability 0 under the belief and the channel")
         return np.clip(self.propagate(joint / total), 0.0, 1.0)
 
+    def draw_start(self, u: np.ndarray) -> np.ndarray:
+        """The state index of each channel at the first planned step, drawn from the initial belief by inverting its
+        cumulative distribution at the uniform numbers ``u`` (..., m): state 0 iff u < P(state 0). O(size K).
+
+        Examples
+        --------
+        >>> GilbertElliott(p=[0.1], r=[0.4], belief=[0.75]).draw_start(np.array([[0.7], [0.8]])).tolist()
+        [[0], [1]]
+        """
+        return _draw(u, np.broadcast_to(self.initial_belief, (*u.shape, self._stationary.shape[1])))
+
+    def draw_next(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One step of every chain from state indices ``states`` (..., m): the row ``T_i[state]`` inverted at the
+        uniform numbers ``u`` (..., m) (Gilbert–Elliott: good iff u < 1 - p from good, u < r from bad).
+        O(size K).
+
+        Examples
+        --------
+        >>> GilbertElliott(p=[0.1], r=[0.4]).draw_next(np.array([[0], [0], [1]]), np.array([[0.85], [0.95], [0.3]]))
+        array([[0],
+               [1],
+               [0]])
+        """
+        return _draw(u, self.padded_transition[np.arange(self.m), states])
+
     def with_belief(self, belief: Any) -> MarkovChannel:
-        """The same chains with another initial belief ((m, K), rescaled to sum to one per channel). O(m K^2)."""
+        """The same chains (and table form) with another initial belief ((m, K), rescaled to sum to one per
+        channel). O(m K^2)."""
         b = np.clip(np.asarray(belief, dtype=float), 0.0, 1.0)
         rows = [b[i, :k] / b[i, :k].sum() for i, k in enumerate(self.sizes)]
-        return MarkovChannel(transition=self.transition, delivery=self.delivery, belief=rows)
+        out = MarkovChannel(transition=self.transition, delivery=self.delivery, belief=rows)
+        object.__setattr__(out, "form", self.form)
+        return out
 
     def reveals_state(self) -> bool:
         """True when every outcome reveals its channel's state: the delivery is certain in each state and the
@@ -466,13 +683,23 @@ class MarkovChannel:
         return all(np.all((d == 0) | (d == 1)) and len(set(d.tolist())) == d.size for d in self.delivery)
 
     def to_dict(self) -> dict[str, Any]:
-        """The TOML ``[channel]`` table (``from_table`` reads it back).
+        """The TOML ``[channel]`` table in the channel's form (``from_table`` reads it back).
 
         Examples
         --------
         >>> MarkovChannel(transition=[[[1.0]]], delivery=[[0.5]]).to_dict()
         {'model': 'markov', 'transition': [[[1.0]]], 'delivery': [[0.5]]}
+        >>> GilbertElliott(p=[0.1], r=[0.3], state=["good"]).to_dict()
+        {'model': 'gilbert-elliott', 'p': [0.1], 'r': [0.3], 'h_good': [1.0], 'h_bad': [0.0], 'state': ['good']}
         """
+        if self.form == GE_MODEL:
+            ge: dict[str, Any] = {"model": GE_MODEL, "p": self.p.tolist(), "r": self.r.tolist(),
+                                  "h_good": self.h_good.tolist(), "h_bad": self.h_bad.tolist()}
+            if self.belief is not None and self.state_given:
+                ge["state"] = ["good" if b[0] == 1.0 else "bad" for b in self.belief]
+            elif self.belief is not None:
+                ge["belief"] = [float(b[0]) for b in self.belief]
+            return ge
         out: dict[str, Any] = {"model": MODEL, "transition": [T.tolist() for T in self.transition],
                                "delivery": [d.tolist() for d in self.delivery]}
         if self.belief is not None and self.state_given:
@@ -482,7 +709,21 @@ class MarkovChannel:
         return out
 
 
-def parse_channel(channel: Any) -> GilbertElliott | MarkovChannel:
+def GilbertElliott(*, p: Any, r: Any, h_good: Any = 1.0, h_bad: Any = 0.0, state: Any = None, belief: Any = None,
+                   prefix: str = "") -> MarkovChannel:
+    """m independent Gilbert–Elliott channels as the one channel type: :meth:`MarkovChannel.gilbert_elliott`.
+
+    Examples
+    --------
+    >>> ch = GilbertElliott(p=[0.1], r=[0.4])
+    >>> type(ch).__name__, ch.p.tolist(), ch.r.tolist(), ch.mean_rate.tolist()
+    ('MarkovChannel', [0.1], [0.4], [0.8])
+    """
+    return MarkovChannel.gilbert_elliott(p=p, r=r, h_good=h_good, h_bad=h_bad, state=state, belief=belief,
+                                         prefix=prefix)
+
+
+def parse_channel(channel: Any) -> MarkovChannel:
     """A channel object, or the TOML ``[channel]`` table of either model (by its ``model`` key), validated. O(m K^3).
 
     Examples
@@ -490,19 +731,15 @@ def parse_channel(channel: Any) -> GilbertElliott | MarkovChannel:
     >>> type(parse_channel({"model": "markov", "transition": [[[1.0]]], "delivery": [[0.5]]})).__name__
     'MarkovChannel'
     """
-    if isinstance(channel, (GilbertElliott, MarkovChannel)):
+    if isinstance(channel, MarkovChannel):
         return channel
-    if isinstance(channel, Mapping) and channel.get("model") == MODEL:
-        return MarkovChannel.from_table(channel)
-    if isinstance(channel, Mapping) and channel.get("model") not in (GE_MODEL, None):
-        raise InputError("channel.model", f'expected "{GE_MODEL}" or "{MODEL}", found {str(channel["model"])[:40]!r}')
-    return GilbertElliott.from_table(channel)
+    return MarkovChannel.from_table(channel)
 
 
 def channel_schedule(channel: Any, m: int, horizon: int, mu: Any,
-                     mu_schedule: Any) -> tuple[GilbertElliott | MarkovChannel | None, Any]:
+                     mu_schedule: Any) -> tuple[MarkovChannel | None, Any]:
     """For :class:`~packetloss_cvx.model.System`: ``(None, mu_schedule)`` without a channel; with one
-    (a :class:`~packetloss_cvx.channel.GilbertElliott`, a :class:`MarkovChannel` or the TOML table of either),
+    (a :class:`MarkovChannel`, e.g. a :func:`GilbertElliott` one, or the TOML table of either model),
     the validated channel and its predicted schedule ``delivery_schedule(horizon)`` in place of mu. Giving mu or
     mu_schedule as well is an InputError. Time O(N m K^2).
 
@@ -521,6 +758,6 @@ def channel_schedule(channel: Any, m: int, horizon: int, mu: Any,
                                     "(model, transition, delivery, ...) or mu/mu_schedule, found both")
     chan = parse_channel(channel)
     if chan.m != m:
-        field = "channel.p" if isinstance(chan, GilbertElliott) else "channel.transition"
+        field = "channel.p" if chan.form == GE_MODEL else "channel.transition"
         raise DimensionError(field, f"expected {m} channels (one per actuator, the columns of B) but found {chan.m}")
     return chan, chan.delivery_schedule(horizon)

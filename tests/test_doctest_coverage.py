@@ -22,7 +22,7 @@ import packetloss_cvx
 
 #: modules (under packetloss_cvx) whose every public function and class has a ``>>>`` example
 COVERED = (
-    "channel", "convex", "costs", "difference", "io", "linalg", "markov.chain", "markov.compare",
+    "markov_channel", "convex", "costs", "difference", "io", "linalg", "markov.chain", "markov.compare",
     "markov.exact_cost",
     "markov.mjls", "markov.qp", "markov.sweep", "model", "plots", "prediction", "progress", "protocols",
     "random_systems", "recursion", "roundoff", "validation", "safeio", "runfolder",

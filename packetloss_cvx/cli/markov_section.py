@@ -11,7 +11,7 @@ import numpy as np
 from ..costs import closed_form
 from ..errors import InputError, NumericalError, ResourceError
 from ..markov import markov_solution, mean_square_radius
-from ..markov_channel import MarkovChannel
+from ..markov_channel import GE_MODEL
 from ..model import System
 from ..simulation import is_mean_square_stable
 
@@ -66,9 +66,11 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
     (True, ['exact', 'plug_in'], True)
     """
     ch = system.channel
-    data: dict[str, Any] = {"channel": ch.to_dict(), "belief": ch.initial_belief.tolist(),
+    given_as_rates = ch.form == GE_MODEL             # the file's Gilbert–Elliott table: its parameters and P(good)
+    belief = ch.initial_belief[:, 0] if given_as_rates else ch.initial_belief
+    data: dict[str, Any] = {"channel": ch.to_dict(), "belief": belief.tolist(),
                             "correlation": ch.correlation.tolist(), "mean_rate": ch.mean_rate.tolist()}
-    if isinstance(ch, MarkovChannel):
+    if not given_as_rates:
         first = (f"{len(ch.sizes)} chain(s) of {list(ch.sizes)} states; state distribution now "
                  f"{[np.round(b[:k], 6).tolist() for b, k in zip(ch.initial_belief, ch.sizes, strict=True)]}; long-run "
                  f"delivery rate {np.round(ch.mean_rate, 6).tolist()}; slowest memory (eigenvalue after 1) "
@@ -77,7 +79,7 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
         first = (f"p = {np.round(ch.p, 6).tolist()} (P(good -> bad)), r = {np.round(ch.r, 6).tolist()} "
                  "(P(bad -> good)), "
                  f"h_good = {np.round(ch.h_good, 6).tolist()}, h_bad = {np.round(ch.h_bad, 6).tolist()}; P(good) now "
-                 f"{np.round(ch.initial_belief, 6).tolist()}; burstiness lambda = 1 - p - r = "
+                 f"{np.round(belief, 6).tolist()}; burstiness lambda = 1 - p - r = "
                  f"{np.round(ch.correlation, 6).tolist()}")
     lines = [first, "the laws above are the plug-in laws: the paper's laws with the mu_t the chain predicts"]
     for protocol in protocols:

@@ -10,10 +10,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from ..channel import GilbertElliott
 from ..costs import closed_form
 from ..errors import InputError
-from ..markov_channel import MarkovChannel
+from ..markov_channel import GilbertElliott, MarkovChannel, gilbert_rates
 from ..model import System, check_system
 from ..protocols import check_protocol
 from ..results import MarkovSolution
@@ -81,7 +80,7 @@ def gilbert_family(rate: npt.ArrayLike, correlation: float) -> tuple[np.ndarray,
     if not (np.isfinite(lam) and lam < 1.0):
         raise InputError("correlation", f"expected lambda = 1 - p - r < 1, found {correlation!r}")
     mu = np.clip(np.asarray(rate, dtype=float), 0.0, 1.0)
-    p, r = (1.0 - mu) * (1.0 - lam), mu * (1.0 - lam)
+    p, r = gilbert_rates(mu, lam)
     if np.any(p > 1.0) or np.any(r > 1.0):
         raise InputError("correlation", f"lambda = {lam:g} needs p or r above 1 for the average rates "
                                         f"{np.round(mu, 6).tolist()}")

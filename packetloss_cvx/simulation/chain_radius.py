@@ -33,10 +33,10 @@ import functools
 
 import numpy as np
 
-from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError
 from ..linalg import ControllableSplit, controllable_split, typed_linalg
 from ..markov.mjls import DENSE_MAX_DIM, mode_chain, second_moment_operator
+from ..markov_channel import GilbertElliott, MarkovChannel  # noqa: F401 (GilbertElliott: the doctests' constructor)
 from ..tolerances import (
     CERTIFICATE_RTOL,
     COUPLED_BRACKET_RTOL,
@@ -213,7 +213,7 @@ def _perron(operator: np.ndarray, M: int, n: int) -> tuple[float, np.ndarray, fl
     return root, V / trace, radius, error
 
 
-def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray,
+def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: MarkovChannel, T: np.ndarray,
             h: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray]:
     """``(K, P_eps)``: from the power iteration's P (:func:`_power`, positive definite), a policy iteration on the
     regularised map ``L_K^* + eps Pi`` (``eps = COUPLED_POLICY_REGULARISATION lambda``): K <- the minimiser at P_eps
@@ -249,7 +249,7 @@ def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: Gi
     return K, P_eps
 
 
-def _reachable_eigenpair(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray, h: np.ndarray,
+def _reachable_eigenpair(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, T: np.ndarray, h: np.ndarray,
                          delivery: str) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)`` of a pair whose inputs reach every state (the split's reachable part, or the whole plant).
 
@@ -304,7 +304,7 @@ def _clean(P: np.ndarray, cut: float) -> np.ndarray:
     return np.einsum("aij,aj,akj->aik", U, w, U)
 
 
-def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott,
+def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, channel: MarkovChannel,
             T: np.ndarray, h: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray, float]:
     """``(K, P, radius)``: from the regularised policy iteration's gains, unregularised policy steps (at most
     _REFINE_STEPS): P the Perron eigenvector of ``L_K^*`` (exact for K, to the eigenvalue routine's rounding), then
@@ -370,7 +370,7 @@ def _dominant_left(A_uu: np.ndarray) -> np.ndarray:
 
 
 @typed_linalg("the coupled Riccati eigenpair")
-def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next"
+def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: str = "next"
                                 ) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)``: lambda the least mean-square radius ``min_K rho(L_K)`` over mode-dependent laws, P
     (M, n, n, ``sum_a tr P_a = 1``) the eigenvector ``R(P) = lambda P`` of the homogeneous coupled Riccati map (on the
@@ -430,7 +430,7 @@ def _bound(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
 
 
 @typed_linalg("the chain certificate's margin")
-def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray,
+def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray,
                              delivery: str = "next") -> float:
     """``c - 1``, c the bound every mode-dependent law's coupled radius meets by the certificate P (M, n, n): the
     largest c with ``R(P)_a >= c P_a`` for every mode a that P weighs, so ``L_K^*(P) >= c P`` and ``rho(L_K) >= c``

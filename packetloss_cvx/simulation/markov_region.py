@@ -36,10 +36,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from ..channel import GilbertElliott
 from ..errors import InputError, NumericalError
 from ..linalg import typed_linalg
 from ..markov.mjls import mean_square_radius as mjls_radius
+from ..markov_channel import GilbertElliott, MarkovChannel, gilbert_rates
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, MEAN_SQUARE_MARGIN
 from .chain_radius import chain_certificate_margin, check_delivery, homogeneous_coupled_riccati
@@ -51,7 +51,7 @@ __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "
            "critical_rate_unproved", "homogeneous_coupled_riccati"]
 
 @typed_linalg("the chain's outside certificate")
-def chain_outside(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray, delivery: str
+def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray, delivery: str
                   ) -> tuple[float, np.ndarray | None]:
     """``(margin, certificate)``: P (normalised to ``sum_a tr P_a = 1``) when its margin is ``>= -CERTIFICATE_RTOL``,
     else P with its eigenvalues below 1e-12, 1e-9, 1e-6 of the largest (over all modes) cut off, the first that
@@ -75,7 +75,7 @@ def chain_outside(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.n
     return margin, None
 
 
-def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, delivery: str = "next"
+def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, delivery: str = "next"
                      ) -> Membership:
     """Can some mode-dependent linear law make the loop behind ``channel`` mean-square stable? ``delivery`` as
     markov.mjls: "next" (default; the law knows the last state, as a TCP-like acknowledgement reveals it, the
@@ -102,14 +102,14 @@ def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott
 
 
 @typed_linalg("the chain membership")
-def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str) -> tuple[Membership, float]:
+def _membership(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: str) -> tuple[Membership, float]:
     """:func:`chain_membership` and the least radius lambda behind it: "stable" where the eigenpair's gains have a
     coupled radius below ``1 - MEAN_SQUARE_MARGIN`` (markov.mjls, on the plant as given), "unstable" where its P (or a
     cut of it, :func:`chain_outside`) proves every law's radius ``>= 1 - CERTIFICATE_RTOL``; else "undecided" with
     both numbers. Time as :func:`chain_membership`."""
     check_delivery(delivery)
-    if not isinstance(channel, GilbertElliott):
-        raise InputError("channel", f"expected a GilbertElliott channel, found {type(channel).__name__}")
+    if not isinstance(channel, MarkovChannel) or not channel.two_state:
+        raise InputError("channel", f"expected a two-state (Gilbert-Elliott) channel, found {channel!r}"[:200])
     if channel.m != B.shape[1]:
         raise InputError("channel", f"expected {B.shape[1]} channels (the columns of B), found {channel.m}")
     lam, P, K = homogeneous_coupled_riccati(A, B, channel, delivery)
@@ -138,7 +138,7 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery:
                       reason), lam
 
 
-def chain_at_rate(channel: GilbertElliott, rate: npt.ArrayLike) -> GilbertElliott:
+def chain_at_rate(channel: MarkovChannel, rate: npt.ArrayLike) -> MarkovChannel:
     """The Gilbert–Elliott channel with each channel's mean delivery rate ``rate_i`` and the same burstiness
     (correlation ``lambda_i = 1 - p_i - r_i``) and state delivery probabilities. The stationary P(good) is
     ``g_i = (rate_i - h_bad_i) / (h_good_i - h_bad_i)``, so ``r_i = g_i (1 - lambda_i)``, ``p_i = (1 - g_i)
@@ -165,10 +165,11 @@ def chain_at_rate(channel: GilbertElliott, rate: npt.ArrayLike) -> GilbertElliot
     if np.any(span <= 0) or np.any(rate < channel.h_bad - 1e-15) or np.any(rate > channel.h_good + 1e-15):
         raise InputError("rate", f"expected each mean rate within [h_bad, h_good], found {rate.tolist()}")
     g = np.clip((rate - channel.h_bad) / span, 0.0, 1.0)
-    return GilbertElliott(p=(1 - g) * (1 - lam), r=g * (1 - lam), h_good=channel.h_good, h_bad=channel.h_bad)
+    p, r = gilbert_rates(g, lam)
+    return GilbertElliott(p=p, r=r, h_good=channel.h_good, h_bad=channel.h_bad)
 
 
-def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, axis: npt.ArrayLike,
+def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, axis: npt.ArrayLike,
                    channels: tuple[int, int] = (0, 1), delivery: str = "next") -> tuple[np.ndarray, np.ndarray]:
     """The region over the mean rates of channels I, J (the others at their own rates) at fixed burstiness:
     ``(stable, lam)`` on the grid ``axis`` × ``axis`` (rows rate_J, columns rate_I): 1.0 certified stable, 0.0
@@ -200,7 +201,7 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, 
     return stable, lam
 
 
-def critical_rate_unproved(channel: GilbertElliott) -> str | None:
+def critical_rate_unproved(channel: MarkovChannel) -> str | None:
     """Why no critical mean rate is offered behind ``channel`` (None where the region is proved monotone in the
     mean rates at fixed burstiness: every channel with ``h_bad = 0`` and burstiness ``0 <= lambda_i < 1``, a
     chain that moves, and ``h_good_i > 0``; docs/design.md, "The critical mean rate behind a chain"). O(m).
@@ -256,8 +257,8 @@ def chain_critical_rate(system, direction: npt.ArrayLike | None = None, tol: flo
     (True, 'stable', 'unstable')
     """
     channel = system.channel
-    if not isinstance(channel, GilbertElliott):
-        raise InputError("channel", "expected a system with a Gilbert-Elliott channel")
+    if not isinstance(channel, MarkovChannel) or not channel.two_state:
+        raise InputError("channel", "expected a system with a Gilbert-Elliott channel (two-state chains)")
     check_delivery(delivery)
     reason = critical_rate_unproved(channel)
     if reason is not None:
