@@ -164,12 +164,6 @@ def _stationary(T: np.ndarray) -> np.ndarray | None:
     return pi / pi.sum()
 
 
-def _draw(u: np.ndarray, probs: np.ndarray) -> np.ndarray:
-    """The state index whose cumulative-probability interval holds ``u`` (..., m), probs (..., m, K)."""
-    cum = np.cumsum(probs, axis=-1)
-    return np.minimum((u[..., None] >= cum).sum(axis=-1), probs.shape[-1] - 1)
-
-
 def _cesaro(belief: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The long-run average distribution lim (1/n) sum_{t<n} belief T^t of a chain without a unique stationary
     one, by 60 doublings (average over 2^60 steps: the 1/n error is below 1e-18). Time O(k^3)."""
@@ -218,7 +212,7 @@ class MarkovChannel:
     """
 
     __slots__ = ("transition", "delivery", "belief", "state_given", "sizes", "padded_transition",
-                 "padded_delivery", "_stationary", "_unique", "form")
+                 "padded_delivery", "_stationary", "_unique", "form", "_below")
 
     transition: tuple[np.ndarray, ...]
     delivery: tuple[np.ndarray, ...]
@@ -294,7 +288,8 @@ class MarkovChannel:
                            ("belief", None if beliefs is None else tuple(beliefs)), ("state_given", state_given),
                            ("sizes", sizes), ("padded_transition", _frozen(PT)), ("padded_delivery", _frozen(Pd)),
                            ("_stationary", _frozen(stat)), ("_unique", all(pi is not None for pi in stationary)),
-                           ("form", form)):
+                           ("form", form), ("_below", _frozen(np.moveaxis(np.cumsum(PT, axis=2), 2, 0)[:-1]
+                                                              .reshape(K - 1, m * K)))):
             object.__setattr__(self, key, value)
 
     @classmethod
@@ -382,6 +377,26 @@ class MarkovChannel:
             if key not in table:
                 raise InputError(prefix + key, "missing field (one per channel)")
         return cls(**{k: table[k] for k in _KEYS[1:] if k in table}, prefix=prefix)
+
+    @classmethod
+    def bernoulli(cls, rate: Any, prefix: str = "") -> MarkovChannel:
+        """m independent Bernoulli (i.i.d.) channels as one-state chains: ``T = [[1]]``, ``d = (rate_i,)``; the
+        predicted schedule is ``rate`` at every step and deliveries are uncorrelated (the covariance is exactly zero
+        off the diagonal). The chain of a System whose mu does not change in time. O(m).
+
+        Raises
+        ------
+        InputError, DimensionError, ProbabilityError
+            ``rate`` not m probabilities in [0, 1] (field ``{prefix}rate``).
+
+        Examples
+        --------
+        >>> ch = MarkovChannel.bernoulli([0.9, 0.5])
+        >>> ch.sizes, ch.delivery_schedule(2).tolist(), ch.correlated
+        ((1, 1), [[0.9, 0.5], [0.9, 0.5]], False)
+        """
+        rates = _rates(rate, prefix + "rate", None)
+        return cls(transition=[[[1.0]]] * rates.size, delivery=[[g] for g in rates.tolist()], prefix=prefix)
 
     @classmethod
     def gilbert_elliott_table(cls, table: Mapping[str, Any], prefix: str = "channel.") -> MarkovChannel:
@@ -643,39 +658,60 @@ class MarkovChannel:
                                           "probability 0 under the belief and the channel")
         return np.clip(self.propagate(joint / total), 0.0, 1.0)
 
+    @property
+    def state_dtype(self) -> type:
+        """The integer type of sampled state indices: int8 (up to 127 states a chain), else int64. O(1)."""
+        return np.int8 if self._stationary.shape[1] <= 127 else np.int64
+
     def draw_start(self, u: np.ndarray) -> np.ndarray:
         """The state index of each channel at the first planned step, drawn from the initial belief by inverting its
-        cumulative distribution at the uniform numbers ``u`` (..., m): state 0 iff u < P(state 0). O(size K).
+        cumulative distribution at the uniform numbers ``u`` (..., m): the number of cumulative probabilities
+        ``P(state <= k)``, k < K - 1, at or below u (state 0 iff u < P(state 0)). O(size K).
 
         Examples
         --------
         >>> GilbertElliott(p=[0.1], r=[0.4], belief=[0.75]).draw_start(np.array([[0.7], [0.8]])).tolist()
         [[0], [1]]
         """
-        return _draw(u, np.broadcast_to(self.initial_belief, (*u.shape, self._stationary.shape[1])))
+        below = np.cumsum(self.initial_belief, axis=1)
+        out = np.zeros(u.shape, dtype=self.state_dtype)
+        for k in range(below.shape[1] - 1):
+            out += u >= below[:, k]
+        return out
 
     def draw_next(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
         """One step of every chain from state indices ``states`` (..., m): the row ``T_i[state]`` inverted at the
-        uniform numbers ``u`` (..., m) (Gilbert–Elliott: good iff u < 1 - p from good, u < r from bad).
-        O(size K).
+        uniform numbers ``u`` (..., m), as :meth:`draw_start` inverts the start (Gilbert–Elliott: good iff u < 1 - p
+        from good, u < r from bad). O(size K).
 
         Examples
         --------
-        >>> GilbertElliott(p=[0.1], r=[0.4]).draw_next(np.array([[0], [0], [1]]), np.array([[0.85], [0.95], [0.3]]))
-        array([[0],
-               [1],
-               [0]])
+        >>> ch = GilbertElliott(p=[0.1], r=[0.4])          # from good: good below 0.9; from bad: good below 0.4
+        >>> ch.draw_next(np.array([[0], [0], [1]]), np.array([[0.85], [0.95], [0.3]])).tolist()
+        [[0], [1], [0]]
         """
-        return _draw(u, self.padded_transition[np.arange(self.m), states])
+        rows = np.arange(self.m) * self._stationary.shape[1] + states        # (channel, state) in the flat rows
+        out = np.zeros(u.shape, dtype=self.state_dtype)
+        for below in self._below:                                           # P(next <= k | state), k < K - 1
+            out += u >= below[rows]
+        return out
 
     def with_belief(self, belief: Any) -> MarkovChannel:
         """The same chains (and table form) with another initial belief ((m, K), rescaled to sum to one per
-        channel). O(m K^2)."""
+        channel; a channel written as a Gilbert–Elliott table keeps the belief that table writes, ``(b, 1 - b)``,
+        so that it reads back to the bit). O(m K^2).
+
+        Examples
+        --------
+        >>> GilbertElliott(p=[0.1], r=[0.4]).with_belief([[0.3, 0.7]]).to_dict()["belief"]
+        [0.3]
+        """
         b = np.clip(np.asarray(belief, dtype=float), 0.0, 1.0)
         rows = [b[i, :k] / b[i, :k].sum() for i, k in enumerate(self.sizes)]
-        out = MarkovChannel(transition=self.transition, delivery=self.delivery, belief=rows)
-        object.__setattr__(out, "form", self.form)
-        return out
+        if self.form == GE_MODEL:
+            return MarkovChannel.gilbert_elliott(p=self.p, r=self.r, h_good=self.h_good, h_bad=self.h_bad,
+                                                 belief=[row[0] for row in rows])
+        return MarkovChannel(transition=self.transition, delivery=self.delivery, belief=rows)
 
     def reveals_state(self) -> bool:
         """True when every outcome reveals its channel's state: the delivery is certain in each state and the

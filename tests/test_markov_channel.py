@@ -17,9 +17,22 @@ import packetloss_cvx as pl
 from packetloss_cvx.channel import GilbertElliott
 from packetloss_cvx.cli import main
 from packetloss_cvx.io import dumps_system, system_from_dict
-from packetloss_cvx.markov import channel_covariance, exact_closed_form, exact_cost, filter_belief, second_moments
+from packetloss_cvx.markov import (
+    channel_covariance,
+    exact_closed_form,
+    exact_cost,
+    filter_belief,
+    second_moments,
+    stacked_moments,
+)
 from packetloss_cvx.markov_channel import MarkovChannel
-from packetloss_cvx.tolerances import CHAIN_FORM_RTOL, KERNEL_ZERO_ATOL, PATH_AGREEMENT_RTOL, ROW_SUM_ATOL
+from packetloss_cvx.tolerances import (
+    CHAIN_FORM_RTOL,
+    KERNEL_ZERO_ATOL,
+    PATH_AGREEMENT_RTOL,
+    ROW_SUM_ATOL,
+    SELF_CHECK_RTOL,
+)
 
 BASE = {
     "plant": {"A": [[1.0, 0.1], [0.0, 1.0]], "B": [[0.0, 1.0], [1.0, 0.0]]},
@@ -392,3 +405,23 @@ def test_periodic_and_reducible_chains_with_a_given_start():
     # from 3: absorbed in {0} with probability 0.5 / 0.75 = 2/3, in {1, 2} with 1/3 (there 1/3, 2/3)
     np.testing.assert_allclose(ch.stationary, [[2 / 3, 1 / 9, 2 / 9, 0.0]], atol=1e-12)
     np.testing.assert_allclose(ch.mean_rate, [2 / 3 + 0.5 / 9], rtol=1e-12)
+
+
+def test_bernoulli_is_the_one_state_chain():
+    """MarkovChannel.bernoulli(mu): one-state chains, T = [[1]], d = (mu_i,). Behind them two_actuator keeps its
+    schedule and the stacked moments of its independent Bernoulli deliveries (C = diag(mu (1 - mu)), exact zeros
+    off it), and the exact Markov minimum is the paper's Bernoulli closed form (the UDP-like one through another
+    algorithm, within SELF_CHECK_RTOL; measured 4.0e-15)."""
+    s = pl.load_example("two_actuator")
+    ch = MarkovChannel.bernoulli(s.mu_schedule[0])
+    assert ch.sizes == (1, 1)
+    assert ch.to_dict() == {"model": "markov", "transition": [[[1.0]], [[1.0]]], "delivery": [[0.9], [0.5]]}
+    behind = s.with_channel(ch)
+    np.testing.assert_array_equal(behind.mu_schedule, s.mu_schedule)
+    v, C = stacked_moments(behind)
+    np.testing.assert_array_equal(C, np.diag(v * (1.0 - v)))
+    for protocol in ("udp", "tcp"):
+        assert exact_closed_form(behind, protocol).cost == pytest.approx(pl.closed_form(s, protocol).cost,
+                                                                         rel=SELF_CHECK_RTOL)
+    with pytest.raises(pl.ProbabilityError, match=r"^channel\.rate"):
+        MarkovChannel.bernoulli([0.5, 1.5], prefix="channel.")

@@ -158,10 +158,13 @@ def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     ``pi_t = pi0 T^t``, ``mu_t = pi_t d`` (E[v_t v_s] = (pi_t ∘ d) T^(s-t) d; two states:
     ``lambda^(s-t) b_t (1 - b_t) (d_0 - d_1)^2``). The vectors T^L d enter centred on their first entry,
     ``e_L = T^L d - (T^L d)_0 1`` (the weights ``pi_t ∘ (d - mu_t)`` sum to zero, so this changes nothing in exact
-    arithmetic), and are propagated centred, ``e_{L+1} = T e_L - (T e_L)_0 1`` (T 1 = 1): they shrink with the chain's
-    memory and keep their relative accuracy (two states: ``e_L = (0, lambda^L (d_1 - d_0))`` to about L eps), where
-    differences of T^L d, which tends to a constant vector, would lose it; a chain with identical rows (or equal
-    deliveries) gives exact zeros. Time O(N^2 m + N m k^2).
+    arithmetic), and are propagated centred, ``e_L = S^L e_0`` with ``S = T - 1 T[0]`` (the map
+    ``e -> T e - (T e)_0 1``, T 1 = 1, whose powers shrink with the chain's memory): they keep their relative accuracy
+    (two states: ``e_L = (0, lambda^L (d_1 - d_0))``), where differences of T^L d, which tends to a constant vector,
+    would lose it; they are taken by doubling (log2 N batched products with the squares of S). The beliefs
+    ``pi_{t+1} = pi_t T`` step by step (products of nonnegative numbers: each entry to its own relative accuracy,
+    which a chain that almost never delivers needs). A chain with identical rows (or equal deliveries) gives exact
+    zeros. Time O(N^2 m + N m k^2 + m k^3 log N).
 
     Examples
     --------
@@ -171,23 +174,31 @@ def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     """
     chains = chain_matrices(channel)
     MarkovChannel.check_horizon(horizon, len(chains) * horizon if isinstance(horizon, int | np.integer) else 1)
-    N = horizon
-    rows, cols = np.triu_indices(N)
-    out = np.empty((len(chains), N, N))
-    for i, (T, d, pi0) in enumerate(chains):
-        T, d = np.asarray(T, dtype=float), np.asarray(d, dtype=float)
-        pi = np.empty((N, d.size))
-        ahead = np.empty((N, d.size))                   # e_L = T^L d - (T^L d)_0 1 for L = 0..N-1
-        pi[0], ahead[0] = pi0, d - d[0]
-        for t in range(1, N):
-            pi[t] = pi[t - 1] @ T
-            step = T @ ahead[t - 1]
-            ahead[t] = step - step[0]
-        mu = pi @ d
-        M = (pi * (d - mu[:, None])) @ ahead.T                          # (N, N): M[t, L]
-        out[i][rows, cols] = M[rows, cols - rows]
-        out[i][cols, rows] = out[i][rows, cols]
-        out[i][np.diag_indices(N)] = mu * (1.0 - mu)
+    N, m = horizon, len(chains)
+    K = max(np.asarray(d).size for _, d, _ in chains)
+    T, d, pi = np.zeros((m, K, K)), np.zeros((m, K)), np.zeros((N, m, K))
+    for i, (Ti, di, pi0) in enumerate(chains):        # padded: states past k_i unreachable, absorbing, delivery 0
+        k = np.asarray(di).size
+        T[i], T[i, :k, :k], d[i, :k], pi[0, i, :k] = np.eye(K), Ti, di, pi0
+    ahead = np.empty((N, m, K))                         # e_L = T^L d - (T^L d)_0 1 for L = 0..N-1
+    ahead[0] = d - d[:, :1]
+    for t in range(1, N):                               # products of nonnegative numbers: every entry to rounding
+        pi[t] = np.einsum("ia,iab->ib", pi[t - 1], T)
+    S = T - T[:, :1, :]                                 # T less its row 0 in every row: e -> T e - (T e)_0 1
+    done = 1
+    while done < N:                                     # doubling: steps done..2 done-1 from steps 0..done-1
+        size = min(done, N - done)
+        ahead[done:done + size] = np.einsum("iab,tib->tia", S, ahead[:size])
+        S, done = S @ S, done + size
+    mu = np.einsum("tik,ik->ti", pi, d)
+    weights = pi * (d - mu[:, :, None])                 # (N, m, K): pi_t ∘ (d - mu_t)
+    index = np.arange(N)
+    at = np.minimum.outer(index, index) * N + np.abs(np.subtract.outer(index, index))   # M[min(t, s), |t - s|]
+    out = np.empty((m, N, N))
+    for i in range(m):
+        M = weights[:, i] @ ahead[:, i].T                # (N, N): M[t, L]
+        out[i] = M.ravel()[at]
+        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
     return out
 
 

@@ -43,7 +43,8 @@ def state_delivery(channel: MarkovChannel, states: np.ndarray) -> np.ndarray:
 
 def sample_states(channel: MarkovChannel, horizon: int, samples: int,
                   rng: np.random.Generator) -> np.ndarray:
-    """State indices S_{i,t} of ``samples`` independent paths: int (samples, N, m), one uniform array (samples, m)
+    """State indices S_{i,t} of ``samples`` independent paths: int (samples, N, m; ``channel.state_dtype``), one
+    uniform array (samples, m)
     drawn per step (the start, then each move). Time and memory O(samples N m K).
 
     Examples
@@ -53,7 +54,7 @@ def sample_states(channel: MarkovChannel, horizon: int, samples: int,
     [1, 0, 0]
     """
     N, S = _count(horizon, "horizon"), _count(samples, "samples")
-    out = np.empty((S, N, channel.m), dtype=np.int64)
+    out = np.empty((S, N, channel.m), dtype=channel.state_dtype)
     state = channel.draw_start(rng.random((S, channel.m)))
     for t in range(N):
         out[:, t] = state
@@ -107,7 +108,7 @@ def sample_markov_paths(channel: MarkovChannel, steps: int, samples: int,
     # strides over whole runs, ~3x slower at T = 1000), and hand back (S, T, m) views of the time-major arrays
     # (the deliveries too: the consumers step in time); the same numbers
     u = np.ascontiguousarray(rng.random((S, T, channel.m)).swapaxes(0, 1))
-    states = np.empty((T, S, channel.m), dtype=np.int64)
+    states = np.empty((T, S, channel.m), dtype=channel.state_dtype)
     states[0] = channel.draw_start(u[0])
     for t in range(1, T):
         states[t] = channel.draw_next(states[t - 1], u[t])
