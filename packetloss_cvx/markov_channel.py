@@ -432,8 +432,11 @@ class MarkovChannel:
         return self
 
     def __reduce__(self) -> tuple:
-        """Pickling rebuilds the channel from its TOML table through the validating constructor. O(m K^2)."""
-        return MarkovChannel.from_table, (self.to_dict(),)
+        """Pickling keeps the validated arrays and the table form (a belief that a table rounds, e.g. a filtered
+        one, comes back to the bit). O(m K^2)."""
+        beliefs = None if self.belief is None else [b.tolist() for b in self.belief]
+        return _restore, ([T.tolist() for T in self.transition], [d.tolist() for d in self.delivery], beliefs,
+                          self.state_given, self.form)
 
     def __repr__(self) -> str:
         """``MarkovChannel(m=1, states=[3], transition=..., delivery=..., state=[2])``; a channel given as a
@@ -698,8 +701,7 @@ class MarkovChannel:
 
     def with_belief(self, belief: Any) -> MarkovChannel:
         """The same chains (and table form) with another initial belief ((m, K), rescaled to sum to one per
-        channel; a channel written as a Gilbert–Elliott table keeps the belief that table writes, ``(b, 1 - b)``,
-        so that it reads back to the bit). O(m K^2).
+        channel). O(m K^2).
 
         Examples
         --------
@@ -708,10 +710,9 @@ class MarkovChannel:
         """
         b = np.clip(np.asarray(belief, dtype=float), 0.0, 1.0)
         rows = [b[i, :k] / b[i, :k].sum() for i, k in enumerate(self.sizes)]
-        if self.form == GE_MODEL:
-            return MarkovChannel.gilbert_elliott(p=self.p, r=self.r, h_good=self.h_good, h_bad=self.h_bad,
-                                                 belief=[row[0] for row in rows])
-        return MarkovChannel(transition=self.transition, delivery=self.delivery, belief=rows)
+        out = MarkovChannel(transition=self.transition, delivery=self.delivery, belief=rows)
+        object.__setattr__(out, "form", self.form)
+        return out
 
     def reveals_state(self) -> bool:
         """True when every outcome reveals its channel's state: the delivery is certain in each state and the
@@ -743,6 +744,14 @@ class MarkovChannel:
         elif self.belief is not None:
             out["belief"] = [b.tolist() for b in self.belief]
         return out
+
+
+def _restore(transition: list, delivery: list, belief: list | None, state_given: bool, form: str) -> MarkovChannel:
+    """A pickled channel from its validated arrays (:meth:`MarkovChannel.__reduce__`). O(m K^3)."""
+    out = object.__new__(MarkovChannel)
+    out._freeze([_frozen(T) for T in transition], [_frozen(d) for d in delivery],
+                None if belief is None else [_frozen(b) for b in belief], state_given, form, "transition")
+    return out
 
 
 def GilbertElliott(*, p: Any, r: Any, h_good: Any = 1.0, h_bad: Any = 0.0, state: Any = None, belief: Any = None,
