@@ -13,8 +13,7 @@ from packetloss_cvx.errors import BudgetError, InputError
 from packetloss_cvx.lq.augmented import augmented_solve, chain_cost, chain_lift
 from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
 from packetloss_cvx.model.chain import attach_channel, chain_matrices, channel_covariance
-from packetloss_cvx.model.channel import GilbertElliott
-from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.qp.markov import exact_qp
 from tests.references import enumerated_chain_cost
@@ -176,8 +175,9 @@ def test_gilbert_elliott_against_every_loss_pattern(seed, method):
     s = random_system(rng, n=2, m=2, horizon=4, time_varying=True, noise=False)
     s = attach_channel(s, random_channel(rng, 2, given=seed % 2 == 0))
     sol = exact_closed_form(s, method=method)
+    ch = s.channel
     chains = [([[1 - p, p], [r, 1 - r]], [hg, hb], [b, 1 - b]) for p, r, hg, hb, b in
-              zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad, s.channel.initial_belief, strict=True)]
+              zip(ch.p, ch.r, ch.h_good, ch.h_bad, ch.initial_belief[:, 0], strict=True)]
     enum = enumerated_chain_cost(s.A, s.B, s.state_weights, s.input_weights, s.initial_weight, s.x0, chains,
                                  sol.inputs)
     assert sol.cost == pytest.approx(enum, rel=1e-12)
@@ -216,7 +216,7 @@ def test_a_lumped_three_state_twin_gives_the_gilbert_elliott_numbers(seed):
     s = bursty(seed)
     twins = []
     for p, r, hg, hb, b in zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad,
-                               s.channel.initial_belief, strict=True):
+                               s.channel.initial_belief[:, 0], strict=True):
         T = [[(1 - p) / 2, (1 - p) / 2, p], [(1 - p) / 2, (1 - p) / 2, p], [r / 2, r / 2, 1 - r]]
         twins.append((np.array(T), np.array([hg, hg, hb]), np.array([b / 2, b / 2, 1 - b])))
     plan, gain, cost = augmented_solve(s, chain_matrices(ThreeStateChains(twins)))

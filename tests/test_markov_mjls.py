@@ -45,9 +45,10 @@ def simulated_second_moments(system, gains, steps, samples, seed):
     """E||x_k||^2 by sampling the chain and its deliveries; returns (means, standard errors) per step."""
     ch = system.channel
     rng = np.random.default_rng(seed)
-    good = sample_states(ch, steps, samples, rng)                        # (S, T, m)
-    # mode index: product([1, 0], repeat=m) order, channel 0 the most significant bit (1 = bad)
-    index = np.sum((~good).astype(int) * 2 ** np.arange(ch.m - 1, -1, -1), axis=2)
+    states = sample_states(ch, steps, samples, rng)                      # (S, T, m): 0 = good, 1 = bad
+    good = states == 0
+    # mode index: product of state indices, channel 0 the most significant bit (1 = bad)
+    index = np.sum(states * 2 ** np.arange(ch.m - 1, -1, -1), axis=2)
     # the deliveries given the states (h_good = 1, h_bad = 0 here: v = good)
     X = np.repeat(system.x0[None], samples, axis=0)
     out = []
@@ -65,8 +66,8 @@ def exact_second_moments(system, gains, steps):
     """E||x_k||^2 by iterating the second-moment operator from Q_a(0) = pi0_a x0 x0'."""
     ch = system.channel
     modes, _, _ = mode_chain(ch)
-    b0 = ch.initial_belief
-    pi0 = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
+    b0 = ch.initial_belief[:, 0]                                   # P(good); mode entries 0 = good
+    pi0 = np.prod(np.where(modes == 0, b0, 1 - b0), axis=1)
     op = second_moment_operator(system.A, system.B, ch, gains)
     n = system.n
     Q = np.concatenate([w * np.outer(system.x0, system.x0).ravel() for w in pi0])
@@ -131,7 +132,7 @@ def test_gains_are_optimal_by_policy_evaluation():
 def test_memoryless_chain_gives_the_bernoulli_riccati():
     s = bursty_twin(pl.load_example("pendulum"), 0.0)                    # p = 0.1, r = 0.9: Bernoulli(0.9)
     res = coupled_riccati(s)
-    pi = s.channel.stationary[0]
+    pi = s.channel.stationary[0, 0]
     P = pi * res.cost_matrices[0] + (1 - pi) * res.cost_matrices[1]
     A, B, W, psi = s.A, s.B, s.state_weights[0], s.input_weights[0]
     G = B.T @ P @ B + psi

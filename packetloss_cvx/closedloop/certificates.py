@@ -29,8 +29,7 @@ import numpy as np
 
 from ..errors import NumericalError
 from ..linalg import Dyadic, exact_psd, frobenius
-from ..model.channel import GilbertElliott
-from ..model.markov_channel import MarkovChannel
+from ..model.channel import GE_MODEL, MarkovChannel
 from ..tolerances import MEAN_SQUARE_MARGIN
 from .mjls import mode_chain
 from .moments import solve_fixed_point
@@ -117,18 +116,19 @@ def mode_outside_matrices(A: np.ndarray, B: np.ndarray, T: Dyadic, rates: np.nda
     return out
 
 
-def exact_transition(channel: GilbertElliott | MarkovChannel) -> Dyadic:
+def exact_transition(channel: MarkovChannel) -> Dyadic:
     """The mode chain's transition matrix (markov.mjls.mode_chain's order) exactly, from the channel's stored
-    numbers: a Gilbert–Elliott channel's ``[[1 - p, p], [r, 1 - r]]`` with 1 - p taken exactly (mode_chain's floats
-    round it), a :class:`~packetloss_cvx.model.markov_channel.MarkovChannel`'s transitions as stored, Kronecker products
+    numbers: a channel given as Gilbert–Elliott's p, r (its table form), ``[[1 - p, p], [r, 1 - r]]`` with 1 - p taken exactly (mode_chain's floats
+    round it), a :class:`~packetloss_cvx.model.channel.MarkovChannel`'s transitions as stored, Kronecker products
     of the channels' exact. O(M^2) integer operations.
 
     >>> from fractions import Fraction
+    >>> from packetloss_cvx.model.channel import GilbertElliott
     >>> T = exact_transition(GilbertElliott(p=[0.1], r=[0.4]))
     >>> T.fraction(0, 0) == 1 - Fraction(0.1), T.fraction(1, 0) == Fraction(0.4)
     (True, True)
     """
-    if isinstance(channel, MarkovChannel):
+    if channel.form != GE_MODEL:
         chains = [Dyadic.of(np.asarray(Ti, dtype=float)) for Ti in channel.transition]
     else:
         one, chains = Dyadic.of(np.ones((1, 1))), []
@@ -141,7 +141,7 @@ def exact_transition(channel: GilbertElliott | MarkovChannel) -> Dyadic:
     return T
 
 
-def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | MarkovChannel, P: np.ndarray | None,
+def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray | None,
                          c: float, delivery: str = "next") -> bool:
     """Does the tuple P (M, n, n), or one of its candidates, prove ``rho(L_K) >= c`` for every mode-dependent law K
     behind ``channel``, exactly: ``T_c(Q)_a >= 0`` for every mode (:func:`mode_outside_matrices`; then
@@ -154,6 +154,7 @@ def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: GilbertElliott |
     O(M^2 (n + m)^3) integer operations a candidate, O((M n^2)^3) for the tilts' solve.
 
     >>> from .chain_radius import homogeneous_coupled_riccati
+    >>> from packetloss_cvx.model.channel import GilbertElliott
     >>> ch = GilbertElliott(p=[0.3], r=[0.2])           # x+ = 0 once delivered: the least radius a^2 (1 - r) = 3.2
     >>> lam, P, K = homogeneous_coupled_riccati(np.array([[2.0]]), np.array([[1.0]]), ch)
     >>> [chain_outside_proved(np.array([[2.0]]), np.array([[1.0]]), ch, P, c) for c in (3.2 * (1 - 1e-12), 3.3)]

@@ -1,9 +1,9 @@
 """The loop behind Markov channels as a Markov jump linear system (MJLS).
 
-Mode theta_k = the joint channel state (2^m modes for Gilbert–Elliott channels, prod_i k_i for k-state
-:class:`~packetloss_cvx.model.markov_channel.MarkovChannel` ones; channels independent: the mode chain's transition
-matrix is the Kronecker product of the channels' own). In mode a, actuator i's packet arrives with
-probability h_{a,i} (h_good or h_bad; d_i of the state), independently. The closed loop
+Mode theta_k = the joint channel state (prod_i k_i modes of a
+:class:`~packetloss_cvx.model.channel.MarkovChannel`, 2^m for Gilbert–Elliott channels; channels independent:
+the mode chain's transition matrix is the Kronecker product of the channels' own). In mode a, actuator i's
+packet arrives with probability h_{a,i} (d_i of the state; h_good or h_bad), independently. The closed loop
 ``x_{k+1} = (A - B V_k K_a) x_k``
 is mean-square stable iff the spectral radius of its coupled second-moment operator
 
@@ -32,8 +32,10 @@ from ..budgets import check, gib_text, operator_bytes
 from ..errors import InputError, NumericalError
 from ..lq.recursion import riccati_step
 from ..model.chain import chain_matrices
-from ..model.channel import GilbertElliott
-from ..model.markov_channel import MarkovChannel
+from ..model.channel import (
+    GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
+    MarkovChannel,
+)
 from ..model.system import System, check_system
 from ..results import MjlsResult
 from ..tolerances import SELF_CHECK_RTOL
@@ -41,8 +43,8 @@ from .modes import DENSE_MAX_DIM, MAX_OPERATOR_DIM, delivery_moments, mode_matri
 
 __all__ = [
     "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
-    "MAX_MODES", "delivery_moments", "delivery_patterns", "jump_law_stage_costs", "mean_square_radius", "mode_chain",
-    "mode_start", "second_moment_operator",
+    "MAX_MODES", "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "mode_chain",
+    "delivery_patterns", "mode_start", "product_chain", "second_moment_operator",
 ]
 
 #: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the operator is refused.
@@ -53,59 +55,62 @@ MAX_MODES = 2 ** MAX_CHANNELS
 # its dense eigenvalues by default) are the mode engine's (markov.modes), re-exported here.
 
 
-def mode_chain(channel: GilbertElliott | MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h)``: the 2^m joint states (1 = good, channel 0 the most significant), their
-    transition matrix (Kronecker product of the channels' chains) and per-mode delivery probabilities.
-    Time O(4^m m). For a :class:`~packetloss_cvx.model.markov_channel.MarkovChannel` the M = prod_i k_i joint states
-    (each row the state indices, channel 0 the most significant, state 0 first: a two-state twin's modes come in
-    the Gilbert–Elliott order), refused beyond :data:`MAX_MODES`; time O(M^2 + M m).
+def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
+    significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
+    product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
+    :data:`MAX_MODES`. Time O(M^2 + M m).
 
     Raises
     ------
     InputError
-        More than :data:`MAX_CHANNELS` Gilbert–Elliott channels, or a product chain beyond :data:`MAX_MODES`.
+        A product chain beyond :data:`MAX_MODES` modes (more than :data:`MAX_CHANNELS` Gilbert–Elliott channels).
 
     Examples
     --------
     >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.1], r=[0.3]))]      # good, bad: the Gilbert channel
-    [[[1], [0]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
+    [[[0], [1]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
     """
-    m = channel.m
-    if isinstance(channel, MarkovChannel):
-        M = int(np.prod(channel.sizes))
-        if M > MAX_MODES:
-            raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
-                                        f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES}")
-        modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
-        T = np.ones((1, 1))
-        for Ti in channel.transition:
-            T = np.kron(T, Ti)
-        return modes, T, channel.padded_delivery[np.arange(m), modes]
-    if m > MAX_CHANNELS:
-        raise InputError("channel", f"the MJLS has 2^m modes; expected at most {MAX_CHANNELS} channels, found {m}")
-    modes = np.array(list(itertools.product([1, 0], repeat=m)), dtype=int)
+    M = int(np.prod(channel.sizes))
+    if M > MAX_MODES:
+        raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
+                                    f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES} "
+                                    f"(at most {MAX_CHANNELS} two-state channels)")
+    return product_chain(channel)[:3]
+
+
+def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(modes, T, h, start)``: :func:`mode_chain`'s joint states, transition matrix and per-mode delivery
+    probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
+    own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
+
+    Examples
+    --------
+    >>> modes, T, h, start = product_chain(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25]))
+    >>> modes.tolist(), start.tolist()                     # good, good: 0.25
+    ([[0, 0], [0, 1], [1, 0], [1, 1]], [0.25, 0.75, 0.0, 0.0])
+    """
+    m, M = channel.m, int(np.prod(channel.sizes))
+    modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
     T = np.ones((1, 1))
-    for i in range(m):
-        Ti = np.array([[1 - channel.p[i], channel.p[i]], [channel.r[i], 1 - channel.r[i]]])
+    for Ti in channel.transition:
         T = np.kron(T, Ti)
-    h = np.where(modes == 1, channel.h_good, channel.h_bad)
-    return modes, T, h
+    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]
+    start = np.prod([starts[i][modes[:, i]] for i in range(m)], axis=0)
+    return modes, T, channel.padded_delivery[np.arange(m), modes], start
 
 
-def mode_start(channel: GilbertElliott | MarkovChannel) -> np.ndarray:
-    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`
-    (so a Gilbert–Elliott channel and its two-state twin start from the same bits), in :func:`mode_chain`'s order.
-    O(M m).
+def mode_start(channel: MarkovChannel) -> np.ndarray:
+    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`,
+    in :func:`mode_chain`'s order. O(M m).
 
     Examples
     --------
     >>> mode_start(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25])).tolist()   # good, good: 0.25
     [0.25, 0.75, 0.0, 0.0]
     """
-    modes = mode_chain(channel)[0]
-    states = modes if isinstance(channel, MarkovChannel) else 1 - modes     # Gilbert–Elliott: mode 1 is state 0
-    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]                 # one start per channel, its twin's bits
-    return np.prod([starts[i][states[:, i]] for i in range(channel.m)], axis=0)
+    mode_chain(channel)                                   # refused beyond MAX_MODES, as the chain it starts
+    return product_chain(channel)[3]
 
 
 def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -152,7 +157,7 @@ def _mode_gains(gains: np.ndarray, M: int, m: int, n: int) -> np.ndarray:
     return K
 
 
-def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | MarkovChannel, gains: np.ndarray,
+def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gains: np.ndarray,
                            delivery: str = "current") -> np.ndarray:
     """The matrix of the coupled second-moment map on stacked vec(Q_a), (M n^2)×(M n^2).
 
@@ -178,7 +183,7 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott
     return mode_matrix(A, B, _mode_gains(gains, M, m, n), h, T, delivery)
 
 
-def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | MarkovChannel, gains: np.ndarray,
+def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gains: np.ndarray,
                        delivery: str = "current", method: str = "auto") -> float:
     """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
     loop is mean-square stable.

@@ -22,8 +22,11 @@ import numpy.typing as npt
 
 from ..display import system_html, system_repr, to_json
 from ..errors import InputError
-from .channel import GilbertElliott
-from .markov_channel import MarkovChannel, channel_schedule
+from .channel import (
+    GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
+    MarkovChannel,
+    channel_schedule,
+)
 from .sensor import Sensor
 from .statespace import plant_matrices, plant_statespace, sampling_time
 from .validation import (
@@ -200,7 +203,7 @@ class System:
         or N such weights for t = 1..N. Exactly one is given.
     input_weight, input_weights : array_like
         Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
-    mu, mu_schedule, channel : array_like, or a channel.GilbertElliott or markov_channel.MarkovChannel (or a TOML table)
+    mu, mu_schedule, channel : array_like, or a channel.MarkovChannel (GilbertElliott(...)) or a TOML table
         Delivery probabilities in [0, 1]: one per actuator, N×m (non-stationary), or a Markov channel's mu_t.
     x0 : array_like
         The state X_k (length n).
@@ -243,7 +246,7 @@ class System:
     initial_weight: np.ndarray
     noise_cov: np.ndarray
     name: str | None
-    channel: GilbertElliott | MarkovChannel | None
+    channel: MarkovChannel | None
     dt: float | None
     sensor: Sensor | None
 
@@ -443,8 +446,8 @@ class System:
         return self._copy_with(x0=frozen(vector_field(x0, "x0", self.n, f"({self.n},)")))
 
     def with_channel(self, channel: Any) -> System:
-        """A copy behind the Markov ``channel`` (a GilbertElliott, a MarkovChannel or a TOML table): its mu_schedule
-        is the channel's predicted schedule. The channel and that schedule are validated as
+        """A copy behind the Markov ``channel`` (a MarkovChannel, e.g. GilbertElliott(...), or a TOML table): its
+        mu_schedule is the channel's predicted schedule. The channel and that schedule are validated as
         ``System(..., channel=channel)`` validates them; the other fields, already validated, are kept.
         Time O(N m).
 
