@@ -206,3 +206,33 @@ def test_a_chain_lambda_is_printed_to_the_digits_its_own_accuracy_supports(tmp_p
     assert (tmp_path / "out" / "region.csv").read_text().splitlines()[1] == f"stable,{data['lambda']!r}"
     assert main(argv) == 0
     assert f"radius: {data['lambda']:.5g} ± {data['lambda_error']:.1g})" in capsys.readouterr().out
+
+
+def test_a_chain_rate_map_prints_each_lambda_to_the_digits_its_own_accuracy_supports(tmp_path, capsys):
+    """``region --grid`` behind the defective chain above (k = 97, mean rates (0, 0.5)): the grid point at the
+    chain's own rates is that chain, whose lambda the dense and ARPACK radii of its gains know only to about 6e-6.
+    Every grid lambda in JSON carries ``lambda_error`` beside it and no more digits than that supports; at the
+    chain's own point the error brackets the two routines' spread (the reference, computed here on the chain
+    itself) and lambda is within it of the eigenpair's value. Full digits (0.8352448407578126) failed this."""
+    from packetloss_cvx.closedloop.markov_region import homogeneous_coupled_riccati
+    from packetloss_cvx.closedloop.mjls import mean_square_radius
+
+    from .test_markov_region import _chain_at_an_end
+
+    A, B, chain, _ = _chain_at_an_end(97)
+    assert chain.mean_rate.tolist() == [0.0, 0.5]
+    path = str(save_system(System(A=A, B=B, horizon=2, state_weight=np.ones(4), input_weight=[1.0, 1.0],
+                                  x0=np.ones(4), channel=chain), tmp_path / "defective.toml"))
+    lam, _, K = homogeneous_coupled_riccati(A, B, chain, "next")
+    spread = max(abs(lam - mean_square_radius(A, B, chain, K, "next", method=method)) for method in ("dense", "krylov"))
+    assert main(["region", path, "--law", "dp", "--grid", "3", "--direction", "1,0", "--json", "-q"]) == 0
+    grid = json.loads(capsys.readouterr().out)["dp"]["grid"]
+    assert grid["axis"] == [0.0, 0.5, 1.0]
+    for row, errors in zip(grid["lambda"], grid["lambda_error"], strict=True):
+        for value, error in zip(row, errors, strict=True):
+            digits = max(1, min(17, int(np.floor(np.log10(abs(value) / error))))) if error else 17
+            assert value == float(f"{value:.{digits}g}")          # no digit beyond what its own error supports
+    value, error = grid["lambda"][1][0], grid["lambda_error"][1][0]  # rows: channel 2's rate; columns: channel 1's
+    assert spread / 2 <= error <= spread
+    assert abs(value - lam) <= error
+    assert len(repr(value).lstrip("0.")) <= 6                     # about five digits, not sixteen
