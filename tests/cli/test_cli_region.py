@@ -188,7 +188,7 @@ def test_a_chain_lambda_is_printed_to_the_digits_its_own_accuracy_supports(tmp_p
     from packetloss_cvx.closedloop.markov_region import homogeneous_coupled_riccati
     from packetloss_cvx.closedloop.mjls import mean_square_radius
 
-    from .test_markov_region import _chain_at_an_end
+    from ..closedloop.test_markov_region import _chain_at_an_end
 
     A, B, chain, _ = _chain_at_an_end(97)
     path = str(save_system(System(A=A, B=B, horizon=2, state_weight=np.ones(4), input_weight=[1.0, 1.0],
@@ -217,7 +217,7 @@ def test_a_chain_rate_map_prints_each_lambda_to_the_digits_its_own_accuracy_supp
     from packetloss_cvx.closedloop.markov_region import homogeneous_coupled_riccati
     from packetloss_cvx.closedloop.mjls import mean_square_radius
 
-    from .test_markov_region import _chain_at_an_end
+    from ..closedloop.test_markov_region import _chain_at_an_end
 
     A, B, chain, _ = _chain_at_an_end(97)
     assert chain.mean_rate.tolist() == [0.0, 0.5]
