@@ -8,8 +8,8 @@ best_cost_within_budget), ``brute_force`` (an independent two-channel reference 
 behind Markov chains: mean rates chosen, burstiness held, the exact cost under the chain).
 """
 
-from ..results import Allocation
-from .api import MinCost, allocate, best_cost_within_budget, min_cost
+from ..results import Allocation, MinCost
+from .api import allocate, best_cost_within_budget, min_cost
 from .grammar import parse_constraint
 
 __all__ = [

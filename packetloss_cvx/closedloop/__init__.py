@@ -15,12 +15,12 @@ from .interop import closed_loop_statespace
 from .law_stability import loop_stability, with_stability
 from .moments import closed_loop, finite_horizon_costs, law_cost_to_go, stationary_second_moment
 from .region import membership
-from .riccati import dp_finite_horizon, dp_riccati, riccati_step
+from .riccati import dp_finite_horizon, dp_riccati, modified_riccati_step
 from .stability import is_mean_square_stable, mean_square_radius, second_moment_map, second_moment_matrix
 
 __all__ = [
     "closed_loop", "closed_loop_statespace", "critical_mu", "critical_point", "dp_finite_horizon", "dp_riccati",
     "finite_horizon_costs", "is_mean_square_stable", "law_cost_to_go", "law_membership", "loop_stability",
-    "mean_square_radius", "membership", "riccati_step", "second_moment_map", "second_moment_matrix", "stable_at",
+    "mean_square_radius", "membership", "modified_riccati_step", "second_moment_map", "second_moment_matrix", "stable_at",
     "stationary_second_moment", "with_stability",
 ]

@@ -3,6 +3,8 @@
 import subprocess
 import sys
 
+import pytest
+
 import packetloss_cvx as pl
 from packetloss_cvx import errors
 
@@ -48,3 +50,31 @@ def test_dir_in_a_fresh_interpreter_before_any_name_is_used():
             "print(len(names), 'System' in names, 'cvxpy' in sys.modules, 'scipy' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == [str(len(pl.__all__) + 1), "True", "False", "False"]
+
+
+def _package_reexports():
+    """(package, module, name) for every ``from .module import name`` in a package's ``__init__``."""
+    import ast
+    from pathlib import Path
+
+    root = Path(pl.__file__).parent
+    for init in sorted(root.rglob("__init__.py")):
+        package = ".".join(("packetloss_cvx", *init.parent.relative_to(root).parts))
+        for node in ast.parse(init.read_text()).body:
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
+                for alias in node.names:
+                    yield package, f"{package}.{node.module}", alias.name
+
+
+@pytest.mark.parametrize(("package", "module", "name"), list(_package_reexports()))
+def test_a_package_hands_on_only_what_its_module_defines(package, module, name):
+    """A package's ``__init__`` re-exports a function or class only from the module that defines it: a name the
+    module merely imported is another thing under that module's roof (closedloop exported ``riccati_step`` from
+    closedloop.riccati after the DP's step was renamed, which handed users Theorem 1's step, arguments in another
+    order)."""
+    import importlib
+    import inspect
+
+    obj = getattr(importlib.import_module(module), name)
+    if inspect.isfunction(obj) or inspect.isclass(obj):
+        assert obj.__module__ == module, f"{package} exports {name} from {module}, which defines it in {obj.__module__}"
