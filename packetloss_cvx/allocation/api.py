@@ -23,6 +23,7 @@ What the results promise:
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -32,9 +33,10 @@ from ..budgets import check, count_text, duration_text, estimated_seconds, limit
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..model.protocols import check_protocol
 from ..model.system import System
-from ..results import Allocation, MinCost
+from ..results import Allocation, MinCost, StabilityAllocation
 from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT
+from .attainable import attainment
 from .boxes import Outcome, cost_at, reported_gap, unit_prices
 from .chains import ChainEvaluator, chain_family, chain_rates
 from .grammar import (
@@ -49,10 +51,15 @@ from .grammar import (
     check_system,
     read_polytope,
 )
+from .stability import stability_allocate
 from .tcp import tcp_allocate, tcp_min_cost
 from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
-__all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
+__all__ = ["ALLOCATION_TARGETS", "MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
+
+#: what :func:`allocate` designs on: the paper's program (J*(mu) <= alpha, the default), a loop some linear law
+#: holds ("stable"), the DP law's stationary cost ("dp-cost"); "attainable" is refused (not available yet)
+ALLOCATION_TARGETS = ("paper", "stable", "dp-cost", "attainable")
 
 #: Default cap on the boxes a branch and bound explores before it reports "gap_not_certified".
 MAX_BOXES = 20000
@@ -204,11 +211,17 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
 
 
 @blas_limited
-def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
+def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0.0, 1.0),
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
-             max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
+             max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None,
+             target: str = "paper", margin: float | None = None) -> Allocation | StabilityAllocation:
     """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
     The paper's eq:alpha_channels (J* <= alpha), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
+
+    The paper's J*_tcp is a first-moment value no causal law attains: the result says, at its mu, what a loop
+    attains (``attainable_cost``, the finite-horizon DP with acknowledgements, TCP-like) and whether any linear law
+    holds it mean-square stable (``stabilisable``); ``warning`` is one line when either misleads. To design on the
+    loop instead, ask for ``target="stable"`` or ``"dp-cost"``.
 
     Parameters
     ----------
@@ -239,13 +252,23 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         Cap on the UDP-like branch and bound's seconds (None: no limit).
     progress : bool or None
         A bar on stderr for the UDP-like branch and bound (None: when stderr is a terminal).
+    target : {"paper", "stable", "dp-cost"}
+        What the design meets: "paper" (default), the paper's program ``J*(mu) <= alpha`` for ``protocol``;
+        "stable", some linear law u = -K x has mean-square radius below ``margin`` (``alpha`` None); "dp-cost", the
+        DP law's stationary cost is at most ``alpha``
+        (:func:`~packetloss_cvx.allocation.stability.stability_allocate`; as ``--target`` on the command line: the
+        law measures the state each step, so ``protocol`` is checked but does not enter). "attainable" (design on
+        the attainable finite-horizon cost) is not available yet: InputError.
+    margin : float, optional
+        Target "stable" only: the bound on the mean-square radius, ``0 < margin <= 1`` (default 1).
 
     Returns
     -------
     Allocation
         ``mu`` feasible by the closed form; ``lower_bound`` proven; ``status`` "optimal" (gap
         certified) or "gap_not_certified" (a cap was hit; ``gap`` is the gap reached);
-        ``boxes`` explored.
+        ``boxes`` explored; ``attainable_cost`` and ``stabilisable`` at mu (:mod:`.attainable`).
+        A :class:`~packetloss_cvx.results.StabilityAllocation` for the targets "stable" and "dp-cost".
 
     Raises
     ------
@@ -273,6 +296,12 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     (True, 'optimal', True)
     """
     protocol = check_protocol(protocol)
+    if target != "paper":
+        return _loop_target(system, target, alpha, beta, bounds, constraints, gap, max_boxes, time_limit, progress,
+                            margin)
+    if margin is not None:
+        raise InputError("margin", "applies to target='stable' only (the paper's program bounds J*: alpha)")
+    given = system                                            # with its chain, for what the loop attains
     system, evaluator = _behind_chain(system, protocol)       # a chain: its mean rates (chains.py)
     system = check_system(system)
     alpha = check_alpha(alpha)
@@ -313,10 +342,34 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         out = out._replace(note=out.note + floor_note)
     scaled = float(prices @ out.mu)
     cost = cost_at(system, protocol, out.mu) if out.cost is None else out.cost
-    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
-                      lower_bound=out.lower_bound * unit,
-                      gap=reported_gap(scaled, out.lower_bound, out.scale),
-                      status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)
+    return _attained(Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
+                                lower_bound=out.lower_bound * unit,
+                                gap=reported_gap(scaled, out.lower_bound, out.scale),
+                                status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta,
+                                boxes=out.boxes), given)
+
+
+def _attained(result: Allocation, system: System, chain: bool = False) -> Allocation:
+    """``result`` with what a loop attains at its mu (:func:`.attainable.attainment`)."""
+    found = attainment(system, result.protocol, result.mu, result.cost, chain)
+    return dataclasses.replace(result, basis="attainable" if chain else "paper", attainable_cost=found.cost,
+                               attainable_note=found.cost_note, stabilisable=found.stabilisable,
+                               stability_note=found.stability_note)
+
+
+def _loop_target(system: System, target: str, alpha: float | None, beta, bounds, constraints: Sequence[Constraint],
+                 gap: float, max_boxes: int | None, time_limit: float | None, progress: bool | None,
+                 margin: float | None) -> StabilityAllocation:
+    """:func:`allocate`'s targets other than the paper's: the closed-loop designs of :mod:`.stability`."""
+    if target == "attainable":
+        raise InputError("target", "'attainable' (design on the finite-horizon attainable cost) is not available yet: "
+                                   "use target='dp-cost' (the DP law's stationary cost <= alpha) or target='stable', "
+                                   "or check the paper's design by its attainable_cost and stabilisable")
+    if target not in ALLOCATION_TARGETS:
+        raise InputError("target", f"expected one of {', '.join(ALLOCATION_TARGETS[:3])}, found {target!r}")
+    options: dict[str, Any] = {} if max_boxes is None else {"max_boxes": max_boxes}
+    return stability_allocate(system, target, beta, margin=margin, alpha=alpha, bounds=bounds,
+                              constraints=constraints, gap=gap, time_limit=time_limit, progress=progress, **options)
 
 
 def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, beta: np.ndarray, poly: Polytope,
@@ -333,10 +386,12 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
     note = f"{out.note}; exact expected cost {evaluator.family.describe()}"
     scaled = float(prices @ out.mu)
     cost = evaluator.cost(out.mu) if out.cost is None else out.cost
-    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
-                      lower_bound=out.lower_bound * unit,
-                      gap=reported_gap(scaled, out.lower_bound, out.scale),
-                      status=out.status, method=note, protocol="udp", alpha=alpha, beta=beta, boxes=out.boxes)
+    return _attained(Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
+                                lower_bound=out.lower_bound * unit,
+                                gap=reported_gap(scaled, out.lower_bound, out.scale),
+                                status=out.status, method=note, protocol="udp", alpha=alpha, beta=beta,
+                                boxes=out.boxes), evaluator.system,
+                     chain=True)
 
 
 @blas_limited

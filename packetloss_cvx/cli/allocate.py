@@ -79,17 +79,41 @@ def run(args: argparse.Namespace) -> CommandResult:
         return CommandResult(data, f"infeasible: {err}", 3)
     data = {**result.to_dict(), "min_cost": None}
     rows = [("mu*", fmt.numbers(result.mu)), ("beta'mu", fmt.num(result.communication_cost)),
-            ("J*(mu*)", f"{fmt.num(result.cost, 10)} <= alpha = {fmt.num(alpha)}"),
+            (f"J*(mu*), {result.basis}", f"{fmt.num(result.cost, 10)} <= alpha = {fmt.num(alpha)}"),
+            *attained_rows(result),
             ("lower bound", f"{fmt.num(result.lower_bound)} on beta'mu (proved)"),
             ("gap", f"{result.gap:.1e}"),
             ("method", result.method + (f", {result.boxes} box" + ("es" if result.boxes > 1 else "")
                                         if result.boxes else ""))]
     name = fmt.name(system.name or args.file)
+    warning = [] if result.warning is None else [result.warning + WARNING_ADVICE]
     if result.status == "optimal":
         return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]
-                                             + fmt.fields(rows)))
+                                             + fmt.fields(rows) + warning))
     advice = ("raise --max-boxes or --time-limit, or --gap" if args.protocol == "udp" else
               "the TCP-like SOCP's certificate is limited by the solver's accuracy: ask for a larger --gap")
     heading = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED, allocation for {name} (gap reached "
                f"{result.gap:.1e} > the requested gap)")
-    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)])), 4)
+    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)]) + warning), 4)
+
+
+#: what the warning line advises
+WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"
+
+
+def attained_rows(result: Any) -> list[tuple[str, str]]:
+    """The rows of what a loop attains at mu*: the attainable cost (named by its basis) and the verdict of the best
+    linear law, each with its note.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> r = SimpleNamespace(attainable_cost=38.0843, attainable_note="finite-horizon DP with acknowledgements",
+    ...                     stabilisable=None, stability_note="undecided: near the boundary")
+    >>> attained_rows(r)[0][1], attained_rows(r)[1][1]
+    ('38.0843 (finite-horizon DP with acknowledgements)', 'no verdict (undecided: near the boundary)')
+    """
+    cost = ("not computed" if result.attainable_cost is None else fmt.num(result.attainable_cost, 10))
+    verdict = {True: "yes", False: "NO", None: "no verdict"}[result.stabilisable]
+    return [("attainable cost", f"{cost} ({result.attainable_note})"),
+            ("stabilisable", f"{verdict} ({result.stability_note})")]
