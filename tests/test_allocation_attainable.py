@@ -209,3 +209,24 @@ def test_cli_prints_one_warning_line_and_the_json_keys(tmp_path):
     assert {"mu", "cost", "lower_bound", "status", "min_cost"} <= set(data)       # today's keys kept
     assert "J*(mu*), paper" in result.text
     assert "attainable cost" in result.text
+
+
+def test_power_allocation_carries_the_enumerated_dp_at_its_mu():
+    from packetloss_cvx.allocation.delivery import power_model
+    from packetloss_cvx.allocation.power import least_power
+
+    p = least_power(COUPLED, "tcp", power_model("rayleigh", 2, scale=1.0), 8.0)
+    _, dp = enumerated_dp(COUPLED, p.mu)
+    assert p.attainable_cost == pytest.approx(dp, rel=PATH_AGREEMENT_RTOL)
+    assert p.to_dict()["attainable_cost"] == p.attainable_cost
+    assert p.warning == f"warning: at mu* the attainable cost {p.attainable_cost:.6g} exceeds alpha = 8"
+
+
+def test_ack_price_designs_carry_their_attainable_costs():
+    from packetloss_cvx.allocation.ack import best_protocol
+
+    c = best_protocol(COUPLED, 8.0, [1, 1])
+    _, dp = enumerated_dp(COUPLED, c.tcp.mu)
+    assert c.tcp.attainable_cost == pytest.approx(dp, rel=PATH_AGREEMENT_RTOL)
+    assert c.udp.attainable_cost == c.udp.cost
+    assert c.to_dict()["tcp"]["basis"] == "paper"

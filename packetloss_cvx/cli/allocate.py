@@ -11,7 +11,15 @@ from . import format as fmt
 from .allocate_power import run as run_power  # power, the ack link priced
 from .allocate_power import wants_power
 from .allocate_stability import run_target
-from .common import CommandResult, allocation_numbers, progress_of, search_options, system_of
+from .common import (
+    WARNING_ADVICE,
+    CommandResult,
+    allocation_numbers,
+    attained_rows,
+    progress_of,
+    search_options,
+    system_of,
+)
 
 __all__ = ["run"]
 
@@ -96,24 +104,3 @@ def run(args: argparse.Namespace) -> CommandResult:
                f"{result.gap:.1e} > the requested gap)")
     return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)]) + warning), 4)
 
-
-#: what the warning line advises
-WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"
-
-
-def attained_rows(result: Any) -> list[tuple[str, str]]:
-    """The rows of what a loop attains at mu*: the attainable cost (named by its basis) and the verdict of the best
-    linear law, each with its note.
-
-    Examples
-    --------
-    >>> from types import SimpleNamespace
-    >>> r = SimpleNamespace(attainable_cost=38.0843, attainable_note="finite-horizon DP with acknowledgements",
-    ...                     stabilisable=None, stability_note="undecided: near the boundary")
-    >>> attained_rows(r)[0][1], attained_rows(r)[1][1]
-    ('38.0843 (finite-horizon DP with acknowledgements)', 'no verdict (undecided: near the boundary)')
-    """
-    cost = ("not computed" if result.attainable_cost is None else fmt.num(result.attainable_cost, 10))
-    verdict = {True: "yes", False: "NO", None: "no verdict"}[result.stabilisable]
-    return [("attainable cost", f"{cost} ({result.attainable_note})"),
-            ("stabilisable", f"{verdict} ({result.stability_note})")]
