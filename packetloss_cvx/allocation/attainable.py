@@ -22,6 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..closedloop.law_stability import STABILITY_MAX_N
 from ..closedloop.region import FORMS, membership
 from ..closedloop.riccati import riccati_step
 from ..errors import NumericalError
@@ -30,9 +31,9 @@ from ..model.system import System
 __all__ = ["ATTAINABLE_MAX_N", "LMI_MAX_N", "Attainment", "attainment", "stabilisable",
            "tcp_attainable_cost"]
 
-#: the verdict is computed up to this state dimension (as ``solve``'s STABILITY_MAX_N): beyond, the homogeneous
+#: the verdict is computed up to this state dimension (as ``solve`` and ``closed_form``): beyond, the homogeneous
 #: Riccati eigenpair and the DP solution take seconds to minutes, and the verdict is None with that reason
-ATTAINABLE_MAX_N = 60
+ATTAINABLE_MAX_N = STABILITY_MAX_N
 
 #: the LMI form (two Clarabel SDPs) joins the cross-check up to this state dimension (about 20 ms at n = 4)
 LMI_MAX_N = 12
