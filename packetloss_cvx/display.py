@@ -230,7 +230,8 @@ def _solution_rows(sol: Any) -> list[tuple[str, Any]]:
         # the paper's Tables I-II convention, every packet delivered: not the loop over the lossy channel
         radius = f"{np.max(np.abs(sol.closed_loop_eigenvalues)):.6g}"
         flag = all_delivered_flag(sol)
-        rows.append(("radius of A - B K (all delivered)", radius if flag is None else f"{radius}: {flag}"))
+        rows.append(("radius of A - B K (all delivered)",
+                     radius if flag is None else f"{radius}: UNSTABLE even with every packet delivered"))
     if sol.stability is not None:   # attached by closed_form (or with_stability): the loop over the lossy channel
         rows.append(("mean-square stability", sol.stability.verdict))
     elif sol.gain is not None:

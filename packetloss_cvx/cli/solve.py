@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             "closed_loop_eigenvalues": eigenvalue_pairs(sol.closed_loop_eigenvalues),
             "method": sol.method, "basis": SOLUTION_BASIS,
         }
-        label = f"J* = {sol.cost:.10g} ({SOLUTION_BASIS}: the paper's expression; {sol.method})"
+        label = f"J* = {sol.cost:.10g} ({sol.method}) [basis: {SOLUTION_BASIS}]"
         if plugin is not system:
             entry["plug_in"] = True
             label += ": the paper's formula on the chain's mu_t, not the expected cost under the chain (below)"
