@@ -230,3 +230,12 @@ def test_ack_price_designs_carry_their_attainable_costs():
     assert c.tcp.attainable_cost == pytest.approx(dp, rel=PATH_AGREEMENT_RTOL)
     assert c.udp.attainable_cost == c.udp.cost
     assert c.to_dict()["tcp"]["basis"] == "paper"
+
+
+def test_stability_target_carries_the_finite_horizon_attainable_cost():
+    s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    a = allocate(s, "tcp", None, [1.0], target="stable", margin=0.5)
+    _, dp = enumerated_dp(s, a.mu)
+    assert a.attainable_cost == pytest.approx(dp, rel=PATH_AGREEMENT_RTOL)
+    assert a.stabilisable is True
+    assert a.to_dict()["basis"] == "loop"
