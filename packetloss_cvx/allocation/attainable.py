@@ -23,19 +23,21 @@ from typing import NamedTuple
 import numpy as np
 
 from ..closedloop.law_stability import STABILITY_MAX_N
-from ..closedloop.region import FORMS, membership
+from ..closedloop.region import membership
 from ..closedloop.riccati import riccati_step
 from ..errors import NumericalError
 from ..model.system import System
 
-__all__ = ["ATTAINABLE_MAX_N", "LMI_MAX_N", "Attainment", "attainment", "stabilisable",
+__all__ = ["ATTAINABLE_MAX_N", "CHEAP_FORMS", "LMI_MAX_N", "Attainment", "attainment", "stabilisable",
            "tcp_attainable_cost"]
 
 #: the verdict is computed up to this state dimension (as ``solve`` and ``closed_form``): beyond, the homogeneous
 #: Riccati eigenpair and the DP solution take seconds to minutes, and the verdict is None with that reason
 ATTAINABLE_MAX_N = STABILITY_MAX_N
 
-#: the LMI form (two Clarabel SDPs) joins the cross-check up to this state dimension (about 20 ms at n = 4)
+#: the forms asked first, cross-checked (each certificate checked in numpy; a few ms at n = 4); the LMI form (two
+#: Clarabel SDPs, about 20 ms at n = 4, ten times the allocation itself) only where neither decides, up to this n
+CHEAP_FORMS = ("riccati", "dp")
 LMI_MAX_N = 12
 
 
@@ -90,7 +92,8 @@ def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
 def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
     """Is there a linear law u = -K x that holds the loop mean-square stable at ``mu`` (Bernoulli losses, full
     state)? ``(verdict, note)``: True or False each on a certificate checked in numpy (the "riccati" and "dp"
-    forms of :func:`~packetloss_cvx.closedloop.region.membership`, and "lmi" up to :data:`LMI_MAX_N`, cross-checked),
+    forms of :func:`~packetloss_cvx.closedloop.region.membership`, cross-checked; "lmi" where neither decides, up to
+    :data:`LMI_MAX_N`),
     None with the reason where none decides (within about 1e-9 of the boundary), where it is not computed, or behind
     a Markov chain. With lossy sensor links only False is a verdict (a law on an estimate does no better than one on
     the state). O(iterations (n^3 + m^3)), O(n^6) for the certificates.
@@ -108,9 +111,10 @@ def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
                       "packetloss-cvx region FILE)")
     if system.n > ATTAINABLE_MAX_N:
         return None, f"not computed for n = {system.n} > {ATTAINABLE_MAX_N} (it can take minutes)"
-    forms = FORMS if system.n <= LMI_MAX_N else tuple(f for f in FORMS if f != "lmi")
     try:
-        found = membership(system, mu, forms=forms)
+        found = membership(system, mu, forms=CHEAP_FORMS)
+        if found.verdict == "undecided" and system.n <= LMI_MAX_N:
+            found = membership(system, mu, forms=("lmi",))
     except NumericalError as err:      # a numerical failure is not a verdict
         return None, f"undecided: {err}"
     if found.verdict == "undecided":
