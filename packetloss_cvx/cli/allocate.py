@@ -83,7 +83,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     except InfeasibleError as err:
         data = {"protocol": args.protocol, "alpha": alpha, "beta": beta, "mu": None, "communication_cost": None,
                 "cost": None, "lower_bound": None, "gap": None, "status": "infeasible", "method": None,
-                "boxes": None, "min_cost": err.min_cost}
+                "boxes": None, "min_cost": err.min_cost, "basis": "paper", "attainable_cost": None,
+                "attainable_note": "", "stabilisable": None, "stability_note": "no allocation"}
         return CommandResult(data, f"infeasible: {err}", 3)
     data = {**result.to_dict(), "min_cost": None}
     rows = [("mu*", fmt.numbers(result.mu)), ("beta'mu", fmt.num(result.communication_cost)),
