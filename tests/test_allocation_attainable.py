@@ -17,11 +17,16 @@ from scipy.linalg import expm
 
 from packetloss_cvx import InputError, System, allocate, closed_form
 from packetloss_cvx.allocation import parse_constraint
-from packetloss_cvx.allocation.attainable import attainment, stabilisable, tcp_attainable_cost
+from packetloss_cvx.allocation.attainable import (
+    AttainableEvaluator,
+    attainment,
+    stabilisable,
+    tcp_attainable_cost,
+)
 from packetloss_cvx.cli.allocate import run
 from packetloss_cvx.cli.parser import build_parser
 from packetloss_cvx.model.files import save_system
-from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL, PATH_AGREEMENT_RTOL
+from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL, ALLOCATION_GAP_DEFAULT, PATH_AGREEMENT_RTOL
 
 #: the issue's coupled plant: allocate(s, "tcp", 8, [1, 1]) designs mu = (0.131, 0.169) on J*_tcp = 8
 COUPLED = System(A=[[1.03, 0.005], [0.35, 1.01]], B=np.eye(2), horizon=10, state_weight=[1, 1],
@@ -64,7 +69,7 @@ def enumerated_dp(s: System, mu):
     for t in reversed(range(s.horizon)):
         H = sum(p * (np.diag(v) @ (Psi + B.T @ P @ B) @ np.diag(v)) for v, p in outcomes(mu))
         g = sum(p * np.diag(v) @ B.T @ P @ A for v, p in outcomes(mu))
-        K = np.linalg.solve(H, g)
+        K = np.linalg.lstsq(H, g, rcond=None)[0]                       # mu_i = 0: that input is never applied
         gains.append(K)
         P = A.T @ P @ A - g.T @ K + (Omega if t > 0 else 0.0)
     return gains[::-1], float(s.x0 @ P @ s.x0)
@@ -131,6 +136,9 @@ def test_tcp_attainable_cost_with_time_varying_weights_initial_weight_and_noise(
     p1 = w1 + w2 - mu * w2 ** 2 / (w2 + psi1)                           # cost-to-go at t = 1 (x_1's weight added)
     p0 = q + p1 - mu * p1 ** 2 / (p1 + psi0)
     assert tcp_attainable_cost(s) == pytest.approx(p0 + sigma * w2 + sigma * p1, rel=PATH_AGREEMENT_RTOL)
+    # the checked value: the forward second moments of the DP's own law, which must agree
+    assert AttainableEvaluator(s).cost(np.array([mu])) == pytest.approx(p0 + sigma * w2 + sigma * p1,
+                                                                        rel=PATH_AGREEMENT_RTOL)
 
 
 def test_attainable_cost_at_full_delivery_is_the_paper_cost():
@@ -185,9 +193,7 @@ def test_allocate_targets_match_stability_allocate_and_refuse_what_is_not_there(
     assert np.array_equal(a.mu, stability_allocate(s, "stable", [1.0], margin=0.5).mu)
     d = allocate(s, "tcp", 10.0, [1.0], target="dp-cost")
     assert d.dp_cost <= 10.0
-    with pytest.raises(InputError, match="not available yet"):
-        allocate(s, "tcp", 10.0, [1.0], target="attainable")
-    with pytest.raises(InputError, match="expected one of paper, stable, dp-cost"):
+    with pytest.raises(InputError, match="expected one of paper, stable, dp-cost, attainable"):
         allocate(s, "tcp", 10.0, [1.0], target="cheap")
     with pytest.raises(InputError, match="margin"):
         allocate(s, "tcp", 10.0, [1.0], margin=0.5)
@@ -239,3 +245,46 @@ def test_stability_target_carries_the_finite_horizon_attainable_cost():
     assert a.attainable_cost == pytest.approx(dp, rel=PATH_AGREEMENT_RTOL)
     assert a.stabilisable is True
     assert a.to_dict()["basis"] == "loop"
+
+
+def least_mu2(mu1: float, alpha: float) -> float:
+    """The least mu2 with the enumerated DP's cost <= alpha at (mu1, mu2), by bisection (the cost falls in mu2);
+    1.5 where even mu2 = 1 is above alpha. The upper end of the final bracket: a feasible point."""
+    if enumerated_dp(COUPLED, np.array([mu1, 1.0]))[1] > alpha:
+        return 1.5
+    lo, hi = 0.0, 1.0
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if enumerated_dp(COUPLED, np.array([mu1, mid]))[1] <= alpha else (mid, hi)
+    return hi
+
+
+def test_target_attainable_meets_alpha_on_the_enumerated_dp_and_matches_a_grid_search():
+    a = allocate(COUPLED, "tcp", 8.0, [1, 1], target="attainable")
+    assert a.status == "optimal"
+    assert a.basis == "attainable"
+    assert enumerated_dp(COUPLED, a.mu)[1] <= 8.0 * (1 + ALLOCATION_COST_RTOL)
+    coarse = np.linspace(0.0, 1.0, 41)
+    best = coarse[int(np.argmin([m + least_mu2(m, 8.0) for m in coarse]))]
+    fine = np.linspace(max(best - 0.025, 0.0), min(best + 0.025, 1.0), 51)
+    reference = min(m + least_mu2(m, 8.0) for m in fine)        # feasible points: at least the optimum
+    assert a.lower_bound <= reference
+    assert a.communication_cost <= reference * (1 + ALLOCATION_GAP_DEFAULT)     # the certified gap
+    assert a.communication_cost >= reference - 1e-3            # the grid's step: the reference is that close
+    # the acknowledgement price on the attainable basis: the UDP-like design against this one (the issue's 0.345)
+    udp = allocate(COUPLED, "udp", 8.0, [1, 1])
+    assert round(udp.communication_cost - a.communication_cost, 3) == 0.345
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_attainable_cost_falls_in_every_delivery_probability(seed):
+    """The property the attainable design's branch and bound rests on (docs/design.md): with mu <= mu' the DP at mu'
+    can emulate mu by sending zero with probability 1 - mu_i / mu'_i. Checked on the enumerated DP."""
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(2, 2)) * 0.8
+    s = System(A=A, B=rng.normal(size=(2, 2)), horizon=6, state_weight=[1, 2], input_weight=[0.5, 1],
+               mu=[0.5, 0.5], x0=rng.normal(size=2))
+    for _ in range(20):
+        mu = rng.uniform(size=2)
+        more = mu + rng.uniform(size=2) * (1 - mu)
+        assert enumerated_dp(s, more)[1] <= enumerated_dp(s, mu)[1] * (1 + PATH_AGREEMENT_RTOL)

@@ -36,7 +36,7 @@ from ..model.system import System
 from ..results import Allocation, MinCost, StabilityAllocation
 from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT
-from .attainable import attainment
+from .attainable import AttainableEvaluator, attainment
 from .boxes import Outcome, cost_at, reported_gap, unit_prices
 from .chains import ChainEvaluator, chain_family, chain_rates
 from .grammar import (
@@ -58,7 +58,7 @@ from .udp import MonotoneCost, udp_allocate, udp_min_cost
 __all__ = ["ALLOCATION_TARGETS", "MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
 
 #: what :func:`allocate` designs on: the paper's program (J*(mu) <= alpha, the default), a loop some linear law
-#: holds ("stable"), the DP law's stationary cost ("dp-cost"); "attainable" is refused (not available yet)
+#: holds ("stable"), the DP law's stationary cost ("dp-cost"), the attainable finite-horizon cost ("attainable")
 ALLOCATION_TARGETS = ("paper", "stable", "dp-cost", "attainable")
 
 #: Default cap on the boxes a branch and bound explores before it reports "gap_not_certified".
@@ -252,13 +252,14 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
         Cap on the UDP-like branch and bound's seconds (None: no limit).
     progress : bool or None
         A bar on stderr for the UDP-like branch and bound (None: when stderr is a terminal).
-    target : {"paper", "stable", "dp-cost"}
+    target : {"paper", "attainable", "stable", "dp-cost"}
         What the design meets: "paper" (default), the paper's program ``J*(mu) <= alpha`` for ``protocol``;
-        "stable", some linear law u = -K x has mean-square radius below ``margin`` (``alpha`` None); "dp-cost", the
-        DP law's stationary cost is at most ``alpha``
+        "attainable", the attainable cost over the horizon is at most ``alpha`` (TCP-like: the finite-horizon DP
+        with acknowledgements, a monotone branch and bound, Bernoulli channels and full state; UDP-like: J*_udp is
+        the attainable cost, so the paper's program); "stable", some linear law u = -K x has mean-square radius
+        below ``margin`` (``alpha`` None); "dp-cost", the DP law's stationary cost is at most ``alpha``
         (:func:`~packetloss_cvx.allocation.stability.stability_allocate`; as ``--target`` on the command line: the
-        law measures the state each step, so ``protocol`` is checked but does not enter). "attainable" (design on
-        the attainable finite-horizon cost) is not available yet: InputError.
+        law measures the state each step, so ``protocol`` is checked but does not enter).
     margin : float, optional
         Target "stable" only: the bound on the mean-square radius, ``0 < margin <= 1`` (default 1).
 
@@ -296,7 +297,10 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
     (True, 'optimal', True)
     """
     protocol = check_protocol(protocol)
-    if target != "paper":
+    if target == "attainable" and protocol == "tcp":
+        return _attainable_allocate(system, alpha, beta, bounds, constraints, gap, max_boxes, time_limit, progress,
+                                    margin)
+    if target not in ("paper", "attainable"):      # UDP-like, J*_udp is the attainable cost: the paper's program
         return _loop_target(system, target, alpha, beta, bounds, constraints, gap, max_boxes, time_limit, progress,
                             margin)
     if margin is not None:
@@ -349,10 +353,50 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
                                 boxes=out.boxes), given)
 
 
-def _attained(result: Allocation, system: System, chain: bool = False) -> Allocation:
+def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints: Sequence[Constraint], gap: float,
+                         max_boxes: int | None, time_limit: float | None, progress: bool | None,
+                         margin: float | None) -> Allocation:
+    """The TCP-like design on the attainable cost: min beta'mu with the finite-horizon DP's cost <= alpha, by the
+    monotone branch and bound of :mod:`.udp` on :class:`.attainable.AttainableEvaluator` (the cost falls in each
+    mu_i: docs/design.md, "Design on the attainable cost"; no TCP-like floor, none being proved for it)."""
+    if margin is not None:
+        raise InputError("margin", "applies to target='stable' only (target='attainable' bounds a cost: alpha)")
+    if isinstance(system, System) and system.channel is not None:
+        raise InputError("target", "'attainable' designs Bernoulli channels: behind a Markov chain the TCP-like "
+                                   "attainable cost is not computed yet; use the paper's program or target='udp'")
+    system = check_system(system)
+    if system.sensor is not None:
+        raise InputError("target", "'attainable' designs the full-state loop; this system has lossy [sensor] links")
+    alpha = check_alpha(alpha)
+    beta = check_beta(beta, system.m)
+    lo, hi = check_bounds(bounds)
+    gap = check_gap(gap)
+    max_boxes = _max_boxes(max_boxes, system)
+    time_limit = _time_limit(time_limit)
+    poly = _polytope(constraints, system.m, lo, hi)
+    prices, unit = unit_prices(beta)
+    what = "TCP-like design on the attainable cost"
+    f = MonotoneCost(AttainableEvaluator(system))
+    try:
+        out = udp_allocate(system, poly, alpha, prices, gap, -np.inf, max_boxes, time_limit, progress=progress,
+                           cost=f, what=what)
+    except InfeasibleError as err:
+        raise InfeasibleError(f"{what}: no mu within the bounds and constraints attains a cost <= alpha = {alpha:g} "
+                              f"({err})", None) from None
+    cost = f.checked(out.mu) if out.cost is None else out.cost
+    return _attained(Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
+                                lower_bound=out.lower_bound * unit,
+                                gap=reported_gap(float(prices @ out.mu), out.lower_bound, out.scale),
+                                status=out.status, method=f"{out.note}; on the attainable cost (finite-horizon DP with "
+                                                          "acknowledgements)", protocol="tcp", alpha=alpha,
+                                beta=beta, boxes=out.boxes), system, basis="attainable")
+
+
+def _attained(result: Allocation, system: System, chain: bool = False, basis: str | None = None) -> Allocation:
     """``result`` with what a loop attains at its mu (:func:`.attainable.attainment`)."""
     found = attainment(system, result.protocol, result.mu, result.cost, chain)
-    return dataclasses.replace(result, basis="attainable" if chain else "paper", attainable_cost=found.cost,
+    basis = basis or ("attainable" if chain else "paper")
+    return dataclasses.replace(result, basis=basis, attainable_cost=found.cost,
                                attainable_note=found.cost_note, stabilisable=found.stabilisable,
                                stability_note=found.stability_note)
 
@@ -361,12 +405,8 @@ def _loop_target(system: System, target: str, alpha: float | None, beta, bounds,
                  gap: float, max_boxes: int | None, time_limit: float | None, progress: bool | None,
                  margin: float | None) -> StabilityAllocation:
     """:func:`allocate`'s targets other than the paper's: the closed-loop designs of :mod:`.stability`."""
-    if target == "attainable":
-        raise InputError("target", "'attainable' (design on the finite-horizon attainable cost) is not available yet: "
-                                   "use target='dp-cost' (the DP law's stationary cost <= alpha) or target='stable', "
-                                   "or check the paper's design by its attainable_cost and stabilisable")
     if target not in ALLOCATION_TARGETS:
-        raise InputError("target", f"expected one of {', '.join(ALLOCATION_TARGETS[:3])}, found {target!r}")
+        raise InputError("target", f"expected one of {', '.join(ALLOCATION_TARGETS)}, found {target!r}")
     options: dict[str, Any] = {} if max_boxes is None else {"max_boxes": max_boxes}
     return stability_allocate(system, target, beta, margin=margin, alpha=alpha, bounds=bounds,
                               constraints=constraints, gap=gap, time_limit=time_limit, progress=progress, **options)

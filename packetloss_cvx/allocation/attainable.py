@@ -27,8 +27,10 @@ from ..closedloop.region import membership
 from ..closedloop.riccati import riccati_step
 from ..errors import NumericalError
 from ..model.system import System
+from ..tolerances import SELF_CHECK_RTOL
 
-__all__ = ["ATTAINABLE_MAX_N", "CHEAP_FORMS", "LMI_MAX_N", "Attainment", "attainment", "stabilisable",
+__all__ = ["ATTAINABLE_MAX_N", "CHEAP_FORMS", "LMI_MAX_N", "AttainableEvaluator", "Attainment", "attainment",
+           "forward_cost", "stabilisable",
            "tcp_attainable_cost"]
 
 #: the verdict is computed up to this state dimension (as ``solve`` and ``closed_form``): beyond, the homogeneous
@@ -49,6 +51,81 @@ class Attainment(NamedTuple):
     cost_note: str
     stabilisable: bool | None
     stability_note: str
+
+
+def _dp(system: System, schedule: np.ndarray) -> tuple[np.ndarray, float]:
+    """The finite-horizon DP's gains (N, m, n) and its cost (:func:`tcp_attainable_cost`). O(N (n^3 + m^3))."""
+    N = system.horizon
+    P = system.state_weights[N - 1].copy()
+    gains = np.empty((N, system.m, system.n))
+    noise = 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(N - 1, -1, -1):
+            noise += float(np.sum(P * system.noise_cov))
+            Omega = system.state_weights[t - 1] if t >= 1 else system.initial_weight
+            gains[t], P = riccati_step(P, system.A, system.B, schedule[t], Omega, system.input_weights[t])
+    cost = float(system.x0 @ P @ system.x0) + noise
+    if not np.isfinite(cost):
+        raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")
+    return gains, cost
+
+
+def forward_cost(system: System, schedule: np.ndarray, gains: np.ndarray) -> float:
+    """The exact expected cost of u_t = -K_t x_t on the paper's cost by the forward second moments
+    ``S_{t+1} = E[(A - B V K_t) S_t (A - B V K_t)'] + Sigma_W`` (``E[V X V] = M X M + diag(mu (1 - mu)) o X``): a sum
+    of non-negative terms, free of the backward recursion's cancellation. O(N (n^3 + n^2 m)).
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> forward_cost(s, s.mu_schedule, np.array([[[0.5]]]))     # E[(1 - v/2)^2 + v/4] = 0.5 (1/4 + 1/4) + 0.5
+    0.75
+    """
+    A, B = system.A, system.B
+    S = np.outer(system.x0, system.x0)
+    cost = float(np.sum(system.initial_weight * S))
+    for t in range(system.horizon):
+        K, mu = gains[t], schedule[t]
+        KSK = K @ S @ K.T
+        cost += float(np.sum(mu * system.input_weights[t] * np.diag(KSK)))      # E[(V u)' Psi (V u)], v_i^2 = v_i
+        BM = B * mu
+        cross = A @ S @ K.T @ BM.T
+        S = (A @ S @ A.T - cross - cross.T + BM @ KSK @ BM.T + (B * (mu * (1.0 - mu))) @ np.diag(np.diag(KSK)) @ B.T
+             + system.noise_cov)
+        S = 0.5 * (S + S.T)
+        cost += float(np.sum(system.state_weights[t] * S))
+    if not np.isfinite(cost):
+        raise NumericalError("finite-horizon DP: the forward second moments overflow")
+    return cost
+
+
+class AttainableEvaluator:
+    """The TCP-like attainable cost as the monotone searches of :mod:`.udp` ask it: ``cost(mu, checked)`` (checked:
+    the DP's cost against :func:`forward_cost` of its own gains, within SELF_CHECK_RTOL, the forward one returned;
+    else NumericalError) and ``line(mu, i, checked)``. Non-increasing in each mu_i (docs/design.md, "Design on the
+    attainable cost"). Bernoulli channels, full state. Each call O(N (n^3 + m^3))."""
+
+    def __init__(self, system: System) -> None:
+        self.system = system
+
+    def cost(self, mu: np.ndarray, checked: bool = True) -> float:
+        schedule = np.broadcast_to(np.asarray(mu, dtype=float), (self.system.horizon, self.system.m))
+        gains, value = _dp(self.system, schedule)
+        if not checked:
+            return value
+        forward = forward_cost(self.system, schedule, gains)
+        if abs(value - forward) > SELF_CHECK_RTOL * forward:
+            raise NumericalError(f"finite-horizon DP: its cost {value:.12g} disagrees with the forward cost of its own "
+                                 f"law {forward:.12g} beyond SELF_CHECK_RTOL (the weights' scales lose digits)")
+        return forward
+
+    def line(self, mu: np.ndarray, i: int, checked: bool = True):
+        base = np.array(mu, dtype=float)
+
+        def at(value: float) -> float:
+            point = base.copy()
+            point[i] = value
+            return self.cost(point, checked)
+
+        return at
 
 
 def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
@@ -76,17 +153,7 @@ def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
     """
     N = system.horizon
     schedule = system.mu_schedule if mu is None else np.broadcast_to(np.asarray(mu, dtype=float), (N, system.m))
-    P = system.state_weights[N - 1].copy()
-    noise = 0.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(N - 1, -1, -1):
-            noise += float(np.sum(P * system.noise_cov))
-            Omega = system.state_weights[t - 1] if t >= 1 else system.initial_weight
-            _, P = riccati_step(P, system.A, system.B, schedule[t], Omega, system.input_weights[t])
-    cost = float(system.x0 @ P @ system.x0) + noise
-    if not np.isfinite(cost):
-        raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")
-    return cost
+    return _dp(system, schedule)[1]
 
 
 def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:

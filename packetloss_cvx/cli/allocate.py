@@ -54,13 +54,20 @@ def run(args: argparse.Namespace) -> CommandResult:
     (3, 'infeasible', 0.5)
     >>> folder.cleanup()
     """
-    if args.target is not None or args.margin is not None:    # design for stability: its own module
-        return run_target(args)
+    if args.target in ("stable", "dp-cost") or (args.target is None and args.margin is not None):
+        return run_target(args)                                 # design for stability: its own module
+    if args.margin is not None:
+        raise InputError("--margin", "applies to --target stable only")
+    target = args.target or "paper"     # "attainable": the same program on the attainable cost (allocation.api)
     for flag, value in (("--ack-price", args.ack_price), ("--ack-power", args.ack_power)):
         if value is not None and args.protocol != "best":          # was ignored: the answer without the link
             raise InputError(flag, "prices the acknowledgement link, which only --protocol best compares")
     system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
     if args.protocol == "best" or wants_power(args, system):
+        if target == "attainable":
+            raise InputError("--target", "attainable designs delivery probabilities priced by --beta with --protocol "
+                                         "tcp|udp; the power designs and --protocol best report the attainable cost "
+                                         "of their paper design")
         if system.channel is not None:
             raise InputError("channel", "power-limited links map power to independent (Bernoulli) delivery "
                                         "probabilities; this file has a Markov chain: give a file with [channel] mu")
@@ -77,7 +84,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     options["progress"] = progress_of(args)
     try:
         result = allocate(system, args.protocol, alpha, beta, bounds=tuple(bounds), constraints=constraints,
-                          **options)
+                          target=target, **options)
     except InputError as err:
         raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
     except InfeasibleError as err:
@@ -97,7 +104,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     name = fmt.name(system.name or args.file)
     warning = [] if result.warning is None else [result.warning + WARNING_ADVICE]
     if result.status == "optimal":
-        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]
+        on = " on the attainable cost" if result.basis == "attainable" and args.protocol == "tcp" else ""
+        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation{on} for {name}"]
                                              + fmt.fields(rows) + warning))
     advice = ("raise --max-boxes or --time-limit, or --gap" if args.protocol == "udp" else
               "the TCP-like SOCP's certificate is limited by the solver's accuracy: ask for a larger --gap")
