@@ -288,3 +288,23 @@ def test_the_attainable_cost_falls_in_every_delivery_probability(seed):
         mu = rng.uniform(size=2)
         more = mu + rng.uniform(size=2) * (1 - mu)
         assert enumerated_dp(s, more)[1] <= enumerated_dp(s, mu)[1] * (1 + PATH_AGREEMENT_RTOL)
+
+
+def test_behind_a_chain_the_udp_cost_is_the_attainable_one_and_the_tcp_one_is_not_given():
+    from packetloss_cvx.lq.markov_cost import exact_closed_form
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    s = System(A=[[1.05, 0.2], [0.0, 0.9]], B=[[0.0, 1.0], [1.0, 0.3]], horizon=4, state_weight=[1.0, 1.0],
+               input_weight=[0.5, 0.5], x0=[1.0, 1.0], channel=GilbertElliott(p=[0.08, 0.35], r=[0.32, 0.35]))
+    alpha = 1.1 * exact_closed_form(s, "udp").cost
+    udp = allocate(s, "udp", alpha, [1.0, 2.0])
+    assert udp.basis == "attainable"
+    assert udp.attainable_cost == udp.cost
+    assert udp.stabilisable is None
+    assert "Markov chain" in udp.stability_note
+    tcp = allocate(s, "tcp", alpha, [1.0, 2.0])
+    assert tcp.basis == "paper"
+    assert tcp.attainable_cost is None
+    assert "Markov chain" in tcp.attainable_note
+    with pytest.raises(InputError, match="Markov chain"):
+        allocate(s, "tcp", alpha, [1.0, 2.0], target="attainable")
