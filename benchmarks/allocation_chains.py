@@ -24,8 +24,10 @@ sys.path.insert(0, str(ROOT))
 import packetloss_cvx as pl  # noqa: E402
 from packetloss_cvx.allocation import allocate  # noqa: E402
 from packetloss_cvx.lq.markov_cost import exact_closed_form  # noqa: E402
-from packetloss_cvx.model.channel import GilbertElliott  # noqa: E402
-from packetloss_cvx.model.markov_channel import MarkovChannel  # noqa: E402
+from packetloss_cvx.model.channel import (
+    GilbertElliott,  # noqa: E402
+    MarkovChannel,  # noqa: E402
+)
 
 THREE = [[0.8, 0.15, 0.05], [0.2, 0.6, 0.2], [0.1, 0.3, 0.6]]
 

@@ -26,7 +26,7 @@ import numpy as np
 import packetloss_cvx as pl
 from packetloss_cvx.allocation.chains import ChainEvaluator, chain_family
 from packetloss_cvx.model.channel import GilbertElliott
-from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.channel import MarkovChannel
 
 def two_channel(channel):
     return pl.System(A=[[1.05, 0.2], [0.0, 0.9]], B=[[0.0, 1.0], [1.0, 0.3]], horizon=4, state_weight=[1.0, 1.0],

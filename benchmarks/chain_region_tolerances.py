@@ -35,7 +35,7 @@ def zero_ratio(A, B, ch, delivery):
     P = np.repeat(np.eye(n)[None] / (n * M), M, axis=0)
     least = np.inf
     for _ in range(M * n + 1):
-        L, w = cr.psd_factor(P)
+        L, w = cr.psd_part_factor(P)
         F = cr._riccati_factors(L, A, B, T, h, delivery)
         squares = float(sum(np.sum(f * f) for f in F))
         least = min(least, np.sqrt(squares / (np.linalg.norm(A, 2) ** 2 * w.sum())))

@@ -31,7 +31,7 @@ from packetloss_cvx.lq.markov_cost import (  # noqa: E402
     exact_closed_form,  # noqa: E402
     route_seconds,
 )
-from packetloss_cvx.model.markov_channel import MarkovChannel  # noqa: E402
+from packetloss_cvx.model.channel import MarkovChannel  # noqa: E402
 
 SHAPES = [(1, 1, 2), (2, 1, 2), (4, 1, 2), (2, 2, 2), (4, 2, 2), (4, 2, 3), (8, 2, 3), (2, 1, 20), (1, 1, 50),
           (4, 1, 20), (2, 2, 20)]

@@ -251,7 +251,7 @@ def one_mode() -> None:
     from packetloss_cvx import load_example
     from packetloss_cvx.closedloop.chain_radius import homogeneous_coupled_riccati
     from packetloss_cvx.closedloop.region import homogeneous_riccati
-    from packetloss_cvx.model.markov_channel import MarkovChannel
+    from packetloss_cvx.model.channel import MarkovChannel
 
     def channel(mu):
         return MarkovChannel(transition=[[[1.0]]] * len(mu), delivery=[[float(x)] for x in mu])

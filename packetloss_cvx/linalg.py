@@ -55,7 +55,9 @@ def lapack_dgesv() -> Callable:
 
 
 def psd_factor(W: np.ndarray) -> np.ndarray:
-    """L with L'L = W for a symmetric PSD W (eigen-decomposition; zero rows dropped).
+    """L with L'L = W for a symmetric PSD W (eigen-decomposition; zero rows dropped): a row factor, so that
+    ``x'Wx = ||L x||^2`` (``cp.sum_squares(L @ x)``) and ``L'z`` draws N(0, W) for z ~ N(0, I). (The stability
+    region's column factor of a PSD part, ``P+ = L L'``, is ``simulation.region.psd_part_factor``.)
 
     Examples
     --------

@@ -16,9 +16,8 @@ from packetloss_cvx.allocation.chains import ChainEvaluator, chain_at, chain_fam
 from packetloss_cvx.cli import main
 from packetloss_cvx.lq.costs import closed_form
 from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
-from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.model.files import dumps_system
-from packetloss_cvx.model.markov_channel import MarkovChannel
 from packetloss_cvx.qp.markov import exact_qp
 
 

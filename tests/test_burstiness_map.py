@@ -14,8 +14,7 @@ from packetloss_cvx.cli import main
 from packetloss_cvx.errors import BudgetError, InputError
 from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
 from packetloss_cvx.model.chain import attach_channel
-from packetloss_cvx.model.channel import GilbertElliott
-from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.model.system import System
 from packetloss_cvx.model.twins import channel_twin
 from packetloss_cvx.studies.burstiness import burstiness_map

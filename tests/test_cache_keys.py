@@ -15,13 +15,13 @@ from hypothesis import strategies as st
 
 import packetloss_cvx
 from packetloss_cvx.allocation import tcp
-from packetloss_cvx.lq import augmented, recursion
+from packetloss_cvx.lq import augmented, recursion, structure
 from packetloss_cvx.lq import prediction as prediction_module
 from packetloss_cvx.model import chain
 from packetloss_cvx.model.channel import GilbertElliott
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.model.sensor import Sensor
-from packetloss_cvx.model.system import SYSTEM_FIELDS, CacheKey, System
+from packetloss_cvx.model.system import SYSTEM_FIELDS, CacheKey, StructureStore, System, SystemStore
 
 #: each key of the package -> how its value is read through the public path that keeps it
 READERS = {
@@ -29,9 +29,8 @@ READERS = {
                                                 ("Phi", "Gamma", "Psi", "Omega_p", "Omega_g", "Omega_gp", "Omega_d")),
     prediction_module.OMEGA_KEY: lambda s: (prediction_module.prediction(s).Omega,),
     prediction_module.NOISE_TERM_KEY: lambda s: (prediction_module.prediction(s).noise_term,),
-    recursion.VARIANCE_WEIGHTS_KEY: lambda s: recursion.udp_variance_weights(s),
-    recursion.CONDITION_KEY: lambda s: (recursion.condition_estimate(s),),
-    recursion.WEIGHT_HEAD_KEY: lambda s: (recursion.weight_head(s),),
+    structure.STRUCTURE_KEY: lambda s: (*recursion.udp_variance_weights(s), recursion.condition_estimate(s),
+                                        recursion.weight_head(s)),
     chain.MOMENTS_KEY: lambda s: chain.stacked_moments(s),
     augmented.LIFT_KEY: lambda s: (lambda lift: (*lift.Lam, *lift.g, *lift.gamma, lift.offsets, lift.size))(
         augmented.chain_lift(s)),
@@ -101,16 +100,16 @@ def test_every_key_of_the_package_is_read_here_and_names_fields_of_system():
 def test_a_key_is_a_declared_object_not_a_string():
     s = random_system(np.random.default_rng(0))
     with pytest.raises(TypeError, match="CacheKey"):
-        s.structure_cached("prediction.core", lambda: 1)
+        StructureStore("prediction.core")
     with pytest.raises(TypeError, match="CacheKey"):
-        s.cached("chain.stacked_moments", lambda: 1)
+        SystemStore("chain.stacked_moments")
     with pytest.raises(TypeError, match="depends on more than the structure"):
-        s.structure_cached(CacheKey("test.mu", ("mu_schedule",)), lambda: 1)    # would be shared by with_mu copies
+        StructureStore(CacheKey("test.mu", ("mu_schedule",)))                   # would be shared by with_mu copies
     with pytest.raises(ValueError, match="depends_on"):
         CacheKey("test.typo", ("mu",))                                          # not a field of System
     a, b = CacheKey("test.same", ("A",)), CacheKey("test.same", ("A",))
-    assert s.structure_cached(a, lambda: 1) == 1
-    assert s.structure_cached(b, lambda: 2) == 2                                # identity, not the name
+    assert StructureStore(a).put(s, 1) == 1
+    assert StructureStore(b).get(s) is None                                     # another store: its own values
 
 
 @pytest.mark.parametrize("seed", range(4))

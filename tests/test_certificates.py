@@ -180,3 +180,51 @@ def test_the_stable_margin_is_the_registered_one():
     outside = 1.0 - (1.0 - 0.5 * MEAN_SQUARE_MARGIN) / 4.0           # radius 1 - margin / 2
     assert law_proved_stable(A, B, K, np.array([inside]))
     assert not law_proved_stable(A, B, K, np.array([outside]))
+
+
+# ---- the chains' certificates on the same exact path (Bernoulli is the one-mode chain) ----
+
+def test_a_memoryless_chain_with_equal_deliveries_gives_the_bernoulli_verdict_exactly():
+    """p + r = 1 and h_good = h_bad = mu: every mode's T_c(P) is Bernoulli's (the exact rows of T sum to 1), so the
+    chain's exact verdict is outside_proved's at every c, proved or not."""
+    from packetloss_cvx.closedloop.certificates import chain_outside_proved
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    rng = np.random.default_rng(71)
+    seen = set()
+    for n, m in [(1, 1), (2, 1), (3, 2)]:
+        for _ in range(4):
+            A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+            F = rng.normal(size=(n, n))
+            P, mu, p = F @ F.T, rng.uniform(0.2, 1.0, m), rng.uniform(0.1, 0.9, m)
+            ch = GilbertElliott(p=p, r=1 - p, h_good=mu, h_bad=mu)
+            for c in (1e-3, 0.1, 0.5, 1.0):
+                verdict = outside_proved(A, B, mu, P, c)
+                assert chain_outside_proved(A, B, ch, np.repeat(P[None], 2**m, axis=0), c) == verdict
+                seen.add(verdict)
+    assert seen == {True, False}
+
+
+@pytest.mark.parametrize("delivery", ["current", "next"])
+@pytest.mark.parametrize("seed", [72, 73, 74])
+def test_chain_certificates_are_proved_exactly_below_the_least_radius_and_never_above(seed, delivery):
+    """homogeneous_coupled_riccati's certificate P proves its float bound (chain_certificate_margin + 1) less 1e-7
+    in exact arithmetic, and nothing 1e-6 above the coupled radius r of its own gains K (the dense operator's
+    eigenvalues): r is attained by a law, so a check that proved more would be wrong."""
+    from packetloss_cvx.closedloop.certificates import chain_outside_proved
+    from packetloss_cvx.closedloop.chain_radius import chain_certificate_margin, homogeneous_coupled_riccati
+    from packetloss_cvx.closedloop.mjls import mean_square_radius as chain_radius
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    rng = np.random.default_rng(seed)
+    n, m = 2, 2
+    A, B = rng.normal(size=(n, n)) * 1.5, rng.normal(size=(n, m))
+    ch = GilbertElliott(p=rng.uniform(0.1, 0.4, m), r=rng.uniform(0.2, 0.6, m), h_good=rng.uniform(0.6, 1.0, m),
+                        h_bad=rng.uniform(0.0, 0.4, m))
+    lam, P, K = homogeneous_coupled_riccati(A, B, ch, delivery)
+    attained = chain_radius(A, B, ch, K, delivery, method="dense")
+    bound = 1.0 + chain_certificate_margin(A, B, ch, P, delivery)
+    assert bound == pytest.approx(lam, rel=1e-6)
+    assert bound <= attained * (1 + 1e-9)
+    assert chain_outside_proved(A, B, ch, P, bound * (1 - 1e-7), delivery)
+    assert not chain_outside_proved(A, B, ch, P, attained * (1 + 1e-6), delivery)

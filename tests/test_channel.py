@@ -44,14 +44,14 @@ def test_schedule_is_the_chain_marginal(belief):
     s = with_channel(ge(h_good=[0.95, 1.0], h_bad=[0.1, 0.0], **extra))
     ch = s.channel
     for i in range(2):
-        b0 = ch.initial_belief[i]
+        b0 = ch.initial_belief[i, 0]
         ref = marginals(ch.p[i], ch.r[i], ch.h_good[i], ch.h_bad[i], b0, 6)
         np.testing.assert_allclose(s.mu_schedule[:, i], ref, rtol=1e-14, atol=1e-15)
     if belief is None:   # the stationary start: a constant schedule at the long-run rate
         np.testing.assert_allclose(s.mu_schedule, np.broadcast_to(ch.mean_rate, (6, 2)), rtol=1e-14)
-        np.testing.assert_allclose(ch.stationary, [0.4 / 0.5, 0.2 / 0.5], rtol=1e-15)
+        np.testing.assert_allclose(ch.stationary[:, 0], [0.4 / 0.5, 0.2 / 0.5], rtol=1e-15)
     if belief == "state":
-        np.testing.assert_array_equal(ch.initial_belief, [0.0, 1.0])
+        np.testing.assert_array_equal(ch.initial_belief, [[0.0, 1.0], [1.0, 0.0]])
 
 
 def test_memoryless_chain_is_bernoulli_with_mu_r():

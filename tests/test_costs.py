@@ -306,10 +306,10 @@ def test_closed_form_reports_its_cost_to_the_forward_sums_rounding():
 # ---------------------------------------------------------------- the self-check's band, pinned on both sides
 
 def _referee_off(monkeypatch, relative: float = 0.0, absolute: float = 0.0) -> None:
-    """The self-check's referee (the forward cost of the plan: costs.recursion_cost on the law's states, or
-    costs.plan_cost for a plan rolled out open loop, the dense path's) moved by a chosen amount, so that the
-    disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
-    import packetloss_cvx.lq.costs as costs_module
+    """The self-check's referee (the forward cost of the plan: recursion_cost on the law's states, or plan_cost
+    for a plan rolled out open loop, the dense path's, as the policy calls them) moved by a chosen amount, so that
+    the disagreement the check sees is known: ``relative`` of the forward cost plus ``absolute``."""
+    import packetloss_cvx.lq.policy as costs_module
 
     real, real_plan = costs_module.recursion_cost, costs_module.plan_cost
 

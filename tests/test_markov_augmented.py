@@ -13,8 +13,7 @@ from packetloss_cvx.errors import BudgetError, InputError
 from packetloss_cvx.lq.augmented import augmented_solve, chain_cost, chain_lift
 from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
 from packetloss_cvx.model.chain import attach_channel, chain_matrices, channel_covariance
-from packetloss_cvx.model.channel import GilbertElliott
-from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.qp.markov import exact_qp
 from tests.references import enumerated_chain_cost
@@ -176,8 +175,9 @@ def test_gilbert_elliott_against_every_loss_pattern(seed, method):
     s = random_system(rng, n=2, m=2, horizon=4, time_varying=True, noise=False)
     s = attach_channel(s, random_channel(rng, 2, given=seed % 2 == 0))
     sol = exact_closed_form(s, method=method)
+    ch = s.channel
     chains = [([[1 - p, p], [r, 1 - r]], [hg, hb], [b, 1 - b]) for p, r, hg, hb, b in
-              zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad, s.channel.initial_belief, strict=True)]
+              zip(ch.p, ch.r, ch.h_good, ch.h_bad, ch.initial_belief[:, 0], strict=True)]
     enum = enumerated_chain_cost(s.A, s.B, s.state_weights, s.input_weights, s.initial_weight, s.x0, chains,
                                  sol.inputs)
     assert sol.cost == pytest.approx(enum, rel=1e-12)
@@ -216,7 +216,7 @@ def test_a_lumped_three_state_twin_gives_the_gilbert_elliott_numbers(seed):
     s = bursty(seed)
     twins = []
     for p, r, hg, hb, b in zip(s.channel.p, s.channel.r, s.channel.h_good, s.channel.h_bad,
-                               s.channel.initial_belief, strict=True):
+                               s.channel.initial_belief[:, 0], strict=True):
         T = [[(1 - p) / 2, (1 - p) / 2, p], [(1 - p) / 2, (1 - p) / 2, p], [r / 2, r / 2, 1 - r]]
         twins.append((np.array(T), np.array([hg, hg, hb]), np.array([b / 2, b / 2, 1 - b])))
     plan, gain, cost = augmented_solve(s, chain_matrices(ThreeStateChains(twins)))
@@ -391,7 +391,7 @@ def test_recursion_self_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monk
     if kept:
         assert augmented_solve(s)[2] == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             augmented_solve(s)
 
 
@@ -411,5 +411,26 @@ def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(mo
     if kept:
         assert augmented_solve(s)[2] == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             augmented_solve(s)
+
+
+@pytest.mark.parametrize(("seed", "noise"), [(0, True), (1, True), (2, False)])
+def test_the_chain_cost_closes_the_free_tail_after_the_plan_ends(monkeypatch, seed, noise):
+    """After a plan's last nonzero input the error covariance follows Sigma+ = A Sigma A' + Sigma_W alone; on a
+    stable plant with one state weight and noise it settles and the rest of the horizon adds its settled term
+    (chain_cost closes the tail there). Against the dense second-moment route (J_udp + U'(Omega_g o C_off)U) of the
+    same plan: a plan that ends at step 40 of 300."""
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    augmented_module = importlib.import_module("packetloss_cvx.lq.augmented")
+    rng = np.random.default_rng(300 + seed)
+    s = attach_channel(random_system(rng, n=3, m=2, horizon=300, spectral_radius=0.9, time_varying=False,
+                                     non_stationary=False, noise=noise), GilbertElliott(p=[0.1, 0.3], r=[0.4, 0.2]))
+    U = np.zeros((s.horizon, s.m))
+    U[:40] = rng.normal(size=(40, s.m))
+    closed = []
+    real = augmented_module.stationary_close
+    monkeypatch.setattr(augmented_module, "stationary_close", lambda *a: closed.append(real(*a)) or closed[-1])
+    assert exact_cost(s, U) == pytest.approx(exact_cost(s, U, method="dense"), rel=PATH_AGREEMENT_RTOL)
+    assert any(closed) == noise            # without noise Sigma decays to 0 without settling: every step is summed

@@ -51,7 +51,7 @@ def test_second_moments_match_path_enumeration(seed):
     N = 7
     R = second_moments(ch, N)
     for i in range(2):
-        ref = moments_by_enumeration(ch.p[i], ch.r[i], ch.h_good[i], ch.h_bad[i], ch.initial_belief[i], N)
+        ref = moments_by_enumeration(ch.p[i], ch.r[i], ch.h_good[i], ch.h_bad[i], ch.initial_belief[i, 0], N)
         np.testing.assert_allclose(R[i], ref, rtol=1e-12, atol=1e-15)
 
 
@@ -70,7 +70,7 @@ def test_second_moments_match_sampled_deliveries():
 def test_states_sample_the_chain():
     ch = GilbertElliott(p=[0.2], r=[0.1], state=["good"])
     S = 100_000
-    good = sample_states(ch, 3, S, np.random.default_rng(3))[:, :, 0]
+    good = sample_states(ch, 3, S, np.random.default_rng(3))[:, :, 0] == 0          # state 0: good
     assert good[:, 0].all()
     frac = good[:, 1].mean()
     assert abs(frac - 0.8) <= 4 * np.sqrt(0.8 * 0.2 / S)
@@ -83,20 +83,22 @@ def test_filter_is_bayes_on_the_joint_distribution():
     ch = random_channel(rng, 3)
     b = np.array([0.2, 0.5, 0.9])
     for outcome in ([True, False, True], [False, True, False]):
-        got = filter_belief(ch, b, outcome)
+        got = filter_belief(ch, np.column_stack([b, 1 - b]), outcome)
+        np.testing.assert_allclose(got.sum(axis=1), 1.0, rtol=1e-15)
         for i in range(3):
             # joint over (S_t, S_{t+1}) with the observation at t: enumerate the four pairs
             P = np.array([[1 - ch.p[i], ch.p[i]], [ch.r[i], 1 - ch.r[i]]])
             like = np.array([ch.h_good[i], ch.h_bad[i]]) if outcome[i] else 1 - np.array([ch.h_good[i], ch.h_bad[i]])
             joint = np.array([b[i], 1 - b[i]])[:, None] * like[:, None] * P
-            assert got[i] == pytest.approx(joint[:, 0].sum() / joint.sum(), rel=1e-13)
+            assert got[i, 0] == pytest.approx(joint[:, 0].sum() / joint.sum(), rel=1e-13)
 
 
 def test_gilbert_acknowledgement_reveals_the_state():
     ch = GilbertElliott(p=[0.1, 0.25], r=[0.3, 0.4])
-    np.testing.assert_allclose(filter_belief(ch, [0.37, 0.61], [True, False]), [0.9, 0.4], rtol=1e-15)
+    got = filter_belief(ch, [[0.37, 0.63], [0.61, 0.39]], [True, False])
+    np.testing.assert_allclose(got, [[0.9, 0.1], [0.4, 0.6]], rtol=1e-15)
     with pytest.raises(pl.InputError, match="delivered: channel 0: outcome delivered has probability 0"):
-        filter_belief(ch, [0.0, 0.5], [True, True])
+        filter_belief(ch, [[0.0, 1.0], [0.5, 0.5]], [True, True])
 
 
 def test_plugin_schedules_per_protocol():
@@ -104,9 +106,9 @@ def test_plugin_schedules_per_protocol():
     history = [[True], [False], [False]]
     tcp, b_tcp = plugin_schedule(ch, 4, "tcp", history)
     udp, b_udp = plugin_schedule(ch, 4, "udp", history)
-    assert b_tcp[0] == pytest.approx(0.3)                           # the last loss revealed "bad"
-    assert b_udp[0] == pytest.approx(ch.beliefs(4)[3, 0])           # the prior, three steps on
-    np.testing.assert_allclose(tcp[:, 0], ch.delivery_schedule(4, np.array([0.3]))[:, 0])
+    assert b_tcp[0, 0] == pytest.approx(0.3)                        # the last loss revealed "bad"
+    np.testing.assert_allclose(b_udp[0], ch.beliefs(4)[3, 0])       # the prior, three steps on
+    np.testing.assert_allclose(tcp[:, 0], ch.delivery_schedule(4, np.array([[0.3, 0.7]]))[:, 0])
     s = pl.System(A=[[1.0]], B=[[1.0]], horizon=4, state_weight=[1.0], input_weight=[1.0], x0=[1.0], channel=ch)
     np.testing.assert_allclose(plugin_system(s, "tcp", history).mu_schedule, tcp, rtol=1e-15)
     with pytest.raises(pl.InputError, match="protocol"):
@@ -128,8 +130,8 @@ def test_memoryless_moments_are_bernoulli():
     (lambda ch: channel_covariance(ch, 10**5), "horizon"),         # 80 GB
     (lambda ch: second_moments(ch, 0), "horizon"),                 # an empty array
     (lambda ch: channel_covariance(ch, -3), "horizon"),
-    (lambda ch: filter_belief(ch, [1.5], [True]), "belief"),       # answered 0.98
-    (lambda ch: filter_belief(ch, [0.5], [0.5]), "delivered"),     # half a packet, read as delivered
+    (lambda ch: filter_belief(ch, [[1.5, -0.5]], [True]), "belief"),      # answered 0.98
+    (lambda ch: filter_belief(ch, [[0.5, 0.5]], [0.5]), "delivered"),     # half a packet: delivered?
     (lambda ch: plugin_schedule(ch, 5, "tcp", acknowledged=[[2]]), "delivered"),
     (lambda ch: ch.beliefs(3, belief=[2.0]), "belief"),
 ])

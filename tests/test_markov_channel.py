@@ -16,11 +16,16 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
 from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
-from packetloss_cvx.model.chain import channel_covariance, filter_belief, second_moments
-from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.chain import channel_covariance, filter_belief, second_moments, stacked_moments
+from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.model.files import dumps_system, system_from_dict
-from packetloss_cvx.model.markov_channel import MarkovChannel
-from packetloss_cvx.tolerances import ROW_SUM_ATOL
+from packetloss_cvx.tolerances import (
+    CHAIN_FORM_RTOL,
+    KERNEL_ZERO_ATOL,
+    PATH_AGREEMENT_RTOL,
+    ROW_SUM_ATOL,
+    SELF_CHECK_RTOL,
+)
 
 BASE = {
     "plant": {"A": [[1.0, 0.1], [0.0, 1.0]], "B": [[0.0, 1.0], [1.0, 0.0]]},
@@ -256,19 +261,47 @@ def test_round_trips_equality_pickling_and_immutability():
     assert [b.tolist() for b in starts] == [[0.0, 0.0, 1.0], [0.0, 1.0]]
 
 
-def test_gilbert_elliott_twin_has_the_same_schedule_covariance_and_chain():
-    ge = GilbertElliott(p=[0.02, 0.3], r=[0.18, 0.1], h_good=[1.0, 0.9], h_bad=[0.0, 0.2], belief=[0.3, 0.6])
-    twin = MarkovChannel.from_gilbert_elliott(ge)
-    np.testing.assert_allclose(twin.delivery_schedule(40), ge.delivery_schedule(40), rtol=1e-14)
-    np.testing.assert_allclose(channel_covariance(twin, 40), channel_covariance(ge, 40), rtol=1e-12, atol=1e-16)
-    np.testing.assert_allclose(twin.correlation, ge.correlation, rtol=1e-15)
-    stationary = MarkovChannel.from_gilbert_elliott(GilbertElliott(p=[0.02], r=[0.18]))
-    assert stationary.stationary[0, 0] == 0.18 / (0.02 + 0.18)      # the same closed form as GilbertElliott
+def test_gilbert_elliott_is_the_two_state_chain_with_its_closed_forms():
+    """GilbertElliott(...) builds the one channel type: T = [[1 - p, p], [r, 1 - r]], d = (h_good, h_bad),
+    pi0 = (b, 1 - b), its rates read back. Its schedule and covariance, computed by the k-state chain, agree with the
+    two-state closed forms b_{t+1} = r + lambda b_t, mu = h_bad + (h_good - h_bad) b and
+    Cov(v_t, v_s) = lambda^|t-s| b_u (1 - b_u) (h_good - h_bad)^2 (u = min(t, s)) within PATH_AGREEMENT_RTOL of each
+    array's largest entry (two exact paths to one number); the chain typed as decimals agrees within CHAIN_FORM_RTOL."""
+    p, r, hg, hb, b0 = [0.02, 0.3], [0.18, 0.1], [1.0, 0.9], [0.0, 0.2], [0.3, 0.6]
+    ge = GilbertElliott(p=p, r=r, h_good=hg, h_bad=hb, belief=b0)
+    assert type(ge) is MarkovChannel
+    assert ge.sizes == (2, 2)
+    for i in range(2):
+        assert ge.transition[i].tolist() == [[1.0 - p[i], p[i]], [r[i], 1.0 - r[i]]]
+        assert ge.delivery[i].tolist() == [hg[i], hb[i]]
+        assert ge.initial_belief[i].tolist() == [b0[i], 1.0 - b0[i]]
+    assert (ge.p.tolist(), ge.r.tolist(), ge.h_good.tolist(), ge.h_bad.tolist()) == (p, r, hg, hb)
+    N = 40
+    lam = 1.0 - np.array(p) - np.array(r)
+    b = np.empty((N, 2))
+    b[0] = b0
+    for t in range(1, N):
+        b[t] = np.array(r) + lam * b[t - 1]
+    mu = np.array(hb) + (np.array(hg) - np.array(hb)) * b
+    np.testing.assert_allclose(ge.correlation, lam, rtol=0, atol=PATH_AGREEMENT_RTOL)
+    np.testing.assert_allclose(ge.delivery_schedule(N), mu, rtol=0, atol=PATH_AGREEMENT_RTOL * mu.max())
+    C = channel_covariance(ge, N)
+    lag = np.abs(np.subtract.outer(np.arange(N), np.arange(N)))
+    first = np.minimum.outer(np.arange(N), np.arange(N))
+    for i in range(2):
+        ref = lam[i] ** lag * (b[:, i] * (1 - b[:, i]) * (hg[i] - hb[i]) ** 2)[first]
+        ref[np.diag_indices(N)] = mu[:, i] * (1 - mu[:, i])
+        np.testing.assert_allclose(C[i], ref, rtol=0, atol=PATH_AGREEMENT_RTOL * np.abs(ref).max())
+    typed = MarkovChannel(transition=[[[0.98, 0.02], [0.18, 0.82]], [[0.7, 0.3], [0.1, 0.9]]],
+                          delivery=[[1.0, 0.0], [0.9, 0.2]], belief=[[0.3, 0.7], [0.6, 0.4]])
+    np.testing.assert_allclose(typed.delivery_schedule(N), ge.delivery_schedule(N), rtol=CHAIN_FORM_RTOL)
+    np.testing.assert_allclose(channel_covariance(typed, N), C, rtol=0, atol=CHAIN_FORM_RTOL * np.abs(C).max())
+    assert GilbertElliott(p=[0.02], r=[0.18]).stationary[0, 0] == 0.18 / (0.02 + 0.18)      # the closed form
 
 
 def _numbers_agree(a, b, path=""):
-    """Every number of two JSON documents agrees to 1e-10 relative (1e-12 absolute beside rounding-level
-    values such as a relative loss of 1e-16); every string, flag and key is equal."""
+    """Every number of two JSON documents agrees within CHAIN_FORM_RTOL relative (KERNEL_ZERO_ATOL absolute beside
+    rounding-level values such as a relative loss of 1e-16); every string, flag and key is equal."""
     if isinstance(a, dict):
         assert set(a) == set(b), path
         for key in a:
@@ -278,14 +311,16 @@ def _numbers_agree(a, b, path=""):
         for k, (x, y) in enumerate(zip(a, b, strict=True)):
             _numbers_agree(x, y, f"{path}[{k}]")
     elif isinstance(a, float) and isinstance(b, float) and not (math.isnan(a) and math.isnan(b)):
-        assert abs(a - b) <= 1e-10 * max(abs(a), abs(b)) + 1e-12, (path, a, b)
+        assert abs(a - b) <= CHAIN_FORM_RTOL * max(abs(a), abs(b)) + KERNEL_ZERO_ATOL, (path, a, b)
     elif not (isinstance(a, float) and math.isnan(a)):
         assert a == b, path
 
 
 @pytest.mark.parametrize("argv", [("solve", "--no-qp"), ("simulate", "--samples", "400", "--closed-loop", "--law",
                                                                     "all", "--steps", "15")])
-def test_two_state_markov_twin_of_pendulum_bursty_gives_the_same_json(argv, capsys, tmp_path):
+def test_pendulum_bursty_typed_as_a_markov_table_gives_the_same_json(argv, capsys, tmp_path):
+    """The file's Gilbert–Elliott table and the transition matrix a person types for it (T[1, 1] = 0.82, where
+    1 - r is 0.8200000000000001): one chain to rounding, the same numbers within CHAIN_FORM_RTOL."""
     text = dumps_system(pl.load_example("pendulum_bursty"))
     assert 'model = "gilbert-elliott"\np = [0.02]\nr = [0.18]\nh_good = [1.0]\nh_bad = [0.0]\n' in text
     twin = text.replace('model = "gilbert-elliott"\np = [0.02]\nr = [0.18]\nh_good = [1.0]\nh_bad = [0.0]\n',
@@ -318,20 +353,23 @@ def _differing(a, b, path=""):
     return [] if same else [path]
 
 
-def test_the_exact_two_state_twin_gives_the_same_bits(capsys, tmp_path):
-    """The twin written by MarkovChannel.from_gilbert_elliott (its T[1, 1] is 1 - r as Gilbert–Elliott computes it,
-    0.8200000000000001, not the 0.82 a person types) gives the same bits through solve --json and simulate --json
-    (the closed loop's jump-law recursion starts from mjls.mode_start, which reads both starts from chain_matrices)."""
+def test_a_chain_gives_the_same_bits_whichever_table_it_is_written_as(capsys, tmp_path):
+    """The table a channel was read from (its ``form``) is presentation only: pendulum_bursty's Gilbert–Elliott chain
+    written back as a "markov" table of the same arrays runs the same path, so solve --json and simulate --json give
+    the same bits (the contract of one path run twice), and only the channel's own description differs."""
     ge = pl.load_example("pendulum_bursty")
-    twin = MarkovChannel.from_gilbert_elliott(ge.channel)
-    assert twin.transition[0][1, 1] == 1.0 - 0.18 != 0.82
+    same = MarkovChannel(transition=ge.channel.transition, delivery=ge.channel.delivery)
+    assert same.to_dict()["model"] == "markov"
+    assert ge.channel.to_dict()["model"] == "gilbert-elliott"
+    assert same.transition[0][1, 1] == 1.0 - 0.18 != 0.82
+    assert same == ge.channel
     for method in ("recursion", "dense"):                  # both routes, whichever auto takes
-        a, b = exact_closed_form(ge, method=method), exact_closed_form(ge.with_channel(twin), method=method)
+        a, b = exact_closed_form(ge, method=method), exact_closed_form(ge.with_channel(same), method=method)
         assert a.cost == b.cost
         np.testing.assert_array_equal(a.inputs, b.inputs)
-        assert exact_cost(ge, a.inputs) == exact_cost(ge.with_channel(twin), a.inputs)
-    path = tmp_path / "twin.toml"
-    path.write_text(dumps_system(ge.with_channel(twin)))
+        assert exact_cost(ge, a.inputs) == exact_cost(ge.with_channel(same), a.inputs)
+    path = tmp_path / "same.toml"
+    path.write_text(dumps_system(ge.with_channel(same)))
     for argv in (("solve", "--no-qp"), ("simulate", "--samples", "300", "--closed-loop", "--law", "all", "--steps",
                                           "10")):
         docs = []
@@ -340,14 +378,12 @@ def test_the_exact_two_state_twin_gives_the_same_bits(capsys, tmp_path):
             docs.append(json.loads(capsys.readouterr().out))
         a, b = docs
         if argv[0] == "solve":
+            assert a["markov"]["belief"] == [0.9]
+            assert b["markov"]["belief"] == [[0.9, 0.1]]
             for doc in docs:
                 doc["markov"].pop("channel")
                 doc["markov"].pop("belief")
-            assert _differing(a, b) == []
-        else:
-            a.pop("channel", None)
-            b.pop("channel", None)
-            assert _differing(a, b) == []
+        assert _differing(a, b) == []
 
 
 def test_periodic_and_reducible_chains_with_a_given_start():
@@ -362,3 +398,23 @@ def test_periodic_and_reducible_chains_with_a_given_start():
     # from 3: absorbed in {0} with probability 0.5 / 0.75 = 2/3, in {1, 2} with 1/3 (there 1/3, 2/3)
     np.testing.assert_allclose(ch.stationary, [[2 / 3, 1 / 9, 2 / 9, 0.0]], atol=1e-12)
     np.testing.assert_allclose(ch.mean_rate, [2 / 3 + 0.5 / 9], rtol=1e-12)
+
+
+def test_bernoulli_is_the_one_state_chain():
+    """MarkovChannel.bernoulli(mu): one-state chains, T = [[1]], d = (mu_i,). Behind them two_actuator keeps its
+    schedule and the stacked moments of its independent Bernoulli deliveries (C = diag(mu (1 - mu)), exact zeros
+    off it), and the exact Markov minimum is the paper's Bernoulli closed form (the UDP-like one through another
+    algorithm, within SELF_CHECK_RTOL; measured 4.0e-15)."""
+    s = pl.load_example("two_actuator")
+    ch = MarkovChannel.bernoulli(s.mu_schedule[0])
+    assert ch.sizes == (1, 1)
+    assert ch.to_dict() == {"model": "markov", "transition": [[[1.0]], [[1.0]]], "delivery": [[0.9], [0.5]]}
+    behind = s.with_channel(ch)
+    np.testing.assert_array_equal(behind.mu_schedule, s.mu_schedule)
+    v, C = stacked_moments(behind)
+    np.testing.assert_array_equal(C, np.diag(v * (1.0 - v)))
+    for protocol in ("udp", "tcp"):
+        assert exact_closed_form(behind, protocol).cost == pytest.approx(pl.closed_form(s, protocol).cost,
+                                                                         rel=SELF_CHECK_RTOL)
+    with pytest.raises(pl.ProbabilityError, match=r"^channel\.rate"):
+        MarkovChannel.bernoulli([0.5, 1.5], prefix="channel.")

@@ -31,7 +31,7 @@ def dense_reference(system, U):
     ch, N, m = system.channel, system.horizon, system.m
     R = np.outer(pred.Vbar, pred.Vbar)
     for i in range(m):
-        Ri = moments_by_enumeration(ch.p[i], ch.r[i], ch.h_good[i], ch.h_bad[i], ch.initial_belief[i], N)
+        Ri = moments_by_enumeration(ch.p[i], ch.r[i], ch.h_good[i], ch.h_bad[i], ch.initial_belief[i, 0], N)
         idx = np.arange(N) * m + i
         R[np.ix_(idx, idx)] = Ri
     u, x = U.ravel(), system.x0
@@ -154,5 +154,5 @@ def test_dense_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_r
     if kept:
         assert exact_closed_form(s, method="dense").cost == exact
     else:
-        with pytest.raises(pl.NumericalError, match="the expected cost of its own plan"):
+        with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             exact_closed_form(s, method="dense")

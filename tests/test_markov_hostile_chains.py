@@ -13,8 +13,7 @@ import pytest
 from packetloss_cvx.errors import NumericalError
 from packetloss_cvx.lq.markov_cost import exact_closed_form
 from packetloss_cvx.model.chain import attach_channel, chain_matrices
-from packetloss_cvx.model.channel import GilbertElliott
-from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.qp.markov import exact_qp
 from tests.references import enumerated_chain_cost

@@ -17,8 +17,8 @@ def exact_loop_cost(system, K, steps):
     """E[sum_t x'Wx + (Vu)'Psi(Vu) + x_T'Wx_T] for u = -K x in every mode, from the second moments."""
     ch = system.channel
     modes, _, h = mode_chain(ch)
-    b0 = ch.initial_belief
-    pi0 = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
+    b0 = ch.initial_belief[:, 0]                                   # P(good); mode entries 0 = good
+    pi0 = np.prod(np.where(modes == 0, b0, 1 - b0), axis=1)
     op = second_moment_operator(system.A, system.B, ch, K)
     n, W, psi = system.n, system.state_weights[0], np.diag(system.input_weights[0])
     Q = np.concatenate([w * np.outer(system.x0, system.x0).ravel() for w in pi0])
@@ -86,8 +86,9 @@ def test_belief_gains_of_many_beliefs_are_the_gains_of_each():
                   input_weight=[1.0, 1.0], x0=[1.0, 0.0], channel=GilbertElliott(p=[0.2, 0.3], r=[0.5, 0.6]))
     rng = np.random.default_rng(4)
     levels = np.array([0.3, 0.55, 0.8])
-    beliefs = levels[rng.integers(0, 3, size=(60, 2))]
-    beliefs[::7] += 1e-14                                           # the same plan after rounding
+    good = levels[rng.integers(0, 3, size=(60, 2))]
+    good[::7] += 1e-14                                              # the same plan after rounding
+    beliefs = np.stack([good, 1.0 - good], axis=2)                  # (60, m, 2): P(good), P(bad)
     many = BeliefGains(s, "tcp").many(beliefs)
     one = BeliefGains(s, "tcp")
     np.testing.assert_array_equal(many, np.stack([one(b) for b in beliefs]))

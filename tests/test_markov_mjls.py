@@ -45,9 +45,10 @@ def simulated_second_moments(system, gains, steps, samples, seed):
     """E||x_k||^2 by sampling the chain and its deliveries; returns (means, standard errors) per step."""
     ch = system.channel
     rng = np.random.default_rng(seed)
-    good = sample_states(ch, steps, samples, rng)                        # (S, T, m)
-    # mode index: product([1, 0], repeat=m) order, channel 0 the most significant bit (1 = bad)
-    index = np.sum((~good).astype(int) * 2 ** np.arange(ch.m - 1, -1, -1), axis=2)
+    states = sample_states(ch, steps, samples, rng)                      # (S, T, m): 0 = good, 1 = bad
+    good = states == 0
+    # mode index: product of state indices, channel 0 the most significant bit (1 = bad)
+    index = np.sum(states * 2 ** np.arange(ch.m - 1, -1, -1), axis=2)
     # the deliveries given the states (h_good = 1, h_bad = 0 here: v = good)
     X = np.repeat(system.x0[None], samples, axis=0)
     out = []
@@ -65,8 +66,8 @@ def exact_second_moments(system, gains, steps):
     """E||x_k||^2 by iterating the second-moment operator from Q_a(0) = pi0_a x0 x0'."""
     ch = system.channel
     modes, _, _ = mode_chain(ch)
-    b0 = ch.initial_belief
-    pi0 = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
+    b0 = ch.initial_belief[:, 0]                                   # P(good); mode entries 0 = good
+    pi0 = np.prod(np.where(modes == 0, b0, 1 - b0), axis=1)
     op = second_moment_operator(system.A, system.B, ch, gains)
     n = system.n
     Q = np.concatenate([w * np.outer(system.x0, system.x0).ravel() for w in pi0])
@@ -131,7 +132,7 @@ def test_gains_are_optimal_by_policy_evaluation():
 def test_memoryless_chain_gives_the_bernoulli_riccati():
     s = bursty_twin(pl.load_example("pendulum"), 0.0)                    # p = 0.1, r = 0.9: Bernoulli(0.9)
     res = coupled_riccati(s)
-    pi = s.channel.stationary[0]
+    pi = s.channel.stationary[0, 0]
     P = pi * res.cost_matrices[0] + (1 - pi) * res.cost_matrices[1]
     A, B, W, psi = s.A, s.B, s.state_weights[0], s.input_weights[0]
     G = B.T @ P @ B + psi
@@ -244,6 +245,39 @@ def test_fractional_h_jump_law_stage_costs_by_hand_and_by_the_bernoulli_moments(
     assert first == pytest.approx(5.0 + 2.0 * mu0[0] * 0.25 + 3.0 * mu0[1] * 0.25, rel=1e-14)
 
 
+@pytest.mark.parametrize("delivery", ["current", "next"])
+def test_jump_law_stage_costs_decay_with_the_loop_over_a_long_horizon(delivery):
+    """A mean-square stable loop's costs decay at its radius for ever: the moment recursion is linear in Q, the
+    rounding's non-symmetric part included. Reference: vec(Q) powered by the dense operator (Kronecker products),
+    the stage cost sum_a tr(W_a Q_a) with W_a built by hand; for "next" the decay rate against the radius. (A
+    recursion that read Q' for Q in one term grew its rounding's skew part by 1.3 a step: two_actuator's costs
+    rose from 4e-13 back to 4e39 at t = 500.)"""
+    from packetloss_cvx.closedloop.mjls import jump_law_stage_costs, mode_start
+
+    ch = GilbertElliott(p=[0.1, 0.2], r=[0.4, 0.5], h_good=[0.95, 0.9], h_bad=[0.1, 0.2])
+    s = pl.load_example("two_actuator").with_channel(ch)
+    res = coupled_riccati(s)
+    steps = 400
+    costs = jump_law_stage_costs(s, res.gains, steps, delivery, first_gain=res.gains[0])
+    radius = mean_square_radius(s.A, s.B, ch, res.gains, delivery)
+    assert radius < 0.7
+    assert np.all(costs > 0)
+    if delivery == "current":
+        h = mode_chain(ch)[2]
+        op = second_moment_operator(s.A, s.B, ch, res.gains)
+        q = (mode_start(ch)[:, None, None] * np.outer(s.x0, s.x0)).ravel()
+        W = [s.state_weights[0] + sum(s.input_weights[0][i] * h[a, i] * np.outer(res.gains[a, i], res.gains[a, i])
+                                      for i in range(2)) for a in range(4)]
+        reference = []
+        for _ in range(steps):
+            Q = q.reshape(4, 2, 2)
+            reference.append(sum(float(np.sum(W[a] * Q[a])) for a in range(4)))
+            q = op @ q
+        np.testing.assert_allclose(costs, reference, rtol=1e-9)
+    decay = (costs[-1] / costs[steps // 2]) ** (1 / (steps - 1 - steps // 2))
+    assert decay == pytest.approx(radius, rel=0.05)
+
+
 @pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
 def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monkeypatch, factor, kept):
     """The check after the iteration, one more step from the answer P, sees a residual max|step(P) - P| / max|P| of
@@ -254,7 +288,7 @@ def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check
 
     s = scalar(0.0, 0.5)
     answer = coupled_riccati(s).cost_matrices.copy()
-    real = mjls_module._riccati_step
+    real = mjls_module._coupled_riccati_step
 
     def step(P, *args):
         new, K = real(P, *args)
@@ -263,7 +297,7 @@ def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check
             new.flat[np.argmax(np.abs(new))] += factor * SELF_CHECK_RTOL * np.max(np.abs(P))
         return new, K
 
-    monkeypatch.setattr(mjls_module, "_riccati_step", step)
+    monkeypatch.setattr(mjls_module, "_coupled_riccati_step", step)
     if kept:
         res = coupled_riccati(s)
         np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-10)

@@ -18,10 +18,10 @@ from packetloss_cvx.closedloop.mjls import (
     mode_start,
 )
 from packetloss_cvx.closedloop.riccati import dp_riccati
-from packetloss_cvx.model.channel import GilbertElliott
-from packetloss_cvx.model.markov_channel import MarkovChannel
+from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.montecarlo.markov_channels import sample_markov_paths, sample_states
 from packetloss_cvx.montecarlo.simulate import simulate
+from packetloss_cvx.tolerances import CHAIN_FORM_RTOL
 from tests.references import enumerated_radius
 
 T3 = [[0.7, 0.2, 0.1], [0.1, 0.5, 0.4], [0.3, 0.3, 0.4]]
@@ -125,18 +125,22 @@ def test_iid_chain_coupled_riccati_is_dp_riccati_at_the_mean_rate():
     np.testing.assert_array_equal(res.gains[2], np.zeros((1, 2)))
 
 
-def test_two_state_twin_has_the_gilbert_elliott_loop():
+def test_gilbert_elliott_and_its_typed_chain_give_the_same_loop():
+    """GilbertElliott(p, r, h_bad, belief) and the two-state chains typed as decimals (one chain to rounding: the
+    belief 0.2 against 1 - 0.8 = 0.19999999999999996): the coupled Riccati law, the mode start and the jump-law costs
+    agree within CHAIN_FORM_RTOL of their largest entries."""
     ge = GilbertElliott(p=[0.1, 0.3], r=[0.4, 0.5], h_bad=[0.1, 0.0], belief=[0.3, 0.8])
-    twin = MarkovChannel.from_gilbert_elliott(ge)
-    a, b = coupled_riccati(system(ge, 8)), coupled_riccati(system(twin, 8))
-    np.testing.assert_array_equal(a.gains, b.gains)
-    np.testing.assert_array_equal(a.transition, b.transition)
-    assert a.spectral_radius == b.spectral_radius
-    np.testing.assert_allclose(mode_start(twin), mode_start(ge), rtol=1e-15)
+    typed = MarkovChannel(transition=[[[0.9, 0.1], [0.4, 0.6]], [[0.7, 0.3], [0.5, 0.5]]],
+                          delivery=[[1.0, 0.1], [1.0, 0.0]], belief=[[0.3, 0.7], [0.8, 0.2]])
+    a, b = coupled_riccati(system(ge, 8)), coupled_riccati(system(typed, 8))
+    for x, y in ((a.gains, b.gains), (a.cost_matrices, b.cost_matrices), (a.transition, b.transition),
+                 (mode_start(ge), mode_start(typed))):
+        np.testing.assert_allclose(x, y, rtol=0, atol=CHAIN_FORM_RTOL * np.abs(y).max())
+    assert a.spectral_radius == pytest.approx(b.spectral_radius, rel=CHAIN_FORM_RTOL)
     gains = np.random.default_rng(9).normal(size=(5, 4, 2, 2)) * 0.3
     for delivery in ("current", "next"):
-        costs = [jump_law_stage_costs(system(c, 8), gains, 5, delivery, first_gain=gains[0, 0]) for c in (ge, twin)]
-        np.testing.assert_allclose(costs[0], costs[1], rtol=1e-13)
+        costs = [jump_law_stage_costs(system(c, 8), gains, 5, delivery, first_gain=gains[0, 0]) for c in (ge, typed)]
+        np.testing.assert_allclose(costs[0], costs[1], rtol=0, atol=CHAIN_FORM_RTOL * np.abs(costs[1]).max())
 
 
 def test_jump_law_stage_costs_match_every_state_path():
@@ -179,13 +183,24 @@ def test_sampled_paths_follow_the_chain():
     assert np.all(sample_states(ch, 1, 5, np.random.default_rng(0))[:, 0] == [2, 0])
 
 
-def test_two_state_twin_draws_the_gilbert_elliott_paths():
-    ge = GilbertElliott(p=[0.25, 0.5], r=[0.75, 0.25], h_bad=[0.5, 0.0])
-    twin = MarkovChannel.from_gilbert_elliott(ge)
-    good, v = sample_markov_paths(ge, 8, 50, np.random.default_rng(13))
-    states, w = sample_markov_paths(twin, 8, 50, np.random.default_rng(13))
-    np.testing.assert_array_equal(good, states == 0)
-    np.testing.assert_array_equal(v, w)
+def test_gilbert_elliott_paths_follow_the_documented_draws():
+    """sample_markov_paths' rule for a Gilbert–Elliott channel, written out by hand on the same uniform numbers:
+    good at the start iff u_0 < r / (p + r), then good iff u_t < 1 - p after a good step and u_t < r after a bad one;
+    where a state does not reveal the outcome (h_bad = 0.5), a second uniform array decides v = u' < h. The draws are
+    a function of the stream (the one sampler run on it), so they agree to the bit."""
+    p, r, h_bad = np.array([0.25, 0.5]), np.array([0.75, 0.25]), np.array([0.5, 0.0])
+    ge = GilbertElliott(p=p, r=r, h_bad=h_bad)
+    states, v = sample_markov_paths(ge, 8, 50, np.random.default_rng(13))
+    rng = np.random.default_rng(13)
+    u = rng.random((50, 8, 2))
+    good = np.empty((50, 8, 2), dtype=bool)
+    good[:, 0] = u[:, 0] < r / (p + r)
+    for t in range(1, 8):
+        good[:, t] = u[:, t] < np.where(good[:, t - 1], 1.0 - p, r)
+    h = np.where(good, 1.0, h_bad)
+    second = rng.random((50, 8, 2))
+    np.testing.assert_array_equal(states == 0, good)
+    np.testing.assert_array_equal(v, second < h)
 
 
 @pytest.mark.parametrize("seed", [14, 15])

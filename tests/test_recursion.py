@@ -6,6 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import packetloss_cvx as pl
+from packetloss_cvx.lq.structure import structure_of
 from packetloss_cvx.model.random_systems import random_system
 
 PROTOCOLS = ("tcp", "udp")
@@ -327,17 +328,17 @@ def test_a_state_that_underflowed_to_zero_stays_zero_only_under_finite_gains(mon
     K, _, _ = backward_pass(s, "tcp")
     mu, x = s.mu_schedule[None], s.x0[None]
     U = np.empty((1, s.horizon, s.m))
-    X = mean_states(s, mu, U, x, K[None])
+    X = mean_states(structure_of(s), mu, U, x, K[None])
     assert not X[0, -100:].any()                                 # the case in question: the state reached 0
     assert X[0, 0].any()
     U_steps = np.empty_like(U)
-    X_steps = _full_pass(monkeypatch, lambda: mean_states(s, mu, U_steps, x, K[None]))
+    X_steps = _full_pass(monkeypatch, lambda: mean_states(structure_of(s), mu, U_steps, x, K[None]))
     assert np.abs(X_steps[0, -100:]).max() < 1e-300             # step by step, the tail lingers in subnormals
     np.testing.assert_allclose(X, X_steps, rtol=0, atol=1e-13 * np.abs(X_steps).max())
     np.testing.assert_allclose(U, U_steps, rtol=0, atol=1e-13 * np.abs(U_steps).max())
     K_bad = K.copy()
     K_bad[-3] = np.inf
-    X_bad = mean_states(s, mu, np.empty_like(U), x, K_bad[None])
+    X_bad = mean_states(structure_of(s), mu, np.empty_like(U), x, K_bad[None])
     assert np.isnan(X_bad[0, -2:]).all()
     assert not np.isnan(X_bad[0, :-3]).any()
 
@@ -512,8 +513,8 @@ def test_unstable_plant_under_an_unstable_run_is_rolled_out_step_by_step():
     K = np.zeros((1, s.horizon, s.m, s.n))
     K[0, 0] = K[0, -1] = 0.1                       # a run of one gain over steps 1..N-2
     U = np.empty((1, s.horizon, s.m))
-    X = mean_states(s, mu, U, x, K)
-    np.testing.assert_array_equal(mean_states(s, mu, U, x), X)
+    X = mean_states(structure_of(s), mu, U, x, K)
+    np.testing.assert_array_equal(mean_states(structure_of(s), mu, U, x), X)
 
 
 def test_lyapunov_weights_close_their_tail_only_for_a_stable_plant(monkeypatch):
@@ -543,10 +544,12 @@ def test_drift_is_weighed_only_where_a_tail_can_close(monkeypatch):
     plant with mu < 1 has a different added diagonal at every step (it grows with the sums): neither weighs its
     drift at any step. Their stable twins (and the TCP-like pass, one map) do."""
     import packetloss_cvx.lq.recursion as recursion
+    import packetloss_cvx.lq.structure as structure
     from packetloss_cvx.model.files import system_from_dict
 
+
     weighed = {"sum": 0, "pass": 0}
-    small_change, drift = recursion._small_change, recursion._drift
+    small_change, drift = structure.small_change, recursion._drift
 
     def count(name, fn):
         def counted(*args):
@@ -554,7 +557,7 @@ def test_drift_is_weighed_only_where_a_tail_can_close(monkeypatch):
             return fn(*args)
         return counted
 
-    monkeypatch.setattr(recursion, "_small_change", count("sum", small_change))
+    monkeypatch.setattr(structure, "small_change", count("sum", small_change))
     monkeypatch.setattr(recursion, "_drift", count("pass", drift))
     for rho, protocol, expected in ((1.05, "udp", 0), (1.05, "tcp", 1), (0.95, "udp", 1)):
         s = random_system(np.random.default_rng(1), n=4, m=2, horizon=1000, spectral_radius=rho, time_varying=False,
@@ -603,9 +606,9 @@ def test_a_point_answers_the_same_in_any_batch_below_flat_min():
         mus = rng.uniform(0.0, 1.0, (5, s.horizon, s.m))
         d = np.abs(rng.normal(size=(s.horizon, s.m)))
         added = input_weight(s, "udp", mus, d)
-        K5, P5 = backward_batch(s, "udp", mus, added)
+        K5, P5 = backward_batch(structure_of(s), "udp", mus, added)
         for k in range(5):
-            K1, P1 = backward_batch(s, "udp", mus[k:k + 1], added[k:k + 1])
+            K1, P1 = backward_batch(structure_of(s), "udp", mus[k:k + 1], added[k:k + 1])
             np.testing.assert_array_equal(K1[0], K5[k])
             np.testing.assert_array_equal(P1[0], P5[k])
     assert FLAT_MIN > 5

@@ -203,7 +203,7 @@ def test_final_residual_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol
     c2, c1, c0 = 1 - a * a + mu * a * a, (1 - a * a) - 1, -1.0
     p = (-c1 + np.sqrt(c1 * c1 - 4 * c2 * c0)) / (2 * c2)
     answer = dp_riccati(s).cost_to_go.copy()
-    real = riccati_module.riccati_step
+    real = riccati_module.modified_riccati_step
 
     def step(P, *args):
         K, new = real(P, *args)
@@ -211,7 +211,7 @@ def test_final_residual_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol
             new = new + factor * MOMENT_RESIDUAL_RTOL * np.linalg.norm(P)
         return K, new
 
-    monkeypatch.setattr(riccati_module, "riccati_step", step)
+    monkeypatch.setattr(riccati_module, "modified_riccati_step", step)
     if kept:
         got = dp_riccati(s)
         assert got.cost_to_go[0, 0] == pytest.approx(p, rel=1e-9)

@@ -8,8 +8,14 @@ stacked path against the one-mode path: the same map).
 
 import numpy as np
 import pytest
+
 from packetloss_cvx.closedloop.riccati_map import (
-    bernoulli_rates, certificate_bound, chain_rates, cut_candidates, reach_split, riccati_squares,
+    bernoulli_rates,
+    certificate_bound,
+    chain_rates,
+    cut_candidates,
+    reach_split,
+    riccati_squares,
 )
 
 

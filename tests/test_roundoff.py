@@ -24,6 +24,7 @@ from packetloss_cvx.lq.roundoff import (
     two_product,
     two_sum,
 )
+from packetloss_cvx.lq.structure import structure_of
 from packetloss_cvx.model.random_systems import random_system
 
 from .references import exact_mean_states, exact_quadratic
@@ -137,7 +138,7 @@ def _case(seed, rho, N):
 def _rolled_error(s, U, enough=0.0):
     """(bound, exact |sum xhat'Q xhat - sum x'Q x|, exact sum x'Q x) of plan U, rolled out as expected_cost does."""
     mu, x = s.mu_schedule[None], s.x0[None]
-    X = mean_states(s, mu, U[None], x)
+    X = mean_states(structure_of(s), mu, U[None], x)
     Q = s.state_weights[0] if len(weight_head(s)) == s.horizon else s.state_weights
     bound = rollout_cost_error(s.A, s.B, mu, U[None], x, X, Q, enough)[0]
     exact = exact_quadratic(exact_mean_states(s.A, s.B, s.x0, s.mu_schedule, U), Q)

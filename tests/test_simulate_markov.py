@@ -94,17 +94,17 @@ def test_non_revealing_tcp_has_no_exact_value_and_says_why():
     assert "HMM-filtered" in tcp["reason"]
     assert sim.closed_loop["udp"].to_dict()["exact_stage_cost"] is not None     # one gain per step: exact
     gains = BeliefGains(s, "tcp", budget=2)
-    gains(np.array([0.1, 0.2]))
-    gains(np.array([0.3, 0.4]))
+    gains(np.array([[0.1, 0.9], [0.2, 0.8]]))
+    gains(np.array([[0.3, 0.7], [0.4, 0.6]]))
     with pytest.raises(ResourceError, match="distinct belief"):
-        gains(np.array([0.5, 0.6]))
+        gains(np.array([[0.5, 0.5], [0.6, 0.4]]))
 
 
 def enumerated_costs(s, first, table, delivery, steps):
     """E[stage_t] by enumerating every channel path (no noise): probabilities from the chain, deliveries = states."""
     modes, T, h = mode_chain(s.channel)
-    b0 = s.channel.initial_belief
-    pi0 = np.prod(np.where(modes == 1, b0, 1 - b0), axis=1)
+    b0 = s.channel.initial_belief[:, 0]                            # P(good); mode entries 0 = good
+    pi0 = np.prod(np.where(modes == 0, b0, 1 - b0), axis=1)
     Omega, psi = s.state_weights[0], s.input_weights[0]
     out = np.zeros(steps)
     for path in itertools.product(range(len(modes)), repeat=steps):

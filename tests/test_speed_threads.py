@@ -7,6 +7,7 @@ from threadpoolctl import threadpool_info, threadpool_limits
 
 import packetloss_cvx as pl
 import packetloss_cvx.lq.costs as costs_module
+import packetloss_cvx.lq.policy as policy_module
 from packetloss_cvx import threads
 from packetloss_cvx.errors import InputError
 from packetloss_cvx.lq.evaluator import CostEvaluator
@@ -19,15 +20,21 @@ def _blas_threads() -> set[int]:
 
 @pytest.fixture
 def spy(monkeypatch):
-    """Record the BLAS thread counts seen inside closed_form (through a function it calls)."""
+    """Record the BLAS thread counts seen inside closed_form and expected_cost (through a function each calls once:
+    the policy's choice of weights, expected_cost's variance weights)."""
     seen = []
-    real = costs_module.udp_variance_weights
+    real, real_weights = policy_module.lyapunov_weights_if_needed, costs_module.udp_variance_weights
 
-    def recording(system):
+    def recording(system, protocol, method):
         seen.append(_blas_threads())
-        return real(system)
+        return real(system, protocol, method)
 
-    monkeypatch.setattr(costs_module, "udp_variance_weights", recording)
+    def recording_weights(system):
+        seen.append(_blas_threads())
+        return real_weights(system)
+
+    monkeypatch.setattr(policy_module, "lyapunov_weights_if_needed", recording)
+    monkeypatch.setattr(costs_module, "udp_variance_weights", recording_weights)
     return seen
 
 
@@ -88,26 +95,26 @@ def test_overlapping_threads_leave_the_process_setting_as_it_was(two_actuator):
         pytest.skip("no BLAS thread pool found by threadpoolctl")
     before = _blas_threads()
     inside, release = threading.Event(), threading.Event()
-    real = costs_module.udp_variance_weights
+    real = policy_module.lyapunov_weights_if_needed
 
-    def slow(system):
+    def slow(system, protocol, method):
         inside.set()
         release.wait(5)
-        return real(system)
+        return real(system, protocol, method)
 
-    costs_module.udp_variance_weights = slow
+    policy_module.lyapunov_weights_if_needed = slow
     try:
         first = threading.Thread(target=pl.closed_form, args=(two_actuator, "tcp"))
         first.start()
         inside.wait(5)
-        costs_module.udp_variance_weights = real
+        policy_module.lyapunov_weights_if_needed = real
         second = threading.Thread(target=pl.closed_form, args=(two_actuator, "udp"))
         second.start()
         second.join(5)                                # in and out while the first is inside
         release.set()
         first.join(5)
     finally:
-        costs_module.udp_variance_weights = real
+        policy_module.lyapunov_weights_if_needed = real
     assert _blas_threads() == before
 
 

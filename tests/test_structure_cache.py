@@ -21,7 +21,7 @@ from packetloss_cvx.model.chain import attach_channel, stacked_moments
 from packetloss_cvx.model.channel import GilbertElliott
 from packetloss_cvx.model.files import load_example, system_from_dict
 from packetloss_cvx.model.random_systems import random_system
-from packetloss_cvx.model.system import STRUCTURE_FIELDS, CacheKey, System
+from packetloss_cvx.model.system import STRUCTURE_FIELDS, CacheKey, StructureStore, System, SystemStore
 from packetloss_cvx.model.twins import bursty_twin
 
 FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "mu_schedule", "x0", "initial_weight", "noise_cov",
@@ -117,22 +117,19 @@ def test_a_copy_with_another_structure_does_not_share_the_cache():
     longer = System(A=s.A, B=s.B, horizon=s.horizon + 1, state_weights=list(s.state_weights) + [s.state_weights[-1]],
                     input_weight=s.input_weights[0], mu=s.mu_schedule[0], x0=s.x0)
     assert prediction(longer).Omega_g.shape != p.Omega_g.shape
-    calls = []
-    marker = CacheKey("test.marker", ("A",))
-    s.structure_cached(marker, lambda: calls.append(1) or 1)
+    marker = StructureStore(CacheKey("test.marker", ("A",)))
+    marker.put(s, 1)
     for copy in (s.with_mu(np.full(s.m, 0.5)), s.with_x0(np.ones(s.n))):
-        copy.structure_cached(marker, lambda: calls.append(1) or 1)
-    assert calls == [1]
+        assert marker.get(copy) == 1                     # the copies share the structure
+    assert marker.get(longer) is None                    # another structure: nothing kept for it
     assert set(STRUCTURE_FIELDS) <= set(System.__slots__)
 
 
 def test_large_values_are_not_kept():
     s = load_example("two_actuator")
-    calls = []
-    large = CacheKey("test.large", ("A", "B"))
-    for _ in range(2):
-        s.structure_cached(large, lambda: calls.append(1) or 1, nbytes=10**12)
-    assert calls == [1, 1]
+    large = StructureStore(CacheKey("test.large", ("A", "B")))
+    assert large.put(s, 1, nbytes=10**12) == 1
+    assert large.get(s) is None
 
 
 def test_the_cache_dies_with_its_systems():
@@ -158,9 +155,10 @@ def test_own_cache_is_not_shared_with_copies():
     assert np.array_equal(C, C_ref)
     plain = twin.with_mu(twin.mu_schedule)                   # the same mu_t without the chain: independent losses
     assert np.array_equal(stacked_moments(plain)[1], np.diag(v * (1 - v)))
-    value = CacheKey("test.value", ("x0",))
-    assert twin.cached(value, lambda: 1) == 1
-    assert twin.with_x0(np.zeros(twin.n)).cached(value, lambda: 2) == 2
+    value = SystemStore(CacheKey("test.value", ("x0",)))
+    assert value.put(twin, 1) == 1
+    assert value.get(twin) == 1
+    assert value.get(twin.with_x0(np.zeros(twin.n))) is None               # a copy has its own store
 
 
 def test_no_kept_array_has_a_writable_base():

@@ -43,8 +43,7 @@ import numpy as np
 from ..errors import InputError
 from ..lq.markov_cost import exact_closed_form
 from ..model.chain import chain_matrices
-from ..model.channel import GilbertElliott
-from ..model.markov_channel import MarkovChannel
+from ..model.channel import GilbertElliott, MarkovChannel, gilbert_rates
 from ..model.system import System
 
 __all__ = ["ChainEvaluator", "ChainFamily", "chain_at", "chain_family", "chain_rates"]
@@ -98,16 +97,18 @@ class ChainFamily:
         """Whether every channel is a Gilbert channel with its burstiness held."""
         return all(item is None for item in self.scaled)
 
-    def channel_at(self, mu: np.ndarray) -> GilbertElliott | MarkovChannel:
+    def channel_at(self, mu: np.ndarray) -> MarkovChannel:
         """The chains at mean rates ``mu`` (m,), each clipped to [0, top_i]: Gilbert–Elliott channels when every
-        channel is Gilbert (the numbers :func:`chain_at` gives), else a MarkovChannel. O(m K^3)."""
+        channel is Gilbert (the numbers :func:`chain_at` gives, written back as a Gilbert–Elliott table), else
+        k-state chains. O(m K^3)."""
         mu = np.clip(np.asarray(mu, dtype=float), 0.0, self.top)
         if self.gilbert:
-            return GilbertElliott(p=(1.0 - mu) * (1.0 - self.lam), r=mu * (1.0 - self.lam))
+            p, r = gilbert_rates(mu, self.lam)
+            return GilbertElliott(p=p, r=r)
         Ts, ds = [], []
         for i, item in enumerate(self.scaled):
             if item is None:
-                p, r = (1.0 - mu[i]) * (1.0 - self.lam[i]), mu[i] * (1.0 - self.lam[i])
+                p, r = gilbert_rates(mu[i], self.lam[i])
                 Ts.append([[1.0 - p, p], [r, 1.0 - r]])
                 ds.append([1.0, 0.0])
             else:

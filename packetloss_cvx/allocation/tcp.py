@@ -33,7 +33,7 @@ from ..budgets import program_bytes
 from ..errors import InfeasibleError, NumericalError, SolverError
 from ..lq.evaluator import CostEvaluator
 from ..lq.recursion import udp_variance_weights
-from ..model.system import CacheKey, System
+from ..model.system import CacheKey, StructureStore, System
 from ..qp.convex import PROVEN_INFEASIBLE, ClarabelProgram, require_optimal
 from ..qp.expected_cost import sparse_dynamics
 from ..tolerances import (
@@ -80,6 +80,7 @@ def constant_cost(system: System) -> float:
 #: the system's compiled TCP-like programs, one per (kind, number of constraint rows): everything in them but the
 #: Parameters (x0, bounds, rows, prices, scale) depends on these fields only
 PROGRAMS_KEY = CacheKey("allocation.tcp.programs", ("A", "B", "horizon", "state_weights", "input_weights"))
+_PROGRAMS = StructureStore(PROGRAMS_KEY)
 
 
 def cost_epigraph(system: System, mu: cp.Variable, x0: cp.Parameter, root: cp.Parameter
@@ -131,8 +132,8 @@ class TCPProgram:
     the k rows ``G mu <= h``, and the prices beta. ``kind`` "allocate" minimises ``beta'mu`` subject
     to ``r + sum t <= 1`` (s = 1 / (alpha - C)); "min_cost" minimises ``r + sum t``.
 
-    One program per (system structure, kind, k), kept with the system (:meth:`System.structure_cached`,
-    shared with its ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
+    One program per (system structure, kind, k), kept here (a :class:`~packetloss_cvx.model.system.StructureStore`,
+    shared by a system's ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
     (:class:`~packetloss_cvx.qp.convex.ClarabelProgram`) and solved under ``ALLOCATION_TCP_ATTEMPTS``: the
     tight settings without equilibration on a solver kept per thread and updated with each call's data (a
     function of its own data: without an equilibration nothing of the previous data is carried over,
@@ -184,7 +185,9 @@ class TCPProgram:
         """The system's program of this kind and number of rows: built on first use and kept with the
         system's structure (beyond ``STRUCTURE_CACHE_MAX_BYTES`` estimated, built per call). O(1) when kept."""
         N, n, m = system.horizon, system.n, system.m
-        programs = system.structure_cached(PROGRAMS_KEY, dict, nbytes=program_bytes(N, n, m))
+        programs = _PROGRAMS.get(system)
+        if programs is None:
+            programs = _PROGRAMS.put(system, {}, nbytes=program_bytes(N, n, m))
         program = programs.get((kind, rows))
         if program is None:          # two threads may both build one; setdefault keeps the first
             program = programs.setdefault((kind, rows), cls(system, kind, rows))

@@ -12,7 +12,7 @@ from ..closedloop.mjls import mean_square_radius
 from ..closedloop.stability import is_mean_square_stable
 from ..errors import InputError, NumericalError, ResourceError
 from ..lq.costs import closed_form
-from ..model.markov_channel import MarkovChannel
+from ..model.channel import GE_MODEL
 from ..model.system import System
 from ..qp.markov_solution import markov_solution
 
@@ -67,9 +67,11 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
     (True, ['exact', 'plug_in'], True)
     """
     ch = system.channel
-    data: dict[str, Any] = {"channel": ch.to_dict(), "belief": ch.initial_belief.tolist(),
+    given_as_rates = ch.form == GE_MODEL             # the file's Gilbert–Elliott table: its parameters and P(good)
+    belief = ch.initial_belief[:, 0] if given_as_rates else ch.initial_belief
+    data: dict[str, Any] = {"channel": ch.to_dict(), "belief": belief.tolist(),
                             "correlation": ch.correlation.tolist(), "mean_rate": ch.mean_rate.tolist()}
-    if isinstance(ch, MarkovChannel):
+    if not given_as_rates:
         first = (f"{len(ch.sizes)} chain(s) of {list(ch.sizes)} states; state distribution now "
                  f"{[np.round(b[:k], 6).tolist() for b, k in zip(ch.initial_belief, ch.sizes, strict=True)]}; long-run "
                  f"delivery rate {np.round(ch.mean_rate, 6).tolist()}; slowest memory (eigenvalue after 1) "
@@ -78,7 +80,7 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
         first = (f"p = {np.round(ch.p, 6).tolist()} (P(good -> bad)), r = {np.round(ch.r, 6).tolist()} "
                  "(P(bad -> good)), "
                  f"h_good = {np.round(ch.h_good, 6).tolist()}, h_bad = {np.round(ch.h_bad, 6).tolist()}; P(good) now "
-                 f"{np.round(ch.initial_belief, 6).tolist()}; burstiness lambda = 1 - p - r = "
+                 f"{np.round(belief, 6).tolist()}; burstiness lambda = 1 - p - r = "
                  f"{np.round(ch.correlation, 6).tolist()}")
     lines = [first, "the laws above are the plug-in laws: the paper's laws with the mu_t the chain predicts"]
     for protocol in protocols:

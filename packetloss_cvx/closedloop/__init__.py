@@ -1,7 +1,9 @@
 """The closed loop as a Markov jump linear system: the mode engine.
 
-``stability`` and ``mjls`` (the second-moment operator and its mean-square radius; the coupled Riccati
-equation over modes), ``riccati`` (the dynamic-programming optimum, one mode), ``moments`` (exact costs of
+``modes`` (the engine: the second-moment map over M modes, its dense matrix and radius, finite-horizon stage
+costs; a Bernoulli channel is its one-mode case), ``stability`` and ``mjls`` (the one-mode and the chain faces of
+it; the coupled Riccati equation over modes), ``riccati_map`` (the homogeneous Riccati map's algebra over M modes,
+its bounds and certificate cuts), ``riccati`` (the dynamic-programming optimum, one mode), ``moments`` (exact costs of
 linear laws from second moments), ``region`` and ``markov_region`` (the least radius over laws, membership,
 certificates), ``certificates`` and ``chain_radius`` (verdicts that survive rounding), ``critical`` (critical
 channels), ``region_lmi`` (the LMI form), ``law_stability`` (the verdict on a Solution's law), ``tails``

@@ -29,12 +29,15 @@ import numpy as np
 
 from ..errors import NumericalError
 from ..linalg import Dyadic, exact_psd, frobenius
+from ..model.channel import GE_MODEL, MarkovChannel
 from ..tolerances import MEAN_SQUARE_MARGIN
+from .mjls import mode_chain
 from .moments import solve_fixed_point
 from .stability import law_radius, second_moment_matrix, second_moment_step
 
-__all__ = ["SNAP", "TILTS", "candidates", "inside_proved", "law_proved_stable", "no_law_proved", "outside_matrix",
-           "outside_proved", "snapped", "stability_witness", "tilted"]
+__all__ = ["SNAP", "TILTS", "candidates", "chain_outside_proved", "exact_transition", "inside_proved",
+           "law_proved_stable", "mode_outside_matrices", "no_law_proved", "outside_matrix", "outside_proved", "snapped",
+           "stability_witness", "tilted"]
 
 #: entries at or below these fractions of a certificate's largest are tried as exact zeros (:func:`snapped`): the
 #: rounding of an orthogonal transform (1e-17 where the split of a zero row of B is exact), and the iteration's own
@@ -62,18 +65,133 @@ def _symmetric(P: np.ndarray) -> Dyadic:
 
 def outside_matrix(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, c: float) -> Dyadic:
     """``T_c(P)`` exactly, for the symmetric part of P: ``[[A'PA - cP, -A'PBM], [-MB'PA, MB'PBM + diag(mu (1 - mu)
-    diag(B'PB))]]``, (n + m)×(n + m). NumericalError on a non-finite entry. O((n + m)^3) integer operations.
+    diag(B'PB))]]``, (n + m)×(n + m): :func:`mode_outside_matrices` at one mode. NumericalError on a non-finite entry.
+    O((n + m)^3) integer operations.
 
     >>> T = outside_matrix(np.array([[2.0]]), np.array([[1.0]]), np.array([0.5]), np.eye(1), 1.0)
     >>> [[float(T.fraction(i, j)) for j in range(2)] for i in range(2)]     # [[a^2 - c, -a mu], [-a mu, mu]]
     [[3.0, -1.0], [-1.0, 0.5]]
     """
-    A_, B_, mu_, var = _exact(A, B, mu)
-    P_ = _symmetric(P)
-    PB = P_ @ B_
-    APA, APBM, BPB = A_.T @ (P_ @ A_), A_.T @ PB * mu_, B_.T @ PB
-    corner = BPB * mu_.outer(mu_) + (var * BPB.diag()).diag()
-    return Dyadic.block([[APA - Dyadic.of(float(c)) * P_, -APBM], [-APBM.T, corner]])
+    mu = np.asarray(mu, dtype=float).reshape(-1)
+    return mode_outside_matrices(A, B, Dyadic(np.ones((1, 1), dtype=object), 0), mu[None, None],
+                                 np.asarray(P, dtype=float)[None], c)[0]
+
+
+def mode_outside_matrices(A: np.ndarray, B: np.ndarray, T: Dyadic, rates: np.ndarray, P: np.ndarray,
+                          c: float) -> list[Dyadic]:
+    """``T_c(P)_a`` exactly for every mode a of a chain (the symmetric part of each P_a), (n + m)×(n + m) each:
+    ``[[A'E_aA - cP_a, -A'F_a], [-F_a'A, H_a]]`` with ``E_a = sum_b T_ab P_b``, ``F_a = sum_b T_ab P_b B D_ab`` and
+    ``H_a = sum_b T_ab (D_ab B'P_bB D_ab + diag(d_ab (1 - d_ab) diag(B'P_bB)))``: ``x'(L_K^*(P)_a - cP_a)x`` is the
+    form at ``[x; K_a x]`` (simulation.chain_radius). ``T`` the exact transition matrix (:func:`exact_transition`),
+    ``rates`` (M, M, m) the delivery probabilities d_ab of a step from a into b (h_b "next", h_a "current"). One mode
+    with T = 1 and d = mu is the Bernoulli :func:`outside_matrix`. O(M^2 (n + m)^3) integer operations.
+
+    >>> Ts = mode_outside_matrices(np.array([[2.0]]), np.array([[1.0]]), Dyadic.of(np.ones((1, 1))),
+    ...                            np.full((1, 1, 1), 0.5), np.ones((1, 1, 1)), 1.0)
+    >>> [[float(Ts[0].fraction(i, j)) for j in range(2)] for i in range(2)]
+    [[3.0, -1.0], [-1.0, 0.5]]
+    """
+    A_, B_ = Dyadic.of(A), Dyadic.of(B)
+    P_ = [_symmetric(Pb) for Pb in P]
+    PB = [Pb @ B_ for Pb in P_]
+    BPB = [B_.T @ X for X in PB]
+    c_ = Dyadic.of(float(c))
+    out = []
+    for a in range(len(P_)):
+        E = F = H = None
+        for b in range(len(P_)):
+            if T.ints[a, b] == 0:
+                continue
+            d = Dyadic.of(np.asarray(rates[a, b], dtype=float))
+            var = d * (Dyadic(np.ones(d.ints.shape, dtype=object), 0) - d)
+            terms = (P_[b], PB[b] * d, BPB[b] * d.outer(d) + (var * BPB[b].diag()).diag())
+            if not (T.ints[a, b] == 1 and T.exp == 0):           # a certain step (one mode) needs no product
+                t = Dyadic(T.ints[a, b], T.exp)
+                terms = tuple(t * X for X in terms)
+            E, F, H = terms if E is None else (E + terms[0], F + terms[1], H + terms[2])
+        if E is None:         # a mode the chain leaves with probability 0 everywhere: no row (T is stochastic)
+            raise NumericalError("exact arithmetic: a transition row is zero")
+        APBD = A_.T @ F
+        out.append(Dyadic.block([[A_.T @ (E @ A_) - c_ * P_[a], -APBD], [-APBD.T, H]]))
+    return out
+
+
+def exact_transition(channel: MarkovChannel) -> Dyadic:
+    """The mode chain's transition matrix (markov.mjls.mode_chain's order) exactly, from the channel's stored
+    numbers: a channel given as Gilbert–Elliott's p, r (its table form), ``[[1 - p, p], [r, 1 - r]]`` with 1 - p taken exactly (mode_chain's floats
+    round it), a :class:`~packetloss_cvx.model.channel.MarkovChannel`'s transitions as stored, Kronecker products
+    of the channels' exact. O(M^2) integer operations.
+
+    >>> from fractions import Fraction
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> T = exact_transition(GilbertElliott(p=[0.1], r=[0.4]))
+    >>> T.fraction(0, 0) == 1 - Fraction(0.1), T.fraction(1, 0) == Fraction(0.4)
+    (True, True)
+    """
+    if channel.form != GE_MODEL:
+        chains = [Dyadic.of(np.asarray(Ti, dtype=float)) for Ti in channel.transition]
+    else:
+        one, chains = Dyadic.of(np.ones((1, 1))), []
+        for p, r in zip(np.asarray(channel.p, dtype=float), np.asarray(channel.r, dtype=float), strict=True):
+            p_, r_ = Dyadic.of(np.array([[p]])), Dyadic.of(np.array([[r]]))
+            chains.append(Dyadic.block([[one - p_, p_], [r_, one - r_]]))
+    T = Dyadic(np.ones((1, 1), dtype=object), 0)
+    for Ti in chains:
+        T = Dyadic(np.kron(T.ints, Ti.ints), T.exp + Ti.exp)
+    return T
+
+
+def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray | None,
+                         c: float, delivery: str = "next") -> bool:
+    """Does the tuple P (M, n, n), or one of its candidates, prove ``rho(L_K) >= c`` for every mode-dependent law K
+    behind ``channel``, exactly: ``T_c(Q)_a >= 0`` for every mode (:func:`mode_outside_matrices`; then
+    ``L_K^*(Q) >= cQ`` blockwise for every K) and Q not blockwise negative semidefinite? (Were ``rho(L_K) < c``,
+    ``Q = -sum_j (L_K^*/c)^j (W) / c <= 0`` for ``W = L_K^*(Q) - cQ >= 0``: the module docstring's argument, on
+    tuples.) The candidates are Bernoulli's (:func:`candidates`) per mode: P, P snapped, and those tilted by the
+    coupled Stein solution of ``cS_a - A'(sum_b T_ab S_b)A = I`` (a singular Perron tuple proves its bound only with
+    its exact kernel). The check of :func:`~.chain_radius.chain_certificate_margin`'s verdict in exact arithmetic, on
+    the plant and channel as stored; False for a P that is None, not finite or of the wrong shape. Time
+    O(M^2 (n + m)^3) integer operations a candidate, O((M n^2)^3) for the tilts' solve.
+
+    >>> from .chain_radius import homogeneous_coupled_riccati
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> ch = GilbertElliott(p=[0.3], r=[0.2])           # x+ = 0 once delivered: the least radius a^2 (1 - r) = 3.2
+    >>> lam, P, K = homogeneous_coupled_riccati(np.array([[2.0]]), np.array([[1.0]]), ch)
+    >>> [chain_outside_proved(np.array([[2.0]]), np.array([[1.0]]), ch, P, c) for c in (3.2 * (1 - 1e-12), 3.3)]
+    [True, False]
+    """
+    modes, T, h = mode_chain(channel)
+    M, n = len(modes), np.asarray(A).shape[0]
+    if P is None or np.shape(P) != (M, n, n) or not np.all(np.isfinite(P)) or not c > 0:
+        return False
+    rates = np.broadcast_to(h[None] if delivery == "next" else h[:, None], (M, M, h.shape[1]))
+    exact_T = exact_transition(channel)
+    P = 0.5 * (P + P.transpose(0, 2, 1))
+    P = P / max(frobenius(P), np.finfo(float).tiny)
+
+    def proves(Q: np.ndarray) -> bool:
+        return all(exact_psd(X) for X in mode_outside_matrices(A, B, exact_T, rates, Q, c)) \
+            and not all(exact_psd(-_symmetric(Qa)) for Qa in Q)
+
+    plain = [P, *snapped(P)]                                 # snapped over the tuple: one level for every mode
+    if any(proves(Q) for Q in plain):
+        return True
+    S = _coupled_stein(np.asarray(A, dtype=float), T, c)
+    return S is not None and any(proves(Q - t * frobenius(Q) / frobenius(S) * S) for Q in plain for t in TILTS)
+
+
+def _coupled_stein(A: np.ndarray, T: np.ndarray, c: float) -> np.ndarray | None:
+    """S (M, n, n) with ``cS_a - A'(sum_b T_ab S_b)A = I`` (the tilt of :func:`chain_outside_proved`; :func:`tilted`'s
+    S at one mode), None where it has no finite solution. O((M n^2)^3)."""
+    M, n = T.shape[0], A.shape[0]
+    with np.errstate(all="ignore"):
+        try:
+            S = np.linalg.solve(c * np.eye(M * n * n) - np.kron(T, np.kron(A.T, A.T)),
+                                np.tile(np.eye(n).ravel(), M)).reshape(M, n, n)
+        except np.linalg.LinAlgError:
+            return None
+    S = 0.5 * (S + S.transpose(0, 2, 1))
+    return S if np.isfinite(frobenius(S)) and frobenius(S) > 0 else None
 
 
 def outside_proved(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, c: float) -> bool:

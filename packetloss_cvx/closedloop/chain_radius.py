@@ -36,7 +36,7 @@ import numpy as np
 
 from ..errors import InputError, NumericalError
 from ..linalg import typed_linalg
-from ..model.channel import GilbertElliott
+from ..model.channel import GilbertElliott, MarkovChannel  # noqa: F401 (GilbertElliott: the doctests' constructor)
 from ..tolerances import (
     CERTIFICATE_RTOL,
     COUPLED_BRACKET_RTOL,
@@ -199,7 +199,7 @@ def _perron(operator: np.ndarray, M: int, n: int) -> tuple[float, np.ndarray, fl
     return root, V / trace, radius, error
 
 
-def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray,
+def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: MarkovChannel, T: np.ndarray,
             h: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray]:
     """``(K, P_eps)``: from the power iteration's P (:func:`_power`, positive definite), a policy iteration on the
     regularised map ``L_K^* + eps Pi`` (``eps = COUPLED_POLICY_REGULARISATION lambda``): K <- the minimiser at P_eps
@@ -235,7 +235,7 @@ def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: Gi
     return K, P_eps
 
 
-def _reachable_eigenpair(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, T: np.ndarray, h: np.ndarray,
+def _reachable_eigenpair(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, T: np.ndarray, h: np.ndarray,
                          delivery: str) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)`` of a pair whose inputs reach every state (the split's reachable part, or the whole plant).
 
@@ -290,7 +290,7 @@ def _clean(P: np.ndarray, cut: float) -> np.ndarray:
     return np.einsum("aij,aj,akj->aik", U, w, U)
 
 
-def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, channel: GilbertElliott,
+def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, channel: MarkovChannel,
             T: np.ndarray, h: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray, float]:
     """``(K, P, radius)``: from the regularised policy iteration's gains, unregularised policy steps (at most
     _REFINE_STEPS): P the Perron eigenvector of ``L_K^*`` (exact for K, to the eigenvalue routine's rounding), then
@@ -335,7 +335,7 @@ def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, chan
 
 
 @typed_linalg("the coupled Riccati eigenpair")
-def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str = "next"
+def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: str = "next"
                                 ) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)``: lambda the least mean-square radius ``min_K rho(L_K)`` over mode-dependent laws, P
     (M, n, n, ``sum_a tr P_a = 1``) the eigenvector ``R(P) = lambda P`` of the homogeneous coupled Riccati map (on the
@@ -394,7 +394,7 @@ def _bound(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
 
 
 @typed_linalg("the chain certificate's margin")
-def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray,
+def chain_certificate_margin(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray,
                              delivery: str = "next") -> float:
     """``c - 1``, c the bound every mode-dependent law's coupled radius meets by the certificate P (M, n, n): the
     largest c with ``R(P)_a >= c P_a`` for every mode a that P weighs, so ``L_K^*(P) >= c P`` and ``rho(L_K) >= c``

@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from ..errors import InputError, NumericalError
 from ..linalg import typed_linalg
-from ..model.channel import GilbertElliott
+from ..model.channel import GilbertElliott, MarkovChannel, gilbert_rates
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, MEAN_SQUARE_MARGIN
 from .chain_radius import chain_certificate_margin, check_delivery, homogeneous_coupled_riccati
@@ -52,7 +52,7 @@ __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "
            "critical_rate_unproved", "homogeneous_coupled_riccati"]
 
 @typed_linalg("the chain's outside certificate")
-def chain_outside(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.ndarray, delivery: str
+def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray, delivery: str
                   ) -> tuple[float, np.ndarray | None]:
     """``(margin, certificate)``: P (normalised to ``sum_a tr P_a = 1``) when its margin is ``>= -CERTIFICATE_RTOL``,
     else P with its eigenvalues below riccati_map.CUTS (1e-12, 1e-9, 1e-6) of the largest (over all modes) cut off,
@@ -70,7 +70,7 @@ def chain_outside(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, P: np.n
     return margin, None
 
 
-def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, delivery: str = "next"
+def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, delivery: str = "next"
                      ) -> Membership:
     """Can some mode-dependent linear law make the loop behind ``channel`` mean-square stable? ``delivery`` as
     markov.mjls: "next" (default; the law knows the last state, as a TCP-like acknowledgement reveals it, the
@@ -96,7 +96,7 @@ def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott
     return _membership(np.asarray(A, dtype=float), np.asarray(B, dtype=float), channel, delivery)[0]
 
 
-def chain_least_radius(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, delivery: str = "next"
+def chain_least_radius(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, delivery: str = "next"
                        ) -> tuple[Membership, float, float]:
     """``(membership, lambda, error)``: :func:`chain_membership`, the least radius lambda behind it
     (:func:`homogeneous_coupled_riccati`, computed once for both) and lambda's own accuracy estimate: its distance to
@@ -126,7 +126,7 @@ def chain_least_radius(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertEllio
 
 
 @typed_linalg("the chain membership")
-def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery: str
+def _membership(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: str
                 ) -> tuple[Membership, float, np.ndarray, float]:
     """:func:`chain_membership`, the least radius lambda behind it, its gains K and their coupled radius where it was
     computed (nan otherwise): "stable" where the eigenpair's gains have a coupled radius below ``1 -
@@ -134,8 +134,8 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery:
     :func:`chain_outside`) proves every law's radius ``>= 1 - CERTIFICATE_RTOL``; else "undecided" with both
     numbers. Time as :func:`chain_membership`."""
     check_delivery(delivery)
-    if not isinstance(channel, GilbertElliott):
-        raise InputError("channel", f"expected a GilbertElliott channel, found {type(channel).__name__}")
+    if not isinstance(channel, MarkovChannel) or not channel.two_state:
+        raise InputError("channel", f"expected a two-state (Gilbert-Elliott) channel, found {channel!r}"[:200])
     if channel.m != B.shape[1]:
         raise InputError("channel", f"expected {B.shape[1]} channels (the columns of B), found {channel.m}")
     lam, P, K = homogeneous_coupled_riccati(A, B, channel, delivery)
@@ -166,7 +166,7 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: GilbertElliott, delivery:
             lam, K, radius)
 
 
-def chain_at_rate(channel: GilbertElliott, rate: npt.ArrayLike) -> GilbertElliott:
+def chain_at_rate(channel: MarkovChannel, rate: npt.ArrayLike) -> MarkovChannel:
     """The Gilbert–Elliott channel with each channel's mean delivery rate ``rate_i`` and the same burstiness
     (correlation ``lambda_i = 1 - p_i - r_i``) and state delivery probabilities. The stationary P(good) is
     ``g_i = (rate_i - h_bad_i) / (h_good_i - h_bad_i)``, so ``r_i = g_i (1 - lambda_i)``, ``p_i = (1 - g_i)
@@ -193,10 +193,11 @@ def chain_at_rate(channel: GilbertElliott, rate: npt.ArrayLike) -> GilbertElliot
     if np.any(span <= 0) or np.any(rate < channel.h_bad - 1e-15) or np.any(rate > channel.h_good + 1e-15):
         raise InputError("rate", f"expected each mean rate within [h_bad, h_good], found {rate.tolist()}")
     g = np.clip((rate - channel.h_bad) / span, 0.0, 1.0)
-    return GilbertElliott(p=(1 - g) * (1 - lam), r=g * (1 - lam), h_good=channel.h_good, h_bad=channel.h_bad)
+    p, r = gilbert_rates(g, lam)
+    return GilbertElliott(p=p, r=r, h_good=channel.h_good, h_bad=channel.h_bad)
 
 
-def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, axis: npt.ArrayLike,
+def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, axis: npt.ArrayLike,
                    channels: tuple[int, int] = (0, 1), delivery: str = "next") -> tuple[np.ndarray, np.ndarray]:
     """The region over the mean rates of channels I, J (the others at their own rates) at fixed burstiness:
     ``(stable, lam)`` on the grid ``axis`` × ``axis`` (rows rate_J, columns rate_I): 1.0 certified stable, 0.0
@@ -228,7 +229,7 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: GilbertElliott, 
     return stable, lam
 
 
-def critical_rate_unproved(channel: GilbertElliott) -> str | None:
+def critical_rate_unproved(channel: MarkovChannel) -> str | None:
     """Why no critical mean rate is offered behind ``channel`` (None where the region is proved monotone in the
     mean rates at fixed burstiness: every channel with ``h_bad = 0`` and burstiness ``0 <= lambda_i < 1``, a
     chain that moves, and ``h_good_i > 0``; docs/design.md, "The critical mean rate behind a chain"). O(m).
@@ -284,8 +285,8 @@ def chain_critical_rate(system, direction: npt.ArrayLike | None = None, tol: flo
     (True, 'stable', 'unstable')
     """
     channel = system.channel
-    if not isinstance(channel, GilbertElliott):
-        raise InputError("channel", "expected a system with a Gilbert-Elliott channel")
+    if not isinstance(channel, MarkovChannel) or not channel.two_state:
+        raise InputError("channel", "expected a system with a Gilbert-Elliott channel (two-state chains)")
     check_delivery(delivery)
     reason = critical_rate_unproved(channel)
     if reason is not None:

@@ -1,9 +1,9 @@
 """The loop behind Markov channels as a Markov jump linear system (MJLS).
 
-Mode theta_k = the joint channel state (2^m modes for Gilbert–Elliott channels, prod_i k_i for k-state
-:class:`~packetloss_cvx.model.markov_channel.MarkovChannel` ones; channels independent: the mode chain's transition
-matrix is the Kronecker product of the channels' own). In mode a, actuator i's packet arrives with
-probability h_{a,i} (h_good or h_bad; d_i of the state), independently. The closed loop
+Mode theta_k = the joint channel state (prod_i k_i modes of a
+:class:`~packetloss_cvx.model.channel.MarkovChannel`, 2^m for Gilbert–Elliott channels; channels independent:
+the mode chain's transition matrix is the Kronecker product of the channels' own). In mode a, actuator i's
+packet arrives with probability h_{a,i} (d_i of the state; h_good or h_bad), independently. The closed loop
 ``x_{k+1} = (A - B V_k K_a) x_k``
 is mean-square stable iff the spectral radius of its coupled second-moment operator
 
@@ -28,98 +28,89 @@ import itertools
 
 import numpy as np
 
-from ..budgets import BUDGETS, check, gib_text, krylov_bytes, limit, operator_bytes
+from ..budgets import check, gib_text, operator_bytes
 from ..errors import InputError, NumericalError
 from ..lq.recursion import riccati_step
 from ..model.chain import chain_matrices
-from ..model.channel import GilbertElliott
-from ..model.markov_channel import MarkovChannel
+from ..model.channel import (
+    GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
+    MarkovChannel,
+)
 from ..model.system import System, check_system
 from ..results import MjlsResult
-from ..tolerances import ARPACK_TOL, SELF_CHECK_RTOL
+from ..tolerances import SELF_CHECK_RTOL
+from .modes import DENSE_MAX_DIM, MAX_OPERATOR_DIM, delivery_moments, mode_matrix, mode_radius, mode_stage_costs
 
 __all__ = [
     "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
-    "MAX_MODES", "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "moment_step", "mode_chain",
-    "mode_start", "second_moment_operator",
+    "MAX_MODES", "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "mode_chain",
+    "delivery_patterns", "mode_start", "product_chain", "second_moment_operator",
 ]
 
 #: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the operator is refused.
 MAX_CHANNELS = 6
 #: The product chain of k-state channels is refused beyond as many modes as MAX_CHANNELS Gilbert–Elliott ones give.
 MAX_MODES = 2 ** MAX_CHANNELS
-#: Rows M n^2 of the dense coupled operator beyond which it is refused by default (BudgetError): its eigenvalues take
-#: O((M n^2)^3) time and 16 (M n^2)^2 bytes (2048 rows: 64 MiB, a few seconds). The ``operator_rows`` budget
-#: (budgets.py; ``PACKETLOSS_CVX_BUDGET_OPERATOR_ROWS`` raises it).
-MAX_OPERATOR_DIM = int(BUDGETS["operator_rows"].default)
-#: Rows up to which :func:`mean_square_radius` takes the dense eigenvalues by default (above: matrix-free Krylov).
-DENSE_MAX_DIM = 400
+# MAX_OPERATOR_DIM (rows of the dense coupled operator at most) and DENSE_MAX_DIM (rows up to which the radius takes
+# its dense eigenvalues by default) are the mode engine's (markov.modes), re-exported here.
 
 
-def mode_chain(channel: GilbertElliott | MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h)``: the 2^m joint states (1 = good, channel 0 the most significant), their
-    transition matrix (Kronecker product of the channels' chains) and per-mode delivery probabilities.
-    Time O(4^m m). For a :class:`~packetloss_cvx.model.markov_channel.MarkovChannel` the M = prod_i k_i joint states
-    (each row the state indices, channel 0 the most significant, state 0 first: a two-state twin's modes come in
-    the Gilbert–Elliott order), refused beyond :data:`MAX_MODES`; time O(M^2 + M m).
+def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
+    significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
+    product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
+    :data:`MAX_MODES`. Time O(M^2 + M m).
 
     Raises
     ------
     InputError
-        More than :data:`MAX_CHANNELS` Gilbert–Elliott channels, or a product chain beyond :data:`MAX_MODES`.
+        A product chain beyond :data:`MAX_MODES` modes (more than :data:`MAX_CHANNELS` Gilbert–Elliott channels).
 
     Examples
     --------
     >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.1], r=[0.3]))]      # good, bad: the Gilbert channel
-    [[[1], [0]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
+    [[[0], [1]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
     """
-    m = channel.m
-    if isinstance(channel, MarkovChannel):
-        M = int(np.prod(channel.sizes))
-        if M > MAX_MODES:
-            raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
-                                        f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES}")
-        modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
-        T = np.ones((1, 1))
-        for Ti in channel.transition:
-            T = np.kron(T, Ti)
-        return modes, T, channel.padded_delivery[np.arange(m), modes]
-    if m > MAX_CHANNELS:
-        raise InputError("channel", f"the MJLS has 2^m modes; expected at most {MAX_CHANNELS} channels, found {m}")
-    modes = np.array(list(itertools.product([1, 0], repeat=m)), dtype=int)
+    M = int(np.prod(channel.sizes))
+    if M > MAX_MODES:
+        raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
+                                    f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES} "
+                                    f"(at most {MAX_CHANNELS} two-state channels)")
+    return product_chain(channel)[:3]
+
+
+def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(modes, T, h, start)``: :func:`mode_chain`'s joint states, transition matrix and per-mode delivery
+    probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
+    own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
+
+    Examples
+    --------
+    >>> modes, T, h, start = product_chain(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25]))
+    >>> modes.tolist(), start.tolist()                     # good, good: 0.25
+    ([[0, 0], [0, 1], [1, 0], [1, 1]], [0.25, 0.75, 0.0, 0.0])
+    """
+    m, M = channel.m, int(np.prod(channel.sizes))
+    modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
     T = np.ones((1, 1))
-    for i in range(m):
-        Ti = np.array([[1 - channel.p[i], channel.p[i]], [channel.r[i], 1 - channel.r[i]]])
+    for Ti in channel.transition:
         T = np.kron(T, Ti)
-    h = np.where(modes == 1, channel.h_good, channel.h_bad)
-    return modes, T, h
+    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]
+    start = np.prod([starts[i][modes[:, i]] for i in range(m)], axis=0)
+    return modes, T, channel.padded_delivery[np.arange(m), modes], start
 
 
-def mode_start(channel: GilbertElliott | MarkovChannel) -> np.ndarray:
-    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`
-    (so a Gilbert–Elliott channel and its two-state twin start from the same bits), in :func:`mode_chain`'s order.
-    O(M m).
+def mode_start(channel: MarkovChannel) -> np.ndarray:
+    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`,
+    in :func:`mode_chain`'s order. O(M m).
 
     Examples
     --------
     >>> mode_start(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25])).tolist()   # good, good: 0.25
     [0.25, 0.75, 0.0, 0.0]
     """
-    modes = mode_chain(channel)[0]
-    states = modes if isinstance(channel, MarkovChannel) else 1 - modes     # Gilbert–Elliott: mode 1 is state 0
-    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]                 # one start per channel, its twin's bits
-    return np.prod([starts[i][states[:, i]] for i in range(channel.m)], axis=0)
-
-
-def _patterns(h: np.ndarray) -> list[tuple[float, np.ndarray]]:
-    """The delivery patterns v in {0,1}^m with positive probability given per-channel probabilities h."""
-    out = []
-    for v in itertools.product([1, 0], repeat=h.size):
-        v = np.array(v, dtype=float)
-        prob = float(np.prod(np.where(v == 1, h, 1 - h)))
-        if prob > 0:
-            out.append((prob, v))
-    return out
+    mode_chain(channel)                                   # refused beyond MAX_MODES, as the chain it starts
+    return product_chain(channel)[3]
 
 
 def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -166,7 +157,7 @@ def _mode_gains(gains: np.ndarray, M: int, m: int, n: int) -> np.ndarray:
     return K
 
 
-def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | MarkovChannel, gains: np.ndarray,
+def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gains: np.ndarray,
                            delivery: str = "current") -> np.ndarray:
     """The matrix of the coupled second-moment map on stacked vec(Q_a), (M n^2)×(M n^2).
 
@@ -189,21 +180,10 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: GilbertElliott
     modes, T, h = mode_chain(channel)
     M, n, m = len(modes), A.shape[0], B.shape[1]
     check_operator_size(M, n)
-    K = _mode_gains(gains, M, m, n)
-    patterns, prob = delivery_patterns(h)
-    kron = np.empty((M, len(patterns), n * n, n * n))
-    for a in range(M):
-        for k, v in enumerate(patterns):
-            G = A - B @ (v[:, None] * K[a])
-            kron[a, k] = np.kron(G, G)
-    if delivery == "current":
-        blocks = np.einsum("av,avij->aij", prob, kron)[:, None] * T[:, :, None, None]          # [a, b]
-    else:
-        blocks = np.einsum("ab,bv,avij->abij", T, prob, kron)
-    return blocks.transpose(1, 2, 0, 3).reshape(M * n * n, M * n * n)                        # rows b, columns a
+    return mode_matrix(A, B, _mode_gains(gains, M, m, n), h, T, delivery)
 
 
-def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | MarkovChannel, gains: np.ndarray,
+def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gains: np.ndarray,
                        delivery: str = "current", method: str = "auto") -> float:
     """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
     loop is mean-square stable.
@@ -211,8 +191,9 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | M
     ``method``: "dense", the eigenvalues of the (M n^2)^2 matrix, time O((M n^2)^3), refused (BudgetError)
     beyond the ``operator_rows`` budget (:data:`MAX_OPERATOR_DIM` rows); "krylov", ARPACK on the map applied matrix-free
     (O(M^2 n^2 + M n^2 (n + m)) per product, O(M n^2) memory per vector), its value checked against
-    Collatz–Wielandt bounds proven from its eigenvector (NumericalError outside them); "auto", dense up to
-    :data:`DENSE_MAX_DIM` rows, else Krylov (falling back to dense within :data:`MAX_OPERATOR_DIM` rows). A failed
+    Collatz–Wielandt bounds proven from its eigenvector and a power bound, falling back to dense within
+    :data:`MAX_OPERATOR_DIM` rows where it fails the check (NumericalError beyond); "auto", dense up to
+    :data:`DENSE_MAX_DIM` rows, else Krylov (:func:`~packetloss_cvx.closedloop.modes.mode_radius`). A failed
     eigenvalue routine (numpy.linalg.LinAlgError) is a NumericalError, as is an operator that is not finite.
 
     Examples
@@ -231,111 +212,12 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: GilbertElliott | M
     K = _mode_gains(gains, M, m, n)
     if not (np.all(np.isfinite(K)) and np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
         raise NumericalError("MJLS mean-square radius: the gains or the plant are not finite")
-    dim = M * n * n
-    if method == "krylov" or (method == "auto" and dim > DENSE_MAX_DIM and dim >= 8):
-        try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                return _krylov_radius(A, B, T, h, K, delivery)
-        except NumericalError:
-            if method == "krylov" or dim > limit("operator_rows"):
-                raise
-    op = second_moment_operator(A, B, channel, K, delivery)
-    with np.errstate(over="ignore", invalid="ignore"):
-        try:
-            vals = np.linalg.eigvals(op) if np.all(np.isfinite(op)) else np.array([np.inf])
-        except np.linalg.LinAlgError as err:
-            raise NumericalError(f"MJLS mean-square radius: the eigenvalue routine failed ({err})") from None
-    if not np.all(np.isfinite(vals)):
-        raise NumericalError("MJLS mean-square radius: the second-moment operator is not finite")
-    return float(max(abs(vals)))
 
+    def matrix() -> np.ndarray:
+        check_operator_size(M, n)
+        return mode_matrix(A, B, K, h, T, delivery)
 
-def moment_step(Q: np.ndarray, K: np.ndarray, R: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray,
-                H2: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray]:
-    """One noise-free step of the coupled second moments: ``(Q', KQK)``.
-
-    ``Q`` (a, n, n) and ``K`` (a, m, n) per information mode a, ``R`` (a, M) its transition rows, ``h`` (M, m)
-    and ``H2`` (M, m, m) the first and second delivery moments per mode. ``"current"``:
-    ``Q'_b = sum_a R_ab E_{v|a}[G_a Q_a G_a']``, ``KQK[a] = K_a Q_a K_a'``; ``"next"``:
-    ``Q'_b = sum_a R_ab E_{v|b}[G_a Q_a G_a']``, ``KQK[b] = sum_a R_ab K_a Q_a K_a'``. With
-    ``E_{v|c}[G Q G'] = AQA' - AQK'H_c B' - B H_c KQA' + B((KQK') ∘ H2_c)B'``; the expected input cost is
-    ``sum_c sum_i psi_i h_ci KQK[c]_ii``. Time O(a M n^2 + a n^2 (n + m)).
-
-    Examples
-    --------
-    >>> one, half = np.ones((1, 1)), np.full((1, 1), 0.5)     # x+ = (2 - v) x, v ~ Bernoulli(1/2), E[x^2] = 1
-    >>> [a.tolist() for a in moment_step(one[None], one[None], one, 2 * one, one, half, half[None], "current")]
-    [[[[2.5]]], [[[1.0]]]]
-    """
-    AQA = np.einsum("ij,ajk,lk->ail", A, Q, A)
-    C = np.einsum("ij,ajk,alk->ail", A, Q, K)                                                  # A Q_a K_a'
-    KQK = np.einsum("aij,ajk,alk->ail", K, Q, K)
-    if delivery == "next":
-        AQA, C, KQK = (np.einsum("ab,aij->bij", R, X) for X in (AQA, C, KQK))               # sum_a R_ab X_a
-    Y = AQA - np.einsum("cij,cj,kj->cik", C, h, B) - np.einsum("ij,cj,ckj->cik", B, h, C) \
-        + np.einsum("ij,cjk,lk->cil", B, KQK * H2, B)
-    return (np.einsum("ab,aij->bij", R, Y) if delivery == "current" else Y), KQK
-
-
-def delivery_moments(h: np.ndarray) -> np.ndarray:
-    """``E[v v' | mode] = h h' + diag(h (1 - h))`` per mode (independent channels), (M, m, m). O(M m^2).
-
-    Examples
-    --------
-    >>> delivery_moments(np.array([[0.5, 1.0]])).tolist()     # h h' + diag(h (1 - h))
-    [[[0.5, 0.5], [0.5, 1.0]]]
-    """
-    return h[:, :, None] * h[:, None, :] + np.einsum("ai,ij->aij", h * (1 - h), np.eye(h.shape[1]))
-
-
-def _krylov_radius(A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, K: np.ndarray, delivery: str) -> float:
-    """ARPACK on the coupled map (never forming it), checked against Collatz–Wielandt bounds from a positive
-    definite tuple X near the Perron vector: ``L(X) >= c X`` proves rho >= c, ``L(X) <= c X`` proves rho <= c
-    (blockwise Loewner order; L maps PSD tuples to PSD tuples). Time O(iterations (M^2 n^2 + M n^2 (n + m)))."""
-    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs  # optional.LAZY_IMPORTS
-
-    M, n = T.shape[0], A.shape[0]
-    D, H2 = M * n * n, delivery_moments(h)
-    k = min(6, D - 2)
-    ncv = min(D, max(2 * k + 1, 20))
-    needed = krylov_bytes(D, ncv + 4)
-    check("memory_bytes", needed, "channel", f"the MJLS radius's {ncv + 4} Krylov vectors of 2^m n^2 = {D} entries "
-                                             f"(about {gib_text(needed)})",
-          instead="use fewer chain states or channels")
-
-    def apply(v: np.ndarray) -> np.ndarray:
-        Q = v.reshape(M, n, n)
-        return moment_step(0.5 * (Q + Q.transpose(0, 2, 1)), K, T, A, B, h, H2, delivery)[0].ravel()
-
-    op = LinearOperator((D, D), matvec=apply, dtype=float)
-    try:
-        vals, vecs = eigs(op, k=k, which="LM", tol=ARPACK_TOL, v0=np.tile(np.eye(n).ravel(), M),
-                          ncv=ncv, maxiter=max(300, 10 * n))
-    except (ArpackNoConvergence, ArpackError) as err:
-        raise NumericalError(f"MJLS mean-square radius: ARPACK did not converge ({err})") from None
-    top = int(np.argmax(np.abs(vals)))
-    radius = float(abs(vals[top]))
-    v = vecs[:, top] * np.exp(-1j * np.angle(vecs[np.argmax(np.abs(vecs[:, top])), top]))
-    X = v.real.reshape(M, n, n)
-    X = 0.5 * (X + X.transpose(0, 2, 1))
-    X = X if np.einsum("aii->", X) >= 0 else -X
-    try:
-        w, U = np.linalg.eigh(X)
-    except np.linalg.LinAlgError as err:
-        raise NumericalError(f"MJLS mean-square radius: the Collatz-Wielandt check failed ({err})") from None
-    w = np.maximum(w, 1e-10 * max(float(w.max()), np.finfo(float).tiny))
-    root_inv = np.einsum("aij,aj,akj->aik", U, 1 / np.sqrt(w), U)
-    Y = moment_step(np.einsum("aij,aj,akj->aik", U, w, U), K, T, A, B, h, H2, delivery)[0]
-    Z = np.einsum("aij,ajk,akl->ail", root_inv, Y, root_inv)
-    try:
-        ratios = np.linalg.eigvalsh(0.5 * (Z + Z.transpose(0, 2, 1)))
-    except np.linalg.LinAlgError as err:
-        raise NumericalError(f"MJLS mean-square radius: the Collatz-Wielandt check failed ({err})") from None
-    lower, upper = max(float(ratios[:, 0].min()), 0.0), float(ratios[:, -1].max())
-    if not (np.isfinite(radius) and lower * (1.0 - 1e-9) <= radius <= upper * (1.0 + 1e-9)):
-        raise NumericalError(f"MJLS mean-square radius: ARPACK's {radius:.6g} lies outside the proven bounds "
-                             f"[{lower:.6g}, {upper:.6g}]")
-    return radius
+    return mode_radius(A, B, K, h, T, delivery, method, matrix, label="MJLS mean-square radius")
 
 
 def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery: str = "current",
@@ -371,30 +253,11 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     if K_all.shape != (steps, M, m, n):
         raise InputError("gains", f"expected ({M}, {m}, {n}) or ({steps}, {M}, {m}, {n}) mode gains, found "
                                   f"{K_all.shape}")
-    pi = mode_start(system.channel)                                                          # P(mode at 0)
-    H2 = delivery_moments(h)
-    x0 = system.x0
-    if delivery == "next":
-        if first_gain is None:
-            raise InputError("first_gain", "the law at t = 0 is needed with delivery='next'")
-        Q, K, R = np.outer(x0, x0)[None], np.asarray(first_gain, dtype=float)[None], pi[None]
-    else:
-        Q, K, R = pi[:, None, None] * np.outer(x0, x0), K_all[0], T
-    out = np.empty(steps)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(steps):
-            state = float(np.einsum("ij,aji->", Omega, Q))
-            Q_next, KQK = moment_step(Q, K, R, A, B, h, H2, delivery)
-            inputs = float(np.einsum("i,ci,cii->", psi, h, KQK))
-            if delivery == "current":
-                pi = pi @ T                                                                  # P(mode at t + 1)
-            else:
-                pi, R = (pi if t == 0 else pi @ T), T                                        # P(mode at t)
-            out[t] = state + inputs
-            Q = Q_next + pi[:, None, None] * Sigma
-            if t + 1 < steps:
-                K = K_all[t + 1]
-    return np.where(np.isfinite(out), out, np.inf)
+    if delivery == "next" and first_gain is None:
+        raise InputError("first_gain", "the law at t = 0 is needed with delivery='next'")
+    stage, _ = mode_stage_costs(A, B, Omega, psi, Sigma, system.x0, K_all, h, T, mode_start(system.channel),
+                                delivery, first_gain)
+    return stage
 
 
 def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
@@ -431,14 +294,14 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
     iteration = 0
     while iteration < max_iter:
         iteration += 1
-        new, K = _riccati_step(P, A, B, Omega, Psi, T, h)
+        new, K = _coupled_riccati_step(P, A, B, Omega, Psi, T, h)
         if not np.all(np.isfinite(new)):
             break
         change = float(np.max(np.abs(new - P))) / max(float(np.max(np.abs(new))), 1e-300)
         P = new
         if change <= 1e-2 * SELF_CHECK_RTOL:
             break
-    again, K = _riccati_step(P, A, B, Omega, Psi, T, h)
+    again, K = _coupled_riccati_step(P, A, B, Omega, Psi, T, h)
     scale = max(float(np.max(np.abs(P))), 1e-300)
     residual = float(np.max(np.abs(again - P))) / scale if np.all(np.isfinite(again)) else float("inf")
     if not residual <= SELF_CHECK_RTOL:
@@ -450,7 +313,7 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
                       iterations=iteration, residual=residual)
 
 
-def _riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray, Psi: np.ndarray,
+def _coupled_riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray, Psi: np.ndarray,
                   T: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One backward step of the coupled equations: (P_a, K_a) for every mode a, all modes as one batch of
     Theorem 1's step (:func:`packetloss_cvx.lq.recursion.riccati_step` with ``mu = h_a``, ``P = E_a`` and the

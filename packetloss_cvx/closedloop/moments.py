@@ -24,6 +24,7 @@ from ..model.system import System
 from ..model.validation import MAX_ENTRIES
 from ..results import ClosedLoop
 from ..tolerances import MOMENT_DENSE_MAX_N, MOMENT_RESIDUAL_RTOL
+from .modes import mode_stage_costs
 from .stability import (
     check_law,
     is_mean_square_stable,
@@ -243,7 +244,8 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     Returns
     -------
     (stage, terminal)
-        ``stage[t] = E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]`` and ``terminal = E[x_T' Omega x_T]``.
+        ``stage[t] = E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]`` and ``terminal = E[x_T' Omega x_T]``: the
+        mode engine's costs at one mode (:func:`~packetloss_cvx.closedloop.modes.mode_stage_costs`).
         Time O(steps (n^3 + n^2 m)). Non-finite entries (an unstable loop over a long horizon) stay inf.
 
     Examples
@@ -256,7 +258,7 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     check_steps(steps, system.m * system.n)
     K_all = np.asarray(gains, dtype=float)
     mu_all = np.asarray(stationary_channel(system) if mu is None else mu, dtype=float)
-    one_law = K_all.ndim == 2 and mu_all.ndim == 1           # every step's weight and map are the first step's
+    # one law broadcast over the steps (stride 0): the engine forms its map once
     K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 2 else K_all
     mu_all = np.broadcast_to(mu_all, (steps, system.m)) if mu_all.ndim == 1 else mu_all
     if K_all.shape != (steps, system.m, system.n) or mu_all.shape != (steps, system.m):
@@ -265,17 +267,5 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     A, B, _, _ = check_law(system.A, system.B, K_all[0], mu_all[0])
     if not (np.all(np.isfinite(K_all)) and np.all((mu_all >= 0) & (mu_all <= 1))):
         raise InputError("gains", "expected finite gains and probabilities in [0, 1]")
-    Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
-    S = np.outer(system.x0, system.x0)
-    stage = np.empty(steps)
-    step = None
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(steps):
-            if step is None or not one_law:       # one law: its stage weight and map formed once, not every step
-                K, m_ = K_all[t], mu_all[t]
-                weight, step = Omega + (K.T * (m_ * psi)) @ K, second_moment_step(A, B, K, m_)
-            stage[t] = float(np.sum(weight * S))
-            S = step(S) + Sigma
-        terminal = float(np.sum(Omega * S))
-    stage[~np.isfinite(stage)] = np.inf
-    return stage, terminal if np.isfinite(terminal) else float("inf")
+    return mode_stage_costs(A, B, system.state_weights[0], system.input_weights[0], system.noise_cov, system.x0,
+                            K_all, mu_all)

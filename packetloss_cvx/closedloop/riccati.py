@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from ..errors import InputError, NumericalError
 from ..linalg import frobenius
-from ..lq.recursion import riccati_step as riccati_step_batch
+from ..lq.recursion import riccati_step
 from ..model.system import System
 from ..results import Riccati
 from ..tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE, RICCATI_MAX_ITER, RICCATI_RTOL
@@ -32,7 +32,7 @@ from .certificates import no_law_proved
 from .moments import check_steps, law_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
-__all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_input_hessian", "dp_riccati", "riccati_step"]
+__all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_input_hessian", "dp_riccati", "modified_riccati_step"]
 
 #: Every NumericalError of :func:`dp_riccati` that means "no law holds the second moment" starts its
 #: reason with this (callers that treat the absence of a stabilising law as a case, not an error, test it).
@@ -42,7 +42,7 @@ _CHECK_EVERY = 25   # value-iteration steps between tries of the faster policy i
 _POLICY_MAX_ITER = 100
 
 
-def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
+def modified_riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
                  psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One step of the modified Riccati map: the optimal gain for cost-to-go P and the new cost-to-go.
 
@@ -50,22 +50,22 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Om
     (module docstring): Theorem 1's step (:func:`packetloss_cvx.lq.recursion.riccati_step` on one point)
     with the loss variance weighted by P itself. Time O(n^3 + m^3).
 
-    >>> K, P = riccati_step(np.eye(1), np.eye(1), np.eye(1), np.array([1.0]), np.eye(1), np.array([1.0]))
+    >>> K, P = modified_riccati_step(np.eye(1), np.eye(1), np.eye(1), np.array([1.0]), np.eye(1), np.array([1.0]))
     >>> float(K[0, 0]), float(P[0, 0])    # scalar DARE step: K = 1/2, P = 1 + 1 - 1/2
     (0.5, 1.5)
     """
     try:
-        return riccati_step_batch(P, A, B, mu, psi, Omega, variance=True)
+        return riccati_step(P, A, B, mu, psi, Omega, variance=True)
     except np.linalg.LinAlgError:
         raise NumericalError("modified Riccati step: the input Hessian G is singular") from None
 
 
 def dp_input_hessian(B: np.ndarray, P: np.ndarray, mu: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """The DP's input Hessian at cost-to-go P: ``H = M Psi + M B'PB M + diag(mu (1 - mu) diag(B'PB))``, the
-    expectation over the deliveries V of ``V Psi V + V B'PB V`` (``M G`` of :func:`riccati_step`'s G). For any u,
-    ``E[stage + x+'P x+ | x, u] = x'P x + (u + K x)' H (u + K x) + tr(P Sigma_W)`` at the DP's fixed point (P, K):
-    the cost split of a loop run on an estimate (sensing.loop) and its simulated check (claims.sensing) both read it.
-    Time O(n^2 m + n m^2).
+    expectation over the deliveries V of ``V Psi V + V B'PB V`` (``M G`` of :func:`modified_riccati_step`'s G). For
+    any u, ``E[stage + x+'P x+ | x, u] = x'P x + (u + K x)' H (u + K x) + tr(P Sigma_W)`` at the DP's fixed point
+    (P, K): the cost split of a loop run on an estimate (sensing.loop) and its simulated check (claims.sensing) both
+    read it. Time O(n^2 m + n m^2).
 
     >>> float(dp_input_hessian(np.array([[2.0]]), np.array([[3.0]]), np.array([0.5]), np.array([1.0]))[0, 0])
     6.5
@@ -143,7 +143,7 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
     check_at = RICCATI_DIVERGENCE * scale             # the next size at which a growing P is asked for a proof
     with np.errstate(over="ignore", invalid="ignore"):
         while started is None:
-            K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
+            K, P_next = modified_riccati_step(P, A, B, mu_, Omega, psi)
             iterations += 1
             size = frobenius(P_next)
             if not np.isfinite(size):
@@ -161,7 +161,7 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
             if converged:
                 break
             if iterations % _CHECK_EVERY == 0:
-                K, _ = riccati_step(P, A, B, mu_, Omega, psi)
+                K, _ = modified_riccati_step(P, A, B, mu_, Omega, psi)
                 if is_mean_square_stable(mean_square_radius(A, B, K, mu_)):
                     P, steps = _policy_iteration(K, A, B, mu_, Omega, psi)
                     iterations += steps
@@ -170,7 +170,7 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
                 raise NumericalError(f"modified Riccati equation: no convergence in {iterations} iterations at "
                                      f"mu = {mu_.tolist()} (no stabilising solution, or too close to the critical "
                                      "probability)")
-    K, P_next = riccati_step(P, A, B, mu_, Omega, psi)
+    K, P_next = modified_riccati_step(P, A, B, mu_, Omega, psi)
     residual = frobenius(P_next - P) / max(frobenius(P), np.finfo(float).tiny)
     radius = mean_square_radius(A, B, K, mu_)
     if not is_mean_square_stable(radius):
@@ -227,7 +227,7 @@ def _policy_iteration(K: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarra
     The P_j decrease to the stabilising solution (each K_j stays stabilising)."""
     P = law_cost_to_go(A, B, K, mu, Omega, psi)
     for step in range(1, _POLICY_MAX_ITER + 1):
-        K, _ = riccati_step(P, A, B, mu, Omega, psi)
+        K, _ = modified_riccati_step(P, A, B, mu, Omega, psi)
         P_next = law_cost_to_go(A, B, K, mu, Omega, psi)
         if frobenius(P_next - P) <= RICCATI_RTOL * frobenius(P_next):
             return P_next, step
@@ -286,7 +286,7 @@ def dp_finite_horizon(system: System, steps: int,
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps - 1, -1, -1):
             noise += float(np.sum(P * system.noise_cov))
-            gains[t], P = riccati_step(P, A, B, mu_all[t], Omega, psi)
+            gains[t], P = modified_riccati_step(P, A, B, mu_all[t], Omega, psi)
     cost = float(system.x0 @ P @ system.x0) + noise
     if not (np.isfinite(cost) and np.all(np.isfinite(gains))):
         raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")

@@ -12,25 +12,25 @@ stable iff the spectral radius of ``L`` is below one. ``L`` maps PSD matrices to
 completely positive), so its spectral radius is itself an eigenvalue, with a PSD eigenvector.
 
 The radius is computed without forming the n^2 x n^2 matrix for large n (ARPACK on the operator,
-O(n^3 + n^2 m) per product), or from the Kronecker matrix for small n (the test reference).
+O(n^3 + n^2 m) per product), or from the Kronecker matrix for small n (the test reference). The operator, its
+matrix and its radius are those of the mode engine (:mod:`packetloss_cvx.closedloop.modes`) at one mode: a
+Bernoulli channel is the one-state chain.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import DimensionError, InputError, NumericalError
+from ..errors import DimensionError, InputError
 from ..model.system import numeric_array
-from ..tolerances import ARPACK_TOL, KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
-
-#: above this entry size, A and K are scaled down before the radius is computed (exactly: L is quadratic)
-RADIUS_RESCALE = 1e100
+from ..tolerances import MEAN_SQUARE_MARGIN
+from .modes import RADIUS_RESCALE, mode_matrix, mode_radius, mode_step, random_matrix_moment
 
 __all__ = [
-    "check_law", "is_mean_square_stable", "law_radius", "mean_square_radius", "random_matrix_moment",
+    "RADIUS_RESCALE", "check_law", "is_mean_square_stable", "law_radius", "mean_square_radius", "random_matrix_moment",
     "second_moment_adjoint", "second_moment_map", "second_moment_matrix", "second_moment_step",
 ]
 
@@ -95,14 +95,7 @@ def second_moment_step(A: np.ndarray, B: np.ndarray, K: np.ndarray,
     >>> float(step(np.eye(1))[0, 0]), float(step(2 * np.eye(1))[0, 0])      # L is linear: 2, then 4
     (2.0, 4.0)
     """
-    Abar = A - (B * mu) @ K
-    variance = mu * (1.0 - mu)
-
-    def apply(S: np.ndarray) -> np.ndarray:
-        c = variance * np.einsum("ij,jk,ik->i", K, S, K)
-        return Abar @ S @ Abar.T + (B * c) @ B.T
-
-    return apply
+    return mode_step(A, B, K, mu)
 
 
 def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -136,35 +129,10 @@ def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.nda
     >>> S = np.array([[2.0, 0.5], [0.5, 1.0]])
     >>> bool(np.allclose(second_moment_matrix(A, B, K, mu) @ S.ravel(), second_moment_map(S, A, B, K, mu).ravel()))
     True
+
+    :func:`~packetloss_cvx.closedloop.modes.random_matrix_moment` (re-exported here) builds it.
     """
-    Abar = A - (B * mu[..., None, :]) @ K
-    return random_matrix_moment(Abar, (B[:, i, None] * K[..., i, None, :] for i in range(B.shape[1])), mu * (1.0 - mu))
-
-
-def random_matrix_moment(mean: np.ndarray, directions: Iterable[np.ndarray], variances: np.ndarray) -> np.ndarray:
-    """The d^2 x d^2 matrix of ``S -> E[F S F']`` on row-major ``vec(S)`` for the random matrix
-    ``F = mean + sum_i (z_i - E z_i) D_i`` with independent scalars ``z_i`` of variances ``c_i``:
-    ``mean ⊗ mean + sum_i c_i D_i ⊗ D_i`` (the cross terms vanish). The operator of :func:`second_moment_map`
-    is the case ``D_i = b_i k_i``; the loop with an estimated state (``sensing.loop``) averages it over the
-    sensor's arrival patterns. A stack: ``mean`` and each ``D_i`` (..., d, d), ``variances`` (..., k). Time O(d^4)
-    per direction, memory 8 d^4 bytes.
-
-    >>> M = random_matrix_moment(np.array([[1.0]]), [np.array([[2.0]])], np.array([0.25]))
-    >>> float(M[0, 0])          # 1 + 0.25 * 4
-    2.0
-    """
-    out = _kron(mean, mean)
-    for D, c in zip(directions, np.moveaxis(np.asarray(variances), -1, 0), strict=True):
-        if np.any(c):
-            out += np.asarray(c)[..., None, None] * _kron(D, D)
-    return out
-
-
-def _kron(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.kron`` of the last two axes, over a stack (the same products: 2-D inputs give np.kron's bits)."""
-    a, b = np.asarray(a), np.asarray(b)
-    outer = a[..., :, None, :, None] * b[..., None, :, None, :]
-    return outer.reshape(*outer.shape[:-4], a.shape[-2] * b.shape[-2], a.shape[-1] * b.shape[-1])
+    return mode_matrix(A, B, K, mu)
 
 
 def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt.ArrayLike,
@@ -209,94 +177,9 @@ def law_radius(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, 
     >>> round(law_radius(A, B, K, mu), 12)                      # (a - mu k)^2 + mu (1 - mu) k^2
     2.0
     """
-    n = A_.shape[0]
     if method not in ("auto", "kronecker", "krylov"):
         raise InputError("method", f"expected auto, kronecker or krylov, found {method!r}")
-    if not (np.all(np.isfinite(K_)) and np.all(np.isfinite(A_ - (B_ * mu_) @ K_))):
-        raise NumericalError("mean-square radius: the closed-loop matrix A - B M K is not finite")
-    scale = max(float(np.abs(A_).max()), float(np.abs(B_).max() * np.abs(K_).max()))
-    if scale > RADIUS_RESCALE:   # L is quadratic in (A, K): radius(A, K) = c^2 radius(A / c, K / c), no overflow
-        with np.errstate(over="ignore"):
-            return scale * scale * mean_square_radius(A_ / scale, B_, K_ / scale, mu_, method=method)
-    if method == "kronecker" or (method == "auto" and n <= KRONECKER_MAX_N) or n * n < 8:
-        with np.errstate(over="ignore", invalid="ignore"):
-            matrix = second_moment_matrix(A_, B_, K_, mu_) if matrix is None else matrix()
-            try:
-                vals = np.linalg.eigvals(matrix) if np.all(np.isfinite(matrix)) else np.array([np.inf])
-            except np.linalg.LinAlgError:
-                raise NumericalError("mean-square radius: the eigenvalues of the second-moment operator did not "
-                                     "converge") from None
-        if not np.all(np.isfinite(vals)):
-            raise NumericalError("mean-square radius: the second-moment operator overflows")
-        return float(np.max(np.abs(vals)))
-
-    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs  # optional.LAZY_IMPORTS
-
-    upper = _power_bound(A_, B_, K_, mu_, int(min(20 * n, 400, max(40, 4e10 // n ** 3))))
-    if upper == 0.0:
-        return 0.0   # L^k(I) = 0: L vanishes on the PSD cone, hence on every symmetric matrix
-
-    step = second_moment_step(A_, B_, K_, mu_)
-
-    def apply(v: np.ndarray) -> np.ndarray:
-        S = v.reshape(n, n)
-        return step(0.5 * (S + S.T)).ravel()
-
-    # L is applied to the symmetric part: the Perron eigenvector is symmetric (PSD), and the skew
-    # part's eigenvalues are dominated by it (a completely positive map attains its radius on the cone).
-    op = LinearOperator((n * n, n * n), matvec=apply, dtype=float)
-    k = min(6, n * n - 2)
-    try:
-        vals, vecs = eigs(op, k=k, which="LM", tol=ARPACK_TOL, v0=np.eye(n).ravel(),
-                          ncv=min(n * n, max(2 * k + 1, 20)), maxiter=max(300, 10 * n))
-    except (ArpackNoConvergence, ArpackError) as err:
-        failure = f"ARPACK did not converge ({err})"
-    else:
-        top = int(np.argmax(np.abs(vals)))
-        radius = float(abs(vals[top]))
-        lower, bound = _cone_bounds(vecs[:, top], A_, B_, K_, mu_)
-        upper = min(upper, bound)
-        if lower * (1.0 - 1e-9) <= radius <= upper * (1.0 + 1e-9):
-            return radius
-        failure = f"ARPACK's {radius:.6g} lies outside the proven bounds [{lower:.6g}, {upper:.6g}]"
-    # a defective (Jordan) Perron root, which Arnoldi resolves only to about eps^(1/size), or a slow
-    # convergence: the Kronecker matrix is exact where it fits
-    if n <= 2 * KRONECKER_MAX_N:
-        return mean_square_radius(A_, B_, K_, mu_, method="kronecker")
-    raise NumericalError(f"mean-square radius: {failure}; the radius is at most {upper:.6g}")
-
-
-def _cone_bounds(vec: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> tuple[float, float]:
-    """Collatz–Wielandt bounds from a positive definite X near the Perron eigenvector: with
-    ``R = X^(-1/2) L(X) X^(-1/2)``, ``L(X) >= lambda_min(R) X`` and ``L(X) <= lambda_max(R) X``, so the radius
-    lies in ``[lambda_min(R), lambda_max(R)]`` (a positive map; X > 0 makes both proofs hold). Time O(n^3)."""
-    n = A.shape[0]
-    v = vec * np.exp(-1j * np.angle(vec[np.argmax(np.abs(vec))]))
-    X = v.real.reshape(n, n)
-    X = 0.5 * (X + X.T)
-    X = X if np.trace(X) >= 0 else -X
-    w, U = np.linalg.eigh(X)
-    w = np.maximum(w, 1e-10 * max(float(w.max()), np.finfo(float).tiny))   # PSD part, made definite
-    root_inv = (U / np.sqrt(w)) @ U.T
-    Y = second_moment_map((U * w) @ U.T, A, B, K, mu)
-    r = np.linalg.eigvalsh(0.5 * (root_inv @ Y @ root_inv + (root_inv @ Y @ root_inv).T))
-    return max(float(r[0]), 0.0), float(r[-1])
-
-
-def _power_bound(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, steps: int) -> float:
-    """``min_k ||L^k(I)||_2^(1/k)`` over k = 1..steps: an upper bound on the radius (for a positive map the
-    induced norm is attained at I, Russo–Dye, and rho <= ||L^k||^(1/k)). Time O(steps (n^3 + n^2 m))."""
-    X, log_scale, best = np.eye(A.shape[0]), 0.0, np.inf
-    step = second_moment_step(A, B, K, mu)
-    for k in range(1, steps + 1):
-        X = step(X)
-        size = float(np.linalg.norm(X, 2))
-        if size == 0.0:
-            return 0.0
-        log_scale += np.log(size)
-        X /= size
-        best = min(best, float(np.exp(log_scale / k)))
-    return best
+    return mode_radius(A_, B_, K_, mu_, method="dense" if method == "kronecker" else method, matrix=matrix)
 
 
 def is_mean_square_stable(radius: float) -> bool:

@@ -40,8 +40,9 @@ from ..budgets import check, duration_text, estimated_seconds, markov_recursion_
 from ..errors import InputError, NumericalError
 from ..linalg import lapack_dgesv
 from ..model.chain import chain_matrices
-from ..model.system import CacheKey, System
-from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
+from ..model.system import CacheKey, System, SystemStore
+from ..tolerances import PLAN_COST_RTOL, SELF_CHECK_ATOL
+from .policy import self_check
 from .recursion import (
     STATIONARY_RUN,
     forward_cost,
@@ -55,10 +56,13 @@ from .recursion import (
     stationary_close,
     weight_head,
 )
+from .settling import small_change
+from .structure import structure_of
 
-#: The lift of a system's own chains (:func:`chain_lift`), kept on the system: n and m (A's and B's shapes), the
-#: horizon, the schedule the chains must predict and the chains themselves.
+#: The lift of a system's own chains (:func:`chain_lift`), kept per system (a SystemStore): n and m (A's and B's
+#: shapes), the horizon, the schedule the chains must predict and the chains themselves.
 LIFT_KEY = CacheKey("markov.augmented.chain_lift", ("A", "B", "horizon", "mu_schedule", "channel"))
+_LIFTS = SystemStore(LIFT_KEY)
 
 __all__ = ["ChainLift", "augmented_size", "augmented_solve", "chain_cost", "chain_lift", "check_recursion_budget",
            "lq_cross_step", "mean_state_bound"]
@@ -126,10 +130,13 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
     >>> bool(np.isclose(lift.Lam[0][0, 0], 0.6) and np.allclose(np.abs(lift.gamma[0]), 0.6 * 0.25 * 2 ** 0.5))
     True
     """
-    if chains is None:           # the system's own chains: lifted once and kept on the system (the exact minimum
+    if chains is None:           # the system's own chains: lifted once and kept for the system (the exact minimum
         # and the referee's cost of a plan both lift them; a read-only value, as every kept one)
-        return system.cached(LIFT_KEY, lambda: _lift(system, chain_matrices(system.channel)
-                                                     if system.channel is not None else None))
+        kept = _LIFTS.get(system)
+        if kept is None:
+            kept = _LIFTS.put(system, _lift(system, chain_matrices(system.channel)
+                                            if system.channel is not None else None))
+        return kept
     return _lift(system, chains)
 
 
@@ -351,10 +358,7 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
                              f"loop ({forward:.6g}), is not resolved (rounding may move it by up to {bound:.2g}): the "
                              "open-loop growth of A over the horizon amplifies a fixed plan's rounding; shorten the "
                              "horizon")
-    if abs(cost - forward) > SELF_CHECK_RTOL * forward + atol or cost < 0:
-        raise NumericalError(f"the augmented recursion gives J* = {cost:.10g} but the expected cost of its own plan "
-                             f"is {forward:.10g}: double precision cannot resolve this problem (weights of very "
-                             "different sizes, or an unstable plant over a long horizon)")
+    self_check(system, "udp", cost, forward, "markov-recursion", atol=atol)
     return U, K[0][:, :n].copy(), cost
 
 
@@ -419,13 +423,15 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     chained = [i for i in range(m) if lift.Lam[i].size]
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
-        X = mean_states(system, mu[None], U, np.repeat(x[None], P, axis=0))
-        total = forward_cost(system, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
+        structure = structure_of(system)
+        X = mean_states(structure, mu[None], U, np.repeat(x[None], P, axis=0))
+        total = forward_cost(structure, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
         var_u2 = mu * (1.0 - mu) * U * U                      # (P, N, m)
         eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
         Sig = np.zeros((P, n, n))
         Y = np.zeros((P, n, m))                               # column i: E[e_t delta_{t,i}] u_{t,i}
-        for t in range(N):
+        end = _plan_end(U)
+        for t in range(end):
             u = U[:, t]
             for i in chained:
                 Y[:, :, i] = (eta[i] @ lift.g[i]) * u[:, i, None]
@@ -435,4 +441,37 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
             Sig = A @ Sig @ A.T + cross + cross.transpose(0, 2, 1) + (B * var_u2[:, t, None, :]) @ B.T \
                 + system.noise_cov
             total += np.einsum("ij,pji->p", W[t], Sig)
+        if end < N:
+            total += _free_tail(system, Sig, end, finite=all(np.all(np.isfinite(e)) for e in eta.values()))
+    return total
+
+
+def _plan_end(U: np.ndarray) -> int:
+    """One past the last step at which some plan of ``U`` (P, N, m) has a nonzero input (0 for all-zero plans): from
+    there on the correlations no longer enter the error covariance. O(P N m)."""
+    moving = np.flatnonzero(np.any(U != 0.0, axis=(0, 2)))
+    return int(moving[-1]) + 1 if moving.size else 0
+
+
+def _free_tail(system: System, Sig: np.ndarray, start: int, finite: bool) -> np.ndarray:
+    """``sum_{t >= start} tr(Omega_{t+1} Sigma_{t+1})`` once every plan has ended (:func:`_plan_end`): the cross
+    terms and the loss variance of the input are exact zeros, so the error covariance is the free Lyapunov recursion
+    ``Sigma+ = A Sigma A' + Sigma_W`` from ``Sig`` (P, n, n) = Sigma_start, the same floats as :func:`chain_cost`'s
+    full step. Where A is stable (q = rho(A)^2 < 1), the state weight is one weight and everything is finite, its
+    settled tail is closed as the Lyapunov sums of :mod:`~packetloss_cvx.lq.structure` close theirs: once the change of
+    Sigma times ``q / (1 - q)`` is below ``STATIONARY_RTOL`` of its size (``stationary_close``), each remaining step
+    adds the settled term; a Sigma that is exactly 0 (no noise: it underflowed) adds nothing more. O(L n^3) for a
+    tail that settles in L steps, O((N - start) n^3) otherwise. Returns (P,)."""
+    structure = structure_of(system)
+    A, W, N, noise_cov = system.A, system.state_weights, system.horizon, system.noise_cov
+    q = structure.open_loop_radius ** 2
+    closable = finite and q < 1.0 and structure.time_invariant_weight
+    total = np.zeros(Sig.shape[0])
+    for t in range(start, N):
+        new = A @ Sig @ A.T + noise_cov
+        term = np.einsum("ij,pji->p", W[t], new)
+        if closable and (not new.any() or (small_change(new, Sig) and stationary_close(new, Sig, q))):
+            return total + (N - t) * term                  # Sigma_{t+1} = ... = Sigma_N to rounding
+        total += term
+        Sig = new
     return total

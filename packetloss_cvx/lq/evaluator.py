@@ -40,10 +40,12 @@ from ..model.validation import MAX_ENTRIES
 from ..results import BatchSolution, Solution
 from ..threads import blas_limited
 from ..tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
-from .costs import dense_or_recursion, hessian_diagonal, hessian_factor, refuse_correlated, weight_spread
+from .dense import dense_constant, hessian_diagonal, hessian_factor
 from .pointwise import PointEvaluator
+from .policy import choose, refuse_correlated, self_check, weight_spread
 from .prediction import prediction
-from .recursion import backward_batch, forward_cost, input_weight, overflow_error, rollout_batch, udp_variance_weights
+from .recursion import backward_batch, forward_cost, input_weight, overflow_error, rollout_batch
+from .structure import structure_of
 
 __all__ = ["CHUNK_BYTES", "CostEvaluator"]
 
@@ -87,7 +89,9 @@ class CostEvaluator:
         self.system = check_system(system)
         self.protocol = check_protocol(protocol)
         s = self.system
-        self.weights = udp_variance_weights(s)
+        #: what does not depend on mu, built once per system structure: the kernels' first argument
+        self.structure = structure_of(s)
+        self.weights = self.structure.variance_weights
         self._d, self._noise = self.weights
         self._d_finite = bool(np.all(np.isfinite(self._d)))
         with np.errstate(over="ignore", invalid="ignore"):
@@ -99,7 +103,7 @@ class CostEvaluator:
             self._Omega = block_diagonal(s.state_weights)
         self.requested = method
         # the one chooser and fallback closed_form takes (InputError on an unknown method)
-        self.method, self._pred = dense_or_recursion(s, method, self.weights, lambda: prediction(s))
+        self.method, self._pred = choose(s, method, self.weights, lambda: prediction(s))
         self._point = None if self._pred is None else PointEvaluator(s, self.protocol, self._pred, self.weights)
         self._optimum: Solution | None = None
 
@@ -140,7 +144,7 @@ class CostEvaluator:
             raise ProbabilityError("mu", f"expected probabilities in [0, 1], found {bad}")
         return arr
 
-    def _states(self, x0: npt.ArrayLike | None, P: int) -> np.ndarray:
+    def _initial_states(self, x0: npt.ArrayLike | None, P: int) -> np.ndarray:
         """(P, n) initial states: the system's, one shared (n,), or one per point (P, n)."""
         n = self.system.n
         if x0 is None:
@@ -253,7 +257,7 @@ class CostEvaluator:
     def _run(self, mus, x0, gains: bool):
         mu = self._schedules(mus)
         P = mu.shape[0]
-        x = self._states(x0, P)
+        x = self._initial_states(x0, P)
         base = self._base if x0 is None else None       # x0'Q x0 + noise of the forward costs
         s = self.system
         costs = np.empty(P)
@@ -304,7 +308,7 @@ class CostEvaluator:
         if base is None:
             with np.errstate(over="ignore", invalid="ignore"):
                 base = np.einsum("pi,ij,pj->p", x, s.initial_weight, x) + self._noise
-        return forward_cost(s, mu, U, X, weight, base, self._Omega)
+        return forward_cost(self.structure, mu, U, X, weight, base, self._Omega)
 
     def _dense(self, mu, x, idx, costs, inputs, K0, base=None) -> np.ndarray:
         """Theorem 1's dense law for a chunk; returns which points passed their checks."""
@@ -335,12 +339,12 @@ class CostEvaluator:
             ok &= np.all(np.isfinite(F.reshape(P, -1)), axis=1) & np.isfinite(res)
             ok &= res <= DENSE_RESIDUAL_RTOL * scale
             u = -np.einsum("pkj,pj->pk", F, x) if K0 is not None else -F[:, :, 0]
-            const = np.einsum("pi,ij,pj->p", x, s.initial_weight + pred.Omega_p, x) + pred.noise_term
+            const = dense_constant(s, pred, x)
             closed = const + np.einsum("pk,pk->p", g, v * u)
             X = (x @ pred.Phi.T + (v * u) @ pred.Gamma.T).reshape(P, N, n)
             U = u.reshape(P, N, m)
             forward = self._forward(mu, x, U, X, base=base)
-        ok &= self._checked(closed, forward, np.zeros(P), raise_=False)
+        ok &= self_check(s, self.protocol, closed, forward, "dense", raise_=False)
         costs[idx[ok]] = closed[ok]
         inputs[idx[ok]] = U[ok]
         if K0 is not None:
@@ -354,43 +358,24 @@ class CostEvaluator:
         if self.protocol == "udp" and not self._d_finite and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
             raise overflow_error("diag(Omega_g)", self.protocol)
         added = input_weight(s, self.protocol, mu, self._d)                   # (P, N, m)
-        K, Pm = backward_batch(s, self.protocol, mu, added)
+        K, Pm = backward_batch(self.structure, self.protocol, mu, added)
         if not np.isfinite(self._noise):
             raise overflow_error("the cost-to-go matrix", self.protocol)
         with np.errstate(over="ignore", invalid="ignore"):
             # x'(Q + P_0)x in an order that does not depend on the batch (einsum's three-operand form
             # reduces a batch of one n = 2 point in another order): a point's cost is a function of the point
             closed = np.einsum("pj,pj->p", np.matmul(x[:, None, :], s.initial_weight + Pm)[:, 0, :], x) + self._noise
-        U, X = rollout_batch(s, mu, K, x)
+        U, X = rollout_batch(self.structure, mu, K, x)
         forward = self._forward(mu, x, U, X, added, base)
         atol = np.zeros(P)
         rough = np.abs(closed - forward) > SELF_CHECK_RTOL * forward
         if np.any(rough):      # the rounding scale of x'P_0 x, only where the relative test alone fails
             atol[rough] = SELF_CHECK_ATOL * np.linalg.norm(Pm[rough], 2, axis=(1, 2)) * np.sum(x[rough] ** 2, axis=1)
-        self._checked(closed, forward, atol, raise_=True)
+        self_check(s, self.protocol, closed, forward, "recursion", atol)
         costs[idx] = closed
         inputs[idx] = U
         if K0 is not None:
             K0[idx] = K[:, 0]
-
-    def _checked(self, closed: np.ndarray, forward: np.ndarray, atol: np.ndarray, raise_: bool) -> np.ndarray:
-        """Which points pass costs.closed_form's self-check; with ``raise_`` a failure raises
-        NumericalError as closed_form's does."""
-        finite = np.isfinite(closed) & np.isfinite(forward)
-        with np.errstate(invalid="ignore"):
-            agree = finite & (np.abs(closed - forward) <= SELF_CHECK_RTOL * forward + atol) & (closed >= 0)
-        if raise_ and not np.all(finite):
-            raise NumericalError(
-                f"the {self.protocol}-like expected cost exceeds the double-precision range (about 1e308): the "
-                "open-loop prediction of an unstable plant over this horizon, or inputs/states that large")
-        if raise_ and not np.all(agree):
-            k = int(np.flatnonzero(~agree)[0])
-            rel = abs(closed[k] - forward[k]) / max(forward[k], 1e-300)
-            raise NumericalError(
-                f"method 'recursion': the closed-form cost {closed[k]:.10g} and the forward cost of its own plan "
-                f"{forward[k]:.10g} differ by {rel:.1e} (relative): double precision cannot resolve this problem "
-                f"({weight_spread(self.system)}); rescale the weights")
-        return agree
 
 
 def _channel_vector(mu: np.ndarray, m: int) -> bool:

@@ -42,9 +42,10 @@ from ..model.chain import stacked_moments
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system
 from ..results import Solution
-from ..tolerances import SELF_CHECK_RTOL
 from .augmented import augmented_size, augmented_solve, chain_cost, check_recursion_budget, mean_state_bound
-from .costs import check_inputs, closed_form, dense_or_recursion, expected_cost, pick_method
+from .costs import check_inputs, closed_form, expected_cost
+from .dense import dense_constant
+from .policy import choose, pick_method, self_check
 from .prediction import Prediction, prediction
 from .recursion import check_plan_cost, overflow_error, udp_variance_weights
 
@@ -317,7 +318,7 @@ def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto
     # without the condition estimate's O(N n^3) Lyapunov sum (the recursion runs its own)
     limit = dense_max(system) if method == "auto" else 0
     if limit:
-        route, dense = dense_or_recursion(system, "auto", udp_variance_weights(system),
+        route, dense = choose(system, "auto", udp_variance_weights(system),
                                           lambda: _dense_closed_form(system), limit)
         if dense is not None:
             return dense
@@ -346,15 +347,10 @@ def _dense_closed_form(system: System) -> Solution:
         / s[:, None]
     u = -F @ x
     g = pred.Omega_gp @ x
-    constant = float(x @ (system.initial_weight + pred.Omega_p) @ x) + pred.noise_term
-    cost = constant + float(g @ (pred.Vbar * u))
+    cost = dense_constant(system, pred, x) + float(g @ (pred.Vbar * u))
     U = u.reshape(N, m)
     forward = exact_cost(system, U, "udp", method="dense")
-    if not (np.isfinite(cost) and np.isfinite(forward)) or abs(cost - forward) > SELF_CHECK_RTOL * abs(forward) \
-            or cost < 0:
-        raise NumericalError(f"the exact Markov closed form gives J* = {cost:.10g} but the expected cost of its own "
-                             f"plan is {forward:.10g}: double precision cannot resolve this problem (weights of very "
-                             "different sizes, or an unstable plant over a long horizon)")
+    self_check(system, "udp", cost, forward, "markov-dense")
     gain = F[:m]
     return Solution(protocol="udp", cost=cost, inputs=U, gain=gain,
                     closed_loop_eigenvalues=np.linalg.eigvals(system.A - system.B @ gain), method="markov-dense")

@@ -24,10 +24,12 @@ from scipy.linalg.lapack import dgetrs as _getrs
 
 from ..linalg import block_diagonal
 from ..model.system import System
-from ..tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_RTOL
-from .costs import hessian_diagonal, hessian_factor
+from ..tolerances import DENSE_RESIDUAL_RTOL
+from .dense import dense_constant, hessian_diagonal, hessian_factor
+from .policy import self_check
 from .prediction import Prediction
 from .recursion import forward_cost, input_weight
+from .structure import structure_of
 
 __all__ = ["OMEGA_DENSE_MAX", "PointEvaluator"]
 
@@ -45,9 +47,10 @@ class PointEvaluator:
     def __init__(self, system: System, protocol: str, pred: Prediction, weights: tuple[np.ndarray, float]) -> None:
         s, x = system, system.x0
         self.system, self.pred, self.protocol = s, pred, protocol
+        self.structure = structure_of(s)
         self.d = weights[0]
         self.g = pred.Omega_gp @ x
-        self.const = float(x @ (s.initial_weight + pred.Omega_p) @ x) + pred.noise_term
+        self.const = dense_constant(s, pred, x)
         self.base = float(x @ s.initial_weight @ x) + weights[1]
         self.Phi_x = pred.Phi @ x
         self.col2 = np.sum(pred.Omega_g ** 2, axis=0)
@@ -102,10 +105,9 @@ class PointEvaluator:
             N, n, m = s.horizon, s.n, s.m
             X = (self.Phi_x + pred.Gamma @ z).reshape(1, N, n)
             mu, U = v.reshape(1, N, m), u.reshape(1, N, m)
-            forward = float(forward_cost(s, mu, U, X, input_weight(s, self.protocol, mu, self.d), self.base,
-                                         self.Omega)[0])
-            ok = np.isfinite(closed) and np.isfinite(forward) and closed >= 0
-            ok = ok and abs(closed - forward) <= SELF_CHECK_RTOL * forward
+            weight = input_weight(s, self.protocol, mu, self.d)
+            forward = float(forward_cost(self.structure, mu, U, X, weight, self.base, self.Omega)[0])
+            ok = bool(self_check(s, self.protocol, closed, forward, "dense", raise_=False))
         return closed if ok else None
 
     def line(self, mu: np.ndarray, i: int, checked: bool = True) -> Callable[[float], float | None] | None:

@@ -3,9 +3,9 @@
 Everything here is dense: memory O((N n)^2 + (N n)(N m)), time O(N^2 n^2 (n + m) + (N m)^2 N n).
 For long horizons use :mod:`packetloss_cvx.lq.recursion`, which forms none of these.
 
-None of the matrices depends on mu or x0, so they are built once per system structure and kept on the
-system (:meth:`~packetloss_cvx.model.system.System.structure_cached`, shared with its ``with_mu`` / ``with_x0``
-copies) while they fit ``model.STRUCTURE_CACHE_MAX_BYTES``; every array of a :class:`Prediction` is read-only.
+None of the matrices depends on mu or x0, so they are built once per system structure and kept here
+(:class:`~packetloss_cvx.model.system.StructureStore`s, shared by a system's ``with_mu`` / ``with_x0`` copies) while they
+fit ``model.STRUCTURE_CACHE_MAX_BYTES``; every array of a :class:`Prediction` is read-only.
 """
 
 from __future__ import annotations
@@ -16,12 +16,13 @@ from functools import cached_property
 import numpy as np
 
 from ..linalg import block_diagonal, check_finite
-from ..model.system import CacheKey, System
+from ..model.system import CacheKey, StructureStore, System
 
-#: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
+#: what is kept per system structure: each key says the fields its value depends on
 CORE_KEY = CacheKey("prediction.core", ("A", "B", "horizon", "state_weights", "input_weights"))
 OMEGA_KEY = CacheKey("prediction.Omega", ("horizon", "state_weights"))
 NOISE_TERM_KEY = CacheKey("prediction.noise_term", ("A", "horizon", "state_weights", "noise_cov"))
+_CORES, _OMEGAS, _NOISE_TERMS = StructureStore(CORE_KEY), StructureStore(OMEGA_KEY), StructureStore(NOISE_TERM_KEY)
 
 __all__ = ["Prediction", "prediction"]
 
@@ -63,10 +64,12 @@ class Prediction:
 
     @cached_property
     def Omega(self) -> np.ndarray:
-        """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept on the system structure (read-only)."""
+        """blkdiag(Omega_1..Omega_N), (N n)×(N n); kept per system structure (read-only)."""
         s = self.system
-        return s.structure_cached(OMEGA_KEY, lambda: _read_only(block_diagonal(s.state_weights)),
-                                  nbytes=8 * (s.horizon * s.n) ** 2)
+        kept = _OMEGAS.get(s)
+        if kept is None:
+            kept = _OMEGAS.put(s, _read_only(block_diagonal(s.state_weights)), nbytes=8 * (s.horizon * s.n) ** 2)
+        return kept
 
     @cached_property
     def Lambda(self) -> np.ndarray:
@@ -89,8 +92,11 @@ class Prediction:
     def noise_term(self) -> float:
         """tr(Omega_l Sigma_W), the noise part of both optimal costs (0 without noise; eq:TCP-err).
         Kept on the system structure (it depends on neither mu nor x0)."""
-        return self.system.structure_cached(NOISE_TERM_KEY, lambda: float(
-            np.sum(self.Omega_l * self.Sigma_W)) if np.any(self.system.noise_cov) else 0.0)
+        kept = _NOISE_TERMS.get(self.system)
+        if kept is None:
+            kept = _NOISE_TERMS.put(self.system, float(np.sum(self.Omega_l * self.Sigma_W))
+                                    if np.any(self.system.noise_cov) else 0.0)
+        return kept
 
 
 def _read_only(arr: np.ndarray) -> np.ndarray:
@@ -125,7 +131,7 @@ def prediction(system: System) -> Prediction:
     The paper's labels: big (Phi, Gamma, Lambda), eq:matrix-plant (X = Phi x + Gamma Y U + Lambda W).
 
     Time O((N n)^2 N m + (N m)^2 N n), memory O(N^2 n (n + m)), the first time for a system structure;
-    O(1) after that while the matrices fit ``STRUCTURE_CACHE_MAX_BYTES`` (kept on the system, shared by its
+    O(1) after that while the matrices fit ``STRUCTURE_CACHE_MAX_BYTES`` (kept per system structure, shared by its
     ``with_mu`` / ``with_x0`` copies: they depend on neither mu nor x0).
 
     Raises
@@ -144,7 +150,9 @@ def prediction(system: System) -> Prediction:
     """
     N, n, m = system.horizon, system.n, system.m
     size = 8 * (N * n * (n + N * m) + (N * m) * (2 * N * m + n + 2) + n * n)
-    core = system.structure_cached(CORE_KEY, lambda: _structure(system), nbytes=size)
+    core = _CORES.get(system)
+    if core is None:
+        core = _CORES.put(system, _structure(system), nbytes=size)
     return Prediction(system=system, Vbar=system.mu_schedule.reshape(-1), **core)
 
 

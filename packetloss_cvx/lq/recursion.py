@@ -35,14 +35,12 @@ import numpy as np
 from ..errors import NumericalError
 from ..linalg import check_finite, lapack_dgesv
 from ..model.protocols import check_protocol
-from ..model.system import STRUCTURE_CACHE_MAX_BYTES, CacheKey, System
+from ..model.system import System
 from ..tolerances import PLAN_COST_RTOL, STATIONARY_RTOL
 from .roundoff import UNIT_ROUNDOFF, gamma, rollout_cost_error
-
-#: the cached structure of a system (System.structure_cached): each key says the fields its value depends on
-VARIANCE_WEIGHTS_KEY = CacheKey("recursion.udp_variance_weights", ("A", "B", "horizon", "state_weights", "noise_cov"))
-CONDITION_KEY = CacheKey("recursion.condition_estimate", ("A", "B", "horizon", "state_weights", "input_weights"))
-WEIGHT_HEAD_KEY = CacheKey("recursion.weight_head", ("horizon", "state_weights"))
+from .settling import STATIONARY_RUN, all_steps_equal, leading_run, settled, spectral_radius, stationary_close
+from .settling import drift as _drift
+from .structure import Structure, condition_from, lyapunov_weights, structure_of
 
 __all__ = [
     "FLAT_MIN", "STATIONARY_RUN", "backward_batch", "backward_pass", "check_plan_cost", "condition_estimate",
@@ -53,9 +51,6 @@ __all__ = [
 
 #: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
 FLAT_MIN = 64
-#: Horizons of at least twice this many steps try to close a stationary tail (tolerances.STATIONARY_RTOL), and a
-#: run of at least this many steps with one gain and one channel is rolled out by powers of its closed loop.
-STATIONARY_RUN = 64
 
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
@@ -71,8 +66,8 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
 
     Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
     ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m), the first time for a system
-    structure: ``d`` (read-only) is kept on the system and its with_mu / with_x0 copies
-    (:meth:`~packetloss_cvx.model.system.System.structure_cached`; it depends on neither mu nor x0).
+    structure: kept on its :class:`~packetloss_cvx.lq.structure.Structure` (``d`` read-only; it depends on neither
+    mu nor x0).
 
     Examples
     --------
@@ -84,15 +79,15 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
     >>> bool(np.allclose(d.ravel(), prediction(s).Omega_d))    # the dense diagonal of Omega_g
     True
     """
-    return system.structure_cached(VARIANCE_WEIGHTS_KEY, lambda: _lyapunov_weights(system)[:2],
-                                   nbytes=8 * system.horizon * system.m)
+    return structure_of(system).variance_weights
 
 
 def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarray]:
     """:func:`udp_variance_weights` ``(d, noise)`` with the products ``B' S_t A`` (N, m, n) of the same backward
     Lyapunov sum ``S_t = Omega_{t+1} + A' S_{t+1} A``, which the exact cost under Markov losses pairs with the
-    state-chain correlations (markov/augmented.py: row i of its cross term is ``b_i' S_t A``). One kernel for both:
-    time O(N n^3 + N m n^2), memory O(N m n); not kept on the system (d is, through udp_variance_weights).
+    state-chain correlations (markov/augmented.py: row i of its cross term is ``b_i' S_t A``). One kernel for both
+    (:func:`~packetloss_cvx.lq.structure.lyapunov_weights`): time O(N n^3 + N m n^2), memory O(N m n); not kept (d is,
+    on the structure).
 
     Examples
     --------
@@ -101,54 +96,13 @@ def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarra
     >>> d.ravel().tolist(), BSA.ravel().tolist()
     ([5.0, 1.0], [10.0, 2.0])
     """
-    return _lyapunov_weights(system, cross=True)
+    return lyapunov_weights(structure_of(system), cross=True)
 
 
-def _lyapunov_weights(system: System, cross: bool = False) -> tuple:
-    """udp_variance_weights, computed (and ``B' S_t A`` per step with ``cross``): the backward Lyapunov sum S_t,
-    O(N n^3); once S stops changing (:func:`stationary_close`) over a stationary head (Omega_t the same for every
-    earlier t), the earlier steps take its value: O(L n^3) for a sum that settles in L steps. An unstable A's sum
-    never settles (q = rho(A)^2 >= 1): its steps are not weighed at all."""
-    A, B, W, N = system.A, system.B, system.state_weights, system.horizon
-    d = np.empty((N, system.m))
-    BSA = np.empty((N, system.m, system.n)) if cross else None
-    noise = 0.0
-    has_noise = bool(np.any(system.noise_cov != 0))
-    # only long horizons are worth the checks, and only a stable A's sum settles (q = rho(A)^2 < 1)
-    q = _radius(A) ** 2 if N >= 2 * STATIONARY_RUN else math.inf
-    settle = q < 1.0
-    head = None                                         # Omega_1..Omega_head+1 (W[0..head]) are one weight
-    S = W[N - 1].copy()
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(N - 1, -1, -1):
-            d[t] = np.einsum("ij,ik,kj->j", B, S, B)
-            if cross:
-                BSA[t] = B.T @ S @ A
-            if has_noise:
-                noise += float(np.sum(S * system.noise_cov))
-            if t > 0:
-                new = W[t - 1] + A.T @ S @ A
-                if (settle and (head is None or t - 1 <= head) and _small_change(new, S)
-                        and stationary_close(new, S, q)):
-                    head = len(weight_head(system)) - 1 if head is None else head
-                    if t - 1 <= head:                                     # S_{t-1} = ... = S_0 = new
-                        d[:t] = np.einsum("ij,ik,kj->j", B, new, B)
-                        if cross:
-                            BSA[:t] = B.T @ new @ A
-                        if has_noise:
-                            noise += t * float(np.sum(new * system.noise_cov))
-                        break
-                S = new
-    d.setflags(write=False)
-    return (d, noise, BSA) if cross else (d, noise)
-
-
-def weight_head(system: System) -> np.ndarray:
+def weight_head(system: System | Structure) -> np.ndarray:
     """The leading state weights equal to the first, ``state_weights[:h + 1]`` (a read-only view; all N for a
-    time-invariant weight). The backward passes close a stationary tail only inside it, and the forward cost
-    weighs every state with one product when it is the whole horizon. Kept on the system structure
-    (:meth:`~packetloss_cvx.model.system.System.structure_cached`): its O(N n^2) comparison is made once per structure,
-    not once per pass. O(1) after the first call.
+    time-invariant weight): :attr:`~packetloss_cvx.lq.structure.Structure.weight_head`. O(1) after the first call for
+    a structure.
 
     Examples
     --------
@@ -157,60 +111,13 @@ def weight_head(system: System) -> np.ndarray:
     >>> len(weight_head(s)), weight_head(s.with_mu([0.5])) is weight_head(s)    # Omega_1 = Omega_2 != Omega_3
     (2, True)
     """
-    W = system.state_weights
-    return system.structure_cached(WEIGHT_HEAD_KEY, lambda: W[:leading_run(W[None]) + 1])
-
-
-def _small_change(new: np.ndarray, old: np.ndarray) -> bool:
-    """A cheap necessary test for :func:`stationary_close` with a contraction q >= 0.01. O(P n^2)."""
-    return bool(np.abs(new - old).max() <= 100.0 * STATIONARY_RTOL * np.abs(new).max())
-
-
-def _radius(loop: np.ndarray) -> np.ndarray:
-    """The spectral radius of each matrix of a stack (or of one matrix). O(P n^3)."""
-    return np.max(np.abs(np.linalg.eigvals(loop)), axis=-1)
-
-
-def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) -> bool:
-    """Whether a backward iterate has settled: its last change, times the remaining geometric sum
-    ``q / (1 - q)`` of a map contracting by ``q`` per step, is below ``STATIONARY_RTOL`` relative to its
-    size (every point of a batch: new, old (..., n, n), q (...,) or a float). Never with q >= 1. O(P n^2).
-
-    Examples
-    --------
-    >>> stationary_close(np.eye(2), np.eye(2) * (1 + 1e-16), 0.25), stationary_close(np.eye(2), 2 * np.eye(2), 0.25)
-    (True, False)
-    """
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _settled(*_drift(new, old), q)
-
-
-def _drift(new: np.ndarray, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``max |new - old|`` and ``max |new|`` per matrix of a stack: what :func:`stationary_close` weighs (the
-    caller ignores overflow in np.errstate, as the backward passes do). O(P n^2)."""
-    lead, k = new.shape[:-2], new.shape[-1] * new.shape[-2]
-    return _row_max(np.abs(new - old).reshape(-1, k), lead), _row_max(np.abs(new).reshape(-1, k), lead)
-
-
-def _row_max(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    """The largest entry of each row of ``values`` (p, k), shaped ``shape``: by a reduction over the first axis of
-    the transposed copy (NumPy reduces a short last axis row by row, an order of magnitude slower).
-    O(p k)."""
-    if values.shape[0] < 64:
-        return values.max(axis=1).reshape(shape)
-    return np.ascontiguousarray(values.T).max(axis=0).reshape(shape)
+    return structure_of(system).weight_head
 
 
 def _near(change: np.ndarray, size: np.ndarray) -> bool:
-    """A necessary condition of :func:`_settled` with a contraction q >= 0.01 (whose geometric factor
+    """A necessary condition of :func:`settled` with a contraction q >= 0.01 (whose geometric factor
     q / (1 - q) is then at least 1/99): change <= 100 STATIONARY_RTOL size at every point. O(P)."""
     return bool((change <= 100.0 * STATIONARY_RTOL * size).all())
-
-
-def _settled(change: np.ndarray, size: np.ndarray, q: np.ndarray | float) -> bool:
-    """:func:`stationary_close` of a change and size (:func:`_drift`), in the caller's np.errstate. O(P)."""
-    q = np.asarray(q, dtype=float)
-    return bool(((q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)).all())
 
 
 def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None = None) -> float:
@@ -219,7 +126,7 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     curvature per delivered input). The dense formulas lose about ``log10(estimate * eps)``
     digits; the recursion does not depend on it. ``inf`` when Omega_g overflows.
     Time O(N n^3) (the Lyapunov sums of :func:`udp_variance_weights`), no dense matrix; O(1) once kept
-    on the system structure (with ``weights`` None or the system's own).
+    on the system's structure (with ``weights`` None or the system's own).
 
     Examples
     --------
@@ -227,23 +134,13 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     >>> condition_estimate(s)                      # (trace Omega_g + max Psi) / min Psi = (5 + 1 + 1) / 1
     7.0
     """
-    kept = 8 * system.horizon * system.m <= STRUCTURE_CACHE_MAX_BYTES    # udp_variance_weights keeps d
-    if weights is None or (kept and weights is udp_variance_weights(system)):   # the system's own weights
-        return system.structure_cached(CONDITION_KEY,
-                                       lambda: _spread(system, udp_variance_weights(system)[0]))
-    return _spread(system, weights[0])
+    structure = structure_of(system)
+    if weights is None or weights is structure.variance_weights:                # the system's own weights
+        return structure.condition
+    return condition_from(structure, weights[0])
 
 
-def _spread(system: System, d: np.ndarray) -> float:
-    psi = system.input_weights
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = float(np.sum(d))
-    if not np.isfinite(total):
-        return float("inf")
-    return (total + float(psi.max())) / float(psi.min())
-
-
-def input_weight(system: System, protocol: str, mu: np.ndarray, d: np.ndarray) -> np.ndarray:
+def input_weight(structure: System | Structure, protocol: str, mu: np.ndarray, d: np.ndarray) -> np.ndarray:
     """The stage input weight of the mean-state LQ problem per channel and step, ``(..., N, m)`` like
     ``mu``: ``psi_t + [UDP] (1 - mu_t) d_t`` where ``mu_t < 1`` (a perfect channel adds nothing, even where
     ``d`` overflowed). It is the diagonal Theorem 1 adds to ``B'PB M`` in G, and the weight of ``mu u^2`` in
@@ -255,7 +152,7 @@ def input_weight(system: System, protocol: str, mu: np.ndarray, d: np.ndarray) -
     >>> input_weight(s, "udp", np.array([[0.5]]), np.array([[3.0]])).tolist()     # 2 + 0.5 * 3
     [[3.5]]
     """
-    psi = system.input_weights
+    psi = structure.input_weights
     if protocol == "tcp":
         return np.broadcast_to(psi, mu.shape)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -369,7 +266,8 @@ def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray
     return K
 
 
-def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def backward_batch(structure: Structure, protocol: str, mu: np.ndarray,
+                   added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Gains K (P, N, m, n) and cost-to-go P_0 (P, n, n) (without Q) of the schedules ``mu`` (P, N, m),
     ``added`` (P, N, m) the diagonal each step's G gets (:func:`input_weight`): N calls of
     :func:`riccati_step` from ``P_N = Omega_N`` (a stationary tail closed, and for one point whose steps are one
@@ -379,21 +277,22 @@ def backward_batch(system: System, protocol: str, mu: np.ndarray, added: np.ndar
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> K, P0 = backward_batch(s, "tcp", np.array([[[1.0]]]), np.array([[[1.0]]]))   # K = 1/2, P0 = 1/2
+    >>> K, P0 = backward_batch(structure_of(s), "tcp", np.array([[[1.0]]]), np.array([[[1.0]]]))   # K = 1/2, P0 = 1/2
     >>> K.ravel().tolist(), P0.ravel().tolist()
     ([0.5], [0.5])
     """
-    K, Pm, _ = _backward(system, protocol, mu, added)
+    K, Pm, _ = _backward(structure, protocol, mu, added)
     return K, Pm
 
 
-def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
+def _backward(structure: Structure, protocol: str, mu: np.ndarray, added: np.ndarray,
               copies: bool = True) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
     """:func:`backward_batch`, and the run ``(1, b)`` of steps 1..b-1 whose gains are one copied gain when the
-    pass closed its stationary tail (None otherwise), for the rollout (:func:`_states`) to take as it is. With
+    pass closed its stationary tail (None otherwise), for the rollout (:func:`_roll_out`) to take as it is. With
     ``copies`` False the run's gains after the first (K[:, 2:b]) are left unwritten, for a caller that reads
     only K[:, 1] of the run."""
-    A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
+    A, B, W, N = structure.A, structure.B, structure.state_weights, structure.horizon
+    n, m = structure.n, structure.m
     P = mu.shape[0]
     K = np.empty((N, P, m, n))
     Pm = np.empty((P, n, n))
@@ -401,10 +300,10 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
     settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
     # one point whose steps 1..N-1 are one map: once its drift predicts more than DOUBLING_AFTER steps to
     # settle, the rest of the pass by doubling (_doubled_backward)
-    doubling = settle and _one_map(system, mu, added)
+    doubling = settle and _one_map(structure, mu, added)
     # steps 1..head share mu, the added diagonal and Omega: only there can a tail close, so only there is the
     # drift weighed (an unstable plant's UDP-like pass, whose added diagonal grows at every step, never is)
-    head = min(leading_run(mu[:, 1:]), leading_run(added[:, 1:]), len(weight_head(system))) if settle else 0
+    head = min(leading_run(mu[:, 1:]), leading_run(added[:, 1:]), len(structure.weight_head)) if settle else 0
     q = None             # the contraction per step, measured once the iterates are near settling
     run = None
     check, last = min(N - 9, head), None                # the next step whose drift is weighed; the last weighing
@@ -416,7 +315,7 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
                     drift = _drift(new, Pm)
                     excess = _excess(*drift)
                     if doubling and last is not None and _to_settle(excess, last, t) > DOUBLING_AFTER:
-                        doubled = _doubled_backward(system, mu, added, K[:, 0], copies, t, new[0], q)
+                        doubled = _doubled_backward(structure, mu, added, K[:, 0], copies, t, new[0], q)
                         if doubled is not None:
                             Pm, run = doubled
                             break
@@ -424,7 +323,7 @@ def _backward(system: System, protocol: str, mu: np.ndarray, added: np.ndarray,
                     check, last = t - _wait(excess, last, t), (t, excess)
                     if excess <= 1.0 or _near(*drift):
                         q = _contraction(A, B, mu[:, t], K[t]) if q is None else q
-                        if _settled(*drift, q):
+                        if settled(*drift, q):
                             # steps 1..t are one map and P_t = P_{t-1} = ... = P_1 to rounding: one more
                             # step gives the gain of P_t for every step 1..t-1, then step 0 (no Omega)
                             K[1], Pm = riccati_step(new, A, B, mu[:, 1], added[:, 1], W[0])
@@ -450,14 +349,14 @@ DOUBLING_AFTER = 64
 DOUBLING_CHUNK = 8
 
 
-def _one_map(system: System, mu: np.ndarray, added: np.ndarray) -> bool:
+def _one_map(structure: Structure, mu: np.ndarray, added: np.ndarray) -> bool:
     """Whether the backward pass of one point is one map at every step 1..N-1: the same channel and added diagonal
     there (finite), and one state weight at every step (the terminal one included). O(N (m + n^2)) at most."""
-    return bool(mu.shape[0] == 1 and len(weight_head(system)) == system.horizon and _constant(mu[:, 1:])
-                and _constant(added[:, 1:]) and np.all(np.isfinite(added[:, 1])))
+    return bool(mu.shape[0] == 1 and structure.time_invariant_weight and all_steps_equal(mu[:, 1:])
+                and all_steps_equal(added[:, 1:]) and np.all(np.isfinite(added[:, 1])))
 
 
-def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.ndarray, copies: bool, top: int,
+def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K: np.ndarray, copies: bool, top: int,
                       P_top: np.ndarray, q: float | None) -> tuple[np.ndarray, tuple[int, int] | None] | None:
     """The rest of :func:`_backward` of one point from step ``top`` down (``P_top``: its cost-to-go; q: the
     contraction if measured), where every step 1..top-1 is one Riccati map Phi (:func:`_one_map`), without a
@@ -467,7 +366,7 @@ def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.n
     square-root form: :func:`_doubling`). The cost-to-go at every c-th step back from P_top (c = DOUBLING_CHUNK)
     comes from doubling, 2^k points at a time (:func:`_fractional`); the c - 1 steps between them and every
     gain from c batched :func:`riccati_step` calls over those points (:func:`_fine_steps`). The stationary tail
-    closes at the first step whose drift :func:`_settled` accepts (the step-by-step pass weighs only some steps
+    closes at the first step whose drift :func:`settled` accepts (the step-by-step pass weighs only some steps
     and closes at or after it; both are within STATIONARY_RTOL of the fixed point), as :func:`_backward` closes
     it: K[1] from P_t, copies for steps 1..t-1, then step 0. Writes K[:top] (K: (N, m, n)); returns
     ``(P_0 (1, n, n), run)``, or None where anything is not finite (the step-by-step pass then goes on from
@@ -475,7 +374,7 @@ def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.n
     6.6e-14 of an 80-bit pass where the step-by-step one is within 8.3e-14 (the slowly converging plant,
     benchmarks/slow_plant.py). Time O(L (n^3 + m^3)) for a tail settling in L steps, in O(c + log L) batched
     calls; memory O(L n^2)."""
-    A, B, Q = system.A, system.B, system.state_weights[0]
+    A, B, Q = structure.A, structure.B, structure.state_weights[0]
     c = DOUBLING_CHUNK
     mu1, add1 = mu[:, 1], added[:, 1]                  # (1, m): the map of steps 1..N-1
     last = (top - 2) // c + 1                          # the c-th points j c <= top - 2 (step top - j c - 1 >= 1)
@@ -503,7 +402,7 @@ def _doubled_backward(system: System, mu: np.ndarray, added: np.ndarray, K: np.n
                     maps = _doubling(*maps)
                     continue
                 used = J if trigger is None else trigger + 1
-                q, t, Pt = _fine_steps(system, coarse[:used], mu1, add1, K, q, top)
+                q, t, Pt = _fine_steps(structure, coarse[:used], mu1, add1, K, q, top)
                 if t is None and Pt is None:           # no step of that stretch settled: reach further
                     floor = used
                     continue
@@ -531,15 +430,15 @@ def _power(A: np.ndarray, F: np.ndarray, H: np.ndarray, P: np.ndarray) -> np.nda
     return riccati_step(P, A, F, np.ones((P.shape[0], r)), np.ones((P.shape[0], r)), H)[1]
 
 
-def _fine_steps(system: System, starts: np.ndarray, mu1: np.ndarray, add1: np.ndarray, K: np.ndarray,
+def _fine_steps(structure: Structure, starts: np.ndarray, mu1: np.ndarray, add1: np.ndarray, K: np.ndarray,
                 q: float | None, top: int) -> tuple[float | None, int | None, np.ndarray | None]:
     """The steps between the c-th points ``starts[j] = P_{top - j c}`` (J, n, n) of :func:`_doubled_backward`: c
     batched :func:`riccati_step` calls over the J points write the gains K_t of steps top-1 down to
-    max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift :func:`_settled`
+    max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift :func:`settled`
     accepts with the contraction q (measured, if None, as :func:`_backward` measures it: at the first step whose
     drift is near), ``(q, None, P_1)`` where none does and step 1 was reached, ``(q, None, None)`` otherwise.
     O(J c (n^3 + m^3)) in c calls."""
-    A, B, Q, n, m = system.A, system.B, system.state_weights[0], system.n, system.m
+    A, B, Q, n, m = structure.A, structure.B, structure.state_weights[0], structure.n, structure.m
     c, J = DOUBLING_CHUNK, starts.shape[0]
     count = min(J * c, top - 1)                                # steps top-1 .. top-count
     Ps, Ks = np.empty((J, c, n, n)), np.empty((J, c, m, n))
@@ -586,7 +485,7 @@ MAX_WAIT = 8
 def _wait(excess: float, last: tuple[int, float] | None, t: int) -> int:
     """How many steps a backward pass may go before weighing its drift again (1 to MAX_WAIT): the steps until
     ``excess`` (the largest change over :func:`_near`'s bound), shrinking by the factor f per step seen since the
-    ``last`` weighing (step, excess), meets the closing bound of :func:`_settled` with f for the contraction
+    ``last`` weighing (step, excess), meets the closing bound of :func:`settled` with f for the contraction
     (``(1 - f) / (100 f)`` in units of the near bound). A pass that settles faster than that closes the few
     steps later; one that does not shrink is weighed every step. O(1)."""
     if last is None or not 0.0 < excess < math.inf or not 0.0 < last[1] < math.inf:
@@ -650,7 +549,7 @@ def _contraction(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) ->
         loop = _closed_loop(A, B, mu, K)
         if not np.all(np.isfinite(loop)):
             return np.full(loop.shape[0], np.inf)
-        return _radius(loop) ** 2
+        return spectral_radius(loop) ** 2
 
 
 def backward_pass(system: System, protocol: str,
@@ -670,20 +569,22 @@ def backward_pass(system: System, protocol: str,
     >>> float(K[0, 0, 0]), float(P0[0, 0]), noise
     (0.5, 0.75, 0.0)
     """
-    K, P0, noise, _ = _one_point_backward(system, protocol, weights)
+    K, P0, noise, _ = _one_point_backward(system, structure_of(system), protocol, weights)
     return K, P0, noise
 
 
-def _one_point_backward(system: System, protocol: str, weights: tuple[np.ndarray, float] | None,
+def _one_point_backward(system: System, structure: Structure, protocol: str,
+                        weights: tuple[np.ndarray, float] | None,
                         copies: bool = True) -> tuple[np.ndarray, np.ndarray, float, tuple[int, int] | None]:
-    """:func:`backward_pass`, and the run of copied gains its stationary tail closed (:func:`_backward`)."""
+    """:func:`backward_pass` (``structure``: the system's), and the run of copied gains its stationary tail closed
+    (:func:`_backward`)."""
     protocol = check_protocol(protocol)
-    d, noise = udp_variance_weights(system) if weights is None else weights
+    d, noise = structure.variance_weights if weights is None else weights
     mu = system.mu_schedule
     if protocol == "udp":
         _finite("diag(Omega_g)", d[mu < 1.0], protocol)
     _finite("the noise term tr(Omega_l Sigma_W)", noise, protocol)
-    K, P0, run = _backward(system, protocol, mu[None], input_weight(system, protocol, mu, d)[None], copies)
+    K, P0, run = _backward(structure, protocol, mu[None], input_weight(structure, protocol, mu, d)[None], copies)
     return K[0], P0[0], noise, run
 
 
@@ -703,16 +604,18 @@ def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float
     >>> float(K0[0, 0]), float(P0[0, 0]), U.tolist(), X.ravel().tolist()
     (0.5, 0.75, [[-0.5]], [1.0, 0.75])
     """
-    K, P0, noise, run = _one_point_backward(system, protocol, weights, copies=False)
-    if run is not None and _by_powers(system, run, system.mu_schedule[None], K[None]) is None:   # step by step
+    structure = structure_of(system)
+    K, P0, noise, run = _one_point_backward(system, structure, protocol, weights, copies=False)
+    if run is not None and _by_powers(structure, run, system.mu_schedule[None], K[None]) is None:   # step by step
         _repeat_first(K[run[0]:run[1]])
         run = None
     U = np.empty((1, system.horizon, system.m))
-    X = _states(system, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
+    X = _roll_out(structure, system.mu_schedule[None], U, system.x0[None], K[None], run, start=True)
     return K[0], P0, noise, U[0], X[0]
 
 
-def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def rollout_batch(structure: Structure, mu: np.ndarray, K: np.ndarray,
+                  x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The plans u_t = -K_t x_t (P, N, m) and their mean states x_1..x_N (P, N, n) from x (P, n), by
     :func:`mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
     states to the bit, even where A is unstable). O(P N n (n + m)).
@@ -720,12 +623,12 @@ def rollout_batch(system: System, mu: np.ndarray, K: np.ndarray, x: np.ndarray) 
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> U, X = rollout_batch(s, np.full((1, 2, 1), 0.5), np.full((1, 2, 1, 1), 0.5), np.array([[2.0]]))
+    >>> U, X = rollout_batch(structure_of(s), np.full((1, 2, 1), 0.5), np.full((1, 2, 1, 1), 0.5), np.array([[2.0]]))
     >>> U.ravel().tolist(), X.ravel().tolist()     # x1 = 2 + 0.5 (-1), x2 = 1.5 + 0.5 (-0.75)
     ([-1.0, -0.75], [1.5, 1.125])
     """
-    U = np.empty((mu.shape[0], system.horizon, system.m))
-    return U, mean_states(system, mu, U, x, K)
+    U = np.empty((mu.shape[0], structure.horizon, structure.m))
+    return U, mean_states(structure, mu, U, x, K)
 
 
 def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -741,7 +644,7 @@ def mean_trajectory(system: System, K: np.ndarray) -> tuple[np.ndarray, np.ndarr
     >>> u.tolist(), x.ravel().tolist()
     ([[-0.5]], [1.0, 0.75])
     """
-    U, X = rollout_batch(system, system.mu_schedule[None], K[None], system.x0[None])
+    U, X = rollout_batch(structure_of(system), system.mu_schedule[None], K[None], system.x0[None])
     return U[0], np.concatenate([system.x0[None], X[0]])
 
 
@@ -775,12 +678,13 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
         value, bound = plan_cost(system, inputs, protocol, weights)
         check_plan_cost(system, protocol, value, bound)
         return value
-    d, noise = udp_variance_weights(system) if weights is None else weights
+    structure = structure_of(system)
+    d, noise = structure.variance_weights if weights is None else weights
     x = system.x0
     mu = system.mu_schedule[None]
     with np.errstate(over="ignore", invalid="ignore"):
         base = float(x @ system.initial_weight @ x) + noise
-    return float(forward_cost(system, mu, inputs[None], states[None], input_weight(system, protocol, mu, d),
+    return float(forward_cost(structure, mu, inputs[None], states[None], input_weight(structure, protocol, mu, d),
                               base)[0])
 
 
@@ -812,15 +716,16 @@ def plan_cost(system: System, inputs: np.ndarray, protocol: str,
     >>> f"{value:.4g}", bool(abs(value - 2.0) <= bound), bool(bound > 1e-9 * value)      # and the bound says so
     ('1.427e+04', True, True)
     """
-    d, noise = udp_variance_weights(system) if weights is None else weights
+    structure = structure_of(system)
+    d, noise = structure.variance_weights if weights is None else weights
     x = system.x0
     mu, U = system.mu_schedule[None], inputs[None]
-    Q = system.state_weights[0] if len(weight_head(system)) == system.horizon else system.state_weights
+    Q = system.state_weights[0] if structure.time_invariant_weight else system.state_weights
     with np.errstate(over="ignore", invalid="ignore"):
         first = float(x @ system.initial_weight @ x)
-        X = mean_states(system, mu, U, x[None])
-        weight = input_weight(system, protocol, mu, d)
-        value = float(forward_cost(system, mu, U, X, weight, first + noise)[0])
+        X = mean_states(structure, mu, U, x[None])
+        weight = input_weight(structure, protocol, mu, d)
+        value = float(forward_cost(structure, mu, U, X, weight, first + noise)[0])
         if not np.isfinite(value):
             return value, math.inf
         bound = float(rollout_cost_error(system.A, system.B, mu, U, x[None], X, Q, PLAN_COST_RTOL * value)[0])
@@ -868,7 +773,7 @@ def check_plan_cost(system: System, protocol: str, value: float, bound: float) -
                              "range (about 1e308)")
     if bound <= PLAN_COST_RTOL * value:
         return
-    rho = float(_radius(system.A))
+    rho = float(spectral_radius(system.A))
     raise NumericalError(
         f"the {protocol}-like expected cost of this plan is not resolved: its forward pass gives {value:.6g}, but "
         f"rounding may move that by up to {bound:.2g} ({bound / value if value > 0 else math.inf:.1e} relative, "
@@ -878,7 +783,7 @@ def check_plan_cost(system: System, protocol: str, value: float, bound: float) -
         "on the states its law rolls out), a shorter horizon, or a feedback law (closed loop) instead of a plan")
 
 
-def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
+def mean_states(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
                 K: np.ndarray | None = None) -> np.ndarray:
     """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
     ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
@@ -891,14 +796,16 @@ def mean_states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> mean_states(s, np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]])).ravel().tolist()
+    >>> X = mean_states(structure_of(s), np.full((1, 2, 1), 0.5), np.array([[[-2.0], [2.0]]]), np.array([[1.0]]))
+    >>> X.ravel().tolist()
     [0.0, 1.0]
     """
-    run = _gain_run(mu, K) if K is not None and system.horizon >= 2 * STATIONARY_RUN else None
-    return _states(system, mu, U, x, K, _by_powers(system, run, mu, K) if run is not None else None)
+    run = _gain_run(mu, K) if K is not None and structure.horizon >= 2 * STATIONARY_RUN else None
+    return _roll_out(structure, mu, U, x, K, _by_powers(structure, run, mu, K) if run is not None else None)
 
 
-def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
+def _by_powers(structure: Structure, run: tuple[int, int] | None, mu: np.ndarray,
+               K: np.ndarray) -> tuple[int, int] | None:
     """``run`` where it may be rolled out by powers of its closed loop, and the steps after it by a scan
     (:func:`_scanned_run`): where A is stable (rho(A) < 1), or the run's closed loop ``A - B M K`` (mu[:, 1],
     K[:, 1]) is at every point (a closed stationary tail's is: its contraction q < 1). None otherwise: an
@@ -913,13 +820,13 @@ def _by_powers(system: System, run: tuple[int, int] | None, mu: np.ndarray, K: n
     on the closed-loop states it was rolled out with (the law's states)."""
     if run is None:
         return None
-    if _radius(system.A) < 1.0:
+    if structure.open_loop_radius < 1.0:
         return run
-    loop = _closed_loop(system.A, system.B, mu[:, run[0]], K[:, run[0]])
-    return run if np.all(np.isfinite(loop)) and np.all(_radius(loop) < 1.0) else None
+    loop = _closed_loop(structure.A, structure.B, mu[:, run[0]], K[:, run[0]])
+    return run if np.all(np.isfinite(loop)) and np.all(spectral_radius(loop) < 1.0) else None
 
 
-def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
+def _roll_out(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
             run: tuple[int, int] | None, start: bool = False) -> np.ndarray:
     """:func:`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
     vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state
@@ -928,20 +835,20 @@ def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.
     sign of zero); otherwise the steps after the run are a scan of their closed-loop products
     (:func:`_scanned_run`) in blocks of at most SCAN_BLOCK_ENTRIES entries (P n^2 per step; step by step where a
     block would hold fewer than SCAN_MIN steps). ``start``: return x_0..x_N (P, N + 1, n)."""
-    AT, BT, N = system.A.T, system.B.T, system.horizon
+    AT, BT, N = structure.A.T, structure.B.T, structure.horizon
     if start:
-        full = np.empty((U.shape[0], N + 1, system.n))
+        full = np.empty((U.shape[0], N + 1, structure.n))
         full[:, 0] = x
         X = full[:, 1:]
     else:
-        X = np.empty((U.shape[0], N, system.n))
-    block = 1 << max(0, (SCAN_BLOCK_ENTRIES // (U.shape[0] * system.n ** 2)).bit_length() - 1)
+        X = np.empty((U.shape[0], N, structure.n))
+    block = 1 << max(0, (SCAN_BLOCK_ENTRIES // (U.shape[0] * structure.n ** 2)).bit_length() - 1)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):     # callers check finiteness
         state = x
         t = 0
         while t < N:
             if run is not None and t == run[0]:
-                state = _closed_run(system, mu[:, t], K[:, t], X, U, *run)
+                state = _closed_run(structure, mu[:, t], K[:, t], X, U, *run)
                 t = run[1]
                 if not state.any() and np.all(np.isfinite(K[:, t:])):
                     U[:, t:] = 0.0
@@ -950,7 +857,7 @@ def _states(system: System, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.
                 if block >= SCAN_MIN:
                     while t < N:
                         end = min(N, t + block)
-                        state = _scanned_run(system, mu, K, X, U, state, t, end)
+                        state = _scanned_run(structure, mu, K, X, U, state, t, end)
                         t = end
                     break
                 continue
@@ -967,18 +874,18 @@ SCAN_BLOCK_ENTRIES = 2**18
 SCAN_MIN = 16
 
 
-def _scanned_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray, state: np.ndarray,
+def _scanned_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray, state: np.ndarray,
                  a: int, b: int) -> np.ndarray:
     """Steps a..b-1 of the time-varying gains K[:, a:b] from x_a = ``state`` (P, n) by a work-efficient scan
     (Blelloch's up-sweep of pairwise products of the closed loops ``L_t = A - B M_t K_t``, then a down-sweep of
     the states at the block starts; row vectors, ``x_{t+1}' = x_t' L_t'``): 2 log2(b - a) stacked products
     instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b.
     O(P (b - a) n^3)."""
-    P, n, m, L = state.shape[0], system.n, system.m, b - a
+    P, n, m, L = state.shape[0], structure.n, structure.m, b - a
     T = 1 << (L - 1).bit_length()                            # padded to a power of two with identities
     loops = np.empty((P, T, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
     MK = np.ascontiguousarray((K[:, a:b] * mu[:, a:b, :, None]).swapaxes(-1, -2))
-    np.subtract(system.A.T, (MK.reshape(-1, m) @ system.B.T).reshape(P, L, n, n), out=loops[:, :L])
+    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(P, L, n, n), out=loops[:, :L])
     loops[:, L:] = np.eye(n)
     levels = [loops]
     while levels[-1].shape[1] > 1:                           # products of 2, 4, ... consecutive steps
@@ -1009,41 +916,19 @@ def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
         mid = (lo + hi) // 2
         lo, hi = (mid, hi) if np.array_equal(K[:, mid], K[:, 1]) else (lo, mid)
     b = lo + 1
-    if b - 1 < STATIONARY_RUN or not (_constant(K[:, 1:b]) and _constant(mu[:, 1:b])):
+    if b - 1 < STATIONARY_RUN or not (all_steps_equal(K[:, 1:b]) and all_steps_equal(mu[:, 1:b])):
         return None
     return 1, b
 
 
-def _constant(values: np.ndarray) -> bool:
-    """Whether ``values[:, k]`` is the same for every k (values (P, L, ...)): each step against the next, as two
-    same-shaped views (no broadcasting over a short last axis). O(P L k)."""
-    return bool(np.array_equal(values[:, 1:], values[:, :-1]))
-
-
-def leading_run(values: np.ndarray) -> int:
-    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (P, L, ...)), to the bit: how
-    far a backward pass's data are one map. O(P L k).
-
-    Examples
-    --------
-    >>> leading_run(np.array([[1.0, 1.0, 2.0, 1.0]])), leading_run(np.ones((2, 3, 1)))
-    (1, 2)
-    """
-    P, L = values.shape[:2]
-    if _constant(values):                        # the usual case, one comparison of two views
-        return L - 1
-    same = np.all((values[:, 1:] == values[:, :-1]).reshape(P, L - 1, -1), axis=2).all(axis=0)
-    return int(np.argmin(same)) if not same.all() else L - 1
-
-
-def _closed_run(system: System, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
+def _closed_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
                 a: int, b: int) -> np.ndarray:
     """Steps a..b-1 (a >= 1) of one gain K (P, m, n) and channel mu (P, m) from x_a = ``X[:, a - 1]``: the states
     x_a (A - B M K)'^k for k = 1..b-a by :func:`states_by_powers`, written into X and U in place. Returns x_b.
     O(P (b - a) n^2 + P n^3 log(b - a))."""
     L = b - a
     Y = X[:, a - 1:b]                                      # x_a .. x_b, x_a already written
-    rows = min(states_by_powers(Y, _closed_loop(system.A, system.B, mu, K).transpose(0, 2, 1)), L)
+    rows = min(states_by_powers(Y, _closed_loop(structure.A, structure.B, mu, K).transpose(0, 2, 1)), L)
     plan = U[:, a:b]                                       # the states from ``rows`` on are 0, and so is their input
     np.matmul(Y[:, :rows], np.ascontiguousarray(K.transpose(0, 2, 1)), out=plan[:, :rows])   # BLAS: contiguous
     np.negative(plan[:, :rows], out=plan[:, :rows])
@@ -1075,7 +960,7 @@ def states_by_powers(Y: np.ndarray, loop: np.ndarray) -> int:
     return k
 
 
-def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
+def forward_cost(structure: Structure, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
                  base: np.ndarray | float, Omega: np.ndarray | None = None) -> np.ndarray:
     """The referee: the expected cost of plans U (P, N, m) whose mean states are X (P, N, n) (x_1..x_N),
     ``base + sum_t mu_t u_t (weight_t u_t) + x_{t+1}' Omega_{t+1} x_{t+1}``: every term nonnegative, so
@@ -1087,7 +972,7 @@ def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, w
     Examples
     --------
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[2.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-    >>> forward_cost(s, np.full((1, 1, 1), 0.5), np.full((1, 1, 1), -1.0), np.full((1, 1, 1), 0.5),
+    >>> forward_cost(structure_of(s), np.full((1, 1, 1), 0.5), np.full((1, 1, 1), -1.0), np.full((1, 1, 1), 0.5),
     ...              np.ones((1, 1)), 1.0).tolist()        # 1 + 0.5 * 1 + 2 * 0.25
     [2.0]
     """
@@ -1098,8 +983,8 @@ def forward_cost(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, w
         if Omega is not None:
             flat = X.reshape(P, -1)
             states = np.einsum("pk,pk->p", flat @ Omega, flat)
-        elif len(weight_head(system)) == system.horizon:    # one weight for every step: one product
-            states = np.einsum("ptj,ptj->p", X @ system.state_weights[0], X)
+        elif structure.time_invariant_weight:    # one weight for every step: one product
+            states = np.einsum("ptj,ptj->p", X @ structure.state_weights[0], X)
         else:
-            states = np.einsum("ptj,ptj->p", np.einsum("pti,tij->ptj", X, system.state_weights), X)
+            states = np.einsum("ptj,ptj->p", np.einsum("pti,tij->ptj", X, structure.state_weights), X)
         return base + (inputs + states)

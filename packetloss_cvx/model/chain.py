@@ -1,22 +1,18 @@
-"""Prediction from Gilbert–Elliott chains: beliefs, the HMM filter, plug-in schedules, and the
+"""Prediction from Markov chains: beliefs, the HMM filter, plug-in schedules, and the
 second moments ``R = E[v v']`` of the stacked deliveries.
 
-Notation (docs/design.md, "Bursty links"): channel i has ``lambda_i = 1 - p_i - r_i``, belief
-``b_{i,t} = P(S_{i,t} = good | information)``, predicted delivery probability
-``mu_{i,t} = h_bad + (h_good - h_bad) b_{i,t}``.
+Notation (docs/design.md, "Bursty links"): channel i is a chain with transition matrix ``T_i`` and delivery
+probabilities ``d_i`` per state (a Gilbert–Elliott channel: ``T = [[1 - p, p], [r, 1 - r]]``,
+``d = (h_good, h_bad)``, ``lambda = 1 - p - r``); its belief ``pi_{i,t}`` is the distribution of its state
+given the information, and the predicted delivery probability ``mu_{i,t} = pi_{i,t} . d_i``.
 
-* UDP-like (no acknowledgements): the belief is the prior propagated, ``b_{t+1} = r + lambda b_t``.
+* UDP-like (no acknowledgements): the belief is the prior propagated, ``pi_{t+1} = pi_t T``.
 * TCP-like: each acknowledged outcome ``v_t`` updates the belief first (Bayes), then it is
   propagated; for the Gilbert channel (h_good = 1, h_bad = 0) an outcome reveals the state.
 
-Within one channel, for t != s and d = |t - s| (P^d = 1 pi' + lambda^d (I - 1 pi') for two states):
-
-    Cov(v_t, v_s) = lambda^d b_u (1 - b_u) (h_good - h_bad)^2,   u = min(t, s),
-
-and deliveries of different channels are independent, so R is block-structured. A k-state
-:class:`~packetloss_cvx.model.markov_channel.MarkovChannel` has a distribution over its states as belief, propagated
-by its transition matrix (``pi_{t+1} = pi_t T``) and filtered by Bayes' rule alike; its covariance is
-``(pi_s ∘ (d - mu_s)) T^|t-s| d`` (:func:`channel_covariance`).
+Within one channel, for t < s, ``Cov(v_t, v_s) = (pi_t ∘ (d - mu_t)) T^(s-t) d`` (two states:
+``lambda^(s-t) b_t (1 - b_t) (h_good - h_bad)^2``), and deliveries of different channels are independent, so R
+is block-structured (:func:`channel_covariance`).
 """
 
 from __future__ import annotations
@@ -28,13 +24,16 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError
-from .channel import GilbertElliott
-from .markov_channel import MarkovChannel
+from .channel import (
+    GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
+    MarkovChannel,
+)
 from .protocols import check_protocol
-from .system import CacheKey, System, check_system
+from .system import CacheKey, System, SystemStore, check_system
 
-#: (Vbar, C) of stacked_moments, kept on its own system (System.cached): it depends on the channel and schedule
+#: (Vbar, C) of stacked_moments, kept per system (a SystemStore): it depends on the channel and schedule
 MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "channel"))
+_MOMENTS = SystemStore(MOMENTS_KEY)
 
 __all__ = [
     "attach_channel", "chain_matrices", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system",
@@ -47,12 +46,9 @@ def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarr
 
     ``T`` (k×k) is row-stochastic (``T[a, b] = P(S_{t+1} = b | S_t = a)``), ``d`` (k,) the delivery
     probability in each state, ``pi0`` (k,) the distribution of the state at the first planned step.
-    A :class:`~packetloss_cvx.model.channel.GilbertElliott` channel is built here, states ordered (good, bad):
-    ``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, ``pi0 = (b, 1 - b)`` with ``b`` its
-    ``initial_belief`` (the given belief or state; from the stationary start ``(r, p) / (p + r)``, the bits
-    of its two-state MarkovChannel twin). Any other
-    channel object answers for itself through its own ``chain_matrices()`` method, which honours this
-    contract (k may differ between channels). Time O(m k^2).
+    The channel answers through its own ``chain_matrices()`` method (a
+    :class:`~packetloss_cvx.model.channel.MarkovChannel`, or any object that honours this contract; k may differ
+    between channels). Time O(m k^2).
 
     Examples
     --------
@@ -60,30 +56,19 @@ def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarr
     >>> T.tolist(), d.tolist(), pi0.tolist()
     ([[0.9, 0.1], [0.4, 0.6]], [1.0, 0.0], [0.75, 0.25])
     """
-    if not isinstance(channel, GilbertElliott):
-        method = getattr(channel, "chain_matrices", None)
-        if method is None:
-            raise InputError("channel", f"expected a Markov channel (GilbertElliott or an object with "
-                                        f"chain_matrices()), found {type(channel).__name__}")
-        return tuple(method())
-    b = channel.initial_belief
-    bad = 1.0 - b if channel.belief is not None else channel.p / (channel.p + channel.r)   # (r, p) / (p + r)
-    return tuple((np.array([[1.0 - channel.p[i], channel.p[i]], [channel.r[i], 1.0 - channel.r[i]]]),
-                  np.array([channel.h_good[i], channel.h_bad[i]]), np.array([b[i], bad[i]]))
-                 for i in range(channel.m))
+    method = getattr(channel, "chain_matrices", None)
+    if method is None:
+        raise InputError("channel", f"expected a Markov channel (a MarkovChannel or an object with "
+                                    f"chain_matrices()), found {type(channel).__name__}")
+    return tuple(method())
 
 
-def filter_belief(channel: GilbertElliott | MarkovChannel, belief: npt.ArrayLike,
-                  delivered: npt.ArrayLike) -> np.ndarray:
-    """One step of the HMM filter: P(good at t+1 | outcome at t), from P(good at t) = ``belief``.
-
-    .. math:: b^+ = \\frac{b\\,h_g^v (1-h_g)^{1-v}}{b\\,h_g^v (1-h_g)^{1-v} + (1-b)\\,h_b^v (1-h_b)^{1-v}},
-              \\qquad b_{t+1} = r + (1 - p - r)\\,b^+
-
-    Time O(m) per belief; ``belief`` and ``delivered`` may carry leading dimensions (one row per run).
-    For the Gilbert channel a delivery gives ``1 - p`` and a loss ``r`` (the state is known). A
-    :class:`~packetloss_cvx.model.markov_channel.MarkovChannel`'s belief is a distribution over its states, (..., m, K):
-    :meth:`~packetloss_cvx.model.markov_channel.MarkovChannel.filter`, O(m K^2) per belief.
+def filter_belief(channel: MarkovChannel, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:
+    """One step of the HMM filter: the state distribution at t+1 given the outcome at t, from the one at t
+    (``belief``, (..., m, K)): :meth:`~packetloss_cvx.model.channel.MarkovChannel.filter`, the outcomes and the
+    belief checked first. Time O(m K^2) per belief; ``belief`` and ``delivered`` may carry leading dimensions
+    (one row per run). For the Gilbert channel a delivery gives P(good) ``1 - p`` and a loss ``r`` (the state
+    is known).
 
     Raises
     ------
@@ -93,49 +78,31 @@ def filter_belief(channel: GilbertElliott | MarkovChannel, belief: npt.ArrayLike
     Examples
     --------
     >>> ch = GilbertElliott(p=[0.1], r=[0.3])
-    >>> bool(np.allclose([filter_belief(ch, [0.5], [True]), filter_belief(ch, [0.5], [False])], [[0.9], [0.3]]))
-    True
+    >>> [float(filter_belief(ch, [[0.5, 0.5]], [v])[0, 0].round(12)) for v in (True, False)]   # 1 - p, r
+    [0.9, 0.3]
     """
     b = np.asarray(belief, dtype=float)
     v = np.asarray(delivered)
-    if isinstance(channel, MarkovChannel):
-        if b.ndim < 2 or b.shape[-2:] != (channel.m, max(channel.sizes)) or v.shape != b.shape[:-1]:
-            raise InputError("delivered", f"expected one outcome per channel ({channel.m}) and one distribution over "
-                                          f"{max(channel.sizes)} states per channel (leading dimensions alike), found "
-                                          f"{v.shape} and {b.shape}")
-        if not np.all((b >= 0.0) & (b <= 1.0)):
-            raise InputError("belief", "expected state probabilities in [0, 1]")
-        if v.dtype != bool and not (np.issubdtype(v.dtype, np.number) and np.all((v == 0) | (v == 1))):
-            raise InputError("delivered", "expected outcomes True/False or 1/0 (delivered/lost)")
-        return channel.filter(b, v)
-    if v.shape != b.shape or b.ndim < 1 or b.shape[-1] != channel.m:
-        raise InputError("delivered", f"expected one outcome and one belief per channel ({channel.m}; leading "
-                                      f"dimensions alike), found {v.shape} and {b.shape}")
+    if b.ndim < 2 or b.shape[-2:] != (channel.m, max(channel.sizes)) or v.shape != b.shape[:-1]:
+        raise InputError("delivered", f"expected one outcome per channel ({channel.m}) and one distribution over "
+                                      f"{max(channel.sizes)} states per channel (leading dimensions alike), found "
+                                      f"{v.shape} and {b.shape}")
     if not np.all((b >= 0.0) & (b <= 1.0)):
-        raise InputError("belief", "expected probabilities P(good) in [0, 1]")
+        raise InputError("belief", "expected state probabilities in [0, 1]")
     if v.dtype != bool and not (np.issubdtype(v.dtype, np.number) and np.all((v == 0) | (v == 1))):
         raise InputError("delivered", "expected outcomes True/False or 1/0 (delivered/lost)")
-    v = v.astype(bool)
-    like_good = np.where(v, channel.h_good, 1.0 - channel.h_good)
-    like_bad = np.where(v, channel.h_bad, 1.0 - channel.h_bad)
-    total = b * like_good + (1.0 - b) * like_bad
-    if np.any(total <= 0.0):
-        i = int(np.argwhere(total <= 0.0)[0][-1])
-        raise InputError("delivered", f"channel {i}: outcome {'delivered' if v[total <= 0.0][0] else 'lost'} has "
-                                      "probability 0 under the belief and the channel")
-    posterior = b * like_good / total
-    return np.clip(channel.r + channel.correlation * posterior, 0.0, 1.0)   # a probability, rounding aside
+    return channel.filter(b, v)
 
 
-def plugin_schedule(channel: GilbertElliott | MarkovChannel, horizon: int, protocol: str,
+def plugin_schedule(channel: MarkovChannel, horizon: int, protocol: str,
                     acknowledged: Sequence[Sequence[bool]] = ()) -> tuple[np.ndarray, np.ndarray]:
     """The predicted delivery probabilities of a plan made after ``len(acknowledged)`` steps.
 
     ``acknowledged[k][i]`` is the outcome of channel i at step k, counted from the channel's
     initial belief. TCP-like: the belief is filtered by each outcome (:func:`filter_belief`);
     UDP-like: the controller sees none, so the prior is propagated. Returns
-    ``(mu, belief)``: the (N, m) schedule ``mu_{i,t}`` and the belief at the plan's first step.
-    Time O((k + N) m).
+    ``(mu, belief)``: the (N, m) schedule ``mu_{i,t}`` and the belief at the plan's first step, (m, K).
+    Time O((k + N) m K^2).
 
     Examples
     --------
@@ -154,7 +121,7 @@ def plugin_schedule(channel: GilbertElliott | MarkovChannel, horizon: int, proto
     return channel.delivery_schedule(int(horizon), b), b
 
 
-def attach_channel(system: System, channel: GilbertElliott | MarkovChannel) -> System:
+def attach_channel(system: System, channel: MarkovChannel) -> System:
     """A copy of ``system`` behind the Markov ``channel`` (its mu or mu_schedule replaced by the
     channel's predicted schedule): :meth:`~packetloss_cvx.model.system.System.with_channel`, which validates the
     channel and the schedule and keeps the system's other, already validated, fields. Time O(N m).
@@ -165,7 +132,7 @@ def attach_channel(system: System, channel: GilbertElliott | MarkovChannel) -> S
     >>> attach_channel(s, GilbertElliott(p=[0.1], r=[0.3], state=["bad"])).mu_schedule[:, 0].tolist()
     [0.0, 0.3]
     """
-    if not isinstance(channel, GilbertElliott | MarkovChannel):
+    if not isinstance(channel, MarkovChannel):
         raise InputError("channel", f"expected a GilbertElliott or a MarkovChannel, found {type(channel).__name__}")
     return check_system(system).with_channel(channel)
 
@@ -190,14 +157,18 @@ def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence
 
 
 def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
-    """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array. Diagonal mu (1 - mu); off the
-    diagonal, for a Gilbert–Elliott channel and every two-state channel of a MarkovChannel (one formula, so that
-    a channel and its twin give the same bits), lambda^|t-s| b_u (1 - b_u) (d_0 - d_1)^2 with u = min(t, s).
-    Any other channel (a k-state :class:`~packetloss_cvx.model.markov_channel.MarkovChannel`, or any object with
-    ``chain_matrices()``) is read through :func:`chain_matrices`: for t < s,
-    ``Cov = sum_a pi_t(a) (d_a - mu_t) (T^(s-t) d)_a`` with ``pi_t = pi0 T^t``, ``mu_t = pi_t d``
-    (E[v_t v_s] = (pi_t ∘ d) T^(s-t) d), which lets the dense route and the QP twin serve k-state chains too;
-    a chain with identical rows gives exact zeros. Time O(N^2 m) (plus O(N m k^2)).
+    """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array, read through :func:`chain_matrices`.
+    Diagonal ``mu (1 - mu)``; for t < s, ``Cov = sum_a pi_t(a) (d_a - mu_t) (T^(s-t) d)_a`` with
+    ``pi_t = pi0 T^t``, ``mu_t = pi_t d`` (E[v_t v_s] = (pi_t ∘ d) T^(s-t) d; two states:
+    ``lambda^(s-t) b_t (1 - b_t) (d_0 - d_1)^2``). The vectors T^L d enter centred on their first entry,
+    ``e_L = T^L d - (T^L d)_0 1`` (the weights ``pi_t ∘ (d - mu_t)`` sum to zero, so this changes nothing in exact
+    arithmetic), and are propagated centred, ``e_L = S^L e_0`` with ``S = T - 1 T[0]`` (the map
+    ``e -> T e - (T e)_0 1``, T 1 = 1, whose powers shrink with the chain's memory): they keep their relative accuracy
+    (two states: ``e_L = (0, lambda^L (d_1 - d_0))``), where differences of T^L d, which tends to a constant vector,
+    would lose it; they are taken by doubling (log2 N batched products with the squares of S). The beliefs
+    ``pi_{t+1} = pi_t T`` step by step (products of nonnegative numbers: each entry to its own relative accuracy,
+    which a chain that almost never delivers needs). A chain with identical rows (or equal deliveries) gives exact
+    zeros. Time O(N^2 m + N m k^2 + m k^3 log N).
 
     Examples
     --------
@@ -205,65 +176,37 @@ def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     >>> np.round(C[0], 4).tolist()
     [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
     """
-    if not isinstance(channel, GilbertElliott):
-        return _chain_covariance(channel, chain_matrices(channel), horizon)
-    channel.check_horizon(horizon, channel.m * horizon if isinstance(horizon, int | np.integer) else 1)
-    out = np.empty((channel.m, horizon, horizon))
-    b, mu = channel.beliefs(horizon), channel.delivery_schedule(horizon)
-    for i in range(channel.m):
-        out[i] = _two_state_covariance(b[:, i], channel.correlation[i], channel.h_good[i] - channel.h_bad[i], mu[:, i])
+    chains = chain_matrices(channel)
+    MarkovChannel.check_horizon(horizon, len(chains) * horizon if isinstance(horizon, int | np.integer) else 1)
+    N, m = horizon, len(chains)
+    K = max(np.asarray(d).size for _, d, _ in chains)
+    T, d, pi = np.zeros((m, K, K)), np.zeros((m, K)), np.zeros((N, m, K))
+    for i, (Ti, di, pi0) in enumerate(chains):        # padded: states past k_i unreachable, absorbing, delivery 0
+        k = np.asarray(di).size
+        T[i], T[i, :k, :k], d[i, :k], pi[0, i, :k] = np.eye(K), Ti, di, pi0
+    ahead = np.empty((N, m, K))                         # e_L = T^L d - (T^L d)_0 1 for L = 0..N-1
+    ahead[0] = d - d[:, :1]
+    for t in range(1, N):                               # products of nonnegative numbers: every entry to rounding
+        pi[t] = np.einsum("ia,iab->ib", pi[t - 1], T)
+    S = T - T[:, :1, :]                                 # T less its row 0 in every row: e -> T e - (T e)_0 1
+    done = 1
+    while done < N:                                     # doubling: steps done..2 done-1 from steps 0..done-1
+        size = min(done, N - done)
+        ahead[done:done + size] = np.einsum("iab,tib->tia", S, ahead[:size])
+        S, done = S @ S, done + size
+    mu = np.einsum("tik,ik->ti", pi, d)
+    weights = pi * (d - mu[:, :, None])                 # (N, m, K): pi_t ∘ (d - mu_t)
+    index = np.arange(N)
+    at = np.minimum.outer(index, index) * N + np.abs(np.subtract.outer(index, index))   # M[min(t, s), |t - s|]
+    out = np.empty((m, N, N))
+    for i in range(m):
+        M = weights[:, i] @ ahead[:, i].T                # (N, N): M[t, L]
+        out[i] = M.ravel()[at]
+        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
     return out
 
 
-def _two_state_covariance(b: np.ndarray, lam: float, spread: float, mu: np.ndarray) -> np.ndarray:
-    """One two-state channel's covariance (N, N): ``lambda^|t-s| b_u (1 - b_u) (d_0 - d_1)^2`` (u = min(t, s)) off
-    the diagonal, ``mu (1 - mu)`` on it, from ``P^j = 1 pi' + lambda^j (I - 1 pi')``; ``b`` (N,) the probability
-    of state 0. The one formula for a Gilbert–Elliott channel and a two-state chain alike, so that a channel and
-    its two-state twin give the same bits. O(N^2)."""
-    N = b.size
-    lag = np.abs(np.arange(N)[:, None] - np.arange(N)[None, :])
-    first = np.minimum(np.arange(N)[:, None], np.arange(N)[None, :])
-    with np.errstate(under="ignore"):
-        powers = lam ** np.arange(N, dtype=float)                  # 0^0 = 1: the diagonal is replaced below
-    out = powers[lag] * (b * (1.0 - b) * spread ** 2)[first]
-    out[np.diag_indices(N)] = mu * (1.0 - mu)
-    return out
-
-
-def _chain_covariance(channel: Any, chains: tuple, horizon: int) -> np.ndarray:
-    """channel_covariance from per-channel (T, d, pi0): M[t, L] = c_t . (T^L d) with c_t = pi_t o (d - mu_t),
-    placed at (t, t + L) and mirrored. The vectors T^L d are centred on their first entry (the weights c_t sum
-    to zero, so this changes nothing in exact arithmetic), so a chain with identical rows gives exact zeros.
-    A two-state channel of a :class:`~packetloss_cvx.model.markov_channel.MarkovChannel` takes the two-state formula
-    on the channel's own beliefs and schedule instead (what a Gilbert–Elliott channel takes: its twin gives the
-    same bits). O(N^2 m + N m k^2)."""
-    GilbertElliott.check_horizon(horizon, len(chains) * horizon if isinstance(horizon, int | np.integer) else 1)
-    N = horizon
-    rows, cols = np.triu_indices(N)
-    out = np.empty((len(chains), N, N))
-    own = isinstance(channel, MarkovChannel) and 2 in channel.sizes
-    beliefs, schedule = (channel.beliefs(N), channel.delivery_schedule(N)) if own else (None, None)
-    for i, (T, d, pi0) in enumerate(chains):
-        T, d = np.asarray(T, dtype=float), np.asarray(d, dtype=float)
-        if own and d.size == 2:
-            out[i] = _two_state_covariance(beliefs[:, i, 0], float(T[0, 0] - T[1, 0]), float(d[0] - d[1]),
-                                           schedule[:, i])
-            continue
-        pi = np.empty((N, d.size))
-        ahead = np.empty((N, d.size))                   # T^L d for L = 0..N-1
-        pi[0], ahead[0] = pi0, d
-        for t in range(1, N):
-            pi[t] = pi[t - 1] @ T
-            ahead[t] = T @ ahead[t - 1]
-        mu = pi @ d
-        M = (pi * (d - mu[:, None])) @ (ahead - ahead[:, :1]).T          # (N, N): M[t, L]
-        out[i][rows, cols] = M[rows, cols - rows]
-        out[i][cols, rows] = out[i][rows, cols]
-        out[i][np.diag_indices(N)] = mu * (1.0 - mu)
-    return out
-
-
-def second_moments(channel: GilbertElliott | MarkovChannel, horizon: int) -> np.ndarray:
+def second_moments(channel: MarkovChannel, horizon: int) -> np.ndarray:
     """E[v_{i,t} v_{i,s}] for each channel, (m, N, N): mu_t mu_s + Cov, with mu_t on the diagonal
     (v is 0 or 1). Time O(N^2 m).
 
@@ -285,7 +228,7 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     ``t m + i`` is channel i at step t), C of shape (N m, N m). Without a Markov channel the
     deliveries are independent Bernoulli(mu_schedule): C = diag(Vbar (1 - Vbar)).
     ``R = Vbar Vbar' + C``. Time O((N m)^2) (the N^2 m non-zero entries, placed in the dense C), the first
-    time: the read-only pair is kept on the system (:meth:`~packetloss_cvx.model.system.System.cached`).
+    time: the read-only pair is kept for the system (a :class:`~packetloss_cvx.model.system.SystemStore`).
 
     Examples
     --------
@@ -295,7 +238,10 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     ([0.5, 0.5], [[0.25, 0.0], [0.0, 0.25]])
     """
     N, m = system.horizon, system.m
-    return system.cached(MOMENTS_KEY, lambda: _moments(system), nbytes=8 * (N * m) ** 2)
+    kept = _MOMENTS.get(system)
+    if kept is None:
+        kept = _MOMENTS.put(system, _moments(system), nbytes=8 * (N * m) ** 2)
+    return kept
 
 
 def _moments(system: System) -> tuple[np.ndarray, np.ndarray]:

@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import DimensionError, InputError
-from .channel import GilbertElliott
+from .channel import MarkovChannel
 from .validation import frozen, matrix_field, probabilities, shape_error, symmetric_psd, vector_field
 
 __all__ = ["SENSOR_KEYS", "Sensor"]
@@ -109,7 +109,7 @@ class Sensor:
     noise_cov: np.ndarray
     gamma: np.ndarray
     groups: tuple[tuple[int, ...], ...]
-    channel: GilbertElliott | None
+    channel: MarkovChannel | None
     P0: np.ndarray
 
     def __init__(self, *, C: npt.ArrayLike, gamma: npt.ArrayLike | None = None, noise_cov: npt.ArrayLike | None = None,
@@ -128,7 +128,11 @@ class Sensor:
                                              + ("both" if gamma is not None else "neither"))
         chan = None
         if channel is not None:
-            chan = channel if isinstance(channel, GilbertElliott) else GilbertElliott.from_table(channel, "sensor.")
+            chan = (channel if isinstance(channel, MarkovChannel) else
+                    MarkovChannel.gilbert_elliott_table(channel, "sensor."))
+            if not chan.two_state:
+                raise InputError("sensor.channel", f"expected Gilbert-Elliott (two-state) links, found chains of "
+                                                   f"{list(chan.sizes)} states")
             if chan.m != g:
                 raise DimensionError("sensor.p", f"expected {g} channels (one per group) but found {chan.m}")
             gamma_ = np.array(chan.mean_rate, dtype=float)

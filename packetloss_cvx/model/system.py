@@ -12,7 +12,8 @@ Conventions (paper eq:plant, big):
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+import weakref
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -21,8 +22,11 @@ import numpy.typing as npt
 
 from ..display import system_html, system_repr, to_json
 from ..errors import InputError
-from .channel import GilbertElliott
-from .markov_channel import MarkovChannel, channel_schedule
+from .channel import (
+    GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
+    MarkovChannel,
+    channel_schedule,
+)
 from .sensor import Sensor
 from .statespace import plant_matrices, plant_statespace, sampling_time
 from .validation import (
@@ -40,16 +44,16 @@ from .validation import (
     weight_sequence,
 )
 
-__all__ = ["STRUCTURE_CACHE_MAX_BYTES", "STRUCTURE_FIELDS", "SYSTEM_FIELDS", "CacheKey", "System", "check_system",
-           "numeric_array"]
+__all__ = ["STRUCTURE_CACHE_MAX_BYTES", "STRUCTURE_FIELDS", "SYSTEM_FIELDS", "CacheKey", "StructureStore", "System",
+           "SystemStore", "check_system", "numeric_array"]
 
 T = TypeVar("T")
 
-#: The fields a derived quantity cached with :meth:`System.structure_cached` may depend on: what
-#: ``with_mu``, ``with_x0`` and ``with_channel`` keep (they replace only mu_schedule, channel and x0).
+#: The fields a derived quantity kept in a :class:`StructureStore` may depend on: what ``with_mu``, ``with_x0``,
+#: ``with_channel`` and ``with_sensor`` keep (they replace only mu_schedule, channel, x0 and sensor).
 STRUCTURE_FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "initial_weight", "noise_cov")
 #: A value larger than this is rebuilt on each call rather than kept for the system's life (a long horizon's
-#: dense (N n)×(N m) prediction matrices): :meth:`System.structure_cached`.
+#: dense (N n)×(N m) prediction matrices): :meth:`StructureStore.put`.
 STRUCTURE_CACHE_MAX_BYTES = 8 * 2**20
 #: Every field of a System (what a :class:`CacheKey` may say its value depends on).
 SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt", "sensor")
@@ -57,13 +61,13 @@ SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt"
 
 @dataclass(frozen=True, eq=False)
 class CacheKey:
-    """One quantity kept on a :class:`System`: the key of :meth:`System.structure_cached` and :meth:`System.cached`.
+    """One quantity derived from a :class:`System`: the key of a :class:`StructureStore` or a :class:`SystemStore`.
 
     A key is a typed object, declared once by the module that builds the quantity, and compared by
     identity: two modules cannot collide on a name, and a key says which fields of the system its value
     depends on (``depends_on``, names from :data:`SYSTEM_FIELDS`). A key whose fields are all in
-    :data:`STRUCTURE_FIELDS` may be kept in the structure store that ``with_mu``, ``with_x0`` and
-    ``with_channel`` copies share; any other only on its own system. ``tests/test_cache_keys.py`` holds
+    :data:`STRUCTURE_FIELDS` may be kept in a :class:`StructureStore` (shared by ``with_mu``, ``with_x0`` and
+    ``with_channel`` copies); any other only per system (:class:`SystemStore`). ``tests/test_cache_keys.py`` holds
     every key of the package to what it says. ``name`` is for reading (repr, errors) only.
 
     Examples
@@ -96,6 +100,95 @@ class CacheKey:
         return f"CacheKey({self.name!r}, depends_on={sorted(self.depends_on)})"
 
 
+class _Token:
+    """An identity that systems hand to the stores of the layers above (:attr:`System.structure_token`,
+    :attr:`System.own_token`): weakly referable, nothing else."""
+
+    __slots__ = ("__weakref__",)
+
+
+class _Store:
+    """Values derived from systems, kept by the module that builds them (not on the System), weakly keyed by a
+    token of the system: the value lives as long as the token's systems do. :meth:`get` then :meth:`put` on a
+    miss: no callback into the System. A value must not refer to a system (it would keep its key alive); arrays in
+    it are read-only (it is shared). O(1)."""
+
+    __slots__ = ("key", "max_bytes", "_values")
+
+    def __init__(self, key: CacheKey, max_bytes: int = STRUCTURE_CACHE_MAX_BYTES) -> None:
+        self.key, self.max_bytes = _key(key), max_bytes
+        self._values: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+    @staticmethod
+    def _token(system: System) -> _Token:
+        raise NotImplementedError
+
+    def get(self, system: System) -> Any:
+        """The value kept for ``system``, or None. O(1)."""
+        return self._values.get(self._token(system))
+
+    def put(self, system: System, value: T, nbytes: int = 0) -> T:
+        """Keep ``value`` for ``system`` (unless ``nbytes`` exceeds the store's ``max_bytes``: then it is returned and
+        not kept) and return the value kept: the first one, if another thread kept one meanwhile. O(1)."""
+        if nbytes > self.max_bytes:
+            return value
+        return self._values.setdefault(self._token(system), value)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.key!r})"
+
+
+class StructureStore(_Store):
+    """Values that depend only on a system's structure (:data:`STRUCTURE_FIELDS`), one store per quantity declared
+    beside its builder with the quantity's :class:`CacheKey`, keyed by :attr:`System.structure_token` (shared by
+    ``with_mu``, ``with_x0``, ``with_channel`` and ``with_sensor`` copies): a value is never found by another
+    structure. A key that names a field outside the structure is a TypeError (use :class:`SystemStore`).
+
+    Examples
+    --------
+    >>> SQUARE = StructureStore(CacheKey("demo.square", ("A",)))
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> SQUARE.get(s) is None
+    True
+    >>> SQUARE.put(s, float(s.A[0, 0]) ** 2), SQUARE.get(s.with_mu([0.9]))       # with_mu keeps A
+    (4.0, 4.0)
+    >>> StructureStore(CacheKey("demo.mu", ("mu_schedule",)))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    TypeError: CacheKey('demo.mu', ...) depends on more than the structure: keep it in a SystemStore
+    """
+
+    __slots__ = ()
+
+    def __init__(self, key: CacheKey, max_bytes: int = STRUCTURE_CACHE_MAX_BYTES) -> None:
+        super().__init__(key, max_bytes)
+        if not key.structural:
+            raise TypeError(f"{key!r} depends on more than the structure: keep it in a SystemStore")
+
+    @staticmethod
+    def _token(system: System) -> _Token:
+        return system.structure_token
+
+
+class SystemStore(_Store):
+    """Values of one system (any field may enter them: the system is immutable, and every copy has its own
+    :attr:`System.own_token`), one store per quantity declared beside its builder with its :class:`CacheKey`.
+
+    Examples
+    --------
+    >>> MU = SystemStore(CacheKey("demo.mu", ("mu_schedule",)))
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> MU.put(s, float(s.mu[0])), MU.get(s), MU.get(s.with_mu([0.9])) is None
+    (0.5, 0.5, True)
+    """
+
+    __slots__ = ()
+
+    @staticmethod
+    def _token(system: System) -> _Token:
+        return system.own_token
+
+
 class System:
     """A plant behind m Bernoulli packet-loss channels, with an N-step MPC cost.
 
@@ -110,7 +203,7 @@ class System:
         or N such weights for t = 1..N. Exactly one is given.
     input_weight, input_weights : array_like
         Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
-    mu, mu_schedule, channel : array_like, or a channel.GilbertElliott or markov_channel.MarkovChannel (or a TOML table)
+    mu, mu_schedule, channel : array_like, or a channel.MarkovChannel (GilbertElliott(...)) or a TOML table
         Delivery probabilities in [0, 1]: one per actuator, N×m (non-stationary), or a Markov channel's mu_t.
     x0 : array_like
         The state X_k (length n).
@@ -153,7 +246,7 @@ class System:
     initial_weight: np.ndarray
     noise_cov: np.ndarray
     name: str | None
-    channel: GilbertElliott | MarkovChannel | None
+    channel: MarkovChannel | None
     dt: float | None
     sensor: Sensor | None
 
@@ -230,7 +323,8 @@ class System:
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("dt", sampling_time(dt)), ("sensor", sensor_), ("_structure", {}), ("_own", {}),
+            ("dt", sampling_time(dt)), ("sensor", sensor_), ("_structure", _Token()),
+            ("_own", _Token()),
         ):
             object.__setattr__(self, key, value)
 
@@ -285,56 +379,27 @@ class System:
 
     def _copy_with(self, **fields: Any) -> System:
         """A copy with already-validated fields replaced (no re-validation of the rest). The copy shares
-        the :meth:`structure_cached` values unless a field of STRUCTURE_FIELDS is replaced."""
+        the :attr:`structure_token` unless a field of STRUCTURE_FIELDS is replaced."""
         new = object.__new__(System)
         for key in self.__slots__:
             object.__setattr__(new, key, fields.get(key, getattr(self, key)))
         if "_structure" in fields or any(key in fields for key in STRUCTURE_FIELDS):
-            object.__setattr__(new, "_structure", {})
-        object.__setattr__(new, "_own", {})
+            object.__setattr__(new, "_structure", _Token())
+        object.__setattr__(new, "_own", _Token())
         return new
 
-    def structure_cached(self, key: CacheKey, build: Callable[[], T], nbytes: int = 0) -> T:
-        """``build()``, computed once and kept for this system and the copies that share its structure.
+    @property
+    def structure_token(self) -> object:
+        """An object this system shares with its copies of the same structure (``with_mu``, ``with_x0``,
+        ``with_channel``, ``with_sensor``) and with no other system: the weak key of every
+        :class:`StructureStore`. O(1)."""
+        return self._structure
 
-        For quantities that depend only on :data:`STRUCTURE_FIELDS` (A, B, horizon, the weights,
-        noise_cov) — never on mu_schedule, channel, x0 or name, which ``with_mu``, ``with_x0`` and
-        ``with_channel`` replace while sharing this store. The store lives on the (immutable) system, so
-        it cannot outlive it or be found by another one. Callers return read-only arrays (a value is
-        shared). ``key`` is the quantity's :class:`CacheKey`, which must be structural (a key that says it
-        depends on mu_schedule, x0, channel or name is a TypeError: it would be shared with copies that
-        changed them); ``nbytes``, its size: above :data:`STRUCTURE_CACHE_MAX_BYTES` it is built on every
-        call and not kept. Time O(1) after the first call.
-
-        Examples
-        --------
-        >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-        >>> calls = []
-        >>> def square():
-        ...     calls.append(1)
-        ...     return float(s.A[0, 0]) ** 2
-        >>> SQUARE = CacheKey("demo.square", ("A",))
-        >>> s.structure_cached(SQUARE, square), s.with_mu([0.9]).structure_cached(SQUARE, square)
-        (4.0, 4.0)
-        >>> len(calls)                                    # built once: with_mu keeps A
-        1
-        """
-        if not _key(key).structural:
-            raise TypeError(f"{key!r} depends on more than the structure: keep it with System.cached")
-        return _kept(self._structure, key, build, nbytes)
-
-    def cached(self, key: CacheKey, build: Callable[[], T], nbytes: int = 0) -> T:
-        """``build()``, computed once and kept for this system only (any field may enter it: the system is
-        immutable, and its copies start with an empty store). Otherwise as :meth:`structure_cached`.
-
-        Examples
-        --------
-        >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
-        >>> MU = CacheKey("demo.mu", ("mu_schedule",))
-        >>> s.cached(MU, lambda: float(s.mu[0])), s.with_mu([0.9]).cached(MU, lambda: 0.9)
-        (0.5, 0.9)
-        """
-        return _kept(self._own, _key(key), build, nbytes)
+    @property
+    def own_token(self) -> object:
+        """An object of this system alone (every copy gets its own): the weak key of every :class:`SystemStore`.
+        O(1)."""
+        return self._own
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
         """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
@@ -381,8 +446,8 @@ class System:
         return self._copy_with(x0=frozen(vector_field(x0, "x0", self.n, f"({self.n},)")))
 
     def with_channel(self, channel: Any) -> System:
-        """A copy behind the Markov ``channel`` (a GilbertElliott, a MarkovChannel or a TOML table): its mu_schedule
-        is the channel's predicted schedule. The channel and that schedule are validated as
+        """A copy behind the Markov ``channel`` (a MarkovChannel, e.g. GilbertElliott(...), or a TOML table): its
+        mu_schedule is the channel's predicted schedule. The channel and that schedule are validated as
         ``System(..., channel=channel)`` validates them; the other fields, already validated, are kept.
         Time O(N m).
 
@@ -481,16 +546,6 @@ def _key(key: Any) -> CacheKey:
         raise TypeError(f"a cache key is a model.CacheKey declared by the module that builds the value, "
                         f"found {type(key).__name__} {key!r}")
     return key
-
-
-def _kept(store: dict, key: CacheKey, build: Callable[[], T], nbytes: int) -> T:
-    if nbytes > STRUCTURE_CACHE_MAX_BYTES:
-        return build()
-    try:
-        return store[key]
-    except KeyError:
-        value = store[key] = build()
-        return value
 
 
 def check_system(system: Any, field: str = "system") -> System:

@@ -9,8 +9,7 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from .chain import attach_channel, chain_matrices
-from .channel import GilbertElliott
-from .markov_channel import MarkovChannel
+from .channel import GilbertElliott, MarkovChannel, gilbert_rates
 from .system import System, check_system
 
 __all__ = ["bursty_twin", "channel_twin", "gilbert_family"]
@@ -37,7 +36,7 @@ def gilbert_family(rate: npt.ArrayLike, correlation: float) -> tuple[np.ndarray,
     if not (np.isfinite(lam) and lam < 1.0):
         raise InputError("correlation", f"expected lambda = 1 - p - r < 1, found {correlation!r}")
     mu = np.clip(np.asarray(rate, dtype=float), 0.0, 1.0)
-    p, r = (1.0 - mu) * (1.0 - lam), mu * (1.0 - lam)
+    p, r = gilbert_rates(mu, lam)
     if np.any(p > 1.0) or np.any(r > 1.0):
         raise InputError("correlation", f"lambda = {lam:g} needs p or r above 1 for the average rates "
                                         f"{np.round(mu, 6).tolist()}")
@@ -70,7 +69,7 @@ def channel_twin(system: System, channel: int, rate: float, correlation: float) 
     its own chain and start where the system has a Markov channel (read through
     :func:`~packetloss_cvx.model.chain.chain_matrices`), else independent losses at its time-averaged rate (a
     one-state chain, as :func:`bursty_twin` at lambda = 0). The result carries a
-    :class:`~packetloss_cvx.model.markov_channel.MarkovChannel` (k_i states per channel). Time O(N m k^2).
+    :class:`~packetloss_cvx.model.channel.MarkovChannel` (k_i states per channel). Time O(N m k^2).
 
     Raises
     ------

@@ -28,7 +28,6 @@ from ..errors import InputError, NumericalError, ResourceError
 from ..lq.costs import closed_form
 from ..lq.markov_cost import exact_closed_form, exact_cost
 from ..model.chain import filter_belief
-from ..model.markov_channel import MarkovChannel
 from ..model.system import System
 from ..progress import progress_bar
 from ..results import ClosedLoopRun, OpenLoopCheck, Simulation
@@ -139,7 +138,7 @@ def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_
             runs, trajectories = _closed_loop(system, list(laws), steps, blocks, closed_part.spawn(len(blocks)),
                                               keep, bar)
     return Simulation(samples, steps, seed, open_loop, runs, trajectories,
-                      channel="markov" if isinstance(system.channel, MarkovChannel) else "gilbert-elliott")
+                      channel=system.channel.form)
 
 
 def _closed_loop(system: System, laws: list[str], steps: int, blocks: list[int], streams: list[np.random.SeedSequence],
@@ -217,16 +216,13 @@ def _exact(system: System, law: str, steps: int, gains: BeliefGains | None,
             table, delivery, first, limit = np.repeat(np.array(K)[:, None], len(modes), axis=1), "current", None, \
                 gains(ch.stationary)
         else:                                            # the last outcome reveals the state: a gain per state
-            spread = (np.full(ch.m, 0.5) if not isinstance(ch, MarkovChannel) else       # any prior of full support
-                      np.array([np.pad(np.full(k, 1.0 / k), (0, max(ch.sizes) - k)) for k in ch.sizes]))
+            spread = np.array([np.pad(np.full(k, 1.0 / k), (0, max(ch.sizes) - k)) for k in ch.sizes])  # full support
             table = np.array([gains(filter_belief(ch, spread, h[a] == 1)) for a in range(len(modes))])
             delivery, first, limit = "next", gains(np.array(ch.initial_belief, dtype=float)), table
         exact = float(jump_law_stage_costs(system, table, steps, delivery, first_gain=first).mean())
     except (InputError, ResourceError) as err:
         return np.nan, np.nan, str(err), None
-    settles = ch.belief_settles if isinstance(ch, MarkovChannel) else not np.any(
-        (ch.correlation <= -1) & (ch.initial_belief != ch.stationary))
-    if law == "udp" and not settles:
+    if law == "udp" and not ch.belief_settles:
         return exact, np.nan, ("the propagated belief of a periodic or frozen chain (|1 - p - r| = 1) need not settle: "
                                "no limiting law whose radius decides stability"), None
     M = len(modes)

@@ -2,10 +2,9 @@
 the realised cost of an open-loop plan under them (the Monte Carlo reference for the exact cost).
 
 The chains of different channels are independent; each starts from the channel's initial belief
-(given, or the stationary distribution) and moves with P(good -> bad) = p, P(bad -> good) = r
-(Gilbert–Elliott: states are good-state indicators, bool), or by its transition matrix (a k-state
-:class:`~packetloss_cvx.model.markov_channel.MarkovChannel`: states are indices, int, drawn by inverting the
-cumulative distribution of the current row with one uniform number, so state 0 iff u < P(state 0)).
+(given, or the stationary distribution) and moves by its transition matrix: states are indices, int, drawn by
+inverting the cumulative distribution of the current row with one uniform number, so state 0 iff
+u < P(state 0) (Gilbert–Elliott: good iff u < 1 - p from good, u < r from bad).
 """
 
 from __future__ import annotations
@@ -16,8 +15,10 @@ import numpy.typing as npt
 from ..errors import InputError
 from ..linalg import psd_factor
 from ..lq.costs import check_inputs
-from ..model.channel import GilbertElliott
-from ..model.markov_channel import MarkovChannel
+from ..model.channel import (
+    GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
+    MarkovChannel,
+)
 from ..model.system import System
 
 __all__ = [
@@ -32,67 +33,42 @@ def _count(value: int, field: str) -> int:
     return int(value)
 
 
-def _draw(u: np.ndarray, probs: np.ndarray) -> np.ndarray:
-    """The state index whose cumulative-probability interval holds ``u`` (..., m), probs (..., m, K)."""
-    cum = np.cumsum(probs, axis=-1)
-    return np.minimum((u[..., None] >= cum).sum(axis=-1), probs.shape[-1] - 1)
-
-
-def _next_states(channel: MarkovChannel, states: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """One step of every chain: rows ``T_i[states]`` inverted at ``u``; ``states`` and ``u`` (..., m)."""
-    rows = channel.padded_transition[np.arange(channel.m), states]          # (..., m, K)
-    return _draw(u, rows)
-
-
-def state_delivery(channel: GilbertElliott | MarkovChannel, states: np.ndarray) -> np.ndarray:
-    """The delivery probability of each sampled state: h_good / h_bad of good-state indicators (Gilbert–Elliott),
-    d_i[state] of state indices (MarkovChannel); same shape (..., m). O(size).
+def state_delivery(channel: MarkovChannel, states: np.ndarray) -> np.ndarray:
+    """The delivery probability ``d_i[state]`` of each sampled state index; same shape (..., m). O(size).
 
     Examples
     --------
-    >>> state_delivery(GilbertElliott(p=[0.1], r=[0.5], h_bad=[0.2]), np.array([[True], [False]])).tolist()
+    >>> state_delivery(GilbertElliott(p=[0.1], r=[0.5], h_bad=[0.2]), np.array([[0], [1]])).tolist()   # good, bad
     [[1.0], [0.2]]
     """
-    if isinstance(channel, MarkovChannel):
-        return channel.padded_delivery[np.arange(channel.m), states]
-    return np.where(states, channel.h_good, channel.h_bad)
+    return channel.padded_delivery[np.arange(channel.m), states]
 
 
-def sample_states(channel: GilbertElliott | MarkovChannel, horizon: int, samples: int,
+def sample_states(channel: MarkovChannel, horizon: int, samples: int,
                   rng: np.random.Generator) -> np.ndarray:
-    """Good-state indicators S_{i,t} of ``samples`` independent paths: bool (samples, N, m); state indices (int)
-    for a MarkovChannel.
-
-    Time and memory O(samples N m) (O(samples N m K) for a MarkovChannel).
+    """State indices S_{i,t} of ``samples`` independent paths: int (samples, N, m; ``channel.state_dtype``), one
+    uniform array (samples, m)
+    drawn per step (the start, then each move). Time and memory O(samples N m K).
 
     Examples
     --------
     >>> ch = GilbertElliott(p=[0.0], r=[1.0], state=["bad"])
-    >>> sample_states(ch, 3, 1, np.random.default_rng(0))[0, :, 0].tolist()
-    [False, True, True]
+    >>> sample_states(ch, 3, 1, np.random.default_rng(0))[0, :, 0].tolist()     # bad, then good for ever
+    [1, 0, 0]
     """
     N, S = _count(horizon, "horizon"), _count(samples, "samples")
-    if isinstance(channel, MarkovChannel):
-        out = np.empty((S, N, channel.m), dtype=np.int64)
-        start = np.broadcast_to(channel.initial_belief, (S, *channel.stationary.shape))
-        state = _draw(rng.random((S, channel.m)), start)
-        for t in range(N):
-            out[:, t] = state
-            state = _next_states(channel, state, rng.random((S, channel.m)))
-        return out
-    out = np.empty((S, N, channel.m), dtype=bool)
-    good = rng.random((S, channel.m)) < channel.initial_belief
+    out = np.empty((S, N, channel.m), dtype=channel.state_dtype)
+    state = channel.draw_start(rng.random((S, channel.m)))
     for t in range(N):
-        out[:, t] = good
-        u = rng.random((S, channel.m))
-        good = np.where(good, u >= channel.p, u < channel.r)
+        out[:, t] = state
+        state = channel.draw_next(state, rng.random((S, channel.m)))
     return out
 
 
-def reveals_state(channel: GilbertElliott | MarkovChannel) -> bool:
-    """True when every channel's outcome reveals its state ({h_good, h_bad} = {0, 1}, e.g. the Gilbert
-    channel): then the TCP-like filtered belief is a function of the last outcome. O(m). A MarkovChannel:
-    :meth:`~packetloss_cvx.model.markov_channel.MarkovChannel.reveals_state` (deliveries 0 and 1, distinct: k <= 2).
+def reveals_state(channel: MarkovChannel) -> bool:
+    """True when every channel's outcome reveals its state (deliveries 0 and 1, distinct: k <= 2; {h_good, h_bad}
+    = {0, 1}, e.g. the Gilbert channel): then the TCP-like filtered belief is a function of the last outcome:
+    :meth:`~packetloss_cvx.model.channel.MarkovChannel.reveals_state`. O(m K).
 
     Examples
     --------
@@ -101,67 +77,53 @@ def reveals_state(channel: GilbertElliott | MarkovChannel) -> bool:
     >>> reveals_state(GilbertElliott(p=[0.1, 0.1], r=[0.5, 0.5], h_bad=[0.0, 0.2]))   # channel 1 may deliver when bad
     False
     """
-    if isinstance(channel, MarkovChannel):
-        return channel.reveals_state()
-    return bool(np.all(((channel.h_good == 1) & (channel.h_bad == 0)) | ((channel.h_good == 0) & (channel.h_bad == 1))))
+    return channel.reveals_state()
 
 
-def sample_markov_paths(channel: GilbertElliott | MarkovChannel, steps: int, samples: int,
+def sample_markov_paths(channel: MarkovChannel, steps: int, samples: int,
                         rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Good-state indicators and deliveries of ``samples`` runs over ``steps`` steps: two bool arrays
-    (samples, steps, m), drawn in the Bernoulli samplers' order.
+    """State indices (int) and deliveries (bool) of ``samples`` runs over ``steps`` steps, (samples, steps, m)
+    each, drawn in the Bernoulli samplers' order.
 
     One uniform array ``u`` (samples, steps, m) is drawn first (the same call, hence the same numbers, as
     :func:`~packetloss_cvx.montecarlo.channels.sample_delivery_paths` and, flattened,
-    :func:`~packetloss_cvx.montecarlo.channels.sample_deliveries`): ``S_0 = u_0 < b_0``,
-    ``S_t = u_t < (1 - p if S_{t-1} else r)``. When every outcome reveals the state (:func:`reveals_state`)
+    :func:`~packetloss_cvx.montecarlo.channels.sample_deliveries`): ``S_0`` and ``S_t`` the inverse of the
+    cumulative distribution of the initial belief and of the row ``T[S_{t-1}]`` at ``u_t`` (state 0 iff
+    ``u_t < T[S_{t-1}, 0]``; Gilbert–Elliott: good iff ``u_t < (1 - p if good before else r)``, from
+    ``u_0 < b_0``). When every outcome reveals the state (:func:`reveals_state`)
     the delivery is the state's h (no more draws); otherwise a second uniform array gives
     ``v_t = u'_t < h(S_t)``. So a memoryless Gilbert chain (p + r = 1, h_good = 1, h_bad = 0) draws exactly
     the Bernoulli(r) deliveries of the same stream, run by run (the first runs do not depend on ``samples``).
-    Time and memory O(samples steps m). The arrays are (samples, steps, m) views of time-major (steps, samples, m)
-    data: a consumer stepping in time (:func:`~packetloss_cvx.montecarlo.runs.plan_costs`, the closed loops) reads
-    one contiguous slice a step and its time-major copy is no copy at all.
-    A MarkovChannel: state indices, ``S_0`` and ``S_t`` the inverse of the
-    cumulative distribution of the initial belief and of the row ``T[S_{t-1}]`` at ``u_t`` (state 0 iff
-    ``u_t < T[S_{t-1}, 0]``: a two-state twin draws the Gilbert–Elliott paths), time O(samples steps m K).
+    Time and memory O(samples steps m K). The arrays are (samples, steps, m) views of time-major
+    (steps, samples, m) data: a consumer stepping in time (:func:`~packetloss_cvx.montecarlo.runs.plan_costs`, the
+    closed loops) reads one contiguous slice a step and its time-major copy is no copy at all.
 
     Examples
     --------
     >>> ch = GilbertElliott(p=[0.3], r=[0.7])
-    >>> good, v = sample_markov_paths(ch, 5, 2, np.random.default_rng(1))
+    >>> states, v = sample_markov_paths(ch, 5, 2, np.random.default_rng(1))
     >>> bern = np.random.default_rng(1).random((2, 5, 1)) < 0.7
-    >>> bool(np.array_equal(v, bern) and np.array_equal(good, v))
+    >>> bool(np.array_equal(v, bern) and np.array_equal(states == 0, v))
     True
     """
-    steps, samples = _count(steps, "steps"), _count(samples, "samples")
-    # the chain steps in time: walk it time-major, (steps, samples, m) contiguous per step (a step of the (samples,
-    # steps, m) layout strides over whole runs, ~3x slower at 1000 steps), and hand back (samples, steps, m) views of
-    # the time-major arrays (the deliveries too: the consumers step in time); the same numbers
-    u = np.ascontiguousarray(rng.random((samples, steps, channel.m)).swapaxes(0, 1))
-    if isinstance(channel, MarkovChannel):
-        states = np.empty((steps, samples, channel.m), dtype=np.int64)
-        states[0] = _draw(u[0], np.broadcast_to(channel.initial_belief, (samples, *channel.stationary.shape)))
-        for t in range(1, steps):
-            states[t] = _next_states(channel, states[t - 1], u[t])
-        h = state_delivery(channel, states)
-        v = h == 1 if reveals_state(channel) else rng.random((samples, steps, channel.m)).swapaxes(0, 1) < h
-        return states.swapaxes(0, 1), v.swapaxes(0, 1)
-    good = np.empty((steps, samples, channel.m), dtype=bool)
-    good[0] = u[0] < channel.initial_belief
-    stay, enter = 1.0 - channel.p, channel.r
-    for t in range(1, steps):
-        np.less(u[t], np.where(good[t - 1], stay, enter), out=good[t])
-    if reveals_state(channel):
-        v = np.where(good, channel.h_good, channel.h_bad) == 1
-    else:
-        v = rng.random((samples, steps, channel.m)).swapaxes(0, 1) < np.where(good, channel.h_good, channel.h_bad)
-    return good.swapaxes(0, 1), v.swapaxes(0, 1)
+    T, S = _count(steps, "steps"), _count(samples, "samples")
+    # the chain steps in time: walk it time-major, (T, S, m) contiguous per step (a step of the (S, T, m) layout
+    # strides over whole runs, ~3x slower at T = 1000), and hand back (S, T, m) views of the time-major arrays
+    # (the deliveries too: the consumers step in time); the same numbers
+    u = np.ascontiguousarray(rng.random((S, T, channel.m)).swapaxes(0, 1))
+    states = np.empty((T, S, channel.m), dtype=channel.state_dtype)
+    states[0] = channel.draw_start(u[0])
+    for t in range(1, T):
+        states[t] = channel.draw_next(states[t - 1], u[t])
+    h = state_delivery(channel, states)
+    v = h == 1 if reveals_state(channel) else rng.random((S, T, channel.m)).swapaxes(0, 1) < h
+    return states.swapaxes(0, 1), v.swapaxes(0, 1)
 
 
-def sample_markov_deliveries(channel: GilbertElliott | MarkovChannel, horizon: int, samples: int,
+def sample_markov_deliveries(channel: MarkovChannel, horizon: int, samples: int,
                              rng: np.random.Generator) -> np.ndarray:
     """Deliveries v_{i,t} (True = the packet arrived): bool (samples, N, m), with P(v = 1 | state)
-    = h_good or h_bad. Time O(samples N m).
+    = d_i[state] (h_good or h_bad). Time O(samples N m K).
 
     Examples
     --------

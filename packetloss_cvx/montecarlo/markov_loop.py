@@ -122,13 +122,13 @@ class BeliefGains:
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
     ...            channel=GilbertElliott(p=[0.4], r=[0.6]))          # p + r = 1: mu_t = 0.6 from any belief
     >>> gains = BeliefGains(s, "tcp", budget=2)
-    >>> bool(np.allclose(gains(np.array([0.6])), closed_form(s.with_mu([0.6]), "tcp").gain))
+    >>> bool(np.allclose(gains(np.array([[0.6, 0.4]])), closed_form(s.with_mu([0.6]), "tcp").gain))
     True
-    >>> K = gains.many(np.array([[0.6], [0.6 + 1e-14], [0.2]]))       # two distinct beliefs after rounding
-    >>> K.shape, len(gains.cache)
+    >>> K = gains.many(np.array([[[0.6, 0.4]], [[0.6 + 1e-14, 0.4 - 1e-14]], [[0.2, 0.8]]]))   # two distinct after
+    >>> K.shape, len(gains.cache)                                                             # rounding
     ((3, 1, 1), 2)
     >>> try:
-    ...     gains(np.array([0.9]))                                    # a third plan is over the budget
+    ...     gains(np.array([[0.9, 0.1]]))                             # a third plan is over the budget
     ... except ResourceError:
     ...     print("refused")
     refused
@@ -155,14 +155,14 @@ class BeliefGains:
         return self.cache[key]
 
     def many(self, beliefs: np.ndarray) -> np.ndarray:
-        """K (S, m, n) at the beliefs (S, m) (or (S, m, k): a k-state chain's): one plan per distinct row.
+        """K (S, m, n) at the beliefs (S, m, K) (a distribution over each chain's states): one plan per distinct row.
         Time O(S m k log S) plus new plans.
 
         The distinct rows ascending (lexicographically) and each belief's row, as ``np.unique(axis=0,
         return_inverse=True)`` gives them, by a lexsort of the columns (np.unique sorts the rows as one
         structured dtype: 6x slower on 4096 beliefs)."""
         rounded = np.round(beliefs, 12)
-        flat = rounded.reshape(len(rounded), -1)           # a k-state chain's belief rows are (m, k)
+        flat = rounded.reshape(len(rounded), -1)           # the belief rows are (m, K)
         order = np.lexsort(flat.T[::-1])                   # column 0 the primary key
         ordered = rounded[order]
         first = np.ones(len(ordered), dtype=bool)           # the first of each run of equal rows
@@ -218,9 +218,9 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
     (True, (1, 1, 4, 1))
     """
     ch = system.channel
-    good, V = sample_markov_paths(ch, steps, samples, losses)
+    chain_states, V = sample_markov_paths(ch, steps, samples, losses)
     W = sample_noise_paths(system, steps, samples, noise)
-    modes = mode_index(good, getattr(ch, "sizes", None))
+    modes = mode_index(chain_states, ch.sizes)
     Omega, psi = system.state_weights[0], system.input_weights[0]
     L = len(laws)
     X = np.broadcast_to(system.x0, (L, samples, system.n)).copy()

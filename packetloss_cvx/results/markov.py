@@ -161,8 +161,8 @@ class MjlsResult(Frozen):
     """Mode-dependent optimal control of a Markov jump linear system (:mod:`packetloss_cvx.closedloop.mjls`).
 
     ``gains[k]``: u = -gains[k] x in mode k; ``cost_matrices[k]``: the coupled Riccati solutions P_k;
-    ``modes``: each mode's channel states (Gilbert–Elliott: 1 = good, 0 = bad per actuator; a MarkovChannel: the
-    state index per actuator); ``transition``: the mode chain;
+    ``modes``: each mode's channel states, the state index per actuator (Gilbert–Elliott: 0 = good, 1 = bad);
+    ``transition``: the mode chain;
     ``spectral_radius``: of the closed loop's second-moment operator (< 1: mean-square stable);
     ``iterations``, ``residual``: of the coupled Riccati iteration.
     """

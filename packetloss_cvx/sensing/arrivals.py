@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..closedloop.mjls import product_chain
 from ..errors import InputError
-from ..model.chain import chain_matrices
 from ..model.sensor import Sensor
 
 __all__ = ["PATTERN_MAX_CHANNELS", "Arrivals", "ChainSampler", "arrival_patterns", "sensor_arrivals"]
@@ -100,18 +100,13 @@ def sensor_arrivals(sensor: Sensor) -> Arrivals:
     if sensor.channel is None:
         one = np.ones(1)
         return Arrivals(patterns, one, np.ones((1, 1)), prob[None, :], one)
-    chains = chain_matrices(sensor.channel)           # per channel (T, d, pi0), states (good, bad)
-    T, initial = np.ones((1, 1)), np.ones(1)
-    for Tj, _, pj in chains:
-        T, initial = np.kron(T, Tj), np.kron(initial, pj)
-    states = np.array(list(itertools.product((0, 1), repeat=sensor.g)), dtype=int).reshape(-1, sensor.g)
-    deliver = np.stack([d[states[:, j]] for j, (_, d, _) in enumerate(chains)], axis=1)      # (S, g)
+    _, T, deliver, initial = product_chain(sensor.channel)      # joint states (good, bad per channel), (S, g)
     emission = np.prod(np.where(patterns[None, :, :], deliver[:, None, :], 1.0 - deliver[:, None, :]), axis=2)
     ch = sensor.channel
     lam = 1.0 - ch.p - ch.r
     limit = None
     if not np.any(lam == -1.0):
-        good = np.where(lam == 1.0, ch.initial_belief, ch.stationary)     # p = r = 0: the chain keeps its state
+        good = np.where(lam == 1.0, ch.initial_belief[:, 0], ch.stationary[:, 0])     # p = r = 0: it keeps its state
         limit = np.ones(1)
         for b in good:
             limit = np.kron(limit, np.array([b, 1.0 - b]))
@@ -131,11 +126,10 @@ class ChainSampler:
     def __init__(self, sensor: Sensor, rng: np.random.Generator, samples: int) -> None:
         ch = sensor.channel
         self._ch, self._rng = ch, rng
-        self.good = rng.random((samples, ch.m)) < ch.initial_belief
+        self.states = ch.draw_start(rng.random((samples, ch.m)))
 
     def step(self) -> np.ndarray:
         ch, rng = self._ch, self._rng
-        arrived = rng.random(self.good.shape) < np.where(self.good, ch.h_good, ch.h_bad)
-        u = rng.random(self.good.shape)
-        self.good = np.where(self.good, u >= ch.p, u < ch.r)
+        arrived = rng.random(self.states.shape) < ch.padded_delivery[np.arange(ch.m), self.states]
+        self.states = ch.draw_next(self.states, rng.random(self.states.shape))
         return arrived
