@@ -24,7 +24,7 @@ import numpy as np
 
 from ..closedloop.law_stability import STABILITY_MAX_N
 from ..closedloop.region import membership
-from ..closedloop.riccati import riccati_step
+from ..closedloop.riccati import modified_riccati_step
 from ..errors import NumericalError
 from ..model.system import System
 from ..tolerances import SELF_CHECK_RTOL
@@ -63,7 +63,7 @@ def _dp(system: System, schedule: np.ndarray) -> tuple[np.ndarray, float]:
         for t in range(N - 1, -1, -1):
             noise += float(np.sum(P * system.noise_cov))
             Omega = system.state_weights[t - 1] if t >= 1 else system.initial_weight
-            gains[t], P = riccati_step(P, system.A, system.B, schedule[t], Omega, system.input_weights[t])
+            gains[t], P = modified_riccati_step(P, system.A, system.B, schedule[t], Omega, system.input_weights[t])
     cost = float(system.x0 @ P @ system.x0) + noise
     if not np.isfinite(cost):
         raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")
@@ -135,7 +135,7 @@ def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
        J = x_0'P_0 x_0 + \\sum_{t=0}^{N-1} \\mathrm{tr}(P_{t+1}\\Sigma_W)
 
     with ``Omega_0 = Q`` (the initial weight), ``K_t`` the modified Riccati gain at ``mu_t`` and ``Psi_t``
-    (:func:`~packetloss_cvx.closedloop.riccati.riccati_step`). Time-varying weights and channels as the system
+    (:func:`~packetloss_cvx.closedloop.riccati.modified_riccati_step`). Time-varying weights and channels as the system
     gives them. O(N (n^3 + m^3)).
 
     Raises
