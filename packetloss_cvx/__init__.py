@@ -26,7 +26,8 @@ from .errors import (
 if _typing.TYPE_CHECKING:   # the names a type checker and an IDE see; at run time they load on first use
     from .allocation import allocate
     from .claims import audit
-    from .lq.costs import closed_form, expected_cost, paper_optimal_cost
+    from .closedloop.law_stability import closed_form
+    from .lq.costs import expected_cost, paper_optimal_cost
     from .model.files import load_example, load_system, save_system
     from .model.system import System
     from .qp.expected_cost import ExpectedCostQP, solve_qp
@@ -37,7 +38,7 @@ __version__ = "0.1.0"
 #: public name -> the module (of this package) that defines it
 _LAZY = {
     "allocate": "allocation", "audit": "claims",
-    "closed_form": "lq.costs", "expected_cost": "lq.costs", "paper_optimal_cost": "lq.costs",
+    "closed_form": "closedloop.law_stability", "expected_cost": "lq.costs", "paper_optimal_cost": "lq.costs",
     "load_example": "model.files", "load_system": "model.files", "save_system": "model.files",
     "System": "model.system", "ExpectedCostQP": "qp.expected_cost", "solve_qp": "qp.expected_cost",
     "Allocation": "results", "ClaimResult": "results", "CrossCheck": "results", "Maximiser": "results",

@@ -20,6 +20,7 @@ __all__ = [
     "design_sweep_html", "design_sweep_repr", "field_text", "fields_html", "fields_repr", "html_grid", "html_table",
     "json_text", "maximiser_repr", "plain", "supported", "supported_digits",
     "short", "simulation_html", "span", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
+    "SOLUTION_BASIS", "all_delivered_flag",
 ]
 
 #: matrices with more rows or columns than this are shown by their shape
@@ -200,17 +201,42 @@ def system_html(system: Any) -> str:
     return html_table("System", rows)
 
 
+#: what a Solution's ``cost`` is: the paper's J* (Theorem 1's expression, exact); for the TCP-like protocol a
+#: first-moment value no causal law attains (allocation.attainable gives the attainable one)
+SOLUTION_BASIS = "paper"
+
+
+def all_delivered_flag(sol: Any) -> str | None:
+    """One line when the receding-horizon law is unstable even with every packet delivered (the radius of A - B K,
+    the paper's Tables I-II convention, at least 1); None otherwise or without eigenvalues. O(n).
+
+    >>> from types import SimpleNamespace
+    >>> all_delivered_flag(SimpleNamespace(closed_loop_eigenvalues=np.array([1.077, 0.5])))
+    'UNSTABLE even with every packet delivered (radius of A - B K = 1.077)'
+    >>> all_delivered_flag(SimpleNamespace(closed_loop_eigenvalues=np.array([0.9]))) is None
+    True
+    """
+    eigs = sol.closed_loop_eigenvalues
+    if eigs is None or not len(eigs):
+        return None
+    radius = float(np.max(np.abs(eigs)))
+    return f"UNSTABLE even with every packet delivered (radius of A - B K = {radius:.6g})" if radius >= 1 else None
+
+
 def _solution_rows(sol: Any) -> list[tuple[str, Any]]:
-    rows: list[tuple[str, Any]] = [("protocol", f"{sol.protocol.upper()}-like"), ("J*", f"{sol.cost:.10g}"),
-                                   ("method", sol.method)]
+    rows: list[tuple[str, Any]] = [("protocol", f"{sol.protocol.upper()}-like"),
+                                   (f"J*, {SOLUTION_BASIS}", f"{sol.cost:.10g}"), ("method", sol.method)]
     if sol.closed_loop_eigenvalues is not None and len(sol.closed_loop_eigenvalues):
         # the paper's Tables I-II convention, every packet delivered: not the loop over the lossy channel
-        rows.append(("radius of A - B K (all delivered)", f"{np.max(np.abs(sol.closed_loop_eigenvalues)):.6g}"))
-    if sol.stability is not None:   # attached by closedloop.with_stability: the loop over the lossy channel
+        radius = f"{np.max(np.abs(sol.closed_loop_eigenvalues)):.6g}"
+        flag = all_delivered_flag(sol)
+        rows.append(("radius of A - B K (all delivered)",
+                     radius if flag is None else f"{radius}: UNSTABLE even with every packet delivered"))
+    if sol.stability is not None:   # attached by closed_form (or with_stability): the loop over the lossy channel
         rows.append(("mean-square stability", sol.stability.verdict))
     elif sol.gain is not None:
         rows.append(("mean-square stability",
-                     "not computed (a Solution does not carry the channel): "
+                     "not computed (skipped, or a plan solved without its system): "
                      "packetloss_cvx.closedloop.law_stability.with_stability(system, solution)"))
     if sol.status is not None:
         rows.append(("status", f"{sol.status} in {sol.solve_time:.3g} s"))
@@ -224,15 +250,32 @@ def _solution_rows(sol: Any) -> list[tuple[str, Any]]:
 
 
 def solution_repr(sol: Any) -> str:
-    """``Solution(protocol='tcp', cost=2.798470088, method='dense', N=10, m=2)``.
+    """``Solution(protocol='tcp', cost=2.798470088, basis='paper', method='dense', N=10, m=2, loop='mean-square
+    stable, radius 0.53')``: the loop's verdict when attached, and one flag when the law is unstable even with every
+    packet delivered.
 
-    >>> from packetloss_cvx.results import Solution
+    >>> from packetloss_cvx.results import LoopStability, Solution
     >>> Solution("udp", 10.25, np.zeros((10, 2)), None, None, "recursion")
-    Solution(protocol='udp', cost=10.25, method='recursion', N=10, m=2)
+    Solution(protocol='udp', cost=10.25, basis='paper', method='recursion', N=10, m=2)
+    >>> text = repr(Solution("udp", 0.9, np.zeros((1, 1)), np.ones((1, 1)), np.array([1.077]), "dense",
+    ...                      stability=LoopStability(2.5, False, "mu = 0.5")))
+    >>> text.endswith("m=1, loop='NOT mean-square stable, radius 2.5', all_delivered='UNSTABLE even with every packet "
+    ...               "delivered (radius of A - B K = 1.077)')")
+    True
     """
     status = f", status={sol.status!r}" if sol.status is not None else ""
     N, m = sol.inputs.shape
-    return f"Solution(protocol={sol.protocol!r}, cost={sol.cost:.10g}, method={sol.method!r}{status}, N={N}, m={m})"
+    text = (f"Solution(protocol={sol.protocol!r}, cost={sol.cost:.10g}, basis={SOLUTION_BASIS!r}, "
+            f"method={sol.method!r}{status}, N={N}, m={m}")
+    st = sol.stability
+    if st is not None:
+        loop = (f"not computed: {st.note}" if st.radius is None else
+                ("mean-square stable" if st.stable else "NOT mean-square stable") + f", radius {st.radius:.6g}")
+        text += f", loop={loop!r}"
+    flag = all_delivered_flag(sol)
+    if flag is not None:
+        text += f", all_delivered={flag!r}"
+    return text + ")"
 
 
 def solution_html(sol: Any) -> str:
@@ -258,8 +301,12 @@ def allocation_repr(a: Any) -> str:
     ...                                       communication_cost=0.5, cost=8.0, alpha=8.0, gap=1e-3)))
     Allocation(protocol='udp', status='optimal', mu=[0.4856, 1], communication_cost=0.5, cost=8, alpha=8, gap=1.0e-03)
     """
+    basis = getattr(a, "basis", None)
+    attained = "" if basis is None else (f", basis={basis!r}, attainable_cost={short(a.attainable_cost)}, "
+                                         f"stabilisable={a.stabilisable}")
     return (f"Allocation(protocol={a.protocol!r}, status={a.status!r}, mu={short(a.mu, 4)}, "
-            f"communication_cost={a.communication_cost:.6g}, cost={a.cost:.6g}, alpha={a.alpha:.6g}, gap={a.gap:.1e})")
+            f"communication_cost={a.communication_cost:.6g}, cost={a.cost:.6g}{attained}, alpha={a.alpha:.6g}, "
+            f"gap={a.gap:.1e})")
 
 
 def allocation_html(a: Any) -> str:
@@ -273,11 +320,20 @@ def allocation_html(a: Any) -> str:
     >>> "TCP-like" in text, "7.5 &lt;= alpha = 8" in text, "<= alpha" in text   # the certificate, escaped
     (True, True, False)
     """
-    return html_table("Allocation", [
-        ("protocol", f"{a.protocol.upper()}-like"), ("status", a.status), ("mu*", short(a.mu)),
-        ("beta", short(a.beta)), ("beta'mu", f"{a.communication_cost:.6g}"),
-        ("J*(mu*)", f"{a.cost:.10g} <= alpha = {a.alpha:.6g}"), ("lower bound (proved)", f"{a.lower_bound:.6g}"),
-        ("gap", f"{a.gap:.1e}"), ("method", a.method), ("boxes", a.boxes)])
+    basis = getattr(a, "basis", None)
+    rows = [("protocol", f"{a.protocol.upper()}-like"), ("status", a.status), ("mu*", short(a.mu)),
+            ("beta", short(a.beta)), ("beta'mu", f"{a.communication_cost:.6g}"),
+            ("J*(mu*)" if basis is None else f"J*(mu*), {basis}", f"{a.cost:.10g} <= alpha = {a.alpha:.6g}")]
+    if basis is not None:
+        cost = "not computed" if a.attainable_cost is None else f"{a.attainable_cost:.10g}"
+        verdict = {True: "yes", False: "NO", None: "no verdict"}[a.stabilisable]
+        rows += [("attainable cost", f"{cost} ({a.attainable_note})"),
+                 ("stabilisable", f"{verdict} ({a.stability_note})")]
+        if a.warning is not None:
+            rows.append(("warning", a.warning.removeprefix("warning: ")))
+    rows += [("lower bound (proved)", f"{a.lower_bound:.6g}"), ("gap", f"{a.gap:.1e}"), ("method", a.method),
+             ("boxes", a.boxes)]
+    return html_table("Allocation", rows)
 
 
 def batch_repr(b: Any) -> str:

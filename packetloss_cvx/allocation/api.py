@@ -23,6 +23,7 @@ What the results promise:
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -32,9 +33,10 @@ from ..budgets import check, count_text, duration_text, estimated_seconds, limit
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..model.protocols import check_protocol
 from ..model.system import System
-from ..results import Allocation, MinCost
+from ..results import Allocation, MinCost, StabilityAllocation
 from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT
+from .attainable import AttainableEvaluator, attainment
 from .boxes import Outcome, cost_at, reported_gap, unit_prices
 from .chains import ChainEvaluator, chain_family, chain_rates
 from .grammar import (
@@ -49,10 +51,15 @@ from .grammar import (
     check_system,
     read_polytope,
 )
+from .stability import stability_allocate
 from .tcp import tcp_allocate, tcp_min_cost
 from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
-__all__ = ["MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
+__all__ = ["ALLOCATION_TARGETS", "MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
+
+#: what :func:`allocate` designs on: the paper's program (J*(mu) <= alpha, the default), a loop some linear law
+#: holds ("stable"), the DP law's stationary cost ("dp-cost"), the attainable finite-horizon cost ("attainable")
+ALLOCATION_TARGETS = ("paper", "stable", "dp-cost", "attainable")
 
 #: Default cap on the boxes a branch and bound explores before it reports "gap_not_certified".
 MAX_BOXES = 20000
@@ -204,11 +211,17 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
 
 
 @blas_limited
-def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
+def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0.0, 1.0),
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
-             max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
+             max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None,
+             target: str = "paper", margin: float | None = None) -> Allocation | StabilityAllocation:
     """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
     The paper's eq:alpha_channels (J* <= alpha), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
+
+    The paper's J*_tcp is a first-moment value no causal law attains: the result says, at its mu, what a loop
+    attains (``attainable_cost``, the finite-horizon DP with acknowledgements, TCP-like) and whether any linear law
+    holds it mean-square stable (``stabilisable``); ``warning`` is one line when either misleads. To design on the
+    loop instead, ask for ``target="stable"`` or ``"dp-cost"``.
 
     Parameters
     ----------
@@ -239,13 +252,24 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         Cap on the UDP-like branch and bound's seconds (None: no limit).
     progress : bool or None
         A bar on stderr for the UDP-like branch and bound (None: when stderr is a terminal).
+    target : {"paper", "attainable", "stable", "dp-cost"}
+        What the design meets: "paper" (default), the paper's program ``J*(mu) <= alpha`` for ``protocol``;
+        "attainable", the attainable cost over the horizon is at most ``alpha`` (TCP-like: the finite-horizon DP
+        with acknowledgements, a monotone branch and bound, Bernoulli channels and full state; UDP-like: J*_udp is
+        the attainable cost, so the paper's program); "stable", some linear law u = -K x has mean-square radius
+        below ``margin`` (``alpha`` None); "dp-cost", the DP law's stationary cost is at most ``alpha``
+        (:func:`~packetloss_cvx.allocation.stability.stability_allocate`; as ``--target`` on the command line: the
+        law measures the state each step, so ``protocol`` is checked but does not enter).
+    margin : float, optional
+        Target "stable" only: the bound on the mean-square radius, ``0 < margin <= 1`` (default 1).
 
     Returns
     -------
     Allocation
         ``mu`` feasible by the closed form; ``lower_bound`` proven; ``status`` "optimal" (gap
         certified) or "gap_not_certified" (a cap was hit; ``gap`` is the gap reached);
-        ``boxes`` explored.
+        ``boxes`` explored; ``attainable_cost`` and ``stabilisable`` at mu (:mod:`.attainable`).
+        A :class:`~packetloss_cvx.results.StabilityAllocation` for the targets "stable" and "dp-cost".
 
     Raises
     ------
@@ -273,6 +297,15 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
     (True, 'optimal', True)
     """
     protocol = check_protocol(protocol)
+    if target == "attainable" and protocol == "tcp":
+        return _attainable_allocate(system, alpha, beta, bounds, constraints, gap, max_boxes, time_limit, progress,
+                                    margin)
+    if target not in ("paper", "attainable"):      # UDP-like, J*_udp is the attainable cost: the paper's program
+        return _loop_target(system, target, alpha, beta, bounds, constraints, gap, max_boxes, time_limit, progress,
+                            margin)
+    if margin is not None:
+        raise InputError("margin", "applies to target='stable' only (the paper's program bounds J*: alpha)")
+    given = system                                            # with its chain, for what the loop attains
     system, evaluator = _behind_chain(system, protocol)       # a chain: its mean rates (chains.py)
     system = check_system(system)
     alpha = check_alpha(alpha)
@@ -313,10 +346,70 @@ def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0
         out = out._replace(note=out.note + floor_note)
     scaled = float(prices @ out.mu)
     cost = cost_at(system, protocol, out.mu) if out.cost is None else out.cost
-    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
-                      lower_bound=out.lower_bound * unit,
-                      gap=reported_gap(scaled, out.lower_bound, out.scale),
-                      status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta, boxes=out.boxes)
+    return _attained(Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
+                                lower_bound=out.lower_bound * unit,
+                                gap=reported_gap(scaled, out.lower_bound, out.scale),
+                                status=out.status, method=out.note, protocol=protocol, alpha=alpha, beta=beta,
+                                boxes=out.boxes), given)
+
+
+def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints: Sequence[Constraint], gap: float,
+                         max_boxes: int | None, time_limit: float | None, progress: bool | None,
+                         margin: float | None) -> Allocation:
+    """The TCP-like design on the attainable cost: min beta'mu with the finite-horizon DP's cost <= alpha, by the
+    monotone branch and bound of :mod:`.udp` on :class:`.attainable.AttainableEvaluator` (the cost falls in each
+    mu_i: docs/design.md, "Design on the attainable cost"; no TCP-like floor, none being proved for it)."""
+    if margin is not None:
+        raise InputError("margin", "applies to target='stable' only (target='attainable' bounds a cost: alpha)")
+    if isinstance(system, System) and system.channel is not None:
+        raise InputError("target", "'attainable' designs Bernoulli channels: behind a Markov chain the TCP-like "
+                                   "attainable cost is not computed yet; use the paper's program or target='udp'")
+    system = check_system(system)
+    if system.sensor is not None:
+        raise InputError("target", "'attainable' designs the full-state loop; this system has lossy [sensor] links")
+    alpha = check_alpha(alpha)
+    beta = check_beta(beta, system.m)
+    lo, hi = check_bounds(bounds)
+    gap = check_gap(gap)
+    max_boxes = _max_boxes(max_boxes, system)
+    time_limit = _time_limit(time_limit)
+    poly = _polytope(constraints, system.m, lo, hi)
+    prices, unit = unit_prices(beta)
+    what = "TCP-like design on the attainable cost"
+    f = MonotoneCost(AttainableEvaluator(system))
+    try:
+        out = udp_allocate(system, poly, alpha, prices, gap, -np.inf, max_boxes, time_limit, progress=progress,
+                           cost=f, what=what)
+    except InfeasibleError as err:
+        raise InfeasibleError(f"{what}: no mu within the bounds and constraints attains a cost <= alpha = {alpha:g} "
+                              f"({err})", None) from None
+    cost = f.checked(out.mu) if out.cost is None else out.cost
+    return _attained(Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
+                                lower_bound=out.lower_bound * unit,
+                                gap=reported_gap(float(prices @ out.mu), out.lower_bound, out.scale),
+                                status=out.status, method=f"{out.note}; on the attainable cost (finite-horizon DP with "
+                                                          "acknowledgements)", protocol="tcp", alpha=alpha,
+                                beta=beta, boxes=out.boxes), system, basis="attainable")
+
+
+def _attained(result: Allocation, system: System, chain: bool = False, basis: str | None = None) -> Allocation:
+    """``result`` with what a loop attains at its mu (:func:`.attainable.attainment`)."""
+    found = attainment(system, result.protocol, result.mu, result.cost, chain)
+    basis = basis or ("attainable" if chain else "paper")
+    return dataclasses.replace(result, basis=basis, attainable_cost=found.cost,
+                               attainable_note=found.cost_note, stabilisable=found.stabilisable,
+                               stability_note=found.stability_note)
+
+
+def _loop_target(system: System, target: str, alpha: float | None, beta, bounds, constraints: Sequence[Constraint],
+                 gap: float, max_boxes: int | None, time_limit: float | None, progress: bool | None,
+                 margin: float | None) -> StabilityAllocation:
+    """:func:`allocate`'s targets other than the paper's: the closed-loop designs of :mod:`.stability`."""
+    if target not in ALLOCATION_TARGETS:
+        raise InputError("target", f"expected one of {', '.join(ALLOCATION_TARGETS)}, found {target!r}")
+    options: dict[str, Any] = {} if max_boxes is None else {"max_boxes": max_boxes}
+    return stability_allocate(system, target, beta, margin=margin, alpha=alpha, bounds=bounds,
+                              constraints=constraints, gap=gap, time_limit=time_limit, progress=progress, **options)
 
 
 def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, beta: np.ndarray, poly: Polytope,
@@ -333,10 +426,12 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
     note = f"{out.note}; exact expected cost {evaluator.family.describe()}"
     scaled = float(prices @ out.mu)
     cost = evaluator.cost(out.mu) if out.cost is None else out.cost
-    return Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
-                      lower_bound=out.lower_bound * unit,
-                      gap=reported_gap(scaled, out.lower_bound, out.scale),
-                      status=out.status, method=note, protocol="udp", alpha=alpha, beta=beta, boxes=out.boxes)
+    return _attained(Allocation(mu=out.mu, communication_cost=float(beta @ out.mu), cost=cost,
+                                lower_bound=out.lower_bound * unit,
+                                gap=reported_gap(scaled, out.lower_bound, out.scale),
+                                status=out.status, method=note, protocol="udp", alpha=alpha, beta=beta,
+                                boxes=out.boxes), evaluator.system,
+                     chain=True)
 
 
 @blas_limited

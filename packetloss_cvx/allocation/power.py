@@ -42,6 +42,7 @@ from ..tolerances import (
     ALLOCATION_GAP_DEFAULT,
     ALLOCATION_INCUMBENT_SHARE,
 )
+from .attainable import attainment
 from .boxes import boundary, box_lp, gap_unit, reported_gap, small_lp, unit_prices
 from .delivery import PowerModel, rayleigh_majorant
 from .grammar import Constraint, check_count, check_gap, check_number, check_system, read_polytope
@@ -277,10 +278,12 @@ def _result(setup: _Setup, problem: str, x: np.ndarray, value: float, lower: flo
     mu = setup.model.mu(P)
     cost = float(CostEvaluator(setup.system, setup.protocol).cost(np.clip(mu, 0.0, 1.0)))
     total = float(np.sum(P))
+    found = attainment(setup.system, setup.protocol, np.clip(mu, 0.0, 1.0), cost)      # what a loop attains at mu
     return PowerAllocation(protocol=setup.protocol, problem=problem, model=setup.model.to_dict(), power=P,
                            total_power=total, mu=mu, cost=cost, limit=limit, lower_bound=lower * unit,
                            gap=reported_gap(value, lower, size), status=status,
-                           method=method, boxes=boxes)
+                           method=method, boxes=boxes, attainable_cost=found.cost, attainable_note=found.cost_note,
+                           stabilisable=found.stabilisable, stability_note=found.stability_note)
 
 
 def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, constraints: Sequence[Constraint],

@@ -56,6 +56,7 @@ from ..tolerances import (
     ALLOCATION_INCUMBENT_SHARE,
     MEAN_SQUARE_MARGIN,
 )
+from .attainable import tcp_attainable_cost
 from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope, reported_gap, unit_prices
 from .grammar import (
     Constraint,
@@ -492,9 +493,14 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
             cost, kind = float("nan"), ""                  # on the boundary: a cost of ~1 / (1 - radius), unresolved
     except NumericalError:
         cost, kind = float("nan"), ""
+    try:
+        attainable, note = tcp_attainable_cost(system.with_mu(mu), mu), "finite-horizon DP with acknowledgements"
+    except NumericalError as err:
+        attainable, note = None, str(err)
     return StabilityAllocation(
         target=target, mu=mu, cost=float(beta @ mu), lower_bound=out.lower_bound * unit,
         gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status, radius=radius,
         radius_bound=rho, gain=point.gain, dp_cost=cost, dp_cost_kind=kind, alpha=alpha, beta=beta,
-        boxes=out.boxes, method=out.note)
+        boxes=out.boxes, method=out.note, attainable_cost=attainable, attainable_note=note, stabilisable=True,
+        stability_note=f"the design's gain has mean-square radius {radius:.6g} < 1 (certified)")
 

@@ -11,7 +11,15 @@ from . import format as fmt
 from .allocate_power import run as run_power  # power, the ack link priced
 from .allocate_power import wants_power
 from .allocate_stability import run_target
-from .common import CommandResult, allocation_numbers, progress_of, search_options, system_of
+from .common import (
+    WARNING_ADVICE,
+    CommandResult,
+    allocation_numbers,
+    attained_rows,
+    progress_of,
+    search_options,
+    system_of,
+)
 
 __all__ = ["run"]
 
@@ -46,13 +54,20 @@ def run(args: argparse.Namespace) -> CommandResult:
     (3, 'infeasible', 0.5)
     >>> folder.cleanup()
     """
-    if args.target is not None or args.margin is not None:    # design for stability: its own module
-        return run_target(args)
+    if args.target in ("stable", "dp-cost") or (args.target is None and args.margin is not None):
+        return run_target(args)                                 # design for stability: its own module
+    if args.margin is not None:
+        raise InputError("--margin", "applies to --target stable only")
+    target = args.target or "paper"     # "attainable": the same program on the attainable cost (allocation.api)
     for flag, value in (("--ack-price", args.ack_price), ("--ack-power", args.ack_power)):
         if value is not None and args.protocol != "best":          # was ignored: the answer without the link
             raise InputError(flag, "prices the acknowledgement link, which only --protocol best compares")
     system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
     if args.protocol == "best" or wants_power(args, system):
+        if target == "attainable":
+            raise InputError("--target", "attainable designs delivery probabilities priced by --beta with --protocol "
+                                         "tcp|udp; the power designs and --protocol best report the attainable cost "
+                                         "of their paper design")
         if system.channel is not None:
             raise InputError("channel", "power-limited links map power to independent (Bernoulli) delivery "
                                         "probabilities; this file has a Markov chain: give a file with [channel] mu")
@@ -69,27 +84,32 @@ def run(args: argparse.Namespace) -> CommandResult:
     options["progress"] = progress_of(args)
     try:
         result = allocate(system, args.protocol, alpha, beta, bounds=tuple(bounds), constraints=constraints,
-                          **options)
+                          target=target, **options)
     except InputError as err:
         raise err.renamed(FLAGS[err.field]) if err.field in FLAGS else err from None
     except InfeasibleError as err:
         data = {"protocol": args.protocol, "alpha": alpha, "beta": beta, "mu": None, "communication_cost": None,
                 "cost": None, "lower_bound": None, "gap": None, "status": "infeasible", "method": None,
-                "boxes": None, "min_cost": err.min_cost}
+                "boxes": None, "min_cost": err.min_cost, "basis": "paper", "attainable_cost": None,
+                "attainable_note": "", "stabilisable": None, "stability_note": "no allocation"}
         return CommandResult(data, f"infeasible: {err}", 3)
     data = {**result.to_dict(), "min_cost": None}
     rows = [("mu*", fmt.numbers(result.mu)), ("beta'mu", fmt.num(result.communication_cost)),
-            ("J*(mu*)", f"{fmt.num(result.cost, 10)} <= alpha = {fmt.num(alpha)}"),
+            (f"J*(mu*), {result.basis}", f"{fmt.num(result.cost, 10)} <= alpha = {fmt.num(alpha)}"),
+            *attained_rows(result),
             ("lower bound", f"{fmt.num(result.lower_bound)} on beta'mu (proved)"),
             ("gap", f"{result.gap:.1e}"),
             ("method", result.method + (f", {result.boxes} box" + ("es" if result.boxes > 1 else "")
                                         if result.boxes else ""))]
     name = fmt.name(system.name or args.file)
+    warning = [] if result.warning is None else [result.warning + WARNING_ADVICE]
     if result.status == "optimal":
-        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation for {name}"]
-                                             + fmt.fields(rows)))
+        on = " on the attainable cost" if result.basis == "attainable" and args.protocol == "tcp" else ""
+        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation{on} for {name}"]
+                                             + fmt.fields(rows) + warning))
     advice = ("raise --max-boxes or --time-limit, or --gap" if args.protocol == "udp" else
               "the TCP-like SOCP's certificate is limited by the solver's accuracy: ask for a larger --gap")
     heading = (f"{args.protocol.upper()}-like: GAP NOT CERTIFIED, allocation for {name} (gap reached "
                f"{result.gap:.1e} > the requested gap)")
-    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)])), 4)
+    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)]) + warning), 4)
+

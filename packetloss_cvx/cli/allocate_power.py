@@ -17,7 +17,7 @@ from ..errors import InfeasibleError, InputError
 from ..model.files import read_csv_numbers
 from ..model.system import System
 from . import format as fmt
-from .common import CommandResult, floats, number, progress_of, search_options
+from .common import WARNING_ADVICE, CommandResult, attained_rows, floats, number, progress_of, search_options
 
 __all__ = ["POWER_OPTIONS", "model_of", "run", "wants_power"]
 
@@ -127,16 +127,19 @@ def run(args: argparse.Namespace, system: System) -> CommandResult:
              f"table of {len(model.powers)} rows"),
             ("power", fmt.numbers(result.power)), ("total power", fmt.num(result.total_power)),
             ("mu", fmt.numbers(result.mu)),
-            ("J*", f"{fmt.num(result.cost, 10)} " + (f"<= alpha = {fmt.num(result.limit)}" if least else "")),
+            ("J*, paper", f"{fmt.num(result.cost, 10)} " + (f"<= alpha = {fmt.num(result.limit)}" if least else "")),
+            *attained_rows(result),
             ("lower bound", f"{fmt.num(result.lower_bound)} on {'the total power' if least else 'J*'} (proved)"),
             ("gap", f"{result.gap:.1e}"),
             ("method", result.method + (f", {result.boxes} boxes" if result.boxes else ""))]
     what = "least total power" if least else f"least J* within a total power of {fmt.num(result.limit)}"
+    warning = [] if result.warning is None else [result.warning + WARNING_ADVICE]
     if result.status == "optimal":
-        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: {what} for {name}"] + fmt.fields(rows)))
+        return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: {what} for {name}"] + fmt.fields(rows)
+                                             + warning))
     heading = f"{args.protocol.upper()}-like: GAP NOT CERTIFIED, {what} for {name} (gap reached {result.gap:.1e})"
     return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", "raise --max-boxes or "
-                                                                         "--time-limit, or --gap")])), 4)
+                                                                         "--time-limit, or --gap")]) + warning), 4)
 
 
 def _best(args: argparse.Namespace, system: System, model: PowerModel | None, options: dict[str, Any],
@@ -172,8 +175,9 @@ def _best(args: argparse.Namespace, system: System, model: PowerModel | None, op
         if design is None:
             return "no design meets alpha (proved)"
         spent = design.power if model is not None else design.mu
+        attained = ("not computed" if design.attainable_cost is None else fmt.num(design.attainable_cost))
         return (f"{fmt.num(total)} {extra}(" + ("power " if model is not None else "mu ") + fmt.numbers(spent)
-                + f", J* {fmt.num(design.cost)})")
+                + f", J* {fmt.num(design.cost)} paper, {attained} attainable)")
 
     rows = [("TCP-like", line(choice.tcp, choice.tcp_total, f"= {unit} + ack {fmt.num(ack)} ")),
             ("UDP-like", line(choice.udp, choice.udp_total, "")),
@@ -182,4 +186,7 @@ def _best(args: argparse.Namespace, system: System, model: PowerModel | None, op
             ("break-even ack", (f"UDP-like wins above {fmt.num(choice.break_even)}" if choice.udp is not None
                                 else "none: only the TCP-like protocol meets alpha"))]
     heading = f"best protocol for {name} at alpha = {fmt.num(alpha)} ({unit})"
-    return CommandResult(data, "\n".join([heading] + fmt.fields(rows)), 0 if certified else 4)
+    warned = [f"{d.protocol.upper()}-like design: {d.warning.removeprefix('warning: ')}" for d in designs
+              if d.warning is not None]
+    warning = [] if not warned else ["warning: " + "; ".join(warned) + WARNING_ADVICE]
+    return CommandResult(data, "\n".join([heading] + fmt.fields(rows) + warning), 0 if certified else 4)

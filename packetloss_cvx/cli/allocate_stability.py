@@ -10,7 +10,15 @@ from ..allocation import parse_constraint
 from ..allocation.stability import stability_allocate
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
-from .common import CommandResult, number, prices_and_bounds, progress_of, search_options, system_of
+from .common import (
+    CommandResult,
+    attained_rows,
+    number,
+    prices_and_bounds,
+    progress_of,
+    search_options,
+    system_of,
+)
 
 __all__ = ["run_target"]
 
@@ -90,8 +98,9 @@ def run_target(args: argparse.Namespace) -> CommandResult:
             ("gap", f"{result.gap:.1e}"),
             ("radius", f"{fmt.num(result.radius, 10)} < {fmt.num(result.radius_bound)} ("
                        + ("the least-radius gain" if args.target == "stable" else "the DP law") + ", checked)"),
-            ("DP cost", "no DP solution at mu*" if result.dp_cost_kind == "" else
+            ("DP cost, loop", "no DP solution at mu*" if result.dp_cost_kind == "" else
              f"{fmt.num(result.dp_cost, 10)} ({result.dp_cost_kind})"),
+            attained_rows(result)[0],
             ("method", f"{result.method}, {result.boxes} box" + ("es" if result.boxes != 1 else ""))]
     name = fmt.name(system.name or args.file)
     if result.status == "optimal":

@@ -30,10 +30,11 @@ from ..errors import InputError
 from ..model.files import load_system, read_csv_numbers, read_input
 from ..model.system import System
 from ..safeio import check_output_file
+from . import format as fmt
 
-__all__ = ["CommandResult", "allocation_numbers", "check_budgets", "check_figure_format", "check_writable", "floats",
-           "integers", "number", "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options",
-           "system_of", "systems_of", "with_overrides"]
+__all__ = ["WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows", "check_budgets",
+           "check_figure_format", "check_writable", "floats", "integers", "number", "number_range", "preflight",
+           "prices_and_bounds", "progress_of", "search_options", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -448,3 +449,25 @@ def progress_of(args: argparse.Namespace) -> bool | None:
     (False, None)
     """
     return False if getattr(args, "quiet", False) else None
+
+
+#: what the warning line advises
+WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"
+
+
+def attained_rows(result: Any) -> list[tuple[str, str]]:
+    """The rows of what a loop attains at mu*: the attainable cost (named by its basis) and the verdict of the best
+    linear law, each with its note.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> r = SimpleNamespace(attainable_cost=38.0843, attainable_note="finite-horizon DP with acknowledgements",
+    ...                     stabilisable=None, stability_note="undecided: near the boundary")
+    >>> attained_rows(r)[0][1], attained_rows(r)[1][1]
+    ('38.0843 (finite-horizon DP with acknowledgements)', 'no verdict (undecided: near the boundary)')
+    """
+    cost = ("not computed" if result.attainable_cost is None else fmt.num(result.attainable_cost, 10))
+    verdict = {True: "yes", False: "NO", None: "no verdict"}[result.stabilisable]
+    return [("attainable cost", f"{cost} ({result.attainable_note})"),
+            ("stabilisable", f"{verdict} ({result.stability_note})")]

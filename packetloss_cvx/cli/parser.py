@@ -233,10 +233,12 @@ def build_parser() -> argparse.ArgumentParser:
                             "(default: none), e.g. 60")
     # design for stability: allocation.stability, cli/allocate_stability.py
     design = alloc.add_argument_group("design for stability (instead of --protocol)")
-    design.add_argument("--target", choices=("stable", "dp-cost"),
+    design.add_argument("--target", choices=("paper", "attainable", "stable", "dp-cost"),
                         help="the cheapest mu for which some linear law u = -Kx has mean-square radius < RHO "
-                             "(stable), or whose DP law's stationary cost is <= --alpha (dp-cost); default: none "
-                             "(the paper's J* <= alpha with --protocol), e.g. --target stable")
+                             "(stable), or whose DP law's stationary cost is <= --alpha (dp-cost), or (with "
+                             "--protocol) whose attainable cost over the horizon is <= --alpha (attainable: TCP-like "
+                             "the finite-horizon DP with acknowledgements); default: paper (the paper's J* <= alpha "
+                             "with --protocol), e.g. --target stable")
     design.add_argument("--margin", metavar="RHO",
                         help="with --target stable: the bound RHO on the mean-square radius (the spectral radius of "
                              "the second-moment operator), 0 < RHO <= 1 (default: 1, i.e. stable: radius < 1 - 1e-9), "

@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from ..closedloop.law_stability import loop_stability
+from ..closedloop.law_stability import STABILITY_MAX_N, loop_stability
+from ..display import SOLUTION_BASIS, all_delivered_flag
 from ..errors import NumericalError, ResourceError
 from ..lq.costs import closed_form
 from ..model.system import System
@@ -20,12 +21,6 @@ from .markov_section import markov_section
 from .sensing_section import estimation_section, protocol_entry
 
 __all__ = ["STABILITY_MAX_N", "run", "stability", "text_details"]
-
-#: solve computes the closed-loop stability verdict by default up to this state dimension (--stability asks
-#: for it beyond, --no-stability skips it). Measured (one BLAS thread, per law; ARPACK's hardest cases, an
-#: orthogonal A and a chain of integrators, where it does not converge): n = 60 0.5 s, n = 100 4 s,
-#: n = 200 33 s (a random n = 200 plant: 2 s).
-STABILITY_MAX_N = 60
 
 
 def run(args: argparse.Namespace) -> CommandResult:
@@ -66,9 +61,9 @@ def run(args: argparse.Namespace) -> CommandResult:
         entry: dict[str, Any] = {
             "protocol": protocol, "cost": sol.cost, "inputs": sol.inputs.tolist(), "gain": sol.gain.tolist(),
             "closed_loop_eigenvalues": eigenvalue_pairs(sol.closed_loop_eigenvalues),
-            "method": sol.method,
+            "method": sol.method, "basis": SOLUTION_BASIS,
         }
-        label = f"J* = {sol.cost:.10g} ({sol.method})"
+        label = f"J* = {sol.cost:.10g} ({sol.method}) [basis: {SOLUTION_BASIS}]"
         if plugin is not system:
             entry["plug_in"] = True
             label += ": the paper's formula on the chain's mu_t, not the expected cost under the chain (below)"
@@ -92,14 +87,19 @@ def run(args: argparse.Namespace) -> CommandResult:
                 rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
         rows += text_details(sol, system.n, args.verbose)
+        flag = all_delivered_flag(sol)
+        if flag is not None:
+            rows.append(("all delivered", flag))
         if system.sensor is not None:     # lossy sensor links: the law on the protocol's estimate
             entry["estimated_state"], text = protocol_entry(system, protocol, sol.gain)
             rows.append(("estimated state", text))
         wanted = getattr(args, "stability", None)
         if wanted is False or (wanted is None and system.n > STABILITY_MAX_N):
             why = ("skipped (--no-stability)" if wanted is False else
-                   f"skipped for n = {system.n} > {STABILITY_MAX_N} (it can take minutes): add --stability to compute it")
-            entry.update({"mean_square_spectral_radius": None, "stable": False, "stability_note": f"not computed: {why}"})
+                   f"skipped for n = {system.n} > {STABILITY_MAX_N} (it can take minutes): add --stability to compute "
+                   "it")
+            entry.update({"mean_square_spectral_radius": None, "stable": False,
+                          "stability_note": f"not computed: {why}"})
             rows.append(("closed loop", f"stability not computed: {why}"))
         else:
             rows.append(("closed loop", stability(system, sol.gain, entry)))

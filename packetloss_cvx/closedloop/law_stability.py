@@ -15,12 +15,19 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError, NumericalError, ResourceError
+from ..lq import costs
 from ..model.system import System, check_system
 from ..results import LoopStability, Solution
 from .mjls import mean_square_radius as markov_radius
 from .stability import is_mean_square_stable, mean_square_radius
 
-__all__ = ["loop_stability", "with_stability"]
+__all__ = ["STABILITY_MAX_N", "closed_form", "loop_stability", "with_stability"]
+
+#: The verdict is computed by default up to this state dimension (``solve`` and :func:`closed_form`; asked for
+#: beyond, skipped on request). Measured (one BLAS thread, per law; ARPACK's hardest cases, an orthogonal A and a
+#: chain of integrators, where it does not converge): n = 60 0.5 s, n = 100 4 s, n = 200 33 s (a random n = 200
+#: plant: 2 s).
+STABILITY_MAX_N = 60
 
 
 def _numbers(values: np.ndarray) -> str:
@@ -84,3 +91,43 @@ def with_stability(system: System, solution: Solution) -> Solution:
         raise InputError("solution", "this solution carries no gain K (a QP solved with with_gain=False): "
                                      "solve it with closed_form(system, protocol) or with_gain=True")
     return dataclasses.replace(solution, stability=loop_stability(system, solution.gain))
+
+
+def closed_form(system: System, protocol: str, method: str = "auto", stability: bool | None = None) -> Solution:
+    """Theorem 1's optimal plan (:func:`packetloss_cvx.lq.costs.closed_form`, the same numbers) with the mean-square
+    verdict of its receding-horizon law u = -K x run for ever over ``system``'s channel attached
+    (:func:`with_stability`), shown in its repr, notebook view and ``to_dict()``.
+
+    Parameters
+    ----------
+    system, protocol, method
+        As :func:`packetloss_cvx.lq.costs.closed_form`.
+    stability : bool or None
+        None (default): the verdict where it is cheap, n <= :data:`STABILITY_MAX_N` (as ``solve``); True: at any n
+        (minutes at n ~ 200); False: the plan alone.
+
+    Returns
+    -------
+    Solution
+        ``stability`` set (a radius that cannot be computed is reported with the reason, not as a verdict), or
+        None where skipped.
+
+    Raises
+    ------
+    As :func:`packetloss_cvx.lq.costs.closed_form`.
+
+    Examples
+    --------
+    x' = 2 x + v u, N = 1, weights 1 and 2, UDP-like: E[(2x + v u)^2 + 2 v u^2] is least at u = -2x/3, so
+    A - B K = 4/3: the law is unstable even with every packet delivered, and at mu = 1/2 its second moment grows by
+    (4/3)^2 / 2 + 4 / 2 = 26/9 a step.
+
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[2.0], mu=[0.5], x0=[1.0])
+    >>> sol = closed_form(s, "udp")
+    >>> round(sol.stability.radius, 12), sol.stability.stable, closed_form(s, "udp", stability=False).stability
+    (2.888888888889, False, None)
+    """
+    solution = costs.closed_form(system, protocol, method)
+    if stability is False or (stability is None and system.n > STABILITY_MAX_N):
+        return solution
+    return with_stability(system, solution)

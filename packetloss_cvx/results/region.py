@@ -10,6 +10,7 @@ import numpy as np
 from ..display import fields_html, fields_repr, to_json
 from ..optional import load
 from .base import Frozen, finite_or_none
+from .studies import attained
 
 __all__ = ["RADIUS_MEANING", "CriticalPoint", "Membership", "RegionMap", "StabilityAllocation"]
 
@@ -160,7 +161,10 @@ class StabilityAllocation(Frozen):
     ``radius``: the mean-square radius of ``gain`` at mu (the operator's, < ``radius_bound``): for target
     "stable" the least-radius gain (homogeneous Riccati), for "dp-cost" the DP law. ``dp_cost`` the DP law's
     stationary cost at mu (``dp_cost_kind`` "average" or "total from x0"; nan when the DP solution failed),
-    ``alpha`` its bound (None for "stable"), ``boxes`` explored, ``method`` how it ended."""
+    ``alpha`` its bound (None for "stable"), ``boxes`` explored, ``method`` how it ended. ``basis`` "loop":
+    ``dp_cost`` is the law run for ever; ``attainable_cost`` the least expected cost over the system's horizon of a
+    law with acknowledgements (the finite-horizon DP, allocation.attainable; None with ``attainable_note`` when not
+    computed); ``stabilisable`` True, on ``gain``'s certificate."""
 
     target: str
     mu: np.ndarray
@@ -177,6 +181,11 @@ class StabilityAllocation(Frozen):
     beta: np.ndarray
     boxes: int
     method: str
+    basis: str = "loop"
+    attainable_cost: float | None = None
+    attainable_note: str = ""
+    stabilisable: bool | None = None
+    stability_note: str = ""
 
     __repr__ = fields_repr
     _repr_html_ = fields_html
@@ -188,4 +197,4 @@ class StabilityAllocation(Frozen):
                 "gap": self.gap, "status": self.status, "radius": self.radius, "radius_bound": self.radius_bound,
                 "gain": self.gain.tolist(), "dp_cost": finite_or_none(self.dp_cost),
                 "dp_cost_kind": self.dp_cost_kind or None, "alpha": self.alpha, "beta": self.beta.tolist(),
-                "boxes": self.boxes, "method": self.method}
+                "boxes": self.boxes, "method": self.method, **attained(self)}

@@ -21,10 +21,36 @@ from ..display import (
     to_json,
 )
 from ..errors import InputError
+from ..tolerances import ALLOCATION_COST_RTOL
 from .base import Frozen, freeze, read_only
 
 __all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "PowerAllocation", "ProtocolChoice",
-           "Sweep"]
+           "Sweep", "attained", "loop_warning"]
+
+
+def loop_warning(alpha: float | None, attainable_cost: float | None, stabilisable: bool | None) -> str | None:
+    """One line saying what misleads at an allocation's mu*: no linear law holds the loop, or the attainable cost
+    exceeds alpha (beyond ALLOCATION_COST_RTOL); None when neither. O(1).
+
+    >>> loop_warning(8.0, 38.08, False)
+    'warning: at mu* no linear law holds the loop mean-square stable, and the attainable cost 38.08 exceeds alpha = 8'
+    >>> loop_warning(8.0, 8.0, True) is None, loop_warning(8.0, None, None) is None
+    (True, True)
+    """
+    parts = []
+    if stabilisable is False:
+        parts.append("no linear law holds the loop mean-square stable")
+    if alpha is not None and attainable_cost is not None and attainable_cost > alpha * (1.0 + ALLOCATION_COST_RTOL):
+        parts.append(f"the attainable cost {attainable_cost:.6g} exceeds alpha = {alpha:.6g}")
+    return "warning: at mu* " + ", and ".join(parts) if parts else None
+
+
+def attained(result: Any) -> dict[str, Any]:
+    """The JSON keys of what a loop attains at an allocation's mu: ``basis`` (of its ``cost``),
+    ``attainable_cost``, ``attainable_note``, ``stabilisable``, ``stability_note``. O(1)."""
+    return {"basis": result.basis, "attainable_cost": result.attainable_cost,
+            "attainable_note": result.attainable_note, "stabilisable": result.stabilisable,
+            "stability_note": result.stability_note}
 
 
 @dataclass(frozen=True)
@@ -39,6 +65,13 @@ class Allocation(Frozen):
     UDP-like branch and bound explored (0 for the TCP-like SOCP). ``lower_bound`` is proved:
     tangent cuts of the convex J*_tcp with an exactly evaluated LP dual (TCP-like), the branch
     and bound's remaining boxes (UDP-like).
+
+    What a loop attains at mu (allocation.attainable): ``attainable_cost``, the least expected cost a causal
+    law of the protocol reaches over the horizon (TCP-like: the finite-horizon DP with acknowledgements, which
+    may exceed alpha; UDP-like: ``cost`` itself), None when not computed (``attainable_note`` says why);
+    ``stabilisable``: does some linear law hold the loop mean-square stable at mu (True / False, each certified;
+    None when undecided or not computed, ``stability_note`` says why). ``basis``: what ``cost`` is ("paper":
+    the paper's J*(mu); "attainable": the exact expected cost under a chain).
     """
 
     mu: np.ndarray
@@ -52,17 +85,27 @@ class Allocation(Frozen):
     alpha: float
     beta: np.ndarray
     boxes: int = 0
+    basis: str = "paper"
+    attainable_cost: float | None = None
+    attainable_note: str = ""
+    stabilisable: bool | None = None
+    stability_note: str = ""
 
     __repr__ = allocation_repr
     _repr_html_ = allocation_html
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 
+    @property
+    def warning(self) -> str | None:
+        """One line when mu* misleads (no linear law holds the loop, or the attainable cost exceeds alpha)."""
+        return loop_warning(self.alpha, self.attainable_cost, self.stabilisable)
+
     def to_dict(self) -> dict[str, Any]:
         return {"protocol": self.protocol, "alpha": self.alpha, "beta": self.beta.tolist(),
                 "mu": self.mu.tolist(), "communication_cost": self.communication_cost, "cost": self.cost,
                 "lower_bound": self.lower_bound, "gap": self.gap, "status": self.status, "method": self.method,
-                "boxes": self.boxes}
+                "boxes": self.boxes, **attained(self)}
 
 
 @dataclass(frozen=True)
@@ -89,11 +132,23 @@ class PowerAllocation(Frozen):
     status: str
     method: str
     boxes: int = 0
+    basis: str = "paper"
+    attainable_cost: float | None = None
+    attainable_note: str = ""
+    stabilisable: bool | None = None
+    stability_note: str = ""
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     _repr_html_ = fields_html
 
     to_json = to_json   # to_dict() as JSON text (display.py)
+
+    @property
+    def warning(self) -> str | None:
+        """One line when mu* misleads (no linear law holds the loop, or, least-power, the attainable cost exceeds
+        alpha)."""
+        return loop_warning(self.limit if self.problem == "least-power" else None, self.attainable_cost,
+                            self.stabilisable)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain floats and lists for JSON. O(m)."""
@@ -101,7 +156,7 @@ class PowerAllocation(Frozen):
         return {"protocol": self.protocol, "problem": self.problem, "model": self.model,
                 "power": self.power.tolist(), "total_power": self.total_power, "mu": self.mu.tolist(),
                 "cost": self.cost, limit: self.limit, "lower_bound": self.lower_bound, "gap": self.gap,
-                "status": self.status, "method": self.method, "boxes": self.boxes}
+                "status": self.status, "method": self.method, "boxes": self.boxes, **attained(self)}
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,9 @@ def test_html_escapes_and_summarises():
 def test_solution_repr_and_html():
     s = pl.load_example("two_actuator")
     sol = pl.closed_form(s, "tcp", method="recursion")
-    assert repr(sol) == f"Solution(protocol='tcp', cost={sol.cost:.10g}, method='recursion', N=10, m=2)"
+    radius = sol.stability.radius
+    assert repr(sol) == (f"Solution(protocol='tcp', cost={sol.cost:.10g}, basis='paper', method='recursion', N=10, "
+                         f"m=2, loop='mean-square stable, radius {radius:.6g}')")
     page = sol._repr_html_()
     radius = max(abs(np.linalg.eigvals(s.A - s.B @ sol.gain)))    # B = I: A - B K from the gain itself
     assert f"{radius:.6g}" in page
@@ -58,7 +60,8 @@ def allocation():
 
 def test_allocation_and_claim_reprs_are_headlines():
     assert repr(allocation()) == ("Allocation(protocol='udp', status='optimal', mu=[0.25, 1], communication_cost=0.3, "
-                                  "cost=7.5, alpha=8, gap=1.0e-02)")
+                                  "cost=7.5, basis='paper', attainable_cost=None, stabilisable=None, alpha=8, "
+                                  "gap=1.0e-02)")
     result = ClaimResult("theorem-2", "J_udp >= J_tcp", "holds", 5, 0, 0.5, None, "note <x>", outcomes="+++++")
     assert repr(result) == "ClaimResult('theorem-2', 'holds', checked=5, violations=0, errors=0)"
     page = result._repr_html_()

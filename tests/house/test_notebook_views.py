@@ -119,11 +119,12 @@ def test_simulation_view_has_a_row_per_law():
 
 def test_solution_view_says_which_radius_it_shows():
     s = pl.load_example("pendulum")
-    sol = pl.closed_form(s, "tcp")
+    sol = pl.closed_form(s, "tcp", stability=False)
     page = cells(sol._repr_html_())
     radius = max(abs(np.linalg.eigvals(s.A - s.B @ sol.gain)))
-    assert page[page.index("radius of A - B K (all delivered)") + 1] == f"{radius:.6g}"
-    # without the channel the view says so and names the call that attaches it
+    shown = page[page.index("radius of A - B K (all delivered)") + 1]
+    assert shown == f"{radius:.6g}" + (": UNSTABLE even with every packet delivered" if radius >= 1 else "")
+    # without the verdict the view says so and names the call that attaches it
     assert "with_stability(system, solution)" in page[page.index("mean-square stability") + 1]
     # not the mean-square radius over the channel, which is another number
     assert abs(radius - second_moment_radius(s.A, s.B, sol.gain, s.mu)) > 1e-3
@@ -131,7 +132,7 @@ def test_solution_view_says_which_radius_it_shows():
 
 def test_solution_view_shows_mean_square_stability_over_the_channel():
     s = pl.load_example("pendulum")
-    plain = pl.closed_form(s, "tcp")
+    plain = pl.closed_form(s, "tcp", stability=False)
     sol = with_stability(s, plain)
     expected = second_moment_radius(s.A, s.B, plain.gain, s.mu)       # the Kronecker matrix, independently
     assert sol.stability.radius == pytest.approx(expected, rel=1e-9)

@@ -1,0 +1,218 @@
+"""What a loop attains at an allocation's mu: the attainable cost and the mean-square verdict of the best linear law.
+
+The paper's TCP-like cost J*_tcp is a first-moment value that no causal law attains (docs/claims.md); an
+allocation designed on it (``J*_tcp(mu*) <= alpha``) may leave the loop costing several times alpha, or with no
+linear law that holds it mean-square stable. Every allocation result therefore carries, at its mu*:
+
+* ``attainable_cost``: the least expected cost a causal law of the protocol reaches over the horizon, on the
+  paper's cost (``x0'Q x0 + sum_t E[x_{t+1}'Omega_{t+1} x_{t+1} + (V_t u_t)'Psi_t (V_t u_t)]`` plus the noise).
+  TCP-like: the finite-horizon dynamic programme with acknowledgements (:func:`tcp_attainable_cost`: the
+  modified Riccati recursion backwards from ``P_N = Omega_N``; Schenato et al. 2007). UDP-like: the exact expected
+  cost of the optimal plan applied open loop, which the paper's J*_udp already is (behind a chain, the exact
+  expected cost under the chain that the allocation was designed on);
+* ``stabilisable``: True / False / None: is mu* in the stabilisable set S, i.e. does some linear law u = -K x
+  hold the loop mean-square stable (:func:`~packetloss_cvx.closedloop.region.membership`, each verdict a
+  certificate checked in numpy; None with the reason where no form decides, where it is not computed, or behind
+  a Markov chain).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..closedloop.law_stability import STABILITY_MAX_N
+from ..closedloop.region import membership
+from ..closedloop.riccati import modified_riccati_step
+from ..errors import NumericalError
+from ..model.system import System
+from ..tolerances import SELF_CHECK_RTOL
+
+__all__ = ["ATTAINABLE_MAX_N", "CHEAP_FORMS", "LMI_MAX_N", "AttainableEvaluator", "Attainment", "attainment",
+           "forward_cost", "stabilisable",
+           "tcp_attainable_cost"]
+
+#: the verdict is computed up to this state dimension (as ``solve`` and ``closed_form``): beyond, the homogeneous
+#: Riccati eigenpair and the DP solution take seconds to minutes, and the verdict is None with that reason
+ATTAINABLE_MAX_N = STABILITY_MAX_N
+
+#: the forms asked first, cross-checked (each certificate checked in numpy; a few ms at n = 4); the LMI form (two
+#: Clarabel SDPs, about 20 ms at n = 4, ten times the allocation itself) only where neither decides, up to this n
+CHEAP_FORMS = ("riccati", "dp")
+LMI_MAX_N = 12
+
+
+class Attainment(NamedTuple):
+    """``cost``: the attainable cost at mu (None: not computed, ``cost_note`` says why); ``stabilisable``:
+    True / False / None (``stability_note`` says why None, or what a False rests on)."""
+
+    cost: float | None
+    cost_note: str
+    stabilisable: bool | None
+    stability_note: str
+
+
+def _dp(system: System, schedule: np.ndarray) -> tuple[np.ndarray, float]:
+    """The finite-horizon DP's gains (N, m, n) and its cost (:func:`tcp_attainable_cost`). O(N (n^3 + m^3))."""
+    N = system.horizon
+    P = system.state_weights[N - 1].copy()
+    gains = np.empty((N, system.m, system.n))
+    noise = 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(N - 1, -1, -1):
+            noise += float(np.sum(P * system.noise_cov))
+            Omega = system.state_weights[t - 1] if t >= 1 else system.initial_weight
+            gains[t], P = modified_riccati_step(P, system.A, system.B, schedule[t], Omega, system.input_weights[t])
+    cost = float(system.x0 @ P @ system.x0) + noise
+    if not np.isfinite(cost):
+        raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")
+    return gains, cost
+
+
+def forward_cost(system: System, schedule: np.ndarray, gains: np.ndarray) -> float:
+    """The exact expected cost of u_t = -K_t x_t on the paper's cost by the forward second moments
+    ``S_{t+1} = E[(A - B V K_t) S_t (A - B V K_t)'] + Sigma_W`` (``E[V X V] = M X M + diag(mu (1 - mu)) o X``): a sum
+    of non-negative terms, free of the backward recursion's cancellation. O(N (n^3 + n^2 m)).
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> forward_cost(s, s.mu_schedule, np.array([[[0.5]]]))     # E[(1 - v/2)^2 + v/4] = 0.5 (1/4 + 1/4) + 0.5
+    0.75
+    """
+    A, B = system.A, system.B
+    S = np.outer(system.x0, system.x0)
+    cost = float(np.sum(system.initial_weight * S))
+    for t in range(system.horizon):
+        K, mu = gains[t], schedule[t]
+        KSK = K @ S @ K.T
+        cost += float(np.sum(mu * system.input_weights[t] * np.diag(KSK)))      # E[(V u)' Psi (V u)], v_i^2 = v_i
+        BM = B * mu
+        cross = A @ S @ K.T @ BM.T
+        S = (A @ S @ A.T - cross - cross.T + BM @ KSK @ BM.T + (B * (mu * (1.0 - mu))) @ np.diag(np.diag(KSK)) @ B.T
+             + system.noise_cov)
+        S = 0.5 * (S + S.T)
+        cost += float(np.sum(system.state_weights[t] * S))
+    if not np.isfinite(cost):
+        raise NumericalError("finite-horizon DP: the forward second moments overflow")
+    return cost
+
+
+class AttainableEvaluator:
+    """The TCP-like attainable cost as the monotone searches of :mod:`.udp` ask it: ``cost(mu, checked)`` (checked:
+    the DP's cost against :func:`forward_cost` of its own gains, within SELF_CHECK_RTOL, the forward one returned;
+    else NumericalError) and ``line(mu, i, checked)``. Non-increasing in each mu_i (docs/design.md, "Design on the
+    attainable cost"). Bernoulli channels, full state. Each call O(N (n^3 + m^3))."""
+
+    def __init__(self, system: System) -> None:
+        self.system = system
+
+    def cost(self, mu: np.ndarray, checked: bool = True) -> float:
+        schedule = np.broadcast_to(np.asarray(mu, dtype=float), (self.system.horizon, self.system.m))
+        gains, value = _dp(self.system, schedule)
+        if not checked:
+            return value
+        forward = forward_cost(self.system, schedule, gains)
+        if abs(value - forward) > SELF_CHECK_RTOL * forward:
+            raise NumericalError(f"finite-horizon DP: its cost {value:.12g} disagrees with the forward cost of its own "
+                                 f"law {forward:.12g} beyond SELF_CHECK_RTOL (the weights' scales lose digits)")
+        return forward
+
+    def line(self, mu: np.ndarray, i: int, checked: bool = True):
+        base = np.array(mu, dtype=float)
+
+        def at(value: float) -> float:
+            point = base.copy()
+            point[i] = value
+            return self.cost(point, checked)
+
+        return at
+
+
+def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
+    """The least expected cost of any TCP-like (acknowledged) causal law over the horizon, on the paper's cost.
+
+    .. math:: P_N = \\Omega_N,\\quad P_t = \\Omega_t + A'P_{t+1}A - A'P_{t+1}BM K_t,\\quad
+       J = x_0'P_0 x_0 + \\sum_{t=0}^{N-1} \\mathrm{tr}(P_{t+1}\\Sigma_W)
+
+    with ``Omega_0 = Q`` (the initial weight), ``K_t`` the modified Riccati gain at ``mu_t`` and ``Psi_t``
+    (:func:`~packetloss_cvx.closedloop.riccati.modified_riccati_step`). Time-varying weights and channels as the system
+    gives them. O(N (n^3 + m^3)).
+
+    Raises
+    ------
+    NumericalError
+        The cost-to-go overflows.
+
+    Examples
+    --------
+    One step of x' = x + v u: E[(x + v u)^2 + v u^2] = 1 + mu (2 u + 2 u^2), least at u = -1/2: 1 - mu/2.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> tcp_attainable_cost(s)
+    0.75
+    """
+    N = system.horizon
+    schedule = system.mu_schedule if mu is None else np.broadcast_to(np.asarray(mu, dtype=float), (N, system.m))
+    return _dp(system, schedule)[1]
+
+
+def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
+    """Is there a linear law u = -K x that holds the loop mean-square stable at ``mu`` (Bernoulli losses, full
+    state)? ``(verdict, note)``: True or False each on a certificate checked in numpy (the "riccati" and "dp"
+    forms of :func:`~packetloss_cvx.closedloop.region.membership`, cross-checked; "lmi" where neither decides, up to
+    :data:`LMI_MAX_N`),
+    None with the reason where none decides (within about 1e-9 of the boundary), where it is not computed, or behind
+    a Markov chain. With lossy sensor links only False is a verdict (a law on an estimate does no better than one on
+    the state). O(iterations (n^3 + m^3)), O(n^6) for the certificates.
+
+    Examples
+    --------
+    x' = 2 x + v u: some law holds the loop iff 4 (1 - mu) < 1, i.e. mu > 3/4.
+
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> stabilisable(s, np.array([0.7]))[0], stabilisable(s, np.array([0.8]))[0]
+    (False, True)
+    """
+    if system.channel is not None:
+        return None, ("not computed behind a Markov chain (the chain's own stabilisable set: "
+                      "packetloss-cvx region FILE)")
+    if system.n > ATTAINABLE_MAX_N:
+        return None, f"not computed for n = {system.n} > {ATTAINABLE_MAX_N} (it can take minutes)"
+    try:
+        found = membership(system, mu, forms=CHEAP_FORMS)
+        if found.verdict == "undecided" and system.n <= LMI_MAX_N:
+            found = membership(system, mu, forms=("lmi",))
+    except NumericalError as err:      # a numerical failure is not a verdict
+        return None, f"undecided: {err}"
+    if found.verdict == "undecided":
+        return None, f"undecided: {found.reason or 'no form could check a certificate'}"
+    if found.verdict == "unstable":
+        return False, ("no linear law holds the loop mean-square stable (certificate T(P) >= 0, every law's "
+                       f"radius >= {1.0 + found.certificate_margin:.6g})")
+    if system.sensor is not None:
+        return None, ("the full-state loop is stabilisable; the lossy sensor links are not part of this verdict "
+                      "(packetloss-cvx region FILE --sensor-grid K)")
+    return True, f"a linear law has mean-square radius {found.radius:.6g} < 1 (certified)"
+
+
+def attainment(system: System, protocol: str, mu: np.ndarray, cost: float, chain: bool = False) -> Attainment:
+    """The :class:`Attainment` at an allocation's ``mu`` (``system`` at any mu: it is replaced). ``cost`` is the
+    allocation's own cost: UDP-like it is the attainable cost already (J*_udp, or behind a chain the exact cost
+    under it, ``chain`` True). O(N (n^3 + m^3)) plus :func:`stabilisable`."""
+    mu = np.asarray(mu, dtype=float)
+    verdict, why = stabilisable(system, mu)
+    if protocol == "udp":
+        return Attainment(float(cost), "exact expected cost of the optimal plan" + (" under the chain" if chain
+                                                                                       else " (J*_udp)"),
+                          verdict, why)
+    if system.channel is not None:
+        return Attainment(None, "not computed behind a Markov chain (the TCP-like optimum with acknowledgements "
+                                "behind a chain is not J*_tcp at the mean rates)", verdict, why)
+    if system.sensor is not None:
+        return Attainment(None, "not computed with lossy sensor links (the DP with acknowledgements assumes the "
+                                "state is measured)", verdict, why)
+    try:
+        value = tcp_attainable_cost(system.with_mu(mu), mu)
+    except NumericalError as err:
+        return Attainment(None, str(err), verdict, why)
+    return Attainment(value, "finite-horizon DP with acknowledgements", verdict, why)
