@@ -16,8 +16,8 @@ from packetloss_cvx.model.chain import attach_channel, chain_matrices, channel_c
 from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.qp.markov import exact_qp
-from tests.references import enumerated_chain_cost
 from tests.model.test_markov_chain import random_channel
+from tests.references import enumerated_chain_cost
 
 
 class ThreeStateChains:

@@ -11,8 +11,8 @@ import packetloss_cvx as pl
 from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
 from packetloss_cvx.model.chain import attach_channel
 from packetloss_cvx.qp.markov import exact_qp
-from tests.model.test_markov_chain import random_channel
 from tests.lq.test_properties import systems
+from tests.model.test_markov_chain import random_channel
 
 REFUSALS = (pl.NumericalError, pl.ResourceError)
 
