@@ -29,9 +29,9 @@ import numpy as np
 
 from ..errors import NumericalError
 from ..linalg import Dyadic, exact_psd, frobenius
+from ..model.chain import mode_chain
 from ..model.channel import GE_MODEL, MarkovChannel
 from ..tolerances import MEAN_SQUARE_MARGIN
-from .mjls import mode_chain
 from .moments import solve_fixed_point
 from .stability import law_radius, second_moment_matrix, second_moment_step
 

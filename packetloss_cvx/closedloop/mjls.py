@@ -31,7 +31,7 @@ import numpy as np
 from ..budgets import check, gib_text, operator_bytes
 from ..errors import InputError, NumericalError
 from ..lq.recursion import riccati_step
-from ..model.chain import chain_matrices
+from ..model.chain import MAX_CHANNELS, MAX_MODES, mode_chain, mode_start, product_chain
 from ..model.channel import (
     GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
     MarkovChannel,
@@ -41,76 +41,15 @@ from ..results import MjlsResult
 from ..tolerances import SELF_CHECK_RTOL
 from .modes import DENSE_MAX_DIM, MAX_OPERATOR_DIM, delivery_moments, mode_matrix, mode_radius, mode_stage_costs
 
+# MAX_CHANNELS, MAX_MODES and the mode chain (mode_chain, product_chain, mode_start) are the channel model's
+# (model.chain); MAX_OPERATOR_DIM (rows of the dense coupled operator at most) and DENSE_MAX_DIM (rows up to which the
+# radius takes its dense eigenvalues by default) the mode engine's (closedloop.modes): all re-exported here.
+
 __all__ = [
     "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
     "MAX_MODES", "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "mode_chain",
     "delivery_patterns", "mode_start", "product_chain", "second_moment_operator",
 ]
-
-#: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the operator is refused.
-MAX_CHANNELS = 6
-#: The product chain of k-state channels is refused beyond as many modes as MAX_CHANNELS Gilbert–Elliott ones give.
-MAX_MODES = 2 ** MAX_CHANNELS
-# MAX_OPERATOR_DIM (rows of the dense coupled operator at most) and DENSE_MAX_DIM (rows up to which the radius takes
-# its dense eigenvalues by default) are the mode engine's (markov.modes), re-exported here.
-
-
-def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
-    significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
-    product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
-    :data:`MAX_MODES`. Time O(M^2 + M m).
-
-    Raises
-    ------
-    InputError
-        A product chain beyond :data:`MAX_MODES` modes (more than :data:`MAX_CHANNELS` Gilbert–Elliott channels).
-
-    Examples
-    --------
-    >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.1], r=[0.3]))]      # good, bad: the Gilbert channel
-    [[[0], [1]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
-    """
-    M = int(np.prod(channel.sizes))
-    if M > MAX_MODES:
-        raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
-                                    f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES} "
-                                    f"(at most {MAX_CHANNELS} two-state channels)")
-    return product_chain(channel)[:3]
-
-
-def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h, start)``: :func:`mode_chain`'s joint states, transition matrix and per-mode delivery
-    probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
-    own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
-
-    Examples
-    --------
-    >>> modes, T, h, start = product_chain(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25]))
-    >>> modes.tolist(), start.tolist()                     # good, good: 0.25
-    ([[0, 0], [0, 1], [1, 0], [1, 1]], [0.25, 0.75, 0.0, 0.0])
-    """
-    m, M = channel.m, int(np.prod(channel.sizes))
-    modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
-    T = np.ones((1, 1))
-    for Ti in channel.transition:
-        T = np.kron(T, Ti)
-    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]
-    start = np.prod([starts[i][modes[:, i]] for i in range(m)], axis=0)
-    return modes, T, channel.padded_delivery[np.arange(m), modes], start
-
-
-def mode_start(channel: MarkovChannel) -> np.ndarray:
-    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`,
-    in :func:`mode_chain`'s order. O(M m).
-
-    Examples
-    --------
-    >>> mode_start(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25])).tolist()   # good, good: 0.25
-    [0.25, 0.75, 0.0, 0.0]
-    """
-    mode_chain(channel)                                   # refused beyond MAX_MODES, as the chain it starts
-    return product_chain(channel)[3]
 
 
 def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
