@@ -321,3 +321,32 @@ def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_moment_res
     else:
         with pytest.raises(NumericalError, match="coupled Riccati equations: relative residual 3.0e-09"):
             coupled_riccati(s)
+
+
+@pytest.mark.parametrize("mu", [[0.9, 0.7], [0.6, 0.0]])
+def test_the_one_state_chain_is_the_bernoulli_dp(mu):
+    """One solver (closedloop.riccati.mode_riccati): coupled_riccati behind the one-state chain of a Bernoulli channel
+    is dp_riccati at that mu, to 1e-12, the gain row of an actuator that never delivers (mu_i = 0) included; and the
+    DP's P solves the modified Riccati equation written out by hand."""
+    from packetloss_cvx.closedloop.riccati import dp_riccati
+    from packetloss_cvx.model.channel import MarkovChannel
+
+    two = pl.load_example("two_actuator")
+    chain, dp = coupled_riccati(two.with_channel(MarkovChannel.bernoulli(mu))), dp_riccati(two.with_mu(mu))
+    np.testing.assert_allclose(chain.cost_matrices[0], dp.cost_to_go, rtol=1e-12)
+    np.testing.assert_allclose(chain.gains[0], dp.gain, rtol=1e-12)
+    assert chain.spectral_radius == pytest.approx(dp.spectral_radius, rel=1e-12)
+    A, B, W, psi, m = two.A, two.B, two.state_weights[0], two.input_weights[0], np.array(mu)
+    P = dp.cost_to_go
+    G = B.T @ P @ B * m + np.diag(psi + (1 - m) * np.diag(B.T @ P @ B))
+    K = np.linalg.solve(G, B.T @ P @ A)
+    np.testing.assert_allclose(W + A.T @ P @ A - A.T @ P @ B @ np.diag(m) @ K, P, rtol=1e-12)
+
+
+def test_no_stabilising_chain_law_is_said_with_its_proof():
+    """a = 2 behind a Gilbert channel (p = 0.3, r = 0.2), the mode known: a good step can zero x, a bad one leaves
+    x+ = 2x, so every law's radius is at least a^2 (1 - r) = 3.2 (the bad mode's block). The coupled value iteration
+    diverges and its direction proves it exactly (certificates.chain_outside_proved, "current")."""
+    with pytest.raises(NumericalError, match="no stabilising solution behind the chain") as err:
+        coupled_riccati(scalar(0.3, 0.2, a=2.0))
+    assert "exact arithmetic" in str(err.value)

@@ -200,7 +200,7 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
     if started is not None:
         P, iterations = started
     check_at = RICCATI_DIVERGENCE * scale             # the next size at which a growing P is asked for a proof
-    size = frobenius(P)
+    size = 0.0                                       # nothing has grown yet
     with np.errstate(over="ignore", invalid="ignore"):
         while started is None:
             try:
