@@ -350,3 +350,27 @@ def test_no_stabilising_chain_law_is_said_with_its_proof():
     with pytest.raises(NumericalError, match="no stabilising solution behind the chain") as err:
         coupled_riccati(scalar(0.3, 0.2, a=2.0))
     assert "exact arithmetic" in str(err.value)
+
+
+def test_chain_dp_started_from_stabilising_mode_gains_is_the_same_solution():
+    """mode_riccati behind a chain, its policy iteration started from proved-stabilising mode gains (the optimum
+    perturbed, radius checked), reaches the same fixed point as the value iteration from Omega (the stabilising
+    solution is unique), without the value steps; a gain that is not stabilising is ignored."""
+    from packetloss_cvx.closedloop.riccati import mode_riccati
+
+    ch = GilbertElliott(p=[0.1, 0.2], r=[0.4, 0.5], h_good=[0.95, 0.9], h_bad=[0.1, 0.2])
+    s = pl.load_example("two_actuator").with_channel(ch)
+    res = coupled_riccati(s)
+    _, T, h = mode_chain(ch)
+    start = res.gains * 1.2
+    assert mean_square_radius(s.A, s.B, ch, start) < 1
+    args = (s.A, s.B, s.state_weights[0], s.input_weights[0], h, T)
+    K, P, iterations, _, _ = mode_riccati(*args, proves=lambda P: False, gain=start)
+    np.testing.assert_allclose(P, res.cost_matrices, rtol=1e-12)
+    np.testing.assert_allclose(K, res.gains, rtol=1e-11)
+    assert iterations < res.iterations
+    unstable = res.gains * 0.0 + 50.0
+    assert mean_square_radius(s.A, s.B, ch, unstable) > 1
+    _, P2, iterations2, _, _ = mode_riccati(*args, proves=lambda P: False, gain=unstable)
+    np.testing.assert_allclose(P2, res.cost_matrices, rtol=1e-12)
+    assert iterations2 == res.iterations

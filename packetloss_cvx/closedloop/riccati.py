@@ -196,7 +196,7 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
                              "problem)")
     P = Omega.copy() if T is None else np.repeat(Omega[None], T.shape[0], axis=0)
     iterations = 0
-    started = _started(gain, A, B, h, T, Omega, psi)
+    started = _started(gain, A, B, h, T, Omega, psi, label)
     if started is not None:
         P, iterations = started
     check_at = RICCATI_DIVERGENCE * scale             # the next size at which a growing P is asked for a proof
@@ -299,7 +299,7 @@ def _cost_to_go_scale(B: np.ndarray, Omega: np.ndarray, psi: np.ndarray) -> floa
 
 
 def _started(gain: np.ndarray | None, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None,
-             Omega: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, int] | None:
+             Omega: np.ndarray, psi: np.ndarray, label: str) -> tuple[np.ndarray, int] | None:
     """The policy iteration from ``gain`` where that law is finite, of K's shape ((m, n), or (M, m, n) behind a
     chain), mean-square stabilising and the iteration converges: ``(P, steps)``, else None (the value iteration then
     runs as without it). Only with ``Omega > 0``: a singular Omega may not see an unstable mode, where the value
@@ -314,7 +314,7 @@ def _started(gain: np.ndarray | None, A: np.ndarray, B: np.ndarray, h: np.ndarra
         if not is_mean_square_stable(_radius(A, B, K, h, T)):
             return None
         with np.errstate(over="ignore", invalid="ignore"):
-            P, steps = _policy_iteration(K, A, B, h, T, Omega, psi, "modified Riccati equation")
+            P, steps = _policy_iteration(K, A, B, h, T, Omega, psi, label)
     except (NumericalError, np.linalg.LinAlgError):
         return None
     return (P, steps) if np.all(np.isfinite(P)) else None
