@@ -29,9 +29,9 @@ import numpy as np
 
 from ..errors import NumericalError
 from ..linalg import Dyadic, exact_psd, frobenius
+from ..model.chain import mode_chain
 from ..model.channel import GE_MODEL, MarkovChannel
 from ..tolerances import MEAN_SQUARE_MARGIN
-from .mjls import mode_chain
 from .moments import solve_fixed_point
 from .stability import law_radius, second_moment_matrix, second_moment_step
 
@@ -117,10 +117,10 @@ def mode_outside_matrices(A: np.ndarray, B: np.ndarray, T: Dyadic, rates: np.nda
 
 
 def exact_transition(channel: MarkovChannel) -> Dyadic:
-    """The mode chain's transition matrix (markov.mjls.mode_chain's order) exactly, from the channel's stored
-    numbers: a channel given as Gilbert–Elliott's p, r (its table form), ``[[1 - p, p], [r, 1 - r]]`` with 1 - p taken exactly (mode_chain's floats
-    round it), a :class:`~packetloss_cvx.model.channel.MarkovChannel`'s transitions as stored, Kronecker products
-    of the channels' exact. O(M^2) integer operations.
+    """The mode chain's transition matrix (model.chain.mode_chain's order) exactly, from the channel's stored
+    numbers: a channel given as Gilbert–Elliott's p, r (its table form), ``[[1 - p, p], [r, 1 - r]]`` with 1 - p
+    taken exactly (mode_chain's floats round it), a :class:`~packetloss_cvx.model.channel.MarkovChannel`'s
+    transitions as stored, Kronecker products of the channels' exact. O(M^2) integer operations.
 
     >>> from fractions import Fraction
     >>> from packetloss_cvx.model.channel import GilbertElliott

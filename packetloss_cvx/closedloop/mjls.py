@@ -17,7 +17,9 @@ With the mode known to the controller (the channel state observed), the optimal 
     E_a = sum_b T_ab P_b,   G_a = B'E_a B + Psi,   S_a = H_a G_a H_a + diag(h_a (1 - h_a)) ∘ G_a,
     P_a = Omega + A'E_a A - A'E_a B H_a S_a^{-1} H_a B'E_a A,   K_a = S_a^{-1} H_a B'E_a A
 
-(H_a = diag(h_a); S_a inverted on the actuators that can deliver, K_a = 0 elsewhere). With a memoryless
+(H_a = diag(h_a); S_a inverted on the actuators that can deliver; an actuator that cannot, h_{a,i} = 0, keeps the row
+of ``G_a^{-1} B'E_a A`` with ``S_a = H_a G_a``, the limit of its optimal row as h_{a,i} -> 0+: closedloop.riccati's
+mode_riccati, the one solver of these equations and of the Bernoulli one, its one-mode case). With a memoryless
 chain (p + r = 1) every E_a is the same, and pbar = sum_a pi_a P_a solves the Bernoulli TCP-like
 Riccati equation with mu = r (for one channel: P = Omega + A'PA - mu A'PB (B'PB + Psi)^{-1} B'PA).
 """
@@ -30,87 +32,27 @@ import numpy as np
 
 from ..budgets import check, gib_text, operator_bytes
 from ..errors import InputError, NumericalError
-from ..lq.recursion import riccati_step
-from ..model.chain import chain_matrices
+from ..model.chain import MAX_CHANNELS, MAX_MODES, mode_chain, mode_start, product_chain
 from ..model.channel import (
     GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
     MarkovChannel,
 )
 from ..model.system import System, check_system
 from ..results import MjlsResult
-from ..tolerances import SELF_CHECK_RTOL
+from ..tolerances import RICCATI_MAX_ITER
+from .certificates import chain_outside_proved
 from .modes import DENSE_MAX_DIM, MAX_OPERATOR_DIM, delivery_moments, mode_matrix, mode_radius, mode_stage_costs
+from .riccati import mode_riccati
+
+# MAX_CHANNELS, MAX_MODES and the mode chain (mode_chain, product_chain, mode_start) are the channel model's
+# (model.chain); MAX_OPERATOR_DIM (rows of the dense coupled operator at most) and DENSE_MAX_DIM (rows up to which the
+# radius takes its dense eigenvalues by default) the mode engine's (closedloop.modes): all re-exported here.
 
 __all__ = [
     "DENSE_MAX_DIM", "MAX_CHANNELS", "MAX_OPERATOR_DIM", "check_operator_size", "coupled_riccati",
     "MAX_MODES", "delivery_moments", "jump_law_stage_costs", "mean_square_radius", "mode_chain",
     "delivery_patterns", "mode_start", "product_chain", "second_moment_operator",
 ]
-
-#: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the operator is refused.
-MAX_CHANNELS = 6
-#: The product chain of k-state channels is refused beyond as many modes as MAX_CHANNELS Gilbert–Elliott ones give.
-MAX_MODES = 2 ** MAX_CHANNELS
-# MAX_OPERATOR_DIM (rows of the dense coupled operator at most) and DENSE_MAX_DIM (rows up to which the radius takes
-# its dense eigenvalues by default) are the mode engine's (markov.modes), re-exported here.
-
-
-def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
-    significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
-    product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
-    :data:`MAX_MODES`. Time O(M^2 + M m).
-
-    Raises
-    ------
-    InputError
-        A product chain beyond :data:`MAX_MODES` modes (more than :data:`MAX_CHANNELS` Gilbert–Elliott channels).
-
-    Examples
-    --------
-    >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.1], r=[0.3]))]      # good, bad: the Gilbert channel
-    [[[0], [1]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
-    """
-    M = int(np.prod(channel.sizes))
-    if M > MAX_MODES:
-        raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
-                                    f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES} "
-                                    f"(at most {MAX_CHANNELS} two-state channels)")
-    return product_chain(channel)[:3]
-
-
-def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h, start)``: :func:`mode_chain`'s joint states, transition matrix and per-mode delivery
-    probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
-    own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
-
-    Examples
-    --------
-    >>> modes, T, h, start = product_chain(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25]))
-    >>> modes.tolist(), start.tolist()                     # good, good: 0.25
-    ([[0, 0], [0, 1], [1, 0], [1, 1]], [0.25, 0.75, 0.0, 0.0])
-    """
-    m, M = channel.m, int(np.prod(channel.sizes))
-    modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
-    T = np.ones((1, 1))
-    for Ti in channel.transition:
-        T = np.kron(T, Ti)
-    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]
-    start = np.prod([starts[i][modes[:, i]] for i in range(m)], axis=0)
-    return modes, T, channel.padded_delivery[np.arange(m), modes], start
-
-
-def mode_start(channel: MarkovChannel) -> np.ndarray:
-    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`,
-    in :func:`mode_chain`'s order. O(M m).
-
-    Examples
-    --------
-    >>> mode_start(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25])).tolist()   # good, good: 0.25
-    [0.25, 0.75, 0.0, 0.0]
-    """
-    mode_chain(channel)                                   # refused beyond MAX_MODES, as the chain it starts
-    return product_chain(channel)[3]
 
 
 def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -260,21 +202,26 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     return stage
 
 
-def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
-    """Optimal mode-dependent gains with the channel state known: the coupled Riccati equations,
-    solved by value iteration from P_a = Omega (the backward DP of the infinite horizon), then the
-    mean-square radius of the loop they close.
+def coupled_riccati(system: System, max_iter: int = RICCATI_MAX_ITER) -> MjlsResult:
+    """Optimal mode-dependent gains with the channel state known: the stabilising solution of the coupled Riccati
+    equations (module docstring), and the mean-square radius of the loop its gains close.
 
-    Uses A, B, the first stage's weights (Omega_1, Psi_0) and the system's Gilbert–Elliott channel.
-    Time O(iterations M (M n^2 + 2^m m^3 + n^3)).
+    :func:`~packetloss_cvx.closedloop.riccati.mode_riccati` behind the mode chain, the solver of
+    :func:`~packetloss_cvx.closedloop.riccati.dp_riccati` (its one-mode case): value iteration from P_a = Omega,
+    then policy iteration (the coupled Lyapunov equations of each law) to the fixed point. An actuator that cannot
+    deliver in a mode keeps the row ``G_a^{-1} B'E_aA`` (the limit of its optimal row as h -> 0+; it never reaches
+    the loop). Uses A, B, the first stage's weights (Omega_1, Psi_0) and the system's Markov channel.
+    Time O(iterations M (M n^2 + 2^m m^3 + n^3)) plus O((M n^2)^3) per policy step.
 
     Raises
     ------
     InputError
         No Markov channel, or more than :data:`MAX_CHANNELS` channels.
     NumericalError
-        No convergence within ``max_iter`` (the loop is not mean-square stabilisable, or barely),
-        or a residual of the coupled equations above ``SELF_CHECK_RTOL`` relative to max ||P_a||.
+        The loop is proved not mean-square stabilisable by any mode-dependent law (the diverging iteration's
+        direction, checked in exact arithmetic: certificates.chain_outside_proved); or, without a verdict, no
+        convergence within ``max_iter`` value steps, a limit that is not stabilising, or a residual of the coupled
+        equations above ``MOMENT_RESIDUAL_RTOL`` relative to ||P|| (Frobenius over the modes).
 
     Examples
     --------
@@ -287,47 +234,11 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
     system = check_system(system)
     if system.channel is None:
         raise InputError("system", "expected a system with a Gilbert-Elliott channel ([channel] model = ...)")
-    A, B = system.A, system.B
-    Omega, Psi = system.state_weights[0], np.diag(system.input_weights[0])
-    modes, T, h = mode_chain(system.channel)
-    P = np.repeat(Omega[None], len(modes), axis=0)
-    iteration = 0
-    while iteration < max_iter:
-        iteration += 1
-        new, K = _coupled_riccati_step(P, A, B, Omega, Psi, T, h)
-        if not np.all(np.isfinite(new)):
-            break
-        change = float(np.max(np.abs(new - P))) / max(float(np.max(np.abs(new))), 1e-300)
-        P = new
-        if change <= 1e-2 * SELF_CHECK_RTOL:
-            break
-    again, K = _coupled_riccati_step(P, A, B, Omega, Psi, T, h)
-    scale = max(float(np.max(np.abs(P))), 1e-300)
-    residual = float(np.max(np.abs(again - P))) / scale if np.all(np.isfinite(again)) else float("inf")
-    if not residual <= SELF_CHECK_RTOL:
-        raise NumericalError(f"the coupled Riccati iteration did not converge in {iteration} steps (relative "
-                             f"residual {residual:.1e}): the loop is not mean-square stabilisable by mode-dependent "
-                             "gains, or only barely")
-    radius = mean_square_radius(A, B, system.channel, K)
+    A, B, channel = system.A, system.B, system.channel
+    modes, T, h = mode_chain(channel)
+    K, P, iterations, residual, radius = mode_riccati(
+        A, B, system.state_weights[0], system.input_weights[0], h, T,
+        proves=lambda P: chain_outside_proved(A, B, channel, P, 1.0, "current"), max_iter=max_iter,
+        label="coupled Riccati equations", where=" behind the chain")
     return MjlsResult(gains=K, cost_matrices=P, modes=modes, transition=T, spectral_radius=radius,
-                      iterations=iteration, residual=residual)
-
-
-def _coupled_riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray, Psi: np.ndarray,
-                  T: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One backward step of the coupled equations: (P_a, K_a) for every mode a, all modes as one batch of
-    Theorem 1's step (:func:`packetloss_cvx.lq.recursion.riccati_step` with ``mu = h_a``, ``P = E_a`` and the
-    loss variance weighted by E_a): ``S_a = H_a G_a`` with ``G_a = B'E_aB H_a + diag(psi + (1 - h_a)
-    diag(B'E_aB))`` (the diagonal of ``H Psi H + diag(h (1 - h)) Psi`` is ``h psi``), so ``S_a K = H_a B'E_a A``
-    and ``G_a K = B'E_a A`` agree on the actuators that can deliver; K_a = 0 on the others (their row never
-    reaches P_a: it is multiplied by h = 0). O(M (M n^2 + n^3 + m^3))."""
-    E = np.einsum("ab,bij->aij", T, P)
-    E = 0.5 * (E + E.transpose(0, 2, 1))
-    psi = np.broadcast_to(np.diag(Psi), h.shape)
-    with np.errstate(over="ignore", invalid="ignore"):
-        try:   # a diverging iteration (no stabilising gains) overflows: the caller sees non-finite P
-            gains, out = riccati_step(E, A, B, h, psi, Omega, variance=True)
-        except np.linalg.LinAlgError:
-            return np.full_like(P, np.nan), np.full((P.shape[0], B.shape[1], A.shape[0]), np.nan)
-    gains[np.broadcast_to((h <= 0)[:, :, None], gains.shape)] = 0.0
-    return out, gains
+                      iterations=iterations, residual=residual)

@@ -24,7 +24,7 @@ from ..model.system import System
 from ..model.validation import MAX_ENTRIES
 from ..results import ClosedLoop
 from ..tolerances import MOMENT_DENSE_MAX_N, MOMENT_RESIDUAL_RTOL
-from .modes import mode_stage_costs
+from .modes import mode_adjoint_step, mode_matrix, mode_stage_costs
 from .stability import (
     check_law,
     is_mean_square_stable,
@@ -34,8 +34,8 @@ from .stability import (
     second_moment_step,
 )
 
-__all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "solve_fixed_point",
-           "stationary_channel", "stationary_second_moment"]
+__all__ = ["check_steps", "closed_loop", "finite_horizon_costs", "law_cost_to_go", "mode_cost_to_go",
+           "solve_fixed_point", "stationary_channel", "stationary_second_moment"]
 
 
 def check_steps(steps: object, per_step: int) -> None:
@@ -91,32 +91,33 @@ def stationary_channel(system: System) -> np.ndarray:
 
 def solve_fixed_point(apply: Callable[[np.ndarray], np.ndarray], matrix: Callable[[], np.ndarray],
                       C: np.ndarray, what: str) -> np.ndarray:
-    """X = apply(X) + C for a stable positive map: dense LU on the n^2 x n^2 matrix up to
-    MOMENT_DENSE_MAX_N (O(n^6)), GMRES on the operator beyond (O(n^3 m) per product). Residual checked; a singular
-    system, a GMRES failure or a lost residual raise NumericalError.
+    """X = apply(X) + C for a stable positive map, X of C's shape ((n, n), or (M, n, n) over M modes): dense LU on
+    the (M n^2)×(M n^2) matrix up to MOMENT_DENSE_MAX_N^2 rows (O((M n^2)^3)), GMRES on the operator beyond
+    (O(n^3 m) per product and mode). Residual checked; a singular system, a GMRES failure or a lost residual raise
+    NumericalError.
 
     >>> X = solve_fixed_point(lambda X: 0.5 * X, lambda: 0.5 * np.eye(1), np.array([[1.0]]), "a demo")
     >>> float(X[0, 0])        # X = X/2 + 1
     2.0
     """
-    n = C.shape[0]
+    shape, dim = C.shape, C.size
     with np.errstate(over="ignore", invalid="ignore"):
-        if n <= MOMENT_DENSE_MAX_N:
+        if dim <= MOMENT_DENSE_MAX_N ** 2:
             try:
-                X = np.linalg.solve(np.eye(n * n) - matrix(), C.ravel()).reshape(n, n)
+                X = np.linalg.solve(np.eye(dim) - matrix(), C.ravel()).reshape(shape)
             except np.linalg.LinAlgError:   # exactly singular: the map has the eigenvalue 1 (not stable)
                 raise NumericalError(f"{what}: the linear system is singular (the map has the eigenvalue 1 to "
                                      "working precision: not mean-square stable)") from None
         else:
             from scipy.sparse.linalg import LinearOperator, gmres  # optional.LAZY_IMPORTS
 
-            op = LinearOperator((n * n, n * n), dtype=float,
-                                matvec=lambda v: v - apply(v.reshape(n, n)).ravel())
-            vec, info = gmres(op, C.ravel(), rtol=1e-13, atol=0.0, restart=min(n * n, 200), maxiter=50)
+            op = LinearOperator((dim, dim), dtype=float,
+                                matvec=lambda v: v - apply(v.reshape(shape)).ravel())
+            vec, info = gmres(op, C.ravel(), rtol=1e-13, atol=0.0, restart=min(dim, 200), maxiter=50)
             if info != 0:
                 raise NumericalError(f"{what}: GMRES did not converge (info {info})")
-            X = vec.reshape(n, n)
-        X = 0.5 * (X + X.T)
+            X = vec.reshape(shape)
+        X = 0.5 * (X + np.swapaxes(X, -1, -2))
         scale = max(frobenius(X), frobenius(C), np.finfo(float).tiny)
         residual = frobenius(X - apply(X) - C) / scale
     if not (np.all(np.isfinite(X)) and residual <= MOMENT_RESIDUAL_RTOL):
@@ -169,6 +170,27 @@ def _cost_to_go(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray,
     matrix = (lambda: second_moment_matrix(A_, B_, K_, mu_)) if matrix is None else matrix
     return solve_fixed_point(lambda P: second_moment_adjoint(P, A_, B_, K_, mu_), lambda: matrix().T, Q,
                              "the cost-to-go of the law")
+
+
+def mode_cost_to_go(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray,
+                    Omega: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """The cost-to-go of the mode-dependent law ``u = -K_a x`` behind a chain (the mode known to the controller):
+    ``P_a = Omega + K_a' diag(psi h_a) K_a + L*(P)_a`` (:func:`~packetloss_cvx.closedloop.modes.mode_adjoint_step`),
+    the coupled Lyapunov equations; ``x0' P_a x0`` is the law's total expected cost from x0 in mode a without noise.
+    :func:`law_cost_to_go` is the one-mode case. Arrays checked by the caller: K (M, m, n), h (M, m), T (M, M). Needs
+    a mean-square stable law. Time O((M n^2)^3) up to MOMENT_DENSE_MAX_N^2 rows, else GMRES.
+
+    Examples
+    --------
+    >>> one = np.ones((1, 1))       # a memoryless two-mode chain of equal modes is Bernoulli: law_cost_to_go's value
+    >>> P = mode_cost_to_go(2 * one, one, np.full((2, 1, 1), 2.0), np.full((2, 1), 0.9), np.full((2, 2), 0.5), one,
+    ...                     np.ones(1))
+    >>> bool(np.allclose(P, law_cost_to_go([[2.0]], [[1.0]], [[2.0]], [0.9], [[1.0]], [1.0])))
+    True
+    """
+    W = Omega + (K.mT * (h * psi)[:, None, :]) @ K
+    adjoint = mode_adjoint_step(A, B, K, h, T)
+    return solve_fixed_point(adjoint, lambda: mode_matrix(A, B, K, h, T).T, W, "the cost-to-go of the mode law")
 
 
 def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.ArrayLike | None = None,

@@ -19,6 +19,8 @@ No causal law over these losses does better: the optimum over all laws is linear
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 
@@ -29,10 +31,12 @@ from ..model.system import System
 from ..results import Riccati
 from ..tolerances import MOMENT_RESIDUAL_RTOL, RICCATI_DIVERGENCE, RICCATI_MAX_ITER, RICCATI_RTOL
 from .certificates import no_law_proved
-from .moments import check_steps, law_cost_to_go, stationary_channel
+from .modes import mode_radius
+from .moments import check_steps, law_cost_to_go, mode_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
-__all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_input_hessian", "dp_riccati", "modified_riccati_step"]
+__all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_input_hessian", "dp_riccati", "dp_step", "mode_riccati",
+           "modified_riccati_step"]
 
 #: Every NumericalError of :func:`dp_riccati` that means "no law holds the second moment" starts its
 #: reason with this (callers that treat the absence of a stabilising law as a case, not an error, test it).
@@ -83,11 +87,10 @@ def _weights(system: System, mu: npt.ArrayLike | None) -> tuple[np.ndarray, ...]
 def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray | None = None) -> Riccati:
     """The stationary DP optimum: the stabilising solution of the modified Riccati equation.
 
-    Value iteration from ``P = Omega`` until the gain is mean-square stabilising, then policy
-    iteration (Hewer's, each step a linear solve for the law's cost-to-go, quadratic convergence)
-    until ``||P_next - P|| <= RICCATI_RTOL ||P||``. Stage weights as in
-    :func:`~.moments.closed_loop`. Time O(iterations (n^3 + m^3)) plus O(n^6) per policy step
-    (n <= 30; GMRES beyond).
+    :func:`mode_riccati` at one mode: value iteration from ``P = Omega`` until the gain is mean-square stabilising,
+    then policy iteration (Hewer's, each step a linear solve for the law's cost-to-go, quadratic convergence)
+    until ``||P_next - P|| <= RICCATI_RTOL ||P||``. Stage weights as in :func:`~.moments.closed_loop`. Time
+    O(iterations (n^3 + m^3)) plus O(n^6) per policy step (n <= 30; GMRES beyond).
 
     With ``gain``, a law already proved mean-square stabilising at mu (its radius checked here again) and
     ``Omega > 0``, the policy iteration starts from it: the stabilising solution is unique, so the answer is the
@@ -129,58 +132,153 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
     True
     """
     A, B, mu_, Omega, psi = _weights(system, mu)
+    K, P, iterations, residual, radius = mode_riccati(
+        A, B, Omega, psi, mu_, proves=lambda P: no_law_proved(A, B, mu_, P), gain=gain,
+        where=f" at mu = {mu_.tolist()}")
+    return Riccati(K, P, float(np.sum(P * system.noise_cov)), radius, iterations, residual)
+
+
+def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarray, h: np.ndarray,
+                 T: np.ndarray | None = None, *, proves: Callable[[np.ndarray], bool], gain: np.ndarray | None = None,
+                 max_iter: int = RICCATI_MAX_ITER, label: str = "modified Riccati equation",
+                 where: str = "") -> tuple[np.ndarray, np.ndarray, int, float, float]:
+    """The stabilising solution of the DP's Riccati equation over a channel with M modes, the mode known to the
+    controller: ``(K, P, iterations, residual, radius)``. One mode (``T=None``, Bernoulli, ``h = mu`` (m,), P
+    (n, n), K (m, n)) is the modified Riccati equation (:func:`dp_riccati`); with T (M, M) and h (M, m) the
+    coupled equations (:func:`~packetloss_cvx.closedloop.mjls.coupled_riccati`; P (M, n, n), K (M, m, n)):
+
+    .. math:: P_a = \\Omega + A'E_aA - A'E_aBH_a K_a,\\quad K_a = G_a^{-1} B'E_aA,\\quad E_a = \\sum_b T_{ab} P_b
+
+    with ``G_a = B'E_aB H_a + diag(psi + (1 - h_a) diag(B'E_aB))`` (:func:`dp_step`).
+
+    Value iteration from ``P_a = Omega``; every ``_CHECK_EVERY`` steps, once the greedy gains are mean-square
+    stabilising (the engine's radius, :func:`~packetloss_cvx.closedloop.modes.mode_radius`), policy iteration
+    (Hewer's: each step the law's cost-to-go from the coupled Lyapunov equations, the engine's adjoint map solved by
+    :func:`~.moments.mode_cost_to_go`; quadratic convergence) until ``||P_next - P|| <= RICCATI_RTOL ||P||``
+    (Frobenius norms over the stacked modes): the answer is the fixed point to rounding, not a stopped iteration.
+    ``gain`` (a stabilising law, Omega > 0) starts the policy iteration directly. Once ``||P||`` passes
+    ``RICCATI_DIVERGENCE`` times the weights, ``proves(P)`` is asked whether P's direction proves exactly that no
+    law is mean-square stable (certificates.no_law_proved at one mode, certificates.chain_outside_proved behind a
+    chain); ``label`` and ``where`` name the equation and the channel in the errors.
+
+    *An actuator that never delivers in a mode* (``h_{a,i} = 0``): its gain row does not reach the loop (it is
+    multiplied by ``h_{a,i}`` in the moments and the costs), and the equation leaves it free. It is the row of
+    ``K_a = G_a^{-1} B'E_aA``: the input that actuator would best send were its packet to arrive (the first-order
+    condition of the Bellman right-hand side given ``v_i = 1``, the other inputs as they are), which is the limit
+    of the optimal row as ``h_{a,i} -> 0+``. So the gain is continuous in the delivery probabilities, finite
+    wherever the step is (G_a invertible), and the same at one mode and behind a chain, with no special case.
+    Time O(iterations M (M n^2 + n^3 + m^3)) plus O((M n^2)^3) per policy step (M n^2 <= MOMENT_DENSE_MAX_N^2;
+    GMRES beyond).
+
+    Raises
+    ------
+    NumericalError
+        Starting ``{label}: no stabilising solution`` (:data:`NO_SOLUTION` at one mode) only where ``proves``
+        proved it; otherwise (no verdict) an overflow, no convergence within ``max_iter`` steps, a limit whose law is
+        not mean-square stabilising, or a residual ``||R(P) - P|| / ||P||`` above ``MOMENT_RESIDUAL_RTOL``.
+
+    Examples
+    --------
+    >>> one = np.ones((1, 1))                  # scalar DARE: P = 1 + 4 P - 4 P^2 / (P + 1), P = 2 + sqrt(5)
+    >>> K, P, _, _, _ = mode_riccati(2 * one, one, one, np.ones(1), np.ones(1), proves=lambda P: False)
+    >>> bool(np.isclose(P[0, 0], 2 + 5 ** 0.5)), bool(np.isclose(K[0, 0], 2 * P[0, 0] / (P[0, 0] + 1)))
+    (True, True)
+    >>> K2, P2, _, _, _ = mode_riccati(2 * one, one, one, np.ones(1), np.ones((2, 1)), np.full((2, 2), 0.5),
+    ...                                proves=lambda P: False)          # two equal modes: the same equation
+    >>> bool(np.allclose(P2, P)), bool(np.allclose(K2, K))
+    (True, True)
+    """
     scale = _cost_to_go_scale(B, Omega, psi)
     if not RICCATI_DIVERGENCE * scale < np.finfo(float).max:
-        raise NumericalError(f"modified Riccati equation: the cost-to-go's scale (the weights, and the input weights "
+        raise NumericalError(f"{label}: the cost-to-go's scale (the weights, and the input weights "
                              f"over ||B e_i||^2: {scale:.3g}) leaves no room in double precision to tell divergence "
                              "from convergence; rescale the inputs (B by c and the input weights by c^2 is the same "
                              "problem)")
-    P = Omega.copy()
+    P = Omega.copy() if T is None else np.repeat(Omega[None], T.shape[0], axis=0)
     iterations = 0
-    started = _started(gain, A, B, mu_, Omega, psi)
+    started = _started(gain, A, B, h, T, Omega, psi, label)
     if started is not None:
         P, iterations = started
     check_at = RICCATI_DIVERGENCE * scale             # the next size at which a growing P is asked for a proof
+    size = 0.0                                       # nothing has grown yet
     with np.errstate(over="ignore", invalid="ignore"):
         while started is None:
-            K, P_next = modified_riccati_step(P, A, B, mu_, Omega, psi)
+            try:
+                K, P_next = dp_step(P, A, B, h, T, Omega, psi)
+            except NumericalError:
+                if size <= RICCATI_DIVERGENCE * scale:
+                    raise
+                P_next = np.full_like(P, np.inf)     # a Hessian singular to rounding as P grows: as an overflow
             iterations += 1
             size = frobenius(P_next)
             if not np.isfinite(size):
-                raise NumericalError(f"modified Riccati equation: undecided at mu = {mu_.tolist()}: the value "
-                                     f"iteration overflows after {iterations} steps and its direction proves no bound "
-                                     "on the laws' radii (dp_riccati: a stabilising solution is denied only by proof)")
+                raise NumericalError(f"{label}: undecided{where}: the value iteration overflows after {iterations} "
+                                     "steps and its direction proves no bound on the laws' radii (no stabilising "
+                                     "solution found: the loop is not mean-square stabilisable, or only barely; a "
+                                     "stabilising solution is denied only by proof)")
             if size > check_at:
-                if no_law_proved(A, B, mu_, P_next):
-                    raise NumericalError(f"{NO_SOLUTION} at mu = {mu_.tolist()} (the value iteration diverges, "
+                if proves(P_next):
+                    raise NumericalError(f"{label}: no stabilising solution{where} (the value iteration diverges, "
                                          f"||P|| > {size:.3g}, and its direction proves every law's mean-square "
-                                         "radius >= 1 in exact arithmetic: no law holds the second moment bounded)")
+                                         "radius >= 1 in exact arithmetic: no law holds the second moment bounded; "
+                                         "the loop is not mean-square stabilisable)")
                 check_at = size * RICCATI_DIVERGENCE ** 0.25
             converged = frobenius(P_next - P) <= RICCATI_RTOL * size
             P = P_next
             if converged:
                 break
             if iterations % _CHECK_EVERY == 0:
-                K, _ = modified_riccati_step(P, A, B, mu_, Omega, psi)
-                if is_mean_square_stable(mean_square_radius(A, B, K, mu_)):
-                    P, steps = _policy_iteration(K, A, B, mu_, Omega, psi)
+                K, _ = dp_step(P, A, B, h, T, Omega, psi)
+                if is_mean_square_stable(_radius(A, B, K, h, T)):
+                    P, steps = _policy_iteration(K, A, B, h, T, Omega, psi, label)
                     iterations += steps
                     break
-            if iterations >= RICCATI_MAX_ITER:
-                raise NumericalError(f"modified Riccati equation: no convergence in {iterations} iterations at "
-                                     f"mu = {mu_.tolist()} (no stabilising solution, or too close to the critical "
-                                     "probability)")
-    K, P_next = modified_riccati_step(P, A, B, mu_, Omega, psi)
+            if iterations >= max_iter:
+                raise NumericalError(f"{label}: no convergence in {iterations} iterations{where} (no stabilising "
+                                     "solution, or too close to the critical probability: the loop is not "
+                                     "mean-square stabilisable, or only barely)")
+    K, P_next = dp_step(P, A, B, h, T, Omega, psi)
     residual = frobenius(P_next - P) / max(frobenius(P), np.finfo(float).tiny)
-    radius = mean_square_radius(A, B, K, mu_)
+    radius = _radius(A, B, K, h, T)
     if not is_mean_square_stable(radius):
-        raise NumericalError(f"modified Riccati equation: the solution found at mu = {mu_.tolist()} is not "
-                             f"stabilising (its law has mean-square radius {radius:.6g} >= 1): a mode that Omega "
-                             "does not weigh")
+        raise NumericalError(f"{label}: the solution found{where} is not stabilising (its law has mean-square "
+                             f"radius {radius:.6g} >= 1): a mode that Omega does not weigh")
     if residual > MOMENT_RESIDUAL_RTOL:
-        raise NumericalError(f"modified Riccati equation: relative residual {residual:.1e} after {iterations} "
-                             "iterations")
-    return Riccati(K, P, float(np.sum(P * system.noise_cov)), radius, iterations, residual)
+        raise NumericalError(f"{label}: relative residual {residual:.1e} after {iterations} iterations")
+    return K, P, iterations, residual, radius
+
+
+def dp_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None, Omega: np.ndarray,
+            psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One backward step of :func:`mode_riccati`'s equation: ``(K, P_prev)``. ``T=None``: one mode,
+    :func:`modified_riccati_step`. With T: every mode a as one batch of Theorem 1's step
+    (:func:`packetloss_cvx.lq.recursion.riccati_step` with ``mu = h_a``, ``P = E_a = sum_b T_ab P_b`` and the loss
+    variance weighted by E_a), so ``K_a = G_a^{-1} B'E_aA`` on every actuator, those that cannot deliver in a mode
+    included (:func:`mode_riccati`). O(M (M n^2 + n^3 + m^3)).
+
+    Raises
+    ------
+    NumericalError
+        A Hessian factor G_a is singular.
+
+    >>> one = np.ones((1, 1))                           # a two-mode chain that never delivers in mode 1
+    >>> K, P = dp_step(np.ones((2, 1, 1)), one, one, np.array([[1.0], [0.0]]), np.full((2, 2), 0.5), one, np.ones(1))
+    >>> K.ravel().tolist(), P.ravel().tolist()         # K = E / (psi + E) in both modes; P_1 = 1 + E
+    ([0.5, 0.5], [1.5, 2.0])
+    """
+    if T is None:
+        return modified_riccati_step(P, A, B, h, Omega, psi)
+    E = np.einsum("ab,bij->aij", T, P)
+    E = 0.5 * (E + E.transpose(0, 2, 1))
+    try:
+        return riccati_step(E, A, B, h, np.broadcast_to(psi, h.shape), Omega, variance=True)
+    except np.linalg.LinAlgError:
+        raise NumericalError("coupled Riccati step: an input Hessian G_a is singular") from None
+
+
+def _radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray | None) -> float:
+    """The mean-square radius of the law K: stability.mean_square_radius at one mode, the engine's behind a chain."""
+    return mean_square_radius(A, B, K, h) if T is None else mode_radius(A, B, K, h, T)
 
 
 def _cost_to_go_scale(B: np.ndarray, Omega: np.ndarray, psi: np.ndarray) -> float:
@@ -200,39 +298,46 @@ def _cost_to_go_scale(B: np.ndarray, Omega: np.ndarray, psi: np.ndarray) -> floa
     return max(frobenius(Omega), float(np.max(psi, initial=0.0)), inputs)
 
 
-def _started(gain: np.ndarray | None, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
-             psi: np.ndarray) -> tuple[np.ndarray, int] | None:
-    """The policy iteration from ``gain`` where that law is finite, of shape (m, n), mean-square stabilising at mu
-    and the iteration converges: ``(P, steps)``, else None (the value iteration then runs as without it). Only
-    with ``Omega > 0``: a singular Omega may not see an unstable mode, where the value iteration's limit (the
-    optimum) is not the stabilising solution that Hewer's iteration reaches. O(steps n^6)."""
+def _started(gain: np.ndarray | None, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None,
+             Omega: np.ndarray, psi: np.ndarray, label: str) -> tuple[np.ndarray, int] | None:
+    """The policy iteration from ``gain`` where that law is finite, of K's shape ((m, n), or (M, m, n) behind a
+    chain), mean-square stabilising and the iteration converges: ``(P, steps)``, else None (the value iteration then
+    runs as without it). Only with ``Omega > 0``: a singular Omega may not see an unstable mode, where the value
+    iteration's limit (the optimum) is not the stabilising solution that Hewer's iteration reaches. O(steps n^6)."""
     if gain is None:
         return None
     K = np.asarray(gain, dtype=float)
-    if K.shape != (B.shape[1], A.shape[0]) or not np.all(np.isfinite(K)) or not np.linalg.eigvalsh(Omega)[0] > 0:
+    shape = (B.shape[1], A.shape[0]) if T is None else (T.shape[0], B.shape[1], A.shape[0])
+    if K.shape != shape or not np.all(np.isfinite(K)) or not np.linalg.eigvalsh(Omega)[0] > 0:
         return None
     try:
-        if not is_mean_square_stable(mean_square_radius(A, B, K, mu)):
+        if not is_mean_square_stable(_radius(A, B, K, h, T)):
             return None
         with np.errstate(over="ignore", invalid="ignore"):
-            P, steps = _policy_iteration(K, A, B, mu, Omega, psi)
+            P, steps = _policy_iteration(K, A, B, h, T, Omega, psi, label)
     except (NumericalError, np.linalg.LinAlgError):
         return None
     return (P, steps) if np.all(np.isfinite(P)) else None
 
 
-def _policy_iteration(K: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
-                      psi: np.ndarray) -> tuple[np.ndarray, int]:
+def _policy_iteration(K: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None,
+                      Omega: np.ndarray, psi: np.ndarray, label: str) -> tuple[np.ndarray, int]:
     """Hewer's iteration from a stabilising K: P_j = cost-to-go of K_j, K_{j+1} = the greedy gain of P_j.
     The P_j decrease to the stabilising solution (each K_j stays stabilising)."""
-    P = law_cost_to_go(A, B, K, mu, Omega, psi)
+    P = _cost_to_go(K, A, B, h, T, Omega, psi)
     for step in range(1, _POLICY_MAX_ITER + 1):
-        K, _ = modified_riccati_step(P, A, B, mu, Omega, psi)
-        P_next = law_cost_to_go(A, B, K, mu, Omega, psi)
+        K, _ = dp_step(P, A, B, h, T, Omega, psi)
+        P_next = _cost_to_go(K, A, B, h, T, Omega, psi)
         if frobenius(P_next - P) <= RICCATI_RTOL * frobenius(P_next):
             return P_next, step
         P = P_next
-    raise NumericalError(f"modified Riccati equation: policy iteration did not converge in {_POLICY_MAX_ITER} steps")
+    raise NumericalError(f"{label}: policy iteration did not converge in {_POLICY_MAX_ITER} steps")
+
+
+def _cost_to_go(K: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None,
+                Omega: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """The law's cost-to-go: moments.law_cost_to_go at one mode, the coupled Lyapunov equations behind a chain."""
+    return law_cost_to_go(A, B, K, h, Omega, psi) if T is None else mode_cost_to_go(A, B, K, h, T, Omega, psi)
 
 
 def dp_finite_horizon(system: System, steps: int,

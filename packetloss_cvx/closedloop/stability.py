@@ -27,7 +27,7 @@ import numpy.typing as npt
 from ..errors import DimensionError, InputError
 from ..model.system import numeric_array
 from ..tolerances import MEAN_SQUARE_MARGIN
-from .modes import RADIUS_RESCALE, mode_matrix, mode_radius, mode_step, random_matrix_moment
+from .modes import RADIUS_RESCALE, mode_adjoint_step, mode_matrix, mode_radius, mode_step, random_matrix_moment
 
 __all__ = [
     "RADIUS_RESCALE", "check_law", "is_mean_square_stable", "law_radius", "mean_square_radius", "random_matrix_moment",
@@ -101,7 +101,8 @@ def second_moment_step(A: np.ndarray, B: np.ndarray, K: np.ndarray,
 def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """The adjoint ``L*(P) = Abar' P Abar + K' diag(mu (1 - mu) diag(B' P B)) K`` (tr(P L(S)) = tr(L*(P) S)).
 
-    It propagates cost-to-go matrices backwards. Time O(n^3 + n^2 m).
+    It propagates cost-to-go matrices backwards: the mode engine's adjoint at one mode
+    (:func:`~packetloss_cvx.closedloop.modes.mode_adjoint_step`). Time O(n^3 + n^2 m).
 
     Examples
     --------
@@ -112,9 +113,7 @@ def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.nda
     >>> bool(np.isclose(lhs, np.trace(second_moment_adjoint(P, A, B, K, mu) @ S)))
     True
     """
-    Abar = A - (B * mu) @ K
-    c = mu * (1.0 - mu) * np.einsum("ji,jk,ki->i", B, P, B)
-    return Abar.T @ P @ Abar + (K.T * c) @ K
+    return mode_adjoint_step(A, B, K, mu)(P)
 
 
 def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:

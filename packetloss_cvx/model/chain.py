@@ -1,5 +1,5 @@
-"""Prediction from Markov chains: beliefs, the HMM filter, plug-in schedules, and the
-second moments ``R = E[v v']`` of the stacked deliveries.
+"""Prediction from Markov chains: beliefs, the HMM filter, plug-in schedules, the
+second moments ``R = E[v v']`` of the stacked deliveries, and the joint (mode) chain of several channels.
 
 Notation (docs/design.md, "Bursty links"): channel i is a chain with transition matrix ``T_i`` and delivery
 probabilities ``d_i`` per state (a Gilbert–Elliott channel: ``T = [[1 - p, p], [r, 1 - r]]``,
@@ -17,6 +17,7 @@ is block-structured (:func:`channel_covariance`).
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from typing import Any
 
@@ -36,8 +37,9 @@ MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "chan
 _MOMENTS = SystemStore(MOMENTS_KEY)
 
 __all__ = [
-    "attach_channel", "chain_matrices", "channel_covariance", "filter_belief", "plugin_schedule", "plugin_system",
-    "second_moments", "stacked_moments",
+    "MAX_CHANNELS", "MAX_MODES", "attach_channel", "chain_matrices", "channel_covariance", "filter_belief",
+    "mode_chain", "mode_start", "plugin_schedule", "plugin_system", "product_chain", "second_moments",
+    "stacked_moments",
 ]
 
 
@@ -61,6 +63,71 @@ def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarr
         raise InputError("channel", f"expected a Markov channel (a MarkovChannel or an object with "
                                     f"chain_matrices()), found {type(channel).__name__}")
     return tuple(method())
+
+
+#: 2^m modes and 2^m delivery patterns per mode: beyond this many channels the mode chain (and the closed loop's
+#: operator over it) is refused.
+MAX_CHANNELS = 6
+#: The product chain of k-state channels is refused beyond as many modes as MAX_CHANNELS Gilbert–Elliott ones give.
+MAX_MODES = 2 ** MAX_CHANNELS
+
+
+def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
+    significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
+    product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
+    :data:`MAX_MODES`. Time O(M^2 + M m).
+
+    Raises
+    ------
+    InputError
+        A product chain beyond :data:`MAX_MODES` modes (more than :data:`MAX_CHANNELS` Gilbert–Elliott channels).
+
+    Examples
+    --------
+    >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.1], r=[0.3]))]      # good, bad: the Gilbert channel
+    [[[0], [1]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
+    """
+    M = int(np.prod(channel.sizes))
+    if M > MAX_MODES:
+        raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
+                                    f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES} "
+                                    f"(at most {MAX_CHANNELS} two-state channels)")
+    return product_chain(channel)[:3]
+
+
+def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(modes, T, h, start)``: :func:`mode_chain`'s joint states, transition matrix and per-mode delivery
+    probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
+    own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
+
+    Examples
+    --------
+    >>> modes, T, h, start = product_chain(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25]))
+    >>> modes.tolist(), start.tolist()                     # good, good: 0.25
+    ([[0, 0], [0, 1], [1, 0], [1, 1]], [0.25, 0.75, 0.0, 0.0])
+    """
+    m, M = channel.m, int(np.prod(channel.sizes))
+    modes = np.array(list(itertools.product(*(range(k) for k in channel.sizes))), dtype=int).reshape(M, m)
+    T = np.ones((1, 1))
+    for Ti in channel.transition:
+        T = np.kron(T, Ti)
+    starts = [pi0 for _, _, pi0 in chain_matrices(channel)]
+    start = np.prod([starts[i][modes[:, i]] for i in range(m)], axis=0)
+    return modes, T, channel.padded_delivery[np.arange(m), modes], start
+
+
+def mode_start(channel: MarkovChannel) -> np.ndarray:
+    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`,
+    in :func:`mode_chain`'s order. O(M m).
+
+    Examples
+    --------
+    >>> mode_start(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25])).tolist()   # good, good: 0.25
+    [0.25, 0.75, 0.0, 0.0]
+    """
+    mode_chain(channel)                                   # refused beyond MAX_MODES, as the chain it starts
+    return product_chain(channel)[3]
 
 
 def filter_belief(channel: MarkovChannel, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:

@@ -23,10 +23,12 @@ def scalar(p, r, a=1.0, h_good=1.0, h_bad=0.0):
 
 def test_hand_derived_two_mode_scalar():
     # a = b = q = psi = 1, p = 0 (good is absorbing): P_g = 1 + P_g - P_g^2 / (P_g + 1), so P_g^2 = P_g + 1,
-    # P_g = phi; P_b = 1 + r P_g + (1 - r) P_b, so P_b = (1 + r phi) / r; K_g = P_g / (P_g + 1) = 1 / phi, K_b = 0.
+    # P_g = phi; P_b = 1 + r P_g + (1 - r) P_b, so P_b = (1 + r phi) / r; K_g = P_g / (P_g + 1) = 1 / phi. The bad
+    # mode never delivers: its gain is the input it would best send were the packet to arrive, E_b / (E_b + 1) with
+    # E_b = r P_g + (1 - r) P_b = 1 + phi = phi^2 (the limit of its optimal gain as h_bad -> 0+).
     res = coupled_riccati(scalar(0.0, 0.5))
-    np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-10)
-    np.testing.assert_allclose(res.gains.ravel(), [1 / PHI, 0.0], rtol=1e-10, atol=1e-15)
+    np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-12)
+    np.testing.assert_allclose(res.gains.ravel(), [1 / PHI, PHI**2 / (PHI**2 + 1)], rtol=1e-12)
     # closed loop: good mode x+ = (1 - 1/phi) x forever after the first good step; bad mode x+ = x.
     # Operator [[g (1-p), b r], [g p, b (1-r)]] with g = (1 - 1/phi)^2, b = 1: radius max(g, 1 - r) = 0.5
     assert res.spectral_radius == pytest.approx(0.5, rel=1e-12)
@@ -139,7 +141,8 @@ def test_memoryless_chain_gives_the_bernoulli_riccati():
     rhs = W + A.T @ P @ A - 0.9 * A.T @ P @ B @ np.linalg.solve(G, B.T @ P @ A)
     assert np.max(np.abs(rhs - P)) <= 1e-8 * np.max(np.abs(P))
     np.testing.assert_allclose(res.gains[0], np.linalg.solve(G, B.T @ P @ A), rtol=1e-8)
-    np.testing.assert_array_equal(res.gains[1], 0.0)
+    # the mode that never delivers: its gain is the delivered mode's (one input, the same E, G = B'PB + psi)
+    np.testing.assert_allclose(res.gains[1], np.linalg.solve(G, B.T @ P @ A), rtol=1e-8)
 
 
 def test_general_delivery_probabilities_and_errors():
@@ -181,7 +184,9 @@ def test_equal_fractional_h_is_the_scalar_modified_riccati_by_hand():
 
 def enumerated_bellman(s, P):
     """The right-hand side of the coupled equations with the expectation over deliveries taken by enumerating
-    the 2^m patterns of each mode: min_u sum_v p(v | a) [(A x + B V u)' E_a (A x + B V u) + (V u)' Psi (V u)]."""
+    the 2^m patterns of each mode: min_u sum_v p(v | a) [(A x + B V u)' E_a (A x + B V u) + (V u)' Psi (V u)]. The
+    gain row of an actuator i that cannot deliver in mode a is the minimiser given v_i = 1 (the other inputs at the
+    law's, their patterns enumerated), the limit of the optimal row as h_{a,i} -> 0+."""
     import itertools
 
     modes, T, h = mode_chain(s.channel)
@@ -199,6 +204,16 @@ def enumerated_bellman(s, P):
         K = np.linalg.solve(H[np.ix_(on, on)], L[on])
         gains[a][on] = K
         out[a] = W + A.T @ E @ A - L[on].T @ K
+        for i in np.flatnonzero(~on):
+            Hi, Li = np.zeros(s.m), np.zeros(s.n)
+            for v in itertools.product([0, 1], repeat=s.m):
+                if not v[i]:
+                    continue
+                V = np.diag(v).astype(float)
+                prob = np.prod([(h[a, j] if v[j] else 1 - h[a, j]) for j in range(s.m) if j != i])
+                Hi += prob * (V @ (B.T @ E @ B + Psi) @ V)[i]
+                Li += prob * (V @ B.T @ E @ A)[i]
+            gains[a][i] = (Li - Hi[on] @ K) / Hi[i]
     return out, gains
 
 
@@ -217,8 +232,8 @@ def test_fractional_h_coupled_riccati_solves_the_enumerated_bellman_equation(see
                                          h_bad=hb))
     res = coupled_riccati(s)
     rhs, gains = enumerated_bellman(s, res.cost_matrices)
-    np.testing.assert_allclose(rhs, res.cost_matrices, rtol=1e-9, atol=1e-9 * np.max(np.abs(rhs)))
-    np.testing.assert_allclose(res.gains, gains, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(rhs, res.cost_matrices, rtol=1e-12, atol=1e-12 * np.max(np.abs(rhs)))
+    np.testing.assert_allclose(res.gains, gains, rtol=1e-10, atol=1e-12)
 
 
 def test_fractional_h_jump_law_stage_costs_by_hand_and_by_the_bernoulli_moments():
@@ -279,29 +294,83 @@ def test_jump_law_stage_costs_decay_with_the_loop_over_a_long_horizon(delivery):
 
 
 @pytest.mark.parametrize(("factor", "kept"), [(3.0, False), (0.3, True)])
-def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_self_check_rtol(monkeypatch, factor, kept):
-    """The check after the iteration, one more step from the answer P, sees a residual max|step(P) - P| / max|P| of
-    factor SELF_CHECK_RTOL (planted on that step's largest entry; the iteration itself stops 100 times below it):
-    NumericalError at 3, the answer (the hand values of test_hand_derived_two_mode_scalar) at 0.3."""
-    import packetloss_cvx.closedloop.mjls as mjls_module
-    from packetloss_cvx.tolerances import SELF_CHECK_RTOL
+def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_moment_residual_rtol(monkeypatch, factor, kept):
+    """The check after the iteration, one more step from the answer P, sees a residual ||step(P) - P|| / ||P||
+    (Frobenius over the modes) of factor MOMENT_RESIDUAL_RTOL (planted on that step's largest entry; the iterations
+    stop at RICCATI_RTOL, 1000 times below): NumericalError at 3, the answer (the hand values of
+    test_hand_derived_two_mode_scalar) at 0.3."""
+    import packetloss_cvx.closedloop.riccati as riccati_module
+    from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
 
     s = scalar(0.0, 0.5)
     answer = coupled_riccati(s).cost_matrices.copy()
-    real = mjls_module._coupled_riccati_step
+    real = riccati_module.dp_step
 
     def step(P, *args):
-        new, K = real(P, *args)
-        if np.array_equal(P, answer):                   # the check's step (the iteration never starts from P)
+        K, new = real(P, *args)
+        if np.array_equal(P, answer):                   # the check's step (no iteration starts from the answer)
             new = new.copy()
-            new.flat[np.argmax(np.abs(new))] += factor * SELF_CHECK_RTOL * np.max(np.abs(P))
-        return new, K
+            new.flat[np.argmax(np.abs(new))] += factor * MOMENT_RESIDUAL_RTOL * np.linalg.norm(P)
+        return K, new
 
-    monkeypatch.setattr(mjls_module, "_coupled_riccati_step", step)
+    monkeypatch.setattr(riccati_module, "dp_step", step)
     if kept:
         res = coupled_riccati(s)
-        np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-10)
-        assert res.residual == pytest.approx(factor * SELF_CHECK_RTOL, rel=0.05)
+        np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-12)
+        assert res.residual == pytest.approx(factor * MOMENT_RESIDUAL_RTOL, rel=0.01)
     else:
-        with pytest.raises(NumericalError, match="relative residual 3.0e-09"):
+        with pytest.raises(NumericalError, match="coupled Riccati equations: relative residual 3.0e-09"):
             coupled_riccati(s)
+
+
+@pytest.mark.parametrize("mu", [[0.9, 0.7], [0.6, 0.0]])
+def test_the_one_state_chain_is_the_bernoulli_dp(mu):
+    """One solver (closedloop.riccati.mode_riccati): coupled_riccati behind the one-state chain of a Bernoulli channel
+    is dp_riccati at that mu, to 1e-12, the gain row of an actuator that never delivers (mu_i = 0) included; and the
+    DP's P solves the modified Riccati equation written out by hand."""
+    from packetloss_cvx.closedloop.riccati import dp_riccati
+    from packetloss_cvx.model.channel import MarkovChannel
+
+    two = pl.load_example("two_actuator")
+    chain, dp = coupled_riccati(two.with_channel(MarkovChannel.bernoulli(mu))), dp_riccati(two.with_mu(mu))
+    np.testing.assert_allclose(chain.cost_matrices[0], dp.cost_to_go, rtol=1e-12)
+    np.testing.assert_allclose(chain.gains[0], dp.gain, rtol=1e-12)
+    assert chain.spectral_radius == pytest.approx(dp.spectral_radius, rel=1e-12)
+    A, B, W, psi, m = two.A, two.B, two.state_weights[0], two.input_weights[0], np.array(mu)
+    P = dp.cost_to_go
+    G = B.T @ P @ B * m + np.diag(psi + (1 - m) * np.diag(B.T @ P @ B))
+    K = np.linalg.solve(G, B.T @ P @ A)
+    np.testing.assert_allclose(W + A.T @ P @ A - A.T @ P @ B @ np.diag(m) @ K, P, rtol=1e-12)
+
+
+def test_no_stabilising_chain_law_is_said_with_its_proof():
+    """a = 2 behind a Gilbert channel (p = 0.3, r = 0.2), the mode known: a good step can zero x, a bad one leaves
+    x+ = 2x, so every law's radius is at least a^2 (1 - r) = 3.2 (the bad mode's block). The coupled value iteration
+    diverges and its direction proves it exactly (certificates.chain_outside_proved, "current")."""
+    with pytest.raises(NumericalError, match="no stabilising solution behind the chain") as err:
+        coupled_riccati(scalar(0.3, 0.2, a=2.0))
+    assert "exact arithmetic" in str(err.value)
+
+
+def test_chain_dp_started_from_stabilising_mode_gains_is_the_same_solution():
+    """mode_riccati behind a chain, its policy iteration started from proved-stabilising mode gains (the optimum
+    perturbed, radius checked), reaches the same fixed point as the value iteration from Omega (the stabilising
+    solution is unique), without the value steps; a gain that is not stabilising is ignored."""
+    from packetloss_cvx.closedloop.riccati import mode_riccati
+
+    ch = GilbertElliott(p=[0.1, 0.2], r=[0.4, 0.5], h_good=[0.95, 0.9], h_bad=[0.1, 0.2])
+    s = pl.load_example("two_actuator").with_channel(ch)
+    res = coupled_riccati(s)
+    _, T, h = mode_chain(ch)
+    start = res.gains * 1.2
+    assert mean_square_radius(s.A, s.B, ch, start) < 1
+    args = (s.A, s.B, s.state_weights[0], s.input_weights[0], h, T)
+    K, P, iterations, _, _ = mode_riccati(*args, proves=lambda P: False, gain=start)
+    np.testing.assert_allclose(P, res.cost_matrices, rtol=1e-12)
+    np.testing.assert_allclose(K, res.gains, rtol=1e-11)
+    assert iterations < res.iterations
+    unstable = res.gains * 0.0 + 50.0
+    assert mean_square_radius(s.A, s.B, ch, unstable) > 1
+    _, P2, iterations2, _, _ = mode_riccati(*args, proves=lambda P: False, gain=unstable)
+    np.testing.assert_allclose(P2, res.cost_matrices, rtol=1e-12)
+    assert iterations2 == res.iterations
