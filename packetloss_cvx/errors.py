@@ -72,14 +72,16 @@ class SolverError(RuntimeError):
 
 
 class InfeasibleError(RuntimeError):
-    """No point satisfies the constraints; ``min_cost`` is the best reachable cost."""
+    """No point satisfies the constraints; ``min_cost`` is the best reachable cost (where known), ``status`` the
+    solver's status that proved it (where a solver did)."""
 
-    def __init__(self, detail: str, min_cost: float | None = None) -> None:
+    def __init__(self, detail: str, min_cost: float | None = None, status: str | None = None) -> None:
         self.min_cost = min_cost
+        self.status = status
         super().__init__(detail)
 
     def __reduce__(self) -> tuple:
-        return type(self), (self.args[0], self.min_cost), self.__dict__
+        return type(self), (self.args[0], self.min_cost, self.status), self.__dict__
 
 
 class NumericalError(ArithmeticError):

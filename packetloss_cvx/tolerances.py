@@ -14,6 +14,9 @@ __all__ = [
     "ACCEPTED_STATUSES",
     "CLARABEL_DEFAULT",
     "CLARABEL_TIGHT",
+    "CONSTRAINED_ACTIVE_RTOL",
+    "CONSTRAINED_AGREEMENT_RTOL",
+    "CONSTRAINED_KKT_RTOL",
     "CONTROLLABILITY_RTOL",
     "CROSS_CHECK_COST_RTOL",
     "CROSS_CHECK_FLOOR",
@@ -55,6 +58,17 @@ CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10,
 #: out: cvxpy re-solves a problem by updating the cached solver's previous settings with the ones
 #: passed, so an empty dict after CLARABEL_TIGHT would run the tight settings again.
 CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, "max_iter": 200}
+
+#: The constrained expected-cost QP (qp/constrained.py). A solve is refused when the KKT residual of the solver's
+#: answer (stationarity, primal and dual feasibility, complementarity, each relative: ConstrainedQP.kkt), evaluated on
+#: the plan's moments by their own forward recursion, exceeds CONSTRAINED_KKT_RTOL. Measured: MEASURED_KKT.
+CONSTRAINED_KKT_RTOL = 1e-6
+#: A constraint is reported binding when g(U) >= -CONSTRAINED_ACTIVE_RTOL max(1, |b|) (Clarabel's tight feasibility
+#: tolerance 1e-10 with a margin), and a soft row violated when its slack exceeds the same.
+CONSTRAINED_ACTIVE_RTOL = 1e-7
+#: Two formulations (condensed, sparse) or two solvers (Clarabel, scipy's SLSQP on the same expected cost) agree on a
+#: constrained plan to this, relative to max|U| (and on its cost relative to J). Measured: MEASURED_AGREE.
+CONSTRAINED_AGREEMENT_RTOL = 1e-6
 
 #: The only solver status taken as an answer. ``optimal_inaccurate`` is never accepted: a caller
 #: may retry with other settings, and otherwise raises SolverError with the status.

@@ -1,0 +1,556 @@
+"""The expected-cost QP with constraints: input, rate and expected-state bounds and chance constraints (an SOCP).
+
+:class:`ConstrainedQP` poses one protocol's expected cost (eq:opt-lqg-simplest with Lemma 1) in the commanded
+inputs ``U`` (N×m) under a :class:`~packetloss_cvx.model.constraints.Constraints` (docs/design.md §2.7) and keeps
+everything a cvxpy user reaches for public: ``problem`` (DPP), the variable ``U``, the expected states ``states``
+(an (N, n) expression, row k-1 is E[x_k]), and the Parameters ``x0`` and ``mu`` (an (N, m) schedule). Two
+formulations give the same problem: "condensed" (E[X] = Phi x0 + Gamma (mu ∘ U) as an expression) and "sparse"
+(the mean states as variables, the dynamics as equality constraints). ``solver=`` takes any installed cvxpy
+solver (Clarabel by default, under :func:`~packetloss_cvx.qp.convex.solve_problem`'s policy).
+
+Every solve is checked without cvxpy: the plan's expected cost by the forward pass
+(:func:`~packetloss_cvx.lq.recursion.plan_cost`), and the KKT conditions (stationarity, primal and dual
+feasibility, complementarity) from the solver's multipliers, the constraints evaluated on the moments of x_k by
+their own forward recursion (:func:`plan_moments`) rather than from the matrices the problem was built with. A
+residual beyond ``CONSTRAINED_KKT_RTOL`` raises; infeasibility raises :class:`~packetloss_cvx.errors.InfeasibleError`
+with the solver's status, never a fallback.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InfeasibleError, InputError, NumericalError, SolverError
+from ..linalg import psd_factor
+from ..lq.policy import refuse_correlated
+from ..lq.prediction import prediction
+from ..lq.recursion import plan_cost, udp_variance_weights
+from ..model.constraints import Constraints, cantelli_factor, check_constraints
+from ..model.protocols import check_protocol
+from ..model.system import System, check_system
+from ..results.base import Frozen
+from ..tolerances import (
+    ACCEPTED_STATUSES,
+    CLARABEL_DEFAULT,
+    CLARABEL_TIGHT,
+    CONSTRAINED_ACTIVE_RTOL,
+    CONSTRAINED_KKT_RTOL,
+    CROSS_CHECK_COST_RTOL,
+)
+from .convex import PROVEN_INFEASIBLE, solve_problem
+
+__all__ = ["ConstrainedQP", "ConstrainedSolution", "Moments", "plan_moments", "solve_constrained"]
+
+#: Above this many decision variables N*m, ``formulation="auto"`` takes the sparse form (as ExpectedCostQP does).
+AUTO_CONDENSED_MAX = 60
+
+
+@dataclass(frozen=True)
+class ConstrainedSolution(Frozen):
+    """A constrained plan and what bound it.
+
+    Attributes
+    ----------
+    protocol : {"tcp", "udp"}
+    status : str
+        The solver's status ("optimal"; anything else raised).
+    cost : float
+        The plan's expected cost J(U) by the forward pass (penalties of soft constraints not included).
+    inputs : ndarray (N, m)
+        The commanded inputs.
+    states : ndarray (N, n)
+        E[x_k], k = 1..N, under the plan.
+    binding : tuple of str
+        The constraints active at the plan ("u_max[0] at t=2", "chance[1] at k=5", ...).
+    violations : tuple of (str, float)
+        Soft constraints violated at the plan and by how much (the slack); empty for a hard problem.
+    kkt_residual : float or None
+        The largest relative KKT residual (:meth:`ConstrainedQP.kkt`), None where user constraints were added.
+    formulation, solver : str
+    solve_time : float
+        Seconds in the solver call.
+    """
+
+    protocol: str
+    status: str
+    cost: float
+    inputs: np.ndarray
+    states: np.ndarray
+    binding: tuple[str, ...]
+    violations: tuple[tuple[str, float], ...]
+    kkt_residual: float | None
+    formulation: str
+    solver: str
+    solve_time: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON entry of ``solve --json`` ("constrained")."""
+        return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
+                "binding": list(self.binding), "violations": [{"constraint": c, "by": v} for c, v in self.violations],
+                "kkt_residual": self.kkt_residual, "formulation": self.formulation, "solver": self.solver}
+
+
+@dataclass(frozen=True)
+class Moments:
+    """The state's moments under a plan (:func:`plan_moments`): ``mean[k]`` = E[x_k] and ``cov[k]`` = Cov(x_k),
+    k = 0..N, ``T[k]`` = dE[x_k]/dU (n × N m) and ``C[k]`` with ``Cov(x_k) = C[k] diag(u)^2 C[k]' + S[k]``."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+    T: np.ndarray
+    C: np.ndarray
+    S: np.ndarray
+
+
+def plan_moments(system: System, inputs: np.ndarray, mu: np.ndarray | None = None,
+                 x0: np.ndarray | None = None) -> Moments:
+    """Mean and covariance of x_k, k = 0..N, under the commanded plan ``inputs`` (N×m), Bernoulli losses of
+    ``mu`` (N×m, default the system's) and the noise, by the forward recursion
+
+    .. math:: m_{k+1} = A m_k + B \\bar v_k u_k,\\qquad
+              \\Sigma_{k+1} = A \\Sigma_k A' + B\\,\\mathrm{diag}(\\mu_k(1-\\mu_k) u_k^2)B' + \\Sigma_W
+
+    (losses independent across channels and steps, of the state and of the noise; x0 known). O(N^2 n m (n + m)).
+
+    Examples
+    --------
+    x' = x + v u with mu = 1/2, u = 1, x0 = 0: E[x_1] = 1/2, Var x_1 = 1/4; E[x_2] = 1, Var x_2 = 1/2.
+
+    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[1], mu=[0.5], x0=[0])
+    >>> mom = plan_moments(s, np.ones((2, 1)))
+    >>> mom.mean.ravel().tolist(), mom.cov.ravel().tolist()
+    ([0.0, 0.5, 1.0], [0.0, 0.25, 0.5])
+    """
+    N, n, m = system.horizon, system.n, system.m
+    mu = system.mu_schedule if mu is None else np.asarray(mu, dtype=float).reshape(N, m)
+    x = system.x0 if x0 is None else np.asarray(x0, dtype=float)
+    u = np.asarray(inputs, dtype=float).reshape(N, m)
+    sigma = np.sqrt(mu * (1.0 - mu))
+    A, B, W = system.A, system.B, system.noise_cov
+    mean, cov = np.zeros((N + 1, n)), np.zeros((N + 1, n, n))
+    T, C, S = np.zeros((N + 1, n, N * m)), np.zeros((N + 1, n, N * m)), np.zeros((N + 1, n, n))
+    mean[0] = x
+    for k in range(N):
+        block = slice(k * m, (k + 1) * m)
+        mean[k + 1] = A @ mean[k] + B @ (mu[k] * u[k])
+        T[k + 1] = A @ T[k]
+        T[k + 1][:, block] += B * mu[k]
+        C[k + 1] = A @ C[k]
+        C[k + 1][:, block] += B * sigma[k]
+        S[k + 1] = A @ S[k] @ A.T + W
+        spread = B * (sigma[k] * u[k])
+        cov[k + 1] = A @ cov[k] @ A.T + spread @ spread.T + W
+    return Moments(mean, cov, T, C, S)
+
+
+def _step_major(expr: cp.Expression, rows: int, cols: int) -> cp.Expression:
+    """An (rows, cols) expression as a vector, row after row (U's flat layout: step-major)."""
+    return cp.reshape(expr, (rows * cols,), order="C")
+
+
+class ConstrainedQP:
+    """One protocol's expected-cost minimisation under constraints, compiled once, re-solvable for new x0 or mu.
+
+    .. math:: \\min_U J(U)\\ \\text{s.t.}\\ u_{min} \\le u_t \\le u_{max},\\ |u_t - u_{t-1}| \\le du_{max},\\
+              x_{min} \\le E[x_k] \\le x_{max},\\ F E[x_k] \\le g,\\
+              a'E[x_k] + \\sqrt{(1-\\epsilon)/\\epsilon}\\,\\|\\Sigma_k^{1/2} a\\| \\le b
+
+    Parameters
+    ----------
+    system : System
+        Bernoulli losses (a stationary channel or a schedule; a Markov chain's losses are correlated over time
+        and refused).
+    protocol : {"tcp", "udp"}
+    constraints : Constraints or mapping (the ``[constraints]`` table)
+    formulation : {"condensed", "sparse", "auto"}
+    solver : str, optional
+        Any installed cvxpy solver (``cp.installed_solvers()``); default Clarabel with tight tolerances.
+    solver_options : dict, optional
+        Passed to ``problem.solve`` for a solver other than the default.
+
+    Attributes
+    ----------
+    problem : cvxpy.Problem
+        DPP; its objective is J(U) less its constant terms, divided by the largest weight.
+    U : cvxpy.Variable (N, m)
+    states : cvxpy.Expression (N, n)
+        E[x_1..x_N] under the plan.
+    x0, mu : cvxpy.Parameter
+        n and (N, m); :meth:`solve` sets them (and the Parameters derived from mu).
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1, mu = 1/2, Q = R = 1: the TCP-like optimum u = -2/3 (closed form) is cut
+    to u_min = -1/2, where J = (3/4)^2 + 1/2 (1/4)... = (1 - 1/4)^2 + 1/8 by hand.
+
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> qp = ConstrainedQP(s, "tcp", Constraints(u_min=[-0.5]))
+    >>> sol = qp.solve()
+    >>> bool(np.isclose(sol.inputs[0, 0], -0.5)), bool(np.isclose(sol.cost, 0.75 ** 2 + 0.125)), sol.binding
+    (True, True, ('u_min[0] at t=0',))
+    >>> qp.problem.is_dpp()
+    True
+    """
+
+    def __init__(self, system: System, protocol: str, constraints: Constraints | Any, formulation: str = "auto",
+                 solver: str | None = None, solver_options: dict | None = None) -> None:
+        system = check_system(system)
+        self.protocol = check_protocol(protocol)
+        refuse_correlated(system, self.protocol)
+        if system.channel is not None:
+            raise InputError("channel", "the constrained QP needs Bernoulli losses (independent over time): a Markov "
+                                        "channel's losses are correlated, so the state covariance of its chance "
+                                        "constraints would be wrong; use the channel's mu (mu = [...]) instead")
+        self.system = system
+        N, n, m = system.horizon, system.n, system.m
+        self.constraints = check_constraints(constraints, n, m)
+        if formulation == "auto":
+            formulation = "condensed" if N * m <= AUTO_CONDENSED_MAX else "sparse"
+        if formulation not in ("condensed", "sparse"):
+            raise InputError("formulation", f"expected 'condensed', 'sparse' or 'auto', found {formulation!r}")
+        self.formulation = formulation
+        if solver is not None and solver not in cp.installed_solvers():
+            raise InputError("solver", f"expected an installed cvxpy solver ({', '.join(cp.installed_solvers())}), "
+                                       f"found {solver!r}")
+        self.solver = solver or cp.CLARABEL
+        self.solver_options = dict(solver_options or {})
+        self._d, self._noise = udp_variance_weights(system)
+        if not (np.all(np.isfinite(self._d)) and np.isfinite(self._noise)):
+            raise NumericalError("the QP's loss-variance weights diag(Omega_g) exceed the double-precision range")
+        #: the objective's scale: J's variable part divided by the largest weight
+        self.scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
+        self._user_constraints = False
+        self._build()
+
+    # ------------------------------------------------------------------------------------------------ building
+    def _build(self) -> None:
+        system, c = self.system, self.constraints
+        N, n, m = system.horizon, system.n, system.m
+        s = self.scale
+        self.x0 = cp.Parameter(n, name="x0")
+        self.mu = cp.Parameter((N, m), nonneg=True, name="mu")
+        self._w = cp.Parameter((N, m), nonneg=True, name="input_weight_over_scale")   # (psi mu + [UDP] d mu(1-mu))/s
+        self._sigma = cp.Parameter((N, m), nonneg=True, name="loss_std")             # sqrt(mu (1 - mu))
+        self.U = cp.Variable((N, m), name="U")
+        u = _step_major(self.U, N, m)
+        y = _step_major(cp.multiply(self.mu, self.U), N, m)        # the mean delivered inputs Vbar U
+        constraints: list[cp.Constraint] = []
+        if self.formulation == "condensed":
+            pred = prediction(system)
+            X = pred.Phi @ self.x0 + pred.Gamma @ y
+        else:
+            E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
+            first = sp.csr_matrix(np.vstack([system.A, np.zeros(((N - 1) * n, n))]))
+            X = cp.Variable(N * n, name="xhat")
+            constraints.append(E @ X - sp.kron(sp.eye(N), system.B, format="csr") @ y == first @ self.x0)
+        self.states = cp.reshape(X, (N, n), order="C")
+        L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr") / np.sqrt(s)
+        terms = [cp.sum(cp.multiply(self._w, cp.square(self.U)))]
+        if L.shape[0]:
+            terms.append(cp.sum_squares(L @ X))
+        penalty = []
+        self._groups: list[_Group] = []
+        # inputs and rates: hard (U = 0 satisfies them)
+        Gu, hu, labels = _input_rows(c, N, m)
+        if labels:
+            con = Gu @ u <= hu
+            constraints.append(con)
+            self._groups.append(_Group("inputs", con, labels, hu, None, P=Gu))
+        # expected state: box and polyhedron, rows P E[X] <= q
+        P, q, labels = _state_rows(c, N, n)
+        if labels:
+            slack = cp.Variable(len(labels), nonneg=True, name="state_slack") if c.soft else None
+            con = P @ X <= q + (slack if slack is not None else 0)
+            constraints.append(con)
+            self._groups.append(_Group("states", con, labels, q, slack, P=P))
+            if slack is not None:
+                penalty.append(cp.sum(slack))
+        # chance constraints, one SOC per row and step
+        if c.chance:
+            W = _step_major(cp.multiply(self._sigma, self.U), N, m)
+            for i, (a, b, eps) in enumerate(c.chance):
+                H, noise = _chance_data(system, a)
+                kappa = cantelli_factor(eps)
+                slack = cp.Variable(N, nonneg=True, name=f"chance_{i}_slack") if c.soft else None
+                cons = []
+                for k in range(1, N + 1):
+                    nz = np.flatnonzero(H[k - 1])
+                    parts = [cp.multiply(H[k - 1, nz], W[nz])] if nz.size else []
+                    if noise[k - 1] > 0:
+                        parts.append(np.array([np.sqrt(noise[k - 1])]))
+                    lhs = a @ self.states[k - 1]
+                    if parts:
+                        lhs = lhs + kappa * cp.norm(cp.hstack(parts) if len(parts) > 1 else parts[0], 2)
+                    cons.append(lhs <= b + (slack[k - 1] if slack is not None else 0))
+                constraints += cons
+                self._groups.append(_Group("chance", cons, [f"chance[{i}] at k={k}" for k in range(1, N + 1)],
+                                           np.full(N, b), slack, chance=(a, b, kappa)))
+                if slack is not None:
+                    penalty.append(cp.sum(slack))
+        self._penalty = cp.sum(cp.hstack(penalty)) if penalty else None
+        objective = cp.sum(cp.hstack(terms))
+        if self._penalty is not None:
+            objective = objective + (c.soft_weight / s) * self._penalty
+        self.problem = cp.Problem(cp.Minimize(objective), constraints)
+        if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
+            raise RuntimeError("the constrained expected-cost QP is not DPP")
+
+    def add_constraints(self, constraints: list[cp.Constraint]) -> None:
+        """Add the user's own cvxpy constraints (on ``U``, ``states``, ...) to ``problem``. The KKT check then covers
+        only the package's constraints, so it is skipped (``kkt_residual`` None). O(1) (compiled on the next solve).
+        """
+        self.problem = cp.Problem(self.problem.objective, [*self.problem.constraints, *constraints])
+        self._user_constraints = True
+
+    # ------------------------------------------------------------------------------------------------ solving
+    def _assign(self, system: System) -> None:
+        mu = system.mu_schedule
+        d = self._d * (1.0 - mu) if self.protocol == "udp" else 0.0
+        self.x0.value = system.x0
+        self.mu.value = mu
+        self._w.value = (system.input_weights + d) * mu / self.scale
+        self._sigma.value = np.sqrt(mu * (1.0 - mu))
+
+    def _run_solver(self, what: str) -> str:
+        if self.solver == cp.CLARABEL and not self.solver_options:
+            return solve_problem(self.problem, what, attempts=(CLARABEL_TIGHT, CLARABEL_DEFAULT))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                self.problem.solve(solver=self.solver, **self.solver_options)
+            except cp.error.SolverError as err:
+                raise SolverError("solver_error", f"{what} ({self.solver}): {err}") from None
+        return str(self.problem.status)
+
+    def solve(self, mu=None, x0=None, *, check: bool = True) -> ConstrainedSolution:
+        """Solve for the system's (or the given) ``mu`` (m-vector or N×m schedule) and ``x0``, validated through
+        :class:`System`.
+
+        Raises
+        ------
+        InfeasibleError
+            The solver proved the constraints infeasible (``status`` carries its status); with ``soft`` only the
+            input and rate bounds are hard, and U = 0 satisfies them, so this cannot happen.
+        SolverError
+            Any other status than "optimal" (``optimal_inaccurate`` and ``infeasible_inaccurate`` included).
+        NumericalError
+            With ``check``, a plan whose forward cost disagrees with the solver's objective beyond
+            ``CROSS_CHECK_COST_RTOL``, or whose KKT residual (:meth:`kkt`) exceeds ``CONSTRAINED_KKT_RTOL``.
+        """
+        system = self.system
+        if mu is not None:
+            system = system.with_mu(mu)
+        if x0 is not None:
+            system = system.with_x0(x0)
+        self._assign(system)
+        what = f"the constrained {self.protocol}-like {self.formulation} QP"
+        start = time.perf_counter()
+        status = self._run_solver(what)
+        solve_time = time.perf_counter() - start
+        if status == PROVEN_INFEASIBLE:
+            raise InfeasibleError(f"{what} is infeasible ({self.solver} status {status!r}): no plan meets "
+                                  f"{', '.join(self.constraints.kinds())} from this x0; make the state limits soft "
+                                  "(soft = true) or relax them", status=status)
+        if status not in ACCEPTED_STATUSES:
+            raise SolverError(status, f"{what} ({self.solver}) gave no proven answer")
+        N, m = system.horizon, system.m
+        U = np.asarray(self.U.value, dtype=float).reshape(N, m)
+        cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))
+        penalty = 0.0 if self._penalty is None else self.constraints.soft_weight * float(self._penalty.value)
+        solver_cost = float(self.problem.value) * self.scale + float(system.x0 @ system.initial_weight @ system.x0) \
+            + self._noise - penalty
+        if check and not abs(solver_cost - cost) <= CROSS_CHECK_COST_RTOL * max(abs(cost), self.scale * 1e-9):
+            raise NumericalError(f"{what}: the solver's objective {solver_cost:.10g} and the forward cost of its plan "
+                                 f"{cost:.10g} disagree beyond {CROSS_CHECK_COST_RTOL:.0e} relative")
+        report = self.kkt(system, U)
+        kkt = None if self._user_constraints else report["residual"]
+        if check and kkt is not None and not kkt <= CONSTRAINED_KKT_RTOL:
+            raise NumericalError(f"{what}: the KKT residual of the solver's answer is {kkt:.2e} ({report['worst']}), "
+                                 f"beyond {CONSTRAINED_KKT_RTOL:.0e}: the answer is not trusted")
+        return ConstrainedSolution(
+            protocol=self.protocol, status=status, cost=float(cost), inputs=U,
+            states=np.asarray(self.states.value, dtype=float), binding=tuple(report["binding"]),
+            violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
+            solver=self.solver, solve_time=solve_time)
+
+    # ------------------------------------------------------------------------------------------------ the check
+    def kkt(self, system: System, U: np.ndarray) -> dict[str, Any]:
+        """The KKT conditions of the last solve at the plan ``U``, from the solver's multipliers, every constraint and
+        gradient evaluated on :func:`plan_moments` (not on the matrices the problem was built from). Returns
+        ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations"}``:
+
+        * stationarity ``||grad J + sum lambda_i grad g_i||_inf`` over the largest of its terms' sizes: grad J's
+          input, x0 and plan parts (which cancel at an interior optimum) and ``|lambda_i| ||grad g_i||_inf``;
+        * primal ``max (g_i - s_i)_+ / max(1, |b_i|)`` (s_i the slack of a soft row);
+        * dual ``max(-lambda_i, lambda_i - rho)_+ / max(lambda)`` (rho the soft weight, inf when hard);
+        * complementarity ``max |lambda_i (g_i - s_i)|`` over ``max(|J|, largest weight max|x0|^2)``.
+
+        O(N^2 n m (n + m)) for the moments plus O(rows N m).
+        """
+        N, m = system.horizon, system.m
+        mom = plan_moments(system, U)
+        u = U.ravel()
+        mu = system.mu_schedule
+        w = (system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu
+        grad_J = 2.0 * w.ravel() * u
+        free_part, plan_part = np.zeros_like(u), np.zeros_like(u)   # grad J's terms in x0 and in U (they cancel)
+        J_var = float(np.sum(w.ravel() * u * u))
+        for k in range(1, N + 1):
+            Wk = system.state_weights[k - 1]
+            free = mom.mean[k] - mom.T[k] @ u                          # A^k x0
+            free_part += 2.0 * mom.T[k].T @ (Wk @ free)
+            plan_part += 2.0 * mom.T[k].T @ (Wk @ (mom.T[k] @ u))
+            J_var += float(mom.mean[k] @ Wk @ mom.mean[k])
+        grad_J += free_part + plan_part
+        total = grad_J.copy()
+        rho = self.constraints.soft_weight if self.constraints.soft else np.inf
+        scale_J = max(abs(J_var), self.scale * float(np.max(np.abs(system.x0), initial=0.0)) ** 2, 1e-300)
+        largest = max(float(np.abs(part).max(initial=0.0)) for part in (2.0 * w.ravel() * u, free_part, plan_part))
+        primal = dual = comp = 0.0
+        binding, violations = [], []
+        lam_max = 0.0
+        for group in self._groups:
+            g, jac = group.evaluate(mom, u, system)
+            lam = group.multipliers() * self.scale
+            slack = group.slack_values()
+            lam_max = max(lam_max, float(np.max(np.abs(lam), initial=0.0)))
+            total += jac.T @ lam
+            largest = max(largest, float(np.max(np.abs(lam) * np.abs(jac).max(axis=1, initial=0.0), initial=0.0)))
+            size = np.maximum(1.0, np.abs(group.bound))
+            excess = g - slack
+            primal = max(primal, float(np.max(np.maximum(excess, 0.0) / size, initial=0.0)))
+            dual = max(dual, float(np.max(np.maximum(-lam, lam - rho), initial=0.0)))
+            comp = max(comp, float(np.max(np.abs(lam * excess), initial=0.0)) / scale_J)
+            binding += [label for label, e, sz in zip(group.labels, excess, size, strict=True)
+                        if e >= -CONSTRAINED_ACTIVE_RTOL * sz]
+            violations += [(label, float(v)) for label, v, sz in zip(group.labels, slack, size, strict=True)
+                           if v > CONSTRAINED_ACTIVE_RTOL * sz]
+        stationarity = float(np.abs(total).max(initial=0.0)) / max(largest, 1e-300)
+        dual = dual / max(lam_max, 1e-300)
+        parts = {"stationarity": stationarity, "primal": primal, "dual": dual, "complementarity": comp}
+        worst = max(parts, key=parts.get)
+        return {"residual": parts[worst], "worst": worst, **parts, "binding": binding, "violations": violations}
+
+
+class _Group:
+    """A block of constraints of one kind: its cvxpy constraint(s), labels, bounds, slack, and its evaluation on the
+    plan's moments (values g_i - b_i and their gradients)."""
+
+    def __init__(self, kind: str, con: Any, labels: list[str], bound: np.ndarray, slack: cp.Variable | None,
+                 P: sp.csr_matrix | None = None, chance: tuple | None = None) -> None:
+        self.kind, self.con, self.labels, self.bound, self.slack = kind, con, labels, np.asarray(bound), slack
+        self.P, self.chance = P, chance
+
+    def multipliers(self) -> np.ndarray:
+        if isinstance(self.con, list):
+            return np.array([float(c.dual_value) for c in self.con])
+        return np.asarray(self.con.dual_value, dtype=float).ravel()
+
+    def slack_values(self) -> np.ndarray:
+        return np.zeros(len(self.labels)) if self.slack is None else np.asarray(self.slack.value, dtype=float)
+
+    def evaluate(self, mom: Moments, u: np.ndarray, system: System) -> tuple[np.ndarray, np.ndarray]:
+        N = system.horizon
+        if self.kind == "inputs":
+            return self.P @ u - self.bound, self.P.toarray()
+        if self.kind == "states":
+            mean = mom.mean[1:].ravel()
+            T = mom.T[1:].reshape(N * system.n, -1)
+            return self.P @ mean - self.bound, np.asarray(self.P @ T)
+        a, b, kappa = self.chance
+        g, jac = np.zeros(N), np.zeros((N, u.size))
+        for k in range(1, N + 1):
+            h = a @ mom.C[k]
+            var = float(np.sum((h * u) ** 2) + a @ mom.S[k] @ a)
+            std = np.sqrt(var)
+            g[k - 1] = a @ mom.mean[k] + kappa * std - b
+            jac[k - 1] = a @ mom.T[k] + (kappa * h * h * u / std if std > 0 else 0.0)
+        return g, jac
+
+
+def _input_rows(c: Constraints, N: int, m: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
+    """Rows ``G u <= h`` (u step-major) of the input and rate bounds, with their labels."""
+    rows, rhs, labels = [], [], []
+    eye = sp.eye(N * m, format="csr")
+    for name, sign, values in (("u_max", 1.0, c.u_max), ("u_min", -1.0, c.u_min)):
+        if values is None:
+            continue
+        for t in range(N):
+            for i in np.flatnonzero(np.isfinite(values)):
+                rows.append(sign * eye[t * m + i])
+                rhs.append(sign * values[i])
+                labels.append(f"{name}[{i}] at t={t}")
+    if c.du_max is not None:
+        for t in range(1, N):
+            for i in np.flatnonzero(np.isfinite(c.du_max)):
+                diff = eye[t * m + i] - eye[(t - 1) * m + i]
+                rows += [diff, -diff]
+                rhs += [c.du_max[i], c.du_max[i]]
+                labels += [f"du_max[{i}] at t={t} (up)", f"du_max[{i}] at t={t} (down)"]
+    G = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * m))
+    return G, np.array(rhs), labels
+
+
+def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
+    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron, with their labels."""
+    rows, rhs, labels = [], [], []
+    eye = sp.eye(N * n, format="csr")
+    for name, sign, values in (("x_max", 1.0, c.x_max), ("x_min", -1.0, c.x_min)):
+        if values is None:
+            continue
+        for k in range(1, N + 1):
+            for j in np.flatnonzero(np.isfinite(values)):
+                rows.append(sign * eye[(k - 1) * n + j])
+                rhs.append(sign * values[j])
+                labels.append(f"{name}[{j}] at k={k}")
+    if c.F is not None:
+        for k in range(1, N + 1):
+            for r in np.flatnonzero(np.isfinite(c.g)):
+                rows.append(sp.csr_matrix((c.F[r], (np.zeros(n, int), (k - 1) * n + np.arange(n))), shape=(1, N * n)))
+                rhs.append(c.g[r])
+                labels.append(f"F[{r}] at k={k}")
+    P = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * n))
+    return P, np.array(rhs), labels
+
+
+def _chance_data(system: System, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``H`` (N × N m) with ``H[k-1, j m + i] = a' A^{k-1-j} B e_i`` (j < k) and the noise variances ``a' S_k a``:
+    ``Var(a' x_k) = sum_j sum_i H[k-1, j m + i]^2 mu(1 - mu) u^2 + a' S_k a``. By the backward products a' A^p,
+    O(N^2 n (n + m))."""
+    N, n, m = system.horizon, system.n, system.m
+    A, B = system.A, system.B
+    powers = np.zeros((N, n))            # a' A^p, p = 0..N-1
+    powers[0] = a
+    for p in range(1, N):
+        powers[p] = powers[p - 1] @ A
+    H = np.zeros((N, N * m))
+    noise = np.zeros(N)
+    for k in range(1, N + 1):
+        for j in range(k):
+            H[k - 1, j * m:(j + 1) * m] = powers[k - 1 - j] @ B
+        noise[k - 1] = sum(float(powers[p] @ system.noise_cov @ powers[p]) for p in range(k))
+    return H, noise
+
+
+def solve_constrained(system: System, protocol: str, constraints: Constraints | Any, formulation: str = "auto",
+                      solver: str | None = None, **kwargs) -> ConstrainedSolution:
+    """Minimise the protocol's expected cost under ``constraints`` (:class:`ConstrainedQP`, solved once; keep the
+    object to re-solve for other x0 or mu without recompiling). Keyword arguments go to :meth:`ConstrainedQP.solve`.
+
+    Examples
+    --------
+    With no constraint binding the answer is Theorem 1's (u = -2/3, J = 2/3 here):
+
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> sol = solve_constrained(s, "tcp", Constraints(u_min=[-5.0], u_max=[5.0]))
+    >>> bool(np.allclose([sol.inputs[0, 0], sol.cost], [-2 / 3, 2 / 3], atol=1e-8)), sol.binding
+    (True, ())
+    """
+    return ConstrainedQP(system, protocol, constraints, formulation, solver).solve(**kwargs)
