@@ -394,7 +394,7 @@ class ConstrainedQP:
 
         O(N^2 n m (n + m)) for the moments plus O(rows N m).
         """
-        N, m = system.horizon, system.m
+        N = system.horizon
         mom = plan_moments(system, U)
         u = U.ravel()
         mu = system.mu_schedule
