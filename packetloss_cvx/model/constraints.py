@@ -33,7 +33,7 @@ __all__ = ["SOFT_WEIGHT_DEFAULT", "Constraints", "cantelli_factor", "check_const
 #: The default exact-penalty weight of soft constraints, in cost units per unit of violation. The penalty is exact
 #: (the soft optimum is the hard one whenever the hard problem is feasible) once the weight exceeds the largest
 #: multiplier of the hard problem; a solve reports the slack it used, so a weight that was too small shows.
-SOFT_WEIGHT_DEFAULT = 1e6
+SOFT_WEIGHT_DEFAULT = 1e4
 
 #: the keys of the ``[constraints]`` table, in the order they are written
 KEYS = ("u_min", "u_max", "du_max", "x_min", "x_max", "F", "g", "chance", "soft", "soft_weight")
