@@ -451,7 +451,7 @@ class ConstrainedQP:
                 H = H_J.copy()
                 rows, values = [], []
                 for group, act, pen, la in zip(self._groups, active, penalised, lam, strict=True):
-                    g, jac, hess = group.evaluate(mom, u, system)
+                    g, jac, hess = group.evaluate(mom, u, system, hessian=True)
                     grad += rho * jac[pen].sum(axis=0) + jac[act].T @ la[act]
                     if hess is not None:
                         H += rho * hess[pen].sum(axis=0) + np.einsum("i,ijk->jk", la[act], hess[act])
@@ -595,7 +595,10 @@ class _Group:
     def slack_values(self) -> np.ndarray:
         return np.zeros(len(self.labels)) if self.slack is None else np.asarray(self.slack.value, dtype=float)
 
-    def evaluate(self, mom: Moments, u: np.ndarray, system: System) -> tuple[np.ndarray, np.ndarray]:
+    def evaluate(self, mom: Moments, u: np.ndarray, system: System, hessian: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """``(g - b, dg/du, d2g/du2 or None)`` of the block's rows at u; the chance rows' Hessians (N × N m × N m)
+        only when asked (the polish)."""
         N = system.horizon
         if self.kind == "inputs":
             return self.P @ u - self.bound, self.P.toarray(), None
@@ -604,7 +607,8 @@ class _Group:
             T = mom.T[1:].reshape(N * system.n, -1)
             return self.P @ mean - self.bound, np.asarray(self.P @ T), None
         a, b, kappa = self.chance
-        g, jac, hess = np.zeros(N), np.zeros((N, u.size)), np.zeros((N, u.size, u.size))
+        g, jac = np.zeros(N), np.zeros((N, u.size))
+        hess = np.zeros((N, u.size, u.size)) if hessian else None
         for k in range(1, N + 1):
             h2 = (a @ mom.C[k]) ** 2
             var = float(np.sum(h2 * u * u) + a @ mom.S[k] @ a)
@@ -614,7 +618,8 @@ class _Group:
             if std > 0:            # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
                 Du = h2 * u
                 jac[k - 1] += kappa * Du / std
-                hess[k - 1] = kappa * (np.diag(h2) / std - np.outer(Du, Du) / std**3)
+                if hessian:
+                    hess[k - 1] = kappa * (np.diag(h2) / std - np.outer(Du, Du) / std**3)
         return g, jac, hess
 
 

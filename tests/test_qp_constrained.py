@@ -1,0 +1,349 @@
+"""The constrained expected-cost QP (qp/constrained.py) and its constraints (model/constraints.py).
+
+References, none taken from the code under test: Theorem 1's closed form where no constraint binds; scipy's SLSQP
+on the same expected cost (identified from ``expected_cost`` as a quadratic) with the constraints written here from
+matrix powers; the state's moments by enumerating every loss pattern; Cantelli's bound checked by enumeration."""
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+import scipy.optimize as so
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+from packetloss_cvx.errors import DimensionError, InfeasibleError, InputError
+from packetloss_cvx.lq.costs import closed_form, expected_cost
+from packetloss_cvx.model.constraints import Constraints, check_constraints, constraints_from_dict
+from packetloss_cvx.model.files import load_constraints, save_system
+from packetloss_cvx.model.random_systems import random_system
+from packetloss_cvx.qp.constrained import ConstrainedQP, plan_moments, solve_constrained
+from packetloss_cvx.qp.expected_cost import ExpectedCostQP, compare
+from packetloss_cvx.tolerances import (
+    CONSTRAINED_AGREEMENT_RTOL,
+    CONSTRAINED_KKT_RTOL,
+    CROSS_CHECK_COST_RTOL,
+)
+
+
+def _system(seed, n=2, m=2, horizon=5, noise=True):
+    return random_system(np.random.default_rng(seed), n=n, m=m, horizon=horizon, spectral_radius=0.9,
+                         non_stationary=False, noise=noise, time_varying=False, edge_mu=False)
+
+
+def _chance_values(system, U, a, eps):
+    """max_k a'E[x_k] + sqrt((1-eps)/eps) std(a'x_k) under the plan U, from the enumerated-free moment recursion."""
+    mom = plan_moments(system, U)
+    return max(a @ mom.mean[k] + np.sqrt((1 - eps) / eps * (a @ mom.cov[k] @ a)) for k in range(1, system.horizon + 1))
+
+
+def _binding_constraints(system, protocol, soft=False, eps=0.2, share=0.7):
+    """Input bounds at ``share`` of the unconstrained plan's peak (above 1: they do not bind), a rate bound, and a
+    chance constraint on a direction (+-e_i, else a seeded random one) whose value the unconstrained plan raises above
+    U = 0's: b halfway between, so that U = 0 is feasible and the unconstrained plan is not (the chance row binds)."""
+    free = closed_form(system, protocol).inputs
+    peak = share * np.abs(free).max(axis=0)
+    zero = np.zeros_like(free)
+    directions = np.random.default_rng(0).normal(size=(40, system.n))
+    for a in [*(sign * e for e in np.eye(system.n) for sign in (1.0, -1.0)), *directions]:
+        low, high = _chance_values(system, zero, a, eps), _chance_values(system, free, a, eps)
+        if high > low + 1e-3 * (abs(low) + abs(high)):
+            break
+    else:  # pragma: no cover - the seeds below all have such a direction
+        raise AssertionError("no binding direction")
+    return Constraints(u_min=-peak, u_max=peak, du_max=1.2 * peak, chance=[(a, (low + high) / 2, eps)], soft=soft)
+
+
+# ------------------------------------------------------------------------------ independent references
+
+def _quadratic(system, protocol):
+    """J(U) = u'Hu + 2 f'u + c identified from ``expected_cost`` at 0, +-e_i and e_i + e_j (exact for a quadratic up
+    to rounding): the reference's cost, with its exact gradient."""
+    k = system.horizon * system.m
+
+    def J(u):
+        return expected_cost(system, np.asarray(u).reshape(system.horizon, system.m), protocol)
+    c = J(np.zeros(k))
+    eye = np.eye(k)
+    plus = np.array([J(e) for e in eye])
+    minus = np.array([J(-e) for e in eye])
+    H = np.diag((plus + minus) / 2 - c)
+    for i, j in itertools.combinations(range(k), 2):
+        H[i, j] = H[j, i] = (J(eye[i] + eye[j]) - plus[i] - plus[j] + c) / 2
+    return H, (plus - minus) / 4, c
+
+
+def _chance_rows(system, a, b, eps):
+    """g_k(u) = b - a'E[x_k] - sqrt((1-eps)/eps) sqrt(Var a'x_k) >= 0, k = 1..N, from A^p directly."""
+    N, m = system.horizon, system.m
+    A, B, mu, W = system.A, system.B, system.mu_schedule, system.noise_cov
+    power = [np.linalg.matrix_power(A, p) for p in range(N + 1)]
+    kappa = np.sqrt((1 - eps) / eps)
+    rows = []
+    for k in range(1, N + 1):
+        lin = np.zeros(N * m)
+        quad = np.zeros(N * m)
+        for j in range(k):
+            h = a @ power[k - 1 - j] @ B
+            lin[j * m:(j + 1) * m] = h * mu[j]
+            quad[j * m:(j + 1) * m] = h**2 * mu[j] * (1 - mu[j])
+        noise = sum(a @ power[p] @ W @ power[p].T @ a for p in range(k))
+        free = a @ power[k] @ system.x0
+        rows.append((lin, quad, noise, free))
+
+    def fun(u):
+        return np.array([b - free - lin @ u - kappa * np.sqrt(quad @ u**2 + noise) for lin, quad, noise, free in rows])
+
+    def jac(u):
+        return np.array([-lin - kappa * quad * u / np.sqrt(quad @ u**2 + noise) for lin, quad, noise, _ in rows])
+    return fun, jac
+
+
+def _slsqp(system, protocol, c):
+    """The constrained minimiser by scipy's SLSQP from U = 0 (feasible), to 1e-15 in the cost."""
+    N, m = system.horizon, system.m
+    H, f, _ = _quadratic(system, protocol)
+    lo = np.tile(c.u_min, N)
+    hi = np.tile(c.u_max, N)
+    D = np.zeros(((N - 1) * m, N * m))
+    for t in range(1, N):
+        for i in range(m):
+            D[(t - 1) * m + i, t * m + i], D[(t - 1) * m + i, (t - 1) * m + i] = 1.0, -1.0
+    du = np.tile(c.du_max, N - 1)
+    cons = [{"type": "ineq", "fun": lambda u: du - D @ u, "jac": lambda u: -D},
+            {"type": "ineq", "fun": lambda u: du + D @ u, "jac": lambda u: D}]
+    for a, b, eps in c.chance:
+        fun, jac = _chance_rows(system, a, b, eps)
+        cons.append({"type": "ineq", "fun": fun, "jac": jac})
+    result = so.minimize(lambda u: u @ H @ u + 2 * f @ u, np.zeros(N * m), jac=lambda u: 2 * H @ u + 2 * f,
+                         bounds=list(zip(lo, hi, strict=True)), constraints=cons, method="SLSQP",
+                         options={"ftol": 1e-13, "maxiter": 1000})
+    assert result.success, result.message
+    return result.x.reshape(N, m)
+
+
+def _enumerated_moments(system, U):
+    """E[x_k] and Cov(x_k) by summing over all 2^(k m) loss patterns (noise added: independent, zero mean)."""
+    N, n, m = system.horizon, system.n, system.m
+    mu = system.mu_schedule
+    out_mean, out_cov = [], []
+    for k in range(1, N + 1):
+        mean, second = np.zeros(n), np.zeros((n, n))
+        for pattern in itertools.product((0, 1), repeat=k * m):
+            v = np.array(pattern, dtype=float).reshape(k, m)
+            prob = np.prod(np.where(v == 1, mu[:k], 1 - mu[:k]))
+            x = system.x0.copy()
+            for t in range(k):
+                x = system.A @ x + system.B @ (v[t] * U[t])
+            mean += prob * x
+            second += prob * np.outer(x, x)
+        noise = sum(np.linalg.matrix_power(system.A, p) @ system.noise_cov @ np.linalg.matrix_power(system.A, p).T
+                    for p in range(k))
+        out_mean.append(mean)
+        out_cov.append(second - np.outer(mean, mean) + noise)
+    return np.array(out_mean), np.array(out_cov)
+
+
+# ------------------------------------------------------------------------------ answers
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+@pytest.mark.parametrize("formulation", ["condensed", "sparse"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_constraints_that_do_not_bind_give_the_closed_form(protocol, formulation, seed):
+    s = _system(seed, n=3, m=2, horizon=6)
+    ref = closed_form(s, protocol)
+    peak = np.abs(ref.inputs).max(axis=0)
+    c = Constraints(u_min=-2 * peak - 1, u_max=2 * peak + 1, du_max=4 * peak + 1, x_max=np.full(s.n, 1e3))
+    sol = solve_constrained(s, protocol, c, formulation)
+    assert sol.binding == ()
+    check = compare(sol.inputs, sol.cost, ref, s)           # CROSS_CHECK_COST_RTOL (1e-7) and the input tolerance
+    assert check.cost_rel_diff <= CROSS_CHECK_COST_RTOL
+    assert sol.kkt_residual <= CONSTRAINED_KKT_RTOL
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+@pytest.mark.parametrize("seed", [3, 4, 5])
+@pytest.mark.parametrize("share", [0.7, 3.0])
+def test_a_binding_plan_meets_its_kkt_conditions_and_agrees_with_slsqp(protocol, seed, share):
+    s = _system(seed, n=2, m=2, horizon=4)
+    c = _binding_constraints(s, protocol, share=share)         # share 3: the input bounds are loose, the chance binds
+    sols = [solve_constrained(s, protocol, c, f) for f in ("condensed", "sparse")]
+    reference = _slsqp(s, protocol, c)
+    for sol in sols:
+        assert sol.binding                                          # the test is about binding constraints
+        if share > 1:
+            assert any(label.startswith("chance") for label in sol.binding)
+        assert sol.kkt_residual <= CONSTRAINED_KKT_RTOL
+        scale = np.abs(reference).max()
+        assert np.abs(sol.inputs - reference).max() <= CONSTRAINED_AGREEMENT_RTOL * scale
+        assert abs(sol.cost - expected_cost(s, reference, protocol)) <= CONSTRAINED_AGREEMENT_RTOL * sol.cost
+    assert np.abs(sols[0].inputs - sols[1].inputs).max() <= CONSTRAINED_AGREEMENT_RTOL * np.abs(reference).max()
+
+
+def test_the_plan_moments_are_the_enumerated_moments():
+    s = _system(7, n=2, m=2, horizon=3)
+    U = np.random.default_rng(1).normal(size=(3, 2))
+    mom = plan_moments(s, U)
+    mean, cov = _enumerated_moments(s, U)
+    np.testing.assert_allclose(mom.mean[1:], mean, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(mom.cov[1:], cov, rtol=1e-11, atol=1e-12)
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_a_chance_constrained_plan_keeps_the_probability_below_eps(protocol):
+    """No noise: x_k takes finitely many values, so P(a'x_k > b) is exact by enumeration; Cantelli keeps it <= eps,
+    and the binding step shows the bound's slack (conservative: the enumerated probability is below eps)."""
+    s = _system(8, n=2, m=1, horizon=4, noise=False)
+    c = _binding_constraints(s, protocol, share=3.0)
+    a, b, eps = c.chance[0]
+    sol = solve_constrained(s, protocol, c)
+    assert any(label.startswith("chance") for label in sol.binding)
+    mu = s.mu_schedule
+    for k in range(1, s.horizon + 1):
+        p_exceed = 0.0
+        for pattern in itertools.product((0, 1), repeat=k):
+            v = np.array(pattern, dtype=float)
+            x = s.x0.copy()
+            for t in range(k):
+                x = s.A @ x + s.B @ (v[t] * sol.inputs[t])
+            if a @ x > b + 1e-12:
+                p_exceed += np.prod(np.where(v == 1, mu[:k, 0], 1 - mu[:k, 0]))
+        assert p_exceed <= eps
+
+
+def test_an_infeasible_problem_raises_with_the_solvers_status_and_soft_rows_report_their_violation():
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[2.0])
+    hard = Constraints(u_min=[-0.5], u_max=[0.5], x_max=[1.0])          # E[x_1] >= 2 - 0.25: no plan
+    with pytest.raises(InfeasibleError, match="infeasible") as info:
+        solve_constrained(s, "udp", hard)
+    assert info.value.status == "infeasible"
+    soft = Constraints(u_min=[-0.5], u_max=[0.5], x_max=[1.0], soft=True, soft_weight=100.0)
+    sol = solve_constrained(s, "udp", soft)
+    # weight 100 beats the cost's pull: every input at -0.5, E[x_k] = 2 - 0.25 k, violated by 0.75, 0.5, 0.25
+    np.testing.assert_allclose(sol.inputs.ravel(), [-0.5, -0.5, -0.5], atol=1e-9)
+    assert [label for label, _ in sol.violations] == ["x_max[0] at k=1", "x_max[0] at k=2", "x_max[0] at k=3"]
+    np.testing.assert_allclose([v for _, v in sol.violations], [0.75, 0.5, 0.25], atol=1e-9)
+
+
+def test_a_soft_problem_that_could_be_hard_has_the_hard_answer():
+    s = _system(9, n=2, m=2, horizon=4)
+    hard = _binding_constraints(s, "udp")
+    soft = _binding_constraints(s, "udp", soft=True)
+    a, b = solve_constrained(s, "udp", hard), solve_constrained(s, "udp", soft)
+    assert b.violations == ()
+    np.testing.assert_allclose(b.inputs, a.inputs, atol=CONSTRAINED_AGREEMENT_RTOL * np.abs(a.inputs).max())
+
+
+# ------------------------------------------------------------------------------ the escape hatch
+
+def test_the_problem_is_dpp_and_reachable_and_re_solves_for_new_x0_and_mu():
+    s = _system(10, n=2, m=2, horizon=5)
+    c = _binding_constraints(s, "tcp", share=3.0)
+    qp = ConstrainedQP(s, "tcp", c)
+    assert qp.problem.is_dpp()
+    assert qp.U.shape == (5, 2)
+    assert qp.states.shape == (5, 2)
+    assert qp.x0.shape == (2,)
+    assert qp.mu.shape == (5, 2)
+    first = qp.solve()
+    np.testing.assert_allclose(first.states, plan_moments(s, first.inputs).mean[1:], rtol=1e-12, atol=1e-12)
+    again = qp.solve(x0=-s.x0, mu=[0.7, 0.4])
+    fresh = ConstrainedQP(s.with_x0(-s.x0).with_mu([0.7, 0.4]), "tcp", c).solve()
+    np.testing.assert_allclose(again.inputs, fresh.inputs, atol=1e-12)
+    qp.add_constraints([qp.U[0, 0] >= 0.5 * c.u_max[0]])      # the user's own constraint
+    mine = qp.solve()
+    assert mine.inputs[0, 0] >= 0.5 * c.u_max[0] - 1e-9
+    assert mine.kkt_residual is None
+
+
+def test_another_installed_solver_gives_the_same_plan():
+    s = _system(11, n=2, m=2, horizon=5)
+    free = closed_form(s, "udp").inputs
+    c = Constraints(u_min=-0.5 * np.abs(free).max(axis=0), u_max=0.5 * np.abs(free).max(axis=0))
+    clarabel = solve_constrained(s, "udp", c)
+    osqp = ConstrainedQP(s, "udp", c, solver="OSQP", solver_options={"eps_abs": 1e-9, "eps_rel": 1e-9,
+                                                                        "max_iter": 100000}).solve()
+    assert osqp.solver == "OSQP"
+    assert clarabel.binding
+    np.testing.assert_allclose(osqp.inputs, clarabel.inputs, atol=CONSTRAINED_AGREEMENT_RTOL)
+    with pytest.raises(InputError, match="solver"):
+        ConstrainedQP(s, "udp", c, solver="NO_SUCH_SOLVER")
+
+
+def test_expected_cost_qp_takes_constraints():
+    s = _system(12, n=2, m=2, horizon=4)
+    c = _binding_constraints(s, "udp")
+    qp = ExpectedCostQP(s, "udp", "sparse", constraints=c)
+    sol = qp.solve()
+    assert qp.constrained.problem.is_dpp()
+    assert sol.formulation == "sparse"
+    np.testing.assert_allclose(sol.inputs, solve_constrained(s, "udp", c, "condensed").inputs, atol=1e-9)
+
+
+# ------------------------------------------------------------------------------ bad input
+
+@pytest.mark.parametrize(("kwargs", "field"), [
+    ({"u_min": [0.1]}, "u_min"),                                  # zero input outside the bounds
+    ({"u_max": [-0.1]}, "u_max"),
+    ({"x_min": [2.0], "x_max": [1.0]}, "x_min"),
+    ({"du_max": [-1.0]}, "du_max"),
+    ({"chance": [([1.0], 1.0, 0.0)]}, "chance[0].eps"),
+    ({"chance": [([1.0], 1.0, 1.0)]}, "chance[0].eps"),
+    ({"chance": [([1.0], 1.0, 1.5)]}, "chance[0].eps"),
+    ({"chance": [([0.0], 1.0, 0.1)]}, "chance[0].a"),
+    ({"F": [[1.0]]}, "g"),
+    ({"soft_weight": 0.0}, "soft_weight"),
+])
+def test_bad_constraints_name_their_field(kwargs, field):
+    with pytest.raises(InputError) as info:
+        Constraints(**kwargs)
+    assert info.value.field == field
+
+
+def test_shapes_are_checked_against_the_system():
+    with pytest.raises(DimensionError, match="u_max: expected 2 numbers"):
+        check_constraints(Constraints(u_max=[1.0, 2.0, 3.0]), 3, 2)
+    with pytest.raises(DimensionError, match=r"chance\[0\].a"):
+        check_constraints(Constraints(chance=[([1.0], 1.0, 0.1)]), 2, 1)
+    with pytest.raises(InputError, match="constraints.nope"):
+        constraints_from_dict({"nope": 1}, 1, 1)
+
+
+# ------------------------------------------------------------------------------ files and the command line
+
+def test_the_constraints_table_round_trips(tmp_path):
+    s = pl.load_example("two_actuator")
+    c = Constraints(u_min=[-1.0, -np.inf], u_max=[1.0, 2.0], du_max=[0.5, np.inf], x_min=[-5.0, -5.0],
+                    x_max=[5.0, np.inf], F=[[1.0, 1.0]], g=[8.0], chance=[([0.0, 1.0], 3.0, 0.05)], soft=True,
+                    soft_weight=50.0)
+    path = save_system(s, tmp_path / "limited.toml", constraints=c)
+    assert load_constraints(path) == c
+    assert load_constraints("two_actuator") is None
+    text = path.read_text()
+    assert "[constraints]" in text
+    assert "-inf" in text
+
+
+def test_solve_json_adds_the_constrained_answer_per_protocol(tmp_path, capsys):
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    path = save_system(s, tmp_path / "scalar.toml", constraints=Constraints(u_min=[-0.5], u_max=[0.5]))
+    assert main(["solve", str(path), "--json", "--no-stability"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for protocol, free in (("tcp", -2 / 3), ("udp", -0.5)):       # Theorem 1: u = -2/3 (TCP), -1/2 (UDP)
+        entry = out[protocol]["constrained"]
+        assert {"status", "cost", "inputs", "binding"} <= set(entry)
+        assert entry["status"] == "optimal"
+        assert entry["inputs"][0][0] == pytest.approx(max(free, -0.5), abs=1e-9)
+        assert entry["binding"] == ["u_min[0] at t=0"]             # UDP's free optimum lies on the bound
+        assert out[protocol]["cost"] == pytest.approx(closed_form(s, protocol).cost, rel=1e-12)   # today's keys stay
+
+
+def test_bad_constraints_in_a_file_exit_2_with_one_line(tmp_path, capsys):
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    path = save_system(s, tmp_path / "bad.toml")
+    path.write_text(path.read_text() + "\n[constraints]\nchance = [[[1.0], 1.0, 2.0]]\n")
+    assert main(["solve", str(path), "--json"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "constraints.chance[0].eps" in err[0]
