@@ -101,7 +101,7 @@ def _chance_rows(system, a, b, eps):
 
 
 def _slsqp(system, protocol, c):
-    """The constrained minimiser by scipy's SLSQP from U = 0 (feasible), to 1e-15 in the cost."""
+    """The constrained minimiser by scipy's SLSQP from U = 0 (feasible), run three times from its own answer."""
     N, m = system.horizon, system.m
     H, f, _ = _quadratic(system, protocol)
     lo = np.tile(c.u_min, N)
@@ -116,10 +116,13 @@ def _slsqp(system, protocol, c):
     for a, b, eps in c.chance:
         fun, jac = _chance_rows(system, a, b, eps)
         cons.append({"type": "ineq", "fun": fun, "jac": jac})
-    result = so.minimize(lambda u: u @ H @ u + 2 * f @ u, np.zeros(N * m), jac=lambda u: 2 * H @ u + 2 * f,
-                         bounds=list(zip(lo, hi, strict=True)), constraints=cons, method="SLSQP",
-                         options={"ftol": 1e-13, "maxiter": 1000})
-    assert result.success, result.message
+    start = np.zeros(N * m)
+    for _ in range(3):        # restarted from its own answer: SLSQP's stopping test is on the change of the cost
+        result = so.minimize(lambda u: u @ H @ u + 2 * f @ u, start, jac=lambda u: 2 * H @ u + 2 * f,
+                             bounds=list(zip(lo, hi, strict=True)), constraints=cons, method="SLSQP",
+                             options={"ftol": 1e-14, "maxiter": 1000})
+        assert result.success, result.message
+        start = result.x
     return result.x.reshape(N, m)
 
 
