@@ -260,6 +260,33 @@ def test_the_problem_is_dpp_and_reachable_and_re_solves_for_new_x0_and_mu():
     assert mine.kkt_residual is None
 
 
+def test_the_compiled_chance_rows_are_the_constraints_written_from_matrix_powers():
+    """The cvxpy problem a user solves holds the rows themselves (the polish evaluates them on its own moments and
+    would hide a wrong compiled row from the plan): each chance row's value at a random plan is the reference's."""
+    s = _system(13, n=3, m=2, horizon=5)
+    c = _binding_constraints(s, "udp", share=3.0)
+    qp = ConstrainedQP(s, "udp", c, "condensed")
+    qp.solve()                                                     # sets the Parameters
+    U = np.random.default_rng(2).normal(size=(5, 2))
+    qp.U.value = U
+    fun, _ = _chance_rows(s, *c.chance[0])
+    compiled = np.array([float(con.expr.value) for con in qp.problem.constraints[-s.horizon:]])
+    np.testing.assert_allclose(compiled, -fun(U.ravel()), rtol=1e-12, atol=1e-12)
+
+
+def test_the_compiled_soft_problem_prices_a_violation_at_its_weight():
+    """x' = x + v u from 2, mu = 1/2, N = 1, Q = R = 1, E[x_1] <= 1 soft with weight rho = 1: the TCP-like cost
+    (2 + u/2)^2 + u^2/2 + rho (1 + u/2) is least at u = -(2 + rho/2) / 1.5 = -5/3 (E[x_1] = 7/6: violated), by hand;
+    the compiled problem alone (cvxpy, no polish) and the solve agree."""
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[2.0])
+    qp = ConstrainedQP(s, "tcp", Constraints(x_max=[1.0], soft=True, soft_weight=1.0))
+    sol = qp.solve()
+    assert sol.inputs[0, 0] == pytest.approx(-5 / 3, abs=1e-12)
+    assert sol.violations == (("x_max[0] at k=1", pytest.approx(1 / 6, abs=1e-12)),)
+    qp.problem.solve(solver="CLARABEL")
+    assert float(qp.U.value[0, 0]) == pytest.approx(-5 / 3, abs=1e-6)
+
+
 def test_another_installed_solver_gives_the_same_plan():
     s = _system(11, n=2, m=2, horizon=5)
     free = closed_form(s, "udp").inputs
@@ -321,7 +348,10 @@ def test_the_constraints_table_round_trips(tmp_path):
                     x_max=[5.0, np.inf], F=[[1.0, 1.0]], g=[8.0], chance=[([0.0, 1.0], 3.0, 0.05)], soft=True,
                     soft_weight=50.0)
     path = save_system(s, tmp_path / "limited.toml", constraints=c)
-    assert load_constraints(path) == c
+    again = load_constraints(path)
+    assert again == c                                              # field by field (arrays, rows, soft, weight)
+    assert again.soft
+    assert again.soft_weight == 50.0
     assert load_constraints("two_actuator") is None
     text = path.read_text()
     assert "[constraints]" in text
