@@ -55,6 +55,35 @@ def _binding_constraints(system, protocol, soft=False, eps=0.2, share=0.7):
     return Constraints(u_min=-peak, u_max=peak, du_max=1.2 * peak, chance=[(a, (low + high) / 2, eps)], soft=soft)
 
 
+def _binding_state_constraints(system, protocol, soft=False):
+    """Limits on E[x_k] the unconstrained plan crosses and U = 0 does not: a box entry on the first direction +-e_i
+    (if any) whose largest mean the plan raises above U = 0's (x_max or x_min halfway), and one polyhedron row
+    F E[x_k] <= g on a seeded random direction chosen the same way."""
+    free = closed_form(system, protocol).inputs
+    zero = np.zeros_like(free)
+
+    def top(U, f):
+        return max(f @ plan_moments(system, U).mean[k] for k in range(1, system.horizon + 1))
+    n = system.n
+    box = {"x_min": np.full(n, -np.inf), "x_max": np.full(n, np.inf)}
+    for i, sign in itertools.product(range(n), (1.0, -1.0)):
+        f = sign * np.eye(n)[i]
+        low, high = top(zero, f), top(free, f)
+        if high > low + 1e-3 * (abs(low) + abs(high)):
+            if sign > 0:
+                box["x_max"][i] = (low + high) / 2
+            else:
+                box["x_min"][i] = -(low + high) / 2
+            break                   # (no axis the plan pushes out: no box, the polyhedron row alone)
+    for f in np.random.default_rng(1).normal(size=(40, n)):
+        low, high = top(zero, f), top(free, f)
+        if high > low + 1e-3 * (abs(low) + abs(high)):
+            break
+    else:  # pragma: no cover
+        raise AssertionError("no binding row")
+    return Constraints(**box, F=[f], g=[(low + high) / 2], soft=soft)
+
+
 # ------------------------------------------------------------------------------ independent references
 
 def _quadratic(system, protocol):
@@ -104,15 +133,33 @@ def _slsqp(system, protocol, c):
     """The constrained minimiser by scipy's SLSQP from U = 0 (feasible), run three times from its own answer."""
     N, m = system.horizon, system.m
     H, f, _ = _quadratic(system, protocol)
-    lo = np.tile(c.u_min, N)
-    hi = np.tile(c.u_max, N)
+    lo = np.tile(c.u_min, N) if c.u_min is not None else np.full(N * m, -np.inf)
+    hi = np.tile(c.u_max, N) if c.u_max is not None else np.full(N * m, np.inf)
     D = np.zeros(((N - 1) * m, N * m))
     for t in range(1, N):
         for i in range(m):
             D[(t - 1) * m + i, t * m + i], D[(t - 1) * m + i, (t - 1) * m + i] = 1.0, -1.0
-    du = np.tile(c.du_max, N - 1)
-    cons = [{"type": "ineq", "fun": lambda u: du - D @ u, "jac": lambda u: -D},
-            {"type": "ineq", "fun": lambda u: du + D @ u, "jac": lambda u: D}]
+    cons = []
+    if c.du_max is not None:
+        du = np.tile(c.du_max, N - 1)
+        cons += [{"type": "ineq", "fun": lambda u: du - D @ u, "jac": lambda u: -D},
+                 {"type": "ineq", "fun": lambda u: du + D @ u, "jac": lambda u: D}]
+    rows, rhs = [], []                                   # state limits: E[x_k] = A^k x0 + sum A^{k-1-j} B Vbar_j u_j
+    for k in range(1, N + 1):
+        M = np.zeros((system.n, N * m))
+        for j in range(k):
+            M[:, j * m:(j + 1) * m] = np.linalg.matrix_power(system.A, k - 1 - j) @ system.B * system.mu_schedule[j]
+        free = np.linalg.matrix_power(system.A, k) @ system.x0
+        for sign, bound in ((1.0, c.x_max), (-1.0, c.x_min)):
+            for i in [] if bound is None else np.flatnonzero(np.isfinite(bound)):
+                rows.append(sign * M[i])
+                rhs.append(sign * (bound[i] - free[i]))
+        for row, g in zip([] if c.F is None else c.F, [] if c.g is None else c.g, strict=True):
+            rows.append(row @ M)
+            rhs.append(g - row @ free)
+    if rows:
+        R, r = np.array(rows), np.array(rhs)
+        cons.append({"type": "ineq", "fun": lambda u: r - R @ u, "jac": lambda u: -R})
     for a, b, eps in c.chance:
         fun, jac = _chance_rows(system, a, b, eps)
         cons.append({"type": "ineq", "fun": fun, "jac": jac})
@@ -182,6 +229,20 @@ def test_a_binding_plan_meets_its_kkt_conditions_and_agrees_with_slsqp(protocol,
         assert np.abs(sol.inputs - reference).max() <= CONSTRAINED_AGREEMENT_RTOL * scale
         assert abs(sol.cost - expected_cost(s, reference, protocol)) <= CONSTRAINED_AGREEMENT_RTOL * sol.cost
     assert np.abs(sols[0].inputs - sols[1].inputs).max() <= CONSTRAINED_AGREEMENT_RTOL * np.abs(reference).max()
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_a_plan_under_binding_state_limits_meets_its_kkt_conditions_and_agrees_with_slsqp(protocol, seed):
+    s = _system(seed, n=2, m=2, horizon=4)
+    c = _binding_state_constraints(s, protocol)
+    reference = _slsqp(s, protocol, c)
+    for formulation in ("condensed", "sparse"):
+        sol = solve_constrained(s, protocol, c, formulation)
+        assert any(label.startswith(("x_m", "F[")) for label in sol.binding)
+        assert sol.kkt_residual <= CONSTRAINED_KKT_RTOL
+        assert np.abs(sol.inputs - reference).max() <= CONSTRAINED_AGREEMENT_RTOL * np.abs(reference).max()
+        np.testing.assert_allclose(sol.states, plan_moments(s, sol.inputs).mean[1:], rtol=1e-12, atol=1e-12)
 
 
 def test_the_plan_moments_are_the_enumerated_moments():
