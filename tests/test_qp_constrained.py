@@ -282,6 +282,21 @@ def test_an_infeasible_problem_raises_with_the_solvers_status_and_soft_rows_repo
     with pytest.raises(InfeasibleError, match="infeasible") as info:
         solve_constrained(s, "udp", hard)
     assert info.value.status == "infeasible"
+    # the solver's Farkas multipliers, checked here by hand: E[x_k] = 2 + sum_{j<k} u_j / 2 with |u_j| <= 1/2, so
+    # y >= 0 on (x_max at k, u_min at t) rows with G'y = 0 sums to y'h < 0; the package's own check says verified
+    certificate = info.value.certificate
+    assert certificate["verdict"] == "verified"
+    assert certificate["margin"] > 0
+    y_inputs, y_states = (np.array(y) for y in certificate["multipliers"])
+    assert np.all(y_inputs >= -1e-9)
+    assert np.all(y_states >= -1e-9)
+    y_max, y_min = y_inputs[:3], y_inputs[3:]                     # rows u_max (t = 0..2), then u_min
+    combo = y_max - y_min + np.array([y_states[k:].sum() / 2 for k in range(3)])    # G'y, u_j enters x_k for k > j
+    value = -(0.5 * y_max.sum() + 0.5 * y_min.sum() + (1.0 - 2.0) * y_states.sum())  # y'(G 0 - h) = -y'h
+    assert value - np.abs(combo).sum() * 0.5 > 0                                    # no plan on the input box
+    with pytest.raises(InfeasibleError) as info:                  # a chance row: the certificate is not checkable
+        solve_constrained(s, "udp", Constraints(u_min=[-0.5], u_max=[0.5], chance=[([1.0], 1.0, 0.1)]))
+    assert info.value.certificate["verdict"] == "undecided"
     soft = Constraints(u_min=[-0.5], u_max=[0.5], x_max=[1.0], soft=True, soft_weight=100.0)
     sol = solve_constrained(s, "udp", soft)
     # weight 100 beats the cost's pull: every input at -0.5, E[x_k] = 2 - 0.25 k, violated by 0.75, 0.5, 0.25

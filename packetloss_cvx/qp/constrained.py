@@ -377,9 +377,11 @@ class ConstrainedQP:
         status = self._run_solver(what)
         solve_time = time.perf_counter() - start
         if status == PROVEN_INFEASIBLE:
-            raise InfeasibleError(f"{what} is infeasible ({self.solver} status {status!r}): no plan meets "
-                                  f"{', '.join(self.constraints.kinds())} from this x0; make the state limits soft "
-                                  "(soft = true) or relax them", status=status)
+            certificate = self.certificate(system)
+            raise InfeasibleError(f"{what} is infeasible ({self.solver} status {status!r}; certificate "
+                                  f"{certificate['verdict']}): no plan meets {', '.join(self.constraints.kinds())} "
+                                  "from this x0; make the state limits soft (soft = true) or relax them",
+                                  status=status, certificate=certificate)
         if status not in ACCEPTED_STATUSES:
             raise SolverError(status, f"{what} ({self.solver}) gave no proven answer")
         N, m = system.horizon, system.m
@@ -411,6 +413,52 @@ class ConstrainedQP:
             violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
             solver=self.solver, solve_time=solve_time, solver_kkt_residual=None if self._user_constraints
             else solver_kkt, polished=polished)
+
+    def certificate(self, system: System) -> dict[str, Any]:
+        """The solver's infeasibility certificate (cvxpy's multipliers after an "infeasible" status), checked without
+        the solver. For linear rows ``G u <= h`` (input, rate and expected-state limits, evaluated on
+        :func:`plan_moments`), multipliers ``y >= 0`` with ``-y'h > ||G'y||_1 max|u|`` prove that no plan exists:
+        ``y'(G u - h) <= 0`` would fail for every u within the input bounds, which every plan meets. Returns
+        ``{"verdict", "reason", "margin", "multipliers"}``: verdict "verified" (the inequality holds with the
+        rounding of the sums bounded), else "undecided" with the reason (chance rows, whose cone multipliers cvxpy
+        does not hand back whole; unbounded inputs; a margin within rounding). O(rows N m).
+        """
+        try:
+            multipliers = [np.asarray(group.multipliers(), dtype=float) for group in self._groups]
+        except (TypeError, ValueError):
+            multipliers = None
+        out: dict[str, Any] = {"verdict": "undecided", "reason": "", "margin": None,
+                               "multipliers": None if multipliers is None else [y.tolist() for y in multipliers]}
+        if multipliers is None or any(not np.all(np.isfinite(y)) for y in multipliers):
+            out["reason"] = "the solver gave no multipliers"
+            return out
+        if any(group.kind == "chance" for group in self._groups) or self.constraints.soft:
+            out["reason"] = "chance rows: a certificate needs their cone multipliers, which cvxpy does not return whole"
+            return out
+        c = self.constraints
+        if c.u_min is None or c.u_max is None or not (np.all(np.isfinite(c.u_min)) and np.all(np.isfinite(c.u_max))):
+            out["reason"] = "the inputs are not bounded on every channel: the certificate's rounding cannot be bounded"
+            return out
+        N, m = system.horizon, system.m
+        mom = plan_moments(system, np.zeros((N, m)))
+        combo, value, size = np.zeros(N * m), 0.0, 0.0
+        for group, y in zip(self._groups, multipliers, strict=True):
+            if np.any(y < 0):                           # a certificate's multipliers are nonnegative
+                out["reason"] = f"a negative multiplier ({float(y.min()):.3g}) on the {group.kind} rows"
+                return out
+            g, jac, _ = group.evaluate(mom, np.zeros(N * m), system)   # g(0) = -h (the rows at u = 0), jac = G
+            combo += jac.T @ y
+            value += float(y @ g)                       # y'(G 0 - h) = -y'h
+            size += float(np.abs(y) @ (np.abs(g) + np.abs(jac).sum(axis=1)))
+        reach = float(np.max(np.maximum(np.abs(c.u_min), np.abs(c.u_max))))
+        margin = value - float(np.abs(combo).sum()) * reach      # min over the input box of y'(G u - h) >= margin
+        rounding = 8 * N * m * np.finfo(float).eps * size * max(1.0, reach)
+        out["margin"] = margin
+        if margin > rounding:
+            out["verdict"], out["reason"] = "verified", f"y'(G u - h) >= {margin:.3g} > 0 on the input box"
+        else:
+            out["reason"] = f"the margin {margin:.3g} does not exceed its rounding {rounding:.1e}"
+        return out
 
     def _polish(self, system: System, U: np.ndarray, report: dict[str, Any]
                 ) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]] | None:
