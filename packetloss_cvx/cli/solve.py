@@ -145,7 +145,10 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
     try:
         sol = solve_constrained(system, protocol, constraints, getattr(args, "formulation", "auto"))
     except InfeasibleError as err:
+        certificate = err.certificate or {}
         return ({"status": "infeasible", "solver_status": err.status, "cost": None, "inputs": None, "binding": [],
+                 "certificate": {"verdict": certificate.get("verdict"), "reason": certificate.get("reason"),
+                                 "margin": certificate.get("margin")},
                  "reason": str(err)}, f"infeasible: {err}")
     except (SolverError, NumericalError) as err:
         return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},

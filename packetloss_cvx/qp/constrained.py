@@ -210,12 +210,12 @@ class ConstrainedQP:
     Examples
     --------
     One step of x' = x + v u from x0 = 1, mu = 1/2, Q = R = 1: the TCP-like optimum u = -2/3 (closed form) is cut
-    to u_min = -1/2, where J = (3/4)^2 + 1/2 (1/4)... = (1 - 1/4)^2 + 1/8 by hand.
+    to u_min = -1/2, where E[x_1] = 3/4 and J = (3/4)^2 + mu R u^2 = 9/16 + 1/8 by hand.
 
     >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> qp = ConstrainedQP(s, "tcp", Constraints(u_min=[-0.5]))
     >>> sol = qp.solve()
-    >>> bool(np.isclose(sol.inputs[0, 0], -0.5)), bool(np.isclose(sol.cost, 0.75 ** 2 + 0.125)), sol.binding
+    >>> bool(np.isclose(sol.inputs[0, 0], -0.5)), bool(np.isclose(sol.cost, 9 / 16 + 1 / 8)), sol.binding
     (True, True, ('u_min[0] at t=0',))
     >>> qp.problem.is_dpp()
     True
