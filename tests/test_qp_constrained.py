@@ -15,10 +15,11 @@ import packetloss_cvx as pl
 from packetloss_cvx.cli import main
 from packetloss_cvx.errors import DimensionError, InfeasibleError, InputError
 from packetloss_cvx.lq.costs import closed_form, expected_cost
+from packetloss_cvx.lq.moments import plan_moments
 from packetloss_cvx.model.constraints import Constraints, check_constraints, constraints_from_dict
 from packetloss_cvx.model.files import load_constraints, save_system
 from packetloss_cvx.model.random_systems import random_system
-from packetloss_cvx.qp.constrained import ConstrainedQP, plan_moments, solve_constrained
+from packetloss_cvx.qp.constrained import ConstrainedQP, solve_constrained
 from packetloss_cvx.qp.expected_cost import ExpectedCostQP, compare
 from packetloss_cvx.tolerances import (
     CONSTRAINED_AGREEMENT_RTOL,
