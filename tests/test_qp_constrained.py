@@ -449,11 +449,31 @@ def test_solve_json_adds_the_constrained_answer_per_protocol(tmp_path, capsys):
         assert out[protocol]["cost"] == pytest.approx(closed_form(s, protocol).cost, rel=1e-12)   # today's keys stay
 
 
-def test_bad_constraints_in_a_file_exit_2_with_one_line(tmp_path, capsys):
+@pytest.mark.parametrize(("table", "field"), [
+    ("chance = [[[1.0], 1.0, 2.0]]", "constraints.chance[0].eps"),
+    ("u_min = [0.5]", "constraints.u_min"),                        # zero input outside the bounds
+    ("u_min = [-1.0]\nu_max = [-0.5]", "constraints.u_max"),
+    ("u_max = [1.0, 2.0]", "constraints.u_max"),                   # m = 1
+    ("x_max = [1.0, 2.0]", "constraints.x_max"),                   # n = 1
+])
+def test_bad_constraints_in_a_file_exit_2_with_one_line(tmp_path, capsys, table, field):
     s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     path = save_system(s, tmp_path / "bad.toml")
-    path.write_text(path.read_text() + "\n[constraints]\nchance = [[[1.0], 1.0, 2.0]]\n")
+    path.write_text(path.read_text() + f"\n[constraints]\n{table}\n")
     assert main(["solve", str(path), "--json"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
-    assert "constraints.chance[0].eps" in err[0]
+    assert f"error: {field}" in err[0]
+
+
+def test_solve_json_reports_an_infeasible_table_with_its_certificate(tmp_path, capsys):
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[2.0])
+    path = save_system(s, tmp_path / "tight.toml", constraints=Constraints(u_min=[-0.5], u_max=[0.5], x_max=[1.0]))
+    assert main(["solve", str(path), "--json", "--no-stability"]) == 0        # the closed forms stand
+    out = json.loads(capsys.readouterr().out)
+    for protocol in ("tcp", "udp"):
+        entry = out[protocol]["constrained"]
+        assert entry["status"] == "infeasible"
+        assert entry["solver_status"] == "infeasible"
+        assert entry["inputs"] is None
+        assert entry["certificate"]["verdict"] == "verified"
