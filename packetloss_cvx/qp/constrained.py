@@ -150,6 +150,8 @@ class ConstrainedQP:
     problem : cvxpy.Problem
         DPP; its objective is J(U) less its constant terms, divided by the largest weight.
     U : cvxpy.Variable (N, m)
+        After :meth:`solve` its value is the solver's own answer; the returned plan is that answer polished
+        (``ConstrainedSolution.polished``).
     states : cvxpy.Expression (N, n)
         E[x_1..x_N] under the plan.
     x0, mu : cvxpy.Parameter
