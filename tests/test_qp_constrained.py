@@ -306,6 +306,20 @@ def test_an_infeasible_problem_raises_with_the_solvers_status_and_soft_rows_repo
     np.testing.assert_allclose([v for _, v in sol.violations], [0.75, 0.5, 0.25], atol=1e-9)
 
 
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_a_chance_row_at_its_kink_is_checked_with_its_subgradient(protocol):
+    """x' = x + v u from 1, mu = 0.15, no noise, N = 1, P(x_1 <= 1/2) >= 0.9 soft (weight 100): the row's value
+    1 + 0.15 u + 3 sqrt(0.15 0.85) |u| - 1/2 grows both ways from u = 0 (3 sqrt(0.1275) = 1.07 > 0.15), and the cost's
+    slope there, 0.3, is below the penalty's 100 (1.07 - 0.15): u = 0, J = 1 and a violation of 1/2, by hand. At
+    u = 0 the norm has no gradient; the KKT check takes its subgradient (a solve found it and was refused once)."""
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.15], x0=[1.0])
+    sol = solve_constrained(s, protocol, Constraints(chance=[([1.0], 0.5, 0.1)], soft=True, soft_weight=100.0))
+    assert sol.inputs[0, 0] == pytest.approx(0.0, abs=1e-9)
+    assert sol.cost == pytest.approx(1.0, abs=1e-9)
+    assert sol.violations == (("chance[0] at k=1", pytest.approx(0.5, abs=1e-9)),)
+    assert sol.kkt_residual <= CONSTRAINED_KKT_RTOL
+
+
 def test_a_soft_problem_that_could_be_hard_has_the_hard_answer():
     s = _system(9, n=2, m=2, horizon=4)
     hard = _binding_constraints(s, "udp")

@@ -437,6 +437,8 @@ class ConstrainedQP:
             g, _, _ = group.evaluate(mom, u0, system)
             pen = (slack > POLISH_IDENTIFY * size) if is_soft else np.zeros(g.size, bool)
             active.append(~pen & (g - slack >= -POLISH_IDENTIFY * size))
+            if any(active[-1][row] or pen[row] for row in group.kinks):
+                return None        # a row at the norm's kink has no Newton equation: the solver's answer stands
             penalised.append(pen)
             lam.append(np.where(active[-1], multiplier, 0.0))
 
@@ -516,7 +518,9 @@ class ConstrainedQP:
         ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations"}``:
 
         * stationarity ``||grad J + sum lambda_i grad g_i||_inf`` over the largest of its terms' sizes: grad J's
-          input, x0 and plan parts (which cancel at an interior optimum) and ``|lambda_i| ||grad g_i||_inf``;
+          input, x0 and plan parts (which cancel at an interior optimum) and ``|lambda_i| ||grad g_i||_inf``; a chance
+          row at its norm's kink (no noise, the plan zero where it spreads a'x_k) contributes the subgradient of its
+          ball ``{kappa sqrt(D) z : ||z|| <= 1}`` that best cancels the rest;
         * primal ``max (g_i - s_i)_+ / max(1, |b_i|)`` (s_i the slack of a soft row);
         * dual ``max(-lambda_i, lambda_i - rho)_+ / max(lambda)`` (rho the soft weight on a soft row, inf on a hard
           one);
@@ -564,6 +568,16 @@ class ConstrainedQP:
                         if e >= -CONSTRAINED_ACTIVE_RTOL * sz]
             violations += [(label, float(v)) for label, v, sz in zip(group.labels, slack, size, strict=True)
                            if v > CONSTRAINED_ACTIVE_RTOL * sz]
+        for group, lam in zip(self._groups, multipliers, strict=True):     # a kink: the best subgradient
+            for row, scale in group.kinks.items():
+                weight = max(float(lam[row]), 0.0) * scale
+                support = weight > 0
+                if not support.any():
+                    continue
+                z = -total[support] / weight[support]
+                z /= max(1.0, float(np.linalg.norm(z)))
+                total[support] += weight[support] * z
+                largest = max(largest, float(weight.max()))
         # the multipliers' work on the rows' excesses, over the objective the solver minimised (penalty included): the
         # scale of its duality gap, which no rescaling of a row changes
         objective = abs(J_var) + sum(self.constraints.soft_weight * float(np.sum(slack)) for slack in slacks)
@@ -584,6 +598,8 @@ class _Group:
                  P: sp.csr_matrix | None = None, chance: tuple | None = None) -> None:
         self.kind, self.con, self.labels, self.bound, self.slack = kind, con, labels, np.asarray(bound), slack
         self.P, self.chance = P, chance
+        #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale)
+        self.kinks: dict[int, np.ndarray] = {}
 
     def multipliers(self) -> np.ndarray:
         if isinstance(self.con, list):
@@ -607,13 +623,20 @@ class _Group:
         a, b, kappa = self.chance
         g, jac = np.zeros(N), np.zeros((N, u.size))
         hess = np.zeros((N, u.size, u.size)) if hessian else None
+        self.kinks = {}
+        reach = max(1.0, float(np.abs(u).max(initial=0.0)))
         for k in range(1, N + 1):
             h2 = (a @ mom.C[k]) ** 2
-            var = float(np.sum(h2 * u * u) + a @ mom.S[k] @ a)
+            noise = float(a @ mom.S[k] @ a)
+            var = float(np.sum(h2 * u * u) + noise)
             std = np.sqrt(var)
             g[k - 1] = a @ mom.mean[k] + kappa * std - b
             jac[k - 1] = a @ mom.T[k]
-            if std > 0:            # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
+            if noise == 0.0 and std <= CONSTRAINED_ACTIVE_RTOL * np.sqrt(h2.sum()) * reach:
+                # the norm's kink (no noise, the plan ~0 where it spreads a'x_k): no gradient, the subdifferential
+                # {kappa sqrt(D) z : ||z|| <= 1}; kept for the KKT check (:meth:`ConstrainedQP.kkt`)
+                self.kinks[k - 1] = kappa * np.sqrt(h2)
+            elif std > 0:          # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
                 Du = h2 * u
                 jac[k - 1] += kappa * Du / std
                 if hessian:
