@@ -65,7 +65,9 @@ CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, 
 #: N = 4, 20 seeds, both protocols and formulations, input/rate/chance rows binding; Haswell kernel): the polished
 #: answers <= 5.9e-16; Clarabel's own answers up to 7.8e-6 (median 2.3e-8: chance rows stall the tight 1e-10
 #: settings, and the default 1e-8 answer is taken), and a raw residual of 1.1e-7 went with U off by 2.8e-4 (the square
-#: root of the gap): 1e-9 refuses an answer the polish could not make exact rather than pass it.
+#: root of the gap): 1e-9 refuses an answer the polish could not make exact rather than pass it. On 240 random
+#: systems (n, m <= 4, N <= 11, input/rate/state/chance rows, a third soft): 153 optimal (KKT <= 7.3e-11, the one
+#: unpolished answer at a chance row's kink), 87 proven infeasible (each soft twin reports a violation), none refused.
 CONSTRAINED_KKT_RTOL = 1e-9
 #: A constraint is reported binding when g(U) >= -CONSTRAINED_ACTIVE_RTOL max(1, |b|) (Clarabel's tight feasibility
 #: tolerance 1e-10 with a margin), and a soft row violated when its slack exceeds the same.
