@@ -28,8 +28,10 @@ if _typing.TYPE_CHECKING:   # the names a type checker and an IDE see; at run ti
     from .claims import audit
     from .closedloop.law_stability import closed_form
     from .lq.costs import expected_cost, paper_optimal_cost
+    from .model.constraints import Constraints
     from .model.files import load_example, load_system, save_system
     from .model.system import System
+    from .qp.constrained import ConstrainedQP, solve_constrained
     from .qp.expected_cost import ExpectedCostQP, solve_qp
     from .results import Allocation, ClaimResult, CrossCheck, Maximiser, Solution
 
@@ -42,7 +44,8 @@ _LAZY = {
     "load_example": "model.files", "load_system": "model.files", "save_system": "model.files",
     "System": "model.system", "ExpectedCostQP": "qp.expected_cost", "solve_qp": "qp.expected_cost",
     "Allocation": "results", "ClaimResult": "results", "CrossCheck": "results", "Maximiser": "results",
-    "Solution": "results",
+    "Solution": "results", "Constraints": "model.constraints", "ConstrainedQP": "qp.constrained",
+    "solve_constrained": "qp.constrained",
 }
 
 __all__ = [
@@ -56,6 +59,8 @@ __all__ = [
     "SolverError",
     "Allocation",
     "ClaimResult",
+    "ConstrainedQP",
+    "Constraints",
     "CrossCheck",
     "ExpectedCostQP",
     "Maximiser",
@@ -69,6 +74,7 @@ __all__ = [
     "load_system",
     "paper_optimal_cost",
     "save_system",
+    "solve_constrained",
     "solve_qp",
 ]
 

@@ -72,14 +72,19 @@ class SolverError(RuntimeError):
 
 
 class InfeasibleError(RuntimeError):
-    """No point satisfies the constraints; ``min_cost`` is the best reachable cost."""
+    """No point satisfies the constraints; ``min_cost`` is the best reachable cost (where known), ``status`` the
+    solver's status that proved it (where a solver did), ``certificate`` the solver's Farkas multipliers and whether
+    they survive their rounding (where a solver gave them)."""
 
-    def __init__(self, detail: str, min_cost: float | None = None) -> None:
+    def __init__(self, detail: str, min_cost: float | None = None, status: str | None = None,
+                 certificate: dict | None = None) -> None:
         self.min_cost = min_cost
+        self.status = status
+        self.certificate = certificate
         super().__init__(detail)
 
     def __reduce__(self) -> tuple:
-        return type(self), (self.args[0], self.min_cost), self.__dict__
+        return type(self), (self.args[0], self.min_cost, self.status, self.certificate), self.__dict__
 
 
 class NumericalError(ArithmeticError):

@@ -44,6 +44,7 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
 LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "qp.expected_cost": "the QP twin (cvxpy): solve without --no-qp, the audit's QP claims",
     "qp.markov": "the Markov-chain QP twin (cvxpy)",
+    "qp.constrained": "the constrained expected-cost QP (cvxpy): solve only for a file with a [constraints] table",
     "closedloop.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms "
                              "cannot decide",
     "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",

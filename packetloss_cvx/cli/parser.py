@@ -186,7 +186,8 @@ def build_parser() -> argparse.ArgumentParser:
                             "and conditioning, e.g. --method recursion")
     solve.add_argument("--formulation", choices=("condensed", "sparse", "auto"), default="auto",
                        help="the cross-checking QP's form, e.g. --formulation sparse")
-    solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check (closed form only)")
+    solve.add_argument("--no-qp", action="store_true",
+                       help="skip the solvers: the QP cross-check and a [constraints] table (closed form only)")
     solve.add_argument("--stability", action=argparse.BooleanOptionalAction,
                        help="each law's mean-square stability in closed loop: --stability computes it at any n "
                             "(minutes for n in the hundreds), --no-stability skips it (default: computed for "

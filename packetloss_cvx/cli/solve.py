@@ -10,8 +10,10 @@ import numpy as np
 
 from ..closedloop.law_stability import STABILITY_MAX_N, loop_stability
 from ..display import SOLUTION_BASIS, all_delivered_flag
-from ..errors import NumericalError, ResourceError
+from ..errors import InfeasibleError, NumericalError, ResourceError, SolverError
 from ..lq.costs import closed_form
+from ..model.constraints import Constraints
+from ..model.files import load_constraints
 from ..model.system import System
 from ..progress import progress_bar
 from ..results import Solution, eigenvalue_pairs
@@ -20,7 +22,7 @@ from .common import CommandResult, progress_of, system_of
 from .markov_section import markov_section
 from .sensing_section import estimation_section, protocol_entry
 
-__all__ = ["STABILITY_MAX_N", "run", "stability", "text_details"]
+__all__ = ["STABILITY_MAX_N", "constrained_entry", "run", "stability", "text_details"]
 
 
 def run(args: argparse.Namespace) -> CommandResult:
@@ -46,6 +48,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     >>> folder.cleanup()
     """
     system = system_of(args)
+    constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     out: dict[str, Any] = {
         "name": system.name, "n": system.n, "m": system.m, "horizon": system.horizon,
@@ -86,6 +89,9 @@ def run(args: argparse.Namespace) -> CommandResult:
                 timing = f", {qp.solve_time:.3g} s" if args.verbose else ""
                 rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
+        if constraints is not None:
+            entry["constrained"], text = constrained_entry(plugin, protocol, constraints, args)
+            rows.append(("constrained", text))
         rows += text_details(sol, system.n, args.verbose)
         flag = all_delivered_flag(sol)
         if flag is not None:
@@ -96,8 +102,8 @@ def run(args: argparse.Namespace) -> CommandResult:
         wanted = getattr(args, "stability", None)
         if wanted is False or (wanted is None and system.n > STABILITY_MAX_N):
             why = ("skipped (--no-stability)" if wanted is False else
-                   f"skipped for n = {system.n} > {STABILITY_MAX_N} (it can take minutes): add --stability to compute "
-                   "it")
+                   f"skipped for n = {system.n} > {STABILITY_MAX_N} (it can take minutes): add --stability to "
+                   "compute it")
             entry.update({"mean_square_spectral_radius": None, "stable": False,
                           "stability_note": f"not computed: {why}"})
             rows.append(("closed loop", f"stability not computed: {why}"))
@@ -114,6 +120,39 @@ def run(args: argparse.Namespace) -> CommandResult:
         heading = "Gilbert-Elliott channel" if model == "gilbert-elliott" else "Markov channel"
         lines += ["", heading] + [line.strip() for line in more]
     return CommandResult(out, "\n".join(lines))
+
+
+def constrained_entry(system: System, protocol: str, constraints: Constraints,
+                      args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    """The ``"constrained"`` JSON entry of one protocol and its text: the file's ``[constraints]`` solved by
+    :func:`~packetloss_cvx.qp.constrained.solve_constrained` ({"status", "cost", "inputs", "binding", ...}); a proven
+    infeasibility is reported as status "infeasible" with the solver's status and reason (the closed forms above
+    stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped").
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> entry, text = constrained_entry(s, "tcp", Constraints(u_min=[-0.5]), argparse.Namespace(no_qp=False))
+    >>> entry["status"], entry["binding"], round(entry["inputs"][0][0], 6)
+    ('optimal', ['u_min[0] at t=0'], -0.5)
+    """
+    if getattr(args, "no_qp", False):
+        return {"status": "skipped", "reason": "--no-qp"}, "skipped (--no-qp)"
+    from ..qp.constrained import solve_constrained  # cvxpy only where a QP is asked for
+
+    try:
+        sol = solve_constrained(system, protocol, constraints, getattr(args, "formulation", "auto"))
+    except InfeasibleError as err:
+        certificate = err.certificate or {}
+        return ({"status": "infeasible", "solver_status": err.status, "cost": None, "inputs": None, "binding": [],
+                 "certificate": {"verdict": certificate.get("verdict"), "reason": certificate.get("reason"),
+                                 "margin": certificate.get("margin")},
+                 "reason": str(err)}, f"infeasible: {err}")
+    except (SolverError, NumericalError) as err:
+        return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
+                f"not solved: {err}")
+    bound = ", ".join(sol.binding[:6]) + (f", ... ({len(sol.binding)} in all)" if len(sol.binding) > 6 else "")
+    return sol.to_dict(), f"J = {sol.cost:.10g} ({sol.status}); binding: {bound or 'none'}"
 
 
 def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]]:

@@ -20,11 +20,13 @@ from typing import Any
 from ..budgets import BUDGETS, check
 from ..errors import InputError
 from ..safeio import atomic_write
+from .constraints import Constraints, check_constraints, constraints_from_dict
 from .examples import names as packaged_names
 from .sensor import SENSOR_KEYS
 from .system import System
 
-__all__ = ["dumps_system", "example_names", "load_example", "load_system", "load_table", "read_csv_numbers",
+__all__ = ["dumps_system", "example_names", "load_constraints", "load_example", "load_system", "load_table",
+           "read_csv_numbers",
            "read_input",
            "save_system",
            "system_from_dict"]
@@ -46,8 +48,9 @@ _SCHEMA: dict[str, dict[str, str]] = {
 }
 _REQUIRED = {"plant": ("A", "B"), "cost": ("horizon",), "channel": (), "state": ("x0",), "sensor": ()}
 _OPTIONAL_SECTIONS = ("sensor",)
-#: optional sections a System does not hold, read by their own module (``[power]``: allocation/delivery.py)
-OTHER_SECTIONS = ("power",)
+#: optional sections a System does not hold, read by their own module (``[power]``: allocation/delivery.py;
+#: ``[constraints]``: :func:`load_constraints`, model/constraints.py)
+OTHER_SECTIONS = ("power", "constraints")
 
 
 def system_from_dict(data: Mapping[str, Any]) -> System:
@@ -331,6 +334,27 @@ def load_table(path: str | Path) -> dict[str, Any]:
     return _toml(read_input(file, "file"), text)
 
 
+def load_constraints(path: str | Path, system: System | None = None) -> Constraints | None:
+    """The ``[constraints]`` table of a system file (docs/design.md §4) checked against its system (``system``, or
+    the file's own), or None when the file has none. Errors name ``constraints.<key>``. O(size).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> s = load_example("two_actuator")
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = save_system(s, Path(tmp) / "plant.toml", constraints=Constraints(u_min=[-1, -1], u_max=[1, 1]))
+    ...     c = load_constraints(path)
+    >>> c.u_max.tolist(), load_constraints("two_actuator") is None
+    ([1.0, 1.0], True)
+    """
+    table = load_table(path).get("constraints")
+    if table is None:
+        return None
+    system = load_system(path) if system is None else system
+    return constraints_from_dict(table, system.n, system.m)
+
+
 def _parse(data: bytes, where: str) -> System:
     return system_from_dict(_toml(data, where))
 
@@ -352,7 +376,7 @@ def _toml(data: bytes, where: str) -> dict[str, Any]:
     return table
 
 
-def dumps_system(system: System) -> str:
+def dumps_system(system: System, constraints: Constraints | None = None) -> str:
     """The system as TOML text in the schema of docs/design.md §4 (``load_system`` reads it back).
 
     Examples
@@ -364,6 +388,8 @@ def dumps_system(system: System) -> str:
     True
     """
     data = system.to_dict()
+    if constraints is not None:      # the [constraints] table (model/constraints.py), checked against the system
+        data["constraints"] = check_constraints(constraints, system.n, system.m).to_dict()
     lines = [f"name = {_toml_value(data.pop('name'))}", ""] if "name" in data else []
     for section, table in data.items():
         lines.append(f"[{section}]")
@@ -372,7 +398,8 @@ def dumps_system(system: System) -> str:
     return "\n".join(lines)
 
 
-def save_system(system: System, path: str | Path, *, overwrite: bool = False) -> Path:
+def save_system(system: System, path: str | Path, *, overwrite: bool = False,
+                constraints: Constraints | None = None) -> Path:
     """Write ``system`` to ``path`` as TOML, atomically (:func:`~packetloss_cvx.safeio.atomic_write`);
     returns the path. An existing file is refused (:class:`~packetloss_cvx.errors.OutputExistsError`, a
     ValueError) unless ``overwrite=True`` (a user's file is never replaced silently).
@@ -390,7 +417,7 @@ def save_system(system: System, path: str | Path, *, overwrite: bool = False) ->
     if not isinstance(system, System):
         raise InputError("system", f"expected a System, found {type(system).__name__}")
     with atomic_write(path, overwrite=overwrite, text=True, field="path") as handle:   # the path as given ('dir/')
-        handle.write(dumps_system(system))
+        handle.write(dumps_system(system, constraints))
     return Path(path)
 
 
@@ -405,6 +432,6 @@ def _toml_value(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, int):
         return str(value)
-    if isinstance(value, float):
-        return repr(value)                # shortest round-trip repr; always finite in a System
+    if isinstance(value, float):          # shortest round-trip repr; finite in a System, +-inf in [constraints]
+        return repr(value) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
     return "[" + ", ".join(_toml_value(item) for item in value) + "]"

@@ -174,6 +174,12 @@ class ExpectedCostQP:
         Supplies A, B, weights and horizon (fixed) and the initial mu, x0 (parameters).
     protocol : {"tcp", "udp"}
     formulation : {"condensed", "sparse", "auto"}
+    constraints : Constraints or mapping, optional
+        Input, rate, expected-state and chance constraints: :meth:`solve` then solves the constrained problem
+        (:class:`~packetloss_cvx.qp.constrained.ConstrainedQP`, kept as ``constrained``) and returns its
+        :class:`~packetloss_cvx.qp.constrained.ConstrainedSolution` (no gain, no closed form to compare with).
+    solver : str, optional
+        With ``constraints``: any installed cvxpy solver (default Clarabel).
 
     Raises
     ------
@@ -194,9 +200,18 @@ class ExpectedCostQP:
     True
     """
 
-    def __init__(self, system: System, protocol: str, formulation: str = "auto") -> None:
+    def __init__(self, system: System, protocol: str, formulation: str = "auto", *, constraints=None,
+                 solver: str | None = None) -> None:
         system = check_system(system)
         backend = choose_backend(system, formulation)
+        #: with ``constraints``: the :class:`~packetloss_cvx.qp.constrained.ConstrainedQP` that :meth:`solve` runs
+        #: (its ``problem``, ``U``, ``states``, ``x0``, ``mu`` public); None without
+        self.constrained = None
+        if constraints is not None or solver is not None:
+            from .constrained import ConstrainedQP
+
+            self.constrained = ConstrainedQP(system, protocol, {} if constraints is None else constraints,
+                                             backend.formulation, solver)
         #: the backend's name ("condensed" or "sparse"), reported as ``Solution.method = "qp-<formulation>"``
         self.formulation = backend.formulation
         self.protocol = check_protocol(protocol)
@@ -339,6 +354,11 @@ class ExpectedCostQP:
             The QP and the reference disagree beyond the tolerances; both numbers are named.
         """
         protocol = self.protocol if protocol is None else check_protocol(protocol)
+        if self.constrained is not None:
+            if protocol != self.protocol:
+                raise InputError("protocol", f"this QP's constraints were compiled for the {self.protocol}-like "
+                                             f"protocol, found {protocol!r}: build another ExpectedCostQP")
+            return self.constrained.solve(mu, x0)
         system = self.system
         if mu is not None:
             system = system.with_mu(mu)

@@ -1,0 +1,725 @@
+"""The expected-cost QP with constraints: input, rate and expected-state bounds and chance constraints (an SOCP).
+
+:class:`ConstrainedQP` poses one protocol's expected cost (eq:opt-lqg-simplest with Lemma 1) in the commanded
+inputs ``U`` (N×m) under a :class:`~packetloss_cvx.model.constraints.Constraints` (docs/design.md §2.7) and keeps
+everything a cvxpy user reaches for public: ``problem`` (DPP), the variable ``U``, the expected states ``states``
+(an (N, n) expression, row k-1 is E[x_k]), and the Parameters ``x0`` and ``mu`` (an (N, m) schedule). Two
+formulations give the same problem: "condensed" (E[X] = Phi x0 + Gamma (mu ∘ U) as an expression) and "sparse"
+(the mean states as variables, the dynamics as equality constraints). ``solver=`` takes any installed cvxpy
+solver (Clarabel by default, under :func:`~packetloss_cvx.qp.convex.solve_problem`'s policy).
+
+Every solve is checked without cvxpy: the plan's expected cost by the forward pass
+(:func:`~packetloss_cvx.lq.recursion.plan_cost`), and the KKT conditions (stationarity, primal and dual
+feasibility, complementarity) from the solver's multipliers, the constraints evaluated on the moments of x_k by
+their own forward recursion (:func:`plan_moments`) rather than from the matrices the problem was built with. A
+residual beyond ``CONSTRAINED_KKT_RTOL`` raises; infeasibility raises :class:`~packetloss_cvx.errors.InfeasibleError`
+with the solver's status, never a fallback.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InfeasibleError, InputError, NumericalError, SolverError
+from ..linalg import psd_factor
+from ..lq.moments import Moments, plan_moments
+from ..lq.policy import refuse_correlated
+from ..lq.prediction import prediction
+from ..lq.recursion import plan_cost, udp_variance_weights
+from ..model.constraints import Constraints, cantelli_factor, check_constraints
+from ..model.protocols import check_protocol
+from ..model.system import System, check_system
+from ..results.base import Frozen
+from ..tolerances import (
+    ACCEPTED_STATUSES,
+    CLARABEL_DEFAULT,
+    CLARABEL_TIGHT,
+    CONSTRAINED_ACTIVE_RTOL,
+    CONSTRAINED_KKT_RTOL,
+    CROSS_CHECK_COST_RTOL,
+)
+from .convex import PROVEN_INFEASIBLE, solve_problem
+
+__all__ = ["ConstrainedQP", "ConstrainedSolution", "solve_constrained"]
+
+#: Above this many decision variables N*m, ``formulation="auto"`` takes the sparse form (as ExpectedCostQP does).
+AUTO_CONDENSED_MAX = 60
+
+#: At most this many Newton steps polish a solver's answer on its active set (linear rows: one step; the chance rows'
+#: norms: quadratic convergence from the solver's ~1e-5 accurate point).
+POLISH_MAX_STEPS = 20
+#: ... and the active set is corrected (a violated row joins, a negative multiplier leaves) at most this many times.
+POLISH_MAX_ROUNDS = 10
+#: ... and Newton stops where its steps, below this (relative to max|U|), stop shrinking: the rounding of a degenerate
+#: active set (dependent rows, e.g. an input bound and the rate bound beside it), whose KKT matrix is singular.
+POLISH_STALL = 1e-9
+#: A row is taken as active (or a soft row as violated) for the polish's first round where it is within this of its
+#: bound (relative to max(1, |b|)): the solver's plan is accurate to about the square root of its gap, 1e-4 at
+#: Clarabel's default 1e-8 (a chance-constrained problem the tight 1e-10 stalls on). Rows wrongly taken leave by
+#: their multipliers' signs.
+POLISH_IDENTIFY = 1e-4
+
+
+@dataclass(frozen=True)
+class ConstrainedSolution(Frozen):
+    """A constrained plan and what bound it.
+
+    Attributes
+    ----------
+    protocol : {"tcp", "udp"}
+    status : str
+        The solver's status ("optimal"; anything else raised).
+    cost : float
+        The plan's expected cost J(U) by the forward pass (penalties of soft constraints not included).
+    inputs : ndarray (N, m)
+        The commanded inputs.
+    states : ndarray (N, n)
+        E[x_k], k = 1..N, under the plan.
+    binding : tuple of str
+        The constraints active at the plan ("u_max[0] at t=2", "chance[1] at k=5", ...).
+    violations : tuple of (str, float)
+        Soft constraints violated at the plan and by how much (the slack); empty for a hard problem.
+    kkt_residual : float or None
+        The largest relative KKT residual (:meth:`ConstrainedQP.kkt`), None where user constraints were added.
+    formulation, solver : str
+    solve_time : float
+        Seconds in the solver call.
+    solver_kkt_residual : float or None
+        The KKT residual of the solver's own answer, before the polish.
+    polished : bool
+        Whether the plan is the solver's answer refined by Newton's method on its active set
+        (:meth:`ConstrainedQP._polish`), kept only where its KKT residual is no larger than the solver's.
+    """
+
+    protocol: str
+    status: str
+    cost: float
+    inputs: np.ndarray
+    states: np.ndarray
+    binding: tuple[str, ...]
+    violations: tuple[tuple[str, float], ...]
+    kkt_residual: float | None
+    formulation: str
+    solver: str
+    solve_time: float
+    solver_kkt_residual: float | None = None
+    polished: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON entry of ``solve --json`` ("constrained")."""
+        return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
+                "binding": list(self.binding), "violations": [{"constraint": c, "by": v} for c, v in self.violations],
+                "kkt_residual": self.kkt_residual, "solver_kkt_residual": self.solver_kkt_residual,
+                "polished": self.polished, "formulation": self.formulation, "solver": self.solver}
+
+
+def _step_major(expr: cp.Expression, rows: int, cols: int) -> cp.Expression:
+    """An (rows, cols) expression as a vector, row after row (U's flat layout: step-major)."""
+    return cp.reshape(expr, (rows * cols,), order="C")
+
+
+class ConstrainedQP:
+    """One protocol's expected-cost minimisation under constraints, compiled once, re-solvable for new x0 or mu.
+
+    .. math:: \\min_U J(U)\\ \\text{s.t.}\\ u_{min} \\le u_t \\le u_{max},\\ |u_t - u_{t-1}| \\le du_{max},\\
+              x_{min} \\le E[x_k] \\le x_{max},\\ F E[x_k] \\le g,\\
+              a'E[x_k] + \\sqrt{(1-\\epsilon)/\\epsilon}\\,\\|\\Sigma_k^{1/2} a\\| \\le b
+
+    Parameters
+    ----------
+    system : System
+        Bernoulli losses (a stationary channel or a schedule; a Markov chain's losses are correlated over time
+        and refused).
+    protocol : {"tcp", "udp"}
+    constraints : Constraints or mapping (the ``[constraints]`` table)
+    formulation : {"condensed", "sparse", "auto"}
+    solver : str, optional
+        Any installed cvxpy solver (``cp.installed_solvers()``); default Clarabel with tight tolerances.
+    solver_options : dict, optional
+        Passed to ``problem.solve`` for a solver other than the default.
+
+    Attributes
+    ----------
+    problem : cvxpy.Problem
+        DPP; its objective is J(U) less its constant terms, divided by the largest weight.
+    U : cvxpy.Variable (N, m)
+        After :meth:`solve` its value is the solver's own answer; the returned plan is that answer polished
+        (``ConstrainedSolution.polished``).
+    states : cvxpy.Expression (N, n)
+        E[x_1..x_N] under the plan.
+    x0, mu : cvxpy.Parameter
+        n and (N, m); :meth:`solve` sets them (and the Parameters derived from mu).
+
+    Examples
+    --------
+    One step of x' = x + v u from x0 = 1, mu = 1/2, Q = R = 1: the TCP-like optimum u = -2/3 (closed form) is cut
+    to u_min = -1/2, where E[x_1] = 3/4 and J = (3/4)^2 + mu R u^2 = 9/16 + 1/8 by hand.
+
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> qp = ConstrainedQP(s, "tcp", Constraints(u_min=[-0.5]))
+    >>> sol = qp.solve()
+    >>> bool(np.isclose(sol.inputs[0, 0], -0.5)), bool(np.isclose(sol.cost, 9 / 16 + 1 / 8)), sol.binding
+    (True, True, ('u_min[0] at t=0',))
+    >>> qp.problem.is_dpp()
+    True
+    """
+
+    def __init__(self, system: System, protocol: str, constraints: Constraints | Any, formulation: str = "auto",
+                 solver: str | None = None, solver_options: dict | None = None) -> None:
+        system = check_system(system)
+        self.protocol = check_protocol(protocol)
+        refuse_correlated(system, self.protocol)
+        if system.channel is not None:
+            raise InputError("channel", "the constrained QP needs Bernoulli losses (independent over time): a Markov "
+                                        "channel's losses are correlated, so the state covariance of its chance "
+                                        "constraints would be wrong; use the channel's mu (mu = [...]) instead")
+        self.system = system
+        N, n, m = system.horizon, system.n, system.m
+        self.constraints = check_constraints(constraints, n, m)
+        if formulation == "auto":
+            formulation = "condensed" if N * m <= AUTO_CONDENSED_MAX else "sparse"
+        if formulation not in ("condensed", "sparse"):
+            raise InputError("formulation", f"expected 'condensed', 'sparse' or 'auto', found {formulation!r}")
+        self.formulation = formulation
+        if solver is not None and solver not in cp.installed_solvers():
+            raise InputError("solver", f"expected an installed cvxpy solver ({', '.join(cp.installed_solvers())}), "
+                                       f"found {solver!r}")
+        self.solver = solver or cp.CLARABEL
+        self.solver_options = dict(solver_options or {})
+        self._d, self._noise = udp_variance_weights(system)
+        if not (np.all(np.isfinite(self._d)) and np.isfinite(self._noise)):
+            raise NumericalError("the QP's loss-variance weights diag(Omega_g) exceed the double-precision range")
+        #: the objective's scale: J's variable part divided by the largest weight
+        self.scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
+        self._user_constraints = False
+        self._build()
+
+    # ------------------------------------------------------------------------------------------------ building
+    def _build(self) -> None:
+        system, c = self.system, self.constraints
+        N, n, m = system.horizon, system.n, system.m
+        s = self.scale
+        self.x0 = cp.Parameter(n, name="x0")
+        self.mu = cp.Parameter((N, m), nonneg=True, name="mu")
+        self._w = cp.Parameter((N, m), nonneg=True, name="input_weight_over_scale")   # (psi mu + [UDP] d mu(1-mu))/s
+        self._sigma = cp.Parameter((N, m), nonneg=True, name="loss_std")             # sqrt(mu (1 - mu))
+        self.U = cp.Variable((N, m), name="U")
+        u = _step_major(self.U, N, m)
+        y = _step_major(cp.multiply(self.mu, self.U), N, m)        # the mean delivered inputs Vbar U
+        constraints: list[cp.Constraint] = []
+        if self.formulation == "condensed":
+            pred = prediction(system)
+            X = pred.Phi @ self.x0 + pred.Gamma @ y
+        else:
+            E = sp.eye(N * n, format="csr") - sp.kron(sp.eye(N, k=-1), system.A, format="csr")
+            first = sp.csr_matrix(np.vstack([system.A, np.zeros(((N - 1) * n, n))]))
+            X = cp.Variable(N * n, name="xhat")
+            constraints.append(E @ X - sp.kron(sp.eye(N), system.B, format="csr") @ y == first @ self.x0)
+        self.states = cp.reshape(X, (N, n), order="C")
+        L = sp.block_diag([psd_factor(W) for W in system.state_weights], format="csr") / np.sqrt(s)
+        terms = [cp.sum(cp.multiply(self._w, cp.square(self.U)))]
+        if L.shape[0]:
+            terms.append(cp.sum_squares(L @ X))
+        penalty = []
+        self._groups: list[_Group] = []
+        # inputs and rates: hard (U = 0 satisfies them)
+        Gu, hu, labels = _input_rows(c, N, m)
+        if labels:
+            con = Gu @ u <= hu
+            constraints.append(con)
+            self._groups.append(_Group("inputs", con, labels, hu, None, P=Gu))
+        # expected state: box and polyhedron, rows P E[X] <= q
+        P, q, labels = _state_rows(c, N, n)
+        if labels:
+            slack = cp.Variable(len(labels), nonneg=True, name="state_slack") if c.soft else None
+            con = P @ X <= q + (slack if slack is not None else 0)
+            constraints.append(con)
+            self._groups.append(_Group("states", con, labels, q, slack, P=P))
+            if slack is not None:
+                penalty.append(cp.sum(slack))
+        # chance constraints, one SOC per row and step
+        if c.chance:
+            W = _step_major(cp.multiply(self._sigma, self.U), N, m)
+            for i, (a, b, eps) in enumerate(c.chance):
+                H, noise = _chance_data(system, a)
+                kappa = cantelli_factor(eps)
+                slack = cp.Variable(N, nonneg=True, name=f"chance_{i}_slack") if c.soft else None
+                cons = []
+                for k in range(1, N + 1):
+                    nz = np.flatnonzero(H[k - 1])
+                    parts = [cp.multiply(H[k - 1, nz], W[nz])] if nz.size else []
+                    if noise[k - 1] > 0:
+                        parts.append(np.array([np.sqrt(noise[k - 1])]))
+                    lhs = a @ self.states[k - 1]
+                    if parts:
+                        lhs = lhs + kappa * cp.norm(cp.hstack(parts) if len(parts) > 1 else parts[0], 2)
+                    cons.append(lhs <= b + (slack[k - 1] if slack is not None else 0))
+                constraints += cons
+                self._groups.append(_Group("chance", cons, [f"chance[{i}] at k={k}" for k in range(1, N + 1)],
+                                           np.full(N, b), slack, chance=(a, b, kappa)))
+                if slack is not None:
+                    penalty.append(cp.sum(slack))
+        self._penalty = cp.sum(cp.hstack(penalty)) if penalty else None
+        objective = cp.sum(cp.hstack(terms))
+        if self._penalty is not None:
+            objective = objective + (c.soft_weight / s) * self._penalty
+        self.problem = cp.Problem(cp.Minimize(objective), constraints)
+        if not self.problem.is_dpp():  # pragma: no cover - construction guarantees it
+            raise RuntimeError("the constrained expected-cost QP is not DPP")
+
+    def add_constraints(self, constraints: list[cp.Constraint]) -> None:
+        """Add the user's own cvxpy constraints (on ``U``, ``states``, ...) to ``problem``. The KKT check then covers
+        only the package's constraints, so it is skipped (``kkt_residual`` None). O(1) (compiled on the next solve).
+        """
+        self.problem = cp.Problem(self.problem.objective, [*self.problem.constraints, *constraints])
+        self._user_constraints = True
+
+    # ------------------------------------------------------------------------------------------------ solving
+    def _assign(self, system: System) -> None:
+        mu = system.mu_schedule
+        d = self._d * (1.0 - mu) if self.protocol == "udp" else 0.0
+        self.x0.value = system.x0
+        self.mu.value = mu
+        self._w.value = (system.input_weights + d) * mu / self.scale
+        self._sigma.value = np.sqrt(mu * (1.0 - mu))
+
+    def _run_solver(self, what: str) -> str:
+        if self.solver == cp.CLARABEL and not self.solver_options:
+            return solve_problem(self.problem, what, attempts=(CLARABEL_TIGHT, CLARABEL_DEFAULT))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                self.problem.solve(solver=self.solver, **self.solver_options)
+            except cp.error.SolverError as err:
+                raise SolverError("solver_error", f"{what} ({self.solver}): {err}") from None
+        return str(self.problem.status)
+
+    def solve(self, mu=None, x0=None, *, check: bool = True) -> ConstrainedSolution:
+        """Solve for the system's (or the given) ``mu`` (m-vector or N×m schedule) and ``x0``, validated through
+        :class:`System`.
+
+        Raises
+        ------
+        InfeasibleError
+            The solver proved the constraints infeasible (``status`` carries its status); with ``soft`` only the
+            input and rate bounds are hard, and U = 0 satisfies them, so this cannot happen.
+        SolverError
+            Any other status than "optimal" (``optimal_inaccurate`` and ``infeasible_inaccurate`` included).
+        NumericalError
+            With ``check``, a plan whose forward cost disagrees with the solver's objective beyond
+            ``CROSS_CHECK_COST_RTOL``, or whose KKT residual (:meth:`kkt`) exceeds ``CONSTRAINED_KKT_RTOL``.
+        """
+        system = self.system
+        if mu is not None:
+            system = system.with_mu(mu)
+        if x0 is not None:
+            system = system.with_x0(x0)
+        self._assign(system)
+        what = f"the constrained {self.protocol}-like {self.formulation} QP"
+        start = time.perf_counter()
+        status = self._run_solver(what)
+        solve_time = time.perf_counter() - start
+        if status == PROVEN_INFEASIBLE:
+            certificate = self.certificate(system)
+            raise InfeasibleError(f"{what} is infeasible ({self.solver} status {status!r}; certificate "
+                                  f"{certificate['verdict']}): no plan meets {', '.join(self.constraints.kinds())} "
+                                  "from this x0; make the state limits soft (soft = true) or relax them",
+                                  status=status, certificate=certificate)
+        if status not in ACCEPTED_STATUSES:
+            raise SolverError(status, f"{what} ({self.solver}) gave no proven answer")
+        N, m = system.horizon, system.m
+        U = np.asarray(self.U.value, dtype=float).reshape(N, m)
+        cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))
+        penalty = 0.0 if self._penalty is None else self.constraints.soft_weight * float(self._penalty.value)
+        solver_cost = float(self.problem.value) * self.scale + float(system.x0 @ system.initial_weight @ system.x0) \
+            + self._noise - penalty
+        if check and not abs(solver_cost - cost) <= CROSS_CHECK_COST_RTOL * max(abs(cost), self.scale * 1e-9):
+            raise NumericalError(f"{what}: the solver's objective {solver_cost:.10g} and the forward cost of its plan "
+                                 f"{cost:.10g} disagree beyond {CROSS_CHECK_COST_RTOL:.0e} relative")
+        report = self.kkt(system, U)
+        solver_kkt = report["residual"]
+        polished = False
+        if not self._user_constraints and self._groups:
+            refined = self._polish(system, U, report)
+            if refined is not None:
+                better = self.kkt(system, *refined)
+                if better["residual"] <= report["residual"]:
+                    U, report, polished = refined[0], better, True
+                    cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))
+        kkt = None if self._user_constraints else report["residual"]
+        if check and kkt is not None and not kkt <= CONSTRAINED_KKT_RTOL:
+            raise NumericalError(f"{what}: the KKT residual of the solver's answer is {kkt:.2e} ({report['worst']}), "
+                                 f"beyond {CONSTRAINED_KKT_RTOL:.0e}: the answer is not trusted")
+        return ConstrainedSolution(
+            protocol=self.protocol, status=status, cost=float(cost), inputs=U,
+            states=plan_moments(system, U).mean[1:], binding=tuple(report["binding"]),
+            violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
+            solver=self.solver, solve_time=solve_time, solver_kkt_residual=None if self._user_constraints
+            else solver_kkt, polished=polished)
+
+    def certificate(self, system: System) -> dict[str, Any]:
+        """The solver's infeasibility certificate (cvxpy's multipliers after an "infeasible" status), checked without
+        the solver. For linear rows ``G u <= h`` (input, rate and expected-state limits, evaluated on
+        :func:`plan_moments`), multipliers ``y >= 0`` with ``-y'h > ||G'y||_1 max|u|`` prove that no plan exists:
+        ``y'(G u - h) <= 0`` would fail for every u within the input bounds, which every plan meets. Returns
+        ``{"verdict", "reason", "margin", "multipliers"}``: verdict "verified" (the inequality holds with the
+        rounding of the sums bounded), else "undecided" with the reason (chance rows, whose cone multipliers cvxpy
+        does not hand back whole; unbounded inputs; a margin within rounding). O(rows N m).
+        """
+        try:
+            multipliers = [np.asarray(group.multipliers(), dtype=float) for group in self._groups]
+        except (TypeError, ValueError):
+            multipliers = None
+        out: dict[str, Any] = {"verdict": "undecided", "reason": "", "margin": None,
+                               "multipliers": None if multipliers is None else [y.tolist() for y in multipliers]}
+        if multipliers is None or any(not np.all(np.isfinite(y)) for y in multipliers):
+            out["reason"] = "the solver gave no multipliers"
+            return out
+        if any(group.kind == "chance" for group in self._groups) or self.constraints.soft:
+            out["reason"] = "chance rows: a certificate needs their cone multipliers, which cvxpy does not return whole"
+            return out
+        c = self.constraints
+        if c.u_min is None or c.u_max is None or not (np.all(np.isfinite(c.u_min)) and np.all(np.isfinite(c.u_max))):
+            out["reason"] = "the inputs are not bounded on every channel: the certificate's rounding cannot be bounded"
+            return out
+        N, m = system.horizon, system.m
+        mom = plan_moments(system, np.zeros((N, m)))
+        combo, value, size = np.zeros(N * m), 0.0, 0.0
+        for group, y in zip(self._groups, multipliers, strict=True):
+            if np.any(y < 0):                           # a certificate's multipliers are nonnegative
+                out["reason"] = f"a negative multiplier ({float(y.min()):.3g}) on the {group.kind} rows"
+                return out
+            g, jac, _ = group.evaluate(mom, np.zeros(N * m), system)   # g(0) = -h (the rows at u = 0), jac = G
+            combo += jac.T @ y
+            value += float(y @ g)                       # y'(G 0 - h) = -y'h
+            size += float(np.abs(y) @ (np.abs(g) + np.abs(jac).sum(axis=1)))
+        reach = float(np.max(np.maximum(np.abs(c.u_min), np.abs(c.u_max))))
+        margin = value - float(np.abs(combo).sum()) * reach      # min over the input box of y'(G u - h) >= margin
+        rounding = 8 * N * m * np.finfo(float).eps * size * max(1.0, reach)
+        out["margin"] = margin
+        if margin > rounding:
+            out["verdict"], out["reason"] = "verified", f"y'(G u - h) >= {margin:.3g} > 0 on the input box"
+        else:
+            out["reason"] = f"the margin {margin:.3g} does not exceed its rounding {rounding:.1e}"
+        return out
+
+    def _polish(self, system: System, U: np.ndarray, report: dict[str, Any]
+                ) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]] | None:
+        """Newton's method on the KKT equations of the active set the solver's answer shows, from its plan and
+        multipliers: rows active (within ``CONSTRAINED_ACTIVE_RTOL``) held as equalities with their multipliers, soft
+        rows with a positive slack entering J with the weight rho, the rest left out; a row the step violates joins
+        the active set, an active row whose multiplier turns negative (or, soft, beyond rho) leaves it, and Newton
+        runs again, at most ``POLISH_MAX_ROUNDS`` times. An interior-point answer is accurate to about the square root
+        of its absolute gap in U; the active set's equations, quadratic but for the chance rows' norms, are solved to
+        rounding. Returns ``(U, multipliers, slacks)`` per block, or None where no round settles; :meth:`solve` keeps
+        it only where its own KKT residual is no larger than the solver's.
+        O(rounds steps (N^2 n m (n + m) + (N m + rows)^3)).
+        """
+        N, m = system.horizon, system.m
+        rho = self.constraints.soft_weight
+        mu = system.mu_schedule
+        w = ((system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu).ravel()
+        mom = plan_moments(system, U)
+        H_J = 2.0 * np.diag(w) + 2.0 * sum(mom.T[k].T @ system.state_weights[k - 1] @ mom.T[k] for k in range(1, N + 1))
+        u0 = U.ravel().copy()
+        sizes = [np.maximum(1.0, np.abs(group.bound)) for group in self._groups]
+        soft = [group.slack is not None for group in self._groups]
+        active, penalised, lam = [], [], []
+        for group, size, is_soft, multiplier, slack in zip(self._groups, sizes, soft, report["multipliers"],
+                                                           report["slacks"], strict=True):
+            g, _, _ = group.evaluate(mom, u0, system)
+            pen = (slack > POLISH_IDENTIFY * size) if is_soft else np.zeros(g.size, bool)
+            active.append(~pen & (g - slack >= -POLISH_IDENTIFY * size))
+            if any(active[-1][row] or pen[row] for row in group.kinks):
+                return None        # a row at the norm's kink has no Newton equation: the solver's answer stands
+            penalised.append(pen)
+            lam.append(np.where(active[-1], multiplier, 0.0))
+
+        def newton() -> np.ndarray | None:
+            u, previous = u0.copy(), np.inf
+            for _ in range(POLISH_MAX_STEPS):
+                mom = plan_moments(system, u.reshape(N, m))
+                grad = 2.0 * w * u + 2.0 * sum(mom.T[k].T @ (system.state_weights[k - 1] @ mom.mean[k])
+                                               for k in range(1, N + 1))
+                H = H_J.copy()
+                rows, values = [], []
+                for group, act, pen, la in zip(self._groups, active, penalised, lam, strict=True):
+                    g, jac, hess = group.evaluate(mom, u, system, hessian=True)
+                    grad += rho * jac[pen].sum(axis=0) + jac[act].T @ la[act]
+                    if hess is not None:
+                        H += rho * hess[pen].sum(axis=0) + np.einsum("i,ijk->jk", la[act], hess[act])
+                    rows.append(jac[act])
+                    values.append(g[act])
+                J_A = np.vstack(rows)
+                K = np.block([[H, J_A.T], [J_A, np.zeros((J_A.shape[0], J_A.shape[0]))]])
+                step = np.linalg.lstsq(K, -np.concatenate([grad, *values]), rcond=None)[0]
+                if not np.all(np.isfinite(step)):
+                    return None
+                u += step[:u.size]
+                taken = u.size
+                for act, la in zip(active, lam, strict=True):
+                    count = int(act.sum())
+                    la[act] += step[taken:taken + count]
+                    taken += count
+                size, floor = np.abs(step[:u.size]).max(initial=0.0), max(1.0, np.abs(u).max())
+                if size <= 4 * np.finfo(float).eps * floor:
+                    return u
+                if size <= POLISH_STALL * floor and size > previous / 2:   # a degenerate active set's rounding
+                    return u
+                previous = size
+            return None
+
+        for _ in range(POLISH_MAX_ROUNDS):
+            u = newton()
+            if u is None:
+                return None
+            mom = plan_moments(system, u.reshape(N, m))
+            changed = False
+            lam_max = max(float(np.max(np.abs(la), initial=0.0)) for la in lam) or 1.0
+            for group, act, pen, la, size, is_soft in zip(self._groups, active, penalised, lam, sizes, soft,
+                                                          strict=True):
+                g, _, _ = group.evaluate(mom, u, system)
+                joins = ~act & ~pen & (g > CONSTRAINED_ACTIVE_RTOL * size)      # violated: held as an equality
+                if is_soft:
+                    to_penalty = act & (la > rho * (1 + CONSTRAINED_ACTIVE_RTOL))
+                    back = pen & (g < -CONSTRAINED_ACTIVE_RTOL * size)         # a penalised row now satisfied
+                    pen[to_penalty], pen[back] = True, False
+                    act[to_penalty] = False
+                    joins &= ~to_penalty
+                    changed |= bool(to_penalty.any() or back.any())
+                leaves = act & (la < -CONSTRAINED_ACTIVE_RTOL * lam_max)
+                act[leaves], la[leaves] = False, 0.0
+                act[joins], la[joins] = True, 0.0
+                changed |= bool(joins.any() or leaves.any())
+            if not changed:
+                break
+        else:
+            return None
+        multipliers, slacks = [], []
+        for group, act, pen, la in zip(self._groups, active, penalised, lam, strict=True):
+            g, _, _ = group.evaluate(mom, u, system)
+            multipliers.append(np.where(pen, rho, np.where(act, la, 0.0)))
+            slacks.append(np.where(pen, np.maximum(g, 0.0), 0.0))
+        return u.reshape(N, m), multipliers, slacks
+
+    # ------------------------------------------------------------------------------------------------ the check
+    def kkt(self, system: System, U: np.ndarray, multipliers: list[np.ndarray] | None = None,
+            slacks: list[np.ndarray] | None = None) -> dict[str, Any]:
+        """The KKT conditions at the plan ``U`` with the last solve's multipliers (or ``multipliers``, ``slacks``: one
+        array per constraint block, in the cost's units), every constraint and gradient evaluated on
+        :func:`plan_moments` (not on the matrices the problem was built from). Returns
+        ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations"}``:
+
+        * stationarity ``||grad J + sum lambda_i grad g_i||_inf`` over the largest of its terms' sizes: grad J's
+          input, x0 and plan parts (which cancel at an interior optimum) and ``|lambda_i| ||grad g_i||_inf``; a chance
+          row at its norm's kink (no noise, the plan zero where it spreads a'x_k) contributes the subgradient of its
+          ball ``{kappa sqrt(D) z : ||z|| <= 1}`` that best cancels the rest;
+        * primal ``max (g_i - s_i)_+ / max(1, |b_i|)`` (s_i the slack of a soft row);
+        * dual ``max(-lambda_i, lambda_i - rho)_+ / max(lambda)`` (rho the soft weight on a soft row, inf on a hard
+          one);
+        * complementarity ``sum |lambda_i (g_i - s_i)|`` over the objective the solver minimised (J's variable part
+          plus the penalty): the duality gap's own scale.
+
+        O(N^2 n m (n + m)) for the moments plus O(rows N m).
+        """
+        N = system.horizon
+        mom = plan_moments(system, U)
+        u = U.ravel()
+        mu = system.mu_schedule
+        w = (system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu
+        grad_J = 2.0 * w.ravel() * u
+        free_part, plan_part = np.zeros_like(u), np.zeros_like(u)   # grad J's terms in x0 and in U (they cancel)
+        J_var = float(np.sum(w.ravel() * u * u))
+        for k in range(1, N + 1):
+            Wk = system.state_weights[k - 1]
+            free = mom.mean[k] - mom.T[k] @ u                          # A^k x0
+            free_part += 2.0 * mom.T[k].T @ (Wk @ free)
+            plan_part += 2.0 * mom.T[k].T @ (Wk @ (mom.T[k] @ u))
+            J_var += float(mom.mean[k] @ Wk @ mom.mean[k])
+        grad_J += free_part + plan_part
+        total = grad_J.copy()
+        rho = self.constraints.soft_weight if self.constraints.soft else np.inf
+        largest = max(float(np.abs(part).max(initial=0.0)) for part in (2.0 * w.ravel() * u, free_part, plan_part))
+        primal = dual = comp = 0.0
+        binding, violations, pairs = [], [], []
+        lam_max = 0.0
+        if multipliers is None:
+            multipliers = [group.multipliers() * self.scale for group in self._groups]
+            slacks = [group.slack_values() for group in self._groups]
+        for group, lam, slack in zip(self._groups, multipliers, slacks, strict=True):
+            g, jac, _ = group.evaluate(mom, u, system)
+            lam_max = max(lam_max, float(np.max(np.abs(lam), initial=0.0)))
+            total += jac.T @ lam
+            largest = max(largest, float(np.max(np.abs(lam) * np.abs(jac).max(axis=1, initial=0.0), initial=0.0)))
+            size = np.maximum(1.0, np.abs(group.bound))
+            excess = g - slack
+            primal = max(primal, float(np.max(np.maximum(excess, 0.0) / size, initial=0.0)))
+            cap = rho if group.slack is not None else np.inf        # a soft row's multiplier is at most rho
+            dual = max(dual, float(np.max(np.maximum(-lam, lam - cap), initial=0.0)))
+            pairs.append((np.abs(lam), np.abs(excess)))
+            binding += [label for label, e, sz in zip(group.labels, excess, size, strict=True)
+                        if e >= -CONSTRAINED_ACTIVE_RTOL * sz]
+            violations += [(label, float(v)) for label, v, sz in zip(group.labels, slack, size, strict=True)
+                           if v > CONSTRAINED_ACTIVE_RTOL * sz]
+        for group, lam in zip(self._groups, multipliers, strict=True):     # a kink: the best subgradient
+            for row, scale in group.kinks.items():
+                weight = max(float(lam[row]), 0.0) * scale
+                support = weight > 0
+                if not support.any():
+                    continue
+                z = -total[support] / weight[support]
+                z /= max(1.0, float(np.linalg.norm(z)))
+                total[support] += weight[support] * z
+                largest = max(largest, float(weight.max()))
+        # the multipliers' work on the rows' excesses, over the objective the solver minimised (penalty included): the
+        # scale of its duality gap, which no rescaling of a row changes
+        objective = abs(J_var) + sum(self.constraints.soft_weight * float(np.sum(slack)) for slack in slacks)
+        comp = sum(float(np.sum(lam_abs * excess_abs)) for lam_abs, excess_abs in pairs) / max(objective, 1e-300)
+        stationarity = float(np.abs(total).max(initial=0.0)) / max(largest, 1e-300)
+        dual = dual / max(lam_max, 1e-300)
+        parts = {"stationarity": stationarity, "primal": primal, "dual": dual, "complementarity": comp}
+        worst = max(parts, key=parts.get)
+        return {"residual": parts[worst], "worst": worst, **parts, "binding": binding, "violations": violations,
+                "multipliers": multipliers, "slacks": slacks}
+
+
+class _Group:
+    """A block of constraints of one kind: its cvxpy constraint(s), labels, bounds, slack, and its evaluation on the
+    plan's moments (values g_i - b_i and their gradients)."""
+
+    def __init__(self, kind: str, con: Any, labels: list[str], bound: np.ndarray, slack: cp.Variable | None,
+                 P: sp.csr_matrix | None = None, chance: tuple | None = None) -> None:
+        self.kind, self.con, self.labels, self.bound, self.slack = kind, con, labels, np.asarray(bound), slack
+        self.P, self.chance = P, chance
+        #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale)
+        self.kinks: dict[int, np.ndarray] = {}
+
+    def multipliers(self) -> np.ndarray:
+        if isinstance(self.con, list):
+            return np.array([float(c.dual_value) for c in self.con])
+        return np.asarray(self.con.dual_value, dtype=float).ravel()
+
+    def slack_values(self) -> np.ndarray:
+        return np.zeros(len(self.labels)) if self.slack is None else np.asarray(self.slack.value, dtype=float)
+
+    def evaluate(self, mom: Moments, u: np.ndarray, system: System, hessian: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """``(g - b, dg/du, d2g/du2 or None)`` of the block's rows at u; the chance rows' Hessians (N × N m × N m)
+        only when asked (the polish)."""
+        N = system.horizon
+        if self.kind == "inputs":
+            return self.P @ u - self.bound, self.P.toarray(), None
+        if self.kind == "states":
+            mean = mom.mean[1:].ravel()
+            T = mom.T[1:].reshape(N * system.n, -1)
+            return self.P @ mean - self.bound, np.asarray(self.P @ T), None
+        a, b, kappa = self.chance
+        g, jac = np.zeros(N), np.zeros((N, u.size))
+        hess = np.zeros((N, u.size, u.size)) if hessian else None
+        self.kinks = {}
+        reach = max(1.0, float(np.abs(u).max(initial=0.0)))
+        for k in range(1, N + 1):
+            h2 = (a @ mom.C[k]) ** 2
+            noise = float(a @ mom.S[k] @ a)
+            var = float(np.sum(h2 * u * u) + noise)
+            std = np.sqrt(var)
+            g[k - 1] = a @ mom.mean[k] + kappa * std - b
+            jac[k - 1] = a @ mom.T[k]
+            if noise == 0.0 and std <= CONSTRAINED_ACTIVE_RTOL * np.sqrt(h2.sum()) * reach:
+                # the norm's kink (no noise, the plan ~0 where it spreads a'x_k): no gradient, the subdifferential
+                # {kappa sqrt(D) z : ||z|| <= 1}; kept for the KKT check (:meth:`ConstrainedQP.kkt`)
+                self.kinks[k - 1] = kappa * np.sqrt(h2)
+            elif std > 0:          # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
+                Du = h2 * u
+                jac[k - 1] += kappa * Du / std
+                if hessian:
+                    hess[k - 1] = kappa * (np.diag(h2) / std - np.outer(Du, Du) / std**3)
+        return g, jac, hess
+
+
+def _input_rows(c: Constraints, N: int, m: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
+    """Rows ``G u <= h`` (u step-major) of the input and rate bounds, with their labels."""
+    rows, rhs, labels = [], [], []
+    eye = sp.eye(N * m, format="csr")
+    for name, sign, values in (("u_max", 1.0, c.u_max), ("u_min", -1.0, c.u_min)):
+        if values is None:
+            continue
+        for t in range(N):
+            for i in np.flatnonzero(np.isfinite(values)):
+                rows.append(sign * eye[t * m + i])
+                rhs.append(sign * values[i])
+                labels.append(f"{name}[{i}] at t={t}")
+    if c.du_max is not None:
+        for t in range(1, N):
+            for i in np.flatnonzero(np.isfinite(c.du_max)):
+                diff = eye[t * m + i] - eye[(t - 1) * m + i]
+                rows += [diff, -diff]
+                rhs += [c.du_max[i], c.du_max[i]]
+                labels += [f"du_max[{i}] at t={t} (up)", f"du_max[{i}] at t={t} (down)"]
+    G = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * m))
+    return G, np.array(rhs), labels
+
+
+def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
+    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron, with their labels."""
+    rows, rhs, labels = [], [], []
+    eye = sp.eye(N * n, format="csr")
+    for name, sign, values in (("x_max", 1.0, c.x_max), ("x_min", -1.0, c.x_min)):
+        if values is None:
+            continue
+        for k in range(1, N + 1):
+            for j in np.flatnonzero(np.isfinite(values)):
+                rows.append(sign * eye[(k - 1) * n + j])
+                rhs.append(sign * values[j])
+                labels.append(f"{name}[{j}] at k={k}")
+    if c.F is not None:
+        for k in range(1, N + 1):
+            for r in np.flatnonzero(np.isfinite(c.g)):
+                rows.append(sp.csr_matrix((c.F[r], (np.zeros(n, int), (k - 1) * n + np.arange(n))), shape=(1, N * n)))
+                rhs.append(c.g[r])
+                labels.append(f"F[{r}] at k={k}")
+    P = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * n))
+    return P, np.array(rhs), labels
+
+
+def _chance_data(system: System, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``H`` (N × N m) with ``H[k-1, j m + i] = a' A^{k-1-j} B e_i`` (j < k) and the noise variances ``a' S_k a``:
+    ``Var(a' x_k) = sum_j sum_i H[k-1, j m + i]^2 mu(1 - mu) u^2 + a' S_k a``. By the backward products a' A^p,
+    O(N^2 n (n + m))."""
+    N, n, m = system.horizon, system.n, system.m
+    A, B = system.A, system.B
+    powers = np.zeros((N, n))            # a' A^p, p = 0..N-1
+    powers[0] = a
+    for p in range(1, N):
+        powers[p] = powers[p - 1] @ A
+    H = np.zeros((N, N * m))
+    noise = np.zeros(N)
+    for k in range(1, N + 1):
+        for j in range(k):
+            H[k - 1, j * m:(j + 1) * m] = powers[k - 1 - j] @ B
+        noise[k - 1] = sum(float(powers[p] @ system.noise_cov @ powers[p]) for p in range(k))
+    return H, noise
+
+
+def solve_constrained(system: System, protocol: str, constraints: Constraints | Any, formulation: str = "auto",
+                      solver: str | None = None, **kwargs) -> ConstrainedSolution:
+    """Minimise the protocol's expected cost under ``constraints`` (:class:`ConstrainedQP`, solved once; keep the
+    object to re-solve for other x0 or mu without recompiling). Keyword arguments go to :meth:`ConstrainedQP.solve`.
+
+    Examples
+    --------
+    With no constraint binding the answer is Theorem 1's (u = -2/3, J = 2/3 here):
+
+    >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
+    >>> sol = solve_constrained(s, "tcp", Constraints(u_min=[-5.0], u_max=[5.0]))
+    >>> bool(np.allclose([sol.inputs[0, 0], sol.cost], [-2 / 3, 2 / 3], atol=1e-8)), sol.binding
+    (True, ())
+    """
+    return ConstrainedQP(system, protocol, constraints, formulation, solver).solve(**kwargs)
