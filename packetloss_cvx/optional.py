@@ -1,4 +1,4 @@
-"""The heavy optional libraries: the one list of what a function may import lazily, and :func:`load`.
+"""The heavy optional libraries: the one list of what a function may import lazily, and `load`.
 
 Every module imports its dependencies at the top, except these: libraries that are an optional extra
 (absent after a plain ``pip install packetloss-cvx``) or slow to import and needed on few paths. A
@@ -8,8 +8,8 @@ and refusing bad input stay fast, and the closed-form paths never pay for a solv
 Three readers share this list, which is why it lives in the package (the bottom layer, beside
 ``errors``) and not in a test: ``tests/test_architecture.py`` allows exactly these names inside
 functions, ``tests/test_cli_native.py`` checks that ``--help``, usage errors and bad input import none
-of them, and :func:`load` imports one for the package, turning a missing extra into an
-:class:`~packetloss_cvx.errors.InputError` that says how to install it (never a bare traceback).
+of them, and `load` imports one for the package, turning a missing extra into an
+[`InputError`][packetloss_cvx.errors.InputError] that says how to install it (never a bare traceback).
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def load(name: str, field: str) -> ModuleType:
     ------
     InputError
         Field ``field`` when the library is not installed, naming the extra that installs it; field
-        ``name`` when ``name`` is not in :data:`LAZY_IMPORTS` (import it at the top of the module).
+        ``name`` when ``name`` is not in `LAZY_IMPORTS` (import it at the top of the module).
 
     Examples
     --------

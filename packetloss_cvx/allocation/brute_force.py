@@ -10,7 +10,7 @@ one evaluation (monotonicity), made for up to SPECULATE grid points in one batch
 O((coarse + fine) · log(1/tol)) recursions of O(N (n^3 + m^3)) at worst.
 
 The search is a generator that asks for the costs of lists of points and decides on what it
-gets back; :func:`brute_force_allocations` runs several searches of one system side by side,
+gets back; `brute_force_allocations` runs several searches of one system side by side,
 their requests pooled into batched recursions (a point's cost does not depend on the batch it is
 in, below 64 points), each search taking the decisions it takes alone.
 """
@@ -77,7 +77,7 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 @blas_limited
 def brute_force_allocations(system: System, protocol: str, cases: Sequence[tuple], coarse: int = 61, fine: int = 61,
                             tol: float = BRUTE_FORCE_BISECTION_TOL) -> list[Answer | Exception]:
-    """:func:`brute_force_allocation` for several cases ``(alpha, beta)`` or ``(alpha, beta, G, h)`` of one
+    """`brute_force_allocation` for several cases ``(alpha, beta)`` or ``(alpha, beta, G, h)`` of one
     system and protocol, the searches run side by side: each round pools every search's request into
     batched recursions of fewer than 64 points, points asked before read back. Each answer is what the
     case gives alone (the same decisions); a case whose evaluations raise gets the exception in its place
@@ -231,7 +231,7 @@ def midpoints(a: float, b: float, depth: int = 4) -> list[float]:
 
 def bisect_steps(a: float, b: float, tol: float, depth: int = 4,
                  first: list[bool] | None = None) -> Generator[list[float], list[bool], float]:
-    """:func:`bisect` as a generator: yields each batch of midpoints, is sent their decisions, returns
+    """`bisect` as a generator: yields each batch of midpoints, is sent their decisions, returns
     the feasible end. O(log2((b - a) / tol) / depth) batches of 2^depth - 1 points.
 
     Examples

@@ -1,11 +1,11 @@
 """Allocation behind Markov chains: the decision is each channel's mean delivery rate, moved along a one-parameter
 family of chains that is proved to make the exact cost fall as the rate rises.
 
-Per channel the family (the **k-state rule**, :func:`chain_family`; docs/design.md, "Allocation behind chains"):
+Per channel the family (the **k-state rule**, `chain_family`; docs/design.md, "Allocation behind chains"):
 
 * *burstiness held* for a Gilbert channel (two states, delivering always in one and never in the other, burstiness
   ``lambda = 1 - p - r`` in [0, 1)): ``p = (1 - mu)(1 - lambda)``, ``r = mu (1 - lambda)``
-  (:func:`~packetloss_cvx.model.twins.bursty_twin`'s family), every mean rate in [0, 1];
+  (`bursty_twin`'s family), every mean rate in [0, 1];
 * *deliveries scaled* for every other chain (k states, fractional deliveries, lambda < 0): the transition matrix
   held and the delivery vector scaled, ``d(mu) = d mu / mubar`` (mubar the file's mean rate), which reaches the
   mean rates ``[0, mubar / max(d)]``: the link the file describes with an independent erasure added, the loss
@@ -99,7 +99,7 @@ class ChainFamily:
 
     def channel_at(self, mu: np.ndarray) -> MarkovChannel:
         """The chains at mean rates ``mu`` (m,), each clipped to [0, top_i]: Gilbert–Elliott channels when every
-        channel is Gilbert (the numbers :func:`chain_at` gives, written back as a Gilbert–Elliott table), else
+        channel is Gilbert (the numbers `chain_at` gives, written back as a Gilbert–Elliott table), else
         k-state chains. O(m K^3)."""
         mu = np.clip(np.asarray(mu, dtype=float), 0.0, self.top)
         if self.gilbert:
@@ -193,11 +193,11 @@ def chain_at(system: System, lam: np.ndarray, mu: np.ndarray) -> System:
 
 class ChainEvaluator:
     """``mu -> J*_chain(mu)``, the exact UDP-like minimum with each channel's chain at mean rate mu_i along its
-    family (:class:`ChainFamily`, or an array of burstiness for Gilbert channels), with the interface the branch and
-    bound uses (:meth:`cost`, :meth:`line`). Rates above a family's top are evaluated at the top (the function
+    family (`ChainFamily`, or an array of burstiness for Gilbert channels), with the interface the branch and
+    bound uses (`cost`, `line`). Rates above a family's top are evaluated at the top (the function
     stays nonincreasing; the allocation's rows keep its answers below). Every value is self-checked by
-    :func:`~packetloss_cvx.lq.markov_cost.exact_closed_form` (``checked`` is accepted and ignored: nothing is skipped).
-    Per point the cost of ``exact_closed_form`` at the system's horizon.
+    [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form] (``checked`` is accepted and ignored: nothing
+    is skipped). Per point the cost of ``exact_closed_form`` at the system's horizon.
 
     Examples
     --------

@@ -24,10 +24,11 @@ __all__ = ["case_ids", "corollary_1", "corollary_2", "optimal_plan", "theorem_2"
 
 def optimal_plan(ctx: Context, system: System, protocol: str, case: bool | None = None) -> Solution:
     """Theorem 1's plan at the system's own channel: from the audit's cached evaluator for one of its
-    cases (built once, shared by the claims, :meth:`CostEvaluator.optimum`), from
-    :func:`~packetloss_cvx.lq.costs.closed_form` for any other system (a shrunk counterexample's candidates,
-    computed as before). Equal to rounding either way (tests: 1e-12). ``case``: whether ``system`` is one
-    of the cases, when the caller knows (:func:`case_ids`), else looked up.
+    cases (built once, shared by the claims,
+    [`CostEvaluator.optimum`][packetloss_cvx.lq.evaluator.CostEvaluator.optimum]), from
+    [`closed_form`][packetloss_cvx.lq.costs.closed_form] for any other system (a shrunk counterexample's candidates,
+    computed as before). Equal to rounding either way (tests: 1e-12). ``case``: whether ``system`` is one of the cases,
+    when the caller knows (`case_ids`), else looked up.
 
     Examples
     --------

@@ -2,7 +2,7 @@
 lines, matrices with labelled rows and columns under their label, numbers in ``%.6g``.
 
 Numbers appear in the same order as in the JSON (eigenvalues sorted by descending modulus,
-as :func:`packetloss_cvx.results.eigenvalue_pairs` sorts them); a real eigenvalue prints as a
+as `packetloss_cvx.results.eigenvalue_pairs` sorts them); a real eigenvalue prints as a
 real number. Nothing here computes: each helper formats what it is given. O(size of the output).
 """
 
@@ -28,8 +28,8 @@ MAX_COLUMNS = 8
 
 
 def name(text: Any) -> str:
-    r"""A user-given name or path as the text shows it: control characters escaped (:func:`~packetloss_cvx.
-    printable.printable`), so a system named ``"\x1b[31m..."`` prints as ``\x1b[31m...``. O(len(text)).
+    r"""A user-given name or path as the text shows it: control characters escaped
+    (`printable.printable`), so a system named ``"\x1b[31m..."`` prints as ``\x1b[31m...``. O(len(text)).
 
     Examples
     --------
@@ -70,8 +70,8 @@ def supported_digits(value: float, error: float, most: int = 17) -> int:
 
 
 def supported(value: float, error: float) -> float:
-    """``value`` rounded to the significant digits its accuracy estimate ``error`` supports (:func:`supported_digits`):
-    what JSON and CSV print. O(1).
+    """``value`` rounded to the significant digits its accuracy estimate ``error`` supports
+    ([`supported_digits`][packetloss_cvx.cli.format.supported_digits]): what JSON and CSV print. O(1).
 
     Examples
     --------
@@ -82,8 +82,8 @@ def supported(value: float, error: float) -> float:
 
 
 def num_within(value: float, error: float, digits: int = 6) -> str:
-    """``value`` as :func:`num` prints it, to no more digits than ``error`` supports, with ``± error`` beside it where
-    that is fewer than ``digits``. O(1).
+    """``value`` as [`num`][packetloss_cvx.cli.format.num] prints it, to no more digits than ``error`` supports, with
+    ``± error`` beside it where that is fewer than ``digits``. O(1).
 
     Examples
     --------

@@ -98,8 +98,10 @@ def run(args: argparse.Namespace) -> CommandResult:
         wanted = getattr(args, "stability", None)
         if wanted is False or (wanted is None and system.n > STABILITY_MAX_N):
             why = ("skipped (--no-stability)" if wanted is False else
-                   f"skipped for n = {system.n} > {STABILITY_MAX_N} (it can take minutes): add --stability to compute it")
-            entry.update({"mean_square_spectral_radius": None, "stable": False, "stability_note": f"not computed: {why}"})
+                   f"skipped for n = {system.n} > {STABILITY_MAX_N} (it can take minutes): "
+                   "add --stability to compute it")
+            entry.update({"mean_square_spectral_radius": None, "stable": False,
+                          "stability_note": f"not computed: {why}"})
             rows.append(("closed loop", f"stability not computed: {why}"))
         else:
             rows.append(("closed loop", stability(system, sol.gain, entry)))
@@ -141,7 +143,8 @@ def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]
 
 def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     """Mean-square stability of the receding-horizon law u = -K x run for ever over the file's channel
-    (:func:`~packetloss_cvx.closedloop.law_stability.loop_stability`); adds its keys to ``entry``, returns the sentence.
+    ([`loop_stability`][packetloss_cvx.closedloop.law_stability.loop_stability]); adds its keys to ``entry``, returns
+    the sentence.
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """The loop behind Markov channels as a Markov jump linear system (MJLS).
 
 Mode theta_k = the joint channel state (prod_i k_i modes of a
-:class:`~packetloss_cvx.model.channel.MarkovChannel`, 2^m for Gilbert–Elliott channels; channels independent:
+[`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel], 2^m for Gilbert–Elliott channels; channels independent:
 the mode chain's transition matrix is the Kronecker product of the channels' own). In mode a, actuator i's
 packet arrives with probability h_{a,i} (d_i of the state; h_good or h_bad), independently. The closed loop
 ``x_{k+1} = (A - B V_k K_a) x_k``
@@ -59,12 +59,12 @@ def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarr
     """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
     significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
     product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
-    :data:`MAX_MODES`. Time O(M^2 + M m).
+    `MAX_MODES`. Time O(M^2 + M m).
 
     Raises
     ------
     InputError
-        A product chain beyond :data:`MAX_MODES` modes (more than :data:`MAX_CHANNELS` Gilbert–Elliott channels).
+        A product chain beyond `MAX_MODES` modes (more than `MAX_CHANNELS` Gilbert–Elliott channels).
 
     Examples
     --------
@@ -80,7 +80,7 @@ def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h, start)``: :func:`mode_chain`'s joint states, transition matrix and per-mode delivery
+    """``(modes, T, h, start)``: `mode_chain`'s joint states, transition matrix and per-mode delivery
     probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
     own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
 
@@ -101,8 +101,8 @@ def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def mode_start(channel: MarkovChannel) -> np.ndarray:
-    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`,
-    in :func:`mode_chain`'s order. O(M m).
+    """P(mode at the first step) from each channel's start in `chain_matrices`,
+    in `mode_chain`'s order. O(M m).
 
     Examples
     --------
@@ -129,7 +129,7 @@ def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def check_operator_size(modes: int, n: int) -> None:
     """Refuse, before building it, a dense coupled operator beyond the ``operator_rows`` budget (budgets.py; by
-    default :data:`MAX_OPERATOR_DIM` rows).
+    default `MAX_OPERATOR_DIM` rows).
 
     Raises
     ------
@@ -166,7 +166,7 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: MarkovChannel,
     to the controller); ``"next"``: the gain follows the previous mode a, the deliveries the mode b the chain
     moves to (``Q_b <- sum_a T_ab E_{v|b}[G_a Q_a G_a']``, the TCP-like law of a Gilbert channel, whose
     acknowledgement reveals the last state). Time O(M 2^m n^4 + M^2 n^4), memory O(M^2 n^4); refused
-    beyond :data:`MAX_OPERATOR_DIM` rows (:func:`check_operator_size`).
+    beyond `MAX_OPERATOR_DIM` rows (`check_operator_size`).
 
     Examples
     --------
@@ -185,15 +185,15 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: MarkovChannel,
 
 def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gains: np.ndarray,
                        delivery: str = "current", method: str = "auto") -> float:
-    """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
+    """Spectral radius of the coupled second-moment map (`second_moment_operator`): < 1 iff the switched
     loop is mean-square stable.
 
     ``method``: "dense", the eigenvalues of the (M n^2)^2 matrix, time O((M n^2)^3), refused (BudgetError)
-    beyond the ``operator_rows`` budget (:data:`MAX_OPERATOR_DIM` rows); "krylov", ARPACK on the map applied matrix-free
+    beyond the ``operator_rows`` budget (`MAX_OPERATOR_DIM` rows); "krylov", ARPACK on the map applied matrix-free
     (O(M^2 n^2 + M n^2 (n + m)) per product, O(M n^2) memory per vector), its value checked against
     Collatz–Wielandt bounds proven from its eigenvector and a power bound, falling back to dense within
-    :data:`MAX_OPERATOR_DIM` rows where it fails the check (NumericalError beyond); "auto", dense up to
-    :data:`DENSE_MAX_DIM` rows, else Krylov (:func:`~packetloss_cvx.closedloop.modes.mode_radius`). A failed
+    `MAX_OPERATOR_DIM` rows where it fails the check (NumericalError beyond); "auto", dense up to
+    `DENSE_MAX_DIM` rows, else Krylov (`mode_radius`). A failed
     eigenvalue routine (numpy.linalg.LinAlgError) is a NumericalError, as is an operator that is not finite.
 
     Examples
@@ -271,7 +271,7 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
     Raises
     ------
     InputError
-        No Markov channel, or more than :data:`MAX_CHANNELS` channels.
+        No Markov channel, or more than `MAX_CHANNELS` channels.
     NumericalError
         No convergence within ``max_iter`` (the loop is not mean-square stabilisable, or barely),
         or a residual of the coupled equations above ``SELF_CHECK_RTOL`` relative to max ||P_a||.
@@ -316,11 +316,11 @@ def coupled_riccati(system: System, max_iter: int = 20000) -> MjlsResult:
 def _coupled_riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, Omega: np.ndarray, Psi: np.ndarray,
                   T: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One backward step of the coupled equations: (P_a, K_a) for every mode a, all modes as one batch of
-    Theorem 1's step (:func:`packetloss_cvx.lq.recursion.riccati_step` with ``mu = h_a``, ``P = E_a`` and the
-    loss variance weighted by E_a): ``S_a = H_a G_a`` with ``G_a = B'E_aB H_a + diag(psi + (1 - h_a)
-    diag(B'E_aB))`` (the diagonal of ``H Psi H + diag(h (1 - h)) Psi`` is ``h psi``), so ``S_a K = H_a B'E_a A``
-    and ``G_a K = B'E_a A`` agree on the actuators that can deliver; K_a = 0 on the others (their row never
-    reaches P_a: it is multiplied by h = 0). O(M (M n^2 + n^3 + m^3))."""
+    Theorem 1's step ([`packetloss_cvx.lq.recursion.riccati_step`][packetloss_cvx.lq.recursion.riccati_step] with
+    ``mu = h_a``, ``P = E_a`` and the loss variance weighted by E_a): ``S_a = H_a G_a`` with
+    ``G_a = B'E_aB H_a + diag(psi + (1 - h_a) diag(B'E_aB))`` (the diagonal of ``H Psi H + diag(h (1 - h)) Psi`` is
+    ``h psi``), so ``S_a K = H_a B'E_a A`` and ``G_a K = B'E_a A`` agree on the actuators that can deliver; K_a = 0 on
+    the others (their row never reaches P_a: it is multiplied by h = 0). O(M (M n^2 + n^3 + m^3))."""
     E = np.einsum("ab,bij->aij", T, P)
     E = 0.5 * (E + E.transpose(0, 2, 1))
     psi = np.broadcast_to(np.diag(Psi), h.shape)

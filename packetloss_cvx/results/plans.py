@@ -39,7 +39,7 @@ class CrossCheck:
 @dataclass(frozen=True)
 class LoopStability:
     """Mean-square stability of a plan's receding-horizon law u = -K x run for ever over the system's channel
-    (:func:`packetloss_cvx.closedloop.law_stability.loop_stability`).
+    ([`loop_stability`][packetloss_cvx.closedloop.law_stability.loop_stability]).
 
     Attributes
     ----------
@@ -111,8 +111,8 @@ class Solution(Frozen):
         For QPs, the comparison with the closed form.
     stability : LoopStability or None
         Mean-square stability of u = -K x over the channel, once
-        :func:`packetloss_cvx.closedloop.law_stability.with_stability` attached it (a Solution alone does not know the
-        channel).
+        [`with_stability`][packetloss_cvx.closedloop.law_stability.with_stability] attached it (a Solution alone does
+        not know the channel).
     """
 
     protocol: str
@@ -157,7 +157,7 @@ class Solution(Frozen):
 @dataclass(frozen=True)
 class BatchSolution(Frozen):
     """Optimal plans for a batch of channels (``points`` of them) of one system
-    (:class:`~packetloss_cvx.lq.evaluator.CostEvaluator`).
+    ([`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator]).
 
     Attributes
     ----------

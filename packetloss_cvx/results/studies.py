@@ -223,7 +223,8 @@ class Maximiser(Frozen):
 
 @dataclass(frozen=True)
 class Sweep(Frozen):
-    """Optimal costs over a grid of delivery probabilities (:mod:`packetloss_cvx.studies.sweeps`).
+    """Optimal costs over a grid of delivery probabilities
+        ([`packetloss_cvx.studies.sweeps`][packetloss_cvx.studies.sweeps]).
 
     ``axes``: one array per swept dimension; ``costs``: protocol -> array over the grid;
     ``difference``: J*_udp - J*_tcp over the grid (None unless both protocols were swept);
@@ -282,7 +283,8 @@ class MinCost(Frozen):
 
 @dataclass(frozen=True)
 class DesignSweep(Frozen):
-    """Optimal costs over a design study (:func:`packetloss_cvx.studies.sweep`), over its points.
+    """Optimal costs over a design study ([`packetloss_cvx.studies.sweep`][packetloss_cvx.studies.design.sweep]), over
+        its points.
 
     ``kind``: "mu-grid", "mu-list", "x0-scale" or "horizon"; ``dims``/``axes``: the swept dimensions,
     slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2), the points being the axes'
@@ -332,8 +334,8 @@ class DesignSweep(Frozen):
         return {**out, **{f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)}}
 
     def grid(self, name: str) -> np.ndarray:
-        """The flat array ``name`` (as :meth:`arrays` names it: cost_tcp, cost_udp, cost_diff, radius_<protocol>,
-        mu, x0, horizon) on the sweep's axes: shape :attr:`shape` (mu: ``shape + (m,)``, x0: ``shape + (n,)``), so
+        """The flat array ``name`` (as `arrays` names it: cost_tcp, cost_udp, cost_diff, radius_<protocol>,
+        mu, x0, horizon) on the sweep's axes: shape `shape` (mu: ``shape + (m,)``, x0: ``shape + (n,)``), so
         ``grid("cost_udp")[j, i]`` is at ``axes[0][j], axes[1][i]`` (a 2-D grid: mu2 = axes[0], mu1 = axes[1]).
         A read-only view, O(1).
 
@@ -354,7 +356,7 @@ class DesignSweep(Frozen):
                 "chunk_size": self.chunk_size, **{k: v.tolist() for k, v in self.arrays().items()}}
 
     def to_xarray(self) -> Any:
-        """An :class:`xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
+        """An `xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
         mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(points (m + n))."""
         try:
             import xarray as xr  # lazy: an optional extra
