@@ -4,7 +4,7 @@ TCP-like design plus the link's price against the cheapest UDP-like design, in e
 ([`allocate`][packetloss_cvx.allocation.api.allocate]) or total transmit power
 ([`.power.least_power`][packetloss_cvx.allocation.power.least_power]).
 
-Theorem 2 (J*_udp >= J*_tcp) makes every UDP-like design a TCP-like one of no greater cost, so the
+Theorem 2 (`J*_udp` >= `J*_tcp`) makes every UDP-like design a TCP-like one of no greater cost, so the
 break-even price ``udp_total - tcp_total`` is >= 0 (to the certified gaps): the UDP-like design wins when the
 acknowledgement link costs more than that.
 """

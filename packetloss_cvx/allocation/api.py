@@ -1,18 +1,18 @@
-"""Channel allocation M* (§VI): the cheapest delivery probabilities that keep J* <= alpha.
+"""Channel allocation `M*` (§VI): the cheapest delivery probabilities that keep `J*` <= alpha.
 
 .. math:: \\min_{\\mu} \\beta'\\mu \\quad\\text{s.t.}\\quad J^*(\\mu) \\le \\alpha,\\
    \\mu \\in [lo, hi]^m,\\ G\\mu \\le h
 
 (eq:alpha_channels, eq:channel-opt, eq:opt_M), stationary channels. The TCP-like problem is
 an SOCP (`.tcp`), the UDP-like one a monotonic branch and bound (`.udp`) that also
-uses the TCP-like optimum as a lower bound (Theorem 2: J*_udp >= J*_tcp).
+uses the TCP-like optimum as a lower bound (Theorem 2: `J*_udp` >= `J*_tcp`).
 
 What the results promise:
 
 * ``mu`` is feasible: the closed form gives ``J*(mu) <= alpha``, and mu meets the bounds and
   rows (to ``ALLOCATION_LP_FEASIBILITY``);
 * ``lower_bound`` is proved: no feasible mu has ``beta'mu < lower_bound`` (LP duals evaluated
-  exactly, tangent cuts of the convex J*_tcp, monotonicity of J*_udp; the closed form trusted
+  exactly, tangent cuts of the convex `J*_tcp`, monotonicity of `J*_udp`; the closed form trusted
   to ``ALLOCATION_COST_RTOL``);
 * status "optimal" means ``gap <= `` the requested gap; "gap_not_certified" means a cap was
   hit (or the bound could not be tightened) and ``gap`` is the gap actually reached;
@@ -143,8 +143,8 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1: J*_udp = 1 - mu/2, least at the top of the box; two such
-    channels with mu1 + mu2 <= 1: J*_tcp = 1/(1 + mu1) + 1/(1 + mu2), least (4/3) at (1/2, 1/2).
+    One step of x' = x + v u from x0 = 1: `J*_udp` = 1 - mu/2, least at the top of the box; two such
+    channels with mu1 + mu2 <= 1: `J*_tcp` = 1/(1 + mu1) + 1/(1 + mu2), least (4/3) at (1/2, 1/2).
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> least = min_cost(s, "udp", bounds=(0.0, 0.5))
@@ -208,8 +208,8 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
 def allocate(system: System, protocol: str, alpha: float, beta, bounds=(0.0, 1.0),
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
              max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None) -> Allocation:
-    """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
-    The paper's eq:alpha_channels (J* <= alpha), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
+    """The cheapest channel qualities mu (min beta'mu) with `J*(mu)` <= alpha, with a certificate.
+    The paper's eq:alpha_channels (`J*` <= alpha), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
 
     Parameters
     ----------

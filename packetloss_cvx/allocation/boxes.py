@@ -51,9 +51,9 @@ class Outcome(NamedTuple):
 
     ``mu`` the point (None if none), ``value`` its objective, ``lower_bound`` a proven lower
     bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
-    ``boxes`` boxes explored, ``note`` how it ended, ``cost`` J*(mu) where the solver evaluated it
+    ``boxes`` boxes explored, ``note`` how it ended, ``cost`` `J*(mu)` where the solver evaluated it
     (`cost_function`, equal to `cost_at` to rounding), else None; ``scale`` the unit of the gap's
-    floor (`gap_unit`): 1 at unit prices, J* at the box's lower corner for a cost.
+    floor (`gap_unit`): 1 at unit prices, `J*` at the box's lower corner for a cost.
     Construction O(1).
 
     Examples
@@ -125,7 +125,7 @@ def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1 (Q = R = 1): J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2.
+    One step of x' = x + v u from x0 = 1 (Q = R = 1): `J*_tcp` = 1/(1 + mu), `J*_udp` = 1 - mu/2.
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> bool(np.isclose(cost_at(s, "tcp", np.array([0.5])), 2 / 3)), cost_at(s, "udp", np.array([1.5]))  # clipped to 1
@@ -489,9 +489,9 @@ def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: 
     Each step evaluates f where the line through (a, f(a)) and (b, f(b)) crosses alpha (1 -
     ALLOCATION_AIM_RTOL) (regula falsi,
     the Illinois variant: an end kept twice has its value halved), at least tol/4 inside the bracket;
-    the bracket is always valid, so the contract is bisection's. J* along a line is smooth: about 4-6
+    the bracket is always valid, so the contract is bisection's. `J*` along a line is smooth: about 4-6
     evaluations where bisection takes log2((b - a) / tol), 8 to 25 in the allocation; never more than
-    about 4 log2((b - a) / tol). Where alpha's own crossing lies more than tol beyond the aim's (J* shallow
+    about 4 log2((b - a) / tol). Where alpha's own crossing lies more than tol beyond the aim's (`J*` shallow
     at a small tol), the end game steps a just below it and b 3/4 tol above (the aim's margin cannot be kept
     within tol there) instead of creeping down by tol / 4 (300-800 evaluations at tol = 1e-9).
 

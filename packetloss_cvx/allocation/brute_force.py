@@ -1,8 +1,8 @@
 """An independent reference allocator for two channels, by exhaustive search.
 
-For each mu1 on a grid, the least feasible mu2 by bisection (J* falls in mu2, Theorem 3;
+For each mu1 on a grid, the least feasible mu2 by bisection (`J*` falls in mu2, Theorem 3;
 bisection keeps the feasible end), then a finer grid around the best mu1. Shares nothing
-with the SOCP or the branch and bound, and evaluates J* by the backward recursion (the
+with the SOCP or the branch and bound, and evaluates `J*` by the backward recursion (the
 allocation's "auto" takes the dense form on small systems), so the audit and the tests use it
 to check them. Every value it returns is beta'mu at a point the recursion finds feasible, so
 it is never below the optimum. Grid points that cannot beat the best so far are settled by
@@ -55,9 +55,9 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 
     Examples
     --------
-    Two decoupled copies of x' = x + v u (N = 1): J*_tcp = sum 1/(1 + mu_i), J*_udp = sum (1 - mu_i/2).
+    Two decoupled copies of x' = x + v u (N = 1): `J*_tcp` = sum 1/(1 + mu_i), `J*_udp` = sum (1 - mu_i/2).
 
-    J*_tcp <= 1.5 costs mu1 + mu2 >= 2/3 (at 1/3, 1/3); J*_udp <= 1.5 is mu1 + mu2 >= 1, bought at (1, 0)
+    `J*_tcp` <= 1.5 costs mu1 + mu2 >= 2/3 (at 1/3, 1/3); `J*_udp` <= 1.5 is mu1 + mu2 >= 1, bought at (1, 0)
     when mu2 costs twice as much.
 
     >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
@@ -161,7 +161,7 @@ def _search(alpha: float, beta: Sequence[float], G: np.ndarray | None, h: np.nda
 
     def best_mu2(mu1: float, lo: float, top: float, top_ok: bool) -> Generator[list[Point], list[float], float | None]:
         """The least feasible mu2 in [lo, top] (to tol, feasible end), or None; ``top_ok``: whether
-        J*(mu1, top) <= alpha. J*(mu1, lo) and the bisection's first 2^4 - 1 midpoints are asked in
+        `J*`(mu1, top) <= alpha. `J*`(mu1, lo) and the bisection's first 2^4 - 1 midpoints are asked in
         one batch. O(log2(1/tol)) batches at most."""
         if not top_ok:
             return None

@@ -15,7 +15,7 @@ Per channel the family (the **k-state rule**, `chain_family`; docs/design.md, "A
 ``J*_chain(mu) = exact_closed_form(chains at mu).cost <= alpha``, with the rows ``mu_i <= mubar_i / max(d_i)`` of
 the scaled channels added to the user's.
 
-Why the UDP-like branch and bound stays certified: J*_chain is nonincreasing in each mu_i along both families.
+Why the UDP-like branch and bound stays certified: `J*_chain` is nonincreasing in each mu_i along both families.
 Burstiness held: with ``W = Vbar U`` the exact cost is ``C + 2 W'g + W'(Omega_g + Psi) W + sum_i rho_i Q_i(W)``,
 ``rho_i = (1 - mu_i) / mu_i`` and ``Q_i(W) = W_i'((Omega_g)_ii ∘ L_i + Psi_i) W_i >= 0`` (L_i the Toeplitz matrix
 lambda_i^|t - s|, positive semidefinite for |lambda_i| < 1, so the Schur product is): for each W the cost falls as
@@ -23,7 +23,8 @@ mu_i grows, so does its minimum over W. Deliveries scaled: for 0 <= s <= 1 the c
 chain with ``d`` behind an independent coin that passes a packet with probability s, and the realised cost depends
 on the plan and the deliveries only through the delivered inputs ``v ∘ U``; so the expected cost of a plan U under
 ``s d`` is the average, over the coin, of the expected costs under ``d`` of the thinned plans ``c ∘ U``, each at
-least J*(d): J*(s d) >= J*(d). Neither argument bounds the UDP-like cost by the TCP-like one, so no Theorem-2 floor
+least `J*(d)`: `J*`(s d) >= `J*(d)`. Neither argument bounds the UDP-like cost by the TCP-like one, so no Theorem-2
+floor
 is used: it is not established under a chain. The burstiness-held family is not extended to fractional deliveries:
 there it is not monotone (docs/design.md gives the counterexample, tested).
 

@@ -76,7 +76,7 @@ class PowerProgram:
 
     Examples
     --------
-    J*_tcp = 1/(1 + mu) (one step of x' = x + v u from x0 = 1), mu = 1 - exp(-P): J* <= 0.8 needs mu = 1/4,
+    `J*_tcp` = 1/(1 + mu) (one step of x' = x + v u from x0 = 1), mu = 1 - exp(-P): `J*` <= 0.8 needs mu = 1/4,
     P = log(4/3):
 
     >>> from packetloss_cvx.allocation.delivery import power_model
@@ -447,13 +447,13 @@ def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: st
 def _rayleigh_relaxation(setup: _Setup, constraints: Sequence[Constraint], problem: str, alpha: float, C: float,
                          prices: np.ndarray | None, gap: float) -> tuple[np.ndarray | None, float, str]:
     """TCP-like rayleigh through conic programs: the problem with the curve replaced by
-    `rayleigh_majorant` (a concave table above it, so its J*_tcp is lower at every P) is convex,
-    and its certified bound (tangent cuts) bounds the rayleigh problem below. Its point, moved onto {J* <= alpha}
+    `rayleigh_majorant` (a concave table above it, so its `J*_tcp` is lower at every P) is convex,
+    and its certified bound (tangent cuts) bounds the rayleigh problem below. Its point, moved onto {`J*` <= alpha}
     by the true curve for the least power, is the incumbent. Each round adds the tangents at the point's powers
     (Kelley's cutting planes) until the incumbent is within ``gap`` of the bound: where the optimum has every
     P_i >= c_i (the majorant is exact there in the limit) the branch and bound then explores no box; elsewhere
     it starts from this floor. The gap is `gap_unit`'s, at the problem's size: 1 for the power at unit
-    prices, J* at the box's lower corner (its largest cost) for the cost. Returns (incumbent or None, floor, the note
+    prices, `J*` at the box's lower corner (its largest cost) for the cost. Returns (incumbent or None, floor, the note
     for ``method``); a conic failure is no verdict (the bound found before is kept, the note says so).
     O(RAYLEIGH_ROUNDS) conic programs with O(K) table rows."""
     system, model, top = setup.system, setup.model, setup.top

@@ -147,8 +147,8 @@ class TCPProgram:
 
     Examples
     --------
-    J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1, C = 0): the least mu with J* <= 0.8 is 0.25;
-    the least J* over mu in [0, 0.5] is 1/(1 + 0.5):
+    `J*_tcp(mu)` = 1/(1 + mu) (one step of x' = x + v u from x0 = 1, C = 0): the least mu with `J*` <= 0.8 is 0.25;
+    the least `J*` over mu in [0, 0.5] is 1/(1 + 0.5):
 
     >>> from packetloss_cvx.allocation.grammar import read_polytope
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
@@ -221,7 +221,7 @@ def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = No
 
     Examples
     --------
-    J*_tcp(mu) = 1/(1 + mu) for one step of x' = x + v u from x0 = 1, so dJ*/dmu = -1/(1 + mu)^2.
+    `J*_tcp(mu)` = 1/(1 + mu) for one step of x' = x + v u from x0 = 1, so `dJ*`/dmu = -1/(1 + mu)^2.
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> cost, grad = tangent(s, np.array([0.5]))
@@ -339,20 +339,20 @@ def interval(poly: Polytope) -> tuple[float, float]:
 
 def least_feasible(system: System, evaluator: CostEvaluator, a: float, b: float, alpha: float, tol: float
                    ) -> tuple[float, float, float, int]:
-    """One channel: the least mu in [a, b] with J*_tcp(mu) <= alpha, given J*(b) <= alpha, to within a
-    relative width ``tol`` on the feasible side; returns it, J* there, the infeasible end of the final
+    """One channel: the least mu in [a, b] with `J*_tcp(mu)` <= alpha, given `J*(b)` <= alpha, to within a
+    relative width ``tol`` on the feasible side; returns it, `J*` there, the infeasible end of the final
     bracket (its tangent proves the bound: `tangent_cuts`' ``also``) and the number of batches.
 
-    J*_tcp is convex and falling in mu: a Newton step from the infeasible end lands short of the
-    crossing (the tangent lies below J*), the chord from it to the feasible end beyond it (the chord
+    `J*_tcp` is convex and falling in mu: a Newton step from the infeasible end lands short of the
+    crossing (the tangent lies below `J*`), the chord from it to the feasible end beyond it (the chord
     lies above), so each batch of those two closed forms (`tangent`) shrinks the bracket, the
     Newton side quadratically; a step that would leave the bracket is replaced by its midpoint. Every
-    decision is the closed form's J* <= alpha at a point, so the answer is feasible whatever the
+    decision is the closed form's `J*` <= alpha at a point, so the answer is feasible whatever the
     steps. O(log log(1/tol)) batches in practice (at most 200), each O(N (n^3 + m^3)).
 
     Examples
     --------
-    J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1): J* <= 0.8 from mu = 0.25 on.
+    `J*_tcp(mu)` = 1/(1 + mu) (one step of x' = x + v u from x0 = 1): `J*` <= 0.8 from mu = 0.25 on.
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> mu, cost, short, batches = least_feasible(s, CostEvaluator(s, "tcp"), 0.0, 1.0, 0.8, 1e-9)
@@ -393,19 +393,19 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     Returns
     -------
     Outcome
-        ``mu`` with J*_tcp(mu) <= alpha by the closed form; ``lower_bound`` proved by the
+        ``mu`` with `J*_tcp(mu)` <= alpha by the closed form; ``lower_bound`` proved by the
         tangent cuts at and around the solver's point (`tangent_cuts`, computed before
-        mu is moved): every mu of the polytope with J*_tcp(mu) <= alpha meets every cut, so
+        mu is moved): every mu of the polytope with `J*_tcp(mu)` <= alpha meets every cut, so
         no such mu has ``beta'mu < lower_bound``. Status "optimal" when the gap
         (`reported_gap` at scale 1) is within ``gap``, else
-        "gap_not_certified"; ``cost`` J*_tcp(mu)
+        "gap_not_certified"; ``cost`` `J*_tcp(mu)`
         (`cost_function`, each point evaluated once).
 
     Raises
     ------
     InfeasibleError
-        alpha < C (no mu can help), J*_tcp at the upper corner of the bounds above alpha
-        (J* falls in every mu_i), or Clarabel's infeasibility certificate for the SOCP
+        alpha < C (no mu can help), `J*_tcp` at the upper corner of the bounds above alpha
+        (`J*` falls in every mu_i), or Clarabel's infeasibility certificate for the SOCP
         (status ``infeasible``; ``infeasible_inaccurate`` is not a proof and raises SolverError).
     SolverError
         Any status but optimal after Clarabel's tight then default settings
@@ -503,9 +503,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
 
 
 def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
-    """min J*_tcp(mu) over the polytope: the SOCP, then the closed form at its point (a
+    """min `J*_tcp(mu)` over the polytope: the SOCP, then the closed form at its point (a
     reachable cost) and the LP ``min t`` over the polytope with ``t >= r_k + S_k mu`` for the
-    tangent cuts around it (a proven lower bound: the cuts are minorants of J*_tcp).
+    tangent cuts around it (a proven lower bound: the cuts are minorants of `J*_tcp`).
 
     Raises
     ------

@@ -301,7 +301,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
 
     Examples
     --------
-    Two decoupled copies of x' = x + v u (N = 1): J*_udp = sum (1 - mu_i/2), so J*_udp <= 1.5 is
+    Two decoupled copies of x' = x + v u (N = 1): `J*_udp` = sum (1 - mu_i/2), so `J*_udp` <= 1.5 is
     mu1 + mu2 >= 1; with mu2 twice as dear the cheapest point is (1, 0).
 
     >>> from packetloss_cvx.allocation.grammar import read_polytope
@@ -408,8 +408,8 @@ def row_caps(poly: Polytope, l: np.ndarray, u: np.ndarray) -> np.ndarray:
 def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: float | None,
                  cost: MonotoneCost | None = None, incumbent: np.ndarray | None = None, floor: float = -np.inf,
                  what: str = "UDP-like minimum cost", gap: float = MIN_COST_RTOL) -> Outcome:
-    """min J*_udp over the polytope, to ``MIN_COST_RTOL``: the minimum sits at a maximal point;
-    boxes are bounded by J*(upper corner) (Theorem 3) and incumbents are maximal LP points.
+    """min `J*_udp` over the polytope, to ``MIN_COST_RTOL``: the minimum sits at a maximal point;
+    boxes are bounded by `J*`(upper corner) (Theorem 3) and incumbents are maximal LP points.
     ``cost``, ``incumbent``: as for `udp_allocate`; ``floor``: a proven lower bound from elsewhere;
     ``gap``: the relative gap to certify.
 

@@ -66,7 +66,7 @@ def _is_case(ctx: Context, system: System) -> bool:
 
 @blas_limited
 def theorem_2(ctx: Context) -> ClaimResult:
-    """J*_udp - J*_tcp > 0 for interior channels (Theorem 2, from eq:G-inequality), by the
+    """`J*_udp` - `J*_tcp` > 0 for interior channels (Theorem 2, from eq:G-inequality), by the
     cancellation-free difference.
 
     Examples
@@ -102,7 +102,7 @@ def theorem_2(ctx: Context) -> ClaimResult:
 
 @blas_limited
 def corollary_1(ctx: Context) -> ClaimResult:
-    """||U*_udp|| < ||U*_tcp|| for interior channels.
+    """||`U*_udp`|| < ||`U*_tcp`|| for interior channels.
 
     Examples
     --------
@@ -127,7 +127,7 @@ def corollary_1(ctx: Context) -> ClaimResult:
 
 @blas_limited
 def theorem_3(ctx: Context) -> ClaimResult:
-    """J*(mu1) > J*(mu2) for mu2 > mu1 entrywise, both protocols (Theorem 3, eq:monotonic-cost-pos-def).
+    """`J*(mu1)` > `J*(mu2)` for mu2 > mu1 entrywise, both protocols (Theorem 3, eq:monotonic-cost-pos-def).
 
     Examples
     --------

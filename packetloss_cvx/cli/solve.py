@@ -33,8 +33,8 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1 (Q = R = 1, mu = 0.5): J*_tcp = 1/(1 + mu) = 2/3 with u = -2/3 x,
-    J*_udp = 1 - mu/2 = 0.75 with u = -x/2.
+    One step of x' = x + v u from x0 = 1 (Q = R = 1, mu = 0.5): `J*_tcp` = 1/(1 + mu) = 2/3 with u = -2/3 x,
+    `J*_udp` = 1 - mu/2 = 0.75 with u = -x/2.
 
     >>> import tempfile
     >>> from pathlib import Path

@@ -1,4 +1,4 @@
-"""``packetloss-cvx sweep FILE``: J*_tcp, J*_udp and J_Delta over a design study, saved with a figure."""
+"""``packetloss-cvx sweep FILE``: `J*_tcp`, `J*_udp` and J_Delta over a design study, saved with a figure."""
 
 from __future__ import annotations
 

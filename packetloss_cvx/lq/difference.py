@@ -1,4 +1,4 @@
-"""The cost difference J_Delta = J*_udp - J*_tcp between the protocols (§IV): its value, its derivative
+"""The cost difference J_Delta = `J*_udp` - `J*_tcp` between the protocols (§IV): its value, its derivative
 (Lemma 2), the roots of det f (Lemma 3), Theorem 4's maximiser and robust numerical maximisers.
 
 For a shared ("scalar") channel every actuator has delivery probability nu, Vbar = nu I, and
@@ -66,7 +66,7 @@ def _mu_vector(system: System, mu) -> np.ndarray:
 
 
 def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> float:
-    """J*_udp - J*_tcp at ``mu`` (scalar nu, m-vector, N×m schedule, or the system's own):
+    """`J*_udp` - `J*_tcp` at ``mu`` (scalar nu, m-vector, N×m schedule, or the system's own):
     eq:cost-diff-def, and eq:cost-diff-eq for a shared channel.
 
     Dense and cancellation-free: O((N m)^3). Pass ``pred`` to reuse the prediction.

@@ -116,7 +116,7 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
 def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Mapping[Any, Sequence[Mapping]],
                              levels: Sequence[float], *, title: str | None = None,
                              path: str | Path | None = None) -> Figure:
-    """Figs. 6–7: J*(mu) over [0, 1]^2 on a logarithmic colour scale, the contours J* = alpha and the optimal
+    """Figs. 6–7: `J*(mu)` over [0, 1]^2 on a logarithmic colour scale, the contours `J*` = alpha and the optimal
     allocation on each contour for each price vector beta
     ([`plot_log_contour`][packetloss_cvx.plots.figures.plot_log_contour] draws it).
 

@@ -31,13 +31,13 @@ __all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "
 class Allocation(Frozen):
     """The cheapest channel qualities found, with a certificate.
 
-    ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: J*(mu) by the
+    ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: `J*(mu)` by the
     closed form (<= alpha); ``lower_bound``: a proven lower bound on the optimal beta'mu;
     ``gap``: (communication_cost - lower_bound) / max(communication_cost, 1e-12);
     ``status``: "optimal" (the gap is certified) or "gap_not_certified" (a cap on boxes or time
     was hit; ``gap`` is the gap reached); ``method``: how it was solved; ``boxes``: boxes the
     UDP-like branch and bound explored (0 for the TCP-like SOCP). ``lower_bound`` is proved:
-    tangent cuts of the convex J*_tcp with an exactly evaluated LP dual (TCP-like), the branch
+    tangent cuts of the convex `J*_tcp` with an exactly evaluated LP dual (TCP-like), the branch
     and bound's remaining boxes (UDP-like).
     """
 
@@ -69,10 +69,10 @@ class Allocation(Frozen):
 class PowerAllocation(Frozen):
     """Transmit power per channel with a certificate (allocation/power.py).
 
-    ``problem``: "least-power" (min sum P with J* <= ``limit`` = alpha; ``lower_bound`` proven on the total
-    power) or "least-cost" (min J* with sum P <= ``limit`` = the budget; ``lower_bound`` proven on J*);
+    ``problem``: "least-power" (min sum P with `J*` <= ``limit`` = alpha; ``lower_bound`` proven on the total
+    power) or "least-cost" (min `J*` with sum P <= ``limit`` = the budget; ``lower_bound`` proven on `J*`);
     ``model``: the delivery-versus-power model as a dict; ``power`` (m,), ``total_power``, ``mu`` = mu(power),
-    ``cost`` = J*(mu) by the closed form; ``gap``: (objective - lower_bound) / objective; ``status``
+    ``cost`` = `J*(mu)` by the closed form; ``gap``: (objective - lower_bound) / objective; ``status``
     "optimal" or "gap_not_certified"; ``method``; ``boxes`` the branch and bound explored. Construction O(m).
     """
 
@@ -227,7 +227,7 @@ class Sweep(Frozen):
         ([`packetloss_cvx.studies.sweeps`][packetloss_cvx.studies.sweeps]).
 
     ``axes``: one array per swept dimension; ``costs``: protocol -> array over the grid;
-    ``difference``: J*_udp - J*_tcp over the grid (None unless both protocols were swept);
+    ``difference``: `J*_udp` - `J*_tcp` over the grid (None unless both protocols were swept);
     ``difference_method``: how the difference was computed.
     """
 
@@ -289,8 +289,8 @@ class DesignSweep(Frozen):
     ``kind``: "mu-grid", "mu-list", "x0-scale" or "horizon"; ``dims``/``axes``: the swept dimensions,
     slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2), the points being the axes'
     Cartesian product in C order; ``mu`` (points, m), ``x0`` (points, n), ``horizon`` (points,): each point;
-    ``costs``: protocol -> J* (points,); ``difference``: J*_udp - J*_tcp (points,) or None, the difference of
-    the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 J*_udp
+    ``costs``: protocol -> `J*` (points,); ``difference``: `J*_udp` - `J*_tcp` (points,) or None, the difference of
+    the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 `J*_udp`
     absolute (so not relatively where the costs nearly agree); ``name``: the system's;
     ``chunk_size``: points per batched evaluation (in process or per Dask task); ``radii``: protocol ->
     the mean-square spectral radius of its receding-horizon law's closed loop at each point (points,), when

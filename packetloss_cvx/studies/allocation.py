@@ -1,5 +1,5 @@
-"""Studies built on the allocation: the Pareto trade-off alpha <-> beta'mu* and the optimal
-allocations on cost contours (§VI, Figs. 6–7), with the J*(mu) grid those figures show.
+"""Studies built on the allocation: the Pareto trade-off alpha <-> beta'`mu*` and the optimal
+allocations on cost contours (§VI, Figs. 6–7), with the `J*(mu)` grid those figures show.
 
 They compute data; `packetloss_cvx.plots.figures` draws it.
 """

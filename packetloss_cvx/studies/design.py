@@ -1,4 +1,4 @@
-"""Design studies: J*_tcp, J*_udp and J_Delta over many channels, initial states or horizons.
+"""Design studies: `J*_tcp`, `J*_udp` and J_Delta over many channels, initial states or horizons.
 
 [`sweep`][packetloss_cvx.studies.design.sweep] evaluates one of
 
@@ -168,9 +168,9 @@ def _horizons(system: System, values: Any) -> np.ndarray:
 
 
 def _difference(costs: dict[str, np.ndarray], mu: np.ndarray) -> np.ndarray:
-    """J*_udp - J*_tcp, exactly 0 where every channel is deterministic (each mu_i in {0, 1}: the UDP-like
+    """`J*_udp` - `J*_tcp`, exactly 0 where every channel is deterministic (each mu_i in {0, 1}: the UDP-like
     term U' Vbar Omega_d (I - Vbar) U vanishes and the two problems are the same; their two evaluations
-    would differ by rounding, about 1e-15 J*, and could make the difference negative). O(points m)."""
+    would differ by rounding, about 1e-15 `J*`, and could make the difference negative). O(points m)."""
     diff = costs["udp"] - costs["tcp"]
     diff[np.all((mu == 0) | (mu == 1), axis=1)] = 0.0
     return diff
@@ -181,7 +181,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
           horizons: Sequence[int] | None = None, protocols: Sequence[str] = PROTOCOLS,
           chunk_size: int = DEFAULT_CHUNK, dask: Any = None, workers: int | None = None,
           stability: bool = False, progress: bool | None = None) -> DesignSweep:
-    """J*_tcp, J*_udp and J_Delta = J*_udp - J*_tcp over one design study.
+    """`J*_tcp`, `J*_udp` and J_Delta = `J*_udp` - `J*_tcp` over one design study.
 
     Parameters
     ----------
@@ -199,7 +199,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
     horizons : sequence of int
         Each horizon N (the system's weights must be the same at every step).
     protocols : sequence of {"tcp", "udp"}
-        Both by default (then ``difference`` is J*_udp - J*_tcp).
+        Both by default (then ``difference`` is `J*_udp` - `J*_tcp`).
     chunk_size : int
         Points per batched evaluation (and per Dask task).
     dask : None, "local", a scheduler address ("tcp://host:8786") or a distributed.Client

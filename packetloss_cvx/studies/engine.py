@@ -98,7 +98,7 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1 (Q = R = 1): J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2.
+    One step of x' = x + v u from x0 = 1 (Q = R = 1): `J*_tcp` = 1/(1 + mu), `J*_udp` = 1 - mu/2.
 
     >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])

@@ -4,11 +4,11 @@ Each function returns plain data (arrays, lists, floats) that `packetloss_cvx.pl
 ``packetloss-cvx reproduce`` reports: nothing here draws, and nothing here knows what the paper
 printed (that is `packetloss_cvx.claims.paper`).
 
-* [`log_cost_pendulum`][packetloss_cvx.studies.paper_figures.log_cost_pendulum]: fig:log-cost-pendulum (log J* of both
+* [`log_cost_pendulum`][packetloss_cvx.studies.paper_figures.log_cost_pendulum]: fig:log-cost-pendulum (log `J*` of both
 protocols against nu, the
   maximiser of J_Delta);
 * [`mixed_grids`][packetloss_cvx.studies.paper_figures.mixed_grids]: fig:cost-diff-mixed, fig:TCP-log-cost-mixed,
-fig:UDP-log-cost-mixed (J* and
+fig:UDP-log-cost-mixed (`J*` and
   J_Delta over [0, 1]^2, the maximiser of J_Delta);
 * [`mixed_allocations`][packetloss_cvx.studies.paper_figures.mixed_allocations]: fig:TCP-log-cost-mixed-mult and
 fig:UDP-log-cost-mixed-mult (the
@@ -49,7 +49,7 @@ def pendulum_nus(points: int) -> np.ndarray:
 
 
 def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
-    """fig:log-cost-pendulum: J*_tcp(nu), J*_udp(nu) and J_Delta(nu) with every actuator behind one
+    """fig:log-cost-pendulum: `J*_tcp(nu)`, `J*_udp(nu)` and J_Delta(nu) with every actuator behind one
     channel nu, and the maximiser of J_Delta
     ([`maximise_cost_difference`][packetloss_cvx.lq.difference.maximise_cost_difference]).
 
