@@ -578,6 +578,9 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
                riccati: tuple[float, np.ndarray, np.ndarray] | None = None) -> Membership:
     """Is ``mu`` in the stabilisable set S? Each form in ``forms`` proposes a certificate, checked in numpy.
 
+    Time: "riccati" O(iterations (n^3 + m^3)); "dp" as [`dp_riccati`][packetloss_cvx.closedloop.riccati.dp_riccati];
+    "lmi" two Clarabel SDPs.
+
     Parameters
     ----------
     system : System
@@ -606,9 +609,6 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     ------
     CrossCheckError
         Two forms decided differently.
-
-    Time: "riccati" O(iterations (n^3 + m^3)); "dp" as [`dp_riccati`][packetloss_cvx.closedloop.riccati.dp_riccati];
-    "lmi" two Clarabel SDPs.
 
     Examples
     --------

@@ -7,8 +7,8 @@ problem in the mean delivered input ``Z = Vbar U``, both DPP and re-solved by as
 * `CondensedBackend`: variables Z only; ``sum_squares(L Phi x + L Gamma Z)`` with every
   datum a Parameter: one compiled problem per padded shape serves every system (`.shared`).
   Dense data of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
-* `SparseBackend`: mean states and Z as variables, the dynamics ``xhat_{t+1} = A xhat_t
-  + B z_t`` as equality constraints (`sparse_dynamics`); Parameters: the state x and, for a
+* `SparseBackend`: mean states and Z as variables, the dynamics
+  ``xhat_{t+1} = A xhat_t + B z_t`` as equality constraints (`sparse_dynamics`); Parameters: the state x and, for a
   stationary channel, ``1/mu`` and ``1/mu - 1`` per channel. No Parameter multiplies a Variable, so
   the canonicalisation is linear in N (``multiply(v, U)`` kept an (N m)×(N m) map:
   docs/performance.md); every constant is block-sparse, so build and solve are O(N (n + m)^3),

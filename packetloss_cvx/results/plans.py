@@ -159,6 +159,8 @@ class BatchSolution(Frozen):
     """Optimal plans for a batch of channels (``points`` of them) of one system
     ([`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator]).
 
+    Construction O(points N m n) (read-only copies).
+
     Attributes
     ----------
     protocol : {"tcp", "udp"}
@@ -171,8 +173,6 @@ class BatchSolution(Frozen):
     method : str
         "dense", "recursion", or "mixed" (dense, with the recursion for points whose dense
         solve failed its checks).
-
-    Construction O(points N m n) (read-only copies).
     """
 
     protocol: str

@@ -53,6 +53,8 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
                progress: bool | None = False, dask: Any = None, workers: int | None = None) -> RegionMap:
     """Each law's critical point along ``mu = t * direction`` and, with ``grid``, its region over two channels.
 
+    Time: per law O(log2(1 / tol)) memberships, plus K^2 per law on a grid.
+
     Parameters
     ----------
     system : System
@@ -92,8 +94,6 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
         (BudgetError) More law-points than the ``region_points`` budget (budgets.py).
     CrossCheckError
         A law proved stable where S is certified empty.
-
-    Time: per law O(log2(1 / tol)) memberships, plus K^2 per law on a grid.
 
     Examples
     --------
