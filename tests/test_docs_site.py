@@ -168,6 +168,17 @@ def test_api_pages_document_the_public_names_and_no_internals(site):
     assert not set(INTERNALS) & ids
 
 
+def test_no_docstring_paragraph_shows_as_a_parameter_or_exception(site):
+    """A paragraph written after a numpydoc section (``Raises``, ``Attributes``) is read as one more entry of it: its
+    first words show as a parameter's or an exception's name. Entry names are names, types or tuples of them."""
+    _, folder = site
+    misread = [(page.parent.name, re.sub("<[^>]+>", "", name)) for page in (folder / "api").rglob("index.html")
+               for name in re.findall(r'<tr class="doc-section-item">\s*<td>\s*<code>(.*?)</code>',
+                                      page.read_text(encoding="utf-8"), flags=re.S)
+               if ": " in re.sub("<[^>]+>", "", name) or re.sub("<[^>]+>", "", name).rstrip().endswith(".")]
+    assert not misread
+
+
 #: a page's search worker and the index it is given, as absolute URLs, resolved as Material's bundle does (its
 #: ``__config``: ``search`` the worker's script, ``base`` the site's root, whose ``search/search_index.json`` the page
 #: fetches and posts to the worker)
