@@ -1,4 +1,5 @@
-"""``python -m packetloss_cvx`` and the ``packetloss-cvx`` console script (its entry point is :func:`main` here).
+"""``python -m packetloss_cvx`` and the ``packetloss-cvx`` console script (its entry point is
+    [`main`][packetloss_cvx.cli.main] here).
 
 SIGINT and SIGTERM are handled from this module's first lines: until ``main`` installs its own handler (which removes
 temporary files and locks on the way out) nothing has been written, so the early handler only says one line and

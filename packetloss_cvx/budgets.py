@@ -1,19 +1,19 @@
 """Work budgets: every count and size a caller can type, bounded before any work starts.
 
-Each :class:`Budget` names what it counts, its default and what that default costs on the reference
+Each `Budget` names what it counts, its default and what that default costs on the reference
 machine (docs/design.md §4, "Work budgets", is the one place they are documented). A request beyond a
-budget raises :class:`~packetloss_cvx.errors.BudgetError` (a ResourceError and an InputError: the command
+budget raises [`BudgetError`][packetloss_cvx.errors.BudgetError] (a ResourceError and an InputError: the command
 line exits 2 with one line naming the option, the work asked for, the budget and how to raise it) before
 any array is allocated. The one way to raise a budget on purpose is its environment variable,
 ``PACKETLOSS_CVX_BUDGET_<NAME>`` (a positive number, or ``inf`` for no bound), read when the check runs,
 so it works the same for the command line and the API.
 
-The work formulas (:func:`simulate_work`, :func:`sweep_work`, :func:`burstiness_work`, :func:`solve_work`,
-:func:`qp_work`, :func:`markov_recursion_work`, :func:`markov_dense_seconds`, :func:`udp_box_work`) and the memory
-formulas (:func:`solve_bytes`, :func:`dense_bytes`, :func:`markov_dense_bytes`, :func:`qp_bytes`,
-:func:`operator_bytes`, :func:`krylov_bytes`, :func:`loop_bytes`, :func:`constraint_bytes`, checked against the
-``memory_bytes`` budget; :func:`program_bytes`, what a cache is charged) live here once; the API and the command
-line's preflight both call them. Every refusal is :func:`check`'s one line (what was asked, the budget, what to use
+The work formulas (`simulate_work`, `sweep_work`, `burstiness_work`, `solve_work`,
+`qp_work`, `markov_recursion_work`, `markov_dense_seconds`, `udp_box_work`) and the memory
+formulas (`solve_bytes`, `dense_bytes`, `markov_dense_bytes`, `qp_bytes`,
+`operator_bytes`, `krylov_bytes`, `loop_bytes`, `constraint_bytes`, checked against the
+``memory_bytes`` budget; `program_bytes`, what a cache is charged) live here once; the API and the command
+line's preflight both call them. Every refusal is `check`'s one line (what was asked, the budget, what to use
 instead, the variable that raises it), a BudgetError (a ValueError): the command line exits 2. Imports nothing
 numerical.
 """
@@ -271,7 +271,7 @@ MARKOV_DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
 def markov_dense_seconds(horizon: int, n: int, m: int) -> float:
     """Seconds (one BLAS thread) of the exact UDP-like minimum under Markov losses by the dense route
     (markov/exact_cost.py), ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the (N n)^2 N m products of
-    Omega_g) with (a, b, c) = :data:`MARKOV_DENSE_SECONDS`. benchmarks/markov_auto.py: its least-squares fit is
+    Omega_g) with (a, b, c) = `MARKOV_DENSE_SECONDS`. benchmarks/markov_auto.py: its least-squares fit is
     (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make ``auto`` take
     the faster route in 75 of its 77 cases, the other two within 14 % (docs/performance.md). O(1).
 
@@ -290,7 +290,7 @@ def markov_recursion_work(horizon: int, size: int) -> float:
     (markov/augmented.py): per step ``D^3`` for the Riccati step on the augmented state of size D (its products
     and solve), plus 6e5 for the step's Python and small-matrix work; 1.2e-10 s a unit (benchmarks/markov_auto.py
     --fit: D from 2 to 200, N from 10 to 640). The budget check of
-    :func:`~packetloss_cvx.lq.markov_cost.exact_closed_form`
+    [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form]
     and its ``method="auto"`` chooser both read it. O(1).
 
     Examples
@@ -325,7 +325,7 @@ def qp_work(horizon: int, n: int, m: int, formulation: str = "sparse") -> float:
 
 def solve_work(horizon: int, n: int, m: int, protocols: int = 2, qp: str | None = "sparse") -> float:
     """Work units (1e-6 s each) of ``solve``: per protocol the closed form, ``N (0.45 + 0.0175 n^2)`` (the recursion,
-    its plan and gain, the JSON of the plan), and unless ``qp`` is None the QP cross-check (:func:`qp_work`, ``qp``
+    its plan and gain, the JSON of the plan), and unless ``qp`` is None the QP cross-check (`qp_work`, ``qp``
     its formulation). Measured with ``--no-qp`` (both protocols, one BLAS thread, less the 0.3 s start): n = m = 1,
     N = 1e6 0.94 s (predicted 0.94); n = 4, m = 2, N = 5e5 0.68 s (0.73); n = 10, m = 3, N = 2e5 0.87 s (0.88);
     n = 30, m = 5, N = 5e4 1.8 s (1.6). O(1).
@@ -347,7 +347,7 @@ def solve_bytes(horizon: int, n: int, m: int, qp: str | None = "sparse") -> floa
     data; the condensed form also ``250 (N n) (N m)``). Fitted on the peak resident memory of ``solve`` (less 65 MB,
     110 MB with the QP's imports): n = m = 1, N = 5e6 1.34 GB (predicted 1.58), N = 5e5 with the QP 1.74 GB (2.08);
     n = 30, m = 5, N = 5e4 0.68 GB (0.70), N = 2000 with the QP 0.71 GB (0.81). With the cross-check it is at least
-    the closed forms' bytes and the QP's own (:func:`qp_bytes`, the estimate the QP is refused by), which is the
+    the closed forms' bytes and the QP's own (`qp_bytes`, the estimate the QP is refused by), which is the
     larger where m is large beside n; so a QP that would be refused is refused with ``solve``, before any work. O(1).
 
     Examples

@@ -3,7 +3,7 @@ small HTML table for notebooks (``_repr_html_``), never an array dump; and ``to_
 
 The model and the result types bind these as methods (``__repr__ = system_repr``), so this module
 imports neither: it reads the attributes it shows. Each function is O(size of what it shows):
-matrices are shown only up to :data:`MAX_SHOWN` rows and columns, larger ones by their shape.
+matrices are shown only up to `MAX_SHOWN` rows and columns, larger ones by their shape.
 """
 
 from __future__ import annotations
@@ -62,8 +62,8 @@ def fields_repr(obj: Any) -> str:
 
 
 def field_text(value: Any) -> str:
-    """One field's value as :func:`fields_repr` shows it: strings quoted, numbers and small arrays by
-    :func:`short`, mappings by key, other objects by their type. O(size of what it shows).
+    """One field's value as `fields_repr` shows it: strings quoted, numbers and small arrays by
+    `short`, mappings by key, other objects by their type. O(size of what it shows).
 
     >>> field_text("tcp"), field_text(np.ones(9)), field_text({"a": 1.5}), field_text(object())
     ("'tcp'", 'array of shape (9,)', "{'a': 1.5}", '<object>')
@@ -83,7 +83,7 @@ def field_text(value: Any) -> str:
 
 
 def fields_html(obj: Any) -> str:
-    """A dataclass's fields as an HTML table, each value as :func:`fields_repr` shows it (the notebook view of
+    """A dataclass's fields as an HTML table, each value as `fields_repr` shows it (the notebook view of
     the result types without one of their own). O(size of what it shows).
 
     >>> from packetloss_cvx.results import Maximiser
@@ -98,7 +98,7 @@ def fields_html(obj: Any) -> str:
 def plain(value: Any) -> Any:
     """``value`` with JSON's types only: arrays to (nested) lists, NumPy scalars to Python numbers, complex
     numbers to ``[re, im]``, tuple keys to ``"a, b"``, any other key to text. The one converter behind
-    :func:`to_json` and ``reproduce``'s results.json. O(size of ``value``).
+    [`to_json`][packetloss_cvx.display.to_json] and ``reproduce``'s results.json. O(size of ``value``).
 
     >>> plain({(0.9, 0.5): np.array([1.0, 2.0]), "z": 1 + 2j, "n": np.int64(3), 4: [np.float64(0.5)]})
     {'0.9, 0.5': [1.0, 2.0], 'z': [1.0, 2.0], 'n': 3, '4': [0.5]}
@@ -117,7 +117,7 @@ def plain(value: Any) -> Any:
 
 
 def json_text(value: Any, **kwargs: Any) -> str:
-    """``value`` as strict JSON text through :func:`plain` (``kwargs`` go to :func:`json.dumps`, e.g.
+    """``value`` as strict JSON text through `plain` (``kwargs`` go to `json.dumps`, e.g.
     ``indent=2``). Raises ValueError on a non-finite number (strict JSON has none). O(size of ``value``).
 
     >>> json_text({"mu": np.array([0.9, 0.5])})
@@ -127,7 +127,7 @@ def json_text(value: Any, **kwargs: Any) -> str:
 
 
 def to_json(obj: Any, **kwargs: Any) -> str:
-    """``obj.to_dict()`` as JSON text (:func:`json_text`; ``kwargs`` go to :func:`json.dumps`, e.g. ``indent=2``).
+    """``obj.to_dict()`` as JSON text (`json_text`; ``kwargs`` go to `json.dumps`, e.g. ``indent=2``).
 
     Raises ValueError on a non-finite number (strict JSON has none). O(size of the dict).
 
@@ -281,8 +281,8 @@ def solution_repr(sol: Any) -> str:
 def solution_html(sol: Any) -> str:
     """The cost, method, the radius of A - B K with every packet delivered (the paper's Tables I-II), the
     mean-square stability of u = -K x over the lossy channel (once
-    :func:`packetloss_cvx.closedloop.law_stability.with_stability` attached it: a Solution does not carry the channel)
-    and (QPs) solver status, as an HTML table.
+    [`packetloss_cvx.closedloop.law_stability.with_stability`][packetloss_cvx.closedloop.law_stability.with_stability]
+    attached it: a Solution does not carry the channel) and (QPs) solver status, as an HTML table.
 
     >>> from packetloss_cvx.results import Solution
     >>> text = solution_html(Solution("udp", 10.25, np.zeros((10, 2)), None, None, "recursion"))

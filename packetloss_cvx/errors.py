@@ -1,8 +1,8 @@
 """Typed exceptions.
 
-Bad input subclasses :class:`ValueError` so that ``except ValueError`` still
-works; failures of a well-posed computation subclass :class:`RuntimeError` or
-:class:`ArithmeticError`. Each pickles with its own fields (``__reduce__``), so an error raised in a
+Bad input subclasses `ValueError` so that ``except ValueError`` still
+works; failures of a well-posed computation subclass `RuntimeError` or
+`ArithmeticError`. Each pickles with its own fields (``__reduce__``), so an error raised in a
 multiprocessing or joblib worker reaches the caller as itself: an exception whose constructor takes
 more than its message cannot be rebuilt from ``args`` alone, and a worker's InputError broke the
 whole ProcessPoolExecutor (BrokenProcessPool for every task, the message lost).
@@ -106,10 +106,11 @@ class CrossCheckError(ArithmeticError):
 
 
 class ResourceError(RuntimeError):
-    """A computation does not fit its budget. Refused before any work starts it is a :class:`BudgetError` (also a
-    ValueError: the command line exits 2); a plain ResourceError is a limit met during the work, whose size was not
-    known in advance (e.g. a belief law that re-plans more often than its plan budget). ``needed_bytes`` and
-    ``budget_bytes`` are in the budget's unit (bytes for memory)."""
+    """A computation does not fit its budget. Refused before any work starts it is a
+    [`BudgetError`][packetloss_cvx.errors.BudgetError] (also a ValueError: the command line exits 2); a plain
+    ResourceError is a limit met during the work, whose size was not known in advance (e.g. a belief law that re-plans
+    more often than its plan budget). ``needed_bytes`` and ``budget_bytes`` are in the budget's unit (bytes for
+    memory)."""
 
     def __init__(self, detail: str, needed_bytes: float, budget_bytes: float) -> None:
         self.needed_bytes = needed_bytes
@@ -123,11 +124,12 @@ class ResourceError(RuntimeError):
 class BudgetError(ResourceError, InputError):
     """A count or size the caller gave (samples, steps, points, cases, workers, boxes, a file's bytes), or the
     memory a system and a method need (the dense method, a QP, a second-moment operator), is beyond its budget
-    (:mod:`packetloss_cvx.budgets`), refused before any work starts; the message says what to use instead.
+    (`packetloss_cvx.budgets`), refused before any work starts; the message says what to use instead.
 
-    Both a :class:`ResourceError` (the work is refused for its size) and an :class:`InputError` (the caller
-    asked for it: ``field`` names the argument or option; the command line exits 2). ``needed`` and ``budget``
-    are in the budget's unit; ``env`` is the environment variable that raises the budget on purpose.
+    Both a [`ResourceError`][packetloss_cvx.errors.ResourceError] (the work is refused for its size) and an
+    [`InputError`][packetloss_cvx.errors.InputError] (the caller asked for it: ``field`` names the argument or option;
+    the command line exits 2). ``needed`` and ``budget`` are in the budget's unit; ``env`` is the environment variable
+    that raises the budget on purpose.
 
     Examples
     --------

@@ -105,8 +105,8 @@ def frobenius(X: np.ndarray) -> float:
 def check_finite(name: str, arr: np.ndarray | float,
                  why: str = "the dense prediction of an unstable plant over a long horizon",
                  advice: str = "use method='recursion'") -> np.ndarray | float:
-    """Return ``arr``, or raise :class:`NumericalError` saying that ``name`` overflowed, ``why``,
-    and the ``advice``.
+    """Return ``arr``, or raise [`NumericalError`][packetloss_cvx.errors.NumericalError] saying that ``name``
+    overflowed, ``why``, and the ``advice``.
 
     Examples
     --------
@@ -124,8 +124,8 @@ def check_finite(name: str, arr: np.ndarray | float,
 
 def typed_linalg(what: str) -> Callable[[_F], _F]:
     """A decorator: a LAPACK failure inside the function (numpy.linalg.LinAlgError: an SVD or eigenvalue routine
-    that did not converge, a singular solve) raised as :class:`NumericalError` naming ``what``, never untyped and
-    never taken for an answer. O(1).
+    that did not converge, a singular solve) raised as [`NumericalError`][packetloss_cvx.errors.NumericalError] naming
+    ``what``, never untyped and never taken for an answer. O(1).
 
     Examples
     --------
@@ -153,7 +153,8 @@ def solve_checked(G: np.ndarray, rhs: np.ndarray, name: str, instead: str = "met
     """``G^{-1} rhs`` by LU, kept only if finite and its relative residual
     ``||G X - rhs|| / (||G|| ||X|| + ||rhs||)`` is at most ``DENSE_RESIDUAL_RTOL``.
 
-    Time O(k^3) for a k×k ``G``. Raises :class:`NumericalError` naming ``name`` and ``instead``.
+    Time O(k^3) for a k×k ``G``. Raises [`NumericalError`][packetloss_cvx.errors.NumericalError] naming ``name`` and
+    ``instead``.
 
     Examples
     --------

@@ -1,4 +1,4 @@
-"""The heavy optional libraries: the one list of what a function may import lazily, and :func:`load`.
+"""The heavy optional libraries: the one list of what a function may import lazily, and `load`.
 
 Every module imports its dependencies at the top, except these: libraries that are an optional extra
 (absent after a plain ``pip install packetloss-cvx``) or slow to import and needed on few paths. A
@@ -69,7 +69,7 @@ def load(name: str, field: str) -> ModuleType:
     ------
     InputError
         Field ``field`` when the library is not installed, naming the extra that installs it; field
-        ``name`` when ``name`` is not in :data:`LAZY_IMPORTS` (import it at the top of the module).
+        ``name`` when ``name`` is not in `LAZY_IMPORTS` (import it at the top of the module).
 
     Examples
     --------

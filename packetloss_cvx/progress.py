@@ -74,7 +74,7 @@ class Bar:
 
 
 def label(desc: str, estimate: float | None) -> str:
-    """A bar's label with the estimated time of the whole work when it exceeds :data:`ESTIMATE_AFTER`.
+    """A bar's label with the estimated time of the whole work when it exceeds `ESTIMATE_AFTER`.
 
     Examples
     --------
@@ -89,8 +89,8 @@ def label(desc: str, estimate: float | None) -> str:
 
 def progress_bar(iterable: Iterable[T] | None = None, *, total: int | None = None, desc: str = "",
                  progress: bool | None = None, estimate: float | None = None) -> Any:
-    """A tqdm bar on stderr when :func:`wants_progress` says so, else a silent :class:`Bar`; ``estimate``
-    (seconds, from budgets.estimated_seconds) is shown in its label when the work takes minutes (:func:`label`).
+    """A tqdm bar on stderr when `wants_progress` says so, else a silent `Bar`; ``estimate``
+    (seconds, from budgets.estimated_seconds) is shown in its label when the work takes minutes (`label`).
 
     >>> list(progress_bar(range(3), progress=False))
     [0, 1, 2]

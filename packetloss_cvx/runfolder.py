@@ -15,10 +15,10 @@
   this one does not write are removed before its manifest is written. With ``--force`` in a folder
   holding other files, those files are left alone and are not listed.
 * One run at a time: ``.packetloss-cvx.lock`` (created with O_CREAT|O_EXCL, holding the pid) makes a
-  second run refuse (:class:`~packetloss_cvx.errors.FolderBusyError`, naming the pid); a lock whose pid
+  second run refuse ([`FolderBusyError`][packetloss_cvx.errors.FolderBusyError], naming the pid); a lock whose pid
   is dead (a ``kill -9``) is stale and taken over, and the dead run's temporary files are removed.
 
-Every file goes through :func:`packetloss_cvx.safeio.atomic_write`.
+Every file goes through `packetloss_cvx.safeio.atomic_write`.
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ class RunFolder:
     """An output folder written by one run: locked, checked, listed in a manifest (the module's rule).
 
     Use as a context manager, entered before the long work (so a refusal costs nothing); ``write(name)``
-    gives an :func:`atomic_write` handle for each file. A block that ends without an error removes the
+    gives an `atomic_write` handle for each file. A block that ends without an error removes the
     previous run's files that this run did not write and writes ``manifest.json`` (complete) last; one
     that raises leaves the files written so far under a manifest that says ``"complete": false``. The
     lock is released either way. O(entries) to enter; O(total bytes) to hash at the end.
@@ -294,7 +294,7 @@ class RunFolder:
             handle.write(text)
 
     def write(self, name: str, *, text: bool = False) -> contextlib.AbstractContextManager[IO[Any]]:
-        """An :func:`atomic_write` handle for ``name`` in the folder (replacing the previous run's file).
+        """An `atomic_write` handle for ``name`` in the folder (replacing the previous run's file).
         The name is listed in the (incomplete) manifest before the file appears."""
         if not self.locked:
             raise RuntimeError("RunFolder.write outside its with block")
@@ -309,7 +309,7 @@ class RunFolder:
 
     @contextlib.contextmanager
     def _writing(self, name: str, text: bool) -> Iterator[IO[Any]]:
-        """:func:`atomic_write` of ``name``; once it is in place, its size and sha256 go into the unfinished manifest
+        """`atomic_write` of ``name``; once it is in place, its size and sha256 go into the unfinished manifest
         (an edit after an interrupted run is then seen). O(size) to hash."""
         with atomic_write(self.path / name, overwrite=True, text=text, field=self.field) as handle:
             yield handle

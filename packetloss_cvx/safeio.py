@@ -1,17 +1,17 @@
 """Files written safely: every file the package writes appears complete or not at all.
 
-Every file the package writes goes through :func:`atomic_write`: a temporary file in the target's
+Every file the package writes goes through `atomic_write`: a temporary file in the target's
 folder (named ``.packetloss-cvx-tmp-<pid>-<random>-<name>``), flushed and fsynced, then renamed onto
 the final name, so a reader, an interrupt, a full disk or a ``kill -9`` sees the previous file or the
 complete new one, never a truncated one (the technique of SQLite's and git's writes). On any error the
 temporary file is removed; after a ``kill -9`` the next write into that folder removes it (its pid is
 dead).
 
-A single output FILE that exists is refused (:class:`~packetloss_cvx.errors.OutputExistsError`) unless
-``overwrite=True`` (``--force``); the refusal is checked before the work (:func:`check_output_file`) and
+A single output FILE that exists is refused ([`OutputExistsError`][packetloss_cvx.errors.OutputExistsError]) unless
+``overwrite=True`` (``--force``); the refusal is checked before the work (`check_output_file`) and
 again at the rename (``os.link`` publishes without replacing, so two writers cannot both win). FIFOs,
 devices and sockets are refused as outputs: they would block or never be a file. Output folders (a lock,
-a manifest, the previous run replaced as a whole) are :mod:`packetloss_cvx.runfolder`'s; the one rule for
+a manifest, the previous run replaced as a whole) are `packetloss_cvx.runfolder`'s; the one rule for
 both is docs/design.md §4, "Files and runs".
 """
 
@@ -219,8 +219,8 @@ def atomic_write(path: str | Path, *, overwrite: bool = False, text: bool = Fals
     The data go to a temporary file in ``path``'s folder; at the end of the block it is flushed, fsynced
     and renamed onto ``path`` (then the folder is fsynced). On any exception, including an interrupt,
     the temporary file is removed and ``path`` is untouched. Without ``overwrite`` an existing ``path`` is
-    refused (:class:`~packetloss_cvx.errors.OutputExistsError`), before and at the rename. An
-    :class:`OSError` (disk full, permission) becomes an :class:`~packetloss_cvx.errors.InputError` naming
+    refused ([`OutputExistsError`][packetloss_cvx.errors.OutputExistsError]), before and at the rename. An
+    `OSError` (disk full, permission) becomes an [`InputError`][packetloss_cvx.errors.InputError] naming
     ``field``. O(size written), plus one fsync.
 
     Examples
@@ -278,9 +278,9 @@ def figure_path(path: str | Path) -> Path:
 def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False, field: str = "path",
                 folder: Any = None) -> Path:
     """Save a Matplotlib figure atomically: the format follows the extension (none: PNG, and ``.png`` is
-    appended, as ``savefig`` does); with ``folder`` (a :class:`~packetloss_cvx.runfolder.RunFolder`),
+    appended, as ``savefig`` does); with ``folder`` (a `RunFolder`),
     ``path`` is a name in that folder. A format
-    Matplotlib cannot write is an :class:`~packetloss_cvx.errors.InputError` naming ``field``. Returns the
+    Matplotlib cannot write is an [`InputError`][packetloss_cvx.errors.InputError] naming ``field``. Returns the
     path written. O(pixels).
 
     >>> import tempfile
@@ -311,7 +311,7 @@ FIGURE_DPI = 120
 @contextlib.contextmanager
 def laid_out_once(fig: Any, fmt: str) -> Iterator[None]:
     """Within the block, a PNG of ``fig`` with a constrained layout is drawn once: the layout is run here on the
-    Agg canvas at :data:`FIGURE_DPI` (the renderer savefig then draws with) and the figure left without a layout
+    Agg canvas at `FIGURE_DPI` (the renderer savefig then draws with) and the figure left without a layout
     engine, so savefig skips its layout pass (a whole draw with rendering off, made only to run the engine) and
     draws once. The same bytes as a plain ``savefig(dpi=FIGURE_DPI)`` (tests/house/test_safeio.py), at one draw less per
     figure. Other formats, figures without a constrained

@@ -4,7 +4,7 @@ The matrices here are small (n, m <= tens, N m <= 160 on the dense path), where 
 spends more time waking and synchronising threads than computing: on 2 cores the dense closed form at
 N = 40 runs an order of magnitude slower on OpenBLAS's default threads than on one (docs/performance.md,
 section 11). So every public entry point that computes
-(:func:`blas_limited`) runs with the BLAS thread pools limited to :func:`blas_threads` threads
+(`blas_limited`) runs with the BLAS thread pools limited to `blas_threads` threads
 (default 1) through threadpoolctl, and restores them on return: the user's own setting, and NumPy
 calls outside this library, are untouched.
 
@@ -91,7 +91,7 @@ def _controller() -> ThreadpoolController:
 
 
 def blas_limited(fn: F) -> F:
-    """Run ``fn`` with the BLAS pools limited to :func:`blas_threads` threads, restored on return.
+    """Run ``fn`` with the BLAS pools limited to `blas_threads` threads, restored on return.
 
     Nested calls (a limited function calling another) limit once, at the outermost call of each
     thread: the inner ones cost a thread-local counter, only the outermost call threadpoolctl's switch. Across

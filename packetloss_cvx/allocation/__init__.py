@@ -1,4 +1,4 @@
-"""Channel allocation M* (§VI): the cheapest delivery probabilities that keep J* <= alpha.
+"""Channel allocation `M*` (§VI): the cheapest delivery probabilities that keep `J*` <= alpha.
 
 Modules: ``grammar`` (constraint grammar, argument checks, the polytope of constraints),
 ``boxes`` (LPs over sub-boxes with certified bounds, bisection), ``tcp`` (the exact

@@ -1,9 +1,10 @@
 """The acknowledgement link priced: the TCP-like protocol needs a perfect acknowledgement
 link, which the paper's communication cost leaves out (its conclusion). For one alpha, the cheapest
 TCP-like design plus the link's price against the cheapest UDP-like design, in either currency: beta'mu
-(:func:`~packetloss_cvx.allocation.allocate`) or total transmit power (:func:`.power.least_power`).
+([`allocate`][packetloss_cvx.allocation.api.allocate]) or total transmit power
+([`.power.least_power`][packetloss_cvx.allocation.power.least_power]).
 
-Theorem 2 (J*_udp >= J*_tcp) makes every UDP-like design a TCP-like one of no greater cost, so the
+Theorem 2 (`J*_udp` >= `J*_tcp`) makes every UDP-like design a TCP-like one of no greater cost, so the
 break-even price ``udp_total - tcp_total`` is >= 0 (to the certified gaps): the UDP-like design wins when the
 acknowledgement link costs more than that.
 """
@@ -47,10 +48,11 @@ def best_protocol(system: System, alpha: float, beta: Any = None, ack_price: flo
     ack_price : float
         The acknowledgement link's price, >= 0, in the designs' currency (beta'mu, or power with ``model``).
     model : PowerModel or None
-        Buy power instead of mu (:mod:`.power`); then the totals are total powers.
+        Buy power instead of mu ([`.power`][packetloss_cvx.allocation.power]); then the totals are total powers.
     options
-        Passed to :func:`~packetloss_cvx.allocation.allocate` or :func:`.power.least_power` (bounds,
-        constraints, gap, max_boxes, time_limit, progress; max_power with a model).
+        Passed to [`allocate`][packetloss_cvx.allocation.api.allocate] or
+        [`.power.least_power`][packetloss_cvx.allocation.power.least_power] (bounds, constraints, gap, max_boxes,
+        time_limit, progress; max_power with a model).
 
     Returns
     -------
@@ -142,8 +144,8 @@ def ack_break_even(system: System, alphas: Sequence[float], beta: Any = None, mo
 
 def break_even_of(tcp_rows: Sequence[dict], udp_rows: Sequence[dict]) -> dict[str, list]:
     """The break-even acknowledgement prices from two Pareto curves already computed at the same alphas
-    (:func:`~packetloss_cvx.allocation.pareto_curve` rows, as ``reproduce`` holds them): ``udp - tcp`` of the
-    communication costs, None where either design is missing. O(rows), no solve.
+    ([`pareto_curve`][packetloss_cvx.studies.allocation.pareto_curve] rows, as ``reproduce`` holds them): ``udp - tcp``
+    of the communication costs, None where either design is missing. O(rows), no solve.
 
     Examples
     --------

@@ -1,22 +1,22 @@
-"""Channel allocation M* (§VI): the cheapest delivery probabilities that keep J* <= alpha.
+"""Channel allocation `M*` (§VI): the cheapest delivery probabilities that keep `J*` <= alpha.
 
 .. math:: \\min_{\\mu} \\beta'\\mu \\quad\\text{s.t.}\\quad J^*(\\mu) \\le \\alpha,\\
    \\mu \\in [lo, hi]^m,\\ G\\mu \\le h
 
 (eq:alpha_channels, eq:channel-opt, eq:opt_M), stationary channels. The TCP-like problem is
-an SOCP (:mod:`.tcp`), the UDP-like one a monotonic branch and bound (:mod:`.udp`) that also
-uses the TCP-like optimum as a lower bound (Theorem 2: J*_udp >= J*_tcp).
+an SOCP (`.tcp`), the UDP-like one a monotonic branch and bound (`.udp`) that also
+uses the TCP-like optimum as a lower bound (Theorem 2: `J*_udp` >= `J*_tcp`).
 
 What the results promise:
 
 * ``mu`` is feasible: the closed form gives ``J*(mu) <= alpha``, and mu meets the bounds and
   rows (to ``ALLOCATION_LP_FEASIBILITY``);
 * ``lower_bound`` is proved: no feasible mu has ``beta'mu < lower_bound`` (LP duals evaluated
-  exactly, tangent cuts of the convex J*_tcp, monotonicity of J*_udp; the closed form trusted
+  exactly, tangent cuts of the convex `J*_tcp`, monotonicity of `J*_udp`; the closed form trusted
   to ``ALLOCATION_COST_RTOL``);
 * status "optimal" means ``gap <= `` the requested gap; "gap_not_certified" means a cap was
   hit (or the bound could not be tightened) and ``gap`` is the gap actually reached;
-* :class:`~packetloss_cvx.errors.InfeasibleError` only on a proof: Clarabel's infeasibility
+* [`InfeasibleError`][packetloss_cvx.errors.InfeasibleError] only on a proof: Clarabel's infeasibility
   certificate, or every box discarded because its upper corner is infeasible (Theorem 3) or
   it holds no point of the constraints; never while a feasible point is known.
 """
@@ -68,9 +68,9 @@ MAX_BOXES = 20000
 def _max_boxes(value: Any, system: System | None = None) -> int:
     """The cap on the branch and bound's boxes: a positive count within the ``allocation_boxes`` budget (budgets.py),
     checked before the search. Given a ``system`` (the UDP-like search on its closed-form cost), the boxes' work is
-    priced too (:func:`~packetloss_cvx.budgets.udp_box_work`, a box's cost grows with the horizon): a cap the caller
+    priced too (`udp_box_work`, a box's cost grows with the horizon): a cap the caller
     gave beyond the ``allocation_work`` budget is refused under ``max_boxes``; the default (None) is
-    :data:`MAX_BOXES`, or as many boxes as that budget affords at this horizon (the search then ends
+    `MAX_BOXES`, or as many boxes as that budget affords at this horizon (the search then ends
     "gap_not_certified" at that cap, within the budget's time); a horizon where not one box fits is refused under
     ``horizon``. O(1)."""
     box = None if system is None else udp_box_work(system.horizon, system.n, system.m)
@@ -123,10 +123,11 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
     Parameters
     ----------
     system, protocol, bounds, constraints
-        As for :func:`allocate`.
+        As for [`allocate`][packetloss_cvx.allocation.api.allocate].
     max_boxes, time_limit
         Caps of the UDP-like branch and bound (the TCP-like one is a single SOCP); ``max_boxes`` as for
-        :func:`allocate` (None: what the ``allocation_work`` budget affords, at most :data:`MAX_BOXES`).
+        [`allocate`][packetloss_cvx.allocation.api.allocate] (None: what the ``allocation_work`` budget affords, at most
+        `MAX_BOXES`).
 
     Returns
     -------
@@ -149,8 +150,8 @@ def min_cost(system: System, protocol: str, bounds=(0.0, 1.0), constraints: Sequ
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1: J*_udp = 1 - mu/2, least at the top of the box; two such
-    channels with mu1 + mu2 <= 1: J*_tcp = 1/(1 + mu1) + 1/(1 + mu2), least (4/3) at (1/2, 1/2).
+    One step of x' = x + v u from x0 = 1: `J*_udp` = 1 - mu/2, least at the top of the box; two such
+    channels with mu1 + mu2 <= 1: `J*_tcp` = 1/(1 + mu1) + 1/(1 + mu2), least (4/3) at (1/2, 1/2).
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> least = min_cost(s, "udp", bounds=(0.0, 0.5))
@@ -229,7 +230,7 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
         Stationary channel; its own mu is ignored. Behind a Markov chain (``system.channel``, stationary start):
         mu is each channel's mean delivery rate; UDP-like, the cost is the exact expected cost under the chains,
         Gilbert channels with their burstiness held, any other chain with its deliveries scaled (mean rates up to
-        ``mubar / max(d)``, added as rows; :mod:`.chains`, which also lists what is refused); TCP-like, the
+        ``mubar / max(d)``, added as rows; `.chains`, which also lists what is refused); TCP-like, the
         cost holds only the mean rates, so any stationary chain's allocation is the Bernoulli one.
     protocol : {"tcp", "udp"}
     alpha : float
@@ -245,8 +246,8 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
         Relative optimality gap to certify, ``tolerances.ALLOCATION_GAP_MIN <= gap < 1``.
     max_boxes : int or None
         Cap on the UDP-like branch and bound's boxes; within the ``allocation_boxes`` budget, and on the
-        closed-form cost its work (boxes x :func:`~packetloss_cvx.budgets.udp_box_work`, which grows with the
-        horizon) within ``allocation_work``. None: :data:`MAX_BOXES`, or as many boxes as ``allocation_work``
+        closed-form cost its work (boxes x `udp_box_work`, which grows with the
+        horizon) within ``allocation_work``. None: `MAX_BOXES`, or as many boxes as ``allocation_work``
         affords at this horizon.
     time_limit : float or None
         Cap on the UDP-like branch and bound's seconds (None: no limit).
@@ -416,7 +417,7 @@ def _chain_allocate(system: System, evaluator: ChainEvaluator, alpha: float, bet
                     gap: float, max_boxes: int, time_limit: float | None, progress: bool | None) -> Allocation:
     """The UDP-like allocation behind chains (each channel along its family, chains.py): the monotonic branch and
     bound on the exact cost under the chain (no TCP-like floor: Theorem 2 is not established under a chain), prices
-    scaled as :func:`allocate`."""
+    scaled as [`allocate`][packetloss_cvx.allocation.api.allocate]."""
     prices, unit = unit_prices(beta)
     try:
         out = udp_allocate(system, poly, alpha, prices, gap, -np.inf, max_boxes, time_limit, progress=progress,
@@ -440,8 +441,8 @@ def best_cost_within_budget(system: System, protocol: str, beta, budget: float, 
                             time_limit: float | None = None) -> MinCost:
     """The other side of the trade-off: min J*(mu) subject to beta'mu <= budget.
 
-    The budget is one more row of the constraint set; see :func:`min_cost` (convex for the
-    TCP-like protocol, a branch and bound for the UDP-like one).
+    The budget is one more row of the constraint set; see [`min_cost`][packetloss_cvx.allocation.api.min_cost] (convex
+    for the TCP-like protocol, a branch and bound for the UDP-like one).
 
     Raises
     ------
@@ -452,7 +453,7 @@ def best_cost_within_budget(system: System, protocol: str, beta, budget: float, 
 
     Notes
     -----
-    As :func:`min_cost` with one more row.
+    As [`min_cost`][packetloss_cvx.allocation.api.min_cost] with one more row.
 
     Examples
     --------

@@ -51,9 +51,9 @@ class Outcome(NamedTuple):
 
     ``mu`` the point (None if none), ``value`` its objective, ``lower_bound`` a proven lower
     bound on the optimum, ``status`` "optimal" (gap certified) or "gap_not_certified",
-    ``boxes`` boxes explored, ``note`` how it ended, ``cost`` J*(mu) where the solver evaluated it
-    (:func:`cost_function`, equal to :func:`cost_at` to rounding), else None; ``scale`` the unit of the gap's
-    floor (:func:`gap_unit`): 1 at unit prices, J* at the box's lower corner for a cost.
+    ``boxes`` boxes explored, ``note`` how it ended, ``cost`` `J*(mu)` where the solver evaluated it
+    (`cost_function`, equal to `cost_at` to rounding), else None; ``scale`` the unit of the gap's
+    floor (`gap_unit`): 1 at unit prices, `J*` at the box's lower corner for a cost.
     Construction O(1).
 
     Examples
@@ -75,10 +75,10 @@ class Outcome(NamedTuple):
 
 def gap_unit(value: float, scale: float | None) -> float:
     """What a relative gap is taken of, the one definition for every allocation (the searches' certificate,
-    :meth:`~packetloss_cvx.allocation.udp.Search.certified`, the TCP-like programs' and the power relaxations'
-    stopping tests, and every reported gap, :func:`reported_gap`): ``|value|``, floored at
+    `certified`, the TCP-like programs' and the power relaxations'
+    stopping tests, and every reported gap, `reported_gap`): ``|value|``, floored at
     ``ALLOCATION_GAP_FLOOR * scale`` and at the least normal double. ``scale`` is the problem's own size: 1 for a
-    communication cost or a power at prices scaled by :func:`unit_prices` (the largest price is 1), J* at the box's
+    communication cost or a power at prices scaled by `unit_prices` (the largest price is 1), J* at the box's
     lower corner (its largest cost) for a cost. An absolute floor certified anything where every cost was below
     1e-12 (weights of 1e-20). ``scale`` None: no floor in the problem's size. O(1).
 
@@ -106,7 +106,7 @@ def reported_gap(value: float, lower: float, scale: float | None) -> float:
 def unit_prices(beta: np.ndarray) -> tuple[np.ndarray, float]:
     """``(prices, unit)``: the prices scaled so that the largest is 1, and the unit they were divided by (1 where no
     price is positive). The one price scaling of every allocation: its problem is invariant to the prices' scale,
-    so it is solved at unit prices, its gaps taken with :func:`gap_unit` at scale 1, and its bounds reported times
+    so it is solved at unit prices, its gaps taken with `gap_unit` at scale 1, and its bounds reported times
     ``unit``. O(m).
 
     Examples
@@ -125,7 +125,7 @@ def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1 (Q = R = 1): J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2.
+    One step of x' = x + v u from x0 = 1 (Q = R = 1): `J*_tcp` = 1/(1 + mu), `J*_udp` = 1 - mu/2.
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> bool(np.isclose(cost_at(s, "tcp", np.array([0.5])), 2 / 3)), cost_at(s, "udp", np.array([1.5]))  # clipped to 1
@@ -135,10 +135,10 @@ def cost_at(system: System, protocol: str, mu: np.ndarray) -> float:
 
 
 def cost_function(system: System, protocol: str) -> tuple[Callable[[np.ndarray], float], CostEvaluator]:
-    """``mu -> J*(mu)`` (mu clipped to [0, 1]) through one :class:`CostEvaluator` built for the
-    system, and the evaluator: what does not depend on mu is built once (O(N n^3), plus
+    """``mu -> J*(mu)`` (mu clipped to [0, 1]) through one [`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator]
+    built for the system, and the evaluator: what does not depend on mu is built once (O(N n^3), plus
     O((N n)^2 N m) where the dense path is allowed); each call O((N m)^3) dense or
-    O(N (n^3 + m^3)), equal to :func:`cost_at` to rounding and self-checked the same way.
+    O(N (n^3 + m^3)), equal to `cost_at` to rounding and self-checked the same way.
 
     Examples
     --------
@@ -176,7 +176,7 @@ def lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
         A minimiser from HiGHS (rows met to ``ALLOCATION_LP_FEASIBILITY``), None when HiGHS
         reports the LP infeasible.
     bound : float
-        A lower bound on the minimum, proved by :func:`dual_bound`; +inf when infeasible.
+        A lower bound on the minimum, proved by `dual_bound`; +inf when infeasible.
 
     Raises
     ------
@@ -246,7 +246,7 @@ def highs_optimum(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u:
 
 def _highs_run(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
                ) -> tuple[np.ndarray | None, np.ndarray | None] | None:
-    """:func:`highs_optimum`'s call of scipy's HiGHS binding (``scipy.optimize._highspy``, private to scipy: any
+    """`highs_optimum`'s call of scipy's HiGHS binding (``scipy.optimize._highspy``, private to scipy: any
     change of its shape raises AttributeError or TypeError, which the caller answers by linprog). O(m r) plus the
     simplex."""
     rows, cols = G.shape
@@ -292,7 +292,7 @@ def _highs_options():
 
 
 def _highs_options_of(core, simplex):
-    """The options object of :func:`_highs_options` from the binding ``core`` (its simplex constants ``simplex``).
+    """The options object of `_highs_options` from the binding ``core`` (its simplex constants ``simplex``).
     O(1)."""
     options = core.HighsOptions()
     options.presolve = "on"
@@ -309,12 +309,12 @@ _HIGHS_OPTIONS = _highs_options()
 
 def small_lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray
              ) -> tuple[np.ndarray | None, float]:
-    """:func:`lp`'s contract for an LP of a few variables solved many times (the TCP-like tangent cuts):
-    Clarabel's interior point first, :func:`lp` (HiGHS) when Clarabel does not end "Solved" or its
+    """`lp`'s contract for an LP of a few variables solved many times (the TCP-like tangent cuts):
+    Clarabel's interior point first, `lp` (HiGHS) when Clarabel does not end "Solved" or its
     point misses a row by more than ``ALLOCATION_LP_FEASIBILITY``.
 
-    The bound is :func:`dual_bound` at Clarabel's row multipliers, proved whatever their accuracy, as
-    :func:`lp`'s is at HiGHS's; the point is an optimum to Clarabel's tolerance (``CLARABEL_TIGHT``),
+    The bound is `dual_bound` at Clarabel's row multipliers, proved whatever their accuracy, as
+    `lp`'s is at HiGHS's; the point is an optimum to Clarabel's tolerance (``CLARABEL_TIGHT``),
     not necessarily a vertex, with coordinates within ``ALLOCATION_LP_FEASIBILITY`` of a bound put on
     it (where the rows allow). Why: ``linprog`` spends ten times the HiGHS run validating its options,
     where one Clarabel solve of this size costs about twice the HiGHS run.
@@ -363,10 +363,10 @@ def small_lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.n
 
 def polished(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.ndarray, point: np.ndarray,
              y: np.ndarray) -> float:
-    """The best :func:`dual_bound` among ``y`` and multipliers made exact on guesses of the active set
+    """The best `dual_bound` among ``y`` and multipliers made exact on guesses of the active set
     at ``point``.
 
-    An interior point's multipliers are off by its tolerance, and :func:`dual_bound` passes that on.
+    An interior point's multipliers are off by its tolerance, and `dual_bound` passes that on.
     For each width w in ``POLISH_WIDTHS``, the rows within w of equality and the coordinates more than
     w inside their bounds give the stationarity equations ``(c + G_A' y_A)_F = 0``, solved in least
     squares. Any result is a multiplier vector (clipped to >= 0), so every bound here is proved; the
@@ -400,7 +400,7 @@ POLISH_WIDTHS = (1e-10, 1e-8, 1e-6)
 
 def box_lp(c: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
            extra: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray | None, float]:
-    """:func:`lp` over the box ``[l, u]``, the polytope's rows and ``extra`` rows (if given);
+    """`lp` over the box ``[l, u]``, the polytope's rows and ``extra`` rows (if given);
     O(m r) to stack the rows plus the LP.
 
     Examples
@@ -420,7 +420,7 @@ def box_lp(c: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
 def box_bound(beta: np.ndarray, poly: Polytope, l: np.ndarray, u: np.ndarray,
               best: float) -> tuple[float, np.ndarray, np.ndarray, np.ndarray] | None:
     """A box's certified lower bound on ``beta'mu`` for the monotone searches: lower ``u`` (in place) where
-    ``beta'mu`` could not beat the incumbent's ``best``, then :func:`box_lp`. ``(lb, l, u, p)`` with ``p`` the
+    ``beta'mu`` could not beat the incumbent's ``best``, then `box_lp`. ``(lb, l, u, p)`` with ``p`` the
     LP's minimiser, or None when the box holds no point of the rows that could improve. O(m r) plus the LP.
 
     Examples
@@ -489,9 +489,9 @@ def bracket(f: Callable[[float], float], alpha: float, a: float, b: float, tol: 
     Each step evaluates f where the line through (a, f(a)) and (b, f(b)) crosses alpha (1 -
     ALLOCATION_AIM_RTOL) (regula falsi,
     the Illinois variant: an end kept twice has its value halved), at least tol/4 inside the bracket;
-    the bracket is always valid, so the contract is bisection's. J* along a line is smooth: about 4-6
+    the bracket is always valid, so the contract is bisection's. `J*` along a line is smooth: about 4-6
     evaluations where bisection takes log2((b - a) / tol), 8 to 25 in the allocation; never more than
-    about 4 log2((b - a) / tol). Where alpha's own crossing lies more than tol beyond the aim's (J* shallow
+    about 4 log2((b - a) / tol). Where alpha's own crossing lies more than tol beyond the aim's (`J*` shallow
     at a small tol), the end game steps a just below it and b 3/4 tol above (the aim's margin cannot be kept
     within tol there) instead of creeping down by tol / 4 (300-800 evaluations at tol = 1e-9).
 

@@ -1,8 +1,8 @@
 """An independent reference allocator for two channels, by exhaustive search.
 
-For each mu1 on a grid, the least feasible mu2 by bisection (J* falls in mu2, Theorem 3;
+For each mu1 on a grid, the least feasible mu2 by bisection (`J*` falls in mu2, Theorem 3;
 bisection keeps the feasible end), then a finer grid around the best mu1. Shares nothing
-with the SOCP or the branch and bound, and evaluates J* by the backward recursion (the
+with the SOCP or the branch and bound, and evaluates `J*` by the backward recursion (the
 allocation's "auto" takes the dense form on small systems), so the audit and the tests use it
 to check them. Every value it returns is beta'mu at a point the recursion finds feasible, so
 it is never below the optimum. Grid points that cannot beat the best so far are settled by
@@ -10,7 +10,7 @@ one evaluation (monotonicity), made for up to SPECULATE grid points in one batch
 O((coarse + fine) · log(1/tol)) recursions of O(N (n^3 + m^3)) at worst.
 
 The search is a generator that asks for the costs of lists of points and decides on what it
-gets back; :func:`brute_force_allocations` runs several searches of one system side by side,
+gets back; `brute_force_allocations` runs several searches of one system side by side,
 their requests pooled into batched recursions (a point's cost does not depend on the batch it is
 in, below 64 points), each search taking the decisions it takes alone.
 """
@@ -55,9 +55,9 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 
     Examples
     --------
-    Two decoupled copies of x' = x + v u (N = 1): J*_tcp = sum 1/(1 + mu_i), J*_udp = sum (1 - mu_i/2).
+    Two decoupled copies of x' = x + v u (N = 1): `J*_tcp` = sum 1/(1 + mu_i), `J*_udp` = sum (1 - mu_i/2).
 
-    J*_tcp <= 1.5 costs mu1 + mu2 >= 2/3 (at 1/3, 1/3); J*_udp <= 1.5 is mu1 + mu2 >= 1, bought at (1, 0)
+    `J*_tcp` <= 1.5 costs mu1 + mu2 >= 2/3 (at 1/3, 1/3); `J*_udp` <= 1.5 is mu1 + mu2 >= 1, bought at (1, 0)
     when mu2 costs twice as much.
 
     >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
@@ -77,7 +77,7 @@ def brute_force_allocation(system: System, protocol: str, alpha: float, beta: Se
 @blas_limited
 def brute_force_allocations(system: System, protocol: str, cases: Sequence[tuple], coarse: int = 61, fine: int = 61,
                             tol: float = BRUTE_FORCE_BISECTION_TOL) -> list[Answer | Exception]:
-    """:func:`brute_force_allocation` for several cases ``(alpha, beta)`` or ``(alpha, beta, G, h)`` of one
+    """`brute_force_allocation` for several cases ``(alpha, beta)`` or ``(alpha, beta, G, h)`` of one
     system and protocol, the searches run side by side: each round pools every search's request into
     batched recursions of fewer than 64 points, points asked before read back. Each answer is what the
     case gives alone (the same decisions); a case whose evaluations raise gets the exception in its place
@@ -161,7 +161,7 @@ def _search(alpha: float, beta: Sequence[float], G: np.ndarray | None, h: np.nda
 
     def best_mu2(mu1: float, lo: float, top: float, top_ok: bool) -> Generator[list[Point], list[float], float | None]:
         """The least feasible mu2 in [lo, top] (to tol, feasible end), or None; ``top_ok``: whether
-        J*(mu1, top) <= alpha. J*(mu1, lo) and the bisection's first 2^4 - 1 midpoints are asked in
+        `J*`(mu1, top) <= alpha. `J*`(mu1, lo) and the bisection's first 2^4 - 1 midpoints are asked in
         one batch. O(log2(1/tol)) batches at most."""
         if not top_ok:
             return None
@@ -231,7 +231,7 @@ def midpoints(a: float, b: float, depth: int = 4) -> list[float]:
 
 def bisect_steps(a: float, b: float, tol: float, depth: int = 4,
                  first: list[bool] | None = None) -> Generator[list[float], list[bool], float]:
-    """:func:`bisect` as a generator: yields each batch of midpoints, is sent their decisions, returns
+    """`bisect` as a generator: yields each batch of midpoints, is sent their decisions, returns
     the feasible end. O(log2((b - a) / tol) / depth) batches of 2^depth - 1 points.
 
     Examples

@@ -1,11 +1,11 @@
 """Allocation behind Markov chains: the decision is each channel's mean delivery rate, moved along a one-parameter
 family of chains that is proved to make the exact cost fall as the rate rises.
 
-Per channel the family (the **k-state rule**, :func:`chain_family`; docs/design.md, "Allocation behind chains"):
+Per channel the family (the **k-state rule**, `chain_family`; docs/design.md, "Allocation behind chains"):
 
 * *burstiness held* for a Gilbert channel (two states, delivering always in one and never in the other, burstiness
   ``lambda = 1 - p - r`` in [0, 1)): ``p = (1 - mu)(1 - lambda)``, ``r = mu (1 - lambda)``
-  (:func:`~packetloss_cvx.model.twins.bursty_twin`'s family), every mean rate in [0, 1];
+  (`bursty_twin`'s family), every mean rate in [0, 1];
 * *deliveries scaled* for every other chain (k states, fractional deliveries, lambda < 0): the transition matrix
   held and the delivery vector scaled, ``d(mu) = d mu / mubar`` (mubar the file's mean rate), which reaches the
   mean rates ``[0, mubar / max(d)]``: the link the file describes with an independent erasure added, the loss
@@ -15,7 +15,7 @@ Per channel the family (the **k-state rule**, :func:`chain_family`; docs/design.
 ``J*_chain(mu) = exact_closed_form(chains at mu).cost <= alpha``, with the rows ``mu_i <= mubar_i / max(d_i)`` of
 the scaled channels added to the user's.
 
-Why the UDP-like branch and bound stays certified: J*_chain is nonincreasing in each mu_i along both families.
+Why the UDP-like branch and bound stays certified: `J*_chain` is nonincreasing in each mu_i along both families.
 Burstiness held: with ``W = Vbar U`` the exact cost is ``C + 2 W'g + W'(Omega_g + Psi) W + sum_i rho_i Q_i(W)``,
 ``rho_i = (1 - mu_i) / mu_i`` and ``Q_i(W) = W_i'((Omega_g)_ii ∘ L_i + Psi_i) W_i >= 0`` (L_i the Toeplitz matrix
 lambda_i^|t - s|, positive semidefinite for |lambda_i| < 1, so the Schur product is): for each W the cost falls as
@@ -23,7 +23,8 @@ mu_i grows, so does its minimum over W. Deliveries scaled: for 0 <= s <= 1 the c
 chain with ``d`` behind an independent coin that passes a packet with probability s, and the realised cost depends
 on the plan and the deliveries only through the delivered inputs ``v ∘ U``; so the expected cost of a plan U under
 ``s d`` is the average, over the coin, of the expected costs under ``d`` of the thinned plans ``c ∘ U``, each at
-least J*(d): J*(s d) >= J*(d). Neither argument bounds the UDP-like cost by the TCP-like one, so no Theorem-2 floor
+least `J*(d)`: `J*`(s d) >= `J*(d)`. Neither argument bounds the UDP-like cost by the TCP-like one, so no Theorem-2
+floor
 is used: it is not established under a chain. The burstiness-held family is not extended to fractional deliveries:
 there it is not monotone (docs/design.md gives the counterexample, tested).
 
@@ -99,7 +100,7 @@ class ChainFamily:
 
     def channel_at(self, mu: np.ndarray) -> MarkovChannel:
         """The chains at mean rates ``mu`` (m,), each clipped to [0, top_i]: Gilbert–Elliott channels when every
-        channel is Gilbert (the numbers :func:`chain_at` gives, written back as a Gilbert–Elliott table), else
+        channel is Gilbert (the numbers `chain_at` gives, written back as a Gilbert–Elliott table), else
         k-state chains. O(m K^3)."""
         mu = np.clip(np.asarray(mu, dtype=float), 0.0, self.top)
         if self.gilbert:
@@ -193,11 +194,11 @@ def chain_at(system: System, lam: np.ndarray, mu: np.ndarray) -> System:
 
 class ChainEvaluator:
     """``mu -> J*_chain(mu)``, the exact UDP-like minimum with each channel's chain at mean rate mu_i along its
-    family (:class:`ChainFamily`, or an array of burstiness for Gilbert channels), with the interface the branch and
-    bound uses (:meth:`cost`, :meth:`line`). Rates above a family's top are evaluated at the top (the function
+    family (`ChainFamily`, or an array of burstiness for Gilbert channels), with the interface the branch and
+    bound uses (`cost`, `line`). Rates above a family's top are evaluated at the top (the function
     stays nonincreasing; the allocation's rows keep its answers below). Every value is self-checked by
-    :func:`~packetloss_cvx.lq.markov_cost.exact_closed_form` (``checked`` is accepted and ignored: nothing is skipped).
-    Per point the cost of ``exact_closed_form`` at the system's horizon.
+    [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form] (``checked`` is accepted and ignored: nothing
+    is skipped). Per point the cost of ``exact_closed_form`` at the system's horizon.
 
     Examples
     --------

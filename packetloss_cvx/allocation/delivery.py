@@ -1,8 +1,8 @@
 """Delivery probability as a function of transmit power, per channel: the model of a power-limited
-link, apart from the problems that buy power (:mod:`.power`).
+link, apart from the problems that buy power ([`.power`][packetloss_cvx.allocation.power]).
 
-:class:`PowerModel` (validated by :func:`power_model`, read from a system file's ``[power]`` table by
-:func:`load_power`):
+`PowerModel` (validated by `power_model`, read from a system file's ``[power]`` table by
+`load_power`):
 
 * ``exponential``: ``mu = 1 - exp(-P / c)``, concave;
 * ``rayleigh`` (block Rayleigh fading at a fixed rate): ``mu = exp(-c / P)``, concave only for
@@ -42,9 +42,9 @@ EXPONENTIAL_TOP = 40.0
 class PowerModel:
     """Delivery probability as a function of transmit power, per channel; validated, immutable.
 
-    ``kind`` one of :data:`MODELS`; ``scale`` (m,) the constants c > 0 (exponential, rayleigh);
+    ``kind`` one of `MODELS`; ``scale`` (m,) the constants c > 0 (exponential, rayleigh);
     ``powers`` (K,) increasing from 0 and ``table`` (K, m) non-decreasing in [0, 1] (table). Build with
-    :func:`power_model`. Every method is O(m) per point.
+    `power_model`. Every method is O(m) per point.
 
     Examples
     --------
@@ -154,7 +154,7 @@ class PowerModel:
 
 
 def power_model(model: str, m: int, scale: Any = None, table: Any = None) -> PowerModel:
-    """A validated :class:`PowerModel` for m channels.
+    """A validated `PowerModel` for m channels.
 
     ``scale``: one c > 0 per channel (or one for all); ``table``: rows ``(power, mu)`` (one curve for every
     channel) or ``(power, mu_1, .., mu_m)``, powers increasing from 0, mu non-decreasing in [0, 1].
@@ -225,7 +225,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 def load_power(path: str | Path, m: int) -> PowerModel | None:
     """The ``[power]`` table of a system file (None when it has none): ``model``, and ``scale`` or ``table``
     (inline rows, or a CSV file's name relative to the system file, read by
-    :func:`~packetloss_cvx.model.files.read_csv_numbers`). Errors name ``power.<key>``. O(size).
+    `read_csv_numbers`). Errors name ``power.<key>``. O(size).
 
     Examples
     --------
@@ -255,7 +255,7 @@ def rayleigh_majorant(model: PowerModel, at: np.ndarray) -> PowerModel:
     With ``l = 1/p`` the tangent at ``p c`` is ``e^-l (1 - l + l^2 P / c)``; f is the least of these over
     ``p >= 1/2`` (docs/design.md, "Rayleigh's concave part"), and those with ``p >= 1`` lie above f's concave
     envelope (the line ``P / (e c)`` up to c, where the tangent at p = 1 passes through the origin, then f),
-    so every finite set of them, with mu <= 1, is a concave majorant: J* of it bounds J* of f below. Its
+    so every finite set of them, with mu <= 1, is a concave majorant: `J*` of it bounds `J*` of f below. Its
     breakpoints (consecutive tangents' crossings, then the last one's meeting mu = 1) per channel, merged
     into one power column. O(K m log(K m)) for K tangents.
 

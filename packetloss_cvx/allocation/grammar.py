@@ -2,11 +2,11 @@
 constraint set they define.
 
 ``parse_constraint`` reads ``"mu1 + 2*mu2 <= 1.5"`` into rows ``(G, h)`` of ``G mu <= h``
-without ``eval``; :func:`read_polytope` turns the ``constraints`` argument of
-:func:`~packetloss_cvx.allocation.allocate` (pairs ``(G, h)`` or callables returning affine
-cvxpy constraints) and the bounds into one :class:`Polytope`, every row scaled to unit
-largest coefficient; the ``check_*`` functions validate the scalar arguments. Every error is
-an :class:`~packetloss_cvx.errors.InputError` naming its field.
+without ``eval``; `read_polytope` turns the ``constraints`` argument of
+[`allocate`][packetloss_cvx.allocation.api.allocate] (pairs ``(G, h)`` or callables returning affine
+cvxpy constraints) and the bounds into one [`Polytope`][packetloss_cvx.allocation.grammar.Polytope], every row scaled to
+unit largest coefficient; the ``check_*`` functions validate the scalar arguments. Every error is
+an [`InputError`][packetloss_cvx.errors.InputError] naming its field.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ _TERMS = {name: re.compile(r"\s*([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?|\.\
 
 
 def _numbers(value: Any, field: str) -> np.ndarray:
-    """:func:`~packetloss_cvx.model.system.numeric_array`, with integers too large for a float and
+    """`numeric_array`, with integers too large for a float and
     absurdly deep nesting reported as InputError too."""
     try:
         return numeric_array(value, field)
@@ -132,7 +132,7 @@ def parse_constraint(text: str, m: int, field: str = "--constraint", name: str =
 # ------------------------------------------------------------------ scalar arguments
 
 def check_system(system: Any) -> System:
-    """A :class:`System` with a stationary channel. O(1).
+    """A [`System`][packetloss_cvx.model.system.System] with a stationary channel. O(1).
 
     Examples
     --------
@@ -271,7 +271,7 @@ class Polytope:
     """The feasible set of mu: ``lo <= mu_i <= hi`` and ``G mu <= h``.
 
     Rows are scaled so that max |G_k| = 1, and rows that no point of the box can violate are
-    dropped, so no extreme number reaches a solver. Built by :func:`read_polytope`.
+    dropped, so no extreme number reaches a solver. Built by `read_polytope`.
 
     Examples
     --------
@@ -330,7 +330,7 @@ def _affine_rows(fn: Callable, m: int, field: str) -> tuple[np.ndarray, np.ndarr
 
 
 def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float) -> Polytope:
-    """The bounds and ``constraints`` as one :class:`Polytope`.
+    """The bounds and ``constraints`` as one [`Polytope`][packetloss_cvx.allocation.grammar.Polytope].
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """What to buy: transmit power per channel instead of delivery probabilities.
 
 Each channel's delivery probability is a non-decreasing function of its transmit power P_i, a
-:class:`~packetloss_cvx.allocation.delivery.PowerModel` (exponential, rayleigh, table: :mod:`.delivery`).
+`PowerModel` (exponential, rayleigh, table: `.delivery`).
 Two problems, both protocols, with linear constraints on P (the grammar of ``allocate``, in P1..Pm):
 
 .. math:: \\min_P \\textstyle\\sum_i P_i \\ \\text{s.t.}\\ J^*(\\mu(P)) \\le \\alpha
@@ -9,10 +9,10 @@ Two problems, both protocols, with linear constraints on P (the grammar of ``all
 
 Every search runs on ``x = P / top`` in [0, 1]^m (``top`` a per-channel cap no optimum exceeds), where
 ``x -> J*(mu(top x))`` falls in every x_i (Theorem 3 and mu non-decreasing): the certified monotone branch
-and bound of :mod:`.udp` applies unchanged (:class:`~packetloss_cvx.allocation.udp.MonotoneCost`). The
+and bound of `.udp` applies unchanged (`MonotoneCost`). The
 TCP-like protocol with a model concave on the box (exponential, a concave table) is a convex program
 (docs/design.md "Power-limited links": J*_tcp convex and falling in mu, mu concave in P): it is solved
-by cvxpy + Clarabel (:class:`PowerProgram`, the exponential cone), its point checked by the closed form and
+by cvxpy + Clarabel (`PowerProgram`, the exponential cone), its point checked by the closed form and
 its lower bound proved by tangent cuts, and the branch and bound only confirms (no box when the cuts
 certify the gap).
 """
@@ -66,18 +66,18 @@ _PROGRAMS_LOCK = threading.Lock()
 class PowerProgram:
     """The TCP-like power problem with a concave model as one cvxpy program (DPP), solved by Clarabel.
 
-    Variables: y = P / unit (m; the model's own unit, :meth:`PowerModel.unit`), mu (m) and
-    :func:`~packetloss_cvx.allocation.tcp.cost_epigraph`'s. The link ``mu <= mu(P)`` is convex for a concave
+    Variables: y = P / unit (m; the model's own unit, `PowerModel.unit`), mu (m) and
+    `cost_epigraph`'s. The link ``mu <= mu(P)`` is convex for a concave
     model: exponential ``exp(-y_i) <= 1 - mu_i`` (the exponential cone, the same numbers at every scale c), a
     concave table ``mu_i <= a_ik + b_ik P_i`` for each segment k and ``mu_i <= mu_last``.
     J*_tcp falls in mu, so the link is tight at the optimum. Parameters: x0, sqrt of the cost scale, the cap
     ``top`` on P and k rows ``G P <= h``. Kind "power": min sum P s.t. scaled cost <= 1 (scale 1 / (alpha - C));
     kind "cost": min the scaled cost. Size O(N (n + m) + K m); compiled once and kept by
-    content (:meth:`of`), then each solve maps the Parameters and runs Clarabel.
+    content (`of`), then each solve maps the Parameters and runs Clarabel.
 
     Examples
     --------
-    J*_tcp = 1/(1 + mu) (one step of x' = x + v u from x0 = 1), mu = 1 - exp(-P): J* <= 0.8 needs mu = 1/4,
+    `J*_tcp` = 1/(1 + mu) (one step of x' = x + v u from x0 = 1), mu = 1 - exp(-P): `J*` <= 0.8 needs mu = 1/4,
     P = log(4/3):
 
     >>> from packetloss_cvx.allocation.delivery import power_model
@@ -137,9 +137,9 @@ class PowerProgram:
         (the ``PROGRAMS_KEPT`` most recent, by content, while its estimated size fits ``STRUCTURE_CACHE_MAX_BYTES``),
         so a problem asked again on an equal system (a fresh copy, another call) does not compile it again (a compile
         costs several solves). The key is every input of the constructor: the system's fields its algebra reads
-        (:data:`~.tcp.PROGRAMS_KEY`: :func:`~.tcp.cost_epigraph`), the model's kind and data (its unit and table),
+        (`PROGRAMS_KEY`: `cost_epigraph`), the model's kind and data (its unit and table),
         ``kind`` and ``rows``; x0, the cost scale, the cap and the rows' values are Parameters given to
-        :meth:`solve`, which assigns none of them (as :class:`~.tcp.TCPProgram`: shared without a lock). O(size of
+        `solve`, which assigns none of them (as `TCPProgram`: shared without a lock). O(size of
         the key) when kept.
 
         Examples
@@ -205,7 +205,7 @@ class _Setup:
 
     def cuts(self, x: np.ndarray, evaluator: CostEvaluator) -> tuple[np.ndarray, np.ndarray]:
         """Affine minorants ``J(x') >= r_k + g_k x'`` of the convex x -> J*_tcp(mu(top x)) at x and around it
-        (the steps of ``ALLOCATION_CUT_STEPS``): the chain rule on :func:`~.tcp.tangent`'s gradient, with the
+        (the steps of ``ALLOCATION_CUT_STEPS``): the chain rule on `tangent`'s gradient, with the
         model's slope a supergradient of the concave mu_i; loosened for rounding as tangent_cuts does."""
         X = cut_points(x)
         P = X * self.top
@@ -217,7 +217,7 @@ class _Setup:
 
 def _setup(system: System, protocol: str, model: PowerModel, top: np.ndarray, constraints: Sequence[Constraint],
            cap: np.ndarray | None) -> _Setup:
-    """:class:`_Setup`, where rows no power up to ``top`` meets are a proof of infeasibility only when ``top`` is
+    """`_Setup`, where rows no power up to ``top`` meets are a proof of infeasibility only when ``top`` is
     the caller's cap (or the budget); a box cut at the model's saturation proves nothing (a row may ask for more
     power than mu needs): then InputError naming ``max_power``."""
     try:
@@ -273,7 +273,7 @@ def _check(system: System, protocol: str, model: PowerModel) -> tuple[System, st
 def _result(setup: _Setup, problem: str, x: np.ndarray, value: float, lower: float, status: str, method: str,
             boxes: int, limit: float, unit: float = 1.0, size: float | None = 1.0) -> PowerAllocation:
     """The result at x; ``value`` and ``lower`` in units of ``unit`` (the gap is taken there, the bound reported
-    times it), the gap :func:`~.udp.reported_gap` with the search's ``size``."""
+    times it), the gap `reported_gap` with the search's ``size``."""
     P = setup.top * x
     mu = setup.model.mu(P)
     cost = float(CostEvaluator(setup.system, setup.protocol).cost(np.clip(mu, 0.0, 1.0)))
@@ -337,15 +337,15 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
         Stationary channel; its own mu is ignored.
     protocol : {"tcp", "udp"}
     model : PowerModel
-        Delivery as a function of power (:func:`~.delivery.power_model`, :func:`~.delivery.load_power`).
+        Delivery as a function of power (`power_model`, `load_power`).
     alpha : float
         Bound on the optimal expected cost, > 0.
     constraints : sequence
         Pairs ``(G, h)`` meaning ``G P <= h``, or callables ``f(P)`` returning affine cvxpy constraints.
     max_power : float or array_like or None
-        A cap per channel (None: no cap; the search box is derived, see :func:`_search_cap`).
+        A cap per channel (None: no cap; the search box is derived, see `_search_cap`).
     gap, max_boxes, time_limit, progress
-        As for :func:`~packetloss_cvx.allocation.allocate`.
+        As for [`allocate`][packetloss_cvx.allocation.api.allocate].
 
     Returns
     -------
@@ -366,7 +366,7 @@ def least_power(system: System, protocol: str, model: PowerModel, alpha: float,
     Notes
     -----
     TCP-like with a concave model: one conic program (O(N (n + m)) variables) and 6 m + 1 closed forms and
-    one LP for the bound; otherwise the branch and bound of :func:`~.udp.udp_allocate` on x = P / top, each
+    one LP for the bound; otherwise the branch and bound of `udp_allocate` on x = P / top, each
     box an LP and O(m log(1/tol)) closed forms of O(N (n^3 + m^3)).
 
     Examples
@@ -450,13 +450,13 @@ def _method(protocol: str, convex: bool, model: PowerModel, boxes: int, note: st
 def _rayleigh_relaxation(setup: _Setup, constraints: Sequence[Constraint], problem: str, alpha: float, C: float,
                          prices: np.ndarray | None, gap: float) -> tuple[np.ndarray | None, float, str]:
     """TCP-like rayleigh through conic programs: the problem with the curve replaced by
-    :func:`~.delivery.rayleigh_majorant` (a concave table above it, so its J*_tcp is lower at every P) is convex,
-    and its certified bound (tangent cuts) bounds the rayleigh problem below. Its point, moved onto {J* <= alpha}
+    `rayleigh_majorant` (a concave table above it, so its `J*_tcp` is lower at every P) is convex,
+    and its certified bound (tangent cuts) bounds the rayleigh problem below. Its point, moved onto {`J*` <= alpha}
     by the true curve for the least power, is the incumbent. Each round adds the tangents at the point's powers
     (Kelley's cutting planes) until the incumbent is within ``gap`` of the bound: where the optimum has every
     P_i >= c_i (the majorant is exact there in the limit) the branch and bound then explores no box; elsewhere
-    it starts from this floor. The gap is :func:`~.boxes.gap_unit`'s, at the problem's size: 1 for the power at unit
-    prices, J* at the box's lower corner (its largest cost) for the cost. Returns (incumbent or None, floor, the note
+    it starts from this floor. The gap is `gap_unit`'s, at the problem's size: 1 for the power at unit
+    prices, `J*` at the box's lower corner (its largest cost) for the cost. Returns (incumbent or None, floor, the note
     for ``method``); a conic failure is no verdict (the bound found before is kept, the note says so).
     O(RAYLEIGH_ROUNDS) conic programs with O(K) table rows."""
     system, model, top = setup.system, setup.model, setup.top
@@ -534,9 +534,9 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
                             gap: float = ALLOCATION_GAP_DEFAULT, max_boxes: int = 20000,
                             time_limit: float | None = None) -> PowerAllocation:
     """The least optimal cost ``J*(mu(P))`` with ``sum P <= budget`` (and the constraints), certified to a
-    relative ``gap`` (as :func:`least_power`'s; the branch and bound's corner bounds lose a first-order term
-    where the optimum lies inside the budget's face, so the boxes grow like gap^-1/2: two_actuator, UDP-like,
-    exponential c = (1, 2), B = 3: 766 boxes at 1e-4, 2366 at 1e-5, 7043 at 1e-6).
+    relative ``gap`` (as [`least_power`][packetloss_cvx.allocation.power.least_power]'s; the branch and bound's corner
+    bounds lose a first-order term where the optimum lies inside the budget's face, so the boxes grow like gap^-1/2:
+    two_actuator, UDP-like, exponential c = (1, 2), B = 3: 766 boxes at 1e-4, 2366 at 1e-5, 7043 at 1e-6).
 
     Raises
     ------
@@ -549,7 +549,7 @@ def least_cost_within_power(system: System, protocol: str, model: PowerModel, bu
     Notes
     -----
     TCP-like with a concave model: one conic program, 6 m + 1 closed forms and one LP (its bound); otherwise
-    (and to confirm) the branch and bound of :func:`~.udp.udp_min_cost` on x = P / top, top = min(budget, cap,
+    (and to confirm) the branch and bound of `udp_min_cost` on x = P / top, top = min(budget, cap,
     the model's saturation), two LPs and two closed forms per box.
 
     Examples
@@ -634,8 +634,8 @@ def _convex_least_cost(setup: _Setup) -> tuple[np.ndarray, float]:
 def power_pareto(system: System, protocol: str, model: PowerModel, budgets: Sequence[float],
                  constraints: Sequence[Constraint] = (), max_power: Any = None,
                  gap: float = ALLOCATION_GAP_DEFAULT) -> list[PowerAllocation]:
-    """The power-cost trade-off: :func:`least_cost_within_power` at each budget (ascending), each point
-    certified. O(len(budgets)) times one problem.
+    """The power-cost trade-off: [`least_cost_within_power`][packetloss_cvx.allocation.power.least_cost_within_power] at
+    each budget (ascending), each point certified. O(len(budgets)) times one problem.
 
     Examples
     --------

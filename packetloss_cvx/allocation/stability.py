@@ -16,12 +16,12 @@ Neither feasible set is convex in mu (docs/design.md §2, "Design for stability"
 the odds, where the one-state S_rho is a half-space, the objective ``beta'mu = sum beta_i s_i / (1 + s_i)`` is
 concave: no convex program in mu or the odds computes the optimum. Both sets are upper sets (proved there:
 ``min_K rho(L_K)`` and the DP cost-to-go P fall in each mu_i), so the search is the monotone branch and bound of
-:mod:`.udp` on a verdict instead of a cost:
+`.udp` on a verdict instead of a cost:
 
 * a box is discarded when its upper corner is certified outside (an infeasibility certificate ``T(P) >= 0`` of
   the scaled plant checked in numpy, or a DP cost above ``alpha (1 + ALLOCATION_COST_RTOL)``);
 * its lower corner is raised along each edge to the last point certified outside;
-* its lower bound is the LP ``min beta'mu`` over the box and rows (:func:`~.boxes.box_lp`, dual evaluated
+* its lower bound is the LP ``min beta'mu`` over the box and rows (`box_lp`, dual evaluated
   exactly);
 * incumbents are points certified inside: a gain whose radius the operator proves ``< rho (1 - margin)``, or a
   DP solution whose cost is ``<= alpha``.
@@ -149,7 +149,7 @@ _AIM = 100 * MEAN_SQUARE_MARGIN
 
 
 class Target(NamedTuple):
-    """A target's two views of a channel: ``decide(mu)``, a :class:`Point` resting on a certificate checked in
+    """A target's two views of a channel: ``decide(mu)``, a `Point` resting on a certificate checked in
     numpy, and ``probe(mu)``, an unchecked number that is monotone (non-increasing) in each mu_i and crosses
     ``level`` at the boundary (it only steers the line searches; every decision is taken on ``decide``). The
     line searches aim ``_AIM`` (relative) beyond the level, to the side they need certified, so that their
@@ -169,7 +169,7 @@ class Target(NamedTuple):
 
 
 class _Recent:
-    """``f(mu)`` remembered for the last :data:`_RECENT` channels (keyed by ``mu.tobytes()``; a raised
+    """``f(mu)`` remembered for the last `_RECENT` channels (keyed by ``mu.tobytes()``; a raised
     NumericalError is remembered too): a line search's probe and the verdict that follows it at the same point
     share one homogeneous Riccati eigenpair and one DP solution (a third to two fifths of them on two_actuator).
     The same call on the same floats, so the same numbers. O(1) a look-up; memory O(_RECENT n^2)."""
@@ -198,7 +198,7 @@ _RECENT = 64
 
 
 def _memos(system: System, rho: float) -> tuple[_Recent, _Recent]:
-    """The scaled plant's homogeneous Riccati eigenpairs and the system's DP solutions, each a :class:`_Recent`:
+    """The scaled plant's homogeneous Riccati eigenpairs and the system's DP solutions, each a `_Recent`:
     kept by the search and handed to the final check, which asks them again at the answer's mu. Each eigenpair's
     power iteration starts from the last one's P (homogeneous_riccati's ``start``): the search asks along lines
     and edges, where consecutive channels are near. O(1)."""
@@ -216,9 +216,9 @@ def _memos(system: System, rho: float) -> tuple[_Recent, _Recent]:
 
 def _target(system: System, target: str, rho: float, alpha: float | None, check: bool = False,
             memos: tuple[_Recent, _Recent] | None = None) -> Target:
-    """The target's :class:`Target`: its verdicts from :func:`~packetloss_cvx.closedloop.region.membership`'s
+    """The target's `Target`: its verdicts from [`membership`][packetloss_cvx.closedloop.region.membership]'s
     SEARCH_FORMS, or with ``check`` its CHECK_FORMS cross-checked (forms that decide differently raise
-    CrossCheckError). ``memos`` (:func:`_memos`, made here when not given): the check shares the search's, so the
+    CrossCheckError). ``memos`` (`_memos`, made here when not given): the check shares the search's, so the
     answer's eigenpair and DP solution, the same calls on the same floats, are not computed twice."""
     plant = _scaled(system, rho)
     lmi = LazyLmi(plant.A, plant.B)
@@ -381,9 +381,9 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
         Target "stable": the bound rho on the mean-square radius, ``0 < rho <= 1``; the answer's gain is proved
         to have radius ``< rho (1 - MEAN_SQUARE_MARGIN)``. Default 1: what the product calls stable.
     alpha : float
-        Target "dp-cost": bound on the DP law's stationary cost (:func:`dp_cost`), > 0.
+        Target "dp-cost": bound on the DP law's stationary cost (`dp_cost`), > 0.
     bounds, constraints, gap, max_boxes, time_limit, progress
-        As :func:`~packetloss_cvx.allocation.allocate`.
+        As [`allocate`][packetloss_cvx.allocation.api.allocate].
 
     Returns
     -------

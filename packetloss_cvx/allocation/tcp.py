@@ -20,7 +20,7 @@ The solver's point is not taken on trust:
   solver's point, ``J*(mu) >= J*(p) + s'(mu - p)`` with ``s_i = -sum_t psi_{t,i} u_{t,i}^2``
   (the envelope theorem; ``u`` the optimal commanded inputs at ``p``): every feasible mu meets
   the cuts, so the LP over the constraint set and the cuts is a relaxation, and its dual
-  bound (:func:`~packetloss_cvx.allocation.boxes.dual_bound`) is a lower bound on the optimum
+  bound (`dual_bound`) is a lower bound on the optimum
   that does not depend on the solver's tolerances.
 """
 
@@ -132,9 +132,9 @@ class TCPProgram:
     the k rows ``G mu <= h``, and the prices beta. ``kind`` "allocate" minimises ``beta'mu`` subject
     to ``r + sum t <= 1`` (s = 1 / (alpha - C)); "min_cost" minimises ``r + sum t``.
 
-    One program per (system structure, kind, k), kept here (a :class:`~packetloss_cvx.model.system.StructureStore`,
+    One program per (system structure, kind, k), kept here (a `StructureStore`,
     shared by a system's ``with_mu`` / ``with_x0`` copies), compiled once to Clarabel's data
-    (:class:`~packetloss_cvx.qp.convex.ClarabelProgram`) and solved under ``ALLOCATION_TCP_ATTEMPTS``: the
+    (`ClarabelProgram`) and solved under ``ALLOCATION_TCP_ATTEMPTS``: the
     tight settings without equilibration on a solver kept per thread and updated with each call's data (a
     function of its own data: without an equilibration nothing of the previous data is carried over,
     whereas a warm equilibrated Clarabel keeps the Ruiz scaling of the first data it saw, answers up to
@@ -146,8 +146,8 @@ class TCPProgram:
 
     Examples
     --------
-    J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1, C = 0): the least mu with J* <= 0.8 is 0.25;
-    the least J* over mu in [0, 0.5] is 1/(1 + 0.5):
+    `J*_tcp(mu)` = 1/(1 + mu) (one step of x' = x + v u from x0 = 1, C = 0): the least mu with `J*` <= 0.8 is 0.25;
+    the least `J*` over mu in [0, 0.5] is 1/(1 + 0.5):
 
     >>> from packetloss_cvx.allocation.grammar import read_polytope
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
@@ -197,7 +197,7 @@ class TCPProgram:
               no_mu: str | None = None) -> np.ndarray:
         """The solver's mu for the state ``x0``, the polytope (of this program's number of rows), the
         cost scale and (kind "allocate") the prices, Clarabel run cold on the compiled data under
-        :func:`require_answer`'s status policy. Raises as :func:`require_answer`."""
+        `require_answer`'s status policy. Raises as `require_answer`."""
         what = "TCP-like allocation SOCP" if self.kind == "allocate" else "TCP-like minimum-cost SOCP"
         values = {self.x0: x0, self.root: np.sqrt(scale), self.lo: poly.lower(), self.hi: poly.upper()}
         if self.kind == "allocate":
@@ -216,11 +216,11 @@ def tangent(system: System, mu: np.ndarray, evaluator: CostEvaluator | None = No
     J*_tcp is the partial derivative of J in mu; it stays finite at mu_i = 0, where the closed
     form's inputs are the limit of the optimal law. O(N (n^3 + m^3)). Points may also be a
     batch (points, m): then costs (points,) and gradients (points, m) from one batched evaluation (``evaluator``,
-    a TCP-like :class:`CostEvaluator` of ``system``, reused when given).
+    a TCP-like [`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator] of ``system``, reused when given).
 
     Examples
     --------
-    J*_tcp(mu) = 1/(1 + mu) for one step of x' = x + v u from x0 = 1, so dJ*/dmu = -1/(1 + mu)^2.
+    `J*_tcp(mu)` = 1/(1 + mu) for one step of x' = x + v u from x0 = 1, so `dJ*`/dmu = -1/(1 + mu)^2.
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> cost, grad = tangent(s, np.array([0.5]))
@@ -283,7 +283,7 @@ def tangent_cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | N
 
 def _cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None,
           also: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, float]:
-    """:func:`tangent_cuts`, and J*_tcp at ``mubar`` (clipped into [0, 1]), the first of its batch. O(m len(steps))
+    """`tangent_cuts`, and J*_tcp at ``mubar`` (clipped into [0, 1]), the first of its batch. O(m len(steps))
     closed forms, as one batch."""
     points = cut_points(mubar, also)
     with np.errstate(over="ignore", invalid="ignore"):      # checked below: a cut of nan or inf raises, typed
@@ -297,7 +297,7 @@ def _cuts(system: System, mubar: np.ndarray, evaluator: CostEvaluator | None,
 
 def require_answer(status: str, what: str, no_mu: str | None) -> None:
     """The allocation SOCPs' status policy on the final status of
-    :meth:`ClarabelProgram.solve <packetloss_cvx.qp.convex.ClarabelProgram.solve>`: "optimal" passes,
+    `ClarabelProgram.solve`: "optimal" passes,
     Clarabel's infeasibility certificate raises InfeasibleError(no_mu) (SolverError when ``no_mu`` is
     None: infeasibility is then known to be impossible), anything else SolverError. O(1).
 
@@ -338,20 +338,20 @@ def interval(poly: Polytope) -> tuple[float, float]:
 
 def least_feasible(system: System, evaluator: CostEvaluator, a: float, b: float, alpha: float, tol: float
                    ) -> tuple[float, float, float, int]:
-    """One channel: the least mu in [a, b] with J*_tcp(mu) <= alpha, given J*(b) <= alpha, to within a
-    relative width ``tol`` on the feasible side; returns it, J* there, the infeasible end of the final
-    bracket (its tangent proves the bound: :func:`tangent_cuts`' ``also``) and the number of batches.
+    """One channel: the least mu in [a, b] with `J*_tcp(mu)` <= alpha, given `J*(b)` <= alpha, to within a
+    relative width ``tol`` on the feasible side; returns it, `J*` there, the infeasible end of the final
+    bracket (its tangent proves the bound: `tangent_cuts`' ``also``) and the number of batches.
 
-    J*_tcp is convex and falling in mu: a Newton step from the infeasible end lands short of the
-    crossing (the tangent lies below J*), the chord from it to the feasible end beyond it (the chord
-    lies above), so each batch of those two closed forms (:func:`tangent`) shrinks the bracket, the
+    `J*_tcp` is convex and falling in mu: a Newton step from the infeasible end lands short of the
+    crossing (the tangent lies below `J*`), the chord from it to the feasible end beyond it (the chord
+    lies above), so each batch of those two closed forms (`tangent`) shrinks the bracket, the
     Newton side quadratically; a step that would leave the bracket is replaced by its midpoint. Every
-    decision is the closed form's J* <= alpha at a point, so the answer is feasible whatever the
+    decision is the closed form's `J*` <= alpha at a point, so the answer is feasible whatever the
     steps. O(log log(1/tol)) batches in practice (at most 200), each O(N (n^3 + m^3)).
 
     Examples
     --------
-    J*_tcp(mu) = 1/(1 + mu) (one step of x' = x + v u from x0 = 1): J* <= 0.8 from mu = 0.25 on.
+    `J*_tcp(mu)` = 1/(1 + mu) (one step of x' = x + v u from x0 = 1): `J*` <= 0.8 from mu = 0.25 on.
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> mu, cost, short, batches = least_feasible(s, CostEvaluator(s, "tcp"), 0.0, 1.0, 0.8, 1e-9)
@@ -387,24 +387,24 @@ def least_feasible(system: System, evaluator: CostEvaluator, a: float, b: float,
 
 def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray, gap: float) -> Outcome:
     """min beta'mu over the polytope with J*_tcp(mu) <= alpha, ``beta`` at unit prices (largest 1:
-    :func:`~packetloss_cvx.allocation.boxes.unit_prices`).
+    `unit_prices`).
 
     Returns
     -------
     Outcome
-        ``mu`` with J*_tcp(mu) <= alpha by the closed form; ``lower_bound`` proved by the
-        tangent cuts at and around the solver's point (:func:`tangent_cuts`, computed before
-        mu is moved): every mu of the polytope with J*_tcp(mu) <= alpha meets every cut, so
+        ``mu`` with `J*_tcp(mu)` <= alpha by the closed form; ``lower_bound`` proved by the
+        tangent cuts at and around the solver's point (`tangent_cuts`, computed before
+        mu is moved): every mu of the polytope with `J*_tcp(mu)` <= alpha meets every cut, so
         no such mu has ``beta'mu < lower_bound``. Status "optimal" when the gap
-        (:func:`~packetloss_cvx.allocation.boxes.reported_gap` at scale 1) is within ``gap``, else
-        "gap_not_certified"; ``cost`` J*_tcp(mu)
-        (:func:`~packetloss_cvx.allocation.boxes.cost_function`, each point evaluated once).
+        (`reported_gap` at scale 1) is within ``gap``, else
+        "gap_not_certified"; ``cost`` `J*_tcp(mu)`
+        (`cost_function`, each point evaluated once).
 
     Raises
     ------
     InfeasibleError
-        alpha < C (no mu can help), J*_tcp at the upper corner of the bounds above alpha
-        (J* falls in every mu_i), or Clarabel's infeasibility certificate for the SOCP
+        alpha < C (no mu can help), `J*_tcp` at the upper corner of the bounds above alpha
+        (`J*` falls in every mu_i), or Clarabel's infeasibility certificate for the SOCP
         (status ``infeasible``; ``infeasible_inaccurate`` is not a proof and raises SolverError).
     SolverError
         Any status but optimal after Clarabel's tight then default settings
@@ -502,9 +502,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
 
 
 def tcp_min_cost(system: System, poly: Polytope) -> Outcome:
-    """min J*_tcp(mu) over the polytope: the SOCP, then the closed form at its point (a
+    """min `J*_tcp(mu)` over the polytope: the SOCP, then the closed form at its point (a
     reachable cost) and the LP ``min t`` over the polytope with ``t >= r_k + S_k mu`` for the
-    tangent cuts around it (a proven lower bound: the cuts are minorants of J*_tcp).
+    tangent cuts around it (a proven lower bound: the cuts are minorants of `J*_tcp`).
 
     Raises
     ------

@@ -10,7 +10,7 @@ runs over boxes [l, u] of the constraint set, best bound first:
   below it are dominated by an infeasible point), and where an incumbent exists the upper
   corner is lowered to where beta'mu could still beat it;
 * its lower bound is the LP ``min beta'mu`` over the box and the rows, proved by the exactly
-  evaluated dual (:func:`~packetloss_cvx.allocation.boxes.box_lp`);
+  evaluated dual (`box_lp`);
 * incumbents are points the closed form finds feasible: the LP point, or the bisection
   between it and the box's maximal point.
 
@@ -74,11 +74,11 @@ SPLIT_WEIGHT_FLOOR = 1e-3
 class MonotoneCost:
     """The function the searches minimise or bound: ``x -> J*(mu(x))`` on ``x`` in [0, 1]^m, with
     ``mu(x) = (phi_1(x_1), .., phi_m(x_m))`` a non-decreasing map per channel into [0, 1] (identity: the
-    delivery probabilities themselves; :mod:`.power`: the delivery that a power ``top_i x_i`` buys). J*
-    falls in every mu_i (Theorem 3), so this function falls in every x_i: every argument of the searches
-    (corners, edges, dominated points) holds for it unchanged. ``probe`` is the unchecked value
-    (:meth:`CostEvaluator.cost` ``checked=False``), ``checked`` the checked one, ``line`` the evaluator's
-    line with the other channels factored once. Each call O(m) plus the evaluator's.
+    delivery probabilities themselves; [`.power`][packetloss_cvx.allocation.power]: the delivery that a power
+    ``top_i x_i`` buys). J* falls in every mu_i (Theorem 3), so this function falls in every x_i: every argument of the
+    searches (corners, edges, dominated points) holds for it unchanged. ``probe`` is the unchecked value
+    ([`CostEvaluator.cost`][packetloss_cvx.lq.evaluator.CostEvaluator.cost] ``checked=False``), ``checked`` the checked
+    one, ``line`` the evaluator's line with the other channels factored once. Each call O(m) plus the evaluator's.
 
     Examples
     --------
@@ -110,7 +110,7 @@ class MonotoneCost:
         return self._of_clipped(np.asarray(x, dtype=float).clip(0.0, 1.0))
 
     def _of_clipped(self, x: np.ndarray) -> np.ndarray:
-        """mu(x) for x already in [0, 1]^m (:meth:`mu` after its clip). O(m)."""
+        """mu(x) for x already in [0, 1]^m (`mu` after its clip). O(m)."""
         return x if self.identity else np.clip(self.to_mu(x), 0.0, 1.0)
 
     def checked(self, x: np.ndarray) -> float:
@@ -287,9 +287,9 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     """min beta'mu over the polytope with J*_udp(mu) <= alpha, to a relative ``gap``.
 
     ``floor`` is a proven lower bound from elsewhere (the TCP-like relaxation, Theorem 2).
-    ``cost``: any falling function of the coordinates in place of J*_udp (:class:`MonotoneCost`; the
-    power allocation of :mod:`.power`); ``incumbent``: a point to offer first (kept only if the
-    checked cost says it is feasible and it meets the polytope).
+    ``cost``: any falling function of the coordinates in place of J*_udp (`MonotoneCost`; the
+    power allocation of [`.power`][packetloss_cvx.allocation.power]); ``incumbent``: a point to offer first (kept only
+    if the checked cost says it is feasible and it meets the polytope).
     Cost per box and worst-case box count: see the module docstring.
 
     Raises
@@ -301,7 +301,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
 
     Examples
     --------
-    Two decoupled copies of x' = x + v u (N = 1): J*_udp = sum (1 - mu_i/2), so J*_udp <= 1.5 is
+    Two decoupled copies of x' = x + v u (N = 1): `J*_udp` = sum (1 - mu_i/2), so `J*_udp` <= 1.5 is
     mu1 + mu2 >= 1; with mu2 twice as dear the cheapest point is (1, 0).
 
     >>> from packetloss_cvx.allocation.grammar import read_polytope
@@ -323,7 +323,7 @@ def udp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
 
     def probe(mu: np.ndarray) -> float:
         """J*(mu) without the one-point self-check (the same number wherever the check passes): a probe
-        only steers; :func:`J` (checked) confirms each value a decision rests on."""
+        only steers; `J` (checked) confirms each value a decision rests on."""
         return f.probe(mu)
 
     def bound(l: np.ndarray, u: np.ndarray):
@@ -408,9 +408,9 @@ def row_caps(poly: Polytope, l: np.ndarray, u: np.ndarray) -> np.ndarray:
 def udp_min_cost(system: System, poly: Polytope, max_boxes: int, time_limit: float | None,
                  cost: MonotoneCost | None = None, incumbent: np.ndarray | None = None, floor: float = -np.inf,
                  what: str = "UDP-like minimum cost", gap: float = MIN_COST_RTOL) -> Outcome:
-    """min J*_udp over the polytope, to ``MIN_COST_RTOL``: the minimum sits at a maximal point;
-    boxes are bounded by J*(upper corner) (Theorem 3) and incumbents are maximal LP points.
-    ``cost``, ``incumbent``: as for :func:`udp_allocate`; ``floor``: a proven lower bound from elsewhere;
+    """min `J*_udp` over the polytope, to ``MIN_COST_RTOL``: the minimum sits at a maximal point;
+    boxes are bounded by `J*`(upper corner) (Theorem 3) and incumbents are maximal LP points.
+    ``cost``, ``incumbent``: as for `udp_allocate`; ``floor``: a proven lower bound from elsewhere;
     ``gap``: the relative gap to certify.
 
     Raises

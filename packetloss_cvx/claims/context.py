@@ -33,15 +33,15 @@ class Context:
     extra : int
         How many of ``random`` (at its start) are the caller's systems.
     cache : dict
-        Solver answers shared between checks (see :meth:`qp`).
+        Solver answers shared between checks (see `qp`).
     problems, evaluators : dict
-        QP twins per system (:class:`ExpectedCostQP`: its data built once; the condensed problems
-        it solves are compiled once per padded shape and shared by every case, :mod:`..qp_shared`)
+        QP twins per system ([`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP]: its data built once;
+        the condensed problems it solves are compiled once per padded shape and shared by every case, `shared`)
         and cost evaluators per (system, protocol), keyed by ``id`` (the cases live as long as the context).
     riccati : dict
-        The DP optimum per case (:meth:`dp`), or the NumericalError it raised, keyed by ``id``.
+        The DP optimum per case (`dp`), or the NumericalError it raised, keyed by ``id``.
     simple : dict
-        The simple systems the claims' shrinking tries, per seed (:func:`.evaluate.simple_systems`): drawn
+        The simple systems the claims' shrinking tries, per seed (`.evaluate.simple_systems`): drawn
         once per audit, so their cached structure is shared by every claim that shrinks.
     """
 
@@ -75,9 +75,10 @@ class Context:
         return system.name or "a system outside the audit's cases"
 
     def qp(self, system: System, protocol: str) -> Solution:
-        """The QP twin's answer for ``system`` (solved once per audit). One :class:`ExpectedCostQP`
-        per system serves both protocols; the audit's 200 random systems share 15 compiled condensed
-        problems (one per padded shape, docs/performance.md, "Audit: compiled QPs shared across systems")."""
+        """The QP twin's answer for ``system`` (solved once per audit). One
+        [`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP] per system serves both protocols; the audit's
+        200 random systems share 15 compiled condensed problems (one per padded shape, docs/performance.md, "Audit:
+        compiled QPs shared across systems")."""
         from ..qp.expected_cost import ExpectedCostQP  # cvxpy (1.5 s to import) only where a QP is solved
 
         key = (id(system), protocol)
@@ -114,9 +115,10 @@ class Context:
         return found
 
     def evaluator(self, system: System, protocol: str) -> CostEvaluator:
-        """The cached :class:`CostEvaluator` of ``system`` (its structure built once per audit, shared by
-        both protocols: :meth:`CostEvaluator.with_protocol`). The evaluator holds the system, so its
-        ``id`` stays unique while cached."""
+        """The cached [`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator] of ``system`` (its structure built
+        once per audit, shared by both protocols:
+        [`CostEvaluator.with_protocol`][packetloss_cvx.lq.evaluator.CostEvaluator.with_protocol]). The evaluator holds
+        the system, so its ``id`` stays unique while cached."""
         protocol = check_protocol(protocol)
         key = (id(system), protocol)
         if key not in self.evaluators:

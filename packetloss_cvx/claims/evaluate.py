@@ -3,11 +3,11 @@
 A check computes a *margin* per case: >= 0 where the claim holds for that case,
 < 0 where it fails (for equalities, tolerance minus error), None where the claim
 does not apply (an explicit skip, which the check's note explains). A case whose
-check raises one of :data:`CASE_ERRORS` (a numerical or solver failure, or input
+check raises one of `CASE_ERRORS` (a numerical or solver failure, or input
 the check cannot take) has *errored*: it is counted, named in the note, and never
 read as agreement. A NaN margin counts as an error too.
 
-Verdict (:func:`verdict`): "fails" when some case violates (a proven violation,
+Verdict (`verdict`): "fails" when some case violates (a proven violation,
 whatever else errored); otherwise "inconclusive" when a case errored or none was
 checked; otherwise "holds". A violation is shrunk to the smallest simple system
 that still violates: small n, m, N and integers or halves, checkable by hand.
@@ -118,7 +118,7 @@ class Tally:
         return min(self.margins) if self.margins else None
 
     def verdict(self) -> str:
-        """:func:`verdict` of the counts."""
+        """`verdict` of the counts."""
         return verdict(self.checked, self.violations, self.errors)
 
     def error_note(self) -> str:
@@ -164,9 +164,9 @@ def _sizes(max_total: int = 9) -> Iterator[tuple[int, int, int]]:
 
 
 class SimpleSystems:
-    """The simple systems :func:`shrink` tries for one seed, in its order: ``tries`` per size (n, m, N), sizes by
+    """The simple systems `shrink` tries for one seed, in its order: ``tries`` per size (n, m, N), sizes by
     n + m + N; each drawn once, when first asked for (the same draws in the same order as drawing them afresh).
-    An audit keeps one per seed (:func:`simple_systems`), so every claim's shrinking tries the same System
+    An audit keeps one per seed (`simple_systems`), so every claim's shrinking tries the same System
     objects and their cached structure (prediction, evaluator data) is built once, not once per claim.
     O(1) per system after its first draw.
 
@@ -192,7 +192,7 @@ class SimpleSystems:
 
 
 def simple_systems(ctx: Context) -> SimpleSystems:
-    """The audit's :class:`SimpleSystems` of its seed (made on the first shrink, kept in ``ctx.simple``). O(1).
+    """The audit's `SimpleSystems` of its seed (made on the first shrink, kept in ``ctx.simple``). O(1).
 
     Examples
     --------
@@ -230,7 +230,7 @@ def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System
     fallback : sequence of System
         Where to look when no simple system violates.
     candidates : SimpleSystems, optional
-        The simple systems of ``seed`` and ``tries`` already drawn (an audit's, :func:`simple_systems`);
+        The simple systems of ``seed`` and ``tries`` already drawn (an audit's, `simple_systems`);
         default: drawn afresh.
 
     Returns
@@ -252,18 +252,18 @@ def shrink(margin: Margin, seed: int, tries: int = 12, fallback: Sequence[System
 
 def evaluate(claim_id: str, ctx: Context, cases: Sequence[System], margin: Margin, note: str,
              shrinkable: bool = True) -> ClaimResult:
-    """Run ``margin`` on every case and turn the outcomes into a verdict (:func:`verdict`).
+    """Run ``margin`` on every case and turn the outcomes into a verdict (`verdict`).
 
     Parameters
     ----------
     claim_id : str
-        A key of :data:`STATEMENTS`.
+        A key of `STATEMENTS`.
     ctx : Context
-        Names the cases in the note (:meth:`Context.label`) and seeds the shrinking.
+        Names the cases in the note (`Context.label`) and seeds the shrinking.
     cases : sequence of System
     margin : callable
         System -> margin (>= 0 holds, < 0 violated, None not applicable); may raise one of
-        :data:`CASE_ERRORS`, which counts the case as errored.
+        `CASE_ERRORS`, which counts the case as errored.
     note : str
         How the margin is defined, and what the check found.
     shrinkable : bool
@@ -372,7 +372,7 @@ def z_margin(samples: np.ndarray, expect: float) -> float:
     """Z - |z| of the sample mean against ``expect``; a degenerate sample must match to 1e-9 relative. Computed on the
     samples divided by their scale ``max(|expect|, max|samples|)`` rounded to a power of two (exact: the same floats
     as unscaled), so the margin is the same at every scale and the standard deviation's squares do not underflow; a
-    scale below ``RESOLVED_MIN`` raises NumericalError (:func:`resolved`).
+    scale below ``RESOLVED_MIN`` raises NumericalError (`resolved`).
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """plug-in-markov: are the paper's laws, fed the chain's predicted mu_t, still optimal when losses
 come in bursts? Each case is put behind Gilbert channels with its own average delivery rates and
-burstiness lambda = 1 - p - r in :data:`CORRELATIONS`, and the UDP-like plug-in law's exact expected
-cost is compared with the exact minimum (:mod:`packetloss_cvx.lq.markov_cost`).
+burstiness lambda = 1 - p - r in `CORRELATIONS`, and the UDP-like plug-in law's exact expected
+cost is compared with the exact minimum ([`packetloss_cvx.lq.markov_cost`][packetloss_cvx.lq.markov_cost]).
 """
 
 from __future__ import annotations
@@ -54,15 +54,15 @@ def plugin_loss(system: System, correlation: float | None, plans: dict[bytes, np
 
 
 def _losses(system: System) -> list[float | None]:
-    """:func:`plugin_loss` behind the system's own Gilbert-Elliott channel if it has one, else at each of
-    :data:`CORRELATIONS` (a plug-in plan computed once per schedule the twins predict)."""
+    """`plugin_loss` behind the system's own Gilbert-Elliott channel if it has one, else at each of
+    `CORRELATIONS` (a plug-in plan computed once per schedule the twins predict)."""
     plans: dict[bytes, np.ndarray] = {}
     return [plugin_loss(system, lam, plans) for lam in ((None,) if system.channel is not None else CORRELATIONS)]
 
 
 def _margin(system: System, losses: list[float | None] | None = None) -> float | None:
     """A system with its own Gilbert-Elliott channel is checked behind it; any other behind its twins.
-    ``losses``: :func:`_losses` of ``system`` when the caller has them."""
+    ``losses``: `_losses` of ``system`` when the caller has them."""
     losses = _losses(system) if losses is None else losses
     if any(loss is None for loss in losses):
         return None
@@ -70,7 +70,7 @@ def _margin(system: System, losses: list[float | None] | None = None) -> float |
 
 
 def plug_in_markov(ctx: Context) -> ClaimResult:
-    """The check: margin = 1e-7 - (largest relative loss of the plug-in law over :data:`CORRELATIONS`).
+    """The check: margin = 1e-7 - (largest relative loss of the plug-in law over `CORRELATIONS`).
 
     Examples
     --------

@@ -37,7 +37,7 @@ def relative_excess(system: System, gain: Callable[[str], np.ndarray] | None = N
     ``inf`` for a law that is not mean-square stable; the key ``"psd"``: min eig(P_K - P) / ||P|| over
     the stable laws. None when the channel is non-stationary or no law stabilises (no DP solution).
     ``gain``: protocol -> K (asked only once a DP solution exists) when the caller has them, else closed_form's;
-    ``solve``: the DP solver (the audit's :meth:`Context.dp`, which keeps each case's for the other claims).
+    ``solve``: the DP solver (the audit's `Context.dp`, which keeps each case's for the other claims).
     Time O(n^6) (two moment solves per law) plus the Riccati iteration.
 
     Examples

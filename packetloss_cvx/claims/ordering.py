@@ -24,10 +24,11 @@ __all__ = ["case_ids", "corollary_1", "corollary_2", "optimal_plan", "theorem_2"
 
 def optimal_plan(ctx: Context, system: System, protocol: str, case: bool | None = None) -> Solution:
     """Theorem 1's plan at the system's own channel: from the audit's cached evaluator for one of its
-    cases (built once, shared by the claims, :meth:`CostEvaluator.optimum`), from
-    :func:`~packetloss_cvx.lq.costs.closed_form` for any other system (a shrunk counterexample's candidates,
-    computed as before). Equal to rounding either way (tests: 1e-12). ``case``: whether ``system`` is one
-    of the cases, when the caller knows (:func:`case_ids`), else looked up.
+    cases (built once, shared by the claims,
+    [`CostEvaluator.optimum`][packetloss_cvx.lq.evaluator.CostEvaluator.optimum]), from
+    [`closed_form`][packetloss_cvx.lq.costs.closed_form] for any other system (a shrunk counterexample's candidates,
+    computed as before). Equal to rounding either way (tests: 1e-12). ``case``: whether ``system`` is one of the cases,
+    when the caller knows (`case_ids`), else looked up.
 
     Examples
     --------
@@ -65,7 +66,7 @@ def _is_case(ctx: Context, system: System) -> bool:
 
 @blas_limited
 def theorem_2(ctx: Context) -> ClaimResult:
-    """J*_udp - J*_tcp > 0 for interior channels (Theorem 2, from eq:G-inequality), by the
+    """`J*_udp` - `J*_tcp` > 0 for interior channels (Theorem 2, from eq:G-inequality), by the
     cancellation-free difference.
 
     Examples
@@ -101,7 +102,7 @@ def theorem_2(ctx: Context) -> ClaimResult:
 
 @blas_limited
 def corollary_1(ctx: Context) -> ClaimResult:
-    """||U*_udp|| < ||U*_tcp|| for interior channels.
+    """||`U*_udp`|| < ||`U*_tcp`|| for interior channels.
 
     Examples
     --------
@@ -126,7 +127,7 @@ def corollary_1(ctx: Context) -> ClaimResult:
 
 @blas_limited
 def theorem_3(ctx: Context) -> ClaimResult:
-    """J*(mu1) > J*(mu2) for mu2 > mu1 entrywise, both protocols (Theorem 3, eq:monotonic-cost-pos-def).
+    """`J*(mu1)` > `J*(mu2)` for mu2 > mu1 entrywise, both protocols (Theorem 3, eq:monotonic-cost-pos-def).
 
     Examples
     --------

@@ -85,7 +85,7 @@ def level_shift(system: System, protocol: str, budgets=BUDGETS, c: float = 1.0, 
 
 
 def power_water_filling(ctx: Context) -> ClaimResult:
-    """The check on :func:`water_cases` (independent of the audit's random cases: two conic programs per
+    """The check on `water_cases` (independent of the audit's random cases: two conic programs per
     case, about 0.3 s in all).
 
     Examples

@@ -84,7 +84,7 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
     seed : int
         Seeds the random systems, the Monte Carlo samples and the shrinking.
     only : sequence of str, optional
-        Claim ids to check (default: all of :data:`CLAIMS`, in order).
+        Claim ids to check (default: all of `CLAIMS`, in order).
     progress : bool or None
         A bar on stderr, one step per claim (None: when stderr is a terminal).
 
@@ -133,13 +133,13 @@ def audit(systems: Sequence[System] | None = None, random: int = 50, seed: int =
 
 
 def run_claim(claim_id: str, ctx: Context) -> ClaimResult:
-    """Run one claim's check; if the check itself raises one of :data:`CASE_ERRORS` (outside its
+    """Run one claim's check; if the check itself raises one of `CASE_ERRORS` (outside its
     per-case loop), the claim is "inconclusive" with one error, and the note names it.
 
     Parameters
     ----------
     claim_id : str
-        A key of :data:`CLAIMS`.
+        A key of `CLAIMS`.
     ctx : Context
 
     Returns
@@ -162,8 +162,8 @@ def run_claim(claim_id: str, ctx: Context) -> ClaimResult:
 
 
 def _given_systems(systems: object) -> list[System]:
-    """``audit``'s ``systems``: None or an iterable of :class:`System` (a name or a lone System is refused, not
-    taken letter by letter or failing on ``.channel``). O(len).
+    """``audit``'s ``systems``: None or an iterable of [`System`][packetloss_cvx.model.system.System] (a name or a lone
+    System is refused, not taken letter by letter or failing on ``.channel``). O(len).
 
     >>> _given_systems(None), len(_given_systems(tuple(paper_systems().values())))
     ([], 2)

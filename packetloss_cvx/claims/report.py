@@ -4,11 +4,30 @@ and counterexample (the body of docs/claims.md)."""
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Sequence
 
 from ..results import ClaimResult
 
-__all__ = ["markdown_report", "markdown_table"]
+__all__ = ["markdown_report", "markdown_table", "markdown_text"]
+
+#: a starred symbol of the paper (``J*``, ``J*_udp``, ``J*(mu1)``, ``J*_tcp(nu2)``, ``U*``): two of them in one
+#: paragraph would open and close Markdown emphasis
+STARRED = re.compile(r"(?<![\w`*])[A-Za-z][A-Za-z0-9]*\*(?!\*)(?:_[A-Za-z0-9]+)?(?:\([^()\s]*\))?")
+
+
+def markdown_text(text: str) -> str:
+    """``text`` (a claim's statement or note, plain text) for a Markdown page: each starred symbol as code, so
+    ``J*_udp - J*_tcp`` stays as written instead of turning into emphasis; code spans are left as they are.
+
+    Examples
+    --------
+    >>> markdown_text("J*_udp - J*_tcp > 0 and J*(M1) > J*(M2); `J*` kept")
+    '`J*_udp` - `J*_tcp` > 0 and `J*(M1)` > `J*(M2)`; `J*` kept'
+    """
+    parts = text.split("`")
+    return "`".join(STARRED.sub(lambda m: f"`{m[0]}`", part) if i % 2 == 0 else part
+                    for i, part in enumerate(parts))
 
 
 def markdown_report(results: Sequence[ClaimResult], header: str = "") -> str:
@@ -24,9 +43,9 @@ def markdown_report(results: Sequence[ClaimResult], header: str = "") -> str:
     """
     parts = [header, markdown_table(results), ""]
     for r in results:
-        parts += [f"### {r.id}: {r.verdict}", "", f"*Claim.* {r.statement}", "",
+        parts += [f"### {r.id}: {r.verdict}", "", f"*Claim.* {markdown_text(r.statement)}", "",
                   f"Checked {r.checked}, violations {r.violations}, errors {r.errors}, worst margin "
-                  f"{'n/a' if r.worst is None else f'{r.worst:.4g}'}. {r.note}", ""]
+                  f"{'n/a' if r.worst is None else f'{r.worst:.4g}'}. {markdown_text(r.note)}", ""]
         if r.outcomes:
             parts += [f"Cases: `{r.outcomes}`", ""]
         if r.counterexample is not None:

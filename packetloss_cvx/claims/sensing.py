@@ -58,7 +58,7 @@ def _split(system: System, solve: Callable[[System], Riccati] | None = None
            ) -> tuple[float, float, float, System, Any, float] | None:
     """The exact loop's cost and parts on ``sensed(system)``, the twin, its DP and the loop's radius (None where the
     claim does not apply). ``solve``: the DP of ``system`` itself when the caller keeps it (the audit's
-    :meth:`Context.dp`, solved for mpc-vs-dp already): the DP depends on A, B, mu and the weights only, so the
+    `Context.dp`, solved for mpc-vs-dp already): the DP depends on A, B, mu and the weights only, so the
     twin's is the case's with the twin's noise in its average stage cost (the same floats as solving it again)."""
     s = sensed(system)
     if s is None:

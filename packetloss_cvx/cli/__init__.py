@@ -4,15 +4,15 @@ Exit codes: 0 success; 2 bad input (one stderr line naming the field); 3 a
 well-posed problem with no solution (proved); 4 an allocation whose gap was not
 certified within its caps (printed as usual); 1 anything else (one stderr line).
 
-The grammar (:mod:`.parser`) imports nothing numerical; the checks that need no solver
-(:func:`.common.preflight`: files, overrides, number lists) run next, importing NumPy only;
-the module that runs a subcommand (``solve``, ``audit``, ...) is imported only after them,
+The grammar ([`.parser`][packetloss_cvx.cli.parser]) imports nothing numerical; the checks that need no solver
+([`.common.preflight`][packetloss_cvx.cli.common.preflight]: files, overrides, number lists) run next, importing NumPy
+only; the module that runs a subcommand (``solve``, ``audit``, ...) is imported only after them,
 so ``--help``, ``--version`` and bad input answer without importing cvxpy or SciPy.
 ``--out FILE`` writes the JSON object to FILE as well (atomically; an existing FILE needs ``--force``);
 ``-v`` reports the time taken on stderr.
 
 SIGINT and SIGTERM end a run with one line on stderr and exit 130 / 143 (128 + the signal): the handler
-raises :class:`Interrupted` (a KeyboardInterrupt) wherever the run is, so every ``with`` block on the way
+raises `Interrupted` (a KeyboardInterrupt) wherever the run is, so every ``with`` block on the way
 out removes its temporary files and releases its folder's lock (safeio.py); a second signal during that
 clean-up only is recorded (the handler sees the interrupt being handled). Nothing is set to "ignore" while the run
 lasts: an interrupt that a library swallows is raised again between the run's steps and decides the exit code, and
@@ -75,11 +75,11 @@ class Interrupted(KeyboardInterrupt):
 
 class _Stopper:
     """The handler of SIGINT and SIGTERM during one ``main`` call. It remembers the first signal and raises
-    :class:`Interrupted` where the run is, except where the run must not be interrupted: while an interrupt is
+    `Interrupted` where the run is, except where the run must not be interrupted: while an interrupt is
     already on its way out (a ``with`` block's or a ``finally``'s clean-up runs with it as the exception being
     handled), in ``main``'s own frame (which decides the exit code) and once the run is over (``over``). Nothing
     is set to "ignore": a library that swallows the interrupt (a bare ``except:`` around an import) leaves the run
-    interruptible, and :meth:`check` raises the swallowed signal again at the run's next step."""
+    interruptible, and `check` raises the swallowed signal again at the run's next step."""
 
     def __init__(self) -> None:
         self.signum: int | None = None      # the first stop signal received
@@ -179,7 +179,7 @@ def _quiet_stderr() -> None:
 
 def _run(argv: Sequence[str] | None, stopper: _Stopper) -> int:
     """The command, and its exit code with one stderr line for a failure. An error raised after a signal arrived
-    (or while handling one) is the interrupt: it is raised as :class:`Interrupted`."""
+    (or while handling one) is the interrupt: it is raised as `Interrupted`."""
     try:
         return _command(argv, stopper)
     except BrokenPipeError:  # the reader went away (e.g. `| head`): stop quietly
@@ -269,7 +269,7 @@ def _import_command(name: str, program: bool) -> Any:
 
 
 def _interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
-    """The KeyboardInterrupt (our signal handler's :class:`Interrupted`) that ``err`` was raised while handling,
+    """The KeyboardInterrupt (our signal handler's `Interrupted`) that ``err`` was raised while handling,
     if any: a signal inside an import surfaces as the import's own error. O(length of the chain).
 
     >>> try:

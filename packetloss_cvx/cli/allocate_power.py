@@ -1,7 +1,7 @@
 """``allocate FILE`` with transmit power (``--power``, the file's ``[power]`` table) or ``--protocol best``
-(the acknowledgement link priced). :mod:`.allocate` hands these over; this module reads the
-options, calls :mod:`packetloss_cvx.allocation.power` / :mod:`~packetloss_cvx.allocation.ack` (the model from
-:mod:`~packetloss_cvx.allocation.delivery`) and shapes the
+(the acknowledgement link priced). `.allocate` hands these over; this module reads the
+options, calls [`packetloss_cvx.allocation.power`][packetloss_cvx.allocation.power] / `ack` (the model from
+`delivery`) and shapes the
 result (exit 0 optimal, 3 infeasible, 4 gap not certified)."""
 
 from __future__ import annotations

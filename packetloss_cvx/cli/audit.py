@@ -19,7 +19,7 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     Examples
     --------
-    Theorem 2 (J*_udp >= J*_tcp) on the paper's two systems and a one-step scalar one (2/3 <= 0.75):
+    Theorem 2 (`J*_udp` >= `J*_tcp`) on the paper's two systems and a one-step scalar one (2/3 <= 0.75):
 
     >>> import tempfile
     >>> from pathlib import Path

@@ -1,8 +1,8 @@
 """Helpers the subcommands share: number lists, the file's overrides, the checks run before a
 command's (numerical) module is imported, the result a command returns.
 
-Imports only the model and io layers (NumPy): :func:`preflight` runs before ``main`` imports
-the subcommand's module, so that bad input is refused without importing cvxpy or SciPy
+Imports only the model and io layers (NumPy): [`preflight`][packetloss_cvx.cli.common.preflight] runs before ``main``
+imports the subcommand's module, so that bad input is refused without importing cvxpy or SciPy
 (docs/design.md §4).
 """
 
@@ -62,7 +62,8 @@ class CommandResult(NamedTuple):
 
 
 def floats(text: str, field: str) -> list[float]:
-    """``"1,-2.5"`` -> ``[1.0, -2.5]``; anything else is an :class:`InputError` naming ``field``.
+    """``"1,-2.5"`` -> ``[1.0, -2.5]``; anything else is an [`InputError`][packetloss_cvx.errors.InputError] naming
+        ``field``.
 
     Examples
     --------
@@ -137,7 +138,7 @@ def number(text: str, field: str) -> float:
 
 def read_schedule(path: str) -> np.ndarray:
     """A CSV file of N rows of m delivery probabilities, read by the one CSV reader
-    (:func:`~packetloss_cvx.model.files.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
+    (`read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
     a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(N m).
 
     Examples
@@ -388,8 +389,8 @@ it on purpose set PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07
 
 def check_figure_format(path: str, field: str) -> None:
     """A figure FILE whose extension matplotlib can write (no extension: PNG), checked by a command before
-    its work (not by :func:`preflight`, which imports no matplotlib): ``simulate --plot loop.pgn`` sampled
-    for minutes, then exited 2 under "path" with nothing printed. O(1).
+    its work (not by [`preflight`][packetloss_cvx.cli.common.preflight], which imports no matplotlib):
+    ``simulate --plot loop.pgn`` sampled for minutes, then exited 2 under "path" with nothing printed. O(1).
 
     Examples
     --------
@@ -409,7 +410,7 @@ def check_figure_format(path: str, field: str) -> None:
 
 
 def check_path_length(path: str, field: str) -> None:
-    """A path no longer than :data:`MAX_PATH` whose components are at most :data:`MAX_NAME` characters (what
+    """A path no longer than `MAX_PATH` whose components are at most `MAX_NAME` characters (what
     Linux file systems hold), else an InputError naming ``field`` (exit 2, not an OSError). O(len(path)).
 
     Examples

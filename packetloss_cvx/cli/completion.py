@@ -2,7 +2,7 @@
 
 Completes subcommands, each subcommand's options (an option that takes a value is followed by its
 value, not by another option), choices (``--protocol t<TAB>``), and a system FILE as a packaged
-example name (read from the package data: :func:`packetloss_cvx.model.examples.names`) or a file name.
+example name (read from the package data: `packetloss_cvx.model.examples.names`) or a file name.
 bash and zsh. O(size of the grammar). shtab (0.12 s to import) is loaded only when a script is asked for.
 """
 
@@ -40,7 +40,7 @@ def mark_system_file(action: argparse.Action) -> argparse.Action:
 
 
 def script(parser: argparse.ArgumentParser, shell: str = "bash") -> str:
-    """The completion script of ``parser`` for ``shell`` (one of :data:`SHELLS`).
+    """The completion script of ``parser`` for ``shell`` (one of `SHELLS`).
 
     Examples
     --------

@@ -2,7 +2,7 @@
 lines, matrices with labelled rows and columns under their label, numbers in ``%.6g``.
 
 Numbers appear in the same order as in the JSON (eigenvalues sorted by descending modulus,
-as :func:`packetloss_cvx.results.eigenvalue_pairs` sorts them); a real eigenvalue prints as a
+as `packetloss_cvx.results.eigenvalue_pairs` sorts them); a real eigenvalue prints as a
 real number. Nothing here computes: each helper formats what it is given. O(size of the output).
 """
 
@@ -29,8 +29,8 @@ MAX_COLUMNS = 8
 
 
 def name(text: Any) -> str:
-    r"""A user-given name or path as the text shows it: control characters escaped (:func:`~packetloss_cvx.
-    printable.printable`), so a system named ``"\x1b[31m..."`` prints as ``\x1b[31m...``. O(len(text)).
+    r"""A user-given name or path as the text shows it: control characters escaped
+    (`printable.printable`), so a system named ``"\x1b[31m..."`` prints as ``\x1b[31m...``. O(len(text)).
 
     Examples
     --------
@@ -54,8 +54,8 @@ def num(value: Any, digits: int = 6) -> str:
 
 
 def num_within(value: float, error: float, digits: int = 6) -> str:
-    """``value`` as :func:`num` prints it, to no more digits than ``error`` supports, with ``± error`` beside it where
-    that is fewer than ``digits``. O(1).
+    """``value`` as [`num`][packetloss_cvx.cli.format.num] prints it, to no more digits than ``error`` supports, with
+    ``± error`` beside it where that is fewer than ``digits``. O(1).
 
     Examples
     --------

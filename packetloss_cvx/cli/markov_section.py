@@ -48,11 +48,11 @@ def _radius(system: System, gain: np.ndarray) -> tuple[float | None, bool, str]:
 def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tuple[dict[str, Any], list[str]]:
     """``(data, lines)`` for a system with a Markov channel: JSON under "markov" and the text lines.
 
-    Per protocol: :func:`~packetloss_cvx.qp.markov_solution.markov_solution`, and the mean-square radius of the loop
+    Per protocol: `markov_solution`, and the mean-square radius of the loop
     u = -K x behind the chain (a Markov jump linear system) for the plug-in and the exact receding-horizon
     gains, both computed at the file's belief; "stable" only where
-    :func:`~packetloss_cvx.closedloop.stability.is_mean_square_stable` proves it (a radius not computed is reported
-    with its reason, never as stable).
+    [`is_mean_square_stable`][packetloss_cvx.closedloop.stability.is_mean_square_stable] proves it (a radius not
+    computed is reported with its reason, never as stable).
 
     A disagreement of the QP with the closed form (CrossCheckError) propagates; a QP beyond the
     memory budget or the solver's range is reported as skipped.

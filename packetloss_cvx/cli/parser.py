@@ -1,8 +1,9 @@
 """The command line's grammar: argparse only, no numerical import (``--help`` stays fast).
 
 Each subcommand names the module of this package that runs it (``command="solve"`` ->
-``packetloss_cvx.cli.solve.run``); :func:`packetloss_cvx.cli.main` imports that module only
-when the command runs. A new subcommand is one block in :func:`build_parser` and its module::
+``packetloss_cvx.cli.solve.run``); [`packetloss_cvx.cli.main`][packetloss_cvx.cli.main] imports that module only
+when the command runs. A new subcommand is one block in [`build_parser`][packetloss_cvx.cli.parser.build_parser] and its
+module::
 
     sim = add_command(sub, "simulate", "sample the closed loop",
                       examples=["simulate two_actuator --samples 1000 --seed 1"])
@@ -10,7 +11,7 @@ when the command runs. A new subcommand is one block in :func:`build_parser` and
     add_system_options(sim)                     # --mu, --mu-schedule, --x0, if it takes them
     sim.add_argument("--samples", type=int, default=1000, help="number of sample paths, e.g. 5000")
 
-:func:`add_command` gives every subcommand the same shared options (``-q/--quiet``,
+[`add_command`][packetloss_cvx.cli.parser.add_command] gives every subcommand the same shared options (``-q/--quiet``,
 ``-v/--verbose``, and unless ``results=False``: ``--json`` and ``--out FILE``), the same help
 layout (each option's default appended to its help) and an "examples" epilog. A command whose
 ``--out`` names a directory (sweep, reproduce) passes ``results=False`` and adds its own

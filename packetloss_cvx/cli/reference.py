@@ -133,7 +133,8 @@ def markdown(parser: argparse.ArgumentParser | None = None) -> str:
 
 
 def write(path: str | Path) -> Path:
-    """Write :func:`markdown` to ``path``, atomically, replacing it (the page is generated). O(size of the grammar)."""
+    """Write [`markdown`][packetloss_cvx.cli.reference.markdown] to ``path``, atomically, replacing it (the page is
+        generated). O(size of the grammar)."""
     path = Path(path)
     with atomic_write(path, overwrite=True, text=True, field="path") as handle:
         handle.write(markdown())

@@ -59,8 +59,8 @@ SETTINGS = {
 
 @blas_limited      # the maximisers, tables and audit loops of small dense algebra (threads.py)
 def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float]) -> dict[str, Any]:
-    """The data of every figure, table and the audit for ``settings`` (one of :data:`SETTINGS`), each step's wall
-    seconds put in ``seconds``; nothing is written. Called by :func:`run` (and by benchmarks/reproduce_speed.py)."""
+    """The data of every figure, table and the audit for ``settings`` (one of `SETTINGS`), each step's wall
+    seconds put in ``seconds``; nothing is written. Called by `run` (and by benchmarks/reproduce_speed.py)."""
     pendulum, mixed = load_example("pendulum"), load_example("two_actuator")
     steps = ["pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "audit"]
     data: dict[str, Any] = {"settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()}}
@@ -95,21 +95,24 @@ def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, 
 
 
 def draw_figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
-    """Every figure of :func:`compute`'s ``data`` saved into ``folder``: ``{label: path}``. Called by :func:`run`
+    """Every figure of `compute`'s ``data`` saved into ``folder``: ``{label: path}``. Called by `run`
     (and by benchmarks/reproduce_speed.py)."""
     out = folder.path
     paths = {label: out / f"{label.removeprefix('fig:')}.png" for label in FIGURES}
     pend, mixed = data["pendulum"], data["mixed"]
     caption = {label: f"{label}\n{text}" for label, text in FIGURES.items()}
     draw = {}
-    draw["fig:log-cost-pendulum"] = plot_cost_lines(pend["nu"], {"tcp": pend["tcp"], "udp": pend["udp"], "diff": pend["diff"]},
+    draw["fig:log-cost-pendulum"] = plot_cost_lines(
+                    pend["nu"], {"tcp": pend["tcp"], "udp": pend["udp"], "diff": pend["diff"]},
                     xlabel=r"delivery probability $\nu$ (shared channel; log scale)", xscale="log",
                     marker=pend["maximiser"]["nu"],
                     marker_label=rf"max $J_\Delta$ at $\nu$ = {pend['maximiser']['nu']:.3g}",
                     title=caption["fig:log-cost-pendulum"])
     axis = mixed["axis"]
-    draw["fig:cost-diff-mixed"] = plot_log_contour(axis, axis, mixed["diff"], colorbar_label=r"$J_\Delta$ (log scale)",
-                                                   marker=mixed["maximiser"]["mu"], title=caption["fig:cost-diff-mixed"])
+    draw["fig:cost-diff-mixed"] = plot_log_contour(axis, axis, mixed["diff"],
+                                                   colorbar_label=r"$J_\Delta$ (log scale)",
+                                                   marker=mixed["maximiser"]["mu"],
+                                                   title=caption["fig:cost-diff-mixed"])
     for protocol in ("tcp", "udp"):
         name = protocol.upper()
         draw[f"fig:{name}-log-cost-mixed"] = plot_log_contour(

@@ -244,7 +244,7 @@ def _ack(data: dict[str, Any], figures: dict[str, Path]) -> list[str]:
 
 def region_paragraph(region: dict[str, Any], link: str) -> list[str]:
     """The stability region (the paper leaves it open) from ``RegionMap.to_dict()`` of the
-    laws :data:`REGION_LAWS` on a grid: each law's share of the grid and critical shared mu, whether the paper's
+    laws `REGION_LAWS` on a grid: each law's share of the grid and critical shared mu, whether the paper's
     laws' regions lie in S at every grid point, and where S reaches the axis mu1 = 0. O(K^2).
 
     >>> grid = {"axis": [0.0, 1.0], "stable": [[False, False], [True, True]], "radius": [[2.0, 1.5], [0.9, 0.1]]}

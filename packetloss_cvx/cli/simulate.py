@@ -36,8 +36,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     Examples
     --------
     One step of x' = x + v u from x0 = 1, mu = 0.5: the TCP-like plan u = -2/3 realises
-    E[(1 + v u)^2 + v u^2] = 1 + 2 mu u + 2 mu u^2 = 7/9 (its formula J*_tcp = 2/3 leaves out the loss
-    variance); the UDP-like plan u = -1/2 realises its J*_udp = 3/4.
+    E[(1 + v u)^2 + v u^2] = 1 + 2 mu u + 2 mu u^2 = 7/9 (its formula `J*_tcp` = 2/3 leaves out the loss
+    variance); the UDP-like plan u = -1/2 realises its `J*_udp` = 3/4.
 
     >>> import tempfile
     >>> from pathlib import Path

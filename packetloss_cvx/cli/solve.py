@@ -30,8 +30,8 @@ def run(args: argparse.Namespace) -> CommandResult:
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1 (Q = R = 1, mu = 0.5): J*_tcp = 1/(1 + mu) = 2/3 with u = -2/3 x,
-    J*_udp = 1 - mu/2 = 0.75 with u = -x/2.
+    One step of x' = x + v u from x0 = 1 (Q = R = 1, mu = 0.5): `J*_tcp` = 1/(1 + mu) = 2/3 with u = -2/3 x,
+    `J*_udp` = 1 - mu/2 = 0.75 with u = -x/2.
 
     >>> import tempfile
     >>> from pathlib import Path
@@ -180,7 +180,8 @@ def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]
 
 def stability(system: System, gain: np.ndarray, entry: dict[str, Any]) -> str:
     """Mean-square stability of the receding-horizon law u = -K x run for ever over the file's channel
-    (:func:`~packetloss_cvx.closedloop.law_stability.loop_stability`); adds its keys to ``entry``, returns the sentence.
+    ([`loop_stability`][packetloss_cvx.closedloop.law_stability.loop_stability]); adds its keys to ``entry``, returns
+    the sentence.
 
     Examples
     --------

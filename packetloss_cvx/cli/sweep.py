@@ -1,4 +1,4 @@
-"""``packetloss-cvx sweep FILE``: J*_tcp, J*_udp and J_Delta over a design study, saved with a figure."""
+"""``packetloss-cvx sweep FILE``: `J*_tcp`, `J*_udp` and J_Delta over a design study, saved with a figure."""
 
 from __future__ import annotations
 
@@ -105,7 +105,7 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
 
 def _points(result: DesignSweep, data: dict[str, Any], table_file: Path | None) -> None:
     """The points into ``data``: ``axes`` (each dimension's values) and ``table`` (sweep.csv's columns -> one
-    value per point, in the CSV's row order), or above :data:`JSON_MAX_POINTS` the CSV's path and a note.
+    value per point, in the CSV's row order), or above `JSON_MAX_POINTS` the CSV's path and a note.
     O(points (m + n))."""
     data["axes"] = {d: a.tolist() for d, a in zip(result.dims, result.axes, strict=True)}
     count = result.mu.shape[0]
@@ -123,7 +123,7 @@ def _points(result: DesignSweep, data: dict[str, Any], table_file: Path | None) 
 
 def bursty(args: argparse.Namespace) -> CommandResult:
     """``--burstiness``: each protocol's plug-in law against the exact minimum under Gilbert channels of
-    the file's average rates (:func:`~packetloss_cvx.studies.burstiness.burstiness_sweep`); ``--out`` writes
+    the file's average rates (`burstiness_sweep`); ``--out`` writes
     burstiness.csv and a figure.
 
     Examples
@@ -193,9 +193,9 @@ def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, 
 
 def bursty_map(args: argparse.Namespace) -> CommandResult:
     """``--burstiness`` with ``--mean-rate``: the (mean rate × burstiness) map of channel ``--channel`` (default 1),
-    the other channels as in the file (:func:`~packetloss_cvx.studies.burstiness.burstiness_map`); the JSON carries
+    the other channels as in the file (`burstiness_map`); the JSON carries
     every
-    point up to :data:`JSON_MAX_POINTS`; ``--out`` writes burstiness_map.csv and a figure per protocol
+    point up to `JSON_MAX_POINTS`; ``--out`` writes burstiness_map.csv and a figure per protocol
     (burstiness_map_<protocol>.png: the exact minimum on a log scale beside the plug-in loss in %).
 
     Examples
@@ -330,7 +330,7 @@ def run(args: argparse.Namespace) -> CommandResult:
 
 
 def _folder(args: argparse.Namespace) -> contextlib.AbstractContextManager[RunFolder | None]:
-    """``--out DIR`` as a claimed :class:`~packetloss_cvx.safeio.RunFolder`, or nothing."""
+    """``--out DIR`` as a claimed `RunFolder`, or nothing."""
     if args.out is None:
         return contextlib.nullcontext()
     return RunFolder(args.out, command=getattr(args, "command_line", "packetloss-cvx sweep"),

@@ -10,13 +10,13 @@ definiteness decided by exact elimination (linalg.exact_psd). A certificate that
 as stored; one that fails gives no verdict ("undecided").
 
 - **outside**: a symmetric P, not negative semidefinite, with ``T_c(P) >= 0`` proves ``rho(L_K) >= c`` for every
-  law K (:func:`outside_proved`). With ``x'(L_K^*(P) - cP)x = [x; Kx]' T_c(P) [x; Kx]``, ``L_K^*(P) >= cP`` for
+  law K (`outside_proved`). With ``x'(L_K^*(P) - cP)x = [x; Kx]' T_c(P) [x; Kx]``, ``L_K^*(P) >= cP`` for
   every K; were ``rho(L_K) < c``, ``P = -sum_j (L_K^* / c)^j (W) / c <= 0`` for ``W = L_K^*(P) - cP >= 0``. P need
   not be PSD (a P >= 0, P != 0 is the usual case): an indefinite P proves it for a part no input reaches, where the
   Stein equation of that part gives a definite, hence robust, inequality.
-- **inside**: ``X > 0`` with ``L_K(X) < c X`` proves ``rho(L_K) < c`` (:func:`inside_proved`; L_K is a positive
+- **inside**: ``X > 0`` with ``L_K(X) < c X`` proves ``rho(L_K) < c`` (`inside_proved`; L_K is a positive
   map: ``L_K^j(X) <= c'^j X`` for some ``c' < c``). X is the solution of ``X = L_K(X) / r + I`` for an r between
-  the law's computed radius and c (:func:`stability_witness`), so that ``cX - L_K(X) = (c - r) X + r I`` up to the
+  the law's computed radius and c (`stability_witness`), so that ``cX - L_K(X) = (c - r) X + r I`` up to the
   solve's residual: definite by a margin the rounding cannot reach unless the solve has lost its digits.
 
 Time: O((n + m)^3) integer operations on numbers of O((n + m) 53) bits for a check, plus
@@ -65,7 +65,7 @@ def _symmetric(P: np.ndarray) -> Dyadic:
 
 def outside_matrix(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, c: float) -> Dyadic:
     """``T_c(P)`` exactly, for the symmetric part of P: ``[[A'PA - cP, -A'PBM], [-MB'PA, MB'PBM + diag(mu (1 - mu)
-    diag(B'PB))]]``, (n + m)×(n + m): :func:`mode_outside_matrices` at one mode. NumericalError on a non-finite entry.
+    diag(B'PB))]]``, (n + m)×(n + m): `mode_outside_matrices` at one mode. NumericalError on a non-finite entry.
     O((n + m)^3) integer operations.
 
     >>> T = outside_matrix(np.array([[2.0]]), np.array([[1.0]]), np.array([0.5]), np.eye(1), 1.0)
@@ -82,9 +82,9 @@ def mode_outside_matrices(A: np.ndarray, B: np.ndarray, T: Dyadic, rates: np.nda
     """``T_c(P)_a`` exactly for every mode a of a chain (the symmetric part of each P_a), (n + m)×(n + m) each:
     ``[[A'E_aA - cP_a, -A'F_a], [-F_a'A, H_a]]`` with ``E_a = sum_b T_ab P_b``, ``F_a = sum_b T_ab P_b B D_ab`` and
     ``H_a = sum_b T_ab (D_ab B'P_bB D_ab + diag(d_ab (1 - d_ab) diag(B'P_bB)))``: ``x'(L_K^*(P)_a - cP_a)x`` is the
-    form at ``[x; K_a x]`` (simulation.chain_radius). ``T`` the exact transition matrix (:func:`exact_transition`),
+    form at ``[x; K_a x]`` (simulation.chain_radius). ``T`` the exact transition matrix (`exact_transition`),
     ``rates`` (M, M, m) the delivery probabilities d_ab of a step from a into b (h_b "next", h_a "current"). One mode
-    with T = 1 and d = mu is the Bernoulli :func:`outside_matrix`. O(M^2 (n + m)^3) integer operations.
+    with T = 1 and d = mu is the Bernoulli `outside_matrix`. O(M^2 (n + m)^3) integer operations.
 
     >>> Ts = mode_outside_matrices(np.array([[2.0]]), np.array([[1.0]]), Dyadic.of(np.ones((1, 1))),
     ...                            np.full((1, 1, 1), 0.5), np.ones((1, 1, 1)), 1.0)
@@ -144,12 +144,12 @@ def exact_transition(channel: MarkovChannel) -> Dyadic:
 def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray | None,
                          c: float, delivery: str = "next") -> bool:
     """Does the tuple P (M, n, n), or one of its candidates, prove ``rho(L_K) >= c`` for every mode-dependent law K
-    behind ``channel``, exactly: ``T_c(Q)_a >= 0`` for every mode (:func:`mode_outside_matrices`; then
+    behind ``channel``, exactly: ``T_c(Q)_a >= 0`` for every mode (`mode_outside_matrices`; then
     ``L_K^*(Q) >= cQ`` blockwise for every K) and Q not blockwise negative semidefinite? (Were ``rho(L_K) < c``,
     ``Q = -sum_j (L_K^*/c)^j (W) / c <= 0`` for ``W = L_K^*(Q) - cQ >= 0``: the module docstring's argument, on
-    tuples.) The candidates are Bernoulli's (:func:`candidates`) per mode: P, P snapped, and those tilted by the
+    tuples.) The candidates are Bernoulli's (`candidates`) per mode: P, P snapped, and those tilted by the
     coupled Stein solution of ``cS_a - A'(sum_b T_ab S_b)A = I`` (a singular Perron tuple proves its bound only with
-    its exact kernel). The check of :func:`~.chain_radius.chain_certificate_margin`'s verdict in exact arithmetic, on
+    its exact kernel). The check of `chain_certificate_margin`'s verdict in exact arithmetic, on
     the plant and channel as stored; False for a P that is None, not finite or of the wrong shape. Time
     O(M^2 (n + m)^3) integer operations a candidate, O((M n^2)^3) for the tilts' solve.
 
@@ -181,7 +181,7 @@ def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P
 
 
 def _coupled_stein(A: np.ndarray, T: np.ndarray, c: float) -> np.ndarray | None:
-    """S (M, n, n) with ``cS_a - A'(sum_b T_ab S_b)A = I`` (the tilt of :func:`chain_outside_proved`; :func:`tilted`'s
+    """S (M, n, n) with ``cS_a - A'(sum_b T_ab S_b)A = I`` (the tilt of `chain_outside_proved`; `tilted`'s
     S at one mode), None where it has no finite solution. O((M n^2)^3)."""
     M, n = T.shape[0], A.shape[0]
     with np.errstate(all="ignore"):
@@ -229,8 +229,8 @@ def inside_proved(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, X
 
 def stability_witness(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, c: float,
                       radius: float | None = None) -> np.ndarray | None:
-    """A candidate X for :func:`inside_proved` at c: the solution of ``X = L_K(X) / r + I``, r the midpoint of the
-    law's computed radius (``radius``, else :func:`~.stability.law_radius`) and c; None where that radius is not
+    """A candidate X for `inside_proved` at c: the solution of ``X = L_K(X) / r + I``, r the midpoint of the
+    law's computed radius (``radius``, else `law_radius`) and c; None where that radius is not
     below c or the solve fails (a residual check, NumericalError). Time O(n^6) (n <= MOMENT_DENSE_MAX_N).
 
     >>> X = stability_witness(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0.9]), 0.5)
@@ -255,7 +255,7 @@ def stability_witness(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarra
 def law_proved_stable(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray, radius: float | None = None,
                       c: float = 1.0 - MEAN_SQUARE_MARGIN) -> bool:
     """Is ``rho(L_K) < c`` (default ``1 - MEAN_SQUARE_MARGIN``, the margin of a "stable" verdict) proved exactly by
-    the witness of :func:`stability_witness`? Arrays as stability.check_law returns them. Time O(n^6).
+    the witness of `stability_witness`? Arrays as stability.check_law returns them. Time O(n^6).
 
     >>> A, B = np.array([[2.0]]), np.array([[1.0]])     # k = a: radius a^2 (1 - mu)
     >>> [law_proved_stable(A, B, np.array([[2.0]]), np.array([mu])) for mu in (0.8, 0.75)]
@@ -265,7 +265,7 @@ def law_proved_stable(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarra
 
 
 def tilted(A: np.ndarray, P: np.ndarray, c: float) -> list[np.ndarray]:
-    """``P - t ||P|| S / ||S||`` for t in :data:`TILTS`, S the solution of the Stein equation ``cS - A'SA = I``
+    """``P - t ||P|| S / ||S||`` for t in `TILTS`, S the solution of the Stein equation ``cS - A'SA = I``
     (none where it has no finite solution). A certificate P that is singular (a rank-one Perron eigenvector ``vv'``:
     every law leaves ``v'x`` to grow, v a left eigenvector of A) proves its bound only with its exact kernel, which
     the rounding of v misses; tilted, ``T_c`` gains ``t (cS - A'SA) = t I`` on that kernel (where no input acts on
@@ -294,7 +294,7 @@ def tilted(A: np.ndarray, P: np.ndarray, c: float) -> list[np.ndarray]:
 
 
 def snapped(P: np.ndarray) -> list[np.ndarray]:
-    """P with its entries at or below each fraction in :data:`SNAP` of its largest set to exactly 0 (where that
+    """P with its entries at or below each fraction in `SNAP` of its largest set to exactly 0 (where that
     zeroes anything, and differs from the last). Exact block structure of the plant (a zero row of B, decoupled
     blocks) gives certificates with exact zeros, which an orthogonal transform or an iteration leaves at 1e-17 to
     1e-13 instead; the exact check needs them back. Candidates only: the check decides. O(n^2).
@@ -314,7 +314,7 @@ def snapped(P: np.ndarray) -> list[np.ndarray]:
 
 
 def candidates(A: np.ndarray, P: np.ndarray, c: float, tilt: bool = False) -> list[np.ndarray]:
-    """The certificates tried for P at c: P and P :func:`snapped`; with ``tilt``, each of those :func:`tilted`
+    """The certificates tried for P at c: P and P `snapped`; with ``tilt``, each of those `tilted`
     instead. O(n^2), O(n^6) with the tilts' Stein solve.
 
     >>> len(candidates(np.array([[2.0]]), np.eye(1), 1.0)), len(candidates(np.array([[2.0]]), np.eye(1), 1.0, True))
@@ -325,9 +325,9 @@ def candidates(A: np.ndarray, P: np.ndarray, c: float, tilt: bool = False) -> li
 
 
 def no_law_proved(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray) -> bool:
-    """Does P, or P tilted (:func:`tilted`), prove exactly that every law's radius is at least 1 (so that no law is
+    """Does P, or P tilted (`tilted`), prove exactly that every law's radius is at least 1 (so that no law is
     mean-square stable)? The proof the DP (simulation.riccati) needs to say "no stabilising solution" from the
-    direction of its diverging iterate. Time O((n + m)^3) integer operations a try (:func:`candidates`).
+    direction of its diverging iterate. Time O((n + m)^3) integer operations a try (`candidates`).
 
     >>> A, B = np.array([[2.0]]), np.array([[1.0]])      # every law's radius >= a^2 (1 - mu): 1 at mu = 3/4
     >>> [no_law_proved(A, B, np.array([mu]), np.eye(1)) for mu in (0.75, 0.75 + 2.0 ** -40)]

@@ -1,6 +1,6 @@
 """The least mean-square radius behind Gilbert–Elliott channels and its certificates: ``lambda = inf_K rho(L_K)`` over
-mode-dependent laws ``u = -K_a x``, computed without gains that diverge (:func:`homogeneous_coupled_riccati`), and
-the bound a certificate P proves on every law's radius (:func:`chain_certificate_margin`). simulation.markov_region
+mode-dependent laws ``u = -K_a x``, computed without gains that diverge (`homogeneous_coupled_riccati`), and
+the bound a certificate P proves on every law's radius (`chain_certificate_margin`). simulation.markov_region
 decides the stabilisable set from them. The map's algebra is simulation.riccati_map's (as simulation.region's, whose
 Bernoulli losses are its one-mode chain).
 
@@ -22,7 +22,7 @@ Schwarz). So ``min_K rho(L_K) = max(rho(A_uu)^2, lambda_c)``, lambda_c the least
 gains ``K_a = [K_c,a, 0] T'`` attain it. Its certificates are exact: ``P_a = T [[0, 0], [0, W]] T'`` with ``W =
 Re(w w^H)``, w a left eigenvector of ``A_uu`` for its largest ``|nu|``, gives ``L_K^*(P) = |nu|^2 P`` for every K;
 where lambda_c is the larger, ``P_a = T [[P_c,a, 0], [0, 0]] T'`` proves ``rho(L_K) >= c`` on the reachable
-subspace, which every closed loop ``A - B V K`` maps into itself (:func:`chain_certificate_margin`). A mode no input
+subspace, which every closed loop ``A - B V K`` maps into itself (`chain_certificate_margin`). A mode no input
 touches is split exactly (the split's ``dropped`` is 0); a mode hidden by a change of coordinates is split to the
 rounding of the staircase (``dropped <= CONTROLLABILITY_RTOL ||[A, B]||``): the verdict is then proved for the
 plant with those couplings set to zero.
@@ -92,10 +92,10 @@ def _power(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.nda
     ||P_next - P||)``, "zero" (R is nilpotent, below), "stopped" (``||P_next - P|| <= RICCATI_RTOL``, or lambda not
     positive and finite) or "steps".
 
-    Steps ``0 .. M n`` run R itself, unshifted, from ``I / (M n)`` with the zero test of :func:`_apply`: where
+    Steps ``0 .. M n`` run R itself, unshifted, from ``I / (M n)`` with the zero test of `_apply`: where
     ``R^j(I) = 0`` to rounding, ``R^j(P) = 0`` for every PSD P (monotone) and the least radius is 0 (every chain
     path can be driven to zero in j steps); the kernels of ``R^j(I)_a`` grow with j and stay once they stop growing,
-    so M n + 1 steps decide it. Later steps run the regularised map ``R_eps`` (:func:`_apply`, ``eps =
+    so M n + 1 steps decide it. Later steps run the regularised map ``R_eps`` (`_apply`, ``eps =
     COUPLED_POLICY_REGULARISATION lambda``, lambda R's at the step before): it maps every nonzero PSD tuple to a
     positive definite one, so its eigenvector is unique and positive definite and its power iteration converges from
     any start (nonlinear Perron–Frobenius). It has no other fixed point to stall at, and its gains are defined
@@ -138,7 +138,7 @@ def _hessians(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.
 
 def _gains(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str,
            K: np.ndarray) -> np.ndarray:
-    """The minimiser of ``L_K^*(P)`` nearest the gains K: ``K_a + H_a^+ (G_a - H_a K_a)`` (:func:`_hessians`), H_a's
+    """The minimiser of ``L_K^*(P)`` nearest the gains K: ``K_a + H_a^+ (G_a - H_a K_a)`` (`_hessians`), H_a's
     pseudo-inverse cut at ``m eps ||B||^2 max_b ||P_b||``, the size a Hessian would have if the inputs reached what P
     weighs (not the Hessians' own largest: where P weighs what the inputs reach only at rounding level, every Hessian
     is rounding, and its inverse gave gains of 3e15 on a plant whose second channel never delivers). Where H_a is
@@ -201,9 +201,9 @@ def _perron(operator: np.ndarray, M: int, n: int) -> tuple[float, np.ndarray, fl
 
 def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: MarkovChannel, T: np.ndarray,
             h: np.ndarray, delivery: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(K, P_eps)``: from the power iteration's P (:func:`_power`, positive definite), a policy iteration on the
+    """``(K, P_eps)``: from the power iteration's P (`_power`, positive definite), a policy iteration on the
     regularised map ``L_K^* + eps Pi`` (``eps = COUPLED_POLICY_REGULARISATION lambda``): K <- the minimiser at P_eps
-    nearest K (:func:`_gains`), P_eps the Perron eigenvector of the regularised map at K, while its root falls by
+    nearest K (`_gains`), P_eps the Perron eigenvector of the regularised map at K, while its root falls by
     more than RICCATI_RTOL, at most riccati_map.POLICY_STEPS steps; the gains of the least root and their eigenvector.
 
     P_eps is positive definite, so each step can only lower the root (``L_{K+}^*(P_eps) <= L_K^*(P_eps)``, a
@@ -239,17 +239,17 @@ def _reachable_eigenpair(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, T
                          delivery: str) -> tuple[float, np.ndarray, np.ndarray]:
     """``(lambda, P, K)`` of a pair whose inputs reach every state (the split's reachable part, or the whole plant).
 
-    For ``M n^2 <= DENSE_MAX_DIM``: the power iteration of the regularised map (:func:`_power`) to the checkpoints
-    _CHECKPOINTS, at each the policy iteration (:func:`_policy`) and its unregularised finish (:func:`_refine`): K
+    For ``M n^2 <= DENSE_MAX_DIM``: the power iteration of the regularised map (`_power`) to the checkpoints
+    _CHECKPOINTS, at each the policy iteration (`_policy`) and its unregularised finish (`_refine`): K
     the gains, their exact coupled radius (the dense operator's eigenvalues; an upper bound on the least radius) and
-    P the Perron eigenvector of ``L_K^*``, whose Collatz–Wielandt bound (R's, :func:`_bound`) is a lower one. It stops
+    P the Perron eigenvector of ``L_K^*``, whose Collatz–Wielandt bound (R's, `_bound`) is a lower one. It stops
     at the first checkpoint where the two meet within COUPLED_BRACKET_RTOL, or where the power iteration stopped,
     and returns lambda = the least radius of the gains found, P of the best bound. Where the power iteration finds
     ``R^j(I) = 0`` to rounding (every part deadbeat), lambda is 0.0 and K gains of small radius (a nilpotent loop in
     floating point is not of radius 0). Beyond the dense operator: the power iteration alone
     (HOMOGENEOUS_RICCATI_MAX_ITER steps), lambda R's sum of squares at its P (positive definite, with its eps part),
     K the gains there.
-    Time as :func:`homogeneous_coupled_riccati`."""
+    Time as `homogeneous_coupled_riccati`."""
     M, n, m = len(h), A.shape[0], B.shape[1]
     P = np.repeat(np.eye(n)[None] / (n * M), M, axis=0)
     if M * n * n > DENSE_MAX_DIM:
@@ -295,8 +295,8 @@ def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, chan
     """``(K, P, radius)``: from the regularised policy iteration's gains, unregularised policy steps (at most
     _REFINE_STEPS): P the Perron eigenvector of ``L_K^*`` (exact for K, to the eigenvalue routine's rounding), then
     K <- the minimiser at P (its directions below _REFINE_CUT of the largest cut off, K kept on the rest,
-    :func:`_gains`), taken while the radius does not grow beyond RICCATI_RTOL. Returns the last gains, their radius
-    and their Perron eigenvector without the directions it weighs below its own error bound (:func:`_perron`; at
+    `_gains`), taken while the radius does not grow beyond RICCATI_RTOL. Returns the last gains, their radius
+    and their Perron eigenvector without the directions it weighs below its own error bound (`_perron`; at
     least _EIGENVECTOR_CUT): they are rounding, and a Collatz–Wielandt bound counts every direction it weighs (a
     mode left at trace 1e-12 where R's eigenvector vanishes bounds the radius by 0).
 
@@ -343,10 +343,10 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: MarkovCha
 
     The part no input reaches is split off first (linalg.controllable_split): ``lambda = max(rho(A_uu)^2,
     lambda_c)`` with lambda_c the reachable pair's (module docstring, "The part no input reaches"); no gain acts on
-    it, none is computed for it. On the reachable pair (:func:`_reachable_eigenpair`): a shifted power iteration of R
+    it, none is computed for it. On the reachable pair (`_reachable_eigenpair`): a shifted power iteration of R
     in sum-of-squares form, then, for ``M n^2 <= DENSE_MAX_DIM``, a policy iteration on the regularised Perron
     eigenvector, whose gains stay bounded where the eigenvector vanishes; lambda is then their exact coupled radius,
-    and P the Perron eigenvector of ``L_K^*``, whose Collatz–Wielandt bound :func:`chain_certificate_margin` meets
+    and P the Perron eigenvector of ``L_K^*``, whose Collatz–Wielandt bound `chain_certificate_margin` meets
     lambda from below. Where every part is deadbeat (``R^j(I) = 0`` to rounding) lambda is 0.0. A candidate:
     markov_region.chain_membership checks it. Time O(iterations M^2 (n + m)^3 + policy steps (M n^2)^3 + n^4).
 

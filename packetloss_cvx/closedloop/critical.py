@@ -31,10 +31,10 @@ def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi
     ``law``: a fixed gain (m×n), or "tcp"/"udp" (the receding-horizon law re-designed for ``mu``: the first
     gain of Theorem 1's closed form), verdict "stable" iff its radius is below 1 by the margin and an exact witness
     proves it (certificates.law_proved_stable), else "unstable" (not proved stable); or "dp" (the DP optimum for
-    ``mu``: stable iff mu is in the stabilisable set, :func:`~.region.membership`, "undecided" where no certificate
-    can be checked; ``riccati``: the homogeneous Riccati eigenpair at mu when the caller has it, as there).
-    Time: one design, one radius and its witness (O(n^6)); "dp" as :func:`~.region.membership` without the
-    cross-check.
+    ``mu``: stable iff mu is in the stabilisable set, [`membership`][packetloss_cvx.closedloop.region.membership],
+    "undecided" where no certificate can be checked; ``riccati``: the homogeneous Riccati eigenpair at mu when the
+    caller has it, as there). Time: one design, one radius and its witness (O(n^6)); "dp" as
+    [`membership`][packetloss_cvx.closedloop.region.membership] without the cross-check.
 
     Examples
     --------
@@ -58,7 +58,8 @@ def law_membership(system: System, law: str | npt.ArrayLike, mu: np.ndarray, lmi
 
 
 def stable_at(system: System, law: str | npt.ArrayLike, mu: np.ndarray) -> bool:
-    """Is the loop proved mean-square stable over channel ``mu``? (:func:`law_membership`.)
+    """Is the loop proved mean-square stable over channel ``mu``?
+        ([`law_membership`][packetloss_cvx.closedloop.critical.law_membership].)
 
     Raises
     ------
@@ -87,7 +88,7 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
     """The boundary of a law's region along ``mu = t * direction``, bracketed by two decided points.
 
     Bisection in t that moves an end only to a decided point (an undecided midpoint is replaced by
-    another point of the bracket, :data:`_RETRY_FRACTIONS`): the upper end keeps a stabilising gain,
+    another point of the bracket, `_RETRY_FRACTIONS`): the upper end keeps a stabilising gain,
     the lower end (for "dp") an infeasibility certificate. For "dp" the region is monotone in mu
     (docs/design.md §2), so the ray meets its boundary once and the bracket holds the exact critical
     point; for another law, stability need not be monotone along the ray and this is one crossing.
@@ -165,21 +166,23 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
     ----------
     system : System
     law : str or array_like
-        As in :func:`law_membership`: a fixed gain, or "tcp" / "udp" / "dp" re-designed at each mu.
+        As in [`law_membership`][packetloss_cvx.closedloop.critical.law_membership]: a fixed gain, or "tcp" / "udp" /
+        "dp" re-designed at each mu.
     direction : array_like, optional
         Nonnegative, not all zero (default: the system's channel); t runs over [0, 1 / max(direction)].
     tol : float
         Width of the final bracket in t (at best the spacing of doubles near the answer).
     stable : callable, optional
-        Replaces :func:`stable_at` (mu -> bool), e.g. for another law.
+        Replaces [`stable_at`][packetloss_cvx.closedloop.critical.stable_at] (mu -> bool), e.g. for another law.
 
     Returns
     -------
     float
-        The upper end of the final bracket (a stable point; :func:`critical_point` gives the bracket and
-        both ends' evidence); ``inf`` when the loop is not stable even at the ray's end, 0.0 when it is
-        stable at mu = 0. For "dp" the exact critical point lies in the bracket (a numerical failure is
-        never read as "unstable"). Time O(log2(1 / tol)) designs and radii.
+        The upper end of the final bracket (a stable point;
+        [`critical_point`][packetloss_cvx.closedloop.critical.critical_point] gives the bracket and both ends'
+        evidence); ``inf`` when the loop is not stable even at the ray's end, 0.0 when it is stable at mu = 0. For "dp"
+        the exact critical point lies in the bracket (a numerical failure is never read as "unstable"). Time O(log2(1 /
+        tol)) designs and radii.
 
     Examples
     --------

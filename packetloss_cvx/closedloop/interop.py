@@ -26,7 +26,8 @@ def closed_loop_statespace(system: System, gain: npt.ArrayLike, mu: npt.ArrayLik
     Its dynamics are the mean's: ``E[x+] = (A - B M K) E[x] + w`` with ``M = diag(mu)``; input ``w``
     (the process noise, n inputs), output the state (C = I, D = 0). Its poles are the eigenvalues of
     ``A - B M K``: the mean converges iff they lie inside the unit circle, which is necessary for, but
-    weaker than, mean-square stability (:func:`~.stability.mean_square_radius`). Time O(n^2 m).
+    weaker than, mean-square stability ([`mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius]).
+    Time O(n^2 m).
 
     Parameters
     ----------

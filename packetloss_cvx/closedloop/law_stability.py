@@ -1,10 +1,10 @@
 """The verdict on a plan's law run in a loop: is u = -K x mean-square stable over the system's channel?
 
-A :class:`~packetloss_cvx.results.Solution` holds the receding-horizon gain K but not the channel, so its
+A `Solution` holds the receding-horizon gain K but not the channel, so its
 mean-square stability is computed here, from the system it was solved for: with Bernoulli losses the radius
-of the second-moment operator at mu (:func:`~packetloss_cvx.closedloop.stability.mean_square_radius`; the first
-step's mu when the schedule varies), behind a Markov chain (Gilbert-Elliott or k-state) the Markov jump linear system's
-(:func:`packetloss_cvx.closedloop.mjls.mean_square_radius`). ``solve`` prints the same verdict.
+of the second-moment operator at mu ([`mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius]; the
+first step's mu when the schedule varies), behind a Markov chain (Gilbert-Elliott or k-state) the Markov jump linear
+system's (`packetloss_cvx.closedloop.mjls.mean_square_radius`). ``solve`` prints the same verdict.
 """
 
 from __future__ import annotations
@@ -76,8 +76,9 @@ def loop_stability(system: System, gain: npt.ArrayLike) -> LoopStability:
 
 
 def with_stability(system: System, solution: Solution) -> Solution:
-    """``solution`` with its law's :func:`loop_stability` over ``system``'s channel attached (shown in its
-    notebook view and ``to_dict()``). ``system`` is the one the plan was solved for.
+    """``solution`` with its law's [`loop_stability`][packetloss_cvx.closedloop.law_stability.loop_stability] over
+    ``system``'s channel attached (shown in its notebook view and ``to_dict()``). ``system`` is the one the plan was
+    solved for.
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """The loop behind Markov channels as a Markov jump linear system (MJLS).
 
 Mode theta_k = the joint channel state (prod_i k_i modes of a
-:class:`~packetloss_cvx.model.channel.MarkovChannel`, 2^m for Gilbert–Elliott channels; channels independent:
+[`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel], 2^m for Gilbert–Elliott channels; channels independent:
 the mode chain's transition matrix is the Kronecker product of the channels' own). In mode a, actuator i's
 packet arrives with probability h_{a,i} (d_i of the state; h_good or h_bad), independently. The closed loop
 ``x_{k+1} = (A - B V_k K_a) x_k``
@@ -71,7 +71,7 @@ def delivery_patterns(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def check_operator_size(modes: int, n: int) -> None:
     """Refuse, before building it, a dense coupled operator beyond the ``operator_rows`` budget (budgets.py; by
-    default :data:`MAX_OPERATOR_DIM` rows).
+    default `MAX_OPERATOR_DIM` rows).
 
     Raises
     ------
@@ -108,7 +108,7 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: MarkovChannel,
     to the controller); ``"next"``: the gain follows the previous mode a, the deliveries the mode b the chain
     moves to (``Q_b <- sum_a T_ab E_{v|b}[G_a Q_a G_a']``, the TCP-like law of a Gilbert channel, whose
     acknowledgement reveals the last state). Time O(M 2^m n^4 + M^2 n^4), memory O(M^2 n^4); refused
-    beyond :data:`MAX_OPERATOR_DIM` rows (:func:`check_operator_size`).
+    beyond `MAX_OPERATOR_DIM` rows (`check_operator_size`).
 
     Examples
     --------
@@ -127,15 +127,15 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: MarkovChannel,
 
 def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gains: np.ndarray,
                        delivery: str = "current", method: str = "auto") -> float:
-    """Spectral radius of the coupled second-moment map (:func:`second_moment_operator`): < 1 iff the switched
+    """Spectral radius of the coupled second-moment map (`second_moment_operator`): < 1 iff the switched
     loop is mean-square stable.
 
     ``method``: "dense", the eigenvalues of the (M n^2)^2 matrix, time O((M n^2)^3), refused (BudgetError)
-    beyond the ``operator_rows`` budget (:data:`MAX_OPERATOR_DIM` rows); "krylov", ARPACK on the map applied matrix-free
+    beyond the ``operator_rows`` budget (`MAX_OPERATOR_DIM` rows); "krylov", ARPACK on the map applied matrix-free
     (O(M^2 n^2 + M n^2 (n + m)) per product, O(M n^2) memory per vector), its value checked against
     Collatz–Wielandt bounds proven from its eigenvector and a power bound, falling back to dense within
-    :data:`MAX_OPERATOR_DIM` rows where it fails the check (NumericalError beyond); "auto", dense up to
-    :data:`DENSE_MAX_DIM` rows, else Krylov (:func:`~packetloss_cvx.closedloop.modes.mode_radius`). A failed
+    `MAX_OPERATOR_DIM` rows where it fails the check (NumericalError beyond); "auto", dense up to
+    `DENSE_MAX_DIM` rows, else Krylov (`mode_radius`). A failed
     eigenvalue routine (numpy.linalg.LinAlgError) is a NumericalError, as is an operator that is not finite.
 
     Examples
@@ -216,7 +216,7 @@ def coupled_riccati(system: System, max_iter: int = RICCATI_MAX_ITER) -> MjlsRes
     Raises
     ------
     InputError
-        No Markov channel, or more than :data:`MAX_CHANNELS` channels.
+        No Markov channel, or more than `MAX_CHANNELS` channels.
     NumericalError
         The loop is proved not mean-square stabilisable by any mode-dependent law (the diverging iteration's
         direction, checked in exact arithmetic: certificates.chain_outside_proved); or, without a verdict, no

@@ -13,7 +13,7 @@ Gilbert channel, whose acknowledgement reveals the last state). The loop is mean
 spectral radius of this map is below one (Costa, Fragoso, Marques 2005, Thm 3.9).
 
 A Bernoulli channel is the one-mode chain: every function here takes ``T=None`` for it, with no mode axis
-(K (m, n), h = mu (m,), Q (n, n)), and is then the operator of :mod:`packetloss_cvx.closedloop.stability`.
+(K (m, n), h = mu (m,), Q (n, n)), and is then the operator of `packetloss_cvx.closedloop.stability`.
 """
 
 from __future__ import annotations
@@ -140,7 +140,7 @@ def mode_adjoint_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray
 
 
 def _next_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray | None) -> Step:
-    """:func:`mode_step` with the deliveries following the next mode: ``Q+_b = sum_a T_ab E_{v|b}[G_a Q_a G_a']``.
+    """`mode_step` with the deliveries following the next mode: ``Q+_b = sum_a T_ab E_{v|b}[G_a Q_a G_a']``.
     With ``Z_a = [A; K_a] Q_a [A; K_a]'`` summed first (``Zbar_b = sum_a T_ab Z_a``: O(a M n^2) instead of one
     product per pair), ``E_{v|b}[..] = W_b Zbar_b W_b' + B diag(h_b (1 - h_b) ∘ diag(Zbar_b's K Q K' block)) B'``
     with ``W_b = [I, -B H_b]`` (``E[v v'] = h h' + diag(h (1 - h))``)."""
@@ -169,10 +169,10 @@ def _stage_weight(Omega: np.ndarray, psi: np.ndarray, K: np.ndarray, g: np.ndarr
 
 def mode_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray | None = None,
                 delivery: str = "current") -> np.ndarray:
-    """The matrix of :func:`mode_step`'s map on row-major vec(Q), modes stacked: (M n^2)×(M n^2), rows b, columns a.
+    """The matrix of `mode_step`'s map on row-major vec(Q), modes stacked: (M n^2)×(M n^2), rows b, columns a.
 
     Per pair of modes the block is ``T_ab (Abar ⊗ Abar + sum_i c_i F_i ⊗ F_i)`` with ``F_i = b_i k_i`` and
-    ``c = h (1 - h)`` (:func:`random_matrix_moment`), the gain of mode a and the deliveries of a ("current") or b
+    ``c = h (1 - h)`` (`random_matrix_moment`), the gain of mode a and the deliveries of a ("current") or b
     ("next"). ``T=None``: one mode, ``Abar ⊗ Abar + sum_i c_i F_i ⊗ F_i`` with ``Abar = A - B diag(mu) K``; a stack
     of laws K (..., m, n) with h (..., m) gives (..., n^2, n^2). Time O(M m n^4) ("next": O(M^2 m n^4)), memory
     8 (M n^2)^2 bytes: small sizes only.
@@ -201,7 +201,7 @@ def mode_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: n
 def random_matrix_moment(mean: np.ndarray, directions: Iterable[np.ndarray], variances: np.ndarray) -> np.ndarray:
     """The d^2 x d^2 matrix of ``S -> E[F S F']`` on row-major ``vec(S)`` for the random matrix
     ``F = mean + sum_i (z_i - E z_i) D_i`` with independent scalars ``z_i`` of variances ``c_i``:
-    ``mean ⊗ mean + sum_i c_i D_i ⊗ D_i`` (the cross terms vanish). The operator of :func:`mode_matrix`
+    ``mean ⊗ mean + sum_i c_i D_i ⊗ D_i`` (the cross terms vanish). The operator of `mode_matrix`
     is the case ``D_i = b_i k_i``; the loop with an estimated state (``sensing.loop``) averages it over the
     sensor's arrival patterns. A stack: ``mean`` and each ``D_i`` (..., d, d), ``variances`` (..., k). Time O(d^4)
     per direction, memory 8 d^4 bytes.
@@ -227,14 +227,14 @@ def _kron(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def mode_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray | None = None,
                 delivery: str = "current", method: str = "auto", matrix: Callable[[], np.ndarray] | None = None,
                 label: str = "mean-square radius") -> float:
-    """Spectral radius of :func:`mode_step`'s map (< 1 iff the loop is mean-square stable); arrays as it takes them.
+    """Spectral radius of `mode_step`'s map (< 1 iff the loop is mean-square stable); arrays as it takes them.
 
-    ``method``: "dense", the eigenvalues of :func:`mode_matrix` (or of ``matrix()``, a caller's builder that keeps
+    ``method``: "dense", the eigenvalues of `mode_matrix` (or of ``matrix()``, a caller's builder that keeps
     the matrix or refuses its size), time O((M n^2)^3); "krylov", ARPACK on the map applied matrix-free, its value
     checked against Collatz–Wielandt bounds proven from its eigenvector and against ``min_k ||L^k(I)||^(1/k)``,
-    falling back to the dense eigenvalues within :data:`MAX_OPERATOR_DIM` rows where the check fails (a defective
-    Perron root, which Arnoldi resolves only to about eps^(1/size)); "auto": dense up to :data:`DENSE_MAX_DIM` rows,
-    else Krylov. Entries beyond :data:`RADIUS_RESCALE` are scaled out first (the map is quadratic in (A, K)).
+    falling back to the dense eigenvalues within `MAX_OPERATOR_DIM` rows where the check fails (a defective
+    Perron root, which Arnoldi resolves only to about eps^(1/size)); "auto": dense up to `DENSE_MAX_DIM` rows,
+    else Krylov. Entries beyond `RADIUS_RESCALE` are scaled out first (the map is quadratic in (A, K)).
 
     Raises
     ------
@@ -366,7 +366,7 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
                      first_gain: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Exact ``E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]``, t = 0..steps-1, and ``E[x_T' Omega x_T]`` of
     ``u_t = -K_{t,a} x_t`` from x0 (noise Sigma enters every step with P(mode)), from the recursion on
-    ``Q_{a,t} = E[x_t x_t' 1{mode = a}]`` (CFM05, ch. 3) of :func:`mode_step`, the stage cost ``sum_a tr(W_a Q_a)``
+    ``Q_{a,t} = E[x_t x_t' 1{mode = a}]`` (CFM05, ch. 3) of `mode_step`, the stage cost ``sum_a tr(W_a Q_a)``
     with ``W_a = Omega + K_a' diag(psi g_a) K_a`` (``v_i^2 = v_i``; g_a = h_a, or ``sum_b T_ab h_b`` with "next").
 
     ``T=None``: one mode (Bernoulli), ``K_all`` (steps, m, n), ``h_all`` (steps, m) the delivery probabilities per

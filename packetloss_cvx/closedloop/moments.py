@@ -3,7 +3,7 @@
 Stage cost ``x'Omega x + (V u)' Psi (V u)`` with diagonal ``Psi``: since ``v_i^2 = v_i``,
 ``E[(V u)' Psi (V u)] = u' M Psi u`` (= ``u'(M Psi M + diag(mu (1 - mu)) Psi) u``), so the expected
 stage cost of ``u = -K x`` is ``tr((Omega + K' M Psi K) S)`` with ``S = E[x x']``. The second moment
-follows ``S+ = L(S) + Sigma_W`` (:mod:`.stability`); the stationary one solves ``S = L(S) + Sigma_W``
+follows ``S+ = L(S) + Sigma_W`` (`.stability`); the stationary one solves ``S = L(S) + Sigma_W``
 and the law's cost-to-go ``P_K = Omega + K' M Psi K + L*(P_K)``. The average stage cost is
 ``tr((Omega + K' M Psi K) S) = tr(P_K Sigma_W)``; both are computed and must agree.
 
@@ -141,8 +141,9 @@ def stationary_second_moment(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLik
 
 def _second_moment(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, Sigma: np.ndarray,
                    matrix: Callable[[], np.ndarray] | None = None) -> np.ndarray:
-    """:func:`stationary_second_moment` of a checked law; ``matrix``: its second_moment_matrix when the caller keeps
-    it (:func:`closed_loop`)."""
+    """[`stationary_second_moment`][packetloss_cvx.closedloop.moments.stationary_second_moment] of a checked law;
+    ``matrix``: its second_moment_matrix when the caller keeps it
+    ([`closed_loop`][packetloss_cvx.closedloop.moments.closed_loop])."""
     matrix = (lambda: second_moment_matrix(A_, B_, K_, mu_)) if matrix is None else matrix
     return solve_fixed_point(second_moment_step(A_, B_, K_, mu_), matrix, Sigma, "the stationary second moment")
 
@@ -150,7 +151,8 @@ def _second_moment(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarr
 def law_cost_to_go(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt.ArrayLike,
                    Omega: npt.ArrayLike, psi: npt.ArrayLike) -> np.ndarray:
     """``P_K = Omega + K' M Psi K + L*(P_K)``: ``x0' P_K x0`` is the law's total expected cost from x0
-    without noise. Needs a mean-square stable law. Time as :func:`stationary_second_moment`.
+    without noise. Needs a mean-square stable law. Time as
+    [`stationary_second_moment`][packetloss_cvx.closedloop.moments.stationary_second_moment].
 
     Examples
     --------
@@ -164,8 +166,9 @@ def law_cost_to_go(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu: npt
 
 def _cost_to_go(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, Omega: npt.ArrayLike,
                 psi: npt.ArrayLike, matrix: Callable[[], np.ndarray] | None = None) -> np.ndarray:
-    """:func:`law_cost_to_go` of a checked law; ``matrix``: its second_moment_matrix when the caller keeps it
-    (:func:`closed_loop`; the adjoint's matrix is its transpose)."""
+    """[`law_cost_to_go`][packetloss_cvx.closedloop.moments.law_cost_to_go] of a checked law; ``matrix``: its
+    second_moment_matrix when the caller keeps it ([`closed_loop`][packetloss_cvx.closedloop.moments.closed_loop]; the
+    adjoint's matrix is its transpose)."""
     Q = np.asarray(Omega, dtype=float) + (K_.T * (mu_ * np.asarray(psi, dtype=float))) @ K_
     matrix = (lambda: second_moment_matrix(A_, B_, K_, mu_)) if matrix is None else matrix
     return solve_fixed_point(lambda P: second_moment_adjoint(P, A_, B_, K_, mu_), lambda: matrix().T, Q,
@@ -209,7 +212,7 @@ def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.Arra
     mu : array_like, optional
         Another channel to run the loop over.
     method : {"auto", "kronecker", "krylov"}
-        For the spectral radius (:func:`~.stability.mean_square_radius`).
+        For the spectral radius ([`mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius]).
 
     Returns
     -------
@@ -256,7 +259,8 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     Parameters
     ----------
     system : System
-        Plant, x0, noise; stage weights Omega_1 and Psi_0 as in :func:`closed_loop`.
+        Plant, x0, noise; stage weights Omega_1 and Psi_0 as in
+        [`closed_loop`][packetloss_cvx.closedloop.moments.closed_loop].
     gains : array_like, shape (m, n) or (steps, m, n)
         One gain for every step, or a time-varying law.
     steps : int
@@ -267,7 +271,7 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     -------
     (stage, terminal)
         ``stage[t] = E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]`` and ``terminal = E[x_T' Omega x_T]``: the
-        mode engine's costs at one mode (:func:`~packetloss_cvx.closedloop.modes.mode_stage_costs`).
+        mode engine's costs at one mode (`mode_stage_costs`).
         Time O(steps (n^3 + n^2 m)). Non-finite entries (an unstable loop over a long horizon) stay inf.
 
     Examples

@@ -28,14 +28,14 @@ radius of a graded Jordan chain by 5e-3 and takes 5x the time (benchmarks/region
 
 The "dp" form can only prove "stable" (its gain's radius below ``1 - MEAN_SQUARE_MARGIN``). When the "riccati"
 form ran before it and proved "unstable", or undecided but its P bounds every law's radius at
-``1 - MEAN_SQUARE_MARGIN / 2`` or more (the outside check with that band, :data:`_DP_HOPELESS`), no gain can pass
+``1 - MEAN_SQUARE_MARGIN / 2`` or more (the outside check with that band, `_DP_HOPELESS`), no gain can pass
 (both checks are exact), so the "dp" form says "undecided" without running: outside S the DP's value iteration
 crawls to its step cap near the boundary (scalar a = 2 at mu = 0.75: 20,000 steps) for that same verdict.
 
 Every certificate is re-checked in exact rational arithmetic (simulation.certificates): a verdict is a proof about
 the plant as stored, or the form says "undecided". Where the inputs that deliver leave a part of the state
 unreached (linalg.controllable_split), that part's radius ``rho(A_uu)^2`` bounds every law's radius exactly and its
-Stein certificate decides (:func:`_unreached`).
+Stein certificate decides (`_unreached`).
 """
 
 from __future__ import annotations
@@ -115,11 +115,11 @@ class LazyLmi:
         return self._form
 
     def stabilise(self, mu: np.ndarray) -> tuple[float, np.ndarray | None, str]:
-        """As :meth:`region_lmi.LmiForm.stabilise`."""
+        """As `region_lmi.LmiForm.stabilise`."""
         return self._get().stabilise(mu)
 
     def certify(self, mu: np.ndarray) -> tuple[float, np.ndarray | None, str]:
-        """As :meth:`region_lmi.LmiForm.certify`."""
+        """As `region_lmi.LmiForm.certify`."""
         return self._get().certify(mu)
 
 
@@ -149,8 +149,8 @@ def certificate_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarr
 def _homogeneous_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(K, R(P))``: the minimiser of ``L_K^*(P)`` (least squares, the minimum-norm solution: its Hessian may be
     singular) and the min, for a stack P (..., n, n) with mu (..., m): Theorem 1's step
-    (:func:`~packetloss_cvx.lq.recursion.riccati_step`) with no weights, the loss variance weighted by P, the Hessian
-    solved by least squares. A Hessian that is not finite gives K = nan."""
+    ([`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]) with no weights, the loss variance weighted by P, the
+    Hessian solved by least squares. A Hessian that is not finite gives K = nan."""
     lead = P.shape[:-2]
     P2, mu2 = P.reshape(-1, *P.shape[-2:]), np.broadcast_to(mu, (*lead, B.shape[1])).reshape(-1, B.shape[1])
     K, R = riccati_step(P2, A, B, mu2, np.zeros_like(mu2), variance=True, least_squares=True)
@@ -213,7 +213,7 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray, start: np.
 
 def _split_eigenpairs(split: ControllableSplit, Bt: np.ndarray, A: np.ndarray, B: np.ndarray, mus: np.ndarray,
                       start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`homogeneous_riccati` where the inputs that deliver leave a part unreached (``split``, the Kalman
+    """`homogeneous_riccati` where the inputs that deliver leave a part unreached (``split``, the Kalman
     decomposition ``T'AT = [[A_cc, A_cu], [0, A_uu]]``, ``Bt = T'B = [[B_c], [0]]``: riccati_map.reach_split): the
     second-moment operator is block triangular, so ``rho(L_K) = max(rho of the reached part's operator,
     rho(A_uu)^2)`` and the least radius is ``max(lambda_c, rho(A_uu)^2)``, lambda_c the reached part's own
@@ -255,8 +255,8 @@ _GAP_NOISE = 1e-7
 
 def _graded(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | None
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The iteration (:func:`_iterate`), and for each point whose P is graded (its diagonal spans more than
-    :data:`_GRADED`) the iteration again on the plant scaled by ``D = diag(2^round(-log2(P_ii) / 2))``
+    """The iteration (`_iterate`), and for each point whose P is graded (its diagonal spans more than
+    `_GRADED`) the iteration again on the plant scaled by ``D = diag(2^round(-log2(P_ii) / 2))``
     (``A -> D^-1 A D``, ``B -> D^-1 B``: exact in floating point, the same operators up to similarity), started from
     ``D P D``, mapped back (``P = D^-1 P~ D^-1``, ``K = K~ D^-1``, exact too). On a chain of integrators (P's
     diagonal 4e-14 ... 1) the unscaled iteration is not a fixed point (lambda 1.0101 for 1.0015); scaled, it
@@ -302,7 +302,7 @@ _BALANCE_EXP = 100
 
 def _iterate(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The shifted power iteration and its policy iteration (:func:`homogeneous_riccati`) on one plant, for the
+    """The shifted power iteration and its policy iteration (`homogeneous_riccati`) on one plant, for the
     stack of channels ``mus`` (G, m); a point where the always-delivered channels alone reach the whole state
     (controllable_split of their columns) has lambda 0.0 exactly: their deadbeat law makes every L_K nilpotent.
     Time O(iterations (n^3 + m^3)) a point, plus O(n^6) a policy step."""
@@ -494,8 +494,8 @@ _DP_HOPELESS = -0.5 * MEAN_SQUARE_MARGIN
 def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, floor: float = -CERTIFICATE_RTOL
              ) -> tuple[str, float, np.ndarray | None]:
     """"unstable" with the margin and the certificate that proves every law's radius at least ``1 + margin >= 1 +
-    floor`` in exact arithmetic (:func:`proved_margin`), else "undecided" with the float estimate of P's margin
-    (:func:`certificate_margin`). Tried in turn: P and P cut at riccati_map.CUTS (each also snapped), then each of
+    floor`` in exact arithmetic (`proved_margin`), else "undecided" with the float estimate of P's margin
+    (`certificate_margin`). Tried in turn: P and P cut at riccati_map.CUTS (each also snapped), then each of
     them tilted (certificates.candidates)."""
     if P is None or not np.all(np.isfinite(P)):
         return "undecided", float("nan"), None
@@ -578,6 +578,9 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
                riccati: tuple[float, np.ndarray, np.ndarray] | None = None) -> Membership:
     """Is ``mu`` in the stabilisable set S? Each form in ``forms`` proposes a certificate, checked in numpy.
 
+    Time: "riccati" O(iterations (n^3 + m^3)); "dp" as [`dp_riccati`][packetloss_cvx.closedloop.riccati.dp_riccati];
+    "lmi" two Clarabel SDPs.
+
     Parameters
     ----------
     system : System
@@ -585,13 +588,13 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     mu : array_like, optional
         The channel (default: the system's stationary channel).
     forms : tuple of str
-        Of :data:`FORMS`, run in this order.
+        Of `FORMS`, run in this order.
     cross_check : bool
         Run every form and require the decided ones to agree (default); False stops at the first decided.
     lmi : LazyLmi, optional
         This plant's LMI form, kept across calls (one is made otherwise).
     riccati : (lambda, P, K), optional
-        :func:`homogeneous_riccati` at this mu when the caller has it (a region map keeps lambda as the DP
+        `homogeneous_riccati` at this mu when the caller has it (a region map keeps lambda as the DP
         radius): the "riccati" form uses it instead of iterating again. Its certificate is checked at mu as
         always, so a pair from elsewhere can only leave the form undecided, never make a verdict.
 
@@ -606,8 +609,6 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
     ------
     CrossCheckError
         Two forms decided differently.
-
-    Time: "riccati" O(iterations (n^3 + m^3)); "dp" as :func:`~.riccati.dp_riccati`; "lmi" two Clarabel SDPs.
 
     Examples
     --------

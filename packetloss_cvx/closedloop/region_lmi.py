@@ -11,7 +11,7 @@ Derivation (docs/design.md §2, "The stabilisable set"). With ``F = A X - B M Y`
 (Schur complements; ``Z >= C Y X^-1 Y' C`` gives ``Z_ii >= c_i y_i X^-1 y_i'``, and ``Z = C Y X^-1 Y' C`` is
 allowed). Both are homogeneous, so the program maximises the margin ``t`` of the first block over
 ``tr X = 1``: ``t > 0`` iff mu is in S. Outside S the alternative ``max s : T_mu(P) >= s I, P >= 0, tr P = 1``
-has ``s >= 0`` and its P is checked in numpy (:func:`~.region.certificate_margin`).
+has ``s >= 0`` and its P is checked in numpy (`certificate_margin`).
 
 Importing this module imports cvxpy: callers import it inside the function that needs it
 (``optional.LAZY_MODULES``).

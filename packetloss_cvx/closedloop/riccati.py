@@ -51,8 +51,9 @@ def modified_riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.nd
     """One step of the modified Riccati map: the optimal gain for cost-to-go P and the new cost-to-go.
 
     Returns ``(K, P_prev)`` with ``K = G^{-1} B'PA`` and ``P_prev = Omega + A'PA - A'PBM K``
-    (module docstring): Theorem 1's step (:func:`packetloss_cvx.lq.recursion.riccati_step` on one point)
-    with the loss variance weighted by P itself. Time O(n^3 + m^3).
+    (module docstring): Theorem 1's step
+    ([`packetloss_cvx.lq.recursion.riccati_step`][packetloss_cvx.lq.recursion.riccati_step] on one point) with the loss
+    variance weighted by P itself. Time O(n^3 + m^3).
 
     >>> K, P = modified_riccati_step(np.eye(1), np.eye(1), np.eye(1), np.array([1.0]), np.eye(1), np.array([1.0]))
     >>> float(K[0, 0]), float(P[0, 0])    # scalar DARE step: K = 1/2, P = 1 + 1 - 1/2
@@ -66,7 +67,7 @@ def modified_riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.nd
 
 def dp_input_hessian(B: np.ndarray, P: np.ndarray, mu: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """The DP's input Hessian at cost-to-go P: ``H = M Psi + M B'PB M + diag(mu (1 - mu) diag(B'PB))``, the
-    expectation over the deliveries V of ``V Psi V + V B'PB V`` (``M G`` of :func:`modified_riccati_step`'s G). For
+    expectation over the deliveries V of ``V Psi V + V B'PB V`` (``M G`` of `modified_riccati_step`'s G). For
     any u, ``E[stage + x+'P x+ | x, u] = x'P x + (u + K x)' H (u + K x) + tr(P Sigma_W)`` at the DP's fixed point
     (P, K): the cost split of a loop run on an estimate (sensing.loop) and its simulated check (claims.sensing) both
     read it. Time O(n^2 m + n m^2).
@@ -113,7 +114,7 @@ def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray
     Raises
     ------
     NumericalError
-        Its reason starts with :data:`NO_SOLUTION` only where that is proved: the value iteration grows past
+        Its reason starts with `NO_SOLUTION` only where that is proved: the value iteration grows past
         ``RICCATI_DIVERGENCE`` times the weights and its direction P proves, in exact arithmetic, every law's
         mean-square radius at least 1 (certificates.no_law_proved; asked again each time ``||P||`` grows by
         ``RICCATI_DIVERGENCE^(1/4)``). Growth alone proves nothing: on a chain of integrators the optimum's

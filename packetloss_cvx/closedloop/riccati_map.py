@@ -2,8 +2,8 @@
 
 A channel is a mode chain ``T`` (M, M) with delivery rates ``d`` (M, M, m): a step from mode a into mode b
 delivers input i with probability ``d_ab,i``, independently. Gilbert–Elliott and k-state chains are
-``(T, h_b)`` (the deliveries follow the next mode, "next") or ``(T, h_a)`` ("current"): :func:`chain_rates`;
-independent Bernoulli(mu) losses are the one-mode chain ``T = [[1]]``, ``d = mu``: :func:`bernoulli_rates`. For
+``(T, h_b)`` (the deliveries follow the next mode, "next") or ``(T, h_a)`` ("current"): `chain_rates`;
+independent Bernoulli(mu) losses are the one-mode chain ``T = [[1]]``, ``d = mu``: `bernoulli_rates`. For
 a PSD tuple ``P_a = L_a L_a'`` the adjoint of the second-moment map of mode gains K is
 
 .. math:: L_K^*(P)_a = \\sum_b T_{ab}\\, E\\big[(A - B V K_a)' P_b (A - B V K_a)\\big],\\quad V \\sim d_{ab},
@@ -11,7 +11,7 @@ a PSD tuple ``P_a = L_a L_a'`` the adjoint of the second-moment map of mode gain
 and the homogeneous Riccati map ``R(P)_a = min_K L_K^*(P)_a`` is monotone, concave and positively homogeneous on
 the PSD cone; its eigenvalue ``R(P) = lambda P`` is the least mean-square radius ``min_K rho(L_K)``, and a P with
 ``R(P) >= c P`` proves ``rho(L_K) >= c`` for every K (Collatz–Wielandt). Here R is a sum of squares,
-``R(P)_a = F_a'F_a`` (:func:`riccati_factors`): the least-squares residual of the factors of ``L_K^*(P)_a``
+``R(P)_a = F_a'F_a`` (`riccati_factors`): the least-squares residual of the factors of ``L_K^*(P)_a``
 stacked over the next mode b with weights ``sqrt(T_ab)``, never negative, and its error does not grow with the
 minimising gain. simulation.region (Bernoulli, M = 1, batched over channels) and simulation.chain_radius (mode
 chains) iterate it; simulation.region and simulation.markov_region check the certificates it gives.
@@ -102,8 +102,8 @@ def least_squares_residual(phi_x: np.ndarray, phi_u: np.ndarray, scale: float = 
 def riccati_factors(L: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, d: np.ndarray, scale: float = 0.0
                     ) -> np.ndarray:
     """``F`` (..., M, M (r + m), n) with ``R(P)_a = F_a'F_a`` for ``P_b = L_b L_b'`` (L (..., M, n, r), d
-    (..., M, M, m)): :func:`moment_factor` of ``L_b`` at the rates ``d_ab``, weighted by ``sqrt(T_ab)`` and stacked
-    over b, minimised over u (:func:`least_squares_residual` with ``scale``). One mode (Bernoulli): F (..., 1,
+    (..., M, M, m)): `moment_factor` of ``L_b`` at the rates ``d_ab``, weighted by ``sqrt(T_ab)`` and stacked
+    over b, minimised over u (`least_squares_residual` with ``scale``). One mode (Bernoulli): F (..., 1,
     r + m, n), the residual of moment_factor itself. Time O(M^2 (r + m)(m + n)^2) a point.
 
     >>> T, d = bernoulli_rates(np.array([0.5]))
@@ -124,8 +124,8 @@ def riccati_factors(L: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, 
 
 def riccati_squares(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, d: np.ndarray, scaled: bool = False
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(F, squares, weight)`` at a PSD tuple P (..., M, n, n): the factors of ``R(P+)`` (:func:`riccati_factors` at
-    the PSD part P+, :func:`psd_part_factor`), ``sum_a tr R(P+)_a`` (a sum of squares) and ``sum_a tr P+_a`` (a sum
+    """``(F, squares, weight)`` at a PSD tuple P (..., M, n, n): the factors of ``R(P+)`` (`riccati_factors` at
+    the PSD part P+, `psd_part_factor`), ``sum_a tr R(P+)_a`` (a sum of squares) and ``sum_a tr P+_a`` (a sum
     of nonnegative eigenvalues); their ratio is the least radius at an eigenvector. ``scaled``: the residual drops
     input directions below lstsq's cutoff of ``max_a ||L_a|| ||B||`` (one point only), the size the columns have
     before cancellation, not the columns' own largest: where P weighs only directions no input reaches, ``L'B`` is
@@ -161,8 +161,8 @@ def radius_bound(F: np.ndarray, P: np.ndarray) -> float:
 
 def certificate_bound(P: np.ndarray, A: np.ndarray, B: np.ndarray, T: np.ndarray, d: np.ndarray, scaled: bool = False
                       ) -> float:
-    """The largest c with ``R(P)_a >= c P_a`` for every mode a that P (M, n, n) weighs (:func:`radius_bound` of
-    :func:`riccati_factors`, ``scaled`` as :func:`riccati_squares`), so ``rho(L_K) >= c`` for every K; inf where P
+    """The largest c with ``R(P)_a >= c P_a`` for every mode a that P (M, n, n) weighs (`radius_bound` of
+    `riccati_factors`, ``scaled`` as `riccati_squares`), so ``rho(L_K) >= c`` for every K; inf where P
     weighs no mode. P is taken as given (symmetric PSD: the callers check). O(M^2 (n + m)(m + n)^2 + M n^3).
 
     >>> c = certificate_bound(np.eye(1)[None], np.array([[2.0]]), np.array([[1.0]]), *bernoulli_rates(np.array([0.6])))

@@ -13,7 +13,7 @@ completely positive), so its spectral radius is itself an eigenvalue, with a PSD
 
 The radius is computed without forming the n^2 x n^2 matrix for large n (ARPACK on the operator,
 O(n^3 + n^2 m) per product), or from the Kronecker matrix for small n (the test reference). The operator, its
-matrix and its radius are those of the mode engine (:mod:`packetloss_cvx.closedloop.modes`) at one mode: a
+matrix and its radius are those of the mode engine (`packetloss_cvx.closedloop.modes`) at one mode: a
 Bernoulli channel is the one-state chain.
 """
 
@@ -73,9 +73,9 @@ def check_law(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike,
 
 def second_moment_map(S: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """``L(S) = Abar S Abar' + B diag(mu (1 - mu) diag(K S K')) B'``: the module docstring's operator
-    (:func:`second_moment_step` applied once).
+    (`second_moment_step` applied once).
 
-    Time O(n^3 + n^2 m). Arrays as returned by :func:`check_law`.
+    Time O(n^3 + n^2 m). Arrays as returned by `check_law`.
 
     >>> A, B, K = np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]])
     >>> float(second_moment_map(np.eye(1), A, B, K, np.array([0.5]))[0, 0])   # (2 - 1)^2 + 0.25 * 4
@@ -86,10 +86,11 @@ def second_moment_map(S: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray
 
 def second_moment_step(A: np.ndarray, B: np.ndarray, K: np.ndarray,
                        mu: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """``S -> L(S)`` (:func:`second_moment_map`) for one law, its parts that do not depend on S (``Abar`` and
-    ``mu (1 - mu)``) formed once: a caller applying one law many times (a finite horizon, a fixed-point or power
-    iteration) pays O(n^2 m) once instead of every step; the same floats as :func:`second_moment_map`. Time
-    O(n^2 m) to build, O(n^3 + n^2 m) per application.
+    """``S -> L(S)`` ([`second_moment_map`][packetloss_cvx.closedloop.stability.second_moment_map]) for one law, its
+    parts that do not depend on S (``Abar`` and ``mu (1 - mu)``) formed once: a caller applying one law many times (a
+    finite horizon, a fixed-point or power iteration) pays O(n^2 m) once instead of every step; the same floats as
+    [`second_moment_map`][packetloss_cvx.closedloop.stability.second_moment_map]. Time O(n^2 m) to build, O(n^3 + n^2 m)
+    per application.
 
     >>> step = second_moment_step(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0.5]))
     >>> float(step(np.eye(1))[0, 0]), float(step(2 * np.eye(1))[0, 0])      # L is linear: 2, then 4
@@ -118,7 +119,7 @@ def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.nda
 
 def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """The n^2 x n^2 matrix of ``L`` on row-major ``vec(S)``: ``Abar ⊗ Abar + sum_i c_i F_i ⊗ F_i``,
-    ``F_i = b_i k_i``, ``c_i = mu_i (1 - mu_i)`` (:func:`random_matrix_moment`). A stack of laws: K (..., m, n)
+    ``F_i = b_i k_i``, ``c_i = mu_i (1 - mu_i)`` (`random_matrix_moment`). A stack of laws: K (..., m, n)
     with mu (..., m) gives (..., n^2, n^2). Time O(n^4 m) per law, memory 8 n^4 bytes: small n only.
 
     Examples
@@ -129,7 +130,7 @@ def second_moment_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, mu: np.nda
     >>> bool(np.allclose(second_moment_matrix(A, B, K, mu) @ S.ravel(), second_moment_map(S, A, B, K, mu).ravel()))
     True
 
-    :func:`~packetloss_cvx.closedloop.modes.random_matrix_moment` (re-exported here) builds it.
+    `random_matrix_moment` (re-exported here) builds it.
     """
     return mode_matrix(A, B, K, mu)
 
@@ -167,10 +168,11 @@ def mean_square_radius(A: npt.ArrayLike, B: npt.ArrayLike, K: npt.ArrayLike, mu:
 
 def law_radius(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray, method: str = "auto",
                matrix: Callable[[], np.ndarray] | None = None) -> float:
-    """:func:`mean_square_radius` of a law already checked (the arrays :func:`check_law` returns): a caller that
-    checked it once (simulation.moments.closed_loop) does not check it again, and ``matrix`` gives the law's
-    :func:`second_moment_matrix` when the caller keeps it for its moment solves too (built once). Time as
-    :func:`mean_square_radius`.
+    """[`mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius] of a law already checked (the
+    arrays `check_law` returns): a caller that checked it once (simulation.moments.closed_loop) does not check it again,
+    and ``matrix`` gives the law's [`second_moment_matrix`][packetloss_cvx.closedloop.stability.second_moment_matrix]
+    when the caller keeps it for its moment solves too (built once). Time as
+    [`mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius].
 
     >>> A, B, K, mu = check_law([[2.0]], [[1.0]], [[2.0]], [0.5])
     >>> round(law_radius(A, B, K, mu), 12)                      # (a - mu k)^2 + mu (1 - mu) k^2

@@ -10,7 +10,7 @@ so they stay bounded iff ``rho(L_4) < 1``. With ``rho(L_4) >= 1`` the second mom
 ``rho(L_2)^2 <= rho(L_4)``), so the mean cost is finite, but the variance of a run's cost grows like
 ``rho(L_4)^T``: the sample is ruled by rare long loss bursts and its standard error is not an error bar (scalar
 ``a = 2``, ``k = 2``, ``mu = 0.8``: ``rho(L_2) = 0.8``, ``rho(L_4) = 3.2``; a sampled 80.7 +- 4.4 against the
-exact 101.8). :func:`fourth_moment_radius` computes ``rho(L_4)``; :func:`error_bar_reason` says why a sample
+exact 101.8). `fourth_moment_radius` computes ``rho(L_4)``; `error_bar_reason` says why a sample
 gets no error bar ("" when it does).
 """
 
@@ -119,7 +119,7 @@ def error_bar_reason(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray,
                      delivery: str = "current") -> str:
     """Why a sampled closed-loop cost of the law gets no error bar ("" when its fourth moments are proved bounded:
     rho(L_4) below 1 by MEAN_SQUARE_MARGIN, the margin of every stability verdict). Arguments as
-    :func:`fourth_moment_radius`.
+    `fourth_moment_radius`.
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """Monotonicity of the optimal cost (Theorem 3) and the closed-loop eigenvalues of Tables I–II.
 
 The cost difference between the protocols and its maximisers (§IV) live in
-:mod:`packetloss_cvx.lq.difference`, under their own names there.
+[`packetloss_cvx.lq.difference`][packetloss_cvx.lq.difference], under their own names there.
 """
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def eigenvalue_table(system: System, mu=None) -> dict[str, dict[str, list[comple
 
     For each protocol: ``"A-BK"`` (the paper's convention, K the first block of G^-1 Omega_gp)
     and ``"A-BMK"`` (the mean closed loop, which accounts for the delivery probability), each
-    sorted by descending modulus (see :func:`closed_loop_eigenvalues`).
+    sorted by descending modulus (see [`closed_loop_eigenvalues`][packetloss_cvx.lq.analysis.closed_loop_eigenvalues]).
 
     Examples
     --------

@@ -3,7 +3,7 @@ augmented state, solved in O(N) time and memory (docs/design.md, "Bursty links",
 horizon").
 
 With ``xhat_t = E[x_t]``, ``e_t = x_t - xhat_t``, ``delta_t = v_t - mu_t`` and channel i's chain
-(:func:`~packetloss_cvx.model.chain.chain_matrices`: T_i, d_i, pi_{i,0}), the correlations
+(`chain_matrices`: T_i, d_i, pi_{i,0}), the correlations
 ``xi_{t,i}(a) = E[e_t 1{S_{i,t} = a}]`` (n×k_i, rows summing to zero) obey
 
 .. math:: \\xi_{t+1,i} = A \\xi_{t,i} T_i + b_i u_{t,i} c_{t,i}' T_i, \\qquad
@@ -25,7 +25,7 @@ so with the backward Lyapunov sums ``S_t = Omega_{t+1} + A'S_{t+1}A`` the expect
 
 ``R_t = M_t (Psi_t + (I - M_t) diag(B'S_t B))`` (Lemma 1's UDP-like weight), row i of ``N_t`` pairing
 ``b_i'S_t A`` with ``eta_{t,i} g_i``: a deterministic LQ problem with a state-input cross term, whose
-backward Riccati recursion (:func:`lq_cross_step`) gives the exact minimiser. :func:`chain_cost` is the
+backward Riccati recursion (`lq_cross_step`) gives the exact minimiser. `chain_cost` is the
 referee: the forward pass of ``xhat``, ``eta`` and ``Sigma``, every cost term nonnegative.
 """
 
@@ -110,7 +110,7 @@ def _check_chain(i: int, T: np.ndarray, d: np.ndarray, pi0: np.ndarray) -> None:
 
 
 def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
-    """The lifted chains (:class:`ChainLift`) of ``chains`` (per channel ``(T, d, pi0)``, default
+    """The lifted chains (`ChainLift`) of ``chains`` (per channel ``(T, d, pi0)``, default
     ``chain_matrices(system.channel)``); a system without a channel has none (q_i = 0: the augmented problem
     is then the paper's Bernoulli UDP-like one). The state distributions ``pi_{t+1} = pi_t T`` are propagated
     from each ``pi0``; their delivery probabilities ``pi_t d`` must be the system's ``mu_schedule`` (to 1e-9):
@@ -141,7 +141,7 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
 
 
 def _lift(system: System, chains: tuple | None) -> ChainLift:
-    """:func:`chain_lift` of ``chains`` (None: independent losses). Time O(N m k^2)."""
+    """`chain_lift` of ``chains`` (None: independent losses). Time O(N m k^2)."""
     N, n, m = system.horizon, system.n, system.m
     if chains is None:                                   # independent losses: nothing to lift
         none = [np.zeros(shape) for shape in ((0, 0), (0,), (N, 0))]
@@ -194,7 +194,7 @@ def augmented_size(system: System, chains: tuple | None = None) -> int:
 
 def check_recursion_budget(system: System, size: int, instead: str) -> None:
     """Refuse, before any work, an augmented recursion beyond the ``markov_recursion_work`` budget
-    (:func:`~packetloss_cvx.budgets.markov_recursion_work`), naming the channel, the estimated time and
+    (`markov_recursion_work`), naming the channel, the estimated time and
     ``instead`` (what to use in its place). O(1).
 
     Raises
@@ -243,7 +243,7 @@ def lq_cross_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, Nc
     (the caller adds the state weight of the step). ``scale`` (m,) scales H symmetrically before the solve
     (``sqrt(mu)``: H is ``M``-sized for rarely delivering channels); an input of scale 0 does not enter
     (its gain is 0, H's row and column are replaced by the identity's). Returns ``(K, P-)``, P- symmetrised.
-    This is not Theorem 1's step (:func:`~packetloss_cvx.lq.recursion.riccati_step`): the input map is not
+    This is not Theorem 1's step ([`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]): the input map is not
     ``B M`` and the cross term ``N`` has no counterpart there. Time O(D^3 + m^3), D = dim z.
 
     Examples
@@ -275,22 +275,22 @@ def lq_cross_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, Nc
 
 
 def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """The exact UDP-like minimiser under the system's chains (or ``chains``, as :func:`chain_lift`) by the
+    """The exact UDP-like minimiser under the system's chains (or ``chains``, as `chain_lift`) by the
     augmented Riccati recursion.
 
     Returns ``(U, gain, cost)``: the plan (N×m), the first step's gain on ``x`` (m×n) and the exact
-    minimum, checked against :func:`chain_cost` of the plan to ``SELF_CHECK_RTOL`` (plus
+    minimum, checked against `chain_cost` of the plan to ``SELF_CHECK_RTOL`` (plus
     ``SELF_CHECK_ATOL ||P_0|| ||x||^2``). Time O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)), memory
     O(N m D) for the gains; where the steps are one map (chains started in their stationary distributions, a
     stable A whose Lyapunov sums closed) the value closes its stationary tail after L steps and the run of one
     gain is rolled out by powers of its closed loop: O(L (D^3 + m^3) + N D^2) for the solve, the referee
-    :func:`chain_cost` staying O(N n^2 (n + m + sum_i (k_i - 1))).
+    `chain_cost` staying O(N n^2 (n + m + sum_i (k_i - 1))).
 
     Raises
     ------
     BudgetError
         The recursion's estimated time is beyond the ``markov_recursion_work`` budget (checked before any work:
-        :func:`check_recursion_budget`; the message names the dense route when it fits the memory budget).
+        `check_recursion_budget`; the message names the dense route when it fits the memory budget).
     NumericalError
         An overflow (an unstable plant over a long horizon), a singular step, or a failed self-check.
     """
@@ -364,8 +364,8 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
 
 def _augmented_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, BSA: np.ndarray, lift: ChainLift,
                     scale: np.ndarray, Omega: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """One step of :func:`augmented_solve`'s backward pass: the cross term ``N`` (row i: b_i'S_t A ⊗ g_i, row-major
-    eta_i) from ``BSA`` = B'S_t A, :func:`lq_cross_step`, then the state weight ``Omega`` on the xhat block (None:
+    """One step of `augmented_solve`'s backward pass: the cross term ``N`` (row i: b_i'S_t A ⊗ g_i, row-major
+    eta_i) from ``BSA`` = B'S_t A, `lq_cross_step`, then the state weight ``Omega`` on the xhat block (None:
     step 0). Returns ``(K_t, P_t)``. O(D^3 + m^3)."""
     Ncross = np.zeros((G.shape[1], F.shape[0]))
     for i, gi in enumerate(lift.g):
@@ -378,9 +378,9 @@ def _augmented_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, 
 
 
 def mean_state_bound(system: System, inputs: np.ndarray) -> float:
-    """A bound on the rounding of :func:`chain_cost`'s mean-state part for the plan ``inputs`` (N×m): the TCP-like
+    """A bound on the rounding of `chain_cost`'s mean-state part for the plan ``inputs`` (N×m): the TCP-like
     forward pass of the paper's system on the chains' predicted mu_t without its noise term
-    (:func:`~packetloss_cvx.lq.recursion.plan_cost`). The correlations and the error covariance are sums of
+    ([`plan_cost`][packetloss_cvx.lq.recursion.plan_cost]). The correlations and the error covariance are sums of
     nonnegative terms driven by the plan itself (no cancellation of an open-loop growth against the plan): only
     the mean states can carry the plan's rounding amplified by an unstable A. O(N n (n + m) L), L = 32.
 
@@ -402,7 +402,7 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
 
         x'Q x + sum_t mu_t psi_t u_t^2 + xhat_{t+1}'Omega_{t+1} xhat_{t+1} + tr(Omega_{t+1} Sigma_{t+1}),
 
-    every term nonnegative (Sigma is a covariance): the referee of :func:`augmented_solve`. Without a chain
+    every term nonnegative (Sigma is a covariance): the referee of `augmented_solve`. Without a chain
     it is the paper's J_udp. Returns (P,). Time O(P N n^2 (n + m + sum_i (k_i - 1))), memory O(P n^2).
 
     Examples
@@ -454,11 +454,11 @@ def _plan_end(U: np.ndarray) -> int:
 
 
 def _free_tail(system: System, Sig: np.ndarray, start: int, finite: bool) -> np.ndarray:
-    """``sum_{t >= start} tr(Omega_{t+1} Sigma_{t+1})`` once every plan has ended (:func:`_plan_end`): the cross
+    """``sum_{t >= start} tr(Omega_{t+1} Sigma_{t+1})`` once every plan has ended (`_plan_end`): the cross
     terms and the loss variance of the input are exact zeros, so the error covariance is the free Lyapunov recursion
-    ``Sigma+ = A Sigma A' + Sigma_W`` from ``Sig`` (P, n, n) = Sigma_start, the same floats as :func:`chain_cost`'s
+    ``Sigma+ = A Sigma A' + Sigma_W`` from ``Sig`` (P, n, n) = Sigma_start, the same floats as `chain_cost`'s
     full step. Where A is stable (q = rho(A)^2 < 1), the state weight is one weight and everything is finite, its
-    settled tail is closed as the Lyapunov sums of :mod:`~packetloss_cvx.lq.structure` close theirs: once the change of
+    settled tail is closed as the Lyapunov sums of `structure` close theirs: once the change of
     Sigma times ``q / (1 - q)`` is below ``STATIONARY_RTOL`` of its size (``stationary_close``), each remaining step
     adds the settled term; a Sigma that is exactly 0 (no noise: it underflowed) adds nothing more. O(L n^3) for a
     tail that settles in L steps, O((N - start) n^3) otherwise. Returns (P,)."""

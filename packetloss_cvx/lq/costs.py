@@ -9,12 +9,12 @@
 ``G_tcp = Omega_g Vbar + Psi`` and ``G_udp = G_tcp + Omega_d (I - Vbar)``.
 The minimum is ``C - x' Omega_gp' Vbar G^{-1} Omega_gp x``; the paper prints
 ``G^{-1} Vbar`` in place of ``Vbar G^{-1}``, which differs whenever Vbar is not a
-multiple of the identity (see docs/claims.md, :func:`paper_optimal_cost`).
+multiple of the identity (see docs/claims.md, [`paper_optimal_cost`][packetloss_cvx.lq.costs.paper_optimal_cost]).
 
-This module is the API of the Theorem-1 pipeline: :func:`closed_form` validates and hands the system to
-:func:`~packetloss_cvx.lq.policy.solve` (the method choice, the kernel, the one self-check); the kernels are
-:mod:`~packetloss_cvx.lq.dense` and :mod:`~packetloss_cvx.lq.recursion`, on the system's
-:class:`~packetloss_cvx.lq.structure.Structure`. The chooser and the dense kernels are also importable from here.
+This module is the API of the Theorem-1 pipeline: [`closed_form`][packetloss_cvx.lq.costs.closed_form] validates and
+hands the system to `solve` (the method choice, the kernel, the one self-check); the kernels are
+`dense` and [`recursion`][packetloss_cvx.lq.recursion], on the system's
+`Structure`. The chooser and the dense kernels are also importable from here.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ __all__ = [
 
 
 def check_inputs(system: System, inputs: npt.ArrayLike) -> np.ndarray:
-    """The N×m input sequence as a float array, or :class:`InputError` naming ``inputs``.
+    """The N×m input sequence as a float array, or [`InputError`][packetloss_cvx.errors.InputError] naming ``inputs``.
 
     Examples
     --------
@@ -84,7 +84,7 @@ def expected_cost(system: System, inputs: npt.ArrayLike, protocol: str, method: 
     form of eq:opt-lqg-simplest (O((N n)^2 N m)), refused where its condition estimate says
     it would lose digits, and checked against the forward pass.
     Either way the value is returned only where the forward pass is resolved to ``PLAN_COST_RTOL``
-    (relative; :func:`~packetloss_cvx.lq.recursion.plan_cost` bounds its error a posteriori): on an unstable plant
+    (relative; [`plan_cost`][packetloss_cvx.lq.recursion.plan_cost] bounds its error a posteriori): on an unstable plant
     over a long horizon the rolled-out states of a fixed plan carry its rounding amplified by the open-loop
     growth of A, and the cost of the plan is then not computable in double precision.
     The paper's labels: eq:TCP-prediction-error and eq:lqg-sub-err (the cost with the prediction error),
@@ -179,7 +179,7 @@ def paper_optimal_cost(system: System, protocol: str) -> float:
     .. math:: C - x'\\Omega_{gp}' G^{-1}\\bar V \\Omega_{gp} x
 
     Kept for the audit: it equals the true minimum only when Vbar commutes with
-    G (e.g. one shared channel, Vbar = nu I). Use :func:`closed_form` for the cost.
+    G (e.g. one shared channel, Vbar = nu I). Use [`closed_form`][packetloss_cvx.lq.costs.closed_form] for the cost.
 
     Examples
     --------

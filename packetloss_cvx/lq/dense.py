@@ -1,6 +1,6 @@
 """Theorem 1's dense kernels: the Hessian factor G of eq:opt-law-1/2, the constant term C, the cost of a plan and the
-optimal law in stacked form, on the paper's prediction matrices (:mod:`~packetloss_cvx.lq.prediction`, the dense
-structure of a system) and a channel (its Vbar). The policy (:mod:`~packetloss_cvx.lq.policy`) chooses this form or the
+optimal law in stacked form, on the paper's prediction matrices ([`prediction`][packetloss_cvx.lq.prediction], the dense
+structure of a system) and a channel (its Vbar). The policy (`policy`) chooses this form or the
 recursion and checks the answer; nothing here checks.
 
 .. math:: G = \\Omega_g \\bar V + \\Psi\\ [+\\ \\Omega_d (I - \\bar V)],\\qquad
@@ -115,7 +115,7 @@ def dense_law(system: System, protocol: str, pred: Prediction | None = None) -> 
     """Theorem 1 in stacked form at the system's channel and x0: ``(C - g'Vbar G^{-1} g, U*, F)`` with
     ``F = G^{-1} Omega_gp`` ((N m)×n: the first m rows are the receding-horizon gain) and ``U* = -F x``
     (N×m), g = Omega_gp x; unchecked (the policy checks it). NumericalError where the solve's residual is not
-    small (:func:`~packetloss_cvx.linalg.solve_checked`). O((N m)^3 + (N n)^2 N m).
+    small (`solve_checked`). O((N m)^3 + (N n)^2 N m).
 
     Examples
     --------

@@ -1,4 +1,4 @@
-"""The cost difference J_Delta = J*_udp - J*_tcp between the protocols (§IV): its value, its derivative
+"""The cost difference J_Delta = `J*_udp` - `J*_tcp` between the protocols (§IV): its value, its derivative
 (Lemma 2), the roots of det f (Lemma 3), Theorem 4's maximiser and robust numerical maximisers.
 
 For a shared ("scalar") channel every actuator has delivery probability nu, Vbar = nu I, and
@@ -66,7 +66,7 @@ def _mu_vector(system: System, mu) -> np.ndarray:
 
 
 def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> float:
-    """J*_udp - J*_tcp at ``mu`` (scalar nu, m-vector, N×m schedule, or the system's own):
+    """`J*_udp` - `J*_tcp` at ``mu`` (scalar nu, m-vector, N×m schedule, or the system's own):
     eq:cost-diff-def, and eq:cost-diff-eq for a shared channel.
 
     Dense and cancellation-free: O((N m)^3). Pass ``pred`` to reuse the prediction.
@@ -83,8 +83,8 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
 
 def cost_differences(system: System, V: np.ndarray, pred: Prediction | None = None) -> np.ndarray:
     """J_Delta at each row of ``V`` (P, N m), stacked delivery probabilities in [0, 1] (unchecked): eq:cost-diff-def
-    in the batched form of :func:`cost_difference` (a point is a batch of one, the same bits),
-    ``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g`` with two stacked LU solves per chunk of about
+    in the batched form of [`cost_difference`][packetloss_cvx.lq.difference.cost_difference] (a point is a batch of one,
+    the same bits), ``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g`` with two stacked LU solves per chunk of about
     ``CHUNK_BYTES``. O(P (N m)^3) time, O(CHUNK_BYTES) memory.
 
     Examples
@@ -118,7 +118,8 @@ def shared_channel_differences(system: System, nus: np.ndarray, pred: Prediction
     ``D = Omega_d + Psi`` (both denominators are positive on [0, 1]: nu Omega_g + Psi and
     nu Omega_g + (1 - nu) Omega_d + Psi are positive definite), then
     ``J_Delta = nu (1 - nu) (G_F g)' Omega_d (G_G g)``. Two symmetric eigendecompositions, O((N m)^3), then
-    O((N m)^2) per nu; :func:`cost_difference` (an LU solve per nu) agrees to rounding.
+    O((N m)^2) per nu; [`cost_difference`][packetloss_cvx.lq.difference.cost_difference] (an LU solve per nu) agrees to
+    rounding.
 
     Examples
     --------
@@ -134,7 +135,7 @@ def shared_channel_differences(system: System, nus: np.ndarray, pred: Prediction
 
 
 def _shared_channel_curve(system: System, pred: Prediction) -> Callable[[np.ndarray], np.ndarray]:
-    """The two eigendecompositions of :func:`shared_channel_differences`, and J_Delta on a vector of nu in
+    """The two eigendecompositions of `shared_channel_differences`, and J_Delta on a vector of nu in
     [0, 1] from them (unchecked)."""
     g = pred.Omega_gp @ system.x0
     parts = []
@@ -328,8 +329,8 @@ def maximise_cost_difference(system: System, grid: int = 400, pred: Prediction |
 
     A grid uniform in logit(nu) from 1e-9 to 1 - 1e-9 (so peaks near 1e-4 are bracketed), then a bounded
     Brent refinement in logit space between the best point's neighbours, both on the curve of
-    :func:`shared_channel_differences`; the better of the grid's and Brent's points, valued by
-    :func:`cost_difference`. Time O((N m)^3 + (grid + Brent steps) (N m)^2).
+    `shared_channel_differences`; the better of the grid's and Brent's points, valued by
+    [`cost_difference`][packetloss_cvx.lq.difference.cost_difference]. Time O((N m)^3 + (grid + Brent steps) (N m)^2).
 
     >>> s = System(A=[[1]], B=[[1]], horizon=1, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> peak = maximise_cost_difference(s, grid=100)     # J_Delta = 1 - nu/2 - 1/(1 + nu)

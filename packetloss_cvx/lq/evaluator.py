@@ -1,26 +1,27 @@
 """J*(mu) for many channels at once: everything that does not depend on mu is built once.
 
-For a fixed system (A, B, weights, horizon, x0, noise) and protocol, :class:`CostEvaluator`
+For a fixed system (A, B, weights, horizon, x0, noise) and protocol,
+[`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator]
 evaluates the optimal expected cost of Theorem 1 (eq:TCP-opt-cost, eq:UDP-opt-cost, corrected:
 ``C - x'Omega_gp' Vbar G^{-1} Omega_gp x``) for a batch of P channels, stationary ``(P, m)`` or
 scheduled ``(P, N, m)``, with no Python loop over the points: stacked small matrices go through
 ``np.matmul`` and ``np.linalg.solve``.
 
-It allows the paths :func:`~packetloss_cvx.lq.costs.closed_form` allows with ``method="auto"``, a
+It allows the paths [`closed_form`][packetloss_cvx.lq.costs.closed_form] allows with ``method="auto"``, a
 choice that does not depend on mu (N m and the condition estimate, built from the Lyapunov sums
-of :func:`~packetloss_cvx.lq.recursion.udp_variance_weights`, are fixed); where the dense path is
+of `udp_variance_weights`, are fixed); where the dense path is
 allowed, a large batch still takes the recursion when that is faster (both are exact):
 
 * ``"dense"`` (N m <= ``costs.AUTO_DENSE_MAX``, well conditioned): Omega_g, Omega_gp, Phi, Gamma
   built once (O((N n)^2 N m)); per point one (N m)×(N m) LU solve, O((N m)^3);
-* ``"recursion"``: the backward Riccati recursion of :mod:`~packetloss_cvx.lq.recursion` over a
+* ``"recursion"``: the backward Riccati recursion of [`recursion`][packetloss_cvx.lq.recursion] over a
   batch, O(N (n^3 + m^3)) per point in N steps of stacked operations.
 
 Never silently wrong, as ``closed_form``: every point's cost is checked against the forward cost
 of its own plan (a sum of nonnegative stage costs, ``SELF_CHECK_RTOL``), vectorised; a dense
 point whose solve residual or self-check fails is recomputed by the recursion (as ``"auto"``
-falls back); a recursion point that fails raises :class:`NumericalError` naming the weights'
-spread, and so does any cost beyond the double range. Memory: both paths work in chunks of
+falls back); a recursion point that fails raises [`NumericalError`][packetloss_cvx.errors.NumericalError] naming the
+weights' spread, and so does any cost beyond the double range. Memory: both paths work in chunks of
 about ``CHUNK_BYTES`` (the dense path's stacked matrices; the recursion's gains, O(N m n) a point).
 """
 
@@ -66,7 +67,7 @@ class CostEvaluator:
         Fixes A, B, the weights, the horizon, x0 and the noise; its own mu is ignored.
     protocol : {"tcp", "udp"}
     method : {"auto", "dense", "recursion"}
-        As for :func:`~packetloss_cvx.lq.costs.closed_form`; ``"auto"`` (default) picks once.
+        As for [`closed_form`][packetloss_cvx.lq.costs.closed_form]; ``"auto"`` (default) picks once.
 
     Notes
     -----
@@ -162,8 +163,9 @@ class CostEvaluator:
         """J*(mu) for one channel: mu of shape (m,) or (N, m), x0 (n,) or None (the system's).
 
         On the dense path at the system's x0, vectors instead of stacks
-        (:class:`~packetloss_cvx.lq.pointwise.PointEvaluator`: one LU, checked the same way, equal to
-        :meth:`costs` to rounding); otherwise, or where its check fails, a batch of one.
+        (`PointEvaluator`: one LU, checked the same way, equal to
+        [`costs`][packetloss_cvx.lq.evaluator.CostEvaluator.costs] to rounding); otherwise, or where its check fails, a
+        batch of one.
 
         ``checked=False`` (searches only: the allocation's probes) skips the one-point path's residual and
         self-check, O((N m)^2) of an O((N m)^3) point: the value is the same as the checked one wherever the
@@ -193,9 +195,10 @@ class CostEvaluator:
         """``s -> J*(mu with mu_i = s)`` for a stationary mu (m,) and s in [0, 1], at the system's x0.
 
         On the dense path the other channels are factored once (a Schur complement,
-        :meth:`PointEvaluator.line`): per point O(N^3 + (N m)^2) instead of O((N m)^3); every
-        point is checked as :meth:`cost` checks it and falls back to :meth:`cost` on a failed check.
-        ``checked=False``: the points' values without the check, with the contract of :meth:`cost`'s.
+        `PointEvaluator.line`): per point O(N^3 + (N m)^2) instead of O((N m)^3); every
+        point is checked as [`cost`][packetloss_cvx.lq.evaluator.CostEvaluator.cost] checks it and falls back to
+        [`cost`][packetloss_cvx.lq.evaluator.CostEvaluator.cost] on a failed check. ``checked=False``: the points'
+        values without the check, with the contract of [`cost`][packetloss_cvx.lq.evaluator.CostEvaluator.cost]'s.
         """
         if type(mu) is np.ndarray and mu.dtype == np.float64 and _channel_vector(mu, self.system.m):
             base = mu.copy()            # already a channel vector (a search's line): nothing to convert
@@ -299,8 +302,8 @@ class CostEvaluator:
 
     def _forward(self, mu: np.ndarray, x: np.ndarray, U: np.ndarray, X: np.ndarray,
                  weight: np.ndarray | None = None, base: np.ndarray | float | None = None) -> np.ndarray:
-        """The referee (:func:`~packetloss_cvx.lq.recursion.forward_cost`) of plans U (P, N, m) whose mean states
-        X (P, N, n) are x_1..x_N; ``weight``: :func:`~packetloss_cvx.lq.recursion.input_weight` if the caller has
+        """The referee (`forward_cost`) of plans U (P, N, m) whose mean states
+        X (P, N, n) are x_1..x_N; ``weight``: `input_weight` if the caller has
         it; ``base``: x0'Q x0 + noise, if known. O(P N (n^2 + m)), O(P (N n)^2) up to OMEGA_BLOCKS_MAX."""
         s = self.system
         if weight is None:
@@ -380,7 +383,7 @@ class CostEvaluator:
 
 def _channel_vector(mu: np.ndarray, m: int) -> bool:
     """Whether a plain float array ``mu`` (an ``np.ndarray`` itself: a masked array's ``tolist`` gives None for
-    its masked entries, and :func:`.validation.numeric_array` refuses those) is one channel vector, shape (m,)
+    its masked entries, and `numeric_array` refuses those) is one channel vector, shape (m,)
     with every entry in [0, 1] (NaN fails the comparisons): its m entries compared as Python floats, several times
     cheaper than two NumPy reductions at this size (the searches' probes and lines, thousands per allocation). O(m)."""
     return mu.shape == (m,) and all(0.0 <= p <= 1.0 for p in mu.tolist())

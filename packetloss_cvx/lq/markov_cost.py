@@ -14,10 +14,10 @@ alone: its plug-in law is already its exact minimiser. Both are convex quadratic
 minimiser is ``U* = -(Omega_g ∘ R + Vbar Psi)^{-1} Vbar Omega_gp x`` on the channels that can deliver.
 
 Two routes to each UDP-like number (``method``): ``"recursion"``, the exact LQ problem on the augmented state of
-:mod:`.augmented`, O(N) time and memory for any finite-state chain (refused beyond its time budget);
+`.augmented`, O(N) time and memory for any finite-state chain (refused beyond its time budget);
 ``"dense"``, the stacked form above, O((N m)^3 + (N n)^2 N m) time and O((N m)^2) memory (refused beyond
 the memory budget), kept as the independent second computation. ``"auto"``: for the minimiser the route
-:func:`auto_route` estimates faster (dense for short horizons), for the cost of a plan the recursion's forward pass.
+`auto_route` estimates faster (dense for short horizons), for the cost of a plan the recursion's forward pass.
 """
 
 from __future__ import annotations
@@ -62,8 +62,8 @@ DENSE_SECONDS = MARKOV_DENSE_SECONDS
 
 def check_method(method: str) -> str:
     """``"recursion"`` or ``"dense"`` (``"auto"`` is the recursion here: the cost of a plan by its forward pass;
-    :func:`exact_closed_form` resolves ``"auto"`` for the minimiser by :func:`auto_route`); InputError naming
-    ``method`` otherwise. O(1).
+    [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form] resolves ``"auto"`` for the minimiser by
+    `auto_route`); InputError naming ``method`` otherwise. O(1).
 
     Examples
     --------
@@ -76,7 +76,7 @@ def check_method(method: str) -> str:
 
 
 def _dense_bytes(system: System) -> float:
-    """What the dense route holds (:func:`~packetloss_cvx.budgets.markov_dense_bytes`). O(1)."""
+    """What the dense route holds (`markov_dense_bytes`). O(1)."""
     return markov_dense_bytes(system.horizon, system.n, system.m)
 
 
@@ -92,8 +92,8 @@ def _check_memory(system: System) -> None:
 
 def route_seconds(system: System) -> tuple[float, float]:
     """The estimated CPU seconds (one BLAS thread) of the exact UDP-like minimum by each route, ``(dense,
-    recursion)``: :func:`~packetloss_cvx.budgets.markov_dense_seconds` and the recursion's work
-    (:func:`~packetloss_cvx.budgets.markov_recursion_work` on the augmented size D) at its measured seconds per unit.
+    recursion)``: `markov_dense_seconds` and the recursion's work
+    (`markov_recursion_work` on the augmented size D) at its measured seconds per unit.
     O(m).
 
     Examples
@@ -111,8 +111,8 @@ def route_seconds(system: System) -> tuple[float, float]:
 
 
 def dense_max(system: System) -> int:
-    """The crossover handed to the one chooser (:func:`~packetloss_cvx.lq.costs.dense_or_recursion`) for this system:
-    its own N m where the dense route is estimated faster (:func:`route_seconds`) and its matrices fit the memory
+    """The crossover handed to the one chooser (`dense_or_recursion`) for this system:
+    its own N m where the dense route is estimated faster (`route_seconds`) and its matrices fit the memory
     budget, else 0 (the recursion). O(m).
 
     Examples
@@ -131,7 +131,7 @@ def dense_max(system: System) -> int:
 
 def auto_route(system: System) -> str:
     """The route ``method="auto"`` takes for the exact UDP-like minimum, before any fallback: the one chooser
-    :func:`~packetloss_cvx.lq.costs.pick_method` at this system's crossover (:func:`dense_max`), so ``"dense"`` where it
+    `pick_method` at this system's crossover (`dense_max`), so ``"dense"`` where it
     is estimated faster, fits the memory budget and the condition estimate is within ``DENSE_MAX_CONDITION``
     (the Markov Hessian, scaled by sqrt(mu), has the Bernoulli bound: trace Omega_g + max Psi over min Psi),
     else ``"recursion"``. O(m) plus, where the time favours the dense route, the condition estimate's O(N n^3).
@@ -151,7 +151,7 @@ def auto_route(system: System) -> str:
 
 
 def dense_prediction(system: System) -> Prediction:
-    """The paper's stacked matrices (:func:`~packetloss_cvx.lq.prediction.prediction`) after the memory check;
+    """The paper's stacked matrices ([`prediction`][packetloss_cvx.lq.prediction.prediction]) after the memory check;
     an overflow says what to do here (the recursion, ``method="recursion"``, needs no dense matrix).
     Time O((N n)^2 N m).
 
@@ -203,9 +203,9 @@ def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp", met
 
     ``"udp"``: E[cost | belief], exact under Markov losses. ``method="auto"``/``"recursion"``: the forward pass
     of the mean state, the state-chain correlations and the error covariance
-    (:func:`~packetloss_cvx.lq.augmented.chain_cost`: nonnegative terms, O(N n^2 (n + m k)));
+    (`chain_cost`: nonnegative terms, O(N n^2 (n + m k)));
     ``"dense"``: J_udp(U) + U'(Omega_g ∘ C_off)U (the forward pass of
-    :func:`~packetloss_cvx.lq.costs.expected_cost` plus :func:`correlation_term`, O((N n)^2 N m)).
+    [`expected_cost`][packetloss_cvx.lq.costs.expected_cost] plus `correlation_term`, O((N n)^2 N m)).
     ``"tcp"``: the paper's TCP-like cost, which holds only the marginals mu_t (= J_tcp(U)), either method.
 
     Raises
@@ -213,7 +213,7 @@ def exact_cost(system: System, inputs: npt.ArrayLike, protocol: str = "udp", met
     NumericalError
         The cost exceeds the double range (an unstable plant over a long horizon), or it is not resolved to
         ``PLAN_COST_RTOL``: the plan's rolled-out mean states carry its rounding amplified by the open-loop growth
-        of A (:func:`~packetloss_cvx.lq.recursion.check_plan_cost`; the correlations and the error covariance are
+        of A (`check_plan_cost`; the correlations and the error covariance are
         sums of nonnegative terms, no cancellation).
 
     Examples
@@ -265,26 +265,27 @@ def exact_hessian(system: System, pred: Prediction | None = None) -> tuple[np.nd
 
 
 def exact_closed_form(system: System, protocol: str = "udp", method: str = "auto") -> Solution:
-    """The minimiser of :func:`exact_cost` in closed form, with its cost, gain and eigenvalues.
+    """The minimiser of [`exact_cost`][packetloss_cvx.lq.markov_cost.exact_cost] in closed form, with its cost, gain and
+        eigenvalues.
 
     .. math:: U^* = -(\\Omega_g \\circ R + \\bar V\\Psi)^{-1}\\bar V\\Omega_{gp}x,\\qquad
               J^* = C_0 + U^{*\\prime}\\bar V\\Omega_{gp}x
 
     on the entries with mu_t > 0 (an input over a channel that cannot deliver does not enter the
-    cost; it is 0 here). ``"tcp"``: the paper's law with mu_t (:func:`~packetloss_cvx.lq.costs.closed_form`),
+    cost; it is 0 here). ``"tcp"``: the paper's law with mu_t ([`closed_form`][packetloss_cvx.lq.costs.closed_form]),
     exact because the TCP-like cost holds only first moments (``method`` is not used).
 
     ``method="recursion"``: the backward Riccati recursion of the LQ problem on the augmented
-    state (:func:`~packetloss_cvx.lq.augmented.augmented_solve`), any finite-state chain, time
+    state (`augmented_solve`), any finite-state chain, time
     O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)) (n (1 + m) for Gilbert–Elliott channels), memory O(N m D),
     refused in advance beyond the ``markov_recursion_work`` budget (BudgetError naming what the dense route
     would need); ``"dense"``: the stacked solve above, time O((N m)^3 + (N n)^2 N m), memory
     O((N m)^2 + N n N m), refused in advance beyond the memory budget; ``"auto"``: the route
-    :func:`auto_route` estimates faster (the dense one for short horizons, within the memory budget and
+    `auto_route` estimates faster (the dense one for short horizons, within the memory budget and
     well conditioned), falling back to the recursion if the dense route raises NumericalError. Either cost is
     checked against the forward cost of its own plan to
-    ``SELF_CHECK_RTOL`` (the recursion: :func:`~packetloss_cvx.lq.augmented.chain_cost`; the dense route:
-    :func:`exact_cost` with ``method="dense"``).
+    ``SELF_CHECK_RTOL`` (the recursion: `chain_cost`; the dense route:
+    [`exact_cost`][packetloss_cvx.lq.markov_cost.exact_cost] with ``method="dense"``).
 
     Raises
     ------

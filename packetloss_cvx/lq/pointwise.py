@@ -2,14 +2,14 @@
 in sequence (the allocation's bisections): vectors instead of stacks, and along a coordinate
 line a Schur complement that factors the fixed channels once.
 
-Both answer exactly what :meth:`~packetloss_cvx.lq.evaluator.CostEvaluator.costs` answers (to
+Both answer exactly what [`costs`][packetloss_cvx.lq.evaluator.CostEvaluator.costs] answers (to
 rounding) or ``None`` when a check fails, and the caller then takes the checked batch path:
 
 * the solve of ``G u = -Omega_gp x`` keeps a relative residual below ``DENSE_RESIDUAL_RTOL``,
   measured on the full (N m)×(N m) system;
 * the cost ``C - x'Omega_gp' Vbar G^{-1} Omega_gp x`` agrees with the forward cost of its own
   plan (the mean state from Phi x and Gamma Vbar U, nonnegative stage costs summed) to
-  ``SELF_CHECK_RTOL``, as :func:`~packetloss_cvx.lq.costs.closed_form` requires.
+  ``SELF_CHECK_RTOL``, as [`closed_form`][packetloss_cvx.lq.costs.closed_form] requires.
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ OMEGA_DENSE_MAX = 2**20
 class PointEvaluator:
     """J*(mu) of one protocol at the system's x0, one point at a time, on the dense path.
 
-    Construction O((N m)^2) (cached vectors of ``pred``). :meth:`cost` O((N m)^3) (one LU);
-    :meth:`line` O((N (m - 1))^3) once, then O(N^3 + (N m)^2) per point.
+    Construction O((N m)^2) (cached vectors of ``pred``). `cost` O((N m)^3) (one LU);
+    `line` O((N (m - 1))^3) once, then O(N^3 + (N m)^2) per point.
     """
 
     def __init__(self, system: System, protocol: str, pred: Prediction, weights: tuple[np.ndarray, float]) -> None:
@@ -73,7 +73,7 @@ class PointEvaluator:
 
     def cost(self, mu: np.ndarray, checked: bool = True) -> float | None:
         """J*(mu) for a schedule mu (N, m), or None where a check fails. O((N m)^3). ``checked=False``: the
-        same value without the residual and the self-check (:meth:`_closed`), for callers that confirm
+        same value without the residual and the self-check (`_closed`), for callers that confirm
         with a checked call every value a decision rests on."""
         v = mu.ravel()
         G = hessian_factor(self.pred, self.protocol, v)
@@ -115,8 +115,8 @@ class PointEvaluator:
         G_RR of G does not change along the line, so it is factored once and each point solves
         the N×N Schur complement ``s M + diag(psi_i + [UDP] Omega_d,i (1 - s))`` with
         ``M = Omega_g,ii - Omega_g,iR V_R G_RR^{-1} Omega_g,Ri``. None when m = 1 or G_RR is
-        singular (use :meth:`cost`). Setup O((N (m - 1))^3 + N^2 N m), each point O(N^3 + (N m)^2).
-        ``checked=False``: each point's value without its residual and self-check (as :meth:`cost`)."""
+        singular (use `cost`). Setup O((N (m - 1))^3 + N^2 N m), each point O(N^3 + (N m)^2).
+        ``checked=False``: each point's value without its residual and self-check (as `cost`)."""
         s, pred = self.system, self.pred
         N, m = s.horizon, s.m
         if m == 1:

@@ -1,10 +1,10 @@
 """The Theorem-1 policy: which exact form answers (dense or recursion), run it, check it once, return the result.
 
-:func:`solve` is :func:`~packetloss_cvx.lq.costs.closed_form`'s whole pipeline: the system's
-:class:`~packetloss_cvx.lq.structure.Structure` (built once per structure), :func:`choose` (the one method chooser and
-its fallback, also for :class:`~packetloss_cvx.lq.evaluator.CostEvaluator` and the Markov closed form), the kernel
-(:func:`~packetloss_cvx.lq.dense.dense_law` or :func:`~packetloss_cvx.lq.recursion.optimal_plan`), and
-:func:`self_check`: the one test of a closed-form cost against the forward cost of its own plan (a sum of
+`solve` is [`closed_form`][packetloss_cvx.lq.costs.closed_form]'s whole pipeline: the system's
+`Structure` (built once per structure), `choose` (the one method chooser and
+its fallback, also for [`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator] and the Markov closed form), the
+kernel (`dense_law` or [`optimal_plan`][packetloss_cvx.lq.recursion.optimal_plan]), and
+`self_check`: the one test of a closed-form cost against the forward cost of its own plan (a sum of
 nonnegative terms, free of cancellation), which every closed form (dense, recursion, batched, pointwise, Markov)
 passes before its number is returned.
 """
@@ -38,8 +38,8 @@ T = TypeVar("T")
 
 
 def solve(system: System, protocol: str, method: str = "auto") -> Solution:
-    """Theorem 1 for a validated system and protocol (:func:`~packetloss_cvx.lq.costs.closed_form`, which validates):
-    the method chosen (:func:`choose`), run, self-checked (:func:`self_check`) and returned as a Solution whose cost
+    """Theorem 1 for a validated system and protocol ([`closed_form`][packetloss_cvx.lq.costs.closed_form], which
+    validates): the method chosen (`choose`), run, self-checked (`self_check`) and returned as a Solution whose cost
     is the forward one. Time as closed_form's.
 
     Examples
@@ -91,7 +91,7 @@ def self_check(system: System, protocol: str, closed: np.ndarray | float, forwar
     ``SELF_CHECK_RTOL`` (plus ``atol``, the rounding scale of x'P_0 x where a caller has it) of ``forward``, the
     forward cost of their own plans (the referee: a sum of nonnegative terms, finite). Scalars or arrays (P,).
     With ``raise_`` (default) a point that fails raises NumericalError: beyond the double range, or naming the
-    disagreement and the weights' spread (:func:`weight_spread`) of ``system``; otherwise the boolean mask is
+    disagreement and the weights' spread (`weight_spread`) of ``system``; otherwise the boolean mask is
     returned (a bool for Python floats). ``closed`` (x'P_0 x, or C - g'Vbar G^-1 g) cancels and is right to about
     eps ||P_0|| ||x||^2, the forward cost to about eps sqrt(||P_0|| ||x||^2 J*), and the plan's own error enters
     it only at second order:
@@ -206,10 +206,10 @@ def refuse_dense(system: System, weights: tuple[np.ndarray, float]) -> None:
 
 def choose(system: System, method: str, weights: tuple[np.ndarray, float],
            build: Callable[[], T], dense_max: int = AUTO_DENSE_MAX) -> tuple[str, T | None]:
-    """The one method chooser and its fallback, for :func:`solve`,
-    :class:`~packetloss_cvx.lq.evaluator.CostEvaluator` and the Markov closed form alike (``dense_max``: the
-    caller's crossover, :func:`pick_method`): :func:`pick_method`; on ``"dense"``,
-    :func:`refuse_dense` then ``build()``. Under ``"auto"`` a NumericalError of either (a dense form that
+    """The one method chooser and its fallback, for `solve`,
+    [`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator] and the Markov closed form alike (``dense_max``: the
+    caller's crossover, `pick_method`): `pick_method`; on ``"dense"``,
+    `refuse_dense` then ``build()``. Under ``"auto"`` a NumericalError of either (a dense form that
     would lose or lost its digits) falls back: ``("recursion", None)``, the recursion not depending on
     the conditioning; under ``"dense"`` it is raised. Returns ``(method, what build returned or None)``.
     O(N n^3) (the condition estimate) plus ``build``.

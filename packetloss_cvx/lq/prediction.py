@@ -1,11 +1,12 @@
 """Stacked prediction matrices Phi, Gamma, Lambda and the Omega_* products (big, §III).
 
 Everything here is dense: memory O((N n)^2 + (N n)(N m)), time O(N^2 n^2 (n + m) + (N m)^2 N n).
-For long horizons use :mod:`packetloss_cvx.lq.recursion`, which forms none of these.
+For long horizons use [`packetloss_cvx.lq.recursion`][packetloss_cvx.lq.recursion], which forms none of these.
 
 None of the matrices depends on mu or x0, so they are built once per system structure and kept here
-(:class:`~packetloss_cvx.model.system.StructureStore`s, shared by a system's ``with_mu`` / ``with_x0`` copies) while they
-fit ``model.STRUCTURE_CACHE_MAX_BYTES``; every array of a :class:`Prediction` is read-only.
+(`StructureStore`s, shared by a system's ``with_mu`` / ``with_x0`` copies) while they
+fit ``model.STRUCTURE_CACHE_MAX_BYTES``; every array of a [`Prediction`][packetloss_cvx.lq.prediction.Prediction] is
+read-only.
 """
 
 from __future__ import annotations
@@ -157,7 +158,8 @@ def prediction(system: System) -> Prediction:
 
 
 def _structure(system: System) -> dict[str, np.ndarray]:
-    """Phi, Gamma, the Omega products and Psi of :func:`prediction` (none depends on mu or x0), read-only."""
+    """Phi, Gamma, the Omega products and Psi of [`prediction`][packetloss_cvx.lq.prediction.prediction] (none depends
+        on mu or x0), read-only."""
     A, B, N = system.A, system.B, system.horizon
     powers = _powers(A, N)
     with np.errstate(over="ignore", invalid="ignore"):

@@ -18,12 +18,12 @@ the same minimiser as the paper's dense law ``-G^{-1} Omega_gp x`` (Theorem 1).
 Time O(N (n^3 + m^3)), memory O(N n m) for the gains; no (N n)×(N m) matrix is formed.
 
 This module holds the algebra once, batched over a leading axis (a single point is a batch of one,
-as scipy.linalg's solvers batch; :func:`riccati_step` also takes the point itself, as 2-D arrays, by the same
-code): :func:`riccati_step` (the Theorem-1 step, also the closed-loop DP's
-and the Markov jump system's), :func:`backward_batch` (N of them), :func:`rollout_batch` /
-:func:`mean_states` (the mean state forward) and :func:`forward_cost` (the referee every closed form is
-checked against). :func:`backward_pass`, :func:`mean_trajectory` and :func:`recursion_cost` are their
-one-point forms.
+as scipy.linalg's solvers batch; [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] also takes the point itself,
+as 2-D arrays, by the same code): [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] (the Theorem-1 step, also
+the closed-loop DP's and the Markov jump system's), `backward_batch` (N of them), `rollout_batch` /
+`mean_states` (the mean state forward) and `forward_cost` (the referee every closed form is
+checked against). [`backward_pass`][packetloss_cvx.lq.recursion.backward_pass],
+[`mean_trajectory`][packetloss_cvx.lq.recursion.mean_trajectory] and `recursion_cost` are their one-point forms.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
 
     Returns ``(d, noise)`` with ``d[t, i] = (B' S_t B)_{ii}`` and
     ``noise = sum_t tr(S_t Sigma_W)``. Time O(N n^3), memory O(N m), the first time for a system
-    structure: kept on its :class:`~packetloss_cvx.lq.structure.Structure` (``d`` read-only; it depends on neither
+    structure: kept on its `Structure` (``d`` read-only; it depends on neither
     mu nor x0).
 
     Examples
@@ -83,10 +83,10 @@ def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
 
 
 def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarray]:
-    """:func:`udp_variance_weights` ``(d, noise)`` with the products ``B' S_t A`` (N, m, n) of the same backward
+    """`udp_variance_weights` ``(d, noise)`` with the products ``B' S_t A`` (N, m, n) of the same backward
     Lyapunov sum ``S_t = Omega_{t+1} + A' S_{t+1} A``, which the exact cost under Markov losses pairs with the
     state-chain correlations (markov/augmented.py: row i of its cross term is ``b_i' S_t A``). One kernel for both
-    (:func:`~packetloss_cvx.lq.structure.lyapunov_weights`): time O(N n^3 + N m n^2), memory O(N m n); not kept (d is,
+    (`lyapunov_weights`): time O(N n^3 + N m n^2), memory O(N m n); not kept (d is,
     on the structure).
 
     Examples
@@ -101,7 +101,7 @@ def lyapunov_cross_weights(system: System) -> tuple[np.ndarray, float, np.ndarra
 
 def weight_head(system: System | Structure) -> np.ndarray:
     """The leading state weights equal to the first, ``state_weights[:h + 1]`` (a read-only view; all N for a
-    time-invariant weight): :attr:`~packetloss_cvx.lq.structure.Structure.weight_head`. O(1) after the first call for
+    time-invariant weight): `weight_head`. O(1) after the first call for
     a structure.
 
     Examples
@@ -115,7 +115,7 @@ def weight_head(system: System | Structure) -> np.ndarray:
 
 
 def _near(change: np.ndarray, size: np.ndarray) -> bool:
-    """A necessary condition of :func:`settled` with a contraction q >= 0.01 (whose geometric factor
+    """A necessary condition of `settled` with a contraction q >= 0.01 (whose geometric factor
     q / (1 - q) is then at least 1/99): change <= 100 STATIONARY_RTOL size at every point. O(P)."""
     return bool((change <= 100.0 * STATIONARY_RTOL * size).all())
 
@@ -125,7 +125,7 @@ def condition_estimate(system: System, weights: tuple[np.ndarray, float] | None 
     both expected costs (trace Omega_g bounds its largest eigenvalue, min Psi bounds the smallest
     curvature per delivered input). The dense formulas lose about ``log10(estimate * eps)``
     digits; the recursion does not depend on it. ``inf`` when Omega_g overflows.
-    Time O(N n^3) (the Lyapunov sums of :func:`udp_variance_weights`), no dense matrix; O(1) once kept
+    Time O(N n^3) (the Lyapunov sums of `udp_variance_weights`), no dense matrix; O(1) once kept
     on the system's structure (with ``weights`` None or the system's own).
 
     Examples
@@ -182,7 +182,7 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
               K = G^{-1} B'PA,\\quad P^- = A'PA - (B'PA)' M K + \\Omega
 
     with ``M = diag(mu)`` and ``a = added`` (``psi``, plus ``(1 - mu) d`` for the open-loop UDP-like law:
-    :func:`input_weight`). ``variance=True`` adds the loss variance weighted by the cost-to-go itself: the
+    `input_weight`). ``variance=True`` adds the loss variance weighted by the cost-to-go itself: the
     closed-loop DP's modified Riccati map (simulation.riccati) and, per mode, the Markov jump system's coupled
     equations (markov.mjls, h = mu). The Hessian of the step is ``M G`` (invertible G even where mu = 0).
 
@@ -198,7 +198,7 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     ``np.matmul`` on a stack; the last two axes transposed; mu broadcast as G's row). A batch of one is taken as
     the point: two-dimensional products and LAPACK's gesv without the stacked wrappers' overhead,
     the same BLAS calls in the same order as a point of a stack, so the same floats. From ``FLAT_MIN`` points on,
-    the products B'PB, B'PA, A'PA are one (k n)×n by n×m (n×n) product each (:func:`_flat_products`).
+    the products B'PB, B'PA, A'PA are one (k n)×n by n×m (n×n) product each (`_flat_products`).
     Time O(k (n^3 + m^3)); a point's answer does not depend on the batch it is in below ``FLAT_MIN`` points.
 
     Examples
@@ -246,7 +246,7 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
 
 def _flat_products(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """B'PB, B'PA and A'PA of a stack P (k, n, n) as one (k n)×n by n×m (n×n) product each instead of k small
-    ones: :func:`riccati_step`'s products for k >= FLAT_MIN. O(k n^2 (n + m))."""
+    ones: [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]'s products for k >= FLAT_MIN. O(k n^2 (n + m))."""
     k, n, m = P.shape[0], A.shape[0], B.shape[1]
     PBT = (P.reshape(k * n, n) @ B).reshape(k, n, m).transpose(0, 2, 1).reshape(k * m, n)
     BPB = (PBT @ B).reshape(k, m, m).transpose(0, 2, 1)
@@ -269,10 +269,10 @@ def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray
 def backward_batch(structure: Structure, protocol: str, mu: np.ndarray,
                    added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Gains K (P, N, m, n) and cost-to-go P_0 (P, n, n) (without Q) of the schedules ``mu`` (P, N, m),
-    ``added`` (P, N, m) the diagonal each step's G gets (:func:`input_weight`): N calls of
-    :func:`riccati_step` from ``P_N = Omega_N`` (a stationary tail closed, and for one point whose steps are one
-    map, the steps before it by doubling: :func:`_doubled_backward`). O(P N (n^3 + m^3)); NumericalError
-    (:func:`overflow_error`) where a step's G is singular or anything overflows.
+    ``added`` (P, N, m) the diagonal each step's G gets (`input_weight`): N calls of
+    [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] from ``P_N = Omega_N`` (a stationary tail closed, and for
+    one point whose steps are one map, the steps before it by doubling: `_doubled_backward`). O(P N (n^3 + m^3));
+    NumericalError (`overflow_error`) where a step's G is singular or anything overflows.
 
     Examples
     --------
@@ -287,8 +287,8 @@ def backward_batch(structure: Structure, protocol: str, mu: np.ndarray,
 
 def _backward(structure: Structure, protocol: str, mu: np.ndarray, added: np.ndarray,
               copies: bool = True) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
-    """:func:`backward_batch`, and the run ``(1, b)`` of steps 1..b-1 whose gains are one copied gain when the
-    pass closed its stationary tail (None otherwise), for the rollout (:func:`_roll_out`) to take as it is. With
+    """`backward_batch`, and the run ``(1, b)`` of steps 1..b-1 whose gains are one copied gain when the
+    pass closed its stationary tail (None otherwise), for the rollout (`_roll_out`) to take as it is. With
     ``copies`` False the run's gains after the first (K[:, 2:b]) are left unwritten, for a caller that reads
     only K[:, 1] of the run."""
     A, B, W, N = structure.A, structure.B, structure.state_weights, structure.horizon
@@ -358,17 +358,17 @@ def _one_map(structure: Structure, mu: np.ndarray, added: np.ndarray) -> bool:
 
 def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K: np.ndarray, copies: bool, top: int,
                       P_top: np.ndarray, q: float | None) -> tuple[np.ndarray, tuple[int, int] | None] | None:
-    """The rest of :func:`_backward` of one point from step ``top`` down (``P_top``: its cost-to-go; q: the
-    contraction if measured), where every step 1..top-1 is one Riccati map Phi (:func:`_one_map`), without a
+    """The rest of `_backward` of one point from step ``top`` down (``P_top``: its cost-to-go; q: the
+    contraction if measured), where every step 1..top-1 is one Riccati map Phi (`_one_map`), without a
     Python step per step. Phi is the linear fractional map ``P -> Q + A'P (I + F F'P)^{-1} A`` with
-    ``F = B (M diag(added)^{-1})^{1/2}`` (Woodbury on :func:`riccati_step`'s P^-), whose powers are again such
-    maps (the structure-preserving doubling of Chu, Fan and Lin, Linear Algebra Appl. 396 (2005) 55-80, here in
-    square-root form: :func:`_doubling`). The cost-to-go at every c-th step back from P_top (c = DOUBLING_CHUNK)
-    comes from doubling, 2^k points at a time (:func:`_fractional`); the c - 1 steps between them and every
-    gain from c batched :func:`riccati_step` calls over those points (:func:`_fine_steps`). The stationary tail
-    closes at the first step whose drift :func:`settled` accepts (the step-by-step pass weighs only some steps
-    and closes at or after it; both are within STATIONARY_RTOL of the fixed point), as :func:`_backward` closes
-    it: K[1] from P_t, copies for steps 1..t-1, then step 0. Writes K[:top] (K: (N, m, n)); returns
+    ``F = B (M diag(added)^{-1})^{1/2}`` (Woodbury on [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]'s P^-),
+    whose powers are again such maps (the structure-preserving doubling of Chu, Fan and Lin, Linear Algebra Appl. 396
+    (2005) 55-80, here in square-root form: `_doubling`). The cost-to-go at every c-th step back from P_top (c =
+    DOUBLING_CHUNK) comes from doubling, 2^k points at a time (`_power`); the c - 1 steps between them and every
+    gain from c batched [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] calls over those points
+    (`_fine_steps`). The stationary tail closes at the first step whose drift `settled` accepts (the step-by-step pass
+    weighs only some steps and closes at or after it; both are within STATIONARY_RTOL of the fixed point), as
+    `_backward` closes it: K[1] from P_t, copies for steps 1..t-1, then step 0. Writes K[:top] (K: (N, m, n)); returns
     ``(P_0 (1, n, n), run)``, or None where anything is not finite (the step-by-step pass then goes on from
     ``top`` and raises the overflow where there is one). Agrees with the step-by-step pass to rounding: within
     6.6e-14 of an 80-bit pass where the step-by-step one is within 8.3e-14 (the slowly converging plant,
@@ -424,18 +424,19 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
 
 
 def _power(A: np.ndarray, F: np.ndarray, H: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``H + A'P (I + F F'P)^{-1} A`` for a stack P (k, n, n): the doubled map of :func:`_doubling` applied to k
-    points, a :func:`riccati_step` with input matrix F and unit input weight. O(k n^3)."""
+    """``H + A'P (I + F F'P)^{-1} A`` for a stack P (k, n, n): the doubled map of `_doubling` applied to k
+    points, a [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] with input matrix F and unit input weight. O(k
+    n^3)."""
     r = F.shape[1]
     return riccati_step(P, A, F, np.ones((P.shape[0], r)), np.ones((P.shape[0], r)), H)[1]
 
 
 def _fine_steps(structure: Structure, starts: np.ndarray, mu1: np.ndarray, add1: np.ndarray, K: np.ndarray,
                 q: float | None, top: int) -> tuple[float | None, int | None, np.ndarray | None]:
-    """The steps between the c-th points ``starts[j] = P_{top - j c}`` (J, n, n) of :func:`_doubled_backward`: c
-    batched :func:`riccati_step` calls over the J points write the gains K_t of steps top-1 down to
-    max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift :func:`settled`
-    accepts with the contraction q (measured, if None, as :func:`_backward` measures it: at the first step whose
+    """The steps between the c-th points ``starts[j] = P_{top - j c}`` (J, n, n) of `_doubled_backward`: c
+    batched [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] calls over the J points write the gains K_t of
+    steps top-1 down to max(1, top - J c) into K. Returns ``(q, t, P_t)`` at the first step t >= 2 whose drift `settled`
+    accepts with the contraction q (measured, if None, as `_backward` measures it: at the first step whose
     drift is near), ``(q, None, P_1)`` where none does and step 1 was reached, ``(q, None, None)`` otherwise.
     O(J c (n^3 + m^3)) in c calls."""
     A, B, Q, n, m = structure.A, structure.B, structure.state_weights[0], structure.n, structure.m
@@ -463,7 +464,7 @@ def _fine_steps(structure: Structure, starts: np.ndarray, mu1: np.ndarray, add1:
 
 def _doubling(A: np.ndarray, F: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The map ``Phi(P) = H + A'P (I + F F'P)^{-1} A`` composed with itself, as the same kind of map (the doubling
-    step of :func:`_doubled_backward`). Phi is the Riccati step with input matrix F and unit input weight, whose
+    step of `_doubled_backward`). Phi is the Riccati step with input matrix F and unit input weight, whose
     gain at P = H is ``K = (I + F'HF)^{-1} F'HA``; then ``Phi(Phi(P))`` has ``H_2 = Phi(H)``, ``A_2 = A (A - F K)``
     and ``F_2 F_2' = F F' + A F S^{-1} F'A'`` (S = I + F'HF = C C'): the factor ``[F, A F C'^{-1}]``, compressed to
     n columns by a QR factorisation. G = F F' is never formed: rounding G would give every direction some control,
@@ -484,8 +485,8 @@ MAX_WAIT = 8
 
 def _wait(excess: float, last: tuple[int, float] | None, t: int) -> int:
     """How many steps a backward pass may go before weighing its drift again (1 to MAX_WAIT): the steps until
-    ``excess`` (the largest change over :func:`_near`'s bound), shrinking by the factor f per step seen since the
-    ``last`` weighing (step, excess), meets the closing bound of :func:`settled` with f for the contraction
+    ``excess`` (the largest change over `_near`'s bound), shrinking by the factor f per step seen since the
+    ``last`` weighing (step, excess), meets the closing bound of `settled` with f for the contraction
     (``(1 - f) / (100 f)`` in units of the near bound). A pass that settles faster than that closes the few
     steps later; one that does not shrink is weighed every step. O(1)."""
     if last is None or not 0.0 < excess < math.inf or not 0.0 < last[1] < math.inf:
@@ -500,7 +501,7 @@ def _wait(excess: float, last: tuple[int, float] | None, t: int) -> int:
 
 
 def _to_settle(excess: float, last: tuple[int, float], t: int) -> float:
-    """The steps a backward pass still needs to settle, by :func:`_wait`'s estimate: the excess shrinking by the
+    """The steps a backward pass still needs to settle, by `_wait`'s estimate: the excess shrinking by the
     factor f per step seen since the ``last`` weighing, until it meets the closing bound ``(1 - f) / (100 f)``;
     inf where it does not shrink. O(1)."""
     if not 0.0 < excess < math.inf or not 0.0 < last[1] < math.inf:
@@ -513,7 +514,7 @@ def _to_settle(excess: float, last: tuple[int, float], t: int) -> float:
 
 
 def _excess(change: np.ndarray, size: np.ndarray) -> float:
-    """The largest ``change / (100 STATIONARY_RTOL size)`` over a batch (:func:`_near` holds where it is <= 1);
+    """The largest ``change / (100 STATIONARY_RTOL size)`` over a batch (`_near` holds where it is <= 1);
     nan where a size is 0 or not finite. O(P)."""
     return float((change / (100.0 * STATIONARY_RTOL * size)).max())
 
@@ -530,8 +531,8 @@ def _repeat_first(rows: np.ndarray) -> None:
 
 def _closed_loop(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) -> np.ndarray:
     """The mean closed loop ``A - B M K`` of gains K (P, m, n) at channels mu (P, m), per point: the map the
-    stationary closure's contraction is measured on (:func:`_contraction`) and the rollout by powers takes
-    (:func:`_closed_run`). O(P n^2 m).
+    stationary closure's contraction is measured on (`_contraction`) and the rollout by powers takes
+    (`_closed_run`). O(P n^2 m).
 
     Examples
     --------
@@ -558,7 +559,7 @@ def backward_pass(system: System, protocol: str,
 
     Returns ``(K, P0, noise)``: the gains ``K[t]`` (m×n, ``u_t = -K[t] xhat_t``),
     the cost-to-go matrix at step 0 (without Q) and the noise term. ``weights``: the result of
-    :func:`udp_variance_weights` if the caller has it. :func:`backward_batch` on a batch of one.
+    `udp_variance_weights` if the caller has it. `backward_batch` on a batch of one.
     Time O(N (n^3 + m^3)), memory O(N m n).
 
     Examples
@@ -576,8 +577,8 @@ def backward_pass(system: System, protocol: str,
 def _one_point_backward(system: System, structure: Structure, protocol: str,
                         weights: tuple[np.ndarray, float] | None,
                         copies: bool = True) -> tuple[np.ndarray, np.ndarray, float, tuple[int, int] | None]:
-    """:func:`backward_pass` (``structure``: the system's), and the run of copied gains its stationary tail closed
-    (:func:`_backward`)."""
+    """[`backward_pass`][packetloss_cvx.lq.recursion.backward_pass] (``structure``: the system's), and the run of copied
+    gains its stationary tail closed (`_backward`)."""
     protocol = check_protocol(protocol)
     d, noise = structure.variance_weights if weights is None else weights
     mu = system.mu_schedule
@@ -590,12 +591,12 @@ def _one_point_backward(system: System, structure: Structure, protocol: str,
 
 def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
-    """:func:`backward_pass` then :func:`mean_trajectory`: ``(K0, P0, noise, U, X)`` with K0 = K[0], the
-    receding-horizon gain (the whole K is not kept: a closed stationary tail's copies of one gain are not
-    written), the rollout taking the run of one gain that the backward pass closed as it is, instead of
-    searching K for it. Time O(N (n^3 + m^3)) without a stationary tail; with one that settles in L steps,
-    O(L (n^3 + m^3)) for the pass (in O(log L) batched calls where the steps are one map) plus O(N n (n + m)) of
-    memory-bound work for the plan and its states.
+    """[`backward_pass`][packetloss_cvx.lq.recursion.backward_pass] then
+    [`mean_trajectory`][packetloss_cvx.lq.recursion.mean_trajectory]: ``(K0, P0, noise, U, X)`` with K0 = K[0], the
+    receding-horizon gain (the whole K is not kept: a closed stationary tail's copies of one gain are not written), the
+    rollout taking the run of one gain that the backward pass closed as it is, instead of searching K for it. Time O(N
+    (n^3 + m^3)) without a stationary tail; with one that settles in L steps, O(L (n^3 + m^3)) for the pass (in O(log L)
+    batched calls where the steps are one map) plus O(N n (n + m)) of memory-bound work for the plan and its states.
 
     Examples
     --------
@@ -617,7 +618,7 @@ def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float
 def rollout_batch(structure: Structure, mu: np.ndarray, K: np.ndarray,
                   x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The plans u_t = -K_t x_t (P, N, m) and their mean states x_1..x_N (P, N, n) from x (P, n), by
-    :func:`mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
+    `mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
     states to the bit, even where A is unstable). O(P N n (n + m)).
 
     Examples
@@ -657,8 +658,9 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
     forms check their costs against. ``weights`` reuses ``udp_variance_weights(system)``; ``states``: the
     plan's mean states x_1..x_N (N, n) if the caller rolled them out with the plan (closed_form's law: its cost
     is that of those states), else they are rolled forward here from the plan, open loop, and the value is
-    returned only where :func:`plan_cost`'s error bound is within ``PLAN_COST_RTOL`` of it. Time O(N n^3) (the
-    Lyapunov sums), memory O(N m); rolled out here, O(N n (n + m) L) more for the bound (L = 32).
+    returned only where [`plan_cost`][packetloss_cvx.lq.recursion.plan_cost]'s error bound is within ``PLAN_COST_RTOL``
+    of it. Time O(N n^3) (the Lyapunov sums), memory O(N m); rolled out here, O(N n (n + m) L) more for the bound (L =
+    32).
 
     Raises
     ------
@@ -691,14 +693,14 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
 def plan_cost(system: System, inputs: np.ndarray, protocol: str,
               weights: tuple[np.ndarray, float] | None = None) -> tuple[float, float]:
     """J(U) of a fixed plan by the forward pass of its mean state rolled out open loop (the value
-    :func:`recursion_cost` returns), and a bound on that value's error: ``(value, bound)`` with ``|value - J(U)|
+    `recursion_cost` returns), and a bound on that value's error: ``(value, bound)`` with ``|value - J(U)|
     <= bound``, J(U) the exact cost of these floats (A, B, mu, x0, the plan, the weights; ``weights`` as
-    :func:`udp_variance_weights` computed them, sums of positive semidefinite terms, taken as given).
+    `udp_variance_weights` computed them, sums of positive semidefinite terms, taken as given).
 
     The forward pass has no cancellation, but its states are not the plan's: an unstable A amplifies their
     rounding like A^t while a plan that steers the state to zero keeps the states small (the pendulum's optimal
     plan over N = 2000 steps: 1.5e80 where its cost is about 3e76, and the optimum 25445).
-    The bound (:func:`~packetloss_cvx.lq.roundoff.rollout_cost_error`) is the states' error estimated from their
+    The bound (`rollout_cost_error`) is the states' error estimated from their
     residuals in twice the working precision plus what the rest of their rounding can change; to it is added the
     rounding of the sum itself, measured against ``math.fsum`` of the same stage terms. inf where the value is not
     finite. O(N n (n + m) L) with L = 32 (no Python loop over the steps), O(N n^3) for the Lyapunov sums if
@@ -755,9 +757,9 @@ def _sum_error(system: System, mu: np.ndarray, U: np.ndarray, X: np.ndarray, Q: 
 
 
 def check_plan_cost(system: System, protocol: str, value: float, bound: float) -> None:
-    """Raise unless ``value`` (:func:`plan_cost`) is finite and its error bound within ``PLAN_COST_RTOL`` of it: the
-    error says why (the open-loop growth of A over the horizon amplifies the plan's rounding) and what to use
-    instead. O(n^3) (A's spectral radius, for the message).
+    """Raise unless ``value`` ([`plan_cost`][packetloss_cvx.lq.recursion.plan_cost]) is finite and its error bound
+    within ``PLAN_COST_RTOL`` of it: the error says why (the open-loop growth of A over the horizon amplifies the plan's
+    rounding) and what to use instead. O(n^3) (A's spectral radius, for the message).
 
     Examples
     --------
@@ -787,10 +789,10 @@ def mean_states(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarr
                 K: np.ndarray | None = None) -> np.ndarray:
     """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
     ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
-    the law's, ``u_t = -K_t x_t``, written into U as it goes (:func:`rollout_batch`); a stationary run of
+    the law's, ``u_t = -K_t x_t``, written into U as it goes (`rollout_batch`); a stationary run of
     one gain (a settled backward pass, at least STATIONARY_RUN steps) is rolled out by powers of its closed
-    loop and the time-varying steps after it by a scan of their closed-loop products (:func:`_scanned_run`)
-    where A is stable or the run's closed loop is (:func:`_by_powers`; otherwise step by step, to the bit).
+    loop and the time-varying steps after it by a scan of their closed-loop products (`_scanned_run`)
+    where A is stable or the run's closed loop is (`_by_powers`; otherwise step by step, to the bit).
     O(P N n (n + m)).
 
     Examples
@@ -807,17 +809,17 @@ def mean_states(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarr
 def _by_powers(structure: Structure, run: tuple[int, int] | None, mu: np.ndarray,
                K: np.ndarray) -> tuple[int, int] | None:
     """``run`` where it may be rolled out by powers of its closed loop, and the steps after it by a scan
-    (:func:`_scanned_run`): where A is stable (rho(A) < 1), or the run's closed loop ``A - B M K`` (mu[:, 1],
+    (`_scanned_run`): where A is stable (rho(A) < 1), or the run's closed loop ``A - B M K`` (mu[:, 1],
     K[:, 1]) is at every point (a closed stationary tail's is: its contraction q < 1). None otherwise: an
     unstable plant under an unstable loop is rolled out step by step, to the bit. O(P n^3).
 
     The plan of an unstable plant (rho(A) > 1) is then not the float-for-float rollout of the recursion
-    ``x_{t+1} = A x_t + B M u_t`` that :func:`mean_states` runs open loop: rolled forward again from its inputs
+    ``x_{t+1} = A x_t + B M u_t`` that `mean_states` runs open loop: rolled forward again from its inputs
     alone, its rounding grows with A's unstable modes, so its open-loop cost (expected_cost of the plan) is not
-    resolved over long horizons, and :func:`plan_cost` says so (the pendulum at N = 2000: a forward pass of 1.48e80,
-    the plan's exact open-loop cost 1.47e80, the optimum 25445). Neither is that of a plan rolled out step by step
-    (a float forward pass meets 25175 there only by repeating the rollout's own rounding). The plan's cost is checked
-    on the closed-loop states it was rolled out with (the law's states)."""
+    resolved over long horizons, and [`plan_cost`][packetloss_cvx.lq.recursion.plan_cost] says so (the pendulum at N =
+    2000: a forward pass of 1.48e80, the plan's exact open-loop cost 1.47e80, the optimum 25445). Neither is that of a
+    plan rolled out step by step (a float forward pass meets 25175 there only by repeating the rollout's own rounding).
+    The plan's cost is checked on the closed-loop states it was rolled out with (the law's states)."""
     if run is None:
         return None
     if structure.open_loop_radius < 1.0:
@@ -828,12 +830,12 @@ def _by_powers(structure: Structure, run: tuple[int, int] | None, mu: np.ndarray
 
 def _roll_out(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray, K: np.ndarray | None,
             run: tuple[int, int] | None, start: bool = False) -> np.ndarray:
-    """:func:`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
-    vetted (:func:`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state
+    """`mean_states` with the run ``(1, b)`` of one gain and channel to roll out by powers already known and
+    vetted (`_by_powers`; None: step by step; only K[:, 1] of the run is read). After the run, a state
     that is exactly zero at every point (a stable closed loop underflows after some hundreds of steps) stays
     zero under any finite gains: the rest of the plan and its states are zeros, as the steps give them (to the
     sign of zero); otherwise the steps after the run are a scan of their closed-loop products
-    (:func:`_scanned_run`) in blocks of at most SCAN_BLOCK_ENTRIES entries (P n^2 per step; step by step where a
+    (`_scanned_run`) in blocks of at most SCAN_BLOCK_ENTRIES entries (P n^2 per step; step by step where a
     block would hold fewer than SCAN_MIN steps). ``start``: return x_0..x_N (P, N + 1, n)."""
     AT, BT, N = structure.A.T, structure.B.T, structure.horizon
     if start:
@@ -924,7 +926,7 @@ def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
 def _closed_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
                 a: int, b: int) -> np.ndarray:
     """Steps a..b-1 (a >= 1) of one gain K (P, m, n) and channel mu (P, m) from x_a = ``X[:, a - 1]``: the states
-    x_a (A - B M K)'^k for k = 1..b-a by :func:`states_by_powers`, written into X and U in place. Returns x_b.
+    x_a (A - B M K)'^k for k = 1..b-a by `states_by_powers`, written into X and U in place. Returns x_b.
     O(P (b - a) n^2 + P n^3 log(b - a))."""
     L = b - a
     Y = X[:, a - 1:b]                                      # x_a .. x_b, x_a already written
@@ -964,7 +966,7 @@ def forward_cost(structure: Structure, mu: np.ndarray, U: np.ndarray, X: np.ndar
                  base: np.ndarray | float, Omega: np.ndarray | None = None) -> np.ndarray:
     """The referee: the expected cost of plans U (P, N, m) whose mean states are X (P, N, n) (x_1..x_N),
     ``base + sum_t mu_t u_t (weight_t u_t) + x_{t+1}' Omega_{t+1} x_{t+1}``: every term nonnegative, so
-    no cancellation (``weight``: :func:`input_weight`; ``base``: x0'Q x0 + the noise term). Every closed
+    no cancellation (``weight``: `input_weight`; ``base``: x0'Q x0 + the noise term). Every closed
     form (dense, recursion, batched, pointwise, QP) checks its cost against this sum for its own plan.
     ``Omega``: blkdiag(Omega_1..Omega_N) as one (N n)×(N n) matrix if the caller keeps one (one product
     instead of N). Returns (P,). O(P N (n^2 + m)), O(P (N n)^2) with ``Omega``.

@@ -9,12 +9,12 @@ pass notices: its sum has no cancellation, but its states are not the plan's sta
 a posteriori, in three parts:
 
 * the residuals ``delta_t = xhat_{t+1} - A xhat_t - B (mu_t u_t)`` of the computed states, evaluated in twice
-  the working precision by error-free transformations (:func:`two_product`, :func:`two_sum`; Ogita, Rump and
+  the working precision by error-free transformations (`two_product`, `two_sum`; Ogita, Rump and
   Oishi's Dot2), so that they are known to about u^2, not merely bounded by gamma_n |A||xhat| (Higham,
   *Accuracy and Stability of Numerical Algorithms*, 2nd ed., §3.1);
-* the state error itself, ``ehat = sum_s A^{t-s} delta_s`` rolled out in double (:func:`linear_scan`), whose own
+* the state error itself, ``ehat = sum_s A^{t-s} delta_s`` rolled out in double (`linear_scan`), whose own
   rounding is bounded componentwise through its residuals and propagated by nonnegative matrices
-  (:func:`propagation_bound`): by |A|, or, where |A| grows faster than A (a rotation), in a complex Schur basis
+  (`propagation_bound`): by |A|, or, where |A| grows faster than A (a rotation), in a complex Schur basis
   ``A = Z T Z^H``, where |T| has A's spectral radius;
 * the cost: ``J(xhat) - J(x) = sum_t (2 xhat_t - e_t)' Q_t e_t``, evaluated at ``ehat`` plus what the remaining
   error ``|e - ehat| <= eta`` can add.
@@ -208,7 +208,7 @@ def propagation_bound(A: np.ndarray, r: np.ndarray, schur: bool = False) -> np.n
     (P, N, n) nonnegative): the recursion ``b_t = M b_{t-1} + J r_t`` of nonnegative matrices, read out as
     ``eta = O b``, with ``(M, J, O) = (|A|, I, I)``, or (``schur``) the complex Schur basis of A, where the growth
     of M is A's own (|A| grows faster than A wherever A rotates). Inflated by ``1 + gamma_{4 (N + 2L)(n + 2)}``
-    for the rounding of its own nonnegative sums; inf where it overflows. O(P N L n^2) (:func:`linear_scan`).
+    for the rounding of its own nonnegative sums; inf where it overflows. O(P N L n^2) (`linear_scan`).
 
     Examples
     --------
@@ -237,9 +237,9 @@ def rollout_cost_error(A: np.ndarray, B: np.ndarray, mu: np.ndarray, U: np.ndarr
     """A bound on ``|sum_t xhat_t' Q_t xhat_t - sum_t x_t' Q_t x_t|`` per plan: xhat_1..xhat_N the states X
     (P, N, n) computed from x0 (P, n) under the plans U (P, N, m) and channels mu (P or 1, N, m), x_t the exact
     states of those floats; Q (n, n) or (N, n, n) positive semidefinite. The estimate ehat of the state error
-    (its residuals in twice the precision, :func:`step_residuals`, rolled out by :func:`linear_scan`) gives
+    (its residuals in twice the precision, `step_residuals`, rolled out by `linear_scan`) gives
     ``sum (2 xhat - ehat)' Q ehat``; to it is added what the remaining error ``|e - ehat| <= eta``
-    (:func:`propagation_bound` of ehat's residuals) can change, bounded in the |A| basis, and where that
+    (`propagation_bound` of ehat's residuals) can change, bounded in the |A| basis, and where that
     exceeds ``enough`` (P,) in the Schur basis too (the smaller bound is kept). inf where nothing is finite.
     O(P N n (n + m) + P N L n^2).
 

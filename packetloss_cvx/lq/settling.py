@@ -1,8 +1,8 @@
 """Whether a backward iterate has settled: the tests the Theorem-1 kernels share (the Lyapunov sum of
-:mod:`~packetloss_cvx.lq.structure`, the Riccati passes of :mod:`~packetloss_cvx.lq.recursion`, the augmented Markov
+`structure`, the Riccati passes of [`recursion`][packetloss_cvx.lq.recursion], the augmented Markov
 recursion). A map contracting by q per step whose last change was c can still move by at most ``c q / (1 - q)``:
 below ``tolerances.STATIONARY_RTOL`` of the iterate's size, the iterate is its fixed point to rounding and the
-steps before it take its value. Also how far a pass's data are one map (:func:`leading_run`), and the spectral
+steps before it take its value. Also how far a pass's data are one map (`leading_run`), and the spectral
 radius that gives q.
 """
 
@@ -21,7 +21,7 @@ STATIONARY_RUN = 64
 
 
 def small_change(new: np.ndarray, old: np.ndarray) -> bool:
-    """A cheap necessary test for :func:`stationary_close` with a contraction q >= 0.01. O(P n^2)."""
+    """A cheap necessary test for `stationary_close` with a contraction q >= 0.01. O(P n^2)."""
     return bool(np.abs(new - old).max() <= 100.0 * STATIONARY_RTOL * np.abs(new).max())
 
 
@@ -45,7 +45,7 @@ def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) ->
 
 
 def drift(new: np.ndarray, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``max |new - old|`` and ``max |new|`` per matrix of a stack: what :func:`stationary_close` weighs (the
+    """``max |new - old|`` and ``max |new|`` per matrix of a stack: what `stationary_close` weighs (the
     caller ignores overflow in np.errstate, as the backward passes do). O(P n^2)."""
     lead, k = new.shape[:-2], new.shape[-1] * new.shape[-2]
     return _row_max(np.abs(new - old).reshape(-1, k), lead), _row_max(np.abs(new).reshape(-1, k), lead)
@@ -61,7 +61,7 @@ def _row_max(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def settled(change: np.ndarray, size: np.ndarray, q: np.ndarray | float) -> bool:
-    """:func:`stationary_close` of a change and size (:func:`drift`), in the caller's np.errstate. O(P)."""
+    """`stationary_close` of a change and size (`drift`), in the caller's np.errstate. O(P)."""
     q = np.asarray(q, dtype=float)
     return bool(((q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)).all())
 

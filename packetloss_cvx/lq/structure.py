@@ -1,20 +1,20 @@
-"""What Theorem 1 needs of a system that does not depend on mu or x0: one frozen :class:`Structure` per system
-structure, built by this module and kept here (a :class:`~packetloss_cvx.model.system.StructureStore`, weakly keyed by the
+"""What Theorem 1 needs of a system that does not depend on mu or x0: one frozen `Structure` per system
+structure, built by this module and kept here (a `StructureStore`, weakly keyed by the
 system's structure token: shared by its ``with_mu`` / ``with_x0`` / ``with_channel`` copies, gone with the last of
 them). Nothing is kept on the System and nothing calls back into it.
 
-The kernels (:mod:`~packetloss_cvx.lq.recursion`, :mod:`~packetloss_cvx.lq.dense`) take a structure and a channel mu;
-the policy (:mod:`~packetloss_cvx.lq.policy`) chooses between them. The parts that cost more than reading the system
+The kernels ([`recursion`][packetloss_cvx.lq.recursion], `dense`) take a structure and a channel mu;
+the policy (`policy`) chooses between them. The parts that cost more than reading the system
 are computed on first use and kept on the structure:
 
-* :attr:`Structure.weight_head`, the leading state weights equal to the first (O(N n^2) once);
-* :attr:`Structure.variance_weights`, ``(d, noise)``: ``d[t] = diag(B'S_tB)`` of the backward Lyapunov sum
+* `Structure.weight_head`, the leading state weights equal to the first (O(N n^2) once);
+* `Structure.variance_weights`, ``(d, noise)``: ``d[t] = diag(B'S_tB)`` of the backward Lyapunov sum
   ``S_t = Omega_{t+1} + A'S_{t+1}A`` (the UDP-like law's loss-variance weight, eq:opt-law-2) and the noise term
   ``sum_t tr(S_t Sigma_W)`` (O(N n^3) once, O(L n^3) for a sum that settles in L steps);
-* :attr:`Structure.condition`, the condition estimate of the dense forms (O(N m) once the sums are there).
+* `Structure.condition`, the condition estimate of the dense forms (O(N m) once the sums are there).
 
 The test of a backward iterate having settled, which the Lyapunov sum here and the Riccati passes share, is
-:mod:`~packetloss_cvx.lq.settling`'s.
+`settling`'s.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ _STRUCTURES = StructureStore(STRUCTURE_KEY)
 @dataclass(frozen=True, eq=False)
 class Structure:
     """The mu- and x0-free data of Theorem 1 for one system structure (read-only arrays of the system; no
-    reference to the system itself). Attributes named as on :class:`~packetloss_cvx.model.system.System`, so a kernel
+    reference to the system itself). Attributes named as on [`System`][packetloss_cvx.model.system.System], so a kernel
     reads either; the derived parts are computed on first use (see the module docstring).
 
     Examples
@@ -80,7 +80,7 @@ class Structure:
 
     @cached_property
     def time_invariant_weight(self) -> bool:
-        """Whether one state weight serves every step (:attr:`weight_head` is the whole horizon). O(1) after it."""
+        """Whether one state weight serves every step (`weight_head` is the whole horizon). O(1) after it."""
         return len(self.weight_head) == self.horizon
 
     @cached_property
@@ -91,12 +91,12 @@ class Structure:
     @cached_property
     def variance_weights(self) -> tuple[np.ndarray, float]:
         """``(d, noise)``: ``d[t, i] = (B'S_tB)_{ii}`` (N, m, read-only) and ``noise = sum_t tr(S_t Sigma_W)``
-        (:func:`lyapunov_weights`). O(N n^3) once."""
+        (`lyapunov_weights`). O(N n^3) once."""
         return lyapunov_weights(self)[:2]
 
     @cached_property
     def condition(self) -> float:
-        """``(trace Omega_g + max Psi) / min Psi`` from :attr:`variance_weights` (:func:`condition_from`).
+        """``(trace Omega_g + max Psi) / min Psi`` from `variance_weights` (`condition_from`).
         O(N m) once the sums are there."""
         return condition_from(self, self.variance_weights[0])
 
@@ -135,8 +135,8 @@ def condition_from(structure: Structure, d: np.ndarray) -> float:
 
 def lyapunov_weights(structure: Structure, cross: bool = False) -> tuple:
     """The backward Lyapunov sum ``S_t = Omega_{t+1} + A'S_{t+1}A`` weighed as ``(d, noise)`` (see
-    :attr:`Structure.variance_weights`), and with ``cross`` the products ``B'S_tA`` (N, m, n) per step. O(N n^3);
-    once S stops changing (:func:`stationary_close`) over a stationary head (Omega_t the same for every earlier t),
+    `Structure.variance_weights`), and with ``cross`` the products ``B'S_tA`` (N, m, n) per step. O(N n^3);
+    once S stops changing (`stationary_close`) over a stationary head (Omega_t the same for every earlier t),
     the earlier steps take its value: O(L n^3) for a sum that settles in L steps. An unstable A's sum never settles
     (q = rho(A)^2 >= 1): its steps are not weighed at all."""
     A, B, W, N = structure.A, structure.B, structure.state_weights, structure.horizon

@@ -12,7 +12,7 @@ given the information, and the predicted delivery probability ``mu_{i,t} = pi_{i
 
 Within one channel, for t < s, ``Cov(v_t, v_s) = (pi_t ∘ (d - mu_t)) T^(s-t) d`` (two states:
 ``lambda^(s-t) b_t (1 - b_t) (h_good - h_bad)^2``), and deliveries of different channels are independent, so R
-is block-structured (:func:`channel_covariance`).
+is block-structured (`channel_covariance`).
 """
 
 from __future__ import annotations
@@ -49,8 +49,8 @@ def chain_matrices(channel: Any) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarr
     ``T`` (k×k) is row-stochastic (``T[a, b] = P(S_{t+1} = b | S_t = a)``), ``d`` (k,) the delivery
     probability in each state, ``pi0`` (k,) the distribution of the state at the first planned step.
     The channel answers through its own ``chain_matrices()`` method (a
-    :class:`~packetloss_cvx.model.channel.MarkovChannel`, or any object that honours this contract; k may differ
-    between channels). Time O(m k^2).
+    [`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel], or any object that honours this contract; k may
+    differ between channels). Time O(m k^2).
 
     Examples
     --------
@@ -132,7 +132,7 @@ def mode_start(channel: MarkovChannel) -> np.ndarray:
 
 def filter_belief(channel: MarkovChannel, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:
     """One step of the HMM filter: the state distribution at t+1 given the outcome at t, from the one at t
-    (``belief``, (..., m, K)): :meth:`~packetloss_cvx.model.channel.MarkovChannel.filter`, the outcomes and the
+    (``belief``, (..., m, K)): [`filter`][packetloss_cvx.model.channel.MarkovChannel.filter], the outcomes and the
     belief checked first. Time O(m K^2) per belief; ``belief`` and ``delivered`` may carry leading dimensions
     (one row per run). For the Gilbert channel a delivery gives P(good) ``1 - p`` and a loss ``r`` (the state
     is known).
@@ -166,7 +166,7 @@ def plugin_schedule(channel: MarkovChannel, horizon: int, protocol: str,
     """The predicted delivery probabilities of a plan made after ``len(acknowledged)`` steps.
 
     ``acknowledged[k][i]`` is the outcome of channel i at step k, counted from the channel's
-    initial belief. TCP-like: the belief is filtered by each outcome (:func:`filter_belief`);
+    initial belief. TCP-like: the belief is filtered by each outcome (`filter_belief`);
     UDP-like: the controller sees none, so the prior is propagated. Returns
     ``(mu, belief)``: the (N, m) schedule ``mu_{i,t}`` and the belief at the plan's first step, (m, K).
     Time O((k + N) m K^2).
@@ -190,8 +190,8 @@ def plugin_schedule(channel: MarkovChannel, horizon: int, protocol: str,
 
 def attach_channel(system: System, channel: MarkovChannel) -> System:
     """A copy of ``system`` behind the Markov ``channel`` (its mu or mu_schedule replaced by the
-    channel's predicted schedule): :meth:`~packetloss_cvx.model.system.System.with_channel`, which validates the
-    channel and the schedule and keeps the system's other, already validated, fields. Time O(N m).
+    channel's predicted schedule): [`with_channel`][packetloss_cvx.model.system.System.with_channel], which validates
+    the channel and the schedule and keeps the system's other, already validated, fields. Time O(N m).
 
     Examples
     --------
@@ -205,7 +205,7 @@ def attach_channel(system: System, channel: MarkovChannel) -> System:
 
 
 def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence[bool]] = ()) -> System:
-    """``system`` with its channel's belief moved to the plan's first step (:func:`plugin_schedule`):
+    """``system`` with its channel's belief moved to the plan's first step (`plugin_schedule`):
     its ``mu_schedule`` is the plug-in schedule, so the paper's laws on it are the plug-in laws.
     Time O(size of the system).
 
@@ -224,7 +224,7 @@ def plugin_system(system: System, protocol: str, acknowledged: Sequence[Sequence
 
 
 def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
-    """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array, read through :func:`chain_matrices`.
+    """Cov(v_{i,t}, v_{i,s}) for each channel: an (m, N, N) array, read through `chain_matrices`.
     Diagonal ``mu (1 - mu)``; for t < s, ``Cov = sum_a pi_t(a) (d_a - mu_t) (T^(s-t) d)_a`` with
     ``pi_t = pi0 T^t``, ``mu_t = pi_t d`` (E[v_t v_s] = (pi_t ∘ d) T^(s-t) d; two states:
     ``lambda^(s-t) b_t (1 - b_t) (d_0 - d_1)^2``). The vectors T^L d enter centred on their first entry,
@@ -295,7 +295,7 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     ``t m + i`` is channel i at step t), C of shape (N m, N m). Without a Markov channel the
     deliveries are independent Bernoulli(mu_schedule): C = diag(Vbar (1 - Vbar)).
     ``R = Vbar Vbar' + C``. Time O((N m)^2) (the N^2 m non-zero entries, placed in the dense C), the first
-    time: the read-only pair is kept for the system (a :class:`~packetloss_cvx.model.system.SystemStore`).
+    time: the read-only pair is kept for the system (a `SystemStore`).
 
     Examples
     --------

@@ -5,10 +5,11 @@ Channel i is a Markov chain S_{i,t} in {0, ..., k_i - 1} with a k_i×k_i row-sto
 Channels are independent of each other and of the noise. The distribution of S_{i,0} (the information at
 the first planned step) is a known ``state`` (an index), a ``belief`` (a k_i-vector), or, with neither, the
 chain's unique stationary distribution. The predicted delivery probabilities ``mu_{i,t} = pi_{i,t} . d_i``,
-``pi_{i,t+1} = pi_{i,t} T_i``, are the plug-in schedule a :class:`~packetloss_cvx.model.system.System` with this
-channel carries. A Gilbert–Elliott channel is a constructor of this one type (:func:`GilbertElliott`): the
-two-state chain with ``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, state 0 = good; its rates
-``p``, ``r``, ``h_good``, ``h_bad`` read back from any channel whose chains all have two states.
+``pi_{i,t+1} = pi_{i,t} T_i``, are the plug-in schedule a [`System`][packetloss_cvx.model.system.System] with this
+channel carries. A Gilbert–Elliott channel is a constructor of this one type
+([`GilbertElliott`][packetloss_cvx.model.channel.GilbertElliott]): the two-state chain with
+``T = [[1 - p, p], [r, 1 - r]]``, ``d = (h_good, h_bad)``, state 0 = good; its rates ``p``, ``r``, ``h_good``, ``h_bad``
+read back from any channel whose chains all have two states.
 
 The number of states may differ per channel. Arrays that hold every channel (beliefs (..., m, K), the
 padded chain) use ``K = max k_i`` columns; the columns past k_i are states that cannot be reached (zero
@@ -150,7 +151,7 @@ def _stationary(T: np.ndarray) -> np.ndarray | None:
 
     Solves ``pi (T - I) = 0, pi 1 = 1`` by least squares on the (k+1)×k stacked system, which has full column
     rank iff the stationary distribution is unique (one closed communicating class). The rank is read from the
-    smallest singular value of the system against :data:`~packetloss_cvx.tolerances.STATIONARY_GAP`.
+    smallest singular value of the system against `STATIONARY_GAP`.
     Time O(k^3)."""
     k = T.shape[0]
     if k == 2 and T[0, 1] + T[1, 0] > 0:          # the closed form (r, p) / (p + r), as GilbertElliott.stationary
@@ -181,7 +182,7 @@ class MarkovChannel:
     ----------
     transition : sequence of array_like
         One k_i×k_i row-stochastic matrix per channel: entries in [0, 1], rows summing to 1 within
-        :data:`~packetloss_cvx.tolerances.ROW_SUM_ATOL` (1e-9; a row off by more than 4 eps is then divided by
+        `ROW_SUM_ATOL` (1e-9; a row off by more than 4 eps is then divided by
         its sum, so the stored chain reads back unchanged from its own table).
     delivery : sequence of array_like
         One k_i-vector per channel: the probability that a packet sent in each state arrives.
@@ -499,7 +500,8 @@ class MarkovChannel:
 
     @property
     def r(self) -> np.ndarray:
-        """P(bad -> good) = T_i[1, 0] per channel, (m,), of a two-state channel (as :attr:`p`). O(1)."""
+        """P(bad -> good) = T_i[1, 0] per channel, (m,), of a two-state channel (as
+            [`p`][packetloss_cvx.model.channel.MarkovChannel.p]). O(1)."""
         self._two_states("r")
         return self.padded_transition[:, 1, 0]
 
@@ -684,8 +686,8 @@ class MarkovChannel:
 
     def draw_next(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
         """One step of every chain from state indices ``states`` (..., m): the row ``T_i[state]`` inverted at the
-        uniform numbers ``u`` (..., m), as :meth:`draw_start` inverts the start (Gilbert–Elliott: good iff u < 1 - p
-        from good, u < r from bad). O(size K).
+        uniform numbers ``u`` (..., m), as [`draw_start`][packetloss_cvx.model.channel.MarkovChannel.draw_start] inverts
+        the start (Gilbert–Elliott: good iff u < 1 - p from good, u < r from bad). O(size K).
 
         Examples
         --------
@@ -747,7 +749,7 @@ class MarkovChannel:
 
 
 def _restore(transition: list, delivery: list, belief: list | None, state_given: bool, form: str) -> MarkovChannel:
-    """A pickled channel from its validated arrays (:meth:`MarkovChannel.__reduce__`). O(m K^3)."""
+    """A pickled channel from its validated arrays (`MarkovChannel.__reduce__`). O(m K^3)."""
     out = object.__new__(MarkovChannel)
     out._freeze([_frozen(T) for T in transition], [_frozen(d) for d in delivery],
                 None if belief is None else [_frozen(b) for b in belief], state_given, form, "transition")
@@ -756,7 +758,8 @@ def _restore(transition: list, delivery: list, belief: list | None, state_given:
 
 def GilbertElliott(*, p: Any, r: Any, h_good: Any = 1.0, h_bad: Any = 0.0, state: Any = None, belief: Any = None,
                    prefix: str = "") -> MarkovChannel:
-    """m independent Gilbert–Elliott channels as the one channel type: :meth:`MarkovChannel.gilbert_elliott`.
+    """m independent Gilbert–Elliott channels as the one channel type:
+        [`MarkovChannel.gilbert_elliott`][packetloss_cvx.model.channel.MarkovChannel.gilbert_elliott].
 
     Examples
     --------
@@ -783,10 +786,11 @@ def parse_channel(channel: Any) -> MarkovChannel:
 
 def channel_schedule(channel: Any, m: int, horizon: int, mu: Any,
                      mu_schedule: Any) -> tuple[MarkovChannel | None, Any]:
-    """For :class:`~packetloss_cvx.model.system.System`: ``(None, mu_schedule)`` without a channel; with one
-    (a :class:`MarkovChannel`, e.g. a :func:`GilbertElliott` one, or the TOML table of either model),
-    the validated channel and its predicted schedule ``delivery_schedule(horizon)`` in place of mu. Giving mu or
-    mu_schedule as well is an InputError. Time O(N m K^2).
+    """For [`System`][packetloss_cvx.model.system.System]: ``(None, mu_schedule)`` without a channel; with one
+    (a [`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel], e.g. a
+    [`GilbertElliott`][packetloss_cvx.model.channel.GilbertElliott] one, or the TOML table of either model), the
+    validated channel and its predicted schedule ``delivery_schedule(horizon)`` in place of mu. Giving mu or mu_schedule
+    as well is an InputError. Time O(N m K^2).
 
     Examples
     --------

@@ -54,7 +54,7 @@ OTHER_SECTIONS = ("power", "constraints")
 
 
 def system_from_dict(data: Mapping[str, Any]) -> System:
-    """Build a :class:`System` from the TOML schema's structure (see docs/design.md §4).
+    """Build a [`System`][packetloss_cvx.model.system.System] from the TOML schema's structure (see docs/design.md §4).
 
     Errors name the TOML path of the offending field (``cost.state_weight``).
 
@@ -140,7 +140,7 @@ MAX_FILE_BYTES = int(BUDGETS["file_bytes"].default)
 def read_csv_numbers(path: str | Path, field: str, row_budget: str | None = None,
                      width: int | None = None) -> list[list[float]]:
     """The rows of numbers of a CSV input file (``--mu-schedule``, ``--mu-list``), one reader with one set of
-    rules: read as every input file is (:func:`read_input`); UTF-8 with or without Excel's byte-order mark;
+    rules: read as every input file is (`read_input`); UTF-8 with or without Excel's byte-order mark;
     blank lines and lines starting with ``#`` skipped; a first row whose cells are all non-numeric (a header
     such as ``mu1,mu2``) skipped, while a first row with a typo among numbers is an error; every value
     finite; every row ``width`` numbers long (default: as long as the first row of numbers). ``row_budget``: a
@@ -286,7 +286,8 @@ def load_system(path: str | Path) -> System:
     """Read a system file in the TOML schema of docs/design.md §4, or a packaged example.
 
     ``path`` is a file path; a bare example name (``"pendulum"``, ``"two_actuator"``) that is
-    not an existing file loads the example shipped with the package (:func:`load_example`).
+    not an existing file loads the example shipped with the package
+    ([`load_example`][packetloss_cvx.model.files.load_example]).
 
     Raises
     ------
@@ -319,7 +320,7 @@ def load_system(path: str | Path) -> System:
 
 def load_table(path: str | Path) -> dict[str, Any]:
     """The TOML tables of a system file (or a packaged example) as read, unchecked: for the sections a
-    System does not hold (``OTHER_SECTIONS``). Read under :func:`read_input`'s rules. O(size).
+    System does not hold (``OTHER_SECTIONS``). Read under `read_input`'s rules. O(size).
 
     Examples
     --------

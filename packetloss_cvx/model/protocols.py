@@ -10,7 +10,7 @@ PROTOCOLS = ("tcp", "udp")
 
 
 def check_protocol(protocol: object, field: str = "protocol") -> str:
-    """Return the protocol name, or raise :class:`InputError` naming ``field``.
+    """Return the protocol name, or raise [`InputError`][packetloss_cvx.errors.InputError] naming ``field``.
 
     Examples
     --------

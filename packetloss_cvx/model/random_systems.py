@@ -1,6 +1,6 @@
 """Seeded random systems for property tests and the audit.
 
-Every draw is a valid :class:`System`; the options switch on the schema's
+Every draw is a valid [`System`][packetloss_cvx.model.system.System]; the options switch on the schema's
 features one by one so that a test can cover each combination.
 """
 

@@ -3,8 +3,9 @@
 Measurements ``y_k = C x_k + r_k``, ``r_k ~ N(0, R)`` (R = ``noise_cov``), are sent over g sensor channels,
 channel j carrying the output rows ``groups[j]`` and delivering them with probability ``gamma[j]``
 (Bernoulli, independent across channels, steps and of the actuator links), or through a Gilbert–Elliott
-chain per channel (``model = "gilbert-elliott"``, the keys of ``[channel]``: :mod:`packetloss_cvx.model.channel`),
-whose long-run rate is then ``gamma``. The initial state is ``x_0 ~ N(x0, P0)``.
+chain per channel (``model = "gilbert-elliott"``, the keys of ``[channel]``:
+[`packetloss_cvx.model.channel`][packetloss_cvx.model.channel]), whose long-run rate is then ``gamma``. The initial
+state is ``x_0 ~ N(x0, P0)``.
 
 TOML (docs/design.md §4 and "Lossy sensors")::
 
@@ -146,7 +147,7 @@ class Sensor:
 
     @classmethod
     def from_table(cls, table: Mapping[str, Any], P0: Any = None, n: int | None = None) -> Sensor:
-        """Build from the TOML ``[sensor]`` table (keys :data:`SENSOR_KEYS`) and ``[state] P0``.
+        """Build from the TOML ``[sensor]`` table (keys `SENSOR_KEYS`) and ``[state] P0``.
 
         Examples
         --------

@@ -76,7 +76,7 @@ def plant_statespace(A: np.ndarray, B: np.ndarray, dt: float | None) -> Any:
     """The plant ``x+ = A x + B u`` as a discrete-time ``control.StateSpace``: the m actuators' commands in,
     the full state out (C = I, D = 0), sampling time ``dt`` (None: True, discrete and unspecified). Every
     packet delivered: the loss model is not a linear system
-    (:func:`packetloss_cvx.closedloop.interop.closed_loop_statespace`
+    ([`closed_loop_statespace`][packetloss_cvx.closedloop.interop.closed_loop_statespace]
     gives a law's mean closed loop). O(n (n + m)).
 
     Examples

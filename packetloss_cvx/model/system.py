@@ -1,6 +1,6 @@
 """The validated, immutable model: plant, weights, horizon, channel, initial state.
 
-TOML files are read and written by :mod:`packetloss_cvx.model.files`.
+TOML files are read and written by [`packetloss_cvx.model.files`][packetloss_cvx.model.files].
 
 Conventions (paper eq:plant, big):
 
@@ -61,7 +61,8 @@ SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt"
 
 @dataclass(frozen=True, eq=False)
 class CacheKey:
-    """One quantity derived from a :class:`System`: the key of a :class:`StructureStore` or a :class:`SystemStore`.
+    """One quantity derived from a [`System`][packetloss_cvx.model.system.System]: the key of a `StructureStore` or a
+        `SystemStore`.
 
     A key is a typed object, declared once by the module that builds the quantity, and compared by
     identity: two modules cannot collide on a name, and a key says which fields of the system its value
@@ -93,7 +94,7 @@ class CacheKey:
 
     @property
     def structural(self) -> bool:
-        """True when the value depends only on :data:`STRUCTURE_FIELDS` (shared with with_mu/x0/channel copies)."""
+        """True when the value depends only on `STRUCTURE_FIELDS` (shared with with_mu/x0/channel copies)."""
         return self.depends_on <= set(STRUCTURE_FIELDS)
 
     def __repr__(self) -> str:
@@ -101,15 +102,16 @@ class CacheKey:
 
 
 class _Token:
-    """An identity that systems hand to the stores of the layers above (:attr:`System.structure_token`,
-    :attr:`System.own_token`): weakly referable, nothing else."""
+    """An identity that systems hand to the stores of the layers above
+    ([`System.structure_token`][packetloss_cvx.model.system.System.structure_token],
+    [`System.own_token`][packetloss_cvx.model.system.System.own_token]): weakly referable, nothing else."""
 
     __slots__ = ("__weakref__",)
 
 
 class _Store:
     """Values derived from systems, kept by the module that builds them (not on the System), weakly keyed by a
-    token of the system: the value lives as long as the token's systems do. :meth:`get` then :meth:`put` on a
+    token of the system: the value lives as long as the token's systems do. `get` then `put` on a
     miss: no callback into the System. A value must not refer to a system (it would keep its key alive); arrays in
     it are read-only (it is shared). O(1)."""
 
@@ -139,10 +141,11 @@ class _Store:
 
 
 class StructureStore(_Store):
-    """Values that depend only on a system's structure (:data:`STRUCTURE_FIELDS`), one store per quantity declared
-    beside its builder with the quantity's :class:`CacheKey`, keyed by :attr:`System.structure_token` (shared by
-    ``with_mu``, ``with_x0``, ``with_channel`` and ``with_sensor`` copies): a value is never found by another
-    structure. A key that names a field outside the structure is a TypeError (use :class:`SystemStore`).
+    """Values that depend only on a system's structure (`STRUCTURE_FIELDS`), one store per quantity declared
+    beside its builder with the quantity's `CacheKey`, keyed by
+    [`System.structure_token`][packetloss_cvx.model.system.System.structure_token] (shared by ``with_mu``, ``with_x0``,
+    ``with_channel`` and ``with_sensor`` copies): a value is never found by another structure. A key that names a field
+    outside the structure is a TypeError (use `SystemStore`).
 
     Examples
     --------
@@ -172,7 +175,8 @@ class StructureStore(_Store):
 
 class SystemStore(_Store):
     """Values of one system (any field may enter them: the system is immutable, and every copy has its own
-    :attr:`System.own_token`), one store per quantity declared beside its builder with its :class:`CacheKey`.
+    [`System.own_token`][packetloss_cvx.model.system.System.own_token]), one store per quantity declared beside its
+    builder with its `CacheKey`.
 
     Examples
     --------
@@ -379,7 +383,8 @@ class System:
 
     def _copy_with(self, **fields: Any) -> System:
         """A copy with already-validated fields replaced (no re-validation of the rest). The copy shares
-        the :attr:`structure_token` unless a field of STRUCTURE_FIELDS is replaced."""
+        the [`structure_token`][packetloss_cvx.model.system.System.structure_token] unless a field of STRUCTURE_FIELDS
+        is replaced."""
         new = object.__new__(System)
         for key in self.__slots__:
             object.__setattr__(new, key, fields.get(key, getattr(self, key)))
@@ -392,12 +397,12 @@ class System:
     def structure_token(self) -> object:
         """An object this system shares with its copies of the same structure (``with_mu``, ``with_x0``,
         ``with_channel``, ``with_sensor``) and with no other system: the weak key of every
-        :class:`StructureStore`. O(1)."""
+        `StructureStore`. O(1)."""
         return self._structure
 
     @property
     def own_token(self) -> object:
-        """An object of this system alone (every copy gets its own): the weak key of every :class:`SystemStore`.
+        """An object of this system alone (every copy gets its own): the weak key of every `SystemStore`.
         O(1)."""
         return self._own
 
@@ -520,7 +525,7 @@ class System:
 
 
 def sensor_field(sensor: Any, n: int) -> Sensor | None:
-    """The System's ``sensor``: None, a :class:`~packetloss_cvx.model.sensor.Sensor` or its TOML table (with
+    """The System's ``sensor``: None, a [`Sensor`][packetloss_cvx.model.sensor.Sensor] or its TOML table (with
     ``P0`` as a key), its C of width n (else a DimensionError naming ``sensor.C``). O(p^3 + n^3).
 
     >>> sensor_field({"C": [[1.0, 0.0]], "gamma": [0.5]}, 1)
@@ -541,7 +546,7 @@ def sensor_field(sensor: Any, n: int) -> Sensor | None:
 
 
 def _key(key: Any) -> CacheKey:
-    """``key`` if it is a :class:`CacheKey`; a TypeError otherwise (a string key would couple modules by name)."""
+    """``key`` if it is a `CacheKey`; a TypeError otherwise (a string key would couple modules by name)."""
     if not isinstance(key, CacheKey):
         raise TypeError(f"a cache key is a model.CacheKey declared by the module that builds the value, "
                         f"found {type(key).__name__} {key!r}")
@@ -549,7 +554,8 @@ def _key(key: Any) -> CacheKey:
 
 
 def check_system(system: Any, field: str = "system") -> System:
-    """``system`` if it is a :class:`System`; otherwise an InputError saying how to make one.
+    """``system`` if it is a [`System`][packetloss_cvx.model.system.System]; otherwise an InputError saying how to make
+        one.
 
     Examples
     --------
@@ -568,5 +574,5 @@ def check_system(system: Any, field: str = "system") -> System:
 
 
 def _from_fields(fields: dict[str, Any]) -> System:
-    """:meth:`System.__reduce__`'s rebuild: the constructor, which validates every field again."""
+    """`System.__reduce__`'s rebuild: the constructor, which validates every field again."""
     return System(**fields)

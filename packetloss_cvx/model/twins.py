@@ -1,5 +1,5 @@
 """Bursty twins of a system: the same average delivery rates behind Gilbert channels of a given burstiness
-lambda = 1 - p - r, for every channel (:func:`bursty_twin`) or one (:func:`channel_twin`).
+lambda = 1 - p - r, for every channel (`bursty_twin`) or one (`channel_twin`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ __all__ = ["bursty_twin", "channel_twin", "gilbert_family"]
 def gilbert_family(rate: npt.ArrayLike, correlation: float) -> tuple[np.ndarray, np.ndarray]:
     """``(p, r)`` of the Gilbert channels (h_good = 1, h_bad = 0) with long-run delivery rate ``rate`` and
     burstiness ``lambda = 1 - p - r = correlation``: ``p = (1 - mu)(1 - lambda)``, ``r = mu (1 - lambda)``
-    (r / (p + r) = mu), for the sweeps (:func:`bursty_twin`, :func:`channel_twin`). O(size of ``rate``).
+    (r / (p + r) = mu), for the sweeps (`bursty_twin`, `channel_twin`). O(size of ``rate``).
 
     Raises
     ------
@@ -47,7 +47,7 @@ def bursty_twin(system: System, correlation: float) -> System:
     """``system`` behind Gilbert channels (h_good = 1, h_bad = 0) started in their stationary
     distribution, with the same average delivery rates (the time average of ``mu_schedule`` per
     channel) and ``lambda = 1 - p - r = correlation``: ``p = (1 - mu)(1 - lambda)``, ``r = mu (1 - lambda)``
-    (:func:`gilbert_family`).
+    (`gilbert_family`).
 
     ``correlation`` must lie in [0, 1) (bursty, memoryless at 0), or be negative down to the value that
     keeps p, r <= 1. Time O(size of the system).
@@ -65,17 +65,17 @@ def bursty_twin(system: System, correlation: float) -> System:
 
 def channel_twin(system: System, channel: int, rate: float, correlation: float) -> System:
     """``system`` with channel ``channel`` (0-based) behind the stationary Gilbert channel of long-run rate
-    ``rate`` and burstiness ``correlation`` (:func:`gilbert_family`), every other channel as the system has it:
+    ``rate`` and burstiness ``correlation`` (`gilbert_family`), every other channel as the system has it:
     its own chain and start where the system has a Markov channel (read through
-    :func:`~packetloss_cvx.model.chain.chain_matrices`), else independent losses at its time-averaged rate (a
-    one-state chain, as :func:`bursty_twin` at lambda = 0). The result carries a
-    :class:`~packetloss_cvx.model.channel.MarkovChannel` (k_i states per channel). Time O(N m k^2).
+    `chain_matrices`), else independent losses at its time-averaged rate (a
+    one-state chain, as `bursty_twin` at lambda = 0). The result carries a
+    [`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel] (k_i states per channel). Time O(N m k^2).
 
     Raises
     ------
     InputError
         ``channel`` outside 0..m-1 (field ``channel``), ``rate`` outside [0, 1] (field ``rate``), or a
-        ``correlation`` :func:`gilbert_family` refuses.
+        ``correlation`` `gilbert_family` refuses.
 
     Examples
     --------

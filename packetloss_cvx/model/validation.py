@@ -1,7 +1,7 @@
-"""The one validator of numeric input (:func:`numeric_array`): every array the package accepts goes
+"""The one validator of numeric input (`numeric_array`): every array the package accepts goes
 through it, so that every error names its field. Iterative, O(number of entries).
 
-Below it, the checks of a :class:`~packetloss_cvx.model.system.System`'s fields built on it (shapes, PSD weights,
+Below it, the checks of a [`System`][packetloss_cvx.model.system.System]'s fields built on it (shapes, PSD weights,
 probabilities, the horizon), each raising an error that names the field."""
 
 from __future__ import annotations
@@ -133,7 +133,7 @@ def shape_error(field: str, expected: str, found: tuple[int, ...]) -> DimensionE
 
 
 def matrix_field(value: Any, field: str, rows: int | None, cols: int | None, expected: str) -> np.ndarray:
-    """A 2-D float array (:func:`numeric_array`) with ``rows`` and ``cols`` (None: any), else a DimensionError.
+    """A 2-D float array (`numeric_array`) with ``rows`` and ``cols`` (None: any), else a DimensionError.
 
     >>> matrix_field([[1, 2]], "B", 1, None, "(1, m)").tolist()
     [[1.0, 2.0]]
@@ -161,7 +161,7 @@ def vector_field(value: Any, field: str, length: int, expected: str) -> np.ndarr
 
 
 def psd_weight(value: Any, field: str, n: int) -> np.ndarray:
-    """A diagonal (length-n vector, non-negative) or full n×n symmetric PSD weight (:func:`symmetric_psd`),
+    """A diagonal (length-n vector, non-negative) or full n×n symmetric PSD weight (`symmetric_psd`),
     as a matrix. Time O(n^3).
 
     >>> psd_weight([1, 2], "state_weight", 2).tolist()
@@ -180,13 +180,13 @@ def psd_weight(value: Any, field: str, n: int) -> np.ndarray:
 
 
 def psd_weights(items: list, field: str, n: int) -> np.ndarray:
-    """The per-step weights ``items`` (each as :func:`psd_weight` takes it) as an (N, n, n) stack: the same
+    """The per-step weights ``items`` (each as `psd_weight` takes it) as an (N, n, n) stack: the same
     floats, and the same first error naming ``field[t]``, as ``psd_weight`` step by step.
 
     The full matrices are checked as one stack (one batched eigh: LAPACK's routine per matrix, as for a single
     one): an exactly symmetric one whose eigenvalues are all >= 0 passes as it would alone, with the same
     ``(W + W')/2``, and so does a non-negative diagonal, as ``diag(w)``. Every other step (a negative entry, an
-    asymmetry to measure, a negative eigenvalue to judge or repair) goes through :func:`psd_weight` in step
+    asymmetry to measure, a negative eigenvalue to judge or repair) goes through `psd_weight` in step
     order, which raises or repairs exactly as it does alone, and so does the whole input if a step has a bad
     entry or shape. Time O(N n^3) in a few NumPy calls instead of a few per step.
 
@@ -228,7 +228,7 @@ def psd_weights(items: list, field: str, n: int) -> np.ndarray:
 
 
 def _as_one_stack(items: list, field: str) -> list[np.ndarray] | None:
-    """The steps of a list of nested lists (a TOML file's, ``tolist()``'s) converted by one :func:`numeric_array` of
+    """The steps of a list of nested lists (a TOML file's, ``tolist()``'s) converted by one `numeric_array` of
     the whole list: the same floats as step by step. Its walk is stricter than each step's (one more level of
     nesting, the entries of all steps counted together), so whatever it accepts every step accepts alone, and
     whatever it refuses (a bad entry, ragged or mixed shapes) raises InputError: the caller then goes step by step

@@ -55,7 +55,7 @@ def sample_noise(system: System, samples: int, rng: np.random.Generator) -> np.n
     samples : int
     rng : numpy.random.Generator
         ``W_t = L' z_t`` with ``z_t ~ N(0, I)`` standard normal draws and ``L' L = Sigma_W``
-        (:func:`~packetloss_cvx.linalg.psd_factor`); no draws when Sigma_W = 0.
+        (`psd_factor`); no draws when Sigma_W = 0.
 
     Returns
     -------
@@ -98,7 +98,7 @@ def sample_delivery_paths(system: System, steps: int, samples: int, rng: np.rand
 
 def sample_noise_paths(system: System, steps: int, samples: int, rng: np.random.Generator) -> np.ndarray | None:
     """Process noise of a loop run: ``(steps, samples, n)`` draws of ``N(0, Sigma_W)`` (``L' z`` as in
-    :func:`sample_noise`), or None when Sigma_W = 0 (no draws). Time O(steps samples n r).
+    `sample_noise`), or None when Sigma_W = 0 (no draws). Time O(steps samples n r).
 
     Examples
     --------
@@ -134,7 +134,7 @@ def sample_step_deliveries(system: System, t: int, samples: int, rng: np.random.
 
 def sample_step_noise(root: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray | None:
     """One step's process noise ``z @ root`` (samples, n) with ``root' root = Sigma_W``
-    (:func:`~packetloss_cvx.linalg.psd_factor`, computed once by the caller), or None when ``root`` has no rows
+    (`psd_factor`, computed once by the caller), or None when ``root`` has no rows
     (Sigma_W = 0: no draws). Time O(samples n r).
 
     Examples

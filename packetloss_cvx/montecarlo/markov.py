@@ -3,13 +3,13 @@ expectations under the chain (never with the Bernoulli model of its plug-in mu_t
 
 Open loop: each protocol's plug-in plan (the paper's law with the chain's predicted mu_t, ``formula`` its
 J*) and the exact minimiser of the plan's expected cost under correlated losses
-(:func:`~packetloss_cvx.lq.markov_cost.exact_closed_form`, key ``"exact_minimiser"``), each sampled and compared
-with :func:`~packetloss_cvx.lq.markov_cost` (the expected realised cost under the chain).
+([`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form], key ``"exact_minimiser"``), each sampled and
+compared with [`markov_cost`][packetloss_cvx.lq.markov_cost] (the expected realised cost under the chain).
 
-Closed loop (:func:`~packetloss_cvx.montecarlo.markov_loop.markov_loop_block`): "tcp" re-plans at the
+Closed loop (`markov_loop_block`): "tcp" re-plans at the
 HMM-filtered belief, "udp" at the propagated prior, "dp" is the mode-dependent coupled-Riccati law with the
-channel state known (:func:`~packetloss_cvx.closedloop.mjls.coupled_riccati`). Exact values where a finite mode
-description exists (:func:`~packetloss_cvx.closedloop.mjls.jump_law_stage_costs`): the UDP-like law always (one
+channel state known (`coupled_riccati`). Exact values where a finite mode
+description exists (`jump_law_stage_costs`): the UDP-like law always (one
 time-varying gain), the TCP-like law when every outcome reveals its channel's state (the gain is a function of
 the last state), the DP law always; otherwise None with the reason. Draws as the Bernoulli path's (same
 streams, same layout), so a memoryless Gilbert chain (p + r = 1) reproduces the Bernoulli numbers with mu = r.
@@ -54,8 +54,8 @@ DP_NOTE = ("mode-dependent coupled-Riccati law (Costa, Fragoso, Marques 2005, ch
 
 def markov_open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
     """Realised costs of the plan ``inputs`` (N×m) with the chain sampled per run
-    (:func:`~packetloss_cvx.montecarlo.markov_channels.sample_markov_paths`, then the noise as
-    :func:`~packetloss_cvx.montecarlo.channels.sample_noise`). Time O(samples N n (n + m)).
+    (`sample_markov_paths`, then the noise as
+    `sample_noise`). Time O(samples N n (n + m)).
 
     Examples
     --------
@@ -76,8 +76,8 @@ def markov_open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng
 def markov_open_loop_draws(system: System, samples: int,
                            rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
     """The deliveries (samples, N, m) with the chain sampled per run
-    (:func:`~packetloss_cvx.montecarlo.markov_channels.sample_markov_paths`) and the noise (samples, N, n) as
-    :func:`~packetloss_cvx.montecarlo.channels.sample_noise`, or None without noise. Time and memory
+    (`sample_markov_paths`) and the noise (samples, N, n) as
+    `sample_noise`, or None without noise. Time and memory
     O(samples N (m + n)).
 
     Examples
@@ -97,7 +97,7 @@ def markov_open_loop_draws(system: System, samples: int,
 
 def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_loop: bool, laws: Sequence[str],
                     keep: int, progress: bool | None) -> Simulation:
-    """:func:`~packetloss_cvx.montecarlo.simulate.simulate` for a system with a Gilbert–Elliott channel (arguments
+    """[`simulate`][packetloss_cvx.montecarlo.simulate.simulate] for a system with a Gilbert–Elliott channel (arguments
     validated there). Same seeding as the Bernoulli path. Time O(samples N n (n + m) + N (D^3 + m^3)), D = n (1 + m)
     open loop; closed loop O(laws samples steps n (n + m)) plus one plan per distinct belief and the exact values
     (O(steps 4^m n^3) each, the radii O((2^m n^2)^3)).

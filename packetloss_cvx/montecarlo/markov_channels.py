@@ -68,7 +68,7 @@ def sample_states(channel: MarkovChannel, horizon: int, samples: int,
 def reveals_state(channel: MarkovChannel) -> bool:
     """True when every channel's outcome reveals its state (deliveries 0 and 1, distinct: k <= 2; {h_good, h_bad}
     = {0, 1}, e.g. the Gilbert channel): then the TCP-like filtered belief is a function of the last outcome:
-    :meth:`~packetloss_cvx.model.channel.MarkovChannel.reveals_state`. O(m K).
+    [`reveals_state`][packetloss_cvx.model.channel.MarkovChannel.reveals_state]. O(m K).
 
     Examples
     --------
@@ -86,16 +86,16 @@ def sample_markov_paths(channel: MarkovChannel, steps: int, samples: int,
     each, drawn in the Bernoulli samplers' order.
 
     One uniform array ``u`` (samples, steps, m) is drawn first (the same call, hence the same numbers, as
-    :func:`~packetloss_cvx.montecarlo.channels.sample_delivery_paths` and, flattened,
-    :func:`~packetloss_cvx.montecarlo.channels.sample_deliveries`): ``S_0`` and ``S_t`` the inverse of the
+    `sample_delivery_paths` and, flattened,
+    `sample_deliveries`): ``S_0`` and ``S_t`` the inverse of the
     cumulative distribution of the initial belief and of the row ``T[S_{t-1}]`` at ``u_t`` (state 0 iff
     ``u_t < T[S_{t-1}, 0]``; Gilbert–Elliott: good iff ``u_t < (1 - p if good before else r)``, from
-    ``u_0 < b_0``). When every outcome reveals the state (:func:`reveals_state`)
+    ``u_0 < b_0``). When every outcome reveals the state (`reveals_state`)
     the delivery is the state's h (no more draws); otherwise a second uniform array gives
     ``v_t = u'_t < h(S_t)``. So a memoryless Gilbert chain (p + r = 1, h_good = 1, h_bad = 0) draws exactly
     the Bernoulli(r) deliveries of the same stream, run by run (the first runs do not depend on ``samples``).
     Time and memory O(samples steps m K). The arrays are (samples, steps, m) views of time-major
-    (steps, samples, m) data: a consumer stepping in time (:func:`~packetloss_cvx.montecarlo.runs.plan_costs`, the
+    (steps, samples, m) data: a consumer stepping in time (`plan_costs`, the
     closed loops) reads one contiguous slice a step and its time-major copy is no copy at all.
 
     Examples
@@ -143,8 +143,8 @@ def sample_markov_plan_costs(system: System, inputs: npt.ArrayLike, samples: int
     """Realised costs ``x'Qx + sum_t X_t' Omega_t X_t + sum_t (V_t u_t)' Psi_t (V_t u_t)`` of the
     open-loop plan ``inputs`` (N×m) with losses drawn from the system's Gilbert–Elliott channel.
 
-    Their mean estimates E[cost | belief], which :func:`packetloss_cvx.lq.markov_cost` computes.
-    Time O(samples N (n^2 + n m)), memory O(samples N m).
+    Their mean estimates E[cost | belief], which [`packetloss_cvx.lq.markov_cost`][packetloss_cvx.lq.markov_cost]
+    computes. Time O(samples N (n^2 + n m)), memory O(samples N m).
 
     Examples
     --------

@@ -8,10 +8,11 @@ At every step each law re-plans from the current state with its belief about the
 * ``"udp"`` information: no acknowledgements, the prior is propagated (the same for every run).
 
 Laws: ``"plug-in-tcp"`` / ``"plug-in-udp"``, the paper's TCP-like / UDP-like law with the chain's
-predicted mu_t (:func:`packetloss_cvx.lq.costs.closed_form`), and ``"exact-tcp"`` / ``"exact-udp"``, the
-minimiser of the plan's exact expected cost under correlated losses
-(:func:`packetloss_cvx.lq.markov_cost.exact_closed_form`), each with that protocol's belief. The first input of
-the plan is applied; a lost packet applies zero. Gains are cached per distinct belief.
+predicted mu_t ([`packetloss_cvx.lq.costs.closed_form`][packetloss_cvx.lq.costs.closed_form]), and ``"exact-tcp"`` /
+``"exact-udp"``, the minimiser of the plan's exact expected cost under correlated losses
+([`packetloss_cvx.lq.markov_cost.exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form]), each with that
+protocol's belief. The first input of the plan is applied; a lost packet applies zero. Gains are cached per distinct
+belief.
 """
 
 from __future__ import annotations
@@ -64,7 +65,7 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
         No Markov channel, an unknown law, or counts below 1.
     ResourceError
         A law met more than PLAN_BUDGET distinct beliefs (one plan each: a law with unboundedly many beliefs would
-        plan without end), as :func:`~packetloss_cvx.montecarlo.simulate.simulate` refuses them.
+        plan without end), as [`simulate`][packetloss_cvx.montecarlo.simulate.simulate] refuses them.
 
     Examples
     --------
@@ -173,7 +174,7 @@ class BeliefGains:
 
 
 def mode_index(good: np.ndarray, sizes: Sequence[int] | None = None) -> np.ndarray:
-    """The joint mode of :func:`packetloss_cvx.closedloop.mjls.mode_chain` (0 = all good, channel 0 the most significant
+    """The joint mode of `packetloss_cvx.closedloop.mjls.mode_chain` (0 = all good, channel 0 the most significant
     bit, 1 = bad) of good-state indicators (..., m); with ``sizes`` (a MarkovChannel's k_i), of state indices
     (..., m), mixed radix with channel 0 the most significant digit. O(size).
 
@@ -199,9 +200,9 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
     "tcp": the plug-in TCP-like law re-planned at the belief filtered by every acknowledged outcome (``tcp``);
     "udp": the plug-in UDP-like law at the prior propagated (``udp``, the same for every run); "dp": the
     mode-dependent law ``u = -mode_gains[mode] x`` with the current channel state known. Chain states and
-    deliveries from ``losses`` (:func:`~packetloss_cvx.montecarlo.markov_channels.sample_markov_paths`), noise
-    from ``noise`` (:func:`~packetloss_cvx.montecarlo.channels.sample_noise_paths`): the Bernoulli loop's draws.
-    Returns ``(run_cost, norms, stage, states)`` as :func:`~packetloss_cvx.montecarlo.simulate.closed_loop_block`.
+    deliveries from ``losses`` (`sample_markov_paths`), noise
+    from ``noise`` (`sample_noise_paths`): the Bernoulli loop's draws.
+    Returns ``(run_cost, norms, stage, states)`` as `closed_loop_block`.
     Time O(laws samples steps n (n + m)) plus one plan per new belief.
 
     Examples

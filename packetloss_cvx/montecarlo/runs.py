@@ -1,4 +1,4 @@
-"""What every Monte Carlo of :func:`~packetloss_cvx.montecarlo.simulate.simulate` shares, whatever the channel:
+"""What every Monte Carlo of [`simulate`][packetloss_cvx.montecarlo.simulate.simulate] shares, whatever the channel:
 run counts and blocks, sample statistics and z-scores, the memory check of a closed-loop block, and the
 realised cost of an open-loop plan on given deliveries and noise."""
 
@@ -65,7 +65,7 @@ def check_count(value: object, field: str, least: int) -> int:
 
 
 def run_blocks(samples: int) -> list[int]:
-    """Block sizes: ``samples`` split in blocks of :data:`BLOCK` (the last one shorter). O(samples / BLOCK).
+    """Block sizes: ``samples`` split in blocks of `BLOCK` (the last one shorter). O(samples / BLOCK).
 
     Examples
     --------
@@ -141,7 +141,7 @@ def check_loop_memory(system: System, block: int, steps: int, laws: int, keep: i
     """Refuse, before drawing, a closed loop whose block arrays exceed the ``memory_bytes`` budget (budgets.py):
     deliveries and noise as drawn and as the loop reads them (runs last: a copy of each, block steps (2 m + 16 n)),
     norms and stage costs (16 laws block steps), kept states. The steps are the caller's count: a
-    :class:`~packetloss_cvx.errors.BudgetError` under ``steps``, as for the work budget.
+    [`BudgetError`][packetloss_cvx.errors.BudgetError] under ``steps``, as for the work budget.
 
     Examples
     --------
@@ -197,9 +197,9 @@ def loop_statistics(count: int, block: Callable[..., tuple[np.ndarray, ...]], st
     """Run ``count`` laws together block by block and gather each law's statistics.
 
     ``block(size, losses, noise, keep)`` returns ``(run_cost (L, size), norms (L, size, steps + 1), stage (L, size,
-    steps), states (L, keep, steps + 1, n))`` (as :func:`~packetloss_cvx.montecarlo.simulate.closed_loop_block`);
+    steps), states (L, keep, steps + 1, n))`` (as `closed_loop_block`);
     block b draws its losses and its noise from the two children of ``streams[b]``. Returns one
-    :class:`LoopStats` per law and the kept states (L, keep, steps + 1, n). Time: the blocks', plus O(L samples steps).
+    `LoopStats` per law and the kept states (L, keep, steps + 1, n). Time: the blocks', plus O(L samples steps).
 
     Examples
     --------

@@ -25,8 +25,8 @@ def sample_plan_costs(system: System, inputs: npt.ArrayLike, samples: int, rng: 
 
     The open-loop plan ``inputs`` (N×m) is applied whatever the losses. Returns
     ``samples`` realised costs; their mean estimates E[cost | X_k] of the plan. Deliveries and noise are
-    drawn step by step through :mod:`.channels` (:func:`~.channels.sample_step_deliveries`,
-    :func:`~.channels.sample_step_noise`), in the order this function has always used.
+    drawn step by step through `.channels` (`sample_step_deliveries`,
+    `sample_step_noise`), in the order this function has always used.
     Time O(samples · N · (n^2 + n m)), memory O(samples · n).
 
     Examples
@@ -60,7 +60,7 @@ def closed_loop_costs(system: System, gains: list[np.ndarray], steps: int, sampl
     Every law in ``gains`` sees the same sampled losses and noise (common random
     numbers), so differences between laws have small variance. Stage cost
     ``x_t' Omega_1 x_t + (V_t u_t)' Psi_0 (V_t u_t)`` for t = 0..steps-1 plus
-    ``x_T' Omega_1 x_T``; the channel uses ``mu_schedule[0]`` (deliveries and noise from :mod:`.channels`).
+    ``x_T' Omega_1 x_T``; the channel uses ``mu_schedule[0]`` (deliveries and noise from `.channels`).
     Returns an array (len(gains), samples). Time O(len(gains) · samples · steps · n (n + m)).
 
     Examples

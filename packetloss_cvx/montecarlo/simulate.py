@@ -4,7 +4,7 @@ Open loop: each protocol's optimal plan U* is applied whatever the losses; the s
 cost is compared with the plan's exact expectation under the stated model. Closed loop: stationary
 laws ``u = -K x`` (the receding-horizon laws of both protocols and the DP optimum) run for ``steps`` steps
 on the same sampled losses and noise (common random numbers); each run's mean stage cost is compared
-with its exact expectation from second moments (:mod:`.moments`).
+with its exact expectation from second moments (`moments`).
 
 Runs are drawn in blocks of ``BLOCK`` (a fixed size, so the numbers depend only on the seed): block b
 draws from its own stream, ``SeedSequence(seed).spawn(2)[part].spawn(blocks)[b]`` (part 0 open loop,
@@ -50,7 +50,7 @@ LAWS = ("tcp", "udp", "dp")
 
 def open_loop_draws(system: System, samples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
     """The deliveries (samples, N, m) and the noise (samples, N, n), or None without noise, of ``samples`` open-loop
-    runs, from :mod:`.channels`. Time and memory O(samples N (m + n))."""
+    runs, from `.channels`. Time and memory O(samples N (m + n))."""
     N, m, n = system.horizon, system.m, system.n
     V = sample_deliveries(system, samples, rng).reshape(samples, N, m)
     W = sample_noise(system, samples, rng).reshape(samples, N, n) if system.noise_cov.any() else None
@@ -59,7 +59,7 @@ def open_loop_draws(system: System, samples: int, rng: np.random.Generator) -> t
 
 def open_loop_costs(system: System, inputs: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
     """Realised costs ``x'Qx + sum_t X_{t+1}'Omega_t X_{t+1} + (V_t u_t)'Psi_t (V_t u_t)`` of the plan
-    ``inputs`` (N×m) on :func:`open_loop_draws`. Time O(samples N n (n + m))."""
+    ``inputs`` (N×m) on `open_loop_draws`. Time O(samples N n (n + m))."""
     return plan_costs(system, inputs, *open_loop_draws(system, samples, rng))
 
 
@@ -149,7 +149,7 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     ----------
     system : System
     samples : int
-        Runs (>= 2), vectorised in blocks of :data:`BLOCK`.
+        Runs (>= 2), vectorised in blocks of `BLOCK`.
     steps : int
         Closed-loop steps (>= 1).
     seed : int
@@ -173,7 +173,7 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
         A count below its minimum, an unknown law, "dp" alone without closed loop, or a closed loop over a
         non-stationary channel.
     BudgetError
-        More work than the ``simulate_work`` budget (:func:`~packetloss_cvx.budgets.simulate_work`),
+        More work than the ``simulate_work`` budget (`simulate_work`),
         refused before anything is drawn (``simulate(system, 2**63)`` at once); or, under ``steps``, a closed
         loop's block arrays (O(BLOCK steps (n + m + laws))) beyond the ``memory_bytes`` budget.
     ResourceError
@@ -186,7 +186,7 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
     (O(steps n^3) each); memory O(BLOCK (N + steps) (n + m) laws).
 
     Behind a Gilbert–Elliott channel (``system.channel``) the chain is sampled per run and every number is
-    compared with the exact expectation under the chain (:mod:`.markov_montecarlo`): the open loop adds the
+    compared with the exact expectation under the chain (`.markov`): the open loop adds the
     exact minimiser's plan (``"exact_minimiser"``); in closed loop "tcp"/"udp" re-plan at the filtered /
     propagated belief and "dp" is the mode-dependent coupled-Riccati law (channel state known).
 

@@ -1,7 +1,7 @@
 """Matplotlib figures drawn from data that something else computed.
 
-Each function takes data (for instance from :mod:`packetloss_cvx.studies.allocation`),
-returns a :class:`matplotlib.figure.Figure` and, when ``path`` is given, saves it there.
+Each function takes data (for instance from [`packetloss_cvx.studies.allocation`][packetloss_cvx.studies.allocation]),
+returns a `matplotlib.figure.Figure` and, when ``path`` is given, saves it there.
 Figures are built without pyplot, so a notebook's backend and open figures are untouched,
 and nothing here computes an allocation or a cost.
 
@@ -79,7 +79,7 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     ----------
     curves : mapping
         Label (``"tcp"``, ``"udp"`` or any text) to rows with keys ``"alpha"`` and
-        ``"communication_cost"`` (as :func:`~packetloss_cvx.allocation.pareto_curve`
+        ``"communication_cost"`` (as [`pareto_curve`][packetloss_cvx.studies.allocation.pareto_curve]
         returns); rows whose communication cost is None (infeasible) are left out.
     title : str, optional
     path : str or Path, optional
@@ -116,8 +116,9 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
 def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Mapping[Any, Sequence[Mapping]],
                              levels: Sequence[float], *, title: str | None = None,
                              path: str | Path | None = None) -> Figure:
-    """Figs. 6–7: J*(mu) over [0, 1]^2 on a logarithmic colour scale, the contours J* = alpha and the optimal
-    allocation on each contour for each price vector beta (:func:`plot_log_contour` draws it).
+    """Figs. 6–7: `J*(mu)` over [0, 1]^2 on a logarithmic colour scale, the contours `J*` = alpha and the optimal
+    allocation on each contour for each price vector beta
+    ([`plot_log_contour`][packetloss_cvx.plots.figures.plot_log_contour] draws it).
 
     Parameters
     ----------
@@ -127,7 +128,7 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
         ``costs[j, i] = J*(axis[i], axis[j])``, positive (``cost_grid``'s second output).
     allocations : mapping
         beta (any label) to rows with key ``"mu"`` (a pair, or None when infeasible), as
-        :func:`~packetloss_cvx.allocation.contour_allocations` returns.
+        [`contour_allocations`][packetloss_cvx.studies.allocation.contour_allocations] returns.
     levels : sequence of float
         The cost bounds alpha drawn as contours.
     title : str, optional
@@ -181,7 +182,7 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     curves : mapping
         Law (``"tcp"``, ``"udp"``, ``"dp"`` or any text) to a mapping with ``"state_norm_mean"`` and
         ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"`` (length T), as
-        :class:`~packetloss_cvx.results.ClosedLoopRun` holds them. Non-finite values are not drawn.
+        `ClosedLoopRun` holds them. Non-finite values are not drawn.
     title : str, optional
     path : str or Path, optional
 
@@ -591,7 +592,7 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | N
     """The power-cost trade-off: the least J* against the total power budget.
 
     ``curves``: label to rows with keys ``"budget"`` and ``"cost"`` (``PowerAllocation.to_dict()`` of
-    :func:`~packetloss_cvx.allocation.power.power_pareto`'s points); J* on a log axis. O(rows) to draw.
+    [`power_pareto`][packetloss_cvx.allocation.power.power_pareto]'s points); J* on a log axis. O(rows) to draw.
 
     Examples
     --------

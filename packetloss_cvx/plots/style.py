@@ -1,7 +1,7 @@
 """How the figures read: a logarithmic colour scale ticked in the values themselves, contour labels placed
 where they have room, allocation paths that stand out on the colour map, legends beside the plot.
 
-Drawing helpers for :mod:`packetloss_cvx.plots.figures` (which draws and saves); nothing here computes a cost.
+Drawing helpers for `packetloss_cvx.plots.figures` (which draws and saves); nothing here computes a cost.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def tick_text(value: float, _pos: Any = None) -> str:
 
 def tick_labels(ticks: Sequence[float]) -> list[str]:
     r"""Labels of a log axis's ticks in one style: ``10^k`` for all when they are powers of ten and some would
-    be written so (:func:`tick_text`: beyond 1e-3 to 1e5) or they span three decades, :func:`tick_text` otherwise.
+    be written so (`tick_text`: beyond 1e-3 to 1e5) or they span three decades, `tick_text` otherwise.
     O(ticks).
 
     >>> tick_labels([1e4, 1e5, 1e6]), tick_labels([1.0, 10.0, 100.0, 1000.0]), tick_labels([2.0, 5.0, 10.0])
@@ -76,7 +76,7 @@ def tick_labels(ticks: Sequence[float]) -> list[str]:
 
 
 def set_log_ticks(target: Any, lo: float, hi: float) -> None:
-    """Round ticks on [lo, hi] (:func:`log_ticks`) in one label style (:func:`tick_labels`) on a log axis or a
+    """Round ticks on [lo, hi] (`log_ticks`) in one label style (`tick_labels`) on a log axis or a
     colour bar (``target.set_ticks``), without matplotlib's minor labels (``3x10^1``). O(decades).
 
     >>> from matplotlib.figure import Figure

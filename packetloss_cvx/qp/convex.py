@@ -1,13 +1,13 @@
 """Running cvxpy problems with Clarabel under one policy.
 
 * solver warnings are captured, never printed (the command line prints one line);
-* cvxpy's own solver failures become :class:`SolverError`;
-* only the statuses in :data:`tolerances.ACCEPTED_STATUSES` count as an answer
+* cvxpy's own solver failures become [`SolverError`][packetloss_cvx.errors.SolverError];
+* only the statuses in `tolerances.ACCEPTED_STATUSES` count as an answer
   (``optimal_inaccurate`` does not);
 * infeasibility counts only when the solver proved it (``infeasible``, not ``infeasible_inaccurate``).
 
 A problem re-solved many times for new Parameter values is compiled once into a
-:class:`ClarabelProgram`: each solve maps the values onto the compiled cone program (one sparse
+`ClarabelProgram`: each solve maps the values onto the compiled cone program (one sparse
 product) and runs Clarabel cold on exactly the data ``problem.solve`` would give it.
 """
 
@@ -95,7 +95,7 @@ def first_answer(attempt: Callable[[Mapping], str], attempts: Sequence[Mapping])
 
 
 def require_optimal(status: str, what: str) -> None:
-    """Raise :class:`SolverError` unless ``status`` is an accepted answer.
+    """Raise [`SolverError`][packetloss_cvx.errors.SolverError] unless ``status`` is an accepted answer.
 
     Examples
     --------
@@ -116,7 +116,7 @@ class ClarabelProgram:
     cvxpy's own compilation (``problem.get_problem_data(cp.CLARABEL)``) gives the cone program
     ``min x'Px/2 + c'x + d  s.t.  A x + s = b, s in K`` whose data are affine in the Parameters: one sparse
     matrix maps the parameter vector to the nonzeros of ``[A b]``, another to ``(c, d)``, a third (a
-    quadratic objective, e.g. the shared condensed QP of :mod:`.qp_shared`) to P
+    quadratic objective, e.g. the shared condensed QP of `.shared`) to P
     (cvxpy's ``reduce_problem_data_tensor``). A solve forms that vector, applies the two maps and
     hands Clarabel the matrices ``problem.solve`` would hand it (the same products, the same sparsity,
     the same cones: ``tests/qp/test_convex.py`` compares the two bit for bit), in a new solver per
@@ -184,7 +184,7 @@ class ClarabelProgram:
         return P, q, A, b
 
     def _data(self, values: Mapping[cp.Parameter, np.typing.ArrayLike]) -> tuple:
-        """``(P, q, d, A, b)``: :meth:`data` and the objective's constant d (cvxpy's offset). O(nnz)."""
+        """``(P, q, d, A, b)``: `data` and the objective's constant d (cvxpy's offset). O(nnz)."""
         given = {}
         for parameter, value in values.items():
             array = np.asarray(value, dtype=float).reshape(parameter.shape)
@@ -216,9 +216,9 @@ class ClarabelProgram:
     def solve(self, values: Mapping[cp.Parameter, np.typing.ArrayLike], what: str,
               attempts: Sequence[Mapping] = (CLARABEL_TIGHT, CLARABEL_DEFAULT)
               ) -> tuple[str, ClarabelPoint]:
-        """Clarabel on the data for ``values`` under :func:`solve_problem`'s policy (each settings
+        """Clarabel on the data for ``values`` under `solve_problem`'s policy (each settings
         dict in turn, each run cold, until an accepted status or proven infeasibility). Returns the
-        final status (cvxpy's name for it) and Clarabel's point (:class:`ClarabelPoint`: ``variable ->
+        final status (cvxpy's name for it) and Clarabel's point (`ClarabelPoint`: ``variable ->
         value``, and the objective's value there as cvxpy reports it).
 
         Raises
@@ -276,7 +276,7 @@ class ClarabelProgram:
 
 
 class ClarabelPoint:
-    """Clarabel's point of a :class:`ClarabelProgram` solve: ``point(variable)`` is the variable's value
+    """Clarabel's point of a `ClarabelProgram` solve: ``point(variable)`` is the variable's value
     (cvxpy's column layout), ``point.value`` the objective there as ``problem.value`` gives it (Clarabel's
     objective plus the compiled constant). Read them only under an accepted status. O(1) to build.
 

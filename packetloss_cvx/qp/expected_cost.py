@@ -1,29 +1,29 @@
 """The expected-cost minimisation as cvxpy QPs solved with Clarabel (the solver twin), and its cross-check.
 
-One class, :class:`ExpectedCostQP`, and two backends that solve the same problem in the mean
-delivered input ``Z = Vbar U``, both DPP and re-solved by assigning new values to their
+One class, [`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP], and two backends that solve the same
+problem in the mean delivered input ``Z = Vbar U``, both DPP and re-solved by assigning new values to their
 ``cp.Parameter``s, without recompiling:
 
-* :class:`CondensedBackend`: variables Z only; ``sum_squares(L Phi x + L Gamma Z)`` with every
-  datum a Parameter: one compiled problem per padded shape serves every system (:mod:`.qp_shared`).
+* `CondensedBackend`: variables Z only; ``sum_squares(L Phi x + L Gamma Z)`` with every
+  datum a Parameter: one compiled problem per padded shape serves every system (`.shared`).
   Dense data of size (N n)×(N m): build O((N n)^2 N m), solve O((N m)^3).
-* :class:`SparseBackend`: mean states and Z as variables, the dynamics ``xhat_{t+1} = A xhat_t
-  + B z_t`` as equality constraints (:func:`sparse_dynamics`); Parameters: the state x and, for a
+* `SparseBackend`: mean states and Z as variables, the dynamics
+  ``xhat_{t+1} = A xhat_t + B z_t`` as equality constraints (`sparse_dynamics`); Parameters: the state x and, for a
   stationary channel, ``1/mu`` and ``1/mu - 1`` per channel. No Parameter multiplies a Variable, so
   the canonicalisation is linear in N (``multiply(v, U)`` kept an (N m)×(N m) map:
   docs/performance.md); every constant is block-sparse, so build and solve are O(N (n + m)^3),
   memory O(N (n + m)^2).
 
-``ExpectedCostQP(system, protocol, formulation)`` holds the backend the function :func:`choose_backend` picks
+``ExpectedCostQP(system, protocol, formulation)`` holds the backend the function `choose_backend` picks
 ("auto": condensed up to ``AUTO_CONDENSED_MAX`` decision variables) as ``.backend``. The class owns what both
 share: validation, the weights, the rescaling of tiny minima, the forward self-check, the gain and
-the cross-check against the closed form (:func:`compare`); a backend owns its data, its problems,
-and four steps (select, minimise, open-loop value, rescale). :class:`CondensedExpectedCostQP` and
-:class:`SparseExpectedCostQP` are the class with its formulation fixed.
+the cross-check against the closed form ([`compare`][packetloss_cvx.qp.expected_cost.compare]); a backend owns its data,
+its problems, and four steps (select, minimise, open-loop value, rescale). `CondensedExpectedCostQP` and
+`SparseExpectedCostQP` are the class with its formulation fixed.
 
 The input terms of eq:opt-lqg-simplest with Lemma 1, ``U' Vbar Psi U + [UDP] U' Vbar Omega_d
 (I - Vbar) U``, are ``sum (psi + [UDP] diag(Omega_g)(1 - mu)) z^2 / mu``; the diagonal of Omega_g
-comes from the backward Lyapunov sum (:func:`udp_variance_weights`). Channels with mu <=
+comes from the backward Lyapunov sum (`udp_variance_weights`). Channels with mu <=
 ``QP_PIN_MU`` have z pinned to zero; their input U is reported as 0.
 """
 
@@ -82,8 +82,8 @@ QP_RESCALE_PASSES = 2
 
 def compare(inputs: np.ndarray, cost: float, reference: Solution, system: System,
             scale: tuple[float, float] = (0.0, 0.0)) -> CrossCheck:
-    """Compare a plan and its cost with ``reference``; raise :class:`CrossCheckError` naming both
-    numbers unless the mean applied inputs agree, ``max|Vbar (U - U*)| <= CROSS_CHECK_INPUT_ATOL
+    """Compare a plan and its cost with ``reference``; raise [`CrossCheckError`][packetloss_cvx.errors.CrossCheckError]
+    naming both numbers unless the mean applied inputs agree, ``max|Vbar (U - U*)| <= CROSS_CHECK_INPUT_ATOL
     max(max|Vbar U*|, CROSS_CHECK_FLOOR s_x)``, and the costs agree relatively, ``|J - J*| <=
     CROSS_CHECK_COST_RTOL max(|J*|, CROSS_CHECK_FLOOR s_J)``. ``scale = (s_J, s_x)`` is the
     problem's own size (largest weight times max|x0|^2, and max|x0|): below a billionth of it
@@ -91,7 +91,7 @@ def compare(inputs: np.ndarray, cost: float, reference: Solution, system: System
 
     The mean applied input ``Vbar U`` is what the cost sees: an input over a channel that
     (almost) never delivers is (almost) free, so it is compared through its delivery probability.
-    Used by :class:`ExpectedCostQP` and :func:`~packetloss_cvx.qp.markov.exact_qp`. O(N m).
+    Used by [`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP] and `exact_qp`. O(N m).
 
     Examples
     --------
@@ -147,7 +147,7 @@ def choose_backend(system: System, formulation: str) -> type[Backend]:
 
 def qp_memory_estimate(system: System, formulation: str) -> float:
     """Bytes the chosen backend's QP needs at its peak, known before building it: linear in N
-    (:meth:`Backend.memory_estimate`).
+    (`Backend.memory_estimate`).
 
     Examples
     --------
@@ -163,10 +163,10 @@ def qp_memory_estimate(system: System, formulation: str) -> float:
 class ExpectedCostQP:
     """One protocol's expected-cost QP for one system, re-solvable for new mu or x0.
 
-    ``ExpectedCostQP(system, protocol, formulation)`` builds the backend the function :func:`choose_backend` picks
-    for ``formulation`` (:class:`CondensedBackend` or :class:`SparseBackend`) and keeps it as ``backend``.
+    ``ExpectedCostQP(system, protocol, formulation)`` builds the backend the function `choose_backend` picks
+    for ``formulation`` (`CondensedBackend` or `SparseBackend`) and keeps it as ``backend``.
     An instance is not thread-safe (it keeps the current x, mu); the condensed backend's compiled
-    problems are shared by shape and thread-safe (:mod:`.qp_shared`).
+    problems are shared by shape and thread-safe (`.shared`).
 
     Parameters
     ----------
@@ -184,8 +184,8 @@ class ExpectedCostQP:
     Raises
     ------
     BudgetError
-        The QP's work (:func:`~packetloss_cvx.budgets.qp_work`, its horizon) beyond the ``solve_work`` budget, under
-        ``horizon``, before cvxpy sees it; its memory (:meth:`memory_estimate`) beyond the ``memory_bytes`` budget,
+        The QP's work (`qp_work`, its horizon) beyond the ``solve_work`` budget, under
+        ``horizon``, before cvxpy sees it; its memory (`Backend.memory_estimate`) beyond the ``memory_bytes`` budget,
         under ``horizon`` too.
 
     Examples
@@ -304,7 +304,7 @@ class ExpectedCostQP:
         return u, value, status
 
     def _check_resolvable(self, value: float, protocol: str) -> None:
-        """Raise when the minimum v = ||c + G z||^2 + ||r z||^2 (c = L Phi x, :meth:`Backend.state_size`), a squared
+        """Raise when the minimum v = ||c + G z||^2 + ||r z||^2 (c = L Phi x, `Backend.state_size`), a squared
         residual of terms of size ||c||, is below double precision's resolution at CROSS_CHECK_COST_RTOL (2 eps
         ||c|| / sqrt(v) relative): there Clarabel may say 'optimal' with v wrong in the third digit. O(N n)."""
         c = self.backend.state_size() if self._free.any() else 0.0
@@ -334,14 +334,15 @@ class ExpectedCostQP:
         ExpectedCostQP then keeps a system's two compiled problems.
 
         ``mu`` is an m-vector or an N×m schedule; ``x0`` an n-vector. Both are validated
-        through :class:`System`. With ``with_gain`` the gain K is recovered by n more
+        through [`System`][packetloss_cvx.model.system.System]. With ``with_gain`` the gain K is recovered by n more
         solves at the unit states (U* is linear in x). The solver's objective is checked
         against the forward cost of its own plan where that cost is resolved to ``PLAN_COST_RTOL``
-        (:func:`~packetloss_cvx.lq.recursion.plan_cost`; an unstable plant over a long horizon amplifies a fixed
+        ([`plan_cost`][packetloss_cvx.lq.recursion.plan_cost]; an unstable plant over a long horizon amplifies a fixed
         plan's rounding beyond it, and there the cross-check binds).
         With ``cross_check`` the answer is compared with ``reference`` (default:
-        :func:`closed_form`, method "auto") by :func:`compare`, and a disagreement beyond
-        ``CROSS_CHECK_INPUT_ATOL`` / ``CROSS_CHECK_COST_RTOL`` raises.
+        [`closed_form`][packetloss_cvx.lq.costs.closed_form], method "auto") by
+        [`compare`][packetloss_cvx.qp.expected_cost.compare], and a disagreement beyond ``CROSS_CHECK_INPUT_ATOL`` /
+        ``CROSS_CHECK_COST_RTOL`` raises.
 
         Raises
         ------
@@ -404,7 +405,8 @@ class ExpectedCostQP:
 
 
 class CondensedExpectedCostQP(ExpectedCostQP):
-    """:class:`ExpectedCostQP` with the condensed formulation (:class:`CondensedBackend`).
+    """[`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP] with the condensed formulation
+        (`CondensedBackend`).
 
     Examples
     --------
@@ -420,7 +422,7 @@ class CondensedExpectedCostQP(ExpectedCostQP):
 
 
 class SparseExpectedCostQP(ExpectedCostQP):
-    """:class:`ExpectedCostQP` with the sparse formulation (:class:`SparseBackend`).
+    """[`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP] with the sparse formulation (`SparseBackend`).
 
     Examples
     --------
@@ -444,8 +446,8 @@ def _fixed(own: str, formulation: str) -> None:
 
 class Backend:
     """One formulation of the expected-cost QP: its data, its compiled problems and four steps, run by the
-    :class:`ExpectedCostQP` ``qp`` that holds it (whose state ``qp.x``, weights and common scale ``qp._scale`` it
-    reads). Built with the data at the current scale."""
+    [`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP] ``qp`` that holds it (whose state ``qp.x``,
+    weights and common scale ``qp._scale`` it reads). Built with the data at the current scale."""
 
     #: the formulation's name, reported as ``Solution.method = "qp-<formulation>"``
     formulation = ""
@@ -502,9 +504,9 @@ def condensed_data(system: System, scale: float) -> tuple[np.ndarray, np.ndarray
 
 class CondensedBackend(Backend):
     """The condensed backend: ``min ||c + G z||^2 + ||r ∘ z||^2`` over the free entries z, with
-    ``c = L Phi x / sqrt(s)``, ``G = (L Gamma / sqrt(s))[:, free]`` (:func:`condensed_data`) and ``r`` the
+    ``c = L Phi x / sqrt(s)``, ``G = (L Gamma / sqrt(s))[:, free]`` (`condensed_data`) and ``r`` the
     square roots of the input weights; solved by the problem compiled once per padded shape and shared
-    with every other system of that shape in the process (:func:`.qp_shared.condensed_problem`), or,
+    with every other system of that shape in the process (`.shared.condensed_problem`), or,
     beyond ``SHARED_MAX_ENTRIES``, by this object's own problem of the exact shape. Dense data:
     build O((N n)^2 N m), solve O((N m)^3).
 
@@ -525,8 +527,8 @@ class CondensedBackend(Backend):
     @classmethod
     def memory_estimate(cls, system: System) -> float:
         """The sparse form's bytes plus the dense (N n)×(N m) data, a Parameter since the problems are shared by
-        shape (:func:`~packetloss_cvx.budgets.qp_bytes`; 66-88 bytes an entry when they were constants:
-        :mod:`.qp_shared`). O(1)."""
+        shape (`qp_bytes`; 66-88 bytes an entry when they were constants:
+        `.shared`). O(1)."""
         return qp_bytes(system.horizon, system.n, system.m, "condensed")
 
     def __init__(self, qp: ExpectedCostQP) -> None:
@@ -564,7 +566,7 @@ def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.cs
     """Block-sparse mean-state dynamics and state-weight factor for X = (xhat_1..xhat_N):
     ``E X - Bbig z = first x0`` encodes ``xhat_{t+1} = A xhat_t + B z_t``, and
     ``||L X||^2 = sum_t xhat_t' Omega_t xhat_t``. The sparse backend's constants (and the TCP-like
-    allocation SOCP's, :mod:`.allocation.tcp`). O(N (n^2 + n m)) nonzeros.
+    allocation SOCP's, `tcp`). O(N (n^2 + n m)) nonzeros.
 
     Examples
     --------
@@ -583,13 +585,13 @@ def sparse_dynamics(system: System) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.cs
 
 class SparseBackend(Backend):
     """The sparse backend: the mean states and ``Z = Vbar U`` (free entries) as variables, the dynamics
-    as equality constraints (:func:`sparse_dynamics`), compiled by this object per protocol and pinned set
+    as equality constraints (`sparse_dynamics`), compiled by this object per protocol and pinned set
     (stationary channel: ``1/mu``, ``1/mu - 1`` as Parameters) or per schedule (weights as constants).
     Build and solve O(N (n + m)^3), memory O(N (n + m)^2).
 
     Examples
     --------
-    The case of :class:`CondensedBackend`'s example: open loop 2, minimum 10/11 (by hand).
+    The case of `CondensedBackend`'s example: open loop 2, minimum 10/11 (by hand).
 
     >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weight=[1], input_weight=[1], mu=[0.5], x0=[1])
     >>> backend = ExpectedCostQP(s, "tcp", "sparse").backend
@@ -602,7 +604,7 @@ class SparseBackend(Backend):
 
     @classmethod
     def memory_estimate(cls, system: System) -> float:
-        """Measured (:func:`~packetloss_cvx.budgets.qp_bytes`): about 250 N n^2 bytes for the state terms, 350 N n m
+        """Measured (`qp_bytes`): about 250 N n^2 bytes for the state terms, 350 N n m
         for the dynamics' input columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB.
         O(1)."""
         return qp_bytes(system.horizon, system.n, system.m, "sparse")
@@ -694,9 +696,9 @@ class SparseBackend(Backend):
 def solve_qp(system: System, protocol: str, formulation: str = "auto", **kwargs) -> Solution:
     """Minimise the protocol's expected cost with cvxpy + Clarabel (the minimisation of eq:opt-lqg).
 
-    Builds an :class:`ExpectedCostQP` and solves it once; keep the object to re-solve
-    for other mu or x0 without recompiling. Keyword arguments go to
-    :meth:`ExpectedCostQP.solve`.
+    Builds an [`ExpectedCostQP`][packetloss_cvx.qp.expected_cost.ExpectedCostQP] and solves it once; keep the object to
+    re-solve for other mu or x0 without recompiling. Keyword arguments go to
+    [`ExpectedCostQP.solve`][packetloss_cvx.qp.expected_cost.ExpectedCostQP.solve].
 
     Examples
     --------

@@ -1,5 +1,5 @@
 """The exact expected cost under correlated losses minimised as a cvxpy + Clarabel QP, and
-cross-checked against the closed form (:func:`~packetloss_cvx.lq.markov_cost.exact_closed_form`).
+cross-checked against the closed form ([`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form]).
 
 UDP-like objective, every term a sum of squares (weights scaled to one, x to unit size):
 
@@ -8,7 +8,7 @@ UDP-like objective, every term a sum of squares (weights scaled to one, x to uni
 ``L'L = Omega`` and ``F'F = Omega_g ∘ C`` (PSD by the Schur product theorem: both factors are PSD),
 C the covariance of the stacked deliveries. Its value plus x'Qx + tr(Omega_l Sigma_W) is the exact
 expected cost. The TCP-like cost holds only mu_t, so its QP is the package's own
-(:func:`~packetloss_cvx.qp.expected_cost.solve_qp`) on the plug-in schedule.
+([`solve_qp`][packetloss_cvx.qp.expected_cost.solve_qp]) on the plug-in schedule.
 """
 
 from __future__ import annotations
@@ -43,8 +43,9 @@ def exact_qp(system: System, protocol: str = "udp", cross_check: bool = True,
         With a Gilbert–Elliott channel (a Bernoulli one gives the UDP-like QP of the paper).
     protocol : {"udp", "tcp"}
     cross_check : bool
-        Compare with ``reference`` (default :func:`exact_closed_form`); a disagreement beyond
-        ``CROSS_CHECK_INPUT_ATOL`` / ``CROSS_CHECK_COST_RTOL`` raises :class:`CrossCheckError`.
+        Compare with ``reference`` (default [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form]); a
+        disagreement beyond ``CROSS_CHECK_INPUT_ATOL`` / ``CROSS_CHECK_COST_RTOL`` raises
+        [`CrossCheckError`][packetloss_cvx.errors.CrossCheckError].
 
     Returns
     -------

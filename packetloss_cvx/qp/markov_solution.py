@@ -2,8 +2,8 @@
 
 The plug-in law is the paper's law (Theorem 1, eq:opt-law-1 / eq:opt-law-2) with the chain's
 predicted mu_t, which is the ``mu_schedule`` a System with a channel carries. Its loss is measured
-in the protocol's exact expected cost (:func:`~packetloss_cvx.lq.markov_cost.exact_cost`). Importing this
-module does not import cvxpy: the QP twin (:mod:`~packetloss_cvx.qp.markov`) loads only where it is asked for.
+in the protocol's exact expected cost ([`exact_cost`][packetloss_cvx.lq.markov_cost.exact_cost]). Importing this
+module does not import cvxpy: the QP twin (`markov`) loads only where it is asked for.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def markov_solution(system: System, protocol: str, qp: bool = True) -> MarkovSol
     CrossCheckError
         The QP and the closed form disagree.
     NumericalError, ResourceError
-        As :func:`~packetloss_cvx.lq.markov_cost.exact_closed_form` and :func:`~packetloss_cvx.qp.markov.exact_qp`.
+        As [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form] and `exact_qp`.
 
     Examples
     --------

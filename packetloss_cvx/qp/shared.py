@@ -1,6 +1,6 @@
 """The condensed expected-cost QP compiled once per padded shape and shared by every system of that shape.
 
-The problem of the condensed backend (:class:`~packetloss_cvx.qp.expected_cost.CondensedBackend`, which owns
+The problem of the condensed backend (`CondensedBackend`, which owns
 its data) is, with all of a system's data as
 ``cp.Parameter``s (DPP),
 
@@ -10,14 +10,14 @@ its data) is, with all of a system's data as
 ``w = (psi + [UDP] d (1 - mu)) / (mu s)`` (eq:opt-lqg-simplest with Lemma 1 in the mean delivered input
 ``z = mu u``; ``s`` the common weight scale). Nothing about a system is compiled in: one problem of
 shape (R, K) serves every system, both protocols, stationary channels and schedules whose data fit.
-Shapes are padded to a bucket (:func:`padded`: 8, 16, ..., 64, then 96, 128, 192, ...): zero rows of
+Shapes are padded to a bucket (`padded`: 8, 16, ..., 64, then 96, 128, 192, ...): zero rows of
 ``c`` and ``G``, and padded variables with ``r = 1`` and a zero column of ``G``, so that a padded z is 0
 at the optimum and adds nothing to the objective. The 200 random systems of the audit have 102
 distinct (n, m, N) and fall into 15 buckets: the audit compiles 15 condensed problems instead of
 404 (docs/performance.md, "Audit: compiled QPs shared across systems").
 
 Every solve maps all three Parameters onto the compiled cone program and runs Clarabel **cold** (a new
-solver, :class:`~packetloss_cvx.qp.convex.ClarabelProgram`: the data ``problem.solve`` would hand Clarabel,
+solver, `ClarabelProgram`: the data ``problem.solve`` would hand Clarabel,
 bit for bit, without cvxpy's per-solve reduction chain, which took 3/4 of a solve): cvxpy's
 default re-solve updates the cached Clarabel solver in place, which keeps the Ruiz equilibration of
 the first data it saw (Clarabel's ``update_data`` "reapplies the original equilibration"), so a
@@ -94,7 +94,7 @@ class CondensedQP:
     rows, cols : int
         R (rows of c and G, at least 1) and K (variables, at least 1).
     shared : bool
-        Whether the problem lives in the module's cache (:func:`condensed_problem`).
+        Whether the problem lives in the module's cache (`condensed_problem`).
 
     Examples
     --------
@@ -131,7 +131,7 @@ class CondensedQP:
         InputError
             The data do not fit the problem's shape.
         SolverError
-            cvxpy or Clarabel failed outright (:meth:`~packetloss_cvx.qp.convex.ClarabelProgram.solve`).
+            cvxpy or Clarabel failed outright (`solve`).
         """
         R, K = self.shape
         rows, k = G.shape
@@ -159,7 +159,7 @@ class CondensedQP:
 
 
 def objective_value(c: np.ndarray, G: np.ndarray, r: np.ndarray, z: np.ndarray) -> float:
-    """``||c + G z||^2 + ||r ∘ z||^2``, :class:`CondensedQP`'s objective at ``z`` (cvxpy's ``objective.value`` of its
+    """``||c + G z||^2 + ||r ∘ z||^2``, `CondensedQP`'s objective at ``z`` (cvxpy's ``objective.value`` of its
     expression ``quad_over_lin(c + G z, 1) + quad_over_lin(r * z, 1)``, to rounding). O(R K).
 
     Examples

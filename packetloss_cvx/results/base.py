@@ -48,7 +48,7 @@ def freeze(obj: Any) -> None:
 
 class Frozen:
     """Base of the frozen result dataclasses: ``__post_init__`` makes their arrays read-only
-    (:func:`freeze`; a subclass that checks or derives more calls ``super().__post_init__()`` or
+    (`freeze`; a subclass that checks or derives more calls ``super().__post_init__()`` or
     ``freeze`` itself), and a copy made by pickle (a multiprocessing or joblib worker's answer) or
     ``copy.deepcopy``, which skips ``__init__``, runs ``__post_init__`` again when its state is set, so
     its arrays are read-only as the original's. O(size of the arrays), as building the result.

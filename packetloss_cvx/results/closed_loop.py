@@ -70,8 +70,8 @@ class Riccati(Frozen):
 
 @dataclass(frozen=True)
 class OpenLoopCheck:
-    """A protocol's plan U* applied open loop and sampled (simulation.montecarlo): ``formula`` J* (Theorem 1),
-    ``exact`` E[realised cost] under the stated model (J_udp(U*)), ``mean`` and ``stderr`` of the samples,
+    """A protocol's plan `U*` applied open loop and sampled (simulation.montecarlo): ``formula`` `J*` (Theorem 1),
+    ``exact`` E[realised cost] under the stated model (J_udp(`U*`)), ``mean`` and ``stderr`` of the samples,
     ``z = (mean - exact) / stderr``; ``reason`` why the plan is missing (its numbers nan), "" when it is not."""
 
     formula: float

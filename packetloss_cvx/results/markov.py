@@ -20,7 +20,7 @@ __all__ = ["BurstinessMap", "BurstinessSweep", "MarkovSolution", "MjlsResult", "
 def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """``plugin / exact - 1`` elementwise: how much the plug-in law loses against the exact minimum. A zero
     minimum (x0 = 0 without noise) has a zero plug-in cost too, so its loss is 0, as ``solve``'s
-    (:func:`~packetloss_cvx.qp.markov_solution.markov_solution`). O(size).
+    (`markov_solution`). O(size).
 
     Examples
     --------
@@ -33,7 +33,7 @@ def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class MarkovSolution:
-    """One protocol under a Gilbert–Elliott channel (:func:`packetloss_cvx.qp.markov_solution.markov_solution`).
+    """One protocol under a Gilbert–Elliott channel (`packetloss_cvx.qp.markov_solution.markov_solution`).
 
     ``exact``: the minimiser of the protocol's exact expected cost (closed form); ``qp``: its
     cvxpy + Clarabel twin (cross-checked) or None; ``plugin_cost``: the protocol's exact cost of the
@@ -65,7 +65,7 @@ class MarkovSolution:
 @dataclass(frozen=True)
 class BurstinessSweep(Frozen):
     """Costs over the burstiness lambda = 1 - p - r at fixed average delivery rates ``rate``
-    (:func:`packetloss_cvx.studies.burstiness.burstiness_sweep`). ``plugin``: protocol -> the protocol's exact cost
+    (`packetloss_cvx.studies.burstiness.burstiness_sweep`). ``plugin``: protocol -> the protocol's exact cost
     of its plug-in plan; ``exact``: protocol -> the exact minimum; each an array over ``correlation``."""
 
     correlation: np.ndarray
@@ -91,13 +91,13 @@ class BurstinessSweep(Frozen):
 @dataclass(frozen=True)
 class BurstinessMap(Frozen):
     """Costs over a (mean rate × burstiness) grid of one channel
-    (:func:`packetloss_cvx.studies.burstiness.burstiness_map`):
+    (`packetloss_cvx.studies.burstiness.burstiness_map`):
     channel ``channel`` (0-based) behind the stationary Gilbert channel of long-run rate ``rate[a]`` and
     burstiness ``correlation[b]`` = lambda = 1 - p - r, the other channels as in the system
-    (:func:`~packetloss_cvx.model.twins.channel_twin`). ``plugin``: protocol -> the protocol's exact expected cost of
+    (`channel_twin`). ``plugin``: protocol -> the protocol's exact expected cost of
     its
     plug-in plan, (R, L) with ``[a, b]`` at ``(rate[a], correlation[b])``; ``exact``: protocol -> the exact minimum,
-    alike. ``name``: the system's. :meth:`relative_loss` is the plug-in law's loss."""
+    alike. ``name``: the system's. `relative_loss` is the plug-in law's loss."""
 
     channel: int
     rate: np.ndarray
@@ -127,7 +127,7 @@ class BurstinessMap(Frozen):
         return tuple(self.exact)
 
     def relative_loss(self, protocol: str) -> np.ndarray:
-        """``plugin / exact - 1`` of ``protocol`` over the grid (:func:`plugin_loss`), (R, L). O(R L)."""
+        """``plugin / exact - 1`` of ``protocol`` over the grid (`plugin_loss`), (R, L). O(R L)."""
         return plugin_loss(self.plugin[protocol], self.exact[protocol])
 
     def to_dict(self) -> dict[str, Any]:
@@ -138,7 +138,7 @@ class BurstinessMap(Frozen):
                        "relative_loss": self.relative_loss(p).tolist()} for p in self.protocols}}
 
     def to_xarray(self) -> Any:
-        """An :class:`xarray.Dataset` over (``rate``, ``correlation``) (the ``xarray`` extra): ``plugin_<p>``,
+        """An `xarray.Dataset` over (``rate``, ``correlation``) (the ``xarray`` extra): ``plugin_<p>``,
         ``exact_<p>`` and ``loss_<p>`` per protocol; the channel (1-based) and name as attributes. O(R L)."""
         try:
             import xarray as xr  # lazy: an optional extra
@@ -158,7 +158,7 @@ class BurstinessMap(Frozen):
 
 @dataclass(frozen=True)
 class MjlsResult(Frozen):
-    """Mode-dependent optimal control of a Markov jump linear system (:mod:`packetloss_cvx.closedloop.mjls`).
+    """Mode-dependent optimal control of a Markov jump linear system (`packetloss_cvx.closedloop.mjls`).
 
     ``gains[k]``: u = -gains[k] x in mode k; ``cost_matrices[k]``: the coupled Riccati solutions P_k;
     ``modes``: each mode's channel states, the state index per actuator (Gilbert–Elliott: 0 = good, 1 = bad);

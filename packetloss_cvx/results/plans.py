@@ -17,10 +17,10 @@ __all__ = ["BatchSolution", "CrossCheck", "LoopStability", "Solution"]
 class CrossCheck:
     """Agreement of a solver answer with the closed form.
 
-    ``max_input_diff`` is max |Vbar (U_qp - U*)|, the largest difference of the mean applied
+    ``max_input_diff`` is max |Vbar (U_qp - `U*`)|, the largest difference of the mean applied
     inputs (an input sent over a channel that never delivers does not enter the cost, so any
     value is optimal; one that rarely delivers is weakly determined); ``cost_rel_diff`` is
-    |J_qp - J*| / |J*|. Both are relative to the problem's own scale: the QP binds at
+    |J_qp - `J*`| / |`J*`|. Both are relative to the problem's own scale: the QP binds at
     ``max_input_diff <= 1e-6 max|Vbar U*|`` and ``cost_rel_diff <= 1e-7`` (tolerances.py).
     """
 
@@ -39,7 +39,7 @@ class CrossCheck:
 @dataclass(frozen=True)
 class LoopStability:
     """Mean-square stability of a plan's receding-horizon law u = -K x run for ever over the system's channel
-    (:func:`packetloss_cvx.closedloop.law_stability.loop_stability`).
+    ([`loop_stability`][packetloss_cvx.closedloop.law_stability.loop_stability]).
 
     Attributes
     ----------
@@ -97,9 +97,9 @@ class Solution(Frozen):
     ----------
     protocol : {"tcp", "udp"}
     cost : float
-        Optimal expected cost J*, constant and noise terms included.
+        Optimal expected cost `J*`, constant and noise terms included.
     inputs : ndarray, shape (N, m)
-        Commanded inputs U* (row t is U_{k+t}).
+        Commanded inputs `U*` (row t is U_{k+t}).
     gain : ndarray, shape (m, n), or None
         Receding-horizon gain K: U_k = -K X_k (None when a QP was solved without it).
     closed_loop_eigenvalues : ndarray, complex, shape (n,)
@@ -111,8 +111,8 @@ class Solution(Frozen):
         For QPs, the comparison with the closed form.
     stability : LoopStability or None
         Mean-square stability of u = -K x over the channel, once
-        :func:`packetloss_cvx.closedloop.law_stability.with_stability` attached it (a Solution alone does not know the
-        channel).
+        [`with_stability`][packetloss_cvx.closedloop.law_stability.with_stability] attached it (a Solution alone does
+        not know the channel).
     """
 
     protocol: str
@@ -157,22 +157,22 @@ class Solution(Frozen):
 @dataclass(frozen=True)
 class BatchSolution(Frozen):
     """Optimal plans for a batch of channels (``points`` of them) of one system
-    (:class:`~packetloss_cvx.lq.evaluator.CostEvaluator`).
+    ([`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator]).
+
+    Construction O(points N m n) (read-only copies).
 
     Attributes
     ----------
     protocol : {"tcp", "udp"}
     costs : ndarray, shape (points,)
-        Optimal expected costs J*, each checked against the forward cost of its own plan.
+        Optimal expected costs `J*`, each checked against the forward cost of its own plan.
     inputs : ndarray, shape (points, N, m)
-        Commanded inputs U* per point.
+        Commanded inputs `U*` per point.
     gains : ndarray, shape (points, m, n)
         Receding-horizon gains K of the first step per point.
     method : str
         "dense", "recursion", or "mixed" (dense, with the recursion for points whose dense
         solve failed its checks).
-
-    Construction O(points N m n) (read-only copies).
     """
 
     protocol: str

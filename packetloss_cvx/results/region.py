@@ -100,7 +100,7 @@ class RegionMap(Frozen):
     ``base``, and per law (first axis, in ``laws`` order) ``stable`` (1.0, 0.0, nan where undecided) and
     ``radius``, rows mu_J, columns mu_I. The "dp" radius is the least mean-square radius over linear laws,
     min_K rho(L_K) (the homogeneous Riccati eigenvalue: 0 where a deadbeat law exists, never negative; < 1 iff mu
-    is in S), the others the radius of their law's own gain (:data:`RADIUS_MEANING`)."""
+    is in S), the others the radius of their law's own gain (`RADIUS_MEANING`)."""
 
     laws: tuple[str, ...]
     direction: np.ndarray
@@ -124,7 +124,7 @@ class RegionMap(Frozen):
     def to_dict(self) -> dict[str, Any]:
         """Per law: ``critical_mu`` (m numbers, None when t is inf), ``t`` and, with a grid, ``grid``:
         ``axis``, ``stable`` (true / false / null where undecided), ``radius`` (null where not finite) and
-        ``radius_meaning`` (:data:`RADIUS_MEANING`). O(L K^2)."""
+        ``radius_meaning`` (`RADIUS_MEANING`). O(L K^2)."""
         out: dict[str, Any] = {}
         for k, (law, point) in enumerate(zip(self.laws, self.critical, strict=True)):
             entry = point.to_dict()

@@ -57,13 +57,13 @@ def attained(result: Any) -> dict[str, Any]:
 class Allocation(Frozen):
     """The cheapest channel qualities found, with a certificate.
 
-    ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: J*(mu) by the
+    ``mu``: delivery probabilities; ``communication_cost``: beta'mu; ``cost``: `J*(mu)` by the
     closed form (<= alpha); ``lower_bound``: a proven lower bound on the optimal beta'mu;
     ``gap``: (communication_cost - lower_bound) / max(communication_cost, 1e-12);
     ``status``: "optimal" (the gap is certified) or "gap_not_certified" (a cap on boxes or time
     was hit; ``gap`` is the gap reached); ``method``: how it was solved; ``boxes``: boxes the
     UDP-like branch and bound explored (0 for the TCP-like SOCP). ``lower_bound`` is proved:
-    tangent cuts of the convex J*_tcp with an exactly evaluated LP dual (TCP-like), the branch
+    tangent cuts of the convex `J*_tcp` with an exactly evaluated LP dual (TCP-like), the branch
     and bound's remaining boxes (UDP-like).
 
     What a loop attains at mu (allocation.attainable): ``attainable_cost``, the least expected cost a causal
@@ -112,10 +112,10 @@ class Allocation(Frozen):
 class PowerAllocation(Frozen):
     """Transmit power per channel with a certificate (allocation/power.py).
 
-    ``problem``: "least-power" (min sum P with J* <= ``limit`` = alpha; ``lower_bound`` proven on the total
-    power) or "least-cost" (min J* with sum P <= ``limit`` = the budget; ``lower_bound`` proven on J*);
+    ``problem``: "least-power" (min sum P with `J*` <= ``limit`` = alpha; ``lower_bound`` proven on the total
+    power) or "least-cost" (min `J*` with sum P <= ``limit`` = the budget; ``lower_bound`` proven on `J*`);
     ``model``: the delivery-versus-power model as a dict; ``power`` (m,), ``total_power``, ``mu`` = mu(power),
-    ``cost`` = J*(mu) by the closed form; ``gap``: (objective - lower_bound) / objective; ``status``
+    ``cost`` = `J*(mu)` by the closed form; ``gap``: (objective - lower_bound) / objective; ``status``
     "optimal" or "gap_not_certified"; ``method``; ``boxes`` the branch and bound explored. Construction O(m).
     """
 
@@ -278,10 +278,11 @@ class Maximiser(Frozen):
 
 @dataclass(frozen=True)
 class Sweep(Frozen):
-    """Optimal costs over a grid of delivery probabilities (:mod:`packetloss_cvx.studies.sweeps`).
+    """Optimal costs over a grid of delivery probabilities
+        ([`packetloss_cvx.studies.sweeps`][packetloss_cvx.studies.sweeps]).
 
     ``axes``: one array per swept dimension; ``costs``: protocol -> array over the grid;
-    ``difference``: J*_udp - J*_tcp over the grid (None unless both protocols were swept);
+    ``difference``: `J*_udp` - `J*_tcp` over the grid (None unless both protocols were swept);
     ``difference_method``: how the difference was computed.
     """
 
@@ -337,13 +338,14 @@ class MinCost(Frozen):
 
 @dataclass(frozen=True)
 class DesignSweep(Frozen):
-    """Optimal costs over a design study (:func:`packetloss_cvx.studies.sweep`), over its points.
+    """Optimal costs over a design study ([`packetloss_cvx.studies.sweep`][packetloss_cvx.studies.design.sweep]), over
+        its points.
 
     ``kind``: "mu-grid", "mu-list", "x0-scale" or "horizon"; ``dims``/``axes``: the swept dimensions,
     slowest first (``("mu2", "mu1")`` for a 2-D grid: rows follow mu2), the points being the axes'
     Cartesian product in C order; ``mu`` (points, m), ``x0`` (points, n), ``horizon`` (points,): each point;
-    ``costs``: protocol -> J* (points,); ``difference``: J*_udp - J*_tcp (points,) or None, the difference of
-    the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 J*_udp
+    ``costs``: protocol -> `J*` (points,); ``difference``: `J*_udp` - `J*_tcp` (points,) or None, the difference of
+    the two checked costs, exactly 0 where every mu_i is 0 or 1, else accurate to about 1e-15 `J*_udp`
     absolute (so not relatively where the costs nearly agree); ``name``: the system's;
     ``chunk_size``: points per batched evaluation (in process or per Dask task); ``radii``: protocol ->
     the mean-square spectral radius of its receding-horizon law's closed loop at each point (points,), when
@@ -387,8 +389,8 @@ class DesignSweep(Frozen):
         return {**out, **{f"axis_{d}": a for d, a in zip(self.dims, self.axes, strict=True)}}
 
     def grid(self, name: str) -> np.ndarray:
-        """The flat array ``name`` (as :meth:`arrays` names it: cost_tcp, cost_udp, cost_diff, radius_<protocol>,
-        mu, x0, horizon) on the sweep's axes: shape :attr:`shape` (mu: ``shape + (m,)``, x0: ``shape + (n,)``), so
+        """The flat array ``name`` (as `arrays` names it: cost_tcp, cost_udp, cost_diff, radius_<protocol>,
+        mu, x0, horizon) on the sweep's axes: shape `shape` (mu: ``shape + (m,)``, x0: ``shape + (n,)``), so
         ``grid("cost_udp")[j, i]`` is at ``axes[0][j], axes[1][i]`` (a 2-D grid: mu2 = axes[0], mu1 = axes[1]).
         A read-only view, O(1).
 
@@ -409,7 +411,7 @@ class DesignSweep(Frozen):
                 "chunk_size": self.chunk_size, **{k: v.tolist() for k, v in self.arrays().items()}}
 
     def to_xarray(self) -> Any:
-        """An :class:`xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
+        """An `xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
         mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(points (m + n))."""
         try:
             import xarray as xr  # lazy: an optional extra

@@ -5,12 +5,14 @@ With ``S_k`` the joint state (``2^g`` states for g Gilbert–Elliott channels, o
 over (good, bad), channel 0 most significant), the arrival pattern ``a_k`` of step k is drawn from
 ``emission[S_k]`` (channel j delivers with ``h_good_j`` in its good state, ``h_bad_j`` in its bad one,
 independently), and then ``S_{k+1} ~ transition[S_k]``; ``S_0 ~ initial`` (the file's belief or state, else the
-stationary distribution: :func:`packetloss_cvx.model.chain.chain_matrices`). Given ``S_k``, ``a_k`` is
+stationary distribution: `packetloss_cvx.model.chain.chain_matrices`). Given ``S_k``, ``a_k`` is
 independent of the past and of ``S_{k+1}``: the two facts the expected covariance's recursions
-(:func:`.kalman.expected_covariance`) and the Markov bounds (:mod:`.markov_bounds`) rest on.
+([`.kalman.expected_covariance`][packetloss_cvx.sensing.kalman.expected_covariance]) and the Markov bounds
+([`.markov_bounds`][packetloss_cvx.sensing.markov_bounds]) rest on.
 
 The sampler draws each Gilbert–Elliott channel's state and arrival per run (Monte Carlo); Bernoulli runs keep
-their own draws (``rng.random((samples, g)) < gamma``) in :mod:`.montecarlo`, so seeded results do not move.
+their own draws (``rng.random((samples, g)) < gamma``) in [`.montecarlo`][packetloss_cvx.sensing.montecarlo], so seeded
+results do not move.
 """
 
 from __future__ import annotations
@@ -51,9 +53,9 @@ def arrival_patterns(gamma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class Arrivals:
     """The arrival chain of a sensor (module docstring).
 
-    ``patterns`` (2^g, g) bool, as :func:`arrival_patterns` (row 0: every channel lost);
-    ``initial`` (S,) the distribution of ``S_0``; ``transition`` (S, S) row-stochastic; ``emission`` (S, 2^g)
-    ``P(a_k = pattern | S_k = s)``; ``limit`` (S,) the limit of the state distribution, None when it has none
+    ``patterns`` (2^g, g) bool, as [`arrival_patterns`][packetloss_cvx.sensing.arrivals.arrival_patterns] (row 0: every
+    channel lost); ``initial`` (S,) the distribution of ``S_0``; ``transition`` (S, S) row-stochastic; ``emission`` (S,
+    2^g) ``P(a_k = pattern | S_k = s)``; ``limit`` (S,) the limit of the state distribution, None when it has none
     (a channel with p = r = 1 alternates for ever)."""
 
     patterns: np.ndarray
@@ -84,8 +86,8 @@ class Arrivals:
 
 def sensor_arrivals(sensor: Sensor) -> Arrivals:
     """The arrival chain of ``sensor``: one state for Bernoulli channels (``emission`` = the pattern
-    probabilities of :func:`arrival_patterns`), the product chain for Gilbert–Elliott ones.
-    Time O(4^g g).
+    probabilities of [`arrival_patterns`][packetloss_cvx.sensing.arrivals.arrival_patterns]), the product chain for
+    Gilbert–Elliott ones. Time O(4^g g).
 
     Examples
     --------
@@ -114,7 +116,7 @@ def sensor_arrivals(sensor: Sensor) -> Arrivals:
 
 
 class ChainSampler:
-    """Gilbert–Elliott arrivals for ``samples`` independent runs: :meth:`step` returns each run's arrivals
+    """Gilbert–Elliott arrivals for ``samples`` independent runs: `step` returns each run's arrivals
     (samples, g) of this step and moves every channel's state. O(samples g) per step.
 
     >>> ch = {"model": "gilbert-elliott", "p": [0.0], "r": [0.0], "state": ["bad"]}

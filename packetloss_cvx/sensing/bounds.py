@@ -15,10 +15,10 @@ With ``P^-`` the predicted covariance, ``q = prod_j (1 - gamma_j)`` the probabil
 * **Critical arrival rate** along ``gamma = t d``: below ``t_low``, where ``q(t) rho(A)^2 = 1``, E[P] diverges
   for some P0 (single channel: ``1 - 1/rho(A)^2``, Sinopoli's Theorem 3); above ``t_up``, the least t with an X
   satisfying ``X > g(X)`` (checked in numpy), every V_k is bounded (Sinopoli's Lemma: such an X bounds the
-  iteration from any P0). ``t_up`` is the same set that Sinopoli's LMI decides (:mod:`.lmi`, the cross-check).
-  Exact (``t_low = t_up``) for one channel with C invertible (Sinopoli et al. 2004) and, for several channels,
-  when every channel's rows alone have rank n (each arrival resets ``P <= C_j^+ R_j C_j^+'``-like: every pattern
-  but "all lost" is one-step observable, and the lower bound's argument is then tight).
+  iteration from any P0). ``t_up`` is the same set that Sinopoli's LMI decides ([`.lmi`][packetloss_cvx.sensing.lmi],
+  the cross-check). Exact (``t_low = t_up``) for one channel with C invertible (Sinopoli et al. 2004) and, for several
+  channels, when every channel's rows alone have rank n (each arrival resets ``P <= C_j^+ R_j C_j^+'``-like: every
+  pattern but "all lost" is one-step observable, and the lower bound's argument is then tight).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ MARE_DIVERGENCE = 1e12
 def riccati_map(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor,
                 gamma: np.ndarray | None = None) -> Callable[[np.ndarray], np.ndarray]:
     """``V -> g(V) = A (sum_a p_a U_a(V)) A' + Sigma_W`` (module docstring), the arrival patterns and their
-    rows selected once (:class:`.kalman.RowUpdate`): the expected filter step, the update averaged
+    rows selected once (`.kalman.RowUpdate`): the expected filter step, the update averaged
     over the patterns. Time O(2^g (n^3 + p^3)) per call."""
     arrived, prob = arrival_patterns(sensor.gamma if gamma is None else np.asarray(gamma, dtype=float))
     terms = [(float(pk), RowUpdate(sensor.C, sensor.noise_cov, pattern_rows(sensor, a)))
@@ -65,7 +65,7 @@ def riccati_map(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor,
 
 def expected_riccati_map(V: np.ndarray, A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor,
                          gamma: np.ndarray | None = None) -> np.ndarray:
-    """``g(V)`` once (:func:`riccati_map`). Time O(2^g (n^3 + p^3)).
+    """``g(V)`` once ([`riccati_map`][packetloss_cvx.sensing.bounds.riccati_map]). Time O(2^g (n^3 + p^3)).
 
     >>> s = Sensor(C=[[1.0]], gamma=[0.5], noise_cov=[[1.0]])
     >>> float(expected_riccati_map(np.array([[1.0]]), np.array([[2.0]]), np.array([[1.0]]), s)[0, 0])
@@ -117,7 +117,7 @@ def lower_bound_diverges(A: np.ndarray, Sigma_W: np.ndarray, P0: np.ndarray, q: 
     all-lost probability q, independent of the past) is proved unbounded in k: at ``q' = q (1 -
     DIVERGENCE_MARGIN)`` the noise series diverges (then it does at q), or the series of the P0 terms does (then
     ``q' rho^2 >= 1`` on the modes P0 excites, so at q those terms grow by ``1 / (1 - DIVERGENCE_MARGIN)`` or more a
-    step). :func:`lower_bound_covariance` twice: O(n^3) per doubling.
+    step). [`lower_bound_covariance`][packetloss_cvx.sensing.bounds.lower_bound_covariance] twice: O(n^3) per doubling.
 
     >>> lower_bound_diverges(np.array([[2.0]]), np.zeros((1, 1)), np.ones((1, 1)), 0.5)   # 0.5^k 4^k P0 = 2^k
     True
@@ -134,7 +134,7 @@ def lower_bound_diverges(A: np.ndarray, Sigma_W: np.ndarray, P0: np.ndarray, q: 
 def _frobenius(X: np.ndarray) -> float:
     """``np.linalg.norm(X)`` of a float array by the operations it applies (the flattened array's dot with itself,
     its square root: the same float) without its generic argument handling, which was a fifth of a step of
-    :func:`_iterate` at n = 2-4. O(size).
+    `_iterate` at n = 2-4. O(size).
 
     >>> X = np.random.default_rng(0).normal(size=(50, 4, 4)) * 1e3
     >>> all(_frobenius(x) == float(np.linalg.norm(x)) for x in (*X, X, X[:, :2].swapaxes(1, 2)))
@@ -216,7 +216,8 @@ def stable_certificate(A: np.ndarray, sensor: Sensor, gamma: np.ndarray) -> np.n
 
 def covariance_bounds(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor) -> CovarianceBounds:
     """The lower and upper bounds of the module docstring at the sensor's gamma; the two must be ordered
-    (``upper - lower`` PSD to rounding), else CrossCheckError. Time as :func:`upper_bound_covariance`.
+    (``upper - lower`` PSD to rounding), else CrossCheckError. Time as
+    [`upper_bound_covariance`][packetloss_cvx.sensing.bounds.upper_bound_covariance].
 
     >>> s = Sensor(C=[[1.0]], gamma=[0.5], noise_cov=[[0.0]])   # R = 0: lower = upper = 1 / (1 - 0.5 * 1.21)
     >>> b = covariance_bounds(np.array([[1.1]]), np.array([[1.0]]), s)
@@ -245,7 +246,7 @@ def critical_gamma(A: np.ndarray, sensor: Sensor, direction: np.ndarray | None =
                    tol: float = 1e-5) -> CriticalGamma:
     """Bounds on the critical arrival rate along ``gamma = t d`` (default d = 1: every channel at the same
     rate): ``lower`` solves ``q(t) rho(A)^2 = 1`` (bisection; ``1 - 1/rho(A)^2`` for one channel), ``upper`` the
-    least t with a :func:`stable_certificate` (bisection on certified points: the certified set is upward
+    least t with a `stable_certificate` (bisection on certified points: the certified set is upward
     closed, ``g`` falling in each gamma_j). Exact when one channel has C invertible, or every channel's rows
     have rank n (module docstring): then ``upper = lower`` and a certificate must exist 5 % of the way to
     ``1 / max d`` (else CrossCheckError); a certificate below the lower bound is a CrossCheckError too.

@@ -23,8 +23,9 @@ update uses only the rows ``r(a)`` of the channels that arrived:
 singular ``P^-`` exact (``C = I, R = 0``: ``P = 0``, the full-state limit).
 
 The TCP-like ``P_k`` does not depend on the inputs, only on the arrivals: its expectation is exact by
-enumerating the ``2^(g k)`` arrival paths (:func:`expected_covariance`), Bernoulli or Gilbert–Elliott (the
-filter is the same on every path; only the paths' probabilities differ, :mod:`.arrivals`).
+enumerating the ``2^(g k)`` arrival paths ([`expected_covariance`][packetloss_cvx.sensing.kalman.expected_covariance]),
+Bernoulli or Gilbert–Elliott (the filter is the same on every path; only the paths' probabilities differ,
+[`.arrivals`][packetloss_cvx.sensing.arrivals]).
 """
 
 from __future__ import annotations
@@ -77,9 +78,11 @@ def hermitian_pinv(S: np.ndarray, rcond: float = UPDATE_PINV_RCOND) -> np.ndarra
 
 class RowUpdate:
     """The measurement update with the output ``rows`` received, its rows of C and R selected once: the
-    expected Riccati maps of :mod:`.bounds` and :mod:`.markov_bounds` apply the same ``2^g`` updates thousands of
-    times, and :func:`measurement_update` is this class applied once. The algebra (module docstring):
-    ``S = C_r P^- C_r' + R_r``, ``L_r = P^- C_r' S^+``, ``P = P^- - L_r C_r P^-``. O(p^2) to build."""
+    expected Riccati maps of [`.bounds`][packetloss_cvx.sensing.bounds] and
+    [`.markov_bounds`][packetloss_cvx.sensing.markov_bounds] apply the same ``2^g`` updates thousands of
+    times, and [`measurement_update`][packetloss_cvx.sensing.kalman.measurement_update] is this class applied once. The
+    algebra (module docstring): ``S = C_r P^- C_r' + R_r``, ``L_r = P^- C_r' S^+``, ``P = P^- - L_r C_r P^-``. O(p^2) to
+    build."""
 
     __slots__ = ("rows", "Cr", "Rr")
 
@@ -117,7 +120,7 @@ class RowUpdate:
         return 0.5 * (P + P.swapaxes(-1, -2)), Lr
 
     def covariance(self, Pm: np.ndarray) -> np.ndarray:
-        """P alone (:meth:`update`)."""
+        """P alone (`update`)."""
         return self.update(Pm)[0]
 
 
@@ -125,7 +128,7 @@ def measurement_update(Pm: np.ndarray, C: np.ndarray, R: np.ndarray,
                        rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The update with the output ``rows`` received, for a stack of predicted covariances ``Pm`` (..., n, n):
     ``(P, L)``, P (..., n, n) and the gain L (..., n, p) with zero columns for the rows not received
-    (:class:`RowUpdate` applied once). Time O(n^2 p + p^3) per matrix.
+    (`RowUpdate` applied once). Time O(n^2 p + p^3) per matrix.
 
     >>> P, L = measurement_update(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0]))
     >>> float(P[0, 0]), float(L[0, 0])     # scalar: L = 2 / (2 + 2), P = 2 - L 2
@@ -151,7 +154,7 @@ def actuation_covariance(B: np.ndarray, mu: np.ndarray, u: np.ndarray) -> np.nda
 
 
 def predict(P: np.ndarray, A: np.ndarray, Sigma_W: np.ndarray) -> np.ndarray:
-    """``A P A' + Sigma_W`` for a stack P (..., n, n) (the UDP-like caller adds :func:`actuation_covariance`).
+    """``A P A' + Sigma_W`` for a stack P (..., n, n) (the UDP-like caller adds `actuation_covariance`).
     Time O(n^3) per matrix."""
     out = A @ P @ A.T + Sigma_W
     return 0.5 * (out + out.swapaxes(-1, -2))
@@ -173,14 +176,15 @@ def expected_covariance(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor, step
                         P0: np.ndarray | None = None) -> ExpectedCovariance:
     """E[P^-_k] and E[P_k] exactly, by enumerating all ``2^(g steps)`` arrival paths (TCP-like: the
     covariances do not depend on the inputs), each path weighted by its probability under the sensor's arrival
-    chain (:func:`.arrivals.sensor_arrivals`: the product of the pattern probabilities for Bernoulli channels; for
-    Gilbert–Elliott channels the forward recursion ``w <- (w * emission[:, a]) T`` over the hidden states, so the
-    path probability is exact). Time O(2^(g steps) (n^3 + n^2 p + p^3 + S^2)), S the chain's states.
+    chain ([`.arrivals.sensor_arrivals`][packetloss_cvx.sensing.arrivals.sensor_arrivals]: the product of the pattern
+    probabilities for Bernoulli channels; for Gilbert–Elliott channels the forward recursion
+    ``w <- (w * emission[:, a]) T`` over the hidden states, so the path probability is exact). Time O(2^(g steps) (n^3 +
+    n^2 p + p^3 + S^2)), S the chain's states.
 
     Raises
     ------
     InputError
-        Field ``steps``: more than :data:`ENUMERATION_MAX_PATHS` paths (use Monte Carlo or the bounds).
+        Field ``steps``: more than `ENUMERATION_MAX_PATHS` paths (use Monte Carlo or the bounds).
 
     Examples
     --------

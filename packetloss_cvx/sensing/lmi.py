@@ -1,7 +1,7 @@
 """Sinopoli's LMI for a bounded expected error covariance (Sinopoli et al. 2004, Theorem 5), one block per
 arrival pattern of g sensor channels, in cvxpy + Clarabel's SDP cone.
 
-An X > 0 with ``X > g(X)`` exists (:func:`.bounds.stable_certificate`) iff, for some ``Y > 0`` and ``Z_a``
+An X > 0 with ``X > g(X)`` exists (`.bounds.stable_certificate`) iff, for some ``Y > 0`` and ``Z_a``
 (n×p_a, one per pattern a with rows), ``Psi(Y, Z) > 0`` with first block row
 ``[Y, sqrt(p_a) (Y A + Z_a C_a) for each pattern a]`` (``Y A`` for the pattern with no rows) and ``Y`` on the
 rest of the diagonal (Schur complement: ``Y > sum_a p_a (A + Y^-1 Z_a C_a)' Y (A + Y^-1 Z_a C_a)``, the

@@ -102,9 +102,9 @@ CHAIN_REASON = ("no exact loop behind Gilbert-Elliott sensor links: with station
 
 
 def no_gains_verdict(system: System) -> tuple[bool | None, str]:
-    """The verdict where :func:`filter_gains` is None: ``(False, reason)`` when the lower bound on E[P^-] diverges
-    at the system's gamma (sensing.bounds.lower_bound_diverges: from the noise or from P0; proved, since
-    E[x x'] >= E[P_k] >= q E[P^-_k] -> inf for every law on every estimate), else ``(None,
+    """The verdict where [`filter_gains`][packetloss_cvx.sensing.loop.filter_gains] is None: ``(False, reason)`` when
+    the lower bound on E[P^-] diverges at the system's gamma (sensing.bounds.lower_bound_diverges: from the noise or
+    from P0; proved, since E[x x'] >= E[P_k] >= q E[P^-_k] -> inf for every law on every estimate), else ``(None,
     reason)``: the upper-bound iteration diverging proves nothing (Jensen's bound, not E[P]). O(n^3 log).
 
     >>> from packetloss_cvx.model.sensor import Sensor
@@ -137,7 +137,7 @@ SEPARATION_REASON = ("mean-square stable, proved by separation (the loop with th
 
 def chain_loop_verdict(system: System, gain: np.ndarray, protocol: str, mu: np.ndarray) -> tuple[bool | None, str]:
     """The verdict on ``u = -K xhat`` behind Gilbert–Elliott sensor links, with the time-varying Kalman filter:
-    False where the lower bound on E[P] diverges (:func:`no_gains_verdict`); TCP-like, True where the filter's E[P]
+    False where the lower bound on E[P] diverges (`no_gains_verdict`); TCP-like, True where the filter's E[P]
     is proved bounded and the law's full-state loop over the actuator links is mean-square stable (separation:
     ``x+ = (A - BVK) x + BVK e + w``, the products of ``A - B V_i K`` after step j independent of ``e_j``, ``w_j``, so
     ``|x_k|_2 <= sum_j (c rho^(k-j))^(1/2) |BVKe_j + w_j|_2`` is bounded: docs/design.md); else None with the
@@ -209,20 +209,21 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
                    dp: Riccati | None = None) -> EstimatedLoop:
     """The exact stationary loop of ``u = -K xhat`` (module docstring) at the system's mu and gamma.
 
-    Returns the radius of the second-moment operator of ``(xhat, e)``, the verdict it proves (:func:`loop_verdict`),
+    Returns the radius of the second-moment operator of ``(xhat, e)``, the verdict it proves (`loop_verdict`),
     the average stage cost (inf with the reason when proved not mean-square stable; nan with the reason, verdict
     None, when undecided: a radius within the margin of 1, or no stationary gains while the lower bound on E[P] is
-    finite, :func:`no_gains_verdict`) and its two parts
-    (``split=False``: not computed, nan; it solves the DP). ``gains``: :func:`filter_gains` of this system when the
-    caller has them (a map over mu at one gamma); ``dp``: ``dp_riccati(system)`` when the caller has it (not solved
-    again). Time O(2^g (m + 1) (2n)^4) to build the matrix, O((2n)^6) to solve.
+    finite, `no_gains_verdict`) and its two parts
+    (``split=False``: not computed, nan; it solves the DP). ``gains``:
+    [`filter_gains`][packetloss_cvx.sensing.loop.filter_gains] of this system when the caller has them (a map over mu at
+    one gamma); ``dp``: ``dp_riccati(system)`` when the caller has it (not solved again). Time O(2^g (m + 1) (2n)^4) to
+    build the matrix, O((2n)^6) to solve.
 
     Raises
     ------
     InputError
         No sensor; a non-stationary or Gilbert-Elliott actuator channel (simulation.moments). Gilbert–Elliott
         sensor links give no exact loop: stable False where the lower bound on E[P] is proved to diverge
-        (:func:`no_gains_verdict`), else None, with the reason.
+        (`no_gains_verdict`), else None, with the reason.
 
     Examples
     --------
@@ -318,12 +319,13 @@ MAP_LAWS = {"dp": "tcp", "tcp": "tcp", "udp": "udp"}
 def loop_map(system: System, gamma_scales: np.ndarray, mu_scales: np.ndarray,
              laws: tuple[str, ...] = tuple(MAP_LAWS)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Each law's exact radius and average stage cost (``(G, M)`` arrays, rows gamma) on the grid
-    ``gamma = s_g gamma_file / max``, ``mu = s_m mu_file / max`` (:func:`estimated_loop`; the filter built once per
-    gamma; inf where the DP is proved to have no stabilising law (simulation.riccati.NO_SOLUTION) or the filter has
-    no stationary gains and the lower bound on E[P] diverges (proved unstable), nan where the DP or the filter
-    fails without such a proof (undecided, :func:`no_gains_verdict`), the radius as :func:`estimated_loop` gives it
-    otherwise). The data of the
-    (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws (2n)^6).
+    ``gamma = s_g gamma_file / max``, ``mu = s_m mu_file / max``
+    ([`estimated_loop`][packetloss_cvx.sensing.loop.estimated_loop]; the filter built once per gamma; inf where the DP
+    is proved to have no stabilising law (simulation.riccati.NO_SOLUTION) or the filter has no stationary gains and the
+    lower bound on E[P] diverges (proved unstable), nan where the DP or the filter fails without such a proof
+    (undecided, `no_gains_verdict`), the radius as [`estimated_loop`][packetloss_cvx.sensing.loop.estimated_loop] gives
+    it otherwise). The data of the (gamma, mu) figure and of ``region --sensor-grid``. Time O(G (filter) + G M laws
+    (2n)^6).
 
     >>> from packetloss_cvx.model.sensor import Sensor
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[0.0],

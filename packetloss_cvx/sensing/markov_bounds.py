@@ -1,8 +1,10 @@
 """Bounds on the TCP-like filter's expected error covariance behind Markov (Gilbert–Elliott) sensor links, and
-whether it stays bounded: the Bernoulli bounds of :mod:`.bounds` carried over to the arrival chain of
-:mod:`.arrivals` (S joint states, transition T, pattern emission e(a|s), limit distribution pi).
+whether it stays bounded: the Bernoulli bounds of [`.bounds`][packetloss_cvx.sensing.bounds] carried over to the arrival
+chain of [`.arrivals`][packetloss_cvx.sensing.arrivals] (S joint states, transition T, pattern emission e(a|s), limit
+distribution pi).
 
-With ``Lambda = diag(e(all lost | s)) T`` (:meth:`.arrivals.Arrivals.loss_matrix`):
+With ``Lambda = diag(e(all lost | s)) T``
+([`.arrivals.Arrivals.loss_matrix`][packetloss_cvx.sensing.arrivals.Arrivals.loss_matrix]):
 
 * **Lower bound.** ``P^-_k >= sum_{i <= L_k} A^i Sigma_W A'^i`` with ``L_k`` the number of all-lost steps just
   before k (``P >= 0``, and ``P = P^-`` on a loss), and ``P(L_k >= i) = pi_{k-i} Lambda^i 1``, so
@@ -12,14 +14,15 @@ With ``Lambda = diag(e(all lost | s)) T`` (:meth:`.arrivals.Arrivals.loss_matrix
   So does the noise series from ``pi_1`` (term i: ``P(L_{i+1} >= i) A^i Sigma_W A'^i``, the transient of a bad
   start). Any of these diverging at ``Lambda (1 - DIVERGENCE_MARGIN)`` proves ``E[P^-_k]`` unbounded (root test:
   its terms then grow without bound); each runs over the states its start reaches (others never contribute). It
-  converges when ``rho(Lambda) rho(A)^2 < 1`` (Lambda on the states the chain visits: :func:`reachable_loss_radius`).
+  converges when ``rho(Lambda) rho(A)^2 < 1`` (Lambda on the states the chain visits: `reachable_loss_radius`).
 * **Upper bound** (Jensen, per chain state). Given ``S_k = s`` the pattern ``a_k`` is independent of ``P^-_k``
   and of ``S_{k+1}``, and each ``g_a(V) = A U_a(V) A' + Sigma_W`` is concave and monotone, so with
   ``W_{k,s} = E[P^-_k | S_k = s]``: ``E[P^-_{k+1} 1{S_{k+1} = s'}] <= sum_s T[s, s'] pi_k(s) sum_a e(a|s)
   g_a(W_{k,s})``. By induction ``W_k <= V_k`` for the same recursion run on V from ``V_0 = P0``, and
-  ``E[P^-_k] <= sum_s pi_k(s) V_{k,s}``; :func:`markov_upper_bound` iterates it from the file's belief to its
+  ``E[P^-_k] <= sum_s pi_k(s) V_{k,s}``; `markov_upper_bound` iterates it from the file's belief to its
   limit (None when it diverges or does not settle: no bound, not a verdict). One state: Sinopoli's ``g``.
-* **Bounded, proved** (:func:`filter_stability`), two ways. (1) Every channel's rows alone have rank n (one-step
+* **Bounded, proved** ([`filter_stability`][packetloss_cvx.sensing.markov_bounds.filter_stability]), two ways. (1) Every
+channel's rows alone have rank n (one-step
   observable): after any arrival ``P <= C_j^+ R_j C_j^+'`` (the Kalman update is no worse than the pure-measurement
   estimate), so ``E[P^-_k] <= sum_i P(L_k >= i) A^i Q A'^i + (pi_0 Lambda^k 1) A^k P0 A'^k`` for a fixed Q, finite
   when ``rho(Lambda) rho(A)^2 < 1``: then that condition is necessary and sufficient (given noise exciting the
@@ -118,8 +121,8 @@ def markov_lower_diverges(A: np.ndarray, Sigma_W: np.ndarray, P0: np.ndarray, ar
     """A lower-bound series (noise from the limit distribution; noise from ``pi_1``, the run of losses since step 1,
     whose term i is ``P(L_{i+1} >= i) A^i Sigma_W A'^i <= E[P^-_{i+1}]``; P0 from the initial distribution)
     diverges at ``Lambda (1 - DIVERGENCE_MARGIN)``: E[P^-_k] proved unbounded (module docstring). Each series runs
-    over the states its start reaches (:func:`weighted_series`): a bad state the chain never enters proves nothing.
-    False when the chain has no limit distribution (nothing proved). Time as :func:`weighted_series`."""
+    over the states its start reaches (`weighted_series`): a bad state the chain never enters proves nothing.
+    False when the chain has no limit distribution (nothing proved). Time as `weighted_series`."""
     if arrivals.limit is None:
         return False
     Lam = arrivals.loss_matrix() * (1.0 - DIVERGENCE_MARGIN)
@@ -138,7 +141,7 @@ def reachable_loss_radius(arrivals: Arrivals) -> float:
 
 def markov_lower_bound(A: np.ndarray, Sigma_W: np.ndarray, arrivals: Arrivals) -> np.ndarray | None:
     """The stationary lower bound ``sum_i (pi Lambda^i 1) A^i Sigma_W A'^i`` on lim E[P^-_k] (None: infinite, or
-    the chain has no limit distribution). Time as :func:`weighted_series`."""
+    the chain has no limit distribution). Time as `weighted_series`."""
     if arrivals.limit is None:
         return None
     return weighted_series(A, Sigma_W, arrivals.loss_matrix(), arrivals.limit)
@@ -197,7 +200,7 @@ def markov_upper_bound(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor,
 
 def markov_certificate(A: np.ndarray, sensor: Sensor, arrivals: Arrivals | None = None) -> np.ndarray | None:
     """Stacked ``X_s`` with ``X - H(X) > 0`` in every state (module docstring, least eigenvalues checked in
-    numpy), found along ``X_{k+1} = H(X_k) + I`` from 0 as :func:`.bounds.stable_certificate`; None when none is
+    numpy), found along ``X_{k+1} = H(X_k) + I`` from 0 as `.bounds.stable_certificate`; None when none is
     found within CERTIFICATE_MAX_ITER steps, or the limit distribution is not positive. Time
     O(CERTIFICATE_MAX_ITER 2^g S (n^3 + p^3)).
 
@@ -238,7 +241,7 @@ def markov_certificate(A: np.ndarray, sensor: Sensor, arrivals: Arrivals | None 
 def markov_covariance_bounds(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor) -> CovarianceBounds:
     """The stationary lower and upper bounds on E[P^-] behind the sensor's chains (module docstring), checked to be
     ordered (else CrossCheckError); InputError (field ``sensor.p``) for a chain with no limit distribution
-    (p = r = 1), or beyond MARKOV_MAX_UNKNOWNS. Time as :func:`markov_upper_bound`.
+    (p = r = 1), or beyond MARKOV_MAX_UNKNOWNS. Time as `markov_upper_bound`.
 
     >>> ch = {"model": "gilbert-elliott", "p": [0.2], "r": [0.8]}    # p + r = 1: the Bernoulli twin, rate 0.8
     >>> b = markov_covariance_bounds(np.array([[1.1]]), np.eye(1), Sensor(C=[[1.0]], channel=ch))

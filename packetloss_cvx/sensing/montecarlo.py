@@ -145,8 +145,9 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
 def pattern_update(Pm: np.ndarray, pattern: np.ndarray, rows: list[np.ndarray], C: np.ndarray,
                    R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The measurement update of each run (``Pm`` (samples, n, n)) with the rows of its arrival ``pattern``
-    (indices into ``rows``, the pattern's rows), one :func:`.kalman.measurement_update` per pattern present.
-    Returns P (samples, n, n) and the gains (samples, n, p). O(samples (n^2 p + p^3))."""
+    (indices into ``rows``, the pattern's rows), one
+    [`.kalman.measurement_update`][packetloss_cvx.sensing.kalman.measurement_update] per pattern present. Returns P
+    (samples, n, n) and the gains (samples, n, p). O(samples (n^2 p + p^3))."""
     samples = Pm.shape[0]
     # a run that received nothing keeps P = P^-, L = 0 (the update's own answer, without the call); a pattern most
     # runs share is computed for every run and kept where it arrived (each run's update is its own: a gathered
@@ -172,9 +173,11 @@ def pattern_update(Pm: np.ndarray, pattern: np.ndarray, rows: list[np.ndarray], 
 def sampled_covariance(A: np.ndarray, Sigma_W: np.ndarray, sensor: Sensor, steps: int, samples: int = 2000,
                        seed: int = 0) -> SampledCovariance:
     """E[P^-_k] and E[P_k] (TCP-like filter, k = 0..steps) by sampling ``samples`` arrival paths of the sensor
-    (Bernoulli draws as :func:`simulate_estimated`'s, or Gilbert–Elliott chains, :class:`.arrivals.ChainSampler`)
-    with the per-entry standard error of each mean (independent paths): the Monte Carlo counterpart of
-    :func:`.kalman.expected_covariance` for horizons past its enumeration. Time O(samples steps (n^3 + p^3)).
+    (Bernoulli draws as [`simulate_estimated`][packetloss_cvx.sensing.montecarlo.simulate_estimated]'s, or
+    Gilbert–Elliott chains, `.arrivals.ChainSampler`) with the per-entry standard error of each mean (independent
+    paths): the Monte Carlo counterpart of
+    [`.kalman.expected_covariance`][packetloss_cvx.sensing.kalman.expected_covariance] for horizons past its
+    enumeration. Time O(samples steps (n^3 + p^3)).
 
     Raises
     ------

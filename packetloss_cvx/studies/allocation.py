@@ -1,7 +1,7 @@
-"""Studies built on the allocation: the Pareto trade-off alpha <-> beta'mu* and the optimal
-allocations on cost contours (§VI, Figs. 6–7), with the J*(mu) grid those figures show.
+"""Studies built on the allocation: the Pareto trade-off alpha <-> beta'`mu*` and the optimal
+allocations on cost contours (§VI, Figs. 6–7), with the `J*(mu)` grid those figures show.
 
-They compute data; :mod:`packetloss_cvx.plots.figures` draws it.
+They compute data; `packetloss_cvx.plots.figures` draws it.
 """
 
 from __future__ import annotations
@@ -31,13 +31,13 @@ def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], p
     Parameters
     ----------
     system, protocol, beta
-        As for :func:`~packetloss_cvx.allocation.allocate`.
+        As for [`allocate`][packetloss_cvx.allocation.api.allocate].
     alphas : sequence of float
         Cost bounds.
     progress : bool or None
         A bar on stderr, one step per alpha (None: when stderr is a terminal).
     **kwargs
-        Passed to :func:`~packetloss_cvx.allocation.allocate` (bounds, constraints, gap, ...).
+        Passed to [`allocate`][packetloss_cvx.allocation.api.allocate] (bounds, constraints, gap, ...).
 
     Returns
     -------
@@ -49,7 +49,7 @@ def pareto_curve(system: System, protocol: str, beta, alphas: Sequence[float], p
     Notes
     -----
     One allocation per alpha: O(len(alphas)) times the cost of
-    :func:`~packetloss_cvx.allocation.allocate`.
+    [`allocate`][packetloss_cvx.allocation.api.allocate].
 
     Examples
     --------
@@ -112,7 +112,7 @@ def cost_grid(system: System, protocol: str, grid: int = 41) -> tuple[np.ndarray
         Two channels (m = 2); its own mu is ignored.
     protocol : {"tcp", "udp"}
     grid : int
-        Points per axis, 2 <= grid <= :data:`MAX_GRID`.
+        Points per axis, 2 <= grid <= `MAX_GRID`.
 
     Returns
     -------

@@ -2,10 +2,10 @@
 rate and burstiness.
 
 For each lambda = 1 - p - r the system is put behind stationary Gilbert channels with its own
-time-averaged rates mu (:func:`~packetloss_cvx.model.twins.bursty_twin`: p = (1 - mu)(1 - lambda),
+time-averaged rates mu (`bursty_twin`: p = (1 - mu)(1 - lambda),
 r = mu (1 - lambda)), and both protocols' plug-in laws and exact minima are evaluated
-(:func:`burstiness_sweep`). :func:`burstiness_map` does the same over a (mean rate × lambda) grid of one
-channel, the others as the system has them (:func:`~packetloss_cvx.model.twins.channel_twin`).
+(`burstiness_sweep`). `burstiness_map` does the same over a (mean rate × lambda) grid of one
+channel, the others as the system has them (`channel_twin`).
 """
 
 from __future__ import annotations
@@ -35,8 +35,9 @@ DEFAULT_RATES = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
 
 def _evaluate(twin: System, plugin: dict[str, np.ndarray], exact: dict[str, np.ndarray], at: tuple) -> None:
     """Both protocols at one twin into ``plugin[p][at]`` and ``exact[p][at]``: the exact minimum
-    (:func:`exact_closed_form`: the dense route up to N m = 400, the augmented recursion beyond) and the exact
-    cost of the plug-in plan (the paper's law on the twin's ``mu_schedule``). Time O(N (D^3 + m^3)) at most."""
+    ([`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form]: the dense route up to N m = 400, the
+    augmented recursion beyond) and the exact cost of the plug-in plan (the paper's law on the twin's ``mu_schedule``).
+    Time O(N (D^3 + m^3)) at most."""
     for protocol in PROTOCOLS:
         exact[protocol][at] = exact_closed_form(twin, protocol).cost
         plugin[protocol][at] = exact_cost(twin, closed_form(twin.with_mu(twin.mu_schedule), protocol).inputs,
@@ -77,7 +78,7 @@ def burstiness_sweep(system: System, correlations: Sequence[float] = DEFAULT_COR
     Notes
     -----
     Time O(K N (D^3 + m^3)) for K points, D = n (1 + m) (the augmented recursion: any horizon; budgeted by
-    :func:`~packetloss_cvx.budgets.burstiness_work`).
+    `burstiness_work`).
 
     Examples
     --------
@@ -113,7 +114,7 @@ def burstiness_map(system: System, rates: Sequence[float] = DEFAULT_RATES,
     At each grid point channel ``channel`` is the stationary Gilbert channel (h_good = 1, h_bad = 0) of long-run
     delivery rate mu = ``rates[a]`` and lambda = 1 - p - r = ``correlations[b]`` (p = (1 - mu)(1 - lambda),
     r = mu (1 - lambda)); every other channel is as the system has it (its chain and start, or independent losses
-    at its time-averaged rate: :func:`~packetloss_cvx.model.twins.channel_twin`).
+    at its time-averaged rate: `channel_twin`).
 
     Parameters
     ----------
@@ -140,12 +141,13 @@ def burstiness_map(system: System, rates: Sequence[float] = DEFAULT_RATES,
         A channel outside 0..m-1, rates or correlations out of range (naming ``rates``/``correlations``); a
         grid beyond the ``sweep_points`` or ``sweep_work`` budget (BudgetError, before any point is evaluated).
     NumericalError
-        As :func:`~packetloss_cvx.lq.markov_cost.exact_closed_form` (an exact cost beyond the double range).
+        As [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form] (an exact cost beyond the double
+        range).
 
     Notes
     -----
     Time O(R L N (D^3 + m^3)) for R rates and L values of lambda, D = n (1 + sum_i (k_i - 1)) (the augmented
-    recursion per point; budgeted by :func:`~packetloss_cvx.budgets.burstiness_work`), memory O(N m D).
+    recursion per point; budgeted by `burstiness_work`), memory O(N m D).
 
     Examples
     --------

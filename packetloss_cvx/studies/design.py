@@ -1,16 +1,17 @@
-"""Design studies: J*_tcp, J*_udp and J_Delta over many channels, initial states or horizons.
+"""Design studies: `J*_tcp`, `J*_udp` and J_Delta over many channels, initial states or horizons.
 
-:func:`sweep` evaluates one of
+[`sweep`][packetloss_cvx.studies.design.sweep] evaluates one of
 
 * a grid of channel values on [0, 1]: one channel (the others as in the system), every
   actuator behind one shared channel, or both channels of a two-channel system (2-D);
-* a list of m-channel points (e.g. read from a CSV file with :func:`read_mu_list`);
+* a list of m-channel points (e.g. read from a CSV file with
+[`read_mu_list`][packetloss_cvx.studies.design.read_mu_list]);
 * a grid over one scale of the initial state (x0 times each scale);
 * a list of horizons N,
 
 in chunks of consecutive points, each chunk one batched evaluation, in this process or on a
-Dask cluster (:mod:`.engine`); both give the same numbers bit for bit. The result is a
-:class:`~packetloss_cvx.results.DesignSweep` (``to_xarray()``, saved by :func:`.output.save_sweep`).
+Dask cluster ([`.engine`][packetloss_cvx.studies.engine]); both give the same numbers bit for bit. The result is a
+`DesignSweep` (``to_xarray()``, saved by [`.output.save_sweep`][packetloss_cvx.studies.output.save_sweep]).
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ def _grid_axis(mu_grid: Any) -> np.ndarray:
 
 def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     """Channel points from a CSV file: one row per point, m probabilities per row, read by the one CSV reader
-    (:func:`~packetloss_cvx.model.files.read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
+    (`read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
     a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(rows).
 
     Raises
@@ -167,9 +168,9 @@ def _horizons(system: System, values: Any) -> np.ndarray:
 
 
 def _difference(costs: dict[str, np.ndarray], mu: np.ndarray) -> np.ndarray:
-    """J*_udp - J*_tcp, exactly 0 where every channel is deterministic (each mu_i in {0, 1}: the UDP-like
+    """`J*_udp` - `J*_tcp`, exactly 0 where every channel is deterministic (each mu_i in {0, 1}: the UDP-like
     term U' Vbar Omega_d (I - Vbar) U vanishes and the two problems are the same; their two evaluations
-    would differ by rounding, about 1e-15 J*, and could make the difference negative). O(points m)."""
+    would differ by rounding, about 1e-15 `J*`, and could make the difference negative). O(points m)."""
     diff = costs["udp"] - costs["tcp"]
     diff[np.all((mu == 0) | (mu == 1), axis=1)] = 0.0
     return diff
@@ -180,7 +181,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
           horizons: Sequence[int] | None = None, protocols: Sequence[str] = PROTOCOLS,
           chunk_size: int = DEFAULT_CHUNK, dask: Any = None, workers: int | None = None,
           stability: bool = False, progress: bool | None = None) -> DesignSweep:
-    """J*_tcp, J*_udp and J_Delta = J*_udp - J*_tcp over one design study.
+    """`J*_tcp`, `J*_udp` and J_Delta = `J*_udp` - `J*_tcp` over one design study.
 
     Parameters
     ----------
@@ -192,13 +193,13 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
         over one channel shared by every actuator (``shared=True``), or over [0, 1]^2 for m = 2
         (dims ``("mu2", "mu1")``: rows follow mu2).
     mu_list : array_like, shape (points, m)
-        Channel points (see :func:`read_mu_list`).
+        Channel points (see [`read_mu_list`][packetloss_cvx.studies.design.read_mu_list]).
     x0_scales : sequence of float
         The initial state ``scale * system.x0`` for each scale.
     horizons : sequence of int
         Each horizon N (the system's weights must be the same at every step).
     protocols : sequence of {"tcp", "udp"}
-        Both by default (then ``difference`` is J*_udp - J*_tcp).
+        Both by default (then ``difference`` is `J*_udp` - `J*_tcp`).
     chunk_size : int
         Points per batched evaluation (and per Dask task).
     dask : None, "local", a scheduler address ("tcp://host:8786") or a distributed.Client
@@ -223,7 +224,7 @@ def sweep(system: System, *, mu_grid: int | Sequence[float] | None = None, chann
         Bernoulli evaluator does not model.
     BudgetError
         More points than the ``sweep_points`` budget, or more work than ``sweep_work``
-        (:func:`~packetloss_cvx.budgets.sweep_work`), refused before any point is evaluated and named by
+        (`sweep_work`), refused before any point is evaluated and named by
         the argument that asked for them.
 
     Notes

@@ -1,7 +1,7 @@
 """Where a sweep's points are evaluated: in this process, or chunk by chunk on a Dask cluster.
 
 The points are split into chunks of ``chunk_size`` consecutive points; each chunk is one call of
-:func:`evaluate_chunk` (one batched :class:`~packetloss_cvx.lq.evaluator.CostEvaluator` evaluation per
+`evaluate_chunk` (one batched [`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator] evaluation per
 protocol and per distinct horizon, channels and initial states batched together). Both
 paths call the same function on the same chunks, with the system rebuilt from the same plain
 dictionary (``System.to_dict()``, exact for every float), so their results are identical bit for
@@ -75,7 +75,7 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     ----------
     system_data : dict
         The system in the TOML schema's structure (``System.to_dict()``): plain data, so it
-        travels to a Dask worker (a :class:`~packetloss_cvx.System` is immutable and not pickled).
+        travels to a Dask worker (a [`System`][packetloss_cvx.model.system.System] is immutable and not pickled).
     protocols : sequence of {"tcp", "udp"}
     mu : ndarray, shape (points, m)
     x0 : ndarray, shape (points, n)
@@ -83,7 +83,7 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     stability : bool
         Also the spectral radius of the second-moment operator of each protocol's receding-horizon
         law ``u = -K x`` run in closed loop over the point's channel
-        (:func:`~packetloss_cvx.closedloop.stability.mean_square_radius`; mean-square stable iff < 1).
+        ([`mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius]; mean-square stable iff < 1).
 
     Returns
     -------
@@ -98,7 +98,7 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
 
     Examples
     --------
-    One step of x' = x + v u from x0 = 1 (Q = R = 1): J*_tcp = 1/(1 + mu), J*_udp = 1 - mu/2.
+    One step of x' = x + v u from x0 = 1 (Q = R = 1): `J*_tcp` = 1/(1 + mu), `J*_udp` = 1 - mu/2.
 
     >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
@@ -164,8 +164,8 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
     Parameters
     ----------
     dask : "local", an address such as ``"tcp://host:8786"``, or a ``distributed.Client``
-        ``"local"`` starts a :class:`distributed.LocalCluster` of ``workers`` processes
-        (default :data:`LOCAL_WORKERS`, one thread each, at most the ``dask_workers`` budget) and closes
+        ``"local"`` starts a `distributed.LocalCluster` of ``workers`` processes
+        (default `LOCAL_WORKERS`, one thread each, at most the ``dask_workers`` budget) and closes
         it afterwards; an address connects to a running scheduler; a client (e.g. on a dask-jobqueue or
         Kubernetes cluster) is used as it is.
 
@@ -173,7 +173,7 @@ def run_on_dask(system_data: dict[str, Any], protocols: Sequence[str], work: lis
     ------
     InputError
         A scheduler that cannot be reached (the failed client is closed at once: no 20 s wait, no traceback
-        at exit), or one left without any worker for :data:`NO_WORKER_TIMEOUT` seconds (named ``dask``).
+        at exit), or one left without any worker for `NO_WORKER_TIMEOUT` seconds (named ``dask``).
     BudgetError
         More local workers than the ``dask_workers`` budget, before any is started.
     """
@@ -289,7 +289,7 @@ def _deaf_to_sigint(make: Any) -> Any:
     one line. Now only this process hears it, and closes the cluster, whose nannies stop the workers. This thread
     blocks SIGINT only for the instant the builder thread starts (a signal then is held pending, not lost).
 
-    Interrupted while the cluster starts, the caller waits for the build (at most :data:`CLUSTER_START_WAIT`) and
+    Interrupted while the cluster starts, the caller waits for the build (at most `CLUSTER_START_WAIT`) and
     closes what it made. Where signal masks do not exist (Windows) ``make()`` runs here. O(1) plus the start."""
     if not hasattr(signal, "pthread_sigmask"):
         return make()
@@ -324,7 +324,7 @@ def _deaf_to_sigint(make: Any) -> Any:
 
 
 def _no_worker_clock(client: Any, since: float | None, done: int, total: int) -> float | None:
-    """When the scheduler has had no worker since (None: it has one now); past :data:`NO_WORKER_TIMEOUT`
+    """When the scheduler has had no worker since (None: it has one now); past `NO_WORKER_TIMEOUT`
     an InputError: a sweep whose last worker died would otherwise wait for ever. O(1) scheduler call."""
     if client.nthreads():
         return None

@@ -68,7 +68,7 @@ def csv_header(result: DesignSweep) -> list[str]:
 
 
 def sweep_table(result: DesignSweep) -> np.ndarray:
-    """One row per point, the columns of :func:`csv_header` (mu, x0, horizon, costs, radii), as floats:
+    """One row per point, the columns of `csv_header` (mu, x0, horizon, costs, radii), as floats:
     the rows of ``sweep.csv`` and of ``sweep --json``'s ``table``. O(points (m + n)).
 
     Examples
@@ -89,7 +89,7 @@ def sweep_table(result: DesignSweep) -> np.ndarray:
 def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, overwrite: bool = False,
                command: str = "save_sweep") -> dict[str, Path]:
     """Write ``sweep.npz``, ``sweep.csv`` (and ``sweep.nc`` with ``netcdf=True``) into the folder ``out``,
-    atomically, with its ``manifest.json`` (:class:`~packetloss_cvx.safeio.RunFolder`: a folder holding
+    atomically, with its ``manifest.json`` (`RunFolder`: a folder holding
     files no manifest of this package lists is refused unless ``overwrite=True``; the package's own folder
     is replaced run for run, stale files removed). O(points (m + n)).
 
@@ -127,9 +127,9 @@ def save_sweep(result: DesignSweep, out: str | Path, netcdf: bool = False, *, ov
 
 
 def write_sweep(result: DesignSweep, folder: RunFolder, netcdf: bool = False) -> dict[str, Path]:
-    """:func:`save_sweep`'s files written into an entered :class:`~packetloss_cvx.safeio.RunFolder` (the
+    """[`save_sweep`][packetloss_cvx.studies.output.save_sweep]'s files written into an entered `RunFolder` (the
     command line's, which holds the figures too). Floats in the CSV are written with the shortest text
-    that reads back exactly (:func:`csv_number`); the CSV is streamed row by row. O(points (m + n)).
+    that reads back exactly (`csv_number`); the CSV is streamed row by row. O(points (m + n)).
 
     Examples
     --------

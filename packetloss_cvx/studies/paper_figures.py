@@ -1,16 +1,20 @@
 """The data behind each of the paper's figures and tables, computed from its two case studies.
 
-Each function returns plain data (arrays, lists, floats) that :mod:`packetloss_cvx.plots.figures` draws and
+Each function returns plain data (arrays, lists, floats) that `packetloss_cvx.plots.figures` draws and
 ``packetloss-cvx reproduce`` reports: nothing here draws, and nothing here knows what the paper
-printed (that is :mod:`packetloss_cvx.claims.paper`).
+printed (that is `packetloss_cvx.claims.paper`).
 
-* :func:`log_cost_pendulum`: fig:log-cost-pendulum (log J* of both protocols against nu, the
+* [`log_cost_pendulum`][packetloss_cvx.studies.paper_figures.log_cost_pendulum]: fig:log-cost-pendulum (log `J*` of both
+protocols against nu, the
   maximiser of J_Delta);
-* :func:`mixed_grids`: fig:cost-diff-mixed, fig:TCP-log-cost-mixed, fig:UDP-log-cost-mixed (J* and
+* [`mixed_grids`][packetloss_cvx.studies.paper_figures.mixed_grids]: fig:cost-diff-mixed, fig:TCP-log-cost-mixed,
+fig:UDP-log-cost-mixed (`J*` and
   J_Delta over [0, 1]^2, the maximiser of J_Delta);
-* :func:`mixed_allocations`: fig:TCP-log-cost-mixed-mult and fig:UDP-log-cost-mixed-mult (the
+* [`mixed_allocations`][packetloss_cvx.studies.paper_figures.mixed_allocations]: fig:TCP-log-cost-mixed-mult and
+fig:UDP-log-cost-mixed-mult (the
   allocations of eq:opt_M on each cost contour alpha, for each price vector beta);
-* :func:`eigenvalue_tables`: tab:closed-loop-eig and tab:closed-loop-eig-mixed.
+* [`eigenvalue_tables`][packetloss_cvx.studies.paper_figures.eigenvalue_tables]: tab:closed-loop-eig and
+tab:closed-loop-eig-mixed.
 """
 
 from __future__ import annotations
@@ -45,8 +49,9 @@ def pendulum_nus(points: int) -> np.ndarray:
 
 
 def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
-    """fig:log-cost-pendulum: J*_tcp(nu), J*_udp(nu) and J_Delta(nu) with every actuator behind one
-    channel nu, and the maximiser of J_Delta (:func:`~packetloss_cvx.lq.difference.maximise_cost_difference`).
+    """fig:log-cost-pendulum: `J*_tcp(nu)`, `J*_udp(nu)` and J_Delta(nu) with every actuator behind one
+    channel nu, and the maximiser of J_Delta
+    ([`maximise_cost_difference`][packetloss_cvx.lq.difference.maximise_cost_difference]).
 
     Returns ``{"nu", "tcp", "udp", "diff", "difference_method", "maximiser": {"nu", "value", "method"}}``
     (arrays for the curves). O(points (N m)^3).
@@ -72,7 +77,7 @@ def log_cost_pendulum(system: System, points: int = 150) -> dict[str, Any]:
 def mixed_grids(system: System, grid: int = 101) -> dict[str, Any]:
     """fig:cost-diff-mixed, fig:TCP-log-cost-mixed, fig:UDP-log-cost-mixed: J* and J_Delta over a
     ``grid`` × ``grid`` grid of [0, 1]^2 (``values[j, i]`` at ``mu1 = axis[i], mu2 = axis[j]``) and the
-    maximiser of J_Delta (:func:`~packetloss_cvx.lq.difference.maximise_cost_difference_2d`).
+    maximiser of J_Delta ([`maximise_cost_difference_2d`][packetloss_cvx.lq.difference.maximise_cost_difference_2d]).
 
     O(grid^2 (N m)^3).
 
@@ -101,7 +106,7 @@ def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
                       betas: Sequence[Sequence[float]] = PAPER_BETAS,
                       progress: bool | None = None) -> dict[tuple[float, ...], list[dict]]:
     """fig:TCP-/UDP-log-cost-mixed-mult: the cheapest allocation (eq:opt_M) on each contour
-    J* = alpha for each beta (:func:`~packetloss_cvx.allocation.contour_allocations`).
+    J* = alpha for each beta ([`contour_allocations`][packetloss_cvx.studies.allocation.contour_allocations]).
 
     O(len(betas) len(alphas)) allocations.
 
@@ -126,7 +131,8 @@ def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
 def eigenvalue_tables(pendulum: System, mixed: System, mu_pendulum: Sequence[float],
                       mu_mixed: Sequence[float]) -> dict[str, dict[str, dict[str, list[complex]]]]:
     """tab:closed-loop-eig and tab:closed-loop-eig-mixed: closed-loop eigenvalues of both laws
-    (:func:`~packetloss_cvx.lq.analysis.eigenvalue_table`: ``"A-BK"``, the paper's convention, and ``"A-BMK"``).
+    ([`eigenvalue_table`][packetloss_cvx.lq.analysis.eigenvalue_table]: ``"A-BK"``, the paper's convention, and
+    ``"A-BMK"``).
 
     O((N m)^3) per system.
 

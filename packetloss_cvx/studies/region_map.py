@@ -53,11 +53,13 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
                progress: bool | None = False, dask: Any = None, workers: int | None = None) -> RegionMap:
     """Each law's critical point along ``mu = t * direction`` and, with ``grid``, its region over two channels.
 
+    Time: per law O(log2(1 / tol)) memberships, plus K^2 per law on a grid.
+
     Parameters
     ----------
     system : System
     laws : tuple of str
-        Of :data:`LAWS`.
+        Of `LAWS`.
     direction : array_like, optional
         Nonnegative, not all zero (default: all ones).
     grid : int, optional
@@ -69,8 +71,8 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
     progress : bool or None
         A progress bar over the grid's rows on stderr (None: when stderr is a terminal).
     dask : None, "local", a scheduler address or a distributed.Client
-        Where the grid's rows run (:func:`~packetloss_cvx.studies.engine.dask_client`; tasks of about
-        ``REGION_TASK_POINTS`` points, :func:`grid_rows`); the same numbers as in this process.
+        Where the grid's rows run ([`dask_client`][packetloss_cvx.studies.engine.dask_client]; tasks of about
+        ``REGION_TASK_POINTS`` points, `grid_rows`); the same numbers as in this process.
     workers : int, optional
         Workers of ``dask="local"``.
 
@@ -92,8 +94,6 @@ def region_map(system: System, laws: tuple[str, ...] = LAWS, direction: npt.Arra
         (BudgetError) More law-points than the ``region_points`` budget (budgets.py).
     CrossCheckError
         A law proved stable where S is certified empty.
-
-    Time: per law O(log2(1 / tol)) memberships, plus K^2 per law on a grid.
 
     Examples
     --------

@@ -1,16 +1,19 @@
 """Optimal costs over grids of delivery probabilities: the data behind the paper's cost figures.
 
-* :func:`shared_channel_sweep`: every actuator behind one channel of probability nu
-  (Fig. log-cost-pendulum: log J*_tcp(nu), log J*_udp(nu); and J_Delta(nu));
-* :func:`two_channel_sweep`: two channels over a grid of [0, 1]^2 (Figs. TCP-log-cost-mixed,
+* [`shared_channel_sweep`][packetloss_cvx.studies.sweeps.shared_channel_sweep]: every actuator behind one channel of
+probability nu
+  (Fig. log-cost-pendulum: log `J*_tcp(nu)`, log `J*_udp(nu)`; and J_Delta(nu));
+* [`two_channel_sweep`][packetloss_cvx.studies.sweeps.two_channel_sweep]: two channels over a grid of [0, 1]^2 (Figs.
+TCP-log-cost-mixed,
   UDP-log-cost-mixed and cost-diff-mixed).
 
 Each cost is a closed form that passed its own checks, evaluated for all points at once by
-:class:`packetloss_cvx.lq.evaluator.CostEvaluator` (equal to :func:`packetloss_cvx.closed_form` to rounding).
-The difference J_Delta = J*_udp - J*_tcp is computed without cancellation
-(:func:`packetloss_cvx.lq.difference.cost_differences`, all points in stacked solves) where the dense form is
-well conditioned, and
-as the difference of the two checked costs otherwise (``difference_method`` says which).
+[`packetloss_cvx.lq.evaluator.CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator] (equal to
+[`packetloss_cvx.closed_form`][packetloss_cvx.lq.costs.closed_form] to rounding). The difference J_Delta = `J*_udp` -
+`J*_tcp` is computed without cancellation
+([`packetloss_cvx.lq.difference.cost_differences`][packetloss_cvx.lq.difference.cost_differences], all points in stacked
+solves) where the dense form is well conditioned, and as the difference of the two checked costs otherwise
+(``difference_method`` says which).
 """
 
 from __future__ import annotations
@@ -80,8 +83,8 @@ def shared_channel_sweep(system: System, nus: Sequence[float] | np.ndarray,
                          protocols: Sequence[str] = PROTOCOLS) -> Sweep:
     """J*(nu) with every actuator behind one channel of delivery probability nu.
 
-    Returns a :class:`~packetloss_cvx.results.Sweep` with ``axes = (nus,)``, ``costs[p]`` of
-    shape (len(nus),), and, when both protocols are swept, ``difference`` = J*_udp - J*_tcp.
+    Returns a `Sweep` with ``axes = (nus,)``, ``costs[p]`` of
+    shape (len(nus),), and, when both protocols are swept, ``difference`` = `J*_udp` - `J*_tcp`.
     Time O(len(nus) · N (n^3 + m^3)), plus O(len(nus) (N m)^3) for the difference.
 
     Examples
@@ -107,7 +110,7 @@ def two_channel_sweep(system: System, axis: Sequence[float] | np.ndarray,
 
     Examples
     --------
-    Two decoupled copies of x' = x + v u, N = 1: J*_tcp = sum 1/(1 + mu_i), J*_udp = sum (1 - mu_i/2).
+    Two decoupled copies of x' = x + v u, N = 1: `J*_tcp` = sum 1/(1 + mu_i), `J*_udp` = sum (1 - mu_i/2).
 
     >>> t = System(A=np.eye(2), B=np.eye(2), horizon=1, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0],
     ...            mu=[0.5, 0.5], x0=[1.0, 1.0])

@@ -7,6 +7,7 @@ by its name. Skips, saying why, where Selenium, Chromium or its driver, or the d
 import functools
 import http.server
 import importlib.util
+import re
 import shutil
 import subprocess
 import sys
@@ -75,6 +76,107 @@ def test_mkdocs_build_strict(site):
     """``mkdocs build --strict`` passes (the site fixture asserts it) and builds the API pages."""
     _, folder = site
     assert (folder / "api" / "solve" / "index.html").exists()
+
+
+def _pages(folder: Path) -> dict[str, str]:
+    """Each built page's path (relative to the site) -> its HTML."""
+    return {p.relative_to(folder).as_posix(): p.read_text(encoding="utf-8") for p in folder.rglob("index.html")}
+
+
+def _api_ids(folder: Path) -> set[str]:
+    """The identifiers the API pages anchor (one per documented module, class, function, method, attribute)."""
+    return {i for p in (folder / "api").rglob("index.html")
+            for i in re.findall(r'id="(packetloss_cvx[\w.]*)"', p.read_text(encoding="utf-8"))}
+
+
+#: a Sphinx role left in a docstring, as the page shows it (mkdocstrings does not read them)
+SPHINX_ROLE = re.compile(r":(?:py:)?(?:func|class|meth|mod|data|attr|exc|obj):(?:<code>|`)")
+
+
+def test_no_sphinx_role_shows_and_cross_references_are_links(site):
+    """The API pages show no ``:func:`name``` text; their cross-references are autorefs links (a link whose target
+    has no anchor fails the strict build)."""
+    _, folder = site
+    pages = _pages(folder)
+    shown = {page: SPHINX_ROLE.findall(html) for page, html in pages.items() if SPHINX_ROLE.search(html)}
+    assert not shown, {page: len(found) for page, found in shown.items()}
+    links = sum(html.count('class="autorefs autorefs-internal"') for page, html in pages.items()
+                if page.startswith("api/"))
+    assert links >= 200
+
+
+def test_formulas_are_typeset_by_mathjax_served_from_the_site(site):
+    """Every page loads MathJax (its configuration first) from the site itself; numpydoc ``.. math::`` directives
+    become arithmatex blocks, which MathJax typesets."""
+    _, folder = site
+    pages = _pages(folder)
+    for page, html in pages.items():
+        scripts = re.findall(r'<script src="([^"]+)"', html)
+        names = [src.rsplit("/", 1)[-1] for src in scripts]
+        assert "mathjax-config.js" in names, page
+        assert "tex-chtml.js" in names, page
+        assert names.index("mathjax-config.js") < names.index("tex-chtml.js"), page
+        assert not [src for src in scripts if "://" in src], page             # nothing from another host
+    assert (folder / "javascripts" / "mathjax" / "tex-chtml.js").stat().st_size > 10**6
+    assert list((folder / "javascripts" / "mathjax" / "output" / "chtml" / "fonts" / "woff-v2").glob("*.woff"))
+    assert not [page for page, html in pages.items() if ".. math::" in html]
+    assert pages["api/solve/index.html"].count('<div class="arithmatex">') >= 5
+
+
+def test_lists_are_lists_and_starred_symbols_are_not_emphasis(site):
+    """A Markdown list written straight after a paragraph line runs into the paragraph (Python-Markdown wants a
+    blank line): no paragraph holds a line starting ``- ``; the claims page's "In plain words" lists are lists. Two
+    starred symbols in a paragraph (``J*_udp - J*_tcp``) would open and close emphasis inside words."""
+    _, folder = site
+    pages = _pages(folder)
+    run_together = {page for page, html in pages.items()
+                    for body in re.findall(r"<p>((?:(?!</p>).)*)</p>", html, flags=re.S)
+                    if re.search(r"\n\s*(?:[-*+]|\d+\.) \S", body)}
+    assert not run_together
+    claims = pages["claims/index.html"]
+    for heading in ("Rely on:", "Do not rely on:"):
+        assert re.search(rf"<strong>{heading}</strong></p>\s*<ul>", claims), heading
+    intraword = {page: re.findall(r".{20}\w<em>.{20}", html) for page, html in pages.items()
+                 if re.search(r"\w<em>", html)}
+    assert not intraword
+
+
+#: internals the API pages must not document (module-private by use, public only for the package's own imports)
+INTERNALS = ["packetloss_cvx.model.system.CacheKey", "packetloss_cvx.model.system.StructureStore",
+             "packetloss_cvx.model.system.SystemStore", "packetloss_cvx.model.system.check_system",
+             "packetloss_cvx.studies.engine.chunks", "packetloss_cvx.studies.output.csv_number",
+             "packetloss_cvx.montecarlo.channels.sample_deliveries", "packetloss_cvx.qp.shared.padded"]
+
+
+def test_api_pages_document_the_public_names_and_no_internals(site):
+    """The closed loop has its entries, the figures page every ``plot_*`` of the package, the results page every
+    result type; no private name (``_x``) and none of the internals has one."""
+    import packetloss_cvx.plots
+    import packetloss_cvx.results
+
+    _, folder = site
+    ids = _api_ids(folder)
+    leaves = {i.rsplit(".", 1)[-1] for i in ids}
+    closed_loop = {"simulate", "closed_loop", "dp_riccati", "critical_mu", "membership", "closed_loop_statespace",
+                   "region_map", "stability_allocate"}
+    assert closed_loop <= leaves
+    plots = set(packetloss_cvx.plots.__all__)
+    assert len(plots) == 10
+    assert {f"packetloss_cvx.plots.figures.{name}" for name in plots} <= ids
+    assert {f"packetloss_cvx.results.{name}" for name in packetloss_cvx.results.__all__} <= ids
+    assert not [i for i in ids if any(part.startswith("_") and not part.startswith("__") for part in i.split("."))]
+    assert not set(INTERNALS) & ids
+
+
+def test_no_docstring_paragraph_shows_as_a_parameter_or_exception(site):
+    """A paragraph written after a numpydoc section (``Raises``, ``Attributes``) is read as one more entry of it: its
+    first words show as a parameter's or an exception's name. Entry names are names, types or tuples of them."""
+    _, folder = site
+    misread = [(page.parent.name, re.sub("<[^>]+>", "", name)) for page in (folder / "api").rglob("index.html")
+               for name in re.findall(r'<tr class="doc-section-item">\s*<td>\s*<code>(.*?)</code>',
+                                      page.read_text(encoding="utf-8"), flags=re.S)
+               if ": " in re.sub("<[^>]+>", "", name) or re.sub("<[^>]+>", "", name).rstrip().endswith(".")]
+    assert not misread
 
 
 #: a page's search worker and the index it is given, as absolute URLs, resolved as Material's bundle does (its

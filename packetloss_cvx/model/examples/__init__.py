@@ -1,7 +1,8 @@
 """The example systems shipped with the package: the TOML files beside this module.
 
 Standard library only, so that the command line's grammar (its FILE help, its shell completion) can
-list them without importing NumPy; :func:`packetloss_cvx.model.files.load_example` loads one.
+list them without importing NumPy; [`packetloss_cvx.model.files.load_example`][packetloss_cvx.model.files.load_example]
+loads one.
 """
 
 from __future__ import annotations
