@@ -518,7 +518,7 @@ def supported_digits(value: float, error: float, most: int = 17) -> int:
 
 
 def supported(value: float, error: float) -> float:
-    """``value`` rounded to the significant digits its accuracy estimate ``error`` supports (:func:`supported_digits`):
+    """``value`` rounded to the significant digits its accuracy estimate ``error`` supports (`supported_digits`):
     what JSON and CSV print. O(1).
 
     Examples

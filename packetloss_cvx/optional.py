@@ -8,8 +8,8 @@ and refusing bad input stay fast, and the closed-form paths never pay for a solv
 Three readers share this list, which is why it lives in the package (the bottom layer, beside
 ``errors``) and not in a test: ``tests/house/test_architecture.py`` allows exactly these names inside
 functions, ``tests/cli/test_cli_native.py`` checks that ``--help``, usage errors and bad input import none
-of them, and :func:`load` imports one for the package, turning a missing extra into an
-:class:`~packetloss_cvx.errors.InputError` that says how to install it (never a bare traceback).
+of them, and `load` imports one for the package, turning a missing extra into an
+[`InputError`][packetloss_cvx.errors.InputError] that says how to install it (never a bare traceback).
 """
 
 from __future__ import annotations

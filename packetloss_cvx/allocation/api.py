@@ -259,7 +259,8 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
         with acknowledgements, a monotone branch and bound, Bernoulli channels and full state; UDP-like: J*_udp is
         the attainable cost, so the paper's program); "stable", some linear law u = -K x has mean-square radius
         below ``margin`` (``alpha`` None); "dp-cost", the DP law's stationary cost is at most ``alpha``
-        (:func:`~packetloss_cvx.allocation.stability.stability_allocate`; as ``--target`` on the command line: the
+        ([`stability_allocate`][packetloss_cvx.allocation.stability.stability_allocate]; as ``--target`` on the command
+        line: the
         law measures the state each step, so ``protocol`` is checked but does not enter).
     margin : float, optional
         Target "stable" only: the bound on the mean-square radius, ``0 < margin <= 1`` (default 1).
@@ -269,8 +270,8 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
     Allocation
         ``mu`` feasible by the closed form; ``lower_bound`` proven; ``status`` "optimal" (gap
         certified) or "gap_not_certified" (a cap was hit; ``gap`` is the gap reached);
-        ``boxes`` explored; ``attainable_cost`` and ``stabilisable`` at mu (:mod:`.attainable`).
-        A :class:`~packetloss_cvx.results.StabilityAllocation` for the targets "stable" and "dp-cost".
+        ``boxes`` explored; ``attainable_cost`` and ``stabilisable`` at mu (`.attainable`).
+        A `StabilityAllocation` for the targets "stable" and "dp-cost".
 
     Raises
     ------
@@ -358,7 +359,7 @@ def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints
                          max_boxes: int | None, time_limit: float | None, progress: bool | None,
                          margin: float | None) -> Allocation:
     """The TCP-like design on the attainable cost: min beta'mu with the finite-horizon DP's cost <= alpha, by the
-    monotone branch and bound of :mod:`.udp` on :class:`.attainable.AttainableEvaluator` (the cost falls in each
+    monotone branch and bound of `.udp` on `.attainable.AttainableEvaluator` (the cost falls in each
     mu_i: docs/design.md, "Design on the attainable cost"; no TCP-like floor, none being proved for it)."""
     if margin is not None:
         raise InputError("margin", "applies to target='stable' only (target='attainable' bounds a cost: alpha)")
@@ -394,7 +395,7 @@ def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints
 
 
 def _attained(result: Allocation, system: System, chain: bool = False, basis: str | None = None) -> Allocation:
-    """``result`` with what a loop attains at its mu (:func:`.attainable.attainment`)."""
+    """``result`` with what a loop attains at its mu (`.attainable.attainment`)."""
     found = attainment(system, result.protocol, result.mu, result.cost, chain)
     basis = basis or ("attainable" if chain else "paper")
     return dataclasses.replace(result, basis=basis, attainable_cost=found.cost,
@@ -405,7 +406,8 @@ def _attained(result: Allocation, system: System, chain: bool = False, basis: st
 def _loop_target(system: System, target: str, alpha: float | None, beta, bounds, constraints: Sequence[Constraint],
                  gap: float, max_boxes: int | None, time_limit: float | None, progress: bool | None,
                  margin: float | None) -> StabilityAllocation:
-    """:func:`allocate`'s targets other than the paper's: the closed-loop designs of :mod:`.stability`."""
+    """[`allocate`][packetloss_cvx.allocation.api.allocate]'s targets other than the paper's: the closed-loop designs
+    of `.stability`."""
     if target not in ALLOCATION_TARGETS:
         raise InputError("target", f"expected one of {', '.join(ALLOCATION_TARGETS)}, found {target!r}")
     options: dict[str, Any] = {} if max_boxes is None else {"max_boxes": max_boxes}

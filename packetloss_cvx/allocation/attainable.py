@@ -6,12 +6,12 @@ linear law that holds it mean-square stable. Every allocation result therefore c
 
 * ``attainable_cost``: the least expected cost a causal law of the protocol reaches over the horizon, on the
   paper's cost (``x0'Q x0 + sum_t E[x_{t+1}'Omega_{t+1} x_{t+1} + (V_t u_t)'Psi_t (V_t u_t)]`` plus the noise).
-  TCP-like: the finite-horizon dynamic programme with acknowledgements (:func:`tcp_attainable_cost`: the
+  TCP-like: the finite-horizon dynamic programme with acknowledgements (`tcp_attainable_cost`: the
   modified Riccati recursion backwards from ``P_N = Omega_N``; Schenato et al. 2007). UDP-like: the exact expected
   cost of the optimal plan applied open loop, which the paper's J*_udp already is (behind a chain, the exact
   expected cost under the chain that the allocation was designed on);
 * ``stabilisable``: True / False / None: is mu* in the stabilisable set S, i.e. does some linear law u = -K x
-  hold the loop mean-square stable (:func:`~packetloss_cvx.closedloop.region.membership`, each verdict a
+  hold the loop mean-square stable ([`membership`][packetloss_cvx.closedloop.region.membership], each verdict a
   certificate checked in numpy; None with the reason where no form decides, where it is not computed, or behind
   a Markov chain).
 """
@@ -54,7 +54,7 @@ class Attainment(NamedTuple):
 
 
 def _dp(system: System, schedule: np.ndarray) -> tuple[np.ndarray, float]:
-    """The finite-horizon DP's gains (N, m, n) and its cost (:func:`tcp_attainable_cost`). O(N (n^3 + m^3))."""
+    """The finite-horizon DP's gains (N, m, n) and its cost (`tcp_attainable_cost`). O(N (n^3 + m^3))."""
     N = system.horizon
     P = system.state_weights[N - 1].copy()
     gains = np.empty((N, system.m, system.n))
@@ -98,8 +98,8 @@ def forward_cost(system: System, schedule: np.ndarray, gains: np.ndarray) -> flo
 
 
 class AttainableEvaluator:
-    """The TCP-like attainable cost as the monotone searches of :mod:`.udp` ask it: ``cost(mu, checked)`` (checked:
-    the DP's cost against :func:`forward_cost` of its own gains, within SELF_CHECK_RTOL, the forward one returned;
+    """The TCP-like attainable cost as the monotone searches of `.udp` ask it: ``cost(mu, checked)`` (checked:
+    the DP's cost against `forward_cost` of its own gains, within SELF_CHECK_RTOL, the forward one returned;
     else NumericalError) and ``line(mu, i, checked)``. Non-increasing in each mu_i (docs/design.md, "Design on the
     attainable cost"). Bernoulli channels, full state. Each call O(N (n^3 + m^3))."""
 
@@ -135,7 +135,7 @@ def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
        J = x_0'P_0 x_0 + \\sum_{t=0}^{N-1} \\mathrm{tr}(P_{t+1}\\Sigma_W)
 
     with ``Omega_0 = Q`` (the initial weight), ``K_t`` the modified Riccati gain at ``mu_t`` and ``Psi_t``
-    (:func:`~packetloss_cvx.closedloop.riccati.modified_riccati_step`). Time-varying weights and channels as the system
+    (`modified_riccati_step`). Time-varying weights and channels as the system
     gives them. O(N (n^3 + m^3)).
 
     Raises
@@ -159,8 +159,9 @@ def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
 def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
     """Is there a linear law u = -K x that holds the loop mean-square stable at ``mu`` (Bernoulli losses, full
     state)? ``(verdict, note)``: True or False each on a certificate checked in numpy (the "riccati" and "dp"
-    forms of :func:`~packetloss_cvx.closedloop.region.membership`, cross-checked; "lmi" where neither decides, up to
-    :data:`LMI_MAX_N`),
+    forms of [`membership`][packetloss_cvx.closedloop.region.membership], cross-checked; "lmi" where neither decides,
+    up to
+    `LMI_MAX_N`),
     None with the reason where none decides (within about 1e-9 of the boundary), where it is not computed, or behind
     a Markov chain. With lossy sensor links only False is a verdict (a law on an estimate does no better than one on
     the state). O(iterations (n^3 + m^3)), O(n^6) for the certificates.
@@ -196,9 +197,9 @@ def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
 
 
 def attainment(system: System, protocol: str, mu: np.ndarray, cost: float, chain: bool = False) -> Attainment:
-    """The :class:`Attainment` at an allocation's ``mu`` (``system`` at any mu: it is replaced). ``cost`` is the
+    """The `Attainment` at an allocation's ``mu`` (``system`` at any mu: it is replaced). ``cost`` is the
     allocation's own cost: UDP-like it is the attainable cost already (J*_udp, or behind a chain the exact cost
-    under it, ``chain`` True). O(N (n^3 + m^3)) plus :func:`stabilisable`."""
+    under it, ``chain`` True). O(N (n^3 + m^3)) plus `stabilisable`."""
     mu = np.asarray(mu, dtype=float)
     verdict, why = stabilisable(system, mu)
     if protocol == "udp":

@@ -92,7 +92,8 @@ def cost_epigraph(system: System, mu: cp.Variable, x0: cp.Parameter, root: cp.Pa
     ``t_i >= s sum_t psi_{t,i} z_{t,i}^2 / mu_i``, s = root^2 the cost scale. Returns the constraints, the
     expression ``r + sum t`` (>= s (J*_tcp(mu) - C), with equality at the optimum over the other variables)
     and the program's constant data as one read-only vector (what tests/lq/test_cache_keys.py compares).
-    O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros. Used by :class:`TCPProgram` and :mod:`.power`.
+    O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros. Used by `TCPProgram` and
+    [`.power`][packetloss_cvx.allocation.power].
 
     Examples
     --------

@@ -42,7 +42,8 @@ def water_cases() -> list[tuple[str, System, str]]:
     """The cases: (label, system, protocol), TCP-like (the exact conic program, about 0.05 s a budget). Two
     decoupled one-step plants ``x' = x + v u`` from ``x0 = sqrt(w)``: identical (w = (1, 1): the optimum splits
     evenly, a water filling with a_1 = a_2) and unequal (w = (1, 3)); and the paper's two-actuator system.
-    (The UDP-like affine case, where the water filling is exact, is checked in tests/allocation/test_allocation_power.py:
+    (The UDP-like affine case, where the water filling is exact, is checked in
+    tests/allocation/test_allocation_power.py:
     its branch and bound needs seconds to reach the accuracy in P this check needs.) O(1).
 
     Examples

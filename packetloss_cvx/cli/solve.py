@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> CommandResult:
 def constrained_entry(system: System, protocol: str, constraints: Constraints,
                       args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     """The ``"constrained"`` JSON entry of one protocol and its text: the file's ``[constraints]`` solved by
-    :func:`~packetloss_cvx.qp.constrained.solve_constrained` ({"status", "cost", "inputs", "binding", ...}); a proven
+    `solve_constrained` ({"status", "cost", "inputs", "binding", ...}); a proven
     infeasibility is reported as status "infeasible" with the solver's status and reason (the closed forms above
     stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped").
 

@@ -21,6 +21,6 @@ from .stability import is_mean_square_stable, mean_square_radius, second_moment_
 __all__ = [
     "closed_loop", "closed_loop_statespace", "critical_mu", "critical_point", "dp_finite_horizon", "dp_riccati",
     "finite_horizon_costs", "is_mean_square_stable", "law_cost_to_go", "law_membership", "loop_stability",
-    "mean_square_radius", "membership", "modified_riccati_step", "second_moment_map", "second_moment_matrix", "stable_at",
-    "stationary_second_moment", "with_stability",
+    "mean_square_radius", "membership", "modified_riccati_step", "second_moment_map", "second_moment_matrix",
+    "stable_at", "stationary_second_moment", "with_stability",
 ]

@@ -119,7 +119,7 @@ def mode_outside_matrices(A: np.ndarray, B: np.ndarray, T: Dyadic, rates: np.nda
 def exact_transition(channel: MarkovChannel) -> Dyadic:
     """The mode chain's transition matrix (model.chain.mode_chain's order) exactly, from the channel's stored
     numbers: a channel given as Gilbert–Elliott's p, r (its table form), ``[[1 - p, p], [r, 1 - r]]`` with 1 - p
-    taken exactly (mode_chain's floats round it), a :class:`~packetloss_cvx.model.channel.MarkovChannel`'s
+    taken exactly (mode_chain's floats round it), a [`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel]'s
     transitions as stored, Kronecker products of the channels' exact. O(M^2) integer operations.
 
     >>> from fractions import Fraction

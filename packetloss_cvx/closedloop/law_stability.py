@@ -95,16 +95,18 @@ def with_stability(system: System, solution: Solution) -> Solution:
 
 
 def closed_form(system: System, protocol: str, method: str = "auto", stability: bool | None = None) -> Solution:
-    """Theorem 1's optimal plan (:func:`packetloss_cvx.lq.costs.closed_form`, the same numbers) with the mean-square
+    """Theorem 1's optimal plan ([`packetloss_cvx.lq.costs.closed_form`][packetloss_cvx.lq.costs.closed_form], the same
+    numbers) with the mean-square
     verdict of its receding-horizon law u = -K x run for ever over ``system``'s channel attached
-    (:func:`with_stability`), shown in its repr, notebook view and ``to_dict()``.
+    ([`with_stability`][packetloss_cvx.closedloop.law_stability.with_stability]), shown in its repr, notebook view and
+    ``to_dict()``.
 
     Parameters
     ----------
     system, protocol, method
-        As :func:`packetloss_cvx.lq.costs.closed_form`.
+        As [`packetloss_cvx.lq.costs.closed_form`][packetloss_cvx.lq.costs.closed_form].
     stability : bool or None
-        None (default): the verdict where it is cheap, n <= :data:`STABILITY_MAX_N` (as ``solve``); True: at any n
+        None (default): the verdict where it is cheap, n <= `STABILITY_MAX_N` (as ``solve``); True: at any n
         (minutes at n ~ 200); False: the plan alone.
 
     Returns
@@ -115,7 +117,7 @@ def closed_form(system: System, protocol: str, method: str = "auto", stability: 
 
     Raises
     ------
-    As :func:`packetloss_cvx.lq.costs.closed_form`.
+    As [`packetloss_cvx.lq.costs.closed_form`][packetloss_cvx.lq.costs.closed_form].
 
     Examples
     --------

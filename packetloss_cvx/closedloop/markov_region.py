@@ -206,7 +206,7 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, a
     ``(stable, lam)`` on the grid ``axis`` × ``axis`` (rows rate_J, columns rate_I): 1.0 certified stable, 0.0
     certified not stabilisable, nan undecided; ``lam`` the homogeneous coupled Riccati eigenvalue (min over mode
     laws of the coupled radius). One channel (m = 1): one row over ``axis``. ``with_error``: a third array, each
-    lambda's own accuracy estimate (:func:`chain_least_radius`'s ``error``), for a caller that prints only the digits
+    lambda's own accuracy estimate (`chain_least_radius`'s ``error``), for a caller that prints only the digits
     it supports. Time K^2 memberships (plus K^2 coupled radii ``with_error``).
 
     Examples

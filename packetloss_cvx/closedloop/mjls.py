@@ -206,8 +206,8 @@ def coupled_riccati(system: System, max_iter: int = RICCATI_MAX_ITER) -> MjlsRes
     """Optimal mode-dependent gains with the channel state known: the stabilising solution of the coupled Riccati
     equations (module docstring), and the mean-square radius of the loop its gains close.
 
-    :func:`~packetloss_cvx.closedloop.riccati.mode_riccati` behind the mode chain, the solver of
-    :func:`~packetloss_cvx.closedloop.riccati.dp_riccati` (its one-mode case): value iteration from P_a = Omega,
+    `mode_riccati` behind the mode chain, the solver of
+    [`dp_riccati`][packetloss_cvx.closedloop.riccati.dp_riccati] (its one-mode case): value iteration from P_a = Omega,
     then policy iteration (the coupled Lyapunov equations of each law) to the fixed point. An actuator that cannot
     deliver in a mode keeps the row ``G_a^{-1} B'E_aA`` (the limit of its optimal row as h -> 0+; it never reaches
     the loop). Uses A, B, the first stage's weights (Omega_1, Psi_0) and the system's Markov channel.

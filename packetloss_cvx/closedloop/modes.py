@@ -95,7 +95,7 @@ def mode_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.
 
 def mode_adjoint_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray,
                       T: np.ndarray | None = None) -> Step:
-    """``P -> L*(P)``: the adjoint of :func:`mode_step`'s map (``delivery="current"``) for one law, its parts that do
+    """``P -> L*(P)``: the adjoint of `mode_step`'s map (``delivery="current"``) for one law, its parts that do
     not depend on P formed once; it propagates cost-to-go matrices backwards (``sum_b tr(P_b L(Q)_b) =
     sum_a tr(L*(P)_a Q_a)``). With ``E_a = sum_b T_ab P_b``,
 
@@ -103,7 +103,7 @@ def mode_adjoint_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray
        \\mathrm{diag}(B' E_a B)) K_a,
 
     ``Abar_a = A - B H_a K_a``. ``T=None``: one mode (Bernoulli, ``h = mu``, ``E = P``), K (m, n), P (n, n); with T
-    (M, M): K (M, m, n), h (M, m), P (M, n, n). Its matrix on row-major vec is :func:`mode_matrix`'s transpose.
+    (M, M): K (M, m, n), h (M, m), P (M, n, n). Its matrix on row-major vec is `mode_matrix`'s transpose.
     Time O(M (n^3 + n^2 m) + M^2 n^2) per application.
 
     Examples

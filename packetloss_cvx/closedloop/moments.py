@@ -178,9 +178,10 @@ def _cost_to_go(A_: np.ndarray, B_: np.ndarray, K_: np.ndarray, mu_: np.ndarray,
 def mode_cost_to_go(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray,
                     Omega: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """The cost-to-go of the mode-dependent law ``u = -K_a x`` behind a chain (the mode known to the controller):
-    ``P_a = Omega + K_a' diag(psi h_a) K_a + L*(P)_a`` (:func:`~packetloss_cvx.closedloop.modes.mode_adjoint_step`),
+    ``P_a = Omega + K_a' diag(psi h_a) K_a + L*(P)_a`` (`mode_adjoint_step`),
     the coupled Lyapunov equations; ``x0' P_a x0`` is the law's total expected cost from x0 in mode a without noise.
-    :func:`law_cost_to_go` is the one-mode case. Arrays checked by the caller: K (M, m, n), h (M, m), T (M, M). Needs
+    [`law_cost_to_go`][packetloss_cvx.closedloop.moments.law_cost_to_go] is the one-mode case. Arrays checked by the
+    caller: K (M, m, n), h (M, m), T (M, M). Needs
     a mean-square stable law. Time O((M n^2)^3) up to MOMENT_DENSE_MAX_N^2 rows, else GMRES.
 
     Examples

@@ -88,9 +88,10 @@ def _weights(system: System, mu: npt.ArrayLike | None) -> tuple[np.ndarray, ...]
 def dp_riccati(system: System, mu: npt.ArrayLike | None = None, gain: np.ndarray | None = None) -> Riccati:
     """The stationary DP optimum: the stabilising solution of the modified Riccati equation.
 
-    :func:`mode_riccati` at one mode: value iteration from ``P = Omega`` until the gain is mean-square stabilising,
+    `mode_riccati` at one mode: value iteration from ``P = Omega`` until the gain is mean-square stabilising,
     then policy iteration (Hewer's, each step a linear solve for the law's cost-to-go, quadratic convergence)
-    until ``||P_next - P|| <= RICCATI_RTOL ||P||``. Stage weights as in :func:`~.moments.closed_loop`. Time
+    until ``||P_next - P|| <= RICCATI_RTOL ||P||``. Stage weights as in
+    [`closed_loop`][packetloss_cvx.closedloop.moments.closed_loop]. Time
     O(iterations (n^3 + m^3)) plus O(n^6) per policy step (n <= 30; GMRES beyond).
 
     With ``gain``, a law already proved mean-square stabilising at mu (its radius checked here again) and
@@ -145,17 +146,18 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
                  where: str = "") -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The stabilising solution of the DP's Riccati equation over a channel with M modes, the mode known to the
     controller: ``(K, P, iterations, residual, radius)``. One mode (``T=None``, Bernoulli, ``h = mu`` (m,), P
-    (n, n), K (m, n)) is the modified Riccati equation (:func:`dp_riccati`); with T (M, M) and h (M, m) the
-    coupled equations (:func:`~packetloss_cvx.closedloop.mjls.coupled_riccati`; P (M, n, n), K (M, m, n)):
+    (n, n), K (m, n)) is the modified Riccati equation ([`dp_riccati`][packetloss_cvx.closedloop.riccati.dp_riccati]);
+    with T (M, M) and h (M, m) the
+    coupled equations (`coupled_riccati`; P (M, n, n), K (M, m, n)):
 
     .. math:: P_a = \\Omega + A'E_aA - A'E_aBH_a K_a,\\quad K_a = G_a^{-1} B'E_aA,\\quad E_a = \\sum_b T_{ab} P_b
 
-    with ``G_a = B'E_aB H_a + diag(psi + (1 - h_a) diag(B'E_aB))`` (:func:`dp_step`).
+    with ``G_a = B'E_aB H_a + diag(psi + (1 - h_a) diag(B'E_aB))`` (`dp_step`).
 
     Value iteration from ``P_a = Omega``; every ``_CHECK_EVERY`` steps, once the greedy gains are mean-square
-    stabilising (the engine's radius, :func:`~packetloss_cvx.closedloop.modes.mode_radius`), policy iteration
+    stabilising (the engine's radius, `mode_radius`), policy iteration
     (Hewer's: each step the law's cost-to-go from the coupled Lyapunov equations, the engine's adjoint map solved by
-    :func:`~.moments.mode_cost_to_go`; quadratic convergence) until ``||P_next - P|| <= RICCATI_RTOL ||P||``
+    `mode_cost_to_go`; quadratic convergence) until ``||P_next - P|| <= RICCATI_RTOL ||P||``
     (Frobenius norms over the stacked modes): the answer is the fixed point to rounding, not a stopped iteration.
     ``gain`` (a stabilising law, Omega > 0) starts the policy iteration directly. Once ``||P||`` passes
     ``RICCATI_DIVERGENCE`` times the weights, ``proves(P)`` is asked whether P's direction proves exactly that no
@@ -174,7 +176,7 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
     Raises
     ------
     NumericalError
-        Starting ``{label}: no stabilising solution`` (:data:`NO_SOLUTION` at one mode) only where ``proves``
+        Starting ``{label}: no stabilising solution`` (`NO_SOLUTION` at one mode) only where ``proves``
         proved it; otherwise (no verdict) an overflow, no convergence within ``max_iter`` steps, a limit whose law is
         not mean-square stabilising, or a residual ``||R(P) - P|| / ||P||`` above ``MOMENT_RESIDUAL_RTOL``.
 
@@ -251,11 +253,12 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
 
 def dp_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None, Omega: np.ndarray,
             psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One backward step of :func:`mode_riccati`'s equation: ``(K, P_prev)``. ``T=None``: one mode,
-    :func:`modified_riccati_step`. With T: every mode a as one batch of Theorem 1's step
-    (:func:`packetloss_cvx.lq.recursion.riccati_step` with ``mu = h_a``, ``P = E_a = sum_b T_ab P_b`` and the loss
+    """One backward step of `mode_riccati`'s equation: ``(K, P_prev)``. ``T=None``: one mode,
+    `modified_riccati_step`. With T: every mode a as one batch of Theorem 1's step
+    ([`packetloss_cvx.lq.recursion.riccati_step`][packetloss_cvx.lq.recursion.riccati_step] with ``mu = h_a``, ``P =
+    E_a = sum_b T_ab P_b`` and the loss
     variance weighted by E_a), so ``K_a = G_a^{-1} B'E_aA`` on every actuator, those that cannot deliver in a mode
-    included (:func:`mode_riccati`). O(M (M n^2 + n^3 + m^3)).
+    included (`mode_riccati`). O(M (M n^2 + n^3 + m^3)).
 
     Raises
     ------

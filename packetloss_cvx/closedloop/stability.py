@@ -103,7 +103,7 @@ def second_moment_adjoint(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.nda
     """The adjoint ``L*(P) = Abar' P Abar + K' diag(mu (1 - mu) diag(B' P B)) K`` (tr(P L(S)) = tr(L*(P) S)).
 
     It propagates cost-to-go matrices backwards: the mode engine's adjoint at one mode
-    (:func:`~packetloss_cvx.closedloop.modes.mode_adjoint_step`). Time O(n^3 + n^2 m).
+    (`mode_adjoint_step`). Time O(n^3 + n^2 m).
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """The state's mean and covariance under a fixed commanded plan, Bernoulli losses and noise (open loop).
 
 The moments the constrained QP's state limits and chance constraints are posed on (docs/design.md §2.7), by their
-forward recursion: used by :mod:`packetloss_cvx.qp.constrained` to check and polish a solver's answer without the
+forward recursion: used by `packetloss_cvx.qp.constrained` to check and polish a solver's answer without the
 matrices the problem was built from. No cvxpy.
 """
 
@@ -18,7 +18,7 @@ __all__ = ["Moments", "plan_moments"]
 
 @dataclass(frozen=True)
 class Moments:
-    """The state's moments under a plan (:func:`plan_moments`): ``mean[k]`` = E[x_k] and ``cov[k]`` = Cov(x_k),
+    """The state's moments under a plan (`plan_moments`): ``mean[k]`` = E[x_k] and ``cov[k]`` = Cov(x_k),
     k = 0..N, ``T[k]`` = dE[x_k]/dU (n × N m) and ``C[k]`` with ``Cov(x_k) = C[k] diag(u)^2 C[k]' + S[k]``."""
 
     mean: np.ndarray

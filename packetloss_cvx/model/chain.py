@@ -76,12 +76,12 @@ def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarr
     """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
     significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
     product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
-    :data:`MAX_MODES`. Time O(M^2 + M m).
+    `MAX_MODES`. Time O(M^2 + M m).
 
     Raises
     ------
     InputError
-        A product chain beyond :data:`MAX_MODES` modes (more than :data:`MAX_CHANNELS` Gilbert–Elliott channels).
+        A product chain beyond `MAX_MODES` modes (more than `MAX_CHANNELS` Gilbert–Elliott channels).
 
     Examples
     --------
@@ -97,7 +97,7 @@ def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h, start)``: :func:`mode_chain`'s joint states, transition matrix and per-mode delivery
+    """``(modes, T, h, start)``: `mode_chain`'s joint states, transition matrix and per-mode delivery
     probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
     own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
 
@@ -118,8 +118,8 @@ def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def mode_start(channel: MarkovChannel) -> np.ndarray:
-    """P(mode at the first step) from each channel's start in :func:`~packetloss_cvx.model.chain.chain_matrices`,
-    in :func:`mode_chain`'s order. O(M m).
+    """P(mode at the first step) from each channel's start in `chain_matrices`,
+    in `mode_chain`'s order. O(M m).
 
     Examples
     --------

@@ -1,8 +1,8 @@
 """Constraints on a plan: input and rate bounds, limits on the expected state, chance constraints.
 
-A :class:`Constraints` is data only (validated once, immutable, no cvxpy): the constrained expected-cost QP
-(:mod:`packetloss_cvx.qp.constrained`) poses it, the system file's ``[constraints]`` table holds it
-(:func:`constraints_from_dict`, :meth:`Constraints.to_dict`). The mathematics is docs/design.md §2.7.
+A `Constraints` is data only (validated once, immutable, no cvxpy): the constrained expected-cost QP
+(`packetloss_cvx.qp.constrained`) poses it, the system file's ``[constraints]`` table holds it
+(`constraints_from_dict`, `Constraints.to_dict`). The mathematics is docs/design.md §2.7.
 
 * ``u_min <= u_t <= u_max`` (m numbers each) on every commanded input ``t = 0..N-1``. A lost packet applies zero,
   so zero must lie inside the bounds (``u_min <= 0 <= u_max``): otherwise the constraint cannot hold on the
@@ -71,7 +71,7 @@ def _vector(value: Any, size: int | None, field_name: str) -> np.ndarray | None:
 @dataclass(frozen=True, eq=False)
 class Constraints:
     """Constraints on a plan (module docstring); every field optional. The sizes are checked against a system by
-    :func:`check_constraints` (every solve does): ``u_*``, ``du_max`` m numbers, ``x_*``, ``a``, ``F``'s rows n.
+    `check_constraints` (every solve does): ``u_*``, ``du_max`` m numbers, ``x_*``, ``a``, ``F``'s rows n.
 
     Parameters
     ----------
@@ -219,7 +219,7 @@ class Constraints:
         return (n if n is not None or not self.chance else self.chance[0][0].size), m
 
     def kinds(self) -> list[str]:
-        """The fields that constrain anything, in :data:`KEYS` order (``F`` for the polyhedron)."""
+        """The fields that constrain anything, in `KEYS` order (``F`` for the polyhedron)."""
         out = [name for name in ("u_min", "u_max", "du_max", "x_min", "x_max", "F")
                if getattr(self, name) is not None]
         return out + (["chance"] if self.chance else [])
@@ -241,7 +241,7 @@ class Constraints:
 
 
 def constraints_from_dict(table: Mapping[str, Any], n: int, m: int, prefix: str = "constraints.") -> Constraints:
-    """A :class:`Constraints` from the ``[constraints]`` table (docs/design.md §4), errors naming ``constraints.<key>``.
+    """A `Constraints` from the ``[constraints]`` table (docs/design.md §4), errors naming ``constraints.<key>``.
 
     Examples
     --------
@@ -265,7 +265,7 @@ def constraints_from_dict(table: Mapping[str, Any], n: int, m: int, prefix: str 
 
 
 def check_constraints(constraints: Any, n: int, m: int) -> Constraints:
-    """``constraints`` for a system of n states and m inputs: a :class:`Constraints` of that size, or a mapping read
+    """``constraints`` for a system of n states and m inputs: a `Constraints` of that size, or a mapping read
     as the ``[constraints]`` table.
 
     Examples

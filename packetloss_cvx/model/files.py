@@ -401,8 +401,8 @@ def dumps_system(system: System, constraints: Constraints | None = None) -> str:
 
 def save_system(system: System, path: str | Path, *, overwrite: bool = False,
                 constraints: Constraints | None = None) -> Path:
-    """Write ``system`` to ``path`` as TOML, atomically (:func:`~packetloss_cvx.safeio.atomic_write`);
-    returns the path. An existing file is refused (:class:`~packetloss_cvx.errors.OutputExistsError`, a
+    """Write ``system`` to ``path`` as TOML, atomically (`atomic_write`);
+    returns the path. An existing file is refused ([`OutputExistsError`][packetloss_cvx.errors.OutputExistsError], a
     ValueError) unless ``overwrite=True`` (a user's file is never replaced silently).
 
     Examples

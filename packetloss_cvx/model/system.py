@@ -66,9 +66,9 @@ class CacheKey:
 
     A key is a typed object, declared once by the module that builds the quantity, and compared by
     identity: two modules cannot collide on a name, and a key says which fields of the system its value
-    depends on (``depends_on``, names from :data:`SYSTEM_FIELDS`). A key whose fields are all in
-    :data:`STRUCTURE_FIELDS` may be kept in a :class:`StructureStore` (shared by ``with_mu``, ``with_x0`` and
-    ``with_channel`` copies); any other only per system (:class:`SystemStore`). ``tests/lq/test_cache_keys.py`` holds
+    depends on (``depends_on``, names from `SYSTEM_FIELDS`). A key whose fields are all in
+    `STRUCTURE_FIELDS` may be kept in a `StructureStore` (shared by ``with_mu``, ``with_x0`` and
+    ``with_channel`` copies); any other only per system (`SystemStore`). ``tests/lq/test_cache_keys.py`` holds
     every key of the package to what it says. ``name`` is for reading (repr, errors) only.
 
     Examples

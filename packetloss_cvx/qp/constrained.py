@@ -1,18 +1,19 @@
 """The expected-cost QP with constraints: input, rate and expected-state bounds and chance constraints (an SOCP).
 
-:class:`ConstrainedQP` poses one protocol's expected cost (eq:opt-lqg-simplest with Lemma 1) in the commanded
-inputs ``U`` (N×m) under a :class:`~packetloss_cvx.model.constraints.Constraints` (docs/design.md §2.7) and keeps
+`ConstrainedQP` poses one protocol's expected cost (eq:opt-lqg-simplest with Lemma 1) in the commanded
+inputs ``U`` (N×m) under a `Constraints` (docs/design.md §2.7) and keeps
 everything a cvxpy user reaches for public: ``problem`` (DPP), the variable ``U``, the expected states ``states``
 (an (N, n) expression, row k-1 is E[x_k]), and the Parameters ``x0`` and ``mu`` (an (N, m) schedule). Two
 formulations give the same problem: "condensed" (E[X] = Phi x0 + Gamma (mu ∘ U) as an expression) and "sparse"
 (the mean states as variables, the dynamics as equality constraints). ``solver=`` takes any installed cvxpy
-solver (Clarabel by default, under :func:`~packetloss_cvx.qp.convex.solve_problem`'s policy).
+solver (Clarabel by default, under `solve_problem`'s policy).
 
 Every solve is checked without cvxpy: the plan's expected cost by the forward pass
-(:func:`~packetloss_cvx.lq.recursion.plan_cost`), and the KKT conditions (stationarity, primal and dual
+([`plan_cost`][packetloss_cvx.lq.recursion.plan_cost]), and the KKT conditions (stationarity, primal and dual
 feasibility, complementarity) from the solver's multipliers, the constraints evaluated on the moments of x_k by
-their own forward recursion (:func:`plan_moments`) rather than from the matrices the problem was built with. A
-residual beyond ``CONSTRAINED_KKT_RTOL`` raises; infeasibility raises :class:`~packetloss_cvx.errors.InfeasibleError`
+their own forward recursion (`plan_moments`) rather than from the matrices the problem was built with. A
+residual beyond ``CONSTRAINED_KKT_RTOL`` raises; infeasibility raises
+[`InfeasibleError`][packetloss_cvx.errors.InfeasibleError]
 with the solver's status, never a fallback.
 """
 
@@ -87,7 +88,7 @@ class ConstrainedSolution(Frozen):
     violations : tuple of (str, float)
         Soft constraints violated at the plan and by how much (the slack); empty for a hard problem.
     kkt_residual : float or None
-        The largest relative KKT residual (:meth:`ConstrainedQP.kkt`), None where user constraints were added.
+        The largest relative KKT residual (`ConstrainedQP.kkt`), None where user constraints were added.
     formulation, solver : str
     solve_time : float
         Seconds in the solver call.
@@ -95,7 +96,7 @@ class ConstrainedSolution(Frozen):
         The KKT residual of the solver's own answer, before the polish.
     polished : bool
         Whether the plan is the solver's answer refined by Newton's method on its active set
-        (:meth:`ConstrainedQP._polish`), kept only where its KKT residual is no larger than the solver's.
+        (`ConstrainedQP._polish`), kept only where its KKT residual is no larger than the solver's.
     """
 
     protocol: str
@@ -150,12 +151,12 @@ class ConstrainedQP:
     problem : cvxpy.Problem
         DPP; its objective is J(U) less its constant terms, divided by the largest weight.
     U : cvxpy.Variable (N, m)
-        After :meth:`solve` its value is the solver's own answer; the returned plan is that answer polished
+        After `solve` its value is the solver's own answer; the returned plan is that answer polished
         (``ConstrainedSolution.polished``).
     states : cvxpy.Expression (N, n)
         E[x_1..x_N] under the plan.
     x0, mu : cvxpy.Parameter
-        n and (N, m); :meth:`solve` sets them (and the Parameters derived from mu).
+        n and (N, m); `solve` sets them (and the Parameters derived from mu).
 
     Examples
     --------
@@ -303,7 +304,7 @@ class ConstrainedQP:
 
     def solve(self, mu=None, x0=None, *, check: bool = True) -> ConstrainedSolution:
         """Solve for the system's (or the given) ``mu`` (m-vector or N×m schedule) and ``x0``, validated through
-        :class:`System`.
+        [`System`][packetloss_cvx.model.system.System].
 
         Raises
         ------
@@ -314,7 +315,7 @@ class ConstrainedQP:
             Any other status than "optimal" (``optimal_inaccurate`` and ``infeasible_inaccurate`` included).
         NumericalError
             With ``check``, a plan whose forward cost disagrees with the solver's objective beyond
-            ``CROSS_CHECK_COST_RTOL``, or whose KKT residual (:meth:`kkt`) exceeds ``CONSTRAINED_KKT_RTOL``.
+            ``CROSS_CHECK_COST_RTOL``, or whose KKT residual (`kkt`) exceeds ``CONSTRAINED_KKT_RTOL``.
         """
         system = self.system
         if mu is not None:
@@ -367,7 +368,7 @@ class ConstrainedQP:
     def certificate(self, system: System) -> dict[str, Any]:
         """The solver's infeasibility certificate (cvxpy's multipliers after an "infeasible" status), checked without
         the solver. For linear rows ``G u <= h`` (input, rate and expected-state limits, evaluated on
-        :func:`plan_moments`), multipliers ``y >= 0`` with ``-y'h > ||G'y||_1 max|u|`` prove that no plan exists:
+        `plan_moments`), multipliers ``y >= 0`` with ``-y'h > ||G'y||_1 max|u|`` prove that no plan exists:
         ``y'(G u - h) <= 0`` would fail for every u within the input bounds, which every plan meets. Returns
         ``{"verdict", "reason", "margin", "multipliers"}``: verdict "verified" (the inequality holds with the
         rounding of the sums bounded), else "undecided" with the reason (chance rows, whose cone multipliers cvxpy
@@ -418,7 +419,7 @@ class ConstrainedQP:
         the active set, an active row whose multiplier turns negative (or, soft, beyond rho) leaves it, and Newton
         runs again, at most ``POLISH_MAX_ROUNDS`` times. An interior-point answer is accurate to about the square root
         of its absolute gap in U; the active set's equations, quadratic but for the chance rows' norms, are solved to
-        rounding. Returns ``(U, multipliers, slacks)`` per block, or None where no round settles; :meth:`solve` keeps
+        rounding. Returns ``(U, multipliers, slacks)`` per block, or None where no round settles; `solve` keeps
         it only where its own KKT residual is no larger than the solver's.
         O(rounds steps (N^2 n m (n + m) + (N m + rows)^3)).
         """
@@ -514,7 +515,7 @@ class ConstrainedQP:
             slacks: list[np.ndarray] | None = None) -> dict[str, Any]:
         """The KKT conditions at the plan ``U`` with the last solve's multipliers (or ``multipliers``, ``slacks``: one
         array per constraint block, in the cost's units), every constraint and gradient evaluated on
-        :func:`plan_moments` (not on the matrices the problem was built from). Returns
+        `plan_moments` (not on the matrices the problem was built from). Returns
         ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations"}``:
 
         * stationarity ``||grad J + sum lambda_i grad g_i||_inf`` over the largest of its terms' sizes: grad J's
@@ -710,8 +711,8 @@ def _chance_data(system: System, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def solve_constrained(system: System, protocol: str, constraints: Constraints | Any, formulation: str = "auto",
                       solver: str | None = None, **kwargs) -> ConstrainedSolution:
-    """Minimise the protocol's expected cost under ``constraints`` (:class:`ConstrainedQP`, solved once; keep the
-    object to re-solve for other x0 or mu without recompiling). Keyword arguments go to :meth:`ConstrainedQP.solve`.
+    """Minimise the protocol's expected cost under ``constraints`` (`ConstrainedQP`, solved once; keep the
+    object to re-solve for other x0 or mu without recompiling). Keyword arguments go to `ConstrainedQP.solve`.
 
     Examples
     --------

@@ -175,9 +175,10 @@ class ExpectedCostQP:
     protocol : {"tcp", "udp"}
     formulation : {"condensed", "sparse", "auto"}
     constraints : Constraints or mapping, optional
-        Input, rate, expected-state and chance constraints: :meth:`solve` then solves the constrained problem
-        (:class:`~packetloss_cvx.qp.constrained.ConstrainedQP`, kept as ``constrained``) and returns its
-        :class:`~packetloss_cvx.qp.constrained.ConstrainedSolution` (no gain, no closed form to compare with).
+        Input, rate, expected-state and chance constraints:
+        [`solve`][packetloss_cvx.qp.expected_cost.ExpectedCostQP.solve] then solves the constrained problem
+        (`ConstrainedQP`, kept as ``constrained``) and returns its
+        `ConstrainedSolution` (no gain, no closed form to compare with).
     solver : str, optional
         With ``constraints``: any installed cvxpy solver (default Clarabel).
 

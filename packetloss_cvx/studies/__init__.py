@@ -3,7 +3,8 @@
 ``sweeps`` evaluates the optimal costs of both protocols and their difference over grids of
 delivery probabilities (the data behind the paper's cost figures); ``design`` runs design-study
 sweeps over channels, initial states or horizons, batched and optionally on Dask (``engine``),
-saved by ``output``; ``allocation`` the allocation studies (Pareto curve, contour allocations, the J*(mu) grid; it imports cvxpy, so
+saved by ``output``; ``allocation`` the allocation studies (Pareto curve, contour allocations, the J*(mu) grid; it
+imports cvxpy, so
 it is not loaded here);
 ``burstiness`` sweeps and maps over a chain's burstiness at fixed average rates; ``region_map`` the stabilisable
 set over a grid of channels; ``paper_figures`` the paper's figures as data. Plots draw these results; they compute
