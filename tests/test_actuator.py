@@ -156,7 +156,7 @@ def sampled_costs(system: System, K: np.ndarray, steps: int, spec: str, runs: in
         held = applied
         total += np.einsum("ri,ij,rj->r", X, Omega, X) + applied ** 2 @ psi
         X = X @ A.T + applied @ B.T + rng.standard_normal((runs, n)) @ root.T
-        c = np.array([rng.choice(T.shape[0], p=T[s]) for s in c]) if T.shape[0] > 1 else c
+        c = np.sum(rng.random(runs)[:, None] > np.cumsum(T[c], axis=1)[:, :-1], axis=1)     # the next state
     total += np.einsum("ri,ij,rj->r", X, Omega, X)
     return float(total.mean()), float(total.std(ddof=1) / np.sqrt(runs))
 
