@@ -41,11 +41,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ..budgets import check, gib_text, operator_bytes
-from ..errors import InputError
+from ..errors import DimensionError, InputError
 from ..model.channel import GilbertElliott
 from ..model.markov_channel import MarkovChannel
-from ..model.system import System, check_system
-from .mjls import _mode_gains, mode_chain, mode_start
+from ..model.system import System, check_system, numeric_array
+from .mjls import mode_chain, mode_start
 from .modes import mode_matrix, mode_radius, mode_stage_costs
 from .moments import check_steps, stationary_channel
 from .stability import check_law
@@ -180,7 +180,7 @@ def actuator_loop(A: npt.ArrayLike, B: npt.ArrayLike, gain: npt.ArrayLike, chann
     if isinstance(channel, GilbertElliott | MarkovChannel):
         A_, B_ = check_law(A, B, np.zeros((np.shape(B)[1], np.shape(A)[0])), np.ones(np.shape(B)[1]))[:2]
         _, Tc, hc = mode_chain(channel)
-        K = _mode_gains(gain, Tc.shape[0], B_.shape[1], A_.shape[0])
+        K = _state_gains(gain, Tc.shape[0], *B_.shape[::-1])
         start = mode_start(channel)
     else:
         A_, B_, K, mu = check_law(A, B, gain, channel)
@@ -195,6 +195,15 @@ def actuator_loop(A: npt.ArrayLike, B: npt.ArrayLike, gain: npt.ArrayLike, chann
         held = np.broadcast_to(np.hstack([np.zeros((m, n)), np.eye(m)]), Kt.shape).copy()
         return JumpLoop(strategy, At, Bt, Kt, hc, Tc, start, held, np.vstack([np.eye(n), np.zeros((m, n))]))
     return _buffer_loop(strategy, A_, B_, K, hc, Tc, start)
+
+
+def _state_gains(gain: npt.ArrayLike, M: int, m: int, n: int) -> np.ndarray:
+    """One (m, n) gain for every channel state, or (M, m, n) gains per state, as (M, m, n)."""
+    K = numeric_array(gain, "gain")
+    K = np.repeat(K[None], M, axis=0) if K.ndim == 2 else K
+    if K.shape != (M, m, n):
+        raise DimensionError("gain", f"expected ({m}, {n}) or ({M}, {m}, {n}) per channel state, found {K.shape}")
+    return K
 
 
 def _buffer_loop(strategy: Actuator, A: np.ndarray, B: np.ndarray, K: np.ndarray, hc: np.ndarray,
