@@ -9,6 +9,7 @@ its confidence interval; (c) the scalar plant's renewal closed forms (module doc
 from __future__ import annotations
 
 import itertools
+import json
 
 import numpy as np
 import pytest
@@ -248,6 +249,16 @@ def test_every_strategy_is_the_nominal_loop_without_losses() -> None:
         assert abs(actuator_radius(system, K, spec) - nominal) <= ACTUATOR_EXACT_RTOL * nominal
 
 
+@pytest.mark.parametrize("spec", ["hold", "buffer:2", "buffer:3"])
+def test_krylov_radius_matches_the_dense_one(spec: str) -> None:
+    """Beyond 400 rows the engine's radius is ARPACK's on the map (buffer:3 of two actuators: 16 modes of 6^2):
+    the dense eigenvalues of the same map agree."""
+    system = _system(m=2, mu=[0.9, 0.5])
+    loop = actuator_loop(system.A, system.B, _gain(2), system.mu_schedule[0], spec)
+    dense, krylov = loop.radius("dense"), loop.radius("krylov")
+    assert abs(krylov - dense) <= ACTUATOR_EXACT_RTOL * dense
+
+
 # ---------------------------------------------------------------- the scalar plant by hand
 #
 # x+ = a x + b a_k, u = -k x, deliveries Bernoulli(mu), g = a - b k. After a delivery at k0 the state until the next
@@ -364,3 +375,64 @@ def test_buffer_modes_form_a_chain() -> None:
     assert loop.A.shape == (64, 6, 6)
     assert np.max(np.abs(loop.T.sum(axis=1) - 1.0)) <= ROW_SUM_ATOL
     assert abs(loop.start.sum() - 1.0) <= ROW_SUM_ATOL
+
+
+# ---------------------------------------------------------------- the command line
+
+def test_solve_prints_every_strategy_per_law(capsys) -> None:
+    """``solve --actuator``: per protocol each strategy; "zero" is the loop solve already reports."""
+    from packetloss_cvx.cli import main
+    from packetloss_cvx.model.files import load_example
+
+    from .conftest import EXAMPLES
+
+    code = main(["solve", str(EXAMPLES / "two_actuator.toml"), "--no-qp", "--actuator", "zero,hold,buffer:3", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0
+    assert err == ""
+    data = json.loads(out)
+    system = load_example("two_actuator")
+    for protocol in ("tcp", "udp"):
+        entry = data[protocol]["actuator"]
+        assert entry["steps"] == system.horizon
+        assert list(entry["strategies"]) == ["zero", "hold", "buffer:3"]
+        zero = entry["strategies"]["zero"]["radius"]
+        assert abs(zero - data[protocol]["mean_square_spectral_radius"]) <= ACTUATOR_ZERO_RTOL * zero
+        gain = np.array(data[protocol]["gain"])
+        stage, terminal = actuator_costs(system, gain, system.horizon, "hold")
+        assert entry["strategies"]["hold"]["cost"] == stage.sum() + terminal
+
+
+@pytest.mark.parametrize("spec", ["buffer:0", "buffer:11", "drop", "hold,buffer:x"])
+def test_solve_refuses_a_bad_strategy_in_one_line(capsys, spec: str) -> None:
+    from packetloss_cvx.cli import main
+
+    from .conftest import EXAMPLES
+
+    code = main(["solve", str(EXAMPLES / "two_actuator.toml"), "--no-qp", "--actuator", spec])
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert out == ""
+    assert err.splitlines() == [err.strip()]
+    assert err.startswith("packetloss-cvx: error: --actuator: expected zero, hold or buffer:L with an integer "
+                          "1 <= L <= 10 (the horizon), found")
+
+
+def test_solve_compares_the_three_in_text(capsys, tmp_path) -> None:
+    """``--actuator all`` on a scalar plant: one line per strategy, each verdict the hand renewal closed form's
+    (R < 1) for the law solve prints (k = 0.646: R = 1.06 zeroing, 0.654 holding, 0.691 with the plan)."""
+    from packetloss_cvx.cli import main
+    from packetloss_cvx.lq.costs import closed_form
+    from packetloss_cvx.model.files import save_system
+
+    s = System(A=[[1.5]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[8.0], mu=[0.8], x0=[1.0])
+    path = save_system(s, tmp_path / "scalar.toml")
+    code = main(["solve", str(path), "--no-qp", "--protocol", "udp", "--actuator", "all"])
+    out, _ = capsys.readouterr()
+    assert code == 0
+    k = float(closed_form(s, "udp").gain[0, 0])
+    lines = {line.split(":")[0].strip(): line for line in out.splitlines() if "exact cost over 3 steps" in line}
+    assert list(lines) == ["zero", "hold", "buffer"]
+    for name, spec in (("zero", "zero"), ("hold", "hold"), ("buffer", "buffer:3")):
+        stable = _renewal(spec, 1.5, 1.0, k, 0.8) < 1.0
+        assert ("NOT mean-square stable" not in lines[name]) == stable, (spec, k, lines[name])

@@ -187,6 +187,11 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--formulation", choices=("condensed", "sparse", "auto"), default="auto",
                        help="the cross-checking QP's form, e.g. --formulation sparse")
     solve.add_argument("--no-qp", action="store_true", help="skip the solver cross-check (closed form only)")
+    solve.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                       help="what the actuator does on a loss, for each law's loop: apply zero, hold the last "
+                            "input, or play the buffered plan of L inputs (default L: the horizon); comma-separated, "
+                            "or all to compare the three: exact mean-square radius and cost over N steps "
+                            "(default: none), e.g. --actuator all")
     solve.add_argument("--stability", action=argparse.BooleanOptionalAction,
                        help="each law's mean-square stability in closed loop: --stability computes it at any n "
                             "(minutes for n in the hundreds), --no-stability skips it (default: computed for "

@@ -41,17 +41,17 @@ import numpy as np
 import numpy.typing as npt
 
 from ..budgets import check, gib_text, operator_bytes
-from ..errors import DimensionError, InputError
+from ..errors import DimensionError, InputError, NumericalError
 from ..model.channel import GilbertElliott
 from ..model.markov_channel import MarkovChannel
 from ..model.system import System, check_system, numeric_array
 from .mjls import mode_chain, mode_start
 from .modes import mode_matrix, mode_radius, mode_stage_costs
 from .moments import check_steps, stationary_channel
-from .stability import check_law
+from .stability import check_law, is_mean_square_stable
 
 __all__ = ["MAX_BUFFER_MODES", "STRATEGIES", "Actuator", "JumpLoop", "actuator_costs", "actuator_loop",
-           "actuator_radius", "parse_actuator"]
+           "actuator_radius", "compare_actuators", "parse_actuators", "parse_actuator"]
 
 #: The strategies, as ``--actuator`` and ``actuator=`` spell them (``buffer:L``, ``buffer`` alone: L = the horizon).
 STRATEGIES = ("zero", "hold", "buffer")
@@ -311,3 +311,47 @@ def actuator_costs(system: System, gain: npt.ArrayLike, steps: int, actuator: st
     loop = _system_loop(system, gain, actuator, mu)
     check_steps(steps, loop.modes * loop.A.shape[-1] ** 2)
     return loop.stage_costs(system.state_weights[0], system.input_weights[0], system.noise_cov, system.x0, steps)
+
+
+def parse_actuators(text: str, horizon: int) -> tuple[Actuator, ...]:
+    """A comma-separated list of strategies (:func:`parse_actuator`), or "all": zero, hold and buffer:N (N the
+    horizon: the whole plan), each once.
+
+    >>> [str(a) for a in parse_actuators("all", 4)], [str(a) for a in parse_actuators("hold,buffer:2", 4)]
+    (['zero', 'hold', 'buffer:4'], ['hold', 'buffer:2'])
+    """
+    parts = ["zero", "hold", "buffer"] if text.strip() == "all" else text.split(",")
+    return tuple(dict.fromkeys(parse_actuator(part.strip(), horizon) for part in parts))
+
+
+def compare_actuators(system: System, gain: npt.ArrayLike, steps: int | None = None,
+                      actuators: str | tuple[Actuator, ...] = "all",
+                      mu: npt.ArrayLike | None = None) -> dict[str, dict[str, float | bool | str]]:
+    """The strategies side by side for one law: per strategy (its name as key) the mean-square ``radius``,
+    ``stable`` (radius below 1 by MEAN_SQUARE_MARGIN) and ``cost``, the exact expected cost of ``steps`` steps from
+    x0 (stage costs and the terminal ``x_T' Omega_1 x_T``; default steps: the horizon). A radius that cannot be
+    computed is nan with its ``reason``. Time: the strategies' :func:`actuator_radius` and :func:`actuator_costs`.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.5]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.8], x0=[1.0])
+    >>> rows = compare_actuators(s, [[0.6]])          # a slow law: holding stabilises it, zeroing does not
+    >>> {name: row["stable"] for name, row in rows.items()}
+    {'zero': False, 'hold': True, 'buffer:3': True}
+    """
+    system = check_system(system)
+    steps = system.horizon if steps is None else steps
+    strategies = parse_actuators(actuators, system.horizon) if isinstance(actuators, str) else actuators
+    out: dict[str, dict[str, float | bool | str]] = {}
+    for strategy in strategies:
+        loop = _system_loop(system, gain, strategy, mu)
+        check_steps(steps, loop.modes * loop.A.shape[-1] ** 2)
+        try:
+            radius, reason = loop.radius(), ""
+        except NumericalError as err:
+            radius, reason = float("nan"), str(err)
+        stage, terminal = loop.stage_costs(system.state_weights[0], system.input_weights[0], system.noise_cov,
+                                           system.x0, steps)
+        out[str(strategy)] = {"radius": radius, "stable": is_mean_square_stable(radius),
+                              "cost": float(stage.sum() + terminal), "reason": reason}
+    return out
