@@ -436,3 +436,52 @@ def test_solve_compares_the_three_in_text(capsys, tmp_path) -> None:
     for name, spec in (("zero", "zero"), ("hold", "hold"), ("buffer", "buffer:3")):
         stable = _renewal(spec, 1.5, 1.0, k, 0.8) < 1.0
         assert ("NOT mean-square stable" not in lines[name]) == stable, (spec, k, lines[name])
+
+
+def test_simulate_samples_each_strategy_beside_its_exact_cost(capsys, tmp_path) -> None:
+    """``simulate --closed-loop --actuator all``: the package's sampler within SAMPLED_Z_MAX standard errors of the
+    exact mean stage cost, for each strategy, on a noisy two-state plant (the sampler is seeded)."""
+    from packetloss_cvx.cli import main
+    from packetloss_cvx.model.files import save_system
+
+    system = _system(m=2, mu=[0.8, 0.6], horizon=4)
+    path = save_system(system, tmp_path / "plant.toml")
+    code = main(["simulate", str(path), "--closed-loop", "--law", "udp", "--actuator", "all", "--samples", "20000",
+                 "--steps", "25", "--seed", "3", "--json"])
+    out, _ = capsys.readouterr()
+    assert code == 0
+    rows = json.loads(out)["actuator"]["udp"]
+    assert list(rows) == ["zero", "hold", "buffer:4"]
+    for row in rows.values():
+        assert abs(row["mean_stage_cost"] - row["exact_stage_cost"]) <= SAMPLED_Z_MAX * row["stderr"]
+        assert row["stable"]
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    ([], "--actuator: the actuator's strategy acts in the closed loop: add --closed-loop"),
+    (["--closed-loop", "--actuator", "buffer:0"], "--actuator: expected zero, hold or buffer:L"),
+])
+def test_simulate_refuses_in_one_line(capsys, extra: list[str], message: str) -> None:
+    from packetloss_cvx.cli import main
+
+    from .conftest import EXAMPLES
+
+    argv = ["simulate", str(EXAMPLES / "two_actuator.toml"), "--samples", "10", *(extra or ["--actuator", "hold"])]
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert out == ""
+    assert len(err.splitlines()) == 1
+    assert err.startswith(f"packetloss-cvx: error: {message}")
+
+
+def test_simulate_refuses_a_chain(capsys, tmp_path) -> None:
+    """Behind a Markov channel simulate's laws read the belief: refused, pointing at solve --actuator."""
+    from packetloss_cvx.cli import main
+    from packetloss_cvx.model.files import save_system
+
+    path = save_system(_system(**CHANNELS["gilbert-1"]), tmp_path / "chain.toml")
+    code = main(["simulate", str(path), "--closed-loop", "--actuator", "hold", "--samples", "10"])
+    _, err = capsys.readouterr()
+    assert code == 2
+    assert err.startswith("packetloss-cvx: error: --actuator: behind a Markov channel")

@@ -10,9 +10,11 @@ import numpy as np
 from ..closedloop.actuator import Actuator, compare_actuators, parse_actuators
 from ..errors import InputError
 from ..model.system import System
+from ..montecarlo.actuator import simulate_actuator
+from ..montecarlo.simulate import law_gains
 from . import format as fmt
 
-__all__ = ["actuator_entry", "actuator_strategies"]
+__all__ = ["actuator_entry", "actuator_strategies", "simulate_actuator_section"]
 
 
 def actuator_strategies(text: str | None, system: System) -> tuple[Actuator, ...]:
@@ -54,3 +56,31 @@ def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator,
         if not np.isfinite(radius):
             row["radius"] = None
     return {"steps": steps, "strategies": rows}, lines
+
+
+def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies: tuple[Actuator, ...], steps: int,
+                              samples: int, seed: int) -> tuple[dict[str, Any], list[str]]:
+    """``simulate --closed-loop --actuator``: each law (montecarlo.simulate.law_gains) under each strategy, sampled
+    (montecarlo.actuator) beside its exact mean stage cost and radius (closedloop.actuator); JSON per law and
+    strategy, and the text lines. A law that does not exist (the DP optimum without a stabilising solution) is
+    listed with its reason."""
+    data: dict[str, Any] = {}
+    lines = [f"  actuator on a loss: each law's loop sampled ({samples} runs, seed {seed}) and exact over {steps} "
+             "steps"]
+    for law, gain in law_gains(system, laws).items():
+        label = "DP optimum" if law == "dp" else f"{law.upper()}-like law"
+        if isinstance(gain, str):
+            data[law] = {"reason": gain}
+            lines.append(f"    {label}: no law: {gain}")
+            continue
+        data[law] = {}
+        for strategy in strategies:
+            row = simulate_actuator(system, gain, steps, strategy, samples, seed)
+            data[law][str(strategy)] = row
+            verdict = (("mean-square stable" if row["stable"] else "NOT mean-square stable")
+                       + f", radius {fmt.num(row['radius'])}") if row["radius"] is not None else \
+                f"radius not computed ({row['reason']})"
+            lines.append(f"    {label}, {strategy}: mean stage cost sampled {fmt.num(row['mean_stage_cost'])} +- "
+                         f"{fmt.num(row['stderr'], 3)}, exact {fmt.num(row['exact_stage_cost'])} (z = "
+                         f"{fmt.num(row['z'], 3)}); {verdict}")
+    return data, lines

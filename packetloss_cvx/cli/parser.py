@@ -283,6 +283,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default: open loop only)")
     sim.add_argument("--law", choices=("tcp", "udp", "dp", "all"), default="all",
                      help="a protocol's receding-horizon law, the DP optimum (closed loop only) or all, e.g. --law dp")
+    sim.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                     help="with --closed-loop: each law's loop when the actuator applies zero, holds the last input "
+                          "or plays the buffered plan of L inputs (default L: the horizon) on a loss, sampled beside "
+                          "its exact cost and radius; comma-separated, or all (default: none), e.g. --actuator hold")
     sim.add_argument("--save", metavar="FILE.npz",
                      help="save closed-loop trajectories (first 1000 runs) and curves (default: none), "
                           "e.g. --save runs.npz")
