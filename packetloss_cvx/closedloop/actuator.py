@@ -7,7 +7,9 @@ in :mod:`.mjls`'s ``delivery="current"``) is sent to m actuators, actuator i's p
 - ``zero``: applies nothing (the paper's model; today's loop, :mod:`.stability` and :mod:`.mjls`);
 - ``hold``: applies its last applied input ``w`` (0 before the first packet). With ``z = (x, w)``,
   ``z+ = (Ã - B̃ V K̃) z``, ``Ã = [[A, B], [0, I]]``, ``B̃ = [B; I]``, ``K̃ = [K, I]``: the engine's own form over
-  the channel's modes, the applied input ``w - V (K x + w)``;
+  the channel's modes, the applied input ``w - V (K x + w)``. The held input is state: behind a link that never
+  delivers (mu_i = 0) it is held for ever, so the radius is at least 1 (a held input other than the empty start's
+  0 never decays), although from that start the loop is zero's;
 - ``buffer:L``: each packet carries the law's next L planned inputs ``u_{k+j|k} = -K (A - B K)^j x_k``,
   j = 0..L-1 (the nominal prediction, every input delivered); on a loss the actuator plays the next entry of
   the last plan it received, and zero once the plan is exhausted. The mode is the channel state c and, per
