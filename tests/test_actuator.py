@@ -240,6 +240,15 @@ def test_buffer_of_one_is_zero(name: str) -> None:
         <= ACTUATOR_EXACT_RTOL
 
 
+def test_a_held_input_behind_a_dead_link_is_marginal() -> None:
+    """mu = 0: hold's z+ = [[a, b], [0, 1]] z for ever, second-moment eigenvalues the products of 0.5 and 1: the radius
+    is 1 (not proved stable), while zero and the buffer (emptied once exhausted) give a^2 = 1/4."""
+    s = System(A=[[0.5]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.0], x0=[1.0])
+    assert abs(actuator_radius(s, [[0.3]], "hold") - 1.0) <= ACTUATOR_EXACT_RTOL
+    for spec in ("zero", "buffer:3"):
+        assert abs(actuator_radius(s, [[0.3]], spec) - 0.25) <= ACTUATOR_EXACT_RTOL * 0.25
+
+
 def test_every_strategy_is_the_nominal_loop_without_losses() -> None:
     """mu = 1: nothing is lost, so every strategy's radius is rho(A - B K)^2 (the augmented memory decays)."""
     system = _system(mu=[1.0])
