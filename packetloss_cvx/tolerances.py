@@ -408,8 +408,9 @@ ACTUATOR_ZERO_RTOL = 1e-12
 #: The engine's exact costs of hold and buffer:L against the enumeration of every delivery path (and the same
 #: quantity computed through another mode structure: buffer:1 against zero; the hand moment recursions of the scalar
 #: plant; ARPACK's radius against the dense eigenvalues) (measured: at most 1.1e-15 against enumeration, 2.3e-15
-#: buffer:1 against zero, 1.5e-15 at mu = 1, 6.6e-15 Krylov against dense on 16 to 576 rows, on plants of n <= 2
-#: with 1 to 32 modes, under Haswell, Prescott and SkylakeX kernels).
+#: buffer:1 against zero, 1.5e-15 at mu = 1, 6.6e-15 Krylov against dense on 16 to 576 rows, 6.0e-15 the buffer's
+#: predicted-state memory against its entries, on plants of n <= 2 with 1 to 63 modes, under Haswell, Prescott and
+#: SkylakeX kernels; ARPACK's radii of the two memories of a 162-mode buffer agree to 3.5e-14, within ARPACK_TOL).
 ACTUATOR_EXACT_RTOL = 1e-12
 #: The critical mu of a scalar loop found where the engine's radius crosses 1, against the hand renewal closed form's
 #: root, both by brentq to xtol 1e-14 (measured: at most 2.0e-15 over three plants and four strategies, under Haswell,

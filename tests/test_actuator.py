@@ -38,7 +38,8 @@ from packetloss_cvx.tolerances import (
     SAMPLED_Z_MAX,
 )
 
-STRATEGIES = ["zero", "hold", "buffer:1", "buffer:2", "buffer:3"]
+#: buffer:5 on the n = 2 plants keeps the plan's predicted state (n < L - 1), the shorter buffers its entries
+STRATEGIES = ["zero", "hold", "buffer:1", "buffer:2", "buffer:3", "buffer:5"]
 
 
 def _system(m: int = 1, channel=None, mu=None, noise: bool = True, horizon: int = 6) -> System:
@@ -193,7 +194,7 @@ def test_mode_gains_match_every_delivery_path() -> None:
     """A law per channel state behind a Gilbert channel: the plan and the input follow the state at sending."""
     system = _system(**CHANNELS["gilbert-1"])
     K = np.array([[[0.4, 0.9]], [[0.1, 1.3]]])
-    for spec in ("hold", "buffer:3"):
+    for spec in ("hold", "buffer:3", "buffer:5"):      # per-state gains: the buffer keeps its entries
         stage, terminal = actuator_costs(system, K, 3, spec)
         ref_stage, ref_terminal = enumerated_costs(system, K, 3, spec)
         assert _relative(np.append(stage, terminal), np.append(ref_stage, ref_terminal)) <= ACTUATOR_EXACT_RTOL
@@ -256,6 +257,25 @@ def test_every_strategy_is_the_nominal_loop_without_losses() -> None:
     nominal = max(abs(np.linalg.eigvals(system.A - system.B @ K))) ** 2
     for spec in STRATEGIES:
         assert abs(actuator_radius(system, K, spec) - nominal) <= ACTUATOR_EXACT_RTOL * nominal
+
+
+@pytest.mark.parametrize("L", [5, 8, 20])
+@pytest.mark.parametrize("name", ["gilbert-1", "kstate-1"])
+def test_the_buffers_two_memories_agree(name: str, L: int) -> None:
+    """One gain for every channel state: the buffer keeps the plan's predicted state (n entries); a gain that differs
+    in one state by one ulp makes it keep the L - 1 entries instead. Same radius and costs, two state spaces."""
+    system = _system(**CHANNELS[name])
+    T = actuator_loop(system.A, system.B, _gain(1), system.channel, "zero").T
+    K = np.repeat(_gain(1)[None], T.shape[0], axis=0)
+    K_ulp = K.copy()
+    K_ulp[-1] = np.nextafter(K_ulp[-1], np.inf)
+    short = actuator_loop(system.A, system.B, K, system.channel, f"buffer:{L}")
+    long = actuator_loop(system.A, system.B, K_ulp, system.channel, f"buffer:{L}")
+    assert (short.A.shape[-1], long.A.shape[-1]) == (2 + 2, 2 + L - 1)
+    assert abs(short.radius() - long.radius()) <= ACTUATOR_EXACT_RTOL * long.radius()
+    weights = (system.state_weights[0], system.input_weights[0], system.noise_cov, system.x0, 12)
+    costs = [np.append(*loop.stage_costs(*weights)) for loop in (short, long)]
+    assert _relative(costs[0], costs[1]) <= ACTUATOR_EXACT_RTOL
 
 
 @pytest.mark.parametrize("spec", ["hold", "buffer:2", "buffer:3"])

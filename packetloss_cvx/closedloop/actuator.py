@@ -15,7 +15,9 @@ in :mod:`.mjls`'s ``delivery="current"``) is sent to m actuators, actuator i's p
   the last plan it received, and zero once the plan is exhausted. The mode is the channel state c and, per
   actuator, the age ``alpha_i`` of the plan being played (0: delivered now, L: exhausted), so
   ``M_c (L + 1)^m`` modes; the state is ``z = (x, b_1, .., b_m)``, ``b_i`` the L - 1 entries after the first of
-  actuator i's last plan (zeroed once exhausted, so that a plan never played again is not counted as state).
+  actuator i's last plan, or, where one gain serves every channel state and n < L - 1, the plan's predicted state
+  ``p_i`` (n entries: ``p_i <- (A - B K) p_i`` on a loss, the entry played ``-k_i p_i``); either is zeroed once
+  exhausted, so that a plan never played again is not counted as state.
   Given the mode the step is deterministic (``x+ = A x + B a``, ``a_i = -k_i x``, ``b_i[alpha_i]`` or 0), the
   deliveries entering through the mode chain: ``P((c, alpha) -> (c', alpha')) = T_cc' prod_i q_i`` with
   ``q_i = h_{c',i}`` for ``alpha'_i = 0`` and ``1 - h_{c',i}`` for ``alpha'_i = min(alpha_i + 1, L)``.
@@ -222,17 +224,19 @@ def _buffer_loop(strategy: Actuator, A: np.ndarray, B: np.ndarray, K: np.ndarray
         raise InputError("actuator", f"buffer:{L} behind {Mc} channel state(s) and {m} actuator(s) has "
                                      f"{Mc} * {L + 1}^{m} = {M} modes; expected at most {MAX_BUFFER_MODES}: use a "
                                      "shorter buffer")
-    N = n + m * (L - 1)
+    # the plan's memory per actuator: its predicted state p_i (n entries, one gain for every channel state: entry j
+    # is -k_i (A - B K)^j x_k0, so p_i <- (A - B K) p_i and the entry played is -k_i p_i), or else its L - 1 entries
+    predicted = n < L - 1 and all(np.array_equal(Kc[0], Kc[c]) for c in range(Mc))
+    width = n if predicted else L - 1
+    N = n + m * width
     check("memory_bytes", 8.0 * M * (3 * N * N + M), "actuator",
           f"buffer:{L}'s {M} mode matrices of {N}^2 entries (about {gib_text(8.0 * M * 3 * N * N)})",
           instead="use a shorter buffer")
     ages = np.array(list(itertools.product(range(L + 1), repeat=m)), dtype=int).reshape(-1, m)
-    slot = [n + i * (L - 1) for i in range(m)]                       # where b_i starts in z
-    plans = []                                                        # per channel state: rows -k_i (A - B K)^j
-    for c in range(Mc):
-        Acl = A - B @ Kc[c]
-        powers = [np.linalg.matrix_power(Acl, j) for j in range(1, L)]
-        plans.append([np.array([-Kc[c][i] @ P for P in powers]).reshape(L - 1, n) for i in range(m)])
+    slot = [n + i * width for i in range(m)]                         # where actuator i's memory starts in z
+    closed = [A - B @ Kc[c] for c in range(Mc)]
+    plans = [[np.array([-Kc[c][i] @ np.linalg.matrix_power(closed[c], j) for j in range(1, L)]).reshape(L - 1, n)
+              for i in range(m)] for c in range(Mc)]                 # per state: rows -k_i (A - B K)^j, j >= 1
     A_all, K_all = np.zeros((M, N, N)), np.zeros((M, m, N))
     held, h = np.zeros((M, m, N)), np.zeros((M, m))
     for c, (r, alpha) in itertools.product(range(Mc), enumerate(ages)):
@@ -240,10 +244,15 @@ def _buffer_loop(strategy: Actuator, A: np.ndarray, B: np.ndarray, K: np.ndarray
         A_all[a, :n, :n] = A
         K_all[a, :, :n] = Kc[c]
         for i, age in enumerate(alpha):
-            rows = slice(slot[i], slot[i] + L - 1)
-            if age == 0:                                              # delivered: play -k_i x, buffer the rest
+            rows = slice(slot[i], slot[i] + width)
+            if age == 0:                                              # delivered: play -k_i x, keep the plan
                 h[a, i] = 1.0
-                A_all[a, rows, :n] = plans[c][i]
+                A_all[a, rows, :n] = np.eye(n) if predicted else plans[c][i]
+            elif age < L and predicted:                               # lost: advance the prediction, play it
+                row = -Kc[c][i] @ closed[c]
+                A_all[a, rows, rows] = closed[c]
+                A_all[a, :n, rows] += np.outer(B[:, i], row)
+                held[a, i, rows] = row
             elif age < L:                                             # lost: play entry alpha_i, keep the plan
                 A_all[a, :n, slot[i] + age - 1] = B[:, i]
                 held[a, i, slot[i] + age - 1] = 1.0
