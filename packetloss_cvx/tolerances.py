@@ -428,3 +428,24 @@ COUPLED_ZERO_RTOL = 1e-12
 #: COUPLED_BRACKET_RTOL relative (the least radius is then pinned between them). Measured at the first checkpoint
 #: (30 power steps) on the 313 chains: median 8e-16, 99 % 9.3e-12, largest 4.9e-11 (Haswell; Prescott 2.1e-11).
 COUPLED_BRACKET_RTOL = 1e-10
+
+# ------------------------------------------------------------------ the actuator on a loss (closedloop/actuator.py)
+__all__ += ["ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL", "SAMPLED_Z_MAX"]
+#: "zero" is today's loop: the same engine call on the same arrays, so its radius and costs agree with
+#: closedloop.stability / moments / mjls to this (measured: 0, bit for bit, on four channels under Haswell, Prescott and
+#: SkylakeX kernels).
+ACTUATOR_ZERO_RTOL = 1e-12
+#: The engine's exact costs of hold and buffer:L against the enumeration of every delivery path (and the same
+#: quantity computed through another mode structure: buffer:1 against zero; the hand moment recursions of the scalar
+#: plant; ARPACK's radius against the dense eigenvalues) (measured: at most 1.1e-15 against enumeration, 2.3e-15
+#: buffer:1 against zero, 1.5e-15 at mu = 1, 6.6e-15 Krylov against dense on 16 to 576 rows, 6.0e-15 the buffer's
+#: predicted-state memory against its entries, on plants of n <= 2 with 1 to 63 modes, under Haswell, Prescott and
+#: SkylakeX kernels; ARPACK's radii of the two memories of a 162-mode buffer agree to 3.5e-14, within ARPACK_TOL).
+ACTUATOR_EXACT_RTOL = 1e-12
+#: The critical mu of a scalar loop found where the engine's radius crosses 1, against the hand renewal closed form's
+#: root, both by brentq to xtol 1e-14 (measured: at most 2.0e-15 over three plants and four strategies, under Haswell,
+#: Prescott and SkylakeX kernels).
+ACTUATOR_CRITICAL_MU_ATOL = 1e-12
+#: A sampled mean agrees with its exact expectation when within this many standard errors (two-sided normal tail
+#: 6.8e-6 per check).
+SAMPLED_Z_MAX = 4.5

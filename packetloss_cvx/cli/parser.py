@@ -189,6 +189,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the cross-checking QP's form, e.g. --formulation sparse")
     solve.add_argument("--no-qp", action="store_true",
                        help="skip the solvers: the QP cross-check and a [constraints] table (closed form only)")
+    solve.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                       help="what the actuator does on a loss, for each law's loop: apply zero, hold the last "
+                            "input, or play the buffered plan of L inputs (default L: the horizon); comma-separated, "
+                            "or all to compare the three: exact mean-square radius and cost over N steps "
+                            "(default: none), e.g. --actuator all")
     solve.add_argument("--stability", action=argparse.BooleanOptionalAction,
                        help="each law's mean-square stability in closed loop: --stability computes it at any n "
                             "(minutes for n in the hundreds), --no-stability skips it (default: computed for "
@@ -282,6 +287,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default: open loop only)")
     sim.add_argument("--law", choices=("tcp", "udp", "dp", "all"), default="all",
                      help="a protocol's receding-horizon law, the DP optimum (closed loop only) or all, e.g. --law dp")
+    sim.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                     help="with --closed-loop: each law's loop when the actuator applies zero, holds the last input "
+                          "or plays the buffered plan of L inputs (default L: the horizon) on a loss, sampled beside "
+                          "its exact cost and radius; comma-separated, or all (default: none), e.g. --actuator hold")
     sim.add_argument("--save", metavar="FILE.npz",
                      help="save closed-loop trajectories (first 1000 runs) and curves (default: none), "
                           "e.g. --save runs.npz")

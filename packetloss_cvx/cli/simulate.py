@@ -12,6 +12,7 @@ from ..montecarlo.markov import EXACT_PLAN
 from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
+from .actuator_section import actuator_strategies, simulate_actuator_section
 from .common import CommandResult, check_figure_format, progress_of, system_of
 from .sensing_section import simulate_section
 
@@ -54,6 +55,13 @@ def run(args: argparse.Namespace) -> CommandResult:
     >>> folder.cleanup()
     """
     system = system_of(args)
+    strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
+    if strategies and not args.closed_loop:
+        raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop")
+    if strategies and system.channel is not None:
+        raise InputError("--actuator", "behind a Markov channel simulate's laws read the channel's belief, not "
+                                       "u = -K x: use solve --actuator (the plug-in laws, exact under the chain), or "
+                                       "--mu for the Bernoulli twin")
     laws = LAWS if args.law == "all" else (args.law,)
     if not args.closed_loop:
         laws = tuple(law for law in laws if law != "dp")
@@ -78,6 +86,10 @@ def run(args: argparse.Namespace) -> CommandResult:
                                   title=system.name)
         save_figure(figure, args.plot, overwrite=force, field="--plot")
     data, text = sim.to_dict(), _text(system.name or args.file, sim)
+    if strategies:     # the laws' loops when the actuator zeroes, holds or plays the buffered plan on a loss
+        data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
+                                                           args.seed)
+        text = "\n".join([text, *more])
     if system.sensor is not None and args.closed_loop:     # lossy sensor links
         data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)
         text = "\n".join([text, *more])

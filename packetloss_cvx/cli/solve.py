@@ -18,6 +18,7 @@ from ..model.system import System
 from ..progress import progress_bar
 from ..results import Solution, eigenvalue_pairs
 from . import format as fmt
+from .actuator_section import actuator_entry, actuator_strategies
 from .common import CommandResult, progress_of, system_of
 from .markov_section import markov_section
 from .sensing_section import estimation_section, protocol_entry
@@ -49,6 +50,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     system = system_of(args)
     constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
+    strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     out: dict[str, Any] = {
         "name": system.name, "n": system.n, "m": system.m, "horizon": system.horizon,
@@ -109,6 +111,9 @@ def run(args: argparse.Namespace) -> CommandResult:
             rows.append(("closed loop", f"stability not computed: {why}"))
         else:
             rows.append(("closed loop", stability(system, sol.gain, entry)))
+        if strategies:      # the law's loop when the actuator zeroes, holds or plays the buffered plan on a loss
+            entry["actuator"], more = actuator_entry(system, sol.gain, strategies, system.horizon)
+            rows.append(("on a loss", more))
         out[protocol] = entry
         lines += ["", f"{protocol.upper()}-like"] + fmt.fields(rows)
     if system.sensor is not None:

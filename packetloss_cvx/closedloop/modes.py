@@ -14,6 +14,11 @@ spectral radius of this map is below one (Costa, Fragoso, Marques 2005, Thm 3.9)
 
 A Bernoulli channel is the one-mode chain: every function here takes ``T=None`` for it, with no mode axis
 (K (m, n), h = mu (m,), Q (n, n)), and is then the operator of `packetloss_cvx.closedloop.stability`.
+
+The plant may differ per mode (A (M, n, n), CFM05's ``A_a``; ``delivery="current"``): a loop whose mode also
+carries what the actuator does on a loss (:mod:`packetloss_cvx.closedloop.actuator`: the held input, the age of a
+buffered plan) is this engine over an augmented state, its applied input ``F_a x - V K_a x`` (``F`` the input
+applied whatever the delivery, :func:`mode_stage_costs`'s ``held``).
 """
 
 from __future__ import annotations
@@ -146,6 +151,8 @@ def _next_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np
     with ``W_b = [I, -B H_b]`` (``E[v v'] = h h' + diag(h (1 - h))``)."""
     if T is None:
         raise InputError("delivery", "the deliveries follow the next mode only behind a chain (T)")
+    if A.ndim != 2:
+        raise InputError("A", "a plant per mode is taken with delivery='current' only")
     n = A.shape[0]
     stacked = np.concatenate([np.broadcast_to(A, (K.shape[0], n, n)), K], axis=1)          # [A; K_a]
     stacked_t = stacked.mT
@@ -160,9 +167,19 @@ def _next_step(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np
     return apply
 
 
-def _stage_weight(Omega: np.ndarray, psi: np.ndarray, K: np.ndarray, g: np.ndarray) -> np.ndarray:
+def _stage_weight(Omega: np.ndarray, psi: np.ndarray, K: np.ndarray, g: np.ndarray,
+                  held: np.ndarray | None = None) -> np.ndarray:
     """``Omega + K' diag(psi g) K`` per mode: with g the delivery probabilities of the inputs' mode, ``tr(W Q)`` is the
-    expected stage cost (``v_i^2 = v_i``: ``E[(V u)' Psi (V u)] = u' diag(psi g) u``)."""
+    expected stage cost (``v_i^2 = v_i``: ``E[(V u)' Psi (V u)] = u' diag(psi g) u``).
+
+    ``held`` F (per mode, as K): the applied input is ``F x - V K x`` (F x applied whatever the delivery: a held
+    input, a buffered plan's entry), and ``E[.' Psi .] = x'((F - G K)' Psi (F - G K) + K' diag(psi g (1 - g)) K) x``
+    (G = diag(g); E[v_i v_j] = g_i g_j + [i = j] g_i (1 - g_i)). F = 0 is the weight above."""
+    if held is not None:
+        mean = held - (g[..., :, None] * K)                                   # E[applied input] = (F - G K) x
+        spread = g * (1.0 - g) * psi
+        return (Omega + (mean.mT * psi) @ mean
+                + (K.mT * (spread if spread.ndim == 1 else spread[..., None, :])) @ K)
     weights = g * psi
     return Omega + (K.mT * (weights if weights.ndim == 1 else weights[..., None, :])) @ K
 
@@ -190,7 +207,7 @@ def mode_matrix(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: n
                                     h * (1.0 - h))
     if delivery not in ("current", "next"):
         raise InputError("delivery", f"expected current or next, found {delivery!r}")
-    M, n = T.shape[0], A.shape[0]
+    M, n = T.shape[0], A.shape[-1]
     if delivery == "current":
         blocks = mode_matrix(A, B, K, h)[:, None] * T[:, :, None, None]                    # [a, b]
     else:
@@ -252,7 +269,7 @@ def mode_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: n
     """
     if method not in ("auto", "dense", "krylov"):
         raise InputError("method", f"expected auto, dense or krylov, found {method!r}")
-    M, n = (1 if T is None else T.shape[0]), A.shape[0]
+    M, n = (1 if T is None else T.shape[0]), A.shape[-1]
     if not (np.all(np.isfinite(K)) and np.all(np.isfinite(A - (B * h[..., None, :]) @ K))):
         raise NumericalError(f"{label}: the closed-loop matrix A - B M K is not finite")
     scale = max(float(np.abs(A).max()), float(np.abs(B).max() * np.abs(K).max()))
@@ -363,7 +380,8 @@ def _power_bound(step: Step, shape: tuple[int, ...], steps: int) -> float:
 def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarray, Sigma: np.ndarray,
                      x0: np.ndarray, K_all: np.ndarray, h_all: np.ndarray, T: np.ndarray | None = None,
                      start: np.ndarray | None = None, delivery: str = "current",
-                     first_gain: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+                     first_gain: np.ndarray | None = None,
+                     held: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Exact ``E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]``, t = 0..steps-1, and ``E[x_T' Omega x_T]`` of
     ``u_t = -K_{t,a} x_t`` from x0 (noise Sigma enters every step with P(mode)), from the recursion on
     ``Q_{a,t} = E[x_t x_t' 1{mode = a}]`` (CFM05, ch. 3) of `mode_step`, the stage cost ``sum_a tr(W_a Q_a)``
@@ -373,6 +391,8 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
     step. With T: ``K_all`` (steps, M, m, n), ``h_all`` (M, m), ``start`` P(mode at 0); "current": the gain of the
     mode at t; "next": of the mode at t - 1, ``first_gain`` (m, n) at t = 0. ``K_all`` and ``h_all`` broadcast over
     the steps (stride 0) are one law: its map is formed once. Entries stay inf past an overflow.
+    ``held`` (M, m, n), or (m, n) at one mode, with one law and "current" only: the applied input is
+    ``F_a x - V K_a x`` instead of ``-V K_a x`` (:func:`_stage_weight`); A may then carry a mode axis.
     Time O(steps M (M n^2 + n^3 + n^2 m)).
 
     Examples
@@ -385,6 +405,8 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
     """
     steps = K_all.shape[0]
     one_law = K_all.strides[0] == 0 and (T is not None or h_all.strides[0] == 0)
+    if held is not None and not (one_law and delivery == "current"):
+        raise InputError("held", "an input held on a loss is taken for one law with delivery='current'")
     if T is None:
         Q, pi, R = np.outer(x0, x0), None, None
     elif delivery == "next":
@@ -398,12 +420,12 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
             if t == 0 or (each_step and (not one_law or t == 1)):
                 if T is None:
                     K, h = K_all[t], h_all[t]
-                    step, weight = mode_step(A, B, K, h), _stage_weight(Omega, psi, K, h)
+                    step, weight = mode_step(A, B, K, h), _stage_weight(Omega, psi, K, h, held)
                 else:
                     K = np.asarray(first_gain, dtype=float)[None] if delivery == "next" and t == 0 else K_all[t]
                     R = R if delivery == "next" and t == 0 else T
                     step = mode_step(A, B, K, h_all, R, delivery)
-                    weight = _stage_weight(Omega, psi, K, h_all if delivery == "current" else R @ h_all)
+                    weight = _stage_weight(Omega, psi, K, h_all if delivery == "current" else R @ h_all, held)
             stage[t] = float(np.sum(weight * Q))
             if T is None:
                 Q = step(Q) + Sigma

@@ -1,6 +1,7 @@
 """Sampling the stated model: deliveries and noise (``channels``, ``markov_channels``), realised costs of plans
 and laws (``sampling``), the vectorised Monte Carlo of the closed loop (``simulate``, ``markov``,
-``markov_loop``) and its runs in chunks under a budget (``runs``).
+``markov_loop``), the loop when the actuator zeroes, holds or plays the buffered plan on a loss (``actuator``) and
+its runs in chunks under a budget (``runs``).
 """
 
 from .channels import sample_deliveries, sample_noise

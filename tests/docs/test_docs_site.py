@@ -151,7 +151,7 @@ INTERNALS = ["packetloss_cvx.model.system.CacheKey", "packetloss_cvx.model.syste
 def test_api_pages_document_the_public_names_and_no_internals(site):
     """The closed loop has its entries, the figures page every ``plot_*`` of the package, the results page every
     result type; no private name (``_x``) and none of the internals has one."""
-    import packetloss_cvx.plots
+    import packetloss_cvx.plots.figures
     import packetloss_cvx.results
 
     _, folder = site
@@ -160,7 +160,7 @@ def test_api_pages_document_the_public_names_and_no_internals(site):
     closed_loop = {"simulate", "closed_loop", "dp_riccati", "critical_mu", "membership", "closed_loop_statespace",
                    "region_map", "stability_allocate"}
     assert closed_loop <= leaves
-    plots = set(packetloss_cvx.plots.__all__)
+    plots = set(packetloss_cvx.plots.figures.__all__)
     assert len(plots) == 10
     assert {f"packetloss_cvx.plots.figures.{name}" for name in plots} <= ids
     assert {f"packetloss_cvx.results.{name}" for name in packetloss_cvx.results.__all__} <= ids
