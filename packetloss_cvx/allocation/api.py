@@ -216,10 +216,10 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
              max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None,
              target: str = "paper", margin: float | None = None) -> Allocation | StabilityAllocation:
-    """The cheapest channel qualities mu (min beta'mu) with J*(mu) <= alpha, with a certificate.
-    The paper's eq:alpha_channels (J* <= alpha), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
+    """The cheapest channel qualities mu (min beta'mu) with `J*(mu) <= alpha`, with a certificate.
+    The paper's eq:alpha_channels (`J* <= alpha`), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
 
-    The paper's J*_tcp is a first-moment value no causal law attains: the result says, at its mu, what a loop
+    The paper's `J*_tcp` is a first-moment value no causal law attains: the result says, at its mu, what a loop
     attains (``attainable_cost``, the finite-horizon DP with acknowledgements, TCP-like) and whether any linear law
     holds it mean-square stable (``stabilisable``); ``warning`` is one line when either misleads. To design on the
     loop instead, ask for ``target="stable"`` or ``"dp-cost"``.

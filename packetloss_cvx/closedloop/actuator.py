@@ -46,7 +46,7 @@ import numpy.typing as npt
 
 from ..budgets import check, gib_text, operator_bytes
 from ..errors import DimensionError, InputError, NumericalError
-from ..model.channel import GilbertElliott, MarkovChannel
+from ..model.channel import MarkovChannel
 from ..model.system import System, check_system, numeric_array
 from .mjls import mode_chain, mode_start
 from .modes import mode_matrix, mode_radius, mode_stage_costs
@@ -157,7 +157,7 @@ class JumpLoop:
                                 "current", held=self.held)
 
 
-Channel = npt.ArrayLike | GilbertElliott | MarkovChannel
+Channel = npt.ArrayLike | MarkovChannel
 
 
 def actuator_loop(A: npt.ArrayLike, B: npt.ArrayLike, gain: npt.ArrayLike, channel: Channel,
@@ -180,7 +180,7 @@ def actuator_loop(A: npt.ArrayLike, B: npt.ArrayLike, gain: npt.ArrayLike, chann
     ([[2.0, 1.0], [0.0, 1.0]], [[1.0], [1.0]], [[1.0, 1.0]], [[0.0, 1.0]])
     """
     strategy = parse_actuator(actuator)
-    if isinstance(channel, GilbertElliott | MarkovChannel):
+    if isinstance(channel, MarkovChannel):
         A_, B_ = check_law(A, B, np.zeros((np.shape(B)[1], np.shape(A)[0])), np.ones(np.shape(B)[1]))[:2]
         _, Tc, hc = mode_chain(channel)
         K = _state_gains(gain, Tc.shape[0], *B_.shape[::-1])
