@@ -171,17 +171,17 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
                             title=title, path=path)
 
 
-def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | None = None,
-                     path: str | Path | None = None) -> Figure:
+def plot_closed_loop(curves: Any, *, title: str | None = None, path: str | Path | None = None) -> Figure:
     """Closed-loop runs: the mean of ||x_t|| with a band of one standard deviation, and the mean
     cumulative stage cost, one line per law.
 
     Parameters
     ----------
-    curves : mapping
-        Law (``"tcp"``, ``"udp"``, ``"dp"`` or any text) to a mapping with ``"state_norm_mean"`` and
-        ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"`` (length T), as
-        :class:`~packetloss_cvx.results.ClosedLoopRun` holds them. Non-finite values are not drawn.
+    curves : Simulation or mapping
+        A :class:`~packetloss_cvx.results.Simulation` (its ``closed_loop`` runs), or law (``"tcp"``, ``"udp"``,
+        ``"dp"`` or any text) to a :class:`~packetloss_cvx.results.ClosedLoopRun` or to a mapping with
+        ``"state_norm_mean"`` and ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"``
+        (length T), as a ClosedLoopRun holds them. Non-finite values are not drawn.
     title : str, optional
     path : str or Path, optional
 
@@ -202,13 +202,18 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     >>> left.lines[0].get_ydata().tolist(), right.lines[0].get_ydata().tolist()    # right: the running sum
     ([1.0, 0.5, 0.25], [2.0, 3.0])
     """
+    keys = ("state_norm_mean", "state_norm_std", "stage_cost_mean")
+    curves = getattr(curves, "closed_loop", curves)       # a Simulation: its closed-loop runs
     if not isinstance(curves, Mapping) or not curves:
-        raise InputError("curves", "expected a non-empty mapping law -> curves")
+        raise InputError("curves", "expected a Simulation with closed-loop runs or a non-empty mapping law -> "
+                                   "curves")
     fig = Figure(figsize=(10, 3.6), layout="constrained")
     left, right = fig.subplots(1, 2)
     labels = {**_LABELS, "dp": "DP optimum"}
     for law, data in curves.items():
         field = f"curves[{law!r}]"
+        if not isinstance(data, Mapping) and all(hasattr(data, k) for k in keys):     # a ClosedLoopRun
+            data = {k: getattr(data, k) for k in keys}
         if not isinstance(data, Mapping) or any(k not in data for k in ("state_norm_mean", "state_norm_std",
                                                                          "stage_cost_mean")):
             raise InputError(field, "expected keys state_norm_mean, state_norm_std, stage_cost_mean")
@@ -487,12 +492,21 @@ def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], c
     return _save(fig, path)
 
 
-def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *, xlabel: str = r"$\mu_1$",
-                ylabel: str = r"$\mu_2$", title: str | None = None, path: str | Path | None = None) -> Figure:
+def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None = None, *,
+                xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
+                path: str | Path | None = None) -> Figure:
     """Stability regions over two channels: ``radius`` (the least mean-square radius any linear law reaches,
     min_K rho(L_K), shape (K, K), rows the second channel) as a colour map clipped to [0, 2] with its level 1
     in white, and each law's region boundary (the 1/2 level of its 0/1 ``stable`` map; nan undecided) as a line.
-    O(K^2) per law.
+    ``axis`` may be a :class:`~packetloss_cvx.results.RegionMap` with a grid, alone: its axis, its "dp" law's
+    radius, every law's ``stable`` map and its channels' names (``xlabel`` and ``ylabel`` default to them; else
+    to mu_1, mu_2). O(K^2) per law.
+
+    Raises
+    ------
+    InputError
+        A RegionMap without a grid or without the "dp" law (field ``region``); the arrays' shapes (the field
+        named); ``radius`` or ``stable`` missing beside a plain axis.
 
     Examples
     --------
@@ -502,6 +516,19 @@ def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *
     >>> len(fig.axes), fig.axes[0].get_xlabel()     # the map and its colour bar
     (2, '$\\\\mu_1$')
     """
+    names = (r"$\mu_1$", r"$\mu_2$")
+    if hasattr(axis, "laws") and hasattr(axis, "channels"):        # a RegionMap
+        region = axis
+        if region.stable is None or "dp" not in region.laws:
+            raise InputError("region", "expected a RegionMap with a grid and the 'dp' law (region_map(..., "
+                                       "grid=K, laws=[\"dp\", ...])): the colours are the dp law's least radius")
+        axis, radius = region.axis, region.radius[region.laws.index("dp")]
+        stable = dict(zip(region.laws, region.stable, strict=True)) if stable is None else stable
+        names = tuple(rf"$\mu_{{{c + 1}}}$" for c in region.channels)
+    if radius is None or stable is None:
+        raise InputError("radius" if radius is None else "stable", "expected the radius grid and the stable maps "
+                                                                  "beside the axis (or a RegionMap alone)")
+    xlabel, ylabel = names[0] if xlabel is None else xlabel, names[1] if ylabel is None else ylabel
     g = numeric_array(axis, "axis")
     if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
         raise InputError("axis", "expected an increasing 1-D sequence of at least 2 numbers")

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..display import fields_html, fields_repr, to_json
 from ..errors import InputError
-from .base import Frozen, freeze, read_only
+from .base import Frozen, Tabular, freeze, numbered, read_only
 from .plans import Solution
 
 __all__ = ["BurstinessMap", "BurstinessSweep", "MarkovSolution", "MjlsResult", "plugin_loss"]
@@ -32,7 +32,7 @@ def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class MarkovSolution:
+class MarkovSolution(Tabular):
     """One protocol under a Gilbert–Elliott channel (:func:`packetloss_cvx.qp.markov_solution.markov_solution`).
 
     ``exact``: the minimiser of the protocol's exact expected cost (closed form); ``qp``: its
@@ -87,6 +87,24 @@ class BurstinessSweep(Frozen):
                 "plugin": {k: v.tolist() for k, v in self.plugin.items()},
                 "exact": {k: v.tolist() for k, v in self.exact.items()}}
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per burstiness lambda: plugin_<p>, exact_<p> per protocol; the rates as attrs."""
+        columns: dict[str, Any] = {"correlation": self.correlation}
+        for p in self.exact:
+            columns[f"plugin_{p}"] = self.plugin[p]
+            columns[f"exact_{p}"] = self.exact[p]
+        return columns, dict(zip(numbered("rate", self.rate.size), self.rate.tolist(), strict=True))
+
+    def plot(self, **kwargs: Any) -> Any:
+        """Each protocol's exact minimum and plug-in cost against lambda, drawn by
+        :func:`~packetloss_cvx.plots.plot_cost_lines` (keywords passed on); returns the matplotlib Figure."""
+        from ..plots import plot_cost_lines  # lazy: matplotlib, only when asked to draw
+        curves = {}
+        for p in self.exact:
+            curves[f"{p.upper()}-like exact minimum"] = self.exact[p]
+            curves[f"{p.upper()}-like plug-in plan"] = self.plugin[p]
+        return plot_cost_lines(self.correlation, curves, **{"xlabel": r"burstiness $\lambda = 1 - p - r$", **kwargs})
+
 
 @dataclass(frozen=True)
 class BurstinessMap(Frozen):
@@ -137,6 +155,35 @@ class BurstinessMap(Frozen):
                 **{p: {"plugin": self.plugin[p].tolist(), "exact": self.exact[p].tolist(),
                        "relative_loss": self.relative_loss(p).tolist()} for p in self.protocols}}
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per (rate, correlation), rate slowest: plugin_<p>, exact_<p>, loss_<p> per protocol; the
+        channel (1-based) and the name as attrs."""
+        R, L = self.rate.size, self.correlation.size
+        columns: dict[str, Any] = {"rate": np.repeat(self.rate, L), "correlation": np.tile(self.correlation, R)}
+        for p in self.protocols:
+            columns[f"plugin_{p}"] = np.ravel(self.plugin[p])
+            columns[f"exact_{p}"] = np.ravel(self.exact[p])
+            columns[f"loss_{p}"] = np.ravel(self.relative_loss(p))
+        return columns, {"channel": self.channel + 1, "name": self.name or ""}
+
+    def plot(self, protocol: str | None = None, **kwargs: Any) -> Any:
+        """``protocol``'s exact minimum and the plug-in law's loss (percent) over the map, drawn by
+        :func:`~packetloss_cvx.plots.plot_burstiness_map` (keywords passed on; ``protocol`` defaults to UDP-like
+        where evaluated, else the first); returns the matplotlib Figure.
+
+        Raises
+        ------
+        InputError
+            Field ``protocol``: not one of :attr:`protocols`.
+        """
+        from ..plots import plot_burstiness_map  # lazy: matplotlib, only when asked to draw
+        if protocol is None:
+            protocol = "udp" if "udp" in self.protocols else self.protocols[0]
+        if protocol not in self.protocols:
+            raise InputError("protocol", f"expected one of {', '.join(self.protocols)}, found {protocol!r}")
+        return plot_burstiness_map(self.rate, self.correlation, self.exact[protocol],
+                                   100.0 * self.relative_loss(protocol), **kwargs)
+
     def to_xarray(self) -> Any:
         """An :class:`xarray.Dataset` over (``rate``, ``correlation``) (the ``xarray`` extra): ``plugin_<p>``,
         ``exact_<p>`` and ``loss_<p>`` per protocol; the channel (1-based) and name as attributes. O(R L)."""
@@ -184,3 +231,13 @@ class MjlsResult(Frozen):
                 "modes": self.modes.tolist(), "transition": self.transition.tolist(),
                 "spectral_radius": self.spectral_radius, "mean_square_stable": bool(self.spectral_radius < 1),
                 "iterations": self.iterations, "residual": self.residual}
+
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per mode: each actuator's channel state (state1..statem; 0 good, 1 bad); the radius, the
+        iteration's numbers and the matrices (gains, P_k, transition) as attrs."""
+        modes = np.asarray(self.modes)
+        columns: dict[str, Any] = {"mode": np.arange(modes.shape[0])}
+        columns.update(dict(zip(numbered("state", modes.shape[1]), modes.T, strict=True)))
+        data = self.to_dict()
+        del data["modes"]
+        return columns, data
