@@ -524,7 +524,7 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
                                        "grid=K, laws=[\"dp\", ...])): the colours are the dp law's least radius")
         axis, radius = region.axis, region.radius[region.laws.index("dp")]
         stable = dict(zip(region.laws, region.stable, strict=True)) if stable is None else stable
-        names = tuple(rf"$\mu_{{{c + 1}}}$" for c in region.channels)
+        names = tuple(rf"$\mu_{c + 1}$" if c < 9 else rf"$\mu_{{{c + 1}}}$" for c in region.channels)
     if radius is None or stable is None:
         raise InputError("radius" if radius is None else "stable", "expected the radius grid and the stable maps "
                                                                   "beside the axis (or a RegionMap alone)")

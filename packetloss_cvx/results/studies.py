@@ -424,14 +424,14 @@ class DesignSweep(Frozen):
         if len(self.dims) == 1:
             labels = {"x0": "scale of x0", "horizon": "horizon N", "point": "point (row of the mu list)",
                       "nu": r"$\nu$ (every channel)"}
-            label = labels.get(self.dims[0].partition("_")[0], rf"$\mu_{{{self.dims[0][2:]}}}$")
+            label = labels.get(self.dims[0].partition("_")[0], _mu_label(self.dims[0]))
             chosen = {quantity: values[quantity]} if quantity else {k: v for k, v in values.items()
                                                                     if k.startswith("cost_")}
             curves = {("diff" if k == "cost_diff" else k[5:]): v for k, v in chosen.items()}
             return plot_cost_lines(self.axes[0], curves, **{"xlabel": label, **kwargs})
         costs = [k for k in values if k.startswith("cost_")]
         quantity = quantity or ("cost_diff" if "cost_diff" in values else costs[0])
-        names = tuple(rf"$\mu_{{{d[2:]}}}$" for d in self.dims)
+        names = tuple(_mu_label(d) for d in self.dims)
         return plot_log_contour(self.axes[1], self.axes[0], self.grid(quantity),
                                 **{"xlabel": names[1], "ylabel": names[0], **kwargs})
 
@@ -458,6 +458,12 @@ class DesignSweep(Frozen):
         attrs = {"kind": self.kind, "name": self.name or "", "chunk_size": self.chunk_size,
                  "cost_diff": "J*_udp - J*_tcp, the difference of the two checked costs"}
         return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _mu_label(dim: str) -> str:
+    """Mathtext of a swept channel's axis: ``mu2`` -> ``$\\mu_2$`` (braces from channel 10 on)."""
+    k = dim[2:]
+    return rf"$\mu_{k}$" if len(k) == 1 else rf"$\mu_{{{k}}}$"
 
 
 def _variable_attrs(name: str) -> dict[str, str]:
