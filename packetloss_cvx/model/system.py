@@ -30,6 +30,8 @@ from .channel import (
 from .sensor import Sensor
 from .statespace import plant_matrices, plant_statespace, sampling_time
 from .validation import (
+    diagonal_weight,
+    every_channel,
     exactly_one,
     frozen,
     horizon_field,
@@ -41,6 +43,7 @@ from .validation import (
     shape_error,
     symmetric_psd,
     vector_field,
+    weight_alias,
     weight_sequence,
 )
 
@@ -202,9 +205,19 @@ class System:
         Omega_t for every t (a length-n diagonal or an n×n symmetric PSD matrix),
         or N such weights for t = 1..N. Exactly one is given.
     input_weight, input_weights : array_like
-        Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
+        Positive diagonal of Psi_t for every t (length m, or a diagonal m×m matrix), or N×m for t = 0..N-1.
+        Psi must be diagonal: the cost weighs the applied input V u (V = diag(v), v_i = 1 when channel i
+        delivers), and the paper's closed forms (Lemma 1, Theorem 1) use E[(V u)' Psi (V u)] = u' Vbar Psi u,
+        true for a diagonal Psi only (a full Psi adds the cross terms Psi_ij mu_i mu_j u_i u_j of two channels'
+        deliveries, which no kernel of this package carries). A full matrix is refused, saying so.
+    Q, R : array_like, optional
+        python-control's names (``control.lqr(sys, Q, R)``): ``Q`` is ``state_weight`` (Omega_t, the stage
+        weight on the state) and ``R`` is ``input_weight`` (Psi_t). Give each weight once: ``Q`` beside
+        ``state_weight`` or ``state_weights`` (or ``R`` beside ``input_weight`` or ``input_weights``) is refused.
+        The paper's Q, the weight on X_k, is ``initial_weight``.
     mu, mu_schedule, channel : array_like, or a channel.MarkovChannel (GilbertElliott(...)) or a TOML table
-        Delivery probabilities in [0, 1]: one per actuator, N×m (non-stationary), or a Markov channel's mu_t.
+        Delivery probabilities in [0, 1]: one per actuator (one number: every actuator, as ``--mu 0.5`` on the
+        command line), N×m (non-stationary), or a Markov channel's mu_t.
     x0 : array_like
         The state X_k (length n).
     initial_weight : array_like, optional
@@ -229,6 +242,12 @@ class System:
     ...            input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> s.n, s.m, s.horizon
     (1, 1, 3)
+
+    python-control's names, and one mu for every channel:
+
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=3, Q=np.eye(2), R=np.diag([1.0, 2.0]), mu=0.5, x0=[1.0, 1.0])
+    >>> t.input_weights[0].tolist(), t.mu.tolist()
+    ([1.0, 2.0], [0.5, 0.5])
     """
 
     __slots__ = (
@@ -269,7 +288,11 @@ class System:
         channel: Any = None,
         dt: float | None = None,
         sensor: Any = None,
+        Q: npt.ArrayLike | None = None,
+        R: npt.ArrayLike | None = None,
     ) -> None:
+        state_weight = weight_alias("Q", Q, "state_weight", state_weight, state_weights)
+        input_weight = weight_alias("R", R, "input_weight", input_weight, input_weights)
         A_ = matrix_field(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
         if A_.shape != (n, n):
@@ -291,8 +314,9 @@ class System:
 
         exactly_one(input_weight, input_weights, ("input_weight", "input_weights"))
         if input_weight is not None:
-            psi = np.repeat(vector_field(input_weight, "input_weight", m, f"({m},)")[None], N, axis=0)
-            psi_field = "input_weight"
+            field = "R" if R is not None else "input_weight"
+            psi = np.repeat(diagonal_weight(input_weight, field, m)[None], N, axis=0)
+            psi_field = field
         else:
             psi = matrix_field(input_weights, "input_weights", N, m, f"({N}, {m})")
             psi_field = "input_weights"
@@ -302,7 +326,8 @@ class System:
         chan, mu_schedule = channel_schedule(channel, m, N, mu, mu_schedule)
         exactly_one(mu, mu_schedule, ("mu", "mu_schedule"))
         if mu is not None:
-            sched = np.repeat(probabilities(vector_field(mu, "mu", m, f"({m},)"), "mu")[None], N, axis=0)
+            sched = np.repeat(probabilities(vector_field(every_channel(mu, m), "mu", m, f"({m},)"), "mu")[None],
+                              N, axis=0)
         else:
             sched = probabilities(
                 matrix_field(mu_schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule"
@@ -402,7 +427,8 @@ class System:
         return self._own
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
-        """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
+        """A copy with new delivery probabilities: an m-vector (one number: every channel) or an N×m schedule
+        (drops a Markov channel).
 
         Examples
         --------
@@ -416,7 +442,7 @@ class System:
         if np.ndim(mu) == 2:
             sched = probabilities(matrix_field(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         else:
-            vec = probabilities(vector_field(mu, "mu", m, f"({m},)"), "mu")
+            vec = probabilities(vector_field(every_channel(mu, m), "mu", m, f"({m},)"), "mu")
             sched = np.repeat(vec[None], N, axis=0)
         return self._copy_with(mu_schedule=frozen(sched), channel=None)
 
