@@ -28,7 +28,7 @@ from .channel import (
     channel_schedule,
 )
 from .sensor import Sensor
-from .statespace import plant_matrices, plant_statespace, sampling_time
+from .statespace import labels_field, plant_matrices, plant_statespace, sampling_time
 from .validation import (
     diagonal_weight,
     every_channel,
@@ -59,7 +59,8 @@ STRUCTURE_FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "init
 #: dense (N n)×(N m) prediction matrices): :meth:`StructureStore.put`.
 STRUCTURE_CACHE_MAX_BYTES = 8 * 2**20
 #: Every field of a System (what a :class:`CacheKey` may say its value depends on).
-SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt", "sensor")
+SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt", "sensor", "input_labels",
+                 "state_labels")
 
 
 @dataclass(frozen=True, eq=False)
@@ -230,6 +231,9 @@ class System:
     sensor : sensor.Sensor or its TOML table, optional
         Measurements over lossy sensor links (packetloss_cvx.sensing). None: the full state is known
         (the paper's model); every computation that ignores the sensor is the same with or without one.
+    input_labels, state_labels : list of str, optional
+        Names of the m inputs and the n states (python-control's ``inputs`` / ``states``), metadata kept through
+        :meth:`from_statespace` and :meth:`to_statespace`; nothing depends on them. None: unnamed.
 
     Raises
     ------
@@ -252,7 +256,8 @@ class System:
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "sensor", "_structure", "_own",
+        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "sensor", "input_labels", "state_labels",
+        "_structure", "_own",
     )
 
     A: np.ndarray
@@ -268,6 +273,8 @@ class System:
     channel: MarkovChannel | None
     dt: float | None
     sensor: Sensor | None
+    input_labels: tuple[str, ...] | None
+    state_labels: tuple[str, ...] | None
 
     def __init__(
         self,
@@ -290,6 +297,8 @@ class System:
         sensor: Any = None,
         Q: npt.ArrayLike | None = None,
         R: npt.ArrayLike | None = None,
+        input_labels: Any = None,
+        state_labels: Any = None,
     ) -> None:
         state_weight = weight_alias("Q", Q, "state_weight", state_weight, state_weights)
         input_weight = weight_alias("R", R, "input_weight", input_weight, input_weights)
@@ -342,13 +351,15 @@ class System:
         if name is not None and not isinstance(name, str):
             raise InputError("name", f"expected a string, found {type(name).__name__}")
         sensor_ = sensor_field(sensor, n)
+        inputs_, states_ = labels_field(input_labels, "input_labels", m), labels_field(state_labels, "state_labels", n)
 
         for key, value in (
             ("A", frozen(A_)), ("B", frozen(B_)), ("horizon", N),
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("dt", sampling_time(dt)), ("sensor", sensor_), ("_structure", _Token()),
+            ("dt", sampling_time(dt)), ("sensor", sensor_), ("input_labels", inputs_), ("state_labels", states_),
+            ("_structure", _Token()),
             ("_own", _Token()),
         ):
             object.__setattr__(self, key, value)
@@ -370,6 +381,9 @@ class System:
                   "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name, "dt": self.dt}
         if self.sensor is not None:
             fields["sensor"] = self.sensor
+        for key in ("input_labels", "state_labels"):
+            if getattr(self, key) is not None:
+                fields[key] = getattr(self, key)
         if self.channel is not None:
             fields["channel"] = self.channel
         else:
@@ -449,16 +463,19 @@ class System:
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
         """A System with the A, B and sampling time dt of a discrete-time control.StateSpace
-        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``. O(n (n + m))."""
+        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``; its name and signal
+        names (``input_labels``, ``state_labels``) where the StateSpace has its own (``fields`` may rename).
+        O(n (n + m))."""
         taken = sorted(set(fields) & {"A", "B", "dt"})
         if taken:
             raise InputError(taken[0], "given by sys: from_statespace takes A, B and dt from the StateSpace")
-        return cls(**plant_matrices(sys), **fields)
+        return cls(**{**plant_matrices(sys), **fields})
 
     def to_statespace(self) -> Any:
         """The plant as a discrete-time control.StateSpace (statespace.plant_statespace): A, B, C = I, D = 0 and
-        the system's ``dt`` (True when None); every packet delivered. O(n (n + m))."""
-        return plant_statespace(self.A, self.B, self.dt)
+        the system's ``dt`` (True when None), named as the system and its signals where they are named; every
+        packet delivered. O(n (n + m))."""
+        return plant_statespace(self.A, self.B, self.dt, self.name, self.input_labels, self.state_labels)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
         """A copy with a new initial state.
@@ -532,7 +549,9 @@ class System:
         )
         out: dict[str, Any] = {
             "plant": {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist(),
-                      **({"dt": self.dt} if self.dt is not None else {})},
+                      **({"dt": self.dt} if self.dt is not None else {}),
+                      **({"input_labels": list(self.input_labels)} if self.input_labels is not None else {}),
+                      **({"state_labels": list(self.state_labels)} if self.state_labels is not None else {})},
             "cost": cost,
             "channel": channel,
             "state": {"x0": self.x0.tolist()},
