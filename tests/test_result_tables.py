@@ -185,3 +185,33 @@ def test_a_sweep_draws_its_costs(decoupled):
     with pytest.raises(pl.InputError, match="cost_tcp") as info:
         two.plot("cost")
     assert info.value.field == "quantity"
+
+
+def test_a_burstiness_map_tabulates_and_draws_itself():
+    from packetloss_cvx.plots import plot_burstiness_map
+    from packetloss_cvx.studies.burstiness import burstiness_map
+
+    grid = burstiness_map(pl.load_example("two_actuator"), [0.5, 0.8], [0.0, 0.6], channel=1, progress=False)
+    frame = grid.to_pandas()
+    assert len(frame) == 4
+    row = frame[(frame["rate"] == 0.8) & (frame["correlation"] == 0.6)].iloc[0]
+    assert row["exact_udp"] == grid.exact["udp"][1, 1]
+    assert row["loss_tcp"] == grid.relative_loss("tcp")[1, 1]
+    assert frame.attrs["channel"] == 2                                      # 1-based, as the xarray attrs
+    pytest.importorskip("xarray")
+    expected = grid.to_xarray().to_dataframe()
+    pd.testing.assert_frame_equal(frame.set_index(["rate", "correlation"])[expected.columns], expected)
+    manual = plot_burstiness_map(grid.rate, grid.correlation, grid.exact["tcp"], 100 * grid.relative_loss("tcp"))
+    for figure in (plot_burstiness_map(grid, protocol="tcp"), grid.plot("tcp")):
+        for mine, theirs in zip(figure.axes[:2], manual.axes[:2], strict=True):
+            np.testing.assert_array_equal(mine.collections[0].get_array(), theirs.collections[0].get_array())
+
+
+def test_plot_pareto_takes_allocations():
+    from packetloss_cvx.plots import plot_pareto
+
+    rows = [results.Allocation(mu=np.array([0.5, 0.5]), communication_cost=1.0 + k, cost=2.0, lower_bound=1.0,
+                               gap=0.0, status="optimal", method="hand", protocol="tcp", alpha=3.0 - k,
+                               beta=np.ones(2)) for k in range(2)]
+    line, = plot_pareto({"tcp": rows}).axes[0].lines
+    assert (line.get_xdata().tolist(), line.get_ydata().tolist()) == ([3.0, 2.0], [1.0, 2.0])

@@ -40,8 +40,11 @@ _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
 
 
 def _rows(rows: Any, field: str, keys: tuple[str, ...]) -> list[Mapping]:
+    """``rows`` as dicts: a result of the package (an Allocation, a PowerAllocation) is read by its ``to_dict()``."""
     if not isinstance(rows, Sequence) or isinstance(rows, str):
-        raise InputError(field, "expected a list of rows (dicts)")
+        raise InputError(field, "expected a list of rows (dicts or the package's results)")
+    rows = [row.to_dict() if not isinstance(row, Mapping) and callable(getattr(row, "to_dict", None)) else row
+            for row in rows]
     for k, row in enumerate(rows):
         if not isinstance(row, Mapping) or any(key not in row for key in keys):
             raise InputError(f"{field}[{k}]", f"expected a dict with keys {', '.join(keys)}")
@@ -80,7 +83,8 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     curves : mapping
         Label (``"tcp"``, ``"udp"`` or any text) to rows with keys ``"alpha"`` and
         ``"communication_cost"`` (as :func:`~packetloss_cvx.allocation.pareto_curve`
-        returns); rows whose communication cost is None (infeasible) are left out.
+        returns), or to :class:`~packetloss_cvx.results.Allocation` results; rows whose communication cost is
+        None (infeasible) are left out.
     title : str, optional
     path : str or Path, optional
         Where to save the figure (the format follows the extension).
@@ -424,7 +428,8 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     return _save(fig, path)
 
 
-def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], cost: Any, loss_percent: Any, *,
+def plot_burstiness_map(rates: Any, correlations: Sequence[float] | None = None, cost: Any = None,
+                        loss_percent: Any = None, *, protocol: str | None = None,
                         cost_label: str = "exact minimum (log scale)", title: str | None = None,
                         path: str | Path | None = None) -> Figure:
     """A (mean rate × burstiness) map of one channel in two panels: ``cost`` (the exact minimum) on a logarithmic
@@ -436,7 +441,9 @@ def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], c
     Parameters
     ----------
     rates, correlations : sequence of float, shapes (R,), (L,)
-        Distinct mean rates and values of lambda = 1 - p - r.
+        Distinct mean rates and values of lambda = 1 - p - r. ``rates`` may be a
+        :class:`~packetloss_cvx.results.BurstinessMap` alone: its axes, ``protocol``'s exact minimum (default
+        UDP-like where evaluated, else the first) and the plug-in law's loss in percent.
     cost, loss_percent : array_like, shape (R, L)
         ``[a, b]`` at ``(rates[a], correlations[b])``; ``cost`` needs a positive value (cells <= 0 are drawn in
         the lowest colour), ``loss_percent`` finite.
@@ -457,6 +464,16 @@ def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], c
     >>> type(norm).__name__, norm.vmin, norm.vmax, loss_axis.collections[0].norm.vmax
     ('LogNorm', 2.0, 20.0, 9.0)
     """
+    if hasattr(rates, "relative_loss") and hasattr(rates, "exact"):          # a BurstinessMap
+        grid = rates
+        protocol = protocol or ("udp" if "udp" in grid.exact else next(iter(grid.exact)))
+        if protocol not in grid.exact:
+            raise InputError("protocol", f"expected one of {', '.join(grid.exact)}, found {protocol!r}")
+        rates, correlations = grid.rate, grid.correlation
+        cost, loss_percent = grid.exact[protocol], 100.0 * grid.relative_loss(protocol)
+    if correlations is None or cost is None or loss_percent is None:
+        raise InputError("correlations" if correlations is None else "cost" if cost is None else "loss_percent",
+                         "expected the correlations, the cost and the loss beside the rates (or a BurstinessMap)")
     gy, gx = numeric_array(rates, "rates"), numeric_array(correlations, "correlations")
     for name, g in (("rates", gy), ("correlations", gx)):
         if g.ndim != 1 or g.size < 2 or np.unique(g).size != g.size:

@@ -177,12 +177,7 @@ class BurstinessMap(Frozen):
             Field ``protocol``: not one of :attr:`protocols`.
         """
         from ..plots import plot_burstiness_map  # lazy: matplotlib, only when asked to draw
-        if protocol is None:
-            protocol = "udp" if "udp" in self.protocols else self.protocols[0]
-        if protocol not in self.protocols:
-            raise InputError("protocol", f"expected one of {', '.join(self.protocols)}, found {protocol!r}")
-        return plot_burstiness_map(self.rate, self.correlation, self.exact[protocol],
-                                   100.0 * self.relative_loss(protocol), **kwargs)
+        return plot_burstiness_map(self, protocol=protocol, **kwargs)
 
     def to_xarray(self) -> Any:
         """An :class:`xarray.Dataset` over (``rate``, ``correlation``) (the ``xarray`` extra): ``plugin_<p>``,
