@@ -199,7 +199,11 @@ def test_a_burstiness_map_tabulates_and_draws_itself():
     assert row["loss_tcp"] == grid.relative_loss("tcp")[1, 1]
     assert frame.attrs["channel"] == 2                                      # 1-based, as the xarray attrs
     pytest.importorskip("xarray")
-    expected = grid.to_xarray().to_dataframe()
+    dataset = grid.to_xarray()
+    for name, variable in {**dataset.data_vars, **dataset.coords}.items():
+        assert variable.attrs.get("long_name"), name
+        assert "units" in variable.attrs, name
+    expected = dataset.to_dataframe()
     pd.testing.assert_frame_equal(frame.set_index(["rate", "correlation"])[expected.columns], expected)
     manual = plot_burstiness_map(grid.rate, grid.correlation, grid.exact["tcp"], 100 * grid.relative_loss("tcp"))
     for figure in (plot_burstiness_map(grid, protocol="tcp"), grid.plot("tcp")):

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..display import fields_html, fields_repr, to_json
 from ..errors import InputError
+from ..optional import load
 from .base import Frozen, Tabular, freeze, numbered, read_only
 from .plans import Solution
 
@@ -182,17 +183,24 @@ class BurstinessMap(Frozen):
     def to_xarray(self) -> Any:
         """An :class:`xarray.Dataset` over (``rate``, ``correlation``) (the ``xarray`` extra): ``plugin_<p>``,
         ``exact_<p>`` and ``loss_<p>`` per protocol; the channel (1-based) and name as attributes. O(R L)."""
-        try:
-            import xarray as xr  # lazy: an optional extra
-        except ImportError:
-            raise InputError("to_xarray", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
+        xr = load("xarray", "to_xarray")
         dims = ("rate", "correlation")
+        cost_units = "stage-cost units (x'Qx + u'Ru)"
         data = {}
         for p in self.protocols:
-            data[f"plugin_{p}"] = (dims, np.asarray(self.plugin[p]))
-            data[f"exact_{p}"] = (dims, np.asarray(self.exact[p]))
-            data[f"loss_{p}"] = (dims, self.relative_loss(p))
-        return xr.Dataset(data, coords={"rate": self.rate, "correlation": self.correlation},
+            name = f"{p.upper()}-like"
+            data[f"plugin_{p}"] = (dims, np.asarray(self.plugin[p]),
+                                   {"long_name": f"exact expected cost of the {name} plug-in plan",
+                                    "units": cost_units})
+            data[f"exact_{p}"] = (dims, np.asarray(self.exact[p]),
+                                  {"long_name": f"exact minimum expected cost ({name})", "units": cost_units})
+            data[f"loss_{p}"] = (dims, self.relative_loss(p),
+                                 {"long_name": f"plug-in law's loss against the exact minimum ({name})", "units": "1"})
+        coords = {"rate": ("rate", self.rate, {"long_name": f"mean delivery rate of channel {self.channel + 1} "
+                                                            "(1-based)", "units": "1"}),
+                  "correlation": ("correlation", self.correlation,
+                                  {"long_name": "burstiness lambda = 1 - p - r", "units": "1"})}
+        return xr.Dataset(data, coords=coords,
                           attrs={"kind": "burstiness-map", "channel": self.channel + 1, "name": self.name or "",
                                  "correlation": "lambda = 1 - p - r of the mapped channel's Gilbert chain",
                                  "loss": "plugin / exact - 1: the plug-in law's loss against the exact minimum"})
