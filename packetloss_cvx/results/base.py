@@ -62,7 +62,20 @@ class Tabular:
     row for a result that is a single point), each number once; what describes the whole result (a protocol, a
     method, a scalar cost beside per-step rows) is in the frame's ``attrs``. A subclass that holds a grid, a
     trajectory or a batch overrides :meth:`_table`; the others are one row of their ``to_dict()``
-    (:func:`scalar_row`). pandas is imported when called (the ``pandas`` extra)."""
+    (:func:`scalar_row`). pandas is imported when called (the ``pandas`` extra).
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class Point(Tabular):
+    ...     cost: float
+    ...     mu: tuple
+    ...     def to_dict(self):
+    ...         return {"cost": self.cost, "mu": list(self.mu)}
+    >>> Point(2.0, (0.5, 0.9)).to_pandas().to_dict("records")
+    [{'cost': 2.0, 'mu1': 0.5, 'mu2': 0.9}]
+    """
 
     __slots__ = ()
 
