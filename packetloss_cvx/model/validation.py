@@ -181,7 +181,9 @@ def every_channel(value: Any, m: int) -> Any:
     >>> every_channel(0.5, 3).tolist(), every_channel([0.1, 0.2], 3)
     ([0.5, 0.5, 0.5], [0.1, 0.2])
     """
-    if np.ndim(value) == 0 and not isinstance(value, (str, bytes)) and value is not None:
+    if value is None or isinstance(value, (list, tuple, str, bytes)) or getattr(value, "ndim", 0):
+        return value                     # the common case, a list or an array, costs no conversion
+    if np.ndim(value) == 0:
         return np.full(m, numeric_array(value, "mu"))
     return value
 
@@ -237,7 +239,9 @@ def diagonal_weight(value: Any, field: str, m: int) -> np.ndarray:
                                     "E[v_i v_j] = mu_i mu_j); give the diagonal, e.g. np.diag(R), if each "
                                     "actuator's own weight is what you mean")
         return np.diag(arr).copy()
-    return vector_field(arr, field, m, f"({m},) or ({m}, {m}) (diagonal)")
+    if arr.shape != (m,):
+        raise shape_error(field, f"({m},) or ({m}, {m}) (diagonal)", arr.shape)
+    return arr
 
 
 def psd_weight(value: Any, field: str, n: int) -> np.ndarray:
