@@ -219,3 +219,15 @@ def test_plot_pareto_takes_allocations():
                                beta=np.ones(2)) for k in range(2)]
     line, = plot_pareto({"tcp": rows}).axes[0].lines
     assert (line.get_xdata().tolist(), line.get_ydata().tolist()) == ([3.0, 2.0], [1.0, 2.0])
+
+
+def test_plot_ack_break_even_takes_protocol_choices():
+    from packetloss_cvx.plots import plot_ack_break_even
+
+    def choice(alpha, price):
+        return results.ProtocolChoice(alpha=alpha, currency="beta'mu", ack_price=0.0, tcp=None, udp=None,
+                                      tcp_total=1.0, udp_total=2.0, choice="tcp", certified=True, break_even=price)
+
+    choices = [choice(2.0, 0.5), choice(4.0, 0.25), choice(6.0, float("inf"))]      # inf: no UDP-like design
+    line = plot_ack_break_even(choices).axes[0].lines[0]
+    assert (line.get_xdata().tolist(), line.get_ydata().tolist()) == ([2.0, 4.0], [0.5, 0.25])

@@ -654,11 +654,13 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | N
     return _save(fig, path)
 
 
-def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, currency: str = r"$\beta^\top\mu$",
-                        title: str | None = None, path: str | Path | None = None) -> Figure:
+def plot_ack_break_even(alpha: Any, break_even: Sequence[float] | None = None, *,
+                        currency: str = r"$\beta^\top\mu$", title: str | None = None,
+                        path: str | Path | None = None) -> Figure:
     """Above which price of the acknowledgement link the UDP-like design wins, against alpha:
     the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
-    Non-finite points (no design) are left out. O(points) to draw.
+    ``alpha`` may be a list of :class:`~packetloss_cvx.results.ProtocolChoice` alone (each its alpha and
+    break-even price). Non-finite points (no design) are left out. O(points) to draw.
 
     Examples
     --------
@@ -666,6 +668,11 @@ def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, 
     >>> fig.axes[0].lines[0].get_ydata().tolist()
     [0.5, 0.2]
     """
+    if break_even is None and isinstance(alpha, Sequence) and alpha and all(
+            hasattr(c, "break_even") and hasattr(c, "alpha") for c in alpha):      # ProtocolChoice results
+        alpha, break_even = [c.alpha for c in alpha], [c.break_even for c in alpha]
+    if break_even is None:
+        raise InputError("break_even", "expected the break-even prices beside alpha (or a list of ProtocolChoice)")
     a = np.asarray(alpha, dtype=float)
     b = np.asarray(break_even, dtype=float)
     if a.shape != b.shape or a.ndim != 1:
