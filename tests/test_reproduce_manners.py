@@ -97,3 +97,33 @@ def test_the_claims_document_holds_the_runs_audit_between_the_markers():
     assert block.strip() == markdown_report(results).strip()
     assert "(`packetloss-cvx audit --random 0 --seed 1`): 2 claims: 1 holds, 1 fails" in text
     assert tally_text(results) == "2 claims: 1 holds, 1 fails, 0 not reproduced, 0 inconclusive"
+
+
+def test_a_bar_shows_on_a_terminal_that_reports_no_size():
+    """A pseudo-terminal without a window size (0 x 0, as pty.openpty makes it, and as some terminals and
+    `docker exec -t` report) hid every tqdm bar: reproduce ran silent on a terminal."""
+    import os
+    import pty
+    import subprocess
+    import sys
+
+    master, slave = pty.openpty()
+    code = ("import time\nfrom packetloss_cvx.progress import progress_bar\n"
+            "with progress_bar(total=2, desc='steps') as bar:\n    for _ in range(2):\n"
+            "        time.sleep(0.15)\n        bar.update()\n")
+    root = str(Path(__file__).resolve().parent.parent)
+    proc = subprocess.run([sys.executable, "-c", code], stderr=slave, stdout=subprocess.DEVNULL, cwd=root,
+                          env={**os.environ, "PYTHONPATH": root}, timeout=60, check=False)
+    os.close(slave)
+    seen = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:
+            break
+        if not chunk:
+            break
+        seen += chunk
+    os.close(master)
+    assert proc.returncode == 0
+    assert b"steps:  50%" in seen
