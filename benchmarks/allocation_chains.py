@@ -6,7 +6,7 @@ k-state rule).
 
 Cases, CPU time (time.process_time), best of 3: pendulum_bursty (a Gilbert channel, burstiness held) at
 alpha = 60000; the same file with h_bad = 0.1 (fractional deliveries: scaled); the two-channel N = 4 system of
-tests/test_allocation_chains.py behind a Gilbert channel and a 3-state chain (mixed families), gap 1e-5. Printed:
+tests/allocation/test_allocation_chains.py behind a Gilbert channel and a 3-state chain (mixed families), gap 1e-5. Printed:
 mu*, the boxes, the time and the method note.
 """
 

@@ -8,7 +8,7 @@ linprog's answer) and the line search's end game (boxes.bracket) without its cre
 Cases: the UDP-like power problems of issue 24 on two_actuator (exponential, c = (1, 2)): least cost within
 B = 3 (least_cost_within_power's docstring, 766 boxes) and least power at alpha = 8; the UDP-like mu
 allocation with the row mu1 >= mu2 (alpha = 6, beta = (1, 1)); the UDP-like least cost within beta'mu <= 1; the
-UDP-like allocation behind Gilbert chains (issue 23 item 5, tests/test_allocation_chains.py's plant: lambda =
+UDP-like allocation behind Gilbert chains (issue 23 item 5, tests/allocation/test_allocation_chains.py's plant: lambda =
 (0.6, 0.3), alpha 1.05 times the cost at the file's rates, beta = (1, 0.6), gap 1e-5); ``reproduce``'s 33 UDP-like
 allocations of the two-actuator system (its step "allocations udp"; the objective column is then the largest move
 of any coordinate of any allocation's mu, absolute, and "both certified" means all 33). Session 30: the checked

@@ -1,5 +1,5 @@
 """The exact chain cost evaluated point by point, as a chain allocation's references and searches do: the
-41 x 41 grid of mean rates of tests/test_allocation_chains.py (two channels, N = 4, Gilbert channels with
+41 x 41 grid of mean rates of tests/allocation/test_allocation_chains.py (two channels, N = 4, Gilbert channels with
 burstiness (0.6, 0.3) held; ChainEvaluator.cost, i.e. exact_closed_form by the augmented recursion) and the
 same grid behind a 3-state chain on channel 2 (deliveries scaled). CPU seconds (time.process_time,
 OPENBLAS_NUM_THREADS=1), least of the rounds; with --baseline the same cases run by that checkout in a

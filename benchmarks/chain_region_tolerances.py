@@ -7,7 +7,7 @@ COUPLED_POLICY_REGULARISATION, COUPLED_BRACKET_RTOL), on seeded plants and chain
   controllable plants behind chains that deliver every packet after the first step (least radius 0) and 12
   two_actuator points with a channel at mean rate 1 (the same), against 400 random chains (least radius > 0);
 - regularisation: per eps, how many of 313 chains (160 random, pendulum_bursty at 9 mean rates, the 24 "current"
-  chains of tests/test_markov_region.py, 120 chains at the ends of their mean rates) have lambda pinned to 1e-9 by
+  chains of tests/closedloop/test_markov_region.py, 120 chains at the ends of their mean rates) have lambda pinned to 1e-9 by
   its own certificate and its gains' radius, how many memberships are undecided, and the CPU seconds;
 - bracket: the gap (radius - bound) / radius at the first checkpoint over the same chains, quantiles.
 """

@@ -3,7 +3,7 @@ against a baseline checkout, side by side in one run (docs/performance.md, "Othe
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/coupled_eigenpair.py --baseline /work/base/1bc1ef6 [--repeats 2]
 
-The 24 chains of tests/test_markov_region.py's "current"-convention test (seeds 100..105, four chains each),
+The 24 chains of tests/closedloop/test_markov_region.py's "current"-convention test (seeds 100..105, four chains each),
 each tree in a fresh interpreter started in its own folder (interleaved, best of ``--repeats``), CPU seconds
 (time.process_time) around the 24 calls of ``homogeneous_coupled_riccati``, and per tree the accuracy: the
 chains where ``|lambda - rho(L_K)| > 1e-9 lambda``, K the returned gains and rho closedloop.mjls's

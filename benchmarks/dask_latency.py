@@ -6,7 +6,7 @@
     OPENBLAS_NUM_THREADS=1 python benchmarks/dask_latency.py [--repeats 5]
 
 Wall-clock seconds (the wait is idle time, not CPU; the calling process's CPU is printed too), the sweeps of
-tests/test_dask.py (pendulum over x0 scales, horizons, a 7 x 7 grid; two-actuator 13 x 13), arrays compared bit for
+tests/studies/test_dask.py (pendulum over x0 scales, horizons, a 7 x 7 grid; two-actuator 13 x 13), arrays compared bit for
 bit between the two settings and against the in-process sweep.
 """
 

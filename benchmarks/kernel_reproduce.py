@@ -3,7 +3,7 @@
     python benchmarks/kernel_reproduce.py [KERNEL_A KERNEL_B]     (default: Prescott and this process's kernel)
 
 Prints each run's CPU time and every number that differs beyond its tolerance; exits 1 if any does. The suite runs
-the same comparison on ``reproduce --quick`` (tests/test_reproduce_kernels.py).
+the same comparison on ``reproduce --quick`` (tests/cli/test_reproduce_kernels.py).
 """
 
 from __future__ import annotations

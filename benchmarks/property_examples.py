@@ -3,7 +3,7 @@
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/property_examples.py [--tree PATH] [TEST_NAME ...]
 
-Runs each property test of tests/test_properties.py once under the root conftest's Hypothesis profile, with the
+Runs each property test of tests/lq/test_properties.py once under the root conftest's Hypothesis profile, with the
 test's inner function wrapped (``test.hypothesis.inner_test``) to time its body, and the draws' product calls
 (``random_system``, ``system_from_dict``) wrapped to time them; the rest is Hypothesis itself (generation,
 mutation, the per-example PRNG save/restore, the composite strategy's own draws). CPU seconds
@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 SCRIPT = r"""
 import hashlib, importlib.util, json, sys, time
-sys.path.insert(0, "tests")
+sys.path.insert(0, "tests/lq")
 spec = importlib.util.spec_from_file_location("root_conftest", "conftest.py")   # the Hypothesis profile
 spec.loader.exec_module(importlib.util.module_from_spec(spec))
 import test_properties as tp

@@ -1,8 +1,8 @@
 """The stabilisable-set engine against a baseline commit, side by side in one run: CPU time (time.process_time,
 OPENBLAS_NUM_THREADS=1) and the answers of each case, each version in its own subprocess, interleaved rounds,
 best of the rounds. Cases: ``packetloss-cvx region`` on every shipped example (the CLI's run, its JSON data), the
-plants and channels of tests/test_region.py (least radii, memberships, critical points), and a few of
-tests/test_markov_region.py's (Gilbert-Elliott chains: memberships under both conventions, a rate map, a critical
+plants and channels of tests/closedloop/test_region.py (least radii, memberships, critical points), and a few of
+tests/closedloop/test_markov_region.py's (Gilbert-Elliott chains: memberships under both conventions, a rate map, a critical
 mean rate). Rounds alternate which version runs first.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/region_engine.py [--baseline /work/wt/base-region] [--rounds 3]

@@ -8,7 +8,7 @@ package, or running ``packetloss-cvx --help``, does not import cvxpy or scipy.
 """
 
 # No ``from __future__ import annotations`` and every helper module bound under a private name: the
-# module's globals are what ``dir(packetloss_cvx)`` would otherwise show (tests/test_namespace.py).
+# module's globals are what ``dir(packetloss_cvx)`` would otherwise show (tests/house/test_namespace.py).
 import importlib as _importlib
 import typing as _typing
 

@@ -18,7 +18,7 @@ import numpy as np
 __all__ = [
     "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "closed_loop_html",
     "design_sweep_html", "design_sweep_repr", "field_text", "fields_html", "fields_repr", "html_grid", "html_table",
-    "json_text", "maximiser_repr", "plain",
+    "json_text", "maximiser_repr", "plain", "supported", "supported_digits",
     "short", "simulation_html", "span", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
 ]
 
@@ -442,3 +442,32 @@ def simulation_html(sim: Any) -> str:
     title = f"Simulation: {sim.samples} runs, {sim.steps} steps, seed {sim.seed}, {sim.channel} channel"
     return html_grid(title, ["law", "J* (Theorem 1)", "open loop: sampled cost", "exact E[cost] of the plan", "z",
                              "closed loop: mean stage cost", "exact", "mean-square radius"], rows)
+
+
+def supported_digits(value: float, error: float, most: int = 17) -> int:
+    """The significant digits of ``value`` that its accuracy estimate ``error`` (an absolute error) supports:
+    ``floor(log10(|value| / error))``, at least 1 and at most ``most`` (``most`` where the error is 0, unknown (nan)
+    or the value is not finite). O(1).
+
+    Examples
+    --------
+    >>> supported_digits(0.8352448407578126, 6.2e-6), supported_digits(0.8352448407578126, 1e-16)
+    (5, 15)
+    >>> supported_digits(0.5, 0.0), supported_digits(0.5, float("nan"), most=6), supported_digits(1e-3, 1.0)
+    (17, 6, 1)
+    """
+    if not (np.isfinite(value) and error > 0 and np.isfinite(error)) or value == 0:
+        return most
+    return int(min(most, max(1, np.floor(np.log10(abs(value) / error)))))
+
+
+def supported(value: float, error: float) -> float:
+    """``value`` rounded to the significant digits its accuracy estimate ``error`` supports (:func:`supported_digits`):
+    what JSON and CSV print. O(1).
+
+    Examples
+    --------
+    >>> supported(0.8352448407578126, 6.2e-6), supported(0.8352448407578126, 0.0)
+    (0.83524, 0.8352448407578126)
+    """
+    return float(f"{value:.{supported_digits(value, error)}g}")

@@ -6,8 +6,8 @@ function that needs one imports it when called, so that importing the package, `
 and refusing bad input stay fast, and the closed-form paths never pay for a solver they do not use.
 
 Three readers share this list, which is why it lives in the package (the bottom layer, beside
-``errors``) and not in a test: ``tests/test_architecture.py`` allows exactly these names inside
-functions, ``tests/test_cli_native.py`` checks that ``--help``, usage errors and bad input import none
+``errors``) and not in a test: ``tests/house/test_architecture.py`` allows exactly these names inside
+functions, ``tests/cli/test_cli_native.py`` checks that ``--help``, usage errors and bad input import none
 of them, and :func:`load` imports one for the package, turning a missing extra into an
 :class:`~packetloss_cvx.errors.InputError` that says how to install it (never a bare traceback).
 """
@@ -41,7 +41,7 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
 
 #: the package's own modules that load one of those libraries at import time (dotted under the package) ->
 #: why a caller imports it inside the function that needs it: so that its caller's other paths never load
-#: cvxpy or matplotlib (tests/test_closed_form_imports.py runs those paths and checks sys.modules)
+#: cvxpy or matplotlib (tests/cli/test_closed_form_imports.py runs those paths and checks sys.modules)
 LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "qp.expected_cost": "the QP twin (cvxpy): solve without --no-qp, the audit's QP claims",
     "qp.markov": "the Markov-chain QP twin (cvxpy)",

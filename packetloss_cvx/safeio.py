@@ -313,7 +313,7 @@ def laid_out_once(fig: Any, fmt: str) -> Iterator[None]:
     """Within the block, a PNG of ``fig`` with a constrained layout is drawn once: the layout is run here on the
     Agg canvas at :data:`FIGURE_DPI` (the renderer savefig then draws with) and the figure left without a layout
     engine, so savefig skips its layout pass (a whole draw with rendering off, made only to run the engine) and
-    draws once. The same bytes as a plain ``savefig(dpi=FIGURE_DPI)`` (tests/test_safeio.py), at one draw less per
+    draws once. The same bytes as a plain ``savefig(dpi=FIGURE_DPI)`` (tests/house/test_safeio.py), at one draw less per
     figure. Other formats, figures without a constrained
     layout, and rcParams that would put an engine back are left to savefig. The figure's canvas, dpi and engine
     are restored on exit. O(1) besides the layout.

@@ -97,7 +97,7 @@ __all__ += ["FORWARD_COST_ROUNDING"]
 #: states cancel only to about eps sqrt(||Q|| ||x||^2 J*), and the plan's own rounding enters it at second order.
 #: |J_reported - J*| <= FORWARD_COST_ROUNDING eps sqrt(||Q|| ||x||^2 J*) (N = 1, ||x|| the larger of |x0|, |A x0|).
 #: Measured against the exact rational J* of 238 random one-step plants (n = 1..3, one input, the first state's
-#: weight scaled by 1 to 1e14; tests/test_costs.py), under OpenBLAS's Haswell and Prescott kernels: the forward
+#: weight scaled by 1 to 1e14; tests/lq/test_costs.py), under OpenBLAS's Haswell and Prescott kernels: the forward
 #: cost within 1.2 of that bound's unit, x'P_0 x up to 1700 times it (1.2e-9 relative where J* = 246 and
 #: ||Q|| ||x||^2 = 3.4e9: the property test's failure of 1.35e-9 against its 1e-9).
 FORWARD_COST_ROUNDING = 4.0
@@ -351,7 +351,7 @@ __all__ += ["CERTIFICATE_KERNEL_RTOL", "CERTIFICATE_RTOL", "HOMOGENEOUS_RICCATI_
 CERTIFICATE_RTOL = 1e-12
 #: In that bound the directions P does not weigh (its eigenvalues at or below n eps max) are minimised out; one that
 #: R's factor F maps to at most CERTIFICATE_KERNEL_RTOL ||F|| counts as no direction: rounding (a rank-one P whose
-#: eigenvector is tilted by 5e-14 relative, random plant seed 2 of tests/test_region.py, had left c = 1.3e-8 where
+#: eigenvector is tilted by 5e-14 relative, random plant seed 2 of tests/closedloop/test_region.py, had left c = 1.3e-8 where
 #: it is 3.26; the tilt is far below any direction a law could use).
 CERTIFICATE_KERNEL_RTOL = 1e-10
 #: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
@@ -379,9 +379,9 @@ __all__ += ["CHAIN_FORM_RTOL", "ROUNDING_ORDER_RTOL"]
 #: contract between them: the BLAS kernel picks the order of each product's sums (OpenBLAS's Prescott kernel rounds
 #: a stack of 3 x 3 updates up to 1.2e-15 of its scale away from the same updates gathered, where Haswell and
 #: SkylakeX agree to the bit). Measured on the tests that compare such pairs under OpenBLAS's Prescott, Nehalem,
-#: Sandybridge, Haswell, Zen, SkylakeX and native kernels: at most 1.2e-15 (tests/test_sensing_estimation.py,
-#: tests/test_sensing_montecarlo_loop.py); equal to the bit (tests/test_closed_loop.py's stack of laws,
-#: tests/test_model.py's repaired weights, tests/test_qp_shared.py's objective against cvxpy's evaluation).
+#: Sandybridge, Haswell, Zen, SkylakeX and native kernels: at most 1.2e-15 (tests/sensing/test_sensing_estimation.py,
+#: tests/sensing/test_sensing_montecarlo_loop.py); equal to the bit (tests/closedloop/test_closed_loop.py's stack of laws,
+#: tests/model/test_model.py's repaired weights, tests/qp/test_qp_shared.py's objective against cvxpy's evaluation).
 #: 1e-12 leaves room for longer chains of products.
 ROUNDING_ORDER_RTOL = 1e-12
 

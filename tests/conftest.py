@@ -27,23 +27,23 @@ def pendulum() -> pl.System:
 #: (xdist's own order, by the number of tests in a file, put these few-test files last.) A file missing here
 #: only runs later; nothing else depends on the order.
 HEAVIEST_FIRST = (
-    "tests/test_examples_kernels.py",        # 60 s (every example and command, under a second kernel too)
-    "tests/test_docs_site.py",               # 21 s (the mkdocs build, then Chromium)
-    "tests/test_reproduce_kernels.py",       # 10 s (reproduce --quick under a second kernel)
-    "tests/test_allocation_stability.py",    # 15 s
-    "tests/test_allocation_power.py",        # 13 s
-    "tests/test_claims_doc.py",              # 13 s
-    "tests/test_properties.py",              # 13 s
-    "tests/test_reliability.py",             # 11 s (subprocesses killed in their writes)
-    "tests/test_region.py",                  # 8 s
-    "tests/test_markov_region.py",           # 8 s
-    "tests/test_reproduce.py",               # 8 s
-    "tests/test_packaging.py",               # 7 s (a wheel built by pip)
-    "tests/test_dask.py",                    # 7 s
-    "tests/test_simulate_markov.py",         # 7 s
-    "tests/test_sensing_estimation.py",      # 6 s
-    "tests/test_closed_form_imports.py",     # 6 s (fresh interpreters)
-    "tests/test_allocation_chains.py",       # 5 s
+    "tests/cli/test_examples_kernels.py",        # 60 s (every example and command, under a second kernel too)
+    "tests/docs/test_docs_site.py",               # 21 s (the mkdocs build, then Chromium)
+    "tests/cli/test_reproduce_kernels.py",       # 10 s (reproduce --quick under a second kernel)
+    "tests/allocation/test_allocation_stability.py",    # 15 s
+    "tests/allocation/test_allocation_power.py",        # 13 s
+    "tests/claims/test_claims_doc.py",              # 13 s
+    "tests/lq/test_properties.py",              # 13 s
+    "tests/house/test_reliability.py",             # 11 s (subprocesses killed in their writes)
+    "tests/closedloop/test_region.py",                  # 8 s
+    "tests/closedloop/test_markov_region.py",           # 8 s
+    "tests/cli/test_reproduce.py",               # 8 s
+    "tests/house/test_packaging.py",               # 7 s (a wheel built by pip)
+    "tests/studies/test_dask.py",                    # 7 s
+    "tests/montecarlo/test_simulate_markov.py",         # 7 s
+    "tests/sensing/test_sensing_estimation.py",      # 6 s
+    "tests/cli/test_closed_form_imports.py",     # 6 s (fresh interpreters)
+    "tests/allocation/test_allocation_chains.py",       # 5 s
 )
 
 

@@ -104,7 +104,7 @@ def compare_results(a: dict, b: dict) -> list[str]:
     return problems
 
 
-#: every shipped example through every command it answers, with JSON out (what tests/test_examples_kernels.py runs
+#: every shipped example through every command it answers, with JSON out (what tests/cli/test_examples_kernels.py runs
 #: under two kernels): a Gilbert–Elliott file gets its burstiness sweep and region map; one-channel files their
 #: critical mu; files the stability allocation refuses are kept for their refusal (exit 2 under every kernel)
 EXAMPLES = ("pendulum", "two_actuator", "pendulum_bursty", "pendulum_sensor")

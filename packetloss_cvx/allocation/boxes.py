@@ -220,7 +220,7 @@ def highs_optimum(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u:
     """What ``linprog(c, A_ub=G, b_ub=h, bounds=(l, u), method="highs", options=_HIGHS)`` answers, where it answers
     "optimal" or "infeasible", without linprog's parsing and option checks (several times the LP itself): the same
     HiGHS build (scipy's), the same model (G as CSC without its zeros, rows ``-inf <= G x <= h``) and the same
-    options as scipy's ``_linprog_highs`` passes, so the same simplex run, bit for bit (tests/test_allocation_lp.py
+    options as scipy's ``_linprog_highs`` passes, so the same simplex run, bit for bit (tests/allocation/test_allocation_lp.py
     compares the two on random LPs).
 
     Returns ``(x, row duals)`` at an optimum that linprog's own check (``_LINPROG_CHECK``) accepts, ``(None,

@@ -91,7 +91,7 @@ def cost_epigraph(system: System, mu: cp.Variable, x0: cp.Parameter, root: cp.Pa
     B z_t`` as equality constraints, sparse in the horizon), the epigraph ``r >= s ||L xhat||^2`` and
     ``t_i >= s sum_t psi_{t,i} z_{t,i}^2 / mu_i``, s = root^2 the cost scale. Returns the constraints, the
     expression ``r + sum t`` (>= s (J*_tcp(mu) - C), with equality at the optimum over the other variables)
-    and the program's constant data as one read-only vector (what tests/test_cache_keys.py compares).
+    and the program's constant data as one read-only vector (what tests/lq/test_cache_keys.py compares).
     O(N (n + m)) variables, O(N (n^2 + n m)) nonzeros. Used by :class:`TCPProgram` and :mod:`.power`.
 
     Examples

@@ -101,7 +101,7 @@ class MonotoneCost:
         # again (udp_min_cost's LP vertex is shared by boxes; a box's upper corner is its upper half's). A checked
         # value also answers a probe (the probe's number wherever the check passes, the better one where it
         # fails). Probes are not remembered: a probe is allowed to be wrong, and asking again is what lets a
-        # search steered by a wrong probe recover (tests/test_allocation_certificates.py's wrong probes)
+        # search steered by a wrong probe recover (tests/allocation/test_allocation_certificates.py's wrong probes)
         self.known: dict[bytes, float] = {}
 
     def mu(self, x: np.ndarray) -> np.ndarray:

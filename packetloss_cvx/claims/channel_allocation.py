@@ -22,7 +22,7 @@ GRID = {"coarse": 101, "fine": 21, "tol": 1e-8}
 def brute_force_allocation(*args, **kwargs):
     """:func:`~packetloss_cvx.allocation.brute_force.brute_force_allocation`, imported on first use: the
     allocation package imports cvxpy (its SOCP and constraint grammar), which the audit's other claims never
-    need (``tests/test_closed_form_imports.py``).
+    need (``tests/cli/test_closed_form_imports.py``).
 
     Examples
     --------

@@ -42,7 +42,7 @@ def water_cases() -> list[tuple[str, System, str]]:
     """The cases: (label, system, protocol), TCP-like (the exact conic program, about 0.05 s a budget). Two
     decoupled one-step plants ``x' = x + v u`` from ``x0 = sqrt(w)``: identical (w = (1, 1): the optimum splits
     evenly, a water filling with a_1 = a_2) and unequal (w = (1, 3)); and the paper's two-actuator system.
-    (The UDP-like affine case, where the water filling is exact, is checked in tests/test_allocation_power.py:
+    (The UDP-like affine case, where the water filling is exact, is checked in tests/allocation/test_allocation_power.py:
     its branch and bound needs seconds to reach the accuracy in P this check needs.) O(1).
 
     Examples
@@ -116,7 +116,7 @@ def power_water_filling(ctx: Context) -> ClaimResult:
             "g_i exp(-P_i) = lambda with g_i = -dJ*/dmu_i, so P_i = (nu - a_i)^+ with a_i = -ln g_i(mu): a water "
             "filling exactly when the ratios g_i/g_j do not move with the budget: identical channels (a_1 = a_2), or "
             "J* affine in mu (one step, decoupled, UDP-like: J* = sum w_i (1 - mu_i/2), a_i = -ln(w_i / 2), "
-            "P_2 - P_1 = ln 3 = 1.0986 at every budget; tests/test_allocation_power.py). Hand check of the TCP-like "
+            "P_2 - P_1 = ln 3 = 1.0986 at every budget; tests/allocation/test_allocation_power.py). Hand check of the TCP-like "
             "counterexample: J*_tcp = 1/(1 + mu_1) + 3/(1 + mu_2), g_i = w_i/(1 + mu_i)^2; with y_i = exp(-P_i) the "
             "KKT read w_i y_i / (2 - y_i)^2 = lambda, so P_2 - P_1 = ln 3 - 2 ln((2 - y_2)/(2 - y_1)), which "
             "tends to ln 3 only as the budget grows (B = 2: y = (0.5346, 0.2532), P_2 - P_1 = 0.7473). "

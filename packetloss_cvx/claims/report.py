@@ -1,7 +1,7 @@
 """Audit results as Markdown: a table, and a report with each claim's note, outcome per case
 and counterexample (the body of docs/claims.md); the tally of verdicts; and the whole claims document around a
 run's audit (``claims_document``: docs/claims.md's title, "In plain words" and "Findings in detail", shipped with
-the package as ``claims/claims.md``, a copy that tests/test_reproduce_manners.py keeps equal to docs/claims.md)."""
+the package as ``claims/claims.md``, a copy that tests/cli/test_reproduce_manners.py keeps equal to docs/claims.md)."""
 
 from __future__ import annotations
 

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..display import supported, supported_digits
 from ..printable import printable
 from ..results import eigenvalue_pairs
 
@@ -50,35 +51,6 @@ def num(value: Any, digits: int = 6) -> str:
     if value is None:
         return "-"
     return f"{float(value):.{digits}g}"
-
-
-def supported_digits(value: float, error: float, most: int = 17) -> int:
-    """The significant digits of ``value`` that its accuracy estimate ``error`` (an absolute error) supports:
-    ``floor(log10(|value| / error))``, at least 1 and at most ``most`` (``most`` where the error is 0, unknown (nan)
-    or the value is not finite). O(1).
-
-    Examples
-    --------
-    >>> supported_digits(0.8352448407578126, 6.2e-6), supported_digits(0.8352448407578126, 1e-16)
-    (5, 15)
-    >>> supported_digits(0.5, 0.0), supported_digits(0.5, float("nan"), most=6), supported_digits(1e-3, 1.0)
-    (17, 6, 1)
-    """
-    if not (np.isfinite(value) and error > 0 and np.isfinite(error)) or value == 0:
-        return most
-    return int(min(most, max(1, np.floor(np.log10(abs(value) / error)))))
-
-
-def supported(value: float, error: float) -> float:
-    """``value`` rounded to the significant digits its accuracy estimate ``error`` supports (:func:`supported_digits`):
-    what JSON and CSV print. O(1).
-
-    Examples
-    --------
-    >>> supported(0.8352448407578126, 6.2e-6), supported(0.8352448407578126, 0.0)
-    (0.83524, 0.8352448407578126)
-    """
-    return float(f"{value:.{supported_digits(value, error)}g}")
 
 
 def num_within(value: float, error: float, digits: int = 6) -> str:

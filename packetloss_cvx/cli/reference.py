@@ -3,7 +3,7 @@ default and example, as ``packetloss-cvx COMMAND -h`` shows them, in Markdown.
 
     python -m packetloss_cvx.cli.reference docs/cli.md
 
-``tests/test_cli_reference.py`` regenerates the page and compares it with the file, so the page cannot
+``tests/cli/test_cli_reference.py`` regenerates the page and compares it with the file, so the page cannot
 fall behind the parser; a new subcommand (``add_command``) appears with no change here. Standard library
 only. O(size of the grammar).
 """
@@ -117,7 +117,7 @@ def markdown(parser: argparse.ArgumentParser | None = None) -> str:
     folders = ", ".join(f"`{name}`" for name in _folder_commands(commands))
     lines = ["# Command-line reference", "",
              "<!-- generated from the argparse grammar by `python -m packetloss_cvx.cli.reference docs/cli.md`; "
-             "do not edit: tests/test_cli_reference.py regenerates it and compares -->", "",
+             "do not edit: tests/cli/test_cli_reference.py regenerates it and compares -->", "",
              "Every command below is also `python -m packetloss_cvx COMMAND`; `packetloss-cvx COMMAND -h` prints "
              "the same options. The contracts (exit codes, JSON keys, files) are in "
              "[the design notes](design.md#command-line-packetloss-cvx-and-python-m-packetloss_cvx).", "",

@@ -175,11 +175,14 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
         lo = float(np.max(chain.h_bad[list(set(channels))]))
         hi = float(np.min(chain.h_good[list(set(channels))]))
         axis = np.linspace(lo, hi, args.grid)
-        stable, lams = chain_rate_map(system.A, system.B, chain, axis, channels[:2])
-        grid = {"axis": axis, "channels": channels, "stable": stable, "lambda": lams}
+        stable, lams, errors = chain_rate_map(system.A, system.B, chain, axis, channels[:2], with_error=True)
+        grid = {"axis": axis, "channels": channels, "stable": stable, "lambda": lams, "lambda_error": errors}
+        # each point's lambda to the digits its own accuracy estimate supports, the estimate beside it
         entry["grid"] = {"axis": axis.tolist(), "channels": [c + 1 for c in channels[:m]],
                          "stable": [[None if np.isnan(v) else bool(v) for v in row] for row in stable],
-                         "lambda": [[float(v) for v in row] for row in lams]}
+                         "lambda": [[supported(v, e) for v, e in zip(row, erow, strict=True)]
+                                    for row, erow in zip(lams, errors, strict=True)],
+                         "lambda_error": [[None if np.isnan(e) else float(e) for e in row] for row in errors]}
         lines.append(f"stable share of the rate grid ({stable.size} points, burstiness kept): "
                      f"{100 * float(np.mean(stable == 1.0)):.1f} % ({int(np.isnan(stable).sum())} undecided)")
     entry.update(_critical_rate(system, direction, lines))      # after the grid's budget: refused before any work
@@ -190,7 +193,7 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                                       "mean_rate": chain.mean_rate, "burstiness": chain.correlation}
             if grid is not None:
                 arrays.update(axis=grid["axis"], channels=np.array(grid["channels"]) + 1, stable=grid["stable"],
-                              radius=grid["lambda"])
+                              radius=grid["lambda"], radius_error=grid["lambda_error"])
             with out.write("region.npz") as handle:
                 np.savez(handle, **arrays)
             with out.write("region.csv", text=True) as handle:
@@ -204,7 +207,8 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                     for row, y in enumerate(rows):
                         for col, x in enumerate(grid["axis"]):
                             writer.writerow([csv_number(x), csv_number(y), csv_number(grid["stable"][row, col]),
-                                             csv_number(grid["lambda"][row, col])])
+                                             csv_number(supported(grid["lambda"][row, col],
+                                                                  grid["lambda_error"][row, col]))])
             paths = [out.path / "region.npz", out.path / "region.csv"]
             if grid is not None and system.m > 1:
                 from ..plots import plot_region  # matplotlib only where a figure is asked for

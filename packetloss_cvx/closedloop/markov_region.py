@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from ..display import supported_digits
 from ..errors import InputError, NumericalError
 from ..linalg import typed_linalg
 from ..model.channel import GilbertElliott, MarkovChannel, gilbert_rates
@@ -153,15 +154,16 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: 
             why = ""
         if is_mean_square_stable(radius):
             return Membership(rates, "stable", K, radius, None, float("nan"), ((form, "stable"),)), lam, K, radius
-        reason = (f"lambda = {lam:.12g} < 1, but its gains' coupled radius {radius:.12g}{why} is not below "
+        shown = supported_digits(lam, abs(lam - radius), 12) if np.isfinite(radius) else 6
+        reason = (f"lambda = {lam:.{shown}g} < 1, but its gains' coupled radius {radius:.{shown}g}{why} is not below "
                   f"1 - {MEAN_SQUARE_MARGIN:g}")
     else:
         margin, certificate = chain_outside(A, B, channel, P, delivery)
         if certificate is not None:
             return (Membership(rates, "unstable", None, float("nan"), certificate, margin, ((form, "unstable"),)),
                     lam, K, radius)
-        reason = (f"lambda = {lam:.12g} >= 1, but its certificate proves only that every law's radius is >= "
-                  f"{1.0 + margin:.12g}, short of 1 - {CERTIFICATE_RTOL:g}")
+        reason = (f"lambda = {lam:.6g} >= 1 (its accuracy not estimated), but its certificate proves only that every "
+                  f"law's radius is >= {1.0 + margin:.12g}, short of 1 - {CERTIFICATE_RTOL:g}")
     return (Membership(rates, "undecided", None, float("nan"), None, float("nan"), ((form, "undecided"),), reason),
             lam, K, radius)
 
@@ -198,11 +200,14 @@ def chain_at_rate(channel: MarkovChannel, rate: npt.ArrayLike) -> MarkovChannel:
 
 
 def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, axis: npt.ArrayLike,
-                   channels: tuple[int, int] = (0, 1), delivery: str = "next") -> tuple[np.ndarray, np.ndarray]:
+                   channels: tuple[int, int] = (0, 1), delivery: str = "next", with_error: bool = False
+                   ) -> tuple[np.ndarray, ...]:
     """The region over the mean rates of channels I, J (the others at their own rates) at fixed burstiness:
     ``(stable, lam)`` on the grid ``axis`` × ``axis`` (rows rate_J, columns rate_I): 1.0 certified stable, 0.0
     certified not stabilisable, nan undecided; ``lam`` the homogeneous coupled Riccati eigenvalue (min over mode
-    laws of the coupled radius). One channel (m = 1): one row over ``axis``. Time K^2 memberships.
+    laws of the coupled radius). One channel (m = 1): one row over ``axis``. ``with_error``: a third array, each
+    lambda's own accuracy estimate (:func:`chain_least_radius`'s ``error``), for a caller that prints only the digits
+    it supports. Time K^2 memberships (plus K^2 coupled radii ``with_error``).
 
     Examples
     --------
@@ -216,6 +221,7 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, a
     rows = axis if channel.m > 1 else axis[:1]
     stable = np.full((len(rows), len(axis)), np.nan)
     lam = np.full_like(stable, np.nan)
+    error = np.full_like(stable, np.nan)
     for r, y in enumerate(rows):
         for c, x in enumerate(axis):
             rate = base.copy()
@@ -223,10 +229,13 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, a
             if channel.m > 1:
                 rate[channels[1]] = y
             ch = chain_at_rate(channel, rate)
-            found, lam[r, c], _, _ = _membership(A, B, ch, delivery)
+            if with_error:
+                found, lam[r, c], error[r, c] = chain_least_radius(A, B, ch, delivery)
+            else:
+                found, lam[r, c], _, _ = _membership(A, B, ch, delivery)
             if found.verdict != "undecided":
                 stable[r, c] = 1.0 if found.verdict == "stable" else 0.0
-    return stable, lam
+    return (stable, lam, error) if with_error else (stable, lam)
 
 
 def critical_rate_unproved(channel: MarkovChannel) -> str | None:

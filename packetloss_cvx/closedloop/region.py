@@ -171,7 +171,7 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray, start: np.
     two_actuator nearly every point: its steps shrink by about 0.8); else the iteration stops after
     ``HOMOGENEOUS_RICCATI_MAX_ITER`` steps. Each point of a batch takes exactly the steps it would
     alone (the batch only shares NumPy's calls), so a batch agrees with its points one by one to rounding
-    (tests/test_region.py). The result is a candidate, checked by the caller. Time O(iterations (n^3 + m^3)) per
+    (tests/closedloop/test_region.py). The result is a candidate, checked by the caller. Time O(iterations (n^3 + m^3)) per
     point, plus O(n^6) a policy step.
 
     ``start`` (n, n), optional: a PSD matrix near the eigenvector (a nearby channel's P), where every point's
@@ -179,7 +179,7 @@ def homogeneous_riccati(A: np.ndarray, B: np.ndarray, mu: np.ndarray, start: np.
     interior point of the PSD cone (the mix keeps the directions a nearby channel's P may lack, e.g. a decoupled
     plant's other blocks), in fewer steps where the start is near the eigenvector. Not always the same
     candidate: on a decoupled plant the steps can end on another block's eigenvector than the cold start's
-    (either may miss the dominant block; tests/test_region.py), which the caller's checks then refuse. A start
+    (either may miss the dominant block; tests/closedloop/test_region.py), which the caller's checks then refuse. A start
     that is not finite, or whose trace is not positive, is ignored.
 
     Examples
@@ -260,7 +260,7 @@ def _graded(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | N
     (``A -> D^-1 A D``, ``B -> D^-1 B``: exact in floating point, the same operators up to similarity), started from
     ``D P D``, mapped back (``P = D^-1 P~ D^-1``, ``K = K~ D^-1``, exact too). On a chain of integrators (P's
     diagonal 4e-14 ... 1) the unscaled iteration is not a fixed point (lambda 1.0101 for 1.0015); scaled, it
-    matches the exact single-input value to 1e-14 (tests/test_region.py). Time: the iteration's, twice or three
+    matches the exact single-input value to 1e-14 (tests/closedloop/test_region.py). Time: the iteration's, twice or three
     times for a graded point."""
     lam, P, K = _iterate(A, B, mus, start)
     for g in range(mus.shape[0]):

@@ -71,7 +71,7 @@ class CacheKey:
     identity: two modules cannot collide on a name, and a key says which fields of the system its value
     depends on (``depends_on``, names from :data:`SYSTEM_FIELDS`). A key whose fields are all in
     :data:`STRUCTURE_FIELDS` may be kept in a :class:`StructureStore` (shared by ``with_mu``, ``with_x0`` and
-    ``with_channel`` copies); any other only per system (:class:`SystemStore`). ``tests/test_cache_keys.py`` holds
+    ``with_channel`` copies); any other only per system (:class:`SystemStore`). ``tests/lq/test_cache_keys.py`` holds
     every key of the package to what it says. ``name`` is for reading (repr, errors) only.
 
     Examples

@@ -34,7 +34,7 @@ __all__ = ["PROVEN_INFEASIBLE", "ClarabelPoint", "ClarabelProgram", "first_answe
 PROVEN_INFEASIBLE = cp.INFEASIBLE
 
 #: cvxpy's canonicalisation backend of :class:`ClarabelProgram`'s compile: "COO" where this cvxpy has it (the same
-#: parameter maps as the default "CPP", entry for entry, in about 0.6 of the time; tests/test_convex.py), else cvxpy's
+#: parameter maps as the default "CPP", entry for entry, in about 0.6 of the time; tests/qp/test_convex.py), else cvxpy's
 #: default (None).
 CANON_BACKEND = getattr(cp.settings, "COO_CANON_BACKEND", None)
 
@@ -119,7 +119,7 @@ class ClarabelProgram:
     quadratic objective, e.g. the shared condensed QP of :mod:`.qp_shared`) to P
     (cvxpy's ``reduce_problem_data_tensor``). A solve forms that vector, applies the two maps and
     hands Clarabel the matrices ``problem.solve`` would hand it (the same products, the same sparsity,
-    the same cones: ``tests/test_convex.py`` compares the two bit for bit), in a new solver per
+    the same cones: ``tests/qp/test_convex.py`` compares the two bit for bit), in a new solver per
     attempt: cold, so an answer depends on its own data only (a warm Clarabel keeps the
     equilibration of the first data it saw). What ``problem.solve`` adds per call, re-applying the
     Parameters through its reduction chain, setting up its solver interface and unpacking every
@@ -128,7 +128,7 @@ class ClarabelProgram:
     An attempt whose settings switch Clarabel's equilibration off (``equilibrate_enable`` False) runs on a
     solver kept per thread and given the new data (``update``: its KKT pattern and ordering kept, the
     set-up saved): without an equilibration to carry over, Clarabel then
-    computes the floats a new solver computes (``tests/test_convex.py``). With the equilibration on, an
+    computes the floats a new solver computes (``tests/qp/test_convex.py``). With the equilibration on, an
     updated solver would keep the scaling of the first data it saw, so those attempts build a new solver.
 
     Construction O(compilation) (cvxpy's), each solve O(nnz) for the data plus Clarabel's

@@ -96,7 +96,7 @@ class RowUpdate:
             return Pm.copy(), None
         # P^- C_r' for a whole stack as one (... n) x n product: NumPy's stacked matmul with a 2-D operand makes one
         # small product per matrix (about 40x slower for 1000 runs at n = 4); the same products, summed in the order
-        # the BLAS kernel picks (tests/test_sensing_estimation.py: to ROUNDING_ORDER_RTOL)
+        # the BLAS kernel picks (tests/sensing/test_sensing_estimation.py: to ROUNDING_ORDER_RTOL)
         PCt = (Pm.reshape(-1, Pm.shape[-1]) @ self.Cr.T).reshape(*Pm.shape[:-1], self.Cr.shape[0])
         S = self.Cr @ PCt + self.Rr
         S = 0.5 * (S + S.swapaxes(-1, -2))

@@ -1,0 +1,1 @@
+"""Tests of channel allocation: M*, certificates, chains, power, stability-aware targets."""

@@ -1,0 +1,1 @@
+"""Tests of the audit of the paper's claims and its document."""

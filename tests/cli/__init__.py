@@ -1,0 +1,1 @@
+"""Tests of the command line: subcommands, parser, reference, reproduce, imports, kernels."""

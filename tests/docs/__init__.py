@@ -1,0 +1,1 @@
+"""Tests of the documentation: pages, doctests, README, the equation index."""

@@ -1,0 +1,1 @@
+"""Tests of the validated model: systems, channels and chains, sensors, files, validation."""

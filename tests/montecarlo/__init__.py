@@ -1,0 +1,1 @@
+"""Tests of sampling the model and the loop: simulate, Markov loops, tails."""

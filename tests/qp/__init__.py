@@ -1,0 +1,1 @@
+"""Tests of the solver twin: the expected-cost QPs, their backends and cross-checks."""

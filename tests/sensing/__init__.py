@@ -1,0 +1,1 @@
+"""Tests of lossy sensors: the intermittent Kalman filter, bounds, loops, Monte Carlo."""

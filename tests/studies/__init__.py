@@ -1,0 +1,1 @@
+"""Tests of design sweeps, burstiness maps, Dask."""
