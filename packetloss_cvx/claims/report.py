@@ -68,7 +68,7 @@ def claims_document(results: Sequence[ClaimResult], command: str) -> str:
              "full audit (`packetloss-cvx audit --random 200 --seed 1`, which `packetloss-cvx reproduce` without "
              "`--quick` runs); each check computes a margin per case, negative exactly where the case violates the "
              "claim. `Cases:` gives each claim's outcome per case: `+` holds, `-` violated, `.` not applicable, "
-             "`E` errored.", "", BEGIN, markdown_report(results).rstrip("\n"), END, ""]
+             "`E` errored.", "", BEGIN, markdown_report(results).strip("\n"), END, ""]
     return "\n".join([head.rstrip("\n"), "", *audit, "## Findings in detail", "", findings.lstrip("\n")])
 
 
