@@ -156,6 +156,14 @@ def infeasible_row_text(g: np.ndarray, c: float, least: float, name: str = "mu")
     return f"{text} >= {-c:.6g} (largest value {-least:.6g} < {-c:.6g})"
 
 
+def _box_text(lo: float, hi: float, name: str, units: np.ndarray) -> str:
+    """The box in the user's units: ``the bounds [0, 1]``, or each channel's range where they differ."""
+    low, high = lo * units, hi * units
+    if np.all(low == low[0]) and np.all(high == high[0]):
+        return f"the bounds [{low[0]:g}, {high[0]:g}]"
+    return "the box " + " x ".join(f"[{a:g}, {b:g}]" for a, b in zip(low, high, strict=True))
+
+
 # ------------------------------------------------------------------ scalar arguments
 
 def check_system(system: Any) -> System:
@@ -356,7 +364,8 @@ def _affine_rows(fn: Callable, m: int, field: str) -> tuple[np.ndarray, np.ndarr
     return np.vstack(G), np.concatenate(h)
 
 
-def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float) -> Polytope:
+def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float, *, name: str = "mu",
+                  scale: np.ndarray | None = None) -> Polytope:
     """The bounds and ``constraints`` as one :class:`Polytope`.
 
     Parameters
@@ -368,6 +377,10 @@ def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: floa
     m : int
     lo, hi : float
         The box, already checked.
+    name, scale : str, array, optional
+        How an infeasible row is written for its reader: in the variable ``name`` (``"P"`` for powers), whose
+        value is ``scale`` times the rows' variable (power rows are read on x = P / cap), so the row and the
+        box are given back in the user's units.
 
     Raises
     ------
@@ -393,6 +406,7 @@ def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: floa
     """
     if isinstance(constraints, (str, bytes)) or not isinstance(constraints, Sequence):
         raise InputError("constraints", "expected a list of (G, h) pairs or callables")
+    units = np.ones(m) if scale is None else np.asarray(scale, dtype=float)
     rows, rhs = [np.zeros((0, m))], [np.zeros(0)]
     for k, item in enumerate(constraints):
         field = f"constraints[{k}]"
@@ -420,8 +434,9 @@ def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: floa
             if c >= most:                         # no point of the box violates it
                 continue
             if c < least:
-                raise InfeasibleError(f"{field}: no mu in the bounds [{lo:g}, {hi:g}] satisfies "
-                                      f"{infeasible_row_text(g * scale, c * scale, least * scale)}", None)
+                raise InfeasibleError(f"{field}: no {name} in {_box_text(lo, hi, name, units)} satisfies "
+                                      f"{infeasible_row_text(g * scale / units, c * scale, least * scale, name)}",
+                                      None)
             rows.append(g[None, :])
             rhs.append(np.array([c]))
     G, h = np.vstack(rows), np.concatenate(rhs)

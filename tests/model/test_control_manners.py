@@ -151,3 +151,16 @@ def test_the_closed_loop_names_its_noise_inputs_and_itself(cart):
     unnamed = closed_loop_statespace(pl.System(A=A, B=B, horizon=4, Q=np.eye(2), R=np.eye(2), mu=0.8, x0=[1.0, 0.0]),
                                      np.zeros((2, 2)))
     assert (unnamed.name, unnamed.input_labels) == ("closed loop", ["w[0]", "w[1]"])
+
+
+def test_an_infeasible_power_row_is_reported_in_powers():
+    """Power rows are read on x = P / cap: the message spoke of mu and of the scaled row (1.5*mu1 >= 2)."""
+    from packetloss_cvx.allocation.delivery import power_model
+    from packetloss_cvx.allocation.power import least_power
+
+    row = parse_constraint("P1 + 2*P2 >= 5", 2, name="P")
+    with pytest.raises(pl.InfeasibleError) as info:
+        least_power(pl.load_example("two_actuator"), "tcp", power_model("exponential", 2, scale=1.0), 8.0,
+                    constraints=[row], max_power=[1.5, 1.0])
+    # largest P1 + 2 P2 in the caps: 1.5 + 2 * 1 = 3.5
+    assert "no P in the box [0, 1.5] x [0, 1] satisfies P1 + 2*P2 >= 5 (largest value 3.5 < 5)" in str(info.value)
