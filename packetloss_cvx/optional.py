@@ -32,6 +32,7 @@ LAZY_IMPORTS: Mapping[str, str] = MappingProxyType({
     "distributed": "the 'distributed' extra: sweeps on a Dask cluster",
     "xarray": "the 'xarray' extra: sweep results as Datasets and NetCDF files",
     "control": "the 'control' extra: python-control interop (StateSpace in and out)",
+    "pandas": "the 'xarray' extra (it installs pandas): results as tidy DataFrames (to_pandas)",
     "scipy": "ARPACK, GMRES, LU and the complex Schur form only where used (large n, the pointwise and QP "
              "paths, the error bound of a plan rolled out on a plant that rotates): importing any of "
              "SciPy costs about 0.15 s (its array-API layer clones NumPy's namespace, loading numpy.f2py and "
@@ -58,7 +59,7 @@ LAZY_MODULES: Mapping[str, str] = MappingProxyType({
 
 #: library -> the pyproject extra that installs it (the others are required dependencies)
 EXTRAS: Mapping[str, str] = MappingProxyType({
-    "dask": "distributed", "distributed": "distributed", "xarray": "xarray", "control": "control",
+    "dask": "distributed", "distributed": "distributed", "xarray": "xarray", "control": "control", "pandas": "xarray",
 })
 
 

@@ -7,11 +7,12 @@ passes ``False`` with ``--quiet``.
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Iterable, Iterator
 from typing import Any, TypeVar
 
-__all__ = ["ESTIMATE_AFTER", "Bar", "label", "progress_bar", "wants_progress"]
+__all__ = ["ESTIMATE_AFTER", "Bar", "label", "progress_bar", "terminal_columns", "wants_progress"]
 
 #: Work estimated to take longer than this (seconds) has its estimate in the bar's label from the start
 #: (tqdm's own remaining time appears only once the first step is done, which may be minutes away).
@@ -99,4 +100,18 @@ def progress_bar(iterable: Iterable[T] | None = None, *, total: int | None = Non
         return Bar(iterable)
     from tqdm.auto import tqdm  # lazy: tqdm is only needed when a bar is shown
 
-    return tqdm(iterable, total=total, desc=label(desc, estimate), file=sys.stderr, leave=False, dynamic_ncols=True)
+    # a terminal that reports no size (a pty without a window size) would hide every bar: 80 x 24 then
+    width = {"dynamic_ncols": True} if terminal_columns() else {"ncols": 80, "nrows": 24}
+    return tqdm(iterable, total=total, desc=label(desc, estimate), file=sys.stderr, leave=False, **width)
+
+
+def terminal_columns() -> int:
+    """The width of the terminal stderr writes to, 0 when it reports none (or stderr is not a terminal). O(1).
+
+    >>> isinstance(terminal_columns(), int)
+    True
+    """
+    try:
+        return os.get_terminal_size(sys.stderr.fileno()).columns
+    except (OSError, ValueError, AttributeError):
+        return 0

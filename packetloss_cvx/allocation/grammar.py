@@ -27,7 +27,7 @@ from ..tolerances import ALLOCATION_GAP_MIN
 
 __all__ = [
     "Constraint", "Polytope", "check_alpha", "check_beta", "check_bounds", "check_count", "check_gap",
-    "check_number", "check_system", "parse_constraint", "read_polytope",
+    "check_number", "check_system", "infeasible_row_text", "parse_constraint", "read_polytope",
 ]
 
 Constraint = Callable[[cp.Variable], Any] | tuple[Any, Any]
@@ -81,7 +81,7 @@ def _side(text: str, m: int, field: str, name: str = "mu") -> tuple[np.ndarray, 
     return coef, const
 
 
-def parse_constraint(text: str, m: int, field: str = "--constraint", name: str = "mu") -> tuple[np.ndarray, np.ndarray]:
+def parse_constraint(text: str, m: int, field: str = "constraint", name: str = "mu") -> tuple[np.ndarray, np.ndarray]:
     """Parse ``"mu1 + 2*mu2 <= 1.5"``, ``"mu1 >= mu2"``, ``"mu2 == 0.8"`` into (G, h), G mu <= h
     (``name="P"``: the same in transmit powers, ``"P1 <= 2*P2"``).
 
@@ -91,7 +91,8 @@ def parse_constraint(text: str, m: int, field: str = "--constraint", name: str =
     Raises
     ------
     InputError
-        Anything else, under ``field``; ``m`` not a positive integer, under ``m``.
+        Anything else, under ``field`` (the command line passes ``"--constraint"``); ``m`` not a positive
+        integer, under ``m``.
     BudgetError
         ``m`` whose dense rows (five arrays of m doubles while parsing) exceed the ``memory_bytes`` budget, under
         ``m``, before any is allocated.
@@ -127,6 +128,40 @@ def parse_constraint(text: str, m: int, field: str = "--constraint", name: str =
     if op in (">=", ">"):
         return -row[None, :], np.array([-rhs])
     return np.vstack([row, -row]), np.array([rhs, -rhs])
+
+
+def infeasible_row_text(g: np.ndarray, c: float, least: float, name: str = "mu") -> str:
+    """The row ``g mu <= c`` in the signs a user writes it (the first coefficient positive: ``mu1 + mu2 >= 2.5``,
+    not ``-mu1 - mu2 <= -2.5``) with the value it cannot reach over the bounds (``least``: the least of g mu).
+    O(m).
+
+    Examples
+    --------
+    >>> infeasible_row_text(np.array([-1.0, -1.0]), -2.5, -2.0)
+    'mu1 + mu2 >= 2.5 (largest value 2 < 2.5)'
+    >>> infeasible_row_text(np.array([1.0, 1.0]), 1.0, 1.2)
+    'mu1 + mu2 <= 1 (least value 1.2 > 1)'
+    """
+    sign = -1.0 if g[np.flatnonzero(g)[0]] < 0 else 1.0
+    terms = []
+    for i, a in enumerate(sign * g):
+        if a == 0:
+            continue
+        size = "" if abs(a) == 1 else f"{abs(a):.6g}*"
+        terms.append(("-" if a < 0 else "+") + f" {size}{name}{i + 1}")
+    text = " ".join(terms)
+    text = text[2:] if text.startswith("+ ") else "-" + text[2:]
+    if sign > 0:
+        return f"{text} <= {c:.6g} (least value {least:.6g} > {c:.6g})"
+    return f"{text} >= {-c:.6g} (largest value {-least:.6g} < {-c:.6g})"
+
+
+def _box_text(lo: float, hi: float, name: str, units: np.ndarray) -> str:
+    """The box in the user's units: ``the bounds [0, 1]``, or each channel's range where they differ."""
+    low, high = lo * units, hi * units
+    if np.all(low == low[0]) and np.all(high == high[0]):
+        return f"the bounds [{low[0]:g}, {high[0]:g}]"
+    return "the box " + " x ".join(f"[{a:g}, {b:g}]" for a, b in zip(low, high, strict=True))
 
 
 # ------------------------------------------------------------------ scalar arguments
@@ -329,8 +364,9 @@ def _affine_rows(fn: Callable, m: int, field: str) -> tuple[np.ndarray, np.ndarr
     return np.vstack(G), np.concatenate(h)
 
 
-def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float) -> Polytope:
-    """The bounds and ``constraints`` as one [`Polytope`][packetloss_cvx.allocation.grammar.Polytope].
+def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float, *, name: str = "mu",
+                  scale: np.ndarray | None = None) -> Polytope:
+    """The bounds and ``constraints`` as one :class:`Polytope`.
 
     Parameters
     ----------
@@ -341,6 +377,10 @@ def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: floa
     m : int
     lo, hi : float
         The box, already checked.
+    name, scale : str, array, optional
+        How an infeasible row is written for its reader: in the variable ``name`` (``"P"`` for powers), whose
+        value is ``scale`` times the rows' variable (power rows are read on x = P / cap), so the row and the
+        box are given back in the user's units.
 
     Raises
     ------
@@ -366,6 +406,7 @@ def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: floa
     """
     if isinstance(constraints, (str, bytes)) or not isinstance(constraints, Sequence):
         raise InputError("constraints", "expected a list of (G, h) pairs or callables")
+    units = np.ones(m) if scale is None else np.asarray(scale, dtype=float)
     rows, rhs = [np.zeros((0, m))], [np.zeros(0)]
     for k, item in enumerate(constraints):
         field = f"constraints[{k}]"
@@ -393,8 +434,9 @@ def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: floa
             if c >= most:                         # no point of the box violates it
                 continue
             if c < least:
-                raise InfeasibleError(f"{field}: no mu in the bounds [{lo:g}, {hi:g}] satisfies it "
-                                      f"(least value {least * scale:.6g} > {c * scale:.6g})", None)
+                raise InfeasibleError(f"{field}: no {name} in {_box_text(lo, hi, name, units)} satisfies "
+                                      f"{infeasible_row_text(g * scale / units, c * scale, least * scale, name)}",
+                                      None)
             rows.append(g[None, :])
             rhs.append(np.array([c]))
     G, h = np.vstack(rows), np.concatenate(rhs)

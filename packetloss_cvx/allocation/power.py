@@ -195,7 +195,7 @@ class _Setup:
     def __init__(self, system: System, protocol: str, model: PowerModel, top: np.ndarray,
                  constraints: Sequence[Constraint]) -> None:
         self.system, self.protocol, self.model, self.top = system, protocol, model, top
-        self.poly = read_polytope(_scaled(constraints, top), system.m, 0.0, 1.0)
+        self.poly = read_polytope(_scaled(constraints, top), system.m, 0.0, 1.0, name="P", scale=top)
         self.evaluator = CostEvaluator(system, protocol)
         self.cost = MonotoneCost(self.evaluator, lambda x: model.mu(top * x), lambda i, t: model.channel(i, top[i] * t))
 
@@ -301,7 +301,7 @@ def _search_cap(system: System, protocol: str, model: PowerModel, alpha: float, 
     def feasible(T: float) -> np.ndarray | None:
         box = np.minimum(np.full(system.m, T), sat)
         try:
-            setup_poly = read_polytope(_scaled(constraints, box), system.m, 0.0, 1.0)
+            setup_poly = read_polytope(_scaled(constraints, box), system.m, 0.0, 1.0, name="P", scale=box)
             q, _ = box_lp(-np.ones(system.m), setup_poly, np.zeros(system.m), np.ones(system.m))
         except InfeasibleError:             # a row this box cannot meet (P1 >= 30 in [0, 1]^m): not a verdict
             return None

@@ -11,6 +11,7 @@ per case).
 
 from ..results import ClaimResult
 from .registry import CLAIMS, audit
-from .report import markdown_report, markdown_table
+from .report import claims_document, markdown_report, markdown_table, tally, tally_text
 
-__all__ = ["CLAIMS", "ClaimResult", "audit", "markdown_report", "markdown_table"]
+__all__ = ["CLAIMS", "ClaimResult", "audit", "claims_document", "markdown_report", "markdown_table", "tally",
+           "tally_text"]

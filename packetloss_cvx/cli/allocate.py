@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     options.update(search_options(args))
-    constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
+    constraints = [parse_constraint(text, system.m, "--constraint") for text in args.constraint or []]
     options["progress"] = progress_of(args)
     try:
         result = allocate(system, args.protocol, alpha, beta, bounds=tuple(bounds), constraints=constraints,

@@ -67,7 +67,8 @@ def _options(args: argparse.Namespace, system: System, power: bool) -> dict[str,
     if power and args.power_max is not None:
         options["max_power"] = floats(args.power_max, "--power-max")
     name = "P" if power else "mu"
-    options["constraints"] = [parse_constraint(text, system.m, name=name) for text in args.constraint or []]
+    options["constraints"] = [parse_constraint(text, system.m, "--constraint", name=name)
+                              for text in args.constraint or []]
     return options
 
 

@@ -78,7 +78,7 @@ def run_target(args: argparse.Namespace) -> CommandResult:
     if args.alpha is not None:
         options["alpha"] = number(args.alpha, "--alpha")
     options.update(search_options(args))
-    constraints = [parse_constraint(text, system.m) for text in args.constraint or []]
+    constraints = [parse_constraint(text, system.m, "--constraint") for text in args.constraint or []]
     try:
         result = stability_allocate(system, args.target, beta, bounds=tuple(bounds), constraints=constraints,
                                     progress=progress_of(args), **options)

@@ -19,6 +19,7 @@ from ..closedloop.markov_region import (
 )
 from ..closedloop.riccati import dp_riccati
 from ..errors import InputError, NumericalError
+from ..model.validation import channel_range
 from ..results.region import RegionMap
 from ..runfolder import RunFolder
 from ..safeio import save_figure
@@ -57,7 +58,8 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
         text = args.channels if args.channels is not None else "1,2"
         pair = integers(text, "--channels")       # inf and nan refused here, not by int() (exit 1)
         if len(pair) != 2 or any(not 1 <= v <= m for v in pair) or pair[0] == pair[1]:
-            raise InputError("--channels", f"expected two different channels from 1 to {m}, found {text[:40]!r}")
+            raise InputError("--channels", f"expected two different channels, each {channel_range(m, True)}, "
+                                            f"found {text[:40]!r}")
         options["grid"] = args.grid
         options["channels"] = (pair[0] - 1, pair[1] - 1)
     return options
@@ -167,8 +169,8 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
         pair = integers(text, "--channels")
         if (len(pair) != min(m, 2) or any(not 1 <= v <= m for v in pair)
                 or (len(pair) == 2 and pair[0] == pair[1])):
-            raise InputError("--channels", f"expected {min(m, 2)} different channels from 1 to {m}, found "
-                                           f"{text[:40]!r}")
+            raise InputError("--channels", f"expected {min(m, 2)} different channels, each "
+                                           f"{channel_range(m, True)}, found {text[:40]!r}")
         channels = tuple(v - 1 for v in pair) + ((0,) if m == 1 else ())
         lo = float(np.max(chain.h_bad[list(set(channels))]))
         hi = float(np.min(chain.h_good[list(set(channels))]))

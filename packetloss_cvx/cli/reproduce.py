@@ -10,12 +10,13 @@ two-actuator system's stability region of each law (beyond the paper), the audit
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
 from pathlib import Path
 from typing import Any
 
 from ..allocation.ack import break_even_of
-from ..claims import CLAIMS, audit, markdown_report
+from ..claims import CLAIMS, audit, claims_document, tally, tally_text
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
 from ..display import json_text
 from ..model.files import load_example
@@ -30,7 +31,7 @@ from .common import CommandResult
 from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, report
 
 #: compute and draw_figures (run's two steps) are not exported: benchmarks/reproduce_speed.py calls them
-__all__ = ["ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "run"]
+__all__ = ["ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "STEPS", "WRITE_STEPS", "run"]
 
 #: The cost bounds alpha of the -mult figures: the paper's 4.78 among levels spread from just above
 #: J*(1, 1) = 1.92 to below J*(0, 0) = 140.7 of the two-actuator system (the paper prints none). Above 20
@@ -57,15 +58,23 @@ SETTINGS = {
 }
 
 
+#: compute's steps, in order; run adds WRITE_STEPS to the same progress bar
+STEPS = ("pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "audit")
+#: run's steps after compute: the figures drawn and saved, then claims.md, results.json and report.md
+WRITE_STEPS = ("figures", "report")
+
+
 @blas_limited      # the maximisers, tables and audit loops of small dense algebra (threads.py)
-def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float]) -> dict[str, Any]:
-    """The data of every figure, table and the audit for ``settings`` (one of `SETTINGS`), each step's wall
-    seconds put in ``seconds``; nothing is written. Called by `run` (and by benchmarks/reproduce_speed.py)."""
+def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float],
+            bar: Any = None) -> dict[str, Any]:
+    """The data of every figure, table and the audit for ``settings`` (one of :data:`SETTINGS`), each step's wall
+    seconds put in ``seconds``; nothing is written. Called by :func:`run` (and by benchmarks/reproduce_speed.py).
+    ``bar``: a progress bar (progress.progress_bar) that the steps advance, the caller's; None: its own."""
     pendulum, mixed = load_example("pendulum"), load_example("two_actuator")
-    steps = ["pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "audit"]
     data: dict[str, Any] = {"settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()}}
-    with progress_bar(total=len(steps), desc="reproduce", progress=progress) as bar:
-        for step in steps:
+    with contextlib.nullcontext(bar) if bar is not None else progress_bar(total=len(STEPS), desc="reproduce",
+                                                                          progress=progress) as bar:
+        for step in STEPS:
             bar.set_postfix_str(step)
             start = time.perf_counter()
             if step == "pendulum":
@@ -102,8 +111,7 @@ def draw_figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
     pend, mixed = data["pendulum"], data["mixed"]
     caption = {label: f"{label}\n{text}" for label, text in FIGURES.items()}
     draw = {}
-    draw["fig:log-cost-pendulum"] = plot_cost_lines(
-                    pend["nu"], {"tcp": pend["tcp"], "udp": pend["udp"], "diff": pend["diff"]},
+    draw["fig:log-cost-pendulum"] = plot_cost_lines(pend["nu"], {key: pend[key] for key in ("tcp", "udp", "diff")},
                     xlabel=r"delivery probability $\nu$ (shared channel; log scale)", xscale="log",
                     marker=pend["maximiser"]["nu"],
                     marker_label=rf"max $J_\Delta$ at $\nu$ = {pend['maximiser']['nu']:.3g}",
@@ -170,26 +178,38 @@ def run(args: argparse.Namespace) -> CommandResult:
     with RunFolder(args.out, command=getattr(args, "command_line", "packetloss-cvx reproduce"),
                    force=getattr(args, "force", False), field="--out") as folder:    # before any work
         seconds: dict[str, float] = {}      # printed, never written: the files stay deterministic
-        data = compute(settings, progress, seconds)
-        start = time.perf_counter()
-        figures = draw_figures(data, folder)
-        seconds["figures"] = time.perf_counter() - start
-        with folder.write(CLAIMS_FILE, text=True) as handle:
-            handle.write(markdown_report(data["audit"]))
-        out = folder.path
-        text, verdicts = report(data, figures, out)
-        results = {key: value for key, value in data.items() if key != "audit"}
-        results["audit"] = [r.to_dict() for r in data["audit"]]
-        results["figures"] = {label: path.name for label, path in figures.items()}
-        results["verdicts"] = verdicts
-        with folder.write("results.json", text=True) as handle:
-            handle.write(json_text(results, indent=1) + "\n")
-        with folder.write("report.md", text=True) as handle:
-            handle.write(text)
+        with progress_bar(total=len(STEPS) + len(WRITE_STEPS), desc="reproduce", progress=progress) as bar:
+            data = compute(settings, progress, seconds, bar=bar)
+            bar.set_postfix_str("figures")
+            start = time.perf_counter()
+            figures = draw_figures(data, folder)
+            seconds["figures"] = time.perf_counter() - start
+            bar.update()
+            bar.set_postfix_str("report")
+            start = time.perf_counter()
+            command = f"packetloss-cvx audit --random {settings['audit_random']} --seed {settings['audit_seed']}"
+            if settings["audit_skips"]:
+                command += f"` without {', '.join(settings['audit_skips'])}, as `reproduce --quick"
+            with folder.write(CLAIMS_FILE, text=True) as handle:
+                handle.write(claims_document(data["audit"], command))
+            out = folder.path
+            text, verdicts = report(data, figures, out)
+            results = {key: value for key, value in data.items() if key != "audit"}
+            results["audit"] = [r.to_dict() for r in data["audit"]]
+            results["audit_tally"] = tally(data["audit"])
+            results["figures"] = {label: path.name for label, path in figures.items()}
+            results["verdicts"] = verdicts
+            with folder.write("results.json", text=True) as handle:
+                handle.write(json_text(results, indent=1) + "\n")
+            with folder.write("report.md", text=True) as handle:
+                handle.write(text)
+            seconds["report"] = time.perf_counter() - start
+            bar.update()
     files = [*(p.name for p in figures.values()), "results.json", "report.md", CLAIMS_FILE]
-    lines = [f"reproduce: wrote {len(files)} files in {out}"]
+    lines = [f"reproduce: wrote {len(files)} files in {out}",
+             f"  audit: {tally_text(data['audit'])} (details in {out / CLAIMS_FILE})"]
     lines += [f"  {label}: {verdict}" for label, verdict in verdicts.items()]
     lines.append("  seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in seconds.items()))
     lines.append(f"  read {out / 'report.md'}")
-    return CommandResult({"out": str(out), "files": files, "verdicts": verdicts, "seconds": seconds},
-                         "\n".join(lines))
+    return CommandResult({"out": str(out), "files": files, "audit": tally(data["audit"]), "verdicts": verdicts,
+                          "seconds": seconds}, "\n".join(lines))

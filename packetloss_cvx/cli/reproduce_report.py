@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..claims import markdown_table
+from ..claims import markdown_table, tally_text
 from ..claims.paper import ALLOCATION_ALPHA, PENDULUM_NU_D
 
 __all__ = ["ACK_FIGURE", "BEYOND_FIGURES", "CLAIMS_FILE", "FIGURES", "REGION_FIGURE", "REGION_LAWS", "allocation_table",
@@ -275,6 +275,14 @@ def region_paragraph(region: dict[str, Any], link: str) -> list[str]:
             f"([stability-region-paper-systems]({link})).", ""]
 
 
+def _lead(data: dict[str, Any], verdicts: dict[str, str], out: Path) -> list[str]:
+    """The report's first lines: the audit's tally and each figure's verdict, before any detail."""
+    results = data["audit"]
+    return [f"**The audit: {tally_text(results)}** (the table at the end; notes in [claims.md]({claims_link(out)})).",
+            "", "| figure | verdict |", "|---|---|",
+            *(f"| {label} | {verdict} |" for label, verdict in verdicts.items())]
+
+
 def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[str, dict[str, str]]:
     """The Markdown report and a one-line verdict per figure. O(size of the data)."""
     paragraphs = {
@@ -286,7 +294,8 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
         "fig:UDP-log-cost-mixed-mult": _mult(data, "udp", out),
     }
     s = data["settings"]
-    lines = ["# The paper, reproduced", "",
+    verdicts = {label: verdict for label, (_, verdict) in paragraphs.items()}
+    lines = ["# The paper, reproduced", "", *_lead(data, verdicts, out), "",
              "Casbolt, Jones and Esnaola, \"Optimal Control of Systems with Multichannel Packet Loss\": every "
              "figure and table of its numerical sections, recomputed by `packetloss-cvx reproduce` from the "
              "packaged examples (`pendulum`, `two_actuator`; the paper gives no x0, Q or noise: the example "
@@ -311,4 +320,4 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
               + (f"; left out by --quick: {', '.join(s['audit_skips'])}" if s["audit_skips"] else "") + "): "
               + ", ".join(f"{n} {v}" for v, n in counts.items()) + f". Details: [claims.md]({claims_link(out)}).",
               "", markdown_table(results), ""]
-    return "\n".join(lines), {label: verdict for label, (_, verdict) in paragraphs.items()}
+    return "\n".join(lines), verdicts

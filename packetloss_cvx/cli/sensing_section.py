@@ -217,11 +217,11 @@ def region_section(system: System, known: Sequence[CriticalPoint] = ()) -> tuple
 def _dp_critical_mu(system: System, known: Sequence[CriticalPoint] = ()) -> tuple[float | None, str]:
     mu = system.mu_schedule[0]
     direction = mu / mu.max() if mu.max() > 0 else None
-    for point in known:        # critical_mu(system, "dp", direction) is critical_point(system, "dp", direction).t
+    for point in known:        # critical_mu(system, "dp", direction) is critical_point(system, "dp", direction)
         if point.law == "dp" and direction is not None and np.array_equal(point.direction, direction):
             return float(point.t), ""
-    try:
-        return float(critical_mu(system, "dp", direction)), ""
+    try:       # a file's mu of zeros has no direction: refused as such (not the default direction, all ones)
+        return float(critical_mu(system, "dp", mu if direction is None else direction).t), ""
     except (NumericalError, InputError) as err:
         return None, str(err)
 

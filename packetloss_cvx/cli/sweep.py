@@ -13,6 +13,7 @@ from ..closedloop.stability import is_mean_square_stable
 from ..errors import InputError
 from ..model.files import load_system
 from ..model.system import System
+from ..model.validation import channel_range
 from ..results import BurstinessMap, BurstinessSweep, DesignSweep, plugin_loss
 from ..runfolder import RunFolder
 from ..safeio import save_figure
@@ -51,7 +52,7 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
         options["horizons"] = integers(args.horizons, "--horizons")
     if args.channel is not None:
         if not 1 <= args.channel <= m:
-            raise InputError("--channel", f"expected a channel from 1 to {m}, found {args.channel}")
+            raise InputError("--channel", f"expected {channel_range(m, True)}, found {args.channel}")
         options["channel"] = args.channel - 1
     return options
 
@@ -216,7 +217,7 @@ def bursty_map(args: argparse.Namespace) -> CommandResult:
     rates = number_range(args.mean_rate, "--mean-rate")
     channel = 1 if args.channel is None else args.channel
     if not 1 <= channel <= system.m:
-        raise InputError("--channel", f"expected a channel from 1 to {system.m}, found {channel}")
+        raise InputError("--channel", f"expected {channel_range(system.m, True)}, found {channel}")
     with _folder(args) as out:       # claimed (checked, locked) before the work, released on any exit
         try:
             result = burstiness_map(system, rates, correlations, channel - 1,

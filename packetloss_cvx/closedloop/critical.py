@@ -94,7 +94,8 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
     point; for another law, stability need not be monotone along the ray and this is one crossing.
     ``decide`` (mu -> Membership) replaces the law's membership with another region's, monotone along the ray
     by its own proof (e.g. markov_region's mean rates behind a chain), and ``end`` the ray's end in t (default
-    ``1 / max(direction)``). Time O(log2(1 / tol)) memberships.
+    ``1 / max(direction)``). ``direction`` defaults to all ones, as on the command line. Time O(log2(1 / tol))
+    memberships.
 
     Raises
     ------
@@ -108,7 +109,9 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
     >>> bool(p.lower <= 0.75 <= p.t <= p.lower + 1e-6), p.inside.verdict, p.outside.verdict
     (True, 'stable', 'unstable')
     """
-    d = np.asarray(stationary_channel(system) if direction is None else direction, dtype=float).reshape(-1)
+    if direction is None:          # the default ray, all ones (as the command line's); a chain or a schedule is
+        stationary_channel(system)  # refused as before: its region is not the Bernoulli one
+    d = np.asarray(np.ones(system.m) if direction is None else direction, dtype=float).reshape(-1)
     if d.shape != (system.m,) or np.any(d < 0) or not np.any(d > 0) or not np.all(np.isfinite(d)):
         raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")
     if not tol > 0:
@@ -159,8 +162,9 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
 
 
 def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLike | None = None,
-                tol: float = CRITICAL_MU_TOL, stable: Callable[[np.ndarray], bool] | None = None) -> float:
-    """The least ``t`` with a mean-square stable loop over ``mu = t * direction``, by bisection.
+                tol: float = CRITICAL_MU_TOL, stable: Callable[[np.ndarray], bool] | None = None) -> CriticalPoint:
+    """The critical delivery probabilities of a law: where its region meets the ray ``mu = t * direction``, by
+    bisection in t (:func:`critical_point`).
 
     Parameters
     ----------
@@ -169,7 +173,8 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
         As in [`law_membership`][packetloss_cvx.closedloop.critical.law_membership]: a fixed gain, or "tcp" / "udp" /
         "dp" re-designed at each mu.
     direction : array_like, optional
-        Nonnegative, not all zero (default: the system's channel); t runs over [0, 1 / max(direction)].
+        Nonnegative, not all zero; default all ones (every channel alike, as ``region --direction`` on the
+        command line); t runs over [0, 1 / max(direction)].
     tol : float
         Width of the final bracket in t (at best the spacing of doubles near the answer).
     stable : callable, optional
@@ -177,20 +182,21 @@ def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLi
 
     Returns
     -------
-    float
-        The upper end of the final bracket (a stable point;
-        [`critical_point`][packetloss_cvx.closedloop.critical.critical_point] gives the bracket and both ends'
-        evidence); ``inf`` when the loop is not stable even at the ray's end, 0.0 when it is stable at mu = 0. For "dp"
-        the exact critical point lies in the bracket (a numerical failure is never read as "unstable"). Time O(log2(1 /
-        tol)) designs and radii.
+    CriticalPoint
+        ``mu``: the critical mu ``t * direction`` (the upper end of the final bracket, a stable point; inf
+        entries when the loop is not stable even at the ray's end, zeros when it is stable at mu = 0); ``t``
+        beside it, the bracket ``[lower, t]`` and both ends' evidence. For "dp" the exact critical point lies
+        in the bracket (a numerical failure is never read as "unstable"). Time O(log2(1 / tol)) designs and
+        radii.
 
     Examples
     --------
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
-    >>> round(critical_mu(s, [[2.0]], tol=1e-4), 3)   # fixed k = a: a^2 (1 - mu) < 1 iff mu > 1 - 1/a^2
-    0.75
+    >>> point = critical_mu(s, [[2.0]], tol=1e-4)     # fixed k = a: a^2 (1 - mu) < 1 iff mu > 1 - 1/a^2
+    >>> np.round(point.mu, 3).tolist(), round(point.t, 3)
+    ([0.75], 0.75)
     >>> s = System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[0.1], mu=[1.0], x0=[1.0])
-    >>> abs(critical_mu(s, "dp") - 0.75) <= 1e-6    # the DP law's region: mu > 1 - 1/a^2, to the tolerance
+    >>> bool(abs(critical_mu(s, "dp").mu[0] - 0.75) <= 1e-6)    # the DP law's region: mu > 1 - 1/a^2, to the tol
     True
     """
-    return critical_point(system, law, direction, tol, stable).t
+    return critical_point(system, law, direction, tol, stable)

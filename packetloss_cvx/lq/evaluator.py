@@ -37,7 +37,7 @@ from ..errors import DimensionError, InputError, NumericalError, ProbabilityErro
 from ..linalg import block_diagonal
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system, numeric_array
-from ..model.validation import MAX_ENTRIES
+from ..model.validation import MAX_ENTRIES, channel_range
 from ..results import BatchSolution, Solution
 from ..threads import blas_limited
 from ..tolerances import DENSE_RESIDUAL_RTOL, SELF_CHECK_ATOL, SELF_CHECK_RTOL
@@ -205,7 +205,7 @@ class CostEvaluator:
         else:
             base = self._schedules(numeric_array(mu, "mu")[None])[0, 0].copy()
         if not (isinstance(i, (int, np.integer)) and 0 <= i < self.system.m):
-            raise InputError("i", f"expected a channel index from 0 to {self.system.m - 1}, found {i!r}")
+            raise InputError("i", f"expected {channel_range(self.system.m)}, found {i!r}")
         fast = None if self._point is None else self._point.line(base, int(i), checked)
 
         def at(value: float) -> float:

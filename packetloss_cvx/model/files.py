@@ -34,7 +34,8 @@ __all__ = ["dumps_system", "example_names", "load_constraints", "load_example", 
 
 # TOML section -> {key: System keyword}
 _SCHEMA: dict[str, dict[str, str]] = {
-    "plant": {"A": "A", "B": "B", "noise_cov": "noise_cov", "dt": "dt"},
+    "plant": {"A": "A", "B": "B", "noise_cov": "noise_cov", "dt": "dt", "input_labels": "input_labels",
+              "state_labels": "state_labels"},
     "cost": {
         "horizon": "horizon", "state_weight": "state_weight", "state_weights": "state_weights",
         "input_weight": "input_weight", "input_weights": "input_weights",

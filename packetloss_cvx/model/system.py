@@ -28,8 +28,10 @@ from .channel import (
     channel_schedule,
 )
 from .sensor import Sensor
-from .statespace import plant_matrices, plant_statespace, sampling_time
+from .statespace import labels_field, plant_matrices, plant_statespace, sampling_time
 from .validation import (
+    diagonal_weight,
+    every_channel,
     exactly_one,
     frozen,
     horizon_field,
@@ -41,6 +43,7 @@ from .validation import (
     shape_error,
     symmetric_psd,
     vector_field,
+    weight_alias,
     weight_sequence,
 )
 
@@ -56,7 +59,8 @@ STRUCTURE_FIELDS = ("A", "B", "horizon", "state_weights", "input_weights", "init
 #: dense (N n)×(N m) prediction matrices): :meth:`StructureStore.put`.
 STRUCTURE_CACHE_MAX_BYTES = 8 * 2**20
 #: Every field of a System (what a :class:`CacheKey` may say its value depends on).
-SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt", "sensor")
+SYSTEM_FIELDS = (*STRUCTURE_FIELDS, "mu_schedule", "x0", "channel", "name", "dt", "sensor", "input_labels",
+                 "state_labels")
 
 
 @dataclass(frozen=True, eq=False)
@@ -206,9 +210,19 @@ class System:
         Omega_t for every t (a length-n diagonal or an n×n symmetric PSD matrix),
         or N such weights for t = 1..N. Exactly one is given.
     input_weight, input_weights : array_like
-        Positive diagonal of Psi_t for every t (length m), or N×m for t = 0..N-1.
+        Positive diagonal of Psi_t for every t (length m, or a diagonal m×m matrix), or N×m for t = 0..N-1.
+        Psi must be diagonal: the cost weighs the applied input V u (V = diag(v), v_i = 1 when channel i
+        delivers), and the paper's closed forms (Lemma 1, Theorem 1) use E[(V u)' Psi (V u)] = u' Vbar Psi u,
+        true for a diagonal Psi only (a full Psi adds the cross terms Psi_ij mu_i mu_j u_i u_j of two channels'
+        deliveries, which no kernel of this package carries). A full matrix is refused, saying so.
+    Q, R : array_like, optional
+        python-control's names (``control.lqr(sys, Q, R)``): ``Q`` is ``state_weight`` (Omega_t, the stage
+        weight on the state) and ``R`` is ``input_weight`` (Psi_t). Give each weight once: ``Q`` beside
+        ``state_weight`` or ``state_weights`` (or ``R`` beside ``input_weight`` or ``input_weights``) is refused.
+        The paper's Q, the weight on X_k, is ``initial_weight``.
     mu, mu_schedule, channel : array_like, or a channel.MarkovChannel (GilbertElliott(...)) or a TOML table
-        Delivery probabilities in [0, 1]: one per actuator, N×m (non-stationary), or a Markov channel's mu_t.
+        Delivery probabilities in [0, 1]: one per actuator (one number: every actuator, as ``--mu 0.5`` on the
+        command line), N×m (non-stationary), or a Markov channel's mu_t.
     x0 : array_like
         The state X_k (length n).
     initial_weight : array_like, optional
@@ -221,6 +235,9 @@ class System:
     sensor : sensor.Sensor or its TOML table, optional
         Measurements over lossy sensor links (packetloss_cvx.sensing). None: the full state is known
         (the paper's model); every computation that ignores the sensor is the same with or without one.
+    input_labels, state_labels : list of str, optional
+        Names of the m inputs and the n states (python-control's ``inputs`` / ``states``), metadata kept through
+        :meth:`from_statespace` and :meth:`to_statespace`; nothing depends on them. None: unnamed.
 
     Raises
     ------
@@ -233,11 +250,18 @@ class System:
     ...            input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> s.n, s.m, s.horizon
     (1, 1, 3)
+
+    python-control's names, and one mu for every channel:
+
+    >>> t = System(A=np.eye(2), B=np.eye(2), horizon=3, Q=np.eye(2), R=np.diag([1.0, 2.0]), mu=0.5, x0=[1.0, 1.0])
+    >>> t.input_weights[0].tolist(), t.mu.tolist()
+    ([1.0, 2.0], [0.5, 0.5])
     """
 
     __slots__ = (
         "A", "B", "horizon", "state_weights", "input_weights", "mu_schedule",
-        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "sensor", "_structure", "_own",
+        "x0", "initial_weight", "noise_cov", "name", "channel", "dt", "sensor", "input_labels", "state_labels",
+        "_structure", "_own",
     )
 
     A: np.ndarray
@@ -253,6 +277,8 @@ class System:
     channel: MarkovChannel | None
     dt: float | None
     sensor: Sensor | None
+    input_labels: tuple[str, ...] | None
+    state_labels: tuple[str, ...] | None
 
     def __init__(
         self,
@@ -273,7 +299,13 @@ class System:
         channel: Any = None,
         dt: float | None = None,
         sensor: Any = None,
+        Q: npt.ArrayLike | None = None,
+        R: npt.ArrayLike | None = None,
+        input_labels: Any = None,
+        state_labels: Any = None,
     ) -> None:
+        state_weight = weight_alias("Q", Q, "state_weight", state_weight, state_weights)
+        input_weight = weight_alias("R", R, "input_weight", input_weight, input_weights)
         A_ = matrix_field(A, "A", None, None, "(n, n)")
         n = A_.shape[0]
         if A_.shape != (n, n):
@@ -295,8 +327,9 @@ class System:
 
         exactly_one(input_weight, input_weights, ("input_weight", "input_weights"))
         if input_weight is not None:
-            psi = np.repeat(vector_field(input_weight, "input_weight", m, f"({m},)")[None], N, axis=0)
-            psi_field = "input_weight"
+            field = "R" if R is not None else "input_weight"
+            psi = np.repeat(diagonal_weight(input_weight, field, m)[None], N, axis=0)
+            psi_field = field
         else:
             psi = matrix_field(input_weights, "input_weights", N, m, f"({N}, {m})")
             psi_field = "input_weights"
@@ -306,7 +339,8 @@ class System:
         chan, mu_schedule = channel_schedule(channel, m, N, mu, mu_schedule)
         exactly_one(mu, mu_schedule, ("mu", "mu_schedule"))
         if mu is not None:
-            sched = np.repeat(probabilities(vector_field(mu, "mu", m, f"({m},)"), "mu")[None], N, axis=0)
+            sched = np.repeat(probabilities(vector_field(every_channel(mu, m), "mu", m, f"({m},)"), "mu")[None],
+                              N, axis=0)
         else:
             sched = probabilities(
                 matrix_field(mu_schedule, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule"
@@ -321,13 +355,15 @@ class System:
         if name is not None and not isinstance(name, str):
             raise InputError("name", f"expected a string, found {type(name).__name__}")
         sensor_ = sensor_field(sensor, n)
+        inputs_, states_ = labels_field(input_labels, "input_labels", m), labels_field(state_labels, "state_labels", n)
 
         for key, value in (
             ("A", frozen(A_)), ("B", frozen(B_)), ("horizon", N),
             ("state_weights", frozen(W)), ("input_weights", frozen(psi)),
             ("mu_schedule", frozen(sched)), ("x0", frozen(x0_)),
             ("initial_weight", frozen(Q)), ("noise_cov", frozen(Sigma)), ("name", name), ("channel", chan),
-            ("dt", sampling_time(dt)), ("sensor", sensor_), ("_structure", _Token()),
+            ("dt", sampling_time(dt)), ("sensor", sensor_), ("input_labels", inputs_), ("state_labels", states_),
+            ("_structure", _Token()),
             ("_own", _Token()),
         ):
             object.__setattr__(self, key, value)
@@ -349,6 +385,9 @@ class System:
                   "initial_weight": self.initial_weight, "noise_cov": self.noise_cov, "name": self.name, "dt": self.dt}
         if self.sensor is not None:
             fields["sensor"] = self.sensor
+        for key in ("input_labels", "state_labels"):
+            if getattr(self, key) is not None:
+                fields[key] = getattr(self, key)
         if self.channel is not None:
             fields["channel"] = self.channel
         else:
@@ -407,7 +446,8 @@ class System:
         return self._own
 
     def with_mu(self, mu: npt.ArrayLike) -> System:
-        """A copy with new delivery probabilities: an m-vector or an N×m schedule (drops a Markov channel).
+        """A copy with new delivery probabilities: an m-vector (one number: every channel) or an N×m schedule
+        (drops a Markov channel).
 
         Examples
         --------
@@ -421,23 +461,26 @@ class System:
         if np.ndim(mu) == 2:
             sched = probabilities(matrix_field(mu, "mu_schedule", N, m, f"({N}, {m})"), "mu_schedule")
         else:
-            vec = probabilities(vector_field(mu, "mu", m, f"({m},)"), "mu")
+            vec = probabilities(vector_field(every_channel(mu, m), "mu", m, f"({m},)"), "mu")
             sched = np.repeat(vec[None], N, axis=0)
         return self._copy_with(mu_schedule=frozen(sched), channel=None)
 
     @classmethod
     def from_statespace(cls, sys: Any, **fields: Any) -> System:
         """A System with the A, B and sampling time dt of a discrete-time control.StateSpace
-        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``. O(n (n + m))."""
+        (statespace.plant_matrices; python-control's ``dt = True`` is None) and ``fields``; its name and signal
+        names (``input_labels``, ``state_labels``) where the StateSpace has its own (``fields`` may rename).
+        O(n (n + m))."""
         taken = sorted(set(fields) & {"A", "B", "dt"})
         if taken:
             raise InputError(taken[0], "given by sys: from_statespace takes A, B and dt from the StateSpace")
-        return cls(**plant_matrices(sys), **fields)
+        return cls(**{**plant_matrices(sys), **fields})
 
     def to_statespace(self) -> Any:
         """The plant as a discrete-time control.StateSpace (statespace.plant_statespace): A, B, C = I, D = 0 and
-        the system's ``dt`` (True when None); every packet delivered. O(n (n + m))."""
-        return plant_statespace(self.A, self.B, self.dt)
+        the system's ``dt`` (True when None), named as the system and its signals where they are named; every
+        packet delivered. O(n (n + m))."""
+        return plant_statespace(self.A, self.B, self.dt, self.name, self.input_labels, self.state_labels)
 
     def with_x0(self, x0: npt.ArrayLike) -> System:
         """A copy with a new initial state.
@@ -511,7 +554,9 @@ class System:
         )
         out: dict[str, Any] = {
             "plant": {"A": self.A.tolist(), "B": self.B.tolist(), "noise_cov": self.noise_cov.tolist(),
-                      **({"dt": self.dt} if self.dt is not None else {})},
+                      **({"dt": self.dt} if self.dt is not None else {}),
+                      **({"input_labels": list(self.input_labels)} if self.input_labels is not None else {}),
+                      **({"state_labels": list(self.state_labels)} if self.state_labels is not None else {})},
             "cost": cost,
             "channel": channel,
             "state": {"x0": self.x0.tolist()},

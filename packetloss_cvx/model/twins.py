@@ -11,6 +11,7 @@ from ..errors import InputError
 from .chain import attach_channel, chain_matrices
 from .channel import GilbertElliott, MarkovChannel, gilbert_rates
 from .system import System, check_system
+from .validation import channel_range
 
 __all__ = ["bursty_twin", "channel_twin", "gilbert_family"]
 
@@ -87,7 +88,7 @@ def channel_twin(system: System, channel: int, rate: float, correlation: float) 
     """
     system = check_system(system)
     if isinstance(channel, bool) or not isinstance(channel, int | np.integer) or not 0 <= channel < system.m:
-        raise InputError("channel", f"expected a channel index 0..{system.m - 1}, found {channel!r}")
+        raise InputError("channel", f"expected {channel_range(system.m)}, found {channel!r}")
     mu = float(rate)
     if not 0.0 <= mu <= 1.0:
         raise InputError("rate", f"expected a mean delivery rate in [0, 1], found {rate!r}")

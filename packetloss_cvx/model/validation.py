@@ -15,9 +15,9 @@ from ..errors import DimensionError, InputError, ProbabilityError
 from ..tolerances import PSD_RTOL, SYMMETRY_RTOL
 
 __all__ = [
-    "MAX_ENTRIES", "MAX_NESTING", "check_numbers", "digits", "exactly_one", "frozen", "horizon_field", "matrix_field",
-    "numeric_array", "probabilities", "psd_weight", "psd_weights", "shape_error", "symmetric_psd", "vector_field",
-    "weight_sequence",
+    "MAX_ENTRIES", "MAX_NESTING", "channel_range", "check_numbers", "diagonal_weight", "digits", "every_channel",
+    "exactly_one", "frozen", "horizon_field", "matrix_field", "numeric_array", "probabilities", "psd_weight",
+    "psd_weights", "shape_error", "symmetric_psd", "vector_field", "weight_alias", "weight_sequence",
 ]
 
 #: Arrays in the schema nest at most three levels deep (state_weights: N × n × n).
@@ -157,6 +157,90 @@ def vector_field(value: Any, field: str, length: int, expected: str) -> np.ndarr
     arr = numeric_array(value, field)
     if arr.shape != (length,):
         raise shape_error(field, expected, arr.shape)
+    return arr
+
+
+def channel_range(m: int, command_line: bool = False) -> str:
+    """How channels are counted, for a message: Python counts from 0 (``channel=0`` is mu1), the command line
+    from 1 (``--channel 1`` is mu1); each message says which, and the other beside it. O(1).
+
+    >>> channel_range(2)
+    'a channel index from 0 to 1 (0-based in Python: channel 0 is mu1; the command line counts from 1)'
+    >>> channel_range(2, command_line=True)
+    'a channel from 1 to 2 (1-based on the command line: 1 is mu1; Python counts from 0)'
+    """
+    if command_line:
+        return f"a channel from 1 to {m} (1-based on the command line: 1 is mu1; Python counts from 0)"
+    return f"a channel index from 0 to {m - 1} (0-based in Python: channel 0 is mu1; the command line counts from 1)"
+
+
+def every_channel(value: Any, m: int) -> Any:
+    """A bare number as the same value for each of the ``m`` channels (as ``--mu 0.5`` on the command line);
+    anything else unchanged (the caller checks its shape). O(m).
+
+    >>> every_channel(0.5, 3).tolist(), every_channel([0.1, 0.2], 3)
+    ([0.5, 0.5, 0.5], [0.1, 0.2])
+    """
+    if value is None or isinstance(value, (list, tuple, str, bytes)) or getattr(value, "ndim", 0):
+        return value                     # the common case, a list or an array, costs no conversion
+    if np.ndim(value) == 0:
+        return np.full(m, numeric_array(value, "mu"))
+    return value
+
+
+def weight_alias(alias: str, value: Any, name: str, single: Any, sequence: Any) -> Any:
+    """python-control's name ``alias`` (Q, R) for the weight ``name`` (state_weight, input_weight): ``value`` when
+    the alias is given, else ``single``; refused when the weight is given twice. O(1).
+
+    >>> weight_alias("Q", [1.0], "state_weight", None, None)
+    [1.0]
+    >>> weight_alias("Q", [1.0], "state_weight", [2.0], None)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: Q: Q is python-control's name for state_weight: give one of Q, ...
+    """
+    if value is None:
+        return single
+    if single is not None or sequence is not None:
+        paper = " (the paper's Q, the weight on X_k, is initial_weight)" if alias == "Q" else ""
+        raise InputError(alias, f"{alias} is python-control's name for {name}: give one of {alias}, {name}, "
+                                f"{name}s, not two{paper}")
+    return value
+
+
+def diagonal_weight(value: Any, field: str, m: int) -> np.ndarray:
+    """The diagonal of the input weight Psi: a length-m vector, or an m×m matrix that is diagonal (python-control
+    passes ``R`` as a matrix; a number when m = 1). O(m^2).
+
+    A matrix with an off-diagonal entry is refused: the cost weighs the applied input V u (V = diag(v), v_i = 1
+    when channel i delivers), and E[(V u)' Psi (V u)] = u' Vbar Psi u, which the paper's closed forms use, holds
+    for a diagonal Psi only (a full one adds Psi_ij mu_i mu_j u_i u_j, coupling two channels' deliveries).
+
+    >>> diagonal_weight([[1.0, 0.0], [0.0, 2.0]], "R", 2).tolist()
+    [1.0, 2.0]
+    >>> diagonal_weight([[1.0, 0.5], [0.5, 2.0]], "R", 2)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: R: expected a diagonal input weight, found R[0, 1] = 0.5: ...
+    """
+    arr = numeric_array(value, field)
+    if arr.ndim == 0 and m == 1:
+        return arr.reshape(1)
+    if arr.ndim == 2:
+        if arr.shape != (m, m):
+            raise shape_error(field, f"({m},) or ({m}, {m}) (diagonal)", arr.shape)
+        off = arr - np.diag(np.diag(arr))
+        if np.any(off != 0):
+            i, j = np.argwhere(off != 0)[0]
+            raise InputError(field, f"expected a diagonal input weight, found {field}[{i}, {j}] = {arr[i, j]:.6g}: "
+                                    "the cost weighs the applied input V u, and the paper's closed forms "
+                                    "(Lemma 1, Theorem 1) take E[(V u)' Psi (V u)] = u' Vbar Psi u, true for a "
+                                    "diagonal Psi only (an off-diagonal entry couples two channels' deliveries, "
+                                    "E[v_i v_j] = mu_i mu_j); give the diagonal, e.g. np.diag(R), if each "
+                                    "actuator's own weight is what you mean")
+        return np.diag(arr).copy()
+    if arr.shape != (m,):
+        raise shape_error(field, f"({m},) or ({m}, {m}) (diagonal)", arr.shape)
     return arr
 
 

@@ -40,8 +40,11 @@ _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
 
 
 def _rows(rows: Any, field: str, keys: tuple[str, ...]) -> list[Mapping]:
+    """``rows`` as dicts: a result of the package (an Allocation, a PowerAllocation) is read by its ``to_dict()``."""
     if not isinstance(rows, Sequence) or isinstance(rows, str):
-        raise InputError(field, "expected a list of rows (dicts)")
+        raise InputError(field, "expected a list of rows (dicts or the package's results)")
+    rows = [row.to_dict() if not isinstance(row, Mapping) and callable(getattr(row, "to_dict", None)) else row
+            for row in rows]
     for k, row in enumerate(rows):
         if not isinstance(row, Mapping) or any(key not in row for key in keys):
             raise InputError(f"{field}[{k}]", f"expected a dict with keys {', '.join(keys)}")
@@ -79,8 +82,9 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     ----------
     curves : mapping
         Label (``"tcp"``, ``"udp"`` or any text) to rows with keys ``"alpha"`` and
-        ``"communication_cost"`` (as [`pareto_curve`][packetloss_cvx.studies.allocation.pareto_curve]
-        returns); rows whose communication cost is None (infeasible) are left out.
+        ``"communication_cost"`` (as :func:`~packetloss_cvx.allocation.pareto_curve`
+        returns), or to :class:`~packetloss_cvx.results.Allocation` results; rows whose communication cost is
+        None (infeasible) are left out.
     title : str, optional
     path : str or Path, optional
         Where to save the figure (the format follows the extension).
@@ -172,17 +176,17 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
                             title=title, path=path)
 
 
-def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | None = None,
-                     path: str | Path | None = None) -> Figure:
+def plot_closed_loop(curves: Any, *, title: str | None = None, path: str | Path | None = None) -> Figure:
     """Closed-loop runs: the mean of ||x_t|| with a band of one standard deviation, and the mean
     cumulative stage cost, one line per law.
 
     Parameters
     ----------
-    curves : mapping
-        Law (``"tcp"``, ``"udp"``, ``"dp"`` or any text) to a mapping with ``"state_norm_mean"`` and
-        ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"`` (length T), as
-        `ClosedLoopRun` holds them. Non-finite values are not drawn.
+    curves : Simulation or mapping
+        A :class:`~packetloss_cvx.results.Simulation` (its ``closed_loop`` runs), or law (``"tcp"``, ``"udp"``,
+        ``"dp"`` or any text) to a :class:`~packetloss_cvx.results.ClosedLoopRun` or to a mapping with
+        ``"state_norm_mean"`` and ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"``
+        (length T), as a ClosedLoopRun holds them. Non-finite values are not drawn.
     title : str, optional
     path : str or Path, optional
 
@@ -203,13 +207,18 @@ def plot_closed_loop(curves: Mapping[str, Mapping[str, Any]], *, title: str | No
     >>> left.lines[0].get_ydata().tolist(), right.lines[0].get_ydata().tolist()    # right: the running sum
     ([1.0, 0.5, 0.25], [2.0, 3.0])
     """
+    keys = ("state_norm_mean", "state_norm_std", "stage_cost_mean")
+    curves = getattr(curves, "closed_loop", curves)       # a Simulation: its closed-loop runs
     if not isinstance(curves, Mapping) or not curves:
-        raise InputError("curves", "expected a non-empty mapping law -> curves")
+        raise InputError("curves", "expected a Simulation with closed-loop runs or a non-empty mapping law -> "
+                                   "curves")
     fig = Figure(figsize=(10, 3.6), layout="constrained")
     left, right = fig.subplots(1, 2)
     labels = {**_LABELS, "dp": "DP optimum"}
     for law, data in curves.items():
         field = f"curves[{law!r}]"
+        if not isinstance(data, Mapping) and all(hasattr(data, k) for k in keys):     # a ClosedLoopRun
+            data = {k: getattr(data, k) for k in keys}
         if not isinstance(data, Mapping) or any(k not in data for k in ("state_norm_mean", "state_norm_std",
                                                                          "stage_cost_mean")):
             raise InputError(field, "expected keys state_norm_mean, state_norm_std, stage_cost_mean")
@@ -420,7 +429,8 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     return _save(fig, path)
 
 
-def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], cost: Any, loss_percent: Any, *,
+def plot_burstiness_map(rates: Any, correlations: Sequence[float] | None = None, cost: Any = None,
+                        loss_percent: Any = None, *, protocol: str | None = None,
                         cost_label: str = "exact minimum (log scale)", title: str | None = None,
                         path: str | Path | None = None) -> Figure:
     """A (mean rate × burstiness) map of one channel in two panels: ``cost`` (the exact minimum) on a logarithmic
@@ -432,7 +442,9 @@ def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], c
     Parameters
     ----------
     rates, correlations : sequence of float, shapes (R,), (L,)
-        Distinct mean rates and values of lambda = 1 - p - r.
+        Distinct mean rates and values of lambda = 1 - p - r. ``rates`` may be a
+        :class:`~packetloss_cvx.results.BurstinessMap` alone: its axes, ``protocol``'s exact minimum (default
+        UDP-like where evaluated, else the first) and the plug-in law's loss in percent.
     cost, loss_percent : array_like, shape (R, L)
         ``[a, b]`` at ``(rates[a], correlations[b])``; ``cost`` needs a positive value (cells <= 0 are drawn in
         the lowest colour), ``loss_percent`` finite.
@@ -453,6 +465,16 @@ def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], c
     >>> type(norm).__name__, norm.vmin, norm.vmax, loss_axis.collections[0].norm.vmax
     ('LogNorm', 2.0, 20.0, 9.0)
     """
+    if hasattr(rates, "relative_loss") and hasattr(rates, "exact"):          # a BurstinessMap
+        grid = rates
+        protocol = protocol or ("udp" if "udp" in grid.exact else next(iter(grid.exact)))
+        if protocol not in grid.exact:
+            raise InputError("protocol", f"expected one of {', '.join(grid.exact)}, found {protocol!r}")
+        rates, correlations = grid.rate, grid.correlation
+        cost, loss_percent = grid.exact[protocol], 100.0 * grid.relative_loss(protocol)
+    if correlations is None or cost is None or loss_percent is None:
+        raise InputError("correlations" if correlations is None else "cost" if cost is None else "loss_percent",
+                         "expected the correlations, the cost and the loss beside the rates (or a BurstinessMap)")
     gy, gx = numeric_array(rates, "rates"), numeric_array(correlations, "correlations")
     for name, g in (("rates", gy), ("correlations", gx)):
         if g.ndim != 1 or g.size < 2 or np.unique(g).size != g.size:
@@ -488,12 +510,21 @@ def plot_burstiness_map(rates: Sequence[float], correlations: Sequence[float], c
     return _save(fig, path)
 
 
-def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *, xlabel: str = r"$\mu_1$",
-                ylabel: str = r"$\mu_2$", title: str | None = None, path: str | Path | None = None) -> Figure:
+def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None = None, *,
+                xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
+                path: str | Path | None = None) -> Figure:
     """Stability regions over two channels: ``radius`` (the least mean-square radius any linear law reaches,
     min_K rho(L_K), shape (K, K), rows the second channel) as a colour map clipped to [0, 2] with its level 1
     in white, and each law's region boundary (the 1/2 level of its 0/1 ``stable`` map; nan undecided) as a line.
-    O(K^2) per law.
+    ``axis`` may be a :class:`~packetloss_cvx.results.RegionMap` with a grid, alone: its axis, its "dp" law's
+    radius, every law's ``stable`` map and its channels' names (``xlabel`` and ``ylabel`` default to them; else
+    to mu_1, mu_2). O(K^2) per law.
+
+    Raises
+    ------
+    InputError
+        A RegionMap without a grid or without the "dp" law (field ``region``); the arrays' shapes (the field
+        named); ``radius`` or ``stable`` missing beside a plain axis.
 
     Examples
     --------
@@ -503,6 +534,19 @@ def plot_region(axis: Sequence[float], radius: Any, stable: Mapping[str, Any], *
     >>> len(fig.axes), fig.axes[0].get_xlabel()     # the map and its colour bar
     (2, '$\\\\mu_1$')
     """
+    names = (r"$\mu_1$", r"$\mu_2$")
+    if hasattr(axis, "laws") and hasattr(axis, "channels"):        # a RegionMap
+        region = axis
+        if region.stable is None or "dp" not in region.laws:
+            raise InputError("region", "expected a RegionMap with a grid and the 'dp' law (region_map(..., "
+                                       "grid=K, laws=[\"dp\", ...])): the colours are the dp law's least radius")
+        axis, radius = region.axis, region.radius[region.laws.index("dp")]
+        stable = dict(zip(region.laws, region.stable, strict=True)) if stable is None else stable
+        names = tuple(rf"$\mu_{c + 1}$" if c < 9 else rf"$\mu_{{{c + 1}}}$" for c in region.channels)
+    if radius is None or stable is None:
+        raise InputError("radius" if radius is None else "stable", "expected the radius grid and the stable maps "
+                                                                  "beside the axis (or a RegionMap alone)")
+    xlabel, ylabel = names[0] if xlabel is None else xlabel, names[1] if ylabel is None else ylabel
     g = numeric_array(axis, "axis")
     if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
         raise InputError("axis", "expected an increasing 1-D sequence of at least 2 numbers")
@@ -611,11 +655,13 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | N
     return _save(fig, path)
 
 
-def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, currency: str = r"$\beta^\top\mu$",
-                        title: str | None = None, path: str | Path | None = None) -> Figure:
+def plot_ack_break_even(alpha: Any, break_even: Sequence[float] | None = None, *,
+                        currency: str = r"$\beta^\top\mu$", title: str | None = None,
+                        path: str | Path | None = None) -> Figure:
     """Above which price of the acknowledgement link the UDP-like design wins, against alpha:
     the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
-    Non-finite points (no design) are left out. O(points) to draw.
+    ``alpha`` may be a list of :class:`~packetloss_cvx.results.ProtocolChoice` alone (each its alpha and
+    break-even price). Non-finite points (no design) are left out. O(points) to draw.
 
     Examples
     --------
@@ -623,6 +669,11 @@ def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, 
     >>> fig.axes[0].lines[0].get_ydata().tolist()
     [0.5, 0.2]
     """
+    if break_even is None and isinstance(alpha, Sequence) and alpha and all(
+            hasattr(c, "break_even") and hasattr(c, "alpha") for c in alpha):      # ProtocolChoice results
+        alpha, break_even = [c.alpha for c in alpha], [c.break_even for c in alpha]
+    if break_even is None:
+        raise InputError("break_even", "expected the break-even prices beside alpha (or a list of ProtocolChoice)")
     a = np.asarray(alpha, dtype=float)
     b = np.asarray(break_even, dtype=float)
     if a.shape != b.shape or a.ndim != 1:

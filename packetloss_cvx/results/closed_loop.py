@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..display import closed_loop_html, fields_html, fields_repr, simulation_html, to_json
-from .base import Frozen, finite_or_none
+from .base import Frozen, Tabular, finite_or_none, scalar_row
 
 __all__ = ["ClosedLoop", "ClosedLoopRun", "OpenLoopCheck", "Riccati", "Simulation"]
 
@@ -69,9 +69,9 @@ class Riccati(Frozen):
 
 
 @dataclass(frozen=True)
-class OpenLoopCheck:
-    """A protocol's plan `U*` applied open loop and sampled (simulation.montecarlo): ``formula`` `J*` (Theorem 1),
-    ``exact`` E[realised cost] under the stated model (J_udp(`U*`)), ``mean`` and ``stderr`` of the samples,
+class OpenLoopCheck(Tabular):
+    """A protocol's plan U* applied open loop and sampled (simulation.montecarlo): ``formula`` J* (Theorem 1),
+    ``exact`` E[realised cost] under the stated model (J_udp(U*)), ``mean`` and ``stderr`` of the samples,
     ``z = (mean - exact) / stderr``; ``reason`` why the plan is missing (its numbers nan), "" when it is not."""
 
     formula: float
@@ -132,6 +132,21 @@ class ClosedLoopRun(Frozen):
         return {**out, **({"reason": reason} if reason else {}), **({"note": self.note} if self.note else {}),
                 **({"stderr_reason": self.stderr_reason} if self.stderr_reason else {})}
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per step t = 0..T: the norms' mean and std, and the stage cost (nan at t = T, which has
+        none); the law and its whole-run numbers as attrs."""
+        stage = np.append(np.asarray(self.stage_cost_mean, dtype=float), np.nan)
+        row, attrs = scalar_row(self.to_dict())
+        return ({"t": np.arange(self.state_norm_mean.size), "state_norm_mean": self.state_norm_mean,
+                 "state_norm_std": self.state_norm_std, "stage_cost_mean": stage},
+                {"law": self.law, **{k: v[0] for k, v in row.items()}, **attrs})
+
+    def plot(self, **kwargs: Any) -> Any:
+        """This run drawn by :func:`~packetloss_cvx.plots.figures.plot_closed_loop` (keywords passed on); returns the
+        matplotlib Figure."""
+        from ..plots import plot_closed_loop  # lazy: matplotlib, only when asked to draw
+        return plot_closed_loop({self.law: self}, **kwargs)
+
 
 @dataclass(frozen=True)
 class Simulation(Frozen):
@@ -159,3 +174,34 @@ class Simulation(Frozen):
         for law, run in self.closed_loop.items():
             out.setdefault(law, {})["closed_loop"] = run.to_dict()
         return out
+
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """With closed-loop runs: one row per (law, step), as :meth:`ClosedLoopRun.to_pandas`, the runs' own
+        numbers as attrs; else one row per protocol of the open-loop checks."""
+        attrs: dict[str, Any] = {"samples": self.samples, "steps": self.steps, "seed": self.seed,
+                                 "channel": self.channel}
+        if not self.closed_loop:
+            rows = [scalar_row(check.to_dict())[0] for check in self.open_loop.values()]
+            columns = {"protocol": list(self.open_loop)}
+            for key in dict.fromkeys(k for row in rows for k in row):
+                columns[key] = [row.get(key, [None])[0] for row in rows]
+            return columns, attrs
+        parts = [(law, run._table()) for law, run in self.closed_loop.items()]
+        columns = {"law": np.concatenate([[law] * len(cols["t"]) for law, (cols, _) in parts])}
+        for key in ("t", "state_norm_mean", "state_norm_std", "stage_cost_mean"):
+            columns[key] = np.concatenate([cols[key] for _, (cols, _) in parts])
+        attrs["closed_loop"] = {law: run_attrs for law, (_, run_attrs) in parts}
+        attrs["open_loop"] = {p: check.to_dict() for p, check in self.open_loop.items()}
+        return columns, attrs
+
+    def plot(self, **kwargs: Any) -> Any:
+        """The closed-loop runs drawn by :func:`~packetloss_cvx.plots.figures.plot_closed_loop` (keywords passed on);
+        returns the matplotlib Figure.
+
+        Raises
+        ------
+        InputError
+            Field ``curves`` when the simulation ran no closed loop (``simulate(..., closed_loop=True)``).
+        """
+        from ..plots import plot_closed_loop  # lazy: matplotlib, only when asked to draw
+        return plot_closed_loop(self, **kwargs)

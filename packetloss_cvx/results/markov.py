@@ -11,7 +11,8 @@ import numpy as np
 
 from ..display import fields_html, fields_repr, to_json
 from ..errors import InputError
-from .base import Frozen, freeze, read_only
+from ..optional import load
+from .base import Frozen, Tabular, freeze, numbered, read_only
 from .plans import Solution
 
 __all__ = ["BurstinessMap", "BurstinessSweep", "MarkovSolution", "MjlsResult", "plugin_loss"]
@@ -32,8 +33,8 @@ def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class MarkovSolution:
-    """One protocol under a Gilbert–Elliott channel (`packetloss_cvx.qp.markov_solution.markov_solution`).
+class MarkovSolution(Tabular):
+    """One protocol under a Gilbert–Elliott channel (:func:`packetloss_cvx.qp.markov_solution.markov_solution`).
 
     ``exact``: the minimiser of the protocol's exact expected cost (closed form); ``qp``: its
     cvxpy + Clarabel twin (cross-checked) or None; ``plugin_cost``: the protocol's exact cost of the
@@ -87,6 +88,24 @@ class BurstinessSweep(Frozen):
                 "plugin": {k: v.tolist() for k, v in self.plugin.items()},
                 "exact": {k: v.tolist() for k, v in self.exact.items()}}
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per burstiness lambda: plugin_<p>, exact_<p> per protocol; the rates as attrs."""
+        columns: dict[str, Any] = {"correlation": self.correlation}
+        for p in self.exact:
+            columns[f"plugin_{p}"] = self.plugin[p]
+            columns[f"exact_{p}"] = self.exact[p]
+        return columns, dict(zip(numbered("rate", self.rate.size), self.rate.tolist(), strict=True))
+
+    def plot(self, **kwargs: Any) -> Any:
+        """Each protocol's exact minimum and plug-in cost against lambda, drawn by
+        :func:`~packetloss_cvx.plots.figures.plot_cost_lines` (keywords passed on); returns the matplotlib Figure."""
+        from ..plots import plot_cost_lines  # lazy: matplotlib, only when asked to draw
+        curves = {}
+        for p in self.exact:
+            curves[f"{p.upper()}-like exact minimum"] = self.exact[p]
+            curves[f"{p.upper()}-like plug-in plan"] = self.plugin[p]
+        return plot_cost_lines(self.correlation, curves, **{"xlabel": r"burstiness $\lambda = 1 - p - r$", **kwargs})
+
 
 @dataclass(frozen=True)
 class BurstinessMap(Frozen):
@@ -137,20 +156,51 @@ class BurstinessMap(Frozen):
                 **{p: {"plugin": self.plugin[p].tolist(), "exact": self.exact[p].tolist(),
                        "relative_loss": self.relative_loss(p).tolist()} for p in self.protocols}}
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per (rate, correlation), rate slowest: plugin_<p>, exact_<p>, loss_<p> per protocol; the
+        channel (1-based) and the name as attrs."""
+        R, L = self.rate.size, self.correlation.size
+        columns: dict[str, Any] = {"rate": np.repeat(self.rate, L), "correlation": np.tile(self.correlation, R)}
+        for p in self.protocols:
+            columns[f"plugin_{p}"] = np.ravel(self.plugin[p])
+            columns[f"exact_{p}"] = np.ravel(self.exact[p])
+            columns[f"loss_{p}"] = np.ravel(self.relative_loss(p))
+        return columns, {"channel": self.channel + 1, "name": self.name or ""}
+
+    def plot(self, protocol: str | None = None, **kwargs: Any) -> Any:
+        """``protocol``'s exact minimum and the plug-in law's loss (percent) over the map, drawn by
+        :func:`~packetloss_cvx.plots.figures.plot_burstiness_map` (keywords passed on; ``protocol`` defaults to UDP-like
+        where evaluated, else the first); returns the matplotlib Figure.
+
+        Raises
+        ------
+        InputError
+            Field ``protocol``: not one of :attr:`protocols`.
+        """
+        from ..plots import plot_burstiness_map  # lazy: matplotlib, only when asked to draw
+        return plot_burstiness_map(self, protocol=protocol, **kwargs)
+
     def to_xarray(self) -> Any:
         """An `xarray.Dataset` over (``rate``, ``correlation``) (the ``xarray`` extra): ``plugin_<p>``,
         ``exact_<p>`` and ``loss_<p>`` per protocol; the channel (1-based) and name as attributes. O(R L)."""
-        try:
-            import xarray as xr  # lazy: an optional extra
-        except ImportError:
-            raise InputError("to_xarray", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
+        xr = load("xarray", "to_xarray")
         dims = ("rate", "correlation")
+        cost_units = "stage-cost units (x'Qx + u'Ru)"
         data = {}
         for p in self.protocols:
-            data[f"plugin_{p}"] = (dims, np.asarray(self.plugin[p]))
-            data[f"exact_{p}"] = (dims, np.asarray(self.exact[p]))
-            data[f"loss_{p}"] = (dims, self.relative_loss(p))
-        return xr.Dataset(data, coords={"rate": self.rate, "correlation": self.correlation},
+            name = f"{p.upper()}-like"
+            data[f"plugin_{p}"] = (dims, np.asarray(self.plugin[p]),
+                                   {"long_name": f"exact expected cost of the {name} plug-in plan",
+                                    "units": cost_units})
+            data[f"exact_{p}"] = (dims, np.asarray(self.exact[p]),
+                                  {"long_name": f"exact minimum expected cost ({name})", "units": cost_units})
+            data[f"loss_{p}"] = (dims, self.relative_loss(p),
+                                 {"long_name": f"plug-in law's loss against the exact minimum ({name})", "units": "1"})
+        coords = {"rate": ("rate", self.rate, {"long_name": f"mean delivery rate of channel {self.channel + 1} "
+                                                            "(1-based)", "units": "1"}),
+                  "correlation": ("correlation", self.correlation,
+                                  {"long_name": "burstiness lambda = 1 - p - r", "units": "1"})}
+        return xr.Dataset(data, coords=coords,
                           attrs={"kind": "burstiness-map", "channel": self.channel + 1, "name": self.name or "",
                                  "correlation": "lambda = 1 - p - r of the mapped channel's Gilbert chain",
                                  "loss": "plugin / exact - 1: the plug-in law's loss against the exact minimum"})
@@ -184,3 +234,13 @@ class MjlsResult(Frozen):
                 "modes": self.modes.tolist(), "transition": self.transition.tolist(),
                 "spectral_radius": self.spectral_radius, "mean_square_stable": bool(self.spectral_radius < 1),
                 "iterations": self.iterations, "residual": self.residual}
+
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per mode: each actuator's channel state (state1..statem; 0 good, 1 bad); the radius, the
+        iteration's numbers and the matrices (gains, P_k, transition) as attrs."""
+        modes = np.asarray(self.modes)
+        columns: dict[str, Any] = {"mode": np.arange(modes.shape[0])}
+        columns.update(dict(zip(numbered("state", modes.shape[1]), modes.T, strict=True)))
+        data = self.to_dict()
+        del data["modes"]
+        return columns, data

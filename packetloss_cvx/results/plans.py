@@ -8,13 +8,13 @@ from typing import Any
 import numpy as np
 
 from ..display import batch_repr, fields_html, fields_repr, solution_html, solution_repr, to_json
-from .base import Frozen, eigenvalue_pairs
+from .base import Frozen, Tabular, eigenvalue_pairs, numbered, scalar_row
 
 __all__ = ["BatchSolution", "CrossCheck", "LoopStability", "Solution"]
 
 
 @dataclass(frozen=True)
-class CrossCheck:
+class CrossCheck(Tabular):
     """Agreement of a solver answer with the closed form.
 
     ``max_input_diff`` is max |Vbar (U_qp - `U*`)|, the largest difference of the mean applied
@@ -37,7 +37,7 @@ class CrossCheck:
 
 
 @dataclass(frozen=True)
-class LoopStability:
+class LoopStability(Tabular):
     """Mean-square stability of a plan's receding-horizon law u = -K x run for ever over the system's channel
     ([`loop_stability`][packetloss_cvx.closedloop.law_stability.loop_stability]).
 
@@ -152,6 +152,16 @@ class Solution(Frozen):
             out.update(self.stability.to_dict())
         return out
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per step t = 0..N-1: the commanded inputs u1..um; the cost, protocol and method as attrs."""
+        data = self.to_dict()
+        del data["inputs"]
+        row, attrs = scalar_row(data)
+        inputs = np.asarray(self.inputs, dtype=float)
+        columns: dict[str, Any] = {"t": np.arange(inputs.shape[0])}
+        columns.update(dict(zip(numbered("u", inputs.shape[1]), inputs.T, strict=True)))
+        return columns, {**{k: v[0] for k, v in row.items()}, **attrs}
+
 
 
 @dataclass(frozen=True)
@@ -190,3 +200,9 @@ class BatchSolution(Frozen):
         """Plain lists for JSON. O(points N m n)."""
         return {"protocol": self.protocol, "costs": self.costs.tolist(), "inputs": self.inputs.tolist(),
                 "gains": self.gains.tolist(), "method": self.method}
+
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per point: its cost J*; the protocol and method as attrs (inputs and gains stay arrays on
+        the result: ``inputs[point]`` is an N x m plan)."""
+        return ({"point": np.arange(self.costs.size), "cost": self.costs},
+                {"protocol": self.protocol, "method": self.method})

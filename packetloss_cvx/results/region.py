@@ -9,7 +9,7 @@ import numpy as np
 
 from ..display import fields_html, fields_repr, to_json
 from ..optional import load
-from .base import Frozen, finite_or_none
+from .base import Frozen, finite_or_none, numbered
 from .studies import attained
 
 __all__ = ["RADIUS_MEANING", "CriticalPoint", "Membership", "RegionMap", "StabilityAllocation"]
@@ -138,19 +138,60 @@ class RegionMap(Frozen):
             out[law] = entry
         return out
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """With a grid: one row per (law, mu_J, mu_I), law slowest, then rows mu_J, columns mu_I, as
+        ``to_xarray().to_dataframe()`` orders them: ``stable`` (1.0, 0.0, nan undecided) and ``radius``; each
+        law's critical point as attrs. Without: one row per law, its critical point (t, lower, critical mu)."""
+        critical = {law: {"t": p.t, "lower": p.lower, "critical_mu": p.mu.tolist()}
+                    for law, p in zip(self.laws, self.critical, strict=True)}
+        attrs: dict[str, Any] = {"direction": self.direction.tolist()}
+        if self.stable is None:
+            mus = np.array([p.mu for p in self.critical], dtype=float).reshape(len(self.laws), -1)
+            columns: dict[str, Any] = {"law": list(self.laws), "t": [p.t for p in self.critical],
+                                       "lower": [p.lower for p in self.critical]}
+            columns.update(dict(zip(numbered("critical_mu", mus.shape[1]), mus.T, strict=True)))
+            return columns, attrs
+        i, j = self.channels
+        K, L = self.axis.size, len(self.laws)
+        columns = {"law": np.repeat(np.array(self.laws, dtype=object), K * K),
+                   f"mu{j + 1}": np.tile(np.repeat(self.axis, K), L), f"mu{i + 1}": np.tile(self.axis, K * L),
+                   "stable": np.ravel(self.stable), "radius": np.ravel(self.radius)}
+        return columns, {**attrs, "critical": critical, "base": None if self.base is None else self.base.tolist(),
+                         "radius_meaning": dict(RADIUS_MEANING)}
+
+    def plot(self, **kwargs: Any) -> Any:
+        """The map drawn by :func:`~packetloss_cvx.plots.figures.plot_region` (the "dp" law's least radius as colours,
+        each law's boundary as a line; keywords passed on); returns the matplotlib Figure.
+
+        Raises
+        ------
+        InputError
+            Field ``region`` without a grid or without the "dp" law.
+        """
+        from ..plots import plot_region  # lazy: matplotlib, only when asked to draw
+        return plot_region(self, **kwargs)
+
     def to_xarray(self) -> Any:
         """An xarray Dataset: ``stable`` and ``radius`` over (law, mu_J, mu_I), ``t`` over law (the 'xarray'
-        extra). O(L K^2)."""
+        extra); each variable with ``long_name``, ``units`` and ``description`` attrs. O(L K^2)."""
         xr = load("xarray", "to_xarray")
-        data = {"t": (("law",), np.array([p.t for p in self.critical]))}
+        data = {"t": (("law",), np.array([p.t for p in self.critical]),
+                      {"long_name": "critical scale t: the region's boundary at mu = t * direction",
+                       "units": "1"})}
         coords: dict[str, Any] = {"law": list(self.laws)}
         if self.stable is not None:
             i, j = self.channels
-            data["stable"] = (("law", f"mu{j + 1}", f"mu{i + 1}"), self.stable)
-            data["radius"] = (("law", f"mu{j + 1}", f"mu{i + 1}"), self.radius)
-            coords[f"mu{i + 1}"] = self.axis
-            coords[f"mu{j + 1}"] = self.axis
-        return xr.Dataset(data, coords=coords)
+            dims = ("law", f"mu{j + 1}", f"mu{i + 1}")
+            data["stable"] = (dims, self.stable, {"long_name": "proved mean-square stable", "units": "1",
+                                                  "description": "1.0 stable, 0.0 not stable, nan undecided"})
+            data["radius"] = (dims, self.radius, {"long_name": "mean-square spectral radius", "units": "1",
+                                                  "description": f"dp: {RADIUS_MEANING['dp']}; other laws: "
+                                                                 f"{RADIUS_MEANING['law']}"})
+            for c in (i, j):
+                coords[f"mu{c + 1}"] = (f"mu{c + 1}", self.axis,
+                                        {"long_name": f"delivery probability of channel {c + 1} (1-based)",
+                                         "units": "1"})
+        return xr.Dataset(data, coords=coords, attrs={"direction": self.direction.tolist()})
 
 
 @dataclass(frozen=True)

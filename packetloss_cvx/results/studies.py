@@ -21,8 +21,9 @@ from ..display import (
     to_json,
 )
 from ..errors import InputError
+from ..optional import load
 from ..tolerances import ALLOCATION_COST_RTOL
-from .base import Frozen, freeze, read_only
+from .base import Frozen, freeze, numbered, read_only
 
 __all__ = ["Allocation", "ClaimResult", "DesignSweep", "Maximiser", "MinCost", "PowerAllocation", "ProtocolChoice",
            "Sweep", "attained", "loop_warning"]
@@ -306,6 +307,46 @@ class Sweep(Frozen):
                 "difference": None if self.difference is None else self.difference.tolist(),
                 "difference_method": self.difference_method}
 
+    def _names(self) -> tuple[str, ...]:
+        """The axes' names: ("nu",) for a shared channel, ("mu2", "mu1") for two channels (rows follow mu2)."""
+        return ("nu",) if len(self.axes) == 1 else ("mu2", "mu1")
+
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per grid point: nu (one shared channel) or mu2, mu1 (mu2 slowest, as the cost arrays' rows),
+        cost_<protocol> and cost_diff (J*_udp - J*_tcp); the difference's method as attrs."""
+        names = self._names()
+        grids = np.meshgrid(*self.axes, indexing="ij")
+        columns: dict[str, Any] = {name: np.ravel(g) for name, g in zip(names, grids, strict=True)}
+        columns.update({f"cost_{p}": np.ravel(v) for p, v in self.costs.items()})
+        if self.difference is not None:
+            columns["cost_diff"] = np.ravel(self.difference)
+        return columns, {"difference_method": self.difference_method or ""}
+
+    def plot(self, quantity: str | None = None, **kwargs: Any) -> Any:
+        """Draw the sweep; returns the matplotlib Figure. One shared channel: every cost (and J_Delta) against
+        nu by :func:`~packetloss_cvx.plots.figures.plot_cost_lines`; two channels: ``quantity`` ("cost_tcp",
+        "cost_udp" or "cost_diff", the default where swept, else the first cost) on a logarithmic colour map by
+        :func:`~packetloss_cvx.plots.figures.plot_log_contour`. Keywords go to the plot function.
+
+        Raises
+        ------
+        InputError
+            Field ``quantity``: not one of the sweep's quantities.
+        """
+        from ..plots import plot_cost_lines, plot_log_contour  # lazy: matplotlib, only when asked to draw
+        values = {f"cost_{p}": v for p, v in self.costs.items()}
+        if self.difference is not None:
+            values["cost_diff"] = self.difference
+        if len(self.axes) == 1:
+            curves = {("diff" if k == "cost_diff" else k[5:]): v for k, v in values.items()}
+            if quantity is not None:
+                curves = {k: v for k, v in curves.items() if f"cost_{k}" == quantity or k == quantity}
+            return plot_cost_lines(self.axes[0], curves, **{"xlabel": r"$\nu$", **kwargs})
+        quantity = quantity or ("cost_diff" if "cost_diff" in values else next(iter(values)))
+        if quantity not in values:
+            raise InputError("quantity", f"expected one of {', '.join(values)}, found {quantity!r}")
+        return plot_log_contour(self.axes[1], self.axes[0], values[quantity], **kwargs)
+
 
 @dataclass(frozen=True)
 class MinCost(Frozen):
@@ -410,18 +451,101 @@ class DesignSweep(Frozen):
         return {"kind": self.kind, "name": self.name, "dims": list(self.dims), "shape": list(self.shape),
                 "chunk_size": self.chunk_size, **{k: v.tolist() for k, v in self.arrays().items()}}
 
+    def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One row per point, the columns of ``sweep.csv``: mu1..mum, x0_1..x0_n, horizon, cost_<protocol>,
+        cost_diff, radius_<protocol>; kind, name, dims and chunk size as attrs."""
+        columns: dict[str, Any] = dict(zip(numbered("mu", self.mu.shape[1]), self.mu.T, strict=True))
+        columns.update(zip(numbered("x0", self.x0.shape[1]), self.x0.T, strict=True))
+        columns["horizon"] = self.horizon
+        flat = self.arrays()
+        columns.update({k: v for k, v in flat.items() if k.startswith(("cost_", "radius_"))})
+        return columns, {"kind": self.kind, "name": self.name or "", "dims": list(self.dims),
+                         "chunk_size": self.chunk_size}
+
+    def plot(self, quantity: str | None = None, **kwargs: Any) -> Any:
+        """Draw the sweep; returns the matplotlib Figure. One dimension: every cost (and J_Delta) against it by
+        :func:`~packetloss_cvx.plots.figures.plot_cost_lines`, or only ``quantity``; a 2-D mu grid: ``quantity``
+        ("cost_tcp", "cost_udp", "cost_diff" or "radius_<protocol>"; default cost_diff where swept, else the
+        first cost) over (mu1, mu2) on a logarithmic colour map by :func:`~packetloss_cvx.plots.figures.plot_log_contour`.
+        Keywords go to the plot function.
+
+        Raises
+        ------
+        InputError
+            Field ``quantity``: not one of the sweep's quantities.
+        """
+        from ..plots import plot_cost_lines, plot_log_contour  # lazy: matplotlib, only when asked to draw
+        values = {k: v for k, v in self.arrays().items() if k.startswith(("cost_", "radius_"))}
+        if quantity is not None and quantity not in values:
+            raise InputError("quantity", f"expected one of {', '.join(values)}, found {quantity!r}")
+        if len(self.dims) == 1:
+            labels = {"x0": "scale of x0", "horizon": "horizon N", "point": "point (row of the mu list)",
+                      "nu": r"$\nu$ (every channel)"}
+            label = labels.get(self.dims[0].partition("_")[0], _mu_label(self.dims[0]))
+            chosen = {quantity: values[quantity]} if quantity else {k: v for k, v in values.items()
+                                                                    if k.startswith("cost_")}
+            curves = {("diff" if k == "cost_diff" else k[5:]): v for k, v in chosen.items()}
+            return plot_cost_lines(self.axes[0], curves, **{"xlabel": label, **kwargs})
+        costs = [k for k in values if k.startswith("cost_")]
+        quantity = quantity or ("cost_diff" if "cost_diff" in values else costs[0])
+        names = tuple(_mu_label(d) for d in self.dims)
+        return plot_log_contour(self.axes[1], self.axes[0], self.grid(quantity),
+                                **{"xlabel": names[1], "ylabel": names[0], **kwargs})
+
     def to_xarray(self) -> Any:
-        """An `xarray.Dataset` over ``dims`` (the ``xarray`` extra): cost_tcp, cost_udp, cost_diff,
-        mu (with a ``channel`` dimension), x0 (``state``), horizon; the axes as coordinates. O(points (m + n))."""
-        try:
-            import xarray as xr  # lazy: an optional extra
-        except ImportError:
-            raise InputError("to_xarray", "needs the xarray extra: pip install 'packetloss-cvx[xarray]'") from None
+        """An :class:`xarray.Dataset` over ``dims`` only (the ``xarray`` extra), so that ``to_dataframe()`` has
+        one row per point: cost_<protocol>, cost_diff, radius_<protocol>, and each point's mu1..mum, x0_1..x0_n
+        and horizon, one variable per channel and per state (those that are a dimension are its coordinate);
+        the axes as coordinates. Every variable carries ``long_name`` and ``units`` attrs. O(points (m + n)).
+
+        Raises
+        ------
+        InputError
+            Field ``to_xarray`` when xarray is not installed (the message says how to install it).
+        """
+        xr = load("xarray", "to_xarray")
         dims = self.dims
-        # a swept variable that is also a dimension (horizon) is its coordinate, not a second variable
-        flat = {k: v for k, v in self.arrays().items() if not k.startswith("axis_") and k not in dims}
-        data = {k: ((*dims, "channel" if k == "mu" else "state") if v.ndim == 2 else dims, self.grid(k))
-                for k, v in flat.items()}
+        columns, _ = self._table()
+        data = {}
+        for key, values in columns.items():
+            if key in dims:          # a swept variable that is also a dimension is its coordinate
+                continue
+            data[key] = (dims, np.asarray(values).reshape(self.shape), _variable_attrs(key))
+        coords = {d: (d, a, _variable_attrs(d)) for d, a in zip(dims, self.axes, strict=True)}
         attrs = {"kind": self.kind, "name": self.name or "", "chunk_size": self.chunk_size,
                  "cost_diff": "J*_udp - J*_tcp, the difference of the two checked costs"}
-        return xr.Dataset(data, coords=dict(zip(dims, self.axes, strict=True)), attrs=attrs)
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _mu_label(dim: str) -> str:
+    """Mathtext of a swept channel's axis: ``mu2`` -> ``$\\mu_2$`` (braces from channel 10 on)."""
+    k = dim[2:]
+    return rf"$\mu_{k}$" if len(k) == 1 else rf"$\mu_{{{k}}}$"
+
+
+def _variable_attrs(name: str) -> dict[str, str]:
+    """``long_name`` and ``units`` of a design sweep's variable or coordinate (CF conventions: "1" is
+    dimensionless; a cost is in the units of the stage cost x'Qx + u'Ru, which the package does not know).
+
+    Examples
+    --------
+    >>> _variable_attrs("mu2")["long_name"], _variable_attrs("cost_udp")["long_name"]
+    ('delivery probability of channel 2 (1-based)', 'optimal expected cost J* (UDP-like)')
+    """
+    kind, _, rest = name.partition("_")
+    cost_units = "stage-cost units (x'Qx + u'Ru)"
+    if name.startswith("mu") and name[2:].isdigit():
+        return {"long_name": f"delivery probability of channel {name[2:]} (1-based)", "units": "1"}
+    if name.startswith("x0_"):
+        return {"long_name": f"initial state x0, component {rest} (1-based)", "units": "state units"}
+    if name == "cost_diff":
+        return {"long_name": "J*_udp - J*_tcp", "units": cost_units}
+    if kind == "cost":
+        return {"long_name": f"optimal expected cost J* ({rest.upper()}-like)", "units": cost_units}
+    if kind == "radius":
+        return {"long_name": f"mean-square spectral radius of the {rest.upper()}-like receding-horizon law",
+                "units": "1", "description": "< 1: mean-square stable"}
+    return {"horizon": {"long_name": "horizon N", "units": "steps"},
+            "nu": {"long_name": "delivery probability of every channel", "units": "1"},
+            "x0_scale": {"long_name": "scale of the initial state x0", "units": "1"},
+            "point": {"long_name": "row of the mu list (0-based)", "units": "1"}}.get(name, {"long_name": name})

@@ -21,6 +21,7 @@ from ..lq.markov_cost import exact_closed_form, exact_cost
 from ..model.protocols import PROTOCOLS
 from ..model.system import System, check_system
 from ..model.twins import bursty_twin, channel_twin, gilbert_family
+from ..model.validation import channel_range
 from ..progress import progress_bar
 from ..results import BurstinessMap, BurstinessSweep
 
@@ -159,7 +160,7 @@ def burstiness_map(system: System, rates: Sequence[float] = DEFAULT_RATES,
     """
     system = check_system(system)
     if isinstance(channel, bool) or not isinstance(channel, int | np.integer) or not 0 <= channel < system.m:
-        raise InputError("channel", f"expected a channel index 0..{system.m - 1}, found {channel!r}")
+        raise InputError("channel", f"expected {channel_range(system.m)}, found {channel!r}")
     values = _correlations(correlations)
     try:
         mus = None if isinstance(rates, str) else np.atleast_1d(np.asarray(rates, dtype=float))

@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..model.files import read_csv_numbers
 from ..model.protocols import PROTOCOLS, check_protocol
 from ..model.system import System, numeric_array
-from ..model.validation import MAX_ENTRIES
+from ..model.validation import MAX_ENTRIES, channel_range
 from ..results import DesignSweep
 from .engine import DEFAULT_CHUNK, chunks, run_in_process, run_on_dask
 
@@ -122,7 +122,7 @@ def _plan(system: System, mu_grid, channel, shared, mu_list, x0_scales, horizons
     if channel is not None:
         i = _count(channel, "channel", 0)
         if i >= system.m:
-            raise InputError("channel", f"expected a channel index from 0 to {system.m - 1}, found {i}")
+            raise InputError("channel", f"expected {channel_range(system.m)}, found {i}")
         mu = np.repeat(_base_mu(system)[None], axis.size, axis=0)
         mu[:, i] = axis
         return "mu-grid", (f"mu{i + 1}",), (axis,), mu

@@ -22,6 +22,7 @@ from ..closedloop.riccati import dp_riccati
 from ..errors import CrossCheckError, InputError, NumericalError
 from ..model.files import system_from_dict
 from ..model.system import System
+from ..model.validation import channel_range
 from ..progress import progress_bar
 from ..results.region import RegionMap
 from ..studies.engine import dask_client
@@ -200,7 +201,8 @@ def _check_grid(system: System, grid: int, channels: tuple[int, int], laws: int)
         raise InputError("grid", "a map needs two channels; this system has one (its critical points are the answer)")
     i, j = (int(c) for c in channels)
     if not (0 <= i < system.m and 0 <= j < system.m) or i == j:
-        raise InputError("channels", f"expected two different channels in 1..{system.m}")
+        raise InputError("channels", f"expected two different channels, each {channel_range(system.m)}, found "
+                                     f"{tuple(channels)!r}")
     if not (isinstance(grid, (int, np.integer)) and grid >= 2):
         raise InputError("grid", f"expected an integer >= 2, found {grid!r}")
     points = grid * grid * laws

@@ -74,7 +74,7 @@ def test_min_cost_bad_bounds(two_actuator):
      (12, "expected a string")],
 )
 def test_parse_constraint_hostile(text, match):
-    with pytest.raises(pl.InputError, match=f"^--constraint: .*{match}"):
+    with pytest.raises(pl.InputError, match=f"^constraint: .*{match}"):
         parse_constraint(text, 2)
 
 

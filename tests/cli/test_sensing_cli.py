@@ -144,5 +144,5 @@ def test_region_reports_the_dp_critical_mu_along_the_file_mu(tmp_path, mu):
     path = str(save_system(s, tmp_path / "two_inputs.toml"))
     data = region_run(parse("region", path, "--law", "dp", "-q")).data
     direction = np.array(mu) / max(mu)
-    assert data["sensor"]["tcp"]["critical_mu_dp"] == critical_mu(s, "dp", direction)
+    assert data["sensor"]["tcp"]["critical_mu_dp"] == critical_mu(s, "dp", direction).t
     assert (data["dp"]["t"] == data["sensor"]["tcp"]["critical_mu_dp"]) == (mu[0] == mu[1])   # the map's ray: ones

@@ -174,12 +174,12 @@ def test_critical_mu_scalar_fixed_gain_and_redesigned():
     a = 2.0
     s = System(A=[[a]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
     # fixed k = a: radius a^2 (1 - mu) < 1 iff mu > 1 - 1/a^2
-    assert critical_mu(s, [[a]]) == pytest.approx(1 - 1 / a ** 2, abs=2e-6)
-    assert critical_mu(s, "dp") == pytest.approx(1 - 1 / a ** 2, abs=2e-6)
+    assert critical_mu(s, [[a]]).mu == pytest.approx([1 - 1 / a ** 2], abs=2e-6)
+    assert critical_mu(s, "dp").t == pytest.approx(1 - 1 / a ** 2, abs=2e-6)
     # a receding-horizon law is one law: it cannot need less than the DP law
     for p in ("tcp", "udp"):
-        assert critical_mu(s, p) >= 1 - 1 / a ** 2 - 1e-6
-    assert critical_mu(s, [[0.0]]) == np.inf
+        assert critical_mu(s, p).t >= 1 - 1 / a ** 2 - 1e-6
+    assert critical_mu(s, [[0.0]]).t == np.inf
 
 
 def test_critical_mu_and_finite_costs_reject_bad_input():
@@ -272,7 +272,7 @@ def test_critical_mu_with_a_tolerance_below_double_spacing_ends():
     """tol=1e-20 bisected for ever: the bracket cannot shrink below the spacing of doubles near 0.75."""
     s = pl.System(A=[[2.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
     from packetloss_cvx.tolerances import MEAN_SQUARE_MARGIN
-    t = critical_mu(s, [[2.0]], tol=1e-20)   # fixed k = a = 2: proved stable iff 4 (1 - mu) < 1 - margin
+    t = critical_mu(s, [[2.0]], tol=1e-20).t   # fixed k = a = 2: proved stable iff 4 (1 - mu) < 1 - margin
     assert t == pytest.approx(0.75 + MEAN_SQUARE_MARGIN / 4, abs=1e-15)
 
 

@@ -89,14 +89,17 @@ def test_critical_mu_dp_scalar_meets_its_tolerance_on_both_sides():
             point = critical_point(scalar(a, psi=psi), "dp")
             assert point.lower <= exact <= point.t
             assert point.t - point.lower <= 1e-6
-            assert critical_mu(scalar(a, psi=psi), "dp") == point.t
+            found = critical_mu(scalar(a, psi=psi), "dp")
+            assert found.t == point.t
+            assert found.mu.tolist() == [point.t]             # mu beside t: the ray's default direction is 1
 
 
 @pytest.mark.parametrize("a", [(2.0, 1.5), (3.0, 1.2, 0.5), (1.1, 4.0)])
 def test_critical_mu_dp_decoupled_plants_give_the_per_channel_thresholds(a):
     s = decoupled(a)
     thresholds = np.array([max(0.0, 1 - 1 / x ** 2) for x in a])
-    assert critical_mu(s, "dp", direction=np.ones(len(a))) == pytest.approx(thresholds.max(), abs=1e-6)
+    assert critical_mu(s, "dp", direction=np.ones(len(a))).t == pytest.approx(thresholds.max(), abs=1e-6)
+    assert critical_mu(s, "dp").mu == pytest.approx(np.full(len(a), thresholds.max()), abs=1e-6)  # default: ones
     d = np.linspace(1.0, 0.8, len(a))
     point = critical_point(s, "dp", direction=d)
     exact = float(np.max(thresholds / d))

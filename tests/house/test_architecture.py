@@ -113,11 +113,26 @@ def _find_imports(module: str, tree: ast.Module):
 MODULES = _modules()
 
 
+#: the one upward reach: a result draws itself (``.plot()``) through plots/, imported inside the method when it is
+#: called, as pandas' ``DataFrame.plot`` reaches its plotting backend; plots/ reads results by their attributes and
+#: never imports them, so the graph keeps no cycle
+DRAWS_ITSELF = ("results", "plots")
+
+
+def _in_functions(tree: ast.Module) -> set[int]:
+    """ids of the import nodes inside a function of the module."""
+    return {id(node) for fn in ast.walk(tree) if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef))
+            for node in ast.walk(fn) if isinstance(node, (ast.Import, ast.ImportFrom))}
+
+
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_imports_flow_one_way(module):
     mine = _layer(_unit(module))
-    for _node, target in _imports(module, MODULES[module]):
+    lazy = _in_functions(_tree(MODULES[module]))
+    for node, target in _imports(module, MODULES[module]):
         if target is None or _unit(target) == _unit(module):
+            continue
+        if (_unit(module), _unit(target)) == DRAWS_ITSELF and id(node) in lazy:
             continue
         theirs = _layer(_unit(target))
         assert theirs <= mine, f"{module} (layer {mine}) imports {target} (layer {theirs})"

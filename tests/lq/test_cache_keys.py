@@ -73,7 +73,9 @@ def changed(s: System, field: str, rng: np.random.Generator) -> System:
                     "initial_weight": lambda: s.initial_weight + np.eye(n),
                     "noise_cov": lambda: s.noise_cov + 0.5 * np.eye(n), "name": lambda: "another",
                     "dt": lambda: 0.25 if s.dt is None else 2 * s.dt,
-                    "sensor": lambda: Sensor(C=np.eye(n)[:1], gamma=[0.7], noise_cov=[[0.1]])}[field]()
+                    "sensor": lambda: Sensor(C=np.eye(n)[:1], gamma=[0.7], noise_cov=[[0.1]]),
+                    "input_labels": lambda: [f"u{i}" for i in range(m)],
+                    "state_labels": lambda: [f"x{i}" for i in range(n)]}[field]()
     return System(**f)
 
 
