@@ -151,7 +151,7 @@ INTERNALS = ["packetloss_cvx.model.system.CacheKey", "packetloss_cvx.model.syste
 def test_api_pages_document_the_public_names_and_no_internals(site):
     """The closed loop has its entries, the figures page every ``plot_*`` of the package, the results page every
     result type; no private name (``_x``) and none of the internals has one."""
-    import packetloss_cvx.plots.figures
+    import packetloss_cvx.plots
     import packetloss_cvx.results
 
     _, folder = site
