@@ -366,7 +366,7 @@ def _affine_rows(fn: Callable, m: int, field: str) -> tuple[np.ndarray, np.ndarr
 
 def read_polytope(constraints: Sequence[Constraint], m: int, lo: float, hi: float, *, name: str = "mu",
                   scale: np.ndarray | None = None) -> Polytope:
-    """The bounds and ``constraints`` as one :class:`Polytope`.
+    """The bounds and ``constraints`` as one [`Polytope`][packetloss_cvx.allocation.grammar.Polytope].
 
     Parameters
     ----------

@@ -52,7 +52,8 @@ def tally_text(results: Sequence[ClaimResult]) -> str:
 def claims_document(results: Sequence[ClaimResult], command: str) -> str:
     """The claims document for a run's audit: docs/claims.md's title and introduction, its "In plain words"
     (which summarise the project's full audit, ``audit --random 200 --seed 1``), an "The audit" section with this
-    run's tally and :func:`markdown_report` (``command`` says how it was run), and its "Findings in detail".
+    run's tally and [`markdown_report`][packetloss_cvx.claims.report.markdown_report] (``command`` says how it was
+    run), and its "Findings in detail".
     O(size of the report).
 
     Examples

@@ -41,7 +41,7 @@ def actuator_strategies(text: str | None, system: System) -> tuple[Actuator, ...
 def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator, ...],
                    steps: int) -> tuple[dict[str, Any], list[str]]:
     """The JSON entry (``steps`` and per strategy ``radius``, ``stable``, ``cost``, ``reason``) and the text lines of
-    :func:`~packetloss_cvx.closedloop.actuator.compare_actuators` for the law ``u = -K x``."""
+    `compare_actuators` for the law ``u = -K x``."""
     try:
         rows = compare_actuators(system, gain, steps, strategies)
     except InputError as err:

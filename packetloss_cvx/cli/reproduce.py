@@ -67,8 +67,8 @@ WRITE_STEPS = ("figures", "report")
 @blas_limited      # the maximisers, tables and audit loops of small dense algebra (threads.py)
 def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, float],
             bar: Any = None) -> dict[str, Any]:
-    """The data of every figure, table and the audit for ``settings`` (one of :data:`SETTINGS`), each step's wall
-    seconds put in ``seconds``; nothing is written. Called by :func:`run` (and by benchmarks/reproduce_speed.py).
+    """The data of every figure, table and the audit for ``settings`` (one of `SETTINGS`), each step's wall
+    seconds put in ``seconds``; nothing is written. Called by `run` (and by benchmarks/reproduce_speed.py).
     ``bar``: a progress bar (progress.progress_bar) that the steps advance, the caller's; None: its own."""
     pendulum, mixed = load_example("pendulum"), load_example("two_actuator")
     data: dict[str, Any] = {"settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()}}

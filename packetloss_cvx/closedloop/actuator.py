@@ -1,10 +1,10 @@
 """What the actuator does when a packet is lost: zero, hold, or play the buffered plan, each a jump linear system.
 
 A linear law ``u_k = -K x_k`` (``-K_c x_k`` per channel state c behind a chain, the state known to the controller as
-in :mod:`.mjls`'s ``delivery="current"``) is sent to m actuators, actuator i's packet delivered with probability
+in `.mjls`'s ``delivery="current"``) is sent to m actuators, actuator i's packet delivered with probability
 ``h_{c,i}`` (Bernoulli: ``mu_i``), independently given the channel state. On a loss the actuator
 
-- ``zero``: applies nothing (the paper's model; today's loop, :mod:`.stability` and :mod:`.mjls`);
+- ``zero``: applies nothing (the paper's model; today's loop, `.stability` and `.mjls`);
 - ``hold``: applies its last applied input ``w`` (0 before the first packet). With ``z = (x, w)``,
   ``z+ = (Ã - B̃ V K̃) z``, ``Ã = [[A, B], [0, I]]``, ``B̃ = [B; I]``, ``K̃ = [K, I]``: the engine's own form over
   the channel's modes, the applied input ``w - V (K x + w)``. The held input is state: behind a link that never
@@ -23,7 +23,7 @@ in :mod:`.mjls`'s ``delivery="current"``) is sent to m actuators, actuator i's p
   ``q_i = h_{c',i}`` for ``alpha'_i = 0`` and ``1 - h_{c',i}`` for ``alpha'_i = min(alpha_i + 1, L)``.
   ``buffer:1`` is ``zero``.
 
-Each is handed to the mode engine (:mod:`.modes`: per-mode plant A_a, the applied input ``F_a z - V K_a z``), so the
+Each is handed to the mode engine (`.modes`: per-mode plant A_a, the applied input ``F_a z - V K_a z``), so the
 mean-square radius and the exact finite-horizon costs ``E[x'Omega x + a' Psi a]`` (a the applied input) are the
 engine's. The state weight sees x only, the noise enters x only, and the actuator's memory starts empty.
 
@@ -65,7 +65,7 @@ MAX_BUFFER_MODES = 1024
 
 @dataclass(frozen=True)
 class Actuator:
-    """A strategy on a loss: ``kind`` one of :data:`STRATEGIES`, ``length`` the buffer's L (1 for zero and hold)."""
+    """A strategy on a loss: ``kind`` one of `STRATEGIES`, ``length`` the buffer's L (1 for zero and hold)."""
 
     kind: str
     length: int = 1
@@ -111,7 +111,7 @@ def parse_actuator(spec: str | Actuator, horizon: int | None = None) -> Actuator
 
 @dataclass(frozen=True)
 class JumpLoop:
-    """A strategy's loop in the mode engine's arrays (:mod:`.modes`): state ``z = embed x`` plus the actuator's
+    """A strategy's loop in the mode engine's arrays (`.modes`): state ``z = embed x`` plus the actuator's
     memory (N entries), ``A`` (N, N) or per mode (M, N, N), ``B`` (N, m), gains ``K`` (m, N) or (M, m, N),
     deliveries ``h`` (m,) or (M, m), chain ``T`` (None: one mode) and ``start`` P(mode at 0), ``held`` the input
     applied whatever the delivery (None: nothing on a loss), ``embed`` (N, n)."""
@@ -131,7 +131,7 @@ class JumpLoop:
         return 1 if self.T is None else self.T.shape[0]
 
     def radius(self, method: str = "auto") -> float:
-        """The engine's mean-square radius of this loop (:func:`.modes.mode_radius`); the dense matrix refused
+        """The engine's mean-square radius of this loop (`.modes.mode_radius`); the dense matrix refused
         beyond the ``operator_rows`` budget. Time O((M N^2)^3) dense, Krylov beyond."""
         dim = self.modes * self.A.shape[-1] ** 2
 
@@ -148,7 +148,7 @@ class JumpLoop:
     def stage_costs(self, Omega: np.ndarray, psi: np.ndarray, Sigma: np.ndarray, x0: np.ndarray,
                     steps: int) -> tuple[np.ndarray, float]:
         """Exact ``E[x_t' Omega x_t + a_t' Psi a_t]``, t < steps, and ``E[x_T' Omega x_T]`` from x0 (memory empty),
-        noise Sigma on x (:func:`.modes.mode_stage_costs`, the law broadcast over the steps: formed once)."""
+        noise Sigma on x (`.modes.mode_stage_costs`, the law broadcast over the steps: formed once)."""
         E = self.embed
         Omega_z, Sigma_z, z0 = E @ Omega @ E.T, E @ Sigma @ E.T, E @ x0
         K_all = np.broadcast_to(self.K, (steps, *self.K.shape))
@@ -169,7 +169,7 @@ def actuator_loop(A: npt.ArrayLike, B: npt.ArrayLike, gain: npt.ArrayLike, chann
     Raises
     ------
     InputError
-        Field ``actuator``: an unknown strategy, L < 1, or a buffer beyond :data:`MAX_BUFFER_MODES` modes.
+        Field ``actuator``: an unknown strategy, L < 1, or a buffer beyond `MAX_BUFFER_MODES` modes.
     DimensionError
         A gain or mu of the wrong shape.
 
@@ -286,14 +286,15 @@ def actuator_radius(system: System, gain: npt.ArrayLike, actuator: str | Actuato
                     mu: npt.ArrayLike | None = None, method: str = "auto") -> float:
     """Mean-square radius of ``u = -K x`` on ``system``'s plant and channel (its chain, or ``mu``, default the
     stationary Bernoulli channel) with the actuator's strategy on a loss (< 1: mean-square stable). ``zero`` is
-    :func:`.stability.mean_square_radius` (Bernoulli) and :func:`.mjls.mean_square_radius` (a chain).
+    [`.stability.mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius] (Bernoulli) and
+    `.mjls.mean_square_radius` (a chain).
 
     Raises
     ------
     InputError
         Field ``actuator``: an unknown strategy, L < 1 or L beyond the horizon, or too many buffer modes.
     NumericalError, BudgetError
-        As :func:`.modes.mode_radius`.
+        As `.modes.mode_radius`.
 
     Examples
     --------
@@ -308,8 +309,9 @@ def actuator_costs(system: System, gain: npt.ArrayLike, steps: int, actuator: st
                    mu: npt.ArrayLike | None = None) -> tuple[np.ndarray, float]:
     """Exact expected stage costs ``E[x_t' Omega_1 x_t + a_t' Psi_0 a_t]`` (a_t the applied input), t < steps, and
     ``E[x_T' Omega_1 x_T]`` of ``u = -K x`` from the system's x0 (noise Sigma_W each step) with the actuator's
-    strategy on a loss; channel as :func:`actuator_radius`. ``zero`` is :func:`.moments.finite_horizon_costs`
-    (Bernoulli) and :func:`.mjls.jump_law_stage_costs` (a chain). Time O(steps M (M N^2 + N^3)).
+    strategy on a loss; channel as `actuator_radius`. ``zero`` is
+    [`.moments.finite_horizon_costs`][packetloss_cvx.closedloop.moments.finite_horizon_costs]
+    (Bernoulli) and `.mjls.jump_law_stage_costs` (a chain). Time O(steps M (M N^2 + N^3)).
 
     Examples
     --------
@@ -324,7 +326,7 @@ def actuator_costs(system: System, gain: npt.ArrayLike, steps: int, actuator: st
 
 
 def parse_actuators(text: str, horizon: int) -> tuple[Actuator, ...]:
-    """A comma-separated list of strategies (:func:`parse_actuator`), or "all": zero, hold and buffer:N (N the
+    """A comma-separated list of strategies (`parse_actuator`), or "all": zero, hold and buffer:N (N the
     horizon: the whole plan), each once.
 
     >>> [str(a) for a in parse_actuators("all", 4)], [str(a) for a in parse_actuators("hold,buffer:2", 4)]
@@ -340,7 +342,7 @@ def compare_actuators(system: System, gain: npt.ArrayLike, steps: int | None = N
     """The strategies side by side for one law: per strategy (its name as key) the mean-square ``radius``,
     ``stable`` (radius below 1 by MEAN_SQUARE_MARGIN) and ``cost``, the exact expected cost of ``steps`` steps from
     x0 (stage costs and the terminal ``x_T' Omega_1 x_T``; default steps: the horizon). A radius that cannot be
-    computed is nan with its ``reason``. Time: the strategies' :func:`actuator_radius` and :func:`actuator_costs`.
+    computed is nan with its ``reason``. Time: the strategies' `actuator_radius` and `actuator_costs`.
 
     Examples
     --------

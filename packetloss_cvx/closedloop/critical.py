@@ -164,7 +164,7 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
 def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLike | None = None,
                 tol: float = CRITICAL_MU_TOL, stable: Callable[[np.ndarray], bool] | None = None) -> CriticalPoint:
     """The critical delivery probabilities of a law: where its region meets the ray ``mu = t * direction``, by
-    bisection in t (:func:`critical_point`).
+    bisection in t ([`critical_point`][packetloss_cvx.closedloop.critical.critical_point]).
 
     Parameters
     ----------

@@ -16,9 +16,9 @@ A Bernoulli channel is the one-mode chain: every function here takes ``T=None`` 
 (K (m, n), h = mu (m,), Q (n, n)), and is then the operator of `packetloss_cvx.closedloop.stability`.
 
 The plant may differ per mode (A (M, n, n), CFM05's ``A_a``; ``delivery="current"``): a loop whose mode also
-carries what the actuator does on a loss (:mod:`packetloss_cvx.closedloop.actuator`: the held input, the age of a
+carries what the actuator does on a loss (`packetloss_cvx.closedloop.actuator`: the held input, the age of a
 buffered plan) is this engine over an augmented state, its applied input ``F_a x - V K_a x`` (``F`` the input
-applied whatever the delivery, :func:`mode_stage_costs`'s ``held``).
+applied whatever the delivery, `mode_stage_costs`'s ``held``).
 """
 
 from __future__ import annotations
@@ -392,7 +392,7 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
     mode at t; "next": of the mode at t - 1, ``first_gain`` (m, n) at t = 0. ``K_all`` and ``h_all`` broadcast over
     the steps (stride 0) are one law: its map is formed once. Entries stay inf past an overflow.
     ``held`` (M, m, n), or (m, n) at one mode, with one law and "current" only: the applied input is
-    ``F_a x - V K_a x`` instead of ``-V K_a x`` (:func:`_stage_weight`); A may then carry a mode axis.
+    ``F_a x - V K_a x`` instead of ``-V K_a x`` (`_stage_weight`); A may then carry a mode axis.
     Time O(steps M (M n^2 + n^3 + n^2 m)).
 
     Examples

@@ -237,7 +237,8 @@ class System:
         (the paper's model); every computation that ignores the sensor is the same with or without one.
     input_labels, state_labels : list of str, optional
         Names of the m inputs and the n states (python-control's ``inputs`` / ``states``), metadata kept through
-        :meth:`from_statespace` and :meth:`to_statespace`; nothing depends on them. None: unnamed.
+        [`from_statespace`][packetloss_cvx.model.system.System.from_statespace] and
+        [`to_statespace`][packetloss_cvx.model.system.System.to_statespace]; nothing depends on them. None: unnamed.
 
     Raises
     ------

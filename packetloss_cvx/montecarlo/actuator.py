@@ -1,5 +1,5 @@
 """Sampling the loop of ``u = -K x`` when the actuator zeroes, holds or plays the buffered plan on a loss, against
-its exact expectation (:mod:`packetloss_cvx.closedloop.actuator`).
+its exact expectation (`packetloss_cvx.closedloop.actuator`).
 
 Each run draws its channel path (Bernoulli, or the system's chain from its initial belief), its deliveries and its
 noise from ``SeedSequence([seed, ACTUATOR_STREAM])``, in blocks of ``BLOCK`` runs (block b from its own child
@@ -75,7 +75,7 @@ def sample_actuator_loop(system: System, gain: npt.ArrayLike, steps: int, actuat
                          seed: int = 0, mu: npt.ArrayLike | None = None) -> np.ndarray:
     """Each sampled run's stage costs ``x_t' Omega_1 x_t + a_t' Psi_0 a_t`` (a_t the applied input), (samples,
     steps), of ``u = -K x`` (per channel state behind a chain) with the actuator's strategy on a loss; channel as
-    :func:`~packetloss_cvx.closedloop.actuator.actuator_radius`. Time O(samples steps (n^2 + m n L)).
+    `actuator_radius`. Time O(samples steps (n^2 + m n L)).
 
     Examples
     --------
@@ -101,9 +101,9 @@ def sample_actuator_loop(system: System, gain: npt.ArrayLike, steps: int, actuat
 
 def simulate_actuator(system: System, gain: npt.ArrayLike, steps: int, actuator: str | Actuator, samples: int,
                       seed: int = 0) -> dict[str, float | bool | str | None]:
-    """The sampled loop of :func:`sample_actuator_loop` beside its exact expectation: the mean over runs of each
+    """The sampled loop of `sample_actuator_loop` beside its exact expectation: the mean over runs of each
     run's mean stage cost over t < steps (``mean_stage_cost``, ``stderr``), the exact one (``exact_stage_cost``,
-    closedloop.actuator), ``z`` (:func:`~.runs.z_score`), the mean-square ``radius`` (None with its ``reason``
+    closedloop.actuator), ``z`` (`z_score`), the mean-square ``radius`` (None with its ``reason``
     where it cannot be computed) and ``stable``. Time: the sampling, plus the exact costs O(steps M (M N^2 + N^3))
     and the radius.
 

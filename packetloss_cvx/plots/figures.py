@@ -82,8 +82,8 @@ def plot_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = 
     ----------
     curves : mapping
         Label (``"tcp"``, ``"udp"`` or any text) to rows with keys ``"alpha"`` and
-        ``"communication_cost"`` (as :func:`~packetloss_cvx.allocation.pareto_curve`
-        returns), or to :class:`~packetloss_cvx.results.Allocation` results; rows whose communication cost is
+        ``"communication_cost"`` (as [`pareto_curve`][packetloss_cvx.studies.allocation.pareto_curve]
+        returns), or to `Allocation` results; rows whose communication cost is
         None (infeasible) are left out.
     title : str, optional
     path : str or Path, optional
@@ -183,8 +183,8 @@ def plot_closed_loop(curves: Any, *, title: str | None = None, path: str | Path 
     Parameters
     ----------
     curves : Simulation or mapping
-        A :class:`~packetloss_cvx.results.Simulation` (its ``closed_loop`` runs), or law (``"tcp"``, ``"udp"``,
-        ``"dp"`` or any text) to a :class:`~packetloss_cvx.results.ClosedLoopRun` or to a mapping with
+        A `Simulation` (its ``closed_loop`` runs), or law (``"tcp"``, ``"udp"``,
+        ``"dp"`` or any text) to a `ClosedLoopRun` or to a mapping with
         ``"state_norm_mean"`` and ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"``
         (length T), as a ClosedLoopRun holds them. Non-finite values are not drawn.
     title : str, optional
@@ -443,7 +443,7 @@ def plot_burstiness_map(rates: Any, correlations: Sequence[float] | None = None,
     ----------
     rates, correlations : sequence of float, shapes (R,), (L,)
         Distinct mean rates and values of lambda = 1 - p - r. ``rates`` may be a
-        :class:`~packetloss_cvx.results.BurstinessMap` alone: its axes, ``protocol``'s exact minimum (default
+        `BurstinessMap` alone: its axes, ``protocol``'s exact minimum (default
         UDP-like where evaluated, else the first) and the plug-in law's loss in percent.
     cost, loss_percent : array_like, shape (R, L)
         ``[a, b]`` at ``(rates[a], correlations[b])``; ``cost`` needs a positive value (cells <= 0 are drawn in
@@ -516,7 +516,7 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
     """Stability regions over two channels: ``radius`` (the least mean-square radius any linear law reaches,
     min_K rho(L_K), shape (K, K), rows the second channel) as a colour map clipped to [0, 2] with its level 1
     in white, and each law's region boundary (the 1/2 level of its 0/1 ``stable`` map; nan undecided) as a line.
-    ``axis`` may be a :class:`~packetloss_cvx.results.RegionMap` with a grid, alone: its axis, its "dp" law's
+    ``axis`` may be a `RegionMap` with a grid, alone: its axis, its "dp" law's
     radius, every law's ``stable`` map and its channels' names (``xlabel`` and ``ylabel`` default to them; else
     to mu_1, mu_2). O(K^2) per law.
 
@@ -660,7 +660,7 @@ def plot_ack_break_even(alpha: Any, break_even: Sequence[float] | None = None, *
                         path: str | Path | None = None) -> Figure:
     """Above which price of the acknowledgement link the UDP-like design wins, against alpha:
     the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
-    ``alpha`` may be a list of :class:`~packetloss_cvx.results.ProtocolChoice` alone (each its alpha and
+    ``alpha`` may be a list of `ProtocolChoice` alone (each its alpha and
     break-even price). Non-finite points (no design) are left out. O(points) to draw.
 
     Examples

@@ -33,7 +33,7 @@ def _is_number(value: Any) -> bool:
 
 def scalar_row(data: Mapping[str, Any]) -> tuple[dict[str, list], dict[str, Any]]:
     """One table row from a result's ``to_dict()``: numbers and text as columns, a flat list of numbers as one
-    column per entry (:func:`numbered`), nested dicts flattened as ``outer_inner``; what is not one value per
+    column per entry (`numbered`), nested dicts flattened as ``outer_inner``; what is not one value per
     row (matrices, lists of text) goes to the table's ``attrs``. O(size of ``data``).
 
     Examples
@@ -58,11 +58,11 @@ def scalar_row(data: Mapping[str, Any]) -> tuple[dict[str, list], dict[str, Any]
 
 
 class Tabular:
-    """``to_pandas()`` for a result type: a tidy :class:`pandas.DataFrame`, one row per point of the result (one
+    """``to_pandas()`` for a result type: a tidy `pandas.DataFrame`, one row per point of the result (one
     row for a result that is a single point), each number once; what describes the whole result (a protocol, a
     method, a scalar cost beside per-step rows) is in the frame's ``attrs``. A subclass that holds a grid, a
-    trajectory or a batch overrides :meth:`_table`; the others are one row of their ``to_dict()``
-    (:func:`scalar_row`). pandas is imported when called (the ``pandas`` extra).
+    trajectory or a batch overrides `_table`; the others are one row of their ``to_dict()``
+    (`scalar_row`). pandas is imported when called (the ``pandas`` extra).
 
     Examples
     --------
@@ -84,7 +84,7 @@ class Tabular:
         return scalar_row(self.to_dict())     # type: ignore[attr-defined]
 
     def to_pandas(self) -> Any:
-        """This result as a tidy :class:`pandas.DataFrame` (one row per point; the ``pandas`` extra). O(size).
+        """This result as a tidy `pandas.DataFrame` (one row per point; the ``pandas`` extra). O(size).
 
         Raises
         ------

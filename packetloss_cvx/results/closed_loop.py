@@ -142,7 +142,8 @@ class ClosedLoopRun(Frozen):
                 {"law": self.law, **{k: v[0] for k, v in row.items()}, **attrs})
 
     def plot(self, **kwargs: Any) -> Any:
-        """This run drawn by :func:`~packetloss_cvx.plots.figures.plot_closed_loop` (keywords passed on); returns the
+        """This run drawn by [`plot_closed_loop`][packetloss_cvx.plots.figures.plot_closed_loop] (keywords passed on);
+        returns the
         matplotlib Figure."""
         from ..plots import plot_closed_loop  # lazy: matplotlib, only when asked to draw
         return plot_closed_loop({self.law: self}, **kwargs)
@@ -176,7 +177,7 @@ class Simulation(Frozen):
         return out
 
     def _table(self) -> tuple[dict[str, Any], dict[str, Any]]:
-        """With closed-loop runs: one row per (law, step), as :meth:`ClosedLoopRun.to_pandas`, the runs' own
+        """With closed-loop runs: one row per (law, step), as `ClosedLoopRun.to_pandas`, the runs' own
         numbers as attrs; else one row per protocol of the open-loop checks."""
         attrs: dict[str, Any] = {"samples": self.samples, "steps": self.steps, "seed": self.seed,
                                  "channel": self.channel}
@@ -195,7 +196,8 @@ class Simulation(Frozen):
         return columns, attrs
 
     def plot(self, **kwargs: Any) -> Any:
-        """The closed-loop runs drawn by :func:`~packetloss_cvx.plots.figures.plot_closed_loop` (keywords passed on);
+        """The closed-loop runs drawn by [`plot_closed_loop`][packetloss_cvx.plots.figures.plot_closed_loop] (keywords
+        passed on);
         returns the matplotlib Figure.
 
         Raises

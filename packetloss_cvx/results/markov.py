@@ -34,7 +34,7 @@ def plugin_loss(plugin: np.ndarray, exact: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class MarkovSolution(Tabular):
-    """One protocol under a Gilbert–Elliott channel (:func:`packetloss_cvx.qp.markov_solution.markov_solution`).
+    """One protocol under a Gilbert–Elliott channel (`packetloss_cvx.qp.markov_solution.markov_solution`).
 
     ``exact``: the minimiser of the protocol's exact expected cost (closed form); ``qp``: its
     cvxpy + Clarabel twin (cross-checked) or None; ``plugin_cost``: the protocol's exact cost of the
@@ -98,7 +98,8 @@ class BurstinessSweep(Frozen):
 
     def plot(self, **kwargs: Any) -> Any:
         """Each protocol's exact minimum and plug-in cost against lambda, drawn by
-        :func:`~packetloss_cvx.plots.figures.plot_cost_lines` (keywords passed on); returns the matplotlib Figure."""
+        [`plot_cost_lines`][packetloss_cvx.plots.figures.plot_cost_lines] (keywords passed on); returns the matplotlib
+        Figure."""
         from ..plots import plot_cost_lines  # lazy: matplotlib, only when asked to draw
         curves = {}
         for p in self.exact:
@@ -169,13 +170,14 @@ class BurstinessMap(Frozen):
 
     def plot(self, protocol: str | None = None, **kwargs: Any) -> Any:
         """``protocol``'s exact minimum and the plug-in law's loss (percent) over the map, drawn by
-        :func:`~packetloss_cvx.plots.figures.plot_burstiness_map` (keywords passed on; ``protocol`` defaults to UDP-like
+        [`plot_burstiness_map`][packetloss_cvx.plots.figures.plot_burstiness_map] (keywords passed on; ``protocol``
+        defaults to UDP-like
         where evaluated, else the first); returns the matplotlib Figure.
 
         Raises
         ------
         InputError
-            Field ``protocol``: not one of :attr:`protocols`.
+            Field ``protocol``: not one of `protocols`.
         """
         from ..plots import plot_burstiness_map  # lazy: matplotlib, only when asked to draw
         return plot_burstiness_map(self, protocol=protocol, **kwargs)

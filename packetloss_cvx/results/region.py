@@ -160,7 +160,8 @@ class RegionMap(Frozen):
                          "radius_meaning": dict(RADIUS_MEANING)}
 
     def plot(self, **kwargs: Any) -> Any:
-        """The map drawn by :func:`~packetloss_cvx.plots.figures.plot_region` (the "dp" law's least radius as colours,
+        """The map drawn by [`plot_region`][packetloss_cvx.plots.figures.plot_region] (the "dp" law's least radius as
+        colours,
         each law's boundary as a line; keywords passed on); returns the matplotlib Figure.
 
         Raises

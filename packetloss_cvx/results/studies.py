@@ -324,9 +324,9 @@ class Sweep(Frozen):
 
     def plot(self, quantity: str | None = None, **kwargs: Any) -> Any:
         """Draw the sweep; returns the matplotlib Figure. One shared channel: every cost (and J_Delta) against
-        nu by :func:`~packetloss_cvx.plots.figures.plot_cost_lines`; two channels: ``quantity`` ("cost_tcp",
+        nu by [`plot_cost_lines`][packetloss_cvx.plots.figures.plot_cost_lines]; two channels: ``quantity`` ("cost_tcp",
         "cost_udp" or "cost_diff", the default where swept, else the first cost) on a logarithmic colour map by
-        :func:`~packetloss_cvx.plots.figures.plot_log_contour`. Keywords go to the plot function.
+        [`plot_log_contour`][packetloss_cvx.plots.figures.plot_log_contour]. Keywords go to the plot function.
 
         Raises
         ------
@@ -464,9 +464,11 @@ class DesignSweep(Frozen):
 
     def plot(self, quantity: str | None = None, **kwargs: Any) -> Any:
         """Draw the sweep; returns the matplotlib Figure. One dimension: every cost (and J_Delta) against it by
-        :func:`~packetloss_cvx.plots.figures.plot_cost_lines`, or only ``quantity``; a 2-D mu grid: ``quantity``
+        [`plot_cost_lines`][packetloss_cvx.plots.figures.plot_cost_lines], or only ``quantity``; a 2-D mu grid:
+        ``quantity``
         ("cost_tcp", "cost_udp", "cost_diff" or "radius_<protocol>"; default cost_diff where swept, else the
-        first cost) over (mu1, mu2) on a logarithmic colour map by :func:`~packetloss_cvx.plots.figures.plot_log_contour`.
+        first cost) over (mu1, mu2) on a logarithmic colour map by
+        [`plot_log_contour`][packetloss_cvx.plots.figures.plot_log_contour].
         Keywords go to the plot function.
 
         Raises
@@ -493,7 +495,7 @@ class DesignSweep(Frozen):
                                 **{"xlabel": names[1], "ylabel": names[0], **kwargs})
 
     def to_xarray(self) -> Any:
-        """An :class:`xarray.Dataset` over ``dims`` only (the ``xarray`` extra), so that ``to_dataframe()`` has
+        """An `xarray.Dataset` over ``dims`` only (the ``xarray`` extra), so that ``to_dataframe()`` has
         one row per point: cost_<protocol>, cost_diff, radius_<protocol>, and each point's mu1..mum, x0_1..x0_n
         and horizon, one variable per channel and per state (those that are a dimension are its coordinate);
         the axes as coordinates. Every variable carries ``long_name`` and ``units`` attrs. O(points (m + n)).
