@@ -1,5 +1,5 @@
 """UDP-like allocation behind Markov chains, each channel along its family (allocation/chains.py): Gilbert
-channels with their burstiness held, every other chain with its deliveries scaled (docs/design.md §2.5, the
+channels with their burstiness held, every other chain with its deliveries scaled (docs/mathematics.md §5, the
 k-state rule).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/allocation_chains.py [--json]

@@ -1,6 +1,6 @@
 """Which route `method="auto"` should take for the exact UDP-like minimum under Markov losses: the dense
 stacked solve against the augmented recursion, side by side in one run (docs/performance.md,
-"Other benchmarks"; docs/design.md §2.4, "Which route").
+"Other benchmarks"; docs/mathematics.md §4, "Which route").
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/markov_auto.py [--quick] [--fit] [--json]
 

@@ -360,7 +360,7 @@ def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints
                          margin: float | None) -> Allocation:
     """The TCP-like design on the attainable cost: min beta'mu with the finite-horizon DP's cost <= alpha, by the
     monotone branch and bound of `.udp` on `.attainable.AttainableEvaluator` (the cost falls in each
-    mu_i: docs/design.md, "Design on the attainable cost"; no TCP-like floor, none being proved for it)."""
+    mu_i: docs/mathematics.md, "Design on the attainable cost"; no TCP-like floor, none being proved for it)."""
     if margin is not None:
         raise InputError("margin", "applies to target='stable' only (target='attainable' bounds a cost: alpha)")
     if isinstance(system, System) and system.channel is not None:

@@ -100,7 +100,7 @@ def forward_cost(system: System, schedule: np.ndarray, gains: np.ndarray) -> flo
 class AttainableEvaluator:
     """The TCP-like attainable cost as the monotone searches of `.udp` ask it: ``cost(mu, checked)`` (checked:
     the DP's cost against `forward_cost` of its own gains, within SELF_CHECK_RTOL, the forward one returned;
-    else NumericalError) and ``line(mu, i, checked)``. Non-increasing in each mu_i (docs/design.md, "Design on the
+    else NumericalError) and ``line(mu, i, checked)``. Non-increasing in each mu_i (docs/mathematics.md, "Design on the
     attainable cost"). Bernoulli channels, full state. Each call O(N (n^3 + m^3))."""
 
     def __init__(self, system: System) -> None:

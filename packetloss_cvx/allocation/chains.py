@@ -1,7 +1,7 @@
 """Allocation behind Markov chains: the decision is each channel's mean delivery rate, moved along a one-parameter
 family of chains that is proved to make the exact cost fall as the rate rises.
 
-Per channel the family (the **k-state rule**, `chain_family`; docs/design.md, "Allocation behind chains"):
+Per channel the family (the **k-state rule**, `chain_family`; docs/mathematics.md, "Allocation behind chains"):
 
 * *burstiness held* for a Gilbert channel (two states, delivering always in one and never in the other, burstiness
   ``lambda = 1 - p - r`` in [0, 1)): ``p = (1 - mu)(1 - lambda)``, ``r = mu (1 - lambda)``
@@ -26,7 +26,7 @@ on the plan and the deliveries only through the delivered inputs ``v ∘ U``; so
 least `J*(d)`: `J*`(s d) >= `J*(d)`. Neither argument bounds the UDP-like cost by the TCP-like one, so no Theorem-2
 floor
 is used: it is not established under a chain. The burstiness-held family is not extended to fractional deliveries:
-there it is not monotone (docs/design.md gives the counterexample, tested).
+there it is not monotone (docs/mathematics.md gives the counterexample, tested).
 
 The TCP-like cost holds only the marginals mu_t, which a stationary chain keeps at mu: its allocation is the
 Bernoulli one at the mean rates, exact for every stationary chain (any number of states), with no family.

@@ -253,7 +253,7 @@ def rayleigh_majorant(model: PowerModel, at: np.ndarray) -> PowerModel:
     tangents at the powers ``p c`` for each ``p`` of ``at`` (in units of c, clipped to >= 1) and of mu = 1.
 
     With ``l = 1/p`` the tangent at ``p c`` is ``e^-l (1 - l + l^2 P / c)``; f is the least of these over
-    ``p >= 1/2`` (docs/design.md, "Rayleigh's concave part"), and those with ``p >= 1`` lie above f's concave
+    ``p >= 1/2`` (docs/mathematics.md, "Rayleigh's concave part"), and those with ``p >= 1`` lie above f's concave
     envelope (the line ``P / (e c)`` up to c, where the tangent at p = 1 passes through the origin, then f),
     so every finite set of them, with mu <= 1, is a concave majorant: `J*` of it bounds `J*` of f below. Its
     breakpoints (consecutive tangents' crossings, then the last one's meeting mu = 1) per channel, merged

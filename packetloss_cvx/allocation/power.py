@@ -11,7 +11,7 @@ Every search runs on ``x = P / top`` in [0, 1]^m (``top`` a per-channel cap no o
 ``x -> J*(mu(top x))`` falls in every x_i (Theorem 3 and mu non-decreasing): the certified monotone branch
 and bound of `.udp` applies unchanged (`MonotoneCost`). The
 TCP-like protocol with a model concave on the box (exponential, a concave table) is a convex program
-(docs/design.md "Power-limited links": J*_tcp convex and falling in mu, mu concave in P): it is solved
+(docs/mathematics.md "Power-limited links": J*_tcp convex and falling in mu, mu concave in P): it is solved
 by cvxpy + Clarabel (`PowerProgram`, the exponential cone), its point checked by the closed form and
 its lower bound proved by tangent cuts, and the branch and bound only confirms (no box when the cuts
 certify the gap).
@@ -95,7 +95,7 @@ class PowerProgram:
         # exp(-y_i) + mu_i <= 1 at every scale c, where with P the variable its coefficient 1/c was 1e12 at c = 1e-12
         # (Clarabel 'optimal_inaccurate' or 'solver_error', and at c = 1e12 a false infeasibility certificate). A
         # program in x = P / top (reverted 4645732) was as well scaled, but puts top / c (40, or B / c) in the cone:
-        # the least-cost points moved by up to 4.6e-5 in P from the KKT root (design.md, "Power-limited links")
+        # the least-cost points moved by up to 4.6e-5 in P from the KKT root (mathematics.md, "Power-limited links")
         self.unit = model.unit()
         self.y = cp.Variable(m, name="P_per_unit")
         self.mu = cp.Variable(m, name="mu")

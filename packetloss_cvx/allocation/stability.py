@@ -12,7 +12,7 @@ set's (simulation.region.membership) on the scaled plant. ``J_dp`` is the DP law
 (simulation.riccati.dp_riccati): the average stage cost ``tr(P Sigma_W)`` when the file has process noise, else
 the total cost ``x0'P x0`` from the file's x0 (a noise-free loop's average cost is 0 wherever it is stable).
 
-Neither feasible set is convex in mu (docs/design.md §2, "Design for stability": the one-state example), and in
+Neither feasible set is convex in mu (docs/mathematics.md §2, "Design for stability": the one-state example), and in
 the odds, where the one-state S_rho is a half-space, the objective ``beta'mu = sum beta_i s_i / (1 + s_i)`` is
 concave: no convex program in mu or the odds computes the optimum. Both sets are upper sets (proved there:
 ``min_K rho(L_K)`` and the DP cost-to-go P fall in each mu_i), so the search is the monotone branch and bound of

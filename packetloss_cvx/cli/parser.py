@@ -251,7 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "the second-moment operator), 0 < RHO <= 1 (default: 1, i.e. stable: radius < 1 - 1e-9), "
                              "e.g. --margin 0.9")
     # transmit power instead of delivery probabilities, and the acknowledgement link priced
-    power = alloc.add_argument_group("power-limited links (docs/design.md, Power-limited links)")
+    power = alloc.add_argument_group("power-limited links (docs/mathematics.md, Power-limited links)")
     power.add_argument("--power", choices=("exponential", "rayleigh", "table"),
                        help="buy transmit power P per channel: mu = 1 - exp(-P/c), exp(-c/P) or a measured table "
                             "(default: the file's [power] table if --beta is not given), e.g. --power exponential")

@@ -120,7 +120,8 @@ def markdown(parser: argparse.ArgumentParser | None = None) -> str:
              "do not edit: tests/cli/test_cli_reference.py regenerates it and compares -->", "",
              "Every command below is also `python -m packetloss_cvx COMMAND`; `packetloss-cvx COMMAND -h` prints "
              "the same options. The contracts (exit codes, JSON keys, files) are in "
-             "[the design notes](design.md#command-line-packetloss-cvx-and-python-m-packetloss_cvx).", "",
+             "[the design notes](design.md#command-line-packetloss-cvx-and-python-m-packetloss_cvx); "
+             "each command's JSON object in [the command-line contracts](cli-contracts.md).", "",
              "```text", _usage(parser), "", (parser.description or "").strip(), "```", "",
              "Commands: " + ", ".join(f"[`{name}`](#packetloss-cvx-{name})" for name in commands) + ".", "",
              "**What `--out` names.** " + OUT_RULE.format(folders=folders), ""]

@@ -142,7 +142,7 @@ def _jumps(rows: dict) -> str:
                 found.append(f"for beta = {beta} between alpha = {a['alpha']:g} and {b['alpha']:g}")
     if not found:
         return ""
-    return (f"The line jumps {'; '.join(found)}: J*_udp is not convex in mu (docs/design.md §2), so the "
+    return (f"The line jumps {'; '.join(found)}: J*_udp is not convex in mu (docs/mathematics.md §1), so the "
             f"cheapest point on a contour can move from one edge to the interior. ")
 
 

@@ -90,7 +90,7 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
     Bisection in t that moves an end only to a decided point (an undecided midpoint is replaced by
     another point of the bracket, `_RETRY_FRACTIONS`): the upper end keeps a stabilising gain,
     the lower end (for "dp") an infeasibility certificate. For "dp" the region is monotone in mu
-    (docs/design.md §2), so the ray meets its boundary once and the bracket holds the exact critical
+    (docs/mathematics.md §2), so the ray meets its boundary once and the bracket holds the exact critical
     point; for another law, stability need not be monotone along the ray and this is one crossing.
     ``decide`` (mu -> Membership) replaces the law's membership with another region's, monotone along the ray
     by its own proof (e.g. markov_region's mean rates behind a chain), and ``end`` the ray's end in t (default

@@ -241,7 +241,7 @@ def chain_rate_map(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, a
 def critical_rate_unproved(channel: MarkovChannel) -> str | None:
     """Why no critical mean rate is offered behind ``channel`` (None where the region is proved monotone in the
     mean rates at fixed burstiness: every channel with ``h_bad = 0`` and burstiness ``0 <= lambda_i < 1``, a
-    chain that moves, and ``h_good_i > 0``; docs/design.md, "The critical mean rate behind a chain"). O(m).
+    chain that moves, and ``h_good_i > 0``; docs/mathematics.md, "The critical mean rate behind a chain"). O(m).
 
     >>> critical_rate_unproved(GilbertElliott(p=[0.1], r=[0.3])) is None
     True

@@ -1,6 +1,6 @@
 """The stabilisable set S: is some linear law ``u = -K x`` mean-square stabilising over channel ``mu``?
 
-Full state, independent Bernoulli(mu_i) losses (docs/design.md §2, "The stabilisable set"). For a law K
+Full state, independent Bernoulli(mu_i) losses (docs/mathematics.md §2, "The stabilisable set"). For a law K
 the second moment obeys ``S+ = L_K(S) + Sigma_W`` (simulation.stability); ``mu`` is in S iff
 ``min_K rho(L_K) < 1``. Two certificates, each checked in numpy by the operator it speaks about:
 

@@ -1,7 +1,7 @@
 """The stabilisable set as two semidefinite programs (cvxpy + Clarabel's SDP cone): the primal LMI
 ``L_K(X) < X`` with ``Y = K X`` and its alternative, the certificate LMI ``T_mu(P) >= 0``.
 
-Derivation (docs/design.md §2, "The stabilisable set"). With ``F = A X - B M Y`` and ``y_i`` the rows of
+Derivation (docs/mathematics.md §2, "The stabilisable set"). With ``F = A X - B M Y`` and ``y_i`` the rows of
 ``Y = K X``, ``L_K(X) = F X^-1 F' + B diag(c_i y_i X^-1 y_i') B'``, ``c = mu (1 - mu)``. ``X - L_K(X) > 0``,
 ``X > 0`` holds iff, for some symmetric ``Z`` (m×m),
 

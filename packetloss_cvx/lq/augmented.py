@@ -1,5 +1,5 @@
 """The exact UDP-like expected cost under finite-state Markov losses as a deterministic LQ problem on an
-augmented state, solved in O(N) time and memory (docs/design.md, "Bursty links", "The exact cost at any
+augmented state, solved in O(N) time and memory (docs/mathematics.md, "Bursty links", "The exact cost at any
 horizon").
 
 With ``xhat_t = E[x_t]``, ``e_t = x_t - xhat_t``, ``delta_t = v_t - mu_t`` and channel i's chain

@@ -2,7 +2,7 @@
 
 With ``X = Phi x + Gamma Upsilon U + Lambda W`` and ``v = diag(Upsilon)`` (step-major), ``v`` has
 mean ``Vbar`` and second moment ``R = E[v v'] = Vbar Vbar' + C``; ``v_j^2 = v_j`` and W is independent
-of v, so (docs/design.md, "Bursty links")
+of v, so (docs/mathematics.md, "Bursty links")
 
     E[cost] = x'(Q + Omega_p)x + tr(Omega_l Sigma_W) + 2 U' Vbar Omega_gp x + U'(Omega_g ∘ R + Vbar Psi) U
             = J_udp(U) + U'(Omega_g ∘ C_off) U,

@@ -1,6 +1,6 @@
 """The state's mean and covariance under a fixed commanded plan, Bernoulli losses and noise (open loop).
 
-The moments the constrained QP's state limits and chance constraints are posed on (docs/design.md §2.7), by their
+The moments the constrained QP's state limits and chance constraints are posed on (docs/mathematics.md §7), by their
 forward recursion: used by `packetloss_cvx.qp.constrained` to check and polish a solver's answer without the
 matrices the problem was built from. No cvxpy.
 """

@@ -1,7 +1,7 @@
 """Prediction from Markov chains: beliefs, the HMM filter, plug-in schedules, the
 second moments ``R = E[v v']`` of the stacked deliveries, and the joint (mode) chain of several channels.
 
-Notation (docs/design.md, "Bursty links"): channel i is a chain with transition matrix ``T_i`` and delivery
+Notation (docs/mathematics.md, "Bursty links"): channel i is a chain with transition matrix ``T_i`` and delivery
 probabilities ``d_i`` per state (a Gilbert–Elliott channel: ``T = [[1 - p, p], [r, 1 - r]]``,
 ``d = (h_good, h_bad)``, ``lambda = 1 - p - r``); its belief ``pi_{i,t}`` is the distribution of its state
 given the information, and the predicted delivery probability ``mu_{i,t} = pi_{i,t} . d_i``.

@@ -15,12 +15,12 @@ The number of states may differ per channel. Arrays that hold every channel (bel
 padded chain) use ``K = max k_i`` columns; the columns past k_i are states that cannot be reached (zero
 probability, delivery 0, their own absorbing row), so they never change a number.
 
-TOML (docs/design.md §4, "Bursty links"): ``[channel] model = "markov"`` with ``transition`` (a list of m
-matrices), ``delivery`` (a list of m vectors), and at most one of ``state`` (m integers) or ``belief``
-(m vectors); or ``model = "gilbert-elliott"`` with per-channel arrays ``p``, ``r``, optional ``h_good``
-(default 1), ``h_bad`` (default 0), and at most one of ``state = ["good", "bad"]`` or ``belief = [0.9, 0.2]``
-(P(good)). A channel remembers which of the two tables it was given (``form``) and writes that one back.
-Every error names its field (``channel.transition``, ``channel.delivery[1]``, ``channel.p``).
+TOML (docs/design.md §4; docs/mathematics.md, "Bursty links"): ``[channel] model = "markov"`` with
+``transition`` (a list of m matrices), ``delivery`` (a list of m vectors), and at most one of ``state`` (m
+integers) or ``belief`` (m vectors); or ``model = "gilbert-elliott"`` with per-channel arrays ``p``, ``r``,
+optional ``h_good`` (default 1), ``h_bad`` (default 0), and at most one of ``state = ["good", "bad"]`` or
+``belief = [0.9, 0.2]`` (P(good)). A channel remembers which of the two tables it was given (``form``) and
+writes that one back. Every error names its field (``channel.transition``, ``channel.delivery[1]``, ``channel.p``).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 A `Constraints` is data only (validated once, immutable, no cvxpy): the constrained expected-cost QP
 (`packetloss_cvx.qp.constrained`) poses it, the system file's ``[constraints]`` table holds it
-(`constraints_from_dict`, `Constraints.to_dict`). The mathematics is docs/design.md §2.7.
+(`constraints_from_dict`, `Constraints.to_dict`). The mathematics is docs/mathematics.md §7.
 
 * ``u_min <= u_t <= u_max`` (m numbers each) on every commanded input ``t = 0..N-1``. A lost packet applies zero,
   so zero must lie inside the bounds (``u_min <= 0 <= u_max``): otherwise the constraint cannot hold on the

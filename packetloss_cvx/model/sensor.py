@@ -7,7 +7,7 @@ chain per channel (``model = "gilbert-elliott"``, the keys of ``[channel]``:
 [`packetloss_cvx.model.channel`][packetloss_cvx.model.channel]), whose long-run rate is then ``gamma``. The initial
 state is ``x_0 ~ N(x0, P0)``.
 
-TOML (docs/design.md §4 and "Lossy sensors")::
+TOML (docs/design.md §4; docs/mathematics.md, "Lossy sensors")::
 
     [sensor]
     C = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]]

@@ -1,7 +1,7 @@
 """The expected-cost QP with constraints: input, rate and expected-state bounds and chance constraints (an SOCP).
 
 `ConstrainedQP` poses one protocol's expected cost (eq:opt-lqg-simplest with Lemma 1) in the commanded
-inputs ``U`` (N×m) under a `Constraints` (docs/design.md §2.7) and keeps
+inputs ``U`` (N×m) under a `Constraints` (docs/mathematics.md §7) and keeps
 everything a cvxpy user reaches for public: ``problem`` (DPP), the variable ``U``, the expected states ``states``
 (an (N, n) expression, row k-1 is E[x_k]), and the Parameters ``x0`` and ``mu`` (an (N, m) schedule). Two
 formulations give the same problem: "condensed" (E[X] = Phi x0 + Gamma (mu ∘ U) as an expression) and "sparse"

@@ -140,7 +140,7 @@ def chain_loop_verdict(system: System, gain: np.ndarray, protocol: str, mu: np.n
     False where the lower bound on E[P] diverges (`no_gains_verdict`); TCP-like, True where the filter's E[P]
     is proved bounded and the law's full-state loop over the actuator links is mean-square stable (separation:
     ``x+ = (A - BVK) x + BVK e + w``, the products of ``A - B V_i K`` after step j independent of ``e_j``, ``w_j``, so
-    ``|x_k|_2 <= sum_j (c rho^(k-j))^(1/2) |BVKe_j + w_j|_2`` is bounded: docs/design.md); else None with the
+    ``|x_k|_2 <= sum_j (c rho^(k-j))^(1/2) |BVKe_j + w_j|_2`` is bounded: docs/mathematics.md); else None with the
     reason. UDP-like: the error depends on the inputs, so only the divergence proves anything. Time
     O(filter_stability + n^6).
 

@@ -278,8 +278,8 @@ def test_target_attainable_meets_alpha_on_the_enumerated_dp_and_matches_a_grid_s
 
 @pytest.mark.parametrize("seed", range(5))
 def test_the_attainable_cost_falls_in_every_delivery_probability(seed):
-    """The property the attainable design's branch and bound rests on (docs/design.md): with mu <= mu' the DP at mu'
-    can emulate mu by sending zero with probability 1 - mu_i / mu'_i. Checked on the enumerated DP."""
+    """The property the attainable design's branch and bound rests on (docs/mathematics.md): with mu <= mu' the DP at
+    mu' can emulate mu by sending zero with probability 1 - mu_i / mu'_i. Checked on the enumerated DP."""
     rng = np.random.default_rng(seed)
     A = rng.normal(size=(2, 2)) * 0.8
     s = System(A=A, B=rng.normal(size=(2, 2)), horizon=6, state_weight=[1, 2], input_weight=[0.5, 1],

@@ -81,7 +81,7 @@ def test_a_capped_allocation_reports_the_gap_between_its_own_cost_and_bound(max_
 
 @pytest.mark.parametrize("seed", range(4))
 def test_exact_cost_falls_as_a_mean_rate_rises(seed):
-    """The monotonicity the certificate rests on (proved in docs/design.md): seeded random plants and lambdas."""
+    """The monotonicity the certificate rests on (proved in docs/mathematics.md): seeded random plants and lambdas."""
     rng = np.random.default_rng(seed)
     A = rng.normal(size=(2, 2))
     s = pl.System(A=A * 1.1 / max(abs(np.linalg.eigvals(A))), B=rng.normal(size=(2, 2)), horizon=6,
@@ -129,7 +129,7 @@ def test_a_given_start_is_refused_naming_the_field(channel, protocol):
         allocate(two_channel(channel), protocol, 10.0, [1.0, 1.0])
 
 
-# --- the k-state rule: deliveries scaled, transition held (docs/design.md, "Allocation behind chains") ---------------
+# --- the k-state rule: deliveries scaled, transition held (docs/mathematics.md, "Allocation behind chains") -----------
 
 THREE = [[0.8, 0.15, 0.05], [0.2, 0.6, 0.2], [0.1, 0.3, 0.6]]
 MIXED = MarkovChannel(transition=[[[0.9, 0.1], [0.3, 0.7]], THREE], delivery=[[1.0, 0.0], [0.9, 0.5, 0.0]])
@@ -238,7 +238,7 @@ def test_min_cost_along_scaled_deliveries_is_the_top_of_the_family():
 
 
 def test_burstiness_held_with_fractional_deliveries_is_not_monotone():
-    """The counterexample of docs/design.md: a Gilbert–Elliott channel h = (1, 0.2), lambda = 0.9 held; raising
+    """The counterexample of docs/mathematics.md: a Gilbert–Elliott channel h = (1, 0.2), lambda = 0.9 held; raising
     the mean rate from 0.2 to 0.28 raises the exact minimum by 6.9 %. At 0.2 the chain never leaves the bad state
     (i.i.d. losses: the paper's J*_udp at mu = 0.2); at 0.28 the dense route and the QP twin agree."""
     def at(b):

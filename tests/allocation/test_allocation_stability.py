@@ -51,8 +51,9 @@ def test_scalar_cheapest_mu_is_one_minus_rho_over_a_squared(a, rho):
 @pytest.mark.parametrize("rho", [1.0, 0.6])
 @pytest.mark.parametrize("beta", [(1.0, 1.0), (1.0, 2.0), (0.2, 1.0)])
 def test_one_state_two_channels_against_the_odds_half_space(beta, rho):
-    # by hand (docs/design.md): one state, B = [1, 1]: min_K rho(L_K) = a^2 / (1 + s1 + s2), s_i = mu_i / (1 - mu_i),
-    # so the target is s1 + s2 > a^2 / rho - 1; the reference minimises beta'mu on that curve by a scalar search
+    # by hand (docs/mathematics.md): one state, B = [1, 1]: min_K rho(L_K) = a^2 / (1 + s1 + s2),
+    # s_i = mu_i / (1 - mu_i), so the target is s1 + s2 > a^2 / rho - 1; the reference minimises beta'mu on that
+    # curve by a scalar search
     a = 3.0 ** 0.5
     level = a**2 / rho - 1
 
@@ -176,7 +177,7 @@ def test_dp_cost_target_on_two_actuator_is_feasible_and_no_dearer_than_the_corne
 
 @pytest.mark.parametrize("seed", range(12))
 def test_least_radius_and_dp_cost_fall_in_each_mu(seed):
-    # the lemma the search rests on (docs/design.md): mu <= mu' gives min_K rho(L_K) and P no larger
+    # the lemma the search rests on (docs/mathematics.md): mu <= mu' gives min_K rho(L_K) and P no larger
     rng = np.random.default_rng(seed)
     s = random_system(rng, n=int(rng.integers(1, 4)), m=int(rng.integers(1, 4)), spectral_radius=1.3,
                       non_stationary=False, time_varying=False)

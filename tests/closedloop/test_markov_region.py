@@ -224,7 +224,7 @@ def test_critical_mean_rate_of_a_decoupled_plant_is_its_worst_channel(a, corr, d
 
 
 def test_no_critical_mean_rate_where_monotonicity_is_not_proved():
-    """h_bad > 0 or negative burstiness: outside the thinning proof (docs/design.md), so no bisection; the guard
+    """h_bad > 0 or negative burstiness: outside the thinning proof (docs/mathematics.md), so no bisection; the guard
     planted off, the bisection answers here (the test fails)."""
     for ch in (GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.2]), GilbertElliott(p=[0.6], r=[0.7])):
         s = System(A=[[1.5]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0], channel=ch)

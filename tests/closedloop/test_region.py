@@ -72,7 +72,7 @@ def test_scalar_state_two_channels_region_is_one_plus_sum_of_odds():
 
 
 def test_the_region_is_not_convex_in_mu():
-    """design.md §2: with a^2 = 3 the boundary is s1 + s2 = 2: (0.67, 0) and (0, 0.67) are inside (s = 2.03),
+    """mathematics.md §2: with a^2 = 3 the boundary is s1 + s2 = 2: (0.67, 0) and (0, 0.67) are inside (s = 2.03),
     their midpoint (0.335, 0.335) is outside (s1 + s2 = 1.01)."""
     s = scalar(np.sqrt(3.0), (1.0, 1.0))
     assert membership(s, [0.67, 0.0]).stable
@@ -131,7 +131,7 @@ def test_a_boundary_point_has_a_gain_inside_and_a_certificate_outside():
 
 def test_certificate_margin_is_exact_on_the_scalar_case():
     """The margin is the radius bound P proves, minus one: scalar R(p) = a^2 (1 - mu) p, so a^2 (1 - mu) - 1 (hand);
-    two channels on one state: a^2 / (1 + s1 + s2) - 1, s_i the odds (design.md)."""
+    two channels on one state: a^2 / (1 + s1 + s2) - 1, s_i the odds (mathematics.md)."""
     A, B = np.array([[2.0]]), np.array([[1.0]])
     for mu in (0.2, 0.5, 0.74, 0.9):
         assert certificate_margin(A, B, np.array([mu]), np.eye(1)) == pytest.approx(4.0 * (1 - mu) - 1, abs=1e-14)

@@ -291,7 +291,7 @@ def test_the_covariance_of_a_three_state_chain_against_every_loss_pattern():
     np.testing.assert_allclose(channel_covariance(lumped, 9), channel_covariance(ge, 9), rtol=0, atol=1e-15)
 
 
-# --- method="auto" and the recursion's time budget (docs/design.md, "The exact cost at any horizon") ---------------
+# --- method="auto" and the recursion's time budget (docs/mathematics.md, "The exact cost at any horizon") -------------
 
 def pendulum_at(horizon, radius=None):
     """pendulum_bursty at another horizon (and A scaled to spectral radius ``radius``)."""
