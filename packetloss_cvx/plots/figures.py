@@ -612,16 +612,19 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | N
 
 
 def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, currency: str = r"$\beta^\top\mu$",
-                        title: str | None = None, path: str | Path | None = None) -> Figure:
+                        title: str | None = None, path: str | Path | None = None,
+                        attainable: tuple[Sequence[float], Sequence[float]] | None = None) -> Figure:
     """Above which price of the acknowledgement link the UDP-like design wins, against alpha:
     the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
-    Non-finite points (no design) are left out. O(points) to draw.
+    ``attainable``: ``(alphas, prices)`` on the attainable basis (the TCP-like design on the cost its law
+    attains), drawn as points beside the line (then labelled the paper's basis). Non-finite points (no design) are
+    left out. O(points) to draw.
 
     Examples
     --------
-    >>> fig = plot_ack_break_even([1.0, 2.0, 3.0], [0.5, 0.2, float("nan")])
-    >>> fig.axes[0].lines[0].get_ydata().tolist()
-    [0.5, 0.2]
+    >>> fig = plot_ack_break_even([1.0, 2.0, 3.0], [0.5, 0.2, float("nan")], attainable=([2.0], [0.1]))
+    >>> fig.axes[0].lines[0].get_ydata().tolist(), fig.axes[0].lines[1].get_ydata().tolist()
+    ([0.5, 0.2], [0.1])
     """
     a = np.asarray(alpha, dtype=float)
     b = np.asarray(break_even, dtype=float)
@@ -630,7 +633,15 @@ def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, 
     keep = np.isfinite(a) & np.isfinite(b)
     fig = Figure(figsize=(6.4, 3.6), layout="constrained")
     ax = fig.subplots()
-    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black", label="break-even acknowledgement price")
+    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black", label="break-even acknowledgement price" + (
+        ", paper basis (TCP-like on $J^*_{tcp}$)" if attainable is not None else ""))
+    if attainable is not None:
+        aa, ab = (np.asarray(v, dtype=float) for v in attainable)
+        if aa.shape != ab.shape or aa.ndim != 1:
+            raise InputError("attainable", f"expected two lists of one length, found {aa.shape} and {ab.shape}")
+        ok = np.isfinite(aa) & np.isfinite(ab)
+        ax.plot(aa[ok], ab[ok], linestyle="none", marker="s", ms=5, color="tab:red",
+                label="attainable basis (TCP-like on the DP's cost)")
     top = float(np.max(b[keep])) * 1.15 if keep.any() else 1.0
     ax.fill_between(a[keep], b[keep], top, alpha=0.25, label="UDP-like cheaper")
     ax.fill_between(a[keep], 0.0, b[keep], alpha=0.25, label="TCP-like + link cheaper")
