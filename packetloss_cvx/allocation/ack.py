@@ -13,7 +13,7 @@ first-moment lower bound that no controller attains; "attainable": the TCP-like 
 attains over the horizon (``allocate(..., target="attainable")``, the finite-horizon DP with acknowledgements). The
 UDP-like design is the same on both: its `J*_udp` is the exact expected cost of its plan, attained already. A
 designer prices the link on the attainable basis: on the paper's, the TCP-like design looks cheaper than any loop
-that meets alpha can be, and the break-even price is too high (two to three times, on the two-actuator system).
+that meets alpha can be, and the break-even price is too high (two to eight times, on the two-actuator system).
 """
 
 from __future__ import annotations
