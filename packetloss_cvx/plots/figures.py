@@ -633,18 +633,19 @@ def plot_ack_break_even(alpha: Sequence[float], break_even: Sequence[float], *, 
     keep = np.isfinite(a) & np.isfinite(b)
     fig = Figure(figsize=(6.4, 3.6), layout="constrained")
     ax = fig.subplots()
-    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black", label="break-even acknowledgement price" + (
-        ", paper basis (TCP-like on $J^*_{tcp}$)" if attainable is not None else ""))
+    both = attainable is not None
+    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black",
+            label="break-even, paper basis" if both else "break-even acknowledgement price")
     if attainable is not None:
         aa, ab = (np.asarray(v, dtype=float) for v in attainable)
         if aa.shape != ab.shape or aa.ndim != 1:
             raise InputError("attainable", f"expected two lists of one length, found {aa.shape} and {ab.shape}")
         ok = np.isfinite(aa) & np.isfinite(ab)
         ax.plot(aa[ok], ab[ok], linestyle="none", marker="s", ms=5, color="tab:red",
-                label="attainable basis (TCP-like on the DP's cost)")
+                label="break-even, attainable basis")
     top = float(np.max(b[keep])) * 1.15 if keep.any() else 1.0
-    ax.fill_between(a[keep], b[keep], top, alpha=0.25, label="UDP-like cheaper")
-    ax.fill_between(a[keep], 0.0, b[keep], alpha=0.25, label="TCP-like + link cheaper")
+    ax.fill_between(a[keep], b[keep], top, alpha=0.25, label="UDP-like cheaper" + (" (paper)" if both else ""))
+    ax.fill_between(a[keep], 0.0, b[keep], alpha=0.25, label="TCP-like + link cheaper" + (" (paper)" if both else ""))
     ax.set_ylim(0.0, top)
     ax.set_xlabel(r"cost bound $\alpha$")
     ax.set_ylabel(f"acknowledgement price ({currency})")
