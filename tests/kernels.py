@@ -49,6 +49,13 @@ def _tolerance(path: str, data: dict) -> tuple[float, float] | None:
     if m := re.fullmatch(r"/ack/\[([^\]]*)\]/break_even\[\d+\]", path):
         beta = [float(b) for b in m.group(1).split(",")]
         return 0.0, ALLOCATION_GAP_DEFAULT * sum(beta)   # a difference of two totals, each within gap * beta'1
+    if m := re.fullmatch(r"/ack_attainable/(tcp_design|break_even|paper_design_attains)\[(\d+)\]", path):
+        gap, k = data["ack_attainable"]["gap"], int(m.group(2))
+        if m.group(1) == "tcp_design":
+            return gap, 0.0                             # each run within its certified gap of one optimum
+        if m.group(1) == "break_even":                  # the TCP-like design's gap plus the UDP-like one's, beta = 1'
+            return 0.0, gap * data["ack_attainable"]["tcp_design"][k] + 2 * ALLOCATION_GAP_DEFAULT
+        return None                                     # the DP at a paper design's mu: compared through its cost
     if m := re.fullmatch(r"/(audit|claims)\[(\d+)\]/worst", path):
         if data[m.group(1)][int(m.group(2))]["verdict"] == "holds":
             return KERNEL_MARGIN_RTOL, KERNEL_ZERO_ATOL   # a tolerance less a rounding-level error

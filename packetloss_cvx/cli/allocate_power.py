@@ -168,7 +168,8 @@ def _best(args: argparse.Namespace, system: System, model: PowerModel | None, op
         return CommandResult(data, f"infeasible: {err}", 3)
     data = choice.to_dict()
     designs = [choice.tcp] + ([choice.udp] if choice.udp is not None else [])
-    certified = all(d.status == "optimal" for d in designs)
+    certified = all(d.status == "optimal" for d in
+                    designs + ([choice.tcp_attainable] if choice.tcp_attainable is not None else []))
     data["status"] = "optimal" if certified else "gap_not_certified"
     unit = "total power" if model is not None else "beta'mu"
 
@@ -177,15 +178,30 @@ def _best(args: argparse.Namespace, system: System, model: PowerModel | None, op
             return "no design meets alpha (proved)"
         spent = design.power if model is not None else design.mu
         attained = ("not computed" if design.attainable_cost is None else fmt.num(design.attainable_cost))
+        paper = "" if design.basis == "attainable" else f"J* {fmt.num(design.cost)} paper, "
         return (f"{fmt.num(total)} {extra}(" + ("power " if model is not None else "mu ") + fmt.numbers(spent)
-                + f", J* {fmt.num(design.cost)} paper, {attained} attainable)")
+                + f", {paper}{attained} attainable)")
 
-    rows = [("TCP-like", line(choice.tcp, choice.tcp_total, f"= {unit} + ack {fmt.num(ack)} ")),
-            ("UDP-like", line(choice.udp, choice.udp_total, "")),
-            ("choice", choice.choice.upper() + "-like" + ("" if choice.certified else
-                                                         " (within the designs' gaps: not certified)")),
-            ("break-even ack", (f"UDP-like wins above {fmt.num(choice.break_even)}" if choice.udp is not None
-                                else "none: only the TCP-like protocol meets alpha"))]
+    dp = choice.tcp_attainable
+    checked = "" if choice.certified else " (within the designs' gaps: not certified)"
+    if dp is None:
+        rows = [("TCP, paper", line(choice.tcp, choice.tcp_total, f"= {unit} + ack {fmt.num(ack)} ")),
+                ("TCP, attainable", choice.attainable_note),
+                ("UDP-like", line(choice.udp, choice.udp_total, "")),
+                ("choice", f"{choice.choice.upper()}-like on the paper's basis{checked}"),
+                ("break-even ack", (f"UDP-like wins above {fmt.num(choice.break_even)} on the paper's basis "
+                                    "(J*_tcp, which no controller attains)" if choice.udp is not None
+                                    else "none: only the TCP-like protocol meets alpha"))]
+    else:
+        rows = [("TCP, paper", line(choice.tcp, choice.tcp_total, f"= {unit} + ack {fmt.num(ack)} ")),
+                ("TCP, attainable", line(dp, choice.tcp_total_attainable, f"= {unit} + ack {fmt.num(ack)} ")),
+                ("UDP-like", line(choice.udp, choice.udp_total, "")),
+                ("choice", f"{choice.choice_attainable.upper()}-like on the attainable basis, "
+                           f"{choice.choice.upper()}-like on the paper's{checked}"),
+                ("break-even ack", (f"attainable {fmt.num(choice.break_even_attainable)}, paper "
+                                    f"{fmt.num(choice.break_even)}: UDP-like wins above it; use the attainable one "
+                                    "(the paper's J*_tcp is a first-moment lower bound no controller attains)"
+                                    if choice.udp is not None else "none: only the TCP-like protocol meets alpha"))]
     heading = f"best protocol for {name} at alpha = {fmt.num(alpha)} ({unit})"
     warned = [f"{d.protocol.upper()}-like design: {d.warning.removeprefix('warning: ')}" for d in designs
               if d.warning is not None]

@@ -657,17 +657,20 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | N
 
 def plot_ack_break_even(alpha: Any, break_even: Sequence[float] | None = None, *,
                         currency: str = r"$\beta^\top\mu$", title: str | None = None,
-                        path: str | Path | None = None) -> Figure:
+                        path: str | Path | None = None,
+                        attainable: tuple[Sequence[float], Sequence[float]] | None = None) -> Figure:
     """Above which price of the acknowledgement link the UDP-like design wins, against alpha:
     the break-even price (``allocation.ack.ack_break_even``), the region above it shaded "UDP-like".
-    ``alpha`` may be a list of `ProtocolChoice` alone (each its alpha and
-    break-even price). Non-finite points (no design) are left out. O(points) to draw.
+    ``alpha`` may be a list of `ProtocolChoice` alone (each its alpha and break-even price).
+    ``attainable``: ``(alphas, prices)`` on the attainable basis (the TCP-like design on the cost its law
+    attains), drawn as points beside the line (then labelled the paper's basis). Non-finite points (no design) are
+    left out. O(points) to draw.
 
     Examples
     --------
-    >>> fig = plot_ack_break_even([1.0, 2.0, 3.0], [0.5, 0.2, float("nan")])
-    >>> fig.axes[0].lines[0].get_ydata().tolist()
-    [0.5, 0.2]
+    >>> fig = plot_ack_break_even([1.0, 2.0, 3.0], [0.5, 0.2, float("nan")], attainable=([2.0], [0.1]))
+    >>> fig.axes[0].lines[0].get_ydata().tolist(), fig.axes[0].lines[1].get_ydata().tolist()
+    ([0.5, 0.2], [0.1])
     """
     if break_even is None and isinstance(alpha, Sequence) and alpha and all(
             hasattr(c, "break_even") and hasattr(c, "alpha") for c in alpha):      # ProtocolChoice results
@@ -681,10 +684,19 @@ def plot_ack_break_even(alpha: Any, break_even: Sequence[float] | None = None, *
     keep = np.isfinite(a) & np.isfinite(b)
     fig = Figure(figsize=(6.4, 3.6), layout="constrained")
     ax = fig.subplots()
-    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black", label="break-even acknowledgement price")
+    both = attainable is not None
+    ax.plot(a[keep], b[keep], marker="o", ms=3, color="black",
+            label="break-even, paper basis" if both else "break-even acknowledgement price")
+    if attainable is not None:
+        aa, ab = (np.asarray(v, dtype=float) for v in attainable)
+        if aa.shape != ab.shape or aa.ndim != 1:
+            raise InputError("attainable", f"expected two lists of one length, found {aa.shape} and {ab.shape}")
+        ok = np.isfinite(aa) & np.isfinite(ab)
+        ax.plot(aa[ok], ab[ok], linestyle="none", marker="s", ms=5, color="tab:red",
+                label="break-even, attainable basis")
     top = float(np.max(b[keep])) * 1.15 if keep.any() else 1.0
-    ax.fill_between(a[keep], b[keep], top, alpha=0.25, label="UDP-like cheaper")
-    ax.fill_between(a[keep], 0.0, b[keep], alpha=0.25, label="TCP-like + link cheaper")
+    ax.fill_between(a[keep], b[keep], top, alpha=0.25, label="UDP-like cheaper" + (" (paper)" if both else ""))
+    ax.fill_between(a[keep], 0.0, b[keep], alpha=0.25, label="TCP-like + link cheaper" + (" (paper)" if both else ""))
     ax.set_ylim(0.0, top)
     ax.set_xlabel(r"cost bound $\alpha$")
     ax.set_ylabel(f"acknowledgement price ({currency})")

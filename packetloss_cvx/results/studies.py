@@ -168,7 +168,11 @@ class ProtocolChoice(Frozen):
     ``udp`` None when no UDP-like design meets alpha); ``tcp_total``: the TCP-like design's total plus
     ``ack_price``; ``udp_total`` (inf when none); ``choice``: "tcp" or "udp" (UDP-like on a tie);
     ``certified``: the chosen total is at most the other's proven lower bound; ``break_even``: the
-    acknowledgement price above which the UDP-like design wins. Construction O(1).
+    acknowledgement price above which the UDP-like design wins. Those are on the paper's basis (the TCP-like design
+    on J*_tcp, which no controller attains); on the attainable basis (the TCP-like design on the finite-horizon
+    DP's cost, ``allocate(..., target="attainable")``; the UDP-like design is the same): ``tcp_attainable`` (None
+    with ``attainable_note``), ``tcp_total_attainable``, ``choice_attainable``, ``break_even_attainable`` (nan
+    where not computed). ``break_even_by_basis``: the two prices by basis. Construction O(1).
     """
 
     alpha: float
@@ -181,20 +185,44 @@ class ProtocolChoice(Frozen):
     choice: str
     certified: bool
     break_even: float
+    tcp_attainable: Any = None
+    tcp_total_attainable: float = np.nan
+    choice_attainable: str | None = None
+    break_even_attainable: float = np.nan
+    attainable_note: str = ""
 
     __repr__ = fields_repr   # the headline numbers, not the designs (display.py)
     _repr_html_ = fields_html
 
     to_json = to_json   # to_dict() as JSON text (display.py)
 
+    @property
+    def break_even_by_basis(self) -> dict[str, float]:
+        """``{"paper": break_even, "attainable": break_even_attainable}``. O(1)."""
+        return {"paper": self.break_even, "attainable": self.break_even_attainable}
+
     def to_dict(self) -> dict[str, Any]:
-        """Plain floats and dicts for JSON (inf as None). O(m)."""
+        """Plain floats and dicts for JSON (inf and nan as None); ``"break_even_by_basis"``: one entry per basis
+        (``"basis"``, ``"tcp_design"`` the TCP-like design's total without the link, ``"tcp_total"``,
+        ``"choice"``, ``"break_even_ack_price"``), the paper's first. O(m)."""
         def finite(x: float) -> float | None:
             return float(x) if np.isfinite(x) else None
+        a = self.tcp_attainable
+        design = self.tcp.total_power if self.currency == "power" else self.tcp.communication_cost
+        bases = [{"basis": "paper", "tcp_design": finite(design),
+                  "tcp_total": finite(self.tcp_total), "choice": self.choice,
+                  "break_even_ack_price": finite(self.break_even), "note": "TCP-like design on J*_tcp (the paper's "
+                                                                           "first-moment cost, not attained)"},
+                 {"basis": "attainable", "tcp_design": None if a is None else a.communication_cost,
+                  "tcp_total": finite(self.tcp_total_attainable), "choice": self.choice_attainable,
+                  "break_even_ack_price": finite(self.break_even_attainable),
+                  "note": self.attainable_note or "TCP-like design on the finite-horizon DP's cost"}]
         return {"protocol": "best", "alpha": self.alpha, "currency": self.currency, "ack_price": self.ack_price,
                 "choice": self.choice, "certified": self.certified, "tcp_total": finite(self.tcp_total),
                 "udp_total": finite(self.udp_total), "break_even_ack_price": finite(self.break_even),
-                "tcp": self.tcp.to_dict(), "udp": None if self.udp is None else self.udp.to_dict()}
+                "break_even_by_basis": bases,
+                "tcp": self.tcp.to_dict(), "udp": None if self.udp is None else self.udp.to_dict(),
+                "tcp_attainable": None if a is None else a.to_dict()}
 
 
 @dataclass(frozen=True)

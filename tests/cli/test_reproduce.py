@@ -197,3 +197,30 @@ def test_the_region_figure_of_the_two_actuator_system_against_independent_refere
             assert region[law]["grid"]["radius"][j][i] == pytest.approx(radius, rel=1e-9)
             if abs(radius - 1) > 1e-6:
                 assert region[law]["grid"]["stable"][j][i] == (radius < 1)
+
+
+def test_the_ack_price_on_both_bases_in_the_report_and_results(runs, two_actuator):
+    """The break-even price on the paper's and the attainable basis side by side (--quick: alpha = 4.78), each cell
+    the number of results.json; the attainable one is the issue's 0.470 within the TCP-like design's certified gap
+    (the designs themselves against an enumerated DP: tests/allocation/test_allocation_ack.py), and the paper-basis
+    design's loop costs more than alpha."""
+    from packetloss_cvx.allocation.ack import attainable_break_even
+
+    _, (out, _) = runs
+    data = json.loads((out / "results.json").read_text())
+    both = data["ack_attainable"]
+    assert both["alpha"] == [4.78]
+    report = (out / "report.md").read_text()
+    row = next(line for line in report.splitlines() if line.startswith("| 4.78 |") and line.count("|") == 6)
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    paper = data["ack"]["[1.0, 1.0]"]["break_even"][data["ack"]["[1.0, 1.0]"]["alpha"].index(4.78)]
+    assert cells[1:] == [f"{paper:.4g}", f"{both['break_even'][0]:.4g}", f"{both['tcp_design'][0]:.4g}",
+                         f"{both['paper_design_attains'][0]:.4g}"]
+    assert round(paper, 3) == 1.084                                             # the issue's figures
+    assert abs(both["break_even"][0] - 0.470) <= both["gap"] * both["tcp_design"][0] + 5e-4
+    assert both["paper_design_attains"][0] > 4.78
+    assert "A designer should price the link on the attainable basis" in report
+    # the study in Python at the same gap gives the same number (one code path)
+    udp = data["allocations"]["udp"]["1.0, 1.0"]
+    again = attainable_break_even(two_actuator, [4.78], [1.0, 1.0], udp, gap=both["gap"])
+    assert again["break_even"] == both["break_even"]
