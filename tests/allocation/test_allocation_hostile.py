@@ -2,7 +2,6 @@
 API, exit code 2 with one stderr line naming the flag on the command line; never a traceback,
 a warning dump, a hang or a silent answer."""
 
-import json
 
 import numpy as np
 import pytest
@@ -149,15 +148,3 @@ def test_the_brute_force_reference_refuses_what_allocate_refuses(alpha, beta, G,
     with pytest.raises(pl.InputError) as info:
         brute_force_allocation(pl.load_example("two_actuator"), "udp", alpha, beta, G, h, coarse=11, fine=11)
     assert info.value.field == field
-
-
-def test_allocate_on_a_chain_file_allocates_under_the_chain(capsys):
-    """allocate on a file whose channel is a chain allocates under the chain, not a Bernoulli mu*: the decision is
-    the chain's mean rate: TCP-like, whose cost holds only mu_t, exactly the Bernoulli
-    allocation of the same plant at that rate; UDP-like, the exact cost under the chain
-    (tests/allocation/test_allocation_chains.py)."""
-    assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0
-    chain = json.loads(capsys.readouterr().out)
-    bern = allocate(pl.load_example("pendulum_bursty").with_mu([0.9]), "tcp", 20000, [1.0])
-    assert chain["status"] == "optimal"
-    assert chain["mu"] == bern.mu.tolist()
