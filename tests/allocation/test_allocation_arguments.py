@@ -1,6 +1,8 @@
-"""Hostile input to the allocation: a typed InputError naming the field in the
+"""The allocation's arguments: a typed InputError naming the field in the
 API, exit code 2 with one stderr line naming the flag on the command line; never a traceback,
-a warning dump, a hang or a silent answer."""
+a warning dump, a hang or a silent answer; extreme but valid arguments (alphas of 1e300 and 1e-300, rows
+scaled by 1e300) answered as their plain equivalents, and the brute-force reference refusing what allocate
+refuses."""
 
 
 import numpy as np
