@@ -150,3 +150,12 @@ def test_the_brute_force_reference_refuses_what_allocate_refuses(alpha, beta, G,
     with pytest.raises(pl.InputError) as info:
         brute_force_allocation(pl.load_example("two_actuator"), "udp", alpha, beta, G, h, coarse=11, fine=11)
     assert info.value.field == field
+
+
+@pytest.mark.parametrize("m", ["2", 2.0, True, 0, -3, None])
+def test_parse_constraint_takes_a_positive_integer_dimension(m):
+    """``parse_constraint(text, "2")`` raised a TypeError from NumPy; every m that is not a positive integer is an
+    InputError under ``m``."""
+    from packetloss_cvx.allocation.grammar import parse_constraint
+    with pytest.raises(pl.InputError, match="^m: expected a positive integer"):
+        parse_constraint("mu1 <= 1", m)

@@ -364,3 +364,33 @@ def test_cli_huge_x0_prints_one_line(capsys):
     assert not out
     assert err.count("\n") == 1
     assert "double-precision range" in err
+
+
+def test_solve_skips_the_stability_verdict_above_its_size_unless_asked(tmp_path):
+    from packetloss_cvx.cli import main
+    from packetloss_cvx.cli.solve import STABILITY_MAX_N
+    n = STABILITY_MAX_N + 1
+    A = 0.5 * np.eye(n)
+    A[0, 0] = 2.0                      # one unstable mode, driven by the one actuator; the rest decoupled
+    B = np.zeros((n, 1))
+    B[0, 0] = 1.0
+    s = pl.System(A=A, B=B, horizon=2, state_weight=np.ones(n), input_weight=[1.0], mu=[0.5], x0=np.ones(n))
+    path = str(pl.save_system(s, tmp_path / "big.toml"))
+    out = tmp_path / "out.json"
+    assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["tcp"]
+    assert entry["mean_square_spectral_radius"] is None
+    assert entry["stable"] is False
+    assert "--stability" in entry["stability_note"]
+    out = tmp_path / "asked.json"          # a new file: an existing one is refused without --force
+    assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--stability", "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["tcp"]
+    k = entry["gain"][0][0]
+    assert np.allclose(entry["gain"][0][1:], 0.0, atol=1e-12)
+    # by hand: the decoupled modes give 0.5^2; the driven one E[x+^2] = ((2 - mu k)^2 + mu (1 - mu) k^2) x^2, and
+    # the cross moments E[x_1 x_j] grow by the geometric mean of the two
+    expected = max(0.25, (2 - 0.5 * k) ** 2 + 0.25 * k ** 2)
+    assert entry["mean_square_spectral_radius"] == pytest.approx(expected, rel=1e-9)
+    out = tmp_path / "skipped.json"
+    assert main(["solve", "two_actuator", "--no-qp", "--no-stability", "-q", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["udp"]["stability_note"].startswith("not computed: skipped (--no-stability)")

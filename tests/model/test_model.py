@@ -433,3 +433,8 @@ def test_save_system_overwrites_only_when_told_so_by_a_bool(tmp_path):
     assert path.read_text() == "# the user's own file\n"
     pl.save_system(system, path, overwrite=True)
     assert pl.load_system(path).name == system.name
+
+
+def test_a_name_too_long_for_the_system_is_bad_input():
+    with pytest.raises(pl.InputError, match="file name too long"):
+        pl.load_system("a" * 100_000)
