@@ -34,7 +34,7 @@ HEAVIEST_FIRST = (
     "tests/allocation/test_allocation_power.py",        # 13 s
     "tests/claims/test_claims_doc.py",              # 13 s
     "tests/lq/test_properties.py",              # 13 s
-    "tests/house/test_reliability.py",             # 11 s (subprocesses killed in their writes)
+    "tests/cli/test_cli_output_files.py",          # 11 s (subprocesses killed in their writes)
     "tests/closedloop/test_region.py",                  # 8 s
     "tests/closedloop/test_markov_region.py",           # 8 s
     "tests/cli/test_reproduce.py",               # 8 s

@@ -113,3 +113,32 @@ def exact_plan_cost(system, U, input_weights, noise=0.0):
         cost += sum(Fraction(float(mu[t, k])) * Fraction(float(input_weights[t, k])) * Fraction(float(U[t, k])) ** 2
                     for k in range(system.m))
     return cost + exact_quadratic(exact_mean_states(system.A, system.B, system.x0, mu, U), system.state_weights)
+
+
+# ---------------------------------------------------------------- systems shared by several test files
+
+
+def readme_system(N: int):
+    """The README's example plant over N steps."""
+    import packetloss_cvx as pl
+
+    return pl.System(A=[[1.1, 0.2], [0, 0.9]], B=[[1], [0.5]], state_weight=[1, 1], input_weight=[0.5],
+                     mu=[0.8], x0=[1, 0], horizon=N)
+
+
+def unstable_system(rho: float, N: int):
+    """A seeded random 2-state, 2-input plant of spectral radius rho over N steps (no noise, constant data)."""
+    from packetloss_cvx.model.random_systems import random_system
+
+    return random_system(np.random.default_rng(0), n=2, m=2, horizon=N, spectral_radius=rho, full_weights=False,
+                         time_varying=False, non_stationary=False, noise=False, edge_mu=False)
+
+
+def weighted_two_actuator(w: float):
+    """The two_actuator example with its first state weight set to w (the weights then span w : 1)."""
+    import packetloss_cvx as pl
+    from packetloss_cvx.model.files import system_from_dict
+
+    data = pl.load_example("two_actuator").to_dict()
+    data["cost"]["state_weight"] = [w, 1.0]
+    return system_from_dict(data)

@@ -2,11 +2,15 @@
 closed form the allocation uses), optimality against the brute-force allocator (grid on mu1,
 bisection on mu2), hand values where the optimum is a vertex of the constraints."""
 
+from types import SimpleNamespace
+
 import cvxpy as cp
 import numpy as np
 import pytest
 
 import packetloss_cvx as pl
+import packetloss_cvx.allocation.tcp as tcp_module
+import packetloss_cvx.allocation.udp as udp_module
 from packetloss_cvx.allocation import allocate, best_cost_within_budget, min_cost, parse_constraint
 from packetloss_cvx.allocation.brute_force import brute_force_allocation, brute_force_allocations
 from packetloss_cvx.model.random_systems import random_system
@@ -583,3 +587,40 @@ def test_exact_emptiness_is_decided_against_an_enumeration_of_vertices():
                 points.append(np.linalg.solve(M, [c1, c2]))
         feasible = any(np.all(G @ p <= h + 1e-9) and np.all(p >= -1e-9) and np.all(p <= 1 + 1e-9) for p in points)
         assert _proved_empty(G, h, 0.0, 1.0) == (not feasible)
+
+
+class _PerCall:
+    """J*(mu) by closed_form on every call, as the allocation did before the cached evaluator."""
+
+    def __init__(self, system, protocol):
+        self.system, self.protocol = system, protocol
+
+    def cost(self, mu, x0=None, checked=True):      # closed_form checks every value anyway
+        return pl.closed_form(self.system.with_mu(np.clip(mu, 0.0, 1.0)), self.protocol).cost
+
+    def solve(self, mus):
+        sols = [pl.closed_form(self.system.with_mu(mu), self.protocol) for mu in mus]
+        return SimpleNamespace(costs=np.array([s.cost for s in sols]), inputs=np.array([s.inputs for s in sols]))
+
+    def line(self, mu, i, checked=True):
+        def at(value, base=np.array(mu, dtype=float)):  # noqa: B008
+            point = base.copy()
+            point[i] = value
+            return self.cost(point)
+        return at
+
+
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_allocation_through_the_evaluator_equals_the_per_call_closed_form(two_actuator, protocol, monkeypatch):
+    cached = pl.allocate(two_actuator, protocol, 6.0, [1.0, 0.5])
+
+    def per_call(system, p):
+        ev = _PerCall(system, p)
+        return ev.cost, ev
+
+    monkeypatch.setattr(udp_module, "cost_function", per_call)
+    monkeypatch.setattr(tcp_module, "cost_function", per_call)
+    reference = pl.allocate(two_actuator, protocol, 6.0, [1.0, 0.5])
+    assert np.allclose(cached.mu, reference.mu, rtol=0, atol=1e-9)
+    assert abs(cached.lower_bound - reference.lower_bound) <= 1e-9 * reference.lower_bound
+    assert (cached.status, cached.boxes) == (reference.status, reference.boxes)

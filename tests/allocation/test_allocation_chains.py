@@ -281,3 +281,15 @@ def test_allocate_command_on_a_chain_file(capsys, tmp_path):
     assert (code, out) == (3, "")
     assert err.count("\n") == 1
     assert "reaches mean rates up to" in err
+
+
+def test_allocate_on_a_chain_file_allocates_under_the_chain(capsys):
+    """allocate on a file whose channel is a chain allocates under the chain, not a Bernoulli mu*: the decision is
+    the chain's mean rate: TCP-like, whose cost holds only mu_t, exactly the Bernoulli
+    allocation of the same plant at that rate; UDP-like, the exact cost under the chain
+    (tests/allocation/test_allocation_chains.py)."""
+    assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0
+    chain = json.loads(capsys.readouterr().out)
+    bern = allocate(pl.load_example("pendulum_bursty").with_mu([0.9]), "tcp", 20000, [1.0])
+    assert chain["status"] == "optimal"
+    assert chain["mu"] == bern.mu.tolist()

@@ -9,6 +9,7 @@ import packetloss_cvx as pl
 from packetloss_cvx.claims import CLAIMS, audit, channel_allocation, markdown_report, markdown_table
 from packetloss_cvx.claims.context import Context, paper_systems
 from packetloss_cvx.claims.evaluate import evaluate, verdict
+from packetloss_cvx.claims.ordering import optimal_plan
 from packetloss_cvx.cli import main
 from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.montecarlo.sampling import closed_loop_costs, sample_plan_costs
@@ -342,3 +343,13 @@ def test_plug_in_markov_holds_within_cross_check_cost_rtol_and_fails_beyond(monk
     r = markov_claim.plug_in_markov(Context(paper={}, random=[s], seed=0))
     assert (r.verdict, r.checked, r.errors) == (verdict, 1, 0)
     assert r.worst == pytest.approx((1 - factor) * CROSS_CHECK_COST_RTOL, rel=1e-12)
+
+
+def test_the_audits_plans_come_from_its_cached_evaluators(two_actuator):
+    ctx = Context(paper={"two_actuator": two_actuator}, random=[], seed=0)
+    plan = optimal_plan(ctx, two_actuator, "udp")
+    assert plan is ctx.evaluator(two_actuator, "udp").optimum()
+    assert ctx.evaluator(two_actuator, "tcp").weights is ctx.evaluator(two_actuator, "udp").weights   # built once
+    other = two_actuator.with_mu([0.3, 0.6])                                 # not a case: closed_form's answer
+    assert optimal_plan(ctx, other, "udp").closed_loop_eigenvalues is not None
+    assert abs(plan.cost - pl.closed_form(two_actuator, "udp").cost) <= 1e-12 * plan.cost

@@ -4,9 +4,14 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
+import packetloss_cvx as pl
 from packetloss_cvx.cli import main
+from tests.references import readme_system as _readme
+from tests.references import unstable_system as _unstable
+from tests.references import weighted_two_actuator as _weighted
 
 from ..conftest import EXAMPLES
 
@@ -250,3 +255,142 @@ def test_a_closed_standard_output_is_an_error_not_a_lost_result(monkeypatch, cap
     monkeypatch.setattr(sys, "stdout", None)
     assert main(["solve", "two_actuator", "--no-qp"]) == 2
     assert capsys.readouterr().err.startswith("packetloss-cvx: error: stdout: standard output is closed")
+
+
+def _run(capsys, *argv):
+    from packetloss_cvx.cli import main
+
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cross_check_compares_the_printed_number_and_binds(capsys, monkeypatch):
+    """solve --method dense compared the QP with the auto answer; now with the printed one, and a
+    disagreement is exit 1 with one line naming both numbers."""
+    import packetloss_cvx.cli.solve as cli
+
+    real = cli.closed_form
+
+    def off_by_1e3(system, protocol, method="auto"):
+        sol = real(system, protocol, method)
+        if method == "dense":
+            import dataclasses
+
+            return dataclasses.replace(sol, cost=sol.cost * (1 + 1e-3))
+        return sol
+
+    monkeypatch.setattr(cli, "closed_form", off_by_1e3)
+    code, out, err = _run(capsys, "solve", "two_actuator", "--method", "dense", "--protocol", "tcp")
+    assert code == 1
+    assert "J_qp = 2.79847" in err
+    assert "J* = 2.80126" in err
+    assert "(dense)" in err
+    assert err.count("\n") == 1
+    assert not out
+    code, out, _ = _run(capsys, "solve", "two_actuator", "--method", "recursion", "--protocol", "tcp")
+    assert code == 0
+    assert "(recursion)" in out
+
+
+def test_cli_refuses_a_solve_whose_qp_cannot_fit_and_names_no_qp(capsys, tmp_path, monkeypatch):
+    """N = 50000 with n = 2, m = 1: solve with the QP cross-check needs about 0.27 GiB (solve_bytes, by hand
+    50000 x (260 + 60 + 40 + 3000 + 1400 + 1000) = 2.88e8 bytes), refused upfront against a 1e8-byte budget (exit 2,
+    one line naming --no-qp); the closed form alone needs 1.8e7 and is answered."""
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e8")
+    path = tmp_path / "long.toml"
+    pl.save_system(_readme(1), path)
+    path.write_text(path.read_text().replace("horizon = 1", "horizon = 50000"))
+    code, out, err = _run(capsys, "solve", str(path), "--protocol", "tcp", "--json")
+    assert (code, out) == (2, "")
+    assert err.count("\n") == 1
+    assert err.startswith("packetloss-cvx: error: cost.horizon: N = 50000 (n = 2, m = 1) with the QP cross-check")
+    assert "--no-qp skips the cross-check" in err
+    assert err.rstrip().endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=2.88e+08")
+    code, out, err = _run(capsys, "solve", str(path), "--protocol", "tcp", "--json", "--no-qp")
+    assert code == 0, err
+    import json
+
+    assert json.loads(out)["tcp"]["cost"] == pytest.approx(1.3044129215697624, rel=1e-9)   # the N = 200 value
+
+
+def test_cli_refuses_a_solve_whose_qp_alone_cannot_fit(capsys, tmp_path, monkeypatch):
+    """Twenty channels on a scalar plant over 5000 steps: solve's fitted peak with the cross-check fits a 1e8-byte
+    budget (by hand 5000 x (260 + 15 + 800 + 3000 + 350 + 10000) = 7.2e7 bytes), the sparse QP's own estimate does
+    not (by hand 5000 x (260 + 8000 + 13000) + 1e7 = 1.163e8, plus the closed forms' 5000 x 1075): refused upfront,
+    exit 2 and one line naming --no-qp, where the QP was skipped after the closed forms (or, with ExpectedCostQP's
+    own check, exit 1 in an audit)."""
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e8")
+    s = pl.System(A=[[0.9]], B=np.ones((1, 20)), horizon=5000, state_weight=[1.0], input_weight=np.ones(20),
+                  mu=np.full(20, 0.5), x0=[1.0])
+    path = pl.save_system(s, tmp_path / "wide.toml")
+    code, out, err = _run(capsys, "solve", str(path), "--protocol", "tcp", "--json")
+    assert (code, out) == (2, "")
+    assert err.count("\n") == 1
+    assert err.startswith("packetloss-cvx: error: cost.horizon: N = 5000 (n = 1, m = 20) with the QP cross-check "
+                          "(about 0.113 GiB)")
+    assert "; --no-qp skips the cross-check, or to run it on purpose set " in err
+    assert err.rstrip().endswith("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES=1.22e+08")
+
+
+def test_cli_unstable_udp_reports_the_skipped_cross_check(capsys, tmp_path):
+    path = pl.save_system(_unstable(1.5, 60), tmp_path / "unstable.toml")
+    code, out, err = _run(capsys, "solve", str(path))
+    assert code == 0, err
+    assert "UDP-like" in out
+    assert "QP cross-check skipped" in out
+    assert "unconstrained" in out
+    assert "TCP-like" in out
+    assert "QP optimal" in out
+
+
+def test_cli_badly_scaled_weights_exit_1_naming_the_weights(capsys, tmp_path):
+    path = pl.save_system(_weighted(1e12), tmp_path / "w.toml")
+    code, out, err = _run(capsys, "solve", str(path))
+    assert code == 1
+    assert not out
+    assert "weights span 1.0e+12" in err
+    assert err.count("\n") == 1
+    path = pl.save_system(_weighted(1e100), tmp_path / "w100.toml")
+    code, out, err = _run(capsys, "solve", str(path), "--no-qp")
+    assert code == 1
+    assert not out
+    assert err.count("\n") == 1
+
+
+def test_cli_huge_x0_prints_one_line(capsys):
+    code, out, err = _run(capsys, "solve", "two_actuator", "--x0=1e200,1")
+    assert code == 1
+    assert not out
+    assert err.count("\n") == 1
+    assert "double-precision range" in err
+
+
+def test_solve_skips_the_stability_verdict_above_its_size_unless_asked(tmp_path):
+    from packetloss_cvx.cli import main
+    from packetloss_cvx.cli.solve import STABILITY_MAX_N
+    n = STABILITY_MAX_N + 1
+    A = 0.5 * np.eye(n)
+    A[0, 0] = 2.0                      # one unstable mode, driven by the one actuator; the rest decoupled
+    B = np.zeros((n, 1))
+    B[0, 0] = 1.0
+    s = pl.System(A=A, B=B, horizon=2, state_weight=np.ones(n), input_weight=[1.0], mu=[0.5], x0=np.ones(n))
+    path = str(pl.save_system(s, tmp_path / "big.toml"))
+    out = tmp_path / "out.json"
+    assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["tcp"]
+    assert entry["mean_square_spectral_radius"] is None
+    assert entry["stable"] is False
+    assert "--stability" in entry["stability_note"]
+    out = tmp_path / "asked.json"          # a new file: an existing one is refused without --force
+    assert main(["solve", path, "--no-qp", "--protocol", "tcp", "-q", "--stability", "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["tcp"]
+    k = entry["gain"][0][0]
+    assert np.allclose(entry["gain"][0][1:], 0.0, atol=1e-12)
+    # by hand: the decoupled modes give 0.5^2; the driven one E[x+^2] = ((2 - mu k)^2 + mu (1 - mu) k^2) x^2, and
+    # the cross moments E[x_1 x_j] grow by the geometric mean of the two
+    expected = max(0.25, (2 - 0.5 * k) ** 2 + 0.25 * k ** 2)
+    assert entry["mean_square_spectral_radius"] == pytest.approx(expected, rel=1e-9)
+    out = tmp_path / "skipped.json"
+    assert main(["solve", "two_actuator", "--no-qp", "--no-stability", "-q", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["udp"]["stability_note"].startswith("not computed: skipped (--no-stability)")

@@ -79,7 +79,7 @@ def test_region_separates_the_tcp_thresholds_and_maps_the_coupled_region(scalar_
 
 
 def test_sensor_grid_needs_a_sensor_and_is_budgeted(capsys):
-    # in process (the command's exit code and its stderr; the process itself is test_cli's and test_input_limits')
+    # in process (the command's exit code and its stderr; the process itself is test_cli's and test_budgets')
     code = main(["region", "two_actuator", "--sensor-grid", "3"])
     err = capsys.readouterr().err
     assert code == 2

@@ -9,8 +9,13 @@ import pytest
 import packetloss_cvx as pl
 from packetloss_cvx.lq.costs import dense_cost, loss_variance_term
 from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.lq.recursion import recursion_cost
+from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.tolerances import FORWARD_COST_ROUNDING
+from tests.references import readme_system as _readme
+from tests.references import unstable_system as _unstable
+from tests.references import weighted_two_actuator as _weighted
 
 PROTOCOLS = ("tcp", "udp")
 SEEDS = range(60)
@@ -384,3 +389,112 @@ def test_dense_path_is_refused_above_dense_max_condition_and_taken_below(factor,
     else:
         with pytest.raises(pl.NumericalError, match="condition estimate .* exceeds"):
             pl.closed_form(s, "udp", "dense")
+
+
+def _pendulum(N: int, mu: float = 1.0) -> pl.System:
+    data = pl.load_example("pendulum").with_mu([mu]).to_dict()
+    data["cost"]["horizon"] = N
+    return system_from_dict(data)
+
+
+def test_default_method_is_auto_everywhere():
+    import inspect
+
+    for fn, name in ((pl.closed_form, "method"), (pl.expected_cost, "method"), (pl.solve_qp, "formulation")):
+        assert inspect.signature(fn).parameters[name].default == "auto"
+
+
+def test_readme_system_at_long_horizon_matches_the_qp():
+    """Was 128.0 from the dense default; the QP twin and the recursion give 1.3044."""
+    s = _readme(200)
+    sol = pl.closed_form(s, "tcp")
+    qp = pl.solve_qp(s, "tcp", "sparse", with_gain=False, cross_check=False)
+    assert abs(sol.cost - qp.cost) <= 1e-7 * qp.cost
+    assert 1.30 < sol.cost < 1.31
+
+
+@pytest.mark.parametrize(("rho", "N"), [(3.0, 20), (1.5, 200)])
+def test_dense_refuses_unstable_plants_up_front(rho, N):
+    """Was -4096 (true 9.5587 class) and -6.1e56: refused before anything dense is built."""
+    s = _unstable(rho, N)
+    with pytest.raises(pl.NumericalError, match="condition estimate"):
+        pl.closed_form(s, "tcp", method="dense")
+    with pytest.raises(pl.NumericalError, match="use method='recursion'"):
+        pl.expected_cost(s, np.zeros((N, 2)), "tcp", method="dense")
+    sol = pl.closed_form(s, "tcp")               # auto: the right number
+    qp = pl.solve_qp(s, "tcp", "sparse", with_gain=False, cross_check=False)
+    assert abs(sol.cost - qp.cost) <= 1e-7 * max(1.0, qp.cost)
+
+
+@pytest.mark.parametrize("N", [200, 300, 2000])
+def test_pendulum_at_mu_one_long_horizons(N):
+    """Dense was off by 3e-6 (N=200), 220% (N=300) and 5.9e90 (N=2000); auto is right. The forward pass of the plan
+    alone (open loop) referees up to N = 300; at N = 2000 it does not: rho(A) = 1.06 amplifies the plan's rounding
+    (the exact open-loop cost of the plan in floats, summed to 300 digits: 3.1e76 rolled out step by step, whose
+    rounding a float forward pass repeats to give 25175; 2.9e78 by powers and a scan, 3.1e78 in floats), so there
+    the referee is scipy's DARE: the pass has settled by step 1."""
+    s = _pendulum(N)
+    with pytest.raises(pl.NumericalError):
+        pl.closed_form(s, "tcp", method="dense")
+    sol = pl.closed_form(s, "tcp")
+    assert sol.method == "recursion"
+    assert max(abs(sol.closed_loop_eigenvalues)) < 1.0        # the mean closed loop is stable
+    if N == 2000:                   # P_1 is the DARE solution; step 0 adds no state weight
+        from scipy.linalg import solve_discrete_are
+
+        R = np.diag(s.input_weights[0])
+        P1 = solve_discrete_are(s.A, s.B, s.state_weights[0], R)
+        BPA = s.B.T @ P1 @ s.A
+        K0 = np.linalg.solve(s.B.T @ P1 @ s.B + R, BPA)
+        P0 = s.A.T @ P1 @ s.A - BPA.T @ K0
+        assert sol.cost == pytest.approx(float(s.x0 @ (s.initial_weight + P0) @ s.x0), rel=1e-9)
+        np.testing.assert_allclose(sol.inputs[0], -K0 @ s.x0, rtol=1e-9)
+        np.testing.assert_allclose(sol.gain, K0, rtol=1e-9)
+    else:   # plumbing: the reported cost is the forward pass of the reported plan (closed_form's own referee, so
+            # this cannot disagree unless the wrong plan or cost is returned); independent: the sparse QP
+        assert np.isclose(recursion_cost(s, sol.inputs, "tcp"), sol.cost, rtol=1e-9)
+        qp = pl.solve_qp(s, "tcp", "sparse", with_gain=False, cross_check=False)
+        assert abs(qp.cost - sol.cost) <= 1e-7 * sol.cost
+
+
+def test_expected_cost_of_the_optimal_plan_on_an_unstable_plant():
+    """expected_cost(..., method='dense') returned 0.0 where the cost is about 21.6."""
+    s = _unstable(3.0, 20)
+    sol = pl.closed_form(s, "tcp")
+    qp = pl.solve_qp(s, "tcp", "sparse", with_gain=False, cross_check=False)
+    value = pl.expected_cost(s, sol.inputs, "tcp")
+    assert abs(value - qp.cost) <= 1e-7 * qp.cost
+
+
+def test_expected_cost_beyond_the_double_range_raises():
+    s = pl.load_example("two_actuator")
+    with pytest.raises(pl.NumericalError, match="double-precision range"):
+        pl.expected_cost(s, np.full((10, 2), 1e200), "tcp")
+
+
+@pytest.mark.parametrize("w", [1e9, 1e10, 1e12, 1e14, 1e16, 1e100])
+def test_badly_scaled_weights_are_refused_naming_the_weights(w):
+    """1e12 gave rel dJ 1.1e-3 at exit 0; 1e16 gave dense 32 / recursion 1.75; 1e100 a negative cost.
+    The true cost is about 3.0522 (it only grows with the weight and is 3.052228 at 1e10). At 1e9 the recursion's
+    cost is 5.2e-8 off its plan's forward cost (5.4e-7 at 1e10), 50 times SELF_CHECK_RTOL: a self-check made 100 times
+    looser returned it."""
+    s = _weighted(w)
+    for method in ("auto", "dense", "recursion"):
+        with pytest.raises(pl.NumericalError, match="weights"):
+            pl.closed_form(s, "tcp", method=method)
+
+
+def test_moderate_weights_are_still_solved_and_agree_with_the_qp():
+    s = _weighted(1e6)
+    sol = pl.closed_form(s, "tcp")
+    qp = pl.solve_qp(s, "tcp", with_gain=False, cross_check=False)
+    assert abs(sol.cost - qp.cost) <= 1e-7 * sol.cost
+
+
+def test_dense_memory_is_refused_up_front():
+    s = _readme(1)
+    data = s.to_dict()
+    data["cost"]["horizon"] = 60000
+    big = system_from_dict(data)
+    with pytest.raises(pl.ResourceError, match="GiB"):
+        pl.closed_form(big, "tcp", method="dense")

@@ -1,14 +1,18 @@
 """The structure-cached batched evaluator: a batch answers as the per-point closed form (both methods) and refuses
 as it does (a plumbing check where the two share a kernel); against independent references: Theorem 1's dense
-minimiser written out here, the QP twin on a sample, and hand values."""
+minimiser written out here, the QP twin on a sample, and hand values. A point's cost does not depend on the batch it
+is in (bit for bit), and the other protocol's evaluator shares the structure and answers as one built fresh."""
 
 import numpy as np
 import pytest
+from scipy.linalg import block_diag
 
 import packetloss_cvx as pl
 import packetloss_cvx.lq.evaluator as evaluator_module
+from packetloss_cvx.linalg import block_diagonal
 from packetloss_cvx.lq.evaluator import CostEvaluator
 from packetloss_cvx.lq.prediction import prediction
+from packetloss_cvx.model.channel import GilbertElliott
 from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.model.random_systems import random_system
 
@@ -356,3 +360,47 @@ def test_batch_dense_solve_refuses_3_and_keeps_0_3_times_dense_residual_rtol(two
     else:
         with pytest.raises(pl.NumericalError, match="failed the dense solve's residual"):
             evaluator.costs(mus)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("protocol", ["tcp", "udp"])
+def test_a_points_cost_does_not_depend_on_its_batch(seed, protocol):
+    rng = np.random.default_rng(seed)
+    s = random_system(rng)
+    ev = CostEvaluator(s, protocol, "recursion")
+    for P in (2, 15, 63):
+        mus = rng.uniform(0.0, 1.0, (P, s.m))
+        mus[0] = 1.0
+        batch = ev.costs(mus)
+        alone = np.array([ev.costs(mu[None])[0] for mu in mus])
+        assert np.array_equal(batch, alone)
+        assert np.array_equal(ev.costs(mus[::-1]), batch[::-1])
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_other_protocols_evaluator_shares_the_structure_and_answers_alike(seed):
+    rng = np.random.default_rng(seed)
+    s = random_system(rng)
+    assert np.array_equal(block_diagonal(s.state_weights), block_diag(*s.state_weights))
+    mus = rng.uniform(0.0, 1.0, (5, s.m))
+    for p, q in (("tcp", "udp"), ("udp", "tcp")):
+        shared = CostEvaluator(s, p).with_protocol(q)
+        fresh = CostEvaluator(s, q)
+        assert shared.protocol == q
+        assert shared.method == fresh.method
+        assert np.array_equal(shared.costs(mus), fresh.costs(mus))
+        assert shared.cost(mus[0]) == fresh.cost(mus[0])
+        plan, ref = shared.optimum(), pl.closed_form(s, q)                  # the system's own channel
+        assert plan is shared.optimum()
+        assert abs(plan.cost - ref.cost) <= 1e-12 * ref.cost
+        scale = max(1.0, np.abs(ref.inputs).max())
+        assert np.allclose(plan.inputs, ref.inputs, rtol=1e-9, atol=1e-12 * scale)
+        assert np.allclose(plan.gain, ref.gain, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(ref.gain).max()))
+
+
+def test_a_chains_udp_plan_is_refused_as_closed_form_refuses_it():
+    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                  channel=GilbertElliott(p=[0.1], r=[0.3]))
+    with pytest.raises(pl.InputError, match="correlated"):
+        CostEvaluator(s, "udp").optimum()
+    assert abs(CostEvaluator(s, "tcp").optimum().cost - pl.closed_form(s, "tcp").cost) <= 1e-12

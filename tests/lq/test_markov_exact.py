@@ -12,6 +12,7 @@ from packetloss_cvx.lq.markov_cost import exact_closed_form, exact_cost
 from packetloss_cvx.lq.prediction import prediction
 from packetloss_cvx.model.chain import attach_channel
 from packetloss_cvx.model.channel import GilbertElliott
+from packetloss_cvx.model.files import system_from_dict
 from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.montecarlo.markov_channels import sample_markov_plan_costs
 from packetloss_cvx.qp.markov import exact_qp
@@ -156,3 +157,24 @@ def test_dense_closed_form_self_check_refuses_3_and_keeps_0_3_times_self_check_r
     else:
         with pytest.raises(pl.NumericalError, match="the forward cost of its own plan"):
             exact_closed_form(s, method="dense")
+
+
+def test_markov_exact_cost_of_a_plan_is_refused_where_its_mean_states_are_not_resolved():
+    """The Gilbert-Elliott pendulum over 2000 steps under the plug-in law's plan: the TCP-like cost (the mean states
+    alone) is refused as the Bernoulli one is. The UDP-like cost is returned: the lost inputs' variance, amplified
+    by A^t, makes it about 1e106, beside which the mean states' rounding (1e78) is nothing. With a chain that never
+    loses (p = 0, mu = 1) the UDP-like cost is the mean states' alone, and it is refused."""
+    from packetloss_cvx.lq.markov_cost import exact_cost
+
+    data = pl.load_example("pendulum_bursty").to_dict()
+    data["cost"]["horizon"] = 2000
+    bursty = system_from_dict(data)
+    data["channel"]["p"] = [0.0]
+    perfect = system_from_dict(data)
+    U = pl.closed_form(bursty.with_mu(bursty.mu_schedule), "tcp").inputs
+    with pytest.raises(pl.NumericalError, match="not resolved"):
+        exact_cost(bursty, U, "tcp")
+    assert exact_cost(bursty, U, "udp") > 1e100
+    U = pl.closed_form(perfect.with_mu(perfect.mu_schedule), "tcp").inputs
+    with pytest.raises(pl.NumericalError, match="udp-like expected cost of this plan is not resolved"):
+        exact_cost(perfect, U, "udp")

@@ -18,6 +18,7 @@ from packetloss_cvx.qp.expected_cost import (
     qp_memory_estimate,
 )
 from packetloss_cvx.tolerances import CROSS_CHECK_COST_RTOL, CROSS_CHECK_INPUT_ATOL
+from tests.references import unstable_system as _unstable
 
 
 def _system(horizon, m=2, seed=3):
@@ -105,3 +106,20 @@ def test_a_channel_is_pinned_at_or_below_qp_pin_mu_and_solved_above(two_actuator
         assert not np.any(sol.inputs[:, 0])
     else:
         np.testing.assert_allclose(sol.inputs[:, 0], ref.inputs[:, 0], rtol=1e-6)
+
+
+@pytest.mark.parametrize(("rho", "N"), [(1.5, 60), (3.0, 20), (1.01, 2000), (10.0, 200)])
+def test_udp_qp_on_unstable_plants_raises_numerical_error_never_infeasible(rho, N):
+    """Statuses 'infeasible' / 'optimal_inaccurate' / a cvxpy ValueError on an unconstrained QP."""
+    s = _unstable(rho, N)
+    with pytest.raises(pl.NumericalError, match="unconstrained|double-precision"):
+        pl.solve_qp(s, "udp", "sparse" if rho == 10.0 else "auto", with_gain=False, cross_check=False)
+
+
+def test_an_almost_dead_channel_does_not_fail_the_cross_check():
+    """mu = 1e-300: that input is (almost) free, so any value is (almost) optimal; compared through Vbar U."""
+    s = pl.load_example("two_actuator").with_mu([1e-300, 0.5])
+    for protocol in ("tcp", "udp"):
+        qp = pl.solve_qp(s, protocol, with_gain=False)
+        dead = pl.closed_form(pl.load_example("two_actuator").with_mu([0.0, 0.5]), protocol).cost
+        assert abs(qp.cost - dead) <= 1e-9 * dead

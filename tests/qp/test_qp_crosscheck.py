@@ -20,6 +20,7 @@ from packetloss_cvx.tolerances import (
     CROSS_CHECK_INPUT_ATOL,
     PLAN_COST_RTOL,
 )
+from tests.references import weighted_two_actuator as _weighted
 
 
 @pytest.fixture(scope="module")
@@ -173,3 +174,19 @@ def test_qp_objective_check_is_skipped_on_an_unstable_plant_where_its_plan_is_no
     value, bound = plan_cost(s, qp.inputs, "tcp")
     assert bound > PLAN_COST_RTOL * value
     assert qp.cost == pytest.approx(pl.closed_form(s, "tcp").cost, rel=CROSS_CHECK_COST_RTOL)
+
+
+def test_qp_whose_objective_disagrees_with_its_own_plan_raises():
+    """At state_weight 1e14 the QP reported 1.19 while the cost cannot be below 3.0522."""
+    with pytest.raises(pl.NumericalError, match="forward cost of its\\s+own plan"):
+        pl.solve_qp(_weighted(1e14), "tcp", with_gain=False, cross_check=False)
+
+
+def test_api_cross_check_binds():
+    import dataclasses
+
+    s = pl.load_example("two_actuator")
+    wrong = dataclasses.replace(pl.closed_form(s, "tcp"), cost=3.0)
+    with pytest.raises(pl.CrossCheckError, match="J\\* = 3") as info:
+        pl.solve_qp(s, "tcp", with_gain=False, reference=wrong)
+    assert info.value.values["qp"] == pytest.approx(2.79847, rel=1e-5)

@@ -67,3 +67,20 @@ def test_a_qp_beyond_the_solve_budget_is_refused_before_cvxpy_sees_it():
     assert time.perf_counter() - start < 5
     assert info.value.field == "horizon"
     assert isinstance(info.value, ValueError)         # a BudgetError: the caller's size, an InputError too
+
+
+def test_qp_memory_grows_with_n_and_is_refused_in_advance(monkeypatch):
+    """The estimate counts the state terms (~250 N n^2 bytes measured): n = 3000 over 5 steps needs ~11 GiB,
+    and a 300-state system is refused against a budget it would exceed."""
+    from packetloss_cvx.qp.expected_cost import qp_memory_estimate
+
+    def system(n: int) -> pl.System:
+        return pl.System(A=np.eye(n) * 0.5, B=np.ones((n, 1)), horizon=5, state_weight=np.ones(n),
+                         input_weight=[1.0], mu=[0.5], x0=np.ones(n))
+
+    small = system(300)
+    assert qp_memory_estimate(small, "sparse") > 8e7
+    assert qp_memory_estimate(system(600), "sparse") - 1e7 > 3.9 * (qp_memory_estimate(small, "sparse") - 1e7)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "5e7")
+    with pytest.raises(pl.ResourceError, match="GiB"):
+        pl.ExpectedCostQP(small, "tcp", "sparse")

@@ -128,3 +128,34 @@ def test_a_scaled_minimum_below_qp_rescale_below_is_solved_again_and_one_above_i
     sol = qp.solve(cross_check=False, with_gain=False)
     assert qp.rescaled == rescaled
     assert sol.cost == pytest.approx(a * a / 2, rel=CROSS_CHECK_COST_RTOL)
+
+
+def _pendulum_scaled(weight_scale: float, x0_scale: float, mu: float = 0.9) -> pl.System:
+    p = pl.load_example("pendulum")
+    return pl.System(A=p.A, B=p.B, horizon=80, state_weight=np.array([5.0, 1, 1, 1]) * weight_scale,
+                     input_weight=[2.0 * weight_scale], mu=[mu], x0=[x0_scale, 0, 0, 0])
+
+
+@pytest.mark.parametrize(("weight_scale", "x0_scale", "mu", "protocol"), [
+    (1e-15, 1e-7, 0.9, "tcp"),     # the QP dropped every state weight below 1e-14: 15x too low
+    (1.0, 1e-10, 0.3, "udp"),      # the cost check was absolute below J* = 1: 3.5% too low
+    (1.0, 1e-6, 0.9, "udp"),       # 2.1e-5 relative, exit 0
+    (1e-8, 1.0, 0.9, "tcp"),       # refused: the QP's inputs were inexact at that scale
+])
+def test_qp_is_right_at_every_scale(weight_scale, x0_scale, mu, protocol):
+    """Reference by scaling: J* is homogeneous of degree 1 in the weights and 2 in x0 (no noise)."""
+    unit = pl.closed_form(_pendulum_scaled(1.0, 1.0, mu), protocol).cost
+    expected = unit * weight_scale * x0_scale**2
+    s = _pendulum_scaled(weight_scale, x0_scale, mu)
+    qp = pl.solve_qp(s, protocol, with_gain=False)        # the default cross-check binds
+    assert abs(qp.cost - expected) <= 1e-7 * expected
+    assert abs(pl.closed_form(s, protocol).cost - expected) <= 1e-9 * expected
+
+
+def test_cross_check_against_an_exact_zero(two_actuator):
+    """No state weight: J* = 0 exactly; the QP's 1e-33 is rounding at the problem's scale."""
+    s = pl.System(A=two_actuator.A, B=two_actuator.B, horizon=3, state_weight=[0.0, 0.0], input_weight=[1, 1],
+                  mu=[0.5, 0.5], x0=[1.0, -1.0])
+    qp = pl.solve_qp(s, "udp", with_gain=False)
+    assert qp.cost < 1e-20
+    assert pl.closed_form(s, "udp").cost == 0.0

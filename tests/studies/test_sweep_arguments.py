@@ -1,6 +1,7 @@
-"""Hostile input to sweep (and the --out of reproduce): a typed InputError naming the field in the API,
-exit 2 with one stderr line naming the flag on the command line, refused before anything is allocated
-or computed; never a traceback, a MemoryError or a flag silently ignored."""
+"""The arguments of sweep (its flags, its --mu-list files, and the --out it shares with reproduce): a typed
+InputError naming the field in the API, exit 2 with one stderr line naming the flag on the command line,
+refused before anything is allocated or computed; never a traceback, a MemoryError or a flag silently
+ignored."""
 
 import sys
 

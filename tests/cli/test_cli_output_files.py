@@ -1,4 +1,5 @@
-"""No data lost: the command line interrupted, killed, raced and starved of disk.
+"""The command line's output files: complete or absent when it is interrupted, killed, raced and starved of disk,
+and a user's files never replaced without --force.
 
 Each hostile case runs the real command line in a subprocess (or, for a full disk, in process on a
 2 MB tmpfs) and then reads every file left with an independent reader (``np.load``, ``csv``, ``json``,

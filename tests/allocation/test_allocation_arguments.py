@@ -1,8 +1,9 @@
-"""Hostile input to the allocation: a typed InputError naming the field in the
+"""The allocation's arguments: a typed InputError naming the field in the
 API, exit code 2 with one stderr line naming the flag on the command line; never a traceback,
-a warning dump, a hang or a silent answer."""
+a warning dump, a hang or a silent answer; extreme but valid arguments (alphas of 1e300 and 1e-300, rows
+scaled by 1e300) answered as their plain equivalents, and the brute-force reference refusing what allocate
+refuses."""
 
-import json
 
 import numpy as np
 import pytest
@@ -151,13 +152,10 @@ def test_the_brute_force_reference_refuses_what_allocate_refuses(alpha, beta, G,
     assert info.value.field == field
 
 
-def test_allocate_on_a_chain_file_allocates_under_the_chain(capsys):
-    """allocate on a file whose channel is a chain allocates under the chain, not a Bernoulli mu*: the decision is
-    the chain's mean rate: TCP-like, whose cost holds only mu_t, exactly the Bernoulli
-    allocation of the same plant at that rate; UDP-like, the exact cost under the chain
-    (tests/allocation/test_allocation_chains.py)."""
-    assert main(["allocate", "pendulum_bursty", "--protocol", "tcp", "--alpha", "20000", "--beta", "1", "--json"]) == 0
-    chain = json.loads(capsys.readouterr().out)
-    bern = allocate(pl.load_example("pendulum_bursty").with_mu([0.9]), "tcp", 20000, [1.0])
-    assert chain["status"] == "optimal"
-    assert chain["mu"] == bern.mu.tolist()
+@pytest.mark.parametrize("m", ["2", 2.0, True, 0, -3, None])
+def test_parse_constraint_takes_a_positive_integer_dimension(m):
+    """``parse_constraint(text, "2")`` raised a TypeError from NumPy; every m that is not a positive integer is an
+    InputError under ``m``."""
+    from packetloss_cvx.allocation.grammar import parse_constraint
+    with pytest.raises(pl.InputError, match="^m: expected a positive integer"):
+        parse_constraint("mu1 <= 1", m)

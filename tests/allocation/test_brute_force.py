@@ -1,41 +1,39 @@
-"""What the audit's speed work on J* evaluations must not change.
-
-* A point's cost from the batched recursion does not depend on the batch it is in (the brute
-  force reads repeated points back instead of evaluating them again): checked bit for bit
-  against the point evaluated alone.
-* The brute-force allocator (batched speculation, read-back points) takes the decisions of the
-  plain search its docstring describes, written here point by point: the same (beta'mu, mu1, mu2)
-  to the last bit; run side by side (requests pooled), each case answers what it answers alone, and
-  a case whose evaluation fails fails alone.
-"""
+"""The brute-force reference allocator (allocation/brute_force.py): its batched bisection takes the sequential
+bisection's midpoints and decisions; its batched speculation and read-back points take the decisions of the plain
+search its docstring describes, written here point by point (the same (beta'mu, mu1, mu2) to the last bit); run
+side by side (requests pooled), each case answers what it answers alone, and a case whose evaluation fails fails
+alone."""
 
 import numpy as np
 import pytest
-from scipy.linalg import block_diag
 
 import packetloss_cvx as pl
-from packetloss_cvx.allocation.brute_force import brute_force_allocation, brute_force_allocations
-from packetloss_cvx.claims.context import Context
-from packetloss_cvx.claims.ordering import optimal_plan
-from packetloss_cvx.linalg import block_diagonal
+from packetloss_cvx.allocation.brute_force import bisect, brute_force_allocation, brute_force_allocations
 from packetloss_cvx.lq.evaluator import CostEvaluator
-from packetloss_cvx.model.channel import GilbertElliott
-from packetloss_cvx.model.random_systems import random_system
 
 
-@pytest.mark.parametrize("seed", range(6))
-@pytest.mark.parametrize("protocol", ["tcp", "udp"])
-def test_a_points_cost_does_not_depend_on_its_batch(seed, protocol):
+def _sequential(feasible, a, b, tol):
+    while b - a > tol:
+        mid = 0.5 * (a + b)
+        a, b = (a, mid) if feasible(mid) else (mid, b)
+    return b
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_batched_bisection_takes_the_sequential_steps(seed):
     rng = np.random.default_rng(seed)
-    s = random_system(rng)
-    ev = CostEvaluator(s, protocol, "recursion")
-    for P in (2, 15, 63):
-        mus = rng.uniform(0.0, 1.0, (P, s.m))
-        mus[0] = 1.0
-        batch = ev.costs(mus)
-        alone = np.array([ev.costs(mu[None])[0] for mu in mus])
-        assert np.array_equal(batch, alone)
-        assert np.array_equal(ev.costs(mus[::-1]), batch[::-1])
+    for _ in range(200):
+        edge = rng.uniform(-0.2, 1.2)
+        a, b = rng.uniform(0.0, 0.5), rng.uniform(0.5, 1.0)
+        tol = 10 ** rng.uniform(-12, -2)
+        seen = []
+
+        def batch(points, edge=edge, seen=seen):
+            seen.append(len(points))
+            return [p >= edge for p in points]
+
+        got = bisect(batch, a, b, tol, depth=int(rng.integers(1, 6)))
+        assert got == _sequential(lambda x, edge=edge: x >= edge, a, b, tol)
 
 
 def _plain_search(system, protocol, alpha, beta, G, h, coarse, fine, tol):
@@ -91,45 +89,6 @@ def test_brute_force_takes_the_plain_searchs_decisions(two_actuator, protocol, a
     got = brute_force_allocation(two_actuator, protocol, alpha, beta, G, h, **grid)
     assert got is not None
     assert got == _plain_search(two_actuator, protocol, alpha, np.array(beta), G, h, **grid)
-
-
-@pytest.mark.parametrize("seed", range(8))
-def test_the_other_protocols_evaluator_shares_the_structure_and_answers_alike(seed):
-    rng = np.random.default_rng(seed)
-    s = random_system(rng)
-    assert np.array_equal(block_diagonal(s.state_weights), block_diag(*s.state_weights))
-    mus = rng.uniform(0.0, 1.0, (5, s.m))
-    for p, q in (("tcp", "udp"), ("udp", "tcp")):
-        shared = CostEvaluator(s, p).with_protocol(q)
-        fresh = CostEvaluator(s, q)
-        assert shared.protocol == q
-        assert shared.method == fresh.method
-        assert np.array_equal(shared.costs(mus), fresh.costs(mus))
-        assert shared.cost(mus[0]) == fresh.cost(mus[0])
-        plan, ref = shared.optimum(), pl.closed_form(s, q)                  # the system's own channel
-        assert plan is shared.optimum()
-        assert abs(plan.cost - ref.cost) <= 1e-12 * ref.cost
-        scale = max(1.0, np.abs(ref.inputs).max())
-        assert np.allclose(plan.inputs, ref.inputs, rtol=1e-9, atol=1e-12 * scale)
-        assert np.allclose(plan.gain, ref.gain, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(ref.gain).max()))
-
-
-def test_a_chains_udp_plan_is_refused_as_closed_form_refuses_it():
-    s = pl.System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
-                  channel=GilbertElliott(p=[0.1], r=[0.3]))
-    with pytest.raises(pl.InputError, match="correlated"):
-        CostEvaluator(s, "udp").optimum()
-    assert abs(CostEvaluator(s, "tcp").optimum().cost - pl.closed_form(s, "tcp").cost) <= 1e-12
-
-
-def test_the_audits_plans_come_from_its_cached_evaluators(two_actuator):
-    ctx = Context(paper={"two_actuator": two_actuator}, random=[], seed=0)
-    plan = optimal_plan(ctx, two_actuator, "udp")
-    assert plan is ctx.evaluator(two_actuator, "udp").optimum()
-    assert ctx.evaluator(two_actuator, "tcp").weights is ctx.evaluator(two_actuator, "udp").weights   # built once
-    other = two_actuator.with_mu([0.3, 0.6])                                 # not a case: closed_form's answer
-    assert optimal_plan(ctx, other, "udp").closed_loop_eigenvalues is not None
-    assert abs(plan.cost - pl.closed_form(two_actuator, "udp").cost) <= 1e-12 * plan.cost
 
 
 @pytest.mark.parametrize("protocol", ["tcp", "udp"])
