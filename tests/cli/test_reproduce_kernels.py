@@ -96,3 +96,14 @@ def test_the_command_bands_fail_at_ten_times_and_pass_at_a_tenth():
     check = {"qp": {"max_input_diff": 1e-11}}
     assert compare_results(check, {"qp": {"max_input_diff": 0.1 * CROSS_CHECK_INPUT_ATOL}}) == []
     assert compare_results(check, {"qp": {"max_input_diff": 10 * CROSS_CHECK_INPUT_ATOL}}) != []
+
+
+def test_an_accuracy_estimate_is_compared_by_its_size_not_its_value():
+    """``lambda_error`` is an error's size: rounding-level on both kernels (pendulum_bursty's 3.96e-12 and 3.97e-13)
+    agrees, so do estimates within a factor of ten (the defective chain's 6.2e-6 and 1.8e-6); a hundredfold
+    change, or one kernel knowing the value to rounding and the other only to 1e-6, is a disagreement."""
+    assert compare_results({"dp": {"lambda_error": 3.96e-12}}, {"dp": {"lambda_error": 3.97e-13}}) == []
+    assert compare_results({"grid": {"lambda_error": [[6.2e-6, 1e-13]]}},
+                           {"grid": {"lambda_error": [[1.8e-6, 2e-12]]}}) == []
+    assert compare_results({"dp": {"lambda_error": 6.2e-6}}, {"dp": {"lambda_error": 6.2e-8}}) != []
+    assert compare_results({"dp": {"lambda_error": 1e-6}}, {"dp": {"lambda_error": 1e-13}}) != []

@@ -115,7 +115,7 @@ def test_a_one_point_result_is_one_row_with_its_vectors_numbered():
 def test_to_pandas_without_pandas_says_how_to_install_it(decoupled):
     result = shared_channel_sweep(decoupled, [0.5])
     with mock.patch.dict(sys.modules, {"pandas": None}), \
-            pytest.raises(pl.InputError, match=r"packetloss-cvx\[pandas\]"):
+            pytest.raises(pl.InputError, match=r"packetloss-cvx\[xarray\]"):
         result.to_pandas()
 
 

@@ -180,9 +180,19 @@ def test_reproduce_computes_under_the_blas_policy(monkeypatch):
         seen.append(max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"))
         return {}
 
-    for name in ("log_cost_pendulum", "mixed_grids", "mixed_allocations", "eigenvalue_tables"):
+    def allocations(*args, **kwargs):       # the break-even steps read the designs at beta = (1, 1)
+        spy()
+        return {(1.0, 1.0): []}
+
+    def break_even(*args, **kwargs):
+        spy()
+        return {"alpha": []}
+
+    for name in ("log_cost_pendulum", "mixed_grids", "eigenvalue_tables"):
         monkeypatch.setattr(rep.pf, name, spy)
+    monkeypatch.setattr(rep.pf, "mixed_allocations", allocations)
+    monkeypatch.setattr(rep, "attainable_break_even", break_even)
     monkeypatch.setattr(rep, "audit", spy)
     with threadpool_limits(2, user_api="blas"):
         rep.compute(rep.SETTINGS["quick"], False, {})
-    assert seen == [1] * 6
+    assert seen == [1] * 7
