@@ -24,7 +24,7 @@ import numpy as np
 
 from ..closedloop.law_stability import STABILITY_MAX_N
 from ..closedloop.region import membership
-from ..closedloop.riccati import modified_riccati_step
+from ..closedloop.riccati import dp_backward
 from ..errors import NumericalError
 from ..model.system import System
 from ..tolerances import SELF_CHECK_RTOL
@@ -55,15 +55,9 @@ class Attainment(NamedTuple):
 
 def _dp(system: System, schedule: np.ndarray) -> tuple[np.ndarray, float]:
     """The finite-horizon DP's gains (N, m, n) and its cost (`tcp_attainable_cost`). O(N (n^3 + m^3))."""
-    N = system.horizon
-    P = system.state_weights[N - 1].copy()
-    gains = np.empty((N, system.m, system.n))
-    noise = 0.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(N - 1, -1, -1):
-            noise += float(np.sum(P * system.noise_cov))
-            Omega = system.state_weights[t - 1] if t >= 1 else system.initial_weight
-            gains[t], P = modified_riccati_step(P, system.A, system.B, schedule[t], Omega, system.input_weights[t])
+    # the paper's weights: Omega_0 = Q at t = 0, Omega_t = state_weights[t - 1] after it (Omega_N the terminal one)
+    Omega = np.concatenate([system.initial_weight[None], system.state_weights])
+    gains, P, noise = dp_backward(system.A, system.B, schedule, Omega, system.input_weights, system.noise_cov)
     cost = float(system.x0 @ P @ system.x0) + noise
     if not np.isfinite(cost):
         raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")
@@ -135,7 +129,7 @@ def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
        J = x_0'P_0 x_0 + \\sum_{t=0}^{N-1} \\mathrm{tr}(P_{t+1}\\Sigma_W)
 
     with ``Omega_0 = Q`` (the initial weight), ``K_t`` the modified Riccati gain at ``mu_t`` and ``Psi_t``
-    (`modified_riccati_step`). Time-varying weights and channels as the system
+    (`modified_riccati_step`, by `dp_backward`). Time-varying weights and channels as the system
     gives them. O(N (n^3 + m^3)).
 
     Raises

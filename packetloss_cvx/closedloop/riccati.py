@@ -35,8 +35,8 @@ from .modes import mode_radius
 from .moments import check_steps, law_cost_to_go, mode_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
-__all__ = ["NO_SOLUTION", "dp_finite_horizon", "dp_input_hessian", "dp_riccati", "dp_step", "mode_riccati",
-           "modified_riccati_step"]
+__all__ = ["NO_SOLUTION", "dp_backward", "dp_finite_horizon", "dp_input_hessian", "dp_riccati", "dp_step",
+           "mode_riccati", "modified_riccati_step"]
 
 #: Every NumericalError of :func:`dp_riccati` that means "no law holds the second moment" starts its
 #: reason with this (callers that treat the absence of a stabilising law as a case, not an error, test it).
@@ -344,6 +344,30 @@ def _cost_to_go(K: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: n
     return law_cost_to_go(A, B, K, h, Omega, psi) if T is None else mode_cost_to_go(A, B, K, h, T, Omega, psi)
 
 
+def dp_backward(A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray, psi: np.ndarray,
+                noise_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The finite-horizon DP's backward pass with a weight per step: ``(gains, P_0, noise)``, ``gains[t]`` (u_t = -K_t
+    x_t) from `modified_riccati_step` at ``mu[t]`` (steps, m) and ``psi[t]`` (steps, m), ``P_N = Omega[N]``, the state
+    weight ``Omega[t]`` added at step t (``Omega``: (steps + 1, n, n)), and ``noise = sum_t tr(P_{t+1} Sigma_W)``.
+    The one pass under `dp_finite_horizon` (stationary weights) and the attainable cost of allocation.attainable
+    (the paper's time-varying ones). Overflow is left to the caller (inf / nan). O(steps (n^3 + m^3)).
+
+    >>> gains, P0, noise = dp_backward(np.eye(1), np.eye(1), np.ones((1, 1)), np.ones((2, 1, 1)), np.ones((1, 1)),
+    ...                                2 * np.eye(1))
+    >>> float(gains[0, 0, 0]), float(P0[0, 0]), noise            # one DARE step from P = 1: K = 1/2, P0 = 1.5
+    (0.5, 1.5, 2.0)
+    """
+    steps, m = psi.shape
+    P = np.array(Omega[steps], dtype=float)
+    gains = np.empty((steps, m, A.shape[0]))
+    noise = 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps - 1, -1, -1):
+            noise += float(np.sum(P * noise_cov))
+            gains[t], P = modified_riccati_step(P, A, B, mu[t], Omega[t], psi[t])
+    return gains, P, noise
+
+
 def dp_finite_horizon(system: System, steps: int,
                       mu: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """The finite-horizon DP optimum over t = 0..steps-1 with terminal cost ``x_T' Omega x_T``.
@@ -389,13 +413,8 @@ def dp_finite_horizon(system: System, steps: int,
     if not np.all((mu_all >= 0) & (mu_all <= 1)):
         raise InputError("mu", "expected probabilities in [0, 1]")
     A, B, _, Omega, psi = _weights(system, mu_all[0])
-    P = Omega.copy()
-    gains = np.empty((steps, system.m, system.n))
-    noise = 0.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(steps - 1, -1, -1):
-            noise += float(np.sum(P * system.noise_cov))
-            gains[t], P = modified_riccati_step(P, A, B, mu_all[t], Omega, psi)
+    gains, P, noise = dp_backward(A, B, mu_all, np.broadcast_to(Omega, (steps + 1, *Omega.shape)),
+                                  np.broadcast_to(psi, (steps, system.m)), system.noise_cov)
     cost = float(system.x0 @ P @ system.x0) + noise
     if not (np.isfinite(cost) and np.all(np.isfinite(gains))):
         raise NumericalError("finite-horizon DP: the cost-to-go overflows (an unstable plant over a long horizon)")
