@@ -23,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..closedloop.law_stability import STABILITY_MAX_N
+from ..closedloop.modes import mode_stage_costs
 from ..closedloop.region import membership
 from ..closedloop.riccati import dp_backward
 from ..errors import NumericalError
@@ -66,26 +67,18 @@ def _dp(system: System, schedule: np.ndarray) -> tuple[np.ndarray, float]:
 
 def forward_cost(system: System, schedule: np.ndarray, gains: np.ndarray) -> float:
     """The exact expected cost of u_t = -K_t x_t on the paper's cost by the forward second moments
-    ``S_{t+1} = E[(A - B V K_t) S_t (A - B V K_t)'] + Sigma_W`` (``E[V X V] = M X M + diag(mu (1 - mu)) o X``): a sum
-    of non-negative terms, free of the backward recursion's cancellation. O(N (n^3 + n^2 m)).
+    ``S_{t+1} = E[(A - B V K_t) S_t (A - B V K_t)'] + Sigma_W`` (the mode engine's `mode_stage_costs` at one mode,
+    a weight per step): a sum of non-negative terms, free of the backward recursion's cancellation. O(N (n^3 + n^2 m)).
 
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
     >>> forward_cost(s, s.mu_schedule, np.array([[[0.5]]]))     # E[(1 - v/2)^2 + v/4] = 0.5 (1/4 + 1/4) + 0.5
     0.75
     """
-    A, B = system.A, system.B
-    S = np.outer(system.x0, system.x0)
-    cost = float(np.sum(system.initial_weight * S))
-    for t in range(system.horizon):
-        K, mu = gains[t], schedule[t]
-        KSK = K @ S @ K.T
-        cost += float(np.sum(mu * system.input_weights[t] * np.diag(KSK)))      # E[(V u)' Psi (V u)], v_i^2 = v_i
-        BM = B * mu
-        cross = A @ S @ K.T @ BM.T
-        S = (A @ S @ A.T - cross - cross.T + BM @ KSK @ BM.T + (B * (mu * (1.0 - mu))) @ np.diag(np.diag(KSK)) @ B.T
-             + system.noise_cov)
-        S = 0.5 * (S + S.T)
-        cost += float(np.sum(system.state_weights[t] * S))
+    Omega = np.concatenate([system.initial_weight[None], system.state_weights])     # Omega[t] on x_t, Q at t = 0
+    stage, terminal = mode_stage_costs(system.A, system.B, Omega, system.input_weights, system.noise_cov, system.x0,
+                                       np.asarray(gains, dtype=float), np.asarray(schedule, dtype=float),
+                                       per_step=True)
+    cost = float(np.sum(stage)) + terminal
     if not np.isfinite(cost):
         raise NumericalError("finite-horizon DP: the forward second moments overflow")
     return cost

@@ -381,7 +381,7 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
                      x0: np.ndarray, K_all: np.ndarray, h_all: np.ndarray, T: np.ndarray | None = None,
                      start: np.ndarray | None = None, delivery: str = "current",
                      first_gain: np.ndarray | None = None,
-                     held: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+                     held: np.ndarray | None = None, per_step: bool = False) -> tuple[np.ndarray, float]:
     """Exact ``E[x_t' Omega x_t + (V_t u_t)' Psi (V_t u_t)]``, t = 0..steps-1, and ``E[x_T' Omega x_T]`` of
     ``u_t = -K_{t,a} x_t`` from x0 (noise Sigma enters every step with P(mode)), from the recursion on
     ``Q_{a,t} = E[x_t x_t' 1{mode = a}]`` (CFM05, ch. 3) of `mode_step`, the stage cost ``sum_a tr(W_a Q_a)``
@@ -393,6 +393,8 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
     the steps (stride 0) are one law: its map is formed once. Entries stay inf past an overflow.
     ``held`` (M, m, n), or (m, n) at one mode, with one law and "current" only: the applied input is
     ``F_a x - V K_a x`` instead of ``-V K_a x`` (`_stage_weight`); A may then carry a mode axis.
+    ``per_step`` (one mode): a weight per step, ``Omega`` (steps + 1, n, n) with ``Omega[t]`` on x_t (the terminal one
+    last) and ``psi`` (steps, m), as the paper's cost has them (allocation.attainable).
     Time O(steps M (M n^2 + n^3 + n^2 m)).
 
     Examples
@@ -407,6 +409,8 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
     one_law = K_all.strides[0] == 0 and (T is not None or h_all.strides[0] == 0)
     if held is not None and not (one_law and delivery == "current"):
         raise InputError("held", "an input held on a loss is taken for one law with delivery='current'")
+    if per_step and (T is not None or held is not None):
+        raise InputError("per_step", "a weight per step is taken at one mode without a held input")
     if T is None:
         Q, pi, R = np.outer(x0, x0), None, None
     elif delivery == "next":
@@ -417,7 +421,10 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
     each_step = not one_law or delivery == "next"             # "next": t = 0 has its own law, t = 1 the gains'
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps):
-            if t == 0 or (each_step and (not one_law or t == 1)):
+            if per_step:
+                K, h = K_all[t], h_all[t]
+                step, weight = mode_step(A, B, K, h), _stage_weight(Omega[t], psi[t], K, h)
+            elif t == 0 or (each_step and (not one_law or t == 1)):
                 if T is None:
                     K, h = K_all[t], h_all[t]
                     step, weight = mode_step(A, B, K, h), _stage_weight(Omega, psi, K, h, held)
@@ -432,6 +439,6 @@ def mode_stage_costs(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.nd
             else:
                 pi = pi @ T if delivery == "current" or t > 0 else pi                      # P(mode at t + 1)
                 Q = step(Q) + pi[:, None, None] * Sigma
-        terminal = float(np.sum(Omega * Q))
+        terminal = float(np.sum((Omega[steps] if per_step else Omega) * Q))
     stage[~np.isfinite(stage)] = np.inf
     return stage, terminal if np.isfinite(terminal) else float("inf")

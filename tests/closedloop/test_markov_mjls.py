@@ -374,3 +374,27 @@ def test_chain_dp_started_from_stabilising_mode_gains_is_the_same_solution():
     _, P2, iterations2, _, _ = mode_riccati(*args, proves=lambda P: False, gain=unstable)
     np.testing.assert_allclose(P2, res.cost_matrices, rtol=1e-12)
     assert iterations2 == res.iterations
+
+
+def test_a_weight_per_step_is_the_scalar_second_moment_recursion_by_hand():
+    """``mode_stage_costs(..., per_step=True)`` (the paper's time-varying weights, allocation.attainable): x+ = 2 x + v u
+    with u_t = -k_t x_t, v ~ Bernoulli(mu_t), no noise, x0 = 1, so E[x_{t+1}^2] = ((2 - mu_t k_t)^2 + mu_t (1 - mu_t)
+    k_t^2) E[x_t^2], stage t = (omega_t + psi_t mu_t k_t^2) E[x_t^2], terminal omega_N E[x_N^2], by hand below; a
+    chain is refused (the weights per step are taken at one mode)."""
+    from packetloss_cvx.closedloop.modes import mode_stage_costs
+    from packetloss_cvx.errors import InputError
+
+    k, mu, omega, psi = [1.5, 0.5], [0.8, 0.3], [1.0, 3.0, 5.0], [2.0, 7.0]
+    second, stages = 1.0, []
+    for t in range(2):
+        stages.append((omega[t] + psi[t] * mu[t] * k[t] ** 2) * second)
+        second *= (2 - mu[t] * k[t]) ** 2 + mu[t] * (1 - mu[t]) * k[t] ** 2
+    stage, terminal = mode_stage_costs(np.array([[2.0]]), np.array([[1.0]]), np.array(omega).reshape(3, 1, 1),
+                                       np.array(psi).reshape(2, 1), np.zeros((1, 1)), np.ones(1),
+                                       np.array(k).reshape(2, 1, 1), np.array(mu).reshape(2, 1), per_step=True)
+    np.testing.assert_allclose(stage, stages, rtol=1e-15)
+    assert terminal == pytest.approx(omega[2] * second, rel=1e-15)
+    with pytest.raises(InputError, match="per_step"):
+        mode_stage_costs(np.eye(1), np.eye(1), np.ones((3, 1, 1)), np.ones((2, 1)), np.zeros((1, 1)), np.ones(1),
+                         np.ones((2, 2, 1, 1)), np.full((2, 1), 0.5), T=np.full((2, 2), 0.5), start=np.full(2, 0.5),
+                         per_step=True)
