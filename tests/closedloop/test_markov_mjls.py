@@ -377,10 +377,11 @@ def test_chain_dp_started_from_stabilising_mode_gains_is_the_same_solution():
 
 
 def test_a_weight_per_step_is_the_scalar_second_moment_recursion_by_hand():
-    """``mode_stage_costs(..., per_step=True)`` (the paper's time-varying weights, allocation.attainable): x+ = 2 x + v u
-    with u_t = -k_t x_t, v ~ Bernoulli(mu_t), no noise, x0 = 1, so E[x_{t+1}^2] = ((2 - mu_t k_t)^2 + mu_t (1 - mu_t)
-    k_t^2) E[x_t^2], stage t = (omega_t + psi_t mu_t k_t^2) E[x_t^2], terminal omega_N E[x_N^2], by hand below; a
-    chain is refused (the weights per step are taken at one mode)."""
+    """``mode_stage_costs(..., per_step=True)`` (the paper's time-varying weights, allocation.attainable):
+    x+ = 2 x + v u with u_t = -k_t x_t, v ~ Bernoulli(mu_t), no noise, x0 = 1, so
+    E[x_{t+1}^2] = ((2 - mu_t k_t)^2 + mu_t (1 - mu_t) k_t^2) E[x_t^2], stage t = (omega_t + psi_t mu_t k_t^2)
+    E[x_t^2], terminal omega_N E[x_N^2], by hand below; a chain is refused (the weights per step are taken at one
+    mode)."""
     from packetloss_cvx.closedloop.modes import mode_stage_costs
     from packetloss_cvx.errors import InputError
 
