@@ -1,8 +1,11 @@
-"""The documentation site's pages: their tutorials' code runs and the nav names every page (the strict build and
+"""The documentation site's pages: their tutorials' code runs and shows what it prints and draws, and the nav names
+every page (the strict build and
 the browser check: tests/docs/test_docs_site.py)."""
 
+import importlib.util
 import re
 import shlex
+import sys
 from pathlib import Path
 
 import pytest
@@ -11,8 +14,10 @@ from packetloss_cvx.cli import main
 from packetloss_cvx.tolerances import KERNEL_VALUE_RTOL, KERNEL_ZERO_ATOL
 
 ROOT = Path(__file__).resolve().parents[2]
-PAGES = ["getting-started.md", "tutorials/design-study.md", "tutorials/formula-vs-solver.md",
-         "tutorials/allocation-constraints.md", "tutorials/lossy-sensors.md"]
+_spec = importlib.util.spec_from_file_location("tutorial_outputs", ROOT / "docs" / "extensions" / "tutorial_outputs.py")
+tutorial_outputs = sys.modules["tutorial_outputs"] = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(tutorial_outputs)
+PAGES = ["getting-started.md", *tutorial_outputs.PAGES]
 
 
 def python_blocks(page: str) -> list[str]:
@@ -108,3 +113,24 @@ def test_getting_started_sample_output_is_what_solve_prints(capsys, monkeypatch,
         for a, b in zip(NUMBER.findall(line), NUMBER.findall(fresh), strict=True):
             assert _agree(a, b), (k, a, b)
     assert printed[len(shown)] == "", "the sample stops inside a block"
+
+
+@pytest.mark.parametrize("page", tutorial_outputs.PAGES)
+def test_tutorial_shows_what_its_code_prints_and_draws(page, monkeypatch, tmp_path):
+    """Under each Python block, the page shows what the block prints today (the same words; numbers as the kernels
+    move them) and one image for each figure it draws, and every image it shows exists; a block that prints nothing
+    shows no output. Regenerate with ``python docs/extensions/tutorial_outputs.py``."""
+    monkeypatch.chdir(tmp_path)
+    ran = tutorial_outputs.run(page)
+    assert any(block.printed for block in ran), f"{page} prints nothing"
+    for k, block in enumerate(ran):
+        shown = (block.shown_output or "").rstrip("\n").splitlines()
+        printed = block.printed.rstrip("\n").splitlines()
+        assert len(shown) == len(printed), (page, k, shown, printed)
+        for line, fresh in zip(shown, printed, strict=True):
+            assert NUMBER.split(line) == NUMBER.split(fresh), (page, k, line, fresh)
+            for a, b in zip(NUMBER.findall(line), NUMBER.findall(fresh), strict=True):
+                assert _agree(a, b), (page, k, a, b)
+        assert block.shown_images == [tutorial_outputs.image_name(page, k, j) for j in range(len(block.figures))]
+        for name in block.shown_images:
+            assert (ROOT / "docs" / "figures" / "tutorials" / name).is_file(), name

@@ -63,8 +63,8 @@ def test_the_readme_counts_reproduces_figures_and_files():
 def test_getting_started_names_every_packaged_example():
     from importlib.resources import files
 
-    examples = sorted(p.name.removesuffix(".toml") for p in files("packetloss_cvx").joinpath("model", "examples").iterdir()
-                      if p.name.endswith(".toml"))
+    folder = files("packetloss_cvx").joinpath("model", "examples")
+    examples = sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
     assert examples == ["pendulum", "pendulum_bursty", "pendulum_sensor", "two_actuator"]
     for name in examples:
         assert f"`{name}`" in GETTING_STARTED and f"`{name}`" in README
