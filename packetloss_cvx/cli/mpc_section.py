@@ -74,6 +74,9 @@ def _text(sim: MPCSimulation) -> list[str]:
     lines = [f"  constrained loop ([constraints]): {sim.samples} runs of {sim.steps} steps, seed {sim.seed}, "
              f"the same paths for every controller{level}",
              f"    (on infeasibility: {INFEASIBLE_ACTION})"]
+    if sim.channel != "bernoulli":
+        lines.append("    (behind the chain every program is the plug-in one, planned with the predicted mu_t of the "
+                     "controller's belief: filtered by the acknowledgements TCP-like, the prior propagated UDP-like)")
     for protocol, runs in sim.runs.items():
         lines.append(f"  {protocol.upper()}-like information")
         for run in runs.values():

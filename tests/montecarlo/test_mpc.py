@@ -177,3 +177,38 @@ def test_bad_arguments_are_refused_naming_the_field():
         simulate_mpc(s, Constraints(u_max=[1.0]), 3, 2)
     with pytest.raises(InputError, match="samples"):
         simulate_mpc(s, Constraints(u_max=[1.0, 1.0]), 1, 2)
+
+
+def test_a_step_without_a_trusted_answer_plays_the_rest_of_the_last_plan(monkeypatch):
+    # every packet arrives (mu = 1), x' = x + u, N = 2, Q = R = 1: the plan from x is (-0.6 x, -0.2 x) (two-step
+    # Riccati: u0 = -(3/5) x, then u1 = -x1 / 2 at x1 = 0.4 x). The third solve (run 0 at step 1) fails: the loop
+    # plays -0.2; and the second (run 1 at step 0) in a second simulation, with no plan yet: zero.
+    from packetloss_cvx.errors import SolverError
+    from packetloss_cvx.qp.constrained import ConstrainedQP
+
+    s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    solve, calls = ConstrainedQP.solve, []
+
+    def failing(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == failing.at:
+            raise SolverError("max_iter", "planted")
+        return solve(self, *args, **kwargs)
+
+    failing.at = 3
+    monkeypatch.setattr(ConstrainedQP, "solve", failing)
+    sim = simulate_mpc(s, Constraints(u_max=[5.0]), 2, 3, protocols=["tcp"], controllers=["expected-cost"])
+    run = sim.runs["tcp"]["expected-cost"]
+    assert run.failed_steps == 1
+    assert run.infeasible.count == 0
+    # run 0: x = 1 -> 0.4 (u = -0.6) -> 0.2 (the old plan's -0.2, not the new plan's -0.24) -> u = -0.12
+    # run 1: every solve trusted: x = 1 -> 0.4 -> 0.16, u = -0.6, -0.24, -0.096
+    first = [1.0 + 0.36, 0.16 + 0.04, 0.04 + 0.0144]
+    second = [1.0 + 0.36, 0.16 + 0.0576, 0.0256 + 0.096 ** 2]
+    assert np.allclose(run.stage_cost_mean, (np.array(first) + np.array(second)) / 2, rtol=1e-9)
+    calls.clear()
+    failing.at = 2
+    run = simulate_mpc(s, Constraints(u_max=[5.0]), 2, 3, protocols=["tcp"], controllers=["expected-cost"]).runs[
+        "tcp"]["expected-cost"]
+    # run 1: nothing applied at step 0 (x stays 1), then x = 1 -> 0.4: stages 1, 1.36, 0.2176
+    assert np.allclose(run.stage_cost_mean, (np.array(second) + np.array([1.0, 1.36, 0.2176])) / 2, rtol=1e-9)
