@@ -55,6 +55,9 @@ LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "plots": "figures (matplotlib), through the plots package: only commands asked to draw",
     "plots.figures": "figures (matplotlib): only commands asked to draw",
     "sensing.lmi": "Sinopoli's filter LMI (cvxpy): the critical arrival rate's cross-check, only where asked",
+    "montecarlo.mpc": "the constrained receding-horizon loop (cvxpy): simulate only for a file with a [constraints] "
+                      "table",
+    "cli.mpc_section": "the constrained loop's section of simulate (cvxpy): only for a file with a [constraints] table",
 })
 
 #: library -> the pyproject extra that installs it (the others are required dependencies)

@@ -18,6 +18,8 @@ from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
 from .cost_difference import lemma_2, lemma_3, theorem_4
 from .evaluate import CASE_ERRORS
+from .expectation_mpc import STATEMENT as EXPECTATION_MPC
+from .expectation_mpc import expectation_mpc
 from .markov import STATEMENT as PLUG_IN_MARKOV
 from .markov import plug_in_markov
 from .mpc_vs_dp import mpc_vs_dp
@@ -63,6 +65,7 @@ CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's:
 CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the paper's: lossy sensors
 CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # the paper's open problem
 CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture
+CLAIMS["expectation-mpc-feasibility"] = (EXPECTATION_MPC, expectation_mpc)   # Trodden & Li's constrained loop
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain

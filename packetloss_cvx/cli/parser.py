@@ -291,6 +291,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="with --closed-loop: each law's loop when the actuator applies zero, holds the last input "
                           "or plays the buffered plan of L inputs (default L: the horizon) on a loss, sampled beside "
                           "its exact cost and radius; comma-separated, or all (default: none), e.g. --actuator hold")
+    sim.add_argument("--mpc-samples", type=int, default=100, metavar="K",
+                     help="with a [constraints] table in FILE: runs of the constrained receding-horizon loop (each "
+                          "re-solves its program every step: about 5 ms a solve), the clipped law, certainty-"
+                          "equivalent and expected-cost MPC on the same paths over --steps steps; 0 skips it "
+                          "(default: 100), e.g. --mpc-samples 400")
     sim.add_argument("--save", metavar="FILE.npz",
                      help="save closed-loop trajectories (first 1000 runs) and curves (default: none), "
                           "e.g. --save runs.npz")

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..model.files import load_constraints
 from ..montecarlo.markov import EXACT_PLAN
 from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
@@ -56,6 +57,11 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     system = system_of(args)
     strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
+    constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
+    mpc_samples = getattr(args, "mpc_samples", 0)
+    if constraints is not None and mpc_samples and args.law == "dp":
+        raise InputError("--law", "the constrained loop runs the protocols' programs: --law tcp, udp or all "
+                                  "(or --mpc-samples 0 to skip it)")
     if strategies and not args.closed_loop:
         raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop")
     if strategies and system.channel is not None:
@@ -89,6 +95,13 @@ def run(args: argparse.Namespace) -> CommandResult:
     if strategies:     # the laws' loops when the actuator zeroes, holds or plays the buffered plan on a loss
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
                                                            args.seed)
+        text = "\n".join([text, *more])
+    if constraints is not None and mpc_samples:     # the [constraints] table: the constrained receding-horizon loop
+        from .mpc_section import constrained_loop_section  # cvxpy (1.5 s to import) only where a program is solved
+
+        protocols = ("tcp", "udp") if args.law == "all" else (args.law,)
+        data["constrained_loop"], more = constrained_loop_section(system, constraints, protocols, mpc_samples,
+                                                                  args.steps, args.seed, progress_of(args))
         text = "\n".join([text, *more])
     if system.sensor is not None and args.closed_loop:     # lossy sensor links
         data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)

@@ -1,0 +1,84 @@
+"""``simulate FILE`` with a ``[constraints]`` table: the constrained receding-horizon loop (montecarlo/mpc.py), the
+clipped unconstrained law, certainty-equivalent and expected-cost MPC on the same sample paths."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..model.constraints import Constraints
+from ..model.system import System
+from ..montecarlo.mpc import INFEASIBLE_ACTION, simulate_mpc
+from ..results.mpc import ControllerRun, Frequency, MPCSimulation
+
+__all__ = ["LABELS", "constrained_loop_section"]
+
+#: How each controller is named in the text.
+LABELS = {"clipped": "unconstrained law clipped to the bounds", "certainty-equivalent": "certainty-equivalent MPC "
+          "(mu = 1)", "expected-cost": "expected-cost MPC"}
+
+
+def constrained_loop_section(system: System, constraints: Constraints, protocols: tuple[str, ...], samples: int,
+                             steps: int, seed: int, progress: bool | None) -> tuple[dict[str, Any], list[str]]:
+    """The ``"constrained_loop"`` JSON entry (`MPCSimulation.to_dict`) and its text lines.
+
+    Raises
+    ------
+    InputError
+        Named after the flag (``--mpc-samples``, ``--steps``, ``--seed``).
+    """
+    try:
+        sim = simulate_mpc(system, constraints, samples, steps, seed, protocols=protocols, progress=progress)
+    except InputError as err:
+        raise err.renamed({"samples": "--mpc-samples", "steps": "--steps", "seed": "--seed"}.get(err.field,
+                                                                                                   err.field)) from None
+    return sim.to_dict(), _text(sim)
+
+
+def _percent(value: float) -> str:
+    return f"{100 * value:.3g}%"
+
+
+def _interval(ci: tuple[float, float]) -> str:
+    return f"[{_percent(ci[0])}, {_percent(ci[1])}]"
+
+
+def _violation(v: Frequency) -> str:
+    allowed = f", allowed {_percent(v.allowed)} per step" if v.allowed else ""
+    return (f"{v.name}: {_percent(v.frequency)} of run-steps; worst step {v.worst_step + 1}: "
+            f"{_percent(v.worst_frequency)} {_interval(v.worst_ci)}; runs {_percent(v.runs_with / v.runs)} "
+            f"{_interval(v.runs_ci)}{allowed}")
+
+
+def _run_lines(run: ControllerRun) -> list[str]:
+    spread = f" +- {run.stderr:.3g}" if np.isfinite(run.stderr) else ""
+    lines = [f"    {LABELS[run.controller]}: mean stage cost {run.mean_stage_cost:.6g}{spread}"]
+    if run.infeasible is not None:
+        f = run.infeasible
+        lines.append(f"      infeasible at {_percent(f.frequency)} of run-steps (runs {_percent(f.runs_with / f.runs)} "
+                     f"{_interval(f.runs_ci)}); soft fallback {run.fallback_steps} steps, no trusted answer "
+                     f"{run.failed_steps} steps")
+    violated = [v for v in run.violations if v.count]
+    lines += [f"      violated {_violation(v)}" for v in violated]
+    if not violated:
+        lines.append("      no constraint violated")
+    return lines
+
+
+def _text(sim: MPCSimulation) -> list[str]:
+    confidence = next((v.confidence for runs in sim.runs.values() for run in runs.values() for v in run.violations),
+                      None)
+    level = f"; intervals Wilson {_percent(confidence)}" if confidence else ""
+    lines = [f"  constrained loop ([constraints]): {sim.samples} runs of {sim.steps} steps, seed {sim.seed}, "
+             f"the same paths for every controller{level}",
+             f"    (on infeasibility: {INFEASIBLE_ACTION})"]
+    if sim.channel != "bernoulli":
+        lines.append("    (behind the chain every program is the plug-in one, planned with the predicted mu_t of the "
+                     "controller's belief: filtered by the acknowledgements TCP-like, the prior propagated UDP-like)")
+    for protocol, runs in sim.runs.items():
+        lines.append(f"  {protocol.upper()}-like information")
+        for run in runs.values():
+            lines += _run_lines(run)
+    return lines

@@ -1,0 +1,368 @@
+"""The constrained receding-horizon loop over lossy links, sampled: model predictive control re-solved from each
+realised state, the first input sent through the link (a lost packet applies zero), under Bernoulli or chain
+losses and process noise.
+
+Three controllers run on the same sample paths (deliveries, chain states, noise):
+
+* ``"clipped"``: the protocol's unconstrained receding-horizon law ``u = -K x`` (Theorem 1's first block; behind a
+  chain, the plug-in law at the controller's belief, as `markov_loop`'s) clipped to the input bounds and to
+  ``u_prev +- du_max`` (the usual saturation and rate-limiter heuristic);
+* ``"certainty-equivalent"``: the constrained program of `ConstrainedQP` planned as if every packet arrived
+  (mu = 1 in the model: the TCP-like and UDP-like programs coincide, so one run serves both protocols);
+* ``"expected-cost"``: the constrained expected-cost program of the protocol with the controller's delivery
+  probabilities.
+
+Information: TCP-like controllers filter their belief about a chain by every acknowledged outcome (the HMM
+filter), UDP-like ones propagate the prior; under Bernoulli losses both plan with the channel's mu. Behind a
+chain the program is the plug-in one (the Bernoulli model of the predicted mu_t: its chance rows' variances take
+the losses as independent, so their realised frequencies are what tells). Both know the inputs they commanded:
+the rate bound links the first input of a plan to the previous command (the actuator at rest, zero, before the
+first), through a Parameter added with `ConstrainedQP.add_constraints` (its KKT check then covers the package's
+rows only, so it is skipped; the forward-cost check stays).
+
+Infeasible programs: the expected-state limits and chance rows of the hard program can have no plan from a
+realised state (a loss leaves the state where no plan brings its expectation back inside). The controller then
+does what a predictive-control engineer expects of a deployed controller: it solves the soft program (the same
+rows as exact penalties of weight ``soft_weight``, input and rate bounds hard, always feasible) and applies its
+first input; the step counts as infeasible and as a fallback. Where no program gives a trusted answer (a
+`SolverError` or `NumericalError`: never read as a verdict) it plays the rest of its last plan (zero past its end)
+and counts the step as failed.
+
+Draws: ``SeedSequence(seed).spawn(2)[1]``, one child per block of `BLOCK` runs, each spawning the losses' and the
+noise's streams (`simulate`'s closed loop: on the same seed the unconstrained loop sees the same paths).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+from scipy import stats
+
+from ..closedloop.moments import stationary_channel
+from ..errors import InfeasibleError, InputError, NumericalError, SolverError
+from ..lq.costs import closed_form
+from ..model.chain import attach_channel, filter_belief
+from ..model.constraints import Constraints, check_constraints
+from ..model.system import System, check_system
+from ..progress import progress_bar
+from ..qp.constrained import ConstrainedQP
+from ..results.mpc import ControllerRun, Frequency, MPCSimulation
+from ..tolerances import CONSTRAINED_ACTIVE_RTOL
+from .channels import sample_delivery_paths, sample_noise_paths
+from .markov_channels import sample_markov_paths
+from .markov_loop import BeliefGains
+from .runs import check_count, run_blocks, sample_stats
+
+__all__ = ["CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "loop_paths", "simulate_mpc", "wilson_interval"]
+
+#: The controllers compared, in the order they are reported.
+CONTROLLERS = ("clipped", "certainty-equivalent", "expected-cost")
+#: The level of every confidence interval.
+CONFIDENCE = 0.95
+#: What a controller does when its hard program is infeasible (ControllerRun.action).
+INFEASIBLE_ACTION = ("solve the soft program (state limits and chance rows as exact penalties, input and rate bounds "
+                     "hard) and apply its first input; where no program gives a trusted answer, play the rest of the "
+                     "last plan")
+
+
+def wilson_interval(count: int, trials: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """The Wilson score interval of a binomial proportion (scipy.stats.binomtest). O(1).
+
+    Examples
+    --------
+    >>> lo, hi = wilson_interval(0, 20)                     # no event in 20 trials: [0, z^2 / (20 + z^2)]
+    >>> lo, round(hi, 4)
+    (0.0, 0.1611)
+    """
+    ci = stats.binomtest(int(count), int(trials)).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def frequency(name: str, flags: np.ndarray, allowed: float = 0.0) -> Frequency:
+    """The `Frequency` of an event flagged (runs, steps). O(runs steps).
+
+    Examples
+    --------
+    >>> f = frequency("x", np.array([[True, False], [True, True], [False, False]]))
+    >>> f.count, f.worst_step, f.worst_frequency, f.runs_with, f.step_counts.tolist()
+    (3, 0, 0.6666666666666666, 2, [2, 1])
+    """
+    runs, steps = flags.shape
+    per_step = flags.sum(axis=0)
+    worst = int(np.argmax(per_step))
+    hit = int(flags.any(axis=1).sum())
+    return Frequency(name=name, allowed=float(allowed), step_counts=per_step, runs=runs, count=int(flags.sum()),
+                     frequency=float(flags.mean()), worst_step=worst, worst_frequency=float(per_step[worst] / runs),
+                     worst_ci=wilson_interval(per_step[worst], runs), runs_with=hit,
+                     runs_ci=wilson_interval(hit, runs), confidence=CONFIDENCE)
+
+
+def loop_paths(system: System, samples: int, steps: int, seed: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """Deliveries (steps, samples, m) and noise (steps, samples, n) or None of the loop's runs: `simulate`'s
+    closed-loop streams (`BLOCK` runs per child of ``SeedSequence(seed).spawn(2)[1]``, each spawning losses then
+    noise), the chain sampled per run behind a Markov channel (`sample_markov_paths`). O(samples steps (n + m))."""
+    blocks = run_blocks(samples)
+    streams = np.random.SeedSequence(seed).spawn(2)[1].spawn(len(blocks))
+    V, W = [], []
+    for size, stream in zip(blocks, streams, strict=True):
+        losses, noise = (np.random.default_rng(child) for child in stream.spawn(2))
+        if system.channel is None:
+            V.append(sample_delivery_paths(system, steps, size, losses))
+        else:
+            V.append(sample_markov_paths(system.channel, steps, size, losses)[1].swapaxes(0, 1))
+        W.append(sample_noise_paths(system, steps, size, noise))
+    return np.concatenate(V, axis=1), None if W[0] is None else np.concatenate(W, axis=1)
+
+
+class _Program:
+    """One compiled constrained program (and, on the first infeasibility, its soft twin), with the rate bound
+    linked to the previous command."""
+
+    def __init__(self, twin: System, protocol: str, constraints: Constraints) -> None:
+        self.twin, self.protocol, self.constraints = twin, protocol, constraints
+        self.hard = self._compile(constraints)
+        self.soft = self.hard if constraints.soft else None
+
+    def _compile(self, constraints: Constraints) -> tuple[ConstrainedQP, cp.Parameter | None]:
+        qp = ConstrainedQP(self.twin, self.protocol, constraints)
+        du = constraints.du_max
+        if du is None or not np.isfinite(du).any():
+            return qp, None
+        previous = cp.Parameter(self.twin.m, name="u_prev")
+        rows = np.flatnonzero(np.isfinite(du))
+        qp.add_constraints([cp.abs(qp.U[0, rows] - previous[rows]) <= du[rows]])
+        return qp, previous
+
+    def _solve(self, program: tuple[ConstrainedQP, cp.Parameter | None], mu: np.ndarray | None, x: np.ndarray,
+               previous: np.ndarray) -> Any:
+        qp, parameter = program
+        if parameter is not None:
+            parameter.value = previous
+        return qp.solve(mu=mu, x0=x)
+
+    def plan(self, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray | None, str, bool]:
+        """``(plan or None, outcome, slack used)``; outcome "ok", "fallback" (hard infeasible, soft solved),
+        "failed"."""
+        try:
+            sol = self._solve(self.hard, mu, x, previous)
+            return sol.inputs, "ok", bool(sol.violations)
+        except InfeasibleError:
+            if self.soft is None:
+                soft = Constraints(**{**self.constraints.to_dict(), "soft": True})
+                self.soft = self._compile(soft)
+            try:
+                sol = self._solve(self.soft, mu, x, previous)
+            except (SolverError, NumericalError, InfeasibleError):
+                return None, "infeasible-failed", False
+            return sol.inputs, "fallback", bool(sol.violations)
+        except (SolverError, NumericalError):
+            return None, "failed", False
+
+
+def _rows(c: Constraints, n: int, m: int) -> list[tuple[str, str, Any, float]]:
+    """The rows checked in the loop: (name, kind, data, allowed frequency)."""
+    rows = []
+    for name in ("u_max", "u_min", "du_max"):
+        values = getattr(c, name)
+        if values is not None:
+            rows += [(f"{name}[{i}]", name, (i, float(values[i])), 0.0) for i in np.flatnonzero(np.isfinite(values))]
+    for name in ("x_max", "x_min"):
+        values = getattr(c, name)
+        if values is not None:
+            rows += [(f"{name}[{j}]", name, (j, float(values[j])), 0.0) for j in np.flatnonzero(np.isfinite(values))]
+    if c.F is not None:
+        rows += [(f"F[{r}]", "F", (c.F[r], float(c.g[r])), 0.0) for r in np.flatnonzero(np.isfinite(c.g))]
+    rows += [(f"chance[{i}]", "chance", (a, b), eps) for i, (a, b, eps) in enumerate(c.chance)]
+    return rows
+
+
+def _violated(kind: str, data: Any, u: np.ndarray, du: np.ndarray, x_next: np.ndarray) -> np.ndarray:
+    """Each run's violation of one row at one step (beyond CONSTRAINED_ACTIVE_RTOL max(1, |bound|), the solver's
+    feasibility with a margin)."""
+    if kind in ("F", "chance"):
+        a, b = data
+        value, bound = x_next @ a, b
+    else:
+        i, bound = data
+        value = {"u_max": u, "u_min": -u, "du_max": np.abs(du), "x_max": x_next, "x_min": -x_next}[kind][:, i]
+        bound = -bound if kind in ("u_min", "x_min") else bound
+    return value - bound > CONSTRAINED_ACTIVE_RTOL * max(1.0, abs(bound))
+
+
+class _Beliefs:
+    """Each run's delivery schedule: the channel's mu (Bernoulli), or the predicted mu_t at the belief (a chain:
+    TCP-like filtered by every outcome, UDP-like the prior propagated), cached per distinct belief."""
+
+    def __init__(self, system: System, protocol: str, samples: int) -> None:
+        self.system, self.protocol, self.channel = system, protocol, system.channel
+        self.cache: dict[bytes, np.ndarray] = {}
+        if self.channel is not None:
+            self.belief = np.repeat(self.channel.initial_belief[None], samples, axis=0)
+
+    def schedule(self, run: int) -> np.ndarray | None:
+        if self.channel is None:
+            return None
+        row = np.round(self.belief[run], 12)
+        key = row.tobytes()
+        if key not in self.cache:
+            self.cache[key] = attach_channel(self.system, self.channel.with_belief(row)).mu_schedule
+        return self.cache[key]
+
+    def update(self, delivered: np.ndarray) -> None:
+        if self.channel is None:
+            return
+        self.belief = (filter_belief(self.channel, self.belief, delivered) if self.protocol == "tcp"
+                       else np.repeat(self.channel.propagate(self.belief[0])[None], len(self.belief), axis=0))
+
+
+def _run(system: System, twin: System, constraints: Constraints, controller: str, protocol: str,
+         V: np.ndarray, W: np.ndarray | None, bar: Any) -> ControllerRun:
+    """One controller over every sampled path. Time O(samples steps) solves (none for "clipped")."""
+    steps, samples, m = V.shape
+    n = system.n
+    A, B, Omega, psi = system.A, system.B, system.state_weights[0], system.input_weights[0]
+    c = constraints
+    lo = np.full(m, -np.inf) if c.u_min is None else c.u_min
+    hi = np.full(m, np.inf) if c.u_max is None else c.u_max
+    rate = np.full(m, np.inf) if c.du_max is None else c.du_max
+    rows = _rows(c, n, m)
+    flags = {name: np.zeros((samples, steps), dtype=bool) for name, *_ in rows}
+    infeasible = np.zeros((samples, steps), dtype=bool)
+    fallback = failed = slack = 0
+    beliefs = _Beliefs(system, "tcp" if controller == "certainty-equivalent" else protocol, samples)
+    program = gains = None
+    if controller == "clipped":
+        gains = BeliefGains(system, protocol) if system.channel is not None else closed_form(twin, protocol).gain
+    elif controller == "certainty-equivalent":
+        program = _Program(twin.with_mu(np.ones(m)), "tcp", c)
+    else:
+        program = _Program(twin, protocol, c)
+    N = twin.horizon
+    X = np.repeat(system.x0[None], samples, axis=0)
+    previous = np.zeros((samples, m))
+    plans, age = np.zeros((samples, N, m)), np.zeros(samples, dtype=int)
+    stage = np.empty((samples, steps))
+    for t in range(steps):
+        if controller == "clipped":
+            K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains, (samples, m, n))
+            u = np.clip(-np.einsum("smn,sn->sm", K, X), np.maximum(lo, previous - rate),
+                        np.minimum(hi, previous + rate))
+        else:
+            u = np.empty((samples, m))
+            for s in range(samples):
+                if not np.all(np.isfinite(X[s])):
+                    raise NumericalError(f"the {controller} loop's state left the double-precision range at step {t}")
+                mu = None if controller == "certainty-equivalent" else beliefs.schedule(s)
+                plan, outcome, used = program.plan(mu, X[s], previous[s])
+                infeasible[s, t] = outcome in ("fallback", "infeasible-failed")
+                slack += used
+                if plan is None:
+                    failed += 1
+                    age[s] += 1
+                    u[s] = plans[s, age[s]] if age[s] < N else 0.0
+                else:
+                    fallback += outcome == "fallback"
+                    plans[s], age[s] = plan, 0
+                    u[s] = plan[0]
+        applied = V[t] * u
+        stage[:, t] = np.einsum("si,ij,sj->s", X, Omega, X) + applied ** 2 @ psi
+        X_next = X @ A.T + applied @ B.T
+        if W is not None:
+            X_next += W[t]
+        for name, kind, data, _ in rows:
+            flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
+        X, previous = X_next, u
+        beliefs.update(V[t])
+        bar.update(1)
+    mean, stderr = sample_stats(stage.mean(axis=1))
+    return ControllerRun(
+        controller=controller, protocol=protocol, mean_stage_cost=mean, stderr=stderr,
+        stage_cost_mean=stage.mean(axis=0),
+        violations=tuple(frequency(name, flags[name], allowed) for name, _, _, allowed in rows),
+        infeasible=None if program is None else frequency("infeasible", infeasible),
+        fallback_steps=int(fallback), failed_steps=int(failed), slack_steps=int(slack), action=INFEASIBLE_ACTION)
+
+
+def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, steps: int = 30, seed: int = 0,
+                 protocols: Sequence[str] = ("tcp", "udp"), controllers: Sequence[str] = CONTROLLERS,
+                 progress: bool | None = None) -> MPCSimulation:
+    """The constrained receding-horizon loop sampled, each controller on the same paths (module docstring).
+
+    Parameters
+    ----------
+    system : System
+        A stationary Bernoulli channel, or a Markov (Gilbert–Elliott) one sampled per run.
+    constraints : Constraints or mapping (the ``[constraints]`` table)
+    samples : int
+        Runs (>= 2). Each controller with a program solves it samples × steps times.
+    steps : int
+        Loop steps (>= 1).
+    seed : int
+    protocols : sequence of {"tcp", "udp"}
+    controllers : sequence of `CONTROLLERS`
+    progress : bool, optional
+
+    Returns
+    -------
+    MPCSimulation
+        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols.
+
+    Raises
+    ------
+    InputError
+        A count below its minimum, an unknown protocol or controller, a non-stationary Bernoulli schedule, or
+        constraints that do not fit the system.
+    NumericalError
+        A loop's state beyond the double-precision range.
+
+    Notes
+    -----
+    Time O(controllers samples steps) solves of the program (about 5 ms each at n = 2, N = 8), plus
+    O(samples steps n (n + m)) for the clipped law.
+
+    Examples
+    --------
+    x' = x + v u from x0 = 1, mu = 1/2, |u| <= 0.3: the clipped law and the programs saturate alike at the first step
+    (nothing else binds: the expected state has no limit)
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> sim = simulate_mpc(s, Constraints(u_min=[-0.3], u_max=[0.3]), samples=4, steps=2, protocols=["tcp"])
+    >>> [sim.runs["tcp"][c].violation("u_min[0]").count for c in CONTROLLERS]
+    [0, 0, 0]
+    """
+    system = check_system(system)
+    constraints = check_constraints(constraints, system.n, system.m)
+    samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
+    seed = check_count(seed, "seed", 0)
+    protocols = list(dict.fromkeys(protocols))
+    for p in protocols:
+        if p not in ("tcp", "udp"):
+            raise InputError("protocol", f"expected tcp or udp, found {p!r}")
+    for name in controllers:
+        if name not in CONTROLLERS:
+            raise InputError("controller", f"expected some of {', '.join(CONTROLLERS)}, found {name!r}")
+    if not protocols or not controllers:
+        raise InputError("protocol" if not protocols else "controller", "expected at least one")
+    if system.channel is None:
+        twin = system.with_mu(stationary_channel(system))
+        channel = "bernoulli"
+    else:
+        twin = system.with_mu(system.mu_schedule)
+        channel = system.channel.form
+    V, W = loop_paths(system, samples, steps, seed)
+    names = [name for name in CONTROLLERS if name in controllers]
+    count = sum(len(protocols) if name != "certainty-equivalent" else 1 for name in names)
+    runs: dict[str, dict[str, ControllerRun]] = {p: {} for p in protocols}
+    with progress_bar(total=count * steps, desc="simulate (constrained loop)", progress=progress) as bar:
+        for name in names:
+            shared = None
+            for p in protocols:
+                if name == "certainty-equivalent" and shared is not None:
+                    runs[p][name] = shared
+                    continue
+                runs[p][name] = shared = _run(system, twin, constraints, name, p, V, W, bar)
+    return MPCSimulation(samples=samples, steps=steps, seed=seed, channel=channel,
+                         constraints=constraints.to_dict(), runs=runs)

@@ -1,0 +1,143 @@
+"""The constrained receding-horizon loop sampled (montecarlo/mpc.py): each constraint's violation frequency with its
+confidence intervals, the infeasibility frequency and what the controller did then, and the realised cost, per
+controller and protocol."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .base import Frozen, finite_or_none
+
+__all__ = ["ControllerRun", "Frequency", "MPCSimulation"]
+
+
+@dataclass(frozen=True)
+class Frequency(Frozen):
+    """How often an event (a constraint violated, the QP infeasible) happened over ``runs`` sampled runs of
+    ``steps`` steps.
+
+    Attributes
+    ----------
+    name : str
+        The constraint ("x_max[0]", "chance[1]", "du_max[0]", ...) or "infeasible".
+    allowed : float
+        The frequency the controller's design allows: a chance row's eps, 0 for a hard limit.
+    step_counts : ndarray (steps,)
+        Runs with the event at each step.
+    runs : int
+        Sampled runs (independent).
+    count : int
+        Run-steps with the event; ``frequency = count / (runs steps)``, pooled over the steps (steps of one run are
+        dependent: no interval is given for the pooled number).
+    worst_step : int
+        The step with the most events; ``worst_frequency`` its frequency over the runs, ``worst_ci`` its Wilson
+        interval (independent runs). For a chance row P(a'x_k > b) <= eps at each k, compare eps with this (a
+        maximum over the steps: it leans high).
+    runs_with : int
+        Runs with the event at some step; ``runs_ci`` the Wilson interval of ``runs_with / runs``.
+    confidence : float
+        The intervals' level.
+    """
+
+    name: str
+    allowed: float
+    step_counts: np.ndarray
+    runs: int
+    count: int
+    frequency: float
+    worst_step: int
+    worst_frequency: float
+    worst_ci: tuple[float, float]
+    runs_with: int
+    runs_ci: tuple[float, float]
+    confidence: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain numbers and lists. O(steps)."""
+        return {"name": self.name, "allowed": self.allowed, "count": self.count, "frequency": self.frequency,
+                "worst_step": self.worst_step, "worst_frequency": self.worst_frequency,
+                "worst_ci": list(self.worst_ci), "runs_with": self.runs_with,
+                "runs_fraction": self.runs_with / self.runs, "runs_ci": list(self.runs_ci),
+                "confidence": self.confidence, "step_counts": self.step_counts.tolist()}
+
+
+@dataclass(frozen=True)
+class ControllerRun(Frozen):
+    """One controller in the sampled loop.
+
+    Attributes
+    ----------
+    controller : {"clipped", "certainty-equivalent", "expected-cost"}
+    protocol : {"tcp", "udp"}
+        Whose information and cost it plans with ("certainty-equivalent": mu = 1, the same for both).
+    mean_stage_cost, stderr : float
+        The mean over runs of each run's mean stage cost ``x_t' Omega x_t + a_t' Psi a_t`` (a_t the applied input),
+        t < steps, and its standard error.
+    stage_cost_mean : ndarray (steps,)
+    violations : tuple of Frequency
+        One per constraint row (input and rate bounds on the commanded inputs, state limits and chance rows on the
+        realised states x_1..x_steps).
+    infeasible : Frequency or None
+        Steps whose hard program was proven infeasible (None for the clipped law, which solves nothing).
+    fallback_steps : int
+        Steps that applied the soft program's first input (the action on infeasibility).
+    failed_steps : int
+        Steps where no program gave a trusted answer and the rest of the last plan was played (zero past its end).
+    slack_steps : int
+        Steps whose applied plan used slack on a soft row (the fallback's, or a soft program's own).
+    action : str
+        What the controller does when its program is infeasible.
+    """
+
+    controller: str
+    protocol: str
+    mean_stage_cost: float
+    stderr: float
+    stage_cost_mean: np.ndarray
+    violations: tuple[Frequency, ...]
+    infeasible: Frequency | None
+    fallback_steps: int
+    failed_steps: int
+    slack_steps: int
+    action: str
+
+    def violation(self, name: str) -> Frequency:
+        """The `Frequency` of the constraint row ``name``."""
+        return next(v for v in self.violations if v.name == name)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain numbers and lists. O(rows steps)."""
+        return {"controller": self.controller, "protocol": self.protocol,
+                "mean_stage_cost": finite_or_none(self.mean_stage_cost), "stderr": finite_or_none(self.stderr),
+                "stage_cost_mean": [finite_or_none(v) for v in self.stage_cost_mean],
+                "violations": {v.name: v.to_dict() for v in self.violations},
+                "infeasible": None if self.infeasible is None else self.infeasible.to_dict(),
+                "fallback_steps": self.fallback_steps, "failed_steps": self.failed_steps,
+                "slack_steps": self.slack_steps, "action": self.action}
+
+
+@dataclass(frozen=True)
+class MPCSimulation(Frozen):
+    """The constrained loop sampled: every controller on the same sample paths (deliveries, chain states, noise).
+
+    ``runs[protocol][controller]`` is a `ControllerRun`; ``channel`` "bernoulli", "gilbert-elliott" or "markov";
+    ``constraints`` the ``[constraints]`` table run.
+    """
+
+    samples: int
+    steps: int
+    seed: int
+    channel: str
+    constraints: dict
+    runs: dict
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"samples", "steps", "seed", "channel", "constraints", "tcp": {controller: ...}, "udp": {...}}``."""
+        out: dict[str, Any] = {"samples": self.samples, "steps": self.steps, "seed": self.seed,
+                               "channel": self.channel, "constraints": self.constraints}
+        for protocol, controllers in self.runs.items():
+            out[protocol] = {name: run.to_dict() for name, run in controllers.items()}
+        return out
