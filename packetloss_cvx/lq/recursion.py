@@ -33,7 +33,7 @@ import math
 import numpy as np
 
 from ..errors import NumericalError
-from ..linalg import check_finite, lapack_dgesv
+from ..linalg import check_finite, lapack, lapack_dgesv
 from ..model.protocols import check_protocol
 from ..model.system import System
 from ..tolerances import PLAN_COST_RTOL, STATIONARY_RTOL
@@ -469,13 +469,23 @@ def _doubling(A: np.ndarray, F: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, 
     and ``F_2 F_2' = F F' + A F S^{-1} F'A'`` (S = I + F'HF = C C'): the factor ``[F, A F C'^{-1}]``, compressed to
     n columns by a QR factorisation. G = F F' is never formed: rounding G would give every direction some control,
     and the cost-to-go in the directions B reaches weakly is sensitive to it (3.9e-13 against 1.2e-14 relative on a
-    rank-one B M, measured against an 80-bit pass). O(n^3)."""
-    r = F.shape[1]
+    rank-one B M, measured against an 80-bit pass). The factorisations are LAPACK's own (``dpotrf``, the triangular
+    solve ``dtrtrs``, ``dgeqrf``): on n rows NumPy's wrappers cost several times their work. O(n^3); raises
+    ``numpy.linalg.LinAlgError`` where S is not positive definite (a map that is not finite)."""
+    n, r = A.shape[0], F.shape[1]
     K, H2 = riccati_step(H, A, F, np.ones(r), np.ones(r), H)
-    C = np.linalg.cholesky(np.eye(r) + F.T @ H @ F)
-    factor = np.concatenate([F, np.linalg.solve(C, (A @ F).T).T], axis=1)
-    if factor.shape[1] > A.shape[0]:
-        factor = np.linalg.qr(factor.T, mode="r").T
+    S = F.T @ (H @ F)
+    S.flat[:: r + 1] += 1.0
+    C, info = lapack("dpotrf")(S, lower=1, clean=1)               # S = C C'
+    if info != 0:
+        raise np.linalg.LinAlgError("S = I + F'HF is not positive definite")
+    Y, info = lapack("dtrtrs")(C, (A @ F).T, lower=1)             # C^-1 (A F)'
+    if info != 0:
+        raise np.linalg.LinAlgError("singular Cholesky factor")
+    factor = np.concatenate([F, Y.T], axis=1)
+    if factor.shape[1] > n:                                        # R of factor' = Q R: factor factor' = R'R
+        qr = lapack("dgeqrf")(factor.T)[0]
+        factor = np.triu(qr[:n]).T
     return A @ (A - F @ K), factor, H2
 
 
