@@ -891,23 +891,29 @@ def _scanned_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndar
     """Steps a..b-1 of the time-varying gains K[:, a:b] from x_a = ``state`` (P, n) by a work-efficient scan
     (Blelloch's up-sweep of pairwise products of the closed loops ``L_t = A - B M_t K_t``, then a down-sweep of
     the states at the block starts; row vectors, ``x_{t+1}' = x_t' L_t'``): 2 log2(b - a) stacked products
-    instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b.
-    O(P (b - a) n^3)."""
+    instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b. A level of
+    odd length carries its last product up unpaired (the products a padding with identities would give, without
+    their work). O(P (b - a) n^3)."""
     P, n, m, L = state.shape[0], structure.n, structure.m, b - a
-    T = 1 << (L - 1).bit_length()                            # padded to a power of two with identities
-    loops = np.empty((P, T, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
+    loops = np.empty((P, L, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
     MK = np.ascontiguousarray((K[:, a:b] * mu[:, a:b, :, None]).swapaxes(-1, -2))
-    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(P, L, n, n), out=loops[:, :L])
-    loops[:, L:] = np.eye(n)
+    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(P, L, n, n), out=loops)
     levels = [loops]
     while levels[-1].shape[1] > 1:                           # products of 2, 4, ... consecutive steps
         level = levels[-1]
-        levels.append(np.matmul(level[:, 0::2], level[:, 1::2]))
+        k = level.shape[1]
+        half = k // 2
+        up = np.empty((P, k - half, n, n))
+        np.matmul(level[:, 0:2 * half:2], level[:, 1:2 * half:2], out=up[:, :half])
+        if k % 2:
+            up[:, half] = level[:, k - 1]
+        levels.append(up)
     starts = state[:, None, None, :]                          # (P, blocks, 1, n): the state at each block's start
     for level in reversed(levels[:-1]):
-        inner = np.empty((P, 2 * starts.shape[1], 1, n))
+        k = level.shape[1]
+        inner = np.empty((P, k, 1, n))
         inner[:, 0::2] = starts
-        np.matmul(starts, level[:, 0::2], out=inner[:, 1::2])
+        np.matmul(starts[:, :k // 2], level[:, 0:k - k % 2:2], out=inner[:, 1::2])
         starts = inner
     xs = starts[:, :L, 0]                                     # x_a .. x_{b-1}
     np.negative(np.einsum("ptij,ptj->pti", K[:, a:b], xs), out=U[:, a:b])
