@@ -383,6 +383,7 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
             maps = (A, B * np.sqrt(mu1[0] / add1[0]), Q)                   # Phi itself
             for _ in range(c.bit_length() - 1):
                 maps = _doubling(*maps)                                    # Phi^c
+            reach = 1                                                      # maps = Phi^(c reach)
             coarse = P_top[None]                                           # coarse[j] = P_{top - j c}
             floor = 1
             while True:
@@ -398,8 +399,9 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
                         hit = near & (change * (q / (1.0 - q ** c)) <= STATIONARY_RTOL * size)
                         trigger = floor + int(np.argmax(hit)) if hit.any() else None
                 if trigger is None and J < last:
+                    if reach < J:                      # doubled only when a power needs it, not after the last
+                        maps, reach = _doubling(*maps), 2 * reach
                     coarse = np.concatenate([coarse, _power(*maps, coarse[:min(J, last - J)])])
-                    maps = _doubling(*maps)
                     continue
                 used = J if trigger is None else trigger + 1
                 q, t, Pt = _fine_steps(structure, coarse[:used], mu1, add1, K, q, top)
