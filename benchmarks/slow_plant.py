@@ -11,7 +11,8 @@ settles) and its plan is rolled out through an unstable A. Each round runs one f
 scipy's solve_discrete_are on the same (A, B, Q, R) called back to back (the second call timed: a warm DARE),
 alternating, CPU time (``time.process_time``), medians over the repeats; the ratio closed_form / DARE per round, its
 median and range. The same processes return the cost, plan and gain at N and at N = 2000 and 300, also with mu =
-(0.9, 0.6) and (1, 0): the largest difference between the checkouts relative to each array's largest entry.
+(0.9, 0.6) and (1, 0): the largest difference between the checkouts relative to each array's largest entry. Last,
+the same figures as the Markdown table of docs/performance.md's section 20 (each checkout named by its commit).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import os
 import statistics
 import subprocess
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -106,6 +108,7 @@ def slow_plant(baseline: str | None, rows: list, rounds: int = 5, N: int = 10_00
             runs[name].append(_run(checkout, N, repeats))
     print(f"   {'checkout':<34} {'proto':>5} {'warm dare ms':>12} {'closed_form ms':>15} "
           f"{'/ dare, median (range)':>24}")
+    table = []
     for name, checkout in checkouts.items():
         for protocol in ("tcp", "udp"):
             times = [r["times"][protocol] for r in runs[name]]
@@ -114,6 +117,8 @@ def slow_plant(baseline: str | None, rows: list, rounds: int = 5, N: int = 10_00
             closed = statistics.median(t["closed"] for t in times) * 1e3
             print(f"   {str(checkout):<34} {protocol:>5} {dare:>12.3f} {closed:>15.3f} "
                   f"{statistics.median(ratios):>10.1f}x ({min(ratios):.1f}-{max(ratios):.1f})")
+            table.append(f"| {_commit(checkout)}, {protocol} | {dare:.3f} | {closed:.2f} | "
+                         f"{statistics.median(ratios):.1f}x ({min(ratios):.1f}–{max(ratios):.1f}) |")
             rows.append({"bench": "slow_plant", "checkout": str(checkout), "N": N, "protocol": protocol,
                          "warm_dare_ms": dare, "closed_ms": closed, "ratio_to_dare": statistics.median(ratios),
                          "ratio_range": [min(ratios), max(ratios)]})
@@ -121,13 +126,40 @@ def slow_plant(baseline: str | None, rows: list, rounds: int = 5, N: int = 10_00
         for protocol in ("tcp", "udp"):
             speedups = [b["times"][protocol]["closed"] / t["times"][protocol]["closed"]
                         for b, t in zip(runs["baseline"], runs["this"], strict=True)]
-            print(f"   {protocol}: baseline / this {statistics.median(speedups):.0f}x "
-                  f"({min(speedups):.0f}-{max(speedups):.0f})")
+            print(f"   {protocol}: baseline / this {statistics.median(speedups):.2f}x "
+                  f"({min(speedups):.2f}-{max(speedups):.2f})")
         worst, differ = _differences(runs["this"][0]["numbers"], runs["baseline"][0]["numbers"])
         print(f"   numbers (cost, plan, gain) of {len(runs['this'][0]['numbers'])} cases (N = 300, 2000, {N}; mu = 1, "
               f"(0.9, 0.6), (1, 0); both protocols): worst relative difference {worst:.1e}; outcomes that differ: "
               f"{differ or 'none'}")
         rows.append({"bench": "slow_plant_agreement", "worst_relative": worst, "outcomes_differ": differ})
+    _markdown(table, rounds, N, {name: _commit(path) for name, path in checkouts.items()},
+              (worst, differ, len(runs["this"][0]["numbers"])) if baseline else None)
+
+
+def _commit(checkout: Path) -> str:
+    """The checkout's commit (short hash, "+" when its tracked files differ from it), or its path outside git."""
+    try:
+        head = subprocess.run(["git", "-C", str(checkout), "rev-parse", "--short", "HEAD"], check=True,
+                              capture_output=True, text=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(checkout), "diff", "--quiet", "HEAD", "--"], check=False).returncode
+    except (OSError, subprocess.CalledProcessError):
+        return str(checkout)
+    return head + ("+" if dirty else "")
+
+
+def _markdown(table: list[str], rounds: int, N: int, commits: Mapping[str, str],
+              agreement: tuple[float, list[str], int] | None) -> None:
+    """The figures as docs/performance.md's section 20 table (pasted there as printed)."""
+    print(f"\n| closed_form, N = {N}, checkout and protocol | warm DARE ms | closed_form ms | / DARE, median "
+          f"(range), {rounds} rounds |")
+    print("|---|---|---|---|")
+    print("\n".join(table))
+    if agreement is not None:
+        worst, differ, cases = agreement
+        print(f"\nCosts, plans and gains of the {cases} cases (N = 300, 2000, {N}; mu = 1, (0.9, 0.6), (1, 0); both "
+              f"protocols): {commits['this']} against {commits['baseline']} within {worst:.1e} of each array's "
+              f"largest entry; outcomes that differ: {', '.join(differ) or 'none'}.")
 
 
 def main() -> None:
