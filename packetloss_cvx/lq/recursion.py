@@ -894,8 +894,9 @@ def _scanned_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndar
     (Blelloch's up-sweep of pairwise products of the closed loops ``L_t = A - B M_t K_t``, then a down-sweep of
     the states at the block starts; row vectors, ``x_{t+1}' = x_t' L_t'``): 2 log2(b - a) stacked products
     instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b. A level of
-    odd length carries its last product up unpaired (the products a padding with identities would give, without
-    their work). O(P (b - a) n^3)."""
+    odd length carries its last entry up unpaired: the products a padding to a power of two with identities gives,
+    without the padding's work (the down-sweep reads no product that holds the last step's loop, which enters only
+    x_b). O(P (b - a) n^3)."""
     P, n, m, L = state.shape[0], structure.n, structure.m, b - a
     loops = np.empty((P, L, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
     MK = np.ascontiguousarray((K[:, a:b] * mu[:, a:b, :, None]).swapaxes(-1, -2))
