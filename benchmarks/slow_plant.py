@@ -1,7 +1,7 @@
 """Section 20 of benchmarks/run.py: closed_form on a slowly converging plant against scipy's DARE, this checkout beside
 a baseline checkout, and whether both give the same numbers.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/slow_plant.py [--baseline ../main] [--rounds 5] [--N 10000]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/slow_plant.py [--baseline ../main] [--rounds 5] [--N 10000] [--stages]
 
 The plant: the paper's pendulum A (packetloss_cvx/model/examples/pendulum.toml, rho(A) = 1.06) with two inputs,
 B = [[0.001, 0.2], [0.540, 0.0], [-0.002, 0.1], [-1.066, 0.3]], weights diag(5, 1, 1, 1) and (2, 1),
@@ -13,6 +13,12 @@ alternating, CPU time (``time.process_time``), medians over the repeats; the rat
 median and range. The same processes return the cost, plan and gain at N and at N = 2000 and 300, also with mu =
 (0.9, 0.6) and (1, 0): the largest difference between the checkouts relative to each array's largest entry. Last,
 the same figures as the Markdown table of docs/performance.md's section 20 (each checkout named by its commit).
+
+``--stages``: where one TCP-like call's time goes in this checkout, in fresh processes (one per round, medians of
+the per-round medians): building the System (not part of the call), the backward pass (``backward_pass``), the
+rollout (``optimal_plan`` less the pass), the self-check's referee (``recursion_cost`` on the law's states), the
+Solution, the mean-square verdict (``with_stability``), against the whole call and a warm DARE. Each stage is
+timed alone through the public functions, so the parts add up to the call only roughly.
 """
 
 from __future__ import annotations
@@ -77,6 +83,66 @@ def _run(checkout: Path, N: int, repeats: int) -> dict:
     text = subprocess.run([sys.executable, "-c", RUN_CODE, arg], env=env, check=True, capture_output=True, text=True,
                           cwd=checkout).stdout
     return json.loads(text.strip().splitlines()[-1])
+
+
+#: One process: each stage of a TCP-like call timed alone (medians in ms), as JSON on the last line of stdout.
+STAGES_CODE = """
+import json, statistics, sys, time
+import numpy as np
+from scipy.linalg import solve_discrete_are
+import packetloss_cvx as pl
+from packetloss_cvx.closedloop.law_stability import with_stability
+from packetloss_cvx.lq import costs
+from packetloss_cvx.lq.recursion import backward_pass, optimal_plan, recursion_cost
+from packetloss_cvx.results import Solution
+data = json.loads(sys.argv[1])
+A, B = np.array(data["A"]), np.array(data["B"])
+Q, R = np.diag([5.0, 1.0, 1.0, 1.0]), np.diag([2.0, 1.0])
+def system():
+    return pl.System(A=A, B=B, horizon=data["N"], state_weight=[5, 1, 1, 1], input_weight=[2, 1], mu=[1.0, 1.0],
+                     x0=[0.1, 0, 0.1, 0])
+s = system()
+sol = costs.closed_form(s, "tcp", "recursion")
+K0, P0, noise, U, X = optimal_plan(s, "tcp")
+stages = {
+    "warm DARE": lambda: solve_discrete_are(A, B, Q, R),
+    "System construction (outside the call)": system,
+    "closed_form, the whole call": lambda: pl.closed_form(s, "tcp", "recursion"),
+    "backward pass (doubling, powers, batched steps)": lambda: backward_pass(s, "tcp"),
+    "backward pass and rollout (optimal_plan)": lambda: optimal_plan(s, "tcp"),
+    "self-check's referee (forward cost of the law's states)": lambda: recursion_cost(s, U, "tcp", None, X[1:]),
+    "Solution (eigenvalues, read-only copies)": lambda: Solution(
+        protocol="tcp", cost=sol.cost, inputs=U, gain=K0, closed_loop_eigenvalues=np.linalg.eigvals(A - B @ K0),
+        method="recursion"),
+    "mean-square verdict (with_stability)": lambda: with_stability(s, sol),
+}
+out = {}
+for name, fn in stages.items():
+    fn()
+    times = []
+    for _ in range(data["repeats"]):
+        start = time.process_time()
+        fn()
+        times.append(time.process_time() - start)
+    out[name] = statistics.median(times) * 1e3
+print(json.dumps(out))
+"""
+
+
+def stages(rounds: int = 5, N: int = 10_000, repeats: int = 41) -> dict[str, float]:
+    """``--stages`` (module docstring): the median over rounds of each stage's CPU ms, printed as a Markdown table."""
+    checkout = Path(__file__).resolve().parent.parent
+    env = {**os.environ, "PYTHONPATH": str(checkout), "OPENBLAS_NUM_THREADS": "1"}
+    arg = json.dumps({"A": A, "B": B, "N": N, "repeats": repeats})
+    runs = [json.loads(subprocess.run([sys.executable, "-c", STAGES_CODE, arg], env=env, check=True,
+                                      capture_output=True, text=True, cwd=checkout).stdout.strip().splitlines()[-1])
+            for _ in range(rounds)]
+    medians = {name: statistics.median(r[name] for r in runs) for name in runs[0]}
+    print(f"\n| stage of one TCP-like call, N = {N}, {_commit(checkout)} ({rounds} rounds) | CPU ms | / warm DARE |")
+    print("|---|---|---|")
+    for name, ms in medians.items():
+        print(f"| {name} | {ms:.3f} | {ms / medians['warm DARE']:.1f}x |")
+    return medians
 
 
 def _differences(new: dict, base: dict) -> tuple[float, list[str]]:
@@ -167,7 +233,11 @@ def main() -> None:
     parser.add_argument("--baseline", help="a checkout to compare with (before/after and the numbers)")
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--N", type=int, default=10_000)
+    parser.add_argument("--stages", action="store_true", help="where one call's time goes (this checkout only)")
     args = parser.parse_args()
+    if args.stages:
+        stages(args.rounds, args.N)
+        return
     slow_plant(args.baseline, [], args.rounds, args.N)
 
 
