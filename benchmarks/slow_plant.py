@@ -29,6 +29,7 @@ import os
 import statistics
 import subprocess
 import sys
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -223,9 +224,10 @@ def _markdown(table: list[str], rounds: int, N: int, commits: Mapping[str, str],
     print("\n".join(table))
     if agreement is not None:
         worst, differ, cases = agreement
-        print(f"\nCosts, plans and gains of the {cases} cases (N = 300, 2000, {N}; mu = 1, (0.9, 0.6), (1, 0); both "
-              f"protocols): {commits['this']} against {commits['baseline']} within {worst:.1e} of each array's "
-              f"largest entry; outcomes that differ: {', '.join(differ) or 'none'}.")
+        print("\n" + textwrap.fill(
+            f"Costs, plans and gains of the {cases} cases (N = 300, 2000, {N}; mu = 1, (0.9, 0.6), (1, 0); both "
+            f"protocols): {commits['this']} against {commits['baseline']} within {worst:.1e} of each array's "
+            f"largest entry; outcomes that differ: {', '.join(differ) or 'none'}.", 120))
 
 
 def main() -> None:
