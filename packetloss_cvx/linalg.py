@@ -15,7 +15,7 @@ from .errors import NumericalError
 from .tolerances import CONTROLLABILITY_RTOL, DENSE_RESIDUAL_RTOL, PSD_FACTOR_RTOL
 
 __all__ = ["ControllableSplit", "Dyadic", "block_diagonal", "check_finite", "controllable_split", "exact_psd",
-           "frobenius", "lapack_dgesv", "power_growth", "psd_factor", "solve_checked", "typed_linalg"]
+           "frobenius", "lapack", "lapack_dgesv", "power_growth", "psd_factor", "solve_checked", "typed_linalg"]
 
 _F = TypeVar("_F", bound=Callable)
 
@@ -34,6 +34,23 @@ def block_diagonal(blocks: np.ndarray) -> np.ndarray:
     steps = np.arange(N)
     out.reshape(N, n, N, n)[steps, :, steps, :] = blocks
     return out
+
+
+@cache
+def lapack(name: str) -> Callable:
+    """The LAPACK routine ``name`` of ``scipy.linalg.lapack`` (``"dpotrf"``, ``"dtrtrs"``, ``"dgeqrf"``, ...), imported
+    on the first call, for the same reason as `lapack_dgesv`: on matrices of a few rows the f2py wrapper costs a
+    fraction of the ``np.linalg`` one. O(1) after the first call for ``name``.
+
+    Examples
+    --------
+    >>> c, info = lapack("dpotrf")(np.array([[4.0]]), lower=1)
+    >>> float(c[0, 0]), info
+    (2.0, 0)
+    """
+    from scipy.linalg import lapack as routines  # optional.LAZY_IMPORTS
+
+    return getattr(routines, name)
 
 
 @cache

@@ -33,7 +33,7 @@ import math
 import numpy as np
 
 from ..errors import NumericalError
-from ..linalg import check_finite, lapack_dgesv
+from ..linalg import check_finite, lapack, lapack_dgesv
 from ..model.protocols import check_protocol
 from ..model.system import System
 from ..tolerances import PLAN_COST_RTOL, STATIONARY_RTOL
@@ -383,6 +383,7 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
             maps = (A, B * np.sqrt(mu1[0] / add1[0]), Q)                   # Phi itself
             for _ in range(c.bit_length() - 1):
                 maps = _doubling(*maps)                                    # Phi^c
+            reach = 1                                                      # maps = Phi^(c reach)
             coarse = P_top[None]                                           # coarse[j] = P_{top - j c}
             floor = 1
             while True:
@@ -398,8 +399,9 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
                         hit = near & (change * (q / (1.0 - q ** c)) <= STATIONARY_RTOL * size)
                         trigger = floor + int(np.argmax(hit)) if hit.any() else None
                 if trigger is None and J < last:
+                    if reach < J:                      # doubled only when a power needs it, not after the last
+                        maps, reach = _doubling(*maps), 2 * reach
                     coarse = np.concatenate([coarse, _power(*maps, coarse[:min(J, last - J)])])
-                    maps = _doubling(*maps)
                     continue
                 used = J if trigger is None else trigger + 1
                 q, t, Pt = _fine_steps(structure, coarse[:used], mu1, add1, K, q, top)
@@ -469,13 +471,23 @@ def _doubling(A: np.ndarray, F: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, 
     and ``F_2 F_2' = F F' + A F S^{-1} F'A'`` (S = I + F'HF = C C'): the factor ``[F, A F C'^{-1}]``, compressed to
     n columns by a QR factorisation. G = F F' is never formed: rounding G would give every direction some control,
     and the cost-to-go in the directions B reaches weakly is sensitive to it (3.9e-13 against 1.2e-14 relative on a
-    rank-one B M, measured against an 80-bit pass). O(n^3)."""
-    r = F.shape[1]
+    rank-one B M, measured against an 80-bit pass). The factorisations are LAPACK's own (``dpotrf``, the triangular
+    solve ``dtrtrs``, ``dgeqrf``): on n rows NumPy's wrappers cost several times their work. O(n^3); raises
+    ``numpy.linalg.LinAlgError`` where S is not positive definite (a map that is not finite)."""
+    n, r = A.shape[0], F.shape[1]
     K, H2 = riccati_step(H, A, F, np.ones(r), np.ones(r), H)
-    C = np.linalg.cholesky(np.eye(r) + F.T @ H @ F)
-    factor = np.concatenate([F, np.linalg.solve(C, (A @ F).T).T], axis=1)
-    if factor.shape[1] > A.shape[0]:
-        factor = np.linalg.qr(factor.T, mode="r").T
+    S = F.T @ (H @ F)
+    S.flat[:: r + 1] += 1.0
+    C, info = lapack("dpotrf")(S, lower=1, clean=1)               # S = C C'
+    if info != 0:
+        raise np.linalg.LinAlgError("S = I + F'HF is not positive definite")
+    Y, info = lapack("dtrtrs")(C, (A @ F).T, lower=1)             # C^-1 (A F)'
+    if info != 0:
+        raise np.linalg.LinAlgError("singular Cholesky factor")
+    factor = np.concatenate([F, Y.T], axis=1)
+    if factor.shape[1] > n:                                        # R of factor' = Q R: factor factor' = R'R
+        qr = lapack("dgeqrf")(factor.T)[0]
+        factor = np.triu(qr[:n]).T
     return A @ (A - F @ K), factor, H2
 
 
@@ -881,23 +893,30 @@ def _scanned_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndar
     """Steps a..b-1 of the time-varying gains K[:, a:b] from x_a = ``state`` (P, n) by a work-efficient scan
     (Blelloch's up-sweep of pairwise products of the closed loops ``L_t = A - B M_t K_t``, then a down-sweep of
     the states at the block starts; row vectors, ``x_{t+1}' = x_t' L_t'``): 2 log2(b - a) stacked products
-    instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b.
-    O(P (b - a) n^3)."""
+    instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b. A level of
+    odd length carries its last entry up unpaired: the products a padding to a power of two with identities gives,
+    without the padding's work (the down-sweep reads no product that holds the last step's loop, which enters only
+    x_b). O(P (b - a) n^3)."""
     P, n, m, L = state.shape[0], structure.n, structure.m, b - a
-    T = 1 << (L - 1).bit_length()                            # padded to a power of two with identities
-    loops = np.empty((P, T, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
+    loops = np.empty((P, L, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
     MK = np.ascontiguousarray((K[:, a:b] * mu[:, a:b, :, None]).swapaxes(-1, -2))
-    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(P, L, n, n), out=loops[:, :L])
-    loops[:, L:] = np.eye(n)
+    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(P, L, n, n), out=loops)
     levels = [loops]
     while levels[-1].shape[1] > 1:                           # products of 2, 4, ... consecutive steps
         level = levels[-1]
-        levels.append(np.matmul(level[:, 0::2], level[:, 1::2]))
+        k = level.shape[1]
+        half = k // 2
+        up = np.empty((P, k - half, n, n))
+        np.matmul(level[:, 0:2 * half:2], level[:, 1:2 * half:2], out=up[:, :half])
+        if k % 2:
+            up[:, half] = level[:, k - 1]
+        levels.append(up)
     starts = state[:, None, None, :]                          # (P, blocks, 1, n): the state at each block's start
     for level in reversed(levels[:-1]):
-        inner = np.empty((P, 2 * starts.shape[1], 1, n))
+        k = level.shape[1]
+        inner = np.empty((P, k, 1, n))
         inner[:, 0::2] = starts
-        np.matmul(starts, level[:, 0::2], out=inner[:, 1::2])
+        np.matmul(starts[:, :k // 2], level[:, 0:k - k % 2:2], out=inner[:, 1::2])
         starts = inner
     xs = starts[:, :L, 0]                                     # x_a .. x_{b-1}
     np.negative(np.einsum("ptij,ptj->pti", K[:, a:b], xs), out=U[:, a:b])

@@ -421,6 +421,18 @@ def test_doubled_backward_pass_meets_an_80_bit_pass(monkeypatch, mu, N):
     assert np.abs(P0 - P0_ref).max() <= PATH_AGREEMENT_RTOL * np.abs(P0_ref).max()
 
 
+
+def test_doubled_backward_pass_that_overflows_gives_the_pass_back(monkeypatch):
+    """A pass of one map that cannot settle (mu = 0: no input reaches the plant, P grows like 4^t) is handed to
+    doubling, whose powers overflow: it gives the pass back (None) and the step-by-step pass raises the overflow,
+    as a NumericalError, instead of returning a cost that is not finite."""
+    calls = _doubling_spy(monkeypatch)
+    s = pl.System(A=[[2.0, 1.0], [0.0, 1.5]], B=[[1.0], [0.0]], horizon=2000, state_weight=[1.0, 1.0],
+                  input_weight=[1.0], mu=[0.0], x0=[1.0, 1.0])
+    with pytest.raises(pl.NumericalError, match="cost-to-go matrix overflowed"):
+        pl.closed_form(s, "tcp", "recursion")
+    assert calls == [False]
+
 @pytest.mark.parametrize("seed", range(8))
 def test_doubled_backward_pass_equals_the_step_by_step_pass(monkeypatch, seed):
     """Long horizons of one map (stable and unstable plants, mu at 0, fractional and 1, noise): backward_pass and
