@@ -361,6 +361,6 @@ def _bounds(system: System, refused: str) -> ChainAttainable:
     law = chain_dp(system, window=window)
     upper = chain_law_cost(system, law)
     return ChainAttainable(None, lower, upper,
-                           f"bounds, not exact (the exact DP is refused: {refused}): lower {lower:.6g}, the DP that "
-                           f"also observes the channel states; upper {upper:.6g}, the exact cost of the DP law on the "
+                           f"bounds, not exact (the exact DP is refused: {refused}): lower {lower:.10g}, the DP that "
+                           f"also observes the channel states; upper {upper:.10g}, the exact cost of the DP law on the "
                            f"last {window} acknowledgements")
