@@ -279,6 +279,8 @@ def chain_law_cost(system: System, law: ChainDP) -> float:
 
     Raises
     ------
+    BudgetError
+        ``sum_t J_t 2^m M`` beyond the ``chain_dp_nodes`` budget.
     ValueError
         A law on the states (``information="state"``): it needs the states, which no TCP-like controller has.
     NumericalError
@@ -293,6 +295,9 @@ def chain_law_cost(system: System, law: ChainDP) -> float:
     if law.information != "acknowledgements":
         raise ValueError("chain_law_cost: a law on the channel states is not a TCP-like law")
     modes, T, h, start = product_chain(system.channel)
+    needed = float(sum(prob.size for prob, _, _ in law.layers)) * T.shape[0]
+    check("chain_dp_nodes", needed, "horizon", f"the exact cost of a law behind the chain over its {T.shape[0]} joint "
+          f"states ({needed:.3g} node-outcome-states)", instead="fewer channels or a shorter horizon")
     Omega, psi = _weights(system)
     n = system.n
     S = np.zeros((T.shape[0], 1, n, n))
@@ -355,8 +360,8 @@ def chain_attainable(system: System) -> ChainAttainable:
 def _bounds(system: System, refused: str) -> ChainAttainable:
     """`chain_attainable` beyond the budget: the two bounds, the window halved from the horizon until it fits."""
     lower = chain_dp(system, "state").cost
-    window = system.horizon
-    while window > 0 and node_outcomes(system, window=window) > limit("chain_dp_nodes"):
+    window, states = system.horizon, float(np.prod(system.channel.sizes))
+    while window > 0 and node_outcomes(system, window=window) * states > limit("chain_dp_nodes"):
         window -= 1
     law = chain_dp(system, window=window)
     upper = chain_law_cost(system, law)

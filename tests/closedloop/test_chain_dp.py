@@ -203,7 +203,11 @@ def test_memoryless_chain_is_the_bernoulli_dp():
     """p + r = 1: the chain forgets at once, the acknowledgements tell nothing, and the DP is the Bernoulli one."""
     system = _system(GilbertElliott(p=[0.3], r=[0.7], h_good=[0.9], h_bad=[0.4]), horizon=12, seed=5)
     mu = system.channel.mean_rate
-    assert chain_dp(system).cost == pytest.approx(tcp_attainable_cost(system.with_mu(mu), mu), rel=CHAIN_DP_RTOL)
+    bernoulli = tcp_attainable_cost(system.with_mu(mu), mu)
+    assert chain_dp(system).cost == pytest.approx(bernoulli, rel=CHAIN_DP_RTOL)
+    one_state = system.with_channel(MarkovChannel.bernoulli(mu))           # Bernoulli is the one-state chain
+    assert max(chain_dp(one_state).nodes) == 1
+    assert chain_dp(one_state).cost == pytest.approx(bernoulli, rel=CHAIN_DP_RTOL)
 
 
 def test_sampled_law_meets_the_dp_cost_over_a_long_horizon():
