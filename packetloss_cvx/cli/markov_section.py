@@ -36,6 +36,10 @@ def attainable_entry(system: System) -> tuple[dict[str, Any], str]:
     (10668.7, True, 'attainable: J = 10668.66352')
     """
     entry: dict[str, Any] = {"basis": "attainable", "cost": None, "lower": None, "upper": None, "exact": False}
+    if system.sensor is not None:
+        entry["note"] = ("not computed with lossy sensor links (the DP with acknowledgements assumes the state is "
+                         "measured)")
+        return entry, f"attainable: {entry['note']}"
     try:
         found = chain_attainable(system)
     except (BudgetError, NumericalError) as err:

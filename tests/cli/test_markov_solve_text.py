@@ -117,3 +117,14 @@ def test_solve_shows_the_attainable_tcp_cost_beside_the_prior_mean_formula(capsy
     text = capsys.readouterr().out
     assert "[basis: paper, prior-mean rates]" in text
     assert "attainable: J = 10668.66352" in text
+
+
+def test_attainable_cost_is_not_given_with_lossy_sensor_links():
+    from packetloss_cvx.cli.markov_section import attainable_entry
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    sensed = load_example("pendulum_sensor")
+    entry, text = attainable_entry(sensed.with_channel(GilbertElliott(p=[0.02] * sensed.m, r=[0.18] * sensed.m)))
+    assert entry["cost"] is None
+    assert entry["exact"] is False
+    assert "sensor" in text
