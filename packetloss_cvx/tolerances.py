@@ -12,6 +12,7 @@ import numpy as np
 
 __all__ = [
     "ACCEPTED_STATUSES",
+    "CHAIN_DP_RTOL",
     "CLARABEL_DEFAULT",
     "CLARABEL_TIGHT",
     "CONSTRAINED_ACTIVE_RTOL",
@@ -140,6 +141,14 @@ STATIONARY_RTOL = 1e-14
 #: plant with one usable input, against the step-by-step pass; each of the two within 8.3e-14 of an 80-bit pass).
 PATH_AGREEMENT_RTOL = 1e-12
 
+#: The TCP-like DP behind a chain (closedloop.chain_dp) and its independent references agree within CHAIN_DP_RTOL
+#: relative: the brute-force DP over delivery histories (probabilities as sums over hidden paths), the enumerated cost
+#: of its own law, the mode engine's forward cost where the acknowledgements reveal the state, the Bernoulli DP of a
+#: memoryless chain, the Bernoulli step as a mixture of 2^m delivery vectors (tests/closedloop/test_chain_dp.py).
+#: Measured: at most 5.0e-16 against the brute force (20 systems, five chains, n = 2, N = 3 to 4; 3.4e-16 under
+#: Prescott), 5.7e-16 against the Bernoulli DP (10 memoryless chains, N = 12), 0 against the mode engine on
+#: pendulum_bursty, 4.9e-16 of the largest entry for the mixture step (20 random steps, n = 3, m = 2).
+CHAIN_DP_RTOL = 1e-12
 #: One Markov chain written two ways, equal to rounding (GilbertElliott(p=[0.02], r=[0.18]) and the transition
 #: matrix a person types, [[0.98, 0.02], [0.18, 0.82]]: 1 - r is 0.8200000000000001 in binary), gives numbers that
 #: agree within CHAIN_FORM_RTOL relative (KERNEL_ZERO_ATOL absolute beside quantities that are zero in exact
