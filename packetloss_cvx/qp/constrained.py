@@ -27,6 +27,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 import scipy.sparse as sp
+from cvxpy.reductions.solution import Solution
 
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
@@ -46,7 +47,7 @@ from ..tolerances import (
     CONSTRAINED_KKT_RTOL,
     CROSS_CHECK_COST_RTOL,
 )
-from .convex import PROVEN_INFEASIBLE, solve_problem
+from .convex import PROVEN_INFEASIBLE, ClarabelProgram, solve_problem
 
 __all__ = ["ConstrainedQP", "ConstrainedSolution", "solve_constrained"]
 
@@ -200,6 +201,11 @@ class ConstrainedQP:
         #: the objective's scale: J's variable part divided by the largest weight
         self.scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
         self._user_constraints = False
+        #: the problem compiled for Clarabel (`ClarabelProgram`, warm), on the first solve with the default solver
+        self._program: ClarabelProgram | None = None
+        #: why a default-solver solve goes through ``problem.solve`` instead ("" while the compiled program serves)
+        self.fast_path_refused = ""
+        self._base: tuple[bytes, Moments] | None = None      # the moments of the plan U = 0 for the last (mu, x0)
         self._build()
 
     # ------------------------------------------------------------------------------------------------ building
@@ -281,6 +287,7 @@ class ConstrainedQP:
         """
         self.problem = cp.Problem(self.problem.objective, [*self.problem.constraints, *constraints])
         self._user_constraints = True
+        self._program, self.fast_path_refused = None, ""          # compiled again, with them, on the next solve
 
     # ------------------------------------------------------------------------------------------------ solving
     def _assign(self, system: System) -> None:
@@ -293,6 +300,9 @@ class ConstrainedQP:
 
     def _run_solver(self, what: str) -> str:
         if self.solver == cp.CLARABEL and not self.solver_options:
+            program = self._compiled()
+            if program is not None:
+                return self._run_compiled(program, what)
             return solve_problem(self.problem, what, attempts=(CLARABEL_TIGHT, CLARABEL_DEFAULT))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -301,6 +311,35 @@ class ConstrainedQP:
             except cp.error.SolverError as err:
                 raise SolverError("solver_error", f"{what} ({self.solver}): {err}") from None
         return str(self.problem.status)
+
+    def _compiled(self) -> ClarabelProgram | None:
+        """The problem compiled once for Clarabel (`ClarabelProgram`, warm: each solve updates a kept solver's data),
+        or None, with the reason in ``fast_path_refused``, where cvxpy's compilation cannot be driven directly (then
+        ``problem.solve`` runs, as for any other solver)."""
+        if self._program is None and not self.fast_path_refused:
+            try:
+                program = ClarabelProgram(self.problem, warm=True, duals=True)
+            except (ValueError, cp.error.DCPError, cp.error.SolverError) as err:
+                self.fast_path_refused = f"the compiled Clarabel program is refused ({err}): problem.solve runs"
+                return None
+            self._program, self._parameters = program, self.problem.parameters()
+        return self._program
+
+    def _run_compiled(self, program: ClarabelProgram, what: str) -> str:
+        """One solve on the compiled program under `solve_problem`'s policy, unpacked into ``problem`` as
+        ``problem.solve`` would (variables, multipliers, ``problem.value`` and ``problem.status``). O(nnz) plus
+        Clarabel's iterations."""
+        values = {p: p.value for p in self._parameters}
+        status, point = program.solve(values, what, attempts=(CLARABEL_TIGHT, CLARABEL_DEFAULT))
+        duals = program.duals(point)
+        if status in cp.settings.SOLUTION_PRESENT:
+            solution = Solution(status, point.value, program.primals(point), duals, {})
+        elif status in cp.settings.INF_OR_UNB:
+            solution = Solution(status, np.inf, {}, duals, {})
+        else:
+            return status
+        self.problem.unpack(solution)
+        return status
 
     def solve(self, mu=None, x0=None, *, check: bool = True) -> ConstrainedSolution:
         """Solve for the system's (or the given) ``mu`` (m-vector or N×m schedule) and ``x0``, validated through
@@ -337,15 +376,15 @@ class ConstrainedQP:
             raise SolverError(status, f"{what} ({self.solver}) gave no proven answer")
         N, m = system.horizon, system.m
         U = np.asarray(self.U.value, dtype=float).reshape(N, m)
-        cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))
+        report = self.kkt(system, U)
+        solver_kkt = report["residual"]
+        # the solver's objective against the forward cost of its plan (the kkt report's J, on the plan's moments)
+        cost = report["cost"]
         penalty = 0.0 if self._penalty is None else self.constraints.soft_weight * float(self._penalty.value)
-        solver_cost = float(self.problem.value) * self.scale + float(system.x0 @ system.initial_weight @ system.x0) \
-            + self._noise - penalty
+        solver_cost = float(self.problem.value) * self.scale + self._constant(system) - penalty
         if check and not abs(solver_cost - cost) <= CROSS_CHECK_COST_RTOL * max(abs(cost), self.scale * 1e-9):
             raise NumericalError(f"{what}: the solver's objective {solver_cost:.10g} and the forward cost of its plan "
                                  f"{cost:.10g} disagree beyond {CROSS_CHECK_COST_RTOL:.0e} relative")
-        report = self.kkt(system, U)
-        solver_kkt = report["residual"]
         polished = False
         if not self._user_constraints and self._groups:
             refined = self._polish(system, U, report)
@@ -353,14 +392,14 @@ class ConstrainedQP:
                 better = self.kkt(system, *refined)
                 if better["residual"] <= report["residual"]:
                     U, report, polished = refined[0], better, True
-                    cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))
+        cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))     # the plan's cost: the forward pass
         kkt = None if self._user_constraints else report["residual"]
         if check and kkt is not None and not kkt <= CONSTRAINED_KKT_RTOL:
             raise NumericalError(f"{what}: the KKT residual of the solver's answer is {kkt:.2e} ({report['worst']}), "
                                  f"beyond {CONSTRAINED_KKT_RTOL:.0e}: the answer is not trusted")
         return ConstrainedSolution(
             protocol=self.protocol, status=status, cost=float(cost), inputs=U,
-            states=plan_moments(system, U).mean[1:], binding=tuple(report["binding"]),
+            states=self._moments(system, U).mean[1:], binding=tuple(report["binding"]),
             violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
             solver=self.solver, solve_time=solve_time, solver_kkt_residual=None if self._user_constraints
             else solver_kkt, polished=polished)
@@ -427,8 +466,9 @@ class ConstrainedQP:
         rho = self.constraints.soft_weight
         mu = system.mu_schedule
         w = ((system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu).ravel()
-        mom = plan_moments(system, U)
-        H_J = 2.0 * np.diag(w) + 2.0 * sum(mom.T[k].T @ system.state_weights[k - 1] @ mom.T[k] for k in range(1, N + 1))
+        mom = self._moments(system, U)
+        H_J = 2.0 * np.diag(w) + 2.0 * np.einsum("kia,kij,kjb->ab", mom.T[1:], system.state_weights, mom.T[1:],
+                                                   optimize=True)
         u0 = U.ravel().copy()
         sizes = [np.maximum(1.0, np.abs(group.bound)) for group in self._groups]
         soft = [group.slack is not None for group in self._groups]
@@ -446,9 +486,9 @@ class ConstrainedQP:
         def newton() -> np.ndarray | None:
             u, previous = u0.copy(), np.inf
             for _ in range(POLISH_MAX_STEPS):
-                mom = plan_moments(system, u.reshape(N, m))
-                grad = 2.0 * w * u + 2.0 * sum(mom.T[k].T @ (system.state_weights[k - 1] @ mom.mean[k])
-                                               for k in range(1, N + 1))
+                mom = self._moments(system, u)
+                grad = 2.0 * w * u + 2.0 * np.einsum("kia,kij,kj->a", mom.T[1:], system.state_weights, mom.mean[1:],
+                                                     optimize=True)
                 H = H_J.copy()
                 rows, values = [], []
                 for group, act, pen, la in zip(self._groups, active, penalised, lam, strict=True):
@@ -481,7 +521,7 @@ class ConstrainedQP:
             u = newton()
             if u is None:
                 return None
-            mom = plan_moments(system, u.reshape(N, m))
+            mom = self._moments(system, u)
             changed = False
             lam_max = max(float(np.max(np.abs(la), initial=0.0)) for la in lam) or 1.0
             for group, act, pen, la, size, is_soft in zip(self._groups, active, penalised, lam, sizes, soft,
@@ -510,6 +550,24 @@ class ConstrainedQP:
             slacks.append(np.where(pen, np.maximum(g, 0.0), 0.0))
         return u.reshape(N, m), multipliers, slacks
 
+    def _constant(self, system: System) -> float:
+        """J's terms that no plan moves: ``x0' Omega_0 x0`` and the noise's."""
+        return float(system.x0 @ system.initial_weight @ system.x0) + self._noise
+
+    def _moments(self, system: System, U: np.ndarray) -> Moments:
+        """``plan_moments(system, U)`` for the checks and the polish, which evaluate many plans of one (mu, x0): the
+        forward recursion runs once per (mu, x0) for the plan U = 0 (its ``T``, ``C``, ``S`` do not depend on the
+        plan), and a plan moves the mean by ``T U`` and the covariance by ``(C diag(u)) (C diag(u))'``, the recursion's
+        own sums in closed form. O(N^2 n m (n + m)) the first time, O(N^2 n m n) after."""
+        key = b"".join(np.ascontiguousarray(x, dtype=float).tobytes()
+                       for x in (system.mu_schedule, system.x0, system.A, system.B, system.noise_cov))
+        if self._base is None or self._base[0] != key:
+            self._base = (key, plan_moments(system, np.zeros((system.horizon, system.m))))
+        base = self._base[1]
+        u = np.asarray(U, dtype=float).ravel()
+        spread = base.C * u
+        return Moments(base.mean + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
+
     # ------------------------------------------------------------------------------------------------ the check
     def kkt(self, system: System, U: np.ndarray, multipliers: list[np.ndarray] | None = None,
             slacks: list[np.ndarray] | None = None) -> dict[str, Any]:
@@ -530,20 +588,17 @@ class ConstrainedQP:
 
         O(N^2 n m (n + m)) for the moments plus O(rows N m).
         """
-        N = system.horizon
-        mom = plan_moments(system, U)
+        mom = self._moments(system, U)
         u = U.ravel()
         mu = system.mu_schedule
         w = (system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu
         grad_J = 2.0 * w.ravel() * u
-        free_part, plan_part = np.zeros_like(u), np.zeros_like(u)   # grad J's terms in x0 and in U (they cancel)
-        J_var = float(np.sum(w.ravel() * u * u))
-        for k in range(1, N + 1):
-            Wk = system.state_weights[k - 1]
-            free = mom.mean[k] - mom.T[k] @ u                          # A^k x0
-            free_part += 2.0 * mom.T[k].T @ (Wk @ free)
-            plan_part += 2.0 * mom.T[k].T @ (Wk @ (mom.T[k] @ u))
-            J_var += float(mom.mean[k] @ Wk @ mom.mean[k])
+        # grad J's terms in x0 and in U (they cancel at an interior optimum), step by step k = 1..N
+        T, W, mean = mom.T[1:], system.state_weights, mom.mean[1:]
+        moved = T @ u
+        free_part = 2.0 * np.einsum("kia,kij,kj->a", T, W, mean - moved, optimize=True)     # A^k x0
+        plan_part = 2.0 * np.einsum("kia,kij,kj->a", T, W, moved, optimize=True)
+        J_var = float(np.sum(w.ravel() * u * u)) + float(np.einsum("ki,kij,kj->", mean, W, mean))
         grad_J += free_part + plan_part
         total = grad_J.copy()
         rho = self.constraints.soft_weight if self.constraints.soft else np.inf
@@ -588,7 +643,7 @@ class ConstrainedQP:
         parts = {"stationarity": stationarity, "primal": primal, "dual": dual, "complementarity": comp}
         worst = max(parts, key=parts.get)
         return {"residual": parts[worst], "worst": worst, **parts, "binding": binding, "violations": violations,
-                "multipliers": multipliers, "slacks": slacks}
+                "multipliers": multipliers, "slacks": slacks, "cost": J_var + self._constant(system)}
 
 
 class _Group:
@@ -622,26 +677,25 @@ class _Group:
             T = mom.T[1:].reshape(N * system.n, -1)
             return self.P @ mean - self.bound, np.asarray(self.P @ T), None
         a, b, kappa = self.chance
-        g, jac = np.zeros(N), np.zeros((N, u.size))
-        hess = np.zeros((N, u.size, u.size)) if hessian else None
-        self.kinks = {}
+        h2 = np.einsum("i,kij->kj", a, mom.C[1:]) ** 2                       # (a' C_k)^2, k = 1..N
+        noise = np.einsum("i,kij,j->k", a, mom.S[1:], a)
+        std = np.sqrt(h2 @ (u * u) + noise)
+        g = mom.mean[1:] @ a + kappa * std - b
+        jac = np.einsum("i,kij->kj", a, mom.T[1:])
         reach = max(1.0, float(np.abs(u).max(initial=0.0)))
-        for k in range(1, N + 1):
-            h2 = (a @ mom.C[k]) ** 2
-            noise = float(a @ mom.S[k] @ a)
-            var = float(np.sum(h2 * u * u) + noise)
-            std = np.sqrt(var)
-            g[k - 1] = a @ mom.mean[k] + kappa * std - b
-            jac[k - 1] = a @ mom.T[k]
-            if noise == 0.0 and std <= CONSTRAINED_ACTIVE_RTOL * np.sqrt(h2.sum()) * reach:
-                # the norm's kink (no noise, the plan ~0 where it spreads a'x_k): no gradient, the subdifferential
-                # {kappa sqrt(D) z : ||z|| <= 1}; kept for the KKT check (:meth:`ConstrainedQP.kkt`)
-                self.kinks[k - 1] = kappa * np.sqrt(h2)
-            elif std > 0:          # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
-                Du = h2 * u
-                jac[k - 1] += kappa * Du / std
-                if hessian:
-                    hess[k - 1] = kappa * (np.diag(h2) / std - np.outer(Du, Du) / std**3)
+        # the norm's kink (no noise, the plan ~0 where it spreads a'x_k): no gradient, the subdifferential
+        # {kappa sqrt(D) z : ||z|| <= 1}; kept for the KKT check (:meth:`ConstrainedQP.kkt`)
+        kink = (noise == 0.0) & (std <= CONSTRAINED_ACTIVE_RTOL * np.sqrt(h2.sum(axis=1)) * reach)
+        self.kinks = {int(k): kappa * np.sqrt(h2[k]) for k in np.flatnonzero(kink)}
+        smooth = ~kink & (std > 0)          # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
+        Du = h2[smooth] * u
+        jac[smooth] += kappa * Du / std[smooth, None]
+        hess = np.zeros((N, u.size, u.size)) if hessian else None
+        if hessian:
+            part = -np.einsum("ki,kj->kij", Du, Du) / std[smooth, None, None] ** 3
+            diagonal = np.arange(u.size)
+            part[:, diagonal, diagonal] += h2[smooth] / std[smooth, None]
+            hess[smooth] = kappa * part
         return g, jac, hess
 
 
