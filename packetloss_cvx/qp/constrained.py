@@ -26,6 +26,7 @@ from typing import Any
 
 import cvxpy as cp
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 from cvxpy.reductions.solution import Solution
 
@@ -467,8 +468,7 @@ class ConstrainedQP:
         mu = system.mu_schedule
         w = ((system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu).ravel()
         mom = self._moments(system, U)
-        H_J = 2.0 * np.diag(w) + 2.0 * np.einsum("kia,kij,kjb->ab", mom.T[1:], system.state_weights, mom.T[1:],
-                                                   optimize=True)
+        H_J = 2.0 * np.diag(w) + 2.0 * _weighted_gram(mom.T[1:], system.state_weights)
         u0 = U.ravel().copy()
         sizes = [np.maximum(1.0, np.abs(group.bound)) for group in self._groups]
         soft = [group.slack is not None for group in self._groups]
@@ -487,20 +487,22 @@ class ConstrainedQP:
             u, previous = u0.copy(), np.inf
             for _ in range(POLISH_MAX_STEPS):
                 mom = self._moments(system, u)
-                grad = 2.0 * w * u + 2.0 * np.einsum("kia,kij,kj->a", mom.T[1:], system.state_weights, mom.mean[1:],
-                                                     optimize=True)
+                grad = 2.0 * w * u + 2.0 * _weighted_pull(mom.T[1:], system.state_weights, mom.mean[1:])
                 H = H_J.copy()
                 rows, values = [], []
                 for group, act, pen, la in zip(self._groups, active, penalised, lam, strict=True):
-                    g, jac, hess = group.evaluate(mom, u, system, hessian=True)
+                    weight = np.where(pen, rho, np.where(act, la, 0.0))        # each row's weight in the Lagrangian
+                    g, jac, curvature = group.evaluate(mom, u, system, curvature=weight)
                     grad += rho * jac[pen].sum(axis=0) + jac[act].T @ la[act]
-                    if hess is not None:
-                        H += rho * hess[pen].sum(axis=0) + np.einsum("i,ijk->jk", la[act], hess[act])
+                    if curvature is not None:
+                        H += curvature
                     rows.append(jac[act])
                     values.append(g[act])
                 J_A = np.vstack(rows)
                 K = np.block([[H, J_A.T], [J_A, np.zeros((J_A.shape[0], J_A.shape[0]))]])
-                step = np.linalg.lstsq(K, -np.concatenate([grad, *values]), rcond=None)[0]
+                # least squares of least norm (a degenerate active set's K is singular), by pivoted QR
+                step = scipy.linalg.lstsq(K, -np.concatenate([grad, *values]), lapack_driver="gelsy",
+                                          check_finite=False)[0]
                 if not np.all(np.isfinite(step)):
                     return None
                 u += step[:u.size]
@@ -596,8 +598,8 @@ class ConstrainedQP:
         # grad J's terms in x0 and in U (they cancel at an interior optimum), step by step k = 1..N
         T, W, mean = mom.T[1:], system.state_weights, mom.mean[1:]
         moved = T @ u
-        free_part = 2.0 * np.einsum("kia,kij,kj->a", T, W, mean - moved, optimize=True)     # A^k x0
-        plan_part = 2.0 * np.einsum("kia,kij,kj->a", T, W, moved, optimize=True)
+        free_part = 2.0 * _weighted_pull(T, W, mean - moved)     # A^k x0
+        plan_part = 2.0 * _weighted_pull(T, W, moved)
         J_var = float(np.sum(w.ravel() * u * u)) + float(np.einsum("ki,kij,kj->", mean, W, mean))
         grad_J += free_part + plan_part
         total = grad_J.copy()
@@ -654,6 +656,7 @@ class _Group:
                  P: sp.csr_matrix | None = None, chance: tuple | None = None) -> None:
         self.kind, self.con, self.labels, self.bound, self.slack = kind, con, labels, np.asarray(bound), slack
         self.P, self.chance = P, chance
+        self.dense: np.ndarray | None = None            # the input rows' P as an array, on first use
         #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale)
         self.kinks: dict[int, np.ndarray] = {}
 
@@ -665,13 +668,16 @@ class _Group:
     def slack_values(self) -> np.ndarray:
         return np.zeros(len(self.labels)) if self.slack is None else np.asarray(self.slack.value, dtype=float)
 
-    def evaluate(self, mom: Moments, u: np.ndarray, system: System, hessian: bool = False
+    def evaluate(self, mom: Moments, u: np.ndarray, system: System, curvature: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """``(g - b, dg/du, d2g/du2 or None)`` of the block's rows at u; the chance rows' Hessians (N × N m × N m)
-        only when asked (the polish)."""
+        """``(g - b, dg/du, sum_i c_i d2g_i/du2 or None)`` of the block's rows at u: the chance rows' Hessians summed
+        with the weights ``curvature`` (one per row: the polish's Lagrangian) only when asked; None for linear rows.
+        """
         N = system.horizon
         if self.kind == "inputs":
-            return self.P @ u - self.bound, self.P.toarray(), None
+            if self.dense is None:
+                self.dense = self.P.toarray()
+            return self.dense @ u - self.bound, self.dense, None
         if self.kind == "states":
             mean = mom.mean[1:].ravel()
             T = mom.T[1:].reshape(N * system.n, -1)
@@ -690,13 +696,23 @@ class _Group:
         smooth = ~kink & (std > 0)          # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
         Du = h2[smooth] * u
         jac[smooth] += kappa * Du / std[smooth, None]
-        hess = np.zeros((N, u.size, u.size)) if hessian else None
-        if hessian:
-            part = -np.einsum("ki,kj->kij", Du, Du) / std[smooth, None, None] ** 3
-            diagonal = np.arange(u.size)
-            part[:, diagonal, diagonal] += h2[smooth] / std[smooth, None]
-            hess[smooth] = kappa * part
-        return g, jac, hess
+        if curvature is None:
+            return g, jac, None
+        # the Hessian of row k: kappa (D_k / std_k - D_k u u' D_k / std_k^3), summed with the weights c_k
+        c = curvature[smooth]
+        total = -(Du.T * (c / std[smooth] ** 3)) @ Du
+        total[np.diag_indices(u.size)] += (c / std[smooth]) @ h2[smooth]
+        return g, jac, kappa * total
+
+
+def _weighted_gram(T: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """``sum_k T_k' W_k T_k`` for T (N, n, p) and W (N, n, n). O(N n p (n + p))."""
+    return T.reshape(-1, T.shape[2]).T @ (W @ T).reshape(-1, T.shape[2])
+
+
+def _weighted_pull(T: np.ndarray, W: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``sum_k T_k' W_k x_k`` for T (N, n, p), W (N, n, n), x (N, n). O(N n (n + p))."""
+    return T.reshape(-1, T.shape[2]).T @ (W @ x[:, :, None]).ravel()
 
 
 def _input_rows(c: Constraints, N: int, m: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
