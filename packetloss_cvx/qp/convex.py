@@ -281,8 +281,12 @@ class ClarabelProgram:
     def _selected(self, vector: np.ndarray, kind: str) -> dict[int, np.ndarray]:
         if self._selections is None:
             self._selections = self._probe()
-        return {key: (sign * vector[index]).reshape(shape)
-                for (which, key), (index, sign, shape) in self._selections.items() if which == kind}
+        out = {key: (sign * vector[index]).reshape(shape)
+               for (which, key), (index, sign, shape) in self._selections.items() if which == kind}
+        if kind == "primal":            # cvxpy projects a variable's value onto its attributes (nonneg: max(x, 0))
+            for key, variable in self._projected.items():
+                out[key] = variable.project(out[key])
+        return out
 
     def _probe(self) -> dict[tuple[str, int], tuple[np.ndarray, np.ndarray, tuple]]:
         """``(kind, id) -> (entries, signs, shape)``: each constraint's multiplier as entries of z and each variable's
@@ -310,11 +314,18 @@ class ClarabelProgram:
             if np.any(index < 0) or np.any(index >= sizes[key[0]]) or not np.array_equal(np.abs(flat), index + 1.0):
                 raise ValueError(f"a {key[0]} value is not a selection of Clarabel's point")
             selections[key] = (index, np.sign(flat), value.shape)
+        #: variables whose value cvxpy projects onto their attributes (Leaf.project), as its inversion does
+        self._projected = {v.id: v for v in self._problem.variables()
+                           if any(v.attributes.get(name) for name in ("nonneg", "nonpos", "pos", "neg", "bounds",
+                                                                      "integer", "boolean"))}
         rng = np.random.default_rng(0)
         x, z = rng.normal(size=columns), rng.normal(size=rows)
         for key, value in inverted(x, z).items():
             index, sign, shape = selections[key]
-            if not np.array_equal(value, (sign * (z if key[0] == "dual" else x)[index]).reshape(shape)):
+            expected = (sign * (z if key[0] == "dual" else x)[index]).reshape(shape)
+            if key[0] == "primal" and key[1] in self._projected:
+                expected = self._projected[key[1]].project(expected)
+            if not np.array_equal(value, expected):
                 raise ValueError(f"a {key[0]} value is not a selection of Clarabel's point")
         return selections
 
