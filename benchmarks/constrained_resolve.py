@@ -8,8 +8,9 @@ step, checks on (the default). Two cases: a stable random plant with n = 4, m = 
 two_actuator (n = 2, m = 2, N = 10); each with an input box and a rate bound at 0.7 and 1.2 times the unconstrained
 plan's peak input, and one chance constraint P(a'x_k <= b) >= 1 - 0.2 on the first direction (+-e_i, else seeded
 random ones) where it binds and is feasible: b halfway between the values of the plan U = 0 and of the plan under
-the input and rate bounds alone where the latter is larger, else 5 % of their difference below the latter's. Twelve
-re-solves per case and protocol, x0 and mu drawn around the system's (seeded); a draw that raises (InfeasibleError,
+the input and rate bounds alone where the latter is larger, else 5 % of their difference below the latter's. Sixteen
+re-solves per case and protocol, x0 and mu drawn around the system's (seeded): eight where x0 alone moves (the
+receding-horizon loop under a fixed channel), eight where mu moves too; a draw that raises (InfeasibleError,
 SolverError) is counted, not timed, and the ratios are over the draws both trees solved.
 
 The reference, per re-solve: Clarabel on the data cvxpy compiles for those Parameter values
@@ -95,14 +96,15 @@ for name, system in cases():
         qp = ConstrainedQP(system, protocol, constraints(system, protocol))
         rng = np.random.default_rng(7)
         points = [(np.clip(system.mu_schedule[0] * (1 + 0.05 * rng.normal(size=system.m)), 0.05, 1.0),
-                   system.x0 * (1 + 0.1 * rng.normal(size=system.n))) for _ in range(12)]
+                   system.x0 * (1 + 0.1 * rng.normal(size=system.n))) for _ in range(16)]
+        points = [(None, x0) for _, x0 in points[:8]] + points[8:]      # x0 alone moves, then x0 and mu
         rows = []
         for mu, x0 in points:
             counted.clear()
             try:
                 sol = qp.solve(mu, x0)          # the Parameters now hold this point's values
             except (pl.InfeasibleError, pl.SolverError) as err:
-                rows.append({"failed": type(err).__name__})
+                rows.append({"failed": type(err).__name__, "moves": "x0" if mu is None else "x0, mu"})
                 continue
             attempts = [{**CLARABEL_TIGHT}, {**CLARABEL_DEFAULT}][:len(counted)]     # what this solve ran
             with warnings.catch_warnings():
@@ -134,7 +136,8 @@ for name, system in cases():
                 best["solve"] = min(best["solve"], cpu(lambda: qp.solve(mu, x0)))
                 best["updated"] = min(best["updated"], cpu(updated))
             rows.append({**{k: 1e3 * v for k, v in best.items()}, "inputs": sol.inputs.tolist(),
-                         "polished": sol.polished, "binding": len(sol.binding), "attempts": len(attempts)})
+                         "polished": sol.polished, "binding": len(sol.binding), "attempts": len(attempts),
+                         "moves": "x0" if mu is None else "x0, mu"})
         out.append({"case": name, "protocol": protocol, "rows": rows})
 print(json.dumps({"file": pl.__file__, "cases": out}))
 """
@@ -161,33 +164,35 @@ def main() -> None:
     args = parser.parse_args()
     here = run(ROOT, args.repeats)
     base = run(args.baseline.resolve(), args.repeats) if args.baseline else None
-    print(f"CPU ms per re-solve (median / max over {len(here['cases'][0]['rows'])} re-solves, best of "
+    print(f"CPU ms per re-solve (median / max over {len(here['cases'][0]['rows']) // 2} re-solves, best of "
           f"{args.repeats}); ratio = ConstrainedQP.solve / direct Clarabel on the same data")
-    header = (f"{'case':14} {'proto':5} {'direct':>13} {'direct,upd':>13} {'solve':>13} {'ratio':>11} {'2nd':>3}"
+    header = (f"{'case':14} {'proto':5} {'moves':7} {'direct':>13} {'direct,upd':>13} {'solve':>13} {'ratio':>11} "
+              f"{'2nd':>3}"
               + (f" {'base solve':>13} {'base ratio':>11} {'2nd':>3} {'plans differ':>12}" if base else ""))
     print(header)
     for k, case in enumerate(here["cases"]):
-        other = base["cases"][k]["rows"] if base else case["rows"]
-        both = [i for i, (a, b) in enumerate(zip(case["rows"], other, strict=True)) if "failed" not in a
-                and "failed" not in b]
-        failed = sum("failed" in r for r in case["rows"]), sum("failed" in r for r in other)
-        rows, other = [case["rows"][i] for i in both], [other[i] for i in both]
+        for moves in ("x0", "x0, mu"):
+            mine = [r for r in case["rows"] if r["moves"] == moves]
+            theirs = [r for r in base["cases"][k]["rows"] if r["moves"] == moves] if base else mine
+            both = [i for i, (a, b) in enumerate(zip(mine, theirs, strict=True)) if "failed" not in a
+                    and "failed" not in b]
+            failed = sum("failed" in r for r in mine), sum("failed" in r for r in theirs)
+            rows, other = [mine[i] for i in both], [theirs[i] for i in both]
 
-        def stat(values, fmt="7.2f"):
-            return f"{np.median(values):{fmt}}/{np.max(values):<{fmt[0]}.{fmt[2]}f}".rstrip()
+            def stat(values, fmt="7.2f"):
+                return f"{np.median(values):{fmt}}/{np.max(values):<{fmt[0]}.{fmt[2]}f}".rstrip()
 
-        direct = [r["direct"] for r in rows]
-        ratio = [r["solve"] / r["direct"] for r in rows]
-        line = (f"{case['case']:14} {case['protocol']:5} {stat(direct, '5.2f'):>13} "
-                f"{stat([r['updated'] for r in rows], '5.2f'):>13} {stat([r['solve'] for r in rows], '5.2f'):>13} "
-                f"{stat(ratio, '4.2f'):>11} {sum(r['attempts'] > 1 for r in rows):3d}")
-        if base:
-            differ = max(float(np.abs(np.subtract(a["inputs"], b["inputs"])).max()
-                               / max(1.0, np.abs(a["inputs"]).max())) for a, b in zip(rows, other, strict=True))
-            line += (f" {stat([r['solve'] for r in other], '5.2f'):>13} "
-                     f"{stat([r['solve'] / r['direct'] for r in other], '4.2f'):>11} "
-                     f"{sum(r['attempts'] > 1 for r in other):3d} {differ:12.1e}")
-        print(line + f"  (raised: {failed[0]} here" + (f", {failed[1]} in the baseline)" if base else ")"))
+            line = (f"{case['case']:14} {case['protocol']:5} {moves:7} {stat([r['direct'] for r in rows], '5.2f'):>13} "
+                    f"{stat([r['updated'] for r in rows], '5.2f'):>13} {stat([r['solve'] for r in rows], '5.2f'):>13} "
+                    f"{stat([r['solve'] / r['direct'] for r in rows], '4.2f'):>11} "
+                    f"{sum(r['attempts'] > 1 for r in rows):3d}")
+            if base:
+                differ = max(float(np.abs(np.subtract(a["inputs"], b["inputs"])).max()
+                                   / max(1.0, np.abs(a["inputs"]).max())) for a, b in zip(rows, other, strict=True))
+                line += (f" {stat([r['solve'] for r in other], '5.2f'):>13} "
+                         f"{stat([r['solve'] / r['direct'] for r in other], '4.2f'):>11} "
+                         f"{sum(r['attempts'] > 1 for r in other):3d} {differ:12.1e}")
+            print(line + f"  (raised: {failed[0]} here" + (f", {failed[1]} in the baseline)" if base else ")"))
 
 
 if __name__ == "__main__":

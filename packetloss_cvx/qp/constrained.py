@@ -8,8 +8,8 @@ formulations give the same problem: "condensed" (E[X] = Phi x0 + Gamma (mu ∘ U
 (the mean states as variables, the dynamics as equality constraints). ``solver=`` takes any installed cvxpy
 solver (Clarabel by default, under `solve_problem`'s policy).
 
-Every solve is checked without cvxpy: the plan's expected cost by the forward pass
-([`plan_cost`][packetloss_cvx.lq.recursion.plan_cost]), and the KKT conditions (stationarity, primal and dual
+Every solve is checked without cvxpy: the plan's expected cost J(U) on the state's mean by its forward recursion
+(`plan_moments`; the solver's objective must agree with it), and the KKT conditions (stationarity, primal and dual
 feasibility, complementarity) from the solver's multipliers, the constraints evaluated on the moments of x_k by
 their own forward recursion (`plan_moments`) rather than from the matrices the problem was built with. A
 residual beyond ``CONSTRAINED_KKT_RTOL`` raises; infeasibility raises
@@ -35,7 +35,7 @@ from ..linalg import psd_factor
 from ..lq.moments import Moments, plan_moments
 from ..lq.policy import refuse_correlated
 from ..lq.prediction import prediction
-from ..lq.recursion import plan_cost, udp_variance_weights
+from ..lq.recursion import udp_variance_weights
 from ..model.constraints import Constraints, cantelli_factor, check_constraints
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system
@@ -80,7 +80,8 @@ class ConstrainedSolution(Frozen):
     status : str
         The solver's status ("optimal"; anything else raised).
     cost : float
-        The plan's expected cost J(U) by the forward pass (penalties of soft constraints not included).
+        The plan's expected cost J(U) on E[x_k] by their forward recursion (penalties of soft constraints not
+        included).
     inputs : ndarray (N, m)
         The commanded inputs.
     states : ndarray (N, n)
@@ -206,7 +207,8 @@ class ConstrainedQP:
         self._program: ClarabelProgram | None = None
         #: why a default-solver solve goes through ``problem.solve`` instead ("" while the compiled program serves)
         self.fast_path_refused = ""
-        self._base: tuple[bytes, Moments] | None = None      # the moments of the plan U = 0 for the last (mu, x0)
+        #: (mu's key, the moments of the plan U = 0 under it, x0's key, the free means A^k x0) of the last solve
+        self._base: tuple[bytes, Moments, bytes, np.ndarray] | None = None
         self._build()
 
     # ------------------------------------------------------------------------------------------------ building
@@ -393,7 +395,7 @@ class ConstrainedQP:
                 better = self.kkt(system, *refined)
                 if better["residual"] <= report["residual"]:
                     U, report, polished = refined[0], better, True
-        cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))     # the plan's cost: the forward pass
+        cost = report["cost"]                          # J of the returned plan on its moments (the forward recursion)
         kkt = None if self._user_constraints else report["residual"]
         if check and kkt is not None and not kkt <= CONSTRAINED_KKT_RTOL:
             raise NumericalError(f"{what}: the KKT residual of the solver's answer is {kkt:.2e} ({report['worst']}), "
@@ -558,17 +560,25 @@ class ConstrainedQP:
 
     def _moments(self, system: System, U: np.ndarray) -> Moments:
         """``plan_moments(system, U)`` for the checks and the polish, which evaluate many plans of one (mu, x0): the
-        forward recursion runs once per (mu, x0) for the plan U = 0 (its ``T``, ``C``, ``S`` do not depend on the
-        plan), and a plan moves the mean by ``T U`` and the covariance by ``(C diag(u)) (C diag(u))'``, the recursion's
-        own sums in closed form. O(N^2 n m (n + m)) the first time, O(N^2 n m n) after."""
+        forward recursion runs once per mu for the plan U = 0 (its ``T``, ``C``, ``S`` depend on neither the plan nor
+        x0), the free means A^k x0 once per x0 by the same recursion without inputs, and a plan moves the mean by
+        ``T U`` and the covariance by ``(C diag(u)) (C diag(u))'``, the recursion's own sums in closed form.
+        O(N^2 n m (n + m)) for a new mu, O(N n^2) for a new x0, O(N^2 n m n) per plan."""
         key = b"".join(np.ascontiguousarray(x, dtype=float).tobytes()
-                       for x in (system.mu_schedule, system.x0, system.A, system.B, system.noise_cov))
+                       for x in (system.mu_schedule, system.A, system.B, system.noise_cov))
         if self._base is None or self._base[0] != key:
-            self._base = (key, plan_moments(system, np.zeros((system.horizon, system.m))))
-        base = self._base[1]
+            base = plan_moments(system, np.zeros((system.horizon, system.m)))
+            self._base = (key, base, system.x0.tobytes(), base.mean)
+        if self._base[2] != system.x0.tobytes():
+            free = np.empty_like(self._base[3])
+            free[0] = system.x0
+            for k in range(system.horizon):
+                free[k + 1] = system.A @ free[k]
+            self._base = (*self._base[:2], system.x0.tobytes(), free)
+        base, free = self._base[1], self._base[3]
         u = np.asarray(U, dtype=float).ravel()
         spread = base.C * u
-        return Moments(base.mean + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
+        return Moments(free + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
 
     # ------------------------------------------------------------------------------------------------ the check
     def kkt(self, system: System, U: np.ndarray, multipliers: list[np.ndarray] | None = None,

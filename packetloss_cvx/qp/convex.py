@@ -179,6 +179,9 @@ class ClarabelProgram:
             unit = np.zeros(program.total_param_size + 1)
             unit[-1] = 1.0                               # the parameter vector's constant entry (cvxpy's layout)
             self._P = self._quadratic(unit) if fixed else None
+            if not fixed:                            # the parameter entries P depends on: P is formed when they move
+                self._P_columns = np.unique(sp.csc_array(program.reduced_P.reduced_mat).nonzero()[1])
+                self._P_last: tuple[bytes, sp.csc_array] | None = None
         self._kept = threading.local()          # per thread: settings -> a Clarabel solver to update
         if duals:                               # the multipliers' map now, so that a refusal shows at construction
             self._selections = self._probe()
@@ -211,7 +214,12 @@ class ClarabelProgram:
         A = sp.csc_array((-flat[:end], indices[:end], indptr[:cols]), shape=(rows, cols - 1))
         b = np.zeros(rows)
         b[indices[end:]] = flat[end:]
-        return self._quadratic(vector) if self._P is None else self._P, q, d, A, b
+        if self._P is not None:
+            return self._P, q, d, A, b
+        key, last = vector[self._P_columns].tobytes(), self._P_last
+        if last is None or last[0] != key:
+            last = self._P_last = (key, self._quadratic(vector))
+        return last[1], q, d, A, b
 
     def _quadratic(self, vector: np.ndarray) -> sp.csc_array:
         """P for a parameter vector, formed as cvxpy's ConicSolver.apply and its Clarabel interface form it
@@ -337,16 +345,30 @@ class ClarabelProgram:
         solvers = getattr(self._kept, "solvers", None)
         if solvers is None:
             solvers = self._kept.solvers = {}
+            self._kept.matrices = {}             # settings -> the (P, A) the kept solver holds
         key = tuple(sorted(settings.items()))
-        solver = solvers.get(key)
+        solver, held = solvers.get(key), self._kept.matrices.get(key)
         if solver is not None and solver.is_data_update_allowed():
             try:
-                solver.update(P=P, q=q, A=A, b=b)
+                changed = {"q": q, "b": b}        # a matrix the solver holds already is not given again
+                if held is None or not _same(P, held[0]):
+                    changed["P"] = P
+                if held is None or not _same(A, held[1]):
+                    changed["A"] = A
+                solver.update(**changed)
+                self._kept.matrices[key] = (P, A)
                 return solver
             except Exception:   # noqa: BLE001 - an update Clarabel refuses: a new solver instead
                 pass
         solver = solvers[key] = clarabel.DefaultSolver(P, q, A, b, self._cones, options)
+        self._kept.matrices[key] = (P, A)
         return solver
+
+
+def _same(a: sp.csc_array, b: sp.csc_array) -> bool:
+    """Whether two CSC matrices hold the same entries in the same layout. O(nnz)."""
+    return a is b or (a.shape == b.shape and np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
+                      and np.array_equal(a.data, b.data))
 
 
 class ClarabelPoint:
