@@ -207,8 +207,9 @@ class ConstrainedQP:
         self._program: ClarabelProgram | None = None
         #: why a default-solver solve goes through ``problem.solve`` instead ("" while the compiled program serves)
         self.fast_path_refused = ""
-        #: (mu's key, the moments of the plan U = 0 under it, x0's key, the free means A^k x0) of the last solve
-        self._base: tuple[bytes, Moments, bytes, np.ndarray] | None = None
+        #: (the system last asked for, its mu's key, the moments of the plan U = 0 under that mu, its x0's key, the
+        #: free means A^k x0)
+        self._base: tuple[System, bytes, Moments, bytes, np.ndarray] | None = None
         self._build()
 
     # ------------------------------------------------------------------------------------------------ building
@@ -501,7 +502,8 @@ class ConstrainedQP:
                     rows.append(jac[act])
                     values.append(g[act])
                 J_A = np.vstack(rows)
-                K = np.block([[H, J_A.T], [J_A, np.zeros((J_A.shape[0], J_A.shape[0]))]])
+                K = np.zeros((u.size + J_A.shape[0],) * 2)
+                K[:u.size, :u.size], K[:u.size, u.size:], K[u.size:, :u.size] = H, J_A.T, J_A
                 # least squares of least norm (a degenerate active set's K is singular), by pivoted QR
                 step = scipy.linalg.lstsq(K, -np.concatenate([grad, *values]), lapack_driver="gelsy",
                                           check_finite=False)[0]
@@ -564,18 +566,20 @@ class ConstrainedQP:
         x0), the free means A^k x0 once per x0 by the same recursion without inputs, and a plan moves the mean by
         ``T U`` and the covariance by ``(C diag(u)) (C diag(u))'``, the recursion's own sums in closed form.
         O(N^2 n m (n + m)) for a new mu, O(N n^2) for a new x0, O(N^2 n m n) per plan."""
-        key = b"".join(np.ascontiguousarray(x, dtype=float).tobytes()
-                       for x in (system.mu_schedule, system.A, system.B, system.noise_cov))
-        if self._base is None or self._base[0] != key:
-            base = plan_moments(system, np.zeros((system.horizon, system.m)))
-            self._base = (key, base, system.x0.tobytes(), base.mean)
-        if self._base[2] != system.x0.tobytes():
-            free = np.empty_like(self._base[3])
-            free[0] = system.x0
-            for k in range(system.horizon):
-                free[k + 1] = system.A @ free[k]
-            self._base = (*self._base[:2], system.x0.tobytes(), free)
-        base, free = self._base[1], self._base[3]
+        if self._base is None or self._base[0] is not system:         # a System is immutable: its moments stay
+            key = b"".join(np.ascontiguousarray(x, dtype=float).tobytes()
+                           for x in (system.mu_schedule, system.A, system.B, system.noise_cov))
+            if self._base is None or self._base[1] != key:
+                base = plan_moments(system, np.zeros((system.horizon, system.m)))
+                self._base = (system, key, base, system.x0.tobytes(), base.mean)
+            if self._base[3] != system.x0.tobytes():
+                free = np.empty_like(self._base[4])
+                free[0] = system.x0
+                for k in range(system.horizon):
+                    free[k + 1] = system.A @ free[k]
+                self._base = (system, *self._base[1:3], system.x0.tobytes(), free)
+            self._base = (system, *self._base[1:])
+        base, free = self._base[2], self._base[4]
         u = np.asarray(U, dtype=float).ravel()
         spread = base.C * u
         return Moments(free + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
@@ -632,10 +636,9 @@ class ConstrainedQP:
             cap = rho if group.slack is not None else np.inf        # a soft row's multiplier is at most rho
             dual = max(dual, float(np.max(np.maximum(-lam, lam - cap), initial=0.0)))
             pairs.append((np.abs(lam), np.abs(excess)))
-            binding += [label for label, e, sz in zip(group.labels, excess, size, strict=True)
-                        if e >= -CONSTRAINED_ACTIVE_RTOL * sz]
-            violations += [(label, float(v)) for label, v, sz in zip(group.labels, slack, size, strict=True)
-                           if v > CONSTRAINED_ACTIVE_RTOL * sz]
+            binding += [group.labels[i] for i in np.flatnonzero(excess >= -CONSTRAINED_ACTIVE_RTOL * size)]
+            violations += [(group.labels[i], float(slack[i])) for i in np.flatnonzero(slack > CONSTRAINED_ACTIVE_RTOL
+                                                                                      * size)]
         for group, lam in zip(self._groups, multipliers, strict=True):     # a kink: the best subgradient
             for row, scale in group.kinks.items():
                 weight = max(float(lam[row]), 0.0) * scale
