@@ -670,6 +670,8 @@ class _Group:
         self.kind, self.con, self.labels, self.bound, self.slack = kind, con, labels, np.asarray(bound), slack
         self.P, self.chance = P, chance
         self.dense: np.ndarray | None = None            # the input rows' P as an array, on first use
+        #: a chance block's (C, (a'C_k)^2, a'S_k a, a'T_k) for the moments' C it was computed from (one mu)
+        self.plan_free: tuple | None = None
         #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale)
         self.kinks: dict[int, np.ndarray] = {}
 
@@ -696,11 +698,13 @@ class _Group:
             T = mom.T[1:].reshape(N * system.n, -1)
             return self.P @ mean - self.bound, np.asarray(self.P @ T), None
         a, b, kappa = self.chance
-        h2 = np.einsum("i,kij->kj", a, mom.C[1:]) ** 2                       # (a' C_k)^2, k = 1..N
-        noise = np.einsum("i,kij,j->k", a, mom.S[1:], a)
+        if self.plan_free is None or self.plan_free[0] is not mom.C:      # what no plan moves, once per mu
+            self.plan_free = (mom.C, np.einsum("i,kij->kj", a, mom.C[1:]) ** 2,     # (a' C_k)^2, k = 1..N
+                              np.einsum("i,kij,j->k", a, mom.S[1:], a), np.einsum("i,kij->kj", a, mom.T[1:]))
+        _, h2, noise, slope = self.plan_free
         std = np.sqrt(h2 @ (u * u) + noise)
         g = mom.mean[1:] @ a + kappa * std - b
-        jac = np.einsum("i,kij->kj", a, mom.T[1:])
+        jac = slope.copy()
         reach = max(1.0, float(np.abs(u).max(initial=0.0)))
         # the norm's kink (no noise, the plan ~0 where it spreads a'x_k): no gradient, the subdifferential
         # {kappa sqrt(D) z : ||z|| <= 1}; kept for the KKT check (:meth:`ConstrainedQP.kkt`)
