@@ -80,8 +80,9 @@ def _agree(a, b):
                                                            (4, "binding", "condensed")])
 def test_a_re_solve_on_the_compiled_program_is_the_cvxpy_paths_answer(protocol, seed, kind, formulation):
     """One controller re-solved for new (mu, x0) gives, point by point, what cvxpy's path gives on its own
-    controller and what a fresh controller gives; cvxpy's public state (status, value, U, multipliers) is set as
-    ``problem.solve`` sets it."""
+    controller and what a fresh controller gives; cvxpy's public state (status, value, multipliers) is set as
+    ``problem.solve`` sets it (the raw multipliers of two Clarabel solves differ by up to 2e-6 of the largest here,
+    so the unpacking itself is compared on one solution, below)."""
     s = _system(seed)
     c = _constraints(s, protocol, kind)
     fast = ConstrainedQP(s, protocol, c, formulation)
@@ -103,10 +104,8 @@ def test_a_re_solve_on_the_compiled_program_is_the_cvxpy_paths_answer(protocol, 
         assert answer.kkt_residual <= CONSTRAINED_KKT_RTOL
         assert fast.problem.status == slow.problem.status == "optimal"
         assert abs(fast.problem.value - slow.problem.value) <= CROSS_CHECK_COST_RTOL * abs(slow.problem.value)
-        assert fast.problem.value == pytest.approx(fast.problem.objective.value, rel=1e-12)
-        for mine, theirs in zip(fast.problem.constraints, slow.problem.constraints, strict=True):
-            scale = max(1.0, float(np.abs(theirs.dual_value).max()))
-            assert np.abs(np.asarray(mine.dual_value) - theirs.dual_value).max() <= 1e-4 * scale   # solver accuracy
+        assert fast.problem.value == fast.problem.objective.value              # as problem.solve sets it
+        assert all(con.dual_value is not None for con in fast.problem.constraints)   # (their values: bit for bit below)
     assert solved >= 2
     if kind != "free":
         assert answer.binding or answer.violations
@@ -169,10 +168,11 @@ def test_the_users_constraints_are_compiled_into_the_next_solve():
     for qp in (fast, slow := _through_cvxpy(ConstrainedQP(s, "tcp", c))):
         qp.add_constraints([qp.U[0, 0] >= bound])
     mine, theirs = fast.solve(), slow.solve()
-    assert mine.inputs[0, 0] >= bound - 1e-9
+    assert mine.inputs[0, 0] >= bound - CLARABEL_DEFAULT["tol_feas"] * max(1.0, abs(bound))    # a raw answer
     assert abs(mine.inputs[0, 0] - first.inputs[0, 0]) > 1e-3
     assert mine.kkt_residual is None                              # the KKT check does not cover the user's rows
-    np.testing.assert_allclose(mine.inputs, theirs.inputs, atol=1e-6 * max(1.0, np.abs(theirs.inputs).max()))
+    np.testing.assert_allclose(mine.inputs, theirs.inputs,                # unpolished: two solves' answers
+                               atol=CONSTRAINED_AGREEMENT_RTOL * max(1.0, np.abs(theirs.inputs).max()))
 
 
 def test_a_compilation_that_cannot_be_mapped_goes_through_cvxpy_and_says_why(monkeypatch):
