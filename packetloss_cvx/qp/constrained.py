@@ -45,6 +45,7 @@ from ..tolerances import (
     CLARABEL_DEFAULT,
     CLARABEL_TIGHT,
     CONSTRAINED_ACTIVE_RTOL,
+    CONSTRAINED_ATTEMPTS,
     CONSTRAINED_KKT_RTOL,
     CROSS_CHECK_COST_RTOL,
 )
@@ -203,7 +204,7 @@ class ConstrainedQP:
         #: the objective's scale: J's variable part divided by the largest weight
         self.scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
         self._user_constraints = False
-        #: the problem compiled for Clarabel (`ClarabelProgram`, warm), on the first solve with the default solver
+        #: the problem compiled for Clarabel (`ClarabelProgram`), on the first solve with the default solver
         self._program: ClarabelProgram | None = None
         #: why a default-solver solve goes through ``problem.solve`` instead ("" while the compiled program serves)
         self.fast_path_refused = ""
@@ -321,12 +322,13 @@ class ConstrainedQP:
         return str(self.problem.status)
 
     def _compiled(self) -> ClarabelProgram | None:
-        """The problem compiled once for Clarabel (`ClarabelProgram`, warm: each solve updates a kept solver's data),
-        or None, with the reason in ``fast_path_refused``, where cvxpy's compilation cannot be driven directly (then
+        """The problem compiled once for Clarabel (`ClarabelProgram`: each solve maps the Parameters onto the cone
+        program and runs ``CONSTRAINED_ATTEMPTS``, the unequilibrated ones on a kept solver given the new data), or
+        None, with the reason in ``fast_path_refused``, where cvxpy's compilation cannot be driven directly (then
         ``problem.solve`` runs, as for any other solver)."""
         if self._program is None and not self.fast_path_refused:
             try:
-                program = ClarabelProgram(self.problem, warm=True, duals=True)
+                program = ClarabelProgram(self.problem, duals=True)
             except (ValueError, cp.error.DCPError, cp.error.SolverError) as err:
                 self.fast_path_refused = f"the compiled Clarabel program is refused ({err}): problem.solve runs"
                 return None
@@ -338,7 +340,7 @@ class ConstrainedQP:
         ``problem.solve`` would (variables, multipliers, ``problem.value`` and ``problem.status``). O(nnz) plus
         Clarabel's iterations."""
         values = {p: p.value for p in self._parameters}
-        status, point = program.solve(values, what, attempts=(CLARABEL_TIGHT, CLARABEL_DEFAULT))
+        status, point = program.solve(values, what, attempts=CONSTRAINED_ATTEMPTS)
         duals = program.duals(point)
         if status in cp.settings.SOLUTION_PRESENT:
             solution = Solution(status, point.value, program.primals(point), duals, {})

@@ -150,14 +150,12 @@ class ClarabelProgram:
     packetloss_cvx.errors.SolverError: solver status 'solver_error': an SOCP: Parameter param... is not finite
     """
 
-    def __init__(self, problem: cp.Problem, warm: bool = False, duals: bool = False) -> None:
+    def __init__(self, problem: cp.Problem, duals: bool = False) -> None:
         if not problem.is_dpp():
             raise ValueError("ClarabelProgram needs a DPP problem (cvxpy's disciplined parametrized programming)")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             data, chain, inverse = problem.get_problem_data(cp.CLARABEL, canon_backend=CANON_BACKEND, solver_opts={})
-        #: every attempt on a kept, updated solver (`solve`), not only those without equilibration
-        self.warm = bool(warm)
         self._problem, self._chain, self._inverse = problem, chain, inverse
         self._selections: dict | None = None       # `duals` and `primals`: cvxpy's inversion as selections
         program = data[cp.settings.PARAM_PROB]
@@ -253,7 +251,7 @@ class ClarabelProgram:
             for key, value in settings.items():
                 setattr(options, key, value)
             try:
-                if self.warm or settings.get("equilibrate_enable", True) is False:
+                if settings.get("equilibrate_enable", True) is False:
                     solution = self._updated(settings, options, P, q, A, b).solve()
                 else:
                     solution = clarabel.DefaultSolver(P, q, A, b, self._cones, options).solve()
