@@ -585,7 +585,7 @@ class ConstrainedQP:
                     free[k + 1] = system.A @ free[k]
                 self._base = (system, *self._base[1:3], system.x0.tobytes(), free)
             self._base = (system, *self._base[1:])
-        base, free = self._base[2], self._base[4]
+        _, _, base, _, free = self._base
         u = np.asarray(U, dtype=float).ravel()
         spread = base.C * u
         return Moments(free + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
@@ -596,7 +596,8 @@ class ConstrainedQP:
         """The KKT conditions at the plan ``U`` with the last solve's multipliers (or ``multipliers``, ``slacks``: one
         array per constraint block, in the cost's units), every constraint and gradient evaluated on
         `plan_moments` (not on the matrices the problem was built from). Returns
-        ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations"}``:
+        ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations",
+        "multipliers", "slacks", "cost"}`` (``cost``: J(U) on the plan's moments, the forward cost `solve` returns):
 
         * stationarity ``||grad J + sum lambda_i grad g_i||_inf`` over the largest of its terms' sizes: grad J's
           input, x0 and plan parts (which cancel at an interior optimum) and ``|lambda_i| ||grad g_i||_inf``; a chance
