@@ -24,12 +24,21 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Patch
+from matplotlib.patches import Patch, Rectangle
 
 from ..errors import InputError
 from ..model.system import numeric_array
 from ..safeio import save_figure
-from .style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_log_ticks, tick_text
+from .style import (
+    LEGEND,
+    OUTLINE,
+    PATH_STYLES,
+    callout_positions,
+    contour_label_points,
+    fit_width,
+    set_log_ticks,
+    tick_text,
+)
 
 __all__ = [
     "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
@@ -320,6 +329,7 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
                      ylabel: str = r"$\mu_2$", colorbar_label: str = "expected cost (log scale)",
                      marker: Sequence[float] | None = None, levels: Sequence[float] | None = None,
                      allocations: Mapping[Any, Sequence[Sequence[float] | None]] | None = None,
+                     breaks: Mapping[Any, Sequence[int]] | None = None,
                      title: str | None = None, path: str | Path | None = None) -> Figure:
     """A positive quantity over a 2-D grid on a logarithmic colour scale (``LogNorm``; the colour bar is
     ticked in the values themselves), for Figs. cost-diff-mixed, TCP-/UDP-log-cost-mixed and, with
@@ -341,7 +351,15 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         (no label collides with another or sits on another line); the legend lists them all.
     allocations : mapping, optional
         Label (e.g. beta) to points (pairs, or None where there is none): each a bright line outlined in
-        black through its points (the paper's eq:opt_M lines), markers unclipped on the axes' edges.
+        black through its points (the paper's eq:opt_M lines), the axes reaching a margin beyond the grid so
+        that points on mu = 0 or 1 are drawn whole, off the frame. With one point per level (in the order of
+        ``levels``), each marker's level is written beside it where its contour carries no label of its own.
+        A None point breaks the line.
+    breaks : mapping, optional
+        Label to the steps k at which the path's line is broken between its points k and k + 1: where the
+        optimum jumps instead of sliding
+        ([`path_jumps`][packetloss_cvx.studies.paper_figures.path_jumps] finds them), so that no straight
+        segment is drawn where no optimum lies.
     title : str, optional
     path : str or Path, optional
 
@@ -383,8 +401,14 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     fig = Figure(figsize=(7.9, 5.0), layout="constrained")
     ax = fig.subplots()
     ax.set_box_aspect(1)
-    ax.set_xlim(gx[0], gx[-1])
-    ax.set_ylim(gy[0], gy[-1])
+    # points on mu = 0 or 1 are drawn whole inside the frame: the axes reach a margin beyond the grid, whose own
+    # edge is outlined (the map covers the grid only)
+    pad = 0.03 if (marker is not None or allocations) else 0.0
+    span_x, span_y = gx[-1] - gx[0], gy[-1] - gy[0]
+    ax.set_xlim(gx[0] - pad * span_x, gx[-1] + pad * span_x)
+    ax.set_ylim(gy[0] - pad * span_y, gy[-1] + pad * span_y)
+    if pad:
+        ax.add_patch(Rectangle((gx[0], gy[0]), span_x, span_y, fill=False, lw=0.8, ec="0.3", zorder=3))
     below = raw < lo
     filled = ax.contourf(gx, gy, np.where(raw > 0, raw, lo / 10), levels=np.geomspace(lo, hi, 31),
                          norm=LogNorm(lo, hi), cmap="viridis", extend="min" if below.any() else "neither")
@@ -393,13 +417,26 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     if below.any():
         zero = ", 0 included" if np.any(raw <= 0) else ""
         extra.append(Patch(color=filled.cmap(0.0), label=f"< {lo:.3g}{zero}"))
+    lv = np.sort(numeric_array(levels, "levels").ravel()) if levels is not None else np.empty(0)
+    inside = lv[(lv > np.min(raw)) & (lv < np.max(raw))]
+    cs = ax.contour(gx, gy, raw, levels=inside, colors="0.93", linewidths=0.7) if inside.size else None
+    order = numeric_array(levels, "levels").ravel() if levels is not None else np.empty(0)
+    marked: list[tuple[float, np.ndarray]] = []       # (level, point) of every marker on a contour
+    broken = False
     for k, (label, points) in enumerate((allocations or {}).items()):
-        kept = [p for p in points if p is not None]
-        if not kept:
+        if not any(p is not None for p in points):
             continue
-        pts = numeric_array(kept, f"allocations[{label!r}]")
-        if pts.ndim != 2 or pts.shape[1] != 2:
+        rows = [np.full(2, np.nan) if p is None else numeric_array(p, f"allocations[{label!r}]") for p in points]
+        if any(r.shape != (2,) for r in rows):
             raise InputError(f"allocations[{label!r}]", "expected points as pairs (mu1, mu2)")
+        pts = np.array(rows)
+        if len(pts) == order.size:         # one point per level, as contour_allocations returns them
+            marked += [(float(a), p) for a, p in zip(order, pts, strict=True) if np.all(np.isfinite(p))]
+        cut = sorted({int(k) + 1 for k in (breaks or {}).get(label, ()) if 0 <= int(k) < len(pts) - 1})
+        if cut:                           # where the optimum jumps: no straight segment
+            broken = True
+            pts = np.insert(pts, cut, np.nan, axis=0)
+        pts = pts[~np.all(np.isnan(pts), axis=1) | _kept_breaks(pts)]
         colour, dashes, mark = PATH_STYLES[k % len(PATH_STYLES)]
         ax.plot(pts[:, 0], pts[:, 1], color=colour, ls=dashes, lw=1.5, marker=mark, ms=4.5, mec="k", mew=0.6,
                 path_effects=OUTLINE, clip_on=False, zorder=4, label=str(label))
@@ -407,18 +444,16 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         point = numeric_array(marker, "marker").ravel()
         ax.plot([point[0]], [point[1]], marker="X", color="w", mec="k", mew=1.3, ms=12, ls="none",
                 clip_on=False, zorder=5, label="maximiser")
-    drawn = [line.get_xydata() for line in ax.lines]      # contour labels keep clear of the paths and the marker
-    if levels is not None:
-        lv = np.sort(numeric_array(levels, "levels").ravel())
-        inside = lv[(lv > np.min(raw)) & (lv < np.max(raw))]
-        if inside.size:
-            cs = ax.contour(gx, gy, raw, levels=inside, colors="0.93", linewidths=0.7)
-            chosen, points = contour_label_points(ax, cs, drawn)
-            if chosen:
-                ax.clabel(cs, levels=chosen, manual=points, inline=True, fmt=tick_text, fontsize=7.5)
-            names = [tick_text(a) for a in inside]
-            rows = [", ".join(names[k:k + 5]) for k in range(0, len(names), 5)]
-            extra.append(Line2D([], [], color="0.55", lw=0.9, label="contours $\\alpha$:\n" + ",\n".join(rows)))
+    if cs is not None:
+        _label_levels(fig, ax, cs, marked)
+        names = [tick_text(a) for a in inside]
+        rows_text = [", ".join(names[k:k + 5]) for k in range(0, len(names), 5)]
+        extra.append(Line2D([], [], color="0.55", lw=0.9, label="contours $\\alpha$:\n" + ",\n".join(rows_text)))
+        if marked:
+            extra.append(Line2D([], [], ls="none", marker="o", mfc="none", mec="0.3", ms=5,
+                                label="each marker: the optimum\non the contour $\\alpha$ through it"))
+    if broken:
+        extra.append(Line2D([], [], ls="none", label="a path is broken\nwhere the optimum jumps"))
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
@@ -426,7 +461,70 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     handles = ax.get_legend_handles_labels()[0] + extra
     if handles:
         fig.legend(handles=handles, **LEGEND)
+    fit_width(fig)
     return _save(fig, path)
+
+
+def _kept_breaks(pts: np.ndarray) -> np.ndarray:
+    """The nan rows of a path that separate two drawn pieces (a jump or a missing optimum between two points);
+    leading, trailing and repeated nan rows are dropped. O(points)."""
+    missing = np.all(np.isnan(pts), axis=1)
+    drawn = np.flatnonzero(~missing)
+    keep = np.zeros(len(pts), dtype=bool)
+    if drawn.size:
+        between = missing & (np.arange(len(pts)) > drawn[0]) & (np.arange(len(pts)) < drawn[-1])
+        first = between & ~np.concatenate([[False], between[:-1]])
+        keep = first
+    return keep
+
+
+def _label_levels(fig: Figure, ax: Any, cs: Any, marked: list[tuple[float, np.ndarray]]) -> None:
+    """Each contour level labelled once: on its line where there is room (contour_label_points); a level
+    crowded there (the high alphas packed into a corner) is written in the nearest free spot and joined by a
+    thin leader to one of its markers (the optimum on that contour) or else to its line. O(L V^2)."""
+    drawn = [line.get_xydata() for line in ax.lines]
+    chosen, points = contour_label_points(ax, cs, drawn)
+    if chosen:
+        ax.clabel(cs, levels=chosen, manual=points, inline=True, fmt=tick_text, fontsize=7.5)
+    rest = [float(a) for a in cs.levels if float(a) not in chosen]
+    if not rest:
+        return
+    fig.draw_without_rendering()                      # the axes' size in points, for the labels' boxes
+    to_frac = ax.transData + ax.transAxes.inverted()
+    bbox = ax.get_window_extent()
+    scale = fig.dpi / 72.0
+    boxes = []
+    for text in ax.texts:                             # the labels on the lines
+        extent = text.get_window_extent()
+        lo_, hi_ = ax.transAxes.inverted().transform([[extent.x0, extent.y0], [extent.x1, extent.y1]])
+        boxes.append([lo_[0], lo_[1], hi_[0], hi_[1]])
+    obstacles = [to_frac.transform(np.reshape(p, (-1, 2))) for p in drawn if len(p)]
+    dense = [np.vstack([a + t * (b - a) for a, b in zip(pts[:-1], pts[1:], strict=True)
+                        for t in np.linspace(0, 1, 30)]) if len(pts) > 1 else pts for pts in obstacles]
+    dense = [d[np.all(np.isfinite(d), axis=1)] for d in dense]
+    anchors, sizes = [], []
+    paths = dict(zip((float(a) for a in cs.levels), cs.get_paths(), strict=True))
+    for level in rest:
+        on = [p for a, p in marked if a == level]
+        if on:
+            anchor = to_frac.transform(on[0][None])[0]
+        else:
+            verts = to_frac.transform(paths[level].vertices)
+            verts = verts[np.all((verts > 0.03) & (verts < 0.97), axis=1)]
+            if not verts.size:
+                continue
+            anchor = verts[len(verts) // 2]
+        anchors.append((level, anchor))
+        width = (0.62 * 7.5 * len(tick_text(level)) + 6) * scale / bbox.width
+        sizes.append((width, (7.5 * 1.5 + 4) * scale / bbox.height))
+    spots = callout_positions([a for _, a in anchors], sizes, np.vstack([*dense, np.empty((0, 2))]), boxes)
+    for (level, anchor), spot in zip(anchors, spots, strict=True):
+        if spot is None:
+            continue
+        ax.annotate(tick_text(level), xy=anchor, xycoords="axes fraction", xytext=spot, textcoords="axes fraction",
+                    ha="center", va="center", fontsize=7.5, color="0.1", zorder=6,
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "0.5", "lw": 0.5, "alpha": 0.85},
+                    arrowprops={"arrowstyle": "-", "color": "0.93", "lw": 0.7, "shrinkA": 0, "shrinkB": 2})
 
 
 def plot_burstiness_map(rates: Any, correlations: Sequence[float] | None = None, cost: Any = None,
