@@ -288,9 +288,12 @@ def _write(result: RegionMap, out: RunFolder, args: argparse.Namespace) -> list[
     if result.stable is not None:
         from ..plots import plot_region  # matplotlib only where a figure is asked for
         i, j = result.channels
-        dp = result.laws.index("dp") if "dp" in result.laws else None
-        radius = result.radius[dp] if dp is not None else np.full(result.radius.shape[1:], np.nan)
+        radius = dict(zip(result.laws, result.radius, strict=True))
+        if "dp" not in radius:          # the colours are the least radius, which only the dp law computes
+            radius = {"dp": np.full(result.radius.shape[1:], np.nan), **radius}
         figure = plot_region(result.axis, radius, dict(zip(result.laws, result.stable, strict=True)),
-                             xlabel=rf"$\mu_{i + 1}$", ylabel=rf"$\mu_{j + 1}$", title="stability regions")
+                             xlabel=rf"$\mu_{i + 1}$", ylabel=rf"$\mu_{j + 1}$",
+                             title=f"{result.name or 'system'}: where each law stabilises the loop in mean square"
+                             if hasattr(result, "name") else "where each law stabilises the loop in mean square")
         paths.append(save_figure(figure, figure_file(args, "region"), folder=out, dpi=figure_dpi(args)))
     return paths

@@ -195,7 +195,7 @@ def draw_figures(data: dict[str, Any], folder: RunFolder, fmt: str = "png", dpi:
                 paths[ACK_FIGURE].name, folder=folder, dpi=dpi)
     grid = {law: data["region"][law]["grid"] for law in REGION_LAWS}     # beyond the paper
     paths[REGION_FIGURE] = out / f"{REGION_FIGURE}.{fmt}"
-    save_figure(plot_region(grid["dp"]["axis"], _numbers(grid["dp"]["radius"]),
+    save_figure(plot_region(grid["dp"]["axis"], {law: _numbers(g["radius"]) for law, g in grid.items()},
                             {law: _numbers(g["stable"]) for law, g in grid.items()},
                             title=TITLES[REGION_FIGURE]),
                 paths[REGION_FIGURE].name, folder=folder, dpi=dpi)

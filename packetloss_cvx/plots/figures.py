@@ -21,7 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.colors import LogNorm
+from matplotlib import colormaps
+from matplotlib.colors import ListedColormap, LogNorm, Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
@@ -185,7 +186,8 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
                             title=title, path=path)
 
 
-def plot_closed_loop(curves: Any, *, title: str | None = None, path: str | Path | None = None) -> Figure:
+def plot_closed_loop(curves: Any, *, yscale: str = "linear", title: str | None = None,
+                     path: str | Path | None = None) -> Figure:
     """Closed-loop runs: the mean of ||x_t|| with a band of one standard deviation, and the mean
     cumulative stage cost, one line per law.
 
@@ -196,6 +198,9 @@ def plot_closed_loop(curves: Any, *, title: str | None = None, path: str | Path 
         ``"dp"`` or any text) to a `ClosedLoopRun` or to a mapping with
         ``"state_norm_mean"`` and ``"state_norm_std"`` (length T + 1, t = 0..T) and ``"stage_cost_mean"``
         (length T), as a ClosedLoopRun holds them. Non-finite values are not drawn.
+    yscale : {"linear", "log", "symlog"}
+        Both panels' y axes: "log" (or "symlog", which keeps zeros) so that a diverging law does not flatten
+        the others; on "log" the band is drawn from its positive part.
     title : str, optional
     path : str or Path, optional
 
@@ -217,6 +222,8 @@ def plot_closed_loop(curves: Any, *, title: str | None = None, path: str | Path 
     ([1.0, 0.5, 0.25], [2.0, 3.0])
     """
     keys = ("state_norm_mean", "state_norm_std", "stage_cost_mean")
+    if yscale not in ("linear", "log", "symlog"):
+        raise InputError("yscale", f"expected linear, log or symlog, found {yscale!r}")
     curves = getattr(curves, "closed_loop", curves)       # a Simulation: its closed-loop runs
     if not isinstance(curves, Mapping) or not curves:
         raise InputError("curves", "expected a Simulation with closed-loop runs or a non-empty mapping law -> "
@@ -239,10 +246,13 @@ def plot_closed_loop(curves: Any, *, title: str | None = None, path: str | Path 
         line, = left.plot(t, mean, label=labels.get(law, str(law)))
         left.fill_between(t, np.maximum(mean - std, 0.0), mean + std, color=line.get_color(), alpha=0.2)
         right.plot(t[1:], np.cumsum(stage), color=line.get_color(), label=labels.get(law, str(law)))
+    for panel in (left, right):
+        panel.set_yscale(yscale)
+    scale = {"linear": "", "log": " (log scale)", "symlog": " (symmetric log scale)"}[yscale]
     left.set_xlabel("step t")
-    left.set_ylabel(r"$\|x_t\|$: mean $\pm$ one std")
+    left.set_ylabel(rf"$\|x_t\|$: mean $\pm$ one std{scale}")
     right.set_xlabel("step t")
-    right.set_ylabel("mean cumulative stage cost")
+    right.set_ylabel(f"mean cumulative stage cost{scale}")
     fig.legend(handles=right.get_legend_handles_labels()[0], **LEGEND)
     if title:
         fig.suptitle(title)
@@ -612,11 +622,13 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
                 xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
                 path: str | Path | None = None) -> Figure:
     """Stability regions over two channels: ``radius`` (the least mean-square radius any linear law reaches,
-    min_K rho(L_K), shape (K, K), rows the second channel) as a colour map clipped to [0, 2] with its level 1
-    in white, and each law's region boundary (the 1/2 level of its 0/1 ``stable`` map; nan undecided) as a line.
-    ``axis`` may be a `RegionMap` with a grid, alone: its axis, its "dp" law's
-    radius, every law's ``stable`` map and its channels' names (``xlabel`` and ``ylabel`` default to them; else
-    to mu_1, mu_2). O(K^2) per law.
+    min_K rho(L_K), shape (K, K), rows the second channel) filled on a diverging colour scale centred at 1 that
+    spans the data (blue stable, red not), its level 1 drawn as the boundary of the stabilisable set (interpolated
+    between grid points, so a coarse grid gives a smooth line), each region named on the map, and each law's
+    region boundary: the level 1 of its own radius where ``radius`` is a mapping law -> grid, else the 1/2 level
+    of its 0/1 ``stable`` map (nan undecided). ``axis`` may be a `RegionMap` with a grid, alone: its axis, every
+    law's radius (the colours: its "dp" law's), every law's ``stable`` map and its channels' names (``xlabel`` and
+    ``ylabel`` default to them; else to mu_1, mu_2). O(K^2) per law.
 
     Raises
     ------
@@ -631,6 +643,9 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
     >>> fig = plot_region(axis, radius, {"dp": [[0, 0, 0], [0, 0, 1], [0, 1, 1]]})
     >>> len(fig.axes), fig.axes[0].get_xlabel()     # the map and its colour bar
     (2, '$\\\\mu_1$')
+    >>> filled = fig.axes[0].collections[0]          # the colour scale spans the data, white at radius 1
+    >>> float(filled.norm.vmin), float(filled.norm.vmax), bool(min(filled.cmap(filled.norm(1.0))[:3]) > 0.9)
+    (0.2, 2.0, True)
     """
     names = (r"$\mu_1$", r"$\mu_2$")
     if hasattr(axis, "laws") and hasattr(axis, "channels"):        # a RegionMap
@@ -638,7 +653,8 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
         if region.stable is None or "dp" not in region.laws:
             raise InputError("region", "expected a RegionMap with a grid and the 'dp' law (region_map(..., "
                                        "grid=K, laws=[\"dp\", ...])): the colours are the dp law's least radius")
-        axis, radius = region.axis, region.radius[region.laws.index("dp")]
+        axis = region.axis
+        radius = dict(zip(region.laws, region.radius, strict=True)) if radius is None else radius
         stable = dict(zip(region.laws, region.stable, strict=True)) if stable is None else stable
         names = tuple(rf"$\mu_{c + 1}$" if c < 9 else rf"$\mu_{{{c + 1}}}$" for c in region.channels)
     if radius is None or stable is None:
@@ -648,32 +664,111 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
     g = numeric_array(axis, "axis")
     if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
         raise InputError("axis", "expected an increasing 1-D sequence of at least 2 numbers")
-    r = np.asarray(radius, dtype=float)
-    if r.shape != (g.size, g.size):
-        raise InputError("radius", f"expected shape ({g.size}, {g.size}) but found {r.shape}")
-    fig = Figure(figsize=(7.6, 5.0), layout="constrained")
+    radii = {str(k): np.asarray(v, dtype=float) for k, v in radius.items()} if isinstance(radius, Mapping) else {}
+    if radii and "dp" not in radii and len(radii) > 1:
+        raise InputError("radius", "expected the 'dp' law among the radii (its least radius is the colour)")
+    r = radii.get("dp", next(iter(radii.values()))) if radii else np.asarray(radius, dtype=float)
+    for law, v in {**radii, "": r}.items():
+        if v.shape != (g.size, g.size):
+            raise InputError(f"radius[{law!r}]" if law else "radius",
+                             f"expected shape ({g.size}, {g.size}) but found {v.shape}")
+    fig = Figure(figsize=(9.5, 5.0), layout="constrained")     # narrowed to what it draws below (fit_width)
     ax = fig.add_subplot()
-    mesh = ax.pcolormesh(g, g, np.clip(r, 0.0, 2.0), shading="nearest", cmap="viridis", vmin=0.0, vmax=2.0)
-    fig.colorbar(mesh, ax=ax, label=r"least radius $\min_K \rho(\mathcal{L}_K)$ (clipped at 2)")
-    handles = []
-    if np.nanmin(r) < 1.0 < np.nanmax(r):
-        ax.contour(g, g, r, levels=[1.0], colors="white", linewidths=0.8)
-        handles.append(Line2D([], [], color="lightgrey", linewidth=0.8, label="least radius = 1"))
+    ax.set_box_aspect(1)
+    finite = r[np.isfinite(r)]
+    handles: list[Any] = []
+    crosses = finite.size and finite.min() < 1.0 < finite.max()
+    if finite.size:
+        lo, hi = float(finite.min()), float(finite.max())
+        lo, hi = min(lo, 1.0 - 1e-3), max(hi, 1.0 + 1e-3)            # 1 inside the scale: the colours read stable
+        # blue below 1, red above, white at 1, each side stretched over its own range: a linear scale that fits
+        # the data and still reads stable / not stable
+        values = np.linspace(lo, hi, 256)
+        shade = np.where(values < 1.0, 0.5 * (values - lo) / (1.0 - lo), 0.5 + 0.5 * (values - 1.0) / (hi - 1.0))
+        cmap = ListedColormap(colormaps["RdBu_r"](shade))
+        levels = np.unique(np.concatenate([np.linspace(lo, 1.0, 13), np.linspace(1.0, hi, 13)]))
+        filled = ax.contourf(g, g, np.ma.masked_invalid(r), levels=levels, norm=Normalize(lo, hi), cmap=cmap)
+        bar = fig.colorbar(filled, ax=ax, spacing="proportional",
+                           label=r"least mean-square radius $\min_K \rho(\mathcal{L}_K)$")
+        bar.set_ticks(np.unique(np.round(np.concatenate([np.linspace(lo, 1.0, 5), np.linspace(1.0, hi, 3)]), 3)))
+    if np.any(~np.isfinite(r)):
+        handles.append(Patch(facecolor="white", edgecolor="0.5", label="radius not computed"))
     styles = ["-", "--", ":", "-."]
-    colors = ["black", "tab:orange", "tab:red", "tab:cyan"]
+    colors = ["black", "tab:orange", "tab:green", "tab:purple"]
     for k, (law, values) in enumerate(stable.items()):
         v = np.asarray(values, dtype=float)
         if v.shape != r.shape:
             raise InputError("stable", f"{law}: expected shape {r.shape} but found {v.shape}")
-        if np.nanmin(v) < 0.5 < np.nanmax(v):
-            ax.contour(g, g, np.nan_to_num(v, nan=0.5), levels=[0.5], colors=colors[k % 4],
-                       linestyles=styles[k % 4], linewidths=1.6)
-        handles.append(Line2D([], [], color=colors[k % 4], linestyle=styles[k % 4], label=f"{law} boundary"))
+        own = radii.get(str(law), r if (str(law) == "dp" and not radii) else None)
+        style = {"colors": colors[k % 4], "linestyles": styles[k % 4], "linewidths": 2.2 if law == "dp" else 1.6}
+        drawn = False
+        if own is not None:
+            ok = own[np.isfinite(own)]
+            if ok.size and ok.min() < 1.0 < ok.max():
+                ax.contour(g, g, np.ma.masked_invalid(own), levels=[1.0], **style)
+                drawn = True
+        elif np.nanmin(v) < 0.5 < np.nanmax(v):
+            ax.contour(g, g, np.nan_to_num(v, nan=0.5), levels=[0.5], **style)
+            drawn = True
+        if drawn:
+            what = "radius = 1: " if own is not None else ""
+            handles.append(Line2D([], [], color=colors[k % 4], linestyle=styles[k % 4],
+                                  linewidth=style["linewidths"], label=f"{what}{law} law's boundary"))
+        undecided = np.isnan(v)
+        if undecided.any():
+            jj, ii = np.nonzero(undecided)
+            ax.plot(g[ii], g[jj], ls="none", marker="x", ms=4, color=colors[k % 4], label=f"{law}: undecided")
+            handles.append(ax.lines[-1])
+    if crosses:                       # each side of the stabilisable set's boundary named where it has room
+        for text, side in (("stable\n(radius < 1)", r < 1.0), ("not stabilisable\n(radius > 1)", r > 1.0)):
+            found = _deepest(g, side, ~side & np.isfinite(r))
+            if found is None:
+                continue
+            spot, room = found
+            box = {"boxstyle": "round,pad=0.25", "fc": "white", "ec": "0.4", "lw": 0.6, "alpha": 0.9}
+            if room >= 0.12:                                  # the region has room for its name
+                ax.text(*spot, text, ha="center", va="center", fontsize=8, zorder=6, bbox=box)
+            else:                                             # a sliver: named beside it, with an arrow
+                centre = (g[0] + g[-1]) / 2
+                ax.annotate(text, xy=spot, xytext=(spot[0] + 0.3 * np.sign(centre - spot[0]) * (g[-1] - g[0]),
+                                                   spot[1] + 0.25 * np.sign(centre - spot[1]) * (g[-1] - g[0])),
+                            ha="center", va="center", fontsize=8, zorder=6, bbox=box,
+                            arrowprops={"arrowstyle": "->", "color": "k", "lw": 0.9})
+    elif finite.size:
+        handles.append(Patch(facecolor="white", edgecolor="none",
+                             label="stable everywhere shown" if finite.max() < 1.0 else "not stabilisable anywhere"))
     ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
     if title:
-        ax.set_title(title)
-    fig.legend(handles=handles, **LEGEND)
+        fig.suptitle(title, fontsize=9)
+    if handles:
+        fig.legend(handles=handles, **LEGEND)
+    fit_width(fig)
     return _save(fig, path)
+
+
+def _deepest(g: np.ndarray, inside: np.ndarray, outside: np.ndarray) -> tuple[tuple[float, float], float] | None:
+    """The grid point of ``inside`` (a bool map over g x g, rows y) farthest from every point of ``outside`` and
+    from the map's edges, where a label of a region reads best, with that distance (a fraction of the map's
+    side); None when ``inside`` is empty. O(K^2 * boundary) on at most 41 x 41 points."""
+    step = max(1, int(np.ceil(g.size / 41)))
+    sub = g[::step]
+    yy, xx = np.meshgrid(sub, sub, indexing="ij")
+    ins, outs = inside[::step, ::step], outside[::step, ::step]
+    if not ins.any():
+        return None
+    span = g[-1] - g[0]
+    room = np.minimum.reduce([xx - g[0], g[-1] - xx, yy - g[0], g[-1] - yy]) / span * 2.0
+    if outs.any():
+        others = np.column_stack([xx[outs], yy[outs]])
+        near = np.min(np.hypot(xx[..., None] - others[:, 0], yy[..., None] - others[:, 1]), axis=-1) / span
+        room = np.minimum(room, near)
+    room = np.where(ins, room, -np.inf)
+    j, i = np.unravel_index(int(np.argmax(room)), room.shape)
+    if not np.isfinite(room[j, i]) or room[j, i] <= 0:             # on the edge only: point at its middle
+        pts = np.argwhere(ins)
+        j, i = pts[len(pts) // 2]
+        return (float(xx[j, i]), float(yy[j, i])), 0.0
+    return (float(xx[j, i]), float(yy[j, i])), float(room[j, i])
 
 
 def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stable: Mapping[str, Any], *,
@@ -719,8 +814,10 @@ def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stab
             raise InputError("stable", f"{law}: expected shape {c.shape} but found {v.shape}")
         if np.nanmin(v) < 0.5 < np.nanmax(v):
             ax.contour(m, g, v, levels=[0.5], colors=colors[k % 3], linestyles=styles[k % 3], linewidths=1.6)
-        label = f"{law} boundary" + ("" if np.nanmax(v) > 0.5 else " (never stable here)")
-        handles.append(Line2D([], [], color=colors[k % 3], linestyle=styles[k % 3], label=label))
+            handles.append(Line2D([], [], color=colors[k % 3], linestyle=styles[k % 3], label=f"{law} boundary"))
+        else:                        # no boundary on the map: said in words, not as a line that is not drawn
+            where = "stable everywhere shown" if np.nanmin(v) > 0.5 else "never stable here"
+            handles.append(Patch(facecolor="none", edgecolor="none", label=f"{law}: {where}"))
     ax.set(xlabel=r"actuator delivery rate $\mu$", ylabel=r"sensor delivery rate $\gamma$", xlim=(m[0], m[-1]),
            ylim=(g[0], g[-1]))
     if title:
@@ -729,23 +826,27 @@ def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stab
     return _save(fig, path)
 
 
-def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, title: str | None = None,
+def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, unit: str | None = None, title: str | None = None,
                       path: str | Path | None = None) -> Figure:
     """The power-cost trade-off: the least J* against the total power budget.
 
     ``curves``: label to rows with keys ``"budget"`` and ``"cost"`` (``PowerAllocation.to_dict()`` of
-    [`power_pareto`][packetloss_cvx.allocation.power.power_pareto]'s points); J* on a log axis. O(rows) to draw.
+    [`power_pareto`][packetloss_cvx.allocation.power.power_pareto]'s points); J* on a log axis. ``unit``: the
+    unit of the powers, as the link model's power table gives them (e.g. "mW"), written on the axis; the table
+    carries no unit name, so by default the axis says "power-table units" rather than guess one.
+    O(rows) to draw.
 
     Examples
     --------
     >>> rows = [{"budget": 0.0, "cost": 4.0}, {"budget": 1.0, "cost": 2.0}]
-    >>> line, = plot_power_pareto({"tcp": rows}).axes[0].lines
-    >>> line.get_xdata().tolist(), line.get_ydata().tolist()
-    ([0.0, 1.0], [4.0, 2.0])
+    >>> fig = plot_power_pareto({"tcp": rows}, unit="mW")
+    >>> line, = fig.axes[0].lines
+    >>> line.get_xdata().tolist(), line.get_ydata().tolist(), fig.axes[0].get_xlabel()
+    ([0.0, 1.0], [4.0, 2.0], 'total power budget $\\\\sum_i P_i \\\\leq B$ (mW)')
     """
     fig, ax = _curves(curves, "budget", "cost", skip_missing=False)
     ax.set_yscale("log")
-    ax.set_xlabel(r"total power budget $\sum_i P_i \leq B$")
+    ax.set_xlabel(rf"total power budget $\sum_i P_i \leq B$ ({unit or 'power-table units'})")
     ax.set_ylabel(r"least optimal cost $J^*(\mu(P))$ (log scale)")
     if title:
         ax.set_title(title)
