@@ -43,7 +43,7 @@ from .style import (
 
 __all__ = [
     "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
-    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
+    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map", "plot_stability_lines",
 ]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
@@ -620,7 +620,7 @@ def plot_burstiness_map(rates: Any, correlations: Sequence[float] | None = None,
 
 def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None = None, *,
                 xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
-                path: str | Path | None = None) -> Figure:
+                radius_label: str | None = None, path: str | Path | None = None) -> Figure:
     """Stability regions over two channels: ``radius`` (the least mean-square radius any linear law reaches,
     min_K rho(L_K), shape (K, K), rows the second channel) filled on a diverging colour scale centred at 1 that
     spans the data (blue stable, red not), its level 1 drawn as the boundary of the stabilisable set (interpolated
@@ -628,7 +628,9 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
     region boundary: the level 1 of its own radius where ``radius`` is a mapping law -> grid, else the 1/2 level
     of its 0/1 ``stable`` map (nan undecided). ``axis`` may be a `RegionMap` with a grid, alone: its axis, every
     law's radius (the colours: its "dp" law's), every law's ``stable`` map and its channels' names (``xlabel`` and
-    ``ylabel`` default to them; else to mu_1, mu_2). O(K^2) per law.
+    ``ylabel`` default to them; else to mu_1, mu_2). ``radius_label``: the colour bar's words when the colours
+    are one law's own radius rather than the least one (``radius`` a mapping without "dp": its first law's);
+    the region above 1 is then "not stable" rather than "not stabilisable". O(K^2) per law.
 
     Raises
     ------
@@ -665,9 +667,13 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
     if g.ndim != 1 or g.size < 2 or np.any(np.diff(g) <= 0):
         raise InputError("axis", "expected an increasing 1-D sequence of at least 2 numbers")
     radii = {str(k): np.asarray(v, dtype=float) for k, v in radius.items()} if isinstance(radius, Mapping) else {}
-    if radii and "dp" not in radii and len(radii) > 1:
-        raise InputError("radius", "expected the 'dp' law among the radii (its least radius is the colour)")
+    if isinstance(radius, Mapping) and not radii:
+        raise InputError("radius", "expected at least one law's radius grid")
+    least = not radii or "dp" in radii           # the colours: the least radius (dp), else the first law's own
     r = radii.get("dp", next(iter(radii.values()))) if radii else np.asarray(radius, dtype=float)
+    if radius_label is None:
+        radius_label = (r"least mean-square radius $\min_K \rho(\mathcal{L}_K)$" if least
+                        else f"mean-square radius of the {next(iter(radii))} law")
     for law, v in {**radii, "": r}.items():
         if v.shape != (g.size, g.size):
             raise InputError(f"radius[{law!r}]" if law else "radius",
@@ -688,8 +694,7 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
         cmap = ListedColormap(colormaps["RdBu_r"](shade))
         levels = np.unique(np.concatenate([np.linspace(lo, 1.0, 13), np.linspace(1.0, hi, 13)]))
         filled = ax.contourf(g, g, np.ma.masked_invalid(r), levels=levels, norm=Normalize(lo, hi), cmap=cmap)
-        bar = fig.colorbar(filled, ax=ax, spacing="proportional",
-                           label=r"least mean-square radius $\min_K \rho(\mathcal{L}_K)$")
+        bar = fig.colorbar(filled, ax=ax, spacing="proportional", label=radius_label)
         bar.set_ticks(np.unique(np.round(np.concatenate([np.linspace(lo, 1.0, 5), np.linspace(1.0, hi, 3)]), 3)))
     if np.any(~np.isfinite(r)):
         handles.append(Patch(facecolor="white", edgecolor="0.5", label="radius not computed"))
@@ -720,7 +725,8 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
             ax.plot(g[ii], g[jj], ls="none", marker="x", ms=4, color=colors[k % 4], label=f"{law}: undecided")
             handles.append(ax.lines[-1])
     if crosses:                       # each side of the stabilisable set's boundary named where it has room
-        for text, side in (("stable\n(radius < 1)", r < 1.0), ("not stabilisable\n(radius > 1)", r > 1.0)):
+        above = "not stabilisable" if least else "not stable"
+        for text, side in (("stable\n(radius < 1)", r < 1.0), (f"{above}\n(radius > 1)", r > 1.0)):
             found = _deepest(g, side, ~side & np.isfinite(r))
             if found is None:
                 continue
@@ -736,7 +742,8 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
                             arrowprops={"arrowstyle": "->", "color": "k", "lw": 0.9})
     elif finite.size:
         handles.append(Patch(facecolor="white", edgecolor="none",
-                             label="stable everywhere shown" if finite.max() < 1.0 else "not stabilisable anywhere"))
+                             label="stable everywhere shown" if finite.max() < 1.0
+                             else "not stabilisable anywhere" if least else "not stable anywhere"))
     ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
     if title:
         fig.suptitle(title, fontsize=9)
@@ -769,6 +776,48 @@ def _deepest(g: np.ndarray, inside: np.ndarray, outside: np.ndarray) -> tuple[tu
         j, i = pts[len(pts) // 2]
         return (float(xx[j, i]), float(yy[j, i])), 0.0
     return (float(xx[j, i]), float(yy[j, i])), float(room[j, i])
+
+
+def plot_stability_lines(x: Sequence[float], radii: Mapping[str, Any], *, xlabel: str, title: str | None = None,
+                         path: str | Path | None = None) -> Figure:
+    """Each law's mean-square spectral radius in closed loop against one swept quantity (``sweep --stability``):
+    one line per law, the level 1 dashed, the region above it (not mean-square stable) shaded and named.
+
+    ``radii``: label (``"tcp"``, ``"udp"`` or any text) to radii of shape (points,). O(points) per law.
+
+    Examples
+    --------
+    >>> fig = plot_stability_lines([0.2, 0.5, 1.0], {"tcp": [1.4, 0.9, 0.3]}, xlabel=r"$\\nu$")
+    >>> ax = fig.axes[0]
+    >>> ax.lines[0].get_ydata().tolist(), ax.lines[0].get_label(), bool(ax.get_ylim()[1] > 1.4)
+    ([1.4, 0.9, 0.3], 'TCP-like law', True)
+    """
+    xs = numeric_array(x, "x")
+    if xs.ndim != 1 or xs.size < 1:
+        raise InputError("x", "expected a non-empty 1-D sequence")
+    if not isinstance(radii, Mapping) or not radii:
+        raise InputError("radii", "expected a non-empty mapping law -> radii")
+    fig = Figure(figsize=(7.4, 3.8), layout="constrained")
+    ax = fig.subplots()
+    top = 1.0
+    for label, values in radii.items():
+        ys = np.asarray(values, dtype=float)
+        if ys.shape != xs.shape:
+            raise InputError(f"radii[{label!r}]", f"expected shape {xs.shape} but found {ys.shape}")
+        top = max(top, float(np.nanmax(ys)) if np.isfinite(ys).any() else top)
+        ax.plot(xs, ys, marker="o", ms=3, lw=1.6, label={"tcp": "TCP-like law", "udp": "UDP-like law"}.get(
+            label, str(label)))
+    top *= 1.08
+    ax.axhline(1.0, color="k", ls="--", lw=1.0, label="radius = 1")
+    ax.axhspan(1.0, top, color="tab:red", alpha=0.12, lw=0, label="not mean-square stable (radius > 1)")
+    ax.set_ylim(0.0, top)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(r"mean-square radius $\rho(\mathcal{L}_K)$ in closed loop")
+    ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.legend(**LEGEND)
+    return _save(fig, path)
 
 
 def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stable: Mapping[str, Any], *,
