@@ -364,7 +364,6 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         black through its points (the paper's eq:opt_M lines), the axes reaching a margin beyond the grid so
         that points on mu = 0 or 1 are drawn whole, off the frame. With one point per level (in the order of
         ``levels``), each marker's level is written beside it where its contour carries no label of its own.
-        A None point breaks the line.
     breaks : mapping, optional
         Label to the steps k at which the path's line is broken between its points k and k + 1: where the
         optimum jumps instead of sliding
@@ -445,8 +444,12 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         cut = sorted({int(k) + 1 for k in (breaks or {}).get(label, ()) if 0 <= int(k) < len(pts) - 1})
         if cut:                           # where the optimum jumps: no straight segment
             broken = True
-            pts = np.insert(pts, cut, np.nan, axis=0)
-        pts = pts[~np.all(np.isnan(pts), axis=1) | _kept_breaks(pts)]
+        # a point without an optimum (None) is left out; a jump becomes a nan row, which breaks the line
+        pieces = np.split(pts, cut)
+        pts = np.vstack([np.vstack([piece[np.all(np.isfinite(piece), axis=1)], np.full((1, 2), np.nan)])
+                         for piece in pieces])
+        shown = np.flatnonzero(np.all(np.isfinite(pts), axis=1))
+        pts = pts[shown[0]:shown[-1] + 1] if shown.size else pts[:0]
         colour, dashes, mark = PATH_STYLES[k % len(PATH_STYLES)]
         ax.plot(pts[:, 0], pts[:, 1], color=colour, ls=dashes, lw=1.5, marker=mark, ms=4.5, mec="k", mew=0.6,
                 path_effects=OUTLINE, clip_on=False, zorder=4, label=str(label))
@@ -473,19 +476,6 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         fig.legend(handles=handles, **LEGEND)
     fit_width(fig)
     return _save(fig, path)
-
-
-def _kept_breaks(pts: np.ndarray) -> np.ndarray:
-    """The nan rows of a path that separate two drawn pieces (a jump or a missing optimum between two points);
-    leading, trailing and repeated nan rows are dropped. O(points)."""
-    missing = np.all(np.isnan(pts), axis=1)
-    drawn = np.flatnonzero(~missing)
-    keep = np.zeros(len(pts), dtype=bool)
-    if drawn.size:
-        between = missing & (np.arange(len(pts)) > drawn[0]) & (np.arange(len(pts)) < drawn[-1])
-        first = between & ~np.concatenate([[False], between[:-1]])
-        keep = first
-    return keep
 
 
 def _label_levels(fig: Figure, ax: Any, cs: Any, marked: list[tuple[float, np.ndarray]]) -> None:
