@@ -86,7 +86,7 @@ TITLES = {
                                    r"$\min\ \beta^\top\mu$ subject to $J^*_{\mathrm{udp}}(\mu) \leq \alpha$, "
                                    r"one path per price vector $\beta$",
     ACK_FIGURE: r"Two-actuator system, $\beta = (1, 1)$: the acknowledgement price at which UDP-like wins",
-    REGION_FIGURE: "Two-actuator system: where each law stabilises the loop in mean square",
+    REGION_FIGURE: r"Two-actuator system: where each law stabilises the loop in mean square, over $(\mu_1, \mu_2)$",
 }
 
 

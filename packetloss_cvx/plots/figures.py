@@ -458,7 +458,6 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         ax.plot([point[0]], [point[1]], marker="X", color="w", mec="k", mew=1.3, ms=12, ls="none",
                 clip_on=False, zorder=5, label="maximiser")
     if cs is not None:
-        _label_levels(fig, ax, cs, marked)
         names = [tick_text(a) for a in inside]
         rows_text = [", ".join(names[k:k + 5]) for k in range(0, len(names), 5)]
         extra.append(Line2D([], [], color="0.55", lw=0.9, label="contours $\\alpha$:\n" + ",\n".join(rows_text)))
@@ -474,14 +473,17 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
     handles = ax.get_legend_handles_labels()[0] + extra
     if handles:
         fig.legend(handles=handles, **LEGEND)
-    fit_width(fig)
+    fit_width(fig)                        # laid out: the labels below are sized in the axes' own points
+    if cs is not None:
+        _label_levels(ax, cs, marked)
     return _save(fig, path)
 
 
-def _label_levels(fig: Figure, ax: Any, cs: Any, marked: list[tuple[float, np.ndarray]]) -> None:
+def _label_levels(ax: Any, cs: Any, marked: list[tuple[float, np.ndarray]]) -> None:
     """Each contour level labelled once: on its line where there is room (contour_label_points); a level
     crowded there (the high alphas packed into a corner) is written in the nearest free spot and joined by a
-    thin leader to one of its markers (the optimum on that contour) or else to its line. O(L V^2)."""
+    thin leader to one of its markers (the optimum on that contour) or else to its line. The figure is laid out
+    (its axes' size in points sizes the labels' boxes). O(L V^2)."""
     drawn = [line.get_xydata() for line in ax.lines]
     chosen, points = contour_label_points(ax, cs, drawn)
     if chosen:
@@ -489,15 +491,11 @@ def _label_levels(fig: Figure, ax: Any, cs: Any, marked: list[tuple[float, np.nd
     rest = [float(a) for a in cs.levels if float(a) not in chosen]
     if not rest:
         return
-    fig.draw_without_rendering()                      # the axes' size in points, for the labels' boxes
     to_frac = ax.transData + ax.transAxes.inverted()
     bbox = ax.get_window_extent()
-    scale = fig.dpi / 72.0
-    boxes = []
-    for text in ax.texts:                             # the labels on the lines
-        extent = text.get_window_extent()
-        lo_, hi_ = ax.transAxes.inverted().transform([[extent.x0, extent.y0], [extent.x1, extent.y1]])
-        boxes.append([lo_[0], lo_[1], hi_[0], hi_[1]])
+    scale = ax.figure.dpi / 72.0
+    # the labels on the lines, as contour_label_points counts them: 0.13 wide and 0.06 tall around their points
+    boxes = [[x - 0.065, y - 0.03, x + 0.065, y + 0.03] for x, y in (to_frac.transform(points) if points else [])]
     obstacles = [to_frac.transform(np.reshape(p, (-1, 2))) for p in drawn if len(p)]
     dense = [np.vstack([a + t * (b - a) for a, b in zip(pts[:-1], pts[1:], strict=True)
                         for t in np.linspace(0, 1, 30)]) if len(pts) > 1 else pts for pts in obstacles]

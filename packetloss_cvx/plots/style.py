@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 from matplotlib import patheffects
 
-__all__ = ["LEGEND", "OUTLINE", "PATH_STYLES", "callout_positions", "contour_label_points", "fit_width", "log_ticks",
-           "set_log_ticks", "tick_labels", "tick_text"]
+__all__ = ["LEGEND", "OUTLINE", "PATH_STYLES", "callout_positions", "contour_label_points", "fit_width", "lay_out",
+           "log_ticks", "set_log_ticks", "tick_labels", "tick_text"]
 
 #: Allocation paths on a colour map: bright colours with a black outline (visible on viridis' dark purple and
 #: its yellow alike), told apart by their dashes and markers too.
@@ -126,17 +126,32 @@ def contour_label_points(ax: Any, contours: Any, avoid: Sequence[Any] = ()) -> t
     return chosen, points
 
 
-def fit_width(fig: Any, pad: float = 0.12) -> None:
+def lay_out(fig: Any) -> None:
+    """Run ``fig``'s layout engine and place its fixed-aspect axes, without drawing: afterwards axes positions
+    and window extents are those the figure will be drawn with (at its size). O(artists) text measurements."""
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.execute(fig)
+    for ax in fig.axes:
+        ax.apply_aspect()
+
+
+def fit_width(fig: Any) -> None:
     """Narrow ``fig`` (a constrained layout) to what it draws: a square map (``set_box_aspect(1)``) in a figure
-    wider than it needs leaves an empty band beside it; the height is kept, so the map keeps its size. Two layout
-    passes at most, each one draw without rendering. O(artists).
+    wider than it needs is shrunk inside its slot, leaving an empty band beside it; the figure's width is set so
+    that the map's slot is square (its height kept, so the map keeps its size). Two layout passes (`lay_out`),
+    no drawing. O(artists).
     """
-    for _ in range(2):
-        fig.draw_without_rendering()
-        slack = fig.get_figwidth() - fig.get_tightbbox().width - 2 * pad
-        if slack < 0.05:
+    square = [ax for ax in fig.axes if ax.get_box_aspect() == 1]
+    for _ in range(2):                  # the second pass corrects the margins the first width changed
+        lay_out(fig)
+        slots = [ax.get_position(original=True) for ax in square]
+        if not slots:
             return
-        fig.set_figwidth(fig.get_figwidth() - slack)
+        excess = min(slot.width * fig.get_figwidth() - slot.height * fig.get_figheight() for slot in slots)
+        if abs(excess) < 0.02:
+            return
+        fig.set_figwidth(fig.get_figwidth() - excess)
 
 
 def callout_positions(anchors: Sequence[Sequence[float]], sizes: Sequence[Sequence[float]],
