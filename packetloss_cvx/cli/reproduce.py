@@ -122,10 +122,7 @@ def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, 
                 protocol = step.split()[1]
                 data.setdefault("allocations", {})[protocol] = pf.mixed_allocations(
                     mixed, protocol, settings["alphas"], ALLOCATION_BETAS, progress=progress)
-                # where each path of optima jumps (the figure breaks its line there), read on the cost grid
-                data.setdefault("jumps", {})[protocol] = {
-                    beta: pf.path_jumps(data["mixed"]["axis"], data["mixed"][protocol], beta, settings["alphas"])
-                    for beta in data["allocations"][protocol]}
+
             elif step == "region":   # beyond the paper: each law's stability region
                 data["region"] = region_map(mixed, laws=REGION_LAWS, grid=settings["region_grid"]).to_dict()
             elif step == "tables":
@@ -178,7 +175,9 @@ def draw_figures(data: dict[str, Any], folder: RunFolder, fmt: str = "png", dpi:
             axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$ (log scale)",
             title=caption[f"fig:{name}-log-cost-mixed"])
         lines = {_beta_text(beta): [row["mu"] for row in rows] for beta, rows in data["allocations"][protocol].items()}
-        breaks = {_beta_text(beta): steps for beta, steps in data.get("jumps", {}).get(protocol, {}).items()}
+        # where each path of optima jumps (its line is broken there), read on the cost grid: milliseconds
+        breaks = {_beta_text(beta): pf.path_jumps(axis, mixed[protocol], beta, data["settings"]["alphas"])
+                  for beta in data["allocations"][protocol]}
         draw[f"fig:{name}-log-cost-mixed-mult"] = plot_log_contour(
             axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$ (log scale)",
             levels=data["settings"]["alphas"], allocations=lines, breaks=breaks,
