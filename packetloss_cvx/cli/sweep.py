@@ -303,7 +303,7 @@ def _map_output(args: argparse.Namespace, system: System, result: BurstinessMap,
                     continue
                 figure = plot_burstiness_map(
                     result.rate, result.correlation, result.exact[p], 100 * result.relative_loss(p),
-                    cost_label=f"exact minimum J*_{p} (log scale)",
+                    cost_label=rf"exact minimum $J^*_{{\mathrm{{{p}}}}}$ (log scale)",
                     title=f"{system.name or 'system'}: channel {result.channel + 1}, {p.upper()}-like")
                 files.append(save_figure(figure, figure_file(args, f"burstiness_map_{p}"), folder=out,
                                           dpi=figure_dpi(args)))

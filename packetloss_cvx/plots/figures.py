@@ -857,8 +857,8 @@ def plot_sensor_map(gamma: Sequence[float], mu: Sequence[float], cost: Any, stab
             handles.append(Patch(facecolor="none", edgecolor="none", label=f"{law}: {where}"))
     ax.set(xlabel=r"actuator delivery rate $\mu$", ylabel=r"sensor delivery rate $\gamma$", xlim=(m[0], m[-1]),
            ylim=(g[0], g[-1]))
-    if title:
-        ax.set_title(title)
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
     fig.legend(handles=handles, **LEGEND)
     return _save(fig, path)
 
@@ -936,7 +936,7 @@ def plot_ack_break_even(alpha: Any, break_even: Sequence[float] | None = None, *
     ax.set_ylim(0.0, top)
     ax.set_xlabel(r"cost bound $\alpha$")
     ax.set_ylabel(f"acknowledgement price ({currency})")
-    if title:
-        ax.set_title(title)
+    if title:                # over the whole figure: the legend beside the axes leaves them narrower than it
+        fig.suptitle(title, fontsize=9)
     fig.legend(**LEGEND)
     return _save(fig, path)

@@ -139,7 +139,8 @@ def test_markers_on_the_edge_are_drawn_whole_inside_the_frame():
     (cross,) = [line for line in ax.lines if line.get_label() == "maximiser"]
     assert cross.get_xydata().tolist() == [[0.04, 0.0]]
     box, frame = cross.get_window_extent(renderer), ax.get_window_extent(renderer)
-    assert frame.y0 < box.y0 and box.y1 < frame.y1 and frame.x0 < box.x0 and box.x1 < frame.x1
+    assert frame.y0 < box.y0 < box.y1 < frame.y1
+    assert frame.x0 < box.x0 < box.x1 < frame.x1
 
 
 @pytest.mark.parametrize("make", [
