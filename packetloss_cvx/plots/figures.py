@@ -441,7 +441,7 @@ def plot_log_contour(axis_x: Sequence[float], axis_y: Sequence[float], values: A
         pts = np.array(rows)
         if len(pts) == order.size:         # one point per level, as contour_allocations returns them
             marked += [(float(a), p) for a, p in zip(order, pts, strict=True) if np.all(np.isfinite(p))]
-        cut = sorted({int(k) + 1 for k in (breaks or {}).get(label, ()) if 0 <= int(k) < len(pts) - 1})
+        cut = sorted({int(step) + 1 for step in (breaks or {}).get(label, ()) if 0 <= int(step) < len(pts) - 1})
         if cut:                           # where the optimum jumps: no straight segment
             broken = True
         # a point without an optimum (None) is left out; a jump becomes a nan row, which breaks the line
