@@ -29,11 +29,12 @@ from ..budgets import (
 from ..errors import InputError
 from ..model.files import load_system, read_csv_numbers, read_input
 from ..model.system import System
-from ..safeio import check_output_file
+from ..safeio import FIGURE_DPI, check_dpi, check_output_file
 from . import format as fmt
 
 __all__ = ["WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows", "check_budgets",
-           "check_figure_format", "check_writable", "floats", "integers", "number", "number_range", "preflight",
+           "check_figure_format", "check_writable", "figure_dpi", "figure_file", "floats", "integers", "number",
+           "number_range", "preflight",
            "prices_and_bounds", "progress_of", "search_options", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
@@ -287,6 +288,9 @@ def preflight(args: argparse.Namespace) -> None:
             check_writable(getattr(args, name), flag, getattr(args, "force", False))
     if isinstance(getattr(args, "save", None), str) and not args.save.endswith(".npz"):
         raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
+    figure_dpi(args)
+    if isinstance(getattr(args, "plot", None), str):
+        figure_file(args, args.plot)
     if getattr(args, "plot", None) and getattr(args, "closed_loop", None) is False:
         raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
     if getattr(args, "file", None) is not None:
@@ -407,6 +411,41 @@ def check_figure_format(path: str, field: str) -> None:
     if suffix not in formats:
         shown = ", ".join(formats[:2] + ["..."] + formats[-2:]) if len(formats) > 4 else ", ".join(formats)
         raise InputError(field, f"cannot write a {suffix!r} figure (formats: {shown})")
+
+
+def figure_file(args: argparse.Namespace, stem: str) -> str:
+    """The name of a figure a command writes: ``stem`` with the extension of ``--format`` (default png). For a
+    FILE the user named (``stem`` with an extension, e.g. ``--plot loop.pdf``), that extension, and a different
+    ``--format`` beside it is refused rather than one silently winning. O(1).
+
+    Examples
+    --------
+    >>> figure_file(argparse.Namespace(format="svg"), "region"), figure_file(argparse.Namespace(), "region")
+    ('region.svg', 'region.png')
+    >>> figure_file(argparse.Namespace(format=None), "loop.pdf")
+    'loop.pdf'
+    >>> figure_file(argparse.Namespace(format="svg"), "loop.pdf")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --format: svg, but the figure's file 'loop.pdf' says pdf: drop one
+    """
+    chosen = getattr(args, "format", None)
+    suffix = Path(stem).suffix[1:].lower()
+    if not suffix:
+        return f"{stem}.{chosen or 'png'}"
+    if chosen and chosen != suffix:
+        raise InputError("--format", f"{chosen}, but the figure's file {stem!r} says {suffix}: drop one")
+    return stem
+
+
+def figure_dpi(args: argparse.Namespace) -> float:
+    """``--dpi`` checked (safeio.check_dpi), default `FIGURE_DPI`. O(1).
+
+    >>> figure_dpi(argparse.Namespace(dpi=None)), figure_dpi(argparse.Namespace(dpi=300.0))
+    (120, 300)
+    """
+    dpi = getattr(args, "dpi", None)
+    return FIGURE_DPI if dpi is None else check_dpi(dpi, "--dpi")
 
 
 def check_path_length(path: str, field: str) -> None:

@@ -14,7 +14,7 @@ from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from .actuator_section import actuator_strategies, simulate_actuator_section
-from .common import CommandResult, check_figure_format, progress_of, system_of
+from .common import CommandResult, check_figure_format, figure_dpi, figure_file, progress_of, system_of
 from .sensing_section import simulate_section
 
 __all__ = ["run"]
@@ -73,9 +73,10 @@ def run(args: argparse.Namespace) -> CommandResult:
         laws = tuple(law for law in laws if law != "dp")
     keep = SAVED_RUNS if args.save and args.closed_loop else 0
     force = getattr(args, "force", False)
-    if args.plot:
-        check_figure_format(args.plot, "--plot")      # before the sampling, not after it
-        check_output_file(figure_path(args.plot), "--plot", force)     # `--plot loop` writes loop.png
+    plot = figure_file(args, args.plot) if args.plot else None      # `--plot loop --format pdf` writes loop.pdf
+    if plot:
+        check_figure_format(plot, "--plot")      # before the sampling, not after it
+        check_output_file(figure_path(plot), "--plot", force)
     try:
         sim = simulate(system, args.samples, steps=args.steps, seed=args.seed, closed_loop=args.closed_loop,
                        laws=laws, keep=keep, progress=progress_of(args))
@@ -87,10 +88,9 @@ def run(args: argparse.Namespace) -> CommandResult:
         if not sim.closed_loop:
             raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
         from ..plots import plot_closed_loop  # matplotlib (0.2-0.7 s) only where a figure is asked for
-        figure = plot_closed_loop({law: {"state_norm_mean": r.state_norm_mean, "state_norm_std": r.state_norm_std,
-                                         "stage_cost_mean": r.stage_cost_mean} for law, r in sim.closed_loop.items()},
-                                  title=system.name)
-        save_figure(figure, args.plot, overwrite=force, field="--plot")
+        figure = plot_closed_loop(sim, yscale=getattr(args, "yscale", "linear"),
+                                  title=f"{system.name or 'system'}: closed loop of each law")
+        save_figure(figure, plot, overwrite=force, field="--plot", dpi=figure_dpi(args))
     data, text = sim.to_dict(), _text(system.name or args.file, sim)
     if strategies:     # the laws' loops when the actuator zeroes, holds or plays the buffered plan on a loss
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
