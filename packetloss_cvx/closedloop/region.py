@@ -71,6 +71,7 @@ from .riccati_map import (
     psd_size,
     reach_split,
     riccati_factors,
+    unreached_stein,
 )
 from .stability import check_law, is_mean_square_stable, law_radius, mean_square_radius, second_moment_matrix
 
@@ -540,36 +541,16 @@ def proved_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, e
 
 
 def _unreached(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray] | None:
-    """``(margin, P)`` where the part no delivering input reaches (controllable_split of B's columns with mu > 0)
-    has ``rho(A_uu)^2 >= 1 - CERTIFICATE_RTOL`` and its Stein certificate checks exactly: ``P = T_u S T_u'`` with
-    ``A_uu' S A_uu - cS = cI`` (S has a positive direction iff ``rho(A_uu)^2 > c``; ``T_c(P) = 0 + cI + 0`` where the
-    split is exact, e.g. a mode no column of B touches), tried at ``c = rho(A_uu)^2 (1 - 1e-9)`` and at ``1 -
-    CERTIFICATE_RTOL``. None otherwise (no such part, or a split resting on a rank decision: its coupling rounded
-    away, the check fails and the other certificates decide). Time O(n^4 + n_u^6).
+    """``(margin, P)`` where the part no delivering input reaches (riccati_map.unreached_stein, the channels with mu
+    > 0) has ``rho(A_uu)^2 >= 1 - CERTIFICATE_RTOL`` and its Stein certificate checks exactly (a candidate of it,
+    certificates.candidates); None otherwise (no such part, or a split resting on a rank decision: its coupling
+    rounded away, the check fails and the other certificates decide). Time O(n^4 + n_u^6).
 
     >>> margin, P = _unreached(np.array([[0.5, 1.0], [0.0, 1.2]]), np.array([[1.0], [0.0]]), np.array([0.5]))
     >>> round(margin, 6), P.round(12).tolist()      # every law leaves x2+ = 1.2 x2: radius >= 1.44
     (0.44, [[0.0, 0.0], [0.0, 1.0]])
     """
-    split = reach_split(A, B, mu > 0.0)[0]
-    if split.nc == A.shape[0]:
-        return None
-    top = split.uncontrollable_radius ** 2
-    Au, Tu = split.A_uu, split.T[:, split.nc:]
-    k = Au.shape[0]
-    for c in (top * (1.0 - 1e-9), 1.0 - CERTIFICATE_RTOL):
-        if not 1.0 - CERTIFICATE_RTOL <= c <= top:
-            continue
-        with np.errstate(all="ignore"):
-            try:
-                S = np.linalg.solve(np.kron(Au.T, Au.T) - c * np.eye(k * k), c * np.eye(k).ravel()).reshape(k, k)
-            except np.linalg.LinAlgError:
-                continue
-        P = Tu @ (0.5 * (S + S.T)) @ Tu.T
-        if not np.all(np.isfinite(P)):
-            continue
-        scale = float(np.trace(P)) if np.trace(P) > 0 else float(np.linalg.norm(P, 2))
-        P = P / scale
+    for c, P in unreached_stein(A, B, mu > 0.0):
         for Q in candidates(A, P, c, tilt=False):
             if outside_proved(A, B, mu, Q, c):
                 return c - 1.0, Q

@@ -26,7 +26,7 @@ from ..tolerances import CERTIFICATE_KERNEL_RTOL, CERTIFICATE_RTOL, RICCATI_RTOL
 
 __all__ = ["CUTS", "POLICY_STEPS", "SHIFT", "bernoulli_rates", "certificate_bound", "chain_rates", "converges_within",
            "cut_candidates", "least_squares_residual", "moment_factor", "perron_adjoint", "psd_part_factor",
-           "psd_size", "radius_bound", "reach_split", "riccati_factors", "riccati_squares"]
+           "psd_size", "radius_bound", "reach_split", "riccati_factors", "riccati_squares", "unreached_stein"]
 
 #: the power iterations run on ``R + SHIFT lambda I`` (the same eigenvector): a shift removes a peripheral spectrum
 #: (e.g. rotations, eigenvalues -lambda); 0.1 costs little speed where the second eigenvalue is small (0.5 had taken
@@ -215,6 +215,42 @@ def reach_split(A: np.ndarray, B: np.ndarray, live: np.ndarray) -> tuple[Control
     Bt = split.T.T @ B
     Bt[split.nc:] = 0.0
     return split, Bt
+
+
+def unreached_stein(A: np.ndarray, B: np.ndarray, live: np.ndarray) -> list[tuple[float, np.ndarray]]:
+    """``[(c, P), ...]``: candidate certificates that every law's radius is at least c, from the part the channels
+    ``live`` (m,) bool do not reach (`reach_split`) where ``rho(A_uu)^2 >= 1 - CERTIFICATE_RTOL``: ``P = T_u S T_u'``
+    (trace 1, or norm 1) with ``A_uu' S A_uu - cS = cI`` (S has a positive direction iff ``rho(A_uu)^2 > c``;
+    ``T_c(P) = 0 + cI + 0`` where the split is exact, e.g. a mode no column of B touches: a definite inequality the
+    rounding cannot undo), at ``c = rho(A_uu)^2 (1 - 1e-9)`` and at ``1 - CERTIFICATE_RTOL``. Empty where there is no
+    such part. One P for every mode of a chain too (``E_a = sum_b T_ab P = P``). Candidates only: an exact check
+    decides (a split resting on a rank decision, its coupling rounded away, fails it). Time O(n^4 + n_u^6).
+
+    >>> [(round(c, 6), P.round(12).tolist()) for c, P in unreached_stein(np.array([[0.5, 1.0], [0.0, 1.2]]),
+    ...                                                                    np.array([[1.0], [0.0]]), np.array([True]))]
+    [(1.44, [[0.0, 0.0], [0.0, 1.0]]), (1.0, [[0.0, 0.0], [0.0, 1.0]])]
+    """
+    split = reach_split(A, B, live)[0]
+    if split.nc == A.shape[0]:
+        return []
+    top = split.uncontrollable_radius ** 2
+    Au, Tu = split.A_uu, split.T[:, split.nc:]
+    k = Au.shape[0]
+    out = []
+    for c in (top * (1.0 - 1e-9), 1.0 - CERTIFICATE_RTOL):
+        if not 1.0 - CERTIFICATE_RTOL <= c <= top:
+            continue
+        with np.errstate(all="ignore"):
+            try:
+                S = np.linalg.solve(np.kron(Au.T, Au.T) - c * np.eye(k * k), c * np.eye(k).ravel()).reshape(k, k)
+            except np.linalg.LinAlgError:
+                continue
+        P = Tu @ (0.5 * (S + S.T)) @ Tu.T
+        if not np.all(np.isfinite(P)):
+            continue
+        scale = float(np.trace(P)) if np.trace(P) > 0 else float(np.linalg.norm(P, 2))
+        out.append((c, P / scale))
+    return out
 
 
 def converges_within(moved: np.ndarray, last: np.ndarray, steps_left: int) -> np.ndarray:
