@@ -22,10 +22,12 @@ Schwarz). So ``min_K rho(L_K) = max(rho(A_uu)^2, lambda_c)``, lambda_c the least
 gains ``K_a = [K_c,a, 0] T'`` attain it. Its certificates are exact: ``P_a = T [[0, 0], [0, W]] T'`` with ``W =
 Re(w w^H)``, w a left eigenvector of ``A_uu`` for its largest ``|nu|``, gives ``L_K^*(P) = |nu|^2 P`` for every K;
 where lambda_c is the larger, ``P_a = T [[P_c,a, 0], [0, 0]] T'`` proves ``rho(L_K) >= c`` on the reachable
-subspace, which every closed loop ``A - B V K`` maps into itself (`chain_certificate_margin`). A mode no input
-touches is split exactly (the split's ``dropped`` is 0); a mode hidden by a change of coordinates is split to the
-rounding of the staircase (``dropped <= CONTROLLABILITY_RTOL ||[A, B]||``): the verdict is then proved for the
-plant with those couplings set to zero.
+subspace, which every closed loop ``A - B V K`` maps into itself (`chain_certificate_margin`); the eigenvector P
+returned is the whole map's, iterated from it (the regularised power iteration): a certificate on all of the space,
+which an exact check of the plant as stored can confirm. A mode no input touches is split exactly (the split's
+``dropped`` is 0); a mode hidden by a change of coordinates is split to the rounding of the staircase (``dropped <=
+CONTROLLABILITY_RTOL ||[A, B]||``): lambda is then the least radius of the plant with those couplings set to zero,
+and a verdict needs a certificate that survives the exact check of the plant as stored (markov_region).
 """
 
 from __future__ import annotations
@@ -382,8 +384,10 @@ def homogeneous_coupled_riccati(A: np.ndarray, B: np.ndarray, channel: MarkovCha
             K = np.einsum("aij,kj->aik", K_c, reach)                      # u = -K_c x_c, x_c = T_c' x
         if nc == 0 or not lam_c > lam_u:
             P = np.repeat((rest @ perron_adjoint(split.A_uu) @ rest.T)[None] / M, M, axis=0)
-        else:
+        else:       # the whole map's eigenvector, iterated from the reached part's (a certificate on all of the space)
             P = np.einsum("ij,ajk,lk->ail", reach, P_c, reach)
+            whole = _power(P, A, B, T, h, delivery, M * n + 1, M * n + 1 + HOMOGENEOUS_RICCATI_MAX_ITER)[0]
+            P = whole if np.all(np.isfinite(whole)) else P
     return max(lam_u, lam_c), 0.5 * (P + P.transpose(0, 2, 1)), K
 
 
