@@ -170,6 +170,13 @@ def chain_proved_certificate(A: np.ndarray, B: np.ndarray, channel: MarkovChanne
     stored; last, where the plant splits exactly by a permutation, P's block on the reached coordinates for the
     reached pair (`_reached_part_proved`). None for a P that is None, not finite or of the wrong shape.
     Time O(M^2 (n + m)^3) integer operations a candidate, O((M n^2)^3) for the tilts' solve.
+
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> ch = GilbertElliott(p=[0.3], r=[0.2])       # one state a = 2: "next", R(P) = (p a^2 p_b, (1 - r) a^2 p_b)
+    >>> P = np.array([[[0.0]], [[1.0]]])            # on the bad mode: every law's radius >= (1 - r) a^2 = 3.2
+    >>> [Q.ravel().tolist() for c in (3.2 * (1 - 1e-12), 3.3)
+    ...  if (Q := chain_proved_certificate(np.array([[2.0]]), np.array([[1.0]]), ch, P, c)) is not None]
+    [[0.0, 1.0]]
     """
     modes, T, h = mode_chain(channel)
     M, n = len(modes), np.asarray(A).shape[0]
