@@ -512,3 +512,31 @@ def test_a_float_bound_that_rounding_fools_is_no_verdict(monkeypatch):
     found = chain_membership(A, B, ch)
     assert found.verdict == "undecided"
     assert "exact check" in found.reason
+
+
+@pytest.mark.parametrize(("a0", "mu"), [(1.0, 0.0124), (1.001, 0.002), (1.001, 0.0079), (1.001, 0.0186),
+                                        (1.3, 0.5)])
+def test_one_mode_and_memoryless_chains_give_the_bernoulli_least_radius_of_a_jordan_chain(a0, mu):
+    """Bernoulli losses are the one-mode chain, and a memoryless chain whose states deliver alike (p + r = 1,
+    h_good = h_bad = mu) is Bernoulli(mu) under either convention: behind each, one Jordan block of size 4 driven at
+    its last state has the least radius of Elia's single-input theorem, a0^2 (1 - mu)^(1/4) (hand,
+    tests/closedloop/test_region.py), which the Bernoulli engine (region.homogeneous_riccati) meets. The chain
+    engine agrees with both within MEAN_SQUARE_MARGIN, as the Bernoulli engine with the hand value. Its eigenvector
+    is graded (diagonal 4e-14 .. 1): without the balancing the two engines share (riccati_map.grading_scale,
+    planted to None in chain_radius) it was 5.6e-3 above (1.0023 for 0.99689; fails)."""
+    from packetloss_cvx.closedloop.region import homogeneous_riccati
+    from packetloss_cvx.model.channel import MarkovChannel
+
+    from ..plants import chain
+
+    s = chain(a0)
+    A, B = np.asarray(s.A, float), np.asarray(s.B, float)
+    hand = a0 ** 2 * (1 - mu) ** 0.25
+    bernoulli = homogeneous_riccati(A, B, np.array([mu]))[0]
+    assert bernoulli == pytest.approx(hand, rel=MEAN_SQUARE_MARGIN)
+    memoryless = GilbertElliott(p=[0.5], r=[0.5], h_good=[mu], h_bad=[mu])
+    for ch, delivery in ((MarkovChannel(transition=[[[1.0]]], delivery=[[mu]]), "next"), (memoryless, "next"),
+                         (memoryless, "current")):
+        lam = homogeneous_coupled_riccati(A, B, ch, delivery)[0]
+        assert lam == pytest.approx(hand, rel=MEAN_SQUARE_MARGIN)
+        assert lam == pytest.approx(bernoulli, rel=MEAN_SQUARE_MARGIN)
