@@ -63,8 +63,8 @@ __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "
            "critical_rate_unproved", "homogeneous_coupled_riccati"]
 
 @typed_linalg("the chain's outside certificate")
-def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray, delivery: str
-                  ) -> tuple[float, np.ndarray | None]:
+def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray, delivery: str,
+                  gains: np.ndarray | None = None) -> tuple[float, np.ndarray | None]:
     """``(margin, certificate)``: a certificate that proves every mode-dependent law's radius at least ``1 + margin
     >= 1 - CERTIFICATE_RTOL`` in exact arithmetic (certificates.chain_proved_certificate: the candidate itself,
     snapped or tilted), else ``(the largest float margin of the candidates, None)``. The candidates: P (normalised to
@@ -74,7 +74,8 @@ def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.nd
     exactly at ``c = 1 - CERTIFICATE_RTOL`` (the verdict) and, where that holds, at ``c = (1 + margin)`` lowered by
     each of `_LOWERINGS` (relative) in turn for the sharpest margin it proves; last, the Stein certificate of a part
     no delivering input reaches (riccati_map.unreached_stein, one P for every mode), as for Bernoulli losses
-    (region.membership). A float margin alone is never a verdict: on an ill-conditioned plant its rounding exceeds
+    (region.membership). ``gains``: the mode gains that minimise at P, for the closed-loop tilt of the exact check.
+    A float margin alone is never a verdict: on an ill-conditioned plant its rounding exceeds
     the band (a chain of four integrators behind a memoryless chain at rate 0.0124: float margin +6.6e-4 for a P
     that no exact check confirms, where a law of radius 0.9975 exists). Time O(4 chain margins) plus O(M^2 (n +
     m)^3) integer operations an exact try.
@@ -87,12 +88,12 @@ def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.nd
         if not margin >= -CERTIFICATE_RTOL:
             continue
         floor = 1.0 - CERTIFICATE_RTOL
-        proved = chain_proved_certificate(A, B, channel, Q, floor, delivery)
+        proved = chain_proved_certificate(A, B, channel, Q, floor, delivery, gains)
         if proved is None:
             continue
         for c in [(1.0 + margin) * (1.0 - low) for low in _LOWERINGS]:    # the sharpest bound Q proves
             if c > floor:
-                sharper = chain_proved_certificate(A, B, channel, Q, c, delivery)
+                sharper = chain_proved_certificate(A, B, channel, Q, c, delivery, gains)
                 if sharper is not None:
                     return c - 1.0, sharper
         return floor - 1.0, proved
@@ -192,7 +193,7 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: 
         reason = (f"lambda = {lam:.{shown}g} < 1, but its gains' coupled radius {radius:.{shown}g}{why} is not below "
                   f"1 - {MEAN_SQUARE_MARGIN:g}")
     else:
-        margin, certificate = chain_outside(A, B, channel, P, delivery)
+        margin, certificate = chain_outside(A, B, channel, P, delivery, K)
         if certificate is not None:
             return (Membership(rates, "unstable", None, float("nan"), certificate, margin, ((form, "unstable"),)),
                     lam, K, radius)
