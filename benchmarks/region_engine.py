@@ -64,13 +64,13 @@ def _plants():
 def _cases():
     """name -> callable returning a JSON-like answer (the worker's cases)."""
     import numpy as np
-    from packetloss_cvx.examples import __file__ as examples_init
 
     from packetloss_cvx import System, load_example
     from packetloss_cvx.cli.parser import build_parser
     from packetloss_cvx.cli.region import run
     from packetloss_cvx.closedloop.critical import critical_point
     from packetloss_cvx.closedloop.region import certificate_margin, homogeneous_riccati, membership
+    from packetloss_cvx.model.examples import __file__ as examples_init
 
     def member(found):
         return [found.verdict, found.radius, found.certificate_margin, list(found.forms)]
