@@ -233,9 +233,11 @@ def _critical_rate(system, direction: list[float] | None, lines: list[str]) -> d
     where = "never, even at the ray's end" if not np.isfinite(point.t) else (
         f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mean rates {np.round(point.mu, 6).tolist()}")
     lines.append(f"critical mean rates along direction {point.direction.tolist()} (burstiness kept): {where}")
+    if point.note:
+        lines.append(f"  ({point.note})")
     data = point.to_dict()
     return {"critical_mu": data["critical_mu"], "t": data["t"], "lower": data["lower"],
-            "direction": data["direction"]}
+            "direction": data["direction"], "note": data["note"]}
 
 
 def _folder(args: argparse.Namespace) -> contextlib.AbstractContextManager[RunFolder | None]:
@@ -252,6 +254,8 @@ def _text(result: RegionMap) -> list[str]:
         where = "never, even at the ray's end" if not np.isfinite(point.t) else (
             f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mu = {np.round(point.mu, 6).tolist()}")
         lines.append(f"  {point.law:<6} {where}")
+        if point.note:
+            lines.append(f"         ({point.note})")
     if result.stable is not None:
         i, j = result.channels
         lines.append(f"stable share of the {result.axis.size}x{result.axis.size} grid of (mu{i + 1}, mu{j + 1}):")

@@ -490,12 +490,15 @@ def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) 
 _DP_HOPELESS = -0.5 * MEAN_SQUARE_MARGIN
 
 
-def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, floor: float = -CERTIFICATE_RTOL
-             ) -> tuple[str, float, np.ndarray | None]:
+def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, floor: float = -CERTIFICATE_RTOL,
+             eigenvalue: float = float("nan")) -> tuple[str, float, np.ndarray | None]:
     """"unstable" with the margin and the certificate that proves every law's radius at least ``1 + margin >= 1 +
     floor`` in exact arithmetic (`proved_margin`), else "undecided" with the float estimate of P's margin
     (`certificate_margin`). Tried in turn: P and P cut at riccati_map.CUTS (each also snapped), then each of
-    them tilted (certificates.candidates)."""
+    them tilted (certificates.candidates). ``eigenvalue``: the homogeneous Riccati eigenvalue whose eigenvector P
+    is, when the caller has it: the tilts' estimate where P's own float bound says nothing (a numerically
+    rank-one P whose image R(P) the rounding turns off its direction has bound 0, while its tilts prove c up to
+    nearly lambda: the python-control spring of tests/closedloop/test_region_certificates.py)."""
     if P is None or not np.all(np.isfinite(P)):
         return "undecided", float("nan"), None
     P = 0.5 * (P + P.T) / max(float(np.trace(P)), np.finfo(float).tiny)
@@ -505,6 +508,9 @@ def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None,
     candidates = [(P, margin)] + [(Q[0], certificate_margin(A, B, mu, Q[0])) for Q in cut_candidates(P[None])]
     for tilt in (False, True):       # the candidates as they are first (a PSD certificate where one checks)
         for Q, estimate in candidates:
+            if tilt and np.isfinite(eigenvalue) and eigenvalue - 1.0 > max(estimate, floor):
+                estimate = eigenvalue - 1.0      # the tilts aim below lambda, not below P's own bound: only a
+                #                                  choice of the c tried, each decided by the exact check
             proved = proved_margin(A, B, mu, Q, estimate, floor, tilt)
             if proved is not None:
                 return "unstable", *proved
@@ -515,9 +521,11 @@ def proved_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, e
                   tilt: bool = False) -> tuple[float, np.ndarray] | None:
     """``(c - 1, certificate)`` for the largest c tried that a candidate of P proves exactly (every law's radius
     >= c, certificates.outside_proved; the candidates of certificates.candidates: P and P snapped, or with ``tilt``
-    those tilted): P's float ``estimate`` of the margin lowered by CERTIFICATE_RTOL relative, then ``1 + floor``;
-    None where none holds, or where the estimate is below the floor by more than its own rounding. Time
-    O((n + m)^3) integer operations a try, at most 24 tries.
+    those tilted): P's float ``estimate`` of the margin lowered by CERTIFICATE_RTOL relative, then (with ``tilt``)
+    half of it, then ``1 + floor``; None where none holds, or where the estimate is below the floor by more than its
+    own rounding. A tilt needs room below the bound it aims at (its ``t S`` spends part of the margin), and the
+    Stein equation of ``c = 1`` has no solution where A has eigenvalues on the unit circle (an undamped
+    oscillator), hence the half. Time O((n + m)^3) integer operations a try, at most 36 tries.
 
     >>> A, B = np.array([[2.0]]), np.array([[1.0]])      # every law's radius >= a^2 (1 - mu) = 1.6 at mu = 0.6
     >>> margin, P = proved_margin(A, B, np.array([0.6]), np.eye(1), 0.6, -1e-12)
@@ -526,7 +534,10 @@ def proved_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, e
     """
     if not estimate >= floor - CERTIFICATE_RTOL:
         return None
-    for c in ([(1.0 + estimate) * (1.0 - CERTIFICATE_RTOL)] if estimate > floor else []) + [1.0 + floor]:
+    tries = [(1.0 + estimate) * (1.0 - CERTIFICATE_RTOL)] if estimate > floor else []
+    if tilt and estimate > max(floor, 0.0):
+        tries.append(1.0 + 0.5 * estimate)
+    for c in tries + [1.0 + floor]:
         if c < 1.0 + floor:
             continue
         for Q in candidates(A, P, c, tilt):
@@ -611,7 +622,8 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
             except NumericalError:     # no candidate: the form is undecided
                 pair = (float("nan"), np.full((system.n, system.n), np.nan), np.full((system.m, system.n), np.nan))
         if form == "dp" and (verdicts.get("riccati") == "unstable" or (verdicts.get("riccati") == "undecided" and
-                                                                      _outside(A, B, mu_, pair[1], _DP_HOPELESS)[0]
+                                                                      _outside(A, B, mu_, pair[1], _DP_HOPELESS,
+                                                                               pair[0])[0]
                                                                       == "unstable")):
             verdicts[form], values[form] = "undecided", float("nan")    # no gain can pass (_DP_HOPELESS)
             continue
@@ -661,7 +673,7 @@ def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray
                 K = _homogeneous_step(P + _LIFT * np.eye(A.shape[0]), A, B, mu)[0]
                 verdict, radius = _inside(A, B, mu, K)
             return verdict, radius, K, None
-        verdict, margin, P_ = _outside(A, B, mu, P)
+        verdict, margin, P_ = _outside(A, B, mu, P, eigenvalue=lam)
         if verdict == "undecided":   # no certificate that checks: lambda may be wrong, and its gain is a candidate
             inside, radius = _inside(A, B, mu, K)
             if inside == "stable":

@@ -175,8 +175,8 @@ def test_a_solver_failure_is_not_a_verdict(monkeypatch):
 
 
 def test_critical_mu_dp_never_reads_undecided_as_unstable(monkeypatch):
-    """Planted: every form undecided inside (0.7, 0.8): the bisection moves only on decided points and
-    raises when a bracket wider than tol cannot be decided."""
+    """Planted: every form undecided inside (0.7, 0.8): the bisection moves only on decided points and, when a
+    bracket wider than tol cannot be decided, returns it with its two proved ends and a note saying so."""
     true_membership = region.membership
 
     def blind(system, mu, **kw):
@@ -186,9 +186,13 @@ def test_critical_mu_dp_never_reads_undecided_as_unstable(monkeypatch):
         return found
 
     monkeypatch.setattr(critical_module, "membership", blind)
-    from packetloss_cvx import NumericalError
-    with pytest.raises(NumericalError, match="no point of the bracket"):
-        critical_mu(scalar(2.0), "dp")
+    wide = critical_mu(scalar(2.0), "dp")
+    assert wide.lower <= 0.7
+    assert wide.t >= 0.8
+    assert wide.outside.verdict == "unstable"
+    assert wide.inside.verdict == "stable"
+    assert "wider than tol = 1e-06" in wide.note
+    assert critical_mu(scalar(2.0), "dp", tol=0.2).note == ""
     point = critical_point(scalar(2.0), "dp", tol=0.2)   # 0.5 out, 0.75 blind, 0.625 out, 0.8125 in
     assert (point.lower, point.t) == (0.625, 0.8125)
     assert point.inside.verdict == "stable"
