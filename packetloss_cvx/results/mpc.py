@@ -151,3 +151,16 @@ class MPCSimulation(Frozen):
             out[protocol] = {name: run.to_dict() for name, run in controllers.items()}
         return out
 
+    def plot(self, protocol: str | None = None, **kwargs: Any) -> Any:
+        """The kept trajectories (each controller's realised states and commanded inputs, the lost packets
+        marked) and every state-side constraint's violation frequency with its confidence interval, drawn by
+        [`plot_mpc`][packetloss_cvx.plots.figures.plot_mpc] for ``protocol`` (default: the first run; keywords
+        passed on); returns the matplotlib Figure.
+
+        Raises
+        ------
+        InputError
+            Field ``protocol``: not one that was run.
+        """
+        from ..plots import plot_mpc  # lazy: matplotlib, only when asked to draw
+        return plot_mpc(self, protocol=protocol, **kwargs)
