@@ -262,19 +262,19 @@ def _linear_text(a: Sequence[float], bound: float) -> str:
 
 
 def _row_words(name: str, constraints: Mapping[str, Any]) -> str:
-    """What a violation row's event is, in the constraint's numbers: ``x_max[0]`` -> "x1 > 2 (limit on E[x1])",
-    ``chance[0]`` -> "x1 < -0.05 (chance row 1, eps 0.1)"."""
+    """What a violation row's event is, in the constraint's numbers, on two lines: ``x_max[0]`` -> "x1 > 2" over
+    "(limit on E[x1])", ``chance[0]`` -> "x1 < -0.05" over "(chance row 1, eps 0.1)"."""
     kind, _, index = name.partition("[")
     i = int(index.rstrip("]")) if index else 0
     if kind in ("x_max", "x_min"):
         bound = constraints[kind][i]
-        return f"x{i + 1} {'>' if kind == 'x_max' else '<'} {bound:g} (limit on E[x{i + 1}])"
+        return f"x{i + 1} {'>' if kind == 'x_max' else '<'} {bound:g}\n(limit on E[x{i + 1}])"
     if kind == "F":
-        return _linear_text(constraints["F"][i], constraints["g"][i]) + f" (polyhedron row {i + 1})"
+        return _linear_text(constraints["F"][i], constraints["g"][i]) + f"\n(polyhedron row {i + 1})"
     if kind == "chance":
         a, b, eps = constraints["chance"][i]
-        return _linear_text(a, b) + f" (chance row {i + 1}, eps {eps:g})"
-    return "hard program infeasible" if kind == "infeasible" else name
+        return _linear_text(a, b) + f"\n(chance row {i + 1}, eps {eps:g})"
+    return "hard program\ninfeasible" if kind == "infeasible" else name
 
 
 def _limit_lines(ax: Any, constraints: Mapping[str, Any], index: int, lower: str, upper: str,

@@ -61,7 +61,7 @@ def test_the_frequencies_are_drawn_with_their_intervals():
     sim = _sim()
     rates = next(ax for ax in sim.plot().axes if ax.get_title().startswith("Violations at the worst step"))
     labels = [t.get_text() for t in rates.get_yticklabels()]
-    assert labels == ["x2 > 5 (limit on E[x2])", "x2 < -0.5 (chance row 1, eps 0.1)", "hard program infeasible"]
+    assert labels == ["x2 > 5\n(limit on E[x2])", "x2 < -0.5\n(chance row 1, eps 0.1)", "hard program\ninfeasible"]
     points = {}
     for container in rates.containers:
         x, y = container.lines[0].get_xydata()[0]
