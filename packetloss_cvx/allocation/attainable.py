@@ -7,7 +7,10 @@ linear law that holds it mean-square stable. Every allocation result therefore c
 * ``attainable_cost``: the least expected cost a causal law of the protocol reaches over the horizon, on the
   paper's cost (``x0'Q x0 + sum_t E[x_{t+1}'Omega_{t+1} x_{t+1} + (V_t u_t)'Psi_t (V_t u_t)]`` plus the noise).
   TCP-like: the finite-horizon dynamic programme with acknowledgements (`tcp_attainable_cost`: the
-  modified Riccati recursion backwards from ``P_N = Omega_N``; Schenato et al. 2007). UDP-like: the exact expected
+  modified Riccati recursion backwards from ``P_N = Omega_N``; Schenato et al. 2007); behind a Markov chain, the
+  same programme over the beliefs the acknowledgements reach (closedloop.chain_dp.chain_attainable: exact, or
+  beyond its budget None with both bounds in the note), with the chain at mu* along the allocation's family
+  (`.chains`: burstiness held on Gilbert channels, deliveries scaled on the others). UDP-like: the exact expected
   cost of the optimal plan applied open loop, which the paper's J*_udp already is (behind a chain, the exact
   expected cost under the chain that the allocation was designed on);
 * ``stabilisable``: True / False / None: is mu* in the stabilisable set S, i.e. does some linear law u = -K x
@@ -22,16 +25,18 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..closedloop.chain_dp import chain_attainable
 from ..closedloop.law_stability import STABILITY_MAX_N
 from ..closedloop.modes import mode_stage_costs
 from ..closedloop.region import membership
 from ..closedloop.riccati import dp_backward
-from ..errors import NumericalError
+from ..errors import InputError, NumericalError
 from ..model.system import System
 from ..tolerances import SELF_CHECK_RTOL
+from .chains import chain_family
 
 __all__ = ["ATTAINABLE_MAX_N", "CHEAP_FORMS", "LMI_MAX_N", "AttainableEvaluator", "Attainment", "attainment",
-           "forward_cost", "stabilisable",
+           "chain_cost", "forward_cost", "stabilisable",
            "tcp_attainable_cost"]
 
 #: the verdict is computed up to this state dimension (as ``solve`` and ``closed_form``): beyond, the homogeneous
@@ -183,6 +188,27 @@ def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
     return True, f"a linear law has mean-square radius {found.radius:.6g} < 1 (certified)"
 
 
+def chain_cost(system: System, mu: np.ndarray) -> tuple[float | None, str]:
+    """The TCP-like attainable cost behind the system's chain moved to the mean rates ``mu`` along its family
+    (`.chains.chain_family`) and its note: ``(cost, note)``; the cost None where only bounds are computed (both in
+    the note), the family refuses the chain, or a numerical failure (the reason in the note). O(`chain_attainable`).
+
+    >>> from packetloss_cvx import load_example
+    >>> cost, note = chain_cost(load_example("pendulum_bursty"), np.array([0.9]))
+    >>> round(cost, 1), note.split(":")[0]
+    (10668.7, 'exact')
+    """
+    if system.sensor is not None:
+        return None, ("not computed with lossy sensor links (the DP with acknowledgements assumes the state is "
+                      "measured)")
+    try:
+        moved = system.with_channel(chain_family(system).channel_at(np.asarray(mu, dtype=float)))
+        found = chain_attainable(moved)
+    except (InputError, NumericalError) as err:         # a budget refusal is an InputError
+        return None, f"not computed behind the chain: {err}"
+    return found.cost, found.note
+
+
 def attainment(system: System, protocol: str, mu: np.ndarray, cost: float, chain: bool = False) -> Attainment:
     """The `Attainment` at an allocation's ``mu`` (``system`` at any mu: it is replaced). ``cost`` is the
     allocation's own cost: UDP-like it is the attainable cost already (J*_udp, or behind a chain the exact cost
@@ -194,8 +220,8 @@ def attainment(system: System, protocol: str, mu: np.ndarray, cost: float, chain
                                                                                        else " (J*_udp)"),
                           verdict, why)
     if system.channel is not None:
-        return Attainment(None, "not computed behind a Markov chain (the TCP-like optimum with acknowledgements "
-                                "behind a chain is not J*_tcp at the mean rates)", verdict, why)
+        cost, note = chain_cost(system, mu)
+        return Attainment(cost, note, verdict, why)
     if system.sensor is not None:
         return Attainment(None, "not computed with lossy sensor links (the DP with acknowledgements assumes the "
                                 "state is measured)", verdict, why)

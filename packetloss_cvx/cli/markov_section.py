@@ -8,15 +8,50 @@ from typing import Any
 
 import numpy as np
 
+from ..closedloop.chain_dp import chain_attainable
 from ..closedloop.mjls import mean_square_radius
 from ..closedloop.stability import is_mean_square_stable
-from ..errors import InputError, NumericalError, ResourceError
+from ..errors import BudgetError, InputError, NumericalError, ResourceError
 from ..lq.costs import closed_form
 from ..model.channel import GE_MODEL
 from ..model.system import System
 from ..qp.markov_solution import markov_solution
 
-__all__ = ["markov_section"]
+__all__ = ["PRIOR_MEAN_BASIS", "attainable_entry", "markov_section"]
+
+#: The basis label of the paper's TCP-like cost behind a chain: its formula at the chain's predicted (prior-mean)
+#: delivery rates mu_t, which no law with acknowledgements attains.
+PRIOR_MEAN_BASIS = "paper, prior-mean rates"
+
+
+def attainable_entry(system: System) -> tuple[dict[str, Any], str]:
+    """The TCP-like attainable cost behind the system's chain for ``solve``: ``({"basis": "attainable", "cost",
+    "lower", "upper", "exact", "note"}, text)``, closedloop.chain_dp.chain_attainable (exact, or the two bounds
+    beyond its budget); a refusal or a numerical failure gives cost None and the reason, never a number.
+    O(`chain_attainable`).
+
+    >>> from packetloss_cvx.model.files import load_example
+    >>> data, text = attainable_entry(load_example("pendulum_bursty"))
+    >>> round(data["cost"], 1), data["exact"], text.split(" (")[0]
+    (10668.7, True, 'attainable: J = 10668.66352')
+    """
+    entry: dict[str, Any] = {"basis": "attainable", "cost": None, "lower": None, "upper": None, "exact": False}
+    if system.sensor is not None:
+        entry["note"] = ("not computed with lossy sensor links (the DP with acknowledgements assumes the state is "
+                         "measured)")
+        return entry, f"attainable: {entry['note']}"
+    try:
+        found = chain_attainable(system)
+    except (BudgetError, NumericalError) as err:
+        entry["note"] = f"not computed: {err}"
+        return entry, f"attainable: not computed ({err})"
+    entry.update(cost=found.cost, lower=found.lower, upper=found.upper, exact=found.cost is not None,
+                 note=found.note)
+    if found.cost is not None:
+        return entry, (f"attainable: J = {found.cost:.10g} (the least expected cost of any law with "
+                       f"acknowledgements behind the chain; {found.note}) [basis: attainable]")
+    return entry, (f"attainable: between {found.lower:.10g} and {found.upper:.10g} ({found.note}) "
+                   "[basis: attainable]")
 
 
 def _percent(loss: float) -> str:
@@ -99,8 +134,12 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
         line = (f"{protocol.upper()}-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}), the exact minimum; "
                 f"the plug-in law's cost {res.plugin_cost:.10g} ({_percent(res.relative_loss)})")
         if protocol == "tcp":
-            line += (" (the TCP-like cost holds only the marginals mu_t, so the plug-in law is its exact minimiser); "
-                     f"E[realised cost] of its plan under the chain {res.plan_expected_cost:.10g}")
+            entry["basis"] = PRIOR_MEAN_BASIS
+            line = (f"TCP-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}) [basis: {PRIOR_MEAN_BASIS}], "
+                    f"the exact minimum of the paper's cost; the plug-in law's cost {res.plugin_cost:.10g} "
+                    f"({_percent(res.relative_loss)}) (the TCP-like cost holds only the marginals mu_t, so the "
+                    "plug-in law is its exact minimiser; no law with acknowledgements attains it: see attainable); "
+                    f"E[realised cost] of its plan under the chain {res.plan_expected_cost:.10g}")
         if skipped is not None:
             entry["qp"] = {"status": "skipped", "reason": skipped}
             line += f"; QP skipped: {skipped}"
@@ -110,6 +149,9 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
                      f"rel dJ = {check.cost_rel_diff:.2e}")
         data[protocol] = entry
         lines.append(line)
+        if protocol == "tcp":
+            entry["attainable"], text = attainable_entry(system)
+            lines.append(f"  {text}")
         lines.append(f"  u = -K x in a loop over the chain (a Markov jump linear system; mean-square radius): plug-in "
                      f"gain {plug_in[2]}; exact minimiser's gain {exact[2]}")
     return data, lines

@@ -20,7 +20,7 @@ from ..results import Solution, eigenvalue_pairs
 from . import format as fmt
 from .actuator_section import actuator_entry, actuator_strategies
 from .common import CommandResult, progress_of, system_of
-from .markov_section import markov_section
+from .markov_section import PRIOR_MEAN_BASIS, markov_section
 from .sensing_section import estimation_section, protocol_entry
 
 __all__ = ["STABILITY_MAX_N", "constrained_entry", "run", "stability", "text_details"]
@@ -70,8 +70,10 @@ def run(args: argparse.Namespace) -> CommandResult:
         }
         label = f"J* = {sol.cost:.10g} ({sol.method}) [basis: {SOLUTION_BASIS}]"
         if plugin is not system:
-            entry["plug_in"] = True
-            label += ": the paper's formula on the chain's mu_t, not the expected cost under the chain (below)"
+            entry["plug_in"], entry["basis"] = True, PRIOR_MEAN_BASIS
+            label = (f"J* = {sol.cost:.10g} ({sol.method}) [basis: {PRIOR_MEAN_BASIS}]: the paper's formula on the "
+                     "chain's mu_t, not the expected cost under the chain (below" + (
+                         ", beside the attainable cost with acknowledgements)" if protocol == "tcp" else ")"))
         rows: list[tuple[str, object]] = [("cost", label)]
         if not args.no_qp:
             from ..qp.expected_cost import solve_qp  # cvxpy (1.5 s to import) only where a QP is asked for

@@ -19,7 +19,7 @@ No causal law over these losses does better: the optimum over all laws is linear
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -35,8 +35,8 @@ from .modes import mode_radius
 from .moments import check_steps, law_cost_to_go, mode_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
-__all__ = ["NO_SOLUTION", "dp_backward", "dp_finite_horizon", "dp_input_hessian", "dp_riccati", "dp_step",
-           "mode_riccati", "modified_riccati_step"]
+__all__ = ["NO_SOLUTION", "dp_backward", "dp_backward_nodes", "dp_finite_horizon", "dp_input_hessian", "dp_riccati",
+           "dp_step", "mixture_step", "mode_riccati", "modified_riccati_step"]
 
 #: Every NumericalError of :func:`dp_riccati` that means "no law holds the second moment" starts its
 #: reason with this (callers that treat the absence of a stabilising law as a case, not an error, test it).
@@ -344,12 +344,103 @@ def _cost_to_go(K: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: n
     return law_cost_to_go(A, B, K, h, Omega, psi) if T is None else mode_cost_to_go(A, B, K, h, T, Omega, psi)
 
 
+def mixture_step(P_next: np.ndarray, prob: np.ndarray, q: np.ndarray, A: np.ndarray, B: np.ndarray,
+                 Omega: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One backward step of the DP at a batch of J information nodes, each with k outcomes: ``(K, P)``, (J, m, n) and
+    (J, n, n). Outcome o of node j happens with probability ``prob[j, o]``; given it the deliveries are independent
+    Bernoulli with ``q[j, o]`` (m,) and the cost-to-go after the step is ``x'P_next[j, o]x``. The input is chosen
+    before the outcome is known, so
+
+    .. math:: x'P_jx = \\min_u \\sum_o p_{jo}\\,E\\big[x'\\Omega x + (Vu)'\\Psi(Vu) + (Ax + BVu)'P_{jo}(Ax + BVu)\\big]
+       = x'(\\Omega + \\textstyle\\sum_o p_{jo}A'P_{jo}A)x - L_j'K_j
+
+    with Hessian ``H_j = sum_o p_jo Q_o G_o`` (``Q_o = diag(q_jo)``, ``G_o`` the modified Riccati step's factor at
+    ``(P_jo, q_jo)``) and ``L_j = sum_o p_jo Q_o B'P_joA``. As at one outcome, H is solved in the factored form
+    ``diag(mu) Ghat`` (``mu = sum_o p_o q_o`` the mean delivery): row i of ``Ghat`` and ``rhat`` is the outcomes'
+    average weighted by ``p_o q_{o,i} / mu_i``, the step given that actuator i's packet arrives, so
+    ``K = Ghat^{-1} rhat`` and ``P = Omega + sum_o p_o A'P_oA - (diag(mu) rhat)'K``. An actuator that never delivers
+    at a node (``mu_i = 0``) takes the plain average of the rows (weights ``p_o``): its gain row does not reach the
+    loop, and Ghat stays invertible for ``psi > 0`` (block triangular, that row's diagonal ``psi_i + (B'EB)_ii``).
+    One outcome (k = 1) is the modified Riccati step itself (`modified_riccati_step`'s algebra, batched):
+    Bernoulli losses, or a chain whose state the controller knows (`dp_step`). O(J k (n^3 + m^3)).
+
+    Raises
+    ------
+    NumericalError
+        A factor Ghat is singular.
+
+    >>> one = np.ones((1, 1))                    # x+ = x + v u behind a delivery that is 1 or 0 with prob 1/2 each:
+    >>> K, P = mixture_step(np.ones((1, 2, 1, 1)), np.full((1, 2), 0.5), np.array([[[1.0], [0.0]]]), one, one, one,
+    ...                     np.ones(1))          # the Bernoulli(1/2) step: G = 1/2 + 1 + 1/2, K = 1/2, P = 2 - 1/4
+    >>> K.ravel().tolist(), P.ravel().tolist()
+    ([0.5], [1.75])
+    """
+    J, k, m = q.shape
+    try:
+        if k == 1:                                # one outcome: the modified Riccati step (prob is 1)
+            return riccati_step(P_next[:, 0], A, B, q[:, 0], np.broadcast_to(psi, (J, m)), Omega, variance=True)
+        PB = P_next @ B                                                   # (J, k, n, m)
+        BPB = B.T @ PB
+        rhs = PB.swapaxes(-1, -2) @ A                                     # B'P A, (J, k, m, n)
+        APA = np.einsum("jo,joab->jab", prob, A.T @ (P_next @ A))
+        G = BPB * q[..., None, :]
+        diagonal = np.einsum("...ii->...i", G)                            # a view: G's diagonal
+        diagonal += psi + (1.0 - q) * np.einsum("...ii->...i", BPB)
+        w = prob[..., None] * q                                           # (J, k, m)
+        mu = w.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = np.where(mu[:, None, :] > 0, w / mu[:, None, :], prob[..., None])
+        Ghat = np.einsum("joi,joik->jik", c, G)
+        rhat = np.einsum("joi,join->jin", c, rhs)
+        K = np.linalg.solve(Ghat, rhat)
+    except np.linalg.LinAlgError:
+        raise NumericalError("DP step over an information node's outcomes: an input Hessian factor is singular") \
+            from None
+    P = Omega + APA - (mu[..., None] * rhat).swapaxes(-1, -2) @ K
+    return K, 0.5 * (P + P.swapaxes(-1, -2))
+
+
+def dp_backward_nodes(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarray, noise_cov: np.ndarray,
+                      layers: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]
+                      ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The finite-horizon DP's backward pass over information nodes: ``(gains, P_0, noise_0)``.
+
+    ``layers[t] = (prob, q, nxt)``, each (J_t, k_t[, m]): the J_t nodes of step t (what the controller knows when it
+    sends u_t), the probability and delivery probabilities of each outcome (`mixture_step`) and the node of step t + 1
+    it leads to; the nodes of step N are ``max(nxt) + 1`` terminal ones with ``P = Omega[N]``. ``gains[t]`` (J_t, m, n)
+    is the law ``u_t = -K_{t,j} x_t`` at node j, ``P_0`` (J_0, n, n) and ``noise_0`` (J_0,) the cost-to-go
+    ``x'P_0x + noise_0`` at step 0: ``noise_t,j = sum_o p_o (tr(P_{t+1,o} Sigma_W) + noise_{t+1,o})``. Weights per
+    step as `dp_backward`. One node and one outcome a step is `dp_backward` (Bernoulli losses); a chain behind
+    acknowledgements is closedloop.chain_dp. Overflow is left to the caller (inf / nan). O(sum_t J_t k_t (n^3 + m^3)).
+
+    >>> layer = (np.ones((1, 1)), np.ones((1, 1, 1)), np.zeros((1, 1), dtype=int))
+    >>> gains, P0, noise = dp_backward_nodes(np.eye(1), np.eye(1), np.ones((2, 1, 1)), np.ones((1, 1)), 2 * np.eye(1),
+    ...                                      [layer])
+    >>> float(gains[0][0, 0, 0]), float(P0[0, 0, 0]), float(noise[0])       # as dp_backward's example
+    (0.5, 1.5, 2.0)
+    """
+    steps = len(layers)
+    terminal = int(np.max(layers[-1][2])) + 1 if steps else 1
+    P = np.broadcast_to(np.asarray(Omega[steps], dtype=float), (terminal, *Omega.shape[1:]))
+    noise = np.zeros(terminal)
+    gains: list[np.ndarray] = [np.empty(0)] * steps
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps - 1, -1, -1):
+            prob, q, nxt = layers[t]
+            P_next = P[nxt]                                                 # (J, k, n, n)
+            traces = (P_next * noise_cov).reshape(*nxt.shape, -1).sum(axis=-1)
+            noise = np.sum(prob * (traces + noise[nxt]), axis=1)
+            gains[t], P = mixture_step(P_next, prob, q, A, B, Omega[t], psi[t])
+    return gains, P, noise
+
+
 def dp_backward(A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray, psi: np.ndarray,
                 noise_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """The finite-horizon DP's backward pass with a weight per step: ``(gains, P_0, noise)``, ``gains[t]`` (u_t = -K_t
     x_t) from `modified_riccati_step` at ``mu[t]`` (steps, m) and ``psi[t]`` (steps, m), ``P_N = Omega[N]``, the state
     weight ``Omega[t]`` added at step t (``Omega``: (steps + 1, n, n)), and ``noise = sum_t tr(P_{t+1} Sigma_W)``.
-    The one pass under `dp_finite_horizon` (stationary weights) and the attainable cost of allocation.attainable
+    `dp_backward_nodes` with one node and one outcome a step (Bernoulli losses). The one pass under
+    `dp_finite_horizon` (stationary weights) and the attainable cost of allocation.attainable
     (the paper's time-varying ones). Overflow is left to the caller (inf / nan). O(steps (n^3 + m^3)).
 
     >>> gains, P0, noise = dp_backward(np.eye(1), np.eye(1), np.ones((1, 1)), np.ones((2, 1, 1)), np.ones((1, 1)),
@@ -358,14 +449,11 @@ def dp_backward(A: np.ndarray, B: np.ndarray, mu: np.ndarray, Omega: np.ndarray,
     (0.5, 1.5, 2.0)
     """
     steps, m = psi.shape
-    P = np.array(Omega[steps], dtype=float)
-    gains = np.empty((steps, m, A.shape[0]))
-    noise = 0.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(steps - 1, -1, -1):
-            noise += float(np.sum(P * noise_cov))
-            gains[t], P = modified_riccati_step(P, A, B, mu[t], Omega[t], psi[t])
-    return gains, P, noise
+    one, first = np.ones((1, 1)), np.zeros((1, 1), dtype=int)
+    layers = [(one, np.asarray(mu[t], dtype=float)[None, None], first) for t in range(steps)]
+    gains, P, noise = dp_backward_nodes(A, B, Omega, psi, noise_cov, layers)
+    out = np.stack([g[0] for g in gains]) if steps else np.empty((0, m, A.shape[0]))
+    return out, P[0], float(noise[0])
 
 
 def dp_finite_horizon(system: System, steps: int,

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..closedloop.chain_dp import ChainDP
 from ..errors import InputError, ResourceError
 from ..linalg import psd_factor
 from ..lq.costs import closed_form
@@ -31,7 +32,8 @@ from ..progress import progress_bar
 from .channels import sample_noise_paths
 from .markov_channels import sample_markov_paths, sample_states, state_delivery
 
-__all__ = ["MARKOV_LAWS", "PLAN_BUDGET", "BeliefGains", "markov_closed_loop_costs", "markov_loop_block", "mode_index"]
+__all__ = ["MARKOV_LAWS", "PLAN_BUDGET", "BeliefGains", "markov_closed_loop_costs", "markov_loop_block", "mode_index",
+           "sample_chain_law_costs"]
 
 #: Distinct beliefs (one receding-horizon plan each) a law may meet in one simulation before it is refused.
 PLAN_BUDGET = 2000
@@ -250,3 +252,47 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
         norms[:, :, steps] = np.linalg.norm(X, axis=2)
         states[:, :, steps] = X[:, :keep]
     return stage.mean(axis=2), norms, stage, states
+
+
+def sample_chain_law_costs(system: System, law: ChainDP, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Realised costs, on the paper's cost (``x_0'Q x_0 + sum_t x_{t+1}'Omega_{t+1} x_{t+1} + (V_t u_t)'Psi_t (V_t
+    u_t)``), of a law behind acknowledgements over the information nodes of closedloop.chain_dp (`chain_dp`'s law,
+    any window) run over the system's horizon: each run draws its channel states and deliveries
+    (`sample_markov_paths`) and its noise, applies ``u_t = -K_{t,j} x_t`` at its node j and moves to the node its
+    outcome leads to (outcome o: the delivery bits, channel 0 first). Their mean estimates the law's expected cost
+    (`chain_law_cost` is the exact one; `chain_dp`'s cost where the law is the exact DP's). Returns (samples,).
+    Time O(samples N (n^2 + n m)).
+
+    Raises
+    ------
+    InputError
+        A law on the channel states (``information="state"``): no TCP-like controller has them.
+
+    Examples
+    --------
+    >>> from packetloss_cvx.closedloop.chain_dp import chain_dp
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.1], r=[0.4]))        # delivered: (1/2)^2 + 2 (1/2)^2; lost: 1
+    >>> sorted(set(sample_chain_law_costs(s, chain_dp(s), 50, np.random.default_rng(0)).tolist()))
+    [0.5, 1.0]
+    """
+    if law.information != "acknowledgements":
+        raise InputError("law", "expected a law behind acknowledgements, found one on the channel states")
+    N, n = system.horizon, system.n
+    _, v = sample_markov_paths(system.channel, N, samples, rng)
+    noise = sample_noise_paths(system, N, samples, rng)
+    weights = 2 ** np.arange(system.m - 1, -1, -1)
+    x = np.broadcast_to(system.x0, (samples, n)).copy()
+    node = np.zeros(samples, dtype=int)
+    cost = np.einsum("si,ij,sj->s", x, system.initial_weight, x)
+    for t in range(N):
+        _, _, nxt = law.layers[t]
+        delivered = v[:, t].astype(float)
+        u = -delivered * np.einsum("sij,sj->si", law.gains[t][node], x)
+        x = x @ system.A.T + u @ system.B.T
+        if noise is not None:
+            x += noise[t]
+        cost += np.einsum("si,ij,sj->s", x, system.state_weights[t], x) + (u * u) @ system.input_weights[t]
+        node = nxt[node, v[:, t].astype(int) @ weights]
+    return cost

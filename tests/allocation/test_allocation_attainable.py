@@ -174,14 +174,50 @@ def test_stabilisable_verdicts_on_the_scalar_plant_either_side_of_the_critical_r
     assert [stabilisable(s, np.array([mu]))[0] for mu in (0.74, 0.76)] == [False, True]
 
 
-def test_behind_a_chain_the_tcp_attainable_cost_and_verdict_are_not_given_as_numbers():
+def test_behind_a_chain_the_tcp_attainable_cost_is_the_dp_with_acknowledgements_behind_it():
+    """pendulum_bursty at its own rate: the issue's 10668.7 (the DP behind the Gilbert channel), not J*_tcp's 9111.31
+    at the prior mean; the verdict of the best linear law stays None (the chain's own stabilisable set)."""
     from packetloss_cvx import load_example
 
     found = attainment(load_example("pendulum_bursty"), "tcp", np.array([0.9]), 1.0)
-    assert found.cost is None
-    assert "Markov chain" in found.cost_note
+    assert round(found.cost, 1) == 10668.7
+    assert found.cost_note.startswith("exact: finite-horizon DP with acknowledgements")
     assert found.stabilisable is None
     assert "Markov chain" in found.stability_note
+
+
+def test_tcp_allocation_behind_a_chain_carries_the_chain_dp_at_mu_star_with_burstiness_held():
+    """The reference chain is written out here: a Gilbert channel with lambda = 1 - p - r = 0.8 held and mean rate
+    r / (p + r) = mu*, i.e. p = (1 - mu)(1 - lambda), r = mu (1 - lambda); its DP by the brute-force enumeration
+    of tests/closedloop/test_chain_dp.py over a short horizon."""
+    import sys
+    from pathlib import Path
+
+    from packetloss_cvx.model.channel import GilbertElliott
+    sys.path.insert(0, str(Path(__file__).parents[1] / "closedloop"))
+    from test_chain_dp import brute_force_dp
+
+    s = System(A=[[1.2]], B=[[1.0]], horizon=4, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+               channel=GilbertElliott(p=[0.02], r=[0.18]))
+    a = allocate(s, "tcp", 2.0, [1.0])
+    mu = float(a.mu[0])
+    reference = brute_force_dp(s.with_channel(GilbertElliott(p=[(1 - mu) * 0.2], r=[mu * 0.2])))
+    assert a.attainable_cost == pytest.approx(reference, rel=PATH_AGREEMENT_RTOL)
+    assert a.attainable_cost > a.cost                   # the paper's J*_tcp at mu* is below what any law attains
+
+
+def test_behind_a_hidden_chain_beyond_the_budget_the_note_gives_both_bounds(monkeypatch):
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    s = System(A=[[1.2]], B=[[1.0]], horizon=12, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+               channel=GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.2]))
+    exact = attainment(s, "tcp", s.channel.mean_rate, 1.0).cost
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_CHAIN_DP_NODES", "2000")
+    found = attainment(s, "tcp", s.channel.mean_rate, 1.0)
+    assert found.cost is None
+    lower, upper = (float(found.cost_note.split(f"{word} ")[1].split(",")[0]) for word in ("lower", "upper"))
+    assert lower <= exact * (1 + 1e-9)               # the note prints 10 significant digits
+    assert exact <= upper * (1 + 1e-9)
 
 
 def test_allocate_targets_match_stability_allocate_and_refuse_what_is_not_there():
@@ -290,7 +326,8 @@ def test_the_attainable_cost_falls_in_every_delivery_probability(seed):
         assert enumerated_dp(s, more)[1] <= enumerated_dp(s, mu)[1] * (1 + PATH_AGREEMENT_RTOL)
 
 
-def test_behind_a_chain_the_udp_cost_is_the_attainable_one_and_the_tcp_one_is_not_given():
+def test_behind_a_chain_the_udp_cost_is_the_attainable_one_and_the_tcp_one_is_the_chain_dp():
+    from packetloss_cvx.closedloop.chain_dp import chain_dp
     from packetloss_cvx.lq.markov_cost import exact_closed_form
     from packetloss_cvx.model.channel import GilbertElliott
 
@@ -304,7 +341,9 @@ def test_behind_a_chain_the_udp_cost_is_the_attainable_one_and_the_tcp_one_is_no
     assert "Markov chain" in udp.stability_note
     tcp = allocate(s, "tcp", alpha, [1.0, 2.0])
     assert tcp.basis == "paper"
-    assert tcp.attainable_cost is None
-    assert "Markov chain" in tcp.attainable_note
+    lam = np.array([1 - 0.08 - 0.32, 1 - 0.35 - 0.35])            # each channel's burstiness, held at mu*
+    held = GilbertElliott(p=(1 - tcp.mu) * (1 - lam), r=tcp.mu * (1 - lam))
+    assert tcp.attainable_cost == pytest.approx(chain_dp(s.with_channel(held)).cost, rel=PATH_AGREEMENT_RTOL)
+    assert tcp.attainable_note.startswith("exact: finite-horizon DP with acknowledgements")
     with pytest.raises(InputError, match="Markov chain"):
         allocate(s, "tcp", alpha, [1.0, 2.0], target="attainable")

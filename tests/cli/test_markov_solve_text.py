@@ -99,3 +99,32 @@ def test_a_plug_in_loss_is_equal_within_five_self_check_rtols_and_a_loss_beyond(
         assert _percent(sign * 0.3 * band) == "equal within 5e-9 relative"
         assert _percent(sign * 3 * band) == f"{100 * sign * 3 * band:+.3g}%"
     assert band == pytest.approx(5e-9)                 # the printed "5e-9" is this band
+
+
+def test_solve_shows_the_attainable_tcp_cost_beside_the_prior_mean_formula(capsys):
+    """The issue's numbers: the paper's J*_tcp at the prior mean (9111.31) labelled as such, and the least cost of
+    any law with acknowledgements behind the chain (10668.7, the DP of tests/closedloop/test_chain_dp.py)."""
+    assert main(["solve", "pendulum_bursty", "--no-qp", "--json", "--protocol", "tcp"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["tcp"]["basis"] == "paper, prior-mean rates"
+    assert round(data["tcp"]["cost"], 2) == 9111.31
+    tcp = data["markov"]["tcp"]
+    assert tcp["basis"] == "paper, prior-mean rates"
+    assert tcp["attainable"]["basis"] == "attainable"
+    assert round(tcp["attainable"]["cost"], 1) == 10668.7
+    assert tcp["attainable"]["exact"] is True
+    assert main(["solve", "pendulum_bursty", "--no-qp", "--protocol", "tcp"]) == 0
+    text = capsys.readouterr().out
+    assert "[basis: paper, prior-mean rates]" in text
+    assert "attainable: J = 10668.66352" in text
+
+
+def test_attainable_cost_is_not_given_with_lossy_sensor_links():
+    from packetloss_cvx.cli.markov_section import attainable_entry
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    sensed = load_example("pendulum_sensor")
+    entry, text = attainable_entry(sensed.with_channel(GilbertElliott(p=[0.02] * sensed.m, r=[0.18] * sensed.m)))
+    assert entry["cost"] is None
+    assert entry["exact"] is False
+    assert "sensor" in text
