@@ -219,8 +219,9 @@ class _Beliefs:
 
 
 def _run(system: System, twin: System, constraints: Constraints, controller: str, protocol: str,
-         V: np.ndarray, W: np.ndarray | None, bar: Any) -> ControllerRun:
-    """One controller over every sampled path. Time O(samples steps) solves (none for "clipped")."""
+         V: np.ndarray, W: np.ndarray | None, bar: Any, keep: int = 0) -> ControllerRun:
+    """One controller over every sampled path, the first ``keep`` runs' states and commands kept. Time
+    O(samples steps) solves (none for "clipped")."""
     steps, samples, m = V.shape
     n = system.n
     A, B, Omega, psi = system.A, system.B, system.state_weights[0], system.input_weights[0]
@@ -245,6 +246,8 @@ def _run(system: System, twin: System, constraints: Constraints, controller: str
     previous = np.zeros((samples, m))
     plans, age = np.zeros((samples, N, m)), np.zeros(samples, dtype=int)
     stage = np.empty((samples, steps))
+    states, commands = np.empty((keep, steps + 1, n)), np.empty((keep, steps, m))
+    states[:, 0] = X[:keep]
     for t in range(steps):
         if controller == "clipped":
             K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains, (samples, m, n))
@@ -274,6 +277,7 @@ def _run(system: System, twin: System, constraints: Constraints, controller: str
             X_next += W[t]
         for name, kind, data, _ in rows:
             flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
+        states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
         X, previous = X_next, u
         beliefs.update(V[t])
         bar.update(1)
@@ -283,12 +287,13 @@ def _run(system: System, twin: System, constraints: Constraints, controller: str
         stage_cost_mean=stage.mean(axis=0),
         violations=tuple(frequency(name, flags[name], allowed) for name, _, _, allowed in rows),
         infeasible=None if program is None else frequency("infeasible", infeasible),
-        fallback_steps=int(fallback), failed_steps=int(failed), slack_steps=int(slack), action=INFEASIBLE_ACTION)
+        fallback_steps=int(fallback), failed_steps=int(failed), slack_steps=int(slack), action=INFEASIBLE_ACTION,
+        states=states if keep else None, inputs=commands if keep else None)
 
 
 def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, steps: int = 30, seed: int = 0,
                  protocols: Sequence[str] = ("tcp", "udp"), controllers: Sequence[str] = CONTROLLERS,
-                 progress: bool | None = None) -> MPCSimulation:
+                 progress: bool | None = None, keep: int = 0) -> MPCSimulation:
     """The constrained receding-horizon loop sampled, each controller on the same paths (module docstring).
 
     Parameters
@@ -304,11 +309,16 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     protocols : sequence of {"tcp", "udp"}
     controllers : sequence of `CONTROLLERS`
     progress : bool, optional
+    keep : int
+        Runs whose trajectories are kept (the first ``keep``, at most ``samples``): each `ControllerRun`'s
+        ``states`` and ``inputs``, and the simulation's ``delivered``, the same paths for every controller. 0 keeps
+        none (the default: the summaries alone).
 
     Returns
     -------
     MPCSimulation
-        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols.
+        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols. ``.plot()``
+        draws the kept trajectories and the violation frequencies.
 
     Raises
     ------
@@ -337,6 +347,9 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     constraints = check_constraints(constraints, system.n, system.m)
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
     seed = check_count(seed, "seed", 0)
+    keep = check_count(keep, "keep", 0)
+    if keep > samples:
+        raise InputError("keep", f"expected at most samples = {samples} runs to keep, found {keep}")
     protocols = list(dict.fromkeys(protocols))
     for p in protocols:
         if p not in ("tcp", "udp"):
@@ -363,6 +376,7 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
                 if name == "certainty-equivalent" and shared is not None:
                     runs[p][name] = shared
                     continue
-                runs[p][name] = shared = _run(system, twin, constraints, name, p, V, W, bar)
+                runs[p][name] = shared = _run(system, twin, constraints, name, p, V, W, bar, keep)
     return MPCSimulation(samples=samples, steps=steps, seed=seed, channel=channel,
-                         constraints=constraints.to_dict(), runs=runs)
+                         constraints=constraints.to_dict(), runs=runs,
+                         delivered=V[:, :keep].swapaxes(0, 1).astype(bool) if keep else None)

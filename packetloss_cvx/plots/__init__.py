@@ -8,6 +8,7 @@ from .figures import (
     plot_closed_loop,
     plot_cost_lines,
     plot_log_contour,
+    plot_mpc,
     plot_pareto,
     plot_power_pareto,
     plot_region,
@@ -17,6 +18,6 @@ from .figures import (
 
 __all__ = [
     "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
-    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
+    "plot_log_contour", "plot_mpc", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
     "plot_stability_lines",
 ]

@@ -43,7 +43,8 @@ from .style import (
 
 __all__ = [
     "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
-    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map", "plot_stability_lines",
+    "plot_log_contour", "plot_mpc", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
+    "plot_stability_lines",
 ]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
@@ -256,6 +257,193 @@ def plot_closed_loop(curves: Any, *, yscale: str = "linear", title: str | None =
     fig.legend(handles=right.get_legend_handles_labels()[0], **LEGEND)
     if title:
         fig.suptitle(title)
+    return _save(fig, path)
+
+
+#: The constrained loop's controllers (montecarlo/mpc.py), in words.
+_CONTROLLER_LABELS = {"clipped": "clipped LQ law", "certainty-equivalent": "certainty-equivalent MPC",
+                      "expected-cost": "expected-cost MPC"}
+
+
+def _linear_text(a: Sequence[float], bound: float) -> str:
+    """``a'x > bound`` written out: ``([-1, 0], 0.05)`` -> "x1 < -0.05", ``([1, 2], 3)`` -> "x1+2x2 > 3"."""
+    a = np.asarray(a, dtype=float)
+    (nonzero,) = np.nonzero(a)
+    if nonzero.size == 1:                                   # one state: its own bound
+        j = int(nonzero[0])
+        return f"x{j + 1} {'>' if a[j] > 0 else '<'} {bound / a[j]:g}"
+    terms = []
+    for j, c in enumerate(a):
+        if c != 0.0:
+            coef = "" if abs(c) == 1.0 else f"{abs(c):g}"
+            terms.append(("-" if c < 0 else "+") + f"{coef}x{j + 1}")
+    text = "".join(terms).lstrip("+") or "0"
+    return f"{text} > {bound:g}"
+
+
+def _row_words(name: str, constraints: Mapping[str, Any]) -> str:
+    """What a violation row's event is, in the constraint's numbers, on two lines: ``x_max[0]`` -> "x1 > 2" over
+    "(limit on E[x1])", ``chance[0]`` -> "x1 < -0.05" over "(chance row 1, eps 0.1)"."""
+    kind, _, index = name.partition("[")
+    i = int(index.rstrip("]")) if index else 0
+    if kind in ("x_max", "x_min"):
+        bound = constraints[kind][i]
+        return f"x{i + 1} {'>' if kind == 'x_max' else '<'} {bound:g}\n(limit on E[x{i + 1}])"
+    if kind == "F":
+        return _linear_text(constraints["F"][i], constraints["g"][i]) + f"\n(polyhedron row {i + 1})"
+    if kind == "chance":
+        a, b, eps = constraints["chance"][i]
+        return _linear_text(a, b) + f"\n(chance row {i + 1}, eps {eps:g})"
+    return "hard program\ninfeasible" if kind == "infeasible" else name
+
+
+def _limit_lines(ax: Any, constraints: Mapping[str, Any], index: int, lower: str, upper: str,
+                 chance: bool = False) -> None:
+    """Dashed lines at the finite bounds ``constraints[lower][index]``, ``constraints[upper][index]``; with
+    ``chance``, dotted lines at the chance rows that bound this state alone (``a = c e_index``: ``b / c``)."""
+    for key in (lower, upper):
+        values = constraints.get(key)
+        if values is not None and np.isfinite(values[index]):
+            ax.axhline(values[index], color="black", linestyle="--", linewidth=1.0)
+    for a, b, _eps in constraints.get("chance", []) if chance else []:
+        a = np.asarray(a, dtype=float)
+        others = np.delete(a, index)
+        if a[index] != 0.0 and not others.any():
+            ax.axhline(b / a[index], color="black", linestyle=":", linewidth=1.2)
+
+
+def plot_mpc(sim: Any, *, protocol: str | None = None, state: int = 0, input: int = 0,
+             measure: str = "worst-step", title: str | None = None, path: str | Path | None = None) -> Figure:
+    """The constrained loop sampled (`simulate_mpc`): each controller's realised trajectories on the same sample
+    paths, and how often each state-side constraint was violated, with its confidence interval.
+
+    Top row: state ``x[state]`` of the kept runs, one panel per controller (the first run bold, the others thin),
+    the limits on it dashed (the program puts them on the expected state) and the chance rows on this state alone
+    dotted. Middle row: the commanded input ``u[input]``, its bounds dashed. Steps where the first run's packet on
+    that channel was lost are shaded grey in both rows. Bottom: per state-side row (state limits, polyhedron rows,
+    chance rows) and the program's infeasibility, each controller's frequency with its Wilson interval; a chance
+    row's allowed eps is marked ``|``. Input and rate bounds are not drawn there: every controller holds them on
+    what it commands.
+
+    Parameters
+    ----------
+    sim : MPCSimulation
+        Run with ``keep >= 1`` (the trajectories drawn).
+    protocol : {"tcp", "udp"}, optional
+        Whose controllers (default: the first run).
+    state, input : int
+        The state and the input channel drawn (0-based).
+    measure : {"worst-step", "runs"}
+        The frequency drawn: at the step with the most violations (a chance row's eps is a bound at each step), or
+        of the runs with a violation at some step.
+    title : str, optional
+        The figure's title; default: the protocol, the channel and the runs, in words.
+    path : str or Path, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels per controller and one of the frequencies; O(controllers keep steps + rows) to draw.
+
+    Raises
+    ------
+    InputError
+        Field ``protocol`` (not run), ``keep`` (no trajectory kept), ``state``/``input`` (out of range) or
+        ``measure``.
+
+    Examples
+    --------
+    >>> from packetloss_cvx import System, Constraints
+    >>> from packetloss_cvx.montecarlo.mpc import simulate_mpc
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> sim = simulate_mpc(s, Constraints(u_min=[-0.3], u_max=[0.3], x_max=[2.0]), samples=3, steps=2, keep=2,
+    ...                    protocols=["tcp"])
+    >>> fig = plot_mpc(sim)
+    >>> len(fig.axes), fig.axes[0].get_title()
+    (7, 'clipped LQ law')
+    """
+    runs = getattr(sim, "runs", None)
+    if not isinstance(runs, Mapping) or not runs:
+        raise InputError("sim", "expected an MPCSimulation (simulate_mpc's result)")
+    protocol = next(iter(runs)) if protocol is None else protocol
+    if protocol not in runs:
+        raise InputError("protocol", f"expected one of {', '.join(runs)} (the protocols run), found {protocol!r}")
+    if measure not in ("worst-step", "runs"):
+        raise InputError("measure", f"expected worst-step or runs, found {measure!r}")
+    controllers = runs[protocol]
+    delivered = getattr(sim, "delivered", None)
+    if delivered is None or any(run.states is None for run in controllers.values()):
+        raise InputError("keep", "expected trajectories: run simulate_mpc with keep >= 1")
+    first = next(iter(controllers.values()))
+    n, m = first.states.shape[2], first.inputs.shape[2]
+    if not 0 <= state < n:
+        raise InputError("state", f"expected an index in 0..{n - 1}, found {state}")
+    if not 0 <= input < m:
+        raise InputError("input", f"expected an index in 0..{m - 1}, found {input}")
+    names = list(controllers)
+    fig = Figure(figsize=(11, 8.4), layout="constrained")
+    axes = fig.subplot_mosaic([[f"x{k}" for k in range(len(names))], [f"u{k}" for k in range(len(names))],
+                               ["rates"] * len(names)], height_ratios=[1.0, 0.8, 1.0])
+    constraints = getattr(sim, "constraints", {}) or {}
+    lost = np.flatnonzero(~np.asarray(delivered[0, :, input], dtype=bool))
+    for k, name in enumerate(names):
+        run, colour = controllers[name], f"C{k}"
+        top, bottom = axes[f"x{k}"], axes[f"u{k}"]
+        steps = run.inputs.shape[1]
+        for j in range(run.states.shape[0] - 1, -1, -1):        # the first run last: on top
+            bold = {"linewidth": 2.0, "alpha": 1.0} if j == 0 else {"linewidth": 0.8, "alpha": 0.35}
+            top.plot(np.arange(steps + 1), run.states[j, :, state], color=colour, **bold)
+            bottom.step(np.arange(steps), run.inputs[j, :, input], where="post", color=colour, **bold)
+        for t in lost:
+            for ax in (top, bottom):
+                ax.axvspan(t, t + 1, color="0.85", zorder=0, linewidth=0)
+        _limit_lines(top, constraints, state, "x_min", "x_max", chance=True)
+        _limit_lines(bottom, constraints, input, "u_min", "u_max")
+        top.set_title(_CONTROLLER_LABELS.get(name, name), fontsize="medium")
+        top.set_ylabel(f"state $x_{{{state + 1}}}$" if k == 0 else "")
+        bottom.set_ylabel(f"commanded $u_{{{input + 1}}}$" if k == 0 else "")
+        bottom.set_xlabel("step t")
+        if k:
+            top.sharey(axes["x0"])
+            bottom.sharey(axes["u0"])
+    rates = axes["rates"]
+    shown = [v.name for v in first.violations if v.name.split("[")[0] in ("x_max", "x_min", "F", "chance")]
+    rows = [*shown, "infeasible"]
+    width = 0.8 / len(names)
+    for k, name in enumerate(names):
+        run, labelled = controllers[name], False
+        for i, row in enumerate(rows):
+            f = run.infeasible if row == "infeasible" else run.violation(row)
+            if f is None:                                       # the clipped law solves nothing
+                continue
+            value, (lo, hi) = (f.worst_frequency, f.worst_ci) if measure == "worst-step" else \
+                (f.runs_with / f.runs, f.runs_ci)
+            y = i - 0.4 + width * (k + 0.5)
+            rates.errorbar(value, y, xerr=[[max(value - lo, 0.0)], [max(hi - value, 0.0)]], fmt="o", color=f"C{k}",
+                           capsize=3, label=None if labelled else _CONTROLLER_LABELS.get(name, name))
+            labelled = True
+            if f.allowed > 0 and k == 0:
+                first_allowed = not any(line.get_label() == "allowed eps" for line in rates.lines)
+                rates.plot([f.allowed], [i], marker="|", markersize=18, color="black", linestyle="none",
+                           label="allowed eps" if first_allowed else None)
+    rates.set_yticks(range(len(rows)), [_row_words(r, constraints) for r in rows])
+    rates.invert_yaxis()
+    rates.set_xlim(-0.02, 1.02)
+    rates.set_xlabel("frequency at the worst step" if measure == "worst-step" else "fraction of runs with a violation")
+    level = int(round(100 * first.violations[0].confidence)) if first.violations else 95
+    runs_count = getattr(sim, "samples", first.infeasible.runs if first.infeasible else 0)
+    rates.set_title(("Violations at the worst step" if measure == "worst-step" else "Runs with some violation")
+                    + f" over {runs_count} runs, with {level} % Wilson intervals")
+    handles, labels = rates.get_legend_handles_labels()
+    handles.append(Patch(color="0.85", label="packet lost (first run)"))
+    handles.append(Line2D([], [], color="black", linestyle="--", label="limit on the expected state / input bound"))
+    if constraints.get("chance"):
+        handles.append(Line2D([], [], color="black", linestyle=":", label="chance row's threshold"))
+    fig.legend(handles=handles, **LEGEND)
+    channel = {"bernoulli": "Bernoulli", "gilbert-elliott": "Gilbert–Elliott", "markov": "Markov"}.get(
+        getattr(sim, "channel", ""), "")
+    fig.suptitle(title or f"{_LABELS.get(protocol, protocol)} controllers over a {channel} link: "
+                          f"{first.states.shape[0]} of {runs_count} runs drawn")
     return _save(fig, path)
 
 
