@@ -49,7 +49,7 @@ ALPHAS = (2.5, 3.5, 4.78, 6.0, 8.0, 12.0, 20.0, 35.0, 50.0, 70.0, 100.0)
 ACK_ATTAINABLE_ALPHAS = (4.78, 8.0, 20.0, 50.0)
 ACK_ATTAINABLE_GAP = 1e-2
 
-#: what each protocol's J* on the maps is (docs/mathematics.md, cost bases): J*_tcp the paper's first-moment value,
+#: what each protocol's J* on the maps is (docs/design.md, "Cost bases"): J*_tcp the paper's first-moment value,
 #: which no law attains; J*_udp the exact expected cost of its plan, the paper's and the attainable cost at once
 BASIS_LABELS = {"tcp": "paper basis", "udp": "paper = attainable basis"}
 
