@@ -32,10 +32,10 @@ from ..model.system import System
 from ..safeio import FIGURE_DPI, check_dpi, check_output_file
 from . import format as fmt
 
-__all__ = ["WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows", "check_budgets",
-           "check_figure_format", "check_writable", "figure_dpi", "figure_file", "floats", "integers", "number",
-           "number_range", "preflight",
-           "prices_and_bounds", "progress_of", "search_options", "system_of", "systems_of", "with_overrides"]
+__all__ = ["CHAIN_BASIS", "COST_BASIS", "WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows",
+           "check_budgets", "check_figure_format", "check_writable", "figure_dpi", "figure_file", "floats", "integers",
+           "number", "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options", "system_of",
+           "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -492,6 +492,14 @@ def progress_of(args: argparse.Namespace) -> bool | None:
 
 
 #: what the warning line advises
+#: the basis of each protocol's J* as the commands print it (docs/design.md, "Cost bases"): the paper's
+#: expressions, J*_tcp a first-moment value that no law attains, J*_udp the exact expected cost of its plan and so the
+#: attainable cost too; J_Delta ("diff") their difference
+COST_BASIS = {"tcp": "paper", "udp": "paper = attainable", "diff": "paper"}
+#: behind a Markov chain: the TCP-like cost holds only the predicted mu_t (the paper's expression), the UDP-like
+#: exact minimum is the exact expected cost of the optimal plan under the chain (the attainable cost)
+CHAIN_BASIS = {"tcp": "paper", "udp": "attainable"}
+
 WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"
 
 

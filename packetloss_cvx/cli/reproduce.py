@@ -34,8 +34,8 @@ from .common import CommandResult, figure_dpi
 from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, report
 
 #: compute and draw_figures (run's two steps) are not exported: benchmarks/reproduce_speed.py calls them
-__all__ = ["ACK_ATTAINABLE_ALPHAS", "ACK_ATTAINABLE_GAP", "ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "STEPS",
-           "TITLES", "WRITE_STEPS", "run"]
+__all__ = ["ACK_ATTAINABLE_ALPHAS", "ACK_ATTAINABLE_GAP", "ALPHAS", "BASIS_LABELS", "REGION_GRID", "SETTINGS",
+           "SLOW_CLAIM", "STEPS", "TITLES", "WRITE_STEPS", "run"]
 
 #: The cost bounds alpha of the -mult figures: the paper's 4.78 among levels spread from just above
 #: J*(1, 1) = 1.92 to below J*(0, 0) = 140.7 of the two-actuator system (the paper prints none). Above 20
@@ -48,6 +48,10 @@ ALPHAS = (2.5, 3.5, 4.78, 6.0, 8.0, 12.0, 20.0, 35.0, 50.0, 70.0, 100.0)
 #: under 3e-6 relative), so four of the ALPHAS keep the run within its budget (docs/performance.md).
 ACK_ATTAINABLE_ALPHAS = (4.78, 8.0, 20.0, 50.0)
 ACK_ATTAINABLE_GAP = 1e-2
+
+#: what each protocol's J* on the maps is (docs/design.md, "Cost bases"): J*_tcp the paper's first-moment value,
+#: which no law attains; J*_udp the exact expected cost of its plan, the paper's and the attainable cost at once
+BASIS_LABELS = {"tcp": "paper basis", "udp": "paper = attainable basis"}
 
 #: The claim --quick leaves out of the audit (its 18 brute-force allocations, about 0.5 s).
 SLOW_CLAIM = "allocation-udp-perfect-channel"
@@ -169,24 +173,30 @@ def draw_figures(data: dict[str, Any], folder: RunFolder, fmt: str = "png", dpi:
                                                    colorbar_label=r"$J_\Delta$ (log scale)",
                                                    marker=mixed["maximiser"]["mu"],
                                                    title=caption["fig:cost-diff-mixed"])
+    both = data.get("ack_attainable")
     for protocol in ("tcp", "udp"):
         name = protocol.upper()
+        basis = BASIS_LABELS[protocol]
         draw[f"fig:{name}-log-cost-mixed"] = plot_log_contour(
-            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$ (log scale)",
+            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$, {basis} (log scale)",
             title=caption[f"fig:{name}-log-cost-mixed"])
-        lines = {_beta_text(beta): [row["mu"] for row in rows] for beta, rows in data["allocations"][protocol].items()}
+        lines = {_beta_text(beta) + (", paper" if protocol == "tcp" else ""): [row["mu"] for row in rows]
+                 for beta, rows in data["allocations"][protocol].items()}
         # where each path of optima jumps (its line is broken there), read on the cost grid: milliseconds
-        breaks = {_beta_text(beta): pf.path_jumps(axis, mixed[protocol], beta, data["settings"]["alphas"])
+        breaks = {_beta_text(beta) + (", paper" if protocol == "tcp" else ""):
+                  pf.path_jumps(axis, mixed[protocol], beta, data["settings"]["alphas"])
                   for beta in data["allocations"][protocol]}
+        if protocol == "tcp" and both and any(mu is not None for mu in both.get("mu", [])):
+            # beyond the paper: the TCP-like designs on the cost a loop attains, where they differ from the paper's
+            lines[_beta_text((1.0, 1.0)) + ", attainable"] = both["mu"]
         draw[f"fig:{name}-log-cost-mixed-mult"] = plot_log_contour(
-            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$ (log scale)",
+            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$, {basis} (log scale)",
             levels=data["settings"]["alphas"], allocations=lines, breaks=breaks,
             title=caption[f"fig:{name}-log-cost-mixed-mult"])
     for label, figure in draw.items():
         save_figure(figure, paths[label].name, folder=folder, dpi=dpi)
     ack = data["ack"][str([1.0, 1.0])]         # beyond the paper: the acknowledgement link priced
     paths[ACK_FIGURE] = out / f"{ACK_FIGURE}.{fmt}"
-    both = data.get("ack_attainable")
     save_figure(plot_ack_break_even(ack["alpha"], [float("nan") if v is None else v for v in ack["break_even"]],
                                     title=TITLES[ACK_FIGURE],
                                     attainable=None if not both or not both["alpha"] else (

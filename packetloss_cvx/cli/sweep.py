@@ -23,7 +23,7 @@ from ..studies.engine import DEFAULT_CHUNK
 from ..studies.output import csv_header, csv_number, sweep_table, write_sweep
 from ..tolerances import SELF_CHECK_RTOL
 from . import format as fmt
-from .common import CommandResult, figure_dpi, figure_file, integers, number_range
+from .common import CHAIN_BASIS, COST_BASIS, CommandResult, figure_dpi, figure_file, integers, number_range
 
 __all__ = ["bursty", "bursty_map", "run"]
 
@@ -74,8 +74,8 @@ def _figures(result: DesignSweep, out: RunFolder, skipped: list[str], args: argp
         figure = plot_cost_lines(result.axes[0], curves, xlabel=label, title=title)
         return [save_figure(figure, figure_file(args, "sweep"), folder=out, dpi=figure_dpi(args)), *stability]
     paths = []
-    names = {"tcp": r"$J^*_{\mathrm{tcp}}$", "udp": r"$J^*_{\mathrm{udp}}$",
-             "diff": r"$J_\Delta = J^*_{\mathrm{udp}} - J^*_{\mathrm{tcp}}$"}
+    names = {"tcp": r"$J^*_{\mathrm{tcp}}$, paper basis", "udp": r"$J^*_{\mathrm{udp}}$, paper = attainable basis",
+             "diff": r"$J_\Delta = J^*_{\mathrm{udp}} - J^*_{\mathrm{tcp}}$, paper basis"}
     for key, values in curves.items():
         if not np.any(np.asarray(values) > 0):
             skipped.append(figure_file(args, f"sweep_{key}"))
@@ -125,7 +125,8 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
                                                    strict=True)}
         data[f"cost_{key}"] = {"min": float(np.min(values)), "max": float(np.max(values)), "argmax": where,
                                "argmax_mu": result.mu[k].tolist()}
-        name = "J_Delta" if key == "diff" else f"J*_{key}"
+        name = ("J_Delta" if key == "diff" else f"J*_{key}") + f" ({COST_BASIS[key]} basis)"
+        data.setdefault("basis", {})[f"cost_{key}"] = "paper"
         at = ", ".join(f"{d} = {v:.6g}" for d, v in where.items())
         lines.append(f"  {name}: min {np.min(values):.6g}, max {np.max(values):.6g} at {at}")
     for p, radii in result.radii.items():
@@ -279,7 +280,9 @@ def _map_output(args: argparse.Namespace, system: System, result: BurstinessMap,
         a, b = np.unravel_index(int(np.argmax(loss)), shape)
         data[p]["worst_loss"] = {"relative_loss": float(loss[a, b]), "rate": float(result.rate[a]),
                                  "correlation": float(result.correlation[b])}
-        lines.append(f"  {p.upper()}-like: exact minimum {np.min(exact):.6g} to {np.max(exact):.6g}; " + (
+        data[p]["basis"] = CHAIN_BASIS[p]
+        lines.append(f"  {p.upper()}-like ({CHAIN_BASIS[p]} basis): exact minimum {np.min(exact):.6g} to "
+                     f"{np.max(exact):.6g}; " + (
             "the plug-in law is the exact minimiser at every point" if loss[a, b] <= SELF_CHECK_RTOL else
             f"the plug-in law loses up to {100 * loss[a, b]:.3g}% (at mean rate {result.rate[a]:.4g}, "
             f"lambda = {result.correlation[b]:.4g})"))
@@ -303,7 +306,7 @@ def _map_output(args: argparse.Namespace, system: System, result: BurstinessMap,
                     continue
                 figure = plot_burstiness_map(
                     result.rate, result.correlation, result.exact[p], 100 * result.relative_loss(p),
-                    cost_label=rf"exact minimum $J^*_{{\mathrm{{{p}}}}}$ (log scale)",
+                    cost_label=rf"exact minimum $J^*_{{\mathrm{{{p}}}}}$, {CHAIN_BASIS[p]} basis (log scale)",
                     title=f"{system.name or 'system'}: channel {result.channel + 1}, {p.upper()}-like")
                 files.append(save_figure(figure, figure_file(args, f"burstiness_map_{p}"), folder=out,
                                           dpi=figure_dpi(args)))

@@ -183,8 +183,8 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
         raise InputError("allocations", "expected a mapping beta -> rows")
     lines = {f"beta={beta}": [r["mu"] for r in _rows(rows, f"allocations[{beta!r}]", ("mu",))]
              for beta, rows in allocations.items()}
-    return plot_log_contour(grid, grid, J, colorbar_label=r"$J^*$ (log scale)", levels=levels, allocations=lines,
-                            title=title, path=path)
+    return plot_log_contour(grid, grid, J, colorbar_label=r"$J^*$, paper basis (log scale)", levels=levels,
+                            allocations=lines, title=title, path=path)
 
 
 def plot_closed_loop(curves: Any, *, yscale: str = "linear", title: str | None = None,
@@ -485,7 +485,7 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
     >>> line.get_ydata()[:2].tolist(), bool(np.isnan(line.get_ydata()[2])), fig.axes[0].get_yscale()
     ([1.0, 20.0], True, 'log')
     >>> line.get_label()
-    'TCP-like $J^*$ (1 point <= 0: off the log axis)'
+    'TCP-like $J^*$ (paper) (1 point <= 0: off the log axis)'
     """
     xs = numeric_array(x, "x")
     if xs.ndim != 1 or xs.size < 1:
@@ -494,7 +494,8 @@ def plot_cost_lines(x: Sequence[float], curves: Mapping[str, Any], *, xlabel: st
         raise InputError("curves", "expected a non-empty mapping label -> values")
     fig = Figure(figsize=(7.4, 3.8), layout="constrained")
     ax = fig.subplots()
-    names = {"tcp": "TCP-like $J^*$", "udp": "UDP-like $J^*$", "diff": r"$J_\Delta = J^*_{udp} - J^*_{tcp}$"}
+    names = {"tcp": "TCP-like $J^*$ (paper)", "udp": "UDP-like $J^*$ (paper = attainable)",
+             "diff": r"$J_\Delta = J^*_{udp} - J^*_{tcp}$ (paper)"}
     for label, values in curves.items():
         ys = numeric_array(values, f"curves[{label!r}]")
         if ys.shape != xs.shape:
@@ -1072,7 +1073,7 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, unit: str | No
     fig, ax = _curves(curves, "budget", "cost", skip_missing=False)
     ax.set_yscale("log")
     ax.set_xlabel(rf"total power budget $\sum_i P_i \leq B$ ({unit or 'power-table units'})")
-    ax.set_ylabel(r"least optimal cost $J^*(\mu(P))$ (log scale)")
+    ax.set_ylabel(r"least optimal cost $J^*(\mu(P))$, paper basis (log scale)")
     if title:
         ax.set_title(title)
     fig.legend(**LEGEND)

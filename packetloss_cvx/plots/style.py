@@ -17,7 +17,8 @@ __all__ = ["LEGEND", "OUTLINE", "PATH_STYLES", "callout_positions", "contour_lab
 
 #: Allocation paths on a colour map: bright colours with a black outline (visible on viridis' dark purple and
 #: its yellow alike), told apart by their dashes and markers too.
-PATH_STYLES = (("#ff3b30", (0, (5, 2)), "X"), ("#ff7cf5", (0, (8, 3, 2, 3)), "o"), ("#22e0ff", (0, (2, 1.5)), "s"))
+PATH_STYLES = (("#ff3b30", (0, (5, 2)), "X"), ("#ff7cf5", (0, (8, 3, 2, 3)), "o"), ("#22e0ff", (0, (2, 1.5)), "s"),
+               ("#fff200", "-", "D"))
 OUTLINE = (patheffects.withStroke(linewidth=3.4, foreground="k"),)
 #: Legends beside the plot, at a size a printed page can read.
 LEGEND = {"loc": "outside right center", "fontsize": 8, "frameon": False}
