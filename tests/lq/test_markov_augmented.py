@@ -434,3 +434,53 @@ def test_the_chain_cost_closes_the_free_tail_after_the_plan_ends(monkeypatch, se
     monkeypatch.setattr(augmented_module, "_free_sums", lambda *a: closed.append(a[-1]) or real(*a))
     assert exact_cost(s, U) == pytest.approx(exact_cost(s, U, method="dense"), rel=PATH_AGREEMENT_RTOL)
     assert closed == [260]
+
+
+def plain_chain_cost(s, U):
+    """The exact UDP-like cost of the plan U (N, m) by the plain forward loop over all N steps, on the chains'
+    unreduced correlations xi_i = E[e 1{S_i = a}] (n×k_i: no lift, no basis, no blocks, no closed tail):
+    xi+ = A xi T + b u c'T with c = pi o (d - mu), E[e delta_i] = xi_i d_i, and the covariance
+    Sigma+ = A Sigma A' + A Y B' + B Y'A' + B diag(mu (1 - mu) u^2) B' + Sigma_W."""
+    A, B, N, n, m = s.A, s.B, s.horizon, s.n, s.m
+    chains = chain_matrices(s.channel)
+    pis = [np.asarray(pi0, float) for _, _, pi0 in chains]
+    xis = [np.zeros((n, np.size(d))) for _, d, _ in chains]
+    xhat, Sig = s.x0.copy(), np.zeros((n, n))
+    total = float(s.x0 @ s.initial_weight @ s.x0)
+    for t in range(N):
+        u, mu, W = U[t], s.mu_schedule[t], s.state_weights[t]
+        Y = np.zeros((n, m))
+        for i, (T, d, _) in enumerate(chains):
+            Y[:, i] = xis[i] @ d * u[i]
+            c = pis[i] * (d - pis[i] @ d)
+            xis[i] = A @ xis[i] @ T + np.outer(B[:, i], c @ T) * u[i]
+            pis[i] = pis[i] @ T
+        Sig = A @ Sig @ A.T + A @ Y @ B.T + B @ Y.T @ A.T + B @ np.diag(mu * (1 - mu) * u * u) @ B.T + s.noise_cov
+        xhat = A @ xhat + B @ (mu * u)
+        total += float(mu @ (s.input_weights[t] * u * u) + xhat @ W @ xhat + np.sum(W * Sig))
+    return total
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("radius", [0.9, 1.03])
+def test_the_chain_cost_in_blocks_and_closed_tail_equals_the_plain_loop(seed, radius):
+    """chain_cost (a stable plant with one weight: the forward pass in blocks and the free tail by Stein sums; an
+    unstable one: step by step) against the plain loop over all N steps on the unreduced correlations, for plans that
+    end early (the tail closed), late and never, on Gilbert–Elliott and 3-state chains started away from their
+    stationary laws, with and without noise: to PATH_AGREEMENT_RTOL."""
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    rng = np.random.default_rng(800 + seed)
+    N = 300
+    if seed % 2:
+        channel = MarkovChannel(transition=[rng.dirichlet(np.ones(3), size=3), [[0.5, 0.5], [0.2, 0.8]]],
+                                delivery=[rng.uniform(0, 1, 3), [1.0, 0.0]], state=[0, 1])
+    else:
+        channel = random_channel(rng, 2)
+    s = attach_channel(random_system(rng, n=3, m=2, horizon=N, spectral_radius=radius, time_varying=seed == 4,
+                                     non_stationary=False, noise=seed % 3 == 0), channel)
+    for end in (17, 250, N):
+        U = np.zeros((N, s.m))
+        U[:end] = rng.normal(size=(end, s.m)) * 0.98 ** np.arange(end)[:, None]
+        reference = plain_chain_cost(s, U)
+        assert chain_cost(s, U[None])[0] == pytest.approx(reference, rel=PATH_AGREEMENT_RTOL, abs=0)
