@@ -114,7 +114,8 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
     ``chain_matrices(system.channel)``); a system without a channel has none (q_i = 0: the augmented problem
     is then the paper's Bernoulli UDP-like one). The state distributions ``pi_{t+1} = pi_t T`` are propagated
     from each ``pi0``; their delivery probabilities ``pi_t d`` must be the system's ``mu_schedule`` (to 1e-9):
-    the mean state uses the schedule, the covariances the chain. Time O(N m k^2).
+    the mean state uses the schedule, the covariances the chain. Time O(N m k^2), O(L m k^2 + N m k) for
+    distributions that reach their float fixed point in L steps (the rest are copies, to the bit).
 
     Raises
     ------
@@ -159,6 +160,9 @@ def _lift(system: System, chains: tuple | None) -> ChainLift:
         pi[0] = pi0
         for t in range(1, N):
             pi[t] = pi[t - 1] @ T
+            if np.array_equal(pi[t], pi[t - 1]):          # a fixed point of the float step: the rest are copies
+                pi[t + 1:] = pi[t]
+                break
         rate = pi @ d
         gap = np.abs(rate - system.mu_schedule[:, i])
         if not np.all(gap <= 1e-9):
@@ -307,27 +311,32 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     Gs = _input_maps(system, lift)
     P = np.zeros((D, D))
     P[:n, :n] = W[N - 1]
-    # steps 1..head are one map (the input maps, R, the cross terms and Omega equal to the bit: a chain started in
-    # its stationary distribution, below the step where the Lyapunov sums closed): there the value closes its
-    # stationary tail as recursion._backward's does (remaining drift under STATIONARY_RTOL)
-    head = min(leading_run(Gs[None, 1:]), leading_run(R[None, 1:]), leading_run(BSA[None, 1:]),
-               len(weight_head(system))) if N >= 2 * STATIONARY_RUN else 0
+    # steps first..head are one map (the input maps, R, the cross terms and Omega equal to the bit: from the step
+    # where the chains' distributions reached their float fixed point, first = 1 for chains started in it, below the
+    # step where the Lyapunov sums closed): there the value closes its stationary tail as recursion._backward's does
+    # (remaining drift under STATIONARY_RTOL), and the steps before first are taken one by one
+    first = _steady_from(Gs, mu) if N >= 2 * STATIONARY_RUN else 1
+    head = first - 1 + min(leading_run(Gs[None, first:]), leading_run(R[None, first:]),
+                           leading_run(BSA[None, first:]), len(weight_head(system)) - first + 1) \
+        if N >= 2 * STATIONARY_RUN and first < N - 1 else 0
     q, run = None, None
     with np.errstate(over="ignore", invalid="ignore"):
         try:
-            for t in range(N - 1, -1, -1):
+            t = N - 1
+            while t >= 0:
                 K[t], new = _augmented_step(P, F, Gs[t], R[t], BSA[t], lift, scale[t], W[t - 1] if t > 0 else None)
-                if 2 <= t <= head:
+                if first + 1 <= t <= head and run is None:
                     if q is None and stationary_close(new, P, 0.01):      # near: the change below 99 STATIONARY_RTOL
                         q = float(np.max(np.abs(np.linalg.eigvals(F - Gs[t] @ K[t])))) ** 2
                     if q is not None and stationary_close(new, P, q):
-                        # P_t = P_{t-1} = ... = P_1 to rounding: its gain for steps 1..t-1, then step 0
-                        K[1], P = _augmented_step(new, F, Gs[1], R[1], BSA[1], lift, scale[1], W[0])
-                        K[2:t] = K[1]
-                        K[0], P = _augmented_step(P, F, Gs[0], R[0], BSA[0], lift, scale[0], None)
-                        run = (1, t)
-                        break
+                        # P_t = P_{t-1} = ... = P_first to rounding: its gain for steps first..t-1, then the steps
+                        # before first one by one
+                        a = first
+                        K[a], new = _augmented_step(new, F, Gs[a], R[a], BSA[a], lift, scale[a], W[a - 1])
+                        K[a + 1:t] = K[a]
+                        run, t = (a, t), a
                 P = new
+                t -= 1
         except np.linalg.LinAlgError:
             raise overflow_error("the augmented cost-to-go matrix", "udp") from None
         if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K)) and np.isfinite(noise)):
@@ -360,6 +369,16 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
                              "horizon")
     self_check(system, "udp", cost, forward, "markov-recursion", atol=atol)
     return U, K[0][:, :n].copy(), cost
+
+
+def _steady_from(Gs: np.ndarray, mu: np.ndarray) -> int:
+    """The first step s >= 1 from which the input maps ``Gs`` (N, D, m) and the channels ``mu`` (N, m) are the same
+    floats at every later step (1 for chains started in their stationary distributions; N - 1 where they never stop
+    changing). O(N D m)."""
+    N = mu.shape[0]
+    changed = np.any((Gs[1:] != Gs[:-1]).reshape(N - 1, -1), axis=1) | np.any(mu[1:] != mu[:-1], axis=1)
+    last = np.flatnonzero(changed[1:])
+    return int(last[-1]) + 2 if last.size else 1
 
 
 def _augmented_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, BSA: np.ndarray, lift: ChainLift,
