@@ -412,7 +412,26 @@ def mean_state_bound(system: System, inputs: np.ndarray) -> float:
     (3.3, True)
     """
     N, m = system.horizon, system.m
-    return plan_cost(system.with_mu(system.mu_schedule), inputs, "tcp", (np.zeros((N, m)), 0.0))[1]
+    states = None
+    if _blocked(system):                       # chain_cost's mean states: the same blocks, the same floats
+        with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+            states = _mean_blocks(system, np.asarray(inputs, dtype=float)[None])[:, 0, :, 0]
+    return plan_cost(system.with_mu(system.mu_schedule), inputs, "tcp", (np.zeros((N, m)), 0.0), states)[1]
+
+
+def _blocked(system: System) -> bool:
+    """Whether `chain_cost` takes `_blocked_chain_cost`: a stable A (rho(A) < 1) and one state weight. O(1) once the
+    structure is kept."""
+    structure = structure_of(system)
+    return structure.open_loop_radius < 1.0 and structure.time_invariant_weight
+
+
+def _mean_blocks(system: System, U: np.ndarray) -> np.ndarray:
+    """The mean states x_1..x_N (N, P, n, 1) of plans U (P, N, m) from x0 by `_forward_blocks` (``x+ = A x + B M_t
+    u_t``). O(N P n (n + m))."""
+    moved = ((U.transpose(1, 0, 2) * system.mu_schedule[:, None, :]) @ system.B.T)[..., None]    # (N, P, n, 1)
+    start = np.repeat(system.x0[None, :, None], U.shape[0], axis=0)
+    return _forward_blocks(system.A, np.ones((1, 1)), start, moved)
 
 
 def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:
@@ -440,9 +459,9 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     mu = system.mu_schedule
     x = system.x0
     chained = [i for i in range(m) if lift.Lam[i].size]
-    structure = structure_of(system)
-    if structure.open_loop_radius < 1.0 and structure.time_invariant_weight:
+    if _blocked(system):
         return _blocked_chain_cost(system, lift, U, chained)
+    structure = structure_of(system)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
         X = mean_states(structure, mu[None], U, np.repeat(x[None], P, axis=0))
@@ -488,8 +507,7 @@ def _blocked_chain_cost(system: System, lift: ChainLift, U: np.ndarray, chained:
         Sig = np.zeros((1, P, n, n))
         if end:
             u = U[:, :end].transpose(1, 0, 2)                         # (T, P, m)
-            moved = ((u * mu[:end, None, :]) @ B.T)[..., None]           # B M_t u_t, (T, P, n, 1)
-            X = np.concatenate([X, _forward_blocks(A, np.ones((1, 1)), X[0], moved)])
+            X = np.concatenate([X, _mean_blocks(system, U)[:end]])
             Y = np.zeros((end, P, n, m))                              # column i: E[e_t delta_{t,i}] u_{t,i}
             for i in chained:
                 drive = B[None, None, :, i, None] * (u[:, :, i, None, None] * lift.gamma[i][:end, None, None, :])
