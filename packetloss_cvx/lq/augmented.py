@@ -493,8 +493,9 @@ def _blocked_chain_cost(system: System, lift: ChainLift, U: np.ndarray, chained:
     stacked steps instead of T), every stage term still computed and nonnegative; after the plan's end the second
     moment ``xhat xhat' + Sigma`` is free (``Pi+ = A Pi A' + Sigma_W``) and its remaining stage terms are the Stein
     sums of `_free_sums`. Agrees with the step-by-step pass to rounding (the powers of a stable A): within 1.9e-13
-    relative on benchmarks/markov_tail.py's examples, each of the two within 1.0e-13 of an 80-bit loop. Time O(T (P n^2 (n + sum_i q_i)) + sqrt(T) P n^3
-    + n^3 log(N - T)) for a plan ending at T; memory O(T P n (n + sum_i q_i))."""
+    relative on benchmarks/markov_tail.py's examples, each of the two within 1.0e-13 of an 80-bit loop. Time
+    O(T P n^2 (n + sum_i q_i) + N P n^2 + sqrt(N) n^3 + n^3 log(N - T)) for a plan ending at T (the mean states over
+    all N, as `mean_state_bound` bounds them), in about 2 sqrt(N) stacked steps; memory O(N P n (n + sum_i q_i))."""
     A, B, N, n, m = system.A, system.B, system.horizon, system.n, system.m
     W = system.state_weights[0]
     P = U.shape[0]
@@ -536,25 +537,27 @@ def _forward_blocks(L: np.ndarray, R: np.ndarray, X0: np.ndarray, C: np.ndarray)
     T, P, a, b = C.shape
     c = max(1, math.isqrt(T - 1) + 1) if T else 1
     blocks = -(-T // c)
+    S = blocks * P                                            # the blocks' states side by side: a×(S b) products
     Cb = np.zeros((blocks * c, P, a, b))
     Cb[:T] = C
-    Cb = Cb.reshape(blocks, c, P, a, b)
-    Ys = np.empty((c, blocks, P, a, b))                       # Ys[j]: the particular solution j + 1 steps in
-    y = np.zeros((blocks, P, a, b))
+    Cb = Cb.reshape(blocks, c, P, a, b).transpose(1, 3, 0, 2, 4).reshape(c, a, S * b)
+    Ys = np.empty((c, a, S * b))                              # Ys[j]: the particular solutions j + 1 steps in
+    y = np.zeros((a, S * b))
     Lp, Rp = np.empty((c, a, a)), np.empty((c, b, b))           # L^(j + 1), R^(j + 1)
     Lk, Rk = L, R
     for j in range(c):
-        y = L @ y @ R + Cb[:, j]
+        y = ((L @ y).reshape(a * S, b) @ R).reshape(a, S * b) + Cb[j]
         Ys[j] = y
         Lp[j], Rp[j] = Lk, Rk
         Lk, Rk = L @ Lk, Rk @ R
-    starts = np.empty((blocks, P, a, b))
+    last = Ys[-1].reshape(a, blocks, P, b)
+    starts = np.empty((a, blocks, P, b))
     start = X0
     for k in range(blocks):
-        starts[k] = start
-        start = Lp[-1] @ start @ Rp[-1] + Ys[-1, k]
-    out = Lp[:, None, None] @ starts[None] @ Rp[:, None, None] + Ys      # (c, blocks, P, a, b)
-    return out.transpose(1, 0, 2, 3, 4).reshape(blocks * c, P, a, b)[:T]
+        starts[:, k] = start.transpose(1, 0, 2)
+        start = Lp[-1] @ start @ Rp[-1] + last[:, k].transpose(1, 0, 2)
+    out = ((Lp.reshape(c * a, a) @ starts.reshape(a, S * b)).reshape(c, a * S, b) @ Rp).reshape(c, a, S * b) + Ys
+    return out.reshape(c, a, blocks, P, b).transpose(2, 0, 3, 1, 4).reshape(blocks * c, P, a, b)[:T]
 
 
 def _free_sums(A: np.ndarray, W: np.ndarray, noise_cov: np.ndarray, Pi: np.ndarray, L: int) -> np.ndarray:
