@@ -285,10 +285,12 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     Returns ``(U, gain, cost)``: the plan (N×m), the first step's gain on ``x`` (m×n) and the exact
     minimum, checked against `chain_cost` of the plan to ``SELF_CHECK_RTOL`` (plus
     ``SELF_CHECK_ATOL ||P_0|| ||x||^2``). Time O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)), memory
-    O(N m D) for the gains; where the steps are one map (chains started in their stationary distributions, a
-    stable A whose Lyapunov sums closed) the value closes its stationary tail after L steps and the run of one
-    gain is rolled out by powers of its closed loop: O(L (D^3 + m^3) + N D^2) for the solve, the referee
-    `chain_cost` staying O(N n^2 (n + m + sum_i (k_i - 1))).
+    O(N m D) for the gains; where the steps from s on are one map (s: the step where the chains' distributions
+    reach their float fixed point, 1 for chains started in their stationary distributions; a stable A whose
+    Lyapunov sums closed) the value closes its stationary tail after L steps, the steps before s are taken one by
+    one and the run of one gain is rolled out by powers of its closed loop: O((s + L) (D^3 + m^3) + N D^2) for the
+    solve; the referee `chain_cost` is O(N n^2 (n + m + sum_i (k_i - 1))) array work, in about 2 sqrt(N) stacked
+    steps where A is stable (`_blocked_chain_cost`).
 
     Raises
     ------
