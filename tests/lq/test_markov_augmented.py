@@ -479,8 +479,44 @@ def test_the_chain_cost_in_blocks_and_closed_tail_equals_the_plain_loop(seed, ra
         channel = random_channel(rng, 2)
     s = attach_channel(random_system(rng, n=3, m=2, horizon=N, spectral_radius=radius, time_varying=seed == 4,
                                      non_stationary=False, noise=seed % 3 == 0), channel)
-    for end in (17, 250, N):
-        U = np.zeros((N, s.m))
-        U[:end] = rng.normal(size=(end, s.m)) * 0.98 ** np.arange(end)[:, None]
-        reference = plain_chain_cost(s, U)
-        assert chain_cost(s, U[None])[0] == pytest.approx(reference, rel=PATH_AGREEMENT_RTOL, abs=0)
+    plans = np.zeros((3, N, s.m))                 # ending at steps 17, 250 and N
+    for plan, end in zip(plans, (17, 250, N), strict=True):
+        plan[:end] = rng.normal(size=(end, s.m)) * 0.98 ** np.arange(end)[:, None]
+    references = [plain_chain_cost(s, plan) for plan in plans]
+    alone = [chain_cost(s, plan[None])[0] for plan in plans]        # each alone: the first two close a free tail
+    assert alone == pytest.approx(references, rel=PATH_AGREEMENT_RTOL, abs=0)
+    assert chain_cost(s, plans).tolist() == pytest.approx(references, rel=PATH_AGREEMENT_RTOL, abs=0)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_recursion_closes_its_run_from_the_chains_fixed_point(monkeypatch, seed):
+    """Chains started away from their stationary laws: their distributions reach a float fixed point after some tens
+    of steps, from there the augmented data are one map, and the backward pass closes its stationary run there
+    (first > 1) and the plan's run is rolled out by powers. Against the same recursion stepped over all N steps (no
+    closure, no powers) to PATH_AGREEMENT_RTOL: cost, plan and gain."""
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    augmented_module = importlib.import_module("packetloss_cvx.lq.augmented")
+    rng = np.random.default_rng(900 + seed)
+    if seed % 2:
+        channel = MarkovChannel(transition=[rng.dirichlet(np.ones(3), size=3)], delivery=[rng.uniform(0.2, 1, 3)],
+                                state=[2])
+        s = attach_channel(random_system(rng, n=2, m=1, horizon=400, spectral_radius=0.8, time_varying=False,
+                                         non_stationary=False, noise=True), channel)
+    else:
+        s = attach_channel(random_system(rng, n=3, m=2, horizon=400, spectral_radius=0.9, time_varying=False,
+                                         non_stationary=False, noise=False),
+                           GilbertElliott(p=[0.1, 0.3], r=[0.4, 0.2], state=["bad", "good"]))
+    starts, runs = [], []
+    real, powers = augmented_module._steady_from, augmented_module.states_by_powers
+    monkeypatch.setattr(augmented_module, "_steady_from", lambda *a: starts.append(real(*a)) or starts[-1])
+    monkeypatch.setattr(augmented_module, "states_by_powers", lambda Y, L: runs.append(Y.shape[1]) or powers(Y, L))
+    U, gain, cost = augmented_solve(s)
+    assert 1 < starts[0] < 150                     # the chains' fixed point
+    assert len(runs) == 1                          # the closed run, rolled out by powers
+    assert runs[0] > 100
+    monkeypatch.setattr(augmented_module, "STATIONARY_RUN", 10**6)     # every step of the backward pass and rollout
+    U_full, gain_full, cost_full = augmented_solve(s)
+    assert cost == pytest.approx(cost_full, rel=PATH_AGREEMENT_RTOL, abs=0)
+    assert np.max(np.abs(U - U_full)) <= PATH_AGREEMENT_RTOL * np.max(np.abs(U_full))
+    assert np.max(np.abs(gain - gain_full)) <= PATH_AGREEMENT_RTOL * np.max(np.abs(gain_full))
