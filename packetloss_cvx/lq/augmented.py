@@ -430,10 +430,16 @@ def _blocked(system: System) -> bool:
 
 def _mean_blocks(system: System, U: np.ndarray) -> np.ndarray:
     """The mean states x_1..x_N (N, P, n, 1) of plans U (P, N, m) from x0 by `_forward_blocks` (``x+ = A x + B M_t
-    u_t``). O(N P n (n + m))."""
+    u_t``) in spans (`_span`). O(N P n (n + m))."""
+    N, P = system.horizon, U.shape[0]
     moved = ((U.transpose(1, 0, 2) * system.mu_schedule[:, None, :]) @ system.B.T)[..., None]    # (N, P, n, 1)
-    start = np.repeat(system.x0[None, :, None], U.shape[0], axis=0)
-    return _forward_blocks(system.A, np.ones((1, 1)), start, moved)
+    out = np.empty_like(moved)
+    start = np.repeat(system.x0[None, :, None], P, axis=0)
+    span = _span(P, system.n)
+    for a in range(0, N, span):
+        out[a:a + span] = _forward_blocks(system.A, np.ones((1, 1)), start, moved[a:a + span])
+        start = out[min(N, a + span) - 1]
+    return out
 
 
 def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:
@@ -488,16 +494,28 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     return total
 
 
+#: `_blocked_chain_cost` and `_mean_blocks` take the steps in spans of at most this many entries per array (8 MiB),
+#: carrying the state from one span to the next: memory bounded whatever N (each span in about 2 sqrt(span) stacked
+#: steps).
+CHAIN_SPAN_ENTRIES = 2**20
+
+
+def _span(P: int, width: int) -> int:
+    """The steps of one span: CHAIN_SPAN_ENTRIES over ``P width`` entries a step, at least STATIONARY_RUN. O(1)."""
+    return max(STATIONARY_RUN, CHAIN_SPAN_ENTRIES // max(1, P * width))
+
+
 def _blocked_chain_cost(system: System, lift: ChainLift, U: np.ndarray, chained: list[int]) -> np.ndarray:
     """`chain_cost` where A is stable (rho(A) < 1) and the state weight is one weight: the same forward recursions
     of the mean state, the correlations eta and the error covariance Sigma, each of them ``X+ = L X R + C_t`` with
     constant L and R, run over the steps up to the plan's end (`_plan_end`) by `_forward_blocks` (about 2 sqrt(T)
-    stacked steps instead of T), every stage term still computed and nonnegative; after the plan's end the second
-    moment ``xhat xhat' + Sigma`` is free (``Pi+ = A Pi A' + Sigma_W``) and its remaining stage terms are the Stein
-    sums of `_free_sums`. Agrees with the step-by-step pass to rounding (the powers of a stable A): within 1.9e-13
-    relative on benchmarks/markov_tail.py's examples, each of the two within 1.0e-13 of an 80-bit loop. Time
-    O(T P n^2 (n + sum_i q_i) + N P n^2 + sqrt(N) n^3 + n^3 log(N - T)) for a plan ending at T (the mean states over
-    all N, as `mean_state_bound` bounds them), in about 2 sqrt(N) stacked steps; memory O(N P n (n + sum_i q_i))."""
+    stacked steps instead of T, in spans of CHAIN_SPAN_ENTRIES), every stage term still computed and nonnegative;
+    after the plan's end the second moment ``xhat xhat' + Sigma`` is free (``Pi+ = A Pi A' + Sigma_W``) and its
+    remaining stage terms are the Stein sums of `_free_sums`. Agrees with the step-by-step pass to rounding (the
+    powers of a stable A): within 1.9e-13 relative on benchmarks/markov_tail.py's examples, each of the two within
+    1.0e-13 of an 80-bit loop. Time O(T P n^2 (n + sum_i q_i) + N P n^2 + sqrt(N) n^3 + n^3 log(N - T)) for a plan
+    ending at T (the mean states over all N, as `mean_state_bound` bounds them); memory O(N P n) for the mean states
+    and O(CHAIN_SPAN_ENTRIES) for the rest."""
     A, B, N, n, m = system.A, system.B, system.horizon, system.n, system.m
     W = system.state_weights[0]
     P = U.shape[0]
@@ -506,26 +524,33 @@ def _blocked_chain_cost(system: System, lift: ChainLift, U: np.ndarray, chained:
     end = _plan_end(U)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         total = np.full(P, float(x @ system.initial_weight @ x))
-        X = np.repeat(x[None, :, None], P, axis=0)[None]             # (1, P, n, 1): x_0, then x_1 .. x_end
-        Sig = np.zeros((1, P, n, n))
+        last = np.repeat(x[None], P, axis=0)                          # x_end (P, n)
+        Sig = np.zeros((P, n, n))
         if end:
+            states = _mean_blocks(system, U)[:end, :, :, 0]            # x_1 .. x_end (T, P, n)
             u = U[:, :end].transpose(1, 0, 2)                         # (T, P, m)
-            X = np.concatenate([X, _mean_blocks(system, U)[:end]])
-            Y = np.zeros((end, P, n, m))                              # column i: E[e_t delta_{t,i}] u_{t,i}
-            for i in chained:
-                drive = B[None, None, :, i, None] * (u[:, :, i, None, None] * lift.gamma[i][:end, None, None, :])
-                eta = _forward_blocks(A, lift.Lam[i], np.zeros((P, n, lift.Lam[i].shape[0])), drive[:-1])
-                Y[1:, :, :, i] = (eta @ lift.g[i]) * u[1:, :, i, None]
-            cross = A @ Y @ B.T
-            var = (mu * (1.0 - mu))[:end, None, :] * u * u                # (T, P, m)
-            drive = cross + cross.transpose(0, 1, 3, 2) + (B * var[..., None, :]) @ B.T + system.noise_cov
-            Sig = np.concatenate([Sig, _forward_blocks(A, A.T, Sig[0], drive)])
-            states = X[1:, :, :, 0]                                    # (T, P, n)
             total += np.einsum("tpk,tpk->p", (mu[:end, None, :] * u), system.input_weights[:end, None, :] * u)
-            total += np.einsum("tpj,jk,tpk->p", states, W, states) + np.einsum("ij,tpji->p", W, Sig[1:])
+            total += np.einsum("tpj,jk,tpk->p", states, W, states)
+            last = states[-1]
+            eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
+            var = (mu * (1.0 - mu))[:end, None, :] * u * u                # (T, P, m)
+            span = _span(P, n * (n + m + lift.size // n))
+            for a in range(0, end, span):
+                b = min(end, a + span)
+                Y = np.zeros((b - a, P, n, m))                        # column i: E[e_t delta_{t,i}] u_{t,i}
+                for i in chained:
+                    ui = u[a:b, :, i, None, None]
+                    drive = B[None, None, :, i, None] * (ui * lift.gamma[i][a:b, None, None, :])
+                    later = _forward_blocks(A, lift.Lam[i], eta[i], drive)         # eta_{a+1} .. eta_b
+                    Y[:, :, :, i] = (np.concatenate([eta[i][None], later[:-1]]) @ lift.g[i]) * ui[..., 0]
+                    eta[i] = later[-1]
+                cross = A @ Y @ B.T
+                drive = cross + cross.transpose(0, 1, 3, 2) + (B * var[a:b, :, None, :]) @ B.T + system.noise_cov
+                later = _forward_blocks(A, A.T, Sig, drive)                      # Sigma_{a+1} .. Sigma_b
+                total += np.einsum("ij,tpji->p", W, later)
+                Sig = later[-1]
         if end < N:
-            last = X[-1, :, :, 0]
-            total += _free_sums(A, W, system.noise_cov, Sig[-1] + last[:, :, None] * last[:, None, :], N - end)
+            total += _free_sums(A, W, system.noise_cov, Sig + last[:, :, None] * last[:, None, :], N - end)
     return total
 
 

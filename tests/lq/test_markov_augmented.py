@@ -463,13 +463,17 @@ def plain_chain_cost(s, U):
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("radius", [0.9, 1.03])
-def test_the_chain_cost_in_blocks_and_closed_tail_equals_the_plain_loop(seed, radius):
-    """chain_cost (a stable plant with one weight: the forward pass in blocks and the free tail by Stein sums; an
-    unstable one: step by step) against the plain loop over all N steps on the unreduced correlations, for plans that
-    end early (the tail closed), late and never, on Gilbert–Elliott and 3-state chains started away from their
-    stationary laws, with and without noise: to PATH_AGREEMENT_RTOL."""
+@pytest.mark.parametrize("spans", ["one span", "spans of 64 steps"])
+def test_the_chain_cost_in_blocks_and_closed_tail_equals_the_plain_loop(monkeypatch, seed, radius, spans):
+    """chain_cost (a stable plant with one weight: the forward pass in blocks, in one span or in spans of 64 steps
+    carrying the state across, and the free tail by Stein sums; an unstable one: step by step) against the plain loop
+    over all N steps on the unreduced correlations, for plans that end early (the tail closed), late and never, on
+    Gilbert–Elliott and 3-state chains started away from their stationary laws, with and without noise: to
+    PATH_AGREEMENT_RTOL."""
     from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
 
+    if spans != "one span":
+        monkeypatch.setattr(importlib.import_module("packetloss_cvx.lq.augmented"), "CHAIN_SPAN_ENTRIES", 1)
     rng = np.random.default_rng(800 + seed)
     N = 300
     if seed % 2:
