@@ -139,7 +139,8 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
         if protocol == "tcp":
             entry["basis"] = PRIOR_MEAN_BASIS
             line = (f"TCP-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}) [basis: {PRIOR_MEAN_BASIS}], "
-                    f"the exact minimum of the paper's cost; the plug-in law's cost {res.plugin_cost:.10g} "
+                    f"the exact minimum of the paper's cost; the plug-in law's cost on the same basis "
+                    f"{res.plugin_cost:.10g} "
                     f"({_percent(res.relative_loss)}) (the TCP-like cost holds only the marginals mu_t, so the "
                     "plug-in law is its exact minimiser; no law with acknowledgements attains it: see attainable); "
                     f"E[realised cost] of its plan under the chain {res.plan_expected_cost:.10g}")

@@ -94,9 +94,14 @@ TITLES = {
 }
 
 
+def _beta(beta: Any) -> tuple[float, ...]:
+    """A price vector as a tuple: ``compute``'s key, or results.json's text of it (``"1.0, 0.05"``)."""
+    return tuple(float(b) for b in (beta.split(",") if isinstance(beta, str) else beta))
+
+
 def _beta_text(beta: Any) -> str:
-    """A price vector as the legend writes it: ``(1.0, 0.05)`` -> ``$\\beta = (1, 0.05)$``."""
-    return r"$\beta = (" + ", ".join(f"{float(b):g}" for b in beta) + ")$"
+    """A price vector as the legend writes it: ``(1.0, 0.05)`` (or ``"1.0, 0.05"``) -> ``$\\beta = (1, 0.05)$``."""
+    return r"$\beta = (" + ", ".join(f"{b:g}" for b in _beta(beta)) + ")$"
 
 
 #: compute's steps, in order; run adds WRITE_STEPS to the same progress bar
@@ -184,7 +189,7 @@ def draw_figures(data: dict[str, Any], folder: RunFolder, fmt: str = "png", dpi:
                  for beta, rows in data["allocations"][protocol].items()}
         # where each path of optima jumps (its line is broken there), read on the cost grid: milliseconds
         breaks = {_beta_text(beta) + (", paper" if protocol == "tcp" else ""):
-                  pf.path_jumps(axis, mixed[protocol], beta, data["settings"]["alphas"])
+                  pf.path_jumps(axis, mixed[protocol], _beta(beta), data["settings"]["alphas"])
                   for beta in data["allocations"][protocol]}
         if protocol == "tcp" and both and any(mu is not None for mu in both.get("mu", [])):
             # beyond the paper: the TCP-like designs on the cost a loop attains, where they differ from the paper's

@@ -257,16 +257,16 @@ def test_the_tcp_allocation_figure_shows_the_attainable_designs_beside_the_paper
     original = reproduce.plot_log_contour
 
     def spy(*args, **kwargs):
-        drawn[kwargs.get("title", "").split("\n")[0]] = kwargs
+        drawn[kwargs.get("title", "")] = kwargs
         return original(*args, **kwargs)
 
     monkeypatch.setattr(reproduce, "plot_log_contour", spy)
     with RunFolder(tmp_path / "figures", command="test") as folder:
         reproduce.draw_figures(data, folder)
-    lines = drawn["fig:TCP-log-cost-mixed-mult"]["allocations"]
-    assert lines["beta = (1.0, 1.0), attainable"] == both["mu"]
+    lines = drawn[reproduce.TITLES["fig:TCP-log-cost-mixed-mult"]]["allocations"]
+    assert lines[r"$\beta = (1, 1)$, attainable"] == both["mu"]
     papers = [points for label, points in lines.items() if label.endswith(", paper")]   # one per beta, (1, 1) first
     assert len(papers) == 3
     assert papers[0] == [paper[a] for a in data["settings"]["alphas"]]
-    assert "attainable" not in " ".join(drawn["fig:UDP-log-cost-mixed-mult"]["allocations"])
-    assert "paper basis" in drawn["fig:TCP-log-cost-mixed-mult"]["colorbar_label"]
+    assert "attainable" not in " ".join(drawn[reproduce.TITLES["fig:UDP-log-cost-mixed-mult"]]["allocations"])
+    assert "paper basis" in drawn[reproduce.TITLES["fig:TCP-log-cost-mixed-mult"]]["colorbar_label"]
