@@ -17,8 +17,8 @@ filter), UDP-like ones propagate the prior; under Bernoulli losses both plan wit
 chain the program is the plug-in one (the Bernoulli model of the predicted mu_t: its chance rows' variances take
 the losses as independent, so their realised frequencies are what tells). Both know the inputs they commanded:
 the rate bound links the first input of a plan to the previous command (the actuator at rest, zero, before the
-first), through a Parameter added with `ConstrainedQP.add_constraints` (its KKT check then covers the package's
-rows only, so it is skipped; the forward-cost check stays).
+first): the program's own ``u_prev`` Parameter (``ConstrainedQP(..., u_prev=True)``), covered by its KKT check and
+polish like every other row.
 
 Infeasible programs: the expected-state limits and chance rows of the hard program can have no plan from a
 realised state (a loss leaves the state where no plan brings its expectation back inside). The controller then
@@ -37,7 +37,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-import cvxpy as cp
 import numpy as np
 from scipy import stats
 
@@ -126,22 +125,11 @@ class _Program:
         self.hard = self._compile(constraints)
         self.soft = self.hard if constraints.soft else None
 
-    def _compile(self, constraints: Constraints) -> tuple[ConstrainedQP, cp.Parameter | None]:
-        qp = ConstrainedQP(self.twin, self.protocol, constraints)
-        du = constraints.du_max
-        if du is None or not np.isfinite(du).any():
-            return qp, None
-        previous = cp.Parameter(self.twin.m, name="u_prev")
-        rows = np.flatnonzero(np.isfinite(du))
-        qp.add_constraints([cp.abs(qp.U[0, rows] - previous[rows]) <= du[rows]])
-        return qp, previous
+    def _compile(self, constraints: Constraints) -> ConstrainedQP:
+        return ConstrainedQP(self.twin, self.protocol, constraints, u_prev=True)
 
-    def _solve(self, program: tuple[ConstrainedQP, cp.Parameter | None], mu: np.ndarray | None, x: np.ndarray,
-               previous: np.ndarray) -> Any:
-        qp, parameter = program
-        if parameter is not None:
-            parameter.value = previous
-        return qp.solve(mu=mu, x0=x)
+    def _solve(self, program: ConstrainedQP, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray) -> Any:
+        return program.solve(mu=mu, x0=x, u_prev=previous)
 
     def plan(self, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray | None, str, bool]:
         """``(plan or None, outcome, slack used)``; outcome "ok", "fallback" (hard infeasible, soft solved),
