@@ -118,9 +118,10 @@ class ConstrainedSolution(Frozen):
     polished: bool = False
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON entry of ``solve --json`` ("constrained")."""
+        """The JSON entry of ``solve --json`` ("constrained"; ``terminal_state`` is E[x_N] under the plan)."""
         return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
-                "binding": list(self.binding), "violations": [{"constraint": c, "by": v} for c, v in self.violations],
+                "terminal_state": self.states[-1].tolist(), "binding": list(self.binding),
+                "violations": [{"constraint": c, "by": v} for c, v in self.violations],
                 "kkt_residual": self.kkt_residual, "solver_kkt_residual": self.solver_kkt_residual,
                 "polished": self.polished, "formulation": self.formulation, "solver": self.solver}
 
@@ -811,7 +812,8 @@ def _input_rows(c: Constraints, N: int, m: int, previous: bool = False
 
 
 def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
-    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron, with their labels."""
+    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron and of the terminal set,
+    with their labels."""
     rows, rhs, labels = [], [], []
     eye = sp.eye(N * n, format="csr")
     for name, sign, values in (("x_max", 1.0, c.x_max), ("x_min", -1.0, c.x_min)):
@@ -828,6 +830,18 @@ def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarr
                 rows.append(sp.csr_matrix((c.F[r], (np.zeros(n, int), (k - 1) * n + np.arange(n))), shape=(1, N * n)))
                 rhs.append(c.g[r])
                 labels.append(f"F[{r}] at k={k}")
+    # the terminal set, on E[x_N] only
+    for name, sign, values in (("terminal_max", 1.0, c.terminal_max), ("terminal_min", -1.0, c.terminal_min)):
+        for j in [] if values is None else np.flatnonzero(np.isfinite(values)):
+            rows.append(sign * eye[(N - 1) * n + j])
+            rhs.append(sign * values[j])
+            labels.append(f"{name}[{j}] at k={N}")
+    if c.terminal_F is not None:
+        for r in np.flatnonzero(np.isfinite(c.terminal_g)):
+            rows.append(sp.csr_matrix((c.terminal_F[r], (np.zeros(n, int), (N - 1) * n + np.arange(n))),
+                                      shape=(1, N * n)))
+            rhs.append(c.terminal_g[r])
+            labels.append(f"terminal_F[{r}] at k={N}")
     P = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * n))
     return P, np.array(rhs), labels
 
