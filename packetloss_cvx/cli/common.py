@@ -27,14 +27,16 @@ from ..budgets import (
     solve_work,
 )
 from ..errors import InputError
-from ..model.files import load_system, read_csv_numbers, read_input
+from ..model.constraints import Constraints, constraints_from_dict
+from ..model.files import load_constraints, load_system, read_csv_numbers, read_input
 from ..model.system import System
 from ..safeio import check_output_file
 from . import format as fmt
 
-__all__ = ["WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows", "check_budgets",
-           "check_figure_format", "check_writable", "floats", "integers", "number", "number_range", "preflight",
-           "prices_and_bounds", "progress_of", "search_options", "system_of", "systems_of", "with_overrides"]
+__all__ = ["CONSTRAINT_FLAGS", "WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows",
+           "check_budgets", "check_figure_format", "check_writable", "constraints_of", "floats", "integers", "number",
+           "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options", "system_of", "systems_of",
+           "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -178,6 +180,53 @@ def with_overrides(system: System, args: argparse.Namespace) -> System:
         except InputError as err:
             raise err.renamed("--x0") from None
     return system
+
+
+#: The ``[constraints]`` keys the command line overrides, with their flags (``args`` holds them under the key).
+CONSTRAINT_FLAGS = {"u_min": "--u-min", "u_max": "--u-max", "du_max": "--du-max", "x_min": "--x-min",
+                    "x_max": "--x-max", "terminal_min": "--terminal-min", "terminal_max": "--terminal-max",
+                    "soft": "--soft", "soft_weight": "--soft-weight"}
+
+
+def constraints_of(args: argparse.Namespace, system: System) -> Constraints | None:
+    """The file's ``[constraints]`` table with the command line's overrides (`CONSTRAINT_FLAGS`: each flag given
+    replaces its key; one number stands for every input or state), checked against ``system``; None where neither
+    the file nor a flag constrains anything. An error names the flag where the key came from one, else
+    ``constraints.<key>``. O(n + m) beyond the file's table.
+
+    Examples
+    --------
+    >>> args = argparse.Namespace(file="two_actuator", u_min="-1", u_max="1,2", soft=None)
+    >>> from packetloss_cvx.model.files import load_example
+    >>> c = constraints_of(args, load_example("two_actuator"))
+    >>> c.u_min.tolist(), c.u_max.tolist()
+    ([-1.0, -1.0], [1.0, 2.0])
+    >>> constraints_of(argparse.Namespace(file="two_actuator", u_min="0.5"), load_example("two_actuator"))
+    ... # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: --u-min: a lost packet applies zero input, ...; found u_min[0] = 0.5 > 0
+    """
+    constraints = load_constraints(args.file, system)
+    given = {key: getattr(args, key) for key in CONSTRAINT_FLAGS if getattr(args, key, None) is not None}
+    if not given:
+        return constraints
+    table = {} if constraints is None else constraints.to_dict()
+    for key, value in given.items():
+        flag = CONSTRAINT_FLAGS[key]
+        if key == "soft":
+            table[key] = bool(value)
+        elif key == "soft_weight":
+            table[key] = number(value, flag)
+        else:
+            values = floats(value, flag)
+            size = system.m if key[0] in "ud" else system.n
+            table[key] = values * size if len(values) == 1 else values
+    try:
+        return constraints_from_dict(table, system.n, system.m, prefix="")
+    except InputError as err:
+        key = err.field.split(".")[0].split("[")[0]
+        raise err.renamed(CONSTRAINT_FLAGS[key] if key in given else f"constraints.{err.field}") from None
 
 
 def system_of(args: argparse.Namespace) -> System:

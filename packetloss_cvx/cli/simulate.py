@@ -8,13 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..model.files import load_constraints
 from ..montecarlo.markov import EXACT_PLAN
 from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from .actuator_section import actuator_strategies, simulate_actuator_section
-from .common import CommandResult, check_figure_format, progress_of, system_of
+from .common import CommandResult, check_figure_format, constraints_of, progress_of, system_of
 from .sensing_section import simulate_section
 
 __all__ = ["run"]
@@ -57,7 +56,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     system = system_of(args)
     strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
-    constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
+    constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
     mpc_samples = getattr(args, "mpc_samples", 0)
     if constraints is not None and mpc_samples and args.law == "dp":
         raise InputError("--law", "the constrained loop runs the protocols' programs: --law tcp, udp or all "
