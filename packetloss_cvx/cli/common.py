@@ -22,6 +22,7 @@ from ..budgets import (
     duration_text,
     estimated_seconds,
     gib_text,
+    mpc_solves,
     simulate_work,
     solve_bytes,
     solve_work,
@@ -350,10 +351,10 @@ def preflight(args: argparse.Namespace) -> None:
 def check_budgets(args: argparse.Namespace) -> None:
     """The counts a command line gives checked against their budgets (budgets.py) under the option's name,
     before the command's module is imported: ``--random``, ``--workers``, ``--max-boxes``, simulate's
-    ``--samples`` x ``--steps``, sweep's ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and
-    the burstiness work) and the ``--mu-list`` file. (A sweep's other points and its work are checked by the
-    sweep itself, before any point is evaluated, and named by the option that asked for them.) O(1), or
-    O(values) for a list.
+    ``--samples`` x ``--steps`` (and the constrained loop's ``--mpc-samples`` x ``--steps`` solves), sweep's
+    ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and the burstiness work) and the ``--mu-list``
+    file. (A sweep's other points and its work are checked by the sweep itself, before any point is evaluated, and
+    named by the option that asked for them.) O(1), or O(values) for a list.
 
     Examples
     --------
@@ -366,7 +367,7 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
     command = getattr(args, "command", None)
     if command == "audit" and isinstance(getattr(args, "random", None), int):
         check("audit_cases", args.random, "--random", f"{count_text(args.random)} random systems")
-    if command == "sweep" and isinstance(getattr(args, "workers", None), int):
+    if command in ("sweep", "simulate") and isinstance(getattr(args, "workers", None), int):
         check("dask_workers", args.workers, "--workers", f"{count_text(args.workers)} worker processes")
     if command == "allocate" and isinstance(getattr(args, "max_boxes", None), int):
         check("allocation_boxes", args.max_boxes, "--max-boxes", f"{count_text(args.max_boxes)} boxes")
@@ -399,6 +400,12 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                            f"{f' of {count_text(args.steps)} steps' if args.closed_loop else ''} "
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
+        mpc_samples = getattr(args, "mpc_samples", 0)
+        if isinstance(mpc_samples, int) and mpc_samples >= 1 and constraints_of(args, system) is not None:
+            programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
+            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs), "--mpc-samples",
+                  f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
+                  "(the constrained loop)")
 
 
 def check_solve(system: System, args: argparse.Namespace) -> None:

@@ -165,24 +165,29 @@ def add_constraint_options(command: argparse.ArgumentParser, what: str) -> None:
     >>> args.u_min, args.du_max, args.soft, args.x_max
     ('-1,-2', '0.5,inf', False, None)
     """
-    group = command.add_argument_group(f"overrides of the file's [constraints] table ({what}; default: the file's)")
+    group = command.add_argument_group(f"overrides of the file's [constraints] table ({what})")
+    same = "default: the file's"
     group.add_argument("--u-min", metavar="U", help="bounds on each commanded input, m numbers or one for all, "
-                                                    "u_min <= 0 (a lost packet applies zero), e.g. --u-min -1,-2")
-    group.add_argument("--u-max", metavar="U", help="bounds on each commanded input, m numbers or one for all, "
-                                                    "u_max >= 0, e.g. --u-max 1,2")
-    group.add_argument("--du-max", metavar="DU", help="bound on |u_t - u_{t-1}|, m numbers or one for all (inf "
-                                                      "leaves an input out), e.g. --du-max 0.5,inf")
+                                                    f"u_min <= 0 (a lost packet applies zero; {same}), "
+                                                    "e.g. --u-min -1,-2")
+    group.add_argument("--u-max", metavar="U", help=f"bounds on each commanded input, m numbers or one for all, "
+                                                    f"u_max >= 0 ({same}), e.g. --u-max 1,2")
+    group.add_argument("--du-max", metavar="DU", help="bound on |u_t - u_{t-1}|, m numbers or one for all, inf "
+                                                      f"leaves an input out ({same}), e.g. --du-max 0.5,inf")
     group.add_argument("--x-min", metavar="X", help="lower limits on the expected state E[x_k], k = 1..N, n numbers "
-                                                    "or one for all, e.g. --x-min -2")
-    group.add_argument("--x-max", metavar="X", help="upper limits on E[x_k], n numbers or one for all, e.g. "
-                                                    "--x-max 2,inf")
+                                                    f"or one for all ({same}), e.g. --x-min -2")
+    group.add_argument("--x-max", metavar="X", help=f"upper limits on E[x_k], n numbers or one for all ({same}), "
+                                                    "e.g. --x-max 2,inf")
     group.add_argument("--terminal-min", metavar="X", help="the terminal box on E[x_N] only, n numbers or one for "
-                                                           "all, e.g. --terminal-min -0.1")
-    group.add_argument("--terminal-max", metavar="X", help="the terminal box on E[x_N] only, e.g. --terminal-max 0.1")
+                                                           f"all ({same}), e.g. --terminal-min -0.1")
+    group.add_argument("--terminal-max", metavar="X", help=f"the terminal box on E[x_N] only ({same}), "
+                                                           "e.g. --terminal-max 0.1")
     group.add_argument("--soft", action=argparse.BooleanOptionalAction,
-                       help="state, terminal and chance rows as exact-penalty slacks (--soft) or hard (--no-soft)")
+                       help="state, terminal and chance rows as exact-penalty slacks (--soft) or hard (--no-soft) "
+                            f"({same}, else hard), e.g. --soft")
     group.add_argument("--soft-weight", metavar="RHO",
-                       help="the penalty per unit of violation of a soft row (> 0), e.g. --soft-weight 100")
+                       help=f"the penalty per unit of violation of a soft row, > 0 ({same}, else 1e4), "
+                            "e.g. --soft-weight 100")
 
 
 def add_dask_options(command: argparse.ArgumentParser, what: str) -> None:
@@ -333,6 +338,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "equivalent and expected-cost MPC on the same paths over --steps steps; 0 skips it "
                           "(default: 100), e.g. --mpc-samples 400")
     add_constraint_options(sim, "the constrained receding-horizon loop's programs")
+    sim.add_argument("--threads", type=int, default=1, metavar="T",
+                     help="threads running the constrained loop's runs, each with its own compiled programs; the "
+                          "answer is the serial one, float for float (default: 1), e.g. --threads 2")
+    add_dask_options(sim, "the constrained loop's runs as Dask tasks (the answer is the serial one, float for float)")
     sim.add_argument("--save", metavar="FILE.npz",
                      help="save closed-loop trajectories (first 1000 runs) and curves (default: none), "
                           "e.g. --save runs.npz")

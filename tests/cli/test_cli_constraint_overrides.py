@@ -123,3 +123,32 @@ def test_bad_flags_exit_2_with_one_line_naming_the_flag(tmp_path, capsys, comman
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
     assert f"error: {field}" in err[0]
+
+
+# ------------------------------------------------------------------------------ simulate: the loop's runs spread
+
+def test_simulate_threads_give_the_serial_json(tmp_path, capsys):
+    path = _scalar(tmp_path, u_min=[-0.3], u_max=[0.3], x_max=[0.95])
+    argv = ["simulate", str(path), "--json", "--samples", "2", "--mpc-samples", "11", "--steps", "3"]
+    assert main(argv) == 0
+    serial = json.loads(capsys.readouterr().out)["constrained_loop"]
+    assert main([*argv, "--threads", "2"]) == 0
+    assert json.loads(capsys.readouterr().out)["constrained_loop"] == serial
+
+
+@pytest.mark.parametrize(("args", "field"), [
+    (["--mpc-samples", "100000000"], "--mpc-samples"),              # 1e8 x 3 steps x 3 programs: over mpc_solves
+    (["--threads", "0"], "--threads"),
+    (["--workers", "2"], "--workers"),                             # without --dask local
+])
+def test_simulate_spreading_refusals_exit_2_with_one_line(tmp_path, capsys, args, field):
+    path = _scalar(tmp_path, u_max=[0.3])
+    assert main(["simulate", str(path), "--json", "--samples", "2", "--steps", "3", *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert f"error: {field}" in err[0]
+
+
+def test_simulate_threads_without_a_constrained_loop_is_refused(tmp_path, capsys):
+    assert main(["simulate", str(_scalar(tmp_path)), "--json", "--samples", "2", "--threads", "2"]) == 2
+    assert "error: --threads" in capsys.readouterr().err
