@@ -13,6 +13,8 @@ from ..model.system import System
 from ..progress import progress_bar
 from ..results import ClaimResult
 from ..threads import blas_limited
+from .attainable import STATEMENTS as ATTAINABLE
+from .attainable import ack_price_paper_basis, allocation_tcp_meets_alpha
 from .channel_allocation import allocation_udp_perfect
 from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
@@ -66,6 +68,9 @@ CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the
 CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # the paper's open problem
 CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture
 CLAIMS["expectation-mpc-feasibility"] = (EXPECTATION_MPC, expectation_mpc)   # Trodden & Li's constrained loop
+CLAIMS["allocation-tcp-meets-alpha"] = (ATTAINABLE["allocation-tcp-meets-alpha"],    # the paper's design, attained
+                                        allocation_tcp_meets_alpha)
+CLAIMS["ack-price-paper-basis"] = (ATTAINABLE["ack-price-paper-basis"], ack_price_paper_basis)   # its conclusion
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain

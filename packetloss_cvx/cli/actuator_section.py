@@ -52,10 +52,10 @@ def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator,
         verdict = (f"radius {fmt.num(radius)}, " + ("mean-square stable" if row["stable"] else
                                                     "NOT mean-square stable")) if np.isfinite(radius) else \
             f"radius not computed ({row['reason']})"
-        lines.append(f"{name}: {verdict}; exact cost over {steps} steps from x0 {fmt.num(row['cost'])}")
+        lines.append(f"{name}: {verdict}; exact loop cost over {steps} steps from x0 {fmt.num(row['cost'])}")
         if not np.isfinite(radius):
             row["radius"] = None
-    return {"steps": steps, "strategies": rows}, lines
+    return {"steps": steps, "basis": "loop", "strategies": rows}, lines
 
 
 def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies: tuple[Actuator, ...], steps: int,
@@ -75,12 +75,13 @@ def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies:
             continue
         data[law] = {}
         for strategy in strategies:
-            row = simulate_actuator(system, gain, steps, strategy, samples, seed)
+            row = {**simulate_actuator(system, gain, steps, strategy, samples, seed), "basis": "loop"}
             data[law][str(strategy)] = row
             verdict = (("mean-square stable" if row["stable"] else "NOT mean-square stable")
                        + f", radius {fmt.num(row['radius'])}") if row["radius"] is not None else \
                 f"radius not computed ({row['reason']})"
-            lines.append(f"    {label}, {strategy}: mean stage cost sampled {fmt.num(row['mean_stage_cost'])} +- "
+            lines.append(f"    {label}, {strategy}: mean loop stage cost sampled {fmt.num(row['mean_stage_cost'])} "
+                         f"+- "
                          f"{fmt.num(row['stderr'], 3)}, exact {fmt.num(row['exact_stage_cost'])} (z = "
                          f"{fmt.num(row['z'], 3)}); {verdict}")
     return data, lines

@@ -31,13 +31,13 @@ from ..errors import InputError
 from ..model.constraints import Constraints, constraints_from_dict
 from ..model.files import load_constraints, load_system, read_csv_numbers, read_input
 from ..model.system import System
-from ..safeio import check_output_file
+from ..safeio import FIGURE_DPI, check_dpi, check_output_file
 from . import format as fmt
 
-__all__ = ["CONSTRAINT_FLAGS", "WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows",
-           "check_budgets", "check_figure_format", "check_writable", "constraints_of", "floats", "integers", "number",
-           "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options", "system_of", "systems_of",
-           "with_overrides"]
+__all__ = ["CHAIN_BASIS", "CONSTRAINT_FLAGS", "COST_BASIS", "WARNING_ADVICE", "CommandResult", "allocation_numbers",
+           "attained_rows", "check_budgets", "check_figure_format", "check_writable", "constraints_of", "figure_dpi",
+           "figure_file", "floats", "integers", "number", "number_range", "preflight", "prices_and_bounds",
+           "progress_of", "search_options", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -337,6 +337,9 @@ def preflight(args: argparse.Namespace) -> None:
             check_writable(getattr(args, name), flag, getattr(args, "force", False))
     if isinstance(getattr(args, "save", None), str) and not args.save.endswith(".npz"):
         raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
+    figure_dpi(args)
+    if isinstance(getattr(args, "plot", None), str):
+        figure_file(args, args.plot)
     if getattr(args, "plot", None) and getattr(args, "closed_loop", None) is False:
         raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
     if getattr(args, "file", None) is not None:
@@ -465,6 +468,41 @@ def check_figure_format(path: str, field: str) -> None:
         raise InputError(field, f"cannot write a {suffix!r} figure (formats: {shown})")
 
 
+def figure_file(args: argparse.Namespace, stem: str) -> str:
+    """The name of a figure a command writes: ``stem`` with the extension of ``--format`` (default png). For a
+    FILE the user named (``stem`` with an extension, e.g. ``--plot loop.pdf``), that extension, and a different
+    ``--format`` beside it is refused rather than one silently winning. O(1).
+
+    Examples
+    --------
+    >>> figure_file(argparse.Namespace(format="svg"), "region"), figure_file(argparse.Namespace(), "region")
+    ('region.svg', 'region.png')
+    >>> figure_file(argparse.Namespace(format=None), "loop.pdf")
+    'loop.pdf'
+    >>> figure_file(argparse.Namespace(format="svg"), "loop.pdf")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --format: svg, but the figure's file 'loop.pdf' says pdf: drop one
+    """
+    chosen = getattr(args, "format", None)
+    suffix = Path(stem).suffix[1:].lower()
+    if not suffix:
+        return f"{stem}.{chosen or 'png'}"
+    if chosen and chosen != suffix:
+        raise InputError("--format", f"{chosen}, but the figure's file {stem!r} says {suffix}: drop one")
+    return stem
+
+
+def figure_dpi(args: argparse.Namespace) -> float:
+    """``--dpi`` checked (safeio.check_dpi), default `FIGURE_DPI`. O(1).
+
+    >>> figure_dpi(argparse.Namespace(dpi=None)), figure_dpi(argparse.Namespace(dpi=300.0))
+    (120, 300)
+    """
+    dpi = getattr(args, "dpi", None)
+    return FIGURE_DPI if dpi is None else check_dpi(dpi, "--dpi")
+
+
 def check_path_length(path: str, field: str) -> None:
     """A path no longer than `MAX_PATH` whose components are at most `MAX_NAME` characters (what
     Linux file systems hold), else an InputError naming ``field`` (exit 2, not an OSError). O(len(path)).
@@ -509,6 +547,14 @@ def progress_of(args: argparse.Namespace) -> bool | None:
 
 
 #: what the warning line advises
+#: the basis of each protocol's J* as the commands print it (docs/design.md, "Cost bases"): the paper's
+#: expressions, J*_tcp a first-moment value that no law attains, J*_udp the exact expected cost of its plan and so the
+#: attainable cost too; J_Delta ("diff") their difference
+COST_BASIS = {"tcp": "paper", "udp": "paper = attainable", "diff": "paper"}
+#: behind a Markov chain: the TCP-like cost holds only the predicted mu_t (the paper's expression), the UDP-like
+#: exact minimum is the exact expected cost of the optimal plan under the chain (the attainable cost)
+CHAIN_BASIS = {"tcp": "paper", "udp": "attainable"}
+
 WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"
 
 

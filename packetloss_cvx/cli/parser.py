@@ -28,8 +28,8 @@ from .. import __version__
 from ..errors import InputError
 from .completion import SHELLS, CompletionAction, mark_system_file
 
-__all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_constraint_options", "add_system_options", "build_parser",
-           "join_negative_values"]
+__all__ = ["FIGURE_FORMATS", "FILE_HELP", "NUMBER_LISTS", "add_command", "add_constraint_options", "add_figure_options",
+           "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction",
@@ -200,6 +200,31 @@ def add_dask_options(command: argparse.ArgumentParser, what: str) -> None:
                          help="workers of --dask local (default: 2), e.g. --workers 4")
 
 
+#: the figure formats every command that draws writes (``--format``)
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def add_figure_options(command: argparse.ArgumentParser, what: str) -> None:
+    """``--format png|pdf|svg`` and ``--dpi N``, as every command that draws takes them; ``what`` names the
+    figures in the help.
+
+    Examples
+    --------
+    >>> parser = Parser()
+    >>> add_figure_options(parser, "the figures")
+    >>> args = parser.parse_args(["--format", "svg", "--dpi", "300"])
+    >>> args.format, args.dpi
+    ('svg', 300.0)
+    """
+    group = command.add_argument_group("figures")
+    group.add_argument("--format", choices=FIGURE_FORMATS,
+                       help=f"the file format of {what} (default: png; with a FILE of its own: its extension), "
+                            "e.g. --format pdf")
+    group.add_argument("--dpi", type=float, metavar="N",
+                       help=f"dots per inch of {what} (default: 120; the pixel size of a PNG, recorded in its "
+                            "header; vector formats scale freely), e.g. --dpi 300")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole grammar; ``args.command`` names the module that runs the subcommand.
 
@@ -348,6 +373,10 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--plot", metavar="FILE",
                      help="figure of the closed loop: mean +- band of ||x_t||, cost (default: none), "
                           "e.g. --plot loop.png")
+    sim.add_argument("--yscale", choices=("linear", "log", "symlog"), default="linear",
+                     help="with --plot: the y axes' scale; log (or symlog) keeps a diverging law from flattening "
+                          "the others, e.g. --yscale log")
+    add_figure_options(sim, "the --plot figure")
 
     swp = add_command(sub, "sweep", "J*_tcp, J*_udp and J_Delta over a grid of channels, x0 scales or horizons",
                       examples=["sweep two_actuator --mu-grid 201 --out sweep-out",
@@ -385,10 +414,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_dask_options(swp, "evaluate on Dask")
     swp.add_argument("--out", metavar="DIR",
                      help="a folder: sweep.npz, sweep.csv and the figures (sweep.png; for a 2-D grid sweep_tcp.png, "
-                          "sweep_udp.png, sweep_diff.png) (default: none), e.g. --out sweep-out")
+                          "sweep_udp.png, sweep_diff.png; with --stability stability.png; in --format) "
+                          "(default: none), e.g. --out sweep-out")
     swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs the xarray extra)")
     swp.add_argument("--stability", action="store_true",
                      help="also each law's mean-square spectral radius in closed loop (radius_tcp, radius_udp)")
+    add_figure_options(swp, "the figures in --out")
     swp.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
 
     reg = add_command(sub, "region", "can the loop be stabilised over these links: each law's critical mu and map",
@@ -412,17 +443,19 @@ def build_parser() -> argparse.ArgumentParser:
                      help="a file with [sensor]: also a K x K map of (gamma, mu) scales in (0, 1] for the paper's "
                           "tcp and udp laws on their estimates (default: none), e.g. --sensor-grid 11")
     reg.add_argument("--out", metavar="DIR",
-                     help="a folder: region.npz, region.csv and (with --grid) region.png (default: none), "
-                          "e.g. --out region-out")
+                     help="a folder: region.npz, region.csv and (with --grid) region.png (in --format) "
+                          "(default: none), e.g. --out region-out")
+    add_figure_options(reg, "the figures in --out")
     reg.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
 
     rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],
                       results=False)
     rep.add_argument("--out", metavar="DIR", default="results",
-                     help="a folder: one PNG per paper figure, results.json, report.md, claims.md and manifest.json, "
-                          "e.g. --out paper-results")
+                     help="a folder: one figure per paper figure (in --format), results.json, report.md, claims.md "
+                          "and manifest.json, e.g. --out paper-results")
     rep.add_argument("--quick", action="store_true", help="coarse grids, one alpha, a shorter audit (a smoke test)")
+    add_figure_options(rep, "the figures")
     rep.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
     return parser
 

@@ -25,7 +25,7 @@ from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..studies.output import csv_number
 from ..studies.region_map import LAWS, region_map
-from .common import CommandResult, floats, integers, progress_of, system_of
+from .common import CommandResult, figure_dpi, figure_file, floats, integers, progress_of, system_of
 from .format import num_within, supported
 from .sensing_section import coupled_grid, region_section
 
@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> CommandResult:
                               "law on its estimate:"] + [f"  {p:<6} {100 * grid[p]['stable_share']:.1f} %"
                                                         for p in ("tcp", "udp")]
             if out is not None:
-                paths = _write(result, out)
+                paths = _write(result, out, args)
                 data = {**data, "files": [str(p) for p in paths]}
                 lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
     except InputError as err:
@@ -216,7 +216,7 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                 figure = plot_region(grid["axis"], grid["lambda"], {"dp": grid["stable"]},
                                      xlabel=rf"mean rate of channel {i + 1}", ylabel=rf"mean rate of channel {j + 1}",
                                      title="stability region behind the chain (burstiness kept)")
-                paths.append(save_figure(figure, "region.png", folder=out))
+                paths.append(save_figure(figure, figure_file(args, "region"), folder=out, dpi=figure_dpi(args)))
             data["files"] = [str(p) for p in paths]
             lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
     return CommandResult(data, "\n".join(lines))
@@ -233,9 +233,11 @@ def _critical_rate(system, direction: list[float] | None, lines: list[str]) -> d
     where = "never, even at the ray's end" if not np.isfinite(point.t) else (
         f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mean rates {np.round(point.mu, 6).tolist()}")
     lines.append(f"critical mean rates along direction {point.direction.tolist()} (burstiness kept): {where}")
+    if point.note:
+        lines.append(f"  ({point.note})")
     data = point.to_dict()
     return {"critical_mu": data["critical_mu"], "t": data["t"], "lower": data["lower"],
-            "direction": data["direction"]}
+            "direction": data["direction"], "note": data["note"]}
 
 
 def _folder(args: argparse.Namespace) -> contextlib.AbstractContextManager[RunFolder | None]:
@@ -252,6 +254,8 @@ def _text(result: RegionMap) -> list[str]:
         where = "never, even at the ray's end" if not np.isfinite(point.t) else (
             f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mu = {np.round(point.mu, 6).tolist()}")
         lines.append(f"  {point.law:<6} {where}")
+        if point.note:
+            lines.append(f"         ({point.note})")
     if result.stable is not None:
         i, j = result.channels
         lines.append(f"stable share of the {result.axis.size}x{result.axis.size} grid of (mu{i + 1}, mu{j + 1}):")
@@ -259,8 +263,8 @@ def _text(result: RegionMap) -> list[str]:
     return lines
 
 
-def _write(result: RegionMap, out: RunFolder) -> list[Path]:
-    """region.npz, region.csv and (with a grid) region.png in the run folder ``out``."""
+def _write(result: RegionMap, out: RunFolder, args: argparse.Namespace) -> list[Path]:
+    """region.npz, region.csv and (with a grid) region.png (``--format``, ``--dpi``) in the run folder ``out``."""
     arrays: dict[str, Any] = {"laws": np.array(result.laws), "direction": result.direction,
                               "t": np.array([p.t for p in result.critical]),
                               "lower": np.array([p.lower for p in result.critical])}
@@ -288,9 +292,12 @@ def _write(result: RegionMap, out: RunFolder) -> list[Path]:
     if result.stable is not None:
         from ..plots import plot_region  # matplotlib only where a figure is asked for
         i, j = result.channels
-        dp = result.laws.index("dp") if "dp" in result.laws else None
-        radius = result.radius[dp] if dp is not None else np.full(result.radius.shape[1:], np.nan)
+        radius = dict(zip(result.laws, result.radius, strict=True))
+        if "dp" not in radius:          # the colours are the least radius, which only the dp law computes
+            radius = {"dp": np.full(result.radius.shape[1:], np.nan), **radius}
         figure = plot_region(result.axis, radius, dict(zip(result.laws, result.stable, strict=True)),
-                             xlabel=rf"$\mu_{i + 1}$", ylabel=rf"$\mu_{j + 1}$", title="stability regions")
-        paths.append(save_figure(figure, "region.png", folder=out))
+                             xlabel=rf"$\mu_{i + 1}$", ylabel=rf"$\mu_{j + 1}$",
+                             title=f"{result.name or 'system'}: where each law stabilises the loop in mean square"
+                             if hasattr(result, "name") else "where each law stabilises the loop in mean square")
+        paths.append(save_figure(figure, figure_file(args, "region"), folder=out, dpi=figure_dpi(args)))
     return paths

@@ -15,7 +15,7 @@ from ..claims import markdown_table, tally_text
 from ..claims.paper import ALLOCATION_ALPHA, PENDULUM_NU_D
 
 __all__ = ["ACK_FIGURE", "BEYOND_FIGURES", "CLAIMS_FILE", "FIGURES", "REGION_FIGURE", "REGION_LAWS", "allocation_table",
-           "claims_link", "region_paragraph", "report"]
+           "attainable_designs", "claims_link", "region_paragraph", "report"]
 
 #: The paper's figure labels with their captions (shortened), in the paper's order.
 FIGURES = {
@@ -177,7 +177,50 @@ def _mult(data: dict[str, Any], protocol: str, out: Path) -> tuple[str, str]:
     else:
         claim = "The paper states nothing checkable about the TCP-like lines; the allocations are listed here. "
         verdict = "drawn (no checkable statement in the paper)"
+        beside = attainable_designs(data.get("ack_attainable"), claims_link(out, "allocation-tcp-meets-alpha"))
+        if beside:
+            return head + claim + "\n\n" + allocation_table(rows) + "\n\n" + beside, verdict
     return head + claim + "\n\n" + allocation_table(rows), verdict
+
+
+def attainable_designs(attainable: dict[str, Any] | None, link: str) -> str:
+    """The TCP-like designs on the attainable cost beside the paper's (beta = (1, 1), the alphas of the
+    acknowledgement study): each alpha's paper design's loop cost and the attainable design's mu* and beta'mu, from
+    `attainable_break_even`'s ``mu`` and ``tcp_design`` and reproduce's ``paper_design_attains``; "" when there are
+    none. O(alphas).
+
+    >>> text = attainable_designs({"alpha": [8.0], "mu": [[0.398, 0.495]], "tcp_design": [0.8927],
+    ...                            "paper_design_attains": [38.084], "gap": 1e-2}, "claims.md")
+    >>> text.splitlines()[-1]
+    '| 8 | 38.08 | (0.398, 0.495) | 0.8927 |'
+    """
+    if not attainable or not attainable.get("mu") or all(mu is None for mu in attainable["mu"]):
+        return ""
+    attains = attainable.get("paper_design_attains") or [None] * len(attainable["alpha"])
+
+    def cell(value: float | None, digits: str = ".4g") -> str:
+        return "-" if value is None else format(value, digits)
+
+    rows = ["| cost bound alpha | the paper's design: its best loop costs | attainable design mu* | its beta'mu |",
+            "|---:|:---:|:---:|:---:|"]
+    rows += [f"| {a:g} | {cell(c)} | {'infeasible' if mu is None else f'({mu[0]:.3f}, {mu[1]:.3f})'} | {cell(t)} |"
+             for a, c, mu, t in zip(attainable["alpha"], attains, attainable["mu"], attainable["tcp_design"],
+                                    strict=True)]
+    return ("Beside the paper's lines, the yellow line \"beta = (1.0, 1.0), attainable\": the TCP-like designs on the "
+            "cost a loop attains (the finite-horizon DP with acknowledgements, `allocate FILE --protocol tcp --target "
+            f"attainable`, certified to a relative gap of {attainable['gap']:g}). The paper's design meets "
+            f"J*_tcp <= alpha, a first-moment value no law attains{_ratios(attainable['alpha'], attains)} "
+            f"([allocation-tcp-meets-alpha]({link})).\n\n" + "\n".join(rows))
+
+
+def _ratios(alphas: list[float], attains: list[float | None]) -> str:
+    """", its best loop costs r1 to r2 times alpha" over the alphas where the paper's design's loop cost is known."""
+    ratios = [c / a for a, c in zip(alphas, attains, strict=True) if c is not None]
+    if not ratios:
+        return ""
+    if len(ratios) == 1:
+        return f": its best loop costs {ratios[0]:.3g} times alpha"
+    return f": its best loop costs {min(ratios):.3g} to {max(ratios):.3g} times alpha"
 
 
 def allocation_table(rows: dict) -> str:

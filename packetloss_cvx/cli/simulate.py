@@ -13,7 +13,7 @@ from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from .actuator_section import actuator_strategies, simulate_actuator_section
-from .common import CommandResult, check_figure_format, constraints_of, progress_of, system_of
+from .common import CommandResult, check_figure_format, constraints_of, figure_dpi, figure_file, progress_of, system_of
 from .sensing_section import simulate_section
 
 __all__ = ["run"]
@@ -79,9 +79,10 @@ def run(args: argparse.Namespace) -> CommandResult:
         laws = tuple(law for law in laws if law != "dp")
     keep = SAVED_RUNS if args.save and args.closed_loop else 0
     force = getattr(args, "force", False)
-    if args.plot:
-        check_figure_format(args.plot, "--plot")      # before the sampling, not after it
-        check_output_file(figure_path(args.plot), "--plot", force)     # `--plot loop` writes loop.png
+    plot = figure_file(args, args.plot) if args.plot else None      # `--plot loop --format pdf` writes loop.pdf
+    if plot:
+        check_figure_format(plot, "--plot")      # before the sampling, not after it
+        check_output_file(figure_path(plot), "--plot", force)
     try:
         sim = simulate(system, args.samples, steps=args.steps, seed=args.seed, closed_loop=args.closed_loop,
                        laws=laws, keep=keep, progress=progress_of(args))
@@ -93,11 +94,15 @@ def run(args: argparse.Namespace) -> CommandResult:
         if not sim.closed_loop:
             raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
         from ..plots import plot_closed_loop  # matplotlib (0.2-0.7 s) only where a figure is asked for
-        figure = plot_closed_loop({law: {"state_norm_mean": r.state_norm_mean, "state_norm_std": r.state_norm_std,
-                                         "stage_cost_mean": r.stage_cost_mean} for law, r in sim.closed_loop.items()},
-                                  title=system.name)
-        save_figure(figure, args.plot, overwrite=force, field="--plot")
+        figure = plot_closed_loop(sim, yscale=getattr(args, "yscale", "linear"),
+                                  title=f"{system.name or 'system'}: closed loop of each law")
+        save_figure(figure, plot, overwrite=force, field="--plot", dpi=figure_dpi(args))
     data, text = sim.to_dict(), _text(system.name or args.file, sim)
+    for p, entry in data.items():      # what "formula" is: the paper's J* (the exact minimiser's: under the chain)
+        if "open_loop" in entry:
+            entry["open_loop"]["formula_basis"] = "attainable" if p == EXACT_PLAN else "paper"
+        if "closed_loop" in entry:
+            entry["closed_loop"]["basis"] = "loop"
     if strategies:     # the laws' loops when the actuator zeroes, holds or plays the buffered plan on a loss
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
                                                            args.seed)
@@ -146,7 +151,7 @@ def _text(name: str, sim: Simulation) -> str:
         if c.reason:
             lines.append(f"  {label}, open loop: not run: {c.reason}")
             continue
-        formula = "its J* (exact under the chain)" if p == EXACT_PLAN else "the protocol's J*" + (
+        formula = "its J* (exact under the chain, attainable)" if p == EXACT_PLAN else "the paper's J*" + (
             " with the plug-in mu_t" if bursty else "")
         lines.append(f"  {label}, open loop: sampled {_num(c.mean)} +- {_num(c.stderr, 3)}, exact "
                      f"{_num(c.exact)} (z = {_num(c.z, 3)}); {formula} = {_num(c.formula)}")
@@ -172,5 +177,5 @@ def _text(name: str, sim: Simulation) -> str:
                          "and standard error can fall far below the exact value)")
     if "dp" in sim.closed_loop and not bursty and not sim.closed_loop["dp"].reason:
         lines.append("  (the DP law is optimal for the cost over an unbounded horizon; over a window of "
-                     f"{sim.steps} steps from x0 a law that is not stable can still cost less)")
+                     f"{sim.steps} steps from x0 a law that is not stable can still have a lower loop cost)")
     return "\n".join(lines)

@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> CommandResult:
                     "max_input_diff": check.max_input_diff, "cost_rel_diff": check.cost_rel_diff,
                 }
                 timing = f", {qp.solve_time:.3g} s" if args.verbose else ""
-                rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
+                rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g} (paper), max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
         if constraints is not None:
             entry["constrained"], text = constrained_entry(plugin, protocol, constraints, args)
@@ -158,7 +158,7 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
         return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
                 f"not solved: {err}")
     bound = ", ".join(sol.binding[:6]) + (f", ... ({len(sol.binding)} in all)" if len(sol.binding) > 6 else "")
-    return sol.to_dict(), f"J = {sol.cost:.10g} ({sol.status}); binding: {bound or 'none'}"
+    return sol.to_dict(), f"J = {sol.cost:.10g} (paper, {sol.status}); binding: {bound or 'none'}"
 
 
 def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]]:

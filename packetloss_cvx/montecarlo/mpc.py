@@ -239,10 +239,11 @@ class _Controller:
 
 
 def _chunk(system: System, twin: System, constraints: Constraints, made: _Controller, V: np.ndarray,
-           W: np.ndarray | None) -> dict[str, Any]:
+           W: np.ndarray | None, keep: int = 0) -> dict[str, Any]:
     """One controller over the sampled paths of a chunk of runs (V: steps x runs x m): each run's stage costs,
-    violation and infeasibility flags (runs x steps) and the counts of fallbacks, failures and slack used. A run's
-    numbers depend on its own paths only. Time O(runs steps) solves (none for "clipped")."""
+    violation and infeasibility flags (runs x steps), the counts of fallbacks, failures and slack used, and the
+    first ``keep`` runs' states and commands. A run's numbers depend on its own paths only. Time O(runs steps)
+    solves (none for "clipped")."""
     steps, samples, m = V.shape
     n = system.n
     A, B, Omega, psi = system.A, system.B, system.state_weights[0], system.input_weights[0]
@@ -260,6 +261,8 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
     previous = np.zeros((samples, m))
     plans, age = np.zeros((samples, N, m)), np.zeros(samples, dtype=int)
     stage = np.empty((samples, steps))
+    states, commands = np.empty((keep, steps + 1, n)), np.empty((keep, steps, m))
+    states[:, 0] = X[:keep]
     for t in range(steps):
         if controller == "clipped":
             K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains, (samples, m, n))
@@ -289,15 +292,17 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
             X_next += W[t]
         for name, kind, data, _ in rows:
             flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
+        states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
         X, previous = X_next, u
         beliefs.update(V[t])
     return {"stage": stage, "flags": flags, "infeasible": infeasible, "fallback": fallback, "failed": failed,
-            "slack": slack}
+            "slack": slack, "states": states, "inputs": commands}
 
 
 def _assemble(constraints: Constraints, n: int, m: int, controller: str, protocol: str,
-              parts: list[dict[str, Any]]) -> ControllerRun:
-    """The `ControllerRun` of a controller from its chunks' parts, in run order. O(samples steps)."""
+              parts: list[dict[str, Any]], keep: int = 0) -> ControllerRun:
+    """The `ControllerRun` of a controller from its chunks' parts, in run order (the first ``keep`` runs'
+    trajectories kept). O(samples steps)."""
     rows = _rows(constraints, n, m)
     stage = np.concatenate([part["stage"] for part in parts])
     mean, stderr = sample_stats(stage.mean(axis=1))
@@ -309,7 +314,9 @@ def _assemble(constraints: Constraints, n: int, m: int, controller: str, protoco
         violations=tuple(frequency(name, flags[name], allowed) for name, _, _, allowed in rows),
         infeasible=None if controller == "clipped" else frequency("infeasible", infeasible),
         fallback_steps=sum(part["fallback"] for part in parts), failed_steps=sum(part["failed"] for part in parts),
-        slack_steps=sum(part["slack"] for part in parts), action=INFEASIBLE_ACTION)
+        slack_steps=sum(part["slack"] for part in parts), action=INFEASIBLE_ACTION,
+        states=np.concatenate([part["states"] for part in parts]) if keep else None,
+        inputs=np.concatenate([part["inputs"] for part in parts]) if keep else None)
 
 
 def _twin(system: System) -> System:
@@ -318,20 +325,28 @@ def _twin(system: System) -> System:
 
 
 def loop_task(system_data: dict[str, Any], constraints_data: dict[str, Any], controller: str, protocol: str,
-              V: np.ndarray, W: np.ndarray | None, chunks: list[tuple[int, int]]) -> list[dict[str, Any]]:
+              V: np.ndarray, W: np.ndarray | None, chunks: list[tuple[int, int]], keep: int = 0
+              ) -> list[dict[str, Any]]:
     """Chunks of runs of one controller as one task (in this process or on a Dask worker: the system and
     constraints rebuilt from their dicts, exact), its program compiled once for them; ``V``, ``W`` hold the
-    task's runs, ``chunks`` their (start, stop) within them. O(runs steps) solves."""
+    task's runs, ``chunks`` their (start, stop) within them, the first ``keep`` of them kept. O(runs steps)
+    solves."""
     system = system_from_dict(system_data)
     constraints = check_constraints(constraints_data, system.n, system.m)
     twin = _twin(system)
     made = _Controller(system, twin, constraints, controller, protocol)
-    return [_chunk(system, twin, constraints, made, V[:, a:b], None if W is None else W[:, a:b]) for a, b in chunks]
+    return [_chunk(system, twin, constraints, made, V[:, a:b], None if W is None else W[:, a:b],
+                   _kept(keep, a, b)) for a, b in chunks]
+
+
+def _kept(keep: int, a: int, b: int) -> int:
+    """How many of the runs a..b-1 are among the first ``keep``."""
+    return max(0, min(b, keep) - a)
 
 
 def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, steps: int = 30, seed: int = 0,
                  protocols: Sequence[str] = ("tcp", "udp"), controllers: Sequence[str] = CONTROLLERS,
-                 progress: bool | None = None, threads: int = 1, dask: Any = None) -> MPCSimulation:
+                 progress: bool | None = None, keep: int = 0, threads: int = 1, dask: Any = None) -> MPCSimulation:
     """The constrained receding-horizon loop sampled, each controller on the same paths (module docstring).
 
     Parameters
@@ -348,6 +363,10 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     controllers : sequence of `CONTROLLERS`
     progress : bool, optional
         A progress bar over the chunks of runs (None: when stderr is a terminal).
+    keep : int
+        Runs whose trajectories are kept (the first ``keep``, at most ``samples``): each `ControllerRun`'s
+        ``states`` and ``inputs``, and the simulation's ``delivered``, the same paths for every controller. 0 keeps
+        none (the default: the summaries alone).
     threads : int
         Threads running chunks of `CHUNK` runs at once, each with its own compiled programs (a `ConstrainedQP`
         is not thread-safe). The answer is the serial run's, float for float: a run's numbers depend on its own
@@ -360,7 +379,8 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     Returns
     -------
     MPCSimulation
-        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols.
+        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols. ``.plot()``
+        draws the kept trajectories and the violation frequencies.
 
     Raises
     ------
@@ -392,6 +412,9 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     constraints = check_constraints(constraints, system.n, system.m)
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
     seed = check_count(seed, "seed", 0)
+    keep = check_count(keep, "keep", 0)
+    if keep > samples:
+        raise InputError("keep", f"expected at most samples = {samples} runs to keep, found {keep}")
     threads = check_count(threads, "threads", 1)
     if dask is not None and not callable(getattr(dask, "submit", None)):
         raise InputError("dask", f"expected a distributed.Client (or an executor with submit), found {dask!r}; "
@@ -418,28 +441,29 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     parts: dict[tuple[str, str], list[Any]] = {job: [None] * len(chunks) for job in jobs}
     with progress_bar(total=len(jobs) * samples, desc="simulate (constrained loop)", progress=progress) as bar:
         if dask is not None:
-            _on_dask(dask, system, constraints, jobs, chunks, V, W, parts, bar)
+            _on_dask(dask, system, constraints, jobs, chunks, V, W, parts, bar, keep)
         elif threads > 1:
-            _on_threads(threads, system, twin, constraints, jobs, chunks, V, W, parts, bar)
+            _on_threads(threads, system, twin, constraints, jobs, chunks, V, W, parts, bar, keep)
         else:
             for job in jobs:
                 made = _Controller(system, twin, constraints, *job)
                 for k, (a, b) in enumerate(chunks):
                     parts[job][k] = _chunk(system, twin, constraints, made, V[:, a:b], None if W is None else
-                                           W[:, a:b])
+                                           W[:, a:b], _kept(keep, a, b))
                     bar.update(b - a)
     runs: dict[str, dict[str, ControllerRun]] = {p: {} for p in protocols}
     for name, p in jobs:
-        run = _assemble(constraints, system.n, system.m, name, p, parts[name, p])
+        run = _assemble(constraints, system.n, system.m, name, p, parts[name, p], keep)
         for q in protocols if name == "certainty-equivalent" else (p,):
             runs[q][name] = run
     return MPCSimulation(samples=samples, steps=steps, seed=seed, channel=channel,
-                         constraints=constraints.to_dict(), runs=runs)
+                         constraints=constraints.to_dict(), runs=runs,
+                         delivered=V[:, :keep].swapaxes(0, 1).astype(bool) if keep else None)
 
 
 def _on_threads(threads: int, system: System, twin: System, constraints: Constraints, jobs: list[tuple[str, str]],
                 chunks: list[tuple[int, int]], V: np.ndarray, W: np.ndarray | None,
-                parts: dict[tuple[str, str], list[Any]], bar: Any) -> None:
+                parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int) -> None:
     """Every (job, chunk) on a pool of ``threads`` threads, each thread compiling its own controllers once."""
     local = threading.local()
 
@@ -449,7 +473,8 @@ def _on_threads(threads: int, system: System, twin: System, constraints: Constra
             made = local.made = {}
         if job not in made:
             made[job] = _Controller(system, twin, constraints, *job)
-        return _chunk(system, twin, constraints, made[job], V[:, a:b], None if W is None else W[:, a:b])
+        return _chunk(system, twin, constraints, made[job], V[:, a:b], None if W is None else W[:, a:b],
+                      _kept(keep, a, b))
 
     pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="mpc")
     try:
@@ -464,7 +489,7 @@ def _on_threads(threads: int, system: System, twin: System, constraints: Constra
 
 def _on_dask(client: Any, system: System, constraints: Constraints, jobs: list[tuple[str, str]],
              chunks: list[tuple[int, int]], V: np.ndarray, W: np.ndarray | None,
-             parts: dict[tuple[str, str], list[Any]], bar: Any) -> None:
+             parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int) -> None:
     """Every job's chunks as tasks of `TASK_CHUNKS` chunks (`loop_task`), results put back in run order."""
     system_data, constraints_data = system.to_dict(), constraints.to_dict()
     futures = []
@@ -473,11 +498,10 @@ def _on_dask(client: Any, system: System, constraints: Constraints, jobs: list[t
             group = chunks[first:first + TASK_CHUNKS]
             a, b = group[0][0], group[-1][1]
             local = [(x - a, y - a) for x, y in group]
-            futures.append((client.submit(loop_task, system_data, constraints_data, *job, V[:, a:b],
-                                          None if W is None else W[:, a:b], local, pure=False)
-                            if _is_dask(client) else
-                            client.submit(loop_task, system_data, constraints_data, *job, V[:, a:b],
-                                          None if W is None else W[:, a:b], local), job, first, b - a))
+            task = (loop_task, system_data, constraints_data, *job, V[:, a:b], None if W is None else W[:, a:b],
+                    local, _kept(keep, a, b))
+            future = client.submit(*task, pure=False) if _is_dask(client) else client.submit(*task)
+            futures.append((future, job, first, b - a))
     for future, job, first, size in futures:
         for k, part in enumerate(future.result()):      # a worker's error is raised here with its own type
             parts[job][first + k] = part

@@ -224,3 +224,49 @@ def test_the_ack_price_on_both_bases_in_the_report_and_results(runs, two_actuato
     udp = data["allocations"]["udp"]["1.0, 1.0"]
     again = attainable_break_even(two_actuator, [4.78], [1.0, 1.0], udp, gap=both["gap"])
     assert again["break_even"] == both["break_even"]
+
+
+def test_the_tcp_allocation_figure_shows_the_attainable_designs_beside_the_papers(runs, two_actuator, tmp_path,
+                                                                                  monkeypatch):
+    """The TCP-like allocation figure draws the designs on the attainable cost (beta = (1, 1)) as their own line
+    beside the paper's, and its paragraph lists them: each mu* meets alpha on the DP enumerated over each step's
+    deliveries (tests/claims/test_claims_attainable.py), where the paper's design's loop costs more than alpha."""
+    from packetloss_cvx.cli import reproduce
+    from packetloss_cvx.runfolder import RunFolder
+
+    from ..claims.test_claims_attainable import enumerated_attainable
+
+    _, (out, _) = runs
+    data = json.loads((out / "results.json").read_text())
+    both = data["ack_attainable"]
+    paper = {row["alpha"]: row["mu"] for row in data["allocations"]["tcp"]["1.0, 1.0"]}
+    for alpha, mu, attains in zip(both["alpha"], both["mu"], both["paper_design_attains"], strict=True):
+        assert enumerated_attainable(two_actuator, mu) <= alpha * (1 + 1e-9)
+        assert enumerated_attainable(two_actuator, paper[alpha]) == pytest.approx(attains, rel=1e-9)
+        assert attains > alpha
+    report = (out / "report.md").read_text()
+    section = report[report.index("## fig:TCP-log-cost-mixed-mult"):report.index("## fig:UDP-log-cost-mixed-mult")]
+    lines = section.splitlines()
+    head = next(k for k, line in enumerate(lines) if line.startswith("| cost bound alpha | the paper's design"))
+    cells = [c.strip() for c in lines[head + 2].strip("|").split("|")]
+    mu = both["mu"][0]
+    assert cells[0] == "4.78"
+    assert cells[1:] == [f"{both['paper_design_attains'][0]:.4g}", f"({mu[0]:.3f}, {mu[1]:.3f})",
+                         f"{both['tcp_design'][0]:.4g}"]
+    drawn = {}
+    original = reproduce.plot_log_contour
+
+    def spy(*args, **kwargs):
+        drawn[kwargs.get("title", "").split("\n")[0]] = kwargs
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(reproduce, "plot_log_contour", spy)
+    with RunFolder(tmp_path / "figures", command="test") as folder:
+        reproduce.draw_figures(data, folder)
+    lines = drawn["fig:TCP-log-cost-mixed-mult"]["allocations"]
+    assert lines["beta = (1.0, 1.0), attainable"] == both["mu"]
+    papers = [points for label, points in lines.items() if label.endswith(", paper")]   # one per beta, (1, 1) first
+    assert len(papers) == 3
+    assert papers[0] == [paper[a] for a in data["settings"]["alphas"]]
+    assert "attainable" not in " ".join(drawn["fig:UDP-log-cost-mixed-mult"]["allocations"])
+    assert "paper basis" in drawn["fig:TCP-log-cost-mixed-mult"]["colorbar_label"]

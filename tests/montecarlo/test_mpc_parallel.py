@@ -36,14 +36,24 @@ def _json(sim):
     return json.dumps(sim.to_dict(), sort_keys=True)
 
 
+def _same_trajectories(a, b):
+    """The kept runs' states, commands and deliveries, float for float."""
+    assert np.array_equal(a.delivered, b.delivered)
+    for protocol, runs in b.runs.items():
+        for name, run in runs.items():
+            assert np.array_equal(a.runs[protocol][name].states, run.states)
+            assert np.array_equal(a.runs[protocol][name].inputs, run.inputs)
+
+
 @pytest.mark.parametrize("chain", [False, True])
 def test_threads_give_the_serial_runs_float_for_float(chain):
     s = _plant(mu=None, channel=GilbertElliott(p=[0.2, 0.3], r=[0.5, 0.6])) if chain else _plant()
     samples = 2 * mpc.CHUNK + 3                             # three chunks, the last one shorter
-    args = dict(samples=samples, steps=4, seed=3, progress=False)
+    args = dict(samples=samples, steps=4, seed=3, progress=False, keep=mpc.CHUNK + 2)    # kept runs span two chunks
     serial = mpc.simulate_mpc(s, LIMITS, **args)
     spread = mpc.simulate_mpc(s, LIMITS, threads=2, **args)
     assert _json(spread) == _json(serial)
+    _same_trajectories(spread, serial)
     if not chain:
         assert sum(serial.runs[p]["expected-cost"].fallback_steps for p in ("tcp", "udp")) > 0
 
@@ -51,13 +61,18 @@ def test_threads_give_the_serial_runs_float_for_float(chain):
 def test_a_process_pool_and_a_dask_client_give_the_serial_runs_float_for_float(monkeypatch):
     distributed = pytest.importorskip("distributed")
     s = _plant()
-    args = dict(samples=2 * mpc.CHUNK + 3, steps=3, seed=5, progress=False, controllers=["expected-cost"])
+    args = dict(samples=2 * mpc.CHUNK + 3, steps=3, seed=5, progress=False, controllers=["expected-cost"],
+                keep=2 * mpc.CHUNK + 1)                     # kept runs reach into the second task
     serial = mpc.simulate_mpc(s, LIMITS, **args)
     monkeypatch.setattr(mpc, "TASK_CHUNKS", 2)             # two tasks per controller: the second one's runs offset
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
-        assert _json(mpc.simulate_mpc(s, LIMITS, dask=pool, **args)) == _json(serial)
+        pooled = mpc.simulate_mpc(s, LIMITS, dask=pool, **args)
+    assert _json(pooled) == _json(serial)
+    _same_trajectories(pooled, serial)
     with distributed.Client(processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None) as client:
-        assert _json(mpc.simulate_mpc(s, LIMITS, dask=client, **args)) == _json(serial)
+        tasks = mpc.simulate_mpc(s, LIMITS, dask=client, **args)
+    assert _json(tasks) == _json(serial)
+    _same_trajectories(tasks, serial)
 
 
 def test_the_progress_bar_counts_every_run_of_every_controller(monkeypatch):
@@ -102,3 +117,27 @@ def test_bad_spreading_arguments_name_their_field():
         mpc.simulate_mpc(_plant(), LIMITS, samples=2, steps=1, threads=0)
     with pytest.raises(InputError, match="dask"):
         mpc.simulate_mpc(_plant(), LIMITS, samples=2, steps=1, dask="local")
+
+
+def test_every_kept_run_across_chunks_is_the_run_the_summaries_count():
+    # noise-free: each kept run obeys x' = A x + B (v * u) from x0, and the kept runs (all of them) give back the
+    # per-step mean stage cost x'Qx + (v u)'R(v u) the summaries report
+    s = _plant(noise_cov=None)
+    samples = 2 * mpc.CHUNK + 3
+    sim = mpc.simulate_mpc(s, LIMITS, samples=samples, steps=3, seed=2, progress=False, keep=samples, threads=2,
+                           controllers=["expected-cost"], protocols=["udp"])
+    run, v = sim.runs["udp"]["expected-cost"], sim.delivered
+    X, U = run.states, run.inputs
+    assert np.array_equal(X[:, 0], np.repeat(s.x0[None], samples, axis=0))
+    applied = v * U
+    np.testing.assert_allclose(X[:, 1:], X[:, :-1] @ s.A.T + applied @ s.B.T, rtol=1e-13, atol=1e-15)
+    Q, R = s.state_weights[0], s.input_weights[0]
+    stage = np.einsum("rti,ij,rtj->rt", X[:, :-1], Q, X[:, :-1]) + (applied ** 2) @ R
+    np.testing.assert_allclose(run.stage_cost_mean, stage.mean(axis=0), rtol=1e-13)
+    assert len({X[r, -1].tobytes() for r in range(samples)}) > samples // 2        # the runs differ
+    # keeping fewer, ending inside the second chunk: the same first runs
+    some = mpc.CHUNK + 2
+    part = mpc.simulate_mpc(s, LIMITS, samples=samples, steps=3, seed=2, progress=False, keep=some,
+                            controllers=["expected-cost"], protocols=["udp"]).runs["udp"]["expected-cost"]
+    assert np.array_equal(part.states, X[:some])
+    assert np.array_equal(part.inputs, U[:some])
