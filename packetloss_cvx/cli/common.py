@@ -22,20 +22,22 @@ from ..budgets import (
     duration_text,
     estimated_seconds,
     gib_text,
+    mpc_solves,
     simulate_work,
     solve_bytes,
     solve_work,
 )
 from ..errors import InputError
-from ..model.files import load_system, read_csv_numbers, read_input
+from ..model.constraints import Constraints, constraints_from_dict
+from ..model.files import load_constraints, load_system, read_csv_numbers, read_input
 from ..model.system import System
 from ..safeio import FIGURE_DPI, check_dpi, check_output_file
 from . import format as fmt
 
-__all__ = ["CHAIN_BASIS", "COST_BASIS", "WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows",
-           "check_budgets", "check_figure_format", "check_writable", "figure_dpi", "figure_file", "floats", "integers",
-           "number", "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options", "system_of",
-           "systems_of", "with_overrides"]
+__all__ = ["CHAIN_BASIS", "CONSTRAINT_FLAGS", "COST_BASIS", "WARNING_ADVICE", "CommandResult", "allocation_numbers",
+           "attained_rows", "check_budgets", "check_figure_format", "check_writable", "constraints_of", "figure_dpi",
+           "figure_file", "floats", "integers", "number", "number_range", "preflight", "prices_and_bounds",
+           "progress_of", "search_options", "system_of", "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -181,6 +183,53 @@ def with_overrides(system: System, args: argparse.Namespace) -> System:
     return system
 
 
+#: The ``[constraints]`` keys the command line overrides, with their flags (``args`` holds them under the key).
+CONSTRAINT_FLAGS = {"u_min": "--u-min", "u_max": "--u-max", "du_max": "--du-max", "x_min": "--x-min",
+                    "x_max": "--x-max", "terminal_min": "--terminal-min", "terminal_max": "--terminal-max",
+                    "soft": "--soft", "soft_weight": "--soft-weight"}
+
+
+def constraints_of(args: argparse.Namespace, system: System) -> Constraints | None:
+    """The file's ``[constraints]`` table with the command line's overrides (`CONSTRAINT_FLAGS`: each flag given
+    replaces its key; one number stands for every input or state), checked against ``system``; None where neither
+    the file nor a flag constrains anything. An error names the flag where the key came from one, else
+    ``constraints.<key>``. O(n + m) beyond the file's table.
+
+    Examples
+    --------
+    >>> args = argparse.Namespace(file="two_actuator", u_min="-1", u_max="1,2", soft=None)
+    >>> from packetloss_cvx.model.files import load_example
+    >>> c = constraints_of(args, load_example("two_actuator"))
+    >>> c.u_min.tolist(), c.u_max.tolist()
+    ([-1.0, -1.0], [1.0, 2.0])
+    >>> constraints_of(argparse.Namespace(file="two_actuator", u_min="0.5"), load_example("two_actuator"))
+    ... # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: --u-min: a lost packet applies zero input, ...; found u_min[0] = 0.5 > 0
+    """
+    constraints = load_constraints(args.file, system)
+    given = {key: getattr(args, key) for key in CONSTRAINT_FLAGS if getattr(args, key, None) is not None}
+    if not given:
+        return constraints
+    table = {} if constraints is None else constraints.to_dict()
+    for key, value in given.items():
+        flag = CONSTRAINT_FLAGS[key]
+        if key == "soft":
+            table[key] = bool(value)
+        elif key == "soft_weight":
+            table[key] = number(value, flag)
+        else:
+            values = floats(value, flag)
+            size = system.m if key[0] in "ud" else system.n
+            table[key] = values * size if len(values) == 1 else values
+    try:
+        return constraints_from_dict(table, system.n, system.m, prefix="")
+    except InputError as err:
+        key = err.field.split(".")[0].split("[")[0]
+        raise err.renamed(CONSTRAINT_FLAGS[key] if key in given else f"constraints.{err.field}") from None
+
+
 def system_of(args: argparse.Namespace) -> System:
     """``args.file`` loaded with its overrides, once per command (kept on ``args``).
 
@@ -305,10 +354,10 @@ def preflight(args: argparse.Namespace) -> None:
 def check_budgets(args: argparse.Namespace) -> None:
     """The counts a command line gives checked against their budgets (budgets.py) under the option's name,
     before the command's module is imported: ``--random``, ``--workers``, ``--max-boxes``, simulate's
-    ``--samples`` x ``--steps``, sweep's ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and
-    the burstiness work) and the ``--mu-list`` file. (A sweep's other points and its work are checked by the
-    sweep itself, before any point is evaluated, and named by the option that asked for them.) O(1), or
-    O(values) for a list.
+    ``--samples`` x ``--steps`` (and the constrained loop's ``--mpc-samples`` x ``--steps`` solves), sweep's
+    ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and the burstiness work) and the ``--mu-list``
+    file. (A sweep's other points and its work are checked by the sweep itself, before any point is evaluated, and
+    named by the option that asked for them.) O(1), or O(values) for a list.
 
     Examples
     --------
@@ -321,7 +370,7 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
     command = getattr(args, "command", None)
     if command == "audit" and isinstance(getattr(args, "random", None), int):
         check("audit_cases", args.random, "--random", f"{count_text(args.random)} random systems")
-    if command == "sweep" and isinstance(getattr(args, "workers", None), int):
+    if command in ("sweep", "simulate") and isinstance(getattr(args, "workers", None), int):
         check("dask_workers", args.workers, "--workers", f"{count_text(args.workers)} worker processes")
     if command == "allocate" and isinstance(getattr(args, "max_boxes", None), int):
         check("allocation_boxes", args.max_boxes, "--max-boxes", f"{count_text(args.max_boxes)} boxes")
@@ -354,6 +403,12 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                            f"{f' of {count_text(args.steps)} steps' if args.closed_loop else ''} "
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
+        mpc_samples = getattr(args, "mpc_samples", 0)
+        if isinstance(mpc_samples, int) and mpc_samples >= 1 and constraints_of(args, system) is not None:
+            programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
+            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs), "--mpc-samples",
+                  f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
+                  "(the constrained loop)")
 
 
 def check_solve(system: System, args: argparse.Namespace) -> None:

@@ -28,12 +28,13 @@ from .. import __version__
 from ..errors import InputError
 from .completion import SHELLS, CompletionAction, mark_system_file
 
-__all__ = ["FIGURE_FORMATS", "FILE_HELP", "NUMBER_LISTS", "add_command", "add_figure_options", "add_system_options",
-           "build_parser", "join_negative_values"]
+__all__ = ["FIGURE_FORMATS", "FILE_HELP", "NUMBER_LISTS", "add_command", "add_constraint_options", "add_figure_options",
+           "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction",
-                "--mean-rate", "--power-scale", "--power-max", "--budget", "--ack-price", "--ack-power")
+                "--mean-rate", "--power-scale", "--power-max", "--budget", "--ack-price", "--ack-power", "--u-min",
+                "--u-max", "--x-min", "--x-max", "--terminal-min", "--terminal-max")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
              "pendulum_bursty (a Gilbert-Elliott channel), pendulum_sensor (a lossy sensor link too)")
@@ -151,6 +152,44 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
                        help="the initial state, comma-separated, e.g. --x0 1,-1 (default: the file's)")
 
 
+def add_constraint_options(command: argparse.ArgumentParser, what: str) -> None:
+    """``--u-min``, ``--u-max``, ``--du-max``, ``--x-min``, ``--x-max``, ``--terminal-min``, ``--terminal-max``,
+    ``--soft``/``--no-soft`` and ``--soft-weight``: keys of the file's ``[constraints]`` table replaced (or a table
+    made); ``what`` says what the table does in this command.
+
+    Examples
+    --------
+    >>> parser = Parser()
+    >>> add_constraint_options(parser, "solved")
+    >>> args = parser.parse_args(join_negative_values(["--u-min", "-1,-2", "--du-max", "0.5,inf", "--no-soft"]))
+    >>> args.u_min, args.du_max, args.soft, args.x_max
+    ('-1,-2', '0.5,inf', False, None)
+    """
+    group = command.add_argument_group(f"overrides of the file's [constraints] table ({what})")
+    same = "default: the file's"
+    group.add_argument("--u-min", metavar="U", help="bounds on each commanded input, m numbers or one for all, "
+                                                    f"u_min <= 0 (a lost packet applies zero; {same}), "
+                                                    "e.g. --u-min -1,-2")
+    group.add_argument("--u-max", metavar="U", help=f"bounds on each commanded input, m numbers or one for all, "
+                                                    f"u_max >= 0 ({same}), e.g. --u-max 1,2")
+    group.add_argument("--du-max", metavar="DU", help="bound on |u_t - u_{t-1}|, m numbers or one for all, inf "
+                                                      f"leaves an input out ({same}), e.g. --du-max 0.5,inf")
+    group.add_argument("--x-min", metavar="X", help="lower limits on the expected state E[x_k], k = 1..N, n numbers "
+                                                    f"or one for all ({same}), e.g. --x-min -2")
+    group.add_argument("--x-max", metavar="X", help=f"upper limits on E[x_k], n numbers or one for all ({same}), "
+                                                    "e.g. --x-max 2,inf")
+    group.add_argument("--terminal-min", metavar="X", help="the terminal box on E[x_N] only, n numbers or one for "
+                                                           f"all ({same}), e.g. --terminal-min -0.1")
+    group.add_argument("--terminal-max", metavar="X", help=f"the terminal box on E[x_N] only ({same}), "
+                                                           "e.g. --terminal-max 0.1")
+    group.add_argument("--soft", action=argparse.BooleanOptionalAction,
+                       help="state, terminal and chance rows as exact-penalty slacks (--soft) or hard (--no-soft) "
+                            f"({same}, else hard), e.g. --soft")
+    group.add_argument("--soft-weight", metavar="RHO",
+                       help=f"the penalty per unit of violation of a soft row, > 0 ({same}, else 1e4), "
+                            "e.g. --soft-weight 100")
+
+
 def add_dask_options(command: argparse.ArgumentParser, what: str) -> None:
     """``--dask local|ADDRESS`` and ``--workers W`` (studies.engine.dask_client), as every command that runs on
     Dask takes them; ``what`` opens the --dask help (what runs there)."""
@@ -215,6 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the cross-checking QP's form, e.g. --formulation sparse")
     solve.add_argument("--no-qp", action="store_true",
                        help="skip the solvers: the QP cross-check and a [constraints] table (closed form only)")
+    add_constraint_options(solve, "solved beside the closed forms")
     solve.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
                        help="what the actuator does on a loss, for each law's loop: apply zero, hold the last "
                             "input, or play the buffered plan of L inputs (default L: the horizon); comma-separated, "
@@ -322,6 +362,11 @@ def build_parser() -> argparse.ArgumentParser:
                           "re-solves its program every step: about 5 ms a solve), the clipped law, certainty-"
                           "equivalent and expected-cost MPC on the same paths over --steps steps; 0 skips it "
                           "(default: 100), e.g. --mpc-samples 400")
+    add_constraint_options(sim, "the constrained receding-horizon loop's programs")
+    sim.add_argument("--threads", type=int, default=1, metavar="T",
+                     help="threads running the constrained loop's runs, each with its own compiled programs; the "
+                          "answer is the serial one, float for float (default: 1), e.g. --threads 2")
+    add_dask_options(sim, "the constrained loop's runs as Dask tasks (the answer is the serial one, float for float)")
     sim.add_argument("--save", metavar="FILE.npz",
                      help="save closed-loop trajectories (first 1000 runs) and curves (default: none), "
                           "e.g. --save runs.npz")

@@ -8,13 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..model.files import load_constraints
 from ..montecarlo.markov import EXACT_PLAN
 from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from .actuator_section import actuator_strategies, simulate_actuator_section
-from .common import CommandResult, check_figure_format, figure_dpi, figure_file, progress_of, system_of
+from .common import CommandResult, check_figure_format, constraints_of, figure_dpi, figure_file, progress_of, system_of
 from .sensing_section import simulate_section
 
 __all__ = ["run"]
@@ -57,11 +56,18 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     system = system_of(args)
     strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
-    constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
+    constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
     mpc_samples = getattr(args, "mpc_samples", 0)
     if constraints is not None and mpc_samples and args.law == "dp":
         raise InputError("--law", "the constrained loop runs the protocols' programs: --law tcp, udp or all "
                                   "(or --mpc-samples 0 to skip it)")
+    if (getattr(args, "dask", None) is not None or getattr(args, "threads", 1) != 1) and (constraints is None
+                                                                                       or not mpc_samples):
+        raise InputError("--dask" if getattr(args, "dask", None) is not None else "--threads",
+                         "spreads the constrained loop's runs: give FILE a [constraints] table (or --u-max, ...) "
+                         "and --mpc-samples >= 1")
+    if getattr(args, "workers", None) is not None and getattr(args, "dask", None) != "local":
+        raise InputError("--workers", "applies to --dask local only")
     if strategies and not args.closed_loop:
         raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop")
     if strategies and system.channel is not None:
@@ -106,7 +112,10 @@ def run(args: argparse.Namespace) -> CommandResult:
 
         protocols = ("tcp", "udp") if args.law == "all" else (args.law,)
         data["constrained_loop"], more = constrained_loop_section(system, constraints, protocols, mpc_samples,
-                                                                  args.steps, args.seed, progress_of(args))
+                                                                  args.steps, args.seed, progress_of(args),
+                                                                  threads=getattr(args, "threads", 1),
+                                                                  dask=getattr(args, "dask", None),
+                                                                  workers=getattr(args, "workers", None))
         text = "\n".join([text, *more])
     if system.sensor is not None and args.closed_loop:     # lossy sensor links
         data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)

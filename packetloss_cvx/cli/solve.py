@@ -13,13 +13,12 @@ from ..display import SOLUTION_BASIS, all_delivered_flag
 from ..errors import InfeasibleError, NumericalError, ResourceError, SolverError
 from ..lq.costs import closed_form
 from ..model.constraints import Constraints
-from ..model.files import load_constraints
 from ..model.system import System
 from ..progress import progress_bar
 from ..results import Solution, eigenvalue_pairs
 from . import format as fmt
 from .actuator_section import actuator_entry, actuator_strategies
-from .common import CommandResult, progress_of, system_of
+from .common import CommandResult, constraints_of, progress_of, system_of
 from .markov_section import PRIOR_MEAN_BASIS, markov_section
 from .sensing_section import estimation_section, protocol_entry
 
@@ -49,7 +48,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     >>> folder.cleanup()
     """
     system = system_of(args)
-    constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
+    constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
     strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     out: dict[str, Any] = {

@@ -30,7 +30,7 @@ import scipy.linalg
 import scipy.sparse as sp
 from cvxpy.reductions.solution import Solution
 
-from ..errors import InfeasibleError, InputError, NumericalError, SolverError
+from ..errors import DimensionError, InfeasibleError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
 from ..lq.moments import Moments, plan_moments
 from ..lq.policy import refuse_correlated
@@ -118,9 +118,10 @@ class ConstrainedSolution(Frozen):
     polished: bool = False
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON entry of ``solve --json`` ("constrained")."""
+        """The JSON entry of ``solve --json`` ("constrained"; ``terminal_state`` is E[x_N] under the plan)."""
         return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
-                "binding": list(self.binding), "violations": [{"constraint": c, "by": v} for c, v in self.violations],
+                "terminal_state": self.states[-1].tolist(), "binding": list(self.binding),
+                "violations": [{"constraint": c, "by": v} for c, v in self.violations],
                 "kkt_residual": self.kkt_residual, "solver_kkt_residual": self.solver_kkt_residual,
                 "polished": self.polished, "formulation": self.formulation, "solver": self.solver}
 
@@ -149,6 +150,10 @@ class ConstrainedQP:
         Any installed cvxpy solver (``cp.installed_solvers()``); default Clarabel with tight tolerances.
     solver_options : dict, optional
         Passed to ``problem.solve`` for a solver other than the default.
+    u_prev : bool
+        Link the first input to the previous command: ``|u_0 - u_prev| <= du_max`` (rows "du_max[i] at t=0 (up)",
+        "(down)"), ``u_prev`` a Parameter that `solve` sets (a receding-horizon loop's last command; zero, the
+        actuator at rest, where not given). Without ``du_max`` it adds no row.
 
     Attributes
     ----------
@@ -161,6 +166,8 @@ class ConstrainedQP:
         E[x_1..x_N] under the plan.
     x0, mu : cvxpy.Parameter
         n and (N, m); `solve` sets them (and the Parameters derived from mu).
+    u_prev : cvxpy.Parameter or None
+        m, with ``u_prev=True``; `solve` sets it.
 
     Examples
     --------
@@ -177,7 +184,7 @@ class ConstrainedQP:
     """
 
     def __init__(self, system: System, protocol: str, constraints: Constraints | Any, formulation: str = "auto",
-                 solver: str | None = None, solver_options: dict | None = None) -> None:
+                 solver: str | None = None, solver_options: dict | None = None, u_prev: bool = False) -> None:
         system = check_system(system)
         self.protocol = check_protocol(protocol)
         refuse_correlated(system, self.protocol)
@@ -198,6 +205,10 @@ class ConstrainedQP:
                                        f"found {solver!r}")
         self.solver = solver or cp.CLARABEL
         self.solver_options = dict(solver_options or {})
+        if not isinstance(u_prev, bool | np.bool_):
+            raise InputError("u_prev", f"expected true or false (whether the first input is linked to the previous "
+                                       f"command), found {u_prev!r}")
+        self.u_prev = cp.Parameter(system.m, name="u_prev") if u_prev else None
         self._d, self._noise = udp_variance_weights(system)
         if not (np.all(np.isfinite(self._d)) and np.isfinite(self._noise)):
             raise NumericalError("the QP's loss-variance weights diag(Omega_g) exceed the double-precision range")
@@ -241,12 +252,13 @@ class ConstrainedQP:
             terms.append(cp.sum_squares(L @ X))
         penalty = []
         self._groups: list[_Group] = []
-        # inputs and rates: hard (U = 0 satisfies them)
-        Gu, hu, labels = _input_rows(c, N, m)
+        # inputs and rates: hard (U = u_prev at every step satisfies them, u_prev within the input bounds; U = 0
+        # without u_prev); the rows of u_0 against u_prev have the bound hu + Su u_prev
+        Gu, hu, Su, labels = _input_rows(c, N, m, self.u_prev is not None)
         if labels:
-            con = Gu @ u <= hu
+            con = Gu @ u <= (hu + Su @ self.u_prev if Su.nnz else hu)
             constraints.append(con)
-            self._groups.append(_Group("inputs", con, labels, hu, None, P=Gu))
+            self._groups.append(_Group("inputs", con, labels, hu, None, P=Gu, offset=Su if Su.nnz else None))
         # expected state: box and polyhedron, rows P E[X] <= q
         P, q, labels = _state_rows(c, N, n)
         if labels:
@@ -307,6 +319,26 @@ class ConstrainedQP:
                                  (self._sigma, np.sqrt(mu * (1.0 - mu)))):
             parameter.save_value(np.array(value, dtype=float).reshape(parameter.shape))
 
+    def _link(self, u_prev: Any) -> None:
+        """Set ``u_prev`` (Parameter and the rows' bounds) for a solve, checked: m finite numbers. O(m + rows)."""
+        if self.u_prev is None:
+            if u_prev is not None:
+                raise InputError("u_prev", "this program has no previous command: build it with "
+                                           "ConstrainedQP(..., u_prev=True)")
+            return
+        m = self.system.m
+        try:
+            value = np.zeros(m) if u_prev is None else np.asarray(u_prev, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError("u_prev", f"expected {m} numbers, found {u_prev!r}"[:200]) from None
+        if value.shape != (m,):
+            raise DimensionError("u_prev", f"expected {m} numbers (m = {m}) but found shape {value.shape}")
+        if not np.all(np.isfinite(value)):
+            raise InputError("u_prev", "expected finite numbers")
+        self.u_prev.save_value(value)
+        for group in self._groups:
+            group.link(value)
+
     def _run_solver(self, what: str) -> str:
         if self.solver == cp.CLARABEL and not self.solver_options:
             program = self._compiled()
@@ -351,15 +383,17 @@ class ConstrainedQP:
         self.problem.unpack(solution)
         return status
 
-    def solve(self, mu=None, x0=None, *, check: bool = True) -> ConstrainedSolution:
+    def solve(self, mu=None, x0=None, *, u_prev=None, check: bool = True) -> ConstrainedSolution:
         """Solve for the system's (or the given) ``mu`` (m-vector or N×m schedule) and ``x0``, validated through
-        [`System`][packetloss_cvx.model.system.System].
+        [`System`][packetloss_cvx.model.system.System], and (built with ``u_prev=True``) the previous command
+        ``u_prev`` (m finite numbers; zero where not given).
 
         Raises
         ------
         InfeasibleError
             The solver proved the constraints infeasible (``status`` carries its status); with ``soft`` only the
-            input and rate bounds are hard, and U = 0 satisfies them, so this cannot happen.
+            input and rate bounds are hard, and U = 0 (U = u_prev at every step, with ``u_prev`` inside the input
+            bounds) satisfies them, so this cannot happen.
         SolverError
             Any other status than "optimal" (``optimal_inaccurate`` and ``infeasible_inaccurate`` included).
         NumericalError
@@ -371,6 +405,7 @@ class ConstrainedQP:
             system = system.with_mu(mu)
         if x0 is not None:
             system = system.with_x0(x0)
+        self._link(u_prev)
         self._assign(system)
         what = f"the constrained {self.protocol}-like {self.formulation} QP"
         start = time.perf_counter()
@@ -673,14 +708,22 @@ class _Group:
     plan's moments (values g_i - b_i and their gradients)."""
 
     def __init__(self, kind: str, con: Any, labels: list[str], bound: np.ndarray, slack: cp.Variable | None,
-                 P: sp.csr_matrix | None = None, chance: tuple | None = None) -> None:
+                 P: sp.csr_matrix | None = None, chance: tuple | None = None,
+                 offset: sp.csr_matrix | None = None) -> None:
         self.kind, self.con, self.labels, self.bound, self.slack = kind, con, labels, np.asarray(bound), slack
+        #: rows whose bound moves with a Parameter (u_prev): ``bound = base + offset @ value``, set by `link`
+        self.base, self.offset = self.bound, offset
         self.P, self.chance = P, chance
         self.dense: np.ndarray | None = None            # the input rows' P as an array, on first use
         #: a chance block's (C, (a'C_k)^2, a'S_k a, a'T_k) for the moments' C it was computed from (one mu)
         self.plan_free: tuple | None = None
         #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale)
         self.kinks: dict[int, np.ndarray] = {}
+
+    def link(self, value: np.ndarray) -> None:
+        """The bounds for the Parameter's ``value`` (rows ``g(u) = P u - base - offset value``). O(rows)."""
+        if self.offset is not None:
+            self.bound = self.base + self.offset @ value
 
     def multipliers(self) -> np.ndarray:
         if isinstance(self.con, list):
@@ -739,9 +782,11 @@ def _weighted_pull(T: np.ndarray, W: np.ndarray, x: np.ndarray) -> np.ndarray:
     return T.reshape(-1, T.shape[2]).T @ (W @ x[:, :, None]).ravel()
 
 
-def _input_rows(c: Constraints, N: int, m: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
-    """Rows ``G u <= h`` (u step-major) of the input and rate bounds, with their labels."""
-    rows, rhs, labels = [], [], []
+def _input_rows(c: Constraints, N: int, m: int, previous: bool = False
+                ) -> tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix, list[str]]:
+    """Rows ``G u <= h + S u_prev`` (u step-major) of the input and rate bounds, with their labels; ``S`` is zero but
+    on the rows of ``|u_0 - u_prev| <= du_max`` (``previous``)."""
+    rows, rhs, labels, linked = [], [], [], []
     eye = sp.eye(N * m, format="csr")
     for name, sign, values in (("u_max", 1.0, c.u_max), ("u_min", -1.0, c.u_min)):
         if values is None:
@@ -752,18 +797,23 @@ def _input_rows(c: Constraints, N: int, m: int) -> tuple[sp.csr_matrix, np.ndarr
                 rhs.append(sign * values[i])
                 labels.append(f"{name}[{i}] at t={t}")
     if c.du_max is not None:
-        for t in range(1, N):
+        for t in range(0 if previous else 1, N):
             for i in np.flatnonzero(np.isfinite(c.du_max)):
-                diff = eye[t * m + i] - eye[(t - 1) * m + i]
+                diff = eye[t * m + i] - eye[(t - 1) * m + i] if t else eye[i]
+                if not t:                                 # u_0 - u_prev <= du, u_prev - u_0 <= du
+                    linked += [(len(rows), i, 1.0), (len(rows) + 1, i, -1.0)]
                 rows += [diff, -diff]
                 rhs += [c.du_max[i], c.du_max[i]]
                 labels += [f"du_max[{i}] at t={t} (up)", f"du_max[{i}] at t={t} (down)"]
     G = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * m))
-    return G, np.array(rhs), labels
+    S = sp.csr_matrix(([v for _, _, v in linked], ([r for r, _, _ in linked], [i for _, i, _ in linked])),
+                      shape=(len(rows), m))
+    return G, np.array(rhs), S, labels
 
 
 def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
-    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron, with their labels."""
+    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron and of the terminal set,
+    with their labels."""
     rows, rhs, labels = [], [], []
     eye = sp.eye(N * n, format="csr")
     for name, sign, values in (("x_max", 1.0, c.x_max), ("x_min", -1.0, c.x_min)):
@@ -780,6 +830,18 @@ def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarr
                 rows.append(sp.csr_matrix((c.F[r], (np.zeros(n, int), (k - 1) * n + np.arange(n))), shape=(1, N * n)))
                 rhs.append(c.g[r])
                 labels.append(f"F[{r}] at k={k}")
+    # the terminal set, on E[x_N] only
+    for name, sign, values in (("terminal_max", 1.0, c.terminal_max), ("terminal_min", -1.0, c.terminal_min)):
+        for j in [] if values is None else np.flatnonzero(np.isfinite(values)):
+            rows.append(sign * eye[(N - 1) * n + j])
+            rhs.append(sign * values[j])
+            labels.append(f"{name}[{j}] at k={N}")
+    if c.terminal_F is not None:
+        for r in np.flatnonzero(np.isfinite(c.terminal_g)):
+            rows.append(sp.csr_matrix((c.terminal_F[r], (np.zeros(n, int), (N - 1) * n + np.arange(n))),
+                                      shape=(1, N * n)))
+            rhs.append(c.terminal_g[r])
+            labels.append(f"terminal_F[{r}] at k={N}")
     P = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * n))
     return P, np.array(rhs), labels
 
