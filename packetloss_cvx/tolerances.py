@@ -430,7 +430,8 @@ COUPLED_ZERO_RTOL = 1e-12
 COUPLED_BRACKET_RTOL = 1e-10
 
 # ------------------------------------------------------------------ the actuator on a loss (closedloop/actuator.py)
-__all__ += ["ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL", "SAMPLED_Z_MAX"]
+__all__ += ["ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_DP_RTOL", "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL",
+            "SAMPLED_Z_MAX"]
 #: "zero" is today's loop: the same engine call on the same arrays, so its radius and costs agree with
 #: closedloop.stability / moments / mjls to this (measured: 0, bit for bit, on four channels under Haswell, Prescott and
 #: SkylakeX kernels).
@@ -446,6 +447,10 @@ ACTUATOR_EXACT_RTOL = 1e-12
 #: root, both by brentq to xtol 1e-14 (measured: at most 2.0e-15 over three plants and four strategies, under Haswell,
 #: Prescott and SkylakeX kernels).
 ACTUATOR_CRITICAL_MU_ATOL = 1e-12
+#: The optimal law per strategy (closedloop/actuator_design.py) against its references: the enumerated optimum over
+#: every delivery path, the channel's own DP for zero, hand values (measured: at most 2.5e-15 against enumeration,
+#: 6.3e-16 against dp_riccati and coupled_riccati, under Haswell, Prescott and SkylakeX kernels).
+ACTUATOR_DP_RTOL = 1e-12
 #: A sampled mean agrees with its exact expectation when within this many standard errors (two-sided normal tail
 #: 6.8e-6 per check).
 SAMPLED_Z_MAX = 4.5
