@@ -37,6 +37,7 @@ A UDP-like controller does not know the mode; its optimal law is nonlinear in ge
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,7 +63,9 @@ class DesignModes:
     """A strategy's jump linear system as the TCP-like controller sees it (module docstring): S information modes,
     D = 2^m delivery patterns ``patterns`` (D, m), ``p`` (S, D) P(pattern | mode), per (s, d) the step ``A`` (S, D,
     N, N), ``B`` (S, D, N, r), the applied input ``F`` (S, D, m, N) and ``G`` (S, D, m, r), the next mode's law ``R``
-    (S, D, S); ``start`` P(mode at 0), ``embed`` (N, n) the plant's state in z, ``labels`` a name per mode."""
+    (S, D, S); ``start`` P(mode at 0), ``embed`` (N, n) the plant's state in z, ``labels`` a name per mode;
+    ``state`` (S,) each mode's channel state, ``moves`` (S, D, S) the ages' update (``R_sd(t) = moves_sdt
+    T_c(s)c(t)``) and ``h`` (M_c, m) the channel's delivery probabilities, for the exact certificates."""
 
     actuator: Actuator
     patterns: np.ndarray
@@ -75,14 +78,20 @@ class DesignModes:
     start: np.ndarray
     embed: np.ndarray
     labels: tuple[str, ...]
+    state: np.ndarray
+    moves: np.ndarray
+    h: np.ndarray
 
     @property
     def modes(self) -> int:
         return self.p.shape[0]
 
-    def step(self, P: np.ndarray, Omega: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def step(self, P: np.ndarray, Omega: np.ndarray, psi: np.ndarray,
+             least_squares: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """``(K, P_prev)``: the greedy gains (S, r, N) for the cost-to-go P (S, N, N) and the Bellman right-hand side
-        (module docstring), symmetrised. O(S D (S N^2 + (N + r)^3)).
+        (module docstring), symmetrised. ``least_squares``: the Hessians' minimum-norm least-squares solution (the
+        homogeneous map, no weights, whose Hessian may be singular: closedloop.actuator_region).
+        O(S D (S N^2 + (N + r)^3)).
 
         Raises
         ------
@@ -102,7 +111,8 @@ class DesignModes:
         Huu[idle[:, :, None] & np.eye(Huu.shape[-1], dtype=bool)] = 1.0
         Huz[idle] = 0.0
         try:
-            K = np.linalg.solve(Huu, Huz)
+            K = np.stack([np.linalg.lstsq(a, b, rcond=None)[0] for a, b in zip(Huu, Huz, strict=True)]) \
+                if least_squares else np.linalg.solve(Huu, Huz)
         except np.linalg.LinAlgError:
             raise NumericalError(f"{self.actuator}'s Riccati step: an input Hessian is singular") from None
         P_prev = H[:, :N, :N] - Huz.mT @ K
@@ -177,7 +187,7 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
     shape = (S, D)
     A_all, B_all = np.zeros((*shape, N, N)), np.zeros((*shape, N, r))
     F_all, G_all = np.zeros((*shape, m, N)), np.zeros((*shape, m, r))
-    R, p = np.zeros((*shape, S)), np.zeros(shape)
+    R, p, moves = np.zeros((*shape, S)), np.zeros(shape), np.zeros((*shape, S), dtype=bool)
     index = {(c, beta): c * len(ages) + j for c in range(Mc) for j, beta in enumerate(ages)}
     for (c, beta), s in index.items():
         for k, d in enumerate(patterns.astype(bool)):
@@ -208,12 +218,14 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
             nxt = tuple(after) if strategy.kind == "buffer" else ()
             for c2 in range(Mc):
                 R[s, k, index[(c2, nxt)]] += Tc[c, c2]
+                moves[s, k, index[(c2, nxt)]] = True
     start = np.zeros(S)
     for c in range(Mc):
         start[index[(c, tuple([L] * m) if strategy.kind == "buffer" else ())]] = start_c[c]
     labels = tuple(f"c{c}" + (f" ages {beta}" if beta else "") for (c, beta) in index)
     embed = np.vstack([np.eye(n), np.zeros((N - n, n))])
-    return DesignModes(strategy, patterns, p, A_all, B_all, F_all, G_all, R, start, embed, labels)
+    state = np.array([c for (c, _) in index], dtype=int)
+    return DesignModes(strategy, patterns, p, A_all, B_all, F_all, G_all, R, start, embed, labels, state, moves, hc)
 
 
 @dataclass(frozen=True)
@@ -253,7 +265,8 @@ def _weights(system: System, modes: DesignModes) -> tuple[np.ndarray, np.ndarray
 
 
 def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.ArrayLike | None = None,
-                max_iter: int | None = None) -> ActuatorDesign:
+                max_iter: int | None = None,
+                proves: Callable[[DesignModes, np.ndarray], bool] | None = None) -> ActuatorDesign:
     """The stationary optimal TCP-like linear law of ``actuator`` on ``system`` (stage weights Omega_1 and Psi_0,
     noise Sigma_W; its chain, or ``mu``, default the stationary Bernoulli channel): the stabilising solution of the
     coupled Riccati equation over the strategy's modes (module docstring), by `.riccati.solve_bellman`. ``zero`` is
@@ -266,7 +279,9 @@ def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.Array
         Field ``actuator``: an unknown strategy, L < 1 or beyond the horizon, or too many modes.
     NumericalError
         No verdict: no convergence, a limit that is not stabilising, or a residual above MOMENT_RESIDUAL_RTOL (a
-        diverging iteration is not read as a proof here: the strategy's region is `actuator_stabilisable`'s).
+        diverging iteration is a proof only through ``proves(modes, P)``, closedloop.actuator_region's exact check
+        that P's direction bounds every law's radius by 1: then the reason starts "coupled Riccati equations
+        (...): no stabilising solution").
 
     Examples
     --------
@@ -290,7 +305,8 @@ def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.Array
                       cost_to_go=lambda K: modes.cost_to_go(K, Omega, psi),
                       start=np.repeat(Omega[None], S, axis=0), scale=scale, gain_shape=(S, r, N), definite=False)
     K, P, iterations, residual, rad = solve_bellman(
-        problem, proves=lambda P: False, max_iter=RICCATI_MAX_ITER if max_iter is None else max_iter,
+        problem, proves=(lambda P: False) if proves is None else (lambda P: proves(modes, P)),
+        max_iter=RICCATI_MAX_ITER if max_iter is None else max_iter,
         label=f"coupled Riccati equations ({modes.actuator})", where="")
     loop = modes.loop(K)
     pi = _stationary(loop.T)
