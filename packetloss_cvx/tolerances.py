@@ -430,7 +430,7 @@ COUPLED_ZERO_RTOL = 1e-12
 COUPLED_BRACKET_RTOL = 1e-10
 
 # ------------------------------------------------------------------ the actuator on a loss (closedloop/actuator.py)
-__all__ += ["ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_DP_RTOL", "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL",
+__all__ += ["ACTUATOR_COMPARE_TOL", "ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_DP_RTOL", "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL",
             "SAMPLED_Z_MAX"]
 #: "zero" is today's loop: the same engine call on the same arrays, so its radius and costs agree with
 #: closedloop.stability / moments / mjls to this (measured: 0, bit for bit, on four channels under Haswell, Prescott and
@@ -451,6 +451,9 @@ ACTUATOR_CRITICAL_MU_ATOL = 1e-12
 #: every delivery path, the channel's own DP for zero, hand values (measured: at most 2.5e-15 against enumeration,
 #: 6.3e-16 against dp_riccati and coupled_riccati, under Haswell, Prescott and SkylakeX kernels).
 ACTUATOR_DP_RTOL = 1e-12
+#: The width in t of the bracket of a strategy's critical mu on the command line (compare, region --actuator): each
+#: halving is a power iteration of the homogeneous map (hold on two_actuator: about 13 s at 1e-4).
+ACTUATOR_COMPARE_TOL = 1e-4
 #: A sampled mean agrees with its exact expectation when within this many standard errors (two-sided normal tail
 #: 6.8e-6 per check).
 SAMPLED_Z_MAX = 4.5

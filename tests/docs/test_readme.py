@@ -79,6 +79,6 @@ def test_out_is_a_folder_exactly_for_the_commands_that_write_several_files():
     metavars = {name: next(a.metavar for a in sub._actions if "--out" in a.option_strings)  # noqa: SLF001
                 for name, sub in commands.items() if any("--out" in a.option_strings for a in sub._actions)}
     assert {k for k, v in metavars.items() if v == "DIR"} == {"sweep", "reproduce", "region"}
-    assert {k for k, v in metavars.items() if v == "FILE"} == {"solve", "allocate", "audit", "simulate"}
-    assert "for `solve`, `allocate`, `audit` and `simulate` a FILE" in GETTING_STARTED
+    assert {k for k, v in metavars.items() if v == "FILE"} == {"solve", "allocate", "audit", "simulate", "compare"}
+    assert "for `solve`, `allocate`, `audit`, `simulate` and `compare` a FILE" in GETTING_STARTED
     assert "for `sweep`, `region` and `reproduce`, which write several files, a folder" in GETTING_STARTED
