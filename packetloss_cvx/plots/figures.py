@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.colors import LogNorm
+from matplotlib.colors import ListedColormap, LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -33,7 +33,7 @@ from .style import LEGEND, OUTLINE, PATH_STYLES, contour_label_points, set_log_t
 
 __all__ = [
     "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
-    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
+    "plot_log_contour", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map", "plot_strategy_map",
 ]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
@@ -571,6 +571,43 @@ def plot_region(axis: Any, radius: Any = None, stable: Mapping[str, Any] | None 
             ax.contour(g, g, np.nan_to_num(v, nan=0.5), levels=[0.5], colors=colors[k % 4],
                        linestyles=styles[k % 4], linewidths=1.6)
         handles.append(Line2D([], [], color=colors[k % 4], linestyle=styles[k % 4], label=f"{law} boundary"))
+    ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
+    if title:
+        ax.set_title(title)
+    fig.legend(handles=handles, **LEGEND)
+    return _save(fig, path)
+
+
+def plot_strategy_map(axis: Any, strategies: Sequence[str] | None = None, winner: Any = None, *,
+                      xlabel: str = r"$\mu_1$", ylabel: str = r"$\mu_2$", title: str | None = None,
+                      path: str | Path | None = None) -> Figure:
+    """Where each actuator strategy on a loss wins (studies.actuator_map): ``winner`` (K, K), rows the second
+    channel, the index of the cheapest strategy's optimal law (-1: none stabilises, grey). ``axis`` may be a
+    StrategyMap alone. O(K^2).
+
+    Examples
+    --------
+    >>> fig = plot_strategy_map([0.5, 1.0], ["zero", "hold"], [[-1, 0], [1, 0]])
+    >>> [t.get_text() for t in fig.legends[0].get_texts()]
+    ['zero', 'hold', 'no strategy stabilises']
+    """
+    if hasattr(axis, "winner") and hasattr(axis, "strategies"):     # a StrategyMap
+        axis, strategies, winner = axis.axis, axis.strategies, axis.winner
+    if strategies is None or winner is None:
+        raise InputError("winner", "expected the strategies and the winner grid beside the axis (or a StrategyMap "
+                                   "alone)")
+    g = numeric_array(axis, "axis")
+    w = np.asarray(winner, dtype=int)
+    if w.shape != (g.size, g.size):
+        raise InputError("winner", f"expected shape ({g.size}, {g.size}) but found {w.shape}")
+    palette = ["tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown"]
+    colors = ["lightgrey", *palette[:len(strategies)]]
+    fig = Figure(figsize=(6.4, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    ax.pcolormesh(g, g, w + 1, shading="nearest", cmap=ListedColormap(colors), vmin=-0.5,
+                  vmax=len(strategies) + 0.5)
+    handles = [Patch(color=palette[k], label=name) for k, name in enumerate(strategies)]
+    handles.append(Patch(color="lightgrey", label="no strategy stabilises"))
     ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
     if title:
         ax.set_title(title)
