@@ -13,6 +13,8 @@ from ..model.system import System
 from ..progress import progress_bar
 from ..results import ClaimResult
 from ..threads import blas_limited
+from .actuator import STATEMENT as ZERO_VS_HOLD
+from .actuator import zero_vs_hold
 from .channel_allocation import allocation_udp_perfect
 from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
@@ -63,6 +65,7 @@ CLAIMS["plug-in-markov"] = (PLUG_IN_MARKOV, plug_in_markov)   # not the paper's:
 CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the paper's: lossy sensors
 CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # the paper's open problem
 CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture
+CLAIMS["zero-vs-hold-paper-systems"] = (ZERO_VS_HOLD, zero_vs_hold)   # the paper's remark on holding the input
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain
