@@ -56,7 +56,7 @@ def test_the_two_setup_commands_are_the_same_in_readme_getting_started_and_ci():
 def test_the_readme_counts_reproduces_figures_and_files():
     from packetloss_cvx.cli.reproduce_report import BEYOND_FIGURES, FIGURES
 
-    words = {2: "two", 6: "six"}
+    words = {2: "two", 3: "three", 6: "six"}
     assert f"the paper's {words[len(FIGURES)]} figures as PNGs and\n{words[len(BEYOND_FIGURES)]} beyond it" in README
 
 
