@@ -276,14 +276,14 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
                 continue
             if strategy_inside_proved(modes, K, _witness(modes, K, radius, c), c, transition):
                 return verdict("stable", gain=K, radius=radius)
-        return verdict("undecided", reason=f"the least radius over {strategy}'s laws is about {found.growth:.9g} "
-                                           f"(floats), but no law's witness checks exactly below {c!r}")
-    P = found.P / max(float(np.abs(found.P).max(initial=0.0)), np.finfo(float).tiny)
-    for Q in (P, *snapped(P), *(np.round(P * 2.0 ** bits) / 2.0 ** bits for bits in _ROUNDED_BITS)):
-        if strategy_outside_proved(modes, Q, 1.0, transition):
-            return verdict("unstable", certificate=Q, margin=0.0)
+    if found.growth >= c:       # at the boundary to rounding both are tried: the float growth decides neither
+        P = found.P / max(float(np.abs(found.P).max(initial=0.0)), np.finfo(float).tiny)
+        for Q in (P, *snapped(P), *(np.round(P * 2.0 ** bits) / 2.0 ** bits for bits in _ROUNDED_BITS)):
+            if strategy_outside_proved(modes, Q, 1.0, transition):
+                return verdict("unstable", certificate=Q, margin=0.0)
     return verdict("undecided", reason=f"the least radius over {strategy}'s laws is about {found.growth:.9g} "
-                                       "(floats), but its direction does not prove a bound of 1 in exact arithmetic")
+                                       "(floats), but neither a law's witness below 1 nor the map's direction checks "
+                                       "in exact arithmetic")
 
 
 def actuator_critical(system: System, actuator: str | Actuator = "zero", direction: npt.ArrayLike | None = None,
