@@ -454,7 +454,9 @@ COUPLED_ZERO_RTOL = 1e-12
 COUPLED_BRACKET_RTOL = 1e-10
 
 # ------------------------------------------------------------------ the actuator on a loss (closedloop/actuator.py)
-__all__ += ["ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL", "SAMPLED_Z_MAX"]
+__all__ += ["ACTUATOR_COMPARE_TOL", "ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_DP_RTOL", "ACTUATOR_DP_STATIONARY_RTOL",
+            "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL",
+            "SAMPLED_Z_MAX"]
 #: "zero" is today's loop: the same engine call on the same arrays, so its radius and costs agree with
 #: closedloop.stability / moments / mjls to this (measured: 0, bit for bit, on four channels under Haswell, Prescott and
 #: SkylakeX kernels).
@@ -470,6 +472,17 @@ ACTUATOR_EXACT_RTOL = 1e-12
 #: root, both by brentq to xtol 1e-14 (measured: at most 2.0e-15 over three plants and four strategies, under Haswell,
 #: Prescott and SkylakeX kernels).
 ACTUATOR_CRITICAL_MU_ATOL = 1e-12
+#: The optimal law per strategy (closedloop/actuator_design.py) against its references: the enumerated optimum over
+#: every delivery path, the channel's own DP for zero, hand values (measured: at most 2.5e-15 against enumeration,
+#: 6.3e-16 against dp_riccati and coupled_riccati, under Haswell, Prescott and SkylakeX kernels).
+ACTUATOR_DP_RTOL = 1e-12
+#: Two stationary optima of the same equation, each iterated until ``||P_next - P|| <= RICCATI_RTOL ||P||``, agree to
+#: a few RICCATI_RTOL times the loop's slowness (measured: 1.8e-12 relative on the pendulum's x0'P x0, radius
+#: 0.98, zero's optimum against dp_riccati; 2e-16 on two_actuator).
+ACTUATOR_DP_STATIONARY_RTOL = 1e-10
+#: The width in t of the bracket of a strategy's critical mu on the command line (compare, region --actuator): each
+#: halving is a power iteration of the homogeneous map (hold on two_actuator: about 13 s at 1e-4).
+ACTUATOR_COMPARE_TOL = 1e-4
 #: A sampled mean agrees with its exact expectation when within this many standard errors (two-sided normal tail
 #: 6.8e-6 per check).
 SAMPLED_Z_MAX = 4.5

@@ -15,6 +15,8 @@ from ..results import ClaimResult
 from ..threads import blas_limited
 from .attainable import STATEMENTS as ATTAINABLE
 from .attainable import ack_price_paper_basis, allocation_tcp_meets_alpha
+from .actuator import STATEMENT as ZERO_VS_HOLD
+from .actuator import zero_vs_hold
 from .channel_allocation import allocation_udp_perfect
 from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
@@ -71,6 +73,7 @@ CLAIMS["expectation-mpc-feasibility"] = (EXPECTATION_MPC, expectation_mpc)   # T
 CLAIMS["allocation-tcp-meets-alpha"] = (ATTAINABLE["allocation-tcp-meets-alpha"],    # the paper's design, attained
                                         allocation_tcp_meets_alpha)
 CLAIMS["ack-price-paper-basis"] = (ATTAINABLE["ack-price-paper-basis"], ack_price_paper_basis)   # its conclusion
+CLAIMS["zero-vs-hold-paper-systems"] = (ZERO_VS_HOLD, zero_vs_hold)   # the paper's remark on holding the input
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain

@@ -297,6 +297,11 @@ def build_parser() -> argparse.ArgumentParser:
     alloc.add_argument("--constraint", action="append", metavar="TEXT",
                        help='a linear constraint (repeatable; default: none), e.g. "mu1 + 2*mu2 <= 1.5" or '
                             '"mu1 >= mu2"')
+    alloc.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                       help="also whether the allocation mu* is stabilisable when the actuator applies zero, holds "
+                            "the last input or plays the buffered plan of L inputs on a loss (some TCP-like law of "
+                            "that strategy, proved exactly, or undecided with the reason); comma-separated, or all "
+                            "(default: none), e.g. --actuator zero,hold")
     alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default: 1e-4), e.g. 1e-6")
     alloc.add_argument("--max-boxes", type=int,
                        help="cap on the UDP-like branch and bound's boxes; at the cap: exit 4 (default: 20000), "
@@ -442,11 +447,27 @@ def build_parser() -> argparse.ArgumentParser:
     reg.add_argument("--sensor-grid", type=int, metavar="K",   # lossy sensor links
                      help="a file with [sensor]: also a K x K map of (gamma, mu) scales in (0, 1] for the paper's "
                           "tcp and udp laws on their estimates (default: none), e.g. --sensor-grid 11")
+    reg.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                     help="also each strategy on a loss (apply zero, hold the last input, play the buffered plan of "
+                          "L inputs): the critical mu along the ray of some TCP-like law of that strategy, its upper "
+                          "end proved stable; comma-separated, or all (default: none), e.g. --actuator zero,hold")
     reg.add_argument("--out", metavar="DIR",
                      help="a folder: region.npz, region.csv and (with --grid) region.png (in --format) "
                           "(default: none), e.g. --out region-out")
     add_figure_options(reg, "the figures in --out")
     reg.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
+
+    cmp = add_command(sub, "compare", "the actuator strategies on a loss side by side: zero, hold, buffered plan",
+                      examples=["compare two_actuator", "compare pendulum --actuator zero,hold,buffer:3 --json"])
+    cmp.add_argument("file", metavar="FILE", help=FILE_HELP)
+    add_system_options(cmp)
+    cmp.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all", default="all",
+                     help="the strategies: apply zero, hold the last input, or play the buffered plan of L inputs "
+                          "(default L: the horizon); comma-separated, or all (default: all), e.g. --actuator "
+                          "zero,buffer:2")
+    cmp.add_argument("--direction", metavar="D1,..,Dm",
+                     help="the ray mu = t * direction of the critical mu, nonnegative (default: all ones), e.g. "
+                          "--direction 1,0.5")
 
     rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],

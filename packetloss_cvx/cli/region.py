@@ -25,6 +25,8 @@ from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..studies.output import csv_number
 from ..studies.region_map import LAWS, region_map
+from ..tolerances import ACTUATOR_COMPARE_TOL
+from .actuator_section import actuator_strategies, critical_section
 from .common import CommandResult, figure_dpi, figure_file, floats, integers, progress_of, system_of
 from .format import num_within, supported
 from .sensing_section import coupled_grid, region_section
@@ -90,6 +92,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     if system.channel is not None:
         return _chain(args, system)
     options = _options(args, system.m)
+    strategies = actuator_strategies(getattr(args, "actuator", None), system)
     left_out = None
     if args.law == "all":   # 'fixed' is the DP gain at the file's mu: where none exists, the others still answer
         try:
@@ -120,6 +123,10 @@ def run(args: argparse.Namespace) -> CommandResult:
                     lines += [f"stable share of the {sensor_grid}x{sensor_grid} (gamma, mu) scale map, the paper's "
                               "law on its estimate:"] + [f"  {p:<6} {100 * grid[p]['stable_share']:.1f} %"
                                                         for p in ("tcp", "udp")]
+            if strategies:                      # each actuator strategy on a loss: its own critical mu
+                data["actuator"], more = critical_section(system, strategies, options.get("direction"),
+                                                          ACTUATOR_COMPARE_TOL)
+                lines += more
             if out is not None:
                 paths = _write(result, out, args)
                 data = {**data, "files": [str(p) for p in paths]}
@@ -133,6 +140,9 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
     """A Gilbert–Elliott file (simulation.markov_region): can some mode-dependent law (the last state known, as
     a TCP-like acknowledgement reveals it) stabilise the loop behind the file's chain, and, with ``--grid K``,
     where over the channels' mean rates at the file's burstiness (one channel: a row of K rates)."""
+    if getattr(args, "actuator", None) is not None:
+        raise InputError("--actuator", "a strategy's critical mu is computed on Bernoulli links; this file has a "
+                                       "Markov chain (compare FILE gives each strategy's optimal law behind it)")
     if args.law not in ("dp", "all"):
         raise InputError("--law", "behind a Gilbert-Elliott chain only 'dp' (some mode-dependent linear law) is "
                                   "mapped; the paper's laws are Bernoulli designs")

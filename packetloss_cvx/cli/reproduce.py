@@ -23,15 +23,16 @@ from ..claims import CLAIMS, audit, claims_document, tally, tally_text
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
 from ..display import json_text
 from ..model.files import load_example
-from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour, plot_region
+from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour, plot_region, plot_strategy_map
 from ..progress import progress_bar
 from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..studies import paper_figures as pf
+from ..studies.actuator_map import strategy_map
 from ..studies.region_map import region_map
 from ..threads import blas_limited
 from .common import CommandResult, figure_dpi
-from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, report
+from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, STRATEGY_FIGURE, report
 
 #: compute and draw_figures (run's two steps) are not exported: benchmarks/reproduce_speed.py calls them
 __all__ = ["ACK_ATTAINABLE_ALPHAS", "ACK_ATTAINABLE_GAP", "ALPHAS", "BASIS_LABELS", "REGION_GRID", "SETTINGS",
@@ -67,9 +68,9 @@ REGION_GRID = 21
 #: --seed 1``), so its claims.md is the project's, case for case.
 SETTINGS = {
     "full": {"grid": 101, "nu_points": 150, "alphas": ALPHAS, "audit_random": 200, "audit_seed": 1,
-             "audit_skips": (), "region_grid": REGION_GRID},
+             "audit_skips": (), "region_grid": REGION_GRID, "strategy_grid": 6},
     "quick": {"grid": 21, "nu_points": 30, "alphas": (4.78,), "audit_random": 0, "audit_seed": 1,
-              "audit_skips": (SLOW_CLAIM,), "region_grid": 6},
+              "audit_skips": (SLOW_CLAIM,), "region_grid": 6, "strategy_grid": 2},
 }
 
 
@@ -91,6 +92,7 @@ TITLES = {
                                    r"one path per price vector $\beta$",
     ACK_FIGURE: r"Two-actuator system, $\beta = (1, 1)$: the acknowledgement price at which UDP-like wins",
     REGION_FIGURE: r"Two-actuator system: where each law stabilises the loop in mean square, over $(\mu_1, \mu_2)$",
+    STRATEGY_FIGURE: r"Two-actuator system: the cheapest actuator strategy on a lost packet, over $(\mu_1, \mu_2)$",
 }
 
 
@@ -105,7 +107,7 @@ def _beta_text(beta: Any) -> str:
 
 
 #: compute's steps, in order; run adds WRITE_STEPS to the same progress bar
-STEPS = ("pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "audit")
+STEPS = ("pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "strategies", "audit")
 #: run's steps after compute: the figures drawn and saved, then claims.md, results.json and report.md
 WRITE_STEPS = ("figures", "report")
 
@@ -134,6 +136,8 @@ def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, 
 
             elif step == "region":   # beyond the paper: each law's stability region
                 data["region"] = region_map(mixed, laws=REGION_LAWS, grid=settings["region_grid"]).to_dict()
+            elif step == "strategies":   # beyond the paper: which actuator strategy on a loss wins where
+                data["strategies"] = strategy_map(mixed, settings["strategy_grid"]).to_dict()
             elif step == "tables":
                 data["tables"] = pf.eigenvalue_tables(pendulum, mixed, TABLE_1_MU, TABLE_2_MU)
                 data["tables_paper"] = {"table-1": TABLE_1, "table-2": TABLE_2}
@@ -213,6 +217,11 @@ def draw_figures(data: dict[str, Any], folder: RunFolder, fmt: str = "png", dpi:
                             {law: _numbers(g["stable"]) for law, g in grid.items()},
                             title=TITLES[REGION_FIGURE]),
                 paths[REGION_FIGURE].name, folder=folder, dpi=dpi)
+    found = data["strategies"]                                           # beyond the paper
+    paths[STRATEGY_FIGURE] = out / f"{STRATEGY_FIGURE}.{fmt}"
+    save_figure(plot_strategy_map(found["axis"], found["strategies"], found["winner"],
+                                  title=TITLES[STRATEGY_FIGURE]),
+                paths[STRATEGY_FIGURE].name, folder=folder, dpi=dpi)
     return paths
 
 

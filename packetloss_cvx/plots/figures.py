@@ -44,7 +44,7 @@ from .style import (
 __all__ = [
     "plot_ack_break_even", "plot_allocation_contours", "plot_burstiness_map", "plot_closed_loop", "plot_cost_lines",
     "plot_log_contour", "plot_mpc", "plot_pareto", "plot_power_pareto", "plot_region", "plot_sensor_map",
-    "plot_stability_lines",
+    "plot_stability_lines", "plot_strategy_map",
 ]
 
 _LABELS = {"tcp": "TCP-like", "udp": "UDP-like"}
@@ -994,6 +994,43 @@ def plot_stability_lines(x: Sequence[float], radii: Mapping[str, Any], *, xlabel
     if title:
         fig.suptitle(title, fontsize=9)
     fig.legend(**LEGEND)
+    return _save(fig, path)
+
+
+def plot_strategy_map(axis: Any, strategies: Sequence[str] | None = None, winner: Any = None, *,
+                      xlabel: str = r"$\mu_1$", ylabel: str = r"$\mu_2$", title: str | None = None,
+                      path: str | Path | None = None) -> Figure:
+    """Where each actuator strategy on a loss wins (studies.actuator_map): ``winner`` (K, K), rows the second
+    channel, the index of the cheapest strategy's optimal law (-1: none stabilises, grey). ``axis`` may be a
+    StrategyMap alone. O(K^2).
+
+    Examples
+    --------
+    >>> fig = plot_strategy_map([0.5, 1.0], ["zero", "hold"], [[-1, 0], [1, 0]])
+    >>> [t.get_text() for t in fig.legends[0].get_texts()]
+    ['zero', 'hold', 'no strategy stabilises']
+    """
+    if hasattr(axis, "winner") and hasattr(axis, "strategies"):     # a StrategyMap
+        axis, strategies, winner = axis.axis, axis.strategies, axis.winner
+    if strategies is None or winner is None:
+        raise InputError("winner", "expected the strategies and the winner grid beside the axis (or a StrategyMap "
+                                   "alone)")
+    g = numeric_array(axis, "axis")
+    w = np.asarray(winner, dtype=int)
+    if w.shape != (g.size, g.size):
+        raise InputError("winner", f"expected shape ({g.size}, {g.size}) but found {w.shape}")
+    palette = ["tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown"]
+    colors = ["lightgrey", *palette[:len(strategies)]]
+    fig = Figure(figsize=(6.4, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    ax.pcolormesh(g, g, w + 1, shading="nearest", cmap=ListedColormap(colors), vmin=-0.5,
+                  vmax=len(strategies) + 0.5)
+    handles = [Patch(color=palette[k], label=name) for k, name in enumerate(strategies)]
+    handles.append(Patch(color="lightgrey", label="no strategy stabilises"))
+    ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(g[0], g[-1]), ylim=(g[0], g[-1]))
+    if title:
+        ax.set_title(title)
+    fig.legend(handles=handles, **LEGEND)
     return _save(fig, path)
 
 

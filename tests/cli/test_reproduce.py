@@ -9,7 +9,8 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
-from packetloss_cvx.cli.reproduce_report import BEYOND_FIGURES, FIGURES, REGION_FIGURE
+from packetloss_cvx.cli.reproduce_report import BEYOND_FIGURES, FIGURES, REGION_FIGURE, STRATEGY_FIGURE
+from packetloss_cvx.tolerances import ACTUATOR_DP_STATIONARY_RTOL
 
 from ..references import enumerated_radius
 
@@ -270,3 +271,21 @@ def test_the_tcp_allocation_figure_shows_the_attainable_designs_beside_the_paper
     assert papers[0] == [paper[a] for a in data["settings"]["alphas"]]
     assert "attainable" not in " ".join(drawn[reproduce.TITLES["fig:UDP-log-cost-mixed-mult"]]["allocations"])
     assert "paper basis" in drawn[reproduce.TITLES["fig:TCP-log-cost-mixed-mult"]]["colorbar_label"]
+
+
+def test_the_strategy_map_of_the_two_actuator_system_against_the_dare(runs, two_actuator):
+    """Beyond the paper: strategy-map-two-actuator.png with its paragraph; at perfect links every strategy's optimal
+    law is the full-information LQR (scipy's DARE), a tie won by zero, listed first."""
+    from scipy.linalg import solve_discrete_are
+
+    _, (out, _) = runs
+    report = (out / "report.md").read_text()
+    assert (out / f"{STRATEGY_FIGURE}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"]({STRATEGY_FIGURE}.png)" in report
+    found = json.loads((out / "results.json").read_text())["strategies"]
+    assert len(found["axis"]) == json.loads((out / "results.json").read_text())["settings"]["strategy_grid"]
+    P = solve_discrete_are(two_actuator.A, two_actuator.B, two_actuator.state_weights[0],
+                           np.diag(two_actuator.input_weights[0]))
+    dare = float(two_actuator.x0 @ P @ two_actuator.x0)
+    assert all(grid[-1][-1] == pytest.approx(dare, rel=ACTUATOR_DP_STATIONARY_RTOL) for grid in found["cost"])
+    assert found["winner"][-1][-1] == 0
