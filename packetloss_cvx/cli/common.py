@@ -33,11 +33,13 @@ from ..model.files import load_constraints, load_system, read_csv_numbers, read_
 from ..model.system import System
 from ..safeio import FIGURE_DPI, check_dpi, check_output_file
 from . import format as fmt
+from .parser import FIGURE_FORMATS
 
-__all__ = ["CHAIN_BASIS", "CONSTRAINT_FLAGS", "COST_BASIS", "WARNING_ADVICE", "CommandResult", "allocation_numbers",
-           "attained_rows", "check_budgets", "check_figure_format", "check_writable", "constraints_of", "figure_dpi",
-           "figure_file", "floats", "integers", "number", "number_range", "preflight", "prices_and_bounds",
-           "progress_of", "search_options", "system_of", "systems_of", "with_overrides"]
+__all__ = ["CHAIN_BASIS", "CONSTRAINT_FLAGS", "COST_BASIS", "MPC_SAMPLES", "WARNING_ADVICE", "CommandResult",
+           "allocation_numbers", "attained_rows", "check_budgets", "check_dead_flags", "check_figure_format",
+           "check_writable", "constraints_of", "figure_dpi", "figure_file", "floats", "integers", "mpc_samples_of",
+           "number", "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options", "system_of",
+           "systems_of", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -46,6 +48,13 @@ OUTPUT_FILES = {"json_out": "--out", "save": "--save", "plot": "--plot"}
 #: every option that names a path, read or written: a name the system cannot hold is refused under its flag
 PATHS = {"file": "file", "files": "file", "mu_schedule": "--mu-schedule", "mu_list": "--mu-list", "out": "--out",
          "power_table": "--power-table", **OUTPUT_FILES}
+#: the constrained loop's runs when FILE has a [constraints] table and --mpc-samples is not given
+MPC_SAMPLES = 100
+#: per command that draws, the options without which it writes no figure (the figure options are dead then)
+FIGURE_NEEDS = {"simulate": (("plot", "--plot FILE"),), "sweep": (("out", "--out DIR"),),
+                "region": (("out", "--out DIR"), ("grid", "--grid K"))}
+#: the options that only shape a figure
+FIGURE_OPTIONS = {"format": "--format", "dpi": "--dpi", "yscale": "--yscale"}
 #: the longest path and path component the command line accepts (POSIX PATH_MAX and NAME_MAX on Linux)
 MAX_PATH, MAX_NAME = 4096, 255
 
@@ -338,6 +347,7 @@ def preflight(args: argparse.Namespace) -> None:
     if isinstance(getattr(args, "save", None), str) and not args.save.endswith(".npz"):
         raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
     figure_dpi(args)
+    check_dead_flags(args)
     if isinstance(getattr(args, "plot", None), str):
         figure_file(args, args.plot)
     if getattr(args, "plot", None) and getattr(args, "closed_loop", None) is False:
@@ -403,12 +413,56 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                            f"{f' of {count_text(args.steps)} steps' if args.closed_loop else ''} "
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
-        mpc_samples = getattr(args, "mpc_samples", 0)
-        if isinstance(mpc_samples, int) and mpc_samples >= 1 and constraints_of(args, system) is not None:
+        mpc_samples = mpc_samples_of(args)
+        if mpc_samples >= 1 and constraints_of(args, system) is not None:
             programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
             check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs), "--mpc-samples",
                   f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
                   "(the constrained loop)")
+
+
+def mpc_samples_of(args: argparse.Namespace) -> int:
+    """``--mpc-samples``, `MPC_SAMPLES` where not given. O(1).
+
+    >>> mpc_samples_of(argparse.Namespace(mpc_samples=None)), mpc_samples_of(argparse.Namespace(mpc_samples=0))
+    (100, 0)
+    """
+    value = getattr(args, "mpc_samples", None)
+    return MPC_SAMPLES if value is None else value
+
+
+def check_dead_flags(args: argparse.Namespace) -> None:
+    """An option that would change nothing is refused (exit 2, one line naming it and what it needs), as a
+    conflicting one is: ``--format``, ``--dpi`` and ``--yscale`` without the option that writes the figure
+    (`FIGURE_NEEDS`), and ``simulate --mpc-samples K >= 1`` on a FILE with no ``[constraints]`` table and no
+    constraint flag (``--mpc-samples 0`` skips the constrained loop, which such a FILE does anyway). O(1) beyond
+    loading FILE.
+
+    Examples
+    --------
+    >>> check_dead_flags(argparse.Namespace(command="sweep", out=None, format="svg", dpi=None))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --format: needs --out DIR (it sets the figures written there)
+    >>> check_dead_flags(argparse.Namespace(command="simulate", file="two_actuator", plot=None, mpc_samples=400))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --mpc-samples: needs a [constraints] table in FILE or a constraint flag \
+(--u-min, --u-max, --du-max, ...): without one there is no constrained loop to sample
+    """
+    command = getattr(args, "command", None)
+    for name, need in FIGURE_NEEDS.get(command, ()):
+        if getattr(args, name, None) is None:
+            for option, flag in FIGURE_OPTIONS.items():
+                if getattr(args, option, None) is not None:
+                    what = "figure" if command == "simulate" else "figures written there"
+                    raise InputError(flag, f"needs {need} (it sets the {what})" if name != "grid" else
+                                     f"needs {need} (it sets the map region.png; without --grid none is drawn)")
+    if command == "simulate" and getattr(args, "mpc_samples", None) and getattr(args, "file", None) is not None:
+        if constraints_of(args, system_of(args)) is None:
+            raise InputError("--mpc-samples", "needs a [constraints] table in FILE or a constraint flag "
+                                              "(--u-min, --u-max, --du-max, ...): without one there is no "
+                                              "constrained loop to sample")
 
 
 def check_solve(system: System, args: argparse.Namespace) -> None:
@@ -447,25 +501,23 @@ it on purpose set PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07
 
 
 def check_figure_format(path: str, field: str) -> None:
-    """A figure FILE whose extension matplotlib can write (no extension: PNG), checked by a command before
-    its work (not by [`preflight`][packetloss_cvx.cli.common.preflight], which imports no matplotlib):
-    ``simulate --plot loop.pgn`` sampled for minutes, then exited 2 under "path" with nothing printed. O(1).
+    """A figure FILE in one of the formats every command writes (`FIGURE_FORMATS`: png, pdf, svg; no extension:
+    ``--format``, default png), else exit 2 naming ``field``. Matplotlib writes more (jpg, tiff, eps: the last
+    with a transparency warning on stderr), but the figures are styled, tested and documented in these three. O(1).
 
     Examples
     --------
-    >>> check_figure_format("loop.pgn", "--plot")
+    >>> check_figure_format("loop.eps", "--plot")
     Traceback (most recent call last):
     ...
-    packetloss_cvx.errors.InputError: --plot: cannot write a 'pgn' figure (formats: avif, eps, ..., tiff, webp)
+    packetloss_cvx.errors.InputError: --plot: cannot write an 'eps' figure: expected a FILE ending in .png, .pdf \
+or .svg, found 'loop.eps'
     """
     suffix = Path(path).suffix[1:].lower()
-    if not suffix:
-        return
-    from matplotlib.backend_bases import FigureCanvasBase  # lazy: only when a figure is asked for
-    formats = sorted(FigureCanvasBase.get_supported_filetypes())
-    if suffix not in formats:
-        shown = ", ".join(formats[:2] + ["..."] + formats[-2:]) if len(formats) > 4 else ", ".join(formats)
-        raise InputError(field, f"cannot write a {suffix!r} figure (formats: {shown})")
+    if suffix and suffix not in FIGURE_FORMATS:
+        article = "an" if suffix[0] in "aeiou" else "a"
+        raise InputError(field, f"cannot write {article} {suffix!r} figure: expected a FILE ending in .png, .pdf or "
+                                f".svg, found {path[:80]!r}")
 
 
 def figure_file(args: argparse.Namespace, stem: str) -> str:
@@ -485,6 +537,7 @@ def figure_file(args: argparse.Namespace, stem: str) -> str:
     packetloss_cvx.errors.InputError: --format: svg, but the figure's file 'loop.pdf' says pdf: drop one
     """
     chosen = getattr(args, "format", None)
+    check_figure_format(stem, "--plot")
     suffix = Path(stem).suffix[1:].lower()
     if not suffix:
         return f"{stem}.{chosen or 'png'}"
@@ -493,14 +546,25 @@ def figure_file(args: argparse.Namespace, stem: str) -> str:
     return stem
 
 
-def figure_dpi(args: argparse.Namespace) -> float:
-    """``--dpi`` checked (safeio.check_dpi), default `FIGURE_DPI`. O(1).
+def figure_dpi(args: argparse.Namespace) -> int:
+    """``--dpi`` checked (safeio.check_dpi), default `FIGURE_DPI`: a whole number on the command line, since a PNG
+    records its resolution in whole dots per metre (``--dpi 100.5`` would be stored as 100.51; the API's
+    ``save_figure(dpi=)`` takes what Matplotlib takes). O(1).
 
     >>> figure_dpi(argparse.Namespace(dpi=None)), figure_dpi(argparse.Namespace(dpi=300.0))
     (120, 300)
+    >>> figure_dpi(argparse.Namespace(dpi=100.5))
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --dpi: expected a whole number of dots per inch in [10, 2400], found 100.5
     """
     dpi = getattr(args, "dpi", None)
-    return FIGURE_DPI if dpi is None else check_dpi(dpi, "--dpi")
+    if dpi is None:
+        return FIGURE_DPI
+    value = check_dpi(dpi, "--dpi")
+    if not float(value).is_integer():
+        raise InputError("--dpi", f"expected a whole number of dots per inch in [10, 2400], found {dpi!r}")
+    return int(value)
 
 
 def check_path_length(path: str, field: str) -> None:

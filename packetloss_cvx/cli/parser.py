@@ -362,7 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="with --closed-loop: each law's loop when the actuator applies zero, holds the last input "
                           "or plays the buffered plan of L inputs (default L: the horizon) on a loss, sampled beside "
                           "its exact cost and radius; comma-separated, or all (default: none), e.g. --actuator hold")
-    sim.add_argument("--mpc-samples", type=int, default=100, metavar="K",
+    sim.add_argument("--mpc-samples", type=int, metavar="K",
                      help="with a [constraints] table in FILE: runs of the constrained receding-horizon loop (each "
                           "re-solves its program every step: about 5 ms a solve), the clipped law, certainty-"
                           "equivalent and expected-cost MPC on the same paths over --steps steps; 0 skips it "
@@ -378,9 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--plot", metavar="FILE",
                      help="figure of the closed loop: mean +- band of ||x_t||, cost (default: none), "
                           "e.g. --plot loop.png")
-    sim.add_argument("--yscale", choices=("linear", "log", "symlog"), default="linear",
-                     help="with --plot: the y axes' scale; log (or symlog) keeps a diverging law from flattening "
-                          "the others, e.g. --yscale log")
+    sim.add_argument("--yscale", choices=("linear", "log", "symlog"),
+                     help="with --plot: the y axes' scale (default: linear); log (or symlog) keeps a diverging law "
+                          "from flattening the others, e.g. --yscale log")
     add_figure_options(sim, "the --plot figure")
 
     swp = add_command(sub, "sweep", "J*_tcp, J*_udp and J_Delta over a grid of channels, x0 scales or horizons",

@@ -27,7 +27,16 @@ from ..studies.output import csv_number
 from ..studies.region_map import LAWS, region_map
 from ..tolerances import ACTUATOR_COMPARE_TOL
 from .actuator_section import actuator_strategies, critical_section
-from .common import CommandResult, figure_dpi, figure_file, floats, integers, progress_of, system_of
+from .common import (
+    CommandResult,
+    check_dead_flags,
+    figure_dpi,
+    figure_file,
+    floats,
+    integers,
+    progress_of,
+    system_of,
+)
 from .format import num_within, supported
 from .sensing_section import coupled_grid, region_section
 
@@ -88,6 +97,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     if args.out is not None and not args.out.strip():
         raise InputError("--out", "expected a folder, found an empty path")
+    check_dead_flags(args)      # --format, --dpi without --out DIR and --grid K
     system = system_of(args)
     if system.channel is not None:
         return _chain(args, system)

@@ -13,7 +13,17 @@ from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from .actuator_section import actuator_strategies, simulate_actuator_section
-from .common import CommandResult, check_figure_format, constraints_of, figure_dpi, figure_file, progress_of, system_of
+from .common import (
+    CommandResult,
+    check_dead_flags,
+    check_figure_format,
+    constraints_of,
+    figure_dpi,
+    figure_file,
+    mpc_samples_of,
+    progress_of,
+    system_of,
+)
 from .sensing_section import simulate_section
 
 __all__ = ["run"]
@@ -57,7 +67,8 @@ def run(args: argparse.Namespace) -> CommandResult:
     system = system_of(args)
     strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
     constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
-    mpc_samples = getattr(args, "mpc_samples", 0)
+    check_dead_flags(args)      # --mpc-samples without a table, --format/--dpi/--yscale without --plot
+    mpc_samples = mpc_samples_of(args)
     if constraints is not None and mpc_samples and args.law == "dp":
         raise InputError("--law", "the constrained loop runs the protocols' programs: --law tcp, udp or all "
                                   "(or --mpc-samples 0 to skip it)")
@@ -94,7 +105,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         if not sim.closed_loop:
             raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
         from ..plots import plot_closed_loop  # matplotlib (0.2-0.7 s) only where a figure is asked for
-        figure = plot_closed_loop(sim, yscale=getattr(args, "yscale", "linear"),
+        figure = plot_closed_loop(sim, yscale=getattr(args, "yscale", None) or "linear",
                                   title=f"{system.name or 'system'}: closed loop of each law")
         save_figure(figure, plot, overwrite=force, field="--plot", dpi=figure_dpi(args))
     data, text = sim.to_dict(), _text(system.name or args.file, sim)

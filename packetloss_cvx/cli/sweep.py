@@ -23,7 +23,16 @@ from ..studies.engine import DEFAULT_CHUNK
 from ..studies.output import csv_header, csv_number, sweep_table, write_sweep
 from ..tolerances import SELF_CHECK_RTOL
 from . import format as fmt
-from .common import CHAIN_BASIS, COST_BASIS, CommandResult, figure_dpi, figure_file, integers, number_range
+from .common import (
+    CHAIN_BASIS,
+    COST_BASIS,
+    CommandResult,
+    check_dead_flags,
+    figure_dpi,
+    figure_file,
+    integers,
+    number_range,
+)
 
 __all__ = ["bursty", "bursty_map", "run"]
 
@@ -344,6 +353,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     if args.out is not None and not args.out.strip():   # an unset $DIR: not the current folder
         raise InputError("--out", "expected a folder, found an empty path")
+    check_dead_flags(args)      # --format, --dpi without --out
     if getattr(args, "burstiness", None) is not None:
         return bursty(args)
     if getattr(args, "mean_rate", None) is not None:
