@@ -365,7 +365,8 @@ def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints
         raise InputError("margin", "applies to target='stable' only (target='attainable' bounds a cost: alpha)")
     if isinstance(system, System) and system.channel is not None:
         raise InputError("target", "'attainable' designs Bernoulli channels: behind a Markov chain the TCP-like "
-                                   "attainable cost is not computed yet; use the paper's program or target='udp'")
+                                   "attainable cost is not computed yet; use target='paper' (the default) or "
+                                   "protocol='udp' (whose J* is its attainable cost)")
     system = check_system(system)
     if system.sensor is not None:
         raise InputError("target", "'attainable' designs the full-state loop; this system has lossy [sensor] links")

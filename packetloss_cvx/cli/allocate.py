@@ -26,7 +26,7 @@ __all__ = ["run"]
 
 #: the API's argument names -> the flags that set them (errors are renamed to the flag)
 FLAGS = {"alpha": "--alpha", "beta": "--beta", "bounds": "--bounds", "gap": "--gap", "max_boxes": "--max-boxes",
-         "time_limit": "--time-limit"}
+         "time_limit": "--time-limit", "target": "--target"}
 
 
 def run(args: argparse.Namespace) -> CommandResult:
@@ -75,6 +75,10 @@ def run(args: argparse.Namespace) -> CommandResult:
         return run_power(args, system)
     if args.protocol is None:
         raise InputError("--protocol", "required (or --target stable|dp-cost to design for stability)")
+    if target == "attainable" and args.protocol == "tcp" and system.channel is not None:    # the API's words: its own
+        raise InputError("--target", "attainable designs Bernoulli channels: behind a Markov chain the TCP-like "
+                                     "attainable cost is not computed yet; use --target paper (the default) or "
+                                     "--protocol udp (its J* is the attainable cost)")
     for flag, value in (("--alpha", args.alpha), ("--beta", args.beta)):
         if value is None:
             raise InputError(flag, "required" + (" (or buy power: --power)" if flag == "--beta" else ""))
