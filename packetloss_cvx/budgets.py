@@ -28,11 +28,11 @@ from dataclasses import dataclass
 from .errors import BudgetError, InputError
 from .tolerances import MEMORY_BUDGET_BYTES
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work",
-           "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text",
-           "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds", "markov_recursion_work",
-           "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes", "qp_work", "simulate_work", "solve_bytes",
-           "solve_work", "sweep_work", "udp_box_work"]
+__all__ = ["BUDGETS", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "OVERRIDE_REACH", "PROGRAM_BYTES_PER_ENTRY", "Budget",
+           "burstiness_work", "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text",
+           "estimated_seconds", "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes",
+           "markov_dense_seconds", "markov_recursion_work", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
+           "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -112,11 +112,18 @@ def limit(name: str) -> float:
     return value
 
 
-def check(name: str, needed: float, field: str, what: str, instead: str = "") -> None:
+#: an override of a budget is offered only up to this factor beyond it where the work grows exponentially (the chain
+#: DP's 2^t beliefs): 2.42e24 node-outcomes at 2e5 a few seconds would take ~1e12 years
+OVERRIDE_REACH = 100.0
+
+
+def check(name: str, needed: float, field: str, what: str, instead: str = "", reach: float = math.inf) -> None:
     """Refuse ``needed`` (in the budget's unit) beyond the budget ``name``, naming ``field``; ``instead``, what to
     use instead (a cheaper method, a smaller size), goes before the variable that raises the budget. The one shape
     of every refusal: ``field: what is over the budget of B unit (costs); instead, or to run it on purpose set
-    VARIABLE=needed``. O(1).
+    VARIABLE=needed``. Where ``needed`` is more than ``reach`` times the budget (work that grows exponentially, whose
+    override could not finish: `OVERRIDE_REACH`), no variable is offered: ``field: what is N times the budget of
+    B unit (costs): out of reach; instead``. O(1).
 
     Raises
     ------
@@ -137,12 +144,22 @@ of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_
     ...
     packetloss_cvx.errors.BudgetError: --random: 1e5 random systems is over the budget of 1e+04 random systems \
 of an audit (about 5 min); use --random 1000, or to run it on purpose set PACKETLOSS_CVX_BUDGET_AUDIT_CASES=1e+05
+    >>> check("chain_dp_nodes", 2.42e24, "horizon", "the DP", instead="use the bounds", reach=OVERRIDE_REACH)
+    ... # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.BudgetError: horizon: the DP is 1.2e+19 times the budget of 2e+05 node-outcomes ... \
+out of reach (no override of the budget could finish it); use the bounds
     """
     bound = limit(name)
     needed = _float(needed)
     if needed <= bound:
         return
     budget = BUDGETS[name]
+    if needed > reach * bound:
+        raise BudgetError(field, f"{what} is {needed / bound:.2g} times the budget of {bound:.3g} {budget.unit} "
+                                 f"({budget.costs}): out of reach (no override of the budget could finish it)"
+                                 + (f"; {instead}" if instead else ""), needed, bound, budget.env)
     shown = _rounded_up(needed) if math.isfinite(needed) else "inf"
     way = f"{instead}, or " if instead else ""
     raise BudgetError(field, f"{what} is over the budget of {bound:.3g} {budget.unit} ({budget.costs}); "

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..budgets import check, limit
+from ..budgets import OVERRIDE_REACH, check, limit
 from ..errors import BudgetError, NumericalError
 from ..model.chain import chain_matrices, product_chain
 from ..model.system import System
@@ -158,7 +158,7 @@ def chain_layers(system: System, information: str = "acknowledgements", window: 
     check("chain_dp_nodes", needed, field,
           f"the TCP-like DP over the beliefs {information} reach in {system.horizon} steps (up to {needed:.3g} "
           "node-outcomes" + (": the chain's state is hidden)" if information == "acknowledgements" else ")"),
-          instead="a shorter horizon, or closedloop.chain_dp.chain_attainable's bounds")
+          instead="a shorter horizon, or closedloop.chain_dp.chain_attainable's bounds", reach=OVERRIDE_REACH)
     stationary = system.channel.stationary
     keys = [[("prior",)] for _ in chains]
     beliefs = [[pi0] for _, _, pi0 in chains]
@@ -297,7 +297,8 @@ def chain_law_cost(system: System, law: ChainDP) -> float:
     modes, T, h, start = product_chain(system.channel)
     needed = float(sum(prob.size for prob, _, _ in law.layers)) * T.shape[0]
     check("chain_dp_nodes", needed, "horizon", f"the exact cost of a law behind the chain over its {T.shape[0]} joint "
-          f"states ({needed:.3g} node-outcome-states)", instead="fewer channels or a shorter horizon")
+          f"states ({needed:.3g} node-outcome-states)", instead="fewer channels or a shorter horizon",
+          reach=OVERRIDE_REACH)
     Omega, psi = _weights(system)
     n = system.n
     S = np.zeros((T.shape[0], 1, n, n))
