@@ -187,6 +187,23 @@ def plot_allocation_contours(axis: Sequence[float], costs: Any, allocations: Map
                             allocations=lines, title=title, path=path)
 
 
+def _norm_band(mean: np.ndarray, std: np.ndarray, yscale: str) -> tuple[np.ndarray, np.ndarray]:
+    """The band of ||x_t|| drawn by `plot_closed_loop`: mean -+ std (clipped at 0) on a linear or symlog axis; on a
+    log axis the geometric spread mean / g .. mean g with g = 1 + std / mean (upper side mean + std; not drawn where
+    the mean is not positive). O(T).
+
+    >>> lower, upper = _norm_band(np.array([0.5, 0.25]), np.array([1.0, 1.0]), "log")
+    >>> lower.tolist(), upper.tolist()        # 0.25 / 1.5 and 0.0625 / 1.25, never down to 0
+    ([0.16666666666666666, 0.05], [1.5, 1.25])
+    """
+    upper = mean + std
+    if yscale != "log":
+        return np.maximum(mean - std, 0.0), upper
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lower = np.where(mean > 0, mean * mean / upper, np.nan)
+    return lower, np.where(mean > 0, upper, np.nan)
+
+
 def plot_closed_loop(curves: Any, *, yscale: str = "linear", title: str | None = None,
                      path: str | Path | None = None) -> Figure:
     """Closed-loop runs: the mean of ||x_t|| with a band of one standard deviation, and the mean
@@ -201,7 +218,9 @@ def plot_closed_loop(curves: Any, *, yscale: str = "linear", title: str | None =
         (length T), as a ClosedLoopRun holds them. Non-finite values are not drawn.
     yscale : {"linear", "log", "symlog"}
         Both panels' y axes: "log" (or "symlog", which keeps zeros) so that a diverging law does not flatten
-        the others; on "log" the band is drawn from its positive part.
+        the others. On "log" the band is the geometric spread mean x/÷ (1 + std / mean): its upper side is mean +
+        std as on a linear axis, its lower side mean^2 / (mean + std), as far below the mean in log space (mean - std
+        can be <= 0, which a log axis would draw down to its bottom edge, read as spread); the axis label says so.
     title : str, optional
     path : str or Path, optional
 
@@ -245,13 +264,15 @@ def plot_closed_loop(curves: Any, *, yscale: str = "linear", title: str | None =
             raise InputError(field, "expected T + 1 norms (mean and std) and T stage costs")
         t = np.arange(mean.size)
         line, = left.plot(t, mean, label=labels.get(law, str(law)))
-        left.fill_between(t, np.maximum(mean - std, 0.0), mean + std, color=line.get_color(), alpha=0.2)
+        left.fill_between(t, *_norm_band(mean, std, yscale), color=line.get_color(), alpha=0.2)
         right.plot(t[1:], np.cumsum(stage), color=line.get_color(), label=labels.get(law, str(law)))
     for panel in (left, right):
         panel.set_yscale(yscale)
     scale = {"linear": "", "log": " (log scale)", "symlog": " (symmetric log scale)"}[yscale]
     left.set_xlabel("step t")
-    left.set_ylabel(rf"$\|x_t\|$: mean $\pm$ one std{scale}")
+    left.set_ylabel(rf"$\|x_t\|$: mean $\pm$ one std{scale}" if yscale != "log" else
+                    "$\\|x_t\\|$ (log scale): mean,\n"
+                    r"band mean $\times\!/\!\div$ (1 + std/mean)")
     right.set_xlabel("step t")
     right.set_ylabel(f"mean cumulative stage cost{scale}")
     fig.legend(handles=right.get_legend_handles_labels()[0], **LEGEND)
