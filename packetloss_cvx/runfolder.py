@@ -11,9 +11,11 @@
   one file in flight is listed by name only: such an entry makes a file the package's only if it is not older
   than the manifest (the run's last write); an older one is a user's file.
 * A manifest edited by hand (its digest no longer matches) is a changed file: refused without ``force``.
-* A new run into the package's own folder replaces the run as a whole: files of the previous run that
-  this one does not write are removed before its manifest is written. With ``--force`` in a folder
-  holding other files, those files are left alone and are not listed.
+* A new run of the same command (`same_command`: the manifest's command line, ignoring the options that only
+  change what is printed) into the package's own folder replaces the run as a whole: files of the previous run
+  that this one does not write are removed before its manifest is written. A complete run of a different command
+  is refused unless ``force=True``: its files (data, figures in another format) would be replaced or removed.
+  With ``--force`` in a folder holding other files, those files are left alone and are not listed.
 * One run at a time: ``.packetloss-cvx.lock`` (created with O_CREAT|O_EXCL, holding the pid) makes a
   second run refuse ([`FolderBusyError`][packetloss_cvx.errors.FolderBusyError], naming the pid); a lock whose pid
   is dead (a ``kill -9``) is stale and taken over, and the dead run's temporary files are removed.
@@ -29,6 +31,7 @@ import hashlib
 import json
 import os
 import secrets
+import shlex
 import stat
 import sys
 import time
@@ -37,12 +40,35 @@ from pathlib import Path
 from typing import IO, Any
 
 from .errors import FolderBusyError, InputError, OutputExistsError
+from .printable import printable
 from .safeio import TEMP_PREFIX, atomic_write, check_flag, clean_temporaries, file_digest, pid_alive, refuse_special
 
-__all__ = ["LOCK_NAME", "MANIFEST_NAME", "RunFolder", "manifest_digest", "read_manifest"]
+__all__ = ["LOCK_NAME", "MANIFEST_NAME", "RunFolder", "manifest_digest", "read_manifest", "same_command"]
 
 LOCK_NAME = ".packetloss-cvx.lock"
 MANIFEST_NAME = "manifest.json"
+#: options that change only what a command prints (or whether it may replace files), not the files it writes
+PRINT_ONLY = frozenset({"-q", "--quiet", "-v", "-vv", "-vvv", "--verbose", "--force", "--json"})
+
+
+def same_command(earlier: object, now: str) -> bool:
+    """Whether a run folder's manifest's ``command`` (``earlier``) is the command line ``now`` up to the options
+    that only change what is printed (`PRINT_ONLY`): re-running it regenerates the folder's files. O(length).
+
+    >>> same_command("packetloss-cvx sweep pendulum --mu-grid 5 --out s", "packetloss-cvx sweep pendulum "
+    ...              "--mu-grid 5 --out s -q --force")
+    True
+    >>> same_command("packetloss-cvx sweep pendulum --mu-grid 5 --out s", "packetloss-cvx sweep pendulum "
+    ...              "--mu-grid 5 --out s --format pdf")
+    False
+    """
+    if not isinstance(earlier, str):
+        return False
+    try:
+        words = [[w for w in shlex.split(text) if w not in PRINT_ONLY] for text in (earlier, now)]
+    except ValueError:          # unbalanced quotes: a manifest edited by hand (its digest says so too)
+        return earlier == now
+    return words[0] == words[1]
 
 
 def read_manifest(folder: str | Path) -> dict[str, Any] | None:
@@ -240,6 +266,14 @@ class RunFolder:
             raise OutputExistsError(self.field, f"refusing to write into {str(self.path)!r}: {what} {shown}; "
                                                 "pass --force to write there anyway")
         self.previous = sorted(name for name in present if name in entries and name not in changed)
+        if (self.previous and not self.force and manifest is not None and manifest.get("complete") is True
+                and not same_command(manifest.get("command"), self.command)):
+            shown = ", ".join(self.previous[:3]) + (f" and {len(self.previous) - 3} more"
+                                                    if len(self.previous) > 3 else "")
+            raise OutputExistsError(self.field, f"refusing to replace the run in {str(self.path)!r} written by "
+                                                f"`{printable(str(manifest.get('command')))[:200]}` ({shown}): a "
+                                                "different command; pass --force to replace it, or choose another "
+                                                "folder")
         self.carried = {name: verified[name] for name in self.previous}    # listed by this run's unfinished manifest
 
     def _verified(self, entry: dict[str, Any], written: float) -> dict[str, Any] | None:

@@ -71,3 +71,4 @@ def test_a_fractional_dpi_is_exit_2(tmp_path, capsys):
     assert len(err) == 1
     assert "--dpi: expected a whole number" in err[0]
     assert not out.exists()
+

@@ -261,3 +261,24 @@ def test_a_users_edit_inside_the_manifest_is_refused_unless_force(tmp_path):
     assert "table 2" not in (out / MANIFEST_NAME).read_text()
     _run(out, {"a": b"3"})                                      # the package's manifest again: no --force needed
     assert (out / "a").read_bytes() == b"3"
+
+
+def test_a_complete_run_of_another_command_is_refused_unless_force(tmp_path):
+    out = tmp_path / "run"
+    with RunFolder(out, command="packetloss-cvx sweep f --mu-grid 3 --out run --format svg") as run:
+        for name in ("sweep.npz", "sweep_tcp.svg"):
+            with run.write(name) as handle:
+                handle.write(b"earlier " + name.encode())
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    with pytest.raises(OutputExistsError, match="--format svg` .*a different command; pass --force"):
+        with RunFolder(out, command="packetloss-cvx sweep f --mu-grid 3 --out run --format pdf"):
+            pass
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before          # nothing replaced, nothing removed
+    with RunFolder(out, command="packetloss-cvx sweep f --mu-grid 3 --out run --format svg -q --force") as run:
+        with run.write("sweep.npz") as handle:                               # the same command: a re-run
+            handle.write(b"again")
+    assert sorted(os.listdir(out)) == [MANIFEST_NAME, "sweep.npz"]
+    with RunFolder(out, command="packetloss-cvx sweep f --mu-grid 5 --out run", force=True) as run:
+        with run.write("sweep.npz") as handle:
+            handle.write(b"forced")
+    assert (out / "sweep.npz").read_bytes() == b"forced"
