@@ -1131,7 +1131,7 @@ def plot_power_pareto(curves: Mapping[str, Sequence[Mapping]], *, unit: str | No
     fig, ax = _curves(curves, "budget", "cost", skip_missing=False)
     ax.set_yscale("log")
     ax.set_xlabel(rf"total power budget $\sum_i P_i \leq B$ ({unit or 'power-table units'})")
-    ax.set_ylabel(r"least optimal cost $J^*(\mu(P))$, paper basis (log scale)")
+    ax.set_ylabel("least optimal cost $J^*(\\mu(P))$,\npaper basis (log scale)")     # two lines: fits 3.6 in
     if title:
         ax.set_title(title)
     fig.legend(**LEGEND)
