@@ -102,8 +102,10 @@ def test_simulate_runs_the_constrained_loop_with_the_flags_table(tmp_path, capsy
     assert main([*argv, "--u-min", "-0.3", "--u-max", "0.3", "--du-max", "0.2"]) == 0
     loop = json.loads(capsys.readouterr().out)["constrained_loop"]
     assert loop["constraints"] == {"u_min": [-0.3], "u_max": [0.3], "du_max": [0.2]}
-    assert main([*argv]) == 0
+    assert main([*argv[:-4], "--steps", "2"]) == 0                     # no table, no flag: no constrained loop
     assert "constrained_loop" not in json.loads(capsys.readouterr().out)
+    assert main([*argv]) == 2            # --mpc-samples without a table or a flag would change nothing: refused
+    assert "--mpc-samples: needs a [constraints] table" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(("command", "table", "args", "field"), [
