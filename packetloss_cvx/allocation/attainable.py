@@ -33,8 +33,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..budgets import limit
 from ..closedloop.certificates import chain_law_proved_stable, chain_outside_proved
-from ..closedloop.chain_dp import chain_attainable
+from ..closedloop.chain_dp import chain_attainable, chain_dp
 from ..closedloop.law_stability import STABILITY_MAX_N
 from ..closedloop.markov_region import chain_least_radius
 from ..closedloop.mjls import mean_square_radius
@@ -42,12 +43,13 @@ from ..closedloop.modes import mode_stage_costs
 from ..closedloop.region import membership
 from ..closedloop.riccati import dp_backward
 from ..closedloop.stability import is_mean_square_stable
-from ..errors import InputError, NumericalError
+from ..errors import InputError, NumericalError, ResourceError
 from ..model.system import System
 from ..tolerances import SELF_CHECK_RTOL
 from .chains import chain_family
 
-__all__ = ["ATTAINABLE_MAX_N", "CHEAP_FORMS", "LMI_MAX_N", "AttainableEvaluator", "Attainment", "attainment",
+__all__ = ["ATTAINABLE_MAX_N", "CHEAP_FORMS", "LMI_MAX_N", "AttainableEvaluator", "Attainment",
+           "ChainAttainableEvaluator", "attainment",
            "chain_cost", "chain_stabilisable", "forward_cost", "revealing", "stabilisable",
            "tcp_attainable_cost"]
 
@@ -120,6 +122,59 @@ class AttainableEvaluator:
             raise NumericalError(f"finite-horizon DP: its cost {value:.12g} disagrees with the forward cost of its own "
                                  f"law {forward:.12g} beyond SELF_CHECK_RTOL (the weights' scales lose digits)")
         return forward
+
+    def line(self, mu: np.ndarray, i: int, checked: bool = True):
+        base = np.array(mu, dtype=float)
+
+        def at(value: float) -> float:
+            point = base.copy()
+            point[i] = value
+            return self.cost(point, checked)
+
+        return at
+
+
+class ChainAttainableEvaluator:
+    """The TCP-like attainable cost behind chains as the monotone searches of `.udp` ask it: ``cost(mu, checked)``,
+    the chain DP's cost with each channel's chain at mean rate mu_i along its family (`.chains.ChainFamily`:
+    burstiness held on Gilbert channels, deliveries scaled on the others; rates above a family's top evaluated at
+    the top), self-checked against the forward cost of its own law (closedloop.chain_dp.chain_attainable; ``checked``
+    accepted, nothing skipped), and ``line``. Non-increasing in each mu_i along both families (docs/mathematics.md,
+    "Design on the attainable cost behind a chain"). The exact DP must fit the ``chain_dp_nodes`` budget: checked
+    once at construction (`chain_dp` at an interior rate, where the fewest outcomes identify a state). Per point
+    O(`chain_attainable`).
+
+    Raises
+    ------
+    BudgetError
+        At construction: the DP behind the chain does not fit the ``chain_dp_nodes`` budget (a hidden state over
+        a long horizon).
+    ResourceError
+        A point of the search where only bounds are computed (the structure of its chain differs from the one
+        checked).
+
+    Examples
+    --------
+    One step of x' = x + v u behind a Gilbert channel: the law knows only the stationary mean, 1 - mu / 2.
+
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+    ...            channel=GilbertElliott(p=[0.1], r=[0.4]))
+    >>> round(ChainAttainableEvaluator(s).cost(np.array([0.5])), 12)
+    0.75
+    """
+
+    def __init__(self, system: System) -> None:
+        self.system = system
+        self.family = chain_family(system)
+        chain_dp(system.with_channel(self.family.channel_at(0.5 * self.family.top)))       # the budget, or refused
+
+    def cost(self, mu: np.ndarray, checked: bool = True) -> float:
+        found = chain_attainable(self.system.with_channel(self.family.channel_at(np.asarray(mu, dtype=float))))
+        if found.cost is None:
+            raise ResourceError(f"design on the attainable cost behind the chain at mu = "
+                                f"{np.round(mu, 6).tolist()}: {found.note}", float("nan"), limit("chain_dp_nodes"))
+        return float(found.cost)
 
     def line(self, mu: np.ndarray, i: int, checked: bool = True):
         base = np.array(mu, dtype=float)

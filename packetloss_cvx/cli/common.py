@@ -460,10 +460,10 @@ WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"
 
 def warning_advice(result: Any, channel: Any, file: str) -> str:
     """What the warning line advises after an allocation for ``file``: `WARNING_ADVICE` on Bernoulli channels; behind
-    a Markov chain (``channel``), where ``--target stable|dp-cost`` and ``--target attainable`` do not apply, what
-    does: for a loop no law holds, the chain's critical mean rate and stabilisable map (``region FILE``, two-state
-    chains; nothing for k-state chains) to raise ``--bounds`` above; for an attainable cost above alpha, a lower
-    ``--alpha`` with the attainable cost read at each mu*. O(1).
+    a Markov chain (``channel``), where ``--target stable|dp-cost`` do not apply (they design Bernoulli channels),
+    what does: for a loop no law holds, the chain's critical mean rate and stabilisable map (``region FILE``,
+    two-state chains; nothing for k-state chains) to raise ``--bounds`` above; for an attainable cost above alpha,
+    ``--target attainable`` (the chain DP along the family). O(1).
 
     Examples
     --------
@@ -473,9 +473,9 @@ def warning_advice(result: Any, channel: Any, file: str) -> str:
     >>> warning_advice(r, None, "f.toml") == WARNING_ADVICE
     True
     >>> text = warning_advice(r, GilbertElliott(p=[0.1], r=[0.4]), "f.toml")
-    >>> text.startswith(" (behind a chain --target stable|dp-cost|attainable do not apply: "), "region f.toml" in text
+    >>> text.startswith(" (behind a chain --target stable|dp-cost do not apply: "), "region f.toml" in text
     (True, True)
-    >>> "a lower --alpha" in text                     # 9 > alpha = 8: the attainable cost misses it too
+    >>> "--target attainable" in text                 # 9 > alpha = 8: the attainable cost misses it too
     True
     """
     if channel is None:
@@ -489,8 +489,8 @@ def warning_advice(result: Any, channel: Any, file: str) -> str:
     alpha = getattr(result, "alpha", None)
     if (alpha is not None and result.attainable_cost is not None
             and result.attainable_cost > alpha * (1.0 + ALLOCATION_COST_RTOL)):
-        parts.append("a lower --alpha, reading the attainable cost at each mu*")
-    return " (behind a chain --target stable|dp-cost|attainable do not apply: " + "; ".join(parts) + ")"
+        parts.append("--target attainable designs on the chain's attainable cost")
+    return " (behind a chain --target stable|dp-cost do not apply: " + "; ".join(parts) + ")"
 
 
 def attained_rows(result: Any) -> list[tuple[str, str]]:
