@@ -13,6 +13,8 @@ from ..model.system import System
 from ..progress import progress_bar
 from ..results import ClaimResult
 from ..threads import blas_limited
+from .chain_tcp import STATEMENT as TCP_PRIOR_MEAN_CHAIN
+from .chain_tcp import tcp_prior_mean_chain
 from .channel_allocation import allocation_udp_perfect
 from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
@@ -66,10 +68,11 @@ CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the
 CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # the paper's open problem
 CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture
 CLAIMS["expectation-mpc-feasibility"] = (EXPECTATION_MPC, expectation_mpc)   # Trodden & Li's constrained loop
+CLAIMS["tcp-prior-mean-chain"] = (TCP_PRIOR_MEAN_CHAIN, tcp_prior_mean_chain)   # the TCP-like cost behind chains
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain
-CHAIN_CLAIMS = frozenset({"plug-in-markov"})
+CHAIN_CLAIMS = frozenset({"plug-in-markov", "tcp-prior-mean-chain"})
 
 
 @blas_limited
