@@ -24,7 +24,7 @@ linear law that holds it mean-square stable. Every allocation result therefore c
   (the certificate bounds every causal law whose input is chosen before its step's deliveries, linear or not, on
   acknowledgements or on the state), True only for a law that ignores the chain state (one gain ``u = -K x``,
   tried at the mode gains of the least radius), and otherwise None with the reason (the laws on acknowledgement
-  histories are not decided).
+  histories are not decided). A UDP-like allocation's loop gets no acknowledgements: the state-free class always.
 """
 
 from __future__ import annotations
@@ -215,7 +215,7 @@ def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
     return _dp(system, schedule)[1]
 
 
-def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
+def stabilisable(system: System, mu: np.ndarray, acknowledged: bool = True) -> tuple[bool | None, str]:
     """Is there a linear law u = -K x that holds the loop mean-square stable at ``mu`` (Bernoulli losses, full
     state)? ``(verdict, note)``: True or False each on a certificate checked in numpy (the "riccati" and "dp"
     forms of [`membership`][packetloss_cvx.closedloop.region.membership], cross-checked; "lmi" where neither decides,
@@ -234,7 +234,7 @@ def stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
     (False, True)
     """
     if system.channel is not None:
-        return chain_stabilisable(system, mu)
+        return chain_stabilisable(system, mu, acknowledged)
     if system.n > ATTAINABLE_MAX_N:
         return None, f"not computed for n = {system.n} > {ATTAINABLE_MAX_N} (it can take minutes)"
     try:
@@ -265,7 +265,7 @@ def revealing(channel) -> bool:
     return all(d.size == 2 and sorted(d.tolist()) == [0.0, 1.0] for d in channel.delivery)
 
 
-def chain_stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str]:
+def chain_stabilisable(system: System, mu: np.ndarray, acknowledged: bool = True) -> tuple[bool | None, str]:
     """Does some law hold the loop mean-square stable behind the system's chain moved to the mean rates ``mu``
     along its family (`.chains.chain_family`)? ``(verdict, note)`` as `stabilisable`, the class of laws decided
     over in the module docstring: the chain region engine's least radius over mode-dependent laws on the last
@@ -273,7 +273,8 @@ def chain_stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str
     TCP-like acknowledgement of a Gilbert channel reveals the last one); "stable" counts where its gains' coupled
     radius is proved below ``1 - MEAN_SQUARE_MARGIN`` in exact arithmetic
     (closedloop.certificates.chain_law_proved_stable) and the acknowledgements reveal the state (else only a
-    state-free gain so proved counts); "unstable" where its certificate proves every law's radius >= 1 exactly
+    state-free gain so proved counts; ``acknowledged`` False, a UDP-like loop, which gets no acknowledgements: only a
+    state-free gain); "unstable" where its certificate proves every law's radius >= 1 exactly
     (closedloop.certificates.chain_outside_proved). Otherwise None with the reason. Two-state chains (the engine's
     scope), n <= `ATTAINABLE_MAX_N`. Time O((2^m n^2)^3) for the radius, the certificates' exact checks
     O(4^m (n + m)^3) integer operations.
@@ -309,14 +310,16 @@ def chain_stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str
                            f"exactly: every law's radius >= 1; least mode-dependent radius {lam:.6g})")
         if found.verdict == "undecided":
             return None, f"undecided behind the chain: {found.reason}"
-        if revealing(channel):
+        if acknowledged and revealing(channel):
             if not chain_law_proved_stable(A, B, channel, found.gain, found.radius, "next"):
                 return None, (f"undecided: the mode gains' coupled radius {found.radius:.6g} < 1 does not survive "
                               "exact arithmetic")
             verdict, why = True, (f"a law on the chain state the acknowledgements reveal, u = -K_a x, has "
                                   f"mean-square radius {found.radius:.6g} < 1 behind the chain (certified)")
         else:
-            verdict, why = _state_free(A, B, channel, found.gain, found.radius)
+            hidden = ("the acknowledgements do not reveal the state here" if acknowledged else
+                      "a UDP-like loop gets no acknowledgements")
+            verdict, why = _state_free(A, B, channel, found.gain, found.radius, hidden)
     except (InputError, NumericalError) as err:        # a budget or a failed routine: not a verdict
         return None, f"undecided behind the chain: {err}"
     if verdict and system.sensor is not None:
@@ -325,7 +328,8 @@ def chain_stabilisable(system: System, mu: np.ndarray) -> tuple[bool | None, str
     return verdict, why
 
 
-def _state_free(A: np.ndarray, B: np.ndarray, channel, gains: np.ndarray, radius: float) -> tuple[bool | None, str]:
+def _state_free(A: np.ndarray, B: np.ndarray, channel, gains: np.ndarray, radius: float, hidden: str
+                ) -> tuple[bool | None, str]:
     """`chain_stabilisable` where the acknowledgements hide the chain state: True where one of the mode gains,
     used in every state, has a coupled radius proved below 1 - MEAN_SQUARE_MARGIN exactly; else None."""
     tried = []
@@ -336,9 +340,9 @@ def _state_free(A: np.ndarray, B: np.ndarray, channel, gains: np.ndarray, radius
                                                                      value, "next"):
             return True, (f"a law that ignores the chain state, u = -K x, has mean-square radius {value:.6g} < 1 "
                           "behind the chain (certified)")
-    return None, (f"a law on the chain state would hold the loop (least radius {radius:.6g}), but the "
-                  "acknowledgements do not reveal the state here, and no state-free gain tried is certified (radii "
-                  f"{', '.join(f'{v:.6g}' for v in tried)}); laws on the acknowledgement history are not decided")
+    return None, (f"a law on the chain state would hold the loop (least radius {radius:.6g}), but {hidden}, and no "
+                  f"state-free gain tried is certified (radii {', '.join(f'{v:.6g}' for v in tried)}); laws on the "
+                  "acknowledgement history are not decided")
 
 
 def chain_cost(system: System, mu: np.ndarray) -> tuple[float | None, str]:
@@ -367,7 +371,7 @@ def attainment(system: System, protocol: str, mu: np.ndarray, cost: float, chain
     allocation's own cost: UDP-like it is the attainable cost already (J*_udp, or behind a chain the exact cost
     under it, ``chain`` True). O(N (n^3 + m^3)) plus `stabilisable`."""
     mu = np.asarray(mu, dtype=float)
-    verdict, why = stabilisable(system, mu)
+    verdict, why = stabilisable(system, mu, acknowledged=protocol != "udp")
     if protocol == "udp":
         return Attainment(float(cost), "exact expected cost of the optimal plan" + (" under the chain" if chain
                                                                                        else " (J*_udp)"),

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from packetloss_cvx import System, allocate
-from packetloss_cvx.allocation.attainable import chain_stabilisable, revealing
+from packetloss_cvx.allocation.attainable import attainment, chain_stabilisable, revealing
 from packetloss_cvx.model.channel import GilbertElliott, MarkovChannel
 
 
@@ -150,3 +150,21 @@ def test_tcp_allocation_behind_a_chain_carries_the_verdict_at_mu_star():
         assert a.stabilisable is expected, (alpha, mu, a.stability_note)
         seen.add(expected)
     assert seen == {True, False}
+
+
+def test_a_udp_like_loop_is_decided_over_laws_that_ignore_the_chain_state():
+    """Two revealing Gilbert channels where a law on the last state holds the loop (enumerated least radius just
+    below 1): the TCP-like verdict is True (the acknowledgements reveal the state), the UDP-like one, whose loop gets
+    no acknowledgements, None with the reason (no state-free gain tried is certified)."""
+    A = np.array([[1.04, -0.16], [-0.44, -1.55]])
+    B = np.array([[0.88, 0.4], [0.99, -0.86]])
+    ch = GilbertElliott(p=[0.205, 0.14], r=[0.435, 0.31])
+    s = System(A=A, B=B, horizon=2, state_weight=[1.0, 1.0], input_weight=[1.0, 1.0], x0=[1.0, 1.0], channel=ch)
+    reference = least_radius_enumerated(A, B, list(ch.transition), list(ch.delivery))
+    assert reference < 1 - 1e-4
+    assert chain_stabilisable(s, ch.mean_rate)[0] is True
+    verdict, note = chain_stabilisable(s, ch.mean_rate, acknowledged=False)
+    assert verdict is None
+    assert "UDP-like loop gets no acknowledgements" in note
+    assert attainment(s, "udp", ch.mean_rate, 1.0).stabilisable is None
+    assert attainment(s, "tcp", ch.mean_rate, 1.0).stabilisable is True
