@@ -118,20 +118,25 @@ def _time(call, repeat: int) -> tuple[float, object]:
     return (time.process_time() - start) / repeat, value
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def side_by_side(cases, description: str, argv: list[str] | None = None) -> None:
+    """The harness: ``cases(modules)`` (the dict `_load` returns -> [(label, call), ...]) timed for the checkout
+    ``--baseline`` and this one, interleaved round by round (``--rounds``), each tree first every other round; prints
+    per case the medians in milliseconds per call, the ratio this / baseline (median and range of the per-round
+    ratios) and the largest relative change of the answers (`_floats`). benchmarks/riccati_engine.py runs its own
+    cases through it."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--baseline", type=Path, required=True)
     parser.add_argument("--rounds", type=int, default=7)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     trees = {"base": args.baseline.resolve(), "this": ROOT}
     times: dict[str, dict[str, list[float]]] = {}
     answers: dict[str, dict[str, np.ndarray]] = {"base": {}, "this": {}}
     labels: list[str] = []
     for round_ in range(args.rounds):
         for tree, root in sorted(trees.items(), reverse=bool(round_ % 2)):      # each goes first every other round
-            cases = _cases(_load(root))
-            labels = labels or [label for label, _ in cases]
-            for label, call in cases:
+            found = cases(_load(root))
+            labels = labels or [label for label, _ in found]
+            for label, call in found:
                 call()                                                     # warm (lazy imports, caches)
                 first, _ = _time(call, 1)
                 seconds, value = _time(call, max(1, min(50, int(0.05 / max(first, 1e-6)))))
@@ -147,6 +152,10 @@ def main() -> None:
                 if a.shape == b.shape else float("nan")
         print(f"{label:44s} {1e3 * statistics.median(base):9.3f} {1e3 * statistics.median(this):9.3f} "
               f"{statistics.median(ratios):9.3f} {min(ratios):6.3f}-{max(ratios):6.3f} {change:15.2e}")
+
+
+def main() -> None:
+    side_by_side(_cases, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

@@ -2,8 +2,9 @@
 OPENBLAS_NUM_THREADS=1) and the answers of each case, each version in its own subprocess, interleaved rounds,
 best of the rounds. Cases: ``packetloss-cvx region`` on every shipped example (the CLI's run, its JSON data), the
 plants and channels of tests/closedloop/test_region.py (least radii, memberships, critical points), and a few of
-tests/closedloop/test_markov_region.py's (Gilbert-Elliott chains: memberships under both conventions, a rate map, a critical
-mean rate). Rounds alternate which version runs first.
+tests/closedloop/test_markov_region.py's (Gilbert-Elliott chains: memberships under both conventions, a rate map, a
+critical mean rate); the plants come from tests/plants.py of this checkout for both versions. Rounds alternate which
+version runs first.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/region_engine.py [--baseline /work/wt/base-region] [--rounds 3]
     OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_engine.py --one-mode
@@ -49,16 +50,27 @@ def _flat(value, numbers: list, words: list) -> None:
             words.extend(str(v) for v in arr.ravel())
 
 
+def _plants():
+    """tests/plants.py of this checkout (the plants the region tests use), loaded by path: the same cases for the
+    baseline's worker, whose own tests may differ."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("region_engine_plants", HERE / "tests" / "plants.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def _cases():
     """name -> callable returning a JSON-like answer (the worker's cases)."""
     import numpy as np
-    from packetloss_cvx.examples import __file__ as examples_init
 
     from packetloss_cvx import System, load_example
     from packetloss_cvx.cli.parser import build_parser
     from packetloss_cvx.cli.region import run
     from packetloss_cvx.closedloop.critical import critical_point
     from packetloss_cvx.closedloop.region import certificate_margin, homogeneous_riccati, membership
+    from packetloss_cvx.model.examples import __file__ as examples_init
 
     def member(found):
         return [found.verdict, found.radius, found.certificate_margin, list(found.forms)]
@@ -67,39 +79,11 @@ def _cases():
         return [p.t, p.lower, None if p.inside is None else p.inside.verdict,
                 None if p.outside is None else p.outside.verdict]
 
-    def scalar(a=2.0, b=(1.0,), psi=0.1):
-        m = len(b)
-        return System(A=[[a]], B=[list(b)], horizon=2, state_weight=[1.0], input_weight=[psi] * m, mu=[1.0] * m,
-                      x0=[1.0])
-
-    def decoupled(a):
-        n = len(a)
-        return System(A=np.diag(a), B=np.eye(n), horizon=2, state_weight=[1.0] * n, input_weight=[1.0] * n,
-                      mu=[1.0] * n, x0=[1.0] * n)
-
-    def chain(a0, n=4):
-        A = a0 * np.eye(n) + np.eye(n, k=1)
-        return System(A=A, B=np.eye(n)[:, n - 1:], horizon=2, state_weight=[1.0] * n, input_weight=[1.0], mu=[1.0],
-                      x0=[1.0] * n)
+    plants = _plants()
+    scalar, decoupled, chain = plants.scalar, plants.decoupled, plants.chain
 
     def single_input(seed):
-        rng = np.random.default_rng(seed)
-        blocks = []
-        for value in rng.permutation([1.08, 1.25, -1.4, 0.6, -0.3, 0.85, 1.6])[: int(rng.integers(2, 4))]:
-            size = int(rng.integers(1, 4))
-            blocks.append(value * np.eye(size) + np.eye(size, k=1))
-        if rng.random() < 0.5:
-            r, theta = float(rng.choice([0.7, 1.15])), float(rng.uniform(0.3, 2.5))
-            blocks.append(r * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]]))
-        n = sum(len(b) for b in blocks)
-        J, b, k = np.zeros((n, n)), np.zeros(n), 0
-        for block in blocks:
-            J[k:k + len(block), k:k + len(block)] = block
-            k += len(block)
-            b[k - 1] = 1.0
-        Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-        return System(A=Q @ J @ Q.T, B=(Q @ b)[:, None], horizon=2, state_weight=[1.0] * n, input_weight=[1.0],
-                      mu=[1.0], x0=[1.0] * n)
+        return plants.single_input_plant(np.random.default_rng(seed))[0]
 
     def arrays(s):
         return np.asarray(s.A, float), np.asarray(s.B, float)

@@ -12,13 +12,10 @@ answer moved from the stopped value iteration to the fixed point).
 
 from __future__ import annotations
 
-import argparse
-import statistics
 import sys
-from pathlib import Path
 
 import numpy as np
-from mode_engine import ROOT, _floats, _load, _time
+from mode_engine import side_by_side
 
 
 def _chain(mj, system) -> tuple[np.ndarray, ...]:
@@ -74,34 +71,7 @@ def _cases(mod: dict) -> list[tuple[str, object]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--baseline", type=Path, required=True)
-    parser.add_argument("--rounds", type=int, default=7)
-    args = parser.parse_args()
-    trees = {"base": args.baseline.resolve(), "this": ROOT}
-    times: dict[str, dict[str, list[float]]] = {}
-    answers: dict[str, dict[str, np.ndarray]] = {"base": {}, "this": {}}
-    labels: list[str] = []
-    for round_ in range(args.rounds):
-        for tree, root in sorted(trees.items(), reverse=bool(round_ % 2)):      # each goes first every other round
-            cases = _cases(_load(root))
-            labels = labels or [label for label, _ in cases]
-            for label, call in cases:
-                call()                                                     # warm (lazy imports, caches)
-                first, _ = _time(call, 1)
-                seconds, value = _time(call, max(1, min(50, int(0.05 / max(first, 1e-6)))))
-                times.setdefault(label, {"base": [], "this": []})[tree].append(seconds)
-                answers[tree][label] = _floats(value)
-    print(f"{'case':44s} {'base ms':>9s} {'this ms':>9s} {'this/base':>9s} {'range':>13s} {'max rel change':>15s}")
-    for label in labels:
-        base, this = times[label]["base"], times[label]["this"]
-        ratios = [t / b for t, b in zip(this, base, strict=True)]
-        a, b = answers["base"][label], answers["this"][label]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            change = float(np.max(np.abs(b - a) / np.maximum(np.abs(a), np.finfo(float).tiny), initial=0.0)) \
-                if a.shape == b.shape else float("nan")
-        print(f"{label:44s} {1e3 * statistics.median(base):9.3f} {1e3 * statistics.median(this):9.3f} "
-              f"{statistics.median(ratios):9.3f} {min(ratios):6.3f}-{max(ratios):6.3f} {change:15.2e}")
+    side_by_side(_cases, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

@@ -337,16 +337,17 @@ def allocation_html(a: Any) -> str:
 
 
 def batch_repr(b: Any) -> str:
-    """``BatchSolution(protocol='tcp', points=1000, method='dense', costs in [2.7985, 41.07])``.
+    """``BatchSolution(protocol='tcp', points=1000, method='dense', paper costs in [2.7985, 41.07])``.
 
     >>> from types import SimpleNamespace
     >>> batch_repr(SimpleNamespace(protocol="tcp", costs=np.array([41.07, 2.79847, 9.0]), method="dense"))
-    "BatchSolution(protocol='tcp', points=3, method='dense', costs in [2.79847, 41.07])"
+    "BatchSolution(protocol='tcp', points=3, method='dense', paper costs in [2.79847, 41.07])"
     >>> batch_repr(SimpleNamespace(protocol="udp", costs=np.array([]), method="dense"))
-    "BatchSolution(protocol='udp', points=0, method='dense', costs in [])"
+    "BatchSolution(protocol='udp', points=0, method='dense', paper costs in [])"
     """
     span = f"[{np.min(b.costs):.6g}, {np.max(b.costs):.6g}]" if len(b.costs) else "[]"
-    return f"BatchSolution(protocol={b.protocol!r}, points={len(b.costs)}, method={b.method!r}, costs in {span})"
+    return (f"BatchSolution(protocol={b.protocol!r}, points={len(b.costs)}, method={b.method!r}, paper costs in "
+            f"{span})")
 
 
 def maximiser_repr(x: Any) -> str:
@@ -410,12 +411,12 @@ def design_sweep_repr(d: Any) -> str:
     ...                     costs={"tcp": np.array([3.0, 2.0, 1.0])},
     ...                     difference=None, radii={})
     >>> design_sweep_repr(d)
-    "DesignSweep('x', kind='horizon', shape={'horizon': 3}, J*_tcp in [1, 3])"
+    "DesignSweep('x', kind='horizon', shape={'horizon': 3}, J*_tcp (paper) in [1, 3])"
     """
     label = f"{d.name!r}, " if d.name else ""
-    parts = [f"J*_{p} in {span(v)}" for p, v in d.costs.items()]
+    parts = [f"J*_{p} (paper) in {span(v)}" for p, v in d.costs.items()]
     if d.difference is not None:
-        parts.append(f"J_Delta in {span(d.difference)}")
+        parts.append(f"J_Delta (paper) in {span(d.difference)}")
     parts += [f"radius_{p} in {span(v)}" for p, v in d.radii.items()]
     shape = "{" + ", ".join(f"{k!r}: {v}" for k, v in zip(d.dims, d.shape, strict=True)) + "}"
     return f"DesignSweep({label}kind={d.kind!r}, shape={shape}, " + ", ".join(parts) + ")"
@@ -436,8 +437,8 @@ def design_sweep_html(d: Any) -> str:
     rows: list[tuple[str, Any]] = [("name", d.name or "(unnamed)"), ("kind", d.kind)]
     rows += [(f"axis {k}" if len(d.dims) > 1 else "axis", f"{k}: {a.size} points in [{a.min():.4g}, {a.max():.4g}]")
              for k, a in zip(d.dims, d.axes, strict=True)]
-    quantities = {**{f"J*_{p}": v for p, v in d.costs.items()},
-                  **({"J_Delta = J*_udp - J*_tcp": d.difference} if d.difference is not None else {}),
+    quantities = {**{f"J*_{p}, paper": v for p, v in d.costs.items()},
+                  **({"J_Delta = J*_udp - J*_tcp, paper": d.difference} if d.difference is not None else {}),
                   **{f"mean-square radius, {p}": v for p, v in d.radii.items()}}
     for label, values in quantities.items():
         arr = np.asarray(values, dtype=float)

@@ -49,6 +49,10 @@ LAZY_MODULES: Mapping[str, str] = MappingProxyType({
     "closedloop.region_lmi": "the stabilisable set's LMI form (cvxpy): only where asked or where the Riccati forms "
                              "cannot decide",
     "allocation.brute_force": "the brute-force allocation reference, through the allocation package (cvxpy)",
+    "allocation.api": "the channel allocation (cvxpy), through the allocation package: only the audit's claims "
+                      "on the designs' attainable costs",
+    "allocation.attainable": "what a loop attains at a design, through the allocation package (cvxpy): only the "
+                             "audit's claims on the designs' attainable costs",
     "allocation.power": "power-limited links (cvxpy): only the power-water-filling claim of the audit",
     "allocation.delivery": "the delivery-versus-power models, through the allocation package (cvxpy): only the "
                            "power-water-filling claim of the audit",

@@ -29,9 +29,9 @@ from typing import IO, Any
 
 from .errors import InputError, OutputExistsError
 
-__all__ = ["FIGURE_DPI", "TEMP_PREFIX", "atomic_write", "check_flag", "check_output_file", "clean_temporaries",
-           "figure_path", "file_digest", "laid_out_once", "pid_alive", "refuse_folder_name", "refuse_special",
-           "save_figure"]
+__all__ = ["FIGURE_DPI", "TEMP_PREFIX", "atomic_write", "check_dpi", "check_flag", "check_output_file",
+           "clean_temporaries", "figure_path", "file_digest", "laid_out_once", "pid_alive", "refuse_folder_name",
+           "refuse_special", "save_figure"]
 
 #: the recognisable start of every temporary file (``<prefix><pid>-<random>-<name>``)
 TEMP_PREFIX = ".packetloss-cvx-tmp-"
@@ -276,10 +276,11 @@ def figure_path(path: str | Path) -> Path:
 
 
 def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False, field: str = "path",
-                folder: Any = None) -> Path:
+                folder: Any = None, dpi: float | None = None) -> Path:
     """Save a Matplotlib figure atomically: the format follows the extension (none: PNG, and ``.png`` is
     appended, as ``savefig`` does); with ``folder`` (a `RunFolder`),
-    ``path`` is a name in that folder. A format
+    ``path`` is a name in that folder; ``dpi`` (default `FIGURE_DPI`) the resolution of a raster format (and
+    recorded in a PNG's header). A format
     Matplotlib cannot write is an [`InputError`][packetloss_cvx.errors.InputError] naming ``field``. Returns the
     path written. O(pixels).
 
@@ -292,31 +293,52 @@ def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False, field: s
     """
     check_flag(overwrite, "overwrite")
     refuse_folder_name(path, field)
+    dpi = FIGURE_DPI if dpi is None else check_dpi(dpi, field="dpi")
     path = figure_path(path)
     fmt = path.suffix[1:].lower()
     target = folder.write(path.name) if folder is not None else atomic_write(path, overwrite=overwrite, field=field)
     with target as handle:
         try:
-            with laid_out_once(fig, fmt):
-                fig.savefig(handle, format=fmt, dpi=FIGURE_DPI)
+            with laid_out_once(fig, fmt, dpi):
+                fig.savefig(handle, format=fmt, dpi=dpi)
         except ValueError as err:          # e.g. an extension Matplotlib cannot write
             raise InputError(field, str(err)) from None
     return folder.path / path.name if folder is not None else path
 
 
-#: The resolution of every figure :func:`save_figure` writes (dots per inch).
+#: The resolution of every figure :func:`save_figure` writes unless told (dots per inch).
 FIGURE_DPI = 120
 
 
+def check_dpi(dpi: Any, field: str = "dpi") -> float:
+    """A figure's resolution: a finite number of dots per inch in [10, 2400] (beyond, a figure of a few inches is
+    either unreadable or hundreds of megabytes), else an InputError naming ``field``. O(1).
+
+    >>> check_dpi(300), check_dpi("72.5")
+    (300, 72.5)
+    >>> check_dpi(0, "--dpi")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: --dpi: expected dots per inch in [10, 2400], found 0
+    """
+    try:
+        value = float(dpi)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if isinstance(dpi, bool) or not 10.0 <= value <= 2400.0:
+        raise InputError(field, f"expected dots per inch in [10, 2400], found {dpi!r}")
+    return int(value) if value.is_integer() else value          # as savefig(dpi=120) writes it, byte for byte
+
+
 @contextlib.contextmanager
-def laid_out_once(fig: Any, fmt: str) -> Iterator[None]:
+def laid_out_once(fig: Any, fmt: str, dpi: float = FIGURE_DPI) -> Iterator[None]:
     """Within the block, a PNG of ``fig`` with a constrained layout is drawn once: the layout is run here on the
-    Agg canvas at `FIGURE_DPI` (the renderer savefig then draws with) and the figure left without a layout
-    engine, so savefig skips its layout pass (a whole draw with rendering off, made only to run the engine) and
-    draws once. The same bytes as a plain ``savefig(dpi=FIGURE_DPI)`` (tests/house/test_safeio.py), at one draw less per
-    figure. Other formats, figures without a constrained
-    layout, and rcParams that would put an engine back are left to savefig. The figure's canvas, dpi and engine
-    are restored on exit. O(1) besides the layout.
+    Agg canvas at ``dpi`` (default `FIGURE_DPI`; the renderer savefig then draws with) and the figure left
+    without a layout engine, so savefig skips its layout pass (a whole draw with rendering off, made only to run
+    the engine) and draws once. The same bytes as a plain ``savefig(dpi=dpi)`` (tests/house/test_safeio.py), at
+    one draw less per figure. Other formats, figures without a constrained layout, and rcParams that would put
+    an engine back are left to savefig. The figure's canvas, dpi and engine are restored on exit.
+    O(1) besides the layout.
 
     >>> from matplotlib.figure import Figure
     >>> fig = Figure(layout="constrained")
@@ -337,16 +359,16 @@ def laid_out_once(fig: Any, fmt: str) -> Iterator[None]:
         return
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    canvas, dpi = fig.canvas, fig.dpi
+    canvas, own_dpi = fig.canvas, fig.dpi
     try:
         FigureCanvasAgg(fig)
-        fig.dpi = FIGURE_DPI
+        fig.dpi = dpi
         engine.execute(fig)
         fig.set_layout_engine(None)
         yield
     finally:
         fig.set_layout_engine(engine)
-        fig.dpi = dpi
+        fig.dpi = own_dpi
         fig.set_canvas(canvas)
 
 

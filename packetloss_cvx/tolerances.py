@@ -139,6 +139,8 @@ STATIONARY_RTOL = 1e-14
 #: scans and step by step) agree to PATH_AGREEMENT_RTOL of each array's largest entry: every cost, plan and gain.
 #: Measured: worst 5.6e-14 over benchmarks/kernel_agreement.py's 405 systems (the gains of the slowly converging
 #: plant with one usable input, against the step-by-step pass; each of the two within 8.3e-14 of an 80-bit pass).
+#: The exact Markov cost's forward pass in blocks with its Stein-summed tail against the plain step-by-step loop:
+#: worst 1.9e-13 (benchmarks/markov_tail.py, a noisy plan over N = 8000; each within 1.0e-13 of an 80-bit loop).
 PATH_AGREEMENT_RTOL = 1e-12
 
 #: The TCP-like DP behind a chain (closedloop.chain_dp) and its independent references agree within CHAIN_DP_RTOL
@@ -299,6 +301,19 @@ __all__ += ["ALLOCATION_TCP_ATTEMPTS"]
 #: benchmark's 18 calls (seeds 1-3) on all 18 (15 equilibrated: three second attempts), mu within 1.2e-10.
 ALLOCATION_TCP_ATTEMPTS = ({**CLARABEL_TIGHT, "equilibrate_enable": False}, CLARABEL_DEFAULT)
 
+__all__ += ["CONSTRAINED_ATTEMPTS"]
+
+#: The constrained QP's compiled program (qp.constrained.ConstrainedQP, the default Clarabel path) tries the tight
+#: settings and then the defaults without Clarabel's equilibration, on solvers kept and updated with each re-solve's
+#: data (convex.ClarabelProgram: the same floats as a new solver, the set-up saved, an answer that depends on its
+#: own data only), and last the defaults equilibrated, cold. Its answers are polished and KKT-checked as before, so
+#: the settings decide speed only. Measured on 321 re-solves (60 random systems, n = 2..4, m = 1..3, N = 4..20, both
+#: protocols, input, rate and chance rows binding, three x0 each): the first attempt ends "optimal" on 273, the
+#: second on the other 48, none needs the third (problem.solve's equilibrated tight and default attempts: 272 and
+#: 49); the returned plans agree with problem.solve's to 4.0e-15 relative to max|U|.
+CONSTRAINED_ATTEMPTS = ({**CLARABEL_TIGHT, "equilibrate_enable": False},
+                        {**CLARABEL_DEFAULT, "equilibrate_enable": False}, CLARABEL_DEFAULT)
+
 __all__ += ["ALLOCATION_CUT_STEPS"]
 
 #: The TCP-like lower bounds take tangent cuts of the convex J*_tcp at the solver's point and at
@@ -439,7 +454,9 @@ COUPLED_ZERO_RTOL = 1e-12
 COUPLED_BRACKET_RTOL = 1e-10
 
 # ------------------------------------------------------------------ the actuator on a loss (closedloop/actuator.py)
-__all__ += ["ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL", "SAMPLED_Z_MAX"]
+__all__ += ["ACTUATOR_COMPARE_TOL", "ACTUATOR_CRITICAL_MU_ATOL", "ACTUATOR_DP_RTOL", "ACTUATOR_DP_STATIONARY_RTOL",
+            "ACTUATOR_EXACT_RTOL", "ACTUATOR_ZERO_RTOL",
+            "SAMPLED_Z_MAX"]
 #: "zero" is today's loop: the same engine call on the same arrays, so its radius and costs agree with
 #: closedloop.stability / moments / mjls to this (measured: 0, bit for bit, on four channels under Haswell, Prescott and
 #: SkylakeX kernels).
@@ -455,6 +472,17 @@ ACTUATOR_EXACT_RTOL = 1e-12
 #: root, both by brentq to xtol 1e-14 (measured: at most 2.0e-15 over three plants and four strategies, under Haswell,
 #: Prescott and SkylakeX kernels).
 ACTUATOR_CRITICAL_MU_ATOL = 1e-12
+#: The optimal law per strategy (closedloop/actuator_design.py) against its references: the enumerated optimum over
+#: every delivery path, the channel's own DP for zero, hand values (measured: at most 2.5e-15 against enumeration,
+#: 6.3e-16 against dp_riccati and coupled_riccati, under Haswell, Prescott and SkylakeX kernels).
+ACTUATOR_DP_RTOL = 1e-12
+#: Two stationary optima of the same equation, each iterated until ``||P_next - P|| <= RICCATI_RTOL ||P||``, agree to
+#: a few RICCATI_RTOL times the loop's slowness (measured: 1.8e-12 relative on the pendulum's x0'P x0, radius
+#: 0.98, zero's optimum against dp_riccati; 2e-16 on two_actuator).
+ACTUATOR_DP_STATIONARY_RTOL = 1e-10
+#: The width in t of the bracket of a strategy's critical mu on the command line (compare, region --actuator): each
+#: halving is a power iteration of the homogeneous map (hold on two_actuator: about 13 s at 1e-4).
+ACTUATOR_COMPARE_TOL = 1e-4
 #: A sampled mean agrees with its exact expectation when within this many standard errors (two-sided normal tail
 #: 6.8e-6 per check).
 SAMPLED_Z_MAX = 4.5

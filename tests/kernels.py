@@ -49,6 +49,8 @@ def _tolerance(path: str, data: dict) -> tuple[float, float] | None:
     if m := re.fullmatch(r"/ack/\[([^\]]*)\]/break_even\[\d+\]", path):
         beta = [float(b) for b in m.group(1).split(",")]
         return 0.0, ALLOCATION_GAP_DEFAULT * sum(beta)   # a difference of two totals, each within gap * beta'1
+    if re.fullmatch(r"/ack_attainable/mu\[\d+\]\[\d+\]", path):
+        return None                                 # a design's point, certified to a gap: compared through its cost
     if m := re.fullmatch(r"/ack_attainable/(tcp_design|break_even|paper_design_attains)\[(\d+)\]", path):
         gap, k = data["ack_attainable"]["gap"], int(m.group(2))
         if m.group(1) == "tcp_design":

@@ -22,7 +22,7 @@ DOCS = Path(__file__).resolve().parents[1]
 FIGURES = DOCS / "figures" / "tutorials"
 #: the pages whose outputs are shown (getting-started shows command lines, checked by its own tests)
 PAGES = ("tutorials/design-study.md", "tutorials/formula-vs-solver.md", "tutorials/allocation-constraints.md",
-         "tutorials/lossy-sensors.md", "tutorials/own-plant.md")
+         "tutorials/lossy-sensors.md", "tutorials/own-plant.md", "tutorials/saturating-actuators.md")
 
 #: a Python block, then what a previous run wrote after it: an Output block, then its figures
 BLOCK = re.compile(r"```python\n(?P<code>.*?)```\n"

@@ -202,7 +202,7 @@ def attainable_break_even(system: System, alphas: Sequence[float], beta: Any, ud
     computed ([`pareto_curve`][packetloss_cvx.studies.allocation.pareto_curve] rows, as ``reproduce`` holds them;
     each alpha must be among theirs): ``udp - tcp`` with the TCP-like design ``allocate(system, "tcp", alpha, beta,
     target="attainable", **options)``; None where either design is missing. Returns ``{"alpha", "tcp_design"
-    (its beta'mu), "break_even"}``. O(len(alphas)) attainable designs.
+    (its beta'mu), "mu" (its mu, a list), "break_even"}``. O(len(alphas)) attainable designs.
 
     Examples
     --------
@@ -215,17 +215,19 @@ def attainable_break_even(system: System, alphas: Sequence[float], beta: Any, ud
     True
     """
     by_alpha = {float(row["alpha"]): row for row in udp_rows}
-    out: dict[str, list] = {"alpha": [], "tcp_design": [], "break_even": []}
+    out: dict[str, list] = {"alpha": [], "tcp_design": [], "mu": [], "break_even": []}
     for alpha in alphas:
         udp = by_alpha.get(float(alpha))
         if udp is None:
             raise InputError("alphas", f"alpha = {alpha:g} is not among the UDP-like designs' alphas")
         try:
-            tcp = allocate(system, "tcp", alpha, beta, target="attainable", **options).communication_cost
+            design = allocate(system, "tcp", alpha, beta, target="attainable", **options)
+            tcp, mu = design.communication_cost, design.mu.tolist()
         except InfeasibleError:
-            tcp = None
+            tcp = mu = None
         out["alpha"].append(float(alpha))
         out["tcp_design"].append(tcp)
+        out["mu"].append(mu)
         missing = tcp is None or udp["communication_cost"] is None
         out["break_even"].append(None if missing else float(udp["communication_cost"]) - tcp)
     return out

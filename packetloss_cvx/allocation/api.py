@@ -112,7 +112,7 @@ def _min_cost(system: System, protocol: str, poly: Polytope, max_boxes: int, tim
                                       cost=None if evaluator is None else MonotoneCost(evaluator)))
     return MinCost(protocol=protocol, cost=out.value, lower_bound=out.lower_bound,
                    gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status,
-                   mu=out.mu, method=out.note)
+                   mu=out.mu, method=out.note, basis="paper" if evaluator is None else "attainable")
 
 
 @blas_limited

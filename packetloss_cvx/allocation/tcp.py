@@ -483,7 +483,13 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
     lower = max(lower, float(beta @ poly.lower()))
 
     mu = mubar
-    if beta @ point < beta @ mubar and J(point) <= alpha:
+    missed = polytope_excess(mubar, poly)
+    if missed > ALLOCATION_LP_FEASIBILITY:
+        # Clarabel meets the rows to its own feasibility tolerance, scaled by the problem (seen: 1.4e-9 on the row
+        # mu2 >= mu1 + 0.05 of a two-mass spring at N = 5), not to the LP's: the cut LP's point is in the polytope
+        # (as tcp_min_cost takes it), and the move below keeps to the polytope from there
+        mu, note = point, note + f"; its point missed a row by {missed:.1e}, the cut LP's point taken"
+    if beta @ point < beta @ mu and J(point) <= alpha:
         mu, note = point, note + "; the LP's point is feasible and attains the bound"
     elif J(mu) > alpha:           # solver tolerance: move onto the feasible set
         q, _ = box_lp(-np.ones(system.m), poly, poly.lower(), poly.upper())
@@ -491,8 +497,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
             raise SolverError("inconsistent", "TCP-like allocation: the SOCP's point is infeasible and so is "
                               "the maximal point of the constraint set")
         tol = ALLOCATION_INCUMBENT_SHARE * gap
-        t = boundary(lambda a: J(mubar + a * (q - mubar)), alpha, 0.0, 1.0, tol)
-        mu = mubar + t * (q - mubar)
+        start = mu
+        t = boundary(lambda a: J(start + a * (q - start)), alpha, 0.0, 1.0, tol)
+        mu = start + t * (q - start)
         note += f"; moved {t:.1e} of the way to a maximal point to meet J* <= alpha"
     mu = check_in_polytope(np.clip(mu, poly.lo, poly.hi), poly, "TCP-like allocation")
     value = float(beta @ mu)

@@ -13,6 +13,10 @@ from ..model.system import System
 from ..progress import progress_bar
 from ..results import ClaimResult
 from ..threads import blas_limited
+from .actuator import STATEMENT as ZERO_VS_HOLD
+from .actuator import zero_vs_hold
+from .attainable import STATEMENTS as ATTAINABLE
+from .attainable import ack_price_paper_basis, allocation_tcp_meets_alpha
 from .chain_tcp import STATEMENT as TCP_PRIOR_MEAN_CHAIN
 from .chain_tcp import tcp_prior_mean_chain
 from .channel_allocation import allocation_udp_perfect
@@ -68,6 +72,10 @@ CLAIMS["cost-split-sensor"] = (COST_SPLIT_SENSOR, cost_split_sensor)   # not the
 CLAIMS["stability-region-paper-systems"] = (STABILITY_REGION, stability_region)   # the paper's open problem
 CLAIMS["power-water-filling"] = (POWER_WATER_FILLING, power_water_filling)   # the paper's conjecture
 CLAIMS["expectation-mpc-feasibility"] = (EXPECTATION_MPC, expectation_mpc)   # Trodden & Li's constrained loop
+CLAIMS["allocation-tcp-meets-alpha"] = (ATTAINABLE["allocation-tcp-meets-alpha"],    # the paper's design, attained
+                                        allocation_tcp_meets_alpha)
+CLAIMS["ack-price-paper-basis"] = (ATTAINABLE["ack-price-paper-basis"], ack_price_paper_basis)   # its conclusion
+CLAIMS["zero-vs-hold-paper-systems"] = (ZERO_VS_HOLD, zero_vs_hold)   # the paper's remark on holding the input
 CLAIMS["tcp-prior-mean-chain"] = (TCP_PRIOR_MEAN_CHAIN, tcp_prior_mean_chain)   # the TCP-like cost behind chains
 
 

@@ -8,13 +8,16 @@ from typing import Any
 import numpy as np
 
 from ..closedloop.actuator import Actuator, compare_actuators, parse_actuators
-from ..errors import InputError
+from ..closedloop.actuator_design import actuator_dp, design_modes
+from ..closedloop.actuator_region import MAX_CERTIFIED_ROWS, actuator_critical, actuator_membership
+from ..errors import InputError, NumericalError
 from ..model.system import System
 from ..montecarlo.actuator import simulate_actuator
 from ..montecarlo.simulate import law_gains
 from . import format as fmt
 
-__all__ = ["actuator_entry", "actuator_strategies", "simulate_actuator_section"]
+__all__ = ["actuator_entry", "actuator_strategies", "critical_section", "design_section", "membership_section",
+           "simulate_actuator_section"]
 
 
 def actuator_strategies(text: str | None, system: System) -> tuple[Actuator, ...]:
@@ -52,10 +55,10 @@ def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator,
         verdict = (f"radius {fmt.num(radius)}, " + ("mean-square stable" if row["stable"] else
                                                     "NOT mean-square stable")) if np.isfinite(radius) else \
             f"radius not computed ({row['reason']})"
-        lines.append(f"{name}: {verdict}; exact cost over {steps} steps from x0 {fmt.num(row['cost'])}")
+        lines.append(f"{name}: {verdict}; exact loop cost over {steps} steps from x0 {fmt.num(row['cost'])}")
         if not np.isfinite(radius):
             row["radius"] = None
-    return {"steps": steps, "strategies": rows}, lines
+    return {"steps": steps, "basis": "loop", "strategies": rows}, lines
 
 
 def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies: tuple[Actuator, ...], steps: int,
@@ -75,12 +78,93 @@ def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies:
             continue
         data[law] = {}
         for strategy in strategies:
-            row = simulate_actuator(system, gain, steps, strategy, samples, seed)
+            row = {**simulate_actuator(system, gain, steps, strategy, samples, seed), "basis": "loop"}
             data[law][str(strategy)] = row
             verdict = (("mean-square stable" if row["stable"] else "NOT mean-square stable")
                        + f", radius {fmt.num(row['radius'])}") if row["radius"] is not None else \
                 f"radius not computed ({row['reason']})"
-            lines.append(f"    {label}, {strategy}: mean stage cost sampled {fmt.num(row['mean_stage_cost'])} +- "
+            lines.append(f"    {label}, {strategy}: mean loop stage cost sampled {fmt.num(row['mean_stage_cost'])} "
+                         f"+- "
                          f"{fmt.num(row['stderr'], 3)}, exact {fmt.num(row['exact_stage_cost'])} (z = "
                          f"{fmt.num(row['z'], 3)}); {verdict}")
     return data, lines
+
+
+def _critical_row(system: System, strategy: Actuator, direction: list[float] | None,
+                  tol: float) -> tuple[dict[str, Any], str]:
+    """One strategy's critical point along the ray (closedloop.actuator_region.actuator_critical): its dict and
+    a text fragment saying which ends are proved."""
+    if system.channel is not None:
+        reason = "the critical mu of a strategy is computed on Bernoulli links; this file has a Markov chain"
+        return {"reason": reason}, f"critical mu not computed ({reason})"
+    modes = design_modes(system.A, system.B, np.ones(system.m), strategy)
+    rows = modes.modes * modes.A.shape[-1] ** 2
+    if rows > MAX_CERTIFIED_ROWS:
+        reason = (f"{strategy}'s information map has {rows} rows, beyond the {MAX_CERTIFIED_ROWS} of an exact "
+                  "certificate: use a shorter buffer")
+        return {"reason": reason}, f"critical mu not computed ({reason})"
+    try:
+        point = actuator_critical(system, strategy, direction, tol)
+    except NumericalError as err:
+        return {"reason": str(err)}, f"critical mu undecided ({err})"
+    row = point.to_dict()
+    if not np.isfinite(point.t):
+        return row, "not stabilisable even at the ray's end"
+    lower = "proved unstable" if point.outside is not None and point.outside.verdict == "unstable" else \
+        "an estimate (not certified)"
+    return row, (f"critical mu {fmt.numbers(point.mu)} (t in [{fmt.num(point.lower, 8)}, {fmt.num(point.t, 8)}]: "
+                 f"upper end proved stable, lower end {lower})")
+
+
+def critical_section(system: System, strategies: tuple[Actuator, ...], direction: list[float] | None,
+                     tol: float) -> tuple[dict[str, Any], list[str]]:
+    """``region --actuator``: per strategy its critical point along the ray (JSON per strategy name) and a line."""
+    data: dict[str, Any] = {}
+    lines = ["actuator on a loss: the channels some TCP-like law of each strategy stabilises, along the ray"]
+    for strategy in strategies:
+        data[str(strategy)], text = _critical_row(system, strategy, direction, tol)
+        lines.append(f"  {strategy}: {text}")
+    return data, lines
+
+
+def design_section(system: System, strategies: tuple[Actuator, ...], direction: list[float] | None,
+                   tol: float) -> tuple[dict[str, Any], list[str]]:
+    """``compare``: per strategy the optimal TCP-like law's (closedloop.actuator_design.actuator_dp) mean-square
+    radius, average stage cost under the noise and total noise-free cost from x0, and the strategy's critical
+    point along the ray; JSON per strategy name and the text table."""
+    data: dict[str, Any] = {}
+    lines = [f"{'strategy':<11} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}  critical mu"]
+    for strategy in strategies:
+        row: dict[str, Any] = {}
+        try:
+            design = actuator_dp(system, strategy)
+            row.update(radius=design.radius, average_stage_cost=design.cost, initial_cost=design.initial,
+                       modes=design.modes.modes)
+            numbers = (f"{fmt.num(design.radius):>12} {fmt.num(design.cost):>15} "
+                       f"{fmt.num(design.initial):>14}")
+        except NumericalError as err:
+            row.update(radius=None, average_stage_cost=None, initial_cost=None, reason=str(err))
+            numbers = f"{'no law':>12} {'-':>15} {'-':>14}"
+        row["critical"], text = _critical_row(system, strategy, direction, tol)
+        data[str(strategy)] = row
+        lines.append(f"{str(strategy):<11} {numbers}  {text}")
+        if "reason" in row:
+            lines.append(f"  {strategy}: no optimal law: {row['reason']}")
+    return data, lines
+
+
+def membership_section(system: System, strategies: tuple[Actuator, ...],
+                       mu: np.ndarray) -> tuple[dict[str, Any], list[tuple[str, str]]]:
+    """``allocate --actuator``: is the allocation mu* stabilisable under each strategy
+    (closedloop.actuator_region.actuator_membership)? JSON per strategy (verdict, radius, reason) and text rows."""
+    data: dict[str, Any] = {}
+    rows = []
+    for strategy in strategies:
+        found = actuator_membership(system, strategy, mu)
+        radius = found.radius if np.isfinite(found.radius) else None
+        data[str(strategy)] = {"verdict": found.verdict, "radius": radius, "reason": found.reason}
+        text = {"stable": "stabilisable (a TCP-like law proved mean-square stable)",
+                "unstable": "NOT stabilisable by any TCP-like law (proved)"}.get(found.verdict,
+                                                                               f"undecided ({found.reason})")
+        rows.append((f"{strategy} at mu*", text))
+    return data, rows

@@ -8,6 +8,7 @@ from typing import Any
 from ..allocation import allocate, parse_constraint
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
+from .actuator_section import actuator_strategies, membership_section
 from .allocate_power import run as run_power  # power, the ack link priced
 from .allocate_power import wants_power
 from .allocate_stability import run_target
@@ -77,6 +78,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     for flag, value in (("--alpha", args.alpha), ("--beta", args.beta)):
         if value is None:
             raise InputError(flag, "required" + (" (or buy power: --power)" if flag == "--beta" else ""))
+    strategies = actuator_strategies(getattr(args, "actuator", None), system)
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     options.update(search_options(args))
@@ -101,6 +103,9 @@ def run(args: argparse.Namespace) -> CommandResult:
             ("gap", f"{result.gap:.1e}"),
             ("method", result.method + (f", {result.boxes} box" + ("es" if result.boxes > 1 else "")
                                         if result.boxes else ""))]
+    if strategies:                  # the allocation under each actuator strategy on a loss: stabilisable at mu*?
+        data["actuator"], more = membership_section(system, strategies, result.mu)
+        rows += more
     name = fmt.name(system.name or args.file)
     warning = [] if result.warning is None else [result.warning + warning_advice(result, system.channel, args.file)]
     if result.status == "optimal":

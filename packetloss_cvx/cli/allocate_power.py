@@ -130,10 +130,11 @@ def run(args: argparse.Namespace, system: System) -> CommandResult:
             ("mu", fmt.numbers(result.mu)),
             ("J*, paper", f"{fmt.num(result.cost, 10)} " + (f"<= alpha = {fmt.num(result.limit)}" if least else "")),
             *attained_rows(result),
-            ("lower bound", f"{fmt.num(result.lower_bound)} on {'the total power' if least else 'J*'} (proved)"),
+            ("lower bound", f"{fmt.num(result.lower_bound)} on "
+                            f"{'the total power' if least else 'the paper J*'} (proved)"),
             ("gap", f"{result.gap:.1e}"),
             ("method", result.method + (f", {result.boxes} boxes" if result.boxes else ""))]
-    what = "least total power" if least else f"least J* within a total power of {fmt.num(result.limit)}"
+    what = "least total power" if least else f"least paper J* within a total power of {fmt.num(result.limit)}"
     warning = [] if result.warning is None else [result.warning + WARNING_ADVICE]
     if result.status == "optimal":
         return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: {what} for {name}"] + fmt.fields(rows)

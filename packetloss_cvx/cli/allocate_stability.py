@@ -92,7 +92,7 @@ def run_target(args: argparse.Namespace) -> CommandResult:
         return CommandResult(data, f"infeasible: {err}", 3)
     data = result.to_dict()
     goal = (f"mean-square radius < {fmt.num(result.radius_bound)}" if args.target == "stable"
-            else f"DP cost <= alpha = {fmt.num(result.alpha)}")
+            else f"DP law's loop cost <= alpha = {fmt.num(result.alpha)}")
     rows = [("mu*", fmt.numbers(result.mu)), ("beta'mu", fmt.num(result.cost)),
             ("lower bound", f"{fmt.num(result.lower_bound)} on beta'mu (proved)"),
             ("gap", f"{result.gap:.1e}"),

@@ -22,21 +22,23 @@ from ..budgets import (
     duration_text,
     estimated_seconds,
     gib_text,
+    mpc_solves,
     simulate_work,
     solve_bytes,
     solve_work,
 )
 from ..errors import InputError
-from ..model.files import load_system, read_csv_numbers, read_input
+from ..model.constraints import Constraints, constraints_from_dict
+from ..model.files import load_constraints, load_system, read_csv_numbers, read_input
 from ..model.system import System
-from ..safeio import check_output_file
+from ..safeio import FIGURE_DPI, check_dpi, check_output_file
 from ..tolerances import ALLOCATION_COST_RTOL
 from . import format as fmt
 
-__all__ = ["WARNING_ADVICE", "CommandResult", "allocation_numbers", "attained_rows", "check_budgets",
-           "check_figure_format", "check_writable", "floats", "integers", "number", "number_range", "preflight",
-           "prices_and_bounds", "progress_of", "search_options", "system_of", "systems_of", "warning_advice",
-           "with_overrides"]
+__all__ = ["CHAIN_BASIS", "CONSTRAINT_FLAGS", "COST_BASIS", "WARNING_ADVICE", "CommandResult", "allocation_numbers",
+           "attained_rows", "check_budgets", "check_figure_format", "check_writable", "constraints_of", "figure_dpi",
+           "figure_file", "floats", "integers", "number", "number_range", "preflight", "prices_and_bounds",
+           "progress_of", "search_options", "system_of", "systems_of", "warning_advice", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -182,6 +184,53 @@ def with_overrides(system: System, args: argparse.Namespace) -> System:
     return system
 
 
+#: The ``[constraints]`` keys the command line overrides, with their flags (``args`` holds them under the key).
+CONSTRAINT_FLAGS = {"u_min": "--u-min", "u_max": "--u-max", "du_max": "--du-max", "x_min": "--x-min",
+                    "x_max": "--x-max", "terminal_min": "--terminal-min", "terminal_max": "--terminal-max",
+                    "soft": "--soft", "soft_weight": "--soft-weight"}
+
+
+def constraints_of(args: argparse.Namespace, system: System) -> Constraints | None:
+    """The file's ``[constraints]`` table with the command line's overrides (`CONSTRAINT_FLAGS`: each flag given
+    replaces its key; one number stands for every input or state), checked against ``system``; None where neither
+    the file nor a flag constrains anything. An error names the flag where the key came from one, else
+    ``constraints.<key>``. O(n + m) beyond the file's table.
+
+    Examples
+    --------
+    >>> args = argparse.Namespace(file="two_actuator", u_min="-1", u_max="1,2", soft=None)
+    >>> from packetloss_cvx.model.files import load_example
+    >>> c = constraints_of(args, load_example("two_actuator"))
+    >>> c.u_min.tolist(), c.u_max.tolist()
+    ([-1.0, -1.0], [1.0, 2.0])
+    >>> constraints_of(argparse.Namespace(file="two_actuator", u_min="0.5"), load_example("two_actuator"))
+    ... # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: --u-min: a lost packet applies zero input, ...; found u_min[0] = 0.5 > 0
+    """
+    constraints = load_constraints(args.file, system)
+    given = {key: getattr(args, key) for key in CONSTRAINT_FLAGS if getattr(args, key, None) is not None}
+    if not given:
+        return constraints
+    table = {} if constraints is None else constraints.to_dict()
+    for key, value in given.items():
+        flag = CONSTRAINT_FLAGS[key]
+        if key == "soft":
+            table[key] = bool(value)
+        elif key == "soft_weight":
+            table[key] = number(value, flag)
+        else:
+            values = floats(value, flag)
+            size = system.m if key[0] in "ud" else system.n
+            table[key] = values * size if len(values) == 1 else values
+    try:
+        return constraints_from_dict(table, system.n, system.m, prefix="")
+    except InputError as err:
+        key = err.field.split(".")[0].split("[")[0]
+        raise err.renamed(CONSTRAINT_FLAGS[key] if key in given else f"constraints.{err.field}") from None
+
+
 def system_of(args: argparse.Namespace) -> System:
     """``args.file`` loaded with its overrides, once per command (kept on ``args``).
 
@@ -289,6 +338,9 @@ def preflight(args: argparse.Namespace) -> None:
             check_writable(getattr(args, name), flag, getattr(args, "force", False))
     if isinstance(getattr(args, "save", None), str) and not args.save.endswith(".npz"):
         raise InputError("--save", f"expected a FILE.npz, found {args.save!r}")
+    figure_dpi(args)
+    if isinstance(getattr(args, "plot", None), str):
+        figure_file(args, args.plot)
     if getattr(args, "plot", None) and getattr(args, "closed_loop", None) is False:
         raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
     if getattr(args, "file", None) is not None:
@@ -303,10 +355,10 @@ def preflight(args: argparse.Namespace) -> None:
 def check_budgets(args: argparse.Namespace) -> None:
     """The counts a command line gives checked against their budgets (budgets.py) under the option's name,
     before the command's module is imported: ``--random``, ``--workers``, ``--max-boxes``, simulate's
-    ``--samples`` x ``--steps``, sweep's ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and
-    the burstiness work) and the ``--mu-list`` file. (A sweep's other points and its work are checked by the
-    sweep itself, before any point is evaluated, and named by the option that asked for them.) O(1), or
-    O(values) for a list.
+    ``--samples`` x ``--steps`` (and the constrained loop's ``--mpc-samples`` x ``--steps`` solves), sweep's
+    ``--horizons``, ``--x0-scales`` and ``--burstiness`` values (and the burstiness work) and the ``--mu-list``
+    file. (A sweep's other points and its work are checked by the sweep itself, before any point is evaluated, and
+    named by the option that asked for them.) O(1), or O(values) for a list.
 
     Examples
     --------
@@ -319,7 +371,7 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
     command = getattr(args, "command", None)
     if command == "audit" and isinstance(getattr(args, "random", None), int):
         check("audit_cases", args.random, "--random", f"{count_text(args.random)} random systems")
-    if command == "sweep" and isinstance(getattr(args, "workers", None), int):
+    if command in ("sweep", "simulate") and isinstance(getattr(args, "workers", None), int):
         check("dask_workers", args.workers, "--workers", f"{count_text(args.workers)} worker processes")
     if command == "allocate" and isinstance(getattr(args, "max_boxes", None), int):
         check("allocation_boxes", args.max_boxes, "--max-boxes", f"{count_text(args.max_boxes)} boxes")
@@ -352,6 +404,12 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                            f"{f' of {count_text(args.steps)} steps' if args.closed_loop else ''} "
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
+        mpc_samples = getattr(args, "mpc_samples", 0)
+        if isinstance(mpc_samples, int) and mpc_samples >= 1 and constraints_of(args, system) is not None:
+            programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
+            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs), "--mpc-samples",
+                  f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
+                  "(the constrained loop)")
 
 
 def check_solve(system: System, args: argparse.Namespace) -> None:
@@ -411,6 +469,41 @@ def check_figure_format(path: str, field: str) -> None:
         raise InputError(field, f"cannot write a {suffix!r} figure (formats: {shown})")
 
 
+def figure_file(args: argparse.Namespace, stem: str) -> str:
+    """The name of a figure a command writes: ``stem`` with the extension of ``--format`` (default png). For a
+    FILE the user named (``stem`` with an extension, e.g. ``--plot loop.pdf``), that extension, and a different
+    ``--format`` beside it is refused rather than one silently winning. O(1).
+
+    Examples
+    --------
+    >>> figure_file(argparse.Namespace(format="svg"), "region"), figure_file(argparse.Namespace(), "region")
+    ('region.svg', 'region.png')
+    >>> figure_file(argparse.Namespace(format=None), "loop.pdf")
+    'loop.pdf'
+    >>> figure_file(argparse.Namespace(format="svg"), "loop.pdf")
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: --format: svg, but the figure's file 'loop.pdf' says pdf: drop one
+    """
+    chosen = getattr(args, "format", None)
+    suffix = Path(stem).suffix[1:].lower()
+    if not suffix:
+        return f"{stem}.{chosen or 'png'}"
+    if chosen and chosen != suffix:
+        raise InputError("--format", f"{chosen}, but the figure's file {stem!r} says {suffix}: drop one")
+    return stem
+
+
+def figure_dpi(args: argparse.Namespace) -> float:
+    """``--dpi`` checked (safeio.check_dpi), default `FIGURE_DPI`. O(1).
+
+    >>> figure_dpi(argparse.Namespace(dpi=None)), figure_dpi(argparse.Namespace(dpi=300.0))
+    (120, 300)
+    """
+    dpi = getattr(args, "dpi", None)
+    return FIGURE_DPI if dpi is None else check_dpi(dpi, "--dpi")
+
+
 def check_path_length(path: str, field: str) -> None:
     """A path no longer than `MAX_PATH` whose components are at most `MAX_NAME` characters (what
     Linux file systems hold), else an InputError naming ``field`` (exit 2, not an OSError). O(len(path)).
@@ -453,6 +546,14 @@ def progress_of(args: argparse.Namespace) -> bool | None:
     """
     return False if getattr(args, "quiet", False) else None
 
+
+#: the basis of each protocol's J* as the commands print it (docs/design.md, "Cost bases"): the paper's
+#: expressions, J*_tcp a first-moment value that no law attains, J*_udp the exact expected cost of its plan and so the
+#: attainable cost too; J_Delta ("diff") their difference
+COST_BASIS = {"tcp": "paper", "udp": "paper = attainable", "diff": "paper"}
+#: behind a Markov chain: the TCP-like cost holds only the predicted mu_t (the paper's expression), the UDP-like
+#: exact minimum is the exact expected cost of the optimal plan under the chain (the attainable cost)
+CHAIN_BASIS = {"tcp": "paper", "udp": "attainable"}
 
 #: what the warning line advises (Bernoulli channels; behind a chain `warning_advice`)
 WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"

@@ -16,6 +16,7 @@ from ..lq.costs import closed_form
 from ..model.channel import GE_MODEL
 from ..model.system import System
 from ..qp.markov_solution import markov_solution
+from .common import CHAIN_BASIS
 
 __all__ = ["PRIOR_MEAN_BASIS", "attainable_entry", "markov_section"]
 
@@ -131,12 +132,15 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
         exact = _radius(system, res.exact.gain)
         entry["mean_square_radius"] = {"plug_in": plug_in[0], "exact": exact[0]}
         entry["stable"] = {"plug_in": plug_in[1], "exact": exact[1]}
-        line = (f"{protocol.upper()}-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}), the exact minimum; "
-                f"the plug-in law's cost {res.plugin_cost:.10g} ({_percent(res.relative_loss)})")
+        entry["basis"] = CHAIN_BASIS[protocol]
+        line = (f"{protocol.upper()}-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}) [basis: "
+                f"{CHAIN_BASIS[protocol]}], the exact minimum; the plug-in law's cost on the same basis "
+                f"{res.plugin_cost:.10g} ({_percent(res.relative_loss)})")
         if protocol == "tcp":
             entry["basis"] = PRIOR_MEAN_BASIS
             line = (f"TCP-like exact: J* = {res.exact.cost:.10g} ({res.exact.method}) [basis: {PRIOR_MEAN_BASIS}], "
-                    f"the exact minimum of the paper's cost; the plug-in law's cost {res.plugin_cost:.10g} "
+                    f"the exact minimum of the paper's cost; the plug-in law's cost on the same basis "
+                    f"{res.plugin_cost:.10g} "
                     f"({_percent(res.relative_loss)}) (the TCP-like cost holds only the marginals mu_t, so the "
                     "plug-in law is its exact minimiser; no law with acknowledgements attains it: see attainable); "
                     f"E[realised cost] of its plan under the chain {res.plan_expected_cost:.10g}")
@@ -145,7 +149,8 @@ def markov_section(system: System, protocols: tuple[str, ...], qp: bool) -> tupl
             line += f"; QP skipped: {skipped}"
         elif res.qp is not None:
             check = res.qp.cross_check
-            line += (f"; QP {res.qp.status}, J = {res.qp.cost:.10g}, max|Vbar dU| = {check.max_input_diff:.2e}, "
+            line += (f"; QP {res.qp.status}, J = {res.qp.cost:.10g} (same basis), max|Vbar dU| = "
+                     f"{check.max_input_diff:.2e}, "
                      f"rel dJ = {check.cost_rel_diff:.2e}")
         data[protocol] = entry
         lines.append(line)

@@ -12,6 +12,7 @@ from ..model.constraints import Constraints
 from ..model.system import System
 from ..montecarlo.mpc import INFEASIBLE_ACTION, simulate_mpc
 from ..results.mpc import ControllerRun, Frequency, MPCSimulation
+from ..studies.engine import dask_client
 
 __all__ = ["LABELS", "constrained_loop_section"]
 
@@ -21,19 +22,28 @@ LABELS = {"clipped": "unconstrained law clipped to the bounds", "certainty-equiv
 
 
 def constrained_loop_section(system: System, constraints: Constraints, protocols: tuple[str, ...], samples: int,
-                             steps: int, seed: int, progress: bool | None) -> tuple[dict[str, Any], list[str]]:
-    """The ``"constrained_loop"`` JSON entry (`MPCSimulation.to_dict`) and its text lines.
+                             steps: int, seed: int, progress: bool | None, threads: int = 1, dask: Any = None,
+                             workers: int | None = None) -> tuple[dict[str, Any], list[str]]:
+    """The ``"constrained_loop"`` JSON entry (`MPCSimulation.to_dict`) and its text lines; the runs on ``threads``
+    threads, or as tasks on the Dask cluster ``dask`` ("local" with ``workers`` processes, or an address).
 
     Raises
     ------
     InputError
-        Named after the flag (``--mpc-samples``, ``--steps``, ``--seed``).
+        Named after the flag (``--mpc-samples``, ``--steps``, ``--seed``, ``--threads``, ``--dask``, ``--workers``).
     """
+    flags = {"samples": "--mpc-samples", "steps": "--steps", "seed": "--seed", "threads": "--threads",
+             "dask": "--dask", "workers": "--workers"}
     try:
-        sim = simulate_mpc(system, constraints, samples, steps, seed, protocols=protocols, progress=progress)
+        if dask is None:
+            sim = simulate_mpc(system, constraints, samples, steps, seed, protocols=protocols, progress=progress,
+                               threads=threads)
+        else:
+            with dask_client(dask, workers) as client:
+                sim = simulate_mpc(system, constraints, samples, steps, seed, protocols=protocols,
+                                   progress=progress, threads=threads, dask=client)
     except InputError as err:
-        raise err.renamed({"samples": "--mpc-samples", "steps": "--steps", "seed": "--seed"}.get(err.field,
-                                                                                                   err.field)) from None
+        raise err.renamed(flags.get(err.field, err.field)) from None
     return sim.to_dict(), _text(sim)
 
 

@@ -28,11 +28,13 @@ from .. import __version__
 from ..errors import InputError
 from .completion import SHELLS, CompletionAction, mark_system_file
 
-__all__ = ["FILE_HELP", "NUMBER_LISTS", "add_command", "add_system_options", "build_parser", "join_negative_values"]
+__all__ = ["FIGURE_FORMATS", "FILE_HELP", "NUMBER_LISTS", "add_command", "add_constraint_options", "add_figure_options",
+           "add_system_options", "build_parser", "join_negative_values"]
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction",
-                "--mean-rate", "--power-scale", "--power-max", "--budget", "--ack-price", "--ack-power")
+                "--mean-rate", "--power-scale", "--power-max", "--budget", "--ack-price", "--ack-power", "--u-min",
+                "--u-max", "--x-min", "--x-max", "--terminal-min", "--terminal-max")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
              "pendulum_bursty (a Gilbert-Elliott channel), pendulum_sensor (a lossy sensor link too)")
@@ -150,6 +152,44 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
                        help="the initial state, comma-separated, e.g. --x0 1,-1 (default: the file's)")
 
 
+def add_constraint_options(command: argparse.ArgumentParser, what: str) -> None:
+    """``--u-min``, ``--u-max``, ``--du-max``, ``--x-min``, ``--x-max``, ``--terminal-min``, ``--terminal-max``,
+    ``--soft``/``--no-soft`` and ``--soft-weight``: keys of the file's ``[constraints]`` table replaced (or a table
+    made); ``what`` says what the table does in this command.
+
+    Examples
+    --------
+    >>> parser = Parser()
+    >>> add_constraint_options(parser, "solved")
+    >>> args = parser.parse_args(join_negative_values(["--u-min", "-1,-2", "--du-max", "0.5,inf", "--no-soft"]))
+    >>> args.u_min, args.du_max, args.soft, args.x_max
+    ('-1,-2', '0.5,inf', False, None)
+    """
+    group = command.add_argument_group(f"overrides of the file's [constraints] table ({what})")
+    same = "default: the file's"
+    group.add_argument("--u-min", metavar="U", help="bounds on each commanded input, m numbers or one for all, "
+                                                    f"u_min <= 0 (a lost packet applies zero; {same}), "
+                                                    "e.g. --u-min -1,-2")
+    group.add_argument("--u-max", metavar="U", help=f"bounds on each commanded input, m numbers or one for all, "
+                                                    f"u_max >= 0 ({same}), e.g. --u-max 1,2")
+    group.add_argument("--du-max", metavar="DU", help="bound on |u_t - u_{t-1}|, m numbers or one for all, inf "
+                                                      f"leaves an input out ({same}), e.g. --du-max 0.5,inf")
+    group.add_argument("--x-min", metavar="X", help="lower limits on the expected state E[x_k], k = 1..N, n numbers "
+                                                    f"or one for all ({same}), e.g. --x-min -2")
+    group.add_argument("--x-max", metavar="X", help=f"upper limits on E[x_k], n numbers or one for all ({same}), "
+                                                    "e.g. --x-max 2,inf")
+    group.add_argument("--terminal-min", metavar="X", help="the terminal box on E[x_N] only, n numbers or one for "
+                                                           f"all ({same}), e.g. --terminal-min -0.1")
+    group.add_argument("--terminal-max", metavar="X", help=f"the terminal box on E[x_N] only ({same}), "
+                                                           "e.g. --terminal-max 0.1")
+    group.add_argument("--soft", action=argparse.BooleanOptionalAction,
+                       help="state, terminal and chance rows as exact-penalty slacks (--soft) or hard (--no-soft) "
+                            f"({same}, else hard), e.g. --soft")
+    group.add_argument("--soft-weight", metavar="RHO",
+                       help=f"the penalty per unit of violation of a soft row, > 0 ({same}, else 1e4), "
+                            "e.g. --soft-weight 100")
+
+
 def add_dask_options(command: argparse.ArgumentParser, what: str) -> None:
     """``--dask local|ADDRESS`` and ``--workers W`` (studies.engine.dask_client), as every command that runs on
     Dask takes them; ``what`` opens the --dask help (what runs there)."""
@@ -158,6 +198,31 @@ def add_dask_options(command: argparse.ArgumentParser, what: str) -> None:
                               "e.g. --dask tcp://127.0.0.1:8786")
     command.add_argument("--workers", type=int, metavar="W",
                          help="workers of --dask local (default: 2), e.g. --workers 4")
+
+
+#: the figure formats every command that draws writes (``--format``)
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def add_figure_options(command: argparse.ArgumentParser, what: str) -> None:
+    """``--format png|pdf|svg`` and ``--dpi N``, as every command that draws takes them; ``what`` names the
+    figures in the help.
+
+    Examples
+    --------
+    >>> parser = Parser()
+    >>> add_figure_options(parser, "the figures")
+    >>> args = parser.parse_args(["--format", "svg", "--dpi", "300"])
+    >>> args.format, args.dpi
+    ('svg', 300.0)
+    """
+    group = command.add_argument_group("figures")
+    group.add_argument("--format", choices=FIGURE_FORMATS,
+                       help=f"the file format of {what} (default: png; with a FILE of its own: its extension), "
+                            "e.g. --format pdf")
+    group.add_argument("--dpi", type=float, metavar="N",
+                       help=f"dots per inch of {what} (default: 120; the pixel size of a PNG, recorded in its "
+                            "header; vector formats scale freely), e.g. --dpi 300")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -189,6 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the cross-checking QP's form, e.g. --formulation sparse")
     solve.add_argument("--no-qp", action="store_true",
                        help="skip the solvers: the QP cross-check and a [constraints] table (closed form only)")
+    add_constraint_options(solve, "solved beside the closed forms")
     solve.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
                        help="what the actuator does on a loss, for each law's loop: apply zero, hold the last "
                             "input, or play the buffered plan of L inputs (default L: the horizon); comma-separated, "
@@ -231,6 +297,11 @@ def build_parser() -> argparse.ArgumentParser:
     alloc.add_argument("--constraint", action="append", metavar="TEXT",
                        help='a linear constraint (repeatable; default: none), e.g. "mu1 + 2*mu2 <= 1.5" or '
                             '"mu1 >= mu2"')
+    alloc.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                       help="also whether the allocation mu* is stabilisable when the actuator applies zero, holds "
+                            "the last input or plays the buffered plan of L inputs on a loss (some TCP-like law of "
+                            "that strategy, proved exactly, or undecided with the reason); comma-separated, or all "
+                            "(default: none), e.g. --actuator zero,hold")
     alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default: 1e-4), e.g. 1e-6")
     alloc.add_argument("--max-boxes", type=int,
                        help="cap on the UDP-like branch and bound's boxes; at the cap: exit 4 (default: 20000), "
@@ -296,12 +367,21 @@ def build_parser() -> argparse.ArgumentParser:
                           "re-solves its program every step: about 5 ms a solve), the clipped law, certainty-"
                           "equivalent and expected-cost MPC on the same paths over --steps steps; 0 skips it "
                           "(default: 100), e.g. --mpc-samples 400")
+    add_constraint_options(sim, "the constrained receding-horizon loop's programs")
+    sim.add_argument("--threads", type=int, default=1, metavar="T",
+                     help="threads running the constrained loop's runs, each with its own compiled programs; the "
+                          "answer is the serial one, float for float (default: 1), e.g. --threads 2")
+    add_dask_options(sim, "the constrained loop's runs as Dask tasks (the answer is the serial one, float for float)")
     sim.add_argument("--save", metavar="FILE.npz",
                      help="save closed-loop trajectories (first 1000 runs) and curves (default: none), "
                           "e.g. --save runs.npz")
     sim.add_argument("--plot", metavar="FILE",
                      help="figure of the closed loop: mean +- band of ||x_t||, cost (default: none), "
                           "e.g. --plot loop.png")
+    sim.add_argument("--yscale", choices=("linear", "log", "symlog"), default="linear",
+                     help="with --plot: the y axes' scale; log (or symlog) keeps a diverging law from flattening "
+                          "the others, e.g. --yscale log")
+    add_figure_options(sim, "the --plot figure")
 
     swp = add_command(sub, "sweep", "J*_tcp, J*_udp and J_Delta over a grid of channels, x0 scales or horizons",
                       examples=["sweep two_actuator --mu-grid 201 --out sweep-out",
@@ -339,10 +419,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_dask_options(swp, "evaluate on Dask")
     swp.add_argument("--out", metavar="DIR",
                      help="a folder: sweep.npz, sweep.csv and the figures (sweep.png; for a 2-D grid sweep_tcp.png, "
-                          "sweep_udp.png, sweep_diff.png) (default: none), e.g. --out sweep-out")
+                          "sweep_udp.png, sweep_diff.png; with --stability stability.png; in --format) "
+                          "(default: none), e.g. --out sweep-out")
     swp.add_argument("--netcdf", action="store_true", help="also write DIR/sweep.nc (needs the xarray extra)")
     swp.add_argument("--stability", action="store_true",
                      help="also each law's mean-square spectral radius in closed loop (radius_tcp, radius_udp)")
+    add_figure_options(swp, "the figures in --out")
     swp.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
 
     reg = add_command(sub, "region", "can the loop be stabilised over these links: each law's critical mu and map",
@@ -365,18 +447,36 @@ def build_parser() -> argparse.ArgumentParser:
     reg.add_argument("--sensor-grid", type=int, metavar="K",   # lossy sensor links
                      help="a file with [sensor]: also a K x K map of (gamma, mu) scales in (0, 1] for the paper's "
                           "tcp and udp laws on their estimates (default: none), e.g. --sensor-grid 11")
+    reg.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+                     help="also each strategy on a loss (apply zero, hold the last input, play the buffered plan of "
+                          "L inputs): the critical mu along the ray of some TCP-like law of that strategy, its upper "
+                          "end proved stable; comma-separated, or all (default: none), e.g. --actuator zero,hold")
     reg.add_argument("--out", metavar="DIR",
-                     help="a folder: region.npz, region.csv and (with --grid) region.png (default: none), "
-                          "e.g. --out region-out")
+                     help="a folder: region.npz, region.csv and (with --grid) region.png (in --format) "
+                          "(default: none), e.g. --out region-out")
+    add_figure_options(reg, "the figures in --out")
     reg.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
+
+    cmp = add_command(sub, "compare", "the actuator strategies on a loss side by side: zero, hold, buffered plan",
+                      examples=["compare two_actuator", "compare pendulum --actuator zero,hold,buffer:3 --json"])
+    cmp.add_argument("file", metavar="FILE", help=FILE_HELP)
+    add_system_options(cmp)
+    cmp.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all", default="all",
+                     help="the strategies: apply zero, hold the last input, or play the buffered plan of L inputs "
+                          "(default L: the horizon); comma-separated, or all (default: all), e.g. --actuator "
+                          "zero,buffer:2")
+    cmp.add_argument("--direction", metavar="D1,..,Dm",
+                     help="the ray mu = t * direction of the critical mu, nonnegative (default: all ones), e.g. "
+                          "--direction 1,0.5")
 
     rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],
                       results=False)
     rep.add_argument("--out", metavar="DIR", default="results",
-                     help="a folder: one PNG per paper figure, results.json, report.md, claims.md and manifest.json, "
-                          "e.g. --out paper-results")
+                     help="a folder: one figure per paper figure (in --format), results.json, report.md, claims.md "
+                          "and manifest.json, e.g. --out paper-results")
     rep.add_argument("--quick", action="store_true", help="coarse grids, one alpha, a shorter audit (a smoke test)")
+    add_figure_options(rep, "the figures")
     rep.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
     return parser
 

@@ -25,7 +25,9 @@ from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..studies.output import csv_number
 from ..studies.region_map import LAWS, region_map
-from .common import CommandResult, floats, integers, progress_of, system_of
+from ..tolerances import ACTUATOR_COMPARE_TOL
+from .actuator_section import actuator_strategies, critical_section
+from .common import CommandResult, figure_dpi, figure_file, floats, integers, progress_of, system_of
 from .format import num_within, supported
 from .sensing_section import coupled_grid, region_section
 
@@ -90,6 +92,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     if system.channel is not None:
         return _chain(args, system)
     options = _options(args, system.m)
+    strategies = actuator_strategies(getattr(args, "actuator", None), system)
     left_out = None
     if args.law == "all":   # 'fixed' is the DP gain at the file's mu: where none exists, the others still answer
         try:
@@ -120,8 +123,12 @@ def run(args: argparse.Namespace) -> CommandResult:
                     lines += [f"stable share of the {sensor_grid}x{sensor_grid} (gamma, mu) scale map, the paper's "
                               "law on its estimate:"] + [f"  {p:<6} {100 * grid[p]['stable_share']:.1f} %"
                                                         for p in ("tcp", "udp")]
+            if strategies:                      # each actuator strategy on a loss: its own critical mu
+                data["actuator"], more = critical_section(system, strategies, options.get("direction"),
+                                                          ACTUATOR_COMPARE_TOL)
+                lines += more
             if out is not None:
-                paths = _write(result, out)
+                paths = _write(result, out, args)
                 data = {**data, "files": [str(p) for p in paths]}
                 lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
     except InputError as err:
@@ -133,6 +140,9 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
     """A Gilbert–Elliott file (simulation.markov_region): can some mode-dependent law (the last state known, as
     a TCP-like acknowledgement reveals it) stabilise the loop behind the file's chain, and, with ``--grid K``,
     where over the channels' mean rates at the file's burstiness (one channel: a row of K rates)."""
+    if getattr(args, "actuator", None) is not None:
+        raise InputError("--actuator", "a strategy's critical mu is computed on Bernoulli links; this file has a "
+                                       "Markov chain (compare FILE gives each strategy's optimal law behind it)")
     if args.law not in ("dp", "all"):
         raise InputError("--law", "behind a Gilbert-Elliott chain only 'dp' (some mode-dependent linear law) is "
                                   "mapped; the paper's laws are Bernoulli designs")
@@ -216,7 +226,7 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                 figure = plot_region(grid["axis"], grid["lambda"], {"dp": grid["stable"]},
                                      xlabel=rf"mean rate of channel {i + 1}", ylabel=rf"mean rate of channel {j + 1}",
                                      title="stability region behind the chain (burstiness kept)")
-                paths.append(save_figure(figure, "region.png", folder=out))
+                paths.append(save_figure(figure, figure_file(args, "region"), folder=out, dpi=figure_dpi(args)))
             data["files"] = [str(p) for p in paths]
             lines.append(f"  wrote {', '.join(p.name for p in paths)} in {out.path}")
     return CommandResult(data, "\n".join(lines))
@@ -233,9 +243,11 @@ def _critical_rate(system, direction: list[float] | None, lines: list[str]) -> d
     where = "never, even at the ray's end" if not np.isfinite(point.t) else (
         f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mean rates {np.round(point.mu, 6).tolist()}")
     lines.append(f"critical mean rates along direction {point.direction.tolist()} (burstiness kept): {where}")
+    if point.note:
+        lines.append(f"  ({point.note})")
     data = point.to_dict()
     return {"critical_mu": data["critical_mu"], "t": data["t"], "lower": data["lower"],
-            "direction": data["direction"]}
+            "direction": data["direction"], "note": data["note"]}
 
 
 def _folder(args: argparse.Namespace) -> contextlib.AbstractContextManager[RunFolder | None]:
@@ -252,6 +264,8 @@ def _text(result: RegionMap) -> list[str]:
         where = "never, even at the ray's end" if not np.isfinite(point.t) else (
             f"t = {point.t:.6g} (bracket [{point.lower:.6g}, {point.t:.6g}]), mu = {np.round(point.mu, 6).tolist()}")
         lines.append(f"  {point.law:<6} {where}")
+        if point.note:
+            lines.append(f"         ({point.note})")
     if result.stable is not None:
         i, j = result.channels
         lines.append(f"stable share of the {result.axis.size}x{result.axis.size} grid of (mu{i + 1}, mu{j + 1}):")
@@ -259,8 +273,8 @@ def _text(result: RegionMap) -> list[str]:
     return lines
 
 
-def _write(result: RegionMap, out: RunFolder) -> list[Path]:
-    """region.npz, region.csv and (with a grid) region.png in the run folder ``out``."""
+def _write(result: RegionMap, out: RunFolder, args: argparse.Namespace) -> list[Path]:
+    """region.npz, region.csv and (with a grid) region.png (``--format``, ``--dpi``) in the run folder ``out``."""
     arrays: dict[str, Any] = {"laws": np.array(result.laws), "direction": result.direction,
                               "t": np.array([p.t for p in result.critical]),
                               "lower": np.array([p.lower for p in result.critical])}
@@ -288,9 +302,12 @@ def _write(result: RegionMap, out: RunFolder) -> list[Path]:
     if result.stable is not None:
         from ..plots import plot_region  # matplotlib only where a figure is asked for
         i, j = result.channels
-        dp = result.laws.index("dp") if "dp" in result.laws else None
-        radius = result.radius[dp] if dp is not None else np.full(result.radius.shape[1:], np.nan)
+        radius = dict(zip(result.laws, result.radius, strict=True))
+        if "dp" not in radius:          # the colours are the least radius, which only the dp law computes
+            radius = {"dp": np.full(result.radius.shape[1:], np.nan), **radius}
         figure = plot_region(result.axis, radius, dict(zip(result.laws, result.stable, strict=True)),
-                             xlabel=rf"$\mu_{i + 1}$", ylabel=rf"$\mu_{j + 1}$", title="stability regions")
-        paths.append(save_figure(figure, "region.png", folder=out))
+                             xlabel=rf"$\mu_{i + 1}$", ylabel=rf"$\mu_{j + 1}$",
+                             title=f"{result.name or 'system'}: where each law stabilises the loop in mean square"
+                             if hasattr(result, "name") else "where each law stabilises the loop in mean square")
+        paths.append(save_figure(figure, figure_file(args, "region"), folder=out, dpi=figure_dpi(args)))
     return paths

@@ -23,19 +23,20 @@ from ..claims import CLAIMS, audit, claims_document, tally, tally_text
 from ..claims.paper import ALLOCATION_BETAS, TABLE_1, TABLE_1_MU, TABLE_2, TABLE_2_MU
 from ..display import json_text
 from ..model.files import load_example
-from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour, plot_region
+from ..plots import plot_ack_break_even, plot_cost_lines, plot_log_contour, plot_region, plot_strategy_map
 from ..progress import progress_bar
 from ..runfolder import RunFolder
 from ..safeio import save_figure
 from ..studies import paper_figures as pf
+from ..studies.actuator_map import strategy_map
 from ..studies.region_map import region_map
 from ..threads import blas_limited
-from .common import CommandResult
-from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, report
+from .common import CommandResult, figure_dpi
+from .reproduce_report import ACK_FIGURE, CLAIMS_FILE, FIGURES, REGION_FIGURE, REGION_LAWS, STRATEGY_FIGURE, report
 
 #: compute and draw_figures (run's two steps) are not exported: benchmarks/reproduce_speed.py calls them
-__all__ = ["ACK_ATTAINABLE_ALPHAS", "ACK_ATTAINABLE_GAP", "ALPHAS", "REGION_GRID", "SETTINGS", "SLOW_CLAIM", "STEPS",
-           "WRITE_STEPS", "run"]
+__all__ = ["ACK_ATTAINABLE_ALPHAS", "ACK_ATTAINABLE_GAP", "ALPHAS", "BASIS_LABELS", "REGION_GRID", "SETTINGS",
+           "SLOW_CLAIM", "STEPS", "TITLES", "WRITE_STEPS", "run"]
 
 #: The cost bounds alpha of the -mult figures: the paper's 4.78 among levels spread from just above
 #: J*(1, 1) = 1.92 to below J*(0, 0) = 140.7 of the two-actuator system (the paper prints none). Above 20
@@ -48,6 +49,10 @@ ALPHAS = (2.5, 3.5, 4.78, 6.0, 8.0, 12.0, 20.0, 35.0, 50.0, 70.0, 100.0)
 #: under 3e-6 relative), so four of the ALPHAS keep the run within its budget (docs/performance.md).
 ACK_ATTAINABLE_ALPHAS = (4.78, 8.0, 20.0, 50.0)
 ACK_ATTAINABLE_GAP = 1e-2
+
+#: what each protocol's J* on the maps is (docs/design.md, "Cost bases"): J*_tcp the paper's first-moment value,
+#: which no law attains; J*_udp the exact expected cost of its plan, the paper's and the attainable cost at once
+BASIS_LABELS = {"tcp": "paper basis", "udp": "paper = attainable basis"}
 
 #: The claim --quick leaves out of the audit (its 18 brute-force allocations, about 0.5 s).
 SLOW_CLAIM = "allocation-udp-perfect-channel"
@@ -63,14 +68,46 @@ REGION_GRID = 21
 #: --seed 1``), so its claims.md is the project's, case for case.
 SETTINGS = {
     "full": {"grid": 101, "nu_points": 150, "alphas": ALPHAS, "audit_random": 200, "audit_seed": 1,
-             "audit_skips": (), "region_grid": REGION_GRID},
+             "audit_skips": (), "region_grid": REGION_GRID, "strategy_grid": 6},
     "quick": {"grid": 21, "nu_points": 30, "alphas": (4.78,), "audit_random": 0, "audit_seed": 1,
-              "audit_skips": (SLOW_CLAIM,), "region_grid": 6},
+              "audit_skips": (SLOW_CLAIM,), "region_grid": 6, "strategy_grid": 2},
 }
 
 
+#: Each figure's title, in words with the paper's symbols (the paper's label names the file, not the title).
+TITLES = {
+    "fig:log-cost-pendulum": r"Inverted pendulum, one shared channel: expected cost of both protocols and "
+                             r"$J_\Delta$ against the delivery probability $\nu$",
+    "fig:cost-diff-mixed": r"Two-actuator system: the price of losing acknowledgements, "
+                           r"$J_\Delta = J^*_{\mathrm{udp}} - J^*_{\mathrm{tcp}}$",
+    "fig:TCP-log-cost-mixed": r"Two-actuator system, TCP-like protocol: the optimal cost "
+                              r"$J^*_{\mathrm{tcp}}(\mu_1, \mu_2)$",
+    "fig:UDP-log-cost-mixed": r"Two-actuator system, UDP-like protocol: the optimal cost "
+                              r"$J^*_{\mathrm{udp}}(\mu_1, \mu_2)$",
+    "fig:TCP-log-cost-mixed-mult": "TCP-like protocol: the cheapest delivery rates on each cost contour\n"
+                                   r"$\min\ \beta^\top\mu$ subject to $J^*_{\mathrm{tcp}}(\mu) \leq \alpha$, "
+                                   r"one path per price vector $\beta$",
+    "fig:UDP-log-cost-mixed-mult": "UDP-like protocol: the cheapest delivery rates on each cost contour\n"
+                                   r"$\min\ \beta^\top\mu$ subject to $J^*_{\mathrm{udp}}(\mu) \leq \alpha$, "
+                                   r"one path per price vector $\beta$",
+    ACK_FIGURE: r"Two-actuator system, $\beta = (1, 1)$: the acknowledgement price at which UDP-like wins",
+    REGION_FIGURE: r"Two-actuator system: where each law stabilises the loop in mean square, over $(\mu_1, \mu_2)$",
+    STRATEGY_FIGURE: r"Two-actuator system: the cheapest actuator strategy on a lost packet, over $(\mu_1, \mu_2)$",
+}
+
+
+def _beta(beta: Any) -> tuple[float, ...]:
+    """A price vector as a tuple: ``compute``'s key, or results.json's text of it (``"1.0, 0.05"``)."""
+    return tuple(float(b) for b in (beta.split(",") if isinstance(beta, str) else beta))
+
+
+def _beta_text(beta: Any) -> str:
+    """A price vector as the legend writes it: ``(1.0, 0.05)`` (or ``"1.0, 0.05"``) -> ``$\\beta = (1, 0.05)$``."""
+    return r"$\beta = (" + ", ".join(f"{b:g}" for b in _beta(beta)) + ")$"
+
+
 #: compute's steps, in order; run adds WRITE_STEPS to the same progress bar
-STEPS = ("pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "audit")
+STEPS = ("pendulum", "grids", "allocations tcp", "allocations udp", "tables", "region", "strategies", "audit")
 #: run's steps after compute: the figures drawn and saved, then claims.md, results.json and report.md
 WRITE_STEPS = ("figures", "report")
 
@@ -96,8 +133,11 @@ def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, 
                 protocol = step.split()[1]
                 data.setdefault("allocations", {})[protocol] = pf.mixed_allocations(
                     mixed, protocol, settings["alphas"], ALLOCATION_BETAS, progress=progress)
+
             elif step == "region":   # beyond the paper: each law's stability region
                 data["region"] = region_map(mixed, laws=REGION_LAWS, grid=settings["region_grid"]).to_dict()
+            elif step == "strategies":   # beyond the paper: which actuator strategy on a loss wins where
+                data["strategies"] = strategy_map(mixed, settings["strategy_grid"]).to_dict()
             elif step == "tables":
                 data["tables"] = pf.eigenvalue_tables(pendulum, mixed, TABLE_1_MU, TABLE_2_MU)
                 data["tables_paper"] = {"table-1": TABLE_1, "table-2": TABLE_2}
@@ -123,13 +163,14 @@ def compute(settings: dict[str, Any], progress: bool | None, seconds: dict[str, 
     return data
 
 
-def draw_figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
-    """Every figure of `compute`'s ``data`` saved into ``folder``: ``{label: path}``. Called by `run`
-    (and by benchmarks/reproduce_speed.py)."""
+def draw_figures(data: dict[str, Any], folder: RunFolder, fmt: str = "png", dpi: float | None = None
+                 ) -> dict[str, Path]:
+    """Every figure of `compute`'s ``data`` saved into ``folder`` in format ``fmt`` at ``dpi`` (default
+    safeio.FIGURE_DPI): ``{label: path}``. Called by `run` (and by benchmarks/reproduce_speed.py)."""
     out = folder.path
-    paths = {label: out / f"{label.removeprefix('fig:')}.png" for label in FIGURES}
+    paths = {label: out / f"{label.removeprefix('fig:')}.{fmt}" for label in FIGURES}
     pend, mixed = data["pendulum"], data["mixed"]
-    caption = {label: f"{label}\n{text}" for label, text in FIGURES.items()}
+    caption = TITLES
     draw = {}
     draw["fig:log-cost-pendulum"] = plot_cost_lines(pend["nu"], {key: pend[key] for key in ("tcp", "udp", "diff")},
                     xlabel=r"delivery probability $\nu$ (shared channel; log scale)", xscale="log",
@@ -141,32 +182,46 @@ def draw_figures(data: dict[str, Any], folder: RunFolder) -> dict[str, Path]:
                                                    colorbar_label=r"$J_\Delta$ (log scale)",
                                                    marker=mixed["maximiser"]["mu"],
                                                    title=caption["fig:cost-diff-mixed"])
+    both = data.get("ack_attainable")
     for protocol in ("tcp", "udp"):
         name = protocol.upper()
+        basis = BASIS_LABELS[protocol]
         draw[f"fig:{name}-log-cost-mixed"] = plot_log_contour(
-            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{{protocol}}}$ (log scale)",
+            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$, {basis} (log scale)",
             title=caption[f"fig:{name}-log-cost-mixed"])
-        lines = {f"beta = {beta}": [row["mu"] for row in rows]
+        lines = {_beta_text(beta) + (", paper" if protocol == "tcp" else ""): [row["mu"] for row in rows]
                  for beta, rows in data["allocations"][protocol].items()}
+        # where each path of optima jumps (its line is broken there), read on the cost grid: milliseconds
+        breaks = {_beta_text(beta) + (", paper" if protocol == "tcp" else ""):
+                  pf.path_jumps(axis, mixed[protocol], _beta(beta), data["settings"]["alphas"])
+                  for beta in data["allocations"][protocol]}
+        if protocol == "tcp" and both and any(mu is not None for mu in both.get("mu", [])):
+            # beyond the paper: the TCP-like designs on the cost a loop attains, where they differ from the paper's
+            lines[_beta_text((1.0, 1.0)) + ", attainable"] = both["mu"]
         draw[f"fig:{name}-log-cost-mixed-mult"] = plot_log_contour(
-            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{{protocol}}}$ (log scale)",
-            levels=data["settings"]["alphas"], allocations=lines, title=caption[f"fig:{name}-log-cost-mixed-mult"])
+            axis, axis, mixed[protocol], colorbar_label=rf"$J^*_{{\mathrm{{{protocol}}}}}$, {basis} (log scale)",
+            levels=data["settings"]["alphas"], allocations=lines, breaks=breaks,
+            title=caption[f"fig:{name}-log-cost-mixed-mult"])
     for label, figure in draw.items():
-        save_figure(figure, paths[label].name, folder=folder)
+        save_figure(figure, paths[label].name, folder=folder, dpi=dpi)
     ack = data["ack"][str([1.0, 1.0])]         # beyond the paper: the acknowledgement link priced
-    paths[ACK_FIGURE] = out / "ack-break-even.png"
-    both = data.get("ack_attainable")
+    paths[ACK_FIGURE] = out / f"{ACK_FIGURE}.{fmt}"
     save_figure(plot_ack_break_even(ack["alpha"], [float("nan") if v is None else v for v in ack["break_even"]],
-                                    title="two-actuator system, beta = (1, 1)",
+                                    title=TITLES[ACK_FIGURE],
                                     attainable=None if not both or not both["alpha"] else (
                                         both["alpha"], [float("nan") if v is None else v for v in both["break_even"]])),
-                paths[ACK_FIGURE].name, folder=folder)
+                paths[ACK_FIGURE].name, folder=folder, dpi=dpi)
     grid = {law: data["region"][law]["grid"] for law in REGION_LAWS}     # beyond the paper
-    paths[REGION_FIGURE] = out / f"{REGION_FIGURE}.png"
-    save_figure(plot_region(grid["dp"]["axis"], _numbers(grid["dp"]["radius"]),
+    paths[REGION_FIGURE] = out / f"{REGION_FIGURE}.{fmt}"
+    save_figure(plot_region(grid["dp"]["axis"], {law: _numbers(g["radius"]) for law, g in grid.items()},
                             {law: _numbers(g["stable"]) for law, g in grid.items()},
-                            title="two-actuator system: stability region of each law"),
-                paths[REGION_FIGURE].name, folder=folder)
+                            title=TITLES[REGION_FIGURE]),
+                paths[REGION_FIGURE].name, folder=folder, dpi=dpi)
+    found = data["strategies"]                                           # beyond the paper
+    paths[STRATEGY_FIGURE] = out / f"{STRATEGY_FIGURE}.{fmt}"
+    save_figure(plot_strategy_map(found["axis"], found["strategies"], found["winner"],
+                                  title=TITLES[STRATEGY_FIGURE]),
+                paths[STRATEGY_FIGURE].name, folder=folder, dpi=dpi)
     return paths
 
 
@@ -205,7 +260,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             data = compute(settings, progress, seconds, bar=bar)
             bar.set_postfix_str("figures")
             start = time.perf_counter()
-            figures = draw_figures(data, folder)
+            figures = draw_figures(data, folder, getattr(args, "format", None) or "png", figure_dpi(args))
             seconds["figures"] = time.perf_counter() - start
             bar.update()
             bar.set_postfix_str("report")

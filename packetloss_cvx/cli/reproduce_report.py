@@ -14,8 +14,9 @@ import numpy as np
 from ..claims import markdown_table, tally_text
 from ..claims.paper import ALLOCATION_ALPHA, PENDULUM_NU_D
 
-__all__ = ["ACK_FIGURE", "BEYOND_FIGURES", "CLAIMS_FILE", "FIGURES", "REGION_FIGURE", "REGION_LAWS", "allocation_table",
-           "claims_link", "region_paragraph", "report"]
+__all__ = ["ACK_FIGURE", "BEYOND_FIGURES", "CLAIMS_FILE", "FIGURES", "REGION_FIGURE", "REGION_LAWS",
+           "STRATEGY_FIGURE", "allocation_table", "attainable_designs", "claims_link", "region_paragraph", "report",
+           "strategy_paragraph"]
 
 #: The paper's figure labels with their captions (shortened), in the paper's order.
 FIGURES = {
@@ -32,8 +33,10 @@ ACK_FIGURE = "ack-break-even"
 
 #: Beyond the paper: the stability region of each law over (mu1, mu2), two-actuator system
 REGION_FIGURE = "region-two-actuator"
+#: Beyond the paper: where each actuator strategy on a loss wins over (mu1, mu2), two-actuator system
+STRATEGY_FIGURE = "strategy-map-two-actuator"
 #: the figures beyond the paper's, in the report's order
-BEYOND_FIGURES = (ACK_FIGURE, REGION_FIGURE)
+BEYOND_FIGURES = (ACK_FIGURE, REGION_FIGURE, STRATEGY_FIGURE)
 #: the laws of that figure: some linear law (the DP law's region, the stabilisable set S) and the paper's two
 REGION_LAWS = ("dp", "tcp", "udp")
 
@@ -177,7 +180,50 @@ def _mult(data: dict[str, Any], protocol: str, out: Path) -> tuple[str, str]:
     else:
         claim = "The paper states nothing checkable about the TCP-like lines; the allocations are listed here. "
         verdict = "drawn (no checkable statement in the paper)"
+        beside = attainable_designs(data.get("ack_attainable"), claims_link(out, "allocation-tcp-meets-alpha"))
+        if beside:
+            return head + claim + "\n\n" + allocation_table(rows) + "\n\n" + beside, verdict
     return head + claim + "\n\n" + allocation_table(rows), verdict
+
+
+def attainable_designs(attainable: dict[str, Any] | None, link: str) -> str:
+    """The TCP-like designs on the attainable cost beside the paper's (beta = (1, 1), the alphas of the
+    acknowledgement study): each alpha's paper design's loop cost and the attainable design's mu* and beta'mu, from
+    `attainable_break_even`'s ``mu`` and ``tcp_design`` and reproduce's ``paper_design_attains``; "" when there are
+    none. O(alphas).
+
+    >>> text = attainable_designs({"alpha": [8.0], "mu": [[0.398, 0.495]], "tcp_design": [0.8927],
+    ...                            "paper_design_attains": [38.084], "gap": 1e-2}, "claims.md")
+    >>> text.splitlines()[-1]
+    '| 8 | 38.08 | (0.398, 0.495) | 0.8927 |'
+    """
+    if not attainable or not attainable.get("mu") or all(mu is None for mu in attainable["mu"]):
+        return ""
+    attains = attainable.get("paper_design_attains") or [None] * len(attainable["alpha"])
+
+    def cell(value: float | None, digits: str = ".4g") -> str:
+        return "-" if value is None else format(value, digits)
+
+    rows = ["| cost bound alpha | the paper's design: its best loop costs | attainable design mu* | its beta'mu |",
+            "|---:|:---:|:---:|:---:|"]
+    rows += [f"| {a:g} | {cell(c)} | {'infeasible' if mu is None else f'({mu[0]:.3f}, {mu[1]:.3f})'} | {cell(t)} |"
+             for a, c, mu, t in zip(attainable["alpha"], attains, attainable["mu"], attainable["tcp_design"],
+                                    strict=True)]
+    return ("Beside the paper's lines, the yellow line \"beta = (1.0, 1.0), attainable\": the TCP-like designs on the "
+            "cost a loop attains (the finite-horizon DP with acknowledgements, `allocate FILE --protocol tcp --target "
+            f"attainable`, certified to a relative gap of {attainable['gap']:g}). The paper's design meets "
+            f"J*_tcp <= alpha, a first-moment value no law attains{_ratios(attainable['alpha'], attains)} "
+            f"([allocation-tcp-meets-alpha]({link})).\n\n" + "\n".join(rows))
+
+
+def _ratios(alphas: list[float], attains: list[float | None]) -> str:
+    """", its best loop costs r1 to r2 times alpha" over the alphas where the paper's design's loop cost is known."""
+    ratios = [c / a for a, c in zip(alphas, attains, strict=True) if c is not None]
+    if not ratios:
+        return ""
+    if len(ratios) == 1:
+        return f": its best loop costs {ratios[0]:.3g} times alpha"
+    return f": its best loop costs {min(ratios):.3g} to {max(ratios):.3g} times alpha"
 
 
 def allocation_table(rows: dict) -> str:
@@ -279,6 +325,22 @@ def ack_bases_table(ack: dict[str, Any], attainable: dict[str, Any] | None) -> l
             "acknowledgement link is worth (`allocate FILE --protocol best` prints both).", "", *rows, ""]
 
 
+def strategy_paragraph(found: dict[str, Any], link: str) -> list[str]:
+    """The strategy map (studies.actuator_map.StrategyMap.to_dict()): each strategy's share of the grid, in words.
+
+    >>> strategy_paragraph({"axis": [0.5, 1.0], "strategies": ["zero", "hold"], "share": {"zero": 0.75, "hold": 0.0},
+    ...                     "basis": "cost from x0"}, "claims.md")[0][:60]
+    'On a 2 x 2 grid of (mu1, mu2) in (0, 1], the optimal TCP-lik'
+    """
+    k = len(found["axis"])
+    shares = ", ".join(f"{name} {100 * found['share'][name]:.0f} %" for name in found["strategies"])
+    return [f"On a {k} x {k} grid of (mu1, mu2) in (0, 1], the optimal TCP-like law of each strategy on a loss "
+            f"(apply zero, hold the last input, play the buffered plan; closedloop.actuator_design) compared by its "
+            f"{found['basis']}; the cheapest wins (ties to the simpler firmware): {shares}. On the paper's remark "
+            f"about holding the input see [claims.md]({link}); `packetloss-cvx compare FILE` puts the strategies "
+            "side by side.", ""]
+
+
 def region_paragraph(region: dict[str, Any], link: str) -> list[str]:
     """The stability region (the paper leaves it open) from ``RegionMap.to_dict()`` of the
     laws `REGION_LAWS` on a grid: each law's share of the grid and critical shared mu, whether the paper's
@@ -349,6 +411,9 @@ def report(data: dict[str, Any], figures: dict[str, Path], out: Path) -> tuple[s
     lines += ["## Beyond the paper: where the two-actuator system can be stabilised", "",
               f"![the stability region of each law]({figures[REGION_FIGURE].name})", "",
               *region_paragraph(data["region"], claims_link(out, "stability-region-paper-systems"))]
+    lines += ["## Beyond the paper: what the actuator should do on a loss", "",
+              f"![where each actuator strategy wins]({figures[STRATEGY_FIGURE].name})", "",
+              *strategy_paragraph(data["strategies"], claims_link(out, "zero-vs-hold-paper-systems"))]
     results = data["audit"]
     counts = {v: sum(r.verdict == v for r in results) for v in ("holds", "fails", "not-reproduced", "inconclusive")}
     lines += ["## The audit", "",

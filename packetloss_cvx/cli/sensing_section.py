@@ -58,7 +58,7 @@ def estimation_section(system: System) -> tuple[dict[str, Any], list[str]]:
     try:
         dp = dp_riccati(system)
     except NumericalError as err:
-        out["dp"] = {"cost": None, "reason": str(err)}
+        out["dp"] = {"cost": None, "basis": "loop", "reason": str(err)}
         lines.append(f"DP law on the estimate: no law: {err}")
     else:
         out["dp"] = estimated_law(system, dp.gain, "tcp", "dp")
@@ -103,14 +103,17 @@ def _refused(system: System) -> str | None:
 
 
 def estimated_law(system: System, gain: np.ndarray, protocol: str, law: str) -> dict[str, Any]:
-    """One law's exact stationary loop on the protocol's estimate, as JSON (cost null with a reason)."""
+    """One law's exact stationary loop on the protocol's estimate, as JSON (cost null with a reason; ``basis``
+    "loop")."""
     try:
         loop = estimated_loop(system, gain, protocol, law)
     except InputError as err:            # e.g. a non-stationary or Gilbert-Elliott actuator channel
-        return {"law": law, "protocol": protocol, "cost": None, "stable": None, "reason": str(err)}   # no verdict
+        return {"law": law, "protocol": protocol, "cost": None, "basis": "loop", "stable": None,   # no verdict
+                "reason": str(err)}
     entry = loop.to_dict()
     entry.pop("gain")
     entry["cost"] = entry.pop("average_stage_cost")
+    entry["basis"] = "loop"           # the law run for ever: its stationary average stage cost
     return entry
 
 
@@ -122,8 +125,8 @@ def _verdict_text(stable: bool | None) -> str:
 def _law_text(entry: dict[str, Any]) -> str:
     if entry.get("cost") is None:
         why = entry.get("reason", "").removeprefix("undecided: ")
-        return f"{_verdict_text(entry.get('stable'))}, cost n/a ({why})"
-    return (f"average stage cost {_num(entry['cost'])} = control {_num(entry.get('control_part'))} + estimation "
+        return f"{_verdict_text(entry.get('stable'))}, loop cost n/a ({why})"
+    return (f"loop's average stage cost {_num(entry['cost'])} = control {_num(entry.get('control_part'))} + estimation "
             f"{_num(entry.get('estimation_part'))}; " + _verdict_text(entry["stable"])
             + f" (radius of (xhat, e) {_num(entry.get('spectral_radius'))})")
 

@@ -8,13 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..model.files import load_constraints
 from ..montecarlo.markov import EXACT_PLAN
 from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
 from .actuator_section import actuator_strategies, simulate_actuator_section
-from .common import CommandResult, check_figure_format, progress_of, system_of
+from .common import CommandResult, check_figure_format, constraints_of, figure_dpi, figure_file, progress_of, system_of
 from .sensing_section import simulate_section
 
 __all__ = ["run"]
@@ -57,11 +56,18 @@ def run(args: argparse.Namespace) -> CommandResult:
     """
     system = system_of(args)
     strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
-    constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
+    constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
     mpc_samples = getattr(args, "mpc_samples", 0)
     if constraints is not None and mpc_samples and args.law == "dp":
         raise InputError("--law", "the constrained loop runs the protocols' programs: --law tcp, udp or all "
                                   "(or --mpc-samples 0 to skip it)")
+    if (getattr(args, "dask", None) is not None or getattr(args, "threads", 1) != 1) and (constraints is None
+                                                                                       or not mpc_samples):
+        raise InputError("--dask" if getattr(args, "dask", None) is not None else "--threads",
+                         "spreads the constrained loop's runs: give FILE a [constraints] table (or --u-max, ...) "
+                         "and --mpc-samples >= 1")
+    if getattr(args, "workers", None) is not None and getattr(args, "dask", None) != "local":
+        raise InputError("--workers", "applies to --dask local only")
     if strategies and not args.closed_loop:
         raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop")
     if strategies and system.channel is not None:
@@ -73,9 +79,10 @@ def run(args: argparse.Namespace) -> CommandResult:
         laws = tuple(law for law in laws if law != "dp")
     keep = SAVED_RUNS if args.save and args.closed_loop else 0
     force = getattr(args, "force", False)
-    if args.plot:
-        check_figure_format(args.plot, "--plot")      # before the sampling, not after it
-        check_output_file(figure_path(args.plot), "--plot", force)     # `--plot loop` writes loop.png
+    plot = figure_file(args, args.plot) if args.plot else None      # `--plot loop --format pdf` writes loop.pdf
+    if plot:
+        check_figure_format(plot, "--plot")      # before the sampling, not after it
+        check_output_file(figure_path(plot), "--plot", force)
     try:
         sim = simulate(system, args.samples, steps=args.steps, seed=args.seed, closed_loop=args.closed_loop,
                        laws=laws, keep=keep, progress=progress_of(args))
@@ -87,11 +94,15 @@ def run(args: argparse.Namespace) -> CommandResult:
         if not sim.closed_loop:
             raise InputError("--plot", "the figure shows the closed loop: add --closed-loop")
         from ..plots import plot_closed_loop  # matplotlib (0.2-0.7 s) only where a figure is asked for
-        figure = plot_closed_loop({law: {"state_norm_mean": r.state_norm_mean, "state_norm_std": r.state_norm_std,
-                                         "stage_cost_mean": r.stage_cost_mean} for law, r in sim.closed_loop.items()},
-                                  title=system.name)
-        save_figure(figure, args.plot, overwrite=force, field="--plot")
+        figure = plot_closed_loop(sim, yscale=getattr(args, "yscale", "linear"),
+                                  title=f"{system.name or 'system'}: closed loop of each law")
+        save_figure(figure, plot, overwrite=force, field="--plot", dpi=figure_dpi(args))
     data, text = sim.to_dict(), _text(system.name or args.file, sim)
+    for p, entry in data.items():      # what "formula" is: the paper's J* (the exact minimiser's: under the chain)
+        if "open_loop" in entry:
+            entry["open_loop"]["formula_basis"] = "attainable" if p == EXACT_PLAN else "paper"
+        if "closed_loop" in entry:
+            entry["closed_loop"]["basis"] = "loop"
     if strategies:     # the laws' loops when the actuator zeroes, holds or plays the buffered plan on a loss
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
                                                            args.seed)
@@ -101,7 +112,10 @@ def run(args: argparse.Namespace) -> CommandResult:
 
         protocols = ("tcp", "udp") if args.law == "all" else (args.law,)
         data["constrained_loop"], more = constrained_loop_section(system, constraints, protocols, mpc_samples,
-                                                                  args.steps, args.seed, progress_of(args))
+                                                                  args.steps, args.seed, progress_of(args),
+                                                                  threads=getattr(args, "threads", 1),
+                                                                  dask=getattr(args, "dask", None),
+                                                                  workers=getattr(args, "workers", None))
         text = "\n".join([text, *more])
     if system.sensor is not None and args.closed_loop:     # lossy sensor links
         data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)
@@ -137,7 +151,7 @@ def _text(name: str, sim: Simulation) -> str:
         if c.reason:
             lines.append(f"  {label}, open loop: not run: {c.reason}")
             continue
-        formula = "its J* (exact under the chain)" if p == EXACT_PLAN else "the protocol's J*" + (
+        formula = "its J* (exact under the chain, attainable)" if p == EXACT_PLAN else "the paper's J*" + (
             " with the plug-in mu_t" if bursty else "")
         lines.append(f"  {label}, open loop: sampled {_num(c.mean)} +- {_num(c.stderr, 3)}, exact "
                      f"{_num(c.exact)} (z = {_num(c.z, 3)}); {formula} = {_num(c.formula)}")
@@ -163,5 +177,5 @@ def _text(name: str, sim: Simulation) -> str:
                          "and standard error can fall far below the exact value)")
     if "dp" in sim.closed_loop and not bursty and not sim.closed_loop["dp"].reason:
         lines.append("  (the DP law is optimal for the cost over an unbounded horizon; over a window of "
-                     f"{sim.steps} steps from x0 a law that is not stable can still cost less)")
+                     f"{sim.steps} steps from x0 a law that is not stable can still have a lower loop cost)")
     return "\n".join(lines)

@@ -13,13 +13,12 @@ from ..display import SOLUTION_BASIS, all_delivered_flag
 from ..errors import InfeasibleError, NumericalError, ResourceError, SolverError
 from ..lq.costs import closed_form
 from ..model.constraints import Constraints
-from ..model.files import load_constraints
 from ..model.system import System
 from ..progress import progress_bar
 from ..results import Solution, eigenvalue_pairs
 from . import format as fmt
 from .actuator_section import actuator_entry, actuator_strategies
-from .common import CommandResult, progress_of, system_of
+from .common import CommandResult, constraints_of, progress_of, system_of
 from .markov_section import PRIOR_MEAN_BASIS, markov_section
 from .sensing_section import estimation_section, protocol_entry
 
@@ -49,7 +48,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     >>> folder.cleanup()
     """
     system = system_of(args)
-    constraints = load_constraints(args.file, system)     # the file's [constraints] table, or None
+    constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
     strategies = actuator_strategies(getattr(args, "actuator", None), system)     # refused before any work
     protocols = ("tcp", "udp") if args.protocol == "both" else (args.protocol,)
     out: dict[str, Any] = {
@@ -91,7 +90,7 @@ def run(args: argparse.Namespace) -> CommandResult:
                     "max_input_diff": check.max_input_diff, "cost_rel_diff": check.cost_rel_diff,
                 }
                 timing = f", {qp.solve_time:.3g} s" if args.verbose else ""
-                rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g}, max|Vbar dU| = "
+                rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g} (paper), max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
         if constraints is not None:
             entry["constrained"], text = constrained_entry(plugin, protocol, constraints, args)
@@ -159,7 +158,7 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
         return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
                 f"not solved: {err}")
     bound = ", ".join(sol.binding[:6]) + (f", ... ({len(sol.binding)} in all)" if len(sol.binding) > 6 else "")
-    return sol.to_dict(), f"J = {sol.cost:.10g} ({sol.status}); binding: {bound or 'none'}"
+    return sol.to_dict(), f"J = {sol.cost:.10g} (paper, {sol.status}); binding: {bound or 'none'}"
 
 
 def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]]:

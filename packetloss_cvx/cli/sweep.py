@@ -23,7 +23,7 @@ from ..studies.engine import DEFAULT_CHUNK
 from ..studies.output import csv_header, csv_number, sweep_table, write_sweep
 from ..tolerances import SELF_CHECK_RTOL
 from . import format as fmt
-from .common import CommandResult, integers, number_range
+from .common import CHAIN_BASIS, COST_BASIS, CommandResult, figure_dpi, figure_file, integers, number_range
 
 __all__ = ["bursty", "bursty_map", "run"]
 
@@ -36,6 +36,9 @@ FLAGS = {"mu_grid": "--mu-grid", "mu_list": "--mu-list", "x0_scales": "--x0-scal
 #: two channels); above it, the JSON names the file that holds them (``--out DIR``: DIR/sweep.csv)
 JSON_MAX_POINTS = 50_000
 
+#: the sweep's kind in the figures' titles
+_KINDS = {"mu-grid": "grid of delivery probabilities", "mu-list": "list of delivery probabilities",
+          "x0-scale": "range of initial-state scales", "horizon": "range of horizons"}
 _AXIS_LABELS = {"nu": r"shared channel $\nu$", "x0_scale": r"scale $s$ of $x_0$ ($s\,x_0$)",
                 "horizon": "horizon $N$", "point": "point (row of --mu-list)"}
 
@@ -57,26 +60,55 @@ def _options(args: argparse.Namespace, m: int) -> dict[str, Any]:
     return options
 
 
-def _figures(result: DesignSweep, out: RunFolder, skipped: list[str]) -> list[Path]:
+def _figures(result: DesignSweep, out: RunFolder, skipped: list[str], args: argparse.Namespace) -> list[Path]:
     """The sweep's figures in the folder ``out``; a log contour with no positive value to draw (e.g. every cost 0
-    at x0 = 0 without noise) is not drawn, and its name goes to ``skipped``."""
+    at x0 = 0 without noise) is not drawn, and its name goes to ``skipped``. With ``--stability`` also each law's
+    mean-square radius (`_stability_figures`)."""
     from ..plots import plot_cost_lines, plot_log_contour  # matplotlib (0.2-0.7 s) only where a figure is asked for
     curves = {**result.costs, **({"diff": result.difference} if result.difference is not None else {})}
-    title = f"{result.name or 'system'}: {result.kind} sweep"
+    title = f"{result.name or 'system'}: expected cost over a {_KINDS.get(result.kind, result.kind)}"
+    stability = _stability_figures(result, out, skipped, args) if result.radii else []
     if len(result.dims) == 1:
         dim = result.dims[0]
         label = _AXIS_LABELS.get(dim, rf"$\mu_{dim[2:]}$" if dim.startswith("mu") else dim)
         figure = plot_cost_lines(result.axes[0], curves, xlabel=label, title=title)
-        return [save_figure(figure, "sweep.png", folder=out)]
+        return [save_figure(figure, figure_file(args, "sweep"), folder=out, dpi=figure_dpi(args)), *stability]
     paths = []
-    names = {"tcp": "J*_tcp", "udp": "J*_udp", "diff": "J_Delta = J*_udp - J*_tcp"}
+    names = {"tcp": r"$J^*_{\mathrm{tcp}}$, paper basis", "udp": r"$J^*_{\mathrm{udp}}$, paper = attainable basis",
+             "diff": r"$J_\Delta = J^*_{\mathrm{udp}} - J^*_{\mathrm{tcp}}$, paper basis"}
     for key, values in curves.items():
         if not np.any(np.asarray(values) > 0):
-            skipped.append(f"sweep_{key}.png")
+            skipped.append(figure_file(args, f"sweep_{key}"))
             continue
         figure = plot_log_contour(result.axes[1], result.axes[0], np.asarray(values).reshape(result.shape),
                                   colorbar_label=f"{names[key]} (log scale)", title=f"{title}: {names[key]}")
-        paths.append(save_figure(figure, f"sweep_{key}.png", folder=out))
+        paths.append(save_figure(figure, figure_file(args, f"sweep_{key}"), folder=out, dpi=figure_dpi(args)))
+    return [*paths, *stability]
+
+
+def _stability_figures(result: DesignSweep, out: RunFolder, skipped: list[str], args: argparse.Namespace
+                       ) -> list[Path]:
+    """``--stability``'s figures: for a 1-D sweep stability.png (each law's mean-square radius against the swept
+    quantity, radius 1 marked); for a square 2-D grid stability_<protocol>.png (the law's radius over (mu1, mu2)
+    with its radius = 1 boundary, plots.plot_region); other shapes go to ``skipped``."""
+    from ..plots import plot_region, plot_stability_lines  # matplotlib only where a figure is asked for
+    title = f"{result.name or 'system'}: mean-square stability of each law in closed loop"
+    if len(result.dims) == 1:
+        dim = result.dims[0]
+        label = _AXIS_LABELS.get(dim, rf"$\mu_{dim[2:]}$" if dim.startswith("mu") else dim)
+        figure = plot_stability_lines(result.axes[0], dict(result.radii), xlabel=label, title=title)
+        return [save_figure(figure, figure_file(args, "stability"), folder=out, dpi=figure_dpi(args))]
+    if len(result.dims) != 2 or not np.array_equal(result.axes[0], result.axes[1]):
+        skipped.extend(figure_file(args, f"stability_{p}") for p in result.radii)
+        return []
+    paths = []
+    for p, radii in result.radii.items():
+        grid = np.asarray(radii, dtype=float).reshape(result.shape)
+        stable = np.array([float(is_mean_square_stable(r)) for r in grid.ravel()]).reshape(result.shape)
+        figure = plot_region(result.axes[1], {p: grid}, {p: stable}, xlabel=r"$\mu_1$", ylabel=r"$\mu_2$",
+                             radius_label=f"mean-square radius of the {p.upper()}-like law",
+                             title=f"{title}: {p.upper()}-like")
+        paths.append(save_figure(figure, figure_file(args, f"stability_{p}"), folder=out, dpi=figure_dpi(args)))
     return paths
 
 
@@ -93,7 +125,8 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
                                                    strict=True)}
         data[f"cost_{key}"] = {"min": float(np.min(values)), "max": float(np.max(values)), "argmax": where,
                                "argmax_mu": result.mu[k].tolist()}
-        name = "J_Delta" if key == "diff" else f"J*_{key}"
+        name = ("J_Delta" if key == "diff" else f"J*_{key}") + f" ({COST_BASIS[key]} basis)"
+        data.setdefault("basis", {})[f"cost_{key}"] = "paper"
         at = ", ".join(f"{d} = {v:.6g}" for d, v in where.items())
         lines.append(f"  {name}: min {np.min(values):.6g}, max {np.max(values):.6g} at {at}")
     for p, radii in result.radii.items():
@@ -186,9 +219,9 @@ def _bursty(args: argparse.Namespace, system: System, correlations: np.ndarray, 
                   for p in protocols for kind in ("plug-in", "exact")}
         figure = plot_cost_lines(result.correlation, curves, xlabel=r"burstiness $\lambda = 1 - p - r$",
                                  title=f"{system.name or 'system'}: burstiness at fixed average rates")
-        save_figure(figure, "burstiness.png", folder=out)
-        data["files"] = [str(out.path / "burstiness.csv"), str(out.path / "burstiness.png")]
-        lines.append(f"  wrote burstiness.csv, burstiness.png in {out.path}")
+        drawn = save_figure(figure, figure_file(args, "burstiness"), folder=out, dpi=figure_dpi(args))
+        data["files"] = [str(out.path / "burstiness.csv"), str(drawn)]
+        lines.append(f"  wrote burstiness.csv, {drawn.name} in {out.path}")
     return CommandResult(data, "\n".join(lines))
 
 
@@ -247,7 +280,9 @@ def _map_output(args: argparse.Namespace, system: System, result: BurstinessMap,
         a, b = np.unravel_index(int(np.argmax(loss)), shape)
         data[p]["worst_loss"] = {"relative_loss": float(loss[a, b]), "rate": float(result.rate[a]),
                                  "correlation": float(result.correlation[b])}
-        lines.append(f"  {p.upper()}-like: exact minimum {np.min(exact):.6g} to {np.max(exact):.6g}; " + (
+        data[p]["basis"] = CHAIN_BASIS[p]
+        lines.append(f"  {p.upper()}-like ({CHAIN_BASIS[p]} basis): exact minimum {np.min(exact):.6g} to "
+                     f"{np.max(exact):.6g}; " + (
             "the plug-in law is the exact minimiser at every point" if loss[a, b] <= SELF_CHECK_RTOL else
             f"the plug-in law loses up to {100 * loss[a, b]:.3g}% (at mean rate {result.rate[a]:.4g}, "
             f"lambda = {result.correlation[b]:.4g})"))
@@ -267,15 +302,16 @@ def _map_output(args: argparse.Namespace, system: System, result: BurstinessMap,
             from ..plots import plot_burstiness_map  # matplotlib (0.2-0.7 s) only where a figure is asked for
             for p in protocols:
                 if not np.any(result.exact[p] > 0):
-                    skipped.append(f"burstiness_map_{p}.png")
+                    skipped.append(figure_file(args, f"burstiness_map_{p}"))
                     continue
                 figure = plot_burstiness_map(
                     result.rate, result.correlation, result.exact[p], 100 * result.relative_loss(p),
-                    cost_label=f"exact minimum J*_{p} (log scale)",
+                    cost_label=rf"exact minimum $J^*_{{\mathrm{{{p}}}}}$, {CHAIN_BASIS[p]} basis (log scale)",
                     title=f"{system.name or 'system'}: channel {result.channel + 1}, {p.upper()}-like")
-                files.append(save_figure(figure, f"burstiness_map_{p}.png", folder=out))
+                files.append(save_figure(figure, figure_file(args, f"burstiness_map_{p}"), folder=out,
+                                          dpi=figure_dpi(args)))
         else:
-            skipped.extend(f"burstiness_map_{p}.png" for p in protocols)
+            skipped.extend(figure_file(args, f"burstiness_map_{p}") for p in protocols)
         data["files"] = [str(f) for f in files]
         lines.append(f"  wrote {', '.join(f.name for f in files)} in {out.path}")
         if skipped:
@@ -349,7 +385,7 @@ def _design(args: argparse.Namespace, system: System, protocols: tuple[str, ...]
         _points(result, data, paths.get("csv"))
         if out is not None:
             skipped: list[str] = []
-            paths_list = [*paths.values(), *_figures(result, out, skipped)]
+            paths_list = [*paths.values(), *_figures(result, out, skipped, args)]
             data["files"] = [str(p) for p in paths_list]
             lines.append(f"  wrote {', '.join(p.name for p in paths_list)} in {out.path}")
             if skipped:

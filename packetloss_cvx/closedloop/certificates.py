@@ -28,17 +28,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import NumericalError
-from ..linalg import Dyadic, exact_psd, frobenius
+from ..linalg import Dyadic, controllable_split, exact_psd, frobenius
 from ..model.chain import mode_chain
 from ..model.channel import GE_MODEL, MarkovChannel
 from ..tolerances import MEAN_SQUARE_MARGIN
-from .modes import mode_matrix
+from .modes import DENSE_MAX_DIM, mode_matrix
 from .moments import solve_fixed_point
 from .stability import law_radius, second_moment_matrix, second_moment_step
 
-__all__ = ["SNAP", "TILTS", "candidates", "chain_outside_proved", "exact_transition", "inside_proved",
-           "law_proved_stable", "mode_outside_matrices", "no_law_proved", "outside_matrix", "outside_proved", "snapped",
-           "stability_witness", "tilted"]
+__all__ = ["SNAP", "TILTS", "candidates", "chain_outside_proved", "chain_proved_certificate", "exact_transition",
+           "inside_proved", "law_proved_stable", "mode_outside_matrices", "no_law_proved", "outside_matrix",
+           "outside_proved", "snapped", "stability_witness", "tilted"]
 
 #: entries at or below these fractions of a certificate's largest are tried as exact zeros (:func:`snapped`): the
 #: rounding of an orthogonal transform (1e-17 where the split of a zero row of B is exact), and the iteration's own
@@ -145,14 +145,8 @@ def exact_transition(channel: MarkovChannel) -> Dyadic:
 def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray | None,
                          c: float, delivery: str = "next") -> bool:
     """Does the tuple P (M, n, n), or one of its candidates, prove ``rho(L_K) >= c`` for every mode-dependent law K
-    behind ``channel``, exactly: ``T_c(Q)_a >= 0`` for every mode (`mode_outside_matrices`; then
-    ``L_K^*(Q) >= cQ`` blockwise for every K) and Q not blockwise negative semidefinite? (Were ``rho(L_K) < c``,
-    ``Q = -sum_j (L_K^*/c)^j (W) / c <= 0`` for ``W = L_K^*(Q) - cQ >= 0``: the module docstring's argument, on
-    tuples.) The candidates are Bernoulli's (`candidates`) per mode: P, P snapped, and those tilted by the
-    coupled Stein solution of ``cS_a - A'(sum_b T_ab S_b)A = I`` (a singular Perron tuple proves its bound only with
-    its exact kernel). The check of `chain_certificate_margin`'s verdict in exact arithmetic, on
-    the plant and channel as stored; False for a P that is None, not finite or of the wrong shape. Time
-    O(M^2 (n + m)^3) integer operations a candidate, O((M n^2)^3) for the tilts' solve.
+    behind ``channel``, exactly (`chain_proved_certificate` finds one)? False for a P that is None, not finite or of
+    the wrong shape. Time as `chain_proved_certificate`.
 
     >>> from .chain_radius import homogeneous_coupled_riccati
     >>> from packetloss_cvx.model.channel import GilbertElliott
@@ -161,37 +155,145 @@ def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P
     >>> [chain_outside_proved(np.array([[2.0]]), np.array([[1.0]]), ch, P, c) for c in (3.2 * (1 - 1e-12), 3.3)]
     [True, False]
     """
+    return chain_proved_certificate(A, B, channel, P, c, delivery) is not None
+
+
+def chain_proved_certificate(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray | None,
+                             c: float, delivery: str = "next", gains: np.ndarray | None = None) -> np.ndarray | None:
+    """The first candidate Q of the tuple P (M, n, n) that proves ``rho(L_K) >= c`` for every mode-dependent law K
+    behind ``channel`` exactly, or None: ``T_c(Q)_a >= 0`` for every mode (`mode_outside_matrices`; then
+    ``L_K^*(Q) >= cQ`` blockwise for every K) and Q not blockwise negative semidefinite. (Were ``rho(L_K) < c``,
+    ``Q = -sum_j (L_K^*/c)^j (W) / c <= 0`` for ``W = L_K^*(Q) - cQ >= 0``: the module docstring's argument, on
+    tuples.) The candidates are Bernoulli's (`candidates`) per mode: P, P snapped, and those tilted by the
+    coupled Stein solution of ``cS_a - A'(sum_b T_ab S_b)A = I`` (a singular Perron tuple proves its bound only with
+    its exact kernel), over all modes, then over the modes P weighs (`_coupled_stein`), and first, given the mode
+    gains that minimise at P (``gains`` (M, m, n)), by the closed-loop one (`_closed_loop_stein`), each scaled to
+    Frobenius norm 1. The check of `chain_certificate_margin`'s verdict in exact arithmetic, on the plant and channel as
+    stored; last, where the plant splits exactly by a permutation, P's block on the reached coordinates for the
+    reached pair (`_reached_part_proved`). None for a P that is None, not finite or of the wrong shape.
+    Time O(M^2 (n + m)^3) integer operations a candidate, O((M n^2)^3) for the tilts' solve.
+
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> ch = GilbertElliott(p=[0.3], r=[0.2])       # one state a = 2: "next", R(P) = (p a^2 p_b, (1 - r) a^2 p_b)
+    >>> P = np.array([[[0.0]], [[1.0]]])            # on the bad mode: every law's radius >= (1 - r) a^2 = 3.2
+    >>> [Q.ravel().tolist() for c in (3.2 * (1 - 1e-12), 3.3)
+    ...  if (Q := chain_proved_certificate(np.array([[2.0]]), np.array([[1.0]]), ch, P, c)) is not None]
+    [[0.0, 1.0]]
+    """
     modes, T, h = mode_chain(channel)
     M, n = len(modes), np.asarray(A).shape[0]
     if P is None or np.shape(P) != (M, n, n) or not np.all(np.isfinite(P)) or not c > 0:
-        return False
+        return None
     rates = np.broadcast_to(h[None] if delivery == "next" else h[:, None], (M, M, h.shape[1]))
     exact_T = exact_transition(channel)
     P = 0.5 * (P + P.transpose(0, 2, 1))
     P = P / max(frobenius(P), np.finfo(float).tiny)
+    found = _proved_candidate(A, B, T, exact_T, rates, P, c, _closed_loop_stein(A, B, T, h, delivery, gains, c))
+    if found is not None:
+        return found
+    return _reached_part_proved(np.asarray(A, dtype=float), np.asarray(B, dtype=float), T, exact_T, h, rates, P, c)
+
+
+def _proved_candidate(A: np.ndarray, B: np.ndarray, T: np.ndarray, exact_T: Dyadic, rates: np.ndarray,
+                      P: np.ndarray, c: float, closed: np.ndarray | None = None) -> np.ndarray | None:
+    """The first of P's candidates (`chain_proved_certificate`) with ``T_c(Q)_a >= 0`` exactly for every mode and Q
+    not blockwise negative semidefinite, or None; ``closed``, a closed-loop Stein solution (`_closed_loop_stein`),
+    tilts first."""
 
     def proves(Q: np.ndarray) -> bool:
         return all(exact_psd(X) for X in mode_outside_matrices(A, B, exact_T, rates, Q, c)) \
             and not all(exact_psd(-_symmetric(Qa)) for Qa in Q)
 
     plain = [P, *snapped(P)]                                 # snapped over the tuple: one level for every mode
-    if any(proves(Q) for Q in plain):
-        return True
-    S = _coupled_stein(np.asarray(A, dtype=float), T, c)
-    return S is not None and any(proves(Q - t * frobenius(Q) / frobenius(S) * S) for Q in plain for t in TILTS)
+    for Q in plain:
+        if proves(Q):
+            return Q
+    M = len(P)
+    weighed = np.any(P != 0.0, axis=(-2, -1))
+    supports = [np.ones(M, dtype=bool)] + ([weighed] if np.any(weighed) and not np.all(weighed) else [])
+    tilts = [closed] if closed is not None else []
+    tilts += [_coupled_stein(np.asarray(A, dtype=float), T, c, support) for support in supports]
+    for S in tilts:
+        if S is None:
+            continue
+        for Q in plain:
+            for t in reversed(TILTS):       # the least tilt first: the certificate reported stays nearest P
+                tilted_Q = Q - t * frobenius(Q) / frobenius(S) * S
+                if proves(tilted_Q):
+                    return tilted_Q
+    return None
 
 
-def _coupled_stein(A: np.ndarray, T: np.ndarray, c: float) -> np.ndarray | None:
-    """S (M, n, n) with ``cS_a - A'(sum_b T_ab S_b)A = I`` (the tilt of `chain_outside_proved`; `tilted`'s
-    S at one mode), None where it has no finite solution. O((M n^2)^3)."""
+def _reached_part_proved(A: np.ndarray, B: np.ndarray, T: np.ndarray, exact_T: Dyadic, h: np.ndarray,
+                         rates: np.ndarray, P: np.ndarray, c: float) -> np.ndarray | None:
+    """Where the plant splits exactly by a signed permutation S (``S'AS = [[A_cc, A_cu], [0, A_uu]]``, ``S'B = [[B_c],
+    [0]]`` with exact zeros, the channels that ever deliver: linalg.controllable_split) and the reached block of
+    ``S'P_aS`` (or a candidate of it) proves ``rho >= c`` for ``(A_cc, B_c)`` exactly (`_proved_candidate`), that
+    block put back in place, zero elsewhere.
+    Every closed loop ``A - B V K`` maps the reachable subspace into itself, so the Collatz–Wielandt argument on PSD
+    matrices supported there bounds every law's radius by the same c (chain_radius.chain_certificate_margin): a
+    proof about the plant as stored, since a permutation moves the doubles exactly; the block put back passes this
+    same check. None otherwise. Time that of the reduced checks plus O(n^4) for the split."""
+    split = controllable_split(A, B[:, np.any(h > 0, axis=0)])
+    nc, S = split.nc, split.T
+    if not 0 < nc < A.shape[0] or not np.all((S == 0.0) | (np.abs(S) == 1.0)) or \
+            not np.all(np.count_nonzero(S, axis=0) == 1):
+        return None
+    At, Bt = S.T @ A @ S, S.T @ B                          # exact: a signed permutation
+    Pt = np.einsum("ji,ajk,kl->ail", S, P, S)
+    if np.any(At[nc:, :nc] != 0.0) or np.any(Bt[nc:] != 0.0):
+        return None
+    Q = _proved_candidate(At[:nc, :nc], Bt[:nc], T, exact_T, rates, Pt[:, :nc, :nc], c)
+    if Q is None:
+        return None
+    out = np.zeros_like(P)
+    out[:, :nc, :nc] = Q
+    return np.einsum("ij,ajk,lk->ail", S, out, S)
+
+
+def _closed_loop_stein(A: np.ndarray, B: np.ndarray, T: np.ndarray, h: np.ndarray, delivery: str,
+                       gains: np.ndarray | None, c: float) -> np.ndarray | None:
+    """S (M, n, n) with ``cS - L_K^*(S) = I`` (blockwise) for the mode gains K (M, m, n), the adjoint of their coupled
+    second-moment map (modes.mode_matrix, transposed); None without gains, for M n^2 beyond DENSE_MAX_DIM, or where
+    it has no finite solution. The tilt for a mode whose deliveries are sure: there the minimising input acts on the
+    kernel of a singular certificate P, so the open-loop Stein tilt (`_coupled_stein`, no input) can make
+    ``T_c(P - tS)`` indefinite; at the minimiser K, ``[x; K_a x]' T_c(-tS)_a [x; K_a x] = t x'(cS - L_K^*(S))_a x =
+    t |x|^2``, definite on that kernel. Measured: a random 3-state plant behind a Gilbert channel ("current", good
+    delivering surely: its P rank one in that mode) failed every other candidate at a margin of 0.416 under one BLAS
+    thread and passed under four; with this tilt it passes at every t of TILTS. O((M n^2)^3)."""
+    if gains is None:
+        return None
     M, n = T.shape[0], A.shape[0]
+    K = np.asarray(gains, dtype=float)
+    if K.shape != (M, B.shape[1], n) or not np.all(np.isfinite(K)) or M * n * n > DENSE_MAX_DIM:
+        return None
     with np.errstate(all="ignore"):
         try:
-            S = np.linalg.solve(c * np.eye(M * n * n) - np.kron(T, np.kron(A.T, A.T)),
-                                np.tile(np.eye(n).ravel(), M)).reshape(M, n, n)
-        except np.linalg.LinAlgError:
+            L = mode_matrix(np.asarray(A, dtype=float), np.asarray(B, dtype=float), K, h, T, delivery).T
+            S = np.linalg.solve(c * np.eye(M * n * n) - L, np.tile(np.eye(n).ravel(), M)).reshape(M, n, n)
+        except (np.linalg.LinAlgError, ValueError):
             return None
     S = 0.5 * (S + S.transpose(0, 2, 1))
+    return S if np.isfinite(frobenius(S)) and frobenius(S) > 0 else None
+
+
+def _coupled_stein(A: np.ndarray, T: np.ndarray, c: float, support: np.ndarray) -> np.ndarray | None:
+    """S (M, n, n) with ``cS_a - A'(sum_b T_ab S_b)A = I`` for the modes a in ``support`` (M,) bool, the sum over
+    those b, and ``S_a = 0`` elsewhere (the tilt of `chain_proved_certificate`; `tilted`'s S at one mode), None
+    where it has no finite solution. On the modes a tuple weighs, not all: a mode it leaves at exactly 0 keeps
+    ``T_c(Q)_a`` at 0 where the chain moves from it only into such modes (an absorbing mode whose deliveries are
+    sure), which a tilt there would make indefinite. O((M n^2)^3)."""
+    M, n = T.shape[0], A.shape[0]
+    k = int(np.count_nonzero(support))
+    Tw = T[np.ix_(support, support)]
+    with np.errstate(all="ignore"):
+        try:
+            Sw = np.linalg.solve(c * np.eye(k * n * n) - np.kron(Tw, np.kron(A.T, A.T)),
+                                 np.tile(np.eye(n).ravel(), k)).reshape(k, n, n)
+        except np.linalg.LinAlgError:
+            return None
+    S = np.zeros((M, n, n))
+    S[support] = 0.5 * (Sw + Sw.transpose(0, 2, 1))
     return S if np.isfinite(frobenius(S)) and frobenius(S) > 0 else None
 
 

@@ -100,7 +100,8 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
     Raises
     ------
     NumericalError
-        For "dp": the ray's end is undecided, or no point of a bracket wider than ``tol`` can be decided.
+        For "dp": the ray's end, or mu = 0, is undecided. (A bracket that cannot be narrowed to ``tol``, no
+        point inside it decided, is returned with its proved ends and a ``note`` saying so.)
 
     Examples
     --------
@@ -141,6 +142,7 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
     if bottom.verdict == "undecided":
         raise NumericalError(f"critical mu: mu = 0 is undecided ({bottom.reason})")
     inside, outside = top, bottom
+    note = ""
     while hi - lo > tol:
         for fraction in (0.5, *_RETRY_FRACTIONS):
             mid = lo + fraction * (hi - lo)
@@ -149,16 +151,17 @@ def critical_point(system: System, law: str | npt.ArrayLike, direction: npt.Arra
             found = decide(mid)
             if found.verdict != "undecided":
                 break
-        else:
-            raise NumericalError(f"critical mu: no point of the bracket [{lo!r}, {hi!r}] (wider than tol = {tol:g}) "
-                                 "can be decided: every certificate fails within it")
+        else:   # both ends stay proved: a wider bracket is an answer, not a failure
+            note = (f"the bracket is {hi - lo:.3g} wide, wider than tol = {tol:g}: no point inside it could be "
+                    "decided (near the boundary every certificate's margin vanishes); both ends are proved")
+            break
         if not lo < mid < hi:   # adjacent doubles: a tol below the spacing of floats cannot be met
             break
         if found.verdict == "stable":
             hi, inside = mid, found
         else:
             lo, outside = mid, found
-    return CriticalPoint(name, d, hi, lo, inside, outside)
+    return CriticalPoint(name, d, hi, lo, inside, outside, note)
 
 
 def critical_mu(system: System, law: str | npt.ArrayLike, direction: npt.ArrayLike | None = None,

@@ -39,36 +39,70 @@ import numpy.typing as npt
 from ..display import supported_digits
 from ..errors import InputError, NumericalError
 from ..linalg import typed_linalg
+from ..model.chain import mode_chain
 from ..model.channel import GilbertElliott, MarkovChannel, gilbert_rates
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CERTIFICATE_RTOL, CRITICAL_MU_TOL, MEAN_SQUARE_MARGIN
+from .certificates import chain_proved_certificate
 from .chain_radius import chain_certificate_margin, check_delivery, homogeneous_coupled_riccati
 from .critical import critical_point
 from .mjls import mean_square_radius as mjls_radius
-from .riccati_map import cut_candidates
+from .riccati_map import cut_candidates, unreached_stein
 from .stability import is_mean_square_stable
+
+#: where a candidate proves ``1 - CERTIFICATE_RTOL`` (the verdict), `chain_outside` tries the float bound lowered by
+#: these (relative), in turn, for the sharpest margin it proves: its own rounding on a well-conditioned plant (1.2^2 as
+#: a double's exact square is 0.23 eps below the double 1.44), so a hand value keeps its digits; CERTIFICATE_RTOL;
+#: then steps down to the regularised eigenvector's distance from R's and beyond (chain_radius:
+#: COUPLED_POLICY_REGULARISATION = 1e-10 of lambda; a rank-one eigenvector, [[2, 0.7], [0, 0.9]] behind p = 0.3,
+#: r = 0.6, proves 1.6 (1 - 1e-6), not 1.6 (1 - 1e-8))
+_LOWERINGS = (16 * np.finfo(float).eps, CERTIFICATE_RTOL, 1e-10, 1e-8, 1e-6)
 
 __all__ = ["chain_at_rate", "chain_certificate_margin", "chain_critical_rate", "chain_least_radius", "chain_membership",
            "chain_outside", "chain_rate_map",
            "critical_rate_unproved", "homogeneous_coupled_riccati"]
 
 @typed_linalg("the chain's outside certificate")
-def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray, delivery: str
-                  ) -> tuple[float, np.ndarray | None]:
-    """``(margin, certificate)``: P (normalised to ``sum_a tr P_a = 1``) when its margin is ``>= -CERTIFICATE_RTOL``,
-    else P with its eigenvalues below riccati_map.CUTS (1e-12, 1e-9, 1e-6) of the largest (over all modes) cut off,
-    the first that checks (riccati_map.cut_candidates, each a certificate in its own right: an eigenvector leaves
-    rounding weight on modes and blocks of smaller radius); ``(margin of P, None)`` when none does. Time O(4 chain
-    margins)."""
+def chain_outside(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray, delivery: str,
+                  gains: np.ndarray | None = None) -> tuple[float, np.ndarray | None]:
+    """``(margin, certificate)``: a certificate that proves every mode-dependent law's radius at least ``1 + margin
+    >= 1 - CERTIFICATE_RTOL`` in exact arithmetic (certificates.chain_proved_certificate: the candidate itself,
+    snapped or tilted), else ``(the largest float margin of the candidates, None)``. The candidates: P (normalised to
+    ``sum_a tr P_a = 1``), then P with its eigenvalues below riccati_map.CUTS (1e-12, 1e-9, 1e-6) of the largest
+    (over all modes) cut off (riccati_map.cut_candidates: an eigenvector leaves rounding weight on modes and blocks
+    of smaller radius); each whose float margin (`chain_certificate_margin`) is ``>= -CERTIFICATE_RTOL`` is checked
+    exactly at ``c = 1 - CERTIFICATE_RTOL`` (the verdict) and, where that holds, at ``c = (1 + margin)`` lowered by
+    each of `_LOWERINGS` (relative) in turn for the sharpest margin it proves; last, the Stein certificate of a part
+    no delivering input reaches (riccati_map.unreached_stein, one P for every mode), as for Bernoulli losses
+    (region.membership). ``gains``: the mode gains that minimise at P, for the closed-loop tilt of the exact check.
+    A float margin alone is never a verdict: on an ill-conditioned plant its rounding exceeds
+    the band (a chain of four integrators behind a memoryless chain at rate 0.0124: float margin +6.6e-4 for a P
+    that no exact check confirms, where a law of radius 0.9975 exists). Time O(4 chain margins) plus O(M^2 (n +
+    m)^3) integer operations an exact try.
+    """
     P = P / max(float(sum(np.trace(p) for p in P)), np.finfo(float).tiny)
-    margin = chain_certificate_margin(A, B, channel, P, delivery)
-    if margin >= -CERTIFICATE_RTOL:
-        return margin, P
-    for Q in cut_candidates(0.5 * (P + P.transpose(0, 2, 1))):
-        cut_margin = chain_certificate_margin(A, B, channel, Q, delivery)
-        if cut_margin >= -CERTIFICATE_RTOL:
-            return cut_margin, Q
-    return margin, None
+    best = float("-inf")
+    for Q in [P, *cut_candidates(0.5 * (P + P.transpose(0, 2, 1)))]:
+        margin = chain_certificate_margin(A, B, channel, Q, delivery)
+        best = max(best, margin)
+        if not margin >= -CERTIFICATE_RTOL:
+            continue
+        floor = 1.0 - CERTIFICATE_RTOL
+        proved = chain_proved_certificate(A, B, channel, Q, floor, delivery, gains)
+        if proved is None:
+            continue
+        for c in [(1.0 + margin) * (1.0 - low) for low in _LOWERINGS]:    # the sharpest bound Q proves
+            if c > floor:
+                sharper = chain_proved_certificate(A, B, channel, Q, c, delivery, gains)
+                if sharper is not None:
+                    return c - 1.0, sharper
+        return floor - 1.0, proved
+    M = len(P)
+    for c, Pu in unreached_stein(A, B, np.any(mode_chain(channel)[2] > 0, axis=0)):
+        proved = chain_proved_certificate(A, B, channel, np.repeat(Pu[None] / M, M, axis=0), c, delivery)
+        if proved is not None:
+            return c - 1.0, proved
+    return best, None
 
 
 def chain_membership(A: npt.ArrayLike, B: npt.ArrayLike, channel: MarkovChannel, delivery: str = "next"
@@ -132,7 +166,8 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: 
     """`chain_membership`, the least radius lambda behind it, its gains K and their coupled radius where it was
     computed (nan otherwise): "stable" where the eigenpair's gains have a coupled radius below ``1 -
     MEAN_SQUARE_MARGIN`` (markov.mjls, on the plant as given), "unstable" where its P (or a cut of it,
-    `chain_outside`) proves every law's radius ``>= 1 - CERTIFICATE_RTOL``; else "undecided" with both
+    `chain_outside`) proves every law's radius ``>= 1 - CERTIFICATE_RTOL`` in exact arithmetic; else "undecided" with
+    both
     numbers. Time as `chain_membership`."""
     check_delivery(delivery)
     if not isinstance(channel, MarkovChannel) or not channel.two_state:
@@ -158,12 +193,17 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: 
         reason = (f"lambda = {lam:.{shown}g} < 1, but its gains' coupled radius {radius:.{shown}g}{why} is not below "
                   f"1 - {MEAN_SQUARE_MARGIN:g}")
     else:
-        margin, certificate = chain_outside(A, B, channel, P, delivery)
+        margin, certificate = chain_outside(A, B, channel, P, delivery, K)
         if certificate is not None:
             return (Membership(rates, "unstable", None, float("nan"), certificate, margin, ((form, "unstable"),)),
                     lam, K, radius)
-        reason = (f"lambda = {lam:.6g} >= 1 (its accuracy not estimated), but its certificate proves only that every "
-                  f"law's radius is >= {1.0 + margin:.12g}, short of 1 - {CERTIFICATE_RTOL:g}")
+        if margin >= -CERTIFICATE_RTOL:
+            reason = (f"lambda = {lam:.6g} >= 1 (its accuracy not estimated); its certificate's float bound says every "
+                      f"law's radius is >= {1.0 + margin:.12g}, but no candidate survives the exact check (the "
+                      "rounding of the float bound exceeds its margin)")
+        else:
+            reason = (f"lambda = {lam:.6g} >= 1 (its accuracy not estimated), but its certificate proves only that "
+                      f"every law's radius is >= {1.0 + margin:.12g}, short of 1 - {CERTIFICATE_RTOL:g}")
     return (Membership(rates, "undecided", None, float("nan"), None, float("nan"), ((form, "undecided"),), reason),
             lam, K, radius)
 

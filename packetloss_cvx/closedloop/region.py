@@ -21,10 +21,11 @@ outside one when lambda > 1) and "lmi" (simulation.region_lmi: the Schur-complem
 cvxpy + Clarabel). A form that cannot check its certificate says "undecided", never "unstable".
 
 The map's algebra (R as a sum of squares, the Collatz–Wielandt bound of a certificate, its cuts, the part no input
-reaches) is simulation.riccati_map's, over M-mode channels: Bernoulli losses are its one-mode chain, and
-simulation.chain_radius iterates the same map behind Gilbert–Elliott chains. The iteration here is its own (batched
-over channels, a Kronecker policy iteration, graded balancing): the chain's run on one-mode chains moves the least
-radius of a graded Jordan chain by 5e-3 and takes 5x the time (benchmarks/region_engine.py --one-mode).
+reaches, the balancing of a graded eigenvector) is simulation.riccati_map's, over M-mode channels: Bernoulli losses
+are its one-mode chain, and simulation.chain_radius iterates the same map behind Gilbert–Elliott chains. The
+iteration here is its own (batched over channels, a Kronecker policy iteration): the chain's, run on one-mode chains,
+agrees on the least radius within 9.1e-10 (graded Jordan chains; 3.7e-15 on two_actuator) and takes 5.1x the time
+(benchmarks/region_engine.py --one-mode).
 
 The "dp" form can only prove "stable" (its gain's radius below ``1 - MEAN_SQUARE_MARGIN``). When the "riccati"
 form ran before it and proved "unstable", or undecided but its P bounds every law's radius at
@@ -60,17 +61,20 @@ from .certificates import candidates, law_proved_stable, outside_proved
 from .moments import stationary_channel
 from .riccati import dp_riccati
 from .riccati_map import (
+    GRADED,
     POLICY_STEPS,
     SHIFT,
     bernoulli_rates,
     certificate_bound,
     converges_within,
     cut_candidates,
+    grading_scale,
     perron_adjoint,
     psd_part_factor,
     psd_size,
     reach_split,
     riccati_factors,
+    unreached_stein,
 )
 from .stability import check_law, is_mean_square_stable, law_radius, mean_square_radius, second_moment_matrix
 
@@ -243,9 +247,8 @@ def _split_eigenpairs(split: ControllableSplit, Bt: np.ndarray, A: np.ndarray, B
     return lam, P, K
 
 
-#: a P whose diagonal spans more than this (least over largest, zeros aside) is refined on the plant scaled by
-#: diagonal powers of two (:func:`_graded`)
-_GRADED = 1e-6
+#: riccati_map.GRADED, here where the tests switch the refinement off (0.0) to see the unbalanced iteration
+_GRADED = GRADED
 #: the refinement's passes at most (the second changes nothing where the first balanced P)
 _BALANCE_PASSES = 2
 #: a refinement is kept where its gain's radius is nearer its lambda than the last one's, or within this much of
@@ -259,6 +262,7 @@ def _graded(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | N
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The iteration (`_iterate`), and for each point whose P is graded (its diagonal spans more than
     `_GRADED`) the iteration again on the plant scaled by ``D = diag(2^round(-log2(P_ii) / 2))``
+    (riccati_map.grading_scale, as the chains' eigenpair is balanced)
     (``A -> D^-1 A D``, ``B -> D^-1 B``: exact in floating point, the same operators up to similarity), started from
     ``D P D``, mapped back (``P = D^-1 P~ D^-1``, ``K = K~ D^-1``, exact too). On a chain of integrators (P's
     diagonal 4e-14 ... 1) the unscaled iteration is not a fixed point (lambda 1.0101 for 1.0015); scaled, it
@@ -269,13 +273,9 @@ def _graded(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | N
     for g in range(mus.shape[0]):
         best, gap = (lam[g], P[g], K[g]), None
         for _ in range(_BALANCE_PASSES):
-            d = np.diagonal(best[1])
-            positive = d > 0
-            if not (np.all(np.isfinite(best[1])) and np.any(positive)) or \
-                    float(d[positive].min()) >= _GRADED * float(d[positive].max()):
+            D = grading_scale(best[1], _GRADED)
+            if D is None:
                 break
-            D = np.where(positive, np.exp2(np.clip(np.round(-0.5 * np.log2(np.where(positive, d, 1.0))),
-                                                   -_BALANCE_EXP, _BALANCE_EXP)), 1.0)
             l_, P_, K_ = _iterate(A * D[None, :] / D[:, None], B / D[:, None], mus[g:g + 1],
                                   D[:, None] * best[1] * D[None, :])
             found = (l_[0], P_[0] / D[:, None] / D[None, :], K_[0] / D[None, :])
@@ -297,10 +297,6 @@ def _gap(A: np.ndarray, B: np.ndarray, mu: np.ndarray, lam: float, P: np.ndarray
         return abs(law_radius(A, B, K, mu) - lam) if np.all(np.isfinite(K)) else float("inf")
     except NumericalError:
         return float("inf")
-
-
-#: the balancing exponents are clipped to +-_BALANCE_EXP (no scaled entry overflows for a plant below 1e150)
-_BALANCE_EXP = 100
 
 
 def _iterate(A: np.ndarray, B: np.ndarray, mus: np.ndarray, start: np.ndarray | None
@@ -494,12 +490,15 @@ def _inside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray | None) 
 _DP_HOPELESS = -0.5 * MEAN_SQUARE_MARGIN
 
 
-def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, floor: float = -CERTIFICATE_RTOL
-             ) -> tuple[str, float, np.ndarray | None]:
+def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None, floor: float = -CERTIFICATE_RTOL,
+             eigenvalue: float = float("nan")) -> tuple[str, float, np.ndarray | None]:
     """"unstable" with the margin and the certificate that proves every law's radius at least ``1 + margin >= 1 +
     floor`` in exact arithmetic (`proved_margin`), else "undecided" with the float estimate of P's margin
     (`certificate_margin`). Tried in turn: P and P cut at riccati_map.CUTS (each also snapped), then each of
-    them tilted (certificates.candidates)."""
+    them tilted (certificates.candidates). ``eigenvalue``: the homogeneous Riccati eigenvalue whose eigenvector P
+    is, when the caller has it: the tilts' estimate where P's own float bound says nothing (a numerically
+    rank-one P whose image R(P) the rounding turns off its direction has bound 0, while its tilts prove c up to
+    nearly lambda: the python-control spring of tests/closedloop/test_region_certificates.py)."""
     if P is None or not np.all(np.isfinite(P)):
         return "undecided", float("nan"), None
     P = 0.5 * (P + P.T) / max(float(np.trace(P)), np.finfo(float).tiny)
@@ -509,6 +508,9 @@ def _outside(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray | None,
     candidates = [(P, margin)] + [(Q[0], certificate_margin(A, B, mu, Q[0])) for Q in cut_candidates(P[None])]
     for tilt in (False, True):       # the candidates as they are first (a PSD certificate where one checks)
         for Q, estimate in candidates:
+            if tilt and np.isfinite(eigenvalue) and eigenvalue - 1.0 > max(estimate, floor):
+                estimate = eigenvalue - 1.0      # the tilts aim below lambda, not below P's own bound: only a
+                #                                  choice of the c tried, each decided by the exact check
             proved = proved_margin(A, B, mu, Q, estimate, floor, tilt)
             if proved is not None:
                 return "unstable", *proved
@@ -519,9 +521,11 @@ def proved_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, e
                   tilt: bool = False) -> tuple[float, np.ndarray] | None:
     """``(c - 1, certificate)`` for the largest c tried that a candidate of P proves exactly (every law's radius
     >= c, certificates.outside_proved; the candidates of certificates.candidates: P and P snapped, or with ``tilt``
-    those tilted): P's float ``estimate`` of the margin lowered by CERTIFICATE_RTOL relative, then ``1 + floor``;
-    None where none holds, or where the estimate is below the floor by more than its own rounding. Time
-    O((n + m)^3) integer operations a try, at most 24 tries.
+    those tilted): P's float ``estimate`` of the margin lowered by CERTIFICATE_RTOL relative, then (with ``tilt``)
+    half of it, then ``1 + floor``; None where none holds, or where the estimate is below the floor by more than its
+    own rounding. A tilt needs room below the bound it aims at (its ``t S`` spends part of the margin), and the
+    Stein equation of ``c = 1`` has no solution where A has eigenvalues on the unit circle (an undamped
+    oscillator), hence the half. Time O((n + m)^3) integer operations a try, at most 36 tries.
 
     >>> A, B = np.array([[2.0]]), np.array([[1.0]])      # every law's radius >= a^2 (1 - mu) = 1.6 at mu = 0.6
     >>> margin, P = proved_margin(A, B, np.array([0.6]), np.eye(1), 0.6, -1e-12)
@@ -530,7 +534,10 @@ def proved_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, e
     """
     if not estimate >= floor - CERTIFICATE_RTOL:
         return None
-    for c in ([(1.0 + estimate) * (1.0 - CERTIFICATE_RTOL)] if estimate > floor else []) + [1.0 + floor]:
+    tries = [(1.0 + estimate) * (1.0 - CERTIFICATE_RTOL)] if estimate > floor else []
+    if tilt and estimate > max(floor, 0.0):
+        tries.append(1.0 + 0.5 * estimate)
+    for c in tries + [1.0 + floor]:
         if c < 1.0 + floor:
             continue
         for Q in candidates(A, P, c, tilt):
@@ -540,36 +547,16 @@ def proved_margin(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray, e
 
 
 def _unreached(A: np.ndarray, B: np.ndarray, mu: np.ndarray) -> tuple[float, np.ndarray] | None:
-    """``(margin, P)`` where the part no delivering input reaches (controllable_split of B's columns with mu > 0)
-    has ``rho(A_uu)^2 >= 1 - CERTIFICATE_RTOL`` and its Stein certificate checks exactly: ``P = T_u S T_u'`` with
-    ``A_uu' S A_uu - cS = cI`` (S has a positive direction iff ``rho(A_uu)^2 > c``; ``T_c(P) = 0 + cI + 0`` where the
-    split is exact, e.g. a mode no column of B touches), tried at ``c = rho(A_uu)^2 (1 - 1e-9)`` and at ``1 -
-    CERTIFICATE_RTOL``. None otherwise (no such part, or a split resting on a rank decision: its coupling rounded
-    away, the check fails and the other certificates decide). Time O(n^4 + n_u^6).
+    """``(margin, P)`` where the part no delivering input reaches (riccati_map.unreached_stein, the channels with mu
+    > 0) has ``rho(A_uu)^2 >= 1 - CERTIFICATE_RTOL`` and its Stein certificate checks exactly (a candidate of it,
+    certificates.candidates); None otherwise (no such part, or a split resting on a rank decision: its coupling
+    rounded away, the check fails and the other certificates decide). Time O(n^4 + n_u^6).
 
     >>> margin, P = _unreached(np.array([[0.5, 1.0], [0.0, 1.2]]), np.array([[1.0], [0.0]]), np.array([0.5]))
     >>> round(margin, 6), P.round(12).tolist()      # every law leaves x2+ = 1.2 x2: radius >= 1.44
     (0.44, [[0.0, 0.0], [0.0, 1.0]])
     """
-    split = reach_split(A, B, mu > 0.0)[0]
-    if split.nc == A.shape[0]:
-        return None
-    top = split.uncontrollable_radius ** 2
-    Au, Tu = split.A_uu, split.T[:, split.nc:]
-    k = Au.shape[0]
-    for c in (top * (1.0 - 1e-9), 1.0 - CERTIFICATE_RTOL):
-        if not 1.0 - CERTIFICATE_RTOL <= c <= top:
-            continue
-        with np.errstate(all="ignore"):
-            try:
-                S = np.linalg.solve(np.kron(Au.T, Au.T) - c * np.eye(k * k), c * np.eye(k).ravel()).reshape(k, k)
-            except np.linalg.LinAlgError:
-                continue
-        P = Tu @ (0.5 * (S + S.T)) @ Tu.T
-        if not np.all(np.isfinite(P)):
-            continue
-        scale = float(np.trace(P)) if np.trace(P) > 0 else float(np.linalg.norm(P, 2))
-        P = P / scale
+    for c, P in unreached_stein(A, B, mu > 0.0):
         for Q in candidates(A, P, c, tilt=False):
             if outside_proved(A, B, mu, Q, c):
                 return c - 1.0, Q
@@ -635,7 +622,8 @@ def membership(system: System, mu: npt.ArrayLike | None = None, forms: tuple[str
             except NumericalError:     # no candidate: the form is undecided
                 pair = (float("nan"), np.full((system.n, system.n), np.nan), np.full((system.m, system.n), np.nan))
         if form == "dp" and (verdicts.get("riccati") == "unstable" or (verdicts.get("riccati") == "undecided" and
-                                                                      _outside(A, B, mu_, pair[1], _DP_HOPELESS)[0]
+                                                                      _outside(A, B, mu_, pair[1], _DP_HOPELESS,
+                                                                               pair[0])[0]
                                                                       == "unstable")):
             verdicts[form], values[form] = "undecided", float("nan")    # no gain can pass (_DP_HOPELESS)
             continue
@@ -685,7 +673,7 @@ def _run(form: str, system: System, A: np.ndarray, B: np.ndarray, mu: np.ndarray
                 K = _homogeneous_step(P + _LIFT * np.eye(A.shape[0]), A, B, mu)[0]
                 verdict, radius = _inside(A, B, mu, K)
             return verdict, radius, K, None
-        verdict, margin, P_ = _outside(A, B, mu, P)
+        verdict, margin, P_ = _outside(A, B, mu, P, eigenvalue=lam)
         if verdict == "undecided":   # no certificate that checks: lambda may be wrong, and its gain is a candidate
             inside, radius = _inside(A, B, mu, K)
             if inside == "stable":

@@ -20,6 +20,7 @@ No causal law over these losses does better: the optimum over all laws is linear
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -35,8 +36,9 @@ from .modes import mode_radius
 from .moments import check_steps, law_cost_to_go, mode_cost_to_go, stationary_channel
 from .stability import check_law, is_mean_square_stable, mean_square_radius
 
-__all__ = ["NO_SOLUTION", "dp_backward", "dp_backward_nodes", "dp_finite_horizon", "dp_input_hessian", "dp_riccati",
-           "dp_step", "mixture_step", "mode_riccati", "modified_riccati_step"]
+__all__ = ["NO_SOLUTION", "Bellman", "channel_bellman", "dp_backward", "dp_backward_nodes", "dp_finite_horizon",
+           "dp_input_hessian", "dp_riccati", "dp_step", "mixture_step", "mode_riccati", "modified_riccati_step",
+           "solve_bellman"]
 
 #: Every NumericalError of :func:`dp_riccati` that means "no law holds the second moment" starts its
 #: reason with this (callers that treat the absence of a stabilising law as a case, not an error, test it).
@@ -191,15 +193,76 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
     >>> bool(np.allclose(P2, P)), bool(np.allclose(K2, K))
     (True, True)
     """
-    scale = _cost_to_go_scale(B, Omega, psi)
+    return solve_bellman(channel_bellman(A, B, Omega, psi, h, T), proves=proves, gain=gain, max_iter=max_iter,
+                         label=label, where=where)
+
+
+@dataclass(frozen=True)
+class Bellman:
+    """A coupled Riccati equation as the maps `solve_bellman` iterates: ``step(P) -> (K, P_prev)`` the Bellman
+    step (greedy gains for the cost-to-go P and the new cost-to-go), ``radius(K)`` the engine's mean-square radius
+    of the law K, ``cost_to_go(K)`` its exact cost-to-go (the coupled Lyapunov equations), ``start`` the value
+    iteration's first P (the state weight per mode), ``scale`` the size a stabilising P is measured against (its
+    divergence test), ``gain_shape`` K's shape, and ``definite``: the state weight is positive definite, so that a
+    stabilising gain may start the policy iteration (`_started`). `channel_bellman` is the channel's equation
+    (`mode_riccati`); closedloop.actuator_design builds the one of an actuator's strategy.
+
+    >>> one = np.ones((1, 1))
+    >>> problem = channel_bellman(2 * one, one, one, np.ones(1), np.ones(1))     # the scalar DARE
+    >>> problem.gain_shape, problem.definite, [round(float(v), 12) for v in problem.step(one)[0].ravel()]
+    ((1, 1), True, [1.0])
+    """
+
+    step: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    radius: Callable[[np.ndarray], float]
+    cost_to_go: Callable[[np.ndarray], np.ndarray]
+    start: np.ndarray
+    scale: float
+    gain_shape: tuple[int, ...]
+    definite: bool
+
+
+def channel_bellman(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarray, h: np.ndarray,
+                    T: np.ndarray | None = None) -> Bellman:
+    """`mode_riccati`'s equation as a `Bellman`: `dp_step`, the engine's radius and the law's cost-to-go
+    (moments.law_cost_to_go at one mode, moments.mode_cost_to_go behind a chain). O(n^3 + n m) to build.
+
+    >>> one = np.ones((1, 1))                     # x+ = 2x - v K x, v ~ Bernoulli(1/2), K = 2: (2 - 1)^2 + 4/4
+    >>> channel_bellman(2 * one, one, one, np.ones(1), np.array([0.5])).radius(2 * one)
+    2.0
+    """
+    shape = (B.shape[1], A.shape[0]) if T is None else (T.shape[0], B.shape[1], A.shape[0])
+    return Bellman(step=lambda P: dp_step(P, A, B, h, T, Omega, psi),
+                   radius=lambda K: _radius(A, B, K, h, T),
+                   cost_to_go=lambda K: _cost_to_go(K, A, B, h, T, Omega, psi),
+                   start=Omega.copy() if T is None else np.repeat(Omega[None], T.shape[0], axis=0),
+                   scale=_cost_to_go_scale(B, Omega, psi), gain_shape=shape,
+                   definite=bool(np.linalg.eigvalsh(Omega)[0] > 0))
+
+
+def solve_bellman(problem: Bellman, *, proves: Callable[[np.ndarray], bool], gain: np.ndarray | None = None,
+                  max_iter: int = RICCATI_MAX_ITER, label: str = "modified Riccati equation",
+                  where: str = "") -> tuple[np.ndarray, np.ndarray, int, float, float]:
+    """The stabilising solution of ``problem``'s coupled Riccati equation: ``(K, P, iterations, residual,
+    radius)``, by `mode_riccati`'s iteration (value iteration, then Hewer's policy iteration once the greedy gains
+    are mean-square stabilising; ``proves`` asked once P diverges; errors as `mode_riccati`'s). Time: the
+    iterations' steps, plus one cost-to-go per policy step.
+
+    >>> one = np.ones((1, 1))                     # scalar DARE: P = 1 + 4 P - 4 P^2 / (P + 1), P = 2 + sqrt(5)
+    >>> K, P, _, _, _ = solve_bellman(channel_bellman(2 * one, one, one, np.ones(1), np.ones(1)),
+    ...                               proves=lambda P: False)
+    >>> bool(np.isclose(P[0, 0], 2 + 5 ** 0.5))
+    True
+    """
+    scale = problem.scale
     if not RICCATI_DIVERGENCE * scale < np.finfo(float).max:
         raise NumericalError(f"{label}: the cost-to-go's scale (the weights, and the input weights "
                              f"over ||B e_i||^2: {scale:.3g}) leaves no room in double precision to tell divergence "
                              "from convergence; rescale the inputs (B by c and the input weights by c^2 is the same "
                              "problem)")
-    P = Omega.copy() if T is None else np.repeat(Omega[None], T.shape[0], axis=0)
+    P = problem.start.copy()
     iterations = 0
-    started = _started(gain, A, B, h, T, Omega, psi, label)
+    started = _started(gain, problem, label)
     if started is not None:
         P, iterations = started
     check_at = RICCATI_DIVERGENCE * scale             # the next size at which a growing P is asked for a proof
@@ -207,7 +270,7 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
     with np.errstate(over="ignore", invalid="ignore"):
         while started is None:
             try:
-                K, P_next = dp_step(P, A, B, h, T, Omega, psi)
+                K, P_next = problem.step(P)
             except NumericalError:
                 if size <= RICCATI_DIVERGENCE * scale:
                     raise
@@ -231,18 +294,18 @@ def mode_riccati(A: np.ndarray, B: np.ndarray, Omega: np.ndarray, psi: np.ndarra
             if converged:
                 break
             if iterations % _CHECK_EVERY == 0:
-                K, _ = dp_step(P, A, B, h, T, Omega, psi)
-                if is_mean_square_stable(_radius(A, B, K, h, T)):
-                    P, steps = _policy_iteration(K, A, B, h, T, Omega, psi, label)
+                K, _ = problem.step(P)
+                if is_mean_square_stable(problem.radius(K)):
+                    P, steps = _policy_iteration(K, problem, label)
                     iterations += steps
                     break
             if iterations >= max_iter:
                 raise NumericalError(f"{label}: no convergence in {iterations} iterations{where} (no stabilising "
                                      "solution, or too close to the critical probability: the loop is not "
                                      "mean-square stabilisable, or only barely)")
-    K, P_next = dp_step(P, A, B, h, T, Omega, psi)
+    K, P_next = problem.step(P)
     residual = frobenius(P_next - P) / max(frobenius(P), np.finfo(float).tiny)
-    radius = _radius(A, B, K, h, T)
+    radius = problem.radius(K)
     if not is_mean_square_stable(radius):
         raise NumericalError(f"{label}: the solution found{where} is not stabilising (its law has mean-square "
                              f"radius {radius:.6g} >= 1): a mode that Omega does not weigh")
@@ -302,36 +365,34 @@ def _cost_to_go_scale(B: np.ndarray, Omega: np.ndarray, psi: np.ndarray) -> floa
     return max(frobenius(Omega), float(np.max(psi, initial=0.0)), inputs)
 
 
-def _started(gain: np.ndarray | None, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None,
-             Omega: np.ndarray, psi: np.ndarray, label: str) -> tuple[np.ndarray, int] | None:
-    """The policy iteration from ``gain`` where that law is finite, of K's shape ((m, n), or (M, m, n) behind a
-    chain), mean-square stabilising and the iteration converges: ``(P, steps)``, else None (the value iteration then
-    runs as without it). Only with ``Omega > 0``: a singular Omega may not see an unstable mode, where the value
-    iteration's limit (the optimum) is not the stabilising solution that Hewer's iteration reaches. O(steps n^6)."""
+def _started(gain: np.ndarray | None, problem: Bellman, label: str) -> tuple[np.ndarray, int] | None:
+    """The policy iteration from ``gain`` where that law is finite, of the problem's gain shape ((m, n), or
+    (M, m, n) behind a chain), mean-square stabilising and the iteration converges: ``(P, steps)``, else None (the
+    value iteration then runs as without it). Only with a definite state weight: a singular Omega may not see an
+    unstable mode, where the value iteration's limit (the optimum) is not the stabilising solution that Hewer's
+    iteration reaches. O(steps n^6)."""
     if gain is None:
         return None
     K = np.asarray(gain, dtype=float)
-    shape = (B.shape[1], A.shape[0]) if T is None else (T.shape[0], B.shape[1], A.shape[0])
-    if K.shape != shape or not np.all(np.isfinite(K)) or not np.linalg.eigvalsh(Omega)[0] > 0:
+    if K.shape != problem.gain_shape or not np.all(np.isfinite(K)) or not problem.definite:
         return None
     try:
-        if not is_mean_square_stable(_radius(A, B, K, h, T)):
+        if not is_mean_square_stable(problem.radius(K)):
             return None
         with np.errstate(over="ignore", invalid="ignore"):
-            P, steps = _policy_iteration(K, A, B, h, T, Omega, psi, label)
+            P, steps = _policy_iteration(K, problem, label)
     except (NumericalError, np.linalg.LinAlgError):
         return None
     return (P, steps) if np.all(np.isfinite(P)) else None
 
 
-def _policy_iteration(K: np.ndarray, A: np.ndarray, B: np.ndarray, h: np.ndarray, T: np.ndarray | None,
-                      Omega: np.ndarray, psi: np.ndarray, label: str) -> tuple[np.ndarray, int]:
+def _policy_iteration(K: np.ndarray, problem: Bellman, label: str) -> tuple[np.ndarray, int]:
     """Hewer's iteration from a stabilising K: P_j = cost-to-go of K_j, K_{j+1} = the greedy gain of P_j.
     The P_j decrease to the stabilising solution (each K_j stays stabilising)."""
-    P = _cost_to_go(K, A, B, h, T, Omega, psi)
+    P = problem.cost_to_go(K)
     for step in range(1, _POLICY_MAX_ITER + 1):
-        K, _ = dp_step(P, A, B, h, T, Omega, psi)
-        P_next = _cost_to_go(K, A, B, h, T, Omega, psi)
+        K, _ = problem.step(P)
+        P_next = problem.cost_to_go(K)
         if frobenius(P_next - P) <= RICCATI_RTOL * frobenius(P_next):
             return P_next, step
         P = P_next

@@ -24,9 +24,10 @@ import numpy as np
 from ..linalg import ControllableSplit, controllable_split
 from ..tolerances import CERTIFICATE_KERNEL_RTOL, CERTIFICATE_RTOL, RICCATI_RTOL
 
-__all__ = ["CUTS", "POLICY_STEPS", "SHIFT", "bernoulli_rates", "certificate_bound", "chain_rates", "converges_within",
-           "cut_candidates", "least_squares_residual", "moment_factor", "perron_adjoint", "psd_part_factor",
-           "psd_size", "radius_bound", "reach_split", "riccati_factors", "riccati_squares"]
+__all__ = ["BALANCE_EXP", "CUTS", "GRADED", "POLICY_STEPS", "SHIFT", "bernoulli_rates", "certificate_bound",
+           "chain_rates", "converges_within", "cut_candidates", "grading_scale", "least_squares_residual",
+           "moment_factor", "perron_adjoint", "psd_part_factor", "psd_size", "radius_bound", "reach_split",
+           "riccati_factors", "riccati_squares", "unreached_stein"]
 
 #: the power iterations run on ``R + SHIFT lambda I`` (the same eigenvector): a shift removes a peripheral spectrum
 #: (e.g. rotations, eigenvalues -lambda); 0.1 costs little speed where the second eigenvalue is small (0.5 had taken
@@ -191,6 +192,34 @@ def cut_candidates(P: np.ndarray, cuts: tuple[float, ...] = CUTS):
         yield Q / float(np.sum(np.trace(Q, axis1=-2, axis2=-1)))
 
 
+#: a P whose diagonal spans more than this (least over largest, zeros aside) is refined on the plant scaled by
+#: diagonal powers of two (`grading_scale`; region's and chain_radius's eigenpairs)
+GRADED = 1e-6
+#: the balancing exponents of `grading_scale` are clipped to +-BALANCE_EXP (no scaled entry overflows for a plant
+#: below 1e150)
+BALANCE_EXP = 100
+
+
+def grading_scale(P: np.ndarray, graded: float) -> np.ndarray | None:
+    """``D = diag(2^round(-log2(d_i) / 2))`` (exponents clipped to +-BALANCE_EXP; 1 where ``d_i <= 0``) for the
+    diagonal d of P (n, n), or of a tuple's sum over its modes (M, n, n), where its positive entries span more than
+    ``graded`` (least over largest); None where they do not, or P is not finite or has no positive diagonal entry.
+    The plant scaled by it, ``D^-1 A D``, ``D^-1 B``, is the same up to an exact similarity (powers of two) and has
+    the eigenvector ``D P D``, balanced: the power and policy iterations on a chain of integrators (diagonal 4e-14
+    .. 1) stop 1e-2 off unscaled and agree with the exact single-input value scaled (region, chain_radius). O(M n^2).
+
+    >>> grading_scale(np.diag([1.0, 1e-8]), 1e-6).tolist(), grading_scale(np.eye(2), 1e-6)
+    ([1.0, 8192.0], None)
+    """
+    d = np.diagonal(P.sum(axis=0) if P.ndim == 3 else P)
+    positive = d > 0
+    if not (np.all(np.isfinite(P)) and np.any(positive)) or \
+            float(d[positive].min()) >= graded * float(d[positive].max()):
+        return None
+    return np.where(positive, np.exp2(np.clip(np.round(-0.5 * np.log2(np.where(positive, d, 1.0))),
+                                              -BALANCE_EXP, BALANCE_EXP)), 1.0)
+
+
 def perron_adjoint(A: np.ndarray) -> np.ndarray:
     """The Perron eigenvector of ``X -> A'XA`` (PSD, trace 1): ``Re(w w^H)`` for a left eigenvector w of A's
     eigenvalue nu of largest modulus (``A'XA = |nu|^2 X``): the certificate of a part no input reaches. O(n^3).
@@ -215,6 +244,42 @@ def reach_split(A: np.ndarray, B: np.ndarray, live: np.ndarray) -> tuple[Control
     Bt = split.T.T @ B
     Bt[split.nc:] = 0.0
     return split, Bt
+
+
+def unreached_stein(A: np.ndarray, B: np.ndarray, live: np.ndarray) -> list[tuple[float, np.ndarray]]:
+    """``[(c, P), ...]``: candidate certificates that every law's radius is at least c, from the part the channels
+    ``live`` (m,) bool do not reach (`reach_split`) where ``rho(A_uu)^2 >= 1 - CERTIFICATE_RTOL``: ``P = T_u S T_u'``
+    (trace 1, or norm 1) with ``A_uu' S A_uu - cS = cI`` (S has a positive direction iff ``rho(A_uu)^2 > c``;
+    ``T_c(P) = 0 + cI + 0`` where the split is exact, e.g. a mode no column of B touches: a definite inequality the
+    rounding cannot undo), at ``c = rho(A_uu)^2 (1 - 1e-9)`` and at ``1 - CERTIFICATE_RTOL``. Empty where there is no
+    such part. One P for every mode of a chain too (``E_a = sum_b T_ab P = P``). Candidates only: an exact check
+    decides (a split resting on a rank decision, its coupling rounded away, fails it). Time O(n^4 + n_u^6).
+
+    >>> [(round(c, 6), P.round(12).tolist()) for c, P in unreached_stein(np.array([[0.5, 1.0], [0.0, 1.2]]),
+    ...                                                                    np.array([[1.0], [0.0]]), np.array([True]))]
+    [(1.44, [[0.0, 0.0], [0.0, 1.0]]), (1.0, [[0.0, 0.0], [0.0, 1.0]])]
+    """
+    split = reach_split(A, B, live)[0]
+    if split.nc == A.shape[0]:
+        return []
+    top = split.uncontrollable_radius ** 2
+    Au, Tu = split.A_uu, split.T[:, split.nc:]
+    k = Au.shape[0]
+    out = []
+    for c in (top * (1.0 - 1e-9), 1.0 - CERTIFICATE_RTOL):
+        if not 1.0 - CERTIFICATE_RTOL <= c <= top:
+            continue
+        with np.errstate(all="ignore"):
+            try:
+                S = np.linalg.solve(np.kron(Au.T, Au.T) - c * np.eye(k * k), c * np.eye(k).ravel()).reshape(k, k)
+            except np.linalg.LinAlgError:
+                continue
+        P = Tu @ (0.5 * (S + S.T)) @ Tu.T
+        if not np.all(np.isfinite(P)):
+            continue
+        scale = float(np.trace(P)) if np.trace(P) > 0 else float(np.linalg.norm(P, 2))
+        out.append((c, P / scale))
+    return out
 
 
 def converges_within(moved: np.ndarray, last: np.ndarray, steps_left: int) -> np.ndarray:

@@ -31,6 +31,7 @@ referee: the forward pass of ``xhat``, ``eta`` and ``Sigma``, every cost term no
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -56,7 +57,6 @@ from .recursion import (
     stationary_close,
     weight_head,
 )
-from .settling import small_change
 from .structure import structure_of
 
 #: The lift of a system's own chains (:func:`chain_lift`), kept per system (a SystemStore): n and m (A's and B's
@@ -114,7 +114,8 @@ def chain_lift(system: System, chains: tuple | None = None) -> ChainLift:
     ``chain_matrices(system.channel)``); a system without a channel has none (q_i = 0: the augmented problem
     is then the paper's Bernoulli UDP-like one). The state distributions ``pi_{t+1} = pi_t T`` are propagated
     from each ``pi0``; their delivery probabilities ``pi_t d`` must be the system's ``mu_schedule`` (to 1e-9):
-    the mean state uses the schedule, the covariances the chain. Time O(N m k^2).
+    the mean state uses the schedule, the covariances the chain. Time O(N m k^2), O(L m k^2 + N m k) for
+    distributions that reach their float fixed point in L steps (the rest are copies, to the bit).
 
     Raises
     ------
@@ -159,6 +160,9 @@ def _lift(system: System, chains: tuple | None) -> ChainLift:
         pi[0] = pi0
         for t in range(1, N):
             pi[t] = pi[t - 1] @ T
+            if np.array_equal(pi[t], pi[t - 1]):          # a fixed point of the float step: the rest are copies
+                pi[t + 1:] = pi[t]
+                break
         rate = pi @ d
         gap = np.abs(rate - system.mu_schedule[:, i])
         if not np.all(gap <= 1e-9):
@@ -281,10 +285,12 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     Returns ``(U, gain, cost)``: the plan (N×m), the first step's gain on ``x`` (m×n) and the exact
     minimum, checked against `chain_cost` of the plan to ``SELF_CHECK_RTOL`` (plus
     ``SELF_CHECK_ATOL ||P_0|| ||x||^2``). Time O(N (D^3 + m^3)) with D = n (1 + sum_i (k_i - 1)), memory
-    O(N m D) for the gains; where the steps are one map (chains started in their stationary distributions, a
-    stable A whose Lyapunov sums closed) the value closes its stationary tail after L steps and the run of one
-    gain is rolled out by powers of its closed loop: O(L (D^3 + m^3) + N D^2) for the solve, the referee
-    `chain_cost` staying O(N n^2 (n + m + sum_i (k_i - 1))).
+    O(N m D) for the gains; where the steps from s on are one map (s: the step where the chains' distributions
+    reach their float fixed point, 1 for chains started in their stationary distributions; a stable A whose
+    Lyapunov sums closed) the value closes its stationary tail after L steps, the steps before s are taken one by
+    one and the run of one gain is rolled out by powers of its closed loop: O((s + L) (D^3 + m^3) + N D^2) for the
+    solve; the referee `chain_cost` is O(N n^2 (n + m + sum_i (k_i - 1))) array work, in about 2 sqrt(N) stacked
+    steps where A is stable (`_blocked_chain_cost`).
 
     Raises
     ------
@@ -307,27 +313,32 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     Gs = _input_maps(system, lift)
     P = np.zeros((D, D))
     P[:n, :n] = W[N - 1]
-    # steps 1..head are one map (the input maps, R, the cross terms and Omega equal to the bit: a chain started in
-    # its stationary distribution, below the step where the Lyapunov sums closed): there the value closes its
-    # stationary tail as recursion._backward's does (remaining drift under STATIONARY_RTOL)
-    head = min(leading_run(Gs[None, 1:]), leading_run(R[None, 1:]), leading_run(BSA[None, 1:]),
-               len(weight_head(system))) if N >= 2 * STATIONARY_RUN else 0
+    # steps first..head are one map (the input maps, R, the cross terms and Omega equal to the bit: from the step
+    # where the chains' distributions reached their float fixed point, first = 1 for chains started in it, below the
+    # step where the Lyapunov sums closed): there the value closes its stationary tail as recursion._backward's does
+    # (remaining drift under STATIONARY_RTOL), and the steps before first are taken one by one
+    first = _steady_from(Gs, mu) if N >= 2 * STATIONARY_RUN else 1
+    head = first - 1 + min(leading_run(Gs[None, first:]), leading_run(R[None, first:]),
+                           leading_run(BSA[None, first:]), len(weight_head(system)) - first + 1) \
+        if N >= 2 * STATIONARY_RUN and first < N - 1 else 0
     q, run = None, None
     with np.errstate(over="ignore", invalid="ignore"):
         try:
-            for t in range(N - 1, -1, -1):
+            t = N - 1
+            while t >= 0:
                 K[t], new = _augmented_step(P, F, Gs[t], R[t], BSA[t], lift, scale[t], W[t - 1] if t > 0 else None)
-                if 2 <= t <= head:
+                if first + 1 <= t <= head and run is None:
                     if q is None and stationary_close(new, P, 0.01):      # near: the change below 99 STATIONARY_RTOL
                         q = float(np.max(np.abs(np.linalg.eigvals(F - Gs[t] @ K[t])))) ** 2
                     if q is not None and stationary_close(new, P, q):
-                        # P_t = P_{t-1} = ... = P_1 to rounding: its gain for steps 1..t-1, then step 0
-                        K[1], P = _augmented_step(new, F, Gs[1], R[1], BSA[1], lift, scale[1], W[0])
-                        K[2:t] = K[1]
-                        K[0], P = _augmented_step(P, F, Gs[0], R[0], BSA[0], lift, scale[0], None)
-                        run = (1, t)
-                        break
+                        # P_t = P_{t-1} = ... = P_first to rounding: its gain for steps first..t-1, then the steps
+                        # before first one by one
+                        a = first
+                        K[a], new = _augmented_step(new, F, Gs[a], R[a], BSA[a], lift, scale[a], W[a - 1])
+                        K[a + 1:t] = K[a]
+                        run, t = (a, t), a
                 P = new
+                t -= 1
         except np.linalg.LinAlgError:
             raise overflow_error("the augmented cost-to-go matrix", "udp") from None
         if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K)) and np.isfinite(noise)):
@@ -362,6 +373,16 @@ def augmented_solve(system: System, chains: tuple | None = None) -> tuple[np.nda
     return U, K[0][:, :n].copy(), cost
 
 
+def _steady_from(Gs: np.ndarray, mu: np.ndarray) -> int:
+    """The first step s >= 1 from which the input maps ``Gs`` (N, D, m) and the channels ``mu`` (N, m) are the same
+    floats at every later step (1 for chains started in their stationary distributions; N - 1 where they never stop
+    changing). O(N D m)."""
+    N = mu.shape[0]
+    changed = np.any((Gs[1:] != Gs[:-1]).reshape(N - 1, -1), axis=1) | np.any(mu[1:] != mu[:-1], axis=1)
+    last = np.flatnonzero(changed[1:])
+    return int(last[-1]) + 2 if last.size else 1
+
+
 def _augmented_step(P: np.ndarray, F: np.ndarray, G: np.ndarray, R: np.ndarray, BSA: np.ndarray, lift: ChainLift,
                     scale: np.ndarray, Omega: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """One step of `augmented_solve`'s backward pass: the cross term ``N`` (row i: b_i'S_t A ⊗ g_i, row-major
@@ -393,7 +414,32 @@ def mean_state_bound(system: System, inputs: np.ndarray) -> float:
     (3.3, True)
     """
     N, m = system.horizon, system.m
-    return plan_cost(system.with_mu(system.mu_schedule), inputs, "tcp", (np.zeros((N, m)), 0.0))[1]
+    states = None
+    if _blocked(system):                       # chain_cost's mean states: the same blocks, the same floats
+        with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+            states = _mean_blocks(system, np.asarray(inputs, dtype=float)[None])[:, 0, :, 0]
+    return plan_cost(system.with_mu(system.mu_schedule), inputs, "tcp", (np.zeros((N, m)), 0.0), states)[1]
+
+
+def _blocked(system: System) -> bool:
+    """Whether `chain_cost` takes `_blocked_chain_cost`: a stable A (rho(A) < 1) and one state weight. O(1) once the
+    structure is kept."""
+    structure = structure_of(system)
+    return structure.open_loop_radius < 1.0 and structure.time_invariant_weight
+
+
+def _mean_blocks(system: System, U: np.ndarray) -> np.ndarray:
+    """The mean states x_1..x_N (N, P, n, 1) of plans U (P, N, m) from x0 by `_forward_blocks` (``x+ = A x + B M_t
+    u_t``) in spans (`_span`). O(N P n (n + m))."""
+    N, P = system.horizon, U.shape[0]
+    moved = ((U.transpose(1, 0, 2) * system.mu_schedule[:, None, :]) @ system.B.T)[..., None]    # (N, P, n, 1)
+    out = np.empty_like(moved)
+    start = np.repeat(system.x0[None, :, None], P, axis=0)
+    span = _span(P, system.n)
+    for a in range(0, N, span):
+        out[a:a + span] = _forward_blocks(system.A, np.ones((1, 1)), start, moved[a:a + span])
+        start = out[min(N, a + span) - 1]
+    return out
 
 
 def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:
@@ -421,9 +467,11 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     mu = system.mu_schedule
     x = system.x0
     chained = [i for i in range(m) if lift.Lam[i].size]
+    if _blocked(system):
+        return _blocked_chain_cost(system, lift, U, chained)
+    structure = structure_of(system)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
-        structure = structure_of(system)
         X = mean_states(structure, mu[None], U, np.repeat(x[None], P, axis=0))
         total = forward_cost(structure, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
         var_u2 = mu * (1.0 - mu) * U * U                      # (P, N, m)
@@ -442,8 +490,125 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
                 + system.noise_cov
             total += np.einsum("ij,pji->p", W[t], Sig)
         if end < N:
-            total += _free_tail(system, Sig, end, finite=all(np.all(np.isfinite(e)) for e in eta.values()))
+            total += _free_tail(system, Sig, end)
     return total
+
+
+#: `_blocked_chain_cost` and `_mean_blocks` take the steps in spans of at most this many entries per array (8 MiB),
+#: carrying the state from one span to the next: memory bounded whatever N (each span in about 2 sqrt(span) stacked
+#: steps).
+CHAIN_SPAN_ENTRIES = 2**20
+
+
+def _span(P: int, width: int) -> int:
+    """The steps of one span: CHAIN_SPAN_ENTRIES over ``P width`` entries a step, at least STATIONARY_RUN. O(1)."""
+    return max(STATIONARY_RUN, CHAIN_SPAN_ENTRIES // max(1, P * width))
+
+
+def _blocked_chain_cost(system: System, lift: ChainLift, U: np.ndarray, chained: list[int]) -> np.ndarray:
+    """`chain_cost` where A is stable (rho(A) < 1) and the state weight is one weight: the same forward recursions
+    of the mean state, the correlations eta and the error covariance Sigma, each of them ``X+ = L X R + C_t`` with
+    constant L and R, run over the steps up to the plan's end (`_plan_end`) by `_forward_blocks` (about 2 sqrt(T)
+    stacked steps instead of T, in spans of CHAIN_SPAN_ENTRIES), every stage term still computed and nonnegative;
+    after the plan's end the second moment ``xhat xhat' + Sigma`` is free (``Pi+ = A Pi A' + Sigma_W``) and its
+    remaining stage terms are the Stein sums of `_free_sums`. Agrees with the step-by-step pass to rounding (the
+    powers of a stable A): within 1.9e-13 relative on benchmarks/markov_tail.py's examples, each of the two within
+    1.0e-13 of an 80-bit loop. Time O(T P n^2 (n + sum_i q_i) + N P n^2 + sqrt(N) n^3 + n^3 log(N - T)) for a plan
+    ending at T (the mean states over all N, as `mean_state_bound` bounds them); memory O(N P n) for the mean states
+    and O(CHAIN_SPAN_ENTRIES) for the rest."""
+    A, B, N, n, m = system.A, system.B, system.horizon, system.n, system.m
+    W = system.state_weights[0]
+    P = U.shape[0]
+    mu = system.mu_schedule
+    x = system.x0
+    end = _plan_end(U)
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        total = np.full(P, float(x @ system.initial_weight @ x))
+        last = np.repeat(x[None], P, axis=0)                          # x_end (P, n)
+        Sig = np.zeros((P, n, n))
+        if end:
+            states = _mean_blocks(system, U)[:end, :, :, 0]            # x_1 .. x_end (T, P, n)
+            u = U[:, :end].transpose(1, 0, 2)                         # (T, P, m)
+            total += np.einsum("tpk,tpk->p", (mu[:end, None, :] * u), system.input_weights[:end, None, :] * u)
+            total += np.einsum("tpj,jk,tpk->p", states, W, states)
+            last = states[-1]
+            eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
+            var = (mu * (1.0 - mu))[:end, None, :] * u * u                # (T, P, m)
+            span = _span(P, n * (n + m + lift.size // n))
+            for a in range(0, end, span):
+                b = min(end, a + span)
+                Y = np.zeros((b - a, P, n, m))                        # column i: E[e_t delta_{t,i}] u_{t,i}
+                for i in chained:
+                    ui = u[a:b, :, i, None, None]
+                    drive = B[None, None, :, i, None] * (ui * lift.gamma[i][a:b, None, None, :])
+                    later = _forward_blocks(A, lift.Lam[i], eta[i], drive)         # eta_{a+1} .. eta_b
+                    Y[:, :, :, i] = (np.concatenate([eta[i][None], later[:-1]]) @ lift.g[i]) * ui[..., 0]
+                    eta[i] = later[-1]
+                cross = A @ Y @ B.T
+                drive = cross + cross.transpose(0, 1, 3, 2) + (B * var[a:b, :, None, :]) @ B.T + system.noise_cov
+                later = _forward_blocks(A, A.T, Sig, drive)                      # Sigma_{a+1} .. Sigma_b
+                total += np.einsum("ij,tpji->p", W, later)
+                Sig = later[-1]
+        if end < N:
+            total += _free_sums(A, W, system.noise_cov, Sig + last[:, :, None] * last[:, None, :], N - end)
+    return total
+
+
+def _forward_blocks(L: np.ndarray, R: np.ndarray, X0: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``X_{k+1} = L X_k R + C_k`` for k = 0..T-1 from X0 (P, a, b), C (T, P, a, b): returns X_1..X_T (T, P, a, b).
+    In blocks of c = ceil(sqrt(T)) steps: the particular solutions of every block at once (c stacked steps, each as
+    the step-by-step pass takes it), the block starts one after another (T / c steps by the c-th powers), then every
+    state as ``L^j X_start R^j`` plus its block's particular solution. For a stable map (the powers do not grow)
+    this agrees with the step-by-step pass to rounding. O(T P a b (a + b) + sqrt(T) (a^3 + b^3)), about 2 sqrt(T)
+    stacked steps."""
+    T, P, a, b = C.shape
+    c = max(1, math.isqrt(T - 1) + 1) if T else 1
+    blocks = -(-T // c)
+    S = blocks * P                                            # the blocks' states side by side: a×(S b) products
+    Cb = np.zeros((blocks * c, P, a, b))
+    Cb[:T] = C
+    Cb = Cb.reshape(blocks, c, P, a, b).transpose(1, 3, 0, 2, 4).reshape(c, a, S * b)
+    Ys = np.empty((c, a, S * b))                              # Ys[j]: the particular solutions j + 1 steps in
+    y = np.zeros((a, S * b))
+    Lp, Rp = np.empty((c, a, a)), np.empty((c, b, b))           # L^(j + 1), R^(j + 1)
+    Lk, Rk = L, R
+    for j in range(c):
+        y = ((L @ y).reshape(a * S, b) @ R).reshape(a, S * b) + Cb[j]
+        Ys[j] = y
+        Lp[j], Rp[j] = Lk, Rk
+        Lk, Rk = L @ Lk, Rk @ R
+    last = Ys[-1].reshape(a, blocks, P, b)
+    starts = np.empty((a, blocks, P, b))
+    start = X0
+    for k in range(blocks):
+        starts[:, k] = start.transpose(1, 0, 2)
+        start = Lp[-1] @ start @ Rp[-1] + last[:, k].transpose(1, 0, 2)
+    out = ((Lp.reshape(c * a, a) @ starts.reshape(a, S * b)).reshape(c, a * S, b) @ Rp).reshape(c, a, S * b) + Ys
+    return out.reshape(c, a, blocks, P, b).transpose(2, 0, 3, 1, 4).reshape(blocks * c, P, a, b)[:T]
+
+
+def _free_sums(A: np.ndarray, W: np.ndarray, noise_cov: np.ndarray, Pi: np.ndarray, L: int) -> np.ndarray:
+    """``sum_{k=1}^{L} tr(W Pi_k)`` for the free second moment ``Pi_{k+1} = A Pi_k A' + Sigma_W`` from Pi_0 = ``Pi``
+    (P, n, n): ``tr(A'S_L A Pi) + tr(T_L Sigma_W)`` with the Stein sums ``S_L = sum_{j<L} E_j`` and ``T_L = sum_{j<L}
+    (L - j) E_j`` of ``E_j = A'^j W A^j``, by doubling over the binary digits of L (``S_{k+l} = S_k + A'^k S_l A^k``,
+    ``T_{k+l} = T_k + l S_k + A'^k T_l A^k``): sums of positive semidefinite terms with nonnegative coefficients, no
+    cancellation. O(n^3 log L). Returns (P,)."""
+    n = A.shape[0]
+    power, S, Tsum, k = A, W, W, 1                           # the block of k = 2^i steps: A^k, S_k, T_k
+    accA, accS, accT, acc = np.eye(n), np.zeros((n, n)), np.zeros((n, n)), 0
+    rest = L
+    while rest:
+        if rest & 1:                                             # append the block of k steps after the acc ones
+            accT = accT + k * accS + accA.T @ Tsum @ accA
+            accS = accS + accA.T @ S @ accA
+            accA, acc = power @ accA, acc + k
+        rest >>= 1
+        if rest:
+            Tsum = Tsum + k * S + power.T @ Tsum @ power
+            S = S + power.T @ S @ power
+            power, k = power @ power, 2 * k
+    G = A.T @ accS @ A
+    return np.einsum("ij,pji->p", G, Pi) + float(np.sum(accT * noise_cov))
 
 
 def _plan_end(U: np.ndarray) -> int:
@@ -453,25 +618,15 @@ def _plan_end(U: np.ndarray) -> int:
     return int(moving[-1]) + 1 if moving.size else 0
 
 
-def _free_tail(system: System, Sig: np.ndarray, start: int, finite: bool) -> np.ndarray:
+def _free_tail(system: System, Sig: np.ndarray, start: int) -> np.ndarray:
     """``sum_{t >= start} tr(Omega_{t+1} Sigma_{t+1})`` once every plan has ended (`_plan_end`): the cross
     terms and the loss variance of the input are exact zeros, so the error covariance is the free Lyapunov recursion
     ``Sigma+ = A Sigma A' + Sigma_W`` from ``Sig`` (P, n, n) = Sigma_start, the same floats as `chain_cost`'s
-    full step. Where A is stable (q = rho(A)^2 < 1), the state weight is one weight and everything is finite, its
-    settled tail is closed as the Lyapunov sums of `structure` close theirs: once the change of
-    Sigma times ``q / (1 - q)`` is below ``STATIONARY_RTOL`` of its size (``stationary_close``), each remaining step
-    adds the settled term; a Sigma that is exactly 0 (no noise: it underflowed) adds nothing more. O(L n^3) for a
-    tail that settles in L steps, O((N - start) n^3) otherwise. Returns (P,)."""
-    structure = structure_of(system)
+    full step, step by step (an unstable A or a time-varying weight: a stable A with one weight takes
+    `_blocked_chain_cost`'s Stein sums). O((N - start) n^3). Returns (P,)."""
     A, W, N, noise_cov = system.A, system.state_weights, system.horizon, system.noise_cov
-    q = structure.open_loop_radius ** 2
-    closable = finite and q < 1.0 and structure.time_invariant_weight
     total = np.zeros(Sig.shape[0])
     for t in range(start, N):
-        new = A @ Sig @ A.T + noise_cov
-        term = np.einsum("ij,pji->p", W[t], new)
-        if closable and (not new.any() or (small_change(new, Sig) and stationary_close(new, Sig, q))):
-            return total + (N - t) * term                  # Sigma_{t+1} = ... = Sigma_N to rounding
-        total += term
-        Sig = new
+        Sig = A @ Sig @ A.T + noise_cov
+        total += np.einsum("ij,pji->p", W[t], Sig)
     return total

@@ -703,7 +703,7 @@ def recursion_cost(system: System, inputs: np.ndarray, protocol: str,
 
 
 def plan_cost(system: System, inputs: np.ndarray, protocol: str,
-              weights: tuple[np.ndarray, float] | None = None) -> tuple[float, float]:
+              weights: tuple[np.ndarray, float] | None = None, states: np.ndarray | None = None) -> tuple[float, float]:
     """J(U) of a fixed plan by the forward pass of its mean state rolled out open loop (the value
     `recursion_cost` returns), and a bound on that value's error: ``(value, bound)`` with ``|value - J(U)|
     <= bound``, J(U) the exact cost of these floats (A, B, mu, x0, the plan, the weights; ``weights`` as
@@ -715,8 +715,10 @@ def plan_cost(system: System, inputs: np.ndarray, protocol: str,
     The bound (`rollout_cost_error`) is the states' error estimated from their
     residuals in twice the working precision plus what the rest of their rounding can change; to it is added the
     rounding of the sum itself, measured against ``math.fsum`` of the same stage terms. inf where the value is not
-    finite. O(N n (n + m) L) with L = 32 (no Python loop over the steps), O(N n^3) for the Lyapunov sums if
-    ``weights`` is None.
+    finite. ``states``: the plan's mean states x_1..x_N (N, n) as the caller rolled them out from x0 open loop by its
+    own arithmetic (the value and the bound are then those of these states: the bound measures their residuals),
+    else `mean_states`'. O(N n (n + m) L) with L = 32 (no Python loop over the steps), O(N n^3) for the Lyapunov sums
+    if ``weights`` is None.
 
     Examples
     --------
@@ -737,7 +739,7 @@ def plan_cost(system: System, inputs: np.ndarray, protocol: str,
     Q = system.state_weights[0] if structure.time_invariant_weight else system.state_weights
     with np.errstate(over="ignore", invalid="ignore"):
         first = float(x @ system.initial_weight @ x)
-        X = mean_states(structure, mu, U, x[None])
+        X = mean_states(structure, mu, U, x[None]) if states is None else states[None]
         weight = input_weight(structure, protocol, mu, d)
         value = float(forward_cost(structure, mu, U, X, weight, first + noise)[0])
         if not np.isfinite(value):

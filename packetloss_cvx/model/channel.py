@@ -618,7 +618,9 @@ class MarkovChannel:
 
     def beliefs(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:
         """The state distributions at t = 0..horizon-1 from ``belief`` (default the initial one), (N, m, K).
-        Constant from the stationary distribution. Time O(N m K^2).
+        Constant from the stationary distribution, and from the first step whose propagated belief is the same floats
+        (the rest are then copies, to the bit). Time O(N m K^2), O(L m K^2 + N m K) for a belief that reaches its
+        float fixed point in L steps.
 
         Raises
         ------
@@ -634,6 +636,9 @@ class MarkovChannel:
         for t in range(horizon):
             out[t] = b
             b = self.propagate(b)
+            if np.array_equal(b, out[t]):            # a fixed point of the float step: every later belief is b
+                out[t + 1:] = b
+                break
         return out
 
     def delivery_schedule(self, horizon: int, belief: np.ndarray | None = None) -> np.ndarray:

@@ -9,11 +9,13 @@ A `Constraints` is data only (validated once, immutable, no cvxpy): the constrai
   realised loop, and it is refused.
 * ``|u_t - u_{t-1}| <= du_max`` (m numbers) between successive commanded inputs ``t = 1..N-1``.
 * ``x_min <= E[x_k] <= x_max`` (n numbers each) and ``F E[x_k] <= g`` on every predicted step ``k = 1..N``.
+* the terminal set: ``terminal_min <= E[x_N] <= terminal_max`` (n numbers each) and ``terminal_F E[x_N] <=
+  terminal_g``, on the last predicted state only.
 * ``chance``: rows ``(a, b, eps)``, each ``P(a' x_k <= b) >= 1 - eps`` on every ``k = 1..N``, posed through
   Cantelli's inequality from the exact mean and covariance of ``x_k``.
-* ``soft``: the state limits and chance constraints become exact-penalty slacks of weight ``soft_weight`` (cost
-  units per unit of violation, summed over rows and steps). Input and rate bounds stay hard: U = 0 satisfies them,
-  so a soft problem is always feasible.
+* ``soft``: the state limits (terminal set included) and chance constraints become exact-penalty slacks of weight
+  ``soft_weight`` (cost units per unit of violation, summed over rows and steps). Input and rate bounds stay hard:
+  U = 0 satisfies them, so a soft problem is always feasible.
 
 Infinite entries (``-inf``/``inf``) leave a bound out.
 """
@@ -36,7 +38,12 @@ __all__ = ["SOFT_WEIGHT_DEFAULT", "Constraints", "cantelli_factor", "check_const
 SOFT_WEIGHT_DEFAULT = 1e4
 
 #: the keys of the ``[constraints]`` table, in the order they are written
-KEYS = ("u_min", "u_max", "du_max", "x_min", "x_max", "F", "g", "chance", "soft", "soft_weight")
+KEYS = ("u_min", "u_max", "du_max", "x_min", "x_max", "F", "g", "terminal_min", "terminal_max", "terminal_F",
+        "terminal_g", "chance", "soft", "soft_weight")
+#: the vector fields of n numbers (box limits on E[x_k], on E[x_N])
+STATE_BOXES = (("x_min", "x_max"), ("terminal_min", "terminal_max"))
+#: the polyhedra (F, g): on every E[x_k], on E[x_N]
+POLYHEDRA = (("F", "g"), ("terminal_F", "terminal_g"))
 
 
 def cantelli_factor(eps: float) -> float:
@@ -83,18 +90,24 @@ class Constraints:
         Bounds on the expected state ``E[x_k]``, k = 1..N.
     F, g : r x n and r numbers, optional
         The polyhedron ``F E[x_k] <= g``, k = 1..N (both or neither).
+    terminal_min, terminal_max : n numbers, optional
+        The terminal box ``terminal_min <= E[x_N] <= terminal_max``.
+    terminal_F, terminal_g : r x n and r numbers, optional
+        The terminal polyhedron ``terminal_F E[x_N] <= terminal_g`` (both or neither).
     chance : rows (a, b, eps), optional
         ``P(a' x_k <= b) >= 1 - eps`` for k = 1..N, ``a`` n numbers, ``0 < eps < 1``.
     soft : bool
-        State limits and chance constraints as exact-penalty slacks of weight ``soft_weight``.
+        State limits (terminal set included) and chance constraints as exact-penalty slacks of weight
+        ``soft_weight``.
     soft_weight : float > 0
 
     Raises
     ------
     InputError
         Naming the field: a shape that does not match n or m (a DimensionError), ``u_min > u_max``, zero input
-        outside the bounds, a negative ``du_max``, ``x_min > x_max``, ``eps`` outside (0, 1), a non-finite ``a``,
-        ``b``, ``F`` or ``g``, a weight that is not positive.
+        outside the bounds, a negative ``du_max``, ``x_min > x_max`` (``terminal_min > terminal_max``), ``eps``
+        outside (0, 1), a non-finite ``a``, ``b``, ``F`` (``terminal_F``) or a NaN ``g``, a weight that is not
+        positive.
 
     Examples
     --------
@@ -114,22 +127,27 @@ class Constraints:
     x_max: np.ndarray | None = None
     F: np.ndarray | None = None
     g: np.ndarray | None = None
+    terminal_min: np.ndarray | None = None
+    terminal_max: np.ndarray | None = None
+    terminal_F: np.ndarray | None = None
+    terminal_g: np.ndarray | None = None
     chance: tuple[tuple[np.ndarray, float, float], ...] = field(default=())
     soft: bool = False
     soft_weight: float = SOFT_WEIGHT_DEFAULT
 
     def __post_init__(self) -> None:
         put = object.__setattr__
-        for names in (("u_min", "u_max", "du_max"), ("x_min", "x_max")):
+        for names in (("u_min", "u_max", "du_max"), *STATE_BOXES):
             size = None
             for name in names:
                 vector = _vector(getattr(self, name), size, name)
                 put(self, name, vector)
                 size = size if vector is None else vector.size
-        if self.x_min is not None and np.any(self.x_min == np.inf) or self.x_max is not None \
-                and np.any(self.x_max == -np.inf):
-            raise InputError("x_min" if self.x_min is not None and np.any(self.x_min == np.inf) else "x_max",
-                             "a bound of inf from below (or -inf from above) admits no state")
+        for low, high in STATE_BOXES:
+            lower, upper = getattr(self, low), getattr(self, high)
+            if lower is not None and np.any(lower == np.inf) or upper is not None and np.any(upper == -np.inf):
+                raise InputError(low if lower is not None and np.any(lower == np.inf) else high,
+                                 "a bound of inf from below (or -inf from above) admits no state")
         if self.u_min is not None and np.any(self.u_min > 0):
             i = int(np.argmax(self.u_min > 0))
             raise InputError("u_min", "a lost packet applies zero input, which must lie inside the bounds; found "
@@ -144,10 +162,13 @@ class Constraints:
         if self.du_max is not None and np.any(self.du_max < 0):
             i = int(np.argmax(self.du_max < 0))
             raise InputError("du_max", f"expected rate bounds >= 0, found du_max[{i}] = {self.du_max[i]:g}")
-        if self.x_min is not None and self.x_max is not None and np.any(self.x_min > self.x_max):
-            i = int(np.argmax(self.x_min > self.x_max))
-            raise InputError("x_min", f"x_min[{i}] = {self.x_min[i]:g} exceeds x_max[{i}] = {self.x_max[i]:g}")
-        self._polyhedron()
+        for low, high in STATE_BOXES:
+            lower, upper = getattr(self, low), getattr(self, high)
+            if lower is not None and upper is not None and np.any(lower > upper):
+                i = int(np.argmax(lower > upper))
+                raise InputError(low, f"{low}[{i}] = {lower[i]:g} exceeds {high}[{i}] = {upper[i]:g}")
+        for names in POLYHEDRA:
+            self._polyhedron(*names)
         put(self, "chance", self._chance_rows())
         if not isinstance(self.soft, bool | np.bool_):
             raise InputError("soft", f"expected true or false, found {self.soft!r}")
@@ -158,27 +179,30 @@ class Constraints:
             raise InputError("soft_weight", f"expected a finite number > 0, found {weight!r}")
         put(self, "soft_weight", float(weight))
 
-    def _polyhedron(self) -> None:
-        if (self.F is None) != (self.g is None):
-            raise InputError("F" if self.F is None else "g", "F and g come together (F E[x_k] <= g)")
-        if self.F is None:
+    def _polyhedron(self, f: str, h: str) -> None:
+        """The polyhedron held in the fields ``f`` (r x n) and ``h`` (r), checked and frozen."""
+        F, g = getattr(self, f), getattr(self, h)
+        if (F is None) != (g is None):
+            on = "E[x_N]" if f.startswith("terminal") else "E[x_k]"
+            raise InputError(f if F is None else h, f"{f} and {h} come together ({f} {on} <= {h})")
+        if F is None:
             return
         try:
-            F, g = np.atleast_2d(np.asarray(self.F, dtype=float)), np.asarray(self.g, dtype=float)
+            F, g = np.atleast_2d(np.asarray(F, dtype=float)), np.asarray(g, dtype=float)
         except (TypeError, ValueError):
-            raise InputError("F", "expected a matrix of numbers and g a vector of numbers") from None
+            raise InputError(f, f"expected a matrix of numbers and {h} a vector of numbers") from None
         if F.ndim != 2 or F.shape[0] < 1:
-            raise DimensionError("F", f"expected a matrix of r rows but found shape {F.shape}")
+            raise DimensionError(f, f"expected a matrix of r rows but found shape {F.shape}")
         if g.shape != (F.shape[0],):
-            raise DimensionError("g", f"expected {F.shape[0]} numbers (one per row of F) but found shape {g.shape}")
+            raise DimensionError(h, f"expected {F.shape[0]} numbers (one per row of {f}) but found shape {g.shape}")
         if not np.all(np.isfinite(F)):
-            raise InputError("F", "expected finite numbers")
+            raise InputError(f, "expected finite numbers")
         if np.any(np.isnan(g)) or np.any(g == -np.inf):
-            raise InputError("g", "expected numbers (inf leaves a row out; -inf or NaN is not a limit)")
+            raise InputError(h, "expected numbers (inf leaves a row out; -inf or NaN is not a limit)")
         F.setflags(write=False)
         g.setflags(write=False)
-        object.__setattr__(self, "F", F)
-        object.__setattr__(self, "g", g)
+        object.__setattr__(self, f, F)
+        object.__setattr__(self, h, g)
 
     def _chance_rows(self) -> tuple[tuple[np.ndarray, float, float], ...]:
         rows = []
@@ -214,20 +238,23 @@ class Constraints:
     def sizes(self) -> tuple[int | None, int | None]:
         """``(n, m)`` as the fields imply them (None where no field does)."""
         m = next((v.size for v in (self.u_min, self.u_max, self.du_max) if v is not None), None)
-        n = next((v.size for v in (self.x_min, self.x_max) if v is not None), None)
+        n = next((v.size for v in (self.x_min, self.x_max, self.terminal_min, self.terminal_max) if v is not None),
+                 None)
         n = n if n is not None or self.F is None else self.F.shape[1]
+        n = n if n is not None or self.terminal_F is None else self.terminal_F.shape[1]
         return (n if n is not None or not self.chance else self.chance[0][0].size), m
 
     def kinds(self) -> list[str]:
-        """The fields that constrain anything, in `KEYS` order (``F`` for the polyhedron)."""
-        out = [name for name in ("u_min", "u_max", "du_max", "x_min", "x_max", "F")
-               if getattr(self, name) is not None]
+        """The fields that constrain anything, in `KEYS` order (``F``, ``terminal_F`` for the polyhedra)."""
+        out = [name for name in ("u_min", "u_max", "du_max", "x_min", "x_max", "F", "terminal_min", "terminal_max",
+                                 "terminal_F") if getattr(self, name) is not None]
         return out + (["chance"] if self.chance else [])
 
     def to_dict(self) -> dict[str, Any]:
         """The ``[constraints]`` table (JSON and TOML values; infinite entries as floats). O(size)."""
         out: dict[str, Any] = {}
-        for name in ("u_min", "u_max", "du_max", "x_min", "x_max", "F", "g"):
+        for name in ("u_min", "u_max", "du_max", "x_min", "x_max", "F", "g", "terminal_min", "terminal_max",
+                     "terminal_F", "terminal_g"):
             value = getattr(self, name)
             if value is not None:
                 out[name] = value.tolist()
@@ -282,13 +309,15 @@ def check_constraints(constraints: Any, n: int, m: int) -> Constraints:
     if not isinstance(constraints, Constraints):
         raise InputError("constraints", f"expected a Constraints, found {type(constraints).__name__}")
     c = constraints
-    for name in ("u_min", "u_max", "du_max", "x_min", "x_max"):
+    for name in ("u_min", "u_max", "du_max", "x_min", "x_max", "terminal_min", "terminal_max"):
         letter = "m" if name[0] in "ud" else "n"
         value, size = getattr(c, name), (m if letter == "m" else n)
         if value is not None and value.size != size:
             raise DimensionError(name, f"expected {size} numbers ({letter} = {size}) but found {value.size}")
-    if c.F is not None and c.F.shape[1] != n:
-        raise DimensionError("F", f"expected shape (r, {n}) but found {c.F.shape}")
+    for name, _ in POLYHEDRA:
+        F = getattr(c, name)
+        if F is not None and F.shape[1] != n:
+            raise DimensionError(name, f"expected shape (r, {n}) but found {F.shape}")
     for i, (a, _, _) in enumerate(c.chance):
         if a.size != n:
             raise DimensionError(f"chance[{i}].a", f"expected {n} numbers but found {a.size}")

@@ -17,8 +17,8 @@ filter), UDP-like ones propagate the prior; under Bernoulli losses both plan wit
 chain the program is the plug-in one (the Bernoulli model of the predicted mu_t: its chance rows' variances take
 the losses as independent, so their realised frequencies are what tells). Both know the inputs they commanded:
 the rate bound links the first input of a plan to the previous command (the actuator at rest, zero, before the
-first), through a Parameter added with `ConstrainedQP.add_constraints` (its KKT check then covers the package's
-rows only, so it is skipped; the forward-cost check stays).
+first): the program's own ``u_prev`` Parameter (``ConstrainedQP(..., u_prev=True)``), covered by its KKT check and
+polish like every other row.
 
 Infeasible programs: the expected-state limits and chance rows of the hard program can have no plan from a
 realised state (a loss leaves the state where no plan brings its expectation back inside). The controller then
@@ -29,23 +29,30 @@ first input; the step counts as infeasible and as a fallback. Where no program g
 and counts the step as failed.
 
 Draws: ``SeedSequence(seed).spawn(2)[1]``, one child per block of `BLOCK` runs, each spawning the losses' and the
-noise's streams (`simulate`'s closed loop: on the same seed the unconstrained loop sees the same paths).
+noise's streams (`simulate`'s closed loop: on the same seed the unconstrained loop sees the same paths). The paths
+are drawn first; the runs then go in chunks of `CHUNK` (serially, on threads or as Dask tasks), each run's numbers
+depending on its own paths only, so every way of spreading them gives the same floats.
+
+The terminal set constrains the prediction only: the loop counts no realised violation of it.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Any
 
-import cvxpy as cp
 import numpy as np
 from scipy import stats
 
+from ..budgets import check, count_text, mpc_solves
 from ..closedloop.moments import stationary_channel
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..lq.costs import closed_form
 from ..model.chain import attach_channel, filter_belief
 from ..model.constraints import Constraints, check_constraints
+from ..model.files import system_from_dict
 from ..model.system import System, check_system
 from ..progress import progress_bar
 from ..qp.constrained import ConstrainedQP
@@ -56,10 +63,16 @@ from .markov_channels import sample_markov_paths
 from .markov_loop import BeliefGains
 from .runs import check_count, run_blocks, sample_stats
 
-__all__ = ["CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "loop_paths", "simulate_mpc", "wilson_interval"]
+__all__ = ["CHUNK", "CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "TASK_CHUNKS", "loop_paths", "loop_task",
+           "simulate_mpc", "wilson_interval"]
 
 #: The controllers compared, in the order they are reported.
 CONTROLLERS = ("clipped", "certainty-equivalent", "expected-cost")
+#: Runs per chunk: the unit a thread or a Dask task runs, cut by the run count alone, so that every way of spreading
+#: the runs computes the same floats (a chunk's arrays are the same whoever runs it).
+CHUNK = 8
+#: Chunks per Dask task (one compilation of the controller's programs per task: about 0.2 s at n = 2, N = 8).
+TASK_CHUNKS = 8
 #: The level of every confidence interval.
 CONFIDENCE = 0.95
 #: What a controller does when its hard program is infeasible (ControllerRun.action).
@@ -126,22 +139,11 @@ class _Program:
         self.hard = self._compile(constraints)
         self.soft = self.hard if constraints.soft else None
 
-    def _compile(self, constraints: Constraints) -> tuple[ConstrainedQP, cp.Parameter | None]:
-        qp = ConstrainedQP(self.twin, self.protocol, constraints)
-        du = constraints.du_max
-        if du is None or not np.isfinite(du).any():
-            return qp, None
-        previous = cp.Parameter(self.twin.m, name="u_prev")
-        rows = np.flatnonzero(np.isfinite(du))
-        qp.add_constraints([cp.abs(qp.U[0, rows] - previous[rows]) <= du[rows]])
-        return qp, previous
+    def _compile(self, constraints: Constraints) -> ConstrainedQP:
+        return ConstrainedQP(self.twin, self.protocol, constraints, u_prev=True)
 
-    def _solve(self, program: tuple[ConstrainedQP, cp.Parameter | None], mu: np.ndarray | None, x: np.ndarray,
-               previous: np.ndarray) -> Any:
-        qp, parameter = program
-        if parameter is not None:
-            parameter.value = previous
-        return qp.solve(mu=mu, x0=x)
+    def _solve(self, program: ConstrainedQP, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray) -> Any:
+        return program.solve(mu=mu, x0=x, u_prev=previous)
 
     def plan(self, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray | None, str, bool]:
         """``(plan or None, outcome, slack used)``; outcome "ok", "fallback" (hard infeasible, soft solved),
@@ -218,13 +220,34 @@ class _Beliefs:
                        else np.repeat(self.channel.propagate(self.belief[0])[None], len(self.belief), axis=0))
 
 
-def _run(system: System, twin: System, constraints: Constraints, controller: str, protocol: str,
-         V: np.ndarray, W: np.ndarray | None, bar: Any) -> ControllerRun:
-    """One controller over every sampled path. Time O(samples steps) solves (none for "clipped")."""
+class _Controller:
+    """One controller's compiled state, owned by one thread (a `ConstrainedQP` is not thread-safe): its program
+    (`_Program`), or the clipped law's gains."""
+
+    def __init__(self, system: System, twin: System, constraints: Constraints, controller: str,
+                 protocol: str) -> None:
+        self.name, self.protocol = controller, protocol
+        self.program: _Program | None = None
+        self.gains: Any = None
+        if controller == "clipped":
+            self.gains = BeliefGains(system, protocol) if system.channel is not None else closed_form(twin,
+                                                                                                      protocol).gain
+        elif controller == "certainty-equivalent":
+            self.program = _Program(twin.with_mu(np.ones(system.m)), "tcp", constraints)
+        else:
+            self.program = _Program(twin, protocol, constraints)
+
+
+def _chunk(system: System, twin: System, constraints: Constraints, made: _Controller, V: np.ndarray,
+           W: np.ndarray | None, keep: int = 0) -> dict[str, Any]:
+    """One controller over the sampled paths of a chunk of runs (V: steps x runs x m): each run's stage costs,
+    violation and infeasibility flags (runs x steps), the counts of fallbacks, failures and slack used, and the
+    first ``keep`` runs' states and commands. A run's numbers depend on its own paths only. Time O(runs steps)
+    solves (none for "clipped")."""
     steps, samples, m = V.shape
     n = system.n
     A, B, Omega, psi = system.A, system.B, system.state_weights[0], system.input_weights[0]
-    c = constraints
+    c, controller, program, gains = constraints, made.name, made.program, made.gains
     lo = np.full(m, -np.inf) if c.u_min is None else c.u_min
     hi = np.full(m, np.inf) if c.u_max is None else c.u_max
     rate = np.full(m, np.inf) if c.du_max is None else c.du_max
@@ -232,19 +255,14 @@ def _run(system: System, twin: System, constraints: Constraints, controller: str
     flags = {name: np.zeros((samples, steps), dtype=bool) for name, *_ in rows}
     infeasible = np.zeros((samples, steps), dtype=bool)
     fallback = failed = slack = 0
-    beliefs = _Beliefs(system, "tcp" if controller == "certainty-equivalent" else protocol, samples)
-    program = gains = None
-    if controller == "clipped":
-        gains = BeliefGains(system, protocol) if system.channel is not None else closed_form(twin, protocol).gain
-    elif controller == "certainty-equivalent":
-        program = _Program(twin.with_mu(np.ones(m)), "tcp", c)
-    else:
-        program = _Program(twin, protocol, c)
+    beliefs = _Beliefs(system, "tcp" if controller == "certainty-equivalent" else made.protocol, samples)
     N = twin.horizon
     X = np.repeat(system.x0[None], samples, axis=0)
     previous = np.zeros((samples, m))
     plans, age = np.zeros((samples, N, m)), np.zeros(samples, dtype=int)
     stage = np.empty((samples, steps))
+    states, commands = np.empty((keep, steps + 1, n)), np.empty((keep, steps, m))
+    states[:, 0] = X[:keep]
     for t in range(steps):
         if controller == "clipped":
             K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains, (samples, m, n))
@@ -274,21 +292,61 @@ def _run(system: System, twin: System, constraints: Constraints, controller: str
             X_next += W[t]
         for name, kind, data, _ in rows:
             flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
+        states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
         X, previous = X_next, u
         beliefs.update(V[t])
-        bar.update(1)
+    return {"stage": stage, "flags": flags, "infeasible": infeasible, "fallback": fallback, "failed": failed,
+            "slack": slack, "states": states, "inputs": commands}
+
+
+def _assemble(constraints: Constraints, n: int, m: int, controller: str, protocol: str,
+              parts: list[dict[str, Any]], keep: int = 0) -> ControllerRun:
+    """The `ControllerRun` of a controller from its chunks' parts, in run order (the first ``keep`` runs'
+    trajectories kept). O(samples steps)."""
+    rows = _rows(constraints, n, m)
+    stage = np.concatenate([part["stage"] for part in parts])
     mean, stderr = sample_stats(stage.mean(axis=1))
+    flags = {name: np.concatenate([part["flags"][name] for part in parts]) for name, *_ in rows}
+    infeasible = np.concatenate([part["infeasible"] for part in parts])
     return ControllerRun(
         controller=controller, protocol=protocol, mean_stage_cost=mean, stderr=stderr,
         stage_cost_mean=stage.mean(axis=0),
         violations=tuple(frequency(name, flags[name], allowed) for name, _, _, allowed in rows),
-        infeasible=None if program is None else frequency("infeasible", infeasible),
-        fallback_steps=int(fallback), failed_steps=int(failed), slack_steps=int(slack), action=INFEASIBLE_ACTION)
+        infeasible=None if controller == "clipped" else frequency("infeasible", infeasible),
+        fallback_steps=sum(part["fallback"] for part in parts), failed_steps=sum(part["failed"] for part in parts),
+        slack_steps=sum(part["slack"] for part in parts), action=INFEASIBLE_ACTION,
+        states=np.concatenate([part["states"] for part in parts]) if keep else None,
+        inputs=np.concatenate([part["inputs"] for part in parts]) if keep else None)
+
+
+def _twin(system: System) -> System:
+    """The system the programs plan with: the channel's stationary mu (Bernoulli), the chain's predicted mu_t."""
+    return system.with_mu(stationary_channel(system) if system.channel is None else system.mu_schedule)
+
+
+def loop_task(system_data: dict[str, Any], constraints_data: dict[str, Any], controller: str, protocol: str,
+              V: np.ndarray, W: np.ndarray | None, chunks: list[tuple[int, int]], keep: int = 0
+              ) -> list[dict[str, Any]]:
+    """Chunks of runs of one controller as one task (in this process or on a Dask worker: the system and
+    constraints rebuilt from their dicts, exact), its program compiled once for them; ``V``, ``W`` hold the
+    task's runs, ``chunks`` their (start, stop) within them, the first ``keep`` of them kept. O(runs steps)
+    solves."""
+    system = system_from_dict(system_data)
+    constraints = check_constraints(constraints_data, system.n, system.m)
+    twin = _twin(system)
+    made = _Controller(system, twin, constraints, controller, protocol)
+    return [_chunk(system, twin, constraints, made, V[:, a:b], None if W is None else W[:, a:b],
+                   _kept(keep, a, b)) for a, b in chunks]
+
+
+def _kept(keep: int, a: int, b: int) -> int:
+    """How many of the runs a..b-1 are among the first ``keep``."""
+    return max(0, min(b, keep) - a)
 
 
 def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, steps: int = 30, seed: int = 0,
                  protocols: Sequence[str] = ("tcp", "udp"), controllers: Sequence[str] = CONTROLLERS,
-                 progress: bool | None = None) -> MPCSimulation:
+                 progress: bool | None = None, keep: int = 0, threads: int = 1, dask: Any = None) -> MPCSimulation:
     """The constrained receding-horizon loop sampled, each controller on the same paths (module docstring).
 
     Parameters
@@ -297,31 +355,48 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
         A stationary Bernoulli channel, or a Markov (Gilbert–Elliott) one sampled per run.
     constraints : Constraints or mapping (the ``[constraints]`` table)
     samples : int
-        Runs (>= 2). Each controller with a program solves it samples × steps times.
+        Runs (>= 2). Each controller with a program solves it samples × steps times (the ``mpc_solves`` budget).
     steps : int
         Loop steps (>= 1).
     seed : int
     protocols : sequence of {"tcp", "udp"}
     controllers : sequence of `CONTROLLERS`
     progress : bool, optional
+        A progress bar over the chunks of runs (None: when stderr is a terminal).
+    keep : int
+        Runs whose trajectories are kept (the first ``keep``, at most ``samples``): each `ControllerRun`'s
+        ``states`` and ``inputs``, and the simulation's ``delivered``, the same paths for every controller. 0 keeps
+        none (the default: the summaries alone).
+    threads : int
+        Threads running chunks of `CHUNK` runs at once, each with its own compiled programs (a `ConstrainedQP`
+        is not thread-safe). The answer is the serial run's, float for float: a run's numbers depend on its own
+        paths only, and the chunks are cut by the run count alone.
+    dask : distributed.Client, optional
+        Run the chunks as Dask tasks of `TASK_CHUNKS` chunks each (one compilation per task; e.g. a client of
+        `packetloss_cvx.studies.engine.dask_client`); the same floats again. Any object with ``submit`` whose
+        futures have ``result()`` serves (a ``concurrent.futures`` process pool too).
 
     Returns
     -------
     MPCSimulation
-        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols.
+        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols. ``.plot()``
+        draws the kept trajectories and the violation frequencies.
 
     Raises
     ------
     InputError
-        A count below its minimum, an unknown protocol or controller, a non-stationary Bernoulli schedule, or
-        constraints that do not fit the system.
+        A count below its minimum, an unknown protocol or controller, a non-stationary Bernoulli schedule,
+        constraints that do not fit the system, ``threads`` below 1 or ``dask`` without ``submit``.
+    BudgetError
+        More program solves than the ``mpc_solves`` budget (`mpc_solves`), before any path is drawn.
     NumericalError
         A loop's state beyond the double-precision range.
 
     Notes
     -----
     Time O(controllers samples steps) solves of the program (about 5 ms each at n = 2, N = 8), plus
-    O(samples steps n (n + m)) for the clipped law.
+    O(samples steps n (n + m)) for the clipped law. Threads share one interpreter: the solves' Python side (the
+    KKT check, the polish, cvxpy's unpacking) holds the GIL, so threads gain little; Dask's worker processes do.
 
     Examples
     --------
@@ -337,6 +412,13 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     constraints = check_constraints(constraints, system.n, system.m)
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
     seed = check_count(seed, "seed", 0)
+    keep = check_count(keep, "keep", 0)
+    if keep > samples:
+        raise InputError("keep", f"expected at most samples = {samples} runs to keep, found {keep}")
+    threads = check_count(threads, "threads", 1)
+    if dask is not None and not callable(getattr(dask, "submit", None)):
+        raise InputError("dask", f"expected a distributed.Client (or an executor with submit), found {dask!r}; "
+                                 "studies.engine.dask_client('local') makes one")
     protocols = list(dict.fromkeys(protocols))
     for p in protocols:
         if p not in ("tcp", "udp"):
@@ -346,23 +428,86 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
             raise InputError("controller", f"expected some of {', '.join(CONTROLLERS)}, found {name!r}")
     if not protocols or not controllers:
         raise InputError("protocol" if not protocols else "controller", "expected at least one")
-    if system.channel is None:
-        twin = system.with_mu(stationary_channel(system))
-        channel = "bernoulli"
-    else:
-        twin = system.with_mu(system.mu_schedule)
-        channel = system.channel.form
-    V, W = loop_paths(system, samples, steps, seed)
     names = [name for name in CONTROLLERS if name in controllers]
-    count = sum(len(protocols) if name != "certainty-equivalent" else 1 for name in names)
+    # one job per controller and protocol; certainty-equivalent plans alike for both: one job, shared
+    jobs = [(name, p) for name in names for p in protocols if name != "certainty-equivalent" or p == protocols[0]]
+    programs = sum(name != "clipped" for name, _ in jobs)
+    check("mpc_solves", mpc_solves(samples, steps, programs), "samples",
+          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs")
+    twin = _twin(system)
+    channel = "bernoulli" if system.channel is None else system.channel.form
+    V, W = loop_paths(system, samples, steps, seed)
+    chunks = [(a, min(a + CHUNK, samples)) for a in range(0, samples, CHUNK)]
+    parts: dict[tuple[str, str], list[Any]] = {job: [None] * len(chunks) for job in jobs}
+    with progress_bar(total=len(jobs) * samples, desc="simulate (constrained loop)", progress=progress) as bar:
+        if dask is not None:
+            _on_dask(dask, system, constraints, jobs, chunks, V, W, parts, bar, keep)
+        elif threads > 1:
+            _on_threads(threads, system, twin, constraints, jobs, chunks, V, W, parts, bar, keep)
+        else:
+            for job in jobs:
+                made = _Controller(system, twin, constraints, *job)
+                for k, (a, b) in enumerate(chunks):
+                    parts[job][k] = _chunk(system, twin, constraints, made, V[:, a:b], None if W is None else
+                                           W[:, a:b], _kept(keep, a, b))
+                    bar.update(b - a)
     runs: dict[str, dict[str, ControllerRun]] = {p: {} for p in protocols}
-    with progress_bar(total=count * steps, desc="simulate (constrained loop)", progress=progress) as bar:
-        for name in names:
-            shared = None
-            for p in protocols:
-                if name == "certainty-equivalent" and shared is not None:
-                    runs[p][name] = shared
-                    continue
-                runs[p][name] = shared = _run(system, twin, constraints, name, p, V, W, bar)
+    for name, p in jobs:
+        run = _assemble(constraints, system.n, system.m, name, p, parts[name, p], keep)
+        for q in protocols if name == "certainty-equivalent" else (p,):
+            runs[q][name] = run
     return MPCSimulation(samples=samples, steps=steps, seed=seed, channel=channel,
-                         constraints=constraints.to_dict(), runs=runs)
+                         constraints=constraints.to_dict(), runs=runs,
+                         delivered=V[:, :keep].swapaxes(0, 1).astype(bool) if keep else None)
+
+
+def _on_threads(threads: int, system: System, twin: System, constraints: Constraints, jobs: list[tuple[str, str]],
+                chunks: list[tuple[int, int]], V: np.ndarray, W: np.ndarray | None,
+                parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int) -> None:
+    """Every (job, chunk) on a pool of ``threads`` threads, each thread compiling its own controllers once."""
+    local = threading.local()
+
+    def task(job: tuple[str, str], a: int, b: int) -> dict[str, Any]:
+        made = getattr(local, "made", None)
+        if made is None:
+            made = local.made = {}
+        if job not in made:
+            made[job] = _Controller(system, twin, constraints, *job)
+        return _chunk(system, twin, constraints, made[job], V[:, a:b], None if W is None else W[:, a:b],
+                      _kept(keep, a, b))
+
+    pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="mpc")
+    try:
+        futures = {pool.submit(task, job, a, b): (job, k, b - a) for job in jobs for k, (a, b) in enumerate(chunks)}
+        for future in as_completed(futures):
+            job, k, size = futures[future]
+            parts[job][k] = future.result()        # a chunk's error is raised here with its own type
+            bar.update(size)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _on_dask(client: Any, system: System, constraints: Constraints, jobs: list[tuple[str, str]],
+             chunks: list[tuple[int, int]], V: np.ndarray, W: np.ndarray | None,
+             parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int) -> None:
+    """Every job's chunks as tasks of `TASK_CHUNKS` chunks (`loop_task`), results put back in run order."""
+    system_data, constraints_data = system.to_dict(), constraints.to_dict()
+    futures = []
+    for job in jobs:
+        for first in range(0, len(chunks), TASK_CHUNKS):
+            group = chunks[first:first + TASK_CHUNKS]
+            a, b = group[0][0], group[-1][1]
+            local = [(x - a, y - a) for x, y in group]
+            task = (loop_task, system_data, constraints_data, *job, V[:, a:b], None if W is None else W[:, a:b],
+                    local, _kept(keep, a, b))
+            future = client.submit(*task, pure=False) if _is_dask(client) else client.submit(*task)
+            futures.append((future, job, first, b - a))
+    for future, job, first, size in futures:
+        for k, part in enumerate(future.result()):      # a worker's error is raised here with its own type
+            parts[job][first + k] = part
+        bar.update(size)
+
+
+def _is_dask(client: Any) -> bool:
+    """A distributed.Client (its submit takes ``pure=``), not a concurrent.futures executor."""
+    return type(client).__module__.startswith("distributed")

@@ -12,12 +12,13 @@ from typing import Any
 import numpy as np
 from matplotlib import patheffects
 
-__all__ = ["LEGEND", "OUTLINE", "PATH_STYLES", "contour_label_points", "log_ticks", "set_log_ticks", "tick_labels",
-           "tick_text"]
+__all__ = ["LEGEND", "OUTLINE", "PATH_STYLES", "callout_positions", "contour_label_points", "fit_width", "lay_out",
+           "log_ticks", "set_log_ticks", "tick_labels", "tick_text"]
 
 #: Allocation paths on a colour map: bright colours with a black outline (visible on viridis' dark purple and
 #: its yellow alike), told apart by their dashes and markers too.
-PATH_STYLES = (("#ff3b30", (0, (5, 2)), "X"), ("#ff7cf5", (0, (8, 3, 2, 3)), "o"), ("#22e0ff", (0, (2, 1.5)), "s"))
+PATH_STYLES = (("#ff3b30", (0, (5, 2)), "X"), ("#ff7cf5", (0, (8, 3, 2, 3)), "o"), ("#22e0ff", (0, (2, 1.5)), "s"),
+               ("#fff200", "-", "D"))
 OUTLINE = (patheffects.withStroke(linewidth=3.4, foreground="k"),)
 #: Legends beside the plot, at a size a printed page can read.
 LEGEND = {"loc": "outside right center", "fontsize": 8, "frameon": False}
@@ -124,3 +125,70 @@ def contour_label_points(ax: Any, contours: Any, avoid: Sequence[Any] = ()) -> t
         chosen.append(float(level))
         points.append(tuple(to_frac.inverted().transform(inside[best])))
     return chosen, points
+
+
+def lay_out(fig: Any) -> None:
+    """Run ``fig``'s layout engine and place its fixed-aspect axes, without drawing: afterwards axes positions
+    and window extents are those the figure will be drawn with (at its size). O(artists) text measurements."""
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.execute(fig)
+    for ax in fig.axes:
+        ax.apply_aspect()
+
+
+def fit_width(fig: Any) -> None:
+    """Narrow ``fig`` (a constrained layout) to what it draws: a square map (``set_box_aspect(1)``) in a figure
+    wider than it needs is shrunk inside its slot, leaving an empty band beside it; the figure's width is set so
+    that the map's slot is square (its height kept, so the map keeps its size). Two layout passes (`lay_out`),
+    no drawing. O(artists).
+    """
+    square = [ax for ax in fig.axes if ax.get_box_aspect() == 1]
+    for _ in range(2):                  # the second pass corrects the margins the first width changed
+        lay_out(fig)
+        slots = [ax.get_position(original=True) for ax in square]
+        if not slots:
+            return
+        excess = min(slot.width * fig.get_figwidth() - slot.height * fig.get_figheight() for slot in slots)
+        if abs(excess) < 0.02:
+            return
+        fig.set_figwidth(fig.get_figwidth() - excess)
+
+
+def callout_positions(anchors: Sequence[Sequence[float]], sizes: Sequence[Sequence[float]],
+                      obstacles: np.ndarray, boxes: Sequence[Sequence[float]] = ()) -> list[tuple | None]:
+    """Where to write a label for each anchor (axes fractions), each in turn: the nearest free spot on rings
+    around it (radius 0.035 to 0.45, 24 directions) whose box (``sizes``: width, height) stays inside the axes,
+    overlaps no box placed before (``boxes``: x0, y0, x1, y1, e.g. contour labels) and covers no point of
+    ``obstacles`` (shape (N, 2): paths and markers). None where there is no free spot. The label is joined to its
+    anchor by a leader line when it sits away from it. O(anchors * 24 * 30 * (N + boxes)).
+
+    >>> (x, y), = callout_positions([(0.5, 0.5)], [(0.1, 0.05)], np.array([[0.5, 0.5]]))
+    >>> abs(x - 0.5) > 0.05 or abs(y - 0.5) > 0.025       # the box (0.1 x 0.05 around it) leaves the anchor free
+    True
+    """
+    placed = [np.asarray(b, dtype=float) for b in boxes]
+    pts = np.reshape(np.asarray(obstacles, dtype=float), (-1, 2))
+    angles = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+    out: list[tuple | None] = []
+    for (ax_, ay_), (w, h) in zip(anchors, sizes, strict=True):
+        found = None
+        for radius in np.linspace(0.035, 0.45, 30):
+            for angle in angles:
+                cx, cy = ax_ + radius * np.cos(angle), ay_ + radius * np.sin(angle)
+                box = np.array([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2])
+                if box[0] < 0.01 or box[1] < 0.01 or box[2] > 0.99 or box[3] > 0.99:
+                    continue
+                if any(box[0] < b[2] and b[0] < box[2] and box[1] < b[3] and b[1] < box[3] for b in placed):
+                    continue
+                pad = 0.008
+                if pts.size and np.any((pts[:, 0] > box[0] - pad) & (pts[:, 0] < box[2] + pad)
+                                       & (pts[:, 1] > box[1] - pad) & (pts[:, 1] < box[3] + pad)):
+                    continue
+                found = (round(float(cx), 6), round(float(cy), 6))
+                placed.append(box)
+                break
+            if found is not None:
+                break
+        out.append(found)
+    return out

@@ -8,8 +8,8 @@ formulations give the same problem: "condensed" (E[X] = Phi x0 + Gamma (mu ∘ U
 (the mean states as variables, the dynamics as equality constraints). ``solver=`` takes any installed cvxpy
 solver (Clarabel by default, under `solve_problem`'s policy).
 
-Every solve is checked without cvxpy: the plan's expected cost by the forward pass
-([`plan_cost`][packetloss_cvx.lq.recursion.plan_cost]), and the KKT conditions (stationarity, primal and dual
+Every solve is checked without cvxpy: the plan's expected cost J(U) on the state's mean by its forward recursion
+(`plan_moments`; the solver's objective must agree with it), and the KKT conditions (stationarity, primal and dual
 feasibility, complementarity) from the solver's multipliers, the constraints evaluated on the moments of x_k by
 their own forward recursion (`plan_moments`) rather than from the matrices the problem was built with. A
 residual beyond ``CONSTRAINED_KKT_RTOL`` raises; infeasibility raises
@@ -26,14 +26,16 @@ from typing import Any
 
 import cvxpy as cp
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
+from cvxpy.reductions.solution import Solution
 
-from ..errors import InfeasibleError, InputError, NumericalError, SolverError
+from ..errors import DimensionError, InfeasibleError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
 from ..lq.moments import Moments, plan_moments
 from ..lq.policy import refuse_correlated
 from ..lq.prediction import prediction
-from ..lq.recursion import plan_cost, udp_variance_weights
+from ..lq.recursion import udp_variance_weights
 from ..model.constraints import Constraints, cantelli_factor, check_constraints
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system
@@ -43,10 +45,11 @@ from ..tolerances import (
     CLARABEL_DEFAULT,
     CLARABEL_TIGHT,
     CONSTRAINED_ACTIVE_RTOL,
+    CONSTRAINED_ATTEMPTS,
     CONSTRAINED_KKT_RTOL,
     CROSS_CHECK_COST_RTOL,
 )
-from .convex import PROVEN_INFEASIBLE, solve_problem
+from .convex import PROVEN_INFEASIBLE, ClarabelProgram, solve_problem
 
 __all__ = ["ConstrainedQP", "ConstrainedSolution", "solve_constrained"]
 
@@ -78,7 +81,8 @@ class ConstrainedSolution(Frozen):
     status : str
         The solver's status ("optimal"; anything else raised).
     cost : float
-        The plan's expected cost J(U) by the forward pass (penalties of soft constraints not included).
+        The plan's expected cost J(U) on E[x_k] by their forward recursion (penalties of soft constraints not
+        included).
     inputs : ndarray (N, m)
         The commanded inputs.
     states : ndarray (N, n)
@@ -114,9 +118,10 @@ class ConstrainedSolution(Frozen):
     polished: bool = False
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON entry of ``solve --json`` ("constrained")."""
+        """The JSON entry of ``solve --json`` ("constrained"; ``terminal_state`` is E[x_N] under the plan)."""
         return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
-                "binding": list(self.binding), "violations": [{"constraint": c, "by": v} for c, v in self.violations],
+                "terminal_state": self.states[-1].tolist(), "binding": list(self.binding),
+                "violations": [{"constraint": c, "by": v} for c, v in self.violations],
                 "kkt_residual": self.kkt_residual, "solver_kkt_residual": self.solver_kkt_residual,
                 "polished": self.polished, "formulation": self.formulation, "solver": self.solver}
 
@@ -145,6 +150,10 @@ class ConstrainedQP:
         Any installed cvxpy solver (``cp.installed_solvers()``); default Clarabel with tight tolerances.
     solver_options : dict, optional
         Passed to ``problem.solve`` for a solver other than the default.
+    u_prev : bool
+        Link the first input to the previous command: ``|u_0 - u_prev| <= du_max`` (rows "du_max[i] at t=0 (up)",
+        "(down)"), ``u_prev`` a Parameter that `solve` sets (a receding-horizon loop's last command; zero, the
+        actuator at rest, where not given). Without ``du_max`` it adds no row.
 
     Attributes
     ----------
@@ -157,6 +166,8 @@ class ConstrainedQP:
         E[x_1..x_N] under the plan.
     x0, mu : cvxpy.Parameter
         n and (N, m); `solve` sets them (and the Parameters derived from mu).
+    u_prev : cvxpy.Parameter or None
+        m, with ``u_prev=True``; `solve` sets it.
 
     Examples
     --------
@@ -173,7 +184,7 @@ class ConstrainedQP:
     """
 
     def __init__(self, system: System, protocol: str, constraints: Constraints | Any, formulation: str = "auto",
-                 solver: str | None = None, solver_options: dict | None = None) -> None:
+                 solver: str | None = None, solver_options: dict | None = None, u_prev: bool = False) -> None:
         system = check_system(system)
         self.protocol = check_protocol(protocol)
         refuse_correlated(system, self.protocol)
@@ -194,12 +205,23 @@ class ConstrainedQP:
                                        f"found {solver!r}")
         self.solver = solver or cp.CLARABEL
         self.solver_options = dict(solver_options or {})
+        if not isinstance(u_prev, bool | np.bool_):
+            raise InputError("u_prev", f"expected true or false (whether the first input is linked to the previous "
+                                       f"command), found {u_prev!r}")
+        self.u_prev = cp.Parameter(system.m, name="u_prev") if u_prev else None
         self._d, self._noise = udp_variance_weights(system)
         if not (np.all(np.isfinite(self._d)) and np.isfinite(self._noise)):
             raise NumericalError("the QP's loss-variance weights diag(Omega_g) exceed the double-precision range")
         #: the objective's scale: J's variable part divided by the largest weight
         self.scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
         self._user_constraints = False
+        #: the problem compiled for Clarabel (`ClarabelProgram`), on the first solve with the default solver
+        self._program: ClarabelProgram | None = None
+        #: why a default-solver solve goes through ``problem.solve`` instead ("" while the compiled program serves)
+        self.fast_path_refused = ""
+        #: (the system last asked for, its mu's key, the moments of the plan U = 0 under that mu, its x0's key, the
+        #: free means A^k x0)
+        self._base: tuple[System, bytes, Moments, bytes, np.ndarray] | None = None
         self._build()
 
     # ------------------------------------------------------------------------------------------------ building
@@ -230,12 +252,13 @@ class ConstrainedQP:
             terms.append(cp.sum_squares(L @ X))
         penalty = []
         self._groups: list[_Group] = []
-        # inputs and rates: hard (U = 0 satisfies them)
-        Gu, hu, labels = _input_rows(c, N, m)
+        # inputs and rates: hard (U = u_prev at every step satisfies them, u_prev within the input bounds; U = 0
+        # without u_prev); the rows of u_0 against u_prev have the bound hu + Su u_prev
+        Gu, hu, Su, labels = _input_rows(c, N, m, self.u_prev is not None)
         if labels:
-            con = Gu @ u <= hu
+            con = Gu @ u <= (hu + Su @ self.u_prev if Su.nnz else hu)
             constraints.append(con)
-            self._groups.append(_Group("inputs", con, labels, hu, None, P=Gu))
+            self._groups.append(_Group("inputs", con, labels, hu, None, P=Gu, offset=Su if Su.nnz else None))
         # expected state: box and polyhedron, rows P E[X] <= q
         P, q, labels = _state_rows(c, N, n)
         if labels:
@@ -281,18 +304,46 @@ class ConstrainedQP:
         """
         self.problem = cp.Problem(self.problem.objective, [*self.problem.constraints, *constraints])
         self._user_constraints = True
+        self._program, self.fast_path_refused = None, ""          # compiled again, with them, on the next solve
 
     # ------------------------------------------------------------------------------------------------ solving
     def _assign(self, system: System) -> None:
+        """The Parameters' values for ``system``. They come from a validated System (x0 finite, mu in [0, 1], the
+        weights nonnegative) as float arrays of the Parameters' shapes, nonnegative where a Parameter is declared so,
+        and are saved as cvxpy's ``value`` setter saves them after its validation (``Leaf.save_value``), which would
+        repeat what System checked (0.07 ms of a two_actuator re-solve of about 2.5)."""
         mu = system.mu_schedule
         d = self._d * (1.0 - mu) if self.protocol == "udp" else 0.0
-        self.x0.value = system.x0
-        self.mu.value = mu
-        self._w.value = (system.input_weights + d) * mu / self.scale
-        self._sigma.value = np.sqrt(mu * (1.0 - mu))
+        for parameter, value in ((self.x0, system.x0), (self.mu, mu), (self._w, (system.input_weights + d) * mu
+                                                                       / self.scale),
+                                 (self._sigma, np.sqrt(mu * (1.0 - mu)))):
+            parameter.save_value(np.array(value, dtype=float).reshape(parameter.shape))
+
+    def _link(self, u_prev: Any) -> None:
+        """Set ``u_prev`` (Parameter and the rows' bounds) for a solve, checked: m finite numbers. O(m + rows)."""
+        if self.u_prev is None:
+            if u_prev is not None:
+                raise InputError("u_prev", "this program has no previous command: build it with "
+                                           "ConstrainedQP(..., u_prev=True)")
+            return
+        m = self.system.m
+        try:
+            value = np.zeros(m) if u_prev is None else np.asarray(u_prev, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError("u_prev", f"expected {m} numbers, found {u_prev!r}"[:200]) from None
+        if value.shape != (m,):
+            raise DimensionError("u_prev", f"expected {m} numbers (m = {m}) but found shape {value.shape}")
+        if not np.all(np.isfinite(value)):
+            raise InputError("u_prev", "expected finite numbers")
+        self.u_prev.save_value(value)
+        for group in self._groups:
+            group.link(value)
 
     def _run_solver(self, what: str) -> str:
         if self.solver == cp.CLARABEL and not self.solver_options:
+            program = self._compiled()
+            if program is not None:
+                return self._run_compiled(program, what)
             return solve_problem(self.problem, what, attempts=(CLARABEL_TIGHT, CLARABEL_DEFAULT))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -302,15 +353,47 @@ class ConstrainedQP:
                 raise SolverError("solver_error", f"{what} ({self.solver}): {err}") from None
         return str(self.problem.status)
 
-    def solve(self, mu=None, x0=None, *, check: bool = True) -> ConstrainedSolution:
+    def _compiled(self) -> ClarabelProgram | None:
+        """The problem compiled once for Clarabel (`ClarabelProgram`: each solve maps the Parameters onto the cone
+        program and runs ``CONSTRAINED_ATTEMPTS``, the unequilibrated ones on a kept solver given the new data), or
+        None, with the reason in ``fast_path_refused``, where cvxpy's compilation cannot be driven directly (then
+        ``problem.solve`` runs, as for any other solver)."""
+        if self._program is None and not self.fast_path_refused:
+            try:
+                program = ClarabelProgram(self.problem, duals=True)
+            except (ValueError, cp.error.DCPError, cp.error.SolverError) as err:
+                self.fast_path_refused = f"the compiled Clarabel program is refused ({err}): problem.solve runs"
+                return None
+            self._program, self._parameters = program, self.problem.parameters()
+        return self._program
+
+    def _run_compiled(self, program: ClarabelProgram, what: str) -> str:
+        """One solve on the compiled program under `solve_problem`'s policy, unpacked into ``problem`` as
+        ``problem.solve`` would (variables, multipliers, ``problem.value`` and ``problem.status``). O(nnz) plus
+        Clarabel's iterations."""
+        values = {p: p.value for p in self._parameters}
+        status, point = program.solve(values, what, attempts=CONSTRAINED_ATTEMPTS)
+        duals = program.duals(point)
+        if status in cp.settings.SOLUTION_PRESENT:
+            solution = Solution(status, point.value, program.primals(point), duals, {})
+        elif status in cp.settings.INF_OR_UNB:
+            solution = Solution(status, np.inf, {}, duals, {})
+        else:
+            return status
+        self.problem.unpack(solution)
+        return status
+
+    def solve(self, mu=None, x0=None, *, u_prev=None, check: bool = True) -> ConstrainedSolution:
         """Solve for the system's (or the given) ``mu`` (m-vector or N×m schedule) and ``x0``, validated through
-        [`System`][packetloss_cvx.model.system.System].
+        [`System`][packetloss_cvx.model.system.System], and (built with ``u_prev=True``) the previous command
+        ``u_prev`` (m finite numbers; zero where not given).
 
         Raises
         ------
         InfeasibleError
             The solver proved the constraints infeasible (``status`` carries its status); with ``soft`` only the
-            input and rate bounds are hard, and U = 0 satisfies them, so this cannot happen.
+            input and rate bounds are hard, and U = 0 (U = u_prev at every step, with ``u_prev`` inside the input
+            bounds) satisfies them, so this cannot happen.
         SolverError
             Any other status than "optimal" (``optimal_inaccurate`` and ``infeasible_inaccurate`` included).
         NumericalError
@@ -322,6 +405,7 @@ class ConstrainedQP:
             system = system.with_mu(mu)
         if x0 is not None:
             system = system.with_x0(x0)
+        self._link(u_prev)
         self._assign(system)
         what = f"the constrained {self.protocol}-like {self.formulation} QP"
         start = time.perf_counter()
@@ -337,15 +421,15 @@ class ConstrainedQP:
             raise SolverError(status, f"{what} ({self.solver}) gave no proven answer")
         N, m = system.horizon, system.m
         U = np.asarray(self.U.value, dtype=float).reshape(N, m)
-        cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))
+        report = self.kkt(system, U)
+        solver_kkt = report["residual"]
+        # the solver's objective against the forward cost of its plan (the kkt report's J, on the plan's moments)
+        cost = report["cost"]
         penalty = 0.0 if self._penalty is None else self.constraints.soft_weight * float(self._penalty.value)
-        solver_cost = float(self.problem.value) * self.scale + float(system.x0 @ system.initial_weight @ system.x0) \
-            + self._noise - penalty
+        solver_cost = float(self.problem.value) * self.scale + self._constant(system) - penalty
         if check and not abs(solver_cost - cost) <= CROSS_CHECK_COST_RTOL * max(abs(cost), self.scale * 1e-9):
             raise NumericalError(f"{what}: the solver's objective {solver_cost:.10g} and the forward cost of its plan "
                                  f"{cost:.10g} disagree beyond {CROSS_CHECK_COST_RTOL:.0e} relative")
-        report = self.kkt(system, U)
-        solver_kkt = report["residual"]
         polished = False
         if not self._user_constraints and self._groups:
             refined = self._polish(system, U, report)
@@ -353,14 +437,14 @@ class ConstrainedQP:
                 better = self.kkt(system, *refined)
                 if better["residual"] <= report["residual"]:
                     U, report, polished = refined[0], better, True
-                    cost, _ = plan_cost(system, U, self.protocol, (self._d, self._noise))
+        cost = report["cost"]                          # J of the returned plan on its moments (the forward recursion)
         kkt = None if self._user_constraints else report["residual"]
         if check and kkt is not None and not kkt <= CONSTRAINED_KKT_RTOL:
             raise NumericalError(f"{what}: the KKT residual of the solver's answer is {kkt:.2e} ({report['worst']}), "
                                  f"beyond {CONSTRAINED_KKT_RTOL:.0e}: the answer is not trusted")
         return ConstrainedSolution(
             protocol=self.protocol, status=status, cost=float(cost), inputs=U,
-            states=plan_moments(system, U).mean[1:], binding=tuple(report["binding"]),
+            states=self._moments(system, U).mean[1:], binding=tuple(report["binding"]),
             violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
             solver=self.solver, solve_time=solve_time, solver_kkt_residual=None if self._user_constraints
             else solver_kkt, polished=polished)
@@ -427,8 +511,8 @@ class ConstrainedQP:
         rho = self.constraints.soft_weight
         mu = system.mu_schedule
         w = ((system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu).ravel()
-        mom = plan_moments(system, U)
-        H_J = 2.0 * np.diag(w) + 2.0 * sum(mom.T[k].T @ system.state_weights[k - 1] @ mom.T[k] for k in range(1, N + 1))
+        mom = self._moments(system, U)
+        H_J = 2.0 * np.diag(w) + 2.0 * _weighted_gram(mom.T[1:], system.state_weights)
         u0 = U.ravel().copy()
         sizes = [np.maximum(1.0, np.abs(group.bound)) for group in self._groups]
         soft = [group.slack is not None for group in self._groups]
@@ -446,21 +530,24 @@ class ConstrainedQP:
         def newton() -> np.ndarray | None:
             u, previous = u0.copy(), np.inf
             for _ in range(POLISH_MAX_STEPS):
-                mom = plan_moments(system, u.reshape(N, m))
-                grad = 2.0 * w * u + 2.0 * sum(mom.T[k].T @ (system.state_weights[k - 1] @ mom.mean[k])
-                                               for k in range(1, N + 1))
+                mom = self._moments(system, u)
+                grad = 2.0 * w * u + 2.0 * _weighted_pull(mom.T[1:], system.state_weights, mom.mean[1:])
                 H = H_J.copy()
                 rows, values = [], []
                 for group, act, pen, la in zip(self._groups, active, penalised, lam, strict=True):
-                    g, jac, hess = group.evaluate(mom, u, system, hessian=True)
+                    weight = np.where(pen, rho, np.where(act, la, 0.0))        # each row's weight in the Lagrangian
+                    g, jac, curvature = group.evaluate(mom, u, system, curvature=weight)
                     grad += rho * jac[pen].sum(axis=0) + jac[act].T @ la[act]
-                    if hess is not None:
-                        H += rho * hess[pen].sum(axis=0) + np.einsum("i,ijk->jk", la[act], hess[act])
+                    if curvature is not None:
+                        H += curvature
                     rows.append(jac[act])
                     values.append(g[act])
                 J_A = np.vstack(rows)
-                K = np.block([[H, J_A.T], [J_A, np.zeros((J_A.shape[0], J_A.shape[0]))]])
-                step = np.linalg.lstsq(K, -np.concatenate([grad, *values]), rcond=None)[0]
+                K = np.zeros((u.size + J_A.shape[0],) * 2)
+                K[:u.size, :u.size], K[:u.size, u.size:], K[u.size:, :u.size] = H, J_A.T, J_A
+                # least squares of least norm (a degenerate active set's K is singular), by pivoted QR
+                step = scipy.linalg.lstsq(K, -np.concatenate([grad, *values]), lapack_driver="gelsy",
+                                          check_finite=False)[0]
                 if not np.all(np.isfinite(step)):
                     return None
                 u += step[:u.size]
@@ -481,7 +568,7 @@ class ConstrainedQP:
             u = newton()
             if u is None:
                 return None
-            mom = plan_moments(system, u.reshape(N, m))
+            mom = self._moments(system, u)
             changed = False
             lam_max = max(float(np.max(np.abs(la), initial=0.0)) for la in lam) or 1.0
             for group, act, pen, la, size, is_soft in zip(self._groups, active, penalised, lam, sizes, soft,
@@ -510,13 +597,42 @@ class ConstrainedQP:
             slacks.append(np.where(pen, np.maximum(g, 0.0), 0.0))
         return u.reshape(N, m), multipliers, slacks
 
+    def _constant(self, system: System) -> float:
+        """J's terms that no plan moves: ``x0' Omega_0 x0`` and the noise's."""
+        return float(system.x0 @ system.initial_weight @ system.x0) + self._noise
+
+    def _moments(self, system: System, U: np.ndarray) -> Moments:
+        """``plan_moments(system, U)`` for the checks and the polish, which evaluate many plans of one (mu, x0): the
+        forward recursion runs once per mu for the plan U = 0 (its ``T``, ``C``, ``S`` depend on neither the plan nor
+        x0), the free means A^k x0 once per x0 by the same recursion without inputs, and a plan moves the mean by
+        ``T U`` and the covariance by ``(C diag(u)) (C diag(u))'``, the recursion's own sums in closed form.
+        O(N^2 n m (n + m)) for a new mu, O(N n^2) for a new x0, O(N^2 n m n) per plan."""
+        if self._base is None or self._base[0] is not system:         # a System is immutable: its moments stay
+            key = b"".join(np.ascontiguousarray(x, dtype=float).tobytes()
+                           for x in (system.mu_schedule, system.A, system.B, system.noise_cov))
+            if self._base is None or self._base[1] != key:
+                base = plan_moments(system, np.zeros((system.horizon, system.m)))
+                self._base = (system, key, base, system.x0.tobytes(), base.mean)
+            if self._base[3] != system.x0.tobytes():
+                free = np.empty_like(self._base[4])
+                free[0] = system.x0
+                for k in range(system.horizon):
+                    free[k + 1] = system.A @ free[k]
+                self._base = (system, *self._base[1:3], system.x0.tobytes(), free)
+            self._base = (system, *self._base[1:])
+        _, _, base, _, free = self._base
+        u = np.asarray(U, dtype=float).ravel()
+        spread = base.C * u
+        return Moments(free + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
+
     # ------------------------------------------------------------------------------------------------ the check
     def kkt(self, system: System, U: np.ndarray, multipliers: list[np.ndarray] | None = None,
             slacks: list[np.ndarray] | None = None) -> dict[str, Any]:
         """The KKT conditions at the plan ``U`` with the last solve's multipliers (or ``multipliers``, ``slacks``: one
         array per constraint block, in the cost's units), every constraint and gradient evaluated on
         `plan_moments` (not on the matrices the problem was built from). Returns
-        ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations"}``:
+        ``{"residual", "worst", "stationarity", "primal", "dual", "complementarity", "binding", "violations",
+        "multipliers", "slacks", "cost"}`` (``cost``: J(U) on the plan's moments, the forward cost `solve` returns):
 
         * stationarity ``||grad J + sum lambda_i grad g_i||_inf`` over the largest of its terms' sizes: grad J's
           input, x0 and plan parts (which cancel at an interior optimum) and ``|lambda_i| ||grad g_i||_inf``; a chance
@@ -530,20 +646,17 @@ class ConstrainedQP:
 
         O(N^2 n m (n + m)) for the moments plus O(rows N m).
         """
-        N = system.horizon
-        mom = plan_moments(system, U)
+        mom = self._moments(system, U)
         u = U.ravel()
         mu = system.mu_schedule
         w = (system.input_weights + (self._d * (1.0 - mu) if self.protocol == "udp" else 0.0)) * mu
         grad_J = 2.0 * w.ravel() * u
-        free_part, plan_part = np.zeros_like(u), np.zeros_like(u)   # grad J's terms in x0 and in U (they cancel)
-        J_var = float(np.sum(w.ravel() * u * u))
-        for k in range(1, N + 1):
-            Wk = system.state_weights[k - 1]
-            free = mom.mean[k] - mom.T[k] @ u                          # A^k x0
-            free_part += 2.0 * mom.T[k].T @ (Wk @ free)
-            plan_part += 2.0 * mom.T[k].T @ (Wk @ (mom.T[k] @ u))
-            J_var += float(mom.mean[k] @ Wk @ mom.mean[k])
+        # grad J's terms in x0 and in U (they cancel at an interior optimum), step by step k = 1..N
+        T, W, mean = mom.T[1:], system.state_weights, mom.mean[1:]
+        moved = T @ u
+        free_part = 2.0 * _weighted_pull(T, W, mean - moved)     # A^k x0
+        plan_part = 2.0 * _weighted_pull(T, W, moved)
+        J_var = float(np.sum(w.ravel() * u * u)) + float(np.einsum("ki,kij,kj->", mean, W, mean))
         grad_J += free_part + plan_part
         total = grad_J.copy()
         rho = self.constraints.soft_weight if self.constraints.soft else np.inf
@@ -565,10 +678,9 @@ class ConstrainedQP:
             cap = rho if group.slack is not None else np.inf        # a soft row's multiplier is at most rho
             dual = max(dual, float(np.max(np.maximum(-lam, lam - cap), initial=0.0)))
             pairs.append((np.abs(lam), np.abs(excess)))
-            binding += [label for label, e, sz in zip(group.labels, excess, size, strict=True)
-                        if e >= -CONSTRAINED_ACTIVE_RTOL * sz]
-            violations += [(label, float(v)) for label, v, sz in zip(group.labels, slack, size, strict=True)
-                           if v > CONSTRAINED_ACTIVE_RTOL * sz]
+            binding += [group.labels[i] for i in np.flatnonzero(excess >= -CONSTRAINED_ACTIVE_RTOL * size)]
+            violations += [(group.labels[i], float(slack[i])) for i in np.flatnonzero(slack > CONSTRAINED_ACTIVE_RTOL
+                                                                                      * size)]
         for group, lam in zip(self._groups, multipliers, strict=True):     # a kink: the best subgradient
             for row, scale in group.kinks.items():
                 weight = max(float(lam[row]), 0.0) * scale
@@ -588,7 +700,7 @@ class ConstrainedQP:
         parts = {"stationarity": stationarity, "primal": primal, "dual": dual, "complementarity": comp}
         worst = max(parts, key=parts.get)
         return {"residual": parts[worst], "worst": worst, **parts, "binding": binding, "violations": violations,
-                "multipliers": multipliers, "slacks": slacks}
+                "multipliers": multipliers, "slacks": slacks, "cost": J_var + self._constant(system)}
 
 
 class _Group:
@@ -596,11 +708,22 @@ class _Group:
     plan's moments (values g_i - b_i and their gradients)."""
 
     def __init__(self, kind: str, con: Any, labels: list[str], bound: np.ndarray, slack: cp.Variable | None,
-                 P: sp.csr_matrix | None = None, chance: tuple | None = None) -> None:
+                 P: sp.csr_matrix | None = None, chance: tuple | None = None,
+                 offset: sp.csr_matrix | None = None) -> None:
         self.kind, self.con, self.labels, self.bound, self.slack = kind, con, labels, np.asarray(bound), slack
+        #: rows whose bound moves with a Parameter (u_prev): ``bound = base + offset @ value``, set by `link`
+        self.base, self.offset = self.bound, offset
         self.P, self.chance = P, chance
+        self.dense: np.ndarray | None = None            # the input rows' P as an array, on first use
+        #: a chance block's (C, (a'C_k)^2, a'S_k a, a'T_k) for the moments' C it was computed from (one mu)
+        self.plan_free: tuple | None = None
         #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale)
         self.kinks: dict[int, np.ndarray] = {}
+
+    def link(self, value: np.ndarray) -> None:
+        """The bounds for the Parameter's ``value`` (rows ``g(u) = P u - base - offset value``). O(rows)."""
+        if self.offset is not None:
+            self.bound = self.base + self.offset @ value
 
     def multipliers(self) -> np.ndarray:
         if isinstance(self.con, list):
@@ -610,44 +733,60 @@ class _Group:
     def slack_values(self) -> np.ndarray:
         return np.zeros(len(self.labels)) if self.slack is None else np.asarray(self.slack.value, dtype=float)
 
-    def evaluate(self, mom: Moments, u: np.ndarray, system: System, hessian: bool = False
+    def evaluate(self, mom: Moments, u: np.ndarray, system: System, curvature: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """``(g - b, dg/du, d2g/du2 or None)`` of the block's rows at u; the chance rows' Hessians (N × N m × N m)
-        only when asked (the polish)."""
+        """``(g - b, dg/du, sum_i c_i d2g_i/du2 or None)`` of the block's rows at u: the chance rows' Hessians summed
+        with the weights ``curvature`` (one per row: the polish's Lagrangian) only when asked; None for linear rows.
+        """
         N = system.horizon
         if self.kind == "inputs":
-            return self.P @ u - self.bound, self.P.toarray(), None
+            if self.dense is None:
+                self.dense = self.P.toarray()
+            return self.dense @ u - self.bound, self.dense, None
         if self.kind == "states":
             mean = mom.mean[1:].ravel()
             T = mom.T[1:].reshape(N * system.n, -1)
             return self.P @ mean - self.bound, np.asarray(self.P @ T), None
         a, b, kappa = self.chance
-        g, jac = np.zeros(N), np.zeros((N, u.size))
-        hess = np.zeros((N, u.size, u.size)) if hessian else None
-        self.kinks = {}
+        if self.plan_free is None or self.plan_free[0] is not mom.C:      # what no plan moves, once per mu
+            self.plan_free = (mom.C, np.einsum("i,kij->kj", a, mom.C[1:]) ** 2,     # (a' C_k)^2, k = 1..N
+                              np.einsum("i,kij,j->k", a, mom.S[1:], a), np.einsum("i,kij->kj", a, mom.T[1:]))
+        _, h2, noise, slope = self.plan_free
+        std = np.sqrt(h2 @ (u * u) + noise)
+        g = mom.mean[1:] @ a + kappa * std - b
+        jac = slope.copy()
         reach = max(1.0, float(np.abs(u).max(initial=0.0)))
-        for k in range(1, N + 1):
-            h2 = (a @ mom.C[k]) ** 2
-            noise = float(a @ mom.S[k] @ a)
-            var = float(np.sum(h2 * u * u) + noise)
-            std = np.sqrt(var)
-            g[k - 1] = a @ mom.mean[k] + kappa * std - b
-            jac[k - 1] = a @ mom.T[k]
-            if noise == 0.0 and std <= CONSTRAINED_ACTIVE_RTOL * np.sqrt(h2.sum()) * reach:
-                # the norm's kink (no noise, the plan ~0 where it spreads a'x_k): no gradient, the subdifferential
-                # {kappa sqrt(D) z : ||z|| <= 1}; kept for the KKT check (:meth:`ConstrainedQP.kkt`)
-                self.kinks[k - 1] = kappa * np.sqrt(h2)
-            elif std > 0:          # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
-                Du = h2 * u
-                jac[k - 1] += kappa * Du / std
-                if hessian:
-                    hess[k - 1] = kappa * (np.diag(h2) / std - np.outer(Du, Du) / std**3)
-        return g, jac, hess
+        # the norm's kink (no noise, the plan ~0 where it spreads a'x_k): no gradient, the subdifferential
+        # {kappa sqrt(D) z : ||z|| <= 1}; kept for the KKT check (:meth:`ConstrainedQP.kkt`)
+        kink = (noise == 0.0) & (std <= CONSTRAINED_ACTIVE_RTOL * np.sqrt(h2.sum(axis=1)) * reach)
+        self.kinks = {int(k): kappa * np.sqrt(h2[k]) for k in np.flatnonzero(kink)}
+        smooth = ~kink & (std > 0)          # kappa sqrt(u' D u + s), D = diag(h^2): gradient kappa D u / std
+        Du = h2[smooth] * u
+        jac[smooth] += kappa * Du / std[smooth, None]
+        if curvature is None:
+            return g, jac, None
+        # the Hessian of row k: kappa (D_k / std_k - D_k u u' D_k / std_k^3), summed with the weights c_k
+        c = curvature[smooth]
+        total = -(Du.T * (c / std[smooth] ** 3)) @ Du
+        total[np.diag_indices(u.size)] += (c / std[smooth]) @ h2[smooth]
+        return g, jac, kappa * total
 
 
-def _input_rows(c: Constraints, N: int, m: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
-    """Rows ``G u <= h`` (u step-major) of the input and rate bounds, with their labels."""
-    rows, rhs, labels = [], [], []
+def _weighted_gram(T: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """``sum_k T_k' W_k T_k`` for T (N, n, p) and W (N, n, n). O(N n p (n + p))."""
+    return T.reshape(-1, T.shape[2]).T @ (W @ T).reshape(-1, T.shape[2])
+
+
+def _weighted_pull(T: np.ndarray, W: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``sum_k T_k' W_k x_k`` for T (N, n, p), W (N, n, n), x (N, n). O(N n (n + p))."""
+    return T.reshape(-1, T.shape[2]).T @ (W @ x[:, :, None]).ravel()
+
+
+def _input_rows(c: Constraints, N: int, m: int, previous: bool = False
+                ) -> tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix, list[str]]:
+    """Rows ``G u <= h + S u_prev`` (u step-major) of the input and rate bounds, with their labels; ``S`` is zero but
+    on the rows of ``|u_0 - u_prev| <= du_max`` (``previous``)."""
+    rows, rhs, labels, linked = [], [], [], []
     eye = sp.eye(N * m, format="csr")
     for name, sign, values in (("u_max", 1.0, c.u_max), ("u_min", -1.0, c.u_min)):
         if values is None:
@@ -658,18 +797,23 @@ def _input_rows(c: Constraints, N: int, m: int) -> tuple[sp.csr_matrix, np.ndarr
                 rhs.append(sign * values[i])
                 labels.append(f"{name}[{i}] at t={t}")
     if c.du_max is not None:
-        for t in range(1, N):
+        for t in range(0 if previous else 1, N):
             for i in np.flatnonzero(np.isfinite(c.du_max)):
-                diff = eye[t * m + i] - eye[(t - 1) * m + i]
+                diff = eye[t * m + i] - eye[(t - 1) * m + i] if t else eye[i]
+                if not t:                                 # u_0 - u_prev <= du, u_prev - u_0 <= du
+                    linked += [(len(rows), i, 1.0), (len(rows) + 1, i, -1.0)]
                 rows += [diff, -diff]
                 rhs += [c.du_max[i], c.du_max[i]]
                 labels += [f"du_max[{i}] at t={t} (up)", f"du_max[{i}] at t={t} (down)"]
     G = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * m))
-    return G, np.array(rhs), labels
+    S = sp.csr_matrix(([v for _, _, v in linked], ([r for r, _, _ in linked], [i for _, i, _ in linked])),
+                      shape=(len(rows), m))
+    return G, np.array(rhs), S, labels
 
 
 def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarray, list[str]]:
-    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron, with their labels."""
+    """Rows ``P E[X] <= q`` (E[X] = (E[x_1], ..., E[x_N])) of the state box and polyhedron and of the terminal set,
+    with their labels."""
     rows, rhs, labels = [], [], []
     eye = sp.eye(N * n, format="csr")
     for name, sign, values in (("x_max", 1.0, c.x_max), ("x_min", -1.0, c.x_min)):
@@ -686,6 +830,18 @@ def _state_rows(c: Constraints, N: int, n: int) -> tuple[sp.csr_matrix, np.ndarr
                 rows.append(sp.csr_matrix((c.F[r], (np.zeros(n, int), (k - 1) * n + np.arange(n))), shape=(1, N * n)))
                 rhs.append(c.g[r])
                 labels.append(f"F[{r}] at k={k}")
+    # the terminal set, on E[x_N] only
+    for name, sign, values in (("terminal_max", 1.0, c.terminal_max), ("terminal_min", -1.0, c.terminal_min)):
+        for j in [] if values is None else np.flatnonzero(np.isfinite(values)):
+            rows.append(sign * eye[(N - 1) * n + j])
+            rhs.append(sign * values[j])
+            labels.append(f"{name}[{j}] at k={N}")
+    if c.terminal_F is not None:
+        for r in np.flatnonzero(np.isfinite(c.terminal_g)):
+            rows.append(sp.csr_matrix((c.terminal_F[r], (np.zeros(n, int), (N - 1) * n + np.arange(n))),
+                                      shape=(1, N * n)))
+            rhs.append(c.terminal_g[r])
+            labels.append(f"terminal_F[{r}] at k={N}")
     P = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, N * n))
     return P, np.array(rhs), labels
 

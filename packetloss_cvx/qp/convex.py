@@ -34,8 +34,8 @@ __all__ = ["PROVEN_INFEASIBLE", "ClarabelPoint", "ClarabelProgram", "first_answe
 PROVEN_INFEASIBLE = cp.INFEASIBLE
 
 #: cvxpy's canonicalisation backend of :class:`ClarabelProgram`'s compile: "COO" where this cvxpy has it (the same
-#: parameter maps as the default "CPP", entry for entry, in about 0.6 of the time; tests/qp/test_convex.py), else cvxpy's
-#: default (None).
+#: parameter maps as the default "CPP", entry for entry, in about 0.6 of the time; tests/qp/test_convex.py), else
+#: cvxpy's default (None).
 CANON_BACKEND = getattr(cp.settings, "COO_CANON_BACKEND", None)
 
 
@@ -150,12 +150,14 @@ class ClarabelProgram:
     packetloss_cvx.errors.SolverError: solver status 'solver_error': an SOCP: Parameter param... is not finite
     """
 
-    def __init__(self, problem: cp.Problem) -> None:
+    def __init__(self, problem: cp.Problem, duals: bool = False) -> None:
         if not problem.is_dpp():
             raise ValueError("ClarabelProgram needs a DPP problem (cvxpy's disciplined parametrized programming)")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            data, _, _ = problem.get_problem_data(cp.CLARABEL, canon_backend=CANON_BACKEND)
+            data, chain, inverse = problem.get_problem_data(cp.CLARABEL, canon_backend=CANON_BACKEND, solver_opts={})
+        self._problem, self._chain, self._inverse = problem, chain, inverse
+        self._selections: dict | None = None       # `duals` and `primals`: cvxpy's inversion as selections
         program = data[cp.settings.PARAM_PROB]
         program.reduced_A.cache()
         if program.P is not None:                 # a quadratic objective: P mapped like [A b], per solve
@@ -175,7 +177,12 @@ class ClarabelProgram:
             unit = np.zeros(program.total_param_size + 1)
             unit[-1] = 1.0                               # the parameter vector's constant entry (cvxpy's layout)
             self._P = self._quadratic(unit) if fixed else None
+            if not fixed:                            # the parameter entries P depends on: P is formed when they move
+                self._P_columns = np.unique(sp.csc_array(program.reduced_P.reduced_mat).nonzero()[1])
+                self._P_last: tuple[bytes, sp.csc_array] | None = None
         self._kept = threading.local()          # per thread: settings -> a Clarabel solver to update
+        if duals:                               # the multipliers' map now, so that a refusal shows at construction
+            self._selections = self._probe()
 
     def data(self, values: Mapping[cp.Parameter, np.typing.ArrayLike]) -> tuple:
         """Clarabel's ``(P, q, A, b)`` for the Parameter values (every Parameter of the problem).
@@ -205,7 +212,12 @@ class ClarabelProgram:
         A = sp.csc_array((-flat[:end], indices[:end], indptr[:cols]), shape=(rows, cols - 1))
         b = np.zeros(rows)
         b[indices[end:]] = flat[end:]
-        return self._quadratic(vector) if self._P is None else self._P, q, d, A, b
+        if self._P is not None:
+            return self._P, q, d, A, b
+        key, last = vector[self._P_columns].tobytes(), self._P_last
+        if last is None or last[0] != key:
+            last = self._P_last = (key, self._quadratic(vector))
+        return last[1], q, d, A, b
 
     def _quadratic(self, vector: np.ndarray) -> sp.csc_array:
         """P for a parameter vector, formed as cvxpy's ConicSolver.apply and its Clarabel interface form it
@@ -252,8 +264,76 @@ class ClarabelProgram:
         if solution is None:
             return status, ClarabelPoint(np.full(self._program.x.size, np.nan), self._program.var_id_to_col, np.nan)
         return status, ClarabelPoint(np.asarray(solution.x, dtype=float), self._program.var_id_to_col,
-                                     solution.obj_val + d)
+                                     solution.obj_val + d, np.asarray(solution.z, dtype=float))
 
+    def duals(self, point: ClarabelPoint) -> dict[int, np.ndarray]:
+        """The multipliers of the problem's constraints at Clarabel's ``point`` (its z: the multipliers of an
+        optimum, the certificate of a proven infeasibility), ``constraint id -> value``, as cvxpy's chain would
+        unpack them (``constraint.dual_value``).
+
+        Each multiplier is a signed selection of entries of z; which entries and signs is read once from cvxpy's own
+        inversion of the chain (``chain.invert`` on a probe point x = 1, 2, ..., z = 1, 2, ...) and confirmed on a
+        second, random probe, so a reduction that mixed entries would be refused (ValueError), never mapped wrongly.
+        O(rows) per call, O(cvxpy's inversion) once.
+        """
+        return self._selected(point.z, "dual")
+
+    def primals(self, point: ClarabelPoint) -> dict[int, np.ndarray]:
+        """The values of the problem's variables at ``point``, ``variable id -> value``, as cvxpy's chain would unpack
+        them (``variable.value``; a variable that cvxpy re-posed, e.g. one declared ``nonneg``, included), read like
+        `duals`. O(variables' size)."""
+        return self._selected(point.x, "primal")
+
+    def _selected(self, vector: np.ndarray, kind: str) -> dict[int, np.ndarray]:
+        if self._selections is None:
+            self._selections = self._probe()
+        out = {key: (sign * vector[index]).reshape(shape)
+               for (which, key), (index, sign, shape) in self._selections.items() if which == kind}
+        if kind == "primal":            # cvxpy projects a variable's value onto its attributes (nonneg: max(x, 0))
+            for key, variable in self._projected.items():
+                out[key] = variable.project(out[key])
+        return out
+
+    def _probe(self) -> dict[tuple[str, int], tuple[np.ndarray, np.ndarray, tuple]]:
+        """``(kind, id) -> (entries, signs, shape)``: each constraint's multiplier as entries of z and each variable's
+        value as entries of x, from cvxpy's inversion of probe solutions."""
+        rows, columns = int(self._index[2][0]), self._program.x.size
+        ids = [("dual", c.id) for c in self._problem.constraints]
+        ids += [("primal", v.id) for v in self._problem.variables()]
+
+        def inverted(x: np.ndarray, z: np.ndarray) -> dict[tuple[str, int], np.ndarray]:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                solution = self._chain.invert(_ProbeSolution(x, z), self._inverse)
+            found = {("dual", key): value for key, value in solution.dual_vars.items()}
+            found.update({("primal", key): value for key, value in solution.primal_vars.items()})
+            missing = [key for key in ids if key not in found]
+            if missing:
+                raise ValueError(f"cvxpy's inversion gave no value for {len(missing)} constraint(s) or variable(s)")
+            return {key: np.asarray(found[key], dtype=float) for key in ids}
+
+        sizes = {"dual": rows, "primal": columns}
+        selections = {}
+        for key, value in inverted(np.arange(1.0, columns + 1.0), np.arange(1.0, rows + 1.0)).items():
+            flat = value.ravel()
+            index = np.rint(np.abs(flat)).astype(int) - 1
+            if np.any(index < 0) or np.any(index >= sizes[key[0]]) or not np.array_equal(np.abs(flat), index + 1.0):
+                raise ValueError(f"a {key[0]} value is not a selection of Clarabel's point")
+            selections[key] = (index, np.sign(flat), value.shape)
+        #: variables whose value cvxpy projects onto their attributes (Leaf.project), as its inversion does
+        self._projected = {v.id: v for v in self._problem.variables()
+                           if any(v.attributes.get(name) for name in ("nonneg", "nonpos", "pos", "neg", "bounds",
+                                                                      "integer", "boolean"))}
+        rng = np.random.default_rng(0)
+        x, z = rng.normal(size=columns), rng.normal(size=rows)
+        for key, value in inverted(x, z).items():
+            index, sign, shape = selections[key]
+            expected = (sign * (z if key[0] == "dual" else x)[index]).reshape(shape)
+            if key[0] == "primal" and key[1] in self._projected:
+                expected = self._projected[key[1]].project(expected)
+            if not np.array_equal(value, expected):
+                raise ValueError(f"a {key[0]} value is not a selection of Clarabel's point")
+        return selections
 
     def _updated(self, settings: Mapping, options: clarabel.DefaultSettings, P: sp.csc_array, q: np.ndarray,
                  A: sp.csc_array, b: np.ndarray) -> clarabel.DefaultSolver:
@@ -263,16 +343,30 @@ class ClarabelProgram:
         solvers = getattr(self._kept, "solvers", None)
         if solvers is None:
             solvers = self._kept.solvers = {}
+            self._kept.matrices = {}             # settings -> the (P, A) the kept solver holds
         key = tuple(sorted(settings.items()))
-        solver = solvers.get(key)
+        solver, held = solvers.get(key), self._kept.matrices.get(key)
         if solver is not None and solver.is_data_update_allowed():
             try:
-                solver.update(P=P, q=q, A=A, b=b)
+                changed = {"q": q, "b": b}        # a matrix the solver holds already is not given again
+                if held is None or not _same(P, held[0]):
+                    changed["P"] = P
+                if held is None or not _same(A, held[1]):
+                    changed["A"] = A
+                solver.update(**changed)
+                self._kept.matrices[key] = (P, A)
                 return solver
             except Exception:   # noqa: BLE001 - an update Clarabel refuses: a new solver instead
                 pass
         solver = solvers[key] = clarabel.DefaultSolver(P, q, A, b, self._cones, options)
+        self._kept.matrices[key] = (P, A)
         return solver
+
+
+def _same(a: sp.csc_array, b: sp.csc_array) -> bool:
+    """Whether two CSC matrices hold the same entries in the same layout. O(nnz)."""
+    return a is b or (a.shape == b.shape and np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
+                      and np.array_equal(a.data, b.data))
 
 
 class ClarabelPoint:
@@ -290,9 +384,21 @@ class ClarabelPoint:
     ('optimal', 2.0, 1.0)
     """
 
-    def __init__(self, x: np.ndarray, columns: Mapping[int, int], value: float) -> None:
+    def __init__(self, x: np.ndarray, columns: Mapping[int, int], value: float, z: np.ndarray | None = None) -> None:
         self._x, self._columns, self.value = x, columns, float(value)
+        #: Clarabel's primal point (`ClarabelProgram.primals` maps it onto the variables)
+        self.x = x
+        #: Clarabel's dual point (`ClarabelProgram.duals` maps it onto the constraints)
+        self.z = np.full(0, np.nan) if z is None else z
 
     def __call__(self, variable: cp.Variable) -> np.ndarray:
         start = self._columns[variable.id]
         return self._x[start:start + variable.size].reshape(variable.shape, order="F")
+
+
+class _ProbeSolution:
+    """The fields of a Clarabel solution that cvxpy's Clarabel interface reads when it inverts (status "Solved")."""
+
+    def __init__(self, x: np.ndarray, z: np.ndarray) -> None:
+        self.x, self.z, self.s = x, z, np.zeros_like(z)
+        self.status, self.obj_val, self.solve_time, self.iterations = "Solved", 0.0, 0.0, 0

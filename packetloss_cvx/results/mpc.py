@@ -90,6 +90,11 @@ class ControllerRun(Frozen):
         Steps whose applied plan used slack on a soft row (the fallback's, or a soft program's own).
     action : str
         What the controller does when its program is infeasible.
+    states : ndarray (keep, steps + 1, n) or None
+        The realised states x_0..x_steps of the first ``keep`` runs (`simulate_mpc`'s ``keep``), None when none
+        were kept.
+    inputs : ndarray (keep, steps, m) or None
+        The inputs those runs commanded (what the actuator applied is ``inputs * MPCSimulation.delivered``).
     """
 
     controller: str
@@ -103,6 +108,8 @@ class ControllerRun(Frozen):
     failed_steps: int
     slack_steps: int
     action: str
+    states: np.ndarray | None = None
+    inputs: np.ndarray | None = None
 
     def violation(self, name: str) -> Frequency:
         """The `Frequency` of the constraint row ``name``."""
@@ -124,7 +131,8 @@ class MPCSimulation(Frozen):
     """The constrained loop sampled: every controller on the same sample paths (deliveries, chain states, noise).
 
     ``runs[protocol][controller]`` is a `ControllerRun`; ``channel`` "bernoulli", "gilbert-elliott" or "markov";
-    ``constraints`` the ``[constraints]`` table run.
+    ``constraints`` the ``[constraints]`` table run; ``delivered`` (keep, steps, m) the kept runs' deliveries
+    (True: the packet arrived), the same for every controller, or None when no trajectory was kept.
     """
 
     samples: int
@@ -133,6 +141,7 @@ class MPCSimulation(Frozen):
     channel: str
     constraints: dict
     runs: dict
+    delivered: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """``{"samples", "steps", "seed", "channel", "constraints", "tcp": {controller: ...}, "udp": {...}}``."""
@@ -141,3 +150,17 @@ class MPCSimulation(Frozen):
         for protocol, controllers in self.runs.items():
             out[protocol] = {name: run.to_dict() for name, run in controllers.items()}
         return out
+
+    def plot(self, protocol: str | None = None, **kwargs: Any) -> Any:
+        """The kept trajectories (each controller's realised states and commanded inputs, the lost packets
+        marked) and every state-side constraint's violation frequency with its confidence interval, drawn by
+        [`plot_mpc`][packetloss_cvx.plots.figures.plot_mpc] for ``protocol`` (default: the first run; keywords
+        passed on); returns the matplotlib Figure.
+
+        Raises
+        ------
+        InputError
+            Field ``protocol``: not one that was run.
+        """
+        from ..plots import plot_mpc  # lazy: matplotlib, only when asked to draw
+        return plot_mpc(self, protocol=protocol, **kwargs)

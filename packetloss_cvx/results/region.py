@@ -59,7 +59,9 @@ class CriticalPoint(Frozen):
     ``t`` the upper end of the final bracket ``[lower, t]`` (``t - lower <= tol``), ``inside`` and
     ``outside`` the decided memberships at ``t`` and ``lower`` (for the DP law: a stabilising gain and an
     infeasibility certificate; None at the ray's ends). ``t`` is ``inf`` when the law is not stable even at
-    the ray's end, 0.0 when it is stable at mu = 0."""
+    the ray's end, 0.0 when it is stable at mu = 0. ``note``: empty, or why the bracket is wider than the ``tol``
+    asked for (no point inside it could be decided: near the boundary every certificate's margin vanishes); its
+    two ends are proved all the same."""
 
     law: str
     direction: np.ndarray
@@ -67,6 +69,7 @@ class CriticalPoint(Frozen):
     lower: float
     inside: Membership | None
     outside: Membership | None
+    note: str = ""
 
     __repr__ = fields_repr
     _repr_html_ = fields_html
@@ -83,7 +86,7 @@ class CriticalPoint(Frozen):
         return {"law": self.law, "direction": self.direction.tolist(), "t": finite_or_none(self.t),
                 "lower": float(self.lower), "critical_mu": self.mu.tolist() if finite else None,
                 "inside": None if self.inside is None else self.inside.to_dict(),
-                "outside": None if self.outside is None else self.outside.to_dict()}
+                "outside": None if self.outside is None else self.outside.to_dict(), "note": self.note}
 
 
 #: what a region map's ``radius`` grid holds, written into its JSON: the "dp" law's and every other law's

@@ -382,8 +382,8 @@ class MinCost(Frozen):
 
     ``cost``: J*(mu) at ``mu`` (reachable, by the closed form); ``lower_bound``: proven, no
     admissible mu does better; ``gap``: (cost - lower_bound) / cost; ``status``: "optimal"
-    (gap <= ``tolerances.MIN_COST_RTOL``) or "gap_not_certified"; ``method``: how found.
-    Construction O(m).
+    (gap <= ``tolerances.MIN_COST_RTOL``) or "gap_not_certified"; ``method``: how found; ``basis``: what ``cost``
+    is ("paper": the paper's `J*(mu)`; "attainable": the exact expected cost under a chain). Construction O(m).
     """
 
     protocol: str
@@ -393,6 +393,7 @@ class MinCost(Frozen):
     status: str
     mu: np.ndarray
     method: str
+    basis: str = "paper"
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     _repr_html_ = fields_html
@@ -402,7 +403,7 @@ class MinCost(Frozen):
     def to_dict(self) -> dict[str, Any]:
         """Plain floats and lists for JSON. O(m)."""
         return {"protocol": self.protocol, "cost": self.cost, "lower_bound": self.lower_bound, "gap": self.gap,
-                "status": self.status, "mu": self.mu.tolist(), "method": self.method}
+                "status": self.status, "mu": self.mu.tolist(), "method": self.method, "basis": self.basis}
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from .allocation import contour_allocations
 from .sweeps import shared_channel_sweep, two_channel_sweep
 
 __all__ = ["PAPER_BETAS", "eigenvalue_tables", "log_cost_pendulum", "mixed_allocations", "mixed_grids",
-           "pendulum_nus"]
+           "path_jumps", "pendulum_nus"]
 
 #: The three price vectors of §VI (beta = I, (0.05, 1), (1, 0.05)).
 PAPER_BETAS = ((1.0, 1.0), (0.05, 1.0), (1.0, 0.05))
@@ -126,6 +126,49 @@ def mixed_allocations(system: System, protocol: str, alphas: Sequence[float],
     (True, 0.05)
     """
     return contour_allocations(system, protocol, list(alphas), betas=betas, progress=progress)
+
+
+def path_jumps(axis: Sequence[float], costs: Any, beta: Sequence[float], alphas: Sequence[float],
+               substeps: int = 64, move: float = 0.15) -> list[int]:
+    """The steps of a path of cheapest allocations (one per cost bound ``alphas[k]``, as `mixed_allocations`
+    returns them) across which the optimum jumps rather than slides: k where, between ``alphas[k]`` and
+    ``alphas[k + 1]`` (``substeps`` bounds spaced geometrically), the cheapest grid point of {J* <= a} for the
+    prices ``beta`` (positive) moves by more than ``move`` plus the grid's own error from one bound to the next. A
+    sliding optimum moves by a grid step or so per substep; a jump (a non-convex sublevel set, the UDP-like
+    cost's) crosses the map at once. The grid's error: a step h in the dearer channel trades against
+    h max(beta) / min(beta) in the cheaper one, so the cheapest grid point may hop that far along a flat contour.
+    A figure breaks the path's line there instead of drawing a straight segment no optimum lies on.
+    ``costs[j, i] = J*(axis[i], axis[j])`` (`mixed_grids`). Read at the grid's resolution: a jump shorter than
+    ``move`` is not told from a slide. O(len(alphas) substeps g^2).
+
+    Examples
+    --------
+    Two pits: J* = 2 within 0.1 of (0.1, 0.9) and of (0.9, 0.1), 4 within 0.3 of (0.9, 0.1) only, 9 elsewhere.
+    With beta = (1, 1) the cheapest point at bound 4 is near (0.6, 0.1), at bound 2 it jumps to near (0.1, 0.8):
+
+    >>> axis = np.linspace(0.0, 1.0, 51)
+    >>> m1, m2 = np.meshgrid(axis, axis)
+    >>> J = np.full(m1.shape, 9.0)
+    >>> J[np.hypot(m1 - 0.9, m2 - 0.1) <= 0.3] = 4.0
+    >>> J[(np.hypot(m1 - 0.1, m2 - 0.9) <= 0.1) | (np.hypot(m1 - 0.9, m2 - 0.1) <= 0.1)] = 2.0
+    >>> path_jumps(axis, J, (1.0, 1.0), [4.0, 2.5]), path_jumps(axis, J, (1.0, 1.0), [4.0, 5.0])
+    ([0], [])
+    """
+    grid = np.asarray(axis, dtype=float)
+    J = np.asarray(costs, dtype=float)
+    m1, m2 = np.meshgrid(grid, grid)
+    price = (beta[0] * m1 + beta[1] * m2).ravel()
+    points = np.column_stack([m1.ravel(), m2.ravel()])
+    slack = float(np.max(np.diff(grid))) * max(beta) / min(beta)
+    out = []
+    for k in range(len(alphas) - 1):
+        bounds = np.geomspace(alphas[k], alphas[k + 1], substeps)
+        feasible = J.ravel()[None, :] <= bounds[:, None]
+        found = feasible.any(axis=1)
+        best = np.argmin(np.where(feasible, price[None, :], np.inf), axis=1)[found]
+        if best.size > 1 and np.max(np.linalg.norm(np.diff(points[best], axis=0), axis=1)) > move + slack:
+            out.append(k)
+    return out
 
 
 def eigenvalue_tables(pendulum: System, mixed: System, mu_pendulum: Sequence[float],

@@ -624,3 +624,24 @@ def test_allocation_through_the_evaluator_equals_the_per_call_closed_form(two_ac
     assert np.allclose(cached.mu, reference.mu, rtol=0, atol=1e-9)
     assert abs(cached.lower_bound - reference.lower_bound) <= 1e-9 * reference.lower_bound
     assert (cached.status, cached.boxes) == (reference.status, reference.boxes)
+
+
+def test_tcp_allocation_takes_a_point_of_the_polytope_where_the_socp_meets_a_row_only_to_its_tolerance():
+    """The two-mass spring at N = 5 with mu2 >= mu1 + 0.05: Clarabel's point missed the row by 1.4e-9 (its own
+    feasibility tolerance, scaled), more than the LP's ALLOCATION_LP_FEASIBILITY, and the allocation raised
+    'constraint_violation'. Every mu of the polytope meets alpha here (J*_tcp(0, 0) < alpha), so by hand the
+    cheapest is the polytope's least beta'mu point, (0, 0.05), beta'mu = 0.1."""
+    from .test_allocation_attainable import spring
+
+    s0 = spring()
+    s = pl.System(A=s0.A, B=s0.B, horizon=5, state_weight=[1, 1, 1, 1], input_weight=[1, 1], mu=[0.9, 0.9],
+                  x0=[1, 0, 0, 0])
+    alpha = 1.5 * pl.closed_form(s.with_mu([1.0, 1.0]), "tcp").cost
+    assert pl.closed_form(s.with_mu([0.0, 0.0]), "tcp").cost < alpha          # every mu is feasible
+    a = allocate(s, "tcp", alpha, [1, 2], constraints=[parse_constraint("mu2 >= mu1 + 0.05", 2)])
+    assert a.mu[0] + 0.05 - a.mu[1] <= ALLOCATION_LP_FEASIBILITY
+    assert np.allclose(a.mu, [0.0, 0.05], atol=1e-8)
+    assert a.communication_cost == pytest.approx(0.1, abs=2e-8)
+    assert a.lower_bound <= a.communication_cost
+    assert a.status == "optimal"
+    assert pl.closed_form(s.with_mu(a.mu), "tcp").cost <= alpha

@@ -9,7 +9,8 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
-from packetloss_cvx.cli.reproduce_report import BEYOND_FIGURES, FIGURES, REGION_FIGURE
+from packetloss_cvx.cli.reproduce_report import BEYOND_FIGURES, FIGURES, REGION_FIGURE, STRATEGY_FIGURE
+from packetloss_cvx.tolerances import ACTUATOR_DP_STATIONARY_RTOL
 
 from ..references import enumerated_radius
 
@@ -224,3 +225,67 @@ def test_the_ack_price_on_both_bases_in_the_report_and_results(runs, two_actuato
     udp = data["allocations"]["udp"]["1.0, 1.0"]
     again = attainable_break_even(two_actuator, [4.78], [1.0, 1.0], udp, gap=both["gap"])
     assert again["break_even"] == both["break_even"]
+
+
+def test_the_tcp_allocation_figure_shows_the_attainable_designs_beside_the_papers(runs, two_actuator, tmp_path,
+                                                                                  monkeypatch):
+    """The TCP-like allocation figure draws the designs on the attainable cost (beta = (1, 1)) as their own line
+    beside the paper's, and its paragraph lists them: each mu* meets alpha on the DP enumerated over each step's
+    deliveries (tests/claims/test_claims_attainable.py), where the paper's design's loop costs more than alpha."""
+    from packetloss_cvx.cli import reproduce
+    from packetloss_cvx.runfolder import RunFolder
+
+    from ..claims.test_claims_attainable import enumerated_attainable
+
+    _, (out, _) = runs
+    data = json.loads((out / "results.json").read_text())
+    both = data["ack_attainable"]
+    paper = {row["alpha"]: row["mu"] for row in data["allocations"]["tcp"]["1.0, 1.0"]}
+    for alpha, mu, attains in zip(both["alpha"], both["mu"], both["paper_design_attains"], strict=True):
+        assert enumerated_attainable(two_actuator, mu) <= alpha * (1 + 1e-9)
+        assert enumerated_attainable(two_actuator, paper[alpha]) == pytest.approx(attains, rel=1e-9)
+        assert attains > alpha
+    report = (out / "report.md").read_text()
+    section = report[report.index("## fig:TCP-log-cost-mixed-mult"):report.index("## fig:UDP-log-cost-mixed-mult")]
+    lines = section.splitlines()
+    head = next(k for k, line in enumerate(lines) if line.startswith("| cost bound alpha | the paper's design"))
+    cells = [c.strip() for c in lines[head + 2].strip("|").split("|")]
+    mu = both["mu"][0]
+    assert cells[0] == "4.78"
+    assert cells[1:] == [f"{both['paper_design_attains'][0]:.4g}", f"({mu[0]:.3f}, {mu[1]:.3f})",
+                         f"{both['tcp_design'][0]:.4g}"]
+    drawn = {}
+    original = reproduce.plot_log_contour
+
+    def spy(*args, **kwargs):
+        drawn[kwargs.get("title", "")] = kwargs
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(reproduce, "plot_log_contour", spy)
+    with RunFolder(tmp_path / "figures", command="test") as folder:
+        reproduce.draw_figures(data, folder)
+    lines = drawn[reproduce.TITLES["fig:TCP-log-cost-mixed-mult"]]["allocations"]
+    assert lines[r"$\beta = (1, 1)$, attainable"] == both["mu"]
+    papers = [points for label, points in lines.items() if label.endswith(", paper")]   # one per beta, (1, 1) first
+    assert len(papers) == 3
+    assert papers[0] == [paper[a] for a in data["settings"]["alphas"]]
+    assert "attainable" not in " ".join(drawn[reproduce.TITLES["fig:UDP-log-cost-mixed-mult"]]["allocations"])
+    assert "paper basis" in drawn[reproduce.TITLES["fig:TCP-log-cost-mixed-mult"]]["colorbar_label"]
+
+
+def test_the_strategy_map_of_the_two_actuator_system_against_the_dare(runs, two_actuator):
+    """Beyond the paper: strategy-map-two-actuator.png with its paragraph; at perfect links every strategy's optimal
+    law is the full-information LQR (scipy's DARE), a tie won by zero, listed first."""
+    from scipy.linalg import solve_discrete_are
+
+    _, (out, _) = runs
+    report = (out / "report.md").read_text()
+    assert (out / f"{STRATEGY_FIGURE}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"]({STRATEGY_FIGURE}.png)" in report
+    found = json.loads((out / "results.json").read_text())["strategies"]
+    assert len(found["axis"]) == json.loads((out / "results.json").read_text())["settings"]["strategy_grid"]
+    P = solve_discrete_are(two_actuator.A, two_actuator.B, two_actuator.state_weights[0],
+                           np.diag(two_actuator.input_weights[0]))
+    dare = float(two_actuator.x0 @ P @ two_actuator.x0)
+    assert all(grid[-1][-1] == pytest.approx(dare, rel=ACTUATOR_DP_STATIONARY_RTOL) for grid in found["cost"])
+    assert found["winner"][-1][-1] == 0

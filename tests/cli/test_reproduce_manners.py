@@ -58,7 +58,7 @@ def run(tmp_path_factory):
 def test_one_bar_covers_every_step_to_the_report(run):
     _, bars, _ = run
     (bar,) = bars                                         # compute uses run's bar, not a second one
-    assert bar.total == bar.updates == 9
+    assert bar.total == bar.updates == 10
     assert bar.steps[-2:] == ["figures", "report"]
 
 

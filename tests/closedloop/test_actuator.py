@@ -461,7 +461,7 @@ def test_solve_compares_the_three_in_text(capsys, tmp_path) -> None:
     out, _ = capsys.readouterr()
     assert code == 0
     k = float(closed_form(s, "udp").gain[0, 0])
-    lines = {line.split(":")[0].strip(): line for line in out.splitlines() if "exact cost over 3 steps" in line}
+    lines = {line.split(":")[0].strip(): line for line in out.splitlines() if "exact loop cost over 3 steps" in line}
     assert list(lines) == ["zero", "hold", "buffer"]
     for name, spec in (("zero", "zero"), ("hold", "hold"), ("buffer", "buffer:3")):
         stable = _renewal(spec, 1.5, 1.0, k, 0.8) < 1.0

@@ -228,3 +228,33 @@ def test_chain_certificates_are_proved_exactly_below_the_least_radius_and_never_
     assert bound <= attained * (1 + 1e-9)
     assert chain_outside_proved(A, B, ch, P, bound * (1 - 1e-7), delivery)
     assert not chain_outside_proved(A, B, ch, P, attained * (1 + 1e-6), delivery)
+
+
+def test_a_mode_with_sure_deliveries_is_proved_by_the_closed_loop_tilt():
+    """A 3-state plant behind a Gilbert channel, "current" (the good state delivers surely): the least radius is
+    1.416, and R's eigenvector is rank one on the good mode, the minimising input acting on its kernel. That block
+    rebuilt as l l' + 1e-13 k k' (k its kernel direction: weight there that R(P) does not return, as rounding
+    leaves) is refused by every open-loop candidate (P, snapped, the coupled Stein tilts) at c = 1 - 1e-12, under
+    Haswell, Prescott, Nehalem and SkylakeX; the tilt by ``cS - L_K^*(S) = I`` at the eigenpair's own gains K
+    proves it (definite on ``[x; K x]``, x in the kernel). Planted (the gains not passed): fails."""
+    from packetloss_cvx.closedloop.certificates import chain_outside_proved, chain_proved_certificate
+    from packetloss_cvx.closedloop.chain_radius import homogeneous_coupled_riccati
+    from packetloss_cvx.closedloop.mjls import mean_square_radius as chain_radius
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    rng = np.random.default_rng(2)
+    n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
+    A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+    ch = GilbertElliott(p=rng.uniform(0.05, 0.6, m), r=rng.uniform(0.05, 0.9, m))
+    assert (n, m, ch.h_good.tolist(), ch.h_bad.tolist()) == (3, 1, [1.0], [0.0])
+    lam, P, K = homogeneous_coupled_riccati(A, B, ch, "current")
+    assert chain_radius(A, B, ch, K, "current", method="dense") == pytest.approx(lam, rel=1e-9)
+    assert lam > 1.4
+    w, U = np.linalg.eigh(P[0])
+    assert w[1] <= 1e-15 * w[2]                                  # rank one on the good mode
+    Q = P.copy()
+    Q[0] = w[2] * np.outer(U[:, 2], U[:, 2]) + 1e-13 * np.outer(U[:, 0], U[:, 0])
+    assert chain_proved_certificate(A, B, ch, Q, 1 - CERTIFICATE_RTOL, "current") is None
+    proved = chain_proved_certificate(A, B, ch, Q, 1 - CERTIFICATE_RTOL, "current", K)
+    assert proved is not None
+    assert chain_outside_proved(A, B, ch, proved, 1 - CERTIFICATE_RTOL, "current")

@@ -17,19 +17,8 @@ from packetloss_cvx.closedloop.region import certificate_margin, homogeneous_ric
 from packetloss_cvx.closedloop.region_lmi import LmiForm
 from packetloss_cvx.tolerances import CRITICAL_MU_TOL, LEAST_RADIUS_ATOL, MEAN_SQUARE_MARGIN
 
+from ..plants import chain, decoupled, scalar, single_input_plant
 from ..references import enumerated_radius
-
-
-def scalar(a=2.0, b=(1.0,), psi=0.1):
-    m = len(b)
-    return System(A=[[a]], B=[list(b)], horizon=2, state_weight=[1.0], input_weight=[psi] * m, mu=[1.0] * m,
-                  x0=[1.0])
-
-
-def decoupled(a):
-    n = len(a)
-    return System(A=np.diag(a), B=np.eye(n), horizon=2, state_weight=[1.0] * n, input_weight=[1.0] * n,
-                  mu=[1.0] * n, x0=[1.0] * n)
 
 
 @pytest.mark.parametrize("mu", [0.3, 0.74, 0.7499, 0.7501, 0.76, 0.95])
@@ -186,8 +175,8 @@ def test_a_solver_failure_is_not_a_verdict(monkeypatch):
 
 
 def test_critical_mu_dp_never_reads_undecided_as_unstable(monkeypatch):
-    """Planted: every form undecided inside (0.7, 0.8): the bisection moves only on decided points and
-    raises when a bracket wider than tol cannot be decided."""
+    """Planted: every form undecided inside (0.7, 0.8): the bisection moves only on decided points and, when a
+    bracket wider than tol cannot be decided, returns it with its two proved ends and a note saying so."""
     true_membership = region.membership
 
     def blind(system, mu, **kw):
@@ -197,9 +186,13 @@ def test_critical_mu_dp_never_reads_undecided_as_unstable(monkeypatch):
         return found
 
     monkeypatch.setattr(critical_module, "membership", blind)
-    from packetloss_cvx import NumericalError
-    with pytest.raises(NumericalError, match="no point of the bracket"):
-        critical_mu(scalar(2.0), "dp")
+    wide = critical_mu(scalar(2.0), "dp")
+    assert wide.lower <= 0.7
+    assert wide.t >= 0.8
+    assert wide.outside.verdict == "unstable"
+    assert wide.inside.verdict == "stable"
+    assert "wider than tol = 1e-06" in wide.note
+    assert critical_mu(scalar(2.0), "dp", tol=0.2).note == ""
     point = critical_point(scalar(2.0), "dp", tol=0.2)   # 0.5 out, 0.75 blind, 0.625 out, 0.8125 in
     assert (point.lower, point.t) == (0.625, 0.8125)
     assert point.inside.verdict == "stable"
@@ -550,13 +543,6 @@ def test_a_started_eigenpair_that_misses_the_dominant_block_is_no_verdict():
     assert found.gain is None
 
 
-def chain(a0, n=4):
-    """A = a0 I + N (ones on the superdiagonal: one Jordan block), b = e_n: controllable, one input."""
-    A = a0 * np.eye(n) + np.eye(n, k=1)
-    return System(A=A, B=np.eye(n)[:, n - 1:], horizon=2, state_weight=[1.0] * n, input_weight=[1.0], mu=[1.0],
-                  x0=[1.0] * n)
-
-
 def test_membership_of_a_chain_of_integrators_inside_s_is_never_unstable():
     """A = I4 + N, b = e4, mu = 0.0124: mu is in S (Elia: (1 - mu) |1|^8 < 1), the least radius is (1 - mu)^(1/4) =
     0.99689. A float-checked certificate claims "every law's radius >= 1.000664" ("unstable"); the verdict must be
@@ -594,39 +580,13 @@ def test_least_radius_of_a_jordan_chain_is_the_single_input_value(a0, mu):
     assert lam == pytest.approx(a0 ** 2 * (1 - mu) ** 0.25, rel=MEAN_SQUARE_MARGIN)
 
 
-def _single_input_plant(rng):
-    """A = Q J Q' (Q orthogonal), J block diagonal: Jordan blocks (size 1 to 3) of distinct real eigenvalues and
-    perhaps one rotation block, each driven at its last state (b = Q (1 at each block's end)): controllable, one
-    input. Returns the plant and its Mahler measure prod |lambda_i|^2 over |lambda_i| >= 1 (exact by construction)."""
-    blocks, mahler = [], 1.0
-    values = rng.permutation([1.08, 1.25, -1.4, 0.6, -0.3, 0.85, 1.6])[: int(rng.integers(2, 4))]
-    for value in values:
-        size = int(rng.integers(1, 4))
-        blocks.append(value * np.eye(size) + np.eye(size, k=1))
-        mahler *= value ** (2 * size) if abs(value) >= 1 else 1.0
-    if rng.random() < 0.5:                                   # a complex pair r e^{+-i theta}
-        r, theta = float(rng.choice([0.7, 1.15])), float(rng.uniform(0.3, 2.5))
-        blocks.append(r * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]]))
-        mahler *= r ** 4 if r >= 1 else 1.0
-    n = sum(len(b) for b in blocks)
-    J, b, k = np.zeros((n, n)), np.zeros(n), 0
-    for block in blocks:
-        J[k:k + len(block), k:k + len(block)] = block
-        k += len(block)
-        b[k - 1] = 1.0
-    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    s = System(A=Q @ J @ Q.T, B=(Q @ b)[:, None], horizon=2, state_weight=[1.0] * n, input_weight=[1.0], mu=[1.0],
-               x0=[1.0] * n)
-    return s, mahler
-
-
 @pytest.mark.parametrize("seed", range(5))
 def test_critical_mu_of_single_input_plants_is_one_minus_the_inverse_mahler_measure(seed):
     """Elia (2005): over one input erased with probability 1 - mu, mu is in S iff (1 - mu) prod |lambda_i(A)|^2 < 1
     over the unstable eigenvalues (Jordan blocks counted with their size). The DP law's critical point, bracketed
     by an exact stability witness and an exact infeasibility certificate, holds 1 - 1 / prod within
     CRITICAL_MU_TOL. (The 1.001 chain is the hard case: false "unstable" verdicts give 0.01866 for 0.00796.)"""
-    s, mahler = _single_input_plant(np.random.default_rng(seed)) if seed else (chain(1.001), 1.001 ** 8)
+    s, mahler = single_input_plant(np.random.default_rng(seed)) if seed else (chain(1.001), 1.001 ** 8)
     exact = 1.0 - 1.0 / mahler
     point = critical_point(s, "dp")
     assert point.lower <= exact <= point.t

@@ -161,7 +161,7 @@ def test_api_pages_document_the_public_names_and_no_internals(site):
                    "region_map", "stability_allocate"}
     assert closed_loop <= leaves
     plots = set(packetloss_cvx.plots.figures.__all__)
-    assert len(plots) == 10
+    assert len(plots) == 13
     assert {f"packetloss_cvx.plots.figures.{name}" for name in plots} <= ids
     assert {f"packetloss_cvx.results.{name}" for name in packetloss_cvx.results.__all__} <= ids
     assert not [i for i in ids if any(part.startswith("_") and not part.startswith("__") for part in i.split("."))]

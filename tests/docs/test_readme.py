@@ -56,7 +56,7 @@ def test_the_two_setup_commands_are_the_same_in_readme_getting_started_and_ci():
 def test_the_readme_counts_reproduces_figures_and_files():
     from packetloss_cvx.cli.reproduce_report import BEYOND_FIGURES, FIGURES
 
-    words = {2: "two", 6: "six"}
+    words = {2: "two", 3: "three", 6: "six"}
     assert f"the paper's {words[len(FIGURES)]} figures as PNGs and\n{words[len(BEYOND_FIGURES)]} beyond it" in README
 
 
@@ -79,6 +79,6 @@ def test_out_is_a_folder_exactly_for_the_commands_that_write_several_files():
     metavars = {name: next(a.metavar for a in sub._actions if "--out" in a.option_strings)  # noqa: SLF001
                 for name, sub in commands.items() if any("--out" in a.option_strings for a in sub._actions)}
     assert {k for k, v in metavars.items() if v == "DIR"} == {"sweep", "reproduce", "region"}
-    assert {k for k, v in metavars.items() if v == "FILE"} == {"solve", "allocate", "audit", "simulate"}
-    assert "for `solve`, `allocate`, `audit` and `simulate` a FILE" in GETTING_STARTED
+    assert {k for k, v in metavars.items() if v == "FILE"} == {"solve", "allocate", "audit", "simulate", "compare"}
+    assert "for `solve`, `allocate`, `audit`, `simulate` and `compare` a FILE" in GETTING_STARTED
     assert "for `sweep`, `region` and `reproduce`, which write several files, a folder" in GETTING_STARTED

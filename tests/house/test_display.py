@@ -89,7 +89,7 @@ def test_batch_solution_repr_is_a_summary():
     from packetloss_cvx.results import BatchSolution
 
     batch = BatchSolution("tcp", np.array([3.0, 2.5, 7.25]), np.zeros((3, 10, 2)), np.zeros((3, 2, 2)), "dense")
-    assert repr(batch) == "BatchSolution(protocol='tcp', points=3, method='dense', costs in [2.5, 7.25])"
+    assert repr(batch) == "BatchSolution(protocol='tcp', points=3, method='dense', paper costs in [2.5, 7.25])"
     assert json.loads(batch.to_json()) == batch.to_dict()
 
 

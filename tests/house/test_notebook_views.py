@@ -43,7 +43,7 @@ def test_design_sweep_repr_is_one_short_line(grid_sweep):
     text = repr(grid_sweep)
     assert "\n" not in text and len(text) < 300
     assert text.startswith("DesignSweep('two-actuator', kind='mu-grid', shape={'mu2': 5, 'mu1': 5}, ")
-    assert f"J*_tcp in [{grid_sweep.costs['tcp'].min():.6g}, {grid_sweep.costs['tcp'].max():.6g}]" in text
+    assert f"J*_tcp (paper) in [{grid_sweep.costs['tcp'].min():.6g}, {grid_sweep.costs['tcp'].max():.6g}]" in text
     big = sweep(pl.load_example("two_actuator"), mu_grid=41)
     assert len(repr(big)) < 300                     # 1681 points: still the ranges, never the arrays
 
@@ -83,7 +83,7 @@ def test_design_sweep_view_shows_ranges_maxima_and_stable_points(grid_sweep):
     diff = grid_sweep.grid("cost_diff")
     j, i = np.unravel_index(np.argmax(diff), diff.shape)
     mu2, mu1 = grid_sweep.axes
-    row = page[page.index("J_Delta = J*_udp - J*_tcp") + 1]
+    row = page[page.index("J_Delta = J*_udp - J*_tcp, paper") + 1]
     assert f"max at ({j}, {i}): mu2 = {mu2[j]:.4g}, mu1 = {mu1[i]:.4g}" in row
     stable = sum(second_moment_radius(*(lambda s, K: (s.A, s.B, K, p))(pl.load_example("two_actuator"),
                  pl.closed_form(pl.load_example("two_actuator").with_mu(p), "udp").gain)) < 1 for p in grid_sweep.mu)

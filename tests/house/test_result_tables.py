@@ -109,7 +109,8 @@ def test_a_one_point_result_is_one_row_with_its_vectors_numbered():
                             mu=np.array([0.25, 0.75]), method="hand")
     frame = point.to_pandas()
     assert frame.to_dict("records") == [{"protocol": "tcp", "cost": 2.0, "lower_bound": 1.5, "gap": 0.25,
-                                         "status": "optimal", "mu1": 0.25, "mu2": 0.75, "method": "hand"}]
+                                         "status": "optimal", "mu1": 0.25, "mu2": 0.75, "method": "hand",
+                                         "basis": "paper"}]
 
 
 def test_to_pandas_without_pandas_says_how_to_install_it(decoupled):

@@ -417,10 +417,10 @@ def test_recursion_self_check_absolute_term_is_self_check_atol_times_p0_and_x(mo
 
 @pytest.mark.parametrize(("seed", "noise"), [(0, True), (1, True), (2, False)])
 def test_the_chain_cost_closes_the_free_tail_after_the_plan_ends(monkeypatch, seed, noise):
-    """After a plan's last nonzero input the error covariance follows Sigma+ = A Sigma A' + Sigma_W alone; on a
-    stable plant with one state weight and noise it settles and the rest of the horizon adds its settled term
-    (chain_cost closes the tail there). Against the dense second-moment route (J_udp + U'(Omega_g o C_off)U) of the
-    same plan: a plan that ends at step 40 of 300."""
+    """After a plan's last nonzero input the second moment xhat xhat' + Sigma follows Pi+ = A Pi A' + Sigma_W alone;
+    on a stable plant with one state weight chain_cost sums the rest of the horizon by Stein sums (with or without
+    noise). Against the dense second-moment route (J_udp + U'(Omega_g o C_off)U) of the same plan: a plan that ends
+    at step 40 of 300, its tail of 260 steps closed."""
     from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
 
     augmented_module = importlib.import_module("packetloss_cvx.lq.augmented")
@@ -430,7 +430,97 @@ def test_the_chain_cost_closes_the_free_tail_after_the_plan_ends(monkeypatch, se
     U = np.zeros((s.horizon, s.m))
     U[:40] = rng.normal(size=(40, s.m))
     closed = []
-    real = augmented_module.stationary_close
-    monkeypatch.setattr(augmented_module, "stationary_close", lambda *a: closed.append(real(*a)) or closed[-1])
+    real = augmented_module._free_sums
+    monkeypatch.setattr(augmented_module, "_free_sums", lambda *a: closed.append(a[-1]) or real(*a))
     assert exact_cost(s, U) == pytest.approx(exact_cost(s, U, method="dense"), rel=PATH_AGREEMENT_RTOL)
-    assert any(closed) == noise            # without noise Sigma decays to 0 without settling: every step is summed
+    assert closed == [260]
+
+
+def plain_chain_cost(s, U):
+    """The exact UDP-like cost of the plan U (N, m) by the plain forward loop over all N steps, on the chains'
+    unreduced correlations xi_i = E[e 1{S_i = a}] (n×k_i: no lift, no basis, no blocks, no closed tail):
+    xi+ = A xi T + b u c'T with c = pi o (d - mu), E[e delta_i] = xi_i d_i, and the covariance
+    Sigma+ = A Sigma A' + A Y B' + B Y'A' + B diag(mu (1 - mu) u^2) B' + Sigma_W."""
+    A, B, N, n, m = s.A, s.B, s.horizon, s.n, s.m
+    chains = chain_matrices(s.channel)
+    pis = [np.asarray(pi0, float) for _, _, pi0 in chains]
+    xis = [np.zeros((n, np.size(d))) for _, d, _ in chains]
+    xhat, Sig = s.x0.copy(), np.zeros((n, n))
+    total = float(s.x0 @ s.initial_weight @ s.x0)
+    for t in range(N):
+        u, mu, W = U[t], s.mu_schedule[t], s.state_weights[t]
+        Y = np.zeros((n, m))
+        for i, (T, d, _) in enumerate(chains):
+            Y[:, i] = xis[i] @ d * u[i]
+            c = pis[i] * (d - pis[i] @ d)
+            xis[i] = A @ xis[i] @ T + np.outer(B[:, i], c @ T) * u[i]
+            pis[i] = pis[i] @ T
+        Sig = A @ Sig @ A.T + A @ Y @ B.T + B @ Y.T @ A.T + B @ np.diag(mu * (1 - mu) * u * u) @ B.T + s.noise_cov
+        xhat = A @ xhat + B @ (mu * u)
+        total += float(mu @ (s.input_weights[t] * u * u) + xhat @ W @ xhat + np.sum(W * Sig))
+    return total
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("radius", [0.9, 1.03])
+@pytest.mark.parametrize("spans", ["one span", "spans of 64 steps"])
+def test_the_chain_cost_in_blocks_and_closed_tail_equals_the_plain_loop(monkeypatch, seed, radius, spans):
+    """chain_cost (a stable plant with one weight: the forward pass in blocks, in one span or in spans of 64 steps
+    carrying the state across, and the free tail by Stein sums; an unstable one: step by step) against the plain loop
+    over all N steps on the unreduced correlations, for plans that end early (the tail closed), late and never, on
+    Gilbert–Elliott and 3-state chains started away from their stationary laws, with and without noise: to
+    PATH_AGREEMENT_RTOL."""
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    if spans != "one span":
+        monkeypatch.setattr(importlib.import_module("packetloss_cvx.lq.augmented"), "CHAIN_SPAN_ENTRIES", 1)
+    rng = np.random.default_rng(800 + seed)
+    N = 300
+    if seed % 2:
+        channel = MarkovChannel(transition=[rng.dirichlet(np.ones(3), size=3), [[0.5, 0.5], [0.2, 0.8]]],
+                                delivery=[rng.uniform(0, 1, 3), [1.0, 0.0]], state=[0, 1])
+    else:
+        channel = random_channel(rng, 2)
+    s = attach_channel(random_system(rng, n=3, m=2, horizon=N, spectral_radius=radius, time_varying=seed == 4,
+                                     non_stationary=False, noise=seed % 3 == 0), channel)
+    plans = np.zeros((3, N, s.m))                 # ending at steps 17, 250 and N
+    for plan, end in zip(plans, (17, 250, N), strict=True):
+        plan[:end] = rng.normal(size=(end, s.m)) * 0.98 ** np.arange(end)[:, None]
+    references = [plain_chain_cost(s, plan) for plan in plans]
+    alone = [chain_cost(s, plan[None])[0] for plan in plans]        # each alone: the first two close a free tail
+    assert alone == pytest.approx(references, rel=PATH_AGREEMENT_RTOL, abs=0)
+    assert chain_cost(s, plans).tolist() == pytest.approx(references, rel=PATH_AGREEMENT_RTOL, abs=0)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_recursion_closes_its_run_from_the_chains_fixed_point(monkeypatch, seed):
+    """Chains started away from their stationary laws: their distributions reach a float fixed point after some tens
+    of steps, from there the augmented data are one map, and the backward pass closes its stationary run there
+    (first > 1) and the plan's run is rolled out by powers. Against the same recursion stepped over all N steps (no
+    closure, no powers) to PATH_AGREEMENT_RTOL: cost, plan and gain."""
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+
+    augmented_module = importlib.import_module("packetloss_cvx.lq.augmented")
+    rng = np.random.default_rng(900 + seed)
+    if seed % 2:
+        channel = MarkovChannel(transition=[rng.dirichlet(np.ones(3), size=3)], delivery=[rng.uniform(0.2, 1, 3)],
+                                state=[2])
+        s = attach_channel(random_system(rng, n=2, m=1, horizon=400, spectral_radius=0.8, time_varying=False,
+                                         non_stationary=False, noise=True), channel)
+    else:
+        s = attach_channel(random_system(rng, n=3, m=2, horizon=400, spectral_radius=0.9, time_varying=False,
+                                         non_stationary=False, noise=False),
+                           GilbertElliott(p=[0.1, 0.3], r=[0.4, 0.2], state=["bad", "good"]))
+    starts, runs = [], []
+    real, powers = augmented_module._steady_from, augmented_module.states_by_powers
+    monkeypatch.setattr(augmented_module, "_steady_from", lambda *a: starts.append(real(*a)) or starts[-1])
+    monkeypatch.setattr(augmented_module, "states_by_powers", lambda Y, L: runs.append(Y.shape[1]) or powers(Y, L))
+    U, gain, cost = augmented_solve(s)
+    assert 1 < starts[0] < 150                     # the chains' fixed point
+    assert len(runs) == 1                          # the closed run, rolled out by powers
+    assert runs[0] > 100
+    monkeypatch.setattr(augmented_module, "STATIONARY_RUN", 10**6)     # every step of the backward pass and rollout
+    U_full, gain_full, cost_full = augmented_solve(s)
+    assert cost == pytest.approx(cost_full, rel=PATH_AGREEMENT_RTOL, abs=0)
+    assert np.max(np.abs(U - U_full)) <= PATH_AGREEMENT_RTOL * np.max(np.abs(U_full))
+    assert np.max(np.abs(gain - gain_full)) <= PATH_AGREEMENT_RTOL * np.max(np.abs(gain_full))

@@ -212,3 +212,48 @@ def test_a_step_without_a_trusted_answer_plays_the_rest_of_the_last_plan(monkeyp
         "tcp"]["expected-cost"]
     # run 1: nothing applied at step 0 (x stays 1), then x = 1 -> 0.4: stages 1, 1.36, 0.2176
     assert np.allclose(run.stage_cost_mean, (np.array(second) + np.array([1.0, 1.36, 0.2176])) / 2, rtol=1e-9)
+
+
+def test_kept_trajectories_are_the_loop_walked_by_hand():
+    # x' = 1.3 x + v u, N = 1, |u| <= 1, E[x_1] <= 2, no noise (_scalar_by_hand): every run kept, the states, the
+    # commands and the deliveries are the hand walk's; the stage costs and the violations recounted from them are
+    # the run's summaries
+    a, mu, x0, samples, steps, seed = 1.3, 0.7, 2.0, 8, 5, 3
+    s = System(A=[[a]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[mu], x0=[x0])
+    c = Constraints(u_min=[-1.0], u_max=[1.0], x_max=[2.0])
+    sim = simulate_mpc(s, c, samples, steps, seed=seed, protocols=["tcp"], keep=samples)
+    states, _, _ = _scalar_by_hand(a, mu, x0, 1.0, 2.0, samples, steps, seed, mu)
+    stream = np.random.SeedSequence(seed).spawn(2)[1].spawn(1)[0].spawn(2)[0]
+    V = np.random.default_rng(stream).random((samples, steps, 1)) < mu                 # sample_delivery_paths' draw
+    assert sim.delivered.shape == (samples, steps, 1)
+    assert np.array_equal(sim.delivered, V)
+    for name in CONTROLLERS:
+        run = sim.runs["tcp"][name]
+        assert run.states.shape == (samples, steps + 1, 1)
+        assert run.inputs.shape == (samples, steps, 1)
+        x, u = run.states[:, :, 0], run.inputs[:, :, 0]
+        assert np.allclose(x[:, 1:], a * x[:, :-1] + V[:, :, 0] * u, rtol=1e-13, atol=0.0)     # the plant, walked
+        assert np.allclose(run.stage_cost_mean, (x[:, :-1] ** 2 + (V[:, :, 0] * u) ** 2).mean(axis=0), rtol=1e-12)
+        assert run.violation("x_max[0]").count == (x[:, 1:] > 2.0).sum()
+        assert np.all(np.abs(u) <= 1.0 + 1e-9)
+    assert np.allclose(sim.runs["tcp"]["expected-cost"].states[:, 1:, 0], states, rtol=CONSTRAINED_AGREEMENT_RTOL)
+
+
+def test_keeping_trajectories_changes_no_summary_and_keeps_the_first_runs():
+    s = _plant()
+    c = Constraints(u_min=[-0.5, -0.5], u_max=[0.5, 0.5], chance=[([1.0, 0.0], 0.4, 0.2)])
+    plain = simulate_mpc(s, c, 4, 3, seed=2, protocols=["udp"])
+    kept = simulate_mpc(s, c, 4, 3, seed=2, protocols=["udp"], keep=2)
+    every = simulate_mpc(s, c, 4, 3, seed=2, protocols=["udp"], keep=4)
+    assert plain.delivered is None
+    assert all(r.states is None and r.inputs is None for r in plain.runs["udp"].values())
+    assert plain.to_dict() == kept.to_dict()                                # the JSON holds no trajectory
+    for name in CONTROLLERS:
+        assert np.array_equal(kept.runs["udp"][name].states, every.runs["udp"][name].states[:2])
+        assert np.array_equal(kept.runs["udp"][name].inputs, every.runs["udp"][name].inputs[:2])
+        assert np.array_equal(kept.runs["udp"][name].states[:, 0], np.broadcast_to(s.x0, (2, 2)))
+    assert np.array_equal(kept.delivered, every.delivered[:2])
+    with pytest.raises(InputError, match="keep"):
+        simulate_mpc(s, c, 4, 3, keep=5)
+    with pytest.raises(InputError, match="keep"):
+        simulate_mpc(s, c, 4, 3, keep=-1)

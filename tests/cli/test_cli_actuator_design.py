@@ -1,0 +1,90 @@
+"""compare, region --actuator and allocate --actuator on the command line.
+
+References: the scalar plant by hand (x' = 2x + v u: every strategy stabilises iff mu > 1 - 1/a^2 = 3/4; zero's
+optimal law is the modified Riccati equation's positive root), and bad input: exit 2 and one line.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from packetloss_cvx.cli import main
+from packetloss_cvx.model.files import save_system
+from packetloss_cvx.model.system import System
+from packetloss_cvx.tolerances import ACTUATOR_COMPARE_TOL, ACTUATOR_DP_RTOL
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def scalar(tmp_path):
+    system = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
+                    name="scalar")
+    return str(save_system(system, tmp_path / "scalar.toml"))
+
+
+def test_compare_puts_the_strategies_side_by_side_with_hand_values(capsys, scalar):
+    code, out, _ = _run(capsys, "compare", scalar, "--actuator", "zero,hold,buffer:2", "--json", "-q")
+    assert code == 0
+    rows = json.loads(out)["strategies"]
+    assert list(rows) == ["zero", "hold", "buffer:2"]
+    for row in rows.values():
+        assert row["critical"]["t"] - ACTUATOR_COMPARE_TOL <= 0.75 + ACTUATOR_COMPARE_TOL
+        assert row["critical"]["t"] >= 0.75
+        assert row["critical"]["inside"]["verdict"] == "stable"
+    # zero: (4 mu - 3) P^2 - 4 P - 1 = 0 at mu = 0.9 (the modified Riccati equation times 1 + P)
+    a2 = 4 * 0.9 - 3
+    P = (4 + np.sqrt(16 + 4 * a2)) / (2 * a2)
+    assert rows["zero"]["initial_cost"] == pytest.approx(P, rel=ACTUATOR_DP_RTOL)
+    assert rows["buffer:2"]["initial_cost"] <= rows["zero"]["initial_cost"] * (1 + ACTUATOR_DP_RTOL)
+
+
+def test_compare_text_has_a_row_per_strategy(capsys, scalar):
+    code, out, _ = _run(capsys, "compare", scalar, "--actuator", "zero,hold", "-q")
+    assert code == 0
+    assert [line.split()[0] for line in out.splitlines()[2:4]] == ["zero", "hold"]
+
+
+def test_region_actuator_gives_each_strategy_its_critical_mu(capsys, scalar):
+    code, out, _ = _run(capsys, "region", scalar, "--law", "dp", "--actuator", "zero,buffer:3", "--json", "-q")
+    assert code == 0
+    data = json.loads(out)
+    for name in ("zero", "buffer:3"):
+        point = data["actuator"][name]
+        assert point["lower"] <= 0.75 <= point["t"]
+        assert point["outside"]["verdict"] == "unstable"
+
+
+def test_allocate_actuator_checks_the_allocation_under_each_strategy(capsys, scalar):
+    """alpha far above the cost: mu* sits at the lower bound 0.5 < 3/4, where no strategy stabilises (hand)."""
+    code, out, _ = _run(capsys, "allocate", scalar, "--protocol", "tcp", "--alpha", "1e6", "--beta", "1",
+                        "--bounds", "0.5,1", "--actuator", "zero,buffer:2", "--json", "-q")
+    assert code == 0
+    data = json.loads(out)
+    assert data["mu"] == pytest.approx([0.5])
+    assert {name: row["verdict"] for name, row in data["actuator"].items()} == {"zero": "unstable",
+                                                                                "buffer:2": "unstable"}
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["compare", "{f}", "--actuator", "buffer:0"], "--actuator: expected zero, hold or buffer:L"),
+    (["compare", "{f}", "--actuator", "buffer:4"], "<= 3 (the horizon)"),
+    (["compare", "{f}", "--actuator", "drop"], "--actuator: expected zero, hold or buffer:L"),
+    (["compare", "{f}", "--direction", "1,2"], "--direction: expected 1 nonnegative"),
+    (["region", "{f}", "--actuator", "buffer:9"], "--actuator: expected"),
+    (["allocate", "{f}", "--protocol", "tcp", "--alpha", "2", "--beta", "1", "--actuator", "zeroes"],
+     "--actuator: expected"),
+])
+def test_bad_actuator_input_is_exit_2_and_one_line(capsys, scalar, argv, message):
+    code, out, err = _run(capsys, *[a.replace("{f}", scalar) for a in argv])
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1
+    assert message in err

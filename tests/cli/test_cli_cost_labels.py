@@ -1,0 +1,107 @@
+"""Every cost the command line shows says its basis: "paper" (the paper's expressions; J*_tcp a first-moment value
+no law attains), "attainable" (the least expected cost a causal law of the protocol reaches), "loop" (a law run in
+closed loop), or "realised" (the exact expected realised cost of one named plan). J*_tcp is never shown bare.
+
+The scan reads the text of solve, allocate, sweep, simulate and region on the packaged examples clause by clause
+(a line split at "; "): a clause that names a cost (J*, J_Delta, J, cost, minimum) beside a number carries one of the
+basis words ("open loop", a plan applied without feedback, is not the loop basis); "method" rows describe the
+algorithm, not a value, and are not read. In the JSON, every number under a cost key (cost, formula, exact, minimum)
+has a key naming its basis in its object or an enclosing one.
+"""
+
+import json
+import re
+
+import pytest
+
+from packetloss_cvx.cli import main
+
+COST = re.compile(r"J\*|J_Delta|J_udp|J_tcp|\bJ\b|\bcosts?\b|\bminimum\b")
+LABEL = re.compile(r"\bpaper\b|\battainable\b|\bloop\b|\bbasis\b|\brealised\b")
+COST_KEY = re.compile(r"cost|formula|^exact$|minimum")
+
+COMMANDS = [
+    "solve two_actuator", "solve pendulum_bursty", "solve pendulum_sensor", "solve two_actuator --actuator all",
+    "allocate two_actuator --alpha 8 --beta 1,1 --protocol tcp",
+    "allocate two_actuator --alpha 8 --beta 1,1 --protocol udp",
+    "allocate two_actuator --alpha 8 --beta 1,1 --protocol best --ack-price 0.5",
+    "allocate two_actuator --alpha 8 --beta 1,1 --protocol tcp --target attainable --gap 1e-2",
+    "allocate two_actuator --beta 1,1 --target stable --gap 1e-2",
+    "allocate two_actuator --beta 1,1 --target dp-cost --alpha 20 --gap 1e-2",
+    "allocate two_actuator --protocol tcp --alpha 8 --power exponential --power-scale 1,1",
+    "allocate two_actuator --protocol tcp --budget 2 --power exponential --power-scale 1,1",
+    "allocate pendulum_bursty --protocol udp --alpha 30000 --beta 1",
+    "sweep two_actuator --mu-grid 3", "sweep pendulum --mu-grid 4 --shared --stability",
+    "sweep two_actuator --horizons 2,5", "sweep two_actuator --x0-scales 1,2",
+    "sweep pendulum_bursty --burstiness 0.5,0.9 --mean-rate 0.5,0.9",
+    "simulate two_actuator --samples 200", "simulate two_actuator --samples 200 --closed-loop --steps 20",
+    "simulate two_actuator --samples 100 --closed-loop --steps 10 --actuator all",
+    "simulate pendulum_bursty --samples 100", "simulate pendulum_sensor --samples 100",
+]
+
+
+def unlabelled_clauses(text: str) -> list[str]:
+    """The clauses of ``text`` that show a cost beside a number without a basis word.
+
+    >>> unlabelled_clauses("  J*_tcp: min 1.9, max 140; J*_udp (paper basis): min 1.9\\n  method  1 box of cost")
+    ['J*_tcp: min 1.9, max 140']
+    """
+    found = []
+    for line in text.splitlines():
+        if line.strip().startswith("method"):
+            continue
+        for clause in line.split("; "):
+            if COST.search(clause) and re.search(r"\d", clause) and not LABEL.search(clause.replace("open loop", "")):
+                found.append(clause.strip())
+    return found
+
+
+def unlabelled_keys(data, path: str = "", labelled: bool = False) -> list[str]:
+    """The paths of numbers under cost keys with no basis key in their object or an enclosing one.
+
+    >>> unlabelled_keys({"tcp": {"cost": 1.0}, "udp": {"cost": 2.0, "basis": "paper"}})
+    ['/tcp/cost']
+    """
+    out = []
+    if isinstance(data, dict):
+        labelled = labelled or any("basis" in key for key in data)
+        for key, value in data.items():
+            numeric = isinstance(value, int | float | list) and not isinstance(value, bool)
+            if COST_KEY.search(key) and "basis" not in key and numeric and not labelled:
+                out.append(f"{path}/{key}")
+            out += unlabelled_keys(value, f"{path}/{key}", labelled)
+    elif isinstance(data, list):
+        for k, value in enumerate(data):
+            out += unlabelled_keys(value, f"{path}[{k}]", labelled)
+    return out
+
+
+def run(capsys, command: str, *extra: str) -> str:
+    code = main([*command.split(), "--quiet", *extra] if not command.startswith("region") else
+                [*command.split(), *extra])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    return out.out
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_cost_in_the_text_says_its_basis(capsys, command):
+    text = run(capsys, command)
+    assert COST.search(text)                     # the command shows costs: the scan has something to read
+    assert unlabelled_clauses(text) == []
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_cost_in_the_json_says_its_basis(capsys, command):
+    data = json.loads(run(capsys, command, "--json"))
+    assert unlabelled_keys(data) == []
+
+
+
+def test_region_shows_no_cost(capsys):
+    """region prints critical delivery probabilities and radii only: no cost to label."""
+    text = run(capsys, "region two_actuator")
+    data = json.loads(run(capsys, "region two_actuator", "--json"))
+    assert "critical mu" in text
+    assert not COST.search(text)
+    assert not [key for key in re.findall(r'"(\w+)":', json.dumps(data)) if COST_KEY.search(key)]

@@ -1,0 +1,94 @@
+"""closedloop.actuator_region: which channels each actuator strategy can stabilise, with exact certificates.
+
+References: the scalar plant by hand (every strategy's critical mu is 1 - 1/a^2: a loss run of length j from any
+delivered state leaves a^j times a nonzero combination, and the law that zeroes x on delivery attains it), the
+held input of an actuator that never delivers (``w+ = w``: radius 1), and for zero the Bernoulli region's own
+membership (closedloop.region, another algorithm: the homogeneous Riccati eigenpair and its certificates).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from packetloss_cvx import load_example
+from packetloss_cvx.closedloop.actuator_design import design_modes
+from packetloss_cvx.closedloop.actuator_region import (
+    actuator_critical,
+    actuator_membership,
+    least_radius,
+    strategy_inside_proved,
+    strategy_outside_proved,
+)
+from packetloss_cvx.closedloop.region import membership
+from packetloss_cvx.errors import InputError
+from packetloss_cvx.model.system import System
+from packetloss_cvx.tolerances import ACTUATOR_DP_RTOL, CRITICAL_MU_TOL
+
+SCALAR = System(A=[[2.0]], B=[[1.0]], horizon=4, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+
+
+@pytest.mark.parametrize("actuator", ["zero", "buffer:2", "buffer:3"])
+def test_scalar_critical_mu_is_one_minus_one_over_a_squared_with_both_ends_certified(actuator):
+    point = actuator_critical(SCALAR, actuator, tol=CRITICAL_MU_TOL)
+    assert point.lower <= 0.75 <= point.t
+    assert point.t - point.lower <= CRITICAL_MU_TOL
+    assert point.inside.verdict == "stable"
+    assert point.outside.verdict == "unstable"
+
+
+def test_scalar_hold_is_stabilisable_just_above_the_hand_critical_mu_and_its_least_radius_is_a2_loss():
+    point = actuator_critical(SCALAR, "hold", tol=CRITICAL_MU_TOL)
+    assert point.inside.verdict == "stable"
+    assert 0.75 <= point.t <= 0.75 + 1e-4              # proved stable above 3/4, and by the hand value not below
+    for mu in (0.3, 0.5, 0.6):                        # away from the defective boundary: growth a^2 (1 - mu)
+        growth = least_radius(design_modes([[2.0]], [[1.0]], [mu], "hold")).growth
+        assert growth == pytest.approx(4 * (1 - mu), rel=ACTUATOR_DP_RTOL)
+    assert actuator_membership(SCALAR, "hold", [0.6]).verdict == "unstable"
+    assert actuator_membership(SCALAR, "hold", [0.8]).verdict == "stable"
+
+
+def test_hold_behind_a_link_that_never_delivers_is_certified_unstable_by_its_held_input():
+    system = load_example("two_actuator")
+    found = actuator_membership(system, "hold", [0.9, 0.0])
+    assert found.verdict == "unstable"
+    expected = np.zeros((1, 4, 4))
+    expected[0, 3, 3] = 1.0
+    assert np.array_equal(found.certificate, expected)
+    assert actuator_membership(system, "zero", [0.9, 0.0]).verdict == "stable"
+
+
+@pytest.mark.parametrize("mu", [[0.05, 0.05], [0.07, 0.07], [0.3, 0.02], [0.08, 0.2]])
+def test_zero_membership_agrees_with_the_bernoulli_region(mu):
+    system = load_example("two_actuator")
+    reference = membership(system, mu)
+    assert reference.verdict in ("stable", "unstable")
+    assert actuator_membership(system, "zero", mu).verdict == reference.verdict
+
+
+def test_certificates_fail_just_beyond_what_they_prove():
+    """The exact checks at the scalar boundary: zero's law k = a has radius a^2 (1 - mu), 1/2 at mu = 7/8; every
+    law's radius is at least 1 at mu = 3/4 and not beyond."""
+    modes = design_modes([[2.0]], [[1.0]], [0.875], "zero")
+    K = np.full((1, 1, 1), 2.0)
+    assert strategy_inside_proved(modes, K, np.ones((1, 1, 1)), 0.5 + 2.0 ** -50)
+    assert not strategy_inside_proved(modes, K, np.ones((1, 1, 1)), 0.5)
+    assert strategy_outside_proved(design_modes([[2.0]], [[1.0]], [0.75], "zero"), np.ones((1, 1, 1)))
+    assert not strategy_outside_proved(design_modes([[2.0]], [[1.0]], [0.75 + 2.0 ** -40], "zero"),
+                                       np.ones((1, 1, 1)))
+
+
+def test_two_actuator_strategies_share_the_region_to_the_tolerance_along_the_diagonal():
+    """Measured: zero and buffer:L share the boundary 0.0610 along mu1 = mu2; hold's lies above it (0.0611)."""
+    system = load_example("two_actuator")
+    zero = actuator_critical(system, "zero", [1.0, 1.0], tol=1e-4)
+    buffer = actuator_critical(system, "buffer:2", [1.0, 1.0], tol=1e-4)
+    assert zero.inside.verdict == buffer.inside.verdict == "stable"
+    assert abs(zero.t - buffer.t) <= 1e-4
+    assert zero.outside.verdict == "unstable"
+
+
+@pytest.mark.parametrize("direction", [[1.0], [1.0, -0.5], [0.0, 0.0]])
+def test_bad_direction_is_an_input_error(direction):
+    with pytest.raises(InputError, match="direction"):
+        actuator_critical(load_example("two_actuator"), "hold", direction)
