@@ -13,13 +13,13 @@ from .allocate_power import run as run_power  # power, the ack link priced
 from .allocate_power import wants_power
 from .allocate_stability import run_target
 from .common import (
-    WARNING_ADVICE,
     CommandResult,
     allocation_numbers,
     attained_rows,
     progress_of,
     search_options,
     system_of,
+    warning_advice,
 )
 
 __all__ = ["run"]
@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         data["actuator"], more = membership_section(system, strategies, result.mu)
         rows += more
     name = fmt.name(system.name or args.file)
-    warning = [] if result.warning is None else [result.warning + WARNING_ADVICE]
+    warning = [] if result.warning is None else [result.warning + warning_advice(result, system.channel, args.file)]
     if result.status == "optimal":
         on = " on the attainable cost" if result.basis == "attainable" and args.protocol == "tcp" else ""
         return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation{on} for {name}"]
