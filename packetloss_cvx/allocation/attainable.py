@@ -103,7 +103,25 @@ def forward_cost(system: System, schedule: np.ndarray, gains: np.ndarray) -> flo
     return cost
 
 
-class AttainableEvaluator:
+class _LineSearch:
+    """``line(mu, i, checked)``: the cost as a function of mu_i alone, the others held at ``mu`` (what the
+    monotone searches of `.udp` walk), for an evaluator with ``cost(mu, checked)``."""
+
+    def cost(self, mu: np.ndarray, checked: bool = True) -> float:
+        raise NotImplementedError
+
+    def line(self, mu: np.ndarray, i: int, checked: bool = True):
+        base = np.array(mu, dtype=float)
+
+        def at(value: float) -> float:
+            point = base.copy()
+            point[i] = value
+            return self.cost(point, checked)
+
+        return at
+
+
+class AttainableEvaluator(_LineSearch):
     """The TCP-like attainable cost as the monotone searches of `.udp` ask it: ``cost(mu, checked)`` (checked:
     the DP's cost against `forward_cost` of its own gains, within SELF_CHECK_RTOL, the forward one returned;
     else NumericalError) and ``line(mu, i, checked)``. Non-increasing in each mu_i (docs/mathematics.md, "Design on the
@@ -123,18 +141,8 @@ class AttainableEvaluator:
                                  f"law {forward:.12g} beyond SELF_CHECK_RTOL (the weights' scales lose digits)")
         return forward
 
-    def line(self, mu: np.ndarray, i: int, checked: bool = True):
-        base = np.array(mu, dtype=float)
 
-        def at(value: float) -> float:
-            point = base.copy()
-            point[i] = value
-            return self.cost(point, checked)
-
-        return at
-
-
-class ChainAttainableEvaluator:
+class ChainAttainableEvaluator(_LineSearch):
     """The TCP-like attainable cost behind chains as the monotone searches of `.udp` ask it: ``cost(mu, checked)``,
     the chain DP's cost with each channel's chain at mean rate mu_i along its family (`.chains.ChainFamily`:
     burstiness held on Gilbert channels, deliveries scaled on the others; rates above a family's top evaluated at
@@ -175,16 +183,6 @@ class ChainAttainableEvaluator:
             raise ResourceError(f"design on the attainable cost behind the chain at mu = "
                                 f"{np.round(mu, 6).tolist()}: {found.note}", float("nan"), limit("chain_dp_nodes"))
         return float(found.cost)
-
-    def line(self, mu: np.ndarray, i: int, checked: bool = True):
-        base = np.array(mu, dtype=float)
-
-        def at(value: float) -> float:
-            point = base.copy()
-            point[i] = value
-            return self.cost(point, checked)
-
-        return at
 
 
 def tcp_attainable_cost(system: System, mu: np.ndarray | None = None) -> float:
