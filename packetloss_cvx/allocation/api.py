@@ -36,7 +36,7 @@ from ..model.system import System
 from ..results import Allocation, MinCost, StabilityAllocation
 from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT
-from .attainable import AttainableEvaluator, attainment
+from .attainable import AttainableEvaluator, ChainAttainableEvaluator, attainment
 from .boxes import Outcome, cost_at, reported_gap, unit_prices
 from .chains import ChainEvaluator, chain_family, chain_rates
 from .grammar import (
@@ -181,7 +181,7 @@ def _behind_chain(system: System, protocol: str) -> tuple[System, ChainEvaluator
     return system.with_mu(chain_rates(system)), evaluator
 
 
-def _family_rows(evaluator: ChainEvaluator | None, lo: float) -> list:
+def _family_rows(evaluator: ChainEvaluator | ChainAttainableEvaluator | None, lo: float) -> list:
     """The rows ``mu_i <= top_i`` of the channels whose family stops below 1 (deliveries scaled: chains.py); a lower
     bound above a top is infeasible, said here with the reason rather than as rows that admit no mu."""
     if evaluator is None:
@@ -256,8 +256,10 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
     target : {"paper", "attainable", "stable", "dp-cost"}
         What the design meets: "paper" (default), the paper's program ``J*(mu) <= alpha`` for ``protocol``;
         "attainable", the attainable cost over the horizon is at most ``alpha`` (TCP-like: the finite-horizon DP
-        with acknowledgements, a monotone branch and bound, Bernoulli channels and full state; UDP-like: J*_udp is
-        the attainable cost, so the paper's program); "stable", some linear law u = -K x has mean-square radius
+        with acknowledgements, a monotone branch and bound, full state; behind a chain the chain DP with each
+        channel along its family, `.attainable.ChainAttainableEvaluator`, refused beyond the ``chain_dp_nodes``
+        budget; UDP-like: J*_udp is the attainable cost, so the paper's program); "stable", some linear law
+        u = -K x has mean-square radius
         below ``margin`` (``alpha`` None); "dp-cost", the DP law's stationary cost is at most ``alpha``
         ([`stability_allocate`][packetloss_cvx.allocation.stability.stability_allocate]; as ``--target`` on the command
         line: the
@@ -363,10 +365,10 @@ def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints
     mu_i: docs/mathematics.md, "Design on the attainable cost"; no TCP-like floor, none being proved for it)."""
     if margin is not None:
         raise InputError("margin", "applies to target='stable' only (target='attainable' bounds a cost: alpha)")
-    if isinstance(system, System) and system.channel is not None:
-        raise InputError("target", "'attainable' designs Bernoulli channels: behind a Markov chain the TCP-like "
-                                   "attainable cost is not computed yet; use target='paper' (the default) or "
-                                   "protocol='udp' (whose J* is its attainable cost)")
+    given = system
+    chain = isinstance(system, System) and system.channel is not None
+    if chain:           # the chain DP along each channel's family (.attainable.ChainAttainableEvaluator)
+        system = system.with_mu(chain_rates(system))
     system = check_system(system)
     if system.sensor is not None:
         raise InputError("target", "'attainable' designs the full-state loop; this system has lossy [sensor] links")
@@ -376,10 +378,11 @@ def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints
     gap = check_gap(gap)
     max_boxes = _max_boxes(max_boxes, system)
     time_limit = _time_limit(time_limit)
-    poly = _polytope(constraints, system.m, lo, hi)
+    evaluator = ChainAttainableEvaluator(given) if chain else AttainableEvaluator(system)
+    poly = _polytope([*constraints, *_family_rows(evaluator if chain else None, lo)], system.m, lo, hi)
     prices, unit = unit_prices(beta)
-    what = "TCP-like design on the attainable cost"
-    f = MonotoneCost(AttainableEvaluator(system))
+    what = "TCP-like design on the attainable cost" + (" behind the chain" if chain else "")
+    f = MonotoneCost(evaluator)
     try:
         out = udp_allocate(system, poly, alpha, prices, gap, -np.inf, max_boxes, time_limit, progress=progress,
                            cost=f, what=what)
@@ -391,8 +394,9 @@ def _attainable_allocate(system: System, alpha: float, beta, bounds, constraints
                                 lower_bound=out.lower_bound * unit,
                                 gap=reported_gap(float(prices @ out.mu), out.lower_bound, out.scale),
                                 status=out.status, method=f"{out.note}; on the attainable cost (finite-horizon DP with "
-                                                          "acknowledgements)", protocol="tcp", alpha=alpha,
-                                beta=beta, boxes=out.boxes), system, basis="attainable")
+                                                          "acknowledgements" + (f", {evaluator.family.describe()})"
+                                                                                if chain else ")"),
+                                protocol="tcp", alpha=alpha, beta=beta, boxes=out.boxes), given, basis="attainable")
 
 
 def _attained(result: Allocation, system: System, chain: bool = False, basis: str | None = None) -> Allocation:

@@ -47,7 +47,7 @@ def feasibility_case() -> tuple[System, Constraints]:
     --------
     >>> s, c = feasibility_case()
     >>> a, mu, u_max, x_max = s.A[0, 0], s.mu[0], c.u_max[0], c.x_max[0]
-    >>> bool(mu * u_max >= (a - 1) * x_max), round((x_max + mu * u_max) / a, 3)   # certified; infeasible beyond
+    >>> bool(mu * u_max >= (a - 1) * x_max), round(float((x_max + mu * u_max) / a), 3)   # certified; infeasible beyond
     (True, 1.583)
     """
     system = System(A=[[1.2]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[0.01], mu=[0.3], x0=[0.5],

@@ -13,10 +13,12 @@ from ..model.system import System
 from ..progress import progress_bar
 from ..results import ClaimResult
 from ..threads import blas_limited
-from .attainable import STATEMENTS as ATTAINABLE
-from .attainable import ack_price_paper_basis, allocation_tcp_meets_alpha
 from .actuator import STATEMENT as ZERO_VS_HOLD
 from .actuator import zero_vs_hold
+from .attainable import STATEMENTS as ATTAINABLE
+from .attainable import ack_price_paper_basis, allocation_tcp_meets_alpha
+from .chain_tcp import STATEMENT as TCP_PRIOR_MEAN_CHAIN
+from .chain_tcp import tcp_prior_mean_chain
 from .channel_allocation import allocation_udp_perfect
 from .closed_loop import protocol_ranking
 from .context import Context, paper_systems
@@ -74,10 +76,11 @@ CLAIMS["allocation-tcp-meets-alpha"] = (ATTAINABLE["allocation-tcp-meets-alpha"]
                                         allocation_tcp_meets_alpha)
 CLAIMS["ack-price-paper-basis"] = (ATTAINABLE["ack-price-paper-basis"], ack_price_paper_basis)   # its conclusion
 CLAIMS["zero-vs-hold-paper-systems"] = (ZERO_VS_HOLD, zero_vs_hold)   # the paper's remark on holding the input
+CLAIMS["tcp-prior-mean-chain"] = (TCP_PRIOR_MEAN_CHAIN, tcp_prior_mean_chain)   # the TCP-like cost behind chains
 
 
 #: claims about Gilbert-Elliott chains: they check a caller's chain file behind its own chain
-CHAIN_CLAIMS = frozenset({"plug-in-markov"})
+CHAIN_CLAIMS = frozenset({"plug-in-markov", "tcp-prior-mean-chain"})
 
 
 @blas_limited

@@ -13,13 +13,13 @@ from .allocate_power import run as run_power  # power, the ack link priced
 from .allocate_power import wants_power
 from .allocate_stability import run_target
 from .common import (
-    WARNING_ADVICE,
     CommandResult,
     allocation_numbers,
     attained_rows,
     progress_of,
     search_options,
     system_of,
+    warning_advice,
 )
 
 __all__ = ["run"]
@@ -75,10 +75,6 @@ def run(args: argparse.Namespace) -> CommandResult:
         return run_power(args, system)
     if args.protocol is None:
         raise InputError("--protocol", "required (or --target stable|dp-cost to design for stability)")
-    if target == "attainable" and args.protocol == "tcp" and system.channel is not None:    # the API's words: its own
-        raise InputError("--target", "attainable designs Bernoulli channels: behind a Markov chain the TCP-like "
-                                     "attainable cost is not computed yet; use --target paper (the default) or "
-                                     "--protocol udp (its J* is the attainable cost)")
     for flag, value in (("--alpha", args.alpha), ("--beta", args.beta)):
         if value is None:
             raise InputError(flag, "required" + (" (or buy power: --power)" if flag == "--beta" else ""))
@@ -111,7 +107,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         data["actuator"], more = membership_section(system, strategies, result.mu)
         rows += more
     name = fmt.name(system.name or args.file)
-    warning = [] if result.warning is None else [result.warning + WARNING_ADVICE]
+    warning = [] if result.warning is None else [result.warning + warning_advice(result, system.channel, args.file)]
     if result.status == "optimal":
         on = " on the attainable cost" if result.basis == "attainable" and args.protocol == "tcp" else ""
         return CommandResult(data, "\n".join([f"{args.protocol.upper()}-like: optimal allocation{on} for {name}"]

@@ -32,6 +32,7 @@ from ..model.constraints import Constraints, constraints_from_dict
 from ..model.files import load_constraints, load_system, read_csv_numbers, read_input
 from ..model.system import System
 from ..safeio import FIGURE_DPI, check_dpi, check_output_file
+from ..tolerances import ALLOCATION_COST_RTOL
 from . import format as fmt
 from .parser import FIGURE_FORMATS
 
@@ -39,7 +40,7 @@ __all__ = ["CHAIN_BASIS", "CONSTRAINT_FLAGS", "COST_BASIS", "MPC_SAMPLES", "WARN
            "allocation_numbers", "attained_rows", "check_budgets", "check_dead_flags", "check_figure_format",
            "check_writable", "constraints_of", "figure_dpi", "figure_file", "floats", "integers", "mpc_samples_of",
            "number", "number_range", "preflight", "prices_and_bounds", "progress_of", "search_options", "system_of",
-           "systems_of", "with_overrides"]
+           "systems_of", "warning_advice", "with_overrides"]
 
 #: counts that must be >= 0, with the words of their error message
 NONNEGATIVE = {"random": "a count", "seed": "an integer"}
@@ -610,7 +611,6 @@ def progress_of(args: argparse.Namespace) -> bool | None:
     return False if getattr(args, "quiet", False) else None
 
 
-#: what the warning line advises
 #: the basis of each protocol's J* as the commands print it (docs/design.md, "Cost bases"): the paper's
 #: expressions, J*_tcp a first-moment value that no law attains, J*_udp the exact expected cost of its plan and so the
 #: attainable cost too; J_Delta ("diff") their difference
@@ -619,7 +619,43 @@ COST_BASIS = {"tcp": "paper", "udp": "paper = attainable", "diff": "paper"}
 #: exact minimum is the exact expected cost of the optimal plan under the chain (the attainable cost)
 CHAIN_BASIS = {"tcp": "paper", "udp": "attainable"}
 
+#: what the warning line advises (Bernoulli channels; behind a chain `warning_advice`)
 WARNING_ADVICE = " (design on the loop: --target stable or --target dp-cost)"
+
+
+def warning_advice(result: Any, channel: Any, file: str) -> str:
+    """What the warning line advises after an allocation for ``file``: `WARNING_ADVICE` on Bernoulli channels; behind
+    a Markov chain (``channel``), where ``--target stable|dp-cost`` do not apply (they design Bernoulli channels),
+    what does: for a loop no law holds, the chain's critical mean rate and stabilisable map (``region FILE``,
+    two-state chains; nothing for k-state chains) to raise ``--bounds`` above; for an attainable cost above alpha,
+    ``--target attainable`` (the chain DP along the family). O(1).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> r = SimpleNamespace(alpha=8.0, attainable_cost=9.0, stabilisable=False)
+    >>> warning_advice(r, None, "f.toml") == WARNING_ADVICE
+    True
+    >>> text = warning_advice(r, GilbertElliott(p=[0.1], r=[0.4]), "f.toml")
+    >>> text.startswith(" (behind a chain --target stable|dp-cost do not apply: "), "region f.toml" in text
+    (True, True)
+    >>> "--target attainable" in text                 # 9 > alpha = 8: the attainable cost misses it too
+    True
+    """
+    if channel is None:
+        return WARNING_ADVICE
+    parts = []
+    if result.stabilisable is False:
+        parts.append(f"the chain's critical mean rate and map, packetloss-cvx region {file} --grid 21, then --bounds "
+                     "LO,1 above it" if channel.two_state else
+                     "no stabilisable-set engine covers k-state chains: raise --bounds LO,1 and read the verdict at "
+                     "each mu*")
+    alpha = getattr(result, "alpha", None)
+    if (alpha is not None and result.attainable_cost is not None
+            and result.attainable_cost > alpha * (1.0 + ALLOCATION_COST_RTOL)):
+        parts.append("--target attainable designs on the chain's attainable cost")
+    return " (behind a chain --target stable|dp-cost do not apply: " + "; ".join(parts) + ")"
 
 
 def attained_rows(result: Any) -> list[tuple[str, str]]:

@@ -315,8 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the cheapest mu for which some linear law u = -Kx has mean-square radius < RHO "
                              "(stable), or whose DP law's stationary cost is <= --alpha (dp-cost), or (with "
                              "--protocol) whose attainable cost over the horizon is <= --alpha (attainable: TCP-like "
-                             "the finite-horizon DP with acknowledgements); default: paper (the paper's J* <= alpha "
-                             "with --protocol), e.g. --target stable")
+                             "the finite-horizon DP with acknowledgements, behind a chain too); default: paper "
+                             "(the paper's J* <= alpha with --protocol), e.g. --target stable")
     design.add_argument("--margin", metavar="RHO",
                         help="with --target stable: the bound RHO on the mean-square radius (the spectral radius of "
                              "the second-moment operator), 0 < RHO <= 1 (default: 1, i.e. stable: radius < 1 - 1e-9), "

@@ -441,3 +441,96 @@ def no_law_proved(A: np.ndarray, B: np.ndarray, mu: np.ndarray, P: np.ndarray) -
     P = 0.5 * (P + P.T)
     P = P / max(frobenius(P), np.finfo(float).tiny)
     return any(outside_proved(A, B, mu, Q, 1.0) for tilt in (False, True) for Q in candidates(A, P, 1.0, tilt))
+
+
+def chain_inside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, K: np.ndarray, X: np.ndarray | None,
+                        c: float, delivery: str = "next") -> bool:
+    """Does the tuple X (M, n, n) prove ``rho(L_K) < c`` exactly for the mode gains K (M, m, n) behind ``channel``:
+    every ``X_a > 0`` and every ``cX_b - L_K(X)_b > 0``, with the coupled second-moment map (closedloop.mjls)
+    ``L_K(X)_b = sum_a T_ab ((A - B D K_a) X_a (A - B D K_a)' + B diag(d (1 - d) ∘ diag(K_a X_a K_a')) B')``, d the
+    deliveries of b ("next") or of a ("current"), D = diag(d). (L_K is a positive map of the tuples, so
+    ``L_K^j(X) <= c'^j X`` blockwise for some ``c' < c``: `inside_proved`'s argument, on tuples.) Formed from the
+    very doubles of A, B, K, X and the channel as stored (`exact_transition`). False for an X that is None or not
+    finite. Time O(M^2 (n^3 + n^2 m)) integer operations.
+
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> ch = GilbertElliott(p=[0.3], r=[0.2])      # deadbeat when delivered: x+ = 2 x in the bad state, radius 3.2
+    >>> A, B, K = np.array([[2.0]]), np.array([[1.0]]), np.full((2, 1, 1), 2.0)
+    >>> X = np.ones((2, 1, 1))                     # L_K(X) = (0, 4 (0.3 + 0.8)) blockwise
+    >>> [chain_inside_proved(A, B, ch, K, X, c) for c in (4.5, 4.3)]
+    [True, False]
+    """
+    modes, _, h = mode_chain(channel)
+    M, n = len(modes), np.asarray(A).shape[0]
+    if X is None or np.shape(X) != (M, n, n) or not (np.all(np.isfinite(X)) and np.all(np.isfinite(K))):
+        return False
+    T = exact_transition(channel)
+    A_, B_, c_ = Dyadic.of(A), Dyadic.of(B), Dyadic.of(float(c))
+    X_ = [_symmetric(Xa) for Xa in X]
+    K_ = [Dyadic.of(np.asarray(Ka, dtype=float)) for Ka in K]
+    if not all(exact_psd(Xa, strict=True) for Xa in X_):
+        return False
+    one = Dyadic.of(np.ones(h.shape[1]))
+    for b in range(M):
+        image = None
+        for a in range(M):
+            if T.ints[a, b] == 0:
+                continue
+            d = Dyadic.of(np.asarray(h[b] if delivery == "next" else h[a], dtype=float))
+            Abar = A_ - (B_ * d) @ K_[a]
+            term = Abar @ X_[a] @ Abar.T + B_ @ ((d * (one - d)) * (K_[a] @ X_[a] @ K_[a].T).diag()).diag() @ B_.T
+            term = Dyadic(T.ints[a, b], T.exp) * term
+            image = term if image is None else image + term
+        if image is None:
+            image = Dyadic.of(np.zeros((n, n)))
+        if not exact_psd(c_ * X_[b] - image, strict=True):
+            return False
+    return True
+
+
+def chain_stability_witness(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, K: np.ndarray, radius: float,
+                            c: float, delivery: str = "next") -> np.ndarray | None:
+    """A candidate X for `chain_inside_proved` at c: the solution of ``X = L_K(X) / r + I`` (every mode) for r the
+    midpoint of the law's computed coupled radius and c, by a dense solve of the coupled operator (closedloop.modes'
+    ``mode_matrix``, row-major vec, modes stacked); None where the radius is not below c or the solve fails.
+    Time O((M n^2)^3).
+
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> ch = GilbertElliott(p=[0.3], r=[0.2])
+    >>> X = chain_stability_witness(np.array([[0.5]]), np.array([[1.0]]), ch, np.zeros((2, 1, 1)), 0.25, 1.0)
+    >>> # x+ = x / 2, r = 0.625: X_b = 0.4 sum_a T_ab X_a + 1, i.e. 0.72 X_g - 0.08 X_b = 1 = -0.12 X_g + 0.68 X_b
+    >>> bool(np.allclose(X.ravel(), [0.76 / 0.48, 0.84 / 0.48], rtol=1e-14))
+    True
+    """
+    if not (np.isfinite(radius) and radius < c):
+        return None
+    modes, T, h = mode_chain(channel)
+    M, n = len(modes), np.asarray(A).shape[0]
+    r = max(0.5 * (max(radius, 0.0) + c), 0.5 * c)
+    with np.errstate(all="ignore"):
+        try:
+            op = mode_matrix(np.asarray(A, dtype=float), np.asarray(B, dtype=float), np.asarray(K, dtype=float), h,
+                             T, delivery)
+            x = np.linalg.solve(np.eye(M * n * n) - op / r, np.tile(np.eye(n).ravel(), M))
+        except np.linalg.LinAlgError:
+            return None
+    X = x.reshape(M, n, n)
+    X = 0.5 * (X + X.transpose(0, 2, 1))
+    return X if np.all(np.isfinite(X)) else None
+
+
+def chain_law_proved_stable(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, K: np.ndarray, radius: float,
+                            delivery: str = "next", c: float = 1.0 - MEAN_SQUARE_MARGIN) -> bool:
+    """Is the coupled radius of the mode gains K (M, m, n) below c (default ``1 - MEAN_SQUARE_MARGIN``) proved
+    exactly by `chain_stability_witness`'s X (`chain_inside_proved`)? ``radius`` the computed one. Time
+    O((M n^2)^3).
+
+    >>> from packetloss_cvx.model.channel import GilbertElliott
+    >>> ch = GilbertElliott(p=[0.3], r=[0.8])          # deadbeat when delivered, x+ = 2 x when lost: radius 4 (1 - r)
+    >>> A, B, K = np.array([[2.0]]), np.array([[1.0]]), np.full((2, 1, 1), 2.0)
+    >>> chain_law_proved_stable(A, B, ch, K, 0.8), chain_law_proved_stable(A, B, ch.__class__.gilbert_elliott(
+    ...     p=[0.3], r=[0.7]), K, 0.8)              # r = 0.7: radius 1.2, a claimed 0.8 does not prove
+    (True, False)
+    """
+    return chain_inside_proved(A, B, channel, K, chain_stability_witness(A, B, channel, K, radius, c, delivery), c,
+                               delivery)

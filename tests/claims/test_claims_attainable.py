@@ -140,7 +140,7 @@ def test_the_claims_on_random_systems_agree_with_the_enumerated_dp():
 def test_the_audit_lists_both_claims_and_checks_the_first_random_cases():
     results = audit(random=RANDOM_CASES + 3, seed=1, only=["allocation-tcp-meets-alpha", "ack-price-paper-basis"],
                     progress=False)
-    assert list(CLAIMS)[-2:] == ["allocation-tcp-meets-alpha", "ack-price-paper-basis"]
+    assert {"allocation-tcp-meets-alpha", "ack-price-paper-basis"} <= set(CLAIMS)
     for r in results:
         # two-actuator at each alpha, the pendulum, then the first RANDOM_CASES random systems: no more
         assert len(r.outcomes) == len(ALPHAS) + 1 + RANDOM_CASES

@@ -105,7 +105,7 @@ def test_reproduce_titles_its_figures_in_words_in_the_format_asked(tmp_path, mon
     monkeypatch.setattr(reproduce, "save_figure", recording)
     out = tmp_path / "r"
     assert main(["reproduce", "--quick", "--out", str(out), "--format", "pdf", "--dpi", "40", "--quiet"]) == 0
-    assert len(titles) == 8
+    assert len(titles) == 9                                  # the paper's six, ack price, region, strategy map
     for name, title in titles.items():
         assert name.endswith(".pdf")
         assert is_format(out / name, "pdf")

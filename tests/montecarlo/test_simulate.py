@@ -13,8 +13,8 @@ from packetloss_cvx.montecarlo.simulate import simulate
 
 from ..references import enumerated_radius
 
-OPEN = {"formula", "exact", "mean", "stderr", "z"}
-CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable"}
+OPEN = {"formula", "exact", "mean", "stderr", "z", "formula_basis"}
+CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable", "basis"}
 
 
 def stable_random_system(seed):
