@@ -39,7 +39,7 @@ from ..lq.recursion import udp_variance_weights
 from ..model.constraints import Constraints, cantelli_factor, check_constraints
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system
-from ..results.base import Frozen
+from ..results.base import Frozen, finite_or_none
 from ..tolerances import (
     ACCEPTED_STATUSES,
     CLARABEL_DEFAULT,
@@ -122,7 +122,8 @@ class ConstrainedSolution(Frozen):
         return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
                 "terminal_state": self.states[-1].tolist(), "binding": list(self.binding),
                 "violations": [{"constraint": c, "by": v} for c, v in self.violations],
-                "kkt_residual": self.kkt_residual, "solver_kkt_residual": self.solver_kkt_residual,
+                "kkt_residual": finite_or_none(self.kkt_residual),
+                "solver_kkt_residual": finite_or_none(self.solver_kkt_residual),
                 "polished": self.polished, "formulation": self.formulation, "solver": self.solver}
 
 

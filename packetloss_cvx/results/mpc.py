@@ -11,7 +11,25 @@ import numpy as np
 
 from .base import Frozen, finite_or_none
 
-__all__ = ["ControllerRun", "Frequency", "MPCSimulation"]
+__all__ = ["ControllerRun", "Frequency", "MPCSimulation", "json_table"]
+
+
+def json_table(value: Any) -> Any:
+    """A ``[constraints]`` table (`Constraints.to_dict`) for JSON: every non-finite number (an infinite bound, which
+    leaves the bound out) as None, lists and tables kept in shape. O(size).
+
+    Examples
+    --------
+    >>> json_table({"u_max": [1.0, float("inf")], "du_max": [0.3], "soft": True})
+    {'u_max': [1.0, None], 'du_max': [0.3], 'soft': True}
+    """
+    if isinstance(value, dict):
+        return {key: json_table(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_table(item) for item in value]
+    if isinstance(value, float | np.floating):
+        return finite_or_none(value)
+    return value
 
 
 @dataclass(frozen=True)
@@ -144,9 +162,11 @@ class MPCSimulation(Frozen):
     delivered: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"samples", "steps", "seed", "channel", "constraints", "tcp": {controller: ...}, "udp": {...}}``."""
+        """``{"samples", "steps", "seed", "channel", "constraints", "tcp": {controller: ...}, "udp": {...}}``;
+        ``constraints`` is the table with every infinite entry (a bound left out) as None (JSON null: strict JSON
+        has no inf), each row keeping its place."""
         out: dict[str, Any] = {"samples": self.samples, "steps": self.steps, "seed": self.seed,
-                               "channel": self.channel, "constraints": self.constraints}
+                               "channel": self.channel, "constraints": json_table(self.constraints)}
         for protocol, controllers in self.runs.items():
             out[protocol] = {name: run.to_dict() for name, run in controllers.items()}
         return out

@@ -1,0 +1,34 @@
+"""The constrained commands at their edges: infinite bounds in strict JSON, work refused before it starts, the
+chain file, the costs' bases, soft rows' violations in the text."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+import packetloss_cvx as pl
+from packetloss_cvx.cli import main
+from packetloss_cvx.model.constraints import Constraints
+from packetloss_cvx.model.files import save_system
+
+
+def _scalar(tmp_path, name="scalar.toml", horizon=8, a=1.2, mu=0.7, **table):
+    s = pl.System(A=[[a]], B=[[1.0]], horizon=horizon, state_weight=[1.0], input_weight=[1.0], mu=[mu], x0=[3.0])
+    return save_system(s, tmp_path / name, constraints=Constraints(**table) if table else None)
+
+
+def test_infinite_bounds_are_null_in_the_json_of_simulate_and_solve(tmp_path, capsys):
+    """An infinite entry leaves a bound out (design.md's own example has one): the JSON is strict (no inf), the
+    entry null in its place, on stdout and in --out."""
+    path = _scalar(tmp_path, u_min=[-1.0], u_max=[np.inf], du_max=[np.inf])
+    out = tmp_path / "o.json"
+    assert main(["simulate", str(path), "--json", "--quiet", "--samples", "2", "--mpc-samples", "2", "--steps", "3",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    for text in (printed, out.read_text()):
+        loop = json.loads(text, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))["constrained_loop"]
+        assert loop["constraints"] == {"u_min": [-1.0], "u_max": [None], "du_max": [None]}
+    assert main(["solve", "two_actuator", "--json", "--quiet", "--u-max", "0.5,inf", "--du-max", "0.3,inf"]) == 0
+    data = json.loads(capsys.readouterr().out, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+    assert data["tcp"]["constrained"]["status"] == "optimal"
