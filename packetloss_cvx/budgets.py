@@ -11,7 +11,7 @@ so it works the same for the command line and the API.
 The work formulas (`simulate_work`, `sweep_work`, `burstiness_work`, `solve_work`,
 `qp_work`, `markov_recursion_work`, `markov_dense_seconds`, `udp_box_work`) and the memory
 formulas (`solve_bytes`, `dense_bytes`, `markov_dense_bytes`, `qp_bytes`,
-`operator_bytes`, `krylov_bytes`, `loop_bytes`, `constraint_bytes`, checked against the
+`operator_bytes`, `krylov_bytes`, `loop_bytes`, `mpc_bytes`, `constraint_bytes`, checked against the
 ``memory_bytes`` budget; `program_bytes`, what a cache is charged) live here once; the API and the command
 line's preflight both call them. Every refusal is `check`'s one line (what was asked, the budget, what to use
 instead, the variable that raises it), a BudgetError (a ValueError): the command line exits 2. Imports nothing
@@ -28,11 +28,12 @@ from dataclasses import dataclass
 from .errors import BudgetError, InputError
 from .tolerances import MEMORY_BUDGET_BYTES
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work",
-           "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text",
-           "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds", "markov_recursion_work",
-           "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes", "qp_work", "simulate_work", "solve_bytes",
-           "solve_work", "sweep_work", "udp_box_work"]
+__all__ = ["BUDGETS", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "PROGRAM_BYTES_PER_ENTRY", "Budget",
+           "burstiness_work", "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text",
+           "estimated_seconds", "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes",
+           "markov_dense_seconds", "markov_recursion_work", "mpc_bytes", "mpc_solves", "operator_bytes",
+           "program_bytes", "qp_bytes", "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work",
+           "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -220,16 +221,40 @@ def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans:
     return _float(samples) * (float(horizon) * plans + _float(steps) * laws) * n * (n + m)
 
 
-def mpc_solves(samples: int, steps: int, programs: int) -> float:
-    """Program solves of the constrained loop: ``samples steps programs`` (a controller with a program solves it
-    once per run and step; the soft twin's solves, on infeasible steps only, come on top).
+#: What a run-step of the clipped law costs in the constrained loop, in program solves: 9.5 us (two_actuator, chunks of
+#: 8 runs, one BLAS thread: 9.9 us at 800 x 100, 9.2 at 1600 x 200) beside the budget's 5 ms a solve.
+CLIPPED_SOLVE_SHARE = 2e-3
+
+
+def mpc_solves(samples: int, steps: int, programs: int, clipped: int = 0) -> float:
+    """Program solves of the constrained loop: ``samples steps (programs + CLIPPED_SOLVE_SHARE clipped)`` (a
+    controller with a program solves it once per run and step; the soft twin's solves, on infeasible steps only,
+    come on top; the ``clipped`` laws' run-steps, which solve nothing, priced at their measured share of a solve).
 
     Examples
     --------
     >>> mpc_solves(100, 30, 3)
     9000.0
+    >>> mpc_solves(10 ** 9, 30, 0, clipped=1)          # the clipped law alone: 3e10 run-steps, 80 h
+    60000000.0
     """
-    return _float(samples) * _float(steps) * programs
+    return _float(samples) * _float(steps) * (programs + CLIPPED_SOLVE_SHARE * clipped)
+
+
+def mpc_bytes(samples: int, steps: int, n: int, m: int, jobs: int, rows: int, keep: int = 0) -> float:
+    """Bytes of the constrained loop's arrays (montecarlo/mpc.py): the paths as drawn per block and joined
+    (deliveries a byte an entry, noise 8 n), ``2 samples steps (m + 8 n)``; per job (controller and protocol) its
+    stage costs, violation flags of ``rows`` rows and infeasibility flags, in chunks and joined, ``2 samples steps
+    (9 + rows)``; the ``keep`` kept runs' states and commands, ``16 jobs keep (steps + 1) (n + m)``. O(1).
+
+    Examples
+    --------
+    >>> round(mpc_bytes(10 ** 9, 30, 1, 1, 2, 2) / 2 ** 40, 2)      # a billion runs of the clipped law: TiB
+    1.69
+    """
+    S, T = _float(samples), _float(steps)
+    return (2.0 * S * T * (m + 8.0 * n) + 2.0 * jobs * S * T * (9.0 + rows)
+            + 16.0 * jobs * _float(keep) * (T + 1.0) * (n + m))
 
 
 def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stability: bool = False,

@@ -22,6 +22,7 @@ from ..budgets import (
     duration_text,
     estimated_seconds,
     gib_text,
+    mpc_bytes,
     mpc_solves,
     simulate_work,
     solve_bytes,
@@ -404,11 +405,19 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
         mpc_samples = getattr(args, "mpc_samples", 0)
-        if isinstance(mpc_samples, int) and mpc_samples >= 1 and constraints_of(args, system) is not None:
+        constraints = constraints_of(args, system) if isinstance(mpc_samples, int) and mpc_samples >= 1 else None
+        if constraints is not None:
             programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
-            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs), "--mpc-samples",
+            clipped = 2 if args.law == "all" else 1          # the clipped law per protocol
+            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs, clipped), "--mpc-samples",
                   f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
                   "(the constrained loop)")
+            rows = constraints.loop_rows()
+            needed = mpc_bytes(mpc_samples, args.steps, system.n, system.m, programs + clipped, rows)
+            check("memory_bytes", needed, "--mpc-samples", f"{count_text(mpc_samples)} runs of "
+                                                           f"{count_text(args.steps)} steps of the constrained loop "
+                                                           f"(about {gib_text(needed)})",
+                  instead="use fewer runs (--mpc-samples) or steps (--steps)")
 
 
 def check_solve(system: System, args: argparse.Namespace) -> None:

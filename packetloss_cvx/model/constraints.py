@@ -250,6 +250,18 @@ class Constraints:
                                  "terminal_F") if getattr(self, name) is not None]
         return out + (["chance"] if self.chance else [])
 
+    def loop_rows(self) -> int:
+        """The rows a sampled loop checks at each step (montecarlo/mpc.py): each finite input, rate and state bound,
+        each finite row of ``g``, each chance row (the terminal set constrains the prediction only). O(n + m + r).
+
+        Examples
+        --------
+        >>> Constraints(u_min=[-1, -1], u_max=[1, np.inf], chance=[([1.0], 2.0, 0.1)]).loop_rows()
+        4
+        """
+        bounds = (self.u_max, self.u_min, self.du_max, self.x_max, self.x_min, self.g)
+        return sum(int(np.isfinite(v).sum()) for v in bounds if v is not None) + len(self.chance)
+
     def to_dict(self) -> dict[str, Any]:
         """The ``[constraints]`` table (JSON and TOML values; infinite entries as floats). O(size)."""
         out: dict[str, Any] = {}

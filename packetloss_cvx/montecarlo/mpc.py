@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..budgets import check, count_text, mpc_solves
+from ..budgets import check, count_text, gib_text, mpc_bytes, mpc_solves
 from ..closedloop.moments import stationary_channel
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..lq.costs import closed_form
@@ -388,7 +388,9 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
         A count below its minimum, an unknown protocol or controller, a non-stationary Bernoulli schedule,
         constraints that do not fit the system, ``threads`` below 1 or ``dask`` without ``submit``.
     BudgetError
-        More program solves than the ``mpc_solves`` budget (`mpc_solves`), before any path is drawn.
+        More program solves than the ``mpc_solves`` budget (`mpc_solves`; the clipped laws' run-steps at their
+        measured share of a solve), or arrays beyond the ``memory_bytes`` budget (`mpc_bytes`), before any path is
+        drawn.
     NumericalError
         A loop's state beyond the double-precision range.
 
@@ -432,8 +434,14 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     # one job per controller and protocol; certainty-equivalent plans alike for both: one job, shared
     jobs = [(name, p) for name in names for p in protocols if name != "certainty-equivalent" or p == protocols[0]]
     programs = sum(name != "clipped" for name, _ in jobs)
-    check("mpc_solves", mpc_solves(samples, steps, programs), "samples",
-          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs")
+    clipped = len(jobs) - programs
+    check("mpc_solves", mpc_solves(samples, steps, programs, clipped), "samples",
+          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
+          + (f" and {clipped} clipped laws" if clipped else ""))
+    needed = mpc_bytes(samples, steps, system.n, system.m, len(jobs), constraints.loop_rows(), keep)
+    check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
+                                             f"{gib_text(needed)} of paths and per-run records)",
+          instead="use fewer runs or steps")
     twin = _twin(system)
     channel = "bernoulli" if system.channel is None else system.channel.form
     V, W = loop_paths(system, samples, steps, seed)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
@@ -32,3 +33,18 @@ def test_infinite_bounds_are_null_in_the_json_of_simulate_and_solve(tmp_path, ca
     assert main(["solve", "two_actuator", "--json", "--quiet", "--u-max", "0.5,inf", "--du-max", "0.3,inf"]) == 0
     data = json.loads(capsys.readouterr().out, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
     assert data["tcp"]["constrained"]["status"] == "optimal"
+
+
+@pytest.mark.parametrize("extra", [["--mpc-samples", "1000000000"], ["--steps", "10000000", "--mpc-samples", "2"],
+                                   ["--mpc-samples", "100000", "--steps", "1000"]])
+def test_the_constrained_loop_beyond_its_budget_is_refused_before_any_sampling(tmp_path, capsys, monkeypatch, extra):
+    """Exit 2, one line naming --mpc-samples and the variable that raises the budget; the open-loop sampling, which
+    runs first, never starts."""
+    import packetloss_cvx.cli.simulate as command
+
+    monkeypatch.setattr(command, "simulate", lambda *a, **k: (_ for _ in ()).throw(AssertionError("sampled")))
+    path = _scalar(tmp_path, u_min=[-1.0], u_max=[1.0])
+    assert main(["simulate", str(path), "--quiet", *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "error: --mpc-samples:" in err[0] and "PACKETLOSS_CVX_BUDGET_MPC_SOLVES=" in err[0]

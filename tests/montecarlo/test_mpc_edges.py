@@ -1,0 +1,43 @@
+"""The constrained loop (montecarlo/mpc.py) at its edges: work and memory refused before any path is drawn, a loop
+that leaves the double range, time-varying weights, a non-stationary schedule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from packetloss_cvx.errors import BudgetError
+from packetloss_cvx.model.constraints import Constraints
+from packetloss_cvx.model.system import System
+from packetloss_cvx.montecarlo import mpc
+
+
+def _scalar(**extra) -> System:
+    fields = dict(A=[[1.2]], B=[[1.0]], horizon=8, state_weight=[1.0], input_weight=[1.0], mu=[0.7], x0=[3.0])
+    return System(**{**fields, **extra})
+
+
+BOX = Constraints(u_min=[-1.0], u_max=[1.0])
+
+
+@pytest.fixture
+def no_paths(monkeypatch):
+    """Drawing a path fails the test: a refusal must come before any array is allocated."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("paths drawn before the budget check")
+    monkeypatch.setattr(mpc, "loop_paths", refuse)
+
+
+@pytest.mark.parametrize("controllers", [mpc.CONTROLLERS, ["clipped"]])
+def test_a_billion_runs_are_refused_before_any_path_is_drawn(no_paths, controllers):
+    with pytest.raises(BudgetError) as caught:
+        mpc.simulate_mpc(_scalar(), BOX, samples=10 ** 9, controllers=controllers, progress=False)
+    assert caught.value.field == "samples"
+    assert caught.value.env == "PACKETLOSS_CVX_BUDGET_MPC_SOLVES"
+
+
+def test_with_the_solve_budget_raised_the_memory_budget_still_refuses(no_paths, monkeypatch):
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MPC_SOLVES", "inf")
+    with pytest.raises(BudgetError) as caught:
+        mpc.simulate_mpc(_scalar(), BOX, samples=10 ** 9, controllers=["clipped"], progress=False)
+    assert caught.value.env == "PACKETLOSS_CVX_BUDGET_MEMORY_BYTES"
