@@ -29,11 +29,11 @@ from .errors import BudgetError, InputError
 from .tolerances import MEMORY_BUDGET_BYTES
 
 __all__ = ["BUDGETS", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "PROGRAM_BYTES_PER_ENTRY", "Budget",
-           "burstiness_work", "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text",
-           "estimated_seconds", "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes",
-           "markov_dense_seconds", "markov_recursion_work", "mpc_bytes", "mpc_solves", "operator_bytes",
-           "program_bytes", "qp_bytes", "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work",
-           "udp_box_work"]
+           "burstiness_work", "check", "check_constrained", "constrained_bytes", "constrained_work",
+           "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text",
+           "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds",
+           "markov_recursion_work", "mpc_bytes", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
+           "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -407,6 +407,66 @@ def solve_bytes(horizon: int, n: int, m: int, qp: str | None = "sparse") -> floa
     if qp == "condensed":
         fitted += 250.0 * (N * n) * (N * m)
     return max(fitted, need + qp_bytes(horizon, n, m, qp))
+
+
+def constrained_work(horizon: int, n: int, m: int, chance: int = 0) -> float:
+    """Work units (1e-6 s each) of one constrained program's compile and solve (qp/constrained.py) beyond its
+    fixed second: the polish's least squares on the active set's KKT matrix and the checks' dense products,
+    ``6.8e-4 (N m)^2 N (n + m) / 2``, and per chance row (N second-order cones whose data cvxpy maps per parameter
+    entry) ``0.65 N^3 m^2``. Measured (one BLAS thread, input box, a 2-core machine at load 5): n = m = 1, N = 3000
+    18.3 s (predicted 18.4), N = 2000 2.3-5.6 s (5.4); n = m = 2, N = 500 0.8 s (0.7); n = 4, m = 1, N = 1000 1.4 s
+    (1.7); n = 10, m = 3, N = 300 1.0 s (1.1); one chance row, n = m = 1, N = 300 17.5 s (17.6), N = 200 2.3 s
+    (5.2). O(1).
+
+    Examples
+    --------
+    >>> round(estimated_seconds("solve_work", constrained_work(3000, 1, 1)), 1)     # a scalar plant, N = 3000
+    18.4
+    """
+    N = _float(horizon)
+    return 6.8e-4 * (N * m) ** 2 * N * (n + m) / 2 + 0.65 * chance * N ** 3 * m * m
+
+
+def constrained_bytes(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> float:
+    """Bytes of one constrained program at its peak (qp/constrained.py): the plan's moment maps T, C and a plan's
+    spread, ``3 N^2 n m`` doubles; the ``rows`` linear rows as dense Jacobians, ``rows N m``; the polish's KKT
+    matrices (the Hessian, the active set's K and its least-squares copy), ``9 (N m)^2``; per chance row cvxpy's
+    parameter maps of its N cones, ``N^3 (60 m^2 + 40 n)`` bytes; and the sparse QP's own (`qp_bytes`). Measured
+    peak resident memory less the interpreter's 140 MB: n = m = 1, N = 3000, input box 560 MB (predicted 1.0 GB);
+    one chance row, N = 100 / 200 / 300 80 MB / 735 MB / 2.5 GB (predicted 0.11 / 0.83 / 2.8 GB); n = 1, m = 2,
+    N = 100 223 MB (0.29 GB); n = 4, m = 1, N = 100 224 MB (0.23 GB). O(1).
+
+    Examples
+    --------
+    >>> round(constrained_bytes(10 ** 5, 1, 1, 2 * 10 ** 5) / 2 ** 30)     # a horizon of 1e5: 1 TiB
+    1043
+    """
+    N = _float(horizon)
+    dense = 8.0 * (3.0 * N * N * n * m + _float(rows) * N * m + 9.0 * (N * m) ** 2)
+    return dense + chance * N ** 3 * (60.0 * m * m + 40.0 * n) + qp_bytes(horizon, n, m)
+
+
+def check_constrained(horizon: int, n: int, m: int, rows: int, chance: int, field: str, programs: int = 1,
+                      instead: str = "use a shorter horizon") -> None:
+    """Refuse, before anything is built, ``programs`` constrained programs (solved one after another) whose work
+    (`constrained_work`) exceeds the ``solve_work`` budget or one of which exceeds ``memory_bytes``
+    (`constrained_bytes`), under ``field`` (the API's ``horizon``, the file's ``cost.horizon``). O(1).
+
+    Examples
+    --------
+    >>> check_constrained(8, 1, 1, 16, 0, "cost.horizon")                 # silent
+    >>> check_constrained(10 ** 5, 1, 1, 2 * 10 ** 5, 0, "cost.horizon")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.BudgetError: cost.horizon: the constrained program of N = 100000 (n = 1, m = 1; ...
+    """
+    size = (f"the constrained program of N = {horizon} (n = {n}, m = {m}; {rows} linear rows"
+            + (f", {chance} chance rows" if chance else "") + ")" + (f" x {programs}" if programs > 1 else ""))
+    work = programs * constrained_work(horizon, n, m, chance)
+    check("solve_work", work, field, f"{size}, about {duration_text(estimated_seconds('solve_work', work))}",
+          instead=instead)
+    need = constrained_bytes(horizon, n, m, rows, chance)
+    check("memory_bytes", need, field, f"{size}, about {gib_text(need)} for one", instead=instead)
 
 
 def dense_bytes(horizon: int, n: int, m: int) -> float:

@@ -18,6 +18,7 @@ import numpy as np
 from ..budgets import (
     burstiness_work,
     check,
+    check_constrained,
     count_text,
     duration_text,
     estimated_seconds,
@@ -393,7 +394,7 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             check("sweep_work", burstiness_work(points, system.horizon, system.m, n=system.n), field,
                   f"{what} at N = {system.horizon}, m = {system.m}")
     if command == "solve":
-        check_solve(system_of(args), args)
+        check_solve(system_of(args), args, constraints_of(args, system_of(args)))
     if command == "simulate" and min(args.samples, args.steps) >= 1:
         system = system_of(args)
         laws = ("tcp", "udp", "dp") if args.law == "all" else (args.law,)
@@ -407,6 +408,9 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
         mpc_samples = getattr(args, "mpc_samples", 0)
         constraints = constraints_of(args, system) if isinstance(mpc_samples, int) and mpc_samples >= 1 else None
         if constraints is not None:
+            check_constrained(N := system.horizon, system.n, system.m, constraints.program_rows(N),
+                              len(constraints.chance), "cost.horizon",
+                              instead="use a shorter horizon, or --mpc-samples 0 to skip the constrained loop")
             programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
             clipped = 2 if args.law == "all" else 1          # the clipped law per protocol
             check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs, clipped), "--mpc-samples",
@@ -420,7 +424,7 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                   instead="use fewer runs (--mpc-samples) or steps (--steps)")
 
 
-def check_solve(system: System, args: argparse.Namespace) -> None:
+def check_solve(system: System, args: argparse.Namespace, constraints: Constraints | None = None) -> None:
     """``solve``'s horizon priced before the work: its time (``solve_work``, with or without the QP cross-check) and
     its memory (``memory_bytes``), each refused under the file's ``cost.horizon`` with the way out (``--no-qp``: the
     cross-check is 60 times the closed forms). O(1).
@@ -453,6 +457,9 @@ it on purpose set PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07
     check("memory_bytes", need, "cost.horizon", f"{size}{'' if qp is None else ' with the QP cross-check'} "
                                                f"(about {gib_text(need)})",
           instead="use a shorter horizon" if qp is None else "--no-qp skips the cross-check")
+    if constraints is not None and qp is not None:     # the [constraints] table's program, once per protocol
+        check_constrained(N, n, m, constraints.program_rows(N), len(constraints.chance), "cost.horizon", protocols,
+                          instead="use a shorter horizon, or --no-qp to skip the constrained program")
 
 
 def check_figure_format(path: str, field: str) -> None:

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..budgets import check, count_text, gib_text, mpc_bytes, mpc_solves
+from ..budgets import check, check_constrained, count_text, gib_text, mpc_bytes, mpc_solves
 from ..closedloop.moments import stationary_channel
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..lq.costs import closed_form
@@ -442,6 +442,9 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
                                              f"{gib_text(needed)} of paths and per-run records)",
           instead="use fewer runs or steps")
+    if programs:        # the programs' size, before any path is drawn (ConstrainedQP checks it again)
+        N = system.horizon
+        check_constrained(N, system.n, system.m, constraints.program_rows(N), len(constraints.chance), "horizon")
     twin = _twin(system)
     channel = "bernoulli" if system.channel is None else system.channel.form
     V, W = loop_paths(system, samples, steps, seed)

@@ -30,6 +30,7 @@ import scipy.linalg
 import scipy.sparse as sp
 from cvxpy.reductions.solution import Solution
 
+from ..budgets import check_constrained
 from ..errors import DimensionError, InfeasibleError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
 from ..lq.moments import Moments, plan_moments
@@ -196,6 +197,9 @@ class ConstrainedQP:
         self.system = system
         N, n, m = system.horizon, system.n, system.m
         self.constraints = check_constraints(constraints, n, m)
+        # the program's size priced before cvxpy sees it (budgets.py): the dense KKT work grows as N^3
+        check_constrained(N, n, m, self.constraints.program_rows(N), len(self.constraints.chance), "horizon",
+                          instead="use a shorter horizon")
         if formulation == "auto":
             formulation = "condensed" if N * m <= AUTO_CONDENSED_MAX else "sparse"
         if formulation not in ("condensed", "sparse"):

@@ -48,3 +48,21 @@ def test_the_constrained_loop_beyond_its_budget_is_refused_before_any_sampling(t
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
     assert "error: --mpc-samples:" in err[0] and "PACKETLOSS_CVX_BUDGET_MPC_SOLVES=" in err[0]
+
+
+def test_solve_refuses_a_constrained_program_beyond_its_budget_naming_the_horizon(tmp_path, capsys, monkeypatch):
+    """A horizon of 1e5 with an input box died in a MemoryError of 74.5 GiB after 26 s: refused before any work,
+    exit 2, one line naming cost.horizon; --no-qp (no constrained program) still solves."""
+    import packetloss_cvx.cli.solve as command
+
+    path = _scalar(tmp_path, horizon=100_000, a=0.9, u_min=[-1.0], u_max=[1.0])
+    real = command.closed_form
+    monkeypatch.setattr(command, "closed_form", lambda *a, **k: (_ for _ in ()).throw(AssertionError("solved")))
+    assert main(["solve", str(path), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "error: cost.horizon: the constrained program of N = 100000" in err[0]
+    assert "PACKETLOSS_CVX_BUDGET_SOLVE_WORK=" in err[0]
+    monkeypatch.setattr(command, "closed_form", real)
+    assert main(["solve", str(path), "--quiet", "--no-qp", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["tcp"]["constrained"]["status"] == "skipped"
