@@ -49,6 +49,7 @@ from ..tolerances import (
     CONSTRAINED_ATTEMPTS,
     CONSTRAINED_KKT_RTOL,
     CROSS_CHECK_COST_RTOL,
+    CROSS_CHECK_FLOOR,
 )
 from .convex import PROVEN_INFEASIBLE, ClarabelProgram, solve_problem
 
@@ -630,6 +631,34 @@ class ConstrainedQP:
         spread = base.C * u
         return Moments(free + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
 
+    def data_scale(self, system: System) -> tuple[float, float]:
+        """``(size, weight)``: the size of the states and inputs the problem's data speak of, the largest of max|x0|,
+        the noise's spread over the horizon ``sqrt(N ||Sigma_W||)``, every finite bound (a state row's ``|b| /
+        ||a||``, an input's or a rate's ``|b|``), and its largest weight (state, initial or input). `kkt` floors its
+        relative residuals at ``CROSS_CHECK_FLOOR`` of the cost ``weight size^2`` and of the slope ``weight size``
+        (a multiplier's and a gradient's units): below that a term is rounding. Zero ``size`` only where nothing is
+        bounded, x0 = 0 and there is no noise. O(n + m + rows).
+
+        Examples
+        --------
+        >>> s = System(A=[[1]], B=[[1]], horizon=4, state_weight=[3], input_weight=[1], mu=[0.5], x0=[0])
+        >>> ConstrainedQP(s, "tcp", Constraints(x_max=[2.0], u_min=[-0.5])).data_scale(s)
+        (2.0, 3.0)
+        """
+        c = self.constraints
+        sizes = [float(np.abs(system.x0).max(initial=0.0)),
+                 float(np.sqrt(system.horizon * np.linalg.norm(system.noise_cov, 2)))]
+        for values in (c.u_min, c.u_max, c.du_max, c.x_min, c.x_max, c.terminal_min, c.terminal_max):
+            if values is not None:
+                sizes.append(float(np.abs(values[np.isfinite(values)]).max(initial=0.0)))
+        for F, g in ((c.F, c.g), (c.terminal_F, c.terminal_g)):
+            if F is not None:
+                rows = np.isfinite(g)
+                sizes.append(float((np.abs(g[rows]) / np.linalg.norm(F[rows], axis=1)).max(initial=0.0)))
+        sizes += [abs(b) / float(np.linalg.norm(a)) for a, b, _ in c.chance]
+        weight = max(self.scale, float(np.linalg.eigvalsh(system.initial_weight).max(initial=0.0)))
+        return max(sizes), weight
+
     # ------------------------------------------------------------------------------------------------ the check
     def kkt(self, system: System, U: np.ndarray, multipliers: list[np.ndarray] | None = None,
             slacks: list[np.ndarray] | None = None) -> dict[str, Any]:
@@ -699,9 +728,14 @@ class ConstrainedQP:
         # the multipliers' work on the rows' excesses, over the objective the solver minimised (penalty included): the
         # scale of its duality gap, which no rescaling of a row changes
         objective = abs(J_var) + sum(self.constraints.soft_weight * float(np.sum(slack)) for slack in slacks)
-        comp = sum(float(np.sum(lam_abs * excess_abs)) for lam_abs, excess_abs in pairs) / max(objective, 1e-300)
-        stationarity = float(np.abs(total).max(initial=0.0)) / max(largest, 1e-300)
-        dual = dual / max(lam_max, 1e-300)
+        # each relative to its own size, floored at CROSS_CHECK_FLOOR of the problem's data (`data_scale`): at a state
+        # near zero the optimum is U = 0 and every term is rounding
+        size, weight = self.data_scale(system)
+        cost_floor, slope_floor = CROSS_CHECK_FLOOR * weight * size * size, CROSS_CHECK_FLOOR * weight * size
+        comp = sum(float(np.sum(lam_abs * excess_abs)) for lam_abs, excess_abs in pairs) / max(objective, cost_floor,
+                                                                                                1e-300)
+        stationarity = float(np.abs(total).max(initial=0.0)) / max(largest, slope_floor, 1e-300)
+        dual = dual / max(lam_max, slope_floor, 1e-300)
         parts = {"stationarity": stationarity, "primal": primal, "dual": dual, "complementarity": comp}
         worst = max(parts, key=parts.get)
         return {"residual": parts[worst], "worst": worst, **parts, "binding": binding, "violations": violations,

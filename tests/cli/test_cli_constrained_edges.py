@@ -47,7 +47,8 @@ def test_the_constrained_loop_beyond_its_budget_is_refused_before_any_sampling(t
     assert main(["simulate", str(path), "--quiet", *extra]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
-    assert "error: --mpc-samples:" in err[0] and "PACKETLOSS_CVX_BUDGET_MPC_SOLVES=" in err[0]
+    assert "error: --mpc-samples:" in err[0]
+    assert "PACKETLOSS_CVX_BUDGET_MPC_SOLVES=" in err[0]
 
 
 def test_solve_refuses_a_constrained_program_beyond_its_budget_naming_the_horizon(tmp_path, capsys, monkeypatch):
