@@ -64,7 +64,7 @@ def _violation(v: Frequency) -> str:
 
 def _run_lines(run: ControllerRun) -> list[str]:
     spread = f" +- {run.stderr:.3g}" if np.isfinite(run.stderr) else ""
-    lines = [f"    {LABELS[run.controller]}: mean stage cost {run.mean_stage_cost:.6g}{spread}"]
+    lines = [f"    {LABELS[run.controller]}: mean stage cost {run.mean_stage_cost:.6g}{spread} [basis: loop]"]
     if run.infeasible is not None:
         f = run.infeasible
         lines.append(f"      infeasible at {_percent(f.frequency)} of run-steps (runs {_percent(f.runs_with / f.runs)} "

@@ -33,6 +33,7 @@ from cvxpy.reductions.solution import Solution
 from ..budgets import check_constrained
 from ..errors import DimensionError, InfeasibleError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
+from ..lq.costs import expected_cost
 from ..lq.moments import Moments, plan_moments
 from ..lq.policy import refuse_correlated
 from ..lq.prediction import prediction
@@ -103,6 +104,13 @@ class ConstrainedSolution(Frozen):
     polished : bool
         Whether the plan is the solver's answer refined by Newton's method on its active set
         (`ConstrainedQP._polish`), kept only where its KKT residual is no larger than the solver's.
+    basis : str
+        What ``cost`` is (docs/design.md, "Cost bases"): ``"paper"`` for the TCP-like program (the paper's
+        first-moment J_tcp(U), which leaves out the loss variance a plan applied whatever the losses pays),
+        ``"realised"`` for the UDP-like one (J_udp(U) is the plan's exact expected cost).
+    plan_expected_cost : float or None
+        The plan's exact expected realised cost, J_udp(U) (`expected_cost`): ``cost`` itself for UDP-like, above it
+        for TCP-like by the loss variance; None where it is not resolved in double precision.
     """
 
     protocol: str
@@ -118,10 +126,13 @@ class ConstrainedSolution(Frozen):
     solve_time: float
     solver_kkt_residual: float | None = None
     polished: bool = False
+    basis: str = ""
+    plan_expected_cost: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON entry of ``solve --json`` ("constrained"; ``terminal_state`` is E[x_N] under the plan)."""
-        return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
+        return {"status": self.status, "cost": self.cost, "basis": self.basis,
+                "plan_expected_cost": finite_or_none(self.plan_expected_cost), "inputs": self.inputs.tolist(),
                 "terminal_state": self.states[-1].tolist(), "binding": list(self.binding),
                 "violations": [{"constraint": c, "by": v} for c, v in self.violations],
                 "kkt_residual": finite_or_none(self.kkt_residual),
@@ -448,8 +459,16 @@ class ConstrainedQP:
         if check and kkt is not None and not kkt <= CONSTRAINED_KKT_RTOL:
             raise NumericalError(f"{what}: the KKT residual of the solver's answer is {kkt:.2e} ({report['worst']}), "
                                  f"beyond {CONSTRAINED_KKT_RTOL:.0e}: the answer is not trusted")
+        if self.protocol == "udp":
+            realised: float | None = float(cost)
+        else:
+            try:
+                realised = expected_cost(system, U, "udp")
+            except NumericalError:
+                realised = None
         return ConstrainedSolution(
             protocol=self.protocol, status=status, cost=float(cost), inputs=U,
+            basis="paper" if self.protocol == "tcp" else "realised", plan_expected_cost=realised,
             states=self._moments(system, U).mean[1:], binding=tuple(report["binding"]),
             violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
             solver=self.solver, solve_time=solve_time, solver_kkt_residual=None if self._user_constraints

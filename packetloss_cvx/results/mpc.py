@@ -134,8 +134,8 @@ class ControllerRun(Frozen):
         return next(v for v in self.violations if v.name == name)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain numbers and lists. O(rows steps)."""
-        return {"controller": self.controller, "protocol": self.protocol,
+        """Plain numbers and lists; ``"basis": "loop"`` (the costs of a law run in closed loop). O(rows steps)."""
+        return {"controller": self.controller, "protocol": self.protocol, "basis": "loop",
                 "mean_stage_cost": finite_or_none(self.mean_stage_cost), "stderr": finite_or_none(self.stderr),
                 "stage_cost_mean": [finite_or_none(v) for v in self.stage_cost_mean],
                 "violations": {v.name: v.to_dict() for v in self.violations},

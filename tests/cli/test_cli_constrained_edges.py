@@ -67,3 +67,93 @@ def test_solve_refuses_a_constrained_program_beyond_its_budget_naming_the_horizo
     monkeypatch.setattr(command, "closed_form", real)
     assert main(["solve", str(path), "--quiet", "--no-qp", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["tcp"]["constrained"]["status"] == "skipped"
+
+
+def _enumerated_cost(a, b, q, r, x0, plan, pattern_probability):
+    """E[sum_k q x_k^2 + r (v_t u_t)^2], k = 1..N, t = 0..N-1, for x' = a x + b v u, by enumerating every delivery
+    pattern v in {0, 1}^N with its probability."""
+    N = len(plan)
+    total = 0.0
+    for bits in range(2 ** N):
+        v = [(bits >> t) & 1 for t in range(N)]
+        x, cost = x0, 0.0
+        for t in range(N):
+            applied = v[t] * plan[t]
+            x = a * x + b * applied
+            cost += q * x * x + r * applied * applied
+        total += pattern_probability(v) * cost
+    return total
+
+
+def test_the_constrained_costs_say_their_basis(tmp_path, capsys):
+    """The TCP-like J is the paper's first-moment value (mean recursion by hand) and leaves out the loss variance;
+    its plan's expected cost (enumerated over the 2^8 loss patterns) is reported beside it with basis "realised";
+    the UDP-like J is its plan's expected cost."""
+    path = _scalar(tmp_path, u_min=[-1.0], u_max=[1.0])
+    assert main(["solve", str(path), "--json", "--quiet"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    bernoulli = lambda v: float(np.prod([0.7 if d else 0.3 for d in v]))      # noqa: E731
+    for protocol, basis in (("tcp", "paper"), ("udp", "realised")):
+        entry = data[protocol]["constrained"]
+        plan = [row[0] for row in entry["inputs"]]
+        x, first_moment = 3.0, 0.0
+        for u in plan:
+            x = 1.2 * x + 0.7 * u
+            first_moment += x * x + 0.7 * u * u
+        enumerated = _enumerated_cost(1.2, 1.0, 1.0, 1.0, 3.0, plan, bernoulli)
+        assert entry["basis"] == basis
+        assert entry["plan_expected_cost"] == pytest.approx(enumerated, rel=1e-12)
+        assert entry["cost"] == pytest.approx(first_moment if protocol == "tcp" else enumerated, rel=1e-12)
+    assert data["tcp"]["constrained"]["cost"] < data["tcp"]["constrained"]["plan_expected_cost"] - 1.0
+    assert main(["solve", str(path), "--quiet"]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("constrained")]
+    assert "[basis: paper" in lines[0]
+    assert "[basis: realised]" in lines[0]
+    assert "[basis: realised" in lines[1]
+
+
+def test_behind_a_chain_the_constrained_block_is_the_plug_in_program_with_its_cost_under_the_chain(tmp_path,
+                                                                                                     capsys):
+    """The API refuses a chain (correlated losses); the command line solves the plug-in program (Bernoulli losses at
+    the chain's mu_t), says so, and reports its plan's exact expected cost under the chain: enumerated over the
+    2^10 delivery patterns with their probabilities under the Gilbert-Elliott chain (HMM forward pass)."""
+    text = ('name = "hid"\n[plant]\nA = [[1.3]]\nB = [[0.8]]\n[cost]\nhorizon = 10\nstate_weight = [1.5]\n'
+            'input_weight = [0.7]\n[channel]\nmodel = "gilbert-elliott"\np = [0.1]\nr = [0.3]\nh_good = [0.95]\n'
+            'h_bad = [0.1]\n[state]\nx0 = [2.0]\n[constraints]\nu_min = [-1.0]\nu_max = [1.0]\nx_max = [3.0]\n')
+    path = tmp_path / "hid.toml"
+    path.write_text(text)
+    P, h, start = np.array([[0.9, 0.1], [0.3, 0.7]]), np.array([0.95, 0.1]), np.array([0.75, 0.25])
+
+    def chain(v):
+        belief = start.copy()
+        for d in v:
+            belief = (belief * (h if d else 1.0 - h)) @ P
+        return float(belief.sum())
+
+    assert main(["solve", str(path), "--json", "--quiet"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    for protocol in ("tcp", "udp"):
+        entry = data[protocol]["constrained"]
+        assert entry["plug_in"] is True
+        assert entry["basis"] == "paper, prior-mean rates"
+        plan = [row[0] for row in entry["inputs"]]
+        assert entry["plan_expected_cost"] == pytest.approx(_enumerated_cost(1.3, 0.8, 1.5, 0.7, 2.0, plan, chain),
+                                                            rel=1e-10)
+    assert data["udp"]["constrained"]["plan_expected_cost"] > 1.5 * data["udp"]["constrained"]["cost"]
+    assert main(["solve", str(path), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "the plug-in program" in out
+    assert "its plan's expected cost under the chain" in out
+
+
+def test_the_text_says_which_soft_rows_the_plan_violates(tmp_path, capsys):
+    """A soft state limit the plan breaks (slack > 0) is printed as violated, by how much, not as binding."""
+    path = _scalar(tmp_path, x_max=[0.1], soft=True, soft_weight=1e-3)
+    assert main(["solve", str(path), "--json", "--quiet"]) == 0
+    violations = json.loads(capsys.readouterr().out)["tcp"]["constrained"]["violations"]
+    assert [v["constraint"] for v in violations][:2] == ["x_max[0] at k=1", "x_max[0] at k=2"]
+    assert main(["solve", str(path), "--quiet"]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("constrained"))
+    shown = ", ".join(f"{v['constraint']} by {v['by']:.3g}" for v in violations)
+    assert f"soft rows violated: {shown}" in line
+    assert "binding: none" in line
