@@ -64,7 +64,13 @@ def _violation(v: Frequency) -> str:
 
 def _run_lines(run: ControllerRun) -> list[str]:
     spread = f" +- {run.stderr:.3g}" if np.isfinite(run.stderr) else ""
-    lines = [f"    {LABELS[run.controller]}: mean stage cost {run.mean_stage_cost:.6g}{spread} [basis: loop]"]
+    if run.diverged_runs:
+        runs = run.violations[0].runs if run.violations else None
+        of = f" of {runs}" if runs else ""
+        lines = [f"    {LABELS[run.controller]}: mean stage cost inf [basis: loop]: the loop diverged (the state left "
+                 f"the double-precision range) in {run.diverged_runs}{of} runs"]
+    else:
+        lines = [f"    {LABELS[run.controller]}: mean stage cost {run.mean_stage_cost:.6g}{spread} [basis: loop]"]
     if run.infeasible is not None:
         f = run.infeasible
         lines.append(f"      infeasible at {_percent(f.frequency)} of run-steps (runs {_percent(f.runs_with / f.runs)} "

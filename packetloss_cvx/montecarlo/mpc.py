@@ -263,40 +263,48 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
     stage = np.empty((samples, steps))
     states, commands = np.empty((keep, steps + 1, n)), np.empty((keep, steps, m))
     states[:, 0] = X[:keep]
-    for t in range(steps):
-        if controller == "clipped":
-            K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains, (samples, m, n))
-            u = np.clip(-np.einsum("smn,sn->sm", K, X), np.maximum(lo, previous - rate),
-                        np.minimum(hi, previous + rate))
-        else:
-            u = np.empty((samples, m))
-            for s in range(samples):
-                if not np.all(np.isfinite(X[s])):
-                    raise NumericalError(f"the {controller} loop's state left the double-precision range at step {t}")
-                mu = None if controller == "certainty-equivalent" else beliefs.schedule(s)
-                plan, outcome, used = program.plan(mu, X[s], previous[s])
-                infeasible[s, t] = outcome in ("fallback", "infeasible-failed")
-                slack += used
-                if plan is None:
-                    failed += 1
-                    age[s] += 1
-                    u[s] = plans[s, age[s]] if age[s] < N else 0.0
-                else:
-                    fallback += outcome == "fallback"
-                    plans[s], age[s] = plan, 0
-                    u[s] = plan[0]
-        applied = V[t] * u
-        stage[:, t] = np.einsum("si,ij,sj->s", X, Omega, X) + applied ** 2 @ psi
-        X_next = X @ A.T + applied @ B.T
-        if W is not None:
-            X_next += W[t]
-        for name, kind, data, _ in rows:
-            flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
-        states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
-        X, previous = X_next, u
-        beliefs.update(V[t])
+    # a run whose stage cost or state leaves the double range has diverged: a result, as simulate's loops report it
+    # (inf cost, no warning), for every controller alike; its programs are not solved again
+    diverged = np.zeros(samples, dtype=bool)
+    state_rows = [name for name, kind, _, _ in rows if kind in ("x_max", "x_min", "F", "chance")]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps):
+            if controller == "clipped":
+                K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains,
+                                                                                                  (samples, m, n))
+                u = np.clip(-np.einsum("smn,sn->sm", K, X), np.maximum(lo, previous - rate),
+                            np.minimum(hi, previous + rate))
+            else:
+                u = np.zeros((samples, m))
+                for s in np.flatnonzero(~diverged):
+                    mu = None if controller == "certainty-equivalent" else beliefs.schedule(s)
+                    plan, outcome, used = program.plan(mu, X[s], previous[s])
+                    infeasible[s, t] = outcome in ("fallback", "infeasible-failed")
+                    slack += used
+                    if plan is None:
+                        failed += 1
+                        age[s] += 1
+                        u[s] = plans[s, age[s]] if age[s] < N else 0.0
+                    else:
+                        fallback += outcome == "fallback"
+                        plans[s], age[s] = plan, 0
+                        u[s] = plan[0]
+            applied = V[t] * u
+            stage[:, t] = np.einsum("si,ij,sj->s", X, Omega, X) + applied ** 2 @ psi
+            X_next = X @ A.T + applied @ B.T
+            if W is not None:
+                X_next += W[t]
+            diverged |= ~np.isfinite(stage[:, t]) | ~np.all(np.isfinite(X_next), axis=1)
+            stage[diverged, t] = np.inf
+            for name, kind, data, _ in rows:
+                flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
+            for name in state_rows:                      # a diverged state has left every limit
+                flags[name][diverged, t] = True
+            states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
+            X, previous = X_next, u
+            beliefs.update(V[t])
     return {"stage": stage, "flags": flags, "infeasible": infeasible, "fallback": fallback, "failed": failed,
-            "slack": slack, "states": states, "inputs": commands}
+            "slack": slack, "diverged": diverged, "states": states, "inputs": commands}
 
 
 def _assemble(constraints: Constraints, n: int, m: int, controller: str, protocol: str,
@@ -305,16 +313,19 @@ def _assemble(constraints: Constraints, n: int, m: int, controller: str, protoco
     trajectories kept). O(samples steps)."""
     rows = _rows(constraints, n, m)
     stage = np.concatenate([part["stage"] for part in parts])
-    mean, stderr = sample_stats(stage.mean(axis=1))
+    with np.errstate(over="ignore", invalid="ignore"):       # a diverged run's cost is inf, as simulate's
+        mean, stderr = sample_stats(stage.mean(axis=1))
+        profile = stage.mean(axis=0)
     flags = {name: np.concatenate([part["flags"][name] for part in parts]) for name, *_ in rows}
     infeasible = np.concatenate([part["infeasible"] for part in parts])
     return ControllerRun(
         controller=controller, protocol=protocol, mean_stage_cost=mean, stderr=stderr,
-        stage_cost_mean=stage.mean(axis=0),
+        stage_cost_mean=profile,
         violations=tuple(frequency(name, flags[name], allowed) for name, _, _, allowed in rows),
         infeasible=None if controller == "clipped" else frequency("infeasible", infeasible),
         fallback_steps=sum(part["fallback"] for part in parts), failed_steps=sum(part["failed"] for part in parts),
         slack_steps=sum(part["slack"] for part in parts), action=INFEASIBLE_ACTION,
+        diverged_runs=int(sum(part["diverged"].sum() for part in parts)),
         states=np.concatenate([part["states"] for part in parts]) if keep else None,
         inputs=np.concatenate([part["inputs"] for part in parts]) if keep else None)
 
@@ -391,11 +402,13 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
         More program solves than the ``mpc_solves`` budget (`mpc_solves`; the clipped laws' run-steps at their
         measured share of a solve), or arrays beyond the ``memory_bytes`` budget (`mpc_bytes`), before any path is
         drawn.
-    NumericalError
-        A loop's state beyond the double-precision range.
 
     Notes
     -----
+    A loop that diverges (a run's stage cost or state beyond the double range) is a result, as `simulate`'s loops
+    report one: that controller's ``mean_stage_cost`` is inf (null in JSON), ``diverged_runs`` counts the runs, no
+    warning is printed and its programs are not solved again in those runs.
+
     Time O(controllers samples steps) solves of the program (about 5 ms each at n = 2, N = 8), plus
     O(samples steps n (n + m)) for the clipped law. Threads share one interpreter: the solves' Python side (the
     KKT check, the polish, cvxpy's unpacking) holds the GIL, so threads gain little; Dask's worker processes do.

@@ -113,6 +113,9 @@ class ControllerRun(Frozen):
         were kept.
     inputs : ndarray (keep, steps, m) or None
         The inputs those runs commanded (what the actuator applied is ``inputs * MPCSimulation.delivered``).
+    diverged_runs : int
+        Runs whose stage cost or state left the double range (the loop diverged: a result, as in `simulate`); with
+        any, ``mean_stage_cost`` is inf (null in JSON).
     """
 
     controller: str
@@ -128,6 +131,7 @@ class ControllerRun(Frozen):
     action: str
     states: np.ndarray | None = None
     inputs: np.ndarray | None = None
+    diverged_runs: int = 0
 
     def violation(self, name: str) -> Frequency:
         """The `Frequency` of the constraint row ``name``."""
@@ -141,7 +145,7 @@ class ControllerRun(Frozen):
                 "violations": {v.name: v.to_dict() for v in self.violations},
                 "infeasible": None if self.infeasible is None else self.infeasible.to_dict(),
                 "fallback_steps": self.fallback_steps, "failed_steps": self.failed_steps,
-                "slack_steps": self.slack_steps, "action": self.action}
+                "slack_steps": self.slack_steps, "diverged_runs": self.diverged_runs, "action": self.action}
 
 
 @dataclass(frozen=True)

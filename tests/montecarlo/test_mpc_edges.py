@@ -58,3 +58,25 @@ def test_certainty_equivalent_mpc_keeps_an_answer_as_the_state_decays():
     assert run.failed_steps == 0
     assert run.fallback_steps == 0
     assert np.abs(run.states[:, -1]).max() < CROSS_CHECK_FLOOR * 2.0      # zero to the data's size (x_max = 2)
+
+
+@pytest.mark.parametrize("controller", mpc.CONTROLLERS)
+def test_a_diverging_loop_is_a_result_for_every_controller(controller):
+    """x' = 2 x + v u from x0 = 3 with |u| <= 0.1: |x_{t+1}| >= 2 |x_t| - 0.1 >= |x_t| + 2.9, so |x_t| >= 3 2^t - 0.1
+    (2^t - 1) by hand, beyond the double range before step 1030, in every run and under every controller. As
+    simulate's loops report a diverging law: an infinite mean stage cost (null in JSON), no warning, no exception;
+    the clipped law returned inf/NaN with overflow warnings, the programs raised."""
+    import json
+    import warnings
+
+    s = System(A=[[2.0]], B=[[1.0]], horizon=5, state_weight=[1.0], input_weight=[1.0], mu=[0.7], x0=[3.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim = mpc.simulate_mpc(s, Constraints(u_min=[-0.1], u_max=[0.1]), samples=4, steps=1100,
+                               controllers=[controller], protocols=["tcp"], progress=False)
+    run = sim.runs["tcp"][controller]
+    assert run.diverged_runs == 4
+    assert run.mean_stage_cost == np.inf
+    entry = json.loads(json.dumps(run.to_dict(), allow_nan=False))
+    assert entry["mean_stage_cost"] is None
+    assert entry["diverged_runs"] == 4
