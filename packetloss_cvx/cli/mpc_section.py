@@ -33,7 +33,8 @@ def constrained_loop_section(system: System, constraints: Constraints, protocols
         Named after the flag (``--mpc-samples``, ``--steps``, ``--seed``, ``--threads``, ``--dask``, ``--workers``).
     """
     flags = {"samples": "--mpc-samples", "steps": "--steps", "seed": "--seed", "threads": "--threads",
-             "dask": "--dask", "workers": "--workers"}
+             "dask": "--dask", "workers": "--workers", "mu_schedule": "--mu-schedule",
+             "state_weights": "cost.state_weights", "input_weights": "cost.input_weights"}
     try:
         if dask is None:
             sim = simulate_mpc(system, constraints, samples, steps, seed, protocols=protocols, progress=progress,

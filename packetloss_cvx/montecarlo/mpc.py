@@ -61,7 +61,7 @@ from ..tolerances import CONSTRAINED_ACTIVE_RTOL
 from .channels import sample_delivery_paths, sample_noise_paths
 from .markov_channels import sample_markov_paths
 from .markov_loop import BeliefGains
-from .runs import check_count, run_blocks, sample_stats
+from .runs import check_count, check_loop_weights, run_blocks, sample_stats
 
 __all__ = ["CHUNK", "CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "TASK_CHUNKS", "loop_paths", "loop_task",
            "simulate_mpc", "wilson_interval"]
@@ -397,6 +397,7 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     ------
     InputError
         A count below its minimum, an unknown protocol or controller, a non-stationary Bernoulli schedule,
+        time-varying weights (``state_weights``, ``input_weights``: the loop's stage cost needs one weight a step),
         constraints that do not fit the system, ``threads`` below 1 or ``dask`` without ``submit``.
     BudgetError
         More program solves than the ``mpc_solves`` budget (`mpc_solves`; the clipped laws' run-steps at their
@@ -424,6 +425,7 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     [0, 0, 0]
     """
     system = check_system(system)
+    check_loop_weights(system)
     constraints = check_constraints(constraints, system.n, system.m)
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
     seed = check_count(seed, "seed", 0)

@@ -157,3 +157,37 @@ def test_the_text_says_which_soft_rows_the_plan_violates(tmp_path, capsys):
     shown = ", ".join(f"{v['constraint']} by {v['by']:.3g}" for v in violations)
     assert f"soft rows violated: {shown}" in line
     assert "binding: none" in line
+
+
+@pytest.mark.parametrize(("extra", "field"), [
+    (["--mu-schedule", "SCHEDULE"], "--mu-schedule"),
+    (["--weights"], "cost.state_weights"),
+])
+def test_what_the_constrained_loop_cannot_run_is_refused_before_the_open_loop(tmp_path, capsys, monkeypatch, extra,
+                                                                              field):
+    """A non-stationary --mu-schedule (the loop runs for ever over one channel: it said "mu_schedule: the closed loop
+    runs for ever", naming neither the flag nor the way out) and time-varying weights (the loop's stage cost used the
+    first weight): exit 2, one line naming the flag or key and --mpc-samples 0 for the schedule, before any
+    sampling; with --mpc-samples 0 the open loop runs."""
+    import packetloss_cvx.cli.simulate as command
+
+    path = _scalar(tmp_path, u_min=[-1.0], u_max=[1.0])
+    if extra == ["--weights"]:
+        text = path.read_text().replace("state_weight = [1.0]", "state_weights = [" + ", ".join(
+            ["[1.0]"] * 4 + ["[5.0]"] * 4) + "]")
+        path.write_text(text)
+        extra = []
+    else:
+        schedule = tmp_path / "schedule.csv"
+        schedule.write_text("\n".join(["0.5", "0.6", "0.7", "0.8", "0.9", "0.5", "0.5", "0.5"]) + "\n")
+        extra = ["--mu-schedule", str(schedule)]
+    real = command.simulate
+    monkeypatch.setattr(command, "simulate", lambda *a, **k: (_ for _ in ()).throw(AssertionError("sampled")))
+    assert main(["simulate", str(path), "--quiet", "--samples", "10", *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert f"error: {field}:" in err[0]
+    if field == "--mu-schedule":
+        assert "--mpc-samples 0" in err[0]
+    monkeypatch.setattr(command, "simulate", real)
+    assert main(["simulate", str(path), "--quiet", "--samples", "10", "--mpc-samples", "0", *extra]) == 0

@@ -80,3 +80,18 @@ def test_a_diverging_loop_is_a_result_for_every_controller(controller):
     entry = json.loads(json.dumps(run.to_dict(), allow_nan=False))
     assert entry["mean_stage_cost"] is None
     assert entry["diverged_runs"] == 4
+
+
+def test_time_varying_weights_are_refused_naming_them(no_paths):
+    """The loop's stage cost used state_weights[0] at every step, silently: a plan's weights speak of its own steps,
+    not of a loop that runs past the horizon."""
+    from packetloss_cvx.errors import InputError
+
+    s = _scalar(state_weight=None, state_weights=[[1.0]] * 4 + [[5.0]] * 4)
+    with pytest.raises(InputError) as caught:
+        mpc.simulate_mpc(s, BOX, samples=2, steps=3, progress=False)
+    assert caught.value.field == "state_weights"
+    s = _scalar(input_weight=None, input_weights=[[1.0]] * 4 + [[5.0]] * 4)
+    with pytest.raises(InputError) as caught:
+        mpc.simulate_mpc(s, BOX, samples=2, steps=3, progress=False)
+    assert caught.value.field == "input_weights"
