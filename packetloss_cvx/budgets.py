@@ -11,7 +11,7 @@ so it works the same for the command line and the API.
 The work formulas (`simulate_work`, `sweep_work`, `burstiness_work`, `solve_work`,
 `qp_work`, `markov_recursion_work`, `markov_dense_seconds`, `udp_box_work`) and the memory
 formulas (`solve_bytes`, `dense_bytes`, `markov_dense_bytes`, `qp_bytes`,
-`operator_bytes`, `krylov_bytes`, `loop_bytes`, `constraint_bytes`, checked against the
+`operator_bytes`, `krylov_bytes`, `loop_bytes`, `mpc_bytes`, `constraint_bytes`, checked against the
 ``memory_bytes`` budget; `program_bytes`, what a cache is charged) live here once; the API and the command
 line's preflight both call them. Every refusal is `check`'s one line (what was asked, the budget, what to use
 instead, the variable that raises it), a BudgetError (a ValueError): the command line exits 2. Imports nothing
@@ -28,10 +28,11 @@ from dataclasses import dataclass
 from .errors import BudgetError, InputError
 from .tolerances import MEMORY_BUDGET_BYTES
 
-__all__ = ["BUDGETS", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "OVERRIDE_REACH", "PROGRAM_BYTES_PER_ENTRY", "Budget",
-           "burstiness_work", "check", "constraint_bytes", "count_text", "dense_bytes", "duration_text",
-           "estimated_seconds", "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes",
-           "markov_dense_seconds", "markov_recursion_work", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
+__all__ = ["BUDGETS", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "OVERRIDE_REACH",
+           "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work", "check", "check_constrained", "constrained_bytes",
+           "constrained_work", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds",
+           "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds",
+           "markov_recursion_work", "mpc_bytes", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
            "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
@@ -237,16 +238,40 @@ def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans:
     return _float(samples) * (float(horizon) * plans + _float(steps) * laws) * n * (n + m)
 
 
-def mpc_solves(samples: int, steps: int, programs: int) -> float:
-    """Program solves of the constrained loop: ``samples steps programs`` (a controller with a program solves it
-    once per run and step; the soft twin's solves, on infeasible steps only, come on top).
+#: What a run-step of the clipped law costs in the constrained loop, in program solves: 9.5 us (two_actuator, chunks of
+#: 8 runs, one BLAS thread: 9.9 us at 800 x 100, 9.2 at 1600 x 200) beside the budget's 5 ms a solve.
+CLIPPED_SOLVE_SHARE = 2e-3
+
+
+def mpc_solves(samples: int, steps: int, programs: int, clipped: int = 0) -> float:
+    """Program solves of the constrained loop: ``samples steps (programs + CLIPPED_SOLVE_SHARE clipped)`` (a
+    controller with a program solves it once per run and step; the soft twin's solves, on infeasible steps only,
+    come on top; the ``clipped`` laws' run-steps, which solve nothing, priced at their measured share of a solve).
 
     Examples
     --------
     >>> mpc_solves(100, 30, 3)
     9000.0
+    >>> mpc_solves(10 ** 9, 30, 0, clipped=1)          # the clipped law alone: 3e10 run-steps, 80 h
+    60000000.0
     """
-    return _float(samples) * _float(steps) * programs
+    return _float(samples) * _float(steps) * (programs + CLIPPED_SOLVE_SHARE * clipped)
+
+
+def mpc_bytes(samples: int, steps: int, n: int, m: int, jobs: int, rows: int, keep: int = 0) -> float:
+    """Bytes of the constrained loop's arrays (montecarlo/mpc.py): the paths as drawn per block and joined
+    (deliveries a byte an entry, noise 8 n), ``2 samples steps (m + 8 n)``; per job (controller and protocol) its
+    stage costs, violation flags of ``rows`` rows and infeasibility flags, in chunks and joined, ``2 samples steps
+    (9 + rows)``; the ``keep`` kept runs' states and commands, ``16 jobs keep (steps + 1) (n + m)``. O(1).
+
+    Examples
+    --------
+    >>> round(mpc_bytes(10 ** 9, 30, 1, 1, 2, 2) / 2 ** 40, 2)      # a billion runs of the clipped law: TiB
+    1.69
+    """
+    S, T = _float(samples), _float(steps)
+    return (2.0 * S * T * (m + 8.0 * n) + 2.0 * jobs * S * T * (9.0 + rows)
+            + 16.0 * jobs * _float(keep) * (T + 1.0) * (n + m))
 
 
 def sweep_work(horizons: Iterable[int], n: int, m: int, protocols: int, stability: bool = False,
@@ -399,6 +424,66 @@ def solve_bytes(horizon: int, n: int, m: int, qp: str | None = "sparse") -> floa
     if qp == "condensed":
         fitted += 250.0 * (N * n) * (N * m)
     return max(fitted, need + qp_bytes(horizon, n, m, qp))
+
+
+def constrained_work(horizon: int, n: int, m: int, chance: int = 0) -> float:
+    """Work units (1e-6 s each) of one constrained program's compile and solve (qp/constrained.py) beyond its
+    fixed second: the polish's least squares on the active set's KKT matrix and the checks' dense products,
+    ``6.8e-4 (N m)^2 N (n + m) / 2``, and per chance row (N second-order cones whose data cvxpy maps per parameter
+    entry) ``0.65 N^3 m^2``. Measured (one BLAS thread, input box, a 2-core machine at load 5): n = m = 1, N = 3000
+    18.3 s (predicted 18.4), N = 2000 2.3-5.6 s (5.4); n = m = 2, N = 500 0.8 s (0.7); n = 4, m = 1, N = 1000 1.4 s
+    (1.7); n = 10, m = 3, N = 300 1.0 s (1.1); one chance row, n = m = 1, N = 300 17.5 s (17.6), N = 200 2.3 s
+    (5.2). O(1).
+
+    Examples
+    --------
+    >>> round(estimated_seconds("solve_work", constrained_work(3000, 1, 1)), 1)     # a scalar plant, N = 3000
+    18.4
+    """
+    N = _float(horizon)
+    return 6.8e-4 * (N * m) ** 2 * N * (n + m) / 2 + 0.65 * chance * N ** 3 * m * m
+
+
+def constrained_bytes(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> float:
+    """Bytes of one constrained program at its peak (qp/constrained.py): the plan's moment maps T, C and a plan's
+    spread, ``3 N^2 n m`` doubles; the ``rows`` linear rows as dense Jacobians, ``rows N m``; the polish's KKT
+    matrices (the Hessian, the active set's K and its least-squares copy), ``9 (N m)^2``; per chance row cvxpy's
+    parameter maps of its N cones, ``N^3 (60 m^2 + 40 n)`` bytes; and the sparse QP's own (`qp_bytes`). Measured
+    peak resident memory less the interpreter's 140 MB: n = m = 1, N = 3000, input box 560 MB (predicted 1.0 GB);
+    one chance row, N = 100 / 200 / 300 80 MB / 735 MB / 2.5 GB (predicted 0.11 / 0.83 / 2.8 GB); n = 1, m = 2,
+    N = 100 223 MB (0.29 GB); n = 4, m = 1, N = 100 224 MB (0.23 GB). O(1).
+
+    Examples
+    --------
+    >>> round(constrained_bytes(10 ** 5, 1, 1, 2 * 10 ** 5) / 2 ** 30)     # a horizon of 1e5: 1 TiB
+    1043
+    """
+    N = _float(horizon)
+    dense = 8.0 * (3.0 * N * N * n * m + _float(rows) * N * m + 9.0 * (N * m) ** 2)
+    return dense + chance * N ** 3 * (60.0 * m * m + 40.0 * n) + qp_bytes(horizon, n, m)
+
+
+def check_constrained(horizon: int, n: int, m: int, rows: int, chance: int, field: str, programs: int = 1,
+                      instead: str = "use a shorter horizon") -> None:
+    """Refuse, before anything is built, ``programs`` constrained programs (solved one after another) whose work
+    (`constrained_work`) exceeds the ``solve_work`` budget or one of which exceeds ``memory_bytes``
+    (`constrained_bytes`), under ``field`` (the API's ``horizon``, the file's ``cost.horizon``). O(1).
+
+    Examples
+    --------
+    >>> check_constrained(8, 1, 1, 16, 0, "cost.horizon")                 # silent
+    >>> check_constrained(10 ** 5, 1, 1, 2 * 10 ** 5, 0, "cost.horizon")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.BudgetError: cost.horizon: the constrained program of N = 100000 (n = 1, m = 1; ...
+    """
+    size = (f"the constrained program of N = {horizon} (n = {n}, m = {m}; {rows} linear rows"
+            + (f", {chance} chance rows" if chance else "") + ")" + (f" x {programs}" if programs > 1 else ""))
+    work = programs * constrained_work(horizon, n, m, chance)
+    check("solve_work", work, field, f"{size}, about {duration_text(estimated_seconds('solve_work', work))}",
+          instead=instead)
+    need = constrained_bytes(horizon, n, m, rows, chance)
+    check("memory_bytes", need, field, f"{size}, about {gib_text(need)} for one", instead=instead)
 
 
 def dense_bytes(horizon: int, n: int, m: int) -> float:

@@ -69,6 +69,10 @@ CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, 
 #: root of the gap): 1e-9 refuses an answer the polish could not make exact rather than pass it. On 240 random
 #: systems (n, m <= 4, N <= 11, input/rate/state/chance rows, a third soft): 153 optimal (KKT <= 7.3e-11, the one
 #: unpolished answer at a chance row's kink), 87 proven infeasible (each soft twin reports a violation), none refused.
+#: Each residual is relative to its own terms' size, floored at CROSS_CHECK_FLOOR of the problem's data
+#: (ConstrainedQP.data_scale: the cost weight size^2, the slope weight size, size the largest of max|x0|, the noise's
+#: spread and the finite bounds): near x0 = 0 every term is rounding of zero, and the unfloored ratios were O(1)
+#: (two_actuator, x_max = 2, x0 = 0 or 1e-100: "1.49 (stationarity)", the plan U = 0 refused).
 CONSTRAINED_KKT_RTOL = 1e-9
 #: A constraint is reported binding when g(U) >= -CONSTRAINED_ACTIVE_RTOL max(1, |b|) (Clarabel's tight feasibility
 #: tolerance 1e-10 with a margin), and a soft row violated when its slack exceeds the same.

@@ -18,10 +18,12 @@ import numpy as np
 from ..budgets import (
     burstiness_work,
     check,
+    check_constrained,
     count_text,
     duration_text,
     estimated_seconds,
     gib_text,
+    mpc_bytes,
     mpc_solves,
     simulate_work,
     solve_bytes,
@@ -403,7 +405,7 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             check("sweep_work", burstiness_work(points, system.horizon, system.m, n=system.n), field,
                   f"{what} at N = {system.horizon}, m = {system.m}")
     if command == "solve":
-        check_solve(system_of(args), args)
+        check_solve(system_of(args), args, constraints_of(args, system_of(args)))
     if command == "simulate" and min(args.samples, args.steps) >= 1:
         system = system_of(args)
         laws = ("tcp", "udp", "dp") if args.law == "all" else (args.law,)
@@ -415,11 +417,22 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
                            f"(--samples x (N x {plans} plans + --steps x {loops} loops) x n (n + m), "
                            f"n = {system.n}, m = {system.m}, N = {system.horizon})")
         mpc_samples = mpc_samples_of(args)
-        if mpc_samples >= 1 and constraints_of(args, system) is not None:
+        constraints = constraints_of(args, system) if mpc_samples >= 1 else None
+        if constraints is not None:
+            check_constrained(N := system.horizon, system.n, system.m, constraints.program_rows(N),
+                              len(constraints.chance), "cost.horizon",
+                              instead="use a shorter horizon, or --mpc-samples 0 to skip the constrained loop")
             programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
-            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs), "--mpc-samples",
+            clipped = 2 if args.law == "all" else 1          # the clipped law per protocol
+            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs, clipped), "--mpc-samples",
                   f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
                   "(the constrained loop)")
+            rows = constraints.loop_rows()
+            needed = mpc_bytes(mpc_samples, args.steps, system.n, system.m, programs + clipped, rows)
+            check("memory_bytes", needed, "--mpc-samples", f"{count_text(mpc_samples)} runs of "
+                                                           f"{count_text(args.steps)} steps of the constrained loop "
+                                                           f"(about {gib_text(needed)})",
+                  instead="use fewer runs (--mpc-samples) or steps (--steps)")
 
 
 def mpc_samples_of(args: argparse.Namespace) -> int:
@@ -466,7 +479,7 @@ def check_dead_flags(args: argparse.Namespace) -> None:
                                               "constrained loop to sample")
 
 
-def check_solve(system: System, args: argparse.Namespace) -> None:
+def check_solve(system: System, args: argparse.Namespace, constraints: Constraints | None = None) -> None:
     """``solve``'s horizon priced before the work: its time (``solve_work``, with or without the QP cross-check) and
     its memory (``memory_bytes``), each refused under the file's ``cost.horizon`` with the way out (``--no-qp``: the
     cross-check is 60 times the closed forms). O(1).
@@ -499,6 +512,9 @@ it on purpose set PACKETLOSS_CVX_BUDGET_SOLVE_WORK=6.22e+07
     check("memory_bytes", need, "cost.horizon", f"{size}{'' if qp is None else ' with the QP cross-check'} "
                                                f"(about {gib_text(need)})",
           instead="use a shorter horizon" if qp is None else "--no-qp skips the cross-check")
+    if constraints is not None and qp is not None:     # the [constraints] table's program, once per protocol
+        check_constrained(N, n, m, constraints.program_rows(N), len(constraints.chance), "cost.horizon", protocols,
+                          instead="use a shorter horizon, or --no-qp to skip the constrained program")
 
 
 def check_figure_format(path: str, field: str) -> None:

@@ -33,7 +33,8 @@ def constrained_loop_section(system: System, constraints: Constraints, protocols
         Named after the flag (``--mpc-samples``, ``--steps``, ``--seed``, ``--threads``, ``--dask``, ``--workers``).
     """
     flags = {"samples": "--mpc-samples", "steps": "--steps", "seed": "--seed", "threads": "--threads",
-             "dask": "--dask", "workers": "--workers"}
+             "dask": "--dask", "workers": "--workers", "mu_schedule": "--mu-schedule",
+             "state_weights": "cost.state_weights", "input_weights": "cost.input_weights"}
     try:
         if dask is None:
             sim = simulate_mpc(system, constraints, samples, steps, seed, protocols=protocols, progress=progress,
@@ -64,7 +65,13 @@ def _violation(v: Frequency) -> str:
 
 def _run_lines(run: ControllerRun) -> list[str]:
     spread = f" +- {run.stderr:.3g}" if np.isfinite(run.stderr) else ""
-    lines = [f"    {LABELS[run.controller]}: mean stage cost {run.mean_stage_cost:.6g}{spread}"]
+    if run.diverged_runs:
+        runs = run.violations[0].runs if run.violations else None
+        of = f" of {runs}" if runs else ""
+        lines = [f"    {LABELS[run.controller]}: mean stage cost inf [basis: loop]: the loop diverged (the state left "
+                 f"the double-precision range) in {run.diverged_runs}{of} runs"]
+    else:
+        lines = [f"    {LABELS[run.controller]}: mean stage cost {run.mean_stage_cost:.6g}{spread} [basis: loop]"]
     if run.infeasible is not None:
         f = run.infeasible
         lines.append(f"      infeasible at {_percent(f.frequency)} of run-steps (runs {_percent(f.runs_with / f.runs)} "

@@ -12,6 +12,7 @@ from ..closedloop.law_stability import STABILITY_MAX_N, loop_stability
 from ..display import SOLUTION_BASIS, all_delivered_flag
 from ..errors import InfeasibleError, NumericalError, ResourceError, SolverError
 from ..lq.costs import closed_form
+from ..lq.markov_cost import exact_cost
 from ..model.constraints import Constraints
 from ..model.system import System
 from ..progress import progress_bar
@@ -93,7 +94,8 @@ def run(args: argparse.Namespace) -> CommandResult:
                 rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g} (paper), max|Vbar dU| = "
                                             f"{check.max_input_diff:.1e}, rel dJ = {check.cost_rel_diff:.1e}{timing}"))
         if constraints is not None:
-            entry["constrained"], text = constrained_entry(plugin, protocol, constraints, args)
+            entry["constrained"], text = constrained_entry(plugin, protocol, constraints, args,
+                                                           chain=system if plugin is not system else None)
             rows.append(("constrained", text))
         rows += text_details(sol, system.n, args.verbose)
         flag = all_delivered_flag(sol)
@@ -129,11 +131,16 @@ def run(args: argparse.Namespace) -> CommandResult:
 
 
 def constrained_entry(system: System, protocol: str, constraints: Constraints,
-                      args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+                      args: argparse.Namespace, chain: System | None = None) -> tuple[dict[str, Any], str]:
     """The ``"constrained"`` JSON entry of one protocol and its text: the file's ``[constraints]`` solved by
-    `solve_constrained` ({"status", "cost", "inputs", "binding", ...}); a proven
+    `solve_constrained` ({"status", "cost", "basis", "plan_expected_cost", "inputs", "binding", ...}); a proven
     infeasibility is reported as status "infeasible" with the solver's status and reason (the closed forms above
-    stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped").
+    stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped"). The cost says its basis:
+    TCP-like "paper" (J_tcp(U), without the loss variance), beside the plan's exact expected cost (basis
+    "realised"); UDP-like "realised". Behind a chain (``chain``, the file's system; ``system`` its Bernoulli
+    plug-in twin) the program is the plug-in one, ``"plug_in": true``, basis "paper, prior-mean rates" (its chance
+    rows take the losses as independent), and ``plan_expected_cost`` is the plan's exact expected cost under the
+    chain (`exact_cost`), what the plan realises.
 
     Examples
     --------
@@ -158,7 +165,33 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
         return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
                 f"not solved: {err}")
     bound = ", ".join(sol.binding[:6]) + (f", ... ({len(sol.binding)} in all)" if len(sol.binding) > 6 else "")
-    return sol.to_dict(), f"J = {sol.cost:.10g} (paper, {sol.status}); binding: {bound or 'none'}"
+    entry = sol.to_dict()
+    realised = sol.plan_expected_cost
+    if chain is not None:         # the plug-in program: its plan's cost under the chain is what it realises
+        try:
+            realised = exact_cost(chain, sol.inputs, "udp")
+        except NumericalError:
+            realised = None
+        entry.update({"plug_in": True, "basis": PRIOR_MEAN_BASIS, "plan_expected_cost": realised})
+        where = " under the chain"
+        label = (f"J = {sol.cost:.10g} [basis: {PRIOR_MEAN_BASIS}: the plug-in program, Bernoulli losses at the "
+                 f"chain's mu_t, its chance rows taking the losses as independent] ({sol.status})")
+    else:
+        where = ""
+        label = (f"J = {sol.cost:.10g} [basis: {sol.basis}" + (": leaves out the loss variance" if sol.basis ==
+                                                                   "paper" else ": the plan's expected cost")
+                 + f"] ({sol.status})")
+    if chain is not None or sol.basis == "paper":
+        shown = "not resolved in double precision" if realised is None else f"{realised:.10g}"
+        label += f"; its plan's expected cost{where} {shown} [basis: realised]"
+    if sol.violations:      # soft rows the plan breaks (positive slack): said before what merely binds
+        broken = {name for name, _ in sol.violations}
+        shown = ", ".join(f"{name} by {by:.3g}" for name, by in sol.violations[:6]) + (
+            f", ... ({len(sol.violations)} in all)" if len(sol.violations) > 6 else "")
+        held = [name for name in sol.binding if name not in broken]
+        bound = ", ".join(held[:6]) + (f", ... ({len(held)} in all)" if len(held) > 6 else "")
+        return entry, f"{label}; soft rows violated: {shown}; binding: {bound or 'none'}"
+    return entry, f"{label}; binding: {bound or 'none'}"
 
 
 def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]]:

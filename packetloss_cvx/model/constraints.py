@@ -250,6 +250,35 @@ class Constraints:
                                  "terminal_F") if getattr(self, name) is not None]
         return out + (["chance"] if self.chance else [])
 
+    def loop_rows(self) -> int:
+        """The rows a sampled loop checks at each step (montecarlo/mpc.py): each finite input, rate and state bound,
+        each finite row of ``g``, each chance row (the terminal set constrains the prediction only). O(n + m + r).
+
+        Examples
+        --------
+        >>> Constraints(u_min=[-1, -1], u_max=[1, np.inf], chance=[([1.0], 2.0, 0.1)]).loop_rows()
+        4
+        """
+        bounds = (self.u_max, self.u_min, self.du_max, self.x_max, self.x_min, self.g)
+        return sum(int(np.isfinite(v).sum()) for v in bounds if v is not None) + len(self.chance)
+
+    def program_rows(self, horizon: int) -> int:
+        """The linear rows of the program over ``horizon`` steps (qp/constrained.py): each finite input and state
+        bound and row of ``g`` at every step, both directions of each finite rate bound at every step (the first
+        against the previous command), the terminal set's once; chance rows are cones, counted apart. O(n + m + r).
+
+        Examples
+        --------
+        >>> Constraints(u_min=[-1], u_max=[1], du_max=[0.5], terminal_max=[0.1]).program_rows(10)
+        41
+        """
+        def finite(values: np.ndarray | None) -> int:
+            return 0 if values is None else int(np.isfinite(values).sum())
+        steps = sum(finite(v) for v in (self.u_max, self.u_min, self.x_max, self.x_min, self.g)) + 2 * finite(
+            self.du_max)
+        once = sum(finite(v) for v in (self.terminal_max, self.terminal_min, self.terminal_g))
+        return int(horizon) * steps + once
+
     def to_dict(self) -> dict[str, Any]:
         """The ``[constraints]`` table (JSON and TOML values; infinite entries as floats). O(size)."""
         out: dict[str, Any] = {}

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..budgets import check, count_text, mpc_solves
+from ..budgets import check, check_constrained, count_text, gib_text, mpc_bytes, mpc_solves
 from ..closedloop.moments import stationary_channel
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..lq.costs import closed_form
@@ -61,7 +61,7 @@ from ..tolerances import CONSTRAINED_ACTIVE_RTOL
 from .channels import sample_delivery_paths, sample_noise_paths
 from .markov_channels import sample_markov_paths
 from .markov_loop import BeliefGains
-from .runs import check_count, run_blocks, sample_stats
+from .runs import check_count, check_loop_weights, run_blocks, sample_stats
 
 __all__ = ["CHUNK", "CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "TASK_CHUNKS", "loop_paths", "loop_task",
            "simulate_mpc", "wilson_interval"]
@@ -263,40 +263,48 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
     stage = np.empty((samples, steps))
     states, commands = np.empty((keep, steps + 1, n)), np.empty((keep, steps, m))
     states[:, 0] = X[:keep]
-    for t in range(steps):
-        if controller == "clipped":
-            K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains, (samples, m, n))
-            u = np.clip(-np.einsum("smn,sn->sm", K, X), np.maximum(lo, previous - rate),
-                        np.minimum(hi, previous + rate))
-        else:
-            u = np.empty((samples, m))
-            for s in range(samples):
-                if not np.all(np.isfinite(X[s])):
-                    raise NumericalError(f"the {controller} loop's state left the double-precision range at step {t}")
-                mu = None if controller == "certainty-equivalent" else beliefs.schedule(s)
-                plan, outcome, used = program.plan(mu, X[s], previous[s])
-                infeasible[s, t] = outcome in ("fallback", "infeasible-failed")
-                slack += used
-                if plan is None:
-                    failed += 1
-                    age[s] += 1
-                    u[s] = plans[s, age[s]] if age[s] < N else 0.0
-                else:
-                    fallback += outcome == "fallback"
-                    plans[s], age[s] = plan, 0
-                    u[s] = plan[0]
-        applied = V[t] * u
-        stage[:, t] = np.einsum("si,ij,sj->s", X, Omega, X) + applied ** 2 @ psi
-        X_next = X @ A.T + applied @ B.T
-        if W is not None:
-            X_next += W[t]
-        for name, kind, data, _ in rows:
-            flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
-        states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
-        X, previous = X_next, u
-        beliefs.update(V[t])
+    # a run whose stage cost or state leaves the double range has diverged: a result, as simulate's loops report it
+    # (inf cost, no warning), for every controller alike; its programs are not solved again
+    diverged = np.zeros(samples, dtype=bool)
+    state_rows = [name for name, kind, _, _ in rows if kind in ("x_max", "x_min", "F", "chance")]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps):
+            if controller == "clipped":
+                K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains,
+                                                                                                  (samples, m, n))
+                u = np.clip(-np.einsum("smn,sn->sm", K, X), np.maximum(lo, previous - rate),
+                            np.minimum(hi, previous + rate))
+            else:
+                u = np.zeros((samples, m))
+                for s in np.flatnonzero(~diverged):
+                    mu = None if controller == "certainty-equivalent" else beliefs.schedule(s)
+                    plan, outcome, used = program.plan(mu, X[s], previous[s])
+                    infeasible[s, t] = outcome in ("fallback", "infeasible-failed")
+                    slack += used
+                    if plan is None:
+                        failed += 1
+                        age[s] += 1
+                        u[s] = plans[s, age[s]] if age[s] < N else 0.0
+                    else:
+                        fallback += outcome == "fallback"
+                        plans[s], age[s] = plan, 0
+                        u[s] = plan[0]
+            applied = V[t] * u
+            stage[:, t] = np.einsum("si,ij,sj->s", X, Omega, X) + applied ** 2 @ psi
+            X_next = X @ A.T + applied @ B.T
+            if W is not None:
+                X_next += W[t]
+            diverged |= ~np.isfinite(stage[:, t]) | ~np.all(np.isfinite(X_next), axis=1)
+            stage[diverged, t] = np.inf
+            for name, kind, data, _ in rows:
+                flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
+            for name in state_rows:                      # a diverged state has left every limit
+                flags[name][diverged, t] = True
+            states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
+            X, previous = X_next, u
+            beliefs.update(V[t])
     return {"stage": stage, "flags": flags, "infeasible": infeasible, "fallback": fallback, "failed": failed,
-            "slack": slack, "states": states, "inputs": commands}
+            "slack": slack, "diverged": diverged, "states": states, "inputs": commands}
 
 
 def _assemble(constraints: Constraints, n: int, m: int, controller: str, protocol: str,
@@ -305,16 +313,19 @@ def _assemble(constraints: Constraints, n: int, m: int, controller: str, protoco
     trajectories kept). O(samples steps)."""
     rows = _rows(constraints, n, m)
     stage = np.concatenate([part["stage"] for part in parts])
-    mean, stderr = sample_stats(stage.mean(axis=1))
+    with np.errstate(over="ignore", invalid="ignore"):       # a diverged run's cost is inf, as simulate's
+        mean, stderr = sample_stats(stage.mean(axis=1))
+        profile = stage.mean(axis=0)
     flags = {name: np.concatenate([part["flags"][name] for part in parts]) for name, *_ in rows}
     infeasible = np.concatenate([part["infeasible"] for part in parts])
     return ControllerRun(
         controller=controller, protocol=protocol, mean_stage_cost=mean, stderr=stderr,
-        stage_cost_mean=stage.mean(axis=0),
+        stage_cost_mean=profile,
         violations=tuple(frequency(name, flags[name], allowed) for name, _, _, allowed in rows),
         infeasible=None if controller == "clipped" else frequency("infeasible", infeasible),
         fallback_steps=sum(part["fallback"] for part in parts), failed_steps=sum(part["failed"] for part in parts),
         slack_steps=sum(part["slack"] for part in parts), action=INFEASIBLE_ACTION,
+        diverged_runs=int(sum(part["diverged"].sum() for part in parts)),
         states=np.concatenate([part["states"] for part in parts]) if keep else None,
         inputs=np.concatenate([part["inputs"] for part in parts]) if keep else None)
 
@@ -386,14 +397,19 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     ------
     InputError
         A count below its minimum, an unknown protocol or controller, a non-stationary Bernoulli schedule,
+        time-varying weights (``state_weights``, ``input_weights``: the loop's stage cost needs one weight a step),
         constraints that do not fit the system, ``threads`` below 1 or ``dask`` without ``submit``.
     BudgetError
-        More program solves than the ``mpc_solves`` budget (`mpc_solves`), before any path is drawn.
-    NumericalError
-        A loop's state beyond the double-precision range.
+        More program solves than the ``mpc_solves`` budget (`mpc_solves`; the clipped laws' run-steps at their
+        measured share of a solve), or arrays beyond the ``memory_bytes`` budget (`mpc_bytes`), before any path is
+        drawn.
 
     Notes
     -----
+    A loop that diverges (a run's stage cost or state beyond the double range) is a result, as `simulate`'s loops
+    report one: that controller's ``mean_stage_cost`` is inf (null in JSON), ``diverged_runs`` counts the runs, no
+    warning is printed and its programs are not solved again in those runs.
+
     Time O(controllers samples steps) solves of the program (about 5 ms each at n = 2, N = 8), plus
     O(samples steps n (n + m)) for the clipped law. Threads share one interpreter: the solves' Python side (the
     KKT check, the polish, cvxpy's unpacking) holds the GIL, so threads gain little; Dask's worker processes do.
@@ -409,6 +425,7 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     [0, 0, 0]
     """
     system = check_system(system)
+    check_loop_weights(system)
     constraints = check_constraints(constraints, system.n, system.m)
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
     seed = check_count(seed, "seed", 0)
@@ -432,8 +449,17 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     # one job per controller and protocol; certainty-equivalent plans alike for both: one job, shared
     jobs = [(name, p) for name in names for p in protocols if name != "certainty-equivalent" or p == protocols[0]]
     programs = sum(name != "clipped" for name, _ in jobs)
-    check("mpc_solves", mpc_solves(samples, steps, programs), "samples",
-          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs")
+    clipped = len(jobs) - programs
+    check("mpc_solves", mpc_solves(samples, steps, programs, clipped), "samples",
+          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
+          + (f" and {clipped} clipped laws" if clipped else ""))
+    needed = mpc_bytes(samples, steps, system.n, system.m, len(jobs), constraints.loop_rows(), keep)
+    check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
+                                             f"{gib_text(needed)} of paths and per-run records)",
+          instead="use fewer runs or steps")
+    if programs:        # the programs' size, before any path is drawn (ConstrainedQP checks it again)
+        N = system.horizon
+        check_constrained(N, system.n, system.m, constraints.program_rows(N), len(constraints.chance), "horizon")
     twin = _twin(system)
     channel = "bernoulli" if system.channel is None else system.channel.form
     V, W = loop_paths(system, samples, steps, seed)

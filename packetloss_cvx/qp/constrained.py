@@ -30,8 +30,10 @@ import scipy.linalg
 import scipy.sparse as sp
 from cvxpy.reductions.solution import Solution
 
+from ..budgets import check_constrained
 from ..errors import DimensionError, InfeasibleError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
+from ..lq.costs import expected_cost
 from ..lq.moments import Moments, plan_moments
 from ..lq.policy import refuse_correlated
 from ..lq.prediction import prediction
@@ -39,7 +41,7 @@ from ..lq.recursion import udp_variance_weights
 from ..model.constraints import Constraints, cantelli_factor, check_constraints
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system
-from ..results.base import Frozen
+from ..results.base import Frozen, finite_or_none
 from ..tolerances import (
     ACCEPTED_STATUSES,
     CLARABEL_DEFAULT,
@@ -48,6 +50,7 @@ from ..tolerances import (
     CONSTRAINED_ATTEMPTS,
     CONSTRAINED_KKT_RTOL,
     CROSS_CHECK_COST_RTOL,
+    CROSS_CHECK_FLOOR,
 )
 from .convex import PROVEN_INFEASIBLE, ClarabelProgram, solve_problem
 
@@ -101,6 +104,13 @@ class ConstrainedSolution(Frozen):
     polished : bool
         Whether the plan is the solver's answer refined by Newton's method on its active set
         (`ConstrainedQP._polish`), kept only where its KKT residual is no larger than the solver's.
+    basis : str
+        What ``cost`` is (docs/design.md, "Cost bases"): ``"paper"`` for the TCP-like program (the paper's
+        first-moment J_tcp(U), which leaves out the loss variance a plan applied whatever the losses pays),
+        ``"realised"`` for the UDP-like one (J_udp(U) is the plan's exact expected cost).
+    plan_expected_cost : float or None
+        The plan's exact expected realised cost, J_udp(U) (`expected_cost`): ``cost`` itself for UDP-like, above it
+        for TCP-like by the loss variance; None where it is not resolved in double precision.
     """
 
     protocol: str
@@ -116,13 +126,17 @@ class ConstrainedSolution(Frozen):
     solve_time: float
     solver_kkt_residual: float | None = None
     polished: bool = False
+    basis: str = ""
+    plan_expected_cost: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON entry of ``solve --json`` ("constrained"; ``terminal_state`` is E[x_N] under the plan)."""
-        return {"status": self.status, "cost": self.cost, "inputs": self.inputs.tolist(),
+        return {"status": self.status, "cost": self.cost, "basis": self.basis,
+                "plan_expected_cost": finite_or_none(self.plan_expected_cost), "inputs": self.inputs.tolist(),
                 "terminal_state": self.states[-1].tolist(), "binding": list(self.binding),
                 "violations": [{"constraint": c, "by": v} for c, v in self.violations],
-                "kkt_residual": self.kkt_residual, "solver_kkt_residual": self.solver_kkt_residual,
+                "kkt_residual": finite_or_none(self.kkt_residual),
+                "solver_kkt_residual": finite_or_none(self.solver_kkt_residual),
                 "polished": self.polished, "formulation": self.formulation, "solver": self.solver}
 
 
@@ -195,6 +209,9 @@ class ConstrainedQP:
         self.system = system
         N, n, m = system.horizon, system.n, system.m
         self.constraints = check_constraints(constraints, n, m)
+        # the program's size priced before cvxpy sees it (budgets.py): the dense KKT work grows as N^3
+        check_constrained(N, n, m, self.constraints.program_rows(N), len(self.constraints.chance), "horizon",
+                          instead="use a shorter horizon")
         if formulation == "auto":
             formulation = "condensed" if N * m <= AUTO_CONDENSED_MAX else "sparse"
         if formulation not in ("condensed", "sparse"):
@@ -442,8 +459,16 @@ class ConstrainedQP:
         if check and kkt is not None and not kkt <= CONSTRAINED_KKT_RTOL:
             raise NumericalError(f"{what}: the KKT residual of the solver's answer is {kkt:.2e} ({report['worst']}), "
                                  f"beyond {CONSTRAINED_KKT_RTOL:.0e}: the answer is not trusted")
+        if self.protocol == "udp":
+            realised: float | None = float(cost)
+        else:
+            try:
+                realised = expected_cost(system, U, "udp")
+            except NumericalError:
+                realised = None
         return ConstrainedSolution(
             protocol=self.protocol, status=status, cost=float(cost), inputs=U,
+            basis="paper" if self.protocol == "tcp" else "realised", plan_expected_cost=realised,
             states=self._moments(system, U).mean[1:], binding=tuple(report["binding"]),
             violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
             solver=self.solver, solve_time=solve_time, solver_kkt_residual=None if self._user_constraints
@@ -625,6 +650,34 @@ class ConstrainedQP:
         spread = base.C * u
         return Moments(free + base.T @ u, spread @ spread.transpose(0, 2, 1) + base.S, base.T, base.C, base.S)
 
+    def data_scale(self, system: System) -> tuple[float, float]:
+        """``(size, weight)``: the size of the states and inputs the problem's data speak of, the largest of max|x0|,
+        the noise's spread over the horizon ``sqrt(N ||Sigma_W||)``, every finite bound (a state row's ``|b| /
+        ||a||``, an input's or a rate's ``|b|``), and its largest weight (state, initial or input). `kkt` floors its
+        relative residuals at ``CROSS_CHECK_FLOOR`` of the cost ``weight size^2`` and of the slope ``weight size``
+        (a multiplier's and a gradient's units): below that a term is rounding. Zero ``size`` only where nothing is
+        bounded, x0 = 0 and there is no noise. O(n + m + rows).
+
+        Examples
+        --------
+        >>> s = System(A=[[1]], B=[[1]], horizon=4, state_weight=[3], input_weight=[1], mu=[0.5], x0=[0])
+        >>> ConstrainedQP(s, "tcp", Constraints(x_max=[2.0], u_min=[-0.5])).data_scale(s)
+        (2.0, 3.0)
+        """
+        c = self.constraints
+        sizes = [float(np.abs(system.x0).max(initial=0.0)),
+                 float(np.sqrt(system.horizon * np.linalg.norm(system.noise_cov, 2)))]
+        for values in (c.u_min, c.u_max, c.du_max, c.x_min, c.x_max, c.terminal_min, c.terminal_max):
+            if values is not None:
+                sizes.append(float(np.abs(values[np.isfinite(values)]).max(initial=0.0)))
+        for F, g in ((c.F, c.g), (c.terminal_F, c.terminal_g)):
+            if F is not None:
+                rows = np.isfinite(g)
+                sizes.append(float((np.abs(g[rows]) / np.linalg.norm(F[rows], axis=1)).max(initial=0.0)))
+        sizes += [abs(b) / float(np.linalg.norm(a)) for a, b, _ in c.chance]
+        weight = max(self.scale, float(np.linalg.eigvalsh(system.initial_weight).max(initial=0.0)))
+        return max(sizes), weight
+
     # ------------------------------------------------------------------------------------------------ the check
     def kkt(self, system: System, U: np.ndarray, multipliers: list[np.ndarray] | None = None,
             slacks: list[np.ndarray] | None = None) -> dict[str, Any]:
@@ -694,9 +747,14 @@ class ConstrainedQP:
         # the multipliers' work on the rows' excesses, over the objective the solver minimised (penalty included): the
         # scale of its duality gap, which no rescaling of a row changes
         objective = abs(J_var) + sum(self.constraints.soft_weight * float(np.sum(slack)) for slack in slacks)
-        comp = sum(float(np.sum(lam_abs * excess_abs)) for lam_abs, excess_abs in pairs) / max(objective, 1e-300)
-        stationarity = float(np.abs(total).max(initial=0.0)) / max(largest, 1e-300)
-        dual = dual / max(lam_max, 1e-300)
+        # each relative to its own size, floored at CROSS_CHECK_FLOOR of the problem's data (`data_scale`): at a state
+        # near zero the optimum is U = 0 and every term is rounding
+        size, weight = self.data_scale(system)
+        cost_floor, slope_floor = CROSS_CHECK_FLOOR * weight * size * size, CROSS_CHECK_FLOOR * weight * size
+        comp = sum(float(np.sum(lam_abs * excess_abs)) for lam_abs, excess_abs in pairs) / max(objective, cost_floor,
+                                                                                                1e-300)
+        stationarity = float(np.abs(total).max(initial=0.0)) / max(largest, slope_floor, 1e-300)
+        dual = dual / max(lam_max, slope_floor, 1e-300)
         parts = {"stationarity": stationarity, "primal": primal, "dual": dual, "complementarity": comp}
         worst = max(parts, key=parts.get)
         return {"residual": parts[worst], "worst": worst, **parts, "binding": binding, "violations": violations,

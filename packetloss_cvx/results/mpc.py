@@ -11,7 +11,25 @@ import numpy as np
 
 from .base import Frozen, finite_or_none
 
-__all__ = ["ControllerRun", "Frequency", "MPCSimulation"]
+__all__ = ["ControllerRun", "Frequency", "MPCSimulation", "json_table"]
+
+
+def json_table(value: Any) -> Any:
+    """A ``[constraints]`` table (`Constraints.to_dict`) for JSON: every non-finite number (an infinite bound, which
+    leaves the bound out) as None, lists and tables kept in shape. O(size).
+
+    Examples
+    --------
+    >>> json_table({"u_max": [1.0, float("inf")], "du_max": [0.3], "soft": True})
+    {'u_max': [1.0, None], 'du_max': [0.3], 'soft': True}
+    """
+    if isinstance(value, dict):
+        return {key: json_table(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_table(item) for item in value]
+    if isinstance(value, float | np.floating):
+        return finite_or_none(value)
+    return value
 
 
 @dataclass(frozen=True)
@@ -95,6 +113,9 @@ class ControllerRun(Frozen):
         were kept.
     inputs : ndarray (keep, steps, m) or None
         The inputs those runs commanded (what the actuator applied is ``inputs * MPCSimulation.delivered``).
+    diverged_runs : int
+        Runs whose stage cost or state left the double range (the loop diverged: a result, as in `simulate`); with
+        any, ``mean_stage_cost`` is inf (null in JSON).
     """
 
     controller: str
@@ -110,20 +131,21 @@ class ControllerRun(Frozen):
     action: str
     states: np.ndarray | None = None
     inputs: np.ndarray | None = None
+    diverged_runs: int = 0
 
     def violation(self, name: str) -> Frequency:
         """The `Frequency` of the constraint row ``name``."""
         return next(v for v in self.violations if v.name == name)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain numbers and lists. O(rows steps)."""
-        return {"controller": self.controller, "protocol": self.protocol,
+        """Plain numbers and lists; ``"basis": "loop"`` (the costs of a law run in closed loop). O(rows steps)."""
+        return {"controller": self.controller, "protocol": self.protocol, "basis": "loop",
                 "mean_stage_cost": finite_or_none(self.mean_stage_cost), "stderr": finite_or_none(self.stderr),
                 "stage_cost_mean": [finite_or_none(v) for v in self.stage_cost_mean],
                 "violations": {v.name: v.to_dict() for v in self.violations},
                 "infeasible": None if self.infeasible is None else self.infeasible.to_dict(),
                 "fallback_steps": self.fallback_steps, "failed_steps": self.failed_steps,
-                "slack_steps": self.slack_steps, "action": self.action}
+                "slack_steps": self.slack_steps, "diverged_runs": self.diverged_runs, "action": self.action}
 
 
 @dataclass(frozen=True)
@@ -144,9 +166,11 @@ class MPCSimulation(Frozen):
     delivered: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"samples", "steps", "seed", "channel", "constraints", "tcp": {controller: ...}, "udp": {...}}``."""
+        """``{"samples", "steps", "seed", "channel", "constraints", "tcp": {controller: ...}, "udp": {...}}``;
+        ``constraints`` is the table with every infinite entry (a bound left out) as None (JSON null: strict JSON
+        has no inf), each row keeping its place."""
         out: dict[str, Any] = {"samples": self.samples, "steps": self.steps, "seed": self.seed,
-                               "channel": self.channel, "constraints": self.constraints}
+                               "channel": self.channel, "constraints": json_table(self.constraints)}
         for protocol, controllers in self.runs.items():
             out[protocol] = {name: run.to_dict() for name, run in controllers.items()}
         return out

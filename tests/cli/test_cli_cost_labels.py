@@ -37,6 +37,10 @@ COMMANDS = [
     "simulate two_actuator --samples 200", "simulate two_actuator --samples 200 --closed-loop --steps 20",
     "simulate two_actuator --samples 100 --closed-loop --steps 10 --actuator all",
     "simulate pendulum_bursty --samples 100", "simulate pendulum_sensor --samples 100",
+    # the constrained programs and loop ([constraints] keys from the command line)
+    "solve two_actuator --u-max 0.5 --u-min=-0.5 --x-max 2", "solve two_actuator --x-max 0.5 --soft --soft-weight 1e-3",
+    "solve pendulum_bursty --u-max 5 --u-min=-5",
+    "simulate two_actuator --samples 100 --u-max 0.5 --u-min=-0.5 --mpc-samples 4 --steps 5",
 ]
 
 
