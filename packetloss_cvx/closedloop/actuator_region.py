@@ -63,6 +63,8 @@ _ROUNDED_BITS = (12, 24, 36)
 #: Where the lower end of a critical bracket is undecided, `actuator_critical` steps down from it by tol times
 #: powers of this factor until a point is proved unstable (the two-actuator hold: within 4 tol).
 _STEP_DOWN = 4.0
+#: ... at most this many steps (4^6 tol: 4e-3 at the default tol; the two-actuator hold needs 3 to 5).
+_STEPS_DOWN = 6
 
 
 def _exact_weights(modes: DesignModes, transition: Dyadic | None) -> tuple[list, list]:
@@ -374,10 +376,11 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     ``inside`` at t ("stable": a law proved exactly), ``outside`` at lower ("unstable" with its exact certificate,
     or "undecided" with the reason). Where the float crossing's side is undecided (a direction whose certificate
     margin vanishes there), ``lower`` steps down by tol times powers of `_STEP_DOWN` to the first point proved
-    unstable, and ``note`` says how far below the crossing it lies (the two-actuator hold along the diagonal:
-    6.5e-5); where none is proved, ``lower`` stays the float crossing, ``outside`` undecided and the note says so:
-    then only ``t`` is evidence. ``t`` is inf when even the ray's end is not below 1, 0.0 when mu = 0 is.
-    Time O(log2(1 / tol)) power iterations plus two memberships.
+    unstable (at most `_STEPS_DOWN` steps), and ``note`` says how far below the crossing it lies (the two-actuator
+    hold along the diagonal: 6.5e-5); where none is proved (the two-actuator buffer's rank-one direction, whose
+    tilt the unreached plan entries make indefinite), ``lower`` stays the float crossing, ``outside`` undecided and
+    the note says so: then only ``t`` is evidence. ``t`` is inf when even the ray's end is not below 1, 0.0 when
+    mu = 0 is. Time O(log2(1 / tol)) power iterations plus two memberships.
 
     Raises
     ------
@@ -420,17 +423,19 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
             break
         lo, hi = (lo, mid) if below(mid) else (mid, hi)
     outside, note, crossing, step = member(lo), "", lo, tol
-    while outside.verdict == "undecided" and lo > 0.0:      # the float crossing's side undecided: step down
+    for _ in range(_STEPS_DOWN if outside.verdict == "undecided" else 0):   # the crossing's side undecided
         step *= _STEP_DOWN
         lo = max(crossing - step, 0.0)
         below_member = member(lo)
         if below_member.verdict == "unstable":
             outside = below_member
             note = (f"the lower end is proved {crossing - lo:.3g} below the float crossing {crossing!r} (between them "
-                    "no certificate checks: the power iteration's direction converges slowly at the boundary)")
-        elif below_member.verdict == "stable" or lo == 0.0:   # floats said unstable: not a proof either way
-            lo = crossing
-            note = (f"no point below the float crossing {crossing!r} could be proved unstable: the lower end is a "
-                    "float estimate")
+                    "no certificate checks: the direction's margin vanishes at the boundary)")
             break
+        if below_member.verdict == "stable" or lo == 0.0:   # floats said unstable: not a proof either way
+            break
+    if outside.verdict == "undecided":
+        lo = crossing
+        note = (f"no point within {step:.3g} below the float crossing {crossing!r} could be proved unstable: the "
+                "lower end is a float estimate" if step > tol else "")
     return CriticalPoint(str(strategy), d, hi, lo, member(hi), outside, note)
