@@ -162,6 +162,9 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
     ([[0.0], [1.0]], [[2.0, 1.0], [0.0, 1.0]], [[0.0, 1.0]], [[1.0], [1.0]])
     """
     strategy = parse_actuator(actuator)
+    if strategy.exhausted == "hold":
+        raise InputError("actuator", f"the optimal law of {strategy} is not computed (its costs and radius for a given "
+                                     f"law are: closedloop.actuator); use buffer:{strategy.length} or hold")
     if isinstance(channel, MarkovChannel):
         A_, B_ = check_law(A, B, np.zeros((np.shape(B)[1], np.shape(A)[0])), np.ones(np.shape(B)[1]))[:2]
         _, Tc, hc = mode_chain(channel)
