@@ -78,6 +78,10 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
            "default, so a hidden chain beyond it gets labelled bounds in seconds"),
     Budget("mpc_solves", 2e5, "program solves of the constrained receding-horizon loop (runs x steps x programs)",
            "about 17 min at 5 ms a solve (n = 2, N = 8; 8.4 ms measured at N = 5 on a loaded 2-core machine)", 5e-3),
+    Budget("actuator_rows", 25000, "rows of an actuator strategy's second-moment operator behind its optimal law "
+           "(engine modes x N^2: information modes x delivery patterns x (n + m (L - 1))^2 for buffer:L)",
+           "about 2 s (two_actuator: buffer:6, 20736 rows, 2.0 s; buffer:7, 38416 rows, 23 s, its mean-square radius "
+           "by ARPACK on a loaded 2-core machine)"),
     Budget("operator_rows", 2048, "rows of a dense second-moment operator (modes x n^2)",
            "64 MiB and a few seconds for its eigenvalues"),
 )}

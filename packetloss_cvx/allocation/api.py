@@ -30,6 +30,8 @@ from typing import Any
 import numpy as np
 
 from ..budgets import check, count_text, duration_text, estimated_seconds, limit, udp_box_work
+from ..closedloop.actuator import Actuator, parse_actuators
+from ..closedloop.actuator_region import actuator_membership
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..model.protocols import check_protocol
 from ..model.system import System
@@ -211,11 +213,25 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
                            f"bounds and constraints ({proof})", least.cost)
 
 
+def _strategies(text: str, system: System) -> tuple[Actuator, ...]:
+    """The strategies ``actuator=`` names, checked before any work (field ``actuator``). O(len(text))."""
+    if not isinstance(text, str):
+        raise InputError("actuator", f"expected zero, hold, buffer[:L] (comma-separated) or all, found {text!r}"[:200])
+    return parse_actuators(text, check_system(system).horizon)
+
+
+def _actuator_verdict(system: System, strategy: Actuator, mu: np.ndarray) -> tuple[str, str, float | None, str]:
+    """``(name, verdict, radius, reason)``: is mu stabilisable under the strategy (actuator_membership)?"""
+    found = actuator_membership(system, strategy, mu)
+    return str(strategy), found.verdict, float(found.radius) if np.isfinite(found.radius) else None, found.reason
+
+
 @blas_limited
 def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0.0, 1.0),
              constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
              max_boxes: int | None = None, time_limit: float | None = None, progress: bool | None = None,
-             target: str = "paper", margin: float | None = None) -> Allocation | StabilityAllocation:
+             target: str = "paper", margin: float | None = None,
+             actuator: str | None = None) -> Allocation | StabilityAllocation:
     """The cheapest channel qualities mu (min beta'mu) with `J*(mu) <= alpha`, with a certificate.
     The paper's eq:alpha_channels (`J* <= alpha`), eq:channel-cost (beta' mu), eq:channel-opt and eq:opt_M.
 
@@ -266,6 +282,10 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
         law measures the state each step, so ``protocol`` is checked but does not enter).
     margin : float, optional
         Target "stable" only: the bound on the mean-square radius, ``0 < margin <= 1`` (default 1).
+    actuator : str, optional
+        Actuator strategies on a loss ("zero", "hold", "buffer:L", comma-separated, or "all"; checked before any
+        work): the result's ``actuator`` says, per strategy, whether mu* is stabilisable by a TCP-like law of it
+        (closedloop.actuator_region.actuator_membership at mu*, Bernoulli links), as ``allocate --actuator``.
 
     Returns
     -------
@@ -300,6 +320,12 @@ def allocate(system: System, protocol: str, alpha: float | None, beta, bounds=(0
     >>> bool(a.cost <= 1.5), a.status, bool(a.lower_bound <= a.communication_cost)
     (True, 'optimal', True)
     """
+    if actuator is not None:
+        strategies = _strategies(actuator, system)
+        result = allocate(system, protocol, alpha, beta, bounds, constraints, gap, max_boxes, time_limit, progress,
+                          target, margin)
+        return dataclasses.replace(result, actuator=tuple(_actuator_verdict(system, s, result.mu)
+                                                          for s in strategies))
     protocol = check_protocol(protocol)
     if target == "attainable" and protocol == "tcp":
         return _attainable_allocate(system, alpha, beta, bounds, constraints, gap, max_boxes, time_limit, progress,

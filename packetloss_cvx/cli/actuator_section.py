@@ -10,7 +10,7 @@ import numpy as np
 from ..closedloop.actuator import Actuator, compare_actuators, parse_actuators
 from ..closedloop.actuator_design import actuator_dp, design_modes
 from ..closedloop.actuator_region import MAX_CERTIFIED_ROWS, actuator_critical, actuator_membership
-from ..errors import InputError, NumericalError
+from ..errors import BudgetError, InputError, NumericalError
 from ..model.system import System
 from ..montecarlo.actuator import simulate_actuator
 from ..montecarlo.simulate import law_gains
@@ -145,6 +145,13 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
         except NumericalError as err:
             row.update(radius=None, average_stage_cost=None, initial_cost=None, reason=str(err))
             numbers = f"{'no law':>12} {'-':>15} {'-':>14}"
+        except BudgetError as err:      # refused before any work: the others are still compared
+            row.update(radius=None, average_stage_cost=None, initial_cost=None, reason=str(err),
+                       critical=None)
+            data[str(strategy)] = row
+            lines.append(f"{str(strategy):<11} {'refused':>12} {'-':>15} {'-':>14}  -")
+            lines.append(f"  {strategy}: not computed: {err}")
+            continue
         row["critical"], text = _critical_row(system, strategy, direction, tol)
         data[str(strategy)] = row
         lines.append(f"{str(strategy):<11} {numbers}  {text}")

@@ -12,7 +12,8 @@ in `.mjls`'s ``delivery="current"``) is sent to m actuators, actuator i's packet
   0 never decays), although from that start the loop is zero's;
 - ``buffer:L``: each packet carries the law's next L planned inputs ``u_{k+j|k} = -K (A - B K)^j x_k``,
   j = 0..L-1 (the nominal prediction, every input delivered); on a loss the actuator plays the next entry of
-  the last plan it received, and zero once the plan is exhausted. The mode is the channel state c and, per
+  the last plan it received, and zero once the plan is exhausted (``buffer:L:hold``: its last applied input, the
+  plan's last entry, kept in the memory instead of zeroed). The mode is the channel state c and, per
   actuator, the age ``alpha_i`` of the plan being played (0: delivered now, L: exhausted), so
   ``M_c (L + 1)^m`` modes; the state is ``z = (x, b_1, .., b_m)``, ``b_i`` the L - 1 entries after the first of
   actuator i's last plan, or, where one gain serves every channel state and n < L - 1, the plan's predicted state
@@ -65,18 +66,23 @@ MAX_BUFFER_MODES = 1024
 
 @dataclass(frozen=True)
 class Actuator:
-    """A strategy on a loss: ``kind`` one of `STRATEGIES`, ``length`` the buffer's L (1 for zero and hold)."""
+    """A strategy on a loss: ``kind`` one of `STRATEGIES`, ``length`` the buffer's L (1 for zero and hold),
+    ``exhausted`` what a buffer plays once its plan is exhausted: "zero" or "hold" (its last applied input)."""
 
     kind: str
     length: int = 1
+    exhausted: str = "zero"
 
     def __str__(self) -> str:
-        return f"buffer:{self.length}" if self.kind == "buffer" else self.kind
+        if self.kind != "buffer":
+            return self.kind
+        return f"buffer:{self.length}" + (":hold" if self.exhausted == "hold" else "")
 
 
 def parse_actuator(spec: str | Actuator, horizon: int | None = None) -> Actuator:
     """The strategy ``spec`` names: "zero", "hold", "buffer:L" with 1 <= L <= ``horizon`` (the plan's length), or
-    "buffer" (L = ``horizon``).
+    "buffer" (L = ``horizon``); "buffer:L:hold" holds the last applied input once the plan is exhausted
+    ("buffer:L:zero" is "buffer:L"; "buffer:1:hold" is "hold").
 
     Raises
     ------
@@ -86,27 +92,34 @@ def parse_actuator(spec: str | Actuator, horizon: int | None = None) -> Actuator
     Examples
     --------
     >>> parse_actuator("buffer:3", horizon=5), str(parse_actuator("buffer", horizon=5))
-    (Actuator(kind='buffer', length=3), 'buffer:5')
+    (Actuator(kind='buffer', length=3, exhausted='zero'), 'buffer:5')
     >>> parse_actuator("buffer:0")
     Traceback (most recent call last):
-    packetloss_cvx.errors.InputError: actuator: expected zero, hold or buffer:L with an integer 1 <= L, found 'buffer:0'
+    packetloss_cvx.errors.InputError: actuator: expected zero, hold or buffer:L with an integer 1 <= L, found \
+'buffer:0' (buffer:L:hold holds the last input once the plan is exhausted)
+    >>> str(parse_actuator("buffer:3:hold")), str(parse_actuator("buffer:3:zero")), str(parse_actuator("buffer:1:hold"))
+    ('buffer:3:hold', 'buffer:3', 'hold')
     """
     if isinstance(spec, Actuator):
         spec = str(spec)
     bound = "" if horizon is None else f" <= {horizon} (the horizon)"
-    allowed = f"expected zero, hold or buffer:L with an integer 1 <= L{bound}, found {spec!r}"
+    allowed = (f"expected zero, hold or buffer:L with an integer 1 <= L{bound}, found {spec!r} (buffer:L:hold holds "
+               "the last input once the plan is exhausted)")
     if not isinstance(spec, str):
         raise InputError("actuator", allowed)
     kind, _, length = spec.strip().partition(":")
-    if kind in ("zero", "hold") and not length:
+    length, _, exhausted = length.partition(":")
+    if kind in ("zero", "hold") and not length and not exhausted:
         return Actuator(kind)
-    if kind != "buffer" or (not length and horizon is None):
+    if kind != "buffer" or (not length and horizon is None) or exhausted not in ("", "zero", "hold"):
         raise InputError("actuator", allowed)
     if not length:
-        return Actuator("buffer", int(horizon))
+        length = str(horizon)
     if not length.strip().isdigit() or int(length) < 1 or (horizon is not None and int(length) > horizon):
         raise InputError("actuator", allowed)
-    return Actuator("buffer", int(length))
+    if exhausted == "hold" and int(length) == 1:     # nothing buffered beyond the delivered input: hold itself
+        return Actuator("hold")
+    return Actuator("buffer", int(length), exhausted or "zero")
 
 
 @dataclass(frozen=True)
@@ -213,6 +226,7 @@ def _buffer_loop(strategy: Actuator, A: np.ndarray, B: np.ndarray, K: np.ndarray
                  Tc: np.ndarray | None, start_c: np.ndarray | None) -> JumpLoop:
     """The buffer's modes (c, alpha), c major, alpha in {0..L}^m lexicographic, and their deterministic steps."""
     L, (n, m) = strategy.length, B.shape
+    hold = strategy.exhausted == "hold"                              # L >= 2 (parse_actuator)
     Mc = 1 if Tc is None else Tc.shape[0]
     Tc = np.ones((1, 1)) if Tc is None else Tc
     hc = hc[None] if hc.ndim == 1 else hc
@@ -255,6 +269,15 @@ def _buffer_loop(strategy: Actuator, A: np.ndarray, B: np.ndarray, K: np.ndarray
             elif age < L:                                             # lost: play entry alpha_i, keep the plan
                 A_all[a, :n, slot[i] + age - 1] = B[:, i]
                 held[a, i, slot[i] + age - 1] = 1.0
+                A_all[a, rows, rows] = np.eye(L - 1)
+            elif hold and predicted:                                  # exhausted, held: the last entry again
+                row = -Kc[c][i]
+                A_all[a, rows, rows] = np.eye(n)
+                A_all[a, :n, rows] += np.outer(B[:, i], row)
+                held[a, i, rows] = row
+            elif hold:
+                A_all[a, :n, slot[i] + L - 2] = B[:, i]
+                held[a, i, slot[i] + L - 2] = 1.0
                 A_all[a, rows, rows] = np.eye(L - 1)
     # the age chain: alpha'_i = 0 with P h_{c', i}, min(alpha_i + 1, L) with 1 - h_{c', i}
     delivered = ages == 0                                                              # (R, m)

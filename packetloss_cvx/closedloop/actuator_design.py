@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..budgets import check
+from ..budgets import check, limit
 from ..errors import InputError, NumericalError
 from ..linalg import frobenius
 from ..model.channel import MarkovChannel
@@ -55,7 +55,7 @@ from .moments import check_steps, mode_cost_to_go, stationary_channel
 from .riccati import Bellman, solve_bellman
 from .stability import check_law
 
-__all__ = ["ActuatorDesign", "DesignModes", "actuator_dp", "actuator_dp_finite", "design_modes"]
+__all__ = ["ActuatorDesign", "DesignModes", "actuator_dp", "actuator_dp_finite", "design_modes", "engine_rows"]
 
 
 @dataclass(frozen=True)
@@ -162,6 +162,9 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
     ([[0.0], [1.0]], [[2.0, 1.0], [0.0, 1.0]], [[0.0, 1.0]], [[1.0], [1.0]])
     """
     strategy = parse_actuator(actuator)
+    if strategy.exhausted == "hold":
+        raise InputError("actuator", f"the optimal law of {strategy} is not computed (its costs and radius for a given "
+                                     f"law are: closedloop.actuator); use buffer:{strategy.length} or hold")
     if isinstance(channel, MarkovChannel):
         A_, B_ = check_law(A, B, np.zeros((np.shape(B)[1], np.shape(A)[0])), np.ones(np.shape(B)[1]))[:2]
         _, Tc, hc = mode_chain(channel)
@@ -294,6 +297,7 @@ def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.Array
     modes = _system_modes(system, actuator, mu)
     Omega, psi, Sigma = _weights(system, modes)
     S, N, r = modes.modes, modes.A.shape[-1], modes.B.shape[-1]
+    _check_rows(modes, system.horizon)
 
     def radius(K: np.ndarray) -> float:
         return modes.loop(K).radius()
@@ -315,6 +319,25 @@ def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.Array
     z0 = modes.embed @ system.x0
     initial = float(np.einsum("s,i,sij,j->", modes.start, z0, P, z0))
     return ActuatorDesign(modes, K, P, rad, cost, initial, iterations, residual)
+
+
+def engine_rows(modes: DesignModes) -> int:
+    """Rows of the engine's second-moment operator for a law of the strategy: ``S D N^2`` (the modes (s, d))."""
+    return modes.modes * len(modes.patterns) * modes.A.shape[-1] ** 2
+
+
+def _check_rows(modes: DesignModes, horizon: int) -> None:
+    """Refuse a strategy whose law's radius (ARPACK over `engine_rows`, twice a policy step) is over the
+    ``actuator_rows`` budget, naming the longest buffer within it. O(L)."""
+    rows = engine_rows(modes)
+    if rows <= limit("actuator_rows"):
+        return
+    m, n = modes.patterns.shape[1], modes.embed.shape[1]
+    Mc, D = modes.h.shape[0], len(modes.patterns)
+    fits = [L for L in range(1, horizon + 1) if Mc * L ** m * D * (n + m * (L - 1)) ** 2 <= limit("actuator_rows")]
+    check("actuator_rows", rows, "actuator", f"{modes.actuator}'s optimal law, its loop's second-moment operator "
+          f"of {modes.modes} * {D} modes * {modes.A.shape[-1]}^2 = {rows} rows",
+          instead=f"use buffer:{fits[-1]} or shorter" if fits else "use zero or hold")
 
 
 def _stationary(T: np.ndarray) -> np.ndarray:
@@ -353,6 +376,7 @@ def actuator_dp_finite(system: System, steps: int, actuator: str | Actuator = "z
     modes = _system_modes(system, actuator, mu)
     Omega, psi, Sigma = _weights(system, modes)
     S, N, r = modes.modes, modes.A.shape[-1], modes.B.shape[-1]
+    _check_rows(modes, system.horizon)
     check_steps(steps, S * N * N)
     P = np.repeat(Omega[None], S, axis=0)
     gains, noise = np.empty((steps, S, r, N)), np.empty((steps, S))

@@ -38,7 +38,8 @@ from ..results.region import CriticalPoint, Membership
 from ..tolerances import CRITICAL_MU_TOL, MEAN_SQUARE_MARGIN, MOMENT_DENSE_MAX_N
 from .actuator import Actuator, parse_actuator
 from .actuator_design import DesignModes, actuator_dp, design_modes
-from .certificates import exact_transition, snapped
+from .certificates import exact_transition, snapped, tilted_by
+from .chain_radius import symmetric_perron
 from .moments import solve_fixed_point, stationary_channel
 
 __all__ = ["LeastRadius", "actuator_critical", "actuator_membership", "least_radius", "strategy_inside_proved",
@@ -51,9 +52,19 @@ MAX_CERTIFIED_ROWS = MOMENT_DENSE_MAX_N ** 2
 _DP_STEPS = 2000
 HOMOGENEOUS_STEPS = 5000
 GROWTH_RTOL = 1e-13
+#: The policy iteration that finishes the power iteration (`least_radius`): its steps, and the relative residual
+#: ``||min_K L_K^*(P) - lambda P|| / (lambda ||P||)`` at which its eigenpair is kept (measured: 1e-15 within 5 steps
+#: on the two-actuator hold at its boundary, where the power iteration's growth is still 1.3e-6 high after 5000).
+POLICY_STEPS = 12
+POLICY_RTOL = 1e-12
 #: An outside candidate P (largest entry 1) is also tried rounded to these bits: a rank-deficient direction (the
 #: scalar hold's ``(x + w)^2``) proves its bound only with its exact kernel, which the iteration leaves at rounding.
 _ROUNDED_BITS = (12, 24, 36)
+#: Where the lower end of a critical bracket is undecided, `actuator_critical` steps down from it by tol times
+#: powers of this factor until a point is proved unstable (the two-actuator hold: within 4 tol).
+_STEP_DOWN = 4.0
+#: ... at most this many steps (4^6 tol: 4e-3 at the default tol; the two-actuator hold needs 3 to 5).
+_STEPS_DOWN = 6
 
 
 def _exact_weights(modes: DesignModes, transition: Dyadic | None) -> tuple[list, list]:
@@ -212,7 +223,75 @@ def least_radius(modes: DesignModes, steps: int | None = None) -> LeastRadius:
                 break
             last = growth
         K, _ = modes.step(P, zero_Omega, zero_psi, least_squares=True)
-    return LeastRadius(float(growth), P, K, taken)
+    found = LeastRadius(float(growth), P, K, taken)
+    refined = _policy(modes, found) if np.isfinite(growth) else None
+    return found if refined is None else refined
+
+
+def _policy(modes: DesignModes, found: LeastRadius) -> LeastRadius | None:
+    """The power iteration's eigenpair finished by a policy iteration: from its greedy law K, P the Perron
+    eigenvector of ``L_K^*`` on symmetric tuples (chain_radius.symmetric_perron, lambda its root), K the greedy law
+    of P, until P is the homogeneous Bellman map's eigenvector to `POLICY_RTOL`; None beyond `MAX_CERTIFIED_ROWS`
+    rows or where it does not settle within `POLICY_STEPS`. Where the map's spectral gap is small (hold's held
+    input, at the boundary) the power iteration converges slowly from above; the policy iteration does not.
+    O(POLICY_STEPS (S N^2)^3)."""
+    S, N = modes.modes, modes.A.shape[-1]
+    if S * N * N > MAX_CERTIFIED_ROWS:
+        return None
+    zero_Omega, zero_psi = np.zeros((N, N)), np.zeros(modes.F.shape[2])
+    K = found.K
+    with np.errstate(all="ignore"):
+        for step in range(1, POLICY_STEPS + 1):
+            if not np.all(np.isfinite(K)):
+                return None
+            pair = symmetric_perron(_information_map(modes, K)[1]().T, S, N)
+            if pair is None:
+                return None
+            lam, P = pair[0], pair[1] / frobenius(pair[1])
+            try:
+                K, image = modes.step(P, zero_Omega, zero_psi, least_squares=True)
+            except NumericalError:
+                return None
+            if lam > 0 and frobenius(image - lam * P) <= POLICY_RTOL * lam:
+                return LeastRadius(float(lam), P, K, found.steps + step)
+    return None
+
+
+def _stein(modes: DesignModes, K: np.ndarray, c: float) -> np.ndarray | None:
+    """S (S, N, N) with ``c S - L_K^*(S) = I`` blockwise (the information map's adjoint, its dense matrix
+    transposed): the tilt of an outside candidate, whose Theta gains ``t (c S - L_K^*(S)) = t I`` on ``[x; -K_s x]``
+    (certificates.tilted's argument over the modes; K the law minimising at P, or 0 for the open loop). None beyond
+    `MAX_CERTIFIED_ROWS` rows or where the solve fails. O((S N^2)^3)."""
+    rows, N = modes.modes * modes.A.shape[-1] ** 2, modes.A.shape[-1]
+    if rows > MAX_CERTIFIED_ROWS or not np.all(np.isfinite(K)):
+        return None
+    with np.errstate(all="ignore"):
+        try:
+            S = np.linalg.solve(c * np.eye(rows) - _information_map(modes, K)[1]().T,
+                                np.tile(np.eye(N).ravel(), modes.modes)).reshape(modes.modes, N, N)
+        except np.linalg.LinAlgError:
+            return None
+    return 0.5 * (S + S.transpose(0, 2, 1))
+
+
+def _tilted_outside(modes: DesignModes, P: np.ndarray, found: LeastRadius,
+                    transition: Dyadic | None) -> tuple[float, np.ndarray] | None:
+    """``(c, Q)``: a tilt Q of P or P snapped (certificates.tilted_by, the least tilt first) by a Stein solution
+    (`_stein`: the closed loop of the greedy law at P, then the open loop) that proves every law's radius >= c >= 1
+    exactly, or None. The c tried: halfway between 1 and the growth lambda where lambda > 1 (a tilt spends part of
+    the margin, and the Stein equation at c = 1 may have no solution: an input held on a sure loss), then 1. A
+    rank-deficient direction (hold's and the buffer's: the held input or the plan's entries a loss leaves to play)
+    proves its bound only with its exact kernel, which the rounding misses; tilted, Theta is definite there by a
+    margin the rounding cannot undo. At most 2 c x 2 S x 18 exact checks."""
+    tries = ([1.0 + 0.5 * (found.growth - 1.0)] if found.growth > 1.0 else []) + [1.0]
+    for c in tries:
+        for K in (found.K, np.zeros_like(found.K)):
+            S = _stein(modes, K, c)
+            for Q in (P, *snapped(P)):
+                for tilted_Q in reversed(tilted_by(Q, S)):
+                    if strategy_outside_proved(modes, tilted_Q, c, transition):
+                        return c, tilted_Q
+    return None
 
 
 def _never_delivers(modes: DesignModes) -> list[np.ndarray]:
@@ -281,6 +360,9 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
         for Q in (P, *snapped(P), *(np.round(P * 2.0 ** bits) / 2.0 ** bits for bits in _ROUNDED_BITS)):
             if strategy_outside_proved(modes, Q, 1.0, transition):
                 return verdict("unstable", certificate=Q, margin=0.0)
+        proved = _tilted_outside(modes, P, found, transition)
+        if proved is not None:
+            return verdict("unstable", certificate=proved[1], margin=proved[0] - 1.0)
     return verdict("undecided", reason=f"the least radius over {strategy}'s laws is about {found.growth:.9g} "
                                        "(floats), but neither a law's witness below 1 nor the map's direction checks "
                                        "in exact arithmetic")
@@ -292,12 +374,13 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     t on the least radius over the strategy's laws (`least_radius`, floats; the region is monotone in mu, module
     docstring) to a bracket ``[lower, t]`` of width tol, then both ends decided by `actuator_membership`:
     ``inside`` at t ("stable": a law proved exactly), ``outside`` at lower ("unstable" with its exact certificate,
-    or "undecided" with the reason: a rank-deficient direction that rounding keeps from checking, as hold's often
-    is). Only a decided end is evidence: with ``outside`` undecided, ``t`` is a proved upper bound on the critical
-    point and ``lower`` a float estimate (near a defective boundary, the scalar hold's at 1 - 1/a^2 where the held
-    input's eigenvalue 1 meets the loss runs' growth, the power iteration converges slowly and ``lower`` may lie
-    above the critical point by 4e-5). ``t`` is inf when even the ray's end is not below 1, 0.0 when mu = 0 is.
-    Time O(log2(1 / tol)) power iterations plus two memberships.
+    or "undecided" with the reason). Where the float crossing's side is undecided (a direction whose certificate
+    margin vanishes there), ``lower`` steps down by tol times powers of `_STEP_DOWN` to the first point proved
+    unstable (at most `_STEPS_DOWN` steps), and ``note`` says how far below the crossing it lies (the two-actuator
+    hold along the diagonal: 6.5e-5); where none is proved (the two-actuator buffer's rank-one direction, whose
+    tilt the unreached plan entries make indefinite), ``lower`` stays the float crossing, ``outside`` undecided and
+    the note says so: then only ``t`` is evidence. ``t`` is inf when even the ray's end is not below 1, 0.0 when
+    mu = 0 is. Time O(log2(1 / tol)) power iterations plus two memberships.
 
     Raises
     ------
@@ -339,4 +422,20 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
         if not lo < mid < hi:
             break
         lo, hi = (lo, mid) if below(mid) else (mid, hi)
-    return CriticalPoint(str(strategy), d, hi, lo, member(hi), member(lo))
+    outside, note, crossing, step = member(lo), "", lo, tol
+    for _ in range(_STEPS_DOWN if outside.verdict == "undecided" else 0):   # the crossing's side undecided
+        step *= _STEP_DOWN
+        lo = max(crossing - step, 0.0)
+        below_member = member(lo)
+        if below_member.verdict == "unstable":
+            outside = below_member
+            note = (f"the lower end is proved {crossing - lo:.3g} below the float crossing {crossing!r} (between them "
+                    "no certificate checks: the direction's margin vanishes at the boundary)")
+            break
+        if below_member.verdict == "stable" or lo == 0.0:   # floats said unstable: not a proof either way
+            break
+    if outside.verdict == "undecided":
+        lo = crossing
+        note = (f"no point within {step:.3g} below the float crossing {crossing!r} could be proved unstable: the "
+                "lower end is a float estimate" if step > tol else "")
+    return CriticalPoint(str(strategy), d, hi, lo, member(hi), outside, note)

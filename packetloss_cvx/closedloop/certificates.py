@@ -38,7 +38,7 @@ from .stability import law_radius, second_moment_matrix, second_moment_step
 
 __all__ = ["SNAP", "TILTS", "candidates", "chain_outside_proved", "chain_proved_certificate", "exact_transition",
            "inside_proved", "law_proved_stable", "mode_outside_matrices", "no_law_proved", "outside_matrix",
-           "outside_proved", "snapped", "stability_witness", "tilted"]
+           "outside_proved", "snapped", "stability_witness", "tilted", "tilted_by"]
 
 #: entries at or below these fractions of a certificate's largest are tried as exact zeros (:func:`snapped`): the
 #: rounding of an orthogonal transform (1e-17 where the split of a zero row of B is exact), and the iteration's own
@@ -217,8 +217,7 @@ def _proved_candidate(A: np.ndarray, B: np.ndarray, T: np.ndarray, exact_T: Dyad
         if S is None:
             continue
         for Q in plain:
-            for t in reversed(TILTS):       # the least tilt first: the certificate reported stays nearest P
-                tilted_Q = Q - t * frobenius(Q) / frobenius(S) * S
+            for tilted_Q in reversed(tilted_by(Q, S)):   # the least tilt first: the certificate stays nearest P
                 if proves(tilted_Q):
                     return tilted_Q
     return None
@@ -388,11 +387,23 @@ def tilted(A: np.ndarray, P: np.ndarray, c: float) -> list[np.ndarray]:
             S = np.linalg.solve(c * np.eye(n * n) - np.kron(A.T, A.T), np.eye(n).ravel()).reshape(n, n)
         except np.linalg.LinAlgError:
             return []
-    S = 0.5 * (S + S.T)
-    size = float(np.linalg.norm(S))
+    return tilted_by(P, 0.5 * (S + S.T))
+
+
+def tilted_by(P: np.ndarray, S: np.ndarray | None) -> list[np.ndarray]:
+    """``P - t ||P|| S / ||S||`` for t in `TILTS` (largest first; Frobenius norms over the whole array, a tuple of
+    modes tilted as one), S a Stein solution (`tilted`'s, a coupled one); none for an S that is None, zero or not
+    finite. O(size of P).
+
+    >>> [Q.item() for Q in tilted_by(np.ones((1, 1)), 2.0 * np.ones((1, 1)))][:2]
+    [0.9999, 0.999999]
+    """
+    if S is None:
+        return []
+    size = frobenius(S)
     if not (np.isfinite(size) and size > 0):
         return []
-    scale = float(np.linalg.norm(P)) / size
+    scale = frobenius(P) / size
     return [P - t * scale * S for t in TILTS]
 
 

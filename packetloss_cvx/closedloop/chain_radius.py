@@ -61,7 +61,7 @@ from .riccati_map import (
     riccati_squares,
 )
 
-__all__ = ["chain_certificate_margin", "check_delivery", "homogeneous_coupled_riccati"]
+__all__ = ["chain_certificate_margin", "check_delivery", "homogeneous_coupled_riccati", "symmetric_perron"]
 
 #: the power steps after which the policy iteration is tried (M n^2 <= DENSE_MAX_DIM; :func:`_reachable_eigenpair`;
 #: its step cap riccati_map.POLICY_STEPS, the power iteration's shift riccati_map.SHIFT)
@@ -169,7 +169,7 @@ def _duplication(n: int) -> tuple[np.ndarray, np.ndarray]:
     return D, np.linalg.pinv(D)
 
 
-def _perron(operator: np.ndarray, M: int, n: int) -> tuple[float, np.ndarray, float, float] | None:
+def symmetric_perron(operator: np.ndarray, M: int, n: int) -> tuple[float, np.ndarray, float, float] | None:
     """``(root, V, radius, error)`` of the (M n^2)^2 matrix ``operator`` (a cone-preserving map on stacked
     ``vec(P_a)``, rows a first) restricted to symmetric tuples: its eigenvalue of largest real part, its eigenvector
     as (M, n, n) with ``sum_a tr V_a = 1``, the spectral radius (the Perron root, attained on the PSD cone: the same on
@@ -222,7 +222,7 @@ def _policy(P: np.ndarray, lam: float, A: np.ndarray, B: np.ndarray, channel: Ma
     lift = (eps / (M * n)) * np.outer(ones, ones)
 
     def regularised(K: np.ndarray) -> tuple[float, np.ndarray, float, float] | None:
-        return _perron(second_moment_operator(A, B, channel, K, delivery).T + lift, M, n)
+        return symmetric_perron(second_moment_operator(A, B, channel, K, delivery).T + lift, M, n)
 
     K = _gains(P, A, B, T, h, delivery, np.zeros((M, B.shape[1], n)))
     found = regularised(K) if np.all(np.isfinite(K)) else None
@@ -319,7 +319,7 @@ def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, chan
     _REFINE_STEPS): P the Perron eigenvector of ``L_K^*`` (exact for K, to the eigenvalue routine's rounding), then
     K <- the minimiser at P (its directions below _REFINE_CUT of the largest cut off, K kept on the rest,
     `_gains`), taken while the radius does not grow beyond RICCATI_RTOL. Returns the last gains, their radius
-    and their Perron eigenvector without the directions it weighs below its own error bound (`_perron`; at
+    and their Perron eigenvector without the directions it weighs below its own error bound (`symmetric_perron`; at
     least _EIGENVECTOR_CUT): they are rounding, and a Collatz–Wielandt bound counts every direction it weighs (a
     mode left at trace 1e-12 where R's eigenvector vanishes bounds the radius by 0).
 
@@ -333,7 +333,7 @@ def _refine(K: np.ndarray, P_eps: np.ndarray, A: np.ndarray, B: np.ndarray, chan
     M, n = len(h), A.shape[0]
 
     def perron(gains: np.ndarray) -> tuple[float, np.ndarray] | None:
-        found = _perron(second_moment_operator(A, B, channel, gains, delivery).T, M, n)
+        found = symmetric_perron(second_moment_operator(A, B, channel, gains, delivery).T, M, n)
         if found is None:
             return None
         _, V, radius, error = found

@@ -209,7 +209,7 @@ class StabilityAllocation(Frozen):
     ``alpha`` its bound (None for "stable"), ``boxes`` explored, ``method`` how it ended. ``basis`` "loop":
     ``dp_cost`` is the law run for ever; ``attainable_cost`` the least expected cost over the system's horizon of a
     law with acknowledgements (the finite-horizon DP, allocation.attainable; None with ``attainable_note`` when not
-    computed); ``stabilisable`` True, on ``gain``'s certificate."""
+    computed); ``stabilisable`` True, on ``gain``'s certificate; ``actuator`` as `Allocation`'s."""
 
     target: str
     mu: np.ndarray
@@ -231,6 +231,7 @@ class StabilityAllocation(Frozen):
     attainable_note: str = ""
     stabilisable: bool | None = None
     stability_note: str = ""
+    actuator: tuple[tuple[str, str, float | None, str], ...] = ()
 
     __repr__ = fields_repr
     _repr_html_ = fields_html

@@ -48,10 +48,17 @@ def loop_warning(alpha: float | None, attainable_cost: float | None, stabilisabl
 
 def attained(result: Any) -> dict[str, Any]:
     """The JSON keys of what a loop attains at an allocation's mu: ``basis`` (of its ``cost``),
-    ``attainable_cost``, ``attainable_note``, ``stabilisable``, ``stability_note``. O(1)."""
-    return {"basis": result.basis, "attainable_cost": result.attainable_cost,
-            "attainable_note": result.attainable_note, "stabilisable": result.stabilisable,
-            "stability_note": result.stability_note}
+    ``attainable_cost``, ``attainable_note``, ``stabilisable``, ``stability_note``; ``actuator`` where the
+    allocation was asked for the actuator strategies' verdicts (per strategy ``verdict``, ``radius``, ``reason``,
+    as ``allocate --actuator``). O(1)."""
+    out = {"basis": result.basis, "attainable_cost": result.attainable_cost,
+           "attainable_note": result.attainable_note, "stabilisable": result.stabilisable,
+           "stability_note": result.stability_note}
+    verdicts = getattr(result, "actuator", ())
+    if verdicts:
+        out["actuator"] = {name: {"verdict": verdict, "radius": radius, "reason": reason}
+                           for name, verdict, radius, reason in verdicts}
+    return out
 
 
 @dataclass(frozen=True)
@@ -72,7 +79,10 @@ class Allocation(Frozen):
     may exceed alpha; UDP-like: ``cost`` itself), None when not computed (``attainable_note`` says why);
     ``stabilisable``: does some linear law hold the loop mean-square stable at mu (True / False, each certified;
     None when undecided or not computed, ``stability_note`` says why). ``basis``: what ``cost`` is ("paper":
-    the paper's J*(mu); "attainable": the exact expected cost under a chain).
+    the paper's J*(mu); "attainable": the exact expected cost under a chain). ``actuator``: with
+    ``allocate(..., actuator=...)``, per strategy on a loss ``(name, verdict, radius, reason)``: is mu
+    stabilisable by a TCP-like law of that strategy ("stable" / "unstable", each proved, or "undecided";
+    closedloop.actuator_region.actuator_membership; radius None unless stable).
     """
 
     mu: np.ndarray
@@ -91,6 +101,7 @@ class Allocation(Frozen):
     attainable_note: str = ""
     stabilisable: bool | None = None
     stability_note: str = ""
+    actuator: tuple[tuple[str, str, float | None, str], ...] = ()
 
     __repr__ = allocation_repr
     _repr_html_ = allocation_html

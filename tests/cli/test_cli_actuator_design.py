@@ -88,3 +88,13 @@ def test_bad_actuator_input_is_exit_2_and_one_line(capsys, scalar, argv, message
     assert out == ""
     assert len(err.strip().splitlines()) == 1
     assert message in err
+
+
+def test_compare_on_the_default_strategies_refuses_an_over_budget_buffer_and_compares_the_rest(capsys):
+    code, out, _ = _run(capsys, "compare", "two_actuator", "--json", "-q")
+    assert code == 0
+    data = json.loads(out)["strategies"]
+    assert data["buffer:10"]["radius"] is None
+    assert "buffer:6 or shorter" in data["buffer:10"]["reason"]
+    assert data["zero"]["radius"] < 1.0
+    assert data["hold"]["radius"] < 1.0

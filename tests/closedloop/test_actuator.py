@@ -63,13 +63,18 @@ def _channel(system: System) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _kind(spec: str) -> tuple[str, int]:
     kind, _, length = spec.partition(":")
-    return kind, int(length or 1)
+    return kind, int(length.partition(":")[0] or 1)
+
+
+def _holds_when_exhausted(spec: str) -> bool:
+    return spec.endswith(":hold")
 
 
 def enumerated_costs(system: System, K: np.ndarray, steps: int, spec: str) -> tuple[np.ndarray, float]:
     """Expected stage costs over every channel path and delivery path of ``steps`` steps, each path run forward
     with the actuator's logic written out: zero plays v u; hold plays u if delivered, else the last applied input;
-    buffer:L stores the delivered plan ``-k_i (A - B K)^j x``, j < L, and plays entry ``j`` after j losses, 0 beyond.
+    buffer:L stores the delivered plan ``-k_i (A - B K)^j x``, j < L, and plays entry ``j`` after j losses, 0 beyond
+    (buffer:L:hold: the last applied input beyond).
     The state is carried as columns: x0 and, for each step s and noise direction, ``Sigma^(1/2) e_j`` entering at
     s (E over the noise is the sum over columns). No moment recursion, no mode chain."""
     A, B = system.A, system.B
@@ -110,7 +115,7 @@ def enumerated_costs(system: System, K: np.ndarray, steps: int, spec: str) -> tu
                         else:
                             played[i] += 1
                         ok = plans[i] is not None and played[i] < L
-                        applied[i] = plans[i][played[i]] if ok else 0.0
+                        applied[i] = plans[i][played[i]] if ok else (held[i] if _holds_when_exhausted(spec) else 0.0)
                 held = applied
                 stage[t] += prob * (np.sum(X * (Omega @ X)) + np.sum(psi[:, None] * applied ** 2))
                 X = A @ X + B @ applied
@@ -153,7 +158,7 @@ def sampled_costs(system: System, K: np.ndarray, steps: int, spec: str, runs: in
             played = np.where(v, 0, played + 1)
             index = np.minimum(played, L - 1)
             entry = np.take_along_axis(plans, index[:, :, None], axis=2)[:, :, 0]
-            applied = np.where(played < L, entry, 0.0)
+            applied = np.where(played < L, entry, held if _holds_when_exhausted(spec) else 0.0)
         held = applied
         total += np.einsum("ri,ij,rj->r", X, Omega, X) + applied ** 2 @ psi
         X = X @ A.T + applied @ B.T + rng.standard_normal((runs, n)) @ root.T
@@ -187,6 +192,48 @@ def test_costs_match_every_delivery_path(name: str, spec: str) -> None:
     ref_stage, ref_terminal = enumerated_costs(system, K, steps, spec)
     assert _relative(stage, ref_stage) <= ACTUATOR_EXACT_RTOL
     assert abs(terminal - ref_terminal) <= ACTUATOR_EXACT_RTOL * abs(ref_terminal)
+
+
+@pytest.mark.parametrize("spec", ["buffer:2:hold", "buffer:3:hold", "buffer:5:hold"])
+@pytest.mark.parametrize("name", list(CHANNELS))
+def test_a_buffer_that_holds_once_exhausted_matches_every_delivery_path(name: str, spec: str) -> None:
+    """buffer:L:hold's exact costs against the enumeration (the last applied input played beyond the plan), 3 to
+    4 steps: long enough to exhaust buffer:2's plan."""
+    system = _system(**CHANNELS[name])
+    steps = 3 if (system.m == 2 or system.channel is not None) else 4
+    K = _gain(system.m)
+    stage, terminal = actuator_costs(system, K, steps, spec)
+    ref_stage, ref_terminal = enumerated_costs(system, K, steps, spec)
+    assert _relative(np.append(stage, terminal), np.append(ref_stage, ref_terminal)) <= ACTUATOR_EXACT_RTOL
+    zero_stage, _ = actuator_costs(system, K, steps, spec.removesuffix(":hold"))
+    if spec == "buffer:2:hold":                          # exhausted within the horizon: the two options differ
+        assert _relative(stage, zero_stage) > 1e-6
+
+
+@pytest.mark.parametrize("name", ["gilbert-1", "bernoulli-2"])
+def test_a_buffer_that_holds_once_exhausted_matches_sampling(name: str) -> None:
+    """40 steps: buffer:6:hold's exact total cost within SAMPLED_Z_MAX standard errors of 20,000 sampled runs (the
+    plan's predicted state: one gain, n < L - 1)."""
+    system = _system(**CHANNELS[name], horizon=40)
+    K = _gain(system.m)
+    stage, terminal = actuator_costs(system, K, 40, "buffer:6:hold")
+    mean, stderr = sampled_costs(system, K, 40, "buffer:6:hold", 20000, seed=41)
+    assert abs(mean - (stage.sum() + terminal)) <= SAMPLED_Z_MAX * stderr
+
+
+def test_a_buffer_that_holds_once_exhausted_keeps_either_memory_alike() -> None:
+    """The plan's predicted state (one gain) and its L - 1 entries (a gain one ulp apart): same radius and costs."""
+    system = _system(**CHANNELS["gilbert-1"])
+    M = actuator_loop(system.A, system.B, _gain(1), system.channel, "zero").T.shape[0]
+    K = np.repeat(_gain(1)[None], M, axis=0)
+    K_ulp = K.copy()
+    K_ulp[-1] = np.nextafter(K_ulp[-1], np.inf)
+    short, long = (actuator_loop(system.A, system.B, G, system.channel, "buffer:6:hold") for G in (K, K_ulp))
+    assert (short.A.shape[-1], long.A.shape[-1]) == (2 + 2, 2 + 5)
+    assert abs(short.radius() - long.radius()) <= ACTUATOR_EXACT_RTOL * long.radius()
+    weights = (system.state_weights[0], system.input_weights[0], system.noise_cov, system.x0, 12)
+    costs = [np.append(*loop.stage_costs(*weights)) for loop in (short, long)]
+    assert _relative(costs[0], costs[1]) <= ACTUATOR_EXACT_RTOL
 
 
 def test_mode_gains_match_every_delivery_path() -> None:

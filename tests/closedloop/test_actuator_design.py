@@ -283,3 +283,18 @@ def test_design_modes_count_and_start():
     assert modes.p.shape == (9, 4)
     assert np.allclose(modes.R.sum(axis=2), 1.0)
     assert modes.labels[int(np.argmax(modes.start))] == "c0 ages (3, 3)"
+
+
+def test_a_buffer_whose_law_is_over_the_rows_budget_is_refused_upfront_naming_the_longest_within_it():
+    """Rows by hand on two_actuator (n = m = 2, 4 patterns): buffer:L has L^2 modes and N = 2 + 2 (L - 1), so
+    buffer:10 has 100 * 4 * 20^2 = 160000 rows, buffer:6 36 * 4 * 12^2 = 20736 (within 25000), buffer:7 38416."""
+    import time
+
+    from packetloss_cvx import load_example
+    from packetloss_cvx.errors import BudgetError
+    system = load_example("two_actuator")
+    started = time.perf_counter()
+    with pytest.raises(BudgetError, match=r"160000 rows.*use buffer:6 or shorter"):
+        actuator_dp(system, "buffer:10")
+    assert time.perf_counter() - started < 1.0          # upfront: before any Riccati step
+    assert actuator_dp(system, "buffer:6").radius < 1.0
