@@ -2,6 +2,7 @@
 and a Gilbert channel: r > 1 - 1/a^2 whatever p), the Bernoulli set at a memoryless chain's mean rate, the
 coupled Riccati equation of markov.mjls (another algorithm, with weights), and sampled mode gains."""
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -505,13 +506,16 @@ def test_a_float_bound_that_rounding_fools_is_no_verdict(monkeypatch):
     P2 = np.repeat(P[None] / (2 * np.trace(P)), 2, axis=0)
     assert lam > 1.0
     fooled = max(chain_certificate_margin(A, B, ch, Q, "next") for Q in [P2, *cut_candidates(P2)])
-    assert fooled > 1e-4                            # the float bound of P or a cut of it (chain_outside's candidates)
+    # the float bound of P or a cut of it (chain_outside's candidates) is fooled by the rounding of some kernels
+    # (1.00066 under Haswell; -1, not fooled, under Prescott); what must hold everywhere is the exact check's refusal
+    assert fooled > 1e-4 or os.environ.get("OPENBLAS_CORETYPE", "").lower() not in ("", "haswell")
     margin, certificate = chain_outside(A, B, ch, P2, "next")
     assert certificate is None
     monkeypatch.setattr(markov_region, "homogeneous_coupled_riccati", lambda *args: (lam, P2, np.zeros((2, 1, 4))))
     found = chain_membership(A, B, ch)
     assert found.verdict == "undecided"
-    assert "exact check" in found.reason
+    # the reason names what failed: the exact check where the float bound was fooled, else the float bound itself
+    assert ("exact check" if fooled > 1e-4 else "certificate proves only") in found.reason
 
 
 @pytest.mark.parametrize(("a0", "mu"), [(1.0, 0.0124), (1.001, 0.002), (1.001, 0.0079), (1.001, 0.0186),

@@ -81,7 +81,9 @@ def test_expected_cost_of_the_pendulums_plan_over_2000_steps_raises():
     with pytest.raises(pl.NumericalError, match="not resolved"):
         recursion_cost(s, sol.inputs, "tcp")
     value, bound = plan_cost(s, sol.inputs, "tcp")
-    assert bound > 1e-3 * value                      # the true error: 0.75 % (the docstring's measurement)
+    # the float plan, hence the forward pass's error, depends on the BLAS kernel: the bound is 0.75 % of the value
+    # under Haswell (the docstring's measurement, the true error to 6e-12 relative) and 0.083 % under Prescott
+    assert bound > 1e-4 * value
 
 
 def test_a_refused_plan_cost_was_in_fact_inaccurate():
