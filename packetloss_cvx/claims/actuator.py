@@ -54,7 +54,4 @@ def zero_vs_hold(ctx: Context) -> ClaimResult:
             "held input), infinite-horizon cost x0'P x0 from the system's x0 at its channel; margin = (J_hold - "
             "J_zero) / J_zero: " + "; ".join(rows) + ". Neither strategy dominates: holding is cheaper on the "
             "pendulum, zeroing on the two-actuator system (`packetloss-cvx compare FILE`).")
-    return ClaimResult(id="zero-vs-hold-paper-systems", statement=STATEMENT, verdict=tally.verdict(),
-                       checked=tally.checked, violations=int(tally.violations), worst=tally.worst,
-                       counterexample=counterexample, note=note + tally.error_note(), errors=tally.errors,
-                       outcomes="".join(tally.outcomes))
+    return tally.result("zero-vs-hold-paper-systems", STATEMENT, note, counterexample)

@@ -189,10 +189,8 @@ def allocation_tcp_meets_alpha(ctx: Context) -> ClaimResult:
              + (f" ({', '.join(unstable[:4])}{', ...' if len(unstable) > 4 else ''})" if unstable else "")
              + ". Design on the attainable cost instead: allocate(..., target='attainable').")
     first = next((c for c, o in zip(cases, tally.outcomes, strict=True) if o == "-"), None)
-    return ClaimResult(id="allocation-tcp-meets-alpha", statement=STATEMENTS["allocation-tcp-meets-alpha"],
-                       verdict=tally.verdict(), checked=tally.checked, violations=int(tally.violations),
-                       worst=tally.worst, counterexample=None if first is None else first.system.to_dict(),
-                       note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes))
+    return tally.result("allocation-tcp-meets-alpha", STATEMENTS["allocation-tcp-meets-alpha"], note,
+                        None if first is None else first.system.to_dict())
 
 
 def ack_price_paper_basis(ctx: Context) -> ClaimResult:
@@ -263,7 +261,5 @@ def ack_price_paper_basis(ctx: Context) -> ClaimResult:
     note += ("Price the link on the attainable basis: allocate FILE --protocol best prints both "
              "(allocation.ack.best_protocol).")
     first = next((c for c, o in zip(cases, tally.outcomes, strict=True) if o == "-"), None)
-    return ClaimResult(id="ack-price-paper-basis", statement=STATEMENTS["ack-price-paper-basis"],
-                       verdict=tally.verdict(), checked=tally.checked, violations=int(tally.violations),
-                       worst=tally.worst, counterexample=None if first is None else first.system.to_dict(),
-                       note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes))
+    return tally.result("ack-price-paper-basis", STATEMENTS["ack-price-paper-basis"], note,
+                        None if first is None else first.system.to_dict())

@@ -147,7 +147,4 @@ def tcp_prior_mean_chain(ctx: Context) -> ClaimResult:
             "value at the mean allows), above it only where there is process noise (the paper's plan is fixed in "
             "advance, the DP reacts to the noise, as for independent losses). The product shows the chain DP's "
             "cost as the attainable one and the paper's value labelled as such.")
-    return ClaimResult(id="tcp-prior-mean-chain", statement=STATEMENT, verdict=tally.verdict(),
-                       checked=tally.checked, violations=int(tally.violations), worst=tally.worst,
-                       counterexample=counterexample, note=note + tally.error_note(), errors=tally.errors,
-                       outcomes="".join(tally.outcomes))
+    return tally.result("tcp-prior-mean-chain", STATEMENT, note, counterexample)

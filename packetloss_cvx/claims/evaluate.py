@@ -129,6 +129,13 @@ class Tally:
         more = f"; and {len(self.failures) - 3} more" if len(self.failures) > 3 else ""
         return f" Errored ({self.errors}, not counted as checked): {shown}{more}."
 
+    def result(self, claim_id: str, statement: str, note: str, counterexample: dict | None = None) -> ClaimResult:
+        """The claim's result from this tally: its verdict, counts, worst margin and outcomes, ``note`` followed by
+        `error_note`."""
+        return ClaimResult(id=claim_id, statement=statement, verdict=self.verdict(), checked=self.checked,
+                           violations=int(self.violations), worst=self.worst, counterexample=counterexample,
+                           note=note + self.error_note(), errors=self.errors, outcomes="".join(self.outcomes))
+
 
 def _brief(text: str, limit: int = 100) -> str:
     line = text.splitlines()[0] if text else ""
@@ -290,11 +297,7 @@ def evaluate(claim_id: str, ctx: Context, cases: Sequence[System], margin: Margi
     if tally.violations and shrinkable:
         found = shrink(margin, ctx.seed, fallback=cases, candidates=simple_systems(ctx))
         counterexample = found.to_dict() if found is not None else None
-    return ClaimResult(
-        id=claim_id, statement=STATEMENTS[claim_id], verdict=tally.verdict(), checked=tally.checked,
-        violations=int(tally.violations), worst=tally.worst, counterexample=counterexample,
-        note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes),
-    )
+    return tally.result(claim_id, STATEMENTS[claim_id], note, counterexample)
 
 
 #: A Monte Carlo case needs the rarer outcome of every random channel entry this many times on

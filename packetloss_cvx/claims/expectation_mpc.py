@@ -98,7 +98,4 @@ def expectation_mpc(ctx: Context) -> ClaimResult:
         note += "; ".join(parts) + (". On infeasibility the controller applied the soft program's first input. "
                                     "Margin = the Wilson lower bound of the certainty-equivalent runs that stay "
                                     "feasible minus the upper bound of the expected-cost runs that do.")
-    return ClaimResult(id="expectation-mpc-feasibility", statement=STATEMENT, verdict=tally.verdict(),
-                       checked=tally.checked, violations=int(tally.violations), worst=tally.worst,
-                       counterexample=None, note=note + tally.error_note(), errors=tally.errors,
-                       outcomes="".join(tally.outcomes))
+    return tally.result("expectation-mpc-feasibility", STATEMENT, note)

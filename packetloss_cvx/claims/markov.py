@@ -108,6 +108,4 @@ def plug_in_markov(ctx: Context) -> ClaimResult:
             "R = E[v v'] (closed form, cross-checked against a QP in the tests). Loss of the plug-in law on the "
             f"paper's systems: {'; '.join(paper)}. The TCP-like cost holds only mu_t, so its plug-in law is its "
             "exact minimiser.")
-    return ClaimResult(id="plug-in-markov", statement=STATEMENT, verdict=tally.verdict(), checked=tally.checked,
-                       violations=int(tally.violations), worst=tally.worst, counterexample=counterexample,
-                       note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes))
+    return tally.result("plug-in-markov", STATEMENT, note, counterexample)

@@ -122,7 +122,4 @@ def power_water_filling(ctx: Context) -> ClaimResult:
             "KKT read w_i y_i / (2 - y_i)^2 = lambda, so P_2 - P_1 = ln 3 - 2 ln((2 - y_2)/(2 - y_1)), which "
             "tends to ln 3 only as the budget grows (B = 2: y = (0.5346, 0.2532), P_2 - P_1 = 0.7473). "
             "Found: " + "; ".join(lines) + ".")
-    return ClaimResult(id="power-water-filling", statement=STATEMENT, verdict=tally.verdict(), checked=tally.checked,
-                       violations=int(tally.violations), worst=tally.worst,
-                       counterexample=tcp.to_dict() if tally.violations else None,
-                       note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes))
+    return tally.result("power-water-filling", STATEMENT, note, tcp.to_dict() if tally.violations else None)

@@ -80,7 +80,4 @@ def stability_region(ctx: Context) -> ClaimResult:
             "gain above and an infeasibility certificate below; tcp / udp = the paper's laws at the system's "
             "horizon, re-designed at each mu; never = not stable even at mu = 1): " + "; ".join(rows) + ". Margin = "
             "min over tcp, udp of (t_law - t_dp) / t_dp (1 where a law never stabilises).")
-    return ClaimResult(id="stability-region-paper-systems", statement=STATEMENT, verdict=tally.verdict(),
-                       checked=tally.checked, violations=int(tally.violations), worst=tally.worst,
-                       counterexample=None, note=note + tally.error_note(), errors=tally.errors,
-                       outcomes="".join(tally.outcomes))
+    return tally.result("stability-region-paper-systems", STATEMENT, note)

@@ -153,6 +153,4 @@ def cost_split_sensor(ctx: Context) -> ClaimResult:
             f"{MIXED:g}, the second half averaged): z of the sampled cost against tr(P Sigma_W) + tr(K'HK mean "
             "P_k), margin 1 - |z| / 4"
             + (f" ({shown})" if shown else "") + ".")
-    return ClaimResult(id="cost-split-sensor", statement=STATEMENT, verdict=tally.verdict(), checked=tally.checked,
-                       violations=int(tally.violations), worst=tally.worst, counterexample=None,
-                       note=note + tally.error_note(), errors=tally.errors, outcomes="".join(tally.outcomes))
+    return tally.result("cost-split-sensor", STATEMENT, note)
