@@ -1,6 +1,7 @@
 """The constrained receding-horizon loop over lossy links, sampled: model predictive control re-solved from each
-realised state, the first input sent through the link (a lost packet applies zero), under Bernoulli or chain
-losses and process noise.
+realised state, the plan sent through the link (a lost packet applies zero, or, with ``actuator=``, the actuator
+holds its last input or plays the next entry of the last plan it received), under Bernoulli or chain losses and
+process noise.
 
 Three controllers run on the same sample paths (deliveries, chain states, noise):
 
@@ -19,6 +20,17 @@ the losses as independent, so their realised frequencies are what tells). Both k
 the rate bound links the first input of a plan to the previous command (the actuator at rest, zero, before the
 first): the program's own ``u_prev`` Parameter (``ConstrainedQP(..., u_prev=True)``), covered by its KKT check and
 polish like every other row.
+
+The actuator on a loss (``actuator``, `packetloss_cvx.closedloop.actuator.parse_actuator`): "zero" is the paper's
+model (the input and rate rows bound the commands, the rate links to the last command). Under
+"hold", "buffer:L" and "buffer:L:hold" each actuator keeps the last packet it received, the plan's first L inputs
+(the clipped law's rolled out on the nominal prediction, every input delivered: the programs' own plans are the
+packet), plays its next entry on a loss and, once exhausted, zero or its last applied input ("hold" is
+"buffer:1:hold"); the rows then bound the inputs applied. A TCP-like controller knows from the acknowledgements which
+entry each actuator played, hence the input applied last, and links its plan's rate bound to it, so a plan played
+in order and held once exhausted keeps both bounds on every path; a UDP-like one knows neither and links it to its
+last command, as if delivered (certainty-equivalent MPC, which plans alike for both protocols under zero, then runs
+once per protocol). The programs keep the paper's expected cost, a loss modelled as zero.
 
 Infeasible programs: the expected-state limits and chance rows of the hard program can have no plan from a
 realised state (a loss leaves the state where no plan brings its expectation back inside). The controller then
