@@ -206,3 +206,24 @@ def test_with_loose_bounds_the_loop_costs_the_linear_law_exactly(actuator):
         assert abs(run.mean_stage_cost - stage.mean()) <= SAMPLED_Z_MAX * run.stderr, (protocol, run.mean_stage_cost,
                                                                                       stage.mean(), run.stderr)
         assert run.stderr < 0.05 * stage.mean()                              # an interval that can tell
+
+
+def test_threads_and_tasks_give_the_serial_runs_float_for_float_under_a_buffer(monkeypatch):
+    # the strategy travels to every thread and task (loop_task rebuilds the controller from its name): the serial
+    # run is the reference, through its whole JSON and the kept applied inputs
+    from concurrent.futures import ThreadPoolExecutor
+
+    s = _plant()
+    args = dict(samples=2 * mpc.CHUNK + 3, steps=4, seed=6, progress=False, keep=mpc.CHUNK + 2,
+                actuator="buffer:3:hold")
+    serial = simulate_mpc(s, _tight(), **args)
+    threads = simulate_mpc(s, _tight(), threads=2, **args)
+    monkeypatch.setattr(mpc, "TASK_CHUNKS", 2)
+    with ThreadPoolExecutor(2) as pool:
+        tasks = simulate_mpc(s, _tight(), dask=pool, **args)
+    for spread in (threads, tasks):
+        assert spread.to_dict() == serial.to_dict()
+        for p in ("tcp", "udp"):
+            for name in CONTROLLERS:
+                assert np.array_equal(spread.runs[p][name].applied, serial.runs[p][name].applied)
+    assert serial.runs["tcp"]["certainty-equivalent"] is not serial.runs["udp"]["certainty-equivalent"]
