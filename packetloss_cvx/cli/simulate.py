@@ -86,12 +86,15 @@ def run(args: argparse.Namespace) -> CommandResult:
                          "and --mpc-samples >= 1")
     if getattr(args, "workers", None) is not None and getattr(args, "dask", None) != "local":
         raise InputError("--workers", "applies to --dask local only")
-    if strategies and not args.closed_loop:
-        raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop")
-    if strategies and system.channel is not None:
+    constrained = constraints is not None and bool(mpc_samples)
+    if strategies and not args.closed_loop and not constrained:
+        raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop, or give "
+                                       "FILE a [constraints] table (or --u-max, ...) for the constrained loop")
+    if strategies and system.channel is not None and args.closed_loop:
         raise InputError("--actuator", "behind a Markov channel simulate's laws read the channel's belief, not "
                                        "u = -K x: use solve --actuator (the plug-in laws, exact under the chain), or "
-                                       "--mu for the Bernoulli twin")
+                                       "--mu for the Bernoulli twin (without --closed-loop, a [constraints] table's "
+                                       "constrained loop runs each strategy behind the chain)")
     laws = LAWS if args.law == "all" else (args.law,)
     if not args.closed_loop:
         laws = tuple(law for law in laws if law != "dp")
@@ -121,11 +124,11 @@ def run(args: argparse.Namespace) -> CommandResult:
             entry["open_loop"]["formula_basis"] = "attainable" if p == EXACT_PLAN else "paper"
         if "closed_loop" in entry:
             entry["closed_loop"]["basis"] = "loop"
-    if strategies:     # the laws' loops when the actuator zeroes, holds or plays the buffered plan on a loss
+    if strategies and args.closed_loop:     # the laws' loops when the actuator zeroes, holds or plays the plan
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
                                                            args.seed)
         text = "\n".join([text, *more])
-    if constraints is not None and mpc_samples:     # the [constraints] table: the constrained receding-horizon loop
+    if constrained:     # the [constraints] table: the constrained receding-horizon loop (per strategy, --actuator)
         from .mpc_section import constrained_loop_section  # cvxpy (1.5 s to import) only where a program is solved
 
         protocols = ("tcp", "udp") if args.law == "all" else (args.law,)
@@ -133,7 +136,8 @@ def run(args: argparse.Namespace) -> CommandResult:
                                                                   args.steps, args.seed, progress_of(args),
                                                                   threads=getattr(args, "threads", 1),
                                                                   dask=getattr(args, "dask", None),
-                                                                  workers=getattr(args, "workers", None))
+                                                                  workers=getattr(args, "workers", None),
+                                                                  strategies=strategies)
         text = "\n".join([text, *more])
     if system.sensor is not None and args.closed_loop:     # lossy sensor links
         data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)

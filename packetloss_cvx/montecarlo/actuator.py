@@ -6,7 +6,7 @@ noise from ``SeedSequence([seed, ACTUATOR_STREAM])``, in blocks of ``BLOCK`` run
 stream, so that the first runs are the same whatever the number of samples); every step is one array operation
 over the block's runs. The actuator's logic is written out (not the engine's augmented state): zero plays ``v u``,
 hold ``u`` or the last applied input, buffer:L stores the delivered plan ``-K (A - B K)^j x``, j < L, and plays
-entry j after j losses, 0 beyond.
+entry j after j losses, 0 beyond (buffer:L:hold: the last applied input beyond).
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def _block(system: System, K: np.ndarray, strategy: Actuator, T: np.ndarray, h: 
             plans = np.where(v[:, :, None], -np.einsum("rij,rljk,rk->ril", K[c], powers[c], X), plans)
             played = np.where(v, 0, played + 1)
             entry = np.take_along_axis(plans, np.minimum(played, L - 1)[:, :, None], axis=2)[:, :, 0]
-            applied = np.where(played < L, entry, 0.0)
+            applied = np.where(played < L, entry, held if strategy.exhausted == "hold" else 0.0)
         held = applied
         stage[:, t] = np.einsum("ri,ij,rj->r", X, Omega, X) + applied ** 2 @ psi
         X = X @ A.T + applied @ B.T
