@@ -8,11 +8,13 @@ version runs first.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/region_engine.py [--baseline /work/wt/base-region] [--rounds 3]
     OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_engine.py --one-mode [--rounds 3]
+    python benchmarks/region_engine.py --kernels
 
 Prints per case: baseline and this CPU seconds, their ratio, the largest relative difference of the numbers
 (lambdas, radii, margins, critical points) and whether every verdict is the same. With ``--one-mode``: the chain
 strategy run on Bernoulli channels as one-mode chains against the Bernoulli strategy, in this checkout only (a
-Markdown table, `one_mode`).
+Markdown table, `one_mode`); with ``--kernels``: how far each strategy's least radius moves across OpenBLAS kernels
+(`kernel_spread`).
 """
 
 from __future__ import annotations
@@ -345,6 +347,56 @@ def one_mode(repeats: int) -> None:
           f"{totals[1] / totals[0]:.2f} | | | | | |")
 
 
+#: the OpenBLAS kernels `kernel_spread` runs the one-mode cases under
+_KERNELS = ("Haswell", "Prescott", "Nehalem", "Sandybridge", "Zen", "SkylakeX")
+
+
+def one_mode_radii() -> None:
+    """Print one JSON line: the least radius of every one-mode case by each strategy (a worker of `kernel_spread`)."""
+    from packetloss_cvx.closedloop.chain_radius import homogeneous_coupled_riccati
+    from packetloss_cvx.closedloop.region import homogeneous_riccati
+    from packetloss_cvx.model.channel import MarkovChannel
+
+    out = []
+    for family, A, B, mu, _ in _one_mode_cases():
+        chain = MarkovChannel(transition=[[[1.0]]] * len(mu), delivery=[[float(x)] for x in mu])
+        out.append([family, homogeneous_riccati(A, B, mu)[0], homogeneous_coupled_riccati(A, B, chain)[0]])
+    print(json.dumps(out))
+
+
+def kernel_spread() -> None:
+    """The one-mode cases' least radii under each OpenBLAS kernel of _KERNELS (a subprocess each, this checkout):
+    per family and strategy, the largest relative spread of a point's least radius across the kernels, beside the
+    largest relative difference of the two strategies under any one kernel. How far a least radius is reproducible
+    at all, so how near two iterations can be asked to agree."""
+    env = {**os.environ, "PYTHONPATH": str(HERE), "OPENBLAS_NUM_THREADS": "1"}
+    runs = {}
+    for kernel in _KERNELS:
+        done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--one-mode-radii"], capture_output=True,
+                              env={**env, "OPENBLAS_CORETYPE": kernel}, text=True, cwd=HERE)
+        if done.returncode:
+            raise RuntimeError(f"{kernel}: the worker failed\n{done.stderr[-3000:]}")
+        runs[kernel] = json.loads(done.stdout.strip().splitlines()[-1])
+
+    def rel(values: list[float]) -> float:
+        top = max(abs(v) for v in values)
+        return (max(values) - min(values)) / top if top > 0 else 0.0
+
+    rows: dict[str, list[float]] = {}
+    for k, (family, *_) in enumerate(runs[_KERNELS[0]]):
+        spread_b = rel([runs[kernel][k][1] for kernel in _KERNELS])
+        spread_c = rel([runs[kernel][k][2] for kernel in _KERNELS])
+        apart = max(rel(runs[kernel][k][1:]) for kernel in _KERNELS)
+        old = rows.get(family, [0.0, 0.0, 0.0])
+        rows[family] = [max(old[0], spread_b), max(old[1], spread_c), max(old[2], apart)]
+    print(f"least radius across the OpenBLAS kernels {', '.join(_KERNELS)} (largest relative spread of a point)")
+    print("| family | Bernoulli strategy across kernels | chain strategy across kernels | the two apart (worst kernel)"
+          " |")
+    print("|---|---|---|---|")
+    for family, (spread_b, spread_c, apart) in rows.items():
+        print(f"| {family} | {spread_b:.1e} | {spread_c:.1e} | {apart:.1e} |")
+
+
 def _run(root: Path, repeats: int) -> dict:
     env = {**os.environ, "PYTHONPATH": str(root), "OPENBLAS_NUM_THREADS": "1"}
     done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--worker", str(repeats)], env=env,
@@ -375,9 +427,17 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--worker", type=int, default=None)
     parser.add_argument("--one-mode", action="store_true", help="only the one-mode comparison of the two strategies")
+    parser.add_argument("--kernels", action="store_true", help="the one-mode least radii across OpenBLAS kernels")
+    parser.add_argument("--one-mode-radii", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker is not None:
         worker(args.worker)
+        return
+    if args.one_mode_radii:
+        one_mode_radii()
+        return
+    if args.kernels:
+        kernel_spread()
         return
     if args.one_mode:
         one_mode(args.rounds)
