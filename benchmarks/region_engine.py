@@ -259,14 +259,15 @@ _PHASES = {"bernoulli": ("region", "_power", ("_policy_iteration",), "_homogeneo
 
 
 def _phases(profile, strategy: str) -> tuple[float, float, int]:
-    """(power CPU s, policy CPU s, map evaluations) of one strategy from a cProfile run (cumulative times: the
-    profiler's own cost inflates both alike). The Bernoulli strategy's evaluations are its Riccati steps (power and
-    policy iteration, a batch of points one call), the chain's its power steps."""
+    """(power CPU s, policy CPU s, power steps) of one strategy from a cProfile run (cumulative times: the profiler's
+    own cost inflates both alike). A power step is a call of the map from the power iteration (the Bernoulli
+    strategy's calls are batched: one a step whether the batch holds one point or many; here each point runs
+    alone)."""
     import pstats
 
     module, power, policy, step = _PHASES[strategy]
     out = [0.0, 0.0, 0]
-    for (path, _, name), (_, calls, _, cum, _) in pstats.Stats(profile).stats.items():
+    for (path, _, name), (_, _, _, cum, callers) in pstats.Stats(profile).stats.items():
         if not path.endswith(f"closedloop/{module}.py"):
             continue
         if name == power:
@@ -274,7 +275,8 @@ def _phases(profile, strategy: str) -> tuple[float, float, int]:
         elif name in policy:
             out[1] += cum
         if name == step:
-            out[2] += calls
+            out[2] += sum(c[1] for (where, _, caller), c in callers.items()
+                          if caller == power and where.endswith(f"closedloop/{module}.py"))
     return out[0], out[1], out[2]
 
 
@@ -286,8 +288,8 @@ def one_mode(repeats: int) -> None:
     to an unregularised Kronecker policy iteration after 30 steps, or after 4 where its steps shrink too slowly;
     balanced where P is graded) at the same points. Per family: CPU of each (best of ``repeats``), their ratio, the
     largest relative difference of the least radius between them and of each from the hand value where there is
-    one, and from one profiled run the share of each strategy's time in its power and its policy iteration and its
-    power steps a point."""
+    one, and from one profiled run each strategy's power steps a point, their CPU a step and the shares of its time
+    in its power and its policy iteration (with the chain's refinement)."""
     import cProfile
     import pstats
 
@@ -321,7 +323,7 @@ def one_mode(repeats: int) -> None:
             power, policy, steps = _phases(profile, label)
             total = sum(v[3] for k, v in pstats.Stats(profile).stats.items()
                         if k[2] in ("homogeneous_riccati", "homogeneous_coupled_riccati"))
-            row[label] = (best, power / total, policy / total, steps / len(cases))
+            row[label] = (best, power / total, policy / total, steps / len(cases), power / max(steps, 1))
             hands = [(lam, hand) for lam, (*_, hand) in zip(lams[label], cases, strict=True) if hand is not None]
             row[f"{label} hand"] = max((abs(lam - hand) / hand for lam, hand in hands), default=None)
         row["diff"] = max(0.0 if b == c else abs(b - c) / abs(b) for b, c in zip(lams["bernoulli"], lams["chain"],
@@ -330,9 +332,10 @@ def one_mode(repeats: int) -> None:
     print(f"one-mode chains: the chain strategy against the Bernoulli strategy (least radius), CPU best of {repeats}, "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', '(unset)')}, "
           f"OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}")
-    print("| family | points | Bernoulli ms | chain ms | ratio | map evaluations a point (B / chain) | time in power, "
-          "policy (B) | time in power, policy (chain) | max rel diff | rel err from hand (B / chain) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| family | points | Bernoulli ms | chain ms | ratio | power steps a point (B / chain) | profiled µs a power "
+          "step (B / chain) | time in power, policy (B) | time in power, policy (chain) | max rel diff | rel err from "
+          "hand (B / chain) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     totals = [0.0, 0.0]
     for row in rows:
         b, c = row["bernoulli"], row["chain"]
@@ -341,10 +344,11 @@ def one_mode(repeats: int) -> None:
         hand = ("-" if row["bernoulli hand"] is None else
                 f"{row['bernoulli hand']:.1e} / {row['chain hand']:.1e}")
         print(f"| {row['family']} | {row['points']} | {1e3 * b[0]:.1f} | {1e3 * c[0]:.1f} | {c[0] / b[0]:.2f} | "
-              f"{b[3]:.0f} / {c[3]:.0f} | {100 * b[1]:.0f} %, {100 * b[2]:.0f} % | {100 * c[1]:.0f} %, "
-              f"{100 * c[2]:.0f} % | {row['diff']:.1e} | {hand} |")
+              f"{b[3]:.0f} / {c[3]:.0f} | {1e6 * b[4]:.0f} / {1e6 * c[4]:.0f} | "
+              f"{100 * b[1]:.0f} %, {100 * b[2]:.0f} % | {100 * c[1]:.0f} %, {100 * c[2]:.0f} % | {row['diff']:.1e} | "
+              f"{hand} |")
     print(f"| total | {sum(r['points'] for r in rows)} | {1e3 * totals[0]:.1f} | {1e3 * totals[1]:.1f} | "
-          f"{totals[1] / totals[0]:.2f} | | | | | |")
+          f"{totals[1] / totals[0]:.2f} | | | | | | |")
 
 
 #: the OpenBLAS kernels `kernel_spread` runs the one-mode cases under
