@@ -1,15 +1,21 @@
-"""A probe, not a capability: the Bernoulli iteration's schedule (region.homogeneous_riccati: shifted power steps of
-the least-squares Riccati step, handed to an unregularised Kronecker policy iteration after 30 steps, or after 4 where
-they shrink too slowly; balanced where P is graded, kept where its gain's radius is nearer) written for M-mode
-chains and put in place of the chain iteration's eigenpair (chain_radius's reachable-part eigenpair, behind the
-same controllability split), to measure what the chains would gain and lose with it as the one iteration.
+"""Probes, not capabilities: two schedules for one stabilisable-set iteration over M-mode chains, each put in place
+of the chain iteration (chain_radius) to measure what it gains and loses, on chains and at one mode.
 
-    OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_schedule_probe.py
+- ``bernoulli``: the Bernoulli iteration's schedule (region.homogeneous_riccati: shifted power steps of the
+  least-squares Riccati step, handed to an unregularised Kronecker policy iteration after 30 steps, or after 4 where
+  they shrink too slowly; balanced where P is graded, kept where its gain's radius is nearer) written for M modes,
+  in place of chain_radius's reachable-part eigenpair behind the same controllability split.
+- ``chain``: the chain iteration itself with two schedule changes: its first policy iteration at power step 4
+  instead of 30, and an unbalanced pass whose P is graded (riccati_map.grading_scale) stopped at the checkpoint, the
+  balanced pass redoing it (where the bracket of a graded P cannot close).
+
+    OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_schedule_probe.py [--probe bernoulli|chain]
 
 Prints the CPU of the chain cases of benchmarks/region_engine.py (chain memberships under both conventions, the
-two_actuator rate map, a critical mean rate) under each iteration, their answers' largest relative difference and
-the verdicts that change, then the chain tests (tests/closedloop/test_markov_region.py,
-test_chain_certificates.py) run with the probe installed (``pytest -p region_schedule_probe``).
+two_actuator rate map, a critical mean rate) unpatched and probed, their answers' largest relative difference and
+the verdicts that change; the chain tests (tests/closedloop/test_markov_region.py, test_chain_certificates.py) run
+with the probe installed (``pytest -p region_schedule_probe``); and for ``chain`` the one-mode cases of
+region_engine.py against the Bernoulli iteration (CPU ratio, least radii apart, error from the hand value).
 """
 
 from __future__ import annotations
@@ -170,11 +176,29 @@ def balanced_eigenpair(A, B, channel, T, h, delivery):
     return best
 
 
-def install() -> None:
-    """Put the probe in place of the chain iteration's eigenpair."""
-    from packetloss_cvx.closedloop import chain_radius
+#: the environment variable naming the probe `install` puts in place (read by the pytest plugin too)
+PROBE = "REGION_SCHEDULE_PROBE"
 
-    chain_radius._balanced_eigenpair = balanced_eigenpair
+
+def install() -> None:
+    """Put the probe named by the environment's REGION_SCHEDULE_PROBE (default "bernoulli") in place."""
+    from packetloss_cvx.closedloop import chain_radius
+    from packetloss_cvx.closedloop.riccati_map import GRADED, grading_scale
+    from packetloss_cvx.tolerances import HOMOGENEOUS_RICCATI_MAX_ITER
+
+    if os.environ.get(PROBE, "bernoulli") == "bernoulli":
+        chain_radius._balanced_eigenpair = balanced_eigenpair
+        return
+    chain_radius._CHECKPOINTS = (4, 30, 90, 270, 810, 2430, HOMOGENEOUS_RICCATI_MAX_ITER)
+    power = chain_radius._power
+
+    def graded_stop(P, A, B, T, h, delivery, first, steps):
+        P, lam, ended, moved = power(P, A, B, T, h, delivery, first, steps)
+        if ended == "steps" and first > 0 and grading_scale(P, GRADED) is not None:
+            ended = "stopped"
+        return P, lam, ended, moved
+
+    chain_radius._power = graded_stop
 
 
 def pytest_configure(config) -> None:
@@ -219,15 +243,83 @@ def _chain_cases():
     return out
 
 
+def _one_mode(reference: dict) -> None:
+    """The one-mode cases of region_engine.py through the installed probe against the Bernoulli iteration
+    (``reference``: family -> (CPU s, least radii), measured before the probe was installed)."""
+    from packetloss_cvx.closedloop.chain_radius import homogeneous_coupled_riccati
+    from packetloss_cvx.model.channel import MarkovChannel
+
+    engine = _engine()
+    print("| family | Bernoulli ms | probe ms | ratio | max rel diff | rel err from hand (B / probe) |")
+    print("|---|---|---|---|---|---|")
+    totals = [0.0, 0.0]
+    for family, cases in _families(engine).items():
+        best, lams = float("inf"), []
+        for _ in range(3):
+            t0 = time.process_time()
+            lams = [homogeneous_coupled_riccati(A, B, MarkovChannel(transition=[[[1.0]]] * len(mu),
+                                                                     delivery=[[float(x)] for x in mu]))[0]
+                    for A, B, mu, _ in cases]
+            best = min(best, time.process_time() - t0)
+        cpu, ref = reference[family]
+        totals[0] += cpu
+        totals[1] += best
+        diff = max(0.0 if a == b else abs(a - b) / abs(a) for a, b in zip(ref, lams, strict=True))
+        hands = [hand for *_, hand in cases]
+        hand = "-" if hands[0] is None else (f"{max(abs(a - h) / h for a, h in zip(ref, hands, strict=True)):.1e} / "
+                                             f"{max(abs(a - h) / h for a, h in zip(lams, hands, strict=True)):.1e}")
+        print(f"| {family} | {1e3 * cpu:.1f} | {1e3 * best:.1f} | {best / cpu:.2f} | {diff:.1e} | {hand} |")
+    print(f"| total | {1e3 * totals[0]:.1f} | {1e3 * totals[1]:.1f} | {totals[1] / totals[0]:.2f} | | |")
+
+
+def _engine():
+    """benchmarks/region_engine.py, loaded by path (its one-mode cases)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("region_engine", HERE / "benchmarks" / "region_engine.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _families(engine) -> dict:
+    families: dict[str, list] = {}
+    for family, *case in engine._one_mode_cases():
+        families.setdefault(family, []).append(case)
+    return families
+
+
+def _bernoulli_reference() -> dict:
+    """family -> (CPU s best of 3, least radii) of the Bernoulli iteration on the one-mode cases."""
+    from packetloss_cvx.closedloop.region import homogeneous_riccati
+
+    out = {}
+    for family, cases in _families(_engine()).items():
+        best, lams = float("inf"), []
+        for _ in range(3):
+            t0 = time.process_time()
+            lams = [homogeneous_riccati(A, B, mu)[0] for A, B, mu, _ in cases]
+            best = min(best, time.process_time() - t0)
+        out[family] = (best, lams)
+    return out
+
+
 def main() -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--probe", choices=("bernoulli", "chain"), default="bernoulli")
+    args = parser.parse_args()
+    os.environ[PROBE] = args.probe
+    reference = _bernoulli_reference()
     t0 = time.process_time()
     chain = _chain_cases()
     t1 = time.process_time()
     install()
     probe = _chain_cases()
     t2 = time.process_time()
-    print(f"chain cases: chain iteration {t1 - t0:.3f} s CPU, Bernoulli schedule at M modes {t2 - t1:.3f} s "
-          f"({(t2 - t1) / (t1 - t0):.2f}x)")
+    print(f"probe {args.probe!r}, OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}")
+    print(f"chain cases: chain iteration {t1 - t0:.3f} s CPU, probed {t2 - t1:.3f} s ({(t2 - t1) / (t1 - t0):.2f}x)")
     print("| case | verdicts | max rel diff |")
     print("|---|---|---|")
     for (name, words, numbers), (_, words_, numbers_) in zip(chain, probe, strict=True):
@@ -247,6 +339,8 @@ def main() -> None:
     print(f"chain tests with the probe installed: {lines[-1] if lines else done.stderr[-500:]}")
     for name in failed:
         print(f"    failed: {name}")
+    if args.probe == "chain":
+        _one_mode(reference)
 
 
 if __name__ == "__main__":
