@@ -198,8 +198,8 @@ def augmented_size(system: System, chains: tuple | None = None) -> int:
 
 def check_recursion_budget(system: System, size: int, instead: str) -> None:
     """Refuse, before any work, an augmented recursion beyond the ``markov_recursion_work`` budget
-    (`markov_recursion_work`), naming the channel, the estimated time and
-    ``instead`` (what to use in its place). O(1).
+    (`markov_recursion_work`, an upper bound: every step priced in full, though a stable chain's pass closes its
+    settled tail sooner), naming the channel, the most time it takes and ``instead`` (what to use in its place). O(1).
 
     Raises
     ------
@@ -210,8 +210,8 @@ def check_recursion_budget(system: System, size: int, instead: str) -> None:
     work = markov_recursion_work(N, size)
     seconds = estimated_seconds("markov_recursion_work", work)
     check("markov_recursion_work", work, "channel",
-          f"the exact Markov recursion over N = {N} steps on an augmented state of size D = {size} (about "
-          f"{duration_text(seconds)}; {instead})")
+          f"the exact Markov recursion over N = {N} steps on an augmented state of size D = {size} (at most about "
+          f"{duration_text(seconds)}, every step priced in full: a stable chain's settled tail ends sooner; {instead})")
 
 
 def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
