@@ -13,8 +13,11 @@ The work formulas (`simulate_work`, `sweep_work`, `burstiness_work`, `solve_work
 formulas (`solve_bytes`, `dense_bytes`, `markov_dense_bytes`, `qp_bytes`,
 `operator_bytes`, `krylov_bytes`, `loop_bytes`, `mpc_bytes`, `constraint_bytes`, checked against the
 ``memory_bytes`` budget; `program_bytes`, what a cache is charged) live here once; the API and the command
-line's preflight both call them. Every refusal is `check`'s one line (what was asked, the budget, what to use
-instead, the variable that raises it), a BudgetError (a ValueError): the command line exits 2. Imports nothing
+line's preflight both call them. Every refusal is one line made by `refusal_text` (what was asked, the budget, what
+to use instead, the variable and the value that admits it): raised by `check` before any work as a BudgetError (a
+ValueError: the command line exits 2), and for the one count known only as the work runs, the beliefs a
+receding-horizon law plans at (``belief_plans``), as a plain ResourceError when met, offering the most the run can
+meet. Imports nothing
 numerical.
 """
 
@@ -33,7 +36,7 @@ __all__ = ["BUDGETS", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX", "MARKOV_DENSE_SECONDS
            "constrained_work", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds",
            "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds",
            "markov_recursion_work", "mpc_bytes", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
-           "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
+           "qp_work", "refusal_text", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -84,6 +87,8 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
            "by ARPACK on a loaded 2-core machine)"),
     Budget("operator_rows", 2048, "rows of a dense second-moment operator (modes x n^2)",
            "64 MiB and a few seconds for its eigenvalues"),
+    Budget("belief_plans", 2000, "distinct beliefs one receding-horizon law plans at in a simulation (a plan each)",
+           "about 3 s at pendulum_bursty's N = 80, 1.2-1.8 ms a plan"),
 )}
 
 
@@ -161,14 +166,34 @@ out of reach (no override of the budget could finish it); use the bounds
     if needed <= bound:
         return
     budget = BUDGETS[name]
+    raise BudgetError(field, refusal_text(name, needed, bound, what, instead, reach), needed, bound, budget.env)
+
+
+def refusal_text(name: str, needed: float, bound: float, what: str, instead: str = "",
+                 reach: float = math.inf) -> str:
+    """The one refusal line of every budget (after the field): ``needed`` units of the budget ``name`` over
+    ``bound`` (its value now, or a caller's own cap): what was asked, the budget, what its default costs, what to use
+    ``instead`` and the variable with the value that admits the request (none beyond ``reach`` times the bound).
+    `check` raises it as a BudgetError before any work; a limit met while the work runs (the beliefs a
+    receding-horizon law plans at, ``belief_plans``) raises it as a plain ResourceError, ``needed`` then the most
+    the run can need. O(1).
+
+    Examples
+    --------
+    >>> print(refusal_text("belief_plans", 6000, 2000, "a plan at each of up to 6000 beliefs"))
+    a plan at each of up to 6000 beliefs is over the budget of 2e+03 distinct beliefs one receding-horizon law plans \
+at in a simulation (a plan each) (about 3 s at pendulum_bursty's N = 80, 1.2-1.8 ms a plan); to run it on purpose \
+set PACKETLOSS_CVX_BUDGET_BELIEF_PLANS=6e+03
+    """
+    budget = BUDGETS[name]
+    needed = _float(needed)
     if needed > reach * bound:
-        raise BudgetError(field, f"{what} is {needed / bound:.2g} times the budget of {bound:.3g} {budget.unit} "
-                                 f"({budget.costs}): out of reach (no override of the budget could finish it)"
-                                 + (f"; {instead}" if instead else ""), needed, bound, budget.env)
+        return (f"{what} is {needed / bound:.2g} times the budget of {bound:.3g} {budget.unit} ({budget.costs}): out "
+                f"of reach (no override of the budget could finish it)" + (f"; {instead}" if instead else ""))
     shown = _rounded_up(needed) if math.isfinite(needed) else "inf"
     way = f"{instead}, or " if instead else ""
-    raise BudgetError(field, f"{what} is over the budget of {bound:.3g} {budget.unit} ({budget.costs}); "
-                             f"{way}to run it on purpose set {budget.env}={shown}", needed, bound, budget.env)
+    return (f"{what} is over the budget of {bound:.3g} {budget.unit} ({budget.costs}); {way}to run it on purpose set "
+            f"{budget.env}={shown}")
 
 
 def count_text(value: int | float) -> str:
