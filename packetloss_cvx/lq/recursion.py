@@ -176,7 +176,7 @@ def overflow_error(name: str, protocol: str) -> NumericalError:
 def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
                  Omega: np.ndarray | None = None, *, variance: bool = False,
                  least_squares: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """One backward step of Theorem 1's recursion for a batch of k points or for one point: the Hessian
+    """One backward step of Theorem 1's recursion for a batch of points or for one point: the Hessian
     factor, the gain and the previous cost-to-go (eq:control-laws).
 
     .. math:: G = B'PB M + \\mathrm{diag}(a)\\ [+\\ \\mathrm{diag}((1 - \\mu) \\mathrm{diag}(B'PB))],\\quad
@@ -192,15 +192,15 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     simulation.region's modified Riccati map); a point whose Hessian is not finite gets K = nan. ``P_prev`` is the
     same expression, ``A'PA - (MB'PA)'K``.
 
-    Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), or one point: ``P`` (n, n), ``mu`` and
-    ``added`` (m,); ``Omega`` (n, n) or None. Returns ``(K, P_prev)``, (k, m, n) and (k, n, n) (one point: (m, n)
-    and (n, n)), P_prev symmetrised. Raises ``numpy.linalg.LinAlgError`` where a G is singular (callers name the
-    cause). The algebra is written once for both ranks (``@``-style products: ``np.dot`` on a point,
+    Parameters: ``P`` (points, n, n) symmetric, ``mu`` and ``added`` (points, m), or one point: ``P`` (n, n),
+    ``mu`` and ``added`` (m,); ``Omega`` (n, n) or None. Returns ``(K, P_prev)``, (points, m, n) and (points, n, n)
+    (one point: (m, n) and (n, n)), P_prev symmetrised. Raises ``numpy.linalg.LinAlgError`` where a G is singular
+    (callers name the cause). The algebra is written once for both ranks (``@``-style products: ``np.dot`` on a point,
     ``np.matmul`` on a stack; the last two axes transposed; mu broadcast as G's row). A batch of one is taken as
     the point: two-dimensional products and LAPACK's gesv without the stacked wrappers' overhead,
     the same BLAS calls in the same order as a point of a stack, so the same floats. From ``FLAT_MIN`` points on,
-    the products B'PB, B'PA, A'PA are one (k n)×n by n×m (n×n) product each (`_flat_products`).
-    Time O(k (n^3 + m^3)); a point's answer does not depend on the batch it is in below ``FLAT_MIN`` points.
+    the products B'PB, B'PA, A'PA are one (points n)×n by n×m (n×n) product each (`_flat_products`).
+    Time O(points (n^3 + m^3)); a point's answer does not depend on the batch it is in below ``FLAT_MIN`` points.
 
     Examples
     --------
@@ -246,14 +246,15 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
 
 
 def _flat_products(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """B'PB, B'PA and A'PA of a stack P (k, n, n) as one (k n)×n by n×m (n×n) product each instead of k small
-    ones: [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]'s products for k >= FLAT_MIN. O(k n^2 (n + m))."""
-    k, n, m = P.shape[0], A.shape[0], B.shape[1]
-    PBT = (P.reshape(k * n, n) @ B).reshape(k, n, m).transpose(0, 2, 1).reshape(k * m, n)
-    BPB = (PBT @ B).reshape(k, m, m).transpose(0, 2, 1)
-    rhs = (PBT @ A).reshape(k, m, n)
-    APA = (P.reshape(k * n, n) @ A).reshape(k, n, n).transpose(0, 2, 1).reshape(k * n, n) @ A
-    return BPB, rhs, APA.reshape(k, n, n).transpose(0, 2, 1)                # A'(P A)
+    """B'PB, B'PA and A'PA of a stack P (points, n, n) as one (points n)×n by n×m (n×n) product each instead of
+    ``points`` small ones: [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]'s products for points >=
+    FLAT_MIN. O(points n^2 (n + m))."""
+    points, n, m = P.shape[0], A.shape[0], B.shape[1]
+    PBT = (P.reshape(points * n, n) @ B).reshape(points, n, m).transpose(0, 2, 1).reshape(points * m, n)
+    BPB = (PBT @ B).reshape(points, m, m).transpose(0, 2, 1)
+    rhs = (PBT @ A).reshape(points, m, n)
+    APA = (P.reshape(points * n, n) @ A).reshape(points, n, n).transpose(0, 2, 1).reshape(points * n, n) @ A
+    return BPB, rhs, APA.reshape(points, n, n).transpose(0, 2, 1)                # A'(P A)
 
 
 def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -427,9 +428,9 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
 
 
 def _power(A: np.ndarray, F: np.ndarray, H: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``H + A'P (I + F F'P)^{-1} A`` for a stack P (k, n, n): the doubled map of `_doubling` applied to k
-    points, a [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] with input matrix F and unit input weight. O(k
-    n^3)."""
+    """``H + A'P (I + F F'P)^{-1} A`` for a stack P (points, n, n): the doubled map of `_doubling` applied to each
+    point, a [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] with input matrix F and unit input weight.
+    O(points n^3)."""
     r = F.shape[1]
     return riccati_step(P, A, F, np.ones((P.shape[0], r)), np.ones((P.shape[0], r)), H)[1]
 
