@@ -158,8 +158,8 @@ class BeliefGains:
             if len(self.cache) >= self.budget:
                 most = max(self.most, len(self.cache) + 1)
                 raise ResourceError(refusal_text("belief_plans", most, self.budget,
-                                                 f"the {self.law[-3:].upper()}-like law re-plans at every distinct "
-                                                 f"belief, and this run met more than {self.budget:.0f} (the "
+                                                 f"a plan at each distinct belief the {self.law[-3:].upper()}-like "
+                                                 f"law meets (more than {self.budget:.0f} in this run: the "
                                                  "HMM-filtered belief of a channel whose outcome does not reveal its "
                                                  "state takes a new value in almost every run)",
                                                  instead="use fewer samples or steps, or the UDP-like law "

@@ -73,7 +73,8 @@ def test_the_older_closed_loop_api_keeps_the_plan_budget(monkeypatch):
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_BELIEF_PLANS", "60")
     s = pl.load_example("pendulum_bursty")
     hidden = s.with_channel(GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.2]))
-    with pytest.raises(ResourceError, match=r"met more than 60 .* to run it on purpose set "
+    with pytest.raises(ResourceError, match=r"^a plan at each distinct belief the TCP-like law meets \(more than 60 in "
+                                            r"this run: .* to run it on purpose set "
                                             r"PACKETLOSS_CVX_BUDGET_BELIEF_PLANS=6e\+04$") as err:
         markov_closed_loop_costs(hidden, ["plug-in-tcp"], steps=20, samples=3000, rng=np.random.default_rng(0),
                                  progress=False)
