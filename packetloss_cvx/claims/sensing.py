@@ -26,7 +26,7 @@ from .evaluate import Tally, resolved
 
 __all__ = ["STATEMENT", "cost_split_sensor", "sensed"]
 
-STATEMENT = ("(Not the paper's; issue 22.) With the first state measured over a lossy link (gamma = 0.9), the DP "
+STATEMENT = ("(Not the paper's.) With the first state measured over a lossy link (gamma = 0.9), the DP "
              "law on the TCP-like Kalman estimate costs tr(P Sigma_W) (the full-state optimum) plus the "
              "estimation part tr(K'HK E[e e']): the cost splits into a control and an estimation part.")
 #: |cost - (control + estimation)| / cost allowed on the exact loop (rounding of two moment solves)

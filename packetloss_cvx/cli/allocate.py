@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         raise InputError("--margin", "applies to --target stable only")
     target = args.target or "paper"     # "attainable": the same program on the attainable cost (allocation.api)
     for flag, value in (("--ack-price", args.ack_price), ("--ack-power", args.ack_power)):
-        if value is not None and args.protocol != "best":          # was ignored: the answer without the link
+        if value is not None and args.protocol != "best":          # else ignored: the answer without the link
             raise InputError(flag, "prices the acknowledgement link, which only --protocol best compares")
     system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
     if args.protocol == "best" or wants_power(args, system):

@@ -177,8 +177,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
         refused before anything is drawn (``simulate(system, 2**63)`` at once); or, under ``steps``, a closed
         loop's block arrays (O(BLOCK steps (n + m + laws))) beyond the ``memory_bytes`` budget.
     ResourceError
-        Behind a Gilbert–Elliott channel: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
-        distinct beliefs (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
+        Behind a Gilbert–Elliott channel: a TCP-like law meeting more distinct beliefs than the ``belief_plans``
+        budget (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
 
     Notes
     -----
