@@ -9,7 +9,10 @@ buffer, the age of the plan each actuator plays on a loss. Its *information mode
 - ``buffer:L``: ``(c, beta)``, ``beta_i`` in 1..L the age actuator i's last plan would have on a loss now (L: no
   entry left, the actuator applies zero; L at the start). The packet carries actuator i's whole plan
   ``U_i`` (L inputs, the decision ``u = (U_1, .., U_m)``, mL entries) and the state holds the plan's unplayed
-  entries ``b_i`` (L - 1 per actuator: ``z = (x, b_1, .., b_m)``), zeroed once exhausted.
+  entries ``b_i`` (L - 1 per actuator: ``z = (x, b_1, .., b_m)``), zeroed once exhausted;
+- ``buffer:L:hold``: as buffer:L, but a loss with no entry left (age L) plays the plan's last entry again, the
+  input applied last (0 before the first packet): the memory ``b_i`` is kept, never zeroed. Hold is the case
+  L = 1 with the applied input as the memory; one construction (`design_modes`) builds all four.
 
 Given s, the deliveries d in {0, 1}^m of step k are independent with ``P(d_i = 1) = h_{c,i}`` and the step is
 linear: ``z+ = A_sd z + B_sd u``, the applied input ``a = F_sd z + G_sd u``, the next information mode drawn from
@@ -144,11 +147,20 @@ class DesignModes:
         return np.einsum("sd,sdij->sij", self.p, Pi.reshape(S, D, *Pi.shape[1:]))
 
 
+def _memory(strategy: Actuator) -> tuple[int, bool, int]:
+    """``(L, holding, width)``: the packet's entries per actuator (1 for zero and hold), whether a loss with no entry
+    left plays the last applied input, and the actuator's memory in z per actuator: the plan's L - 1 entries after
+    the first, or (hold) the input applied. O(1)."""
+    L = strategy.length if strategy.kind == "buffer" else 1
+    holding = strategy.kind == "hold" or strategy.exhausted == "hold"
+    return L, holding, max(L - 1, 1) if holding else L - 1
+
+
 def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | MarkovChannel,
                  actuator: str | Actuator = "zero") -> DesignModes:
     """The strategy's `DesignModes` behind ``channel`` (Bernoulli mu (m,), or a Gilbert–Elliott or k-state chain).
-    Modes: ``M_c`` for zero and hold, ``M_c L^m`` for buffer:L (refused beyond `MAX_BUFFER_MODES`). Time
-    O(S D N (N + r)).
+    Modes: ``M_c`` for zero and hold, ``M_c L^m`` for buffer:L and buffer:L:hold (refused beyond
+    `MAX_BUFFER_MODES`). Time O(S D N (N + r)).
 
     Raises
     ------
@@ -160,11 +172,11 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
     >>> d = design_modes([[2.0]], [[1.0]], [0.5], "hold")        # z = (x, w); lost: x+ = 2x + w, w+ = w
     >>> d.patterns.tolist(), d.A[0, 0].tolist(), d.F[0, 0].tolist(), d.B[0, 1].tolist()
     ([[0.0], [1.0]], [[2.0, 1.0], [0.0, 1.0]], [[0.0, 1.0]], [[1.0], [1.0]])
+    >>> d = design_modes([[2.0]], [[1.0]], [0.5], "buffer:2:hold")  # z = (x, b); exhausted, lost: plays b, keeps it
+    >>> d.labels[1], d.A[1, 0].tolist(), d.F[1, 0].tolist()
+    ('c0 ages (2,)', [[2.0, 1.0], [0.0, 1.0]], [[0.0, 1.0]])
     """
     strategy = parse_actuator(actuator)
-    if strategy.exhausted == "hold":
-        raise InputError("actuator", f"the optimal law of {strategy} is not computed (its costs and radius for a given "
-                                     f"law are: closedloop.actuator); use buffer:{strategy.length} or hold")
     if isinstance(channel, MarkovChannel):
         A_, B_ = check_law(A, B, np.zeros((np.shape(B)[1], np.shape(A)[0])), np.ones(np.shape(B)[1]))[:2]
         _, Tc, hc = mode_chain(channel)
@@ -174,8 +186,9 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
         Tc, hc, start_c = np.ones((1, 1)), mu[None], np.ones(1)
     n, m = B_.shape
     Mc = Tc.shape[0]
-    L = strategy.length if strategy.kind == "buffer" else 1
-    ages = list(itertools.product(range(1, L + 1), repeat=m)) if strategy.kind == "buffer" else [()]
+    L, holding, width = _memory(strategy)
+    skip = L - width                                   # the packet's entries not kept: the one applied on delivery
+    ages = list(itertools.product(range(1, L + 1), repeat=m))
     S = Mc * len(ages)
     if S > MAX_BUFFER_MODES:
         raise InputError("actuator", f"{strategy} behind {Mc} channel state(s) and {m} actuator(s) has "
@@ -183,7 +196,6 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
                                      "use a shorter buffer")
     patterns = np.array(list(itertools.product((0, 1), repeat=m)), dtype=float).reshape(-1, m)
     D = len(patterns)
-    width = L - 1 if strategy.kind == "buffer" else (1 if strategy.kind == "hold" else 0)
     N, r = n + m * width, m * L
     check("memory_bytes", 8.0 * S * D * (N + r) * (N + r) * 3, "actuator",
           f"{strategy}'s {S * D} mode steps of {N + r}^2 entries", instead="use a shorter buffer")
@@ -196,36 +208,27 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
         for k, d in enumerate(patterns.astype(bool)):
             p[s, k] = np.prod(np.where(d, hc[c], 1.0 - hc[c]))
             A_all[s, k, :n, :n] = A_
-            after = []
             for i in range(m):
                 mem = slice(n + i * width, n + (i + 1) * width)
-                if d[i]:                                   # delivered: apply the packet's first entry
-                    G_all[s, k, i, i * L] = 1.0
+                if d[i]:                                   # delivered: apply the packet's first entry, keep the rest
+                    G_all[s, k, i, i * L] = 1.0            # (hold: the entry applied, as the held input)
                     B_all[s, k, :n, i * L] = B_[:, i]
-                    if strategy.kind == "hold":            # ... and hold it
-                        B_all[s, k, n + i, i] = 1.0
-                    elif strategy.kind == "buffer":        # ... and keep the rest of its plan
-                        B_all[s, k, mem, i * L + 1:(i + 1) * L] = np.eye(width)
-                    after.append(1)
+                    B_all[s, k, mem, i * L + skip:(i + 1) * L] = np.eye(width)
                     continue
-                if strategy.kind == "hold":                # lost: apply the held input, hold it
-                    F_all[s, k, i, n + i] = 1.0
-                    A_all[s, k, :n, n + i] = B_[:, i]
-                    A_all[s, k, n + i, n + i] = 1.0
-                elif strategy.kind == "buffer" and beta[i] < L:   # lost: play entry beta_i, keep the plan if
-                    F_all[s, k, i, n + i * width + beta[i] - 1] = 1.0   # an entry is left after it
-                    A_all[s, k, :n, n + i * width + beta[i] - 1] = B_[:, i]
-                    if beta[i] + 1 < L:
-                        A_all[s, k, mem, mem] = np.eye(width)
-                after.append(min(beta[i] + 1, L) if strategy.kind == "buffer" else 1)
-            nxt = tuple(after) if strategy.kind == "buffer" else ()
+                played = beta[i] if beta[i] < L else (L - 1 if holding else None)
+                if played is not None:                     # lost: play entry beta_i, or hold the last one
+                    F_all[s, k, i, n + i * width + played - skip] = 1.0
+                    A_all[s, k, :n, n + i * width + played - skip] = B_[:, i]
+                if holding or beta[i] + 1 < L:             # keep the memory while an entry is left to play
+                    A_all[s, k, mem, mem] = np.eye(width)
+            nxt = tuple(np.where(d, 1, np.minimum(np.array(beta) + 1, L)).tolist())
             for c2 in range(Mc):
                 R[s, k, index[(c2, nxt)]] += Tc[c, c2]
                 moves[s, k, index[(c2, nxt)]] = True
     start = np.zeros(S)
     for c in range(Mc):
-        start[index[(c, tuple([L] * m) if strategy.kind == "buffer" else ())]] = start_c[c]
-    labels = tuple(f"c{c}" + (f" ages {beta}" if beta else "") for (c, beta) in index)
+        start[index[(c, (L,) * m)]] = start_c[c]
+    labels = tuple(f"c{c}" + (f" ages {beta}" if L > 1 else "") for (c, beta) in index)
     embed = np.vstack([np.eye(n), np.zeros((N - n, n))])
     state = np.array([c for (c, _) in index], dtype=int)
     return DesignModes(strategy, patterns, p, A_all, B_all, F_all, G_all, R, start, embed, labels, state, moves, hc)
