@@ -28,7 +28,7 @@ from packetloss_cvx.tolerances import ACTUATOR_DP_RTOL, CRITICAL_MU_TOL
 SCALAR = System(A=[[2.0]], B=[[1.0]], horizon=4, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
 
 
-@pytest.mark.parametrize("actuator", ["zero", "buffer:2", "buffer:3"])
+@pytest.mark.parametrize("actuator", ["zero", "buffer:2", "buffer:3", "buffer:2:hold", "buffer:3:hold"])
 def test_scalar_critical_mu_is_one_minus_one_over_a_squared_with_both_ends_certified(actuator):
     point = actuator_critical(SCALAR, actuator, tol=CRITICAL_MU_TOL)
     assert point.lower <= 0.75 <= point.t
@@ -56,6 +56,21 @@ def test_hold_behind_a_link_that_never_delivers_is_certified_unstable_by_its_hel
     expected[0, 3, 3] = 1.0
     assert np.array_equal(found.certificate, expected)
     assert actuator_membership(system, "zero", [0.9, 0.0]).verdict == "stable"
+
+
+@pytest.mark.parametrize("actuator", ["buffer:2:hold", "buffer:3:hold"])
+def test_buffer_hold_behind_a_link_that_never_delivers_is_certified_unstable_by_the_input_it_holds(actuator):
+    """Actuator 2 never delivers: from the start it holds its memory's last entry (0 at the start, the plan's
+    last entry of any earlier packet) on every loss, so ``w+ = w`` whatever the law: e_w e_w' proves radius >= 1 (the
+    memory of buffer:L:hold: L - 1 entries per actuator, the held one last, at 2 + 2 (L - 1) - 1)."""
+    system = load_example("two_actuator")
+    L = int(actuator.split(":")[1])
+    found = actuator_membership(system, actuator, [0.9, 0.0])
+    assert found.verdict == "unstable"
+    held = 2 + 2 * (L - 1) - 1
+    assert np.array_equal(np.flatnonzero(found.certificate[0]), [held * (2 + 2 * (L - 1)) + held])
+    assert np.all(found.certificate[:, held, held] == 1.0)
+    assert actuator_membership(system, f"buffer:{L}", [0.9, 0.0]).verdict == "stable"
 
 
 @pytest.mark.parametrize("mu", [[0.05, 0.05], [0.07, 0.07], [0.3, 0.02], [0.08, 0.2]])
