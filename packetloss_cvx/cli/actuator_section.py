@@ -133,7 +133,8 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
     radius, average stage cost under the noise and total noise-free cost from x0, and the strategy's critical
     point along the ray; JSON per strategy name and the text table."""
     data: dict[str, Any] = {}
-    lines = [f"{'strategy':<11} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}  critical mu"]
+    w = max([11, *(len(str(strategy)) for strategy in strategies)])     # buffer:L:hold is wider than 11
+    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}  critical mu"]
     for strategy in strategies:
         row: dict[str, Any] = {}
         try:
@@ -149,12 +150,12 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
             row.update(radius=None, average_stage_cost=None, initial_cost=None, reason=str(err),
                        critical=None)
             data[str(strategy)] = row
-            lines.append(f"{str(strategy):<11} {'refused':>12} {'-':>15} {'-':>14}  -")
+            lines.append(f"{str(strategy):<{w}} {'refused':>12} {'-':>15} {'-':>14}  -")
             lines.append(f"  {strategy}: not computed: {err}")
             continue
         row["critical"], text = _critical_row(system, strategy, direction, tol)
         data[str(strategy)] = row
-        lines.append(f"{str(strategy):<11} {numbers}  {text}")
+        lines.append(f"{str(strategy):<{w}} {numbers}  {text}")
         if "reason" in row:
             lines.append(f"  {strategy}: no optimal law: {row['reason']}")
     return data, lines

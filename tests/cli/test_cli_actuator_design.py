@@ -46,6 +46,28 @@ def test_compare_puts_the_strategies_side_by_side_with_hand_values(capsys, scala
     assert rows["buffer:2"]["initial_cost"] <= rows["zero"]["initial_cost"] * (1 + ACTUATOR_DP_RTOL)
 
 
+def test_compare_region_and_allocate_take_buffer_hold_with_the_hand_critical_mu(capsys, scalar):
+    """buffer:L:hold's optimal law and region, wired like the others: critical mu 3/4 on both sides (hand), and
+    mu* = 0.5 below it not stabilisable."""
+    code, out, _ = _run(capsys, "compare", scalar, "--actuator", "buffer:2:hold,buffer:3:hold", "--json", "-q")
+    assert code == 0
+    rows = json.loads(out)["strategies"]
+    assert list(rows) == ["buffer:2:hold", "buffer:3:hold"]
+    for row in rows.values():
+        assert row["radius"] < 1.0
+        assert row["critical"]["lower"] <= 0.75 <= row["critical"]["t"]
+        assert row["critical"]["inside"]["verdict"] == "stable"
+        assert row["critical"]["outside"]["verdict"] == "unstable"
+    code, out, _ = _run(capsys, "region", scalar, "--law", "dp", "--actuator", "buffer:2:hold", "--json", "-q")
+    assert code == 0
+    point = json.loads(out)["actuator"]["buffer:2:hold"]
+    assert point["lower"] <= 0.75 <= point["t"]
+    code, out, _ = _run(capsys, "allocate", scalar, "--protocol", "tcp", "--alpha", "1e6", "--beta", "1",
+                        "--bounds", "0.5,1", "--actuator", "buffer:2:hold", "--json", "-q")
+    assert code == 0
+    assert json.loads(out)["actuator"]["buffer:2:hold"]["verdict"] == "unstable"
+
+
 def test_compare_text_has_a_row_per_strategy(capsys, scalar):
     code, out, _ = _run(capsys, "compare", scalar, "--actuator", "zero,hold", "-q")
     assert code == 0
