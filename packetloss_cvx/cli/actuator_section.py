@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..closedloop.actuator import Actuator, compare_actuators, parse_actuators
-from ..closedloop.actuator_design import actuator_dp, design_modes
+from ..closedloop.actuator_design import actuator_dp, check_protocol, design_modes
 from ..closedloop.actuator_region import MAX_CERTIFIED_ROWS, actuator_critical, actuator_membership
 from ..errors import BudgetError, InputError, NumericalError
 from ..model.system import System
@@ -20,13 +20,18 @@ __all__ = ["actuator_entry", "actuator_strategies", "critical_section", "design_
            "simulate_actuator_section"]
 
 
-def actuator_strategies(text: str | None, system: System) -> tuple[Actuator, ...]:
-    """The strategies ``--actuator`` names (none without it), checked before any work.
+def actuator_strategies(text: str | None, system: System, protocol: str = "tcp") -> tuple[Actuator, ...]:
+    """The strategies ``--actuator`` names (none without it), checked before any work, each with its optimal law
+    runnable under ``protocol`` (closedloop.actuator_design.check_protocol: UDP-like, zero on Bernoulli links, and
+    hold without noise and with B of full column rank).
 
     Raises
     ------
     InputError
         Field ``--actuator``, one line naming what is allowed.
+    UnobservedModeError
+        Field ``--actuator``, one line: a strategy whose optimal law a UDP-like controller cannot run, why, and what
+        to use instead.
 
     >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
@@ -36,9 +41,12 @@ def actuator_strategies(text: str | None, system: System) -> tuple[Actuator, ...
     if text is None:
         return ()
     try:
-        return parse_actuators(text, system.horizon)
+        strategies = parse_actuators(text, system.horizon)
+        for strategy in strategies:
+            check_protocol(system, strategy, protocol)
     except InputError as err:
         raise err.renamed("--actuator") from None
+    return strategies
 
 
 def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator, ...],
@@ -161,18 +169,20 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
     return data, lines
 
 
-def membership_section(system: System, strategies: tuple[Actuator, ...],
-                       mu: np.ndarray) -> tuple[dict[str, Any], list[tuple[str, str]]]:
-    """``allocate --actuator``: is the allocation mu* stabilisable under each strategy
-    (closedloop.actuator_region.actuator_membership)? JSON per strategy (verdict, radius, reason) and text rows."""
+def membership_section(system: System, strategies: tuple[Actuator, ...], mu: np.ndarray,
+                       protocol: str = "tcp") -> tuple[dict[str, Any], list[tuple[str, str]]]:
+    """``allocate --actuator``: is the allocation mu* stabilisable under each strategy by a law the ``protocol``'s
+    controller can run (closedloop.actuator_region.actuator_membership)? JSON per strategy (verdict, radius,
+    reason) and text rows."""
     data: dict[str, Any] = {}
     rows = []
+    label = f"{protocol.upper()}-like"
     for strategy in strategies:
-        found = actuator_membership(system, strategy, mu)
+        found = actuator_membership(system, strategy, mu, protocol)
         radius = found.radius if np.isfinite(found.radius) else None
         data[str(strategy)] = {"verdict": found.verdict, "radius": radius, "reason": found.reason}
-        text = {"stable": "stabilisable (a TCP-like law proved mean-square stable)",
-                "unstable": "NOT stabilisable by any TCP-like law (proved)"}.get(found.verdict,
-                                                                               f"undecided ({found.reason})")
+        text = {"stable": f"stabilisable (a {label} law proved mean-square stable)",
+                "unstable": f"NOT stabilisable by any {label} law (proved)"}.get(found.verdict,
+                                                                              f"undecided ({found.reason})")
         rows.append((f"{strategy} at mu*", text))
     return data, rows

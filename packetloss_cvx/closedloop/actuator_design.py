@@ -34,7 +34,13 @@ An input that reaches neither the plant nor the actuator's memory in any deliver
 (its Hessian row exactly zero: a buffer's plan entries behind a link that never loses, or never delivers) gets the
 gain 0; it changes nothing.
 
-A UDP-like controller does not know the mode; its optimal law is nonlinear in general and not computed here.
+Without acknowledgements (UDP-like) the controller sees the state and its own packets only (`check_protocol`). On
+Bernoulli links zero needs nothing more (past deliveries do not enter the future given x), and hold needs the
+input applied last, which the state's history tells exactly when there is no process noise and B has full column
+rank (``a_k-1 = B^+ (x_k - A x_k-1)``): there the TCP-like law is implementable and so the UDP-like optimum.
+Elsewhere (a buffer's ages, hold with noise, any chain's state) the optimal law is nonlinear in general (the dual
+effect) and the best linear one an output-feedback design without a Riccati equation: refused with
+`UnobservedModeError` (docs/mathematics.md, "The actuator's strategy on a loss").
 """
 
 from __future__ import annotations
@@ -47,7 +53,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..budgets import check, limit
-from ..errors import InputError, NumericalError
+from ..errors import InputError, NumericalError, UnobservedModeError
 from ..linalg import frobenius
 from ..model.channel import MarkovChannel
 from ..model.system import System, check_system
@@ -58,7 +64,11 @@ from .moments import check_steps, mode_cost_to_go, stationary_channel
 from .riccati import Bellman, solve_bellman
 from .stability import check_law
 
-__all__ = ["ActuatorDesign", "DesignModes", "actuator_dp", "actuator_dp_finite", "design_modes", "engine_rows"]
+__all__ = ["PROTOCOLS", "ActuatorDesign", "DesignModes", "actuator_dp", "actuator_dp_finite", "check_protocol",
+           "design_modes", "engine_rows"]
+
+#: The controller's information: TCP-like (acknowledged deliveries) or UDP-like (not).
+PROTOCOLS = ("tcp", "udp")
 
 
 @dataclass(frozen=True)
@@ -256,6 +266,63 @@ class ActuatorDesign:
                 "modes": self.modes.modes}
 
 
+def check_protocol(system: System, actuator: str | Actuator, protocol: str = "tcp",
+                   mu: npt.ArrayLike | None = None) -> Actuator:
+    """The strategy, once it is checked that ``protocol``'s controller can run the TCP-like optimal law of
+    ``actuator`` on ``system`` (its chain, or Bernoulli ``mu``), so that law is its optimum too. TCP-like: always.
+    UDP-like (the state and its own packets known, no acknowledgement), on Bernoulli links only: zero (the past
+    deliveries do not enter the future given x), and hold without process noise and with B of full column rank
+    (the input applied last is ``B^+ (x_k - A x_k-1)``, the whole mode). O(n m^2).
+
+    Raises
+    ------
+    InputError
+        Field ``protocol``: neither "tcp" nor "udp".
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request the controller's information does not determine, saying why and what
+        to use instead (docs/mathematics.md, "The actuator's strategy on a loss").
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    >>> str(check_protocol(s, "hold", "udp"))          # no noise: x_k - 2 x_k-1 is the input applied
+    'hold'
+    >>> try:
+    ...     check_protocol(s, "buffer:2", "udp")
+    ... except UnobservedModeError as err:
+    ...     print(err.field, "|", err.detail[:72])
+    protocol | buffer:2's optimal law without acknowledgements is not computed: the age
+    """
+    system = check_system(system)
+    strategy = parse_actuator(actuator, system.horizon)
+    if protocol not in PROTOCOLS:
+        raise InputError("protocol", f"expected tcp or udp, found {protocol!r}")
+    if protocol == "tcp":
+        return strategy
+    chain = system.channel is not None and mu is None
+    noisy = bool(np.any(system.noise_cov != 0.0))
+    full_rank = np.linalg.matrix_rank(system.B) == system.m
+    if chain:
+        why = ("the channel state behind the chain is hidden (the state reveals a delivery only where the input "
+               "applied differs from what a loss applies), and the optimal law depends on a belief over it that the "
+               "law itself shapes")
+    elif strategy.kind == "zero" or (strategy.kind == "hold" and not noisy and full_rank):
+        return strategy
+    elif strategy.kind == "hold":
+        why = ("the input each actuator holds is hidden: " + ("with process noise" if noisy else
+               "with B of rank below its columns") + " the state's history tells it only as a Gaussian mixture over "
+               "the delivery histories")
+    else:
+        why = ("the age of the plan each actuator plays is hidden (the state tells a delivery only where the "
+               "packet's first entry differs from the entry the old plan plays, which the law does not control)")
+    raise UnobservedModeError(
+        "protocol", f"{strategy}'s optimal law without acknowledgements is not computed: {why}, so the optimal law "
+        "is nonlinear in general (the input chosen now changes what the next state reveals: the dual effect) and the "
+        "best law linear in the observations is an output-feedback design of a jump linear system whose mode is not "
+        "observed, with no Riccati equation; use protocol tcp (acknowledgements), or evaluate a given law's exact "
+        "cost and radius (closedloop.actuator.actuator_costs, actuator_radius; solve --actuator)")
+
+
 def _system_modes(system: System, actuator: str | Actuator, mu: npt.ArrayLike | None) -> DesignModes:
     system = check_system(system)
     strategy = parse_actuator(actuator, system.horizon)
@@ -272,17 +339,21 @@ def _weights(system: System, modes: DesignModes) -> tuple[np.ndarray, np.ndarray
 
 def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.ArrayLike | None = None,
                 max_iter: int | None = None,
-                proves: Callable[[DesignModes, np.ndarray], bool] | None = None) -> ActuatorDesign:
+                proves: Callable[[DesignModes, np.ndarray], bool] | None = None,
+                protocol: str = "tcp") -> ActuatorDesign:
     """The stationary optimal TCP-like linear law of ``actuator`` on ``system`` (stage weights Omega_1 and Psi_0,
     noise Sigma_W; its chain, or ``mu``, default the stationary Bernoulli channel): the stabilising solution of the
     coupled Riccati equation over the strategy's modes (module docstring), by `.riccati.solve_bellman`. ``zero`` is
-    `.riccati.dp_riccati` (Bernoulli) and `.mjls.coupled_riccati` (a chain). Time O(iterations S D (S N^2 +
+    `.riccati.dp_riccati` (Bernoulli) and `.mjls.coupled_riccati` (a chain). ``protocol="udp"``: the same law where
+    a UDP-like controller can run it, its optimum there (`check_protocol`). Time O(iterations S D (S N^2 +
     (N + r)^3)) plus the engine's coupled Lyapunov solve per policy step.
 
     Raises
     ------
     InputError
         Field ``actuator``: an unknown strategy, L < 1 or beyond the horizon, or too many modes.
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose optimal law is not computed (`check_protocol`).
     NumericalError
         No verdict: no convergence, a limit that is not stabilising, or a residual above MOMENT_RESIDUAL_RTOL (a
         diverging iteration is a proof only through ``proves(modes, P)``, closedloop.actuator_region's exact check
@@ -297,6 +368,7 @@ def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.Array
     True
     """
     system = check_system(system)
+    check_protocol(system, actuator, protocol, mu)
     modes = _system_modes(system, actuator, mu)
     Omega, psi, Sigma = _weights(system, modes)
     S, N, r = modes.modes, modes.A.shape[-1], modes.B.shape[-1]
@@ -357,16 +429,18 @@ def _stationary(T: np.ndarray) -> np.ndarray:
 
 
 def actuator_dp_finite(system: System, steps: int, actuator: str | Actuator = "zero",
-                       mu: npt.ArrayLike | None = None) -> tuple[np.ndarray, float]:
+                       mu: npt.ArrayLike | None = None, protocol: str = "tcp") -> tuple[np.ndarray, float]:
     """The finite-horizon TCP-like optimum of ``actuator`` over ``steps`` steps with terminal cost x_T'Omega x_T:
     ``(gains, cost)``, ``gains[t]`` (S, r, N) the law at step t per information mode, and the optimal expected
     cost from x0 with noise, ``sum_s start_s z0'P_0,s z0 + sum_t sum_(s,d) P(s_t = s) p_sd tr(E_t+1,sd Sigma_z)``.
-    Time O(steps S D (S N^2 + (N + r)^3)).
+    ``protocol="udp"``: as `actuator_dp`. Time O(steps S D (S N^2 + (N + r)^3)).
 
     Raises
     ------
     NumericalError
         The cost-to-go overflows.
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose optimal law is not computed (`check_protocol`).
 
     Examples
     --------
@@ -376,6 +450,7 @@ def actuator_dp_finite(system: System, steps: int, actuator: str | Actuator = "z
     (0.5, 1.5)
     """
     system = check_system(system)
+    check_protocol(system, actuator, protocol, mu)
     modes = _system_modes(system, actuator, mu)
     Omega, psi, Sigma = _weights(system, modes)
     S, N, r = modes.modes, modes.A.shape[-1], modes.B.shape[-1]

@@ -36,8 +36,8 @@ from ..model.channel import MarkovChannel
 from ..model.system import System, check_system
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CRITICAL_MU_TOL, MEAN_SQUARE_MARGIN, MOMENT_DENSE_MAX_N
-from .actuator import Actuator, parse_actuator
-from .actuator_design import DesignModes, actuator_dp, actuator_dp_finite, design_modes
+from .actuator import Actuator
+from .actuator_design import DesignModes, actuator_dp, actuator_dp_finite, check_protocol, design_modes
 from .certificates import exact_transition, snapped, tilted_by
 from .chain_radius import symmetric_perron
 from .moments import solve_fixed_point, stationary_channel
@@ -313,11 +313,19 @@ def _never_delivers(modes: DesignModes) -> list[np.ndarray]:
 
 
 def actuator_membership(system: System, actuator: str | Actuator = "zero",
-                        mu: npt.ArrayLike | None = None) -> Membership:
+                        mu: npt.ArrayLike | None = None, protocol: str = "tcp") -> Membership:
     """Is ``mu`` (default: the system's stationary channel, or its chain) in the region of ``actuator``? A
     `Membership` (module docstring): "stable" with the DP law's gains (S, r, N) and radius, "unstable" with the
-    certificate tuple P, or "undecided" with the reason. ``forms``: (("dp", verdict),). Time: `actuator_dp` plus
-    the exact checks, O(S D (N + r)^3) integer operations, and the witness's dense solve O((S N^2)^3).
+    certificate tuple P, or "undecided" with the reason. ``forms``: (("dp", verdict),). ``protocol="udp"``: where a
+    UDP-like controller can run the TCP-like laws (`.actuator_design.check_protocol`), the region is theirs; an
+    "unstable" certificate bounds every causal law, whatever it knows (Theta_s >= 0 holds for every input). Time:
+    `actuator_dp` plus the exact checks, O(S D (N + r)^3) integer operations, and the witness's dense solve
+    O((S N^2)^3).
+
+    Raises
+    ------
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose laws are not computed (`.actuator_design.check_protocol`).
 
     Examples
     --------
@@ -326,7 +334,7 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
     ['unstable', 'stable', 'unstable', 'stable']
     """
     system = check_system(system)
-    strategy = parse_actuator(actuator, system.horizon)
+    strategy = check_protocol(system, actuator, protocol, mu)
     chain = system.channel if system.channel is not None and mu is None else None
     channel = chain if chain is not None else (stationary_channel(system) if mu is None else mu)
     modes = design_modes(system.A, system.B, channel, strategy)
@@ -376,7 +384,7 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
 
 
 def actuator_critical(system: System, actuator: str | Actuator = "zero", direction: npt.ArrayLike | None = None,
-                      tol: float = CRITICAL_MU_TOL) -> CriticalPoint:
+                      tol: float = CRITICAL_MU_TOL, protocol: str = "tcp") -> CriticalPoint:
     """The critical mu of a strategy along ``mu = t * direction`` (Bernoulli links; default all ones): bisection in
     t on the least radius over the strategy's laws (`least_radius`, floats; the region is monotone in mu, module
     docstring) to a bracket ``[lower, t]`` of width tol, then both ends decided by `actuator_membership`:
@@ -387,10 +395,12 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     hold along the diagonal: 6.5e-5); where none is proved (the two-actuator buffer's rank-one direction, whose
     tilt the unreached plan entries make indefinite), ``lower`` stays the float crossing, ``outside`` undecided and
     the note says so: then only ``t`` is evidence. ``t`` is inf when even the ray's end is not below 1, 0.0 when
-    mu = 0 is. Time O(log2(1 / tol)) power iterations plus two memberships.
+    mu = 0 is. ``protocol``: as `actuator_membership`. Time O(log2(1 / tol)) power iterations plus two memberships.
 
     Raises
     ------
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose laws are not computed (`.actuator_design.check_protocol`).
     NumericalError
         The least radius is not finite at a point of the ray.
 
@@ -402,7 +412,7 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     (True, 'stable', 'unstable')
     """
     system = check_system(system)
-    strategy = parse_actuator(actuator, system.horizon)
+    strategy = check_protocol(system, actuator, protocol, np.ones(system.m))
     d = np.asarray(np.ones(system.m) if direction is None else direction, dtype=float).reshape(-1)
     if d.shape != (system.m,) or np.any(d < 0) or not np.any(d > 0) or not np.all(np.isfinite(d)):
         raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")

@@ -160,3 +160,18 @@ def test_two_actuator_hold_critical_lower_end_is_proved_near_the_float_crossing(
     assert point.outside.verdict == "unstable"
     assert 0.0 < point.t - point.lower <= 2e-3
     assert _hold_loop_radius(system.A, system.B, point.t * np.ones(2), point.inside.gain[0]) < 1.0
+
+
+def test_hold_laws_of_the_state_alone_have_a_stabilising_set_that_is_not_convex():
+    """docs/mathematics.md's UDP-like hold: the laws u = -K x (the held input unobserved) on two_actuator at
+    mu = (0.9, 0.9); two stabilising gains, their midpoint not (radius about 3.05), by the enumerated operator."""
+    system = load_example("two_actuator")
+    mu = [0.9, 0.9]
+    first, second = np.array([[1.002, -0.114], [4.931, 0.418]]), np.array([[1.229, 2.27], [0.301, 0.633]])
+
+    def radius(K):
+        return _hold_loop_radius(system.A, system.B, mu, np.hstack([K, np.zeros((2, 2))]))
+
+    assert radius(first) < 1.0
+    assert radius(second) < 1.0
+    assert radius(0.5 * (first + second)) == pytest.approx(3.05, abs=0.01)
