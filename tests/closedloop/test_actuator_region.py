@@ -175,3 +175,22 @@ def test_hold_laws_of_the_state_alone_have_a_stabilising_set_that_is_not_convex(
     assert radius(first) < 1.0
     assert radius(second) < 1.0
     assert radius(0.5 * (first + second)) == pytest.approx(3.05, abs=0.01)
+
+
+def test_two_actuator_buffer_direction_lies_along_the_irrational_unstable_eigenvector_of_a():
+    """docs/mathematics.md: at an undecided point of buffer:2 on two_actuator the least-radius direction is rank
+    one, its plant part along A's left eigenvector for 1.02 + sqrt(0.00185) (by hand: A' q = lambda q gives
+    q2 / q1 = (lambda - 1.03) / 0.35) in every mode where it weighs the plant."""
+    system = load_example("two_actuator")
+    modes = design_modes(system.A, system.B, [0.04, 0.04], "buffer:2")
+    found = least_radius(modes)
+    assert found.growth > 1.0
+    assert actuator_membership(system, "buffer:2", [0.04, 0.04]).verdict == "undecided"
+    lam = 1.02 + np.sqrt(0.00185)
+    q = np.array([1.0, (lam - 1.03) / 0.35])
+    for P in found.P:
+        w, V = np.linalg.eigh(P)
+        size = np.sort(np.abs(w))
+        assert size[-2] <= 1e-9 * size[-1]                # rank one
+        top = V[:2, -1] if abs(w[-1]) >= abs(w[0]) else V[:2, 0]
+        assert abs(top[0] * q[1] - top[1] * q[0]) <= 1e-6 * np.linalg.norm(top) * np.linalg.norm(q)
