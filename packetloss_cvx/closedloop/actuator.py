@@ -34,7 +34,8 @@ acknowledgements tell the controller, before it computes u_k, which packets arri
 age of every buffered plan (the whole mode): a law that depends on them is implementable, and the optimal one per
 strategy solves the coupled Riccati equations over these modes. Under a UDP-like protocol it knows neither; it
 must keep a belief over the held input and the buffer ages (from the state's history, exact only without noise
-and with B of full column rank), and a mode-dependent law is not implementable.
+and with B of full column rank), and a mode-dependent law is not implementable: which optimal laws it can run is
+`.actuator_design.check_protocol`'s decision.
 """
 
 from __future__ import annotations
