@@ -11,7 +11,7 @@ from ..closedloop.actuator import Actuator, compare_actuators, parse_actuators
 from ..closedloop.actuator_design import actuator_dp, check_protocol, design_modes
 from ..closedloop.actuator_region import MAX_CERTIFIED_ROWS, actuator_critical, actuator_membership
 from ..errors import BudgetError, InputError, NumericalError
-from ..model.system import System
+from ..model.system import System, loop_weights
 from ..montecarlo.actuator import simulate_actuator
 from ..montecarlo.simulate import law_gains
 from . import format as fmt
@@ -52,7 +52,8 @@ def actuator_strategies(text: str | None, system: System, protocol: str = "tcp")
 def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator, ...],
                    steps: int) -> tuple[dict[str, Any], list[str]]:
     """The JSON entry (``steps`` and per strategy ``radius``, ``stable``, ``cost``, ``reason``) and the text lines of
-    `compare_actuators` for the law ``u = -K x``."""
+    `compare_actuators` for the law ``u = -K x`` (its loop's one stage weight: `loop_weights`)."""
+    loop_weights(system, "cost.state_weights")
     try:
         rows = compare_actuators(system, gain, steps, strategies)
     except InputError as err:
@@ -139,7 +140,9 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
                    tol: float) -> tuple[dict[str, Any], list[str]]:
     """``compare``: per strategy the optimal TCP-like law's (closedloop.actuator_design.actuator_dp) mean-square
     radius, average stage cost under the noise and total noise-free cost from x0, and the strategy's critical
-    point along the ray; JSON per strategy name and the text table."""
+    point along the ray; JSON per strategy name and the text table. The costs need the loop's one stage weight
+    (`loop_weights`: time-varying weights refused)."""
+    loop_weights(system, "cost.state_weights")
     data: dict[str, Any] = {}
     w = max([11, *(len(str(strategy)) for strategy in strategies)])     # buffer:L:hold is wider than 11
     lines = [f"{'strategy':<{w}} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}  critical mu"]

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..model.system import loop_weights
 from ..montecarlo.markov import EXACT_PLAN
-from ..montecarlo.runs import check_loop_weights
 from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
@@ -70,8 +70,9 @@ def run(args: argparse.Namespace) -> CommandResult:
     constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
     check_dead_flags(args)      # --mpc-samples without a table, --format/--dpi/--yscale without --plot
     mpc_samples = mpc_samples_of(args)
-    if constraints is not None and mpc_samples:     # refused before the open loop runs, as the loop would refuse
-        check_loop_weights(system, "cost.state_weights")
+    if args.closed_loop or (constraints is not None and mpc_samples):   # refused before the open loop runs
+        loop_weights(system, "cost.state_weights")
+    if constraints is not None and mpc_samples:
         if system.channel is None and not system.is_stationary:
             raise InputError("--mu-schedule", "the constrained loop (a [constraints] table) runs for ever over one "
                                               "channel: it needs one mu per actuator, not a schedule; give --mu, or "

@@ -213,7 +213,7 @@ def least_radius(modes: DesignModes, steps: int | None = None) -> LeastRadius:
     zero_Omega, zero_psi = np.zeros((N, N)), np.zeros(modes.F.shape[2])
     growth, last, K = float("nan"), float("nan"), np.zeros((modes.modes, modes.B.shape[-1], N))
     limit = HOMOGENEOUS_STEPS if steps is None else steps
-    taken = 0
+    taken, settled = 0, False
     with np.errstate(over="ignore", invalid="ignore"):
         for taken in range(1, limit + 1):  # noqa: B007 (the count is returned)
             K, P_next = modes.step(P, zero_Omega, zero_psi, least_squares=True)
@@ -222,9 +222,18 @@ def least_radius(modes: DesignModes, steps: int | None = None) -> LeastRadius:
                 break
             P = P_next / growth
             if abs(growth - last) <= GROWTH_RTOL * growth:
+                settled = True
                 break
             last = growth
         K, _ = modes.step(P, zero_Omega, zero_psi, least_squares=True)
+    if not settled and np.isfinite(growth) and np.all(np.isfinite(K)):
+        # unsettled: a map that rounding keeps from vanishing (mu = 1: the deadbeat law's map is nilpotent, and
+        # the normalised iterates are rounding noise) has no meaningful growth; its greedy law's own radius is an
+        # upper bound on the least radius, computed by the engine
+        try:
+            growth = min(growth, modes.loop(K).radius())
+        except NumericalError:
+            pass
     found = LeastRadius(float(growth), P, K, taken)
     refined = _policy(modes, found) if np.isfinite(growth) else None
     return found if refined is None else refined
@@ -402,7 +411,8 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     UnobservedModeError
         Field ``protocol``: a UDP-like request whose laws are not computed (`.actuator_design.check_protocol`).
     NumericalError
-        The least radius is not finite at a point of the ray.
+        The least radius is not finite at a point of the ray; or the ray's end (floats: no law stabilises) is not
+        proved unstable, or mu = 0 (floats: stable) is not proved stable: the end's membership and its reason.
 
     Examples
     --------
@@ -431,9 +441,16 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
 
     lo, hi = 0.0, 1.0 / float(d.max())
     if not below(hi):
-        return CriticalPoint(str(strategy), d, float("inf"), hi, None, member(hi))
+        end = member(hi)
+        if end.verdict != "unstable":   # floats say no law stabilises; only a certificate may say it
+            raise NumericalError(f"critical mu ({strategy}): the ray's end mu = {(hi * d).tolist()} is "
+                                 f"{end.verdict} ({end.reason or 'a law proved stable there, the floats disagree'})")
+        return CriticalPoint(str(strategy), d, float("inf"), hi, None, end)
     if below(lo):
-        return CriticalPoint(str(strategy), d, 0.0, 0.0, member(lo), None)
+        start = member(lo)
+        if start.verdict != "stable":
+            raise NumericalError(f"critical mu ({strategy}): mu = 0 is {start.verdict} ({start.reason})")
+        return CriticalPoint(str(strategy), d, 0.0, 0.0, start, None)
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:

@@ -19,7 +19,7 @@ from ..closedloop.mjls import mode_chain, mode_start
 from ..closedloop.moments import check_steps, stationary_channel
 from ..closedloop.stability import is_mean_square_stable
 from ..errors import NumericalError
-from ..model.system import System, check_system
+from ..model.system import System, check_system, loop_weights
 from .runs import BLOCK, check_count, z_score
 
 __all__ = ["ACTUATOR_STREAM", "sample_actuator_loop", "simulate_actuator"]
@@ -41,7 +41,7 @@ def _block(system: System, K: np.ndarray, strategy: Actuator, T: np.ndarray, h: 
     """Each run's stage costs (runs, steps) of one block. Time O(runs steps (n^2 + m n L))."""
     A, B = system.A, system.B
     n, m = B.shape
-    Omega, psi = system.state_weights[0], system.input_weights[0]
+    Omega, psi = loop_weights(system)
     L = strategy.length
     root = np.linalg.cholesky(system.noise_cov) if system.noise_cov.any() else None
     powers = np.array([[np.linalg.matrix_power(A - B @ K[s], j) for j in range(L)] for s in range(T.shape[0])])

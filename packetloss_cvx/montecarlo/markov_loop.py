@@ -28,7 +28,7 @@ from ..linalg import psd_factor
 from ..lq.costs import closed_form
 from ..lq.markov_cost import exact_closed_form
 from ..model.chain import attach_channel, filter_belief
-from ..model.system import System, check_system
+from ..model.system import System, check_system, loop_weights
 from ..progress import progress_bar
 from .channels import sample_noise_paths
 from .markov_channels import sample_markov_paths, sample_states, state_delivery
@@ -96,7 +96,7 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     delivered = rng.random(states.shape) < state_delivery(ch, states)
     L = psd_factor(system.noise_cov)
     noise = rng.standard_normal((steps, samples, L.shape[0])) @ L if L.shape[0] else None
-    W, psi = system.state_weights[0], system.input_weights[0]
+    W, psi = loop_weights(system)
     out = np.empty((len(laws), samples))
     for k, law in enumerate(progress_bar(laws, total=len(laws), desc="closed loop (Markov)", progress=progress)):
         gains = BeliefGains(system, law[-3:], law=law, most=samples * steps)    # within the belief_plans budget
@@ -234,7 +234,7 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
     chain_states, V = sample_markov_paths(ch, steps, samples, losses)
     W = sample_noise_paths(system, steps, samples, noise)
     modes = mode_index(chain_states, ch.sizes)
-    Omega, psi = system.state_weights[0], system.input_weights[0]
+    Omega, psi = loop_weights(system)
     L = len(laws)
     X = np.broadcast_to(system.x0, (L, samples, system.n)).copy()
     norms, stage = np.empty((L, samples, steps + 1)), np.empty((L, samples, steps))

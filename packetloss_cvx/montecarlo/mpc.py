@@ -66,7 +66,7 @@ from ..lq.costs import closed_form
 from ..model.chain import attach_channel, filter_belief
 from ..model.constraints import Constraints, check_constraints
 from ..model.files import system_from_dict
-from ..model.system import System, check_system
+from ..model.system import System, check_system, loop_weights
 from ..progress import progress_bar
 from ..qp.constrained import ConstrainedQP
 from ..results.mpc import ControllerRun, Frequency, MPCSimulation
@@ -74,7 +74,7 @@ from ..tolerances import CONSTRAINED_ACTIVE_RTOL
 from .channels import sample_delivery_paths, sample_noise_paths
 from .markov_channels import sample_markov_paths
 from .markov_loop import BeliefGains
-from .runs import check_count, check_loop_weights, run_blocks, sample_stats
+from .runs import check_count, run_blocks, sample_stats
 
 __all__ = ["CHUNK", "CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "TASK_CHUNKS", "check_loop_budgets",
            "loop_jobs", "loop_paths", "loop_task", "simulate_mpc", "wilson_interval"]
@@ -275,7 +275,7 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
     own paths only. Time O(runs steps) solves (none for "clipped")."""
     steps, samples, m = V.shape
     n = system.n
-    A, B, Omega, psi = system.A, system.B, system.state_weights[0], system.input_weights[0]
+    (Omega, psi), A, B = loop_weights(system), system.A, system.B
     c, controller, program, gains = constraints, made.name, made.program, made.gains
     strategy = made.strategy
     zero, L = strategy.kind == "zero", strategy.length
@@ -493,7 +493,7 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     [0, 0, 0]
     """
     system = check_system(system)
-    check_loop_weights(system)
+    loop_weights(system)
     constraints = check_constraints(constraints, system.n, system.m)
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
     seed = check_count(seed, "seed", 0)

@@ -20,9 +20,11 @@ from packetloss_cvx.closedloop.actuator_region import (
     strategy_inside_proved,
     strategy_outside_proved,
 )
+from packetloss_cvx.closedloop.critical import critical_mu
 from packetloss_cvx.closedloop.region import membership
-from packetloss_cvx.errors import InputError
+from packetloss_cvx.errors import InputError, NumericalError
 from packetloss_cvx.model.system import System
+from packetloss_cvx.results.region import Membership
 from packetloss_cvx.tolerances import ACTUATOR_DP_RTOL, CRITICAL_MU_TOL
 
 SCALAR = System(A=[[2.0]], B=[[1.0]], horizon=4, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
@@ -194,3 +196,43 @@ def test_two_actuator_buffer_direction_lies_along_the_irrational_unstable_eigenv
         assert size[-2] <= 1e-9 * size[-1]                # rank one
         top = V[:2, -1] if abs(w[-1]) >= abs(w[0]) else V[:2, 0]
         assert abs(top[0] * q[1] - top[1] * q[0]) <= 1e-6 * np.linalg.norm(top) * np.linalg.norm(q)
+
+
+#: a controllable single-input plant whose deadbeat law makes zero's map at mu = 1 nilpotent: the power iteration's
+#: normalised iterates are rounding noise there (its growth read 1.64 before the greedy law's own radius was used)
+DEADBEAT = System(A=[[1.2, 0.1], [0.0, 0.9]], B=[[1.0], [0.5]], horizon=3, state_weight=[1.0, 1.0],
+                  input_weight=[1.0], mu=[0.7], x0=[1.0, 0.0])
+
+
+def test_zero_at_full_delivery_is_proved_stable_by_the_deadbeat_law():
+    found = actuator_membership(DEADBEAT, "zero", [1.0])
+    assert found.verdict == "stable"
+    assert found.radius < 1e-6                         # the deadbeat law: A - B K nilpotent
+
+
+def test_zero_critical_mu_on_the_deadbeat_plant_agrees_with_the_bernoulli_engine():
+    reference = critical_mu(DEADBEAT, "dp", tol=CRITICAL_MU_TOL)       # closedloop.critical, another engine
+    point = actuator_critical(DEADBEAT, "zero", tol=CRITICAL_MU_TOL)
+    assert point.inside.verdict == "stable"
+    assert point.outside.verdict == "unstable"
+    assert point.lower <= reference.t
+    assert reference.lower <= point.t
+
+
+def test_an_undecided_ray_end_is_a_numerical_error_not_a_verdict(monkeypatch):
+    """Floats say no law stabilises at the ray's end (an unreached unstable mode); without a certificate that is
+    no verdict. The real membership proves it unstable (checked first), the planted one cannot."""
+    import packetloss_cvx.closedloop.actuator_region as region
+
+    def undecided(system, actuator, mu, **options):
+        return Membership(np.asarray(mu, dtype=float), "undecided", None, float("nan"), None, float("nan"),
+                          (("dp", "undecided"),), "planted: nothing checks")
+
+    unreached = System(A=[[2.0, 0.0], [0.0, 0.5]], B=[[0.0], [1.0]], horizon=3, state_weight=[1.0, 1.0],
+                       input_weight=[1.0], mu=[0.9], x0=[1.0, 1.0])
+    proved = actuator_critical(unreached, "zero", tol=1e-3)
+    assert proved.t == float("inf")
+    assert proved.outside.verdict == "unstable"
+    monkeypatch.setattr(region, "actuator_membership", undecided)
+    with pytest.raises(NumericalError, match="ray's end .* undecided"):
+        actuator_critical(unreached, "zero", tol=1e-3)
