@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from mpc_solve_time import mpc_solve_time  # noqa: E402  (benchmarks/mpc_solve_time.py, section 21)
 from slow_plant import slow_plant  # noqa: E402  (benchmarks/slow_plant.py, section 20)
 from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 17)
 
@@ -980,6 +981,7 @@ def main() -> None:
         19: lambda: (stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
                      args.baseline and stationary_rounds(args.baseline, 10_000, 2 if quick else 5, rows)),
         20: lambda: slow_plant(args.baseline, rows, 2 if quick else 5),
+        21: lambda: mpc_solve_time(rows, quick),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:
