@@ -24,6 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from markov_tail import markov_tail  # noqa: E402  (benchmarks/markov_tail.py, section 21)
+from mpc_solve_time import mpc_solve_time  # noqa: E402  (benchmarks/mpc_solve_time.py, section 22)
 from slow_plant import slow_plant  # noqa: E402  (benchmarks/slow_plant.py, section 20)
 from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 17)
 
@@ -982,6 +983,7 @@ def main() -> None:
                      args.baseline and stationary_rounds(args.baseline, 10_000, 2 if quick else 5, rows)),
         20: lambda: slow_plant(args.baseline, rows, 2 if quick else 5),
         21: lambda: markov_tail(args.baseline, rows, quick),
+        22: lambda: mpc_solve_time(rows, quick),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

@@ -35,8 +35,9 @@ __all__ = ["BUDGETS", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX", "MARKOV_DENSE_SECONDS
            "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work", "check", "check_constrained", "constrained_bytes",
            "constrained_work", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds",
            "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds",
-           "markov_recursion_work", "mpc_bytes", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
-           "qp_work", "refusal_text", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
+           "markov_recursion_work", "mpc_bytes", "mpc_solve_size", "mpc_solves", "operator_bytes", "program_bytes",
+           "qp_bytes", "qp_work", "refusal_text", "simulate_work", "solve_bytes", "solve_work", "sweep_work",
+           "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -79,8 +80,8 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
     Budget("chain_dp_nodes", 2e5, "node-outcomes of the TCP-like DP behind a chain (beliefs x outcomes, summed "
            "over the steps)", "about 3 s at n = 4 (8.2 s measured at 5.2e5): `solve` on a chain file computes it by "
            "default, so a hidden chain beyond it gets labelled bounds in seconds"),
-    Budget("mpc_solves", 2e5, "program solves of the constrained receding-horizon loop (runs x steps x programs)",
-           "about 17 min at 5 ms a solve (n = 2, N = 8; 8.4 ms measured at N = 5 on a loaded 2-core machine)", 5e-3),
+    Budget("mpc_solves", 2e5, "solves of 5 ms of the constrained receding-horizon loop's programs (runs x steps x "
+           "programs, each solve weighed by its program's size: mpc_solve_size)", "about 17 min", 5e-3),
     Budget("actuator_rows", 25000, "rows of an actuator strategy's second-moment operator behind its optimal law "
            "(engine modes x N^2: information modes x delivery patterns x (n + m (L - 1))^2 for buffer:L)",
            "about 2 s (two_actuator: buffer:6, 20736 rows, 2.0 s; buffer:7, 38416 rows, 23 s, its mean-square radius "
@@ -272,19 +273,49 @@ def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans:
 CLIPPED_SOLVE_SHARE = 2e-3
 
 
-def mpc_solves(samples: int, steps: int, programs: int, clipped: int = 0) -> float:
-    """Program solves of the constrained loop: ``samples steps (programs + CLIPPED_SOLVE_SHARE clipped)`` (a
-    controller with a program solves it once per run and step; the soft twin's solves, on infeasible steps only,
-    come on top; the ``clipped`` laws' run-steps, which solve nothing, priced at their measured share of a solve).
+def mpc_solve_size(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> float:
+    """One solve of the constrained loop's program (``ConstrainedQP.solve`` from a new state: Clarabel on the compiled
+    program and the solution's checks) in the ``mpc_solves`` budget's unit, solves of 5 ms: ``(1600 + 0.75 N (n +
+    m)^2 + 0.055 N^2 n m + 3.5 rows + 0.6 chance N^2 (n + m)) us / 5 ms``, ``rows`` the program's linear rows
+    (`Constraints.program_rows`), ``chance`` its chance rows. The terms: a fixed cost, the sparse KKT system's banded
+    factorisation, the checks' dense products with the plan's moment maps, the rows, each chance row's N cones.
+    Fitted (least squares on the relative error) on benchmarks/mpc_solve_time.py (section 22 of benchmarks/run.py:
+    N in 10..200, (n, m) in (2, 1), (4, 2), (8, 3), an input box, with a rate bound, state limits or one chance row,
+    one BLAS thread, CPU time): the measured solve 0.58 to 2.0 times this on 57 cases, median 0.93 (1.1 ms at
+    N = 10, n = 2, m = 1 to 100 ms at N = 200, n = 8, m = 3, 4400 rows; the largest ratios where the condensed form
+    carries state limits). Not priced: with a chance row at N = 200, Clarabel's automatic choice of linear solver
+    took 9.5 and 17 times this (n = 4, m = 2 and n = 2, m = 1; its qdldl solver, forced, 1.3 and 1.1 times); probes
+    saw the same from N = 135 at n = 4, m = 2. O(1).
+
+    Examples
+    --------
+    >>> round(mpc_solve_size(10, 2, 1, 20), 4)      # 1600 + 67.5 + 11 + 70 = 1748.5 us: 0.35 of a 5 ms solve
+    0.3497
+    >>> round(mpc_solve_size(200, 8, 3, 4400), 2)   # 88 ms predicted, 110 ms measured
+    17.59
+    """
+    N = _float(horizon)
+    micro = (1600.0 + 0.75 * N * (n + m) ** 2 + 0.055 * N * N * n * m + 3.5 * _float(rows)
+             + 0.6 * chance * N * N * (n + m))
+    return micro * 1e-6 / BUDGETS["mpc_solves"].seconds_per_unit
+
+
+def mpc_solves(samples: int, steps: int, programs: int, clipped: int = 0, size: float = 1.0) -> float:
+    """Program solves of the constrained loop, in solves of 5 ms: ``samples steps (programs size +
+    CLIPPED_SOLVE_SHARE clipped)`` (a controller with a program solves it once per run and step, ``size`` the
+    solve's weight, `mpc_solve_size`; the soft twin's solves, on infeasible steps only, come on top; the ``clipped``
+    laws' run-steps, which solve nothing, priced at their measured share of a 5 ms solve).
 
     Examples
     --------
     >>> mpc_solves(100, 30, 3)
     9000.0
+    >>> round(mpc_solves(100, 30, 3, size=mpc_solve_size(10, 2, 1, 20)), 1)
+    3147.3
     >>> mpc_solves(10 ** 9, 30, 0, clipped=1)          # the clipped law alone: 3e10 run-steps, 80 h
     60000000.0
     """
-    return _float(samples) * _float(steps) * (programs + CLIPPED_SOLVE_SHARE * clipped)
+    return _float(samples) * _float(steps) * (programs * size + CLIPPED_SOLVE_SHARE * clipped)
 
 
 def mpc_bytes(samples: int, steps: int, n: int, m: int, jobs: int, rows: int, keep: int = 0) -> float:

@@ -24,6 +24,7 @@ from ..budgets import (
     estimated_seconds,
     gib_text,
     mpc_bytes,
+    mpc_solve_size,
     mpc_solves,
     simulate_work,
     solve_bytes,
@@ -427,9 +428,12 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             names = _strategy_names(getattr(args, "actuator", None))
             programs = sum(2 if args.law != "all" else 3 if name == "zero" else 4 for name in names)
             clipped = len(names) * (2 if args.law == "all" else 1)
-            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs, clipped), "--mpc-samples",
+            linear = constraints.program_rows(N)
+            size = mpc_solve_size(N, system.n, system.m, linear, len(constraints.chance))
+            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs, clipped, size), "--mpc-samples",
                   f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
-                  "(the constrained loop)")
+                  f"(the constrained loop; {size:.2g} of a 5 ms solve each: N = {N}, n = {system.n}, m = {system.m}, "
+                  f"{linear} linear rows, {len(constraints.chance)} chance rows)")
             rows = constraints.loop_rows()
             jobs = max(3 if args.law != "all" else 5 if name == "zero" else 6 for name in names)   # one loop at a time
             needed = mpc_bytes(mpc_samples, args.steps, system.n, system.m, jobs, rows)

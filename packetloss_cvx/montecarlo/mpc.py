@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..budgets import check, check_constrained, count_text, gib_text, mpc_bytes, mpc_solves
+from ..budgets import check, check_constrained, count_text, gib_text, mpc_bytes, mpc_solve_size, mpc_solves
 from ..closedloop.actuator import Actuator, parse_actuator
 from ..closedloop.moments import stationary_channel
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
@@ -424,7 +424,8 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
         A stationary Bernoulli channel, or a Markov (Gilbert–Elliott) one sampled per run.
     constraints : Constraints or mapping (the ``[constraints]`` table)
     samples : int
-        Runs (>= 2). Each controller with a program solves it samples × steps times (the ``mpc_solves`` budget).
+        Runs (>= 2). Each controller with a program solves it samples × steps times (the ``mpc_solves`` budget,
+        each solve weighed by its program's size: `mpc_solve_size`).
     steps : int
         Loop steps (>= 1).
     seed : int
@@ -468,9 +469,9 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
         time-varying weights (``state_weights``, ``input_weights``: the loop's stage cost needs one weight a step),
         constraints that do not fit the system, ``threads`` below 1 or ``dask`` without ``submit``.
     BudgetError
-        More program solves than the ``mpc_solves`` budget (`mpc_solves`; the clipped laws' run-steps at their
-        measured share of a solve), or arrays beyond the ``memory_bytes`` budget (`mpc_bytes`), before any path is
-        drawn.
+        More program solves than the ``mpc_solves`` budget (`mpc_solves`: each weighed by its program's size; the
+        clipped laws' run-steps at their measured share of a solve), or arrays beyond the ``memory_bytes`` budget
+        (`mpc_bytes`), before any path is drawn.
 
     Notes
     -----
@@ -572,9 +573,12 @@ def check_loop_budgets(system: System, constraints: Constraints, samples: int, s
     jobs = [job for loop in runs for job in loop]
     programs = sum(name != "clipped" for name, _ in jobs)
     clipped = len(jobs) - programs
-    check("mpc_solves", mpc_solves(samples, steps, programs, clipped), "samples",
+    N, rows = system.horizon, constraints.program_rows(system.horizon)
+    size = mpc_solve_size(N, system.n, system.m, rows, len(constraints.chance))
+    check("mpc_solves", mpc_solves(samples, steps, programs, clipped, size), "samples",
           f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
-          + (f" and {clipped} clipped laws" if clipped else ""))
+          + (f" and {clipped} clipped laws" if clipped else "") + f" ({size:.2g} of a 5 ms solve each: N = {N}, "
+          f"n = {system.n}, m = {system.m}, {rows} linear rows, {len(constraints.chance)} chance rows)")
     needed = max(mpc_bytes(samples, steps, system.n, system.m, len(loop), constraints.loop_rows(), keep)
                  for loop in runs)
     check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "

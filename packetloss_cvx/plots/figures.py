@@ -340,11 +340,13 @@ def plot_mpc(sim: Any, *, protocol: str | None = None, state: int = 0, input: in
 
     Top row: state ``x[state]`` of the kept runs, one panel per controller (the first run bold, the others thin),
     the limits on it dashed (the program puts them on the expected state) and the chance rows on this state alone
-    dotted. Middle row: the commanded input ``u[input]``, its bounds dashed. Steps where the first run's packet on
-    that channel was lost are shaded grey in both rows. Bottom: per state-side row (state limits, polyhedron rows,
+    dotted. Middle row: the input ``u[input]``, its bounds dashed: the input the actuator applied where the run kept
+    it (``ControllerRun.applied``: under hold or buffer, where it differs from the command), else the commanded one
+    (under zero the actuator applies it, or zero on a loss); the axis says which. Steps where the first run's packet
+    on that channel was lost are shaded grey in both rows. Bottom: per state-side row (state limits, polyhedron rows,
     chance rows) and the program's infeasibility, each controller's frequency with its Wilson interval; a chance
     row's allowed eps is marked ``|``. Input and rate bounds are not drawn there: every controller holds them on
-    what it commands.
+    what it commands (under hold or buffer their rows count the applied inputs: read them from ``violations``).
 
     Parameters
     ----------
@@ -358,7 +360,8 @@ def plot_mpc(sim: Any, *, protocol: str | None = None, state: int = 0, input: in
         The frequency drawn: at the step with the most violations (a chance row's eps is a bound at each step), or
         of the runs with a violation at some step.
     title : str, optional
-        The figure's title; default: the protocol, the channel and the runs, in words.
+        The figure's title; default: the protocol, the channel, the actuator's strategy (unless zero) and the runs,
+        in words.
     path : str or Path, optional
 
     Returns
@@ -407,14 +410,16 @@ def plot_mpc(sim: Any, *, protocol: str | None = None, state: int = 0, input: in
                                ["rates"] * len(names)], height_ratios=[1.0, 0.8, 1.0])
     constraints = getattr(sim, "constraints", {}) or {}
     lost = np.flatnonzero(~np.asarray(delivered[0, :, input], dtype=bool))
+    first_which = "commanded" if first.applied is None else "applied"
     for k, name in enumerate(names):
         run, colour = controllers[name], f"C{k}"
         top, bottom = axes[f"x{k}"], axes[f"u{k}"]
         steps = run.inputs.shape[1]
+        inputs, which = (run.inputs, "commanded") if run.applied is None else (run.applied, "applied")
         for j in range(run.states.shape[0] - 1, -1, -1):        # the first run last: on top
             bold = {"linewidth": 2.0, "alpha": 1.0} if j == 0 else {"linewidth": 0.8, "alpha": 0.35}
             top.plot(np.arange(steps + 1), run.states[j, :, state], color=colour, **bold)
-            bottom.step(np.arange(steps), run.inputs[j, :, input], where="post", color=colour, **bold)
+            bottom.step(np.arange(steps), inputs[j, :, input], where="post", color=colour, **bold)
         for t in lost:
             for ax in (top, bottom):
                 ax.axvspan(t, t + 1, color="0.85", zorder=0, linewidth=0)
@@ -422,7 +427,7 @@ def plot_mpc(sim: Any, *, protocol: str | None = None, state: int = 0, input: in
         _limit_lines(bottom, constraints, input, "u_min", "u_max")
         top.set_title(_CONTROLLER_LABELS.get(name, name), fontsize="medium")
         top.set_ylabel(f"state $x_{{{state + 1}}}$" if k == 0 else "")
-        bottom.set_ylabel(f"commanded $u_{{{input + 1}}}$" if k == 0 else "")
+        bottom.set_ylabel(f"{which} $u_{{{input + 1}}}$" if k == 0 or which != first_which else "")
         bottom.set_xlabel("step t")
         if k:
             top.sharey(axes["x0"])
@@ -463,7 +468,9 @@ def plot_mpc(sim: Any, *, protocol: str | None = None, state: int = 0, input: in
     fig.legend(handles=handles, **LEGEND)
     channel = {"bernoulli": "Bernoulli", "gilbert-elliott": "Gilbert–Elliott", "markov": "Markov"}.get(
         getattr(sim, "channel", ""), "")
-    fig.suptitle(title or f"{_LABELS.get(protocol, protocol)} controllers over a {channel} link: "
+    actuator = getattr(sim, "actuator", "zero")
+    on_loss = "" if actuator == "zero" else f", actuator {actuator}"
+    fig.suptitle(title or f"{_LABELS.get(protocol, protocol)} controllers over a {channel} link{on_loss}: "
                           f"{first.states.shape[0]} of {runs_count} runs drawn")
     return _save(fig, path)
 

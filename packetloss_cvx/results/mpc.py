@@ -96,8 +96,8 @@ class ControllerRun(Frozen):
         t < steps, and its standard error.
     stage_cost_mean : ndarray (steps,)
     violations : tuple of Frequency
-        One per constraint row (input and rate bounds on the commanded inputs, state limits and chance rows on the
-        realised states x_1..x_steps).
+        One per constraint row (input and rate bounds on the commanded inputs under zero, on the applied ones under
+        hold or buffer; state limits and chance rows on the realised states x_1..x_steps).
     infeasible : Frequency or None
         Steps whose hard program was proven infeasible (None for the clipped law, which solves nothing).
     fallback_steps : int
@@ -185,10 +185,10 @@ class MPCSimulation(Frozen):
         return out
 
     def plot(self, protocol: str | None = None, **kwargs: Any) -> Any:
-        """The kept trajectories (each controller's realised states and commanded inputs, the lost packets
-        marked) and every state-side constraint's violation frequency with its confidence interval, drawn by
-        [`plot_mpc`][packetloss_cvx.plots.figures.plot_mpc] for ``protocol`` (default: the first run; keywords
-        passed on); returns the matplotlib Figure.
+        """The kept trajectories (each controller's realised states and its inputs: the applied ones under hold or
+        buffer, the commanded ones under zero; the lost packets marked) and every state-side constraint's violation
+        frequency with its confidence interval, drawn by [`plot_mpc`][packetloss_cvx.plots.figures.plot_mpc] for
+        ``protocol`` (default: the first run; keywords passed on); returns the matplotlib Figure.
 
         Raises
         ------

@@ -19,26 +19,30 @@ def _frequency(name, worst, ci, allowed=0.0, runs=10, runs_with=0, runs_ci=(0.0,
                      confidence=0.95)
 
 
-def _run(name, offset, keep=2):
+def _run(name, offset, keep=2, applied=False):
     states = offset + np.arange(keep * (STEPS + 1) * 2, dtype=float).reshape(keep, STEPS + 1, 2)
     inputs = -offset - np.arange(keep * STEPS, dtype=float).reshape(keep, STEPS, 1)
+    # what a holding actuator applied: the command, except the previous one at the first run's lost step 1
+    played = inputs.copy()
+    played[:1, 1] = inputs[:1, 0]
     violations = (_frequency("u_max[0]", 0.0, (0.0, 0.3)),
                   _frequency("x_max[1]", 0.1 * offset, (0.0, 0.5)),
                   _frequency("chance[0]", 0.2 * offset - 0.1, (0.1, 0.6), allowed=0.1, runs_with=4, runs_ci=(0.2, 0.7)))
     return ControllerRun(controller=name, protocol="tcp", mean_stage_cost=1.0, stderr=0.1,
                          stage_cost_mean=np.ones(STEPS), violations=violations,
                          infeasible=None if name == "clipped" else _frequency("infeasible", 0.3, (0.1, 0.6)),
-                         fallback_steps=0, failed_steps=0, slack_steps=0, action="", states=states, inputs=inputs)
+                         fallback_steps=0, failed_steps=0, slack_steps=0, action="", states=states, inputs=inputs,
+                         applied=played if applied else None)
 
 
-def _sim(keep=2):
-    runs = {name: _run(name, k + 1.0, keep) for k, name in enumerate(["clipped", "certainty-equivalent",
-                                                                       "expected-cost"])}
+def _sim(keep=2, actuator="zero"):
+    runs = {name: _run(name, k + 1.0, keep, actuator != "zero")
+            for k, name in enumerate(["clipped", "certainty-equivalent", "expected-cost"])}
     delivered = np.ones((keep, STEPS, 1), bool)
     delivered[:1, 1, 0] = False
     constraints = {"u_min": [-2.0], "u_max": [2.0], "x_max": [np.inf, 5.0], "chance": [[[0.0, -2.0], 1.0, 0.1]]}
     return MPCSimulation(samples=10, steps=STEPS, seed=0, channel="gilbert-elliott", constraints=constraints,
-                         runs={"tcp": runs}, delivered=delivered if keep else None)
+                         runs={"tcp": runs}, delivered=delivered if keep else None, actuator=actuator)
 
 
 def test_the_trajectories_limits_and_losses_are_drawn():
@@ -55,6 +59,36 @@ def test_the_trajectories_limits_and_losses_are_drawn():
     assert levels == [-0.5, 5.0]                 # x_max[1] dashed; the chance row -2 x2 <= 1 is x2 >= -0.5, dotted
     spans = [p.get_x() for p in top.patches]
     assert spans == [1.0]                        # the first run's packet lost at step 1: [1, 2] shaded
+
+
+def _input_panels(fig):
+    return [ax for ax in fig.axes if ax.get_xlabel() == "step t" and not ax.get_title()]
+
+
+def _drawn(ax):
+    return [line.get_ydata().tolist() for line in ax.lines if line.get_linewidth() in (0.8, 2.0)]
+
+
+def test_under_zero_the_commanded_inputs_are_drawn_and_labelled_so():
+    sim = _sim()
+    panels = _input_panels(sim.plot())
+    assert [ax.get_ylabel() for ax in panels] == ["commanded $u_{1}$", "", ""]
+    for ax, run in zip(panels, sim.runs["tcp"].values(), strict=True):
+        # the first run last, on top
+        assert _drawn(ax) == [run.inputs[1, :, 0].tolist(), run.inputs[0, :, 0].tolist()]
+
+
+def test_under_hold_the_applied_inputs_are_drawn_and_labelled_so():
+    sim = _sim(actuator="hold")
+    fig = sim.plot()
+    assert fig.get_suptitle() == ("TCP-like controllers over a Gilbert–Elliott link, actuator hold: "
+                                  "2 of 10 runs drawn")
+    panels = _input_panels(fig)
+    assert [ax.get_ylabel() for ax in panels] == ["applied $u_{1}$", "", ""]
+    for k, (ax, run) in enumerate(zip(panels, sim.runs["tcp"].values(), strict=True)):
+        offset = k + 1.0
+        # by hand: the first run commanded -offset - (0, 1, 2); the actuator held -offset at the lost step 1
+        assert _drawn(ax) == [run.inputs[1, :, 0].tolist(), [-offset, -offset, -offset - 2]]
 
 
 def test_the_frequencies_are_drawn_with_their_intervals():
