@@ -94,10 +94,8 @@ def _critical_row(system: System, strategy: Actuator, direction: list[float] | N
                   tol: float) -> tuple[dict[str, Any], str]:
     """One strategy's critical point along the ray (closedloop.actuator_region.actuator_critical): its dict and
     a text fragment saying which ends are proved."""
-    if system.channel is not None:
-        reason = "the critical mu of a strategy is computed on Bernoulli links; this file has a Markov chain"
-        return {"reason": reason}, f"critical mu not computed ({reason})"
-    modes = design_modes(system.A, system.B, np.ones(system.m), strategy)
+    modes = design_modes(system.A, system.B, np.ones(system.m) if system.channel is None else system.channel,
+                         strategy)
     rows = modes.modes * modes.A.shape[-1] ** 2
     if rows > MAX_CERTIFIED_ROWS:
         reason = (f"{strategy}'s information map has {rows} rows, beyond the {MAX_CERTIFIED_ROWS} of an exact "
@@ -105,15 +103,24 @@ def _critical_row(system: System, strategy: Actuator, direction: list[float] | N
         return {"reason": reason}, f"critical mu not computed ({reason})"
     try:
         point = actuator_critical(system, strategy, direction, tol)
+    except InputError as err:
+        if err.field != "channel":
+            raise
+        reason = err.detail
+        return {"reason": reason}, f"critical mean rate not computed ({reason})"
     except NumericalError as err:
         return {"reason": str(err)}, f"critical mu undecided ({err})"
     row = point.to_dict()
+    row["basis"] = "mean rate of the chain (burstiness kept)" if system.channel is not None else "delivery probability"
     if not np.isfinite(point.t):
         return row, "not stabilisable even at the ray's end"
     lower = "proved unstable" if point.outside is not None and point.outside.verdict == "unstable" else \
         "an estimate (not certified)"
-    return row, (f"critical mu {fmt.numbers(point.mu)} (t in [{fmt.num(point.lower, 8)}, {fmt.num(point.t, 8)}]: "
-                 f"upper end proved stable, lower end {lower})")
+    upper = "proved stable" if point.inside is not None and point.inside.verdict == "stable" else \
+        f"undecided ({point.inside.reason if point.inside is not None else 'no membership'})"
+    what = "critical mean rate" if system.channel is not None else "critical mu"
+    return row, (f"{what} {fmt.numbers(point.mu)} (t in [{fmt.num(point.lower, 8)}, {fmt.num(point.t, 8)}]: "
+                 f"upper end {upper}, lower end {lower})")
 
 
 def critical_section(system: System, strategies: tuple[Actuator, ...], direction: list[float] | None,
