@@ -134,14 +134,47 @@ def critical_section(system: System, strategies: tuple[Actuator, ...], direction
     return data, lines
 
 
+def _links_cell(row: dict[str, Any] | None) -> str:
+    """The ``compare --target`` columns of one strategy: beta'mu and mu* of its cheapest links, or the verdict."""
+    if row is None:
+        return ""
+    if row["verdict"] == "reachable":
+        star = "" if row["status"] == "optimal" else "*"
+        return f" {fmt.num(row['communication_cost']) + star:>10} {fmt.numbers(row['mu']):<22}"
+    if row["verdict"] == "unreachable":
+        least = "none" if row.get("least_cost") is None else fmt.num(row["least_cost"])
+        return f" {'unreachable':>10} {'(least ' + least + ')':<22}"
+    return f" {row['verdict']:>10} {'-':<22}"
+
+
+def _links_notes(name: str, row: dict[str, Any] | None) -> list[str]:
+    """The lines under the table that say why a strategy's links are not reported, or that a gap is uncertified."""
+    if row is None:
+        return []
+    if row["verdict"] == "reachable":
+        note = "" if row["stabilisable"] else f"; stability of mu*: {row['stability_note']}"
+        uncertified = f" (gap {fmt.num(row['gap'], 3)} not certified)" if row["status"] != "optimal" else ""
+        return [f"  {name}: cheapest links{uncertified}{note}"] if uncertified or note else []
+    if row["verdict"] == "unreachable":
+        why = "" if row.get("least_cost") is not None else f" ({row.get('least_cost_reason', '')})"
+        return [f"  {name}: cost target unreachable (proved); least cost at mu = "
+                f"{fmt.numbers(row['least_cost_mu'])}: {fmt.num(row['least_cost']) if why == '' else 'none'}{why}"]
+    return [f"  {name}: cheapest links {row['verdict']}: {row['reason']}"]
+
+
 def design_section(system: System, strategies: tuple[Actuator, ...], direction: list[float] | None,
-                   tol: float) -> tuple[dict[str, Any], list[str]]:
+                   tol: float, links: dict[str, dict[str, Any]] | None = None) -> tuple[dict[str, Any], list[str]]:
     """``compare``: per strategy the optimal TCP-like law's (closedloop.actuator_design.actuator_dp) mean-square
     radius, average stage cost under the noise and total noise-free cost from x0, and the strategy's critical
-    point along the ray; JSON per strategy name and the text table."""
+    point along the ray; with ``links`` (allocation.api.cheapest_links per strategy name) the cheapest links for the
+    cost target, beta'mu and mu* (JSON ``links``); JSON per strategy name and the text table."""
     data: dict[str, Any] = {}
-    lines = [f"{'strategy':<11} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}  critical mu"]
+    extra = "" if links is None else f" {'beta' + chr(39) + 'mu':>10} {'mu*':<22}"
+    lines = [f"{'strategy':<11} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}{extra}  critical mu"]
+    notes: list[str] = []
     for strategy in strategies:
+        link = None if links is None else links[str(strategy)]
+        notes += _links_notes(str(strategy), link)
         row: dict[str, Any] = {}
         try:
             design = actuator_dp(system, strategy)
@@ -155,16 +188,20 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
         except BudgetError as err:      # refused before any work: the others are still compared
             row.update(radius=None, average_stage_cost=None, initial_cost=None, reason=str(err),
                        critical=None)
+            if link is not None:
+                row["links"] = link
             data[str(strategy)] = row
-            lines.append(f"{str(strategy):<11} {'refused':>12} {'-':>15} {'-':>14}  -")
+            lines.append(f"{str(strategy):<11} {'refused':>12} {'-':>15} {'-':>14}{_links_cell(link)}  -")
             lines.append(f"  {strategy}: not computed: {err}")
             continue
         row["critical"], text = _critical_row(system, strategy, direction, tol)
+        if link is not None:
+            row["links"] = link
         data[str(strategy)] = row
-        lines.append(f"{str(strategy):<11} {numbers}  {text}")
+        lines.append(f"{str(strategy):<11} {numbers}{_links_cell(link)}  {text}")
         if "reason" in row:
             lines.append(f"  {strategy}: no optimal law: {row['reason']}")
-    return data, lines
+    return data, lines + notes
 
 
 def membership_section(system: System, strategies: tuple[Actuator, ...],

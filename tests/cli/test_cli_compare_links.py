@@ -62,3 +62,55 @@ def test_compare_behind_a_chain_outside_the_proof_says_why_per_strategy(capsys, 
     assert code == 0
     row = json.loads(out)["strategies"]["hold"]
     assert row["critical"]["reason"].startswith("monotonicity in the mean rate is proved")
+
+
+@pytest.fixture
+def scalar(tmp_path):
+    system = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
+                    name="scalar")
+    return str(save_system(system, tmp_path / "scalar.toml"))
+
+
+def test_compare_target_gives_each_strategy_its_cheapest_links_with_the_basis(capsys, scalar):
+    # zero's cost from x0 is the positive root of (4 mu - 3) P^2 - 4 P - 1 = 0: 4 + 3 sqrt(2) at mu = 7/8
+    target = 4 + 3 * 2 ** 0.5
+    code, out, _ = _run(capsys, "compare", scalar, "--actuator", "zero,hold", "--target", repr(target),
+                        "--beta", "2", "--gap", "1e-7", "--json", "-q")
+    assert code == 0
+    data = json.loads(out)
+    assert data["target"] == {"alpha": target, "basis": "total from x0", "beta": [2.0]}
+    zero = data["strategies"]["zero"]
+    assert zero["links"]["verdict"] == "reachable"
+    assert zero["links"]["mu"][0] == pytest.approx(0.875, abs=1e-6)
+    assert zero["links"]["communication_cost"] == pytest.approx(1.75, abs=2e-6)
+    assert zero["radius"] is not None
+    assert "critical" in zero
+    # hold costs more than zero at mu = 7/8 on this plant: it needs better links for the same target
+    assert data["strategies"]["hold"]["links"]["mu"][0] > 0.875
+
+
+def test_compare_target_text_has_the_new_columns_and_says_unreachable(capsys, scalar):
+    code, out, _ = _run(capsys, "compare", scalar, "--actuator", "zero,hold", "--target", "4", "-q")
+    assert code == 0
+    lines = out.splitlines()
+    assert "total noise-free cost from x0 is <= 4" in lines[0]
+    assert "beta'mu" in lines[1]
+    assert "mu*" in lines[1]
+    rows = [line for line in lines if line.startswith(("zero", "hold"))]
+    assert len(rows) == 2
+    assert all("unreachable" in row and "(least 4.23607)" in row for row in rows)
+
+
+@pytest.mark.parametrize(("argv", "flag"), [
+    (["--beta", "1"], "--beta"),
+    (["--gap", "1e-3"], "--gap"),
+    (["--target", "-1"], "--target"),
+    (["--target", "abc"], "--target"),
+    (["--target", "8", "--beta", "1,2"], "--beta"),
+])
+def test_compare_target_bad_input_exits_2_with_one_line(capsys, scalar, argv, flag):
+    code, out, err = _run(capsys, "compare", scalar, "--actuator", "zero", *argv, "-q")
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1
+    assert flag in err
