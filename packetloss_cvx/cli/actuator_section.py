@@ -140,11 +140,11 @@ def _links_cell(row: dict[str, Any] | None) -> str:
         return ""
     if row["verdict"] == "reachable":
         star = "" if row["status"] == "optimal" else "*"
-        return f" {fmt.num(row['communication_cost']) + star:>10} {fmt.numbers(row['mu']):<22}"
+        return f" {fmt.num(row['communication_cost']) + star:>12} {fmt.numbers(row['mu']):<22}"
     if row["verdict"] == "unreachable":
         least = "none" if row.get("least_cost") is None else fmt.num(row["least_cost"])
-        return f" {'unreachable':>10} {'(least ' + least + ')':<22}"
-    return f" {row['verdict']:>10} {'-':<22}"
+        return f" {'unreachable':>12} {'(least ' + least + ')':<22}"
+    return f" {row['verdict']:>12} {'-':<22}"
 
 
 def _links_notes(name: str, row: dict[str, Any] | None) -> list[str]:
@@ -169,12 +169,11 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
     point along the ray; with ``links`` (allocation.api.cheapest_links per strategy name) the cheapest links for the
     cost target, beta'mu and mu* (JSON ``links``); JSON per strategy name and the text table."""
     data: dict[str, Any] = {}
-    extra = "" if links is None else f" {'beta' + chr(39) + 'mu':>10} {'mu*':<22}"
+    extra = "" if links is None else f" {'beta' + chr(39) + 'mu':>12} {'mu*':<22}"
     lines = [f"{'strategy':<11} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}{extra}  critical mu"]
     notes: list[str] = []
     for strategy in strategies:
         link = None if links is None else links[str(strategy)]
-        notes += _links_notes(str(strategy), link)
         row: dict[str, Any] = {}
         try:
             design = actuator_dp(system, strategy)
@@ -193,7 +192,10 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
             data[str(strategy)] = row
             lines.append(f"{str(strategy):<11} {'refused':>12} {'-':>15} {'-':>14}{_links_cell(link)}  -")
             lines.append(f"  {strategy}: not computed: {err}")
+            if link is not None and link.get("reason") != str(err):
+                notes += _links_notes(str(strategy), link)
             continue
+        notes += _links_notes(str(strategy), link)
         row["critical"], text = _critical_row(system, strategy, direction, tol)
         if link is not None:
             row["links"] = link

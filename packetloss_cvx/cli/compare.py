@@ -68,5 +68,6 @@ def run(args: argparse.Namespace) -> CommandResult:
         out["target"] = {"alpha": target, "basis": basis, "beta": prices}
         heading += (f"; the cheapest links (min beta'mu, beta = {fmt.numbers(prices)}) at which its optimal law's "
                     f"{'average stage cost' if basis == 'average' else 'total noise-free cost from x0'} is <= "
-                    f"{fmt.num(target)} (* gap not certified)")
+                    f"{fmt.num(target)}" + (" (* gap not certified)" if any(
+                        row.get("status") == "gap_not_certified" for row in links.values()) else ""))
     return CommandResult(out, "\n".join([heading, *lines]))
