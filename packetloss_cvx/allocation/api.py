@@ -41,7 +41,7 @@ from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT
 from .attainable import AttainableEvaluator, ChainAttainableEvaluator, attainment
 from .boxes import Outcome, cost_at, reported_gap, unit_prices
-from .chains import ChainEvaluator, chain_family, chain_rates
+from .chains import ChainEvaluator, ChainFamily, chain_family, chain_rates
 from .grammar import (
     Constraint,
     Polytope,
@@ -522,7 +522,9 @@ def cheapest_links(system: System, alpha: float, beta=None, actuators: str | Seq
     TCP-like law costs at most ``alpha``: `stability_allocate`'s target "dp-cost" with ``actuator=`` (the monotone
     branch and bound on the strategy's DP cost, closedloop.actuator_design.actuator_dp), the cost basis
     (`strategy_dp_cost`) the average stage cost when the system has process noise, else the total noise-free cost
-    from x0, over an infinite horizon. Bernoulli links, full state.
+    from x0, over an infinite horizon. Full state; Bernoulli links, or behind the system's stationary chain each
+    channel's mean rate along its family (`.chains.chain_family`: burstiness held on Gilbert channels, deliveries
+    scaled on the others, mean rates up to the family's top; the law knows the current channel state).
 
     Each strategy's row (keyed by its name) has ``verdict``:
 
@@ -534,7 +536,7 @@ def cheapest_links(system: System, alpha: float, beta=None, actuators: str | Seq
       ``least_cost_mu`` (the least over the box: the cost falls in each mu_i), None where no stabilising solution
       exists there, and the ``reason``;
     * "undecided" (a cap hit before a point was certified, or a check that failed: the ``reason``), or "not
-      computed" (refused for its size, or behind a chain: the ``reason``).
+      computed" (refused for its size: the ``reason``).
 
     Raises
     ------
@@ -559,20 +561,17 @@ def cheapest_links(system: System, alpha: float, beta=None, actuators: str | Seq
     lo, hi = check_bounds(bounds)
     gap = check_gap(gap)
     basis = "average" if np.any(system.noise_cov != 0) else "total from x0"
+    family = None if system.channel is None else chain_family(system)      # a given start refused here
     rows: dict[str, dict[str, Any]] = {}
     for strategy in strategies:
         row: dict[str, Any] = {"alpha": alpha, "basis": basis, "beta": beta.tolist()}
         rows[str(strategy)] = row
-        if system.channel is not None:
-            row.update(verdict="not computed", reason="the cheapest links for a cost target are designed on "
-                                                      "Bernoulli links; this system has a Markov chain")
-            continue
         try:
             found = stability_allocate(system, "dp-cost", beta, alpha=alpha, bounds=(lo, hi), gap=gap,
                                        time_limit=time_limit, actuator=strategy,
                                        **({} if max_boxes is None else {"max_boxes": max_boxes}))
         except InfeasibleError as err:
-            row.update(verdict="unreachable", reason=str(err), **_least_cost(system, strategy, hi))
+            row.update(verdict="unreachable", reason=str(err), **_least_cost(system, strategy, hi, family))
         except SolverError as err:
             row.update(verdict="undecided", reason=str(err))
         except BudgetError as err:
@@ -585,12 +584,18 @@ def cheapest_links(system: System, alpha: float, beta=None, actuators: str | Seq
     return rows
 
 
-def _least_cost(system: System, strategy: Actuator, hi: float) -> dict[str, Any]:
+def _least_cost(system: System, strategy: Actuator, hi: float, family: ChainFamily | None) -> dict[str, Any]:
     """The least cost over ``[lo, hi]^m``: the strategy's DP cost at the upper corner (the cost falls in each
-    mu_i), None with the reason where no stabilising solution is found there."""
+    mu_i; behind a chain each mean rate also at most its family's top), None with the reason where no stabilising
+    solution is found there."""
     mu = np.full(system.m, hi)
     try:
-        cost, _ = strategy_dp_cost(system, actuator_dp(system, strategy, mu))
+        if family is None:
+            design = actuator_dp(system, strategy, mu)
+        else:
+            mu = np.minimum(mu, family.top)
+            design = actuator_dp(system.with_channel(family.channel_at(mu)), strategy)
+        cost, _ = strategy_dp_cost(system, design)
     except NumericalError as err:
         return {"least_cost": None, "least_cost_mu": mu.tolist(), "least_cost_reason": str(err)}
     return {"least_cost": cost, "least_cost_mu": mu.tolist()}

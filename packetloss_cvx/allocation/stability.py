@@ -61,6 +61,7 @@ from ..tolerances import (
 )
 from .attainable import tcp_attainable_cost
 from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope, reported_gap, unit_prices
+from .chains import ChainFamily, chain_family
 from .grammar import (
     Constraint,
     Polytope,
@@ -288,27 +289,48 @@ def _target(system: System, target: str, rho: float, alpha: float | None, check:
     return Target(within, log_cost, 0.0)
 
 
-def _strategy_memo(system: System, strategy: Actuator) -> _Recent:
+def _strategy_at(system: System, family: ChainFamily | None):
+    """``mu -> (system, mu, channel)``: the arguments of actuator_dp and actuator_membership at the channel mu, and
+    the channel design_modes takes: Bernoulli links ``(system, mu, mu)``; behind a chain the system moved to mean
+    rates mu along its family (`.chains.chain_family`), ``(system at mu, None, its chain)``."""
+    if family is None:
+        return lambda mu: (system, mu, mu)
+
+    def at(mu: np.ndarray):
+        moved = system.with_channel(family.channel_at(np.asarray(mu, dtype=float)))
+        return moved, None, moved.channel
+
+    return at
+
+
+def _strategy_memo(system: System, strategy: Actuator, at) -> _Recent:
     """The strategy's optimal TCP-like law per channel (actuator_dp), a `_Recent` shared by the search and the
     final check."""
-    return _Recent(lambda mu: actuator_dp(system, strategy, mu))
+    def design(mu: np.ndarray) -> ActuatorDesign:
+        moved, rates, _ = at(mu)
+        return actuator_dp(moved, strategy, rates)
+
+    return _Recent(design)
 
 
 def _strategy_target(system: System, strategy: Actuator, target: str, alpha: float | None,
-                     designs: _Recent) -> Target:
+                     designs: _Recent, at) -> Target:
     """The target's `Target` for an actuator strategy (closedloop.actuator*): "stable", a TCP-like law of the
     strategy proved mean-square stable (actuator_membership: exact certificates either way); "dp-cost", the
     strategy's optimal TCP-like law costs at most alpha (`strategy_dp_cost`), decided as for zero: a DP solution
     whose cost is ``<= alpha`` is inside, one above ``alpha (1 + ALLOCATION_COST_RTOL)`` or an exact certificate that
     no law of the strategy is stable is outside, anything else undecided. Both sets are upper sets: a TCP-like
     controller can make a delivered packet act as a loss (resending the held input, or the rest of the buffered
-    plan), so with private coins it emulates any lower mu at the same cost (closedloop.actuator_region)."""
+    plan), so with private coins it emulates any lower mu at the same cost (closedloop.actuator_region); behind a
+    chain, along its family (``at``, `_strategy_at`), the coins thin the chain as in the critical mean rate's proof
+    (docs/mathematics.md) or, deliveries scaled, erase packets independently."""
 
     def growth(mu: np.ndarray) -> float:
-        return least_radius(design_modes(system.A, system.B, mu, strategy)).growth
+        return least_radius(design_modes(system.A, system.B, at(mu)[2], strategy)).growth
 
     def stable(mu: np.ndarray) -> Point:
-        found = actuator_membership(system, strategy, mu)
+        moved, rates, _ = at(mu)
+        found = actuator_membership(moved, strategy, rates)
         if found.verdict == "unstable":
             return Point("out")
         if found.verdict == "undecided":
@@ -462,7 +484,9 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
         (closedloop.actuator_region.actuator_membership, margin 1 only), "dp-cost" the strategy's optimal law's
         stationary cost (`strategy_dp_cost`, closedloop.actuator_design.actuator_dp) at most alpha. The answer's
         ``gain`` is per information mode (S, r, N), ``actuator`` its membership at mu, ``attainable_cost`` None.
-        None (default): the channel's own laws u = -K x, as before (the same region and cost as "zero").
+        Behind a stationary Markov chain mu is each channel's mean rate along its family (`.chains.chain_family`,
+        its top added as rows), the law knowing the current channel state. None (default): the channel's own laws
+        u = -K x on Bernoulli links, as before (the same region and cost as "zero").
 
     Returns
     -------
@@ -496,7 +520,7 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
     ('optimal', True, True)
     """
     system = check_system(system)
-    if system.channel is not None:
+    if system.channel is not None and actuator is None:
         raise InputError("channel", "design for stability chooses independent (Bernoulli) delivery probabilities; "
                                     "this system has a Markov chain ([channel] model)")
     if system.sensor is not None:   # the loop then also needs the sensor links (gamma > gamma_c): not designed here
@@ -533,14 +557,19 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
             raise InputError("noise_cov", "the DP cost is 0 wherever the loop is stable when there is neither "
                                           "process noise nor an initial state: ask for the target 'stable'")
         rho = 1.0
+    family = None if system.channel is None else chain_family(system)
+    if family is not None and lo > family.top.min():
+        raise InfeasibleError(f"the chain's family reaches mean rates up to {family.top.min():.6g} only, below the "
+                              f"lower bound {lo:g}", None)
     try:
-        poly = read_polytope(constraints, system.m, lo, hi)
+        poly = read_polytope([*constraints, *([] if family is None else family.rows())], system.m, lo, hi)
     except InfeasibleError as err:
         raise InfeasibleError(f"the constraints admit no mu: {err}", None) from None
     prices, unit = unit_prices(beta)
     if strategy is not None:
-        designs = _strategy_memo(system, strategy)
-        goal = _strategy_target(system, strategy, target, alpha, designs)
+        at = _strategy_at(system, family)
+        designs = _strategy_memo(system, strategy, at)
+        goal = _strategy_target(system, strategy, target, alpha, designs, at)
     else:
         memos = _memos(system, rho)
         goal = _target(system, target, rho, alpha, memos=memos)
@@ -559,7 +588,7 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
     mu = check_in_polytope(out.mu, poly, what)
     if strategy is not None:
         return _strategy_verified(system, strategy, target, alpha, mu, beta, out, unit, seen[out.mu.tobytes()],
-                                  designs)
+                                  designs, at, family)
     return _verified(system, target, rho, alpha, mu, beta, out, unit, seen[out.mu.tobytes()],
                      _target(system, target, rho, alpha, check=True, memos=memos).decide)
 
@@ -598,8 +627,8 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
 
 
 def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: float | None, mu: np.ndarray,
-                       beta: np.ndarray, out: Outcome, unit: float, point: Point,
-                       designs: _Recent) -> StabilityAllocation:
+                       beta: np.ndarray, out: Outcome, unit: float, point: Point, designs: _Recent, at,
+                       family: ChainFamily | None) -> StabilityAllocation:
     """The strategy's result: the incumbent's law's radius recomputed by the engine (below 1, else SolverError),
     the strategy's DP cost at mu (``<= alpha`` for "dp-cost", else SolverError; nan on the boundary as
     `_verified`), and mu's membership decided once more in exact arithmetic (``stabilisable`` True on its
@@ -607,7 +636,8 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
     where = f"mu = {np.round(mu, 9).tolist()}"
     if point.verdict != "in":
         raise SolverError("inconsistent", f"the allocation {where} of {strategy} was not certified inside")
-    modes = design_modes(system.A, system.B, mu, strategy)
+    moved, rates, channel = at(mu)
+    modes = design_modes(system.A, system.B, channel, strategy)
     radius = modes.loop(point.gain).radius()
     if not radius < 1.0:
         raise SolverError("inconsistent", f"{strategy}'s law found at {where} has mean-square radius {radius:.9g}")
@@ -622,7 +652,7 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
     except NumericalError:
         if target == "dp-cost":
             raise SolverError("inconsistent", f"{strategy}'s DP solution at {where} failed on a second look") from None
-    found = actuator_membership(system, strategy, mu)
+    found = actuator_membership(moved, strategy, rates)
     if found.verdict == "unstable":
         raise SolverError("inconsistent", f"the allocation {where} was certified inside, yet no law of {strategy} "
                                           "is stable there (exact certificate)")
@@ -634,7 +664,8 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
         target=target, mu=mu, cost=float(beta @ mu), lower_bound=out.lower_bound * unit,
         gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status, radius=radius, radius_bound=1.0,
         gain=point.gain, dp_cost=cost, dp_cost_kind=kind, alpha=alpha, beta=beta, boxes=out.boxes,
-        method=f"{out.note}; designed for the actuator strategy {strategy} (its TCP-like laws)",
+        method=f"{out.note}; designed for the actuator strategy {strategy} (its TCP-like laws)" + (
+            "" if family is None else f", mean rates {family.describe()}"),
         attainable_cost=None, attainable_note=f"not computed for {strategy} (dp_cost is its optimal law's cost)",
         stabilisable=stable, stability_note=note,
         actuator=((str(strategy), found.verdict, membership_radius, found.reason),))

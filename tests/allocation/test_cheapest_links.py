@@ -5,8 +5,9 @@ References: brute force, a grid over mu with the strategy's optimal law's cost a
 (closedloop.actuator_design.actuator_dp, no search, no monotonicity used), which brackets the optimal price: every
 feasible grid point bounds it from above, and rounding any feasible point up to the grid keeps it feasible (the cost
 falls in each mu_i) at a price at most sum_i beta_i h higher, so the optimum is at least the grid's best minus
-that; zero's design on the channel's own DP (stability_allocate without a strategy: dp_riccati and the region's
-membership, another algorithm); the scalar plant by hand.
+that (behind a chain, along its family written out by hand); zero's design on the channel's own DP
+(stability_allocate without a strategy: dp_riccati and the region's membership, another algorithm); the scalar
+plant by hand.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from packetloss_cvx.allocation.api import cheapest_links
 from packetloss_cvx.allocation.stability import stability_allocate
 from packetloss_cvx.closedloop.actuator_design import actuator_dp
 from packetloss_cvx.errors import InputError, NumericalError
+from packetloss_cvx.model.channel import GilbertElliott
 from packetloss_cvx.model.system import System
 from packetloss_cvx.tolerances import ALLOCATION_COST_RTOL
 
@@ -115,6 +117,33 @@ def test_refusals_name_their_field():
         cheapest_links(s, -1.0, None, "zero")
     with pytest.raises(InputError, match="margin"):
         stability_allocate(s, "stable", [1.0, 1.0], margin=0.5, actuator="hold")
-    chain = cheapest_links(load_example("pendulum_bursty"), 30000.0, None, "zero")["zero"]
-    assert chain["verdict"] == "not computed"
-    assert "Markov chain" in chain["reason"]
+    started = load_example("pendulum_bursty")
+    started = started.with_channel(GilbertElliott(p=[0.02], r=[0.18], state=["bad"]))
+    with pytest.raises(InputError, match="stationary channel"):
+        cheapest_links(started, 80000.0, None, "zero")
+
+
+def _gilbert_cost(system: System, strategy: str, rate: float) -> float:
+    """The strategy's cost behind a Gilbert channel with burstiness 0.2 moved to mean rate ``rate``, by hand:
+    p = (1 - rate)(1 - 0.2), r = rate (1 - 0.2)."""
+    moved = system.with_channel(GilbertElliott(p=[(1.0 - rate) * 0.8], r=[rate * 0.8]))
+    try:
+        return actuator_dp(moved, strategy).initial
+    except NumericalError:
+        return np.inf
+
+
+@pytest.mark.parametrize("strategy", ["zero", "hold", "buffer:2"])
+def test_cheapest_mean_rate_behind_a_gilbert_channel_matches_a_brute_force_grid_along_its_family(strategy):
+    system = System(A=[[1.5]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                    channel=GilbertElliott(p=[0.4], r=[0.4]))
+    alpha = 20.0
+    row = cheapest_links(system, alpha, None, strategy, gap=GAP)[strategy]
+    assert row["verdict"] == "reachable"
+    assert _gilbert_cost(system, strategy, row["mu"][0]) <= alpha
+    axis = _axis(50)
+    best = next((float(v) for v in axis if _gilbert_cost(system, strategy, float(v)) <= alpha), np.inf)
+    assert row["lower_bound"] <= best
+    assert row["communication_cost"] <= best / (1.0 - GAP)
+    assert best <= row["communication_cost"] + float(axis[1] - axis[0])
+    assert row["mu"][0] > 25 / 36              # above every strategy's critical mean rate (hand value)

@@ -114,3 +114,11 @@ def test_compare_target_bad_input_exits_2_with_one_line(capsys, scalar, argv, fl
     assert out == ""
     assert len(err.strip().splitlines()) == 1
     assert flag in err
+
+
+def test_compare_target_behind_a_chain_designs_the_mean_rate_along_its_family(capsys, gilbert):
+    code, out, _ = _run(capsys, "compare", gilbert, "--actuator", "zero", "--target", "20", "--json", "-q")
+    assert code == 0
+    links = json.loads(out)["strategies"]["zero"]["links"]
+    assert links["verdict"] == "reachable"
+    assert links["mu"][0] > HAND                  # above the critical mean rate: the cost is finite only there
