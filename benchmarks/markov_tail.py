@@ -1,9 +1,10 @@
-"""The exact Markov cost over long horizons: this tree against a baseline tree, side by side, each point in a fresh
-process (one BLAS thread), and every number compared.
+"""Section 21 of benchmarks/run.py: the exact Markov cost over long horizons, this tree against a baseline tree, side
+by side, each point in a fresh process (one BLAS thread), and every number compared.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/markov_tail.py --baseline DIR [--quick] [--json]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/markov_tail.py [--baseline DIR] [--quick] [--json]
 
-``DIR`` is a checkout of the baseline (for example ``git archive <commit> | tar -x -C DIR``). For each example
+``DIR`` is a checkout of the baseline (for example ``git archive <commit> | tar -x -C DIR``); without it, this tree's
+times alone. For each example
 (pendulum_bursty as shipped, its twin with A scaled to rho(A) = 0.99, a stable plant under Gilbert–Elliott
 channels started away from their stationary law with process noise, a 3-state chain) and horizon N = 500 .. 32000,
 both trees run, in fresh processes, ``exact_closed_form`` (udp: the augmented recursion; tcp) and ``exact_cost`` of
@@ -107,24 +108,36 @@ def difference(a, b) -> float:
     return float(np.max(np.abs(x - y)) / scale) if scale > 0 else float(np.max(np.abs(x - y), initial=0.0))
 
 
+def markov_tail(baseline: str | None, rows: list, quick: bool = False) -> None:
+    """Section 21: see the module docstring. ``quick``: N = 500 and 8000 only."""
+    horizons = (500, 8000) if quick else (500, 2000, 8000, 32000)
+    trees = {"this": ROOT, **({"baseline": Path(baseline).resolve()} if baseline else {})}
+    print(f"\n21. the exact Markov minimum (udp, augmented recursion) over long horizons: CPU ms, best of 3, fresh "
+          f"processes, one BLAS thread{'; this tree against ' + str(trees['baseline']) if baseline else ''}")
+    print(f"   {'example':>16} {'N':>6} {'base ms':>9} {'this ms':>9} {'ratio':>6} {'max rel diff':>12}")
+    for name in EXAMPLES:
+        for N in horizons:
+            this = child(ROOT, name, N)
+            row = {"bench": "markov_tail", "example": name, "N": N, "this_s": this["seconds"]}
+            shown = f"{'-':>9} {1e3 * this['seconds']:9.1f} {'-':>6} {'-':>12}"
+            if baseline:
+                base = child(trees["baseline"], name, N)
+                diff = max(difference(this[k], base[k]) for k in ("udp", "tcp", "plan"))
+                ratio = base["seconds"] / this["seconds"]
+                row.update(baseline_s=base["seconds"], ratio=ratio, max_relative_difference=diff)
+                shown = f"{1e3 * base['seconds']:9.1f} {1e3 * this['seconds']:9.1f} {ratio:6.1f} {diff:12.1e}"
+            print(f"   {name:>16} {N:>6} {shown}" + ("" if isinstance(this["udp"], dict) else f"  ({this['udp']})"))
+            rows.append(row)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--baseline", type=Path, required=True, help="a checkout of the baseline tree")
+    parser.add_argument("--baseline", help="a checkout of the baseline tree (default: this tree's times alone)")
     parser.add_argument("--quick", action="store_true", help="N = 500 and 8000 only")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    horizons = (500, 8000) if args.quick else (500, 2000, 8000, 32000)
-    rows = []
-    print(f"{'example':>16} {'N':>6} {'base ms':>9} {'this ms':>9} {'ratio':>6} {'max rel diff':>12}")
-    for name in EXAMPLES:
-        for N in horizons:
-            base, this = child(args.baseline, name, N), child(ROOT, name, N)
-            diff = max(difference(this[k], base[k]) for k in ("udp", "tcp", "plan"))
-            ratio = base["seconds"] / this["seconds"]
-            print(f"{name:>16} {N:>6} {1e3 * base['seconds']:9.1f} {1e3 * this['seconds']:9.1f} {ratio:6.1f} "
-                  f"{diff:12.1e}" + ("" if isinstance(this["udp"], dict) else f"  ({this['udp']})"))
-            rows.append({"example": name, "N": N, "baseline_s": base["seconds"], "this_s": this["seconds"],
-                         "ratio": ratio, "max_relative_difference": diff})
+    rows: list[dict] = []
+    markov_tail(args.baseline, rows, args.quick)
     if args.json:
         print(json.dumps(rows))
 

@@ -7,10 +7,14 @@ critical mean rate); the plants come from tests/plants.py of this checkout for b
 version runs first.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/region_engine.py [--baseline /work/wt/base-region] [--rounds 3]
-    OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_engine.py --one-mode
+    OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_engine.py --one-mode [--rounds 3]
+    python benchmarks/region_engine.py --kernels
 
 Prints per case: baseline and this CPU seconds, their ratio, the largest relative difference of the numbers
-(lambdas, radii, margins, critical points) and whether every verdict is the same.
+(lambdas, radii, margins, critical points) and whether every verdict is the same. With ``--one-mode``: the chain
+strategy run on Bernoulli channels as one-mode chains against the Bernoulli strategy, in this checkout only (a
+Markdown table, `one_mode`); with ``--kernels``: how far each strategy's least radius moves across OpenBLAS kernels
+(`kernel_spread`).
 """
 
 from __future__ import annotations
@@ -225,14 +229,70 @@ def worker(repeats: int) -> None:
     print(json.dumps(out))
 
 
-def one_mode() -> None:
-    """The chain strategy (chain_radius.homogeneous_coupled_riccati: regularised power and policy iteration, no
-    balancing) run on Bernoulli channels as one-mode chains, against the Bernoulli strategy (region.homogeneous_riccati:
-    batched power iteration, Kronecker policy iteration, graded balancing) at the same points: the largest relative
-    difference of the least radius per family and the CPU ratio. Why the two iterations are kept apart."""
+def _one_mode_cases():
+    """(family, A, B, mu, hand) of the one-mode comparison; hand the least radius by a formula where one exists (a
+    Jordan block of size 4 driven at its last state: Elia's a0^2 (1 - mu)^(1/4); a decoupled plant with B = I:
+    max_i a_i^2 (1 - mu)), else None."""
     import numpy as np
 
     from packetloss_cvx import load_example
+
+    two = load_example("two_actuator")
+    axis = np.linspace(0.05, 1.0, 6)
+    cases = [("two_actuator 6x6", np.asarray(two.A, float), np.asarray(two.B, float), np.array([a, b]), None)
+             for a in axis for b in axis]
+    cases += [("Jordan chains (graded P)", a0 * np.eye(4) + np.eye(4, k=1), np.eye(4)[:, 3:], np.array([mu]),
+               a0 ** 2 * (1.0 - mu) ** 0.25) for a0, mu in ((1.0, 0.0124), (1.001, 0.002), (1.3, 0.5))]
+    for seed in range(10):
+        rng = np.random.default_rng(seed)
+        n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
+        cases.append(("random plants", rng.normal(size=(n, n)), rng.normal(size=(n, m)), rng.uniform(size=m), None))
+    cases += [("decoupled plants", np.diag(a), np.eye(len(a)), np.full(len(a), mu), max(a) ** 2 * (1.0 - mu))
+              for a in ((2.0, 1.5), (3.0, 1.2, 0.5)) for mu in (0.3, 0.6, 0.9)]
+    return cases
+
+
+#: the phases of each strategy, by (module, function) as cProfile names them: the power iteration, the policy
+#: iteration (with the chain's unregularised refinement), and the function whose calls count the power steps
+_PHASES = {"bernoulli": ("region", "_power", ("_policy_iteration",), "_homogeneous_step"),
+           "chain": ("chain_radius", "_power", ("_policy", "_refine"), "_apply")}
+
+
+def _phases(profile, strategy: str) -> tuple[float, float, int]:
+    """(power CPU s, policy CPU s, power steps) of one strategy from a cProfile run (cumulative times: the profiler's
+    own cost inflates both alike). A power step is a call of the map from the power iteration (the Bernoulli
+    strategy's calls are batched: one a step whether the batch holds one point or many; here each point runs
+    alone)."""
+    import pstats
+
+    module, power, policy, step = _PHASES[strategy]
+    out = [0.0, 0.0, 0]
+    for (path, _, name), (_, _, _, cum, callers) in pstats.Stats(profile).stats.items():
+        if not path.endswith(f"closedloop/{module}.py"):
+            continue
+        if name == power:
+            out[0] += cum
+        elif name in policy:
+            out[1] += cum
+        if name == step:
+            out[2] += sum(c[1] for (where, _, caller), c in callers.items()
+                          if caller == power and where.endswith(f"closedloop/{module}.py"))
+    return out[0], out[1], out[2]
+
+
+def one_mode(repeats: int) -> None:
+    """The chain strategy (chain_radius.homogeneous_coupled_riccati: regularised power iteration to checkpoints 30,
+    90, 270, ..., a regularised policy iteration and its unregularised refinement at each, stopped where the gains'
+    radius meets the Collatz-Wielandt bound of their eigenvector; balanced where P is graded) run on Bernoulli
+    channels as one-mode chains, against the Bernoulli strategy (region.homogeneous_riccati: power iteration handed
+    to an unregularised Kronecker policy iteration after 30 steps, or after 4 where its steps shrink too slowly;
+    balanced where P is graded) at the same points. Per family: CPU of each (best of ``repeats``), their ratio, the
+    largest relative difference of the least radius between them and of each from the hand value where there is
+    one, and from one profiled run each strategy's power steps a point, their CPU a step and the shares of its time
+    in its power and its policy iteration (with the chain's refinement)."""
+    import cProfile
+    import pstats
+
     from packetloss_cvx.closedloop.chain_radius import homogeneous_coupled_riccati
     from packetloss_cvx.closedloop.region import homogeneous_riccati
     from packetloss_cvx.model.channel import MarkovChannel
@@ -240,32 +300,105 @@ def one_mode() -> None:
     def channel(mu):
         return MarkovChannel(transition=[[[1.0]]] * len(mu), delivery=[[float(x)] for x in mu])
 
-    two = load_example("two_actuator")
-    axis = np.linspace(0.05, 1.0, 6)
-    cases = [("two_actuator 6x6", np.asarray(two.A, float), np.asarray(two.B, float), np.array([a, b]))
-             for a in axis for b in axis]
-    cases += [("Jordan chains (graded P)", a0 * np.eye(4) + np.eye(4, k=1), np.eye(4)[:, 3:], np.array([mu]))
-              for a0, mu in ((1.0, 0.0124), (1.001, 0.002), (1.3, 0.5))]
-    for seed in range(10):
-        rng = np.random.default_rng(seed)
-        n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
-        cases.append(("random plants", rng.normal(size=(n, n)), rng.normal(size=(n, m)), rng.uniform(size=m)))
-    cases += [("decoupled plants", np.diag(a), np.eye(len(a)), np.full(len(a), mu))
-              for a in ((2.0, 1.5), (3.0, 1.2, 0.5)) for mu in (0.3, 0.6, 0.9)]
-    worst: dict[str, float] = {}
-    cpu = [0.0, 0.0]
-    for name, A, B, mu in cases:
-        t0 = time.process_time()
-        lam_b = homogeneous_riccati(A, B, mu)[0]
-        t1 = time.process_time()
-        lam_c = homogeneous_coupled_riccati(A, B, channel(mu))[0]
-        cpu[0] += t1 - t0
-        cpu[1] += time.process_time() - t1
-        worst[name] = max(worst.get(name, 0.0), 0.0 if lam_b == lam_c else abs(lam_b - lam_c) / abs(lam_b))
-    print("one-mode chains through the chain strategy against the Bernoulli strategy (least radius):")
-    for name, rel in worst.items():
-        print(f"    {name:<26} max rel diff {rel:.1e}")
-    print(f"    CPU: Bernoulli strategy {cpu[0]:.3f} s, chain strategy {cpu[1]:.3f} s ({cpu[1] / cpu[0]:.1f}x)")
+    strategies = {"bernoulli": lambda A, B, mu: homogeneous_riccati(A, B, mu)[0],
+                  "chain": lambda A, B, mu: homogeneous_coupled_riccati(A, B, channel(mu))[0]}
+    families: dict[str, list] = {}
+    for case in _one_mode_cases():
+        families.setdefault(case[0], []).append(case[1:])
+    rows = []
+    for family, cases in families.items():
+        row = {"family": family, "points": len(cases)}
+        lams = {}
+        for label, solve in strategies.items():
+            best = float("inf")
+            for _ in range(repeats):
+                t0 = time.process_time()
+                lams[label] = [solve(A, B, mu) for A, B, mu, _ in cases]
+                best = min(best, time.process_time() - t0)
+            profile = cProfile.Profile()
+            profile.enable()
+            for A, B, mu, _ in cases:
+                solve(A, B, mu)
+            profile.disable()
+            power, policy, steps = _phases(profile, label)
+            total = sum(v[3] for k, v in pstats.Stats(profile).stats.items()
+                        if k[2] in ("homogeneous_riccati", "homogeneous_coupled_riccati"))
+            row[label] = (best, power / total, policy / total, steps / len(cases), power / max(steps, 1))
+            hands = [(lam, hand) for lam, (*_, hand) in zip(lams[label], cases, strict=True) if hand is not None]
+            row[f"{label} hand"] = max((abs(lam - hand) / hand for lam, hand in hands), default=None)
+        row["diff"] = max(0.0 if b == c else abs(b - c) / abs(b) for b, c in zip(lams["bernoulli"], lams["chain"],
+                                                                                   strict=True))
+        rows.append(row)
+    print(f"one-mode chains: the chain strategy against the Bernoulli strategy (least radius), CPU best of {repeats}, "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', '(unset)')}, "
+          f"OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}")
+    print("| family | points | Bernoulli ms | chain ms | ratio | power steps a point (B / chain) | profiled µs a power "
+          "step (B / chain) | time in power, policy (B) | time in power, policy (chain) | max rel diff | rel err from "
+          "hand (B / chain) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    totals = [0.0, 0.0]
+    for row in rows:
+        b, c = row["bernoulli"], row["chain"]
+        totals[0] += b[0]
+        totals[1] += c[0]
+        hand = ("-" if row["bernoulli hand"] is None else
+                f"{row['bernoulli hand']:.1e} / {row['chain hand']:.1e}")
+        print(f"| {row['family']} | {row['points']} | {1e3 * b[0]:.1f} | {1e3 * c[0]:.1f} | {c[0] / b[0]:.2f} | "
+              f"{b[3]:.0f} / {c[3]:.0f} | {1e6 * b[4]:.0f} / {1e6 * c[4]:.0f} | "
+              f"{100 * b[1]:.0f} %, {100 * b[2]:.0f} % | {100 * c[1]:.0f} %, {100 * c[2]:.0f} % | {row['diff']:.1e} | "
+              f"{hand} |")
+    print(f"| total | {sum(r['points'] for r in rows)} | {1e3 * totals[0]:.1f} | {1e3 * totals[1]:.1f} | "
+          f"{totals[1] / totals[0]:.2f} | | | | | | |")
+
+
+#: the OpenBLAS kernels `kernel_spread` runs the one-mode cases under
+_KERNELS = ("Haswell", "Prescott", "Nehalem", "Sandybridge", "Zen", "SkylakeX")
+
+
+def one_mode_radii() -> None:
+    """Print one JSON line: the least radius of every one-mode case by each strategy (a worker of `kernel_spread`)."""
+    from packetloss_cvx.closedloop.chain_radius import homogeneous_coupled_riccati
+    from packetloss_cvx.closedloop.region import homogeneous_riccati
+    from packetloss_cvx.model.channel import MarkovChannel
+
+    out = []
+    for family, A, B, mu, _ in _one_mode_cases():
+        chain = MarkovChannel(transition=[[[1.0]]] * len(mu), delivery=[[float(x)] for x in mu])
+        out.append([family, homogeneous_riccati(A, B, mu)[0], homogeneous_coupled_riccati(A, B, chain)[0]])
+    print(json.dumps(out))
+
+
+def kernel_spread() -> None:
+    """The one-mode cases' least radii under each OpenBLAS kernel of _KERNELS (a subprocess each, this checkout):
+    per family and strategy, the largest relative spread of a point's least radius across the kernels, beside the
+    largest relative difference of the two strategies under any one kernel. How far a least radius is reproducible
+    at all, so how near two iterations can be asked to agree."""
+    env = {**os.environ, "PYTHONPATH": str(HERE), "OPENBLAS_NUM_THREADS": "1"}
+    runs = {}
+    for kernel in _KERNELS:
+        done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--one-mode-radii"], capture_output=True,
+                              env={**env, "OPENBLAS_CORETYPE": kernel}, text=True, cwd=HERE)
+        if done.returncode:
+            raise RuntimeError(f"{kernel}: the worker failed\n{done.stderr[-3000:]}")
+        runs[kernel] = json.loads(done.stdout.strip().splitlines()[-1])
+
+    def rel(values: list[float]) -> float:
+        top = max(abs(v) for v in values)
+        return (max(values) - min(values)) / top if top > 0 else 0.0
+
+    rows: dict[str, list[float]] = {}
+    for k, (family, *_) in enumerate(runs[_KERNELS[0]]):
+        spread_b = rel([runs[kernel][k][1] for kernel in _KERNELS])
+        spread_c = rel([runs[kernel][k][2] for kernel in _KERNELS])
+        apart = max(rel(runs[kernel][k][1:]) for kernel in _KERNELS)
+        old = rows.get(family, [0.0, 0.0, 0.0])
+        rows[family] = [max(old[0], spread_b), max(old[1], spread_c), max(old[2], apart)]
+    print(f"least radius across the OpenBLAS kernels {', '.join(_KERNELS)} (largest relative spread of a point)")
+    print("| family | Bernoulli strategy across kernels | chain strategy across kernels | the two apart (worst kernel)"
+          " |")
+    print("|---|---|---|---|")
+    for family, (spread_b, spread_c, apart) in rows.items():
+        print(f"| {family} | {spread_b:.1e} | {spread_c:.1e} | {apart:.1e} |")
 
 
 def _run(root: Path, repeats: int) -> dict:
@@ -298,12 +431,20 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--worker", type=int, default=None)
     parser.add_argument("--one-mode", action="store_true", help="only the one-mode comparison of the two strategies")
+    parser.add_argument("--kernels", action="store_true", help="the one-mode least radii across OpenBLAS kernels")
+    parser.add_argument("--one-mode-radii", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker is not None:
         worker(args.worker)
         return
+    if args.one_mode_radii:
+        one_mode_radii()
+        return
+    if args.kernels:
+        kernel_spread()
+        return
     if args.one_mode:
-        one_mode()
+        one_mode(args.rounds)
         return
     roots = {"baseline": Path(args.baseline).resolve(), "this": HERE}
     best: dict[str, dict] = {"baseline": {}, "this": {}}

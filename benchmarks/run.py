@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from markov_tail import markov_tail  # noqa: E402  (benchmarks/markov_tail.py, section 21)
 from slow_plant import slow_plant  # noqa: E402  (benchmarks/slow_plant.py, section 20)
 from structure import systems_and_structure  # noqa: E402  (benchmarks/structure.py, section 17)
 
@@ -944,7 +945,7 @@ def main() -> None:
     parser.add_argument("--startup", action="store_true", help="only the command line's start-up section")
     parser.add_argument("--only", help="comma-separated section numbers to run (default: all)")
     parser.add_argument("--baseline",
-                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18-20: before/after)")
+                        help="a checkout of the previous version (sections 8, 10, 12, 13, 16, 18-21: before/after)")
     args = parser.parse_args()
     if args.startup:
         rows: list[dict] = []
@@ -980,6 +981,7 @@ def main() -> None:
         19: lambda: (stationary_tail((1000, 10_000) if quick else (1000, 10_000, 100_000), 5 if quick else 15, rows),
                      args.baseline and stationary_rounds(args.baseline, 10_000, 2 if quick else 5, rows)),
         20: lambda: slow_plant(args.baseline, rows, 2 if quick else 5),
+        21: lambda: markov_tail(args.baseline, rows, quick),
     }
     chosen = sorted(sections) if not args.only else [int(k) for k in args.only.split(",")]
     for key in chosen:

@@ -13,8 +13,11 @@ The work formulas (`simulate_work`, `sweep_work`, `burstiness_work`, `solve_work
 formulas (`solve_bytes`, `dense_bytes`, `markov_dense_bytes`, `qp_bytes`,
 `operator_bytes`, `krylov_bytes`, `loop_bytes`, `mpc_bytes`, `constraint_bytes`, checked against the
 ``memory_bytes`` budget; `program_bytes`, what a cache is charged) live here once; the API and the command
-line's preflight both call them. Every refusal is `check`'s one line (what was asked, the budget, what to use
-instead, the variable that raises it), a BudgetError (a ValueError): the command line exits 2. Imports nothing
+line's preflight both call them. Every refusal is one line made by `refusal_text` (what was asked, the budget, what
+to use instead, the variable and the value that admits it): raised by `check` before any work as a BudgetError (a
+ValueError: the command line exits 2), and for the one count known only as the work runs, the beliefs a
+receding-horizon law plans at (``belief_plans``), as a plain ResourceError when met, offering the most the run can
+meet. Imports nothing
 numerical.
 """
 
@@ -33,7 +36,7 @@ __all__ = ["BUDGETS", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX", "MARKOV_DENSE_SECONDS
            "constrained_work", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds",
            "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds",
            "markov_recursion_work", "mpc_bytes", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
-           "qp_work", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
+           "qp_work", "refusal_text", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -84,6 +87,8 @@ BUDGETS: dict[str, Budget] = {b.name: b for b in (
            "by ARPACK on a loaded 2-core machine)"),
     Budget("operator_rows", 2048, "rows of a dense second-moment operator (modes x n^2)",
            "64 MiB and a few seconds for its eigenvalues"),
+    Budget("belief_plans", 2000, "distinct beliefs one receding-horizon law plans at in a simulation (a plan each)",
+           "about 3 s at pendulum_bursty's N = 80, 1.2-1.8 ms a plan"),
 )}
 
 
@@ -161,14 +166,34 @@ out of reach (no override of the budget could finish it); use the bounds
     if needed <= bound:
         return
     budget = BUDGETS[name]
+    raise BudgetError(field, refusal_text(name, needed, bound, what, instead, reach), needed, bound, budget.env)
+
+
+def refusal_text(name: str, needed: float, bound: float, what: str, instead: str = "",
+                 reach: float = math.inf) -> str:
+    """The one refusal line of every budget (after the field): ``needed`` units of the budget ``name`` over
+    ``bound`` (its value now, or a caller's own cap): what was asked, the budget, what its default costs, what to use
+    ``instead`` and the variable with the value that admits the request (none beyond ``reach`` times the bound).
+    `check` raises it as a BudgetError before any work; a limit met while the work runs (the beliefs a
+    receding-horizon law plans at, ``belief_plans``) raises it as a plain ResourceError, ``needed`` then the most
+    the run can need. O(1).
+
+    Examples
+    --------
+    >>> print(refusal_text("belief_plans", 6000, 2000, "a plan at each of up to 6000 beliefs"))
+    a plan at each of up to 6000 beliefs is over the budget of 2e+03 distinct beliefs one receding-horizon law plans \
+at in a simulation (a plan each) (about 3 s at pendulum_bursty's N = 80, 1.2-1.8 ms a plan); to run it on purpose \
+set PACKETLOSS_CVX_BUDGET_BELIEF_PLANS=6e+03
+    """
+    budget = BUDGETS[name]
+    needed = _float(needed)
     if needed > reach * bound:
-        raise BudgetError(field, f"{what} is {needed / bound:.2g} times the budget of {bound:.3g} {budget.unit} "
-                                 f"({budget.costs}): out of reach (no override of the budget could finish it)"
-                                 + (f"; {instead}" if instead else ""), needed, bound, budget.env)
+        return (f"{what} is {needed / bound:.2g} times the budget of {bound:.3g} {budget.unit} ({budget.costs}): out "
+                f"of reach (no override of the budget could finish it)" + (f"; {instead}" if instead else ""))
     shown = _rounded_up(needed) if math.isfinite(needed) else "inf"
     way = f"{instead}, or " if instead else ""
-    raise BudgetError(field, f"{what} is over the budget of {bound:.3g} {budget.unit} ({budget.costs}); "
-                             f"{way}to run it on purpose set {budget.env}={shown}", needed, bound, budget.env)
+    return (f"{what} is over the budget of {bound:.3g} {budget.unit} ({budget.costs}); {way}to run it on purpose set "
+            f"{budget.env}={shown}")
 
 
 def count_text(value: int | float) -> str:
@@ -333,7 +358,7 @@ MARKOV_DENSE_SECONDS = (6e-4, 3.0e-10, 2.0e-11)
 
 def markov_dense_seconds(horizon: int, n: int, m: int) -> float:
     """Seconds (one BLAS thread) of the exact UDP-like minimum under Markov losses by the dense route
-    (markov/exact_cost.py), ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the (N n)^2 N m products of
+    (lq/markov_cost.py), ``a + b (N m)^3 + c (N n)^2 N m`` (the (N m)^3 solve and the (N n)^2 N m products of
     Omega_g) with (a, b, c) = `MARKOV_DENSE_SECONDS`. benchmarks/markov_auto.py: its least-squares fit is
     (1.0e-3, 2.1e-10, 2.7e-11); these values, rounded toward the small-N times the fit overstates, make ``auto`` take
     the faster route in 75 of its 77 cases, the other two within 14 % (docs/performance.md). O(1).
@@ -349,12 +374,20 @@ def markov_dense_seconds(horizon: int, n: int, m: int) -> float:
 
 
 def markov_recursion_work(horizon: int, size: int) -> float:
-    """Work units of one exact UDP-like minimum under Markov losses by the augmented recursion
-    (markov/augmented.py): per step ``D^3`` for the Riccati step on the augmented state of size D (its products
-    and solve), plus 6e5 for the step's Python and small-matrix work; 1.2e-10 s a unit (benchmarks/markov_auto.py
-    --fit: D from 2 to 200, N from 10 to 640). The budget check of
-    [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form]
-    and its ``method="auto"`` chooser both read it. O(1).
+    """Work units of one exact UDP-like minimum under Markov losses by the augmented recursion (lq/augmented.py), an
+    upper bound: every one of the N steps priced as a full step, ``D^3`` for the Riccati step on the augmented state
+    of size D (its products and solve) plus 6e5 for the step's Python and small-matrix work; 1.2e-10 s a unit
+    (benchmarks/markov_auto.py --fit: D from 2 to 200, N from 10 to 640, horizons whose passes ran every step).
+
+    Why an upper bound and not the work done: where A is stable and the chains reach their float fixed point at a
+    step s, the pass closes its stationary tail after s + L full steps and rolls the rest out by powers (O(N D^2),
+    far below a step's D^3 + 6e5), but L, the steps until the cost-to-go settles to ``STATIONARY_RTOL``, is known
+    only once the pass has run; a bound that guessed it could admit work that then runs every step. So the budget
+    is checked on N full steps, which no run exceeds, and a refused recursion whose tail would settle runs on
+    purpose with the variable (benchmarks/markov_tail.py, run.py section 21: stable chains at N = 8000, D = 6 to 9,
+    take 21-69 ms where N full steps are priced at 0.58 s). The budget check of
+    [`exact_closed_form`][packetloss_cvx.lq.markov_cost.exact_closed_form] and its ``method="auto"`` chooser both
+    read it. O(1).
 
     Examples
     --------
@@ -368,7 +401,7 @@ def markov_recursion_work(horizon: int, size: int) -> float:
 
 
 def qp_work(horizon: int, n: int, m: int, formulation: str = "sparse") -> float:
-    """Work units (1e-6 s each) of one protocol's QP cross-check (qp.py: cvxpy's compile and Clarabel's solve),
+    """Work units (1e-6 s each) of one protocol's QP cross-check (qp/: cvxpy's compile and Clarabel's solve),
     per step ``28 + 1.1 n^2 + 1.5 n m``, and for the condensed form also its dense factorisation ``1.3e-3 (N m)^3``.
     Fitted on ``solve`` with the cross-check, one BLAS thread (both protocols): n = m = 1, N = 2e5 12.5 s
     (predicted 12.2), N = 5e5 30.5 s (30.6); n = 4, m = 2, N = 4e4 5.3 s (4.6); n = 10, m = 3, N = 2e4 8.3 s (7.3);
@@ -491,8 +524,8 @@ def check_constrained(horizon: int, n: int, m: int, rows: int, chance: int, fiel
 
 
 def dense_bytes(horizon: int, n: int, m: int) -> float:
-    """Bytes of the dense Theorem-1 method (costs.py): Gamma, Omega Gamma, Omega_g, G and its LU, the powers of A, Phi
-    and Omega Phi, ``8 (3 (N n)(N m) + 2 (N m)^2 + 4 N n^2)``. O(1).
+    """Bytes of the dense Theorem-1 method (lq/dense.py): Gamma, Omega Gamma, Omega_g, G and its LU, the powers of A,
+    Phi and Omega Phi, ``8 (3 (N n)(N m) + 2 (N m)^2 + 4 N n^2)``. O(1).
 
     Examples
     --------
@@ -504,7 +537,7 @@ def dense_bytes(horizon: int, n: int, m: int) -> float:
 
 
 def markov_dense_bytes(horizon: int, n: int, m: int) -> float:
-    """Bytes of the dense route to the exact cost under Markov losses (markov/exact_cost.py): a few (N m)×(N m) and
+    """Bytes of the dense route to the exact cost under Markov losses (lq/markov_cost.py): a few (N m)×(N m) and
     (N n)×(N m) matrices, ``8 (6 (N m)^2 + 3 (N n)(N m) + 4 N n^2)``. O(1).
 
     Examples
@@ -517,7 +550,7 @@ def markov_dense_bytes(horizon: int, n: int, m: int) -> float:
 
 
 def qp_bytes(horizon: int, n: int, m: int, formulation: str = "sparse") -> float:
-    """Bytes of one expected-cost QP (qp.py) at its peak. The sparse form (tracemalloc over its compile and first
+    """Bytes of one expected-cost QP (qp/) at its peak. The sparse form (tracemalloc over its compile and first
     solve; n = 1..100, m = 1..8, N up to 8000, full weights): about 250 N n^2 bytes for the state terms, 350 N n m
     for the dynamics' input columns and 610 N m for the input terms, plus cvxpy's and Clarabel's fixed ~10 MB,
     ``260 N n^2 + 400 N n m + 650 N m + 1e7`` (no Parameter multiplies a Variable, so cvxpy keeps no (N m)^2 map).
@@ -535,7 +568,7 @@ def qp_bytes(horizon: int, n: int, m: int, formulation: str = "sparse") -> float
 
 
 def operator_bytes(rows: int) -> float:
-    """Bytes of a dense second-moment operator of ``rows`` rows (markov/mjls.py) and its eigenvalue routine's copy,
+    """Bytes of a dense second-moment operator of ``rows`` rows (closedloop/modes.py) and its eigenvalue routine's copy,
     ``16 rows^2``; its eigenvalues take O(rows^3) time, which the ``operator_rows`` budget bounds. O(1).
 
     Examples
@@ -558,7 +591,7 @@ def krylov_bytes(rows: int, vectors: int) -> float:
 
 
 def loop_bytes(block: int, steps: int, n: int, m: int, laws: int, keep: int) -> float:
-    """Bytes of a sampled closed loop's block arrays (simulation/runs.py): deliveries and noise as drawn and as the
+    """Bytes of a sampled closed loop's block arrays (montecarlo/runs.py): deliveries and noise as drawn and as the
     loop reads them (a copy of each, block steps (2 m + 16 n)), norms and stage costs (16 laws block steps), and the
     ``keep`` kept runs' states (8 laws keep steps n). O(1).
 

@@ -22,6 +22,7 @@ __all__ = [
     "ProbabilityError",
     "ResourceError",
     "SolverError",
+    "UnobservedModeError",
 ]
 
 
@@ -56,6 +57,12 @@ class OutputExistsError(InputError):
 
 class FolderBusyError(InputError):
     """An output folder is being written by another live run (its lock names the pid)."""
+
+
+class UnobservedModeError(InputError):
+    """An optimal law asked of a controller that does not know what it needs: without acknowledgements (UDP-like)
+    the input an actuator holds, the age of the plan it plays, or the channel state behind a chain
+    (closedloop.actuator_design.check_protocol); ``detail`` says why and what to use instead."""
 
 
 class SolverError(RuntimeError):

@@ -401,8 +401,8 @@ __all__ += ["CERTIFICATE_KERNEL_RTOL", "CERTIFICATE_RTOL", "HOMOGENEOUS_RICCATI_
 CERTIFICATE_RTOL = 1e-12
 #: In that bound the directions P does not weigh (its eigenvalues at or below n eps max) are minimised out; one that
 #: R's factor F maps to at most CERTIFICATE_KERNEL_RTOL ||F|| counts as no direction: rounding (a rank-one P whose
-#: eigenvector is tilted by 5e-14 relative, random plant seed 2 of tests/closedloop/test_region.py, had left c = 1.3e-8 where
-#: it is 3.26; the tilt is far below any direction a law could use).
+#: eigenvector is tilted by 5e-14 relative, random plant seed 2 of tests/closedloop/test_region.py, had left
+#: c = 1.3e-8 where it is 3.26; the tilt is far below any direction a law could use).
 CERTIFICATE_KERNEL_RTOL = 1e-10
 #: For n > KRONECKER_MAX_N the shifted power iteration of the homogeneous modified Riccati map stops after this
 #: many steps (below it, 30 steps and then a policy iteration); its answer is a candidate, checked either way.
@@ -430,8 +430,9 @@ __all__ += ["CHAIN_FORM_RTOL", "ROUNDING_ORDER_RTOL"]
 #: a stack of 3 x 3 updates up to 1.2e-15 of its scale away from the same updates gathered, where Haswell and
 #: SkylakeX agree to the bit). Measured on the tests that compare such pairs under OpenBLAS's Prescott, Nehalem,
 #: Sandybridge, Haswell, Zen, SkylakeX and native kernels: at most 1.2e-15 (tests/sensing/test_sensing_estimation.py,
-#: tests/sensing/test_sensing_montecarlo_loop.py); equal to the bit (tests/closedloop/test_closed_loop.py's stack of laws,
-#: tests/model/test_model.py's repaired weights, tests/qp/test_qp_shared.py's objective against cvxpy's evaluation).
+#: tests/sensing/test_sensing_montecarlo_loop.py); equal to the bit (tests/closedloop/test_closed_loop.py's stack of
+#: laws, tests/model/test_model.py's repaired weights, tests/qp/test_qp_shared.py's objective against cvxpy's
+#: evaluation).
 #: 1e-12 leaves room for longer chains of products.
 ROUNDING_ORDER_RTOL = 1e-12
 

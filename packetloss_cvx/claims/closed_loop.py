@@ -10,7 +10,7 @@ from ..lq.costs import closed_form
 from ..model.system import System
 from ..results import ClaimResult
 from ..threads import blas_limited
-from .context import Context
+from .context import Context, loop_case
 from .evaluate import evaluate
 from .ordering import case_ids, optimal_plan
 
@@ -27,7 +27,7 @@ def exact_cost(system: System, protocol: str, steps: int = STEPS, gain: np.ndarr
     protocol's receding-horizon law u = -K x (``gain``: K when the caller has it, else closed_form's);
     ``inf`` when it overflows. Time O(steps n^3)."""
     K = closed_form(system, protocol).gain if gain is None else gain
-    stage, terminal = finite_horizon_costs(system, K, steps)
+    stage, terminal = finite_horizon_costs(loop_case(system), K, steps)
     with np.errstate(over="ignore", invalid="ignore"):
         return float(stage.sum() + terminal)
 

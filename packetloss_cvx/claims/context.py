@@ -10,12 +10,12 @@ import numpy as np
 from ..closedloop.riccati import dp_riccati
 from ..errors import NumericalError
 from ..lq.evaluator import CostEvaluator
-from ..model.files import load_example
+from ..model.files import load_example, system_from_dict
 from ..model.protocols import check_protocol
 from ..model.system import System
 from ..results import Riccati, Solution
 
-__all__ = ["Context", "interior", "paper_systems"]
+__all__ = ["Context", "interior", "loop_case", "paper_systems"]
 
 
 @dataclass
@@ -137,6 +137,29 @@ def paper_systems() -> dict[str, System]:
     (['pendulum', 'two_actuator'], 4, 2)
     """
     return {"pendulum": load_example("pendulum"), "two_actuator": load_example("two_actuator")}
+
+
+def loop_case(system: System) -> System:
+    """The case as the loop claims price its loop: with its first stage's weights as the loop's one stage weight. A
+    case's time-varying weights (the random cases draw some) speak of its plan's steps; the loop's cost needs one
+    weight (model.system.loop_weights refuses the others), and the loop claims state which one they take. The case
+    itself where it has one weight. O(N (n^2 + m)).
+
+    Examples
+    --------
+    >>> s = System(A=[[1]], B=[[1]], horizon=2, state_weights=[[2], [3]], input_weight=[1], mu=[0.5], x0=[1])
+    >>> loop_case(s).state_weights.ravel().tolist(), loop_case(s).horizon
+    ([2.0, 2.0], 2)
+    """
+    if np.all(system.state_weights == system.state_weights[0]) and np.all(system.input_weights ==
+                                                                         system.input_weights[0]):
+        return system
+    data = system.to_dict()
+    cost = data["cost"]
+    for name in ("state", "input"):
+        if f"{name}_weights" in cost:
+            cost[f"{name}_weight"] = cost.pop(f"{name}_weights")[0]      # the first step's, in the file's encoding
+    return system_from_dict(data)
 
 
 def interior(system: System) -> bool:

@@ -20,7 +20,7 @@ from ..lq.costs import closed_form
 from ..model.system import System
 from ..results import ClaimResult, Riccati
 from ..threads import blas_limited
-from .context import Context
+from .context import Context, loop_case
 from .evaluate import evaluate, resolved
 from .ordering import optimal_plan
 
@@ -60,7 +60,7 @@ def relative_excess(system: System, gain: Callable[[str], np.ndarray] | None = N
     scale = resolved(frobenius(dp.cost_to_go), "||P|| of the DP law")
     out: dict[str, float] = {"psd": np.inf}
     for p in ("tcp", "udp"):
-        loop = closed_loop(system, closed_form(system, p).gain if gain is None else gain(p), p)
+        loop = closed_loop(loop_case(system), closed_form(system, p).gain if gain is None else gain(p), p)
         if not loop.stable:
             out[p] = np.inf
             continue

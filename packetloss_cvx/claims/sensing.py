@@ -21,12 +21,12 @@ from ..results import ClaimResult, Riccati
 from ..sensing.loop import estimated_loop
 from ..sensing.montecarlo import simulate_estimated
 from ..tolerances import RESOLVED_MIN
-from .context import Context
+from .context import Context, loop_case
 from .evaluate import Tally, resolved
 
 __all__ = ["STATEMENT", "cost_split_sensor", "sensed"]
 
-STATEMENT = ("(Not the paper's; issue 22.) With the first state measured over a lossy link (gamma = 0.9), the DP "
+STATEMENT = ("(Not the paper's.) With the first state measured over a lossy link (gamma = 0.9), the DP "
              "law on the TCP-like Kalman estimate costs tr(P Sigma_W) (the full-state optimum) plus the "
              "estimation part tr(K'HK E[e e']): the cost splits into a control and an estimation part.")
 #: |cost - (control + estimation)| / cost allowed on the exact loop (rounding of two moment solves)
@@ -47,7 +47,7 @@ def sensed(system: System) -> System | None:
     """
     if not system.is_stationary or system.channel is not None:
         return None
-    data = system.to_dict()
+    data = loop_case(system).to_dict()        # the loop's one weight: the case's first stage's
     if not np.any(system.noise_cov):
         data["plant"]["noise_cov"] = (0.01 * np.eye(system.n)).tolist()
     data["sensor"] = {"C": np.eye(system.n)[:1].tolist(), "gamma": [0.9], "noise_cov": [[0.01]]}

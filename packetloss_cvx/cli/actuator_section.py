@@ -8,10 +8,10 @@ from typing import Any
 import numpy as np
 
 from ..closedloop.actuator import Actuator, compare_actuators, parse_actuators
-from ..closedloop.actuator_design import actuator_dp, design_modes
+from ..closedloop.actuator_design import actuator_dp, check_protocol, design_modes
 from ..closedloop.actuator_region import MAX_CERTIFIED_ROWS, actuator_critical, actuator_membership
 from ..errors import BudgetError, InputError, NumericalError
-from ..model.system import System
+from ..model.system import System, loop_weights
 from ..montecarlo.actuator import simulate_actuator
 from ..montecarlo.simulate import law_gains
 from . import format as fmt
@@ -20,13 +20,18 @@ __all__ = ["actuator_entry", "actuator_strategies", "critical_section", "design_
            "simulate_actuator_section"]
 
 
-def actuator_strategies(text: str | None, system: System) -> tuple[Actuator, ...]:
-    """The strategies ``--actuator`` names (none without it), checked before any work.
+def actuator_strategies(text: str | None, system: System, protocol: str = "tcp") -> tuple[Actuator, ...]:
+    """The strategies ``--actuator`` names (none without it), checked before any work, each with its optimal law
+    runnable under ``protocol`` (closedloop.actuator_design.check_protocol: UDP-like, zero on Bernoulli links, and
+    hold without noise and with B of full column rank).
 
     Raises
     ------
     InputError
         Field ``--actuator``, one line naming what is allowed.
+    UnobservedModeError
+        Field ``--actuator``, one line: a strategy whose optimal law a UDP-like controller cannot run, why, and what
+        to use instead.
 
     >>> from packetloss_cvx.model.system import System
     >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
@@ -36,15 +41,19 @@ def actuator_strategies(text: str | None, system: System) -> tuple[Actuator, ...
     if text is None:
         return ()
     try:
-        return parse_actuators(text, system.horizon)
+        strategies = parse_actuators(text, system.horizon)
+        for strategy in strategies:
+            check_protocol(system, strategy, protocol)
     except InputError as err:
         raise err.renamed("--actuator") from None
+    return strategies
 
 
 def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator, ...],
                    steps: int) -> tuple[dict[str, Any], list[str]]:
     """The JSON entry (``steps`` and per strategy ``radius``, ``stable``, ``cost``, ``reason``) and the text lines of
-    `compare_actuators` for the law ``u = -K x``."""
+    `compare_actuators` for the law ``u = -K x`` (its loop's one stage weight: `loop_weights`)."""
+    loop_weights(system, "cost.state_weights")
     try:
         rows = compare_actuators(system, gain, steps, strategies)
     except InputError as err:
@@ -167,10 +176,13 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
     """``compare``: per strategy the optimal TCP-like law's (closedloop.actuator_design.actuator_dp) mean-square
     radius, average stage cost under the noise and total noise-free cost from x0, and the strategy's critical
     point along the ray; with ``links`` (allocation.api.cheapest_links per strategy name) the cheapest links for the
-    cost target, beta'mu and mu* (JSON ``links``); JSON per strategy name and the text table."""
+    cost target, beta'mu and mu* (JSON ``links``); JSON per strategy name and the text table. The costs need the
+    loop's one stage weight (`loop_weights`: time-varying weights refused)."""
+    loop_weights(system, "cost.state_weights")
     data: dict[str, Any] = {}
+    w = max([11, *(len(str(strategy)) for strategy in strategies)])     # buffer:L:hold is wider than 11
     extra = "" if links is None else f" {'beta' + chr(39) + 'mu':>12} {'mu*':<22}"
-    lines = [f"{'strategy':<11} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}{extra}  critical mu"]
+    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}{extra}  critical mu"]
     notes: list[str] = []
     for strategy in strategies:
         link = None if links is None else links[str(strategy)]
@@ -190,7 +202,7 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
             if link is not None:
                 row["links"] = link
             data[str(strategy)] = row
-            lines.append(f"{str(strategy):<11} {'refused':>12} {'-':>15} {'-':>14}{_links_cell(link)}  -")
+            lines.append(f"{str(strategy):<{w}} {'refused':>12} {'-':>15} {'-':>14}{_links_cell(link)}  -")
             lines.append(f"  {strategy}: not computed: {err}")
             if link is not None and link.get("reason") != str(err):
                 notes += _links_notes(str(strategy), link)
@@ -200,24 +212,26 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
         if link is not None:
             row["links"] = link
         data[str(strategy)] = row
-        lines.append(f"{str(strategy):<11} {numbers}{_links_cell(link)}  {text}")
+        lines.append(f"{str(strategy):<{w}} {numbers}{_links_cell(link)}  {text}")
         if "reason" in row:
             lines.append(f"  {strategy}: no optimal law: {row['reason']}")
     return data, lines + notes
 
 
-def membership_section(system: System, strategies: tuple[Actuator, ...],
-                       mu: np.ndarray) -> tuple[dict[str, Any], list[tuple[str, str]]]:
-    """``allocate --actuator``: is the allocation mu* stabilisable under each strategy
-    (closedloop.actuator_region.actuator_membership)? JSON per strategy (verdict, radius, reason) and text rows."""
+def membership_section(system: System, strategies: tuple[Actuator, ...], mu: np.ndarray,
+                       protocol: str = "tcp") -> tuple[dict[str, Any], list[tuple[str, str]]]:
+    """``allocate --actuator``: is the allocation mu* stabilisable under each strategy by a law the ``protocol``'s
+    controller can run (closedloop.actuator_region.actuator_membership)? JSON per strategy (verdict, radius,
+    reason) and text rows."""
     data: dict[str, Any] = {}
     rows = []
+    label = f"{protocol.upper()}-like"
     for strategy in strategies:
-        found = actuator_membership(system, strategy, mu)
+        found = actuator_membership(system, strategy, mu, protocol)
         radius = found.radius if np.isfinite(found.radius) else None
         data[str(strategy)] = {"verdict": found.verdict, "radius": radius, "reason": found.reason}
-        text = {"stable": "stabilisable (a TCP-like law proved mean-square stable)",
-                "unstable": "NOT stabilisable by any TCP-like law (proved)"}.get(found.verdict,
-                                                                               f"undecided ({found.reason})")
+        text = {"stable": f"stabilisable (a {label} law proved mean-square stable)",
+                "unstable": f"NOT stabilisable by any {label} law (proved)"}.get(found.verdict,
+                                                                              f"undecided ({found.reason})")
         rows.append((f"{strategy} at mu*", text))
     return data, rows

@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> CommandResult:
         raise InputError("--margin", "applies to --target stable only")
     target = args.target or "paper"     # "attainable": the same program on the attainable cost (allocation.api)
     for flag, value in (("--ack-price", args.ack_price), ("--ack-power", args.ack_power)):
-        if value is not None and args.protocol != "best":          # was ignored: the answer without the link
+        if value is not None and args.protocol != "best":          # else ignored: the answer without the link
             raise InputError(flag, "prices the acknowledgement link, which only --protocol best compares")
     system = system_of(args)     # behind a chain: its mean rates, burstiness held (allocation/chains.py)
     if args.protocol == "best" or wants_power(args, system):
@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     for flag, value in (("--alpha", args.alpha), ("--beta", args.beta)):
         if value is None:
             raise InputError(flag, "required" + (" (or buy power: --power)" if flag == "--beta" else ""))
-    strategies = actuator_strategies(getattr(args, "actuator", None), system)
+    strategies = actuator_strategies(getattr(args, "actuator", None), system, args.protocol)
     alpha, beta, bounds = allocation_numbers(args, system.m)
     options: dict[str, Any] = {}       # unset flags keep the API's defaults (one source of truth)
     options.update(search_options(args))
@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             ("method", result.method + (f", {result.boxes} box" + ("es" if result.boxes > 1 else "")
                                         if result.boxes else ""))]
     if strategies:                  # the allocation under each actuator strategy on a loss: stabilisable at mu*?
-        data["actuator"], more = membership_section(system, strategies, result.mu)
+        data["actuator"], more = membership_section(system, strategies, result.mu, args.protocol)
         rows += more
     name = fmt.name(system.name or args.file)
     warning = [] if result.warning is None else [result.warning + warning_advice(result, system.channel, args.file)]

@@ -65,7 +65,7 @@ def run_target(args: argparse.Namespace) -> CommandResult:
     if args.target == "dp-cost" and args.margin is not None:
         raise InputError("--margin", "applies to --target stable only (dp-cost bounds the cost: --alpha)")
     for flag in ("--power", "--power-scale", "--power-table", "--budget", "--power-max", "--ack-price", "--ack-power"):
-        if getattr(args, flag[2:].replace("-", "_")) is not None:      # was ignored: a beta'mu design came back
+        if getattr(args, flag[2:].replace("-", "_")) is not None:      # else ignored: a beta'mu design, unasked
             raise InputError(flag, "--target designs delivery probabilities priced by --beta; power and the "
                                    "acknowledgement link are options of --protocol")
     if args.beta is None:

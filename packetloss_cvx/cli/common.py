@@ -422,17 +422,35 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             check_constrained(N := system.horizon, system.n, system.m, constraints.program_rows(N),
                               len(constraints.chance), "cost.horizon",
                               instead="use a shorter horizon, or --mpc-samples 0 to skip the constrained loop")
-            programs = 3 if args.law == "all" else 2         # expected-cost per protocol, certainty-equivalent once
-            clipped = 2 if args.law == "all" else 1          # the clipped law per protocol
+            # per --actuator strategy (none: zero alone): expected-cost per protocol, certainty-equivalent once
+            # (per protocol under hold and buffer: what it plans from differs), the clipped law per protocol
+            names = _strategy_names(getattr(args, "actuator", None))
+            programs = sum(2 if args.law != "all" else 3 if name == "zero" else 4 for name in names)
+            clipped = len(names) * (2 if args.law == "all" else 1)
             check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs, clipped), "--mpc-samples",
                   f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
                   "(the constrained loop)")
             rows = constraints.loop_rows()
-            needed = mpc_bytes(mpc_samples, args.steps, system.n, system.m, programs + clipped, rows)
+            jobs = max(3 if args.law != "all" else 5 if name == "zero" else 6 for name in names)   # one loop at a time
+            needed = mpc_bytes(mpc_samples, args.steps, system.n, system.m, jobs, rows)
             check("memory_bytes", needed, "--mpc-samples", f"{count_text(mpc_samples)} runs of "
                                                            f"{count_text(args.steps)} steps of the constrained loop "
                                                            f"(about {gib_text(needed)})",
                   instead="use fewer runs (--mpc-samples) or steps (--steps)")
+
+
+def _strategy_names(text: str | None) -> list[str]:
+    """The distinct strategies ``--actuator`` names, as written (checked later by ``actuator_strategies``), for the
+    constrained loop's budget: zero alone without it, "all" three. O(len(text)).
+
+    >>> _strategy_names(None), _strategy_names("all"), _strategy_names("hold, buffer:2,hold")
+    (['zero'], ['zero', 'hold', 'buffer'], ['hold', 'buffer:2'])
+    """
+    if text is None:
+        return ["zero"]
+    if text.strip() == "all":
+        return ["zero", "hold", "buffer"]
+    return list(dict.fromkeys(part.strip() for part in text.split(",")))
 
 
 def mpc_samples_of(args: argparse.Namespace) -> int:

@@ -299,9 +299,10 @@ def build_parser() -> argparse.ArgumentParser:
                             '"mu1 >= mu2"')
     alloc.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
                        help="also whether the allocation mu* is stabilisable when the actuator applies zero, holds "
-                            "the last input or plays the buffered plan of L inputs on a loss (some TCP-like law of "
-                            "that strategy, proved exactly, or undecided with the reason); comma-separated, or all "
-                            "(default: none), e.g. --actuator zero,hold")
+                            "the last input or plays the buffered plan of L inputs on a loss (some law of that "
+                            "strategy that the protocol's controller can run, proved exactly, or undecided with the "
+                            "reason; with --protocol udp only zero, and hold without noise and with B of full column "
+                            "rank); comma-separated, or all (default: none), e.g. --actuator zero,hold")
     alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default: 1e-4), e.g. 1e-6")
     alloc.add_argument("--max-boxes", type=int,
                        help="cap on the UDP-like branch and bound's boxes; at the cap: exit 4 (default: 20000), "
@@ -358,10 +359,12 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default: open loop only)")
     sim.add_argument("--law", choices=("tcp", "udp", "dp", "all"), default="all",
                      help="a protocol's receding-horizon law, the DP optimum (closed loop only) or all, e.g. --law dp")
-    sim.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+    sim.add_argument("--actuator", metavar="zero|hold|buffer[:L][:hold]|all",
                      help="with --closed-loop: each law's loop when the actuator applies zero, holds the last input "
-                          "or plays the buffered plan of L inputs (default L: the horizon) on a loss, sampled beside "
-                          "its exact cost and radius; comma-separated, or all (default: none), e.g. --actuator hold")
+                          "or plays the buffered plan of L inputs (default L: the horizon; :hold holds once it is "
+                          "exhausted) on a loss, sampled beside its exact cost and radius; with a [constraints] "
+                          "table: the constrained loop under each strategy, on the same paths; comma-separated, or "
+                          "all (default: none), e.g. --actuator hold")
     sim.add_argument("--mpc-samples", type=int, metavar="K",
                      help="with a [constraints] table in FILE: runs of the constrained receding-horizon loop (each "
                           "re-solves its program every step: about 5 ms a solve), the clipped law, certainty-"

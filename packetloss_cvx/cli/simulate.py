@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..model.system import loop_weights
 from ..montecarlo.markov import EXACT_PLAN
-from ..montecarlo.runs import check_loop_weights
 from ..montecarlo.simulate import LAWS, simulate
 from ..results import Simulation
 from ..safeio import atomic_write, check_output_file, figure_path, save_figure
@@ -70,8 +70,9 @@ def run(args: argparse.Namespace) -> CommandResult:
     constraints = constraints_of(args, system)     # the file's [constraints] table and its overrides, or None
     check_dead_flags(args)      # --mpc-samples without a table, --format/--dpi/--yscale without --plot
     mpc_samples = mpc_samples_of(args)
-    if constraints is not None and mpc_samples:     # refused before the open loop runs, as the loop would refuse
-        check_loop_weights(system, "cost.state_weights")
+    if args.closed_loop or (constraints is not None and mpc_samples):   # refused before the open loop runs
+        loop_weights(system, "cost.state_weights")
+    if constraints is not None and mpc_samples:
         if system.channel is None and not system.is_stationary:
             raise InputError("--mu-schedule", "the constrained loop (a [constraints] table) runs for ever over one "
                                               "channel: it needs one mu per actuator, not a schedule; give --mu, or "
@@ -86,12 +87,15 @@ def run(args: argparse.Namespace) -> CommandResult:
                          "and --mpc-samples >= 1")
     if getattr(args, "workers", None) is not None and getattr(args, "dask", None) != "local":
         raise InputError("--workers", "applies to --dask local only")
-    if strategies and not args.closed_loop:
-        raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop")
-    if strategies and system.channel is not None:
+    constrained = constraints is not None and bool(mpc_samples)
+    if strategies and not args.closed_loop and not constrained:
+        raise InputError("--actuator", "the actuator's strategy acts in the closed loop: add --closed-loop, or give "
+                                       "FILE a [constraints] table (or --u-max, ...) for the constrained loop")
+    if strategies and system.channel is not None and args.closed_loop:
         raise InputError("--actuator", "behind a Markov channel simulate's laws read the channel's belief, not "
                                        "u = -K x: use solve --actuator (the plug-in laws, exact under the chain), or "
-                                       "--mu for the Bernoulli twin")
+                                       "--mu for the Bernoulli twin (without --closed-loop, a [constraints] table's "
+                                       "constrained loop runs each strategy behind the chain)")
     laws = LAWS if args.law == "all" else (args.law,)
     if not args.closed_loop:
         laws = tuple(law for law in laws if law != "dp")
@@ -121,11 +125,11 @@ def run(args: argparse.Namespace) -> CommandResult:
             entry["open_loop"]["formula_basis"] = "attainable" if p == EXACT_PLAN else "paper"
         if "closed_loop" in entry:
             entry["closed_loop"]["basis"] = "loop"
-    if strategies:     # the laws' loops when the actuator zeroes, holds or plays the buffered plan on a loss
+    if strategies and args.closed_loop:     # the laws' loops when the actuator zeroes, holds or plays the plan
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
                                                            args.seed)
         text = "\n".join([text, *more])
-    if constraints is not None and mpc_samples:     # the [constraints] table: the constrained receding-horizon loop
+    if constrained:     # the [constraints] table: the constrained receding-horizon loop (per strategy, --actuator)
         from .mpc_section import constrained_loop_section  # cvxpy (1.5 s to import) only where a program is solved
 
         protocols = ("tcp", "udp") if args.law == "all" else (args.law,)
@@ -133,7 +137,8 @@ def run(args: argparse.Namespace) -> CommandResult:
                                                                   args.steps, args.seed, progress_of(args),
                                                                   threads=getattr(args, "threads", 1),
                                                                   dask=getattr(args, "dask", None),
-                                                                  workers=getattr(args, "workers", None))
+                                                                  workers=getattr(args, "workers", None),
+                                                                  strategies=strategies)
         text = "\n".join([text, *more])
     if system.sensor is not None and args.closed_loop:     # lossy sensor links
         data["estimated_state"], more = simulate_section(system, laws, args.samples, args.steps, args.seed)

@@ -34,7 +34,8 @@ acknowledgements tell the controller, before it computes u_k, which packets arri
 age of every buffered plan (the whole mode): a law that depends on them is implementable, and the optimal one per
 strategy solves the coupled Riccati equations over these modes. Under a UDP-like protocol it knows neither; it
 must keep a belief over the held input and the buffer ages (from the state's history, exact only without noise
-and with B of full column rank), and a mode-dependent law is not implementable.
+and with B of full column rank), and a mode-dependent law is not implementable: which optimal laws it can run is
+`.actuator_design.check_protocol`'s decision.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ import numpy.typing as npt
 from ..budgets import check, gib_text, operator_bytes
 from ..errors import DimensionError, InputError, NumericalError
 from ..model.channel import MarkovChannel
-from ..model.system import System, check_system, numeric_array
+from ..model.system import System, check_system, loop_weights, numeric_array
 from .mjls import mode_chain, mode_start
 from .modes import mode_matrix, mode_radius, mode_stage_costs
 from .moments import check_steps, stationary_channel
@@ -345,7 +346,7 @@ def actuator_costs(system: System, gain: npt.ArrayLike, steps: int, actuator: st
     """
     loop = _system_loop(system, gain, actuator, mu)
     check_steps(steps, loop.modes * loop.A.shape[-1] ** 2)
-    return loop.stage_costs(system.state_weights[0], system.input_weights[0], system.noise_cov, system.x0, steps)
+    return loop.stage_costs(*loop_weights(system), system.noise_cov, system.x0, steps)
 
 
 def parse_actuators(text: str, horizon: int) -> tuple[Actuator, ...]:
@@ -385,8 +386,7 @@ def compare_actuators(system: System, gain: npt.ArrayLike, steps: int | None = N
             radius, reason = loop.radius(), ""
         except NumericalError as err:
             radius, reason = float("nan"), str(err)
-        stage, terminal = loop.stage_costs(system.state_weights[0], system.input_weights[0], system.noise_cov,
-                                           system.x0, steps)
+        stage, terminal = loop.stage_costs(*loop_weights(system), system.noise_cov, system.x0, steps)
         out[str(strategy)] = {"radius": radius, "stable": is_mean_square_stable(radius),
                               "cost": float(stage.sum() + terminal), "reason": reason}
     return out

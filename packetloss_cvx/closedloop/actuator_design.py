@@ -9,7 +9,10 @@ buffer, the age of the plan each actuator plays on a loss. Its *information mode
 - ``buffer:L``: ``(c, beta)``, ``beta_i`` in 1..L the age actuator i's last plan would have on a loss now (L: no
   entry left, the actuator applies zero; L at the start). The packet carries actuator i's whole plan
   ``U_i`` (L inputs, the decision ``u = (U_1, .., U_m)``, mL entries) and the state holds the plan's unplayed
-  entries ``b_i`` (L - 1 per actuator: ``z = (x, b_1, .., b_m)``), zeroed once exhausted.
+  entries ``b_i`` (L - 1 per actuator: ``z = (x, b_1, .., b_m)``), zeroed once exhausted;
+- ``buffer:L:hold``: as buffer:L, but a loss with no entry left (age L) plays the plan's last entry again, the
+  input applied last (0 before the first packet): the memory ``b_i`` is kept, never zeroed. Hold is the case
+  L = 1 with the applied input as the memory; one construction (`design_modes`) builds all four.
 
 Given s, the deliveries d in {0, 1}^m of step k are independent with ``P(d_i = 1) = h_{c,i}`` and the step is
 linear: ``z+ = A_sd z + B_sd u``, the applied input ``a = F_sd z + G_sd u``, the next information mode drawn from
@@ -31,7 +34,13 @@ An input that reaches neither the plant nor the actuator's memory in any deliver
 (its Hessian row exactly zero: a buffer's plan entries behind a link that never loses, or never delivers) gets the
 gain 0; it changes nothing.
 
-A UDP-like controller does not know the mode; its optimal law is nonlinear in general and not computed here.
+Without acknowledgements (UDP-like) the controller sees the state and its own packets only (`check_protocol`). On
+Bernoulli links zero needs nothing more (past deliveries do not enter the future given x), and hold needs the
+input applied last, which the state's history tells exactly when there is no process noise and B has full column
+rank (``a_k-1 = B^+ (x_k - A x_k-1)``): there the TCP-like law is implementable and so the UDP-like optimum.
+Elsewhere (a buffer's ages, hold with noise, any chain's state) the optimal law is nonlinear in general (the dual
+effect) and the best linear one an output-feedback design without a Riccati equation: refused with
+`UnobservedModeError` (docs/mathematics.md, "The actuator's strategy on a loss").
 """
 
 from __future__ import annotations
@@ -44,7 +53,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..budgets import check, limit
-from ..errors import InputError, NumericalError
+from ..errors import InputError, NumericalError, UnobservedModeError
 from ..linalg import frobenius
 from ..model.channel import MarkovChannel
 from ..model.system import System, check_system
@@ -55,7 +64,11 @@ from .moments import check_steps, mode_cost_to_go, stationary_channel
 from .riccati import Bellman, solve_bellman
 from .stability import check_law
 
-__all__ = ["ActuatorDesign", "DesignModes", "actuator_dp", "actuator_dp_finite", "design_modes", "engine_rows"]
+__all__ = ["PROTOCOLS", "ActuatorDesign", "DesignModes", "actuator_dp", "actuator_dp_finite", "check_protocol",
+           "design_modes", "engine_rows"]
+
+#: The controller's information: TCP-like (acknowledged deliveries) or UDP-like (not).
+PROTOCOLS = ("tcp", "udp")
 
 
 @dataclass(frozen=True)
@@ -144,11 +157,20 @@ class DesignModes:
         return np.einsum("sd,sdij->sij", self.p, Pi.reshape(S, D, *Pi.shape[1:]))
 
 
+def _memory(strategy: Actuator) -> tuple[int, bool, int]:
+    """``(L, holding, width)``: the packet's entries per actuator (1 for zero and hold), whether a loss with no entry
+    left plays the last applied input, and the actuator's memory in z per actuator: the plan's L - 1 entries after
+    the first, or (hold) the input applied. O(1)."""
+    L = strategy.length if strategy.kind == "buffer" else 1
+    holding = strategy.kind == "hold" or strategy.exhausted == "hold"
+    return L, holding, max(L - 1, 1) if holding else L - 1
+
+
 def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | MarkovChannel,
                  actuator: str | Actuator = "zero") -> DesignModes:
     """The strategy's `DesignModes` behind ``channel`` (Bernoulli mu (m,), or a Gilbert–Elliott or k-state chain).
-    Modes: ``M_c`` for zero and hold, ``M_c L^m`` for buffer:L (refused beyond `MAX_BUFFER_MODES`). Time
-    O(S D N (N + r)).
+    Modes: ``M_c`` for zero and hold, ``M_c L^m`` for buffer:L and buffer:L:hold (refused beyond
+    `MAX_BUFFER_MODES`). Time O(S D N (N + r)).
 
     Raises
     ------
@@ -160,11 +182,11 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
     >>> d = design_modes([[2.0]], [[1.0]], [0.5], "hold")        # z = (x, w); lost: x+ = 2x + w, w+ = w
     >>> d.patterns.tolist(), d.A[0, 0].tolist(), d.F[0, 0].tolist(), d.B[0, 1].tolist()
     ([[0.0], [1.0]], [[2.0, 1.0], [0.0, 1.0]], [[0.0, 1.0]], [[1.0], [1.0]])
+    >>> d = design_modes([[2.0]], [[1.0]], [0.5], "buffer:2:hold")  # z = (x, b); exhausted, lost: plays b, keeps it
+    >>> d.labels[1], d.A[1, 0].tolist(), d.F[1, 0].tolist()
+    ('c0 ages (2,)', [[2.0, 1.0], [0.0, 1.0]], [[0.0, 1.0]])
     """
     strategy = parse_actuator(actuator)
-    if strategy.exhausted == "hold":
-        raise InputError("actuator", f"the optimal law of {strategy} is not computed (its costs and radius for a given "
-                                     f"law are: closedloop.actuator); use buffer:{strategy.length} or hold")
     if isinstance(channel, MarkovChannel):
         A_, B_ = check_law(A, B, np.zeros((np.shape(B)[1], np.shape(A)[0])), np.ones(np.shape(B)[1]))[:2]
         _, Tc, hc = mode_chain(channel)
@@ -174,8 +196,9 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
         Tc, hc, start_c = np.ones((1, 1)), mu[None], np.ones(1)
     n, m = B_.shape
     Mc = Tc.shape[0]
-    L = strategy.length if strategy.kind == "buffer" else 1
-    ages = list(itertools.product(range(1, L + 1), repeat=m)) if strategy.kind == "buffer" else [()]
+    L, holding, width = _memory(strategy)
+    skip = L - width                                   # the packet's entries not kept: the one applied on delivery
+    ages = list(itertools.product(range(1, L + 1), repeat=m))
     S = Mc * len(ages)
     if S > MAX_BUFFER_MODES:
         raise InputError("actuator", f"{strategy} behind {Mc} channel state(s) and {m} actuator(s) has "
@@ -183,7 +206,6 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
                                      "use a shorter buffer")
     patterns = np.array(list(itertools.product((0, 1), repeat=m)), dtype=float).reshape(-1, m)
     D = len(patterns)
-    width = L - 1 if strategy.kind == "buffer" else (1 if strategy.kind == "hold" else 0)
     N, r = n + m * width, m * L
     check("memory_bytes", 8.0 * S * D * (N + r) * (N + r) * 3, "actuator",
           f"{strategy}'s {S * D} mode steps of {N + r}^2 entries", instead="use a shorter buffer")
@@ -196,36 +218,27 @@ def design_modes(A: npt.ArrayLike, B: npt.ArrayLike, channel: npt.ArrayLike | Ma
         for k, d in enumerate(patterns.astype(bool)):
             p[s, k] = np.prod(np.where(d, hc[c], 1.0 - hc[c]))
             A_all[s, k, :n, :n] = A_
-            after = []
             for i in range(m):
                 mem = slice(n + i * width, n + (i + 1) * width)
-                if d[i]:                                   # delivered: apply the packet's first entry
-                    G_all[s, k, i, i * L] = 1.0
+                if d[i]:                                   # delivered: apply the packet's first entry, keep the rest
+                    G_all[s, k, i, i * L] = 1.0            # (hold: the entry applied, as the held input)
                     B_all[s, k, :n, i * L] = B_[:, i]
-                    if strategy.kind == "hold":            # ... and hold it
-                        B_all[s, k, n + i, i] = 1.0
-                    elif strategy.kind == "buffer":        # ... and keep the rest of its plan
-                        B_all[s, k, mem, i * L + 1:(i + 1) * L] = np.eye(width)
-                    after.append(1)
+                    B_all[s, k, mem, i * L + skip:(i + 1) * L] = np.eye(width)
                     continue
-                if strategy.kind == "hold":                # lost: apply the held input, hold it
-                    F_all[s, k, i, n + i] = 1.0
-                    A_all[s, k, :n, n + i] = B_[:, i]
-                    A_all[s, k, n + i, n + i] = 1.0
-                elif strategy.kind == "buffer" and beta[i] < L:   # lost: play entry beta_i, keep the plan if
-                    F_all[s, k, i, n + i * width + beta[i] - 1] = 1.0   # an entry is left after it
-                    A_all[s, k, :n, n + i * width + beta[i] - 1] = B_[:, i]
-                    if beta[i] + 1 < L:
-                        A_all[s, k, mem, mem] = np.eye(width)
-                after.append(min(beta[i] + 1, L) if strategy.kind == "buffer" else 1)
-            nxt = tuple(after) if strategy.kind == "buffer" else ()
+                played = beta[i] if beta[i] < L else (L - 1 if holding else None)
+                if played is not None:                     # lost: play entry beta_i, or hold the last one
+                    F_all[s, k, i, n + i * width + played - skip] = 1.0
+                    A_all[s, k, :n, n + i * width + played - skip] = B_[:, i]
+                if holding or beta[i] + 1 < L:             # keep the memory while an entry is left to play
+                    A_all[s, k, mem, mem] = np.eye(width)
+            nxt = tuple(np.where(d, 1, np.minimum(np.array(beta) + 1, L)).tolist())
             for c2 in range(Mc):
                 R[s, k, index[(c2, nxt)]] += Tc[c, c2]
                 moves[s, k, index[(c2, nxt)]] = True
     start = np.zeros(S)
     for c in range(Mc):
-        start[index[(c, tuple([L] * m) if strategy.kind == "buffer" else ())]] = start_c[c]
-    labels = tuple(f"c{c}" + (f" ages {beta}" if beta else "") for (c, beta) in index)
+        start[index[(c, (L,) * m)]] = start_c[c]
+    labels = tuple(f"c{c}" + (f" ages {beta}" if L > 1 else "") for (c, beta) in index)
     embed = np.vstack([np.eye(n), np.zeros((N - n, n))])
     state = np.array([c for (c, _) in index], dtype=int)
     return DesignModes(strategy, patterns, p, A_all, B_all, F_all, G_all, R, start, embed, labels, state, moves, hc)
@@ -253,6 +266,63 @@ class ActuatorDesign:
                 "modes": self.modes.modes}
 
 
+def check_protocol(system: System, actuator: str | Actuator, protocol: str = "tcp",
+                   mu: npt.ArrayLike | None = None) -> Actuator:
+    """The strategy, once it is checked that ``protocol``'s controller can run the TCP-like optimal law of
+    ``actuator`` on ``system`` (its chain, or Bernoulli ``mu``), so that law is its optimum too. TCP-like: always.
+    UDP-like (the state and its own packets known, no acknowledgement), on Bernoulli links only: zero (the past
+    deliveries do not enter the future given x), and hold without process noise and with B of full column rank
+    (the input applied last is ``B^+ (x_k - A x_k-1)``, the whole mode). O(n m^2).
+
+    Raises
+    ------
+    InputError
+        Field ``protocol``: neither "tcp" nor "udp".
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request the controller's information does not determine, saying why and what
+        to use instead (docs/mathematics.md, "The actuator's strategy on a loss").
+
+    Examples
+    --------
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    >>> str(check_protocol(s, "hold", "udp"))          # no noise: x_k - 2 x_k-1 is the input applied
+    'hold'
+    >>> try:
+    ...     check_protocol(s, "buffer:2", "udp")
+    ... except UnobservedModeError as err:
+    ...     print(err.field, "|", err.detail[:72])
+    protocol | buffer:2's optimal law without acknowledgements is not computed: the age
+    """
+    system = check_system(system)
+    strategy = parse_actuator(actuator, system.horizon)
+    if protocol not in PROTOCOLS:
+        raise InputError("protocol", f"expected tcp or udp, found {protocol!r}")
+    if protocol == "tcp":
+        return strategy
+    chain = system.channel is not None and mu is None
+    noisy = bool(np.any(system.noise_cov != 0.0))
+    full_rank = np.linalg.matrix_rank(system.B) == system.m
+    if chain:
+        why = ("the channel state behind the chain is hidden (the state reveals a delivery only where the input "
+               "applied differs from what a loss applies), and the optimal law depends on a belief over it that the "
+               "law itself shapes")
+    elif strategy.kind == "zero" or (strategy.kind == "hold" and not noisy and full_rank):
+        return strategy
+    elif strategy.kind == "hold":
+        why = ("the input each actuator holds is hidden: " + ("with process noise" if noisy else
+               "with B of rank below its columns") + " the state's history tells it only as a Gaussian mixture over "
+               "the delivery histories")
+    else:
+        why = ("the age of the plan each actuator plays is hidden (the state tells a delivery only where the "
+               "packet's first entry differs from the entry the old plan plays, which the law does not control)")
+    raise UnobservedModeError(
+        "protocol", f"{strategy}'s optimal law without acknowledgements is not computed: {why}, so the optimal law "
+        "is nonlinear in general (the input chosen now changes what the next state reveals: the dual effect) and the "
+        "best law linear in the observations is an output-feedback design of a jump linear system whose mode is not "
+        "observed, with no Riccati equation; use protocol tcp (acknowledgements), or evaluate a given law's exact "
+        "cost and radius (closedloop.actuator.actuator_costs, actuator_radius; solve --actuator)")
+
+
 def _system_modes(system: System, actuator: str | Actuator, mu: npt.ArrayLike | None) -> DesignModes:
     system = check_system(system)
     strategy = parse_actuator(actuator, system.horizon)
@@ -269,17 +339,21 @@ def _weights(system: System, modes: DesignModes) -> tuple[np.ndarray, np.ndarray
 
 def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.ArrayLike | None = None,
                 max_iter: int | None = None,
-                proves: Callable[[DesignModes, np.ndarray], bool] | None = None) -> ActuatorDesign:
+                proves: Callable[[DesignModes, np.ndarray], bool] | None = None,
+                protocol: str = "tcp") -> ActuatorDesign:
     """The stationary optimal TCP-like linear law of ``actuator`` on ``system`` (stage weights Omega_1 and Psi_0,
     noise Sigma_W; its chain, or ``mu``, default the stationary Bernoulli channel): the stabilising solution of the
     coupled Riccati equation over the strategy's modes (module docstring), by `.riccati.solve_bellman`. ``zero`` is
-    `.riccati.dp_riccati` (Bernoulli) and `.mjls.coupled_riccati` (a chain). Time O(iterations S D (S N^2 +
+    `.riccati.dp_riccati` (Bernoulli) and `.mjls.coupled_riccati` (a chain). ``protocol="udp"``: the same law where
+    a UDP-like controller can run it, its optimum there (`check_protocol`). Time O(iterations S D (S N^2 +
     (N + r)^3)) plus the engine's coupled Lyapunov solve per policy step.
 
     Raises
     ------
     InputError
         Field ``actuator``: an unknown strategy, L < 1 or beyond the horizon, or too many modes.
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose optimal law is not computed (`check_protocol`).
     NumericalError
         No verdict: no convergence, a limit that is not stabilising, or a residual above MOMENT_RESIDUAL_RTOL (a
         diverging iteration is a proof only through ``proves(modes, P)``, closedloop.actuator_region's exact check
@@ -294,6 +368,7 @@ def actuator_dp(system: System, actuator: str | Actuator = "zero", mu: npt.Array
     True
     """
     system = check_system(system)
+    check_protocol(system, actuator, protocol, mu)
     modes = _system_modes(system, actuator, mu)
     Omega, psi, Sigma = _weights(system, modes)
     S, N, r = modes.modes, modes.A.shape[-1], modes.B.shape[-1]
@@ -354,16 +429,18 @@ def _stationary(T: np.ndarray) -> np.ndarray:
 
 
 def actuator_dp_finite(system: System, steps: int, actuator: str | Actuator = "zero",
-                       mu: npt.ArrayLike | None = None) -> tuple[np.ndarray, float]:
+                       mu: npt.ArrayLike | None = None, protocol: str = "tcp") -> tuple[np.ndarray, float]:
     """The finite-horizon TCP-like optimum of ``actuator`` over ``steps`` steps with terminal cost x_T'Omega x_T:
     ``(gains, cost)``, ``gains[t]`` (S, r, N) the law at step t per information mode, and the optimal expected
     cost from x0 with noise, ``sum_s start_s z0'P_0,s z0 + sum_t sum_(s,d) P(s_t = s) p_sd tr(E_t+1,sd Sigma_z)``.
-    Time O(steps S D (S N^2 + (N + r)^3)).
+    ``protocol="udp"``: as `actuator_dp`. Time O(steps S D (S N^2 + (N + r)^3)).
 
     Raises
     ------
     NumericalError
         The cost-to-go overflows.
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose optimal law is not computed (`check_protocol`).
 
     Examples
     --------
@@ -373,6 +450,7 @@ def actuator_dp_finite(system: System, steps: int, actuator: str | Actuator = "z
     (0.5, 1.5)
     """
     system = check_system(system)
+    check_protocol(system, actuator, protocol, mu)
     modes = _system_modes(system, actuator, mu)
     Omega, psi, Sigma = _weights(system, modes)
     S, N, r = modes.modes, modes.A.shape[-1], modes.B.shape[-1]

@@ -1,9 +1,9 @@
 """Which channels each actuator strategy can stabilise: membership with exact certificates, and critical mu.
 
-A channel mu is in the region of a strategy (zero, hold, buffer:L) when some TCP-like linear law of that strategy,
-``u = -K_s z`` over its information modes (closedloop.actuator_design), is mean-square stable. The loop of a law
-is the information modes' map (its nonzero spectrum is that of the engine's map over the modes (s, d): the
-engine's second moments at (t, e) are ``p_te`` times the information map's at t)
+A channel mu is in the region of a strategy (zero, hold, buffer:L, buffer:L:hold) when some TCP-like linear law
+of that strategy, ``u = -K_s z`` over its information modes (closedloop.actuator_design), is mean-square stable.
+The loop of a law is the information modes' map (its nonzero spectrum is that of the engine's map over the modes
+(s, d): the engine's second moments at (t, e) are ``p_te`` times the information map's at t)
 
 .. math:: \\mathcal L_K(X)_t = \\sum_{s,d} p_{sd} R_{sd}(t)\\, (A_{sd} - B_{sd}K_s) X_s (A_{sd} - B_{sd}K_s)'.
 
@@ -15,12 +15,12 @@ engine's second moments at (t, e) are ``p_te`` times the information map's at t)
   at c = 1: then ``L_K^*(P)_s = [I; -K_s]' (Theta_s + P_s ⊕ 0) [I; -K_s] >= P_s`` for every K, and every law's
   radius is at least 1 (certificates.outside_proved's argument). P is the homogeneous Bellman map's direction
   (`least_radius`; or it snapped, or rounded to a few bits), or, where an actuator never delivers, its held
-  input (hold: ``w_i+ = w_i`` whatever the law).
+  input (hold and buffer:L:hold: ``w_i+ = w_i`` whatever the law).
 - **undecided** otherwise, with the reason (a numerical failure is never a verdict).
 
 The region is monotone in mu: a TCP-like controller can resend what the actuator would play on a loss (the held
-input; the rest of the plan, zeros after it), so a delivery never costs stability, and bisection along a ray finds
-its one boundary (`actuator_critical`).
+input; the rest of the plan, zeros or its last entry after it), so a delivery never costs stability, and bisection
+along a ray finds its one boundary (`actuator_critical`).
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ from ..model.channel import MarkovChannel
 from ..model.system import System, check_system
 from ..results.region import CriticalPoint, Membership
 from ..tolerances import CRITICAL_MU_TOL, MEAN_SQUARE_MARGIN, MOMENT_DENSE_MAX_N
-from .actuator import Actuator, parse_actuator
-from .actuator_design import DesignModes, actuator_dp, design_modes
+from .actuator import Actuator
+from .actuator_design import DesignModes, actuator_dp, actuator_dp_finite, check_protocol, design_modes
 from .certificates import exact_transition, snapped, tilted_by
 from .chain_radius import symmetric_perron
 from .markov_region import chain_at_rate, critical_rate_unproved
@@ -48,7 +48,9 @@ __all__ = ["LeastRadius", "actuator_critical", "actuator_membership", "least_rad
 
 #: Rows S N^2 of the information map beyond which no exact certificate is attempted (its witness is a dense solve).
 MAX_CERTIFIED_ROWS = MOMENT_DENSE_MAX_N ** 2
-#: The weighted DP's value steps in a membership (an inside candidate beside the least-radius law), and the
+#: The weighted DP's value steps in a membership (an inside candidate beside the least-radius law; where the DP finds
+#: no stabilising solution that close to the boundary, its value iteration's greedy law after as many steps: the
+#: scalar buffer:2:hold 1e-6 above its critical mu, whose least-radius law leaves the held entry free), and the
 #: homogeneous power iteration's steps and the relative change of its growth at which it stops.
 _DP_STEPS = 2000
 HOMOGENEOUS_STEPS = 5000
@@ -212,7 +214,7 @@ def least_radius(modes: DesignModes, steps: int | None = None) -> LeastRadius:
     zero_Omega, zero_psi = np.zeros((N, N)), np.zeros(modes.F.shape[2])
     growth, last, K = float("nan"), float("nan"), np.zeros((modes.modes, modes.B.shape[-1], N))
     limit = HOMOGENEOUS_STEPS if steps is None else steps
-    taken = 0
+    taken, settled = 0, False
     with np.errstate(over="ignore", invalid="ignore"):
         for taken in range(1, limit + 1):  # noqa: B007 (the count is returned)
             K, P_next = modes.step(P, zero_Omega, zero_psi, least_squares=True)
@@ -221,9 +223,18 @@ def least_radius(modes: DesignModes, steps: int | None = None) -> LeastRadius:
                 break
             P = P_next / growth
             if abs(growth - last) <= GROWTH_RTOL * growth:
+                settled = True
                 break
             last = growth
         K, _ = modes.step(P, zero_Omega, zero_psi, least_squares=True)
+    if not settled and np.isfinite(growth) and np.all(np.isfinite(K)):
+        # unsettled: a map that rounding keeps from vanishing (mu = 1: the deadbeat law's map is nilpotent, and
+        # the normalised iterates are rounding noise) has no meaningful growth; its greedy law's own radius is an
+        # upper bound on the least radius, computed by the engine
+        try:
+            growth = min(growth, modes.loop(K).radius())
+        except NumericalError:
+            pass
     found = LeastRadius(float(growth), P, K, taken)
     refined = _policy(modes, found) if np.isfinite(growth) else None
     return found if refined is None else refined
@@ -296,25 +307,35 @@ def _tilted_outside(modes: DesignModes, P: np.ndarray, found: LeastRadius,
 
 
 def _never_delivers(modes: DesignModes) -> list[np.ndarray]:
-    """Hold's candidates where an actuator never delivers in any channel state: ``e_w e_w'`` on its held input
-    in every mode (``w+ = w`` whatever the law: Theta = 0)."""
-    if modes.actuator.kind != "hold":
+    """A holding strategy's candidates (hold, buffer:L:hold) where an actuator never delivers in any channel state:
+    ``e_w e_w'`` on the input it holds (its memory's last entry) in every mode (``w+ = w`` whatever the law on every
+    loss: Theta = 0)."""
+    if not (modes.actuator.kind == "hold" or modes.actuator.exhausted == "hold"):
         return []
-    n = modes.embed.shape[1]
+    n, m = modes.embed.shape[1], modes.patterns.shape[1]
+    width = (modes.A.shape[-1] - n) // m
     out = []
     for i in np.flatnonzero(np.all(modes.h == 0.0, axis=0)):
         P = np.zeros((modes.modes, *modes.A.shape[-2:]))
-        P[:, n + i, n + i] = 1.0
+        P[:, n + (i + 1) * width - 1, n + (i + 1) * width - 1] = 1.0
         out.append(P)
     return out
 
 
 def actuator_membership(system: System, actuator: str | Actuator = "zero",
-                        mu: npt.ArrayLike | None = None) -> Membership:
+                        mu: npt.ArrayLike | None = None, protocol: str = "tcp") -> Membership:
     """Is ``mu`` (default: the system's stationary channel, or its chain) in the region of ``actuator``? A
     `Membership` (module docstring): "stable" with the DP law's gains (S, r, N) and radius, "unstable" with the
-    certificate tuple P, or "undecided" with the reason. ``forms``: (("dp", verdict),). Time: `actuator_dp` plus
-    the exact checks, O(S D (N + r)^3) integer operations, and the witness's dense solve O((S N^2)^3).
+    certificate tuple P, or "undecided" with the reason. ``forms``: (("dp", verdict),). ``protocol="udp"``: where a
+    UDP-like controller can run the TCP-like laws (`.actuator_design.check_protocol`), the region is theirs; an
+    "unstable" certificate bounds every causal law, whatever it knows (Theta_s >= 0 holds for every input). Time:
+    `actuator_dp` plus the exact checks, O(S D (N + r)^3) integer operations, and the witness's dense solve
+    O((S N^2)^3).
+
+    Raises
+    ------
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose laws are not computed (`.actuator_design.check_protocol`).
 
     Examples
     --------
@@ -323,7 +344,7 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
     ['unstable', 'stable', 'unstable', 'stable']
     """
     system = check_system(system)
-    strategy = parse_actuator(actuator, system.horizon)
+    strategy = check_protocol(system, actuator, protocol, mu)
     chain = system.channel if system.channel is not None and mu is None else None
     channel = chain if chain is not None else (stationary_channel(system) if mu is None else mu)
     modes = design_modes(system.A, system.B, channel, strategy)
@@ -344,11 +365,14 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
     c = 1.0 - MEAN_SQUARE_MARGIN
     if found.growth < 1.0:
         laws = [found.K]
+        weighted = None if chain is not None else channel
         try:
-            laws.append(actuator_dp(system, strategy, None if chain is not None else channel,
-                                    max_iter=_DP_STEPS).K)
+            laws.append(actuator_dp(system, strategy, weighted, max_iter=_DP_STEPS).K)
         except NumericalError:
-            pass
+            try:
+                laws.append(actuator_dp_finite(system, _DP_STEPS, strategy, weighted)[0][0])
+            except NumericalError:
+                pass
         for K in laws:
             try:
                 radius = modes.loop(K).radius()
@@ -370,7 +394,7 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
 
 
 def actuator_critical(system: System, actuator: str | Actuator = "zero", direction: npt.ArrayLike | None = None,
-                      tol: float = CRITICAL_MU_TOL) -> CriticalPoint:
+                      tol: float = CRITICAL_MU_TOL, protocol: str = "tcp") -> CriticalPoint:
     """The critical mu of a strategy along ``mu = t * direction`` (default all ones): on Bernoulli links the
     delivery probabilities ``t * direction``; behind the system's Gilbert–Elliott chain its mean rates (the chain
     at each rate with its burstiness and h kept, markov_region.chain_at_rate; t up to ``min_i h_good_i /
@@ -385,14 +409,18 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     crossing it lies (the two-actuator hold along the diagonal: 6.5e-5); where none is proved (the two-actuator
     buffer's rank-one direction, whose tilt the unreached plan entries make indefinite), ``lower`` stays the float
     crossing, ``outside`` undecided and the note says so: then only ``t`` is evidence. ``t`` is inf when even the
-    ray's end is not below 1, 0.0 when mu = 0 is. Time O(log2(1 / tol)) power iterations plus two memberships.
+    ray's end is not below 1, 0.0 when mu = 0 is. ``protocol``: as `actuator_membership`. Time O(log2(1 / tol))
+    power iterations plus two memberships.
 
     Raises
     ------
     InputError
         A bad direction or tol; behind a chain: not two-state, or outside the monotonicity proof (the reason).
+    UnobservedModeError
+        Field ``protocol``: a UDP-like request whose laws are not computed (`.actuator_design.check_protocol`).
     NumericalError
-        The least radius is not finite at a point of the ray.
+        The least radius is not finite at a point of the ray; or the ray's end (floats: no law stabilises) is not
+        proved unstable, or mu = 0 (floats: stable) is not proved stable: the end's membership and its reason.
 
     Examples
     --------
@@ -402,7 +430,7 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     (True, 'stable', 'unstable')
     """
     system = check_system(system)
-    strategy = parse_actuator(actuator, system.horizon)
+    strategy = check_protocol(system, actuator, protocol, None if system.channel is not None else np.ones(system.m))
     d = np.asarray(np.ones(system.m) if direction is None else direction, dtype=float).reshape(-1)
     if d.shape != (system.m,) or np.any(d < 0) or not np.any(d > 0) or not np.all(np.isfinite(d)):
         raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")
@@ -420,14 +448,21 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     def member(t: float) -> Membership:
         channel = channel_at(t)
         if isinstance(channel, MarkovChannel):
-            return actuator_membership(system.with_channel(channel), strategy)
-        return actuator_membership(system, strategy, channel)
+            return actuator_membership(system.with_channel(channel), strategy, protocol=protocol)
+        return actuator_membership(system, strategy, channel, protocol=protocol)
 
     lo, hi = 0.0, end
     if not below(hi):
-        return CriticalPoint(str(strategy), d, float("inf"), hi, None, member(hi))
+        end = member(hi)
+        if end.verdict != "unstable":   # floats say no law stabilises; only a certificate may say it
+            raise NumericalError(f"critical mu ({strategy}): the ray's end mu = {(hi * d).tolist()} is "
+                                 f"{end.verdict} ({end.reason or 'a law proved stable there, the floats disagree'})")
+        return CriticalPoint(str(strategy), d, float("inf"), hi, None, end)
     if below(lo):
-        return CriticalPoint(str(strategy), d, 0.0, 0.0, member(lo), None)
+        start = member(lo)
+        if start.verdict != "stable":
+            raise NumericalError(f"critical mu ({strategy}): mu = 0 is {start.verdict} ({start.reason})")
+        return CriticalPoint(str(strategy), d, 0.0, 0.0, start, None)
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:

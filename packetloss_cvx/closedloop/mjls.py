@@ -37,7 +37,7 @@ from ..model.channel import (
     GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
     MarkovChannel,
 )
-from ..model.system import System, check_system
+from ..model.system import System, check_system, loop_weights
 from ..results import MjlsResult
 from ..tolerances import RICCATI_MAX_ITER
 from .certificates import chain_outside_proved
@@ -188,7 +188,7 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
         raise InputError("delivery", f"expected current or next, found {delivery!r}")
     modes, T, h = mode_chain(system.channel)
     A, B, Sigma = system.A, system.B, system.noise_cov
-    Omega, psi = system.state_weights[0], system.input_weights[0]
+    Omega, psi = loop_weights(system)
     M, n, m = len(modes), system.n, system.m
     K_all = np.asarray(gains, dtype=float)
     K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 3 else K_all

@@ -20,7 +20,7 @@ import numpy.typing as npt
 
 from ..errors import CrossCheckError, InputError, NumericalError
 from ..linalg import frobenius
-from ..model.system import System
+from ..model.system import System, loop_weights
 from ..model.validation import MAX_ENTRIES
 from ..results import ClosedLoop
 from ..tolerances import MOMENT_DENSE_MAX_N, MOMENT_RESIDUAL_RTOL
@@ -201,7 +201,7 @@ def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.Arra
                 method: str = "auto") -> ClosedLoop:
     """Mean-square stability and exact costs of ``u = -K x`` run for ever on ``system``'s plant.
 
-    Stage weights ``Omega = state_weights[0]`` (Omega_1) and ``Psi = input_weights[0]`` (Psi_0), noise
+    Stage weights the system's one ``Omega`` and ``Psi`` (`loop_weights`: time-varying weights are refused), noise
     ``Sigma_W``; channel ``mu`` (default: the system's stationary channel).
 
     Parameters
@@ -222,6 +222,8 @@ def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.Arra
 
     Raises
     ------
+    InputError
+        Time-varying weights (`loop_weights`).
     CrossCheckError
         ``tr((Omega + K'M Psi K) S)`` and ``tr(P_K Sigma_W)`` disagree beyond ``MOMENT_RESIDUAL_RTOL``.
 
@@ -242,7 +244,7 @@ def closed_loop(system: System, gain: npt.ArrayLike, law: str = "", mu: npt.Arra
         reason = (f"not mean-square stable: the second-moment operator has spectral radius {radius:.6g} >= 1, "
                   "so E[x x'] and the average cost grow without bound")
         return ClosedLoop(law, K, mu_, radius, False, float("inf"), None, None, reason)
-    Omega, psi, Sigma = system.state_weights[0], system.input_weights[0], system.noise_cov
+    (Omega, psi), Sigma = loop_weights(system), system.noise_cov
     P = _cost_to_go(A, B, K, mu_, Omega, psi, matrix)
     S = _second_moment(A, B, K, mu_, np.asarray(Sigma, dtype=float), matrix)
     by_cost_to_go = float(np.sum(P * Sigma))
@@ -260,7 +262,7 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     Parameters
     ----------
     system : System
-        Plant, x0, noise; stage weights Omega_1 and Psi_0 as in
+        Plant, x0, noise; its one stage weight as in
         [`closed_loop`][packetloss_cvx.closedloop.moments.closed_loop].
     gains : array_like, shape (m, n) or (steps, m, n)
         One gain for every step, or a time-varying law.
@@ -294,5 +296,4 @@ def finite_horizon_costs(system: System, gains: npt.ArrayLike, steps: int,
     A, B, _, _ = check_law(system.A, system.B, K_all[0], mu_all[0])
     if not (np.all(np.isfinite(K_all)) and np.all((mu_all >= 0) & (mu_all <= 1))):
         raise InputError("gains", "expected finite gains and probabilities in [0, 1]")
-    return mode_stage_costs(A, B, system.state_weights[0], system.input_weights[0], system.noise_cov, system.x0,
-                            K_all, mu_all)
+    return mode_stage_costs(A, B, *loop_weights(system), system.noise_cov, system.x0, K_all, mu_all)

@@ -24,8 +24,8 @@ The map's algebra (R as a sum of squares, the Collatz–Wielandt bound of a cert
 reaches, the balancing of a graded eigenvector) is simulation.riccati_map's, over M-mode channels: Bernoulli losses
 are its one-mode chain, and simulation.chain_radius iterates the same map behind Gilbert–Elliott chains. The
 iteration here is its own (batched over channels, a Kronecker policy iteration): the chain's, run on one-mode chains,
-agrees on the least radius within 9.1e-10 (graded Jordan chains; 3.7e-15 on two_actuator) and takes 5.1x the time
-(benchmarks/region_engine.py --one-mode).
+agrees on the least radius within 9.1e-10 (graded Jordan chains; 3.7e-15 on two_actuator) and takes several times
+the time (docs/performance.md, "The stabilisable-set iteration at one mode": where that time goes).
 
 The "dp" form can only prove "stable" (its gain's radius below ``1 - MEAN_SQUARE_MARGIN``). When the "riccati"
 form ran before it and proved "unstable", or undecided but its P bounds every law's radius at

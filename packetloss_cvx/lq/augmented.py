@@ -198,8 +198,8 @@ def augmented_size(system: System, chains: tuple | None = None) -> int:
 
 def check_recursion_budget(system: System, size: int, instead: str) -> None:
     """Refuse, before any work, an augmented recursion beyond the ``markov_recursion_work`` budget
-    (`markov_recursion_work`), naming the channel, the estimated time and
-    ``instead`` (what to use in its place). O(1).
+    (`markov_recursion_work`, an upper bound: every step priced in full, though a stable chain's pass closes its
+    settled tail sooner), naming the channel, the most time it takes and ``instead`` (what to use in its place). O(1).
 
     Raises
     ------
@@ -210,8 +210,8 @@ def check_recursion_budget(system: System, size: int, instead: str) -> None:
     work = markov_recursion_work(N, size)
     seconds = estimated_seconds("markov_recursion_work", work)
     check("markov_recursion_work", work, "channel",
-          f"the exact Markov recursion over N = {N} steps on an augmented state of size D = {size} (about "
-          f"{duration_text(seconds)}; {instead})")
+          f"the exact Markov recursion over N = {N} steps on an augmented state of size D = {size} (at most about "
+          f"{duration_text(seconds)}, every step priced in full: a stable chain's settled tail ends sooner; {instead})")
 
 
 def _dynamics(system: System, lift: ChainLift) -> np.ndarray:
@@ -429,13 +429,13 @@ def _blocked(system: System) -> bool:
 
 
 def _mean_blocks(system: System, U: np.ndarray) -> np.ndarray:
-    """The mean states x_1..x_N (N, P, n, 1) of plans U (P, N, m) from x0 by `_forward_blocks` (``x+ = A x + B M_t
-    u_t``) in spans (`_span`). O(N P n (n + m))."""
-    N, P = system.horizon, U.shape[0]
-    moved = ((U.transpose(1, 0, 2) * system.mu_schedule[:, None, :]) @ system.B.T)[..., None]    # (N, P, n, 1)
+    """The mean states x_1..x_N (N, points, n, 1) of plans U (points, N, m) from x0 by `_forward_blocks`
+    (``x+ = A x + B M_t u_t``) in spans (`_span`). O(N points n (n + m))."""
+    N, points = system.horizon, U.shape[0]
+    moved = ((U.transpose(1, 0, 2) * system.mu_schedule[:, None, :]) @ system.B.T)[..., None]    # (N, points, n, 1)
     out = np.empty_like(moved)
-    start = np.repeat(system.x0[None, :, None], P, axis=0)
-    span = _span(P, system.n)
+    start = np.repeat(system.x0[None, :, None], points, axis=0)
+    span = _span(points, system.n)
     for a in range(0, N, span):
         out[a:a + span] = _forward_blocks(system.A, np.ones((1, 1)), start, moved[a:a + span])
         start = out[min(N, a + span) - 1]
@@ -443,13 +443,13 @@ def _mean_blocks(system: System, U: np.ndarray) -> np.ndarray:
 
 
 def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None) -> np.ndarray:
-    """The exact UDP-like expected cost of plans ``inputs`` (P, N, m) under the system's chains, by the
+    """The exact UDP-like expected cost of plans ``inputs`` (points, N, m) under the system's chains, by the
     forward pass of the mean state, the correlations eta and the error covariance Sigma (module docstring):
 
         x'Q x + sum_t mu_t psi_t u_t^2 + xhat_{t+1}'Omega_{t+1} xhat_{t+1} + tr(Omega_{t+1} Sigma_{t+1}),
 
     every term nonnegative (Sigma is a covariance): the referee of `augmented_solve`. Without a chain
-    it is the paper's J_udp. Returns (P,). Time O(P N n^2 (n + m + sum_i (k_i - 1))), memory O(P n^2).
+    it is the paper's J_udp. Returns (points,). Time O(points N n^2 (n + m + sum_i (k_i - 1))), memory O(points n^2).
 
     Examples
     --------
@@ -463,7 +463,7 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     lift = chain_lift(system) if lift is None else lift
     A, B, W, N, n, m = system.A, system.B, system.state_weights, system.horizon, system.n, system.m
     U = np.asarray(inputs, dtype=float)
-    P = U.shape[0]
+    points = U.shape[0]
     mu = system.mu_schedule
     x = system.x0
     chained = [i for i in range(m) if lift.Lam[i].size]
@@ -472,12 +472,12 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
     structure = structure_of(system)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # the mean state's part, sum mu psi u^2 + xhat'Omega xhat: the package's one forward kernel
-        X = mean_states(structure, mu[None], U, np.repeat(x[None], P, axis=0))
+        X = mean_states(structure, mu[None], U, np.repeat(x[None], points, axis=0))
         total = forward_cost(structure, mu[None], U, X, system.input_weights, float(x @ system.initial_weight @ x))
-        var_u2 = mu * (1.0 - mu) * U * U                      # (P, N, m)
-        eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
-        Sig = np.zeros((P, n, n))
-        Y = np.zeros((P, n, m))                               # column i: E[e_t delta_{t,i}] u_{t,i}
+        var_u2 = mu * (1.0 - mu) * U * U                      # (points, N, m)
+        eta = {i: np.zeros((points, n, lift.Lam[i].shape[0])) for i in chained}
+        Sig = np.zeros((points, n, n))
+        Y = np.zeros((points, n, m))                               # column i: E[e_t delta_{t,i}] u_{t,i}
         end = _plan_end(U)
         for t in range(end):
             u = U[:, t]
@@ -500,44 +500,44 @@ def chain_cost(system: System, inputs: np.ndarray, lift: ChainLift | None = None
 CHAIN_SPAN_ENTRIES = 2**20
 
 
-def _span(P: int, width: int) -> int:
-    """The steps of one span: CHAIN_SPAN_ENTRIES over ``P width`` entries a step, at least STATIONARY_RUN. O(1)."""
-    return max(STATIONARY_RUN, CHAIN_SPAN_ENTRIES // max(1, P * width))
+def _span(points: int, width: int) -> int:
+    """The steps of one span: CHAIN_SPAN_ENTRIES over ``points width`` entries a step, at least STATIONARY_RUN. O(1)."""
+    return max(STATIONARY_RUN, CHAIN_SPAN_ENTRIES // max(1, points * width))
 
 
 def _blocked_chain_cost(system: System, lift: ChainLift, U: np.ndarray, chained: list[int]) -> np.ndarray:
     """`chain_cost` where A is stable (rho(A) < 1) and the state weight is one weight: the same forward recursions
     of the mean state, the correlations eta and the error covariance Sigma, each of them ``X+ = L X R + C_t`` with
-    constant L and R, run over the steps up to the plan's end (`_plan_end`) by `_forward_blocks` (about 2 sqrt(T)
-    stacked steps instead of T, in spans of CHAIN_SPAN_ENTRIES), every stage term still computed and nonnegative;
+    constant L and R, run over the steps up to the plan's end (`_plan_end`) by `_forward_blocks` (about 2 sqrt(end)
+    stacked steps instead of end, in spans of CHAIN_SPAN_ENTRIES), every stage term still computed and nonnegative;
     after the plan's end the second moment ``xhat xhat' + Sigma`` is free (``Pi+ = A Pi A' + Sigma_W``) and its
     remaining stage terms are the Stein sums of `_free_sums`. Agrees with the step-by-step pass to rounding (the
     powers of a stable A): within 1.9e-13 relative on benchmarks/markov_tail.py's examples, each of the two within
-    1.0e-13 of an 80-bit loop. Time O(T P n^2 (n + sum_i q_i) + N P n^2 + sqrt(N) n^3 + n^3 log(N - T)) for a plan
-    ending at T (the mean states over all N, as `mean_state_bound` bounds them); memory O(N P n) for the mean states
-    and O(CHAIN_SPAN_ENTRIES) for the rest."""
+    1.0e-13 of an 80-bit loop. Time O(end points n^2 (n + sum_i q_i) + N points n^2 + sqrt(N) n^3 + n^3 log(N - end))
+    for a plan ending at step ``end`` (the mean states over all N, as `mean_state_bound` bounds them); memory
+    O(N points n) for the mean states and O(CHAIN_SPAN_ENTRIES) for the rest."""
     A, B, N, n, m = system.A, system.B, system.horizon, system.n, system.m
     W = system.state_weights[0]
-    P = U.shape[0]
+    points = U.shape[0]
     mu = system.mu_schedule
     x = system.x0
     end = _plan_end(U)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        total = np.full(P, float(x @ system.initial_weight @ x))
-        last = np.repeat(x[None], P, axis=0)                          # x_end (P, n)
-        Sig = np.zeros((P, n, n))
+        total = np.full(points, float(x @ system.initial_weight @ x))
+        last = np.repeat(x[None], points, axis=0)                          # x_end (points, n)
+        Sig = np.zeros((points, n, n))
         if end:
-            states = _mean_blocks(system, U)[:end, :, :, 0]            # x_1 .. x_end (T, P, n)
-            u = U[:, :end].transpose(1, 0, 2)                         # (T, P, m)
+            states = _mean_blocks(system, U)[:end, :, :, 0]            # x_1 .. x_end (end, points, n)
+            u = U[:, :end].transpose(1, 0, 2)                         # (end, points, m)
             total += np.einsum("tpk,tpk->p", (mu[:end, None, :] * u), system.input_weights[:end, None, :] * u)
             total += np.einsum("tpj,jk,tpk->p", states, W, states)
             last = states[-1]
-            eta = {i: np.zeros((P, n, lift.Lam[i].shape[0])) for i in chained}
-            var = (mu * (1.0 - mu))[:end, None, :] * u * u                # (T, P, m)
-            span = _span(P, n * (n + m + lift.size // n))
+            eta = {i: np.zeros((points, n, lift.Lam[i].shape[0])) for i in chained}
+            var = (mu * (1.0 - mu))[:end, None, :] * u * u                # (end, points, m)
+            span = _span(points, n * (n + m + lift.size // n))
             for a in range(0, end, span):
                 b = min(end, a + span)
-                Y = np.zeros((b - a, P, n, m))                        # column i: E[e_t delta_{t,i}] u_{t,i}
+                Y = np.zeros((b - a, points, n, m))                        # column i: E[e_t delta_{t,i}] u_{t,i}
                 for i in chained:
                     ui = u[a:b, :, i, None, None]
                     drive = B[None, None, :, i, None] * (ui * lift.gamma[i][a:b, None, None, :])
@@ -555,19 +555,19 @@ def _blocked_chain_cost(system: System, lift: ChainLift, U: np.ndarray, chained:
 
 
 def _forward_blocks(L: np.ndarray, R: np.ndarray, X0: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """``X_{k+1} = L X_k R + C_k`` for k = 0..T-1 from X0 (P, a, b), C (T, P, a, b): returns X_1..X_T (T, P, a, b).
-    In blocks of c = ceil(sqrt(T)) steps: the particular solutions of every block at once (c stacked steps, each as
-    the step-by-step pass takes it), the block starts one after another (T / c steps by the c-th powers), then every
-    state as ``L^j X_start R^j`` plus its block's particular solution. For a stable map (the powers do not grow)
-    this agrees with the step-by-step pass to rounding. O(T P a b (a + b) + sqrt(T) (a^3 + b^3)), about 2 sqrt(T)
-    stacked steps."""
-    T, P, a, b = C.shape
-    c = max(1, math.isqrt(T - 1) + 1) if T else 1
-    blocks = -(-T // c)
-    S = blocks * P                                            # the blocks' states side by side: a×(S b) products
-    Cb = np.zeros((blocks * c, P, a, b))
-    Cb[:T] = C
-    Cb = Cb.reshape(blocks, c, P, a, b).transpose(1, 3, 0, 2, 4).reshape(c, a, S * b)
+    """``X_{k+1} = L X_k R + C_k`` for k = 0..steps-1 from X0 (points, a, b), C (steps, points, a, b): returns
+    X_1..X_steps (steps, points, a, b). In blocks of c = ceil(sqrt(steps)) steps: the particular solutions of every
+    block at once (c stacked steps, each as the step-by-step pass takes it), the block starts one after another
+    (steps / c steps by the c-th powers), then every state as ``L^j X_start R^j`` plus its block's particular
+    solution. For a stable map (the powers do not grow) this agrees with the step-by-step pass to rounding.
+    O(steps points a b (a + b) + sqrt(steps) (a^3 + b^3)), about 2 sqrt(steps) stacked steps."""
+    steps, points, a, b = C.shape
+    c = max(1, math.isqrt(steps - 1) + 1) if steps else 1
+    blocks = -(-steps // c)
+    S = blocks * points                                            # the blocks' states side by side: a×(S b) products
+    Cb = np.zeros((blocks * c, points, a, b))
+    Cb[:steps] = C
+    Cb = Cb.reshape(blocks, c, points, a, b).transpose(1, 3, 0, 2, 4).reshape(c, a, S * b)
     Ys = np.empty((c, a, S * b))                              # Ys[j]: the particular solutions j + 1 steps in
     y = np.zeros((a, S * b))
     Lp, Rp = np.empty((c, a, a)), np.empty((c, b, b))           # L^(j + 1), R^(j + 1)
@@ -577,22 +577,22 @@ def _forward_blocks(L: np.ndarray, R: np.ndarray, X0: np.ndarray, C: np.ndarray)
         Ys[j] = y
         Lp[j], Rp[j] = Lk, Rk
         Lk, Rk = L @ Lk, Rk @ R
-    last = Ys[-1].reshape(a, blocks, P, b)
-    starts = np.empty((a, blocks, P, b))
+    last = Ys[-1].reshape(a, blocks, points, b)
+    starts = np.empty((a, blocks, points, b))
     start = X0
     for k in range(blocks):
         starts[:, k] = start.transpose(1, 0, 2)
         start = Lp[-1] @ start @ Rp[-1] + last[:, k].transpose(1, 0, 2)
     out = ((Lp.reshape(c * a, a) @ starts.reshape(a, S * b)).reshape(c, a * S, b) @ Rp).reshape(c, a, S * b) + Ys
-    return out.reshape(c, a, blocks, P, b).transpose(2, 0, 3, 1, 4).reshape(blocks * c, P, a, b)[:T]
+    return out.reshape(c, a, blocks, points, b).transpose(2, 0, 3, 1, 4).reshape(blocks * c, points, a, b)[:steps]
 
 
 def _free_sums(A: np.ndarray, W: np.ndarray, noise_cov: np.ndarray, Pi: np.ndarray, L: int) -> np.ndarray:
     """``sum_{k=1}^{L} tr(W Pi_k)`` for the free second moment ``Pi_{k+1} = A Pi_k A' + Sigma_W`` from Pi_0 = ``Pi``
-    (P, n, n): ``tr(A'S_L A Pi) + tr(T_L Sigma_W)`` with the Stein sums ``S_L = sum_{j<L} E_j`` and ``T_L = sum_{j<L}
-    (L - j) E_j`` of ``E_j = A'^j W A^j``, by doubling over the binary digits of L (``S_{k+l} = S_k + A'^k S_l A^k``,
-    ``T_{k+l} = T_k + l S_k + A'^k T_l A^k``): sums of positive semidefinite terms with nonnegative coefficients, no
-    cancellation. O(n^3 log L). Returns (P,)."""
+    (points, n, n): ``tr(A'S_L A Pi) + tr(T_L Sigma_W)`` with the Stein sums ``S_L = sum_{j<L} E_j`` and
+    ``T_L = sum_{j<L} (L - j) E_j`` of ``E_j = A'^j W A^j``, by doubling over the binary digits of L
+    (``S_{k+l} = S_k + A'^k S_l A^k``, ``T_{k+l} = T_k + l S_k + A'^k T_l A^k``): sums of positive semidefinite terms
+    with nonnegative coefficients, no cancellation. O(n^3 log L). Returns (points,)."""
     n = A.shape[0]
     power, S, Tsum, k = A, W, W, 1                           # the block of k = 2^i steps: A^k, S_k, T_k
     accA, accS, accT, acc = np.eye(n), np.zeros((n, n)), np.zeros((n, n)), 0
@@ -612,8 +612,8 @@ def _free_sums(A: np.ndarray, W: np.ndarray, noise_cov: np.ndarray, Pi: np.ndarr
 
 
 def _plan_end(U: np.ndarray) -> int:
-    """One past the last step at which some plan of ``U`` (P, N, m) has a nonzero input (0 for all-zero plans): from
-    there on the correlations no longer enter the error covariance. O(P N m)."""
+    """One past the last step at which some plan of ``U`` (points, N, m) has a nonzero input (0 for all-zero plans):
+    from there on the correlations no longer enter the error covariance. O(points N m)."""
     moving = np.flatnonzero(np.any(U != 0.0, axis=(0, 2)))
     return int(moving[-1]) + 1 if moving.size else 0
 
@@ -621,9 +621,9 @@ def _plan_end(U: np.ndarray) -> int:
 def _free_tail(system: System, Sig: np.ndarray, start: int) -> np.ndarray:
     """``sum_{t >= start} tr(Omega_{t+1} Sigma_{t+1})`` once every plan has ended (`_plan_end`): the cross
     terms and the loss variance of the input are exact zeros, so the error covariance is the free Lyapunov recursion
-    ``Sigma+ = A Sigma A' + Sigma_W`` from ``Sig`` (P, n, n) = Sigma_start, the same floats as `chain_cost`'s
+    ``Sigma+ = A Sigma A' + Sigma_W`` from ``Sig`` (points, n, n) = Sigma_start, the same floats as `chain_cost`'s
     full step, step by step (an unstable A or a time-varying weight: a stable A with one weight takes
-    `_blocked_chain_cost`'s Stein sums). O((N - start) n^3). Returns (P,)."""
+    `_blocked_chain_cost`'s Stein sums). O((N - start) n^3). Returns (points,)."""
     A, W, N, noise_cov = system.A, system.state_weights, system.horizon, system.noise_cov
     total = np.zeros(Sig.shape[0])
     for t in range(start, N):

@@ -24,13 +24,13 @@ def hessian_factor(pred: Prediction, protocol: str, v: np.ndarray | None = None,
 
     .. math:: G = \\Omega_g \\bar V + \\Psi\\ [+\\ \\Omega_d (I - \\bar V)]
 
-    ``v``: the stacked delivery probabilities, (N m,) or a batch (P, N m) (default: the prediction's Vbar);
-    the result is (N m, N m) or (P, N m, N m). ``rows``: a boolean mask of the entries to keep, for the
+    ``v``: the stacked delivery probabilities, (N m,) or a batch (points, N m) (default: the prediction's Vbar);
+    the result is (N m, N m) or (points, N m, N m). ``rows``: a boolean mask of the entries to keep, for the
     principal block G[rows, rows] alone (one point; the line's fixed channels; or the ascending indices of
     those entries); ``block``: Omega_g[rows, rows]
     where the caller keeps it (the line's, per channel: the fancy index costs more than the product). The one
     dense form of the Hessian (closed_form, the evaluator's batches, its pointwise and line paths, the cost difference).
-    O(P (N m)^2).
+    O(points (N m)^2).
 
     Examples
     --------
@@ -81,7 +81,7 @@ def loss_variance_term(pred: Prediction, u: np.ndarray) -> float:
 
 def dense_constant(system: System, pred: Prediction, x: np.ndarray) -> float | np.ndarray:
     """C = x'(Q + Omega_p)x + tr(Omega_l Sigma_W): the part of the dense cost no plan changes (eq:opt-lqg-simplest),
-    for one state x (n,) (a float) or a batch (P, n) (an array (P,)). O(n^2) a point once Omega_p is built.
+    for one state x (n,) (a float) or a batch (points, n) (an array (points,)). O(n^2) a point once Omega_p is built.
 
     Examples
     --------

@@ -82,10 +82,10 @@ def cost_difference(system: System, mu=None, pred: Prediction | None = None) -> 
 
 
 def cost_differences(system: System, V: np.ndarray, pred: Prediction | None = None) -> np.ndarray:
-    """J_Delta at each row of ``V`` (P, N m), stacked delivery probabilities in [0, 1] (unchecked): eq:cost-diff-def
-    in the batched form of [`cost_difference`][packetloss_cvx.lq.difference.cost_difference] (a point is a batch of one,
-    the same bits), ``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g`` with two stacked LU solves per chunk of about
-    ``CHUNK_BYTES``. O(P (N m)^3) time, O(CHUNK_BYTES) memory.
+    """J_Delta at each row of ``V`` (points, N m), stacked delivery probabilities in [0, 1] (unchecked):
+    eq:cost-diff-def in the batched form of [`cost_difference`][packetloss_cvx.lq.difference.cost_difference] (a
+    point is a batch of one, the same bits), ``g' Vbar G_tcp^{-1} Omega_d (I - Vbar) G_udp^{-1} g`` with two stacked
+    LU solves per chunk of about ``CHUNK_BYTES``. O(points (N m)^3) time, O(CHUNK_BYTES) memory.
 
     Examples
     --------
@@ -96,10 +96,10 @@ def cost_differences(system: System, V: np.ndarray, pred: Prediction | None = No
     """
     pred = prediction(system) if pred is None else pred
     g = pred.Omega_gp @ system.x0
-    P, k = V.shape
-    out = np.empty(P)
+    points, k = V.shape
+    out = np.empty(points)
     chunk = max(1, CHUNK_BYTES // (8 * k * k))
-    for start in range(0, P, chunk):
+    for start in range(0, points, chunk):
         v = V[start:start + chunk]
         a = np.linalg.solve(hessian_factor(pred, "udp", v), np.broadcast_to(g, v.shape)[..., None])[..., 0]
         b = np.linalg.solve(hessian_factor(pred, "tcp", v).transpose(0, 2, 1), (v * g)[..., None])[..., 0]

@@ -3,8 +3,8 @@
 For a fixed system (A, B, weights, horizon, x0, noise) and protocol,
 [`CostEvaluator`][packetloss_cvx.lq.evaluator.CostEvaluator]
 evaluates the optimal expected cost of Theorem 1 (eq:TCP-opt-cost, eq:UDP-opt-cost, corrected:
-``C - x'Omega_gp' Vbar G^{-1} Omega_gp x``) for a batch of P channels, stationary ``(P, m)`` or
-scheduled ``(P, N, m)``, with no Python loop over the points: stacked small matrices go through
+``C - x'Omega_gp' Vbar G^{-1} Omega_gp x``) for a batch of channels, stationary ``(points, m)`` or
+scheduled ``(points, N, m)``, with no Python loop over the points: stacked small matrices go through
 ``np.matmul`` and ``np.linalg.solve``.
 
 It allows the paths [`closed_form`][packetloss_cvx.lq.costs.closed_form] allows with ``method="auto"``, a
@@ -54,7 +54,7 @@ __all__ = ["CHUNK_BYTES", "CostEvaluator"]
 #: recursion about this many bytes of gains, inputs and states.
 CHUNK_BYTES = 2**25
 #: The forward cost multiplies the mean states by blkdiag(Omega_1..Omega_N) as one matrix up to
-#: N n = this (a (P, N n) by (N n)×(N n) product is faster than N small ones), else block by block.
+#: N n = this (a (points, N n) by (N n)×(N n) product is faster than N small ones), else block by block.
 OMEGA_BLOCKS_MAX = 64
 
 
@@ -129,7 +129,7 @@ class CostEvaluator:
 
     # ------------------------------------------------------------------ inputs
     def _schedules(self, mus: npt.ArrayLike) -> np.ndarray:
-        """(P, N, m) schedules from (P, m) or (P, N, m); ProbabilityError / DimensionError."""
+        """(points, N, m) schedules from (points, m) or (points, N, m); ProbabilityError / DimensionError."""
         s = self.system
         if (isinstance(mus, np.ndarray) and mus.dtype == np.float64 and 0 < mus.size <= MAX_ENTRIES
                 and mus.shape[1:] in ((s.m,), (s.horizon, s.m)) and 0.0 <= mus.min() and mus.max() <= 1.0):
@@ -139,22 +139,23 @@ class CostEvaluator:
         if arr.ndim == 2 and arr.shape[1] == s.m:
             arr = np.broadcast_to(arr[:, None, :], (arr.shape[0], s.horizon, s.m))
         elif arr.ndim != 3 or arr.shape[1:] != (s.horizon, s.m):
-            raise DimensionError("mu", f"expected shape (P, {s.m}) or (P, {s.horizon}, {s.m}), found {arr.shape}")
+            raise DimensionError("mu", f"expected shape (points, {s.m}) or (points, {s.horizon}, {s.m}), "
+                                       f"found {arr.shape}")
         if np.any(arr < 0.0) or np.any(arr > 1.0):
             bad = arr[(arr < 0.0) | (arr > 1.0)].flat[0]
             raise ProbabilityError("mu", f"expected probabilities in [0, 1], found {bad}")
         return arr
 
-    def _initial_states(self, x0: npt.ArrayLike | None, P: int) -> np.ndarray:
-        """(P, n) initial states: the system's, one shared (n,), or one per point (P, n)."""
+    def _initial_states(self, x0: npt.ArrayLike | None, points: int) -> np.ndarray:
+        """(points, n) initial states: the system's, one shared (n,), or one per point (points, n)."""
         n = self.system.n
         if x0 is None:
-            return np.broadcast_to(self.system.x0, (P, n))
+            return np.broadcast_to(self.system.x0, (points, n))
         arr = numeric_array(x0, "x0")
         if arr.shape == (n,):
-            return np.broadcast_to(arr, (P, n))
-        if arr.shape != (P, n):
-            raise DimensionError("x0", f"expected shape ({n},) or ({P}, {n}), found {arr.shape}")
+            return np.broadcast_to(arr, (points, n))
+        if arr.shape != (points, n):
+            raise DimensionError("x0", f"expected shape ({n},) or ({points}, {n}), found {arr.shape}")
         return arr
 
     # ------------------------------------------------------------------ public
@@ -221,13 +222,13 @@ class CostEvaluator:
 
     @blas_limited
     def costs(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> np.ndarray:
-        """J*(mu) for each of P channels, shape (P,). ``x0``: (n,) or (P, n) to override the
+        """J*(mu) for each channel of the batch, shape (points,). ``x0``: (n,) or (points, n) to override the
         system's initial state (the costs are quadratic in it). See the class notes for time."""
         return self._run(mus, x0, gains=False)[0]
 
     @blas_limited
     def solve(self, mus: npt.ArrayLike, x0: npt.ArrayLike | None = None) -> BatchSolution:
-        """Costs (P,), optimal inputs U* (P, N, m) and the first step's gains K (P, m, n).
+        """Costs (points,), optimal inputs U* (points, N, m) and the first step's gains K (points, m, n).
 
         The gains cost n more right-hand sides per dense solve; the recursion has them anyway.
         """
@@ -259,30 +260,30 @@ class CostEvaluator:
     # ------------------------------------------------------------------ paths
     def _run(self, mus, x0, gains: bool):
         mu = self._schedules(mus)
-        P = mu.shape[0]
-        x = self._initial_states(x0, P)
+        points = mu.shape[0]
+        x = self._initial_states(x0, points)
         base = self._base if x0 is None else None       # x0'Q x0 + noise of the forward costs
         s = self.system
-        costs = np.empty(P)
-        inputs = np.empty((P, s.horizon, s.m))
-        K0 = np.empty((P, s.m, s.n)) if gains else None
+        costs = np.empty(points)
+        inputs = np.empty((points, s.horizon, s.m))
+        K0 = np.empty((points, s.m, s.n)) if gains else None
         method = self.method
-        todo = np.arange(P)
-        if self.method == "dense" and self.requested == "auto" and not self._dense_is_faster(P):
+        todo = np.arange(points)
+        if self.method == "dense" and self.requested == "auto" and not self._dense_is_faster(points):
             method = "recursion"
-        if self.method == "dense" and P and (self.requested == "dense" or self._dense_is_faster(P)):
+        if self.method == "dense" and points and (self.requested == "dense" or self._dense_is_faster(points)):
             k = s.horizon * s.m
             chunk = max(1, CHUNK_BYTES // (8 * k * k))
             failed = []
-            for start in range(0, P, chunk):
-                idx = np.arange(start, min(P, start + chunk))
+            for start in range(0, points, chunk):
+                idx = np.arange(start, min(points, start + chunk))
                 ok = self._dense(mu[idx], x[idx], idx, costs, inputs, K0, base)
                 failed.append(idx[~ok])
             todo = np.concatenate(failed)
             if todo.size:
                 if self.requested == "dense":
                     raise NumericalError(
-                        f"method 'dense': {todo.size} of {P} points failed the dense solve's residual or the "
+                        f"method 'dense': {todo.size} of {points} points failed the dense solve's residual or the "
                         f"self-check against the forward cost of their plans ({weight_spread(s)}); "
                         "use method='recursion'")
                 method = "mixed"
@@ -293,18 +294,18 @@ class CostEvaluator:
             self._recursion(mu[part], x[part], part, costs, inputs, K0, base)
         return costs, inputs, K0, method
 
-    def _dense_is_faster(self, P: int) -> bool:
-        """Whether P dense solves beat one batched recursion, by a cost model fitted on this machine
-        (docs/performance.md, "Batched evaluation"): dense 1.2e-4 + P (5e-6 + 9e-11 (N m)^3) s,
-        recursion N (3e-5 + 1e-6 P) s. Both paths are exact; this only picks the faster. O(1)."""
+    def _dense_is_faster(self, points: int) -> bool:
+        """Whether ``points`` dense solves beat one batched recursion, by a cost model fitted on this machine
+        (docs/performance.md, "Batched evaluation"): dense 1.2e-4 + points (5e-6 + 9e-11 (N m)^3) s,
+        recursion N (3e-5 + 1e-6 points) s. Both paths are exact; this only picks the faster. O(1)."""
         N, k = self.system.horizon, self.system.horizon * self.system.m
-        return 1.2e-4 + P * (5e-6 + 9e-11 * k**3) <= N * (3e-5 + 1e-6 * P)
+        return 1.2e-4 + points * (5e-6 + 9e-11 * k**3) <= N * (3e-5 + 1e-6 * points)
 
     def _forward(self, mu: np.ndarray, x: np.ndarray, U: np.ndarray, X: np.ndarray,
                  weight: np.ndarray | None = None, base: np.ndarray | float | None = None) -> np.ndarray:
-        """The referee (`forward_cost`) of plans U (P, N, m) whose mean states
-        X (P, N, n) are x_1..x_N; ``weight``: `input_weight` if the caller has
-        it; ``base``: x0'Q x0 + noise, if known. O(P N (n^2 + m)), O(P (N n)^2) up to OMEGA_BLOCKS_MAX."""
+        """The referee (`forward_cost`) of plans U (points, N, m) whose mean states
+        X (points, N, n) are x_1..x_N; ``weight``: `input_weight` if the caller has
+        it; ``base``: x0'Q x0 + noise, if known. O(points N (n^2 + m)), O(points (N n)^2) up to OMEGA_BLOCKS_MAX."""
         s = self.system
         if weight is None:
             weight = input_weight(s, self.protocol, mu, self._d)
@@ -317,35 +318,36 @@ class CostEvaluator:
         """Theorem 1's dense law for a chunk; returns which points passed their checks."""
         s, pred = self.system, self._pred
         N, n, m = s.horizon, s.n, s.m
-        P = mu.shape[0]
-        v = mu.reshape(P, N * m)
+        points = mu.shape[0]
+        v = mu.reshape(points, N * m)
         G = hessian_factor(pred, self.protocol, v)
         diag = hessian_diagonal(pred, self.protocol, v)
-        g = x @ pred.Omega_gp.T                                          # (P, N m)
-        rhs = np.broadcast_to(pred.Omega_gp, (P, N * m, n)) if K0 is not None else g[:, :, None]
-        ok = np.ones(P, dtype=bool)
+        g = x @ pred.Omega_gp.T                                          # (points, N m)
+        rhs = np.broadcast_to(pred.Omega_gp, (points, N * m, n)) if K0 is not None else g[:, :, None]
+        ok = np.ones(points, dtype=bool)
         with np.errstate(all="ignore"):
             try:
                 F = np.linalg.solve(G, rhs)
             except np.linalg.LinAlgError:
-                return np.zeros(P, dtype=bool)
-            # G F = Omega_g (v F) + diag F: one (P r)×k by k×k product, not P stacked ones; and
+                return np.zeros(points, dtype=bool)
+            # G F = Omega_g (v F) + diag F: one (points r)×k by k×k product, not points stacked ones; and
             # ||G||_F^2 = sum_j v_j^2 |Omega_g e_j|^2 + 2 v_j Omega_g,jj diag_j + diag_j^2 (no cancellation:
             # every term >= 0), O(N m) a point instead of O((N m)^2)
             r = F.shape[2]
-            OgVF = ((v[:, :, None] * F).transpose(0, 2, 1).reshape(P * r, N * m) @ pred.Omega_g.T)
-            GF = OgVF.reshape(P, r, N * m).transpose(0, 2, 1) + np.reshape(diag, (-1, N * m))[:, :, None] * F
-            res = np.linalg.norm((GF - rhs).reshape(P, -1), axis=1)
+            OgVF = ((v[:, :, None] * F).transpose(0, 2, 1).reshape(points * r, N * m) @ pred.Omega_g.T)
+            GF = OgVF.reshape(points, r, N * m).transpose(0, 2, 1) + np.reshape(diag, (-1, N * m))[:, :, None] * F
+            res = np.linalg.norm((GF - rhs).reshape(points, -1), axis=1)
             Og = pred.Omega_g
             G_norm = np.sqrt(np.sum(v * v * np.sum(Og * Og, axis=0) + (2.0 * v * np.diag(Og) + diag) * diag, axis=1))
-            scale = G_norm * np.linalg.norm(F.reshape(P, -1), axis=1) + np.linalg.norm(rhs.reshape(P, -1), axis=1)
-            ok &= np.all(np.isfinite(F.reshape(P, -1)), axis=1) & np.isfinite(res)
+            scale = (G_norm * np.linalg.norm(F.reshape(points, -1), axis=1)
+                     + np.linalg.norm(rhs.reshape(points, -1), axis=1))
+            ok &= np.all(np.isfinite(F.reshape(points, -1)), axis=1) & np.isfinite(res)
             ok &= res <= DENSE_RESIDUAL_RTOL * scale
             u = -np.einsum("pkj,pj->pk", F, x) if K0 is not None else -F[:, :, 0]
             const = dense_constant(s, pred, x)
             closed = const + np.einsum("pk,pk->p", g, v * u)
-            X = (x @ pred.Phi.T + (v * u) @ pred.Gamma.T).reshape(P, N, n)
-            U = u.reshape(P, N, m)
+            X = (x @ pred.Phi.T + (v * u) @ pred.Gamma.T).reshape(points, N, n)
+            U = u.reshape(points, N, m)
             forward = self._forward(mu, x, U, X, base=base)
         ok &= self_check(s, self.protocol, closed, forward, "dense", raise_=False)
         costs[idx[ok]] = closed[ok]
@@ -357,10 +359,10 @@ class CostEvaluator:
     def _recursion(self, mu, x, idx, costs, inputs, K0, base=None) -> None:
         """The backward Riccati recursion (recursion.backward_pass) over a batch, then the rollout."""
         s = self.system
-        P = mu.shape[0]
+        points = mu.shape[0]
         if self.protocol == "udp" and not self._d_finite and not np.all(np.isfinite(self._d[np.any(mu < 1.0, axis=0)])):
             raise overflow_error("diag(Omega_g)", self.protocol)
-        added = input_weight(s, self.protocol, mu, self._d)                   # (P, N, m)
+        added = input_weight(s, self.protocol, mu, self._d)                   # (points, N, m)
         K, Pm = backward_batch(self.structure, self.protocol, mu, added)
         if not np.isfinite(self._noise):
             raise overflow_error("the cost-to-go matrix", self.protocol)
@@ -370,7 +372,7 @@ class CostEvaluator:
             closed = np.einsum("pj,pj->p", np.matmul(x[:, None, :], s.initial_weight + Pm)[:, 0, :], x) + self._noise
         U, X = rollout_batch(self.structure, mu, K, x)
         forward = self._forward(mu, x, U, X, added, base)
-        atol = np.zeros(P)
+        atol = np.zeros(points)
         rough = np.abs(closed - forward) > SELF_CHECK_RTOL * forward
         if np.any(rough):      # the rounding scale of x'P_0 x, only where the relative test alone fails
             atol[rough] = SELF_CHECK_ATOL * np.linalg.norm(Pm[rough], 2, axis=(1, 2)) * np.sum(x[rough] ** 2, axis=1)

@@ -89,13 +89,13 @@ def self_check(system: System, protocol: str, closed: np.ndarray | float, forwar
                atol: np.ndarray | float = 0.0, raise_: bool = True) -> np.ndarray | bool:
     """The self-check of every closed form: which points' ``closed`` costs are finite, nonnegative and within
     ``SELF_CHECK_RTOL`` (plus ``atol``, the rounding scale of x'P_0 x where a caller has it) of ``forward``, the
-    forward cost of their own plans (the referee: a sum of nonnegative terms, finite). Scalars or arrays (P,).
+    forward cost of their own plans (the referee: a sum of nonnegative terms, finite). Scalars or arrays (points,).
     With ``raise_`` (default) a point that fails raises NumericalError: beyond the double range, or naming the
     disagreement and the weights' spread (`weight_spread`) of ``system``; otherwise the boolean mask is
     returned (a bool for Python floats). ``closed`` (x'P_0 x, or C - g'Vbar G^-1 g) cancels and is right to about
     eps ||P_0|| ||x||^2, the forward cost to about eps sqrt(||P_0|| ||x||^2 J*), and the plan's own error enters
     it only at second order:
-    the forward cost is the one to report. O(P).
+    the forward cost is the one to report. O(points).
 
     Examples
     --------

@@ -164,7 +164,7 @@ def _structure(system: System) -> dict[str, np.ndarray]:
     powers = _powers(A, N)
     with np.errstate(over="ignore", invalid="ignore"):
         Phi = check_finite("Phi", np.vstack(powers[1:]))
-        Gamma = _block_toeplitz([P @ B for P in powers[:N]], N, system.n, system.m, "Gamma")
+        Gamma = _block_toeplitz([Ak @ B for Ak in powers[:N]], N, system.n, system.m, "Gamma")
         W = system.state_weights
         n = system.n
         # blkdiag(Omega_t) times a stacked matrix, block by block: O(N n^2) per column

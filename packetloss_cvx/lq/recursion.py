@@ -49,7 +49,8 @@ __all__ = [
     "stationary_close", "states_by_powers", "udp_variance_weights", "weight_head",
 ]
 
-#: From this many points on, each step's products are one (P k)×k by k×l product instead of P small ones.
+#: From this many points on, each step's products are one (points k)×k by k×l product instead of ``points`` small
+#: ones.
 FLAT_MIN = 64
 
 
@@ -116,7 +117,7 @@ def weight_head(system: System | Structure) -> np.ndarray:
 
 def _near(change: np.ndarray, size: np.ndarray) -> bool:
     """A necessary condition of `settled` with a contraction q >= 0.01 (whose geometric factor
-    q / (1 - q) is then at least 1/99): change <= 100 STATIONARY_RTOL size at every point. O(P)."""
+    q / (1 - q) is then at least 1/99): change <= 100 STATIONARY_RTOL size at every point. O(points)."""
     return bool((change <= 100.0 * STATIONARY_RTOL * size).all())
 
 
@@ -175,7 +176,7 @@ def overflow_error(name: str, protocol: str) -> NumericalError:
 def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,
                  Omega: np.ndarray | None = None, *, variance: bool = False,
                  least_squares: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """One backward step of Theorem 1's recursion for a batch of k points or for one point: the Hessian
+    """One backward step of Theorem 1's recursion for a batch of points or for one point: the Hessian
     factor, the gain and the previous cost-to-go (eq:control-laws).
 
     .. math:: G = B'PB M + \\mathrm{diag}(a)\\ [+\\ \\mathrm{diag}((1 - \\mu) \\mathrm{diag}(B'PB))],\\quad
@@ -191,15 +192,15 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
     simulation.region's modified Riccati map); a point whose Hessian is not finite gets K = nan. ``P_prev`` is the
     same expression, ``A'PA - (MB'PA)'K``.
 
-    Parameters: ``P`` (k, n, n) symmetric, ``mu`` and ``added`` (k, m), or one point: ``P`` (n, n), ``mu`` and
-    ``added`` (m,); ``Omega`` (n, n) or None. Returns ``(K, P_prev)``, (k, m, n) and (k, n, n) (one point: (m, n)
-    and (n, n)), P_prev symmetrised. Raises ``numpy.linalg.LinAlgError`` where a G is singular (callers name the
-    cause). The algebra is written once for both ranks (``@``-style products: ``np.dot`` on a point,
+    Parameters: ``P`` (points, n, n) symmetric, ``mu`` and ``added`` (points, m), or one point: ``P`` (n, n),
+    ``mu`` and ``added`` (m,); ``Omega`` (n, n) or None. Returns ``(K, P_prev)``, (points, m, n) and (points, n, n)
+    (one point: (m, n) and (n, n)), P_prev symmetrised. Raises ``numpy.linalg.LinAlgError`` where a G is singular
+    (callers name the cause). The algebra is written once for both ranks (``@``-style products: ``np.dot`` on a point,
     ``np.matmul`` on a stack; the last two axes transposed; mu broadcast as G's row). A batch of one is taken as
     the point: two-dimensional products and LAPACK's gesv without the stacked wrappers' overhead,
     the same BLAS calls in the same order as a point of a stack, so the same floats. From ``FLAT_MIN`` points on,
-    the products B'PB, B'PA, A'PA are one (k n)×n by n×m (n×n) product each (`_flat_products`).
-    Time O(k (n^3 + m^3)); a point's answer does not depend on the batch it is in below ``FLAT_MIN`` points.
+    the products B'PB, B'PA, A'PA are one (points n)×n by n×m (n×n) product each (`_flat_products`).
+    Time O(points (n^3 + m^3)); a point's answer does not depend on the batch it is in below ``FLAT_MIN`` points.
 
     Examples
     --------
@@ -245,14 +246,15 @@ def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, ad
 
 
 def _flat_products(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """B'PB, B'PA and A'PA of a stack P (k, n, n) as one (k n)×n by n×m (n×n) product each instead of k small
-    ones: [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]'s products for k >= FLAT_MIN. O(k n^2 (n + m))."""
-    k, n, m = P.shape[0], A.shape[0], B.shape[1]
-    PBT = (P.reshape(k * n, n) @ B).reshape(k, n, m).transpose(0, 2, 1).reshape(k * m, n)
-    BPB = (PBT @ B).reshape(k, m, m).transpose(0, 2, 1)
-    rhs = (PBT @ A).reshape(k, m, n)
-    APA = (P.reshape(k * n, n) @ A).reshape(k, n, n).transpose(0, 2, 1).reshape(k * n, n) @ A
-    return BPB, rhs, APA.reshape(k, n, n).transpose(0, 2, 1)                # A'(P A)
+    """B'PB, B'PA and A'PA of a stack P (points, n, n) as one (points n)×n by n×m (n×n) product each instead of
+    ``points`` small ones: [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step]'s products for points >=
+    FLAT_MIN. O(points n^2 (n + m))."""
+    points, n, m = P.shape[0], A.shape[0], B.shape[1]
+    PBT = (P.reshape(points * n, n) @ B).reshape(points, n, m).transpose(0, 2, 1).reshape(points * m, n)
+    BPB = (PBT @ B).reshape(points, m, m).transpose(0, 2, 1)
+    rhs = (PBT @ A).reshape(points, m, n)
+    APA = (P.reshape(points * n, n) @ A).reshape(points, n, n).transpose(0, 2, 1).reshape(points * n, n) @ A
+    return BPB, rhs, APA.reshape(points, n, n).transpose(0, 2, 1)                # A'(P A)
 
 
 def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -268,10 +270,10 @@ def _least_squares(G: np.ndarray, rhs: np.ndarray, mu: np.ndarray) -> np.ndarray
 
 def backward_batch(structure: Structure, protocol: str, mu: np.ndarray,
                    added: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Gains K (P, N, m, n) and cost-to-go P_0 (P, n, n) (without Q) of the schedules ``mu`` (P, N, m),
-    ``added`` (P, N, m) the diagonal each step's G gets (`input_weight`): N calls of
+    """Gains K (points, N, m, n) and cost-to-go P_0 (points, n, n) (without Q) of the schedules ``mu`` (points, N, m),
+    ``added`` (points, N, m) the diagonal each step's G gets (`input_weight`): N calls of
     [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] from ``P_N = Omega_N`` (a stationary tail closed, and for
-    one point whose steps are one map, the steps before it by doubling: `_doubled_backward`). O(P N (n^3 + m^3));
+    one point whose steps are one map, the steps before it by doubling: `_doubled_backward`). O(points N (n^3 + m^3));
     NumericalError (`overflow_error`) where a step's G is singular or anything overflows.
 
     Examples
@@ -293,9 +295,9 @@ def _backward(structure: Structure, protocol: str, mu: np.ndarray, added: np.nda
     only K[:, 1] of the run."""
     A, B, W, N = structure.A, structure.B, structure.state_weights, structure.horizon
     n, m = structure.n, structure.m
-    P = mu.shape[0]
-    K = np.empty((N, P, m, n))
-    Pm = np.empty((P, n, n))
+    points = mu.shape[0]
+    K = np.empty((N, points, m, n))
+    Pm = np.empty((points, n, n))
     Pm[:] = W[N - 1]
     settle = N >= 2 * STATIONARY_RUN                    # only long horizons are worth the checks
     # one point whose steps 1..N-1 are one map: once its drift predicts more than DOUBLING_AFTER steps to
@@ -426,9 +428,9 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
 
 
 def _power(A: np.ndarray, F: np.ndarray, H: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``H + A'P (I + F F'P)^{-1} A`` for a stack P (k, n, n): the doubled map of `_doubling` applied to k
-    points, a [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] with input matrix F and unit input weight. O(k
-    n^3)."""
+    """``H + A'P (I + F F'P)^{-1} A`` for a stack P (points, n, n): the doubled map of `_doubling` applied to each
+    point, a [`riccati_step`][packetloss_cvx.lq.recursion.riccati_step] with input matrix F and unit input weight.
+    O(points n^3)."""
     r = F.shape[1]
     return riccati_step(P, A, F, np.ones((P.shape[0], r)), np.ones((P.shape[0], r)), H)[1]
 
@@ -527,7 +529,7 @@ def _to_settle(excess: float, last: tuple[int, float], t: int) -> float:
 
 def _excess(change: np.ndarray, size: np.ndarray) -> float:
     """The largest ``change / (100 STATIONARY_RTOL size)`` over a batch (`_near` holds where it is <= 1);
-    nan where a size is 0 or not finite. O(P)."""
+    nan where a size is 0 or not finite. O(points)."""
     return float((change / (100.0 * STATIONARY_RTOL * size)).max())
 
 
@@ -542,9 +544,9 @@ def _repeat_first(rows: np.ndarray) -> None:
 
 
 def _closed_loop(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """The mean closed loop ``A - B M K`` of gains K (P, m, n) at channels mu (P, m), per point: the map the
+    """The mean closed loop ``A - B M K`` of gains K (points, m, n) at channels mu (points, m), per point: the map the
     stationary closure's contraction is measured on (`_contraction`) and the rollout by powers takes
-    (`_closed_run`). O(P n^2 m).
+    (`_closed_run`). O(points n^2 m).
 
     Examples
     --------
@@ -557,7 +559,7 @@ def _closed_loop(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) ->
 def _contraction(A: np.ndarray, B: np.ndarray, mu: np.ndarray, K: np.ndarray) -> np.ndarray:
     """rho(A - B M K)^2 per point: the Riccati map's contraction per step near its fixed point (measured
     once the change is already below 100 STATIONARY_RTOL, where the gain has settled to 1e-12); inf where
-    the loop is not finite. O(P n^3)."""
+    the loop is not finite. O(points n^3)."""
     with np.errstate(over="ignore", invalid="ignore"):
         loop = _closed_loop(A, B, mu, K)
         if not np.all(np.isfinite(loop)):
@@ -629,9 +631,9 @@ def optimal_plan(system: System, protocol: str, weights: tuple[np.ndarray, float
 
 def rollout_batch(structure: Structure, mu: np.ndarray, K: np.ndarray,
                   x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The plans u_t = -K_t x_t (P, N, m) and their mean states x_1..x_N (P, N, n) from x (P, n), by
+    """The plans u_t = -K_t x_t (points, N, m) and their mean states x_1..x_N (points, N, n) from x (points, n), by
     `mean_states`' arithmetic (so the referee, rolling the plan forward again, meets the same
-    states to the bit, even where A is unstable). O(P N n (n + m)).
+    states to the bit, even where A is unstable). O(points N n (n + m)).
 
     Examples
     --------
@@ -801,13 +803,13 @@ def check_plan_cost(system: System, protocol: str, value: float, bound: float) -
 
 def mean_states(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray,
                 K: np.ndarray | None = None) -> np.ndarray:
-    """The mean states x_1..x_N (P, N, n) of plans U (P, N, m) from x (P, n) (eq:pred-err):
-    ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (P, N, m, n) the plan is
+    """The mean states x_1..x_N (points, N, n) of plans U (points, N, m) from x (points, n) (eq:pred-err):
+    ``x_{t+1} = A x_t + B (mu_t u_t)``, one stacked product a step. With gains K (points, N, m, n) the plan is
     the law's, ``u_t = -K_t x_t``, written into U as it goes (`rollout_batch`); a stationary run of
     one gain (a settled backward pass, at least STATIONARY_RUN steps) is rolled out by powers of its closed
     loop and the time-varying steps after it by a scan of their closed-loop products (`_scanned_run`)
     where A is stable or the run's closed loop is (`_by_powers`; otherwise step by step, to the bit).
-    O(P N n (n + m)).
+    O(points N n (n + m)).
 
     Examples
     --------
@@ -825,7 +827,7 @@ def _by_powers(structure: Structure, run: tuple[int, int] | None, mu: np.ndarray
     """``run`` where it may be rolled out by powers of its closed loop, and the steps after it by a scan
     (`_scanned_run`): where A is stable (rho(A) < 1), or the run's closed loop ``A - B M K`` (mu[:, 1],
     K[:, 1]) is at every point (a closed stationary tail's is: its contraction q < 1). None otherwise: an
-    unstable plant under an unstable loop is rolled out step by step, to the bit. O(P n^3).
+    unstable plant under an unstable loop is rolled out step by step, to the bit. O(points n^3).
 
     The plan of an unstable plant (rho(A) > 1) is then not the float-for-float rollout of the recursion
     ``x_{t+1} = A x_t + B M u_t`` that `mean_states` runs open loop: rolled forward again from its inputs
@@ -849,8 +851,8 @@ def _roll_out(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray
     that is exactly zero at every point (a stable closed loop underflows after some hundreds of steps) stays
     zero under any finite gains: the rest of the plan and its states are zeros, as the steps give them (to the
     sign of zero); otherwise the steps after the run are a scan of their closed-loop products
-    (`_scanned_run`) in blocks of at most SCAN_BLOCK_ENTRIES entries (P n^2 per step; step by step where a
-    block would hold fewer than SCAN_MIN steps). ``start``: return x_0..x_N (P, N + 1, n)."""
+    (`_scanned_run`) in blocks of at most SCAN_BLOCK_ENTRIES entries (points n^2 per step; step by step where a
+    block would hold fewer than SCAN_MIN steps). ``start``: return x_0..x_N (points, N + 1, n)."""
     AT, BT, N = structure.A.T, structure.B.T, structure.horizon
     if start:
         full = np.empty((U.shape[0], N + 1, structure.n))
@@ -885,38 +887,38 @@ def _roll_out(structure: Structure, mu: np.ndarray, U: np.ndarray, x: np.ndarray
 
 
 #: The scan of the steps after a stationary run (:func:`_scanned_run`) holds the closed-loop matrices of a block of
-#: steps, P n^2 entries each: at most this many entries at once (2 MiB), and not below SCAN_MIN steps a block.
+#: steps, points n^2 entries each: at most this many entries at once (2 MiB), and not below SCAN_MIN steps a block.
 SCAN_BLOCK_ENTRIES = 2**18
 SCAN_MIN = 16
 
 
 def _scanned_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray, state: np.ndarray,
                  a: int, b: int) -> np.ndarray:
-    """Steps a..b-1 of the time-varying gains K[:, a:b] from x_a = ``state`` (P, n) by a work-efficient scan
+    """Steps a..b-1 of the time-varying gains K[:, a:b] from x_a = ``state`` (points, n) by a work-efficient scan
     (Blelloch's up-sweep of pairwise products of the closed loops ``L_t = A - B M_t K_t``, then a down-sweep of
     the states at the block starts; row vectors, ``x_{t+1}' = x_t' L_t'``): 2 log2(b - a) stacked products
     instead of b - a steps, written into X (x_{a+1}..x_b) and U (u_a..u_{b-1}) in place. Returns x_b. A level of
     odd length carries its last entry up unpaired: the products a padding to a power of two with identities gives,
     without the padding's work (the down-sweep reads no product that holds the last step's loop, which enters only
-    x_b). O(P (b - a) n^3)."""
-    P, n, m, L = state.shape[0], structure.n, structure.m, b - a
-    loops = np.empty((P, L, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
+    x_b). O(points (b - a) n^3)."""
+    points, n, m, L = state.shape[0], structure.n, structure.m, b - a
+    loops = np.empty((points, L, n, n))                           # L_t' = A' - (M K_t)' B', as one flat product
     MK = np.ascontiguousarray((K[:, a:b] * mu[:, a:b, :, None]).swapaxes(-1, -2))
-    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(P, L, n, n), out=loops)
+    np.subtract(structure.A.T, (MK.reshape(-1, m) @ structure.B.T).reshape(points, L, n, n), out=loops)
     levels = [loops]
     while levels[-1].shape[1] > 1:                           # products of 2, 4, ... consecutive steps
         level = levels[-1]
         k = level.shape[1]
         half = k // 2
-        up = np.empty((P, k - half, n, n))
+        up = np.empty((points, k - half, n, n))
         np.matmul(level[:, 0:2 * half:2], level[:, 1:2 * half:2], out=up[:, :half])
         if k % 2:
             up[:, half] = level[:, k - 1]
         levels.append(up)
-    starts = state[:, None, None, :]                          # (P, blocks, 1, n): the state at each block's start
+    starts = state[:, None, None, :]                          # (points, blocks, 1, n): the state at each block's start
     for level in reversed(levels[:-1]):
         k = level.shape[1]
-        inner = np.empty((P, k, 1, n))
+        inner = np.empty((points, k, 1, n))
         inner[:, 0::2] = starts
         np.matmul(starts[:, :k // 2], level[:, 0:k - k % 2:2], out=inner[:, 1::2])
         starts = inner
@@ -930,7 +932,8 @@ def _scanned_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndar
 def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
     """The run of steps 1..b-1 whose gains and channels equal step 1's for every point (the stationary head
     a settled backward pass fills), if it has at least STATIONARY_RUN steps: its end found by bisection on
-    single steps, then the whole run verified entry by entry. O(P N m n) at most, O(P m n log N) when absent."""
+    single steps, then the whole run verified entry by entry. O(points N m n) at most, O(points m n log N) when
+    absent."""
     N = K.shape[1]
     if N < 2 * STATIONARY_RUN or not np.array_equal(K[:, 2], K[:, 1]):
         return None
@@ -946,9 +949,9 @@ def _gain_run(mu: np.ndarray, K: np.ndarray) -> tuple[int, int] | None:
 
 def _closed_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarray, U: np.ndarray,
                 a: int, b: int) -> np.ndarray:
-    """Steps a..b-1 (a >= 1) of one gain K (P, m, n) and channel mu (P, m) from x_a = ``X[:, a - 1]``: the states
-    x_a (A - B M K)'^k for k = 1..b-a by `states_by_powers`, written into X and U in place. Returns x_b.
-    O(P (b - a) n^2 + P n^3 log(b - a))."""
+    """Steps a..b-1 (a >= 1) of one gain K (points, m, n) and channel mu (points, m) from x_a = ``X[:, a - 1]``:
+    the states x_a (A - B M K)'^k for k = 1..b-a by `states_by_powers`, written into X and U in place. Returns x_b.
+    O(points (b - a) n^2 + points n^3 log(b - a))."""
     L = b - a
     Y = X[:, a - 1:b]                                      # x_a .. x_b, x_a already written
     rows = min(states_by_powers(Y, _closed_loop(structure.A, structure.B, mu, K).transpose(0, 2, 1)), L)
@@ -960,10 +963,11 @@ def _closed_run(structure: Structure, mu: np.ndarray, K: np.ndarray, X: np.ndarr
 
 
 def states_by_powers(Y: np.ndarray, loop: np.ndarray) -> int:
-    """``Y[:, k] = Y[:, 0] loop^k`` for every k >= 1 (Y (P, L + 1, d) in place, row vectors; loop (P, d, d) or
+    """``Y[:, k] = Y[:, 0] loop^k`` for every k >= 1 (Y (points, L + 1, d) in place, row vectors; loop (points, d, d) or
     (d, d), the transposed closed loop) by repeated squaring: log2(L) stacked products, every state still computed.
     Once a power underflows to 0 (a stable loop after some hundreds of steps) the later states are written as 0.
-    Returns the number of leading rows computed as products (L + 1 when none underflowed). O(P L d^2 + P d^3 log L).
+    Returns the number of leading rows computed as products (L + 1 when none underflowed).
+    O(points L d^2 + points d^3 log L).
 
     Examples
     --------
@@ -985,12 +989,12 @@ def states_by_powers(Y: np.ndarray, loop: np.ndarray) -> int:
 
 def forward_cost(structure: Structure, mu: np.ndarray, U: np.ndarray, X: np.ndarray, weight: np.ndarray,
                  base: np.ndarray | float, Omega: np.ndarray | None = None) -> np.ndarray:
-    """The referee: the expected cost of plans U (P, N, m) whose mean states are X (P, N, n) (x_1..x_N),
+    """The referee: the expected cost of plans U (points, N, m) whose mean states are X (points, N, n) (x_1..x_N),
     ``base + sum_t mu_t u_t (weight_t u_t) + x_{t+1}' Omega_{t+1} x_{t+1}``: every term nonnegative, so
     no cancellation (``weight``: `input_weight`; ``base``: x0'Q x0 + the noise term). Every closed
     form (dense, recursion, batched, pointwise, QP) checks its cost against this sum for its own plan.
     ``Omega``: blkdiag(Omega_1..Omega_N) as one (N n)×(N n) matrix if the caller keeps one (one product
-    instead of N). Returns (P,). O(P N (n^2 + m)), O(P (N n)^2) with ``Omega``.
+    instead of N). Returns (points,). O(points N (n^2 + m)), O(points (N n)^2) with ``Omega``.
 
     Examples
     --------
@@ -999,12 +1003,12 @@ def forward_cost(structure: Structure, mu: np.ndarray, U: np.ndarray, X: np.ndar
     ...              np.ones((1, 1)), 1.0).tolist()        # 1 + 0.5 * 1 + 2 * 0.25
     [2.0]
     """
-    P = X.shape[0]
+    points = X.shape[0]
     with np.errstate(over="ignore", invalid="ignore"):
         # mu u (weight u): the products in this order stay in range when mu is tiny and u huge
         inputs = np.einsum("ptk,ptk->p", mu * U, weight * U)
         if Omega is not None:
-            flat = X.reshape(P, -1)
+            flat = X.reshape(points, -1)
             states = np.einsum("pk,pk->p", flat @ Omega, flat)
         elif structure.time_invariant_weight:    # one weight for every step: one product
             states = np.einsum("ptj,ptj->p", X @ structure.state_weights[0], X)

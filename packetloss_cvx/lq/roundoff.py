@@ -20,7 +20,7 @@ a posteriori, in three parts:
   error ``|e - ehat| <= eta`` can add.
 
 The result is close to the true error where the plan's cost is resolved (it is mostly the computed error
-estimate itself) and refuses only where the rounding really moves the cost. Time O(P N n (n + m) + P N L n^2)
+estimate itself) and refuses only where the rounding really moves the cost. Time O(points N n (n + m) + points N L n^2)
 with a block of L = 32 steps; no Python loop over the steps.
 """
 
@@ -100,8 +100,8 @@ def step_residuals(A: np.ndarray, B: np.ndarray, prev: np.ndarray, nxt: np.ndarr
     in twice the working precision (Dot2 of Ogita, Rump and Oishi, 2005: every product split exactly, the sum
     compensated), and a bound on their own error: ``|delta - delta_hat| <= 2u |delta_hat| + gamma_{2K}^2 (|nxt|
     + |A||prev| + |B||mu u|) + 8 K 2^-1074`` with K = 1 + n + 2m terms a row (the last term for underflow).
-    prev, nxt (P, N, n); mu (P or 1, N, m); U (P, N, m). Non-finite where a state is beyond about 1e299.
-    O(P N n (n + m)).
+    prev, nxt (points, N, n); mu (points or 1, N, m); U (points, N, m). Non-finite where a state is beyond about 1e299.
+    O(points N n (n + m)).
 
     Examples
     --------
@@ -134,18 +134,18 @@ def step_residuals(A: np.ndarray, B: np.ndarray, prev: np.ndarray, nxt: np.ndarr
 
 
 def linear_scan(M: np.ndarray, S: np.ndarray, block: int = SCAN_BLOCK) -> np.ndarray:
-    """``y_t = M y_{t-1} + S_t`` from ``y_{-1} = 0`` for every t, S (P, N, n): in blocks of ``block`` steps, each
+    """``y_t = M y_{t-1} + S_t`` from ``y_{-1} = 0`` for every t, S (points, N, n): in blocks of ``block`` steps, each
     one product with the block's Toeplitz matrix of the powers M^0..M^{L-1}, the blocks' ends carried by the same
     scan of M^L over the N / L blocks (recursively: O(log N) NumPy calls, no Python loop over the steps). The
     rounding differs from the step-by-step recursion's: callers bound what they use through its residuals, or (M
-    and S nonnegative) by the relative error of nonnegative sums. O(P N L n^2).
+    and S nonnegative) by the relative error of nonnegative sums. O(points N L n^2).
 
     Examples
     --------
     >>> linear_scan(np.array([[0.5]]), np.ones((1, 5, 1)), block=2).ravel().tolist()   # 1, 1.5, 1.75, ...
     [1.0, 1.5, 1.75, 1.875, 1.9375]
     """
-    P, N, n = S.shape
+    points, N, n = S.shape
     L = max(1, min(block, N))
     nb = -(-N // L)
     with np.errstate(all="ignore"):
@@ -153,14 +153,14 @@ def linear_scan(M: np.ndarray, S: np.ndarray, block: int = SCAN_BLOCK) -> np.nda
         lag = np.arange(L)[:, None] - np.arange(L)[None, :]          # j - i
         toeplitz = np.where((lag >= 0)[:, :, None, None], powers[np.clip(lag, 0, L)], 0.0)   # (L, L, n, n)
         big = toeplitz.transpose(0, 2, 1, 3).reshape(L * n, L * n)   # row (j, a), column (i, b)
-        padded = np.zeros((P, nb * L, n))
+        padded = np.zeros((points, nb * L, n))
         padded[:, :N] = S
-        Y = (padded.reshape(P * nb, L * n) @ big.T).reshape(P, nb, L, n)
+        Y = (padded.reshape(points * nb, L * n) @ big.T).reshape(points, nb, L, n)
         if nb > 1:                    # y at the end of block k - 1 obeys the same recursion, with M^L, over blocks
-            carry = np.zeros((P, nb, n))
+            carry = np.zeros((points, nb, n))
             carry[:, 1:] = linear_scan(powers[L], np.ascontiguousarray(Y[:, :-1, L - 1]), block)
             Y += np.einsum("jab,pkb->pkja", powers[1:], carry)
-    return Y.reshape(P, nb * L, n)[:, :N]
+    return Y.reshape(points, nb * L, n)[:, :N]
 
 
 def _powers(M: np.ndarray, L: int) -> np.ndarray:
@@ -205,10 +205,10 @@ def _schur_basis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | N
 
 def propagation_bound(A: np.ndarray, r: np.ndarray, schur: bool = False) -> np.ndarray:
     """A componentwise bound ``eta_t >= |sum_{s<=t} A^{t-s} rho_s|`` for every rho with ``|rho_s| <= r_s`` (r
-    (P, N, n) nonnegative): the recursion ``b_t = M b_{t-1} + J r_t`` of nonnegative matrices, read out as
+    (points, N, n) nonnegative): the recursion ``b_t = M b_{t-1} + J r_t`` of nonnegative matrices, read out as
     ``eta = O b``, with ``(M, J, O) = (|A|, I, I)``, or (``schur``) the complex Schur basis of A, where the growth
     of M is A's own (|A| grows faster than A wherever A rotates). Inflated by ``1 + gamma_{4 (N + 2L)(n + 2)}``
-    for the rounding of its own nonnegative sums; inf where it overflows. O(P N L n^2) (`linear_scan`).
+    for the rounding of its own nonnegative sums; inf where it overflows. O(points N L n^2) (`linear_scan`).
 
     Examples
     --------
@@ -216,7 +216,7 @@ def propagation_bound(A: np.ndarray, r: np.ndarray, schur: bool = False) -> np.n
     >>> [round(v / 1e-16, 9) for v in propagation_bound(np.array([[-2.0]]), r).ravel().tolist()]     # 1, 3, 7
     [1.0, 3.0, 7.0]
     """
-    P, N, n = r.shape
+    points, N, n = r.shape
     basis = _schur_basis(A) if schur else None
     M, inject, read = basis if basis is not None else _abs_basis(A)
     with np.errstate(all="ignore"):
@@ -226,7 +226,7 @@ def propagation_bound(A: np.ndarray, r: np.ndarray, schur: bool = False) -> np.n
 
 
 def _weighted(a: np.ndarray, Q: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``sum_t a_t' Q_t b_t`` per point: a, b (P, N, n); Q (n, n) for every step or (N, n, n). O(P N n^2)."""
+    """``sum_t a_t' Q_t b_t`` per point: a, b (points, N, n); Q (n, n) for every step or (N, n, n). O(points N n^2)."""
     if Q.ndim == 2:
         return np.einsum("ptj,ptj->p", a @ Q, b)
     return np.einsum("pti,tij,ptj->p", a, Q, b)
@@ -235,13 +235,13 @@ def _weighted(a: np.ndarray, Q: np.ndarray, b: np.ndarray) -> np.ndarray:
 def rollout_cost_error(A: np.ndarray, B: np.ndarray, mu: np.ndarray, U: np.ndarray, x0: np.ndarray,
                        X: np.ndarray, Q: np.ndarray, enough: np.ndarray | float = 0.0) -> np.ndarray:
     """A bound on ``|sum_t xhat_t' Q_t xhat_t - sum_t x_t' Q_t x_t|`` per plan: xhat_1..xhat_N the states X
-    (P, N, n) computed from x0 (P, n) under the plans U (P, N, m) and channels mu (P or 1, N, m), x_t the exact
-    states of those floats; Q (n, n) or (N, n, n) positive semidefinite. The estimate ehat of the state error
-    (its residuals in twice the precision, `step_residuals`, rolled out by `linear_scan`) gives
+    (points, N, n) computed from x0 (points, n) under the plans U (points, N, m) and channels mu (points or 1, N, m),
+    x_t the exact states of those floats; Q (n, n) or (N, n, n) positive semidefinite. The estimate ehat of the state
+    error (its residuals in twice the precision, `step_residuals`, rolled out by `linear_scan`) gives
     ``sum (2 xhat - ehat)' Q ehat``; to it is added what the remaining error ``|e - ehat| <= eta``
     (`propagation_bound` of ehat's residuals) can change, bounded in the |A| basis, and where that
-    exceeds ``enough`` (P,) in the Schur basis too (the smaller bound is kept). inf where nothing is finite.
-    O(P N n (n + m) + P N L n^2).
+    exceeds ``enough`` (points,) in the Schur basis too (the smaller bound is kept). inf where nothing is finite.
+    O(points N n (n + m) + points N L n^2).
 
     Examples
     --------
@@ -261,13 +261,13 @@ def rollout_cost_error(A: np.ndarray, B: np.ndarray, mu: np.ndarray, U: np.ndarr
     >>> abs(rolled - exact) <= F(float(bound)) <= 2 * abs(rolled - exact)       # holds, and is tight
     True
     """
-    P, N, n = X.shape
+    points, N, n = X.shape
     aQ = np.abs(Q)
     with np.errstate(all="ignore"):
         prev = np.concatenate([x0[:, None, :], X[:, :-1]], axis=1)
         delta, c = step_residuals(A, B, prev, X, mu, U)
         E = linear_scan(A, delta)                                   # ehat_t estimates e_{t+1} = xhat - x
-        Eprev = np.concatenate([np.zeros((P, 1, n)), E[:, :-1]], axis=1)
+        Eprev = np.concatenate([np.zeros((points, 1, n)), E[:, :-1]], axis=1)
         rho = (np.abs(E - (Eprev @ A.T + delta)) + gamma(n + 3) * (np.abs(E) + np.abs(Eprev) @ np.abs(A).T
                + np.abs(delta)) + c + (n + 3) * _SUBNORMAL)
         aX, aE = np.abs(X), np.abs(E)

@@ -21,19 +21,19 @@ STATIONARY_RUN = 64
 
 
 def small_change(new: np.ndarray, old: np.ndarray) -> bool:
-    """A cheap necessary test for `stationary_close` with a contraction q >= 0.01. O(P n^2)."""
+    """A cheap necessary test for `stationary_close` with a contraction q >= 0.01. O(points n^2)."""
     return bool(np.abs(new - old).max() <= 100.0 * STATIONARY_RTOL * np.abs(new).max())
 
 
 def spectral_radius(loop: np.ndarray) -> np.ndarray:
-    """The spectral radius of each matrix of a stack (or of one matrix). O(P n^3)."""
+    """The spectral radius of each matrix of a stack (or of one matrix). O(points n^3)."""
     return np.max(np.abs(np.linalg.eigvals(loop)), axis=-1)
 
 
 def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) -> bool:
     """Whether a backward iterate has settled: its last change, times the remaining geometric sum
     ``q / (1 - q)`` of a map contracting by ``q`` per step, is below ``STATIONARY_RTOL`` relative to its
-    size (every point of a batch: new, old (..., n, n), q (...,) or a float). Never with q >= 1. O(P n^2).
+    size (every point of a batch: new, old (..., n, n), q (...,) or a float). Never with q >= 1. O(points n^2).
 
     Examples
     --------
@@ -46,7 +46,7 @@ def stationary_close(new: np.ndarray, old: np.ndarray, q: np.ndarray | float) ->
 
 def drift(new: np.ndarray, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``max |new - old|`` and ``max |new|`` per matrix of a stack: what `stationary_close` weighs (the
-    caller ignores overflow in np.errstate, as the backward passes do). O(P n^2)."""
+    caller ignores overflow in np.errstate, as the backward passes do). O(points n^2)."""
     lead, k = new.shape[:-2], new.shape[-1] * new.shape[-2]
     return _row_max(np.abs(new - old).reshape(-1, k), lead), _row_max(np.abs(new).reshape(-1, k), lead)
 
@@ -61,28 +61,28 @@ def _row_max(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def settled(change: np.ndarray, size: np.ndarray, q: np.ndarray | float) -> bool:
-    """`stationary_close` of a change and size (`drift`), in the caller's np.errstate. O(P)."""
+    """`stationary_close` of a change and size (`drift`), in the caller's np.errstate. O(points)."""
     q = np.asarray(q, dtype=float)
     return bool(((q < 1.0) & (change * (q / (1.0 - q)) <= STATIONARY_RTOL * size) & np.isfinite(size)).all())
 
 
 def all_steps_equal(values: np.ndarray) -> bool:
-    """Whether ``values[:, k]`` is the same for every k (values (P, L, ...)): each step against the next, as two
-    same-shaped views (no broadcasting over a short last axis). O(P L k)."""
+    """Whether ``values[:, k]`` is the same for every k (values (points, L, ...)): each step against the next, as two
+    same-shaped views (no broadcasting over a short last axis). O(points L k)."""
     return bool(np.array_equal(values[:, 1:], values[:, :-1]))
 
 
 def leading_run(values: np.ndarray) -> int:
-    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (P, L, ...)), to the bit: how
-    far a backward pass's data are one map. O(P L k).
+    """The last index h with ``values[:, 0..h]`` all equal to ``values[:, 0]`` (values (points, L, ...)), to the bit:
+    how far a backward pass's data are one map. O(points L k).
 
     Examples
     --------
     >>> leading_run(np.array([[1.0, 1.0, 2.0, 1.0]])), leading_run(np.ones((2, 3, 1)))
     (1, 2)
     """
-    P, L = values.shape[:2]
+    points, L = values.shape[:2]
     if all_steps_equal(values):                  # the usual case, one comparison of two views
         return L - 1
-    same = np.all((values[:, 1:] == values[:, :-1]).reshape(P, L - 1, -1), axis=2).all(axis=0)
+    same = np.all((values[:, 1:] == values[:, :-1]).reshape(points, L - 1, -1), axis=2).all(axis=0)
     return int(np.argmin(same)) if not same.all() else L - 1

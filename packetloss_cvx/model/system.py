@@ -48,7 +48,7 @@ from .validation import (
 )
 
 __all__ = ["STRUCTURE_CACHE_MAX_BYTES", "STRUCTURE_FIELDS", "SYSTEM_FIELDS", "CacheKey", "StructureStore", "System",
-           "SystemStore", "check_system", "numeric_array"]
+           "SystemStore", "check_system", "loop_weights", "numeric_array"]
 
 T = TypeVar("T")
 
@@ -617,6 +617,39 @@ def check_system(system: Any, field: str = "system") -> System:
         raise InputError(field, f"expected a System (packetloss_cvx.System(...), load_system(path) or "
                                 f"load_example(name)), found {type(system).__name__}")
     return system
+
+
+def loop_weights(system: System, field: str = "state_weights") -> tuple[np.ndarray, np.ndarray]:
+    """The one stage weight ``(Omega, psi)`` of a loop's cost (a closed loop, a law's cost over an unbounded or
+    another horizon, the DP's cost-to-go), refusing time-varying weights: such a cost needs one weight for every step
+    of a loop that runs past the horizon, and a plan's weights (``state_weights``, ``input_weights``) speak of the
+    steps of the plan, not of the loop. ``field`` names the state weights in the message (the command line's
+    ``cost.state_weights``); the input weights are named alike. O(N (n^2 + m)).
+
+    Raises
+    ------
+    InputError
+        Weights that change along the horizon.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weights=[[1.0], [2.0]], input_weight=[1.0], mu=[0.5],
+    ...            x0=[1.0])
+    >>> loop_weights(s)
+    Traceback (most recent call last):
+    ...
+    packetloss_cvx.errors.InputError: state_weights: the loop's stage cost needs one weight for every step; \
+time-varying weights speak of the plan's steps: give one state_weight
+    >>> one = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[3.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    >>> [w.tolist() for w in loop_weights(one)]
+    [[[3.0]], [1.0]]
+    """
+    for weights, name in ((system.state_weights, field), (system.input_weights, field.replace("state", "input"))):
+        if not np.all(weights == weights[0]):
+            single = name.rsplit(".", 1)[-1].removesuffix("s")
+            raise InputError(name, "the loop's stage cost needs one weight for every step; time-varying weights "
+                                   f"speak of the plan's steps: give one {single}")
+    return system.state_weights[0], system.input_weights[0]
 
 
 def _from_fields(fields: dict[str, Any]) -> System:

@@ -6,7 +6,7 @@ noise from ``SeedSequence([seed, ACTUATOR_STREAM])``, in blocks of ``BLOCK`` run
 stream, so that the first runs are the same whatever the number of samples); every step is one array operation
 over the block's runs. The actuator's logic is written out (not the engine's augmented state): zero plays ``v u``,
 hold ``u`` or the last applied input, buffer:L stores the delivered plan ``-K (A - B K)^j x``, j < L, and plays
-entry j after j losses, 0 beyond.
+entry j after j losses, 0 beyond (buffer:L:hold: the last applied input beyond).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from ..closedloop.mjls import mode_chain, mode_start
 from ..closedloop.moments import check_steps, stationary_channel
 from ..closedloop.stability import is_mean_square_stable
 from ..errors import NumericalError
-from ..model.system import System, check_system
+from ..model.system import System, check_system, loop_weights
 from .runs import BLOCK, check_count, z_score
 
 __all__ = ["ACTUATOR_STREAM", "sample_actuator_loop", "simulate_actuator"]
@@ -41,7 +41,7 @@ def _block(system: System, K: np.ndarray, strategy: Actuator, T: np.ndarray, h: 
     """Each run's stage costs (runs, steps) of one block. Time O(runs steps (n^2 + m n L))."""
     A, B = system.A, system.B
     n, m = B.shape
-    Omega, psi = system.state_weights[0], system.input_weights[0]
+    Omega, psi = loop_weights(system)
     L = strategy.length
     root = np.linalg.cholesky(system.noise_cov) if system.noise_cov.any() else None
     powers = np.array([[np.linalg.matrix_power(A - B @ K[s], j) for j in range(L)] for s in range(T.shape[0])])
@@ -61,7 +61,7 @@ def _block(system: System, K: np.ndarray, strategy: Actuator, T: np.ndarray, h: 
             plans = np.where(v[:, :, None], -np.einsum("rij,rljk,rk->ril", K[c], powers[c], X), plans)
             played = np.where(v, 0, played + 1)
             entry = np.take_along_axis(plans, np.minimum(played, L - 1)[:, :, None], axis=2)[:, :, 0]
-            applied = np.where(played < L, entry, 0.0)
+            applied = np.where(played < L, entry, held if strategy.exhausted == "hold" else 0.0)
         held = applied
         stage[:, t] = np.einsum("ri,ij,rj->r", X, Omega, X) + applied ** 2 @ psi
         X = X @ A.T + applied @ B.T

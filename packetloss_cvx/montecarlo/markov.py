@@ -143,8 +143,9 @@ def simulate_markov(system: System, samples: int, steps: int, seed: int, closed_
 
 def _closed_loop(system: System, laws: list[str], steps: int, blocks: list[int], streams: list[np.random.SeedSequence],
                  keep: int, bar) -> tuple[dict[str, ClosedLoopRun], np.ndarray]:
-    tcp = BeliefGains(system, "tcp") if "tcp" in laws else None
-    udp = BeliefGains(system, "udp") if "udp" in laws else None
+    most = sum(blocks) * steps                   # the most distinct beliefs a law can meet: one a run and step
+    tcp = BeliefGains(system, "tcp", most=most) if "tcp" in laws else None
+    udp = BeliefGains(system, "udp", most=most) if "udp" in laws else None
     dp, dp_reason = None, ""
     if "dp" in laws:
         try:

@@ -106,17 +106,17 @@ def sample_markov_paths(channel: MarkovChannel, steps: int, samples: int,
     >>> bool(np.array_equal(v, bern) and np.array_equal(states == 0, v))
     True
     """
-    T, S = _count(steps, "steps"), _count(samples, "samples")
-    # the chain steps in time: walk it time-major, (T, S, m) contiguous per step (a step of the (S, T, m) layout
-    # strides over whole runs, ~3x slower at T = 1000), and hand back (S, T, m) views of the time-major arrays
-    # (the deliveries too: the consumers step in time); the same numbers
-    u = np.ascontiguousarray(rng.random((S, T, channel.m)).swapaxes(0, 1))
-    states = np.empty((T, S, channel.m), dtype=channel.state_dtype)
+    steps, samples = _count(steps, "steps"), _count(samples, "samples")
+    # the chain steps in time: walk it time-major, (steps, samples, m) contiguous per step (a step of the (samples,
+    # steps, m) layout strides over whole runs, ~3x slower at 1000 steps), and hand back (samples, steps, m) views of
+    # the time-major arrays (the deliveries too: the consumers step in time); the same numbers
+    u = np.ascontiguousarray(rng.random((samples, steps, channel.m)).swapaxes(0, 1))
+    states = np.empty((steps, samples, channel.m), dtype=channel.state_dtype)
     states[0] = channel.draw_start(u[0])
-    for t in range(1, T):
+    for t in range(1, steps):
         states[t] = channel.draw_next(states[t - 1], u[t])
     h = state_delivery(channel, states)
-    v = h == 1 if reveals_state(channel) else rng.random((S, T, channel.m)).swapaxes(0, 1) < h
+    v = h == 1 if reveals_state(channel) else rng.random((samples, steps, channel.m)).swapaxes(0, 1) < h
     return states.swapaxes(0, 1), v.swapaxes(0, 1)
 
 

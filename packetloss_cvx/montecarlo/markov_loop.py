@@ -21,13 +21,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..budgets import BUDGETS, limit, refusal_text
 from ..closedloop.chain_dp import ChainDP
 from ..errors import InputError, ResourceError
 from ..linalg import psd_factor
 from ..lq.costs import closed_form
 from ..lq.markov_cost import exact_closed_form
 from ..model.chain import attach_channel, filter_belief
-from ..model.system import System, check_system
+from ..model.system import System, check_system, loop_weights
 from ..progress import progress_bar
 from .channels import sample_noise_paths
 from .markov_channels import sample_markov_paths, sample_states, state_delivery
@@ -35,8 +36,9 @@ from .markov_channels import sample_markov_paths, sample_states, state_delivery
 __all__ = ["MARKOV_LAWS", "PLAN_BUDGET", "BeliefGains", "markov_closed_loop_costs", "markov_loop_block", "mode_index",
            "sample_chain_law_costs"]
 
-#: Distinct beliefs (one receding-horizon plan each) a law may meet in one simulation before it is refused.
-PLAN_BUDGET = 2000
+#: Distinct beliefs (one receding-horizon plan each) a law may meet in one simulation before it is refused: the
+#: default of the ``belief_plans`` budget (budgets.py), which ``PACKETLOSS_CVX_BUDGET_BELIEF_PLANS`` raises.
+PLAN_BUDGET = int(BUDGETS["belief_plans"].default)
 
 #: The laws :func:`markov_closed_loop_costs` runs: (how the plan is made, whose information).
 MARKOV_LAWS = ("plug-in-tcp", "plug-in-udp", "exact-tcp", "exact-udp")
@@ -66,8 +68,9 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     InputError
         No Markov channel, an unknown law, or counts below 1.
     ResourceError
-        A law met more than PLAN_BUDGET distinct beliefs (one plan each: a law with unboundedly many beliefs would
-        plan without end), as [`simulate`][packetloss_cvx.montecarlo.simulate.simulate] refuses them.
+        A law met more distinct beliefs than the ``belief_plans`` budget (one plan each: a law with unboundedly many
+        beliefs would plan without end), as [`simulate`][packetloss_cvx.montecarlo.simulate.simulate] refuses them;
+        the message offers samples x steps, the most a run can meet, for ``PACKETLOSS_CVX_BUDGET_BELIEF_PLANS``.
 
     Examples
     --------
@@ -93,10 +96,10 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
     delivered = rng.random(states.shape) < state_delivery(ch, states)
     L = psd_factor(system.noise_cov)
     noise = rng.standard_normal((steps, samples, L.shape[0])) @ L if L.shape[0] else None
-    W, psi = system.state_weights[0], system.input_weights[0]
+    W, psi = loop_weights(system)
     out = np.empty((len(laws), samples))
     for k, law in enumerate(progress_bar(laws, total=len(laws), desc="closed loop (Markov)", progress=progress)):
-        gains = BeliefGains(system, law[-3:], law=law)       # at most PLAN_BUDGET plans, then ResourceError
+        gains = BeliefGains(system, law[-3:], law=law, most=samples * steps)    # within the belief_plans budget
         belief = np.repeat(ch.initial_belief[None], samples, axis=0)
         X = np.repeat(system.x0[None], samples, axis=0)
         total = np.zeros(samples)
@@ -117,7 +120,9 @@ def markov_closed_loop_costs(system: System, laws: Sequence[str] = MARKOV_LAWS, 
 
 class BeliefGains:
     """The first block K(b) of a protocol's plug-in receding-horizon law planned at the belief b, cached by
-    b rounded to 12 digits (one plan per distinct belief, each O(plan); more than ``budget`` is a ResourceError).
+    b rounded to 12 digits (one plan per distinct belief, each O(plan); more than ``budget``, by default the
+    ``belief_plans`` budget, is a ResourceError offering ``most``, the most beliefs the run can meet, samples x steps,
+    or inf where unknown, as the budget's value that admits the run).
 
     Examples
     --------
@@ -132,15 +137,17 @@ class BeliefGains:
     ((3, 1, 1), 2)
     >>> try:
     ...     gains(np.array([[0.9, 0.1]]))                             # a third plan is over the budget
-    ... except ResourceError:
-    ...     print("refused")
-    refused
+    ... except ResourceError as err:
+    ...     print(str(err)[-42:])                                     # most=None: no bound on the beliefs
+    set PACKETLOSS_CVX_BUDGET_BELIEF_PLANS=inf
     """
 
-    def __init__(self, system: System, protocol: str, budget: int | None = None, law: str | None = None) -> None:
-        # budget None: PLAN_BUDGET as it is at the call (read then, not frozen at import)
+    def __init__(self, system: System, protocol: str, budget: int | None = None, law: str | None = None,
+                 most: float | None = None) -> None:
+        # budget None: the belief_plans budget as it is at the call (read then, not frozen at import)
         self.system, self.law = system, law or f"plug-in-{protocol}"     # law: MARKOV_LAWS
-        self.budget = PLAN_BUDGET if budget is None else budget
+        self.budget = limit("belief_plans") if budget is None else budget
+        self.most = float("inf") if most is None else float(most)
         self.cache: dict[bytes, np.ndarray] = {}
 
     def __call__(self, belief: np.ndarray) -> np.ndarray:
@@ -149,11 +156,14 @@ class BeliefGains:
         key = row.tobytes()
         if key not in self.cache:
             if len(self.cache) >= self.budget:
-                raise ResourceError(f"the {self.law[-3:].upper()}-like law re-plans at every distinct belief, and this "
-                                    f"run met more than {self.budget} (the HMM-filtered belief of a channel whose "
-                                    "outcome does not reveal its state takes a new value in almost every run): "
-                                    "fewer samples or steps, or the UDP-like law (simulate --law udp)",
-                                    len(self.cache) + 1, self.budget)
+                most = max(self.most, len(self.cache) + 1)
+                raise ResourceError(refusal_text("belief_plans", most, self.budget,
+                                                 f"a plan at each distinct belief the {self.law[-3:].upper()}-like "
+                                                 f"law meets (more than {self.budget:.0f} in this run: the "
+                                                 "HMM-filtered belief of a channel whose outcome does not reveal its "
+                                                 "state takes a new value in almost every run)",
+                                                 instead="use fewer samples or steps, or the UDP-like law "
+                                                         "(simulate --law udp)"), most, self.budget)
             self.cache[key] = _gain(self.system, self.law, row)
         return self.cache[key]
 
@@ -224,7 +234,7 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
     chain_states, V = sample_markov_paths(ch, steps, samples, losses)
     W = sample_noise_paths(system, steps, samples, noise)
     modes = mode_index(chain_states, ch.sizes)
-    Omega, psi = system.state_weights[0], system.input_weights[0]
+    Omega, psi = loop_weights(system)
     L = len(laws)
     X = np.broadcast_to(system.x0, (L, samples, system.n)).copy()
     norms, stage = np.empty((L, samples, steps + 1)), np.empty((L, samples, steps))

@@ -1,6 +1,7 @@
 """The constrained receding-horizon loop over lossy links, sampled: model predictive control re-solved from each
-realised state, the first input sent through the link (a lost packet applies zero), under Bernoulli or chain
-losses and process noise.
+realised state, the plan sent through the link (a lost packet applies zero, or, with ``actuator=``, the actuator
+holds its last input or plays the next entry of the last plan it received), under Bernoulli or chain losses and
+process noise.
 
 Three controllers run on the same sample paths (deliveries, chain states, noise):
 
@@ -19,6 +20,17 @@ the losses as independent, so their realised frequencies are what tells). Both k
 the rate bound links the first input of a plan to the previous command (the actuator at rest, zero, before the
 first): the program's own ``u_prev`` Parameter (``ConstrainedQP(..., u_prev=True)``), covered by its KKT check and
 polish like every other row.
+
+The actuator on a loss (``actuator``, `packetloss_cvx.closedloop.actuator.parse_actuator`): "zero" is the paper's
+model (the input and rate rows bound the commands, the rate links to the last command). Under
+"hold", "buffer:L" and "buffer:L:hold" each actuator keeps the last packet it received, the plan's first L inputs
+(the clipped law's rolled out on the nominal prediction, every input delivered: the programs' own plans are the
+packet), plays its next entry on a loss and, once exhausted, zero or its last applied input ("hold" is
+"buffer:1:hold"); the rows then bound the inputs applied. A TCP-like controller knows from the acknowledgements which
+entry each actuator played, hence the input applied last, and links its plan's rate bound to it, so a plan played
+in order and held once exhausted keeps both bounds on every path; a UDP-like one knows neither and links it to its
+last command, as if delivered (certainty-equivalent MPC, which plans alike for both protocols under zero, then runs
+once per protocol). The programs keep the paper's expected cost, a loss modelled as zero.
 
 Infeasible programs: the expected-state limits and chance rows of the hard program can have no plan from a
 realised state (a loss leaves the state where no plan brings its expectation back inside). The controller then
@@ -47,13 +59,14 @@ import numpy as np
 from scipy import stats
 
 from ..budgets import check, check_constrained, count_text, gib_text, mpc_bytes, mpc_solves
+from ..closedloop.actuator import Actuator, parse_actuator
 from ..closedloop.moments import stationary_channel
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..lq.costs import closed_form
 from ..model.chain import attach_channel, filter_belief
 from ..model.constraints import Constraints, check_constraints
 from ..model.files import system_from_dict
-from ..model.system import System, check_system
+from ..model.system import System, check_system, loop_weights
 from ..progress import progress_bar
 from ..qp.constrained import ConstrainedQP
 from ..results.mpc import ControllerRun, Frequency, MPCSimulation
@@ -61,10 +74,10 @@ from ..tolerances import CONSTRAINED_ACTIVE_RTOL
 from .channels import sample_delivery_paths, sample_noise_paths
 from .markov_channels import sample_markov_paths
 from .markov_loop import BeliefGains
-from .runs import check_count, check_loop_weights, run_blocks, sample_stats
+from .runs import check_count, run_blocks, sample_stats
 
-__all__ = ["CHUNK", "CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "TASK_CHUNKS", "loop_paths", "loop_task",
-           "simulate_mpc", "wilson_interval"]
+__all__ = ["CHUNK", "CONFIDENCE", "CONTROLLERS", "INFEASIBLE_ACTION", "TASK_CHUNKS", "check_loop_budgets",
+           "loop_jobs", "loop_paths", "loop_task", "simulate_mpc", "wilson_interval"]
 
 #: The controllers compared, in the order they are reported.
 CONTROLLERS = ("clipped", "certainty-equivalent", "expected-cost")
@@ -222,11 +235,12 @@ class _Beliefs:
 
 class _Controller:
     """One controller's compiled state, owned by one thread (a `ConstrainedQP` is not thread-safe): its program
-    (`_Program`), or the clipped law's gains."""
+    (`_Program`), or the clipped law's gains, and the actuator's strategy on a loss."""
 
     def __init__(self, system: System, twin: System, constraints: Constraints, controller: str,
-                 protocol: str) -> None:
+                 protocol: str, actuator: str = "zero") -> None:
         self.name, self.protocol = controller, protocol
+        self.strategy = parse_actuator(actuator, system.horizon)
         self.program: _Program | None = None
         self.gains: Any = None
         if controller == "clipped":
@@ -238,16 +252,38 @@ class _Controller:
             self.program = _Program(twin, protocol, constraints)
 
 
+def _rolled(K: np.ndarray, X: np.ndarray, base: np.ndarray, lo: np.ndarray, hi: np.ndarray, rate: np.ndarray,
+            A: np.ndarray, B: np.ndarray, length: int) -> np.ndarray:
+    """The clipped law's plan (runs, length, m), rolled out on the nominal prediction (every input delivered, no
+    noise): entry j is ``-K x_j`` clipped to the input bounds and within the rate bound of entry j - 1 (of ``base``
+    for the first), ``x_{j+1} = A x_j + B u_j``. Entry 0 is the clipped law's command. O(runs length n (n + m))."""
+    plan = np.empty((len(X), length, B.shape[1]))
+    x, last = X, base
+    for j in range(length):
+        last = np.clip(-np.einsum("smn,sn->sm", K, x), np.maximum(lo, last - rate), np.minimum(hi, last + rate))
+        plan[:, j] = last
+        if j + 1 < length:
+            x = x @ A.T + last @ B.T
+    return plan
+
+
 def _chunk(system: System, twin: System, constraints: Constraints, made: _Controller, V: np.ndarray,
            W: np.ndarray | None, keep: int = 0) -> dict[str, Any]:
     """One controller over the sampled paths of a chunk of runs (V: steps x runs x m): each run's stage costs,
     violation and infeasibility flags (runs x steps), the counts of fallbacks, failures and slack used, and the
-    first ``keep`` runs' states and commands. A run's numbers depend on its own paths only. Time O(runs steps)
-    solves (none for "clipped")."""
+    first ``keep`` runs' states, commands and (under hold or buffer) applied inputs. A run's numbers depend on its
+    own paths only. Time O(runs steps) solves (none for "clipped")."""
     steps, samples, m = V.shape
     n = system.n
-    A, B, Omega, psi = system.A, system.B, system.state_weights[0], system.input_weights[0]
+    (Omega, psi), A, B = loop_weights(system), system.A, system.B
     c, controller, program, gains = constraints, made.name, made.program, made.gains
+    strategy = made.strategy
+    zero, L = strategy.kind == "zero", strategy.length
+    # what the rate bound links the next plan to: under zero, and for a UDP-like controller (no acknowledgement: it
+    # assumes its last command arrived), the previous command; for a TCP-like one under hold or buffer, the input the
+    # actuator applied (the acknowledgements tell it which entry the actuator played)
+    from_applied = not zero and made.protocol == "tcp"
+    keeps_last = strategy.kind == "hold" or strategy.exhausted == "hold"
     lo = np.full(m, -np.inf) if c.u_min is None else c.u_min
     hi = np.full(m, np.inf) if c.u_max is None else c.u_max
     rate = np.full(m, np.inf) if c.du_max is None else c.du_max
@@ -260,8 +296,12 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
     X = np.repeat(system.x0[None], samples, axis=0)
     previous = np.zeros((samples, m))
     plans, age = np.zeros((samples, N, m)), np.zeros(samples, dtype=int)
+    # the actuator's memory: the last plan received (L entries per actuator), the entry it plays (L: exhausted, or
+    # nothing received yet) and the input it applied last (zero before the first step)
+    buffer, played, last = np.zeros((samples, L, m)), np.full((samples, m), L), np.zeros((samples, m))
     stage = np.empty((samples, steps))
     states, commands = np.empty((keep, steps + 1, n)), np.empty((keep, steps, m))
+    applied_kept = None if zero else np.empty((keep, steps, m))
     states[:, 0] = X[:keep]
     # a run whose stage cost or state leaves the double range has diverged: a result, as simulate's loops report it
     # (inf cost, no warning), for every controller alike; its programs are not solved again
@@ -269,42 +309,57 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
     state_rows = [name for name, kind, _, _ in rows if kind in ("x_max", "x_min", "F", "chance")]
     with np.errstate(over="ignore", invalid="ignore"):
         for t in range(steps):
+            base = last if from_applied else previous
             if controller == "clipped":
                 K = gains.many(beliefs.belief) if system.channel is not None else np.broadcast_to(gains,
                                                                                                   (samples, m, n))
-                u = np.clip(-np.einsum("smn,sn->sm", K, X), np.maximum(lo, previous - rate),
-                            np.minimum(hi, previous + rate))
+                packet = _rolled(K, X, base, lo, hi, rate, A, B, L)
+                u = packet[:, 0]
             else:
-                u = np.zeros((samples, m))
+                u, packet = np.zeros((samples, m)), np.zeros((samples, L, m))
                 for s in np.flatnonzero(~diverged):
                     mu = None if controller == "certainty-equivalent" else beliefs.schedule(s)
-                    plan, outcome, used = program.plan(mu, X[s], previous[s])
+                    plan, outcome, used = program.plan(mu, X[s], base[s])
                     infeasible[s, t] = outcome in ("fallback", "infeasible-failed")
                     slack += used
                     if plan is None:
                         failed += 1
                         age[s] += 1
                         u[s] = plans[s, age[s]] if age[s] < N else 0.0
+                        rest = plans[s, age[s]:age[s] + L]               # the rest of the last plan, zero past it
+                        packet[s, :len(rest)] = rest
                     else:
                         fallback += outcome == "fallback"
                         plans[s], age[s] = plan, 0
                         u[s] = plan[0]
-            applied = V[t] * u
+                        packet[s] = plan[:L]
+            if zero:
+                applied = V[t] * u
+            else:                # hold is buffer:1:hold: the delivered packet's first entry, else the last input
+                buffer = np.where(V[t][:, None, :], packet, buffer)
+                played = np.where(V[t], 0, np.minimum(played + 1, L))
+                entry = np.take_along_axis(buffer, np.minimum(played, L - 1)[:, None, :], axis=1)[:, 0]
+                applied = np.where(played < L, entry, last if keeps_last else 0.0)
             stage[:, t] = np.einsum("si,ij,sj->s", X, Omega, X) + applied ** 2 @ psi
             X_next = X @ A.T + applied @ B.T
             if W is not None:
                 X_next += W[t]
             diverged |= ~np.isfinite(stage[:, t]) | ~np.all(np.isfinite(X_next), axis=1)
             stage[diverged, t] = np.inf
+            # the input and rate rows: zero's on the commands (a loss's zero is the channel's, v u), hold's and the
+            # buffer's on the inputs the actuator applies
+            shown, step = (u, u - previous) if zero else (applied, applied - last)
             for name, kind, data, _ in rows:
-                flags[name][:, t] = _violated(kind, data, u, u - previous, X_next)
+                flags[name][:, t] = _violated(kind, data, shown, step, X_next)
             for name in state_rows:                      # a diverged state has left every limit
                 flags[name][diverged, t] = True
             states[:, t + 1], commands[:, t] = X_next[:keep], u[:keep]
-            X, previous = X_next, u
+            if applied_kept is not None:
+                applied_kept[:, t] = applied[:keep]
+            X, previous, last = X_next, u, applied
             beliefs.update(V[t])
     return {"stage": stage, "flags": flags, "infeasible": infeasible, "fallback": fallback, "failed": failed,
-            "slack": slack, "diverged": diverged, "states": states, "inputs": commands}
+            "slack": slack, "diverged": diverged, "states": states, "inputs": commands, "applied": applied_kept}
 
 
 def _assemble(constraints: Constraints, n: int, m: int, controller: str, protocol: str,
@@ -327,7 +382,9 @@ def _assemble(constraints: Constraints, n: int, m: int, controller: str, protoco
         slack_steps=sum(part["slack"] for part in parts), action=INFEASIBLE_ACTION,
         diverged_runs=int(sum(part["diverged"].sum() for part in parts)),
         states=np.concatenate([part["states"] for part in parts]) if keep else None,
-        inputs=np.concatenate([part["inputs"] for part in parts]) if keep else None)
+        inputs=np.concatenate([part["inputs"] for part in parts]) if keep else None,
+        applied=np.concatenate([part["applied"] for part in parts]) if keep and parts[0]["applied"] is not None
+        else None)
 
 
 def _twin(system: System) -> System:
@@ -336,16 +393,16 @@ def _twin(system: System) -> System:
 
 
 def loop_task(system_data: dict[str, Any], constraints_data: dict[str, Any], controller: str, protocol: str,
-              V: np.ndarray, W: np.ndarray | None, chunks: list[tuple[int, int]], keep: int = 0
-              ) -> list[dict[str, Any]]:
+              V: np.ndarray, W: np.ndarray | None, chunks: list[tuple[int, int]], keep: int = 0,
+              actuator: str = "zero") -> list[dict[str, Any]]:
     """Chunks of runs of one controller as one task (in this process or on a Dask worker: the system and
     constraints rebuilt from their dicts, exact), its program compiled once for them; ``V``, ``W`` hold the
-    task's runs, ``chunks`` their (start, stop) within them, the first ``keep`` of them kept. O(runs steps)
-    solves."""
+    task's runs, ``chunks`` their (start, stop) within them, the first ``keep`` of them kept; ``actuator`` the
+    strategy on a loss. O(runs steps) solves."""
     system = system_from_dict(system_data)
     constraints = check_constraints(constraints_data, system.n, system.m)
     twin = _twin(system)
-    made = _Controller(system, twin, constraints, controller, protocol)
+    made = _Controller(system, twin, constraints, controller, protocol, actuator)
     return [_chunk(system, twin, constraints, made, V[:, a:b], None if W is None else W[:, a:b],
                    _kept(keep, a, b)) for a, b in chunks]
 
@@ -357,7 +414,8 @@ def _kept(keep: int, a: int, b: int) -> int:
 
 def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, steps: int = 30, seed: int = 0,
                  protocols: Sequence[str] = ("tcp", "udp"), controllers: Sequence[str] = CONTROLLERS,
-                 progress: bool | None = None, keep: int = 0, threads: int = 1, dask: Any = None) -> MPCSimulation:
+                 progress: bool | None = None, keep: int = 0, threads: int = 1, dask: Any = None,
+                 actuator: str | Actuator = "zero") -> MPCSimulation:
     """The constrained receding-horizon loop sampled, each controller on the same paths (module docstring).
 
     Parameters
@@ -386,17 +444,27 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
         Run the chunks as Dask tasks of `TASK_CHUNKS` chunks each (one compilation per task; e.g. a client of
         `packetloss_cvx.studies.engine.dask_client`); the same floats again. Any object with ``submit`` whose
         futures have ``result()`` serves (a ``concurrent.futures`` process pool too).
+    actuator : str or Actuator
+        What the actuator does on a loss (`packetloss_cvx.closedloop.actuator.parse_actuator`): "zero" (the paper's
+        model, the default), "hold" (its last applied input), "buffer:L" (the packet is the plan's first L inputs,
+        the clipped law's rolled out; on a loss the actuator plays the next entry of the last plan it received, zero
+        once it is exhausted) or "buffer:L:hold" (its last applied input once exhausted). Under hold and buffer the
+        input and rate rows are checked on the inputs the actuator applies, and a TCP-like controller plans from
+        the input applied last (the acknowledgements tell it), a UDP-like one from its last command (it assumes
+        the packet arrived); certainty-equivalent MPC then runs once per protocol. Every strategy sees the same
+        paths on the same seed.
 
     Returns
     -------
     MPCSimulation
-        ``runs[protocol][controller]``; "certainty-equivalent" is one run shared by both protocols. ``.plot()``
-        draws the kept trajectories and the violation frequencies.
+        ``runs[protocol][controller]``; under zero "certainty-equivalent" is one run shared by both protocols.
+        ``.plot()`` draws the kept trajectories and the violation frequencies.
 
     Raises
     ------
     InputError
-        A count below its minimum, an unknown protocol or controller, a non-stationary Bernoulli schedule,
+        A count below its minimum, an unknown protocol, controller or ``actuator`` strategy (L outside 1..N),
+        a non-stationary Bernoulli schedule,
         time-varying weights (``state_weights``, ``input_weights``: the loop's stage cost needs one weight a step),
         constraints that do not fit the system, ``threads`` below 1 or ``dask`` without ``submit``.
     BudgetError
@@ -425,7 +493,7 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     [0, 0, 0]
     """
     system = check_system(system)
-    check_loop_weights(system)
+    loop_weights(system)
     constraints = check_constraints(constraints, system.n, system.m)
     samples, steps = check_count(samples, "samples", 2), check_count(steps, "steps", 1)
     seed = check_count(seed, "seed", 0)
@@ -445,21 +513,9 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
             raise InputError("controller", f"expected some of {', '.join(CONTROLLERS)}, found {name!r}")
     if not protocols or not controllers:
         raise InputError("protocol" if not protocols else "controller", "expected at least one")
-    names = [name for name in CONTROLLERS if name in controllers]
-    # one job per controller and protocol; certainty-equivalent plans alike for both: one job, shared
-    jobs = [(name, p) for name in names for p in protocols if name != "certainty-equivalent" or p == protocols[0]]
-    programs = sum(name != "clipped" for name, _ in jobs)
-    clipped = len(jobs) - programs
-    check("mpc_solves", mpc_solves(samples, steps, programs, clipped), "samples",
-          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
-          + (f" and {clipped} clipped laws" if clipped else ""))
-    needed = mpc_bytes(samples, steps, system.n, system.m, len(jobs), constraints.loop_rows(), keep)
-    check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
-                                             f"{gib_text(needed)} of paths and per-run records)",
-          instead="use fewer runs or steps")
-    if programs:        # the programs' size, before any path is drawn (ConstrainedQP checks it again)
-        N = system.horizon
-        check_constrained(N, system.n, system.m, constraints.program_rows(N), len(constraints.chance), "horizon")
+    strategy = parse_actuator(actuator, system.horizon)
+    jobs = loop_jobs(protocols, controllers, strategy)
+    check_loop_budgets(system, constraints, samples, steps, [jobs], keep)
     twin = _twin(system)
     channel = "bernoulli" if system.channel is None else system.channel.form
     V, W = loop_paths(system, samples, steps, seed)
@@ -467,12 +523,12 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     parts: dict[tuple[str, str], list[Any]] = {job: [None] * len(chunks) for job in jobs}
     with progress_bar(total=len(jobs) * samples, desc="simulate (constrained loop)", progress=progress) as bar:
         if dask is not None:
-            _on_dask(dask, system, constraints, jobs, chunks, V, W, parts, bar, keep)
+            _on_dask(dask, system, constraints, jobs, chunks, V, W, parts, bar, keep, str(strategy))
         elif threads > 1:
-            _on_threads(threads, system, twin, constraints, jobs, chunks, V, W, parts, bar, keep)
+            _on_threads(threads, system, twin, constraints, jobs, chunks, V, W, parts, bar, keep, str(strategy))
         else:
             for job in jobs:
-                made = _Controller(system, twin, constraints, *job)
+                made = _Controller(system, twin, constraints, *job, str(strategy))
                 for k, (a, b) in enumerate(chunks):
                     parts[job][k] = _chunk(system, twin, constraints, made, V[:, a:b], None if W is None else
                                            W[:, a:b], _kept(keep, a, b))
@@ -480,16 +536,58 @@ def simulate_mpc(system: System, constraints: Constraints | Any, samples: int, s
     runs: dict[str, dict[str, ControllerRun]] = {p: {} for p in protocols}
     for name, p in jobs:
         run = _assemble(constraints, system.n, system.m, name, p, parts[name, p], keep)
-        for q in protocols if name == "certainty-equivalent" else (p,):
+        shared = name == "certainty-equivalent" and strategy.kind == "zero"      # one run for both protocols
+        for q in protocols if shared else (p,):
             runs[q][name] = run
     return MPCSimulation(samples=samples, steps=steps, seed=seed, channel=channel,
                          constraints=constraints.to_dict(), runs=runs,
-                         delivered=V[:, :keep].swapaxes(0, 1).astype(bool) if keep else None)
+                         delivered=V[:, :keep].swapaxes(0, 1).astype(bool) if keep else None,
+                         actuator=str(strategy))
+
+
+def loop_jobs(protocols: Sequence[str], controllers: Sequence[str], strategy: Actuator) -> list[tuple[str, str]]:
+    """The (controller, protocol) runs of the loop, in `CONTROLLERS` order: one per controller and protocol, but
+    under zero certainty-equivalent plans alike for both (mu = 1, from the last command): one run, shared.
+
+    >>> loop_jobs(["tcp", "udp"], ["certainty-equivalent"], parse_actuator("hold"))
+    [('certainty-equivalent', 'tcp'), ('certainty-equivalent', 'udp')]
+    """
+    names = [name for name in CONTROLLERS if name in controllers]
+    shared = strategy.kind == "zero"
+    return [(name, p) for name in names for p in protocols
+            if name != "certainty-equivalent" or p == protocols[0] or not shared]
+
+
+def check_loop_budgets(system: System, constraints: Constraints, samples: int, steps: int,
+                       runs: Sequence[Sequence[tuple[str, str]]], keep: int = 0) -> None:
+    """Refuse, before any path is drawn, loops beyond the ``mpc_solves`` or ``memory_bytes`` budget, or programs
+    beyond their size: ``runs`` the jobs (`loop_jobs`) of each loop to be run (several: one per actuator strategy,
+    each on the same paths), summed. O(1).
+
+    Raises
+    ------
+    BudgetError
+        Field ``samples`` (the solves, the memory) or ``horizon`` (a program's size).
+    """
+    jobs = [job for loop in runs for job in loop]
+    programs = sum(name != "clipped" for name, _ in jobs)
+    clipped = len(jobs) - programs
+    check("mpc_solves", mpc_solves(samples, steps, programs, clipped), "samples",
+          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
+          + (f" and {clipped} clipped laws" if clipped else ""))
+    needed = max(mpc_bytes(samples, steps, system.n, system.m, len(loop), constraints.loop_rows(), keep)
+                 for loop in runs)
+    check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
+                                             f"{gib_text(needed)} of paths and per-run records)",
+          instead="use fewer runs or steps")
+    if programs:        # the programs' size, before any path is drawn (ConstrainedQP checks it again)
+        N = system.horizon
+        check_constrained(N, system.n, system.m, constraints.program_rows(N), len(constraints.chance), "horizon")
 
 
 def _on_threads(threads: int, system: System, twin: System, constraints: Constraints, jobs: list[tuple[str, str]],
                 chunks: list[tuple[int, int]], V: np.ndarray, W: np.ndarray | None,
-                parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int) -> None:
+                parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int, actuator: str) -> None:
     """Every (job, chunk) on a pool of ``threads`` threads, each thread compiling its own controllers once."""
     local = threading.local()
 
@@ -498,7 +596,7 @@ def _on_threads(threads: int, system: System, twin: System, constraints: Constra
         if made is None:
             made = local.made = {}
         if job not in made:
-            made[job] = _Controller(system, twin, constraints, *job)
+            made[job] = _Controller(system, twin, constraints, *job, actuator)
         return _chunk(system, twin, constraints, made[job], V[:, a:b], None if W is None else W[:, a:b],
                       _kept(keep, a, b))
 
@@ -515,7 +613,7 @@ def _on_threads(threads: int, system: System, twin: System, constraints: Constra
 
 def _on_dask(client: Any, system: System, constraints: Constraints, jobs: list[tuple[str, str]],
              chunks: list[tuple[int, int]], V: np.ndarray, W: np.ndarray | None,
-             parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int) -> None:
+             parts: dict[tuple[str, str], list[Any]], bar: Any, keep: int, actuator: str) -> None:
     """Every job's chunks as tasks of `TASK_CHUNKS` chunks (`loop_task`), results put back in run order."""
     system_data, constraints_data = system.to_dict(), constraints.to_dict()
     futures = []
@@ -525,7 +623,7 @@ def _on_dask(client: Any, system: System, constraints: Constraints, jobs: list[t
             a, b = group[0][0], group[-1][1]
             local = [(x - a, y - a) for x, y in group]
             task = (loop_task, system_data, constraints_data, *job, V[:, a:b], None if W is None else W[:, a:b],
-                    local, _kept(keep, a, b))
+                    local, _kept(keep, a, b), actuator)
             future = client.submit(*task, pure=False) if _is_dask(client) else client.submit(*task)
             futures.append((future, job, first, b - a))
     for future, job, first, size in futures:

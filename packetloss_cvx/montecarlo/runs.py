@@ -15,7 +15,7 @@ from ..model.system import System
 from ..results import OpenLoopCheck
 
 __all__ = [
-    "BLOCK", "LoopStats", "check_count", "check_loop_memory", "check_loop_weights", "loop_statistics",
+    "BLOCK", "LoopStats", "check_count", "check_loop_memory", "loop_statistics",
     "open_loop_checks", "plan_costs", "run_blocks",
     "sample_stats", "z_score",
 ]
@@ -135,29 +135,6 @@ def open_loop_checks(plans: dict[str, Any], blocks: list[int], streams: list[np.
         value = exact(sol.inputs)
         checks[p] = OpenLoopCheck(sol.cost, value, mean, stderr, z_score(mean, stderr, value))
     return checks
-
-
-def check_loop_weights(system: System, field: str = "state_weights") -> None:
-    """Refuse time-varying weights for a receding-horizon loop: its stage cost ``x_t' Omega x_t + a_t' Psi a_t`` needs
-    one weight for every step of a loop that runs past the horizon, and a plan's weights (``state_weights``,
-    ``input_weights``) speak of the steps of the plan, not of the loop. ``field`` names the state weights (the
-    command line's ``cost.state_weights``); the input weights are named alike. O(N (n^2 + m)).
-
-    Examples
-    --------
-    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weights=[[1.0], [2.0]], input_weight=[1.0], mu=[0.5],
-    ...            x0=[1.0])
-    >>> check_loop_weights(s)
-    Traceback (most recent call last):
-    ...
-    packetloss_cvx.errors.InputError: state_weights: the loop's stage cost needs one weight for every step; \
-time-varying weights speak of the plan's steps: give one state_weight
-    """
-    for weights, name in ((system.state_weights, field), (system.input_weights, field.replace("state", "input"))):
-        if not np.all(weights == weights[0]):
-            single = name.rsplit(".", 1)[-1].removesuffix("s")
-            raise InputError(name, "the loop's stage cost needs one weight for every step; time-varying weights "
-                                   f"speak of the plan's steps: give one {single}")
 
 
 def check_loop_memory(system: System, block: int, steps: int, laws: int, keep: int) -> None:

@@ -13,7 +13,7 @@ import numpy.typing as npt
 
 from ..linalg import psd_factor
 from ..lq.costs import check_inputs
-from ..model.system import System
+from ..model.system import System, loop_weights
 from .channels import sample_delivery_paths, sample_noise_paths, sample_step_deliveries, sample_step_noise
 
 __all__ = ["closed_loop_costs", "sample_plan_costs"]
@@ -74,7 +74,7 @@ def closed_loop_costs(system: System, gains: list[np.ndarray], steps: int, sampl
     >>> bool(np.all(c[1] == 4.0))                                   # K = 0: x stays 1, three stages + terminal
     True
     """
-    W, psi = system.state_weights[0], system.input_weights[0]
+    W, psi = loop_weights(system)
     losses = sample_delivery_paths(system, steps, samples, rng)
     noise = sample_noise_paths(system, steps, samples, rng)
     out = np.empty((len(gains), samples))

@@ -26,7 +26,7 @@ from ..closedloop.stability import is_mean_square_stable, mean_square_radius
 from ..closedloop.tails import error_bar_reason
 from ..errors import InputError, NumericalError
 from ..lq.costs import closed_form, expected_cost
-from ..model.system import System
+from ..model.system import System, loop_weights
 from ..progress import progress_bar
 from ..results import ClosedLoopRun, Simulation
 from .channels import sample_deliveries, sample_delivery_paths, sample_noise, sample_noise_paths
@@ -111,7 +111,7 @@ def closed_loop_block(system: System, gains: np.ndarray, steps: int, samples: in
     >>> cost.shape, states[0, 0].ravel().tolist()
     ((1, 3), [1.0, 0.5, 0.25])
     """
-    Omega, psi, A, B = system.state_weights[0], system.input_weights[0], system.A, system.B
+    (Omega, psi), A, B = loop_weights(system), system.A, system.B
     V = sample_delivery_paths(system, steps, samples, rng)
     W = sample_noise_paths(system, steps, samples, noise_rng if noise_rng is not None else rng)
     V = np.ascontiguousarray(V.transpose(0, 2, 1))                                               # (steps, m, samples)
@@ -177,8 +177,8 @@ def simulate(system: System, samples: int, steps: int = 50, seed: int = 0, close
         refused before anything is drawn (``simulate(system, 2**63)`` at once); or, under ``steps``, a closed
         loop's block arrays (O(BLOCK steps (n + m + laws))) beyond the ``memory_bytes`` budget.
     ResourceError
-        Behind a Gilbert–Elliott channel: a TCP-like law meeting more than ``markov_loop.PLAN_BUDGET``
-        distinct beliefs (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
+        Behind a Gilbert–Elliott channel: a TCP-like law meeting more distinct beliefs than the ``belief_plans``
+        budget (channels whose outcome does not reveal the state), or a dense exact cost beyond the budget.
 
     Notes
     -----

@@ -86,7 +86,8 @@ class OpenLoopCheck(Tabular):
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
-        """The issue's schema (plus ``reason`` when set); a non-finite number is None (JSON). O(1)."""
+        """``simulate --json``'s ``open_loop`` object (docs/cli-contracts.md; plus ``reason`` when set); a non-finite
+        number is None (JSON). O(1)."""
         out = {k: finite_or_none(getattr(self, k)) for k in ("formula", "exact", "mean", "stderr", "z")}
         return {**out, "reason": self.reason} if self.reason else out
 
@@ -120,7 +121,8 @@ class ClosedLoopRun(Frozen):
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
-        """The issue's schema (plus ``reason`` when there is no law or no exact value, ``note`` when set, and
+        """``simulate --json``'s ``closed_loop`` object (docs/cli-contracts.md; plus ``reason`` when there is no law or
+        no exact value, ``note`` when set, and
         ``stderr_reason`` when the sample has no error bar: ``stderr`` is then None); non-finite numbers are None.
         O(1)."""
         out: dict[str, Any] = {"mean_stage_cost": finite_or_none(self.mean_stage_cost),

@@ -112,10 +112,14 @@ class ControllerRun(Frozen):
         The realised states x_0..x_steps of the first ``keep`` runs (`simulate_mpc`'s ``keep``), None when none
         were kept.
     inputs : ndarray (keep, steps, m) or None
-        The inputs those runs commanded (what the actuator applied is ``inputs * MPCSimulation.delivered``).
+        The inputs those runs commanded (under zero, what the actuator applied is ``inputs *
+        MPCSimulation.delivered``).
     diverged_runs : int
         Runs whose stage cost or state left the double range (the loop diverged: a result, as in `simulate`); with
         any, ``mean_stage_cost`` is inf (null in JSON).
+    applied : ndarray (keep, steps, m) or None
+        Under hold or buffer (`MPCSimulation.actuator`): the inputs the actuator applied in the kept runs (None
+        under zero, or when none were kept).
     """
 
     controller: str
@@ -132,6 +136,7 @@ class ControllerRun(Frozen):
     states: np.ndarray | None = None
     inputs: np.ndarray | None = None
     diverged_runs: int = 0
+    applied: np.ndarray | None = None
 
     def violation(self, name: str) -> Frequency:
         """The `Frequency` of the constraint row ``name``."""
@@ -154,7 +159,8 @@ class MPCSimulation(Frozen):
 
     ``runs[protocol][controller]`` is a `ControllerRun`; ``channel`` "bernoulli", "gilbert-elliott" or "markov";
     ``constraints`` the ``[constraints]`` table run; ``delivered`` (keep, steps, m) the kept runs' deliveries
-    (True: the packet arrived), the same for every controller, or None when no trajectory was kept.
+    (True: the packet arrived), the same for every controller, or None when no trajectory was kept; ``actuator``
+    what the actuator did on a loss ("zero", "hold", "buffer:L", "buffer:L:hold").
     """
 
     samples: int
@@ -164,13 +170,16 @@ class MPCSimulation(Frozen):
     constraints: dict
     runs: dict
     delivered: np.ndarray | None = None
+    actuator: str = "zero"
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"samples", "steps", "seed", "channel", "constraints", "tcp": {controller: ...}, "udp": {...}}``;
+        """``{"samples", "steps", "seed", "channel", "constraints", "actuator", "tcp": {controller: ...}, "udp":
+        {...}}``;
         ``constraints`` is the table with every infinite entry (a bound left out) as None (JSON null: strict JSON
         has no inf), each row keeping its place."""
         out: dict[str, Any] = {"samples": self.samples, "steps": self.steps, "seed": self.seed,
-                               "channel": self.channel, "constraints": json_table(self.constraints)}
+                               "channel": self.channel, "constraints": json_table(self.constraints),
+                               "actuator": self.actuator}
         for protocol, controllers in self.runs.items():
             out[protocol] = {name: run.to_dict() for name, run in controllers.items()}
         return out

@@ -43,7 +43,7 @@ from ..closedloop.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
 from ..closedloop.stability import mean_square_radius, random_matrix_moment
 from ..errors import InputError, NumericalError
 from ..lq.costs import closed_form
-from ..model.system import System
+from ..model.system import System, loop_weights
 from ..results import Riccati
 from ..results.sensing import EstimatedLoop
 from ..tolerances import KRONECKER_MAX_N, MEAN_SQUARE_MARGIN
@@ -243,7 +243,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
         inf_or_nan = float("inf") if verdict is False else float("nan")
         return EstimatedLoop(law, protocol, K, inf_or_nan, verdict, inf_or_nan, float("nan"), float("nan"), None, why)
     A, B, Sigma_W = system.A, system.B, system.noise_cov
-    Omega, psi = system.state_weights[0], system.input_weights[0]
+    Omega, psi = loop_weights(system)
     sensor = system.sensor
     dp = dp if split else None
     dp_reason = "not asked for (split=False)"

@@ -19,7 +19,7 @@ from ..closedloop.moments import stationary_channel
 from ..errors import InputError
 from ..linalg import psd_factor
 from ..model.sensor import Sensor
-from ..model.system import System
+from ..model.system import System, loop_weights
 from ..results.sensing import EstimatedRun, SampledCovariance
 from .arrivals import ChainSampler, arrival_patterns
 from .kalman import actuation_covariance, measurement_update, pattern_rows, predict
@@ -73,7 +73,7 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     sensor = system.sensor
     K = np.asarray(gain, dtype=float)
     A, B, C, Sigma_W, R = system.A, system.B, sensor.C, system.noise_cov, sensor.noise_cov
-    Omega, psi = system.state_weights[0], system.input_weights[0]
+    Omega, psi = loop_weights(system)
     arrived, _ = arrival_patterns(sensor.gamma)
     rows = [pattern_rows(sensor, a) for a in arrived]
     digits = 2 ** np.arange(sensor.g - 1, -1, -1)        # itertools.product order: channel 0 most significant

@@ -284,9 +284,9 @@ CLUSTER_START_WAIT = 60.0
 def _deaf_to_sigint(make: Any) -> Any:
     """``make()`` (a LocalCluster) built in a thread that blocks SIGINT, so that every thread and process it starts
     (the cluster's IO loop, its worker processes: the signal mask is inherited through fork and exec) blocks SIGINT
-    from birth. A Ctrl-C at a terminal goes to the whole process group: the workers used to receive it too and print
-    their own KeyboardInterrupt tracebacks (50-90 lines, from an import or the worker's loop) after the command's
-    one line. Now only this process hears it, and closes the cluster, whose nannies stop the workers. This thread
+    from birth. A Ctrl-C at a terminal goes to the whole process group: workers that received it would print their
+    own KeyboardInterrupt tracebacks (50-90 lines, from an import or the worker's loop) after the command's one
+    line. So only this process hears it, and closes the cluster, whose nannies stop the workers. This thread
     blocks SIGINT only for the instant the builder thread starts (a signal then is held pending, not lost).
 
     Interrupted while the cluster starts, the caller waits for the build (at most `CLUSTER_START_WAIT`) and

@@ -46,6 +46,28 @@ def test_compare_puts_the_strategies_side_by_side_with_hand_values(capsys, scala
     assert rows["buffer:2"]["initial_cost"] <= rows["zero"]["initial_cost"] * (1 + ACTUATOR_DP_RTOL)
 
 
+def test_compare_region_and_allocate_take_buffer_hold_with_the_hand_critical_mu(capsys, scalar):
+    """buffer:L:hold's optimal law and region, wired like the others: critical mu 3/4 on both sides (hand), and
+    mu* = 0.5 below it not stabilisable."""
+    code, out, _ = _run(capsys, "compare", scalar, "--actuator", "buffer:2:hold,buffer:3:hold", "--json", "-q")
+    assert code == 0
+    rows = json.loads(out)["strategies"]
+    assert list(rows) == ["buffer:2:hold", "buffer:3:hold"]
+    for row in rows.values():
+        assert row["radius"] < 1.0
+        assert row["critical"]["lower"] <= 0.75 <= row["critical"]["t"]
+        assert row["critical"]["inside"]["verdict"] == "stable"
+        assert row["critical"]["outside"]["verdict"] == "unstable"
+    code, out, _ = _run(capsys, "region", scalar, "--law", "dp", "--actuator", "buffer:2:hold", "--json", "-q")
+    assert code == 0
+    point = json.loads(out)["actuator"]["buffer:2:hold"]
+    assert point["lower"] <= 0.75 <= point["t"]
+    code, out, _ = _run(capsys, "allocate", scalar, "--protocol", "tcp", "--alpha", "1e6", "--beta", "1",
+                        "--bounds", "0.5,1", "--actuator", "buffer:2:hold", "--json", "-q")
+    assert code == 0
+    assert json.loads(out)["actuator"]["buffer:2:hold"]["verdict"] == "unstable"
+
+
 def test_compare_text_has_a_row_per_strategy(capsys, scalar):
     code, out, _ = _run(capsys, "compare", scalar, "--actuator", "zero,hold", "-q")
     assert code == 0
@@ -71,6 +93,36 @@ def test_allocate_actuator_checks_the_allocation_under_each_strategy(capsys, sca
     assert data["mu"] == pytest.approx([0.5])
     assert {name: row["verdict"] for name, row in data["actuator"].items()} == {"zero": "unstable",
                                                                                 "buffer:2": "unstable"}
+
+
+def test_allocate_udp_checks_zero_and_noise_free_hold_with_the_laws_a_udp_like_controller_runs(capsys, scalar):
+    """No noise, b = 1: the UDP-like controller rebuilds the held input from the states, so hold's TCP-like laws
+    are its own; mu* = 0.5 < 3/4 (hand) is not stabilisable by either."""
+    code, out, _ = _run(capsys, "allocate", scalar, "--protocol", "udp", "--alpha", "1e6", "--beta", "1",
+                        "--bounds", "0.5,1", "--actuator", "zero,hold")
+    assert code == 0
+    assert "zero at mu*" in out
+    assert out.count("NOT stabilisable by any UDP-like law (proved)") == 2
+
+
+@pytest.mark.parametrize(("actuator", "noise", "why"), [
+    ("buffer:2", None, "the age of the plan each actuator plays is hidden"),
+    ("zero,buffer:2:hold", None, "the age of the plan each actuator plays is hidden"),
+    ("hold", [[0.1]], "with process noise")])
+def test_allocate_udp_asking_for_a_law_only_acknowledgements_allow_is_exit_2_and_one_line(capsys, tmp_path, actuator,
+                                                                                         noise, why):
+    system = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0],
+                    noise_cov=noise)
+    path = str(save_system(system, tmp_path / "s.toml"))
+    code, out, err = _run(capsys, "allocate", path, "--protocol", "udp", "--alpha", "1e6", "--beta", "1",
+                          "--actuator", actuator)
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1
+    assert "--actuator:" in err
+    assert "without acknowledgements is not computed" in err
+    assert why in err
+    assert "use protocol tcp" in err
 
 
 @pytest.mark.parametrize(("argv", "message"), [

@@ -74,7 +74,8 @@ def _enumerated_optimum(system: System, steps: int, actuator: str) -> float:
                     a = held[i]
                 else:
                     age[i] += 1
-                    a = plan[i][age[i]] if plan[i] is not None and age[i] < L else np.zeros(width)
+                    a = plan[i][age[i]] if plan[i] is not None and age[i] < L else \
+                        (held[i] if strategy.exhausted == "hold" else np.zeros(width))
                 held[i] = a
                 applied.append(a)
             a = np.array(applied)
@@ -90,7 +91,8 @@ def _enumerated_optimum(system: System, steps: int, actuator: str) -> float:
 
 @pytest.mark.parametrize(("m", "actuator", "steps"), [
     (1, "zero", 4), (1, "hold", 4), (1, "buffer:2", 4), (1, "buffer:3", 4), (1, "buffer:4", 4),
-    (2, "zero", 3), (2, "hold", 3), (2, "buffer:2", 3), (2, "buffer:3", 3)])
+    (1, "buffer:2:hold", 4), (1, "buffer:3:hold", 4),
+    (2, "zero", 3), (2, "hold", 3), (2, "buffer:2", 3), (2, "buffer:3", 3), (2, "buffer:2:hold", 3)])
 def test_finite_horizon_optimum_is_the_enumerated_optimum_over_delivery_paths(m, actuator, steps):
     """The coupled Riccati recursion's optimal cost from x0 is the least expected cost over every causal input
     sequence (a free input per delivery history), the firmware written out per path."""
@@ -161,6 +163,59 @@ def test_scalar_hold_without_dynamics_by_hand():
     assert np.allclose(design.K[0], 0.0, atol=1e-15)
 
 
+@pytest.mark.parametrize(("actuator", "c_entry", "c_exhausted"), [
+    ("buffer:2:hold", lambda mu: 2 * (1 - mu) / mu, lambda mu: 2 * (1 - mu) / mu),
+    ("buffer:2", lambda mu: 2 * (1 - mu), lambda mu: 0.0)])
+def test_scalar_buffer_without_dynamics_by_hand(actuator, c_entry, c_exhausted):
+    """x+ = applied input (A = 0), cost x^2 + a^2, z = (x, b), b the plan's second entry: the optimal packet is 0
+    and the value x^2 + c_beta b^2. Exhausted (age 2), buffer:2:hold plays b on a loss and keeps it: c_2 = (1 - mu)
+    (2 + c_2) = 2 (1 - mu) / mu, as hold; with an entry left (age 1) a loss plays b and exhausts the plan, kept:
+    c_1 = (1 - mu)(2 + c_2) = c_2. buffer:2 zeroes it once played: c_2 = 0, c_1 = 2 (1 - mu)."""
+    mu = 0.4
+    system = System(A=[[0.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[mu], x0=[1.0])
+    design = actuator_dp(system, actuator)
+    entry, exhausted = design.modes.labels.index("c0 ages (1,)"), design.modes.labels.index("c0 ages (2,)")
+    assert np.allclose(design.P[entry], np.diag([1.0, c_entry(mu)]), rtol=ACTUATOR_DP_RTOL, atol=1e-15)
+    assert np.allclose(design.P[exhausted], np.diag([1.0, c_exhausted(mu)]), rtol=ACTUATOR_DP_RTOL, atol=1e-15)
+    assert np.allclose(design.K, 0.0, atol=1e-15)
+
+
+@pytest.mark.parametrize("L", [2, 3])
+def test_buffer_hold_is_the_buffer_while_no_plan_can_run_out(L):
+    """Within L steps no plan is exhausted after a delivery (exhaustion takes a delivery and L - 1 losses after
+    it, L + 1 steps in all; before the first packet both play 0), so buffer:L:hold's optimum over L steps is
+    buffer:L's; over L + 1 steps the held last entry is played on one path, and the two differ."""
+    system = _system(2, mu=[0.6, 0.5], noise=True)
+    _, hold = actuator_dp_finite(system, L, f"buffer:{L}:hold")
+    _, zero = actuator_dp_finite(system, L, f"buffer:{L}")
+    assert hold == pytest.approx(zero, rel=ACTUATOR_DP_RTOL)
+    _, hold = actuator_dp_finite(system, L + 1, f"buffer:{L}:hold")
+    _, zero = actuator_dp_finite(system, L + 1, f"buffer:{L}")
+    assert abs(hold - zero) > 1e3 * ACTUATOR_DP_RTOL * zero
+
+
+@pytest.mark.parametrize("actuator", ["hold", "buffer:3", "buffer:3:hold"])
+def test_information_modes_of_a_static_plan_cost_what_the_firmware_loop_says(actuator):
+    """The plan of ``u = -K x`` (entry j: ``-k_i (A - B K)^j x``), written as a law over the information modes,
+    costs through DesignModes' loop exactly what closedloop.actuator's own construction of the firmware's loop
+    (modes: the plan's age from 0, its memory built from K) gives for the same law."""
+    system = _system(2, mu=[0.6, 0.5], noise=True)
+    K = dp_riccati(system).gain
+    modes = design_modes(system.A, system.B, system.mu_schedule[0], actuator)
+    strategy = parse_actuator(actuator)
+    L = strategy.length if strategy.kind == "buffer" else 1
+    closed = system.A - system.B @ K
+    plan = np.stack([K[i] @ np.linalg.matrix_power(closed, j) for i in range(2) for j in range(L)])   # (mL, n)
+    gains = np.zeros((modes.modes, *modes.B.shape[-1:], modes.A.shape[-1]))
+    gains[:, :, :2] = plan
+    steps = 12
+    stage, terminal = modes.loop(gains).stage_costs(system.state_weights[0], system.input_weights[0],
+                                                    system.noise_cov, system.x0, steps)
+    stage_ref, terminal_ref = actuator_costs(system, K, steps, actuator)
+    assert np.allclose(stage, stage_ref, rtol=ACTUATOR_DP_RTOL, atol=0.0)
+    assert terminal == pytest.approx(terminal_ref, rel=ACTUATOR_DP_RTOL)
+
+
 def test_scalar_zero_is_the_closed_form_of_the_modified_riccati_equation():
     """a = 2, b = q = r = 1: ``P = 1 + 4P - 4 mu P^2 / (1 + P)``; times (1 + P): ``(4 mu - 3) P^2 - 4P - 1 = 0``,
     its positive root; the gain ``2P / (1 + P)``."""
@@ -173,7 +228,7 @@ def test_scalar_zero_is_the_closed_form_of_the_modified_riccati_equation():
     assert design.K[0, 0, 0] == pytest.approx(2 * P / (1 + P), rel=ACTUATOR_DP_RTOL)
 
 
-@pytest.mark.parametrize("actuator", ["hold", "buffer:3"])
+@pytest.mark.parametrize("actuator", ["hold", "buffer:3", "buffer:3:hold"])
 def test_every_packet_delivered_is_the_dare_on_the_plant(actuator):
     """mu = 1: the held input and the plan's tail are never played; the cost-to-go is the DARE's on x."""
     from scipy.linalg import solve_discrete_are
@@ -235,9 +290,9 @@ def _simulate(design, system: System, steps: int, samples: int, seed: int) -> np
                 elif strategy.kind == "hold":
                     a[i] = held[i]
                 elif strategy.kind == "buffer":
-                    a[i] = plan[i, beta[i]] if beta[i] < L else 0.0
+                    a[i] = plan[i, beta[i]] if beta[i] < L else (held[i] if strategy.exhausted == "hold" else 0.0)
                     beta[i] = min(beta[i] + 1, L)
-                    if beta[i] == L:
+                    if beta[i] == L and strategy.exhausted != "hold":
                         plan[i] = 0.0
                 else:
                     a[i] = 0.0
@@ -248,7 +303,7 @@ def _simulate(design, system: System, steps: int, samples: int, seed: int) -> np
     return totals
 
 
-@pytest.mark.parametrize("actuator", ["hold", "buffer:3"])
+@pytest.mark.parametrize("actuator", ["hold", "buffer:3", "buffer:2:hold"])
 def test_designed_law_sampled_through_its_firmware_costs_what_the_engine_says(actuator):
     system = _system(2, mu=[0.6, 0.5], noise=True)
     design = actuator_dp(system, actuator)
@@ -298,3 +353,77 @@ def test_a_buffer_whose_law_is_over_the_rows_budget_is_refused_upfront_naming_th
         actuator_dp(system, "buffer:10")
     assert time.perf_counter() - started < 1.0          # upfront: before any Riccati step
     assert actuator_dp(system, "buffer:6").radius < 1.0
+
+
+def test_udp_like_zero_and_noise_free_hold_get_the_tcp_like_law():
+    """Bernoulli links: zero's optimum needs no acknowledgement (noise or not), and hold's none without noise with
+    B of full column rank (the input applied last is B^+ (x_k - A x_k-1)): the same law, the same cost."""
+    noisy, quiet = _system(2, mu=[0.6, 0.5], noise=True), _system(2, mu=[0.6, 0.5])
+    for system, actuator in ((noisy, "zero"), (quiet, "zero"), (quiet, "hold")):
+        tcp, udp = actuator_dp(system, actuator), actuator_dp(system, actuator, protocol="udp")
+        assert np.array_equal(udp.K, tcp.K)
+        assert udp.initial == tcp.initial
+    _, cost = actuator_dp_finite(quiet, 3, "hold", protocol="udp")
+    assert cost == pytest.approx(_enumerated_optimum(quiet, 3, "hold"), rel=ACTUATOR_DP_RTOL)
+
+
+def test_noise_free_hold_law_run_from_the_state_history_alone_costs_the_tcp_like_optimum():
+    """The UDP-like controller of hold: it never learns a delivery, it rebuilds the held input as
+    ``B^+ (x_k - A x_k-1)`` (its own packets and the states only) and applies the TCP-like law to it; sampled
+    through the firmware, the mean cost is the design's exact cost from x0 (the engine's stage costs). Measured: the
+    same law with the held input taken as 0 costs 7 standard errors more here (a controller that does not rebuild
+    it would fail)."""
+    system = _system(2, mu=[0.3, 0.3])
+    design = actuator_dp(system, "hold", protocol="udp")
+    A, B, x0 = system.A, system.B, system.x0
+    Omega, psi, mu = system.state_weights[0], system.input_weights[0], system.mu_schedule[0]
+    rng = np.random.default_rng(11)
+    steps, samples = 15, 4000
+    pinv = np.linalg.pinv(B)
+    totals = np.empty(samples)
+    for k in range(samples):
+        x, previous, held, total = x0.copy(), None, np.zeros(2), 0.0
+        for _ in range(steps):
+            rebuilt = np.zeros(2) if previous is None else pinv @ (x - A @ previous)     # the controller's view
+            u = -design.K[0] @ np.concatenate([x, rebuilt])
+            d = rng.random(2) < mu
+            held = np.where(d, u, held)                                                  # the firmware's
+            total += x @ Omega @ x + held @ (psi * held)
+            previous, x = x, A @ x + B @ held
+        totals[k] = total + x @ Omega @ x
+    stage, terminal = design.modes.loop(design.K).stage_costs(Omega, psi, system.noise_cov, x0, steps)
+    error = totals.std(ddof=1) / np.sqrt(samples)
+    assert abs(totals.mean() - (stage.sum() + terminal)) < SAMPLED_Z_MAX * error
+
+
+@pytest.mark.parametrize(("actuator", "case", "why"), [
+    ("hold", "noise", "with process noise"),
+    ("hold", "rank", "with B of rank below its columns"),
+    ("buffer:2", "quiet", "the age of the plan"),
+    ("buffer:2:hold", "quiet", "the age of the plan"),
+    ("zero", "chain", "the channel state behind the chain is hidden")])
+def test_udp_like_optimal_law_that_needs_what_only_acknowledgements_tell_is_refused_saying_why(actuator, case, why):
+    from packetloss_cvx.closedloop.actuator_region import actuator_critical, actuator_membership
+    from packetloss_cvx.errors import UnobservedModeError
+
+    system = {"noise": _system(2, mu=[0.6, 0.5], noise=True), "quiet": _system(2, mu=[0.6, 0.5]),
+              "rank": System(A=[[1.1, 0.4], [-0.3, 0.8]], B=[[1.0, 0.5], [0.0, 0.0]], horizon=4,
+                             state_weight=[1.0, 2.0], input_weight=[0.5, 0.5], mu=[0.6, 0.5], x0=[1.0, -0.7]),
+              "chain": _system(2, channel=GilbertElliott(p=[0.2, 0.1], r=[0.5, 0.3], h_good=[0.95, 0.9],
+                                                         h_bad=[0.2, 0.3]))}[case]
+    for call in (lambda: actuator_dp(system, actuator, protocol="udp"),
+                 lambda: actuator_dp_finite(system, 3, actuator, protocol="udp"),
+                 lambda: actuator_membership(system, actuator, protocol="udp")):
+        with pytest.raises(UnobservedModeError, match=why) as caught:
+            call()
+        assert isinstance(caught.value, ValueError)
+        assert "use protocol tcp" in str(caught.value)
+    if case != "chain":
+        with pytest.raises(UnobservedModeError, match=why):
+            actuator_critical(system, actuator, protocol="udp")
+    assert actuator_dp(system, actuator).K.ndim == 3            # TCP-like: computed
+
+
+def test_an_unknown_protocol_is_an_input_error():
+    with pytest.raises(InputError, match="protocol: expected tcp or udp"):
+        actuator_dp(_system(1), "hold", protocol="ack")

@@ -20,15 +20,17 @@ from packetloss_cvx.closedloop.actuator_region import (
     strategy_inside_proved,
     strategy_outside_proved,
 )
+from packetloss_cvx.closedloop.critical import critical_mu
 from packetloss_cvx.closedloop.region import membership
-from packetloss_cvx.errors import InputError
+from packetloss_cvx.errors import InputError, NumericalError
 from packetloss_cvx.model.system import System
+from packetloss_cvx.results.region import Membership
 from packetloss_cvx.tolerances import ACTUATOR_DP_RTOL, CRITICAL_MU_TOL
 
 SCALAR = System(A=[[2.0]], B=[[1.0]], horizon=4, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
 
 
-@pytest.mark.parametrize("actuator", ["zero", "buffer:2", "buffer:3"])
+@pytest.mark.parametrize("actuator", ["zero", "buffer:2", "buffer:3", "buffer:2:hold", "buffer:3:hold"])
 def test_scalar_critical_mu_is_one_minus_one_over_a_squared_with_both_ends_certified(actuator):
     point = actuator_critical(SCALAR, actuator, tol=CRITICAL_MU_TOL)
     assert point.lower <= 0.75 <= point.t
@@ -56,6 +58,21 @@ def test_hold_behind_a_link_that_never_delivers_is_certified_unstable_by_its_hel
     expected[0, 3, 3] = 1.0
     assert np.array_equal(found.certificate, expected)
     assert actuator_membership(system, "zero", [0.9, 0.0]).verdict == "stable"
+
+
+@pytest.mark.parametrize("actuator", ["buffer:2:hold", "buffer:3:hold"])
+def test_buffer_hold_behind_a_link_that_never_delivers_is_certified_unstable_by_the_input_it_holds(actuator):
+    """Actuator 2 never delivers: from the start it holds its memory's last entry (0 at the start, the plan's
+    last entry of any earlier packet) on every loss, so ``w+ = w`` whatever the law: e_w e_w' proves radius >= 1 (the
+    memory of buffer:L:hold: L - 1 entries per actuator, the held one last, at 2 + 2 (L - 1) - 1)."""
+    system = load_example("two_actuator")
+    L = int(actuator.split(":")[1])
+    found = actuator_membership(system, actuator, [0.9, 0.0])
+    assert found.verdict == "unstable"
+    held = 2 + 2 * (L - 1) - 1
+    assert np.array_equal(np.flatnonzero(found.certificate[0]), [held * (2 + 2 * (L - 1)) + held])
+    assert np.all(found.certificate[:, held, held] == 1.0)
+    assert actuator_membership(system, f"buffer:{L}", [0.9, 0.0]).verdict == "stable"
 
 
 @pytest.mark.parametrize("mu", [[0.05, 0.05], [0.07, 0.07], [0.3, 0.02], [0.08, 0.2]])
@@ -145,3 +162,77 @@ def test_two_actuator_hold_critical_lower_end_is_proved_near_the_float_crossing(
     assert point.outside.verdict == "unstable"
     assert 0.0 < point.t - point.lower <= 2e-3
     assert _hold_loop_radius(system.A, system.B, point.t * np.ones(2), point.inside.gain[0]) < 1.0
+
+
+def test_hold_laws_of_the_state_alone_have_a_stabilising_set_that_is_not_convex():
+    """docs/mathematics.md's UDP-like hold: the laws u = -K x (the held input unobserved) on two_actuator at
+    mu = (0.9, 0.9); two stabilising gains, their midpoint not (radius about 3.05), by the enumerated operator."""
+    system = load_example("two_actuator")
+    mu = [0.9, 0.9]
+    first, second = np.array([[1.002, -0.114], [4.931, 0.418]]), np.array([[1.229, 2.27], [0.301, 0.633]])
+
+    def radius(K):
+        return _hold_loop_radius(system.A, system.B, mu, np.hstack([K, np.zeros((2, 2))]))
+
+    assert radius(first) < 1.0
+    assert radius(second) < 1.0
+    assert radius(0.5 * (first + second)) == pytest.approx(3.05, abs=0.01)
+
+
+def test_two_actuator_buffer_direction_lies_along_the_irrational_unstable_eigenvector_of_a():
+    """docs/mathematics.md: at an undecided point of buffer:2 on two_actuator the least-radius direction is rank
+    one, its plant part along A's left eigenvector for 1.02 + sqrt(0.00185) (by hand: A' q = lambda q gives
+    q2 / q1 = (lambda - 1.03) / 0.35) in every mode where it weighs the plant."""
+    system = load_example("two_actuator")
+    modes = design_modes(system.A, system.B, [0.04, 0.04], "buffer:2")
+    found = least_radius(modes)
+    assert found.growth > 1.0
+    assert actuator_membership(system, "buffer:2", [0.04, 0.04]).verdict == "undecided"
+    lam = 1.02 + np.sqrt(0.00185)
+    q = np.array([1.0, (lam - 1.03) / 0.35])
+    for P in found.P:
+        w, V = np.linalg.eigh(P)
+        size = np.sort(np.abs(w))
+        assert size[-2] <= 1e-9 * size[-1]                # rank one
+        top = V[:2, -1] if abs(w[-1]) >= abs(w[0]) else V[:2, 0]
+        assert abs(top[0] * q[1] - top[1] * q[0]) <= 1e-6 * np.linalg.norm(top) * np.linalg.norm(q)
+
+
+#: a controllable single-input plant whose deadbeat law makes zero's map at mu = 1 nilpotent: the power iteration's
+#: normalised iterates are rounding noise there (its growth read 1.64 before the greedy law's own radius was used)
+DEADBEAT = System(A=[[1.2, 0.1], [0.0, 0.9]], B=[[1.0], [0.5]], horizon=3, state_weight=[1.0, 1.0],
+                  input_weight=[1.0], mu=[0.7], x0=[1.0, 0.0])
+
+
+def test_zero_at_full_delivery_is_proved_stable_by_the_deadbeat_law():
+    found = actuator_membership(DEADBEAT, "zero", [1.0])
+    assert found.verdict == "stable"
+    assert found.radius < 1e-6                         # the deadbeat law: A - B K nilpotent
+
+
+def test_zero_critical_mu_on_the_deadbeat_plant_agrees_with_the_bernoulli_engine():
+    reference = critical_mu(DEADBEAT, "dp", tol=CRITICAL_MU_TOL)       # closedloop.critical, another engine
+    point = actuator_critical(DEADBEAT, "zero", tol=CRITICAL_MU_TOL)
+    assert point.inside.verdict == "stable"
+    assert point.outside.verdict == "unstable"
+    assert point.lower <= reference.t
+    assert reference.lower <= point.t
+
+
+def test_an_undecided_ray_end_is_a_numerical_error_not_a_verdict(monkeypatch):
+    """Floats say no law stabilises at the ray's end (an unreached unstable mode); without a certificate that is
+    no verdict. The real membership proves it unstable (checked first), the planted one cannot."""
+    import packetloss_cvx.closedloop.actuator_region as region
+
+    def undecided(system, actuator, mu, **options):
+        return Membership(np.asarray(mu, dtype=float), "undecided", None, float("nan"), None, float("nan"),
+                          (("dp", "undecided"),), "planted: nothing checks")
+
+    unreached = System(A=[[2.0, 0.0], [0.0, 0.5]], B=[[0.0], [1.0]], horizon=3, state_weight=[1.0, 1.0],
+                       input_weight=[1.0], mu=[0.9], x0=[1.0, 1.0])
+    proved = actuator_critical(unreached, "zero", tol=1e-3)
+    assert proved.t == float("inf")
+    assert proved.outside.verdict == "unstable"
+    monkeypatch.setattr(region, "actuator_membership", undecided)
+    with pytest.raises(NumericalError, match="ray's end .* undecided"):
+        actuator_critical(unreached, "zero", tol=1e-3)

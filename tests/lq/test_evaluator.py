@@ -151,7 +151,7 @@ def test_beyond_the_double_range_raises():
 @pytest.mark.parametrize(("mus", "error", "match"), [
     ([[0.5, 1.2]], pl.ProbabilityError, "mu: expected probabilities"),
     ([[0.5, -0.1]], pl.ProbabilityError, "mu: expected probabilities"),
-    ([[0.5, 0.5, 0.5]], pl.DimensionError, r"mu: expected shape \(P, 2\)"),
+    ([[0.5, 0.5, 0.5]], pl.DimensionError, r"mu: expected shape \(points, 2\)"),
     ([0.5, 0.5], pl.DimensionError, "mu: expected shape"),
     ([[0.5, np.nan]], pl.InputError, "mu"),
 ])

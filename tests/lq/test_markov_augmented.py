@@ -327,26 +327,75 @@ def test_auto_falls_back_to_the_recursion_when_the_dense_route_loses_its_digits(
 
 
 def test_the_recursion_is_refused_beyond_its_time_budget_before_any_work(monkeypatch):
+    """pendulum_bursty at N = 80: n = 4 behind one Gilbert channel, D = 4 (1 + 1) = 8, priced by hand at
+    N (D^3 + 6e5) = 80 (512 + 600000) = 48,040,960 units: runs at that budget, refused 1 % below it."""
     exact_module = importlib.import_module("packetloss_cvx.lq.markov_cost")   # the name is also a function
-    from packetloss_cvx.budgets import markov_recursion_work
 
     def never(*args, **kwargs):
         raise AssertionError("the recursion ran")
 
     s = pendulum_at(80)
-    work = markov_recursion_work(80, 8)
+    work = 80 * (8 ** 3 + 6e5)
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK", str(work))
     assert exact_closed_form(s, method="recursion").method == "markov-recursion"     # at the budget: runs
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK", str(work * 0.99))
     monkeypatch.setattr(exact_module, "augmented_solve", never)
     with pytest.raises(BudgetError, match=r"^channel: the exact Markov recursion over N = 80 steps on an augmented "
-                                             r"state of size D = 8 .*method='dense' needs about .* within the memory "
-                                             r"budget.*PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK=") as err:
+                                             r"state of size D = 8 \(at most about .*, every step priced in full: a "
+                                             r"stable chain's settled tail ends sooner; method='dense' needs about .* "
+                                             r"within the memory budget.*PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK="
+                                             r"4\.81e\+07$") as err:
         exact_closed_form(s, method="recursion")
     assert isinstance(err.value, pl.InputError)
     monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MEMORY_BYTES", "1e5")
     with pytest.raises(BudgetError, match="over the memory budget: use a chain with fewer states or a shorter"):
         exact_closed_form(s)                                   # auto: the dense route does not fit either
+
+
+def test_the_recursion_budget_prices_the_augmented_step_cubed(monkeypatch):
+    """A 40-state chain behind n = 2: D = 2 (1 + 39) = 80, where a step's D^3 = 512,000 is as large as its fixed
+    6e5, priced by hand at N (D^3 + 6e5) = 10 (512000 + 600000) = 11,120,000 units: runs at that budget, refused 1 %
+    below it (a formula that left out or shrank the D^3 term would run there)."""
+    rng = np.random.default_rng(3)
+    T = rng.uniform(size=(40, 40)) + 20 * np.eye(40)
+    ch = MarkovChannel(transition=[T / T.sum(axis=1, keepdims=True)], delivery=[rng.uniform(size=40)])
+    s = pl.System(A=[[0.9, 0.2], [0.0, 0.8]], B=[[1.0], [0.5]], horizon=10, state_weight=[1.0, 1.0],
+                  input_weight=[1.0], x0=[1.0, 1.0], channel=ch)
+    work = 10 * (80 ** 3 + 6e5)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK", str(work))
+    assert exact_closed_form(s, method="recursion").method == "markov-recursion"
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK", str(work * 0.99))
+    with pytest.raises(BudgetError, match=r"D = 80 .*PACKETLOSS_CVX_BUDGET_MARKOV_RECURSION_WORK=1\.12e\+07$"):
+        exact_closed_form(s, method="recursion")
+
+
+def test_the_recursion_budget_is_an_upper_bound_on_the_steps_the_pass_takes(monkeypatch):
+    """The budget prices all N steps of the backward pass: no pass takes more (an unstable plant, whose tail never
+    settles, takes exactly N), and a stable chain's pass, which closes its settled tail, takes fewer, with the same
+    minimum as the pass that takes every step (a horizon below 2 STATIONARY_RUN checks for no tail)."""
+    from packetloss_cvx.tolerances import PATH_AGREEMENT_RTOL
+    augmented = importlib.import_module("packetloss_cvx.lq.augmented")
+    original = augmented._augmented_step
+    taken = []
+
+    def counted(*args, **kwargs):
+        taken.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(augmented, "_augmented_step", counted)
+    for horizon, radius, expected in ((400, None, 400), (2000, 0.9, None)):
+        taken.clear()
+        s = pendulum_at(horizon, radius)
+        cost = exact_closed_form(s, method="recursion").cost
+        if expected is not None:                                 # rho(A) = 1.06: every step
+            assert len(taken) == expected
+            continue
+        assert len(taken) < horizon / 4                           # the settled tail closed early
+        monkeypatch.setattr(augmented, "STATIONARY_RUN", 10 ** 9)
+        taken.clear()
+        every = exact_closed_form(s, method="recursion").cost
+        assert len(taken) == horizon
+        assert cost == pytest.approx(every, rel=PATH_AGREEMENT_RTOL)
 
 
 def test_a_chain_too_large_for_the_budget_exits_2_with_one_line(tmp_path, capsys, monkeypatch):

@@ -6,7 +6,7 @@ import pytest
 
 import packetloss_cvx as pl
 from packetloss_cvx.closedloop.mjls import mode_chain, second_moment_operator
-from packetloss_cvx.errors import ResourceError
+from packetloss_cvx.errors import BudgetError, ResourceError
 from packetloss_cvx.model.chain import attach_channel
 from packetloss_cvx.model.channel import GilbertElliott
 from packetloss_cvx.model.twins import bursty_twin
@@ -64,18 +64,22 @@ def test_information_patterns():
 
 
 def test_the_older_closed_loop_api_keeps_the_plan_budget(monkeypatch):
-    # h strictly between 0 and 1: the filtered belief takes a new value in almost every run, one plan each;
-    # markov_closed_loop_costs planned on without a limit (minutes), simulate refused: now both refuse.
-    # The budget is read when the law is built, so a lowered one is met after 60 plans, not 2000 (5 s)
-    from packetloss_cvx.montecarlo import markov_loop
-
+    """h strictly between 0 and 1: the filtered belief takes a new value in almost every run, one plan each, so
+    the law is refused once it meets more than the belief_plans budget (2000 by default, PLAN_BUDGET; read from
+    its variable when the law is built: lowered to 60 it is met after 60 plans, not 2000, 5 s). The message names
+    the variable and the most beliefs the run can meet, 3000 runs x 20 steps = 6e4 (it is no BudgetError: the count
+    is met during the work, not refused before it)."""
     assert PLAN_BUDGET == 2000
-    monkeypatch.setattr(markov_loop, "PLAN_BUDGET", 60)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_BELIEF_PLANS", "60")
     s = pl.load_example("pendulum_bursty")
     hidden = s.with_channel(GilbertElliott(p=[0.1], r=[0.3], h_good=[0.9], h_bad=[0.2]))
-    with pytest.raises(ResourceError, match="more than 60"):
+    with pytest.raises(ResourceError, match=r"^a plan at each distinct belief the TCP-like law meets \(more than 60 in "
+                                            r"this run: .* to run it on purpose set "
+                                            r"PACKETLOSS_CVX_BUDGET_BELIEF_PLANS=6e\+04$") as err:
         markov_closed_loop_costs(hidden, ["plug-in-tcp"], steps=20, samples=3000, rng=np.random.default_rng(0),
                                  progress=False)
+    assert not isinstance(err.value, BudgetError)
+    assert (err.value.needed_bytes, err.value.budget_bytes) == (60000, 60)
 
 
 def test_belief_gains_of_many_beliefs_are_the_gains_of_each():

@@ -20,7 +20,7 @@ CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral
 def stable_random_system(seed):
     rng = np.random.default_rng(seed)
     return random_system(rng, n=3, m=2, horizon=5, spectral_radius=0.95, non_stationary=False, noise=True,
-                         edge_mu=False)
+                         edge_mu=False, time_varying=False)      # a loop's cost has one weight (loop_weights)
 
 
 @pytest.mark.parametrize("seed", [11, 12])
