@@ -133,7 +133,7 @@ def _gilbert_cost(system: System, strategy: str, rate: float) -> float:
         return np.inf
 
 
-@pytest.mark.parametrize("strategy", ["zero", "hold", "buffer:2"])
+@pytest.mark.parametrize("strategy", ["zero", "hold", "buffer:2", "buffer:2:hold"])
 def test_cheapest_mean_rate_behind_a_gilbert_channel_matches_a_brute_force_grid_along_its_family(strategy):
     system = System(A=[[1.5]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
                     channel=GilbertElliott(p=[0.4], r=[0.4]))

@@ -6,13 +6,14 @@ plant behind a Gilbert channel (h_good = 1, h_bad = 0, the law knowing whether t
 ``rate* = (1 - 1/a^2) / (1 - lambda)`` for every strategy:
 
 - necessary: a bad run multiplies the second moment by at least a^2 per step (zero: x+ = a x; hold: z+ = [[a, b],
-  [0, 1]] z, eigenvalues a and 1; a buffer's plan runs out and then x+ = a x), with probability 1 - r per step, so
-  a stabilising law needs ``a^2 (1 - r) < 1``;
-- sufficient: zero and the buffer (sending zeros after the first entry) deadbeat x on every delivery. Hold: the
-  next good step sees only x (its delivery replaces w), so from good step to good step x <- g(l) x, l the bad run
-  between them, i.i.d.; with u = c x on delivery and ``alpha = a + c a / (a - 1)``, ``g(l) = alpha a^l + 1 -
-  alpha / a`` and ``E g^2 = 1 + 2 alpha (E a^l - 1/a) + O(alpha^2)``: E a^l >= 1 > 1/a, so a small alpha < 0 gives
-  ``E g^2 < 1`` wherever ``E a^(2l)`` is finite, i.e. ``a^2 (1 - r) < 1``.
+  [0, 1]] z, eigenvalues a and 1; a buffer's plan runs out and then x+ = a x, or with buffer:L:hold hold's step),
+  with probability 1 - r per step, so a stabilising law needs ``a^2 (1 - r) < 1``;
+- sufficient: zero and the buffer (sending zeros after the first entry) deadbeat x on every delivery; buffer:L:hold
+  sending its first entry L times does what hold does. Hold: the next good step sees only x (its delivery replaces
+  w), so from good step to good step x <- g(l) x, l the bad run between them, i.i.d.; with u = c x on delivery and
+  ``alpha = a + c a / (a - 1)``, ``g(l) = alpha a^l + 1 - alpha / a`` and ``E g^2 = 1 + 2 alpha (E a^l - 1/a) +
+  O(alpha^2)``: E a^l >= 1 > 1/a, so a small alpha < 0 gives ``E g^2 < 1`` wherever ``E a^(2l)`` is finite, i.e.
+  ``a^2 (1 - r) < 1``.
 
 With ``r = (1 - lambda) rate`` along the family (burstiness lambda kept) the threshold is the hand value.
 """
@@ -37,7 +38,7 @@ def _scalar(a: float, p: float, r: float) -> System:
 
 
 @pytest.mark.parametrize(("a", "p", "r"), [(1.5, 0.4, 0.4), (1.2, 0.1, 0.3)])
-@pytest.mark.parametrize("actuator", ["zero", "hold", "buffer:2", "buffer:3"])
+@pytest.mark.parametrize("actuator", ["zero", "hold", "buffer:2", "buffer:3", "buffer:2:hold"])
 def test_scalar_gilbert_critical_mean_rate_is_the_hand_value_for_every_strategy(a, p, r, actuator):
     hand = (1.0 - 1.0 / a ** 2) / (1.0 - (1.0 - p - r))
     point = actuator_critical(_scalar(a, p, r), actuator, tol=CRITICAL_MU_TOL)
