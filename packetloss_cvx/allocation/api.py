@@ -30,9 +30,10 @@ from typing import Any
 import numpy as np
 
 from ..budgets import check, count_text, duration_text, estimated_seconds, limit, udp_box_work
-from ..closedloop.actuator import Actuator, parse_actuators
+from ..closedloop.actuator import Actuator, parse_actuator, parse_actuators
+from ..closedloop.actuator_design import actuator_dp
 from ..closedloop.actuator_region import actuator_membership
-from ..errors import InfeasibleError, InputError, NumericalError, SolverError
+from ..errors import BudgetError, InfeasibleError, InputError, NumericalError, SolverError
 from ..model.protocols import check_protocol
 from ..model.system import System
 from ..results import Allocation, MinCost, StabilityAllocation
@@ -40,7 +41,7 @@ from ..threads import blas_limited
 from ..tolerances import ALLOCATION_GAP_DEFAULT
 from .attainable import AttainableEvaluator, ChainAttainableEvaluator, attainment
 from .boxes import Outcome, cost_at, reported_gap, unit_prices
-from .chains import ChainEvaluator, chain_family, chain_rates
+from .chains import ChainEvaluator, ChainFamily, chain_family, chain_rates
 from .grammar import (
     Constraint,
     Polytope,
@@ -53,11 +54,12 @@ from .grammar import (
     check_system,
     read_polytope,
 )
-from .stability import stability_allocate
+from .stability import stability_allocate, strategy_dp_cost
 from .tcp import tcp_allocate, tcp_min_cost
 from .udp import MonotoneCost, udp_allocate, udp_min_cost
 
-__all__ = ["ALLOCATION_TARGETS", "MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "min_cost"]
+__all__ = ["ALLOCATION_TARGETS", "MAX_BOXES", "MinCost", "allocate", "best_cost_within_budget", "cheapest_links",
+           "min_cost"]
 
 #: what :func:`allocate` designs on: the paper's program (J*(mu) <= alpha, the default), a loop some linear law
 #: holds ("stable"), the DP law's stationary cost ("dp-cost"), the attainable finite-horizon cost ("attainable")
@@ -509,3 +511,91 @@ def best_cost_within_budget(system: System, protocol: str, beta, budget: float, 
     budget = check_number(budget, "budget")
     return min_cost(system, protocol, bounds, [*constraints, (beta[None, :], np.array([budget]))], max_boxes,
                     time_limit)
+
+
+@blas_limited
+def cheapest_links(system: System, alpha: float, beta=None, actuators: str | Sequence[Actuator] = "all",
+                   bounds=(0.0, 1.0),
+                   gap: float = ALLOCATION_GAP_DEFAULT, max_boxes: int | None = None,
+                   time_limit: float | None = None) -> dict[str, dict[str, Any]]:
+    """Per actuator strategy, the cheapest links (min beta'mu over ``[lo, hi]^m``) at which the strategy's optimal
+    TCP-like law costs at most ``alpha``: `stability_allocate`'s target "dp-cost" with ``actuator=`` (the monotone
+    branch and bound on the strategy's DP cost, closedloop.actuator_design.actuator_dp), the cost basis
+    (`strategy_dp_cost`) the average stage cost when the system has process noise, else the total noise-free cost
+    from x0, over an infinite horizon. Full state; Bernoulli links, or behind the system's stationary chain each
+    channel's mean rate along its family (`.chains.chain_family`: burstiness held on Gilbert channels, deliveries
+    scaled on the others, mean rates up to the family's top; the law knows the current channel state).
+
+    Each strategy's row (keyed by its name) has ``verdict``:
+
+    * "reachable": ``mu`` with its DP ``cost <= alpha``, ``communication_cost`` beta'mu, its proved
+      ``lower_bound``, ``gap`` and ``status`` ("optimal": the gap certified, else "gap_not_certified"),
+      ``radius`` of its law, ``stabilisable`` (True on an exact certificate, None with ``stability_note``);
+    * "unreachable", proved (every box discarded by a DP cost above ``alpha (1 + ALLOCATION_COST_RTOL)`` or an
+      exact certificate that no law of the strategy is stable), with ``least_cost``, the cost at the upper corner
+      ``least_cost_mu`` (the least over the box: the cost falls in each mu_i), None where no stabilising solution
+      exists there, and the ``reason``;
+    * "undecided" (a cap hit before a point was certified, or a check that failed: the ``reason``), or "not
+      computed" (refused for its size: the ``reason``).
+
+    Raises
+    ------
+    InputError
+        A bad argument, named by its field (``actuator``, ``alpha``, ``beta``, ``bounds``, ``gap``).
+
+    Examples
+    --------
+    One state, x+ = 2 x + v u, Omega = Psi = 1, noise-free from x0 = 1: for zero the cost from x0 is the positive root
+    of (4 mu - 3) P^2 - 4 P - 1 = 0, 4 + 3 sqrt(2) at mu = 7/8, so a target of 4 + 3 sqrt(2) needs mu = 7/8.
+
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], mu=[0.9], x0=[1.0])
+    >>> row = cheapest_links(s, 4 + 3 * 2 ** 0.5, [1.0], "zero", gap=1e-6)["zero"]
+    >>> row["verdict"], bool(abs(row["mu"][0] - 0.875) <= 1e-5), row["basis"]
+    ('reachable', True, 'total from x0')
+    """
+    strategies = _strategies(actuators, system) if isinstance(actuators, str) else tuple(
+        parse_actuator(a, check_system(system).horizon) for a in actuators)
+    system = check_system(system)
+    alpha = check_alpha(alpha)
+    beta = np.ones(system.m) if beta is None else check_beta(beta, system.m)
+    lo, hi = check_bounds(bounds)
+    gap = check_gap(gap)
+    basis = "average" if np.any(system.noise_cov != 0) else "total from x0"
+    family = None if system.channel is None else chain_family(system)      # a given start refused here
+    rows: dict[str, dict[str, Any]] = {}
+    for strategy in strategies:
+        row: dict[str, Any] = {"alpha": alpha, "basis": basis, "beta": beta.tolist()}
+        rows[str(strategy)] = row
+        try:
+            found = stability_allocate(system, "dp-cost", beta, alpha=alpha, bounds=(lo, hi), gap=gap,
+                                       time_limit=time_limit, actuator=strategy,
+                                       **({} if max_boxes is None else {"max_boxes": max_boxes}))
+        except InfeasibleError as err:
+            row.update(verdict="unreachable", reason=str(err), **_least_cost(system, strategy, hi, family))
+        except SolverError as err:
+            row.update(verdict="undecided", reason=str(err))
+        except BudgetError as err:
+            row.update(verdict="not computed", reason=str(err))
+        else:
+            row.update(verdict="reachable", mu=found.mu.tolist(), communication_cost=found.cost,
+                       cost=None if not np.isfinite(found.dp_cost) else found.dp_cost,
+                       lower_bound=found.lower_bound, gap=found.gap, status=found.status, radius=found.radius,
+                       stabilisable=found.stabilisable, stability_note=found.stability_note, boxes=found.boxes)
+    return rows
+
+
+def _least_cost(system: System, strategy: Actuator, hi: float, family: ChainFamily | None) -> dict[str, Any]:
+    """The least cost over ``[lo, hi]^m``: the strategy's DP cost at the upper corner (the cost falls in each
+    mu_i; behind a chain each mean rate also at most its family's top), None with the reason where no stabilising
+    solution is found there."""
+    mu = np.full(system.m, hi)
+    try:
+        if family is None:
+            design = actuator_dp(system, strategy, mu)
+        else:
+            mu = np.minimum(mu, family.top)
+            design = actuator_dp(system.with_channel(family.channel_at(mu)), strategy)
+        cost, _ = strategy_dp_cost(system, design)
+    except NumericalError as err:
+        return {"least_cost": None, "least_cost_mu": mu.tolist(), "least_cost_reason": str(err)}
+    return {"least_cost": cost, "least_cost_mu": mu.tolist()}

@@ -41,6 +41,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..budgets import check, count_text
+from ..closedloop.actuator import Actuator, parse_actuator
+from ..closedloop.actuator_design import ActuatorDesign, actuator_dp, design_modes
+from ..closedloop.actuator_region import actuator_membership, least_radius
 from ..closedloop.region import LazyLmi, homogeneous_riccati, membership
 from ..closedloop.riccati import dp_riccati
 from ..closedloop.stability import mean_square_radius
@@ -58,6 +61,7 @@ from ..tolerances import (
 )
 from .attainable import tcp_attainable_cost
 from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope, reported_gap, unit_prices
+from .chains import ChainFamily, chain_family
 from .grammar import (
     Constraint,
     Polytope,
@@ -72,7 +76,7 @@ from .grammar import (
 )
 from .udp import SPLIT_WEIGHT_FLOOR, Search
 
-__all__ = ["DP_COST_BOUNDARY", "TARGETS", "Point", "dp_cost", "stability_allocate"]
+__all__ = ["DP_COST_BOUNDARY", "TARGETS", "Point", "dp_cost", "stability_allocate", "strategy_dp_cost"]
 
 #: The DP cost at an allocation's mu is reported only where the DP law's radius is below 1 by this much: the cheapest
 #: stabilisable links lie on the stabilisable set's boundary, where the cost grows like 1 / (1 - radius) and the
@@ -114,6 +118,21 @@ def dp_cost(system: System, riccati) -> tuple[float, str]:
     if np.any(system.noise_cov != 0):
         return float(np.sum(P * system.noise_cov)), "average"
     return float(system.x0 @ P @ system.x0), "total from x0"
+
+
+def strategy_dp_cost(system: System, design: ActuatorDesign) -> tuple[float, str]:
+    """A strategy's optimal TCP-like law's stationary cost (closedloop.actuator_design.actuator_dp) and its kind, as
+    `dp_cost`: the average stage cost when the system has process noise ("average"), else the total noise-free cost
+    from x0 ("total from x0"). For "zero" it is `dp_cost` of the channel's own DP. O(1).
+
+    >>> s = System(A=[[2.0]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[1.0])
+    >>> cost, kind = strategy_dp_cost(s, actuator_dp(s, "hold"))     # every packet arrives: the DARE, 2 + sqrt(5)
+    >>> bool(np.isclose(cost, 2 + 5 ** 0.5)), kind
+    (True, 'total from x0')
+    """
+    if np.any(system.noise_cov != 0):
+        return float(design.cost), "average"
+    return float(design.initial), "total from x0"
 
 
 def _scaled(system: System, rho: float) -> System:
@@ -270,6 +289,81 @@ def _target(system: System, target: str, rho: float, alpha: float | None, check:
     return Target(within, log_cost, 0.0)
 
 
+def _strategy_at(system: System, family: ChainFamily | None):
+    """``mu -> (system, mu, channel)``: the arguments of actuator_dp and actuator_membership at the channel mu, and
+    the channel design_modes takes: Bernoulli links ``(system, mu, mu)``; behind a chain the system moved to mean
+    rates mu along its family (`.chains.chain_family`), ``(system at mu, None, its chain)``."""
+    if family is None:
+        return lambda mu: (system, mu, mu)
+
+    def at(mu: np.ndarray):
+        moved = system.with_channel(family.channel_at(np.asarray(mu, dtype=float)))
+        return moved, None, moved.channel
+
+    return at
+
+
+def _strategy_memo(system: System, strategy: Actuator, at) -> _Recent:
+    """The strategy's optimal TCP-like law per channel (actuator_dp), a `_Recent` shared by the search and the
+    final check."""
+    def design(mu: np.ndarray) -> ActuatorDesign:
+        moved, rates, _ = at(mu)
+        return actuator_dp(moved, strategy, rates)
+
+    return _Recent(design)
+
+
+def _strategy_target(system: System, strategy: Actuator, target: str, alpha: float | None,
+                     designs: _Recent, at) -> Target:
+    """The target's `Target` for an actuator strategy (closedloop.actuator*): "stable", a TCP-like law of the
+    strategy proved mean-square stable (actuator_membership: exact certificates either way); "dp-cost", the
+    strategy's optimal TCP-like law costs at most alpha (`strategy_dp_cost`), decided as for zero: a DP solution
+    whose cost is ``<= alpha`` is inside, one above ``alpha (1 + ALLOCATION_COST_RTOL)`` or an exact certificate that
+    no law of the strategy is stable is outside, anything else undecided. Both sets are upper sets: a TCP-like
+    controller can make a delivered packet act as a loss (resending the held input, or the rest of the buffered
+    plan), so with private coins it emulates any lower mu at the same cost (closedloop.actuator_region); behind a
+    chain, along its family (``at``, `_strategy_at`), the coins thin the chain as in the critical mean rate's proof
+    (docs/mathematics.md) or, deliveries scaled, erase packets independently."""
+
+    def growth(mu: np.ndarray) -> float:
+        return least_radius(design_modes(system.A, system.B, at(mu)[2], strategy)).growth
+
+    def stable(mu: np.ndarray) -> Point:
+        moved, rates, _ = at(mu)
+        found = actuator_membership(moved, strategy, rates)
+        if found.verdict == "unstable":
+            return Point("out")
+        if found.verdict == "undecided":
+            return Point("undecided")
+        return Point("in", found.gain, found.radius)
+
+    if target == "stable":
+        return Target(stable, growth, 1.0)
+
+    def within(mu: np.ndarray) -> Point:
+        try:
+            design = designs(mu)
+        except NumericalError:                  # no stabilising solution found: outside only on a certificate
+            return Point("out") if stable(mu).verdict == "out" else Point("undecided")
+        cost, _ = strategy_dp_cost(system, design)
+        if cost <= alpha:
+            return Point("in", design.K, design.radius, cost)
+        if cost > alpha * (1.0 + ALLOCATION_COST_RTOL):
+            return Point("out")
+        return Point("undecided")
+
+    def log_cost(mu: np.ndarray) -> float:
+        """log(J / alpha), unchecked; _OUTSIDE plus the least radius where the DP solution fails."""
+        try:
+            cost, _ = strategy_dp_cost(system, designs(mu))
+        except NumericalError:
+            lam = growth(mu)
+            return _OUTSIDE + (lam if np.isfinite(lam) else 0.0)
+        return math.log(max(cost, np.finfo(float).tiny) / alpha)
+
+    return Target(within, log_cost, 0.0)
+
+
 def _search(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, max_boxes: int,
             time_limit: float | None, progress: bool | None) -> tuple[str, Search, dict[bytes, Point]]:
     """The monotone branch and bound on verdicts (module docstring); returns how it ended, the search and every
@@ -366,7 +460,7 @@ def _search(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, max_boxe
 def stability_allocate(system: System, target: str, beta, margin=None, alpha=None, bounds=(0.0, 1.0),
                        constraints: Sequence[Constraint] = (), gap: float = ALLOCATION_GAP_DEFAULT,
                        max_boxes: int = MAX_BOXES, time_limit: float | None = None,
-                       progress: bool | None = None) -> StabilityAllocation:
+                       progress: bool | None = None, actuator: str | Actuator | None = None) -> StabilityAllocation:
     """The cheapest channel qualities (min beta'mu) for which some linear law has mean-square radius below
     ``margin`` (target "stable"), or whose DP law costs at most ``alpha`` (target "dp-cost").
 
@@ -384,6 +478,15 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
         Target "dp-cost": bound on the DP law's stationary cost (`dp_cost`), > 0.
     bounds, constraints, gap, max_boxes, time_limit, progress
         As [`allocate`][packetloss_cvx.allocation.api.allocate].
+    actuator : str, optional
+        Design for an actuator strategy on a loss ("zero", "hold", "buffer:L"; closedloop.actuator): the laws are
+        the strategy's TCP-like laws over its information modes, "stable" some such law proved stable
+        (closedloop.actuator_region.actuator_membership, margin 1 only), "dp-cost" the strategy's optimal law's
+        stationary cost (`strategy_dp_cost`, closedloop.actuator_design.actuator_dp) at most alpha. The answer's
+        ``gain`` is per information mode (S, r, N), ``actuator`` its membership at mu, ``attainable_cost`` None.
+        Behind a stationary Markov chain mu is each channel's mean rate along its family (`.chains.chain_family`,
+        its top added as rows), the law knowing the current channel state. None (default): the channel's own laws
+        u = -K x on Bernoulli links, as before (the same region and cost as "zero").
 
     Returns
     -------
@@ -417,7 +520,7 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
     ('optimal', True, True)
     """
     system = check_system(system)
-    if system.channel is not None:
+    if system.channel is not None and actuator is None:
         raise InputError("channel", "design for stability chooses independent (Bernoulli) delivery probabilities; "
                                     "this system has a Markov chain ([channel] model)")
     if system.sensor is not None:   # the loop then also needs the sensor links (gamma > gamma_c): not designed here
@@ -436,6 +539,10 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
         time_limit = check_number(time_limit, "time_limit")
         if time_limit <= 0:
             raise InputError("time_limit", f"expected a positive number of seconds or None, found {time_limit:g}")
+    strategy = None if actuator is None else parse_actuator(actuator, system.horizon)
+    if strategy is not None and margin is not None and _radius_bound(margin) != 1.0:
+        raise InputError("margin", f"a radius bound below 1 is designed for the channel's own laws only; {strategy}'s "
+                                   "memory (the held input, the plan) does not scale with the plant")
     if target == "stable":
         if alpha is not None:
             raise InputError("alpha", "the target 'stable' bounds the radius (margin), not a cost")
@@ -450,15 +557,25 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
             raise InputError("noise_cov", "the DP cost is 0 wherever the loop is stable when there is neither "
                                           "process noise nor an initial state: ask for the target 'stable'")
         rho = 1.0
+    family = None if system.channel is None else chain_family(system)
+    if family is not None and lo > family.top.min():
+        raise InfeasibleError(f"the chain's family reaches mean rates up to {family.top.min():.6g} only, below the "
+                              f"lower bound {lo:g}", None)
     try:
-        poly = read_polytope(constraints, system.m, lo, hi)
+        poly = read_polytope([*constraints, *([] if family is None else family.rows())], system.m, lo, hi)
     except InfeasibleError as err:
         raise InfeasibleError(f"the constraints admit no mu: {err}", None) from None
     prices, unit = unit_prices(beta)
-    memos = _memos(system, rho)
-    ended, search, seen = _search(poly, prices, gap, _target(system, target, rho, alpha, memos=memos), max_boxes,
-                                  time_limit, progress)
-    what = ("design for stability" if target == "stable" else "design for the DP cost")
+    if strategy is not None:
+        at = _strategy_at(system, family)
+        designs = _strategy_memo(system, strategy, at)
+        goal = _strategy_target(system, strategy, target, alpha, designs, at)
+    else:
+        memos = _memos(system, rho)
+        goal = _target(system, target, rho, alpha, memos=memos)
+    ended, search, seen = _search(poly, prices, gap, goal, max_boxes, time_limit, progress)
+    what = ("design for stability" if target == "stable" else "design for the DP cost") + (
+        "" if strategy is None else f" of {strategy}")
     if search.best_mu is None:
         if ended == "exhausted":
             goal = (f"mean-square radius below {rho:g}" if target == "stable" else f"DP cost <= {alpha:g}")
@@ -469,6 +586,9 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
                                                f"{ended}")
     out = search.outcome(ended, "monotone branch and bound on certified memberships (LP bounds)", what)
     mu = check_in_polytope(out.mu, poly, what)
+    if strategy is not None:
+        return _strategy_verified(system, strategy, target, alpha, mu, beta, out, unit, seen[out.mu.tobytes()],
+                                  designs, at, family)
     return _verified(system, target, rho, alpha, mu, beta, out, unit, seen[out.mu.tobytes()],
                      _target(system, target, rho, alpha, check=True, memos=memos).decide)
 
@@ -504,3 +624,48 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
         boxes=out.boxes, method=out.note, attainable_cost=attainable, attainable_note=note, stabilisable=True,
         stability_note=f"the design's gain has mean-square radius {radius:.6g} < 1 (certified)")
 
+
+
+def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: float | None, mu: np.ndarray,
+                       beta: np.ndarray, out: Outcome, unit: float, point: Point, designs: _Recent, at,
+                       family: ChainFamily | None) -> StabilityAllocation:
+    """The strategy's result: the incumbent's law's radius recomputed by the engine (below 1, else SolverError),
+    the strategy's DP cost at mu (``<= alpha`` for "dp-cost", else SolverError; nan on the boundary as
+    `_verified`), and mu's membership decided once more in exact arithmetic (``stabilisable`` True on its
+    certificate, None with the reason where it is undecided, a proof of instability contradicting the design)."""
+    where = f"mu = {np.round(mu, 9).tolist()}"
+    if point.verdict != "in":
+        raise SolverError("inconsistent", f"the allocation {where} of {strategy} was not certified inside")
+    moved, rates, channel = at(mu)
+    modes = design_modes(system.A, system.B, channel, strategy)
+    radius = modes.loop(point.gain).radius()
+    if not radius < 1.0:
+        raise SolverError("inconsistent", f"{strategy}'s law found at {where} has mean-square radius {radius:.9g}")
+    cost, kind = float("nan"), ""
+    try:
+        design = designs(mu)
+        cost, kind = strategy_dp_cost(system, design)
+        if target == "dp-cost" and not cost <= alpha:
+            raise SolverError("inconsistent", f"{strategy}'s DP cost at {where} is {cost:.9g} > alpha = {alpha:g}")
+        if 1.0 - design.radius < DP_COST_BOUNDARY:
+            cost, kind = float("nan"), ""
+    except NumericalError:
+        if target == "dp-cost":
+            raise SolverError("inconsistent", f"{strategy}'s DP solution at {where} failed on a second look") from None
+    found = actuator_membership(moved, strategy, rates)
+    if found.verdict == "unstable":
+        raise SolverError("inconsistent", f"the allocation {where} was certified inside, yet no law of {strategy} "
+                                          "is stable there (exact certificate)")
+    stable = True if found.verdict == "stable" else None
+    note = (f"a TCP-like law of {strategy} has mean-square radius {found.radius:.6g} < 1 (certified)" if stable
+            else f"undecided: {found.reason}")
+    membership_radius = float(found.radius) if np.isfinite(found.radius) else None
+    return StabilityAllocation(
+        target=target, mu=mu, cost=float(beta @ mu), lower_bound=out.lower_bound * unit,
+        gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status, radius=radius, radius_bound=1.0,
+        gain=point.gain, dp_cost=cost, dp_cost_kind=kind, alpha=alpha, beta=beta, boxes=out.boxes,
+        method=f"{out.note}; designed for the actuator strategy {strategy} (its TCP-like laws)" + (
+            "" if family is None else f", mean rates {family.describe()}"),
+        attainable_cost=None, attainable_note=f"not computed for {strategy} (dp_cost is its optimal law's cost)",
+        stabilisable=stable, stability_note=note,
+        actuator=((str(strategy), found.verdict, membership_radius, found.reason),))

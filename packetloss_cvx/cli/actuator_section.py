@@ -103,10 +103,8 @@ def _critical_row(system: System, strategy: Actuator, direction: list[float] | N
                   tol: float) -> tuple[dict[str, Any], str]:
     """One strategy's critical point along the ray (closedloop.actuator_region.actuator_critical): its dict and
     a text fragment saying which ends are proved."""
-    if system.channel is not None:
-        reason = "the critical mu of a strategy is computed on Bernoulli links; this file has a Markov chain"
-        return {"reason": reason}, f"critical mu not computed ({reason})"
-    modes = design_modes(system.A, system.B, np.ones(system.m), strategy)
+    modes = design_modes(system.A, system.B, np.ones(system.m) if system.channel is None else system.channel,
+                         strategy)
     rows = modes.modes * modes.A.shape[-1] ** 2
     if rows > MAX_CERTIFIED_ROWS:
         reason = (f"{strategy}'s information map has {rows} rows, beyond the {MAX_CERTIFIED_ROWS} of an exact "
@@ -114,15 +112,24 @@ def _critical_row(system: System, strategy: Actuator, direction: list[float] | N
         return {"reason": reason}, f"critical mu not computed ({reason})"
     try:
         point = actuator_critical(system, strategy, direction, tol)
+    except InputError as err:
+        if err.field != "channel":
+            raise
+        reason = err.detail
+        return {"reason": reason}, f"critical mean rate not computed ({reason})"
     except NumericalError as err:
         return {"reason": str(err)}, f"critical mu undecided ({err})"
     row = point.to_dict()
+    row["basis"] = "mean rate of the chain (burstiness kept)" if system.channel is not None else "delivery probability"
     if not np.isfinite(point.t):
         return row, "not stabilisable even at the ray's end"
     lower = "proved unstable" if point.outside is not None and point.outside.verdict == "unstable" else \
         "an estimate (not certified)"
-    return row, (f"critical mu {fmt.numbers(point.mu)} (t in [{fmt.num(point.lower, 8)}, {fmt.num(point.t, 8)}]: "
-                 f"upper end proved stable, lower end {lower})")
+    upper = "proved stable" if point.inside is not None and point.inside.verdict == "stable" else \
+        f"undecided ({point.inside.reason if point.inside is not None else 'no membership'})"
+    what = "critical mean rate" if system.channel is not None else "critical mu"
+    return row, (f"{what} {fmt.numbers(point.mu)} (t in [{fmt.num(point.lower, 8)}, {fmt.num(point.t, 8)}]: "
+                 f"upper end {upper}, lower end {lower})")
 
 
 def critical_section(system: System, strategies: tuple[Actuator, ...], direction: list[float] | None,
@@ -136,17 +143,49 @@ def critical_section(system: System, strategies: tuple[Actuator, ...], direction
     return data, lines
 
 
+def _links_cell(row: dict[str, Any] | None) -> str:
+    """The ``compare --target`` columns of one strategy: beta'mu and mu* of its cheapest links, or the verdict."""
+    if row is None:
+        return ""
+    if row["verdict"] == "reachable":
+        star = "" if row["status"] == "optimal" else "*"
+        return f" {fmt.num(row['communication_cost']) + star:>12} {fmt.numbers(row['mu']):<22}"
+    if row["verdict"] == "unreachable":
+        least = "none" if row.get("least_cost") is None else fmt.num(row["least_cost"])
+        return f" {'unreachable':>12} {'(least ' + least + ')':<22}"
+    return f" {row['verdict']:>12} {'-':<22}"
+
+
+def _links_notes(name: str, row: dict[str, Any] | None) -> list[str]:
+    """The lines under the table that say why a strategy's links are not reported, or that a gap is uncertified."""
+    if row is None:
+        return []
+    if row["verdict"] == "reachable":
+        note = "" if row["stabilisable"] else f"; stability of mu*: {row['stability_note']}"
+        uncertified = f" (gap {fmt.num(row['gap'], 3)} not certified)" if row["status"] != "optimal" else ""
+        return [f"  {name}: cheapest links{uncertified}{note}"] if uncertified or note else []
+    if row["verdict"] == "unreachable":
+        why = "" if row.get("least_cost") is not None else f" ({row.get('least_cost_reason', '')})"
+        return [f"  {name}: cost target unreachable (proved); least cost at mu = "
+                f"{fmt.numbers(row['least_cost_mu'])}: {fmt.num(row['least_cost']) if why == '' else 'none'}{why}"]
+    return [f"  {name}: cheapest links {row['verdict']}: {row['reason']}"]
+
+
 def design_section(system: System, strategies: tuple[Actuator, ...], direction: list[float] | None,
-                   tol: float) -> tuple[dict[str, Any], list[str]]:
+                   tol: float, links: dict[str, dict[str, Any]] | None = None) -> tuple[dict[str, Any], list[str]]:
     """``compare``: per strategy the optimal TCP-like law's (closedloop.actuator_design.actuator_dp) mean-square
     radius, average stage cost under the noise and total noise-free cost from x0, and the strategy's critical
-    point along the ray; JSON per strategy name and the text table. The costs need the loop's one stage weight
-    (`loop_weights`: time-varying weights refused)."""
+    point along the ray; with ``links`` (allocation.api.cheapest_links per strategy name) the cheapest links for the
+    cost target, beta'mu and mu* (JSON ``links``); JSON per strategy name and the text table. The costs need the
+    loop's one stage weight (`loop_weights`: time-varying weights refused)."""
     loop_weights(system, "cost.state_weights")
     data: dict[str, Any] = {}
     w = max([11, *(len(str(strategy)) for strategy in strategies)])     # buffer:L:hold is wider than 11
-    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}  critical mu"]
+    extra = "" if links is None else f" {'beta' + chr(39) + 'mu':>12} {'mu*':<22}"
+    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}{extra}  critical mu"]
+    notes: list[str] = []
     for strategy in strategies:
+        link = None if links is None else links[str(strategy)]
         row: dict[str, Any] = {}
         try:
             design = actuator_dp(system, strategy)
@@ -160,16 +199,23 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
         except BudgetError as err:      # refused before any work: the others are still compared
             row.update(radius=None, average_stage_cost=None, initial_cost=None, reason=str(err),
                        critical=None)
+            if link is not None:
+                row["links"] = link
             data[str(strategy)] = row
-            lines.append(f"{str(strategy):<{w}} {'refused':>12} {'-':>15} {'-':>14}  -")
+            lines.append(f"{str(strategy):<{w}} {'refused':>12} {'-':>15} {'-':>14}{_links_cell(link)}  -")
             lines.append(f"  {strategy}: not computed: {err}")
+            if link is not None and link.get("reason") != str(err):
+                notes += _links_notes(str(strategy), link)
             continue
+        notes += _links_notes(str(strategy), link)
         row["critical"], text = _critical_row(system, strategy, direction, tol)
+        if link is not None:
+            row["links"] = link
         data[str(strategy)] = row
-        lines.append(f"{str(strategy):<{w}} {numbers}  {text}")
+        lines.append(f"{str(strategy):<{w}} {numbers}{_links_cell(link)}  {text}")
         if "reason" in row:
             lines.append(f"  {strategy}: no optimal law: {row['reason']}")
-    return data, lines
+    return data, lines + notes
 
 
 def membership_section(system: System, strategies: tuple[Actuator, ...], mu: np.ndarray,

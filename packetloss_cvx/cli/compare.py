@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
+from ..allocation.api import cheapest_links
 from ..errors import InputError
-from ..tolerances import ACTUATOR_COMPARE_TOL
+from ..tolerances import ACTUATOR_COMPARE_TOL, ALLOCATION_GAP_DEFAULT
 from . import format as fmt
 from .actuator_section import actuator_strategies, design_section
-from .common import CommandResult, floats, system_of
+from .common import CommandResult, floats, number, system_of
 
 __all__ = ["run"]
+
+_FLAGS = {"alpha": "--target", "beta": "--beta", "gap": "--gap"}
 
 
 def run(args: argparse.Namespace) -> CommandResult:
@@ -42,8 +46,28 @@ def run(args: argparse.Namespace) -> CommandResult:
         if len(direction) != system.m or any(v < 0 for v in direction) or not any(v > 0 for v in direction):
             raise InputError("--direction", f"expected {system.m} nonnegative numbers, not all zero, found "
                                             f"{args.direction[:60]!r}")
-    data, lines = design_section(system, strategies, direction, ACTUATOR_COMPARE_TOL)
+    links, target = None, None
+    if args.target is not None:
+        target = number(args.target, "--target")
+        beta = None if args.beta is None else floats(args.beta, "--beta")
+        try:
+            links = cheapest_links(system, target, beta, strategies, gap=ALLOCATION_GAP_DEFAULT if args.gap is None
+                                   else number(args.gap, "--gap"))
+        except InputError as err:
+            raise err.renamed(_FLAGS[err.field]) if err.field in _FLAGS else err from None
+    elif args.beta is not None or args.gap is not None:
+        raise InputError("--beta" if args.beta is not None else "--gap", "applies with --target only")
+    data, lines = design_section(system, strategies, direction, ACTUATOR_COMPARE_TOL, links)
     heading = (f"actuator strategies on a loss for {fmt.name(system.name or args.file)}: the optimal TCP-like law "
                f"of each (radius, average stage cost under the noise, noise-free cost from x0 over an infinite "
                f"horizon) and its critical mu")
-    return CommandResult({"name": system.name, "strategies": data}, "\n".join([heading, *lines]))
+    out: dict[str, Any] = {"name": system.name, "strategies": data}
+    if links is not None:
+        basis = next(iter(links.values()))["basis"]
+        prices = next(iter(links.values()))["beta"]
+        out["target"] = {"alpha": target, "basis": basis, "beta": prices}
+        heading += (f"; the cheapest links (min beta'mu, beta = {fmt.numbers(prices)}) at which its optimal law's "
+                    f"{'average stage cost' if basis == 'average' else 'total noise-free cost from x0'} is <= "
+                    f"{fmt.num(target)}" + (" (* gap not certified)" if any(
+                        row.get("status") == "gap_not_certified" for row in links.values()) else ""))
+    return CommandResult(out, "\n".join([heading, *lines]))

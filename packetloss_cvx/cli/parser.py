@@ -34,7 +34,7 @@ __all__ = ["FIGURE_FORMATS", "FILE_HELP", "NUMBER_LISTS", "add_command", "add_co
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
 NUMBER_LISTS = ("--mu", "--x0", "--beta", "--bounds", "--alpha", "--x0-scales", "--burstiness", "--direction",
                 "--mean-rate", "--power-scale", "--power-max", "--budget", "--ack-price", "--ack-power", "--u-min",
-                "--u-max", "--x-min", "--x-max", "--terminal-min", "--terminal-max")
+                "--u-max", "--x-min", "--x-max", "--terminal-min", "--terminal-max", "--target")
 
 FILE_HELP = ("a system file (TOML, docs/design.md §4) or a packaged example: pendulum, two_actuator, "
              "pendulum_bursty (a Gilbert-Elliott channel), pendulum_sensor (a lossy sensor link too)")
@@ -461,7 +461,8 @@ def build_parser() -> argparse.ArgumentParser:
     reg.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of text")
 
     cmp = add_command(sub, "compare", "the actuator strategies on a loss side by side: zero, hold, buffered plan",
-                      examples=["compare two_actuator", "compare pendulum --actuator zero,hold,buffer:3 --json"])
+                      examples=["compare two_actuator", "compare pendulum --actuator zero,hold,buffer:3 --json",
+                                "compare two_actuator --actuator zero,hold --target 8 --beta 1,0.5"])
     cmp.add_argument("file", metavar="FILE", help=FILE_HELP)
     add_system_options(cmp)
     cmp.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all", default="all",
@@ -471,6 +472,15 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--direction", metavar="D1,..,Dm",
                      help="the ray mu = t * direction of the critical mu, nonnegative (default: all ones), e.g. "
                           "--direction 1,0.5")
+    cmp.add_argument("--target", metavar="J",
+                     help="also the cheapest links (min beta'mu) at which each strategy's optimal TCP-like law costs "
+                          "at most J (its average stage cost with process noise, else its noise-free cost from x0), "
+                          "or unreachable with the least cost (default: none), e.g. --target 8")
+    cmp.add_argument("--beta", metavar="B1,..,Bm",
+                     help="with --target: the price of each channel's delivery probability (default: all ones), "
+                          "e.g. --beta 1,0.05")
+    cmp.add_argument("--gap", help="with --target: relative optimality gap to certify, 1e-9 <= G < 1 (default: 1e-4), "
+                                   "e.g. 1e-6")
 
     rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],

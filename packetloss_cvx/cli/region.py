@@ -150,9 +150,7 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
     """A Gilbert–Elliott file (simulation.markov_region): can some mode-dependent law (the last state known, as
     a TCP-like acknowledgement reveals it) stabilise the loop behind the file's chain, and, with ``--grid K``,
     where over the channels' mean rates at the file's burstiness (one channel: a row of K rates)."""
-    if getattr(args, "actuator", None) is not None:
-        raise InputError("--actuator", "a strategy's critical mu is computed on Bernoulli links; this file has a "
-                                       "Markov chain (compare FILE gives each strategy's optimal law behind it)")
+    strategies = actuator_strategies(getattr(args, "actuator", None), system)
     if args.law not in ("dp", "all"):
         raise InputError("--law", "behind a Gilbert-Elliott chain only 'dp' (some mode-dependent linear law) is "
                                   "mapped; the paper's laws are Bernoulli designs")
@@ -207,6 +205,9 @@ def _chain(args: argparse.Namespace, system) -> CommandResult:
                      f"{100 * float(np.mean(stable == 1.0)):.1f} % ({int(np.isnan(stable).sum())} undecided)")
     entry.update(_critical_rate(system, direction, lines))      # after the grid's budget: refused before any work
     data: dict[str, Any] = {"dp": entry}
+    if strategies:      # each strategy's critical mean rate (the law knows the current state: design_modes)
+        data["actuator"], more = critical_section(system, strategies, direction, ACTUATOR_COMPARE_TOL)
+        lines += more
     if args.out is not None:
         with _folder(args) as out:
             arrays: dict[str, Any] = {"lambda": np.array(lam), "lambda_error": np.array(error),

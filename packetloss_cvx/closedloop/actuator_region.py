@@ -40,6 +40,7 @@ from .actuator import Actuator
 from .actuator_design import DesignModes, actuator_dp, actuator_dp_finite, check_protocol, design_modes
 from .certificates import exact_transition, snapped, tilted_by
 from .chain_radius import symmetric_perron
+from .markov_region import chain_at_rate, critical_rate_unproved
 from .moments import solve_fixed_point, stationary_channel
 
 __all__ = ["LeastRadius", "actuator_critical", "actuator_membership", "least_radius", "strategy_inside_proved",
@@ -394,20 +395,27 @@ def actuator_membership(system: System, actuator: str | Actuator = "zero",
 
 def actuator_critical(system: System, actuator: str | Actuator = "zero", direction: npt.ArrayLike | None = None,
                       tol: float = CRITICAL_MU_TOL, protocol: str = "tcp") -> CriticalPoint:
-    """The critical mu of a strategy along ``mu = t * direction`` (Bernoulli links; default all ones): bisection in
-    t on the least radius over the strategy's laws (`least_radius`, floats; the region is monotone in mu, module
-    docstring) to a bracket ``[lower, t]`` of width tol, then both ends decided by `actuator_membership`:
-    ``inside`` at t ("stable": a law proved exactly), ``outside`` at lower ("unstable" with its exact certificate,
-    or "undecided" with the reason). Where the float crossing's side is undecided (a direction whose certificate
-    margin vanishes there), ``lower`` steps down by tol times powers of `_STEP_DOWN` to the first point proved
-    unstable (at most `_STEPS_DOWN` steps), and ``note`` says how far below the crossing it lies (the two-actuator
-    hold along the diagonal: 6.5e-5); where none is proved (the two-actuator buffer's rank-one direction, whose
-    tilt the unreached plan entries make indefinite), ``lower`` stays the float crossing, ``outside`` undecided and
-    the note says so: then only ``t`` is evidence. ``t`` is inf when even the ray's end is not below 1, 0.0 when
-    mu = 0 is. ``protocol``: as `actuator_membership`. Time O(log2(1 / tol)) power iterations plus two memberships.
+    """The critical mu of a strategy along ``mu = t * direction`` (default all ones): on Bernoulli links the
+    delivery probabilities ``t * direction``; behind the system's Gilbert–Elliott chain its mean rates (the chain
+    at each rate with its burstiness and h kept, markov_region.chain_at_rate; t up to ``min_i h_good_i /
+    direction_i``), offered only where the region is proved monotone along the ray (markov_region.
+    critical_rate_unproved: ``h_bad = 0`` and burstiness >= 0; the thinning argument of docs/mathematics.md holds for
+    every strategy, nothing sent being a loss). Bisection in t on the least radius over the strategy's laws
+    (`least_radius`, floats; the region is monotone, module docstring) to a bracket ``[lower, t]`` of width tol, then
+    both ends decided by `actuator_membership`: ``inside`` at t ("stable": a law proved exactly), ``outside`` at
+    lower ("unstable" with its exact certificate, or "undecided" with the reason). Where the float crossing's side is
+    undecided (a direction whose certificate margin vanishes there), ``lower`` steps down by tol times powers of
+    `_STEP_DOWN` to the first point proved unstable (at most `_STEPS_DOWN` steps), and ``note`` says how far below the
+    crossing it lies (the two-actuator hold along the diagonal: 6.5e-5); where none is proved (the two-actuator
+    buffer's rank-one direction, whose tilt the unreached plan entries make indefinite), ``lower`` stays the float
+    crossing, ``outside`` undecided and the note says so: then only ``t`` is evidence. ``t`` is inf when even the
+    ray's end is not below 1, 0.0 when mu = 0 is. ``protocol``: as `actuator_membership`. Time O(log2(1 / tol))
+    power iterations plus two memberships.
 
     Raises
     ------
+    InputError
+        A bad direction or tol; behind a chain: not two-state, or outside the monotonicity proof (the reason).
     UnobservedModeError
         Field ``protocol``: a UDP-like request whose laws are not computed (`.actuator_design.check_protocol`).
     NumericalError
@@ -422,24 +430,28 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
     (True, 'stable', 'unstable')
     """
     system = check_system(system)
-    strategy = check_protocol(system, actuator, protocol, np.ones(system.m))
+    strategy = check_protocol(system, actuator, protocol, None if system.channel is not None else np.ones(system.m))
     d = np.asarray(np.ones(system.m) if direction is None else direction, dtype=float).reshape(-1)
     if d.shape != (system.m,) or np.any(d < 0) or not np.any(d > 0) or not np.all(np.isfinite(d)):
         raise InputError("direction", f"expected {system.m} nonnegative numbers, not all zero")
     if not tol > 0:
         raise InputError("tol", f"expected a positive width, found {tol!r}")
+    channel_at, end = _ray(system, d)
 
     def below(t: float) -> bool:
-        growth = least_radius(design_modes(system.A, system.B, t * d, strategy)).growth
+        growth = least_radius(design_modes(system.A, system.B, channel_at(t), strategy)).growth
         if not np.isfinite(growth):
             raise NumericalError(f"critical mu ({strategy}): the least radius at mu = {(t * d).tolist()} is not "
                                  "finite")
         return growth < 1.0 - MEAN_SQUARE_MARGIN
 
     def member(t: float) -> Membership:
-        return actuator_membership(system, strategy, t * d)
+        channel = channel_at(t)
+        if isinstance(channel, MarkovChannel):
+            return actuator_membership(system.with_channel(channel), strategy, protocol=protocol)
+        return actuator_membership(system, strategy, channel, protocol=protocol)
 
-    lo, hi = 0.0, 1.0 / float(d.max())
+    lo, hi = 0.0, end
     if not below(hi):
         end = member(hi)
         if end.verdict != "unstable":   # floats say no law stabilises; only a certificate may say it
@@ -473,3 +485,25 @@ def actuator_critical(system: System, actuator: str | Actuator = "zero", directi
         note = (f"no point within {step:.3g} below the float crossing {crossing!r} could be proved unstable: the "
                 "lower end is a float estimate" if step > tol else "")
     return CriticalPoint(str(strategy), d, hi, lo, member(hi), outside, note)
+
+
+def _ray(system: System, d: np.ndarray):
+    """``(channel_at, end)``: the channel at ``t`` on the ray (Bernoulli ``t d``, or the system's chain at mean rates
+    ``t d``, markov_region.chain_at_rate) and the ray's end in t.
+
+    Raises
+    ------
+    InputError
+        Behind a chain with other than two states, or one outside the monotonicity proof (critical_rate_unproved).
+    """
+    chain = system.channel
+    if chain is None:
+        return (lambda t: t * d), 1.0 / float(d.max())
+    if not chain.two_state:
+        raise InputError("channel", f"the critical mean rate is defined along the Gilbert-Elliott family (two states, "
+                                    f"burstiness kept); this channel's chains have {list(chain.sizes)} states")
+    reason = critical_rate_unproved(chain)
+    if reason is not None:
+        raise InputError("channel", reason)
+    end = float(np.min(chain.h_good[d > 0] / d[d > 0]))
+    return (lambda t: chain_at_rate(chain, np.minimum(t * d, chain.h_good))), end
