@@ -119,13 +119,24 @@ def test_bad_actuator_input_is_exit_2_and_one_line(tmp_path, capsys, extra, mess
 
 
 def test_the_strategies_budget_is_summed_before_any_sampling(tmp_path, capsys, monkeypatch):
-    # 100 runs of 5 steps: zero alone is 3 programs (1502 solves with the clipped laws' share), the three strategies
-    # 3 + 4 + 4 (certainty-equivalent per protocol under hold and buffer): 5506 solves, over a budget of 5000
+    # one solve of the scalar program (N = 2, n = m = 1, 2 rows) weighs (1600 + 0.75 * 2 * 4 + 0.055 * 4 + 3.5 * 2)
+    # / 5000 = 0.322644 of a 5 ms solve (budgets.mpc_solve_size). 100 runs of 5 steps: zero alone is 3 programs and
+    # 2 clipped laws, 500 (3 * 0.322644 + 2 * 2e-3) = 485.97 solves; the three strategies 3 + 4 + 4 programs
+    # (certainty-equivalent per protocol under hold and buffer) and 6 clipped laws, 1780.54: over a budget of 1000
     path = _scalar(tmp_path, mu=0.6, u_max=[0.4])
-    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MPC_SOLVES", "5000")
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MPC_SOLVES", "1000")
     monkeypatch.setattr(mpc, "loop_paths", lambda *args: pytest.fail("sampled before the budget was checked"))
     code, out, err = _run(capsys, "simulate", str(path), "--samples", "2", "--mpc-samples", "100", "--steps", "5",
                           "--actuator", "all", "-q")
     assert code == 2
     assert out == ""
     assert err.startswith("packetloss-cvx: error: --mpc-samples: 100 runs of 5 steps x 11 programs")
+
+
+def test_zero_alone_fits_the_budget_the_three_strategies_exceed(tmp_path, capsys, monkeypatch):
+    """The other side of the summed budget above: zero alone, 485.97 solves, runs under the same budget."""
+    path = _scalar(tmp_path, mu=0.6, u_max=[0.4])
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MPC_SOLVES", "1000")
+    code, _, err = _run(capsys, "simulate", str(path), "--samples", "2", "--mpc-samples", "100", "--steps", "5",
+                        "--actuator", "zero", "-q")
+    assert code == 0, err
