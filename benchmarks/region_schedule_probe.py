@@ -8,14 +8,24 @@ of the chain iteration (chain_radius) to measure what it gains and loses, on cha
 - ``chain``: the chain iteration itself with two schedule changes: its first policy iteration at power step 4
   instead of 30, and an unbalanced pass whose P is graded (riccati_map.grading_scale) stopped at the checkpoint, the
   balanced pass redoing it (where the bracket of a graded P cannot close).
+- ``one``: one iteration for both, the Bernoulli region functions calling it on one-state chains (each point of a
+  batch alone, region.homogeneous_riccati and the modules that import it patched): at M > 1 the chain iteration as
+  it is (probe ``chain``'s schedule there fails two CLI chain tests, tests/cli/test_cli_region.py); at
+  M = 1 the same power steps (chain_radius._apply's sum of squares, the gains chain_radius._gains) specialised by
+  shape: no regularisation, the Bernoulli hand-off at step 4 or 30, the unregularised policy iteration by one
+  ``eig`` of the (Kronecker) operator, no bracket and no refinement, lambda R's sum of squares at P, balanced by
+  the Bernoulli rule (kept where its gain's radius is nearer its lambda; region._GRADED, the tests' switch, read).
 
-    OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_schedule_probe.py [--probe bernoulli|chain]
+    OPENBLAS_NUM_THREADS=1 PYTHONPATH=$PWD python benchmarks/region_schedule_probe.py [--probe bernoulli|chain|one]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/region_schedule_probe.py --probe one --engine [--baseline DIR]
 
 Prints the CPU of the chain cases of benchmarks/region_engine.py (chain memberships under both conventions, the
 two_actuator rate map, a critical mean rate) unpatched and probed, their answers' largest relative difference and
 the verdicts that change; the chain tests (tests/closedloop/test_markov_region.py, test_chain_certificates.py) run
 with the probe installed (``pytest -p region_schedule_probe``); and for ``chain`` the one-mode cases of
-region_engine.py against the Bernoulli iteration (CPU ratio, least radii apart, error from the hand value).
+region_engine.py against the Bernoulli iteration (CPU ratio, least radii apart, error from the hand value), for
+``one`` too. With ``--engine``: region_engine.py's worker cases for the baseline checkout, this one and this one
+probed, interleaved rounds, medians (`engine`).
 """
 
 from __future__ import annotations
@@ -176,6 +186,169 @@ def balanced_eigenpair(A, B, channel, T, h, delivery):
     return best
 
 
+def _one_power(P, A, B, T, h, delivery, first, steps, watch):
+    """The chain iteration's power steps (chain_radius._power) with the one-mode specialisation: at M = 1 no
+    regularisation (eps = 0: no mode can go unweighted) and, with ``watch``, the Bernoulli hand-off at step 4 of a
+    point whose steps shrink too slowly to settle by ``steps`` (ended "slow")."""
+    from packetloss_cvx.closedloop import chain_radius
+    from packetloss_cvx.closedloop.riccati_map import SHIFT, converges_within
+    from packetloss_cvx.tolerances import COUPLED_POLICY_REGULARISATION, RICCATI_RTOL
+
+    M = P.shape[0]
+    plain = M * P.shape[1] + 1
+    lam, moved, last = float("nan"), float("inf"), float("inf")
+    for step in range(first, steps):
+        regularise = M > 1 and step >= plain and np.isfinite(lam) and lam > 0
+        R, lam, zero = chain_radius._apply(P, A, B, T, h, delivery,
+                                           COUPLED_POLICY_REGULARISATION * lam if regularise else 0.0)
+        if zero and step < plain:
+            return P, 0.0, "zero", moved
+        total = _total(R)
+        if not (np.isfinite(lam) and lam > 0 and np.isfinite(total)):
+            return P, lam, "stopped", moved
+        shift = SHIFT if step >= plain else 0.0
+        P_next = (R / total + shift * P) / (1.0 + shift)
+        moved = float(np.linalg.norm(P_next - P))
+        P = P_next
+        if moved <= RICCATI_RTOL and step >= plain:
+            return P, lam, "stopped", moved
+        if watch and step + 1 == 4 and step >= plain and not converges_within(
+                np.array([moved]), np.array([last]), steps - step - 1)[0]:
+            return P, lam, "slow", moved
+        last = moved
+    return P, lam, "steps", moved
+
+
+def _one_policy(P, A, B, channel, T, h, delivery):
+    """The policy iteration at M = 1: unregularised, the Perron eigenvector of the operator (the Kronecker matrix at
+    one mode) by one ``eig`` a step (region's), the gains the chain's minimiser (chain_radius._gains from 0):
+    (P found, whether it moved)."""
+    from packetloss_cvx.closedloop import chain_radius
+    from packetloss_cvx.closedloop.mjls import second_moment_operator
+    from packetloss_cvx.closedloop.riccati_map import POLICY_STEPS
+    from packetloss_cvx.tolerances import CERTIFICATE_RTOL, RICCATI_RTOL
+
+    M, n, m = P.shape[0], A.shape[0], B.shape[1]
+    best, last, moved = P.copy(), np.inf, False
+    for _ in range(POLICY_STEPS):
+        K = chain_radius._gains(P, A, B, T, h, delivery, np.zeros((M, m, n)))
+        if not np.all(np.isfinite(K)):
+            break
+        operator = second_moment_operator(A, B, channel, K, delivery).T
+        if not np.all(np.isfinite(operator)):
+            break
+        vals, vecs = np.linalg.eig(operator)
+        top = int(np.argmax(vals.real))
+        lam = float(vals[top].real)
+        V = vecs[:, top].real.reshape(M, n, n)
+        V = 0.5 * (V + np.swapaxes(V, -1, -2))
+        trace = _total(V)
+        if not (np.isfinite(lam) and trace != 0.0):
+            break
+        P_next = V / trace
+        if lam <= 0.0 or min(float(np.linalg.eigvalsh(p)[0]) for p in P_next) < -CERTIFICATE_RTOL:
+            break
+        settled = lam >= last * (1.0 - RICCATI_RTOL)
+        if not settled or lam <= last:
+            best, moved = P_next, True
+        if settled:
+            break
+        last, P = lam, P_next
+    return best, moved
+
+
+def _one_fixed(P, A, B, T, h, delivery):
+    from packetloss_cvx.closedloop import chain_radius
+    from packetloss_cvx.tolerances import RICCATI_RTOL
+
+    R, lam, _ = chain_radius._apply(P, A, B, T, h, delivery, 0.0)
+    total = _total(R)
+    return bool(np.isfinite(lam) and lam > 0 and np.linalg.norm(R / total - P / _total(P)) <= RICCATI_RTOL)
+
+
+def one_reachable(A, B, channel, T, h, delivery, start=None):
+    """The one iteration's reachable-pair eigenpair: at M > 1 the chain iteration (chain_radius's); at M = 1 the same
+    power steps unregularised, handed to the unregularised Kronecker policy iteration at step 4 (slow) or 30, one
+    pass, lambda R's sum of squares at P (no bracket, no refinement: no mode can go unweighted at one mode)."""
+    from packetloss_cvx.closedloop import chain_radius
+
+    if len(h) > 1:
+        return _CHAIN_REACHABLE(A, B, channel, T, h, delivery)
+    n, m = A.shape[0], B.shape[1]
+    P = np.eye(n)[None] / n if start is None else start
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        P, lam, ended, _ = _one_power(P, A, B, T, h, delivery, 0, 30, True)
+        if ended == "zero":
+            P, _, _, _ = _one_power(P, A, B, T, h, delivery, n + 1, n + 31, False)
+            return 0.0, P, chain_radius._gains(P, A, B, T, h, delivery, np.zeros((1, m, n)))
+        if ended in ("steps", "slow"):
+            found, moved = _one_policy(P, A, B, channel, T, h, delivery)
+            moved = moved and (ended != "slow" or _one_fixed(found, A, B, T, h, delivery))
+            if moved:
+                P = found
+            elif ended == "slow":
+                P, _, ended, _ = _one_power(P, A, B, T, h, delivery, 4, 30, False)
+                if ended == "steps":
+                    P = _one_policy(P, A, B, channel, T, h, delivery)[0]
+        K = chain_radius._gains(P, A, B, T, h, delivery, np.zeros((1, m, n)))
+        lam = chain_radius._apply(P, A, B, T, h, delivery, 0.0)[1]
+    always = np.all(h == 1.0, axis=0)
+    if np.any(always):
+        from packetloss_cvx.linalg import controllable_split
+        if controllable_split(A, B[:, always]).nc == n:
+            lam = 0.0
+    return lam, P, K
+
+
+def one_balanced(A, B, channel, T, h, delivery):
+    """The one iteration's balancing: at M > 1 the chain's (kept where the exact radius of its gains is smaller); at
+    M = 1 the same scaling, two passes at most, kept where its gain's radius is nearer its lambda (region's rule)."""
+    from packetloss_cvx.closedloop import region
+    from packetloss_cvx.closedloop.riccati_map import grading_scale
+
+    if len(h) > 1:
+        return _CHAIN_BALANCED(A, B, channel, T, h, delivery)
+    best, gap = one_reachable(A, B, channel, T, h, delivery), None
+    for _ in range(2):      # region._GRADED: the tests' switch (0.0: the unbalanced iteration)
+        D = grading_scale(best[1], region._GRADED) if best[0] > 0 else None
+        if D is None:
+            break
+        lam, P, K = one_reachable(A * D[None, :] / D[:, None], B / D[:, None], channel, T, h, delivery,
+                                  D[None, :, None] * best[1] * D[None, None, :])
+        found = (lam, P / D[None, :, None] / D[None, None, :], K / D[None, None, :])
+        gap = _gap(A, B, channel, delivery, *best) if gap is None else gap
+        found_gap = _gap(A, B, channel, delivery, *found)
+        if not found_gap < max(gap, 1e-7 * abs(found[0])):
+            break
+        best, gap = found, found_gap
+    return best
+
+
+def one_homogeneous_riccati(A, B, mu, start=None):
+    """region.homogeneous_riccati through the one iteration: each point of the batch as a one-state chain (its
+    ``start`` not used)."""
+    from packetloss_cvx.closedloop.chain_radius import homogeneous_coupled_riccati
+    from packetloss_cvx.errors import NumericalError
+    from packetloss_cvx.model.channel import MarkovChannel
+
+    mu = np.asarray(mu, dtype=float)
+    single = mu.ndim == 1
+    mus = mu.reshape(-1, B.shape[1])
+    n, m = B.shape
+    lam, P, K = np.empty(mus.shape[0]), np.empty((mus.shape[0], n, n)), np.empty((mus.shape[0], m, n))
+    for g, point in enumerate(mus):
+        try:
+            lam[g], P_, K_ = homogeneous_coupled_riccati(
+                A, B, MarkovChannel(transition=[[[1.0]]] * m, delivery=[[float(x)] for x in point]))
+        except NumericalError as err:
+            raise NumericalError(f"homogeneous Riccati eigenpair: {err}") from None
+        P[g], K[g] = P_[0], K_[0]
+    return (float(lam[0]), P[0], K[0]) if single else (lam, P, K)
+
+
+_CHAIN_REACHABLE = _CHAIN_BALANCED = None
+
+
 #: the environment variable naming the probe `install` puts in place (read by the pytest plugin too)
 PROBE = "REGION_SCHEDULE_PROBE"
 
@@ -186,8 +359,20 @@ def install() -> None:
     from packetloss_cvx.closedloop.riccati_map import GRADED, grading_scale
     from packetloss_cvx.tolerances import HOMOGENEOUS_RICCATI_MAX_ITER
 
-    if os.environ.get(PROBE, "bernoulli") == "bernoulli":
+    global _CHAIN_REACHABLE, _CHAIN_BALANCED
+    probe = os.environ.get(PROBE, "bernoulli")
+    if probe == "bernoulli":
         chain_radius._balanced_eigenpair = balanced_eigenpair
+        return
+    if probe == "one":
+        from packetloss_cvx.allocation import stability
+        from packetloss_cvx.closedloop import region
+        from packetloss_cvx.studies import region_map
+
+        _CHAIN_REACHABLE, _CHAIN_BALANCED = chain_radius._reachable_eigenpair, chain_radius._balanced_eigenpair
+        chain_radius._balanced_eigenpair = one_balanced
+        for module in (region, stability, region_map):
+            module.homogeneous_riccati = one_homogeneous_riccati
         return
     chain_radius._CHECKPOINTS = (4, 30, 90, 270, 810, 2430, HOMOGENEOUS_RICCATI_MAX_ITER)
     power = chain_radius._power
@@ -304,13 +489,68 @@ def _bernoulli_reference() -> dict:
     return out
 
 
+def _engine_worker(root: Path, probe: str | None, repeats: int) -> dict:
+    """region_engine.py's worker cases in a fresh process importing ``root``'s package, with ``probe`` installed
+    (None: as it is)."""
+    import json
+
+    code = ("import sys, region_engine\n"
+            + ("import region_schedule_probe\nregion_schedule_probe.install()\n" if probe else "")
+            + f"region_engine.worker({repeats})\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(HERE / "benchmarks")]),
+           "OPENBLAS_NUM_THREADS": "1", PROBE: probe or ""}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=root)
+    if done.returncode:
+        raise RuntimeError(f"{root} {probe}: the worker failed\n{done.stderr[-3000:]}")
+    data = json.loads(done.stdout.strip().splitlines()[-1])
+    if not data.pop("module").startswith(str(root)):
+        raise RuntimeError(f"{root}: imported another package")
+    return data
+
+
+def engine(baseline: Path, probe: str, rounds: int, repeats: int) -> None:
+    """region_engine.py's cases: the baseline checkout, this one, and this one with ``probe`` installed, in
+    interleaved rounds (the order rotated each round); per case the median over the rounds of each version's best
+    CPU of ``repeats``, the probe's ratio to the baseline and to this checkout, its answers' largest relative
+    difference from the baseline's and whether every verdict (word) is the same."""
+    import statistics
+
+    engine_ = _engine()
+    runs = [("baseline", baseline, None), ("this", HERE, None), ("probe", HERE, probe)]
+    cpu: dict[str, dict[str, list]] = {label: {} for label, *_ in runs}
+    answers: dict[str, dict] = {}
+    for k in range(rounds):
+        for label, root, installed in runs[k % 3:] + runs[:k % 3]:
+            for name, (best, numbers, words) in _engine_worker(root, installed, repeats).items():
+                cpu[label].setdefault(name, []).append(best)
+                answers.setdefault(label, {})[name] = (numbers, words)
+    print(f"region_engine cases, median of {rounds} rounds (best of {repeats} each), CPU s, one BLAS thread, "
+          f"OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}")
+    print("| case | baseline | this | probe | probe / baseline | probe / this | max rel diff (probe vs baseline) "
+          "| verdicts |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in cpu["baseline"]:
+        b, t, q = (statistics.median(cpu[label][name]) for label in ("baseline", "this", "probe"))
+        (nb, wb), (nq, wq) = answers["baseline"][name], answers["probe"][name]
+        same = "same" if wb == wq else "DIFFER"
+        print(f"| {name} | {b:.4f} | {t:.4f} | {q:.4f} | {q / b:.3f} | {q / t:.3f} | {engine_._rel(nb, nq):.1e} "
+              f"| {same} |")
+
+
 def main() -> None:
     import argparse
 
     parser = argparse.ArgumentParser()
-    parser.add_argument("--probe", choices=("bernoulli", "chain"), default="bernoulli")
+    parser.add_argument("--probe", choices=("bernoulli", "chain", "one"), default="bernoulli")
+    parser.add_argument("--engine", action="store_true",
+                        help="region_engine.py's cases: baseline, this checkout, this checkout probed")
+    parser.add_argument("--baseline", default="/work/wt/base-region")
+    parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
     os.environ[PROBE] = args.probe
+    if args.engine:
+        engine(Path(args.baseline).resolve(), args.probe, args.rounds, 2)
+        return
     reference = _bernoulli_reference()
     t0 = time.process_time()
     chain = _chain_cases()
@@ -339,7 +579,7 @@ def main() -> None:
     print(f"chain tests with the probe installed: {lines[-1] if lines else done.stderr[-500:]}")
     for name in failed:
         print(f"    failed: {name}")
-    if args.probe == "chain":
+    if args.probe in ("chain", "one"):
         _one_mode(reference)
 
 
