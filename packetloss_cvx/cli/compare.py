@@ -6,7 +6,8 @@ import argparse
 from typing import Any
 
 from ..allocation.api import cheapest_links
-from ..errors import InputError
+from ..closedloop.actuator_design import check_protocol
+from ..errors import InputError, UnobservedModeError
 from ..tolerances import ACTUATOR_COMPARE_TOL, ALLOCATION_GAP_DEFAULT
 from . import format as fmt
 from .actuator_section import actuator_strategies, design_section
@@ -18,8 +19,10 @@ _FLAGS = {"alpha": "--target", "beta": "--beta", "gap": "--gap"}
 
 
 def run(args: argparse.Namespace) -> CommandResult:
-    """Per strategy the optimal TCP-like law's radius and costs and the strategy's critical mu along the ray
-    (cli.actuator_section.design_section).
+    """Per strategy the optimal law's radius and costs and the strategy's critical mu along the ray
+    (cli.actuator_section.design_section), for the ``--protocol``'s controller: TCP-like, every strategy; UDP-like,
+    the strategies whose TCP-like optimal law it can run (closedloop.actuator_design.check_protocol: then it is its
+    optimum too), the others' rows giving the reason (a strategy named with ``--actuator`` is refused instead).
 
     Examples
     --------
@@ -39,7 +42,16 @@ def run(args: argparse.Namespace) -> CommandResult:
     >>> folder.cleanup()
     """
     system = system_of(args)
-    strategies = actuator_strategies(args.actuator, system)
+    protocol = getattr(args, "protocol", "tcp")
+    named = args.actuator.strip().lower() != "all"     # named strategies a UDP-like controller cannot run: refused
+    strategies = actuator_strategies(args.actuator, system, protocol if named else "tcp")
+    unrunnable: dict[str, str] = {}
+    for strategy in strategies:
+        try:
+            check_protocol(system, strategy, protocol)
+        except UnobservedModeError as err:
+            unrunnable[str(strategy)] = err.detail
+    runnable = tuple(s for s in strategies if str(s) not in unrunnable)
     direction = None
     if args.direction is not None:
         direction = floats(args.direction, "--direction")
@@ -51,18 +63,23 @@ def run(args: argparse.Namespace) -> CommandResult:
         target = number(args.target, "--target")
         beta = None if args.beta is None else floats(args.beta, "--beta")
         try:
-            links = cheapest_links(system, target, beta, strategies, gap=ALLOCATION_GAP_DEFAULT if args.gap is None
-                                   else number(args.gap, "--gap"))
+            links = cheapest_links(system, target, beta, runnable, gap=ALLOCATION_GAP_DEFAULT if args.gap is None
+                                   else number(args.gap, "--gap")) if runnable else {}
         except InputError as err:
             raise err.renamed(_FLAGS[err.field]) if err.field in _FLAGS else err from None
     elif args.beta is not None or args.gap is not None:
         raise InputError("--beta" if args.beta is not None else "--gap", "applies with --target only")
-    data, lines = design_section(system, strategies, direction, ACTUATOR_COMPARE_TOL, links)
-    heading = (f"actuator strategies on a loss for {fmt.name(system.name or args.file)}: the optimal TCP-like law "
+    data, lines = design_section(system, runnable, direction, ACTUATOR_COMPARE_TOL, links)
+    for name, reason in unrunnable.items():     # the strategies whose optimal law this controller cannot run
+        data[name] = {"radius": None, "average_stage_cost": None, "initial_cost": None, "critical": None,
+                      "reason": reason}
+        lines.append(f"{name}: no {protocol.upper()}-like optimal law: {reason}")
+    heading = (f"actuator strategies on a loss for {fmt.name(system.name or args.file)}: the optimal "
+               f"{protocol.upper()}-like law "
                f"of each (radius, average stage cost under the noise, noise-free cost from x0 over an infinite "
                f"horizon) and its critical mu")
-    out: dict[str, Any] = {"name": system.name, "strategies": data}
-    if links is not None:
+    out: dict[str, Any] = {"name": system.name, "protocol": protocol, "strategies": data}
+    if links:
         basis = next(iter(links.values()))["basis"]
         prices = next(iter(links.values()))["beta"]
         out["target"] = {"alpha": target, "basis": basis, "beta": prices}

@@ -481,6 +481,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "e.g. --beta 1,0.05")
     cmp.add_argument("--gap", help="with --target: relative optimality gap to certify, 1e-9 <= G < 1 (default: 1e-4), "
                                    "e.g. 1e-6")
+    cmp.add_argument("--protocol", choices=["tcp", "udp"], default="tcp",
+                     help="the controller's information: tcp (acknowledged, default) or udp (no acknowledgements: a "
+                          "strategy whose optimal law it cannot run gets its row's reason instead; named with "
+                          "--actuator, it is refused), e.g. --protocol udp")
 
     rep = add_command(sub, "reproduce", "every figure and table of the paper, with a report comparing them",
                       examples=["reproduce", "reproduce --out paper-results", "reproduce --quick --out smoke"],
