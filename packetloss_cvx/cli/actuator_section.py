@@ -92,10 +92,12 @@ def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies:
             verdict = (("mean-square stable" if row["stable"] else "NOT mean-square stable")
                        + f", radius {fmt.num(row['radius'])}") if row["radius"] is not None else \
                 f"radius not computed ({row['reason']})"
-            lines.append(f"    {label}, {strategy}: mean loop stage cost sampled {fmt.num(row['mean_stage_cost'])} "
-                         f"+- "
-                         f"{fmt.num(row['stderr'], 3)}, exact {fmt.num(row['exact_stage_cost'])} (z = "
-                         f"{fmt.num(row['z'], 3)}); {verdict}")
+            spread = "" if row.get("stderr_reason") else f" +- {fmt.num(row['stderr'], 3)}"
+            z = "" if row.get("stderr_reason") else f" (z = {fmt.num(row['z'], 3)})"
+            lines.append(f"    {label}, {strategy}: mean loop stage cost sampled {fmt.num(row['mean_stage_cost'])}"
+                         f"{spread}, exact {fmt.num(row['exact_stage_cost'])}{z}; {verdict}")
+            if row.get("stderr_reason"):
+                lines.append(f"      ({row['stderr_reason']})")
     return data, lines
 
 
