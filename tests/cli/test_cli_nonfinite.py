@@ -73,3 +73,42 @@ def test_simulate_closed_loop_actuator_json_has_no_z_without_an_error_bar(capsys
             assert row["z"] is None
             assert row["stderr"] is None
             assert row["stderr_reason"].startswith("no error bar")
+
+
+def test_sweep_stability_gives_the_open_loop_radius_where_nothing_is_delivered(capsys, exploding):
+    # at mu = 0 no input arrives: x+ = 3 x whatever the law, radius 3^2 = 9 (the TCP-like gain there is ~1e190)
+    code, out, err = _run(capsys, "sweep", exploding, "--mu-grid", "5", "--stability", "--json")
+    assert (code, err) == (0, "")
+    data = json.loads(out)
+    table = data["table"]
+    at_zero = table["mu1"].index(0.0)
+    assert table["radius_tcp"][at_zero] == pytest.approx(9.0, rel=1e-14)
+    assert table["radius_udp"][at_zero] == pytest.approx(9.0, rel=1e-14)
+    assert data["radius_tcp"]["min"] == min(table["radius_tcp"])
+    assert data["radius_tcp"]["max"] == max(table["radius_tcp"])
+
+
+def test_sweep_stability_counts_the_points_without_a_radius_and_says_why(capsys, exploding, monkeypatch):
+    import packetloss_cvx.studies.engine as engine
+    from packetloss_cvx.errors import NumericalError
+
+    real = engine.mean_square_radius
+
+    def failing_at_half(A, B, K, mu):
+        if mu[0] == 0.5:
+            raise NumericalError("mean-square radius: the eigenvalue routine failed (planted)")
+        return real(A, B, K, mu)
+
+    monkeypatch.setattr(engine, "mean_square_radius", failing_at_half)
+    code, out, err = _run(capsys, "sweep", exploding, "--mu-grid", "5", "--stability", "--json")
+    assert (code, err) == (0, "")
+    data = json.loads(out)
+    radii = data["table"]["radius_tcp"]
+    assert radii[data["table"]["mu1"].index(0.5)] is None
+    assert data["radius_tcp"]["min"] == min(r for r in radii if r is not None)
+    assert data["radius_tcp"]["missing_points"] == 1
+    assert "not computed at 1 of 5 points" in data["radius_tcp"]["reason"]
+    code, out, _ = _run(capsys, "sweep", exploding, "--mu-grid", "5", "--stability")
+    line = next(t for t in out.splitlines() if "TCP-like law in closed loop" in t)
+    assert "nan" not in line
+    assert "not computed at 1 of 5 points" in line
