@@ -138,5 +138,5 @@ def error_bar_reason(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray,
                 "use the exact value")
     if rho4 < 1.0 - MEAN_SQUARE_MARGIN:
         return ""
-    return (f"no error bar: the fourth moments grow (rho_4 = {rho4:.4g} >= 1), so the run cost's variance grows "
-            f"with the steps and the sample is ruled by rare loss bursts; use the exact value")
+    return (f"no error bar: the fourth moments grow (rho_4 = {rho4:.4g} >= 1), so the variance of a run's loop cost "
+            "grows with the steps and the sample is ruled by rare loss bursts; use the exact value")
