@@ -546,7 +546,8 @@ def check_constrained(horizon: int, n: int, m: int, rows: int, chance: int, fiel
     packetloss_cvx.errors.BudgetError: cost.horizon: the constrained program of N = 100000 (n = 1, m = 1; ...
     """
     size = (f"the constrained program of N = {horizon} (n = {n}, m = {m}; {rows} linear rows"
-            + (f", {chance} chance rows" if chance else "") + ")" + (f" x {programs}" if programs > 1 else ""))
+            + (f", {count_text(chance)} chance row" + "s" * (chance != 1) if chance else "") + ")"
+            + (f" x {programs}" if programs > 1 else ""))
     work = programs * constrained_work(horizon, n, m, chance)
     check("solve_work", work, field, f"{size}, about {duration_text(estimated_seconds('solve_work', work))}",
           instead=instead)

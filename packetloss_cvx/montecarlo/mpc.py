@@ -578,7 +578,8 @@ def check_loop_budgets(system: System, constraints: Constraints, samples: int, s
     check("mpc_solves", mpc_solves(samples, steps, programs, clipped, size), "samples",
           f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
           + (f" and {clipped} clipped laws" if clipped else "") + f" ({size:.2g} of a 5 ms solve each: N = {N}, "
-          f"n = {system.n}, m = {system.m}, {rows} linear rows, {len(constraints.chance)} chance rows)")
+          f"n = {system.n}, m = {system.m}, {rows} linear rows, {len(constraints.chance)} chance row"
+          + "s" * (len(constraints.chance) != 1) + ")")
     needed = max(mpc_bytes(samples, steps, system.n, system.m, len(loop), constraints.loop_rows(), keep)
                  for loop in runs)
     check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
