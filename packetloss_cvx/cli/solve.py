@@ -134,9 +134,10 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
                       args: argparse.Namespace, chain: System | None = None) -> tuple[dict[str, Any], str]:
     """The ``"constrained"`` JSON entry of one protocol and its text: the file's ``[constraints]`` solved by
     `solve_constrained` ({"status", "cost", "basis", "plan_expected_cost", "inputs", "binding", ...}); a proven
-    infeasibility is reported as status "infeasible" with the solver's status and reason (the closed forms above
-    stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped"). The cost says its basis:
-    TCP-like "paper" (J_tcp(U), without the loss variance), beside the plan's exact expected cost (basis
+    infeasibility (a verified certificate) is reported as status "infeasible" with the solver's status and reason,
+    a solver's "infeasible" whose certificate is undecided as status "undecided" with the certificate's reason (the
+    closed forms above stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped"). The cost
+    says its basis: TCP-like "paper" (J_tcp(U), without the loss variance), beside the plan's exact expected cost (basis
     "realised"); UDP-like "realised". Behind a chain (``chain``, the file's system; ``system`` its Bernoulli
     plug-in twin) the program is the plug-in one, ``"plug_in": true``, basis "paper, prior-mean rates" (its chance
     rows take the losses as independent), and ``plan_expected_cost`` is the plan's exact expected cost under the
@@ -161,7 +162,16 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
                  "certificate": {"verdict": certificate.get("verdict"), "reason": certificate.get("reason"),
                                  "margin": certificate.get("margin")},
                  "reason": str(err)}, f"infeasible: {err}")
-    except (SolverError, NumericalError) as err:
+    except SolverError as err:
+        if err.certificate is not None:      # "infeasible" said by the solver, its certificate not verified
+            certificate = err.certificate
+            return ({"status": "undecided", "solver_status": err.status, "cost": None, "inputs": None, "binding": [],
+                     "certificate": {"verdict": certificate.get("verdict"), "reason": certificate.get("reason"),
+                                     "margin": certificate.get("margin")},
+                     "reason": str(err)}, f"undecided: {err}")
+        return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
+                f"not solved: {err}")
+    except NumericalError as err:
         return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
                 f"not solved: {err}")
     bound = ", ".join(sol.binding[:6]) + (f", ... ({len(sol.binding)} in all)" if len(sol.binding) > 6 else "")
