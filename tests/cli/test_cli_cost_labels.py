@@ -80,6 +80,36 @@ def unlabelled_keys(data, path: str = "", labelled: bool = False) -> list[str]:
     return out
 
 
+def costs_without_their_own_basis(data, path: str = "", inherited: bool = False) -> list[str]:
+    """The paths of numbers under cost keys whose basis is not named for them: ``<key>_basis`` beside them, or
+    ``basis`` where the key is ``cost`` or the object's only cost, or ``basis`` in an enclosing object that holds no
+    cost of its own (an enclosing object's basis may be its own cost's, not theirs). Relative differences
+    (``cost_rel_diff``) and radii have no basis.
+
+    >>> costs_without_their_own_basis({"basis": "paper", "cost": 1.0, "plan_cost": 2.0, "q": {"cost": 3.0}})
+    ['/plan_cost', '/q/cost']
+    >>> costs_without_their_own_basis({"basis": "loop", "rows": {"a": {"cost": 1.0}}, "x": {"cost": 2.0,
+    ...                                "x_cost": 3.0, "x_cost_basis": "realised", "basis": "paper"}})
+    []
+    """
+    out = []
+    if isinstance(data, dict):
+        costs = [key for key, value in data.items() if COST_KEY.search(key) and "basis" not in key
+                 and "diff" not in key and isinstance(value, int | float | list) and not isinstance(value, bool)]
+        for key in costs:
+            if f"{key}_basis" not in data and not ("basis" in data and (key == "cost" or len(costs) == 1)) \
+                    and not inherited:
+                out.append(f"{path}/{key}")
+        passes = inherited or ("basis" in data and not costs)
+        for key, value in data.items():
+            if "radius" not in key:
+                out += costs_without_their_own_basis(value, f"{path}/{key}", passes)
+    elif isinstance(data, list):
+        for k, value in enumerate(data):
+            out += costs_without_their_own_basis(value, f"{path}[{k}]", inherited)
+    return out
+
+
 def run(capsys, command: str, *extra: str) -> str:
     code = main([*command.split(), "--quiet", *extra] if not command.startswith("region") else
                 [*command.split(), *extra])
@@ -100,6 +130,38 @@ def test_every_cost_in_the_json_says_its_basis(capsys, command):
     data = json.loads(run(capsys, command, "--json"))
     assert unlabelled_keys(data) == []
 
+
+
+@pytest.mark.parametrize("command", [c for c in COMMANDS if c.startswith("solve")])
+def test_every_cost_of_solve_names_its_own_basis_in_its_own_object(capsys, command):
+    data = json.loads(run(capsys, command, "--json"))
+    assert costs_without_their_own_basis(data) == []
+
+
+def test_solve_behind_a_chain_gives_each_cost_its_basis(capsys):
+    """pendulum_bursty with an input box: the plug-in laws' costs are the paper's on the chain's prior-mean rates,
+    the plans' expected costs under the chain realised, the UDP-like exact minimum attainable; the QPs' costs are
+    the numbers beside them, on their basis."""
+    data = json.loads(run(capsys, "solve pendulum_bursty --u-max 5 --u-min=-5", "--json"))
+    prior = "paper, prior-mean rates"
+    for protocol in ("tcp", "udp"):
+        assert (data[protocol]["basis"], data[protocol]["qp"]["basis"]) == (prior, prior)
+        constrained = data[protocol]["constrained"]
+        assert (constrained["basis"], constrained["plan_expected_cost_basis"]) == (prior, "realised")
+    tcp, udp = data["markov"]["tcp"], data["markov"]["udp"]
+    assert (tcp["plugin_cost_basis"], tcp["plan_expected_cost_basis"]) == (prior, "realised")
+    assert (tcp["exact"]["basis"], tcp["qp"]["basis"]) == (prior, prior)
+    # UDP-like: the plug-in law's cost is its plan's expected cost under the chain, the same number realised
+    assert udp["plugin_cost"] == udp["plan_expected_cost"]
+    assert (udp["plugin_cost_basis"], udp["plan_expected_cost_basis"]) == ("realised", "realised")
+    assert (udp["exact"]["basis"], udp["qp"]["basis"]) == ("attainable", "attainable")
+
+
+def test_the_tcp_like_constrained_plans_expected_cost_is_realised_not_paper(capsys):
+    data = json.loads(run(capsys, "solve two_actuator --u-max 0.5 --u-min=-0.5 --x-max 2", "--json"))
+    assert (data["tcp"]["constrained"]["basis"], data["tcp"]["constrained"]["plan_expected_cost_basis"]) == (
+        "paper", "realised")
+    assert data["udp"]["constrained"]["basis"] == "realised"
 
 
 def test_region_shows_no_cost(capsys):
