@@ -184,7 +184,8 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
     data: dict[str, Any] = {}
     w = max([11, *(len(str(strategy)) for strategy in strategies)])     # buffer:L:hold is wider than 11
     extra = "" if links is None else f" {'beta' + chr(39) + 'mu':>12} {'mu*':<22}"
-    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}{extra}  critical mu"]
+    # the costs are the optimal law's in its loop (basis loop): the average stage cost, the noise-free cost from x0
+    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg cost [loop]':>15} {'x0 cost [loop]':>14}{extra}  critical mu"]
     notes: list[str] = []
     for strategy in strategies:
         link = None if links is None else links[str(strategy)]

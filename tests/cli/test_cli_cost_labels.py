@@ -171,3 +171,59 @@ def test_region_shows_no_cost(capsys):
     assert "critical mu" in text
     assert not COST.search(text)
     assert not [key for key in re.findall(r'"(\w+)":', json.dumps(data)) if COST_KEY.search(key)]
+
+
+SENSOR_FILE = """name = "sens"
+[plant]
+A = [[1.03, 0.005], [0.35, 1.01]]
+B = [[1.0, 0.0], [0.0, 1.0]]
+noise_cov = [[0.01, 0.0], [0.0, 0.01]]
+[cost]
+horizon = 10
+state_weight = [1.0, 1.0]
+input_weight = [1.0, 1.0]
+[channel]
+mu = [0.9, 0.5]
+[state]
+x0 = [1.0, 1.0]
+P0 = [[0.01, 0.0], [0.0, 0.01]]
+[sensor]
+C = [[1.0, 0.0]]
+noise_cov = [[0.001]]
+gamma = [0.7]
+"""
+
+
+def test_the_sensor_split_says_what_each_part_is(capsys, tmp_path):
+    """The loop cost's "control" part is tr(P Sigma_W) of the DP whatever the law (the same number for the TCP-like,
+    the UDP-like and the DP law here): it is the full-state DP optimum, and for a law other than the DP law on the
+    TCP-like estimate the other part holds the law's excess over the DP law beside the estimation error."""
+    path = tmp_path / "sens.toml"
+    path.write_text(SENSOR_FILE)
+    data = json.loads(run(capsys, f"solve {path}", "--json"))
+    entries = [data["tcp"]["estimated_state"], data["udp"]["estimated_state"], data["estimation"]["dp"]]
+    assert all(entry["control_part"] is not None for entry in entries)
+    assert len({entry["control_part"] for entry in entries}) == 1          # law-independent: the DP's, not the law's
+    text = run(capsys, f"solve {path}")
+    split = [line for line in text.splitlines() if "loop's average stage cost" in line]
+    assert len(split) == 3
+    assert all("full-state DP optimum" in line and "control" not in line for line in split)
+    assert sum("(estimation and the law's excess over the DP law)" in line for line in split) == 2
+    assert "DP optimum" in split[2]
+    assert "+ estimation " in split[2]
+    assert "excess" not in split[2]
+
+
+def test_simulate_names_the_open_loop_costs_basis(capsys):
+    """The open-loop lines' sampled and exact numbers are the plan's expected realised cost: basis realised."""
+    text = run(capsys, "simulate two_actuator --samples 200")
+    lines = [line for line in text.splitlines() if "open loop:" in line]
+    assert len(lines) == 2
+    assert all(line.split("; ")[0].endswith("[basis: realised]") for line in lines)
+
+
+def test_compare_names_the_loop_basis_of_its_cost_columns(capsys):
+    lines = run(capsys, "compare two_actuator --actuator zero,hold").splitlines()
+    assert "[basis: loop]" in lines[0]
+    assert "avg cost [loop]" in lines[1]
+    assert "x0 cost [loop]" in lines[1]
