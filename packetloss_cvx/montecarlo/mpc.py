@@ -69,6 +69,7 @@ from ..model.files import system_from_dict
 from ..model.system import System, check_system, loop_weights
 from ..progress import progress_bar
 from ..qp.constrained import ConstrainedQP
+from ..qp.convex import PROVEN_INFEASIBLE
 from ..results.mpc import ControllerRun, Frequency, MPCSimulation
 from ..tolerances import CONSTRAINED_ACTIVE_RTOL
 from .channels import sample_delivery_paths, sample_noise_paths
@@ -164,7 +165,10 @@ class _Program:
         try:
             sol = self._solve(self.hard, mu, x, previous)
             return sol.inputs, "ok", bool(sol.violations)
-        except InfeasibleError:
+        except (InfeasibleError, SolverError) as err:
+            # the soft twin also where the solver says infeasible without a verified certificate (chance rows)
+            if not isinstance(err, InfeasibleError) and err.status != PROVEN_INFEASIBLE:
+                return None, "failed", False
             if self.soft is None:
                 soft = Constraints(**{**self.constraints.to_dict(), "soft": True})
                 self.soft = self._compile(soft)
@@ -173,7 +177,7 @@ class _Program:
             except (SolverError, NumericalError, InfeasibleError):
                 return None, "infeasible-failed", False
             return sol.inputs, "fallback", bool(sol.violations)
-        except (SolverError, NumericalError):
+        except NumericalError:
             return None, "failed", False
 
 
