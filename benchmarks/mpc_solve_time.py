@@ -12,9 +12,10 @@ box at 0.6 times the unconstrained plan's peak ("box"), with a rate bound at hal
 on every state ("+x"), or with one chance row on the first state ("+chance"; the rows of the program are counted by
 ``Constraints.program_rows``, the chance row apart). Per case: one solve to warm up, then eight from x0 scaled by
 seeded factors in [0.5, 1.5], each timed in CPU time (time.process_time), the median; in a fresh interpreter with
-one BLAS thread. The table prints the measured and the formula's time and their ratio. Where the measured time is
-more than three times the formula's, the case is solved again with Clarabel's ``direct_solve_method`` set to
-"qdldl" (its default "auto" picks another linear solver for some large KKT systems): that time is printed too.
+one BLAS thread. The table prints the measured and the formula's time and their ratio, under the package's Clarabel
+settings (tolerances.CLARABEL_LINEAR_SOLVER: QDLDL), and beside them the same cases in a second process with
+Clarabel's own default ``direct_solve_method = "auto"`` forced, and which linear solver it picked (faer's supernodal
+LDL, on all cores, for some large KKT systems).
 """
 
 from __future__ import annotations
@@ -41,13 +42,15 @@ from packetloss_cvx.model.random_systems import random_system
 from packetloss_cvx.qp.constrained import ConstrainedQP
 
 cases, method = json.loads(sys.argv[1]), sys.argv[2]
-if method != "auto":                    # Clarabel's linear solver forced, every solve of this process
-    made = clarabel.DefaultSolver
-    def forced(P, q, A, b, cones, settings):
+made, used = clarabel.DefaultSolver, set()
+def built(P, q, A, b, cones, settings):  # "package": the package's settings; else Clarabel's linear solver forced
+    if method != "package":
         settings.direct_solve_method = method
-        return made(P, q, A, b, cones, settings)
-    convex.clarabel = type("Clarabel", (), {"DefaultSolver": staticmethod(forced),
-                                            "DefaultSettings": clarabel.DefaultSettings})
+    solver = made(P, q, A, b, cones, settings)
+    used.add(solver.get_info().linsolver.name)
+    return solver
+convex.clarabel = type("Clarabel", (), {"DefaultSolver": staticmethod(built),
+                                        "DefaultSettings": clarabel.DefaultSettings})
 
 def case(N, n, m, kind):
     s = random_system(np.random.default_rng(7), n=n, m=m, horizon=N, spectral_radius=0.95, full_weights=False,
@@ -68,6 +71,7 @@ def case(N, n, m, kind):
         qp = ConstrainedQP(s, "tcp", c, u_prev=True)
     except BudgetError as refused:
         return {**out, "refused": str(refused).split(" is over")[0]}
+    used.clear()
     qp.solve(u_prev=np.zeros(m))
     rng, times = np.random.default_rng(1), []
     for _ in range(8):
@@ -75,7 +79,7 @@ def case(N, n, m, kind):
         start = time.process_time()
         qp.solve(x0=x0, u_prev=np.zeros(m))
         times.append(time.process_time() - start)
-    return {**out, "formulation": qp.formulation, "seconds": statistics.median(times)}
+    return {**out, "formulation": qp.formulation, "seconds": statistics.median(times), "linsolver": sorted(used)}
 
 print(json.dumps([case(*c) for c in cases]))
 """
@@ -85,8 +89,9 @@ FULL = [(N, n, m, kind) for n, m in ((2, 1), (4, 2), (8, 3)) for N in (10, 20, 5
 QUICK = [(N, n, m, kind) for n, m in ((2, 1), (8, 3)) for N in (10, 50, 200) for kind in ("box", "box+x", "box+chance")]
 
 
-def measure(cases: list, method: str = "auto") -> list[dict]:
-    """The cases timed in a fresh interpreter (this checkout, one BLAS thread), Clarabel's linear solver ``method``."""
+def measure(cases: list, method: str = "package") -> list[dict]:
+    """The cases timed in a fresh interpreter (this checkout, one BLAS thread): "package" under the package's Clarabel
+    settings, else with Clarabel's ``direct_solve_method`` forced to ``method``."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
     done = subprocess.run([sys.executable, "-c", SCRIPT, json.dumps(cases), method], env=env, cwd=ROOT,
                           capture_output=True, text=True, check=True)
@@ -98,27 +103,24 @@ def mpc_solve_time(rows: list, quick: bool = False) -> None:
     from packetloss_cvx.budgets import BUDGETS, mpc_solve_size
 
     reference = BUDGETS["mpc_solves"].seconds_per_unit
-    print("\n21. one solve of the constrained loop (ConstrainedQP.solve from a new x0, one BLAS thread, CPU ms) "
-          "against the mpc_solves budget's formula")
+    print("\n22. one solve of the constrained loop (ConstrainedQP.solve from a new x0, one BLAS thread, CPU ms) "
+          "against the mpc_solves budget's formula; beside it, Clarabel's own default linear solver choice (auto)")
     print(f"{'N':>5} {'n':>3} {'m':>3} {'limits':>10} {'rows':>6} {'form':>10} {'measured':>9} {'formula':>8} "
-          f"{'ratio':>6}  {'qdldl':>8}")
-    found = measure(QUICK if quick else FULL)
-    slow = [r for r in found if "seconds" in r
-            and r["seconds"] > 3 * reference * mpc_solve_size(r["N"], r["n"], r["m"], r["rows"], r["chance"])]
-    again = {(r["N"], r["n"], r["m"], r["kind"]): r["seconds"]
-             for r in (measure([(r["N"], r["n"], r["m"], r["kind"]) for r in slow], "qdldl") if slow else [])}
-    for r in found:
+          f"{'ratio':>6}  {'auto':>8} {'ratio':>6} {'auto picks':>10}")
+    cases = QUICK if quick else FULL
+    found, auto = measure(cases), measure(cases, "auto")
+    for r, a in zip(found, auto, strict=True):
         head = f"{r['N']:>5} {r['n']:>3} {r['m']:>3} {r['kind']:>10} {r['rows']:>6}"
         if "refused" in r:
             print(f"{head}  refused: {r['refused']}")
             rows.append({"bench": "mpc_solve_time", **r})
             continue
         formula = reference * mpc_solve_size(r["N"], r["n"], r["m"], r["rows"], r["chance"])
-        qdldl = again.get((r["N"], r["n"], r["m"], r["kind"]))
         print(f"{head} {r['formulation']:>10} {1e3 * r['seconds']:>9.2f} {1e3 * formula:>8.2f} "
-              f"{r['seconds'] / formula:>6.2f}" + (f"  {1e3 * qdldl:>8.2f}" if qdldl is not None else ""))
+              f"{r['seconds'] / formula:>6.2f}  {1e3 * a['seconds']:>8.2f} {a['seconds'] / formula:>6.2f} "
+              f"{'/'.join(a['linsolver']):>10}")
         rows.append({"bench": "mpc_solve_time", **r, "formula_s": formula, "ratio": r["seconds"] / formula,
-                     "qdldl_s": qdldl})
+                     "auto_s": a["seconds"], "auto_linsolver": a["linsolver"]})
 
 
 def main() -> None:

@@ -281,17 +281,16 @@ def mpc_solve_size(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> 
     factorisation, the checks' dense products with the plan's moment maps, the rows, each chance row's N cones.
     Fitted (least squares on the relative error) on benchmarks/mpc_solve_time.py (section 22 of benchmarks/run.py:
     N in 10..200, (n, m) in (2, 1), (4, 2), (8, 3), an input box, with a rate bound, state limits or one chance row,
-    one BLAS thread, CPU time): the measured solve 0.58 to 2.0 times this on 57 cases, median 0.93 (1.1 ms at
+    one BLAS thread, CPU time): the measured solve 0.59 to 1.8 times this on all 59 cases, median 0.89 (1.1 ms at
     N = 10, n = 2, m = 1 to 100 ms at N = 200, n = 8, m = 3, 4400 rows; the largest ratios where the condensed form
-    carries state limits). Not priced: with a chance row at N = 200, Clarabel's automatic choice of linear solver
-    took 9.5 and 17 times this (n = 4, m = 2 and n = 2, m = 1; its qdldl solver, forced, 1.3 and 1.1 times); probes
-    saw the same from N = 135 at n = 4, m = 2. O(1).
+    carries state limits, 1.1 and 1.3 with a chance row at N = 200), Clarabel's linear solver pinned to QDLDL
+    (tolerances.CLARABEL_LINEAR_SOLVER; its own default, "auto", took 10 and 21 times this there). O(1).
 
     Examples
     --------
     >>> round(mpc_solve_size(10, 2, 1, 20), 4)      # 1600 + 67.5 + 11 + 70 = 1748.5 us: 0.35 of a 5 ms solve
     0.3497
-    >>> round(mpc_solve_size(200, 8, 3, 4400), 2)   # 88 ms predicted, 110 ms measured
+    >>> round(mpc_solve_size(200, 8, 3, 4400), 2)   # 88 ms predicted, 101 ms measured
     17.59
     """
     N = _float(horizon)
@@ -546,7 +545,8 @@ def check_constrained(horizon: int, n: int, m: int, rows: int, chance: int, fiel
     packetloss_cvx.errors.BudgetError: cost.horizon: the constrained program of N = 100000 (n = 1, m = 1; ...
     """
     size = (f"the constrained program of N = {horizon} (n = {n}, m = {m}; {rows} linear rows"
-            + (f", {chance} chance rows" if chance else "") + ")" + (f" x {programs}" if programs > 1 else ""))
+            + (f", {count_text(chance)} chance row" + "s" * (chance != 1) if chance else "") + ")"
+            + (f" x {programs}" if programs > 1 else ""))
     work = programs * constrained_work(horizon, n, m, chance)
     check("solve_work", work, field, f"{size}, about {duration_text(estimated_seconds('solve_work', work))}",
           instead=instead)

@@ -66,16 +66,19 @@ class UnobservedModeError(InputError):
 
 
 class SolverError(RuntimeError):
-    """The convex solver did not report an optimal solution."""
+    """The convex solver did not report an optimal solution. A solver that says "infeasible" without a certificate
+    that survives its rounding is this, not `InfeasibleError`: ``certificate`` then holds the check's verdict
+    ("undecided") and its reason."""
 
-    def __init__(self, status: str, detail: str = "") -> None:
+    def __init__(self, status: str, detail: str = "", certificate: dict | None = None) -> None:
         self.status = status
         self.detail = detail
+        self.certificate = certificate
         message = f"solver status {status!r}"
         super().__init__(f"{message}: {detail}" if detail else message)
 
     def __reduce__(self) -> tuple:
-        return type(self), (self.status, self.detail), self.__dict__
+        return type(self), (self.status, self.detail, self.certificate), self.__dict__
 
 
 class InfeasibleError(RuntimeError):

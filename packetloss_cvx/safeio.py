@@ -30,8 +30,8 @@ from typing import IO, Any
 from .errors import InputError, OutputExistsError
 
 __all__ = ["FIGURE_DPI", "TEMP_PREFIX", "atomic_write", "check_dpi", "check_flag", "check_output_file",
-           "clean_temporaries", "figure_path", "file_digest", "laid_out_once", "pid_alive", "refuse_folder_name",
-           "refuse_special", "save_figure"]
+           "clean_temporaries", "exists_text", "figure_path", "file_digest", "laid_out_once", "pid_alive",
+           "refuse_folder_name", "refuse_special", "save_figure"]
 
 #: the recognisable start of every temporary file (``<prefix><pid>-<random>-<name>``)
 TEMP_PREFIX = ".packetloss-cvx-tmp-"
@@ -126,7 +126,7 @@ def check_output_file(path: str | Path, field: str, overwrite: bool = False) -> 
     elif not os.access(folder, os.W_OK | os.X_OK):
         reason = "permission denied"
     elif info is not None and not overwrite:
-        raise OutputExistsError(field, f"{str(path)!r} exists; pass --force to replace it")
+        raise OutputExistsError(field, exists_text(path, field))
     else:
         return
     raise InputError(field, f"cannot write {str(path)!r}: {reason}")
@@ -190,6 +190,16 @@ def _fsync_folder(folder: Path) -> None:
             os.close(fd)
 
 
+def exists_text(path: str | Path, field: str) -> str:
+    """The refusal of an existing output file, naming the way to replace it where ``field`` is: ``--force`` on the
+    command line (a field that is a flag), ``overwrite=True`` in Python.
+
+    >>> exists_text("a.json", "--out"), exists_text("a.toml", "path")
+    ("'a.json' exists; pass --force to replace it", "'a.toml' exists; pass overwrite=True to replace it")
+    """
+    return f"{str(path)!r} exists; pass {'--force' if field.startswith('-') else 'overwrite=True'} to replace it"
+
+
 def _publish(temp: Path, path: Path, overwrite: bool, field: str) -> None:
     """Rename ``temp`` onto ``path``: ``os.replace``, or without ``overwrite`` ``os.link`` (which fails on an
     existing name, so two writers cannot both publish) with ``os.replace`` after a check where the file
@@ -200,12 +210,12 @@ def _publish(temp: Path, path: Path, overwrite: bool, field: str) -> None:
     try:
         os.link(temp, path)
     except FileExistsError:
-        raise OutputExistsError(field, f"{str(path)!r} exists; pass --force to replace it") from None
+        raise OutputExistsError(field, exists_text(path, field)) from None
     except OSError as err:
         if err.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV, errno.EMLINK):
             raise
         if os.path.lexists(path):
-            raise OutputExistsError(field, f"{str(path)!r} exists; pass --force to replace it") from None
+            raise OutputExistsError(field, exists_text(path, field)) from None
         os.replace(temp, path)
         return
     os.unlink(temp)

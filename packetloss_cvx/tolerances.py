@@ -14,6 +14,7 @@ __all__ = [
     "ACCEPTED_STATUSES",
     "CHAIN_DP_RTOL",
     "CLARABEL_DEFAULT",
+    "CLARABEL_LINEAR_SOLVER",
     "CLARABEL_TIGHT",
     "CONSTRAINED_ACTIVE_RTOL",
     "CONSTRAINED_AGREEMENT_RTOL",
@@ -52,13 +53,28 @@ PSD_RTOL = 1e-12
 #: so a weight of 1e-15 is kept (with max(1, .) the QP once dropped every state weight below 1e-14).
 PSD_FACTOR_RTOL = 1e-14
 
+#: Clarabel's linear solver, pinned in both settings below (so wherever the package builds Clarabel's settings: cvxpy's
+#: ``problem.solve``, the compiled ClarabelProgram, the allocation LPs): QDLDL, Clarabel's simplicial LDL. Its default
+#: "auto" (0.11) switches to faer's supernodal LDL (on all cores) where it judges the KKT system's fill large. On the
+#: constrained loop's program with one chance row (N second-order cones of size up to N + 2) it does so at N = 135
+#: (n = 4, m = 2; not at 120), and at N = 200 the solve, the same nine interior-point iterations, took 18 and 7.9 times
+#: QDLDL's (1685 against 92 ms at n = 2, m = 1; 1795 against 228 ms at n = 4, m = 2; benchmarks/mpc_solve_time.py,
+#: one BLAS thread, CPU time); where it picked faer without that (N = 170, n = 2, m = 1; N = 200, m = 1) QDLDL took
+#: 1.04 to 1.13 times as long. Where "auto" picks QDLDL the floats are the same: in tests/qp, tests/montecarlo,
+#: tests/sensing, tests/allocation, tests/claims, the constraint CLI tests and the tutorials it picked faer for two
+#: programs only (the dense 64 x 64 condensed QP; the Markov UDP QP of pendulum_bursty, whose cost moved by 1.5e-16
+#: relative and its cross-check's input difference from 2.866e-12 to 2.877e-12).
+CLARABEL_LINEAR_SOLVER = "qdldl"
+
 #: Clarabel for the expected-cost QP twin: tight enough that the cross-check below is meaningful.
-CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 400}
+CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 400,
+                  "direct_solve_method": CLARABEL_LINEAR_SOLVER}
 
 #: Clarabel's own defaults (1e-8 gap and feasibility), tried where the tight settings stall. Spelled
 #: out: cvxpy re-solves a problem by updating the cached solver's previous settings with the ones
 #: passed, so an empty dict after CLARABEL_TIGHT would run the tight settings again.
-CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, "max_iter": 200}
+CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, "max_iter": 200,
+                    "direct_solve_method": CLARABEL_LINEAR_SOLVER}
 
 #: The constrained expected-cost QP (qp/constrained.py). A solve is refused when the KKT residual of its answer
 #: (stationarity, primal and dual feasibility, complementarity, each relative: ConstrainedQP.kkt), evaluated on the

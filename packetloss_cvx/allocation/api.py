@@ -98,7 +98,7 @@ def _time_limit(value: Any) -> float | None:
         return None
     seconds = check_number(value, "time_limit")
     if seconds <= 0:
-        raise InputError("time_limit", f"expected a positive number of seconds or None, found {seconds:g}")
+        raise InputError("time_limit", f"expected a positive number of seconds (None: no limit), found {seconds:g}")
     return seconds
 
 

@@ -238,7 +238,7 @@ def check_beta(beta: Any, m: int, field: str = "beta") -> np.ndarray:
     if arr.shape != (m,):
         raise InputError(field, f"expected {m} non-negative numbers, one per channel, found shape {arr.shape}")
     if np.any(arr < 0):
-        raise InputError(field, "expected finite non-negative numbers")
+        raise InputError(field, f"expected finite non-negative numbers, found {arr.tolist()}"[:200])
     return arr
 
 

@@ -538,7 +538,8 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
     if time_limit is not None:
         time_limit = check_number(time_limit, "time_limit")
         if time_limit <= 0:
-            raise InputError("time_limit", f"expected a positive number of seconds or None, found {time_limit:g}")
+            raise InputError("time_limit", f"expected a positive number of seconds (None: no limit), found "
+                                           f"{time_limit:g}")
     strategy = None if actuator is None else parse_actuator(actuator, system.horizon)
     if strategy is not None and margin is not None and _radius_bound(margin) != 1.0:
         raise InputError("margin", f"a radius bound below 1 is designed for the channel's own laws only; {strategy}'s "

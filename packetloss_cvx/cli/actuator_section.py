@@ -112,7 +112,8 @@ def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies:
 def _critical_row(system: System, strategy: Actuator, direction: list[float] | None,
                   tol: float) -> tuple[dict[str, Any], str]:
     """One strategy's critical point along the ray (closedloop.actuator_region.actuator_critical): its dict and
-    a text fragment saying which ends are proved."""
+    a text fragment saying which ends are proved, with the point's note (the JSON's ``note``: how far the proved
+    lower end lies below the float crossing, or why it is not proved) where it has one."""
     modes = design_modes(system.A, system.B, np.ones(system.m) if system.channel is None else system.channel,
                          strategy)
     rows = modes.modes * modes.A.shape[-1] ** 2
@@ -138,8 +139,9 @@ def _critical_row(system: System, strategy: Actuator, direction: list[float] | N
     upper = "proved stable" if point.inside is not None and point.inside.verdict == "stable" else \
         f"undecided ({point.inside.reason if point.inside is not None else 'no membership'})"
     what = "critical mean rate" if system.channel is not None else "critical mu"
+    note = f"; {point.note}" if point.note else ""      # where the lower end was stepped below the float crossing
     return row, (f"{what} {fmt.numbers(point.mu)} (t in [{fmt.num(point.lower, 8)}, {fmt.num(point.t, 8)}]: "
-                 f"upper end {upper}, lower end {lower})")
+                 f"upper end {upper}, lower end {lower}{note})")
 
 
 def critical_section(system: System, strategies: tuple[Actuator, ...], direction: list[float] | None,
@@ -192,7 +194,8 @@ def design_section(system: System, strategies: tuple[Actuator, ...], direction: 
     data: dict[str, Any] = {}
     w = max([11, *(len(str(strategy)) for strategy in strategies)])     # buffer:L:hold is wider than 11
     extra = "" if links is None else f" {'beta' + chr(39) + 'mu':>12} {'mu*':<22}"
-    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg stage cost':>15} {'cost from x0':>14}{extra}  critical mu"]
+    # the costs are the optimal law's in its loop (basis loop): the average stage cost, the noise-free cost from x0
+    lines = [f"{'strategy':<{w}} {'radius':>12} {'avg cost [loop]':>15} {'x0 cost [loop]':>14}{extra}  critical mu"]
     notes: list[str] = []
     for strategy in strategies:
         link = None if links is None else links[str(strategy)]

@@ -433,7 +433,8 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs, clipped, size), "--mpc-samples",
                   f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
                   f"(the constrained loop; {size:.2g} of a 5 ms solve each: N = {N}, n = {system.n}, m = {system.m}, "
-                  f"{linear} linear rows, {len(constraints.chance)} chance rows)")
+                  f"{linear} linear rows, {len(constraints.chance)} chance row" + "s" * (len(constraints.chance) != 1)
+                  + ")")
             rows = constraints.loop_rows()
             jobs = max(3 if args.law != "all" else 5 if name == "zero" else 6 for name in names)   # one loop at a time
             needed = mpc_bytes(mpc_samples, args.steps, system.n, system.m, jobs, rows)

@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     heading = (f"actuator strategies on a loss for {fmt.name(system.name or args.file)}: the optimal "
                f"{protocol.upper()}-like law "
                f"of each (radius, average stage cost under the noise, noise-free cost from x0 over an infinite "
-               f"horizon) and its critical mu")
+               f"horizon: the law's costs in its loop [basis: loop]) and its critical mu")
     out: dict[str, Any] = {"name": system.name, "protocol": protocol, "strategies": data}
     if links:
         basis = next(iter(links.values()))["basis"]

@@ -255,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--no-qp", action="store_true",
                        help="skip the solvers: the QP cross-check and a [constraints] table (closed form only)")
     add_constraint_options(solve, "solved beside the closed forms")
-    solve.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+    solve.add_argument("--actuator", metavar="zero|hold|buffer[:L][:hold]|all",
                        help="what the actuator does on a loss, for each law's loop: apply zero, hold the last "
                             "input, or play the buffered plan of L inputs (default L: the horizon); comma-separated, "
                             "or all to compare the three: exact mean-square radius and cost over N steps "
@@ -297,7 +297,7 @@ def build_parser() -> argparse.ArgumentParser:
     alloc.add_argument("--constraint", action="append", metavar="TEXT",
                        help='a linear constraint (repeatable; default: none), e.g. "mu1 + 2*mu2 <= 1.5" or '
                             '"mu1 >= mu2"')
-    alloc.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+    alloc.add_argument("--actuator", metavar="zero|hold|buffer[:L][:hold]|all",
                        help="also whether the allocation mu* is stabilisable when the actuator applies zero, holds "
                             "the last input or plays the buffered plan of L inputs on a loss (some law of that "
                             "strategy that the protocol's controller can run, proved exactly, or undecided with the "
@@ -450,7 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
     reg.add_argument("--sensor-grid", type=int, metavar="K",   # lossy sensor links
                      help="a file with [sensor]: also a K x K map of (gamma, mu) scales in (0, 1] for the paper's "
                           "tcp and udp laws on their estimates (default: none), e.g. --sensor-grid 11")
-    reg.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all",
+    reg.add_argument("--actuator", metavar="zero|hold|buffer[:L][:hold]|all",
                      help="also each strategy on a loss (apply zero, hold the last input, play the buffered plan of "
                           "L inputs): the critical mu along the ray of some TCP-like law of that strategy, its upper "
                           "end proved stable; comma-separated, or all (default: none), e.g. --actuator zero,hold")
@@ -465,7 +465,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 "compare two_actuator --actuator zero,hold --target 8 --beta 1,0.5"])
     cmp.add_argument("file", metavar="FILE", help=FILE_HELP)
     add_system_options(cmp)
-    cmp.add_argument("--actuator", metavar="zero|hold|buffer[:L]|all", default="all",
+    cmp.add_argument("--actuator", metavar="zero|hold|buffer[:L][:hold]|all", default="all",
                      help="the strategies: apply zero, hold the last input, or play the buffered plan of L inputs "
                           "(default L: the horizon); comma-separated, or all (default: all), e.g. --actuator "
                           "zero,buffer:2")

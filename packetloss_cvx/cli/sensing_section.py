@@ -126,8 +126,15 @@ def _law_text(entry: dict[str, Any]) -> str:
     if entry.get("cost") is None:
         why = entry.get("reason", "").removeprefix("undecided: ")
         return f"{_verdict_text(entry.get('stable'))}, loop cost n/a ({why})"
-    return (f"loop's average stage cost {_num(entry['cost'])} = control {_num(entry.get('control_part'))} + estimation "
-            f"{_num(entry.get('estimation_part'))}; " + _verdict_text(entry["stable"])
+    # control_part is tr(P Sigma_W) of the DP (the full-state optimum) whatever the law; estimation_part,
+    # E[(u + K_dp x)' H (u + K_dp x)], is the rest: the estimation error's cost, and for a law other than the DP law
+    # on the TCP-like estimate also the law's excess over the DP law
+    rest = (f"estimation {_num(entry.get('estimation_part'))}" if (entry.get("law"), entry.get("protocol")) ==
+            ("dp", "tcp") else f"the rest {_num(entry.get('estimation_part'))} (estimation and the law's excess over "
+            "the DP law)")
+    return (f"loop's average stage cost {_num(entry['cost'])} = full-state DP optimum "
+            f"{_num(entry.get('control_part'))} + {rest}; "
+            + _verdict_text(entry["stable"])
             + f" (radius of (xhat, e) {_num(entry.get('spectral_radius'))})")
 
 

@@ -178,8 +178,8 @@ def _text(name: str, sim: Simulation) -> str:
             " with the plug-in mu_t" if bursty else "")
         spread = "" if c.stderr_reason else f" +- {_num(c.stderr, 3)}"
         z = "" if c.stderr_reason else f" (z = {_num(c.z, 3)})"
-        lines.append(f"  {label}, open loop: sampled {_num(c.mean)}{spread}, exact "
-                     f"{_num(c.exact)}{z}; {formula} = {_num(c.formula)}")
+        lines.append(f"  {label}, open loop: its cost sampled {_num(c.mean)}{spread}, exact "
+                     f"{_num(c.exact)}{z} [basis: realised]; {formula} = {_num(c.formula)}")
         if c.stderr_reason:
             lines.append(f"    ({c.stderr_reason})")
         if p == "tcp" and not bursty and not np.isclose(c.exact, c.formula, rtol=TCP_GAP_RTOL, atol=0.0):

@@ -89,6 +89,7 @@ def run(args: argparse.Namespace) -> CommandResult:
                     "status": qp.status, "cost": qp.cost, "solve_time": qp.solve_time,
                     "formulation": qp.method.removeprefix("qp-"),
                     "max_input_diff": check.max_input_diff, "cost_rel_diff": check.cost_rel_diff,
+                    "basis": entry["basis"],        # the same quantity as J* above, on its basis
                 }
                 timing = f", {qp.solve_time:.3g} s" if args.verbose else ""
                 rows.append(("cross-check", f"QP {qp.status}, J = {qp.cost:.10g} (paper), max|Vbar dU| = "
@@ -134,13 +135,14 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
                       args: argparse.Namespace, chain: System | None = None) -> tuple[dict[str, Any], str]:
     """The ``"constrained"`` JSON entry of one protocol and its text: the file's ``[constraints]`` solved by
     `solve_constrained` ({"status", "cost", "basis", "plan_expected_cost", "inputs", "binding", ...}); a proven
-    infeasibility is reported as status "infeasible" with the solver's status and reason (the closed forms above
-    stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped"). The cost says its basis:
-    TCP-like "paper" (J_tcp(U), without the loss variance), beside the plan's exact expected cost (basis
-    "realised"); UDP-like "realised". Behind a chain (``chain``, the file's system; ``system`` its Bernoulli
-    plug-in twin) the program is the plug-in one, ``"plug_in": true``, basis "paper, prior-mean rates" (its chance
-    rows take the losses as independent), and ``plan_expected_cost`` is the plan's exact expected cost under the
-    chain (`exact_cost`), what the plan realises.
+    infeasibility (a verified certificate) is reported as status "infeasible" with the solver's status and reason,
+    a solver's "infeasible" whose certificate is undecided as status "undecided" with the certificate's reason (the
+    closed forms above stand), never replaced by another plan. ``--no-qp`` skips it (status "skipped"). The cost
+    says its basis: TCP-like "paper" (J_tcp(U), without the loss variance), beside the plan's exact expected cost
+    (basis "realised", ``plan_expected_cost_basis``); UDP-like "realised". Behind a chain (``chain``, the file's
+    system; ``system`` its Bernoulli plug-in twin) the program is the plug-in one, ``"plug_in": true``, basis
+    "paper, prior-mean rates" (its chance rows take the losses as independent), and ``plan_expected_cost`` is the
+    plan's exact expected cost under the chain (`exact_cost`), what the plan realises.
 
     Examples
     --------
@@ -161,11 +163,21 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
                  "certificate": {"verdict": certificate.get("verdict"), "reason": certificate.get("reason"),
                                  "margin": certificate.get("margin")},
                  "reason": str(err)}, f"infeasible: {err}")
-    except (SolverError, NumericalError) as err:
+    except SolverError as err:
+        if err.certificate is not None:      # "infeasible" said by the solver, its certificate not verified
+            certificate = err.certificate
+            return ({"status": "undecided", "solver_status": err.status, "cost": None, "inputs": None, "binding": [],
+                     "certificate": {"verdict": certificate.get("verdict"), "reason": certificate.get("reason"),
+                                     "margin": certificate.get("margin")},
+                     "reason": str(err)}, f"undecided: {err}")
+        return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
+                f"not solved: {err}")
+    except NumericalError as err:
         return ({"status": "failed", "cost": None, "inputs": None, "binding": [], "reason": str(err)},
                 f"not solved: {err}")
     bound = ", ".join(sol.binding[:6]) + (f", ... ({len(sol.binding)} in all)" if len(sol.binding) > 6 else "")
     entry = sol.to_dict()
+    entry["plan_expected_cost_basis"] = "realised"      # "basis" is the cost's; the plan's expected cost is realised
     realised = sol.plan_expected_cost
     if chain is not None:         # the plug-in program: its plan's cost under the chain is what it realises
         try:

@@ -97,7 +97,7 @@ def parse_actuator(spec: str | Actuator, horizon: int | None = None) -> Actuator
     >>> parse_actuator("buffer:0")
     Traceback (most recent call last):
     packetloss_cvx.errors.InputError: actuator: expected zero, hold or buffer:L with an integer 1 <= L, found \
-'buffer:0' (buffer:L:hold holds the last input once the plan is exhausted)
+'buffer:0' (buffer:L:hold holds the last input once the plan is exhausted; buffer:L:zero, the default, applies zero)
     >>> str(parse_actuator("buffer:3:hold")), str(parse_actuator("buffer:3:zero")), str(parse_actuator("buffer:1:hold"))
     ('buffer:3:hold', 'buffer:3', 'hold')
     """
@@ -105,7 +105,7 @@ def parse_actuator(spec: str | Actuator, horizon: int | None = None) -> Actuator
         spec = str(spec)
     bound = "" if horizon is None else f" <= {horizon} (the horizon)"
     allowed = (f"expected zero, hold or buffer:L with an integer 1 <= L{bound}, found {spec!r} (buffer:L:hold holds "
-               "the last input once the plan is exhausted)")
+               "the last input once the plan is exhausted; buffer:L:zero, the default, applies zero)")
     if not isinstance(spec, str):
         raise InputError("actuator", allowed)
     kind, _, length = spec.strip().partition(":")

@@ -171,7 +171,11 @@ def _membership(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, delivery: 
     numbers. Time as `chain_membership`."""
     check_delivery(delivery)
     if not isinstance(channel, MarkovChannel) or not channel.two_state:
-        raise InputError("channel", f"expected a two-state (Gilbert-Elliott) channel, found {channel!r}"[:200])
+        found = (f"channels of {', '.join(map(str, channel.sizes))} states" if isinstance(channel, MarkovChannel)
+                 else f"{type(channel).__name__}")
+        raise InputError("channel", f"the stabilisable set behind a chain is computed for two-state "
+                                    f"(Gilbert-Elliott) channels, found {found}: solve and simulate give this "
+                                    f"chain's costs and loops; region takes --mu for Bernoulli links")
     if channel.m != B.shape[1]:
         raise InputError("channel", f"expected {B.shape[1]} channels (the columns of B), found {channel.m}")
     lam, P, K = homogeneous_coupled_riccati(A, B, channel, delivery)

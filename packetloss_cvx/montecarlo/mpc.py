@@ -69,6 +69,7 @@ from ..model.files import system_from_dict
 from ..model.system import System, check_system, loop_weights
 from ..progress import progress_bar
 from ..qp.constrained import ConstrainedQP
+from ..qp.convex import PROVEN_INFEASIBLE
 from ..results.mpc import ControllerRun, Frequency, MPCSimulation
 from ..tolerances import CONSTRAINED_ACTIVE_RTOL
 from .channels import sample_delivery_paths, sample_noise_paths
@@ -164,7 +165,10 @@ class _Program:
         try:
             sol = self._solve(self.hard, mu, x, previous)
             return sol.inputs, "ok", bool(sol.violations)
-        except InfeasibleError:
+        except (InfeasibleError, SolverError) as err:
+            # the soft twin also where the solver says infeasible without a verified certificate (chance rows)
+            if not isinstance(err, InfeasibleError) and err.status != PROVEN_INFEASIBLE:
+                return None, "failed", False
             if self.soft is None:
                 soft = Constraints(**{**self.constraints.to_dict(), "soft": True})
                 self.soft = self._compile(soft)
@@ -173,7 +177,7 @@ class _Program:
             except (SolverError, NumericalError, InfeasibleError):
                 return None, "infeasible-failed", False
             return sol.inputs, "fallback", bool(sol.violations)
-        except (SolverError, NumericalError):
+        except NumericalError:
             return None, "failed", False
 
 
@@ -578,7 +582,8 @@ def check_loop_budgets(system: System, constraints: Constraints, samples: int, s
     check("mpc_solves", mpc_solves(samples, steps, programs, clipped, size), "samples",
           f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
           + (f" and {clipped} clipped laws" if clipped else "") + f" ({size:.2g} of a 5 ms solve each: N = {N}, "
-          f"n = {system.n}, m = {system.m}, {rows} linear rows, {len(constraints.chance)} chance rows)")
+          f"n = {system.n}, m = {system.m}, {rows} linear rows, {len(constraints.chance)} chance row"
+          + "s" * (len(constraints.chance) != 1) + ")")
     needed = max(mpc_bytes(samples, steps, system.n, system.m, len(loop), constraints.loop_rows(), keep)
                  for loop in runs)
     check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "

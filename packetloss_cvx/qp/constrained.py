@@ -12,9 +12,9 @@ Every solve is checked without cvxpy: the plan's expected cost J(U) on the state
 (`plan_moments`; the solver's objective must agree with it), and the KKT conditions (stationarity, primal and dual
 feasibility, complementarity) from the solver's multipliers, the constraints evaluated on the moments of x_k by
 their own forward recursion (`plan_moments`) rather than from the matrices the problem was built with. A
-residual beyond ``CONSTRAINED_KKT_RTOL`` raises; infeasibility raises
-[`InfeasibleError`][packetloss_cvx.errors.InfeasibleError]
-with the solver's status, never a fallback.
+residual beyond ``CONSTRAINED_KKT_RTOL`` raises; a proven infeasibility (the solver's certificate verified by
+`ConstrainedQP.certificate`) raises [`InfeasibleError`][packetloss_cvx.errors.InfeasibleError] with the solver's
+status, an unproven one `SolverError` with the certificate's reason, never a fallback.
 """
 
 from __future__ import annotations
@@ -408,11 +408,14 @@ class ConstrainedQP:
         Raises
         ------
         InfeasibleError
-            The solver proved the constraints infeasible (``status`` carries its status); with ``soft`` only the
+            The solver proved the constraints infeasible with a certificate that `certificate` verifies
+            (``status`` carries its status, ``certificate`` the check); with ``soft`` only the
             input and rate bounds are hard, and U = 0 (U = u_prev at every step, with ``u_prev`` inside the input
             bounds) satisfies them, so this cannot happen.
         SolverError
-            Any other status than "optimal" (``optimal_inaccurate`` and ``infeasible_inaccurate`` included).
+            Any other status than "optimal" (``optimal_inaccurate`` and ``infeasible_inaccurate`` included), and
+            "infeasible" whose certificate is undecided (chance rows, unbounded inputs, a margin within rounding):
+            ``certificate`` then carries the verdict and its reason.
         NumericalError
             With ``check``, a plan whose forward cost disagrees with the solver's objective beyond
             ``CROSS_CHECK_COST_RTOL``, or whose KKT residual (`kkt`) exceeds ``CONSTRAINED_KKT_RTOL``.
@@ -430,6 +433,11 @@ class ConstrainedQP:
         solve_time = time.perf_counter() - start
         if status == PROVEN_INFEASIBLE:
             certificate = self.certificate(system)
+            if certificate["verdict"] != "verified":     # the solver's word alone is not a proof
+                raise SolverError(status, f"{what}: {self.solver} says infeasible but its certificate is undecided "
+                                  f"({certificate['reason']}): no plan is proved or found for "
+                                  f"{', '.join(self.constraints.kinds())} from this x0; make the state limits soft "
+                                  "(soft = true) or relax them", certificate=certificate)
             raise InfeasibleError(f"{what} is infeasible ({self.solver} status {status!r}; certificate "
                                   f"{certificate['verdict']}): no plan meets {', '.join(self.constraints.kinds())} "
                                   "from this x0; make the state limits soft (soft = true) or relax them",

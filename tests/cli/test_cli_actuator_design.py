@@ -150,3 +150,28 @@ def test_compare_on_the_default_strategies_refuses_an_over_budget_buffer_and_com
     assert "buffer:6 or shorter" in data["buffer:10"]["reason"]
     assert data["zero"]["radius"] < 1.0
     assert data["hold"]["radius"] < 1.0
+
+
+def test_the_critical_points_note_is_printed_beside_its_bracket(capsys, scalar, monkeypatch):
+    """Where the lower end was stepped down below the float crossing (two_actuator, buffer:2:hold: proved at 0, the
+    crossing at 0.061, 45 s), the text says so as the JSON's note does. The scalar's point (a = 2: crossing 3/4, by
+    hand) is given such a note here, as actuator_critical words it, so the check runs in a second."""
+    import dataclasses
+
+    from packetloss_cvx.cli import actuator_section
+
+    real = actuator_section.actuator_critical
+    note = "the lower end is proved 0.75 below the float crossing 0.75 (between them no certificate checks)"
+
+    def stepped(*args, **kwargs):
+        return dataclasses.replace(real(*args, **kwargs), note=note)
+
+    monkeypatch.setattr(actuator_section, "actuator_critical", stepped)
+    for argv in (["region", scalar, "--law", "dp", "--actuator", "buffer:2"], ["compare", scalar, "--actuator",
+                                                                                "buffer:2"]):
+        code, out, _ = _run(capsys, *argv, "-q")
+        assert code == 0
+        assert f"lower end proved unstable; {note})" in out
+        code, out, _ = _run(capsys, *argv, "-q", "--json")
+        rows = json.loads(out)["actuator" if argv[0] == "region" else "strategies"]
+        assert (rows["buffer:2"] if argv[0] == "region" else rows["buffer:2"]["critical"])["note"] == note

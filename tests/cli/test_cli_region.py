@@ -2,10 +2,12 @@
 1 - 1/a^2 and the decoupled plant's per-channel thresholds (hand values)."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import packetloss_cvx
 from packetloss_cvx import System
 from packetloss_cvx.cli import main
 from packetloss_cvx.model.channel import GilbertElliott
@@ -237,3 +239,25 @@ def test_a_chain_rate_map_prints_each_lambda_to_the_digits_its_own_accuracy_supp
     assert spread / 2 <= error <= spread
     assert abs(value - lam) <= error + 0.5 * 10.0 ** (np.floor(np.log10(abs(value))) - 4)   # and its fifth digit
     assert len(repr(value).lstrip("0.")) <= 6                     # about five digits, not sixteen
+
+
+def test_region_behind_a_chain_of_more_than_two_states_says_what_to_use_in_one_short_line(tmp_path, capsys):
+    path = tmp_path / "three.toml"
+    path.write_text((Path(packetloss_cvx.__file__).parent / "model" / "examples" / "two_actuator.toml").read_text()
+                    .split("[channel]")[0] + """
+[channel]
+model = "markov"
+transition = [[[0.9, 0.1, 0.0], [0.2, 0.6, 0.2], [0.0, 0.5, 0.5]], [[0.98, 0.02], [0.18, 0.82]]]
+delivery = [[1.0, 0.5, 0.0], [1.0, 0.0]]
+state = [2, 0]
+
+[state]
+x0 = [1.0, 1.0]
+""")
+    code = main(["region", str(path)])
+    _, err = capsys.readouterr()
+    assert code == 2
+    assert err.count("\n") == 1
+    assert "channels of 3, 2 states" in err
+    assert "MarkovChannel(" not in err
+    assert len(err) < 300

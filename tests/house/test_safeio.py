@@ -49,7 +49,7 @@ def test_an_existing_file_is_refused_before_and_at_the_rename(tmp_path):
     with pytest.raises(OutputExistsError, match="exists; pass --force"):    # before the work
         check_output_file(target, "--out")
     check_output_file(target, "--out", overwrite=True)
-    with pytest.raises(OutputExistsError, match="exists; pass --force"):
+    with pytest.raises(OutputExistsError, match="exists; pass overwrite=True"):
         with atomic_write(target, text=True) as handle:
             handle.write("x")
     # a file that appears while we write (another writer) is not replaced either: os.link refuses
@@ -193,3 +193,12 @@ def test_a_path_ending_in_a_slash_names_a_folder_not_a_file(tmp_path):
             pl.save_system(system, path)
         assert info.value.field == "path"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_python_is_told_overwrite_where_the_command_line_is_told_force(tmp_path):
+    import packetloss_cvx as pl
+
+    path = pl.save_system(pl.load_example("two_actuator"), tmp_path / "s.toml")
+    with pytest.raises(OutputExistsError, match="pass overwrite=True to replace it"):
+        pl.save_system(pl.load_example("two_actuator"), path)
+    assert pl.save_system(pl.load_example("two_actuator"), path, overwrite=True) == path

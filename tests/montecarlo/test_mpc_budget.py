@@ -58,7 +58,7 @@ def test_simulate_mpc_is_refused_above_the_price_and_admitted_below(monkeypatch,
     if refused:
         with pytest.raises(BudgetError, match=r"samples: 10 runs of 4 steps x 3 programs and 2 clipped laws \(0\.37 of "
                                               r"a 5 ms solve each: N = 4, n = 2, m = 2, 40 linear rows, 1 chance "
-                                              r"rows\) is over the budget of 44 solves of 5 ms"):
+                                              r"row\) is over the budget of 44 solves of 5 ms"):
             mpc.simulate_mpc(_plant(), LIMITS, samples=10, steps=4)
     else:
         with pytest.raises(_Admitted):

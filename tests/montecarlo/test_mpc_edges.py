@@ -95,3 +95,16 @@ def test_time_varying_weights_are_refused_naming_them(no_paths):
     with pytest.raises(InputError) as caught:
         mpc.simulate_mpc(s, BOX, samples=2, steps=3, progress=False)
     assert caught.value.field == "input_weights"
+
+
+def test_a_chance_row_the_solver_calls_infeasible_falls_back_to_the_soft_program():
+    """x' = 1.1 x + v u, mu = 1/2, |u| <= 5, P(x_1 <= -1) >= 0.9 at N = 1: from x > -1/1.1 a lost packet leaves
+    x_1 = 1.1 x > -1 with probability 1/2 > 0.1 whatever u, by hand, so the first step of every run (x0 = 1) has no
+    plan. Its certificate is undecided (a chance row), a `SolverError`, not an `InfeasibleError`: the loop still runs
+    the soft twin on such a step and counts it infeasible (once, such a step was counted failed)."""
+    s = System(A=[[1.1]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], mu=[0.5], x0=[1.0])
+    c = Constraints(u_min=[-5.0], u_max=[5.0], chance=[([1.0], -1.0, 0.1)])
+    run = mpc.simulate_mpc(s, c, 4, 3, seed=2, protocols=["tcp"], controllers=["expected-cost"]
+                           ).runs["tcp"]["expected-cost"]
+    assert run.failed_steps == 0
+    assert run.fallback_steps == run.infeasible.count >= 4

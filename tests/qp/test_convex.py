@@ -124,6 +124,40 @@ def test_a_quadratic_objective_is_cvxpys_solve_bit_for_bit(shape):
         assert value == pytest.approx(reference.problem.value, rel=ROUNDING_ORDER_RTOL)
 
 
+def test_both_paths_pin_clarabels_linear_solver(monkeypatch):
+    """ClarabelProgram (the shared condensed QP, compiled) and cvxpy's problem.solve (solve_problem) both run Clarabel
+    with its linear solver pinned (tolerances.CLARABEL_LINEAR_SOLVER, QDLDL), on a dense 64 x 64 program for which
+    Clarabel's own default ("auto") picks faer's supernodal solver: the linear solver each built solver reports."""
+    import clarabel
+
+    from packetloss_cvx.qp.shared import CondensedQP
+
+    used, made = [], clarabel.DefaultSolver
+
+    def built(*args, **kwargs):
+        solver = made(*args, **kwargs)
+        used.append(solver.get_info().linsolver.name)
+        return solver
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", built)
+    rng = np.random.default_rng(3)
+    c, G, r = rng.normal(size=64), rng.normal(size=(64, 64)), rng.uniform(0.0, 2.0, 64)
+
+    def cvxpy_solve(settings):
+        reference = CondensedQP(64, 64)
+        reference.c.value, reference.G.value, reference.r.value = c, G, r
+        assert solve_problem(reference.problem, "cvxpy", ({**settings, "warm_start": False},)) == "optimal"
+
+    cvxpy_solve({**CLARABEL_TIGHT, "direct_solve_method": "auto"})
+    assert used == ["faer"]                               # what the pin avoids, on this program
+    used.clear()
+    status = CondensedQP(64, 64).solve(c, G, r, "compiled")[2]
+    assert status == "optimal"
+    cvxpy_solve(CLARABEL_TIGHT)
+    cvxpy_solve(CLARABEL_DEFAULT)
+    assert used == ["qdldl"] * 3
+
+
 def test_a_quadratic_objective_by_hand():
     """min ||x - a||^2 + 1 is 1 at x = a: the point and the value with the objective's constant."""
     x, a = cp.Variable(2), cp.Parameter(2)

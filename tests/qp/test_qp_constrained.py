@@ -13,7 +13,7 @@ import scipy.optimize as so
 
 import packetloss_cvx as pl
 from packetloss_cvx.cli import main
-from packetloss_cvx.errors import DimensionError, InfeasibleError, InputError
+from packetloss_cvx.errors import DimensionError, InfeasibleError, InputError, SolverError
 from packetloss_cvx.lq.costs import closed_form, expected_cost
 from packetloss_cvx.lq.moments import plan_moments
 from packetloss_cvx.model.constraints import Constraints, check_constraints, constraints_from_dict
@@ -309,9 +309,11 @@ def test_an_infeasible_problem_raises_with_the_solvers_status_and_soft_rows_repo
     combo = y_max - y_min + np.array([y_states[k:].sum() / 2 for k in range(3)])    # G'y, u_j enters x_k for k > j
     value = -(0.5 * y_max.sum() + 0.5 * y_min.sum() + (1.0 - 2.0) * y_states.sum())  # y'(G 0 - h) = -y'h
     assert value - np.abs(combo).sum() * 0.5 > 0                                    # no plan on the input box
-    with pytest.raises(InfeasibleError) as info:                  # a chance row: the certificate is not checkable
+    with pytest.raises(SolverError) as info:     # a chance row: the certificate is not checkable, so not a proof
         solve_constrained(s, "udp", Constraints(u_min=[-0.5], u_max=[0.5], chance=[([1.0], 1.0, 0.1)]))
-    assert info.value.certificate["verdict"] == "undecided"
+    assert not isinstance(info.value, InfeasibleError)
+    assert (info.value.status, info.value.certificate["verdict"]) == ("infeasible", "undecided")
+    assert "chance rows" in info.value.certificate["reason"]
     soft = Constraints(u_min=[-0.5], u_max=[0.5], x_max=[1.0], soft=True, soft_weight=100.0)
     sol = solve_constrained(s, "udp", soft)
     # weight 100 beats the cost's pull: every input at -0.5, E[x_k] = 2 - 0.25 k, violated by 0.75, 0.5, 0.25
