@@ -52,7 +52,8 @@ def actuator_strategies(text: str | None, system: System, protocol: str = "tcp")
 def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator, ...],
                    steps: int) -> tuple[dict[str, Any], list[str]]:
     """The JSON entry (``steps`` and per strategy ``radius``, ``stable``, ``cost``, ``reason``) and the text lines of
-    `compare_actuators` for the law ``u = -K x`` (its loop's one stage weight: `loop_weights`)."""
+    `compare_actuators` for the law ``u = -K x`` (its loop's one stage weight: `loop_weights`). A cost that
+    overflows the double range is None with its ``cost_reason``."""
     loop_weights(system, "cost.state_weights")
     try:
         rows = compare_actuators(system, gain, steps, strategies)
@@ -64,7 +65,14 @@ def actuator_entry(system: System, gain: np.ndarray, strategies: tuple[Actuator,
         verdict = (f"radius {fmt.num(radius)}, " + ("mean-square stable" if row["stable"] else
                                                     "NOT mean-square stable")) if np.isfinite(radius) else \
             f"radius not computed ({row['reason']})"
-        lines.append(f"{name}: {verdict}; exact loop cost over {steps} steps from x0 {fmt.num(row['cost'])}")
+        if np.isfinite(row["cost"]):
+            cost = f"exact loop cost over {steps} steps from x0 {fmt.num(row['cost'])}"
+        else:
+            row["cost"], row["cost_reason"] = None, (
+                f"not computed: the loop's second moments over {steps} steps exceed the double range (about "
+                "1.8e308, an overflow, not a value); use fewer steps or a law that stabilises the loop")
+            cost = f"exact loop cost over {steps} steps from x0 {row['cost_reason']}"
+        lines.append(f"{name}: {verdict}; {cost}")
         if not np.isfinite(radius):
             row["radius"] = None
     return {"steps": steps, "basis": "loop", "strategies": rows}, lines
@@ -92,10 +100,12 @@ def simulate_actuator_section(system: System, laws: tuple[str, ...], strategies:
             verdict = (("mean-square stable" if row["stable"] else "NOT mean-square stable")
                        + f", radius {fmt.num(row['radius'])}") if row["radius"] is not None else \
                 f"radius not computed ({row['reason']})"
-            lines.append(f"    {label}, {strategy}: mean loop stage cost sampled {fmt.num(row['mean_stage_cost'])} "
-                         f"+- "
-                         f"{fmt.num(row['stderr'], 3)}, exact {fmt.num(row['exact_stage_cost'])} (z = "
-                         f"{fmt.num(row['z'], 3)}); {verdict}")
+            spread = "" if row.get("stderr_reason") else f" +- {fmt.num(row['stderr'], 3)}"
+            z = "" if row.get("stderr_reason") else f" (z = {fmt.num(row['z'], 3)})"
+            lines.append(f"    {label}, {strategy}: mean loop stage cost sampled {fmt.num(row['mean_stage_cost'])}"
+                         f"{spread}, exact {fmt.num(row['exact_stage_cost'])}{z}; {verdict}")
+            if row.get("stderr_reason"):
+                lines.append(f"      ({row['stderr_reason']})")
     return data, lines
 
 

@@ -176,8 +176,12 @@ def _text(name: str, sim: Simulation) -> str:
             continue
         formula = "its J* (exact under the chain, attainable)" if p == EXACT_PLAN else "the paper's J*" + (
             " with the plug-in mu_t" if bursty else "")
-        lines.append(f"  {label}, open loop: its cost sampled {_num(c.mean)} +- {_num(c.stderr, 3)}, exact "
-                     f"{_num(c.exact)} (z = {_num(c.z, 3)}) [basis: realised]; {formula} = {_num(c.formula)}")
+        spread = "" if c.stderr_reason else f" +- {_num(c.stderr, 3)}"
+        z = "" if c.stderr_reason else f" (z = {_num(c.z, 3)})"
+        lines.append(f"  {label}, open loop: its cost sampled {_num(c.mean)}{spread}, exact "
+                     f"{_num(c.exact)}{z} [basis: realised]; {formula} = {_num(c.formula)}")
+        if c.stderr_reason:
+            lines.append(f"    ({c.stderr_reason})")
         if p == "tcp" and not bursty and not np.isclose(c.exact, c.formula, rtol=TCP_GAP_RTOL, atol=0.0):
             lines.append(TCP_GAP_NOTE.format(gap=_num(c.exact - c.formula)))
     for law, r in sim.closed_loop.items():

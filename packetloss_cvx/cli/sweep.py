@@ -139,10 +139,22 @@ def _summary(result: DesignSweep) -> tuple[dict[str, Any], list[str]]:
         at = ", ".join(f"{d} = {v:.6g}" for d, v in where.items())
         lines.append(f"  {name}: min {np.min(values):.6g}, max {np.max(values):.6g} at {at}")
     for p, radii in result.radii.items():
+        radii = np.asarray(radii, dtype=float)
         stable = int(sum(is_mean_square_stable(r) for r in radii))
-        data[f"radius_{p}"] = {"min": float(np.min(radii)), "max": float(np.max(radii)), "stable_points": stable}
-        lines.append(f"  {p.upper()}-like law in closed loop: mean-square radius {np.min(radii):.4g} to "
-                     f"{np.max(radii):.4g}; proved stable at {stable} of {radii.size} points")
+        known = radii[np.isfinite(radii)]
+        low, high = (float(known.min()), float(known.max())) if known.size else (None, None)
+        data[f"radius_{p}"] = {"min": low, "max": high, "stable_points": stable}
+        span = f"{low:.4g} to {high:.4g}" if known.size else "not computed"
+        text = f"  {p.upper()}-like law in closed loop: mean-square radius {span}; proved stable at {stable} of " \
+               f"{radii.size} points"
+        if known.size < radii.size:
+            missing = radii.size - known.size
+            reason = (f"the radius was not computed at {missing} of {radii.size} points (null in the table): a "
+                      "numerical failure in double precision, the law's second-moment map overflowing or its "
+                      "eigenvalues not found; those points are not proved stable")
+            data[f"radius_{p}"].update(missing_points=missing, reason=reason)
+            text += f" ({reason})"
+        lines.append(text)
     return data, lines
 
 
@@ -155,6 +167,8 @@ def _points(result: DesignSweep, data: dict[str, Any], table_file: Path | None) 
     if count <= JSON_MAX_POINTS:
         columns = dict(zip(csv_header(result), sweep_table(result).T.tolist(), strict=True))
         columns["horizon"] = [int(v) for v in columns["horizon"]]
+        for p in result.radii:        # a radius not computed is null; radius_<p>.reason says why
+            columns[f"radius_{p}"] = [v if np.isfinite(v) else None for v in columns[f"radius_{p}"]]
         data["table"] = columns
         return
     data["table"] = None

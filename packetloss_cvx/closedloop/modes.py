@@ -251,7 +251,9 @@ def mode_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: n
     checked against Collatz–Wielandt bounds proven from its eigenvector and against ``min_k ||L^k(I)||^(1/k)``,
     falling back to the dense eigenvalues within `MAX_OPERATOR_DIM` rows where the check fails (a defective
     Perron root, which Arnoldi resolves only to about eps^(1/size)); "auto": dense up to `DENSE_MAX_DIM` rows,
-    else Krylov. Entries beyond `RADIUS_RESCALE` are scaled out first (the map is quadratic in (A, K)).
+    else Krylov. Entries beyond `RADIUS_RESCALE` are scaled out first (the map is quadratic in (A, K)). With the
+    deliveries of the current mode, a gain row on a channel that never delivers (h = 0) never acts, and is dropped
+    first (at mu = 0 a law's gain may be any size, e.g. the TCP-like plan's limit, without changing the loop).
 
     Raises
     ------
@@ -270,12 +272,14 @@ def mode_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: n
     if method not in ("auto", "dense", "krylov"):
         raise InputError("method", f"expected auto, dense or krylov, found {method!r}")
     M, n = (1 if T is None else T.shape[0]), A.shape[-1]
+    if T is None or delivery == "current":
+        K = np.where(np.asarray(h)[..., :, None] == 0.0, 0.0, K)     # B diag(v) K with v = 0 always: no action
     if not (np.all(np.isfinite(K)) and np.all(np.isfinite(A - (B * h[..., None, :]) @ K))):
         raise NumericalError(f"{label}: the closed-loop matrix A - B M K is not finite")
     scale = max(float(np.abs(A).max()), float(np.abs(B).max() * np.abs(K).max()))
     if scale > RADIUS_RESCALE:      # radius(A, K) = c^2 radius(A / c, K / c): no overflow
-        with np.errstate(over="ignore"):
-            return scale * scale * mode_radius(A / scale, B, K / scale, h, T, delivery, method, label=label)
+        with np.errstate(over="ignore", under="ignore"):   # scale (scale r), not scale^2 r: inf * 0 would be nan
+            return scale * (scale * mode_radius(A / scale, B, K / scale, h, T, delivery, method, label=label))
     dim = M * n * n
     failure = None
     if method == "krylov" or (method == "auto" and dim > DENSE_MAX_DIM):

@@ -18,6 +18,7 @@ from ..closedloop.actuator import Actuator, actuator_costs, actuator_loop, actua
 from ..closedloop.mjls import mode_chain, mode_start
 from ..closedloop.moments import check_steps, stationary_channel
 from ..closedloop.stability import is_mean_square_stable
+from ..closedloop.tails import error_bar_reason
 from ..errors import NumericalError
 from ..model.system import System, check_system, loop_weights
 from .runs import BLOCK, check_count, z_score
@@ -104,8 +105,10 @@ def simulate_actuator(system: System, gain: npt.ArrayLike, steps: int, actuator:
     """The sampled loop of `sample_actuator_loop` beside its exact expectation: the mean over runs of each
     run's mean stage cost over t < steps (``mean_stage_cost``, ``stderr``), the exact one (``exact_stage_cost``,
     closedloop.actuator), ``z`` (`z_score`), the mean-square ``radius`` (None with its ``reason``
-    where it cannot be computed) and ``stable``. Time: the sampling, plus the exact costs O(steps M (M N^2 + N^3))
-    and the radius.
+    where it cannot be computed) and ``stable``. A sample without an error bar (the loop's fourth moments grow or
+    are not computed: closedloop.tails.error_bar_reason on the strategy's loop, always so when the loop is not
+    mean-square stable) has ``stderr`` and ``z`` None and ``stderr_reason`` saying why. Time: the sampling, plus
+    the exact costs O(steps M (M N^2 + N^3)), the radius and the fourth moments.
 
     Examples
     --------
@@ -124,6 +127,11 @@ def simulate_actuator(system: System, gain: npt.ArrayLike, steps: int, actuator:
         radius, reason = actuator_radius(system, gain, actuator), ""
     except NumericalError as err:
         radius, reason = float("nan"), str(err)
-    return {"mean_stage_cost": mean, "stderr": stderr, "exact_stage_cost": exact, "z": z_score(mean, stderr, exact),
-            "radius": radius if np.isfinite(radius) else None, "stable": is_mean_square_stable(radius),
-            "reason": reason}
+    loop = actuator_loop(system.A, system.B, gain, system.channel if system.channel is not None else
+                         np.asarray(stationary_channel(system), dtype=float), parse_actuator(actuator, system.horizon))
+    no_bar = error_bar_reason(loop.A, loop.B, loop.K, loop.h, loop.T)   # rho_4 >= rho_2^2: unstable has no bar
+    out: dict[str, float | bool | str | None] = {
+        "mean_stage_cost": mean, "stderr": None if no_bar else stderr, "exact_stage_cost": exact,
+        "z": None if no_bar else z_score(mean, stderr, exact), "radius": radius if np.isfinite(radius) else None,
+        "stable": is_mean_square_stable(radius), "reason": reason}
+    return {**out, "stderr_reason": no_bar} if no_bar else out

@@ -76,26 +76,37 @@ def run_blocks(samples: int) -> list[int]:
 
 
 def sample_stats(values: np.ndarray) -> tuple[float, float]:
-    """``(mean, standard error)`` of a sample (inf/nan propagate). O(size).
+    """``(mean, standard error)`` of a sample (inf/nan propagate), computed on the sample divided by its largest
+    magnitude, so that costs up to the double range do not overflow in their squares. O(size).
 
     Examples
     --------
     >>> mean, stderr = sample_stats(np.array([1.0, 2.0, 3.0, 4.0]))   # variance (ddof 1) 5/3, over sqrt(4)
     >>> mean, bool(np.isclose(stderr, (5 / 3) ** 0.5 / 2))
     (2.5, True)
+    >>> mean, stderr = sample_stats(np.array([1.0, 2.0, 3.0, 4.0]) * 1e200)   # the squares would be 1e400
+    >>> bool(np.isclose(mean, 2.5e200)), bool(np.isclose(stderr, (5 / 3) ** 0.5 / 2 * 1e200))
+    (True, True)
     """
     with np.errstate(over="ignore", invalid="ignore"):
-        return float(values.mean()), float(values.std(ddof=1) / np.sqrt(values.size))
+        scale = float(np.abs(values).max()) if values.size else 0.0
+        if not np.isfinite(scale) or scale == 0.0:
+            return float(values.mean()), float(values.std(ddof=1) / np.sqrt(values.size))
+        unit = values / scale
+        return float(unit.mean() * scale), float(unit.std(ddof=1) / np.sqrt(values.size) * scale)
 
 
 def z_score(mean: float, stderr: float, exact: float) -> float:
     """``(mean - exact) / stderr``; for a sample without spread (``stderr`` at rounding level, 1e-12 of the
     scale: deterministic deliveries, no noise) 0 when ``mean`` matches ``exact`` to 1e-9 relative, else
-    +-inf: rounding differences between runs are not read as a 316-sigma disagreement.
+    +-inf: rounding differences between runs are not read as a 316-sigma disagreement. nan when a number is not
+    finite (a spread or a cost beyond the double range: there is no error bar to measure against).
 
-    >>> z_score(1.0, 0.5, 0.0), z_score(2.0, 0.0, 2.0)
-    (2.0, 0.0)
+    >>> z_score(1.0, 0.5, 0.0), z_score(2.0, 0.0, 2.0), z_score(1e300, float("inf"), 2e300)
+    (2.0, 0.0, nan)
     """
+    if not (np.isfinite(stderr) and np.isfinite(mean) and np.isfinite(exact)):
+        return float("nan")
     scale = max(abs(exact), abs(mean), np.finfo(float).tiny)
     if stderr <= 1e-12 * scale:
         return 0.0 if abs(mean - exact) <= 1e-9 * scale else float(np.copysign(np.inf, mean - exact))
@@ -133,7 +144,11 @@ def open_loop_checks(plans: dict[str, Any], blocks: list[int], streams: list[np.
     for p, sol in plans.items():
         mean, stderr = sample_stats(np.concatenate(costs[p]))
         value = exact(sol.inputs)
-        checks[p] = OpenLoopCheck(sol.cost, value, mean, stderr, z_score(mean, stderr, value))
+        no_bar = "" if np.isfinite(stderr) else (
+            "no error bar: the sampled costs' spread exceeds the double range (their squares overflow), so the "
+            "sample's standard error is not computed; use the exact value")
+        checks[p] = OpenLoopCheck(sol.cost, value, mean, np.nan if no_bar else stderr,
+                                  z_score(mean, stderr, value), stderr_reason=no_bar)
     return checks
 
 

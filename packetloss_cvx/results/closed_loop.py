@@ -72,7 +72,8 @@ class Riccati(Frozen):
 class OpenLoopCheck(Tabular):
     """A protocol's plan U* applied open loop and sampled (simulation.montecarlo): ``formula`` J* (Theorem 1),
     ``exact`` E[realised cost] under the stated model (J_udp(U*)), ``mean`` and ``stderr`` of the samples,
-    ``z = (mean - exact) / stderr``; ``reason`` why the plan is missing (its numbers nan), "" when it is not."""
+    ``z = (mean - exact) / stderr``; ``reason`` why the plan is missing (its numbers nan), "" when it is not;
+    ``stderr_reason`` why the sample has no error bar (``stderr`` and ``z`` nan), "" when it has one."""
 
     formula: float
     exact: float
@@ -80,16 +81,18 @@ class OpenLoopCheck(Tabular):
     stderr: float
     z: float
     reason: str = ""
+    stderr_reason: str = ""
 
     __repr__ = fields_repr   # the headline numbers, not the arrays (display.py)
     _repr_html_ = fields_html
     to_json = to_json       # to_dict() as JSON text (display.py)
 
     def to_dict(self) -> dict[str, Any]:
-        """``simulate --json``'s ``open_loop`` object (docs/cli-contracts.md; plus ``reason`` when set); a non-finite
-        number is None (JSON). O(1)."""
+        """``simulate --json``'s ``open_loop`` object (docs/cli-contracts.md; plus ``reason`` and ``stderr_reason``
+        when set); a non-finite number is None (JSON). O(1)."""
         out = {k: finite_or_none(getattr(self, k)) for k in ("formula", "exact", "mean", "stderr", "z")}
-        return {**out, "reason": self.reason} if self.reason else out
+        return {**out, **({"reason": self.reason} if self.reason else {}),
+                **({"stderr_reason": self.stderr_reason} if self.stderr_reason else {})}
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..budgets import check, count_text
 from ..closedloop.stability import mean_square_radius
-from ..errors import InputError
+from ..errors import InputError, NumericalError
 from ..lq.evaluator import CostEvaluator
 from ..model.files import system_from_dict
 from ..progress import progress_bar
@@ -88,7 +88,8 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
     Returns
     -------
     dict
-        ``"cost_<protocol>"`` -> costs, shape (points,); with ``stability``, ``"radius_<protocol>"`` too.
+        ``"cost_<protocol>"`` -> costs, shape (points,); with ``stability``, ``"radius_<protocol>"`` too (nan
+        where the radius cannot be computed in double precision).
 
     Notes
     -----
@@ -119,9 +120,17 @@ def evaluate_chunk(system_data: dict[str, Any], protocols: Sequence[str], mu: np
                 continue
             batch = evaluator.solve(mu[idx], x0[idx])
             out[f"cost_{p}"][idx] = batch.costs
-            out[f"radius_{p}"][idx] = [mean_square_radius(system.A, system.B, K, point)
-                                       for K, point in zip(batch.gains, mu[idx], strict=True)]
+            out[f"radius_{p}"][idx] = [_radius(system, K, point) for K, point in zip(batch.gains, mu[idx], strict=True)]
     return out
+
+
+def _radius(system, K: np.ndarray, mu: np.ndarray) -> float:
+    """The law's mean-square radius at one point; nan where it cannot be computed in double precision (a
+    NumericalError: the sweep's summary counts these points and says why)."""
+    try:
+        return mean_square_radius(system.A, system.B, K, mu)
+    except NumericalError:
+        return float("nan")
 
 
 def _with_horizon(base, system_data: dict[str, Any], horizon: int):

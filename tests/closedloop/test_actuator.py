@@ -529,9 +529,26 @@ def test_simulate_samples_each_strategy_beside_its_exact_cost(capsys, tmp_path) 
     assert code == 0
     rows = json.loads(out)["actuator"]["udp"]
     assert list(rows) == ["zero", "hold", "buffer:4"]
-    for row in rows.values():
+    for row in (rows["zero"], rows["buffer:4"]):
         assert abs(row["mean_stage_cost"] - row["exact_stage_cost"]) <= SAMPLED_Z_MAX * row["stderr"]
-        assert row["stable"]
+    assert all(row["stable"] for row in rows.values())
+    # hold is mean-square stable but its fourth moments grow: no error bar. rho_4 by hand from the hold loop's
+    # matrices per delivery pattern v, z = (x, w): x+ = A x + B a, w+ = a with a = V (-K x) + (I - V) w
+    from packetloss_cvx.montecarlo.simulate import law_gains
+    K = law_gains(system, ("udp",))["udp"]
+    n, m, mu = 2, 2, np.array([0.8, 0.6])
+    L4 = np.zeros(((n + m) ** 4,) * 2)
+    for v in itertools.product([0.0, 1.0], repeat=m):
+        V = np.diag(v)
+        applied = np.hstack([-V @ K, np.eye(m) - V])
+        F = np.vstack([np.hstack([system.A, np.zeros((n, m))]) + system.B @ applied, applied])
+        F2 = np.kron(F, F)
+        L4 += np.prod(np.where(np.array(v) == 1.0, mu, 1.0 - mu)) * np.kron(F2, F2)
+    rho4 = float(np.abs(np.linalg.eigvals(L4)).max())
+    assert rho4 >= 1.0
+    assert rows["hold"]["stderr"] is None
+    assert rows["hold"]["z"] is None
+    assert f"rho_4 = {rho4:.4g} >= 1" in rows["hold"]["stderr_reason"]
 
 
 @pytest.mark.parametrize(("extra", "message"), [
