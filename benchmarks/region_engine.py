@@ -65,6 +65,20 @@ def _plants():
     return module
 
 
+def seeded_chains():
+    """The chain-membership cases' plants: (seed, A, B, channel) for six seeded random plants (n <= 3, m <= 2) behind
+    Gilbert-Elliott channels (also region_schedule_probe.py's)."""
+    import numpy as np
+
+    from packetloss_cvx.model.channel import GilbertElliott
+
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
+        A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
+        yield seed, A, B, GilbertElliott(p=rng.uniform(0.05, 0.6, m), r=rng.uniform(0.05, 0.9, m))
+
+
 def _cases():
     """name -> callable returning a JSON-like answer (the worker's cases)."""
     import numpy as np
@@ -181,11 +195,7 @@ def _cases():
 
     def chain_memberships():
         out = []
-        for seed in range(6):
-            rng = np.random.default_rng(seed)
-            n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
-            A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
-            ch = GilbertElliott(p=rng.uniform(0.05, 0.6, m), r=rng.uniform(0.05, 0.9, m))
+        for _, A, B, ch in seeded_chains():
             for delivery in ("next", "current"):
                 found = chain_membership(A, B, ch, delivery)
                 out.append([found.verdict, found.radius, found.certificate_margin])

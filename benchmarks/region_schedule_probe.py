@@ -82,8 +82,9 @@ def _power(P, A, B, T, h, delivery, first, steps, watch, floor):
     return P, "steps", None
 
 
-def _policy(P, A, B, channel, T, h, delivery):
-    """Region's policy iteration on the coupled operator (unregularised): (P found, whether it moved)."""
+def _policy(P, A, B, channel, T, h, delivery, gains=None):
+    """Region's policy iteration on the coupled operator (unregularised): (P found, whether it moved). ``gains``: the
+    gain step P -> K (default: this probe's `_step`)."""
     from packetloss_cvx.closedloop.mjls import second_moment_operator
     from packetloss_cvx.closedloop.riccati_map import POLICY_STEPS
     from packetloss_cvx.tolerances import CERTIFICATE_RTOL, RICCATI_RTOL
@@ -91,7 +92,7 @@ def _policy(P, A, B, channel, T, h, delivery):
     M, n = P.shape[0], A.shape[0]
     best, last, moved = P.copy(), np.inf, False
     for _ in range(POLICY_STEPS):
-        K, _ = _step(P, A, B, T, h, delivery)
+        K = _step(P, A, B, T, h, delivery)[0] if gains is None else gains(P)
         if not np.all(np.isfinite(K)):
             break
         operator = second_moment_operator(A, B, channel, K, delivery).T
@@ -222,39 +223,12 @@ def _one_power(P, A, B, T, h, delivery, first, steps, watch):
 def _one_policy(P, A, B, channel, T, h, delivery):
     """The policy iteration at M = 1: unregularised, the Perron eigenvector of the operator (the Kronecker matrix at
     one mode) by one ``eig`` a step (region's), the gains the chain's minimiser (chain_radius._gains from 0):
-    (P found, whether it moved)."""
+    (P found, whether it moved). `_policy` with that gain step."""
     from packetloss_cvx.closedloop import chain_radius
-    from packetloss_cvx.closedloop.mjls import second_moment_operator
-    from packetloss_cvx.closedloop.riccati_map import POLICY_STEPS
-    from packetloss_cvx.tolerances import CERTIFICATE_RTOL, RICCATI_RTOL
 
     M, n, m = P.shape[0], A.shape[0], B.shape[1]
-    best, last, moved = P.copy(), np.inf, False
-    for _ in range(POLICY_STEPS):
-        K = chain_radius._gains(P, A, B, T, h, delivery, np.zeros((M, m, n)))
-        if not np.all(np.isfinite(K)):
-            break
-        operator = second_moment_operator(A, B, channel, K, delivery).T
-        if not np.all(np.isfinite(operator)):
-            break
-        vals, vecs = np.linalg.eig(operator)
-        top = int(np.argmax(vals.real))
-        lam = float(vals[top].real)
-        V = vecs[:, top].real.reshape(M, n, n)
-        V = 0.5 * (V + np.swapaxes(V, -1, -2))
-        trace = _total(V)
-        if not (np.isfinite(lam) and trace != 0.0):
-            break
-        P_next = V / trace
-        if lam <= 0.0 or min(float(np.linalg.eigvalsh(p)[0]) for p in P_next) < -CERTIFICATE_RTOL:
-            break
-        settled = lam >= last * (1.0 - RICCATI_RTOL)
-        if not settled or lam <= last:
-            best, moved = P_next, True
-        if settled:
-            break
-        last, P = lam, P_next
-    return best, moved
+    return _policy(P, A, B, channel, T, h, delivery,
+                   gains=lambda Q: chain_radius._gains(Q, A, B, T, h, delivery, np.zeros((M, m, n))))
 
 
 def _one_fixed(P, A, B, T, h, delivery):
@@ -404,11 +378,7 @@ def _chain_cases():
     from packetloss_cvx.model.channel import GilbertElliott
 
     out = []
-    for seed in range(6):
-        rng = np.random.default_rng(seed)
-        n, m = int(rng.integers(1, 4)), int(rng.integers(1, 3))
-        A, B = rng.normal(size=(n, n)), rng.normal(size=(n, m))
-        ch = GilbertElliott(p=rng.uniform(0.05, 0.6, m), r=rng.uniform(0.05, 0.9, m))
+    for seed, A, B, ch in _engine().seeded_chains():
         for delivery in ("next", "current"):
             found = chain_membership(A, B, ch, delivery)
             out.append((f"membership seed {seed} {delivery}", [found.verdict],
