@@ -4,6 +4,7 @@ each receding-horizon law is mean-square stable when run in a loop over the file
 from __future__ import annotations
 
 import argparse
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -68,12 +69,17 @@ def run(args: argparse.Namespace) -> CommandResult:
             "closed_loop_eigenvalues": eigenvalue_pairs(sol.closed_loop_eigenvalues),
             "method": sol.method, "basis": SOLUTION_BASIS,
         }
+        acts, entry["gain_note"] = gain_rows(plugin.mu_schedule[0])
+        entry["gain_acts"] = acts.tolist()
+        entry["cost_note"] = OPEN_LOOP_NOTE if not np.any(plugin.mu_schedule) else None
         label = f"J* = {sol.cost:.10g} ({sol.method}) [basis: {SOLUTION_BASIS}]"
         if plugin is not system:
             entry["plug_in"], entry["basis"] = True, PRIOR_MEAN_BASIS
             label = (f"J* = {sol.cost:.10g} ({sol.method}) [basis: {PRIOR_MEAN_BASIS}]: the paper's formula on the "
                      "chain's mu_t, not the expected cost under the chain (below" + (
                          ", beside the attainable cost with acknowledgements)" if protocol == "tcp" else ")"))
+        if entry["cost_note"]:
+            label += f": {OPEN_LOOP_NOTE}"
         rows: list[tuple[str, object]] = [("cost", label)]
         if not args.no_qp:
             from ..qp.expected_cost import solve_qp  # cvxpy (1.5 s to import) only where a QP is asked for
@@ -98,8 +104,11 @@ def run(args: argparse.Namespace) -> CommandResult:
             entry["constrained"], text = constrained_entry(plugin, protocol, constraints, args,
                                                            chain=system if plugin is not system else None)
             rows.append(("constrained", text))
-        rows += text_details(sol, system.n, args.verbose)
-        flag = all_delivered_flag(sol)
+        rows += text_details(sol, system.n, args.verbose, acts=acts, A=plugin.A, B=plugin.B)
+        flag = all_delivered_flag(sol) if acts.all() else None if not acts.any() else all_delivered_flag(
+            SimpleNamespace(closed_loop_eigenvalues=acting_eigenvalues(plugin.A, plugin.B, sol.gain, acts)))
+        if flag is not None and not acts.all():
+            flag += f"; {idle_inputs(acts)} never delivered"
         if flag is not None:
             rows.append(("all delivered", flag))
         if system.sensor is not None:     # lossy sensor links: the law on the protocol's estimate
@@ -206,8 +215,57 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
     return entry, f"{label}; binding: {bound or 'none'}"
 
 
-def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]]:
-    """The gain, the closed-loop eigenvalues (the JSON's order) and, with ``-v``, the plan U*.
+#: the cost's note where no channel ever delivers (every mu_t = 0): the inputs drop out of both protocols' costs
+OPEN_LOOP_NOTE = "the open-loop cost (no input is ever delivered, so every plan realises it)"
+
+
+def gain_rows(mu: np.ndarray) -> tuple[np.ndarray, str | None]:
+    """Which rows of the receding-horizon gain act (their channel delivers at the first step, mu_i > 0) and a note
+    on the rest, or None when every row acts. A row whose channel never delivers (mu_i = 0) is the limit of the
+    optimal row as mu_i -> 0 (its Hessian factor G stays invertible): any value is optimal, none reaches the plant.
+
+    Examples
+    --------
+    >>> gain_rows(np.array([0.5, 0.9]))
+    (array([ True,  True]), None)
+    >>> gain_rows(np.array([0.0, 0.5]))[1]
+    'u1 (mu = 0) is never delivered: its row of K never acts (shown: its limit as mu -> 0)'
+    >>> gain_rows(np.array([0.0]))[1][:48]
+    'no channel delivers (mu = 0): no row of K acts, '
+    """
+    acts = np.asarray(mu) > 0.0        # a boolean array (acts itself) gives the same
+    if acts.all():
+        return acts, None
+    if not acts.any():
+        return acts, ("no channel delivers (mu = 0): no row of K acts, the loop is x+ = A x (the gain in --json: its "
+                      "limit as mu -> 0)")
+    verb = "is" if (~acts).sum() == 1 else "are"
+    return acts, (f"{idle_inputs(acts)} (mu = 0) {verb} never delivered: its row of K never acts (shown: its limit "
+                  "as mu -> 0)")
+
+
+def idle_inputs(acts: np.ndarray) -> str:
+    """The inputs whose rows never act, as the text names them: ``"u1, u3"``."""
+    return ", ".join(f"u{i + 1}" for i in np.flatnonzero(~acts))
+
+
+def acting_eigenvalues(A: np.ndarray, B: np.ndarray, gain: np.ndarray, acts: np.ndarray) -> np.ndarray:
+    """Eigenvalues of ``A - B K`` with the rows of K that never act (``acts`` False) dropped: the loop with every
+    packet delivered that can be; ``A``'s own where no row acts.
+
+    Examples
+    --------
+    >>> acting_eigenvalues(np.diag([2.0, 0.5]), np.eye(2), np.diag([2.0, 0.25]), np.array([False, True]))
+    array([2.  , 0.25])
+    """
+    return np.linalg.eigvals(A - B[:, acts] @ gain[acts])
+
+
+def text_details(sol: Solution, n: int, verbose: int, acts: np.ndarray | None = None, A: np.ndarray | None = None,
+                 B: np.ndarray | None = None) -> list[tuple[str, object]]:
+    """The gain, the closed-loop eigenvalues (the JSON's order) and, with ``-v``, the plan U*. Where ``acts``
+    (`gain_rows`) marks rows of K that never act, the system's ``A`` and ``B`` give the eigenvalues without them
+    (`acting_eigenvalues`), and the gain line says which rows never act (none: no matrix).
 
     Examples
     --------
@@ -219,10 +277,21 @@ def text_details(sol: Solution, n: int, verbose: int) -> list[tuple[str, object]
     '0.5'
     """
     m = sol.inputs.shape[1]
-    rows: list[tuple[str, object]] = [
-        ("K (u = -K x)", fmt.matrix(sol.gain, fmt.labels("u", m), fmt.labels("x", n))),
-        ("eig(A - B K)", fmt.eigenvalues(sol.closed_loop_eigenvalues)),
-    ]
+    gain: object = fmt.matrix(sol.gain, fmt.labels("u", m), fmt.labels("x", n))
+    eigs = fmt.eigenvalues(sol.closed_loop_eigenvalues)
+    extra: list[tuple[str, object]] = []
+    if acts is not None and not acts.all():
+        if A is None or B is None:
+            raise TypeError("text_details: rows of K that never act need the system's A and B")
+        eigs = fmt.eigenvalues(acting_eigenvalues(A, B, sol.gain, acts))
+        note = gain_rows(acts)[1]
+        if acts.any():
+            extra = [("never acts", note)]
+            eigs += f" ({idle_inputs(acts)} dropped: never delivered)"
+        else:
+            gain = note
+            eigs += " (no row acts: A's own)"
+    rows: list[tuple[str, object]] = [("K (u = -K x)", gain), *extra, ("eig(A - B K)", eigs)]
     if verbose:
         plan = fmt.matrix(sol.inputs, [f"t={t}" for t in range(len(sol.inputs))], fmt.labels("u", m))
         rows.append(("U* (row t)", plan))
