@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..model.files import load_table, read_csv_numbers
+from ..model.files import load_table, read_csv_rows
 from ..model.validation import numeric_array
 
 __all__ = ["EXPONENTIAL_TOP", "MODELS", "RAYLEIGH_TOP_SLACK", "PowerModel", "load_power", "power_model",
@@ -153,11 +153,14 @@ class PowerModel:
         return {"model": self.kind, "scale": self.scale.tolist()}
 
 
-def power_model(model: str, m: int, scale: Any = None, table: Any = None) -> PowerModel:
+def power_model(model: str, m: int, scale: Any = None, table: Any = None,
+                lines: tuple[int, ...] | None = None) -> PowerModel:
     """A validated `PowerModel` for m channels.
 
     ``scale``: one c > 0 per channel (or one for all); ``table``: rows ``(power, mu)`` (one curve for every
-    channel) or ``(power, mu_1, .., mu_m)``, powers increasing from 0, mu non-decreasing in [0, 1].
+    channel) or ``(power, mu_1, .., mu_m)``, powers increasing from 0, mu non-decreasing in [0, 1]. ``lines``: the
+    file line of each table row (a CSV file's, `read_csv_rows`), which errors then cite (``line L``) in place of
+    the row's number in the table (``row k``, 1-based).
 
     Raises
     ------
@@ -188,21 +191,28 @@ def power_model(model: str, m: int, scale: Any = None, table: Any = None) -> Pow
                              f"found shape {rows.shape}")
         powers = rows[:, 0].copy()
         mus = np.repeat(rows[:, 1:], m, axis=1) if rows.shape[1] == 2 else rows[:, 1:].copy()
+        if lines is not None and len(lines) != rows.shape[0]:
+            raise InputError("power.table", f"expected a line for each of the {rows.shape[0]} rows, found "
+                                            f"{len(lines)}")
+
+        def where(k: int) -> str:       # row k, 1-based: its file line where the table came from a file
+            return f"row {k}" if lines is None else f"line {lines[k - 1]}"
+
         if powers[0] != 0.0:
             raise InputError("power.table", f"the first row's power must be 0 (the delivery of a silent channel), "
-                             f"found {powers[0]:g}")
+                             f"found {powers[0]:g}" + ("" if lines is None else f" ({where(1)})"))
         if np.any(np.diff(powers) <= 0):
             k = int(np.argmax(np.diff(powers) <= 0)) + 2
-            raise InputError("power.table", f"powers must increase (row {k}: {powers[k - 1]:g} after "
+            raise InputError("power.table", f"powers must increase ({where(k)}: {powers[k - 1]:g} after "
                              f"{powers[k - 2]:g})")
         if np.any((mus < 0) | (mus > 1)):
             k = int(np.argmax(np.any((mus < 0) | (mus > 1), axis=1))) + 1
-            raise InputError("power.table", f"mu must lie in [0, 1] (row {k})")
+            raise InputError("power.table", f"mu must lie in [0, 1] ({where(k)})")
         if np.any(np.diff(mus, axis=0) < 0):
             k = int(np.argmax(np.any(np.diff(mus, axis=0) < 0, axis=1))) + 2
             col = int(np.argmax(np.diff(mus, axis=0)[k - 2] < 0))
-            raise InputError("power.table", f"mu must not fall as power rises (row {k}: {mus[k - 1, col]:g} after "
-                             f"{mus[k - 2, col]:g})")
+            raise InputError("power.table", f"mu must not fall as power rises ({where(k)}: {mus[k - 1, col]:g} "
+                             f"after {mus[k - 2, col]:g})")
         return PowerModel(model, m, powers=_frozen(powers), table=_frozen(mus))
     if table is not None:
         raise InputError("power.table", f"the {model} model takes a scale, not a table")
@@ -225,7 +235,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 def load_power(path: str | Path, m: int) -> PowerModel | None:
     """The ``[power]`` table of a system file (None when it has none): ``model``, and ``scale`` or ``table``
     (inline rows, or a CSV file's name relative to the system file, read by
-    `read_csv_numbers`). Errors name ``power.<key>``. O(size).
+    `read_csv_rows`, its errors citing the file's lines). Errors name ``power.<key>``. O(size).
 
     Examples
     --------
@@ -243,9 +253,11 @@ def load_power(path: str | Path, m: int) -> PowerModel | None:
     if "model" not in section:
         raise InputError("power.model", "missing field")
     table = section.get("table")
+    lines = None
     if isinstance(table, str):
-        table = read_csv_numbers(Path(path).parent / table, "power.table")
-    return power_model(section["model"], m, scale=section.get("scale"), table=table)
+        csv = read_csv_rows(Path(path).parent / table, "power.table")
+        table, lines = csv.rows, csv.lines
+    return power_model(section["model"], m, scale=section.get("scale"), table=table, lines=lines)
 
 
 def rayleigh_majorant(model: PowerModel, at: np.ndarray) -> PowerModel:

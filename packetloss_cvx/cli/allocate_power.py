@@ -14,7 +14,7 @@ from ..allocation.ack import best_protocol
 from ..allocation.delivery import PowerModel, load_power, power_model
 from ..allocation.power import least_cost_within_power, least_power
 from ..errors import InfeasibleError, InputError
-from ..model.files import read_csv_numbers
+from ..model.files import read_csv_rows
 from ..model.system import System
 from . import format as fmt
 from .common import WARNING_ADVICE, CommandResult, attained_rows, floats, number, progress_of, search_options
@@ -52,11 +52,12 @@ def model_of(args: argparse.Namespace, system: System) -> PowerModel:
         raise InputError("--power", "required with --power-scale or --power-table (or a [power] table in the file)")
     scale = floats(args.power_scale, "--power-scale") if args.power_scale is not None else (
         from_file.scale if from_file is not None and from_file.kind == kind and kind != "table" else None)
-    table = read_csv_numbers(args.power_table, "--power-table") if args.power_table is not None else None
-    if table is None and kind == "table" and from_file is not None and from_file.kind == "table":
+    csv = read_csv_rows(args.power_table, "--power-table") if args.power_table is not None else None
+    if csv is None and kind == "table" and from_file is not None and from_file.kind == "table":
         return from_file
     try:
-        return power_model(kind, m, scale=scale, table=table)
+        return power_model(kind, m, scale=scale, table=None if csv is None else csv.rows,
+                           lines=None if csv is None else csv.lines)     # errors cite the file's lines
     except InputError as err:
         raise (err.renamed(FLAGS[err.field]) if err.field in FLAGS else err) from None
 

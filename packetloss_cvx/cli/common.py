@@ -30,9 +30,9 @@ from ..budgets import (
     solve_bytes,
     solve_work,
 )
-from ..errors import InputError
+from ..errors import InputError, ProbabilityError
 from ..model.constraints import Constraints, constraints_from_dict
-from ..model.files import load_constraints, load_system, read_csv_numbers, read_input
+from ..model.files import load_constraints, load_system, read_csv_rows, read_input
 from ..model.system import System
 from ..safeio import FIGURE_DPI, check_dpi, check_output_file
 from ..tolerances import ALLOCATION_COST_RTOL
@@ -154,8 +154,9 @@ def number(text: str, field: str) -> float:
 
 def read_schedule(path: str) -> np.ndarray:
     """A CSV file of N rows of m delivery probabilities, read by the one CSV reader
-    (`read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
-    a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(N m).
+    (`read_csv_rows`: a header row, ``#`` comments and a byte-order mark skipped;
+    a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read); a value
+    outside [0, 1] is a `ProbabilityError` naming its file line, as the reader's own errors do. O(N m).
 
     Examples
     --------
@@ -164,7 +165,14 @@ def read_schedule(path: str) -> np.ndarray:
     ...
     packetloss_cvx.errors.InputError: --mu-schedule: /dev/zero is not a regular file (a device, a pipe or a socket)
     """
-    return np.array(read_csv_numbers(path, "--mu-schedule"), dtype=float)     # rows of one width
+    csv = read_csv_rows(path, "--mu-schedule")
+    schedule = np.array(csv.rows, dtype=float)     # rows of one width
+    bad = np.flatnonzero(np.any((schedule < 0.0) | (schedule > 1.0), axis=1))
+    if bad.size:
+        value = next(v for v in schedule[bad[0]] if not 0.0 <= v <= 1.0)
+        raise ProbabilityError("--mu-schedule", f"{csv.where(bad[0])}: expected probabilities in [0, 1], found "
+                                                f"{value:g}")
+    return schedule
 
 
 def with_overrides(system: System, args: argparse.Namespace) -> System:

@@ -13,6 +13,7 @@ import os
 import stat
 import tomllib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -25,8 +26,8 @@ from .examples import names as packaged_names
 from .sensor import SENSOR_KEYS
 from .system import System
 
-__all__ = ["dumps_system", "example_names", "load_constraints", "load_example", "load_system", "load_table",
-           "read_csv_numbers",
+__all__ = ["CsvRows", "dumps_system", "example_names", "load_constraints", "load_example", "load_system", "load_table",
+           "read_csv_numbers", "read_csv_rows",
            "read_input",
            "save_system",
            "system_from_dict"]
@@ -138,22 +139,28 @@ def _section_of(kw: str) -> str:
 MAX_FILE_BYTES = int(BUDGETS["file_bytes"].default)
 
 
+@dataclass(frozen=True)
+class CsvRows:
+    """The rows of numbers of a CSV file (`read_csv_rows`) and the file line each starts on (1-based, as an
+    editor numbers lines: comments, blank lines and a header counted), for errors found after reading.
+
+    Examples
+    --------
+    >>> CsvRows([[0.5], [1.0]], (3, 4)).where(1)
+    'line 4'
+    """
+
+    rows: list[list[float]]
+    lines: tuple[int, ...]
+
+    def where(self, k: int) -> str:
+        """How an error names row ``k`` (0-based among the rows of numbers): ``"line L"``, L the file's line."""
+        return f"line {self.lines[k]}"
+
+
 def read_csv_numbers(path: str | Path, field: str, row_budget: str | None = None,
                      width: int | None = None) -> list[list[float]]:
-    """The rows of numbers of a CSV input file (``--mu-schedule``, ``--mu-list``), one reader with one set of
-    rules: read as every input file is (`read_input`); UTF-8 with or without Excel's byte-order mark;
-    blank lines and lines starting with ``#`` skipped; a first row whose cells are all non-numeric (a header
-    such as ``mu1,mu2``) skipped, while a first row with a typo among numbers is an error; every value
-    finite; every row ``width`` numbers long (default: as long as the first row of numbers). ``row_budget``: a
-    budget (budgets.py) the rows are counted against as they are parsed. O(size).
-
-    Raises
-    ------
-    InputError
-        Field ``field``: not a CSV text file, a cell that is not a number (with its row number), a value
-        that is not finite, or no row of numbers.
-    BudgetError
-        A file beyond the ``file_bytes`` budget, or more rows than ``row_budget``.
+    """The rows of numbers of a CSV input file (``--mu-schedule``, ``--mu-list``): `read_csv_rows`'s rows.
 
     Examples
     --------
@@ -163,11 +170,44 @@ def read_csv_numbers(path: str | Path, field: str, row_budget: str | None = None
     ...     read_csv_numbers(Path(tmp) / "mu.csv", "--mu-list")
     [[0.5, 1.0], [0.0, 0.25]]
     """
+    return read_csv_rows(path, field, row_budget, width).rows
+
+
+def read_csv_rows(path: str | Path, field: str, row_budget: str | None = None, width: int | None = None) -> CsvRows:
+    """The rows of numbers of a CSV input file and their file lines, one reader with one set of rules: read as
+    every input file is (`read_input`); UTF-8 with or without Excel's byte-order mark; blank lines and lines
+    starting with ``#`` skipped; a first row whose cells are all non-numeric (a header such as ``mu1,mu2``)
+    skipped, while a first row with a typo among numbers is an error; every value finite; every row ``width``
+    numbers long (default: as long as the first row of numbers). ``row_budget``: a budget (budgets.py) the rows
+    are counted against as they are parsed. Every error about a row names its file line (``"line 6: ..."``), as
+    `CsvRows.where` does for a caller's checks after reading. O(size).
+
+    Raises
+    ------
+    InputError
+        Field ``field``: not a CSV text file, a cell that is not a number (with its line), a value that is not
+        finite, or no row of numbers.
+    BudgetError
+        A file beyond the ``file_bytes`` budget, or more rows than ``row_budget``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     _ = (Path(tmp) / "mu.csv").write_text("mu1,mu2\\n# a comment\\n0.5,1\\n\\n0,x\\n")
+    ...     read_csv_rows(Path(tmp) / "mu.csv", "--mu-list")
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: --mu-list: line 5: expected numbers, found '0,x'
+    """
     data = read_input(path, field)
     rows: list[tuple[int, list[str]]] = []
     try:
         text = data.decode("utf-8-sig")                  # -sig: Excel's byte-order mark
-        for line, row in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
+        reader = csv.reader(io.StringIO(text, newline=""))
+        start = 1
+        for row in reader:
+            line, start = start, reader.line_num + 1     # a quoted cell may span lines: a row starts where it starts
             if not row or not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
                 continue
             rows.append((line, row))
@@ -175,23 +215,24 @@ def read_csv_numbers(path: str | Path, field: str, row_budget: str | None = None
                 check(row_budget, len(rows) - 1, field, f"more than {len(rows) - 2} rows")
     except (UnicodeDecodeError, csv.Error) as err:
         raise InputError(field, f"{str(path)!r} is not a CSV text file: {err}") from None
-    numbers = []
+    numbers, lines = [], []
     for k, (line, row) in enumerate(rows):
         try:
             values = [float(cell) for cell in row]
         except ValueError:
             if k == 0 and not any(_is_number(cell) for cell in row):
                 continue          # a header; a first row with a typo among numbers is an error, not a header
-            raise InputError(field, f"row {line}: expected numbers, found {','.join(row)[:60]!r}") from None
+            raise InputError(field, f"line {line}: expected numbers, found {','.join(row)[:60]!r}") from None
         if not all(map(math.isfinite, values)):
-            raise InputError(field, f"row {line}: expected finite numbers, found {','.join(row)[:60]!r}")
+            raise InputError(field, f"line {line}: expected finite numbers, found {','.join(row)[:60]!r}")
         width = len(values) if width is None else width
         if len(values) != width:
-            raise InputError(field, f"row {line}: expected {width} numbers, found {len(values)}")
+            raise InputError(field, f"line {line}: expected {width} numbers, found {len(values)}")
         numbers.append(values)
+        lines.append(line)
     if not numbers:
         raise InputError(field, f"{str(path)!r} has no rows of numbers (comma-separated, one row per line)")
-    return numbers
+    return CsvRows(numbers, tuple(lines))
 
 
 def _is_number(cell: str) -> bool:

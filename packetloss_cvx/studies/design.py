@@ -16,7 +16,7 @@ Dask cluster ([`.engine`][packetloss_cvx.studies.engine]); both give the same nu
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,7 @@ import numpy as np
 
 from ..budgets import BUDGETS, check, count_text, estimated_seconds, sweep_work
 from ..errors import InputError
-from ..model.files import read_csv_numbers
+from ..model.files import read_csv_rows
 from ..model.protocols import PROTOCOLS, check_protocol
 from ..model.system import System, numeric_array
 from ..model.validation import MAX_ENTRIES, channel_range
@@ -60,14 +60,14 @@ def _grid_axis(mu_grid: Any) -> np.ndarray:
 
 def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     """Channel points from a CSV file: one row per point, m probabilities per row, read by the one CSV reader
-    (`read_csv_numbers`: a header row, ``#`` comments and a byte-order mark skipped;
+    (`read_csv_rows`: a header row, ``#`` comments and a byte-order mark skipped;
     a regular file within the ``file_bytes`` budget, a FIFO or /dev/zero refused before it is read). O(rows).
 
     Raises
     ------
     InputError
         A file that cannot be read, a row of the wrong length, or a value outside [0, 1]
-        (field ``mu_list``, with the row number).
+        (field ``mu_list``, with its line in the file).
     BudgetError
         A file beyond the ``file_bytes`` budget, or more rows than the ``sweep_points`` budget.
 
@@ -80,21 +80,23 @@ def read_mu_list(path: str | Path, m: int) -> np.ndarray:
     ...     read_mu_list(Path(tmp) / "mu.csv", 3)
     Traceback (most recent call last):
         ...
-    packetloss_cvx.errors.InputError: mu_list: row 2: expected 3 numbers, found 2
+    packetloss_cvx.errors.InputError: mu_list: line 2: expected 3 numbers, found 2
     >>> points.tolist()                             # the header row is skipped
     [[0.5, 1.0], [0.0, 0.25]]
     """
-    points = read_csv_numbers(path, "mu_list", row_budget="sweep_points", width=m)
-    return _mu_points(points)
+    csv = read_csv_rows(path, "mu_list", row_budget="sweep_points", width=m)
+    return _mu_points(csv.rows, csv.where)
 
 
-def _mu_points(points: Any) -> np.ndarray:
+def _mu_points(points: Any, where: Callable[[int], str] | None = None) -> np.ndarray:
+    """The points as an array; ``where(k)`` names row k (0-based) in an error (a file's line), else ``row k + 1``."""
     arr = numeric_array(points, "mu_list")
     if arr.ndim != 2 or arr.shape[0] < 1:
         raise InputError("mu_list", f"expected rows of m probabilities, found shape {arr.shape}")
     bad = np.flatnonzero(np.any((arr < 0) | (arr > 1), axis=1))
     if bad.size:
-        raise InputError("mu_list", f"row {bad[0] + 1}: expected probabilities in [0, 1]")
+        row = f"row {bad[0] + 1}" if where is None else where(int(bad[0]))
+        raise InputError("mu_list", f"{row}: expected probabilities in [0, 1]")
     return arr
 
 

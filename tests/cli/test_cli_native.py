@@ -171,8 +171,8 @@ def _keywords(system):
 
 @pytest.mark.parametrize(("content", "argv", "match"), [
     ("0.5,0.5\n" * 9, [], "--mu-schedule: expected shape (10, 2)"),
-    ("0.5,0.5\n" * 9 + "0.5,x\n", [], "--mu-schedule: row 10: expected numbers, found '0.5,x'"),
-    ("0.5,0.5\n" * 9 + "0.5,1.5\n", [], "--mu-schedule: expected probabilities"),
+    ("0.5,0.5\n" * 9 + "0.5,x\n", [], "--mu-schedule: line 10: expected numbers, found '0.5,x'"),
+    ("0.5,0.5\n" * 9 + "0.5,1.5\n", [], "--mu-schedule: line 10: expected probabilities in [0, 1], found 1.5"),
     (None, [], "--mu-schedule: cannot read"),
     ("0.5,0.5\n" * 10, ["--mu", "0.5"], "not allowed with"),
 ])

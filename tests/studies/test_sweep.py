@@ -104,8 +104,8 @@ def test_read_mu_list(tmp_path, two_actuator):
     result = sweep(two_actuator, mu_list=read_mu_list(path, 2), progress=False)
     assert result.dims == ("point",)
     assert result.mu.tolist() == [[0.1, 0.2], [1.0, 0.5]]
-    for text, match in [("0.1\n", "row 1: expected 2"), ("0.1,2\n", "row 1: expected probabilities"),
-                        ("a,b\nx,0.2\n", "row 2: expected numbers"), ("mu1,mu2\n", "no rows")]:
+    for text, match in [("0.1\n", "line 1: expected 2"), ("0.1,2\n", "line 1: expected probabilities"),
+                        ("a,b\nx,0.2\n", "line 2: expected numbers"), ("mu1,mu2\n", "no rows")]:
         path.write_text(text)
         with pytest.raises(pl.InputError, match=match) as info:
             read_mu_list(path, 2)
@@ -316,5 +316,5 @@ def test_mu_schedule_and_mu_list_are_read_by_one_reader_with_one_set_of_rules(tm
     assert read_mu_list(path, 2).tolist() == rows.tolist()
     path.write_text("0.5,0.5\n0.5\n")
     for read in (lambda: read_schedule(str(path)), lambda: read_mu_list(path, 2)):
-        with pytest.raises(pl.InputError, match="row 2: expected 2 numbers, found 1"):
+        with pytest.raises(pl.InputError, match="line 2: expected 2 numbers, found 1"):
             read()

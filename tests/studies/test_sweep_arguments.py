@@ -57,7 +57,7 @@ def test_mu_list_first_row_with_a_typo_is_not_skipped_as_a_header(tmp_path):
     # a header is a row of names: a first row that is a mistyped number is an error, not a header to skip
     path = tmp_path / "typo.csv"
     path.write_text("0.5,O.5\n0.9,0.9\n")
-    with pytest.raises(InputError, match="row 1"):
+    with pytest.raises(InputError, match="line 1"):
         read_mu_list(path, 2)
     header = tmp_path / "header.csv"
     header.write_text("mu1,mu2\n0.5,0.25\n")
@@ -76,7 +76,7 @@ def test_mu_list_with_a_byte_order_mark_keeps_its_first_point(tmp_path):
 def test_mu_list_nan_names_its_row(tmp_path):
     path = tmp_path / "nan.csv"
     path.write_text("mu1,mu2\n0.5,0.5\n0.9,nan\n")
-    with pytest.raises(InputError, match="row 3"):
+    with pytest.raises(InputError, match="line 3"):
         read_mu_list(path, 2)
 
 
