@@ -45,6 +45,7 @@ from ..results.base import Frozen, finite_or_none
 from ..tolerances import (
     ACCEPTED_STATUSES,
     CLARABEL_DEFAULT,
+    CLARABEL_LINEAR_SOLVER,
     CLARABEL_TIGHT,
     CONSTRAINED_ACTIVE_RTOL,
     CONSTRAINED_ATTEMPTS,
@@ -163,7 +164,10 @@ class ConstrainedQP:
     solver : str, optional
         Any installed cvxpy solver (``cp.installed_solvers()``); default Clarabel with tight tolerances.
     solver_options : dict, optional
-        Passed to ``problem.solve`` for a solver other than the default.
+        Passed to ``problem.solve`` (one solve with them, in place of the default's tight-then-default attempts).
+        With Clarabel they are merged onto the linear-solver pin, ``direct_solve_method =
+        tolerances.CLARABEL_LINEAR_SOLVER`` (QDLDL, the same answers whatever the BLAS kernel and the KKT
+        system's size): the caller's keys win, so the pin holds unless they set ``direct_solve_method``.
     u_prev : bool
         Link the first input to the previous command: ``|u_0 - u_prev| <= du_max`` (rows "du_max[i] at t=0 (up)",
         "(down)"), ``u_prev`` a Parameter that `solve` sets (a receding-horizon loop's last command; zero, the
@@ -362,10 +366,13 @@ class ConstrainedQP:
             if program is not None:
                 return self._run_compiled(program, what)
             return solve_problem(self.problem, what, attempts=(CLARABEL_TIGHT, CLARABEL_DEFAULT))
+        options = self.solver_options
+        if self.solver == cp.CLARABEL:      # the pin under the caller's options: theirs win where they set it
+            options = {"direct_solve_method": CLARABEL_LINEAR_SOLVER, **options}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                self.problem.solve(solver=self.solver, **self.solver_options)
+                self.problem.solve(solver=self.solver, **options)
             except cp.error.SolverError as err:
                 raise SolverError("solver_error", f"{what} ({self.solver}): {err}") from None
         return str(self.problem.status)
