@@ -157,8 +157,9 @@ FORWARD_COST_ROUNDING = 4.0
 STATIONARY_RTOL = 1e-14
 #: Two exact paths to the same numbers (the backward pass by doubling and step by step; a rollout by powers and
 #: scans and step by step) agree to PATH_AGREEMENT_RTOL of each array's largest entry: every cost, plan and gain.
-#: Measured: worst 5.6e-14 over benchmarks/kernel_agreement.py's 405 systems (the gains of the slowly converging
-#: plant with one usable input, against the step-by-step pass; each of the two within 8.3e-14 of an 80-bit pass).
+#: Measured: worst 8.6e-14 over benchmarks/kernel_agreement.py's 405 systems, doubling against the step-by-step pass
+#: (closed_form of the slowly converging plant with one usable input, N = 10^4; its gains 6.5e-14; at N = 2000 the
+#: doubled pass is within 2.7e-14 of an 80-bit pass, the step-by-step one within 8.3e-14).
 #: The exact Markov cost's forward pass in blocks with its Stein-summed tail against the plain step-by-step loop:
 #: worst 1.9e-13 (benchmarks/markov_tail.py, a noisy plan over N = 8000; each within 1.0e-13 of an 80-bit loop).
 PATH_AGREEMENT_RTOL = 1e-12

@@ -372,10 +372,10 @@ def _doubled_backward(structure: Structure, mu: np.ndarray, added: np.ndarray, K
     weighs only some steps and closes at or after it; both are within STATIONARY_RTOL of the fixed point), as
     `_backward` closes it: K[1] from P_t, copies for steps 1..t-1, then step 0. Writes K[:top] (K: (N, m, n)); returns
     ``(P_0 (1, n, n), run)``, or None where anything is not finite (the step-by-step pass then goes on from
-    ``top`` and raises the overflow where there is one). Agrees with the step-by-step pass to rounding: within
-    6.6e-14 of an 80-bit pass where the step-by-step one is within 8.3e-14 (the slowly converging plant,
-    benchmarks/slow_plant.py). Time O(L (n^3 + m^3)) for a tail settling in L steps, in O(c + log L) batched
-    calls; memory O(L n^2)."""
+    ``top`` and raises the overflow where there is one). Agrees with the step-by-step pass to rounding: within 2.7e-14
+    of an 80-bit pass (4.2e-14 under OPENBLAS_CORETYPE=Prescott) where the step-by-step one is within 8.3e-14 (8.6e-14)
+    (the slowly converging plant, benchmarks/slow_plant.py). Time O(L (n^3 + m^3)) for a tail settling in L steps, in
+    O(c + log L) batched calls; memory O(L n^2)."""
     A, B, Q = structure.A, structure.B, structure.state_weights[0]
     c = DOUBLING_CHUNK
     mu1, add1 = mu[:, 1], added[:, 1]                  # (1, m): the map of steps 1..N-1
@@ -469,24 +469,31 @@ def _fine_steps(structure: Structure, starts: np.ndarray, mu1: np.ndarray, add1:
 def _doubling(A: np.ndarray, F: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The map ``Phi(P) = H + A'P (I + F F'P)^{-1} A`` composed with itself, as the same kind of map (the doubling
     step of `_doubled_backward`). Phi is the Riccati step with input matrix F and unit input weight, whose
-    gain at P = H is ``K = (I + F'HF)^{-1} F'HA``; then ``Phi(Phi(P))`` has ``H_2 = Phi(H)``, ``A_2 = A (A - F K)``
-    and ``F_2 F_2' = F F' + A F S^{-1} F'A'`` (S = I + F'HF = C C'): the factor ``[F, A F C'^{-1}]``, compressed to
-    n columns by a QR factorisation. G = F F' is never formed: rounding G would give every direction some control,
-    and the cost-to-go in the directions B reaches weakly is sensitive to it (3.9e-13 against 1.2e-14 relative on a
-    rank-one B M, measured against an 80-bit pass). The factorisations are LAPACK's own (``dpotrf``, the triangular
-    solve ``dtrtrs``, ``dgeqrf``): on n rows NumPy's wrappers cost several times their work. O(n^3); raises
-    ``numpy.linalg.LinAlgError`` where S is not positive definite (a map that is not finite)."""
+    gain at P = H is ``K = S^{-1} F'HA`` (S = I + F'HF = C C'); then ``Phi(Phi(P))`` has ``H_2 = Phi(H) = H + A'HA -
+    (F'HA)'K``, ``A_2 = A (A - F K)`` and ``F_2 F_2' = F F' + A F S^{-1} F'A'``: the factor ``[F, A F C'^{-1}]``,
+    compressed to n columns by a QR factorisation. One Cholesky factor of S serves the gain and the factor (one
+    triangular solve for ``C^{-1} [F'HA, (A F)']``, one more for K), not a general solve of S besides. G = F F' is never
+    formed: rounding G would give every direction some control, and the cost-to-go in the directions B reaches weakly is
+    sensitive to it (3.9e-13 against 1.2e-14 relative on a rank-one B M, measured against an 80-bit pass). The
+    factorisations are LAPACK's own (``dpotrf``, the triangular solve ``dtrtrs``, ``dgeqrf``): on n rows NumPy's
+    wrappers cost several times their work. O(n^3); raises ``numpy.linalg.LinAlgError`` where S is not positive definite
+    (a map that is not finite)."""
     n, r = A.shape[0], F.shape[1]
-    K, H2 = riccati_step(H, A, F, np.ones(r), np.ones(r), H)
+    HA = H @ A
     S = F.T @ (H @ F)
     S.flat[:: r + 1] += 1.0
     C, info = lapack("dpotrf")(S, lower=1, clean=1)               # S = C C'
     if info != 0:
         raise np.linalg.LinAlgError("S = I + F'HF is not positive definite")
-    Y, info = lapack("dtrtrs")(C, (A @ F).T, lower=1)             # C^-1 (A F)'
+    FHA_FA = F.T @ np.concatenate([HA, A.T], axis=1)              # [F'HA, (A F)']
+    ZY, info = lapack("dtrtrs")(C, FHA_FA, lower=1)               # C^-1 [F'HA, (A F)']
     if info != 0:
         raise np.linalg.LinAlgError("singular Cholesky factor")
-    factor = np.concatenate([F, Y.T], axis=1)
+    K = lapack("dtrtrs")(C, ZY[:, :n], lower=1, trans=1)[0]       # S^-1 F'HA = C'^-1 (C^-1 F'HA)
+    H2 = A.T @ HA - FHA_FA[:, :n].T @ K + H                        # Phi(H) = H + A'HA - (F'HA)' K
+    H2 += H2.T
+    H2 *= 0.5
+    factor = np.concatenate([F, ZY[:, n:].T], axis=1)
     if factor.shape[1] > n:                                        # R of factor' = Q R: factor factor' = R'R
         qr = lapack("dgeqrf")(factor.T)[0]
         factor = np.triu(qr[:n]).T
