@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InputError
+from ..errors import InputError, NumericalError
+from ..tolerances import DELIVERY_FACTOR_RTOL
 from .channel import (
     GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
     MarkovChannel,
@@ -37,7 +38,8 @@ MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "chan
 _MOMENTS = SystemStore(MOMENTS_KEY)
 
 __all__ = [
-    "MAX_CHANNELS", "MAX_MODES", "attach_channel", "chain_matrices", "channel_covariance", "filter_belief",
+    "MAX_CHANNELS", "MAX_MODES", "attach_channel", "chain_matrices", "channel_covariance", "delivery_factor",
+    "filter_belief",
     "mode_chain", "mode_start", "plugin_schedule", "plugin_system", "product_chain", "second_moments",
     "stacked_moments",
 ]
@@ -309,6 +311,53 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     if kept is None:
         kept = _MOMENTS.put(system, _moments(system), nbytes=8 * (N * m) ** 2)
     return kept
+
+
+def delivery_factor(system: System) -> np.ndarray:
+    """Lower-triangular factors of each channel's delivery covariance over the horizon, (m, N, N): ``L_i L_i' =
+    C_i``, ``(C_i)_{ts} = Cov(v_{i,t}, v_{i,s})`` (`stacked_moments`' blocks: the chain's covariances, ``mu (1 - mu)``
+    of the system's schedule on the diagonal). Triangular, so the leading k×k block of ``L_i`` factors the leading
+    block of ``C_i``, the covariance of the deliveries at steps 0..k-1: ``c' C_{i,k} c = ||L_{i,k}' c||^2`` for a
+    chance row at step k (docs/mathematics.md §7, "Behind a chain"). Cholesky without pivoting, a pivot within
+    rounding of zero (a delivery certain or impossible at that step) giving a zero column; the factor is kept only
+    where ``max|L L' - C| <= DELIVERY_FACTOR_RTOL max_t C_tt``. Bernoulli losses (no channel): ``diag(sqrt(mu (1 -
+    mu)))``. Time O(m N^3).
+
+    Raises
+    ------
+    NumericalError
+        The factor's residual beyond ``DELIVERY_FACTOR_RTOL`` (a covariance not positive semidefinite to rounding).
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))        # b = 1/2, lambda = 0.6: C_ts = 0.6^|t-s| / 4
+    >>> L = delivery_factor(s)[0]
+    >>> np.round(L, 4).tolist()
+    [[0.5, 0.0, 0.0], [0.3, 0.4, 0.0], [0.18, 0.24, 0.4]]
+    >>> bool(np.allclose(L[:2, :2] @ L[:2, :2].T, [[0.25, 0.15], [0.15, 0.25]]))
+    True
+    """
+    N, m = system.horizon, system.m
+    _, C = stacked_moments(system)
+    out = np.zeros((m, N, N))
+    for i in range(m):
+        Ci = C[i::m, i::m]
+        L = out[i]
+        scale = float(np.max(np.diag(Ci), initial=0.0))
+        floor = N * np.finfo(float).eps * scale
+        for j in range(N):
+            pivot = Ci[j, j] - L[j, :j] @ L[j, :j]
+            if pivot <= floor:                # PSD: the column below a zero pivot is zero too (checked below)
+                continue
+            L[j, j] = np.sqrt(pivot)
+            L[j + 1:, j] = (Ci[j + 1:, j] - L[j + 1:, :j] @ L[j, :j]) / L[j, j]
+        residual = float(np.abs(L @ L.T - Ci).max(initial=0.0))
+        if not residual <= DELIVERY_FACTOR_RTOL * scale:
+            raise NumericalError(f"the delivery covariance of channel {i} over {N} steps has no triangular factor to "
+                                 f"rounding (residual {residual:.2e} of its largest variance {scale:.2e}): it is not "
+                                 "positive semidefinite in double precision")
+    return out
 
 
 def _moments(system: System) -> tuple[np.ndarray, np.ndarray]:
