@@ -194,7 +194,7 @@ class ConstrainedQP:
         E[x_1..x_N] under the plan.
     x0, mu : cvxpy.Parameter
         n and (N, m); `solve` sets them (and the Parameters derived from mu; behind a chain the per-channel
-        factors of the deliveries' covariance, (N, N) each, from the belief).
+        innovations factors of the deliveries' covariance, K × N K and N per channel, from the belief).
     u_prev : cvxpy.Parameter or None
         m, with ``u_prev=True``; `solve` sets it.
 
@@ -268,10 +268,15 @@ class ConstrainedQP:
         self.mu = cp.Parameter((N, m), nonneg=True, name="mu")
         self._w = cp.Parameter((N, m), nonneg=True, name="input_weight_over_scale")   # (psi mu + [UDP] d mu(1-mu))/s
         self._sigma = cp.Parameter((N, m), nonneg=True, name="loss_std")             # sqrt(mu (1 - mu))
-        # behind a chain: per channel the lower-triangular factor of its deliveries' covariance over the horizon
-        # (`delivery_factor`), whose leading k×k block factors the covariance of the deliveries before step k
-        self._factors = (None if self.chain is None or not c.chance else
-                         [cp.Parameter((N, N), name=f"delivery_factor_{i}") for i in range(m)])
+        # behind a chain: per channel the belief's part of the innovations factor of its deliveries' covariance
+        # (`DeliveryFactor`): G_s as a (K, N K) Parameter, [a, s K + b] = G_s[a, b], and sqrt(gamma_t) as an N one; the
+        # chain's part, the responses e_L, is constant
+        self._factors = None
+        if self.chain is not None and c.chance:
+            K = max(self.chain.channel.sizes)
+            self._response = delivery_factor(self.chain).response          # (m, N, K): no belief in it
+            self._factors = [(cp.Parameter((K, N * K), name=f"delivery_innovation_{i}"),
+                              cp.Parameter(N, nonneg=True, name=f"delivery_spread_{i}")) for i in range(m)]
         self.U = cp.Variable((N, m), name="U")
         u = _step_major(self.U, N, m)
         y = _step_major(cp.multiply(self.mu, self.U), N, m)        # the mean delivered inputs Vbar U
@@ -319,13 +324,14 @@ class ConstrainedQP:
                     nz = np.flatnonzero(H[k - 1])
                     if self._factors is None:           # independent losses: diag(sqrt(mu (1 - mu)))
                         parts = [cp.multiply(H[k - 1, nz], W[nz])] if nz.size else []
-                    else:                               # || L_k' (h_k ∘ u) ||, one term per channel
+                    else:                               # || F_k' (h_k ∘ u) ||, one term per channel
                         parts = []
-                        for ch, factor in enumerate(self._factors):
+                        for ch, (innovation, spread) in enumerate(self._factors):
                             h = H[k - 1, ch::m]
-                            last = int(np.flatnonzero(h).max(initial=-1)) + 1     # L lower-triangular: rows < last
+                            last = int(np.flatnonzero(h).max(initial=-1)) + 1     # F's rows t < last, columns s <= t
                             if last:
-                                parts.append(factor[:last, :last].T @ cp.multiply(h[:last], self.U[:last, ch]))
+                                parts += _chain_terms(self._response[ch], innovation, spread,
+                                                      cp.multiply(h[:last], self.U[:last, ch]), last)
                     if noise[k - 1] > 0:
                         parts.append(np.array([np.sqrt(noise[k - 1])]))
                     lhs = a @ self.states[k - 1]
@@ -364,9 +370,10 @@ class ConstrainedQP:
         if self._factors is not None:
             key = chain.channel.initial_belief.tobytes()
             if self._chain_key != key:
-                factors, (_, cov) = delivery_factor(chain), stacked_moments(chain)
-                for parameter, value in zip(self._factors, factors, strict=True):
-                    parameter.save_value(value)
+                factor, (_, cov) = delivery_factor(chain), stacked_moments(chain)
+                for (innovation, spread), G, root in zip(self._factors, factor.innovation, factor.spread, strict=True):
+                    innovation.save_value(G.transpose(1, 0, 2).reshape(innovation.shape))
+                    spread.save_value(root)
                 for group in self._groups:
                     if group.kind == "chance":
                         group.loss_cov = cov
@@ -940,6 +947,24 @@ class _Group:
         hs = h[smooth]
         total = C * ((hs.T * (c / std[smooth])) @ hs) - (Qu[smooth].T * (c / std[smooth] ** 3)) @ Qu[smooth]
         return g, jac, kappa * total
+
+
+def _chain_terms(response: np.ndarray, innovation: cp.Parameter, spread: cp.Parameter, c: cp.Expression,
+                 last: int) -> list[cp.Expression]:
+    """``F' c`` for the deliveries at steps ``t < last`` (`DeliveryFactor`), as the vectors whose stacked norm is
+    ``||F' c||``: ``(F'c)_(N K + t) = sqrt(gamma_t) c_t`` and ``(F'c)_(s, b) = sum_a G_s[a, b] sum_{s <= t < last}
+    e_{t-s}[a] c_t`` (one constant map per state a, whose entries are the responses ``e_L``, times the Parameter's
+    row a, summed over a). A state whose responses are all zero (the first: e_L is centred on it) adds nothing, so a
+    two-state channel has one term. O(last^2 K^2) entries."""
+    K = response.shape[1]
+    lag = np.subtract.outer(np.arange(last), np.arange(last))        # t - s at [t, s]
+    states = []                                                       # the sum over a, one vector
+    for a in range(K):
+        if not np.any(response[:last, a]):
+            continue
+        E = np.where(lag >= 0, response[np.clip(lag, 0, None), a], 0.0).T        # [s, t] = e_{t-s}[a], t >= s
+        states.append(cp.multiply(innovation[a, :last * K], np.repeat(E, K, axis=0) @ c))
+    return [cp.multiply(spread[:last], c)] + ([cp.sum(states)] if len(states) > 1 else states)
 
 
 def _weighted_gram(T: np.ndarray, W: np.ndarray) -> np.ndarray:

@@ -96,14 +96,16 @@ def _gilbert(p, r, belief):
 
 def test_the_delivery_covariance_of_a_gilbert_chain_is_the_hand_value():
     """p = 0.1, r = 0.3 (lambda = 0.6), P(good) = 0.5 at step 0, then 0.6 and 0.66: variances b (1 - b), covariances
-    lambda^(l-j) b_j (1 - b_j); every leading block of L L' is the covariance of the deliveries before that step."""
+    lambda^(l-j) b_j (1 - b_j); the first k rows of F give the covariance of the deliveries before step k, having no
+    entry in the columns of later steps."""
     s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
                channel=GilbertElliott(p=[0.1], r=[0.3], belief=[0.5]))
     hand = np.array([[0.25, 0.15, 0.09], [0.15, 0.24, 0.144], [0.09, 0.144, 0.66 * 0.34]])
-    L = delivery_factor(s)[0]
-    assert np.array_equal(L, np.tril(L))
+    F = delivery_factor(s).matrix(0)                    # columns: 3 steps x 2 states, then 3 delivery coins
     for k in (1, 2, 3):
-        assert np.allclose(L[:k, :k] @ L[:k, :k].T, hand[:k, :k], rtol=0, atol=1e-15)
+        assert np.allclose(F[:k] @ F[:k].T, hand[:k, :k], rtol=0, atol=1e-15)
+        later = [c for c in range(F.shape[1]) if (c < 6 and c // 2 >= k) or (c >= 6 and c - 6 >= k)]
+        assert not np.any(F[:k, later])
 
 
 @pytest.mark.parametrize("case", ["gilbert-noisy", "three-state", "known-bad"])
@@ -123,11 +125,11 @@ def test_the_delivery_covariance_is_the_enumerated_one(case):
         channel = GilbertElliott(p=[0.05], r=[0.2], state=["bad"])
         T, d, pi0 = np.array([[0.95, 0.05], [0.2, 0.8]]), np.array([1.0, 0.0]), np.array([0.0, 1.0])
     s = System(A=[[1.0]], B=[[1.0]], horizon=N, state_weight=[1.0], input_weight=[1.0], x0=[1.0], channel=channel)
-    L = delivery_factor(s)[0]
+    F = delivery_factor(s).matrix(0)
     reference = _enumerated_covariance(T, d, pi0, N)
-    assert np.allclose(L @ L.T, reference, rtol=0, atol=1e-14)
+    assert np.allclose(F @ F.T, reference, rtol=0, atol=1e-14)
     for k in (1, 2, 5):                              # the rows at step k see the deliveries before k
-        assert np.allclose(L[:k, :k] @ L[:k, :k].T, _enumerated_covariance(T, d, pi0, k), rtol=0, atol=1e-14)
+        assert np.allclose(F[:k] @ F[:k].T, _enumerated_covariance(T, d, pi0, k), rtol=0, atol=1e-14)
 
 
 def _bursty(noise, p=0.05, r=0.15):
@@ -189,8 +191,9 @@ def test_a_memoryless_chain_gives_the_bernoulli_program():
     s = System(A=[[1.2, 0.1], [0.0, 0.8]], B=[[1.0, 0.0], [0.3, 1.0]], horizon=6, state_weight=[1.0, 2.0],
                input_weight=[0.2, 0.1], x0=[-2.0, 1.0], noise_cov=[[1e-3, 0.0], [0.0, 2e-3]],
                channel=GilbertElliott(p=[0.3, 0.6], r=[0.7, 0.4], belief=[0.2, 0.9]))
-    F = delivery_factor(s)
-    assert all(np.abs(L - np.diag(np.diag(L))).max() <= 4 * np.finfo(float).eps * np.diag(L).max() for L in F)
+    for i in range(2):
+        C = delivery_factor(s).matrix(i) @ delivery_factor(s).matrix(i).T
+        assert np.abs(C - np.diag(np.diag(C))).max() <= 4 * np.finfo(float).eps * np.diag(C).max()
     c = Constraints(u_min=[-3.0, -3.0], u_max=[3.0, 3.0], chance=[[[1.0, 0.5], -0.8, 0.2]])
     for protocol in ("tcp", "udp"):
         exact = ConstrainedQP(s, protocol, c).solve()
@@ -248,3 +251,25 @@ def test_rows_held_at_their_kink_pass_the_kkt_check_behind_a_chain(protocol):
     assert np.abs(sol.inputs).max() <= 1e-8
     assert sol.binding == tuple(f"chance[0] at k={k}" for k in range(1, 5))
     assert sol.kkt_residual <= CONSTRAINED_KKT_RTOL
+
+
+def test_the_programs_rows_are_cantellis_on_the_enumerated_moments():
+    """The cones the solver sees, evaluated at random plans (not at the optimum, which the polish refines on the
+    moments, so a wrong cone with the right active set would go unseen there): a'E[x_k] + kappa ||F_k'(h_k ∘ u); s_k||
+    is a'E[x_k] + kappa std(a'x_k) with the moments enumerated over the joint delivery paths of two channels of
+    different memory, one of them with three states."""
+    G2, d2, pi2 = np.array([[0.95, 0.05], [0.15, 0.85]]), np.array([1.0, 0.1]), np.array([0.6, 0.4])
+    T3 = np.array([[0.7, 0.2, 0.1], [0.3, 0.6, 0.1], [0.05, 0.15, 0.8]])
+    d3, pi3 = np.array([1.0, 0.6, 0.0]), np.array([0.2, 0.5, 0.3])
+    channel = MarkovChannel(transition=[G2, T3], delivery=[d2, d3], belief=[pi2, pi3])
+    s = System(A=[[1.0, 0.1], [0.0, 0.9]], B=[[1.0, 0.0], [0.2, 1.0]], horizon=4, state_weight=[1.0, 1.0],
+               input_weight=[0.1, 0.1], x0=[-2.0, -1.5], noise_cov=[[1e-3, 0.0], [0.0, 1e-3]], channel=channel)
+    a, eps = np.array([1.0, 1.0]), 0.3
+    qp = ConstrainedQP(s, "tcp", Constraints(chance=[[a.tolist(), -1.5, eps]]), formulation="condensed")
+    qp.solve()                                                  # sets the Parameters from the channel's belief
+    rows = [con for con in qp.problem.constraints if "delivery_innovation" in str(con)]
+    assert len(rows) == s.horizon
+    for U in np.random.default_rng(5).normal(size=(3, 4, 2)):
+        qp.U.value = U
+        lhs = np.array([con.args[0].value for con in rows]).ravel()
+        assert np.allclose(lhs, _cantelli(s, U, a, eps, [(G2, d2, pi2), (T3, d3, pi3)]), rtol=1e-12, atol=1e-12)
