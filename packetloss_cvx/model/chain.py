@@ -343,6 +343,18 @@ class DeliveryFactor:
         ``e_L``, L = 0..N-1 (the chain's part: no belief).
     spread : ndarray (m, N)
         ``sqrt(gamma_t)``.
+
+    Examples
+    --------
+    A Gilbert channel's state is the innovation's only dimension (the first state's column is zero: ``e_L`` is
+    centred on it); P(good) = 1/2 at step 0: ``G_0 G_0' = diag(pi_0) - pi_0 pi_0'``, entries ``+-1/4``.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2], belief=[0.5]))
+    >>> f = delivery_factor(s)
+    >>> G = f.innovation[0, 0]
+    >>> (G @ G.T).round(12).tolist(), f.response[0].round(12).tolist(), f.spread[0].tolist()
+    ([[0.25, -0.25], [-0.25, 0.25]], [[0.0, -1.0], [0.0, -0.6]], [0.0, 0.0])
     """
 
     innovation: np.ndarray
