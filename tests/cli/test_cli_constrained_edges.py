@@ -95,6 +95,7 @@ def test_the_constrained_costs_say_their_basis(tmp_path, capsys):
     bernoulli = lambda v: float(np.prod([0.7 if d else 0.3 for d in v]))      # noqa: E731
     for protocol, basis in (("tcp", "paper"), ("udp", "realised")):
         entry = data[protocol]["constrained"]
+        assert "chance_rows" not in entry                 # said behind a chain only
         plan = [row[0] for row in entry["inputs"]]
         x, first_moment = 3.0, 0.0
         for u in plan:
