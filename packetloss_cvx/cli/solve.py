@@ -150,8 +150,9 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
     says its basis: TCP-like "paper" (J_tcp(U), without the loss variance), beside the plan's exact expected cost
     (basis "realised", ``plan_expected_cost_basis``); UDP-like "realised". Behind a chain (``chain``, the file's
     system; ``system`` its Bernoulli plug-in twin) the program is the plug-in one, ``"plug_in": true``, basis
-    "paper, prior-mean rates" (its chance rows take the losses as independent), and ``plan_expected_cost`` is the
-    plan's exact expected cost under the chain (`exact_cost`), what the plan realises.
+    "paper, prior-mean rates", but for its chance rows, posed with the deliveries' covariance under the chain
+    (``"chance_rows": "exact under the chain"``), and ``plan_expected_cost`` is the plan's exact expected cost under
+    the chain (`exact_cost`), what the plan realises.
 
     Examples
     --------
@@ -165,7 +166,8 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
     from ..qp.constrained import solve_constrained  # cvxpy only where a QP is asked for
 
     try:
-        sol = solve_constrained(system, protocol, constraints, getattr(args, "formulation", "auto"))
+        sol = solve_constrained(system if chain is None else chain, protocol, constraints,
+                                getattr(args, "formulation", "auto"))
     except InfeasibleError as err:
         certificate = err.certificate or {}
         return ({"status": "infeasible", "solver_status": err.status, "cost": None, "inputs": None, "binding": [],
@@ -195,8 +197,8 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
             realised = None
         entry.update({"plug_in": True, "basis": PRIOR_MEAN_BASIS, "plan_expected_cost": realised})
         where = " under the chain"
-        label = (f"J = {sol.cost:.10g} [basis: {PRIOR_MEAN_BASIS}: the plug-in program, Bernoulli losses at the "
-                 f"chain's mu_t, its chance rows taking the losses as independent] ({sol.status})")
+        label = (f"J = {sol.cost:.10g} [basis: {PRIOR_MEAN_BASIS}: the plug-in program, its cost on Bernoulli losses "
+                 f"at the chain's mu_t, its chance rows {sol.chance_rows} (the deliveries' covariance)] ({sol.status})")
     else:
         where = ""
         label = (f"J = {sol.cost:.10g} [basis: {sol.basis}" + (": leaves out the loss variance" if sol.basis ==

@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InputError
+from ..errors import InputError, NumericalError
+from ..tolerances import DELIVERY_FACTOR_RTOL
 from .channel import (
     GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
     MarkovChannel,
@@ -37,7 +39,8 @@ MOMENTS_KEY = CacheKey("chain.stacked_moments", ("horizon", "mu_schedule", "chan
 _MOMENTS = SystemStore(MOMENTS_KEY)
 
 __all__ = [
-    "MAX_CHANNELS", "MAX_MODES", "attach_channel", "chain_matrices", "channel_covariance", "filter_belief",
+    "MAX_CHANNELS", "MAX_MODES", "DeliveryFactor", "attach_channel", "chain_matrices", "channel_covariance",
+    "delivery_factor", "filter_belief",
     "mode_chain", "mode_start", "plugin_schedule", "plugin_system", "product_chain", "second_moments",
     "stacked_moments",
 ]
@@ -243,6 +246,23 @@ def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
     >>> np.round(C[0], 4).tolist()
     [[0.25, 0.15, 0.09], [0.15, 0.25, 0.15], [0.09, 0.15, 0.25]]
     """
+    T, d, pi, ahead = _chain_arrays(channel, horizon)
+    N, m = horizon, T.shape[0]
+    mu = np.einsum("tik,ik->ti", pi, d)
+    weights = pi * (d - mu[:, :, None])                 # (N, m, K): pi_t ∘ (d - mu_t)
+    index = np.arange(N)
+    at = np.minimum.outer(index, index) * N + np.abs(np.subtract.outer(index, index))   # M[min(t, s), |t - s|]
+    out = np.empty((m, N, N))
+    for i in range(m):
+        M = weights[:, i] @ ahead[:, i].T                # (N, N): M[t, L]
+        out[i] = M.ravel()[at]
+        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
+    return out
+
+
+def _chain_arrays(channel: Any, horizon: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(T, d, pi, ahead)`` of `channel_covariance`: the channels' chains padded to K states (m, K, K) and (m, K), the
+    beliefs ``pi_t`` (N, m, K) and the centred ``e_L = T^L d - (T^L d)_0 1`` (N, m, K), L = 0..N-1."""
     chains = chain_matrices(channel)
     MarkovChannel.check_horizon(horizon, len(chains) * horizon if isinstance(horizon, int | np.integer) else 1)
     N, m = horizon, len(chains)
@@ -261,16 +281,7 @@ def channel_covariance(channel: Any, horizon: int) -> np.ndarray:
         size = min(done, N - done)
         ahead[done:done + size] = np.einsum("iab,tib->tia", S, ahead[:size])
         S, done = S @ S, done + size
-    mu = np.einsum("tik,ik->ti", pi, d)
-    weights = pi * (d - mu[:, :, None])                 # (N, m, K): pi_t ∘ (d - mu_t)
-    index = np.arange(N)
-    at = np.minimum.outer(index, index) * N + np.abs(np.subtract.outer(index, index))   # M[min(t, s), |t - s|]
-    out = np.empty((m, N, N))
-    for i in range(m):
-        M = weights[:, i] @ ahead[:, i].T                # (N, N): M[t, L]
-        out[i] = M.ravel()[at]
-        out[i][np.diag_indices(N)] = mu[:, i] * (1.0 - mu[:, i])
-    return out
+    return T, d, pi, ahead
 
 
 def second_moments(channel: MarkovChannel, horizon: int) -> np.ndarray:
@@ -309,6 +320,108 @@ def stacked_moments(system: System) -> tuple[np.ndarray, np.ndarray]:
     if kept is None:
         kept = _MOMENTS.put(system, _moments(system), nbytes=8 * (N * m) ** 2)
     return kept
+
+
+@dataclass(frozen=True)
+class DeliveryFactor:
+    """A factor of the deliveries' covariance over the horizon by the chain's innovations (`delivery_factor`).
+
+    Channel i's deliveries are ``v_t = y_t + n_t``, ``y_t = d_{S_t}`` the delivery probability of the chain's state
+    and ``n_t`` the delivery's own coin given it (mean zero, variance ``gamma_t = pi_t . d (1 - d)``, uncorrelated with
+    everything else). With ``z_t`` the state's indicator vector, ``z_{t+1} - pi_{t+1} = T'(z_t - pi_t) + w_t``, the
+    innovations ``w_t`` uncorrelated of covariance ``diag(pi_{t+1}) - T' diag(pi_t) T`` (``z_0 - pi_0``: ``diag(pi_0)
+    - pi_0 pi_0'``), so ``y_t - mu_t = sum_{s<=t} e_{t-s}' (innovation at s)``, ``e_L = T^L d`` centred on its first
+    entry (the innovations sum to zero). Hence ``C = F F'`` with ``F[t, (s, b)] = e_{t-s}' G_s[:, b]`` (s <= t) and
+    ``F[t, N K + t] = sqrt(gamma_t)``, ``G_s G_s'`` the covariance of the innovation at s: row t of F has no entry in
+    the columns of later steps, so its first k rows factor the covariance of the deliveries before step k.
+
+    Attributes
+    ----------
+    innovation : ndarray (m, N, K, K)
+        ``G_s`` per channel and step (the belief's part).
+    response : ndarray (m, N, K)
+        ``e_L``, L = 0..N-1 (the chain's part: no belief).
+    spread : ndarray (m, N)
+        ``sqrt(gamma_t)``.
+
+    Examples
+    --------
+    A Gilbert channel's state is the innovation's only dimension (the first state's column is zero: ``e_L`` is
+    centred on it); P(good) = 1/2 at step 0: ``G_0 G_0' = diag(pi_0) - pi_0 pi_0'``, entries ``+-1/4``.
+
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2], belief=[0.5]))
+    >>> f = delivery_factor(s)
+    >>> G = f.innovation[0, 0]
+    >>> (G @ G.T).round(12).tolist(), f.response[0].round(12).tolist(), f.spread[0].tolist()
+    ([[0.25, -0.25], [-0.25, 0.25]], [[0.0, -1.0], [0.0, -0.6]], [0.0, 0.0])
+    """
+
+    innovation: np.ndarray
+    response: np.ndarray
+    spread: np.ndarray
+
+    def matrix(self, channel: int) -> np.ndarray:
+        """F (N × N (K + 1)) of ``channel``: ``F F'`` its deliveries' covariance. O(N^2 K^2)."""
+        G, e, spread = self.innovation[channel], self.response[channel], self.spread[channel]
+        N, K = spread.size, G.shape[1]
+        F = np.zeros((N, N * K + N))
+        for t in range(N):
+            F[t, :(t + 1) * K] = np.einsum("sa,sab->sb", e[t::-1], G[:t + 1]).ravel()
+        F[np.arange(N), N * K + np.arange(N)] = spread
+        return F
+
+
+def delivery_factor(system: System) -> DeliveryFactor:
+    """The factor of each channel's delivery covariance over the horizon by the chain's innovations
+    (`DeliveryFactor`; docs/mathematics.md §7, "Behind a chain"): ``F F' = C``, ``C_ts = Cov(v_t, v_s)`` as
+    `stacked_moments` gives it (the chain's covariances, ``mu (1 - mu)`` of the system's schedule on the diagonal),
+    the first k rows of F factoring the covariance of the deliveries before step k. Only ``innovation`` and ``spread``
+    depend on the belief. The innovations' covariances are factored by their eigen-decompositions (eigenvalues within
+    rounding below zero set to zero); the factor is kept only where ``max|F F' - C| <= DELIVERY_FACTOR_RTOL max_t mu_t``
+    for every channel (the second moments' scale: ``mu_t (1 - mu_t)`` itself is off by about ``eps mu_t``, relatively
+    large where deliveries are almost certain). Time O(m N^2 K^2 + m N K^3).
+
+    Raises
+    ------
+    NumericalError
+        A residual beyond ``DELIVERY_FACTOR_RTOL``.
+    InputError
+        A system without a Markov channel.
+
+    Examples
+    --------
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[0.0],
+    ...            channel=GilbertElliott(p=[0.2], r=[0.2]))        # b = 1/2, lambda = 0.6: C_ts = 0.6^|t-s| / 4
+    >>> F = delivery_factor(s).matrix(0)
+    >>> bool(np.allclose(F @ F.T, 0.25 * 0.6 ** np.abs(np.subtract.outer(range(3), range(3)))))
+    True
+    >>> bool(np.allclose(F[:2] @ F[:2].T, [[0.25, 0.15], [0.15, 0.25]])), F[:2, 4:6].tolist()  # no later step
+    (True, [[0.0, 0.0], [0.0, 0.0]])
+    """
+    if system.channel is None:
+        raise InputError("system", "expected a system behind a Markov channel: Bernoulli losses are independent")
+    N = system.horizon
+    T, d, pi, ahead = _chain_arrays(system.channel, N)
+    m, K = d.shape
+    previous = np.concatenate([np.zeros((1, m, K)), pi[:-1]])      # pi_{t-1}; the start's row below
+    # Cov(w) = diag(pi_s) - T' diag(pi_{s-1}) T for s >= 1, diag(pi_0) - pi_0 pi_0' at s = 0
+    cov = np.einsum("sia,ab->siab", pi, np.eye(K)) - np.einsum("iab,sia,iac->sibc", T, previous, T)
+    cov[0] -= np.einsum("ia,ib->iab", pi[0], pi[0])
+    vals, vecs = np.linalg.eigh(cov)
+    G = vecs * np.sqrt(np.maximum(vals, 0.0))[..., None, :]         # (N, m, K, K): G G' = cov
+    gamma = np.einsum("tia,ia->ti", pi, d * (1.0 - d))
+    out = DeliveryFactor(innovation=G.transpose(1, 0, 2, 3).copy(), response=ahead.transpose(1, 0, 2).copy(),
+                         spread=np.sqrt(np.maximum(gamma, 0.0)).T.copy())
+    mu, C = stacked_moments(system)
+    for i in range(m):
+        F, Ci = out.matrix(i), C[i::m, i::m]
+        scale = float(np.max(mu[i::m], initial=0.0))
+        residual = float(np.abs(F @ F.T - Ci).max(initial=0.0))
+        if not residual <= DELIVERY_FACTOR_RTOL * scale:
+            raise NumericalError(f"the innovations factor of channel {i}'s delivery covariance over {N} steps is off "
+                                 f"by {residual:.2e}, its largest delivery probability {scale:.2e}: not trusted")
+    return out
 
 
 def _moments(system: System) -> tuple[np.ndarray, np.ndarray]:

@@ -15,8 +15,9 @@ Three controllers run on the same sample paths (deliveries, chain states, noise)
 
 Information: TCP-like controllers filter their belief about a chain by every acknowledged outcome (the HMM
 filter), UDP-like ones propagate the prior; under Bernoulli losses both plan with the channel's mu. Behind a
-chain the program is the plug-in one (the Bernoulli model of the predicted mu_t: its chance rows' variances take
-the losses as independent, so their realised frequencies are what tells). Both know the inputs they commanded:
+chain the expected-cost program is the plug-in one (the Bernoulli model of the predicted mu_t) but for its chance
+rows, posed with the deliveries' covariance under the chain from the controller's belief (`ConstrainedQP`'s
+``belief``). Both know the inputs they commanded:
 the rate bound links the first input of a plan to the previous command (the actuator at rest, zero, before the
 first): the program's own ``u_prev`` Parameter (``ConstrainedQP(..., u_prev=True)``), covered by its KKT check and
 polish like every other row.
@@ -156,14 +157,18 @@ class _Program:
     def _compile(self, constraints: Constraints) -> ConstrainedQP:
         return ConstrainedQP(self.twin, self.protocol, constraints, u_prev=True)
 
-    def _solve(self, program: ConstrainedQP, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray) -> Any:
+    def _solve(self, program: ConstrainedQP, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray,
+               belief: np.ndarray | None = None) -> Any:
+        if program.chain is not None:              # behind a chain: the belief sets mu_t and the rows' covariance
+            return program.solve(x0=x, belief=belief, u_prev=previous)
         return program.solve(mu=mu, x0=x, u_prev=previous)
 
-    def plan(self, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray | None, str, bool]:
+    def plan(self, mu: np.ndarray | None, x: np.ndarray, previous: np.ndarray, belief: np.ndarray | None = None
+             ) -> tuple[np.ndarray | None, str, bool]:
         """``(plan or None, outcome, slack used)``; outcome "ok", "fallback" (hard infeasible, soft solved),
-        "failed"."""
+        "failed". Behind a chain the program plans from ``belief`` (``mu`` is its prediction)."""
         try:
-            sol = self._solve(self.hard, mu, x, previous)
+            sol = self._solve(self.hard, mu, x, previous, belief)
             return sol.inputs, "ok", bool(sol.violations)
         except (InfeasibleError, SolverError) as err:
             # the soft twin also where the solver says infeasible without a verified certificate (chance rows)
@@ -173,7 +178,7 @@ class _Program:
                 soft = Constraints(**{**self.constraints.to_dict(), "soft": True})
                 self.soft = self._compile(soft)
             try:
-                sol = self._solve(self.soft, mu, x, previous)
+                sol = self._solve(self.soft, mu, x, previous, belief)
             except (SolverError, NumericalError, InfeasibleError):
                 return None, "infeasible-failed", False
             return sol.inputs, "fallback", bool(sol.violations)
@@ -221,10 +226,14 @@ class _Beliefs:
         if self.channel is not None:
             self.belief = np.repeat(self.channel.initial_belief[None], samples, axis=0)
 
+    def row(self, run: int) -> np.ndarray | None:
+        """The run's belief as the schedules are cached by (rounded to 12 decimals), None under Bernoulli losses."""
+        return None if self.channel is None else np.round(self.belief[run], 12)
+
     def schedule(self, run: int) -> np.ndarray | None:
         if self.channel is None:
             return None
-        row = np.round(self.belief[run], 12)
+        row = self.row(run)
         key = row.tobytes()
         if key not in self.cache:
             self.cache[key] = attach_channel(self.system, self.channel.with_belief(row)).mu_schedule
@@ -252,8 +261,8 @@ class _Controller:
                                                                                                       protocol).gain
         elif controller == "certainty-equivalent":
             self.program = _Program(twin.with_mu(np.ones(system.m)), "tcp", constraints)
-        else:
-            self.program = _Program(twin, protocol, constraints)
+        else:                 # behind a chain: the chain itself (the plug-in cost, the chance rows exact under it)
+            self.program = _Program(twin if system.channel is None else system, protocol, constraints)
 
 
 def _rolled(K: np.ndarray, X: np.ndarray, base: np.ndarray, lo: np.ndarray, hi: np.ndarray, rate: np.ndarray,
@@ -323,7 +332,7 @@ def _chunk(system: System, twin: System, constraints: Constraints, made: _Contro
                 u, packet = np.zeros((samples, m)), np.zeros((samples, L, m))
                 for s in np.flatnonzero(~diverged):
                     mu = None if controller == "certainty-equivalent" else beliefs.schedule(s)
-                    plan, outcome, used = program.plan(mu, X[s], base[s])
+                    plan, outcome, used = program.plan(mu, X[s], base[s], beliefs.row(s))
                     infeasible[s, t] = outcome in ("fallback", "infeasible-failed")
                     slack += used
                     if plan is None:

@@ -6,7 +6,9 @@ everything a cvxpy user reaches for public: ``problem`` (DPP), the variable ``U`
 (an (N, n) expression, row k-1 is E[x_k]), and the Parameters ``x0`` and ``mu`` (an (N, m) schedule). Two
 formulations give the same problem: "condensed" (E[X] = Phi x0 + Gamma (mu ∘ U) as an expression) and "sparse"
 (the mean states as variables, the dynamics as equality constraints). ``solver=`` takes any installed cvxpy
-solver (Clarabel by default, under `solve_problem`'s policy).
+solver (Clarabel by default, under `solve_problem`'s policy). Behind a Markov channel the program is the plug-in
+one (Bernoulli losses at the chain's predicted mu_t) but for its chance rows, whose variance is the exact one under
+the chain (the deliveries' covariance, one Parameter per channel set from the belief on each solve).
 
 Every solve is checked without cvxpy: the plan's expected cost J(U) on the state's mean by its forward recursion
 (`plan_moments`; the solver's objective must agree with it), and the KKT conditions (stationarity, primal and dual
@@ -38,6 +40,7 @@ from ..lq.moments import Moments, plan_moments
 from ..lq.policy import refuse_correlated
 from ..lq.prediction import prediction
 from ..lq.recursion import udp_variance_weights
+from ..model.chain import delivery_factor, stacked_moments
 from ..model.constraints import Constraints, cantelli_factor, check_constraints
 from ..model.protocols import check_protocol
 from ..model.system import System, check_system
@@ -55,7 +58,10 @@ from ..tolerances import (
 )
 from .convex import PROVEN_INFEASIBLE, ClarabelProgram, solve_problem
 
-__all__ = ["ConstrainedQP", "ConstrainedSolution", "solve_constrained"]
+__all__ = ["CHAIN_ROWS", "ConstrainedQP", "ConstrainedSolution", "solve_constrained"]
+
+#: ``ConstrainedSolution.chance_rows`` behind a Markov channel: the rows' variance from the deliveries' covariance.
+CHAIN_ROWS = "exact under the chain"
 
 #: Above this many decision variables N*m, ``formulation="auto"`` takes the sparse form (as ExpectedCostQP does).
 AUTO_CONDENSED_MAX = 60
@@ -105,6 +111,9 @@ class ConstrainedSolution(Frozen):
     polished : bool
         Whether the plan is the solver's answer refined by Newton's method on its active set
         (`ConstrainedQP._polish`), kept only where its KKT residual is no larger than the solver's.
+    chance_rows : str
+        ``"exact under the chain"`` behind a Markov channel (the chance rows' variance from the deliveries'
+        covariance), ``""`` under Bernoulli losses.
     basis : str
         What ``cost`` is (docs/design.md, "Cost bases"): ``"paper"`` for the TCP-like program (the paper's
         first-moment J_tcp(U), which leaves out the loss variance a plan applied whatever the losses pays),
@@ -129,16 +138,19 @@ class ConstrainedSolution(Frozen):
     polished: bool = False
     basis: str = ""
     plan_expected_cost: float | None = None
+    chance_rows: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON entry of ``solve --json`` ("constrained"; ``terminal_state`` is E[x_N] under the plan)."""
+        """The JSON entry of ``solve --json`` ("constrained"; ``terminal_state`` is E[x_N] under the plan;
+        ``chance_rows`` behind a chain only)."""
+        extra = {"chance_rows": self.chance_rows} if self.chance_rows else {}
         return {"status": self.status, "cost": self.cost, "basis": self.basis,
                 "plan_expected_cost": finite_or_none(self.plan_expected_cost), "inputs": self.inputs.tolist(),
                 "terminal_state": self.states[-1].tolist(), "binding": list(self.binding),
                 "violations": [{"constraint": c, "by": v} for c, v in self.violations],
                 "kkt_residual": finite_or_none(self.kkt_residual),
                 "solver_kkt_residual": finite_or_none(self.solver_kkt_residual),
-                "polished": self.polished, "formulation": self.formulation, "solver": self.solver}
+                "polished": self.polished, "formulation": self.formulation, "solver": self.solver, **extra}
 
 
 def _step_major(expr: cp.Expression, rows: int, cols: int) -> cp.Expression:
@@ -156,8 +168,10 @@ class ConstrainedQP:
     Parameters
     ----------
     system : System
-        Bernoulli losses (a stationary channel or a schedule; a Markov chain's losses are correlated over time
-        and refused).
+        Bernoulli losses (a stationary channel or a schedule), or a Markov channel: then the program is the plug-in
+        one (its cost the protocol's on the chain's predicted mu_t, basis "paper, prior-mean rates") with its chance
+        rows exact under the chain, their variance ``c_k' C_k c_k + a'S_k a`` from the deliveries' covariance
+        (`delivery_factor`; docs/mathematics.md §7, "Behind a chain"), set from the belief on each `solve`.
     protocol : {"tcp", "udp"}
     constraints : Constraints or mapping (the ``[constraints]`` table)
     formulation : {"condensed", "sparse", "auto"}
@@ -183,7 +197,8 @@ class ConstrainedQP:
     states : cvxpy.Expression (N, n)
         E[x_1..x_N] under the plan.
     x0, mu : cvxpy.Parameter
-        n and (N, m); `solve` sets them (and the Parameters derived from mu).
+        n and (N, m); `solve` sets them (and the Parameters derived from mu; behind a chain the per-channel
+        innovations factors of the deliveries' covariance, K × N K and N per channel, from the belief).
     u_prev : cvxpy.Parameter or None
         m, with ``u_prev=True``; `solve` sets it.
 
@@ -205,11 +220,12 @@ class ConstrainedQP:
                  solver: str | None = None, solver_options: dict | None = None, u_prev: bool = False) -> None:
         system = check_system(system)
         self.protocol = check_protocol(protocol)
+        #: behind a Markov channel, the system with its chain: the chance rows' delivery covariance (`solve` moves
+        #: its belief); ``system`` is then its plug-in twin, Bernoulli losses at the chain's predicted mu_t
+        self.chain: System | None = system if system.channel is not None else None
+        if self.chain is not None:
+            system = system.with_mu(system.mu_schedule)
         refuse_correlated(system, self.protocol)
-        if system.channel is not None:
-            raise InputError("channel", "the constrained QP needs Bernoulli losses (independent over time): a Markov "
-                                        "channel's losses are correlated, so the state covariance of its chance "
-                                        "constraints would be wrong; use the channel's mu (mu = [...]) instead")
         self.system = system
         N, n, m = system.horizon, system.n, system.m
         self.constraints = check_constraints(constraints, n, m)
@@ -243,6 +259,8 @@ class ConstrainedQP:
         #: (the system last asked for, its mu's key, the moments of the plan U = 0 under that mu, its x0's key, the
         #: free means A^k x0)
         self._base: tuple[System, bytes, Moments, bytes, np.ndarray] | None = None
+        #: the belief whose delivery covariance the chance rows hold (behind a chain)
+        self._chain_key: bytes | None = None
         self._build()
 
     # ------------------------------------------------------------------------------------------------ building
@@ -254,6 +272,15 @@ class ConstrainedQP:
         self.mu = cp.Parameter((N, m), nonneg=True, name="mu")
         self._w = cp.Parameter((N, m), nonneg=True, name="input_weight_over_scale")   # (psi mu + [UDP] d mu(1-mu))/s
         self._sigma = cp.Parameter((N, m), nonneg=True, name="loss_std")             # sqrt(mu (1 - mu))
+        # behind a chain: per channel the belief's part of the innovations factor of its deliveries' covariance
+        # (`DeliveryFactor`): G_s as a (K, N K) Parameter, [a, s K + b] = G_s[a, b], and sqrt(gamma_t) as an N one; the
+        # chain's part, the responses e_L, is constant
+        self._factors = None
+        if self.chain is not None and c.chance:
+            K = max(self.chain.channel.sizes)
+            self._response = delivery_factor(self.chain).response          # (m, N, K): no belief in it
+            self._factors = [(cp.Parameter((K, N * K), name=f"delivery_innovation_{i}"),
+                              cp.Parameter(N, nonneg=True, name=f"delivery_spread_{i}")) for i in range(m)]
         self.U = cp.Variable((N, m), name="U")
         u = _step_major(self.U, N, m)
         y = _step_major(cp.multiply(self.mu, self.U), N, m)        # the mean delivered inputs Vbar U
@@ -299,7 +326,16 @@ class ConstrainedQP:
                 cons = []
                 for k in range(1, N + 1):
                     nz = np.flatnonzero(H[k - 1])
-                    parts = [cp.multiply(H[k - 1, nz], W[nz])] if nz.size else []
+                    if self._factors is None:           # independent losses: diag(sqrt(mu (1 - mu)))
+                        parts = [cp.multiply(H[k - 1, nz], W[nz])] if nz.size else []
+                    else:                               # || F_k' (h_k ∘ u) ||, one term per channel
+                        parts = []
+                        for ch, (innovation, spread) in enumerate(self._factors):
+                            h = H[k - 1, ch::m]
+                            last = int(np.flatnonzero(h).max(initial=-1)) + 1     # F's rows t < last, columns s <= t
+                            if last:
+                                parts += _chain_terms(self._response[ch], innovation, spread,
+                                                      cp.multiply(h[:last], self.U[:last, ch]), last)
                     if noise[k - 1] > 0:
                         parts.append(np.array([np.sqrt(noise[k - 1])]))
                     lhs = a @ self.states[k - 1]
@@ -328,11 +364,24 @@ class ConstrainedQP:
         self._program, self.fast_path_refused = None, ""          # compiled again, with them, on the next solve
 
     # ------------------------------------------------------------------------------------------------ solving
-    def _assign(self, system: System) -> None:
-        """The Parameters' values for ``system``. They come from a validated System (x0 finite, mu in [0, 1], the
-        weights nonnegative) as float arrays of the Parameters' shapes, nonnegative where a Parameter is declared so,
-        and are saved as cvxpy's ``value`` setter saves them after its validation (``Leaf.save_value``), which would
-        repeat what System checked (0.07 ms of a two_actuator re-solve of about 2.5)."""
+    def _assign(self, system: System, chain: System | None = None) -> None:
+        """The Parameters' values for ``system`` (and behind a chain ``chain``, whose deliveries' covariance the
+        chance rows take: `delivery_factor`, kept while the belief is the same). They come from a validated System
+        (x0 finite, mu in [0, 1], the weights nonnegative) as float arrays of the Parameters' shapes, nonnegative
+        where a Parameter is declared so, and are saved as cvxpy's ``value`` setter saves them after its validation
+        (``Leaf.save_value``), which would repeat what System checked (0.07 ms of a two_actuator re-solve of about
+        2.5)."""
+        if self._factors is not None:
+            key = chain.channel.initial_belief.tobytes()
+            if self._chain_key != key:
+                factor, (_, cov) = delivery_factor(chain), stacked_moments(chain)
+                for (innovation, spread), G, root in zip(self._factors, factor.innovation, factor.spread, strict=True):
+                    innovation.save_value(G.transpose(1, 0, 2).reshape(innovation.shape))
+                    spread.save_value(root)
+                for group in self._groups:
+                    if group.kind == "chance":
+                        group.loss_cov = cov
+                self._chain_key = key
         mu = system.mu_schedule
         d = self._d * (1.0 - mu) if self.protocol == "udp" else 0.0
         for parameter, value in ((self.x0, system.x0), (self.mu, mu), (self._w, (system.input_weights + d) * mu
@@ -407,10 +456,12 @@ class ConstrainedQP:
         self.problem.unpack(solution)
         return status
 
-    def solve(self, mu=None, x0=None, *, u_prev=None, check: bool = True) -> ConstrainedSolution:
+    def solve(self, mu=None, x0=None, *, belief=None, u_prev=None, check: bool = True) -> ConstrainedSolution:
         """Solve for the system's (or the given) ``mu`` (m-vector or N×m schedule) and ``x0``, validated through
         [`System`][packetloss_cvx.model.system.System], and (built with ``u_prev=True``) the previous command
-        ``u_prev`` (m finite numbers; zero where not given).
+        ``u_prev`` (m finite numbers; zero where not given). Behind a Markov channel the schedule is the chain's
+        prediction from its ``belief`` ((m, K), the state distribution at the plan's first step; default the
+        channel's own), which also sets the chance rows' delivery covariance; ``mu`` is then refused.
 
         Raises
         ------
@@ -427,13 +478,23 @@ class ConstrainedQP:
             With ``check``, a plan whose forward cost disagrees with the solver's objective beyond
             ``CROSS_CHECK_COST_RTOL``, or whose KKT residual (`kkt`) exceeds ``CONSTRAINED_KKT_RTOL``.
         """
-        system = self.system
+        system, chain = self.system, self.chain
+        if chain is None and belief is not None:
+            raise InputError("belief", "a belief moves a Markov channel's prediction: this program has Bernoulli "
+                                       "losses (give mu)")
+        if chain is not None:
+            if mu is not None:
+                raise InputError("mu", "behind a Markov channel the delivery probabilities are the chain's "
+                                       "prediction: give its belief (belief=[...]) instead")
+            if belief is not None:
+                chain = chain.with_channel(chain.channel.with_belief(chain.channel.check_belief(belief)))
+                system = system.with_mu(chain.mu_schedule)
         if mu is not None:
             system = system.with_mu(mu)
         if x0 is not None:
             system = system.with_x0(x0)
         self._link(u_prev)
-        self._assign(system)
+        self._assign(system, chain)
         what = f"the constrained {self.protocol}-like {self.formulation} QP"
         start = time.perf_counter()
         status = self._run_solver(what)
@@ -487,7 +548,7 @@ class ConstrainedQP:
             states=self._moments(system, U).mean[1:], binding=tuple(report["binding"]),
             violations=tuple(report["violations"]), kkt_residual=kkt, formulation=self.formulation,
             solver=self.solver, solve_time=solve_time, solver_kkt_residual=None if self._user_constraints
-            else solver_kkt, polished=polished)
+            else solver_kkt, polished=polished, chance_rows="" if self.chain is None else CHAIN_ROWS)
 
     def certificate(self, system: System) -> dict[str, Any]:
         """The solver's infeasibility certificate (cvxpy's multipliers after an "infeasible" status), checked without
@@ -751,6 +812,15 @@ class ConstrainedQP:
                                                                                       * size)]
         for group, lam in zip(self._groups, multipliers, strict=True):     # a kink: the best subgradient
             for row, scale in group.kinks.items():
+                if scale.ndim == 2:             # behind a chain: the ball {lam kappa F z}, z by least squares
+                    G = max(float(lam[row]), 0.0) * scale
+                    if not G.size or not np.any(G):
+                        continue
+                    z = -np.linalg.lstsq(G, total, rcond=None)[0]
+                    z /= max(1.0, float(np.linalg.norm(z)))
+                    total += G @ z
+                    largest = max(largest, float(np.abs(G).max()))
+                    continue
                 weight = max(float(lam[row]), 0.0) * scale
                 support = weight > 0
                 if not support.any():
@@ -790,8 +860,11 @@ class _Group:
         self.dense: np.ndarray | None = None            # the input rows' P as an array, on first use
         #: a chance block's (C, (a'C_k)^2, a'S_k a, a'T_k) for the moments' C it was computed from (one mu)
         self.plan_free: tuple | None = None
-        #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale)
+        #: chance rows at the norm's kink at the last evaluate: row -> kappa sqrt(D) (the subdifferential's scale), or
+        #: behind a chain a matrix kappa F_k (columns spanning the ball {kappa F_k z : ||z|| <= 1}, F_k F_k' = Q_k)
         self.kinks: dict[int, np.ndarray] = {}
+        #: behind a chain: the deliveries' covariance (N m × N m, step-major) the chance rows take, set per belief
+        self.loss_cov: np.ndarray | None = None
 
     def link(self, value: np.ndarray) -> None:
         """The bounds for the Parameter's ``value`` (rows ``g(u) = P u - base - offset value``). O(rows)."""
@@ -820,6 +893,8 @@ class _Group:
             mean = mom.mean[1:].ravel()
             T = mom.T[1:].reshape(N * system.n, -1)
             return self.P @ mean - self.bound, np.asarray(self.P @ T), None
+        if self.loss_cov is not None:
+            return self._evaluate_chain(mom, u, system, curvature)
         a, b, kappa = self.chance
         if self.plan_free is None or self.plan_free[0] is not mom.C:      # what no plan moves, once per mu
             self.plan_free = (mom.C, np.einsum("i,kij->kj", a, mom.C[1:]) ** 2,     # (a' C_k)^2, k = 1..N
@@ -843,6 +918,60 @@ class _Group:
         total = -(Du.T * (c / std[smooth] ** 3)) @ Du
         total[np.diag_indices(u.size)] += (c / std[smooth]) @ h2[smooth]
         return g, jac, kappa * total
+
+    def _evaluate_chain(self, mom: Moments, u: np.ndarray, system: System, curvature: np.ndarray | None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """`evaluate`'s chance rows behind a chain: ``Var(a'x_k) = u' Q_k u + a'S_k a``, ``Q_k = diag(h_k) C
+        diag(h_k)``, C the deliveries' covariance (``loss_cov``) and ``h_k = a' dx_k / d(v u)`` the row's impulse
+        responses with every packet delivered (by the forward recursion, not from the problem's matrices).
+        O(N (N m)^2) per plan."""
+        a, b, kappa = self.chance
+        C = self.loss_cov
+        if self.plan_free is None or self.plan_free[0] is not mom.C or self.plan_free[1] is not C:
+            N, n, m = system.horizon, system.n, system.m
+            reach, h = np.zeros((n, N * m)), np.zeros((N, N * m))
+            for k in range(N):                   # h[k-1] = a' (A^{k-1-j} B) over the inputs j < k
+                reach = system.A @ reach
+                reach[:, k * m:(k + 1) * m] += system.B
+                h[k] = a @ reach
+            self.plan_free = (mom.C, C, h, np.einsum("i,kij,j->k", a, mom.S[1:], a),
+                              np.einsum("i,kij->kj", a, mom.T[1:]), np.einsum("kj,jj,kj->k", h, C, h))
+        _, _, h, noise, slope, trace = self.plan_free
+        hu = h * u
+        Qu = h * (hu @ C)                        # Q_k u, row k
+        std = np.sqrt(np.maximum(np.sum(Qu * u, axis=1), 0.0) + noise)
+        g = mom.mean[1:] @ a + kappa * std - b
+        jac = slope.copy()
+        reach = max(1.0, float(np.abs(u).max(initial=0.0)))
+        kink = (noise == 0.0) & (std <= CONSTRAINED_ACTIVE_RTOL * np.sqrt(trace) * reach)
+        self.kinks = {int(k): kappa * psd_factor(h[k][:, None] * C * h[k][None, :]).T for k in np.flatnonzero(kink)}
+        smooth = ~kink & (std > 0)
+        jac[smooth] += kappa * Qu[smooth] / std[smooth, None]
+        if curvature is None:
+            return g, jac, None
+        # the Hessian of row k: kappa (Q_k / std_k - Q_k u u' Q_k / std_k^3), summed with the weights c_k
+        c = curvature[smooth]
+        hs = h[smooth]
+        total = C * ((hs.T * (c / std[smooth])) @ hs) - (Qu[smooth].T * (c / std[smooth] ** 3)) @ Qu[smooth]
+        return g, jac, kappa * total
+
+
+def _chain_terms(response: np.ndarray, innovation: cp.Parameter, spread: cp.Parameter, c: cp.Expression,
+                 last: int) -> list[cp.Expression]:
+    """``F' c`` for the deliveries at steps ``t < last`` (`DeliveryFactor`), as the vectors whose stacked norm is
+    ``||F' c||``: ``(F'c)_(N K + t) = sqrt(gamma_t) c_t`` and ``(F'c)_(s, b) = sum_a G_s[a, b] sum_{s <= t < last}
+    e_{t-s}[a] c_t`` (one constant map per state a, whose entries are the responses ``e_L``, times the Parameter's
+    row a, summed over a). A state whose responses are all zero (the first: e_L is centred on it) adds nothing, so a
+    two-state channel has one term. O(last^2 K^2) entries."""
+    K = response.shape[1]
+    lag = np.subtract.outer(np.arange(last), np.arange(last))        # t - s at [t, s]
+    states = []                                                       # the sum over a, one vector
+    for a in range(K):
+        if not np.any(response[:last, a]):
+            continue
+        E = np.where(lag >= 0, response[np.clip(lag, 0, None), a], 0.0).T        # [s, t] = e_{t-s}[a], t >= s
+        states.append(cp.multiply(innovation[a, :last * K], np.repeat(E, K, axis=0) @ c))
+    return [cp.multiply(spread[:last], c)] + ([cp.sum(states)] if len(states) > 1 else states)
 
 
 def _weighted_gram(T: np.ndarray, W: np.ndarray) -> np.ndarray:

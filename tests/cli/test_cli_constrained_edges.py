@@ -95,6 +95,7 @@ def test_the_constrained_costs_say_their_basis(tmp_path, capsys):
     bernoulli = lambda v: float(np.prod([0.7 if d else 0.3 for d in v]))      # noqa: E731
     for protocol, basis in (("tcp", "paper"), ("udp", "realised")):
         entry = data[protocol]["constrained"]
+        assert "chance_rows" not in entry                 # said behind a chain only
         plan = [row[0] for row in entry["inputs"]]
         x, first_moment = 3.0, 0.0
         for u in plan:
@@ -114,8 +115,8 @@ def test_the_constrained_costs_say_their_basis(tmp_path, capsys):
 
 def test_behind_a_chain_the_constrained_block_is_the_plug_in_program_with_its_cost_under_the_chain(tmp_path,
                                                                                                      capsys):
-    """The API refuses a chain (correlated losses); the command line solves the plug-in program (Bernoulli losses at
-    the chain's mu_t), says so, and reports its plan's exact expected cost under the chain: enumerated over the
+    """The command line solves the plug-in program (its cost on Bernoulli losses at the chain's mu_t, its chance rows
+    exact under the chain), says so, and reports its plan's exact expected cost under the chain: enumerated over the
     2^10 delivery patterns with their probabilities under the Gilbert-Elliott chain (HMM forward pass)."""
     text = ('name = "hid"\n[plant]\nA = [[1.3]]\nB = [[0.8]]\n[cost]\nhorizon = 10\nstate_weight = [1.5]\n'
             'input_weight = [0.7]\n[channel]\nmodel = "gilbert-elliott"\np = [0.1]\nr = [0.3]\nh_good = [0.95]\n'
@@ -136,6 +137,7 @@ def test_behind_a_chain_the_constrained_block_is_the_plug_in_program_with_its_co
         entry = data[protocol]["constrained"]
         assert entry["plug_in"] is True
         assert entry["basis"] == "paper, prior-mean rates"
+        assert entry["chance_rows"] == "exact under the chain"
         plan = [row[0] for row in entry["inputs"]]
         assert entry["plan_expected_cost"] == pytest.approx(_enumerated_cost(1.3, 0.8, 1.5, 0.7, 2.0, plan, chain),
                                                             rel=1e-10)
@@ -143,6 +145,7 @@ def test_behind_a_chain_the_constrained_block_is_the_plug_in_program_with_its_co
     assert main(["solve", str(path), "--quiet"]) == 0
     out = capsys.readouterr().out
     assert "the plug-in program" in out
+    assert "its chance rows exact under the chain" in out
     assert "its plan's expected cost under the chain" in out
 
 

@@ -27,7 +27,7 @@ def _users_link(monkeypatch):
         qp.add_constraints([cp.abs(qp.U[0] - qp.previous) <= constraints.du_max])
         return qp
 
-    def solve(self, program, mu, x, previous):
+    def solve(self, program, mu, x, previous, belief=None):       # a Bernoulli plant: no belief
         program.previous.value = np.asarray(previous, dtype=float)
         return program.solve(mu=mu, x0=x)
     monkeypatch.setattr(mpc._Program, "_compile", compile_)
