@@ -125,8 +125,10 @@ def add_command(sub: argparse._SubParsersAction, name: str, summary: str, *, exa
                           parents=[shared_options(results)])
 
 
-def add_system_options(command: argparse.ArgumentParser) -> None:
-    """``--mu``, ``--mu-schedule`` and ``--x0``: the file's channel and initial state overridden.
+def add_system_options(command: argparse.ArgumentParser, schedule: bool = True) -> None:
+    """``--mu``, ``--mu-schedule`` and ``--x0``: the file's channel and initial state overridden. A command that
+    needs a stationary channel (its loop runs for ever over one channel: ``region``, ``compare``) passes
+    ``schedule=False`` and has no ``--mu-schedule``.
 
     Examples
     --------
@@ -145,9 +147,10 @@ def add_system_options(command: argparse.ArgumentParser) -> None:
     channel.add_argument("--mu", metavar="MU",
                          help="delivery probabilities, one per actuator or one for all, e.g. --mu 0.9,0.5 or "
                               "--mu 0.5 (default: the file's)")
-    channel.add_argument("--mu-schedule", metavar="CSV",
-                         help="a non-stationary channel: a CSV file of N rows of m probabilities, e.g. "
-                              "--mu-schedule mu.csv (default: the file's)")
+    if schedule:
+        channel.add_argument("--mu-schedule", metavar="CSV",
+                             help="a non-stationary channel: a CSV file of N rows of m probabilities, e.g. "
+                                  "--mu-schedule mu.csv (default: the file's)")
     group.add_argument("--x0", metavar="X0",
                        help="the initial state, comma-separated, e.g. --x0 1,-1 (default: the file's)")
 
@@ -434,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
                       examples=["region two_actuator --json", "region pendulum --law dp",
                                 "region two_actuator --grid 51 --channels 1,2 --out region-out"], results=False)
     reg.add_argument("file", metavar="FILE", help=FILE_HELP)
-    add_system_options(reg)
+    add_system_options(reg, schedule=False)     # the loop runs for ever over one channel
     reg.add_argument("--law", choices=("dp", "tcp", "udp", "fixed", "all"), default="all",
                      help="dp (some linear law: the stabilisable set), the paper's tcp / udp laws re-designed at "
                           "each mu, fixed (the DP gain at the file's mu), or all, e.g. --law dp")
@@ -464,7 +467,7 @@ def build_parser() -> argparse.ArgumentParser:
                       examples=["compare two_actuator", "compare pendulum --actuator zero,hold,buffer:3 --json",
                                 "compare two_actuator --actuator zero,hold --target 8 --beta 1,0.5"])
     cmp.add_argument("file", metavar="FILE", help=FILE_HELP)
-    add_system_options(cmp)
+    add_system_options(cmp, schedule=False)     # the loop runs for ever over one channel
     cmp.add_argument("--actuator", metavar="zero|hold|buffer[:L][:hold]|all", default="all",
                      help="the strategies: apply zero, hold the last input, or play the buffered plan of L inputs "
                           "(default L: the horizon); comma-separated, or all (default: all), e.g. --actuator "

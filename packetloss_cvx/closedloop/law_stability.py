@@ -3,8 +3,9 @@
 A `Solution` holds the receding-horizon gain K but not the channel, so its
 mean-square stability is computed here, from the system it was solved for: with Bernoulli losses the radius
 of the second-moment operator at mu ([`mean_square_radius`][packetloss_cvx.closedloop.stability.mean_square_radius]; the
-first step's mu when the schedule varies), behind a Markov chain (Gilbert-Elliott or k-state) the Markov jump linear
-system's (`packetloss_cvx.closedloop.mjls.mean_square_radius`). ``solve`` prints the same verdict.
+first step's mu when the schedule varies: step 0's law run for ever over the first step's channel, said in the
+note), behind a Markov chain (Gilbert-Elliott or k-state) the Markov jump linear system's
+(`packetloss_cvx.closedloop.mjls.mean_square_radius`). ``solve`` prints the same verdict.
 """
 
 from __future__ import annotations
@@ -62,8 +63,12 @@ def loop_stability(system: System, gain: npt.ArrayLike) -> LoopStability:
     if system.channel is not None:   # the losses are correlated: the loop is a Markov jump linear system
         over, note = "the Markov chain (a Markov jump linear system)", None
     else:
-        over = f"mu = {_numbers(mu)}"
-        note = None if system.is_stationary else "first step's mu: the channel is non-stationary"
+        over = f"mu = {_numbers(mu)}" if system.is_stationary else f"the first step's mu = {_numbers(mu)}"
+        note = None if system.is_stationary else (
+            f"the channel is non-stationary (the schedule's least mu per channel: "
+            f"{_numbers(system.mu_schedule.min(axis=0))}): "
+            "this is the verdict on step 0's receding-horizon law run for ever over the first step's channel; a loop "
+            "run for ever over a schedule that changes has no such verdict")
     try:
         if system.channel is not None:
             radius = markov_radius(system.A, system.B, system.channel, K)

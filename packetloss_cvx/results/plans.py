@@ -49,7 +49,7 @@ class LoopStability(Tabular):
         True only when the radius is proved below 1 (``is_mean_square_stable``); False when it is not, or
         when the radius was not computed (then ``note`` says why: not a verdict).
     over : str
-        The loop it speaks of: "mu = [...]" (the first step's mu for a schedule) or the Markov chain.
+        The loop it speaks of: "mu = [...]", "the first step's mu = [...]" (a schedule) or the Markov chain.
     note : str or None
         Why it is not computed, or that the first step's mu stands for a non-stationary channel.
     """
@@ -69,7 +69,8 @@ class LoopStability(Tabular):
 
     @property
     def verdict(self) -> str:
-        """One sentence: the loop, the verdict and the radius (or why there is none)."""
+        """One sentence: the loop, the verdict and the radius (or why there is none), and the note where there is one
+        (a non-stationary channel: which loop the verdict is on)."""
         if self.radius is None:
             return f"stability not computed: {self.note}"
         if self.stable:
@@ -79,7 +80,8 @@ class LoopStability(Tabular):
                        "losses")
         else:
             verdict = "not proved mean-square stable (the radius is within 1e-9 of 1)"
-        return f"u = -K x over {self.over}: {verdict} (second-moment spectral radius {self.radius:.6g})"
+        said = f"u = -K x over {self.over}: {verdict} (second-moment spectral radius {self.radius:.6g})"
+        return said if self.note is None else f"{said}; {self.note}"
 
     def to_dict(self) -> dict[str, Any]:
         """The keys ``solve --json`` gives each protocol's block."""
