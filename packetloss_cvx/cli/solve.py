@@ -104,7 +104,9 @@ def run(args: argparse.Namespace) -> CommandResult:
             entry["constrained"], text = constrained_entry(plugin, protocol, constraints, args,
                                                            chain=system if plugin is not system else None)
             rows.append(("constrained", text))
-        rows += text_details(sol, system.n, args.verbose, acts=acts, A=plugin.A, B=plugin.B)
+            entry["law_note"] = unconstrained_note(args.file)
+        rows += text_details(sol, system.n, args.verbose, acts=acts, A=plugin.A, B=plugin.B,
+                             unconstrained=constraints is not None)
         flag = all_delivered_flag(sol) if acts.all() else None if not acts.any() else all_delivered_flag(
             SimpleNamespace(closed_loop_eigenvalues=acting_eigenvalues(plugin.A, plugin.B, sol.gain, acts)))
         if flag is not None and not acts.all():
@@ -124,6 +126,10 @@ def run(args: argparse.Namespace) -> CommandResult:
             rows.append(("closed loop", f"stability not computed: {why}"))
         else:
             rows.append(("closed loop", stability(system, sol.gain, entry)))
+        if constraints is not None:     # the gain and its verdict are the closed form's, blind to the constraints
+            label, said = rows[-1]
+            rows[-1] = (label, f"{said}; the unconstrained law's loop (the constrained loop: simulate {args.file} "
+                               "with the same constraints)")
         if strategies:      # the law's loop when the actuator zeroes, holds or plays the buffered plan on a loss
             entry["actuator"], more = actuator_entry(system, sol.gain, strategies, system.horizon)
             rows.append(("on a loss", more))
@@ -217,6 +223,20 @@ def constrained_entry(system: System, protocol: str, constraints: Constraints,
     return entry, f"{label}; binding: {bound or 'none'}"
 
 
+def unconstrained_note(file: str) -> str:
+    """The JSON's ``law_note`` where constraints are given: the gain, its eigenvalues and its loop's verdict are the
+    unconstrained law's (the closed form's), which may break every bound; the constrained loop is `simulate`'s.
+
+    Examples
+    --------
+    >>> unconstrained_note("plant.toml")[:64]
+    'gain, closed_loop_eigenvalues and the stability verdict are the '
+    """
+    return ("gain, closed_loop_eigenvalues and the stability verdict are the unconstrained law's (the closed form's "
+            "u = -K x, blind to the constraints, which only the \"constrained\" plan keeps); the constrained loop: "
+            f"simulate {file} with the same constraints")
+
+
 #: the cost's note where no channel ever delivers (every mu_t = 0): the inputs drop out of both protocols' costs
 OPEN_LOOP_NOTE = "the open-loop cost (no input is ever delivered, so every plan realises it)"
 
@@ -264,10 +284,11 @@ def acting_eigenvalues(A: np.ndarray, B: np.ndarray, gain: np.ndarray, acts: np.
 
 
 def text_details(sol: Solution, n: int, verbose: int, acts: np.ndarray | None = None, A: np.ndarray | None = None,
-                 B: np.ndarray | None = None) -> list[tuple[str, object]]:
+                 B: np.ndarray | None = None, unconstrained: bool = False) -> list[tuple[str, object]]:
     """The gain, the closed-loop eigenvalues (the JSON's order) and, with ``-v``, the plan U*. Where ``acts``
     (`gain_rows`) marks rows of K that never act, the system's ``A`` and ``B`` give the eigenvalues without them
-    (`acting_eigenvalues`), and the gain line says which rows never act (none: no matrix).
+    (`acting_eigenvalues`), and the gain line says which rows never act (none: no matrix). ``unconstrained`` (the
+    command was given constraints) labels the gain as the unconstrained law's.
 
     Examples
     --------
@@ -293,7 +314,8 @@ def text_details(sol: Solution, n: int, verbose: int, acts: np.ndarray | None = 
         else:
             gain = note
             eigs += " (no row acts: A's own)"
-    rows: list[tuple[str, object]] = [("K (u = -K x)", gain), *extra, ("eig(A - B K)", eigs)]
+    label = "K (u = -K x, the unconstrained law)" if unconstrained else "K (u = -K x)"
+    rows: list[tuple[str, object]] = [(label, gain), *extra, ("eig(A - B K)", eigs)]
     if verbose:
         plan = fmt.matrix(sol.inputs, [f"t={t}" for t in range(len(sol.inputs))], fmt.labels("u", m))
         rows.append(("U* (row t)", plan))
