@@ -34,6 +34,7 @@ __all__ = [
     "PLAN_COST_RTOL",
     "SELF_CHECK_ATOL",
     "SELF_CHECK_RTOL",
+    "SOFT_WEIGHT_MAX_RATIO",
     "STATIONARY_RTOL",
     "PATH_AGREEMENT_RTOL",
     "PSD_FACTOR_RTOL",
@@ -84,6 +85,16 @@ CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10,
 #: passed, so an empty dict after CLARABEL_TIGHT would run the tight settings again.
 CLARABEL_DEFAULT = {"tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, "max_iter": 200,
                     "direct_solve_method": CLARABEL_LINEAR_SOLVER}
+
+#: The largest soft-row weight rho the constrained QP is solved with, relative to its cost scale (the largest
+#: weight, ConstrainedQP.scale): the program carries rho / scale per unit of slack, and beyond the solver's range it
+#: comes back "solver_error" or a false "infeasible". Measured (Clarabel, Haswell kernel; 40 random systems, n <= 3,
+#: m <= 2, N = 6, weights 1e-3..1e3, x0 1e-2..1e2, soft x_max at 0.3 |x0|, both protocols): every solve optimal up to
+#: 1e4; at 1e8 39 of 40 (the 40th refused by its KKT residual from 1e6 on, weight-sensitive, not the range); at 1e9
+#: 35-37 (the rest "infeasible" undecided); at 3e9 26-29 (10 solver errors); two_actuator --x-max 0.5 optimal to
+#: 1e10, "solver_error" at 1e12, a false "infeasible" from 1e14. A weight of 1e8 times the cost scale already holds
+#: a soft row as hard as the solver can (an exact penalty: any rho above the row's multiplier).
+SOFT_WEIGHT_MAX_RATIO = 1e8
 
 #: The constrained expected-cost QP (qp/constrained.py). A solve is refused when the KKT residual of its answer
 #: (stationarity, primal and dual feasibility, complementarity, each relative: ConstrainedQP.kkt), evaluated on the

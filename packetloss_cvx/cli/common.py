@@ -35,7 +35,7 @@ from ..model.constraints import Constraints, constraints_from_dict
 from ..model.files import load_constraints, load_system, read_csv_rows, read_input
 from ..model.system import System
 from ..safeio import FIGURE_DPI, check_dpi, check_output_file
-from ..tolerances import ALLOCATION_COST_RTOL
+from ..tolerances import ALLOCATION_COST_RTOL, SOFT_WEIGHT_MAX_RATIO
 from . import format as fmt
 from .parser import FIGURE_FORMATS
 
@@ -232,6 +232,8 @@ def constraints_of(args: argparse.Namespace, system: System) -> Constraints | No
     constraints = load_constraints(args.file, system)
     given = {key: getattr(args, key) for key in CONSTRAINT_FLAGS if getattr(args, key, None) is not None}
     if not given:
+        if constraints is not None:
+            check_soft_weight(constraints, system, "constraints.soft_weight")
         return constraints
     table = {} if constraints is None else constraints.to_dict()
     for key, value in given.items():
@@ -245,10 +247,37 @@ def constraints_of(args: argparse.Namespace, system: System) -> Constraints | No
             size = system.m if key[0] in "ud" else system.n
             table[key] = values * size if len(values) == 1 else values
     try:
-        return constraints_from_dict(table, system.n, system.m, prefix="")
+        constraints = constraints_from_dict(table, system.n, system.m, prefix="")
     except InputError as err:
         key = err.field.split(".")[0].split("[")[0]
         raise err.renamed(CONSTRAINT_FLAGS[key] if key in given else f"constraints.{err.field}") from None
+    check_soft_weight(constraints, system, "--soft-weight" if "soft_weight" in given else "constraints.soft_weight")
+    return constraints
+
+
+def check_soft_weight(constraints: Constraints, system: System, field: str) -> None:
+    """Refuse a soft-row weight beyond the solver's range: rho above `SOFT_WEIGHT_MAX_RATIO` (1e8) times the cost
+    scale (the largest weight, as ``ConstrainedQP.scale``) swamps the cost and the QP comes back "solver_error" or a
+    false "infeasible"; a weight that large holds the rows as hard as the solver can anyway. O(n^3).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model.files import load_example
+    >>> check_soft_weight(Constraints(x_max=[1.0, 1.0], soft=True, soft_weight=1e308), load_example("two_actuator"),
+    ...                   "--soft-weight")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    packetloss_cvx.errors.InputError: --soft-weight: expected a weight in (0, 1e+08] ...; found 1e+308
+    """
+    if not constraints.soft:
+        return
+    scale = max(float(system.input_weights.max()), float(np.linalg.eigvalsh(system.state_weights).max()))
+    top = SOFT_WEIGHT_MAX_RATIO * scale
+    if not constraints.soft_weight <= top:
+        raise InputError(field, f"expected a weight in (0, {top:.3g}] (at most {SOFT_WEIGHT_MAX_RATIO:g} times the "
+                                f"largest cost weight, {scale:.3g}: beyond it the solver cannot weigh the slack "
+                                "against the cost, and the rows are already as hard as it can hold them; --no-soft "
+                                f"makes them hard); found {constraints.soft_weight:.6g}")
 
 
 def system_of(args: argparse.Namespace) -> System:

@@ -189,7 +189,8 @@ def add_constraint_options(command: argparse.ArgumentParser, what: str) -> None:
                        help="state, terminal and chance rows as exact-penalty slacks (--soft) or hard (--no-soft) "
                             f"({same}, else hard), e.g. --soft")
     group.add_argument("--soft-weight", metavar="RHO",
-                       help=f"the penalty per unit of violation of a soft row, > 0 ({same}, else 1e4), "
+                       help="the penalty per unit of violation of a soft row, > 0 and at most 1e8 times the largest "
+                            f"cost weight ({same}, else 1e4), "
                             "e.g. --soft-weight 100")
 
 

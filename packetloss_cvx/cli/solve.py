@@ -28,7 +28,9 @@ __all__ = ["STABILITY_MAX_N", "constrained_entry", "run", "stability", "text_det
 
 
 def run(args: argparse.Namespace) -> CommandResult:
-    """Both protocols' closed forms, each compared with its QP twin (a disagreement raises).
+    """Both protocols' closed forms, each compared with its QP twin (a disagreement raises). Exit code 1 where a
+    constrained program asked for was not solved (status "failed": a solver error or an untrusted answer); the
+    result is still printed in full.
 
     Examples
     --------
@@ -143,7 +145,12 @@ def run(args: argparse.Namespace) -> CommandResult:
         model = system.channel.to_dict()["model"]
         heading = "Gilbert-Elliott channel" if model == "gilbert-elliott" else "Markov channel"
         lines += ["", heading] + [line.strip() for line in more]
-    return CommandResult(out, "\n".join(lines))
+    # a constrained program asked for that the solver did not solve is a failed computation (exit 1), printed in full
+    failed = [p for p in protocols if out[p].get("constrained", {}).get("status") == "failed"]
+    if failed:
+        which = ", ".join(f"{p.upper()}-like" for p in failed)
+        lines += ["", f"not solved: the constrained program of {which} (exit 1)"]
+    return CommandResult(out, "\n".join(lines), 1 if failed else 0)
 
 
 def constrained_entry(system: System, protocol: str, constraints: Constraints,
