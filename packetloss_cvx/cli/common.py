@@ -508,9 +508,9 @@ def mpc_samples_of(args: argparse.Namespace) -> int:
 def check_dead_flags(args: argparse.Namespace) -> None:
     """An option that would change nothing is refused (exit 2, one line naming it and what it needs), as a
     conflicting one is: ``--format``, ``--dpi`` and ``--yscale`` without the option that writes the figure
-    (`FIGURE_NEEDS`), and ``simulate --mpc-samples K >= 1`` on a FILE with no ``[constraints]`` table and no
-    constraint flag (``--mpc-samples 0`` skips the constrained loop, which such a FILE does anyway). O(1) beyond
-    loading FILE.
+    (`FIGURE_NEEDS`), ``simulate --mpc-samples K >= 1`` on a FILE with no ``[constraints]`` table and no
+    constraint flag (``--mpc-samples 0`` skips the constrained loop, which such a FILE does anyway), and ``audit
+    --report`` with ``--json`` (the JSON is printed instead of the text the report is). O(1) beyond loading FILE.
 
     Examples
     --------
@@ -525,6 +525,9 @@ def check_dead_flags(args: argparse.Namespace) -> None:
 (--u-min, --u-max, --du-max, ...): without one there is no constrained loop to sample
     """
     command = getattr(args, "command", None)
+    if command == "audit" and getattr(args, "report", False) and getattr(args, "json", False):
+        raise InputError("--report", "not with --json, which prints the claims' JSON object instead of text: the "
+                                     "Markdown report is text (--out FILE writes the JSON beside it)")
     for name, need in FIGURE_NEEDS.get(command, ()):
         if getattr(args, name, None) is None:
             for option, flag in FIGURE_OPTIONS.items():

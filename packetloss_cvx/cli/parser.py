@@ -279,7 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="seeds the random systems, the samples and the shrinking (>= 0), e.g. --seed 1")
     aud.add_argument("--claim", action="append", metavar="ID",
                      help="check only this claim (repeatable; default: all), e.g. --claim theorem-2")
-    aud.add_argument("--report", action="store_true", help="the Markdown report with notes and counterexamples")
+    aud.add_argument("--report", action="store_true",
+                     help="the Markdown report with notes and counterexamples, as the text (not with --json; --out "
+                          "FILE writes the JSON beside it)")
 
     alloc = add_command(sub, "allocate", "the cheapest channel qualities mu with J*(mu) <= alpha (paper §VI)",
                         examples=["allocate two_actuator --protocol udp --alpha 8 --beta 1,0.05",
