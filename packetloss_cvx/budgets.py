@@ -274,15 +274,16 @@ CLIPPED_SOLVE_SHARE = 2e-3
 
 
 #: A chance row exact under a Markov chain (qp/constrained.py: its N cones hold per channel the innovations' terms of
-#: the deliveries' covariance, `delivery_factor`), beyond the plug-in row's price, per ``m^2 (K - 1)`` (K the chain's
-#: most states per channel; the first state's responses are zero, so a Gilbert channel adds one term): cvxpy's compile
-#: of the cones, ``CHAIN_COMPILE_N3 N^3`` us; Clarabel's factorisations of a KKT system whose cone rows each reach up
-#: to N inputs (the plug-in row's reach one), ``CHAIN_RESOLVE_N4 N^4`` us a solve; cvxpy's parameter maps of the
-#: cones, ``N^3 (115 m^2 + 50 n)`` bytes (`CHAIN_BYTES_N3`). Fitted (least squares on the log of measured over
-#: predicted) on the exact program less its plug-in twin, one chance row and an input box, ``ConstrainedQP(...,
-#: u_prev=True)`` in a fresh process, one BLAS thread, CPU time: N in 50..200, a scalar plant behind a Gilbert channel
-#: (K = 2) and a 3-state chain (K = 3), n = m = 2 behind two Gilbert channels, pendulum_bursty (n = 4) up to
-#: N = 100; the cases and the ratios are in `constrained_work`, `constrained_bytes` and `mpc_solve_size`.
+#: the deliveries' covariance, `delivery_factor`) beyond the plug-in row's price, with K the chain's most states per
+#: channel (the first state's responses are zero, so a Gilbert channel adds one term): cvxpy's compile of the cones,
+#: ``CHAIN_COMPILE_N3 m^2 (K - 1) N^3`` us; Clarabel's factorisations of a KKT system whose cone rows each reach up to
+#: N inputs (the plug-in row's reach one), ``CHAIN_RESOLVE_N4 m^2 (K - 1) N^4`` us a solve; cvxpy's parameter maps of
+#: the cones, ``(K - 1) N^3 (115 m^2 + 50 n)`` bytes (`CHAIN_BYTES_N3`). Fitted (least squares on the log of measured
+#: over predicted; benchmarks/chain_chance_budget.py) on the exact program less its plug-in twin, one chance row and
+#: an input box, ``ConstrainedQP(..., u_prev=True)`` in a fresh process, one BLAS thread, CPU time: N in 50..200, a
+#: scalar plant behind a Gilbert channel (K = 2) and a 3-state chain (K = 3), n = m = 2 behind two Gilbert channels,
+#: pendulum_bursty (n = 4) up to N = 100; the cases and the ratios are in `constrained_work`, `constrained_bytes` and
+#: `mpc_solve_size`.
 CHAIN_COMPILE_N3 = 0.56
 CHAIN_RESOLVE_N4 = 3.2e-3
 CHAIN_BYTES_N3 = (115.0, 50.0)
