@@ -31,13 +31,13 @@ from dataclasses import dataclass
 from .errors import BudgetError, InputError
 from .tolerances import MEMORY_BUDGET_BYTES
 
-__all__ = ["BUDGETS", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX", "MARKOV_DENSE_SECONDS", "OVERRIDE_REACH",
-           "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work", "check", "check_constrained", "constrained_bytes",
-           "constrained_work", "constraint_bytes", "count_text", "dense_bytes", "duration_text", "estimated_seconds",
-           "gib_text", "krylov_bytes", "limit", "loop_bytes", "markov_dense_bytes", "markov_dense_seconds",
-           "markov_recursion_work", "mpc_bytes", "mpc_solve_size", "mpc_solves", "operator_bytes", "program_bytes",
-           "qp_bytes", "qp_work", "refusal_text", "simulate_work", "solve_bytes", "solve_work", "sweep_work",
-           "udp_box_work"]
+__all__ = ["BUDGETS", "CHAIN_BYTES_N3", "CHAIN_COMPILE_N3", "CHAIN_RESOLVE_N4", "CLIPPED_SOLVE_SHARE", "ENV_PREFIX",
+           "MARKOV_DENSE_SECONDS", "OVERRIDE_REACH", "PROGRAM_BYTES_PER_ENTRY", "Budget", "burstiness_work",
+           "chain_states", "check", "check_constrained", "constrained_bytes", "constrained_work", "constraint_bytes",
+           "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text", "krylov_bytes", "limit",
+           "loop_bytes", "markov_dense_bytes", "markov_dense_seconds", "markov_recursion_work", "mpc_bytes",
+           "mpc_solve_size", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes", "qp_work", "refusal_text",
+           "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -273,7 +273,43 @@ def simulate_work(samples: int, steps: int, horizon: int, n: int, m: int, plans:
 CLIPPED_SOLVE_SHARE = 2e-3
 
 
-def mpc_solve_size(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> float:
+#: A chance row exact under a Markov chain (qp/constrained.py: its N cones hold per channel the innovations' terms of
+#: the deliveries' covariance, `delivery_factor`) beyond the plug-in row's price, with K the chain's most states per
+#: channel (the first state's responses are zero, so a Gilbert channel adds one term): cvxpy's compile of the cones,
+#: ``CHAIN_COMPILE_N3 m^2 (K - 1) N^3`` us; Clarabel's factorisations of a KKT system whose cone rows each reach up to
+#: N inputs (the plug-in row's reach one), ``CHAIN_RESOLVE_N4 m^2 (K - 1) N^4`` us a solve; cvxpy's parameter maps of
+#: the cones, ``(K - 1) N^3 (115 m^2 + 50 n)`` bytes (`CHAIN_BYTES_N3`). Fitted (least squares on the log of measured
+#: over predicted; benchmarks/chain_chance_budget.py) on the exact program less its plug-in twin, one chance row and
+#: an input box, ``ConstrainedQP(..., u_prev=True)`` in a fresh process, one BLAS thread, CPU time: N in 50..200, a
+#: scalar plant behind a Gilbert channel (K = 2) and a 3-state chain (K = 3), n = m = 2 behind two Gilbert channels,
+#: pendulum_bursty (n = 4) up to N = 100; the cases and the ratios are in `constrained_work`, `constrained_bytes` and
+#: `mpc_solve_size`.
+CHAIN_COMPILE_N3 = 0.56
+CHAIN_RESOLVE_N4 = 3.2e-3
+CHAIN_BYTES_N3 = (115.0, 50.0)
+
+
+def chain_states(channel: object) -> int:
+    """The states per channel that price a program's chance rows behind ``channel``: a Markov channel's largest
+    ``sizes`` (the width of its innovations in qp/constrained.py), 0 for Bernoulli losses (``None``): the ``states``
+    argument of `constrained_work`, `constrained_bytes`, `mpc_solve_size` and `check_constrained`. O(m).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> chain_states(None), chain_states(SimpleNamespace(sizes=(2, 3)))
+    (0, 3)
+    """
+    return 0 if channel is None else max(channel.sizes)
+
+
+def _chained(states: int) -> float:
+    """The chain's factor of a chance row's price beyond the plug-in row's, ``K - 1`` for ``states`` = K (0 below 2:
+    Bernoulli losses)."""
+    return float(max(int(states) - 1, 0))
+
+
+def mpc_solve_size(horizon: int, n: int, m: int, rows: int, chance: int = 0, states: int = 0) -> float:
     """One solve of the constrained loop's program (``ConstrainedQP.solve`` from a new state: Clarabel on the compiled
     program and the solution's checks) in the ``mpc_solves`` budget's unit, solves of 5 ms: ``(1600 + 0.75 N (n +
     m)^2 + 0.055 N^2 n m + 3.5 rows + 0.6 chance N^2 (n + m)) us / 5 ms``, ``rows`` the program's linear rows
@@ -284,7 +320,17 @@ def mpc_solve_size(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> 
     one BLAS thread, CPU time): the measured solve 0.59 to 1.8 times this on all 59 cases, median 0.89 (1.1 ms at
     N = 10, n = 2, m = 1 to 100 ms at N = 200, n = 8, m = 3, 4400 rows; the largest ratios where the condensed form
     carries state limits, 1.1 and 1.3 with a chance row at N = 200), Clarabel's linear solver pinned to QDLDL
-    (tolerances.CLARABEL_LINEAR_SOLVER; its own default, "auto", took 10 and 21 times this there). O(1).
+    (tolerances.CLARABEL_LINEAR_SOLVER; its own default, "auto", took 10 and 21 times this there).
+
+    Behind a Markov chain of ``states`` = K states per channel (`chain_states`; 0 for Bernoulli losses) each chance
+    row is exact under the chain and costs ``3.2e-3 m^2 (K - 1) N^4`` us more (`CHAIN_RESOLVE_N4`: Clarabel's
+    factorisations, each cone row reaching up to N inputs), priced at a solve from a new belief (a TCP-like
+    controller filters its belief every step). Measured re-solves (new x0 and belief) against this: a scalar plant
+    behind a Gilbert channel, N = 50 / 100 / 200, 27 ms / 0.21 s / 5.3 s (predicted 25 ms / 0.34 s / 5.2 s; the
+    plug-in row's 6 ms / 18 ms / 75 ms); a 3-state chain, N = 100, 0.30 s (0.66 s); n = m = 2 behind two Gilbert
+    channels, N = 100 / 200, 0.45 s / 12 s (1.3 s / 21 s); pendulum_bursty, whose chance row binds at most steps,
+    N = 60 / 80 / 100, 0.18 s / 0.77 s / 1.2 s (56 ms / 0.16 s / 0.36 s; its plug-in solves, 44 ms / 85 ms / 0.16 s,
+    are 3 to 4.4 times the plug-in formula too): 0.34 to 5.0 times this, median 0.84. O(1).
 
     Examples
     --------
@@ -292,10 +338,13 @@ def mpc_solve_size(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> 
     0.3497
     >>> round(mpc_solve_size(200, 8, 3, 4400), 2)   # 88 ms predicted, 101 ms measured
     17.59
+    >>> # behind a Gilbert channel: 1600 + 300 + 550 + 700 + 12000 + 3.2e-3 1e8 = 335150 us (0.21 s measured)
+    >>> round(mpc_solve_size(100, 1, 1, 200, 1, states=2), 2)
+    67.03
     """
     N = _float(horizon)
     micro = (1600.0 + 0.75 * N * (n + m) ** 2 + 0.055 * N * N * n * m + 3.5 * _float(rows)
-             + 0.6 * chance * N * N * (n + m))
+             + 0.6 * chance * N * N * (n + m) + chance * _chained(states) * m * m * CHAIN_RESOLVE_N4 * N ** 4)
     return micro * 1e-6 / BUDGETS["mpc_solves"].seconds_per_unit
 
 
@@ -493,48 +542,75 @@ def solve_bytes(horizon: int, n: int, m: int, qp: str | None = "sparse") -> floa
     return max(fitted, need + qp_bytes(horizon, n, m, qp))
 
 
-def constrained_work(horizon: int, n: int, m: int, chance: int = 0) -> float:
+def constrained_work(horizon: int, n: int, m: int, chance: int = 0, states: int = 0) -> float:
     """Work units (1e-6 s each) of one constrained program's compile and solve (qp/constrained.py) beyond its
     fixed second: the polish's least squares on the active set's KKT matrix and the checks' dense products,
     ``6.8e-4 (N m)^2 N (n + m) / 2``, and per chance row (N second-order cones whose data cvxpy maps per parameter
     entry) ``0.65 N^3 m^2``. Measured (one BLAS thread, input box, a 2-core machine at load 5): n = m = 1, N = 3000
     18.3 s (predicted 18.4), N = 2000 2.3-5.6 s (5.4); n = m = 2, N = 500 0.8 s (0.7); n = 4, m = 1, N = 1000 1.4 s
     (1.7); n = 10, m = 3, N = 300 1.0 s (1.1); one chance row, n = m = 1, N = 300 17.5 s (17.6), N = 200 2.3 s
-    (5.2). O(1).
+    (5.2).
+
+    Behind a Markov chain of ``states`` = K states per channel (`chain_states`; 0 for Bernoulli losses) each chance
+    row, exact under the chain, costs ``m^2 (K - 1) (0.56 N^3 + 3.2e-3 N^4)`` more (`CHAIN_COMPILE_N3`, cvxpy's
+    compile of its denser cones, and `CHAIN_RESOLVE_N4`, Clarabel's first solve). Measured (``ConstrainedQP`` and its
+    first solve, one chance row and an input box, CPU time, one BLAS thread; the plug-in program in brackets): a
+    scalar plant behind a Gilbert channel, N = 50 / 100 / 200, 0.28 s / 0.89 s / 10.6 s (0.18 / 0.41 / 1.2 s),
+    predicted 0.17 / 1.5 / 14.8 s; a 3-state chain, N = 50 / 100, 0.40 / 1.3 s (0.21 / 0.39 s), predicted 0.26 /
+    2.4 s; n = m = 2 behind two Gilbert channels, N = 50 / 100 / 200, 0.48 / 2.8 / 31 s (0.20 / 0.55 / 6.9 s),
+    predicted 0.69 / 6.1 / 59 s; pendulum_bursty (its chance row binding at most steps), N = 60 / 80 / 100, 0.59 /
+    1.3 / 2.8 s (0.31 / 0.43 / 0.56 s), predicted 0.30 / 0.75 / 1.5 s: 0.45 to 1.9 times this, median 0.71. O(1).
 
     Examples
     --------
     >>> round(estimated_seconds("solve_work", constrained_work(3000, 1, 1)), 1)     # a scalar plant, N = 3000
     18.4
+    >>> constrained_work(200, 4, 1, 1, states=2) - constrained_work(200, 4, 1, 1)   # pendulum_bursty's chain rows
+    9600000.0
     """
     N = _float(horizon)
-    return 6.8e-4 * (N * m) ** 2 * N * (n + m) / 2 + 0.65 * chance * N ** 3 * m * m
+    return (6.8e-4 * (N * m) ** 2 * N * (n + m) / 2 + 0.65 * chance * N ** 3 * m * m
+            + chance * _chained(states) * m * m * (CHAIN_COMPILE_N3 * N ** 3 + CHAIN_RESOLVE_N4 * N ** 4))
 
 
-def constrained_bytes(horizon: int, n: int, m: int, rows: int, chance: int = 0) -> float:
+def constrained_bytes(horizon: int, n: int, m: int, rows: int, chance: int = 0, states: int = 0) -> float:
     """Bytes of one constrained program at its peak (qp/constrained.py): the plan's moment maps T, C and a plan's
     spread, ``3 N^2 n m`` doubles; the ``rows`` linear rows as dense Jacobians, ``rows N m``; the polish's KKT
     matrices (the Hessian, the active set's K and its least-squares copy), ``9 (N m)^2``; per chance row cvxpy's
     parameter maps of its N cones, ``N^3 (60 m^2 + 40 n)`` bytes; and the sparse QP's own (`qp_bytes`). Measured
     peak resident memory less the interpreter's 140 MB: n = m = 1, N = 3000, input box 560 MB (predicted 1.0 GB);
     one chance row, N = 100 / 200 / 300 80 MB / 735 MB / 2.5 GB (predicted 0.11 / 0.83 / 2.8 GB); n = 1, m = 2,
-    N = 100 223 MB (0.29 GB); n = 4, m = 1, N = 100 224 MB (0.23 GB). O(1).
+    N = 100 223 MB (0.29 GB); n = 4, m = 1, N = 100 224 MB (0.23 GB).
+
+    Behind a Markov chain of ``states`` = K states per channel (`chain_states`; 0 for Bernoulli losses) each chance
+    row, exact under the chain, holds ``(K - 1) N^3 (115 m^2 + 50 n)`` bytes more (`CHAIN_BYTES_N3`: cvxpy's maps of
+    its denser cones). Measured (the peak resident memory of ``ConstrainedQP`` and its solves in a fresh process less
+    that before it, one chance row and an input box; the plug-in program in brackets): a scalar plant behind a Gilbert
+    channel, N = 100 / 200, 275 MB / 2.1 GB (105 / 790 MB), predicted 276 MB / 2.1 GB; a 3-state chain, N = 100,
+    504 MB (105 MB), predicted 441 MB; n = m = 2 behind two Gilbert channels, N = 100 / 200, 874 MB / 6.9 GB (348 MB
+    / 2.7 GB), predicted 895 MB / 7.1 GB; pendulum_bursty, N = 100 / 200, 612 MB / 4.8 GB (254 MB / 2.0 GB),
+    predicted 547 MB / 4.3 GB: 0.72 to 1.14 times this for N = 50 to 200, median 0.98. O(1).
 
     Examples
     --------
     >>> round(constrained_bytes(10 ** 5, 1, 1, 2 * 10 ** 5) / 2 ** 30)     # a horizon of 1e5: 1 TiB
     1043
+    >>> constrained_bytes(100, 1, 1, 200, 1, states=3) - constrained_bytes(100, 1, 1, 200, 1)   # 2 x 1e6 x 165
+    330000000.0
     """
     N = _float(horizon)
     dense = 8.0 * (3.0 * N * N * n * m + _float(rows) * N * m + 9.0 * (N * m) ** 2)
-    return dense + chance * N ** 3 * (60.0 * m * m + 40.0 * n) + qp_bytes(horizon, n, m)
+    chained = chance * _chained(states) * N ** 3 * (CHAIN_BYTES_N3[0] * m * m + CHAIN_BYTES_N3[1] * n)
+    return dense + chance * N ** 3 * (60.0 * m * m + 40.0 * n) + chained + qp_bytes(horizon, n, m)
 
 
 def check_constrained(horizon: int, n: int, m: int, rows: int, chance: int, field: str, programs: int = 1,
-                      instead: str = "use a shorter horizon") -> None:
+                      instead: str = "use a shorter horizon", states: int = 0) -> None:
     """Refuse, before anything is built, ``programs`` constrained programs (solved one after another) whose work
     (`constrained_work`) exceeds the ``solve_work`` budget or one of which exceeds ``memory_bytes``
-    (`constrained_bytes`), under ``field`` (the API's ``horizon``, the file's ``cost.horizon``). O(1).
+    (`constrained_bytes`), under ``field`` (the API's ``horizon``, the file's ``cost.horizon``); ``states`` the
+    states per channel of the Markov chain the chance rows are exact under (`chain_states`; 0 for Bernoulli
+    losses). O(1).
 
     Examples
     --------
@@ -545,12 +621,13 @@ def check_constrained(horizon: int, n: int, m: int, rows: int, chance: int, fiel
     packetloss_cvx.errors.BudgetError: cost.horizon: the constrained program of N = 100000 (n = 1, m = 1; ...
     """
     size = (f"the constrained program of N = {horizon} (n = {n}, m = {m}; {rows} linear rows"
-            + (f", {count_text(chance)} chance row" + "s" * (chance != 1) if chance else "") + ")"
+            + (f", {count_text(chance)} chance row" + "s" * (chance != 1) if chance else "")
+            + (f" exact under a {states}-state chain" if chance and states >= 2 else "") + ")"
             + (f" x {programs}" if programs > 1 else ""))
-    work = programs * constrained_work(horizon, n, m, chance)
+    work = programs * constrained_work(horizon, n, m, chance, states)
     check("solve_work", work, field, f"{size}, about {duration_text(estimated_seconds('solve_work', work))}",
           instead=instead)
-    need = constrained_bytes(horizon, n, m, rows, chance)
+    need = constrained_bytes(horizon, n, m, rows, chance, states)
     check("memory_bytes", need, field, f"{size}, about {gib_text(need)} for one", instead=instead)
 
 

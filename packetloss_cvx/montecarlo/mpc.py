@@ -59,7 +59,16 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..budgets import check, check_constrained, count_text, gib_text, mpc_bytes, mpc_solve_size, mpc_solves
+from ..budgets import (
+    chain_states,
+    check,
+    check_constrained,
+    count_text,
+    gib_text,
+    mpc_bytes,
+    mpc_solve_size,
+    mpc_solves,
+)
 from ..closedloop.actuator import Actuator, parse_actuator
 from ..closedloop.moments import stationary_channel
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
@@ -586,21 +595,27 @@ def check_loop_budgets(system: System, constraints: Constraints, samples: int, s
     jobs = [job for loop in runs for job in loop]
     programs = sum(name != "clipped" for name, _ in jobs)
     clipped = len(jobs) - programs
-    N, rows = system.horizon, constraints.program_rows(system.horizon)
-    size = mpc_solve_size(N, system.n, system.m, rows, len(constraints.chance))
-    check("mpc_solves", mpc_solves(samples, steps, programs, clipped, size), "samples",
+    N, rows, chance = system.horizon, constraints.program_rows(system.horizon), len(constraints.chance)
+    # behind a chain the expected-cost programs' chance rows are exact under it (denser cones, priced so); the
+    # certainty-equivalent one plans on delivered inputs, its rows the plug-in ones
+    states = chain_states(system.channel) if chance else 0
+    exact = sum(name == "expected-cost" for name, _ in jobs) if states else 0
+    size = mpc_solve_size(N, system.n, system.m, rows, chance)
+    chained = mpc_solve_size(N, system.n, system.m, rows, chance, states)
+    priced = (f"{exact} with the rows exact under the {states}-state chain at {chained:.2g} of a 5 ms solve each, "
+              f"the others at {size:.2g}" if exact else f"{size:.2g} of a 5 ms solve each")
+    check("mpc_solves", mpc_solves(samples, steps, programs - exact, clipped, size)
+          + mpc_solves(samples, steps, exact, 0, chained), "samples",
           f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
-          + (f" and {clipped} clipped laws" if clipped else "") + f" ({size:.2g} of a 5 ms solve each: N = {N}, "
-          f"n = {system.n}, m = {system.m}, {rows} linear rows, {len(constraints.chance)} chance row"
-          + "s" * (len(constraints.chance) != 1) + ")")
+          + (f" and {clipped} clipped laws" if clipped else "") + f" ({priced}: N = {N}, "
+          f"n = {system.n}, m = {system.m}, {rows} linear rows, {chance} chance row" + "s" * (chance != 1) + ")")
     needed = max(mpc_bytes(samples, steps, system.n, system.m, len(loop), constraints.loop_rows(), keep)
                  for loop in runs)
     check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
                                              f"{gib_text(needed)} of paths and per-run records)",
           instead="use fewer runs or steps")
     if programs:        # the programs' size, before any path is drawn (ConstrainedQP checks it again)
-        N = system.horizon
-        check_constrained(N, system.n, system.m, constraints.program_rows(N), len(constraints.chance), "horizon")
+        check_constrained(N, system.n, system.m, rows, chance, "horizon", states=states if exact else 0)
 
 
 def _on_threads(threads: int, system: System, twin: System, constraints: Constraints, jobs: list[tuple[str, str]],

@@ -32,7 +32,7 @@ import scipy.linalg
 import scipy.sparse as sp
 from cvxpy.reductions.solution import Solution
 
-from ..budgets import check_constrained
+from ..budgets import chain_states, check_constrained
 from ..errors import DimensionError, InfeasibleError, InputError, NumericalError, SolverError
 from ..linalg import psd_factor
 from ..lq.costs import expected_cost
@@ -230,8 +230,10 @@ class ConstrainedQP:
         N, n, m = system.horizon, system.n, system.m
         self.constraints = check_constraints(constraints, n, m)
         # the program's size priced before cvxpy sees it (budgets.py): the dense KKT work grows as N^3
+        # (behind a chain its chance rows priced as the chain's: denser cones)
         check_constrained(N, n, m, self.constraints.program_rows(N), len(self.constraints.chance), "horizon",
-                          instead="use a shorter horizon")
+                          instead="use a shorter horizon",
+                          states=chain_states(None if self.chain is None else self.chain.channel))
         if formulation == "auto":
             formulation = "condensed" if N * m <= AUTO_CONDENSED_MAX else "sparse"
         if formulation not in ("condensed", "sparse"):

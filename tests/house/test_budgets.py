@@ -491,3 +491,152 @@ def test_api_refuses_system_derived_sizes_as_typed_bad_input(monkeypatch):
         second_moment_operator(np.eye(3), np.ones((3, 2)), two_channels, np.ones((2, 3)))
     assert isinstance(info.value, ValueError)
     assert (info.value.field, info.value.needed) == ("channel", 36.0)
+
+
+# --- chance rows exact under a Markov chain: priced as the chain's ------------------------------------------------
+
+
+def _scalar_behind_gilbert(horizon):
+    """A stable scalar plant (a = 0.9, b = 1) behind a bursty Gilbert channel (p = 0.02, r = 0.18) over ``horizon``
+    steps, and its limits: an input box (2 rows a step) and one chance row on the state."""
+    from packetloss_cvx.model.channel import GilbertElliott
+    system = pl.System(A=[[0.9]], B=[[1.0]], horizon=horizon, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                       channel=GilbertElliott(p=[0.02], r=[0.18]))
+    return system, pl.Constraints(u_min=[-2.0], u_max=[2.0], chance=[([1.0], 1.75, 0.2)])
+
+
+@pytest.mark.parametrize(("args", "work", "size", "memory"), [
+    # N = 10, n = m = 1, one chance row, 20 linear rows. work: 6.8e-4 x 100 x 10 x 2 / 2 + 0.65 x 1000 = 650.68, and
+    # behind a Gilbert channel (K = 2) 1 x 1 x (0.56 x 1000 + 3.2e-3 x 1e4) = 592 more; a solve: 1600 + 30 + 5.5 + 70
+    # + 120 us (+ 32 behind the chain); bytes: 8 x (300 + 200 + 900) + 1000 x 100 + qp (2600 + 4000 + 6500 + 1e7),
+    # behind the chain 1000 x (115 + 50) more
+    ((10, 1, 1, 20, 1, 0), 650.68, 1825.5, 10124300.0),
+    ((10, 1, 1, 20, 1, 2), 1242.68, 1857.5, 10289300.0),
+    # a 3-state chain behind two channels, N = 10, n = 2: the chain's terms times m^2 (K - 1) = 8 and (K - 1) = 2;
+    # work 6.8e-4 x 400 x 10 x 4 / 2 + 0.65 x 1000 x 4 = 2605.44, + 8 x 592; a solve 1600 + 120 + 22 + 70 + 240
+    # (+ 8 x 32); bytes 8 x (1200 + 400 + 3600) + 1000 x (240 + 80) + qp (10400 + 16000 + 13000 + 1e7), + 2 x 1000
+    # x (460 + 100)
+    ((10, 2, 2, 20, 1, 3), 2605.44 + 8 * 592, 2052 + 256, 10401000.0 + 1120000),
+    # a Bernoulli program (states 0) and a chain without chance rows are priced alike
+    ((10, 1, 1, 20, 0, 2), 0.68, 1705.5, 10024300.0),
+])
+def test_chance_rows_behind_a_chain_are_priced_at_the_hand_values(args, work, size, memory):
+    from packetloss_cvx.budgets import constrained_bytes, constrained_work, mpc_solve_size
+    N, n, m, rows, chance, states = args
+    assert constrained_work(N, n, m, chance, states) == pytest.approx(work, rel=1e-12)
+    assert mpc_solve_size(N, n, m, rows, chance, states) == pytest.approx(size / 5000, rel=1e-12)
+    assert constrained_bytes(N, n, m, rows, chance, states) == pytest.approx(memory, rel=1e-12)
+
+
+def test_chain_states_are_the_largest_channel():
+    from packetloss_cvx.budgets import chain_states
+    from packetloss_cvx.model.channel import MarkovChannel
+    three = MarkovChannel(transition=[[[0.9, 0.1], [0.4, 0.6]], [[0.8, 0.2, 0.0], [0.0, 0.5, 0.5], [0.5, 0.0, 0.5]]],
+                          delivery=[[1.0, 0.0], [1.0, 0.5, 0.0]])
+    assert chain_states(three) == 3
+    assert chain_states(None) == 0
+
+
+@pytest.mark.parametrize(("variable", "price"), [("SOLVE_WORK", 1242.68), ("MEMORY_BYTES", 10289300.0)])
+@pytest.mark.parametrize("factor", [0.999, 1.001])
+def test_a_constrained_program_behind_a_chain_is_priced_with_its_chain_rows(monkeypatch, variable, price, factor):
+    """``ConstrainedQP`` behind a Gilbert channel poses its chance row exact under the chain: refused just under
+    the chain's hand price (the plug-in row's, 650.68 work units and 10124300 bytes, is within it), built just
+    over it."""
+    from packetloss_cvx.errors import BudgetError
+    from packetloss_cvx.qp.constrained import ConstrainedQP
+    system, limits = _scalar_behind_gilbert(10)
+    monkeypatch.setenv(f"PACKETLOSS_CVX_BUDGET_{variable}", repr(factor * price))
+    if factor < 1:
+        start = time.perf_counter()
+        with pytest.raises(BudgetError, match=r"^horizon: the constrained program of N = 10 \(n = 1, m = 1; 20 linear "
+                                              r"rows, 1 chance row exact under a 2-state chain\)") as info:
+            ConstrainedQP(system, "tcp", limits)
+        assert time.perf_counter() - start < 1
+        assert info.value.needed == pytest.approx(price, rel=1e-12)
+        assert str(info.value).endswith(f"or to run it on purpose set PACKETLOSS_CVX_BUDGET_{variable}="
+                                        + ("1.25e+03" if variable == "SOLVE_WORK" else "1.03e+07"))
+        ConstrainedQP(system.with_mu(system.mu_schedule), "tcp", limits)    # the plug-in twin: within the budget
+    else:
+        assert ConstrainedQP(system, "tcp", limits).chain is not None
+
+
+@pytest.mark.parametrize("factor", [0.999, 1.001])
+def test_solve_prices_its_constrained_programs_behind_a_chain(tmp_path, capsys, monkeypatch, factor):
+    """``solve`` on a file behind a Gilbert channel with a chance row: its two programs (one per protocol) are priced
+    with their chain rows, 2 x 1242.68 work units by hand: refused just under (exit 2, one line), run just over."""
+    system, limits = _scalar_behind_gilbert(10)
+    path = tmp_path / "gilbert.toml"
+    from packetloss_cvx.model.files import save_system
+    save_system(system, path, constraints=limits)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_SOLVE_WORK", repr(factor * 2 * 1242.68))
+    if factor < 1:
+        code, line = main_line(["solve", str(path)], capsys)
+        assert code == 2
+        assert line.startswith("packetloss-cvx: error: cost.horizon: the constrained program of N = 10 (n = 1, m = 1; "
+                               "20 linear rows, 1 chance row exact under a 2-state chain) x 2")
+        assert line.endswith("PACKETLOSS_CVX_BUDGET_SOLVE_WORK=2.49e+03")
+    else:
+        from packetloss_cvx.cli import main
+        assert main(["solve", str(path), "-q", "--json"]) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert "exact under the chain" in json.dumps(out)
+
+
+class _Admitted(Exception):
+    """Raised where the constrained loop would draw its paths: its budget let it through."""
+
+
+def _admitted(*args, **kwargs):
+    raise _Admitted
+
+
+#: 10 runs x 4 steps of the loop behind a Gilbert channel, N = 40, one chance row, 80 linear rows: the certainty-
+#: equivalent program at 1600 + 120 + 88 + 280 + 1920 = 4008 us, the two expected-cost ones with their chance rows
+#: exact under the chain at 3.2e-3 x 40^4 = 8192 us more, the two clipped laws at 2e-3 of a 5 ms solve
+MPC_PRICE = 10 * 4 * (4008 / 5000 + 2 * 12200 / 5000 + 2 * 2e-3)
+
+
+@pytest.mark.parametrize("factor", [0.999, 1.001])
+def test_the_constrained_loop_behind_a_chain_prices_its_exact_rows(monkeypatch, factor):
+    """``simulate_mpc`` behind a chain: the expected-cost programs' solves priced with their chain rows (227.424
+    solves of 5 ms by hand; priced as plug-in rows, 96.352): refused just under, admitted just over."""
+    from packetloss_cvx.errors import BudgetError
+    from packetloss_cvx.montecarlo import mpc
+    system, limits = _scalar_behind_gilbert(40)
+    monkeypatch.setattr(mpc, "loop_paths", _admitted)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MPC_SOLVES", repr(factor * MPC_PRICE))
+    if factor < 1:
+        with pytest.raises(BudgetError, match=r"^samples: 10 runs of 4 steps x 3 programs and 2 clipped laws \(2 with "
+                                              r"the rows exact under the 2-state chain at 2\.4 of a 5 ms solve each, "
+                                              r"the others at 0\.8: N = 40, n = 1, m = 1, 80 linear rows, 1 chance "
+                                              r"row\) is over the budget of 227 solves") as info:
+            mpc.simulate_mpc(system, limits, samples=10, steps=4)
+        assert info.value.needed == pytest.approx(MPC_PRICE, rel=1e-12)
+    else:
+        with pytest.raises(_Admitted):
+            mpc.simulate_mpc(system, limits, samples=10, steps=4)
+
+
+@pytest.mark.parametrize("factor", [0.999, 1.001])
+def test_simulate_prices_the_constrained_loop_behind_a_chain(tmp_path, capsys, monkeypatch, factor):
+    """``simulate --mpc-samples`` on a file behind a Gilbert channel: the same hand price (MPC_PRICE) in the command
+    line's preflight, refused just under with one line, past the preflight just over."""
+    from packetloss_cvx.model.files import save_system
+    system, limits = _scalar_behind_gilbert(40)
+    path = tmp_path / "gilbert.toml"
+    save_system(system, path, constraints=limits)
+    monkeypatch.setenv("PACKETLOSS_CVX_BUDGET_MPC_SOLVES", repr(factor * MPC_PRICE))
+    argv = ["simulate", str(path), "--samples", "2", "--mpc-samples", "10", "--steps", "4"]
+    if factor < 1:
+        code, line = main_line(argv, capsys)
+        assert code == 2
+        assert line.startswith("packetloss-cvx: error: --mpc-samples: 10 runs of 4 steps x 3 programs (the constrained "
+                               "loop; 2 with the rows exact under the 2-state chain at 2.4 of a 5 ms solve each, the "
+                               "others at 0.8: N = 40, n = 1, m = 1, 80 linear rows, 1 chance row)")
+    else:
+        from packetloss_cvx.montecarlo import mpc
+        monkeypatch.setattr(mpc, "loop_paths", _admitted)
+        from packetloss_cvx.cli import main
+        assert main(argv) == 1        # past the preflight: the loop reached its paths (stubbed to raise)
+        assert capsys.readouterr().err.strip() == "packetloss-cvx: unexpected _Admitted:"
