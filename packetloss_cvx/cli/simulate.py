@@ -199,7 +199,11 @@ def _text(name: str, sim: Simulation) -> str:
         for extra in (r.stderr_reason, r.exact_reason, r.note):
             if extra:
                 lines.append(f"    ({extra})")
-        if not r.stable and np.isfinite(r.spectral_radius):
+        if not r.stderr_reason and r.stderr == 0.0:
+            lines.append("    (zero spread: every run has the same cost (no random loss or noise changes this loop's "
+                         "run), so the sample is the loop's cost itself)")
+        # rare runs carry the cost only where the losses are random: an unstable loop with an error bar has none
+        if not r.stable and np.isfinite(r.spectral_radius) and r.stderr_reason:
             lines.append("    (a mean-square unstable loop's expected cost is carried by rare runs: its sampled mean "
                          "and standard error can fall far below the exact value)")
     if "dp" in sim.closed_loop and not bursty and not sim.closed_loop["dp"].reason:

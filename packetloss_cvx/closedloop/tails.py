@@ -120,7 +120,8 @@ def fourth_moment_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndar
 def error_bar_reason(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray | None = None,
                      delivery: str = "current") -> str:
     """Why a sampled closed-loop cost of the law gets no error bar ("" when its fourth moments are proved bounded:
-    rho(L_4) below 1 by MEAN_SQUARE_MARGIN, the margin of every stability verdict). Arguments as
+    rho(L_4) below 1 by MEAN_SQUARE_MARGIN, the margin of every stability verdict; "" also when no delivery is random,
+    every ``h`` and ``T`` entry 0 or 1: no loss burst for the sample to miss, whatever rho(L_4)). Arguments as
     `fourth_moment_radius`.
 
     Examples
@@ -129,7 +130,13 @@ def error_bar_reason(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray,
     'no error bar: the fourth moments grow (rho_4 = 3.2 >= 1)'
     >>> error_bar_reason(np.array([[0.5]]), np.array([[1.0]]), np.array([[0.5]]), np.array([0.8]))
     ''
+    >>> error_bar_reason(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0.0]))  # nothing random
+    ''
     """
+    h = np.asarray(h, dtype=float)
+    if np.all((h == 0.0) | (h == 1.0)) and (T is None or np.all((np.asarray(T) == 0.0) | (np.asarray(T) == 1.0))):
+        return ""       # no delivery is random: no loss burst to miss; a run's cost is a quadratic of the noise (or
+        #                 the same in every run), whose sample spread is an error bar whatever rho_4
     rho4 = fourth_moment_radius(A, B, K, h, T, delivery)
     if np.isnan(rho4):
         return (f"no error bar: the fourth moments were not computed (n = {np.shape(A)[-1]}, m = {B.shape[1]}, "
