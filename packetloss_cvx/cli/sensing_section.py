@@ -176,10 +176,10 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                     raise
                 out[law][name] = {"reason": str(err)}
                 continue
-            out[law][name] = run.to_dict()
+            out[law][name] = {**run.to_dict(), "basis": "loop"}       # the law's loop on the estimate
             lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law, {protocol.upper()}-like estimate, {name} "
                          f"filter: mean stage cost {_num(run.mean_stage_cost)} +- {_num(run.stderr, 3)}, exact "
-                         f"{_num(run.exact_stage_cost)}" + (f" ({run.reason})" if run.reason else ""))
+                         f"{_num(run.exact_stage_cost)} [basis: loop]" + (f" ({run.reason})" if run.reason else ""))
         kalman = out[law].get("kalman", {})
         stationary = out[law].get("stationary", {})
         if "stable" in stationary:
@@ -192,7 +192,7 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                 stable, why = None, str(err)
         out[law].update({
             "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
-            "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""),
+            "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""), "basis": "loop",
             "stable": stable, "stable_reason": why,
         })
         lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law: " + _verdict_text(stable)

@@ -123,6 +123,7 @@ def run(args: argparse.Namespace) -> CommandResult:
     for p, entry in data.items():      # what "formula" is: the paper's J* (the exact minimiser's: under the chain)
         if "open_loop" in entry:
             entry["open_loop"]["formula_basis"] = "attainable" if p == EXACT_PLAN else "paper"
+            entry["open_loop"]["basis"] = "realised"      # mean and exact: the plan's realised cost
         if "closed_loop" in entry:
             entry["closed_loop"]["basis"] = "loop"
     if strategies and args.closed_loop:     # the laws' loops when the actuator zeroes, holds or plays the plan
@@ -195,7 +196,7 @@ def _text(name: str, sim: Simulation) -> str:
                    if np.isfinite(r.spectral_radius) else "mean-square stability not decided")
         spread = f" +- {_num(r.stderr, 3)}" if not r.stderr_reason else ""
         lines.append(f"  {label}, closed loop over {sim.steps} steps: mean stage cost {_num(r.mean_stage_cost)}"
-                     f"{spread}, exact {_num(r.exact_stage_cost)}; {verdict}")
+                     f"{spread}, exact {_num(r.exact_stage_cost)} [basis: loop]; {verdict}")
         for extra in (r.stderr_reason, r.exact_reason, r.note):
             if extra:
                 lines.append(f"    ({extra})")

@@ -13,7 +13,7 @@ from packetloss_cvx.montecarlo.simulate import simulate
 
 from ..references import enumerated_radius
 
-OPEN = {"formula", "exact", "mean", "stderr", "z", "formula_basis"}
+OPEN = {"formula", "exact", "mean", "stderr", "z", "formula_basis", "basis"}
 CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable", "basis"}
 
 
