@@ -177,9 +177,12 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                 out[law][name] = {"reason": str(err)}
                 continue
             out[law][name] = {**run.to_dict(), "basis": "loop"}       # the law's loop on the estimate
+            spread = "" if run.stderr_reason else f" +- {_num(run.stderr, 3)}"
             lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law, {protocol.upper()}-like estimate, {name} "
-                         f"filter: mean stage cost {_num(run.mean_stage_cost)} +- {_num(run.stderr, 3)}, exact "
+                         f"filter: mean stage cost {_num(run.mean_stage_cost)}{spread}, exact "
                          f"{_num(run.exact_stage_cost)} [basis: loop]" + (f" ({run.reason})" if run.reason else ""))
+            if run.stderr_reason:
+                lines.append(f"    ({run.stderr_reason})")
         kalman = out[law].get("kalman", {})
         stationary = out[law].get("stationary", {})
         if "stable" in stationary:
@@ -192,6 +195,7 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                 stable, why = None, str(err)
         out[law].update({
             "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
+            **({"stderr_reason": kalman["stderr_reason"]} if kalman.get("stderr_reason") else {}),
             "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""), "basis": "loop",
             "stable": stable, "stable_reason": why,
         })

@@ -103,7 +103,8 @@ class EstimatedRun(Frozen):
     with ``reason`` when there is none); ``mean_filtered_covariance`` the mean of the filter's own P_k over the
     kept steps (Kalman; nan otherwise), ``mean_filtered_covariance_stderr`` its standard error per entry and
     ``mean_filtered_trace_stderr`` that of its trace (from the runs' own means over the kept steps: the runs are
-    independent, the steps of one run are not)."""
+    independent, the steps of one run are not); ``stderr_reason`` why the sample has no error bar (``stderr`` then
+    nan), "" when it has one."""
 
     law: str
     protocol: str
@@ -118,20 +119,22 @@ class EstimatedRun(Frozen):
     reason: str = ""
     mean_filtered_covariance_stderr: np.ndarray | None = None
     mean_filtered_trace_stderr: float = float("nan")
+    stderr_reason: str = ""
 
     __repr__ = fields_repr
     _repr_html_ = fields_html
     to_json = to_json
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain floats (null for inf or nan). O(1)."""
+        """Plain floats (null for inf or nan; ``stderr_reason`` when the sample has no error bar). O(1)."""
         return {"law": self.law, "protocol": self.protocol, "filter": self.filter,
                 "mean_stage_cost": finite_or_none(self.mean_stage_cost), "stderr": finite_or_none(self.stderr),
                 "exact_stage_cost": finite_or_none(self.exact_stage_cost), "stable": self.stable,
                 "mean_filtered_trace": finite_or_none(float(np.trace(self.mean_filtered_covariance))),
                 "mean_filtered_trace_stderr": finite_or_none(self.mean_filtered_trace_stderr),
                 "samples": self.samples,
-                "steps": self.steps, "reason": self.reason}
+                "steps": self.steps, "reason": self.reason,
+                **({"stderr_reason": self.stderr_reason} if self.stderr_reason else {})}
 
 
 @dataclass(frozen=True)

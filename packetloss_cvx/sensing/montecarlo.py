@@ -16,6 +16,7 @@ import numpy as np
 
 from ..budgets import check, simulate_work
 from ..closedloop.moments import stationary_channel
+from ..closedloop.tails import error_bar_reason
 from ..errors import InputError
 from ..linalg import psd_factor
 from ..model.sensor import Sensor
@@ -23,7 +24,7 @@ from ..model.system import System, loop_weights
 from ..results.sensing import EstimatedRun, SampledCovariance
 from .arrivals import ChainSampler, arrival_patterns
 from .kalman import actuation_covariance, measurement_update, pattern_rows, predict
-from .loop import estimated_loop, filter_gains, require_sensor
+from .loop import estimated_loop, filter_gains, loop_error_bar_reason, require_sensor
 
 __all__ = ["FILTERS", "pattern_update", "sampled_covariance", "simulate_estimated"]
 
@@ -42,7 +43,8 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
                        samples: int = 2000, steps: int = 200, seed: int = 0, law: str = "") -> EstimatedRun:
     """``samples`` runs of ``steps`` steps of ``u = -K xhat`` from ``x_0 ~ N(x0, P0)`` (module docstring).
 
-    Returns the mean stage cost over the second half and its standard error, the exact stationary cost
+    Returns the mean stage cost over the second half and its standard error (nan with ``stderr_reason`` where the
+    loop's fourth moments grow or are not proved bounded: `_error_bar_reason`), the exact stationary cost
     (the "stationary" filter: sensing.loop; the "kalman" filter: nan with the reason), whether the loop is proved
     stable (the fixed-gain loop's radius; for the Kalman filter None: no exact verdict for a time-varying gain),
     and the mean of the filter's own covariance P_k over the kept steps with its per-entry standard error and the
@@ -128,8 +130,9 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
                     Pm += actuation_covariance(B, mu, u)
     means = total / keep
     mean = float(means.mean())
+    no_bar = _error_bar_reason(system, K, protocol, None if filter == "kalman" else fixed)
     with np.errstate(over="ignore"):        # squares beyond a float: stderr inf, which callers refuse (no z)
-        stderr = float(means.std(ddof=1) / np.sqrt(samples))
+        stderr = float("nan") if no_bar else float(means.std(ddof=1) / np.sqrt(samples))
     if filter == "kalman":
         covariance = covariance / (keep * samples)
         run_means = per_run / keep
@@ -139,7 +142,25 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
         covariance = cov_stderr = np.full((n, n), np.nan)
         trace_stderr = float("nan")
     return EstimatedRun(law, protocol, filter, mean, stderr, exact, stable, covariance, samples, steps, reason,
-                        cov_stderr, trace_stderr)
+                        cov_stderr, trace_stderr, no_bar)
+
+
+#: Why the time-varying filter's run has no error bar where the law's full-state loop has none.
+KALMAN_NO_BAR = ("no error bar: the state's own loop x+ = (A - B V K) x + B V K e + w holds the law's full-state loop "
+                 "over the actuator links; in that loop {}")
+
+
+def _error_bar_reason(system: System, gain: np.ndarray, protocol: str,
+                      gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> str:
+    """Why the sample gets no error bar ("" when it gets one). The stationary filter (``gains``): the fourth moments
+    of its exact loop (xhat, e) (sensing.loop.loop_error_bar_reason). The time-varying filter (None): those of the
+    law's full-state loop, which the state's loop contains (``x+ = (A - BVK) x + BVK e + w`` with V independent of
+    x and e): where they grow the state's do; where they are bounded the filter's error moments are not derived
+    and the spread is kept as the error bar. O(tails.fourth_moment_radius)."""
+    if gains is not None:
+        return loop_error_bar_reason(system, gain, protocol, gains)
+    why = error_bar_reason(system.A, system.B, gain, stationary_channel(system))
+    return KALMAN_NO_BAR.format(why.removeprefix("no error bar: ")) if why else ""
 
 
 def pattern_update(Pm: np.ndarray, pattern: np.ndarray, rows: list[np.ndarray], C: np.ndarray,
