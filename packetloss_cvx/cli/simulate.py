@@ -126,6 +126,7 @@ def run(args: argparse.Namespace) -> CommandResult:
             entry["open_loop"]["basis"] = "realised"      # mean and exact: the plan's realised cost
         if "closed_loop" in entry:
             entry["closed_loop"]["basis"] = "loop"
+            entry["closed_loop"]["averaged_steps"] = [0, sim.steps - 1]      # sample and exact: the whole window
     if strategies and args.closed_loop:     # the laws' loops when the actuator zeroes, holds or plays the plan
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
                                                            args.seed)
@@ -196,7 +197,8 @@ def _text(name: str, sim: Simulation) -> str:
                    if np.isfinite(r.spectral_radius) else "mean-square stability not decided")
         spread = f" +- {_num(r.stderr, 3)}" if not r.stderr_reason else ""
         lines.append(f"  {label}, closed loop over {sim.steps} steps: mean stage cost {_num(r.mean_stage_cost)}"
-                     f"{spread}, exact {_num(r.exact_stage_cost)} [basis: loop]; {verdict}")
+                     f"{spread} over steps 0..{sim.steps - 1} from x0, exact {_num(r.exact_stage_cost)} on those steps "
+                     f"[basis: loop]; {verdict}")
         for extra in (r.stderr_reason, r.exact_reason, r.note):
             if extra:
                 lines.append(f"    ({extra})")

@@ -55,7 +55,7 @@ from .markov_bounds import filter_stability, markov_lower_diverges
 
 __all__ = ["LOOP_MAX_N", "MAP_LAWS", "chain_loop_verdict", "estimated_loop", "filter_gains", "loop_error_bar_reason",
            "loop_map", "loop_terms", "loop_verdict", "no_gains_verdict", "require_sensor", "second_moment_map",
-           "undetermined_gains"]
+           "stage_weight", "undetermined_gains", "window_costs"]
 
 #: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
 LOOP_MAX_N = KRONECKER_MAX_N
@@ -280,8 +280,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
                                                              f"{radius:.6g}")
     S = solve_fixed_point(lambda X: (matrix @ X.ravel()).reshape(2 * n, 2 * n), lambda: matrix, noise,
                           "the stationary second moment of (xhat, e)")
-    W = np.block([[Omega + K.T @ ((mu * psi)[:, None] * K), Omega], [Omega, Omega]])
-    cost = float(np.sum(W * S))
+    cost = float(np.sum(stage_weight(system, K) * S))
     if dp is None:
         return result(radius, cost, nan, nan, S, f"no split: {dp_reason}" if split else "")
     P, Kdp = dp.cost_to_go, dp.gain
@@ -320,18 +319,75 @@ def second_moment_map(system: System, gain: np.ndarray, protocol: str,
     """``(matrix, noise)``: ``E[z+ z+'] = matrix vec(E[z z']) + noise`` on row-major vec, the second-moment map of
     the loop of `loop_terms` (``sum_a p_a random_matrix_moment(F_a, D_a, mu (1 - mu))`` and ``sum_a p_a N_a
     diag(Sigma_W, R) N_a'``). O(2^g (m + 1) (2n)^4)."""
-    sensor, n, K = system.sensor, system.n, np.asarray(gain, dtype=float)
+    n, K = system.n, np.asarray(gain, dtype=float)
     mu = stationary_channel(system)
     c = mu * (1.0 - mu)
     matrix = np.zeros((4 * n * n, 4 * n * n))
-    noise = np.zeros((2 * n, 2 * n))
-    noise_cov = np.block([[system.noise_cov, np.zeros((n, sensor.p))], [np.zeros((sensor.p, n)), sensor.noise_cov]])
     wide = np.hstack([K, np.zeros_like(K)])
-    for pa, F, left, N in loop_terms(system, K, protocol, gains):
+    terms = loop_terms(system, K, protocol, gains)
+    for pa, F, left, _ in terms:
         D = [-np.outer(left[:, i], wide[i]) for i in range(left.shape[1])]
         matrix += pa * random_matrix_moment(F, D, c)
-        noise += pa * (N @ noise_cov @ N.T)
-    return matrix, noise
+    return matrix, _noise_moment(system, terms, system.noise_cov)
+
+
+def _noise_moment(system: System, terms: list, state_cov: np.ndarray) -> np.ndarray:
+    """``sum_a p_a N_a diag(state_cov, R) N_a'``: what a zero-mean state disturbance of covariance ``state_cov`` and
+    the measurement noise add to E[z z'] through one update (Sigma_W each step; P0, the prior's error, at the
+    first). O(2^g n^3)."""
+    n, R = system.n, system.sensor.noise_cov
+    cov = np.block([[state_cov, np.zeros((n, R.shape[0]))], [np.zeros((R.shape[0], n)), R]])
+    return sum((pa * (N @ cov @ N.T) for pa, _, _, N in terms), np.zeros((2 * n, 2 * n)))
+
+
+def stage_weight(system: System, gain: np.ndarray) -> np.ndarray:
+    """``W`` with ``E[x'Omega x + (V u)'Psi (V u)] = tr(W E[z z'])`` for ``u = -K xhat``, ``x = xhat + e``:
+    ``[[Omega + K'M Psi K, Omega], [Omega, Omega]]`` (module docstring). O(n^2 m)."""
+    K = np.asarray(gain, dtype=float)
+    Omega, psi = loop_weights(system)
+    mu = stationary_channel(system)
+    return np.block([[Omega + K.T @ ((mu * psi)[:, None] * K), Omega], [Omega, Omega]])
+
+
+def window_costs(system: System, gain: np.ndarray, protocol: str, steps: int,
+                 gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """The exact expected stage costs ``E[x_k'Omega x_k + (V_k u_k)'Psi (V_k u_k)]``, k = 0..steps-1, of ``u = -K
+    xhat`` on the filter's stationary gains from ``x_0 ~ N(x0, P0)`` with the prior ``x0`` (as
+    sensing.montecarlo.simulate_estimated runs it): ``E[z_0 z_0'] = [x0; 0][x0; 0]' + sum_a p_a N_a diag(P0, R)
+    N_a'``, then `second_moment_map` step by step. inf where it overflows (a loop that is not mean-square stable,
+    over a long window). ``gains``: `filter_gains` when the caller has them. Time O(steps (2n)^4).
+
+    Raises
+    ------
+    InputError
+        No Bernoulli sensor; no stationary gains (field ``sensor.gamma``); n > LOOP_MAX_N (field ``n``).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model.sensor import Sensor
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[2.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[1.0]))     # C = I, R = 0: full state
+    >>> window_costs(s, np.array([[0.5]]), "tcp", 2).round(12).tolist()   # (1 + 1/4) E x^2: E x^2 = 4, 4/4 + 1
+    [5.0, 2.5]
+    """
+    require_sensor(system)
+    if system.n > LOOP_MAX_N:
+        raise InputError("n", f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); found n = {system.n}")
+    gains = filter_gains(system) if gains is None else gains
+    if gains is None:
+        raise InputError("sensor.gamma", "the filter has no stationary gains at this gamma (the expected Riccati "
+                                         "iteration diverges)")
+    K = np.asarray(gain, dtype=float)
+    matrix, noise = second_moment_map(system, K, protocol, gains)
+    start = np.concatenate([system.x0, np.zeros(system.n)])
+    S = np.outer(start, start) + _noise_moment(system, loop_terms(system, K, protocol, gains), system.sensor.P0)
+    W = stage_weight(system, K)
+    costs = np.empty(steps)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(steps):
+            costs[k] = np.sum(W * S)
+            S = (matrix @ S.ravel()).reshape(S.shape) + noise
+    return np.where(np.isnan(costs), np.inf, costs)
 
 
 def loop_error_bar_reason(system: System, gain: np.ndarray, protocol: str,

@@ -14,7 +14,8 @@ from packetloss_cvx.montecarlo.simulate import simulate
 from ..references import enumerated_radius
 
 OPEN = {"formula", "exact", "mean", "stderr", "z", "formula_basis", "basis"}
-CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable", "basis"}
+CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable", "basis",
+          "averaged_steps"}
 
 
 def stable_random_system(seed):
