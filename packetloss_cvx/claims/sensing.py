@@ -88,7 +88,8 @@ def _exact_margin(found: tuple[float, float, float, System, Any, float]) -> floa
 def simulated_z(system: System, seed: int,
                 found: tuple[float, float, float, System, Any, float] | None = None) -> float | None:
     """(sampled cost - tr(P Sigma_W) - tr(K'HK mean P_k)) / stderr for the time-varying filter on ``sensed(system)``;
-    None where the claim does not apply, or where the loop mixes too slowly for MAX_STEPS (the window is the
+    None where the claim does not apply, where the sample has no error bar (its ``stderr_reason``), or where the
+    loop mixes too slowly for MAX_STEPS (the window is the
     steps whose second half starts where radius^(steps/2) start <= MIXED: the start's transient is gone, relative to
     the stationary cost; ``start = max(1, (1 - radius) x0'P x0 / cost)``, x0's cost over the transient spread over
     its length, so a larger x0 needs a longer window and the test means the same at every scale of x0). ``found``:
@@ -104,6 +105,8 @@ def simulated_z(system: System, seed: int,
     if steps > MAX_STEPS:
         return None
     run = simulate_estimated(s, dp.gain, "tcp", "kalman", samples=RUNS, steps=max(steps, 2), seed=seed)
+    if run.stderr_reason:        # the law's fourth moments grow: the sample has no error bar to measure a z with
+        return None
     mu, P, K, B, psi = s.mu, dp.cost_to_go, dp.gain, s.B, s.input_weights[0]
     H = dp_input_hessian(B, P, mu, psi)
     split = float(np.sum(P * s.noise_cov) + np.sum((K.T @ H @ K) * run.mean_filtered_covariance))

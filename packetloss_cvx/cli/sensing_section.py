@@ -15,6 +15,7 @@ from ..lq.costs import closed_form
 from ..model.system import System
 from ..results.base import finite_or_none
 from ..results.region import CriticalPoint
+from ..results.sensing import EstimatedRun
 from ..sensing.bounds import covariance_bounds, critical_gamma
 from ..sensing.loop import estimated_loop, loop_map, loop_verdict, require_sensor
 from ..sensing.markov_bounds import filter_stability, markov_covariance_bounds
@@ -176,10 +177,9 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                     raise
                 out[law][name] = {"reason": str(err)}
                 continue
-            out[law][name] = run.to_dict()
-            lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law, {protocol.upper()}-like estimate, {name} "
-                         f"filter: mean stage cost {_num(run.mean_stage_cost)} +- {_num(run.stderr, 3)}, exact "
-                         f"{_num(run.exact_stage_cost)}" + (f" ({run.reason})" if run.reason else ""))
+            out[law][name] = {**run.to_dict(), "basis": "loop"}       # the law's loop on the estimate
+            lines += _run_lines(f"{law.upper() if law != 'dp' else 'DP'} law, {protocol.upper()}-like estimate, "
+                                f"{name} filter", run)
         kalman = out[law].get("kalman", {})
         stationary = out[law].get("stationary", {})
         if "stable" in stationary:
@@ -192,12 +192,34 @@ def simulate_section(system: System, laws: tuple[str, ...], samples: int, steps:
                 stable, why = None, str(err)
         out[law].update({
             "mean_stage_cost": kalman.get("mean_stage_cost"), "stderr": kalman.get("stderr"),
-            "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""),
+            "averaged_steps": kalman.get("averaged_steps"),
+            **({"stderr_reason": kalman["stderr_reason"]} if kalman.get("stderr_reason") else {}),
+            "exact_stage_cost": None, "exact_reason": kalman.get("reason", ""), "basis": "loop",
             "stable": stable, "stable_reason": why,
         })
         lines.append(f"  {law.upper() if law != 'dp' else 'DP'} law: " + _verdict_text(stable)
                      + (f" ({why.removeprefix('undecided: ')})" if why else ""))
     return out, lines
+
+
+def _run_lines(label: str, run: EstimatedRun) -> list[str]:
+    """One estimated-state run in text: the sample over its window from x0 beside the exact value on that same
+    window (its z-score) where there is one, then the stationary cost (the law run for ever: another window), each
+    named; the reason for a withheld error bar below."""
+    first, last = run.averaged_steps
+    spread = "" if run.stderr_reason else f" +- {_num(run.stderr, 3)}"
+    sample = f"{label}: mean stage cost {_num(run.mean_stage_cost)}{spread} over steps {first}..{last} from x0"
+    if np.isfinite(run.exact_window_cost):
+        z = f" (z = {_num(run.z, 3)})" if np.isfinite(run.z) else ""
+        sample += f", exact {_num(run.exact_window_cost)} on those steps{z}"
+    if run.filter == "stationary":
+        stationary = "inf" if run.exact_stage_cost == np.inf else _num(run.exact_stage_cost)
+        rest = f"stationary cost (the law run for ever) {stationary} [basis: loop]" + (
+            f" ({run.reason})" if run.reason else "")
+    else:
+        rest = f"no exact value ({run.reason})"
+    lines = [f"  {sample} [basis: loop]; {rest}"]
+    return lines + ([f"    ({run.stderr_reason})"] if run.stderr_reason else [])
 
 
 def region_section(system: System, known: Sequence[CriticalPoint] = ()) -> tuple[dict[str, Any], list[str]]:

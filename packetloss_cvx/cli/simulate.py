@@ -123,8 +123,10 @@ def run(args: argparse.Namespace) -> CommandResult:
     for p, entry in data.items():      # what "formula" is: the paper's J* (the exact minimiser's: under the chain)
         if "open_loop" in entry:
             entry["open_loop"]["formula_basis"] = "attainable" if p == EXACT_PLAN else "paper"
+            entry["open_loop"]["basis"] = "realised"      # mean and exact: the plan's realised cost
         if "closed_loop" in entry:
             entry["closed_loop"]["basis"] = "loop"
+            entry["closed_loop"]["averaged_steps"] = [0, sim.steps - 1]      # sample and exact: the whole window
     if strategies and args.closed_loop:     # the laws' loops when the actuator zeroes, holds or plays the plan
         data["actuator"], more = simulate_actuator_section(system, laws, strategies, args.steps, args.samples,
                                                            args.seed)
@@ -195,11 +197,16 @@ def _text(name: str, sim: Simulation) -> str:
                    if np.isfinite(r.spectral_radius) else "mean-square stability not decided")
         spread = f" +- {_num(r.stderr, 3)}" if not r.stderr_reason else ""
         lines.append(f"  {label}, closed loop over {sim.steps} steps: mean stage cost {_num(r.mean_stage_cost)}"
-                     f"{spread}, exact {_num(r.exact_stage_cost)}; {verdict}")
+                     f"{spread} over steps 0..{sim.steps - 1} from x0, exact {_num(r.exact_stage_cost)} on those steps "
+                     f"[basis: loop]; {verdict}")
         for extra in (r.stderr_reason, r.exact_reason, r.note):
             if extra:
                 lines.append(f"    ({extra})")
-        if not r.stable and np.isfinite(r.spectral_radius):
+        if not r.stderr_reason and r.stderr == 0.0:
+            lines.append("    (zero spread: every run has the same cost (no random loss or noise changes this loop's "
+                         "run), so the sample is the loop's cost itself)")
+        # rare runs carry the cost only where the losses are random: an unstable loop with an error bar has none
+        if not r.stable and np.isfinite(r.spectral_radius) and r.stderr_reason:
             lines.append("    (a mean-square unstable loop's expected cost is carried by rare runs: its sampled mean "
                          "and standard error can fall far below the exact value)")
     if "dp" in sim.closed_loop and not bursty and not sim.closed_loop["dp"].reason:

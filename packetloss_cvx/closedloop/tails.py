@@ -38,9 +38,10 @@ FOURTH_MOMENT_MAX_M = 12
 def _mode_law(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per mode a: the closed-loop matrices F_{a,v} of every pattern v and their probabilities P(v | a)
     ((M, 2^m, n, n) and (M, 2^m), the patterns of markov.mjls.delivery_patterns); A is (n, n) or per mode
-    (M, n, n), K is (M, m, n), h is (M, m)."""
+    (M, n, n), B (n, m) or per mode (M, n, m), K is (M, m, n), h is (M, m)."""
     v, prob = delivery_patterns(h)
-    F = (A[None, None] if A.ndim == 2 else A[:, None]) - np.einsum("ij,vj,ajk->avik", B, v, K)
+    BvK = (np.einsum("ij,vj,ajk->avik", B, v, K) if B.ndim == 2 else np.einsum("aij,vj,ajk->avik", B, v, K))
+    F = (A[None, None] if A.ndim == 2 else A[:, None]) - BvK
     return F, prob
 
 
@@ -66,8 +67,9 @@ def fourth_moment_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndar
                          delivery: str = "current") -> float:
     """rho(L_4) of the law ``u = -K_a x`` over a channel whose mode a follows the chain ``T`` (M×M) and delivers
     on channel i with probability ``h[a, i]``, independently given the mode (``A`` one n×n matrix, or one per mode:
-    the actuator's loops, closedloop.actuator.JumpLoop). Independent Bernoulli(mu) channels
-    are the one-mode chain: ``h = mu``, ``T`` omitted, K one m×n gain. nan where n, m or the operator's size is
+    the actuator's loops, closedloop.actuator.JumpLoop; ``B`` one n×m matrix, or one per mode: the loop of a law on
+    a filter's estimate, sensing.loop, whose modes are the sensor's arrival patterns). Independent Bernoulli(mu)
+    channels are the one-mode chain: ``h = mu``, ``T`` omitted, K one m×n gain. nan where n, m or the operator's size is
     beyond its limits (unproved). Dense eigenvalues up to FOURTH_MOMENT_DENSE_MAX_DIM rows (M n^4), ARPACK on
     the operator beyond (O(M^2 2^m n^5) per product).
 
@@ -82,7 +84,7 @@ def fourth_moment_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndar
     (8.0, 8.0)
     """
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
-    n, m = A.shape[-1], B.shape[1]
+    n, m = A.shape[-1], B.shape[-1]
     h = np.atleast_2d(np.asarray(h, dtype=float))
     M = h.shape[0]
     T = np.ones((1, 1)) if T is None else np.asarray(T, dtype=float)
@@ -120,7 +122,8 @@ def fourth_moment_radius(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndar
 def error_bar_reason(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray, T: np.ndarray | None = None,
                      delivery: str = "current") -> str:
     """Why a sampled closed-loop cost of the law gets no error bar ("" when its fourth moments are proved bounded:
-    rho(L_4) below 1 by MEAN_SQUARE_MARGIN, the margin of every stability verdict). Arguments as
+    rho(L_4) below 1 by MEAN_SQUARE_MARGIN, the margin of every stability verdict; "" also when no delivery is random,
+    every ``h`` and ``T`` entry 0 or 1: no loss burst for the sample to miss, whatever rho(L_4)). Arguments as
     `fourth_moment_radius`.
 
     Examples
@@ -129,10 +132,16 @@ def error_bar_reason(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: np.ndarray,
     'no error bar: the fourth moments grow (rho_4 = 3.2 >= 1)'
     >>> error_bar_reason(np.array([[0.5]]), np.array([[1.0]]), np.array([[0.5]]), np.array([0.8]))
     ''
+    >>> error_bar_reason(np.array([[2.0]]), np.array([[1.0]]), np.array([[2.0]]), np.array([0.0]))  # nothing random
+    ''
     """
+    h = np.asarray(h, dtype=float)
+    if np.all((h == 0.0) | (h == 1.0)) and (T is None or np.all((np.asarray(T) == 0.0) | (np.asarray(T) == 1.0))):
+        return ""       # no delivery is random: no loss burst to miss; a run's cost is a quadratic of the noise (or
+        #                 the same in every run), whose sample spread is an error bar whatever rho_4
     rho4 = fourth_moment_radius(A, B, K, h, T, delivery)
     if np.isnan(rho4):
-        return (f"no error bar: the fourth moments were not computed (n = {np.shape(A)[-1]}, m = {B.shape[1]}, "
+        return (f"no error bar: the fourth moments were not computed (n = {np.shape(A)[-1]}, m = {np.shape(B)[-1]}, "
                 f"{np.atleast_2d(h).shape[0]} channel modes: beyond n = {FOURTH_MOMENT_MAX_N}, m = "
                 f"{FOURTH_MOMENT_MAX_M} or {FOURTH_MOMENT_MAX_DIM} rows), so the sample's variance is unproved; "
                 "use the exact value")

@@ -49,6 +49,12 @@ __all__ = [
     "stationary_close", "states_by_powers", "udp_variance_weights", "weight_head",
 ]
 
+#: What can carry an exact cost past 1e308 (the overflow does not say which: a stable plant with entries of 1e300
+#: overflows as surely as an unstable one over a long horizon), and what to do about it.
+OVERFLOW_CAUSES = ("entries of A, B, the weights, x0 or the noise that large, or the open-loop growth of an unstable "
+                   "plant over this horizon")
+OVERFLOW_ADVICE = "rescale the model's units, shorten the horizon or stabilise the plant"
+
 #: From this many points on, each step's products are one (points k)×k by k×l product instead of ``points`` small
 #: ones.
 FLAT_MIN = 64
@@ -56,8 +62,7 @@ FLAT_MIN = 64
 
 def _finite(name: str, value: np.ndarray | float, protocol: str) -> None:
     check_finite(name, value, why=f"the exact {protocol}-like expected cost exceeds the double-precision range, "
-                 "1e308: the open-loop prediction of an unstable plant over this horizon",
-                 advice="shorten the horizon or stabilise the plant")
+                 f"1e308: {OVERFLOW_CAUSES}", advice=OVERFLOW_ADVICE)
 
 
 def udp_variance_weights(system: System) -> tuple[np.ndarray, float]:
@@ -161,7 +166,7 @@ def input_weight(structure: System | Structure, protocol: str, mu: np.ndarray, d
 
 
 def overflow_error(name: str, protocol: str) -> NumericalError:
-    """The error of an exact cost beyond the double range (an unstable plant over a long horizon). O(1).
+    """The error of an exact cost beyond the double range (`OVERFLOW_CAUSES`). O(1).
 
     Examples
     --------
@@ -169,8 +174,7 @@ def overflow_error(name: str, protocol: str) -> NumericalError:
     'the cost-to-go matrix overflowed'
     """
     return NumericalError(f"{name} overflowed (the exact {protocol}-like expected cost exceeds the double-precision "
-                          "range, 1e308: the open-loop prediction of an unstable plant over this horizon); shorten "
-                          "the horizon or stabilise the plant")
+                          f"range, 1e308: {OVERFLOW_CAUSES}); {OVERFLOW_ADVICE}")
 
 
 def riccati_step(P: np.ndarray, A: np.ndarray, B: np.ndarray, mu: np.ndarray, added: np.ndarray,

@@ -103,7 +103,12 @@ class EstimatedRun(Frozen):
     with ``reason`` when there is none); ``mean_filtered_covariance`` the mean of the filter's own P_k over the
     kept steps (Kalman; nan otherwise), ``mean_filtered_covariance_stderr`` its standard error per entry and
     ``mean_filtered_trace_stderr`` that of its trace (from the runs' own means over the kept steps: the runs are
-    independent, the steps of one run are not)."""
+    independent, the steps of one run are not); ``stderr_reason`` why the sample has no error bar (``stderr`` then
+    nan), "" when it has one. The sample averages steps ``averaged_steps`` (the second half, step 0 the first from
+    x0); ``exact_window_cost`` is the exact expectation of that same average (the stationary filter; nan otherwise),
+    ``z`` the sample's distance from it in standard errors (nan without an error bar or that value), and
+    ``exact_stage_cost`` the stationary loop's (the law run for ever: another window, which the sample need not
+    approach)."""
 
     law: str
     protocol: str
@@ -118,20 +123,32 @@ class EstimatedRun(Frozen):
     reason: str = ""
     mean_filtered_covariance_stderr: np.ndarray | None = None
     mean_filtered_trace_stderr: float = float("nan")
+    stderr_reason: str = ""
+    exact_window_cost: float = float("nan")
+    z: float = float("nan")
 
     __repr__ = fields_repr
     _repr_html_ = fields_html
     to_json = to_json
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain floats (null for inf or nan). O(1)."""
+        """Plain floats (null for inf or nan; ``stderr_reason`` when the sample has no error bar). O(1)."""
         return {"law": self.law, "protocol": self.protocol, "filter": self.filter,
                 "mean_stage_cost": finite_or_none(self.mean_stage_cost), "stderr": finite_or_none(self.stderr),
                 "exact_stage_cost": finite_or_none(self.exact_stage_cost), "stable": self.stable,
                 "mean_filtered_trace": finite_or_none(float(np.trace(self.mean_filtered_covariance))),
                 "mean_filtered_trace_stderr": finite_or_none(self.mean_filtered_trace_stderr),
                 "samples": self.samples,
-                "steps": self.steps, "reason": self.reason}
+                "steps": self.steps, "reason": self.reason,
+                **({"stderr_reason": self.stderr_reason} if self.stderr_reason else {}),
+                "averaged_steps": list(self.averaged_steps),
+                "exact_window_cost": finite_or_none(self.exact_window_cost),
+                "z": finite_or_none(self.z), "exact_stage_cost_window": "stationary"}
+
+    @property
+    def averaged_steps(self) -> tuple[int, int]:
+        """The first and last step the sample averages (the second half; step 0 is the first, from x0). O(1)."""
+        return self.steps - self.steps // 2, self.steps - 1
 
 
 @dataclass(frozen=True)

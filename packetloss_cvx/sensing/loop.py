@@ -41,6 +41,7 @@ import numpy as np
 from ..closedloop.moments import solve_fixed_point, stationary_channel
 from ..closedloop.riccati import NO_SOLUTION, dp_input_hessian, dp_riccati
 from ..closedloop.stability import mean_square_radius, random_matrix_moment
+from ..closedloop.tails import error_bar_reason
 from ..errors import InputError, NumericalError
 from ..lq.costs import closed_form
 from ..model.system import System, loop_weights
@@ -52,8 +53,9 @@ from .bounds import lower_bound_diverges, upper_bound_covariance
 from .kalman import measurement_update, pattern_rows
 from .markov_bounds import filter_stability, markov_lower_diverges
 
-__all__ = ["LOOP_MAX_N", "MAP_LAWS", "chain_loop_verdict", "estimated_loop", "filter_gains", "loop_map",
-           "loop_verdict", "no_gains_verdict", "require_sensor", "undetermined_gains"]
+__all__ = ["LOOP_MAX_N", "MAP_LAWS", "chain_loop_verdict", "estimated_loop", "filter_gains", "loop_error_bar_reason",
+           "loop_map", "loop_terms", "loop_verdict", "no_gains_verdict", "require_sensor", "second_moment_map",
+           "stage_weight", "undetermined_gains", "window_costs"]
 
 #: The exact moments of z = (xhat, e) form (2n)^2 x (2n)^2 matrices: up to n = KRONECKER_MAX_N.
 LOOP_MAX_N = KRONECKER_MAX_N
@@ -242,9 +244,8 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
         verdict, why = chain_loop_verdict(system, K, protocol, mu)
         inf_or_nan = float("inf") if verdict is False else float("nan")
         return EstimatedLoop(law, protocol, K, inf_or_nan, verdict, inf_or_nan, float("nan"), float("nan"), None, why)
-    A, B, Sigma_W = system.A, system.B, system.noise_cov
+    B, Sigma_W = system.B, system.noise_cov
     Omega, psi = loop_weights(system)
-    sensor = system.sensor
     dp = dp if split else None
     dp_reason = "not asked for (split=False)"
     if split and dp is None:
@@ -269,27 +270,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     undetermined = undetermined_gains(system, gains)
     if undetermined:
         return result(nan, nan, nan, nan, None, undetermined)
-    _, L, prob = gains
-    c = mu * (1.0 - mu)
-    eye = np.eye(n)
-    zero = np.zeros((n, n))
-    matrix = np.zeros((4 * n * n, 4 * n * n))
-    noise = np.zeros((2 * n, 2 * n))
-    noise_cov = np.block([[Sigma_W, np.zeros((n, sensor.p))], [np.zeros((sensor.p, n)), sensor.noise_cov]])
-    Abar = A - (B * mu) @ K
-    for La, pa in zip(L, prob, strict=True):
-        if pa == 0.0:
-            continue
-        LC = La @ sensor.C
-        F = np.block([[Abar, LC @ A], [zero, (eye - LC) @ A]])
-        if protocol == "tcp":
-            left = [np.concatenate([B[:, i], np.zeros(n)]) for i in range(B.shape[1])]
-        else:
-            left = [np.concatenate([LC @ B[:, i], (eye - LC) @ B[:, i]]) for i in range(B.shape[1])]
-        D = [-np.outer(b, np.concatenate([K[i], np.zeros(n)])) for i, b in enumerate(left)]
-        matrix += pa * random_matrix_moment(F, D, c)
-        N = np.block([[LC, La], [eye - LC, -La]])
-        noise += pa * (N @ noise_cov @ N.T)
+    matrix, noise = second_moment_map(system, K, protocol, gains)
     radius = float(np.max(np.abs(np.linalg.eigvals(matrix))))
     if loop_verdict(radius) is None:
         return result(radius, nan, nan, nan, None, f"undecided: the radius of (xhat, e) is {radius:.12g}, within "
@@ -299,8 +280,7 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
                                                              f"{radius:.6g}")
     S = solve_fixed_point(lambda X: (matrix @ X.ravel()).reshape(2 * n, 2 * n), lambda: matrix, noise,
                           "the stationary second moment of (xhat, e)")
-    W = np.block([[Omega + K.T @ ((mu * psi)[:, None] * K), Omega], [Omega, Omega]])
-    cost = float(np.sum(W * S))
+    cost = float(np.sum(stage_weight(system, K) * S))
     if dp is None:
         return result(radius, cost, nan, nan, S, f"no split: {dp_reason}" if split else "")
     P, Kdp = dp.cost_to_go, dp.gain
@@ -309,6 +289,122 @@ def estimated_loop(system: System, gain: np.ndarray, protocol: str, law: str = "
     control = float(np.sum(P * Sigma_W))
     estimation = float(np.sum((G.T @ H @ G) * S))
     return result(radius, cost, control, estimation, S, "")
+
+
+def loop_terms(system: System, gain: np.ndarray, protocol: str,
+               gains: tuple[np.ndarray, np.ndarray, np.ndarray]) -> list[tuple[float, np.ndarray, np.ndarray,
+                                                                               np.ndarray]]:
+    """The random matrices of the loop ``z+ = (F_a + sum_i (v_i - mu_i) D_{a,i}) z + N_a (w, r)`` (module docstring),
+    per arrival pattern a of positive probability: ``(p_a, F_a, left_a, N_a)`` with ``D_{a,i} = -left_a[:, i]
+    [k_i, 0]`` (``left_a`` 2n×m: ``[b_i; 0]`` TCP-like, ``[L_a C b_i; (I - L_a C) b_i]`` UDP-like). ``gains``:
+    `filter_gains`. O(2^g n^3)."""
+    sensor, A, B, K, n = system.sensor, system.A, system.B, np.asarray(gain, dtype=float), system.n
+    mu = stationary_channel(system)
+    _, L, prob = gains
+    eye, zero = np.eye(n), np.zeros((n, n))
+    Abar = A - (B * mu) @ K
+    out = []
+    for La, pa in zip(L, prob, strict=True):
+        if pa == 0.0:
+            continue
+        LC = La @ sensor.C
+        F = np.block([[Abar, LC @ A], [zero, (eye - LC) @ A]])
+        left = np.vstack([B, np.zeros_like(B)]) if protocol == "tcp" else np.vstack([LC @ B, (eye - LC) @ B])
+        out.append((float(pa), F, left, np.block([[LC, La], [eye - LC, -La]])))
+    return out
+
+
+def second_moment_map(system: System, gain: np.ndarray, protocol: str,
+                      gains: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """``(matrix, noise)``: ``E[z+ z+'] = matrix vec(E[z z']) + noise`` on row-major vec, the second-moment map of
+    the loop of `loop_terms` (``sum_a p_a random_matrix_moment(F_a, D_a, mu (1 - mu))`` and ``sum_a p_a N_a
+    diag(Sigma_W, R) N_a'``). O(2^g (m + 1) (2n)^4)."""
+    n, K = system.n, np.asarray(gain, dtype=float)
+    mu = stationary_channel(system)
+    c = mu * (1.0 - mu)
+    matrix = np.zeros((4 * n * n, 4 * n * n))
+    wide = np.hstack([K, np.zeros_like(K)])
+    terms = loop_terms(system, K, protocol, gains)
+    for pa, F, left, _ in terms:
+        D = [-np.outer(left[:, i], wide[i]) for i in range(left.shape[1])]
+        matrix += pa * random_matrix_moment(F, D, c)
+    return matrix, _noise_moment(system, terms, system.noise_cov)
+
+
+def _noise_moment(system: System, terms: list, state_cov: np.ndarray) -> np.ndarray:
+    """``sum_a p_a N_a diag(state_cov, R) N_a'``: what a zero-mean state disturbance of covariance ``state_cov`` and
+    the measurement noise add to E[z z'] through one update (Sigma_W each step; P0, the prior's error, at the
+    first). O(2^g n^3)."""
+    n, R = system.n, system.sensor.noise_cov
+    cov = np.block([[state_cov, np.zeros((n, R.shape[0]))], [np.zeros((R.shape[0], n)), R]])
+    return sum((pa * (N @ cov @ N.T) for pa, _, _, N in terms), np.zeros((2 * n, 2 * n)))
+
+
+def stage_weight(system: System, gain: np.ndarray) -> np.ndarray:
+    """``W`` with ``E[x'Omega x + (V u)'Psi (V u)] = tr(W E[z z'])`` for ``u = -K xhat``, ``x = xhat + e``:
+    ``[[Omega + K'M Psi K, Omega], [Omega, Omega]]`` (module docstring). O(n^2 m)."""
+    K = np.asarray(gain, dtype=float)
+    Omega, psi = loop_weights(system)
+    mu = stationary_channel(system)
+    return np.block([[Omega + K.T @ ((mu * psi)[:, None] * K), Omega], [Omega, Omega]])
+
+
+def window_costs(system: System, gain: np.ndarray, protocol: str, steps: int,
+                 gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """The exact expected stage costs ``E[x_k'Omega x_k + (V_k u_k)'Psi (V_k u_k)]``, k = 0..steps-1, of ``u = -K
+    xhat`` on the filter's stationary gains from ``x_0 ~ N(x0, P0)`` with the prior ``x0`` (as
+    sensing.montecarlo.simulate_estimated runs it): ``E[z_0 z_0'] = [x0; 0][x0; 0]' + sum_a p_a N_a diag(P0, R)
+    N_a'``, then `second_moment_map` step by step. inf where it overflows (a loop that is not mean-square stable,
+    over a long window). ``gains``: `filter_gains` when the caller has them. Time O(steps (2n)^4).
+
+    Raises
+    ------
+    InputError
+        No Bernoulli sensor; no stationary gains (field ``sensor.gamma``); n > LOOP_MAX_N (field ``n``).
+
+    Examples
+    --------
+    >>> from packetloss_cvx.model.sensor import Sensor
+    >>> s = System(A=[[1.0]], B=[[1.0]], horizon=2, state_weight=[1.0], input_weight=[1.0], mu=[1.0], x0=[2.0],
+    ...            noise_cov=[[1.0]], sensor=Sensor(C=[[1.0]], gamma=[1.0]))     # C = I, R = 0: full state
+    >>> window_costs(s, np.array([[0.5]]), "tcp", 2).round(12).tolist()   # (1 + 1/4) E x^2: E x^2 = 4, 4/4 + 1
+    [5.0, 2.5]
+    """
+    require_sensor(system)
+    if system.n > LOOP_MAX_N:
+        raise InputError("n", f"exact loop moments need n <= {LOOP_MAX_N} (a (2n)^2 matrix); found n = {system.n}")
+    gains = filter_gains(system) if gains is None else gains
+    if gains is None:
+        raise InputError("sensor.gamma", "the filter has no stationary gains at this gamma (the expected Riccati "
+                                         "iteration diverges)")
+    K = np.asarray(gain, dtype=float)
+    matrix, noise = second_moment_map(system, K, protocol, gains)
+    start = np.concatenate([system.x0, np.zeros(system.n)])
+    S = np.outer(start, start) + _noise_moment(system, loop_terms(system, K, protocol, gains), system.sensor.P0)
+    W = stage_weight(system, K)
+    costs = np.empty(steps)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(steps):
+            costs[k] = np.sum(W * S)
+            S = (matrix @ S.ravel()).reshape(S.shape) + noise
+    return np.where(np.isnan(costs), np.inf, costs)
+
+
+def loop_error_bar_reason(system: System, gain: np.ndarray, protocol: str,
+                          gains: tuple[np.ndarray, np.ndarray, np.ndarray]) -> str:
+    """Why a sampled cost of the loop of `loop_terms` gets no error bar ("" when the fourth moments of (xhat, e) are
+    proved bounded): closedloop.tails.error_bar_reason on that loop, ``z+ = (A_a - B_a V K~) z`` with ``A_a = F_a +
+    left_a M K~``, ``B_a = left_a``, ``K~ = [K, 0]``, its modes the arrival patterns (independent from step to step:
+    the chain whose every row is their probabilities). O(tails.fourth_moment_radius at dimension 2n, 2^g modes)."""
+    K = np.asarray(gain, dtype=float)
+    mu = stationary_channel(system)
+    terms = loop_terms(system, K, protocol, gains)
+    wide = np.hstack([K, np.zeros_like(K)])
+    prob = np.array([t[0] for t in terms])
+    A_modes = np.stack([F + (left * mu) @ wide for _, F, left, _ in terms])
+    B_modes = np.stack([left for _, _, left, _ in terms])
+    h = np.broadcast_to(mu, (len(terms), mu.size))
+    return error_bar_reason(A_modes, B_modes, wide, h, np.broadcast_to(prob, (len(terms), len(terms))))
 
 
 #: The laws of :func:`loop_map`: the DP law on the TCP-like estimate (optimal by separation), the paper's TCP-like

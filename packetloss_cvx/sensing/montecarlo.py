@@ -16,14 +16,16 @@ import numpy as np
 
 from ..budgets import check, simulate_work
 from ..closedloop.moments import stationary_channel
+from ..closedloop.tails import error_bar_reason
 from ..errors import InputError
 from ..linalg import psd_factor
 from ..model.sensor import Sensor
 from ..model.system import System, loop_weights
+from ..montecarlo.runs import z_score
 from ..results.sensing import EstimatedRun, SampledCovariance
 from .arrivals import ChainSampler, arrival_patterns
 from .kalman import actuation_covariance, measurement_update, pattern_rows, predict
-from .loop import estimated_loop, filter_gains, require_sensor
+from .loop import LOOP_MAX_N, estimated_loop, filter_gains, loop_error_bar_reason, require_sensor, window_costs
 
 __all__ = ["FILTERS", "pattern_update", "sampled_covariance", "simulate_estimated"]
 
@@ -42,7 +44,10 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
                        samples: int = 2000, steps: int = 200, seed: int = 0, law: str = "") -> EstimatedRun:
     """``samples`` runs of ``steps`` steps of ``u = -K xhat`` from ``x_0 ~ N(x0, P0)`` (module docstring).
 
-    Returns the mean stage cost over the second half and its standard error, the exact stationary cost
+    Returns the mean stage cost over the second half and its standard error (nan with ``stderr_reason`` where the
+    loop's fourth moments grow or are not proved bounded: `_error_bar_reason`), the exact expectation of that same
+    average and the sample's z-score against it (the "stationary" filter: sensing.loop.window_costs, up to n =
+    LOOP_MAX_N; nan otherwise), the exact stationary cost (the law run for ever: not the sample's window)
     (the "stationary" filter: sensing.loop; the "kalman" filter: nan with the reason), whether the loop is proved
     stable (the fixed-gain loop's radius; for the Kalman filter None: no exact verdict for a time-varying gain),
     and the mean of the filter's own covariance P_k over the kept steps with its per-entry standard error and the
@@ -78,6 +83,7 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     rows = [pattern_rows(sensor, a) for a in arrived]
     digits = 2 ** np.arange(sensor.g - 1, -1, -1)        # itertools.product order: channel 0 most significant
     exact, reason, stable = float("nan"), "the time-varying filter has no exact stationary cost: Monte Carlo", None
+    window = float("nan")
     if sensor.channel is not None and filter == "stationary":
         raise InputError("sensor.model", "stationary filter gains behind Gilbert-Elliott sensor links are not derived "
                                          "(the loop would be a Markov jump system): use filter='kalman'")
@@ -89,6 +95,9 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
         gains = fixed[1]
         loop = estimated_loop(system, K, protocol, law)
         exact, reason, stable = loop.average_stage_cost, loop.reason, loop.stable
+        # the exact expectation of the sample's own average (the kept steps from x0), where the moments are formed
+        window = (float(window_costs(system, K, protocol, steps, fixed)[steps - steps // 2:].mean())
+                  if n <= LOOP_MAX_N else float("nan"))
     R_factor, W_factor = psd_factor(R), psd_factor(Sigma_W)
     rng = np.random.default_rng(seed)
     x = system.x0 + _noise(rng, psd_factor(sensor.P0), samples)
@@ -128,8 +137,9 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
                     Pm += actuation_covariance(B, mu, u)
     means = total / keep
     mean = float(means.mean())
+    no_bar = _error_bar_reason(system, K, protocol, None if filter == "kalman" else fixed)
     with np.errstate(over="ignore"):        # squares beyond a float: stderr inf, which callers refuse (no z)
-        stderr = float(means.std(ddof=1) / np.sqrt(samples))
+        stderr = float("nan") if no_bar else float(means.std(ddof=1) / np.sqrt(samples))
     if filter == "kalman":
         covariance = covariance / (keep * samples)
         run_means = per_run / keep
@@ -138,8 +148,27 @@ def simulate_estimated(system: System, gain: np.ndarray, protocol: str, filter: 
     else:
         covariance = cov_stderr = np.full((n, n), np.nan)
         trace_stderr = float("nan")
+    z = float("nan") if no_bar else z_score(mean, stderr, window)
     return EstimatedRun(law, protocol, filter, mean, stderr, exact, stable, covariance, samples, steps, reason,
-                        cov_stderr, trace_stderr)
+                        cov_stderr, trace_stderr, no_bar, window, z)
+
+
+#: Why the time-varying filter's run has no error bar where the law's full-state loop has none.
+KALMAN_NO_BAR = ("no error bar: the state's own loop x+ = (A - B V K) x + B V K e + w holds the law's full-state loop "
+                 "over the actuator links; in that loop {}")
+
+
+def _error_bar_reason(system: System, gain: np.ndarray, protocol: str,
+                      gains: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> str:
+    """Why the sample gets no error bar ("" when it gets one). The stationary filter (``gains``): the fourth moments
+    of its exact loop (xhat, e) (sensing.loop.loop_error_bar_reason). The time-varying filter (None): those of the
+    law's full-state loop, which the state's loop contains (``x+ = (A - BVK) x + BVK e + w`` with V independent of
+    x and e): where they grow the state's do; where they are bounded the filter's error moments are not derived
+    and the spread is kept as the error bar. O(tails.fourth_moment_radius)."""
+    if gains is not None:
+        return loop_error_bar_reason(system, gain, protocol, gains)
+    why = error_bar_reason(system.A, system.B, gain, stationary_channel(system))
+    return KALMAN_NO_BAR.format(why.removeprefix("no error bar: ")) if why else ""
 
 
 def pattern_update(Pm: np.ndarray, pattern: np.ndarray, rows: list[np.ndarray], C: np.ndarray,

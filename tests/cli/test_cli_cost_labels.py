@@ -37,6 +37,7 @@ COMMANDS = [
     "simulate two_actuator --samples 200", "simulate two_actuator --samples 200 --closed-loop --steps 20",
     "simulate two_actuator --samples 100 --closed-loop --steps 10 --actuator all",
     "simulate pendulum_bursty --samples 100", "simulate pendulum_sensor --samples 100",
+    "simulate pendulum_sensor --samples 50 --closed-loop --steps 10",
     # the constrained programs and loop ([constraints] keys from the command line)
     "solve two_actuator --u-max 0.5 --u-min=-0.5 --x-max 2", "solve two_actuator --x-max 0.5 --soft --soft-weight 1e-3",
     "solve pendulum_bursty --u-max 5 --u-min=-5",
@@ -227,3 +228,21 @@ def test_compare_names_the_loop_basis_of_its_cost_columns(capsys):
     assert "[basis: loop]" in lines[0]
     assert "avg cost [loop]" in lines[1]
     assert "x0 cost [loop]" in lines[1]
+
+
+def test_simulate_names_the_loop_and_realised_bases_beside_each_cost(capsys):
+    """simulate's closed-loop lines name the loop basis as its constrained (MPC) lines do, each open-loop object
+    names the realised basis of its sample and exact value, and every estimated-state entry names the loop basis,
+    in text and JSON."""
+    text = run(capsys, "simulate pendulum_sensor --samples 50 --closed-loop --steps 10")
+    closed = [line for line in text.splitlines() if "closed loop over" in line]
+    estimated = [line for line in text.splitlines() if "filter: mean stage cost" in line]
+    assert len(closed) == 3
+    assert len(estimated) == 6
+    assert all("[basis: loop]" in line.split("; ")[0] for line in closed + estimated)
+    data = json.loads(run(capsys, "simulate pendulum_sensor --samples 50 --closed-loop --steps 10", "--json"))
+    assert [data[p]["open_loop"]["basis"] for p in ("tcp", "udp")] == ["realised", "realised"]
+    for law in ("tcp", "udp", "dp"):
+        entry = data["estimated_state"][law]
+        assert entry["basis"] == "loop"
+        assert (entry["kalman"]["basis"], entry["stationary"]["basis"]) == ("loop", "loop")

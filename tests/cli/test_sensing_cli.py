@@ -60,10 +60,13 @@ def test_simulate_closed_loop_reports_each_law_on_the_estimate(scalar_file):
     for entry in section.values():
         assert entry["exact_stage_cost"] is None
         assert entry["exact_reason"]
-        assert entry["stderr"] > 0
         assert entry["stable"] is True
-        stationary = entry["stationary"]
-        assert abs(stationary["mean_stage_cost"] - stationary["exact_stage_cost"]) < 5 * stationary["stderr"]
+        # mean-square stable, yet no law's fourth moments stay bounded: an undelivered step multiplies x^4 by
+        # a^4 = 16, so rho_4 >= (1 - mu) a^4 = 1.6 (closedloop.tails); neither filter's sample has an error bar
+        for run in (entry, entry["kalman"], entry["stationary"]):
+            assert run["stderr"] is None
+            assert run["stderr_reason"].startswith("no error bar")
+            assert "fourth moments grow" in run["stderr_reason"]
 
 
 def test_region_separates_the_tcp_thresholds_and_maps_the_coupled_region(scalar_file):

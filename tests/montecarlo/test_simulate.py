@@ -13,8 +13,9 @@ from packetloss_cvx.montecarlo.simulate import simulate
 
 from ..references import enumerated_radius
 
-OPEN = {"formula", "exact", "mean", "stderr", "z", "formula_basis"}
-CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable", "basis"}
+OPEN = {"formula", "exact", "mean", "stderr", "z", "formula_basis", "basis"}
+CLOSED = {"mean_stage_cost", "stderr", "exact_stage_cost", "mean_square_spectral_radius", "stable", "basis",
+          "averaged_steps"}
 
 
 def stable_random_system(seed):
@@ -193,3 +194,45 @@ def test_cli_explains_the_tcp_plans_exact_cost_above_its_formula(tmp_path, capsy
     assert not any("expected-cost-tcp" in line for line in lines[tcp + 2:])   # once, under the TCP-like plan only
     assert main(["simulate", path, "--samples", "100", "-q", "--mu", "1"]) == 0   # every packet arrives: no gap
     assert "expected-cost-tcp" not in capsys.readouterr().out
+
+
+def test_a_loop_with_nothing_random_has_a_zero_spread_not_rare_bursts(capsys):
+    """two_actuator at mu = 0 (no input ever arrives, no noise): every run is x_t = A^t x0, so the laws' loops are
+    deterministic though not mean-square stable; the sample is the exact cost with zero spread, and nothing may
+    blame rare loss bursts or rare runs."""
+    from packetloss_cvx import load_example
+    from packetloss_cvx.model.system import loop_weights
+
+    s = load_example("two_actuator").with_mu([0.0, 0.0])
+    assert not s.noise_cov.any()
+    steps = 12
+    Omega, _ = loop_weights(s)
+    x, costs = s.x0.copy(), []
+    for _ in range(steps):          # the hand rollout: nothing arrives, so u never acts
+        costs.append(float(x @ Omega @ x))
+        x = s.A @ x
+    sim = simulate(s, 20, steps=steps, seed=3, closed_loop=True, laws=["tcp", "udp"], progress=False)
+    for run in sim.closed_loop.values():
+        assert not run.stable
+        assert run.stderr == 0.0
+        assert run.stderr_reason == ""
+        assert run.mean_stage_cost == pytest.approx(np.mean(costs), rel=1e-12)
+    assert main(["simulate", "two_actuator", "--mu", "0", "--closed-loop", "--samples", "20", "--steps", "12",
+                 "-q"]) == 0
+    text = capsys.readouterr().out
+    assert "rare" not in text
+    assert text.count("zero spread") == 2
+
+
+def test_an_overflow_of_a_stable_plant_does_not_blame_instability():
+    """A = 1e-300 I (stable), B and weights of 1e300: the exact cost overflows from the entries alone; the error says
+    so rather than naming only an unstable plant it never checked."""
+    from packetloss_cvx import NumericalError
+
+    s = System(A=[[1e-300, 0.0], [0.0, 1e-300]], B=[[1e-300, 0.0], [0.0, 1e300]], horizon=5,
+               state_weight=[1e-300, 1e300], input_weight=[1e-300, 1e300], mu=[0.9, 0.9], x0=[1.0, 1.0])
+    assert max(abs(np.linalg.eigvals(s.A))) < 1
+    with pytest.raises(NumericalError) as err:
+        simulate(s, 10, progress=False)
+    assert "entries of A, B, the weights" in str(err.value)
+    assert "rescale the model's units" in str(err.value)
