@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import NumericalError
 from ..linalg import Dyadic, controllable_split, exact_psd, frobenius
-from ..model.chain import mode_chain
+from ..model.chain import mode_chain, reachable_modes
 from ..model.channel import GE_MODEL, MarkovChannel
 from ..tolerances import MEAN_SQUARE_MARGIN
 from .modes import DENSE_MAX_DIM, mode_matrix
@@ -118,7 +118,8 @@ def mode_outside_matrices(A: np.ndarray, B: np.ndarray, T: Dyadic, rates: np.nda
 
 
 def exact_transition(channel: MarkovChannel) -> Dyadic:
-    """The mode chain's transition matrix (model.chain.mode_chain's order) exactly, from the channel's stored
+    """The mode chain's transition matrix (model.chain.mode_chain's modes and order: the joint states reachable from
+    the start) exactly, from the channel's stored
     numbers: a channel given as Gilbert–Elliott's p, r (its table form), ``[[1 - p, p], [r, 1 - r]]`` with 1 - p
     taken exactly (mode_chain's floats round it), a [`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel]'s
     transitions as stored, Kronecker products of the channels' exact. O(M^2) integer operations.
@@ -139,7 +140,8 @@ def exact_transition(channel: MarkovChannel) -> Dyadic:
     T = Dyadic(np.ones((1, 1), dtype=object), 0)
     for Ti in chains:
         T = Dyadic(np.kron(T.ints, Ti.ints), T.exp + Ti.exp)
-    return T
+    live = reachable_modes(channel)
+    return T if live.all() else Dyadic(T.ints[np.ix_(live, live)], T.exp)
 
 
 def chain_outside_proved(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, P: np.ndarray | None,

@@ -1,8 +1,10 @@
 """The loop behind Markov channels as a Markov jump linear system (MJLS).
 
-Mode theta_k = the joint channel state (prod_i k_i modes of a
-[`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel], 2^m for Gilbert–Elliott channels; channels independent:
-the mode chain's transition matrix is the Kronecker product of the channels' own). In mode a, actuator i's
+Mode theta_k = the joint channel state (of the prod_i k_i joint states of a
+[`MarkovChannel`][packetloss_cvx.model.channel.MarkovChannel], 2^m for Gilbert–Elliott channels, those the chain can
+visit from its start: model.chain.mode_chain; channels independent: the mode chain's transition matrix is the
+Kronecker product of the channels' own, restricted to them). A state the chain never reaches never enters the loop,
+so it decides no radius, gain or certificate here. In mode a, actuator i's
 packet arrives with probability h_{a,i} (d_i of the state; h_good or h_bad), independently. The closed loop
 ``x_{k+1} = (A - B V_k K_a) x_k``
 is mean-square stable iff the spectral radius of its coupled second-moment operator
@@ -32,7 +34,7 @@ import numpy as np
 
 from ..budgets import check, gib_text, operator_bytes
 from ..errors import InputError, NumericalError
-from ..model.chain import MAX_CHANNELS, MAX_MODES, mode_chain, mode_start, product_chain
+from ..model.chain import MAX_CHANNELS, MAX_MODES, mode_chain, mode_start, product_chain, reachable_modes
 from ..model.channel import (
     GilbertElliott,  # noqa: F401 (GilbertElliott: the doctests' constructor)
     MarkovChannel,
@@ -91,9 +93,14 @@ def check_operator_size(modes: int, n: int) -> None:
           instead="use fewer chain states or channels (mean_square_radius's method='krylov' builds no dense operator)")
 
 
-def _mode_gains(gains: np.ndarray, M: int, m: int, n: int) -> np.ndarray:
+def _mode_gains(gains: np.ndarray, channel: MarkovChannel, M: int, m: int, n: int) -> np.ndarray:
+    """One gain per mode of `mode_chain` (M of them); gains given for every joint state (prod k_i, reachable or not)
+    keep the reachable modes' rows."""
     K = np.asarray(gains, dtype=float)
     K = np.repeat(K[None], M, axis=0) if K.ndim == 2 else K
+    live = reachable_modes(channel)
+    if K.ndim == 3 and len(K) == live.size != M:
+        K = K[live]
     if K.shape != (M, m, n):
         raise InputError("gains", f"expected an ({m}, {n}) gain or ({M}, {m}, {n}) mode gains, found {K.shape}")
     return K
@@ -122,7 +129,7 @@ def second_moment_operator(A: np.ndarray, B: np.ndarray, channel: MarkovChannel,
     modes, T, h = mode_chain(channel)
     M, n, m = len(modes), A.shape[0], B.shape[1]
     check_operator_size(M, n)
-    return mode_matrix(A, B, _mode_gains(gains, M, m, n), h, T, delivery)
+    return mode_matrix(A, B, _mode_gains(gains, channel, M, m, n), h, T, delivery)
 
 
 def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gains: np.ndarray,
@@ -151,7 +158,7 @@ def mean_square_radius(A: np.ndarray, B: np.ndarray, channel: MarkovChannel, gai
         raise InputError("delivery", f"expected current or next, found {delivery!r}")
     modes, T, h = mode_chain(channel)
     M, n, m = len(modes), A.shape[0], B.shape[1]
-    K = _mode_gains(gains, M, m, n)
+    K = _mode_gains(gains, channel, M, m, n)
     if not (np.all(np.isfinite(K)) and np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
         raise NumericalError("MJLS mean-square radius: the gains or the plant are not finite")
 
@@ -192,6 +199,9 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     M, n, m = len(modes), system.n, system.m
     K_all = np.asarray(gains, dtype=float)
     K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 3 else K_all
+    live = reachable_modes(system.channel)
+    if K_all.ndim == 4 and K_all.shape[1] == live.size != M:      # a gain for every joint state: the modes' rows
+        K_all = K_all[:, live]
     if K_all.shape != (steps, M, m, n):
         raise InputError("gains", f"expected ({M}, {m}, {n}) or ({steps}, {M}, {m}, {n}) mode gains, found "
                                   f"{K_all.shape}")

@@ -41,7 +41,9 @@ _MOMENTS = SystemStore(MOMENTS_KEY)
 __all__ = [
     "MAX_CHANNELS", "MAX_MODES", "DeliveryFactor", "attach_channel", "chain_matrices", "channel_covariance",
     "delivery_factor", "filter_belief",
-    "mode_chain", "mode_start", "plugin_schedule", "plugin_system", "product_chain", "second_moments",
+    "mode_chain", "mode_start", "plugin_schedule", "plugin_system", "product_chain", "reachable_modes",
+    "reachable_states",
+    "second_moments",
     "stacked_moments",
 ]
 
@@ -75,11 +77,59 @@ MAX_CHANNELS = 6
 MAX_MODES = 2 ** MAX_CHANNELS
 
 
+def reachable_states(step: npt.ArrayLike, start: npt.ArrayLike) -> np.ndarray:
+    """The states (bool, (S,)) some walk along the nonzero entries of ``step`` (S×S) reaches from the support of
+    ``start`` (S,), the support included: ``(start step^i)_s = 0`` for every i outside them, whatever the values
+    (any nonnegative matrix with that zero pattern). O(S^3).
+
+    Examples
+    --------
+    >>> reachable_states([[0.5, 0.5, 0.0], [0.0, 1.0, 0.0], [0.3, 0.0, 0.7]], [1.0, 0.0, 0.0]).tolist()
+    [True, True, False]
+    """
+    M = np.asarray(step)
+    seen = np.asarray(start) > 0
+    while True:
+        wider = seen | np.any(M[seen] != 0, axis=0)
+        if np.array_equal(wider, seen):
+            return seen
+        seen = wider
+
+
+def reachable_modes(channel: MarkovChannel) -> np.ndarray:
+    """Which joint states of `product_chain` (its order) the chain can visit from its start: a boolean (M,), True on
+    the closed set reached from the support of the joint start (each channel's initial belief, so its stationary
+    distribution when no state or belief is given). The loop that runs never meets the other states, so they decide
+    no verdict: `mode_chain` and `mode_start` keep only these. Read from the zero pattern of each channel's own
+    transition matrix and start (a Boolean Kronecker product: no product of small probabilities underflows to a
+    false zero), searched on the joint chain (`reachable_states`; channels step together: a joint state is reached
+    only where every channel is in its state at the same step). Time O(M^3) (M = prod_i k_i).
+
+    Examples
+    --------
+    >>> reachable_modes(GilbertElliott(p=[0.0], r=[0.3], state=["good"])).tolist()   # good absorbs: bad never met
+    [True, False]
+    >>> reachable_modes(GilbertElliott(p=[0.1], r=[0.3], state=["good"])).tolist()
+    [True, True]
+    >>> swap = MarkovChannel(transition=[[[0.0, 1.0], [1.0, 0.0]]] * 2, delivery=[[1.0, 0.0]] * 2, state=[0, 0])
+    >>> reachable_modes(swap).tolist()       # both channels flip each step: (good, bad) and (bad, good) never met
+    [True, False, False, True]
+    """
+    step, start = np.ones((1, 1), dtype=np.int64), np.ones(1, dtype=np.int64)
+    for Ti, (_, _, pi0) in zip(channel.transition, chain_matrices(channel), strict=True):
+        step = np.kron(step, (np.asarray(Ti) > 0).astype(np.int64))
+        start = np.kron(start, (np.asarray(pi0) > 0).astype(np.int64))
+    return reachable_states(step, start)
+
+
 def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h)``: the M = prod_i k_i joint states (each row the state indices, channel 0 the most
+    """``(modes, T, h)``: the joint states the chain can visit from its start (`reachable_modes`; every one of
+    the prod_i k_i joint states where the start reaches them all), each row the state indices (channel 0 the most
     significant, state 0 first; Gilbert–Elliott channels: 0 = good), their transition matrix (the Kronecker
-    product of the channels' chains) and per-mode delivery probabilities (M, m). Refused beyond
-    `MAX_MODES`. Time O(M^2 + M m).
+    product of the channels' chains, restricted to those states: still stochastic, as they form a closed set) and
+    per-mode delivery probabilities (M, m). The Markov jump linear system's modes: a state the chain cannot reach
+    never enters the loop, so it enters no radius, Riccati solution or certificate. Refused beyond `MAX_MODES`
+    joint states. Time O(M^3 + M m).
 
     Raises
     ------
@@ -90,19 +140,26 @@ def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarr
     --------
     >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.1], r=[0.3]))]      # good, bad: the Gilbert channel
     [[[0], [1]], [[0.9, 0.1], [0.3, 0.7]], [[1.0], [0.0]]]
+    >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.0], r=[0.3], state=["good"]))]   # bad is never met
+    [[[0]], [[1.0]], [[1.0]]]
     """
     M = int(np.prod(channel.sizes))
     if M > MAX_MODES:
         raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
                                     f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES} "
                                     f"(at most {MAX_CHANNELS} two-state channels)")
-    return product_chain(channel)[:3]
+    modes, T, h, _ = product_chain(channel)
+    live = reachable_modes(channel)
+    if live.all():
+        return modes, T, h
+    return modes[live], T[np.ix_(live, live)], h[live]
 
 
 def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(modes, T, h, start)``: `mode_chain`'s joint states, transition matrix and per-mode delivery
-    probabilities, and P(joint state at the first step) from each channel's start (the product of the channels'
-    own), with no limit on the number of modes M = prod_i k_i (the caller prices it). Time O(M^2 + M m).
+    """``(modes, T, h, start)``: every joint state (all M = prod_i k_i, reachable from the start or not: `mode_chain`
+    keeps the reachable ones), the transition matrix and per-mode delivery probabilities, and P(joint state at the
+    first step) from each channel's start (the product of the channels' own), with no limit on M (the caller
+    prices it). Time O(M^2 + M m).
 
     Examples
     --------
@@ -122,7 +179,7 @@ def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def mode_start(channel: MarkovChannel) -> np.ndarray:
     """P(mode at the first step) from each channel's start in `chain_matrices`,
-    in `mode_chain`'s order. O(M m).
+    in `mode_chain`'s order (its modes only: the start's support is among them). O(M^3 + M m).
 
     Examples
     --------
@@ -130,7 +187,9 @@ def mode_start(channel: MarkovChannel) -> np.ndarray:
     [0.25, 0.75, 0.0, 0.0]
     """
     mode_chain(channel)                                   # refused beyond MAX_MODES, as the chain it starts
-    return product_chain(channel)[3]
+    start = product_chain(channel)[3]
+    live = reachable_modes(channel)
+    return start if live.all() else start[live]
 
 
 def filter_belief(channel: MarkovChannel, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:

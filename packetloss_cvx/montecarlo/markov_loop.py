@@ -27,7 +27,7 @@ from ..errors import InputError, ResourceError
 from ..linalg import psd_factor
 from ..lq.costs import closed_form
 from ..lq.markov_cost import exact_closed_form
-from ..model.chain import attach_channel, filter_belief
+from ..model.chain import attach_channel, filter_belief, reachable_modes
 from ..model.system import System, check_system, loop_weights
 from ..progress import progress_bar
 from .channels import sample_noise_paths
@@ -186,7 +186,7 @@ class BeliefGains:
 
 
 def mode_index(good: np.ndarray, sizes: Sequence[int] | None = None) -> np.ndarray:
-    """The joint mode of `packetloss_cvx.closedloop.mjls.mode_chain` (0 = all good, channel 0 the most significant
+    """The joint state of `packetloss_cvx.model.chain.product_chain` (0 = all good, channel 0 the most significant
     bit, 1 = bad) of good-state indicators (..., m); with ``sizes`` (a MarkovChannel's k_i), of state indices
     (..., m), mixed radix with channel 0 the most significant digit. O(size).
 
@@ -233,7 +233,8 @@ def markov_loop_block(system: System, laws: Sequence[str], tcp: BeliefGains | No
     ch = system.channel
     chain_states, V = sample_markov_paths(ch, steps, samples, losses)
     W = sample_noise_paths(system, steps, samples, noise)
-    modes = mode_index(chain_states, ch.sizes)
+    live = reachable_modes(ch)
+    modes = (np.cumsum(live) - 1)[mode_index(chain_states, ch.sizes)]     # mode_chain's index: reachable states only
     Omega, psi = loop_weights(system)
     L = len(laws)
     X = np.broadcast_to(system.x0, (L, samples, system.n)).copy()

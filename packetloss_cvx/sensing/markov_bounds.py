@@ -45,6 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import CrossCheckError, InputError, NumericalError
+from ..model.chain import reachable_states
 from ..model.sensor import Sensor
 from ..results.sensing import CovarianceBounds, FilterStability
 from .arrivals import Arrivals, sensor_arrivals
@@ -76,7 +77,7 @@ def weighted_series(A: np.ndarray, X: np.ndarray, Lam: np.ndarray, start: np.nda
     X = np.asarray(X, dtype=float)
     if float(np.linalg.norm(X)) == 0.0:
         return np.zeros((n, n))
-    keep = _reachable(Lam, start)        # (start Lambda^i)_s = 0 elsewhere: states start never runs into
+    keep = reachable_states(Lam, start)        # (start Lambda^i)_s = 0 elsewhere: states start never runs into
     Lam, start, S = Lam[np.ix_(keep, keep)], start[keep], int(keep.sum())
     M = np.kron(Lam, np.kron(A, A))
     v = np.tile(X.ravel(), S)
@@ -99,17 +100,6 @@ def weighted_series(A: np.ndarray, X: np.ndarray, Lam: np.ndarray, start: np.nda
     Y = y.reshape(S, n, n)
     out = np.einsum("s,sij->ij", start, Y)
     return 0.5 * (out + out.T)
-
-
-def _reachable(M: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """The states (bool, (S,)) some walk along ``M``'s nonzero entries reaches from ``start``'s support, the support
-    included: ``(start M^i)_s = 0`` for every i outside them. O(S^3)."""
-    seen = np.asarray(start) > 0.0
-    while True:
-        nxt = seen | np.any(M[seen] != 0.0, axis=0)
-        if np.array_equal(nxt, seen):
-            return seen
-        seen = nxt
 
 
 def _radius(M: np.ndarray) -> float:
@@ -135,7 +125,7 @@ def reachable_loss_radius(arrivals: Arrivals) -> float:
     """``rho(Lambda)`` over the states the chain can visit from its initial distribution (closed under T, so
     ``P(L_k >= i) = pi_{k-i} Lambda^i 1`` only involves them): the radius the one-step observability proof needs.
     O(S^3)."""
-    keep = _reachable(arrivals.transition, arrivals.initial)
+    keep = reachable_states(arrivals.transition, arrivals.initial)
     return _radius(arrivals.loss_matrix()[np.ix_(keep, keep)])
 
 

@@ -90,7 +90,19 @@ def test_chains_outside_the_monotonicity_proof_are_refused_with_the_reason():
 
 
 def test_a_ray_that_never_stabilises_returns_inf_with_a_proof_at_its_end():
-    # a = 2, burstiness 0.6: the hand value (3/4) / 0.4 > 1 = h_good, so no mean rate stabilises
-    point = actuator_critical(_scalar(2.0, 0.1, 0.3), "hold", tol=CRITICAL_MU_TOL)
+    # h_good = 1/2, a = 2: at the ray's end (rate 1/2, p = 0) the bad state is never met and half the packets arrive,
+    # so deadbeat on delivery leaves E[x+^2] = 4 x^2 / 2 at best; below it the bad state only adds losses
+    s = System(A=[[2.0]], B=[[1.0]], horizon=3, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+               channel=GilbertElliott(p=[0.1], r=[0.3], h_good=[0.5]))
+    point = actuator_critical(s, "zero", tol=CRITICAL_MU_TOL)
     assert point.t == np.inf
     assert point.outside.verdict == "unstable"
+
+
+def test_a_ray_stabilised_only_at_its_end_where_the_bad_state_is_never_met():
+    # a = 2, burstiness 0.6: the hand value (3/4) / 0.4 > 1 = h_good, so no mean rate below 1 stabilises; at rate 1
+    # (p = 0, started from the stationary law: good for ever) every packet arrives and hold stabilises
+    point = actuator_critical(_scalar(2.0, 0.1, 0.3), "hold", tol=CRITICAL_MU_TOL)
+    assert point.t == 1.0
+    assert 1.0 - CRITICAL_MU_TOL <= point.lower < 1.0
+    assert (point.inside.verdict, point.outside.verdict) == ("stable", "unstable")

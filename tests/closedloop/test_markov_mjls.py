@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import packetloss_cvx as pl
+from packetloss_cvx.closedloop.law_stability import loop_stability
 from packetloss_cvx.closedloop.mjls import coupled_riccati, mean_square_radius, mode_chain, second_moment_operator
 from packetloss_cvx.errors import NumericalError
 from packetloss_cvx.model.channel import GilbertElliott
@@ -16,22 +17,43 @@ from packetloss_cvx.montecarlo.markov_channels import sample_markov_deliveries, 
 PHI = (1 + 5**0.5) / 2
 
 
-def scalar(p, r, a=1.0, h_good=1.0, h_bad=0.0):
+def scalar(p, r, a=1.0, h_good=1.0, h_bad=0.0, state=None):
     return pl.System(A=[[a]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
-                     channel=GilbertElliott(p=[p], r=[r], h_good=[h_good], h_bad=[h_bad]))
+                     channel=GilbertElliott(p=[p], r=[r], h_good=[h_good], h_bad=[h_bad], state=state))
 
 
 def test_hand_derived_two_mode_scalar():
     # a = b = q = psi = 1, p = 0 (good is absorbing): P_g = 1 + P_g - P_g^2 / (P_g + 1), so P_g^2 = P_g + 1,
     # P_g = phi; P_b = 1 + r P_g + (1 - r) P_b, so P_b = (1 + r phi) / r; K_g = P_g / (P_g + 1) = 1 / phi. The bad
     # mode never delivers: its gain is the input it would best send were the packet to arrive, E_b / (E_b + 1) with
-    # E_b = r P_g + (1 - r) P_b = 1 + phi = phi^2 (the limit of its optimal gain as h_bad -> 0+).
-    res = coupled_riccati(scalar(0.0, 0.5))
+    # E_b = r P_g + (1 - r) P_b = 1 + phi = phi^2 (the limit of its optimal gain as h_bad -> 0+). The chain starts
+    # bad, so both modes are met (from the stationary law, good for ever, only the good one: the next test).
+    res = coupled_riccati(scalar(0.0, 0.5, state=["bad"]))
     np.testing.assert_allclose(res.cost_matrices.ravel(), [PHI, (1 + 0.5 * PHI) / 0.5], rtol=1e-12)
     np.testing.assert_allclose(res.gains.ravel(), [1 / PHI, PHI**2 / (PHI**2 + 1)], rtol=1e-12)
     # closed loop: good mode x+ = (1 - 1/phi) x forever after the first good step; bad mode x+ = x.
     # Operator [[g (1-p), b r], [g p, b (1-r)]] with g = (1 - 1/phi)^2, b = 1: radius max(g, 1 - r) = 0.5
     assert res.spectral_radius == pytest.approx(0.5, rel=1e-12)
+
+
+@pytest.mark.parametrize("start", [{}, {"state": ["good"]}])
+def test_a_start_that_never_meets_the_bad_state_leaves_it_out(start):
+    """p = 0 from good (given, or the stationary law): the bad mode is never met, so the loop is the deterministic
+    one x+ = (a - K) x, whatever the bad state would do. a = 1.2: the scalar DARE P = 1 + a^2 P / (P + 1), K = a P /
+    (P + 1), radius (a - K)^2; a fixed gain K: (a - K)^2, while the bad mode alone (no delivery, kept with
+    probability 1 - r = 0.7) would give a^2 0.7 = 1.008."""
+    a = 1.2
+    s = pl.System(A=[[a]], B=[[1.0]], horizon=1, state_weight=[1.0], input_weight=[1.0], x0=[1.0],
+                  channel=GilbertElliott(p=[0.0], r=[0.3], **start))
+    P = (a * a + np.sqrt(a**4 + 4)) / 2                      # P^2 - a^2 P - 1 = 0
+    res = coupled_riccati(s)
+    np.testing.assert_allclose([res.cost_matrices.ravel()[0], res.gains.ravel()[0]], [P, a * P / (P + 1)], rtol=1e-12)
+    assert res.modes.tolist() == [[0]]
+    assert res.spectral_radius == pytest.approx((a - a * P / (P + 1)) ** 2, rel=1e-12)
+    k = 0.793369
+    assert mean_square_radius(s.A, s.B, s.channel, np.array([[k]])) == pytest.approx((a - k) ** 2, rel=1e-12)
+    assert loop_stability(s, [[k]]).stable
+    assert mean_square_radius(s.A, s.B, s.channel.with_belief([[0.5, 0.5]]), np.array([[k]])) > 1.0
 
 
 @pytest.mark.parametrize(("p", "r", "a", "k"), [(0.2, 0.3, 1.5, 1.2), (0.05, 0.1, 1.2, 1.0), (0.6, 0.7, 0.9, -0.4)])
@@ -302,7 +324,7 @@ def test_coupled_riccati_residual_check_refuses_3_and_keeps_0_3_times_moment_res
     import packetloss_cvx.closedloop.riccati as riccati_module
     from packetloss_cvx.tolerances import MOMENT_RESIDUAL_RTOL
 
-    s = scalar(0.0, 0.5)
+    s = scalar(0.0, 0.5, state=["bad"])
     answer = coupled_riccati(s).cost_matrices.copy()
     real = riccati_module.dp_step
 

@@ -125,10 +125,12 @@ def test_current_convention_eigenpair_is_sandwiched_by_its_gains_and_its_certifi
     assert lam == pytest.approx(below, rel=1e-9)
     assert lam == pytest.approx(above, rel=1e-9)
 
-def _chain_at_an_end(k):
+def _chain_at_an_end(k, everywhere=True):
     """The k-th of a seeded sequence of plants (n = 2..4, one or two channels) behind a chain at the end of its mean
     rate (0 or 1, the other channel's 0, 1 or 1/2; burstiness 0 .. 0.9): a transient state (p = 0 or r = 0), whose
-    modes R's eigenvector vanishes on, and closed loops whose complex pairs give double roots on all matrices."""
+    modes R's eigenvector vanishes on, and closed loops whose complex pairs give double roots on all matrices. The
+    chain starts from a belief on every state, so the transient states are reachable (from the stationary start,
+    ``everywhere=False``, they are not, and leave the mode chain)."""
     rng = np.random.default_rng(9)
     for _ in range(k + 1):
         n, m = int(rng.integers(2, 5)), int(rng.integers(1, 3))
@@ -138,7 +140,8 @@ def _chain_at_an_end(k):
         corr = rng.uniform(0.0, 0.9, m)
         base = GilbertElliott(p=(1 - corr) / 2, r=(1 - corr) / 2)
         rate = rng.choice([0.0, 1.0, 0.5], size=m) if m > 1 else rng.choice([0.0, 1.0], size=1)
-    return A, B, chain_at_rate(base, rate), ("next", "current")[k % 2]
+    chain = chain_at_rate(base, rate)
+    return A, B, chain.with_belief(np.full((m, 2), 0.5)) if everywhere else chain, ("next", "current")[k % 2]
 
 
 @pytest.mark.parametrize("k", [1, 2, 6, 8, 11, 46, 55, 56, 105])
@@ -446,11 +449,12 @@ def test_pendulum_bursty_at_the_ends_of_its_mean_rate():
     single input is controllable, so the good state's loop can be made as fast as wanted; the bad state's is A);
     at mean rate 0 the bad state is absorbing and nothing is ever delivered: rho(A)^2. Under some kernels the
     first was "undecided" (lambda 0.9014, far from 1: gains of the transient state taken from a P that vanishes
-    there)."""
+    there). The chain starts in the transient state (bad at rate 1, good at rate 0): from the stationary law it would
+    never be met (test_pendulum_bursty_from_its_stationary_law_at_rate_1)."""
     s = pl_load("pendulum_bursty")
     rho2 = float(np.max(np.abs(np.linalg.eigvals(s.A)))) ** 2
     for rate, hand, verdict in ((1.0, 0.8 * rho2, "stable"), (0.0, rho2, "unstable")):
-        ch = chain_at_rate(s.channel, [rate])
+        ch = chain_at_rate(s.channel, [rate]).with_belief([[1.0 - rate, rate]])
         lam, P, K = homogeneous_coupled_riccati(s.A, s.B, ch)
         assert lam == pytest.approx(hand, rel=1e-9)
         found = chain_membership(s.A, s.B, ch)
@@ -460,6 +464,19 @@ def test_pendulum_bursty_at_the_ends_of_its_mean_rate():
         else:      # the certificate proves every law's radius >= 1 + margin >= 1 - CERTIFICATE_RTOL, exactly
             assert found.certificate_margin >= -CERTIFICATE_RTOL
             assert chain_outside_proved(s.A, s.B, ch, found.certificate, 1.0 + found.certificate_margin)
+
+
+def test_pendulum_bursty_from_its_stationary_law_at_rate_1():
+    """At mean rate 1 from the stationary law (good for ever) every packet arrives: the single input is controllable,
+    so a deadbeat law exists and the least radius is 0 (the transient bad state, whose 0.8 rho(A)^2 decided the
+    previous test, is never met)."""
+    s = pl_load("pendulum_bursty")
+    ch = chain_at_rate(s.channel, [1.0])
+    lam, _, K = homogeneous_coupled_riccati(s.A, s.B, ch)
+    assert lam == 0.0
+    found = chain_membership(s.A, s.B, ch)
+    assert found.verdict == "stable"
+    assert mjls_radius(s.A, s.B, ch, found.gain, "next") < 1 - MEAN_SQUARE_MARGIN
 
 
 def test_a_failed_linear_algebra_routine_is_a_numerical_error(monkeypatch):
