@@ -346,7 +346,10 @@ def small_lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.n
     try:
         solution = clarabel.DefaultSolver(sp.csc_array((m, m)), c, A, b, [clarabel.NonnegativeConeT(rows + 2 * m)],
                                           settings).solve()
-    except Exception:           # Clarabel's own failures (untyped): HiGHS decides
+    except BaseException as err:    # Clarabel's own failures (untyped, or a Rust panic): HiGHS decides
+        from ..qp.convex import is_panic  # cvxpy: imported where a failure needs it (optional.py)
+        if not (isinstance(err, Exception) or is_panic(err)):
+            raise
         return lp(c, G, h, l, u)
     if str(solution.status) != "Solved":
         return lp(c, G, h, l, u)

@@ -218,3 +218,38 @@ def test_compiled_solve_follows_the_status_policy(monkeypatch):
     assert len(seen) == 2
     monkeypatch.setattr(convex.CLARABEL, "STATUS_MAP", {})      # every Clarabel status unknown
     assert program.solve({a: -0.25}, "an LP")[0] == "solver_error"
+
+
+#: pyo3's panic type as Clarabel raises it: ``pyo3_runtime.PanicException``, a BaseException (no Python module
+#: exports it; a real panic, "Eigval error" in the PSD cone, needs the search's state to reproduce)
+PanicException = type("PanicException", (BaseException,), {"__module__": "pyo3_runtime"})
+
+
+def _panics(*args, **kwargs):
+    raise PanicException("Eigval error: Eigen(1)")
+
+
+def test_a_clarabel_panic_in_problem_solve_is_a_solver_error(monkeypatch):
+    x = cp.Variable()
+    problem = cp.Problem(cp.Minimize(cp.square(x - 1)))
+    monkeypatch.setattr(cp.Problem, "solve", _panics)
+    with pytest.raises(SolverError, match=r"an SDP: Clarabel panicked \(Eigval error: Eigen\(1\)\)") as info:
+        solve_problem(problem, "an SDP")
+    assert info.value.status == "solver_error"
+
+
+def test_a_clarabel_panic_in_the_compiled_program_is_a_solver_error(monkeypatch):
+    x, a = cp.Variable(2), cp.Parameter(2)
+    program = ClarabelProgram(cp.Problem(cp.Minimize(cp.sum(x)), [cp.norm(x - a) <= 1]))
+    monkeypatch.setattr(convex.clarabel, "DefaultSolver", _panics)
+    with pytest.raises(SolverError, match=r"an SOCP: Clarabel panicked"):
+        program.solve({a: [1.0, 2.0]}, "an SOCP")
+
+
+def test_an_interrupt_during_a_solve_is_not_a_solver_error(monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    x = cp.Variable()
+    monkeypatch.setattr(cp.Problem, "solve", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        solve_problem(cp.Problem(cp.Minimize(cp.square(x))), "a QP")
