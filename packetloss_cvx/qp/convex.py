@@ -81,6 +81,13 @@ def solve_problem(problem: cp.Problem, what: str,
     """Solve with Clarabel, trying each settings dict in ``attempts`` until one gives an
     accepted status or a proven infeasibility; returns the final status.
 
+    Each attempt runs on a new Clarabel solver (cvxpy's ``warm_start=False``; a settings dict may say otherwise).
+    cvxpy's default keeps the solver of the problem's last solve and updates its data in place: the answer then
+    carries the equilibration of the first data it saw, and an updated solver panicked in its PSD cone ("Eigval
+    error") where a new one on the same data failed cleanly (the stabilising LMI of the pendulum at
+    ``--margin 1e-9``, after 107 solves along the design search; after a panic every later update of that solver
+    panicked too).
+
     Raises
     ------
     SolverError
@@ -99,7 +106,7 @@ def solve_problem(problem: cp.Problem, what: str,
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                problem.solve(solver=cp.CLARABEL, **settings)
+                problem.solve(solver=cp.CLARABEL, **{"warm_start": False, **settings})
             except (cp.error.SolverError, ValueError, ArithmeticError) as err:   # e.g. a value cvxpy refuses
                 raise clarabel_failure(err, what) from None
             except BaseException as err:

@@ -253,3 +253,24 @@ def test_an_interrupt_during_a_solve_is_not_a_solver_error(monkeypatch):
     monkeypatch.setattr(cp.Problem, "solve", interrupted)
     with pytest.raises(KeyboardInterrupt):
         solve_problem(cp.Problem(cp.Minimize(cp.square(x))), "a QP")
+
+
+def test_each_solve_runs_on_a_new_clarabel_solver(monkeypatch):
+    """solve_problem never updates the solver of an earlier solve in place: an updated Clarabel solver carries the
+    first data's equilibration, and one panicked where a new solver on the same data failed cleanly (the pendulum's
+    stabilising LMI at --margin 1e-9). Two solves of one problem: two solvers built, and the second answer is the
+    least (x - a)^2's, x = a (by hand)."""
+    built = []
+    convex_clarabel_solver = convex.clarabel.DefaultSolver
+
+    def counting(*args, **kwargs):
+        built.append(args)
+        return convex_clarabel_solver(*args, **kwargs)
+    monkeypatch.setattr(convex.clarabel, "DefaultSolver", counting)
+    x, a = cp.Variable(), cp.Parameter()
+    problem = cp.Problem(cp.Minimize(cp.square(x - a)))
+    for value in (1.0, 3.0):
+        a.value = value
+        assert solve_problem(problem, "a scalar QP", attempts=(CLARABEL_TIGHT,)) == "optimal"
+    assert len(built) == 2
+    assert float(x.value) == pytest.approx(3.0, abs=1e-7)
