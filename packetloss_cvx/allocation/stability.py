@@ -47,6 +47,7 @@ from ..closedloop.actuator_region import actuator_membership, least_radius
 from ..closedloop.region import LazyLmi, homogeneous_riccati, membership
 from ..closedloop.riccati import dp_riccati
 from ..closedloop.stability import mean_square_radius
+from ..display import apart
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..model.system import System
 from ..results.region import StabilityAllocation
@@ -607,23 +608,49 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
     if not radius < rho:
         raise SolverError("inconsistent", f"the gain found at mu = {np.round(mu, 9).tolist()} has mean-square "
                                           f"radius {radius:.9g}, not below rho = {rho:g}")
+    note = ""
     try:
         dp = dp_riccati(system, mu, gain=point.gain)       # the policy iteration from the proved gain
         cost, kind = dp_cost(system, dp)
-        if 1.0 - mean_square_radius(system.A, system.B, dp.gain, mu) < DP_COST_BOUNDARY:
+        dp_radius = mean_square_radius(system.A, system.B, dp.gain, mu)
+        if 1.0 - dp_radius < DP_COST_BOUNDARY:
             cost, kind = float("nan"), ""                  # on the boundary: a cost of ~1 / (1 - radius), unresolved
-    except NumericalError:
-        cost, kind = float("nan"), ""
-    try:
-        attainable, note = tcp_attainable_cost(system.with_mu(mu), mu), "finite-horizon DP with acknowledgements"
+            note = _boundary_note(dp_radius)
     except NumericalError as err:
-        attainable, note = None, str(err)
+        cost, kind = float("nan"), ""
+        note = (f"not reported: the DP solution at mu* failed ({err}); the design's gain has radius "
+                f"{apart(radius, rho, 10)[0]} there" + (", just inside the stabilisable set's boundary, where the DP's "
+                                                        "iterations may not converge" if 1.0 - radius < DP_COST_BOUNDARY
+                                                        else ""))
+    try:
+        attainable, attained_note = (tcp_attainable_cost(system.with_mu(mu), mu),
+                                     "finite-horizon DP with acknowledgements")
+    except NumericalError as err:
+        attainable, attained_note = None, str(err)
     return StabilityAllocation(
         target=target, mu=mu, cost=float(beta @ mu), lower_bound=out.lower_bound * unit,
         gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status, radius=radius,
         radius_bound=rho, gain=point.gain, dp_cost=cost, dp_cost_kind=kind, alpha=alpha, beta=beta,
-        boxes=out.boxes, method=out.note, attainable_cost=attainable, attainable_note=note, stabilisable=True,
-        stability_note=f"the design's gain has mean-square radius {radius:.6g} < 1 (certified)")
+        boxes=out.boxes, method=out.note, attainable_cost=attainable, attainable_note=attained_note, stabilisable=True,
+        stability_note=_radius_note("the design's gain", radius, rho), dp_cost_note=note)
+
+
+def _radius_note(what: str, radius: float, bound: float) -> str:
+    """"<what> has mean-square radius r < bound (certified)", r and the bound to the digits that tell them apart (at
+    least 10: "radius 1 < 1" read as a contradiction). O(1).
+
+    >>> _radius_note("the gain", 0.9999998998999412, 1.0)
+    'the gain has mean-square radius 0.9999998999 < 1 (certified)'
+    """
+    shown, bound_shown = apart(radius, bound, 10)
+    return f"{what} has mean-square radius {shown} < {bound_shown} (certified)"
+
+
+def _boundary_note(radius: float) -> str:
+    """Why the DP cost at mu* is not reported where the DP law's radius is within DP_COST_BOUNDARY of 1. O(1)."""
+    return (f"not reported: the DP law's mean-square radius at mu* is {apart(radius, 1.0, 10)[0]}, within "
+            f"{DP_COST_BOUNDARY:g} of 1 (mu* lies on the stabilisable set's boundary, where the cost, about "
+            "1 / (1 - radius), is decided by rounding); a margin below 1 keeps mu* inside")
 
 
 
@@ -642,23 +669,24 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
     radius = modes.loop(point.gain).radius()
     if not radius < 1.0:
         raise SolverError("inconsistent", f"{strategy}'s law found at {where} has mean-square radius {radius:.9g}")
-    cost, kind = float("nan"), ""
+    cost, kind, dp_note = float("nan"), "", ""
     try:
         design = designs(mu)
         cost, kind = strategy_dp_cost(system, design)
         if target == "dp-cost" and not cost <= alpha:
             raise SolverError("inconsistent", f"{strategy}'s DP cost at {where} is {cost:.9g} > alpha = {alpha:g}")
         if 1.0 - design.radius < DP_COST_BOUNDARY:
-            cost, kind = float("nan"), ""
-    except NumericalError:
+            cost, kind, dp_note = float("nan"), "", _boundary_note(design.radius)
+    except NumericalError as err:
         if target == "dp-cost":
             raise SolverError("inconsistent", f"{strategy}'s DP solution at {where} failed on a second look") from None
+        dp_note = f"not reported: {strategy}'s DP solution at mu* failed ({err})"
     found = actuator_membership(moved, strategy, rates)
     if found.verdict == "unstable":
         raise SolverError("inconsistent", f"the allocation {where} was certified inside, yet no law of {strategy} "
                                           "is stable there (exact certificate)")
     stable = True if found.verdict == "stable" else None
-    note = (f"a TCP-like law of {strategy} has mean-square radius {found.radius:.6g} < 1 (certified)" if stable
+    note = (_radius_note(f"a TCP-like law of {strategy}", found.radius, 1.0) if stable
             else f"undecided: {found.reason}")
     membership_radius = float(found.radius) if np.isfinite(found.radius) else None
     return StabilityAllocation(
@@ -669,4 +697,4 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
             "" if family is None else f", mean rates {family.describe()}"),
         attainable_cost=None, attainable_note=f"not computed for {strategy} (dp_cost is its optimal law's cost)",
         stabilisable=stable, stability_note=note,
-        actuator=((str(strategy), found.verdict, membership_radius, found.reason),))
+        actuator=((str(strategy), found.verdict, membership_radius, found.reason),), dp_cost_note=dp_note)

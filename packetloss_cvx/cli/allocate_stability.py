@@ -98,7 +98,7 @@ def run_target(args: argparse.Namespace) -> CommandResult:
             ("gap", f"{result.gap:.1e}"),
             ("radius", f"{fmt.num(result.radius, 10)} < {fmt.num(result.radius_bound)} ("
                        + ("the least-radius gain" if args.target == "stable" else "the DP law") + ", checked)"),
-            ("DP cost, loop", "no DP solution at mu*" if result.dp_cost_kind == "" else
+            ("DP cost, loop", (result.dp_cost_note or "not reported") if result.dp_cost_kind == "" else
              f"{fmt.num(result.dp_cost, 10)} ({result.dp_cost_kind})"),
             attained_rows(result)[0],
             ("method", f"{result.method}, {result.boxes} box" + ("es" if result.boxes != 1 else ""))]

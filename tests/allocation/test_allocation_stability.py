@@ -340,3 +340,29 @@ def test_the_dp_cost_is_reported_inside_the_set_and_not_on_its_boundary(two_actu
     assert 1.0 - inside.radius > 1e4 * DP_COST_BOUNDARY
     reference = dp_riccati(two_actuator, inside.mu).cost_to_go
     assert inside.dp_cost == pytest.approx(float(two_actuator.x0 @ reference @ two_actuator.x0), rel=1e-8)
+
+
+@pytest.mark.parametrize("example", ["pendulum", "two_actuator"])
+def test_a_design_on_the_boundary_says_why_it_has_no_dp_cost_and_prints_its_radius_below_the_bound(example, capsys):
+    """On the boundary (radius 1 - 1e-7) the note printed "radius 1 < 1 (certified)" and the text "no DP solution at
+    mu*" beside a certified stabilising law. The note's radius is the operator's (mean_square_radius, recomputed
+    here) to its 10 printed digits, below the bound as printed; the DP cost's note names the boundary, in the text
+    and in the JSON."""
+    import re
+
+    from packetloss_cvx.model.files import load_example
+    system = load_example(example)
+    got = stability_allocate(system, "stable", beta=[1.0] * system.m)
+    radius = mean_square_radius(system.A, system.B, got.gain, got.mu)
+    shown = re.search(r"mean-square radius ([0-9.e-]+) < ([0-9.e-]+) \(certified\)", got.stability_note)
+    assert float(shown.group(1)) < float(shown.group(2)) == 1.0
+    assert float(shown.group(1)) == pytest.approx(radius, abs=1e-10)
+    assert np.isnan(got.dp_cost)
+    assert got.dp_cost_note.startswith("not reported")
+    assert "boundary" in got.dp_cost_note
+    assert main(["allocate", example, "--target", "stable", "--beta", ",".join(["1"] * system.m)]) == 0
+    text = capsys.readouterr().out
+    assert "no DP solution" not in text
+    assert "not reported" in re.search(r"DP cost, loop +(.*)", text).group(1)
+    assert main(["allocate", example, "--target", "stable", "--beta", ",".join(["1"] * system.m), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["dp_cost_note"] == got.dp_cost_note
