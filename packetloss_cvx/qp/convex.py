@@ -26,11 +26,11 @@ import scipy.sparse as sp
 from cvxpy.cvxcore.python.canonInterface import get_parameter_vector
 from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL, dims_to_solver_cones
 
-from ..errors import SolverError
+from ..errors import SolverError, is_panic
 from ..tolerances import ACCEPTED_STATUSES, CLARABEL_DEFAULT, CLARABEL_TIGHT
 
 __all__ = ["PROVEN_INFEASIBLE", "ClarabelPoint", "ClarabelProgram", "clarabel_failure", "first_answer",
-           "is_panic", "require_optimal", "solve_problem"]
+           "require_optimal", "solve_problem"]
 
 #: The status that proves infeasibility (Clarabel's certificate); "infeasible_inaccurate" does not.
 PROVEN_INFEASIBLE = cp.INFEASIBLE
@@ -39,19 +39,6 @@ PROVEN_INFEASIBLE = cp.INFEASIBLE
 #: parameter maps as the default "CPP", entry for entry, in about 0.6 of the time; tests/qp/test_convex.py), else
 #: cvxpy's default (None).
 CANON_BACKEND = getattr(cp.settings, "COO_CANON_BACKEND", None)
-
-
-def is_panic(err: BaseException) -> bool:
-    """Whether ``err`` is a panic of Rust code under pyo3 (Clarabel's): pyo3 raises ``pyo3_runtime.PanicException``,
-    a BaseException subclass that no Python module exports, so it is known by its name. O(1).
-
-    Examples
-    --------
-    >>> PanicException = type("PanicException", (BaseException,), {})
-    >>> is_panic(PanicException("Eigval error")), is_panic(ValueError("x")), is_panic(KeyboardInterrupt())
-    (True, False, False)
-    """
-    return type(err).__name__ == "PanicException"
 
 
 def clarabel_failure(err: BaseException, what: str) -> SolverError:
