@@ -707,16 +707,12 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
     try:
         dp = dp_riccati(system, mu, gain=point.gain)       # the policy iteration from the proved gain
         cost, kind = dp_cost(system, dp)
-        dp_radius = mean_square_radius(system.A, system.B, dp.gain, mu)
-        if 1.0 - dp_radius < DP_COST_BOUNDARY:
+        if 1.0 - mean_square_radius(system.A, system.B, dp.gain, mu) < DP_COST_BOUNDARY:
             cost, kind = float("nan"), ""                  # on the boundary: a cost of ~1 / (1 - radius), unresolved
-            note = _boundary_note(dp_radius)
+            note = BOUNDARY_NOTE
     except NumericalError as err:
         cost, kind = float("nan"), ""
-        note = (f"not reported: the DP solution at mu* failed ({err}); the design's gain has radius "
-                f"{apart(radius, rho, 10)[0]} there" + (", just inside the stabilisable set's boundary, where the DP's "
-                                                        "iterations may not converge" if 1.0 - radius < DP_COST_BOUNDARY
-                                                        else ""))
+        note = BOUNDARY_NOTE if 1.0 - radius < DP_COST_BOUNDARY else f"not reported: the DP solution failed ({err})"
     try:
         attainable, attained_note = (tcp_attainable_cost(system.with_mu(mu), mu),
                                      "finite-horizon DP with acknowledgements")
@@ -732,20 +728,21 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
 
 def _radius_note(what: str, radius: float, bound: float) -> str:
     """"<what> has mean-square radius r < bound (certified)", r and the bound to the digits that tell them apart (at
-    least 10: "radius 1 < 1" read as a contradiction). O(1).
+    least 6; "radius 1 < 1" read as a contradiction), and no more: the note is compared as text across BLAS
+    kernels. O(1).
 
     >>> _radius_note("the gain", 0.9999998998999412, 1.0)
-    'the gain has mean-square radius 0.9999998999 < 1 (certified)'
+    'the gain has mean-square radius 0.9999999 < 1 (certified)'
     """
-    shown, bound_shown = apart(radius, bound, 10)
+    shown, bound_shown = apart(radius, bound)
     return f"{what} has mean-square radius {shown} < {bound_shown} (certified)"
 
 
-def _boundary_note(radius: float) -> str:
-    """Why the DP cost at mu* is not reported where the DP law's radius is within DP_COST_BOUNDARY of 1. O(1)."""
-    return (f"not reported: the DP law's mean-square radius at mu* is {apart(radius, 1.0, 10)[0]}, within "
-            f"{DP_COST_BOUNDARY:g} of 1 (mu* lies on the stabilisable set's boundary, where the cost, about "
-            "1 / (1 - radius), is decided by rounding); a margin below 1 keeps mu* inside")
+#: why the DP cost at mu* is not reported on the boundary, the same text whether the DP solution there found a radius
+#: within DP_COST_BOUNDARY of 1 or failed (BLAS kernels differ on which, DP_COST_BOUNDARY's note)
+BOUNDARY_NOTE = (f"not reported: mu* lies on the stabilisable set's boundary (a radius within {DP_COST_BOUNDARY:g} "
+                 "of 1), where the DP law's cost, about 1 / (1 - radius), is decided by rounding and its iterations "
+                 "may not converge; a margin below 1 keeps mu* inside")
 
 
 
@@ -771,11 +768,12 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
         if target == "dp-cost" and not cost <= alpha:
             raise SolverError("inconsistent", f"{strategy}'s DP cost at {where} is {cost:.9g} > alpha = {alpha:g}")
         if 1.0 - design.radius < DP_COST_BOUNDARY:
-            cost, kind, dp_note = float("nan"), "", _boundary_note(design.radius)
+            cost, kind, dp_note = float("nan"), "", BOUNDARY_NOTE
     except NumericalError as err:
         if target == "dp-cost":
             raise SolverError("inconsistent", f"{strategy}'s DP solution at {where} failed on a second look") from None
-        dp_note = f"not reported: {strategy}'s DP solution at mu* failed ({err})"
+        dp_note = (BOUNDARY_NOTE if 1.0 - radius < DP_COST_BOUNDARY
+                   else f"not reported: {strategy}'s DP solution failed ({err})")
     found = actuator_membership(moved, strategy, rates)
     if found.verdict == "unstable":
         raise SolverError("inconsistent", f"the allocation {where} was certified inside, yet no law of {strategy} "

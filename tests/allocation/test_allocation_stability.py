@@ -347,15 +347,17 @@ def test_the_dp_cost_is_reported_inside_the_set_and_not_on_its_boundary(two_actu
 def test_a_design_on_the_boundary_says_why_it_has_no_dp_cost_and_prints_its_radius_below_the_bound(example, capsys):
     """On the boundary (radius 1 - 1e-7) the note printed "radius 1 < 1 (certified)" and the text "no DP solution at
     mu*" beside a certified stabilising law. The note's radius is the operator's (mean_square_radius, recomputed
-    here) to its 10 printed digits, below the bound as printed; the DP cost's note names the boundary, in the text
-    and in the JSON."""
+    here) to its printed digits, below the bound as printed; the DP cost's note names the boundary, in the text
+    and in the JSON (the same text whether the DP solution there fails or finds a radius within 1e-6 of 1: BLAS
+    kernels differ on which)."""
     from packetloss_cvx.model.files import load_example
     system = load_example(example)
     got = stability_allocate(system, "stable", beta=[1.0] * system.m)
     radius = mean_square_radius(system.A, system.B, got.gain, got.mu)
     shown = re.search(r"mean-square radius ([0-9.e-]+) < ([0-9.e-]+) \(certified\)", got.stability_note)
     assert float(shown.group(1)) < float(shown.group(2)) == 1.0
-    assert float(shown.group(1)) == pytest.approx(radius, abs=1e-10)
+    decimals = len(shown.group(1).split(".")[1])
+    assert abs(float(shown.group(1)) - radius) <= 0.5 * 10.0 ** -decimals
     assert np.isnan(got.dp_cost)
     assert got.dp_cost_note.startswith("not reported")
     assert "boundary" in got.dp_cost_note
