@@ -18,7 +18,7 @@ import numpy as np
 __all__ = [
     "MAX_SHOWN", "allocation_html", "allocation_repr", "batch_repr", "claim_html", "claim_repr", "closed_loop_html",
     "design_sweep_html", "design_sweep_repr", "field_text", "fields_html", "fields_repr", "html_grid", "html_table",
-    "json_text", "maximiser_repr", "plain", "supported", "supported_digits",
+    "json_text", "maximiser_repr", "plain", "supported", "supported_digits", "apart",
     "short", "simulation_html", "span", "solution_html", "solution_repr", "system_html", "system_repr", "to_json",
     "SOLUTION_BASIS", "all_delivered_flag",
 ]
@@ -516,6 +516,23 @@ def supported_digits(value: float, error: float, most: int = 17) -> int:
     if not (np.isfinite(value) and error > 0 and np.isfinite(error)) or value == 0:
         return most
     return int(min(most, max(1, np.floor(np.log10(abs(value) / error)))))
+
+
+def apart(a: float, b: float, digits: int = 6) -> tuple[str, str]:
+    """``a`` and ``b`` in ``%.{d}g`` with the least ``d >= digits`` (at most 17) at which the two texts differ, so
+    that two different numbers never print alike ("alpha = 1.92192 is below ... 1.92192"); equal numbers print
+    alike at ``digits``. O(1).
+
+    Examples
+    --------
+    >>> apart(1.9219195, 1.9219195438718941), apart(0.5, 0.25), apart(2.0, 2.0)
+    (('1.9219195', '1.92191954'), ('0.5', '0.25'), ('2', '2'))
+    """
+    if a != b:
+        for d in range(digits, 18):
+            if f"{a:.{d}g}" != f"{b:.{d}g}":
+                return f"{a:.{d}g}", f"{b:.{d}g}"
+    return f"{a:.{digits}g}", f"{b:.{digits}g}"
 
 
 def supported(value: float, error: float) -> float:

@@ -23,6 +23,7 @@ __all__ = [
     "ResourceError",
     "SolverError",
     "UnobservedModeError",
+    "is_panic",
 ]
 
 
@@ -161,3 +162,16 @@ class BudgetError(ResourceError, InputError):
     def renamed(self, field: str) -> BudgetError:
         """The same refusal, reported under another field name (the command-line option)."""
         return type(self)(field, self.detail, self.needed, self.budget, self.env)
+
+
+def is_panic(err: BaseException) -> bool:
+    """Whether ``err`` is a panic of Rust code under pyo3 (Clarabel's): pyo3 raises ``pyo3_runtime.PanicException``,
+    a BaseException subclass that no Python module exports, so it is known by its name. O(1).
+
+    Examples
+    --------
+    >>> PanicException = type("PanicException", (BaseException,), {})
+    >>> is_panic(PanicException("Eigval error")), is_panic(ValueError("x")), is_panic(KeyboardInterrupt())
+    (True, False, False)
+    """
+    return type(err).__name__ == "PanicException"

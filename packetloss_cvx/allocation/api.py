@@ -33,6 +33,7 @@ from ..budgets import check, count_text, duration_text, estimated_seconds, limit
 from ..closedloop.actuator import Actuator, parse_actuator, parse_actuators
 from ..closedloop.actuator_design import actuator_dp
 from ..closedloop.actuator_region import actuator_membership
+from ..display import apart
 from ..errors import BudgetError, InfeasibleError, InputError, NumericalError, SolverError
 from ..model.protocols import check_protocol
 from ..model.system import System
@@ -209,9 +210,10 @@ def _infeasible(system: System, protocol: str, alpha: float, poly: Polytope, pro
     if least.cost <= alpha:
         raise SolverError("inconsistent", f"{protocol}-like allocation: {proof}, yet mu = "
                           f"{np.round(least.mu, 6).tolist()} reaches J* = {least.cost:.6g} <= alpha = {alpha:g}")
-    where = (f"{least.cost:.6g}" if least.status == "optimal"
-             else f"in [{least.lower_bound:.6g}, {least.cost:.6g}] (not certified: {least.method})")
-    return InfeasibleError(f"alpha = {alpha:g} is below the least reachable {protocol}-like cost {where} within the "
+    shown, lower = apart(alpha, least.lower_bound if least.status != "optimal" else least.cost)
+    where = (lower if least.status == "optimal"
+             else f"in [{lower}, {apart(least.cost, alpha)[0]}] (not certified: {least.method})")
+    return InfeasibleError(f"alpha = {shown} is below the least reachable {protocol}-like cost {where} within the "
                            f"bounds and constraints ({proof})", least.cost)
 
 

@@ -27,7 +27,7 @@ try:        # the HiGHS build scipy's linprog runs (scipy >= 1.15): the same sol
 except ImportError:         # pragma: no cover - an older scipy: linprog alone
     highs_core = highs_simplex = None
 
-from ..errors import SolverError
+from ..errors import SolverError, is_panic
 from ..lq.costs import closed_form
 from ..lq.evaluator import CostEvaluator
 from ..model.system import System
@@ -346,7 +346,9 @@ def small_lp(c: np.ndarray, G: np.ndarray, h: np.ndarray, l: np.ndarray, u: np.n
     try:
         solution = clarabel.DefaultSolver(sp.csc_array((m, m)), c, A, b, [clarabel.NonnegativeConeT(rows + 2 * m)],
                                           settings).solve()
-    except Exception:           # Clarabel's own failures (untyped): HiGHS decides
+    except BaseException as err:    # Clarabel's own failures (untyped, or a Rust panic): HiGHS decides
+        if not (isinstance(err, Exception) or is_panic(err)):
+            raise
         return lp(c, G, h, l, u)
     if str(solution.status) != "Solved":
         return lp(c, G, h, l, u)

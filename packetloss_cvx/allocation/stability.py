@@ -26,15 +26,17 @@ concave: no convex program in mu or the odds computes the optimum. Both sets are
 * incumbents are points certified inside: a gain whose radius the operator proves ``< rho (1 - margin)``, or a
   DP solution whose cost is ``<= alpha``.
 
-An undecided point (within about 1e-9 of the boundary, or a solver failure) is never a verdict: it discards
-nothing, raises no corner and offers no incumbent. Worst case ``(1/gap)^(m-1)`` boxes, each an LP and
-``O(m log(1/tol))`` memberships (a homogeneous Riccati eigenpair, O(iterations (n^3 + m^3)); a DP solution for
-"dp-cost").
+An undecided point (near the boundary, or a solver failure) is never a verdict: it discards
+nothing, raises no corner and offers no incumbent. One channel is a bisection on verdicts instead (`_line`): its
+set is an interval, and an undecided band wider than the gap is named, not split for ever. Worst case
+``(1/gap)^(m-1)`` boxes, each an LP and ``O(m log(1/tol))`` memberships (a homogeneous Riccati eigenpair,
+O(iterations (n^3 + m^3)); a DP solution for "dp-cost").
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
@@ -47,6 +49,7 @@ from ..closedloop.actuator_region import actuator_membership, least_radius
 from ..closedloop.region import LazyLmi, homogeneous_riccati, membership
 from ..closedloop.riccati import dp_riccati
 from ..closedloop.stability import mean_square_radius
+from ..display import apart
 from ..errors import InfeasibleError, InputError, NumericalError, SolverError
 from ..model.system import System
 from ..results.region import StabilityAllocation
@@ -60,7 +63,7 @@ from ..tolerances import (
     MEAN_SQUARE_MARGIN,
 )
 from .attainable import tcp_attainable_cost
-from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope, reported_gap, unit_prices
+from .boxes import Outcome, box_bound, box_lp, bracket, check_in_polytope, gap_unit, reported_gap, unit_prices
 from .chains import ChainFamily, chain_family
 from .grammar import (
     Constraint,
@@ -74,6 +77,7 @@ from .grammar import (
     check_system,
     read_polytope,
 )
+from .tcp import interval
 from .udp import SPLIT_WEIGHT_FLOOR, Search
 
 __all__ = ["DP_COST_BOUNDARY", "TARGETS", "Point", "dp_cost", "stability_allocate", "strategy_dp_cost"]
@@ -364,11 +368,102 @@ def _strategy_target(system: System, strategy: Actuator, target: str, alpha: flo
     return Target(within, log_cost, 0.0)
 
 
+#: how the one-channel bisection (`_line`) is reported as the answer's method
+LINE_METHOD = "bisection on certified memberships along the one channel"
+
+
+def _line(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, time_limit: float | None,
+          progress: bool | None) -> tuple[str, Search, dict[bytes, Point]]:
+    """One channel: the target's set is an interval [mu_c, b] of the constraints' interval [a, b] (an upper set),
+    and beta mu is least at its lower end, so the answer is a bisection on verdicts, as `_search` returns it.
+
+    ``lo`` is the largest point certified outside (else a: every mu below it is outside, so ``beta lo`` is a
+    proved bound), ``hi`` the least certified inside (the incumbent). An undecided point (the certificates do not
+    check within their rounding of the boundary) is no verdict: the bisection continues on either side of the
+    undecided points, to ``ALLOCATION_INCUMBENT_SHARE * gap`` (relative) of them, and stops there. The probe's
+    crossings just inside and just outside the level (as `_search`'s line searches aim) are decided first. Where
+    the undecided band is wider than the gap, the branch and bound split it for ever (the pendulum at margin 0.5:
+    20000 boxes, 346 s, its gap stuck at 1.4e-4 by a band from 0.93736 to 0.9374989 about the boundary 0.9374126,
+    1 - 1/M^2 of the scaled plant, M its unstable eigenvalues' product); here it ends "gap_not_certified" naming
+    the band. O(log(1/(gap ALLOCATION_INCUMBENT_SHARE))) verdicts."""
+    search = Search(gap, float(beta @ poly.lower()), 1, time_limit, progress)
+    search.boxes = 1
+    seen: dict[bytes, Point] = {}
+
+    def verdict(x: float) -> str:
+        point = np.array([x])
+        key = point.tobytes()
+        if key not in seen:
+            seen[key] = goal.decide(point)
+        return seen[key].verdict
+
+    a, b = interval(poly)
+    if a > b:
+        return "exhausted", search, seen           # no mu meets the constraints
+    if verdict(b) == "out":                        # an upper set: nothing below b is inside
+        return "exhausted", search, seen
+    lo, hi = a, (b if verdict(b) == "in" else None)
+    if verdict(a) == "in":
+        hi = a
+    undecided: list[float] = [] if hi is not None else [b]
+    tol = ALLOCATION_INCUMBENT_SHARE * gap * max(b, np.finfo(float).tiny)
+    start = time.monotonic()
+
+    def along(t: float) -> float:
+        return goal.probe(np.array([t]))
+
+    if hi is not None and hi > lo:     # the probe's crossings just inside and just outside, each then decided
+        for level, side in ((goal.inside(), 0), (goal.outside(), 1)):
+            x = bracket(along, level, lo, hi, tol)[side]
+            if lo < x < hi:
+                found = verdict(x)
+                if found == "in":
+                    hi = x
+                elif found == "out":
+                    lo = x
+
+    def certified() -> bool:
+        return hi is not None and beta[0] * (hi - lo) <= gap * gap_unit(beta[0] * hi, 1.0)
+
+    while not certified():
+        if time_limit is not None and time.monotonic() - start > time_limit:
+            break
+        below = min(undecided, default=hi if hi is not None else b)
+        above = max(undecided, default=None)
+        if below - lo > tol:                       # below the undecided points: look for one certified outside
+            x = 0.5 * (lo + below)
+        elif above is not None and hi is not None and hi - above > tol:    # above them: one certified inside
+            x = 0.5 * (above + hi)
+        else:
+            break
+        found = verdict(x)
+        if found == "out":
+            lo = x
+            undecided = [u for u in undecided if u > lo]
+        elif found == "in":
+            hi = x
+            undecided = [u for u in undecided if u < hi]
+        else:
+            undecided.append(x)
+    if hi is not None:
+        search.offer(np.array([hi]), float(beta[0] * hi))
+    search.unsplit = float(beta[0] * lo)           # the rest, [lo, hi]: bounded by beta lo (proved)
+    if certified():
+        return "certified", search, seen
+    band = f"[{lo:.10g}, {hi if hi is not None else b:.10g}]"
+    why = "" if not undecided else " (no certificate checks there: within the certificates' rounding of the boundary)"
+    if time_limit is not None and time.monotonic() - start > time_limit:
+        return f"stopped at the time limit of {time_limit:g} s with mu* in {band}", search, seen
+    return f"the membership is undecided on {band}{why}", search, seen
+
+
 def _search(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, max_boxes: int,
             time_limit: float | None, progress: bool | None) -> tuple[str, Search, dict[bytes, Point]]:
     """The monotone branch and bound on verdicts (module docstring); returns how it ended, the search and every
-    point decided (keyed by ``mu.tobytes()``: the incumbent's certificate is there)."""
+    point decided (keyed by ``mu.tobytes()``: the incumbent's certificate is there). One channel: `_line`."""
     m = beta.size
+    if m == 1:
+        return _line(poly, beta, gap, goal, time_limit, progress)
     weights = np.maximum(beta, SPLIT_WEIGHT_FLOOR)
     search = Search(gap, float(beta @ poly.lower()), max_boxes, time_limit, progress)
     seen: dict[bytes, Point] = {}
@@ -585,7 +680,8 @@ def stability_allocate(system: System, target: str, beta, margin=None, alpha=Non
                                   None)
         raise SolverError("gap_not_certified", f"{what}: no mu certified inside and infeasibility not proven; "
                                                f"{ended}")
-    out = search.outcome(ended, "monotone branch and bound on certified memberships (LP bounds)", what)
+    out = search.outcome(ended, LINE_METHOD if system.m == 1 else
+                         "monotone branch and bound on certified memberships (LP bounds)", what)
     mu = check_in_polytope(out.mu, poly, what)
     if strategy is not None:
         return _strategy_verified(system, strategy, target, alpha, mu, beta, out, unit, seen[out.mu.tobytes()],
@@ -607,23 +703,46 @@ def _verified(system: System, target: str, rho: float, alpha: float | None, mu: 
     if not radius < rho:
         raise SolverError("inconsistent", f"the gain found at mu = {np.round(mu, 9).tolist()} has mean-square "
                                           f"radius {radius:.9g}, not below rho = {rho:g}")
+    note = ""
     try:
         dp = dp_riccati(system, mu, gain=point.gain)       # the policy iteration from the proved gain
         cost, kind = dp_cost(system, dp)
         if 1.0 - mean_square_radius(system.A, system.B, dp.gain, mu) < DP_COST_BOUNDARY:
             cost, kind = float("nan"), ""                  # on the boundary: a cost of ~1 / (1 - radius), unresolved
-    except NumericalError:
-        cost, kind = float("nan"), ""
-    try:
-        attainable, note = tcp_attainable_cost(system.with_mu(mu), mu), "finite-horizon DP with acknowledgements"
+            note = BOUNDARY_NOTE
     except NumericalError as err:
-        attainable, note = None, str(err)
+        cost, kind = float("nan"), ""
+        note = BOUNDARY_NOTE if 1.0 - radius < DP_COST_BOUNDARY else f"not reported: the DP solution failed ({err})"
+    try:
+        attainable, attained_note = (tcp_attainable_cost(system.with_mu(mu), mu),
+                                     "finite-horizon DP with acknowledgements")
+    except NumericalError as err:
+        attainable, attained_note = None, str(err)
     return StabilityAllocation(
         target=target, mu=mu, cost=float(beta @ mu), lower_bound=out.lower_bound * unit,
         gap=reported_gap(out.value, out.lower_bound, out.scale), status=out.status, radius=radius,
         radius_bound=rho, gain=point.gain, dp_cost=cost, dp_cost_kind=kind, alpha=alpha, beta=beta,
-        boxes=out.boxes, method=out.note, attainable_cost=attainable, attainable_note=note, stabilisable=True,
-        stability_note=f"the design's gain has mean-square radius {radius:.6g} < 1 (certified)")
+        boxes=out.boxes, method=out.note, attainable_cost=attainable, attainable_note=attained_note, stabilisable=True,
+        stability_note=_radius_note("the design's gain", radius, rho), dp_cost_note=note)
+
+
+def _radius_note(what: str, radius: float, bound: float) -> str:
+    """"<what> has mean-square radius r < bound (certified)", r and the bound to the digits that tell them apart (at
+    least 6; "radius 1 < 1" read as a contradiction), and no more: the note is compared as text across BLAS
+    kernels. O(1).
+
+    >>> _radius_note("the gain", 0.9999998998999412, 1.0)
+    'the gain has mean-square radius 0.9999999 < 1 (certified)'
+    """
+    shown, bound_shown = apart(radius, bound)
+    return f"{what} has mean-square radius {shown} < {bound_shown} (certified)"
+
+
+#: why the DP cost at mu* is not reported on the boundary, the same text whether the DP solution there found a radius
+#: within DP_COST_BOUNDARY of 1 or failed (BLAS kernels differ on which, DP_COST_BOUNDARY's note)
+BOUNDARY_NOTE = (f"not reported: mu* lies on the stabilisable set's boundary (a radius within {DP_COST_BOUNDARY:g} "
+                 "of 1), where the DP law's cost, about 1 / (1 - radius), is decided by rounding and its iterations "
+                 "may not converge; a margin below 1 keeps mu* inside")
 
 
 
@@ -642,23 +761,25 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
     radius = modes.loop(point.gain).radius()
     if not radius < 1.0:
         raise SolverError("inconsistent", f"{strategy}'s law found at {where} has mean-square radius {radius:.9g}")
-    cost, kind = float("nan"), ""
+    cost, kind, dp_note = float("nan"), "", ""
     try:
         design = designs(mu)
         cost, kind = strategy_dp_cost(system, design)
         if target == "dp-cost" and not cost <= alpha:
             raise SolverError("inconsistent", f"{strategy}'s DP cost at {where} is {cost:.9g} > alpha = {alpha:g}")
         if 1.0 - design.radius < DP_COST_BOUNDARY:
-            cost, kind = float("nan"), ""
-    except NumericalError:
+            cost, kind, dp_note = float("nan"), "", BOUNDARY_NOTE
+    except NumericalError as err:
         if target == "dp-cost":
             raise SolverError("inconsistent", f"{strategy}'s DP solution at {where} failed on a second look") from None
+        dp_note = (BOUNDARY_NOTE if 1.0 - radius < DP_COST_BOUNDARY
+                   else f"not reported: {strategy}'s DP solution failed ({err})")
     found = actuator_membership(moved, strategy, rates)
     if found.verdict == "unstable":
         raise SolverError("inconsistent", f"the allocation {where} was certified inside, yet no law of {strategy} "
                                           "is stable there (exact certificate)")
     stable = True if found.verdict == "stable" else None
-    note = (f"a TCP-like law of {strategy} has mean-square radius {found.radius:.6g} < 1 (certified)" if stable
+    note = (_radius_note(f"a TCP-like law of {strategy}", found.radius, 1.0) if stable
             else f"undecided: {found.reason}")
     membership_radius = float(found.radius) if np.isfinite(found.radius) else None
     return StabilityAllocation(
@@ -669,4 +790,4 @@ def _strategy_verified(system: System, strategy: Actuator, target: str, alpha: f
             "" if family is None else f", mean rates {family.describe()}"),
         attainable_cost=None, attainable_note=f"not computed for {strategy} (dp_cost is its optimal law's cost)",
         stabilisable=stable, stability_note=note,
-        actuator=((str(strategy), found.verdict, membership_radius, found.reason),))
+        actuator=((str(strategy), found.verdict, membership_radius, found.reason),), dp_cost_note=dp_note)

@@ -30,6 +30,7 @@ import cvxpy as cp
 import numpy as np
 
 from ..budgets import program_bytes
+from ..display import apart
 from ..errors import InfeasibleError, NumericalError, SolverError
 from ..lq.evaluator import CostEvaluator
 from ..lq.recursion import udp_variance_weights
@@ -441,8 +442,9 @@ def tcp_allocate(system: System, poly: Polytope, alpha: float, beta: np.ndarray,
 
     corner = J(poly.upper())
     if corner > alpha * (1 + ALLOCATION_COST_RTOL):
-        raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {corner:.6g}, exceeds alpha = {alpha:g}, "
-                              "and J* falls in every mu_i", None)
+        shown_corner, shown_alpha = apart(corner, alpha)
+        raise InfeasibleError(f"J*_tcp at the upper corner of the bounds, {shown_corner}, exceeds alpha = "
+                              f"{shown_alpha}, and J* falls in every mu_i", None)
     no_mu = f"no mu within the bounds and constraints reaches J*_tcp <= alpha = {alpha:g}"
     note = "convex SOCP (Clarabel), lower bound from tangent cuts at its point"
     if system.m == 1:           # an interval and a convex falling J*: its crossing of alpha, no SOCP

@@ -7,7 +7,7 @@ import argparse
 from typing import Any
 
 from ..allocation import parse_constraint
-from ..allocation.stability import stability_allocate
+from ..allocation.stability import LINE_METHOD, stability_allocate
 from ..errors import InfeasibleError, InputError
 from . import format as fmt
 from .common import (
@@ -98,14 +98,17 @@ def run_target(args: argparse.Namespace) -> CommandResult:
             ("gap", f"{result.gap:.1e}"),
             ("radius", f"{fmt.num(result.radius, 10)} < {fmt.num(result.radius_bound)} ("
                        + ("the least-radius gain" if args.target == "stable" else "the DP law") + ", checked)"),
-            ("DP cost, loop", "no DP solution at mu*" if result.dp_cost_kind == "" else
+            ("DP cost, loop", (result.dp_cost_note or "not reported") if result.dp_cost_kind == "" else
              f"{fmt.num(result.dp_cost, 10)} ({result.dp_cost_kind})"),
             attained_rows(result)[0],
-            ("method", f"{result.method}, {result.boxes} box" + ("es" if result.boxes != 1 else ""))]
+            ("method", result.method if result.method.startswith(LINE_METHOD) else
+             f"{result.method}, {result.boxes} box" + ("es" if result.boxes != 1 else ""))]
     name = fmt.name(system.name or args.file)
     if result.status == "optimal":
         return CommandResult(data, "\n".join([f"design for {goal}: optimal channel for {name}"] + fmt.fields(rows)))
     heading = (f"design for {goal}: GAP NOT CERTIFIED, channel for {name} (gap reached {result.gap:.1e} > the "
                "requested gap)")
-    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", "raise --max-boxes or "
-                                                                          "--time-limit, or --gap")])), 4)
+    advice = ("--gap at the gap reached accepts this channel: the memberships in the band are undecided, and more "
+              "time does not decide them" if result.method.startswith(LINE_METHOD) and "undecided" in result.method
+              else "raise --max-boxes or --time-limit, or --gap")
+    return CommandResult(data, "\n".join([heading] + fmt.fields(rows + [("advice", advice)])), 4)

@@ -311,11 +311,12 @@ def build_parser() -> argparse.ArgumentParser:
                             "rank); comma-separated, or all (default: none), e.g. --actuator zero,hold")
     alloc.add_argument("--gap", help="relative optimality gap to certify, 1e-9 <= G < 1 (default: 1e-4), e.g. 1e-6")
     alloc.add_argument("--max-boxes", type=int,
-                       help="cap on the UDP-like branch and bound's boxes; at the cap: exit 4 (default: 20000), "
-                            "e.g. 100000")
+                       help="cap on the boxes of the allocation's branch and bound (UDP-like, power, --protocol "
+                            "best, and --target, which bisects instead on one channel); at the cap: exit 4 "
+                            "(default: 20000), e.g. 100000")
     alloc.add_argument("--time-limit", metavar="SECONDS",
-                       help="cap in seconds on the UDP-like branch and bound; at the cap: exit 4 "
-                            "(default: none), e.g. 60")
+                       help="cap in seconds on the allocation's search (the branch and bound as --max-boxes, and "
+                            "--target's one-channel bisection); at the cap: exit 4 (default: none), e.g. 60")
     # design for stability: allocation.stability, cli/allocate_stability.py
     design = alloc.add_argument_group("design for stability (instead of --protocol)")
     design.add_argument("--target", choices=("paper", "attainable", "stable", "dp-cost"),

@@ -1,7 +1,9 @@
 """Running cvxpy problems with Clarabel under one policy.
 
 * solver warnings are captured, never printed (the command line prints one line);
-* cvxpy's own solver failures become [`SolverError`][packetloss_cvx.errors.SolverError];
+* cvxpy's own solver failures become [`SolverError`][packetloss_cvx.errors.SolverError], and so does a panic in
+  Clarabel's Rust code (pyo3's ``PanicException``, a BaseException that ``except Exception`` misses: e.g. "Eigval
+  error" in its PSD cone on a badly scaled SDP), always through `clarabel_failure`;
 * only the statuses in `tolerances.ACCEPTED_STATUSES` count as an answer
   (``optimal_inaccurate`` does not);
 * infeasibility counts only when the solver proved it (``infeasible``, not ``infeasible_inaccurate``).
@@ -24,11 +26,11 @@ import scipy.sparse as sp
 from cvxpy.cvxcore.python.canonInterface import get_parameter_vector
 from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL, dims_to_solver_cones
 
-from ..errors import SolverError
+from ..errors import SolverError, is_panic
 from ..tolerances import ACCEPTED_STATUSES, CLARABEL_DEFAULT, CLARABEL_TIGHT
 
-__all__ = ["PROVEN_INFEASIBLE", "ClarabelPoint", "ClarabelProgram", "first_answer", "require_optimal",
-           "solve_problem"]
+__all__ = ["PROVEN_INFEASIBLE", "ClarabelPoint", "ClarabelProgram", "clarabel_failure", "first_answer",
+           "require_optimal", "solve_problem"]
 
 #: The status that proves infeasibility (Clarabel's certificate); "infeasible_inaccurate" does not.
 PROVEN_INFEASIBLE = cp.INFEASIBLE
@@ -39,15 +41,44 @@ PROVEN_INFEASIBLE = cp.INFEASIBLE
 CANON_BACKEND = getattr(cp.settings, "COO_CANON_BACKEND", None)
 
 
+def clarabel_failure(err: BaseException, what: str) -> SolverError:
+    """The [`SolverError`][packetloss_cvx.errors.SolverError] (status "solver_error") for a Clarabel call that
+    raised ``err``: a failure of the solver, never a verdict on the problem. A Rust panic says so ("Clarabel
+    panicked: ..."); the caller re-raises anything else that is no Exception (KeyboardInterrupt, SystemExit). O(1).
+
+    Examples
+    --------
+    >>> PanicException = type("PanicException", (BaseException,), {})
+    >>> str(clarabel_failure(PanicException("Eigval error: Eigen(1)"), "an SDP"))
+    "solver status 'solver_error': an SDP: Clarabel panicked (Eigval error: Eigen(1))"
+    """
+    if is_panic(err):
+        return SolverError("solver_error", f"{what}: Clarabel panicked ({err})")
+    return SolverError("solver_error", f"{what}: {err}")
+
+
+def _solver_failure(err: BaseException) -> bool:
+    """Whether ``err`` is a solver's failure to be reported as SolverError: any Exception, or a Rust panic (not
+    KeyboardInterrupt or SystemExit). O(1)."""
+    return isinstance(err, Exception) or is_panic(err)
+
+
 def solve_problem(problem: cp.Problem, what: str,
                   attempts: Sequence[Mapping] = (CLARABEL_TIGHT, CLARABEL_DEFAULT)) -> str:
     """Solve with Clarabel, trying each settings dict in ``attempts`` until one gives an
     accepted status or a proven infeasibility; returns the final status.
 
+    Each attempt runs on a new Clarabel solver (cvxpy's ``warm_start=False``; a settings dict may say otherwise).
+    cvxpy's default keeps the solver of the problem's last solve and updates its data in place: the answer then
+    carries the equilibration of the first data it saw, and an updated solver panicked in its PSD cone ("Eigval
+    error") where a new one on the same data failed cleanly (the stabilising LMI of the pendulum at
+    ``--margin 1e-9``, after 107 solves along the design search; after a panic every later update of that solver
+    panicked too).
+
     Raises
     ------
     SolverError
-        When cvxpy or Clarabel fails outright (status ``"solver_error"``).
+        When cvxpy or Clarabel fails outright, a Rust panic of Clarabel's included (status ``"solver_error"``).
 
     Examples
     --------
@@ -62,11 +93,13 @@ def solve_problem(problem: cp.Problem, what: str,
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                problem.solve(solver=cp.CLARABEL, **settings)
-            except cp.error.SolverError as err:
-                raise SolverError("solver_error", f"{what}: {err}") from None
-            except (ValueError, ArithmeticError) as err:   # e.g. a parameter value cvxpy refuses
-                raise SolverError("solver_error", f"{what}: {err}") from None
+                problem.solve(solver=cp.CLARABEL, **{"warm_start": False, **settings})
+            except (cp.error.SolverError, ValueError, ArithmeticError) as err:   # e.g. a value cvxpy refuses
+                raise clarabel_failure(err, what) from None
+            except BaseException as err:
+                if not is_panic(err):
+                    raise
+                raise clarabel_failure(err, what) from None
         return str(problem.status)
 
     return first_answer(attempt, attempts)
@@ -255,9 +288,11 @@ class ClarabelProgram:
                     solution = self._updated(settings, options, P, q, A, b).solve()
                 else:
                     solution = clarabel.DefaultSolver(P, q, A, b, self._cones, options).solve()
-            except Exception as err:    # Clarabel's own failures (its Python errors are not typed)
+            except BaseException as err:    # Clarabel's own failures (untyped Python errors, or a Rust panic)
+                if not _solver_failure(err):
+                    raise
                 self._kept.solvers = {}                  # none kept after a failure
-                raise SolverError("solver_error", f"{what}: {err}") from None
+                raise clarabel_failure(err, what) from None
             return CLARABEL.STATUS_MAP.get(str(solution.status), cp.SOLVER_ERROR)
 
         status = first_answer(attempt, attempts)

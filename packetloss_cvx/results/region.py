@@ -209,7 +209,8 @@ class StabilityAllocation(Frozen):
     ``alpha`` its bound (None for "stable"), ``boxes`` explored, ``method`` how it ended. ``basis`` "loop":
     ``dp_cost`` is the law run for ever; ``attainable_cost`` the least expected cost over the system's horizon of a
     law with acknowledgements (the finite-horizon DP, allocation.attainable; None with ``attainable_note`` when not
-    computed); ``stabilisable`` True, on ``gain``'s certificate; ``actuator`` as `Allocation`'s."""
+    computed); ``stabilisable`` True, on ``gain``'s certificate; ``actuator`` as `Allocation`'s; ``dp_cost_note`` why
+    ``dp_cost`` is nan ("" where it is reported)."""
 
     target: str
     mu: np.ndarray
@@ -232,6 +233,7 @@ class StabilityAllocation(Frozen):
     stabilisable: bool | None = None
     stability_note: str = ""
     actuator: tuple[tuple[str, str, float | None, str], ...] = ()
+    dp_cost_note: str = ""
 
     __repr__ = fields_repr
     _repr_html_ = fields_html
@@ -242,5 +244,6 @@ class StabilityAllocation(Frozen):
         return {"target": self.target, "mu": self.mu.tolist(), "cost": self.cost, "lower_bound": self.lower_bound,
                 "gap": self.gap, "status": self.status, "radius": self.radius, "radius_bound": self.radius_bound,
                 "gain": self.gain.tolist(), "dp_cost": finite_or_none(self.dp_cost),
-                "dp_cost_kind": self.dp_cost_kind or None, "alpha": self.alpha, "beta": self.beta.tolist(),
+                "dp_cost_kind": self.dp_cost_kind or None, "dp_cost_note": self.dp_cost_note or None,
+                "alpha": self.alpha, "beta": self.beta.tolist(),
                 "boxes": self.boxes, "method": self.method, **attained(self)}

@@ -645,3 +645,25 @@ def test_tcp_allocation_takes_a_point_of_the_polytope_where_the_socp_meets_a_row
     assert a.lower_bound <= a.communication_cost
     assert a.status == "optimal"
     assert pl.closed_form(s.with_mu(a.mu), "tcp").cost <= alpha
+
+
+def test_an_alpha_just_below_the_least_cost_prints_the_two_apart():
+    """alpha 2e-8 (relative) below the least reachable cost (J* at the upper corner, every packet delivered: the
+    closed form) is refused with both numbers printed to the digits that tell them apart: "alpha = 1.92192 is below
+    the least reachable udp-like cost 1.92192" read as a contradiction."""
+    import re
+
+    from packetloss_cvx.allocation.boxes import cost_at
+    system = pl.load_example("two_actuator")
+    least = cost_at(system, "udp", np.ones(system.m))
+    alpha = float(f"{least * (1 - 2e-8):.10g}")
+    with pytest.raises(pl.InfeasibleError, match="below the least reachable udp-like cost") as info:
+        allocate(system, "udp", alpha, [1.0, 1.0])
+    text = str(info.value)
+    shown_alpha = re.search(r"alpha = ([0-9.e+-]+) is below", text).group(1)
+    shown_least = re.search(r"udp-like cost ([0-9.e+-]+) within", text).group(1)
+    assert shown_alpha != shown_least
+    assert float(shown_alpha) < float(shown_least)
+    assert float(shown_least) == pytest.approx(least, rel=1e-8)
+    corner = re.search(r"upper corner of the bounds, ([0-9.e+-]+), exceeds alpha = ([0-9.e+-]+),", text)
+    assert float(corner.group(2)) < float(corner.group(1))

@@ -171,3 +171,16 @@ def test_an_answer_outside_the_rows_by_3_lp_feasibilities_is_refused_and_by_0_3_
         else:
             with pytest.raises(SolverError, match="a test: mu violates the constraints by 3.00e-09"):
                 check_in_polytope(mu, poly, "a test")
+
+
+def test_a_clarabel_panic_in_the_small_lp_falls_back_to_highs(monkeypatch):
+    """min mu1 + mu2 s.t. mu1 + mu2 >= 1 over [0, 1]^2 is 1 (by hand), decided by HiGHS when Clarabel panics."""
+    panic = type("PanicException", (BaseException,), {"__module__": "pyo3_runtime"})
+
+    def panics(*args, **kwargs):
+        raise panic("Eigval error: Eigen(1)")
+    monkeypatch.setattr(boxes.clarabel, "DefaultSolver", panics)
+    c, G, h, lo, hi = np.ones(2), np.array([[-1.0, -1.0]]), np.array([-1.0]), np.zeros(2), np.ones(2)
+    point, bound = boxes.small_lp(c, G, h, lo, hi)
+    assert point.sum() == pytest.approx(1.0)
+    assert bound == pytest.approx(1.0)

@@ -4,6 +4,7 @@ half-space; decoupled plants: per-channel thresholds; the scalar DP cost solved 
 two_actuator (grid on mu1, bisection on mu2, both sides), and the monotonicity the search rests on."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -340,3 +341,88 @@ def test_the_dp_cost_is_reported_inside_the_set_and_not_on_its_boundary(two_actu
     assert 1.0 - inside.radius > 1e4 * DP_COST_BOUNDARY
     reference = dp_riccati(two_actuator, inside.mu).cost_to_go
     assert inside.dp_cost == pytest.approx(float(two_actuator.x0 @ reference @ two_actuator.x0), rel=1e-8)
+
+
+@pytest.mark.parametrize("example", ["pendulum", "two_actuator"])
+def test_a_design_on_the_boundary_says_why_it_has_no_dp_cost_and_prints_its_radius_below_the_bound(example, capsys):
+    """On the boundary (radius 1 - 1e-7) the note printed "radius 1 < 1 (certified)" and the text "no DP solution at
+    mu*" beside a certified stabilising law. The note's radius is the operator's (mean_square_radius, recomputed
+    here) to its printed digits, below the bound as printed; the DP cost's note names the boundary, in the text
+    and in the JSON (the same text whether the DP solution there fails or finds a radius within 1e-6 of 1: BLAS
+    kernels differ on which)."""
+    from packetloss_cvx.model.files import load_example
+    system = load_example(example)
+    got = stability_allocate(system, "stable", beta=[1.0] * system.m)
+    radius = mean_square_radius(system.A, system.B, got.gain, got.mu)
+    shown = re.search(r"mean-square radius ([0-9.e-]+) < ([0-9.e-]+) \(certified\)", got.stability_note)
+    assert float(shown.group(1)) < float(shown.group(2)) == 1.0
+    decimals = len(shown.group(1).split(".")[1])
+    assert abs(float(shown.group(1)) - radius) <= 0.5 * 10.0 ** -decimals
+    assert np.isnan(got.dp_cost)
+    assert got.dp_cost_note.startswith("not reported")
+    assert "boundary" in got.dp_cost_note
+    assert main(["allocate", example, "--target", "stable", "--beta", ",".join(["1"] * system.m)]) == 0
+    text = capsys.readouterr().out
+    assert "no DP solution" not in text
+    assert "not reported" in re.search(r"DP cost, loop +(.*)", text).group(1)
+    assert main(["allocate", example, "--target", "stable", "--beta", ",".join(["1"] * system.m), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["dp_cost_note"] == got.dp_cost_note
+
+
+def _one_channel_boundary(system, rho):
+    """The least mu whose loop some law holds with radius < rho, one input: 1 - 1/M^2 with M the product of the
+    scaled plant's unstable eigenvalues (Elia's single-input bound, checked on 12 random plants by the review)."""
+    squares = np.abs(np.linalg.eigvals(system.A)) ** 2 / rho
+    return 1.0 - 1.0 / float(np.prod(squares[squares > 1.0]))
+
+
+def test_one_channel_is_a_bisection_that_names_the_undecided_band_about_the_boundary(monkeypatch):
+    """The pendulum (one channel) at margin 0.5 ran 20000 boxes (346 s) to a gap of 1.4e-4: its memberships are
+    undecided in a band about the boundary wider than the gap, and the branch and bound split that band for ever.
+    A bisection on verdicts decides a few dozen points and names the band, which holds the boundary 1 - 1/M^2;
+    the proved bound lies below it and the channel above it."""
+    import packetloss_cvx.allocation.stability as stability
+    from packetloss_cvx.model.files import load_example
+
+    system = load_example("pendulum")
+    decided = []
+    made = stability._target
+
+    def counted(*args, **kwargs):
+        goal = made(*args, **kwargs)
+
+        def decide(mu):
+            decided.append(float(mu[0]))
+            if len(decided) > 200:
+                raise RuntimeError("more than 200 memberships decided on one channel")
+            return goal.decide(mu)
+        return stability.Target(decide, goal.probe, goal.level)
+
+    monkeypatch.setattr(stability, "_target", counted)
+    got = stability_allocate(system, "stable", [1.0], margin=0.5)
+    boundary = _one_channel_boundary(system, 0.5)
+    assert got.status == "gap_not_certified"
+    assert got.lower_bound <= boundary <= got.mu[0]
+    band = [float(v) for v in re.search(r"undecided on \[([0-9.e-]+), ([0-9.e-]+)\]", got.method).groups()]
+    assert band[0] <= boundary <= band[1]
+    assert mean_square_radius(system.A, system.B, got.gain, got.mu) < 0.5
+    assert got.method.startswith(stability.LINE_METHOD)
+
+
+@pytest.mark.parametrize("margin", ["1e-9", "0.01"])
+def test_a_margin_beyond_the_certificates_is_one_line_not_a_traceback(margin):
+    """--margin 1e-9 on the pendulum panicked in Clarabel's PSD cone (a 178-line traceback, exit 1); 0.01 ran past
+    60 s. Both now end in one stderr line saying the membership is undecided next to 1 (the boundary 1 - 1/M^2 is
+    1 - 1e-36 and 1 - 1e-8: beyond what the certificates resolve), in a subprocess: Rust writes its panics to
+    file descriptor 2."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    run = subprocess.run([sys.executable, "-m", "packetloss_cvx", "allocate", "pendulum", "--target", "stable",
+                          "--beta", "1", "--margin", margin], capture_output=True, text=True, timeout=120,
+                         cwd=Path(__file__).resolve().parents[2])
+    assert run.returncode == 1
+    assert run.stderr.count("\n") == 1, run.stderr[-3000:]
+    assert "undecided on [" in run.stderr
+    assert "1]" in run.stderr

@@ -218,3 +218,59 @@ def test_compiled_solve_follows_the_status_policy(monkeypatch):
     assert len(seen) == 2
     monkeypatch.setattr(convex.CLARABEL, "STATUS_MAP", {})      # every Clarabel status unknown
     assert program.solve({a: -0.25}, "an LP")[0] == "solver_error"
+
+
+#: pyo3's panic type as Clarabel raises it: ``pyo3_runtime.PanicException``, a BaseException (no Python module
+#: exports it; a real panic, "Eigval error" in the PSD cone, needs the search's state to reproduce)
+PanicException = type("PanicException", (BaseException,), {"__module__": "pyo3_runtime"})
+
+
+def _panics(*args, **kwargs):
+    raise PanicException("Eigval error: Eigen(1)")
+
+
+def test_a_clarabel_panic_in_problem_solve_is_a_solver_error(monkeypatch):
+    x = cp.Variable()
+    problem = cp.Problem(cp.Minimize(cp.square(x - 1)))
+    monkeypatch.setattr(cp.Problem, "solve", _panics)
+    with pytest.raises(SolverError, match=r"an SDP: Clarabel panicked \(Eigval error: Eigen\(1\)\)") as info:
+        solve_problem(problem, "an SDP")
+    assert info.value.status == "solver_error"
+
+
+def test_a_clarabel_panic_in_the_compiled_program_is_a_solver_error(monkeypatch):
+    x, a = cp.Variable(2), cp.Parameter(2)
+    program = ClarabelProgram(cp.Problem(cp.Minimize(cp.sum(x)), [cp.norm(x - a) <= 1]))
+    monkeypatch.setattr(convex.clarabel, "DefaultSolver", _panics)
+    with pytest.raises(SolverError, match=r"an SOCP: Clarabel panicked"):
+        program.solve({a: [1.0, 2.0]}, "an SOCP")
+
+
+def test_an_interrupt_during_a_solve_is_not_a_solver_error(monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    x = cp.Variable()
+    monkeypatch.setattr(cp.Problem, "solve", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        solve_problem(cp.Problem(cp.Minimize(cp.square(x))), "a QP")
+
+
+def test_each_solve_runs_on_a_new_clarabel_solver(monkeypatch):
+    """solve_problem never updates the solver of an earlier solve in place: an updated Clarabel solver carries the
+    first data's equilibration, and one panicked where a new solver on the same data failed cleanly (the pendulum's
+    stabilising LMI at --margin 1e-9). Two solves of one problem: two solvers built, and the second answer is the
+    least (x - a)^2's, x = a (by hand)."""
+    built = []
+    convex_clarabel_solver = convex.clarabel.DefaultSolver
+
+    def counting(*args, **kwargs):
+        built.append(args)
+        return convex_clarabel_solver(*args, **kwargs)
+    monkeypatch.setattr(convex.clarabel, "DefaultSolver", counting)
+    x, a = cp.Variable(), cp.Parameter()
+    problem = cp.Problem(cp.Minimize(cp.square(x - a)))
+    for value in (1.0, 3.0):
+        a.value = value
+        assert solve_problem(problem, "a scalar QP", attempts=(CLARABEL_TIGHT,)) == "optimal"
+    assert len(built) == 2
+    assert float(x.value) == pytest.approx(3.0, abs=1e-7)
