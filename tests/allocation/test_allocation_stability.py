@@ -426,3 +426,30 @@ def test_a_margin_beyond_the_certificates_is_one_line_not_a_traceback(margin):
     assert run.stderr.count("\n") == 1, run.stderr[-3000:]
     assert "undecided on [" in run.stderr
     assert "1]" in run.stderr
+
+
+def test_one_channel_bisection_finds_a_certified_point_above_an_undecided_band_when_the_top_is_undecided():
+    """Where the interval's top is undecided too (at mu = 1 a deadbeat law's radius is rounding: the pendulum at
+    margin 0.5 under OpenBLAS's Sandybridge kernel, whose points in (0.9375, 0.999] are certified inside while 0.9375
+    and 1 are not), the bisection looked for a point certified inside only above its largest undecided point (1),
+    found none and ended with no mu. A synthetic target shaped like it (out below 0.937, undecided on [0.937, 0.9376]
+    and at 1, in elsewhere; the bisection's points 0.5, 0.75, 0.875 out and 0.9375 undecided, as the pendulum's) must
+    end with an incumbent certified inside, above the band, within 0.1 % of it."""
+    import packetloss_cvx.allocation.stability as stability
+    from packetloss_cvx.allocation.grammar import read_polytope
+
+    def decide(mu):
+        x = float(mu[0])
+        if x < 0.937:
+            return stability.Point("out")
+        if x <= 0.9376 or x == 1.0:
+            return stability.Point("undecided")
+        return stability.Point("in", np.zeros((1, 1)), 0.0)
+
+    goal = stability.Target(decide, lambda mu: 0.9373 - float(mu[0]), 0.0)
+    poly = read_polytope([], 1, 0.0, 1.0)
+    ended, search, seen = stability._line(poly, np.array([1.0]), 1e-4, goal, None, None)
+    assert search.best_mu is not None
+    assert 0.9376 < float(search.best_mu[0]) <= 0.9376 * (1 + 1e-3)
+    assert seen[search.best_mu.tobytes()].verdict == "in"
+    assert "undecided on" in ended and ended != "certified"
