@@ -36,8 +36,8 @@ __all__ = ["BUDGETS", "CHAIN_BYTES_N3", "CHAIN_COMPILE_N3", "CHAIN_RESOLVE_N4", 
            "chain_states", "check", "check_constrained", "constrained_bytes", "constrained_work", "constraint_bytes",
            "count_text", "dense_bytes", "duration_text", "estimated_seconds", "gib_text", "krylov_bytes", "limit",
            "loop_bytes", "markov_dense_bytes", "markov_dense_seconds", "markov_recursion_work", "mpc_bytes",
-           "mpc_solve_size", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes", "qp_work", "refusal_text",
-           "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
+           "mpc_loop_solves", "mpc_solve_size", "mpc_solves", "operator_bytes", "program_bytes", "qp_bytes",
+           "qp_work", "refusal_text", "simulate_work", "solve_bytes", "solve_work", "sweep_work", "udp_box_work"]
 
 #: Prefix of the environment variable that raises a budget: ``PACKETLOSS_CVX_BUDGET_SIMULATE_WORK=1e12``.
 ENV_PREFIX = "PACKETLOSS_CVX_BUDGET_"
@@ -364,6 +364,28 @@ def mpc_solves(samples: int, steps: int, programs: int, clipped: int = 0, size: 
     60000000.0
     """
     return _float(samples) * _float(steps) * (programs * size + CLIPPED_SOLVE_SHARE * clipped)
+
+
+def mpc_loop_solves(samples: int, steps: int, programs: int, clipped: int, exact: int, horizon: int, n: int, m: int,
+                    rows: int, chance: int = 0, states: int = 0) -> tuple[float, str]:
+    """`mpc_solves` of a constrained loop whose ``programs`` include ``exact`` ones with their chance rows exact
+    under a chain of ``states`` states per channel (`chain_states`; priced by `mpc_solve_size` with ``states``, the
+    others without), and how they were priced, as the refusal says it: ``"<price>: N = .., n = .., m = .., R linear
+    rows, C chance rows"``. The one pricing of the simulate command's preflight and the loop's own check. O(1).
+
+    Examples
+    --------
+    >>> units, how = mpc_loop_solves(100, 30, 3, 0, 0, 10, 2, 1, 20)
+    >>> round(units, 1), how
+    (3147.3, '0.35 of a 5 ms solve each: N = 10, n = 2, m = 1, 20 linear rows, 0 chance rows')
+    """
+    size = mpc_solve_size(horizon, n, m, rows, chance)
+    chained = mpc_solve_size(horizon, n, m, rows, chance, states)
+    priced = (f"{exact} with the rows exact under the {states}-state chain at {chained:.2g} of a 5 ms solve each, "
+              f"the others at {size:.2g}" if exact else f"{size:.2g} of a 5 ms solve each")
+    units = mpc_solves(samples, steps, programs - exact, clipped, size) + mpc_solves(samples, steps, exact, 0, chained)
+    return units, (f"{priced}: N = {horizon}, n = {n}, m = {m}, {rows} linear rows, {chance} chance row"
+                   + "s" * (chance != 1))
 
 
 def mpc_bytes(samples: int, steps: int, n: int, m: int, jobs: int, rows: int, keep: int = 0) -> float:

@@ -25,8 +25,7 @@ from ..budgets import (
     estimated_seconds,
     gib_text,
     mpc_bytes,
-    mpc_solve_size,
-    mpc_solves,
+    mpc_loop_solves,
     simulate_work,
     solve_bytes,
     solve_work,
@@ -468,18 +467,12 @@ systems of an audit (about 5 min); to run it on purpose set PACKETLOSS_CVX_BUDGE
             programs = sum(2 if args.law != "all" else 3 if name == "zero" else 4 for name in names)
             clipped = len(names) * (2 if args.law == "all" else 1)
             linear, chance = constraints.program_rows(N), len(constraints.chance)
-            size = mpc_solve_size(N, system.n, system.m, linear, chance)
             # behind a chain the expected-cost programs (one per clipped law) pose their chance rows exact under it
             states = chain_states(system.channel) if chance else 0
-            exact = clipped if states else 0
-            chained = mpc_solve_size(N, system.n, system.m, linear, chance, states)
-            priced = (f"{exact} with the rows exact under the {states}-state chain at {chained:.2g} of a 5 ms solve "
-                      f"each, the others at {size:.2g}" if exact else f"{size:.2g} of a 5 ms solve each")
-            check("mpc_solves", mpc_solves(mpc_samples, args.steps, programs - exact, clipped, size)
-                  + mpc_solves(mpc_samples, args.steps, exact, 0, chained), "--mpc-samples",
-                  f"{count_text(mpc_samples)} runs of {count_text(args.steps)} steps x {programs} programs "
-                  f"(the constrained loop; {priced}: N = {N}, n = {system.n}, m = {system.m}, "
-                  f"{linear} linear rows, {chance} chance row" + "s" * (chance != 1) + ")")
+            units, priced = mpc_loop_solves(mpc_samples, args.steps, programs, clipped, clipped if states else 0, N,
+                                            system.n, system.m, linear, chance, states)
+            check("mpc_solves", units, "--mpc-samples", f"{count_text(mpc_samples)} runs of {count_text(args.steps)} "
+                  f"steps x {programs} programs (the constrained loop; {priced})")
             rows = constraints.loop_rows()
             jobs = max(3 if args.law != "all" else 5 if name == "zero" else 6 for name in names)   # one loop at a time
             needed = mpc_bytes(mpc_samples, args.steps, system.n, system.m, jobs, rows)

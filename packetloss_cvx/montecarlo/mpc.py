@@ -66,8 +66,7 @@ from ..budgets import (
     count_text,
     gib_text,
     mpc_bytes,
-    mpc_solve_size,
-    mpc_solves,
+    mpc_loop_solves,
 )
 from ..closedloop.actuator import Actuator, parse_actuator
 from ..closedloop.moments import stationary_channel
@@ -600,15 +599,10 @@ def check_loop_budgets(system: System, constraints: Constraints, samples: int, s
     # certainty-equivalent one plans on delivered inputs, its rows the plug-in ones
     states = chain_states(system.channel) if chance else 0
     exact = sum(name == "expected-cost" for name, _ in jobs) if states else 0
-    size = mpc_solve_size(N, system.n, system.m, rows, chance)
-    chained = mpc_solve_size(N, system.n, system.m, rows, chance, states)
-    priced = (f"{exact} with the rows exact under the {states}-state chain at {chained:.2g} of a 5 ms solve each, "
-              f"the others at {size:.2g}" if exact else f"{size:.2g} of a 5 ms solve each")
-    check("mpc_solves", mpc_solves(samples, steps, programs - exact, clipped, size)
-          + mpc_solves(samples, steps, exact, 0, chained), "samples",
-          f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} programs"
-          + (f" and {clipped} clipped laws" if clipped else "") + f" ({priced}: N = {N}, "
-          f"n = {system.n}, m = {system.m}, {rows} linear rows, {chance} chance row" + "s" * (chance != 1) + ")")
+    units, priced = mpc_loop_solves(samples, steps, programs, clipped, exact, N, system.n, system.m, rows, chance,
+                                    states)
+    check("mpc_solves", units, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps x {programs} "
+          "programs" + (f" and {clipped} clipped laws" if clipped else "") + f" ({priced})")
     needed = max(mpc_bytes(samples, steps, system.n, system.m, len(loop), constraints.loop_rows(), keep)
                  for loop in runs)
     check("memory_bytes", needed, "samples", f"{count_text(samples)} runs of {count_text(steps)} steps (about "
