@@ -93,14 +93,20 @@ def check_operator_size(modes: int, n: int) -> None:
           instead="use fewer chain states or channels (mean_square_radius's method='krylov' builds no dense operator)")
 
 
+def _reachable_rows(K: np.ndarray, channel: MarkovChannel, M: int, axis: int) -> np.ndarray:
+    """Gains given for every joint state (prod k_i along ``axis`` of a 3-axis-or-more K) cut to `mode_chain`'s M
+    reachable modes; K as it is otherwise (the caller checks its shape). O(size)."""
+    live = reachable_modes(channel)
+    if K.ndim == axis + 3 and K.shape[axis] == live.size != M:
+        return np.compress(live, K, axis=axis)
+    return K
+
+
 def _mode_gains(gains: np.ndarray, channel: MarkovChannel, M: int, m: int, n: int) -> np.ndarray:
     """One gain per mode of `mode_chain` (M of them); gains given for every joint state (prod k_i, reachable or not)
     keep the reachable modes' rows."""
     K = np.asarray(gains, dtype=float)
-    K = np.repeat(K[None], M, axis=0) if K.ndim == 2 else K
-    live = reachable_modes(channel)
-    if K.ndim == 3 and len(K) == live.size != M:
-        K = K[live]
+    K = _reachable_rows(np.repeat(K[None], M, axis=0) if K.ndim == 2 else K, channel, M, 0)
     if K.shape != (M, m, n):
         raise InputError("gains", f"expected an ({m}, {n}) gain or ({M}, {m}, {n}) mode gains, found {K.shape}")
     return K
@@ -199,9 +205,7 @@ def jump_law_stage_costs(system: System, gains: np.ndarray, steps: int, delivery
     M, n, m = len(modes), system.n, system.m
     K_all = np.asarray(gains, dtype=float)
     K_all = np.broadcast_to(K_all, (steps, *K_all.shape)) if K_all.ndim == 3 else K_all
-    live = reachable_modes(system.channel)
-    if K_all.ndim == 4 and K_all.shape[1] == live.size != M:      # a gain for every joint state: the modes' rows
-        K_all = K_all[:, live]
+    K_all = _reachable_rows(K_all, system.channel, M, 1)           # a gain for every joint state: the modes' rows
     if K_all.shape != (steps, M, m, n):
         raise InputError("gains", f"expected ({M}, {m}, {n}) or ({steps}, {M}, {m}, {n}) mode gains, found "
                                   f"{K_all.shape}")

@@ -143,16 +143,22 @@ def mode_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarr
     >>> [a.tolist() for a in mode_chain(GilbertElliott(p=[0.0], r=[0.3], state=["good"]))]   # bad is never met
     [[[0]], [[1.0]], [[1.0]]]
     """
+    return _reachable_chain(channel)[:3]
+
+
+def _reachable_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`product_chain` restricted to `reachable_modes` (`mode_chain` and `mode_start` are its parts), refused
+    beyond `MAX_MODES` joint states. O(M^3 + M m)."""
     M = int(np.prod(channel.sizes))
     if M > MAX_MODES:
         raise InputError("channel", f"the MJLS has one mode per joint state, prod k_i = "
                                     f"{' * '.join(map(str, channel.sizes))} = {M}; expected at most {MAX_MODES} "
                                     f"(at most {MAX_CHANNELS} two-state channels)")
-    modes, T, h, _ = product_chain(channel)
+    modes, T, h, start = product_chain(channel)
     live = reachable_modes(channel)
     if live.all():
-        return modes, T, h
-    return modes[live], T[np.ix_(live, live)], h[live]
+        return modes, T, h, start
+    return modes[live], T[np.ix_(live, live)], h[live], start[live]
 
 
 def product_chain(channel: MarkovChannel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -186,10 +192,7 @@ def mode_start(channel: MarkovChannel) -> np.ndarray:
     >>> mode_start(GilbertElliott(p=[0.1, 0.1], r=[0.3, 0.3], belief=[1.0, 0.25])).tolist()   # good, good: 0.25
     [0.25, 0.75, 0.0, 0.0]
     """
-    mode_chain(channel)                                   # refused beyond MAX_MODES, as the chain it starts
-    start = product_chain(channel)[3]
-    live = reachable_modes(channel)
-    return start if live.all() else start[live]
+    return _reachable_chain(channel)[3]                  # refused beyond MAX_MODES, as the chain it starts
 
 
 def filter_belief(channel: MarkovChannel, belief: npt.ArrayLike, delivered: npt.ArrayLike) -> np.ndarray:
