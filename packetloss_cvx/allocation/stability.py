@@ -434,10 +434,10 @@ def _line(poly: Polytope, beta: np.ndarray, gap: float, goal: Target, time_limit
             x = 0.5 * (lo + below)
         elif above is not None and hi is not None and hi - above > tol:    # above them: one certified inside
             x = 0.5 * (above + hi)
-        elif hi is None and _widest_gap(undecided, b, tol) is not None:
+        elif hi is None and (widest := _widest_gap(undecided, b, tol)) is not None:
             # nothing certified inside yet and b itself undecided (a deadbeat law at mu = 1, whose radius is
             # rounding): one certified inside in the widest gap between the undecided points
-            x = _widest_gap(undecided, b, tol)
+            x = widest
         else:
             break
         found = verdict(x)
